@@ -1,0 +1,263 @@
+"""The ``kinegrasp`` command.
+
+Every sub-command validates its input up front and reports a bad value in one line on
+stderr with exit status 2 (no traceback); results go to stdout (``--json`` for machines),
+progress bars to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+
+class CLIError(Exception):
+    """A user error: printed as one line, exit status 2."""
+
+
+# ----------------------------------------------------------------------------- parsing helpers
+def finite_float(text: str, name: str = "value") -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise CLIError(f"{name}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise CLIError(f"{name}: {text!r} is not a finite number")
+    return value
+
+
+def float_list(text: str, name: str) -> list[float]:
+    parts = [p.strip() for p in text.split(",")]
+    if not text.strip() or any(p == "" for p in parts):
+        raise CLIError(f"{name}: {text!r} is not a comma-separated list of numbers")
+    return [finite_float(p, name) for p in parts]
+
+
+def nonnegative(value: float, name: str) -> float:
+    if value < 0:
+        raise CLIError(f"{name} must be >= 0, got {value:g}")
+    return value
+
+
+def positive_int(text: str | int, name: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise CLIError(f"{name}: {text!r} is not an integer") from None
+    if value < 1:
+        raise CLIError(f"{name} must be >= 1, got {value}")
+    return value
+
+
+def _to_jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return value
+
+
+def print_json(payload: dict) -> None:
+    print(json.dumps({k: _to_jsonable(v) for k, v in payload.items()}))
+
+
+def _format_moments(label: str, mean, cov, skew=None) -> str:
+    with np.printoptions(precision=6, suppress=False):
+        text = f"{label}\n  mean: {np.asarray(mean)}\n  cov:\n{np.asarray(cov)}"
+        return text if skew is None else f"{text}\n  skew: {np.asarray(skew)}"
+
+
+def _add_noise_args(p: argparse.ArgumentParser, sigma_default: float) -> None:
+    p.add_argument("--sigma", default=str(sigma_default),
+                   help=f"joint noise standard deviation, radians (default {sigma_default})")
+    p.add_argument("--noise", default="gaussian", choices=("gaussian", "uniform", "triangular"))
+    p.add_argument("--samples", default="10000", help="number of Monte Carlo draws")
+    p.add_argument("--seed", default="0", help="random seed")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def _noise_from(args) -> tuple:
+    from kinegrasp_env.noise import JointNoise
+
+    sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
+    samples = positive_int(args.samples, "--samples")
+    seed = _seed(args.seed)
+    return JointNoise(sigma, args.noise), sigma, samples, seed
+
+
+def _seed(text: str) -> int:
+    try:
+        seed = int(text)
+    except ValueError:
+        raise CLIError(f"--seed: {text!r} is not an integer") from None
+    if seed < 0:
+        raise CLIError(f"--seed must be >= 0, got {seed}")
+    return seed
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_planar(args) -> int:
+    from kinegrasp_env.planar import PlanarArm
+    from kinegrasp_env.stats import moments
+
+    links = float_list(args.links, "--links")
+    q0 = float_list(args.q0, "--q0")
+    if len(links) != len(q0):
+        raise CLIError(f"--links has {len(links)} lengths but --q0 has {len(q0)} angles")
+    if any(v <= 0 for v in links):
+        raise CLIError(f"--links: link lengths must be > 0, got {args.links}")
+    noise, sigma, samples, seed = _noise_from(args)
+    arm = PlanarArm(tuple(links))
+    ee = arm.sample(np.array(q0), noise, samples, np.random.default_rng(seed))
+    mom = moments(ee)
+    exact_mean, exact_cov = arm.exact_moments(np.array(q0), noise)
+    if args.plot:
+        from kinegrasp_env.plots import plot_planar
+
+        plot_planar(arm.joint_positions(np.array(q0)), ee, mom.mean, mom.cov, args.plot,
+                    title=f"{len(links)}-link arm, sigma = {sigma:g} rad ({args.noise})")
+    if args.json:
+        print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
+                    "exact_mean": exact_mean, "exact_cov": exact_cov, "sigma": sigma,
+                    "noise": args.noise, "seed": seed})
+    else:
+        print(_format_moments(f"end effector of a {len(links)}-link planar arm "
+                              f"({samples} draws)", mom.mean, mom.cov, mom.skew))
+        print(_format_moments("closed form", exact_mean, exact_cov))
+        if args.plot:
+            print(f"plot written to {args.plot}")
+    return 0
+
+
+def cmd_kuka_ee(args) -> int:
+    from kinegrasp_env.endeffector import check_kuka_q0, sample_kuka_end_effector
+    from kinegrasp_env.stats import moments
+
+    q0 = float_list(args.q0, "--q0")
+    try:
+        q0 = check_kuka_q0(q0)
+    except ValueError as exc:
+        raise CLIError(f"--q0: {exc}") from None
+    noise, sigma, samples, seed = _noise_from(args)
+    ee = sample_kuka_end_effector(q0, noise, samples, np.random.default_rng(seed))
+    mom = moments(ee)
+    if args.json:
+        print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
+                    "sigma": sigma, "noise": args.noise, "seed": seed})
+    else:
+        print(_format_moments(f"KUKA palm position ({samples} draws)", mom.mean, mom.cov,
+                              mom.skew))
+    return 0
+
+
+def cmd_convergence(args) -> int:
+    from tqdm import tqdm
+
+    from kinegrasp_env.endeffector import (
+        DEFAULT_KUKA_Q0,
+        DEFAULT_PLANAR_LINKS,
+        DEFAULT_PLANAR_Q0,
+        PAPER_SIGMAS,
+        kuka_convergence,
+        planar_convergence,
+    )
+    from kinegrasp_env.planar import PlanarArm
+    from kinegrasp_env.plots import plot_convergence
+
+    trials = positive_int(args.trials, "--trials")
+    truth = positive_int(args.truth_samples, "--truth-samples")
+    max_n = positive_int(args.max_samples, "--max-samples")
+    if max_n < 10:
+        raise CLIError(f"--max-samples must be >= 10, got {max_n}")
+    seed = _seed(args.seed)
+    sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
+    arm = PlanarArm(DEFAULT_PLANAR_LINKS)
+    jobs = [("2-link planar arm", s) for s in PAPER_SIGMAS] + [("KUKA iiwa", s) for s in PAPER_SIGMAS]
+    curves: dict[str, dict[float, object]] = {}
+    for label, sigma in tqdm(jobs, desc="convergence", file=sys.stderr, disable=None):
+        if label.startswith("2-link"):
+            curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,
+                                       truth_samples=truth, seed=seed)
+        else:
+            curve = kuka_convergence(DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=trials,
+                                     truth_samples=truth, seed=seed)
+        curves.setdefault(label, {})[sigma] = curve
+    path = plot_convergence(curves, args.out)
+    summary = {label: {f"{s:g}": {"samples": c.sizes.tolist(), "mean_error": c.mean_error.tolist(),
+                                  "cov_error": c.cov_error.tolist(),
+                                  "skew_error": c.skew_error.tolist()}
+                       for s, c in by.items()} for label, by in curves.items()}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"convergence figure written to {path}")
+    return 0
+
+
+# ----------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="kinegrasp", description="Grasp quality under kinematic (joint-angle) noise.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("planar", help="end-effector statistics of a planar arm under joint noise")
+    p.add_argument("--links", default="2,2", help="comma-separated link lengths, metres")
+    p.add_argument("--q0", default="0.0,1.5708", help="comma-separated joint angles, radians")
+    _add_noise_args(p, 0.0175)
+    p.add_argument("--plot", help="write a PNG of the arm, the sampled cloud and its ellipse")
+    p.set_defaults(func=cmd_planar)
+
+    p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise")
+    p.add_argument("--q0", default="0,0.6,0,-1.2,0,0.8,0", help="7 arm joint angles, radians")
+    _add_noise_args(p, 0.0133)
+    p.set_defaults(func=cmd_kuka_ee)
+
+    p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, planar arm and KUKA")
+    p.add_argument("--out", default="convergence.png", help="output PNG")
+    p.add_argument("--trials", default="10")
+    p.add_argument("--truth-samples", default="100000")
+    p.add_argument("--max-samples", default="10000")
+    p.add_argument("--seed", default="0")
+    p.add_argument("--json", action="store_true", help="print the curves as JSON")
+    p.set_defaults(func=cmd_convergence)
+    return parser
+
+
+_NEGATIVE_VALUE = re.compile(r"^-(\.?\d|inf|nan)", re.IGNORECASE)
+
+
+def _glue_negative_values(argv: list[str]) -> list[str]:
+    """Turn ``--q0 -0.5,1`` into ``--q0=-0.5,1`` (argparse would read -0.5,1 as an option)."""
+    out: list[str] = []
+    for token in argv:
+        if (out and out[-1].startswith("--") and "=" not in out[-1]
+                and _NEGATIVE_VALUE.match(token)):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(_glue_negative_values(argv))
+    try:
+        return int(args.func(args) or 0)
+    except (CLIError, ValueError, FileNotFoundError, KeyError) as exc:
+        message = exc.args[0] if exc.args else str(exc)
+        print(f"kinegrasp {args.command}: error: {message}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("kinegrasp: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

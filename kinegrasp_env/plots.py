@@ -1,0 +1,95 @@
+"""Figures (matplotlib, Agg backend: works headless). Every function writes a PNG atomically."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.stats import ConvergenceCurve
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
+    """Save ``fig`` to ``path`` through a temporary file and a rename; closes the figure."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=path.suffix or ".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        _pyplot().close(fig)
+    return path
+
+
+def covariance_ellipse(mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0,
+                       points: int = 100) -> np.ndarray:
+    """(points, 2) outline of the n_std-sigma ellipse of a 2-D Gaussian."""
+    vals, vecs = np.linalg.eigh(cov)
+    t = np.linspace(0, 2 * np.pi, points)
+    circle = np.stack([np.cos(t), np.sin(t)], axis=1)
+    return mean + n_std * (circle * np.sqrt(np.maximum(vals, 0))) @ vecs.T
+
+
+def plot_planar(joints: np.ndarray, samples: np.ndarray, mean: np.ndarray, cov: np.ndarray,
+                path: str | Path, title: str = "") -> Path:
+    """Planar arm (nominal joints (k+1, 2)), sampled end effectors (n, 2), 2-sigma ellipse."""
+    plt = _pyplot()
+    fig, (ax_arm, ax_zoom) = plt.subplots(1, 2, figsize=(10, 4.6))
+    for ax in (ax_arm, ax_zoom):
+        ax.plot(joints[:, 0], joints[:, 1], "-o", color="0.3", lw=3, ms=5, label="nominal arm")
+        ax.scatter(samples[:, 0], samples[:, 1], s=2, alpha=0.25, color="tab:blue",
+                   label="sampled end effector")
+        ell = covariance_ellipse(mean, cov)
+        ax.plot(ell[:, 0], ell[:, 1], color="tab:red", lw=1.5, label="2-sigma covariance")
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    half = 4.0 * float(np.sqrt(np.max(np.linalg.eigvalsh(cov)))) + 1e-9
+    ax_zoom.set_xlim(mean[0] - half, mean[0] + half)
+    ax_zoom.set_ylim(mean[1] - half, mean[1] + half)
+    ax_zoom.set_title("end-effector cloud (zoom)")
+    ax_arm.set_title(title or "planar arm under joint noise")
+    ax_arm.legend(loc="best", fontsize=8)
+    return save_figure(fig, path)
+
+
+def plot_convergence(curves: Mapping[str, Mapping[float, ConvergenceCurve]],
+                     path: str | Path) -> Path:
+    """Fig. 3: one row per arm, columns = error of mean, covariance, skewness vs samples.
+
+    Args:
+        curves: arm label -> {sigma: ConvergenceCurve}.
+    """
+    plt = _pyplot()
+    rows = len(curves)
+    fig, axes = plt.subplots(rows, 3, figsize=(13, 3.6 * rows), squeeze=False)
+    for r, (label, by_sigma) in enumerate(curves.items()):
+        for sigma, curve in sorted(by_sigma.items()):
+            for c, (values, name) in enumerate(
+                ((curve.mean_error, "mean: L2 error [m]"),
+                 (curve.cov_error, "covariance: Frobenius error [m^2]"),
+                 (curve.skew_error, "skewness: L2 error"))):
+                ax = axes[r, c]
+                ax.loglog(curve.sizes, values, "-o", ms=3, label=f"sigma = {sigma:g}")
+                ax.set_title(f"{label}: {name}", fontsize=9)
+                ax.set_xlabel("samples")
+                ax.grid(True, which="both", alpha=0.3)
+        axes[r, 0].legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path)
