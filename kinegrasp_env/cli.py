@@ -178,15 +178,17 @@ def cmd_convergence(args) -> int:
     seed = _seed(args.seed)
     sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
     arm = PlanarArm(DEFAULT_PLANAR_LINKS)
-    jobs = [("2-link planar arm", s) for s in PAPER_SIGMAS] + [("KUKA iiwa", s) for s in PAPER_SIGMAS]
+    jobs = [(label, s) for label in ("2-link planar arm", "KUKA iiwa") for s in PAPER_SIGMAS]
     curves: dict[str, dict[float, object]] = {}
-    for label, sigma in tqdm(jobs, desc="convergence", file=sys.stderr, disable=None):
+    for i, (label, sigma) in enumerate(tqdm(jobs, desc="convergence", file=sys.stderr,
+                                            disable=None)):
+        stream = np.random.default_rng([seed, i])  # independent stream per curve
         if label.startswith("2-link"):
             curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,
-                                       truth_samples=truth, seed=seed)
+                                       truth_samples=truth, seed=stream)
         else:
             curve = kuka_convergence(DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=trials,
-                                     truth_samples=truth, seed=seed)
+                                     truth_samples=truth, seed=stream)
         curves.setdefault(label, {})[sigma] = curve
     path = plot_convergence(curves, args.out)
     summary = {label: {f"{s:g}": {"samples": c.sizes.tolist(), "mean_error": c.mean_error.tolist(),

@@ -72,7 +72,7 @@ def sample_kuka_end_effector(q0: Sequence[float], noise: JointNoise, n: int,
 def planar_convergence(arm: PlanarArm, q0: Sequence[float], sigma: float, *,
                        kind: str = "gaussian", sizes: Sequence[int] = CONVERGENCE_SIZES,
                        trials: int = 10, truth_samples: int = 100_000,
-                       seed: int = 0) -> ConvergenceCurve:
+                       seed: int | np.random.Generator = 0) -> ConvergenceCurve:
     """Convergence of the planar end-effector estimators (ground truth sampled, as the paper)."""
     noise = JointNoise(sigma, kind)
     q0 = np.asarray(q0, dtype=float)
@@ -82,7 +82,8 @@ def planar_convergence(arm: PlanarArm, q0: Sequence[float], sigma: float, *,
 
 def kuka_convergence(q0: Sequence[float], sigma: float, *, kind: str = "gaussian",
                      sizes: Sequence[int] = CONVERGENCE_SIZES, trials: int = 10,
-                     truth_samples: int = 100_000, seed: int = 0) -> ConvergenceCurve:
+                     truth_samples: int = 100_000,
+                     seed: int | np.random.Generator = 0) -> ConvergenceCurve:
     """Convergence of the KUKA palm-position estimators."""
     noise = JointNoise(sigma, kind)
     return convergence_curve(lambda n, rng: sample_kuka_end_effector(q0, noise, n, rng), sizes,

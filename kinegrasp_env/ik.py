@@ -99,7 +99,8 @@ class ArmIK:
         err = self._errors(best, target)
         pos = np.linalg.norm(err[:, :3], axis=1)
         rot = np.linalg.norm(err[:, 3:], axis=1)
-        success = (pos < POSITION_TOL) & (rot < ORIENTATION_TOL) & self.kin.model.within_limits(best)
+        within = self.kin.model.within_limits(best)
+        success = (pos < POSITION_TOL) & (rot < ORIENTATION_TOL) & within
         return IKResult(best, success, pos, rot)
 
     def _iterate(self, q: np.ndarray, target: np.ndarray, iterations: int, damping: float,

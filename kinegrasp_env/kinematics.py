@@ -50,12 +50,12 @@ def rotation_log(rot: np.ndarray) -> np.ndarray:
     # near pi: axis from the symmetric part
     near_pi = angle > np.pi - 1e-4
     if np.any(near_pi):
-        sym = (rot[near_pi] + np.swapaxes(rot[near_pi], -1, -2)) / 2.0
-        diag = np.clip((np.diagonal(sym, axis1=-2, axis2=-1) - cos_angle[near_pi, None])
-                       / (1.0 - cos_angle[near_pi, None]), 0.0, None)
-        axis = np.sqrt(diag)
-        k = np.argmax(axis, axis=-1)
-        rows = np.take_along_axis(sym, k[:, None, None].repeat(3, axis=2), axis=1)[:, 0]
+        # symmetric part = cos I + (1 - cos) a a^T: a row of a a^T with the largest diagonal
+        cos_pi = cos_angle[near_pi, None, None]
+        outer = ((rot[near_pi] + np.swapaxes(rot[near_pi], -1, -2)) / 2.0
+                 - cos_pi * np.eye(3)) / (1.0 - cos_pi)
+        k = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
+        rows = np.take_along_axis(outer, k[:, None, None].repeat(3, axis=2), axis=1)[:, 0]
         axis = rows / np.linalg.norm(rows, axis=-1, keepdims=True)
         sign = np.sign(np.sum(axis * vee[near_pi], axis=-1))
         sign[sign == 0] = 1.0
@@ -80,8 +80,76 @@ def _as_batch(q: np.ndarray, dof: int) -> np.ndarray:
     return q
 
 
+def _axis_frame(axis: np.ndarray) -> np.ndarray:
+    """A rotation Q (3, 3) with Q e_z = axis (exactly a signed permutation for x/y/z axes)."""
+    axis = np.asarray(axis, dtype=float)
+    for k, perm in ((2, np.eye(3)), (0, np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0]])),
+                    (1, np.array([[0.0, 1, 0], [0, 0, 1], [1, 0, 0]]))):
+        unit = np.zeros(3)
+        unit[k] = 1.0
+        if np.allclose(axis, unit, atol=0, rtol=0):
+            return perm
+        if np.allclose(axis, -unit, atol=0, rtol=0):
+            return perm @ np.diag([1.0, -1.0, -1.0])
+    helper = np.eye(3)[np.argmin(np.abs(axis))]
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(axis, x), axis], axis=1)
+
+
+Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
+SNAP_TOL = 1e-10
+
+
+def _snap(rot: np.ndarray) -> np.ndarray:
+    """Round entries within SNAP_TOL of 0 or +-1 to exactly that value.
+
+    URDF files write right angles to ~11 digits (1.57079632679), leaving 1e-11-sized
+    entries that would otherwise cost full multiplications; the change is below 1e-10 rad.
+    """
+    out = rot.copy()
+    for target in (0.0, 1.0, -1.0):
+        out[np.abs(out - target) < SNAP_TOL] = target
+    return out
+
+
+def _times_constant(cols: Columns, const: np.ndarray) -> Columns:
+    """Columns of R @ const for R given by its columns (3 arrays (3, n)) and const (3, 3).
+
+    Exact zeros and ones of ``const`` are skipped, so a signed permutation costs at most a
+    negation and the unchanged columns are shared, not copied.
+    """
+    out = []
+    for k in range(3):
+        column = None
+        for j in range(3):
+            c = const[j, k]
+            if c == 0.0:
+                continue
+            term = cols[j] if c == 1.0 else (-cols[j] if c == -1.0 else cols[j] * c)
+            column = term if column is None else column + term
+        out.append(np.zeros_like(cols[0]) if column is None else column)
+    return out[0], out[1], out[2]
+
+
+def _apply(cols: Columns, vec: np.ndarray) -> np.ndarray | None:
+    """R @ constant vec (3,) -> (3, n), skipping zeros (None when vec = 0)."""
+    out = None
+    for j in range(3):
+        if vec[j] != 0.0:
+            term = cols[j] * vec[j]
+            out = term if out is None else out + term
+    return out
+
+
 class Kinematics:
     """Batched FK / Jacobians for one :class:`RobotModel`.
+
+    Internally every rotation is kept as its three columns, each a (3, n) array with the
+    batch axis last, so a joint update is a handful of contiguous vector operations and
+    permutation-like constant rotations cost nothing. Poses are returned as (n, 4, 4) arrays
+    that are *views* of one batch-last (L, 4, 4, n) buffer (not C-contiguous; use
+    ``np.ascontiguousarray`` where a C-ordered copy is needed).
 
     Args:
         model: the robot.
@@ -91,6 +159,16 @@ class Kinematics:
         self.model = model
         self._drivers = model.drivers()
         self._parent_joint = {j.child: j for j in model.joints}
+        # per joint: (R_origin @ Q, Q^T or None when identity, translation)
+        self._plan = []
+        for joint in model.joints:
+            rot = _snap(joint.origin[:3, :3])
+            if joint.movable and joint.kind != "prismatic":
+                q_frame = _axis_frame(joint.axis)
+                back = None if np.array_equal(q_frame, np.eye(3)) else q_frame.T
+                self._plan.append((rot @ q_frame, back, joint.origin[:3, 3]))
+            else:
+                self._plan.append((rot, None, joint.origin[:3, 3]))
 
     def forward(self, q: np.ndarray, links: Iterable[str] | None = None) -> dict[str, np.ndarray]:
         """Poses of links in the world (base) frame.
@@ -100,11 +178,11 @@ class Kinematics:
             links: link names to return (default: all links).
 
         Returns:
-            dict link name -> (n, 4, 4) transforms.
+            dict link name -> (n, 4, 4) transforms (batch-last views, see the class doc).
         """
         q = _as_batch(q, self.model.dof)
-        wanted = set(self.model.links if links is None else links)
-        unknown = wanted - set(self.model.links)
+        wanted = list(dict.fromkeys(self.model.links if links is None else links))
+        unknown = set(wanted) - set(self.model.links)
         if unknown:
             raise KeyError(f"unknown links {sorted(unknown)}")
         needed = set()
@@ -113,23 +191,55 @@ class Kinematics:
                 needed.add(link)
                 link = self._parent_joint[link].parent
         n = q.shape[0]
-        poses: dict[str, np.ndarray] = {self.model.base_link: np.broadcast_to(np.eye(4), (n, 4, 4))}
-        for joint in self.model.joints:
+        # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
+        half_tan = np.tan(0.5 * q.T)
+        denom = 1.0 / (1.0 + half_tan * half_tan)
+        cos_all, sin_all = (1.0 - half_tan * half_tan) * denom, 2.0 * half_tan * denom
+        qt = np.ascontiguousarray(q.T)
+        eye = np.eye(3)
+        frames: dict[str, tuple[Columns, np.ndarray]] = {
+            self.model.base_link: (tuple(np.broadcast_to(eye[:, k, None], (3, n))
+                                         for k in range(3)),
+                                   np.broadcast_to(np.zeros((3, 1)), (3, n)))}
+        for joint, (rot_const, back, trans) in zip(self.model.joints, self._plan, strict=True):
             if joint.child not in needed:
                 continue
-            parent = poses[joint.parent]
-            if joint.movable:
+            cols_p, pos_p = frames[joint.parent]
+            shift = _apply(cols_p, trans)
+            pos = pos_p if shift is None else pos_p + shift
+            cols = _times_constant(cols_p, rot_const)
+            if joint.kind == "prismatic":
                 index, mult, off = self._drivers[joint.name]
-                value = mult * q[:, index] + off
-                local = np.broadcast_to(joint.origin, (n, 4, 4)).copy()
-                if joint.kind == "prismatic":
-                    local[:, :3, 3] += (value[:, None] * (joint.origin[:3, :3] @ joint.axis))
+                pos = pos + _apply(cols_p, rot_const @ joint.axis) * (mult * qt[index] + off)
+            elif joint.movable:
+                index, mult, off = self._drivers[joint.name]
+                if mult == 1.0 and off == 0.0:
+                    c, s = cos_all[index], sin_all[index]
+                elif mult == -1.0 and off == 0.0:
+                    c, s = cos_all[index], -sin_all[index]
                 else:
-                    local[:, :3, :3] = joint.origin[:3, :3] @ axis_angle_matrix(joint.axis, value)
-                poses[joint.child] = parent @ local
-            else:
-                poses[joint.child] = parent @ joint.origin
-        return {link: np.ascontiguousarray(poses[link]) for link in wanted}
+                    value = mult * qt[index] + off
+                    c, s = np.cos(value), np.sin(value)
+                m0, m1, m2 = cols
+                r0 = m0 * c
+                r0 += m1 * s
+                r1 = m1 * c
+                r1 -= m0 * s
+                cols = (r0, r1, m2)
+                if back is not None:
+                    cols = _times_constant(cols, back)
+            frames[joint.child] = (cols, pos)
+        block = np.empty((len(wanted), 4, 4, n))
+        block[:, 3, :3] = 0.0
+        block[:, 3, 3] = 1.0
+        out = {}
+        for i, link in enumerate(wanted):
+            cols, pos = frames[link]
+            for k in range(3):
+                block[i, :3, k] = cols[k]
+            block[i, :3, 3] = pos
+            out[link] = block[i].transpose(2, 0, 1)
+        return out
 
     def pose(self, q: np.ndarray, link: str) -> np.ndarray:
         """(n, 4, 4) pose of one link."""

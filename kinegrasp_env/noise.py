@@ -24,7 +24,10 @@ DISTRIBUTIONS = ("gaussian", "uniform", "triangular")
 METHODS = ("mc", "antithetic", "sobol")
 
 
-def as_generator(seed: int | np.random.Generator | np.random.SeedSequence | None) -> np.random.Generator:
+SeedLike = int | np.random.Generator | np.random.SeedSequence | None
+
+
+def as_generator(seed: SeedLike) -> np.random.Generator:
     """A ``numpy.random.Generator`` from a seed, a SeedSequence or a Generator (returned as is)."""
     if isinstance(seed, np.random.Generator):
         return seed

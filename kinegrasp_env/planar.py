@@ -49,7 +49,8 @@ class PlanarArm:
         """Positions (..., k + 1, 2) of the base, every joint and the end effector."""
         q = self._check(q)
         theta = np.cumsum(q, axis=-1)
-        steps = np.stack([np.cos(theta), np.sin(theta)], axis=-1) * np.asarray(self.lengths)[:, None]
+        lengths = np.asarray(self.lengths)[:, None]
+        steps = np.stack([np.cos(theta), np.sin(theta)], axis=-1) * lengths
         zeros = np.zeros((*q.shape[:-1], 1, 2))
         return np.concatenate([zeros, np.cumsum(steps, axis=-2)], axis=-2)
 

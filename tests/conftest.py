@@ -1,0 +1,40 @@
+"""Shared fixtures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet
+import pytest
+from pybullet_utils.bullet_client import BulletClient
+
+from kinegrasp_env.kinematics import Kinematics
+from kinegrasp_env.robots import kuka_sdh, urdf_path
+
+
+@pytest.fixture(scope="session")
+def model():
+    return kuka_sdh()
+
+
+@pytest.fixture(scope="session")
+def kin(model):
+    return Kinematics(model)
+
+
+@pytest.fixture()
+def bullet_robot():
+    """(client, body id, joint index by name, link index by name) of the arm+hand."""
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    body = client.loadURDF(str(urdf_path()), useFixedBase=True)
+    joints, links = {}, {}
+    for j in range(client.getNumJoints(body)):
+        info = client.getJointInfo(body, j)
+        joints[info[1].decode()] = j
+        links[info[12].decode()] = j
+    yield client, body, joints, links
+    client.disconnect()
+
+
+@pytest.fixture()
+def rng():
+    return np.random.default_rng(12345)

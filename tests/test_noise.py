@@ -1,0 +1,78 @@
+"""Joint-noise samplers: stated std, zero mean, support, reproducibility."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.noise import DISTRIBUTIONS, METHODS, JointNoise
+
+N = 200_000
+
+
+@pytest.mark.parametrize("kind", DISTRIBUTIONS)
+def test_std_mean_and_support(kind):
+    sigma = np.array([0.01, 0.02, 0.0333])
+    eps = JointNoise(tuple(sigma), kind).sample(N, 3, np.random.default_rng(3))
+    # std of the sample std ~ sigma * sqrt((kurtosis - 1) / (4 N)) <= sigma * 0.0025 here;
+    # 5 standard errors:
+    np.testing.assert_allclose(eps.std(axis=0), sigma, rtol=0.0125)
+    # mean: 5 standard errors
+    assert np.all(np.abs(eps.mean(axis=0)) < 5 * sigma / math.sqrt(N))
+    half = JointNoise(0.01, kind).half_width
+    if math.isfinite(half):
+        assert np.all(np.abs(eps) <= half * sigma + 1e-15)
+        # the support is used up to its edge
+        assert np.all(np.abs(eps).max(axis=0) > 0.95 * half * sigma)
+
+
+@pytest.mark.parametrize("kind", DISTRIBUTIONS)
+@pytest.mark.parametrize("method", METHODS)
+def test_reproducible_and_seed_sensitive(kind, method):
+    noise = JointNoise(0.02, kind)
+    a = noise.sample(257, 7, np.random.default_rng(5), method=method)
+    b = noise.sample(257, 7, np.random.default_rng(5), method=method)
+    c = noise.sample(257, 7, np.random.default_rng(6), method=method)
+    assert a.shape == (257, 7)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("kind", DISTRIBUTIONS)
+def test_variance_reduction_samplers_have_the_right_moments(kind):
+    noise = JointNoise(0.05, kind)
+    anti = noise.sample(10_001, 4, 1, method="antithetic")
+    np.testing.assert_array_equal(anti[0:-1:2], -anti[1::2])
+    sobol = noise.sample(4096, 4, 1, method="sobol")
+    # Sobol points are far more even than random ones: std within 1% at n = 4096
+    np.testing.assert_allclose(sobol.std(axis=0), 0.05, rtol=0.01)
+    assert np.abs(sobol.mean(axis=0)).max() < 0.05 * 0.01
+
+
+@pytest.mark.parametrize("kind", DISTRIBUTIONS)
+def test_characteristic_function_matches_samples(kind):
+    noise = JointNoise(0.4, kind)
+    eps = noise.sample(400_000, 1, 2)[:, 0]
+    for t in (0.5, 1.0, 3.0):
+        empirical = np.cos(t * eps).mean()
+        assert abs(empirical - noise.characteristic(t, 0.4)) < 5 / math.sqrt(400_000)
+
+
+def test_bad_noise_arguments():
+    with pytest.raises(ValueError, match="sigma must be finite and >= 0"):
+        JointNoise(-0.1)
+    with pytest.raises(ValueError, match="sigma must be finite"):
+        JointNoise(float("nan"))
+    with pytest.raises(ValueError, match="unknown noise type 'cauchy'"):
+        JointNoise(0.1, "cauchy")
+    with pytest.raises(ValueError, match="sigma has 3 entries but the noise acts on 7 joints"):
+        JointNoise((0.1, 0.1, 0.1)).sample(10, 7, 0)
+    with pytest.raises(ValueError, match="unknown sampling method"):
+        JointNoise(0.1).sample(10, 7, 0, method="lhs")
+
+
+def test_zero_sigma_gives_zero_noise():
+    for kind in DISTRIBUTIONS:
+        assert not JointNoise(0.0, kind).sample(100, 7, 0).any()
