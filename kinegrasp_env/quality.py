@@ -1,0 +1,263 @@
+"""Friction cones, grasp wrenches, Ferrari-Canny quality and force closure.
+
+Conventions (pinned in DESIGN.md):
+
+* contact normals point into the object, unit length (other lengths are normalized; zero
+  length is an error);
+* tangent basis of normal n: a = the coordinate axis with the smallest |n_i| (lowest index on
+  ties), t1 = normalize(n x a), t2 = n x t1;
+* friction cone edges f_j = n + mu (cos(2 pi j / m) t1 + sin(2 pi j / m) t2), j = 0..m-1;
+* wrench of an edge at contact point p: w = (f, s (p - c) x f), s the torque scale (1 / r_max),
+  c the centre of mass;
+* Q (L1, "epsilon") = distance from the origin to the nearest facet of the convex hull of
+  all edge wrenches if the origin is strictly inside it (force closure), else 0; a
+  rank-deficient wrench set is not in force closure.
+
+Two exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``)
+and, for 3 contacts, ``method="fast"`` (:mod:`kinegrasp_env.quality_fast`, a batched facet
+enumeration); ``"auto"`` uses the fast path where it applies and falls back to qhull
+elsewhere (4+ contacts, the L-infinity hull, or an input the fast path cannot certify).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+Method = Literal["auto", "fast", "qhull"]
+Norm = Literal["l1", "linf"]
+#: Relative tolerance (to the wrench scale) below which Q counts as zero (origin on the hull).
+FC_TOL = 1e-12
+#: Singular-value ratio below which a wrench set counts as rank-deficient.
+RANK_TOL = 1e-10
+#: Largest number of Minkowski-sum points the L-infinity hull is built from.
+LINF_MAX_POINTS = 200_000
+
+
+# ----------------------------------------------------------------------------- validation
+def _finite_array(value, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return arr
+
+
+def _check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarray]:
+    points = _finite_array(points, "points")
+    normals = _finite_array(normals, "normals")
+    want = 3 if batched else 2
+    shape_text = "(B, k, 3)" if batched else "(k, 3)"
+    for name, arr in (("points", points), ("normals", normals)):
+        if arr.ndim != want or arr.shape[-1] != 3:
+            raise ValueError(f"{name} must have shape {shape_text}, got {arr.shape}")
+    if points.shape != normals.shape:
+        raise ValueError(f"points {points.shape} and normals {normals.shape} differ in shape")
+    if points.shape[-2] < 1:
+        raise ValueError("need at least one contact, got 0")
+    lengths = np.linalg.norm(normals, axis=-1)
+    if np.any(lengths < 1e-12):
+        bad = np.argwhere(lengths < 1e-12)[0]
+        raise ValueError(f"normals: contact {tuple(int(i) for i in bad)} has zero length")
+    return points, normals / lengths[..., None]
+
+
+def _check_parameters(friction: float, num_edges: int) -> tuple[float, int]:
+    friction = float(friction)
+    if not math.isfinite(friction) or friction < 0:
+        raise ValueError(f"friction must be finite and >= 0, got {friction!r}")
+    if int(num_edges) != num_edges or num_edges < 3:
+        raise ValueError(f"num_edges must be an integer >= 3, got {num_edges!r}")
+    return friction, int(num_edges)
+
+
+def _per_row(value, batch: int, shape: tuple[int, ...], name: str) -> np.ndarray:
+    arr = _finite_array(value, name)
+    if arr.shape == shape:
+        return np.broadcast_to(arr, (batch, *shape))
+    if arr.shape == (batch, *shape):
+        return arr
+    raise ValueError(f"{name} must have shape {shape} or {(batch, *shape)}, got {arr.shape}")
+
+
+# ----------------------------------------------------------------------------- cones, wrenches
+def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tangents (t1, t2), each (..., 3), of unit normals (..., 3) (DESIGN convention)."""
+    n = np.asarray(normals, dtype=float)
+    axis = np.argmin(np.abs(n), axis=-1)  # lowest index on ties
+    helper = np.zeros_like(n)
+    np.put_along_axis(helper, axis[..., None], 1.0, axis=-1)
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
+    return t1, np.cross(n, t1)
+
+
+def friction_cone_edges(normals: np.ndarray, friction: float = 0.5,
+                        num_edges: int = 8) -> np.ndarray:
+    """Linearized friction cone edges (..., m, 3) of unit normals (..., 3).
+
+    f_j = n + mu (cos(2 pi j/m) t1 + sin(2 pi j/m) t2): the normal component is 1.
+    """
+    n = np.asarray(normals, dtype=float)
+    t1, t2 = tangent_basis(n)
+    theta = 2.0 * np.pi * np.arange(num_edges) / num_edges
+    return (n[..., None, :] + friction * (np.cos(theta)[:, None] * t1[..., None, :]
+                                          + np.sin(theta)[:, None] * t2[..., None, :]))
+
+
+def _wrenches(points: np.ndarray, normals: np.ndarray, friction: float, num_edges: int,
+              torque_scale: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """(B, k * m, 6) wrenches; points/normals (B, k, 3), torque_scale (B,), center (B, 3)."""
+    edges = friction_cone_edges(normals, friction, num_edges)  # (B, k, m, 3)
+    lever = (points - center[:, None, :]) * torque_scale[:, None, None]
+    torques = np.cross(lever[:, :, None, :], edges)
+    w = np.concatenate([edges, torques], axis=-1)
+    return w.reshape(w.shape[0], -1, 6)
+
+
+def wrench_matrix(points, normals, *, friction: float = 0.5, num_edges: int = 8,
+                  torque_scale=1.0, center=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Edge wrenches of a grasp: (k * m, 6) for (k, 3) inputs, (B, k * m, 6) for (B, k, 3).
+
+    Row ``i * m + j`` is edge j of contact i: (force (3), torque_scale * (p_i - c) x force).
+    """
+    batched = np.ndim(points) == 3
+    points, normals = _check_contacts(points, normals, batched)
+    friction, num_edges = _check_parameters(friction, num_edges)
+    p, n = (points, normals) if batched else (points[None], normals[None])
+    scale, ctr = _scale_center(torque_scale, center, p.shape[0])
+    w = _wrenches(p, n, friction, num_edges, scale, ctr)
+    return w if batched else w[0]
+
+
+def _scale_center(torque_scale, center, batch: int) -> tuple[np.ndarray, np.ndarray]:
+    scale = _per_row(torque_scale, batch, (), "torque_scale")
+    if np.any(scale <= 0):
+        raise ValueError(f"torque_scale must be > 0, got {np.min(scale)!r}")
+    return scale, _per_row(center, batch, (3,), "center")
+
+
+# ----------------------------------------------------------------------------- qhull path
+def _rank_deficient(w: np.ndarray) -> bool:
+    sv = np.linalg.svd(w - w.mean(axis=0), compute_uv=False)
+    return sv.size < 6 or sv[-1] <= RANK_TOL * max(sv[0], 1e-300) if sv.size else True
+
+
+def _hull(points: np.ndarray) -> ConvexHull | None:
+    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient."""
+    if points.shape[0] < 7 or _rank_deficient(points):
+        return None
+    try:
+        return ConvexHull(points)
+    except QhullError:
+        return None
+
+
+def _epsilon_from_hull(hull: ConvexHull | None, scale: float) -> float:
+    if hull is None:
+        return 0.0
+    offsets = hull.equations[:, -1]  # unit outward normals: n . x + offset <= 0 inside
+    q = float(-offsets.max())
+    return q if q > FC_TOL * scale else 0.0
+
+
+def linf_points(w: np.ndarray, num_contacts: int) -> np.ndarray:
+    """Minkowski-sum points (P, 6) of the per-contact sets {0} U {edge wrenches}."""
+    per_contact = w.reshape(num_contacts, -1, 6)
+    count = (per_contact.shape[1] + 1) ** num_contacts
+    if count > LINF_MAX_POINTS:
+        raise ValueError(f"the L-infinity hull would need {count} points (more than "
+                         f"{LINF_MAX_POINTS}); use fewer contacts or edges")
+    total = np.zeros((1, 6))
+    for block in per_contact:
+        options = np.vstack([np.zeros((1, 6)), block])
+        total = (total[:, None, :] + options[None, :, :]).reshape(-1, 6)
+    return total
+
+
+def _qhull_epsilon(w: np.ndarray, num_contacts: int, norm: Norm) -> float:
+    pts = linf_points(w, num_contacts) if norm == "linf" else w
+    scale = float(np.abs(pts).max()) if pts.size else 1.0
+    return _epsilon_from_hull(_hull(pts), scale)
+
+
+# ----------------------------------------------------------------------------- public API
+def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: int = 8,
+                        torque_scale=1.0, center=(0.0, 0.0, 0.0), method: Method = "auto",
+                        norm: Norm = "l1") -> np.ndarray:
+    """Ferrari-Canny quality of B grasps.
+
+    Args:
+        points: (B, k, 3) contact points (metres, object frame).
+        normals: (B, k, 3) inward contact normals.
+        friction: Coulomb friction coefficient mu >= 0.
+        num_edges: edges m >= 3 of the linearized friction cone.
+        torque_scale: scalar or (B,) torque scale s (1 / metres), > 0.
+        center: (3,) or (B, 3) centre of mass the torques are taken about.
+        method: ``auto``, ``fast`` (3 contacts, L1 only) or ``qhull`` (the reference).
+        norm: ``l1`` (convex hull of the edge wrenches) or ``linf`` (Minkowski sum).
+
+    Returns:
+        (B,) Q >= 0; 0 where the grasp is not in force closure.
+    """
+    points, normals = _check_contacts(points, normals, batched=True)
+    friction, num_edges = _check_parameters(friction, num_edges)
+    if method not in ("auto", "fast", "qhull"):
+        raise ValueError(f"unknown method {method!r}; choose auto, fast or qhull")
+    if norm not in ("l1", "linf"):
+        raise ValueError(f"unknown norm {norm!r}; choose l1 or linf")
+    batch, k = points.shape[:2]
+    scale, ctr = _scale_center(torque_scale, center, batch)
+    w = _wrenches(points, normals, friction, num_edges, scale, ctr)
+    fast_ok = norm == "l1" and k == 3 and friction > 0
+    if method == "fast" and not fast_ok:
+        raise ValueError("the fast path needs 3 contacts, friction > 0 and the L1 norm; "
+                         f"got {k} contacts, friction {friction}, norm {norm}")
+    out = np.empty(batch)
+    todo = np.arange(batch)
+    if fast_ok and method != "qhull" and batch:
+        from kinegrasp_env.quality_fast import epsilon_three_contacts
+
+        q, certified = epsilon_three_contacts(w, num_edges)
+        out[certified] = q[certified]
+        todo = np.flatnonzero(~certified)
+    for b in todo:
+        out[b] = _qhull_epsilon(w[b], k, norm)
+    return out
+
+
+def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
+                  torque_scale: float = 1.0, center=(0.0, 0.0, 0.0), method: Method = "auto",
+                  norm: Norm = "l1") -> float:
+    """Ferrari-Canny quality Q of one grasp; points and normals are (k, 3).
+
+    See :func:`ferrari_canny_batch` for the arguments. Raises ValueError for non-finite
+    input, mismatched shapes or zero-length normals.
+    """
+    points, normals = _check_contacts(points, normals, batched=False)
+    return float(ferrari_canny_batch(points[None], normals[None], friction=friction,
+                                     num_edges=num_edges, torque_scale=torque_scale,
+                                     center=center, method=method, norm=norm)[0])
+
+
+def is_force_closure_batch(points, normals, **kwargs) -> np.ndarray:
+    """(B,) bool: origin strictly inside the grasp wrench space (Q > 0)."""
+    return ferrari_canny_batch(points, normals, **kwargs) > 0.0
+
+
+def is_force_closure(points, normals, **kwargs) -> bool:
+    """True when the grasp (k, 3) is in force closure."""
+    return ferrari_canny(points, normals, **kwargs) > 0.0
+
+
+def grasp_wrench_space_volume(points, normals, *, friction: float = 0.5, num_edges: int = 8,
+                              torque_scale: float = 1.0, center=(0.0, 0.0, 0.0),
+                              norm: Norm = "l1") -> float:
+    """6-D volume of the grasp wrench space (0 when rank-deficient), as GraspIt reports."""
+    w = wrench_matrix(points, normals, friction=friction, num_edges=num_edges,
+                      torque_scale=torque_scale, center=center)
+    pts = linf_points(w, np.shape(points)[0]) if norm == "linf" else w
+    hull = _hull(pts)
+    return 0.0 if hull is None else float(hull.volume)

@@ -1,0 +1,31 @@
+"""Random contact sets on spheres and boxes for the quality tests and benchmarks."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def sphere_contacts(rng: np.random.Generator, batch: int, k: int, radius: float = 0.05,
+                    jitter: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(B, k, 3) points on a sphere centred at the origin and their inward normals,
+    optionally tilted by ``jitter`` (radians, roughly) away from the surface normal."""
+    out = rng.normal(size=(batch, k, 3))
+    out /= np.linalg.norm(out, axis=-1, keepdims=True)
+    normals = -out + jitter * rng.normal(size=out.shape)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    return radius * out, normals
+
+
+def box_contacts(rng: np.random.Generator, batch: int, k: int,
+                 half: tuple[float, float, float] = (0.04, 0.03, 0.08)
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(B, k, 3) points uniformly on the faces of a box centred at the origin, inward normals."""
+    half = np.asarray(half)
+    face_axis = rng.integers(0, 3, size=(batch, k))
+    face_sign = rng.choice([-1.0, 1.0], size=(batch, k))
+    points = rng.uniform(-1.0, 1.0, size=(batch, k, 3)) * half
+    np.put_along_axis(points, face_axis[..., None], (face_sign * half[face_axis])[..., None],
+                      axis=-1)
+    normals = np.zeros((batch, k, 3))
+    np.put_along_axis(normals, face_axis[..., None], -face_sign[..., None], axis=-1)
+    return points, normals

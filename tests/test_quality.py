@@ -1,0 +1,276 @@
+"""Ferrari-Canny quality: conventions, hand-checked values, fast == qhull, invariances."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from quality_cases import box_contacts, sphere_contacts
+from scipy.spatial import ConvexHull
+
+from kinegrasp_env.quality import (
+    ferrari_canny,
+    ferrari_canny_batch,
+    friction_cone_edges,
+    grasp_wrench_space_volume,
+    is_force_closure,
+    is_force_closure_batch,
+    tangent_basis,
+    wrench_matrix,
+)
+
+CUBE_NORMALS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
+
+
+# ----------------------------------------------------------------------------- conventions
+def test_tangent_basis_convention():
+    t1, t2 = tangent_basis(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.6, 0.0, 0.8]]))
+    # n = z: smallest |n_i| is a tie between x and y -> x (lowest index); t1 = z x x = y
+    np.testing.assert_allclose(t1[0], [0, 1, 0])
+    np.testing.assert_allclose(t2[0], [-1, 0, 0])
+    # n = x: tie y/z -> y; t1 = x x y = z; t2 = x x z = -y
+    np.testing.assert_allclose(t1[1], [0, 0, 1])
+    np.testing.assert_allclose(t2[1], [0, -1, 0])
+    # n = (0.6, 0, 0.8): smallest is y; t1 = n x y normalized = (-0.8, 0, 0.6)
+    np.testing.assert_allclose(t1[2], [-0.8, 0, 0.6])
+
+
+def test_cone_edges_and_wrenches_follow_design():
+    n = np.array([[0.0, 0.0, 1.0]])
+    edges = friction_cone_edges(n, friction=0.5, num_edges=4)[0]
+    np.testing.assert_allclose(edges, [[0, 0.5, 1], [-0.5, 0, 1], [0, -0.5, 1], [0.5, 0, 1]],
+                               atol=1e-15)
+    p = np.array([[0.1, 0.0, 0.0]])
+    w = wrench_matrix(p, n, friction=0.5, num_edges=4, torque_scale=2.0, center=(0, 0, 0.05))
+    lever = 2.0 * (p[0] - [0, 0, 0.05])
+    np.testing.assert_allclose(w[:, :3], edges)
+    np.testing.assert_allclose(w[:, 3:], np.cross(lever, edges))
+
+
+# ----------------------------------------------------------------------------- hand-checked
+@pytest.mark.parametrize(("num_edges", "factor"), [(4, 1 / np.sqrt(3)), (8, np.sqrt(2 / 3)),
+                                                   (16, np.sqrt(2 / 3))])
+@pytest.mark.parametrize("mu", [0.3, 0.5, 1.0])
+def test_cube_face_centres(num_edges, factor, mu):
+    """Six contacts at the face centres of a cube of half-size a, torque scale 1/a.
+
+    Every normal passes through the centre, so p x n = 0 and each edge wrench is
+    (n + mu v, -mu n x v) with v a unit tangent: all torques are mu times unit vectors
+    perpendicular to n, at the cone's edge angles. In the torque direction
+    d = (0, 0, 0, 1, 1, 1)/sqrt(3) the largest support is mu/sqrt(3) for m = 4 (torques
+    along the axes) and mu sqrt(2)/sqrt(3) for m = 8 and 16 (torques at 45 degrees between
+    two axes); forces do not enter. So Q <= that support, and the hull attains it.
+    """
+    a = 0.05
+    q = ferrari_canny(-a * CUBE_NORMALS, CUBE_NORMALS, friction=mu, num_edges=num_edges,
+                      torque_scale=1 / a)
+    assert q == pytest.approx(mu * factor, rel=1e-9)
+
+
+def test_not_in_force_closure_by_inspection():
+    a = 0.05
+    up = np.tile([0.0, 0.0, 1.0], (3, 1))
+    pts = np.array([[0.02, 0, -a], [-0.02, 0.01, -a], [0, -0.02, -a]])
+    # every finger pushes +z: no wrench with force along -z can be resisted
+    assert ferrari_canny(pts, up) == 0.0
+    # two antipodal contacts: no torque about their common line (rank-deficient)
+    assert ferrari_canny([[a, 0, 0], [-a, 0, 0]], [[-1, 0, 0], [1, 0, 0]]) == 0.0
+    # three contacts on one line: no torque about it
+    line = np.array([[a, 0, 0], [-a, 0, 0], [0.0, 0, 0]])
+    normals = np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, -1.0]])
+    assert ferrari_canny(line, normals) == 0.0
+    # frictionless: 3 contacts cannot close 6 wrench dimensions
+    ang = np.deg2rad([0, 120, 240])
+    n3 = -np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    assert ferrari_canny(-a * n3, n3, friction=0.0) == 0.0
+    assert ferrari_canny(-a * n3, n3, friction=0.5, torque_scale=1 / a) > 0.0
+    # a single contact
+    assert ferrari_canny([[0, 0, a]], [[0, 0, -1.0]]) == 0.0
+
+
+# ----------------------------------------------------------------------------- fast vs qhull
+@pytest.mark.parametrize("num_edges", [4, 6, 8, 12, 16])
+@pytest.mark.parametrize("shape", ["sphere", "box"])
+def test_fast_equals_reference_three_contacts(num_edges, shape):
+    rng = np.random.default_rng(num_edges + (100 if shape == "box" else 0))
+    batch = 400 if num_edges <= 8 else 150
+    if shape == "sphere":
+        pts, nrm = sphere_contacts(rng, batch, 3, jitter=0.3)
+        scale = 1 / 0.05
+    else:
+        pts, nrm = box_contacts(rng, batch, 3)
+        scale = 1 / np.linalg.norm([0.04, 0.03, 0.08])
+    kwargs = {"num_edges": num_edges, "torque_scale": scale, "friction": 0.5}
+    fast = ferrari_canny_batch(pts, nrm, method="fast", **kwargs)
+    ref = ferrari_canny_batch(pts, nrm, method="qhull", **kwargs)
+    np.testing.assert_array_equal(fast > 0, ref > 0)
+    both = ref > 0
+    assert 0.1 < both.mean() < 0.9  # the test sees both outcomes
+    np.testing.assert_allclose(fast[both], ref[both], rtol=1e-9, atol=0)
+
+
+def test_fast_path_certifies_random_grasps():
+    from kinegrasp_env.quality_fast import epsilon_three_contacts
+
+    rng = np.random.default_rng(3)
+    pts, nrm = sphere_contacts(rng, 500, 3, jitter=0.3)
+    w = wrench_matrix(pts, nrm, torque_scale=20.0)
+    _, certified = epsilon_three_contacts(w, 8)
+    assert certified.mean() > 0.99
+
+
+def test_support_function_bounds_q():
+    """Independent of any hull: Q = min over unit directions u of max_i u . w_i."""
+    rng = np.random.default_rng(11)
+    pts, nrm = sphere_contacts(rng, 20, 3, jitter=0.2)
+    w = wrench_matrix(pts, nrm, torque_scale=20.0)
+    q = ferrari_canny_batch(pts, nrm, torque_scale=20.0, method="fast")
+    dirs = rng.normal(size=(20_000, 6))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    for b in np.flatnonzero(q > 0):
+        support = (w[b] @ dirs.T).max(axis=0)
+        assert support.min() >= q[b] * (1 - 1e-12)
+        # the nearest facet's normal attains Q: take it from qhull
+        hull = ConvexHull(w[b])
+        best = hull.equations[np.argmax(hull.equations[:, -1])]
+        assert (w[b] @ best[:6]).max() == pytest.approx(q[b], rel=1e-9)
+
+
+@pytest.mark.parametrize("k", [4, 5])
+def test_more_contacts_use_the_reference(k):
+    rng = np.random.default_rng(k)
+    pts, nrm = sphere_contacts(rng, 40, k, jitter=0.3)
+    auto = ferrari_canny_batch(pts, nrm, torque_scale=20.0)
+    ref = ferrari_canny_batch(pts, nrm, torque_scale=20.0, method="qhull")
+    np.testing.assert_array_equal(auto, ref)
+    assert 0.2 < (ref > 0).mean() < 0.9
+    with pytest.raises(ValueError, match="fast path needs 3 contacts"):
+        ferrari_canny_batch(pts, nrm, method="fast")
+
+
+# ----------------------------------------------------------------------------- invariances
+@pytest.fixture(scope="module")
+def grasps():
+    rng = np.random.default_rng(5)
+    pts, nrm = sphere_contacts(rng, 60, 3, jitter=0.3)
+    q = ferrari_canny_batch(pts, nrm, torque_scale=20.0)
+    keep = q > 0
+    return pts[keep], nrm[keep], q[keep]
+
+
+def test_permuting_contacts(grasps):
+    pts, nrm, q = grasps
+    order = [2, 0, 1]
+    np.testing.assert_allclose(ferrari_canny_batch(pts[:, order], nrm[:, order],
+                                                   torque_scale=20.0), q, rtol=1e-9)
+
+
+def test_scaling_object_and_torque_scale_together(grasps):
+    pts, nrm, q = grasps
+    np.testing.assert_allclose(ferrari_canny_batch(3.7 * pts, nrm, torque_scale=20.0 / 3.7),
+                               q, rtol=1e-9)
+
+
+def test_rotating_the_grasp(grasps):
+    """Rotations that map coordinate axes to axes are exact symmetries (the tangent basis
+    turns by a multiple of 90 degrees, a symmetry of the 8-gon). A general rotation turns
+    each cone polygon about its normal by some angle; an m-gon of radius mu contains every
+    turned copy of radius mu cos(pi/m), and Q grows with mu, so Q is bracketed."""
+    from scipy.spatial.transform import Rotation
+
+    pts, nrm, q = grasps
+    centre = np.array([0.01, -0.02, 0.03])
+    for quarter in (Rotation.from_rotvec([0, 0, np.pi / 2]), Rotation.from_rotvec([np.pi, 0, 0]),
+                    Rotation.from_euler("zx", [np.pi / 2, np.pi / 2])):
+        rot = quarter.as_matrix()
+        rq = ferrari_canny_batch((pts - centre) @ rot.T + centre, nrm @ rot.T,
+                                 torque_scale=20.0, center=centre)
+        base = ferrari_canny_batch(pts, nrm, torque_scale=20.0, center=centre)
+        np.testing.assert_allclose(rq, base, rtol=1e-9)
+    rot = Rotation.from_rotvec([0.3, -1.1, 0.7]).as_matrix()
+    shrink = np.cos(np.pi / 8)
+    turned = ferrari_canny_batch(pts @ rot.T, nrm @ rot.T, torque_scale=20.0)
+    assert np.all(turned >= ferrari_canny_batch(pts, nrm, torque_scale=20.0,
+                                                friction=0.5 * shrink) * (1 - 1e-9))
+    assert np.all(q >= ferrari_canny_batch(pts @ rot.T, nrm @ rot.T, torque_scale=20.0,
+                                           friction=0.5 * shrink) * (1 - 1e-9))
+    assert not np.allclose(turned, q, rtol=1e-6)  # the bracket is what holds, not equality
+
+
+def test_adding_a_contact_never_lowers_q(grasps):
+    pts, nrm, q = grasps
+    rng = np.random.default_rng(8)
+    extra_p, extra_n = sphere_contacts(rng, pts.shape[0], 1, jitter=0.3)
+    q4 = ferrari_canny_batch(np.concatenate([pts, extra_p], axis=1),
+                             np.concatenate([nrm, extra_n], axis=1), torque_scale=20.0)
+    assert np.all(q4 >= q * (1 - 1e-12))
+
+
+# ----------------------------------------------------------------------------- variants
+def test_linf_and_volume():
+    a = 0.05
+    kwargs = {"friction": 0.5, "num_edges": 4, "torque_scale": 1 / a}
+    q1 = ferrari_canny(-a * CUBE_NORMALS[:3], CUBE_NORMALS[:3], **kwargs)
+    ang = np.deg2rad([0, 120, 240])
+    n3 = -np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    q1 = ferrari_canny(-a * n3, n3, **kwargs)
+    qinf = ferrari_canny(-a * n3, n3, norm="linf", **kwargs)
+    # the Minkowski sum contains the L1 hull: its epsilon is at least as large
+    assert qinf >= q1 > 0
+    vol1 = grasp_wrench_space_volume(-a * n3, n3, **kwargs)
+    volinf = grasp_wrench_space_volume(-a * n3, n3, norm="linf", **kwargs)
+    assert volinf > vol1 > 0
+    # an independent volume: qhull on the same wrench matrix
+    w = wrench_matrix(-a * n3, n3, **kwargs)
+    assert vol1 == pytest.approx(ConvexHull(w).volume, rel=1e-12)
+    assert grasp_wrench_space_volume([[a, 0, 0], [-a, 0, 0]], [[-1, 0, 0], [1, 0, 0]]) == 0.0
+
+
+def test_force_closure_helpers():
+    a = 0.05
+    ang = np.deg2rad([0, 120, 240])
+    n3 = -np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    assert is_force_closure(-a * n3, n3, torque_scale=1 / a)
+    assert not is_force_closure(-a * n3, n3, friction=0.0)
+    up = np.tile([0.0, 0.0, 1.0], (3, 1))  # every finger pushes +z
+    batch = is_force_closure_batch(np.stack([-a * n3, -a * n3]), np.stack([n3, up]),
+                                   torque_scale=1 / a)
+    np.testing.assert_array_equal(batch, [True, False])
+
+
+# ----------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(("points", "normals", "kwargs", "needle"), [
+    ([[0, 0, np.nan], [1, 0, 0]], [[0, 0, 1], [1, 0, 0]], {}, "points contains NaN"),
+    ([[0, 0, 0], [1, 0, 0]], [[0, 0, np.inf], [1, 0, 0]], {}, "normals contains NaN or inf"),
+    ([[0, 0, 0], [1, 0, 0]], [[0, 0, 1]], {}, "differ in shape"),
+    ([[0, 0, 0, 1]], [[0, 0, 1, 0]], {}, r"must have shape \(k, 3\)"),
+    ([[0, 0, 0], [1, 0, 0]], [[0, 0, 0], [1, 0, 0]], {}, r"contact \(0,\) has zero length"),
+    (np.zeros((0, 3)), np.zeros((0, 3)), {}, "at least one contact"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"friction": -0.1}, "friction must be finite and >= 0"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"num_edges": 2}, "num_edges must be an integer >= 3"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"torque_scale": 0.0}, "torque_scale must be > 0"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"center": (0, 0)}, r"center must have shape \(3,\)"),
+    ([[0, 0, 0]], [[0, 0, 1]], {"method": "magic"}, "unknown method 'magic'"),
+])
+def test_bad_input(points, normals, kwargs, needle):
+    with pytest.raises(ValueError, match=needle):
+        ferrari_canny(points, normals, **kwargs)
+
+
+def test_degenerate_but_valid_sets_give_zero():
+    a = 0.05
+    same = np.tile([[a, 0, 0]], (3, 1))
+    assert ferrari_canny(same, np.tile([[-1.0, 0, 0]], (3, 1))) == 0.0  # coincident
+    par = np.array([[a, 0, 0], [a, 0.01, 0], [a, 0, 0.01]])
+    assert ferrari_canny(par, np.tile([[-1.0, 0, 0]], (3, 1))) == 0.0  # parallel normals
+    assert ferrari_canny(same, np.tile([[-1.0, 0, 0]], (3, 1)), method="qhull") == 0.0
+
+
+def test_per_row_torque_scale_and_center():
+    rng = np.random.default_rng(2)
+    pts, nrm = sphere_contacts(rng, 10, 3, jitter=0.3)
+    scales = rng.uniform(10, 30, size=10)
+    centres = rng.normal(scale=0.005, size=(10, 3))
+    batch = ferrari_canny_batch(pts, nrm, torque_scale=scales, center=centres)
+    single = [ferrari_canny(pts[i], nrm[i], torque_scale=scales[i], center=centres[i])
+              for i in range(10)]
+    np.testing.assert_allclose(batch, single, rtol=1e-12)
