@@ -1,0 +1,141 @@
+"""Turning a batch of noisy configurations into draw outcomes: the pybullet engine.
+
+Each draw: the arm at q = q0 + eps (eps on the 7 arm joints, the hand pre-shape exact) puts
+the flange, hence the hand, somewhere; the hand auto-closes on the object; the contacts give
+Q. Every draw ends in exactly one outcome (:data:`OUTCOMES`). Kinematics is batched over
+the draws; auto-close loops over them (pybullet forces it); quality is batched again.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinegrasp_env.hand import auto_close
+from kinegrasp_env.kinematics import Kinematics
+from kinegrasp_env.objects import load_object
+from kinegrasp_env.quality import ferrari_canny_batch
+from kinegrasp_env.robots import kuka_sdh
+from kinegrasp_env.sim import GraspWorld
+
+OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
+START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
+MAX_CONTACTS = 6
+FLANGE_LINK = "sdh_base"
+
+
+@dataclass
+class DrawBatch:
+    """Per-draw results of n draws.
+
+    Attributes:
+        outcome: (n,) int8 index into OUTCOMES.
+        quality: (n,) Q (0 unless force closure).
+        n_contacts: (n,) number of contacts.
+        points, normals: (n, 6, 3) contacts in the object frame, NaN-padded.
+        finger, link: (n, 6) int8, -1 padded.
+    """
+
+    outcome: np.ndarray
+    quality: np.ndarray
+    n_contacts: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    finger: np.ndarray
+    link: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> DrawBatch:
+        return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
+                   np.full((n, MAX_CONTACTS, 3), np.nan), np.full((n, MAX_CONTACTS, 3), np.nan),
+                   np.full((n, MAX_CONTACTS), -1, np.int8), np.full((n, MAX_CONTACTS), -1, np.int8))
+
+    @classmethod
+    def concatenate(cls, batches: list[DrawBatch]) -> DrawBatch:
+        return cls(*(np.concatenate([getattr(b, f) for b in batches])
+                     for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger",
+                               "link")))
+
+    def __len__(self) -> int:
+        return self.outcome.size
+
+
+@dataclass
+class EngineTiming:
+    """Seconds spent per stage."""
+
+    kinematics: float = 0.0
+    autoclose: float = 0.0
+    quality: float = 0.0
+    draws: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+class PybulletEngine:
+    """The reference engine: pybullet collision queries for auto-close.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+    """
+
+    name = "pybullet"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+        self.obj = load_object(object_name)
+        self.friction = friction
+        self.num_edges = num_edges
+        self.kin = Kinematics(kuka_sdh())
+        self.world = GraspWorld(self.obj)
+        self.timing = EngineTiming()
+
+    def close(self) -> None:
+        self.world.close()
+
+    def flange_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
+        return self.kin.pose(q, FLANGE_LINK)
+
+    def run(self, q: np.ndarray) -> DrawBatch:
+        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n = q.shape[0]
+        out = DrawBatch.empty(n)
+        t0 = time.perf_counter()
+        roots = self.flange_poses(q)
+        t1 = time.perf_counter()
+        for i in range(n):
+            result = auto_close(self.world, roots[i], q[i, 7:])
+            if result.start_collision:
+                out.outcome[i] = START_COLLISION
+                continue
+            k = min(len(result.contacts), MAX_CONTACTS)
+            out.n_contacts[i] = k
+            for j, contact in enumerate(result.contacts[:k]):
+                out.points[i, j] = contact.point
+                out.normals[i, j] = contact.normal
+                out.finger[i, j] = contact.finger
+                out.link[i, j] = contact.link
+            out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+        t2 = time.perf_counter()
+        self.score(out)
+        t3 = time.perf_counter()
+        self.timing.kinematics += t1 - t0
+        self.timing.autoclose += t2 - t1
+        self.timing.quality += t3 - t2
+        self.timing.draws += n
+        return out
+
+    def score(self, out: DrawBatch) -> None:
+        """Fill quality and the force-closure outcome of the candidate draws, by contact count."""
+        candidates = out.outcome == NO_FORCE_CLOSURE
+        for k in np.unique(out.n_contacts[candidates]):
+            rows = np.flatnonzero(candidates & (out.n_contacts == k))
+            q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
+                                    friction=self.friction, num_edges=self.num_edges,
+                                    torque_scale=self.obj.torque_scale,
+                                    center=self.obj.center_of_mass)
+            out.quality[rows] = q
+            out.outcome[rows[q > 0]] = FORCE_CLOSURE

@@ -1,0 +1,200 @@
+"""Monte Carlo evaluation of a grasp under joint noise -> :class:`GraspStats`.
+
+Draws are processed in chunks of a fixed size. Chunk c draws its noise from the stream
+``SeedSequence(seed, spawn_key=(c,))``, so the draws, and therefore every statistic, are the
+same whatever the number of worker processes; chunk results are merged in chunk order with
+exact streaming formulas, so memory stays flat for 10^6 draws and the numbers are identical
+with 1 or N processes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, DrawBatch, PybulletEngine
+from kinegrasp_env.grasps import Grasp
+from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.stats import StreamingMoments, wilson_interval
+
+DEFAULT_CHUNK = 250
+ENGINES = ("pybullet",)
+
+
+@dataclass
+class GraspStats:
+    """Monte Carlo statistics of one grasp.
+
+    Attributes:
+        p_fc: fraction of draws in force closure; p_fc_ci: Wilson 95% interval.
+        q_mean, q_var, q_std, q_skew: moments of Q over the force-closure draws (NaN if
+            fewer than 2 of them; skewness per DESIGN).
+        q_nominal: Q of the nominal grasp; error: q_nominal - q_mean (the paper's "Error").
+        samples: number of draws; outcomes: counts by outcome name.
+        sigma, noise, seed, engine: the settings.
+        draws: per-draw results, when requested.
+    """
+
+    p_fc: float
+    p_fc_ci: tuple[float, float]
+    q_mean: float
+    q_var: float
+    q_std: float
+    q_skew: float
+    q_nominal: float
+    error: float
+    samples: int
+    outcomes: dict[str, int]
+    sigma: float | list[float]
+    noise: str
+    seed: int
+    engine: str = "pybullet"
+    draws: DrawBatch | None = field(default=None, repr=False)
+
+    def to_json(self) -> dict:
+        """JSON-ready dict (NaN becomes None), without the draws."""
+        out = {k: v for k, v in asdict(self).items() if k != "draws"}
+        out["p_fc_ci"] = list(self.p_fc_ci)
+        for key, value in out.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                out[key] = None
+        return out
+
+
+def chunk_sizes(n_samples: int, chunk: int) -> list[int]:
+    return [min(chunk, n_samples - start) for start in range(0, n_samples, chunk)]
+
+
+def chunk_noise(noise: JointNoise, seed: int, index: int, size: int,
+                method: str = "mc") -> np.ndarray:
+    """Arm-joint noise (size, 7) of chunk ``index``: its own stream, derived from the seed."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+    return noise.sample(size, 7, rng, method=method)
+
+
+# one engine per worker process, built on first use
+_ENGINES: dict[tuple, PybulletEngine] = {}
+
+
+def _engine(key: tuple) -> PybulletEngine:
+    engine = _ENGINES.get(key)
+    if engine is None:
+        name, object_name, friction, num_edges = key
+        if name != "pybullet":
+            raise ValueError(f"unknown engine {name!r}; choose from {ENGINES}")
+        engine = _ENGINES[key] = PybulletEngine(object_name, friction, num_edges)
+    return engine
+
+
+def _run_chunk(task: tuple) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
+    key, q0, noise, seed, index, size, method, keep = task
+    eps = chunk_noise(noise, seed, index, size, method)
+    q = np.repeat(q0[None], size, axis=0)
+    q[:, :7] += eps
+    draws = _engine(key).run(q)
+    counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+    moments = StreamingMoments(1).update(draws.quality[draws.outcome == FORCE_CLOSURE])
+    return counts, moments, (draws if keep else None)
+
+
+def _chunks(tasks: list[tuple], processes: int) -> Iterator[tuple]:
+    """Chunk results in chunk order, computed in ``processes`` worker processes."""
+    if processes <= 1:
+        for task in tasks:
+            yield _run_chunk(task)
+        return
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
+    with ProcessPoolExecutor(max_workers=processes, mp_context=context) as pool:
+        yield from pool.map(_run_chunk, tasks)
+
+
+def validate_request(n_samples: int, processes: int, chunk: int) -> None:
+    if int(n_samples) != n_samples or n_samples < 1:
+        raise ValueError(f"samples must be an integer >= 1, got {n_samples}")
+    if int(processes) != processes or processes < 1:
+        raise ValueError(f"processes must be an integer >= 1, got {processes}")
+    if chunk < 1:
+        raise ValueError(f"chunk size must be >= 1, got {chunk}")
+
+
+def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 0, *,
+                   processes: int = 1, friction: float = 0.5, num_edges: int = 8,
+                   engine: str = "pybullet", method: str = "mc", chunk: int = DEFAULT_CHUNK,
+                   return_draws: bool = False, progress: bool | Callable = False) -> GraspStats:
+    """Estimate P(FC) and the moments of Q for ``grasp`` under joint noise.
+
+    Args:
+        grasp: the grasp (its q0 is the nominal configuration).
+        noise: joint noise on the 7 arm joints.
+        n_samples: number of draws.
+        seed: run seed; chunk c uses ``SeedSequence(seed, spawn_key=(c,))``.
+        processes: worker processes (results do not depend on it).
+        friction, num_edges: friction cone of the quality measure.
+        engine: ``pybullet`` (the reference).
+        method: noise sampler (``mc``, ``antithetic``, ``sobol``: per chunk).
+        chunk: draws per chunk (part of the random stream layout: keep it fixed to
+            reproduce numbers).
+        return_draws: keep every draw's outcome, contacts and Q.
+        progress: show a tqdm bar on stderr (True) or call ``progress(done, total)``.
+    """
+    validate_request(n_samples, processes, chunk)
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
+    key = (engine, grasp.object, float(friction), int(num_edges))
+    sizes = chunk_sizes(n_samples, chunk)
+    tasks = [(key, grasp.q0, noise, int(seed), i, size, method, return_draws)
+             for i, size in enumerate(sizes)]
+    counts = np.zeros(len(OUTCOMES), dtype=np.int64)
+    moments = StreamingMoments(1)
+    kept: list[DrawBatch] = []
+    bar = None
+    if progress is True:
+        from tqdm import tqdm
+
+        bar = tqdm(total=n_samples, desc=f"{grasp.object} grasp {grasp.id}", unit="draw",
+                   file=sys.stderr, disable=None)
+    done = 0
+    for (chunk_counts, chunk_moments, draws), size in zip(_chunks(tasks, processes), sizes,
+                                                          strict=True):
+        counts += chunk_counts
+        moments.merge(chunk_moments)
+        if draws is not None:
+            kept.append(draws)
+        done += size
+        if bar is not None:
+            bar.update(size)
+        elif callable(progress):
+            progress(done, n_samples)
+    if bar is not None:
+        bar.close()
+    return summarize(grasp, noise, seed, engine, counts, moments,
+                     DrawBatch.concatenate(kept) if kept else None)
+
+
+def summarize(grasp: Grasp, noise: JointNoise, seed: int, engine: str, counts: np.ndarray,
+              moments: StreamingMoments, draws: DrawBatch | None) -> GraspStats:
+    n = int(counts.sum())
+    fc = int(counts[FORCE_CLOSURE])
+    result = moments.result()
+    mean = float(result.mean[0]) if fc else math.nan
+    var = float(result.cov[0, 0]) if fc > 1 else math.nan
+    sigma = noise.sigma if isinstance(noise.sigma, float) else list(noise.sigma)
+    return GraspStats(
+        p_fc=fc / n, p_fc_ci=wilson_interval(fc, n), q_mean=mean, q_var=var,
+        q_std=math.sqrt(var) if fc > 1 else math.nan,
+        q_skew=float(result.skew[0]) if fc > 1 else math.nan, q_nominal=grasp.q_nominal,
+        error=grasp.q_nominal - mean if fc else math.nan, samples=n,
+        outcomes={name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
+        sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws)
+
+
+def default_processes() -> int:
+    return max(1, min(os.cpu_count() or 1, 2))

@@ -1,0 +1,191 @@
+"""The object catalog: meshes, exact convex decompositions, centre of mass, r_max, pose.
+
+Every object is a union of convex parts (see ``assets/objects/build_objects.py``): the parts
+are the collision geometry, the watertight mesh is their union, so contacts found against
+the parts lie on the mesh. Object frame: origin at the centre of the base, +z up (metres);
+every object stands at :data:`OBJECT_POSITION` in the world (robot base) frame.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import trimesh
+from scipy.spatial import ConvexHull
+
+from kinegrasp_env.assets import asset_path
+
+#: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
+OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
+#: Where the object frame sits in the world (robot base) frame: 0.6 m in front of the
+#: robot, on a table 0.1 m above the robot's base plane.
+OBJECT_POSITION: tuple[float, float, float] = (0.6, 0.0, 0.1)
+
+
+@dataclass(frozen=True, eq=False)
+class GraspObject:
+    """One catalog object.
+
+    Attributes:
+        name: catalog name.
+        mesh: watertight triangle mesh, object frame.
+        parts: convex parts, each an (n_i, 3) vertex array (object frame).
+        planes: per part, (F_i, 4) outward face planes [normal (3), offset] with
+            normal . x + offset <= 0 inside.
+        center_of_mass: (3,) object frame (uniform density).
+        r_max: largest distance from the centre of mass to a mesh vertex (metres).
+        pose: (4, 4) object frame in the world frame.
+    """
+
+    name: str
+    mesh: trimesh.Trimesh
+    parts: tuple[np.ndarray, ...]
+    planes: tuple[np.ndarray, ...] = field(repr=False)
+    center_of_mass: np.ndarray = field(repr=False)
+    r_max: float = 0.0
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4), repr=False)
+
+    @property
+    def torque_scale(self) -> float:
+        """1 / r_max (GraspIt's convention), 1/metres."""
+        return 1.0 / self.r_max
+
+    @property
+    def size(self) -> np.ndarray:
+        """(3,) bounding-box extents, metres."""
+        return self.mesh.extents
+
+    def to_object(self, points_world: np.ndarray) -> np.ndarray:
+        """World points (..., 3) to the object frame."""
+        rot, trans = self.pose[:3, :3], self.pose[:3, 3]
+        return (np.asarray(points_world) - trans) @ rot
+
+    def to_world(self, points: np.ndarray) -> np.ndarray:
+        """Object-frame points (..., 3) to the world frame."""
+        return np.asarray(points) @ self.pose[:3, :3].T + self.pose[:3, 3]
+
+    def surface(self, points: np.ndarray, part: np.ndarray | None = None,
+                hint: np.ndarray | None = None, edge_tol: float = 1e-5
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Project object-frame points (n, 3) lying on or near a part's boundary onto it.
+
+        Args:
+            points: (n, 3) object frame.
+            part: (n,) index of the part each point belongs to; default: the part whose
+                boundary is nearest.
+
+            hint: (n, 3) outward directions (e.g. from the object to the touching finger),
+                used where the point lies on an edge or corner of the part (several face
+                planes within ``edge_tol``): the normal there is not unique, and the hint,
+                projected into the cone of the adjacent face normals, picks one.
+
+        Returns:
+            (projected points (n, 3), inward unit normals (n, 3)): the face of the part
+            whose plane is closest to the point (the outermost face) gives the projection;
+            its normal is the normal unless the point is on an edge or corner.
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        if part is None:
+            part = self.nearest_part(points)
+        out_p = np.empty_like(points)
+        out_n = np.empty_like(points)
+        for index in np.unique(part):
+            sel = part == index
+            planes = self.planes[index]
+            signed = points[sel] @ planes[:, :3].T + planes[:, 3]
+            face = np.argmax(signed, axis=1)
+            top = signed[np.arange(face.size), face]
+            normal = planes[face, :3]
+            out_p[sel] = points[sel] - top[:, None] * normal
+            if hint is not None:
+                active = signed >= top[:, None] - edge_tol
+                for row in np.flatnonzero(active.sum(axis=1) > 1):
+                    normal[row] = _cone_direction(planes[active[row], :3], hint[sel][row])
+            out_n[sel] = -normal
+        return out_p, out_n
+
+    def part_distance(self, points: np.ndarray) -> np.ndarray:
+        """(n, n_parts) signed plane distance of points to each part (<= 0 inside)."""
+        points = np.atleast_2d(points)
+        return np.stack([np.max(points @ pl[:, :3].T + pl[:, 3], axis=1) for pl in self.planes],
+                        axis=1)
+
+    def ray_entry(self, origin: np.ndarray, direction: np.ndarray) -> float | None:
+        """Distance along a ray (object frame, unit ``direction``) to where it first enters
+        the object, or None if it misses (exact: ray against every convex part)."""
+        best = None
+        for planes in self.planes:
+            normal_dot = planes[:, :3] @ direction
+            start = planes[:, :3] @ origin + planes[:, 3]  # signed distance of the origin
+            t_in, t_out = 0.0, np.inf
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = -start / normal_dot
+            entering, leaving = normal_dot < 0, normal_dot > 0
+            if np.any((normal_dot == 0) & (start > 0)):
+                continue
+            if entering.any():
+                t_in = max(t_in, float(t[entering].max()))
+            if leaving.any():
+                t_out = min(t_out, float(t[leaving].min()))
+            if t_in <= t_out and (best is None or t_in < best):
+                best = t_in
+        return best
+
+    def nearest_part(self, points: np.ndarray) -> np.ndarray:
+        """(n,) index of the part whose boundary is nearest (by plane distance)."""
+        return np.argmin(np.abs(self.part_distance(points)), axis=1)
+
+
+def _cone_direction(normals: np.ndarray, hint: np.ndarray) -> np.ndarray:
+    """The unit vector of the cone spanned by ``normals`` (j, 3) closest to ``hint`` (3,)."""
+    from scipy.optimize import nnls
+
+    weights, _ = nnls(normals.T, hint / max(np.linalg.norm(hint), 1e-300))
+    direction = weights @ normals
+    length = np.linalg.norm(direction)
+    if length < 1e-12:  # hint points away from the cone: fall back to the mean normal
+        direction = normals.mean(axis=0)
+        length = np.linalg.norm(direction)
+    return direction / length
+
+
+def _planes(vertices: np.ndarray) -> np.ndarray:
+    hull = ConvexHull(vertices)
+    eq = hull.equations
+    # merge coplanar triangles: unique planes
+    keys = np.round(eq, 9)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return eq[np.sort(first)]
+
+
+@lru_cache(maxsize=8)
+def load_object(name: str) -> GraspObject:
+    """Load a catalog object by name.
+
+    Raises:
+        ValueError: for an unknown name (the message lists the known ones).
+    """
+    if name not in OBJECT_NAMES:
+        raise ValueError(f"unknown object {name!r}; known objects: {', '.join(OBJECT_NAMES)}")
+    mesh = trimesh.load(asset_path("objects", f"{name}.obj"), force="mesh", process=True)
+    data = json.loads(asset_path("objects", f"{name}_parts.json").read_text())
+    parts = tuple(np.asarray(p, dtype=float) for p in data["parts"])
+    com = np.asarray(mesh.center_mass, dtype=float)
+    r_max = float(np.linalg.norm(mesh.vertices - com, axis=1).max())
+    pose = np.eye(4)
+    pose[:3, 3] = OBJECT_POSITION
+    return GraspObject(name, mesh, parts, tuple(_planes(p) for p in parts), com, r_max, pose)
+
+
+def catalog() -> list[dict]:
+    """One summary dict per object: name, size (m), r_max (m), centre of mass, parts."""
+    rows = []
+    for name in OBJECT_NAMES:
+        obj = load_object(name)
+        rows.append({"name": name, "size": obj.size.round(4).tolist(), "r_max": round(obj.r_max, 4),
+                     "center_of_mass": obj.center_of_mass.round(4).tolist(),
+                     "parts": len(obj.parts), "faces": int(len(obj.mesh.faces))})
+    return rows
