@@ -202,6 +202,74 @@ def cmd_convergence(args) -> int:
     return 0
 
 
+def cmd_objects(args) -> int:
+    from kinegrasp_env.objects import catalog
+
+    rows = catalog()
+    if args.json:
+        print(json.dumps(rows))
+        return 0
+    print(f"{'name':<12} {'size x, y, z [m]':<26} {'r_max [m]':>9} {'parts':>5}")
+    for r in rows:
+        size = ", ".join(f"{v:.3f}" for v in r["size"])
+        print(f"{r['name']:<12} {size:<26} {r['r_max']:>9.4f} {r['parts']:>5}")
+    return 0
+
+
+def _processes(text: str) -> int:
+    return positive_int(text, "--processes")
+
+
+def cmd_evaluate(args) -> int:
+    from kinegrasp_env.evaluate import evaluate_grasp
+    from kinegrasp_env.grasps import grasp_by_index
+
+    noise, sigma, samples, seed = _noise_from(args)
+    index = _index(args.grasp)
+    grasp = grasp_by_index(args.object, index)
+    stats = evaluate_grasp(grasp, noise, samples, seed, processes=_processes(args.processes),
+                           return_draws=bool(args.plot), progress=True)
+    if args.plot:
+        from kinegrasp_env.objects import load_object
+        from kinegrasp_env.plots import plot_contacts
+
+        plot_contacts(load_object(args.object).mesh, stats.draws, args.plot,
+                      title=f"{args.object} grasp {index}, sigma = {sigma:g}: "
+                            f"P(FC) = {stats.p_fc:.3f}")
+    if args.json:
+        print(json.dumps(stats.to_json()))
+    else:
+        lo, hi = stats.p_fc_ci
+        print(f"{args.object} grasp {index}, sigma = {sigma:g} ({args.noise}), {samples} draws")
+        print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
+        print(f"  Q: nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
+              f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error {stats.error:.5f}")
+        print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
+        if args.plot:
+            print(f"  plot written to {args.plot}")
+    return 0
+
+
+def _index(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise CLIError(f"--grasp: {text!r} is not an integer") from None
+
+
+def cmd_reproduce(args) -> int:
+    from kinegrasp_env.experiments import markdown_table1, table1
+
+    samples = positive_int(args.samples, "--samples")
+    if args.figure != "table1":
+        raise CLIError(f"unknown experiment {args.figure!r}; available: table1")
+    rows = table1(args.object, samples, args.out, grasps=positive_int(args.grasps, "--grasps"),
+                  seed=_seed(args.seed), processes=_processes(args.processes), progress=True)
+    print(markdown_table1(rows, args.object, samples))
+    print(f"written: {args.out}/table1.csv, table1.md, pfc_vs_sigma.png")
+    return 0
+
+
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -228,6 +296,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", default="0")
     p.add_argument("--json", action="store_true", help="print the curves as JSON")
     p.set_defaults(func=cmd_convergence)
+
+    p = sub.add_parser("objects", help="list the object catalog")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_objects)
+
+    p = sub.add_parser("evaluate", help="Monte Carlo P(FC) and quality of a shipped grasp")
+    p.add_argument("--object", default="spray_flask")
+    p.add_argument("--grasp", default="0", help="index in the object's shipped grasp set")
+    _add_noise_args(p, 0.0133)
+    p.add_argument("--processes", default="1")
+    p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
+    p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("reproduce", help="reproduce a table or figure of the paper")
+    p.add_argument("figure", help="table1")
+    p.add_argument("--object", default="spray_flask")
+    p.add_argument("--samples", default="10000")
+    p.add_argument("--grasps", default="5")
+    p.add_argument("--seed", default="0")
+    p.add_argument("--processes", default="2")
+    p.add_argument("--out", default="out/table1")
+    p.set_defaults(func=cmd_reproduce)
     return parser
 
 

@@ -167,12 +167,16 @@ class _Finger:
 def _contact(world: GraspWorld, finger: int, link: int, record: tuple) -> Contact:
     obj = world.obj
     point = obj.to_object(np.asarray(record[6], dtype=float))
-    part = np.array([record[4] + 1])  # base link -1 is part 0
-    # pybullet's normal on B (the object) points from B to A (the finger): outward, the
-    # direction the finger touches from; it only breaks ties at edges and corners
+    part = obj.nearest_part(point[None])  # the part whose surface the point is on
+    projected, face_normal = obj.surface(point[None], part)
+    # pybullet's normal on B (the object) points from B to A (the finger) for our fixed body
+    # order: the outward separating direction. On a face it is the face normal; at an edge
+    # or corner it lies in the cone of the adjacent faces. Far from the face normal only
+    # where the point is not on a face interior; use it there.
     outward = obj.pose[:3, :3].T @ np.asarray(record[7], dtype=float)
-    projected, normal = obj.surface(point[None], part, hint=outward[None])
-    return Contact(finger, link, projected[0], normal[0])
+    outward /= max(np.linalg.norm(outward), 1e-300)
+    normal = face_normal[0] if face_normal[0] @ -outward > 1 - 1e-6 else -outward
+    return Contact(finger, link, projected[0], normal)
 
 
 def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -> CloseResult:

@@ -68,7 +68,7 @@ class GraspObject:
         return np.asarray(points) @ self.pose[:3, :3].T + self.pose[:3, 3]
 
     def surface(self, points: np.ndarray, part: np.ndarray | None = None,
-                hint: np.ndarray | None = None, edge_tol: float = 1e-5
+                hint: np.ndarray | None = None, edge_tol: float = 5e-5
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Project object-frame points (n, 3) lying on or near a part's boundary onto it.
 
@@ -99,10 +99,15 @@ class GraspObject:
             face = np.argmax(signed, axis=1)
             top = signed[np.arange(face.size), face]
             normal = planes[face, :3]
-            out_p[sel] = points[sel] - top[:, None] * normal
+            projected = points[sel] - top[:, None] * normal
+            active = signed >= top[:, None] - edge_tol
+            edge = active.sum(axis=1) > 1
+            # on a face: project onto its plane; on an edge or corner the plane projection
+            # could leave the part, so the point (pybullet's exact closest point) is kept
+            projected[edge] = points[sel][edge]
+            out_p[sel] = projected
             if hint is not None:
-                active = signed >= top[:, None] - edge_tol
-                for row in np.flatnonzero(active.sum(axis=1) > 1):
+                for row in np.flatnonzero(edge):
                     normal[row] = _cone_direction(planes[active[row], :3], hint[sel][row])
             out_n[sel] = -normal
         return out_p, out_n
@@ -187,5 +192,5 @@ def catalog() -> list[dict]:
         obj = load_object(name)
         rows.append({"name": name, "size": obj.size.round(4).tolist(), "r_max": round(obj.r_max, 4),
                      "center_of_mass": obj.center_of_mass.round(4).tolist(),
-                     "parts": len(obj.parts), "faces": int(len(obj.mesh.faces))})
+                     "parts": len(obj.parts), "faces": len(obj.mesh.faces)})
     return rows

@@ -38,13 +38,13 @@ FINGER_REACH = 0.25
 class PlannerSettings:
     """Sampling ranges (metres, radians)."""
 
-    standoff: tuple[float, float] = (0.0, 0.03)  # back-off after the approach touches
+    standoff: tuple[float, float] = (0.01, 0.06)  # back-off after the approach touches
     elevation: tuple[float, float] = (-0.2, 1.45)   # approach direction below horizontal
     azimuth: tuple[float, float] = (-1.2, 1.2)      # about +x (the robot faces +x)
     proximal: tuple[float, float] = (-0.9, -0.2)
     distal: tuple[float, float] = (-0.2, 0.3)
     spreads: tuple[float, ...] = (0.0, np.pi / 3, np.pi / 6)
-    max_contacts: int = 6
+    max_contacts: int = 3
 
 
 def palm_frame(direction: np.ndarray, roll: float) -> np.ndarray:

@@ -93,3 +93,61 @@ def plot_convergence(curves: Mapping[str, Mapping[float, ConvergenceCurve]],
         axes[r, 0].legend(fontsize=8)
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+FINGER_COLOURS = ("tab:red", "tab:green", "tab:blue")
+
+
+def plot_contacts(mesh, draws, path: str | Path, title: str = "", max_normals: int = 300,
+                  normal_length: float = 0.01) -> Path:
+    """Contact points (and some normals) of Monte Carlo draws on the object, by finger
+    (the paper's Figs. 7-8). ``draws`` is a DrawBatch; ``mesh`` a trimesh in the object
+    frame."""
+    plt = _pyplot()
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    v = mesh.vertices
+    ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=mesh.faces, color="0.8", alpha=0.25,
+                    linewidth=0)
+    valid = draws.finger >= 0
+    rng = np.random.default_rng(0)
+    for finger, colour in enumerate(FINGER_COLOURS):
+        sel = valid & (draws.finger == finger)
+        pts, nrm = draws.points[sel], draws.normals[sel]
+        ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=3, color=colour, alpha=0.5,
+                   label=f"finger {finger + 1}")
+        if len(pts):
+            pick = rng.choice(len(pts), size=min(max_normals, len(pts)), replace=False)
+            ax.quiver(pts[pick, 0], pts[pick, 1], pts[pick, 2], nrm[pick, 0], nrm[pick, 1],
+                      nrm[pick, 2], length=normal_length, color=colour, linewidth=0.5)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre, half = (lo + hi) / 2, (hi - lo).max() / 2
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper left", fontsize=8)
+    return save_figure(fig, path)
+
+
+def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Path:
+    """P(FC) with its 95% interval against sigma, one line per grasp (rows from table1)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for grasp in sorted({r["grasp"] for r in rows}):
+        sub = sorted((r for r in rows if r["grasp"] == grasp), key=lambda r: r["sigma"])
+        sig = np.array([r["sigma"] for r in sub])
+        p = np.array([r["p_fc"] for r in sub])
+        lo = np.array([r["p_fc_lo"] for r in sub])
+        hi = np.array([r["p_fc_hi"] for r in sub])
+        ax.errorbar(sig, p, yerr=[p - lo, hi - p], marker="o", capsize=3, label=f"grasp {grasp}")
+    ax.set_xlabel("joint noise sigma [rad]")
+    ax.set_ylabel("P(force closure)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return save_figure(fig, path)

@@ -11,8 +11,12 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import pybullet
-from pybullet_utils.bullet_client import BulletClient
+
+from kinegrasp_env._quiet import quiet_c_output
+
+with quiet_c_output():  # pybullet prints its build time on import
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.objects import GraspObject
@@ -48,8 +52,9 @@ class BulletWorld:
     """
 
     def __init__(self, gui: bool = False) -> None:
-        self.client: BulletClient | None = BulletClient(
-            connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        with quiet_c_output():  # DIRECT mode prints "argv[0]=" on connect
+            self.client: BulletClient | None = BulletClient(
+                connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self.bodies: dict[str, int] = {}
 
     @property

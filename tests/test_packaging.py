@@ -56,3 +56,5 @@ def test_composed_urdf_is_up_to_date(tmp_path):
         sys.path.pop(0)
     out = build_kuka_sdh.build(tmp_path / "k.urdf")
     assert out.read_text() == (ROOT / "assets" / "robots" / "kuka_sdh.urdf").read_text()
+    hand = build_kuka_sdh.build_hand(tmp_path / "h.urdf")
+    assert hand.read_text() == (ROOT / "assets" / "robots" / "sdh_hand.urdf").read_text()

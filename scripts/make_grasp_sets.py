@@ -1,0 +1,37 @@
+"""Generate the shipped grasp sets ``assets/grasps/<object>.json`` (12 grasps per object).
+
+Run: ``python scripts/make_grasp_sets.py [--count 12] [--seed 0]``. Uses the simple sampling
+planner of :mod:`kinegrasp_env.planner` with its default settings (fingertip grasps: at most
+three contacts, one per finger link), seeded per object.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from kinegrasp_env.assets import assets_dir
+from kinegrasp_env.grasps import save_grasps
+from kinegrasp_env.objects import OBJECT_NAMES
+from kinegrasp_env.planner import GraspPlanner
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--count", type=int, default=12)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("objects", nargs="*", default=list(OBJECT_NAMES))
+    args = parser.parse_args()
+    for index, name in enumerate(args.objects):
+        planner = GraspPlanner(name)
+        seed = args.seed + 1000 * OBJECT_NAMES.index(name)
+        grasps = planner.plan(args.count, seed=seed, progress=True)
+        planner.close()
+        if len(grasps) < args.count:
+            raise SystemExit(f"{name}: only {len(grasps)} grasps found")
+        path = save_grasps(grasps, assets_dir() / "grasps" / f"{name}.json",
+                           generator="scripts/make_grasp_sets.py", seed=seed)
+        print(path, index)
+
+
+if __name__ == "__main__":
+    main()

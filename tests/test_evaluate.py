@@ -1,0 +1,149 @@
+"""Monte Carlo evaluation: nominal reproduction, seeds and processes, contacts, noise trend."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
+from kinegrasp_env.evaluate import evaluate_grasp
+from kinegrasp_env.grasps import shipped_grasps
+from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.objects import OBJECT_NAMES, load_object
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_shipped_sets_reproduce_their_nominal_grasps(name):
+    grasps = shipped_grasps(name)
+    assert len(grasps) >= 10
+    engine = PybulletEngine(name)
+    try:
+        draws = engine.run(np.stack([g.q0 for g in grasps]))
+    finally:
+        engine.close()
+    assert np.all(draws.outcome == FORCE_CLOSURE)
+    for i, g in enumerate(grasps):
+        assert draws.quality[i] == pytest.approx(g.q_nominal, rel=1e-9)
+        k = len(g.points)
+        np.testing.assert_allclose(draws.points[i, :k], g.points, atol=1e-9)
+
+
+def test_sigma_zero_gives_certain_force_closure():
+    grasp = shipped_grasps("cube")[0]
+    stats = evaluate_grasp(grasp, JointNoise(0.0), 20, seed=3)
+    assert stats.p_fc == 1.0
+    assert stats.q_mean == pytest.approx(grasp.q_nominal, rel=1e-12)
+    assert stats.q_std == pytest.approx(0.0, abs=1e-12)
+    assert stats.error == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.expensive
+def test_same_seed_same_result_any_processes():
+    grasp = shipped_grasps("cube")[1]
+    noise = JointNoise(0.02)
+    one = evaluate_grasp(grasp, noise, 240, seed=7, chunk=40)
+    two = evaluate_grasp(grasp, noise, 240, seed=7, chunk=40, processes=2)
+    assert one.to_json() == two.to_json()
+    other = evaluate_grasp(grasp, noise, 240, seed=8, chunk=40)
+    assert other.to_json() != one.to_json()
+    assert sum(one.outcomes.values()) == 240
+
+
+def test_contacts_lie_on_the_surface_with_mesh_normals():
+    grasp = shipped_grasps("mug")[0]
+    obj = load_object("mug")
+    stats = evaluate_grasp(grasp, JointNoise(0.01), 60, seed=1, return_draws=True)
+    draws = stats.draws
+    ok = draws.finger >= 0
+    points, normals = draws.points[ok], draws.normals[ok]
+    _, distance, _ = trimesh.proximity.closest_point(obj.mesh, points)
+    assert distance.max() < 1e-3  # contract: within 1 mm of the mesh
+    assert np.median(distance) < 5e-5  # typically on it: projected onto the exact parts
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
+    # normals point into the object: a millimetre along them from the contact is inside
+    # (except at rims, where an edge contact may sit up to ~1 mm off the mesh)
+    assert obj.mesh.contains(points + 1e-3 * normals).mean() > 0.95
+    # on a face (no other face of the mesh within 0.5 mm) the normal is that face's inward
+    # normal; at edges and corners it is pybullet's separating direction, in between
+    triangles = obj.mesh.triangles
+    on_face = 0
+    for point, normal in zip(points, normals, strict=True):
+        on = trimesh.triangles.closest_point(triangles, np.tile(point, (len(triangles), 1)))
+        gap = np.linalg.norm(on - point, axis=1)
+        near = np.unique(np.round(-obj.mesh.face_normals[gap < gap.min() + 5e-4], 6), axis=0)
+        if len(near) == 1:
+            on_face += 1
+            assert near[0] @ normal > np.cos(np.deg2rad(1.0))
+    assert on_face > 0.15 * len(points)  # the 7.5-degree facets of the mug are 5 mm wide
+
+
+@pytest.mark.expensive
+def test_pfc_falls_as_noise_grows():
+    grasps = shipped_grasps("spray_flask")[:5]
+    n = 150
+    low = np.array([evaluate_grasp(g, JointNoise(0.0033), n, seed=0).p_fc for g in grasps])
+    high = np.array([evaluate_grasp(g, JointNoise(0.0333), n, seed=0).p_fc for g in grasps])
+    # standard error of a mean of 5 binomial proportions from n draws is <= 0.5/sqrt(5 n);
+    # require the drop to exceed 3 combined standard errors
+    margin = 3 * np.sqrt(2) * 0.5 / np.sqrt(5 * n)
+    assert low.mean() - high.mean() > margin
+
+
+def test_outcomes_partition_the_draws():
+    grasp = shipped_grasps("drill")[0]
+    stats = evaluate_grasp(grasp, JointNoise(0.03, "uniform"), 50, seed=2)
+    assert set(stats.outcomes) == set(OUTCOMES)
+    assert sum(stats.outcomes.values()) == 50
+    assert stats.p_fc == stats.outcomes["force_closure"] / 50
+    lo, hi = stats.p_fc_ci
+    assert lo <= stats.p_fc <= hi
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "kinegrasp_env.cli", *args],
+                          capture_output=True, text=True, check=False)
+
+
+def test_cli_evaluate_json():
+    proc = run_cli("evaluate", "--object", "cube", "--grasp", "2", "--sigma", "0.0133",
+                   "--samples", "40", "--seed", "0", "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert {"p_fc", "p_fc_ci", "q_mean", "q_var", "q_std", "q_skew", "q_nominal", "error",
+            "samples", "outcomes", "sigma", "noise", "seed"} <= set(out)
+    assert out["samples"] == 40 and len(out["p_fc_ci"]) == 2
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--object", "teapot"], "unknown object 'teapot'; known objects: cube, spray_flask"),
+    (["--object", "cube", "--grasp", "99"], "grasp index 99 out of range"),
+    (["--sigma", "-0.1"], "--sigma must be >= 0"),
+    (["--samples", "0"], "--samples must be >= 1"),
+])
+def test_cli_evaluate_bad_input(args, needle):
+    proc = run_cli("evaluate", *args)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and needle in proc.stderr, proc.stderr
+
+
+def test_bad_grasp_configuration(tmp_path):
+    from kinegrasp_env.grasps import load_grasps
+
+    g = shipped_grasps("cube")[0].to_dict()
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"grasps": [{**g, "q0": g["q0"][:10]}]}))
+    with pytest.raises(ValueError, match="q0 must have 14 entries"):
+        load_grasps(bad)
+    q0 = list(g["q0"])
+    q0[1] = 3.0
+    bad.write_text(json.dumps({"grasps": [{**g, "q0": q0}]}))
+    with pytest.raises(ValueError, match=r"q0\[1\] \(lbr_iiwa_joint_2\) = 3.0000 is outside"):
+        load_grasps(bad)
+    bad.write_text("{not json")
+    with pytest.raises(ValueError, match="not valid JSON"):
+        load_grasps(bad)

@@ -1,0 +1,76 @@
+"""Object catalog, the pybullet wrapper, auto-close contacts on the surface."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from kinegrasp_env.objects import OBJECT_NAMES, catalog, load_object
+from kinegrasp_env.sim import BulletWorld, GraspWorld
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_mesh_is_a_solid_and_parts_match_it(name):
+    obj = load_object(name)
+    assert obj.mesh.is_watertight and obj.mesh.volume > 0
+    # r_max: the largest vertex distance from the centre of mass
+    assert obj.r_max == pytest.approx(np.linalg.norm(obj.mesh.vertices - obj.center_of_mass,
+                                                     axis=1).max())
+    # every surface point of the mesh is on the boundary of the union of the parts:
+    # inside or on every part's planes for at least one part (distance 0), outside none deep
+    points, _ = trimesh.sample.sample_surface(obj.mesh, 2000, seed=1)
+    gap = np.abs(obj.part_distance(points)).min(axis=1)
+    assert gap.max() < 1e-6  # measured: the decomposition is exact up to rounding
+    # and conversely points projected onto a part's outermost face lie on the mesh
+    _, dist, _ = trimesh.proximity.closest_point(obj.mesh, points)
+    assert dist.max() < 1e-6
+
+
+def test_catalog_and_unknown_name():
+    rows = catalog()
+    assert [r["name"] for r in rows] == list(OBJECT_NAMES)
+    assert all(0.05 < max(r["size"]) < 0.35 for r in rows)  # real-world sizes, metres
+    with pytest.raises(ValueError, match="unknown object 'teapot'; known objects: cube, "):
+        load_object("teapot")
+
+
+def test_ray_entry_matches_the_mesh():
+    obj = load_object("spray_flask")
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        direction = rng.normal(size=3)
+        direction /= np.linalg.norm(direction)
+        target = obj.center_of_mass + rng.normal(scale=0.01, size=3)
+        origin = target - 0.5 * direction
+        hits = obj.mesh.ray.intersects_location([origin], [direction])[0]
+        expected = np.linalg.norm(hits - origin, axis=1).min()
+        assert obj.ray_entry(origin, direction) == pytest.approx(expected, abs=1e-7)
+
+
+def test_world_owns_its_client_and_closes_twice():
+    world = GraspWorld(load_object("cube"))
+    other = BulletWorld()
+    assert world.client._client != other.client._client
+    assert set(world.bodies) == {"hand", "object"}
+    with pytest.raises(KeyError, match="no body named 'table'"):
+        world.body("table")
+    world.close()
+    world.close()
+    other.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        _ = world.bullet
+
+
+def test_no_global_pybullet_calls():
+    """Library code calls pybullet only through a BulletClient, never the module's
+    functions (which act on the global default client)."""
+    import re
+    from pathlib import Path
+
+    import kinegrasp_env
+
+    package = Path(kinegrasp_env.__file__).parent
+    offenders = [f"{path.name}: {m.group(0)}" for path in package.rglob("*.py")
+                 for m in re.finditer(r"\bpybullet\.[a-z]\w*\(", path.read_text())]
+    assert offenders == []
