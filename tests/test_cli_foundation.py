@@ -3,20 +3,14 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from cli_helpers import run_cli
 
 from kinegrasp_env.cli import main
 from kinegrasp_env.noise import JointNoise
 from kinegrasp_env.planar import PlanarArm
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "kinegrasp_env.cli", *args],
-                          capture_output=True, text=True, check=False)
 
 
 def test_planar_json_as_specified():

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import trimesh
+from cli_helpers import run_cli
 
 from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
 from kinegrasp_env.evaluate import evaluate_grasp
@@ -102,11 +101,6 @@ def test_outcomes_partition_the_draws():
     assert stats.p_fc == stats.outcomes["force_closure"] / 50
     lo, hi = stats.p_fc_ci
     assert lo <= stats.p_fc <= hi
-
-
-def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "kinegrasp_env.cli", *args],
-                          capture_output=True, text=True, check=False)
 
 
 def test_cli_evaluate_json():
