@@ -146,11 +146,29 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
         progress: show a tqdm bar on stderr (True) or call ``progress(done, total)``.
     """
     validate_request(n_samples, processes, chunk)
+    counts, moments, draws = run_chunks(
+        grasp, noise, seed, sizes=chunk_sizes(n_samples, chunk), processes=processes,
+        friction=friction, num_edges=num_edges, engine=engine, method=method,
+        return_draws=return_draws, progress=progress)
+    return summarize(grasp, noise, seed, engine, counts, moments, draws)
+
+
+def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
+               first_chunk: int = 0, processes: int = 1, friction: float = 0.5,
+               num_edges: int = 8, engine: str = "pybullet", method: str = "mc",
+               return_draws: bool = False, progress: bool | Callable = False
+               ) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
+    """Run chunks ``first_chunk, first_chunk + 1, ...`` of the given sizes and merge them.
+
+    Returns outcome counts (4,), streaming moments of Q over force-closure draws, and the
+    draws if requested. Chunk c always draws the same noise for the same seed, so a run can
+    be extended later by asking for the next chunks (adaptive ranking does).
+    """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
+    n_samples = int(sum(sizes))
     key = (engine, grasp.object, float(friction), int(num_edges))
-    sizes = chunk_sizes(n_samples, chunk)
-    tasks = [(key, grasp.q0, noise, int(seed), i, size, method, return_draws)
+    tasks = [(key, grasp.q0, noise, int(seed), first_chunk + i, size, method, return_draws)
              for i, size in enumerate(sizes)]
     counts = np.zeros(len(OUTCOMES), dtype=np.int64)
     moments = StreamingMoments(1)
@@ -175,8 +193,7 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
             progress(done, n_samples)
     if bar is not None:
         bar.close()
-    return summarize(grasp, noise, seed, engine, counts, moments,
-                     DrawBatch.concatenate(kept) if kept else None)
+    return counts, moments, DrawBatch.concatenate(kept) if kept else None
 
 
 def summarize(grasp: Grasp, noise: JointNoise, seed: int, engine: str, counts: np.ndarray,
