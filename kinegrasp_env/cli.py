@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 
-class CLIError(Exception):
+class CLIError(ValueError):
     """A user error: printed as one line, exit status 2."""
 
 
@@ -318,6 +318,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--processes", default="2")
     p.add_argument("--out", default="out/table1")
     p.set_defaults(func=cmd_reproduce)
+
+    from kinegrasp_env.cli_toolkit import add_commands
+
+    add_commands(sub)
     return parser
 
 
@@ -352,4 +356,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    # run the importable module's main, so its exception classes are the ones other
+    # modules raise (``python -m`` executes this file as a separate ``__main__`` module)
+    from kinegrasp_env.cli import main as _main
+
+    sys.exit(_main())

@@ -227,3 +227,46 @@ class GraspPlanner:
             bar.close()
         log.info("%s: %d grasps from %d palm poses", self.obj.name, len(found), attempts)
         return found
+
+    # ------------------------------------------------------------------ null-space variants
+    def elbow_range(self, q0: np.ndarray, step: float = np.deg2rad(5.0),
+                    span: float = np.pi) -> list[tuple[float, np.ndarray]]:
+        """Feasible (elbow angle, configuration) pairs along the self-motion of ``q0``.
+
+        Walks from q0 in both directions in ``step`` increments (radians) up to ``span``,
+        stopping where the path leaves the joint limits; keeps the collision-free ones.
+        """
+        psi0 = float(self.ik.elbow_angle(q0[None])[0])
+        found = []
+        for sign in (1.0, -1.0):
+            q = q0.copy()
+            for i in range(1, int(span / step) + 1):
+                psi = psi0 + sign * i * step
+                moved, ok = self.ik.set_elbow_angle(q, psi)
+                if not ok[0]:
+                    break
+                q = moved[0]
+                if self.arm_clear(q):
+                    found.append((float(np.angle(np.exp(1j * psi))), q.copy()))
+        return sorted(found, key=lambda item: item[0])
+
+    def variants(self, grasp: Grasp, count: int) -> list[Grasp]:
+        """Up to ``count`` arm configurations with the grasp's palm pose (hence its nominal
+        contacts) and elbow angles spread over the feasible self-motion range."""
+        feasible = self.elbow_range(grasp.q0)
+        if not feasible or count < 1:
+            return []
+        pick = np.unique(np.round(np.linspace(0, len(feasible) - 1, count)).astype(int))
+        out = []
+        for j, index in enumerate(pick):
+            psi, q = feasible[index]
+            draw = self.engine.run(q[None])
+            if draw.outcome[0] != FORCE_CLOSURE:
+                continue
+            k = int(draw.n_contacts[0])
+            out.append(Grasp(grasp.object, q, grasp.palm_pose, draw.points[0, :k].copy(),
+                             draw.normals[0, :k].copy(), draw.finger[0, :k].astype(int),
+                             draw.link[0, :k].astype(int), float(draw.quality[0]),
+                             id=f"{grasp.id}v{j + 1}",
+                             meta={"elbow_angle": psi, "variant_of": grasp.id}))
+        return out

@@ -1,0 +1,209 @@
+"""``kinegrasp plan`` and ``kinegrasp rank``: the grasp ranking toolkit on the command line."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.cli import CLIError, _noise_from, _seed, positive_int
+from kinegrasp_env.grasps import load_grasps, save_grasps, write_atomic
+from kinegrasp_env.ranking import CRITERIA, CandidateResult, order, rank_adaptive, rank_fixed
+from kinegrasp_env.stats import StreamingMoments
+
+CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
+               "error", "samples")
+CHUNK = 250
+
+
+def cmd_plan(args) -> int:
+    from kinegrasp_env.planner import GraspPlanner
+
+    count = positive_int(args.count, "--count")
+    variants = int(args.variants)
+    if variants < 0:
+        raise CLIError(f"--variants must be >= 0, got {variants}")
+    budget = float(args.time_budget) if args.time_budget else None
+    planner = GraspPlanner(args.object)
+    try:
+        grasps = planner.plan(count, seed=_seed(args.seed), time_budget=budget,
+                              max_attempts=int(args.max_attempts) if args.max_attempts else None,
+                              progress=True)
+        if not grasps:
+            raise CLIError(f"no force-closure grasp of {args.object} found within the budget; "
+                           "nothing written")
+        out = list(grasps)
+        for grasp in grasps if variants else []:
+            out += planner.variants(grasp, variants)
+    finally:
+        planner.close()
+    save_grasps(out, args.out, planner_seed=_seed(args.seed))
+    print(f"{len(grasps)} grasps ({len(out) - len(grasps)} null-space variants) of {args.object}"
+          f" written to {args.out}")
+    return 0
+
+
+def _moments_to_json(m: StreamingMoments | None) -> dict | None:
+    if m is None:
+        return None
+    return {"n": m.n, "mean": m.mean.tolist(), "m2": m.m2.tolist(), "m3": m.m3.tolist()}
+
+
+def _moments_from_json(data: dict | None) -> StreamingMoments | None:
+    if data is None:
+        return None
+    m = StreamingMoments(1)
+    m.n, m.mean = int(data["n"]), np.array(data["mean"])
+    m.m2, m.m3 = np.array(data["m2"]), np.array(data["m3"])
+    return m
+
+
+def _fmt(value: float) -> str:
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else \
+        f"{value:.6g}"
+
+
+def cmd_rank(args) -> int:
+    from kinegrasp_env import evaluate
+
+    try:
+        grasps = load_grasps(args.candidates)
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    if not grasps:
+        raise CLIError(f"{args.candidates}: the file holds no grasps")
+    noise, sigma, samples, seed = _noise_from(args)
+    if args.criterion not in CRITERIA:
+        raise CLIError(f"--criterion must be one of {', '.join(CRITERIA)}")
+    processes = positive_int(args.processes, "--processes")
+    chunk = min(CHUNK, samples)
+    layout = evaluate.chunk_sizes(samples, chunk)
+
+    def evaluator(index: int, first: int, count: int):
+        counts, moments, _ = evaluate.run_chunks(
+            grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
+            processes=processes)
+        return int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
+
+    out = Path(args.out)
+    partial = out.with_name(out.name + ".partial.jsonl")
+    settings = {"candidates": str(Path(args.candidates).resolve()), "sigma": sigma,
+                "noise": noise.kind, "samples": samples, "seed": seed,
+                "ids": [g.id for g in grasps]}
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
+    if args.adaptive:
+        top_k = positive_int(args.top_k, "--top-k")
+        if top_k >= len(grasps):
+            raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
+        report = rank_adaptive(len(grasps), evaluator, len(layout), chunk, top_k=top_k,
+                               criterion=args.criterion,
+                               progress=lambda r, n: bar.set_postfix_str(f"round {r}/{n}"))
+        results = report.results
+        print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
+              f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
+              f"{'separated' if report.separated else 'NOT separated'} after {report.rounds} "
+              "rounds", file=sys.stderr)
+    else:
+        done = _read_partial(partial, settings)
+        with partial.open("a") as log:
+            if not done:
+                log.write(json.dumps({"settings": settings}) + "\n")
+
+            def record(index: int) -> None:
+                bar.update(1)
+                if index in done:
+                    return
+                r = results_so_far[index]
+                log.write(json.dumps({"index": index, "successes": r.successes,
+                                      "trials": r.trials, "chunks": r.chunks,
+                                      "moments": _moments_to_json(r.moments)}) + "\n")
+                log.flush()
+
+            results_so_far: dict[int, CandidateResult] = {}
+
+            def tracked(index: int, first: int, count: int):
+                value = evaluator(index, first, count)
+                result = CandidateResult(index)
+                result.add(*value, count)
+                results_so_far[index] = result
+                return value
+
+            results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
+                                       done=done), args.criterion)
+    bar.close()
+    rows = []
+    for r in results:
+        g = grasps[r.index]
+        lo, hi = r.interval()
+        mean, std, skew = r.q_stats()
+        rows.append({"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
+                     "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
+                     "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
+                     "samples": r.trials})
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for row in rows:
+        writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-1]), row["samples"]])
+    write_atomic(out, buffer.getvalue())
+    if partial.exists():
+        partial.unlink()
+    print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
+          f"{'draws':>6}")
+    for i, row in enumerate(rows, 1):
+        print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
+              f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fmt(row['q_mean']):>9} "
+              f"{row['q_nominal']:>9.5f} {row['samples']:>6}")
+    print(f"written to {out}")
+    return 0
+
+
+def _read_partial(path: Path, settings: dict) -> dict[int, CandidateResult]:
+    """Finished candidates of an interrupted run with the same settings (else start over)."""
+    if not path.exists():
+        return {}
+    lines = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    if not lines or lines[0].get("settings") != settings:
+        path.unlink()
+        return {}
+    done = {}
+    for item in lines[1:]:
+        r = CandidateResult(int(item["index"]), int(item["successes"]), int(item["trials"]),
+                            int(item["chunks"]), _moments_from_json(item["moments"]))
+        done[r.index] = r
+    print(f"resuming: {len(done)} candidates already ranked in {path}", file=sys.stderr)
+    return done
+
+
+def add_commands(sub) -> None:
+    from kinegrasp_env.cli import _add_noise_args
+
+    p = sub.add_parser("plan", help="plan force-closure grasps of an object")
+    p.add_argument("--object", default="drill")
+    p.add_argument("--count", default="20")
+    p.add_argument("--seed", default="0")
+    p.add_argument("--out", default="grasps.json")
+    p.add_argument("--variants", default="0",
+                   help="null-space variants per grasp (same palm pose, other elbow angles)")
+    p.add_argument("--time-budget", help="seconds at most")
+    p.add_argument("--max-attempts", help="palm poses to try at most")
+    p.set_defaults(func=cmd_plan)
+
+    p = sub.add_parser("rank", help="rank candidate grasps by robustness under joint noise")
+    p.add_argument("candidates", help="grasp file (from `kinegrasp plan`)")
+    _add_noise_args(p, 0.0133)
+    p.set_defaults(samples="2000")
+    p.add_argument("--criterion", default="pfc", help="pfc, q_mean or pfc_lcb")
+    p.add_argument("--adaptive", action="store_true",
+                   help="successive elimination: stop when the top k is separated")
+    p.add_argument("--top-k", default="3")
+    p.add_argument("--processes", default="1")
+    p.add_argument("--out", default="ranked.csv")
+    p.set_defaults(func=cmd_rank)
