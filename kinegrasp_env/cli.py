@@ -258,13 +258,32 @@ def _index(text: str) -> int:
 
 
 def cmd_reproduce(args) -> int:
+    from kinegrasp_env import experiments
     from kinegrasp_env.experiments import markdown_table1, table1
 
     samples = positive_int(args.samples, "--samples")
-    if args.figure != "table1":
-        raise CLIError(f"unknown experiment {args.figure!r}; available: table1")
+    processes = _processes(args.processes)
+    if args.figure not in ("table1", "fig7", "fig9", "fig10"):
+        raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
+                       "fig10")
+    out = args.out or f"out/{args.figure}"
+    if args.figure == "fig7":
+        rows = experiments.fig7(out, samples=samples, seed=_seed(args.seed), processes=processes)
+        for r in rows:
+            print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) {r['p_fc']:.3f}")
+        print(f"written: {out}/fig7.csv and fig7_<object>.png")
+        return 0
+    if args.figure in ("fig9", "fig10"):
+        rows = experiments.fig9_10(args.figure, out, samples=samples, seed=_seed(args.seed),
+                                   processes=processes)
+        for r in rows:
+            print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
+                  f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+        print(f"written: {out}/{args.figure}.csv and {args.figure}.png")
+        return 0
+    args.out = out
     rows = table1(args.object, samples, args.out, grasps=positive_int(args.grasps, "--grasps"),
-                  seed=_seed(args.seed), processes=_processes(args.processes), progress=True)
+                  seed=_seed(args.seed), processes=processes, progress=True)
     print(markdown_table1(rows, args.object, samples))
     print(f"written: {args.out}/table1.csv, table1.md, pfc_vs_sigma.png")
     return 0
@@ -310,13 +329,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="reproduce a table or figure of the paper")
-    p.add_argument("figure", help="table1")
+    p.add_argument("figure", help="table1, fig7, fig9 or fig10")
     p.add_argument("--object", default="spray_flask")
     p.add_argument("--samples", default="10000")
     p.add_argument("--grasps", default="5")
     p.add_argument("--seed", default="0")
     p.add_argument("--processes", default="2")
-    p.add_argument("--out", default="out/table1")
+    p.add_argument("--out", help="output folder (default out/<figure>)")
     p.set_defaults(func=cmd_reproduce)
 
     from kinegrasp_env.cli_toolkit import add_commands

@@ -63,3 +63,93 @@ def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
             f"{_fmt(cells[s]['q_mean'])} / {_fmt(cells[s]['q_var'], 3)} / "
             f"{cells[s]['p_fc']:.3f}" for s in sigmas) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
+                  return_draws: bool = False) -> list:
+    from kinegrasp_env.evaluate import evaluate_grasp
+
+    return [evaluate_grasp(g, JointNoise(sigma), samples, seed, processes=processes,
+                           return_draws=return_draws) for g in grasps]
+
+
+def _write_rows(out: Path, name: str, rows: list[dict]) -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(out / name, buffer.getvalue())
+
+
+def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
+         samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
+         processes: int = 1) -> list[dict]:
+    """Fig. 7: the same contacts reached with two arm configurations (the most and the least
+    robust of ``variants`` null-space variants of shipped grasp 0): P(FC) and the scatter of
+    contact points and normals for each. Writes ``fig7_<object>.png`` and ``fig7.csv``."""
+    from kinegrasp_env.objects import load_object
+    from kinegrasp_env.planner import GraspPlanner
+    from kinegrasp_env.plots import plot_contacts_pair
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name in objects:
+        grasp = shipped_grasps(name)[0]
+        planner = GraspPlanner(name)
+        try:
+            candidates = [grasp, *planner.variants(grasp, variants)]
+        finally:
+            planner.close()
+        stats = _evaluate_set(candidates, sigma, samples, seed, processes, return_draws=True)
+        best = max(range(len(stats)), key=lambda i: stats[i].p_fc)
+        worst = min(range(len(stats)), key=lambda i: stats[i].p_fc)
+        for label, i in (("robust", best), ("fragile", worst)):
+            rows.append({"object": name, "config": label, "id": candidates[i].id,
+                         "elbow_angle": candidates[i].meta.get("elbow_angle"),
+                         "p_fc": stats[i].p_fc, "p_fc_lo": stats[i].p_fc_ci[0],
+                         "p_fc_hi": stats[i].p_fc_ci[1], "q_mean": stats[i].q_mean,
+                         "q_nominal": stats[i].q_nominal, "samples": samples})
+        plot_contacts_pair(load_object(name).mesh, [stats[best].draws, stats[worst].draws],
+                           [f"elbow {candidates[i].meta.get('elbow_angle', 0):.2f} rad: "
+                            f"P(FC) = {stats[i].p_fc:.3f}" for i in (best, worst)],
+                           out / f"fig7_{name}.png",
+                           title=f"{name}: same contacts, two arm configurations, "
+                                 f"sigma = {sigma:g}")
+    _write_rows(out, "fig7.csv", rows)
+    return rows
+
+
+def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
+            count: int = 10, seed: int = 0, processes: int = 1) -> list[dict]:
+    """Figs. 9 and 10: success rate, mean quality (with its std) and the error
+    (nominal - mean) of ``count`` grasps per object at ``sigma``. fig9: the shipped grasps
+    (different contacts and arms); fig10: null-space variants of shipped grasp 0 (same
+    contacts, different arms). Writes ``<which>.csv`` and ``<which>.png``."""
+    from kinegrasp_env.objects import OBJECT_NAMES
+    from kinegrasp_env.planner import GraspPlanner
+    from kinegrasp_env.plots import plot_success_quality
+
+    if which not in ("fig9", "fig10"):
+        raise ValueError(f"unknown figure {which!r}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name in OBJECT_NAMES:
+        if which == "fig9":
+            grasps = shipped_grasps(name)[:count]
+        else:
+            planner = GraspPlanner(name)
+            try:
+                grasps = planner.variants(shipped_grasps(name)[0], count)
+            finally:
+                planner.close()
+        for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes),
+                        strict=True):
+            rows.append({"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
+                         "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
+                         "samples": samples})
+    _write_rows(out, f"{which}.csv", rows)
+    plot_success_quality(rows, out / f"{which}.png",
+                         title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp")
+    return rows

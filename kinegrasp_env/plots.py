@@ -151,3 +151,56 @@ def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Pa
     ax.legend(fontsize=8)
     ax.set_title(title)
     return save_figure(fig, path)
+
+
+def plot_contacts_pair(mesh, draws_list, labels, path: str | Path, title: str = "") -> Path:
+    """Side-by-side contact scatters (Fig. 7): one 3-D panel per DrawBatch."""
+    plt = _pyplot()
+    fig = plt.figure(figsize=(12, 5.5))
+    v = mesh.vertices
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre, half = (lo + hi) / 2, (hi - lo).max() / 2
+    for panel, (draws, label) in enumerate(zip(draws_list, labels, strict=True), 1):
+        ax = fig.add_subplot(1, len(draws_list), panel, projection="3d")
+        ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=mesh.faces, color="0.8",
+                        alpha=0.2, linewidth=0)
+        for finger, colour in enumerate(FINGER_COLOURS):
+            sel = draws.finger == finger
+            pts, nrm = draws.points[sel], draws.normals[sel]
+            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=3, color=colour, alpha=0.5,
+                       label=f"finger {finger + 1}")
+            step = max(1, len(pts) // 150)
+            ax.quiver(pts[::step, 0], pts[::step, 1], pts[::step, 2], nrm[::step, 0],
+                      nrm[::step, 1], nrm[::step, 2], length=0.01, color=colour, linewidth=0.4)
+        for setter, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre, strict=True):
+            setter(c - half, c + half)
+        ax.set_title(label, fontsize=9)
+        ax.legend(fontsize=7, loc="upper left")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
+def plot_success_quality(rows: list[dict], path: str | Path, title: str = "") -> Path:
+    """Figs. 9-10: per object, P(FC) bars and mean Q (+- std) against nominal Q per grasp."""
+    plt = _pyplot()
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    fig, axes = plt.subplots(2, len(objects), figsize=(3.6 * len(objects), 6), squeeze=False)
+    for c, name in enumerate(objects):
+        sub = [r for r in rows if r["object"] == name]
+        x = np.arange(len(sub))
+        axes[0, c].bar(x, [r["p_fc"] for r in sub], color="tab:blue")
+        axes[0, c].set_ylim(0, 1.02)
+        axes[0, c].set_title(name)
+        axes[0, c].set_ylabel("success rate P(FC)")
+        mean = np.array([r["q_mean"] for r in sub], dtype=float)
+        std = np.nan_to_num(np.array([r["q_std"] for r in sub], dtype=float))
+        axes[1, c].errorbar(x, mean, yerr=std, fmt="o", capsize=3, label="mean Q +- std")
+        axes[1, c].plot(x, [r["q_nominal"] for r in sub], "k_", ms=12, label="nominal Q")
+        axes[1, c].set_xlabel("grasp")
+        axes[1, c].set_ylabel("Ferrari-Canny Q")
+        for ax in axes[:, c]:
+            ax.set_xticks(x, [r["id"] for r in sub], fontsize=7, rotation=45)
+    axes[1, 0].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)

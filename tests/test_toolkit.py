@@ -138,3 +138,21 @@ def test_adaptive_rank_reports_draws(tmp_path):
                    "--out", str(tmp_path / "a.csv"))
     assert proc.returncode == 0, proc.stderr
     assert "draws against 400 for fixed n" in proc.stderr
+
+
+@pytest.mark.expensive
+def test_reproduce_fig7_and_fig10(tmp_path):
+    proc = run_cli("reproduce", "fig7", "--samples", "60", "--out", str(tmp_path / "f7"))
+    assert proc.returncode == 0, proc.stderr
+    rows = _read(tmp_path / "f7" / "fig7.csv")
+    assert {r["object"] for r in rows} == {"drill", "spray_flask"}
+    for name in ("drill", "spray_flask"):
+        robust, fragile = (r for r in rows if r["object"] == name)
+        assert float(robust["p_fc"]) >= float(fragile["p_fc"])
+        # same contacts: equal nominal quality
+        assert float(robust["q_nominal"]) == pytest.approx(float(fragile["q_nominal"]), rel=1e-6)
+        assert (tmp_path / "f7" / f"fig7_{name}.png").exists()
+    proc = run_cli("reproduce", "fig10", "--samples", "20", "--out", str(tmp_path / "f10"))
+    assert proc.returncode == 0, proc.stderr
+    rows = _read(tmp_path / "f10" / "fig10.csv")
+    assert len({r["object"] for r in rows}) == 4 and (tmp_path / "f10" / "fig10.png").exists()
