@@ -200,7 +200,7 @@ def add_commands(sub) -> None:
     p.add_argument("candidates", help="grasp file (from `kinegrasp plan`)")
     _add_noise_args(p, 0.0133)
     p.set_defaults(samples="2000")
-    p.add_argument("--criterion", default="pfc", help="pfc, q_mean or pfc_lcb")
+    p.add_argument("--criterion", default="pfc", help="pfc, q_mean, pfc_lcb or weighted")
     p.add_argument("--adaptive", action="store_true",
                    help="successive elimination: stop when the top k is separated")
     p.add_argument("--top-k", default="3")

@@ -1,7 +1,8 @@
 """Ranking grasp candidates by robustness under joint noise: fixed n or adaptive.
 
 Criteria: ``pfc`` (P(FC)), ``q_mean`` (mean Q over force-closure draws), ``pfc_lcb`` (the
-lower end of the Wilson 95% interval of P(FC)).
+lower end of the Wilson 95% interval of P(FC)), ``weighted`` (P(FC) x (1 + w mean Q),
+w = :data:`WEIGHT`: P(FC) with a bonus for quality; Q is dimensionless).
 
 Adaptive mode (successive elimination, as in bandit-based robust grasp selection): every
 undecided candidate gets one more chunk of draws per round; with Wilson intervals at the
@@ -23,7 +24,9 @@ import numpy as np
 
 from kinegrasp_env.stats import StreamingMoments, wilson_interval
 
-CRITERIA = ("pfc", "q_mean", "pfc_lcb")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted")
+#: Weight of mean Q in the ``weighted`` criterion.
+WEIGHT = 1.0
 #: evaluator(candidate index, first chunk, number of chunks) -> (successes, trials, moments)
 Evaluator = Callable[[int, int, int], tuple[int, int, StreamingMoments]]
 
@@ -71,6 +74,9 @@ def score(result: CandidateResult, criterion: str) -> float:
         return result.interval()[0]
     if criterion == "q_mean":
         return result.q_stats()[0]
+    if criterion == "weighted":
+        mean = result.q_stats()[0]
+        return result.p_fc * (1.0 + WEIGHT * (0.0 if math.isnan(mean) else mean))
     raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
 
 

@@ -39,6 +39,8 @@ def test_fixed_ranking_orders_by_criterion():
     assert all(r.trials == 40 * CHUNK for r in results)
     lcb = [r.index for r in order(results, "pfc_lcb")]
     assert lcb[0] == 1
+    # weighted: P(FC) (1 + mean Q); candidate 3 (0.7 x 5) beats 1 (0.9 x 3)
+    assert order(results, "weighted")[0].index == 3
 
 
 def test_fixed_ranking_reuses_finished_candidates():
