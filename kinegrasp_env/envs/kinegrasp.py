@@ -1,0 +1,266 @@
+"""KineGrasp-v0 and KineGraspSelect-v0: choose the elbow angle that makes a grasp robust.
+
+A task is a grasp (object, nominal arm+hand configuration q0, hence a palm pose and nominal
+contacts) and a joint-noise model. The agent moves the arm along its self-motion manifold
+(the palm pose, so the nominal contacts, stay fixed); the reward is P(force closure)
+estimated from ``n_draws`` internal Monte Carlo draws at the current configuration, plus
+``q_weight`` times the mean Ferrari-Canny Q, minus ``limit_penalty`` when the requested
+motion would leave the joint limits (the arm then stays at the last reachable point).
+
+Observation (float32, 44 entries, every one scaled to roughly [-1, 1]):
+
+====== ===================================================== =========================
+index  entry                                                 scale
+====== ===================================================== =========================
+0-6    nominal arm joints q0[:7]                              / pi
+7-13   hand pre-shape q0[7:]                                  / pi
+14     noise sigma                                            / 0.05 rad
+15-17  noise type one-hot (gaussian, uniform, triangular)     1
+18-20  palm position relative to the object frame             / 0.3 m
+21-26  palm orientation in the object frame (first two columns of R)  1
+27-28  current elbow angle psi: sin, cos                      1
+29-35  current arm joints                                     / pi
+36-41  palm-pose std per unit joint noise, object frame:      / 1 (metres or radians
+       sqrt(diag(J J^T)) for x, y, z, rx, ry, rz              per radian)
+42     nominal Q of the grasp                                 x 10
+43     fraction of the episode's steps used                   1
+====== ===================================================== =========================
+
+Action: float32 Box(-1, 1, (2,)): [change of psi in units of ``step_size`` radians,
+done signal (> 0 ends the episode)]. KineGraspSelect-v0 has one step and a 1-D action: the
+elbow angle psi itself, a in [-1, 1] -> psi = pi a.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
+from kinegrasp_env.evaluate import chunk_noise
+from kinegrasp_env.grasps import Grasp, load_grasps, shipped_grasps
+from kinegrasp_env.ik import ArmIK
+from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.objects import OBJECT_NAMES, load_object
+from kinegrasp_env.robots import PALM_LINK
+from kinegrasp_env.stats import wilson_interval
+
+OBS_SIZE = 44
+OBS_LIMIT = 10.0
+
+
+class KineGraspEnv(gym.Env):
+    """Move the elbow along the self-motion to make a grasp robust to joint noise.
+
+    Args:
+        objects: catalog objects to draw tasks from (default: all).
+        grasp_file: a grasp file to draw tasks from instead of the shipped sets.
+        sigma_range: (low, high) of the noise sigma drawn at reset (radians).
+        noise_types: noise distributions drawn at reset.
+        n_draws: Monte Carlo draws per reward.
+        q_weight: weight of the mean Q in the reward.
+        limit_penalty: subtracted when an action would leave the joint limits.
+        max_steps: steps before truncation.
+        step_size: radians of psi per unit action.
+        render_mode: None, ``rgb_array`` or ``human``.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
+
+    def __init__(self, objects: tuple[str, ...] | None = None, grasp_file: str | None = None,
+                 sigma_range: tuple[float, float] = (0.0033, 0.0333),
+                 noise_types: tuple[str, ...] = ("gaussian",), n_draws: int = 64,
+                 q_weight: float = 0.0, limit_penalty: float = 0.1, max_steps: int = 10,
+                 step_size: float = 0.3, render_mode: str | None = None) -> None:
+        super().__init__()
+        if render_mode not in (None, "rgb_array", "human"):
+            raise ValueError(f"unknown render_mode {render_mode!r}")
+        if n_draws < 1 or max_steps < 1:
+            raise ValueError(f"n_draws and max_steps must be >= 1, got {n_draws}, {max_steps}")
+        if not 0 <= sigma_range[0] <= sigma_range[1]:
+            raise ValueError(f"sigma_range must be 0 <= low <= high, got {sigma_range}")
+        for kind in noise_types:
+            if kind not in DISTRIBUTIONS:
+                raise ValueError(f"unknown noise type {kind!r}; choose from {DISTRIBUTIONS}")
+        if grasp_file is not None:
+            grasps = load_grasps(grasp_file)
+            self.tasks = {name: [g for g in grasps if g.object == name]
+                          for name in {g.object for g in grasps}}
+        else:
+            names = objects or OBJECT_NAMES
+            self.tasks = {name: shipped_grasps(name) for name in names}
+        self.object_names = tuple(sorted(self.tasks))
+        self.sigma_range = tuple(float(s) for s in sigma_range)
+        self.noise_types = tuple(noise_types)
+        self.n_draws = int(n_draws)
+        self.q_weight = float(q_weight)
+        self.limit_penalty = float(limit_penalty)
+        self.max_steps = int(max_steps)
+        self.step_size = float(step_size)
+        self.render_mode = render_mode
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (OBS_SIZE,), np.float32)
+        self.action_space = self._action_space()
+        self._engines: dict[str, PybulletEngine] = {}
+        self._viewer = None
+        self.grasp: Grasp | None = None
+        self.q = None
+        self.steps = 0
+
+    def _action_space(self) -> spaces.Box:
+        return spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+    # ------------------------------------------------------------------ helpers
+    def _engine(self, name: str) -> PybulletEngine:
+        if name not in self._engines:
+            self._engines[name] = PybulletEngine(name)
+        return self._engines[name]
+
+    @property
+    def ik(self) -> ArmIK:
+        engine = self._engine(self.grasp.object)
+        if not hasattr(engine, "_arm_ik"):
+            engine._arm_ik = ArmIK(engine.kin)
+        return engine._arm_ik
+
+    def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise]:
+        rng = self.np_random
+        name = options.get("object")
+        if name is None:
+            name = self.object_names[rng.integers(len(self.object_names))]
+        elif name not in self.tasks:
+            raise ValueError(f"unknown object {name!r}; this env has "
+                             f"{', '.join(self.object_names)}")
+        grasps = self.tasks[name]
+        index = options.get("grasp")
+        if index is None:
+            index = int(rng.integers(len(grasps)))
+        elif not 0 <= int(index) < len(grasps):
+            raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)}")
+        sigma = options.get("sigma")
+        if sigma is None:
+            sigma = float(rng.uniform(*self.sigma_range))
+        elif not (math.isfinite(float(sigma)) and float(sigma) >= 0):
+            raise ValueError(f"sigma must be finite and >= 0, got {sigma!r}")
+        kind = options.get("noise")
+        if kind is None:
+            kind = self.noise_types[rng.integers(len(self.noise_types))]
+        return grasps[int(index)], JointNoise(float(sigma), kind)
+
+    def _observation(self) -> np.ndarray:
+        engine = self._engine(self.grasp.object)
+        obj = load_object(self.grasp.object)
+        palm = engine.kin.pose(self.q, PALM_LINK)[0]
+        rot_obj = obj.pose[:3, :3]
+        rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
+        rel_rot = rot_obj.T @ palm[:3, :3]
+        jac = engine.kin.jacobian(self.q, PALM_LINK)[0][:, :7]
+        jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
+        spread = np.sqrt(np.diag(jac @ jac.T))
+        psi = float(self.ik.elbow_angle(self.q[None])[0])
+        onehot = np.array([self.noise.kind == k for k in DISTRIBUTIONS], dtype=float)
+        obs = np.concatenate([
+            self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [self.noise.sigma_vector(1)[0]
+                                                                   / 0.05],
+            onehot, rel_pos / 0.3, rel_rot[:, :2].T.ravel(), [np.sin(psi), np.cos(psi)],
+            self.q[:7] / np.pi, spread, [10.0 * self.grasp.q_nominal],
+            [self.steps / self.max_steps]])
+        return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
+
+    def _estimate(self) -> dict:
+        """Monte Carlo draws at the current configuration, seeded from the env's RNG."""
+        seed = int(self.np_random.integers(2**31 - 1))
+        eps = chunk_noise(self.noise, seed, 0, self.n_draws)
+        q = np.repeat(self.q[None], self.n_draws, axis=0)
+        q[:, :7] += eps
+        draws = self._engine(self.grasp.object).run(q)
+        fc = draws.outcome == FORCE_CLOSURE
+        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+        q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
+        return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+                "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
+                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+
+    def _move_to(self, psi: float) -> bool:
+        moved, ok = self.ik.set_elbow_angle(self.q, psi)
+        self.q = moved[0]
+        return bool(ok[0])
+
+    def _reward(self, within_limits: bool) -> tuple[float, dict]:
+        info = self._estimate()
+        penalty = 0.0 if within_limits else self.limit_penalty
+        reward = info["p_fc"] + self.q_weight * info["q_mean"] - penalty
+        info.update({"reward_p_fc": info["p_fc"], "reward_q": self.q_weight * info["q_mean"],
+                     "reward_limit_penalty": -penalty, "within_limits": within_limits,
+                     "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0]),
+                     "sigma": self.noise.sigma_vector(1)[0], "noise": self.noise.kind,
+                     "object": self.grasp.object, "grasp": self.grasp.id})
+        return float(reward), info
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - {"object", "grasp", "sigma", "noise", "psi"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        self.grasp, self.noise = self._pick_task(options)
+        self.q = self.grasp.q0.copy()
+        self.steps = 0
+        if options.get("psi") is not None:
+            self._move_to(float(options["psi"]))
+        info = {"object": self.grasp.object, "grasp": self.grasp.id,
+                "sigma": self.noise.sigma_vector(1)[0], "noise": self.noise.kind,
+                "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0])}
+        return self._observation(), info
+
+    def step(self, action):
+        if self.grasp is None:
+            raise RuntimeError("call reset() before step()")
+        action = np.clip(np.asarray(action, dtype=np.float64).ravel(), -1.0, 1.0)
+        psi = float(self.ik.elbow_angle(self.q[None])[0]) + self.step_size * float(action[0])
+        within = self._move_to(psi)
+        self.steps += 1
+        reward, info = self._reward(within)
+        terminated = bool(action[1] > 0.0)
+        truncated = self.steps >= self.max_steps and not terminated
+        return self._observation(), reward, terminated, truncated, info
+
+    def render(self):
+        if self.render_mode is None or self.grasp is None:
+            return None
+        from kinegrasp_env.envs.render import render_scene
+
+        image, self._viewer = render_scene(self.grasp.object, self.q, self._viewer,
+                                           gui=self.render_mode == "human")
+        return image if self.render_mode == "rgb_array" else None
+
+    def close(self) -> None:
+        for engine in self._engines.values():
+            engine.close()
+        self._engines.clear()
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+
+class KineGraspSelectEnv(KineGraspEnv):
+    """One step: pick the elbow angle psi = pi * action[0], receive P(FC) there."""
+
+    def __init__(self, **kwargs) -> None:
+        kwargs.setdefault("max_steps", 1)
+        super().__init__(**kwargs)
+
+    def _action_space(self) -> spaces.Box:
+        return spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    def step(self, action):
+        if self.grasp is None:
+            raise RuntimeError("call reset() before step()")
+        action = np.clip(np.asarray(action, dtype=np.float64).ravel(), -1.0, 1.0)
+        within = self._move_to(math.pi * float(action[0]))
+        self.steps += 1
+        reward, info = self._reward(within)
+        return self._observation(), reward, True, False, info

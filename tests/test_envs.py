@@ -1,0 +1,125 @@
+"""Gymnasium environments: API checks, determinism, the self-motion action, the reward."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import kinegrasp_env
+from kinegrasp_env import ENV_IDS
+from kinegrasp_env.evaluate import evaluate_grasp
+from kinegrasp_env.grasps import Grasp
+from kinegrasp_env.kinematics import pose_error
+from kinegrasp_env.robots import ELBOW_LINK, PALM_LINK
+
+SMALL = {"n_draws": 8}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_gymnasium_and_sb3_checkers(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(env_id, **SMALL)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = gym.make(env_id, **SMALL)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sb3_checker.check_env(env.unwrapped, warn=True)
+    env.close()
+    env.close()  # closing twice is fine
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_rollout(env_id):
+    from gymnasium.utils.env_checker import data_equivalence
+
+    envs = [gym.make(env_id, **SMALL) for _ in range(2)]
+    outs = []
+    for env in envs:
+        env.action_space.seed(3)
+        obs, _ = env.reset(seed=11)
+        trace = [obs]
+        for _ in range(3):
+            obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+            trace += [obs, reward, info["p_fc"], info["draw_seed"]]
+            if terminated or truncated:
+                obs, _ = env.reset()
+                trace.append(obs)
+        outs.append(trace)
+        env.close()
+    assert data_equivalence(outs[0], outs[1])
+    other = gym.make(env_id, **SMALL)
+    other.reset(seed=12)
+    *_, info = other.step(other.action_space.sample())
+    assert info["draw_seed"] != outs[0][4]  # another seed, other internal draws
+    other.close()
+
+
+def test_make_by_module_string():
+    env = gym.make("kinegrasp_env:KineGrasp-v0", **SMALL)
+    env.close()
+    assert kinegrasp_env.ENV_IDS == ("KineGrasp-v0", "KineGraspSelect-v0")
+
+
+def test_action_keeps_the_palm_and_moves_the_elbow():
+    env = gym.make("KineGrasp-v0", **SMALL).unwrapped
+    env.reset(seed=0, options={"object": "drill", "grasp": 0, "sigma": 0.01})
+    kin = env._engine("drill").kin
+    palm0 = kin.pose(env.q, PALM_LINK)
+    elbow0 = kin.pose(env.q, ELBOW_LINK)[0, :3, 3]
+    env.step(np.array([0.8, -1.0], dtype=np.float32))
+    assert np.abs(pose_error(kin.pose(env.q, PALM_LINK), palm0)).max() < 1e-6
+    assert np.linalg.norm(kin.pose(env.q, ELBOW_LINK)[0, :3, 3] - elbow0) > 0.01
+    env.close()
+
+
+def test_reward_equals_the_evaluation_engine():
+    env = gym.make("KineGrasp-v0", n_draws=32).unwrapped
+    env.reset(seed=5, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
+    _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
+    g = env.grasp
+    here = Grasp(g.object, env.q.copy(), g.palm_pose, g.points, g.normals, g.fingers, g.links,
+                 g.q_nominal)
+    stats = evaluate_grasp(here, env.noise, 32, seed=info["draw_seed"], chunk=32)
+    assert reward == pytest.approx(stats.p_fc) == pytest.approx(info["p_fc"])
+    assert info["reward_limit_penalty"] == 0.0
+    env.close()
+
+
+def test_rgb_array_render():
+    env = gym.make("KineGraspSelect-v0", render_mode="rgb_array", **SMALL)
+    env.reset(seed=0)
+    image = env.render()
+    assert image.shape == (240, 320, 3) and image.dtype == np.uint8
+    assert image.std() > 5  # not a blank frame
+    env.close()
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_vector_envs(mode):
+    vec = gym.make_vec("KineGraspSelect-v0", num_envs=2, vectorization_mode=mode, **SMALL)
+    obs, _ = vec.reset(seed=0)
+    assert obs.shape == (2, 44)
+    obs, reward, *_ = vec.step(vec.action_space.sample())
+    assert reward.shape == (2,)
+    vec.close()
+
+
+@pytest.mark.parametrize(("options", "needle"), [
+    ({"object": "teapot"}, "unknown object 'teapot'"),
+    ({"sigma": -0.1}, "sigma must be finite and >= 0"),
+    ({"grasp": 99, "object": "cube"}, "grasp index 99 out of range"),
+    ({"colour": "red"}, r"unknown reset options \['colour'\]"),
+])
+def test_bad_reset_options(options, needle):
+    env = gym.make("KineGrasp-v0", **SMALL)
+    with pytest.raises(ValueError, match=needle):
+        env.reset(seed=0, options=options)
+    env.close()
