@@ -34,6 +34,7 @@ elbow angle psi itself, a in [-1, 1] -> psi = pi a.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -68,7 +69,7 @@ class KineGraspEnv(gym.Env):
         render_mode: None, ``rgb_array`` or ``human``.
     """
 
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
 
     def __init__(self, objects: tuple[str, ...] | None = None, grasp_file: str | None = None,
                  sigma_range: tuple[float, float] = (0.0033, 0.0333),
