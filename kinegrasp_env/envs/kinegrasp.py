@@ -67,6 +67,8 @@ class KineGraspEnv(gym.Env):
         max_steps: steps before truncation.
         step_size: radians of psi per unit action.
         render_mode: None, ``rgb_array`` or ``human``.
+        split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
+            (all grasps).
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -75,7 +77,8 @@ class KineGraspEnv(gym.Env):
                  sigma_range: tuple[float, float] = (0.0033, 0.0333),
                  noise_types: tuple[str, ...] = ("gaussian",), n_draws: int = 64,
                  q_weight: float = 0.0, limit_penalty: float = 0.1, max_steps: int = 10,
-                 step_size: float = 0.3, render_mode: str | None = None) -> None:
+                 step_size: float = 0.3, render_mode: str | None = None,
+                 split: str | None = None) -> None:
         super().__init__()
         if render_mode not in (None, "rgb_array", "human"):
             raise ValueError(f"unknown render_mode {render_mode!r}")
@@ -93,6 +96,12 @@ class KineGraspEnv(gym.Env):
         else:
             names = objects or OBJECT_NAMES
             self.tasks = {name: shipped_grasps(name) for name in names}
+        if split not in (None, "train", "test"):
+            raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
+        if split is not None:
+            keep = (lambda i: i % 4 == 3) if split == "test" else (lambda i: i % 4 != 3)
+            self.tasks = {name: [g for i, g in enumerate(gs) if keep(i)]
+                          for name, gs in self.tasks.items()}
         self.object_names = tuple(sorted(self.tasks))
         self.sigma_range = tuple(float(s) for s in sigma_range)
         self.noise_types = tuple(noise_types)

@@ -1,0 +1,134 @@
+"""Train a stable-baselines3 agent on a registered KineGrasp environment.
+
+Example (the committed policy):
+    python agents/train.py --env KineGraspSelect-v0 --algo ppo --seed 0 --out agents/models
+
+Hyperparameters come from ``agents/hyperparams/<algo>.yml`` keyed by environment ID
+(rl-baselines3-zoo format, ``env_kwargs`` included). Training uses the ``train`` split of the
+grasp sets; ``agents/evaluate.py`` uses the held-out ``test`` split. Writes
+``<out>/<env>_<algo>.zip``, checkpoints under ``<out>/checkpoints/`` and a JSON summary.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ALGOS = ("ppo", "sac")
+
+
+class UsageError(Exception):
+    """A bad argument: reported in one line."""
+
+
+def load_hyperparams(env_id: str, algo: str, folder: Path = HERE / "hyperparams") -> dict:
+    import yaml
+
+    path = folder / f"{algo}.yml"
+    if not path.exists():
+        raise UsageError(f"no hyperparameter file {path} for algorithm {algo!r}")
+    data = yaml.safe_load(path.read_text()) or {}
+    if env_id not in data:
+        raise UsageError(f"{path} has no entry for {env_id!r} (it has: {', '.join(data)})")
+    params = dict(data[env_id])
+    if isinstance(params.get("policy_kwargs"), str):
+        text = params["policy_kwargs"].strip()
+        if not (text.startswith("dict(") and text.endswith(")")):
+            raise UsageError(f"{path}: policy_kwargs must look like dict(...)")
+        call = ast.parse(text, mode="eval").body
+        params["policy_kwargs"] = {kw.arg: ast.literal_eval(kw.value) for kw in call.keywords}
+    return params
+
+
+def make_env(env_id: str, env_kwargs: dict, split: str, seed: int):
+    import gymnasium as gym
+
+    import kinegrasp_env
+
+    if env_id not in kinegrasp_env.ENV_IDS:
+        raise UsageError(f"unknown environment {env_id!r}; registered: "
+                         f"{', '.join(kinegrasp_env.ENV_IDS)}")
+    env = gym.make(env_id, split=split, **env_kwargs)
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    return env
+
+
+def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | None = None,
+          checkpoint_every: int = 1000, progress: bool = True) -> dict:
+    """Train and save; returns the summary written to ``<out>/<env>_<algo>.json``."""
+    if algo not in ALGOS:
+        raise UsageError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+    params = load_hyperparams(env_id, algo)
+    env_kwargs = params.pop("env_kwargs", {})
+    steps = int(total_timesteps or params.pop("n_timesteps"))
+    params.pop("n_timesteps", None)
+    policy = params.pop("policy", "MlpPolicy")
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, CallbackList
+    from stable_baselines3.common.monitor import Monitor
+
+    env = Monitor(make_env(env_id, env_kwargs, "train", seed))
+    model = {"ppo": PPO, "sac": SAC}[algo](policy, env, seed=seed, verbose=0, **params)
+    out.mkdir(parents=True, exist_ok=True)
+    name = f"{env_id}_{algo}"
+
+    class Bar(BaseCallback):
+        def _on_training_start(self) -> None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=steps, desc=f"training {name}", file=sys.stderr,
+                            disable=not progress or None)
+
+        def _on_step(self) -> bool:
+            self.bar.update(1)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    callbacks = CallbackList([Bar(), CheckpointCallback(checkpoint_every,
+                                                        str(out / "checkpoints"), name)])
+    start = time.perf_counter()
+    model.learn(total_timesteps=steps, callback=callbacks)
+    wall = time.perf_counter() - start
+    model.save(out / f"{name}.zip")
+    rewards = [float(r) for r in env.get_episode_rewards()]
+    tail = rewards[-100:]
+    summary = {"env": env_id, "algo": algo, "seed": seed, "timesteps": steps,
+               "wall_seconds": round(wall, 1), "episodes": len(rewards),
+               "mean_reward_last_100": sum(tail) / len(tail) if tail else None,
+               "mean_reward_first_100": (sum(rewards[:100]) / len(rewards[:100])
+                                         if rewards else None),
+               "hyperparams": {k: str(v) for k, v in params.items()},
+               "env_kwargs": env_kwargs, "model": str(out / f"{name}.zip")}
+    (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
+    env.close()
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--env", default="KineGraspSelect-v0")
+    parser.add_argument("--algo", default="ppo")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--total-timesteps", type=int)
+    parser.add_argument("--out", default=str(HERE / "models"))
+    args = parser.parse_args(argv)
+    try:
+        summary = train(args.env, args.algo, args.seed, Path(args.out), args.total_timesteps)
+    except UsageError as exc:
+        print(f"train: error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(summary, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
