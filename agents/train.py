@@ -70,7 +70,7 @@ def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | N
     params.pop("n_timesteps", None)
     policy = params.pop("policy", "MlpPolicy")
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, CallbackList
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
     from stable_baselines3.common.monitor import Monitor
 
     env = Monitor(make_env(env_id, env_kwargs, "train", seed))
