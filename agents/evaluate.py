@@ -65,8 +65,8 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
         obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
         grasp, q0 = env.grasp, env.q.copy()
 
-        def reach(psi: float) -> np.ndarray:
-            env.q = q0.copy()
+        def reach(psi: float, start: np.ndarray = q0) -> np.ndarray:
+            env.q = start.copy()
             env._move_to(psi)
             return env.q.copy()
 
