@@ -9,7 +9,7 @@ the draws; auto-close loops over them (pybullet forces it); quality is batched a
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -70,7 +70,6 @@ class EngineTiming:
     autoclose: float = 0.0
     quality: float = 0.0
     draws: int = 0
-    extra: dict = field(default_factory=dict)
 
 
 class PybulletEngine:

@@ -10,7 +10,6 @@ with 1 or N processes.
 from __future__ import annotations
 
 import math
-import os
 import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -92,12 +91,17 @@ def _engine(key: tuple) -> PybulletEngine:
     return engine
 
 
+def draw_chunk(engine: PybulletEngine, q0: np.ndarray, noise: JointNoise, seed: int,
+               index: int, size: int, method: str = "mc") -> DrawBatch:
+    """Run chunk ``index`` of a run: q0 (14,) plus that chunk's arm noise, through ``engine``."""
+    q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
+    q[:, :7] += chunk_noise(noise, seed, index, size, method)
+    return engine.run(q)
+
+
 def _run_chunk(task: tuple) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
     key, q0, noise, seed, index, size, method, keep = task
-    eps = chunk_noise(noise, seed, index, size, method)
-    q = np.repeat(q0[None], size, axis=0)
-    q[:, :7] += eps
-    draws = _engine(key).run(q)
+    draws = draw_chunk(_engine(key), q0, noise, seed, index, size, method)
     counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
     moments = StreamingMoments(1).update(draws.quality[draws.outcome == FORCE_CLOSURE])
     return counts, moments, (draws if keep else None)
@@ -212,6 +216,3 @@ def summarize(grasp: Grasp, noise: JointNoise, seed: int, engine: str, counts: n
         outcomes={name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
         sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws)
 
-
-def default_processes() -> int:
-    return max(1, min(os.cpu_count() or 1, 2))

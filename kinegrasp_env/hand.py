@@ -9,18 +9,20 @@ the one that could close the current gap, but is at least ``STEP`` radians) and 
 until the gap is within ``CONTACT_TOL`` (0.2 mm). A finger whose joints all reach their
 limits without touching has missed. The coupled spread keeps its pre-shape value.
 
-Contacts are reported in the object frame: the point projected onto the touched convex part
-(the object's surface) and that surface's inward normal, so the normal does not depend on
-pybullet's body order.
+Contacts are reported in the object frame: the point on the touched convex part (the
+object's surface) and that face's inward normal; at an edge or corner of a part, where the
+face normal is not unique, pybullet's separating direction for our fixed body order (finger
+A, object B), which lies in the cone of the adjacent face normals.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
-from kinegrasp_env.robots import HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robots import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.sim import GraspWorld
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
@@ -34,9 +36,6 @@ START_TOL = CONTACT_TOL
 #: Radius of the finger capsules plus margin, for the speed bound (metres).
 _RADIUS_BOUND = 0.02
 MAX_ITERATIONS = 400
-
-FINGER_NAMES = ("f1", "f2", "f3")
-LINK_NAMES = ("proximal", "distal")
 
 
 @dataclass(frozen=True)
@@ -84,6 +83,7 @@ def hand_joint_values(preshape: np.ndarray) -> dict[str, float]:
     return {name: float(values[name]) for name in values if not name.startswith("lbr_")}
 
 
+@lru_cache(maxsize=1)
 def _finger_geometry() -> tuple[float, float, float, float]:
     """(proximal length, distal length, upper limit proximal, upper limit distal)."""
     model = kuka_sdh()
@@ -99,8 +99,7 @@ class _Finger:
     def __init__(self, index: int, prox: float, dist: float, geometry) -> None:
         length_p, length_d, self.upper_p, self.upper_d = geometry
         self.index = index
-        self.joints = (f"f{index + 1}_proximal", f"f{index + 1}_distal")
-        self.links = (f"f{index + 1}_proximal", f"f{index + 1}_distal")
+        self.joints, self.links = FINGERS[index][:2], FINGERS[index][2:]
         self.start = [min(prox, self.upper_p), min(dist, self.upper_d)]
         self.phase = 1  # 1: both joints close, 2: only the distal joint closes
         self.t = 0.0

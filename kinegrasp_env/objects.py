@@ -68,8 +68,7 @@ class GraspObject:
         return np.asarray(points) @ self.pose[:3, :3].T + self.pose[:3, 3]
 
     def surface(self, points: np.ndarray, part: np.ndarray | None = None,
-                hint: np.ndarray | None = None, edge_tol: float = 5e-5
-                ) -> tuple[np.ndarray, np.ndarray]:
+                edge_tol: float = 5e-5) -> tuple[np.ndarray, np.ndarray]:
         """Project object-frame points (n, 3) lying on or near a part's boundary onto it.
 
         Args:
@@ -77,15 +76,13 @@ class GraspObject:
             part: (n,) index of the part each point belongs to; default: the part whose
                 boundary is nearest.
 
-            hint: (n, 3) outward directions (e.g. from the object to the touching finger),
-                used where the point lies on an edge or corner of the part (several face
-                planes within ``edge_tol``): the normal there is not unique, and the hint,
-                projected into the cone of the adjacent face normals, picks one.
+            edge_tol: face planes within this distance of the outermost one (metres) mark
+                the point as lying on an edge or corner of the part.
 
         Returns:
-            (projected points (n, 3), inward unit normals (n, 3)): the face of the part
-            whose plane is closest to the point (the outermost face) gives the projection;
-            its normal is the normal unless the point is on an edge or corner.
+            (projected points (n, 3), inward unit normals (n, 3)): the outermost face plane
+            of the part gives the normal and, unless the point is on an edge or corner, the
+            projection (there the plane projection could leave the part: the point is kept).
         """
         points = np.atleast_2d(np.asarray(points, dtype=float))
         if part is None:
@@ -106,9 +103,6 @@ class GraspObject:
             # could leave the part, so the point (pybullet's exact closest point) is kept
             projected[edge] = points[sel][edge]
             out_p[sel] = projected
-            if hint is not None:
-                for row in np.flatnonzero(edge):
-                    normal[row] = _cone_direction(planes[active[row], :3], hint[sel][row])
             out_n[sel] = -normal
         return out_p, out_n
 
@@ -142,19 +136,6 @@ class GraspObject:
     def nearest_part(self, points: np.ndarray) -> np.ndarray:
         """(n,) index of the part whose boundary is nearest (by plane distance)."""
         return np.argmin(np.abs(self.part_distance(points)), axis=1)
-
-
-def _cone_direction(normals: np.ndarray, hint: np.ndarray) -> np.ndarray:
-    """The unit vector of the cone spanned by ``normals`` (j, 3) closest to ``hint`` (3,)."""
-    from scipy.optimize import nnls
-
-    weights, _ = nnls(normals.T, hint / max(np.linalg.norm(hint), 1e-300))
-    direction = weights @ normals
-    length = np.linalg.norm(direction)
-    if length < 1e-12:  # hint points away from the cone: fall back to the mean normal
-        direction = normals.mean(axis=0)
-        length = np.linalg.norm(direction)
-    return direction / length
 
 
 def _planes(vertices: np.ndarray) -> np.ndarray:

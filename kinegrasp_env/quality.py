@@ -141,8 +141,9 @@ def _scale_center(torque_scale, center, batch: int) -> tuple[np.ndarray, np.ndar
 
 # ----------------------------------------------------------------------------- qhull path
 def _rank_deficient(w: np.ndarray) -> bool:
+    """True when the affine hull of the points (N >= 7, 6) has dimension below 6."""
     sv = np.linalg.svd(w - w.mean(axis=0), compute_uv=False)
-    return sv.size < 6 or sv[-1] <= RANK_TOL * max(sv[0], 1e-300) if sv.size else True
+    return bool(sv[-1] <= RANK_TOL * max(sv[0], 1e-300))
 
 
 def _hull(points: np.ndarray) -> ConvexHull | None:

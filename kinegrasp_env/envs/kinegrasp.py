@@ -41,7 +41,7 @@ import numpy as np
 from gymnasium import spaces
 
 from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
-from kinegrasp_env.evaluate import chunk_noise
+from kinegrasp_env.evaluate import draw_chunk
 from kinegrasp_env.grasps import Grasp, load_grasps, shipped_grasps
 from kinegrasp_env.ik import ArmIK
 from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
@@ -182,10 +182,8 @@ class KineGraspEnv(gym.Env):
     def _estimate(self) -> dict:
         """Monte Carlo draws at the current configuration, seeded from the env's RNG."""
         seed = int(self.np_random.integers(2**31 - 1))
-        eps = chunk_noise(self.noise, seed, 0, self.n_draws)
-        q = np.repeat(self.q[None], self.n_draws, axis=0)
-        q[:, :7] += eps
-        draws = self._engine(self.grasp.object).run(q)
+        draws = draw_chunk(self._engine(self.grasp.object), self.q, self.noise, seed, 0,
+                           self.n_draws)
         fc = draws.outcome == FORCE_CLOSURE
         counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
         q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0

@@ -6,7 +6,7 @@ import numpy as np
 
 from kinegrasp_env.objects import load_object
 from kinegrasp_env.robots import kuka_sdh, urdf_path
-from kinegrasp_env.sim import BulletWorld, GraspWorld, pybullet
+from kinegrasp_env.sim import GraspWorld, pybullet
 
 WIDTH, HEIGHT = 320, 240
 
@@ -50,4 +50,4 @@ def render_scene(object_name: str, q: np.ndarray, viewer: SceneViewer | None,
     return viewer.show(q), viewer
 
 
-__all__ = ["BulletWorld", "SceneViewer", "render_scene"]
+__all__ = ["SceneViewer", "render_scene"]
