@@ -220,6 +220,15 @@ def _processes(text: str) -> int:
     return positive_int(text, "--processes")
 
 
+def engine_name(value: str) -> str:
+    """Validated ``--engine`` value."""
+    from kinegrasp_env.evaluate import ENGINES
+
+    if value not in ENGINES:
+        raise CLIError(f"--engine must be one of {', '.join(ENGINES)}, got {value!r}")
+    return value
+
+
 def cmd_evaluate(args) -> int:
     from kinegrasp_env.evaluate import evaluate_grasp
     from kinegrasp_env.grasps import grasp_by_index
@@ -228,7 +237,8 @@ def cmd_evaluate(args) -> int:
     index = _index(args.grasp)
     grasp = grasp_by_index(args.object, index)
     stats = evaluate_grasp(grasp, noise, samples, seed, processes=_processes(args.processes),
-                           return_draws=bool(args.plot), progress=True)
+                           engine=engine_name(args.engine), return_draws=bool(args.plot),
+                           progress=True)
     if args.plot:
         from kinegrasp_env.objects import load_object
         from kinegrasp_env.plots import plot_contacts
@@ -325,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grasp", default="0", help="index in the object's shipped grasp set")
     _add_noise_args(p, 0.0133)
     p.add_argument("--processes", default="1")
+    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
     p.set_defaults(func=cmd_evaluate)
 

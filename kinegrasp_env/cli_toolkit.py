@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.cli import CLIError, _noise_from, _seed, positive_int
+from kinegrasp_env.cli import CLIError, _noise_from, _seed, engine_name, positive_int
 from kinegrasp_env.grasps import load_grasps, save_grasps, write_atomic
 from kinegrasp_env.ranking import CRITERIA, CandidateResult, order, rank_adaptive, rank_fixed
 from kinegrasp_env.stats import StreamingMoments
@@ -81,13 +81,14 @@ def cmd_rank(args) -> int:
     if args.criterion not in CRITERIA:
         raise CLIError(f"--criterion must be one of {', '.join(CRITERIA)}")
     processes = positive_int(args.processes, "--processes")
+    engine = engine_name(args.engine)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
 
     def evaluator(index: int, first: int, count: int):
         counts, moments, _ = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
-            processes=processes)
+            processes=processes, engine=engine)
         return int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
 
     out = Path(args.out)
@@ -205,5 +206,6 @@ def add_commands(sub) -> None:
                    help="successive elimination: stop when the top k is separated")
     p.add_argument("--top-k", default="3")
     p.add_argument("--processes", default="1")
+    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--out", default="ranked.csv")
     p.set_defaults(func=cmd_rank)

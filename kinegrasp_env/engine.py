@@ -72,8 +72,43 @@ class EngineTiming:
     draws: int = 0
 
 
-class PybulletEngine:
-    """The reference engine: pybullet collision queries for auto-close.
+class Engine:
+    """What both engines share: the object, the quality settings, scoring and timing.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+    """
+
+    name = ""
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+        self.obj = load_object(object_name)
+        self.friction = friction
+        self.num_edges = num_edges
+        self.timing = EngineTiming()
+
+    def close(self) -> None:
+        """Release what the engine holds (nothing by default)."""
+
+    def run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def score(self, out: DrawBatch) -> None:
+        """Fill quality and the force-closure outcome of the candidate draws, by contact count."""
+        candidates = out.outcome == NO_FORCE_CLOSURE
+        for k in np.unique(out.n_contacts[candidates]):
+            rows = np.flatnonzero(candidates & (out.n_contacts == k))
+            q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
+                                    friction=self.friction, num_edges=self.num_edges,
+                                    torque_scale=self.obj.torque_scale,
+                                    center=self.obj.center_of_mass)
+            out.quality[rows] = q
+            out.outcome[rows[q > 0]] = FORCE_CLOSURE
+
+
+class PybulletEngine(Engine):
+    """The reference engine: pybullet collision queries for auto-close, draw by draw.
 
     Args:
         object_name: catalog object.
@@ -83,12 +118,9 @@ class PybulletEngine:
     name = "pybullet"
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
-        self.obj = load_object(object_name)
-        self.friction = friction
-        self.num_edges = num_edges
+        super().__init__(object_name, friction, num_edges)
         self.kin = Kinematics(kuka_sdh())
         self.world = GraspWorld(self.obj)
-        self.timing = EngineTiming()
 
     def close(self) -> None:
         self.world.close()
@@ -127,14 +159,67 @@ class PybulletEngine:
         self.timing.draws += n
         return out
 
-    def score(self, out: DrawBatch) -> None:
-        """Fill quality and the force-closure outcome of the candidate draws, by contact count."""
-        candidates = out.outcome == NO_FORCE_CLOSURE
-        for k in np.unique(out.n_contacts[candidates]):
-            rows = np.flatnonzero(candidates & (out.n_contacts == k))
-            q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
-                                    friction=self.friction, num_edges=self.num_edges,
-                                    torque_scale=self.obj.torque_scale,
-                                    center=self.obj.center_of_mass)
-            out.quality[rows] = q
-            out.outcome[rows[q > 0]] = FORCE_CLOSURE
+
+
+class FastEngine(Engine):
+    """The batched engine: auto-close of all draws at once against the object's distance
+    grid (:mod:`kinegrasp_env.hand_fast`), then the same scoring as the reference.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+        kernel: capsule-gap implementation, ``numba`` (default) or ``numpy``.
+    """
+
+    name = "fast"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
+                 kernel: str = "numba") -> None:
+        from kinegrasp_env.hand_fast import FastHand
+        from kinegrasp_env.sdf import object_grid
+
+        super().__init__(object_name, friction, num_edges)
+        self.hand = FastHand(self.obj, object_grid(object_name), kernel)
+
+    def run(self, q: np.ndarray) -> DrawBatch:
+        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n = q.shape[0]
+        out = DrawBatch.empty(n)
+        t0 = time.perf_counter()
+        result = self.hand.close(q)
+        t1 = time.perf_counter()
+        found = result.found.reshape(n, 6)  # finger-major, proximal before distal
+        order = np.argsort(~found, axis=1, kind="stable")  # found contacts first, in order
+        k = found.sum(axis=1)
+        rows = np.arange(n)[:, None]
+        take = np.arange(MAX_CONTACTS)[None, :] < k[:, None]
+        links = np.tile(np.array([0, 1], np.int8), 3)[order]
+        fingers = np.repeat(np.arange(3, dtype=np.int8), 2)[order]
+        out.points[take] = result.points.reshape(n, 6, 3)[rows, order][take]
+        out.normals[take] = result.normals.reshape(n, 6, 3)[rows, order][take]
+        out.finger[take] = fingers[take]
+        out.link[take] = links[take]
+        out.n_contacts[:] = k
+        out.outcome[:] = np.where((k < 2) | result.missed.any(axis=1), MISSED, NO_FORCE_CLOSURE)
+        out.outcome[result.start_collision] = START_COLLISION
+        out.n_contacts[result.start_collision] = 0
+        t2 = time.perf_counter()
+        self.score(out)
+        t3 = time.perf_counter()
+        self.timing.autoclose += t1 - t0
+        self.timing.kinematics += t2 - t1
+        self.timing.quality += t3 - t2
+        self.timing.draws += n
+        return out
+
+
+ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine}
+
+
+def make_engine(name: str, object_name: str, friction: float = 0.5,
+                num_edges: int = 8) -> Engine:
+    """An engine by name (``pybullet`` or ``fast``)."""
+    if name not in ENGINE_CLASSES:
+        raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINE_CLASSES)}")
+    return ENGINE_CLASSES[name](object_name, friction, num_edges)

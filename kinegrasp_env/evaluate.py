@@ -17,13 +17,19 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, DrawBatch, PybulletEngine
+from kinegrasp_env.engine import (
+    FORCE_CLOSURE,
+    OUTCOMES,
+    DrawBatch,
+    Engine,
+    make_engine,
+)
 from kinegrasp_env.grasps import Grasp
 from kinegrasp_env.noise import JointNoise
 from kinegrasp_env.stats import StreamingMoments, wilson_interval
 
 DEFAULT_CHUNK = 250
-ENGINES = ("pybullet",)
+ENGINES = ("pybullet", "fast")
 
 
 @dataclass
@@ -78,20 +84,18 @@ def chunk_noise(noise: JointNoise, seed: int, index: int, size: int,
 
 
 # one engine per worker process, built on first use
-_ENGINES: dict[tuple, PybulletEngine] = {}
+_ENGINES: dict[tuple, Engine] = {}
 
 
-def _engine(key: tuple) -> PybulletEngine:
+def _engine(key: tuple) -> Engine:
     engine = _ENGINES.get(key)
     if engine is None:
         name, object_name, friction, num_edges = key
-        if name != "pybullet":
-            raise ValueError(f"unknown engine {name!r}; choose from {ENGINES}")
-        engine = _ENGINES[key] = PybulletEngine(object_name, friction, num_edges)
+        engine = _ENGINES[key] = make_engine(name, object_name, friction, num_edges)
     return engine
 
 
-def draw_chunk(engine: PybulletEngine, q0: np.ndarray, noise: JointNoise, seed: int,
+def draw_chunk(engine: Engine, q0: np.ndarray, noise: JointNoise, seed: int,
                index: int, size: int, method: str = "mc") -> DrawBatch:
     """Run chunk ``index`` of a run: q0 (14,) plus that chunk's arm noise, through ``engine``."""
     q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
@@ -142,7 +146,8 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
         seed: run seed; chunk c uses ``SeedSequence(seed, spawn_key=(c,))``.
         processes: worker processes (results do not depend on it).
         friction, num_edges: friction cone of the quality measure.
-        engine: ``pybullet`` (the reference).
+        engine: ``pybullet`` (the reference) or ``fast`` (batched, against the object's
+            distance grid; same noise draws, so the two compare draw by draw).
         method: noise sampler (``mc``, ``antithetic``, ``sobol``: per chunk).
         chunk: draws per chunk (part of the random stream layout: keep it fixed to
             reproduce numbers).

@@ -6,13 +6,17 @@ object, the joints proximal to it stop and the joints distal to it keep closing:
 contact freezes the proximal joint while the distal joint goes on; a distal contact ends the
 finger. Each contact is located by stepping (conservative advancement: a step never exceeds
 the one that could close the current gap, but is at least ``STEP`` radians) and then bisection
-until the gap is within ``CONTACT_TOL`` (0.2 mm). A finger whose joints all reach their
-limits without touching has missed. The coupled spread keeps its pre-shape value.
+until the gap is within ``CONTACT_TOL`` (0.2 mm); the contact is then polished by secant
+steps on the exact gap to where it is zero (:func:`secant_root`, to 1e-9 m), so the result
+does not depend on how the bracket was reached. A finger whose joints all reach their limits
+without touching has missed. The coupled spread keeps its pre-shape value.
 
-Contacts are reported in the object frame: the point on the touched convex part (the
-object's surface) and that face's inward normal; at an edge or corner of a part, where the
-face normal is not unique, pybullet's separating direction for our fixed body order (finger
-A, object B), which lies in the cone of the adjacent face normals.
+pybullet measures the gaps; within ``EXACT_BAND`` of contact a finger capsule's gap is
+recomputed exactly from its axis and the object's convex parts (pybullet's convex-hull
+distances were measured up to 1 mm off at edges), so contact decisions are exact. The contact
+itself is the exact closest pair (:mod:`kinegrasp_env.hand_geometry`): the point on the
+object and, as normal, the face's inward normal or, at an edge or corner, the exact
+separating direction (pybullet's own normal is off by degrees there).
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from kinegrasp_env.hand_geometry import Shape, capsule_contacts, hand_shapes
 from kinegrasp_env.robots import FINGERS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.segment_distance import closest_to_segments
 from kinegrasp_env.sim import GraspWorld
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
@@ -31,6 +37,15 @@ CONTACT_TOL = 2e-4
 STEP = 0.02
 #: Gaps beyond this are not computed exactly (the step is then bounded by it), metres.
 QUERY_DISTANCE = 0.05
+#: Gaps of finger capsules within +-this are recomputed exactly (pybullet's convex-hull
+#: distances are off by up to ~1 mm at edges), metres.
+EXACT_BAND = 2e-3
+#: Contact polish: once touching (gap within CONTACT_TOL), secant steps on the exact gap
+#: move the finger to where the gap is zero (to POLISH_TOL), within POLISH_RANGE radians.
+POLISH_TOL = 1e-9
+POLISH_PROBE = 1e-3
+POLISH_RANGE = 0.05
+POLISH_ITERATIONS = 8
 #: Penetration below which the pre-grasp pose counts as a start collision, metres.
 START_TOL = CONTACT_TOL
 #: Radius of the finger capsules plus margin, for the speed bound (metres).
@@ -93,11 +108,45 @@ def _finger_geometry() -> tuple[float, float, float, float]:
             model.joint("f1_proximal").upper, model.joint("f1_distal").upper)
 
 
+def closing_speeds() -> tuple[float, float]:
+    """Bounds on how fast any finger surface point moves per radian of closing (metres/rad):
+    (phase 1, both joints closing; phase 2, the distal joint only)."""
+    length_p, length_d, _, _ = _finger_geometry()
+    reach_p = length_p + length_d + _RADIUS_BOUND
+    reach_d = length_d + _RADIUS_BOUND
+    return (length_p + _RADIUS_BOUND) + (reach_p + reach_d), reach_d
+
+
+def secant_root(gap_at, t: float, gap: float, t_min: float, t_max: float) -> float:
+    """Polish a contact: the t in [t_min, t_max] where the exact gap crosses zero.
+
+    Secant steps from (t - ``POLISH_PROBE``, t) until the gap is within ``POLISH_TOL``
+    (at most ``POLISH_ITERATIONS``); the best t seen is returned (the start t when nothing
+    improves it, e.g. a grazing touch).
+    """
+    t0 = max(t - POLISH_PROBE, t_min)
+    if t0 >= t or abs(gap) <= POLISH_TOL:
+        return t
+    g0, t1, g1 = gap_at(t0), t, gap
+    best_t, best_g = t1, abs(g1)
+    for _ in range(POLISH_ITERATIONS):
+        if g1 == g0:
+            break
+        t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
+        g2 = gap_at(t2)
+        t0, g0, t1, g1 = t1, g1, t2, g2
+        if abs(g2) < best_g:
+            best_t, best_g = t2, abs(g2)
+        if best_g <= POLISH_TOL:
+            break
+    return best_t
+
+
 class _Finger:
     """Closing state of one finger: a 1-D path per phase, bisection bracket [t_lo, t_hi]."""
 
     def __init__(self, index: int, prox: float, dist: float, geometry) -> None:
-        length_p, length_d, self.upper_p, self.upper_d = geometry
+        _, _, self.upper_p, self.upper_d = geometry
         self.index = index
         self.joints, self.links = FINGERS[index][:2], FINGERS[index][2:]
         self.start = [min(prox, self.upper_p), min(dist, self.upper_d)]
@@ -107,9 +156,7 @@ class _Finger:
         self.done = False
         self.missed = False
         self.contacts: list[Contact] = []
-        reach_p = length_p + length_d + _RADIUS_BOUND
-        reach_d = length_d + _RADIUS_BOUND
-        self.speed = {1: (length_p + _RADIUS_BOUND, reach_p + reach_d), 2: (0.0, reach_d)}
+        self.speed = dict(zip((1, 2), closing_speeds(), strict=True))
 
     @property
     def moving_links(self) -> tuple[int, ...]:
@@ -126,6 +173,20 @@ class _Finger:
         return {self.joints[0]: min(prox, self.upper_p),
                 self.joints[1]: min(self.start[1] + self.t, self.upper_d)}
 
+    def _exact_gaps(self, world: GraspWorld, t: float) -> dict[int, float]:
+        """Exact gaps of the moving links with the finger at parameter t."""
+        self.t = t
+        world.set_joints(self.values())
+        capsules = finger_capsules()[self.index]
+        return {link: exact_gap(world, capsules[link]) for link in self.moving_links}
+
+    def _polish(self, world: GraspWorld, gap: float) -> dict[int, float]:
+        """Move t to the root of the exact gap (see :func:`secant_root`); gaps there."""
+        t_min = max(self.t - POLISH_RANGE, 0.0)
+        root = secant_root(lambda t: min(self._exact_gaps(world, t).values()), self.t, gap,
+                           t_min, self.t_max)
+        return self._exact_gaps(world, root)
+
     def update(self, gaps: dict[str, tuple[float, tuple | None]], world: GraspWorld) -> None:
         """Advance from the gaps measured at the current t."""
         moving = [(link, *gaps.get(self.links[link], (QUERY_DISTANCE, None)))
@@ -133,10 +194,11 @@ class _Finger:
         gap = min(g for _, g, _ in moving)
         bracket_closed = self.t_hi is not None and self.t_hi - self.t_lo < 1e-9
         if -CONTACT_TOL <= gap <= CONTACT_TOL or (bracket_closed and gap <= CONTACT_TOL):
-            touching = [(link, rec) for link, g, rec in moving if g <= CONTACT_TOL]
-            for link, rec in touching:
-                self.contacts.append(_contact(world, self.index, link, rec))
-            if any(link == 1 for link, _ in touching):
+            link_gaps = self._polish(world, gap)
+            touching = [link for link in self.moving_links if link_gaps[link] <= CONTACT_TOL]
+            for link in touching:
+                self.contacts.append(_contact(world, self.index, link))
+            if 1 in touching:
                 self.done = True
                 return
             # proximal contact: freeze the proximal joint, the distal one goes on
@@ -155,27 +217,36 @@ class _Finger:
                     self.done = True
                     self.missed = not self.contacts
                     return
-                speed = sum(self.speed[self.phase])
-                self.t = min(self.t + max(gap / speed, STEP), self.t_max)
+                self.t = min(self.t + max(gap / self.speed[self.phase], STEP), self.t_max)
                 return
         else:
             self.t_hi = self.t
         self.t = 0.5 * (self.t_lo + self.t_hi)
 
 
-def _contact(world: GraspWorld, finger: int, link: int, record: tuple) -> Contact:
-    obj = world.obj
-    point = obj.to_object(np.asarray(record[6], dtype=float))
-    part = obj.nearest_part(point[None])  # the part whose surface the point is on
-    projected, face_normal = obj.surface(point[None], part)
-    # pybullet's normal on B (the object) points from B to A (the finger) for our fixed body
-    # order: the outward separating direction. On a face it is the face normal; at an edge
-    # or corner it lies in the cone of the adjacent faces. Far from the face normal only
-    # where the point is not on a face interior; use it there.
-    outward = obj.pose[:3, :3].T @ np.asarray(record[7], dtype=float)
-    outward /= max(np.linalg.norm(outward), 1e-300)
-    normal = face_normal[0] if face_normal[0] @ -outward > 1 - 1e-6 else -outward
-    return Contact(finger, link, projected[0], normal)
+def _axis(world: GraspWorld, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """(1, 3) end points of a capsule's axis in the object frame, at the current pose."""
+    pose = world.obj.pose_inverse @ world.link_pose(shape.link)
+    a, b = (pose[:3, :3] @ p + pose[:3, 3] for p in shape.axis_points())
+    return a[None], b[None]
+
+
+def exact_gap(world: GraspWorld, shape: Shape) -> float:
+    """Exact gap (metres) of a finger capsule that does not cross the object."""
+    return float(closest_to_segments(world.obj, *_axis(world, shape))[2][0] - shape.radius)
+
+
+def _contact(world: GraspWorld, finger: int, link: int) -> Contact:
+    """The exact contact of a touching finger link (see :mod:`kinegrasp_env.hand_geometry`)."""
+    point, normal = capsule_contacts(world.obj, *_axis(world, finger_capsules()[finger][link]))
+    return Contact(finger, link, point[0], normal[0])
+
+
+@lru_cache(maxsize=1)
+def finger_capsules() -> tuple[tuple[Shape, Shape], ...]:
+    """(proximal, distal) capsule of each finger."""
+    shapes = {s.link: s for s in hand_shapes()}
+    return tuple((shapes[f[2]], shapes[f[3]]) for f in FINGERS)
 
 
 def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -> CloseResult:
@@ -187,8 +258,12 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
         preshape: (7,) hand DOF: spread, f1 proximal, f1 distal, f2 ..., f3 ... (radians).
     """
     world.set_hand(root_pose, hand_joint_values(np.asarray(preshape, dtype=float)))
-    if any(rec[8] < -START_TOL for rec in world.closest(0.0)):
-        return CloseResult(start_collision=True)
+    capsule_links = {world.link_index[s.link]: s for pair in finger_capsules() for s in pair}
+    for rec in world.closest(EXACT_BAND):
+        shape = capsule_links.get(rec[3])
+        gap = rec[8] if shape is None or rec[8] < -EXACT_BAND else exact_gap(world, shape)
+        if gap < -START_TOL:
+            return CloseResult(start_collision=True)
     geometry = _finger_geometry()
     fingers = [_Finger(i, preshape[1 + 2 * i], preshape[2 + 2 * i], geometry) for i in range(3)]
     link_names = {world.link_index[link]: link for f in fingers for link in f.links}
@@ -206,6 +281,9 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
             name = link_names.get(rec[3])
             if name is not None and (name not in gaps or rec[8] < gaps[name][0]):
                 gaps[name] = (rec[8], rec)
+        for name, (gap, rec) in gaps.items():  # near contact: the exact gap decides
+            if -EXACT_BAND <= gap <= EXACT_BAND:
+                gaps[name] = (exact_gap(world, capsule_links[world.link_index[name]]), rec)
         iterations += 1
         for finger in active:
             finger.update(gaps, world)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.polytope import ConvexPart
 
 #: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
 OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
@@ -57,6 +58,11 @@ class GraspObject:
     def size(self) -> np.ndarray:
         """(3,) bounding-box extents, metres."""
         return self.mesh.extents
+
+    @cached_property
+    def pose_inverse(self) -> np.ndarray:
+        """(4, 4) world -> object frame."""
+        return np.linalg.inv(self.pose)
 
     def to_object(self, points_world: np.ndarray) -> np.ndarray:
         """World points (..., 3) to the object frame."""
@@ -132,6 +138,62 @@ class GraspObject:
             if t_in <= t_out and (best is None or t_in < best):
                 best = t_in
         return best
+
+    @cached_property
+    def convex_parts(self) -> tuple[ConvexPart, ...]:
+        """The parts as :class:`ConvexPart` (exact closest points)."""
+        return tuple(ConvexPart(v, p) for v, p in zip(self.parts, self.planes, strict=True))
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact closest points on the object of object-frame points (n, 3).
+
+        The signed distance is the smallest over the parts (what a collision checker
+        reports for the union of convex parts): > 0 outside, < 0 inside a part.
+
+        Returns:
+            (closest (n, 3), signed distance (n,), part index (n,)).
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        bound = self.part_distance(points)  # plane values: lower bounds of the distances
+        best_d = np.full(len(points), np.inf)
+        best_p = np.empty_like(points)
+        best_i = np.zeros(len(points), dtype=np.intp)
+        for index in np.argsort(bound.min(axis=0)):
+            rows = np.flatnonzero(bound[:, index] < best_d)
+            if rows.size == 0:
+                continue
+            closest, distance = self.convex_parts[index].closest(points[rows])
+            better = distance < best_d[rows]
+            rows = rows[better]
+            best_d[rows], best_p[rows], best_i[rows] = distance[better], closest[better], index
+        return best_p, best_d, best_i
+
+    def closest_to_segments(self, a: np.ndarray, b: np.ndarray
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Exact closest pairs between object-frame segments [a, b] (n, 3) and the object.
+
+        For segments that do not cross a part (a finger axis at contact is a capsule radius
+        away). Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)).
+        """
+        a = np.atleast_2d(np.asarray(a, dtype=float))
+        b = np.atleast_2d(np.asarray(b, dtype=float))
+        # along the segment each plane value is smallest at an end, so the largest of these
+        # minima over a part's planes is a lower bound of the distance to that part
+        bound = np.stack([np.max(np.minimum(a @ pl[:, :3].T, b @ pl[:, :3].T) + pl[:, 3], axis=1)
+                          for pl in self.planes], axis=1)
+        best_d = np.full(len(a), np.inf)
+        on_obj, on_seg = np.empty_like(a), np.empty_like(a)
+        best_i = np.zeros(len(a), dtype=np.intp)
+        for index in np.argsort(bound.min(axis=0)):
+            rows = np.flatnonzero(bound[:, index] < best_d)
+            if rows.size == 0:
+                continue
+            p_obj, p_seg, dist = self.convex_parts[index].closest_to_segments(a[rows], b[rows])
+            better = dist < best_d[rows]
+            rows = rows[better]
+            best_d[rows], best_i[rows] = dist[better], index
+            on_obj[rows], on_seg[rows] = p_obj[better], p_seg[better]
+        return on_obj, on_seg, best_d, best_i
 
     def nearest_part(self, points: np.ndarray) -> np.ndarray:
         """(n,) index of the part whose boundary is nearest (by plane distance)."""

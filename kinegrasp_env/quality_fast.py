@@ -135,8 +135,8 @@ def candidate_tables(num_edges: int) -> tuple:
     return pts.reshape(3 * m, 8), np.array(refs), kernel, tuple(blocks)
 
 
-def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int
-                           ) -> tuple[np.ndarray, np.ndarray]:
+def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int, return_normal: bool = False
+                           ) -> tuple[np.ndarray, ...]:
     """Q for B three-contact grasps.
 
     Args:
@@ -144,8 +144,11 @@ def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int
             :func:`kinegrasp_env.quality.wrench_matrix` with friction > 0.
         num_edges: m.
 
+        return_normal: also return the unit outward normal of the nearest facet.
+
     Returns:
-        (q (B,), certified (B,) bool). Rows that are not certified must be recomputed.
+        (q (B,), certified (B,) bool[, normal (B, 6)]). Rows that are not certified must be
+        recomputed; the normal is NaN where no facet was found.
     """
     from kinegrasp_env.quality import FC_TOL
 
@@ -168,6 +171,7 @@ def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int
     ratio = sing[:, 5] / sing[:, 0]
     q = np.zeros(batch)
     certified = np.ones(batch, dtype=bool)
+    nearest = np.full((batch, 6), np.nan)
     rank_zero = ratio <= RANK_ZERO
     unsure = (ratio > RANK_ZERO) & (ratio <= RANK_UNSURE)
     certified[unsure] = False
@@ -214,4 +218,13 @@ def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int
         found = np.isfinite(best)
         certified[idx[~found]] = False
         q[idx] = np.where(found & (best > FC_TOL * scale[idx]), best, 0.0)
+        if return_normal:
+            arg = np.argmin(dist, axis=1)
+            rows = np.arange(nb)
+            sign = np.where(up[rows, arg], 1.0, -1.0)
+            unit = normal[rows, :, arg] * (sign / np.where(norm[rows, arg] > 0,
+                                                            norm[rows, arg], 1.0))[:, None]
+            nearest[idx[found]] = unit[found]
+    if return_normal:
+        return q, certified, nearest
     return q, certified

@@ -159,6 +159,16 @@ class GraspWorld(BulletWorld):
         for name, value in joints.items():
             bullet.resetJointState(hand, self.joint_index[name], float(value))
 
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a hand link's URDF frame."""
+        bullet = self.bullet
+        state = bullet.getLinkState(self.bodies["hand"], self.link_index[link],
+                                    computeForwardKinematics=True)
+        pose = np.eye(4)
+        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(state[5]), (3, 3))
+        pose[:3, 3] = state[4]
+        return pose
+
     def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
         """pybullet closest points between the hand (or one hand link) and the object."""
         kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}

@@ -40,13 +40,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
+from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
 from kinegrasp_env.evaluate import draw_chunk
 from kinegrasp_env.grasps import Grasp, load_grasps, shipped_grasps
 from kinegrasp_env.ik import ArmIK
+from kinegrasp_env.kinematics import Kinematics
 from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
 from kinegrasp_env.objects import OBJECT_NAMES, load_object
-from kinegrasp_env.robots import PALM_LINK
+from kinegrasp_env.robots import PALM_LINK, kuka_sdh
 from kinegrasp_env.stats import wilson_interval
 
 OBS_SIZE = 44
@@ -69,6 +70,8 @@ class KineGraspEnv(gym.Env):
         render_mode: None, ``rgb_array`` or ``human``.
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
+        engine: ``pybullet`` (the reference) or ``fast`` (batched; see
+            :class:`kinegrasp_env.engine.FastEngine`) for the reward's draws.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -78,7 +81,7 @@ class KineGraspEnv(gym.Env):
                  noise_types: tuple[str, ...] = ("gaussian",), n_draws: int = 64,
                  q_weight: float = 0.0, limit_penalty: float = 0.1, max_steps: int = 10,
                  step_size: float = 0.3, render_mode: str | None = None,
-                 split: str | None = None) -> None:
+                 split: str | None = None, engine: str = "pybullet") -> None:
         super().__init__()
         if render_mode not in (None, "rgb_array", "human"):
             raise ValueError(f"unknown render_mode {render_mode!r}")
@@ -113,7 +116,14 @@ class KineGraspEnv(gym.Env):
         self.render_mode = render_mode
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (OBS_SIZE,), np.float32)
         self.action_space = self._action_space()
-        self._engines: dict[str, PybulletEngine] = {}
+        from kinegrasp_env.evaluate import ENGINES
+
+        if engine not in ENGINES:
+            raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
+        self.engine = engine
+        self._engines: dict[str, Engine] = {}
+        self._kin = Kinematics(kuka_sdh())
+        self._ik: ArmIK | None = None
         self._viewer = None
         self.grasp: Grasp | None = None
         self.q = None
@@ -123,17 +133,16 @@ class KineGraspEnv(gym.Env):
         return spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     # ------------------------------------------------------------------ helpers
-    def _engine(self, name: str) -> PybulletEngine:
+    def _engine(self, name: str) -> Engine:
         if name not in self._engines:
-            self._engines[name] = PybulletEngine(name)
+            self._engines[name] = make_engine(self.engine, name)
         return self._engines[name]
 
     @property
     def ik(self) -> ArmIK:
-        engine = self._engine(self.grasp.object)
-        if not hasattr(engine, "_arm_ik"):
-            engine._arm_ik = ArmIK(engine.kin)
-        return engine._arm_ik
+        if self._ik is None:
+            self._ik = ArmIK(self._kin)
+        return self._ik
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise]:
         rng = self.np_random
@@ -160,13 +169,12 @@ class KineGraspEnv(gym.Env):
         return grasps[int(index)], JointNoise(float(sigma), kind)
 
     def _observation(self) -> np.ndarray:
-        engine = self._engine(self.grasp.object)
         obj = load_object(self.grasp.object)
-        palm = engine.kin.pose(self.q, PALM_LINK)[0]
+        palm = self._kin.pose(self.q, PALM_LINK)[0]
         rot_obj = obj.pose[:3, :3]
         rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
         rel_rot = rot_obj.T @ palm[:3, :3]
-        jac = engine.kin.jacobian(self.q, PALM_LINK)[0][:, :7]
+        jac = self._kin.jacobian(self.q, PALM_LINK)[0][:, :7]
         jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
         spread = np.sqrt(np.diag(jac @ jac.T))
         psi = float(self.ik.elbow_angle(self.q[None])[0])

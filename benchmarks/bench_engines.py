@@ -1,0 +1,113 @@
+"""Fast engine against the pybullet engine on the same draws, and the kernels' numba twins.
+
+Run: ``python benchmarks/bench_engines.py [--draws 10000] [--processes 2]``.
+
+1. The same draws of a spray-flask grasp at sigma = 0.0133 through ``evaluate_grasp`` with
+   both engines, ``--processes`` worker processes each (the grid is built beforehand, the
+   numba kernels compiled): wall time, draws/s, the ratio, and whether the statistics agree.
+2. Where the fast engine's time goes, on one process: auto-close (distance-grid gaps, exact
+   near-contact gaps and polish, contacts), and quality (3-contact fast path, qhull for 4+).
+3. Each numba kernel against its numpy twin on the same inputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from kinegrasp_env.capsule_gap import capsule_gaps
+from kinegrasp_env.engine import FastEngine
+from kinegrasp_env.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.grasps import grasp_by_index
+from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.objects import load_object
+from kinegrasp_env.sdf import object_grid
+from kinegrasp_env.segment_distance import closest_to_segments
+
+
+def _timed(fn):
+    start = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - start
+
+
+def engines(args) -> None:
+    grasp = grasp_by_index(args.object, args.grasp)
+    noise = JointNoise(args.sigma)
+    # warm-up: grid built or loaded, numba compiled
+    FastEngine(args.object).run(np.repeat(grasp.q0[None], 4, axis=0))
+    stats = {}
+    for engine in ("fast", "pybullet"):
+        n = args.draws if engine == "fast" else args.reference_draws
+        result, wall = _timed(lambda e=engine, n=n: evaluate_grasp(
+            grasp, noise, n, seed=0, processes=args.processes, engine=e))
+        stats[engine] = (result, wall, n)
+        print(f"{engine:8s}: {n:6d} draws in {wall:7.2f} s = {n / wall:8.0f} draws/s "
+              f"({args.processes} processes)  P(FC) = {result.p_fc:.4f}  "
+              f"q_mean = {result.q_mean:.5f}")
+    fast_rate = stats["fast"][2] / stats["fast"][1]
+    ref_rate = stats["pybullet"][2] / stats["pybullet"][1]
+    print(f"fast / pybullet throughput: {fast_rate / ref_rate:.1f}x; fast engine, "
+          f"{args.draws} draws: {stats['fast'][1]:.2f} s (target <= 2 s and >= 10x)")
+    if args.reference_draws == args.draws:
+        same = stats["fast"][0].outcomes == stats["pybullet"][0].outcomes
+        print(f"identical outcome counts from both engines: {same}")
+
+
+def stages(args) -> None:
+    grasp = grasp_by_index(args.object, args.grasp)
+    engine = FastEngine(args.object)
+    n = min(args.draws, 5000)
+    q = np.repeat(grasp.q0[None], n, axis=0)
+    q[:, :7] += chunk_noise(JointNoise(args.sigma), 0, 0, n)
+    draws = engine.run(q)
+    t = engine.timing
+    total = t.autoclose + t.kinematics + t.quality
+    contacts = np.bincount(draws.n_contacts[draws.outcome >= 2], minlength=7)
+    print(f"stage split over {n} draws (1 process): auto-close {t.autoclose / n * 1e6:6.1f} us/"
+          f"draw ({t.autoclose / total:.0%}), quality {t.quality / n * 1e6:6.1f} us/draw "
+          f"({t.quality / total:.0%}), packing {t.kinematics / n * 1e6:5.1f} us/draw")
+    print("contacts per closed draw: " + ", ".join(f"{k}: {c}" for k, c in enumerate(contacts)
+                                                   if c))
+
+
+def kernels(args) -> None:
+    obj = load_object(args.object)
+    grid = object_grid(args.object)
+    rng = np.random.default_rng(0)
+    lo, hi = obj.mesh.bounds
+    a = rng.uniform(lo - 0.03, hi + 0.03, size=(20000, 3))
+    d = rng.normal(size=a.shape)
+    b = a + 0.0865 * d / np.linalg.norm(d, axis=1, keepdims=True)
+    radius = np.full(len(a), 0.011)
+    for name, call in (("capsule gap (grid)", lambda k: capsule_gaps(grid, a, b, radius, k)),
+                       ("segment distance (exact)",
+                        lambda k: closest_to_segments(obj, a[:5000], b[:5000], k))):
+        call("numba")
+        _, t_numba = _timed(lambda c=call: c("numba"))
+        _, t_numpy = _timed(lambda c=call: c("numpy"))
+        print(f"{name:26s}: numba {t_numba * 1e3:7.1f} ms, numpy {t_numpy * 1e3:7.1f} ms, "
+              f"{t_numpy / t_numba:5.1f}x")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--draws", type=int, default=10_000)
+    parser.add_argument("--reference-draws", type=int, default=None,
+                        help="draws for the pybullet engine (default: --draws)")
+    parser.add_argument("--processes", type=int, default=2)
+    parser.add_argument("--object", default="spray_flask")
+    parser.add_argument("--grasp", type=int, default=0)
+    parser.add_argument("--sigma", type=float, default=0.0133)
+    args = parser.parse_args()
+    if args.reference_draws is None:
+        args.reference_draws = args.draws
+    engines(args)
+    stages(args)
+    kernels(args)
+
+
+if __name__ == "__main__":
+    main()

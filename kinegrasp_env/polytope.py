@@ -1,0 +1,170 @@
+"""Exact closest points on a convex polytope (one convex part of an object).
+
+A part is given by its vertices; its face planes and true edges (between faces that are not
+coplanar) come from its convex hull. For a query point x with plane values
+s_i = n_i . x + d_i (outward unit normals):
+
+- inside (max s_i <= 0): the nearest boundary point is the projection on the plane of the
+  largest s_i, at signed distance max s_i <= 0;
+- outside: every s_i is a lower bound of the distance, so if the projection on the plane of
+  the largest s_i lies in the part it is the closest point; otherwise the closest point is
+  on an edge (or a vertex), found by the exact point-to-segment distance to every edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from scipy.spatial import ConvexHull
+
+#: Relative tolerance for "the face projection lies in the part" (metres, times the size).
+INSIDE_TOL = 1e-12
+#: Bytes of the largest temporary (points x edges x 3 float64) per block.
+BLOCK_BYTES = 64 * 2**20
+
+
+@dataclass(frozen=True, eq=False)
+class ConvexPart:
+    """One convex polytope.
+
+    Attributes:
+        vertices: (V, 3) metres.
+        planes: (F, 4) unique outward face planes [unit normal, offset], n . x + d <= 0 inside.
+    """
+
+    vertices: np.ndarray
+    planes: np.ndarray
+
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """(E, 2, 3) end points of the true edges (between non-coplanar faces)."""
+        hull = ConvexHull(self.vertices)
+        seen: set[tuple[int, int]] = set()
+        edges = []
+        for t, simplex in enumerate(hull.simplices):
+            for k in range(3):
+                other = hull.neighbors[t, k]
+                a, b = sorted(int(v) for k2, v in enumerate(simplex) if k2 != k)
+                if (a, b) in seen:
+                    continue
+                seen.add((a, b))
+                if hull.equations[t, :3] @ hull.equations[other, :3] < 1.0 - 1e-9:
+                    edges.append((hull.points[a], hull.points[b]))
+        return np.asarray(edges, dtype=float)
+
+    @cached_property
+    def scale(self) -> float:
+        return float(np.ptp(self.vertices, axis=0).max())
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Closest boundary points and signed distances of points (n, 3).
+
+        Returns:
+            (closest (n, 3), signed distance (n,): > 0 outside, < 0 inside), exact.
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        normals, offsets = self.planes[:, :3], self.planes[:, 3]
+        values = points @ normals.T + offsets
+        face = np.argmax(values, axis=1)
+        top = values[np.arange(len(points)), face]
+        closest = points - top[:, None] * normals[face]
+        distance = top.copy()
+        outside = top > 0
+        if outside.any():
+            check = closest[outside] @ normals.T + offsets
+            off_face = np.flatnonzero(outside)[check.max(axis=1) > INSIDE_TOL * self.scale]
+            if off_face.size:
+                near, dist = segment_closest(points[off_face], self.edges)
+                closest[off_face], distance[off_face] = near, dist
+        return closest, distance
+
+    def closest_to_segments(self, a: np.ndarray, b: np.ndarray
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest pairs between segments [a, b] (n, 3) that do not cross the part and it.
+
+        The pair is at an end point of the segment (its closest point being anywhere on the
+        part) or between the segment and an edge of the part; the smallest is exact.
+
+        Returns:
+            (on the part (n, 3), on the segment (n, 3), distance (n,)).
+        """
+        a = np.atleast_2d(np.asarray(a, dtype=float))
+        b = np.atleast_2d(np.asarray(b, dtype=float))
+        n = len(a)
+        ends = np.concatenate([a, b])
+        near_end, dist_end = self.closest(ends)
+        pick_b = dist_end[n:] < dist_end[:n]
+        on_part = np.where(pick_b[:, None], near_end[n:], near_end[:n])
+        on_seg = np.where(pick_b[:, None], b, a)
+        dist = np.where(pick_b, dist_end[n:], dist_end[:n])
+        edges = self.edges
+        start, direction = edges[:, 0], edges[:, 1] - edges[:, 0]
+        axis = b - a
+        block = max(1, BLOCK_BYTES // (48 * len(edges)))
+        for lo in range(0, n, block):
+            sl = slice(lo, lo + block)
+            s, t = segment_pairs(a[sl], axis[sl], start, direction)
+            p = a[sl, None, :] + s[..., None] * axis[sl, None, :]
+            q = start[None] + t[..., None] * direction[None]
+            d = np.sqrt(np.einsum("nek,nek->ne", p - q, p - q))
+            best = np.argmin(d, axis=1)
+            rows = np.arange(len(best))
+            better = d[rows, best] < dist[sl]
+            idx = np.flatnonzero(better) + lo
+            on_part[idx] = q[rows, best][better]
+            on_seg[idx] = p[rows, best][better]
+            dist[idx] = d[rows, best][better]
+        return on_part, on_seg, dist
+
+
+def segment_pairs(a: np.ndarray, u: np.ndarray, c: np.ndarray, v: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Closest-pair parameters of segments a + s u (n,) against segments c + t v (E,).
+
+    Returns:
+        (s (n, E), t (n, E)) in [0, 1] (Ericson's clamped solution; parallel pairs take s = 0).
+    """
+    r = a[:, None, :] - c[None]  # (n, E, 3)
+    aa = np.einsum("nk,nk->n", u, u)[:, None]
+    ee = np.einsum("ek,ek->e", v, v)[None, :]
+    bb = u @ v.T
+    cc = np.einsum("nek,nk->ne", r, u)
+    ff = np.einsum("nek,ek->ne", r, v)
+    denom = aa * ee - bb * bb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(denom > 1e-14 * aa * ee, np.clip((bb * ff - cc * ee) / denom, 0.0, 1.0), 0.0)
+        t = (bb * s + ff) / ee
+        s = np.where(t < 0.0, np.clip(-cc / aa, 0.0, 1.0),
+                     np.where(t > 1.0, np.clip((bb - cc) / aa, 0.0, 1.0), s))
+    return s, np.clip(t, 0.0, 1.0)
+
+
+def segment_closest(points: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point over a set of segments, and its distance, for each point.
+
+    Args:
+        points: (n, 3).
+        segments: (E, 2, 3) end points.
+
+    Returns:
+        (closest (n, 3), distance (n,)).
+    """
+    start = segments[:, 0]
+    direction = segments[:, 1] - start
+    length2 = np.maximum(np.einsum("ek,ek->e", direction, direction), 1e-300)
+    out_p = np.empty_like(points)
+    out_d = np.empty(len(points))
+    block = max(1, BLOCK_BYTES // (24 * len(segments)))
+    for lo in range(0, len(points), block):
+        p = points[lo:lo + block]
+        rel = p[:, None, :] - start[None]  # (b, E, 3)
+        t = np.clip(np.einsum("bek,ek->be", rel, direction) / length2, 0.0, 1.0)
+        diff = rel - t[..., None] * direction
+        d2 = np.einsum("bek,bek->be", diff, diff)
+        best = np.argmin(d2, axis=1)
+        rows = np.arange(len(p))
+        out_p[lo:lo + block] = start[best] + t[rows, best, None] * direction[best]
+        out_d[lo:lo + block] = np.sqrt(d2[rows, best])
+    return out_p, out_d

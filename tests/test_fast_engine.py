@@ -1,0 +1,200 @@
+"""The fast engine: exact geometry kernels, the distance grid, and agreement with pybullet."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.engine import FORCE_CLOSURE, FastEngine, PybulletEngine
+from kinegrasp_env.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.grasps import shipped_grasps
+from kinegrasp_env.hand import secant_root
+from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.objects import OBJECT_NAMES, load_object
+from kinegrasp_env.sdf import build_grid, object_grid
+from kinegrasp_env.segment_distance import closest_to_segments
+
+
+def _random_segments(obj, n, seed, length=0.0865, pad=0.02):
+    rng = np.random.default_rng(seed)
+    lo, hi = obj.mesh.bounds
+    a = rng.uniform(lo - pad, hi + pad, size=(n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return a, a + length * d
+
+
+def _clear(obj, a, b, samples=30, margin=2e-3):
+    """Segments that stay more than ``margin`` away from the object (sampled exactly)."""
+    t = np.linspace(0.0, 1.0, samples)[None, :, None]
+    pts = (a[:, None] + t * (b - a)[:, None]).reshape(-1, 3)
+    return obj.closest_points(pts)[1].reshape(len(a), samples).min(axis=1) > margin
+
+
+def _dense_distance(obj, a, b, samples=801):
+    """Distance of a segment to the object by dense sampling of exact point distances."""
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    return obj.closest_points(a + t * (b - a))[1].min()
+
+
+def test_point_distance_to_the_cube_matches_the_box_formula():
+    cube = load_object("cube")
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-0.06, 0.09, size=(3000, 3))
+    closest, dist, _ = cube.closest_points(pts)
+    centre, half = np.array([0.0, 0.0, 0.03]), 0.03
+    rel = np.abs(pts - centre) - half
+    outside = np.linalg.norm(np.maximum(rel, 0.0), axis=1)
+    inside = np.minimum(rel.max(axis=1), 0.0)
+    np.testing.assert_allclose(dist, outside + inside, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(pts - closest, axis=1), np.abs(dist), atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["spray_flask", "mug"])
+def test_segment_distance_matches_dense_sampling_and_kernels_agree(name):
+    obj = load_object(name)
+    a, b = _random_segments(obj, 400, seed=1)
+    on_obj, on_seg, dist, _ = closest_to_segments(obj, a, b)
+    twin = closest_to_segments(obj, a, b, kernel="numpy")
+    clear = _clear(obj, a, b)  # the method is for segments that do not cross the object
+    np.testing.assert_allclose(dist[clear], twin[2][clear], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(on_obj - on_seg, axis=1)[clear], dist[clear],
+                               atol=1e-12)
+    for i in np.flatnonzero(clear)[:60]:
+        dense = _dense_distance(obj, a[i], b[i])
+        # the exact minimum is below every sample and within the sampling error of them
+        assert dist[i] <= dense + 1e-12
+        assert dense - dist[i] < 2e-5
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_distance_grid_is_close_to_exact_distance_near_the_surface(name):
+    obj = load_object(name)
+    grid = object_grid(name)
+    rng = np.random.default_rng(2)
+    lo, hi = obj.mesh.bounds
+    pts = rng.uniform(lo - 0.01, hi + 0.01, size=(20000, 3))
+    exact = obj.closest_points(pts)[1]
+    near = np.abs(exact) < 3e-3
+    err = np.abs(grid.distance(pts) - exact)[near]
+    assert np.percentile(err, 99) < 5e-4
+    assert err.max() < 1.5e-3
+
+
+def test_grid_cache_round_trip(tmp_path, monkeypatch):
+    monkeypatch.setenv("KINEGRASP_CACHE", str(tmp_path))
+    built = object_grid.__wrapped__("cube")
+    assert len(list((tmp_path / "sdf").glob("cube-*.npz"))) == 1
+    loaded = object_grid.__wrapped__("cube")
+    np.testing.assert_array_equal(loaded.values, built.values)
+    np.testing.assert_array_equal(loaded.origin, built.origin)
+
+
+def test_grid_is_exact_next_to_cube_faces():
+    cube = load_object("cube")
+    grid = build_grid(cube)
+    rng = np.random.default_rng(3)
+    # points above the top face's interior: the distance is linear there
+    pts = np.column_stack([rng.uniform(-0.02, 0.02, 500), rng.uniform(-0.02, 0.02, 500),
+                           rng.uniform(0.061, 0.075, 500)])
+    np.testing.assert_allclose(grid.distance(pts), pts[:, 2] - 0.06, atol=1e-8)
+    _, gradient = grid.distance(pts, gradient=True)
+    np.testing.assert_allclose(gradient, np.tile([0.0, 0.0, 1.0], (500, 1)), atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["spray_flask", "drill"])
+def test_capsule_gap_kernels_agree_and_match_exact_distance(name):
+    obj = load_object(name)
+    grid = object_grid(name)
+    a, b = _random_segments(obj, 3000, seed=4)
+    keep = _clear(obj, a, b, margin=1e-3)
+    a, b = a[keep], b[keep]
+    radius = np.full(len(a), 0.011)
+    gap, s = capsule_gaps(grid, a, b, radius)
+    gap_np, s_np = capsule_gaps(grid, a, b, radius, kernel="numpy")
+    np.testing.assert_allclose(gap, gap_np, atol=1e-12)
+    np.testing.assert_allclose(s, s_np, atol=1e-12)
+    exact = closest_to_segments(obj, a, b)[2] - radius
+    near = np.abs(exact) < 2e-3
+    assert near.sum() > 20
+    assert np.abs(gap - exact)[near].max() < 5e-4
+    # far away the gap is a lower bound up to the grid error
+    assert np.all(gap[~near] <= exact[~near] + 5e-4)
+
+
+def test_posed_min_distance_kernels_agree():
+    grid = object_grid("mug")
+    rng = np.random.default_rng(5)
+    poses = np.tile(np.eye(4), (50, 1, 1))
+    poses[:, :3, 3] = rng.uniform(-0.05, 0.1, size=(50, 3))
+    local = rng.normal(scale=0.02, size=(40, 3))
+    np.testing.assert_allclose(posed_min_distance(grid, poses, local),
+                               posed_min_distance(grid, poses, local, kernel="numpy"),
+                               atol=1e-12)
+
+
+def test_secant_root_finds_the_zero_of_a_smooth_gap():
+    root = secant_root(lambda t: 0.3 * (t - 0.4) + 0.05 * (t - 0.4) ** 2, 0.4003,
+                       0.3 * 0.0003 + 0.05 * 0.0003**2, 0.0, 1.0)
+    assert root == pytest.approx(0.4, abs=1e-8)
+
+
+@pytest.mark.expensive
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_fast_engine_agrees_with_pybullet_draw_by_draw(name):
+    """Two noise levels, shipped grasps: same outcome for >= 98% of draws, contacts within
+    1 mm and Q within 2% where both close, P(FC) within the combined 99% interval."""
+    reference, fast = PybulletEngine(name), FastEngine(name)
+    grasps = shipped_grasps(name)[:2]
+    try:
+        for sigma in (0.0133, 0.0266):
+            same = total = 0
+            p_ref = p_fast = 0
+            for grasp in grasps:
+                q = np.repeat(grasp.q0[None], 80, axis=0)
+                q[:, :7] += chunk_noise(JointNoise(sigma), 7, 0, 80)
+                a, b = reference.run(q), fast.run(q)
+                same += int((a.outcome == b.outcome).sum())
+                total += len(q)
+                p_ref += int((a.outcome == FORCE_CLOSURE).sum())
+                p_fast += int((b.outcome == FORCE_CLOSURE).sum())
+                both = np.flatnonzero((a.outcome >= 2) & (a.outcome == b.outcome)
+                                      & (a.n_contacts == b.n_contacts))
+                for i in both:
+                    k = a.n_contacts[i]
+                    np.testing.assert_array_equal(a.finger[i, :k], b.finger[i, :k])
+                    np.testing.assert_array_equal(a.link[i, :k], b.link[i, :k])
+                    gap = np.linalg.norm(a.points[i, :k] - b.points[i, :k], axis=1)
+                    assert gap.max() < 1e-3
+                fc = (a.outcome == FORCE_CLOSURE) & (b.outcome == FORCE_CLOSURE)
+                np.testing.assert_allclose(b.quality[fc], a.quality[fc], rtol=0.02)
+            assert same / total >= 0.98
+            pr, pf = p_ref / total, p_fast / total
+            half_width = 2.576 * np.sqrt(pr * (1 - pr) / total + pf * (1 - pf) / total)
+            assert abs(pr - pf) <= half_width + 1e-12
+    finally:
+        reference.close()
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_fast_engine_at_sigma_zero_reproduces_the_nominal_grasps(name):
+    grasps = shipped_grasps(name)
+    draws = FastEngine(name).run(np.stack([g.q0 for g in grasps]))
+    assert np.all(draws.outcome == FORCE_CLOSURE)
+    # both engines polish each contact to a gap of 1e-9 m, so they agree far inside the
+    # 0.2 mm contact tolerance (not to round-off: the roots are found from different brackets)
+    for i, g in enumerate(grasps):
+        assert draws.quality[i] == pytest.approx(g.q_nominal, rel=1e-4)
+        np.testing.assert_allclose(draws.points[i, :len(g.points)], g.points, atol=1e-5)
+
+
+def test_evaluate_with_the_fast_engine_is_reproducible_across_processes():
+    grasp = shipped_grasps("cube")[1]
+    one = evaluate_grasp(grasp, JointNoise(0.02), 300, seed=11, engine="fast", chunk=100)
+    two = evaluate_grasp(grasp, JointNoise(0.02), 300, seed=11, engine="fast", chunk=100,
+                         processes=2)
+    assert one.to_json() == two.to_json()
+    assert one.engine == "fast"
+    with pytest.raises(ValueError, match="unknown engine"):
+        evaluate_grasp(grasp, JointNoise(0.02), 10, engine="warp")
