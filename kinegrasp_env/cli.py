@@ -273,19 +273,21 @@ def cmd_reproduce(args) -> int:
 
     samples = positive_int(args.samples, "--samples")
     processes = _processes(args.processes)
+    engine = engine_name(args.engine)
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
     out = args.out or f"out/{args.figure}"
     if args.figure == "fig7":
-        rows = experiments.fig7(out, samples=samples, seed=_seed(args.seed), processes=processes)
+        rows = experiments.fig7(out, samples=samples, seed=_seed(args.seed), processes=processes,
+                                engine=engine)
         for r in rows:
             print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) {r['p_fc']:.3f}")
         print(f"written: {out}/fig7.csv and fig7_<object>.png")
         return 0
     if args.figure in ("fig9", "fig10"):
         rows = experiments.fig9_10(args.figure, out, samples=samples, seed=_seed(args.seed),
-                                   processes=processes)
+                                   processes=processes, engine=engine)
         for r in rows:
             print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                   f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
@@ -293,7 +295,7 @@ def cmd_reproduce(args) -> int:
         return 0
     args.out = out
     rows = table1(args.object, samples, args.out, grasps=positive_int(args.grasps, "--grasps"),
-                  seed=_seed(args.seed), processes=processes, progress=True)
+                  seed=_seed(args.seed), processes=processes, progress=True, engine=engine)
     print(markdown_table1(rows, args.object, samples))
     print(f"written: {args.out}/table1.csv, table1.md, pfc_vs_sigma.png")
     return 0
@@ -346,6 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grasps", default="5")
     p.add_argument("--seed", default="0")
     p.add_argument("--processes", default="2")
+    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--out", help="output folder (default out/<figure>)")
     p.set_defaults(func=cmd_reproduce)
 
