@@ -298,9 +298,9 @@ common random numbers) of the PPO policy for `KineGraspSelect-v0` against the no
 configuration, a random elbow angle and a grid-search oracle. Made by
 `python agents/evaluate.py --model agents/models/KineGraspSelect-v0_ppo.zip --seed 0 --out
 agents/models/evaluation.json`."""),
-        ("code", """root = Path.cwd()
-while not (root / "agents").is_dir() and root != root.parent:
-    root = root.parent
+        ("code", """import kinegrasp_env
+
+root = Path(kinegrasp_env.__file__).resolve().parent.parent  # the source checkout
 result = json.loads((root / "agents/models/evaluation.json").read_text())
 for method, value in result["mean_p_fc"].items():
     print(f"{method:10s} mean P(FC) {value}")
