@@ -106,10 +106,7 @@ class FastHand:
     def _capsule_gaps(self, frames: np.ndarray, shape: Shape) -> np.ndarray:
         """Gaps (m,) of one capsule at link frames (m, 4, 4): exact within ``EXACT_BAND`` of
         contact, from the grid elsewhere."""
-        a_local, b_local = shape.axis_points()
-        rot, trans = frames[:, :3, :3], frames[:, :3, 3]
-        a = rot @ a_local + trans
-        b = rot @ b_local + trans
+        a, b = _axis(frames, shape)
         gap, _ = capsule_gaps(self.grid, a, b, np.full(len(a), shape.radius), self.kernel)
         near = np.flatnonzero(np.abs(gap) <= GRID_EXACT_BAND)
         if near.size:
@@ -167,7 +164,7 @@ class FastHand:
         hand = q[draws, 7:]
         problems = []
         for f in range(3):
-            problems.append(_Problems(draws, f, zero[FINGERS[f][2]],
+            problems.append(_Problems(draws, zero[FINGERS[f][2]],
                                       hand[:, HAND_JOINTS.index(FINGERS[f][0])],
                                       hand[:, HAND_JOINTS.index(FINGERS[f][1])],
                                       self.upper[f]))
@@ -273,9 +270,7 @@ class FastHand:
         axes = []
         for link, frames in enumerate((prox_frame, dist_frame)):
             shape = self.capsules[f][link]
-            a_local, b_local = shape.axis_points()
-            a = frames[:, :3, :3] @ a_local + frames[:, :3, 3]
-            b = frames[:, :3, :3] @ b_local + frames[:, :3, 3]
+            a, b = _axis(frames, shape)
             axes.append((a, b))
             moving = np.flatnonzero((prob.phase[rows] == 1) | (link == 1))
             if moving.size:
@@ -310,14 +305,20 @@ class FastHand:
         return best_t
 
 
+def _axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 3) end points of a capsule's axis for link frames (m, 4, 4)."""
+    a_local, b_local = shape.axis_points()
+    rot, trans = frames[:, :3, :3], frames[:, :3, 3]
+    return rot @ a_local + trans, rot @ b_local + trans
+
+
 class _Problems:
     """Closing state of one finger over the draws (the per-finger state of hand._Finger)."""
 
-    def __init__(self, draws: np.ndarray, finger: int, joint_frames: np.ndarray,
+    def __init__(self, draws: np.ndarray, joint_frames: np.ndarray,
                  prox: np.ndarray, dist: np.ndarray, upper: np.ndarray) -> None:
         m = draws.size
         self.draws = draws
-        self.finger = finger
         self.joint_frames = np.ascontiguousarray(joint_frames)
         self.upper_p, self.upper_d = float(upper[0]), float(upper[1])
         self.start_p = np.minimum(prox, self.upper_p)
