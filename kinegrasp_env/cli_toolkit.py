@@ -68,6 +68,11 @@ def _fmt(value: float) -> str:
         f"{value:.6g}"
 
 
+def _fixed(value: float) -> str:
+    """Five decimals for the console table ('-' where undefined)."""
+    return "-" if value is None or math.isnan(value) else f"{value:.5f}"
+
+
 def cmd_rank(args) -> int:
     from kinegrasp_env import evaluate
 
@@ -160,7 +165,7 @@ def cmd_rank(args) -> int:
           f"{'draws':>6}")
     for i, row in enumerate(rows, 1):
         print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
-              f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fmt(row['q_mean']):>9} "
+              f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}")
     print(f"written to {out}")
     return 0
