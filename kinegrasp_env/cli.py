@@ -216,8 +216,29 @@ def cmd_objects(args) -> int:
     return 0
 
 
-def _processes(text: str) -> int:
-    return positive_int(text, "--processes")
+def add_execution_args(parser: argparse.ArgumentParser, default_processes: int) -> None:
+    """``--backend``, ``--address`` and ``--processes`` (see :func:`executor_from`)."""
+    parser.add_argument("--backend", default="local",
+                        help="local (a process pool on this machine, the default) or ray")
+    parser.add_argument("--address", help="Ray cluster to use with --backend ray (e.g. "
+                        "ray://head:10001); without it a local Ray instance is started")
+    parser.add_argument("--processes", default=None,
+                        help=f"local worker processes (default {default_processes}); with "
+                        "--backend ray and no --address, the local Ray instance's CPUs "
+                        "(default: all)")
+    parser.set_defaults(default_processes=default_processes)
+
+
+def executor_from(args):
+    """The :class:`~kinegrasp_env.execution.Executor` that the command line asks for."""
+    from kinegrasp_env.execution import BACKENDS, make_executor
+
+    if args.backend not in BACKENDS:
+        raise CLIError(f"--backend must be one of {', '.join(BACKENDS)}, got {args.backend!r}")
+    processes = None if args.processes is None else positive_int(args.processes, "--processes")
+    if args.backend == "local" and processes is None:
+        processes = args.default_processes
+    return make_executor(args.backend, processes, args.address)
 
 
 def engine_name(value: str) -> str:
@@ -236,9 +257,10 @@ def cmd_evaluate(args) -> int:
     noise, sigma, samples, seed = _noise_from(args)
     index = _index(args.grasp)
     grasp = grasp_by_index(args.object, index)
-    stats = evaluate_grasp(grasp, noise, samples, seed, processes=_processes(args.processes),
-                           engine=engine_name(args.engine), return_draws=bool(args.plot),
-                           progress=True)
+    engine = engine_name(args.engine)
+    with executor_from(args) as executor:
+        stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine,
+                               return_draws=bool(args.plot), progress=True, executor=executor)
     if args.plot:
         from kinegrasp_env.objects import load_object
         from kinegrasp_env.plots import plot_contacts
@@ -272,32 +294,33 @@ def cmd_reproduce(args) -> int:
     from kinegrasp_env.experiments import markdown_table1, table1
 
     samples = positive_int(args.samples, "--samples")
-    processes = _processes(args.processes)
     engine = engine_name(args.engine)
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
     out = args.out or f"out/{args.figure}"
-    if args.figure == "fig7":
-        rows = experiments.fig7(out, samples=samples, seed=_seed(args.seed), processes=processes,
-                                engine=engine)
-        for r in rows:
-            print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) {r['p_fc']:.3f}")
-        print(f"written: {out}/fig7.csv and fig7_<object>.png")
-        return 0
-    if args.figure in ("fig9", "fig10"):
-        rows = experiments.fig9_10(args.figure, out, samples=samples, seed=_seed(args.seed),
-                                   processes=processes, engine=engine)
-        for r in rows:
-            print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
-                  f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
-        print(f"written: {out}/{args.figure}.csv and {args.figure}.png")
-        return 0
-    args.out = out
-    rows = table1(args.object, samples, args.out, grasps=positive_int(args.grasps, "--grasps"),
-                  seed=_seed(args.seed), processes=processes, progress=True, engine=engine)
-    print(markdown_table1(rows, args.object, samples))
-    print(f"written: {args.out}/table1.csv, table1.md, pfc_vs_sigma.png")
+    seed = _seed(args.seed)
+    grasps = positive_int(args.grasps, "--grasps")
+    with executor_from(args) as executor:
+        if args.figure == "fig7":
+            rows = experiments.fig7(out, samples=samples, seed=seed, engine=engine,
+                                    executor=executor)
+            for r in rows:
+                print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} "
+                      f"P(FC) {r['p_fc']:.3f}")
+            print(f"written: {out}/fig7.csv and fig7_<object>.png")
+        elif args.figure in ("fig9", "fig10"):
+            rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
+                                       engine=engine, executor=executor)
+            for r in rows:
+                print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
+                      f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+            print(f"written: {out}/{args.figure}.csv and {args.figure}.png")
+        else:
+            rows = table1(args.object, samples, out, grasps=grasps, seed=seed, progress=True,
+                          engine=engine, executor=executor)
+            print(markdown_table1(rows, args.object, samples))
+            print(f"written: {out}/table1.csv, table1.md, pfc_vs_sigma.png")
     return 0
 
 
@@ -336,7 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--object", default="spray_flask")
     p.add_argument("--grasp", default="0", help="index in the object's shipped grasp set")
     _add_noise_args(p, 0.0133)
-    p.add_argument("--processes", default="1")
+    add_execution_args(p, 1)
     p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
     p.set_defaults(func=cmd_evaluate)
@@ -347,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", default="10000")
     p.add_argument("--grasps", default="5")
     p.add_argument("--seed", default="0")
-    p.add_argument("--processes", default="2")
+    add_execution_args(p, 2)
     p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--out", help="output folder (default out/<figure>)")
     p.set_defaults(func=cmd_reproduce)

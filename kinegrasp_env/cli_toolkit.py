@@ -11,7 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.cli import CLIError, _noise_from, _seed, engine_name, positive_int
+from kinegrasp_env.cli import (
+    CLIError,
+    _noise_from,
+    _seed,
+    engine_name,
+    executor_from,
+    positive_int,
+)
 from kinegrasp_env.grasps import load_grasps, save_grasps, write_atomic
 from kinegrasp_env.ranking import CRITERIA, CandidateResult, order, rank_adaptive, rank_fixed
 from kinegrasp_env.stats import StreamingMoments
@@ -85,7 +92,6 @@ def cmd_rank(args) -> int:
     noise, sigma, samples, seed = _noise_from(args)
     if args.criterion not in CRITERIA:
         raise CLIError(f"--criterion must be one of {', '.join(CRITERIA)}")
-    processes = positive_int(args.processes, "--processes")
     engine = engine_name(args.engine)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
@@ -93,7 +99,7 @@ def cmd_rank(args) -> int:
     def evaluator(index: int, first: int, count: int):
         counts, moments, _ = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
-            processes=processes, engine=engine)
+            engine=engine, executor=executor)
         return int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
 
     out = Path(args.out)
@@ -101,13 +107,22 @@ def cmd_rank(args) -> int:
     settings = {"candidates": str(Path(args.candidates).resolve()), "sigma": sigma,
                 "noise": noise.kind, "samples": samples, "seed": seed,
                 "ids": [g.id for g in grasps]}
+    top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
+    if args.adaptive and top_k >= len(grasps):
+        raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
+    with executor_from(args) as executor:
+        results = _rank(args, grasps, evaluator, layout, chunk, top_k, partial, settings)
+    _write_ranking(grasps, results, out, partial)
+    return 0
+
+
+def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
+          settings: dict) -> list[CandidateResult]:
+    """Fixed-n (resumable from ``partial``) or adaptive ranking, best first."""
     from tqdm import tqdm
 
     bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
     if args.adaptive:
-        top_k = positive_int(args.top_k, "--top-k")
-        if top_k >= len(grasps):
-            raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
         report = rank_adaptive(len(grasps), evaluator, len(layout), chunk, top_k=top_k,
                                criterion=args.criterion,
                                progress=lambda r, n: bar.set_postfix_str(f"round {r}/{n}"))
@@ -144,6 +159,11 @@ def cmd_rank(args) -> int:
             results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
                                        done=done), args.criterion)
     bar.close()
+    return results
+
+
+def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path) -> None:
+    """The ranking as CSV (atomically), then as a console table."""
     rows = []
     for r in results:
         g = grasps[r.index]
@@ -168,6 +188,22 @@ def cmd_rank(args) -> int:
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}")
     print(f"written to {out}")
+
+
+def cmd_sweep(args) -> int:
+    from kinegrasp_env.sweep import SweepSpec, run_sweep, summary_table
+
+    spec = SweepSpec.from_file(args.spec)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out {out} exists and is not a folder")
+    with executor_from(args) as executor:
+        print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws on "
+              f"{executor.description}", file=sys.stderr)
+        rows, ran, skipped = run_sweep(spec, out, executor)
+    print(summary_table(rows), end="")
+    print(f"{ran} tasks run, {skipped} found finished in {out / 'results.sqlite'}; "
+          f"written: {out}/summary.csv, summary.txt, pfc_vs_sigma_<noise>_<engine>.png")
     return 0
 
 
@@ -189,7 +225,7 @@ def _read_partial(path: Path, settings: dict) -> dict[int, CandidateResult]:
 
 
 def add_commands(sub) -> None:
-    from kinegrasp_env.cli import _add_noise_args
+    from kinegrasp_env.cli import _add_noise_args, add_execution_args
 
     p = sub.add_parser("plan", help="plan force-closure grasps of an object")
     p.add_argument("--object", default="drill")
@@ -210,7 +246,15 @@ def add_commands(sub) -> None:
     p.add_argument("--adaptive", action="store_true",
                    help="successive elimination: stop when the top k is separated")
     p.add_argument("--top-k", default="3")
-    p.add_argument("--processes", default="1")
+    add_execution_args(p, 1)
     p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
     p.add_argument("--out", default="ranked.csv")
     p.set_defaults(func=cmd_rank)
+
+    p = sub.add_parser("sweep", help="a grid of evaluations (objects x grasps x sigmas x noise "
+                       "x engines), resumable, on a process pool or Ray")
+    p.add_argument("spec", help="YAML file with objects, grasps, sigmas, noise, engines, "
+                   "samples, chunk, seed")
+    p.add_argument("--out", required=True, help="folder of the results store and summary")
+    add_execution_args(p, 1)
+    p.set_defaults(func=cmd_sweep)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -24,6 +23,7 @@ from kinegrasp_env.engine import (
     Engine,
     make_engine,
 )
+from kinegrasp_env.execution import Executor, LocalExecutor
 from kinegrasp_env.grasps import Grasp
 from kinegrasp_env.noise import JointNoise
 from kinegrasp_env.stats import StreamingMoments, wilson_interval
@@ -111,17 +111,13 @@ def _run_chunk(task: tuple) -> tuple[np.ndarray, StreamingMoments, DrawBatch | N
     return counts, moments, (draws if keep else None)
 
 
-def _chunks(tasks: list[tuple], processes: int) -> Iterator[tuple]:
-    """Chunk results in chunk order, computed in ``processes`` worker processes."""
-    if processes <= 1:
-        for task in tasks:
-            yield _run_chunk(task)
+def _chunks(tasks: list[tuple], processes: int, executor: Executor | None) -> Iterator[tuple]:
+    """Chunk results in chunk order, from ``executor`` or a local pool of ``processes``."""
+    if executor is not None:
+        yield from executor.map(_run_chunk, tasks)
         return
-    import multiprocessing
-
-    context = multiprocessing.get_context("fork" if sys.platform == "linux" else "spawn")
-    with ProcessPoolExecutor(max_workers=processes, mp_context=context) as pool:
-        yield from pool.map(_run_chunk, tasks)
+    with LocalExecutor(processes) as local:
+        yield from local.map(_run_chunk, tasks)
 
 
 def validate_request(n_samples: int, processes: int, chunk: int) -> None:
@@ -136,7 +132,8 @@ def validate_request(n_samples: int, processes: int, chunk: int) -> None:
 def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 0, *,
                    processes: int = 1, friction: float = 0.5, num_edges: int = 8,
                    engine: str = "pybullet", method: str = "mc", chunk: int = DEFAULT_CHUNK,
-                   return_draws: bool = False, progress: bool | Callable = False) -> GraspStats:
+                   return_draws: bool = False, progress: bool | Callable = False,
+                   executor: Executor | None = None) -> GraspStats:
     """Estimate P(FC) and the moments of Q for ``grasp`` under joint noise.
 
     Args:
@@ -144,7 +141,9 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
         noise: joint noise on the 7 arm joints.
         n_samples: number of draws.
         seed: run seed; chunk c uses ``SeedSequence(seed, spawn_key=(c,))``.
-        processes: worker processes (results do not depend on it).
+        processes: local worker processes (results do not depend on it).
+        executor: where chunks run (:mod:`kinegrasp_env.execution`: a local pool or
+            Ray); overrides ``processes``. Results do not depend on it either.
         friction, num_edges: friction cone of the quality measure.
         engine: ``pybullet`` (the reference) or ``fast`` (batched, against the object's
             distance grid; same noise draws, so the two compare draw by draw).
@@ -158,14 +157,15 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
     counts, moments, draws = run_chunks(
         grasp, noise, seed, sizes=chunk_sizes(n_samples, chunk), processes=processes,
         friction=friction, num_edges=num_edges, engine=engine, method=method,
-        return_draws=return_draws, progress=progress)
+        return_draws=return_draws, progress=progress, executor=executor)
     return summarize(grasp, noise, seed, engine, counts, moments, draws)
 
 
 def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
                first_chunk: int = 0, processes: int = 1, friction: float = 0.5,
                num_edges: int = 8, engine: str = "pybullet", method: str = "mc",
-               return_draws: bool = False, progress: bool | Callable = False
+               return_draws: bool = False, progress: bool | Callable = False,
+               executor: Executor | None = None
                ) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
     """Run chunks ``first_chunk, first_chunk + 1, ...`` of the given sizes and merge them.
 
@@ -189,8 +189,8 @@ def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
         bar = tqdm(total=n_samples, desc=f"{grasp.object} grasp {grasp.id}", unit="draw",
                    file=sys.stderr, disable=None)
     done = 0
-    for (chunk_counts, chunk_moments, draws), size in zip(_chunks(tasks, processes), sizes,
-                                                          strict=True):
+    results = _chunks(tasks, processes, executor)
+    for (chunk_counts, chunk_moments, draws), size in zip(results, sizes, strict=True):
         counts += chunk_counts
         moments.merge(chunk_moments)
         if draws is not None:

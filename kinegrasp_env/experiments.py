@@ -5,10 +5,12 @@ from __future__ import annotations
 import csv
 import io
 import math
+from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 
 from kinegrasp_env.endeffector import PAPER_SIGMAS
 from kinegrasp_env.evaluate import evaluate_grasp
+from kinegrasp_env.execution import Executor, LocalExecutor
 from kinegrasp_env.grasps import shipped_grasps, write_atomic
 from kinegrasp_env.noise import JointNoise
 
@@ -19,19 +21,21 @@ TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_f
 def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int = 5,
            sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0, processes: int = 1,
            noise: str = "gaussian", progress: bool = False,
-           engine: str = "pybullet") -> list[dict]:
+           engine: str = "pybullet", executor: Executor | None = None) -> list[dict]:
     """Table I: mean, variance of Q and P(FC) for the first ``grasps`` shipped grasps at each
     sigma. Writes ``table1.csv``, ``table1.md`` and ``pfc_vs_sigma.png`` into ``out_dir``."""
     chosen = shipped_grasps(object_name)[:grasps]
     rows = []
-    for grasp in chosen:
-        for sigma in sigmas:
-            stats = evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
-                                   processes=processes, progress=progress, engine=engine)
-            rows.append({"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
-                         "q_mean": stats.q_mean, "q_var": stats.q_var, "p_fc": stats.p_fc,
-                         "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
-                         "samples": stats.samples})
+    with _executor(executor, processes) as run_on:
+        cells = [(grasp, sigma) for grasp in chosen for sigma in sigmas]
+        all_stats = [evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
+                                    progress=progress, engine=engine, executor=run_on)
+                     for grasp, sigma in cells]
+    for (grasp, sigma), stats in zip(cells, all_stats, strict=True):
+        rows.append({"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
+                     "q_mean": stats.q_mean, "q_var": stats.q_var, "p_fc": stats.p_fc,
+                     "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
+                     "samples": stats.samples})
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
@@ -66,13 +70,19 @@ def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _executor(executor: Executor | None, processes: int) -> AbstractContextManager[Executor]:
+    """The caller's executor (left open), else a local pool for the experiment's duration."""
+    return nullcontext(executor) if executor is not None else LocalExecutor(processes)
+
+
 def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
-                  engine: str = "pybullet",
-                  return_draws: bool = False) -> list:
+                  engine: str = "pybullet", return_draws: bool = False,
+                  executor: Executor | None = None) -> list:
     from kinegrasp_env.evaluate import evaluate_grasp
 
-    return [evaluate_grasp(g, JointNoise(sigma), samples, seed, processes=processes, engine=engine,
-                           return_draws=return_draws) for g in grasps]
+    with _executor(executor, processes) as run_on:
+        return [evaluate_grasp(g, JointNoise(sigma), samples, seed, engine=engine,
+                               return_draws=return_draws, executor=run_on) for g in grasps]
 
 
 def _write_rows(out: Path, name: str, rows: list[dict]) -> None:
@@ -85,7 +95,8 @@ def _write_rows(out: Path, name: str, rows: list[dict]) -> None:
 
 def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
          samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
-         processes: int = 1, engine: str = "pybullet") -> list[dict]:
+         processes: int = 1, engine: str = "pybullet",
+         executor: Executor | None = None) -> list[dict]:
     """Fig. 7: the same contacts reached with two arm configurations (the most and the least
     robust of ``variants`` null-space variants of shipped grasp 0): P(FC) and the scatter of
     contact points and normals for each. Writes ``fig7_<object>.png`` and ``fig7.csv``."""
@@ -104,7 +115,7 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
         finally:
             planner.close()
         stats = _evaluate_set(candidates, sigma, samples, seed, processes, engine,
-                              return_draws=True)
+                              return_draws=True, executor=executor)
         best = max(range(len(stats)), key=lambda i: stats[i].p_fc)
         worst = min(range(len(stats)), key=lambda i: stats[i].p_fc)
         for label, i in (("robust", best), ("fragile", worst)):
@@ -125,7 +136,7 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
 
 def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
             count: int = 10, seed: int = 0, processes: int = 1,
-            engine: str = "pybullet") -> list[dict]:
+            engine: str = "pybullet", executor: Executor | None = None) -> list[dict]:
     """Figs. 9 and 10: success rate, mean quality (with its std) and the error
     (nominal - mean) of ``count`` grasps per object at ``sigma``. fig9: the shipped grasps
     (different contacts and arms); fig10: null-space variants of shipped grasp 0 (same
@@ -148,7 +159,8 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
                 grasps = planner.variants(shipped_grasps(name)[0], count)
             finally:
                 planner.close()
-        for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes, engine),
+        for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes, engine,
+                                                  executor=executor),
                         strict=True):
             rows.append({"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
                          "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,

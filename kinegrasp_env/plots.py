@@ -133,10 +133,8 @@ def plot_contacts(mesh, draws, path: str | Path, title: str = "", max_normals: i
     return save_figure(fig, path)
 
 
-def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Path:
-    """P(FC) with its 95% interval against sigma, one line per grasp (rows from table1)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4))
+def _pfc_lines(ax, rows: list[dict]) -> None:
+    """P(FC) with its 95% interval against sigma, one line per grasp."""
     for grasp in sorted({r["grasp"] for r in rows}):
         sub = sorted((r for r in rows if r["grasp"] == grasp), key=lambda r: r["sigma"])
         sig = np.array([r["sigma"] for r in sub])
@@ -149,7 +147,26 @@ def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Pa
     ax.set_ylim(-0.02, 1.02)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+
+
+def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Path:
+    """P(FC) with its 95% interval against sigma, one line per grasp (rows from table1)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    _pfc_lines(ax, rows)
     ax.set_title(title)
+    return save_figure(fig, path)
+
+
+def plot_sweep(rows: list[dict], path: str | Path, title: str = "") -> Path:
+    """A sweep's P(FC) against sigma: one panel per object, one line per grasp."""
+    plt = _pyplot()
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    fig, axes = plt.subplots(1, len(objects), figsize=(5 * len(objects), 4), squeeze=False)
+    for ax, name in zip(axes[0], objects, strict=True):
+        _pfc_lines(ax, [r for r in rows if r["object"] == name])
+        ax.set_title(name)
+    fig.suptitle(title)
     return save_figure(fig, path)
 
 

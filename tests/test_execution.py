@@ -1,0 +1,151 @@
+"""The execution layer: local pool and Ray give the same numbers, and survive dead workers."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.execution import MAX_ATTEMPTS, LocalExecutor, make_executor
+from kinegrasp_env.grasps import save_grasps, shipped_grasps
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def _die_once(task: tuple[int, str]) -> int:
+    """Kill the worker process the first time a marker file is missing (then create it)."""
+    value, marker = task
+    if marker and not os.path.exists(marker):
+        Path(marker).touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return value * 10
+
+
+def _always_die(task: int) -> int:
+    os.kill(os.getpid(), signal.SIGKILL)
+    return task
+
+
+@pytest.mark.parametrize("processes", [1, 3])
+def test_local_map_keeps_task_order_and_as_completed_covers_every_task(processes):
+    tasks = list(range(20))
+    with LocalExecutor(processes) as ex:
+        assert list(ex.map(_square, tasks)) == [t * t for t in tasks]
+        pairs = list(ex.as_completed(_square, tasks))
+    assert sorted(pairs) == [(t, t * t) for t in tasks]
+
+
+def test_local_pool_reruns_the_tasks_of_a_killed_worker(tmp_path, capsys):
+    tasks = [(i, str(tmp_path / "died") if i == 5 else "") for i in range(12)]
+    with LocalExecutor(2) as ex:
+        assert list(ex.map(_die_once, tasks)) == [10 * i for i in range(12)]
+    assert (tmp_path / "died").exists()
+    assert "worker process died" in capsys.readouterr().err
+
+
+def test_a_task_that_always_kills_its_worker_is_an_error_not_a_loop():
+    with LocalExecutor(2) as ex, pytest.raises(RuntimeError, match=f"{MAX_ATTEMPTS} times"):
+        list(ex.map(_always_die, [1, 2]))
+
+
+def test_bad_backend_settings_are_clear():
+    with pytest.raises(ValueError, match="unknown backend 'spark'"):
+        make_executor("spark")
+    with pytest.raises(ValueError, match="processes must be an integer >= 1, got 0"):
+        make_executor("local", 0)
+    with pytest.raises(ValueError, match="--address is for the ray backend"):
+        make_executor("local", 1, "ray://head:10001")
+
+
+def test_missing_ray_names_the_extra(monkeypatch, capsys, tmp_path):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    path = save_grasps(shipped_grasps("cube")[:2], tmp_path / "c.json")
+    code = main(["rank", str(path), "--samples", "10", "--backend", "ray",
+                 "--out", str(tmp_path / "r.csv")])
+    assert code == 2
+    assert "pip install 'kinegrasp-env[ray]'" in capsys.readouterr().err
+    assert not (tmp_path / "r.csv").exists()
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """A local Ray instance with 2 CPUs, shared by this module's Ray tests."""
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+@pytest.mark.expensive
+def test_rank_csv_is_byte_identical_on_every_backend(tmp_path, local_ray):
+    path = save_grasps(shipped_grasps("cube")[:3], tmp_path / "cube.json")
+    outputs = {}
+    for name, extra in {"local1": ["--processes", "1"], "local2": ["--processes", "2"],
+                        "ray": ["--backend", "ray"]}.items():
+        out = tmp_path / f"{name}.csv"
+        assert main(["rank", str(path), "--sigma", "0.02", "--samples", "300", "--engine",
+                     "fast", "--seed", "3", "--out", str(out), *extra]) == 0
+        outputs[name] = out.read_bytes()
+    assert outputs["local1"] == outputs["local2"] == outputs["ray"]
+    assert outputs["local1"].count(b"\n") == 4
+
+
+def _ray_workers_running(task_name: str) -> list[int]:
+    """PIDs of Ray worker processes whose title says they are running ``task_name``."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            title = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="ignore")
+        except OSError:
+            continue
+        if title.startswith(f"ray::{task_name}"):
+            pids.append(int(entry.name))
+    return pids
+
+
+@pytest.mark.expensive
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sweep_survives_a_ray_worker_killed_mid_task(tmp_path, local_ray):
+    import threading
+    import time
+
+    from kinegrasp_env.execution import RayExecutor
+    from kinegrasp_env.sweep import SweepSpec, run_sweep
+
+    spec = SweepSpec.from_dict({"objects": ["cube"], "grasps": [0, 1], "sigmas": [0.01, 0.03],
+                                "engines": ["pybullet"], "samples": 120, "chunk": 30})
+    killed: list[int] = []
+    stop = threading.Event()
+
+    def killer() -> None:
+        while not stop.is_set() and not killed:
+            pids = _ray_workers_running("run_task")
+            if pids:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=killer)
+    thread.start()
+    try:
+        with RayExecutor() as ex:
+            ray_rows, ran, _ = run_sweep(spec, tmp_path / "ray", ex, progress=False)
+    finally:
+        stop.set()
+        thread.join()
+    assert killed, "no Ray worker was caught running a task"
+    assert ran == len(spec.tasks())
+    with LocalExecutor(1) as ex:
+        local_rows, _, _ = run_sweep(spec, tmp_path / "local", ex, progress=False)
+    assert (tmp_path / "ray" / "summary.csv").read_bytes() == \
+        (tmp_path / "local" / "summary.csv").read_bytes()
+    assert [r["p_fc"] for r in ray_rows] == [r["p_fc"] for r in local_rows]
+    assert ray_rows[0]["samples"] == 120

@@ -1,0 +1,146 @@
+"""``kinegrasp sweep``: spec validation, numbers equal to evaluate_grasp, resume after a kill."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.evaluate import evaluate_grasp
+from kinegrasp_env.execution import LocalExecutor
+from kinegrasp_env.grasps import grasp_by_index
+from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.sweep import SpecError, SweepSpec, run_sweep
+
+BASE = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01]}
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"objects": ["teapot"]}, "unknown object 'teapot'"),
+    ({"sigmas": [0.01, -0.02]}, "sigma must be finite and >= 0, got -0.02"),
+    ({"sigmas": ["big"]}, "sigma 'big' is not a number"),
+    ({"colour": "red"}, "unknown key 'colour'"),
+    ({"grasps": [0, 40]}, "grasp 40 does not exist for cube"),
+    ({"noise": ["cauchy"]}, "unknown noise 'cauchy'"),
+    ({"engines": ["gpu"]}, "unknown engine 'gpu'"),
+    ({"samples": 0}, "'samples' must be an integer >= 1, got 0"),
+    ({"sigmas": []}, "'sigmas' is empty"),
+])
+def test_bad_specs_are_named(change, message):
+    with pytest.raises(SpecError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        SweepSpec.from_dict({**BASE, **change})
+
+
+def test_missing_key_and_non_mapping():
+    with pytest.raises(SpecError, match="missing key 'sigmas'"):
+        SweepSpec.from_dict({"objects": ["cube"]})
+    with pytest.raises(SpecError, match="expected a mapping"):
+        SweepSpec.from_dict(["cube"])
+
+
+def test_bad_spec_file_fails_before_any_work(tmp_path, capsys):
+    spec = tmp_path / "bad.yaml"
+    spec.write_text("objects: [cube, teapot]\nsigmas: [0.01]\n")
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown object 'teapot'" in err[0]
+    assert not out.exists()
+
+
+def test_grid_and_task_keys():
+    spec = SweepSpec.from_dict({"objects": ["cube", "mug"], "grasps": [1, 2],
+                                "sigmas": [0.01, 0.02, 0.03], "noise": ["gaussian", "uniform"],
+                                "samples": 100, "chunk": 30})
+    assert len(spec.cells()) == 2 * 2 * 3 * 2
+    tasks = spec.tasks()
+    assert len(tasks) == len(spec.cells()) * 4
+    assert len({t.key for t in tasks}) == len(tasks)
+    assert [t.size for t in tasks[:4]] == [30, 30, 30, 10]
+    assert len(SweepSpec.from_dict({"objects": ["cube"], "sigmas": [0.0]}).cells()) == 12
+
+
+def test_cells_equal_evaluate_grasp_and_a_rerun_computes_nothing(tmp_path):
+    spec = SweepSpec.from_dict({"objects": ["cube"], "grasps": [0, 2], "sigmas": [0.0, 0.02],
+                                "noise": ["gaussian", "triangular"], "engines": ["fast"],
+                                "samples": 90, "chunk": 40, "seed": 5})
+    with LocalExecutor(2) as ex:
+        rows, ran, skipped = run_sweep(spec, tmp_path, ex, progress=False)
+    assert (ran, skipped) == (len(spec.tasks()), 0)
+    for row in rows:
+        stats = evaluate_grasp(grasp_by_index("cube", row["grasp"]),
+                               JointNoise(row["sigma"], row["noise"]), 90, seed=5,
+                               engine="fast", chunk=40)
+        assert row["p_fc"] == stats.p_fc
+        assert row["samples"] == stats.samples == 90
+        assert (row["q_mean"] == stats.q_mean or
+                (math.isnan(row["q_mean"]) and math.isnan(stats.q_mean)))
+        if stats.outcomes["force_closure"] > 1:
+            assert row["q_std"] == stats.q_std
+    first = (tmp_path / "summary.csv").read_bytes()
+    with LocalExecutor(1) as ex:
+        _, ran, skipped = run_sweep(spec, tmp_path, ex, progress=False)
+    assert (ran, skipped) == (0, len(spec.tasks()))
+    assert (tmp_path / "summary.csv").read_bytes() == first
+    assert (tmp_path / "pfc_vs_sigma_triangular_fast.png").stat().st_size > 0
+
+
+def test_other_seed_in_the_same_folder_is_refused(tmp_path):
+    spec = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01], "engines": ["fast"],
+            "samples": 20, "chunk": 20}
+    with LocalExecutor(1) as ex:
+        run_sweep(SweepSpec.from_dict(spec), tmp_path, ex, progress=False)
+        with pytest.raises(SpecError, match="seed = 0, the spec says 1"):
+            run_sweep(SweepSpec.from_dict({**spec, "seed": 1}), tmp_path, ex, progress=False)
+
+
+def _stored_tasks(path) -> list[str]:
+    if not path.exists():
+        return []
+    try:
+        with sqlite3.connect(path) as db:
+            return [row[0] for row in db.execute("SELECT key FROM tasks")]
+    except sqlite3.OperationalError:  # table not created yet
+        return []
+
+
+@pytest.mark.expensive
+def test_killed_sweep_resumes_to_the_uninterrupted_result(tmp_path, capsys):
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("objects: [cube]\ngrasps: [0, 1, 2]\nsigmas: [0.01, 0.02, 0.03]\n"
+                    "engines: [pybullet]\nsamples: 200\nchunk: 25\nseed: 2\n")
+    total = 3 * 3 * 8
+    killed_dir = tmp_path / "killed"
+    store = killed_dir / "results.sqlite"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "kinegrasp_env.cli", "sweep", str(spec), "--out",
+         str(killed_dir), "--processes", "2"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while len(_stored_tasks(store)) < 5 and time.monotonic() < deadline:
+            assert process.poll() is None, "the sweep ended before it could be interrupted"
+            time.sleep(0.02)
+    finally:
+        os.killpg(process.pid, signal.SIGKILL)  # the driver and its pool, mid-run
+        process.wait()
+    done_at_kill = len(_stored_tasks(store))
+    assert 5 <= done_at_kill < total
+    assert not (killed_dir / "summary.csv").exists()
+
+    assert main(["sweep", str(spec), "--out", str(killed_dir), "--processes", "2"]) == 0
+    assert f"{total - done_at_kill} tasks run, {done_at_kill} found finished" in \
+        capsys.readouterr().out
+    keys = _stored_tasks(store)
+    assert len(keys) == len(set(keys)) == total
+
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "whole"), "--processes", "1"]) == 0
+    assert (killed_dir / "summary.csv").read_bytes() == \
+        (tmp_path / "whole" / "summary.csv").read_bytes()
