@@ -19,6 +19,7 @@ from kinegrasp_env.objects import load_object
 from kinegrasp_env.quality import ferrari_canny_batch
 from kinegrasp_env.robots import kuka_sdh
 from kinegrasp_env.sim import GraspWorld
+from kinegrasp_env.threads import single_blas_thread
 
 OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
 START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
@@ -91,7 +92,12 @@ class Engine:
     def close(self) -> None:
         """Release what the engine holds (nothing by default)."""
 
-    def run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
+    def run(self, q: np.ndarray) -> DrawBatch:
+        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
+        with single_blas_thread():
+            return self._run(np.atleast_2d(np.asarray(q, dtype=float)))
+
+    def _run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def _account(self, draws: int, *, kinematics: float, autoclose: float,
@@ -136,9 +142,7 @@ class PybulletEngine(Engine):
         """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
         return self.kin.pose(q, FLANGE_LINK)
 
-    def run(self, q: np.ndarray) -> DrawBatch:
-        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
+    def _run(self, q: np.ndarray) -> DrawBatch:
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
@@ -183,9 +187,7 @@ class FastEngine(Engine):
         super().__init__(object_name, friction, num_edges)
         self.hand = FastHand(self.obj, object_grid(object_name), kernel)
 
-    def run(self, q: np.ndarray) -> DrawBatch:
-        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
+    def _run(self, q: np.ndarray) -> DrawBatch:
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()

@@ -122,7 +122,7 @@ class SweepSpec:
 
 
 def _list(value: Any, key: str, where: str) -> list:
-    values = value if isinstance(value, list) else [value]
+    values = list(value) if isinstance(value, (list, tuple)) else [value]
     if not values:
         raise SpecError(f"{where}: {key!r} is empty")
     return values
