@@ -166,7 +166,7 @@ def plot_sweep(rows: list[dict], path: str | Path, title: str = "") -> Path:
     for ax, name in zip(axes[0], objects, strict=True):
         _pfc_lines(ax, [r for r in rows if r["object"] == name])
         ax.set_title(name)
-    fig.suptitle(title)
+    fig.suptitle(title, y=1.02)
     return save_figure(fig, path)
 
 

@@ -144,3 +144,13 @@ def test_killed_sweep_resumes_to_the_uninterrupted_result(tmp_path, capsys):
     assert main(["sweep", str(spec), "--out", str(tmp_path / "whole"), "--processes", "1"]) == 0
     assert (killed_dir / "summary.csv").read_bytes() == \
         (tmp_path / "whole" / "summary.csv").read_bytes()
+
+
+def test_the_readme_example_spec_is_valid_and_shown_verbatim():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    path = root / "docs" / "sweep_example.yaml"
+    spec = SweepSpec.from_file(path)
+    assert len(spec.tasks()) == 2 * 2 * 2 * 10
+    assert path.read_text() in (root / "README.md").read_text()
