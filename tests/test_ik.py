@@ -69,3 +69,18 @@ def test_elbow_angle_is_a_rotation_about_shoulder_wrist(kin, model):
     radial = np.linalg.norm((e - s) - along[:, None] * axis, axis=1)
     assert np.ptp(along) < 1e-8 and np.ptp(radial) < 1e-8
     assert np.ptp(w, axis=0).max() < 1e-8
+
+
+def test_self_motion_result_does_not_depend_on_the_continuation_step(kin):
+    from kinegrasp_env.grasps import shipped_grasps
+
+    ik = ArmIK(kin)
+    rng = np.random.default_rng(7)
+    grasps = [g for name in ("cube", "drill") for g in shipped_grasps(name)[:4]]
+    targets = rng.uniform(-np.pi, np.pi, len(grasps))
+    q0 = np.array([g.q0 for g in grasps])
+    fine, ok_fine = ik.set_elbow_angle(q0, targets, max_step=0.05)
+    coarse, ok_coarse = ik.set_elbow_angle(q0, targets)
+    assert ok_fine.any()
+    np.testing.assert_array_equal(ok_fine, ok_coarse)
+    np.testing.assert_allclose(coarse[ok_fine], fine[ok_fine], atol=1e-6)
