@@ -172,6 +172,23 @@ def _import_ray():
     return ray
 
 
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail fast on an unreachable ``host:port`` (``ray.init`` would wait for minutes)."""
+    import socket
+
+    host_port = address.split("://", 1)[-1]
+    if host_port == "auto":
+        return
+    host, _, port = host_port.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--address must be host:port or ray://host:port (or auto), got "
+                         f"{address!r}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise ValueError(f"cannot reach a Ray cluster at {address!r}: {exc}") from None
+
+
 class RayExecutor(Executor):
     """Tasks as Ray remote functions (one CPU each).
 
@@ -195,6 +212,8 @@ class RayExecutor(Executor):
                                        "logging_level": logging.WARNING}
             if address is None:
                 options["num_cpus"] = num_cpus or os.cpu_count() or 1
+            else:
+                _check_reachable(address)
             try:
                 ray.init(address=address, **options)
             except ConnectionError as exc:

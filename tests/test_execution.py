@@ -149,3 +149,18 @@ def test_sweep_survives_a_ray_worker_killed_mid_task(tmp_path, local_ray):
         (tmp_path / "local" / "summary.csv").read_bytes()
     assert [r["p_fc"] for r in ray_rows] == [r["p_fc"] for r in local_rows]
     assert ray_rows[0]["samples"] == 120
+
+
+def test_unreachable_ray_address_fails_fast_and_clearly(capsys):
+    import socket
+
+    pytest.importorskip("ray")
+    with socket.socket() as probe:  # a port nobody listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    code = main(["evaluate", "--object", "cube", "--samples", "10", "--backend", "ray",
+                 "--address", f"127.0.0.1:{port}"])
+    assert code == 2
+    assert f"cannot reach a Ray cluster at '127.0.0.1:{port}'" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="must be host:port"):
+        make_executor("ray", None, "nonsense")
