@@ -62,6 +62,11 @@ class DrawBatch:
     def __len__(self) -> int:
         return self.outcome.size
 
+    def part(self, start: int, stop: int) -> DrawBatch:
+        """Draws start..stop-1 (views)."""
+        return DrawBatch(*(getattr(self, f)[start:stop] for f in (
+            "outcome", "quality", "n_contacts", "points", "normals", "finger", "link")))
+
 
 @dataclass
 class EngineTiming:

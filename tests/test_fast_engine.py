@@ -198,3 +198,18 @@ def test_evaluate_with_the_fast_engine_is_reproducible_across_processes():
     assert one.engine == "fast"
     with pytest.raises(ValueError, match="unknown engine"):
         evaluate_grasp(grasp, JointNoise(0.02), 10, engine="warp")
+
+
+def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
+    from kinegrasp_env.evaluate import draw_chunk, group_size
+
+    grasp = shipped_grasps("cube")[1]
+    noise = JointNoise(0.02)
+    assert group_size("fast", 8, 1) == 4 and group_size("pybullet", 8, 1) == 1
+    together = evaluate_grasp(grasp, noise, 4 * 60, seed=3, engine="fast", chunk=60,
+                              return_draws=True).draws
+    engine = FastEngine("cube")
+    alone = [draw_chunk(engine, grasp.q0, noise, 3, c, 60) for c in range(4)]
+    for field in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link"):
+        np.testing.assert_array_equal(getattr(together, field),
+                                      np.concatenate([getattr(a, field) for a in alone]))
