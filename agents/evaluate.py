@@ -57,10 +57,14 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     def score(grasp: Grasp, q: np.ndarray, n: int) -> float:
         here = Grasp(grasp.object, q, grasp.palm_pose, grasp.points, grasp.normals,
                      grasp.fingers, grasp.links, grasp.q_nominal, grasp.id)
-        return evaluate_grasp(here, noise, n, seed, processes=processes).p_fc
+        return evaluate_grasp(here, noise, n, seed, executor=executor).p_fc
 
     from tqdm import tqdm
 
+    from kinegrasp_env.execution import LocalExecutor
+
+    # one pool for the whole run: its workers keep their engines between evaluations
+    executor = LocalExecutor(processes)
     for name, index in tqdm(tasks, desc="held-out grasps", file=sys.stderr, disable=None):
         obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
         grasp, q0 = env.grasp, env.q.copy()
@@ -82,6 +86,7 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
         for method in METHODS:
             row[method] = score(grasp, configs[method], draws)
         rows.append(row)
+    executor.close()
     env.close()
     summary = {m: _interval(np.array([r[m] for r in rows])) for m in METHODS}
     diffs = {f"policy-{m}": _interval(np.array([r["policy"] - r[m] for r in rows]))
