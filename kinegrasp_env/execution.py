@@ -117,8 +117,13 @@ class LocalExecutor(Executor):
         if self.workers == 1:
             self._inline.append((index, task))
             return
+        try:
+            future = self._pool_now().submit(fn, task)
+        except BrokenProcessPool:  # a worker died since the last submission
+            self._restart(fn, [(index, task)])
+            return
         self._attempts[index] = self._attempts.get(index, 0) + 1
-        self._futures[self._pool_now().submit(fn, task)] = (index, task)
+        self._futures[future] = (index, task)
 
     def _collect(self, fn) -> tuple[int, Any]:
         if self.workers == 1:
@@ -131,21 +136,22 @@ class LocalExecutor(Executor):
             try:
                 result = future.result()
             except BrokenProcessPool:
-                self._resubmit_after_crash(fn, index, task)
+                self._restart(fn, [(index, task)])
                 continue
             self._attempts.pop(index, None)
             return index, result
 
-    def _resubmit_after_crash(self, fn, index: int, task: Any) -> None:
-        """A worker died: every task of the broken pool goes to a fresh pool."""
-        lost = [(index, task), *self._futures.values()]
+    def _restart(self, fn, lost: list[tuple[int, Any]]) -> None:
+        """A worker died: the tasks in flight go to a fresh pool (which one killed the
+        worker is unknown, so each counts an attempt)."""
+        lost = [*lost, *self._futures.values()]
         self._futures.clear()
         self._pool.shutdown(wait=False, cancel_futures=True)
         self._pool = None
         for i, t in lost:
             if self._attempts.get(i, 0) >= MAX_ATTEMPTS:
-                raise RuntimeError(f"task {i} took its worker process down {MAX_ATTEMPTS} "
-                                   "times; giving up")
+                raise RuntimeError(f"task {i} was in flight when a worker process died "
+                                   f"{MAX_ATTEMPTS} times; giving up")
             print(f"kinegrasp: a worker process died; re-running task {i}", file=sys.stderr)
             self._submit(fn, i, t)
 
@@ -203,6 +209,8 @@ class RayExecutor(Executor):
     def __init__(self, address: str | None = None, num_cpus: int | None = None,
                  max_retries: int = MAX_ATTEMPTS - 1):
         ray = _import_ray()
+        if address is not None:
+            _check_reachable(address)
         self._ray = ray
         self._owns = False
         if not ray.is_initialized():
@@ -212,8 +220,6 @@ class RayExecutor(Executor):
                                        "logging_level": logging.WARNING}
             if address is None:
                 options["num_cpus"] = num_cpus or os.cpu_count() or 1
-            else:
-                _check_reachable(address)
             try:
                 ray.init(address=address, **options)
             except ConnectionError as exc:

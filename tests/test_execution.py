@@ -50,7 +50,7 @@ def test_local_pool_reruns_the_tasks_of_a_killed_worker(tmp_path, capsys):
 
 
 def test_a_task_that_always_kills_its_worker_is_an_error_not_a_loop():
-    with LocalExecutor(2) as ex, pytest.raises(RuntimeError, match=f"{MAX_ATTEMPTS} times"):
+    with LocalExecutor(2) as ex, pytest.raises(RuntimeError, match=f"died {MAX_ATTEMPTS} times"):
         list(ex.map(_always_die, [1, 2]))
 
 
