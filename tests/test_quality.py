@@ -136,13 +136,21 @@ def test_support_function_bounds_q():
 
 
 @pytest.mark.parametrize("k", [4, 5])
-def test_more_contacts_use_the_reference(k):
+def test_more_contacts_agree_with_the_reference(k):
+    """4-5 contacts go through the certified expansion: qhull's Q to 1e-9, same FC set."""
+    from kinegrasp_env.quality import _wrenches
+    from kinegrasp_env.quality_epa import epsilon_epa_batch
+
     rng = np.random.default_rng(k)
     pts, nrm = sphere_contacts(rng, 40, k, jitter=0.3)
     auto = ferrari_canny_batch(pts, nrm, torque_scale=20.0)
     ref = ferrari_canny_batch(pts, nrm, torque_scale=20.0, method="qhull")
-    np.testing.assert_array_equal(auto, ref)
+    np.testing.assert_array_equal(auto > 0, ref > 0)
+    np.testing.assert_allclose(auto, ref, rtol=1e-9, atol=1e-15)
     assert 0.2 < (ref > 0).mean() < 0.9
+    w = _wrenches(pts, nrm, 0.5, 8, np.full(40, 20.0), np.zeros((40, 3)))
+    _, certified = epsilon_epa_batch(np.ascontiguousarray(w))
+    assert certified.mean() > 0.9  # the qhull fallback is the exception
     with pytest.raises(ValueError, match="fast path needs 3 contacts"):
         ferrari_canny_batch(pts, nrm, method="fast")
 
@@ -274,3 +282,36 @@ def test_per_row_torque_scale_and_center():
     single = [ferrari_canny(pts[i], nrm[i], torque_scale=scales[i], center=centres[i])
               for i in range(10)]
     np.testing.assert_allclose(batch, single, rtol=1e-12)
+
+
+# ----------------------------------------------------------------------------- expansion path
+def test_expansion_path_on_a_known_polytope():
+    """The cross-polytope conv(+-e_i) in R^6: every facet at distance 1/sqrt(6); interior
+    points change nothing; shifted off the origin, Q is 0."""
+    from kinegrasp_env.quality_epa import epsilon_epa
+
+    cross = np.vstack([np.eye(6), -np.eye(6)])
+    inner = np.random.default_rng(0).uniform(-0.1, 0.1, (20, 6))
+    q, certified = epsilon_epa(np.vstack([cross, inner]))
+    assert certified
+    assert q == pytest.approx(1 / np.sqrt(6), rel=1e-12)
+    q, certified = epsilon_epa(cross + np.array([1.5, 0, 0, 0, 0, 0]))
+    assert certified and q == 0.0
+
+
+def test_expansion_path_matches_qhull_on_random_clouds():
+    from scipy.spatial import ConvexHull
+
+    from kinegrasp_env.quality_epa import epsilon_epa, epsilon_epa_batch
+
+    rng = np.random.default_rng(11)
+    clouds = rng.normal(size=(150, 40, 6)) + rng.normal(scale=0.6, size=(150, 1, 6))
+    q, certified = epsilon_epa_batch(clouds)
+    assert certified.mean() > 0.95
+    for cloud, value in zip(clouds[certified], q[certified], strict=True):
+        offsets = ConvexHull(cloud).equations[:, -1]
+        expected = max(-offsets.max(), 0.0)
+        assert value == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    # the interpreted twin of the numba kernel gives the same numbers
+    for cloud in clouds[:5]:
+        assert epsilon_epa.py_func(cloud) == epsilon_epa(cloud)
