@@ -29,9 +29,10 @@ from kinegrasp_env.noise import JointNoise
 from kinegrasp_env.stats import StreamingMoments, wilson_interval
 
 DEFAULT_CHUNK = 250
-#: Most chunks the fast engine runs in one call (measured: 4 chunks of 250 cut its
-#: auto-close time per draw by a quarter; results are identical).
-FAST_GROUP = 4
+#: Most chunks the fast engine runs in one call: its auto-close iterations have a fixed
+#: cost, so bigger batches are cheaper per draw (10,000 draws on 2 processes, fresh pool:
+#: 4 chunks per call 2.42 s, 10 chunks 2.20 s); results are identical.
+FAST_GROUP = 10
 ENGINES = ("pybullet", "fast")
 
 
