@@ -28,6 +28,7 @@ class PackedGeometry:
         planes: (P, 4) all parts' planes; plane_start: (n_parts + 1,) offsets.
         edges: (E, 2, 3) all parts' edges; edge_start: (n_parts + 1,) offsets.
         scale: (n_parts,) part sizes (tolerance of the on-face test).
+        edge_mid: (E, 3) edge midpoints; edge_half: (E,) half lengths (bounding spheres).
     """
 
     planes: np.ndarray
@@ -35,6 +36,8 @@ class PackedGeometry:
     edges: np.ndarray
     edge_start: np.ndarray
     scale: np.ndarray
+    edge_mid: np.ndarray
+    edge_half: np.ndarray
 
 
 def pack(obj: GraspObject) -> PackedGeometry:
@@ -45,7 +48,9 @@ def pack(obj: GraspObject) -> PackedGeometry:
     edge_start = np.cumsum([0] + [len(p.edges) for p in parts])
     return PackedGeometry(np.ascontiguousarray(planes), plane_start.astype(np.int64),
                           np.ascontiguousarray(edges), edge_start.astype(np.int64),
-                          np.array([p.scale for p in parts]))
+                          np.array([p.scale for p in parts]),
+                          np.ascontiguousarray(edges.mean(axis=1)),
+                          0.5 * np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1))
 
 
 @lru_cache(maxsize=8)
@@ -57,7 +62,7 @@ def _compile():
     import numba
 
     @numba.njit(cache=True)
-    def point_part(planes, p0, p1, edges, e0, e1, x, y, z, tol):
+    def point_part(planes, p0, p1, edges, mid, half, e0, e1, x, y, z, tol):
         """Signed distance and closest point of (x, y, z) to one part."""
         top = -np.inf
         face = p0
@@ -83,12 +88,12 @@ def _compile():
         for e in range(e0, e1):
             sx, sy, sz = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
             dx, dy, dz = edges[e, 1, 0] - sx, edges[e, 1, 1] - sy, edges[e, 1, 2] - sz
-            len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
             # bounding sphere of the edge: skip when it cannot beat the best
-            mx, my, mz = x - sx - 0.5 * dx, y - sy - 0.5 * dy, z - sz - 0.5 * dz
-            reach = np.sqrt(mx * mx + my * my + mz * mz) - 0.5 * np.sqrt(len2)
+            mx, my, mz = x - mid[e, 0], y - mid[e, 1], z - mid[e, 2]
+            reach = np.sqrt(mx * mx + my * my + mz * mz) - half[e]
             if reach > 0.0 and reach * reach >= best:
                 continue
+            len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
             t = ((x - sx) * dx + (y - sy) * dy + (z - sz) * dz) / len2
             t = min(max(t, 0.0), 1.0)
             qx, qy, qz = sx + t * dx, sy + t * dy, sz + t * dz
@@ -99,8 +104,8 @@ def _compile():
         return np.sqrt(best), bx, by, bz
 
     @numba.njit(cache=True)
-    def kernel(planes, plane_start, edges, edge_start, scale, a, b, out_d, out_obj, out_seg,
-               out_part, tol):
+    def kernel(planes, plane_start, edges, edge_start, scale, mid, half, a, b, out_d, out_obj,
+               out_seg, out_part, tol):
         n_parts = plane_start.shape[0] - 1
         bounds = np.empty(n_parts)
         for i in range(a.shape[0]):
@@ -108,7 +113,7 @@ def _compile():
             ux, uy, uz = b[i, 0] - ax, b[i, 1] - ay, b[i, 2] - az
             uu = ux * ux + uy * uy + uz * uz
             mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
-            half = 0.5 * np.sqrt(uu)
+            seg_half = 0.5 * np.sqrt(uu)
             best = np.inf
             for part in range(n_parts):
                 p0, p1 = plane_start[part], plane_start[part + 1]
@@ -129,9 +134,10 @@ def _compile():
                 p0, p1 = plane_start[part], plane_start[part + 1]
                 e0, e1 = edge_start[part], edge_start[part + 1]
                 ptol = tol * scale[part]
-                da, cxa, cya, cza = point_part(planes, p0, p1, edges, e0, e1, ax, ay, az, ptol)
-                db, cxb, cyb, czb = point_part(planes, p0, p1, edges, e0, e1, b[i, 0], b[i, 1],
-                                               b[i, 2], ptol)
+                da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay,
+                                               az, ptol)
+                db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, b[i, 0],
+                                               b[i, 1], b[i, 2], ptol)
                 if db < da:
                     d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, b[i, 0], b[i, 1], b[i, 2]
                 else:
@@ -139,12 +145,11 @@ def _compile():
                 for e in range(e0, e1):
                     cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
                     vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
-                    ee = vx * vx + vy * vy + vz * vz
-                    ex, ey, ez = cx0 + 0.5 * vx, cy0 + 0.5 * vy, cz0 + 0.5 * vz
-                    gap = (np.sqrt((ex - mx) ** 2 + (ey - my) ** 2 + (ez - mz) ** 2) - half
-                           - 0.5 * np.sqrt(ee))
+                    gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
+                                   + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
                     if gap >= d:
                         continue
+                    ee = vx * vx + vy * vy + vz * vz
                     rx, ry, rz = ax - cx0, ay - cy0, az - cz0
                     bb = ux * vx + uy * vy + uz * vz
                     cc = rx * ux + ry * uy + rz * uz
@@ -198,6 +203,6 @@ def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: 
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))
     out_part = np.zeros(n, dtype=np.int64)
-    _KERNEL(geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, a, b, out_d,
-            out_obj, out_seg, out_part, INSIDE_TOL)
+    _KERNEL(geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
+            geo.edge_half, a, b, out_d, out_obj, out_seg, out_part, INSIDE_TOL)
     return out_obj, out_seg, out_d, out_part
