@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.finger_axes import finger_axes
 from kinegrasp_env.hand import (
     CONTACT_TOL,
     MAX_ITERATIONS,
@@ -34,7 +35,7 @@ from kinegrasp_env.hand import (
     closing_speeds,
 )
 from kinegrasp_env.hand_geometry import Shape, capsule_contacts, hand_shapes
-from kinegrasp_env.kinematics import Kinematics, axis_angle_matrix
+from kinegrasp_env.kinematics import Kinematics
 from kinegrasp_env.objects import GraspObject
 from kinegrasp_env.robots import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.sdf import DistanceGrid
@@ -92,6 +93,8 @@ class FastHand:
         self.axis_p = [self.model.joint(f[0]).axis for f in FINGERS]
         self.axis_d = [self.model.joint(f[1]).axis for f in FINGERS]
         self.distal_origin = [self.model.joint(f[1]).origin for f in FINGERS]
+        self.axis_ends = [tuple(np.array(shape.axis_points()) for shape in pair)
+                          for pair in self.capsules]
         self.upper = np.array([[self.model.joint(f[0]).upper, self.model.joint(f[1]).upper]
                                for f in FINGERS])
         self.speed = closing_speeds()
@@ -103,10 +106,9 @@ class FastHand:
         world = self.kin.forward(q, links)
         return {name: self.obj.pose_inverse @ pose for name, pose in world.items()}
 
-    def _capsule_gaps(self, frames: np.ndarray, shape: Shape) -> np.ndarray:
-        """Gaps (m,) of one capsule at link frames (m, 4, 4): exact within ``EXACT_BAND`` of
-        contact, from the grid elsewhere."""
-        a, b = _axis(frames, shape)
+    def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, shape: Shape) -> np.ndarray:
+        """Gaps (m,) of one capsule with axis ends a, b (m, 3): exact within
+        ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
         gap, _ = capsule_gaps(self.grid, a, b, np.full(len(a), shape.radius), self.kernel)
         near = np.flatnonzero(np.abs(gap) <= GRID_EXACT_BAND)
         if near.size:
@@ -129,16 +131,12 @@ class FastHand:
                                                self.kernel) < -START_TOL
         return hit
 
-    def _links_at(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
-                  dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Proximal and distal link frames (m, 4, 4) for flexions prox, dist (m,)."""
-        prox_frame = joint_frames.copy()
-        prox_frame[:, :3, :3] = joint_frames[:, :3, :3] @ axis_angle_matrix(
-            self.axis_p[finger], prox)
-        dist_frame = prox_frame @ self.distal_origin[finger]
-        dist_frame[:, :3, :3] = dist_frame[:, :3, :3] @ axis_angle_matrix(
-            self.axis_d[finger], dist)
-        return prox_frame, dist_frame
+    def _link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
+                   dist: np.ndarray) -> np.ndarray:
+        """Axis ends (m, 4, 3) [proximal a, b, distal a, b] for flexions prox, dist (m,)."""
+        ends_p, ends_d = self.axis_ends[finger]
+        return finger_axes(joint_frames, self.axis_p[finger], prox, self.distal_origin[finger],
+                           self.axis_d[finger], dist, ends_p, ends_d, self.kernel)
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray) -> BatchClose:
@@ -150,7 +148,7 @@ class FastHand:
         start = self._cylinder_collision(frames)
         for proximal, distal in self.capsules:
             for shape in (proximal, distal):
-                gap = self._capsule_gaps(frames[shape.link], shape)
+                gap = self._capsule_gaps(*_axis(frames[shape.link], shape), shape)
                 start |= gap < -START_TOL
         out = BatchClose(start, np.zeros((n, 3), bool), np.zeros((n, 3, 2), bool),
                          np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan))
@@ -185,12 +183,12 @@ class FastHand:
             return
         phase1 = prob.phase[rows] == 1
         prox, dist = prob.values(rows)
-        prox_frame, dist_frame = self._links_at(prob.joint_frames[rows], f, prox, dist)
-        gap_d = self._capsule_gaps(dist_frame, self.capsules[f][1])
+        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
+        gap_d = self._capsule_gaps(ends[:, 2], ends[:, 3], self.capsules[f][1])
         gap_p = np.full(rows.size, np.inf)
         if phase1.any():
             sub = np.flatnonzero(phase1)
-            gap_p[sub] = self._capsule_gaps(prox_frame[sub], self.capsules[f][0])
+            gap_p[sub] = self._capsule_gaps(ends[sub, 0], ends[sub, 1], self.capsules[f][0])
         gap_p = np.minimum(gap_p, QUERY_DISTANCE)
         gap_d = np.minimum(gap_d, QUERY_DISTANCE)
         gap_p[~phase1] = np.inf
@@ -265,12 +263,12 @@ class FastHand:
         prob.t[rows] = t
         prox, dist = prob.values(rows)
         prob.t[rows] = saved
-        prox_frame, dist_frame = self._links_at(prob.joint_frames[rows], f, prox, dist)
+        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
         gaps = np.full((rows.size, 2), np.inf)
         axes = []
-        for link, frames in enumerate((prox_frame, dist_frame)):
+        for link in (0, 1):
             shape = self.capsules[f][link]
-            a, b = _axis(frames, shape)
+            a, b = ends[:, 2 * link], ends[:, 2 * link + 1]
             axes.append((a, b))
             moving = np.flatnonzero((prob.phase[rows] == 1) | (link == 1))
             if moving.size:

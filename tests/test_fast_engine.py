@@ -213,3 +213,20 @@ def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
     for field in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link"):
         np.testing.assert_array_equal(getattr(together, field),
                                       np.concatenate([getattr(a, field) for a in alone]))
+
+
+def test_finger_axes_kernel_equals_its_numpy_twin():
+    from kinegrasp_env.finger_axes import finger_axes
+    from kinegrasp_env.hand_fast import FastHand
+
+    hand = FastHand(load_object("cube"), object_grid("cube"))
+    rng = np.random.default_rng(4)
+    frames = np.repeat(np.eye(4)[None], 50, axis=0)
+    frames[:, :3, :3] = np.linalg.qr(rng.normal(size=(50, 3, 3)))[0]
+    frames[:, :3, 3] = rng.normal(scale=0.1, size=(50, 3))
+    prox, dist = rng.uniform(-0.2, 1.6, 50), rng.uniform(-0.2, 1.6, 50)
+    for f in range(3):
+        args = (frames, hand.axis_p[f], prox, hand.distal_origin[f], hand.axis_d[f], dist,
+                *hand.axis_ends[f])
+        np.testing.assert_allclose(finger_axes(*args, kernel="numba"),
+                                   finger_axes(*args, kernel="numpy"), rtol=0, atol=1e-15)
