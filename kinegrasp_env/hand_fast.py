@@ -265,15 +265,14 @@ class FastHand:
         prob.t[rows] = saved
         ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
         gaps = np.full((rows.size, 2), np.inf)
-        axes = []
-        for link in (0, 1):
-            shape = self.capsules[f][link]
-            a, b = ends[:, 2 * link], ends[:, 2 * link + 1]
-            axes.append((a, b))
-            moving = np.flatnonzero((prob.phase[rows] == 1) | (link == 1))
-            if moving.size:
-                gaps[moving, link] = closest_to_segments(self.obj, a[moving], b[moving],
-                                                         self.kernel)[2] - shape.radius
+        axes = [(ends[:, 0], ends[:, 1]), (ends[:, 2], ends[:, 3])]
+        # one exact query for both links: the moving proximal links, then every distal one
+        moving = np.flatnonzero(prob.phase[rows] == 1)
+        starts = np.concatenate([ends[moving, 0], ends[:, 2]])
+        stops = np.concatenate([ends[moving, 1], ends[:, 3]])
+        distance = closest_to_segments(self.obj, starts, stops, self.kernel)[2]
+        gaps[moving, 0] = distance[:moving.size] - self.capsules[f][0].radius
+        gaps[:, 1] = distance[moving.size:] - self.capsules[f][1].radius
         return gaps, axes
 
     def _polish(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
