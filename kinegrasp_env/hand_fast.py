@@ -34,7 +34,7 @@ from kinegrasp_env.hand import (
     STEP,
     closing_speeds,
 )
-from kinegrasp_env.hand_geometry import Shape, capsule_contacts, hand_shapes
+from kinegrasp_env.hand_geometry import Shape, hand_shapes, pair_contacts
 from kinegrasp_env.kinematics import Kinematics
 from kinegrasp_env.objects import GraspObject
 from kinegrasp_env.robots import FINGERS, HAND_JOINTS, kuka_sdh
@@ -206,12 +206,15 @@ class FastHand:
             t_root = self._polish(f, prob, hit_rows, t[touch], gap[touch])
             prob.t[hit_rows] = t_root
             prox_t, dist_t = prob.values(hit_rows)
-            link_gaps, axes = self._exact_at(f, prob, hit_rows, t_root)
+            link_gaps, (where, on_obj, on_seg, distance, part) = self._exact_at(
+                f, prob, hit_rows, t_root)
             for link in (0, 1):
                 sel = np.flatnonzero(link_gaps[:, link] <= CONTACT_TOL)
                 if sel.size == 0:
                     continue
-                point, normal = capsule_contacts(self.obj, axes[link][0][sel], axes[link][1][sel])
+                q = where[sel, link]
+                point, normal = pair_contacts(self.obj, on_obj[q], on_seg[q], distance[q],
+                                              part[q])
                 draw = prob.draws[hit_rows[sel]]
                 out.found[draw, f, link] = True
                 out.points[draw, f, link] = point
@@ -265,15 +268,19 @@ class FastHand:
         prob.t[rows] = saved
         ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
         gaps = np.full((rows.size, 2), np.inf)
-        axes = [(ends[:, 0], ends[:, 1]), (ends[:, 2], ends[:, 3])]
         # one exact query for both links: the moving proximal links, then every distal one
         moving = np.flatnonzero(prob.phase[rows] == 1)
         starts = np.concatenate([ends[moving, 0], ends[:, 2]])
         stops = np.concatenate([ends[moving, 1], ends[:, 3]])
-        distance = closest_to_segments(self.obj, starts, stops, self.kernel)[2]
+        on_obj, on_seg, distance, part = closest_to_segments(self.obj, starts, stops,
+                                                             self.kernel)
         gaps[moving, 0] = distance[:moving.size] - self.capsules[f][0].radius
         gaps[:, 1] = distance[moving.size:] - self.capsules[f][1].radius
-        return gaps, axes
+        # the closest pairs, by link: rows of the query for (row, link), -1 if not computed
+        where = np.full((rows.size, 2), -1)
+        where[moving, 0] = np.arange(moving.size)
+        where[:, 1] = moving.size + np.arange(rows.size)
+        return gaps, (where, on_obj, on_seg, distance, part)
 
     def _polish(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
                 gap: np.ndarray) -> np.ndarray:

@@ -114,6 +114,12 @@ def capsule_contacts(obj: GraspObject, a: np.ndarray, b: np.ndarray
     the object (object frame)."""
     from kinegrasp_env.segment_distance import closest_to_segments
 
-    on_obj, on_seg, dist, part = closest_to_segments(obj, a, b)
+    return pair_contacts(obj, *closest_to_segments(obj, a, b))
+
+
+def pair_contacts(obj: GraspObject, on_obj: np.ndarray, on_seg: np.ndarray, dist: np.ndarray,
+                  part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts (points, inward normals (m, 3)) from exact closest pairs (m, 3) of capsule
+    axes and the object, their distances (m,) and the parts (m,) they touch."""
     outward = (on_seg - on_obj) / np.maximum(dist, 1e-300)[:, None]
     return surface_contact(obj, on_obj, outward, part)
