@@ -152,6 +152,17 @@ def _hyperplane(w: np.ndarray, verts: np.ndarray, interior: np.ndarray,
 
 
 @numba.njit(cache=True)
+def _set_facet(w, verts, normal, offset, alive, f, interior, scale) -> bool:
+    """Hyperplane of facet f (vertices already in ``verts[f]``); False if degenerate."""
+    b = _hyperplane(w, verts[f], interior, normal[f], scale)
+    if np.isnan(b):
+        return False
+    offset[f] = b
+    alive[f] = True
+    return True
+
+
+@numba.njit(cache=True)
 def _ridge_key(verts: np.ndarray, skip: int) -> np.int64:
     """Sorted 5 vertex ids (each < 64) of the ridge opposite vertex ``skip``, packed."""
     ids = np.empty(5, np.int64)
@@ -197,11 +208,8 @@ def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
             if i != skip:
                 verts[count, k] = start[i]
                 k += 1
-        b = _hyperplane(w, verts[count], interior, normal[count], scale)
-        if np.isnan(b):
+        if not _set_facet(w, verts, normal, offset, alive, count, interior, scale):
             return 0.0, False
-        offset[count] = b
-        alive[count] = True
         count += 1
     for i in range(7):
         used[start[i]] = True
@@ -259,11 +267,8 @@ def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
                         verts[count, k] = verts[f, v]
                         k += 1
                 verts[count, 5] = far
-                b = _hyperplane(w, verts[count], interior, normal[count], scale)
-                if np.isnan(b):
+                if not _set_facet(w, verts, normal, offset, alive, count, interior, scale):
                     return 0.0, False
-                offset[count] = b
-                alive[count] = True
                 count += 1
             elif r > j + 1:
                 return 0.0, False  # a ridge in three visible facets: broken structure
