@@ -9,8 +9,6 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from kinegrasp_env.cli import (
     CLIError,
     _noise_from,
@@ -64,10 +62,7 @@ def _moments_to_json(m: StreamingMoments | None) -> dict | None:
 def _moments_from_json(data: dict | None) -> StreamingMoments | None:
     if data is None:
         return None
-    m = StreamingMoments(1)
-    m.n, m.mean = int(data["n"]), np.array(data["mean"])
-    m.m2, m.m3 = np.array(data["m2"]), np.array(data["m3"])
-    return m
+    return StreamingMoments.from_state(data["n"], data["mean"], data["m2"], data["m3"])
 
 
 def _fmt(value: float) -> str:

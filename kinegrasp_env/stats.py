@@ -100,6 +100,16 @@ class StreamingMoments:
         self.m2 = np.zeros((dim, dim))
         self.m3 = np.zeros(dim)
 
+    @classmethod
+    def from_state(cls, n: int, mean, m2, m3) -> StreamingMoments:
+        """Accumulator with a saved state: count, mean (d,), m2 (d, d), m3 (d,)."""
+        mean = np.atleast_1d(np.asarray(mean, dtype=float))
+        out = cls(mean.size)
+        out.n, out.mean = int(n), mean
+        out.m2 = np.asarray(m2, dtype=float).reshape(mean.size, mean.size)
+        out.m3 = np.atleast_1d(np.asarray(m3, dtype=float))
+        return out
+
     def update(self, batch: np.ndarray) -> StreamingMoments:
         """Add a batch (k, d) (or (k,) for d = 1); returns self."""
         x = np.asarray(batch, dtype=float).reshape(-1, self.dim)

@@ -30,12 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.engine import OUTCOMES
 from kinegrasp_env.evaluate import ENGINES, chunk_sizes
+from kinegrasp_env.evaluate import summarize as grasp_stats
 from kinegrasp_env.grasps import write_atomic
 from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
 from kinegrasp_env.objects import OBJECT_NAMES
-from kinegrasp_env.stats import StreamingMoments, wilson_interval
+from kinegrasp_env.stats import StreamingMoments
 
 SPEC_KEYS = ("objects", "grasps", "sigmas", "noise", "engines", "samples", "chunk", "seed")
 #: Settings that fix the random streams: a store made with others cannot be extended.
@@ -242,46 +243,43 @@ class SweepStore:
                  task.chunk, task.size, *result["counts"], result["q_n"], result["q_mean"],
                  result["q_m2"], result["q_m3"], result["seconds"]))
 
-    def rows(self) -> dict[str, tuple]:
-        """Stored task rows by key."""
-        cursor = self._db.execute("SELECT * FROM tasks")
-        return {row[0]: row for row in cursor}
+    def results(self) -> dict[str, tuple[np.ndarray, StreamingMoments]]:
+        """(outcome counts (4,), moments of Q) of every stored task, by key."""
+        cursor = self._db.execute(
+            f"SELECT key, {', '.join(OUTCOMES)}, q_n, q_mean, q_m2, q_m3 FROM tasks")
+        out = {}
+        for key, *values in cursor:
+            counts = np.array(values[:len(OUTCOMES)], dtype=np.int64)
+            out[key] = (counts, StreamingMoments.from_state(*values[len(OUTCOMES):]))
+        return out
 
     def close(self) -> None:
         self._db.close()
 
 
 def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
-    """One row per cell of ``spec``: P(FC), Wilson interval, moments of Q, outcomes."""
+    """One row per cell of ``spec``: P(FC), Wilson interval, moments of Q, outcomes (the
+    statistics of :func:`kinegrasp_env.evaluate.summarize`, chunks merged in order)."""
     from kinegrasp_env.grasps import grasp_by_index
 
-    rows = store.rows()
+    results = store.results()
     n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
-    first_outcome = 8
     summary = []
-    for cell in spec.cells():
-        obj, grasp, sigma, noise, engine = cell
+    for obj, grasp, sigma, noise, engine in spec.cells():
         counts = np.zeros(len(OUTCOMES), dtype=np.int64)
         moments = StreamingMoments(1)
         for c in range(n_chunks):
-            row = rows[SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
-            counts += np.array(row[first_outcome:first_outcome + len(OUTCOMES)])
-            part = StreamingMoments(1)
-            q = row[first_outcome + len(OUTCOMES):]
-            part.n, part.mean = int(q[0]), np.array([q[1]])
-            part.m2, part.m3 = np.array([[q[2]]]), np.array([q[3]])
-            moments.merge(part)
-        n, fc = int(counts.sum()), int(counts[FORCE_CLOSURE])
-        result = moments.result()
-        lo, hi = wilson_interval(fc, n)
+            chunk_counts, chunk_moments = results[
+                SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
+            counts += chunk_counts
+            moments.merge(chunk_moments)
+        stats = grasp_stats(grasp_by_index(obj, grasp), JointNoise(sigma, noise), spec.seed,
+                            engine, counts, moments, None)
         summary.append({
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
-            "p_fc": fc / n, "p_fc_lo": lo, "p_fc_hi": hi,
-            "q_mean": float(result.mean[0]) if fc else math.nan,
-            "q_std": float(np.sqrt(result.cov[0, 0])) if fc > 1 else math.nan,
-            "q_skew": float(result.skew[0]) if fc > 1 else math.nan,
-            "q_nominal": grasp_by_index(obj, grasp).q_nominal, "samples": n,
-            **{name: int(v) for name, v in zip(OUTCOMES, counts, strict=True)}})
+            "p_fc": stats.p_fc, "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
+            "q_mean": stats.q_mean, "q_std": stats.q_std, "q_skew": stats.q_skew,
+            "q_nominal": stats.q_nominal, "samples": stats.samples, **stats.outcomes})
     return summary
 
 
