@@ -261,7 +261,9 @@ class FastHand:
 
     def _exact_at(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray):
         """Exact gaps (m, 2) of finger f's links at parameters t (inf for a link that does
-        not move), and their axes [(a, b) proximal, (a, b) distal], for problem rows."""
+        not move), for problem rows, and the exact closest pairs behind them: (where (m, 2),
+        on_obj, on_seg, distance, part), ``where[row, link]`` indexing the pair arrays (-1
+        where the link was not queried)."""
         saved = prob.t[rows].copy()
         prob.t[rows] = t
         prox, dist = prob.values(rows)

@@ -16,7 +16,7 @@ Conventions (pinned in DESIGN.md):
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
 for 3 contacts, ``method="fast"`` (:mod:`kinegrasp_env.quality_fast`, a batched facet
 enumeration); and, under ``"auto"``, for everything else with the L1 norm and at most
-:data:`EPA_MAX_POINTS` wrenches, a certified nearest-facet-first expansion
+``quality_epa.MAX_POINTS`` wrenches, a certified nearest-facet-first expansion
 (:mod:`kinegrasp_env.quality_epa`, ~9x faster than qhull on 4-5 contacts). ``"auto"`` falls
 back to qhull wherever an exact path cannot certify its answer, and for the L-infinity hull.
 """
@@ -37,8 +37,6 @@ FC_TOL = 1e-12
 RANK_TOL = 1e-10
 #: Largest number of Minkowski-sum points the L-infinity hull is built from.
 LINF_MAX_POINTS = 200_000
-#: Largest wrench set the expansion path takes (its ridge keys pack 6-bit vertex ids).
-EPA_MAX_POINTS = 64
 
 
 # ----------------------------------------------------------------------------- validation
@@ -228,7 +226,7 @@ def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: in
         q, certified = epsilon_three_contacts(w, num_edges)
         out[certified] = q[certified]
         todo = np.flatnonzero(~certified)
-    if norm == "l1" and method != "qhull" and todo.size and w.shape[1] <= EPA_MAX_POINTS:
+    if norm == "l1" and method != "qhull" and todo.size:
         from kinegrasp_env.quality_epa import epsilon_epa_batch
 
         q, certified = epsilon_epa_batch(np.ascontiguousarray(w[todo]))

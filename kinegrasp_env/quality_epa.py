@@ -180,8 +180,11 @@ def _ridge_key(verts: np.ndarray, skip: int) -> np.int64:
 
 @numba.njit(cache=True)
 def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
-    """(Q, certified) for wrenches w (N, 6), N <= 64; Q = 0 if the origin is outside."""
+    """(Q, certified) for wrenches w (N, 6); Q = 0 if the origin is outside. More than
+    :data:`MAX_POINTS` wrenches: not certified (the caller uses qhull)."""
     n = w.shape[0]
+    if n > MAX_POINTS:
+        return 0.0, False
     scale = 0.0
     for i in range(n):
         for c in range(6):
@@ -312,7 +315,7 @@ def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
 
 @numba.njit(cache=True)
 def epsilon_epa_batch(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(Q (B,), certified (B,)) for wrench sets w (B, N, 6), N <= 64."""
+    """(Q (B,), certified (B,)) for wrench sets w (B, N, 6)."""
     q = np.zeros(w.shape[0])
     ok = np.zeros(w.shape[0], np.bool_)
     for b in range(w.shape[0]):

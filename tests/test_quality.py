@@ -315,3 +315,10 @@ def test_expansion_path_matches_qhull_on_random_clouds():
     # the interpreted twin of the numba kernel gives the same numbers
     for cloud in clouds[:5]:
         assert epsilon_epa.py_func(cloud) == epsilon_epa(cloud)
+
+
+def test_expansion_path_declines_sets_beyond_its_bound():
+    from kinegrasp_env.quality_epa import MAX_POINTS, epsilon_epa
+
+    cloud = np.random.default_rng(2).normal(size=(MAX_POINTS + 1, 6))
+    assert epsilon_epa(cloud) == (0.0, False)
