@@ -64,29 +64,28 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     from kinegrasp_env.execution import LocalExecutor
 
     # one pool for the whole run: its workers keep their engines between evaluations
-    executor = LocalExecutor(processes)
-    for name, index in tqdm(tasks, desc="held-out grasps", file=sys.stderr, disable=None):
-        obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
-        grasp, q0 = env.grasp, env.q.copy()
+    with LocalExecutor(processes) as executor:
+        for name, index in tqdm(tasks, desc="held-out grasps", file=sys.stderr, disable=None):
+            obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
+            grasp, q0 = env.grasp, env.q.copy()
 
-        def reach(psi: float, start: np.ndarray = q0) -> np.ndarray:
-            env.q = start.copy()
-            env._move_to(psi)
-            return env.q.copy()
+            def reach(psi: float, start: np.ndarray = q0) -> np.ndarray:
+                env.q = start.copy()
+                env._move_to(psi)
+                return env.q.copy()
 
-        action, _ = model.predict(obs, deterministic=True)
-        configs = {"nominal": q0, "random": reach(rng.uniform(-math.pi, math.pi)),
-                   "policy": reach(math.pi * float(np.clip(action, -1, 1)[0]))}
-        grid_psi = np.linspace(-math.pi, math.pi, grid, endpoint=False)
-        candidates = [reach(p) for p in grid_psi]
-        quick = [score(grasp, q, oracle_draws) for q in candidates]
-        configs["oracle"] = candidates[int(np.argmax(quick))]
-        row = {"object": name, "grasp": grasp.id,
-               "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
-        for method in METHODS:
-            row[method] = score(grasp, configs[method], draws)
-        rows.append(row)
-    executor.close()
+            action, _ = model.predict(obs, deterministic=True)
+            configs = {"nominal": q0, "random": reach(rng.uniform(-math.pi, math.pi)),
+                       "policy": reach(math.pi * float(np.clip(action, -1, 1)[0]))}
+            grid_psi = np.linspace(-math.pi, math.pi, grid, endpoint=False)
+            candidates = [reach(p) for p in grid_psi]
+            quick = [score(grasp, q, oracle_draws) for q in candidates]
+            configs["oracle"] = candidates[int(np.argmax(quick))]
+            row = {"object": name, "grasp": grasp.id,
+                   "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
+            for method in METHODS:
+                row[method] = score(grasp, configs[method], draws)
+            rows.append(row)
     env.close()
     summary = {m: _interval(np.array([r[m] for r in rows])) for m in METHODS}
     diffs = {f"policy-{m}": _interval(np.array([r["policy"] - r[m] for r in rows]))
