@@ -163,37 +163,42 @@ def _compile():
         return best, s
 
     @numba.njit(cache=True)
+    def gap_one(values, shape, origin, spacing, ax, ay, az, ex, ey, ez, radius, samples, near,
+                refine, gold, sample):
+        """(gap, s) of one capsule with axis [a, e] and radius; sample: (samples,) buffer."""
+        bx, by, bz = ex - ax, ey - ay, ez - az
+        best = np.inf
+        kbest = 0
+        for k in range(samples):
+            f = k / (samples - 1)
+            v = trilinear(values, shape, origin, spacing, ax + f * bx, ay + f * by, az + f * bz)
+            sample[k] = v
+            if v < best:
+                best = v
+                kbest = k
+        s = kbest / (samples - 1)
+        half = 0.5 * np.sqrt(bx * bx + by * by + bz * bz) / (samples - 1)
+        gap = best - half - radius
+        if gap <= near:
+            step = 1.0 / (samples - 1)
+            best, s = golden(values, shape, origin, spacing, ax, ay, az, bx, by, bz,
+                             max(s - step, 0.0), min(s + step, 1.0), best, s, refine, gold)
+            for j in range(samples - 1):
+                bound = 0.5 * (sample[j] + sample[j + 1] - 2.0 * half)
+                if bound < best:
+                    best, s = golden(values, shape, origin, spacing, ax, ay, az, bx, by, bz,
+                                     j * step, (j + 1) * step, best, s, refine, gold)
+            gap = best - radius
+        return gap, s
+
+    @numba.njit(cache=True)
     def gaps(values, shape, origin, spacing, a, b, radius, samples, near, refine, gold,
              out_gap, out_s):
         sample = np.empty(samples)
         for i in range(a.shape[0]):
-            ax, ay, az = a[i, 0], a[i, 1], a[i, 2]
-            bx, by, bz = b[i, 0] - ax, b[i, 1] - ay, b[i, 2] - az
-            best = np.inf
-            kbest = 0
-            for k in range(samples):
-                f = k / (samples - 1)
-                v = trilinear(values, shape, origin, spacing, ax + f * bx, ay + f * by,
-                              az + f * bz)
-                sample[k] = v
-                if v < best:
-                    best = v
-                    kbest = k
-            s = kbest / (samples - 1)
-            half = 0.5 * np.sqrt(bx * bx + by * by + bz * bz) / (samples - 1)
-            gap = best - half - radius[i]
-            if gap <= near:
-                step = 1.0 / (samples - 1)
-                best, s = golden(values, shape, origin, spacing, ax, ay, az, bx, by, bz,
-                                 max(s - step, 0.0), min(s + step, 1.0), best, s, refine, gold)
-                for j in range(samples - 1):
-                    bound = 0.5 * (sample[j] + sample[j + 1] - 2.0 * half)
-                    if bound < best:
-                        best, s = golden(values, shape, origin, spacing, ax, ay, az, bx, by,
-                                         bz, j * step, (j + 1) * step, best, s, refine, gold)
-                gap = best - radius[i]
-            out_gap[i] = gap
-            out_s[i] = s
+            out_gap[i], out_s[i] = gap_one(values, shape, origin, spacing, a[i, 0], a[i, 1],
+                                           a[i, 2], b[i, 0], b[i, 1], b[i, 2], radius[i],
+                                           samples, near, refine, gold, sample)
 
     @numba.njit(cache=True)
     def posed_min(values, shape, origin, spacing, rot, trans, local, out):
@@ -209,7 +214,7 @@ def _compile():
                     best = v
             out[i] = best
 
-    return gaps, posed_min
+    return gaps, posed_min, gap_one
 
 
 _KERNEL = None

@@ -34,6 +34,40 @@ def _rotation(axis: np.ndarray, angle: float, out: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
+def axes_one(joint_frame, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, rot,
+             frame_p, frame_d, tmp, out):
+    """One row: out (4, 3) for joint_frame (4, 4) and flexions prox, dist; rot, tmp (3, 3),
+    frame_p, frame_d (3, 4) are work buffers."""
+    _rotation(axis_p, prox, rot)
+    for r in range(3):
+        for c in range(3):
+            frame_p[r, c] = (joint_frame[r, 0] * rot[0, c] + joint_frame[r, 1] * rot[1, c]
+                             + joint_frame[r, 2] * rot[2, c])
+        frame_p[r, 3] = joint_frame[r, 3]
+    for r in range(3):
+        for c in range(4):
+            v = (frame_p[r, 0] * distal_origin[0, c] + frame_p[r, 1] * distal_origin[1, c]
+                 + frame_p[r, 2] * distal_origin[2, c])
+            if c == 3:
+                v += frame_p[r, 3]
+            frame_d[r, c] = v
+    _rotation(axis_d, dist, rot)
+    for r in range(3):
+        for c in range(3):
+            tmp[r, c] = (frame_d[r, 0] * rot[0, c] + frame_d[r, 1] * rot[1, c]
+                         + frame_d[r, 2] * rot[2, c])
+    for r in range(3):
+        for c in range(3):
+            frame_d[r, c] = tmp[r, c]
+    for k in range(2):
+        for r in range(3):
+            out[k, r] = (frame_p[r, 0] * ends_p[k, 0] + frame_p[r, 1] * ends_p[k, 1]
+                         + frame_p[r, 2] * ends_p[k, 2] + frame_p[r, 3])
+            out[2 + k, r] = (frame_d[r, 0] * ends_d[k, 0] + frame_d[r, 1] * ends_d[k, 1]
+                             + frame_d[r, 2] * ends_d[k, 2] + frame_d[r, 3])
+
+
+@numba.njit(cache=True)
 def _axes_kernel(joint_frames, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, out):
     """out (m, 4, 3): proximal a, b, distal a, b for each row."""
     rot = np.empty((3, 3))
@@ -41,34 +75,8 @@ def _axes_kernel(joint_frames, axis_p, prox, distal_origin, axis_d, dist, ends_p
     frame_d = np.empty((3, 4))
     tmp = np.empty((3, 3))
     for i in range(prox.shape[0]):
-        _rotation(axis_p, prox[i], rot)
-        for r in range(3):
-            for c in range(3):
-                frame_p[r, c] = (joint_frames[i, r, 0] * rot[0, c]
-                                 + joint_frames[i, r, 1] * rot[1, c]
-                                 + joint_frames[i, r, 2] * rot[2, c])
-            frame_p[r, 3] = joint_frames[i, r, 3]
-        for r in range(3):
-            for c in range(4):
-                v = (frame_p[r, 0] * distal_origin[0, c] + frame_p[r, 1] * distal_origin[1, c]
-                     + frame_p[r, 2] * distal_origin[2, c])
-                if c == 3:
-                    v += frame_p[r, 3]
-                frame_d[r, c] = v
-        _rotation(axis_d, dist[i], rot)
-        for r in range(3):
-            for c in range(3):
-                tmp[r, c] = (frame_d[r, 0] * rot[0, c] + frame_d[r, 1] * rot[1, c]
-                             + frame_d[r, 2] * rot[2, c])
-        for r in range(3):
-            for c in range(3):
-                frame_d[r, c] = tmp[r, c]
-        for k in range(2):
-            for r in range(3):
-                out[i, k, r] = (frame_p[r, 0] * ends_p[k, 0] + frame_p[r, 1] * ends_p[k, 1]
-                                + frame_p[r, 2] * ends_p[k, 2] + frame_p[r, 3])
-                out[i, 2 + k, r] = (frame_d[r, 0] * ends_d[k, 0] + frame_d[r, 1] * ends_d[k, 1]
-                                    + frame_d[r, 2] * ends_d[k, 2] + frame_d[r, 3])
+        axes_one(joint_frames[i], axis_p, prox[i], distal_origin, axis_d, dist[i], ends_p,
+                 ends_d, rot, frame_p, frame_d, tmp, out[i])
 
 
 def finger_axes(joint_frames: np.ndarray, axis_p: np.ndarray, prox: np.ndarray,

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.close_kernel import PAIR_SIZE, close_kernel, geometry_args, grid_args
 from kinegrasp_env.finger_axes import finger_axes
 from kinegrasp_env.hand import (
     CONTACT_TOL,
@@ -48,6 +49,8 @@ COARSE_SPACING = 1.2e-2
 #: Capsule gaps within +-this (metres) are computed exactly: above the grid's largest
 #: measured error (0.35 mm), so every decision near contact is the exact one.
 GRID_EXACT_BAND = 1e-3
+#: Implementations of the closing loop.
+CLOSINGS = ("compiled", "vectorized")
 
 
 @dataclass
@@ -76,13 +79,25 @@ class FastHand:
     Args:
         obj: the object (placed at ``obj.pose``).
         grid: its distance grid.
-        kernel: capsule-gap implementation, ``numba`` or ``numpy``.
+        kernel: geometry kernels, ``numba`` or ``numpy`` (the interpreted twins).
+        closing: ``compiled`` (the whole closing loop in one compiled call,
+            :mod:`kinegrasp_env.close_kernel`; needs ``kernel="numba"``) or ``vectorized``
+            (one array-operation iteration at a time); the same results.
     """
 
-    def __init__(self, obj: GraspObject, grid: DistanceGrid, kernel: str = "numba") -> None:
+    def __init__(self, obj: GraspObject, grid: DistanceGrid, kernel: str = "numba",
+                 closing: str | None = None) -> None:
+        if kernel not in ("numba", "numpy"):
+            raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
+        closing = closing or ("compiled" if kernel == "numba" else "vectorized")
+        if closing not in CLOSINGS:
+            raise ValueError(f"unknown closing {closing!r}; choose from {', '.join(CLOSINGS)}")
+        if closing == "compiled" and kernel != "numba":
+            raise ValueError("the compiled closing loop needs kernel='numba'")
         self.obj = obj
         self.grid = grid
         self.kernel = kernel
+        self.closing = closing
         self.model = kuka_sdh()
         self.kin = Kinematics(self.model)
         shapes = {s.link: s for s in hand_shapes()}
@@ -99,6 +114,16 @@ class FastHand:
                                for f in FINGERS])
         self.speed = closing_speeds()
         self._flex = self.model.index([j for f in FINGERS for j in f[:2]])
+        if closing == "compiled":
+            self._grid_args = grid_args(grid, GRID_EXACT_BAND)
+            self._stacked = {
+                "axis_p": np.array(self.axis_p, dtype=float),
+                "axis_d": np.array(self.axis_d, dtype=float),
+                "distal_origin": np.array(self.distal_origin, dtype=float),
+                "ends_p": np.array([ends[0] for ends in self.axis_ends], dtype=float),
+                "ends_d": np.array([ends[1] for ends in self.axis_ends], dtype=float),
+                "radius": np.array([[c.radius for c in pair] for pair in self.capsules]),
+            }
 
     # ------------------------------------------------------------------ geometry
     def _frames(self, q: np.ndarray, links: list[str]) -> dict[str, np.ndarray]:
@@ -160,6 +185,9 @@ class FastHand:
         q_zero[:, self._flex] = 0.0
         zero = self._frames(q_zero, [f[2] for f in FINGERS])
         hand = q[draws, 7:]
+        if self.closing == "compiled":
+            self._close_compiled(draws, zero, hand, out)
+            return out
         problems = []
         for f in range(3):
             problems.append(_Problems(draws, zero[FINGERS[f][2]],
@@ -175,6 +203,31 @@ class FastHand:
             out.missed[prob.draws, f] = prob.missed
         out.iterations = iterations
         return out
+
+    def _close_compiled(self, draws: np.ndarray, zero: dict[str, np.ndarray], hand: np.ndarray,
+                        out: BatchClose) -> None:
+        """The closing loop in one compiled call, then the contacts of the closest pairs."""
+        m = draws.size
+        joint_frames = np.ascontiguousarray(np.stack([zero[f[2]] for f in FINGERS], axis=1))
+        prox0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[0]) for f in FINGERS]])
+        dist0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[1]) for f in FINGERS]])
+        found = np.zeros((m, 3, 2), dtype=bool)
+        pairs = np.zeros((m, 3, 2, PAIR_SIZE))
+        missed = np.zeros((m, 3), dtype=bool)
+        out.iterations = close_kernel()(
+            self._grid_args, geometry_args(self.obj.name), joint_frames, prox0, dist0,
+            self._stacked["axis_p"], self._stacked["axis_d"], self._stacked["distal_origin"],
+            self._stacked["ends_p"], self._stacked["ends_d"], self._stacked["radius"],
+            self.upper, np.array(self.speed, dtype=float), found, pairs, missed)
+        out.missed[draws] = missed
+        out.found[draws] = found
+        hit = pairs[found]
+        if len(hit):
+            point, normal = pair_contacts(self.obj, hit[:, 1:4], hit[:, 4:7], hit[:, 0],
+                                          hit[:, 7].astype(np.int64))
+            rows, fingers, links = np.nonzero(found)
+            out.points[draws[rows], fingers, links] = point
+            out.normals[draws[rows], fingers, links] = normal
 
     def _advance(self, f: int, prob: _Problems, out: BatchClose) -> None:
         """One closing iteration of finger f for its active problems."""

@@ -104,7 +104,9 @@ def surface_contact(obj: GraspObject, points: np.ndarray, outward: np.ndarray,
     (an edge or corner: it lies in the cone of the adjacent faces).
     """
     projected, face_normal = obj.surface(points, part)
-    agree = np.einsum("ij,ij->i", face_normal, -outward) > 1 - 1e-6
+    cosine = -(face_normal[:, 0] * outward[:, 0] + face_normal[:, 1] * outward[:, 1]
+               + face_normal[:, 2] * outward[:, 2])
+    agree = cosine > 1 - 1e-6
     return projected, np.where(agree[:, None], face_normal, -outward)
 
 

@@ -98,7 +98,11 @@ class GraspObject:
         for index in np.unique(part):
             sel = part == index
             planes = self.planes[index]
-            signed = points[sel] @ planes[:, :3].T + planes[:, 3]
+            # term by term (not a matrix product, whose rounding may depend on the batch
+            # size): the same point gives the same bits however many are projected with it
+            mine = points[sel]
+            signed = (mine[:, 0:1] * planes[:, 0] + mine[:, 1:2] * planes[:, 1]
+                      + mine[:, 2:3] * planes[:, 2] + planes[:, 3])
             face = np.argmax(signed, axis=1)
             top = signed[np.arange(face.size), face]
             normal = planes[face, :3]

@@ -104,82 +104,99 @@ def _compile():
         return np.sqrt(best), bx, by, bz
 
     @numba.njit(cache=True)
+    def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay, az, ex,
+                    ey, ez, bounds, tol):
+        """Closest pair of segment [a, e] and the object: (distance, point on the object
+        (3 floats), point on the segment (3 floats), part); bounds: (n_parts,) buffer."""
+        n_parts = plane_start.shape[0] - 1
+        ux, uy, uz = ex - ax, ey - ay, ez - az
+        uu = ux * ux + uy * uy + uz * uz
+        mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
+        seg_half = 0.5 * np.sqrt(uu)
+        best = np.inf
+        box = boy = boz = bsx = bsy = bsz = 0.0
+        bpart = 0
+        for part in range(n_parts):
+            p0, p1 = plane_start[part], plane_start[part + 1]
+            bound = -np.inf
+            for k in range(p0, p1):
+                va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
+                vb = planes[k, 0] * ex + planes[k, 1] * ey + planes[k, 2] * ez + planes[k, 3]
+                v = min(va, vb)
+                if v > bound:
+                    bound = v
+            bounds[part] = bound
+        order = np.argsort(bounds)
+        for rank in range(n_parts):
+            part = order[rank]
+            if bounds[part] >= best:
+                break
+            p0, p1 = plane_start[part], plane_start[part + 1]
+            e0, e1 = edge_start[part], edge_start[part + 1]
+            ptol = tol * scale[part]
+            da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay,
+                                           az, ptol)
+            db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, ex, ey,
+                                           ez, ptol)
+            if db < da:
+                d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, ex, ey, ez
+            else:
+                d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
+            for e in range(e0, e1):
+                cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+                vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
+                gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
+                               + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
+                if gap >= d:
+                    continue
+                ee = vx * vx + vy * vy + vz * vz
+                rx, ry, rz = ax - cx0, ay - cy0, az - cz0
+                bb = ux * vx + uy * vy + uz * vz
+                cc = rx * ux + ry * uy + rz * uz
+                ff = rx * vx + ry * vy + rz * vz
+                denom = uu * ee - bb * bb
+                s = 0.0
+                if denom > 1e-14 * uu * ee:
+                    s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
+                t = (bb * s + ff) / ee
+                if t < 0.0:
+                    s = min(max(-cc / uu, 0.0), 1.0)
+                elif t > 1.0:
+                    s = min(max((bb - cc) / uu, 0.0), 1.0)
+                t = min(max(t, 0.0), 1.0)
+                px, py, pz = ax + s * ux, ay + s * uy, az + s * uz
+                qx, qy, qz = cx0 + t * vx, cy0 + t * vy, cz0 + t * vz
+                dd = np.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
+                if dd < d:
+                    d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
+            if d < best:
+                best = d
+                box, boy, boz, bsx, bsy, bsz = ox, oy, oz, sx, sy, sz
+                bpart = part
+        return best, box, boy, boz, bsx, bsy, bsz, bpart
+
+    @numba.njit(cache=True)
     def kernel(planes, plane_start, edges, edge_start, scale, mid, half, a, b, out_d, out_obj,
                out_seg, out_part, tol):
-        n_parts = plane_start.shape[0] - 1
-        bounds = np.empty(n_parts)
+        bounds = np.empty(plane_start.shape[0] - 1)
         for i in range(a.shape[0]):
-            ax, ay, az = a[i, 0], a[i, 1], a[i, 2]
-            ux, uy, uz = b[i, 0] - ax, b[i, 1] - ay, b[i, 2] - az
-            uu = ux * ux + uy * uy + uz * uz
-            mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
-            seg_half = 0.5 * np.sqrt(uu)
-            best = np.inf
-            for part in range(n_parts):
-                p0, p1 = plane_start[part], plane_start[part + 1]
-                bound = -np.inf
-                for k in range(p0, p1):
-                    va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
-                    vb = (planes[k, 0] * b[i, 0] + planes[k, 1] * b[i, 1] + planes[k, 2] * b[i, 2]
-                          + planes[k, 3])
-                    v = min(va, vb)
-                    if v > bound:
-                        bound = v
-                bounds[part] = bound
-            order = np.argsort(bounds)
-            for rank in range(n_parts):
-                part = order[rank]
-                if bounds[part] >= best:
-                    break
-                p0, p1 = plane_start[part], plane_start[part + 1]
-                e0, e1 = edge_start[part], edge_start[part + 1]
-                ptol = tol * scale[part]
-                da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay,
-                                               az, ptol)
-                db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, b[i, 0],
-                                               b[i, 1], b[i, 2], ptol)
-                if db < da:
-                    d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, b[i, 0], b[i, 1], b[i, 2]
-                else:
-                    d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
-                for e in range(e0, e1):
-                    cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-                    vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
-                    gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
-                                   + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
-                    if gap >= d:
-                        continue
-                    ee = vx * vx + vy * vy + vz * vz
-                    rx, ry, rz = ax - cx0, ay - cy0, az - cz0
-                    bb = ux * vx + uy * vy + uz * vz
-                    cc = rx * ux + ry * uy + rz * uz
-                    ff = rx * vx + ry * vy + rz * vz
-                    denom = uu * ee - bb * bb
-                    s = 0.0
-                    if denom > 1e-14 * uu * ee:
-                        s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
-                    t = (bb * s + ff) / ee
-                    if t < 0.0:
-                        s = min(max(-cc / uu, 0.0), 1.0)
-                    elif t > 1.0:
-                        s = min(max((bb - cc) / uu, 0.0), 1.0)
-                    t = min(max(t, 0.0), 1.0)
-                    px, py, pz = ax + s * ux, ay + s * uy, az + s * uz
-                    qx, qy, qz = cx0 + t * vx, cy0 + t * vy, cz0 + t * vz
-                    dd = np.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
-                    if dd < d:
-                        d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
-                if d < best:
-                    best = d
-                    out_obj[i, 0], out_obj[i, 1], out_obj[i, 2] = ox, oy, oz
-                    out_seg[i, 0], out_seg[i, 1], out_seg[i, 2] = sx, sy, sz
-                    out_part[i] = part
-            out_d[i] = best
+            (out_d[i], out_obj[i, 0], out_obj[i, 1], out_obj[i, 2], out_seg[i, 0],
+             out_seg[i, 1], out_seg[i, 2], out_part[i]) = segment_one(
+                planes, plane_start, edges, edge_start, scale, mid, half, a[i, 0], a[i, 1],
+                a[i, 2], b[i, 0], b[i, 1], b[i, 2], bounds, tol)
 
-    return kernel
+    return kernel, segment_one
 
 
 _KERNEL = None
+
+
+def kernels():
+    """The compiled (batch kernel, one-segment function), built on first use."""
+    global _KERNEL
+    if _KERNEL is None:
+        _KERNEL = _compile()
+    return _KERNEL
 
 
 def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: str = "numba"
@@ -195,14 +212,11 @@ def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: 
         return obj.closest_to_segments(a, b)
     if kernel != "numba":
         raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
-    global _KERNEL
-    if _KERNEL is None:
-        _KERNEL = _compile()
     geo = packed(obj.name)
     n = len(a)
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))
     out_part = np.zeros(n, dtype=np.int64)
-    _KERNEL(geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
+    kernels()[0](geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
             geo.edge_half, a, b, out_d, out_obj, out_seg, out_part, INSIDE_TOL)
     return out_obj, out_seg, out_d, out_part

@@ -230,3 +230,38 @@ def test_finger_axes_kernel_equals_its_numpy_twin():
                 *hand.axis_ends[f])
         np.testing.assert_allclose(finger_axes(*args, kernel="numba"),
                                    finger_axes(*args, kernel="numpy"), rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_compiled_closing_loop_equals_the_vectorized_one(name):
+    from kinegrasp_env.hand_fast import FastHand
+
+    obj, grid = load_object(name), object_grid(name)
+    compiled = FastHand(obj, grid, closing="compiled")
+    vectorized = FastHand(obj, grid, closing="vectorized")
+    rng = np.random.default_rng(11)
+    outcomes = np.zeros(4, int)  # proximal contacts, distal contacts, missed fingers, starts
+    for grasp in shipped_grasps(name)[:3]:
+        q = np.tile(grasp.q0, (120, 1))
+        q[:, :7] += JointNoise(0.03, "gaussian").sample(120, 7, rng)
+        a, b = compiled.close(q), vectorized.close(q)
+        # bit for bit: the same per-row arithmetic in the same order
+        for field in ("start_collision", "missed", "found", "points", "normals"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        assert a.iterations == b.iterations
+        outcomes += [a.found[..., 0].sum(), a.found[..., 1].sum(), a.missed.sum(),
+                     a.start_collision.sum()]
+    # every branch of the state machine was exercised
+    assert (outcomes[:3] > 0).all(), outcomes
+
+
+def test_fast_hand_rejects_unknown_closing_and_kernel():
+    from kinegrasp_env.hand_fast import FastHand
+
+    obj, grid = load_object("cube"), object_grid("cube")
+    with pytest.raises(ValueError, match="closing 'fastest'"):
+        FastHand(obj, grid, closing="fastest")
+    with pytest.raises(ValueError, match="kernel 'cuda'"):
+        FastHand(obj, grid, kernel="cuda")
+    with pytest.raises(ValueError, match="needs kernel='numba'"):
+        FastHand(obj, grid, kernel="numpy", closing="compiled")
