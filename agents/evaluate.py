@@ -7,9 +7,14 @@ Example (the committed table):
 For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each object's
 shipped set) at noise ``--sigma``, the arm configuration chosen by each method is evaluated
 with ``--draws`` Monte Carlo draws (the same seed for every method: common random numbers).
-The oracle searches a grid of elbow angles with ``--oracle-draws`` draws each, then is
-evaluated like the others. Prints a table of mean P(FC) over the grasps with 95% intervals
-and the paired differences policy - baseline; writes JSON. ``--quick`` shrinks everything.
+Methods: ``nominal`` (the grasp's IK configuration), ``random`` (the mean over
+``--random-angles`` uniformly drawn elbow angles, ``--draws`` in all: the expected P(FC)
+of picking the elbow at random), ``spread`` (no learning: of the oracle's grid, the angle
+with the smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))),
+``policy`` (the trained model, deterministic) and ``oracle`` (searches the grid of elbow
+angles with ``--oracle-draws`` draws each, then is evaluated like the others). Prints a
+table of mean P(FC) over the grasps with 95% intervals and the paired differences policy -
+baseline; writes JSON. ``--quick`` shrinks everything.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-METHODS = ("nominal", "random", "policy", "oracle")
+METHODS = ("nominal", "random", "spread", "policy", "oracle")
 
 
 def _interval(values: np.ndarray) -> tuple[float, float, float]:
@@ -32,8 +37,18 @@ def _interval(values: np.ndarray) -> tuple[float, float, float]:
     return mean, mean - half, mean + half
 
 
+def palm_spread(env, q: np.ndarray) -> float:
+    """Palm-position spread per unit joint noise at arm+hand configuration q (14,): the
+    root of the trace of J_p J_p^T over the 7 arm joints (metres per radian)."""
+    from kinegrasp_env.robots import PALM_LINK
+
+    jac = env._kin.jacobian(q, PALM_LINK)[0][:3, :7]
+    return float(np.sqrt(np.trace(jac @ jac.T)))
+
+
 def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid: int,
-             seed: int, processes: int = 1, limit: int | None = None) -> dict:
+             seed: int, processes: int = 1, limit: int | None = None,
+             random_angles: int = 4) -> dict:
     import gymnasium as gym
     from stable_baselines3 import PPO, SAC
 
@@ -47,7 +62,9 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
         raise SystemExit(f"evaluate: error: no model at {path}")
     algo = SAC if "_sac" in path.stem else PPO
     model = algo.load(path, device="cpu")
-    env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
+    bins = getattr(model.action_space, "n", None)  # a policy over Discrete(bins) elbow angles
+    env = gym.make("KineGraspSelect-v0", split="test", n_draws=1,
+                   action_bins=None if bins is None else int(bins)).unwrapped
     noise = JointNoise(sigma)
     rng = np.random.default_rng(seed)
     tasks = [(name, i) for name in env.object_names for i in range(len(env.tasks[name]))]
@@ -75,23 +92,34 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
                 return env.q.copy()
 
             action, _ = model.predict(obs, deterministic=True)
-            configs = {"nominal": q0, "random": reach(rng.uniform(-math.pi, math.pi)),
-                       "policy": reach(math.pi * float(np.clip(action, -1, 1)[0]))}
+            configs = {"nominal": q0,
+                       "policy": reach(env.action_angle(action))}
             grid_psi = np.linspace(-math.pi, math.pi, grid, endpoint=False)
             candidates = [reach(p) for p in grid_psi]
+            configs["spread"] = candidates[int(np.argmin([palm_spread(env, q)
+                                                          for q in candidates]))]
             quick = [score(grasp, q, oracle_draws) for q in candidates]
             configs["oracle"] = candidates[int(np.argmax(quick))]
             row = {"object": name, "grasp": grasp.id,
                    "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
             for method in METHODS:
-                row[method] = score(grasp, configs[method], draws)
+                if method == "random":
+                    angles = rng.uniform(-math.pi, math.pi, random_angles)
+                    share = max(draws // random_angles, 1)
+                    row[method] = float(np.mean([score(grasp, reach(p), share)
+                                                 for p in angles]))
+                else:
+                    row[method] = score(grasp, configs[method], draws)
+                row[f"elbow_{method}"] = (float(env.ik.elbow_angle(configs[method][None])[0])
+                                          if method in configs else None)
             rows.append(row)
     env.close()
     summary = {m: _interval(np.array([r[m] for r in rows])) for m in METHODS}
     diffs = {f"policy-{m}": _interval(np.array([r["policy"] - r[m] for r in rows]))
-             for m in ("nominal", "random", "oracle")}
+             for m in METHODS if m != "policy"}
     return {"model": str(path), "sigma": sigma, "draws": draws, "oracle_draws": oracle_draws,
-            "grid": grid, "seed": seed, "grasps": len(rows), "rows": rows,
+            "grid": grid, "seed": seed, "random_angles": random_angles,
+            "grasps": len(rows), "rows": rows,
             "mean_p_fc": summary, "paired_differences": diffs}
 
 
@@ -115,18 +143,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--draws", type=int, default=2000)
     parser.add_argument("--oracle-draws", type=int, default=200)
     parser.add_argument("--grid", type=int, default=12)
+    parser.add_argument("--random-angles", type=int, default=4,
+                        help="random elbow angles averaged per grasp (--draws shared)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--quick", action="store_true", help="tiny run for tests")
     parser.add_argument("--out", help="write the result as JSON")
     args = parser.parse_args(argv)
-    if args.sigma < 0 or args.draws < 1:
-        print("evaluate: error: --sigma must be >= 0 and --draws >= 1", file=sys.stderr)
+    if args.sigma < 0 or args.draws < 1 or args.random_angles < 1:
+        print("evaluate: error: --sigma must be >= 0, --draws and --random-angles >= 1",
+              file=sys.stderr)
         return 2
     if args.quick:
         args.draws, args.oracle_draws, args.grid, args.processes = 20, 8, 3, 1
+        args.random_angles = 2
     result = evaluate(args.model, args.sigma, args.draws, args.oracle_draws, args.grid,
-                      args.seed, args.processes, limit=2 if args.quick else None)
+                      args.seed, args.processes, limit=2 if args.quick else None,
+                      random_angles=args.random_angles)
     print(table(result))
     if args.out:
         Path(args.out).write_text(json.dumps(result, indent=1))

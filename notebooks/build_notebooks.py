@@ -294,8 +294,9 @@ print("draws used:", sum(int(r["samples"]) for r in adaptive), "adaptive vs",
         ("md", """## The learned elbow selector
 
 `agents/models/evaluation.json` holds the held-out comparison (12 grasps, 2000 draws each,
-common random numbers) of the PPO policy for `KineGraspSelect-v0` against the nominal IK
-configuration, a random elbow angle and a grid-search oracle. Made by
+common random numbers) of the PPO policy for `KineGraspSelect-v0` (12 discrete elbow
+angles) against the nominal IK configuration, random elbow angles, the angle of least
+palm-position spread and a grid-search oracle. Made by
 `python agents/evaluate.py --model agents/models/KineGraspSelect-v0_ppo.zip --seed 0 --out
 agents/models/evaluation.json`."""),
         ("code", """import kinegrasp_env

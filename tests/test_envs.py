@@ -16,19 +16,21 @@ from kinegrasp_env.kinematics import pose_error
 from kinegrasp_env.robots import ELBOW_LINK, PALM_LINK
 
 SMALL = {"n_draws": 8}
+#: every registered env, and the discrete-action variant of the one-step env
+VARIANTS = [(env_id, {}) for env_id in ENV_IDS] + [("KineGraspSelect-v0", {"action_bins": 6})]
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_gymnasium_and_sb3_checkers(env_id):
+@pytest.mark.parametrize(("env_id", "extra"), VARIANTS)
+def test_gymnasium_and_sb3_checkers(env_id, extra):
     from gymnasium.utils.env_checker import check_env
 
-    env = gym.make(env_id, **SMALL)
+    env = gym.make(env_id, **SMALL, **extra)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_env(env.unwrapped, skip_render_check=True)
     env.close()
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
-    env = gym.make(env_id, **SMALL)
+    env = gym.make(env_id, **SMALL, **extra)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         sb3_checker.check_env(env.unwrapped, warn=True)
@@ -36,11 +38,11 @@ def test_gymnasium_and_sb3_checkers(env_id):
     env.close()  # closing twice is fine
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
-def test_same_seed_same_rollout(env_id):
+@pytest.mark.parametrize(("env_id", "extra"), VARIANTS)
+def test_same_seed_same_rollout(env_id, extra):
     from gymnasium.utils.env_checker import data_equivalence
 
-    envs = [gym.make(env_id, **SMALL) for _ in range(2)]
+    envs = [gym.make(env_id, **SMALL, **extra) for _ in range(2)]
     outs = []
     for env in envs:
         env.action_space.seed(3)
@@ -55,7 +57,7 @@ def test_same_seed_same_rollout(env_id):
         outs.append(trace)
         env.close()
     assert data_equivalence(outs[0], outs[1])
-    other = gym.make(env_id, **SMALL)
+    other = gym.make(env_id, **SMALL, **extra)
     other.reset(seed=12)
     *_, info = other.step(other.action_space.sample())
     assert info["draw_seed"] != outs[0][4]  # another seed, other internal draws
@@ -122,4 +124,19 @@ def test_bad_reset_options(options, needle):
     env = gym.make("KineGrasp-v0", **SMALL)
     with pytest.raises(ValueError, match=needle):
         env.reset(seed=0, options=options)
+    env.close()
+
+
+def test_discrete_select_bins_are_elbow_angles():
+    env = gym.make("KineGraspSelect-v0", n_draws=4, action_bins=4).unwrapped
+    assert [env.action_angle(k) for k in range(4)] == pytest.approx(
+        [-np.pi, -np.pi / 2, 0.0, np.pi / 2])
+    env.reset(seed=0, options={"object": "cube", "grasp": 0})
+    *_, info = env.step(np.int64(2))  # psi = 0, reachable for this grasp
+    assert info["within_limits"] and info["elbow_angle"] == pytest.approx(0.0, abs=1e-6)
+    with pytest.raises(ValueError, match="action 4 outside Discrete"):
+        env.action_angle(4)
+    for bad in (1, 2.5, True):
+        with pytest.raises(ValueError, match="action_bins must be an integer >= 2"):
+            gym.make("KineGraspSelect-v0", action_bins=bad)
     env.close()

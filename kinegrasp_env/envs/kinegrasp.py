@@ -28,7 +28,9 @@ index  entry                                                 scale
 
 Action: float32 Box(-1, 1, (2,)): [change of psi in units of ``step_size`` radians,
 done signal (> 0 ends the episode)]. KineGraspSelect-v0 has one step and a 1-D action: the
-elbow angle psi itself, a in [-1, 1] -> psi = pi a.
+elbow angle psi itself, a in [-1, 1] -> psi = pi a; or, with ``action_bins=K``, Discrete(K):
+k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the reachable
+range at once, which a Gaussian one centred between them cannot).
 """
 
 from __future__ import annotations
@@ -263,20 +265,42 @@ class KineGraspEnv(gym.Env):
 
 
 class KineGraspSelectEnv(KineGraspEnv):
-    """One step: pick the elbow angle psi = pi * action[0], receive P(FC) there."""
+    """One step: pick the elbow angle psi = pi * action[0], receive P(FC) there.
 
-    def __init__(self, **kwargs) -> None:
+    Args:
+        action_bins: if given, the action is Discrete(action_bins): bin k is the elbow angle
+            psi = -pi + 2 pi k / action_bins.
+        **kwargs: as :class:`KineGraspEnv`.
+    """
+
+    def __init__(self, action_bins: int | None = None, **kwargs) -> None:
+        if action_bins is not None and (isinstance(action_bins, bool)
+                                        or not isinstance(action_bins, (int, np.integer))
+                                        or action_bins < 2):
+            raise ValueError(f"action_bins must be an integer >= 2, got {action_bins!r}")
+        self.action_bins = None if action_bins is None else int(action_bins)
         kwargs.setdefault("max_steps", 1)
         super().__init__(**kwargs)
 
-    def _action_space(self) -> spaces.Box:
+    def _action_space(self) -> spaces.Space:
+        if self.action_bins is not None:
+            return spaces.Discrete(self.action_bins)
         return spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    def action_angle(self, action) -> float:
+        """The elbow angle psi (radians) an action asks for."""
+        if self.action_bins is not None:
+            k = int(np.asarray(action).ravel()[0])
+            if not 0 <= k < self.action_bins:
+                raise ValueError(f"action {k} outside Discrete({self.action_bins})")
+            return -math.pi + 2.0 * math.pi * k / self.action_bins
+        action = np.clip(np.asarray(action, dtype=np.float64).ravel(), -1.0, 1.0)
+        return math.pi * float(action[0])
 
     def step(self, action):
         if self.grasp is None:
             raise RuntimeError("call reset() before step()")
-        action = np.clip(np.asarray(action, dtype=np.float64).ravel(), -1.0, 1.0)
-        within = self._move_to(math.pi * float(action[0]))
+        within = self._move_to(self.action_angle(action))
         self.steps += 1
         reward, info = self._reward(within)
         return self._observation(), reward, True, False, info
