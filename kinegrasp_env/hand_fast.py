@@ -4,7 +4,10 @@ The same rule as :mod:`kinegrasp_env.hand` (same constants, same state machine p
 conservative steps of at least ``STEP``, bisection to ``CONTACT_TOL``, a proximal contact
 freezes the proximal joint, a distal contact ends the finger), run for all fingers of all
 draws at once: the three fingers of a draw never interact, so every (draw, finger) pair is
-an independent closing problem and one iteration advances all of them with array operations.
+an independent closing problem and one iteration advances all of them with array operations
+(``closing="vectorized"``). By default (``closing="compiled"``) each problem's whole loop runs
+in one numba call instead (:mod:`kinegrasp_env.close_kernel`, bit-identical; the array form
+pays a fixed cost per iteration that dominates small batches).
 Distances come from the object's :class:`~kinegrasp_env.sdf.DistanceGrid` instead of
 pybullet, and within ``GRID_EXACT_BAND`` of contact from the exact capsule-object distance, as in
 the reference engine; the finger links are the URDF's capsules, the palm and knuckles its

@@ -40,12 +40,42 @@ def test_train_reload_predict_and_evaluate(tmp_path):
     assert list((tmp_path / "checkpoints").glob("*.zip"))
     model = PPO.load(model_path, device="cpu")
     action, _ = model.predict(np.zeros(44, dtype=np.float32), deterministic=True)
-    assert action.shape == (1,) and -1 <= action[0] <= 1
+    assert model.action_space.contains(action)  # one of the hyperparameters' elbow bins
+    env = train.make_env("KineGraspSelect-v0", {"action_bins": int(model.action_space.n)},
+                         "test", 0)
+    assert -np.pi <= env.unwrapped.action_angle(action) < np.pi
+    env.close()
     evaluate = _load("evaluate")
     result = evaluate.evaluate(str(model_path), 0.0283, draws=10, oracle_draws=5, grid=3, seed=0,
                                limit=1)
     assert set(result["mean_p_fc"]) == {"nominal", "random", "spread", "policy", "oracle"}
     assert result["rows"][0]["oracle"] >= 0.0
+
+
+@pytest.mark.expensive
+def test_sac_on_the_continuous_action_trains_reloads_and_evaluates(tmp_path):
+    from stable_baselines3 import SAC
+
+    train.train("KineGraspSelect-v0", "sac", seed=2, out=tmp_path, total_timesteps=40,
+                checkpoint_every=1000, progress=False)
+    model_path = tmp_path / "KineGraspSelect-v0_sac.zip"
+    model = SAC.load(model_path, device="cpu")
+    action, _ = model.predict(np.zeros(44, dtype=np.float32), deterministic=True)
+    assert action.shape == (1,) and -1 <= action[0] <= 1
+    result = _load("evaluate").evaluate(str(model_path), 0.0283, draws=10, oracle_draws=5,
+                                        grid=3, seed=0, limit=1, random_angles=2)
+    row = result["rows"][0]
+    # the evaluated policy configuration is where the continuous action psi = pi a leads
+    import gymnasium as gym
+
+    env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
+    obs, _ = env.reset(seed=0, options={"object": row["object"], "grasp": 0, "sigma": 0.0283})
+    action, _ = model.predict(obs, deterministic=True)
+    env._move_to(np.pi * float(action[0]))
+    assert row["elbow_policy"] == pytest.approx(float(env.ik.elbow_angle(env.q[None])[0]),
+                                                abs=1e-9)
+    assert 0.0 <= row["policy"] <= 1.0
+    env.close()
 
 
 @pytest.mark.parametrize(("kwargs", "needle"), [
