@@ -15,18 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env import capsule_gap, segment_distance
+from kinegrasp_env import capsule_gap, hand, segment_distance
 from kinegrasp_env.finger_axes import axes_one
-from kinegrasp_env.hand import (
-    CONTACT_TOL,
-    MAX_ITERATIONS,
-    POLISH_ITERATIONS,
-    POLISH_PROBE,
-    POLISH_RANGE,
-    POLISH_TOL,
-    QUERY_DISTANCE,
-    STEP,
-)
 from kinegrasp_env.polytope import INSIDE_TOL
 
 #: Entries of a stored closest pair: distance, point on the object (3), point on the
@@ -88,14 +78,17 @@ def _compile():
         return min(gap_p, gap_d)
 
     @numba.njit(cache=True)
-    def close_all(grid, geo, joint_frames, prox0, dist0, axis_p, axis_d, distal_origin,
+    def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, distal_origin,
                   ends_p, ends_d, radius, upper, speed, found, pairs, missed):
         """Close every finger of every draw.
 
-        joint_frames (m, 3, 4, 4), prox0 / dist0 (m, 3): per draw and finger; the finger
-        constants are stacked over fingers. Writes found (m, 3, 2), pairs (m, 3, 2,
-        PAIR_SIZE), missed (m, 3); returns the most iterations any problem took.
+        rules: :func:`closing_rules`; joint_frames (m, 3, 4, 4), prox0 / dist0 (m, 3): per
+        draw and finger; the finger constants are stacked over fingers. Writes found (m, 3,
+        2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3); returns the most iterations any
+        problem took.
         """
+        (CONTACT_TOL, STEP, QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE,
+         POLISH_ITERATIONS, MAX_ITERATIONS) = rules
         sample = np.empty(grid[4])
         bounds = np.empty(geo[1].shape[0] - 1)
         rot, tmp = np.empty((3, 3)), np.empty((3, 3))
@@ -215,6 +208,15 @@ def close_kernel():
     if _KERNEL is None:
         _KERNEL = _compile()
     return _KERNEL
+
+
+def closing_rules() -> tuple:
+    """The auto-close constants of :mod:`kinegrasp_env.hand`, passed to the kernel as an
+    argument (numba's disk cache would keep the values of module globals of another file
+    even after they change)."""
+    return (float(hand.CONTACT_TOL), float(hand.STEP), float(hand.QUERY_DISTANCE),
+            float(hand.POLISH_TOL), float(hand.POLISH_PROBE), float(hand.POLISH_RANGE),
+            int(hand.POLISH_ITERATIONS), int(hand.MAX_ITERATIONS))
 
 
 def grid_args(grid, band: float) -> tuple:

@@ -24,7 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.capsule_gap import capsule_gaps, posed_min_distance
-from kinegrasp_env.close_kernel import PAIR_SIZE, close_kernel, geometry_args, grid_args
+from kinegrasp_env.close_kernel import (
+    PAIR_SIZE,
+    close_kernel,
+    closing_rules,
+    geometry_args,
+    grid_args,
+)
 from kinegrasp_env.finger_axes import finger_axes
 from kinegrasp_env.hand import (
     CONTACT_TOL,
@@ -218,7 +224,8 @@ class FastHand:
         pairs = np.zeros((m, 3, 2, PAIR_SIZE))
         missed = np.zeros((m, 3), dtype=bool)
         out.iterations = close_kernel()(
-            self._grid_args, geometry_args(self.obj.name), joint_frames, prox0, dist0,
+            self._grid_args, geometry_args(self.obj.name), closing_rules(), joint_frames,
+            prox0, dist0,
             self._stacked["axis_p"], self._stacked["axis_d"], self._stacked["distal_origin"],
             self._stacked["ends_p"], self._stacked["ends_d"], self._stacked["radius"],
             self.upper, np.array(self.speed, dtype=float), found, pairs, missed)
