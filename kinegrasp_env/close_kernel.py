@@ -52,30 +52,67 @@ def _compile():
         return gap
 
     @numba.njit(cache=True)
-    def flexions(phase, t, start_p, start_d, upper_p, upper_d):
-        prox = min(start_p + (t if phase == 1 else 0.0), upper_p)
-        return prox, min(start_d + t, upper_d)
+    def flexions(finger, phase, start_p, start_d, t):
+        """(proximal, distal) flexion at closing parameter t."""
+        up_p, up_d = finger[8], finger[9]
+        prox = min(start_p + (t if phase == 1 else 0.0), up_p)
+        return prox, min(start_d + t, up_d)
 
     @numba.njit(cache=True)
-    def t_limit(phase, start_p, start_d, upper_p, upper_d):
+    def t_limit(finger, phase, start_p, start_d):
+        """Largest closing parameter before the moving joints reach their limits."""
+        up_p, up_d = finger[8], finger[9]
         if phase == 1:
-            return max(max(upper_p - start_p, upper_d - start_d), 0.0)
-        return max(upper_d - start_d, 0.0)
+            return max(max(up_p - start_p, up_d - start_d), 0.0)
+        return max(up_d - start_d, 0.0)
 
     @numba.njit(cache=True)
-    def exact_gap(geo, phase, t, start_p, start_d, up_p, up_d, joint_frame, axis_p,
-                  distal_origin, axis_d, ends_p, ends_d, r_p, r_d, rot, frame_p, frame_d, tmp,
-                  ends, bounds, pair):
-        """Smallest exact gap of the finger's moving links at parameter t; their closest
-        pairs in pair (2, PAIR_SIZE) (row 0 untouched in phase 2)."""
-        prox, dist = flexions(phase, t, start_p, start_d, up_p, up_d)
+    def place_axes(finger, prox, dist, work):
+        """The finger's capsule axes at flexions prox, dist into work's ends (4, 3)."""
+        joint_frame, axis_p, distal_origin, axis_d, ends_p, ends_d = finger[:6]
+        rot, frame_p, frame_d, tmp, ends = work[:5]
         axes_one(joint_frame, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, rot,
                  frame_p, frame_d, tmp, ends)
+        return ends
+
+    @numba.njit(cache=True)
+    def exact_gap(geo, finger, phase, start_p, start_d, t, work):
+        """Smallest exact gap of the finger's moving links at parameter t; their closest
+        pairs in work's pair (2, PAIR_SIZE) (row 0 untouched in phase 2)."""
+        r_p, r_d = finger[6], finger[7]
+        bounds, pair = work[5], work[6]
+        prox, dist = flexions(finger, phase, start_p, start_d, t)
+        ends = place_axes(finger, prox, dist, work)
         gap_p = np.inf
         if phase == 1:
             gap_p = exact_pair(geo, ends[0], ends[1], bounds, pair[0]) - r_p
         gap_d = exact_pair(geo, ends[2], ends[3], bounds, pair[1]) - r_d
         return min(gap_p, gap_d)
+
+    @numba.njit(cache=True)
+    def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
+        """The t where the exact gap crosses zero (:func:`kinegrasp_env.hand.secant_root`)."""
+        polish_tol, probe, reach, iterations = rules[3], rules[4], rules[5], rules[6]
+        t_max = t_limit(finger, phase, start_p, start_d)
+        t_min = max(t - reach, 0.0)
+        t0 = max(t - probe, t_min)
+        active = t0 < t and abs(gap) > polish_tol
+        g0 = 0.0
+        if active:
+            g0 = exact_gap(geo, finger, phase, start_p, start_d, t0, work)
+        t1, g1 = t, gap
+        best_t, best_g = t1, abs(g1)
+        for _ in range(iterations):
+            active = active and g1 != g0
+            if not active:
+                break
+            t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
+            g2 = exact_gap(geo, finger, phase, start_p, start_d, t2, work)
+            t0, g0, t1, g1 = t1, g1, t2, g2
+            if abs(g2) < best_g:
+                best_t, best_g = t2, abs(g2)
+            active = active and best_g > polish_tol
+        return best_t
 
     @numba.njit(cache=True)
     def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, distal_origin,
@@ -87,105 +124,78 @@ def _compile():
         2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3); returns the most iterations any
         problem took.
         """
-        (CONTACT_TOL, STEP, QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE,
-         POLISH_ITERATIONS, MAX_ITERATIONS) = rules
+        contact_tol, step_min, query_distance = rules[0], rules[1], rules[2]
+        max_iterations = rules[7]
         sample = np.empty(grid[4])
-        bounds = np.empty(geo[1].shape[0] - 1)
-        rot, tmp = np.empty((3, 3)), np.empty((3, 3))
-        frame_p, frame_d = np.empty((3, 4)), np.empty((3, 4))
-        ends = np.empty((4, 3))
-        pair = np.empty((2, PAIR_SIZE))
+        # work buffers: rotation, proximal and distal frames, product, axis ends, part
+        # bounds, the closest pairs of both links
+        work = (np.empty((3, 3)), np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 3)),
+                np.empty((4, 3)), np.empty(geo[1].shape[0] - 1), np.empty((2, PAIR_SIZE)))
+        bounds, pair = work[5], work[6]
         scratch = np.empty(PAIR_SIZE)
         most = 0
         for i in range(prox0.shape[0]):
             for f in range(3):
-                up_p, up_d = upper[f, 0], upper[f, 1]
-                r_p, r_d = radius[f, 0], radius[f, 1]
-                start_p, start_d = min(prox0[i, f], up_p), min(dist0[i, f], up_d)
+                finger = (joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
+                          ends_p[f], ends_d[f], radius[f, 0], radius[f, 1], upper[f, 0],
+                          upper[f, 1])
+                r_p, r_d = finger[6], finger[7]
+                start_p, start_d = min(prox0[i, f], finger[8]), min(dist0[i, f], finger[9])
                 phase = 1
                 t, t_lo, t_hi = 0.0, 0.0, np.nan
                 active, has_contact = True, False
                 it = 0
-                while active and it < MAX_ITERATIONS:
+                while active and it < max_iterations:
                     it += 1
-                    prox, dist = flexions(phase, t, start_p, start_d, up_p, up_d)
-                    axes_one(joint_frames[i, f], axis_p[f], prox, distal_origin[f], axis_d[f],
-                             dist, ends_p[f], ends_d[f], rot, frame_p, frame_d, tmp, ends)
+                    prox, dist = flexions(finger, phase, start_p, start_d, t)
+                    ends = place_axes(finger, prox, dist, work)
                     gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, bounds, scratch)
                     gap_p = np.inf
                     if phase == 1:
                         gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, bounds,
                                          scratch)
-                    gap_p = min(gap_p, QUERY_DISTANCE)
-                    gap_d = min(gap_d, QUERY_DISTANCE)
+                    gap_p = min(gap_p, query_distance)
+                    gap_d = min(gap_d, query_distance)
                     if phase != 1:
                         gap_p = np.inf
                     gap = min(gap_p, gap_d)
                     bracket_closed = not np.isnan(t_hi) and t_hi - t_lo < 1e-9
-                    touch = ((-CONTACT_TOL <= gap <= CONTACT_TOL)
-                             or (bracket_closed and gap <= CONTACT_TOL))
+                    touch = ((-contact_tol <= gap <= contact_tol)
+                             or (bracket_closed and gap <= contact_tol))
                     if touch:
-                        # polish to the root of the exact gap (hand.secant_root)
-                        t_max = t_limit(phase, start_p, start_d, up_p, up_d)
-                        t_min = max(t - POLISH_RANGE, 0.0)
-                        t0 = max(t - POLISH_PROBE, t_min)
-                        polishing = t0 < t and abs(gap) > POLISH_TOL
-                        g0 = 0.0
-                        if polishing:
-                            g0 = exact_gap(geo, phase, t0, start_p, start_d, up_p, up_d,
-                                           joint_frames[i, f], axis_p[f], distal_origin[f],
-                                           axis_d[f], ends_p[f], ends_d[f], r_p, r_d, rot,
-                                           frame_p, frame_d, tmp, ends, bounds, pair)
-                        t1, g1 = t, gap
-                        best_t, best_g = t1, abs(g1)
-                        for _ in range(POLISH_ITERATIONS):
-                            polishing = polishing and g1 != g0
-                            if not polishing:
-                                break
-                            t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
-                            g2 = exact_gap(geo, phase, t2, start_p, start_d, up_p, up_d,
-                                           joint_frames[i, f], axis_p[f], distal_origin[f],
-                                           axis_d[f], ends_p[f], ends_d[f], r_p, r_d, rot,
-                                           frame_p, frame_d, tmp, ends, bounds, pair)
-                            t0, g0, t1, g1 = t1, g1, t2, g2
-                            if abs(g2) < best_g:
-                                best_t, best_g = t2, abs(g2)
-                            polishing = polishing and best_g > POLISH_TOL
-                        t = best_t
+                        t = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
                         # the links touching there, and their closest pairs
-                        prox_t, dist_t = flexions(phase, t, start_p, start_d, up_p, up_d)
-                        exact_gap(geo, phase, t, start_p, start_d, up_p, up_d,
-                                  joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
-                                  ends_p[f], ends_d[f], r_p, r_d, rot, frame_p, frame_d, tmp,
-                                  ends, bounds, pair)
+                        prox_t, dist_t = flexions(finger, phase, start_p, start_d, t)
+                        exact_gap(geo, finger, phase, start_p, start_d, t, work)
                         link_gaps = (pair[0, 0] - r_p if phase == 1 else np.inf,
                                      pair[1, 0] - r_d)
                         for link in range(2):
-                            if link_gaps[link] <= CONTACT_TOL:
+                            if link_gaps[link] <= contact_tol:
                                 found[i, f, link] = True
                                 pairs[i, f, link] = pair[link]
                                 has_contact = True
-                        if link_gaps[1] <= CONTACT_TOL:
+                        if link_gaps[1] <= contact_tol:
                             active = False
                         else:  # proximal contact only: freeze it, the distal joint goes on
                             start_p, start_d = prox_t, dist_t
                             phase = 2
                             t_lo, t_hi = 0.0, np.nan
-                            t_max = t_limit(phase, start_p, start_d, up_p, up_d)
+                            t_max = t_limit(finger, phase, start_p, start_d)
                             if t_max <= 0.0:
                                 active = False
                                 t = 0.0
                             else:
-                                t = min(STEP, t_max)
-                    elif gap > CONTACT_TOL:
+                                t = min(step_min, t_max)
+                    elif gap > contact_tol:
                         if np.isnan(t_hi):  # conservative step towards contact
-                            t_max = t_limit(phase, start_p, start_d, up_p, up_d)
+                            t_max = t_limit(finger, phase, start_p, start_d)
                             t_lo = t
                             if t >= t_max:
                                 active = False
                                 missed[i, f] = not has_contact
                             else:
-                                step = max(gap / (speed[0] if phase == 1 else speed[1]), STEP)
+                                step = max(gap / (speed[0] if phase == 1 else speed[1]),
+                                           step_min)
                                 t = min(t + step, t_max)
                         else:  # bisection, below the bracket
                             t_lo = t
@@ -211,9 +221,10 @@ def close_kernel():
 
 
 def closing_rules() -> tuple:
-    """The auto-close constants of :mod:`kinegrasp_env.hand`, passed to the kernel as an
-    argument (numba's disk cache would keep the values of module globals of another file
-    even after they change)."""
+    """The auto-close constants of :mod:`kinegrasp_env.hand` (CONTACT_TOL, STEP,
+    QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE, POLISH_ITERATIONS,
+    MAX_ITERATIONS), passed to the kernel as an argument (numba's disk cache would keep the
+    values of module globals of another file even after they change)."""
     return (float(hand.CONTACT_TOL), float(hand.STEP), float(hand.QUERY_DISTANCE),
             float(hand.POLISH_TOL), float(hand.POLISH_PROBE), float(hand.POLISH_RANGE),
             int(hand.POLISH_ITERATIONS), int(hand.MAX_ITERATIONS))

@@ -124,15 +124,17 @@ class FastHand:
         self.speed = closing_speeds()
         self._flex = self.model.index([j for f in FINGERS for j in f[:2]])
         if closing == "compiled":
-            self._grid_args = grid_args(grid, GRID_EXACT_BAND)
-            self._stacked = {
-                "axis_p": np.array(self.axis_p, dtype=float),
-                "axis_d": np.array(self.axis_d, dtype=float),
-                "distal_origin": np.array(self.distal_origin, dtype=float),
-                "ends_p": np.array([ends[0] for ends in self.axis_ends], dtype=float),
-                "ends_d": np.array([ends[1] for ends in self.axis_ends], dtype=float),
-                "radius": np.array([[c.radius for c in pair] for pair in self.capsules]),
-            }
+            # the kernel's fixed arguments: grid, object, rules, then (after the per-call
+            # frames and flexions) the finger constants stacked over fingers
+            self._kernel_head = (grid_args(grid, GRID_EXACT_BAND), geometry_args(obj.name),
+                                 closing_rules())
+            self._kernel_fingers = (
+                np.array(self.axis_p, dtype=float), np.array(self.axis_d, dtype=float),
+                np.array(self.distal_origin, dtype=float),
+                np.array([ends[0] for ends in self.axis_ends], dtype=float),
+                np.array([ends[1] for ends in self.axis_ends], dtype=float),
+                np.array([[c.radius for c in pair] for pair in self.capsules]), self.upper,
+                np.array(self.speed, dtype=float))
 
     # ------------------------------------------------------------------ geometry
     def _frames(self, q: np.ndarray, links: list[str]) -> dict[str, np.ndarray]:
@@ -223,12 +225,8 @@ class FastHand:
         found = np.zeros((m, 3, 2), dtype=bool)
         pairs = np.zeros((m, 3, 2, PAIR_SIZE))
         missed = np.zeros((m, 3), dtype=bool)
-        out.iterations = close_kernel()(
-            self._grid_args, geometry_args(self.obj.name), closing_rules(), joint_frames,
-            prox0, dist0,
-            self._stacked["axis_p"], self._stacked["axis_d"], self._stacked["distal_origin"],
-            self._stacked["ends_p"], self._stacked["ends_d"], self._stacked["radius"],
-            self.upper, np.array(self.speed, dtype=float), found, pairs, missed)
+        out.iterations = close_kernel()(*self._kernel_head, joint_frames, prox0, dist0,
+                                        *self._kernel_fingers, found, pairs, missed)
         out.missed[draws] = missed
         out.found[draws] = found
         hit = pairs[found]
