@@ -40,9 +40,9 @@ def _interval(values: np.ndarray) -> tuple[float, float, float]:
 def palm_spread(env, q: np.ndarray) -> float:
     """Palm-position spread per unit joint noise at arm+hand configuration q (14,): the
     root of the trace of J_p J_p^T over the 7 arm joints (metres per radian)."""
-    from kinegrasp_env.robots import PALM_LINK
+    from kinegrasp_env.robot.model import PALM_LINK
 
-    jac = env._kin.jacobian(q, PALM_LINK)[0][:3, :7]
+    jac = env.kinematics.jacobian(q, PALM_LINK)[0][:3, :7]
     return float(np.sqrt(np.trace(jac @ jac.T)))
 
 
@@ -53,9 +53,9 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     from stable_baselines3 import PPO, SAC
 
     import kinegrasp_env  # noqa: F401
-    from kinegrasp_env.evaluate import evaluate_grasp
-    from kinegrasp_env.grasps import Grasp
-    from kinegrasp_env.noise import JointNoise
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.world.grasps import Grasp
 
     path = Path(model_path)
     if not path.exists():
@@ -78,7 +78,7 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
 
     from tqdm import tqdm
 
-    from kinegrasp_env.execution import LocalExecutor
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
 
     # one pool for the whole run: its workers keep their engines between evaluations
     with LocalExecutor(processes) as executor:
@@ -87,9 +87,7 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
             grasp, q0 = env.grasp, env.q.copy()
 
             def reach(psi: float, start: np.ndarray = q0) -> np.ndarray:
-                env.q = start.copy()
-                env._move_to(psi)
-                return env.q.copy()
+                return env.configuration_at(psi, start)[0]
 
             action, _ = model.predict(obs, deterministic=True)
             configs = {"nominal": q0,

@@ -19,15 +19,15 @@ import time
 
 import numpy as np
 
-from kinegrasp_env.capsule_gap import capsule_gaps
-from kinegrasp_env.engine import FastEngine
-from kinegrasp_env.evaluate import chunk_noise, evaluate_grasp
-from kinegrasp_env.execution import LocalExecutor
-from kinegrasp_env.grasps import grasp_by_index
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.objects import load_object
-from kinegrasp_env.sdf import object_grid
-from kinegrasp_env.segment_distance import closest_to_segments
+from kinegrasp_env.closing.capsule_gap import capsule_gaps
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.montecarlo.engines import FastEngine
+from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import grasp_by_index
+from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.sdf import object_grid
 
 
 def _timed(fn):

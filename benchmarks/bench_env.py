@@ -20,9 +20,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=40)
     args = parser.parse_args()
-    from kinegrasp_env.engine import FastEngine
-    from kinegrasp_env.grasps import shipped_grasps
-    from kinegrasp_env.objects import OBJECT_NAMES
+    from kinegrasp_env.montecarlo.engines import FastEngine
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES
 
     for name in OBJECT_NAMES:  # warm-up: grids built or loaded, numba compiled
         FastEngine(name).run(shipped_grasps(name)[0].q0[None])
@@ -45,10 +45,10 @@ def main() -> None:
 
     import numpy as np
 
-    from kinegrasp_env.hand_fast import FastHand
-    from kinegrasp_env.noise import JointNoise
-    from kinegrasp_env.objects import load_object
-    from kinegrasp_env.sdf import object_grid
+    from kinegrasp_env.closing.fast import FastHand
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.world.objects import load_object
+    from kinegrasp_env.world.sdf import object_grid
 
     rng = np.random.default_rng(0)
     for n_draws in (64, 256):

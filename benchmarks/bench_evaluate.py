@@ -13,10 +13,10 @@ import time
 
 import numpy as np
 
-from kinegrasp_env.engine import OUTCOMES, PybulletEngine
-from kinegrasp_env.evaluate import chunk_noise, evaluate_grasp
-from kinegrasp_env.grasps import grasp_by_index
-from kinegrasp_env.noise import JointNoise
+from kinegrasp_env.montecarlo.engines import OUTCOMES, PybulletEngine
+from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import grasp_by_index
 
 
 def main() -> None:

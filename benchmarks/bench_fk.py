@@ -13,8 +13,8 @@ import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
-from kinegrasp_env.kinematics import Kinematics
-from kinegrasp_env.robots import kuka_sdh, urdf_path
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 
 
 def pybullet_loop(q: np.ndarray, batched_calls: bool = True

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from quality_cases import sphere_contacts  # noqa: E402
 
 from kinegrasp_env.quality import FC_TOL, ferrari_canny_batch, wrench_matrix  # noqa: E402
-from kinegrasp_env.quality_fast import candidate_tables, epsilon_three_contacts  # noqa: E402
+from kinegrasp_env.quality.three_contacts import candidate_tables, epsilon_three_contacts  # noqa: E402
 
 TORQUE_SCALE = 20.0
 

@@ -18,8 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from kinegrasp_env.execution import LocalExecutor, RayExecutor
-from kinegrasp_env.sweep import SweepSpec, run_sweep
+from kinegrasp_env.montecarlo.execution import LocalExecutor, RayExecutor
+from kinegrasp_env.montecarlo.sweep import SweepSpec, run_sweep
 
 
 def _noop(task: int) -> int:

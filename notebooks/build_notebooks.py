@@ -36,10 +36,10 @@ arms reach (2, 2) in two configurations each under Gaussian joint noise sigma = 
 the sampled clouds are compared with the closed-form covariance
 (`PlanarArm.exact_moments`)."""),
         ("code", SETUP),
-        ("code", '''from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.planar import PlanarArm
-from kinegrasp_env.plots import covariance_ellipse
-from kinegrasp_env.stats import moments
+        ("code", '''from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.robot.planar import PlanarArm
+from kinegrasp_env.toolkit.plots import covariance_ellipse
+from kinegrasp_env.sampling.stats import moments
 
 TARGET = np.array([2.0, 2.0])
 noise = JointNoise(0.0175)
@@ -103,10 +103,10 @@ matches the closed form to the sampling error printed next to each configuration
 Errors of the sample mean, covariance and skewness against a large-sample ground truth, as a
 function of the number of draws, at the paper's four noise levels, for the 2-link arm and the
 KUKA's palm position (`kinegrasp convergence` makes the same figure from the command line)."""),
-        ("code", '''from kinegrasp_env.endeffector import (DEFAULT_KUKA_Q0, DEFAULT_PLANAR_LINKS,
+        ("code", '''from kinegrasp_env.robot.endeffector import (DEFAULT_KUKA_Q0, DEFAULT_PLANAR_LINKS,
                                        DEFAULT_PLANAR_Q0, PAPER_SIGMAS, kuka_convergence,
                                        planar_convergence)
-from kinegrasp_env.plots import plot_convergence
+from kinegrasp_env.toolkit.plots import plot_convergence
 
 sizes = np.unique(np.round(np.logspace(1, np.log10(n(5000, 50)), 8)).astype(int))
 arm = PlanarArm(DEFAULT_PLANAR_LINKS)
@@ -132,11 +132,11 @@ estimate after n draws is compared with the estimate from all draws; errors are 
 the grasps. The Wilson 95% interval shows the sampling uncertainty of one grasp, and plain
 Monte Carlo is compared with antithetic and Sobol sampling over independent seeds."""),
         ("code", SETUP),
-        ("code", '''from kinegrasp_env.engine import FORCE_CLOSURE
-from kinegrasp_env.evaluate import evaluate_grasp
-from kinegrasp_env.grasps import shipped_grasps
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.stats import wilson_interval
+        ("code", '''from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.stats import wilson_interval
 
 noise = JointNoise(0.0133)
 total = n(20000, 400)
@@ -193,12 +193,12 @@ noise ellipsoid, and with it the probability of force closure, changes with psi.
 the fast engine (identical to the pybullet reference draw by draw)."""),
         ("code", SETUP),
         ("code", """import dataclasses
-from kinegrasp_env.evaluate import evaluate_grasp
-from kinegrasp_env.grasps import shipped_grasps
-from kinegrasp_env.kinematics import Kinematics
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.planner import GraspPlanner
-from kinegrasp_env.robots import PALM_LINK, kuka_sdh
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 
 sigma = 0.0133
 kin = Kinematics(kuka_sdh())
@@ -232,7 +232,7 @@ nominal contacts stay fixed, and P(FC) follows.
 
 ## Figs. 7 and 10 from the experiment functions"""),
         ("code", """from IPython.display import Image, display
-from kinegrasp_env import experiments
+from kinegrasp_env.toolkit import experiments
 
 rows7 = experiments.fig7("out_fig7", samples=n(2000, 60), variants=8, engine="fast",
                          processes=2)
@@ -254,7 +254,7 @@ its grasps, so only the trends compare: P(FC) falls with sigma, the mean Q of th
 moves away from the nominal Q, and the variance grows."""),
         ("code", SETUP),
         ("code", """from IPython.display import Image, Markdown, display
-from kinegrasp_env.experiments import fig9_10, markdown_table1, table1
+from kinegrasp_env.toolkit.experiments import fig9_10, markdown_table1, table1
 
 samples = n(10000, 60)
 rows = table1("spray_flask", samples, "out_table1", grasps=5, engine="fast", processes=2)

@@ -1,7 +1,7 @@
 """Generate the shipped grasp sets ``assets/grasps/<object>.json`` (12 grasps per object).
 
 Run: ``python scripts/make_grasp_sets.py [--count 12] [--seed 0]``. Uses the simple sampling
-planner of :mod:`kinegrasp_env.planner` with its default settings (fingertip grasps: at most
+planner of :mod:`kinegrasp_env.toolkit.planner` with its default settings (fingertip grasps: at most
 three contacts, one per finger link), seeded per object.
 """
 
@@ -10,9 +10,9 @@ from __future__ import annotations
 import argparse
 
 from kinegrasp_env.assets import assets_dir
-from kinegrasp_env.grasps import save_grasps
-from kinegrasp_env.objects import OBJECT_NAMES
-from kinegrasp_env.planner import GraspPlanner
+from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.world.grasps import save_grasps
+from kinegrasp_env.world.objects import OBJECT_NAMES
 
 
 def main() -> None:

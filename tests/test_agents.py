@@ -71,8 +71,8 @@ def test_sac_on_the_continuous_action_trains_reloads_and_evaluates(tmp_path):
     env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
     obs, _ = env.reset(seed=0, options={"object": row["object"], "grasp": 0, "sigma": 0.0283})
     action, _ = model.predict(obs, deterministic=True)
-    env._move_to(np.pi * float(action[0]))
-    assert row["elbow_policy"] == pytest.approx(float(env.ik.elbow_angle(env.q[None])[0]),
+    q, _ = env.configuration_at(np.pi * float(action[0]))
+    assert row["elbow_policy"] == pytest.approx(float(env.ik.elbow_angle(q[None])[0]),
                                                 abs=1e-9)
     assert 0.0 <= row["policy"] <= 1.0
     env.close()

@@ -9,8 +9,8 @@ import pytest
 from cli_helpers import run_cli
 
 from kinegrasp_env.cli import main
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.planar import PlanarArm
+from kinegrasp_env.robot.planar import PlanarArm
+from kinegrasp_env.sampling.noise import JointNoise
 
 
 def test_planar_json_as_specified():
@@ -64,7 +64,7 @@ def test_kuka_ee_json_and_errors(capsys):
     out = json.loads(capsys.readouterr().out)
     assert np.shape(out["cov"]) == (3, 3) and out["samples"] == 20000
     # propagated covariance J Sigma J^T is a first-order check of the sampled one
-    from kinegrasp_env.endeffector import _kuka
+    from kinegrasp_env.robot.endeffector import _kuka
 
     kin, arm = _kuka()
     q = np.zeros(kin.model.dof)

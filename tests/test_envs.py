@@ -10,10 +10,10 @@ import pytest
 
 import kinegrasp_env
 from kinegrasp_env import ENV_IDS
-from kinegrasp_env.evaluate import evaluate_grasp
-from kinegrasp_env.grasps import Grasp
-from kinegrasp_env.kinematics import pose_error
-from kinegrasp_env.robots import ELBOW_LINK, PALM_LINK
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.robot.kinematics import pose_error
+from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
+from kinegrasp_env.world.grasps import Grasp
 
 SMALL = {"n_draws": 8}
 #: every registered env, and the discrete-action variant of the one-step env

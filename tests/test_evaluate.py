@@ -9,11 +9,11 @@ import pytest
 import trimesh
 from cli_helpers import run_cli
 
-from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, PybulletEngine
-from kinegrasp_env.evaluate import evaluate_grasp
-from kinegrasp_env.grasps import shipped_grasps
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.objects import OBJECT_NAMES, load_object
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, PybulletEngine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)
@@ -126,7 +126,7 @@ def test_cli_evaluate_bad_input(args, needle):
 
 
 def test_bad_grasp_configuration(tmp_path):
-    from kinegrasp_env.grasps import load_grasps
+    from kinegrasp_env.world.grasps import load_grasps
 
     g = shipped_grasps("cube")[0].to_dict()
     bad = tmp_path / "bad.json"

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from kinegrasp_env.cli import main
-from kinegrasp_env.execution import MAX_ATTEMPTS, LocalExecutor, make_executor
-from kinegrasp_env.grasps import save_grasps, shipped_grasps
+from kinegrasp_env.montecarlo.execution import MAX_ATTEMPTS, LocalExecutor, make_executor
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
 
 
 def _square(x: int) -> int:
@@ -117,8 +117,8 @@ def test_sweep_survives_a_ray_worker_killed_mid_task(tmp_path, local_ray):
     import threading
     import time
 
-    from kinegrasp_env.execution import RayExecutor
-    from kinegrasp_env.sweep import SweepSpec, run_sweep
+    from kinegrasp_env.montecarlo.execution import RayExecutor
+    from kinegrasp_env.montecarlo.sweep import SweepSpec, run_sweep
 
     spec = SweepSpec.from_dict({"objects": ["cube"], "grasps": [0, 1], "sigmas": [0.01, 0.03],
                                 "engines": ["pybullet"], "samples": 120, "chunk": 30})

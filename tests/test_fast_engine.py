@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.capsule_gap import capsule_gaps, posed_min_distance
-from kinegrasp_env.engine import FORCE_CLOSURE, FastEngine, PybulletEngine
-from kinegrasp_env.evaluate import chunk_noise, evaluate_grasp
-from kinegrasp_env.grasps import shipped_grasps
-from kinegrasp_env.hand import secant_root
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.objects import OBJECT_NAMES, load_object
-from kinegrasp_env.sdf import build_grid, object_grid
-from kinegrasp_env.segment_distance import closest_to_segments
+from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.closing.reference import secant_root
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine, PybulletEngine
+from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
+from kinegrasp_env.world.sdf import build_grid, object_grid
 
 
 def _random_segments(obj, n, seed, length=0.0865, pad=0.02):
@@ -201,7 +201,7 @@ def test_evaluate_with_the_fast_engine_is_reproducible_across_processes():
 
 
 def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
-    from kinegrasp_env.evaluate import draw_chunk, group_size
+    from kinegrasp_env.montecarlo.evaluate import draw_chunk, group_size
 
     grasp = shipped_grasps("cube")[1]
     noise = JointNoise(0.02)
@@ -216,8 +216,8 @@ def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
 
 
 def test_finger_axes_kernel_equals_its_numpy_twin():
-    from kinegrasp_env.finger_axes import finger_axes
-    from kinegrasp_env.hand_fast import FastHand
+    from kinegrasp_env.closing.fast import FastHand
+    from kinegrasp_env.closing.finger_axes import finger_axes
 
     hand = FastHand(load_object("cube"), object_grid("cube"))
     rng = np.random.default_rng(4)
@@ -234,7 +234,7 @@ def test_finger_axes_kernel_equals_its_numpy_twin():
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)
 def test_compiled_closing_loop_equals_the_vectorized_one(name):
-    from kinegrasp_env.hand_fast import FastHand
+    from kinegrasp_env.closing.fast import FastHand
 
     obj, grid = load_object(name), object_grid(name)
     compiled = FastHand(obj, grid, closing="compiled")
@@ -256,7 +256,7 @@ def test_compiled_closing_loop_equals_the_vectorized_one(name):
 
 
 def test_fast_hand_rejects_unknown_closing_and_kernel():
-    from kinegrasp_env.hand_fast import FastHand
+    from kinegrasp_env.closing.fast import FastHand
 
     obj, grid = load_object("cube"), object_grid("cube")
     with pytest.raises(ValueError, match="closing 'fastest'"):

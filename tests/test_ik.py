@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.ik import ArmIK
-from kinegrasp_env.kinematics import pose_error
-from kinegrasp_env.robots import ELBOW_LINK, PALM_LINK
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.kinematics import pose_error
+from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 
 
 def _reachable_targets(kin, model, rng, n):
@@ -56,7 +56,7 @@ def test_self_motion_keeps_palm_and_moves_elbow(kin, model, rng):
 def test_elbow_angle_is_a_rotation_about_shoulder_wrist(kin, model):
     """The elbow travels on a circle about the shoulder-wrist line: its distance to the line
     and its projection on it are constant along the self-motion."""
-    from kinegrasp_env.robots import SHOULDER_LINK, WRIST_LINK
+    from kinegrasp_env.robot.model import SHOULDER_LINK, WRIST_LINK
 
     q = np.zeros(model.dof)
     q[[1, 3, 5]] = [0.6, -1.2, 0.8]
@@ -72,7 +72,7 @@ def test_elbow_angle_is_a_rotation_about_shoulder_wrist(kin, model):
 
 
 def test_self_motion_result_does_not_depend_on_the_continuation_step(kin):
-    from kinegrasp_env.grasps import shipped_grasps
+    from kinegrasp_env.world.grasps import shipped_grasps
 
     ik = ArmIK(kin)
     rng = np.random.default_rng(7)

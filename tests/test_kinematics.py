@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.kinematics import pose_error, rotation_log
-from kinegrasp_env.robots import (
+from kinegrasp_env.robot.kinematics import pose_error, rotation_log
+from kinegrasp_env.robot.model import (
     ARM_JOINTS,
     FINGERTIP_LINKS,
     HAND_JOINTS,
@@ -70,7 +70,7 @@ def test_jacobian_matches_finite_differences(kin, model, rng):
 
 
 def test_rotation_log_roundtrip(rng):
-    from kinegrasp_env.kinematics import axis_angle_matrix
+    from kinegrasp_env.robot.kinematics import axis_angle_matrix
 
     for angle in (0.0, 1e-9, 0.3, 2.0, np.pi - 1e-6, np.pi):
         axis = rng.normal(size=3)

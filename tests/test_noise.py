@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from kinegrasp_env.noise import DISTRIBUTIONS, METHODS, JointNoise
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, METHODS, JointNoise
 
 N = 200_000
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from kinegrasp_env.objects import OBJECT_NAMES, catalog, load_object
-from kinegrasp_env.sim import BulletWorld, GraspWorld
+from kinegrasp_env.world.objects import OBJECT_NAMES, catalog, load_object
+from kinegrasp_env.world.sim import BulletWorld, GraspWorld
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)

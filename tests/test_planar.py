@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
-from kinegrasp_env.planar import PlanarArm
+from kinegrasp_env.robot.planar import PlanarArm
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 
 
 def test_forward_kinematics_by_hand():

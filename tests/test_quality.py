@@ -109,7 +109,7 @@ def test_fast_equals_reference_three_contacts(num_edges, shape):
 
 
 def test_fast_path_certifies_random_grasps():
-    from kinegrasp_env.quality_fast import epsilon_three_contacts
+    from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
     rng = np.random.default_rng(3)
     pts, nrm = sphere_contacts(rng, 500, 3, jitter=0.3)
@@ -138,8 +138,8 @@ def test_support_function_bounds_q():
 @pytest.mark.parametrize("k", [4, 5])
 def test_more_contacts_agree_with_the_reference(k):
     """4-5 contacts go through the certified expansion: qhull's Q to 1e-9, same FC set."""
-    from kinegrasp_env.quality import _wrenches
-    from kinegrasp_env.quality_epa import epsilon_epa_batch
+    from kinegrasp_env.quality.wrenches import edge_wrenches
+    from kinegrasp_env.quality.expansion import epsilon_epa_batch
 
     rng = np.random.default_rng(k)
     pts, nrm = sphere_contacts(rng, 40, k, jitter=0.3)
@@ -148,7 +148,7 @@ def test_more_contacts_agree_with_the_reference(k):
     np.testing.assert_array_equal(auto > 0, ref > 0)
     np.testing.assert_allclose(auto, ref, rtol=1e-9, atol=1e-15)
     assert 0.2 < (ref > 0).mean() < 0.9
-    w = _wrenches(pts, nrm, 0.5, 8, np.full(40, 20.0), np.zeros((40, 3)))
+    w = edge_wrenches(pts, nrm, 0.5, 8, np.full(40, 20.0), np.zeros((40, 3)))
     _, certified = epsilon_epa_batch(np.ascontiguousarray(w))
     assert certified.mean() > 0.9  # the qhull fallback is the exception
     with pytest.raises(ValueError, match="fast path needs 3 contacts"):
@@ -288,7 +288,7 @@ def test_per_row_torque_scale_and_center():
 def test_expansion_path_on_a_known_polytope():
     """The cross-polytope conv(+-e_i) in R^6: every facet at distance 1/sqrt(6); interior
     points change nothing; shifted off the origin, Q is 0."""
-    from kinegrasp_env.quality_epa import epsilon_epa
+    from kinegrasp_env.quality.expansion import epsilon_epa
 
     cross = np.vstack([np.eye(6), -np.eye(6)])
     inner = np.random.default_rng(0).uniform(-0.1, 0.1, (20, 6))
@@ -302,7 +302,7 @@ def test_expansion_path_on_a_known_polytope():
 def test_expansion_path_matches_qhull_on_random_clouds():
     from scipy.spatial import ConvexHull
 
-    from kinegrasp_env.quality_epa import epsilon_epa, epsilon_epa_batch
+    from kinegrasp_env.quality.expansion import epsilon_epa, epsilon_epa_batch
 
     rng = np.random.default_rng(11)
     clouds = rng.normal(size=(150, 40, 6)) + rng.normal(scale=0.6, size=(150, 1, 6))
@@ -318,7 +318,7 @@ def test_expansion_path_matches_qhull_on_random_clouds():
 
 
 def test_expansion_path_declines_sets_beyond_its_bound():
-    from kinegrasp_env.quality_epa import MAX_POINTS, epsilon_epa
+    from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa
 
     cloud = np.random.default_rng(2).normal(size=(MAX_POINTS + 1, 6))
     assert epsilon_epa(cloud) == (0.0, False)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.ranking import (
+from kinegrasp_env.sampling.stats import StreamingMoments
+from kinegrasp_env.toolkit.ranking import (
     CandidateResult,
     order,
     rank_adaptive,
     rank_fixed,
 )
-from kinegrasp_env.stats import StreamingMoments
 
 CHUNK = 50
 

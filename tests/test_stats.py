@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from kinegrasp_env.stats import (
+from kinegrasp_env.sampling.stats import (
     StreamingMoments,
     convergence_curve,
     moments,

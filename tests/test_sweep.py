@@ -13,11 +13,12 @@ import time
 import pytest
 
 from kinegrasp_env.cli import main
-from kinegrasp_env.evaluate import evaluate_grasp
-from kinegrasp_env.execution import LocalExecutor
-from kinegrasp_env.grasps import grasp_by_index
-from kinegrasp_env.noise import JointNoise
-from kinegrasp_env.sweep import SpecError, SweepSpec, run_sweep
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.toolkit.plots import plot_sweep
+from kinegrasp_env.world.grasps import grasp_by_index
 
 BASE = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01]}
 
@@ -86,7 +87,7 @@ def test_cells_equal_evaluate_grasp_and_a_rerun_computes_nothing(tmp_path):
             assert row["q_std"] == stats.q_std
     first = (tmp_path / "summary.csv").read_bytes()
     with LocalExecutor(1) as ex:
-        _, ran, skipped = run_sweep(spec, tmp_path, ex, progress=False)
+        _, ran, skipped = run_sweep(spec, tmp_path, ex, progress=False, plot=plot_sweep)
     assert (ran, skipped) == (0, len(spec.tasks()))
     assert (tmp_path / "summary.csv").read_bytes() == first
     assert (tmp_path / "pfc_vs_sigma_triangular_fast.png").stat().st_size > 0

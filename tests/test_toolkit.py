@@ -9,11 +9,11 @@ import pytest
 from cli_helpers import run_cli
 
 from kinegrasp_env import cli
-from kinegrasp_env.engine import FORCE_CLOSURE
-from kinegrasp_env.grasps import load_grasps, shipped_grasps
-from kinegrasp_env.kinematics import pose_error
-from kinegrasp_env.planner import GraspPlanner
-from kinegrasp_env.robots import ELBOW_LINK, PALM_LINK
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.robot.kinematics import pose_error
+from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
+from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +78,7 @@ def test_plan_then_rank(tmp_path, obj):
 
 
 def _cube_candidates(tmp_path):
-    from kinegrasp_env.grasps import save_grasps
+    from kinegrasp_env.world.grasps import save_grasps
 
     path = tmp_path / "cube.json"
     save_grasps(shipped_grasps("cube")[:4], path)
@@ -90,7 +90,7 @@ def test_rank_resumes_after_interruption(tmp_path, monkeypatch, capsys):
     args = ["rank", str(candidates), "--samples", "40", "--seed", "3"]
     assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
 
-    from kinegrasp_env import evaluate
+    from kinegrasp_env.montecarlo import evaluate
 
     real = evaluate.run_chunks
     calls = {"n": 0}

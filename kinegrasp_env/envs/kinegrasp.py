@@ -42,15 +42,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from kinegrasp_env.engine import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
-from kinegrasp_env.evaluate import draw_chunk
-from kinegrasp_env.grasps import Grasp, load_grasps, shipped_grasps
-from kinegrasp_env.ik import ArmIK
-from kinegrasp_env.kinematics import Kinematics
-from kinegrasp_env.noise import DISTRIBUTIONS, JointNoise
-from kinegrasp_env.objects import OBJECT_NAMES, load_object
-from kinegrasp_env.robots import PALM_LINK, kuka_sdh
-from kinegrasp_env.stats import wilson_interval
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
+from kinegrasp_env.montecarlo.evaluate import draw_chunk
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps
+from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
 OBS_SIZE = 44
 OBS_LIMIT = 10.0
@@ -73,7 +73,7 @@ class KineGraspEnv(gym.Env):
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
         engine: ``pybullet`` (the reference) or ``fast`` (batched; see
-            :class:`kinegrasp_env.engine.FastEngine`) for the reward's draws.
+            :class:`kinegrasp_env.montecarlo.engines.FastEngine`) for the reward's draws.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -118,7 +118,7 @@ class KineGraspEnv(gym.Env):
         self.render_mode = render_mode
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (OBS_SIZE,), np.float32)
         self.action_space = self._action_space()
-        from kinegrasp_env.evaluate import ENGINES
+        from kinegrasp_env.montecarlo.evaluate import ENGINES
 
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
@@ -141,10 +141,32 @@ class KineGraspEnv(gym.Env):
         return self._engines[name]
 
     @property
+    def kinematics(self) -> Kinematics:
+        """The batched kinematics of the arm and hand (FK, Jacobians)."""
+        return self._kin
+
+    @property
     def ik(self) -> ArmIK:
+        """IK and self-motion of the arm (elbow angles, in radians)."""
         if self._ik is None:
             self._ik = ArmIK(self._kin)
         return self._ik
+
+    def configuration_at(self, psi: float,
+                         start: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+        """The arm moved along its self-motion to elbow angle ``psi`` (radians).
+
+        Args:
+            psi: target elbow angle, radians.
+            start: (14,) configuration whose palm pose is kept (default: the current one).
+
+        Returns:
+            (q (14,), reached): the configuration, and whether it reached ``psi`` within the
+            joint limits (when not, the arm stops at its limit). The env's state is unchanged.
+        """
+        q = self.q if start is None else np.asarray(start, dtype=float)
+        moved, ok = self.ik.set_elbow_angle(q, psi)
+        return moved[0].copy(), bool(ok[0])
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise]:
         rng = self.np_random
@@ -202,9 +224,8 @@ class KineGraspEnv(gym.Env):
                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
 
     def _move_to(self, psi: float) -> bool:
-        moved, ok = self.ik.set_elbow_angle(self.q, psi)
-        self.q = moved[0]
-        return bool(ok[0])
+        self.q, reached = self.configuration_at(psi)
+        return reached
 
     def _reward(self, within_limits: bool) -> tuple[float, dict]:
         info = self._estimate()

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.objects import load_object
-from kinegrasp_env.robots import kuka_sdh, urdf_path
-from kinegrasp_env.sim import GraspWorld, pybullet
+from kinegrasp_env.robot.model import kuka_sdh, urdf_path
+from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.sim import GraspWorld, pybullet
 
 WIDTH, HEIGHT = 320, 240
 

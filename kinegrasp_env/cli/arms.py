@@ -1,0 +1,145 @@
+"""Arm commands: ``planar`` (end-effector noise of a planar arm), ``kuka-ee`` (palm-position
+noise of the KUKA) and ``convergence`` (the estimators' convergence, the paper's Fig. 3).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    add_noise_args,
+    float_list,
+    format_moments,
+    noise_from,
+    parse_seed,
+    positive_int,
+    print_json,
+)
+
+
+def cmd_planar(args) -> int:
+    from kinegrasp_env.robot.planar import PlanarArm
+    from kinegrasp_env.sampling.stats import moments
+
+    links = float_list(args.links, "--links")
+    q0 = float_list(args.q0, "--q0")
+    if len(links) != len(q0):
+        raise CLIError(f"--links has {len(links)} lengths but --q0 has {len(q0)} angles")
+    if any(v <= 0 for v in links):
+        raise CLIError(f"--links: link lengths must be > 0, got {args.links}")
+    noise, sigma, samples, seed = noise_from(args)
+    arm = PlanarArm(tuple(links))
+    ee = arm.sample(np.array(q0), noise, samples, np.random.default_rng(seed))
+    mom = moments(ee)
+    exact_mean, exact_cov = arm.exact_moments(np.array(q0), noise)
+    if args.plot:
+        from kinegrasp_env.toolkit.plots import plot_planar
+
+        plot_planar(arm.joint_positions(np.array(q0)), ee, mom.mean, mom.cov, args.plot,
+                    title=f"{len(links)}-link arm, sigma = {sigma:g} rad ({args.noise})")
+    if args.json:
+        print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
+                    "exact_mean": exact_mean, "exact_cov": exact_cov, "sigma": sigma,
+                    "noise": args.noise, "seed": seed})
+    else:
+        print(format_moments(f"end effector of a {len(links)}-link planar arm "
+                              f"({samples} draws)", mom.mean, mom.cov, mom.skew))
+        print(format_moments("closed form", exact_mean, exact_cov))
+        if args.plot:
+            print(f"plot written to {args.plot}")
+    return 0
+
+
+def cmd_kuka_ee(args) -> int:
+    from kinegrasp_env.robot.endeffector import check_kuka_q0, sample_kuka_end_effector
+    from kinegrasp_env.sampling.stats import moments
+
+    q0 = float_list(args.q0, "--q0")
+    try:
+        q0 = check_kuka_q0(q0)
+    except ValueError as exc:
+        raise CLIError(f"--q0: {exc}") from None
+    noise, sigma, samples, seed = noise_from(args)
+    ee = sample_kuka_end_effector(q0, noise, samples, np.random.default_rng(seed))
+    mom = moments(ee)
+    if args.json:
+        print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
+                    "sigma": sigma, "noise": args.noise, "seed": seed})
+    else:
+        print(format_moments(f"KUKA palm position ({samples} draws)", mom.mean, mom.cov,
+                              mom.skew))
+    return 0
+
+
+def cmd_convergence(args) -> int:
+    from tqdm import tqdm
+
+    from kinegrasp_env.robot.endeffector import (
+        DEFAULT_KUKA_Q0,
+        DEFAULT_PLANAR_LINKS,
+        DEFAULT_PLANAR_Q0,
+        PAPER_SIGMAS,
+        kuka_convergence,
+        planar_convergence,
+    )
+    from kinegrasp_env.robot.planar import PlanarArm
+    from kinegrasp_env.toolkit.plots import plot_convergence
+
+    trials = positive_int(args.trials, "--trials")
+    truth = positive_int(args.truth_samples, "--truth-samples")
+    max_n = positive_int(args.max_samples, "--max-samples")
+    if max_n < 10:
+        raise CLIError(f"--max-samples must be >= 10, got {max_n}")
+    seed = parse_seed(args.seed)
+    sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
+    arm = PlanarArm(DEFAULT_PLANAR_LINKS)
+    jobs = [(label, s) for label in ("2-link planar arm", "KUKA iiwa") for s in PAPER_SIGMAS]
+    curves: dict[str, dict[float, object]] = {}
+    for i, (label, sigma) in enumerate(tqdm(jobs, desc="convergence", file=sys.stderr,
+                                            disable=None)):
+        stream = np.random.default_rng([seed, i])  # independent stream per curve
+        if label.startswith("2-link"):
+            curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,
+                                       truth_samples=truth, seed=stream)
+        else:
+            curve = kuka_convergence(DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=trials,
+                                     truth_samples=truth, seed=stream)
+        curves.setdefault(label, {})[sigma] = curve
+    path = plot_convergence(curves, args.out)
+    summary = {label: {f"{s:g}": {"samples": c.sizes.tolist(), "mean_error": c.mean_error.tolist(),
+                                  "cov_error": c.cov_error.tolist(),
+                                  "skew_error": c.skew_error.tolist()}
+                       for s, c in by.items()} for label, by in curves.items()}
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"convergence figure written to {path}")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """Register ``planar``, ``kuka-ee`` and ``convergence``."""
+    p = sub.add_parser("planar", help="end-effector statistics of a planar arm under joint noise")
+    p.add_argument("--links", default="2,2", help="comma-separated link lengths, metres")
+    p.add_argument("--q0", default="0.0,1.5708", help="comma-separated joint angles, radians")
+    add_noise_args(p, 0.0175)
+    p.add_argument("--plot", help="write a PNG of the arm, the sampled cloud and its ellipse")
+    p.set_defaults(func=cmd_planar)
+
+    p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise")
+    p.add_argument("--q0", default="0,0.6,0,-1.2,0,0.8,0", help="7 arm joint angles, radians")
+    add_noise_args(p, 0.0133)
+    p.set_defaults(func=cmd_kuka_ee)
+
+    p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, planar arm and KUKA")
+    p.add_argument("--out", default="convergence.png", help="output PNG")
+    p.add_argument("--trials", default="10")
+    p.add_argument("--truth-samples", default="100000")
+    p.add_argument("--max-samples", default="10000")
+    p.add_argument("--seed", default="0")
+    p.add_argument("--json", action="store_true", help="print the curves as JSON")
+    p.set_defaults(func=cmd_convergence)

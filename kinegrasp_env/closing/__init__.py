@@ -1,0 +1,22 @@
+"""Auto-close: the fingers closed until they touch the object, GraspIt-style.
+
+Entry points: ``reference.auto_close`` (one draw, pybullet distance queries: the reference)
+and ``fast.FastHand`` (a batch of draws: distance grids and compiled kernels). Both share
+the exact near-contact geometry of ``hand_geometry`` and ``segment_distance``; the
+compiled closing loop is ``close_kernel``, its per-row helpers ``finger_axes`` and
+``capsule_gap``. Uses ``world`` and ``robot``.
+"""
+
+from __future__ import annotations
+
+from kinegrasp_env.lazy import lazy_exports
+
+_EXPORTS = {
+    "auto_close": "reference",
+    "CloseResult": "reference",
+    "Contact": "reference",
+    "FastHand": "fast",
+    "BatchClose": "fast",
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(_EXPORTS)

@@ -1,0 +1,230 @@
+"""The fast engine's auto-close as one compiled loop (the twin of FastHand's vectorized one).
+
+:meth:`kinegrasp_env.closing.fast.FastHand.close` advances every (draw, finger) closing problem
+with array operations, one iteration at a time: ~35 iterations x 3 fingers of a few dozen
+numpy calls each, a fixed cost that dominates small batches (the environment's 64 draws).
+Here each problem runs its whole state machine in one compiled loop, calling the same
+per-row kernels (:func:`kinegrasp_env.closing.capsule_gap` ``gap_one``,
+:mod:`kinegrasp_env.closing.segment_distance` ``segment_one``,
+:func:`kinegrasp_env.closing.finger_axes.axes_one`) with the same arithmetic in the same order, so
+the closing state, the contacts found and their closest pairs are bit-identical to the
+vectorized loop with numba kernels (tested). ``benchmarks/bench_env.py`` times both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env import jit
+from kinegrasp_env.closing import capsule_gap, segment_distance
+from kinegrasp_env.closing import reference as hand
+from kinegrasp_env.closing.capsule_gap import gap_one
+from kinegrasp_env.closing.finger_axes import axes_one
+from kinegrasp_env.closing.segment_distance import segment_one
+from kinegrasp_env.world.polytope import INSIDE_TOL
+
+#: Entries of a stored closest pair: distance, point on the object (3), point on the
+#: segment (3), part index.
+PAIR_SIZE = 8
+
+
+@jit.kernel
+def exact_pair(geo, a, e, bounds, out):
+    """Exact closest pair of segment [a, e] (3,) and the object into out (PAIR_SIZE,)."""
+    planes, plane_start, edges, edge_start, scale, mid, half, tol = geo
+    d, ox, oy, oz, sx, sy, sz, part = segment_one(planes, plane_start, edges, edge_start,
+                                                  scale, mid, half, a[0], a[1], a[2], e[0],
+                                                  e[1], e[2], bounds, tol)
+    out[0], out[1], out[2], out[3], out[4], out[5], out[6] = d, ox, oy, oz, sx, sy, sz
+    out[7] = part
+    return d
+
+@jit.kernel
+def link_gap(grid, geo, a, e, radius, sample, bounds, pair):
+    """Gap of a capsule: the grid's, exact within the band of contact."""
+    values, shape, origin, spacing, samples, near, refine, gold, band = grid
+    gap, _ = gap_one(values, shape, origin, spacing, a[0], a[1], a[2], e[0], e[1], e[2],
+                     radius, samples, near, refine, gold, sample)
+    if abs(gap) <= band:
+        gap = exact_pair(geo, a, e, bounds, pair) - radius
+    return gap
+
+@jit.kernel
+def flexions(finger, phase, start_p, start_d, t):
+    """(proximal, distal) flexion at closing parameter t."""
+    up_p, up_d = finger[8], finger[9]
+    prox = min(start_p + (t if phase == 1 else 0.0), up_p)
+    return prox, min(start_d + t, up_d)
+
+@jit.kernel
+def t_limit(finger, phase, start_p, start_d):
+    """Largest closing parameter before the moving joints reach their limits."""
+    up_p, up_d = finger[8], finger[9]
+    if phase == 1:
+        return max(max(up_p - start_p, up_d - start_d), 0.0)
+    return max(up_d - start_d, 0.0)
+
+@jit.kernel
+def place_axes(finger, prox, dist, work):
+    """The finger's capsule axes at flexions prox, dist into work's ends (4, 3)."""
+    joint_frame, axis_p, distal_origin, axis_d, ends_p, ends_d = finger[:6]
+    rot, frame_p, frame_d, tmp, ends = work[:5]
+    axes_one(joint_frame, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, rot,
+             frame_p, frame_d, tmp, ends)
+    return ends
+
+@jit.kernel
+def exact_gap(geo, finger, phase, start_p, start_d, t, work):
+    """Smallest exact gap of the finger's moving links at parameter t; their closest
+    pairs in work's pair (2, PAIR_SIZE) (row 0 untouched in phase 2)."""
+    r_p, r_d = finger[6], finger[7]
+    bounds, pair = work[5], work[6]
+    prox, dist = flexions(finger, phase, start_p, start_d, t)
+    ends = place_axes(finger, prox, dist, work)
+    gap_p = np.inf
+    if phase == 1:
+        gap_p = exact_pair(geo, ends[0], ends[1], bounds, pair[0]) - r_p
+    gap_d = exact_pair(geo, ends[2], ends[3], bounds, pair[1]) - r_d
+    return min(gap_p, gap_d)
+
+@jit.kernel
+def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
+    """The t where the exact gap crosses zero (see
+    :func:`kinegrasp_env.closing.reference.secant_root`)."""
+    polish_tol, probe, reach, iterations = rules[3], rules[4], rules[5], rules[6]
+    t_max = t_limit(finger, phase, start_p, start_d)
+    t_min = max(t - reach, 0.0)
+    t0 = max(t - probe, t_min)
+    active = t0 < t and abs(gap) > polish_tol
+    g0 = 0.0
+    if active:
+        g0 = exact_gap(geo, finger, phase, start_p, start_d, t0, work)
+    t1, g1 = t, gap
+    best_t, best_g = t1, abs(g1)
+    for _ in range(iterations):
+        active = active and g1 != g0
+        if not active:
+            break
+        t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
+        g2 = exact_gap(geo, finger, phase, start_p, start_d, t2, work)
+        t0, g0, t1, g1 = t1, g1, t2, g2
+        if abs(g2) < best_g:
+            best_t, best_g = t2, abs(g2)
+        active = active and best_g > polish_tol
+    return best_t
+
+@jit.kernel
+def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, distal_origin,
+              ends_p, ends_d, radius, upper, speed, found, pairs, missed):
+    """Close every finger of every draw.
+
+    rules: :func:`closing_rules`; joint_frames (m, 3, 4, 4), prox0 / dist0 (m, 3): per
+    draw and finger; the finger constants are stacked over fingers. Writes found (m, 3,
+    2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3); returns the most iterations any
+    problem took.
+    """
+    contact_tol, step_min, query_distance = rules[0], rules[1], rules[2]
+    max_iterations = rules[7]
+    sample = np.empty(grid[4])
+    # work buffers: rotation, proximal and distal frames, product, axis ends, part
+    # bounds, the closest pairs of both links
+    work = (np.empty((3, 3)), np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 3)),
+            np.empty((4, 3)), np.empty(geo[1].shape[0] - 1), np.empty((2, PAIR_SIZE)))
+    bounds, pair = work[5], work[6]
+    scratch = np.empty(PAIR_SIZE)
+    most = 0
+    for i in range(prox0.shape[0]):
+        for f in range(3):
+            finger = (joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
+                      ends_p[f], ends_d[f], radius[f, 0], radius[f, 1], upper[f, 0],
+                      upper[f, 1])
+            r_p, r_d = finger[6], finger[7]
+            start_p, start_d = min(prox0[i, f], finger[8]), min(dist0[i, f], finger[9])
+            phase = 1
+            t, t_lo, t_hi = 0.0, 0.0, np.nan
+            active, has_contact = True, False
+            it = 0
+            while active and it < max_iterations:
+                it += 1
+                prox, dist = flexions(finger, phase, start_p, start_d, t)
+                ends = place_axes(finger, prox, dist, work)
+                gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, bounds, scratch)
+                gap_p = np.inf
+                if phase == 1:
+                    gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, bounds,
+                                     scratch)
+                gap_p = min(gap_p, query_distance)
+                gap_d = min(gap_d, query_distance)
+                if phase != 1:
+                    gap_p = np.inf
+                gap = min(gap_p, gap_d)
+                bracket_closed = not np.isnan(t_hi) and t_hi - t_lo < 1e-9
+                touch = ((-contact_tol <= gap <= contact_tol)
+                         or (bracket_closed and gap <= contact_tol))
+                if touch:
+                    t = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
+                    # the links touching there, and their closest pairs
+                    prox_t, dist_t = flexions(finger, phase, start_p, start_d, t)
+                    exact_gap(geo, finger, phase, start_p, start_d, t, work)
+                    link_gaps = (pair[0, 0] - r_p if phase == 1 else np.inf,
+                                 pair[1, 0] - r_d)
+                    for link in range(2):
+                        if link_gaps[link] <= contact_tol:
+                            found[i, f, link] = True
+                            pairs[i, f, link] = pair[link]
+                            has_contact = True
+                    if link_gaps[1] <= contact_tol:
+                        active = False
+                    else:  # proximal contact only: freeze it, the distal joint goes on
+                        start_p, start_d = prox_t, dist_t
+                        phase = 2
+                        t_lo, t_hi = 0.0, np.nan
+                        t_max = t_limit(finger, phase, start_p, start_d)
+                        if t_max <= 0.0:
+                            active = False
+                            t = 0.0
+                        else:
+                            t = min(step_min, t_max)
+                elif gap > contact_tol:
+                    if np.isnan(t_hi):  # conservative step towards contact
+                        t_max = t_limit(finger, phase, start_p, start_d)
+                        t_lo = t
+                        if t >= t_max:
+                            active = False
+                            missed[i, f] = not has_contact
+                        else:
+                            step = max(gap / (speed[0] if phase == 1 else speed[1]),
+                                       step_min)
+                            t = min(t + step, t_max)
+                    else:  # bisection, below the bracket
+                        t_lo = t
+                        t = 0.5 * (t + t_hi)
+                else:  # penetrating: bisection, above the bracket
+                    t_hi = t
+                    t = 0.5 * (t_lo + t)
+            most = max(most, it)
+    return most
+
+def closing_rules() -> tuple:
+    """The auto-close constants of :mod:`kinegrasp_env.closing.reference` (CONTACT_TOL, STEP,
+    QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE, POLISH_ITERATIONS,
+    MAX_ITERATIONS), passed to the kernel as an argument (numba's disk cache would keep the
+    values of module globals of another file even after they change)."""
+    return (float(hand.CONTACT_TOL), float(hand.STEP), float(hand.QUERY_DISTANCE),
+            float(hand.POLISH_TOL), float(hand.POLISH_PROBE), float(hand.POLISH_RANGE),
+            int(hand.POLISH_ITERATIONS), int(hand.MAX_ITERATIONS))
+
+
+def grid_args(grid, band: float) -> tuple:
+    """The distance grid, the capsule-gap constants and the band (metres) within which gaps
+    are computed exactly, as the kernel's ``grid`` tuple."""
+    return (grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
+            float(grid.spacing), capsule_gap.SAMPLES, capsule_gap.NEAR, capsule_gap.REFINE,
+            float(capsule_gap.GOLD), float(band))
+
+
+def geometry_args(name: str) -> tuple:
+    """The object's packed parts as the kernel's ``geo`` tuple."""
+    geo = segment_distance.packed(name)
+    return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
+            geo.edge_half, INSIDE_TOL)

@@ -1,0 +1,412 @@
+"""Batched GraspIt auto-close against an object's distance grid (the fast engine).
+
+The same rule as :mod:`kinegrasp_env.closing.reference` (same constants, same state machine
+per finger: conservative steps of at least ``STEP``, bisection to ``CONTACT_TOL``, a proximal
+contact freezes the proximal joint, a distal contact ends the finger), run for all fingers of all
+draws at once: the three fingers of a draw never interact, so every (draw, finger) pair is
+an independent closing problem and one iteration advances all of them with array operations
+(``closing="vectorized"``). By default (``closing="compiled"``) each problem's whole loop runs
+in one numba call instead (:mod:`kinegrasp_env.closing.close_kernel`, bit-identical; the array form
+pays a fixed cost per iteration that dominates small batches).
+Distances come from the object's :class:`~kinegrasp_env.world.sdf.DistanceGrid` instead of
+pybullet, and within ``GRID_EXACT_BAND`` of contact from the exact capsule-object distance, as in
+the reference engine; the finger links are the URDF's capsules, the palm and knuckles its
+cylinders (sampled on their surface, to ``CYLINDER_SPACING``).
+
+Contacts are computed as in the reference engine, exactly, from the touching capsule's axis
+(:func:`kinegrasp_env.closing.hand_geometry.capsule_contacts`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.closing.close_kernel import (
+    PAIR_SIZE,
+    close_all,
+    closing_rules,
+    geometry_args,
+    grid_args,
+)
+from kinegrasp_env.closing.finger_axes import finger_axes
+from kinegrasp_env.closing.hand_geometry import Shape, hand_shapes, pair_contacts
+from kinegrasp_env.closing.reference import (
+    CONTACT_TOL,
+    MAX_ITERATIONS,
+    POLISH_ITERATIONS,
+    POLISH_PROBE,
+    POLISH_RANGE,
+    POLISH_TOL,
+    QUERY_DISTANCE,
+    START_TOL,
+    STEP,
+    closing_speeds,
+)
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sdf import DistanceGrid
+
+#: Spacing of the sample points on the palm and knuckle cylinders (metres), and of the
+#: coarse pass that decides whether the fine one is needed.
+CYLINDER_SPACING = 2e-3
+COARSE_SPACING = 1.2e-2
+#: Capsule gaps within +-this (metres) are computed exactly: above the grid's largest
+#: measured error (0.35 mm), so every decision near contact is the exact one.
+GRID_EXACT_BAND = 1e-3
+#: Implementations of the closing loop.
+CLOSINGS = ("compiled", "vectorized")
+
+
+@dataclass
+class BatchClose:
+    """Auto-close results of n draws.
+
+    Attributes:
+        start_collision: (n,) bool.
+        missed: (n, 3) bool per finger.
+        found: (n, 3, 2) bool: a contact on (finger, link).
+        points, normals: (n, 3, 2, 3) contacts in the object frame (valid where found).
+        iterations: closing iterations used.
+    """
+
+    start_collision: np.ndarray
+    missed: np.ndarray
+    found: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    iterations: int = 0
+
+
+class FastHand:
+    """Batched auto-close of the hand against one object.
+
+    Args:
+        obj: the object (placed at ``obj.pose``).
+        grid: its distance grid.
+        kernel: geometry kernels, ``numba`` or ``numpy`` (the interpreted twins).
+        closing: ``compiled`` (the whole closing loop in one compiled call,
+            :mod:`kinegrasp_env.closing.close_kernel`; needs ``kernel="numba"``) or ``vectorized``
+            (one array-operation iteration at a time); the same results.
+    """
+
+    def __init__(self, obj: GraspObject, grid: DistanceGrid, kernel: str = "numba",
+                 closing: str | None = None) -> None:
+        if kernel not in ("numba", "numpy"):
+            raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
+        closing = closing or ("compiled" if kernel == "numba" else "vectorized")
+        if closing not in CLOSINGS:
+            raise ValueError(f"unknown closing {closing!r}; choose from {', '.join(CLOSINGS)}")
+        if closing == "compiled" and kernel != "numba":
+            raise ValueError("the compiled closing loop needs kernel='numba'")
+        self.obj = obj
+        self.grid = grid
+        self.kernel = kernel
+        self.closing = closing
+        self.model = kuka_sdh()
+        self.kin = Kinematics(self.model)
+        shapes = {s.link: s for s in hand_shapes()}
+        self.capsules = [[shapes[f[2]], shapes[f[3]]] for f in FINGERS]
+        self.cylinders = [s for s in hand_shapes() if s.kind == "cylinder"]
+        self.samples = [(s.surface_samples(COARSE_SPACING), s.surface_samples(CYLINDER_SPACING))
+                        for s in self.cylinders]
+        self.axis_p = [self.model.joint(f[0]).axis for f in FINGERS]
+        self.axis_d = [self.model.joint(f[1]).axis for f in FINGERS]
+        self.distal_origin = [self.model.joint(f[1]).origin for f in FINGERS]
+        self.axis_ends = [tuple(np.array(shape.axis_points()) for shape in pair)
+                          for pair in self.capsules]
+        self.upper = np.array([[self.model.joint(f[0]).upper, self.model.joint(f[1]).upper]
+                               for f in FINGERS])
+        self.speed = closing_speeds()
+        self._flex = self.model.index([j for f in FINGERS for j in f[:2]])
+        if closing == "compiled":
+            # the kernel's fixed arguments: grid, object, rules, then (after the per-call
+            # frames and flexions) the finger constants stacked over fingers
+            self._kernel_head = (grid_args(grid, GRID_EXACT_BAND), geometry_args(obj.name),
+                                 closing_rules())
+            self._kernel_fingers = (
+                np.array(self.axis_p, dtype=float), np.array(self.axis_d, dtype=float),
+                np.array(self.distal_origin, dtype=float),
+                np.array([ends[0] for ends in self.axis_ends], dtype=float),
+                np.array([ends[1] for ends in self.axis_ends], dtype=float),
+                np.array([[c.radius for c in pair] for pair in self.capsules]), self.upper,
+                np.array(self.speed, dtype=float))
+
+    # ------------------------------------------------------------------ geometry
+    def _frames(self, q: np.ndarray, links: list[str]) -> dict[str, np.ndarray]:
+        """Object-frame poses (n, 4, 4) of links at configurations q (n, 14)."""
+        world = self.kin.forward(q, links)
+        return {name: self.obj.pose_inverse @ pose for name, pose in world.items()}
+
+    def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, shape: Shape) -> np.ndarray:
+        """Gaps (m,) of one capsule with axis ends a, b (m, 3): exact within
+        ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
+        gap, _ = capsule_gaps(self.grid, a, b, np.full(len(a), shape.radius), self.kernel)
+        near = np.flatnonzero(np.abs(gap) <= GRID_EXACT_BAND)
+        if near.size:
+            gap[near] = closest_to_segments(self.obj, a[near], b[near],
+                                            self.kernel)[2] - shape.radius
+        return gap
+
+    def _cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
+        """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL."""
+        n = next(iter(frames.values())).shape[0]
+        hit = np.zeros(n, dtype=bool)
+        for shape, (coarse, fine) in zip(self.cylinders, self.samples, strict=True):
+            pose = frames[shape.link]
+            # every surface point lies within COARSE_SPACING of a coarse sample
+            check = posed_min_distance(self.grid, pose, coarse, self.kernel) < (
+                COARSE_SPACING - START_TOL)
+            rows = np.flatnonzero(check & ~hit)
+            if rows.size:
+                hit[rows] = posed_min_distance(self.grid, pose[rows], fine,
+                                               self.kernel) < -START_TOL
+        return hit
+
+    def _link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
+                   dist: np.ndarray) -> np.ndarray:
+        """Axis ends (m, 4, 3) [proximal a, b, distal a, b] for flexions prox, dist (m,)."""
+        ends_p, ends_d = self.axis_ends[finger]
+        return finger_axes(joint_frames, self.axis_p[finger], prox, self.distal_origin[finger],
+                           self.axis_d[finger], dist, ends_p, ends_d, self.kernel)
+
+    # ------------------------------------------------------------------ closing
+    def close(self, q: np.ndarray) -> BatchClose:
+        """Auto-close at configurations q (n, 14) (arm joints, then the hand pre-shape)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n = q.shape[0]
+        finger_links = [link for f in FINGERS for link in f[2:]]
+        frames = self._frames(q, [s.link for s in self.cylinders] + finger_links)
+        start = self._cylinder_collision(frames)
+        for proximal, distal in self.capsules:
+            for shape in (proximal, distal):
+                gap = self._capsule_gaps(*_axis(frames[shape.link], shape), shape)
+                start |= gap < -START_TOL
+        out = BatchClose(start, np.zeros((n, 3), bool), np.zeros((n, 3, 2), bool),
+                         np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan))
+        draws = np.flatnonzero(~start)
+        if draws.size == 0:
+            return out
+        # joint frames of the proximal joints (flexion zero): fixed while closing
+        q_zero = q[draws].copy()
+        q_zero[:, self._flex] = 0.0
+        zero = self._frames(q_zero, [f[2] for f in FINGERS])
+        hand = q[draws, 7:]
+        if self.closing == "compiled":
+            self._close_compiled(draws, zero, hand, out)
+            return out
+        problems = []
+        for f in range(3):
+            problems.append(_Problems(draws, zero[FINGERS[f][2]],
+                                      hand[:, HAND_JOINTS.index(FINGERS[f][0])],
+                                      hand[:, HAND_JOINTS.index(FINGERS[f][1])],
+                                      self.upper[f]))
+        iterations = 0
+        while iterations < MAX_ITERATIONS and any(p.active.any() for p in problems):
+            iterations += 1
+            for f, prob in enumerate(problems):
+                self._advance(f, prob, out)
+        for f, prob in enumerate(problems):
+            out.missed[prob.draws, f] = prob.missed
+        out.iterations = iterations
+        return out
+
+    def _close_compiled(self, draws: np.ndarray, zero: dict[str, np.ndarray], hand: np.ndarray,
+                        out: BatchClose) -> None:
+        """The closing loop in one compiled call, then the contacts of the closest pairs."""
+        m = draws.size
+        joint_frames = np.ascontiguousarray(np.stack([zero[f[2]] for f in FINGERS], axis=1))
+        prox0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[0]) for f in FINGERS]])
+        dist0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[1]) for f in FINGERS]])
+        found = np.zeros((m, 3, 2), dtype=bool)
+        pairs = np.zeros((m, 3, 2, PAIR_SIZE))
+        missed = np.zeros((m, 3), dtype=bool)
+        out.iterations = close_all(*self._kernel_head, joint_frames, prox0, dist0,
+                                        *self._kernel_fingers, found, pairs, missed)
+        out.missed[draws] = missed
+        out.found[draws] = found
+        hit = pairs[found]
+        if len(hit):
+            point, normal = pair_contacts(self.obj, hit[:, 1:4], hit[:, 4:7], hit[:, 0],
+                                          hit[:, 7].astype(np.int64))
+            rows, fingers, links = np.nonzero(found)
+            out.points[draws[rows], fingers, links] = point
+            out.normals[draws[rows], fingers, links] = normal
+
+    def _advance(self, f: int, prob: _Problems, out: BatchClose) -> None:
+        """One closing iteration of finger f for its active problems."""
+        rows = np.flatnonzero(prob.active)
+        if rows.size == 0:
+            return
+        phase1 = prob.phase[rows] == 1
+        prox, dist = prob.values(rows)
+        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
+        gap_d = self._capsule_gaps(ends[:, 2], ends[:, 3], self.capsules[f][1])
+        gap_p = np.full(rows.size, np.inf)
+        if phase1.any():
+            sub = np.flatnonzero(phase1)
+            gap_p[sub] = self._capsule_gaps(ends[sub, 0], ends[sub, 1], self.capsules[f][0])
+        gap_p = np.minimum(gap_p, QUERY_DISTANCE)
+        gap_d = np.minimum(gap_d, QUERY_DISTANCE)
+        gap_p[~phase1] = np.inf
+        gap = np.minimum(gap_p, gap_d)
+        t, t_lo, t_hi = prob.t[rows], prob.t_lo[rows], prob.t_hi[rows]
+        bracket_closed = ~np.isnan(t_hi) & (t_hi - t_lo < 1e-9)
+        touch = ((gap >= -CONTACT_TOL) & (gap <= CONTACT_TOL)) | (bracket_closed
+                                                                 & (gap <= CONTACT_TOL))
+        # touching: polish to the root of the exact gap, then the contacts of the links
+        # touching there (exact closest pairs of their axes and the object)
+        hit_rows = rows[touch]
+        prox_t, dist_t = prox[touch], dist[touch]
+        distal_touch = np.zeros(rows.size, dtype=bool)
+        if hit_rows.size:
+            t_root = self._polish(f, prob, hit_rows, t[touch], gap[touch])
+            prob.t[hit_rows] = t_root
+            prox_t, dist_t = prob.values(hit_rows)
+            link_gaps, (where, on_obj, on_seg, distance, part) = self._exact_at(
+                f, prob, hit_rows, t_root)
+            for link in (0, 1):
+                sel = np.flatnonzero(link_gaps[:, link] <= CONTACT_TOL)
+                if sel.size == 0:
+                    continue
+                q = where[sel, link]
+                point, normal = pair_contacts(self.obj, on_obj[q], on_seg[q], distance[q],
+                                              part[q])
+                draw = prob.draws[hit_rows[sel]]
+                out.found[draw, f, link] = True
+                out.points[draw, f, link] = point
+                out.normals[draw, f, link] = normal
+                prob.has_contact[hit_rows[sel]] = True
+            distal_touch[touch] = link_gaps[:, 1] <= CONTACT_TOL
+        prob.active[rows[distal_touch]] = False
+        # proximal-only contact: freeze the proximal joint, the distal one goes on
+        switch = touch & ~distal_touch
+        if switch.any():
+            r = rows[switch]
+            within = switch[touch]
+            prob.start_p[r], prob.start_d[r] = prox_t[within], dist_t[within]
+            prob.phase[r] = 2
+            prob.t_lo[r], prob.t_hi[r] = 0.0, np.nan
+            t_max = prob.t_max(r)
+            prob.active[r[t_max <= 0.0]] = False
+            prob.t[r] = np.where(t_max <= 0.0, 0.0, np.minimum(STEP, t_max))
+        # no contact yet
+        free = ~touch & (gap > CONTACT_TOL)
+        unbracketed = free & np.isnan(t_hi)
+        if unbracketed.any():
+            r = rows[unbracketed]
+            t_max = prob.t_max(r)
+            at_limit = t[unbracketed] >= t_max
+            prob.t_lo[r] = t[unbracketed]
+            prob.active[r[at_limit]] = False
+            prob.missed[r[at_limit]] = ~prob.has_contact[r[at_limit]]
+            speed = np.where(prob.phase[r] == 1, self.speed[0], self.speed[1])
+            step = np.maximum(gap[unbracketed] / speed, STEP)
+            go = ~at_limit
+            prob.t[r[go]] = np.minimum(t[unbracketed] + step, t_max)[go]
+        bracketed = free & ~np.isnan(t_hi)
+        if bracketed.any():
+            r = rows[bracketed]
+            prob.t_lo[r] = t[bracketed]
+            prob.t[r] = 0.5 * (t[bracketed] + t_hi[bracketed])
+        inside = ~touch & ~(gap > CONTACT_TOL)
+        if inside.any():
+            r = rows[inside]
+            prob.t_hi[r] = t[inside]
+            prob.t[r] = 0.5 * (t_lo[inside] + t[inside])
+
+
+    def _exact_at(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray):
+        """Exact gaps (m, 2) of finger f's links at parameters t (inf for a link that does
+        not move), for problem rows, and the exact closest pairs behind them: (where (m, 2),
+        on_obj, on_seg, distance, part), ``where[row, link]`` indexing the pair arrays (-1
+        where the link was not queried)."""
+        saved = prob.t[rows].copy()
+        prob.t[rows] = t
+        prox, dist = prob.values(rows)
+        prob.t[rows] = saved
+        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
+        gaps = np.full((rows.size, 2), np.inf)
+        # one exact query for both links: the moving proximal links, then every distal one
+        moving = np.flatnonzero(prob.phase[rows] == 1)
+        starts = np.concatenate([ends[moving, 0], ends[:, 2]])
+        stops = np.concatenate([ends[moving, 1], ends[:, 3]])
+        on_obj, on_seg, distance, part = closest_to_segments(self.obj, starts, stops,
+                                                             self.kernel)
+        gaps[moving, 0] = distance[:moving.size] - self.capsules[f][0].radius
+        gaps[:, 1] = distance[moving.size:] - self.capsules[f][1].radius
+        # the closest pairs, by link: rows of the query for (row, link), -1 if not computed
+        where = np.full((rows.size, 2), -1)
+        where[moving, 0] = np.arange(moving.size)
+        where[:, 1] = moving.size + np.arange(rows.size)
+        return gaps, (where, on_obj, on_seg, distance, part)
+
+    def _polish(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
+                gap: np.ndarray) -> np.ndarray:
+        """Vectorized :func:`kinegrasp_env.closing.reference.secant_root` for problem rows."""
+        t_min = np.maximum(t - POLISH_RANGE, 0.0)
+        t_max = prob.t_max(rows)
+        t0 = np.maximum(t - POLISH_PROBE, t_min)
+        active = (t0 < t) & (np.abs(gap) > POLISH_TOL)
+        g0 = np.zeros(rows.size)
+        if active.any():
+            g0[active] = self._exact_at(f, prob, rows[active], t0[active])[0].min(axis=1)
+        t1, g1 = t.copy(), gap.copy()
+        best_t, best_g = t1.copy(), np.abs(g1)
+        for _ in range(POLISH_ITERATIONS):
+            active &= g1 != g0
+            if not active.any():
+                break
+            idx = np.flatnonzero(active)
+            t2 = np.minimum(np.maximum(t1[idx] - g1[idx] * (t1[idx] - t0[idx])
+                                       / (g1[idx] - g0[idx]), t_min[idx]), t_max[idx])
+            g2 = self._exact_at(f, prob, rows[idx], t2)[0].min(axis=1)
+            t0[idx], g0[idx], t1[idx], g1[idx] = t1[idx], g1[idx], t2, g2
+            better = np.abs(g2) < best_g[idx]
+            best_t[idx[better]], best_g[idx[better]] = t2[better], np.abs(g2[better])
+            active &= best_g > POLISH_TOL
+        return best_t
+
+
+def _axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 3) end points of a capsule's axis for link frames (m, 4, 4)."""
+    a_local, b_local = shape.axis_points()
+    rot, trans = frames[:, :3, :3], frames[:, :3, 3]
+    return rot @ a_local + trans, rot @ b_local + trans
+
+
+class _Problems:
+    """Closing state of one finger over the draws (the per-finger state of hand._Finger)."""
+
+    def __init__(self, draws: np.ndarray, joint_frames: np.ndarray,
+                 prox: np.ndarray, dist: np.ndarray, upper: np.ndarray) -> None:
+        m = draws.size
+        self.draws = draws
+        self.joint_frames = np.ascontiguousarray(joint_frames)
+        self.upper_p, self.upper_d = float(upper[0]), float(upper[1])
+        self.start_p = np.minimum(prox, self.upper_p)
+        self.start_d = np.minimum(dist, self.upper_d)
+        self.phase = np.ones(m, np.int8)
+        self.t = np.zeros(m)
+        self.t_lo = np.zeros(m)
+        self.t_hi = np.full(m, np.nan)
+        self.active = np.ones(m, bool)
+        self.missed = np.zeros(m, bool)
+        self.has_contact = np.zeros(m, bool)
+
+    def values(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        phase1 = self.phase[rows] == 1
+        t = self.t[rows]
+        prox = np.minimum(self.start_p[rows] + np.where(phase1, t, 0.0), self.upper_p)
+        dist = np.minimum(self.start_d[rows] + t, self.upper_d)
+        return prox, dist
+
+    def t_max(self, rows: np.ndarray) -> np.ndarray:
+        both = np.maximum(np.maximum(self.upper_p - self.start_p[rows],
+                                     self.upper_d - self.start_d[rows]), 0.0)
+        distal = np.maximum(self.upper_d - self.start_d[rows], 0.0)
+        return np.where(self.phase[rows] == 1, both, distal)

@@ -1,0 +1,231 @@
+"""Turning a batch of noisy configurations into draw outcomes: the pybullet engine.
+
+Each draw: the arm at q = q0 + eps (eps on the 7 arm joints, the hand pre-shape exact) puts
+the flange, hence the hand, somewhere; the hand auto-closes on the object; the contacts give
+Q. Every draw ends in exactly one outcome (:data:`OUTCOMES`). Kinematics is batched over
+the draws; auto-close loops over them (pybullet forces it); quality is batched again.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.reference import auto_close
+from kinegrasp_env.quality.epsilon import ferrari_canny_batch
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.threads import single_blas_thread
+from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.sim import GraspWorld
+
+OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
+START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
+MAX_CONTACTS = 6
+FLANGE_LINK = "sdh_base"
+
+
+@dataclass
+class DrawBatch:
+    """Per-draw results of n draws.
+
+    Attributes:
+        outcome: (n,) int8 index into OUTCOMES.
+        quality: (n,) Q (0 unless force closure).
+        n_contacts: (n,) number of contacts.
+        points, normals: (n, 6, 3) contacts in the object frame, NaN-padded.
+        finger, link: (n, 6) int8, -1 padded.
+    """
+
+    outcome: np.ndarray
+    quality: np.ndarray
+    n_contacts: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    finger: np.ndarray
+    link: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> DrawBatch:
+        return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
+                   np.full((n, MAX_CONTACTS, 3), np.nan), np.full((n, MAX_CONTACTS, 3), np.nan),
+                   np.full((n, MAX_CONTACTS), -1, np.int8), np.full((n, MAX_CONTACTS), -1, np.int8))
+
+    @classmethod
+    def concatenate(cls, batches: list[DrawBatch]) -> DrawBatch:
+        return cls(*(np.concatenate([getattr(b, f) for b in batches])
+                     for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger",
+                               "link")))
+
+    def __len__(self) -> int:
+        return self.outcome.size
+
+    def part(self, start: int, stop: int) -> DrawBatch:
+        """Draws start..stop-1 (views)."""
+        return DrawBatch(*(getattr(self, f)[start:stop] for f in (
+            "outcome", "quality", "n_contacts", "points", "normals", "finger", "link")))
+
+
+@dataclass
+class EngineTiming:
+    """Seconds spent per stage."""
+
+    kinematics: float = 0.0
+    autoclose: float = 0.0
+    quality: float = 0.0
+    draws: int = 0
+
+
+class Engine:
+    """What both engines share: the object, the quality settings, scoring and timing.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+    """
+
+    name = ""
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+        self.obj = load_object(object_name)
+        self.friction = friction
+        self.num_edges = num_edges
+        self.timing = EngineTiming()
+
+    def close(self) -> None:
+        """Release what the engine holds (nothing by default)."""
+
+    def run(self, q: np.ndarray) -> DrawBatch:
+        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
+        with single_blas_thread():
+            return self._run(np.atleast_2d(np.asarray(q, dtype=float)))
+
+    def _run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _account(self, draws: int, *, kinematics: float, autoclose: float,
+                 quality: float) -> None:
+        self.timing.kinematics += kinematics
+        self.timing.autoclose += autoclose
+        self.timing.quality += quality
+        self.timing.draws += draws
+
+    def score(self, out: DrawBatch) -> None:
+        """Fill quality and the force-closure outcome of the candidate draws, by contact count."""
+        candidates = out.outcome == NO_FORCE_CLOSURE
+        for k in np.unique(out.n_contacts[candidates]):
+            rows = np.flatnonzero(candidates & (out.n_contacts == k))
+            q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
+                                    friction=self.friction, num_edges=self.num_edges,
+                                    torque_scale=self.obj.torque_scale,
+                                    center=self.obj.center_of_mass)
+            out.quality[rows] = q
+            out.outcome[rows[q > 0]] = FORCE_CLOSURE
+
+
+class PybulletEngine(Engine):
+    """The reference engine: pybullet collision queries for auto-close, draw by draw.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+    """
+
+    name = "pybullet"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+        super().__init__(object_name, friction, num_edges)
+        self.kin = Kinematics(kuka_sdh())
+        self.world = GraspWorld(self.obj)
+
+    def close(self) -> None:
+        self.world.close()
+
+    def flange_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
+        return self.kin.pose(q, FLANGE_LINK)
+
+    def _run(self, q: np.ndarray) -> DrawBatch:
+        n = q.shape[0]
+        out = DrawBatch.empty(n)
+        t0 = time.perf_counter()
+        roots = self.flange_poses(q)
+        t1 = time.perf_counter()
+        for i in range(n):
+            result = auto_close(self.world, roots[i], q[i, 7:])
+            if result.start_collision:
+                out.outcome[i] = START_COLLISION
+                continue
+            k = min(len(result.contacts), MAX_CONTACTS)
+            out.n_contacts[i] = k
+            for j, contact in enumerate(result.contacts[:k]):
+                out.points[i, j] = contact.point
+                out.normals[i, j] = contact.normal
+                out.finger[i, j] = contact.finger
+                out.link[i, j] = contact.link
+            out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+        t2 = time.perf_counter()
+        self.score(out)
+        self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
+        return out
+
+
+class FastEngine(Engine):
+    """The batched engine: auto-close of all draws at once against the object's distance
+    grid (:mod:`kinegrasp_env.closing.fast`), then the same scoring as the reference.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+        kernel: capsule-gap implementation, ``numba`` (default) or ``numpy``.
+    """
+
+    name = "fast"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
+                 kernel: str = "numba") -> None:
+        from kinegrasp_env.closing.fast import FastHand
+        from kinegrasp_env.world.sdf import object_grid
+
+        super().__init__(object_name, friction, num_edges)
+        self.hand = FastHand(self.obj, object_grid(object_name), kernel)
+
+    def _run(self, q: np.ndarray) -> DrawBatch:
+        n = q.shape[0]
+        out = DrawBatch.empty(n)
+        t0 = time.perf_counter()
+        result = self.hand.close(q)
+        t1 = time.perf_counter()
+        found = result.found.reshape(n, 6)  # finger-major, proximal before distal
+        order = np.argsort(~found, axis=1, kind="stable")  # found contacts first, in order
+        k = found.sum(axis=1)
+        rows = np.arange(n)[:, None]
+        take = np.arange(MAX_CONTACTS)[None, :] < k[:, None]
+        links = np.tile(np.array([0, 1], np.int8), 3)[order]
+        fingers = np.repeat(np.arange(3, dtype=np.int8), 2)[order]
+        out.points[take] = result.points.reshape(n, 6, 3)[rows, order][take]
+        out.normals[take] = result.normals.reshape(n, 6, 3)[rows, order][take]
+        out.finger[take] = fingers[take]
+        out.link[take] = links[take]
+        out.n_contacts[:] = k
+        out.outcome[:] = np.where((k < 2) | result.missed.any(axis=1), MISSED, NO_FORCE_CLOSURE)
+        out.outcome[result.start_collision] = START_COLLISION
+        out.n_contacts[result.start_collision] = 0
+        t2 = time.perf_counter()
+        self.score(out)
+        # the fingers' kinematics is part of the batched auto-close; packing counts as kinematics
+        self._account(n, kinematics=t2 - t1, autoclose=t1 - t0, quality=time.perf_counter() - t2)
+        return out
+
+
+ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine}
+
+
+def make_engine(name: str, object_name: str, friction: float = 0.5,
+                num_edges: int = 8) -> Engine:
+    """An engine by name (``pybullet`` or ``fast``)."""
+    if name not in ENGINE_CLASSES:
+        raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINE_CLASSES)}")
+    return ENGINE_CLASSES[name](object_name, friction, num_edges)

@@ -1,0 +1,356 @@
+"""``kinegrasp sweep``: a grid of grasp evaluations, resumable, on any executor.
+
+The grid is objects x grasps x sigmas x noise types x engines; each cell is ``samples``
+draws split into chunks of ``chunk``. A *task* is one chunk of one cell. Chunk c of every
+cell draws its noise from ``SeedSequence(seed, spawn_key=(c,))`` (the stream
+:func:`kinegrasp_env.montecarlo.evaluate.evaluate_grasp` uses), so a cell's numbers equal
+``evaluate_grasp`` with the same seed, whatever ran the task, and cells of the same noise
+type share their draws (common random numbers make grasps comparable).
+
+Results go to an SQLite file, ``DIR/results.sqlite``, one row per finished task, committed
+as soon as the task finishes. SQLite because it ships with Python (nothing to install on a
+cluster's head node), a committed transaction survives the process being killed, and the
+task key is the table's primary key, so the store holds each task at most once by
+construction; only the driver writes, so there is no write contention. Re-running the
+same command reads the finished keys and submits only the others. The summary merges
+each cell's chunks in chunk order, so it is bit-identical however the tasks were run.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import sqlite3
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.evaluate import ENGINES, chunk_sizes, run_chunk
+from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.stats import StreamingMoments
+from kinegrasp_env.world.grasps import write_atomic
+from kinegrasp_env.world.objects import OBJECT_NAMES
+
+#: ``plot(rows, path, title=...) -> path``: draws one P(FC)-vs-sigma figure of summary rows.
+SweepPlot = Callable[..., Path]
+
+SPEC_KEYS = ("objects", "grasps", "sigmas", "noise", "engines", "samples", "chunk", "seed")
+#: Settings that fix the random streams: a store made with others cannot be extended.
+STREAM_KEYS = ("seed", "chunk")
+SUMMARY_COLUMNS = ("object", "grasp", "sigma", "noise", "engine", "p_fc", "p_fc_lo", "p_fc_hi",
+                   "q_mean", "q_std", "q_skew", "q_nominal", "samples", *OUTCOMES)
+
+
+class SpecError(ValueError):
+    """A sweep specification that cannot run (raised before any work starts)."""
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep grid (see the module docstring)."""
+
+    objects: tuple[str, ...]
+    grasps: tuple[int, ...] | None  # None: every shipped grasp
+    sigmas: tuple[float, ...]
+    noise: tuple[str, ...] = ("gaussian",)
+    engines: tuple[str, ...] = ("pybullet",)
+    samples: int = 1000
+    chunk: int = 250
+    seed: int = 0
+
+    @classmethod
+    def from_dict(cls, data: Any, where: str = "spec") -> SweepSpec:
+        """Validate every entry; one :class:`SpecError` naming the first bad one."""
+        if not isinstance(data, dict):
+            raise SpecError(f"{where}: expected a mapping of {', '.join(SPEC_KEYS)}")
+        unknown = sorted(set(data) - set(SPEC_KEYS))
+        if unknown:
+            raise SpecError(f"{where}: unknown key {unknown[0]!r}; allowed keys: "
+                            f"{', '.join(SPEC_KEYS)}")
+        for key in ("objects", "sigmas"):
+            if key not in data:
+                raise SpecError(f"{where}: missing key {key!r}")
+        objects = _names(data["objects"], OBJECT_NAMES, "objects", where)
+        noise = _names(data.get("noise", ["gaussian"]), DISTRIBUTIONS, "noise", where)
+        engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
+        sigmas = tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where))
+        grasps = data.get("grasps", "all")
+        if grasps == "all":
+            indices = None
+        else:
+            indices = tuple(_integer(g, "grasps", where, low=0)
+                            for g in _list(grasps, "grasps", where))
+            _check_grasp_indices(objects, indices, where)
+        samples = _integer(data.get("samples", 1000), "samples", where, low=1)
+        chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
+        seed = _integer(data.get("seed", 0), "seed", where, low=0)
+        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> SweepSpec:
+        """Read a YAML (or JSON) spec file."""
+        path = Path(path)
+        if not path.is_file():
+            raise SpecError(f"spec file {path} not found")
+        import yaml
+
+        try:
+            data = yaml.safe_load(path.read_text())
+        except yaml.YAMLError as exc:
+            raise SpecError(f"{path}: not valid YAML: {exc}") from None
+        return cls.from_dict(data, where=str(path))
+
+    def grasp_indices(self, object_name: str) -> tuple[int, ...]:
+        from kinegrasp_env.world.grasps import shipped_grasps
+
+        if self.grasps is None:
+            return tuple(range(len(shipped_grasps(object_name))))
+        return self.grasps
+
+    def cells(self) -> list[tuple[str, int, float, str, str]]:
+        """(object, grasp, sigma, noise, engine) in a fixed order."""
+        return [(o, g, s, n, e) for o in self.objects for g in self.grasp_indices(o)
+                for s in self.sigmas for n in self.noise for e in self.engines]
+
+    def tasks(self) -> list[SweepTask]:
+        sizes = chunk_sizes(self.samples, self.chunk)
+        return [SweepTask(o, g, s, n, e, c, size, self.seed)
+                for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
+
+
+def _list(value: Any, key: str, where: str) -> list:
+    values = list(value) if isinstance(value, (list, tuple)) else [value]
+    if not values:
+        raise SpecError(f"{where}: {key!r} is empty")
+    return values
+
+
+def _names(value: Any, known: tuple[str, ...], key: str, where: str) -> tuple[str, ...]:
+    names = _list(value, key, where)
+    for name in names:
+        if name not in known:
+            raise SpecError(f"{where}: unknown {key[:-1] if key.endswith('s') else key} "
+                            f"{name!r} in {key!r}; known: {', '.join(known)}")
+    return tuple(dict.fromkeys(names))
+
+
+def _sigma(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{where}: sigma {value!r} is not a number")
+    if not math.isfinite(value) or value < 0:
+        raise SpecError(f"{where}: sigma must be finite and >= 0, got {value}")
+    return float(value)
+
+
+def _integer(value: Any, key: str, where: str, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise SpecError(f"{where}: {key!r} must be an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...], where: str) -> None:
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    for name in objects:
+        count = len(shipped_grasps(name))
+        bad = [i for i in indices if i >= count]
+        if bad:
+            raise SpecError(f"{where}: grasp {bad[0]} does not exist for {name} "
+                            f"(its shipped set has grasps 0..{count - 1})")
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    """One chunk of one cell; ``key`` is its identity in the store."""
+
+    object: str
+    grasp: int
+    sigma: float
+    noise: str
+    engine: str
+    chunk: int
+    size: int
+    seed: int
+
+    @property
+    def key(self) -> str:
+        return (f"{self.object}/{self.grasp}/{self.sigma!r}/{self.noise}/{self.engine}/"
+                f"{self.chunk}")
+
+
+def run_task(task: SweepTask) -> dict:
+    """Evaluate one task (in a worker): outcome counts and Q moments of its chunk."""
+    from kinegrasp_env.world.grasps import grasp_by_index
+
+    start = time.perf_counter()
+    grasp = grasp_by_index(task.object, task.grasp)
+    key = (task.engine, task.object, 0.5, 8)
+    counts, moments, _ = run_chunk((key, grasp.q0, JointNoise(task.sigma, task.noise),
+                                     task.seed, task.chunk, task.size, "mc", False))
+    return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
+            "q_mean": float(moments.mean[0]), "q_m2": float(moments.m2[0, 0]),
+            "q_m3": float(moments.m3[0]), "seconds": time.perf_counter() - start}
+
+
+class SweepStore:
+    """``DIR/results.sqlite``: the spec it was made for and one row per finished task."""
+
+    def __init__(self, directory: str | Path, spec: SweepSpec):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.path = self.directory / "results.sqlite"
+        self._db = sqlite3.connect(self.path)
+        outcome_columns = ", ".join(f"{name} INTEGER NOT NULL" for name in OUTCOMES)
+        with self._db:
+            self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, "
+                             "value TEXT NOT NULL)")
+            self._db.execute(
+                "CREATE TABLE IF NOT EXISTS tasks (key TEXT PRIMARY KEY, object TEXT NOT NULL, "
+                "grasp INTEGER NOT NULL, sigma REAL NOT NULL, noise TEXT NOT NULL, "
+                "engine TEXT NOT NULL, chunk INTEGER NOT NULL, size INTEGER NOT NULL, "
+                f"{outcome_columns}, q_n INTEGER NOT NULL, q_mean REAL NOT NULL, "
+                "q_m2 REAL NOT NULL, q_m3 REAL NOT NULL, seconds REAL NOT NULL)")
+        self._check_streams(spec)
+
+    def _check_streams(self, spec: SweepSpec) -> None:
+        stored = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
+        wanted = {key: json.dumps(getattr(spec, key)) for key in STREAM_KEYS}
+        for key, value in wanted.items():
+            if key in stored and stored[key] != value:
+                self.close()
+                raise SpecError(f"{self.directory} holds a sweep run with {key} = "
+                                f"{stored[key]}, the spec says {value}: its random streams "
+                                "differ; use another --out")
+        with self._db:
+            self._db.executemany("INSERT OR IGNORE INTO meta VALUES (?, ?)", wanted.items())
+            self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_spec', ?)",
+                             (json.dumps(asdict(spec)),))
+
+    def finished(self) -> set[str]:
+        return {row[0] for row in self._db.execute("SELECT key FROM tasks")}
+
+    def add(self, task: SweepTask, result: dict) -> None:
+        """Record a finished task (committed at once; a second copy is ignored)."""
+        with self._db:
+            self._db.execute(
+                f"INSERT OR IGNORE INTO tasks VALUES ({', '.join('?' * (13 + len(OUTCOMES)))})",
+                (task.key, task.object, task.grasp, task.sigma, task.noise, task.engine,
+                 task.chunk, task.size, *result["counts"], result["q_n"], result["q_mean"],
+                 result["q_m2"], result["q_m3"], result["seconds"]))
+
+    def results(self) -> dict[str, tuple[np.ndarray, StreamingMoments]]:
+        """(outcome counts (4,), moments of Q) of every stored task, by key."""
+        cursor = self._db.execute(
+            f"SELECT key, {', '.join(OUTCOMES)}, q_n, q_mean, q_m2, q_m3 FROM tasks")
+        out = {}
+        for key, *values in cursor:
+            counts = np.array(values[:len(OUTCOMES)], dtype=np.int64)
+            out[key] = (counts, StreamingMoments.from_state(*values[len(OUTCOMES):]))
+        return out
+
+    def close(self) -> None:
+        self._db.close()
+
+
+def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
+    """One row per cell of ``spec``: P(FC), Wilson interval, moments of Q, outcomes (the
+    statistics of :func:`kinegrasp_env.montecarlo.evaluate.summarize`, chunks merged in order)."""
+    from kinegrasp_env.world.grasps import grasp_by_index
+
+    results = store.results()
+    n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
+    summary = []
+    for obj, grasp, sigma, noise, engine in spec.cells():
+        counts = np.zeros(len(OUTCOMES), dtype=np.int64)
+        moments = StreamingMoments(1)
+        for c in range(n_chunks):
+            chunk_counts, chunk_moments = results[
+                SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
+            counts += chunk_counts
+            moments.merge(chunk_moments)
+        stats = grasp_stats(grasp_by_index(obj, grasp), JointNoise(sigma, noise), spec.seed,
+                            engine, counts, moments, None)
+        summary.append({
+            "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
+            "p_fc": stats.p_fc, "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
+            "q_mean": stats.q_mean, "q_std": stats.q_std, "q_skew": stats.q_skew,
+            "q_nominal": stats.q_nominal, "samples": stats.samples, **stats.outcomes})
+    return summary
+
+
+def summary_csv(rows: list[dict]) -> str:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(SUMMARY_COLUMNS)
+    for row in rows:
+        writer.writerow(["" if isinstance(row[c], float) and math.isnan(row[c]) else
+                         (repr(row[c]) if isinstance(row[c], float) else row[c])
+                         for c in SUMMARY_COLUMNS])
+    return buffer.getvalue()
+
+
+def summary_table(rows: list[dict]) -> str:
+    """Console table of the summary."""
+    lines = [f"{'object':<12} {'grasp':>5} {'sigma':>7} {'noise':<10} {'engine':<8} "
+             f"{'P(FC)':>6} {'95% CI':>13} {'Q mean':>8} {'draws':>6}"]
+    for r in rows:
+        q = "-" if math.isnan(r["q_mean"]) else f"{r['q_mean']:.5f}"
+        lines.append(f"{r['object']:<12} {r['grasp']:>5} {r['sigma']:>7.4f} {r['noise']:<10} "
+                     f"{r['engine']:<8} {r['p_fc']:>6.3f} {r['p_fc_lo']:>6.3f}.."
+                     f"{r['p_fc_hi']:<5.3f} {q:>8} {r['samples']:>6}")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(spec: SweepSpec, rows: list[dict], directory: Path,
+                  plot: SweepPlot | None = None) -> list[Path]:
+    """``summary.csv``, ``summary.txt`` and, given ``plot``, one P(FC)-vs-sigma figure per
+    noise x engine (``plot(rows, path, title=...)`` returns the path it wrote)."""
+    write_atomic(directory / "summary.csv", summary_csv(rows))
+    write_atomic(directory / "summary.txt", summary_table(rows))
+    written = [directory / "summary.csv", directory / "summary.txt"]
+    if plot is None:
+        return written
+    for noise in spec.noise:
+        for engine in spec.engines:
+            sub = [r for r in rows if r["noise"] == noise and r["engine"] == engine]
+            path = directory / f"pfc_vs_sigma_{noise}_{engine}.png"
+            written.append(plot(sub, path, title=f"{noise} noise, {engine} engine, "
+                                      f"{spec.samples} draws per cell"))
+    return written
+
+
+def run_sweep(spec: SweepSpec, directory: str | Path, executor, *, progress: bool = True,
+              plot: SweepPlot | None = None) -> tuple[list[dict], int, int]:
+    """Run the tasks of ``spec`` that ``directory``'s store lacks, then summarize (see
+    :func:`write_outputs` for what is written and ``plot``).
+
+    Returns (summary rows, tasks run now, tasks found finished).
+    """
+    store = SweepStore(directory, spec)
+    try:
+        tasks = spec.tasks()
+        finished = store.finished()
+        todo = [t for t in tasks if t.key not in finished]
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="sweep", unit="task",
+                   disable=None if progress else True)
+        try:
+            for index, result in executor.as_completed(run_task, todo):
+                store.add(todo[index], result)
+                bar.update(1)
+        finally:
+            bar.close()
+        rows = summarize(spec, store)
+    finally:
+        store.close()
+    write_outputs(spec, rows, Path(directory), plot)
+    return rows, len(todo), len(tasks) - len(todo)

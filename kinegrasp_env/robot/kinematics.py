@@ -1,0 +1,316 @@
+"""Batched forward kinematics and geometric Jacobians of a :class:`RobotModel`.
+
+All functions are vectorized over a leading batch axis: a configuration array ``q`` of shape
+(n, dof) gives poses of shape (n, 4, 4) (homogeneous transforms, world = robot base frame,
+metres) and Jacobians of shape (n, 6, dof). A single configuration (dof,) is accepted and
+treated as n = 1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+
+from kinegrasp_env.robot.model import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK, RobotModel
+
+
+def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations about a fixed unit ``axis`` (3,) by ``angle`` (n,) radians -> (n, 3, 3)."""
+    angle = np.asarray(angle, dtype=float)
+    x, y, z = axis
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    out = np.empty((*angle.shape, 3, 3))
+    out[..., 0, 0] = c + x * x * t
+    out[..., 0, 1] = x * y * t - z * s
+    out[..., 0, 2] = x * z * t + y * s
+    out[..., 1, 0] = y * x * t + z * s
+    out[..., 1, 1] = c + y * y * t
+    out[..., 1, 2] = y * z * t - x * s
+    out[..., 2, 0] = z * x * t - y * s
+    out[..., 2, 1] = z * y * t + x * s
+    out[..., 2, 2] = c + z * z * t
+    return out
+
+
+def rotation_log(rot: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) (axis * angle, radians) of rotations (..., 3, 3)."""
+    rot = np.asarray(rot, dtype=float)
+    trace = rot[..., 0, 0] + rot[..., 1, 1] + rot[..., 2, 2]
+    cos_angle = np.clip((trace - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos_angle)
+    vee = np.stack(
+        [rot[..., 2, 1] - rot[..., 1, 2], rot[..., 0, 2] - rot[..., 2, 0],
+         rot[..., 1, 0] - rot[..., 0, 1]], axis=-1)
+    sin_angle = np.sin(angle)
+    small = sin_angle < 1e-6
+    scale = np.where(small, 0.5 + angle**2 / 12.0, angle / (2.0 * np.where(small, 1.0, sin_angle)))
+    out = vee * scale[..., None]
+    # near pi: axis from the symmetric part
+    near_pi = angle > np.pi - 1e-4
+    if np.any(near_pi):
+        # symmetric part = cos I + (1 - cos) a a^T: a row of a a^T with the largest diagonal
+        cos_pi = cos_angle[near_pi, None, None]
+        outer = ((rot[near_pi] + np.swapaxes(rot[near_pi], -1, -2)) / 2.0
+                 - cos_pi * np.eye(3)) / (1.0 - cos_pi)
+        k = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
+        rows = np.take_along_axis(outer, k[:, None, None].repeat(3, axis=2), axis=1)[:, 0]
+        axis = rows / np.linalg.norm(rows, axis=-1, keepdims=True)
+        sign = np.sign(np.sum(axis * vee[near_pi], axis=-1))
+        sign[sign == 0] = 1.0
+        out[near_pi] = axis * (angle[near_pi] * sign)[:, None]
+    return out
+
+
+def pose_error(current: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Twist-like error (..., 6): target position - current, then rotation vector of
+    R_target R_current^T (world frame)."""
+    dp = target[..., :3, 3] - current[..., :3, 3]
+    dr = rotation_log(target[..., :3, :3] @ np.swapaxes(current[..., :3, :3], -1, -2))
+    return np.concatenate([dp, dr], axis=-1)
+
+
+def _as_batch(q: np.ndarray, dof: int) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        q = q[None]
+    if q.ndim != 2 or q.shape[1] != dof:
+        raise ValueError(f"configuration must have shape (n, {dof}) or ({dof},), got {q.shape}")
+    return q
+
+
+def _axis_frame(axis: np.ndarray) -> np.ndarray:
+    """A rotation Q (3, 3) with Q e_z = axis (exactly a signed permutation for x/y/z axes)."""
+    axis = np.asarray(axis, dtype=float)
+    for k, perm in ((2, np.eye(3)), (0, np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0]])),
+                    (1, np.array([[0.0, 1, 0], [0, 0, 1], [1, 0, 0]]))):
+        unit = np.zeros(3)
+        unit[k] = 1.0
+        if np.allclose(axis, unit, atol=0, rtol=0):
+            return perm
+        if np.allclose(axis, -unit, atol=0, rtol=0):
+            return perm @ np.diag([1.0, -1.0, -1.0])
+    helper = np.eye(3)[np.argmin(np.abs(axis))]
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(axis, x), axis], axis=1)
+
+
+Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
+SNAP_TOL = 1e-10
+
+
+def _snap(rot: np.ndarray) -> np.ndarray:
+    """Round entries within SNAP_TOL of 0 or +-1 to exactly that value.
+
+    URDF files write right angles to ~11 digits (1.57079632679), leaving 1e-11-sized
+    entries that would otherwise cost full multiplications; the change is below 1e-10 rad.
+    """
+    out = rot.copy()
+    for target in (0.0, 1.0, -1.0):
+        out[np.abs(out - target) < SNAP_TOL] = target
+    return out
+
+
+def _times_constant(cols: Columns, const: np.ndarray) -> Columns:
+    """Columns of R @ const for R given by its columns (3 arrays (3, n)) and const (3, 3).
+
+    Exact zeros and ones of ``const`` are skipped, so a signed permutation costs at most a
+    negation and the unchanged columns are shared, not copied.
+    """
+    out = []
+    for k in range(3):
+        column = None
+        for j in range(3):
+            c = const[j, k]
+            if c == 0.0:
+                continue
+            term = cols[j] if c == 1.0 else (-cols[j] if c == -1.0 else cols[j] * c)
+            column = term if column is None else column + term
+        out.append(np.zeros_like(cols[0]) if column is None else column)
+    return out[0], out[1], out[2]
+
+
+def _apply(cols: Columns, vec: np.ndarray) -> np.ndarray | None:
+    """R @ constant vec (3,) -> (3, n), skipping zeros (None when vec = 0)."""
+    out = None
+    for j in range(3):
+        if vec[j] != 0.0:
+            term = cols[j] * vec[j]
+            out = term if out is None else out + term
+    return out
+
+
+class Kinematics:
+    """Batched FK / Jacobians for one :class:`RobotModel`.
+
+    Internally every rotation is kept as its three columns, each a (3, n) array with the
+    batch axis last, so a joint update is a handful of contiguous vector operations and
+    permutation-like constant rotations cost nothing. Poses are returned as (n, 4, 4) arrays
+    that are *views* of one batch-last (L, 4, 4, n) buffer (not C-contiguous; use
+    ``np.ascontiguousarray`` where a C-ordered copy is needed).
+
+    Args:
+        model: the robot.
+    """
+
+    def __init__(self, model: RobotModel) -> None:
+        self.model = model
+        self._drivers = model.drivers()
+        self._parent_joint = {j.child: j for j in model.joints}
+        # per joint: (R_origin @ Q, Q^T or None when identity, translation)
+        self._plan = []
+        for joint in model.joints:
+            rot = _snap(joint.origin[:3, :3])
+            if joint.movable and joint.kind != "prismatic":
+                q_frame = _axis_frame(joint.axis)
+                back = None if np.array_equal(q_frame, np.eye(3)) else q_frame.T
+                self._plan.append((rot @ q_frame, back, joint.origin[:3, 3]))
+            else:
+                self._plan.append((rot, None, joint.origin[:3, 3]))
+
+    def forward(self, q: np.ndarray, links: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+        """Poses of links in the world (base) frame.
+
+        Args:
+            q: (n, dof) or (dof,) actuated configurations (radians / metres).
+            links: link names to return (default: all links).
+
+        Returns:
+            dict link name -> (n, 4, 4) transforms (batch-last views, see the class doc).
+        """
+        q = _as_batch(q, self.model.dof)
+        wanted = list(dict.fromkeys(self.model.links if links is None else links))
+        unknown = set(wanted) - set(self.model.links)
+        if unknown:
+            raise KeyError(f"unknown links {sorted(unknown)}")
+        needed = set()
+        for link in wanted:  # only compute the chains leading to the requested links
+            while link in self._parent_joint and link not in needed:
+                needed.add(link)
+                link = self._parent_joint[link].parent
+        n = q.shape[0]
+        # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
+        half_tan = np.tan(0.5 * q.T)
+        denom = 1.0 / (1.0 + half_tan * half_tan)
+        cos_all, sin_all = (1.0 - half_tan * half_tan) * denom, 2.0 * half_tan * denom
+        qt = np.ascontiguousarray(q.T)
+        eye = np.eye(3)
+        frames: dict[str, tuple[Columns, np.ndarray]] = {
+            self.model.base_link: (tuple(np.broadcast_to(eye[:, k, None], (3, n))
+                                         for k in range(3)),
+                                   np.broadcast_to(np.zeros((3, 1)), (3, n)))}
+        for joint, (rot_const, back, trans) in zip(self.model.joints, self._plan, strict=True):
+            if joint.child not in needed:
+                continue
+            cols_p, pos_p = frames[joint.parent]
+            shift = _apply(cols_p, trans)
+            pos = pos_p if shift is None else pos_p + shift
+            cols = _times_constant(cols_p, rot_const)
+            if joint.kind == "prismatic":
+                index, mult, off = self._drivers[joint.name]
+                pos = pos + _apply(cols_p, rot_const @ joint.axis) * (mult * qt[index] + off)
+            elif joint.movable:
+                index, mult, off = self._drivers[joint.name]
+                if mult == 1.0 and off == 0.0:
+                    c, s = cos_all[index], sin_all[index]
+                elif mult == -1.0 and off == 0.0:
+                    c, s = cos_all[index], -sin_all[index]
+                else:
+                    value = mult * qt[index] + off
+                    c, s = np.cos(value), np.sin(value)
+                m0, m1, m2 = cols
+                r0 = m0 * c
+                r0 += m1 * s
+                r1 = m1 * c
+                r1 -= m0 * s
+                cols = (r0, r1, m2)
+                if back is not None:
+                    cols = _times_constant(cols, back)
+            frames[joint.child] = (cols, pos)
+        block = np.empty((len(wanted), 4, 4, n))
+        block[:, 3, :3] = 0.0
+        block[:, 3, 3] = 1.0
+        out = {}
+        for i, link in enumerate(wanted):
+            cols, pos = frames[link]
+            for k in range(3):
+                block[i, :3, k] = cols[k]
+            block[i, :3, 3] = pos
+            out[link] = block[i].transpose(2, 0, 1)
+        return out
+
+    def pose(self, q: np.ndarray, link: str) -> np.ndarray:
+        """(n, 4, 4) pose of one link."""
+        return self.forward(q, [link])[link]
+
+    def joint_frames(self, q: np.ndarray, link: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Movable joints on the chain to ``link``: (name, origin (n, 3), world axis (n, 3))."""
+        chain = []
+        current = link
+        while current in self._parent_joint:
+            joint = self._parent_joint[current]
+            chain.append(joint)
+            current = joint.parent
+        chain.reverse()
+        poses = self.forward(q, [j.child for j in chain])
+        out = []
+        for joint in chain:
+            if joint.movable:
+                frame = poses[joint.child]  # child frame = joint frame (URDF convention)
+                out.append((joint.name, frame[:, :3, 3], frame[:, :3, :3] @ joint.axis))
+        return out
+
+    def jacobian(self, q: np.ndarray, link: str, point: np.ndarray | None = None) -> np.ndarray:
+        """Geometric (spatial) Jacobian of a link frame, world frame.
+
+        Args:
+            q: (n, dof) or (dof,) configurations.
+            link: link whose origin (or ``point``) is tracked.
+            point: optional (3,) point in the link frame (metres); default its origin.
+
+        Returns:
+            (n, 6, dof): rows 0-2 map joint rates to the linear velocity of the point,
+            rows 3-5 to the angular velocity of the link.
+        """
+        q = _as_batch(q, self.model.dof)
+        pose = self.pose(q, link)
+        target = pose[:, :3, 3] if point is None else pose[:, :3, :3] @ point + pose[:, :3, 3]
+        jac = np.zeros((q.shape[0], 6, self.model.dof))
+        for name, origin, axis in self.joint_frames(q, link):
+            index, mult, _ = self._drivers[name]
+            if self.model.joint(name).kind == "prismatic":
+                jac[:, :3, index] += mult * axis
+            else:
+                jac[:, :3, index] += mult * np.cross(axis, target - origin)
+                jac[:, 3:, index] += mult * axis
+        return jac
+
+    def arm_angle(self, q: np.ndarray) -> np.ndarray:
+        """Elbow (arm) angle psi (n,) radians of an S-R-S arm.
+
+        psi is the angle of the elbow about the shoulder-wrist line, measured from the
+        plane through that line and the world z axis (the plane the elbow lies in when
+        joint 3 is zero), positive by the right-hand rule about shoulder -> wrist.
+        Undefined (returned as 0) when the elbow lies on the shoulder-wrist line.
+        """
+        poses = self.forward(q, [SHOULDER_LINK, ELBOW_LINK, WRIST_LINK])
+        return elbow_angle(poses[SHOULDER_LINK][:, :3, 3], poses[ELBOW_LINK][:, :3, 3],
+                           poses[WRIST_LINK][:, :3, 3])
+
+
+def elbow_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
+    """Arm angle (n,) from shoulder, elbow and wrist centres (n, 3); see ``arm_angle``."""
+    axis = wrist - shoulder
+    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), axis.shape)
+    ref = up - np.sum(up * axis, axis=-1, keepdims=True) * axis
+    ref_norm = np.linalg.norm(ref, axis=-1, keepdims=True)
+    fallback = np.broadcast_to(np.array([1.0, 0.0, 0.0]), axis.shape)
+    fallback = fallback - np.sum(fallback * axis, axis=-1, keepdims=True) * axis
+    ref = np.where(ref_norm > 1e-9, ref, fallback)
+    ref = ref / np.linalg.norm(ref, axis=-1, keepdims=True)
+    side = np.cross(axis, ref)
+    e = elbow - shoulder
+    return np.arctan2(np.sum(e * side, axis=-1), np.sum(e * ref, axis=-1))

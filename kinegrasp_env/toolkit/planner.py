@@ -1,0 +1,272 @@
+"""Grasp candidate generation (GraspIt-like sampling of palm poses + IK + auto-close).
+
+A candidate palm pose: an approach direction d (from the robot's side or from above), an aim
+point inside the object's bounding box, a stand-off along -d from the object's surface, and a
+roll about d. The arm reaches it by IK (collision-free, within limits), the hand auto-closes
+from an open pre-shape, and the candidate is kept when its contacts are in force closure.
+The nominal contacts and Q are computed by the same engine the Monte Carlo draws use, so a
+draw with zero noise reproduces them exactly.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.reference import hand_joint_values
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK, kuka_sdh
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import load_object
+
+log = logging.getLogger(__name__)
+
+#: A comfortable seed for IK: elbow up, palm forward.
+IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
+#: Clearance required between the arm and the object at the pre-grasp, metres.
+CLEARANCE = 0.004
+#: Palm stand-off that keeps the open fingers clear of the object, metres.
+FINGER_REACH = 0.25
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Sampling ranges (metres, radians)."""
+
+    standoff: tuple[float, float] = (0.01, 0.06)  # back-off after the approach touches
+    elevation: tuple[float, float] = (-0.2, 1.45)   # approach direction below horizontal
+    azimuth: tuple[float, float] = (-1.2, 1.2)      # about +x (the robot faces +x)
+    proximal: tuple[float, float] = (-0.9, -0.2)
+    distal: tuple[float, float] = (-0.2, 0.3)
+    spreads: tuple[float, ...] = (0.0, np.pi / 3, np.pi / 6)
+    max_contacts: int = 3
+
+
+def palm_frame(direction: np.ndarray, roll: float) -> np.ndarray:
+    """(3, 3) palm rotation: z along ``direction``, x rolled by ``roll`` about it."""
+    z = direction / np.linalg.norm(direction)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x0 = np.cross(helper, z)
+    x0 /= np.linalg.norm(x0)
+    y0 = np.cross(z, x0)
+    x = np.cos(roll) * x0 + np.sin(roll) * y0
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+class GraspPlanner:
+    """Sample force-closure grasps of one object.
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+        settings: sampling ranges.
+    """
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
+                 settings: PlannerSettings | None = None) -> None:
+        self.obj = load_object(object_name)
+        self.engine = PybulletEngine(object_name, friction, num_edges)
+        self.model = kuka_sdh()
+        self.ik = ArmIK(self.engine.kin)
+        self.settings = settings or PlannerSettings()
+        self._arm: int | None = None
+
+    def close(self) -> None:
+        self.engine.close()
+
+    # ------------------------------------------------------------------ geometry checks
+    def _arm_body(self) -> int:
+        bullet = self.engine.world.bullet
+        if self._arm is None:
+            from kinegrasp_env.robot.model import urdf_path
+
+            self._arm = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
+            self._arm_joints = {bullet.getJointInfo(self._arm, j)[1].decode(): j
+                                for j in range(bullet.getNumJoints(self._arm))}
+        return self._arm
+
+    def arm_clear(self, q: np.ndarray) -> bool:
+        """True when the arm links (not the hand: auto-close judges it) at q (14,) keep
+        CLEARANCE from the object. The world has no table: objects float at their pose."""
+        arm = self._arm_body()
+        bullet = self.engine.world.bullet
+        for name, value in self.model.expand(q).items():
+            bullet.resetJointState(arm, self._arm_joints[name], float(value))
+        obj = self.engine.world.bodies["object"]
+        for link in range(7):  # lbr_iiwa_link_1..7 (joint indices 0..6)
+            if bullet.getClosestPoints(arm, obj, CLEARANCE, linkIndexA=link):
+                return False
+        return True
+
+    def surface_distance(self, aim: np.ndarray, direction: np.ndarray) -> float | None:
+        """Distance from ``aim`` (world) back along -direction to the object's surface."""
+        reach = 2.0 * self.obj.r_max + 0.1
+        rot = self.obj.pose[:3, :3]
+        start = self.obj.to_object(aim - direction * reach)
+        entry = self.obj.ray_entry(start, rot.T @ direction)
+        return None if entry is None else reach - entry
+
+    # ------------------------------------------------------------------ sampling
+    def sample_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray] | None:
+        """(palm pose (4, 4), pre-shape (7,)) or None if the ray misses the object."""
+        s = self.settings
+        azimuth = rng.uniform(*s.azimuth)
+        elevation = rng.uniform(*s.elevation)
+        direction = np.array([np.cos(elevation) * np.cos(azimuth),
+                              np.cos(elevation) * np.sin(azimuth), -np.sin(elevation)])
+        lo, hi = self.obj.mesh.bounds
+        aim_local = lo + rng.uniform(0.25, 0.75, size=3) * (hi - lo)
+        aim = self.obj.to_world(aim_local)
+        depth = self.surface_distance(aim, direction)
+        if depth is None:
+            return None
+        spread = s.spreads[rng.integers(len(s.spreads))]
+        prox = rng.uniform(*s.proximal)
+        dist = rng.uniform(*s.distal)
+        preshape = np.array([spread, prox, dist, prox, dist, prox, dist])
+        rot = palm_frame(direction, rng.uniform(0, 2 * np.pi))
+        far = depth + FINGER_REACH  # palm this far back from the aim: fingers clear
+        advance = self.approach(aim - direction * far, rot, direction, far, preshape)
+        if advance is None:
+            return None
+        pose = np.eye(4)
+        pose[:3, :3] = rot
+        pose[:3, 3] = aim - direction * (far - advance + rng.uniform(*s.standoff))
+        return pose, preshape
+
+    def approach(self, start: np.ndarray, rot: np.ndarray, direction: np.ndarray,
+                 limit: float, preshape: np.ndarray) -> float | None:
+        """Largest advance (metres, <= limit) of the open hand from ``start`` along
+        ``direction`` before it touches the object (bisection to 1 mm); None if it starts
+        in collision."""
+        world = self.engine.world
+        joints = hand_joint_values(preshape)
+        palm_offset = np.linalg.inv(self.model.joint("sdh_base_to_palm").origin)
+
+        def collides(advance: float) -> bool:
+            pose = np.eye(4)
+            pose[:3, :3] = rot
+            pose[:3, 3] = start + direction * advance
+            world.set_hand(pose @ palm_offset, joints)
+            return bool(world.closest(0.0))
+
+        if collides(0.0):
+            return None
+        lo, hi = 0.0, limit
+        if not collides(hi):
+            return hi
+        while hi - lo > 1e-3:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if collides(mid) else (mid, hi)
+        return lo
+
+    def try_candidate(self, pose: np.ndarray, preshape: np.ndarray,
+                      rng: np.random.Generator) -> Grasp | None:
+        """IK, clearance, auto-close and quality for one palm pose; None if rejected."""
+        seed = np.zeros(self.model.dof)
+        seed[self.model.index(ARM_JOINTS)] = IK_SEED
+        seed[7:] = preshape
+        result = self.ik.solve(pose, seed, rng=rng, restarts=4)
+        if not result.success[0]:
+            return None
+        q0 = result.q[0]
+        if not self.arm_clear(q0):
+            return None
+        draw = self.engine.run(q0[None])
+        if draw.outcome[0] != FORCE_CLOSURE:
+            return None
+        k = int(draw.n_contacts[0])
+        if k > self.settings.max_contacts:
+            return None
+        palm = self.engine.kin.pose(q0, PALM_LINK)[0]
+        return Grasp(self.obj.name, q0, np.ascontiguousarray(palm), draw.points[0, :k].copy(),
+                     draw.normals[0, :k].copy(), draw.finger[0, :k].astype(int),
+                     draw.link[0, :k].astype(int), float(draw.quality[0]),
+                     meta={"elbow_angle": float(self.ik.elbow_angle(q0[None])[0])})
+
+    def plan(self, count: int, seed: int = 0, *, max_attempts: int | None = None,
+             time_budget: float | None = None, progress: bool = False) -> list[Grasp]:
+        """Up to ``count`` force-closure grasps (fewer if the budget runs out).
+
+        Args:
+            count: grasps wanted.
+            seed: random seed.
+            max_attempts: palm poses to try at most (default 400 per grasp wanted).
+            time_budget: seconds at most.
+            progress: tqdm bar on stderr.
+        """
+        rng = np.random.default_rng(seed)
+        max_attempts = max_attempts or 400 * count
+        start = time.perf_counter()
+        found: list[Grasp] = []
+        bar = None
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=count, desc=f"planning {self.obj.name}", unit="grasp",
+                       file=sys.stderr, disable=None)
+        attempts = 0
+        while len(found) < count and attempts < max_attempts:
+            if time_budget is not None and time.perf_counter() - start > time_budget:
+                break
+            attempts += 1
+            sample = self.sample_pose(rng)
+            if sample is None:
+                continue
+            grasp = self.try_candidate(*sample, rng)
+            if grasp is not None:
+                found.append(Grasp(**{**grasp.__dict__, "id": str(len(found))}))
+                if bar is not None:
+                    bar.update(1)
+        if bar is not None:
+            bar.close()
+        log.info("%s: %d grasps from %d palm poses", self.obj.name, len(found), attempts)
+        return found
+
+    # ------------------------------------------------------------------ null-space variants
+    def elbow_range(self, q0: np.ndarray, step: float = np.deg2rad(5.0),
+                    span: float = np.pi) -> list[tuple[float, np.ndarray]]:
+        """Feasible (elbow angle, configuration) pairs along the self-motion of ``q0``.
+
+        Walks from q0 in both directions in ``step`` increments (radians) up to ``span``,
+        stopping where the path leaves the joint limits; keeps the collision-free ones.
+        """
+        psi0 = float(self.ik.elbow_angle(q0[None])[0])
+        found = []
+        for sign in (1.0, -1.0):
+            q = q0.copy()
+            for i in range(1, int(span / step) + 1):
+                psi = psi0 + sign * i * step
+                moved, ok = self.ik.set_elbow_angle(q, psi)
+                if not ok[0]:
+                    break
+                q = moved[0]
+                if self.arm_clear(q):
+                    found.append((float(np.angle(np.exp(1j * psi))), q.copy()))
+        return sorted(found, key=lambda item: item[0])
+
+    def variants(self, grasp: Grasp, count: int) -> list[Grasp]:
+        """Up to ``count`` arm configurations with the grasp's palm pose (hence its nominal
+        contacts) and elbow angles spread over the feasible self-motion range."""
+        feasible = self.elbow_range(grasp.q0)
+        if not feasible or count < 1:
+            return []
+        pick = np.unique(np.round(np.linspace(0, len(feasible) - 1, count)).astype(int))
+        out = []
+        for j, index in enumerate(pick):
+            psi, q = feasible[index]
+            draw = self.engine.run(q[None])
+            if draw.outcome[0] != FORCE_CLOSURE:
+                continue
+            k = int(draw.n_contacts[0])
+            out.append(Grasp(grasp.object, q, grasp.palm_pose, draw.points[0, :k].copy(),
+                             draw.normals[0, :k].copy(), draw.finger[0, :k].astype(int),
+                             draw.link[0, :k].astype(int), float(draw.quality[0]),
+                             id=f"{grasp.id}v{j + 1}",
+                             meta={"elbow_angle": psi, "variant_of": grasp.id}))
+        return out

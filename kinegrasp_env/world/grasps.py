@@ -1,0 +1,165 @@
+"""Grasps: nominal arm+hand configuration, palm pose, nominal contacts and quality; JSON I/O.
+
+A grasp file is JSON: ``{"object": name, "grasps": [grasp, ...]}`` with each grasp a dict of
+``id``, ``object``, ``q0`` (14 numbers: 7 arm joints then 7 hand DOF, radians), ``palm_pose``
+(4x4, world frame), ``contacts`` (list of ``{"finger", "link", "point", "normal"}`` in the
+object frame) and ``q_nominal``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.world.objects import OBJECT_NAMES
+
+ARM_DOF = 7
+HAND_DOF = 7
+
+
+@dataclass(frozen=True, eq=False)
+class Grasp:
+    """One grasp.
+
+    Attributes:
+        object: catalog object name.
+        q0: (14,) nominal configuration: 7 arm joints, 7 hand DOF (pre-shape), radians.
+        palm_pose: (4, 4) palm frame reached by q0, world frame.
+        points, normals: (k, 3) nominal contacts (object frame; inward normals).
+        fingers, links: (k,) finger (0..2) and link (0 proximal, 1 distal) of each contact.
+        q_nominal: Ferrari-Canny quality of the nominal contacts.
+        id: identifier within its set.
+        meta: free-form extra information (e.g. the elbow angle, the planner's settings).
+    """
+
+    object: str
+    q0: np.ndarray
+    palm_pose: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    fingers: np.ndarray
+    links: np.ndarray
+    q_nominal: float
+    id: str = "0"
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def arm(self) -> np.ndarray:
+        return self.q0[:ARM_DOF]
+
+    @property
+    def hand(self) -> np.ndarray:
+        return self.q0[ARM_DOF:]
+
+    def to_dict(self) -> dict:
+        return {
+            "id": self.id, "object": self.object, "q0": self.q0.tolist(),
+            "palm_pose": self.palm_pose.tolist(), "q_nominal": self.q_nominal,
+            "contacts": [{"finger": int(f), "link": int(k), "point": p.tolist(),
+                          "normal": n.tolist()}
+                         for f, k, p, n in zip(self.fingers, self.links, self.points,
+                                               self.normals, strict=True)],
+            "meta": self.meta,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "grasp") -> Grasp:
+        """Build and validate a grasp; ValueError names the bad field."""
+        try:
+            obj = data["object"]
+            q0 = np.asarray(data["q0"], dtype=float)
+            pose = np.asarray(data["palm_pose"], dtype=float)
+            contacts = data.get("contacts", [])
+            q_nominal = float(data.get("q_nominal", 0.0))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: missing or malformed field ({exc})") from None
+        if obj not in OBJECT_NAMES:
+            raise ValueError(f"{where}: unknown object {obj!r}; known objects: "
+                             f"{', '.join(OBJECT_NAMES)}")
+        check_configuration(q0, where)
+        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+            raise ValueError(f"{where}: palm_pose must be a finite 4x4 matrix")
+        points = np.array([c["point"] for c in contacts], dtype=float).reshape(-1, 3)
+        normals = np.array([c["normal"] for c in contacts], dtype=float).reshape(-1, 3)
+        fingers = np.array([c.get("finger", -1) for c in contacts], dtype=int)
+        links = np.array([c.get("link", -1) for c in contacts], dtype=int)
+        return cls(obj, q0, pose, points, normals, fingers, links, q_nominal,
+                   str(data.get("id", "0")), dict(data.get("meta", {})))
+
+
+def check_configuration(q0: np.ndarray, where: str = "q0") -> np.ndarray:
+    """Validate a 14-entry arm+hand configuration (finite, within the joint limits)."""
+    q0 = np.asarray(q0, dtype=float)
+    model = kuka_sdh()
+    if q0.shape != (model.dof,):
+        raise ValueError(f"{where}: q0 must have {model.dof} entries (7 arm + 7 hand), "
+                         f"got {q0.size}")
+    if not np.all(np.isfinite(q0)):
+        raise ValueError(f"{where}: q0 has non-finite entries")
+    bad = np.flatnonzero((q0 < model.lower - 1e-9) | (q0 > model.upper + 1e-9))
+    if bad.size:
+        j = int(bad[0])
+        raise ValueError(f"{where}: q0[{j}] ({model.actuated[j]}) = {q0[j]:.4f} is outside "
+                         f"its limits [{model.lower[j]:.4f}, {model.upper[j]:.4f}]")
+    return q0
+
+
+def load_grasps(path: str | Path) -> list[Grasp]:
+    """Read a grasp file; ValueError names the file and the problem."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("grasps"), list):
+        raise ValueError(f"{path}: expected an object with a 'grasps' list")
+    return [Grasp.from_dict(g, f"{path} grasp {i}") for i, g in enumerate(data["grasps"])]
+
+
+def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
+    """Write grasps to ``path`` atomically (temporary file, then rename)."""
+    path = Path(path)
+    payload = {"object": grasps[0].object if grasps else None, **extra,
+               "grasps": [g.to_dict() for g in grasps]}
+    write_atomic(path, json.dumps(payload, indent=1))
+    return path
+
+
+def write_atomic(path: str | Path, text: str) -> None:
+    """Write text through a temporary file in the same folder and a rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def shipped_grasps(object_name: str) -> list[Grasp]:
+    """The standard grasp set of a catalog object (``assets/grasps/<object>.json``)."""
+    if object_name not in OBJECT_NAMES:
+        raise ValueError(f"unknown object {object_name!r}; known objects: "
+                         f"{', '.join(OBJECT_NAMES)}")
+    return load_grasps(asset_path("grasps", f"{object_name}.json"))
+
+
+def grasp_by_index(object_name: str, index: int) -> Grasp:
+    grasps = shipped_grasps(object_name)
+    if not 0 <= index < len(grasps):
+        raise ValueError(f"grasp index {index} out of range: {object_name} has "
+                         f"{len(grasps)} grasps (0..{len(grasps) - 1})")
+    return grasps[index]
+

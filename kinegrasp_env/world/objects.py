@@ -1,0 +1,243 @@
+"""The object catalog: meshes, exact convex decompositions, centre of mass, r_max, pose.
+
+Every object is a union of convex parts (see ``assets/objects/build_objects.py``): the parts
+are the collision geometry, the watertight mesh is their union, so contacts found against
+the parts lie on the mesh. Object frame: origin at the centre of the base, +z up (metres);
+every object stands at :data:`OBJECT_POSITION` in the world (robot base) frame.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from functools import cached_property, lru_cache
+
+import numpy as np
+import trimesh
+from scipy.spatial import ConvexHull
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.world.polytope import ConvexPart
+
+#: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
+OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
+#: Where the object frame sits in the world (robot base) frame: 0.6 m in front of the
+#: robot, on a table 0.1 m above the robot's base plane.
+OBJECT_POSITION: tuple[float, float, float] = (0.6, 0.0, 0.1)
+
+
+@dataclass(frozen=True, eq=False)
+class GraspObject:
+    """One catalog object.
+
+    Attributes:
+        name: catalog name.
+        mesh: watertight triangle mesh, object frame.
+        parts: convex parts, each an (n_i, 3) vertex array (object frame).
+        planes: per part, (F_i, 4) outward face planes [normal (3), offset] with
+            normal . x + offset <= 0 inside.
+        center_of_mass: (3,) object frame (uniform density).
+        r_max: largest distance from the centre of mass to a mesh vertex (metres).
+        pose: (4, 4) object frame in the world frame.
+    """
+
+    name: str
+    mesh: trimesh.Trimesh
+    parts: tuple[np.ndarray, ...]
+    planes: tuple[np.ndarray, ...] = field(repr=False)
+    center_of_mass: np.ndarray = field(repr=False)
+    r_max: float = 0.0
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4), repr=False)
+
+    @property
+    def torque_scale(self) -> float:
+        """1 / r_max (GraspIt's convention), 1/metres."""
+        return 1.0 / self.r_max
+
+    @property
+    def size(self) -> np.ndarray:
+        """(3,) bounding-box extents, metres."""
+        return self.mesh.extents
+
+    @cached_property
+    def pose_inverse(self) -> np.ndarray:
+        """(4, 4) world -> object frame."""
+        return np.linalg.inv(self.pose)
+
+    def to_object(self, points_world: np.ndarray) -> np.ndarray:
+        """World points (..., 3) to the object frame."""
+        rot, trans = self.pose[:3, :3], self.pose[:3, 3]
+        return (np.asarray(points_world) - trans) @ rot
+
+    def to_world(self, points: np.ndarray) -> np.ndarray:
+        """Object-frame points (..., 3) to the world frame."""
+        return np.asarray(points) @ self.pose[:3, :3].T + self.pose[:3, 3]
+
+    def surface(self, points: np.ndarray, part: np.ndarray | None = None,
+                edge_tol: float = 5e-5) -> tuple[np.ndarray, np.ndarray]:
+        """Project object-frame points (n, 3) lying on or near a part's boundary onto it.
+
+        Args:
+            points: (n, 3) object frame.
+            part: (n,) index of the part each point belongs to; default: the part whose
+                boundary is nearest.
+
+            edge_tol: face planes within this distance of the outermost one (metres) mark
+                the point as lying on an edge or corner of the part.
+
+        Returns:
+            (projected points (n, 3), inward unit normals (n, 3)): the outermost face plane
+            of the part gives the normal and, unless the point is on an edge or corner, the
+            projection (there the plane projection could leave the part: the point is kept).
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        if part is None:
+            part = self.nearest_part(points)
+        out_p = np.empty_like(points)
+        out_n = np.empty_like(points)
+        for index in np.unique(part):
+            sel = part == index
+            planes = self.planes[index]
+            # term by term (not a matrix product, whose rounding may depend on the batch
+            # size): the same point gives the same bits however many are projected with it
+            mine = points[sel]
+            signed = (mine[:, 0:1] * planes[:, 0] + mine[:, 1:2] * planes[:, 1]
+                      + mine[:, 2:3] * planes[:, 2] + planes[:, 3])
+            face = np.argmax(signed, axis=1)
+            top = signed[np.arange(face.size), face]
+            normal = planes[face, :3]
+            projected = points[sel] - top[:, None] * normal
+            active = signed >= top[:, None] - edge_tol
+            edge = active.sum(axis=1) > 1
+            # on a face: project onto its plane; on an edge or corner the plane projection
+            # could leave the part, so the point (pybullet's exact closest point) is kept
+            projected[edge] = points[sel][edge]
+            out_p[sel] = projected
+            out_n[sel] = -normal
+        return out_p, out_n
+
+    def part_distance(self, points: np.ndarray) -> np.ndarray:
+        """(n, n_parts) signed plane distance of points to each part (<= 0 inside)."""
+        points = np.atleast_2d(points)
+        return np.stack([np.max(points @ pl[:, :3].T + pl[:, 3], axis=1) for pl in self.planes],
+                        axis=1)
+
+    def ray_entry(self, origin: np.ndarray, direction: np.ndarray) -> float | None:
+        """Distance along a ray (object frame, unit ``direction``) to where it first enters
+        the object, or None if it misses (exact: ray against every convex part)."""
+        best = None
+        for planes in self.planes:
+            normal_dot = planes[:, :3] @ direction
+            start = planes[:, :3] @ origin + planes[:, 3]  # signed distance of the origin
+            t_in, t_out = 0.0, np.inf
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = -start / normal_dot
+            entering, leaving = normal_dot < 0, normal_dot > 0
+            if np.any((normal_dot == 0) & (start > 0)):
+                continue
+            if entering.any():
+                t_in = max(t_in, float(t[entering].max()))
+            if leaving.any():
+                t_out = min(t_out, float(t[leaving].min()))
+            if t_in <= t_out and (best is None or t_in < best):
+                best = t_in
+        return best
+
+    @cached_property
+    def convex_parts(self) -> tuple[ConvexPart, ...]:
+        """The parts as :class:`ConvexPart` (exact closest points)."""
+        return tuple(ConvexPart(v, p) for v, p in zip(self.parts, self.planes, strict=True))
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Exact closest points on the object of object-frame points (n, 3).
+
+        The signed distance is the smallest over the parts (what a collision checker
+        reports for the union of convex parts): > 0 outside, < 0 inside a part.
+
+        Returns:
+            (closest (n, 3), signed distance (n,), part index (n,)).
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        bound = self.part_distance(points)  # plane values: lower bounds of the distances
+        best_d = np.full(len(points), np.inf)
+        best_p = np.empty_like(points)
+        best_i = np.zeros(len(points), dtype=np.intp)
+        for index in np.argsort(bound.min(axis=0)):
+            rows = np.flatnonzero(bound[:, index] < best_d)
+            if rows.size == 0:
+                continue
+            closest, distance = self.convex_parts[index].closest(points[rows])
+            better = distance < best_d[rows]
+            rows = rows[better]
+            best_d[rows], best_p[rows], best_i[rows] = distance[better], closest[better], index
+        return best_p, best_d, best_i
+
+    def closest_to_segments(self, a: np.ndarray, b: np.ndarray
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Exact closest pairs between object-frame segments [a, b] (n, 3) and the object.
+
+        For segments that do not cross a part (a finger axis at contact is a capsule radius
+        away). Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)).
+        """
+        a = np.atleast_2d(np.asarray(a, dtype=float))
+        b = np.atleast_2d(np.asarray(b, dtype=float))
+        # along the segment each plane value is smallest at an end, so the largest of these
+        # minima over a part's planes is a lower bound of the distance to that part
+        bound = np.stack([np.max(np.minimum(a @ pl[:, :3].T, b @ pl[:, :3].T) + pl[:, 3], axis=1)
+                          for pl in self.planes], axis=1)
+        best_d = np.full(len(a), np.inf)
+        on_obj, on_seg = np.empty_like(a), np.empty_like(a)
+        best_i = np.zeros(len(a), dtype=np.intp)
+        for index in np.argsort(bound.min(axis=0)):
+            rows = np.flatnonzero(bound[:, index] < best_d)
+            if rows.size == 0:
+                continue
+            p_obj, p_seg, dist = self.convex_parts[index].closest_to_segments(a[rows], b[rows])
+            better = dist < best_d[rows]
+            rows = rows[better]
+            best_d[rows], best_i[rows] = dist[better], index
+            on_obj[rows], on_seg[rows] = p_obj[better], p_seg[better]
+        return on_obj, on_seg, best_d, best_i
+
+    def nearest_part(self, points: np.ndarray) -> np.ndarray:
+        """(n,) index of the part whose boundary is nearest (by plane distance)."""
+        return np.argmin(np.abs(self.part_distance(points)), axis=1)
+
+
+def _planes(vertices: np.ndarray) -> np.ndarray:
+    hull = ConvexHull(vertices)
+    eq = hull.equations
+    # merge coplanar triangles: unique planes
+    keys = np.round(eq, 9)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return eq[np.sort(first)]
+
+
+@lru_cache(maxsize=8)
+def load_object(name: str) -> GraspObject:
+    """Load a catalog object by name.
+
+    Raises:
+        ValueError: for an unknown name (the message lists the known ones).
+    """
+    if name not in OBJECT_NAMES:
+        raise ValueError(f"unknown object {name!r}; known objects: {', '.join(OBJECT_NAMES)}")
+    mesh = trimesh.load(asset_path("objects", f"{name}.obj"), force="mesh", process=True)
+    data = json.loads(asset_path("objects", f"{name}_parts.json").read_text())
+    parts = tuple(np.asarray(p, dtype=float) for p in data["parts"])
+    com = np.asarray(mesh.center_mass, dtype=float)
+    r_max = float(np.linalg.norm(mesh.vertices - com, axis=1).max())
+    pose = np.eye(4)
+    pose[:3, 3] = OBJECT_POSITION
+    return GraspObject(name, mesh, parts, tuple(_planes(p) for p in parts), com, r_max, pose)
+
+
+def catalog() -> list[dict]:
+    """One summary dict per object: name, size (m), r_max (m), centre of mass, parts."""
+    rows = []
+    for name in OBJECT_NAMES:
+        obj = load_object(name)
+        rows.append({"name": name, "size": obj.size.round(4).tolist(), "r_max": round(obj.r_max, 4),
+                     "center_of_mass": obj.center_of_mass.round(4).tolist(),
+                     "parts": len(obj.parts), "faces": len(obj.mesh.faces)})
+    return rows

@@ -1,0 +1,176 @@
+"""The pybullet world: one ``BulletClient`` per world, bodies by name, idempotent close.
+
+Nothing here touches pybullet's global client state: every call goes through the world's own
+``BulletClient``. A :class:`GraspWorld` holds the hand (the SDH-like hand alone, its root at
+the arm's flange; the arm only sets where the flange is) and one catalog object built from its
+exact convex parts, with collision margins set to zero so that reported distances are exact.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from kinegrasp_env.quiet import quiet_c_output
+
+with quiet_c_output():  # pybullet prints its build time on import
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.world.objects import GraspObject
+
+log = logging.getLogger(__name__)
+
+
+def matrix_to_pose(transform: np.ndarray) -> tuple[list[float], list[float]]:
+    """(4, 4) transform -> (position, quaternion xyzw) lists for pybullet."""
+    rot = transform[:3, :3]
+    # Shepperd's method
+    trace = np.trace(rot)
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        quat = [(rot[2, 1] - rot[1, 2]) / s, (rot[0, 2] - rot[2, 0]) / s,
+                (rot[1, 0] - rot[0, 1]) / s, 0.25 * s]
+    else:
+        i = int(np.argmax(np.diag(rot)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + rot[i, i] - rot[j, j] - rot[k, k])
+        quat = [0.0, 0.0, 0.0, (rot[k, j] - rot[j, k]) / s]
+        quat[i] = 0.25 * s
+        quat[j] = (rot[j, i] + rot[i, j]) / s
+        quat[k] = (rot[k, i] + rot[i, k]) / s
+    return transform[:3, 3].tolist(), [float(v) for v in quat]
+
+
+class BulletWorld:
+    """A pybullet physics client with bodies registered by name.
+
+    Args:
+        gui: open the GUI instead of the headless DIRECT mode.
+    """
+
+    def __init__(self, gui: bool = False) -> None:
+        with quiet_c_output():  # DIRECT mode prints "argv[0]=" on connect
+            self.client: BulletClient | None = BulletClient(
+                connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self.bodies: dict[str, int] = {}
+
+    @property
+    def bullet(self) -> BulletClient:
+        if self.client is None:
+            raise RuntimeError("this world has been closed")
+        return self.client
+
+    def body(self, name: str) -> int:
+        try:
+            return self.bodies[name]
+        except KeyError:
+            raise KeyError(f"no body named {name!r}; bodies: {sorted(self.bodies)}") from None
+
+    def close(self) -> None:
+        """Disconnect; safe to call more than once."""
+        if self.client is not None:
+            try:
+                self.client.disconnect()
+            except pybullet.error:  # already disconnected
+                pass
+            self.client = None
+
+    def __enter__(self) -> BulletWorld:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # pragma: no cover - best effort
+        try:
+            self.close()
+        except Exception:
+            pass
+
+
+class GraspWorld(BulletWorld):
+    """The hand and one object.
+
+    Attributes:
+        obj: the catalog object (placed at ``obj.pose``).
+        joint_index: hand joint name -> pybullet joint index.
+        link_index: hand link name -> pybullet link index (-1 for the root).
+    """
+
+    def __init__(self, obj: GraspObject, gui: bool = False) -> None:
+        super().__init__(gui)
+        self.obj = obj
+        bullet = self.bullet
+        hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=True,
+                               flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+        self.bodies["hand"] = hand
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {"hand_root": -1}
+        for j in range(bullet.getNumJoints(hand)):
+            info = bullet.getJointInfo(hand, j)
+            self.joint_index[info[1].decode()] = j
+            self.link_index[info[12].decode()] = j
+        for link in self.link_index.values():
+            bullet.changeDynamics(hand, link, collisionMargin=0.0)
+        self.bodies["object"] = self._load_object(obj)
+
+    def _load_object(self, obj: GraspObject) -> int:
+        bullet = self.bullet
+        shapes = [bullet.createCollisionShape(pybullet.GEOM_MESH, vertices=part.tolist())
+                  for part in obj.parts]
+        visual = -1
+        try:
+            visual = bullet.createVisualShape(
+                pybullet.GEOM_MESH, fileName=str(asset_path("objects", f"{obj.name}.obj")),
+                rgbaColor=[0.85, 0.55, 0.2, 1.0])
+        except pybullet.error:  # pragma: no cover - rendering only
+            log.warning("could not create the visual shape of %s", obj.name)
+        position, orientation = matrix_to_pose(obj.pose)
+        rest = shapes[1:]
+        body = bullet.createMultiBody(
+            baseMass=0.0, baseCollisionShapeIndex=shapes[0], baseVisualShapeIndex=visual,
+            basePosition=position, baseOrientation=orientation,
+            linkMasses=[0.0] * len(rest), linkCollisionShapeIndices=rest,
+            linkVisualShapeIndices=[-1] * len(rest),
+            linkPositions=[[0, 0, 0]] * len(rest), linkOrientations=[[0, 0, 0, 1]] * len(rest),
+            linkInertialFramePositions=[[0, 0, 0]] * len(rest),
+            linkInertialFrameOrientations=[[0, 0, 0, 1]] * len(rest),
+            linkParentIndices=[0] * len(rest), linkJointTypes=[pybullet.JOINT_FIXED] * len(rest),
+            linkJointAxis=[[0, 0, 1]] * len(rest))
+        for link in range(-1, len(rest)):
+            bullet.changeDynamics(body, link, collisionMargin=0.0)
+        return body
+
+    def set_hand(self, root_pose: np.ndarray, joints: dict[str, float]) -> None:
+        """Place the hand root (flange frame, (4, 4) world) and set hand joint values."""
+        bullet = self.bullet
+        hand = self.bodies["hand"]
+        position, orientation = matrix_to_pose(root_pose)
+        bullet.resetBasePositionAndOrientation(hand, position, orientation)
+        for name, value in joints.items():
+            bullet.resetJointState(hand, self.joint_index[name], float(value))
+
+    def set_joints(self, joints: dict[str, float]) -> None:
+        bullet = self.bullet
+        hand = self.bodies["hand"]
+        for name, value in joints.items():
+            bullet.resetJointState(hand, self.joint_index[name], float(value))
+
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a hand link's URDF frame."""
+        bullet = self.bullet
+        state = bullet.getLinkState(self.bodies["hand"], self.link_index[link],
+                                    computeForwardKinematics=True)
+        pose = np.eye(4)
+        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(state[5]), (3, 3))
+        pose[:3, 3] = state[4]
+        return pose
+
+    def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
+        """pybullet closest points between the hand (or one hand link) and the object."""
+        kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
+        return self.bullet.getClosestPoints(self.bodies["hand"], self.bodies["object"],
+                                            max_distance, **kwargs)
