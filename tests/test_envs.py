@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import warnings
 
 import gymnasium as gym
@@ -27,6 +30,8 @@ def test_gymnasium_and_sb3_checkers(env_id, extra):
     env = gym.make(env_id, **SMALL, **extra)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        # the render check runs in test_gymnasium_check_env_with_its_render_check, in a
+        # subprocess (a GUI connect without a display would end this process)
         check_env(env.unwrapped, skip_render_check=True)
     env.close()
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
@@ -36,6 +41,61 @@ def test_gymnasium_and_sb3_checkers(env_id, extra):
         sb3_checker.check_env(env.unwrapped, warn=True)
     env.close()
     env.close()  # closing twice is fine
+
+
+RENDER_CHECK = """
+import sys, warnings
+import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
+import kinegrasp_env
+from kinegrasp_env.envs.render import NoDisplayWarning, SceneViewer
+from kinegrasp_env.world.sim import BulletWorld, NoDisplayError
+
+for kind in ("BulletWorld", "SceneViewer"):
+    try:
+        BulletWorld(gui=True) if kind == "BulletWorld" else SceneViewer("cube", gui=True)
+    except NoDisplayError as exc:
+        print(kind, "refused:", exc)
+variants = [(i, {}) for i in kinegrasp_env.ENV_IDS] + [("KineGraspSelect-v0", {"action_bins": 6})]
+for env_id, extra in variants:
+    env = gym.make(env_id, n_draws=8, **extra)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)  # with its render check: every declared render mode
+    env.close()
+    kinds = sorted({w.category.__name__ for w in caught})
+    print("checked", env_id, extra, kinds)
+human = gym.make("KineGraspSelect-v0", n_draws=4, render_mode="human")
+human.reset(seed=0)
+print("human render:", human.render())
+human.close()
+"""
+
+
+@pytest.mark.parametrize("display", [None, ":97"])
+def test_gymnasium_check_env_with_its_render_check(display):
+    """Gymnasium's ``check_env`` as users run it, render check included, for every
+    registered env, on a machine without a display (none set, or one that does not answer):
+    it makes the env with render_mode="human", whose GUI connect used to end the process
+    with exit status 1. Now: the GUI is refused with a clear error, and the env's human mode
+    warns (NoDisplayWarning) and renders nothing. In a subprocess, so that a dead process
+    cannot take pytest with it."""
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    if display is not None:
+        env["DISPLAY"] = display
+    proc = subprocess.run([sys.executable, "-c", RENDER_CHECK], capture_output=True, text=True,
+                          env=env, check=False, timeout=600)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = proc.stdout.splitlines()
+    reason = "$DISPLAY is not set" if display is None else f"the X server {display!r}"
+    for kind in ("BulletWorld", "SceneViewer"):
+        assert any(line.startswith(f"{kind} refused: pybullet's GUI needs a display")
+                   and reason in line for line in lines), proc.stdout
+    checked = [line for line in lines if line.startswith("checked ")]
+    assert len(checked) == len(VARIANTS)
+    for line in checked:  # the one warning is ours, about the human mode
+        assert line.endswith("['NoDisplayWarning']"), line
+    assert "human render: None" in lines
 
 
 @pytest.mark.parametrize(("env_id", "extra"), VARIANTS)
@@ -119,12 +179,25 @@ def test_vector_envs(mode):
     ({"sigma": -0.1}, "sigma must be finite and >= 0"),
     ({"grasp": 99, "object": "cube"}, "grasp index 99 out of range"),
     ({"colour": "red"}, r"unknown reset options \['colour'\]"),
+    ({"sigma": 4.0}, r"sigma must be finite and >= 0 and at most pi \(3.1416\) radians"),
+    ({"sigma": 1e308}, "at most pi"),
+    ({"sigma": float("nan")}, "sigma must be finite"),
+    ({"sigma": float("inf")}, "sigma must be finite"),
+    ({"sigma": "wide"}, "sigma must be a number of radians, got 'wide'"),
+    ({"psi": float("nan")}, "psi must be a finite elbow angle in radians, got nan"),
+    ({"psi": "up"}, "psi must be a finite elbow angle"),
 ])
 def test_bad_reset_options(options, needle):
     env = gym.make("KineGrasp-v0", **SMALL)
     with pytest.raises(ValueError, match=needle):
         env.reset(seed=0, options=options)
     env.close()
+
+
+@pytest.mark.parametrize("sigma_range", [(0.0, 4.0), (0.0, float("inf")), (0.0, float("nan"))])
+def test_sigma_range_beyond_pi_is_refused(sigma_range):
+    with pytest.raises(ValueError, match="sigma_range must be 0 <= low <= high <= pi"):
+        gym.make("KineGrasp-v0", sigma_range=sigma_range)
 
 
 def test_discrete_select_bins_are_elbow_angles():

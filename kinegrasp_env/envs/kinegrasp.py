@@ -42,8 +42,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
-from kinegrasp_env.montecarlo.evaluate import draw_chunk
+from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
@@ -54,6 +55,18 @@ from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
 OBS_SIZE = 44
 OBS_LIMIT = 10.0
+
+
+def reset_sigma(value) -> float:
+    """A ``sigma`` reset option, validated: a finite number in [0, pi] radians."""
+    try:
+        sigma = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"sigma must be a number of radians, got {value!r}") from None
+    if not (math.isfinite(sigma) and 0 <= sigma <= MAX_SIGMA):
+        raise ValueError(f"sigma must be finite and >= 0 and at most pi ({MAX_SIGMA:.4f}) "
+                         f"radians, got {value!r}")
+    return sigma
 
 
 class KineGraspEnv(gym.Env):
@@ -69,7 +82,11 @@ class KineGraspEnv(gym.Env):
         limit_penalty: subtracted when an action would leave the joint limits.
         max_steps: steps before truncation.
         step_size: radians of psi per unit action.
-        render_mode: None, ``rgb_array`` or ``human``.
+        render_mode: None, ``rgb_array`` or ``human`` (a pybullet GUI window). Where no
+            display can show a window (Linux without a reachable ``$DISPLAY``), ``human``
+            warns once (:class:`~kinegrasp_env.envs.render.NoDisplayWarning`) and renders
+            nothing (``render()`` returns None, as in human mode) instead of letting
+            pybullet end the process.
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
         engine: ``pybullet`` (the reference) or ``fast`` (batched; see
@@ -89,8 +106,9 @@ class KineGraspEnv(gym.Env):
             raise ValueError(f"unknown render_mode {render_mode!r}")
         if n_draws < 1 or max_steps < 1:
             raise ValueError(f"n_draws and max_steps must be >= 1, got {n_draws}, {max_steps}")
-        if not 0 <= sigma_range[0] <= sigma_range[1]:
-            raise ValueError(f"sigma_range must be 0 <= low <= high, got {sigma_range}")
+        if not 0 <= sigma_range[0] <= sigma_range[1] <= MAX_SIGMA:
+            raise ValueError(f"sigma_range must be 0 <= low <= high <= pi ({MAX_SIGMA:.4f}) "
+                             f"radians, got {sigma_range}")
         for kind in noise_types:
             if kind not in DISTRIBUTIONS:
                 raise ValueError(f"unknown noise type {kind!r}; choose from {DISTRIBUTIONS}")
@@ -116,6 +134,7 @@ class KineGraspEnv(gym.Env):
         self.max_steps = int(max_steps)
         self.step_size = float(step_size)
         self.render_mode = render_mode
+        self._window = render_mode == "human" and human_window_available()
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (OBS_SIZE,), np.float32)
         self.action_space = self._action_space()
         from kinegrasp_env.montecarlo.evaluate import ENGINES
@@ -185,8 +204,8 @@ class KineGraspEnv(gym.Env):
         sigma = options.get("sigma")
         if sigma is None:
             sigma = float(rng.uniform(*self.sigma_range))
-        elif not (math.isfinite(float(sigma)) and float(sigma) >= 0):
-            raise ValueError(f"sigma must be finite and >= 0, got {sigma!r}")
+        else:
+            sigma = reset_sigma(sigma)
         kind = options.get("noise")
         if kind is None:
             kind = self.noise_types[rng.integers(len(self.noise_types))]
@@ -249,7 +268,10 @@ class KineGraspEnv(gym.Env):
         self.q = self.grasp.q0.copy()
         self.steps = 0
         if options.get("psi") is not None:
-            self._move_to(float(options["psi"]))
+            psi = options["psi"]
+            if not isinstance(psi, (int, float, np.number)) or not math.isfinite(psi):
+                raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
+            self._move_to(float(psi))
         info = {"object": self.grasp.object, "grasp": self.grasp.id,
                 "sigma": self.noise.sigma_vector(1)[0], "noise": self.noise.kind,
                 "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0])}
@@ -270,6 +292,8 @@ class KineGraspEnv(gym.Env):
     def render(self):
         if self.render_mode is None or self.grasp is None:
             return None
+        if self.render_mode == "human" and not self._window:
+            return None  # no display: warned at construction, nothing to show
         from kinegrasp_env.envs.render import render_scene
 
         image, self._viewer = render_scene(self.grasp.object, self.q, self._viewer,

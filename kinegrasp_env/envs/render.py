@@ -1,12 +1,30 @@
-"""Pictures of the arm, hand and object (pybullet's CPU renderer: works headless)."""
+"""Pictures of the arm, hand and object (pybullet's CPU renderer: works headless), and the
+check that a ``human`` (GUI window) render mode can show anything here."""
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
 from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 from kinegrasp_env.world.objects import load_object
-from kinegrasp_env.world.sim import GraspWorld, pybullet
+from kinegrasp_env.world.sim import GraspWorld, display_available, pybullet
+
+
+class NoDisplayWarning(UserWarning):
+    """``render_mode="human"`` was asked for where no window can open; nothing is shown."""
+
+
+def human_window_available() -> bool:
+    """Whether a ``human`` render mode can open pybullet's GUI window here; when it cannot,
+    warn once (:class:`NoDisplayWarning`) and return False (the caller renders nothing)."""
+    if display_available():
+        return True
+    warnings.warn("render_mode='human' needs a display and there is none (no reachable "
+                  "$DISPLAY): no window opens and render() returns None; use "
+                  "render_mode='rgb_array' for pictures", NoDisplayWarning, stacklevel=3)
+    return False
 
 WIDTH, HEIGHT = 320, 240
 
@@ -50,4 +68,4 @@ def render_scene(object_name: str, q: np.ndarray, viewer: SceneViewer | None,
     return viewer.show(q), viewer
 
 
-__all__ = ["SceneViewer", "render_scene"]
+__all__ = ["NoDisplayWarning", "SceneViewer", "human_window_available", "render_scene"]

@@ -16,7 +16,7 @@ import numpy as np
 from kinegrasp_env.closing.reference import auto_close
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.sim import GraspWorld
@@ -24,6 +24,8 @@ from kinegrasp_env.world.sim import GraspWorld
 OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
 START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
 MAX_CONTACTS = 6
+#: entries of a configuration: 7 arm joints, then 7 hand DOF
+CONFIGURATION_SIZE = 14
 FLANGE_LINK = "sdh_base"
 
 
@@ -37,6 +39,9 @@ class DrawBatch:
         n_contacts: (n,) number of contacts.
         points, normals: (n, 6, 3) contacts in the object frame, NaN-padded.
         finger, link: (n, 6) int8, -1 padded.
+        hand: (n, 7) the closed hand DOF (``HAND_JOINTS`` order, radians: the pre-shape's
+            spread, every finger's flexion where it stopped); NaN where the hand did not
+            close (start collision). With the draw's arm joints it is the final configuration.
     """
 
     outcome: np.ndarray
@@ -46,18 +51,20 @@ class DrawBatch:
     normals: np.ndarray
     finger: np.ndarray
     link: np.ndarray
+    hand: np.ndarray
 
     @classmethod
     def empty(cls, n: int) -> DrawBatch:
         return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
                    np.full((n, MAX_CONTACTS, 3), np.nan), np.full((n, MAX_CONTACTS, 3), np.nan),
-                   np.full((n, MAX_CONTACTS), -1, np.int8), np.full((n, MAX_CONTACTS), -1, np.int8))
+                   np.full((n, MAX_CONTACTS), -1, np.int8), np.full((n, MAX_CONTACTS), -1, np.int8),
+                   np.full((n, 7), np.nan))
 
     @classmethod
     def concatenate(cls, batches: list[DrawBatch]) -> DrawBatch:
         return cls(*(np.concatenate([getattr(b, f) for b in batches])
                      for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger",
-                               "link")))
+                               "link", "hand")))
 
     def __len__(self) -> int:
         return self.outcome.size
@@ -65,7 +72,24 @@ class DrawBatch:
     def part(self, start: int, stop: int) -> DrawBatch:
         """Draws start..stop-1 (views)."""
         return DrawBatch(*(getattr(self, f)[start:stop] for f in (
-            "outcome", "quality", "n_contacts", "points", "normals", "finger", "link")))
+            "outcome", "quality", "n_contacts", "points", "normals", "finger", "link",
+            "hand")))
+
+
+def check_configurations(q: np.ndarray) -> np.ndarray:
+    """q as a float (n, 14) array of finite configurations (radians); ValueError otherwise,
+    naming the first bad draw and joint."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.ndim != 2 or q.shape[1] != CONFIGURATION_SIZE:
+        raise ValueError(f"configurations must have shape (n, {CONFIGURATION_SIZE}) "
+                         f"(7 arm joints + 7 hand DOF), got {q.shape}")
+    bad = ~np.isfinite(q)
+    if bad.any():
+        draw, joint = (int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(f"configuration {draw} is not finite: joint {joint} = {q[draw, joint]} "
+                         f"({int(bad.any(axis=1).sum())} of {q.shape[0]} configurations have "
+                         "NaN or inf entries)")
+    return q
 
 
 @dataclass
@@ -98,9 +122,15 @@ class Engine:
         """Release what the engine holds (nothing by default)."""
 
     def run(self, q: np.ndarray) -> DrawBatch:
-        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape)."""
+        """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape), radians.
+
+        Raises:
+            ValueError: q is not (n, 14) or has a non-finite entry (NaN or inf is an input
+                error, never an outcome; nothing reaches the compiled kernels).
+        """
+        q = check_configurations(q)
         with single_blas_thread():
-            return self._run(np.atleast_2d(np.asarray(q, dtype=float)))
+            return self._run(q)
 
     def _run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -165,6 +195,7 @@ class PybulletEngine(Engine):
                 out.normals[i, j] = contact.normal
                 out.finger[i, j] = contact.finger
                 out.link[i, j] = contact.link
+            out.hand[i] = result.joints
             out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
         t2 = time.perf_counter()
         self.score(out)
@@ -191,6 +222,8 @@ class FastEngine(Engine):
 
         super().__init__(object_name, friction, num_edges)
         self.hand = FastHand(self.obj, object_grid(object_name), kernel)
+        #: columns of the hand DOF (7,) holding (proximal, distal) of fingers 1, 2, 3
+        self.flexion_columns = [HAND_JOINTS.index(j) for f in FINGERS for j in f[:2]]
 
     def _run(self, q: np.ndarray) -> DrawBatch:
         n = q.shape[0]
@@ -213,6 +246,9 @@ class FastEngine(Engine):
         out.outcome[:] = np.where((k < 2) | result.missed.any(axis=1), MISSED, NO_FORCE_CLOSURE)
         out.outcome[result.start_collision] = START_COLLISION
         out.n_contacts[result.start_collision] = 0
+        out.hand[:] = q[:, 7:]
+        out.hand[:, self.flexion_columns] = result.flexion.reshape(n, 6)
+        out.hand[result.start_collision] = np.nan
         t2 = time.perf_counter()
         self.score(out)
         # the fingers' kinematics is part of the batched auto-close; packing counts as kinematics

@@ -34,6 +34,10 @@ DEFAULT_CHUNK = 250
 #: 4 chunks per call 2.42 s, 10 chunks 2.20 s); results are identical.
 FAST_GROUP = 10
 ENGINES = ("pybullet", "fast")
+#: Largest joint-noise sigma accepted (radians). A standard deviation of half a turn already
+#: spreads a joint over its whole circle, so the small-error model the evaluation stands for
+#: has no meaning beyond it (and far beyond it, at 1e308, q0 + eps overflows to inf).
+MAX_SIGMA = math.pi
 
 
 @dataclass
@@ -121,6 +125,7 @@ def _run_chunk_group(task: tuple) -> list[ChunkResult]:
     """Chunks ``[(index, size), ...]`` through one engine call (draws are independent of
     their batch, so the results equal one call per chunk); one result per chunk."""
     key, q0, noise, seed, chunks, method, keep = task
+    validate_task(q0, noise)  # also on paths that skip run_chunks (sweeps)
     draws = _engine(key).run(chunk_configurations(q0, noise, seed, chunks, method))
     results, start = [], 0
     for _, size in chunks:
@@ -158,6 +163,24 @@ def _chunks(tasks: list[tuple], processes: int,
             yield from group
 
 
+def validate_task(q0: np.ndarray, noise: JointNoise) -> None:
+    """Refuse a nominal configuration q0 (14,) that is not finite and a noise whose sigma
+    is above :data:`MAX_SIGMA` (both ValueError): non-finite draws are an input error,
+    never an outcome."""
+    q0 = np.asarray(q0, dtype=float)
+    if q0.shape != (14,):
+        raise ValueError(f"q0 must be 14 finite numbers (radians), got shape {q0.shape}")
+    bad = np.flatnonzero(~np.isfinite(q0))
+    if bad.size:
+        raise ValueError(f"q0 must be 14 finite numbers (radians), got q0[{bad[0]}] = "
+                         f"{q0[bad[0]]}")
+    sigma = noise.sigma_vector(7)
+    if np.any(sigma > MAX_SIGMA):
+        raise ValueError(f"sigma {float(sigma.max()):g} rad is above the bound pi "
+                         f"({MAX_SIGMA:.4f} rad): a joint error that large wraps the joint "
+                         "around its whole circle")
+
+
 def validate_request(n_samples: int, processes: int, chunk: int) -> None:
     if int(n_samples) != n_samples or n_samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {n_samples}")
@@ -190,6 +213,10 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
             reproduce numbers).
         return_draws: keep every draw's outcome, contacts and Q.
         progress: show a tqdm bar on stderr (True) or call ``progress(done, total)``.
+
+    Raises:
+        ValueError: a non-finite q0, a sigma above :data:`MAX_SIGMA` (pi radians), or draws
+            whose configurations are not finite (checked by every engine before it runs).
     """
     validate_request(n_samples, processes, chunk)
     counts, moments, draws = run_chunks(
@@ -213,6 +240,7 @@ def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
+    validate_task(grasp.q0, noise)
     n_samples = int(sum(sizes))
     key = (engine, grasp.object, float(friction), int(num_edges))
     chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]

@@ -10,6 +10,7 @@ Definitions (pinned in docs/conventions.md), for draws X_1..X_n:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -20,18 +21,29 @@ from scipy import stats as sps
 Z95 = float(sps.norm.ppf(0.975))
 
 
+@functools.lru_cache(maxsize=32)
+def normal_quantile(confidence: float) -> float:
+    """Two-sided standard normal quantile z with P(|Z| <= z) = confidence (cached)."""
+    return float(sps.norm.ppf(0.5 + confidence / 2.0))
+
+
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval for a binomial proportion; (0, 1) when n = 0."""
+    """Wilson score interval for a binomial proportion; (0, 1) when n = 0.
+
+    The bounds are clipped so that ``lo <= successes / n <= hi`` always holds (in floating
+    point the closed form can land one ulp on the wrong side of the estimate, e.g.
+    10/10 gives an upper bound of 0.9999999999999999) and so that ``0 <= lo <= hi <= 1``.
+    """
     if n < 0 or successes < 0 or successes > n:
         raise ValueError(f"need 0 <= successes <= n, got successes={successes}, n={n}")
     if n == 0:
         return 0.0, 1.0
-    z = float(sps.norm.ppf(0.5 + confidence / 2.0))
+    z = normal_quantile(confidence)
     p = successes / n
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return max(0.0, centre - half), min(1.0, centre + half)
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
 
 
 def skewness(x: np.ndarray, axis: int = 0) -> np.ndarray:

@@ -12,41 +12,46 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.toolkit.progress import Progress
 from kinegrasp_env.world.grasps import shipped_grasps, write_atomic
 
+#: Table I's CSV columns; new columns go at the end (readers by position keep working).
 TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_fc_lo", "p_fc_hi",
-                  "samples")
+                  "samples", "q_skew")
 
 
 def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int = 5,
            sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0, processes: int = 1,
            noise: str = "gaussian", progress: bool = False,
            engine: str = "pybullet", executor: Executor | None = None) -> list[dict]:
-    """Table I: mean, variance of Q and P(FC) for the first ``grasps`` shipped grasps at each
-    sigma. Writes ``table1.csv``, ``table1.md`` and ``pfc_vs_sigma.png`` into ``out_dir``."""
+    """Table I: mean, variance, skewness of Q and P(FC) with its Wilson 95% interval for the
+    first ``grasps`` shipped grasps at each sigma (radians). Writes ``table1.csv`` and
+    ``table1.md``, then the figure ``pfc_vs_sigma.png`` (a figure that fails is a warning:
+    the tables stay). ``progress``: one overall report on stderr (:mod:`.progress`)."""
     chosen = shipped_grasps(object_name)[:grasps]
-    rows = []
-    with _executor(executor, processes) as run_on:
-        cells = [(grasp, sigma) for grasp in chosen for sigma in sigmas]
-        all_stats = [evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
-                                    progress=progress, engine=engine, executor=run_on)
-                     for grasp, sigma in cells]
-    for (grasp, sigma), stats in zip(cells, all_stats, strict=True):
-        rows.append({"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
-                     "q_mean": stats.q_mean, "q_var": stats.q_var, "p_fc": stats.p_fc,
-                     "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
-                     "samples": stats.samples})
+    cells = [(grasp, sigma) for grasp in chosen for sigma in sigmas]
+    all_stats = []
+    with _executor(executor, processes) as run_on, \
+            _progress(progress, "table1", len(cells), samples) as report:
+        for grasp, sigma in cells:
+            stats = evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
+                                   progress=_cell_callback(report), engine=engine,
+                                   executor=run_on)
+            all_stats.append(stats)
+            _cell_done(report, f"{object_name} grasp {grasp.id} sigma {sigma:g}", stats)
+    rows = [{"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
+             "q_mean": stats.q_mean, "q_var": stats.q_var, "p_fc": stats.p_fc,
+             "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
+             "samples": stats.samples, "q_skew": stats.q_skew}
+            for (grasp, sigma), stats in zip(cells, all_stats, strict=True)]
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=TABLE1_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    write_atomic(out / "table1.csv", buffer.getvalue())
+    _write_rows(out, "table1.csv", rows, TABLE1_COLUMNS)
     write_atomic(out / "table1.md", markdown_table1(rows, object_name, samples))
-    from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma
+    from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
 
-    plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png", title=f"{object_name}: P(FC) vs noise")
+    safe_figure(lambda: plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png",
+                                          title=f"{object_name}: P(FC) vs noise"),
+                out / "pfc_vs_sigma.png")
     return rows
 
 
@@ -55,19 +60,45 @@ def _fmt(value: float, digits: int = 4) -> str:
         f"{value:.{digits}g}"
 
 
+def _cell_text(row: dict) -> str:
+    """mean / var / skew / P(FC) [lo, hi] of one Table I cell."""
+    interval = ""
+    if row.get("p_fc_lo") is not None and row.get("p_fc_hi") is not None:
+        interval = f" [{row['p_fc_lo']:.3f}, {row['p_fc_hi']:.3f}]"
+    return (f"{_fmt(row['q_mean'])} / {_fmt(row['q_var'], 3)} / "
+            f"{_fmt(row.get('q_skew'), 3)} / {row['p_fc']:.3f}{interval}")
+
+
 def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
+    """Table I as markdown: per grasp and sigma (radians), mean / variance / skewness of Q
+    over the force-closure draws and P(FC) with its Wilson 95% interval."""
     sigmas = sorted({r["sigma"] for r in rows})
     head = "| grasp | Q nominal | " + " | ".join(
-        f"sigma={s:g}: mean / var / P(FC)" for s in sigmas) + " |"
-    lines = [f"Table I, {object_name}, {samples} draws per cell (Q over force-closure draws)",
-             "", head, "|" + "---|" * (len(sigmas) + 2)]
+        f"sigma = {s:g} rad: mean / var / skew / P(FC) [95% CI]" for s in sigmas) + " |"
+    lines = [f"Table I, {object_name}, {samples} draws per cell; sigma = joint noise std in "
+             "radians; Q (Ferrari-Canny) moments over the force-closure draws; P(FC) with its "
+             "Wilson 95% interval", "", head, "|" + "---|" * (len(sigmas) + 2)]
     for grasp in sorted({r["grasp"] for r in rows}):
         cells = {r["sigma"]: r for r in rows if r["grasp"] == grasp}
         first = next(iter(cells.values()))
-        lines.append(f"| {grasp} | {_fmt(first['q_nominal'])} | " + " | ".join(
-            f"{_fmt(cells[s]['q_mean'])} / {_fmt(cells[s]['q_var'], 3)} / "
-            f"{cells[s]['p_fc']:.3f}" for s in sigmas) + " |")
+        lines.append(f"| {grasp} | {_fmt(first['q_nominal'])} | "
+                     + " | ".join(_cell_text(cells[s]) for s in sigmas) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _progress(enabled: bool, name: str, cells: int,
+              samples: int) -> AbstractContextManager[Progress | None]:
+    """A :class:`Progress` over ``cells`` cells of ``samples`` draws, or nothing."""
+    return Progress(name, cells * samples, cells) if enabled else nullcontext(None)
+
+
+def _cell_callback(report: Progress | None):
+    return False if report is None else report.evaluation()
+
+
+def _cell_done(report: Progress | None, label: str, stats) -> None:
+    if report is not None:
+        report.cell_done(f"{label}: P(FC) {stats.p_fc:.3f}")
 
 
 def _executor(executor: Executor | None, processes: int) -> AbstractContextManager[Executor]:
@@ -77,95 +108,121 @@ def _executor(executor: Executor | None, processes: int) -> AbstractContextManag
 
 def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
                   engine: str = "pybullet", return_draws: bool = False,
-                  executor: Executor | None = None) -> list:
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-
+                  executor: Executor | None = None, report: Progress | None = None) -> list:
+    """Evaluate ``grasps`` at ``sigma``; one progress cell each."""
+    stats = []
     with _executor(executor, processes) as run_on:
-        return [evaluate_grasp(g, JointNoise(sigma), samples, seed, engine=engine,
-                               return_draws=return_draws, executor=run_on) for g in grasps]
+        for g in grasps:
+            stats.append(evaluate_grasp(g, JointNoise(sigma), samples, seed, engine=engine,
+                                        return_draws=return_draws, executor=run_on,
+                                        progress=_cell_callback(report)))
+            _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", stats[-1])
+    return stats
 
 
-def _write_rows(out: Path, name: str, rows: list[dict]) -> None:
+def _write_rows(out: Path, name: str, rows: list[dict],
+                columns: tuple[str, ...] | None = None) -> None:
+    """``rows`` as CSV ``out/name`` (atomically); columns default to the first row's keys."""
+    out.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=list(columns or rows[0]), lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     write_atomic(out / name, buffer.getvalue())
 
 
-def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
-         samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
-         processes: int = 1, engine: str = "pybullet",
-         executor: Executor | None = None) -> list[dict]:
-    """Fig. 7: the same contacts reached with two arm configurations (the most and the least
-    robust of ``variants`` null-space variants of shipped grasp 0): P(FC) and the scatter of
-    contact points and normals for each. Writes ``fig7_<object>.png`` and ``fig7.csv``."""
+def _fig7_candidates(objects: tuple[str, ...], variants: int) -> dict[str, list]:
+    """Per object: shipped grasp 0 and up to ``variants`` null-space variants of it."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
-    from kinegrasp_env.toolkit.plots import plot_contacts_pair
-    from kinegrasp_env.world.objects import load_object
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    candidates = {}
     for name in objects:
         grasp = shipped_grasps(name)[0]
         planner = GraspPlanner(name)
         try:
-            candidates = [grasp, *planner.variants(grasp, variants)]
+            candidates[name] = [grasp, *planner.variants(grasp, variants)]
         finally:
             planner.close()
-        stats = _evaluate_set(candidates, sigma, samples, seed, processes, engine,
-                              return_draws=True, executor=executor)
-        best = max(range(len(stats)), key=lambda i: stats[i].p_fc)
-        worst = min(range(len(stats)), key=lambda i: stats[i].p_fc)
-        for label, i in (("robust", best), ("fragile", worst)):
-            rows.append({"object": name, "config": label, "id": candidates[i].id,
-                         "elbow_angle": candidates[i].meta.get("elbow_angle"),
-                         "p_fc": stats[i].p_fc, "p_fc_lo": stats[i].p_fc_ci[0],
-                         "p_fc_hi": stats[i].p_fc_ci[1], "q_mean": stats[i].q_mean,
-                         "q_nominal": stats[i].q_nominal, "samples": samples})
-        plot_contacts_pair(load_object(name).mesh, [stats[best].draws, stats[worst].draws],
-                           [f"elbow {candidates[i].meta.get('elbow_angle', 0):.2f} rad: "
-                            f"P(FC) = {stats[i].p_fc:.3f}" for i in (best, worst)],
-                           out / f"fig7_{name}.png",
-                           title=f"{name}: same contacts, two arm configurations, "
-                                 f"sigma = {sigma:g}")
+    return candidates
+
+
+def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
+         samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
+         processes: int = 1, engine: str = "pybullet", executor: Executor | None = None,
+         progress: bool = False) -> list[dict]:
+    """Fig. 7: the same contacts reached with two arm configurations (the most and the least
+    robust of ``variants`` null-space variants of shipped grasp 0): P(FC) and the scatter of
+    contact points and normals for each. Writes ``fig7.csv``, then ``fig7_<object>.png`` (a
+    figure that fails is a warning: the CSV stays). ``progress``: one overall report."""
+    from kinegrasp_env.toolkit.plots import plot_contacts_pair, safe_figure
+    from kinegrasp_env.world.objects import load_object
+
+    out = Path(out_dir)
+    candidates = _fig7_candidates(objects, variants)
+    cells = sum(len(c) for c in candidates.values())
+    rows, pairs = [], []
+    with _progress(progress, "fig7", cells, samples) as report:
+        for name in objects:
+            stats = _evaluate_set(candidates[name], sigma, samples, seed, processes, engine,
+                                  return_draws=True, executor=executor, report=report)
+            best = max(range(len(stats)), key=lambda i: stats[i].p_fc)
+            worst = min(range(len(stats)), key=lambda i: stats[i].p_fc)
+            for label, i in (("robust", best), ("fragile", worst)):
+                rows.append({"object": name, "config": label, "id": candidates[name][i].id,
+                             "elbow_angle": candidates[name][i].meta.get("elbow_angle"),
+                             "p_fc": stats[i].p_fc, "p_fc_lo": stats[i].p_fc_ci[0],
+                             "p_fc_hi": stats[i].p_fc_ci[1], "q_mean": stats[i].q_mean,
+                             "q_nominal": stats[i].q_nominal, "samples": samples})
+            pairs.append((name, [(candidates[name][i], stats[i]) for i in (best, worst)]))
     _write_rows(out, "fig7.csv", rows)
+    for name, pair in pairs:
+        path = out / f"fig7_{name}.png"
+        safe_figure(lambda name=name, pair=pair, path=path: plot_contacts_pair(
+            load_object(name).mesh, [s.draws for _, s in pair],
+            [f"elbow {g.meta.get('elbow_angle', 0):.2f} rad: P(FC) = {s.p_fc:.3f}"
+             for g, s in pair], path,
+            title=f"{name}: same contacts, two arm configurations, sigma = {sigma:g}"), path)
     return rows
 
 
 def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
             count: int = 10, seed: int = 0, processes: int = 1,
-            engine: str = "pybullet", executor: Executor | None = None) -> list[dict]:
+            engine: str = "pybullet", executor: Executor | None = None,
+            progress: bool = False) -> list[dict]:
     """Figs. 9 and 10: success rate, mean quality (with its std) and the error
     (nominal - mean) of ``count`` grasps per object at ``sigma``. fig9: the shipped grasps
     (different contacts and arms); fig10: null-space variants of shipped grasp 0 (same
-    contacts, different arms). Writes ``<which>.csv`` and ``<which>.png``."""
+    contacts, different arms). Writes ``<which>.csv``, then ``<which>.png`` (a figure that
+    fails is a warning: the CSV stays). ``progress``: one overall report."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
-    from kinegrasp_env.toolkit.plots import plot_success_quality
+    from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
     from kinegrasp_env.world.objects import OBJECT_NAMES
 
     if which not in ("fig9", "fig10"):
         raise ValueError(f"unknown figure {which!r}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    sets = {}
     for name in OBJECT_NAMES:
         if which == "fig9":
-            grasps = shipped_grasps(name)[:count]
+            sets[name] = shipped_grasps(name)[:count]
         else:
             planner = GraspPlanner(name)
             try:
-                grasps = planner.variants(shipped_grasps(name)[0], count)
+                sets[name] = planner.variants(shipped_grasps(name)[0], count)
             finally:
                 planner.close()
-        for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes, engine,
-                                                  executor=executor),
-                        strict=True):
-            rows.append({"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
-                         "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
-                         "samples": samples})
+    rows = []
+    cells = sum(len(g) for g in sets.values())
+    with _progress(progress, which, cells, samples) as report:
+        for name, grasps in sets.items():
+            for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes,
+                                                  engine, executor=executor, report=report),
+                            strict=True):
+                rows.append({"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
+                             "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
+                             "samples": samples})
     _write_rows(out, f"{which}.csv", rows)
-    plot_success_quality(rows, out / f"{which}.png",
-                         title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp")
+    safe_figure(lambda: plot_success_quality(
+        rows, out / f"{which}.png",
+        title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp"), out / f"{which}.png")
     return rows

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from kinegrasp_env.sampling.stats import ConvergenceCurve
+from kinegrasp_env.world.grasps import file_mode
+
+log = logging.getLogger(__name__)
 
 
 def _pyplot():
@@ -26,6 +30,7 @@ def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=path.suffix or ".png", dir=path.parent)
+    os.fchmod(fd, file_mode(path))  # the umask's mode, not mkstemp's private 0600
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
@@ -35,6 +40,21 @@ def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
             os.remove(tmp)
         _pyplot().close(fig)
     return path
+
+
+def safe_figure(draw: Callable[[], Path], path: str | Path) -> Path | None:
+    """Run ``draw()`` (which writes the figure ``path``); if it fails, log one warning line
+    and return None instead of raising: a figure must never lose results already computed
+    (callers write their tables first). The figure is written atomically or not at all; an
+    older figure at ``path`` is removed then, as it would not show these results."""
+    try:
+        return draw()
+    except Exception as exc:  # any plotting failure becomes a warning
+        first_line = (str(exc).splitlines() or [""])[0]
+        log.warning("figure %s not written (%s: %s); the results are written", path,
+                    type(exc).__name__, first_line)
+        Path(path).unlink(missing_ok=True)
+        return None
 
 
 def covariance_ellipse(mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0,
@@ -220,4 +240,25 @@ def plot_success_quality(rows: list[dict], path: str | Path, title: str = "") ->
     axes[1, 0].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, path: str | Path,
+                     title: str = "") -> Path:
+    """P(FC) with its 95% interval along the self-motion (``curve``: dicts of psi [rad], p_fc,
+    p_fc_ci), the nominal and the best elbow angle marked."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    psi = np.array([c["psi"] for c in curve])
+    p = np.array([c["p_fc"] for c in curve])
+    lo = np.array([c["p_fc_ci"][0] for c in curve])
+    hi = np.array([c["p_fc_ci"][1] for c in curve])
+    ax.errorbar(psi, p, yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], fmt="o-", ms=3,
+                color="C0", ecolor="0.6", capsize=2, label="P(FC), selection draws")
+    ax.axvline(nominal_psi, color="C3", ls="--", label=f"nominal {nominal_psi:.2f} rad")
+    ax.axvline(best_psi, color="C2", ls="-", label=f"best {best_psi:.2f} rad")
+    ax.set_xlabel("elbow angle psi [rad]")
+    ax.set_ylabel("P(force closure)")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
     return save_figure(fig, path)

@@ -106,6 +106,27 @@ def rank_fixed(n_candidates: int, evaluator: Evaluator, chunks: int,
     return results
 
 
+@dataclass(frozen=True)
+class AdaptiveProgress:
+    """Where an adaptive ranking stands; reported after every chunk drawn.
+
+    Attributes:
+        draws: draws made so far (all candidates).
+        bound: draws made by the end of the run at the latest (``draws`` plus a chunk per
+            undecided candidate per round left), for progress bars and ETAs.
+        rounds: rounds finished; max_rounds: the per-candidate chunk budget.
+        undecided: candidates still drawing.
+        round_done: this report closes a round (its decisions are made).
+    """
+
+    draws: int
+    bound: int
+    rounds: int
+    max_rounds: int
+    undecided: int
+    round_done: bool
+
+
 @dataclass
 class AdaptiveReport:
     """Outcome of an adaptive ranking."""
@@ -118,9 +139,33 @@ class AdaptiveReport:
     fixed_draws: int
 
 
+def eliminate(results: list[CandidateResult], state: np.ndarray, top_k: int,
+              confidence: float) -> bool:
+    """One round's decisions at ``confidence``: mark candidates in (1) or out (-1) of the
+    top ``top_k`` in ``state`` (n,) (0 undecided, updated in place); True when the top k is
+    separated from the rest."""
+    lo = np.array([r.interval(confidence)[0] for r in results])
+    hi = np.array([r.interval(confidence)[1] for r in results])
+    p = np.array([r.p_fc for r in results])
+    ranked = np.argsort(-p, kind="stable")
+    inside, outside = ranked[:top_k], ranked[top_k:]
+    kth_lo = lo[inside].min()
+    best_out_hi = hi[outside].max()
+    for i in range(len(results)):
+        if state[i] != 0:
+            continue
+        others = outside if i in inside else np.setdiff1d(inside, [i])
+        if i in inside and lo[i] > hi[others].max():
+            state[i] = 1
+        elif i in outside and hi[i] < kth_lo:
+            state[i] = -1
+    return bool((state == 1).sum() == top_k or kth_lo > best_out_hi)
+
+
 def rank_adaptive(n_candidates: int, evaluator: Evaluator, max_chunks: int, chunk_size: int, *,
                   top_k: int = 1, delta: float = 0.05, criterion: str = "pfc",
-                  progress: Callable[[int, int], None] | None = None) -> AdaptiveReport:
+                  progress: Callable[[AdaptiveProgress], None] | None = None
+                  ) -> AdaptiveReport:
     """Successive elimination for the top ``top_k`` by P(FC) at confidence 1 - delta.
 
     Args:
@@ -131,6 +176,7 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator, max_chunks: int, chun
         top_k: size of the set to separate.
         delta: allowed probability of a wrong top-k.
         criterion: the final ordering (separation is always decided on P(FC)).
+        progress: called with an :class:`AdaptiveProgress` after every chunk drawn.
     """
     if not 1 <= top_k < n_candidates:
         raise ValueError(f"top_k must be between 1 and {n_candidates - 1}, got {top_k}")
@@ -141,32 +187,25 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator, max_chunks: int, chun
     confidence = 1 - delta / (n_candidates * max_chunks)
     rounds = 0
     separated = False
+
+    def report(undecided: int, owed: int, round_done: bool) -> None:
+        """Tell ``progress``; ``owed``: chunks still to draw at most."""
+        if progress is not None:
+            draws = sum(r.trials for r in results)
+            progress(AdaptiveProgress(draws, draws + owed * chunk_size, rounds, max_chunks,
+                                      undecided, round_done))
+
     while rounds < max_chunks:
         active = np.flatnonzero(state == 0)
-        for i in active:
+        later = len(active) * (max_chunks - rounds - 1)  # every active one, each round left
+        for j, i in enumerate(active, 1):
             results[i].add(*evaluator(int(i), results[i].chunks, 1), 1)
+            report(len(active), len(active) - j + later, False)
         rounds += 1
-        lo = np.array([r.interval(confidence)[0] for r in results])
-        hi = np.array([r.interval(confidence)[1] for r in results])
-        p = np.array([r.p_fc for r in results])
-        ranked = np.argsort(-p, kind="stable")
-        inside, outside = ranked[:top_k], ranked[top_k:]
-        kth_lo = lo[inside].min()
-        best_out_hi = hi[outside].max()
-        for i in range(n_candidates):
-            if state[i] != 0:
-                continue
-            others = outside if i in inside else np.setdiff1d(inside, [i])
-            if i in inside and lo[i] > hi[others].max():
-                state[i] = 1
-            elif i in outside and hi[i] < kth_lo:
-                state[i] = -1
-        if progress is not None:
-            progress(rounds, max_chunks)
-        if (state == 1).sum() == top_k or kth_lo > best_out_hi:
-            separated = True
-            break
-        if np.all(state != 0):
+        separated = eliminate(results, state, top_k, confidence)
+        undecided = 0 if separated else int((state == 0).sum())
+        report(undecided, undecided * (max_chunks - rounds), True)
+        if separated or undecided == 0:
             break
     ordered = order(results, criterion)
     top = [int(i) for i in np.argsort(-np.array([r.p_fc for r in results]), kind="stable")[:top_k]]

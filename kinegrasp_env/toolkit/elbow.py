@@ -1,0 +1,257 @@
+"""The most robust elbow: P(FC) along a grasp's self-motion, with a certificate.
+
+A 7-DOF arm reaches the same palm pose (hence the same nominal contacts) with a one-parameter
+family of configurations, the self-motion, parametrized by the elbow angle psi (radians; see
+docs/conventions.md). :func:`optimize_elbow` estimates P(FC) along the whole reachable
+self-motion and picks the most robust elbow:
+
+1. **Curve** (selection draws): every reachable configuration on a coarse grid of psi is
+   evaluated with the same seed, so all of them see the same joint-noise draws (common random
+   numbers: differences between angles are far less noisy than each estimate).
+2. **Refinement**: around the best coarse angles, every configuration of the fine grid is
+   evaluated with the same draws.
+3. **Selection**: the best angle of the curve by P(FC).
+4. **Scoring** (independent draws): the chosen angle and the nominal one are evaluated again on
+   chunks the selection never used (chunks ``K..2K-1`` of the same seed), so the reported
+   P(FC) of the best angle is not biased upwards by the selection (winner's curse), and the
+   gain over the nominal is a paired difference on common draws with a t-interval.
+5. **Certificate**: for every other evaluated angle j, the paired difference d_j = FC_j -
+   FC_best on the selection draws gives the probability that j is in truth better,
+   Phi(mean(d_j) / se(d_j)); their sum bounds the probability that a better evaluated angle
+   was missed (union bound). Angles between fine-grid points are not covered: the grid step is
+   reported with it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats as sps
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.evaluate import (
+    DEFAULT_CHUNK,
+    chunk_sizes,
+    evaluate_grasp,
+    run_chunks,
+)
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.world.grasps import Grasp
+
+#: Spacing of the fine grid of elbow angles (radians): 3 degrees.
+FINE_STEP = float(np.deg2rad(3.0))
+#: The coarse grid takes every COARSE_EVERY-th fine configuration (15 degrees).
+COARSE_EVERY = 5
+#: Coarse angles around which the fine grid is evaluated.
+REFINE_TOP = 2
+
+
+@dataclass
+class ElbowPoint:
+    """P(FC) of one elbow angle on the selection draws."""
+
+    psi: float
+    q: np.ndarray = field(repr=False)
+    p_fc: float
+    p_fc_ci: tuple[float, float]
+    fc: np.ndarray = field(repr=False)  # (n,) bool: force closure per selection draw
+
+    def to_json(self) -> dict:
+        return {"psi": self.psi, "p_fc": self.p_fc, "p_fc_ci": list(self.p_fc_ci)}
+
+
+@dataclass
+class ElbowResult:
+    """The most robust elbow of a grasp and its evidence (angles in radians)."""
+
+    object: str
+    grasp: str
+    sigma: float | list[float]
+    samples: int
+    seed: int
+    engine: str
+    nominal_psi: float
+    nominal_p_fc: float
+    nominal_p_fc_ci: tuple[float, float]
+    best_psi: float
+    best_q: np.ndarray = field(repr=False)
+    best_p_fc: float
+    best_p_fc_ci: tuple[float, float]
+    gain: float
+    gain_ci: tuple[float, float]
+    miss_probability: float
+    grid_step: float
+    curve: list[ElbowPoint] = field(repr=False)
+
+    def to_json(self) -> dict:
+        keys = ("object", "grasp", "sigma", "samples", "seed", "engine", "nominal_psi",
+                "nominal_p_fc", "best_psi", "best_p_fc", "gain", "miss_probability",
+                "grid_step")
+        out = {k: getattr(self, k) for k in keys}
+        out.update(nominal_p_fc_ci=list(self.nominal_p_fc_ci),
+                   best_p_fc_ci=list(self.best_p_fc_ci), gain_ci=list(self.gain_ci),
+                   best_q=self.best_q.tolist(), curve=[p.to_json() for p in self.curve])
+        return out
+
+
+def wrap_angle(psi: float) -> float:
+    """psi wrapped to (-pi, pi]."""
+    return float(np.angle(np.exp(1j * psi)))
+
+
+def reachable_configurations(grasp: Grasp, step: float = FINE_STEP,
+                             planner: GraspPlanner | None = None
+                             ) -> list[tuple[float, np.ndarray]]:
+    """(psi, q (14,)) along the grasp's self-motion, every ``step`` radians, within the joint
+    limits and clear of collisions, sorted by psi; the nominal configuration included."""
+    owned = planner is None
+    planner = planner or GraspPlanner(grasp.object)
+    try:
+        found = planner.elbow_range(np.asarray(grasp.q0, dtype=float), step=step)
+        psi0 = float(planner.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
+    finally:
+        if owned:
+            planner.close()
+    found.append((wrap_angle(psi0), np.asarray(grasp.q0, dtype=float).copy()))
+    return sorted(found, key=lambda item: item[0])
+
+
+def configuration_at(grasp: Grasp, psi: float, planner: GraspPlanner | None = None
+                     ) -> np.ndarray:
+    """The grasp's configuration moved along its self-motion to elbow angle ``psi`` (radians).
+
+    Raises:
+        ValueError: psi is out of reach (the path leaves the joint limits first).
+    """
+    owned = planner is None
+    planner = planner or GraspPlanner(grasp.object)
+    try:
+        moved, ok = planner.ik.set_elbow_angle(np.asarray(grasp.q0, dtype=float), psi)
+        if not ok[0]:
+            psi0 = float(planner.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
+            reach = reachable_configurations(grasp, planner=planner)
+            raise ValueError(f"elbow angle {psi:g} rad is out of reach for grasp {grasp.id} of "
+                             f"{grasp.object} (nominal {psi0:.3f}; reachable "
+                             f"{reach[0][0]:.3f} .. {reach[-1][0]:.3f} rad)")
+        return moved[0]
+    finally:
+        if owned:
+            planner.close()
+
+
+def with_configuration(grasp: Grasp, q: np.ndarray, psi: float) -> Grasp:
+    """The same grasp (palm pose, nominal contacts) reached with configuration q (14,)."""
+    return Grasp(grasp.object, np.asarray(q, dtype=float), grasp.palm_pose, grasp.points,
+                 grasp.normals, grasp.fingers, grasp.links, grasp.q_nominal,
+                 id=f"{grasp.id}@{psi:.3f}", meta={**grasp.meta, "elbow_angle": psi})
+
+
+def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
+           seed: int, kwargs: dict) -> ElbowPoint:
+    stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, samples, seed,
+                           return_draws=True, **kwargs)
+    fc = stats.draws.outcome == FORCE_CLOSURE
+    return ElbowPoint(psi, q, stats.p_fc, stats.p_fc_ci, fc)
+
+
+def _scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed: int,
+                   kwargs: dict) -> np.ndarray:
+    """(samples,) force-closure indicators on chunks the selection never used."""
+    chunk = kwargs.get("chunk", DEFAULT_CHUNK)
+    sizes = chunk_sizes(samples, chunk)
+    run = {k: v for k, v in kwargs.items() if k != "chunk"}
+    _, _, draws = run_chunks(with_configuration(grasp, q, 0.0), noise, seed, sizes=sizes,
+                             first_chunk=len(sizes), return_draws=True, **run)
+    return draws.outcome == FORCE_CLOSURE
+
+
+def paired_interval(d: np.ndarray, confidence: float = 0.95) -> tuple[float, float, float]:
+    """(mean, lo, hi) of paired differences d (n,), Student-t interval."""
+    n = d.size
+    mean = float(d.mean())
+    if n < 2:
+        return mean, -math.inf, math.inf
+    half = float(sps.t.ppf(0.5 + confidence / 2, n - 1) * d.std(ddof=1) / math.sqrt(n))
+    return mean, mean - half, mean + half
+
+
+def miss_probability(curve: list[ElbowPoint], best: ElbowPoint) -> float:
+    """Union bound on P(some other evaluated angle is truly better than ``best``), from the
+    paired differences on the selection draws (normal approximation)."""
+    total = 0.0
+    for point in curve:
+        if point is best:
+            continue
+        d = point.fc.astype(float) - best.fc.astype(float)
+        se = d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else 0.0
+        if se == 0.0:
+            total += 1.0 if d.mean() > 0 else 0.0
+        else:
+            total += float(sps.norm.cdf(d.mean() / se))
+    return min(total, 1.0)
+
+
+def _evaluate_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], noise: JointNoise,
+                    samples: int, seed: int, kwargs: dict, progress) -> list[ElbowPoint]:
+    """Coarse grid, then the fine grid around the REFINE_TOP best coarse angles."""
+    nominal = _nominal_index(grasp, reach)
+    coarse = sorted(set(range(0, len(reach), COARSE_EVERY)) | {len(reach) - 1, nominal})
+    done: dict[int, ElbowPoint] = {}
+    for i in coarse:
+        done[i] = _point(grasp, *reach[i], noise, samples, seed, kwargs)
+        progress(len(done))
+    top = sorted(coarse, key=lambda i: -done[i].p_fc)[:REFINE_TOP]
+    for centre in top:
+        for i in range(max(centre - COARSE_EVERY, 0), min(centre + COARSE_EVERY + 1, len(reach))):
+            if i not in done:
+                done[i] = _point(grasp, *reach[i], noise, samples, seed, kwargs)
+                progress(len(done))
+    return [done[i] for i in sorted(done)]
+
+
+def _nominal_index(grasp: Grasp, reach: list[tuple[float, np.ndarray]]) -> int:
+    """Index in ``reach`` of the grasp's own configuration q0."""
+    q0 = np.asarray(grasp.q0, dtype=float)
+    return min(range(len(reach)), key=lambda i: float(np.abs(reach[i][1] - q0).max()))
+
+
+def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+                   engine: str = "fast", step: float = FINE_STEP, progress=None,
+                   **evaluate_kwargs) -> ElbowResult:
+    """The most robust elbow angle of ``grasp`` under ``noise`` (see the module docstring).
+
+    Args:
+        grasp: the grasp; its palm pose and nominal contacts stay fixed.
+        noise: joint noise.
+        samples: draws per evaluated angle, for the selection and again for the scoring.
+        seed: run seed (selection: chunks 0..K-1, scoring: chunks K..2K-1).
+        engine: ``fast`` (default) or ``pybullet``.
+        step: fine-grid spacing of psi, radians.
+        progress: optional ``progress(evaluated_angles)`` callback.
+        evaluate_kwargs: passed to :func:`evaluate_grasp` (``executor``, ``processes``,
+            ``friction``, ``num_edges``, ``chunk``).
+    """
+    kwargs = {"engine": engine, **evaluate_kwargs}
+    reach = reachable_configurations(grasp, step)
+    nominal_psi = reach[_nominal_index(grasp, reach)][0]
+    curve = _evaluate_curve(grasp, reach, noise, samples, seed, kwargs,
+                            progress or (lambda done: None))
+    best = max(curve, key=lambda p: p.p_fc)
+    best_fc = _scoring_draws(grasp, best.q, noise, samples, seed, kwargs)
+    nominal_fc = _scoring_draws(grasp, np.asarray(grasp.q0, float), noise, samples, seed,
+                                kwargs)
+    gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
+    n = best_fc.size
+    return ElbowResult(
+        object=grasp.object, grasp=str(grasp.id),
+        sigma=noise.sigma if isinstance(noise.sigma, float) else list(noise.sigma),
+        samples=int(samples), seed=int(seed), engine=engine, nominal_psi=nominal_psi,
+        nominal_p_fc=float(nominal_fc.mean()),
+        nominal_p_fc_ci=wilson_interval(int(nominal_fc.sum()), n), best_psi=best.psi,
+        best_q=best.q, best_p_fc=float(best_fc.mean()),
+        best_p_fc_ci=wilson_interval(int(best_fc.sum()), n), gain=gain, gain_ci=(lo, hi),
+        miss_probability=miss_probability(curve, best), grid_step=float(step), curve=curve)

@@ -1,0 +1,157 @@
+"""One overall progress report for a long command made of cells (evaluations, rounds).
+
+On a terminal: one bar for the whole command (the cell being worked on, draws done of the
+total, draws per second, an ETA). Elsewhere (a log file, a pipe): no bar, one plain line per
+finished cell, e.g. ``table1: cell 3/20 spray_flask grasp 0 sigma 0.0133: P(FC) 0.980,
+410 draws/s, ETA 05:12``.
+
+The rate and the ETA leave the start-up out (worker pool, compiled kernels, engines): they
+are measured between reports of finished work, over the later half of the time since the
+first report (the warm-up of workers that start late falls out too); before a second report
+they are unknown (``?``).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import sys
+import time
+from collections.abc import Callable
+from typing import TextIO
+
+
+def format_eta(seconds: float | None) -> str:
+    """``mm:ss`` (``h:mm:ss`` from an hour on), ``?`` when unknown."""
+    if seconds is None or not math.isfinite(seconds):
+        return "?"
+    seconds = round(max(0.0, seconds))
+    hours, rest = divmod(seconds, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes:02d}:{secs:02d}"
+
+
+class Progress:
+    """Progress of ``total`` draws split into ``cells`` cells.
+
+    Args:
+        name: the command, the first word of every line (``table1``, ``rank``).
+        total: draws in the whole command (may be revised with :meth:`advance`).
+        cells: number of cells.
+        word: what a cell is called in the report (``cell``, ``round``).
+        stream: where to write (default stderr).
+        interactive: a bar (True) or plain lines (False); default: whether ``stream`` is a
+            terminal.
+        clock: seconds (monotonic), for tests.
+    """
+
+    def __init__(self, name: str, total: int, cells: int, *, word: str = "cell",
+                 stream: TextIO | None = None, interactive: bool | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.name = name
+        self.word = word
+        self.total = int(total)
+        self.cells = int(cells)
+        self.stream = sys.stderr if stream is None else stream
+        if interactive is None:
+            isatty = getattr(self.stream, "isatty", None)
+            interactive = bool(isatty and isatty())
+        self.clock = clock
+        self.times: list[float] = []  # when each report of new work came
+        self.history: list[int] = []  # draws done at each report
+        self.done = 0
+        self.cells_done = 0
+        self.cell_start = 0  # draws done when the current cell began
+        self.bar = self._bar() if interactive else None
+
+    def _bar(self):
+        from tqdm import tqdm
+
+        class Bar(tqdm):
+            """tqdm with our status text (``{status}``) in place of its own rate and ETA."""
+
+            status = ""
+
+            @property
+            def format_dict(self) -> dict:
+                return {**super().format_dict, "status": self.status}
+
+        return Bar(total=self.total, file=self.stream, desc=self._desc(),
+                   bar_format="{desc} {percentage:3.0f}%|{bar}| {status}",
+                   dynamic_ncols=True, mininterval=0.2)
+
+    def _desc(self, working: bool = True) -> str:
+        """``name: cell k/n``: the cell being worked on (or, at the end, the last one)."""
+        k = min(self.cells_done + 1, self.cells) if working else self.cells_done
+        return f"{self.name}: {self.word} {k}/{self.cells}"
+
+    # ------------------------------------------------------------------ measurements
+    def rate(self) -> float | None:
+        """Draws per second over the later half of the time since the first report (so the
+        start-up, and the warm-up of late-starting workers, fall out as the run goes on);
+        None before two reports."""
+        if len(self.times) < 2:
+            return None
+        cut = (self.times[0] + self.times[-1]) / 2
+        i = min(bisect.bisect_left(self.times, cut), len(self.times) - 2)
+        elapsed = self.times[-1] - self.times[i]
+        return (self.history[-1] - self.history[i]) / elapsed if elapsed > 0 else None
+
+    def eta(self) -> float | None:
+        """Seconds left at the current rate (None while unknown)."""
+        rate = self.rate()
+        return None if not rate else (self.total - self.done) / rate
+
+    def status(self) -> str:
+        rate = self.rate()
+        speed = "? draws/s" if rate is None else f"{rate:.0f} draws/s"
+        return f"{self.done}/{self.total} draws, {speed}, ETA {format_eta(self.eta())}"
+
+    # ------------------------------------------------------------------ reports
+    def advance(self, done: int, total: int | None = None) -> None:
+        """Draws finished so far in the whole command (absolute); optionally a new total."""
+        if total is not None:
+            self.total = int(total)
+        step, self.done = int(done) - self.done, int(done)
+        if step > 0:
+            self.times.append(self.clock())
+            self.history.append(self.done)
+        if self.bar is not None:
+            self.bar.total = self.total
+            self.bar.status = self.status()
+            self.bar.update(step)
+
+    def evaluation(self) -> Callable[[int, int], None]:
+        """A ``progress(done, total)`` callback for one cell's evaluation (its own counts)."""
+        self.cell_start = self.done
+
+        def report(done: int, _total: int) -> None:
+            self.advance(self.cell_start + done)
+
+        return report
+
+    def cell_done(self, text: str) -> None:
+        """A cell finished: ``text`` says which and its result (``spray_flask grasp 0 sigma
+        0.0133: P(FC) 0.980``)."""
+        self.cells_done += 1
+        self.cell_start = self.done
+        if self.bar is not None:
+            self.bar.set_description_str(self._desc(), refresh=True)
+            return
+        self.stream.write(f"{self.name}: {self.word} {self.cells_done}/{self.cells} {text}, "
+                          f"{self.status()}\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        """End the bar (the next line printed starts on a fresh line)."""
+        if self.bar is not None:
+            self.bar.status = self.status()
+            self.bar.set_description_str(self._desc(working=False), refresh=False)
+            self.bar.close()
+            self.bar = None
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

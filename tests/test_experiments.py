@@ -1,0 +1,218 @@
+"""The paper's experiments as a user runs them: Table I's contents, results before figures,
+file permissions, the overall progress report, out-of-range ``--grasps``."""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import os
+import stat
+import subprocess
+import sys
+
+import pytest
+from cli_helpers import run_cli
+
+from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.toolkit import experiments, plots
+from kinegrasp_env.toolkit.progress import Progress, format_eta
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasps, write_atomic
+
+
+def _read(path):
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.fixture()
+def umask_027():
+    """Run with umask 027 (group may read, others nothing), then put the old one back."""
+    old = os.umask(0o027)
+    yield 0o027
+    os.umask(old)
+
+
+def _mode(path) -> int:
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+# ----------------------------------------------------------------------------- Table I
+def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umask_027):
+    """sigma = 0: every draw is the nominal grasp, 10 of 10 in force closure. The Wilson
+    upper bound used to compute to 0.9999999999999999 < 1.0 there and matplotlib refused the
+    error bars; now the table, its interval and the figure are all written, with the
+    user's umask."""
+    rows = experiments.table1("cube", 10, tmp_path, grasps=1, sigmas=(0.0, 0.02), seed=0)
+    assert [r["sigma"] for r in rows] == [0.0, 0.02]
+    certain = rows[0]
+    assert certain["p_fc"] == 1.0 and certain["p_fc_hi"] == 1.0
+    assert certain["p_fc_lo"] == pytest.approx(wilson_interval(10, 10)[0])
+    csv_rows = _read(tmp_path / "table1.csv")
+    # backward compatible: the old columns first, in their old order; new ones appended
+    assert list(csv_rows[0]) == ["grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc",
+                                 "p_fc_lo", "p_fc_hi", "samples", "q_skew"]
+    assert float(csv_rows[1]["q_skew"]) == pytest.approx(rows[1]["q_skew"], rel=1e-12)
+    for name in ("table1.csv", "table1.md", "pfc_vs_sigma.png"):
+        assert _mode(tmp_path / name) == 0o666 & ~0o027, name
+    text = (tmp_path / "table1.md").read_text()
+    assert "sigma = 0 rad: mean / var / skew / P(FC) [95% CI]" in text
+    assert "radians" in text.splitlines()[0]
+    lo, hi = wilson_interval(round(rows[1]["p_fc"] * 10), 10)
+    assert f"{rows[1]['p_fc']:.3f} [{lo:.3f}, {hi:.3f}]" in text
+
+
+def test_markdown_table1_cells():
+    """Hand-made rows: every statistic lands in its cell, n/a where undefined."""
+    rows = [{"grasp": 0, "sigma": 0.0133, "q_nominal": 0.0123, "q_mean": 0.0111,
+             "q_var": 2.5e-6, "q_skew": -0.4567, "p_fc": 0.9, "p_fc_lo": 0.5958,
+             "p_fc_hi": 0.9821, "samples": 10},
+            {"grasp": 0, "sigma": 0.0333, "q_nominal": 0.0123, "q_mean": 0.02,
+             "q_var": float("nan"), "q_skew": float("nan"), "p_fc": 0.1, "p_fc_lo": 0.0179,
+             "p_fc_hi": 0.4042, "samples": 10}]
+    text = experiments.markdown_table1(rows, "cube", 10)
+    line = text.splitlines()[-1]
+    assert line == ("| 0 | 0.0123 | 0.0111 / 2.5e-06 / -0.457 / 0.900 [0.596, 0.982] | "
+                    "0.02 / n/a / n/a / 0.100 [0.018, 0.404] |")
+
+
+def test_a_failing_figure_is_one_warning_and_the_results_stay(tmp_path, monkeypatch, caplog):
+    """A plot that raises: table1 still returns its rows and writes its tables; one warning
+    names the figure; an older figure at that path (it would show other results) goes."""
+    stale = tmp_path / "pfc_vs_sigma.png"
+    stale.write_bytes(b"old figure")
+
+    def broken(*args, **kwargs):
+        raise ValueError("'yerr' must not contain negative values")
+
+    monkeypatch.setattr(plots, "plot_pfc_vs_sigma", broken)
+    with caplog.at_level(logging.WARNING):
+        rows = experiments.table1("cube", 4, tmp_path, grasps=1, sigmas=(0.0,))
+    assert rows[0]["p_fc"] == 1.0
+    assert len(_read(tmp_path / "table1.csv")) == 1 and (tmp_path / "table1.md").exists()
+    assert not stale.exists()
+    warnings = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "\n" not in warnings[0].getMessage()
+    assert "pfc_vs_sigma.png not written (ValueError: 'yerr'" in warnings[0].getMessage()
+
+
+BROKEN_PLOT = """
+import sys
+from kinegrasp_env.toolkit import plots
+from kinegrasp_env.cli.main import main
+
+def broken(*args, **kwargs):
+    raise RuntimeError("no 3-D axes today")
+
+plots.plot_contacts = broken
+sys.exit(main(["evaluate", "--object", "cube", "--grasp", "0", "--sigma", "0.01",
+               "--samples", "4", "--plot", sys.argv[1]]))
+"""
+
+
+def test_cli_evaluate_prints_results_before_a_failing_plot(tmp_path):
+    """As the user sees it (a subprocess, no logging set up): the results on stdout, exit 0,
+    and exactly one stderr line about the figure."""
+    proc = subprocess.run([sys.executable, "-c", BROKEN_PLOT, str(tmp_path / "c.png")],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert "P(FC)" in proc.stdout and "plot written" not in proc.stdout
+    lines = [line for line in proc.stderr.splitlines() if "c.png" in line]
+    assert len(lines) == 1 and "not written (RuntimeError: no 3-D axes today)" in lines[0]
+    assert not (tmp_path / "c.png").exists()
+
+
+def test_reproduce_refuses_more_grasps_than_the_set_has():
+    proc = run_cli("reproduce", "table1", "--grasps", "99", "--samples", "10")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0, proc.stderr
+    assert "--grasps must be between 1 and 12 (spray_flask has 12 shipped grasps), got 99" \
+        in proc.stderr
+    assert len(shipped_grasps("spray_flask")) == 12
+
+
+# ----------------------------------------------------------------------------- file modes
+@pytest.mark.parametrize("mask", [0o022, 0o027, 0o077, 0o002])
+def test_written_files_follow_the_umask(tmp_path, mask):
+    """New files get 0o666 & ~umask (as open() would), not mkstemp's private 0600."""
+    old = os.umask(mask)
+    try:
+        write_atomic(tmp_path / "a.txt", "x")
+        write_atomic(tmp_path / "b.bin", b"\x00\x01")
+        save_grasps(shipped_grasps("cube")[:1], tmp_path / "g.json")
+        plots.plot_pfc_vs_sigma([{"grasp": 0, "sigma": 0.01, "p_fc": 0.5, "p_fc_lo": 0.4,
+                                  "p_fc_hi": 0.6}], tmp_path / "f.png")
+    finally:
+        os.umask(old)
+    for name in ("a.txt", "b.bin", "g.json", "f.png"):
+        assert _mode(tmp_path / name) == 0o666 & ~mask, (name, oct(mask))
+    assert (tmp_path / "b.bin").read_bytes() == b"\x00\x01"
+
+
+def test_rewriting_a_file_keeps_its_mode(tmp_path):
+    path = tmp_path / "a.txt"
+    path.write_text("old")
+    os.chmod(path, 0o640)
+    write_atomic(path, "new")
+    assert path.read_text() == "new" and _mode(path) == 0o640
+
+
+# ----------------------------------------------------------------------------- progress
+class Clock:
+    """A settable clock."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_progress_lines_off_a_terminal_and_an_eta_without_start_up():
+    """Two cells of 1,000 draws in chunks of 250. Start-up: 60 s before the first chunk;
+    then 100 draws/s. The rate and ETA must ignore the start-up: 100 draws/s and, after
+    cell 1 (1,000 draws left), 10 s to go (with the start-up counted: 1,000 draws in 67.5 s,
+    15 draws/s and 67 s)."""
+    clock, stream = Clock(), io.StringIO()
+    report = Progress("table1", 2000, 2, stream=stream, interactive=False, clock=clock)
+    for cell in range(2):
+        callback = report.evaluation()
+        for chunk in range(1, 5):
+            clock.now += 60.0 if (cell, chunk) == (0, 1) else 2.5
+            callback(250 * chunk, 1000)
+        report.cell_done(f"cube grasp 0 sigma 0.0{cell + 1}: P(FC) 0.500")
+    report.close()
+    lines = stream.getvalue().splitlines()
+    assert lines == [
+        "table1: cell 1/2 cube grasp 0 sigma 0.01: P(FC) 0.500, 1000/2000 draws, "
+        "100 draws/s, ETA 00:10",
+        "table1: cell 2/2 cube grasp 0 sigma 0.02: P(FC) 0.500, 2000/2000 draws, "
+        "100 draws/s, ETA 00:00"]
+
+
+def test_progress_rate_unknown_before_two_reports_and_eta_format():
+    clock, stream = Clock(), io.StringIO()
+    report = Progress("fig7", 100, 1, stream=stream, interactive=False, clock=clock)
+    clock.now = 30.0
+    report.evaluation()(100, 100)
+    report.cell_done("drill grasp 0 sigma 0.0133: P(FC) 1.000")
+    assert stream.getvalue() == ("fig7: cell 1/1 drill grasp 0 sigma 0.0133: P(FC) 1.000, "
+                                 "100/100 draws, ? draws/s, ETA ?\n")
+    assert [format_eta(s) for s in (None, 0.4, 59.6, 3599, 3600, 7384)] == [
+        "?", "00:00", "01:00", "59:59", "1:00:00", "2:03:04"]
+
+
+def test_progress_bar_on_a_terminal_is_one_bar():
+    """Interactive: one bar whose text shows the cell, the draws and the rate; no per-cell
+    lines."""
+    clock, stream = Clock(), io.StringIO()
+    with Progress("table1", 1000, 4, stream=stream, interactive=True, clock=clock) as report:
+        for _ in range(4):
+            callback = report.evaluation()
+            for chunk in (1, 2):
+                clock.now += 1.0
+                callback(125 * chunk, 250)
+            report.cell_done("x: P(FC) 1.000")
+    text = stream.getvalue()
+    assert "table1: cell 4/4" in text and "1000/1000 draws, 125 draws/s" in text
+    assert "x: P(FC)" not in text
