@@ -2,7 +2,8 @@
 
 The names a user starts from are exported here (loaded on first use, so ``import
 kinegrasp_env`` stays cheap): ``evaluate_grasp``/``GraspStats`` (Monte Carlo P(FC) and the
-moments of Q), ``JointNoise``, ``ferrari_canny``/``ferrari_canny_batch``, ``load_object``,
+moments of Q), ``JointNoise``, ``NoiseModel``/``load_noise_model`` (every source of error),
+``ferrari_canny``/``ferrari_canny_batch``, ``load_object``,
 ``shipped_grasps``, ``GraspPlanner``, ``rank_fixed``/``rank_adaptive`` and ``ENV_IDS``.
 
 The package is layered, top to bottom: ``cli``; ``envs``, ``toolkit``; ``montecarlo``;
@@ -37,6 +38,8 @@ _EXPORTS = {
     "evaluate_grasp": "montecarlo.evaluate",
     "GraspStats": "montecarlo.evaluate",
     "JointNoise": "sampling.noise",
+    "NoiseModel": "sampling.noise_model",
+    "load_noise_model": "sampling.noise_spec",
     "ferrari_canny": "quality.epsilon",
     "ferrari_canny_batch": "quality.epsilon",
     "load_object": "world.objects",

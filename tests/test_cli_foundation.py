@@ -86,3 +86,181 @@ def test_convergence_figure(tmp_path, capsys):
     assert set(curves) == {"2-link planar arm", "KUKA iiwa"}
     assert set(curves["KUKA iiwa"]) == {"0.0033", "0.0133", "0.0233", "0.0333"}
     assert out.exists()
+
+
+# ------------------------------------------------------------------ errors, --help, --version
+def _run(capsys, *argv: str) -> tuple[int, list[str]]:
+    """Exit status and stderr lines of ``kinegrasp argv`` run in this process."""
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse: usage errors, --help, --version
+        code = exc.code
+    return code, capsys.readouterr().err.strip().splitlines()
+
+
+@pytest.mark.parametrize(("argv", "command", "needle"), [
+    (["evaluate", "--noise", "cauchy"], "evaluate",
+     "argument --noise: invalid choice: 'cauchy' (choose from 'gaussian', 'uniform', "
+     "'triangular')"),
+    (["evaluate", "--object", "teapot"], "evaluate", "unknown object 'teapot'"),
+    (["evaluate", "--engine", "gpu"], "evaluate", "argument --engine: invalid choice: 'gpu'"),
+    (["evaluate", "--samplez", "3"], "evaluate", "unrecognized arguments: --samplez 3"),
+    (["rank"], "rank", "the following arguments are required: candidates"),
+    (["rank", "c.json", "--criterion", "best"], "rank", "argument --criterion: invalid choice"),
+    (["sweep", "spec.yaml"], "sweep", "the following arguments are required: --out"),
+    (["reproduce", "fig8"], "reproduce", "argument figure: invalid choice: 'fig8'"),
+    (["plan", "--object", "teapot"], "plan", "unknown object 'teapot'"),
+    (["evaluate", "--backend", "spark"], "evaluate", "argument --backend: invalid choice"),
+    (["frobnicate"], None, "argument command: invalid choice: 'frobnicate'"),
+])
+def test_usage_errors_are_one_line_with_a_help_hint(capsys, argv, command, needle):
+    code, err = _run(capsys, *argv)
+    prog = "kinegrasp" if command is None else f"kinegrasp {command}"
+    assert code == 2 and len(err) == 1, err
+    assert err[0].startswith(f"{prog}: error: ") and needle in err[0], err
+    assert err[0].endswith(f"(see `{prog} --help`)")
+
+
+def test_a_usage_error_from_the_shell_is_one_line():
+    proc = run_cli("evaluate", "--noise", "cauchy")
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.count("\n") == 1 and "usage:" not in proc.stderr, proc.stderr
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["evaluate", "--object", "cube", "--grasp", "12"],
+     "--grasp: grasp index 12 out of range: cube has 12 grasps (0..11)"),
+    (["evaluate", "--object", "cube", "--grasp", "-1"], "grasp index -1 out of range"),
+    (["evaluate", "--grasp", "one"], "--grasp: 'one' is not an integer"),
+    (["evaluate", "--object", "cube", "--sigma", "1e308", "--samples", "10", "--engine",
+      "fast"], "--sigma must be <= pi (3.14159 rad), got 1e308"),
+    (["evaluate", "--sigma", "inf"], "--sigma: 'inf' is not a finite number"),
+    (["evaluate", "--seed", "-3"], "--seed must be >= 0, got -3"),
+    (["evaluate", "--processes", "0"], "--processes must be >= 1, got 0"),
+    (["evaluate", "--address", "ray://head:10001"], "--address is for the ray backend"),
+    (["planar", "--sigma", "4"], "--sigma must be <= pi"),
+    (["plan", "--time-budget", "soon"], "--time-budget: 'soon' is not a number"),
+    (["plan", "--time-budget", "-5"], "--time-budget must be > 0, got -5"),
+    (["plan", "--max-attempts", "0"], "--max-attempts must be >= 1, got 0"),
+    (["plan", "--variants", "-1"], "--variants must be >= 0, got -1"),
+    (["plan", "--variants", "two"], "--variants: 'two' is not an integer"),
+    (["convergence", "--max-samples", "5"], "--max-samples must be >= 10, got 5"),
+])
+def test_bad_values_are_one_line(capsys, argv, needle):
+    code, err = _run(capsys, *argv)
+    assert code == 2 and len(err) == 1, err
+    assert err[0].startswith(f"kinegrasp {argv[0]}: error: ") and needle in err[0], err
+
+
+def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    for argv, needle in [
+        (["planar", "--plot", str(tmp_path)], f"--plot {tmp_path} is a folder"),
+        (["planar", "--plot", str(a_file / "x.png")], f"{a_file} is not a folder"),
+        (["convergence", "--out", str(a_file / "c.png")], f"{a_file} is not a folder"),
+        (["evaluate", "--plot", str(tmp_path)], "is a folder; give a file name"),
+        (["plan", "--out", str(a_file / "g.json")], f"{a_file} is not a folder"),
+    ]:
+        code, err = _run(capsys, *argv)
+        assert code == 2 and len(err) == 1 and needle in err[0], err
+
+
+def _raise(exc: BaseException):
+    def command(args):
+        raise exc
+    return command
+
+
+@pytest.mark.parametrize("exc", [KeyError("index"), ValueError("shapes do not match"),
+                                 FileNotFoundError(2, "No such file", "/assets/x.json"),
+                                 IndexError("list index out of range")])
+def test_a_bug_is_a_traceback_and_a_hint_to_report_it(capsys, monkeypatch, exc):
+    """Only the CLI's own input errors are one line: a KeyError or ValueError from inside
+    (a bug) shows its traceback, then asks for a report, exit status 1."""
+    from kinegrasp_env.cli import arms
+
+    monkeypatch.setattr(arms, "cmd_planar", _raise(exc))
+    code, err = _run(capsys, "planar")
+    assert code == 1
+    assert err[0] == "Traceback (most recent call last):"
+    assert err[-2].startswith(type(exc).__name__)
+    assert err[-1] == ("kinegrasp planar: this is a bug in kinegrasp; please report it with "
+                       "the command you ran")
+    assert not any("error:" in line for line in err)
+
+
+def test_a_full_disk_is_one_line_not_a_bug(capsys, monkeypatch):
+    import errno
+
+    from kinegrasp_env.cli import arms
+
+    full = OSError(errno.ENOSPC, "No space left on device", "/out/x.png")
+    monkeypatch.setattr(arms, "cmd_planar", _raise(full))
+    code, err = _run(capsys, "planar")
+    assert code == 1
+    assert err == ["kinegrasp planar: error: [Errno 28] No space left on device: "
+                   "'/out/x.png'"]
+
+
+def test_version_is_the_installed_package_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out == f"kinegrasp {version('kinegrasp-env')}\n"
+
+
+def _subparsers():
+    import argparse
+
+    from kinegrasp_env.cli.main import build_parser
+
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def test_every_option_has_help_with_its_default():
+    """--help of every command shows every option with help text, and its default when
+    it has one (None: no default; a flag: off)."""
+    for name, sub in _subparsers().items():
+        text = " ".join(sub.format_help().split())
+        for action in sub._actions:
+            if not action.option_strings or action.dest == "help":
+                continue
+            assert action.help, f"{name} {action.option_strings[0]} has no help"
+            if action.default not in (None, False):
+                assert f"(default: {action.default})" in text, \
+                    f"{name} {action.option_strings[0]}: default not shown"
+
+
+def test_help_shows_the_choices_from_their_sources():
+    """Choices in --help come from the catalog and the library, not from a copy."""
+    from kinegrasp_env.cli.common import ENGINE_NAMES, MAX_SIGMA
+    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo.execution import BACKENDS
+    from kinegrasp_env.sampling.noise import DISTRIBUTIONS
+    from kinegrasp_env.toolkit.ranking import CRITERIA
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES
+
+    assert ENGINE_NAMES == evaluate.ENGINES and MAX_SIGMA == evaluate.MAX_SIGMA
+    subs = _subparsers()
+
+    def braces(names) -> str:
+        return "{" + ",".join(names) + "}"
+
+    for name in ("evaluate", "reproduce", "plan"):
+        assert f"--object {braces(OBJECT_NAMES)}" in subs[name].format_help()
+    for name in ("evaluate", "rank", "reproduce"):
+        text = subs[name].format_help()
+        assert f"--engine {braces(evaluate.ENGINES)}" in text
+        assert f"--backend {braces(BACKENDS)}" in text
+    for name in ("evaluate", "rank", "planar", "kuka-ee"):
+        assert f"--noise {braces(DISTRIBUTIONS)}" in subs[name].format_help()
+    assert f"--criterion {braces(CRITERIA)}" in subs["rank"].format_help()
+    counts = {len(shipped_grasps(name)) for name in OBJECT_NAMES}
+    assert counts == {12}
+    assert "shipped grasp set, 0..11" in " ".join(subs["evaluate"].format_help().split())

@@ -82,8 +82,8 @@ def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
     best = max(result.curve, key=lambda p: p.p_fc)
     assert result.best_psi == best.psi
     # independent scoring draws: chunks 2, 3 of seed 4 (selection used chunks 0, 1)
-    from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import draw_chunk
 
     engine = make_engine("fast", grasp.object)
     fc_best = np.concatenate([draw_chunk(engine, result.best_q, noise, 4, c, 100).outcome

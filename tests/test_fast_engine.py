@@ -1,4 +1,5 @@
-"""The fast engine: exact geometry kernels, the distance grid, and agreement with pybullet."""
+"""The fast engine: exact geometry kernels, the distance grid, the compiled closing loop (its
+agreement with the reference engine and with pybullet: tests/test_agreement.py)."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ import pytest
 from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
 from kinegrasp_env.closing.reference import secant_root
 from kinegrasp_env.closing.segment_distance import closest_to_segments
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine, PybulletEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
@@ -138,43 +139,6 @@ def test_secant_root_finds_the_zero_of_a_smooth_gap():
     root = secant_root(lambda t: 0.3 * (t - 0.4) + 0.05 * (t - 0.4) ** 2, 0.4003,
                        0.3 * 0.0003 + 0.05 * 0.0003**2, 0.0, 1.0)
     assert root == pytest.approx(0.4, abs=1e-8)
-
-
-@pytest.mark.expensive
-@pytest.mark.parametrize("name", OBJECT_NAMES)
-def test_fast_engine_agrees_with_pybullet_draw_by_draw(name):
-    """Two noise levels, shipped grasps: same outcome for >= 98% of draws, contacts within
-    1 mm and Q within 2% where both close, P(FC) within the combined 99% interval."""
-    reference, fast = PybulletEngine(name), FastEngine(name)
-    grasps = shipped_grasps(name)[:2]
-    try:
-        for sigma in (0.0133, 0.0266):
-            same = total = 0
-            p_ref = p_fast = 0
-            for grasp in grasps:
-                q = np.repeat(grasp.q0[None], 80, axis=0)
-                q[:, :7] += chunk_noise(JointNoise(sigma), 7, 0, 80)
-                a, b = reference.run(q), fast.run(q)
-                same += int((a.outcome == b.outcome).sum())
-                total += len(q)
-                p_ref += int((a.outcome == FORCE_CLOSURE).sum())
-                p_fast += int((b.outcome == FORCE_CLOSURE).sum())
-                both = np.flatnonzero((a.outcome >= 2) & (a.outcome == b.outcome)
-                                      & (a.n_contacts == b.n_contacts))
-                for i in both:
-                    k = a.n_contacts[i]
-                    np.testing.assert_array_equal(a.finger[i, :k], b.finger[i, :k])
-                    np.testing.assert_array_equal(a.link[i, :k], b.link[i, :k])
-                    gap = np.linalg.norm(a.points[i, :k] - b.points[i, :k], axis=1)
-                    assert gap.max() < 1e-3
-                fc = (a.outcome == FORCE_CLOSURE) & (b.outcome == FORCE_CLOSURE)
-                np.testing.assert_allclose(b.quality[fc], a.quality[fc], rtol=0.02)
-            assert same / total >= 0.98
-            pr, pf = p_ref / total, p_fast / total
-            half_width = 2.576 * np.sqrt(pr * (1 - pr) / total + pf * (1 - pf) / total)
-            assert abs(pr - pf) <= half_width + 1e-12
-    finally:
-        reference.close()
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)

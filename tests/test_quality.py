@@ -138,8 +138,8 @@ def test_support_function_bounds_q():
 @pytest.mark.parametrize("k", [4, 5])
 def test_more_contacts_agree_with_the_reference(k):
     """4-5 contacts go through the certified expansion: qhull's Q to 1e-9, same FC set."""
-    from kinegrasp_env.quality.wrenches import edge_wrenches
     from kinegrasp_env.quality.expansion import epsilon_epa_batch
+    from kinegrasp_env.quality.wrenches import edge_wrenches
 
     rng = np.random.default_rng(k)
     pts, nrm = sphere_contacts(rng, 40, k, jitter=0.3)

@@ -33,6 +33,12 @@ BASE = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01]}
     ({"engines": ["gpu"]}, "unknown engine 'gpu'"),
     ({"samples": 0}, "'samples' must be an integer >= 1, got 0"),
     ({"sigmas": []}, "'sigmas' is empty"),
+    ({"sigmas": [0.01, 3.5]}, "sigma must be <= pi (3.14159 rad), got 3.5"),
+    ({"objects": ["cube", "mug", "cube"]}, "'cube' appears twice in 'objects'"),
+    ({"grasps": [0, 1, 0]}, "0 appears twice in 'grasps'"),
+    ({"sigmas": [0.01, 0.02, 0.010]}, "0.01 appears twice in 'sigmas'"),
+    ({"noise": ["uniform", "uniform"]}, "'uniform' appears twice in 'noise'"),
+    ({"engines": ["fast", "pybullet", "fast"]}, "'fast' appears twice in 'engines'"),
 ])
 def test_bad_specs_are_named(change, message):
     with pytest.raises(SpecError, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -54,6 +60,42 @@ def test_bad_spec_file_fails_before_any_work(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown object 'teapot'" in err[0]
     assert not out.exists()
+
+
+def test_yaml_numbers_with_an_exponent_are_numbers(tmp_path):
+    """YAML 1.1 reads ``1e-2`` (no decimal point) and ``2.5e3`` (no sign) as strings; a spec
+    reads them as numbers, as YAML 1.2 and JSON do."""
+    path = tmp_path / "spec.yaml"
+    path.write_text("objects: [cube]\ngrasps: [0]\nsigmas: [1e-2, 2.5E-2, .5e-1, 0.001, 0]\n"
+                    "samples: 2e3\nchunk: 5E+2\n")
+    spec = SweepSpec.from_file(path)
+    assert spec.sigmas == (0.01, 0.025, 0.05, 0.001, 0.0)
+    assert (spec.samples, spec.chunk) == (2000, 500)  # whole numbers count as integers
+    path.write_text("objects: [cube]\nsigmas: [0.01]\nsamples: 2.5e2\nchunk: 1e-2\n")
+    with pytest.raises(SpecError, match=r"'chunk' must be an integer >= 1, got 0\.01"):
+        SweepSpec.from_file(path)
+    path.write_text("objects: [cube]\nsigmas: [1e-2, 0.01]\n")
+    with pytest.raises(SpecError, match=r"0\.01 appears twice in 'sigmas'"):
+        SweepSpec.from_file(path)
+
+
+@pytest.mark.parametrize(("text", "where", "what"), [
+    # the ':' after 'sigmas' (line 2, column 7) is where the unclosed '[' of line 1 fails
+    ("objects: [cube\nsigmas: [0.01]\n", "2:7", "expected ',' or ']', but got ':'"),
+    # the indented 'samples' (line 3, column 3) cannot continue the mapping
+    ("objects: [cube]\nsigmas: [0.01]\n  samples: 3\n", "3:3", "expected <block end>"),
+    ("objects: [cube]\nsigmas: [0.01]\nsigmas: [0.02]\n", "3:1",
+     "key 'sigmas' appears twice"),
+])
+def test_a_yaml_error_is_one_line_with_file_line_and_column(tmp_path, capsys, text, where,
+                                                            what):
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(text)
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith(f"kinegrasp sweep: error: {spec}:{where}: not valid YAML: {what}")
+    assert not (tmp_path / "out").exists()
 
 
 def test_grid_and_task_keys():

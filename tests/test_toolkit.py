@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import csv
+import json
+import signal
+import time
 
 import numpy as np
 import pytest
-from cli_helpers import run_cli
+from cli_helpers import run_cli, start_cli
 
 from kinegrasp_env import cli
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
@@ -71,45 +74,241 @@ def test_plan_then_rank(tmp_path, obj):
     assert proc.returncode == 0, proc.stderr
     rows = _read(ranked)
     assert list(rows[0]) == ["id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew",
-                             "q_nominal", "error", "samples"]
+                             "q_nominal", "error", "samples", "engine"]
+    assert {r["engine"] for r in rows} == {"pybullet"}
     p = [float(r["p_fc"]) for r in rows]
     assert p == sorted(p, reverse=True)
     assert all(float(r["p_fc_lo"]) <= float(r["p_fc"]) <= float(r["p_fc_hi"]) for r in rows)
 
 
-def _cube_candidates(tmp_path):
+def _cube_candidates(tmp_path, count=4):
     from kinegrasp_env.world.grasps import save_grasps
 
     path = tmp_path / "cube.json"
-    save_grasps(shipped_grasps("cube")[:4], path)
+    save_grasps(shipped_grasps("cube")[:count], path)
     return path
 
 
-def test_rank_resumes_after_interruption(tmp_path, monkeypatch, capsys):
-    candidates = _cube_candidates(tmp_path)
-    args = ["rank", str(candidates), "--samples", "40", "--seed", "3"]
-    assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
+def _log(partial) -> tuple[list[dict], list[int]]:
+    """The settings lines and the candidate indices of a rank log."""
+    items = [json.loads(line) for line in partial.read_text().splitlines()]
+    return [i for i in items if "settings" in i], [i["index"] for i in items if "index" in i]
 
+
+def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, capsys):
+    """Stopped before any candidate finished, twice (the second start once wrote a second
+    settings line and every later run failed with `error: index`), then after two: the
+    log keeps one settings line and each candidate once, and the resumed CSV equals an
+    uninterrupted run's byte for byte."""
     from kinegrasp_env.montecarlo import evaluate
 
-    real = evaluate.run_chunks
-    calls = {"n": 0}
+    candidates = _cube_candidates(tmp_path)
+    args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
+    assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
 
-    def interrupted(*a, **k):
+    real = evaluate.run_chunks
+    out = tmp_path / "resumed.csv"
+    partial = tmp_path / "resumed.csv.partial.jsonl"
+    for stop_at, finished in ((1, []), (1, []), (3, [0, 1])):
+        calls = {"n": 0}
+
+        def interrupted(*a, stop_at=stop_at, calls=calls, **k):
+            calls["n"] += 1
+            if calls["n"] == stop_at:
+                raise KeyboardInterrupt
+            return real(*a, **k)
+
+        monkeypatch.setattr(evaluate, "run_chunks", interrupted)
+        assert cli.main([*args, "--out", str(out)]) == 130
+        assert not out.exists()  # nothing half-written
+        settings, indices = _log(partial)
+        assert len(settings) == 1 and indices == finished
+    monkeypatch.setattr(evaluate, "run_chunks", real)
+    capsys.readouterr()
+    assert cli.main([*args, "--out", str(out)]) == 0
+    assert "resuming: 2 of 4 candidates already ranked" in capsys.readouterr().err
+    assert out.read_text() == (tmp_path / "full.csv").read_text()
+    assert not partial.exists()
+    rows = _read(out)
+    assert list(rows[0])[-1] == "engine" and {r["engine"] for r in rows} == {"fast"}
+
+
+def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:
+    """``rank args`` stopped (Ctrl-C) before its first candidate finished."""
+    from kinegrasp_env.montecarlo import evaluate
+
+    def interrupt(*a, **k):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(evaluate, "run_chunks", interrupt)
+        assert cli.main(args) == 130
+
+
+@pytest.mark.parametrize(("change", "needle"), [
+    (["--engine", "pybullet"], '(--engine: "fast" there, "pybullet" now)'),
+    (["--sigma", "0.02"], "(--sigma: 0.0133 there, 0.02 now)"),
+    (["--noise", "uniform"], '(--noise: "gaussian" there, "uniform" now)'),
+    (["--samples", "41"], "(--samples: 40 there, 41 now)"),
+    (["--samples", "300"], "(--samples: 40 there, 300 now)"),
+    (["--seed", "4"], "(--seed: 3 there, 4 now)"),
+    (["other candidates"], "(candidates file content (SHA-256): "),
+    (["--adaptive", "--top-k", "1"], "which --adaptive cannot resume"),
+])
+def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsys, change,
+                                                     needle):
+    """A log is resumed only by a run with the same value of every setting that changes a
+    number; the refusal is one line that names the setting and leaves the log as it was."""
+    candidates = _cube_candidates(tmp_path)
+    out = tmp_path / "r.csv"
+    partial = tmp_path / "r.csv.partial.jsonl"
+    args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast",
+            "--out", str(out)]
+    _stopped_run(tmp_path, monkeypatch, args)
+    (settings,), indices = _log(partial)
+    assert indices == []
+    assert set(settings["settings"]) == {"candidates_sha256", "engine", "friction",
+                                         "num_edges", "noise", "sigma", "method", "samples",
+                                         "chunk", "seed"}
+    log = partial.read_text()
+    if change == ["other candidates"]:
+        _cube_candidates(tmp_path, count=5)  # the same file name, one grasp more
+        change = []
+    capsys.readouterr()
+    assert cli.main([*args, *change]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], lines
+    assert "delete it" in lines[0]
+    assert partial.read_text() == log
+    assert not out.exists()
+
+
+def test_rank_criterion_is_not_a_resume_setting(tmp_path, monkeypatch, capsys):
+    """--criterion only orders finished candidates: a run stopped under one criterion
+    resumes under another, to the CSV an uninterrupted run with that criterion writes."""
+    candidates = _cube_candidates(tmp_path)
+    args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
+    _stopped_run(tmp_path, monkeypatch, [*args, "--out", str(tmp_path / "r.csv")])
+    assert cli.main([*args, "--criterion", "q_mean", "--out", str(tmp_path / "r.csv")]) == 0
+    assert cli.main([*args, "--criterion", "q_mean", "--out", str(tmp_path / "u.csv")]) == 0
+    assert (tmp_path / "r.csv").read_text() == (tmp_path / "u.csv").read_text()
+
+
+def test_rank_log_cut_off_by_a_kill_is_repaired_and_a_damaged_one_refused(
+        tmp_path, monkeypatch, capsys):
+    """A last line cut off mid-write (a kill) is dropped and its candidate computed again;
+    a damaged line before the end is refused in one line (never `error: index`)."""
+    from kinegrasp_env.montecarlo import evaluate
+
+    candidates = _cube_candidates(tmp_path)
+    args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
+    assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
+    out = tmp_path / "r.csv"
+    partial = tmp_path / "r.csv.partial.jsonl"
+    real, calls = evaluate.run_chunks, {"n": 0}
+
+    def third_call_interrupted(*a, **k):
         calls["n"] += 1
         if calls["n"] == 3:
             raise KeyboardInterrupt
         return real(*a, **k)
 
-    out = tmp_path / "resumed.csv"
-    monkeypatch.setattr(evaluate, "run_chunks", interrupted)
-    assert cli.main([*args, "--out", str(out)]) == 130
-    assert not out.exists()  # nothing half-written
-    partial = tmp_path / "resumed.csv.partial.jsonl"
-    assert len(partial.read_text().splitlines()) == 3  # settings + 2 finished candidates
-    monkeypatch.setattr(evaluate, "run_chunks", real)
+    with monkeypatch.context() as patch:
+        patch.setattr(evaluate, "run_chunks", third_call_interrupted)
+        assert cli.main([*args, "--out", str(out)]) == 130
+    log = partial.read_text()
+    assert _log(partial)[1] == [0, 1]
+
+    partial.write_text(log.replace('"index": 0', '"index": 0 garbage'))
+    capsys.readouterr()
+    assert cli.main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"kinegrasp rank: error: {partial} line 2 is damaged; delete the file to "
+                   "start over"]
+
+    partial.write_text(log + '{"index": 2, "successes": 3')  # killed while writing
     assert cli.main([*args, "--out", str(out)]) == 0
+    assert "resuming: 2 of 4 candidates already ranked" in capsys.readouterr().err
     assert out.read_text() == (tmp_path / "full.csv").read_text()
+
+
+def _finished(partial) -> int:
+    """Candidates in a rank log that a running process may be appending to (a line without
+    its newline yet does not count)."""
+    text = partial.read_text() if partial.exists() else ""
+    return text[:text.rfind("\n") + 1].count('"index"')
+
+
+def _wait_for(condition, what: str, process, timeout: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert process.poll() is None, f"the run ended before {what}"
+        assert time.monotonic() < deadline, f"timed out waiting until {what}"
+        time.sleep(0.005)
+
+
+def _read_until_resuming(process) -> None:
+    """Read the run's stderr until it says it has read its log back."""
+    for line in process.stderr:
+        if line.startswith("resuming:"):
+            return
+    raise AssertionError("the run ended without resuming")
+
+
+def _sigint(process, partial) -> int:
+    """Ctrl-C the run; it exits 130 leaving a log with one settings line and candidates
+    0, 1, ... each once. Returns how many candidates the log holds."""
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "kinegrasp: interrupted", err
+    settings, indices = _log(partial)
+    assert len(settings) == 1 and indices == list(range(len(indices)))
+    return len(indices)
+
+
+@pytest.mark.expensive
+def test_rank_interrupted_three_times_by_sigint_resumes_to_the_same_csv(tmp_path):
+    """A real process stopped by SIGINT three times (twice before any candidate finished,
+    once after some did), then resumed, writes the CSV of an uninterrupted run byte for
+    byte; resuming with another engine is refused."""
+    candidates = _cube_candidates(tmp_path, count=8)
+    args = ["rank", str(candidates), "--samples", "300", "--seed", "1", "--engine", "fast"]
+    assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
+    out = tmp_path / "r.csv"
+    partial = tmp_path / "r.csv.partial.jsonl"
+    stops = []
+    # 1: a fresh run, stopped once its log exists (its first candidate is still running:
+    # building the engine alone takes ~0.5 s, the signal goes within ~10 ms)
+    process = start_cli(*args, "--out", str(out))
+    _wait_for(partial.exists, "its log exists", process)
+    stops.append(_sigint(process, partial))
+    # 2: resumed, stopped as soon as it has read the log back
+    process = start_cli(*args, "--out", str(out))
+    _read_until_resuming(process)
+    stops.append(_sigint(process, partial))
+    # 3: resumed, stopped after two more candidates finished
+    process = start_cli(*args, "--out", str(out))
+    _read_until_resuming(process)
+    _wait_for(lambda: _finished(partial) >= stops[-1] + 2, "two candidates finished", process)
+    stops.append(_sigint(process, partial))
+    print(f"candidates finished at each SIGINT: {stops} of 8")
+    assert stops[:2] == [0, 0] and 2 <= stops[2] < 8
+    assert not out.exists()
+
+    log = partial.read_text()
+    refused = run_cli(*args, "--out", str(out), "--engine", "pybullet")
+    assert refused.returncode == 2
+    assert refused.stderr.strip().splitlines() == [
+        f"kinegrasp rank: error: {partial} holds an interrupted ranking with other settings "
+        '(--engine: "fast" there, "pybullet" now); delete it to start over, or resume with '
+        "the same settings"]
+    assert partial.read_text() == log
+
+    resumed = run_cli(*args, "--out", str(out))
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"resuming: {stops[2]} of 8 candidates already ranked" in resumed.stderr
+    assert out.read_bytes() == (tmp_path / "full.csv").read_bytes()
     assert not partial.exists()
 
 
@@ -121,6 +320,32 @@ def test_rank_bad_candidates(tmp_path):
     proc = run_cli("rank", str(bad))
     assert proc.returncode == 2 and "bad.json grasp 0: missing or malformed field" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_rank_refuses_repeated_ids_and_bad_paths_in_one_line(tmp_path, capsys):
+    """The CSV is keyed by candidate id: two candidates with one id are refused (computing
+    both and writing two rows with the same id would leave the reader guessing)."""
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasps = shipped_grasps("cube")[:3]
+    twice = tmp_path / "twice.json"
+    save_grasps([grasps[0], grasps[1], grasps[0]], twice)
+    candidates = _cube_candidates(tmp_path)
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    for argv, needle in [
+        ([str(twice)], f"{twice}: grasps 0 and 2 have the same id '{grasps[0].id}'; "
+                       "candidate ids must be unique"),
+        ([str(tmp_path)], f"{tmp_path} is a folder, not a grasp file"),
+        ([str(candidates), "--out", str(tmp_path)], "is a folder; give a file name"),
+        ([str(candidates), "--out", str(a_file / "r.csv")], f"{a_file} is not a folder"),
+        ([str(candidates), "--adaptive", "--top-k", "4"],
+         "--top-k must be below the number of candidates (4)"),
+    ]:
+        assert cli.main(["rank", *argv, "--engine", "fast", "--samples", "10"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and needle in err[0], err
+    assert not list(tmp_path.glob("*.csv*"))
 
 
 def test_plan_without_result_leaves_no_file(tmp_path):

@@ -15,6 +15,7 @@ from kinegrasp_env.cli.common import (
     float_list,
     format_moments,
     noise_from,
+    output_file,
     parse_seed,
     positive_int,
     print_json,
@@ -32,6 +33,8 @@ def cmd_planar(args) -> int:
     if any(v <= 0 for v in links):
         raise CLIError(f"--links: link lengths must be > 0, got {args.links}")
     noise, sigma, samples, seed = noise_from(args)
+    if args.plot:
+        output_file(args.plot, "--plot")
     arm = PlanarArm(tuple(links))
     ee = arm.sample(np.array(q0), noise, samples, np.random.default_rng(seed))
     mom = moments(ee)
@@ -95,6 +98,7 @@ def cmd_convergence(args) -> int:
     if max_n < 10:
         raise CLIError(f"--max-samples must be >= 10, got {max_n}")
     seed = parse_seed(args.seed)
+    output_file(args.out, "--out")
     sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
     arm = PlanarArm(DEFAULT_PLANAR_LINKS)
     jobs = [(label, s) for label in ("2-link planar arm", "KUKA iiwa") for s in PAPER_SIGMAS]
@@ -137,9 +141,11 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, planar arm and KUKA")
     p.add_argument("--out", default="convergence.png", help="output PNG")
-    p.add_argument("--trials", default="10")
-    p.add_argument("--truth-samples", default="100000")
-    p.add_argument("--max-samples", default="10000")
-    p.add_argument("--seed", default="0")
+    p.add_argument("--trials", default="10", help="independent estimates per sample size")
+    p.add_argument("--truth-samples", default="100000",
+                   help="draws of the reference estimate the errors are measured against")
+    p.add_argument("--max-samples", default="10000",
+                   help="largest sample size (10 sizes from 10 up to it)")
+    p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     p.add_argument("--json", action="store_true", help="print the curves as JSON")
     p.set_defaults(func=cmd_convergence)

@@ -1,18 +1,69 @@
-"""What every ``kinegrasp`` sub-command shares: the user-error type, value parsers, the noise,
-seed and execution options, and JSON output.
+"""What every ``kinegrasp`` sub-command shares: the user-error type, the parser class (one-line
+usage errors, defaults in ``--help``), value parsers, the noise, seed and execution options,
+and JSON output.
+
+Error policy: a command validates the user's values here, at the CLI boundary, and raises
+:class:`CLIError` (one line, exit 2). A library error is turned into a ``CLIError`` only at
+the call that checks a user's value, by its own type (:func:`reported`); any other exception
+is a bug and reaches ``main`` as a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
+
+#: ``--engine`` choices; equal to ``montecarlo.evaluate.ENGINES`` (tested), kept here so that
+#: building the parser does not import the engines.
+ENGINE_NAMES = ("pybullet", "fast")
+#: Largest ``--sigma`` (radians): joint noise is an angle, and a standard deviation beyond
+#: half a turn describes no joint; it also keeps every configuration finite. Equal to
+#: ``montecarlo.evaluate.MAX_SIGMA`` (tested), the bound the library enforces.
+MAX_SIGMA = math.pi
 
 
 class CLIError(ValueError):
     """A user error: printed as one line, exit status 2."""
+
+
+@contextlib.contextmanager
+def reported(*errors: type[Exception]) -> Iterator[None]:
+    """Report the listed library input errors raised inside as :class:`CLIError`.
+
+    Wrap only the call that checks a user's value (a file, an address), never a whole
+    command: anything else that goes wrong is a bug and must show its traceback.
+    """
+    try:
+        yield
+    except errors as exc:
+        raise CLIError(str(exc)) from None
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Every option's help ends with its default (unless None or False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if (action.option_strings and "%(default)" not in text
+                and action.default not in (None, False, argparse.SUPPRESS)):
+            text += " (default: %(default)s)"
+        return text
+
+
+class Parser(argparse.ArgumentParser):
+    """``kinegrasp``'s parsers: a usage error is one line with a hint to ``--help``."""
+
+    def __init__(self, *args, formatter_class=HelpFormatter, **kwargs) -> None:
+        super().__init__(*args, formatter_class=formatter_class, **kwargs)
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
 
 
 # ----------------------------------------------------------------------------- parsing helpers
@@ -39,13 +90,36 @@ def nonnegative(value: float, name: str) -> float:
     return value
 
 
-def positive_int(text: str | int, name: str) -> int:
+def positive_int(text: str | int, name: str, low: int = 1) -> int:
+    """An integer >= ``low`` (1 unless given)."""
     try:
         value = int(text)
     except ValueError:
         raise CLIError(f"{name}: {text!r} is not an integer") from None
-    if value < 1:
-        raise CLIError(f"{name} must be >= 1, got {value}")
+    if value < low:
+        raise CLIError(f"{name} must be >= {low}, got {value}")
+    return value
+
+
+def output_file(text: str, name: str) -> Path:
+    """A file the command will write: not a folder, and no file where a folder must be
+    (missing folders are created when it is written)."""
+    path = Path(text)
+    if path.is_dir():
+        raise CLIError(f"{name} {text} is a folder; give a file name")
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise CLIError(f"{name} {text}: {parent} is not a folder")
+            break
+    return path
+
+
+def positive_float(text: str, name: str) -> float:
+    """A finite number > 0."""
+    value = finite_float(text, name)
+    if value <= 0:
+        raise CLIError(f"{name} must be > 0, got {value:g}")
     return value
 
 
@@ -68,21 +142,61 @@ def format_moments(label: str, mean, cov, skew=None) -> str:
 
 
 def add_noise_args(p: argparse.ArgumentParser, sigma_default: float) -> None:
+    from kinegrasp_env.sampling.noise import DISTRIBUTIONS
+
     p.add_argument("--sigma", default=str(sigma_default),
-                   help=f"joint noise standard deviation, radians (default {sigma_default})")
-    p.add_argument("--noise", default="gaussian", choices=("gaussian", "uniform", "triangular"))
+                   help="standard deviation of the noise on each joint, radians (0 .. pi)")
+    p.add_argument("--noise", default="gaussian", choices=DISTRIBUTIONS,
+                   help="distribution of the joint noise (all with standard deviation sigma)")
     p.add_argument("--samples", default="10000", help="number of Monte Carlo draws")
-    p.add_argument("--seed", default="0", help="random seed")
+    p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
 def noise_from(args) -> tuple:
+    """(noise, sigma, samples, seed) of ``--sigma/--noise`` or ``--noise-spec`` (then the
+    noise is the model and sigma its joints' sigma: a number or 7)."""
     from kinegrasp_env.sampling.noise import JointNoise
 
+    model = noise_spec_from(args)
+    if model is not None:
+        sigma = model.sigma if isinstance(model.sigma, float) else list(model.sigma)
+        return model, sigma, positive_int(args.samples, "--samples"), parse_seed(args.seed)
     sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
+    if sigma > MAX_SIGMA:
+        raise CLIError(f"--sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {args.sigma}")
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
     return JointNoise(sigma, args.noise), sigma, samples, seed
+
+
+def add_noise_spec_arg(p: argparse.ArgumentParser) -> None:
+    """``--noise-spec FILE`` (see :func:`noise_spec_from`)."""
+    p.add_argument("--noise-spec", help="YAML or JSON noise model of every source of error: "
+                   "joints, hand, palm, object, friction, or preset: dexnet (see "
+                   "docs/conventions.md); replaces --sigma and --noise")
+
+
+def noise_spec_from(args):
+    """The :class:`~kinegrasp_env.sampling.noise_model.NoiseModel` of ``--noise-spec``, or
+    None without it; a bad spec, and ``--sigma``, ``--noise`` or ``--report`` next to it, are
+    :class:`CLIError` lines."""
+    path = getattr(args, "noise_spec", None)
+    if path is None:
+        return None
+    parser = getattr(args, "command_parser", None)
+    for option in ("sigma", "noise"):
+        if parser is not None and getattr(args, option) != parser.get_default(option):
+            raise CLIError(f"--{option} and --noise-spec both given: the spec's joints "
+                           "section is the joint noise")
+    if getattr(args, "report", None):
+        raise CLIError("--report shows joint noise only; it cannot be combined with "
+                       "--noise-spec")
+    from kinegrasp_env.sampling.noise_model import NoiseSpecError
+    from kinegrasp_env.sampling.noise_spec import load_noise_model
+
+    with reported(NoiseSpecError):
+        return load_noise_model(path)
 
 
 def parse_seed(text: str) -> int:
@@ -98,8 +212,10 @@ def parse_seed(text: str) -> int:
 
 def add_execution_args(parser: argparse.ArgumentParser, default_processes: int) -> None:
     """``--backend``, ``--address`` and ``--processes`` (see :func:`executor_from`)."""
-    parser.add_argument("--backend", default="local",
-                        help="local (a process pool on this machine, the default) or ray")
+    from kinegrasp_env.montecarlo.execution import BACKENDS
+
+    parser.add_argument("--backend", default="local", choices=BACKENDS,
+                        help="local (a process pool on this machine) or ray")
     parser.add_argument("--address", help="Ray cluster to use with --backend ray (e.g. "
                         "ray://head:10001); without it a local Ray instance is started")
     parser.add_argument("--processes", default=None,
@@ -118,7 +234,16 @@ def executor_from(args):
     processes = None if args.processes is None else positive_int(args.processes, "--processes")
     if args.backend == "local" and processes is None:
         processes = args.default_processes
-    return make_executor(args.backend, processes, args.address)
+    # make_executor's ValueErrors are about these settings: Ray missing, an unreachable or
+    # malformed --address
+    with reported(ValueError):
+        return make_executor(args.backend, processes, args.address)
+
+
+def add_engine_arg(parser: argparse.ArgumentParser) -> None:
+    """``--engine``: pybullet or fast."""
+    parser.add_argument("--engine", default="pybullet", choices=ENGINE_NAMES,
+                        help="pybullet (the reference) or fast (batched, same draws)")
 
 
 def engine_name(value: str) -> str:
@@ -136,3 +261,47 @@ def parse_index(text: str) -> int:
         return int(text)
     except ValueError:
         raise CLIError(f"--grasp: {text!r} is not an integer") from None
+
+
+def object_name(text: str) -> str:
+    """``--object``: a built-in or imported object's name (argparse ``type``; a bad name is a
+    usage error)."""
+    from kinegrasp_env.world.objects import is_object, unknown_object
+
+    if not is_object(text):
+        raise argparse.ArgumentTypeError(str(unknown_object(text)))
+    return text
+
+
+def add_object_arg(parser: argparse.ArgumentParser, default: str, help: str) -> None:
+    """``--object`` with the catalog's names (built-in and imported) as choices."""
+    from kinegrasp_env.world.objects import object_names
+
+    parser.add_argument("--object", default=default, type=object_name, choices=object_names(),
+                        help=help)
+
+
+def grasp_index_help() -> str:
+    """Help of ``--grasp``: the index range of every object's shipped grasp set."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES
+
+    ranges = {name: f"0..{len(shipped_grasps(name)) - 1}" for name in OBJECT_NAMES}
+    if len(set(ranges.values())) == 1:
+        return f"index in the object's shipped grasp set, {next(iter(ranges.values()))}"
+    return "index in the object's shipped grasp set: " + ", ".join(
+        f"{name} {r}" for name, r in ranges.items())
+
+
+def shipped_grasp(object_name: str, text: str):
+    """``(index, grasp)``: entry ``--grasp`` of the object's shipped set, range-checked (an
+    imported object has none: one line suggesting ``kinegrasp plan``)."""
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
+
+    index = parse_index(text)
+    with reported(NoGraspSetError):
+        grasps = shipped_grasps(object_name)
+    if not 0 <= index < len(grasps):
+        raise CLIError(f"--grasp: grasp index {index} out of range: {object_name} has "
+                       f"{len(grasps)} grasps (0..{len(grasps) - 1})")
+    return index, grasps[index]

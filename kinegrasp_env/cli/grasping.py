@@ -1,68 +1,102 @@
-"""Grasp commands: ``objects`` (the catalog), ``evaluate`` (Monte Carlo P(FC) of one grasp) and
+"""Grasp commands: ``evaluate`` (Monte Carlo P(FC) of one grasp) and
 ``reproduce`` (the paper's tables and figures).
 """
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from kinegrasp_env.cli.common import (
     CLIError,
+    add_engine_arg,
     add_execution_args,
     add_noise_args,
+    add_noise_spec_arg,
+    add_object_arg,
     engine_name,
     executor_from,
+    grasp_index_help,
     noise_from,
+    output_file,
     parse_index,
     parse_seed,
     positive_int,
+    reported,
+    shipped_grasp,
 )
 
-
-def cmd_objects(args) -> int:
-    from kinegrasp_env.world.objects import catalog
-
-    rows = catalog()
-    if args.json:
-        print(json.dumps(rows))
-        return 0
-    print(f"{'name':<12} {'size x, y, z [m]':<26} {'r_max [m]':>9} {'parts':>5}")
-    for r in rows:
-        size = ", ".join(f"{v:.3f}" for v in r["size"])
-        print(f"{r['name']:<12} {size:<26} {r['r_max']:>9.4f} {r['parts']:>5}")
-    return 0
+#: ``evaluate``'s object when neither --object nor --grasps is given.
+EVALUATE_OBJECT = "spray_flask"
 
 
 def cmd_evaluate(args) -> int:
+    from kinegrasp_env.cli.report import evaluate_report, report_path
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.world.grasps import grasp_by_index
 
     noise, sigma, samples, seed = noise_from(args)
-    index = parse_index(args.grasp)
-    grasp = grasp_by_index(args.object, index)
+    index, grasp = chosen_grasp(args)
     engine = engine_name(args.engine)
+    if args.plot:
+        output_file(args.plot, "--plot")
+    report_path(args.report)
     with executor_from(args) as executor:
         stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine,
-                               return_draws=bool(args.plot), progress=True, executor=executor)
-    if args.plot:
-        from kinegrasp_env.toolkit.plots import plot_contacts
-        from kinegrasp_env.world.objects import load_object
-
-        plot_contacts(load_object(args.object).mesh, stats.draws, args.plot,
-                      title=f"{args.object} grasp {index}, sigma = {sigma:g}: "
-                            f"P(FC) = {stats.p_fc:.3f}")
+                               return_draws=bool(args.plot or args.report), progress=True,
+                               executor=executor)
+    label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g}"
     if args.json:
         print(json.dumps(stats.to_json()))
     else:
         lo, hi = stats.p_fc_ci
-        print(f"{args.object} grasp {index}, sigma = {sigma:g} ({args.noise}), {samples} draws")
+        full = label if args.noise_spec else f"{label} ({args.noise})"
+        print(f"{args.object} grasp {index}, {full}, {samples} draws")
         print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
         print(f"  Q: nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
               f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error {stats.error:.5f}")
         print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
-        if args.plot:
+    if args.plot:  # after the results: a failing figure is a warning, the results stand
+        from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
+        from kinegrasp_env.world.objects import load_object
+
+        written = safe_figure(lambda: plot_contacts(
+            load_object(args.object).mesh, stats.draws, args.plot,
+            title=f"{args.object} grasp {index}, {label}: P(FC) = {stats.p_fc:.3f}"),
+            args.plot)
+        if written is not None and not args.json:
             print(f"  plot written to {args.plot}")
+    if args.report:
+        evaluate_report(args, grasp, index, stats)
     return 0
+
+
+def chosen_grasp(args):
+    """``(index, grasp)`` for ``evaluate``: grasp ``--grasp`` (an id in the file, else an
+    index) of ``--grasps FILE``, or without it entry ``--grasp`` of ``--object``'s shipped
+    set. Sets ``args.object`` to the grasp's object."""
+    if args.grasps is None:
+        args.object = args.object or EVALUATE_OBJECT
+        return shipped_grasp(args.object, args.grasp)
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if Path(args.grasps).is_dir():
+        raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
+    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+        grasps = load_grasps(args.grasps)
+    ids = [g.id for g in grasps]
+    if args.grasp in ids:
+        index = ids.index(args.grasp)
+    else:
+        index = parse_index(args.grasp)
+        if not 0 <= index < len(grasps):
+            raise CLIError(f"--grasp {args.grasp}: no grasp with this id in {args.grasps}, and "
+                           f"not an index 0..{len(grasps) - 1}")
+    grasp = grasps[index]
+    if args.object is not None and args.object != grasp.object:
+        raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp of "
+                       f"{grasp.object}")
+    args.object = grasp.object
+    return index, grasp
 
 
 def cmd_reproduce(args) -> int:
@@ -76,52 +110,78 @@ def cmd_reproduce(args) -> int:
                        "fig10")
     out = args.out or f"out/{args.figure}"
     seed = parse_seed(args.seed)
-    grasps = positive_int(args.grasps, "--grasps")
+    grasps = table1_grasps(args.grasps, args.object) if args.figure == "table1" else 0
     with executor_from(args) as executor:
         if args.figure == "fig7":
             rows = experiments.fig7(out, samples=samples, seed=seed, engine=engine,
-                                    executor=executor)
+                                    executor=executor, progress=True)
             for r in rows:
                 print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} "
                       f"P(FC) {r['p_fc']:.3f}")
-            print(f"written: {out}/fig7.csv and fig7_<object>.png")
+            figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
+            print(written(out, ["fig7.csv", *figures]))
         elif args.figure in ("fig9", "fig10"):
             rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
-                                       engine=engine, executor=executor)
+                                       engine=engine, executor=executor, progress=True)
             for r in rows:
                 print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                       f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
-            print(f"written: {out}/{args.figure}.csv and {args.figure}.png")
+            print(written(out, [f"{args.figure}.csv", f"{args.figure}.png"]))
         else:
             rows = table1(args.object, samples, out, grasps=grasps, seed=seed, progress=True,
                           engine=engine, executor=executor)
             print(markdown_table1(rows, args.object, samples))
-            print(f"written: {out}/table1.csv, table1.md, pfc_vs_sigma.png")
+            print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
     return 0
 
 
-def add_commands(sub) -> None:
-    """Register ``objects``, ``evaluate`` and ``reproduce``."""
-    p = sub.add_parser("objects", help="list the object catalog")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_objects)
+def table1_grasps(text: str, object_name: str) -> int:
+    """``--grasps``: how many of the object's shipped grasps Table I uses (1..set size)."""
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 
-    p = sub.add_parser("evaluate", help="Monte Carlo P(FC) and quality of a shipped grasp")
-    p.add_argument("--object", default="spray_flask")
-    p.add_argument("--grasp", default="0", help="index in the object's shipped grasp set")
+    count = positive_int(text, "--grasps")
+    with reported(NoGraspSetError):  # an imported object: suggests `kinegrasp plan`
+        available = len(shipped_grasps(object_name))
+    if count > available:
+        raise CLIError(f"--grasps must be between 1 and {available} ({object_name} has "
+                       f"{available} shipped grasps), got {count}")
+    return count
+
+
+def written(out: str, names: list[str]) -> str:
+    """``written: <out>/a, b`` for the files that exist (a figure that failed is left out;
+    its warning was printed)."""
+    present = [name for name in names if (Path(out) / name).exists()]
+    return f"written: {out}/" + ", ".join(present)
+
+
+def add_commands(sub) -> None:
+    """Register ``evaluate`` and ``reproduce``."""
+    p = sub.add_parser("evaluate", help="Monte Carlo P(FC) and quality of a shipped grasp or "
+                       "of a grasp in a file")
+    add_object_arg(p, None, f"catalog object, built-in or imported (default {EVALUATE_OBJECT}; "
+                   "with --grasps: the grasp's own)")
+    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output); --grasp is "
+                   "then an id in it, or an index")
+    p.add_argument("--grasp", default="0", help=grasp_index_help() + "; or with --grasps, an "
+                   "id or index in that file")
     add_noise_args(p, 0.0133)
+    add_noise_spec_arg(p)
     add_execution_args(p, 1)
-    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
+    add_engine_arg(p)
     p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
+    p.add_argument("--report", help="write a self-contained interactive HTML page of the "
+                   "evaluation (as `kinegrasp report`)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="reproduce a table or figure of the paper")
-    p.add_argument("figure", help="table1, fig7, fig9 or fig10")
-    p.add_argument("--object", default="spray_flask")
-    p.add_argument("--samples", default="10000")
-    p.add_argument("--grasps", default="5")
-    p.add_argument("--seed", default="0")
+    p.add_argument("figure", choices=("table1", "fig7", "fig9", "fig10"),
+                   help="the table or figure")
+    add_object_arg(p, "spray_flask", "catalog object (table1)")
+    p.add_argument("--samples", default="10000", help="Monte Carlo draws per cell")
+    p.add_argument("--grasps", default="5", help="grasps of the object in Table I")
+    p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 2)
-    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
+    add_engine_arg(p)
     p.add_argument("--out", help="output folder (default out/<figure>)")
     p.set_defaults(func=cmd_reproduce)

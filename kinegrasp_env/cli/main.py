@@ -1,29 +1,41 @@
 """The ``kinegrasp`` command: the parser and the entry point.
 
 Every sub-command validates its input up front and reports a bad value in one line on
-stderr with exit status 2 (no traceback); results go to stdout (``--json`` for machines),
-progress bars to stderr. One module per command group: ``arms``, ``grasping``, ``toolkit``;
-``common`` holds what they share.
+stderr with exit status 2 (no traceback), usage errors included; results go to stdout
+(``--json`` for machines), progress bars to stderr. Any other exception is a bug: its
+traceback, then one line asking to report it, exit status 1. One module per command group:
+``arms``, ``objects``, ``grasping``, ``toolkit``; ``common`` holds what they share.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import re
 import sys
+import traceback
 from collections.abc import Sequence
 
-from kinegrasp_env.cli import arms, grasping, toolkit
-from kinegrasp_env.cli.common import CLIError
+from kinegrasp_env import __version__
+from kinegrasp_env.cli import arms, elbow, grasping, objects, report, sensitivity, toolkit
+from kinegrasp_env.cli.common import CLIError, Parser
+
+#: OS errors that are the machine's state, not a bug (disk full, no permission): one line.
+ENVIRONMENT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM,
+                                errno.EROFS})
+BUG_HINT = "this is a bug in kinegrasp; please report it with the command you ran"
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``kinegrasp`` parser with every sub-command."""
-    parser = argparse.ArgumentParser(
-        prog="kinegrasp", description="Grasp quality under kinematic (joint-angle) noise.")
+    parser = Parser(prog="kinegrasp",
+                    description="Grasp quality under kinematic (joint-angle) noise.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for group in (arms, grasping, toolkit):
+    for group in (arms, objects, grasping, toolkit, elbow, report, sensitivity):
         group.add_commands(sub)
+    for command_parser in sub.choices.values():  # its usage errors name the command
+        command_parser.set_defaults(command_parser=command_parser)
     return parser
 
 
@@ -45,13 +57,28 @@ def _glue_negative_values(argv: list[str]) -> list[str]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(_glue_negative_values(argv))
+    args, unknown = parser.parse_known_args(_glue_negative_values(argv))
+    if unknown:
+        args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return int(args.func(args) or 0)
-    except (CLIError, ValueError, FileNotFoundError, KeyError) as exc:
-        message = exc.args[0] if exc.args else str(exc)
-        print(f"kinegrasp {args.command}: error: {message}", file=sys.stderr)
+    except CLIError as exc:
+        print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("kinegrasp: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:
+        if exc.errno not in ENVIRONMENT_ERRNOS:
+            return _bug(args.command)
+        print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except Exception:
+        return _bug(args.command)
+
+
+def _bug(command: str) -> int:
+    """Report the exception being handled as a bug: its traceback and a hint; exit status 1."""
+    traceback.print_exc()
+    print(f"kinegrasp {command}: {BUG_HINT}", file=sys.stderr)
+    return 1

@@ -5,23 +5,31 @@
 from __future__ import annotations
 
 import csv
+import functools
+import hashlib
 import io
 import json
 import math
 import sys
 from pathlib import Path
 
+from kinegrasp_env.cli import resume
 from kinegrasp_env.cli.common import (
     CLIError,
+    add_engine_arg,
     add_execution_args,
     add_noise_args,
+    add_noise_spec_arg,
+    add_object_arg,
     engine_name,
     executor_from,
     noise_from,
+    output_file,
     parse_seed,
+    positive_float,
     positive_int,
+    reported,
 )
-from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.toolkit.ranking import (
     CRITERIA,
     CandidateResult,
@@ -32,22 +40,25 @@ from kinegrasp_env.toolkit.ranking import (
 from kinegrasp_env.world.grasps import load_grasps, save_grasps, write_atomic
 
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
-               "error", "samples")
+               "error", "samples", "engine")
 CHUNK = 250
+#: The friction cone ``rank`` scores with (the library's defaults, docs/conventions.md) and
+#: its noise sampler: fixed, but recorded in the resume log with every other setting.
+FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
 
 
 def cmd_plan(args) -> int:
     from kinegrasp_env.toolkit.planner import GraspPlanner
 
     count = positive_int(args.count, "--count")
-    variants = int(args.variants)
-    if variants < 0:
-        raise CLIError(f"--variants must be >= 0, got {variants}")
-    budget = float(args.time_budget) if args.time_budget else None
+    variants = positive_int(args.variants, "--variants", low=0)
+    budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
+    attempts = positive_int(args.max_attempts, "--max-attempts") if args.max_attempts else None
+    seed = parse_seed(args.seed)
+    output_file(args.out, "--out")
     planner = GraspPlanner(args.object)
     try:
-        grasps = planner.plan(count, seed=parse_seed(args.seed), time_budget=budget,
-                              max_attempts=int(args.max_attempts) if args.max_attempts else None,
+        grasps = planner.plan(count, seed=seed, time_budget=budget, max_attempts=attempts,
                               progress=True)
         if not grasps:
             raise CLIError(f"no force-closure grasp of {args.object} found within the budget; "
@@ -57,22 +68,10 @@ def cmd_plan(args) -> int:
             out += planner.variants(grasp, variants)
     finally:
         planner.close()
-    save_grasps(out, args.out, planner_seed=parse_seed(args.seed))
+    save_grasps(out, args.out, planner_seed=seed)
     print(f"{len(grasps)} grasps ({len(out) - len(grasps)} null-space variants) of {args.object}"
           f" written to {args.out}")
     return 0
-
-
-def _moments_to_json(m: StreamingMoments | None) -> dict | None:
-    if m is None:
-        return None
-    return {"n": m.n, "mean": m.mean.tolist(), "m2": m.m2.tolist(), "m3": m.m3.tolist()}
-
-
-def _moments_from_json(data: dict | None) -> StreamingMoments | None:
-    if data is None:
-        return None
-    return StreamingMoments.from_state(data["n"], data["mean"], data["m2"], data["m3"])
 
 
 def _fmt(value: float) -> str:
@@ -86,88 +85,133 @@ def _fixed(value: float) -> str:
 
 
 def cmd_rank(args) -> int:
+    from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
 
-    try:
-        grasps = load_grasps(args.candidates)
-    except ValueError as exc:
-        raise CLIError(str(exc)) from None
-    if not grasps:
-        raise CLIError(f"{args.candidates}: the file holds no grasps")
+    grasps, digest = _candidates(args.candidates)
     noise, sigma, samples, seed = noise_from(args)
-    if args.criterion not in CRITERIA:
-        raise CLIError(f"--criterion must be one of {', '.join(CRITERIA)}")
     engine = engine_name(args.engine)
+    out = output_file(args.out, "--out")
+    report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
 
-    def evaluator(index: int, first: int, count: int):
-        counts, moments, _ = evaluate.run_chunks(
+    def evaluator(index: int, first: int, count: int, outcomes: bool = False):
+        """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
+        each draw's force-closure outcome (what adaptive ranking pairs across candidates)."""
+        counts, moments, draws = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
-            engine=engine, executor=executor)
-        return int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
+            friction=FRICTION, num_edges=NUM_EDGES, engine=engine, method=METHOD,
+            executor=executor, return_draws=outcomes)
+        value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
+        return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
 
-    out = Path(args.out)
     partial = out.with_name(out.name + ".partial.jsonl")
-    settings = {"candidates": str(Path(args.candidates).resolve()), "sigma": sigma,
-                "noise": noise.kind, "samples": samples, "seed": seed,
-                "ids": [g.id for g in grasps]}
+    settings = {"candidates_sha256": digest, "engine": engine, "friction": FRICTION,
+                "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
+                "samples": samples, "chunk": chunk, "seed": seed}
+    if args.noise_spec:  # the whole model is a setting: another model does not resume
+        from kinegrasp_env.sampling.noise_spec import spec_of
+
+        settings["noise_model"] = spec_of(noise)
     top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
     if args.adaptive and top_k >= len(grasps):
         raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
+    if args.adaptive and partial.exists():
+        raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
+                       "cannot resume; delete it, or resume without --adaptive")
     with executor_from(args) as executor:
-        results = _rank(args, grasps, evaluator, layout, chunk, top_k, partial, settings)
-    _write_ranking(grasps, results, out, partial)
+        done = {}
+        if not args.adaptive:
+            existed = partial.exists()
+            done = resume.resume(partial, settings, len(grasps))
+            if existed:
+                print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
+                      f"{partial}", file=sys.stderr)
+        results = _rank(args, grasps, evaluator, layout, chunk, top_k, partial, done)
+    _write_ranking(grasps, results, out, partial, engine)
+    if args.report:
+        write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
+                          engine=engine)
     return 0
 
 
+def _candidates(path: str) -> tuple[list, str]:
+    """The candidate grasps of ``rank`` and the SHA-256 of their file; refuses a file with
+    no grasps and repeated ids (the CSV is keyed by id)."""
+    if Path(path).is_dir():
+        raise CLIError(f"{path} is a folder, not a grasp file")
+    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+        grasps = load_grasps(path)
+    if not grasps:
+        raise CLIError(f"{path}: the file holds no grasps")
+    first: dict[str, int] = {}
+    for i, grasp in enumerate(grasps):
+        if grasp.id in first:
+            raise CLIError(f"{path}: grasps {first[grasp.id]} and {i} have the same id "
+                           f"{grasp.id!r}; candidate ids must be unique")
+        first[grasp.id] = i
+    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
-          settings: dict) -> list[CandidateResult]:
-    """Fixed-n (resumable from ``partial``) or adaptive ranking, best first."""
+          done: dict[int, CandidateResult]) -> list[CandidateResult]:
+    """Fixed-n (``done``: candidates read back from ``partial``; each one finished now is
+    appended to it) or adaptive ranking, best first."""
     from tqdm import tqdm
 
-    bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
     if args.adaptive:
-        report = rank_adaptive(len(grasps), evaluator, len(layout), chunk, top_k=top_k,
-                               criterion=args.criterion,
-                               progress=lambda r, n: bar.set_postfix_str(f"round {r}/{n}"))
-        results = report.results
-        print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
-              f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
-              f"{'separated' if report.separated else 'NOT separated'} after {report.rounds} "
-              "rounds", file=sys.stderr)
-    else:
-        done = _read_partial(partial, settings)
-        with partial.open("a") as log:
-            if not done:
-                log.write(json.dumps({"settings": settings}) + "\n")
+        return _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion)
+    bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
+    with partial.open("a") as log:
 
-            def record(index: int) -> None:
-                bar.update(1)
-                if index in done:
-                    return
-                r = results_so_far[index]
-                log.write(json.dumps({"index": index, "successes": r.successes,
-                                      "trials": r.trials, "chunks": r.chunks,
-                                      "moments": _moments_to_json(r.moments)}) + "\n")
-                log.flush()
+        def record(index: int) -> None:
+            bar.update(1)
+            if index in done:
+                return
+            log.write(json.dumps(resume.result_to_json(results_so_far[index])) + "\n")
+            log.flush()
 
-            results_so_far: dict[int, CandidateResult] = {}
+        results_so_far: dict[int, CandidateResult] = {}
 
-            def tracked(index: int, first: int, count: int):
-                value = evaluator(index, first, count)
-                result = CandidateResult(index)
-                result.add(*value, count)
-                results_so_far[index] = result
-                return value
+        def tracked(index: int, first: int, count: int):
+            value = evaluator(index, first, count)
+            result = CandidateResult(index)
+            result.add(*value, count)
+            results_so_far[index] = result
+            return value
 
-            results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
-                                       done=done), args.criterion)
+        results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
+                                   done=done), args.criterion)
     bar.close()
     return results
 
 
-def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path) -> None:
+def _rank_adaptive(grasps, evaluator, layout, chunk, top_k,
+                   criterion: str) -> list[CandidateResult]:
+    """Adaptive ranking under one overall progress report (a bar that advances with every
+    chunk drawn, or a line per round off a terminal); the summary comes after the bar."""
+    from kinegrasp_env.toolkit.progress import Progress
+    from kinegrasp_env.toolkit.ranking import AdaptiveProgress
+
+    with Progress("rank", len(grasps) * sum(layout), len(layout), word="round") as bar:
+        def update(state: AdaptiveProgress) -> None:
+            bar.advance(state.draws, state.bound)
+            if state.round_done:
+                bar.cell_done(f"{state.undecided} of {len(grasps)} candidates undecided")
+
+        paired = functools.partial(evaluator, outcomes=True)
+        report = rank_adaptive(len(grasps), paired, len(layout), chunk, top_k=top_k,
+                               criterion=criterion, progress=update)
+    print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
+          f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
+          f"{'separated' if report.separated else 'NOT separated'} after {report.rounds} "
+          "rounds", file=sys.stderr)
+    return report.results
+
+
+def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
+                   engine: str) -> None:
     """The ranking as CSV (atomically), then as a console table."""
     rows = []
     for r in results:
@@ -177,12 +221,13 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
         rows.append({"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
                      "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
-                     "samples": r.trials})
+                     "samples": r.trials, "engine": engine})
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
     for row in rows:
-        writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-1]), row["samples"]])
+        writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
+                         row["engine"]])
     write_atomic(out, buffer.getvalue())
     if partial.exists():
         partial.unlink()
@@ -196,64 +241,59 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
 
 
 def cmd_sweep(args) -> int:
-    from kinegrasp_env.montecarlo.sweep import SweepSpec, run_sweep, summary_table
+    from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep, summary_table
     from kinegrasp_env.toolkit.plots import plot_sweep
 
-    spec = SweepSpec.from_file(args.spec)
+    with reported(SpecError):
+        spec = SweepSpec.from_file(args.spec)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise CLIError(f"--out {out} exists and is not a folder")
     with executor_from(args) as executor:
         print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws on "
               f"{executor.description}", file=sys.stderr)
-        rows, ran, skipped = run_sweep(spec, out, executor, plot=plot_sweep)
+        with reported(SpecError):  # the store in --out was made with other random streams
+            rows, ran, skipped = run_sweep(spec, out, executor, plot=plot_sweep)
     print(summary_table(rows), end="")
     print(f"{ran} tasks run, {skipped} found finished in {out / 'results.sqlite'}; "
           f"written: {out}/summary.csv, summary.txt, pfc_vs_sigma_<noise>_<engine>.png")
     return 0
 
 
-def _read_partial(path: Path, settings: dict) -> dict[int, CandidateResult]:
-    """Finished candidates of an interrupted run with the same settings (else start over)."""
-    if not path.exists():
-        return {}
-    lines = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    if not lines or lines[0].get("settings") != settings:
-        path.unlink()
-        return {}
-    done = {}
-    for item in lines[1:]:
-        r = CandidateResult(int(item["index"]), int(item["successes"]), int(item["trials"]),
-                            int(item["chunks"]), _moments_from_json(item["moments"]))
-        done[r.index] = r
-    print(f"resuming: {len(done)} candidates already ranked in {path}", file=sys.stderr)
-    return done
-
-
 def add_commands(sub) -> None:
     """Register ``plan``, ``rank`` and ``sweep``."""
     p = sub.add_parser("plan", help="plan force-closure grasps of an object")
-    p.add_argument("--object", default="drill")
-    p.add_argument("--count", default="20")
-    p.add_argument("--seed", default="0")
-    p.add_argument("--out", default="grasps.json")
+    add_object_arg(p, "drill", "catalog object")
+    p.add_argument("--count", default="20", help="force-closure grasps to find")
+    p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
+    p.add_argument("--out", default="grasps.json", help="grasp file to write")
     p.add_argument("--variants", default="0",
                    help="null-space variants per grasp (same palm pose, other elbow angles)")
-    p.add_argument("--time-budget", help="seconds at most")
-    p.add_argument("--max-attempts", help="palm poses to try at most")
+    p.add_argument("--time-budget", help="seconds at most (default: no limit)")
+    p.add_argument("--max-attempts", help="palm poses to try at most (default: no limit)")
     p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("rank", help="rank candidate grasps by robustness under joint noise")
     p.add_argument("candidates", help="grasp file (from `kinegrasp plan`)")
     add_noise_args(p, 0.0133)
+    add_noise_spec_arg(p)
     p.set_defaults(samples="2000")
-    p.add_argument("--criterion", default="pfc", help="pfc, q_mean, pfc_lcb or weighted")
+    p.add_argument("--criterion", default="pfc", choices=CRITERIA,
+                   help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
+                   "interval, or P(FC) x (1 + mean Q)")
     p.add_argument("--adaptive", action="store_true",
-                   help="successive elimination: stop when the top k is separated")
-    p.add_argument("--top-k", default="3")
+                   help="stop drawing once the top k is certified: exact sign tests on the "
+                   "paired draws of every two candidates (common noise), a certified top k "
+                   "wrong with probability <= 0.05; unseparated at the --samples budget, the "
+                   "best estimate is kept and said to be uncertified")
+    p.add_argument("--top-k", default="3", help="size of the top set --adaptive separates")
     add_execution_args(p, 1)
-    p.add_argument("--engine", default="pybullet", help="pybullet (reference) or fast")
-    p.add_argument("--out", default="ranked.csv")
+    add_engine_arg(p)
+    p.add_argument("--out", default="ranked.csv",
+                   help="CSV to write; an interrupted run keeps its finished candidates in "
+                   "<out>.partial.jsonl and the same command resumes from them")
+    p.add_argument("--report", help="also write a self-contained HTML page: the sortable "
+                   "table and each candidate's 3-D views")
     p.set_defaults(func=cmd_rank)
 
     p = sub.add_parser("sweep", help="a grid of evaluations (objects x grasps x sigmas x noise "

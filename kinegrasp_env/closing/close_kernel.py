@@ -3,7 +3,8 @@
 :meth:`kinegrasp_env.closing.fast.FastHand.close` advances every (draw, finger) closing problem
 with array operations, one iteration at a time: ~35 iterations x 3 fingers of a few dozen
 numpy calls each, a fixed cost that dominates small batches (the environment's 64 draws).
-Here each problem runs its whole state machine in one compiled loop, calling the same
+Here each problem runs its whole state machine in one compiled loop (:func:`close_finger`;
+its two branches, :func:`touch_down` and :func:`step_or_bisect`), calling the same
 per-row kernels (:func:`kinegrasp_env.closing.capsule_gap` ``gap_one``,
 :mod:`kinegrasp_env.closing.segment_distance` ``segment_one``,
 :func:`kinegrasp_env.closing.finger_axes.axes_one`) with the same arithmetic in the same order, so
@@ -114,94 +115,129 @@ def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
     return best_t
 
 @jit.kernel
+def touch_down(geo, rules, finger, state, gap, work, found, pairs):
+    """A touching finger: t polished to the root of the exact gap, the links touching there
+    recorded (found (2,) set, their closest pairs into pairs (2, PAIR_SIZE)). A distal
+    contact ends the finger; a proximal one alone freezes the proximal joint and the distal
+    one goes on (phase 2). Returns the new state."""
+    contact_tol, step_min = rules[0], rules[1]
+    r_p, r_d = finger[6], finger[7]
+    phase, start_p, start_d, t, t_lo, t_hi = state[:6]
+    has_contact = state[7]
+    pair = work[6]
+    t = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
+    # the links touching there, and their closest pairs
+    prox_t, dist_t = flexions(finger, phase, start_p, start_d, t)
+    exact_gap(geo, finger, phase, start_p, start_d, t, work)
+    link_gaps = (pair[0, 0] - r_p if phase == 1 else np.inf, pair[1, 0] - r_d)
+    for link in range(2):
+        if link_gaps[link] <= contact_tol:
+            found[link] = True
+            pairs[link] = pair[link]
+            has_contact = True
+    if link_gaps[1] <= contact_tol:
+        return (phase, start_p, start_d, t, t_lo, t_hi, False, has_contact)
+    # proximal contact only: freeze it, the distal joint goes on
+    t_max = t_limit(finger, 2, prox_t, dist_t)
+    if t_max <= 0.0:
+        return (2, prox_t, dist_t, 0.0, 0.0, np.nan, False, has_contact)
+    return (2, prox_t, dist_t, min(step_min, t_max), 0.0, np.nan, True, has_contact)
+
+@jit.kernel
+def step_or_bisect(rules, finger, speed, state, gap):
+    """A finger not touching: a conservative step towards contact while no penetration is
+    bracketed, else bisection of the bracket [t_lo, t_hi]. Returns (new state, missed: the
+    joints reached their limits without any contact)."""
+    contact_tol, step_min = rules[0], rules[1]
+    phase, start_p, start_d, t, t_lo, t_hi, active, has_contact = state
+    missed = False
+    if gap > contact_tol:
+        if np.isnan(t_hi):  # conservative step towards contact
+            t_max = t_limit(finger, phase, start_p, start_d)
+            t_lo = t
+            if t >= t_max:
+                active = False
+                missed = not has_contact
+            else:
+                step = max(gap / (speed[0] if phase == 1 else speed[1]), step_min)
+                t = min(t + step, t_max)
+        else:  # bisection, below the bracket
+            t_lo = t
+            t = 0.5 * (t + t_hi)
+    else:  # penetrating: bisection, above the bracket
+        t_hi = t
+        t = 0.5 * (t_lo + t)
+    return (phase, start_p, start_d, t, t_lo, t_hi, active, has_contact), missed
+
+@jit.kernel
+def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, pairs,
+                 flexion):
+    """Close one finger of one draw from flexions prox0, dist0 (radians): one (draw, finger)
+    closing problem. Writes found (2,) and pairs (2, PAIR_SIZE) of its links and the
+    (proximal, distal) flexion where it stopped into flexion (2,); returns (iterations,
+    missed).
+
+    The state is (phase, start_p, start_d, t, t_lo, t_hi, active, has_contact): phase 1
+    moves both joints, phase 2 (after a proximal contact) the distal one; the flexions are
+    start + t (to the joint limits); [t_lo, t_hi] brackets contact (t_hi NaN until a
+    penetration is seen). buffers: (sample, work, scratch) of :func:`close_all`.
+    """
+    contact_tol, query_distance, max_iterations = rules[0], rules[2], rules[7]
+    r_p, r_d = finger[6], finger[7]
+    sample, work, scratch = buffers
+    bounds = work[5]
+    state = (1, min(prox0, finger[8]), min(dist0, finger[9]), 0.0, 0.0, np.nan, True, False)
+    missed = False
+    it = 0
+    while state[6] and it < max_iterations:
+        it += 1
+        # the gap of the moving links (the grid's, exact within the band), at most the
+        # query distance; inline: as a kernel of its own (its ~25 array arguments are
+        # reference-counted per call) it made the loop ~8% slower
+        phase, start_p, start_d, t, t_lo, t_hi = state[:6]
+        prox, dist = flexions(finger, phase, start_p, start_d, t)
+        ends = place_axes(finger, prox, dist, work)
+        gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, bounds, scratch)
+        gap_p = np.inf
+        if phase == 1:
+            gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, bounds, scratch)
+        gap_p = min(gap_p, query_distance)
+        gap_d = min(gap_d, query_distance)
+        if phase != 1:
+            gap_p = np.inf
+        gap = min(gap_p, gap_d)
+        bracket_closed = not np.isnan(t_hi) and t_hi - t_lo < 1e-9
+        if (-contact_tol <= gap <= contact_tol) or (bracket_closed and gap <= contact_tol):
+            state = touch_down(geo, rules, finger, state, gap, work, found, pairs)
+        else:
+            state, missed = step_or_bisect(rules, finger, speed, state, gap)
+    flexion[0], flexion[1] = flexions(finger, state[0], state[1], state[2], state[3])
+    return it, missed
+
+@jit.kernel
 def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, distal_origin,
-              ends_p, ends_d, radius, upper, speed, found, pairs, missed):
-    """Close every finger of every draw.
+              ends_p, ends_d, radius, upper, speed, found, pairs, missed, flexion):
+    """Close every finger of every draw (:func:`close_finger` for each).
 
     rules: :func:`closing_rules`; joint_frames (m, 3, 4, 4), prox0 / dist0 (m, 3): per
     draw and finger; the finger constants are stacked over fingers. Writes found (m, 3,
-    2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3); returns the most iterations any
-    problem took.
+    2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3) and the closed flexions (m, 3, 2)
+    (proximal, distal; radians); returns the most iterations any problem took.
     """
-    contact_tol, step_min, query_distance = rules[0], rules[1], rules[2]
-    max_iterations = rules[7]
-    sample = np.empty(grid[4])
     # work buffers: rotation, proximal and distal frames, product, axis ends, part
     # bounds, the closest pairs of both links
     work = (np.empty((3, 3)), np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 3)),
             np.empty((4, 3)), np.empty(geo[1].shape[0] - 1), np.empty((2, PAIR_SIZE)))
-    bounds, pair = work[5], work[6]
-    scratch = np.empty(PAIR_SIZE)
+    buffers = (np.empty(grid[4]), work, np.empty(PAIR_SIZE))
     most = 0
     for i in range(prox0.shape[0]):
         for f in range(3):
             finger = (joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
                       ends_p[f], ends_d[f], radius[f, 0], radius[f, 1], upper[f, 0],
                       upper[f, 1])
-            r_p, r_d = finger[6], finger[7]
-            start_p, start_d = min(prox0[i, f], finger[8]), min(dist0[i, f], finger[9])
-            phase = 1
-            t, t_lo, t_hi = 0.0, 0.0, np.nan
-            active, has_contact = True, False
-            it = 0
-            while active and it < max_iterations:
-                it += 1
-                prox, dist = flexions(finger, phase, start_p, start_d, t)
-                ends = place_axes(finger, prox, dist, work)
-                gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, bounds, scratch)
-                gap_p = np.inf
-                if phase == 1:
-                    gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, bounds,
-                                     scratch)
-                gap_p = min(gap_p, query_distance)
-                gap_d = min(gap_d, query_distance)
-                if phase != 1:
-                    gap_p = np.inf
-                gap = min(gap_p, gap_d)
-                bracket_closed = not np.isnan(t_hi) and t_hi - t_lo < 1e-9
-                touch = ((-contact_tol <= gap <= contact_tol)
-                         or (bracket_closed and gap <= contact_tol))
-                if touch:
-                    t = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
-                    # the links touching there, and their closest pairs
-                    prox_t, dist_t = flexions(finger, phase, start_p, start_d, t)
-                    exact_gap(geo, finger, phase, start_p, start_d, t, work)
-                    link_gaps = (pair[0, 0] - r_p if phase == 1 else np.inf,
-                                 pair[1, 0] - r_d)
-                    for link in range(2):
-                        if link_gaps[link] <= contact_tol:
-                            found[i, f, link] = True
-                            pairs[i, f, link] = pair[link]
-                            has_contact = True
-                    if link_gaps[1] <= contact_tol:
-                        active = False
-                    else:  # proximal contact only: freeze it, the distal joint goes on
-                        start_p, start_d = prox_t, dist_t
-                        phase = 2
-                        t_lo, t_hi = 0.0, np.nan
-                        t_max = t_limit(finger, phase, start_p, start_d)
-                        if t_max <= 0.0:
-                            active = False
-                            t = 0.0
-                        else:
-                            t = min(step_min, t_max)
-                elif gap > contact_tol:
-                    if np.isnan(t_hi):  # conservative step towards contact
-                        t_max = t_limit(finger, phase, start_p, start_d)
-                        t_lo = t
-                        if t >= t_max:
-                            active = False
-                            missed[i, f] = not has_contact
-                        else:
-                            step = max(gap / (speed[0] if phase == 1 else speed[1]),
-                                       step_min)
-                            t = min(t + step, t_max)
-                    else:  # bisection, below the bracket
-                        t_lo = t
-                        t = 0.5 * (t + t_hi)
-                else:  # penetrating: bisection, above the bracket
-                    t_hi = t
-                    t = 0.5 * (t_lo + t)
+            it, missed[i, f] = close_finger(grid, geo, rules, finger, speed, prox0[i, f],
+                                            dist0[i, f], buffers, found[i, f], pairs[i, f],
+                                            flexion[i, f])
             most = max(most, it)
     return most
 

@@ -71,6 +71,8 @@ class BatchClose:
         missed: (n, 3) bool per finger.
         found: (n, 3, 2) bool: a contact on (finger, link).
         points, normals: (n, 3, 2, 3) contacts in the object frame (valid where found).
+        flexion: (n, 3, 2) closed (proximal, distal) flexion of each finger, radians (NaN
+            for start collisions: the hand did not close).
         iterations: closing iterations used.
     """
 
@@ -79,6 +81,7 @@ class BatchClose:
     found: np.ndarray
     points: np.ndarray
     normals: np.ndarray
+    flexion: np.ndarray
     iterations: int = 0
 
 
@@ -137,10 +140,14 @@ class FastHand:
                 np.array(self.speed, dtype=float))
 
     # ------------------------------------------------------------------ geometry
-    def _frames(self, q: np.ndarray, links: list[str]) -> dict[str, np.ndarray]:
-        """Object-frame poses (n, 4, 4) of links at configurations q (n, 14)."""
+    def _frames(self, q: np.ndarray, links: list[str],
+                to_object: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Object-frame poses (n, 4, 4) of links at configurations q (n, 14); ``to_object``
+        (n, 4, 4) maps each draw's world poses to the object frame (default: the inverse
+        of the object's pose)."""
         world = self.kin.forward(q, links)
-        return {name: self.obj.pose_inverse @ pose for name, pose in world.items()}
+        left = self.obj.pose_inverse if to_object is None else to_object
+        return {name: left @ pose for name, pose in world.items()}
 
     def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, shape: Shape) -> np.ndarray:
         """Gaps (m,) of one capsule with axis ends a, b (m, 3): exact within
@@ -175,26 +182,31 @@ class FastHand:
                            self.axis_d[finger], dist, ends_p, ends_d, self.kernel)
 
     # ------------------------------------------------------------------ closing
-    def close(self, q: np.ndarray) -> BatchClose:
-        """Auto-close at configurations q (n, 14) (arm joints, then the hand pre-shape)."""
+    def close(self, q: np.ndarray, to_object: np.ndarray | None = None) -> BatchClose:
+        """Auto-close at configurations q (n, 14) (arm joints, then the hand pre-shape);
+        ``to_object`` (n, 4, 4): per draw, the map from world to object frame (where a hand
+        or object pose error puts the hand relative to the object; default: the inverse of
+        the object's pose)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n = q.shape[0]
         finger_links = [link for f in FINGERS for link in f[2:]]
-        frames = self._frames(q, [s.link for s in self.cylinders] + finger_links)
+        frames = self._frames(q, [s.link for s in self.cylinders] + finger_links, to_object)
         start = self._cylinder_collision(frames)
         for proximal, distal in self.capsules:
             for shape in (proximal, distal):
                 gap = self._capsule_gaps(*_axis(frames[shape.link], shape), shape)
                 start |= gap < -START_TOL
         out = BatchClose(start, np.zeros((n, 3), bool), np.zeros((n, 3, 2), bool),
-                         np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan))
+                         np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan),
+                         np.full((n, 3, 2), np.nan))
         draws = np.flatnonzero(~start)
         if draws.size == 0:
             return out
         # joint frames of the proximal joints (flexion zero): fixed while closing
         q_zero = q[draws].copy()
         q_zero[:, self._flex] = 0.0
-        zero = self._frames(q_zero, [f[2] for f in FINGERS])
+        zero = self._frames(q_zero, [f[2] for f in FINGERS],
+                            None if to_object is None else to_object[draws])
         hand = q[draws, 7:]
         if self.closing == "compiled":
             self._close_compiled(draws, zero, hand, out)
@@ -212,6 +224,7 @@ class FastHand:
                 self._advance(f, prob, out)
         for f, prob in enumerate(problems):
             out.missed[prob.draws, f] = prob.missed
+            out.flexion[prob.draws, f] = np.stack(prob.values(np.arange(prob.draws.size)), 1)
         out.iterations = iterations
         return out
 
@@ -225,9 +238,11 @@ class FastHand:
         found = np.zeros((m, 3, 2), dtype=bool)
         pairs = np.zeros((m, 3, 2, PAIR_SIZE))
         missed = np.zeros((m, 3), dtype=bool)
+        flex = np.zeros((m, 3, 2))
         out.iterations = close_all(*self._kernel_head, joint_frames, prox0, dist0,
-                                        *self._kernel_fingers, found, pairs, missed)
+                                        *self._kernel_fingers, found, pairs, missed, flex)
         out.missed[draws] = missed
+        out.flexion[draws] = flex
         out.found[draws] = found
         hit = pairs[found]
         if len(hit):
@@ -242,6 +257,20 @@ class FastHand:
         rows = np.flatnonzero(prob.active)
         if rows.size == 0:
             return
+        gap = self._gaps_now(f, prob, rows)
+        t, t_lo, t_hi = prob.t[rows], prob.t_lo[rows], prob.t_hi[rows]
+        bracket_closed = ~np.isnan(t_hi) & (t_hi - t_lo < 1e-9)
+        touch = ((gap >= -CONTACT_TOL) & (gap <= CONTACT_TOL)) | (bracket_closed
+                                                                 & (gap <= CONTACT_TOL))
+        if touch.any():
+            self._touch_down(f, prob, rows[touch], t[touch], gap[touch], out)
+        apart = ~touch
+        self._step_or_bisect(prob, rows[apart], t[apart], t_lo[apart], t_hi[apart], gap[apart])
+
+    def _gaps_now(self, f: int, prob: _Problems, rows: np.ndarray) -> np.ndarray:
+        """Gaps (m,) of finger f's moving links for problem rows at their current t (the
+        grid's, exact within ``GRID_EXACT_BAND``; at most ``QUERY_DISTANCE``; the proximal
+        link only counts in phase 1)."""
         phase1 = prob.phase[rows] == 1
         prox, dist = prob.values(rows)
         ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
@@ -253,49 +282,54 @@ class FastHand:
         gap_p = np.minimum(gap_p, QUERY_DISTANCE)
         gap_d = np.minimum(gap_d, QUERY_DISTANCE)
         gap_p[~phase1] = np.inf
-        gap = np.minimum(gap_p, gap_d)
-        t, t_lo, t_hi = prob.t[rows], prob.t_lo[rows], prob.t_hi[rows]
-        bracket_closed = ~np.isnan(t_hi) & (t_hi - t_lo < 1e-9)
-        touch = ((gap >= -CONTACT_TOL) & (gap <= CONTACT_TOL)) | (bracket_closed
-                                                                 & (gap <= CONTACT_TOL))
-        # touching: polish to the root of the exact gap, then the contacts of the links
-        # touching there (exact closest pairs of their axes and the object)
-        hit_rows = rows[touch]
-        prox_t, dist_t = prox[touch], dist[touch]
-        distal_touch = np.zeros(rows.size, dtype=bool)
-        if hit_rows.size:
-            t_root = self._polish(f, prob, hit_rows, t[touch], gap[touch])
-            prob.t[hit_rows] = t_root
-            prox_t, dist_t = prob.values(hit_rows)
-            link_gaps, (where, on_obj, on_seg, distance, part) = self._exact_at(
-                f, prob, hit_rows, t_root)
-            for link in (0, 1):
-                sel = np.flatnonzero(link_gaps[:, link] <= CONTACT_TOL)
-                if sel.size == 0:
-                    continue
-                q = where[sel, link]
-                point, normal = pair_contacts(self.obj, on_obj[q], on_seg[q], distance[q],
-                                              part[q])
-                draw = prob.draws[hit_rows[sel]]
-                out.found[draw, f, link] = True
-                out.points[draw, f, link] = point
-                out.normals[draw, f, link] = normal
-                prob.has_contact[hit_rows[sel]] = True
-            distal_touch[touch] = link_gaps[:, 1] <= CONTACT_TOL
-        prob.active[rows[distal_touch]] = False
-        # proximal-only contact: freeze the proximal joint, the distal one goes on
-        switch = touch & ~distal_touch
+        return np.minimum(gap_p, gap_d)
+
+    def _touch_down(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
+                    gap: np.ndarray, out: BatchClose) -> None:
+        """Touching problem rows (m,) at t, gap (m,): polish t to the root of the exact gap,
+        record the contacts of the links touching there (exact closest pairs of their axes
+        and the object). A distal contact ends the problem; a proximal one alone freezes
+        the proximal joint and the distal one goes on (phase 2)."""
+        t_root = self._polish(f, prob, rows, t, gap)
+        prob.t[rows] = t_root
+        prox_t, dist_t = prob.values(rows)
+        link_gaps, pairs = self._exact_at(f, prob, rows, t_root)
+        self._record_contacts(f, prob, rows, link_gaps, pairs, out)
+        distal = link_gaps[:, 1] <= CONTACT_TOL
+        prob.active[rows[distal]] = False
+        switch = ~distal
         if switch.any():
             r = rows[switch]
-            within = switch[touch]
-            prob.start_p[r], prob.start_d[r] = prox_t[within], dist_t[within]
+            prob.start_p[r], prob.start_d[r] = prox_t[switch], dist_t[switch]
             prob.phase[r] = 2
             prob.t_lo[r], prob.t_hi[r] = 0.0, np.nan
             t_max = prob.t_max(r)
             prob.active[r[t_max <= 0.0]] = False
             prob.t[r] = np.where(t_max <= 0.0, 0.0, np.minimum(STEP, t_max))
-        # no contact yet
-        free = ~touch & (gap > CONTACT_TOL)
+
+    def _record_contacts(self, f: int, prob: _Problems, rows: np.ndarray,
+                         link_gaps: np.ndarray, pairs: tuple, out: BatchClose) -> None:
+        """Contacts of finger f's links whose exact gap (``link_gaps`` (m, 2), ``pairs`` as
+        returned by :meth:`_exact_at` for problem rows (m,)) is within ``CONTACT_TOL``."""
+        where, on_obj, on_seg, distance, part = pairs
+        for link in (0, 1):
+            sel = np.flatnonzero(link_gaps[:, link] <= CONTACT_TOL)
+            if sel.size == 0:
+                continue
+            q = where[sel, link]
+            point, normal = pair_contacts(self.obj, on_obj[q], on_seg[q], distance[q], part[q])
+            draw = prob.draws[rows[sel]]
+            out.found[draw, f, link] = True
+            out.points[draw, f, link] = point
+            out.normals[draw, f, link] = normal
+            prob.has_contact[rows[sel]] = True
+
+    def _step_or_bisect(self, prob: _Problems, rows: np.ndarray, t: np.ndarray,
+                        t_lo: np.ndarray, t_hi: np.ndarray, gap: np.ndarray) -> None:
+        """Problem rows (m,) not touching at t (gap (m,), bracket [t_lo, t_hi], t_hi NaN
+        until a penetration is seen): a conservative step towards contact while unbracketed
+        (missed at the joint limits without a contact), else bisection of the bracket."""
+        free = gap > CONTACT_TOL
         unbracketed = free & np.isnan(t_hi)
         if unbracketed.any():
             r = rows[unbracketed]
@@ -313,12 +347,11 @@ class FastHand:
             r = rows[bracketed]
             prob.t_lo[r] = t[bracketed]
             prob.t[r] = 0.5 * (t[bracketed] + t_hi[bracketed])
-        inside = ~touch & ~(gap > CONTACT_TOL)
+        inside = ~free
         if inside.any():
             r = rows[inside]
             prob.t_hi[r] = t[inside]
             prob.t[r] = 0.5 * (t_lo[inside] + t[inside])
-
 
     def _exact_at(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray):
         """Exact gaps (m, 2) of finger f's links at parameters t (inf for a link that does

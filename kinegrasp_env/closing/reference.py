@@ -26,9 +26,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from kinegrasp_env.closing.hand_geometry import Shape, capsule_contacts, hand_shapes
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.closing.finger_axes import finger_axes
+from kinegrasp_env.closing.hand_geometry import Shape, hand_shapes, pair_contacts
 from kinegrasp_env.closing.segment_distance import closest_to_segments
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh, load_urdf
 from kinegrasp_env.world.sim import GraspWorld
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
@@ -142,21 +145,130 @@ def secant_root(gap_at, t: float, gap: float, t_min: float, t_max: float) -> flo
     return best_t
 
 
+@dataclass(frozen=True)
+class FingerChain:
+    """What places one finger's capsule axes, from the hand URDF (the file pybullet loads).
+
+    Attributes:
+        axis_p, axis_d: (3,) unit axes of the proximal and distal joints.
+        distal_origin: (4, 4) the distal joint's origin in the proximal link frame.
+        ends_p, ends_d: (2, 3) capsule axis end points in the proximal and distal link frames,
+            metres.
+        radii: (2,) capsule radii (proximal, distal), metres.
+    """
+
+    axis_p: np.ndarray
+    axis_d: np.ndarray
+    distal_origin: np.ndarray
+    ends_p: np.ndarray
+    ends_d: np.ndarray
+    radii: np.ndarray
+
+
+@lru_cache(maxsize=1)
+def hand_kinematics() -> Kinematics:
+    """Forward kinematics of the hand alone (``sdh_hand.urdf``, root = the flange frame)."""
+    return Kinematics(load_urdf(asset_path("robots", "sdh_hand.urdf"), actuated=HAND_JOINTS))
+
+
+@lru_cache(maxsize=1)
+def finger_chains() -> tuple[FingerChain, ...]:
+    """The :class:`FingerChain` of fingers 1, 2, 3."""
+    model = hand_kinematics().model
+    chains = []
+    for (prox, dist, _, _), (shape_p, shape_d) in zip(FINGERS, finger_capsules(), strict=True):
+        chains.append(FingerChain(
+            model.joint(prox).axis, model.joint(dist).axis, model.joint(dist).origin,
+            np.array(shape_p.axis_points()), np.array(shape_d.axis_points()),
+            np.array([shape_p.radius, shape_d.radius])))
+    return tuple(chains)
+
+
+@lru_cache(maxsize=64)
+def zero_flexion_frames(spread: float) -> np.ndarray:
+    """(3, 4, 4) frames of the fingers' proximal links at zero flexion, in the hand root
+    frame, for a spread (radians); cached: a Monte Carlo run repeats one pre-shape."""
+    q = np.zeros(len(HAND_JOINTS))
+    q[HAND_JOINTS.index("f1_spread")] = spread
+    frames = hand_kinematics().forward(q, [f[2] for f in FINGERS])
+    return np.stack([frames[f[2]][0] for f in FINGERS])
+
+
+class _Probe:
+    """The hand of one auto-close: its pybullet joints and its finger capsules' exact gaps.
+
+    pybullet's joints are reset only where the value changed (resetting one to its current
+    value leaves the state as it was). A finger capsule's exact closest pair with the object
+    comes from its axis, placed by the proximal joint frame of the draw (hand root and spread,
+    object frame) and the finger's two flexions (:func:`finger_axes`), not from pybullet.
+    """
+
+    def __init__(self, world: GraspWorld) -> None:
+        self.world, self.obj = world, world.obj
+        self.hand = world.bodies["hand"]
+        self.body = world.bodies["object"]
+        self.reset_joint = world.bullet.resetJointState  # bound once per auto-close
+        self.closest_points = world.bullet.getClosestPoints
+        self.joint_index = world.joint_index
+        self.joints: dict[int, float] = {}
+        self.chains = finger_chains()
+        #: pybullet link index -> (finger, link 0 proximal / 1 distal)
+        self.capsules = {world.link_index[f[2 + link]]: (i, link)
+                         for i, f in enumerate(FINGERS) for link in (0, 1)}
+        self.frames = np.empty((3, 4, 4))
+
+    def set_hand(self, root_pose: np.ndarray, preshape: np.ndarray) -> None:
+        """Place the hand root ((4, 4) world) and set every hand joint from the pre-shape."""
+        joints = hand_joint_values(preshape)
+        self.world.set_hand(root_pose, joints)
+        self.joints = {self.joint_index[name]: float(v) for name, v in joints.items()}
+        self.frames = self.obj.pose_inverse @ root_pose @ zero_flexion_frames(float(preshape[0]))
+
+    def set_joints(self, values: dict[str, float]) -> None:
+        """Set hand joints by name (radians) in pybullet."""
+        for name, value in values.items():
+            joint, value = self.joint_index[name], float(value)
+            if self.joints.get(joint) != value:
+                self.reset_joint(self.hand, joint, value)
+                self.joints[joint] = value
+
+    def axes(self, finger: int, prox: float, dist: float, links) -> np.ndarray:
+        """Capsule axes (m, 2, 3) [a, b] of a finger's links (0 proximal, 1 distal) at
+        flexions prox, dist (radians), object frame."""
+        chain = self.chains[finger]
+        ends = finger_axes(self.frames[finger:finger + 1], chain.axis_p, np.array([prox]),
+                           chain.distal_origin, chain.axis_d, np.array([dist]),
+                           chain.ends_p, chain.ends_d)[0].reshape(2, 2, 3)
+        return ends[list(links)]
+
+    def pairs(self, axes: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Exact closest pairs of capsule axes (m, 2, 3) and the object: (on the object
+        (m, 3), on the axis (m, 3), axis distance (m,), part (m,))."""
+        return closest_to_segments(self.obj, axes[:, 0], axes[:, 1])
+
+    def radii(self, finger: int, links) -> np.ndarray:
+        return self.chains[finger].radii[list(links)]
+
+
 class _Finger:
     """Closing state of one finger: a 1-D path per phase, bisection bracket [t_lo, t_hi]."""
 
-    def __init__(self, index: int, prox: float, dist: float, geometry) -> None:
+    def __init__(self, index: int, prox: float, dist: float, geometry,
+                 link_index: dict[str, int]) -> None:
         _, _, self.upper_p, self.upper_d = geometry
         self.index = index
         self.joints, self.links = FINGERS[index][:2], FINGERS[index][2:]
+        self.link_ids = tuple(link_index[link] for link in self.links)
         self.start = [min(prox, self.upper_p), min(dist, self.upper_d)]
         self.phase = 1  # 1: both joints close, 2: only the distal joint closes
         self.t = 0.0
         self.t_lo, self.t_hi = 0.0, None
         self.done = False
         self.missed = False
-        self.contacts: list[Contact] = []
+        #: touching links: (link, closest pair rows of :meth:`_Probe.pairs`), see _contacts
+        self.touches: list[tuple[int, tuple]] = []
         self.speed = dict(zip((1, 2), closing_speeds(), strict=True))
+        self.last: tuple | None = None  # (state key, pairs) of the last exact evaluation
 
     @property
     def moving_links(self) -> tuple[int, ...]:
@@ -173,49 +285,40 @@ class _Finger:
         return {self.joints[0]: min(prox, self.upper_p),
                 self.joints[1]: min(self.start[1] + self.t, self.upper_d)}
 
-    def _exact_gaps(self, world: GraspWorld, t: float) -> dict[int, float]:
-        """Exact gaps of the moving links with the finger at parameter t."""
+    def exact_at(self, probe: _Probe, t: float) -> tuple:
+        """Closest pairs (see :meth:`_Probe.pairs`) and exact gaps (m,) of the moving links
+        with the finger at parameter t (the last evaluation is reused when t is the same)."""
         self.t = t
-        world.set_joints(self.values())
-        capsules = finger_capsules()[self.index]
-        return {link: exact_gap(world, capsules[link]) for link in self.moving_links}
+        key = (self.phase, self.start[0], self.start[1], t)
+        if self.last is None or self.last[0] != key:
+            values = self.values()
+            links = self.moving_links
+            pairs = probe.pairs(probe.axes(self.index, values[self.joints[0]],
+                                           values[self.joints[1]], links))
+            self.last = (key, pairs, pairs[2] - probe.radii(self.index, links))
+        return self.last[1:]
 
-    def _polish(self, world: GraspWorld, gap: float) -> dict[int, float]:
-        """Move t to the root of the exact gap (see :func:`secant_root`); gaps there."""
+    def _polish(self, probe: _Probe, gap: float) -> tuple:
+        """Move t to the root of the exact gap (see :func:`secant_root`); pairs and gaps
+        there."""
         t_min = max(self.t - POLISH_RANGE, 0.0)
-        root = secant_root(lambda t: min(self._exact_gaps(world, t).values()), self.t, gap,
+        root = secant_root(lambda t: float(self.exact_at(probe, t)[1].min()), self.t, gap,
                            t_min, self.t_max)
-        return self._exact_gaps(world, root)
+        return self.exact_at(probe, root)
 
-    def update(self, gaps: dict[str, tuple[float, tuple | None]], world: GraspWorld) -> None:
-        """Advance from the gaps measured at the current t."""
-        moving = [(link, *gaps.get(self.links[link], (QUERY_DISTANCE, None)))
-                  for link in self.moving_links]
-        gap = min(g for _, g, _ in moving)
+    def update(self, gaps: dict[int, float], probe: _Probe) -> None:
+        """Advance from the gaps (pybullet link index -> metres) measured at the current t."""
+        gap = min(gaps.get(self.link_ids[link], QUERY_DISTANCE) for link in self.moving_links)
         bracket_closed = self.t_hi is not None and self.t_hi - self.t_lo < 1e-9
         if -CONTACT_TOL <= gap <= CONTACT_TOL or (bracket_closed and gap <= CONTACT_TOL):
-            link_gaps = self._polish(world, gap)
-            touching = [link for link in self.moving_links if link_gaps[link] <= CONTACT_TOL]
-            for link in touching:
-                self.contacts.append(_contact(world, self.index, link))
-            if 1 in touching:
-                self.done = True
-                return
-            # proximal contact: freeze the proximal joint, the distal one goes on
-            values = self.values()
-            self.start = [values[self.joints[0]], values[self.joints[1]]]
-            self.phase, self.t, self.t_lo, self.t_hi = 2, 0.0, 0.0, None
-            if self.t_max <= 0.0:
-                self.done = True
-            else:
-                self.t = min(STEP, self.t_max)
+            self._touch(probe, gap)
             return
         if gap > CONTACT_TOL:
             self.t_lo = self.t
             if self.t_hi is None:
                 if self.t >= self.t_max:  # every joint at its limit, no contact
                     self.done = True
-                    self.missed = not self.contacts
+                    self.missed = not self.touches
                     return
                 self.t = min(self.t + max(gap / self.speed[self.phase], STEP), self.t_max)
                 return
@@ -223,24 +326,36 @@ class _Finger:
             self.t_hi = self.t
         self.t = 0.5 * (self.t_lo + self.t_hi)
 
+    def _touch(self, probe: _Probe, gap: float) -> None:
+        """A link is touching: polish, record the contacts, end the finger or go on with the
+        distal joint alone."""
+        pairs, link_gaps = self._polish(probe, gap)
+        touching = [row for row in range(len(link_gaps)) if link_gaps[row] <= CONTACT_TOL]
+        for row in touching:
+            self.touches.append((self.moving_links[row], tuple(p[row] for p in pairs)))
+        if any(self.moving_links[row] == 1 for row in touching):
+            self.done = True
+            return
+        # proximal contact: freeze the proximal joint, the distal one goes on
+        values = self.values()
+        self.start = [values[self.joints[0]], values[self.joints[1]]]
+        self.phase, self.t, self.t_lo, self.t_hi = 2, 0.0, 0.0, None
+        if self.t_max <= 0.0:
+            self.done = True
+        else:
+            self.t = min(STEP, self.t_max)
 
-def _axis(world: GraspWorld, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
-    """(1, 3) end points of a capsule's axis in the object frame, at the current pose."""
-    pose = world.obj.pose_inverse @ world.link_pose(shape.link)
-    a, b = (pose[:3, :3] @ p + pose[:3, 3] for p in shape.axis_points())
-    return a[None], b[None]
 
-
-def exact_gap(world: GraspWorld, shape: Shape) -> float:
-    """Exact gap (metres) of a finger capsule that does not cross the object."""
-    return float(closest_to_segments(world.obj, *_axis(world, shape))[2][0] - shape.radius)
-
-
-def _contact(world: GraspWorld, finger: int, link: int) -> Contact:
-    """The exact contact of a touching finger link (see
-    :mod:`kinegrasp_env.closing.hand_geometry`)."""
-    point, normal = capsule_contacts(world.obj, *_axis(world, finger_capsules()[finger][link]))
-    return Contact(finger, link, point[0], normal[0])
+def _contacts(obj, fingers: list[_Finger]) -> list[Contact]:
+    """The exact contacts of every touching finger link (see
+    :mod:`kinegrasp_env.closing.hand_geometry`), from their closest pairs, in one batch."""
+    found = [(f.index, link, pair) for f in fingers for link, pair in f.touches]
+    if not found:
+        return []
+    on_obj, on_seg, dist, part = (np.array([pair[k] for _, _, pair in found]) for k in range(4))
+    points, normals = pair_contacts(obj, on_obj, on_seg, dist, part)
+    return [Contact(finger, link, points[i], normals[i])
+            for i, (finger, link, _) in enumerate(found)]
 
 
 @lru_cache(maxsize=1)
@@ -248,6 +363,54 @@ def finger_capsules() -> tuple[tuple[Shape, Shape], ...]:
     """(proximal, distal) capsule of each finger."""
     shapes = {s.link: s for s in hand_shapes()}
     return tuple((shapes[f[2]], shapes[f[3]]) for f in FINGERS)
+
+
+def _exact_gaps(probe: _Probe, links: list[int], flexion) -> list[float]:
+    """Exact gaps (metres) of capsule links (pybullet link indices), each finger at
+    ``flexion[finger]`` = (proximal, distal) radians."""
+    owners = [probe.capsules[link] for link in links]
+    axes = np.concatenate([probe.axes(finger, *flexion[finger], [link])
+                           for finger, link in owners])
+    radii = np.array([probe.chains[finger].radii[link] for finger, link in owners])
+    return (probe.pairs(axes)[2] - radii).tolist()
+
+
+def _start_collision(probe: _Probe, preshape: np.ndarray) -> bool:
+    """Whether the hand, as placed, penetrates the object by more than ``START_TOL``
+    (pybullet's distance, or a finger capsule's exact gap within ``EXACT_BAND``)."""
+    near: list[int] = []
+    for rec in probe.world.closest(EXACT_BAND):
+        if rec[3] in probe.capsules and rec[8] >= -EXACT_BAND:
+            if rec[3] not in near:
+                near.append(rec[3])
+        elif rec[8] < -START_TOL:
+            return True
+    flexion = [(preshape[1 + 2 * i], preshape[2 + 2 * i]) for i in range(3)]
+    return any(gap < -START_TOL for gap in _exact_gaps(probe, near, flexion)) if near else False
+
+
+def _measure(probe: _Probe, active: list[_Finger]) -> dict[int, float]:
+    """Gaps (pybullet link index -> metres) of the active fingers' moving links at the
+    current joint values: pybullet's distance (one query per link: a query of the whole hand
+    costs as much as six), exact within ``EXACT_BAND``."""
+    gaps: dict[int, float] = {}
+    near = []
+    for finger in active:
+        for link in finger.moving_links:
+            index = finger.link_ids[link]
+            records = probe.closest_points(probe.hand, probe.body, QUERY_DISTANCE,
+                                           linkIndexA=index)
+            if records:
+                gaps[index] = gap = min(rec[8] for rec in records)
+                if -EXACT_BAND <= gap <= EXACT_BAND:
+                    near.append(index)
+    if near:  # near contact: the exact gap decides
+        flexion = {}
+        for f in active:
+            values = f.values()
+            flexion[f.index] = (values[f.joints[0]], values[f.joints[1]])
+        gaps.update(zip(near, _exact_gaps(probe, near, flexion), strict=True))
+    return gaps
 
 
 def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -> CloseResult:
@@ -258,16 +421,14 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
         root_pose: (4, 4) world pose of the hand root (the arm's flange frame).
         preshape: (7,) hand DOF: spread, f1 proximal, f1 distal, f2 ..., f3 ... (radians).
     """
-    world.set_hand(root_pose, hand_joint_values(np.asarray(preshape, dtype=float)))
-    capsule_links = {world.link_index[s.link]: s for pair in finger_capsules() for s in pair}
-    for rec in world.closest(EXACT_BAND):
-        shape = capsule_links.get(rec[3])
-        gap = rec[8] if shape is None or rec[8] < -EXACT_BAND else exact_gap(world, shape)
-        if gap < -START_TOL:
-            return CloseResult(start_collision=True)
+    preshape = np.asarray(preshape, dtype=float)
+    probe = _Probe(world)
+    probe.set_hand(root_pose, preshape)
+    if _start_collision(probe, preshape):
+        return CloseResult(start_collision=True)
     geometry = _finger_geometry()
-    fingers = [_Finger(i, preshape[1 + 2 * i], preshape[2 + 2 * i], geometry) for i in range(3)]
-    link_names = {world.link_index[link]: link for f in fingers for link in f.links}
+    fingers = [_Finger(i, preshape[1 + 2 * i], preshape[2 + 2 * i], geometry,
+                       world.link_index) for i in range(3)]
     iterations = 0
     while iterations < MAX_ITERATIONS:
         active = [f for f in fingers if not f.done]
@@ -276,23 +437,16 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
         values: dict[str, float] = {}
         for finger in active:
             values.update(finger.values())
-        world.set_joints(values)
-        gaps: dict[str, tuple[float, tuple | None]] = {}
-        for rec in world.closest(QUERY_DISTANCE):
-            name = link_names.get(rec[3])
-            if name is not None and (name not in gaps or rec[8] < gaps[name][0]):
-                gaps[name] = (rec[8], rec)
-        for name, (gap, rec) in gaps.items():  # near contact: the exact gap decides
-            if -EXACT_BAND <= gap <= EXACT_BAND:
-                gaps[name] = (exact_gap(world, capsule_links[world.link_index[name]]), rec)
+        probe.set_joints(values)
+        gaps = _measure(probe, active)
         iterations += 1
         for finger in active:
-            finger.update(gaps, world)
+            finger.update(gaps, probe)
     for finger in fingers:  # out of iterations: whatever was found stands
         finger.done = True
     joints = np.array(preshape, dtype=float)
     for f in fingers:
         values = f.values()
         joints[1 + 2 * f.index], joints[2 + 2 * f.index] = values[f.joints[0]], values[f.joints[1]]
-    contacts = [c for f in fingers for c in f.contacts]
-    return CloseResult(False, contacts, tuple(f.missed for f in fingers), joints, iterations)
+    missed = tuple(f.missed for f in fingers)
+    return CloseResult(False, _contacts(world.obj, fingers), missed, joints, iterations)

@@ -102,71 +102,96 @@ def point_part(planes, p0, p1, edges, mid, half, e0, e1, x, y, z, tol):
     return np.sqrt(best), bx, by, bz
 
 @jit.kernel
-def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay, az, ex,
-                ey, ez, bounds, tol):
-    """Closest pair of segment [a, e] and the object: (distance, point on the object
-    (3 floats), point on the segment (3 floats), part); bounds: (n_parts,) buffer."""
-    n_parts = plane_start.shape[0] - 1
-    ux, uy, uz = ex - ax, ey - ay, ez - az
-    uu = ux * ux + uy * uy + uz * uz
-    mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
-    seg_half = 0.5 * np.sqrt(uu)
-    best = np.inf
-    box = boy = boz = bsx = bsy = bsz = 0.0
-    bpart = 0
-    for part in range(n_parts):
-        p0, p1 = plane_start[part], plane_start[part + 1]
+def part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds):
+    """Lower bound of each part's distance to segment [a, e] into bounds (n_parts,): the
+    largest over the part's planes of min(s(a), s(e)) (a plane's value s is linear along
+    the segment, and a point's distance to a convex part is at least its largest s)."""
+    for part in range(plane_start.shape[0] - 1):
         bound = -np.inf
-        for k in range(p0, p1):
+        for k in range(plane_start[part], plane_start[part + 1]):
             va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
             vb = planes[k, 0] * ex + planes[k, 1] * ey + planes[k, 2] * ez + planes[k, 3]
             v = min(va, vb)
             if v > bound:
                 bound = v
         bounds[part] = bound
+
+@jit.kernel(inline="always")  # inlined: a call per edge made the search ~3% slower
+def segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0, vx, vy, vz):
+    """Closest pair of segment a + s u and edge c0 + t v (s, t in [0, 1]; uu = u . u):
+    (distance, point on the edge (3 floats), point on the segment (3 floats))."""
+    ee = vx * vx + vy * vy + vz * vz
+    rx, ry, rz = ax - cx0, ay - cy0, az - cz0
+    bb = ux * vx + uy * vy + uz * vz
+    cc = rx * ux + ry * uy + rz * uz
+    ff = rx * vx + ry * vy + rz * vz
+    denom = uu * ee - bb * bb
+    s = 0.0
+    if denom > 1e-14 * uu * ee:
+        s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
+    t = (bb * s + ff) / ee
+    if t < 0.0:
+        s = min(max(-cc / uu, 0.0), 1.0)
+    elif t > 1.0:
+        s = min(max((bb - cc) / uu, 0.0), 1.0)
+    t = min(max(t, 0.0), 1.0)
+    px, py, pz = ax + s * ux, ay + s * uy, az + s * uz
+    qx, qy, qz = cx0 + t * vx, cy0 + t * vy, cz0 + t * vz
+    dd = np.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
+    return dd, qx, qy, qz, px, py, pz
+
+@jit.kernel(inline="always")  # inlined: a call per part made the search ~2% slower
+def segment_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay, az, ex, ey, ez, ptol):
+    """Closest pair of segment [a, e] and one part (planes p0:p1, edges e0:e1, on-face
+    tolerance ptol): (distance, point on the part (3 floats), point on the segment (3
+    floats)). The nearer of the ends' closest points, then every edge whose bounding
+    sphere can come closer than the best so far."""
+    ux, uy, uz = ex - ax, ey - ay, ez - az
+    uu = ux * ux + uy * uy + uz * uz
+    mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
+    seg_half = 0.5 * np.sqrt(uu)
+    da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay, az,
+                                   ptol)
+    db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, ex, ey, ez,
+                                   ptol)
+    if db < da:
+        d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, ex, ey, ez
+    else:
+        d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
+    for e in range(e0, e1):
+        cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+        vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
+        gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
+                       + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
+        if gap >= d:
+            continue
+        dd, qx, qy, qz, px, py, pz = segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0,
+                                                  vx, vy, vz)
+        if dd < d:
+            d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
+    return d, ox, oy, oz, sx, sy, sz
+
+@jit.kernel
+def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay, az, ex,
+                ey, ez, bounds, tol):
+    """Closest pair of segment [a, e] and the object: (distance, point on the object
+    (3 floats), point on the segment (3 floats), part); bounds: (n_parts,) buffer.
+
+    Parts are visited by increasing :func:`part_bounds`, until the bound reaches the best
+    distance found."""
+    part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds)
     order = np.argsort(bounds)
-    for rank in range(n_parts):
+    best = np.inf
+    box = boy = boz = bsx = bsy = bsz = 0.0
+    bpart = 0
+    for rank in range(plane_start.shape[0] - 1):
         part = order[rank]
         if bounds[part] >= best:
             break
-        p0, p1 = plane_start[part], plane_start[part + 1]
-        e0, e1 = edge_start[part], edge_start[part + 1]
-        ptol = tol * scale[part]
-        da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay,
-                                       az, ptol)
-        db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, ex, ey,
-                                       ez, ptol)
-        if db < da:
-            d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, ex, ey, ez
-        else:
-            d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
-        for e in range(e0, e1):
-            cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-            vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
-            gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
-                           + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
-            if gap >= d:
-                continue
-            ee = vx * vx + vy * vy + vz * vz
-            rx, ry, rz = ax - cx0, ay - cy0, az - cz0
-            bb = ux * vx + uy * vy + uz * vz
-            cc = rx * ux + ry * uy + rz * uz
-            ff = rx * vx + ry * vy + rz * vz
-            denom = uu * ee - bb * bb
-            s = 0.0
-            if denom > 1e-14 * uu * ee:
-                s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
-            t = (bb * s + ff) / ee
-            if t < 0.0:
-                s = min(max(-cc / uu, 0.0), 1.0)
-            elif t > 1.0:
-                s = min(max((bb - cc) / uu, 0.0), 1.0)
-            t = min(max(t, 0.0), 1.0)
-            px, py, pz = ax + s * ux, ay + s * uy, az + s * uz
-            qx, qy, qz = cx0 + t * vx, cy0 + t * vy, cz0 + t * vz
-            dd = np.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
-            if dd < d:
-                d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
+        d, ox, oy, oz, sx, sy, sz = segment_part(
+            planes, plane_start[part], plane_start[part + 1], edges, mid, half,
+            edge_start[part], edge_start[part + 1], ax, ay, az, ex, ey, ez,
+            tol * scale[part])
         if d < best:
             best = d
             box, boy, boz, bsx, bsy, bsz = ox, oy, oz, sx, sy, sz
@@ -174,8 +199,10 @@ def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay
     return best, box, boy, boz, bsx, bsy, bsz, bpart
 
 @jit.kernel
-def segments_closest(planes, plane_start, edges, edge_start, scale, mid, half, a, b, out_d, out_obj,
-           out_seg, out_part, tol):
+def segments_closest(planes, plane_start, edges, edge_start, scale, mid, half, a, b, out_d,
+                     out_obj, out_seg, out_part, tol):
+    """Closest pairs of segments [a, b] (n, 3) and the object (see :func:`segment_one`) into
+    out_d (n,), out_obj, out_seg (n, 3), out_part (n,)."""
     bounds = np.empty(plane_start.shape[0] - 1)
     for i in range(a.shape[0]):
         (out_d[i], out_obj[i, 0], out_obj[i, 1], out_obj[i, 2], out_seg[i, 0],

@@ -1,11 +1,15 @@
 """KineGrasp-v0 and KineGraspSelect-v0: choose the elbow angle that makes a grasp robust.
 
 A task is a grasp (object, nominal arm+hand configuration q0, hence a palm pose and nominal
-contacts) and a joint-noise model. The agent moves the arm along its self-motion manifold
-(the palm pose, so the nominal contacts, stay fixed); the reward is P(force closure)
-estimated from ``n_draws`` internal Monte Carlo draws at the current configuration, plus
-``q_weight`` times the mean Ferrari-Canny Q, minus ``limit_penalty`` when the requested
-motion would leave the joint limits (the arm then stays at the last reachable point).
+contacts) and a noise: joint noise of a sigma and distribution drawn at reset, or a fixed
+:class:`~kinegrasp_env.sampling.noise_model.NoiseModel` of every source of error (the
+``noise_model`` argument or reset option: a model, a spec mapping or a spec file; the
+observation is the same, showing the model's joint noise). The agent moves the arm along its
+self-motion manifold (the palm pose, so the nominal contacts, stay fixed); the reward is
+P(force closure) estimated from ``n_draws`` internal Monte Carlo draws at the current
+configuration, plus ``q_weight`` times the mean Ferrari-Canny Q, minus ``limit_penalty`` when
+the requested motion would leave the joint limits (the arm then stays at the last reachable
+point).
 
 Observation (float32, 44 entries, every one scaled to roughly [-1, 1]):
 
@@ -14,8 +18,8 @@ index  entry                                                 scale
 ====== ===================================================== =========================
 0-6    nominal arm joints q0[:7]                              / pi
 7-13   hand pre-shape q0[7:]                                  / pi
-14     noise sigma                                            / 0.05 rad
-15-17  noise type one-hot (gaussian, uniform, triangular)     1
+14     joint noise sigma (the largest, if per joint)            / 0.05 rad
+15-17  joint noise type one-hot (gaussian, uniform, triangular)  1
 18-20  palm position relative to the object frame             / 0.3 m
 21-26  palm orientation in the object frame (first two columns of R)  1
 27-28  current elbow angle psi: sin, cos                      1
@@ -49,6 +53,8 @@ from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.noise_spec import noise_model_from, spec_of
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
@@ -69,11 +75,26 @@ def reset_sigma(value) -> float:
     return sigma
 
 
+def joint_sigma(noise: JointNoise | NoiseModel) -> float:
+    """The joint sigma an observation shows (radians): the largest over the arm joints."""
+    return float(noise.sigma_vector(7).max())
+
+
+def noise_info(noise: JointNoise | NoiseModel) -> dict:
+    """The noise entries of ``info``: sigma and noise type of the joints, and a model's spec."""
+    info = {"sigma": joint_sigma(noise), "noise": noise.kind}
+    if isinstance(noise, NoiseModel):
+        info["noise_model"] = spec_of(noise)
+    return info
+
+
 class KineGraspEnv(gym.Env):
     """Move the elbow along the self-motion to make a grasp robust to joint noise.
 
     Args:
-        objects: catalog objects to draw tasks from (default: all).
+        objects: objects to draw tasks from, built-in or imported (default: every built-in
+            one, or with ``grasp_file`` every object of the file). An imported object has no
+            shipped grasp set: give it with ``grasp_file`` (e.g. ``kinegrasp plan``'s output).
         grasp_file: a grasp file to draw tasks from instead of the shipped sets.
         sigma_range: (low, high) of the noise sigma drawn at reset (radians).
         noise_types: noise distributions drawn at reset.
@@ -91,6 +112,9 @@ class KineGraspEnv(gym.Env):
             (all grasps).
         engine: ``pybullet`` (the reference) or ``fast`` (batched; see
             :class:`kinegrasp_env.montecarlo.engines.FastEngine`) for the reward's draws.
+        noise_model: every task's noise instead of the drawn joint noise: a
+            :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
+            file (YAML/JSON); the observation shows its joint sigma and distribution.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -100,7 +124,8 @@ class KineGraspEnv(gym.Env):
                  noise_types: tuple[str, ...] = ("gaussian",), n_draws: int = 64,
                  q_weight: float = 0.0, limit_penalty: float = 0.1, max_steps: int = 10,
                  step_size: float = 0.3, render_mode: str | None = None,
-                 split: str | None = None, engine: str = "pybullet") -> None:
+                 split: str | None = None, engine: str = "pybullet",
+                 noise_model: NoiseModel | dict | str | None = None) -> None:
         super().__init__()
         if render_mode not in (None, "rgb_array", "human"):
             raise ValueError(f"unknown render_mode {render_mode!r}")
@@ -114,8 +139,11 @@ class KineGraspEnv(gym.Env):
                 raise ValueError(f"unknown noise type {kind!r}; choose from {DISTRIBUTIONS}")
         if grasp_file is not None:
             grasps = load_grasps(grasp_file)
-            self.tasks = {name: [g for g in grasps if g.object == name]
-                          for name in {g.object for g in grasps}}
+            names = tuple(objects) if objects else tuple({g.object for g in grasps})
+            self.tasks = {name: [g for g in grasps if g.object == name] for name in names}
+            empty = [name for name, gs in self.tasks.items() if not gs]
+            if empty:
+                raise ValueError(f"{grasp_file} has no grasp of {empty[0]!r}")
         else:
             names = objects or OBJECT_NAMES
             self.tasks = {name: shipped_grasps(name) for name in names}
@@ -142,6 +170,7 @@ class KineGraspEnv(gym.Env):
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
         self.engine = engine
+        self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         self._engines: dict[str, Engine] = {}
         self._kin = Kinematics(kuka_sdh())
         self._ik: ArmIK | None = None
@@ -187,7 +216,7 @@ class KineGraspEnv(gym.Env):
         moved, ok = self.ik.set_elbow_angle(q, psi)
         return moved[0].copy(), bool(ok[0])
 
-    def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise]:
+    def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
         rng = self.np_random
         name = options.get("object")
         if name is None:
@@ -201,6 +230,11 @@ class KineGraspEnv(gym.Env):
             index = int(rng.integers(len(grasps)))
         elif not 0 <= int(index) < len(grasps):
             raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)}")
+        model = options.get("noise_model", self.noise_model)
+        if model is not None:
+            if options.get("sigma") is not None or options.get("noise") is not None:
+                raise ValueError("give the reset option noise_model or sigma/noise, not both")
+            return grasps[int(index)], noise_model_from(model)
         sigma = options.get("sigma")
         if sigma is None:
             sigma = float(rng.uniform(*self.sigma_range))
@@ -223,7 +257,7 @@ class KineGraspEnv(gym.Env):
         psi = float(self.ik.elbow_angle(self.q[None])[0])
         onehot = np.array([self.noise.kind == k for k in DISTRIBUTIONS], dtype=float)
         obs = np.concatenate([
-            self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [self.noise.sigma_vector(1)[0]
+            self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [joint_sigma(self.noise)
                                                                    / 0.05],
             onehot, rel_pos / 0.3, rel_rot[:, :2].T.ravel(), [np.sin(psi), np.cos(psi)],
             self.q[:7] / np.pi, spread, [10.0 * self.grasp.q_nominal],
@@ -253,15 +287,15 @@ class KineGraspEnv(gym.Env):
         info.update({"reward_p_fc": info["p_fc"], "reward_q": self.q_weight * info["q_mean"],
                      "reward_limit_penalty": -penalty, "within_limits": within_limits,
                      "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0]),
-                     "sigma": self.noise.sigma_vector(1)[0], "noise": self.noise.kind,
-                     "object": self.grasp.object, "grasp": self.grasp.id})
+                     "object": self.grasp.object, "grasp": self.grasp.id,
+                     **noise_info(self.noise)})
         return float(reward), info
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - {"object", "grasp", "sigma", "noise", "psi"}
+        unknown = set(options) - {"object", "grasp", "sigma", "noise", "psi", "noise_model"}
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}")
         self.grasp, self.noise = self._pick_task(options)
@@ -272,8 +306,7 @@ class KineGraspEnv(gym.Env):
             if not isinstance(psi, (int, float, np.number)) or not math.isfinite(psi):
                 raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
             self._move_to(float(psi))
-        info = {"object": self.grasp.object, "grasp": self.grasp.id,
-                "sigma": self.noise.sigma_vector(1)[0], "noise": self.noise.kind,
+        info = {"object": self.grasp.object, "grasp": self.grasp.id, **noise_info(self.noise),
                 "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0])}
         return self._observation(), info
 

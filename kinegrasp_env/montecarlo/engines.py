@@ -4,6 +4,10 @@ Each draw: the arm at q = q0 + eps (eps on the 7 arm joints, the hand pre-shape 
 the flange, hence the hand, somewhere; the hand auto-closes on the object; the contacts give
 Q. Every draw ends in exactly one outcome (:data:`OUTCOMES`). Kinematics is batched over
 the draws; auto-close loops over them (pybullet forces it); quality is batched again.
+
+The kinematic engines also take per-draw errors beyond the configuration
+(:meth:`Engine.run`): the hand's pose on the flange, the object's true pose, and the friction
+coefficient (see :mod:`kinegrasp_env.montecarlo.perturbation`).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.reference import auto_close
+from kinegrasp_env.montecarlo.perturbation import placed_roots, world_to_object
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
@@ -102,6 +107,26 @@ class EngineTiming:
     draws: int = 0
 
 
+def check_errors(n: int, palm, object_offset, friction) -> dict[str, np.ndarray]:
+    """The per-draw errors of :meth:`Engine.run` that are given, as float arrays of the
+    right shapes (ValueError otherwise: a bad shape, a non-finite entry, a negative mu)."""
+    out = {}
+    for name, value, shape in (("palm", palm, (n, 4, 4)),
+                               ("object_offset", object_offset, (n, 4, 4)),
+                               ("friction", friction, (n,))):
+        if value is None:
+            continue
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != shape:
+            raise ValueError(f"{name} must have shape {shape} (one per draw), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} has NaN or infinite entries")
+        out[name] = arr
+    if "friction" in out and np.any(out["friction"] < 0):
+        raise ValueError(f"friction must be >= 0, got {float(out['friction'].min()):g}")
+    return out
+
+
 class Engine:
     """What both engines share: the object, the quality settings, scoring and timing.
 
@@ -111,6 +136,8 @@ class Engine:
     """
 
     name = ""
+    #: whether :meth:`run` takes per-draw palm, object and friction errors
+    takes_errors = False
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         self.obj = load_object(object_name)
@@ -121,19 +148,32 @@ class Engine:
     def close(self) -> None:
         """Release what the engine holds (nothing by default)."""
 
-    def run(self, q: np.ndarray) -> DrawBatch:
+    def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
+            object_offset: np.ndarray | None = None,
+            friction: np.ndarray | None = None) -> DrawBatch:
         """Outcomes of configurations q (n, 14) (arm noisy, hand = pre-shape), radians.
+
+        Per-draw errors (None: exact; engines with ``takes_errors`` only):
+            palm: (n, 4, 4) the hand root in the flange frame.
+            object_offset: (n, 4, 4) the object's true pose in the frame it was believed at;
+                contacts are in the true object's frame.
+            friction: (n,) mu of each draw's quality (instead of the engine's friction).
 
         Raises:
             ValueError: q is not (n, 14) or has a non-finite entry (NaN or inf is an input
-                error, never an outcome; nothing reaches the compiled kernels).
+                error, never an outcome; nothing reaches the compiled kernels); an error of
+                the wrong shape, or one the engine does not take.
         """
         q = check_configurations(q)
+        errors = check_errors(q.shape[0], palm, object_offset, friction)
+        if errors and not self.takes_errors:
+            raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
+                             f"{', '.join(errors)} errors")
         with single_blas_thread():
-            return self._run(q)
+            return self._run(q, **errors)
 
-    def _run(self, q: np.ndarray) -> DrawBatch:  # pragma: no cover - abstract
-        raise NotImplementedError
+    def _run(self, q: np.ndarray, **errors: np.ndarray) -> DrawBatch:  # pragma: no cover
+        raise NotImplementedError  # abstract: errors only where takes_errors
 
     def _account(self, draws: int, *, kinematics: float, autoclose: float,
                  quality: float) -> None:
@@ -142,13 +182,15 @@ class Engine:
         self.timing.quality += quality
         self.timing.draws += draws
 
-    def score(self, out: DrawBatch) -> None:
-        """Fill quality and the force-closure outcome of the candidate draws, by contact count."""
+    def score(self, out: DrawBatch, friction: np.ndarray | None = None) -> None:
+        """Fill quality and the force-closure outcome of the candidate draws, by contact
+        count; ``friction`` (n,) is each draw's mu (default: the engine's)."""
         candidates = out.outcome == NO_FORCE_CLOSURE
         for k in np.unique(out.n_contacts[candidates]):
             rows = np.flatnonzero(candidates & (out.n_contacts == k))
+            mu = self.friction if friction is None else friction[rows]
             q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
-                                    friction=self.friction, num_edges=self.num_edges,
+                                    friction=mu, num_edges=self.num_edges,
                                     torque_scale=self.obj.torque_scale,
                                     center=self.obj.center_of_mass)
             out.quality[rows] = q
@@ -164,6 +206,7 @@ class PybulletEngine(Engine):
     """
 
     name = "pybullet"
+    takes_errors = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         super().__init__(object_name, friction, num_edges)
@@ -177,11 +220,15 @@ class PybulletEngine(Engine):
         """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
         return self.kin.pose(q, FLANGE_LINK)
 
-    def _run(self, q: np.ndarray) -> DrawBatch:
+    def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
+             object_offset: np.ndarray | None = None,
+             friction: np.ndarray | None = None) -> DrawBatch:
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
         roots = self.flange_poses(q)
+        if palm is not None or object_offset is not None:  # the object stays, the hand moves
+            roots = placed_roots(roots, self.obj.pose, palm, object_offset)
         t1 = time.perf_counter()
         for i in range(n):
             result = auto_close(self.world, roots[i], q[i, 7:])
@@ -198,7 +245,7 @@ class PybulletEngine(Engine):
             out.hand[i] = result.joints
             out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
         t2 = time.perf_counter()
-        self.score(out)
+        self.score(out, friction)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
         return out
 
@@ -214,6 +261,7 @@ class FastEngine(Engine):
     """
 
     name = "fast"
+    takes_errors = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
                  kernel: str = "numba") -> None:
@@ -225,11 +273,17 @@ class FastEngine(Engine):
         #: columns of the hand DOF (7,) holding (proximal, distal) of fingers 1, 2, 3
         self.flexion_columns = [HAND_JOINTS.index(j) for f in FINGERS for j in f[:2]]
 
-    def _run(self, q: np.ndarray) -> DrawBatch:
+    def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
+             object_offset: np.ndarray | None = None,
+             friction: np.ndarray | None = None) -> DrawBatch:
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
-        result = self.hand.close(q)
+        to_object = None
+        if palm is not None or object_offset is not None:
+            to_object = world_to_object(self.hand.kin.pose(q, FLANGE_LINK), self.obj.pose,
+                                        palm, object_offset)
+        result = self.hand.close(q, to_object)
         t1 = time.perf_counter()
         found = result.found.reshape(n, 6)  # finger-major, proximal before distal
         order = np.argsort(~found, axis=1, kind="stable")  # found contacts first, in order
@@ -250,7 +304,7 @@ class FastEngine(Engine):
         out.hand[:, self.flexion_columns] = result.flexion.reshape(n, 6)
         out.hand[result.start_collision] = np.nan
         t2 = time.perf_counter()
-        self.score(out)
+        self.score(out, friction)
         # the fingers' kinematics is part of the batched auto-close; packing counts as kinematics
         self._account(n, kinematics=t2 - t1, autoclose=t1 - t0, quality=time.perf_counter() - t2)
         return out

@@ -1,10 +1,15 @@
-"""Monte Carlo evaluation of a grasp under joint noise -> :class:`GraspStats`.
+"""Monte Carlo evaluation of a grasp under noise -> :class:`GraspStats`.
 
-Draws are processed in chunks of a fixed size. Chunk c draws its noise from the stream
-``SeedSequence(seed, spawn_key=(c,))``, so the draws, and therefore every statistic, are the
-same whatever the number of worker processes; chunk results are merged in chunk order with
-exact streaming formulas, so memory stays flat for 10^6 draws and the numbers are identical
-with 1 or N processes.
+The noise is a :class:`~kinegrasp_env.sampling.noise.JointNoise` (arm joints only) or a
+:class:`~kinegrasp_env.sampling.noise_model.NoiseModel` (joints, hand, palm pose, object pose,
+friction); a joints-only model gives the ``JointNoise`` numbers bit for bit.
+
+Draws are processed in chunks of a fixed size. Chunk c draws its joint noise from the stream
+``SeedSequence(seed, spawn_key=(c,))`` (and a model's other sources from their own children
+of it, ``spawn_key=(c, k)``), so the draws, and therefore every statistic, are the same
+whatever the number of worker processes; chunk results are merged in chunk order with exact
+streaming formulas, so memory stays flat for 10^6 draws and the numbers are identical with
+1 or N processes.
 """
 
 from __future__ import annotations
@@ -24,7 +29,10 @@ from kinegrasp_env.montecarlo.engines import (
     make_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
+from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
 from kinegrasp_env.world.grasps import Grasp
 
@@ -38,6 +46,8 @@ ENGINES = ("pybullet", "fast")
 #: spreads a joint over its whole circle, so the small-error model the evaluation stands for
 #: has no meaning beyond it (and far beyond it, at 1e308, q0 + eps overflows to inf).
 MAX_SIGMA = math.pi
+#: What every evaluation takes as its noise.
+Noise = JointNoise | NoiseModel
 
 
 @dataclass
@@ -50,8 +60,9 @@ class GraspStats:
             fewer than 2 of them; skewness per docs/conventions.md).
         q_nominal: Q of the nominal grasp; error: q_nominal - q_mean (the paper's "Error").
         samples: number of draws; outcomes: counts by outcome name.
-        sigma, noise, seed, engine: the settings.
+        sigma, noise, seed, engine: the settings (sigma and noise describe the joints).
         draws: per-draw results, when requested.
+        noise_model: the spec of a :class:`NoiseModel` noise (None for ``JointNoise``).
     """
 
     p_fc: float
@@ -69,10 +80,13 @@ class GraspStats:
     seed: int
     engine: str = "pybullet"
     draws: DrawBatch | None = field(default=None, repr=False)
+    noise_model: dict | None = None
 
     def to_json(self) -> dict:
-        """JSON-ready dict (NaN becomes None), without the draws."""
-        out = {k: v for k, v in asdict(self).items() if k != "draws"}
+        """JSON-ready dict (NaN becomes None), without the draws (and without
+        ``noise_model`` for joint noise)."""
+        out = {k: v for k, v in asdict(self).items() if k != "draws"
+               and not (k == "noise_model" and v is None)}
         out["p_fc_ci"] = list(self.p_fc_ci)
         for key, value in out.items():
             if isinstance(value, float) and not math.isfinite(value):
@@ -84,11 +98,21 @@ def chunk_sizes(n_samples: int, chunk: int) -> list[int]:
     return [min(chunk, n_samples - start) for start in range(0, n_samples, chunk)]
 
 
-def chunk_noise(noise: JointNoise, seed: int, index: int, size: int,
+def chunk_noise(noise: Noise, seed: int, index: int, size: int,
                 method: str = "mc") -> np.ndarray:
     """Arm-joint noise (size, 7) of chunk ``index``: its own stream, derived from the seed."""
+    if isinstance(noise, NoiseModel):
+        joints = noise.only("joints").draw(seed, index, size, method).joints
+        return np.zeros((size, 7)) if joints is None else joints
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
     return noise.sample(size, 7, rng, method=method)
+
+
+def chunk_draws(noise: NoiseModel, seed: int, chunks: list[tuple[int, int]],
+                method: str = "mc") -> NoiseDraws:
+    """A model's draws of chunks ``[(index, size), ...]``, stacked."""
+    return NoiseDraws.concatenate([noise.draw(seed, index, size, method)
+                                   for index, size in chunks])
 
 
 # one engine per worker process, built on first use
@@ -103,19 +127,38 @@ def _engine(key: tuple) -> Engine:
     return engine
 
 
-def chunk_configurations(q0: np.ndarray, noise: JointNoise, seed: int,
+def chunk_configurations(q0: np.ndarray, noise: Noise, seed: int,
                          chunks: list[tuple[int, int]], method: str = "mc") -> np.ndarray:
-    """q0 (14,) plus the arm noise of chunks ``[(index, size), ...]``, stacked: (sum sizes, 14)."""
+    """q0 (14,) plus the arm noise (and a model's hand offsets) of chunks
+    ``[(index, size), ...]``, stacked: (sum sizes, 14)."""
+    if isinstance(noise, NoiseModel):
+        return configurations(q0, chunk_draws(noise, seed, chunks, method))
     q = np.repeat(np.asarray(q0, dtype=float)[None], sum(size for _, size in chunks), axis=0)
     q[:, :7] += np.concatenate([chunk_noise(noise, seed, index, size, method)
                                 for index, size in chunks])
     return q
 
 
-def draw_chunk(engine: Engine, q0: np.ndarray, noise: JointNoise, seed: int,
+def chunk_inputs(q0: np.ndarray, noise: Noise, seed: int, chunks: list[tuple[int, int]],
+                 method: str, center: np.ndarray) -> EngineInputs:
+    """What the engine takes for chunks ``[(index, size), ...]``: the configurations and a
+    model's per-draw palm, object and friction errors (``center`` (3,): the object's centre
+    of mass, about which an object error rotates)."""
+    if isinstance(noise, NoiseModel):
+        return engine_inputs(q0, chunk_draws(noise, seed, chunks, method), center)
+    return EngineInputs(chunk_configurations(q0, noise, seed, chunks, method))
+
+
+def run_inputs(engine: Engine, inputs: EngineInputs) -> DrawBatch:
+    """``engine.run`` on engine inputs."""
+    return engine.run(inputs.q, **inputs.errors())
+
+
+def draw_chunk(engine: Engine, q0: np.ndarray, noise: Noise, seed: int,
                index: int, size: int, method: str = "mc") -> DrawBatch:
-    """Run chunk ``index`` of a run: q0 (14,) plus that chunk's arm noise, through ``engine``."""
-    return engine.run(chunk_configurations(q0, noise, seed, [(index, size)], method))
+    """Run chunk ``index`` of a run: q0 (14,) plus that chunk's noise, through ``engine``."""
+    return run_inputs(engine, chunk_inputs(q0, noise, seed, [(index, size)], method,
+                                           engine.obj.center_of_mass))
 
 
 ChunkResult = tuple[np.ndarray, StreamingMoments, DrawBatch | None]
@@ -126,7 +169,9 @@ def _run_chunk_group(task: tuple) -> list[ChunkResult]:
     their batch, so the results equal one call per chunk); one result per chunk."""
     key, q0, noise, seed, chunks, method, keep = task
     validate_task(q0, noise)  # also on paths that skip run_chunks (sweeps)
-    draws = _engine(key).run(chunk_configurations(q0, noise, seed, chunks, method))
+    engine = _engine(key)
+    draws = run_inputs(engine, chunk_inputs(q0, noise, seed, chunks, method,
+                                            engine.obj.center_of_mass))
     results, start = [], 0
     for _, size in chunks:
         part = draws.part(start, start + size)
@@ -163,7 +208,7 @@ def _chunks(tasks: list[tuple], processes: int,
             yield from group
 
 
-def validate_task(q0: np.ndarray, noise: JointNoise) -> None:
+def validate_task(q0: np.ndarray, noise: Noise) -> None:
     """Refuse a nominal configuration q0 (14,) that is not finite and a noise whose sigma
     is above :data:`MAX_SIGMA` (both ValueError): non-finite draws are an input error,
     never an outcome."""
@@ -190,7 +235,7 @@ def validate_request(n_samples: int, processes: int, chunk: int) -> None:
         raise ValueError(f"chunk size must be >= 1, got {chunk}")
 
 
-def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 0, *,
+def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
                    processes: int = 1, friction: float = 0.5, num_edges: int = 8,
                    engine: str = "pybullet", method: str = "mc", chunk: int = DEFAULT_CHUNK,
                    return_draws: bool = False, progress: bool | Callable = False,
@@ -199,7 +244,9 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
 
     Args:
         grasp: the grasp (its q0 is the nominal configuration).
-        noise: joint noise on the 7 arm joints.
+        noise: joint noise on the 7 arm joints (``JointNoise``), or a ``NoiseModel`` of
+            every source of error (joints, hand, palm, object, friction; its friction source
+            replaces ``friction`` draw by draw).
         n_samples: number of draws.
         seed: run seed; chunk c uses ``SeedSequence(seed, spawn_key=(c,))``.
         processes: local worker processes (results do not depend on it).
@@ -226,7 +273,7 @@ def evaluate_grasp(grasp: Grasp, noise: JointNoise, n_samples: int, seed: int = 
     return summarize(grasp, noise, seed, engine, counts, moments, draws)
 
 
-def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
+def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
                first_chunk: int = 0, processes: int = 1, friction: float = 0.5,
                num_edges: int = 8, engine: str = "pybullet", method: str = "mc",
                return_draws: bool = False, progress: bool | Callable = False,
@@ -273,7 +320,7 @@ def run_chunks(grasp: Grasp, noise: JointNoise, seed: int, *, sizes: list[int],
     return counts, moments, DrawBatch.concatenate(kept) if kept else None
 
 
-def summarize(grasp: Grasp, noise: JointNoise, seed: int, engine: str, counts: np.ndarray,
+def summarize(grasp: Grasp, noise: Noise, seed: int, engine: str, counts: np.ndarray,
               moments: StreamingMoments, draws: DrawBatch | None) -> GraspStats:
     n = int(counts.sum())
     fc = int(counts[FORCE_CLOSURE])
@@ -287,5 +334,6 @@ def summarize(grasp: Grasp, noise: JointNoise, seed: int, engine: str, counts: n
         q_skew=float(result.skew[0]) if fc > 1 else math.nan, q_nominal=grasp.q_nominal,
         error=grasp.q_nominal - mean if fc else math.nan, samples=n,
         outcomes={name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-        sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws)
+        sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws,
+        noise_model=spec_of(noise) if isinstance(noise, NoiseModel) else None)
 

@@ -5,7 +5,9 @@ draws split into chunks of ``chunk``. A *task* is one chunk of one cell. Chunk c
 cell draws its noise from ``SeedSequence(seed, spawn_key=(c,))`` (the stream
 :func:`kinegrasp_env.montecarlo.evaluate.evaluate_grasp` uses), so a cell's numbers equal
 ``evaluate_grasp`` with the same seed, whatever ran the task, and cells of the same noise
-type share their draws (common random numbers make grasps comparable).
+type share their draws (common random numbers make grasps comparable). A ``noise`` entry may
+also be a noise model (a spec mapping or file: :mod:`kinegrasp_env.montecarlo.sweep_noise`),
+whose joint sigma is the cell's sigma.
 
 Results go to an SQLite file, ``DIR/results.sqlite``, one row per finished task, committed
 as soon as the task finishes. SQLite because it ships with Python (nothing to install on a
@@ -22,6 +24,7 @@ import csv
 import io
 import json
 import math
+import re
 import sqlite3
 import time
 from collections.abc import Callable
@@ -32,12 +35,12 @@ from typing import Any
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
-from kinegrasp_env.montecarlo.evaluate import ENGINES, chunk_sizes, run_chunk
+from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes, run_chunk
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.montecarlo.sweep_noise import cell_noise, noise_entries
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
-from kinegrasp_env.world.objects import OBJECT_NAMES
+from kinegrasp_env.world.objects import OBJECT_NAMES, object_names
 
 #: ``plot(rows, path, title=...) -> path``: draws one P(FC)-vs-sigma figure of summary rows.
 SweepPlot = Callable[..., Path]
@@ -65,10 +68,14 @@ class SweepSpec:
     samples: int = 1000
     chunk: int = 250
     seed: int = 0
+    #: (label, spec JSON) of the noise models among ``noise``
+    models: tuple[tuple[str, str], ...] = ()
 
     @classmethod
-    def from_dict(cls, data: Any, where: str = "spec") -> SweepSpec:
-        """Validate every entry; one :class:`SpecError` naming the first bad one."""
+    def from_dict(cls, data: Any, where: str = "spec",
+                  base: str | Path | None = None) -> SweepSpec:
+        """Validate every entry; one :class:`SpecError` naming the first bad one (``base``:
+        the folder noise spec files are relative to)."""
         if not isinstance(data, dict):
             raise SpecError(f"{where}: expected a mapping of {', '.join(SPEC_KEYS)}")
         unknown = sorted(set(data) - set(SPEC_KEYS))
@@ -78,35 +85,43 @@ class SweepSpec:
         for key in ("objects", "sigmas"):
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
-        objects = _names(data["objects"], OBJECT_NAMES, "objects", where)
-        noise = _names(data.get("noise", ["gaussian"]), DISTRIBUTIONS, "noise", where)
+        objects = _names(data["objects"], object_names(), "objects", where)
+        _check_grasp_sets(objects, where)
+        noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
         engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
-        sigmas = tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where))
+        sigmas = _unique(tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where)),
+                         "sigmas", where)
         grasps = data.get("grasps", "all")
         if grasps == "all":
             indices = None
         else:
-            indices = tuple(_integer(g, "grasps", where, low=0)
-                            for g in _list(grasps, "grasps", where))
+            indices = _unique(tuple(_integer(g, "grasps", where, low=0)
+                                    for g in _list(grasps, "grasps", where)), "grasps", where)
             _check_grasp_indices(objects, indices, where)
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
-        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed)
+        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models)
 
     @classmethod
     def from_file(cls, path: str | Path) -> SweepSpec:
-        """Read a YAML (or JSON) spec file."""
+        """Read a YAML (or JSON) spec file (numbers as YAML 1.2 reads them: ``1e-2`` is a
+        number); a syntax error is one :class:`SpecError` line: file, line, column, what."""
         path = Path(path)
         if not path.is_file():
             raise SpecError(f"spec file {path} not found")
         import yaml
 
         try:
-            data = yaml.safe_load(path.read_text())
+            data = yaml.load(path.read_text(), Loader=_spec_loader())  # a SafeLoader
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+            what = exc.problem or exc.context or "syntax error"
+            raise SpecError(f"{where}: not valid YAML: {what}") from None
         except yaml.YAMLError as exc:
-            raise SpecError(f"{path}: not valid YAML: {exc}") from None
-        return cls.from_dict(data, where=str(path))
+            raise SpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+        return cls.from_dict(data, where=str(path), base=path.parent)
 
     def grasp_indices(self, object_name: str) -> tuple[int, ...]:
         from kinegrasp_env.world.grasps import shipped_grasps
@@ -122,8 +137,56 @@ class SweepSpec:
 
     def tasks(self) -> list[SweepTask]:
         sizes = chunk_sizes(self.samples, self.chunk)
-        return [SweepTask(o, g, s, n, e, c, size, self.seed)
+        models = dict(self.models)
+        return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n))
                 for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
+
+
+def _noise(value: Any, where: str, base: str | Path | None
+           ) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
+    """``noise``: distribution names and noise models (labels, models)."""
+    from kinegrasp_env.sampling.noise_model import NoiseSpecError
+
+    try:
+        labels, models = noise_entries(_list(value, "noise", where), base)
+    except NoiseSpecError as exc:
+        raise SpecError(f"{where}: noise: {exc}") from None
+    return _unique(labels, "noise", where), models
+
+
+#: Numbers YAML 1.1 reads as strings but YAML 1.2 (and every reader of the spec) as floats:
+#: an exponent without a decimal point or without a sign (``1e-2``, ``5E3``, ``1.5e3``).
+_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
+
+def _spec_loader() -> type:
+    """``yaml.SafeLoader`` that also reads :data:`_EXPONENT_FLOAT` scalars as floats and
+    refuses a key given twice in one mapping (plain YAML keeps the last silently)."""
+    import yaml
+
+    class SpecLoader(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"key {key!r} appears twice", key_node.start_mark)
+                seen.add(key)
+            return super().construct_mapping(node, deep)
+
+    SpecLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT,
+                                     list("-+0123456789."))
+    return SpecLoader
+
+
+def _unique(values: tuple, key: str, where: str) -> tuple:
+    """``values`` if no entry repeats; else a :class:`SpecError` naming the first repeat."""
+    for i, value in enumerate(values):
+        if value in values[:i]:
+            raise SpecError(f"{where}: {value!r} appears twice in {key!r}; list each "
+                            "entry once")
+    return values
 
 
 def _list(value: Any, key: str, where: str) -> list:
@@ -139,7 +202,7 @@ def _names(value: Any, known: tuple[str, ...], key: str, where: str) -> tuple[st
         if name not in known:
             raise SpecError(f"{where}: unknown {key[:-1] if key.endswith('s') else key} "
                             f"{name!r} in {key!r}; known: {', '.join(known)}")
-    return tuple(dict.fromkeys(names))
+    return _unique(tuple(names), key, where)
 
 
 def _sigma(value: Any, where: str) -> float:
@@ -147,13 +210,27 @@ def _sigma(value: Any, where: str) -> float:
         raise SpecError(f"{where}: sigma {value!r} is not a number")
     if not math.isfinite(value) or value < 0:
         raise SpecError(f"{where}: sigma must be finite and >= 0, got {value}")
+    if value > MAX_SIGMA:
+        raise SpecError(f"{where}: sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {value}")
     return float(value)
 
 
 def _integer(value: Any, key: str, where: str, low: int) -> int:
+    """An integer >= ``low``; a float with no fractional part counts (``samples: 1e4``)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise SpecError(f"{where}: {key!r} must be an integer >= {low}, got {value!r}")
-    return int(value)
+    return value
+
+
+def _check_grasp_sets(objects: tuple[str, ...], where: str) -> None:
+    """A sweep evaluates shipped grasps: an imported object (which has none) is refused."""
+    from kinegrasp_env.world.grasps import no_grasp_set
+
+    for name in objects:
+        if name not in OBJECT_NAMES:
+            raise SpecError(f"{where}: {no_grasp_set(name)}")
 
 
 def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...], where: str) -> None:
@@ -179,6 +256,7 @@ class SweepTask:
     chunk: int
     size: int
     seed: int
+    model: str | None = None  # the spec JSON of a noise-model cell
 
     @property
     def key(self) -> str:
@@ -193,7 +271,8 @@ def run_task(task: SweepTask) -> dict:
     start = time.perf_counter()
     grasp = grasp_by_index(task.object, task.grasp)
     key = (task.engine, task.object, 0.5, 8)
-    counts, moments, _ = run_chunk((key, grasp.q0, JointNoise(task.sigma, task.noise),
+    counts, moments, _ = run_chunk((key, grasp.q0, cell_noise(task.sigma, task.noise,
+                                                                task.model),
                                      task.seed, task.chunk, task.size, "mc", False))
     return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
             "q_mean": float(moments.mean[0]), "q_m2": float(moments.m2[0, 0]),
@@ -266,6 +345,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     from kinegrasp_env.world.grasps import grasp_by_index
 
     results = store.results()
+    models = dict(spec.models)
     n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
     summary = []
     for obj, grasp, sigma, noise, engine in spec.cells():
@@ -276,8 +356,9 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
                 SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
             counts += chunk_counts
             moments.merge(chunk_moments)
-        stats = grasp_stats(grasp_by_index(obj, grasp), JointNoise(sigma, noise), spec.seed,
-                            engine, counts, moments, None)
+        stats = grasp_stats(grasp_by_index(obj, grasp),
+                            cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
+                            counts, moments, None)
         summary.append({
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
             "p_fc": stats.p_fc, "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],

@@ -7,11 +7,14 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
   rank-deficient wrench set is not in force closure.
 
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
-for 3 contacts, ``method="fast"`` (:mod:`kinegrasp_env.quality.three_contacts`, a batched facet
-enumeration); and, under ``"auto"``, for everything else with the L1 norm and at most
-``expansion.MAX_POINTS`` wrenches, a certified nearest-facet-first expansion
-(:mod:`kinegrasp_env.quality.expansion`, ~9x faster than qhull on 4-5 contacts). ``"auto"`` falls
-back to qhull wherever an exact path cannot certify its answer, and for the L-infinity hull.
+for 3 contacts with m <= :data:`TABLES_MAX_EDGES` cone edges (or more edges than the
+expansion takes), the batched facet enumeration of
+:mod:`kinegrasp_env.quality.three_contacts`; and, for everything else with the L1 norm and at
+most ``expansion.MAX_POINTS`` wrenches, a certified nearest-facet-first expansion
+(:mod:`kinegrasp_env.quality.expansion`, ~9x faster than qhull on 4-5 contacts). ``"auto"``
+and ``"fast"`` (3 contacts only) fall back to qhull wherever an exact path cannot certify its
+answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
+``wrenches.MAX_EDGES``.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from kinegrasp_env.quality.wrenches import (
     RANK_TOL,
     check_contacts,
     check_parameters,
+    check_wrenches,
     edge_wrenches,
     scale_center,
     wrench_matrix,
@@ -35,6 +39,17 @@ Method = Literal["auto", "fast", "qhull"]
 Norm = Literal["l1", "linf"]
 #: Largest number of Minkowski-sum points the L-infinity hull is built from.
 LINF_MAX_POINTS = 200_000
+#: Most cone edges for which the three-contact tables are used while the expansion could
+#: take the set (their table and work memory grow as m^3). Measured break-even
+#: (benchmarks/bench_quality_edges.py, batches of 400, 2 loaded cores, us per grasp, tables
+#: vs expansion + its qhull fallback): m = 8: 247 vs 344, 12: 453 vs 484, 14: 725 vs 850,
+#: 16: 1212 vs 1029. Above 3 m > expansion.MAX_POINTS only qhull is left, ~40x slower than
+#: the tables (m = 24: 6.9 ms vs 288 ms per grasp, 91 MB peak), so the tables serve there.
+TABLES_MAX_EDGES = 14
+#: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing
+#: wide merges (qhull's own advice when nearly coincident wrenches make it stop with a
+#: "wide merge" topology error on a set in force closure).
+QHULL_OPTIONS = (None, "Qx Q12 Q14")
 
 
 # ----------------------------------------------------------------------------- qhull path
@@ -45,13 +60,29 @@ def _rank_deficient(w: np.ndarray) -> bool:
 
 
 def _hull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient."""
+    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient or
+    qhull declines them with every option of :data:`QHULL_OPTIONS`."""
     if points.shape[0] < 7 or _rank_deficient(points):
         return None
-    try:
-        return ConvexHull(points)
-    except QhullError:
-        return None
+    for options in QHULL_OPTIONS:
+        try:
+            return ConvexHull(points, qhull_options=options)
+        except QhullError:
+            continue
+    return None
+
+
+def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -> bool:
+    """True when ``auto``/``fast`` compute these grasps with the three-contact tables.
+
+    Not for friction <= FC_TOL: three contacts with a cone that narrow are within FC_TOL of
+    three points, Q = 0 however it is computed, and the tables' basis is singular (0 / 0
+    for a subnormal mu)."""
+    if not (norm == "l1" and num_contacts == 3 and friction > FC_TOL):
+        return False
+    from kinegrasp_env.quality.expansion import MAX_POINTS
+
+    return num_edges <= TABLES_MAX_EDGES or num_contacts * num_edges > MAX_POINTS
 
 
 def _epsilon_from_hull(hull: ConvexHull | None, scale: float) -> float:
@@ -83,16 +114,19 @@ def _qhull_epsilon(w: np.ndarray, num_contacts: int, norm: Norm) -> float:
 
 
 # ----------------------------------------------------------------------------- public API
-def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: int = 8,
+def ferrari_canny_batch(points, normals, *, friction: float | np.ndarray = 0.5,
+                        num_edges: int = 8,
                         torque_scale=1.0, center=(0.0, 0.0, 0.0), method: Method = "auto",
                         norm: Norm = "l1") -> np.ndarray:
     """Ferrari-Canny quality of B grasps.
 
     Args:
-        points: (B, k, 3) contact points (metres, object frame).
+        points: (B, k, 3) contact points (metres, object frame); B may be 0.
         normals: (B, k, 3) inward contact normals.
-        friction: Coulomb friction coefficient mu >= 0.
-        num_edges: edges m >= 3 of the linearized friction cone.
+        friction: Coulomb friction coefficient mu >= 0: a scalar, or (B,) one per grasp
+            (the exact paths take it through the wrenches; the three-contact tables serve
+            when every mu > 0).
+        num_edges: edges m of the linearized friction cone, 3 <= m <= ``MAX_EDGES`` (24).
         torque_scale: scalar or (B,) torque scale s (1 / metres), > 0.
         center: (3,) or (B, 3) centre of mass the torques are taken about.
         method: ``auto``, ``fast`` (3 contacts, L1 only) or ``qhull`` (the reference).
@@ -102,6 +136,10 @@ def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: in
         (B,) Q >= 0; 0 where the grasp is not in force closure.
     """
     points, normals = check_contacts(points, normals, batched=True)
+    rows_mu = None
+    if np.ndim(friction) > 0:  # one mu per grasp; the checks below see the smallest
+        rows_mu = row_friction(friction, points.shape[0])
+        friction = float(rows_mu.min()) if rows_mu.size else 0.5
     friction, num_edges = check_parameters(friction, num_edges)
     if method not in ("auto", "fast", "qhull"):
         raise ValueError(f"unknown method {method!r}; choose auto, fast or qhull")
@@ -109,14 +147,16 @@ def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: in
         raise ValueError(f"unknown norm {norm!r}; choose l1 or linf")
     batch, k = points.shape[:2]
     scale, ctr = scale_center(torque_scale, center, batch)
-    w = edge_wrenches(points, normals, friction, num_edges, scale, ctr)
-    fast_ok = norm == "l1" and k == 3 and friction > 0
-    if method == "fast" and not fast_ok:
+    if method == "fast" and not (norm == "l1" and k == 3 and friction > 0):
         raise ValueError("the fast path needs 3 contacts, friction > 0 and the L1 norm; "
                          f"got {k} contacts, friction {friction}, norm {norm}")
     out = np.empty(batch)
+    if batch == 0:
+        return out
+    cone = friction if rows_mu is None else rows_mu[:, None, None, None]
+    w = check_wrenches(edge_wrenches(points, normals, cone, num_edges, scale, ctr))
     todo = np.arange(batch)
-    if fast_ok and method != "qhull" and batch:
+    if method != "qhull" and uses_tables(k, num_edges, friction, norm):
         from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
         q, certified = epsilon_three_contacts(w, num_edges)
@@ -138,6 +178,18 @@ def ferrari_canny_batch(points, normals, *, friction: float = 0.5, num_edges: in
     for b in todo:
         out[b] = _qhull_epsilon(w[b], k, norm)
     return out
+
+
+def row_friction(friction, batch: int) -> np.ndarray:
+    """A per-grasp friction as a float (B,) array (ValueError for another shape)."""
+    mu = np.asarray(friction, dtype=float)
+    if mu.shape != (batch,):
+        raise ValueError(f"friction must be a scalar or have shape ({batch},) (one per "
+                         f"grasp), got shape {mu.shape}")
+    if not np.all(np.isfinite(mu)) or np.any(mu < 0):
+        bad = int(np.flatnonzero(~(np.isfinite(mu) & (mu >= 0)))[0])
+        raise ValueError(f"friction must be finite and >= 0, got friction[{bad}] = {mu[bad]}")
+    return mu
 
 
 def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,

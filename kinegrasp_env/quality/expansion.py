@@ -30,9 +30,10 @@ REL_TOL = 1e-11  # beyond/visible tolerance, relative to the wrench scale
 
 
 @jit.kernel
-def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
-    """Indices (7,) of wrenches whose simplex contains the origin, [-1] if the origin is
-    outside conv(W), [-2] if undecided (degenerate basis)."""
+def _phase_one_tableau(w: np.ndarray) -> np.ndarray:
+    """Phase-1 tableau (8, N + 8) of ``W^T lam = 0, sum(lam) = 1, lam >= 0`` for w (N, 6):
+    rows 0-6 the constraints with one artificial column each (N..N+6), the last column the
+    right-hand side, the last row the reduced costs of minimizing the sum of artificials."""
     n = w.shape[0]
     rows, cols = 7, n + 7
     tab = np.zeros((rows + 1, cols + 1))
@@ -44,9 +45,6 @@ def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
     tab[6, cols] = 1.0
     for i in range(rows):
         tab[i, n + i] = 1.0
-    basis = np.empty(rows, np.int64)
-    for i in range(rows):
-        basis[i] = n + i
     # objective row: minimize the sum of artificials -> reduced costs
     for j in range(cols + 1):
         s = 0.0
@@ -55,6 +53,50 @@ def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
         tab[rows, j] = -s
     for i in range(rows):
         tab[rows, n + i] = 0.0
+    return tab
+
+
+@jit.kernel
+def _leaving_row(tab: np.ndarray, basis: np.ndarray, enter: int, tol: float) -> int:
+    """Ratio test for entering column ``enter``, ties to the smallest basic index (Bland);
+    -1 if no row qualifies."""
+    rows, cols = basis.shape[0], tab.shape[1] - 1
+    leave = -1
+    best = np.inf
+    for i in range(rows):
+        if tab[i, enter] > tol:
+            ratio = tab[i, cols] / tab[i, enter]
+            if ratio < best - 1e-15 or (abs(ratio - best) <= 1e-15 and leave >= 0
+                                        and basis[i] < basis[leave]):
+                best = ratio
+                leave = i
+    return leave
+
+
+@jit.kernel
+def _pivot(tab: np.ndarray, leave: int, enter: int) -> None:
+    """Gauss-Jordan pivot of the tableau on (leave, enter)."""
+    piv = tab[leave, enter]
+    for j in range(tab.shape[1]):
+        tab[leave, j] /= piv
+    for i in range(tab.shape[0]):
+        if i != leave:
+            f = tab[i, enter]
+            if f != 0.0:
+                for j in range(tab.shape[1]):
+                    tab[i, j] -= f * tab[leave, j]
+
+
+@jit.kernel
+def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
+    """Indices (7,) of wrenches whose simplex contains the origin, [-1] if the origin is
+    outside conv(W), [-2] if undecided (degenerate basis)."""
+    n = w.shape[0]
+    rows, cols = 7, n + 7
+    tab = _phase_one_tableau(w)
+    basis = np.empty(rows, np.int64)
+    for i in range(rows):
+        basis[i] = n + i
     for _ in range(200):
         enter = -1
         for j in range(cols):
@@ -63,26 +105,10 @@ def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
                 break
         if enter < 0:
             break
-        leave = -1
-        best = np.inf
-        for i in range(rows):
-            if tab[i, enter] > tol:
-                ratio = tab[i, cols] / tab[i, enter]
-                if ratio < best - 1e-15 or (abs(ratio - best) <= 1e-15 and leave >= 0
-                                            and basis[i] < basis[leave]):
-                    best = ratio
-                    leave = i
+        leave = _leaving_row(tab, basis, enter, tol)
         if leave < 0:
             return np.array([-2])
-        piv = tab[leave, enter]
-        for j in range(cols + 1):
-            tab[leave, j] /= piv
-        for i in range(rows + 1):
-            if i != leave:
-                f = tab[i, enter]
-                if f != 0.0:
-                    for j in range(cols + 1):
-                        tab[i, j] -= f * tab[leave, j]
+        _pivot(tab, leave, enter)
         basis[leave] = enter
     else:
         return np.array([-2])
@@ -180,110 +206,128 @@ def _ridge_key(verts: np.ndarray, skip: int) -> np.int64:
 
 
 @jit.kernel
-def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
-    """(Q, certified) for wrenches w (N, 6); Q = 0 if the origin is outside. More than
-    :data:`MAX_POINTS` wrenches: not certified (the caller uses qhull)."""
-    n = w.shape[0]
-    if n > MAX_POINTS:
-        return 0.0, False
+def _wrench_scale(w: np.ndarray) -> float:
+    """Largest |entry| of the wrenches w (N, 6)."""
     scale = 0.0
-    for i in range(n):
+    for i in range(w.shape[0]):
         for c in range(6):
             scale = max(scale, abs(w[i, c]))
-    tol = REL_TOL * scale
-    start = _initial_simplex(w, 1e-12)
-    if start[0] == -1:
-        return 0.0, True
-    if start[0] == -2:
-        return 0.0, False
-    interior = np.zeros(6)
-    for i in range(7):
-        for c in range(6):
-            interior[c] += w[start[i], c] / 7.0
-    verts = np.empty((MAX_FACETS, 6), np.int64)
-    normal = np.empty((MAX_FACETS, 6))
-    offset = np.empty(MAX_FACETS)
-    alive = np.zeros(MAX_FACETS, np.bool_)
-    used = np.zeros(n, np.bool_)
-    count = 0
+    return scale
+
+
+@jit.kernel
+def _new_polytope(n: int):
+    """Empty tables of a polytope of n wrenches: (verts (F, 6) vertex ids, normal (F, 6)
+    unit outward normals, offset (F,) (a . x = b), alive (F,), interior (6,) a point inside,
+    used (n,) wrenches that are vertices, visible (F,) scratch), F = :data:`MAX_FACETS`."""
+    return (np.empty((MAX_FACETS, 6), np.int64), np.empty((MAX_FACETS, 6)),
+            np.empty(MAX_FACETS), np.zeros(MAX_FACETS, np.bool_), np.zeros(6),
+            np.zeros(n, np.bool_), np.zeros(MAX_FACETS, np.bool_))
+
+
+@jit.kernel
+def _start_polytope(w, start, poly, scale) -> bool:
+    """The 7 facets of the simplex w[start] (start (7,)) into ``poly`` (see
+    :func:`_new_polytope`); False if one is degenerate."""
+    verts, normal, offset, alive, interior = poly[0], poly[1], poly[2], poly[3], poly[4]
     for skip in range(7):
         k = 0
         for i in range(7):
             if i != skip:
-                verts[count, k] = start[i]
+                verts[skip, k] = start[i]
                 k += 1
-        if not _set_facet(w, verts, normal, offset, alive, count, interior, scale):
-            return 0.0, False
-        count += 1
-    for i in range(7):
-        used[start[i]] = True
-    visible = np.zeros(MAX_FACETS, np.bool_)
-    keys = np.empty(6 * MAX_FACETS, np.int64)
-    owner = np.empty(6 * MAX_FACETS, np.int64)
-    skips = np.empty(6 * MAX_FACETS, np.int64)
-    for _ in range(n + 1):
-        near = -1
-        for f in range(count):
-            if alive[f] and (near < 0 or offset[f] < offset[near]):
-                near = f
-        a = normal[near]
-        far = -1
-        far_dist = offset[near] + tol
-        for i in range(n):
-            d = 0.0
+        if not _set_facet(w, verts, normal, offset, alive, skip, interior, scale):
+            return False
+    return True
+
+
+@jit.kernel
+def _nearest_facet(offset: np.ndarray, alive: np.ndarray, count: int) -> int:
+    """The live facet of smallest offset among the first ``count``."""
+    near = -1
+    for f in range(count):
+        if alive[f] and (near < 0 or offset[f] < offset[near]):
+            near = f
+    return near
+
+
+@jit.kernel
+def _furthest_beyond(w: np.ndarray, a: np.ndarray, limit: float) -> int:
+    """The wrench furthest along ``a`` (6,) beyond ``limit``, -1 if none is."""
+    far = -1
+    far_dist = limit
+    for i in range(w.shape[0]):
+        d = 0.0
+        for c in range(6):
+            d += a[c] * w[i, c]
+        if d > far_dist:
+            far_dist = d
+            far = i
+    return far
+
+
+@jit.kernel
+def _visible_ridges(w, far, poly, count, tol, ridges) -> int:
+    """Mark the facets that see wrench ``far`` (poly's ``visible``) and list their ridges
+    in ``ridges`` (keys, owner facet, skipped vertex); returns how many."""
+    verts, normal, offset, alive, visible = poly[0], poly[1], poly[2], poly[3], poly[6]
+    keys, owner, skips = ridges
+    m = 0
+    for f in range(count):
+        visible[f] = False
+        if alive[f]:
+            d = -offset[f]
             for c in range(6):
-                d += a[c] * w[i, c]
-            if d > far_dist:
-                far_dist = d
-                far = i
-        if far < 0:
-            break
-        if used[far]:
-            return 0.0, False
-        # facets that see the new point, and their ridges
-        m = 0
-        for f in range(count):
-            visible[f] = False
-            if alive[f]:
-                d = -offset[f]
-                for c in range(6):
-                    d += normal[f, c] * w[far, c]
-                if d > tol:
-                    visible[f] = True
-                    for j in range(6):
-                        keys[m] = _ridge_key(verts[f], j)
-                        owner[m] = f
-                        skips[m] = j
-                        m += 1
-        order = np.argsort(keys[:m])
-        j = 0
-        while j < m:
-            r = j
-            while r + 1 < m and keys[order[r + 1]] == keys[order[j]]:
-                r += 1
-            if r == j:  # horizon ridge: one visible facet holds it
-                f = owner[order[j]]
-                if count >= MAX_FACETS:
-                    return 0.0, False
-                k = 0
-                for v in range(6):
-                    if v != skips[order[j]]:
-                        verts[count, k] = verts[f, v]
-                        k += 1
-                verts[count, 5] = far
-                if not _set_facet(w, verts, normal, offset, alive, count, interior, scale):
-                    return 0.0, False
-                count += 1
-            elif r > j + 1:
-                return 0.0, False  # a ridge in three visible facets: broken structure
-            j = r + 1
-        for f in range(count):
-            if visible[f]:
-                alive[f] = False
-        used[far] = True
-    else:
-        return 0.0, False
-    # certify: closed (every ridge in exactly two facets) and convex
+                d += normal[f, c] * w[far, c]
+            if d > tol:
+                visible[f] = True
+                for j in range(6):
+                    keys[m] = _ridge_key(verts[f], j)
+                    owner[m] = f
+                    skips[m] = j
+                    m += 1
+    return m
+
+
+@jit.kernel
+def _cone_horizon(w, far, poly, count, m, ridges, scale) -> int:
+    """Cone the horizon (the ridges among the first m held by one visible facet) to wrench
+    ``far`` and retire the visible facets; returns the new facet count, -1 on a full table,
+    a degenerate facet or a ridge in three visible facets (broken structure)."""
+    verts, normal, offset, alive = poly[0], poly[1], poly[2], poly[3]
+    interior, visible = poly[4], poly[6]
+    keys, owner, skips = ridges
+    order = np.argsort(keys[:m])
+    j = 0
+    while j < m:
+        r = j
+        while r + 1 < m and keys[order[r + 1]] == keys[order[j]]:
+            r += 1
+        if r == j:  # horizon ridge: one visible facet holds it
+            f = owner[order[j]]
+            if count >= MAX_FACETS:
+                return -1
+            k = 0
+            for v in range(6):
+                if v != skips[order[j]]:
+                    verts[count, k] = verts[f, v]
+                    k += 1
+            verts[count, 5] = far
+            if not _set_facet(w, verts, normal, offset, alive, count, interior, scale):
+                return -1
+            count += 1
+        elif r > j + 1:
+            return -1
+        j = r + 1
+    for f in range(count):
+        if visible[f]:
+            alive[f] = False
+    return count
+
+
+@jit.kernel
+def _is_closed(verts, alive, count, keys) -> bool:
+    """Every ridge of the live facets lies in exactly two of them (keys: buffer)."""
     m = 0
     for f in range(count):
         if alive[f]:
@@ -294,19 +338,82 @@ def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
     j = 0
     while j < m:
         if j + 1 >= m or ridge_keys[j + 1] != ridge_keys[j]:
-            return 0.0, False
+            return False
         if j + 2 < m and ridge_keys[j + 2] == ridge_keys[j]:
-            return 0.0, False
+            return False
         j += 2
+    return True
+
+
+@jit.kernel
+def _is_convex(w, poly, count, tol) -> bool:
+    """Every vertex lies on the inner side (to tol) of every live facet."""
+    normal, offset, alive, used = poly[1], poly[2], poly[3], poly[5]
     for f in range(count):
         if alive[f]:
-            for i in range(n):
+            for i in range(w.shape[0]):
                 if used[i]:
                     d = -offset[f]
                     for c in range(6):
                         d += normal[f, c] * w[i, c]
                     if d > tol:
-                        return 0.0, False
+                        return False
+    return True
+
+
+@jit.kernel
+def _expand(w, poly, count, tol, scale) -> int:
+    """Grow the polytope (``count`` facets) nearest facet first until no wrench lies beyond
+    the nearest facet; returns the facet count, -1 if not certified (a wrench found beyond
+    twice, a failed step, or more steps than wrenches)."""
+    n = w.shape[0]
+    normal, offset, alive, used = poly[1], poly[2], poly[3], poly[5]
+    ridges = (np.empty(6 * MAX_FACETS, np.int64), np.empty(6 * MAX_FACETS, np.int64),
+              np.empty(6 * MAX_FACETS, np.int64))
+    for _ in range(n + 1):
+        near = _nearest_facet(offset, alive, count)
+        far = _furthest_beyond(w, normal[near], offset[near] + tol)
+        if far < 0:
+            return count
+        if used[far]:
+            return -1
+        m = _visible_ridges(w, far, poly, count, tol, ridges)
+        count = _cone_horizon(w, far, poly, count, m, ridges, scale)
+        if count < 0:
+            return -1
+        used[far] = True
+    return -1
+
+
+@jit.kernel
+def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
+    """(Q, certified) for wrenches w (N, 6); Q = 0 if the origin is outside. More than
+    :data:`MAX_POINTS` wrenches: not certified (the caller uses qhull)."""
+    n = w.shape[0]
+    if n > MAX_POINTS:
+        return 0.0, False
+    scale = _wrench_scale(w)
+    tol = REL_TOL * scale
+    start = _initial_simplex(w, 1e-12)
+    if start[0] == -1:
+        return 0.0, True
+    if start[0] == -2:
+        return 0.0, False
+    poly = _new_polytope(n)
+    verts, offset, alive, interior, used = poly[0], poly[2], poly[3], poly[4], poly[5]
+    for i in range(7):
+        for c in range(6):
+            interior[c] += w[start[i], c] / 7.0
+    if not _start_polytope(w, start, poly, scale):
+        return 0.0, False
+    for i in range(7):
+        used[start[i]] = True
+    count = _expand(w, poly, 7, tol, scale)
+    # certify: closed (every ridge in exactly two facets) and convex
+    if count < 0 or not _is_closed(verts, alive, count, np.empty(6 * MAX_FACETS, np.int64)):
+        return 0.0, False
+    if not _is_convex(w, poly, count, tol):
+        return 0.0, False
     best = np.inf
     for f in range(count):
         if alive[f] and offset[f] < best:

@@ -21,14 +21,35 @@ import numpy as np
 FC_TOL = 1e-12
 #: Singular-value ratio below which a wrench set counts as rank-deficient.
 RANK_TOL = 1e-10
+#: Most cone edges m accepted. Every grasp can fall back to qhull, whose cost grows steeply
+#: with the number of wrenches: on 6 contacts (benchmarks/bench_quality_edges.py, 2 loaded
+#: cores) m = 24 takes 0.45-0.81 s and 27 MB per grasp, m = 32 1.1-2.3 s, m = 48 2.6-6.8 s.
+MAX_EDGES = 24
+#: Largest |wrench coordinate| accepted (torques are torque_scale * |p - c| * |f|; the hull
+#: computations square coordinates, and 1e154 squared overflows).
+MAX_WRENCH = 1e100
 
 
 # ----------------------------------------------------------------------------- validation
 def finite_array(value, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} contains NaN or infinite values")
     return arr
+
+
+def normal_lengths(normals: np.ndarray) -> np.ndarray:
+    """Euclidean lengths (...,) of vectors (..., 3), also where squaring would overflow."""
+    with np.errstate(over="ignore"):
+        lengths = np.linalg.norm(normals, axis=-1)
+    huge = np.isinf(lengths)  # finite entries above ~1e154
+    if np.any(huge):
+        peak = np.abs(normals[huge]).max(axis=-1)
+        lengths[huge] = peak * np.linalg.norm(normals[huge] / peak[:, None], axis=-1)
+    return lengths
 
 
 def check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -43,20 +64,42 @@ def check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarr
         raise ValueError(f"points {points.shape} and normals {normals.shape} differ in shape")
     if points.shape[-2] < 1:
         raise ValueError("need at least one contact, got 0")
-    lengths = np.linalg.norm(normals, axis=-1)
+    lengths = normal_lengths(normals)
     if np.any(lengths < 1e-12):
         bad = np.argwhere(lengths < 1e-12)[0]
-        raise ValueError(f"normals: contact {tuple(int(i) for i in bad)} has zero length")
+        raise ValueError(f"normals: contact {tuple(int(i) for i in bad)} has zero length "
+                         f"(below 1e-12: {lengths[tuple(bad)]:.3g})")
     return points, normals / lengths[..., None]
 
 
+def check_wrenches(w: np.ndarray) -> np.ndarray:
+    """w unchanged; ValueError when a torque overflows or exceeds :data:`MAX_WRENCH` (the
+    hull computations square coordinates), i.e. torque_scale * |p - c| is absurdly large."""
+    peak = float(np.abs(w).max()) if w.size else 0.0
+    if not peak <= MAX_WRENCH:  # also NaN / inf
+        raise ValueError(f"the torques reach {peak:.3g} (torque_scale * |points - center|); "
+                         f"at most {MAX_WRENCH:g} is supported: use metres and "
+                         "torque_scale = 1 / r_max")
+    return w
+
+
 def check_parameters(friction: float, num_edges: int) -> tuple[float, int]:
-    friction = float(friction)
-    if not math.isfinite(friction) or friction < 0:
+    """(friction, num_edges) as (float, int); ValueError unless friction is a finite number
+    >= 0 and num_edges an integer in [3, MAX_EDGES] (integral floats are accepted)."""
+    try:
+        value = float(friction)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or value < 0:
         raise ValueError(f"friction must be finite and >= 0, got {friction!r}")
-    if int(num_edges) != num_edges or num_edges < 3:
-        raise ValueError(f"num_edges must be an integer >= 3, got {num_edges!r}")
-    return friction, int(num_edges)
+    try:
+        whole = bool(int(num_edges) == num_edges)
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole or not 3 <= int(num_edges) <= MAX_EDGES:
+        raise ValueError(f"num_edges must be an integer >= 3 and <= {MAX_EDGES} (the cost of "
+                         f"the exact hull grows steeply with it), got {num_edges!r}")
+    return value, int(num_edges)
 
 
 def per_row(value, batch: int, shape: tuple[int, ...], name: str) -> np.ndarray:
@@ -95,12 +138,14 @@ def friction_cone_edges(normals: np.ndarray, friction: float = 0.5,
 
 def edge_wrenches(points: np.ndarray, normals: np.ndarray, friction: float, num_edges: int,
               torque_scale: np.ndarray, center: np.ndarray) -> np.ndarray:
-    """(B, k * m, 6) wrenches; points/normals (B, k, 3), torque_scale (B,), center (B, 3)."""
+    """(B, k * m, 6) wrenches; points/normals (B, k, 3), torque_scale (B,), center (B, 3).
+    Torques that overflow come out non-finite, silently: see :func:`check_wrenches`."""
     edges = friction_cone_edges(normals, friction, num_edges)  # (B, k, m, 3)
-    lever = (points - center[:, None, :]) * torque_scale[:, None, None]
-    torques = np.cross(lever[:, :, None, :], edges)
+    with np.errstate(over="ignore", invalid="ignore"):
+        lever = (points - center[:, None, :]) * torque_scale[:, None, None]
+        torques = np.cross(lever[:, :, None, :], edges)
     w = np.concatenate([edges, torques], axis=-1)
-    return w.reshape(w.shape[0], -1, 6)
+    return w.reshape(w.shape[0], w.shape[1] * num_edges, 6)  # explicit: B may be 0
 
 
 def wrench_matrix(points, normals, *, friction: float = 0.5, num_edges: int = 8,
@@ -114,7 +159,7 @@ def wrench_matrix(points, normals, *, friction: float = 0.5, num_edges: int = 8,
     friction, num_edges = check_parameters(friction, num_edges)
     p, n = (points, normals) if batched else (points[None], normals[None])
     scale, ctr = scale_center(torque_scale, center, p.shape[0])
-    w = edge_wrenches(p, n, friction, num_edges, scale, ctr)
+    w = check_wrenches(edge_wrenches(p, n, friction, num_edges, scale, ctr))
     return w if batched else w[0]
 
 

@@ -1,6 +1,8 @@
 """Noise and statistics: joint-noise models and samplers (plain Monte Carlo, antithetic,
-scrambled Sobol), estimators (mean, covariance, skewness), the Wilson interval for P(FC), and
-mergeable streaming moments. Depends on nothing else in the package.
+scrambled Sobol), the composable noise model of every source of error (joints, hand, palm,
+object, friction) and its specs, estimators (mean, covariance, skewness), the Wilson interval
+for P(FC), mergeable streaming moments, and Sobol sensitivity indices. Depends on nothing
+else in the package.
 """
 
 from __future__ import annotations
@@ -12,6 +14,18 @@ _EXPORTS = {
     "DISTRIBUTIONS": "noise",
     "METHODS": "noise",
     "as_generator": "noise",
+    "NoiseModel": "noise_model",
+    "NoiseDraws": "noise_model",
+    "NoiseSpecError": "noise_model",
+    "JointsSource": "noise_model",
+    "HandSource": "noise_model",
+    "PoseSource": "noise_model",
+    "FrictionSource": "noise_model",
+    "as_noise_model": "noise_model",
+    "noise_model_from_spec": "noise_spec",
+    "load_noise_model": "noise_spec",
+    "spec_of": "noise_spec",
+    "sobol_indices": "sobol",
     "wilson_interval": "stats",
     "skewness": "stats",
     "Moments": "stats",

@@ -1,5 +1,6 @@
 """The toolkit: the grasp planner (``planner``), ranking by robustness (``ranking``), the
-paper's experiments (``experiments``) and plots (``plots``). Uses ``montecarlo`` and below.
+paper's experiments (``experiments``), the sensitivity analysis per source of error
+(``sensitivity``) and plots (``plots``). Uses ``montecarlo`` and below.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ _EXPORTS = {
     "table1": "experiments",
     "fig7": "experiments",
     "fig9_10": "experiments",
+    "Sensitivity": "sensitivity",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(_EXPORTS)

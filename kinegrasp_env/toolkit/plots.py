@@ -262,3 +262,41 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     ax.set_title(title)
     ax.legend(fontsize=8)
     return save_figure(fig, path)
+
+
+def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
+    """Bars per noise source (``result``: ``Sensitivity.to_json()``): left, the first-order
+    and total Sobol indices of force closure with their intervals; right, P(FC) with the
+    source alone and with all but it, the line at P(FC) with every source."""
+    plt = _pyplot()
+    rows = result["sources"]
+    names = [r["source"] for r in rows]
+    x = np.arange(len(names))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.8))
+    for offset, key, label, color in ((-0.2, "first", "first order S", "C0"),
+                                      (0.2, "total", "total ST", "C1")):
+        value = np.array([np.nan if r[key] is None else r[key] for r in rows], dtype=float)
+        ci = np.array([[np.nan, np.nan] if r[f"{key}_ci"][0] is None else r[f"{key}_ci"]
+                       for r in rows], dtype=float)
+        err = np.nan_to_num(np.abs(ci.T - value))
+        left.bar(x + offset, np.nan_to_num(value), 0.4, yerr=err, capsize=3, color=color,
+                 label=label)
+    left.axhline(0, color="0.3", lw=0.8)
+    left.set_xticks(x, names)
+    left.set_ylabel("Sobol index of force closure")
+    left.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
+    for offset, key, label, color in ((-0.2, "p_alone", "source alone", "C2"),
+                                      (0.2, "p_without", "all but the source", "C3")):
+        value = np.array([r[key] for r in rows], dtype=float)
+        ci = np.array([r[f"{key}_ci"] for r in rows], dtype=float)
+        right.bar(x + offset, value, 0.4, yerr=np.abs(ci.T - value), capsize=3, color=color,
+                  label=label)
+    right.axhline(result["p_all"], color="k", ls="--", lw=1,
+                  label=f"all sources {result['p_all']:.3f}")
+    right.set_xticks(x, names)
+    right.set_ylim(0, 1.05)
+    right.set_ylabel("P(force closure)")
+    right.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)

@@ -1,4 +1,6 @@
-"""The grasp world: the object catalog (``objects``: convex parts, centre of mass, r_max),
+"""The grasp world: the object catalog (``objects``: convex parts, centre of mass, r_max;
+``importer``: importing the user's meshes, with ``meshfile``, ``meshprep``, ``decompose``,
+``deviation``, ``store``),
 the pybullet world wrapper (``sim``, one BulletClient per world), the fast engine's distance
 grids (``sdf``), convex-part geometry (``polytope``) and grasp sets (``grasps``). Uses
 ``robot``.
@@ -12,6 +14,10 @@ _EXPORTS = {
     "GraspObject": "objects",
     "load_object": "objects",
     "catalog": "objects",
+    "object_names": "objects",
+    "import_object": "importer",
+    "remove_object": "importer",
+    "ImportSettings": "importer",
     "BulletWorld": "sim",
     "GraspWorld": "sim",
     "DistanceGrid": "sdf",

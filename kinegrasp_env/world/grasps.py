@@ -19,7 +19,7 @@ import numpy as np
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.robot.model import kuka_sdh
-from kinegrasp_env.world.objects import OBJECT_NAMES
+from kinegrasp_env.world.objects import OBJECT_NAMES, is_object, unknown_object
 
 ARM_DOF = 7
 HAND_DOF = 7
@@ -81,9 +81,8 @@ class Grasp:
             q_nominal = float(data.get("q_nominal", 0.0))
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: missing or malformed field ({exc})") from None
-        if obj not in OBJECT_NAMES:
-            raise ValueError(f"{where}: unknown object {obj!r}; known objects: "
-                             f"{', '.join(OBJECT_NAMES)}")
+        if not isinstance(obj, str) or not is_object(obj):
+            raise ValueError(f"{where}: {unknown_object(obj)}")
         check_configuration(q0, where)
         if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
             raise ValueError(f"{where}: palm_pose must be a finite 4x4 matrix")
@@ -171,11 +170,28 @@ def file_mode(path: str | Path) -> int:
         return 0o666 & ~current_umask()
 
 
+class NoGraspSetError(ValueError):
+    """An imported object has no shipped grasp set (the message suggests ``kinegrasp plan``)."""
+
+
+def no_grasp_set(object_name: str) -> NoGraspSetError:
+    """The error for an object without a shipped grasp set."""
+    return NoGraspSetError(
+        f"{object_name!r} is an imported object and has no shipped grasp set; make one with "
+        f"`kinegrasp plan --object {object_name} --out {object_name}_grasps.json` and give "
+        "that file (e.g. `kinegrasp evaluate --grasps FILE`, `kinegrasp rank FILE`)")
+
+
 def shipped_grasps(object_name: str) -> list[Grasp]:
-    """The standard grasp set of a catalog object (``assets/grasps/<object>.json``)."""
+    """The standard grasp set of a built-in object (``assets/grasps/<object>.json``).
+
+    Raises:
+        NoGraspSetError: for an imported object; ValueError for an unknown name.
+    """
     if object_name not in OBJECT_NAMES:
-        raise ValueError(f"unknown object {object_name!r}; known objects: "
-                         f"{', '.join(OBJECT_NAMES)}")
+        if is_object(object_name):
+            raise no_grasp_set(object_name)
+        raise unknown_object(object_name)
     return load_grasps(asset_path("grasps", f"{object_name}.json"))
 
 

@@ -1,9 +1,13 @@
-"""The object catalog: meshes, exact convex decompositions, centre of mass, r_max, pose.
+"""The object catalog: meshes, convex parts, centre of mass, r_max, pose.
 
-Every object is a union of convex parts (see ``assets/objects/build_objects.py``): the parts
-are the collision geometry, the watertight mesh is their union, so contacts found against
-the parts lie on the mesh. Object frame: origin at the centre of the base, +z up (metres);
-every object stands at :data:`OBJECT_POSITION` in the world (robot base) frame.
+Built-in objects (:data:`OBJECT_NAMES`) are unions of convex parts (see
+``assets/objects/build_objects.py``): the parts are the collision geometry, the watertight
+mesh is their union, so contacts found against the parts lie on the mesh. Imported objects
+(``kinegrasp objects add``, :mod:`kinegrasp_env.world.importer`) keep their cleaned source mesh
+for pictures and a convex decomposition of it as their collision geometry; their centre of
+mass and r_max are those of the parts' union. Object frame: origin at the centre of the base,
++z up (metres); every object stands at :data:`OBJECT_POSITION` in the world (robot base)
+frame unless its catalog entry gives a pose.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -18,6 +23,13 @@ from scipy.spatial import ConvexHull
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.world.polytope import ConvexPart
+from kinegrasp_env.world.store import (
+    MESH_FILE,
+    PARTS_FILE,
+    imported_folder,
+    imported_names,
+    read_entry,
+)
 
 #: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
 OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
@@ -32,13 +44,17 @@ class GraspObject:
 
     Attributes:
         name: catalog name.
-        mesh: watertight triangle mesh, object frame.
+        mesh: triangle mesh, object frame: for a built-in object the watertight union of the
+            parts, for an imported one its cleaned source mesh.
         parts: convex parts, each an (n_i, 3) vertex array (object frame).
         planes: per part, (F_i, 4) outward face planes [normal (3), offset] with
             normal . x + offset <= 0 inside.
         center_of_mass: (3,) object frame (uniform density).
-        r_max: largest distance from the centre of mass to a mesh vertex (metres).
+        r_max: largest distance from the centre of mass to a vertex of the parts' union
+            (metres; for a built-in object, a vertex of its mesh).
         pose: (4, 4) object frame in the world frame.
+        mesh_file: the mesh's file (for visual shapes), or None.
+        imported: True for an object of the user's catalog.
     """
 
     name: str
@@ -48,6 +64,8 @@ class GraspObject:
     center_of_mass: np.ndarray = field(repr=False)
     r_max: float = 0.0
     pose: np.ndarray = field(default_factory=lambda: np.eye(4), repr=False)
+    mesh_file: Path | None = field(default=None, repr=False)
+    imported: bool = False
 
     @property
     def torque_scale(self) -> float:
@@ -204,7 +222,8 @@ class GraspObject:
         return np.argmin(np.abs(self.part_distance(points)), axis=1)
 
 
-def _planes(vertices: np.ndarray) -> np.ndarray:
+def face_planes(vertices: np.ndarray) -> np.ndarray:
+    """(F, 4) unique outward face planes [unit normal, offset] of the hull of (V, 3) points."""
     hull = ConvexHull(vertices)
     eq = hull.equations
     # merge coplanar triangles: unique planes
@@ -213,31 +232,101 @@ def _planes(vertices: np.ndarray) -> np.ndarray:
     return eq[np.sort(first)]
 
 
-@lru_cache(maxsize=8)
+def default_pose() -> np.ndarray:
+    """(4, 4) the default placement: object frame at :data:`OBJECT_POSITION`, axes aligned."""
+    pose = np.eye(4)
+    pose[:3, 3] = OBJECT_POSITION
+    return pose
+
+
+def object_names() -> tuple[str, ...]:
+    """Every object name: the built-in ones, then the imported ones (sorted)."""
+    return OBJECT_NAMES + tuple(n for n in imported_names() if n not in OBJECT_NAMES)
+
+
+def is_object(name: str) -> bool:
+    """Whether ``name`` is a built-in or imported object."""
+    return name in OBJECT_NAMES or imported_folder(name) is not None
+
+
+def unknown_object(name: str) -> ValueError:
+    """The error for a name that is no object (lists the known ones)."""
+    return ValueError(f"unknown object {name!r}; known objects: {', '.join(object_names())} "
+                      "(import one with `kinegrasp objects add FILE`)")
+
+
 def load_object(name: str) -> GraspObject:
-    """Load a catalog object by name.
+    """Load a built-in or imported object by name.
 
     Raises:
-        ValueError: for an unknown name (the message lists the known ones).
+        ValueError: for an unknown name (the message lists the known ones), or an imported
+            entry that cannot be read.
     """
-    if name not in OBJECT_NAMES:
-        raise ValueError(f"unknown object {name!r}; known objects: {', '.join(OBJECT_NAMES)}")
+    if name in OBJECT_NAMES:
+        return builtin_object(name)
+    folder = imported_folder(name)
+    if folder is None:
+        raise unknown_object(name)
+    entry = read_entry(folder)
+    return imported_object(str(folder), str(entry.get("key")))
+
+
+@lru_cache(maxsize=8)
+def builtin_object(name: str) -> GraspObject:
+    """A built-in object (``assets/objects``)."""
     mesh = trimesh.load(asset_path("objects", f"{name}.obj"), force="mesh", process=True)
     data = json.loads(asset_path("objects", f"{name}_parts.json").read_text())
     parts = tuple(np.asarray(p, dtype=float) for p in data["parts"])
     com = np.asarray(mesh.center_mass, dtype=float)
     r_max = float(np.linalg.norm(mesh.vertices - com, axis=1).max())
-    pose = np.eye(4)
-    pose[:3, 3] = OBJECT_POSITION
-    return GraspObject(name, mesh, parts, tuple(_planes(p) for p in parts), com, r_max, pose)
+    return GraspObject(name, mesh, parts, tuple(face_planes(p) for p in parts), com, r_max,
+                       default_pose(), asset_path("objects", f"{name}.obj"))
+
+
+@lru_cache(maxsize=8)
+def imported_object(folder: str, key: str) -> GraspObject:
+    """An imported object from its entry folder (cached per folder and entry key, so a
+    re-imported entry is read afresh)."""
+    path = Path(folder)
+    entry = read_entry(path)
+    mesh = trimesh.load(path / MESH_FILE, force="mesh", process=False)
+    data = json.loads((path / PARTS_FILE).read_text())
+    parts = [np.asarray(p, dtype=float) for p in data["parts"]]
+    pose = default_pose() if entry.get("pose") is None else np.asarray(entry["pose"], float)
+    return object_from_parts(path.name, mesh, parts, np.asarray(entry["center_of_mass"]),
+                             float(entry["r_max"]), pose, path / MESH_FILE)
+
+
+def object_from_parts(name: str, mesh: trimesh.Trimesh, parts: list[np.ndarray],
+                      center_of_mass: np.ndarray, r_max: float, pose: np.ndarray | None = None,
+                      mesh_file: Path | None = None) -> GraspObject:
+    """An imported object from its mesh and convex parts (object frame, metres)."""
+    parts_t = tuple(np.ascontiguousarray(p, dtype=float) for p in parts)
+    return GraspObject(name, mesh, parts_t, tuple(face_planes(p) for p in parts_t),
+                       np.asarray(center_of_mass, dtype=float), float(r_max),
+                       default_pose() if pose is None else pose, mesh_file, True)
 
 
 def catalog() -> list[dict]:
-    """One summary dict per object: name, size (m), r_max (m), centre of mass, parts."""
+    """One summary dict per object, built-in then imported: name, source, size (m), r_max
+    (m), centre of mass (object frame), parts, faces and the decomposition's deviation from
+    the source mesh (None for built-in objects, whose parts are exact; see
+    :class:`kinegrasp_env.world.deviation.Deviation`)."""
     rows = []
     for name in OBJECT_NAMES:
         obj = load_object(name)
-        rows.append({"name": name, "size": obj.size.round(4).tolist(), "r_max": round(obj.r_max, 4),
+        rows.append({"name": name, "source": "built-in", "size": obj.size.round(4).tolist(),
+                     "r_max": round(obj.r_max, 4),
                      "center_of_mass": obj.center_of_mass.round(4).tolist(),
-                     "parts": len(obj.parts), "faces": len(obj.mesh.faces)})
+                     "parts": len(obj.parts), "faces": len(obj.mesh.faces), "deviation": None})
+    for name in imported_names():
+        if name in OBJECT_NAMES:
+            continue
+        entry = read_entry(imported_folder(name))
+        rows.append({"name": name, "source": entry["source"]["description"],
+                     "size": [round(v, 4) for v in entry["size"]],
+                     "r_max": round(entry["r_max"], 4),
+                     "center_of_mass": [round(v, 4) for v in entry["center_of_mass"]],
+                     "parts": entry["parts"], "faces": entry["faces"],
+                     "deviation": entry["deviation"]})
     return rows

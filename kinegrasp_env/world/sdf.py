@@ -11,7 +11,8 @@ returned (a lower bound away from the object).
 Trilinear interpolation reproduces the distance exactly wherever it is linear (next to a face
 of a part, inside or outside); near edges and corners it is within a fraction of the spacing.
 The grids are built on first use (a few seconds) and cached on disk, keyed by the object's
-parts and the grid settings: ``$KINEGRASP_CACHE`` or ``~/.cache/kinegrasp``.
+parts and the grid settings: ``$KINEGRASP_CACHE`` or ``~/.cache/kinegrasp``; an imported
+object's grid is built at import and kept in its catalog entry (:mod:`kinegrasp_env.world.store`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.paths import cache_root
+from kinegrasp_env.world.gridkernel import part_distances
 from kinegrasp_env.world.objects import GraspObject, load_object
+from kinegrasp_env.world.polytope import INSIDE_TOL, ConvexPart
+from kinegrasp_env.world.store import imported_folder
 
 #: Lattice spacing (metres).
 SPACING = 1.5e-3
@@ -35,6 +39,8 @@ MARGIN = 0.03
 FORMAT_VERSION = 1
 #: Nodes per block when building.
 BUILD_BLOCK = 200_000
+#: A part reaching beyond the mesh's bounding box by more than this widens the lattice (m).
+BEYOND = 1e-6
 
 
 def cache_dir() -> Path:
@@ -107,7 +113,8 @@ class DistanceGrid:
         return value, np.stack([gx, gy, gz], axis=-1) / self.spacing
 
 
-def _cache_key(obj: GraspObject, spacing: float, margin: float) -> str:
+def grid_key(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN) -> str:
+    """Hex key of a grid: the object's parts and the grid settings."""
     digest = hashlib.sha256()
     for part in obj.parts:
         digest.update(np.ascontiguousarray(part, dtype=np.float64).tobytes())
@@ -117,8 +124,19 @@ def _cache_key(obj: GraspObject, spacing: float, margin: float) -> str:
 
 def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN,
                progress: bool = False) -> DistanceGrid:
-    """Compute the grid of ``obj`` (exact distances at the nodes)."""
+    """Compute the grid of ``obj`` (exact distances at the nodes).
+
+    The lattice covers the mesh's bounding box, widened where a part reaches beyond it by
+    more than :data:`BEYOND` (an imported object's hulls may). An imported object's nodes go
+    through the compiled :func:`kinegrasp_env.world.gridkernel.part_distances` (the same
+    method; its parts have many more edges), the built-in objects' through
+    :meth:`~kinegrasp_env.world.polytope.ConvexPart.closest` (their grids stay bit for bit).
+    """
     lo, hi = obj.mesh.bounds
+    p_lo = np.min([p.min(axis=0) for p in obj.parts], axis=0)
+    p_hi = np.max([p.max(axis=0) for p in obj.parts], axis=0)
+    lo = np.where(p_lo < lo - BEYOND, p_lo, lo)
+    hi = np.where(p_hi > hi + BEYOND, p_hi, hi)
     origin = lo - margin
     shape = tuple(int(np.ceil(s)) + 1 for s in (hi - lo + 2 * margin) / spacing)
     values = np.full(shape, margin, dtype=np.float64)
@@ -136,10 +154,8 @@ def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGI
                   for k in range(3)]
         grid = np.stack(np.meshgrid(*(axes[k][ranges[k]] for k in range(3)), indexing="ij"),
                         axis=-1).reshape(-1, 3)
-        dist = np.empty(len(grid))
-        for start in range(0, len(grid), BUILD_BLOCK):
-            dist[start:start + BUILD_BLOCK] = part.closest(grid[start:start + BUILD_BLOCK])[1]
         block = values[np.ix_(*ranges)]
+        dist = node_distances(part, grid, block.reshape(-1), compiled=obj.imported)
         np.minimum(block, dist.reshape(block.shape), out=block)
         values[np.ix_(*ranges)] = block
     # kept in float32 precision (2e-9 m at the margin) so a fresh grid equals a cached one
@@ -150,7 +166,8 @@ def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGI
 def object_grid(name: str, spacing: float = SPACING, margin: float = MARGIN) -> DistanceGrid:
     """The (cached) distance grid of a catalog object: loaded from disk or built and saved."""
     obj = load_object(name)
-    path = cache_dir() / f"{name}-{_cache_key(obj, spacing, margin)}.npz"
+    folder = imported_folder(name) if obj.imported else None
+    path = (folder or cache_dir()) / grid_file_name(obj, spacing, margin)
     if path.exists():
         try:
             with np.load(path) as data:
@@ -160,11 +177,35 @@ def object_grid(name: str, spacing: float = SPACING, margin: float = MARGIN) -> 
             pass  # unreadable cache entry: rebuild it
     grid = build_grid(obj, spacing, margin)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, origin=grid.origin, spacing=grid.spacing,
-                 values=grid.values.astype(np.float32))
-        os.replace(tmp, path)
+        save_grid(grid, path)
     except OSError:
         pass  # read-only home: keep the grid in memory only
     return grid
+
+
+def node_distances(part: ConvexPart, nodes: np.ndarray, current: np.ndarray,
+                   compiled: bool = False) -> np.ndarray:
+    """Signed distances (n,) of nodes (n, 3) to ``part``; ``compiled``: or ``current`` (n,)
+    where the part's plane bound shows the distance is not smaller (see
+    :mod:`kinegrasp_env.world.gridkernel`)."""
+    if compiled:
+        return part_distances(nodes, part.planes, part.edges, INSIDE_TOL * part.scale,
+                              np.ascontiguousarray(current, dtype=np.float64))
+    dist = np.empty(len(nodes))
+    for start in range(0, len(nodes), BUILD_BLOCK):
+        dist[start:start + BUILD_BLOCK] = part.closest(nodes[start:start + BUILD_BLOCK])[1]
+    return dist
+
+
+def grid_file_name(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN) -> str:
+    """``<name>-<key>.npz``: the file name of an object's grid."""
+    return f"{obj.name}-{grid_key(obj, spacing, margin)}.npz"
+
+
+def save_grid(grid: DistanceGrid, path: Path) -> None:
+    """Write a grid (float32 values) through a temporary file and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, origin=grid.origin, spacing=grid.spacing,
+             values=grid.values.astype(np.float32))
+    os.replace(tmp, path)

@@ -8,7 +8,11 @@ exact convex parts, with collision margins set to zero so that reported distance
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import logging
+import os
+import sys
 
 import numpy as np
 
@@ -44,14 +48,67 @@ def matrix_to_pose(transform: np.ndarray) -> tuple[list[float], list[float]]:
     return transform[:3, 3].tolist(), [float(v) for v in quat]
 
 
+class NoDisplayError(RuntimeError):
+    """pybullet's GUI was asked for where no display can show it."""
+
+
+def display_available() -> bool:
+    """Whether pybullet's GUI can open a window in this process.
+
+    On Linux the GUI is an X11 window: without an X server pybullet's GUI connect ends the
+    whole process (exit status 1, no message), so this asks first: ``$DISPLAY`` must be set
+    and, where libX11 can be loaded, ``XOpenDisplay`` must reach that server. Other systems
+    (macOS, Windows) always have a window system: True.
+    """
+    if not sys.platform.startswith("linux"):
+        return True
+    display = os.environ.get("DISPLAY", "")
+    return bool(display) and x_server_answers(display)
+
+
+def x_server_answers(display: str) -> bool:
+    """Whether the X server ``display`` (e.g. ``:0``) accepts a connection (True when libX11
+    cannot be loaded to ask: then ``$DISPLAY`` is all there is to go on)."""
+    library = ctypes.util.find_library("X11")
+    if library is None:
+        return True
+    try:
+        xlib = ctypes.CDLL(library)
+    except OSError:
+        return True
+    xlib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    xlib.XOpenDisplay.restype = ctypes.c_void_p
+    xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    handle = xlib.XOpenDisplay(display.encode())
+    if not handle:
+        return False
+    xlib.XCloseDisplay(handle)
+    return True
+
+
+def require_display() -> None:
+    """Raise :class:`NoDisplayError` (one clear sentence) when the GUI cannot open here."""
+    if not display_available():
+        where = os.environ.get("DISPLAY", "")
+        reason = f"the X server {where!r} does not answer" if where else "$DISPLAY is not set"
+        raise NoDisplayError(f"pybullet's GUI needs a display and there is none ({reason}); "
+                             "use the headless mode (gui=False, or render_mode='rgb_array')")
+
+
 class BulletWorld:
     """A pybullet physics client with bodies registered by name.
 
     Args:
         gui: open the GUI instead of the headless DIRECT mode.
+
+    Raises:
+        NoDisplayError: ``gui`` is asked for where no display can show it (checked before
+            connecting: pybullet itself would end the process).
     """
 
     def __init__(self, gui: bool = False) -> None:
+        if gui:
+            require_display()
         with quiet_c_output():  # DIRECT mode prints "argv[0]=" on connect
             self.client: BulletClient | None = BulletClient(
                 connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -124,7 +181,8 @@ class GraspWorld(BulletWorld):
         visual = -1
         try:
             visual = bullet.createVisualShape(
-                pybullet.GEOM_MESH, fileName=str(asset_path("objects", f"{obj.name}.obj")),
+                pybullet.GEOM_MESH, fileName=str(obj.mesh_file or asset_path(
+                    "objects", f"{obj.name}.obj")),
                 rgbaColor=[0.85, 0.55, 0.2, 1.0])
         except pybullet.error:  # pragma: no cover - rendering only
             log.warning("could not create the visual shape of %s", obj.name)

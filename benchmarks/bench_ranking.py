@@ -1,0 +1,223 @@
+"""Adaptive ranking (``kinegrasp rank --adaptive``) against its fixed-n budget: draws used and
+top-k errors over seeded repetitions, on two candidate sets (issue 21, target 3).
+
+Sets (joint noise sigma 0.0133 rad, the ``rank`` default; fast engine; friction 0.5, 8 cone
+edges; chunks of 250 draws, as ``kinegrasp rank --engine fast`` runs them):
+
+* ``a``: the README's drill plan with variants, ``kinegrasp plan --object drill --count 4
+  --seed 0 --variants 2`` (the file ``notebooks/candidates.json``): 12 candidates, 4 grasps
+  in 3 arm configurations each. Budget 2000 draws per candidate (the README's ``rank``).
+* ``b``: a ``reproduce fig10``-style set: 10 null-space variants of the drill's shipped grasp
+  0 (the same contacts, 10 arm configurations). Budget 1000 draws (``reproduce fig10``'s).
+
+Ground truth: 20,000 draws per candidate (seed :data:`GT_SEED`, not a repetition seed), its
+top k by P(FC). Repetition s runs ``rank_adaptive`` exactly as ``kinegrasp rank FILE --sigma
+0.0133 --samples N --seed s --adaptive --top-k K --engine fast`` does (same evaluator calls,
+same chunks), and counts the draws it made and whether its top k equals the truth's.
+
+Each draw's force-closure outcome is cached per (set, seed, candidate) under
+``<cache>/bench_ranking`` (``--cache``), so a rerun, or the same script on another version of
+the ranking code (``PYTHONPATH=/old/checkout python benchmarks/bench_ranking.py``), costs
+little: chunk c of seed s is the same draws whoever asks for it (common random numbers), and
+what is measured is exactly what ``rank_adaptive`` asks for. Per-draw Q is not cached: the
+runs' moments are empty, which changes neither the decisions nor the top k (they use P(FC)).
+
+Usage: ``nice -n 10 python benchmarks/bench_ranking.py [--reps 100] [--processes 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import multiprocessing
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SIGMA = 0.0133
+CHUNK = 250
+GT_DRAWS = 20_000
+GT_SEED = 1000
+FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
+ROOT = Path(__file__).resolve().parents[1]
+SETS = {
+    "a": {"label": "README drill plan with variants", "samples": 2000, "top_k": 6},
+    "b": {"label": "fig10-style: drill grasp 0 in 10 arm configurations", "samples": 1000,
+          "top_k": 3},
+}
+
+
+def candidates(name: str) -> tuple[list, str]:
+    """The grasps of set ``name`` and a digest of their configurations (the cache key)."""
+    from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
+
+    if name == "a":
+        grasps = load_grasps(ROOT / "notebooks" / "candidates.json")
+    else:
+        from kinegrasp_env.toolkit.planner import GraspPlanner
+
+        planner = GraspPlanner("drill")
+        try:
+            grasps = planner.variants(shipped_grasps("drill")[0], 10)
+        finally:
+            planner.close()
+    digest = hashlib.sha256()
+    for grasp in grasps:
+        digest.update(grasp.id.encode() + np.round(grasp.q0, 12).tobytes())
+    return grasps, digest.hexdigest()[:12]
+
+
+def outcomes(grasp, seed: int, first: int, count: int, processes: int = 1) -> np.ndarray:
+    """Force-closure outcome (draws,) bool of chunks ``first .. first + count - 1``."""
+    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    _, _, draws = evaluate.run_chunks(
+        grasp, JointNoise(SIGMA), seed, sizes=[CHUNK] * count, first_chunk=first,
+        friction=FRICTION, num_edges=NUM_EDGES, engine="fast", method=METHOD,
+        return_draws=True, processes=processes)
+    return draws.outcome == evaluate.FORCE_CLOSURE
+
+
+def save_bits(path: Path, arrays: list[np.ndarray]) -> None:
+    """Per-candidate bool arrays, packed, written atomically."""
+    tmp = path.with_name(path.name + f".{os.getpid()}.tmp.npz")
+    np.savez(tmp, **{f"c{i}": np.packbits(a) for i, a in enumerate(arrays)},
+             lengths=np.array([a.size for a in arrays]))
+    os.replace(tmp, path)
+
+
+def load_bits(path: Path, n: int) -> list[np.ndarray]:
+    if not path.exists():
+        return [np.zeros(0, dtype=bool) for _ in range(n)]
+    with np.load(path) as data:
+        return [np.unpackbits(data[f"c{i}"])[:int(data["lengths"][i])].astype(bool)
+                for i in range(n)]
+
+
+def ground_truth(grasps, folder: Path, processes: int) -> np.ndarray:
+    """(candidates, GT_DRAWS) bool outcomes at :data:`GT_SEED`, cached."""
+    path = folder / "ground_truth.npz"
+    have = load_bits(path, len(grasps))
+    if any(a.size != GT_DRAWS for a in have):
+        have = [outcomes(g, GT_SEED, 0, GT_DRAWS // CHUNK, processes) for g in grasps]
+        save_bits(path, have)
+    return np.array(have)
+
+
+def run_seed(task: tuple) -> dict:
+    """One repetition: ``rank_adaptive`` on seed ``seed`` with cached per-draw outcomes."""
+    grasps, folder, seed, samples, top_k, delta = task
+    from kinegrasp_env.sampling.stats import StreamingMoments
+    from kinegrasp_env.toolkit import ranking
+
+    paired = hasattr(ranking, "PairedEvaluator")  # this version pairs per-draw outcomes
+    path = Path(folder) / f"seed{seed}.npz"
+    store = load_bits(path, len(grasps))
+    fresh = 0
+
+    def evaluator(index: int, first: int, count: int):
+        nonlocal fresh
+        have = store[index].size // CHUNK
+        if have < first + count:
+            store[index] = np.concatenate(
+                [store[index], outcomes(grasps[index], seed, have, first + count - have)])
+            fresh += (first + count - have) * CHUNK
+        out = store[index][first * CHUNK:(first + count) * CHUNK]
+        value = int(out.sum()), out.size, StreamingMoments(1)
+        return (*value, out) if paired else value
+
+    max_chunks = samples // CHUNK
+    report = ranking.rank_adaptive(len(grasps), evaluator, max_chunks, CHUNK, top_k=top_k,
+                                   delta=delta)
+    if fresh:
+        save_bits(path, store)
+    return {"seed": seed, "draws": report.draws, "fixed": report.fixed_draws,
+            "top": sorted(report.top), "separated": report.separated, "fresh": fresh,
+            "paired": paired}
+
+
+def truth_line(gt: np.ndarray, ids: list[str], top_k: int) -> str:
+    """The ground truth's order and its top-k boundary pair (gap, discordance)."""
+    p = gt.mean(axis=1)
+    rank = np.argsort(-p, kind="stable")
+    i, j = rank[top_k - 1], rank[top_k]
+    discordant = float(np.mean(gt[i] != gt[j]))
+    order = ", ".join(f"{ids[r]} {p[r]:.4f}" for r in rank)
+    return (f"  ground truth ({GT_DRAWS} draws, seed {GT_SEED}): {order}\n"
+            f"  top-{top_k} boundary {ids[i]} | {ids[j]}: gap {p[i] - p[j]:.4f}, discordant "
+            f"on {discordant:.1%} of the draws")
+
+
+def summary(name: str, rows: list[dict], truth: set[int], n: int, samples: int, top_k: int,
+            delta: float, seconds: float) -> str:
+    from kinegrasp_env.sampling.stats import wilson_interval
+
+    used = np.array([r["draws"] / r["fixed"] for r in rows])
+    errors = sum(set(r["top"]) != truth for r in rows)
+    lo, hi = wilson_interval(errors, len(rows))
+    separated = sum(r["separated"] for r in rows)
+    fresh = sum(r["fresh"] for r in rows)
+    mode = "paired" if rows[0]["paired"] else "unpaired"
+    return (f"set {name} ({n} candidates, top {top_k}, {samples} draws each, fixed n "
+            f"{n * samples}, delta {delta}, {mode}): draws/fixed-n mean {used.mean():.3f} "
+            f"max {used.max():.3f}; top-k errors {errors}/{len(rows)} = "
+            f"{errors / len(rows):.3f} (Wilson 95% {lo:.3f}..{hi:.3f}); separated "
+            f"{separated}/{len(rows)}; {seconds:.0f} s, {fresh} draws computed")
+
+
+def bench_set(name: str, args, pool) -> None:
+    from kinegrasp_env.paths import cache_root
+    from kinegrasp_env.toolkit import ranking
+
+    spec = SETS[name]
+    samples = args.samples or spec["samples"]
+    top_k = args.top_k or spec["top_k"]
+    start = time.perf_counter()
+    grasps, digest = candidates(name)
+    folder = Path(args.cache or cache_root() / "bench_ranking") / \
+        f"{name}_{digest}_sigma{SIGMA}_chunk{CHUNK}"
+    folder.mkdir(parents=True, exist_ok=True)
+    gt = ground_truth(grasps, folder, args.processes)
+    ids = [g.id for g in grasps]
+    truth = set(np.argsort(-gt.mean(axis=1), kind="stable")[:top_k].tolist())
+    print(f"set {name}: {spec['label']} ({ranking.__file__})")
+    print(truth_line(gt, ids, top_k), flush=True)
+    tasks = [(grasps, str(folder), seed, samples, top_k, args.delta) for seed in range(args.reps)]
+    rows = list(pool.imap(run_seed, tasks)) if pool else [run_seed(t) for t in tasks]
+    print(summary(name, rows, truth, len(grasps), samples, top_k, args.delta,
+                  time.perf_counter() - start), flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sets", default="a,b", help="comma-separated: a, b")
+    parser.add_argument("--reps", type=int, default=100, help="seeds 0 .. reps-1")
+    parser.add_argument("--processes", type=int, default=2, help="repetitions run at once")
+    parser.add_argument("--samples", type=int, help="per-candidate budget (default: the set's)")
+    parser.add_argument("--top-k", type=int, help="default: the set's")
+    parser.add_argument("--delta", type=float, default=0.05)
+    parser.add_argument("--cache", help="cache folder (default: <cache_root>/bench_ranking)")
+    args = parser.parse_args(argv)
+    names = args.sets.split(",")
+    if unknown := [n for n in names if n not in SETS]:
+        parser.error(f"unknown set(s) {unknown}; choose from {sorted(SETS)}")
+    print(f"bench_ranking: {args.reps} repetitions per set, {args.processes} processes, "
+          f"python {sys.version.split()[0]}", flush=True)
+    context = multiprocessing.get_context("spawn")
+    pool = context.Pool(args.processes) if args.processes > 1 else None
+    try:
+        for name in names:
+            bench_set(name, args, pool)
+    finally:
+        if pool:
+            pool.close()
+            pool.join()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,285 @@
+"""The pybullet *dynamics* world of the physics closing: a free-floating hand held by a
+constraint, and one catalog object as a rigid body.
+
+The kinematic closing (:mod:`kinegrasp_env.closing.reference`) never steps the simulation;
+here the hand's finger motors close under dynamics, the object may be pushed, and for the lift
+test (:mod:`kinegrasp_env.closing.lift`) the hand moves. Therefore:
+
+* the hand (``sdh_hand.urdf``, the same URDF and collision capsules as the reference's
+  :class:`~kinegrasp_env.world.sim.GraspWorld`) is loaded with a *dynamic* base, and a fixed
+  constraint (the "arm") holds its root at the flange pose reached by the draw's arm joints.
+  The arm itself is not simulated: its joints would only set where the flange is, which is all
+  the constraint needs, and moving the constraint's target is how the lift test moves the hand
+  (no IK, no arm-object collisions, no joint-limit failures of the arm during the shake);
+* the object is one rigid body whose collision shape is a compound of its exact convex parts
+  (written to a temporary ``.obj`` with one ``o`` group per part, which pybullet loads as one
+  convex hull per group, collision margin zero: measured distances within 1e-5 m of the exact
+  ones), mass = density x the mesh's volume, inertia of the uniform-density mesh about its
+  centre of mass; or, with ``object_free=False``, the same shape as a static body;
+* friction: Bullet combines two bodies' friction coefficients as their product, so the hand's
+  links get 1.0 and the object ``friction`` (the quality measure's mu); no rolling or spinning
+  friction (point contacts with Coulomb friction, the quality measure's contact model).
+
+Every draw starts from the same saved simulator state (``restoreState``, then one collision
+pass with the hand parked away from the object, which drops the previous draw's hand-object
+pair and the contact caches of the object's parts: ``restoreState`` leaves those, and mug
+draws closed differently after different predecessors), so a draw's result depends only on
+its own inputs, not on the draws before (tests).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet
+from scipy.spatial import ConvexHull
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
+
+#: Gravity, m/s^2 (world -z).
+GRAVITY = 9.81
+#: Largest force the constraint that holds the hand may apply, newtons (the arm is stiff).
+ANCHOR_FORCE = 1.0e4
+#: Mass (kg) and principal moments of inertia (kg m^2) given to the hand's root link: it stands
+#: in for the arm behind the flange. With the URDF's 0.01 kg root, the anchor constraint let
+#: the hand wander by up to 1 mm under the grip forces and pybullet's solver stopped short of
+#: convergence (finger motors starved of torque); 100 kg behaves as a fixed base does.
+ROOT_MASS = 100.0
+ROOT_INERTIA = 1.0
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    """Physical settings of the world.
+
+    Attributes:
+        density: of the object, kg/m^3 (default 500: wood, or a plastic part with air inside).
+        friction: Coulomb friction mu between a finger and the object (the quality's mu).
+        object_free: the object is a dynamic body (it can be pushed); False: static.
+        support_damping: while the hand closes (gravity off) a free object's linear and
+            angular velocities are damped at this rate, 1/s (pybullet's damping: a push of
+            v m/s carries the object about v / support_damping metres): it stands in for the
+            support the object rests on, so the object moves while pushed and stops soon
+            after instead of floating away. 0: floating. Off during the lift test.
+        time_step: simulation step, seconds (1 ms: at pybullet's default 1/240 s the light
+            finger links sank up to 2.5 mm into the object under the grip and five-contact
+            cube grasps with Q = 0.23 dropped it at once; at 1 ms they hold it within 2 mm).
+        solver_iterations: pybullet's constraint-solver iterations per step.
+    """
+
+    density: float = 500.0
+    friction: float = 0.5
+    object_free: bool = True
+    support_damping: float = 20.0
+    time_step: float = 1.0 / 1000.0
+    solver_iterations: int = 50
+
+    def __post_init__(self) -> None:
+        for name in ("density", "friction", "time_step"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        if not (np.isfinite(self.support_damping) and self.support_damping >= 0):
+            raise ValueError(f"support_damping must be >= 0, got {self.support_damping!r}")
+        if self.solver_iterations < 1:
+            raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations!r}")
+
+
+def pose_matrix(position, orientation) -> np.ndarray:
+    """(4, 4) transform from a pybullet (position, quaternion xyzw)."""
+    out = np.eye(4)
+    out[:3, :3] = np.reshape(pybullet.getMatrixFromQuaternion(orientation), (3, 3))
+    out[:3, 3] = position
+    return out
+
+
+def mass_properties(obj: GraspObject, density: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """Mass (kg), principal moments of inertia (3,) (kg m^2) and the (4, 4) inertial frame
+    (centre of mass, principal axes; object frame) of the uniform-density object mesh."""
+    mesh = obj.mesh
+    mass = float(density * mesh.volume)
+    # trimesh: about the centre of mass, for the mesh's own density
+    inertia = density / mesh.density * np.asarray(mesh.moment_inertia, dtype=float)
+    moments, axes = np.linalg.eigh(inertia)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] = -axes[:, 2]
+    frame = np.eye(4)
+    frame[:3, :3] = axes
+    frame[:3, 3] = obj.center_of_mass
+    return mass, moments, frame
+
+
+def write_parts_obj(parts: tuple[np.ndarray, ...], path: Path) -> None:
+    """Write convex parts (each (n_i, 3), metres) as one ``.obj``: a group per part, its hull's
+    triangles oriented outwards."""
+    lines, offset = [], 1
+    for i, part in enumerate(parts):
+        hull = ConvexHull(part)
+        lines.append(f"o part_{i}")
+        lines += [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in part]
+        centre = part.mean(axis=0)
+        for tri in hull.simplices:
+            a, b, c = part[tri]
+            if np.dot(np.cross(b - a, c - a), a - centre) < 0:
+                tri = tri[[0, 2, 1]]
+            lines.append("f " + " ".join(str(offset + int(k)) for k in tri))
+        offset += len(part)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def load_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
+    """The hand URDF with a dynamic base: (body, joint name -> index, link name -> index (-1:
+    the root)), collision margins zero, friction 1.0 (see the module docstring), the root
+    link as heavy as :data:`ROOT_MASS`."""
+    hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=False,
+                           flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+    joint_index: dict[str, int] = {}
+    link_index: dict[str, int] = {"hand_root": -1}
+    for j in range(bullet.getNumJoints(hand)):
+        info = bullet.getJointInfo(hand, j)
+        joint_index[info[1].decode()] = j
+        link_index[info[12].decode()] = j
+    for link in link_index.values():
+        bullet.changeDynamics(hand, link, collisionMargin=0.0, lateralFriction=1.0,
+                              linearDamping=0.0, angularDamping=0.0)
+    bullet.changeDynamics(hand, -1, mass=ROOT_MASS, localInertiaDiagonal=[ROOT_INERTIA] * 3)
+    return hand, joint_index, link_index
+
+
+class PhysicsWorld(BulletWorld):
+    """The free hand, its anchor constraint and one object, in a world of their own.
+
+    Args:
+        obj: the catalog object (placed at ``obj.pose``).
+        settings: :class:`WorldSettings`.
+
+    Attributes:
+        mass: the object's mass, kg (also for a static object: what it would weigh).
+        joint_index, link_index: hand joint / link name -> pybullet index.
+    """
+
+    def __init__(self, obj: GraspObject, settings: WorldSettings | None = None) -> None:
+        super().__init__(gui=False)
+        self.obj = obj
+        self.settings = settings or WorldSettings()
+        bullet = self.bullet
+        bullet.setTimeStep(self.settings.time_step)
+        bullet.setPhysicsEngineParameter(numSolverIterations=self.settings.solver_iterations,
+                                         deterministicOverlappingPairs=1)
+        hand, self.joint_index, self.link_index = load_hand(bullet)
+        self.bodies["hand"] = hand
+        self.mass, moments, self.inertial = mass_properties(obj, self.settings.density)
+        self.inertial_inverse = np.linalg.inv(self.inertial)
+        self.bodies["object"] = self._object_body(moments)
+        self.anchor = bullet.createConstraint(hand, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0],
+                                              [0, 0, 0], [0, 0, 0])
+        bullet.setGravity(0, 0, 0)
+        #: the state every draw starts from (hand parked at the world origin, clear of the
+        #: object; nothing touching)
+        self.initial_state = bullet.saveState()
+
+    def _object_body(self, moments: np.ndarray) -> int:
+        bullet = self.bullet
+        with tempfile.TemporaryDirectory(prefix="kinegrasp_parts_") as folder:
+            path = Path(folder) / f"{self.obj.name}_parts.obj"
+            write_parts_obj(self.obj.parts, path)
+            shape = bullet.createCollisionShape(pybullet.GEOM_MESH, fileName=str(path))
+        position, orientation = matrix_to_pose(self.obj.pose)
+        inertial_position, inertial_orientation = matrix_to_pose(self.inertial)
+        free = self.settings.object_free
+        body = bullet.createMultiBody(
+            baseMass=self.mass if free else 0.0, baseCollisionShapeIndex=shape,
+            basePosition=position, baseOrientation=orientation,
+            baseInertialFramePosition=inertial_position,
+            baseInertialFrameOrientation=inertial_orientation)
+        bullet.changeDynamics(body, -1, collisionMargin=0.0, lateralFriction=self.settings.friction,
+                              rollingFriction=0.0, spinningFriction=0.0, restitution=0.0,
+                              linearDamping=0.0, angularDamping=0.0)
+        if free:
+            bullet.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist())
+        return body
+
+    @property
+    def hand(self) -> int:
+        return self.bodies["hand"]
+
+    @property
+    def object_body(self) -> int:
+        return self.bodies["object"]
+
+    def reset(self, root_pose: np.ndarray, joints: dict[str, float]) -> None:
+        """Start a draw: the saved state, gravity off, support damping on, the hand root
+        (flange frame) at ``root_pose`` (4, 4) with the anchor holding it there, hand joints
+        at ``joints`` (radians; every hand joint not named keeps its saved value)."""
+        bullet = self.bullet
+        bullet.restoreState(self.initial_state)
+        # the hand is parked again: a collision pass drops the previous draw's hand-object
+        # pair and its per-part contact caches (restoreState leaves them; see the module doc)
+        bullet.performCollisionDetection()
+        self.gravity(False)
+        self.damp_object(True)
+        position, orientation = matrix_to_pose(root_pose)
+        bullet.resetBasePositionAndOrientation(self.hand, position, orientation)
+        bullet.resetBaseVelocity(self.hand, [0, 0, 0], [0, 0, 0])
+        self.move_anchor(root_pose)
+        for name, value in joints.items():
+            bullet.resetJointState(self.hand, self.joint_index[name], float(value), 0.0)
+
+    def move_anchor(self, root_pose: np.ndarray) -> None:
+        """Where the constraint holds the hand root: (4, 4) world pose of the flange frame."""
+        self.anchor_at(*matrix_to_pose(root_pose))
+
+    def anchor_at(self, position: list[float], orientation: list[float]) -> None:
+        """:meth:`move_anchor` from a position (3,) and a quaternion (x, y, z, w)."""
+        self.bullet.changeConstraint(self.anchor, jointChildPivot=position,
+                                     jointChildFrameOrientation=orientation,
+                                     maxForce=ANCHOR_FORCE)
+
+    def gravity(self, on: bool) -> None:
+        self.bullet.setGravity(0, 0, -GRAVITY if on else 0.0)
+
+    def damp_object(self, on: bool) -> None:
+        """Switch the free object's support damping (see :class:`WorldSettings`) on or off."""
+        if self.settings.object_free:
+            rate = self.settings.support_damping if on else 0.0
+            self.bullet.changeDynamics(self.object_body, -1, linearDamping=rate,
+                                       angularDamping=rate)
+
+    def step(self, steps: int = 1) -> None:
+        """Advance ``steps`` time steps."""
+        for _ in range(steps):
+            self.bullet.stepSimulation()
+
+    def object_pose(self) -> np.ndarray:
+        """(4, 4) world pose of the object frame now (pybullet reports the inertial frame)."""
+        com = pose_matrix(*self.bullet.getBasePositionAndOrientation(self.object_body))
+        return com @ self.inertial_inverse
+
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a hand link's URDF frame (the root: the flange frame)."""
+        bullet = self.bullet
+        index = self.link_index[link]
+        if index < 0:
+            return pose_matrix(*bullet.getBasePositionAndOrientation(self.hand))
+        state = bullet.getLinkState(self.hand, index, computeForwardKinematics=True)
+        return pose_matrix(state[4], state[5])
+
+    def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """(positions (k,), velocities (k,)) of hand joints, radians and rad/s."""
+        states = self.bullet.getJointStates(self.hand, [self.joint_index[n] for n in names])
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def contact_points(self) -> list[tuple]:
+        """pybullet's contact records between the hand (A) and the object (B), from the last
+        step (``getContactPoints``)."""
+        return self.bullet.getContactPoints(self.hand, self.object_body)
+
+    def penetration(self) -> float:
+        """The deepest hand-object penetration now, metres (0 when nothing overlaps)."""
+        records = self.bullet.getClosestPoints(self.hand, self.object_body, 0.0)
+        return max([0.0] + [-rec[8] for rec in records])

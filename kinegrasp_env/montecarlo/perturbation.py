@@ -1,0 +1,120 @@
+"""From a noise model's draws to what the engines take, and where a pose error puts the hand.
+
+:func:`engine_inputs` turns :class:`~kinegrasp_env.sampling.noise_model.NoiseDraws` into the
+configurations q (n, 14) (arm joints plus their error; hand pre-shape plus its offsets,
+clipped to the hand's joint limits) and the per-draw keyword arguments of
+:meth:`~kinegrasp_env.montecarlo.engines.Engine.run`: ``palm`` (n, 4, 4), the hand root in
+the flange frame; ``object_offset`` (n, 4, 4), the true object pose in the believed object
+frame (rotating about the centre of mass); ``friction`` (n,).
+
+Only the hand's pose relative to the object matters to closing and scoring, so the engines
+keep the object where it was believed to be and move the hand instead: with W_F the flange
+pose, W_O the believed object pose, P the palm error and D the object error, the hand root in
+the true object's frame is X = D^-1 W_O^-1 W_F P (:func:`hand_in_object`). An object error D
+and a palm error P = W_F^-1 W_O D^-1 W_O^-1 W_F (the same rigid motion, inverted, expressed in
+the flange frame) therefore give the same draws.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.sampling.noise_model import NoiseDraws, offset_transforms
+
+ARM = 7
+
+
+@dataclass
+class EngineInputs:
+    """What one engine call takes for n draws (None: that error is absent).
+
+    Attributes:
+        q: (n, 14) configurations, radians.
+        palm: (n, 4, 4) hand root in the flange frame.
+        object_offset: (n, 4, 4) true object pose in the believed object's frame.
+        friction: (n,) mu per draw.
+    """
+
+    q: np.ndarray
+    palm: np.ndarray | None = None
+    object_offset: np.ndarray | None = None
+    friction: np.ndarray | None = None
+
+    def errors(self) -> dict[str, np.ndarray]:
+        """The keyword arguments of ``Engine.run`` beyond q (only those present)."""
+        return {k: v for k, v in (("palm", self.palm), ("object_offset", self.object_offset),
+                                  ("friction", self.friction)) if v is not None}
+
+
+def hand_limits() -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) (7,) limits of the hand DOF in ``HAND_JOINTS`` order, radians."""
+    model = kuka_sdh()
+    return (np.array([model.joint(j).lower for j in HAND_JOINTS]),
+            np.array([model.joint(j).upper for j in HAND_JOINTS]))
+
+
+def configurations(q0: np.ndarray, draws: NoiseDraws) -> np.ndarray:
+    """q (n, 14): q0 (14,) plus the joint errors on the arm and the hand offsets (spread;
+    each finger's offset on both of its flexion joints), clipped to the hand's limits."""
+    q = np.repeat(np.asarray(q0, dtype=float)[None], draws.size, axis=0)
+    if draws.joints is not None:
+        q[:, :ARM] += draws.joints
+    if draws.hand is not None:
+        offsets = np.zeros((draws.size, len(HAND_JOINTS)))
+        offsets[:, 0] = draws.hand[:, 0]
+        for f, finger in enumerate(FINGERS):
+            for joint in finger[:2]:
+                offsets[:, HAND_JOINTS.index(joint)] = draws.hand[:, 1 + f]
+        lower, upper = hand_limits()
+        q[:, ARM:] = np.clip(q[:, ARM:] + offsets, lower, upper)
+    return q
+
+
+def engine_inputs(q0: np.ndarray, draws: NoiseDraws, center: np.ndarray) -> EngineInputs:
+    """The engine inputs of ``draws`` around q0 (14,); ``center`` (3,) is the object's centre
+    of mass (object frame, metres), about which an object error rotates."""
+    return EngineInputs(
+        configurations(q0, draws),
+        None if draws.palm is None else offset_transforms(draws.palm),
+        None if draws.object is None else offset_transforms(draws.object, center),
+        None if draws.friction is None else np.asarray(draws.friction, dtype=float))
+
+
+def rigid_inverse(transform: np.ndarray) -> np.ndarray:
+    """Inverses (..., 4, 4) of rigid transforms (..., 4, 4): [R^T, -R^T t]."""
+    rot_t = np.swapaxes(transform[..., :3, :3], -1, -2)
+    out = np.zeros_like(transform)
+    out[..., :3, :3] = rot_t
+    out[..., :3, 3] = -(rot_t @ transform[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def hand_in_object(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
+                   object_offset: np.ndarray | None) -> np.ndarray:
+    """X (n, 4, 4): the hand root in the true object's frame, D^-1 W_O^-1 W_F P, for flange
+    poses W_F (n, 4, 4), the believed object pose W_O (4, 4), palm errors P and object
+    errors D (n, 4, 4; None = identity)."""
+    rel = rigid_inverse(object_pose) @ flange
+    if palm is not None:
+        rel = rel @ palm
+    if object_offset is not None:
+        rel = rigid_inverse(object_offset) @ rel
+    return rel
+
+
+def placed_roots(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
+                 object_offset: np.ndarray | None) -> np.ndarray:
+    """World poses (n, 4, 4) of the hand root that put the hand where it truly is relative
+    to the object, with the object left at its believed pose W_O: W_O X."""
+    return object_pose @ hand_in_object(flange, object_pose, palm, object_offset)
+
+
+def world_to_object(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
+                    object_offset: np.ndarray | None) -> np.ndarray:
+    """M (n, 4, 4) = X W_F^-1: maps a hand link's world pose from the arm's kinematics
+    (W_F times the link's pose in the hand) to its pose in the true object's frame."""
+    return hand_in_object(flange, object_pose, palm, object_offset) @ rigid_inverse(flange)

@@ -1,0 +1,137 @@
+"""The physics engine: the paper's closing under pybullet dynamics, draw by draw.
+
+Same interface and scoring as the kinematic engines (:class:`~kinegrasp_env.montecarlo.engines.
+Engine`): ``run(q (n, 14)) -> DrawBatch``, the same outcomes and Q from the same contacts'
+friction cones, the same eps for the same seed. The closing is
+:func:`~kinegrasp_env.closing.physics.physics_close` (motors close the fingers until they
+stall; the object free or fixed), the contacts are in the object's frame where the object
+ended. :meth:`PhysicsEngine.run_lift` adds the lift test
+(:func:`~kinegrasp_env.closing.lift.lift_test`) to every draw that closed.
+
+Every draw starts from the same saved simulator state, so a draw's result depends only on its
+configuration: the same configurations give the same bits in any order, in any chunking.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from kinegrasp_env.closing.lift import LiftProfile, lift_test
+from kinegrasp_env.closing.physics import MotorSettings, PhysicsClose, physics_close
+from kinegrasp_env.closing.physics_world import PhysicsWorld, WorldSettings
+from kinegrasp_env.montecarlo.engines import (
+    FLANGE_LINK,
+    MAX_CONTACTS,
+    MISSED,
+    NO_FORCE_CLOSURE,
+    START_COLLISION,
+    DrawBatch,
+    Engine,
+    check_configurations,
+)
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.threads import single_blas_thread
+
+
+@dataclass
+class LiftBatch:
+    """Lift-test results of n draws.
+
+    Attributes:
+        held: (n,) bool, the object held through lift, hold and shake (False for draws that
+            did not close: start collision).
+        max_offset: (n,) how far the object moved in the palm frame, metres (NaN: not lifted).
+        time: (n,) seconds the test ran (the drop, or its full length; NaN: not lifted).
+    """
+
+    held: np.ndarray
+    max_offset: np.ndarray
+    time: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> LiftBatch:
+        return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan))
+
+
+def record_close(out: DrawBatch, i: int, result: PhysicsClose) -> None:
+    """Draw i's contacts, closed hand and provisional outcome (before scoring) in ``out``."""
+    if result.start_collision:
+        out.outcome[i] = START_COLLISION
+        return
+    k = min(len(result.contacts), MAX_CONTACTS)
+    out.n_contacts[i] = k
+    for j, contact in enumerate(result.contacts[:k]):
+        out.points[i, j] = contact.point
+        out.normals[i, j] = contact.normal
+        out.finger[i, j] = contact.finger
+        out.link[i, j] = contact.link
+    out.hand[i] = result.joints
+    out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+
+
+class PhysicsEngine(Engine):
+    """Closing under pybullet dynamics (see the module docstring).
+
+    Args:
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure; ``friction`` is also the
+            simulated finger-object friction.
+        world: :class:`~kinegrasp_env.closing.physics_world.WorldSettings` (density, object
+            free or fixed, time step); its friction is replaced by ``friction``.
+        motors: :class:`~kinegrasp_env.closing.physics.MotorSettings`.
+        profile: :class:`~kinegrasp_env.closing.lift.LiftProfile` of :meth:`run_lift`.
+    """
+
+    name = "physics"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
+                 world: WorldSettings | None = None, motors: MotorSettings | None = None,
+                 profile: LiftProfile | None = None) -> None:
+        super().__init__(object_name, friction, num_edges)
+        self.settings = replace(world or WorldSettings(), friction=friction)
+        self.motors = motors or MotorSettings()
+        self.profile = profile or LiftProfile()
+        self.kin = Kinematics(kuka_sdh())
+        self.world = PhysicsWorld(self.obj, self.settings)
+
+    def close(self) -> None:
+        self.world.close()
+
+    def _close_all(self, q: np.ndarray, lift: LiftBatch | None) -> DrawBatch:
+        n = q.shape[0]
+        out = DrawBatch.empty(n)
+        t0 = time.perf_counter()
+        roots = self.kin.pose(q, FLANGE_LINK)
+        t1 = time.perf_counter()
+        for i in range(n):
+            result = physics_close(self.world, roots[i], q[i, 7:], self.motors)
+            record_close(out, i, result)
+            if lift is not None and not result.start_collision:
+                test = lift_test(self.world, self.profile, self.motors)
+                lift.held[i], lift.max_offset[i], lift.time[i] = (test.held, test.max_offset,
+                                                                   test.time)
+        t2 = time.perf_counter()
+        self.score(out)
+        self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
+        return out
+
+    def _run(self, q: np.ndarray) -> DrawBatch:
+        return self._close_all(q, None)
+
+    def run_lift(self, q: np.ndarray) -> tuple[DrawBatch, LiftBatch]:
+        """Outcomes of configurations q (n, 14) (as :meth:`run`: the same numbers) and the
+        lift test of every draw that closed (its time counts as auto-close time).
+
+        Raises:
+            ValueError: bad configurations, or the engine's object is fixed.
+        """
+        if not self.settings.object_free:
+            raise ValueError("the lift test needs a free object (object_free=True)")
+        q = check_configurations(q)
+        lift = LiftBatch.empty(q.shape[0])
+        with single_blas_thread():
+            return self._close_all(q, lift), lift

@@ -1,0 +1,88 @@
+"""The report's 2-D charts as plotly figures (plain dicts): Q's histogram over the
+force-closure draws, the outcome counts, and P(FC) against sigma with Wilson intervals."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.evaluate import GraspStats
+from kinegrasp_env.toolkit.report_plotly import layout
+from kinegrasp_env.toolkit.report_scene import OUTCOME_COLOURS
+
+HISTOGRAM_BINS = 40
+
+
+def _vline(x: float, label: str, colour: str, dash: str, y_label: float) -> tuple[dict, dict]:
+    shape = {"type": "line", "xref": "x", "yref": "paper", "x0": x, "x1": x, "y0": 0, "y1": 1,
+             "line": {"color": colour, "width": 2, "dash": dash}}
+    note = {"xref": "x", "yref": "paper", "x": x, "y": y_label, "text": label,
+            "showarrow": False, "xanchor": "left", "font": {"color": colour},
+            "bgcolor": "rgba(255,255,255,0.8)"}
+    return shape, note
+
+
+def quality_histogram(quality: np.ndarray, q_mean: float, q_nominal: float,
+                      bins: int = HISTOGRAM_BINS) -> dict:
+    """Histogram of Q over the force-closure draws ``quality`` (k,), with the mean and the
+    nominal Q marked. Bins are computed here (np.histogram), so the page holds ``bins``
+    counts, not k values."""
+    quality = np.asarray(quality, dtype=float)
+    shapes, notes = [], []
+    data = []
+    if quality.size:
+        upper = max(float(quality.max()), q_nominal if math.isfinite(q_nominal) else 0.0)
+        counts, edges = np.histogram(quality, bins=bins, range=(0.0, upper * 1.0001 or 1.0))
+        data.append({"type": "bar", "name": "force-closure draws",
+                     "x": ((edges[:-1] + edges[1:]) / 2).tolist(), "y": counts.tolist(),
+                     "width": float(edges[1] - edges[0]), "marker": {"color": "#2ca02c"},
+                     "hovertemplate": "Q %{x:.5f}: %{y} draws<extra></extra>"})
+    for value, label, colour, dash, y in ((q_mean, "mean", "#1f1f1f", "dash", 0.97),
+                                          (q_nominal, "nominal", "#9467bd", "solid", 0.87)):
+        if math.isfinite(value):
+            shape, note = _vline(value, f"{label} {value:.5f}", colour, dash, y)
+            shapes.append(shape)
+            notes.append(note)
+    return {"data": data, "layout": layout(
+        title={"text": f"Q over the {quality.size} force-closure draws", "x": 0.01,
+               "font": {"size": 14}},
+        xaxis={"title": {"text": "Ferrari-Canny Q"}, "rangemode": "tozero"},
+        yaxis={"title": {"text": "draws"}}, shapes=shapes, annotations=notes,
+        showlegend=False, margin={"l": 60, "r": 20, "t": 40, "b": 50})}
+
+
+def outcome_bars(outcomes: dict[str, int]) -> dict:
+    """Horizontal bars of the outcome counts, with their percentages."""
+    total = max(1, sum(outcomes.values()))
+    names = list(OUTCOMES)
+    counts = [int(outcomes.get(n, 0)) for n in names]
+    return {"data": [{"type": "bar", "orientation": "h", "y": [n.replace("_", " ") for n in names],
+                      "x": counts, "marker": {"color": [OUTCOME_COLOURS[n] for n in names]},
+                      "text": [f"{c} ({100 * c / total:.1f}%)" for c in counts],
+                      "textposition": "auto", "hoverinfo": "text"}],
+            "layout": layout(title={"text": f"outcomes of {total} draws", "x": 0.01,
+                                    "font": {"size": 14}},
+                             xaxis={"title": {"text": "draws"}}, yaxis={"automargin": True},
+                             showlegend=False, margin={"l": 120, "r": 20, "t": 40, "b": 50})}
+
+
+def pfc_curve(runs: Sequence[GraspStats], label: str) -> dict:
+    """P(FC) against sigma (radians), with the Wilson 95% intervals as error bars."""
+    runs = sorted(runs, key=lambda s: float(np.max(s.sigma)))
+    sigma = [float(np.max(s.sigma)) for s in runs]
+    p = [s.p_fc for s in runs]
+    return {"data": [{"type": "scatter", "mode": "lines+markers", "name": label,
+                      "x": sigma, "y": p,
+                      "error_y": {"type": "data", "symmetric": False,
+                                  "array": [s.p_fc_ci[1] - s.p_fc for s in runs],
+                                  "arrayminus": [s.p_fc - s.p_fc_ci[0] for s in runs]},
+                      "hovertemplate": "sigma %{x:.4g} rad: P(FC) %{y:.4f}<extra></extra>"}],
+            "layout": layout(title={"text": "P(force closure) against joint noise (95% "
+                                            "Wilson intervals)", "x": 0.01,
+                                    "font": {"size": 14}},
+                             xaxis={"title": {"text": "sigma [rad]"}},
+                             yaxis={"title": {"text": "P(FC)"}, "range": [-0.02, 1.02]},
+                             showlegend=True, margin={"l": 60, "r": 20, "t": 40, "b": 50})}

@@ -1,0 +1,261 @@
+"""The report's rotatable 3-D views as plotly figures (plain dicts).
+
+Two scenes: the grasp in the object frame (the object mesh and, toggled, its convex parts;
+the hand's links at the nominal configuration; the nominal contacts with their friction
+cones; every draw's contact points coloured by outcome or, by a button, by finger) and the
+whole arm in the world (robot base) frame (its links at the nominal configuration, the
+skeletons of a few noisy draws coloured by outcome, the object). Metres throughout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import OUTCOMES, DrawBatch
+from kinegrasp_env.toolkit.report_geometry import cone_meshes, skeletons, visual_poses
+from kinegrasp_env.toolkit.report_plotly import (
+    MESH_STYLE,
+    MeshLibrary,
+    instanced_mesh,
+    layout,
+    typed_array,
+)
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import GraspObject
+
+OUTCOME_COLOURS = {"start_collision": "#7f7f7f", "missed": "#d62728",
+                   "no_force_closure": "#ff7f0e", "force_closure": "#2ca02c"}
+FINGER_COLOURS = ("#e41a1c", "#4daf4a", "#377eb8")
+PART_COLOURS = ("#8dd3c7", "#bebada", "#fb8072", "#80b1d3", "#fdb462", "#b3de69", "#fccde5",
+                "#bc80bd", "#ccebc5", "#ffed6f")
+#: Most draw contact points drawn in one view; past it a uniform random subset is drawn.
+MAX_POINTS = 15_000
+LEGEND = {"x": 0.0, "y": 0.0, "xanchor": "left", "yanchor": "bottom",
+          "itemsizing": "constant", "bgcolor": "rgba(255,255,255,0.7)"}
+#: The grasp view shows the object's bounding box grown on each side by this fraction of its
+#: largest extent plus CLOSE_UP_PAD metres (the hand beyond it is clipped).
+CLOSE_UP_MARGIN, CLOSE_UP_PAD = 0.1, 0.04
+#: Friction cones' axis length as a fraction of the object's largest extent.
+CONE_SCALE = 0.12
+
+
+def mesh_trace(vertices: np.ndarray, faces: np.ndarray, name: str, color: str, *,
+               opacity: float = 1.0, **extra) -> dict:
+    """A Mesh3d trace of vertices (V, 3) and triangles (F, 3)."""
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    return {"type": "mesh3d", "name": name, "color": color, "opacity": opacity,
+            "x": typed_array(vertices[:, 0]), "y": typed_array(vertices[:, 1]),
+            "z": typed_array(vertices[:, 2]), "i": typed_array(faces[:, 0], "<u4"),
+            "j": typed_array(faces[:, 1], "<u4"), "k": typed_array(faces[:, 2], "<u4"),
+            **MESH_STYLE, **extra}
+
+
+def object_traces(obj: GraspObject, library: MeshLibrary, frame: np.ndarray | None = None,
+                  parts: bool = True) -> list[dict]:
+    """The object mesh and (hidden until toggled in the legend) its convex parts, placed by
+    ``frame`` (4, 4; default: the object frame)."""
+    pose = np.eye(4) if frame is None else frame
+    key = library.add(f"object:{obj.name}", obj.mesh.vertices, obj.mesh.faces)
+    traces = [instanced_mesh([(key, pose)], f"object ({obj.name})", "#b0b0b0", opacity=0.45)]
+    if parts:
+        from scipy.spatial import ConvexHull
+
+        for index, part in enumerate(obj.parts):
+            key = library.add(f"part:{obj.name}:{index}", part, ConvexHull(part).simplices)
+            traces.append(instanced_mesh([(key, pose)], "convex parts",
+                                         PART_COLOURS[index % len(PART_COLOURS)], opacity=0.8,
+                                         legendgroup="parts", showlegend=index == 0,
+                                         visible="legendonly"))
+    return traces
+
+
+def robot_traces(q: np.ndarray, name: str, library: MeshLibrary,
+                 frame: np.ndarray | None = None, *, arm: bool = True, hand: bool = True,
+                 opacity: float = 1.0, **extra) -> list[dict]:
+    """The robot's links at q (14,), one Mesh3d per colour, one legend entry."""
+    by_colour: dict[str, list] = {}
+    for index, visual, pose in visual_poses(q, frame, arm=arm, hand=hand):
+        key = library.add(f"robot:{index}", visual.vertices, visual.faces)
+        by_colour.setdefault(visual.color, []).append((key, pose))
+    return [instanced_mesh(pieces, name, colour, opacity=opacity, legendgroup=name,
+                           showlegend=index == 0, **extra)
+            for index, (colour, pieces) in enumerate(by_colour.items())]
+
+
+def nominal_contact_traces(grasp: Grasp, obj: GraspObject, friction: float,
+                           num_edges: int) -> list[dict]:
+    """The nominal contacts (markers) and their friction cones (one mesh)."""
+    if len(grasp.points) == 0:
+        return []
+    height = CONE_SCALE * float(np.max(obj.size))
+    vertices, faces = cone_meshes(grasp.points, grasp.normals, friction, num_edges, height)
+    cones = mesh_trace(vertices, faces, f"friction cones (mu {friction:g}, {num_edges} edges, "
+                       "drawn outside)", "#9467bd", opacity=0.6)
+    labels = [f"finger {f + 1}, {'distal' if k == 1 else 'proximal'}"
+              for f, k in zip(grasp.fingers, grasp.links, strict=True)]
+    points = {"type": "scatter3d", "mode": "markers", "name": "nominal contacts",
+              "x": grasp.points[:, 0].tolist(), "y": grasp.points[:, 1].tolist(),
+              "z": grasp.points[:, 2].tolist(), "text": labels, "hoverinfo": "text+name",
+              "marker": {"size": 6, "color": "black", "symbol": "diamond"}}
+    return [cones, points]
+
+
+@dataclass
+class ContactCloud:
+    """The draws' contact points, flattened (object frame) and possibly decimated.
+
+    Attributes:
+        points: (m, 3); outcome, finger, draw: (m,) per point; quality: (m,) Q of its draw.
+        total: contact points before decimation; shown: m.
+    """
+
+    points: np.ndarray
+    outcome: np.ndarray
+    finger: np.ndarray
+    draw: np.ndarray
+    quality: np.ndarray
+    total: int
+
+    @property
+    def shown(self) -> int:
+        return len(self.points)
+
+    @property
+    def decimated(self) -> bool:
+        return self.shown < self.total
+
+
+def contact_cloud(draws: DrawBatch, limit: int = MAX_POINTS, seed: int = 0) -> ContactCloud:
+    """Every contact of every draw; past ``limit`` points a uniform random subset of
+    ``limit`` of them (seeded, in draw order)."""
+    draw, slot = np.nonzero(draws.finger >= 0)
+    total = len(draw)
+    if total > limit:
+        keep = np.sort(np.random.default_rng(seed).choice(total, size=limit, replace=False))
+        draw, slot = draw[keep], slot[keep]
+    return ContactCloud(draws.points[draw, slot], draws.outcome[draw], draws.finger[draw, slot],
+                        draw, draws.quality[draw], total)
+
+
+def _points_trace(cloud: ContactCloud, rows: np.ndarray, name: str, colour: str,
+                  visible) -> dict:
+    pts = cloud.points[rows]
+    custom = np.stack([cloud.draw[rows], cloud.quality[rows]], axis=1)
+    return {"type": "scatter3d", "mode": "markers", "name": name, "visible": visible,
+            "x": typed_array(pts[:, 0]), "y": typed_array(pts[:, 1]),
+            "z": typed_array(pts[:, 2]), "customdata": typed_array(custom),
+            "hovertemplate": "draw %{customdata[0]:.0f}<br>Q %{customdata[1]:.5f}"
+                             f"<extra>{name}</extra>",
+            "marker": {"size": 2, "color": colour, "opacity": 0.8}}
+
+
+def cloud_traces(cloud: ContactCloud) -> tuple[list[dict], list[dict]]:
+    """(traces by outcome, shown; traces by finger, hidden): one per class present."""
+    by_outcome = [_points_trace(cloud, np.flatnonzero(cloud.outcome == k), name.replace("_", " "),
+                                OUTCOME_COLOURS[name], True)
+                  for k, name in enumerate(OUTCOMES) if np.any(cloud.outcome == k)]
+    by_finger = [_points_trace(cloud, np.flatnonzero(cloud.finger == f), f"finger {f + 1}",
+                               FINGER_COLOURS[f], False)
+                 for f in range(len(FINGER_COLOURS)) if np.any(cloud.finger == f)]
+    return by_outcome, by_finger
+
+
+def colour_buttons(first: int, outcome_count: int, finger_count: int) -> dict:
+    """An updatemenu switching the draw points between colour by outcome and by finger."""
+    indices = list(range(first, first + outcome_count + finger_count))
+    by_outcome = [True] * outcome_count + [False] * finger_count
+    by_finger = [False] * outcome_count + [True] * finger_count
+    return {"type": "buttons", "direction": "right", "x": 0.0, "y": 1.0, "xanchor": "left",
+            "yanchor": "top", "showactive": True, "active": 0,
+            "buttons": [{"label": "colour by outcome", "method": "restyle",
+                         "args": [{"visible": by_outcome}, indices]},
+                        {"label": "colour by finger", "method": "restyle",
+                         "args": [{"visible": by_finger}, indices]}]}
+
+
+def scene_axes(box: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """A 3-D scene with equal scales on x, y, z (metres), showing the axis-aligned ``box``
+    (lower (3,), upper (3,) corners; what lies outside is clipped) or all the data."""
+    axis = {"showbackground": True, "backgroundcolor": "#f4f4f8", "gridcolor": "#d0d0d8",
+            "zerolinecolor": "#b0b0b8"}
+    scene = {"aspectmode": "data", "annotations": [],
+             "camera": {"eye": {"x": 0.95, "y": 0.95, "z": 0.6}},
+             "domain": {"x": [0, 1], "y": [0, 1]}}
+    for k, name in enumerate("xyz"):
+        scene[f"{name}axis"] = {**axis, "title": {"text": f"{name} [m]"}}
+        if box is not None:
+            scene[f"{name}axis"]["range"] = [float(box[0][k]), float(box[1][k])]
+    if box is not None:
+        extent = np.asarray(box[1]) - np.asarray(box[0])
+        scene["aspectmode"] = "manual"
+        scene["aspectratio"] = dict(zip("xyz", (extent / extent.max()).tolist(), strict=True))
+    return scene
+
+
+def close_up(obj: GraspObject) -> tuple[np.ndarray, np.ndarray]:
+    """The object's bounding box grown on each side by :data:`CLOSE_UP_MARGIN` times its
+    largest extent plus :data:`CLOSE_UP_PAD` (lower (3,), upper (3,) corners, metres)."""
+    lower, upper = obj.mesh.bounds
+    pad = CLOSE_UP_MARGIN * float(np.max(upper - lower)) + CLOSE_UP_PAD
+    return lower - pad, upper + pad
+
+
+def grasp_scene(obj: GraspObject, grasp: Grasp, library: MeshLibrary, closed: np.ndarray, *,
+                friction: float, num_edges: int, cloud: ContactCloud | None = None,
+                title: str = "") -> dict:
+    """The grasp in the object frame: the object, the hand closed on it (``closed`` (14,),
+    see :func:`~kinegrasp_env.toolkit.report_geometry.closed_configuration`) and, hidden
+    until toggled, at its pre-shape (q0), the nominal contacts and cones, and the draws'
+    contact points (with outcome/finger buttons) when ``cloud`` is given."""
+    data = object_traces(obj, library)
+    data += robot_traces(closed, "hand (closed, nominal)", library, obj.pose_inverse,
+                         arm=False, opacity=0.55)
+    data += robot_traces(grasp.q0, "hand (pre-shape q0)", library, obj.pose_inverse,
+                         arm=False, opacity=0.3, visible="legendonly")
+    data += nominal_contact_traces(grasp, obj, friction, num_edges)
+    menus = []
+    if cloud is not None and cloud.shown:
+        by_outcome, by_finger = cloud_traces(cloud)
+        menus.append(colour_buttons(len(data), len(by_outcome), len(by_finger)))
+        data += by_outcome + by_finger
+    return {"data": data, "layout": layout(
+        scene=scene_axes(close_up(obj)), updatemenus=menus, legend=LEGEND, uirevision="grasp",
+        title={"text": title, "x": 0.01, "font": {"size": 14}})}
+
+
+def skeleton_trace(points: np.ndarray, name: str, colour: str, width: float, **extra) -> dict:
+    """Polylines (n, L, 3) as one Scatter3d line trace (NaN rows separate them)."""
+    points = np.asarray(points, dtype=float)
+    gaps = np.full((points.shape[0], 1, 3), np.nan)
+    flat = np.concatenate([points, gaps], axis=1).reshape(-1, 3)
+    return {"type": "scatter3d", "mode": "lines", "name": name, "connectgaps": False,
+            "x": typed_array(flat[:, 0]), "y": typed_array(flat[:, 1]),
+            "z": typed_array(flat[:, 2]), "hoverinfo": "name",
+            "line": {"color": colour, "width": width}, **extra}
+
+
+def arm_scene(obj: GraspObject, closed: np.ndarray, library: MeshLibrary, noisy_q: np.ndarray,
+              noisy_outcomes: np.ndarray | None = None, title: str = "") -> dict:
+    """The arm in the world frame: its links at the nominal configuration with the hand
+    closed (``closed`` (14,)), the object, the skeleton of it and of the noisy configurations
+    ``noisy_q`` (k, 14), coloured by their outcomes (k,) if given."""
+    data = robot_traces(closed, "arm and hand (nominal)", library, opacity=0.35)
+    data += object_traces(obj, library, obj.pose, parts=False)
+    data.append(skeleton_trace(skeletons(closed), "skeleton (nominal)", "black", 6))
+    if len(noisy_q):
+        lines = skeletons(noisy_q)
+        if noisy_outcomes is None:
+            data.append(skeleton_trace(lines, f"{len(lines)} noisy draws", "#1f77b4", 2))
+        for k, name in enumerate(OUTCOMES):
+            rows = np.flatnonzero(noisy_outcomes == k) if noisy_outcomes is not None else []
+            if len(rows):
+                data.append(skeleton_trace(lines[rows], f"draws: {name.replace('_', ' ')} "
+                                           f"({len(rows)})", OUTCOME_COLOURS[name], 2))
+    scene = scene_axes()
+    scene["camera"] = {"eye": {"x": 0.2, "y": -2.0, "z": 0.7}}
+    return {"data": data, "layout": layout(
+        scene=scene, legend=LEGEND, uirevision="arm",
+        title={"text": title, "x": 0.01, "font": {"size": 14}})}

@@ -1,0 +1,293 @@
+"""The user's object catalog: importing a mesh or URDF, removing an entry.
+
+:func:`import_object` reads the file (:mod:`~kinegrasp_env.world.meshfile`), scales it to
+metres, cleans it and checks that the hand could hold it (:mod:`~kinegrasp_env.world.meshprep`),
+moves it to the object frame (origin at the centre of its base), decomposes it into convex
+parts with CoACD (:mod:`~kinegrasp_env.world.decompose`), measures the parts' deviation from
+the mesh (:mod:`~kinegrasp_env.world.deviation`), builds the fast engine's distance grid
+(:mod:`~kinegrasp_env.world.sdf`) and stores everything as one entry
+(:mod:`~kinegrasp_env.world.store`).
+
+Atomicity: the entry is built in a hidden folder inside the catalog folder and renamed into
+place at the end, so a half-imported object never appears (a killed import leaves only a
+hidden ``.tmp-<name>-<pid>-*`` folder, removed by the next import once its process is gone).
+Replacing an entry (``force``) renames the old one aside (``.old-...``) first and deletes it
+after; removing one renames it to ``.rm-...`` and deletes that.
+
+Re-import: an entry is keyed by the SHA-256 of the files read and the settings; importing
+the same files with the same settings reuses the entry, other settings need ``force``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import logging
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.world import objects, sdf
+from kinegrasp_env.world.decompose import (
+    COACD_SEED,
+    DEFAULT_MAX_PARTS,
+    DEFAULT_THRESHOLD,
+    decompose,
+    mass_properties,
+)
+from kinegrasp_env.world.deviation import deviation
+from kinegrasp_env.world.meshfile import MeshError, SourceMesh, load_source
+from kinegrasp_env.world.meshprep import check_size, check_solid, clean_mesh, object_frame
+from kinegrasp_env.world.store import (
+    ENTRY_FILE,
+    FORMAT_VERSION,
+    MESH_FILE,
+    PARTS_FILE,
+    CatalogError,
+    catalog_dir,
+    imported_folder,
+    read_entry,
+    valid_name,
+)
+
+log = logging.getLogger(__name__)
+
+#: Units a file may be in, and their factor to metres.
+UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+
+@dataclass(frozen=True)
+class ImportSettings:
+    """How a file is imported.
+
+    Attributes:
+        scale: factor from the file's units to metres.
+        threshold: CoACD's concavity threshold (0.01 .. 1; smaller: more, closer parts).
+        max_parts: most convex parts (>= 1).
+    """
+
+    scale: float = 1.0
+    threshold: float = DEFAULT_THRESHOLD
+    max_parts: int = DEFAULT_MAX_PARTS
+
+    def check(self) -> ImportSettings:
+        """The settings, or :class:`CatalogError` naming the bad one."""
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise CatalogError(f"scale must be a finite number > 0, got {self.scale!r}")
+        if not (np.isfinite(self.threshold) and 0.01 <= self.threshold <= 1.0):
+            raise CatalogError(f"threshold must be between 0.01 and 1, got {self.threshold!r}")
+        if isinstance(self.max_parts, bool) or int(self.max_parts) != self.max_parts \
+                or self.max_parts < 1:
+            raise CatalogError(f"max_parts must be an integer >= 1, got {self.max_parts!r}")
+        return self
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    """What :func:`import_object` did.
+
+    Attributes:
+        name: the object's name.
+        folder: its entry folder.
+        reused: True when an entry of the same files and settings was already there.
+        seconds: wall time of the import (0 when reused).
+        entry: the entry's ``entry.json``.
+    """
+
+    name: str
+    folder: Path
+    reused: bool
+    seconds: float
+    entry: dict
+
+
+def default_name(path: str | Path) -> str:
+    """An object name from a file name: its stem, lower case, other characters as ``_``."""
+    stem = "".join(c if c.isalnum() or c in "_-." else "_" for c in Path(path).stem.lower())
+    stem = stem.lstrip("_-.")[:64]
+    return stem or "object"
+
+
+def check_name(name: str) -> str:
+    """``name`` if it can name an imported object, else :class:`CatalogError`."""
+    if not valid_name(name):
+        raise CatalogError(f"invalid object name {name!r}: use letters, digits, '_', '-', '.' "
+                           "(starting with a letter or digit, 64 at most)")
+    if name in objects.OBJECT_NAMES:
+        raise CatalogError(f"{name!r} is a built-in object; choose another name with --name")
+    return name
+
+
+def source_digest(source: SourceMesh) -> str:
+    """SHA-256 of the bytes of every file read (the mesh, or the URDF and its meshes)."""
+    digest = hashlib.sha256()
+    for path in source.files:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def entry_key(digest: str, settings: ImportSettings) -> str:
+    """The key an entry is reused by: the files' digest, the settings and the layout."""
+    text = json.dumps({"files": digest, **asdict(settings), "seed": COACD_SEED,
+                       "format": FORMAT_VERSION}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def import_object(path: str | Path, name: str | None = None,
+                  settings: ImportSettings | None = None, force: bool = False) -> ImportResult:
+    """Import a mesh file or URDF as catalog object ``name`` (default: from the file name).
+
+    Raises:
+        MeshError: the file cannot be read, is not a solid, or is too large or too small for
+            the hand (the message suggests ``--scale``/``--units``).
+        CatalogError: bad name or settings, or ``name`` exists with other files or settings
+            and ``force`` is False.
+    """
+    settings = (settings or ImportSettings()).check()
+    source = load_source(path)
+    name = check_name(name or default_name(path))
+    key = entry_key(source_digest(source), settings)
+    existing = imported_folder(name)
+    if existing is not None and not force:
+        entry = read_entry(existing)
+        if entry.get("key") == key:
+            return ImportResult(name, existing, True, 0.0, entry)
+        raise CatalogError(f"object {name!r} already exists (from "
+                           f"{entry.get('source', {}).get('path', '?')}, settings "
+                           f"{entry.get('settings')}); add --force to replace it, or give "
+                           "another --name")
+    start = time.perf_counter()
+    root = catalog_dir()
+    root.mkdir(parents=True, exist_ok=True)
+    remove_stale(root)
+    work = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-{os.getpid()}-", dir=root))
+    work = root / name; work.mkdir(exist_ok=True)  # MUTATION
+    try:
+        entry = build_entry(source, name, key, settings, work, Path(path))
+        entry["import_seconds"] = round(time.perf_counter() - start, 3)
+        (work / ENTRY_FILE).write_text(json.dumps(entry, indent=1))
+        publish(work, root / name)
+    finally:
+        if work.exists():
+            shutil.rmtree(work, ignore_errors=True)
+    forget()
+    return ImportResult(name, root / name, False, entry["import_seconds"], entry)
+
+
+def build_entry(source: SourceMesh, name: str, key: str, settings: ImportSettings,
+                work: Path, path: Path) -> dict:
+    """Prepare, decompose, measure and write the entry's files into ``work``; returns the
+    ``entry.json`` contents."""
+    mesh = clean_mesh(source.vertices * settings.scale, source.faces)
+    width = check_solid(mesh)
+    check_size(mesh, width)
+    frame = object_frame(mesh)
+    mesh.apply_transform(frame)
+    mesh.export(work / MESH_FILE, file_type="obj", include_normals=False,
+                include_texture=False)
+    parts = decompose(mesh, settings.threshold, settings.max_parts)
+    if not parts:
+        raise MeshError(f"{path}: the convex decomposition found no solid part")
+    com, r_max, volume = mass_properties(parts)
+    dev = deviation(mesh, parts)
+    (work / PARTS_FILE).write_text(json.dumps({"parts": [p.tolist() for p in parts]}))
+    obj = objects.object_from_parts(name, mesh, parts, com, r_max)
+    grid_name = sdf.grid_file_name(obj)
+    sdf.save_grid(sdf.build_grid(obj), work / grid_name)
+    to_object = frame.copy()
+    to_object[:3, :3] *= settings.scale
+    return {
+        "format": FORMAT_VERSION, "name": name, "key": key,
+        "source": {"path": str(path.resolve()), "description": source.description,
+                   "sha256": source_digest(source)},
+        "settings": {**asdict(settings), "seed": COACD_SEED},
+        "source_to_object": to_object.tolist(), "pose": None,
+        "center_of_mass": com.tolist(), "r_max": r_max, "volume": volume,
+        "size": np.asarray(mesh.extents, dtype=float).tolist(), "thickness": width,
+        "faces": len(mesh.faces), "parts": len(parts), "deviation": dev.to_dict(),
+        "grid": grid_name, "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "versions": versions(),
+    }
+
+
+def versions() -> dict:
+    """Versions of the libraries an entry depends on (for the record)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for package in ("coacd", "trimesh"):
+        with contextlib.suppress(PackageNotFoundError):
+            out[package] = version(package)
+    return out
+
+
+def publish(work: Path, final: Path) -> None:
+    """Rename the finished folder ``work`` to ``final``, replacing an existing entry (moved
+    aside first, deleted after)."""
+    old = None
+    if final.exists():
+        old = final.with_name(f".old-{final.name}-{os.getpid()}-{work.name[-8:]}")
+        os.rename(final, old)
+    os.rename(work, final)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def remove_object(name: str) -> Path:
+    """Delete an imported object's entry (renamed aside, then deleted); returns its folder.
+
+    Raises:
+        CatalogError: a built-in or unknown name.
+    """
+    if name in objects.OBJECT_NAMES:
+        raise CatalogError(f"{name!r} is a built-in object and cannot be removed")
+    folder = imported_folder(name)
+    if folder is None:
+        imported = objects.object_names()[len(objects.OBJECT_NAMES):]
+        raise CatalogError(f"no imported object named {name!r}; imported: "
+                           f"{', '.join(imported) or 'none'}")
+    trash = folder.with_name(f".rm-{name}-{os.getpid()}-{time.time_ns()}")
+    os.rename(folder, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+    forget()
+    return folder
+
+
+def remove_stale(root: Path) -> None:
+    """Delete hidden work folders left by imports whose process is gone; put back an entry
+    whose replacement was interrupted between its two renames."""
+    for folder in root.glob(".*-*-*-*"):
+        kind, _, rest = folder.name[1:].partition("-")
+        fields = rest.rsplit("-", 2)
+        if kind not in ("tmp", "old", "rm") or len(fields) != 3 or not fields[1].isdigit() \
+                or process_alive(int(fields[1])):
+            continue
+        name = fields[0]
+        if kind == "old" and not (root / name).exists():
+            os.rename(folder, root / name)
+        else:
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+def process_alive(pid: int) -> bool:
+    """Whether a process with this id runs (this user's or not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def forget() -> None:
+    """Drop this process's cached objects and grids (after the catalog changed)."""
+    objects.imported_object.cache_clear()
+    sdf.object_grid.cache_clear()

@@ -1,0 +1,194 @@
+"""Contacts draw by draw: the fast engine against the reference engine (a), and the engines
+against pybullet's own collision queries (b).
+
+(a) proves that the batched closing stops the fingers where the per-draw closing does, hence
+finds the same contacts; both engines share the exact near-contact geometry, so it cannot
+prove that geometry right. (b) does: ``BulletContactReference`` poses the robot with
+pybullet's forward kinematics at the engine's closed configuration and asks pybullet's
+``getClosestPoints`` for the finger links' contacts, sharing no geometry code with the
+engines. See ``benchmarks/agreement.py`` for the full table.
+
+Tolerances are the largest values measured by ``benchmarks/agreement.py`` on 14400 draws
+(all 12 shipped grasps of the four objects, both sigmas) times a stated margin. Draws that
+disagree (another outcome, another touching-link list, fingers stopped elsewhere) are
+counted, never dropped: their number must stay within the 99.9% binomial quantile at twice
+the measured rate.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import binom
+
+from kinegrasp_env.montecarlo.agreement import compare, contact_lists_match, paired_deviations
+from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
+from kinegrasp_env.montecarlo.engines import (
+    FORCE_CLOSURE,
+    START_COLLISION,
+    DrawBatch,
+    FastEngine,
+    PybulletEngine,
+)
+from kinegrasp_env.montecarlo.evaluate import chunk_configurations
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
+
+SIGMAS = (0.0133, 0.0266)
+
+# Measured by benchmarks/agreement.py --grasps 12 --seed 1 --draws 50 and --seed 2 --draws 100
+# (14400 draws over the four objects and both sigmas); tolerances 3x the largest value.
+# (a) fast vs reference engine:
+#: disagreeing draws (outcome, list or stop): 43 of 14400. Mostly (37) a finger stopped
+#: elsewhere: an edge grazed within the contact tolerance, the finger stopping on either side
+#: of it (the closing polish finds either root of the gap); also Q at the force-closure
+#: boundary, a borderline second link, a finger that missed in one engine
+DISAGREE_RATE_A = 43 / 14400
+#: paired draws stop within agreement.STOP_TOL (1e-4 rad), which leaves a point ~1e-5 m and
+#: an edge normal ~0.05 degree of play where the gap is flat in the flexion
+POINT_TOL_A = 2e-5  # metres; measured 6.1e-6 (median 2e-8)
+NORMAL_TOL_A = 0.17  # degrees; measured 0.056
+Q_ABS_TOL_A = 6e-5  # draws without a tangent-basis tie; measured 1.9e-5 (Q ~ 1e-4 to 0.3)
+Q_ABS_TIED_TOL_A = 1.5e-3  # measured 4.1e-4: a tied basis flips for a 1e-12 change of a normal
+
+# (b) engine vs pybullet's own queries:
+#: disagreeing draws (outcome or touching-link list), 6 of 14400 (both engines alike): Q at
+#: the force-closure boundary, a second link at the contact tolerance
+DISAGREE_RATE_B = 6 / 14400
+OFFSET_TOL_B = 6e-5  # metres: engine contact off pybullet's closest pair; measured 1.9e-5
+OFFSET_NORMAL_TOL_B = 0.25  # degrees: engine normal vs pybullet's at that point; measured 0.081
+POINT_MEDIAN_TOL_B = 1.3e-5  # metres, vs pybullet's own closest point; measured 4.2e-6
+#: Q on draws whose contacts pybullet places within WELL_POSED of the engine's (no line or
+#: seam contact): measured |dQ| 2.7e-3 (seed 1 only)
+WELL_POSED = (2e-5, 0.1)  # metres, degrees
+Q_ABS_TOL_B = 8e-3
+
+
+def _configurations(name: str, grasps: list[int], draws: int, seed: int) -> np.ndarray:
+    """(2 * len(grasps) * draws, 14): both sigmas, the grasps' noisy configurations."""
+    shipped = shipped_grasps(name)
+    return np.concatenate([
+        chunk_configurations(shipped[g].q0, JointNoise(sigma), seed + s, [(g, draws)])
+        for s, sigma in enumerate(SIGMAS) for g in grasps])
+
+
+def _check_engines_agree(name: str, grasps: list[int], draws: int, seed: int) -> None:
+    """(a), and (b) for both engines."""
+    q = _configurations(name, grasps, draws, seed)
+    reference, bullet = PybulletEngine(name), BulletContactReference(name)
+    try:
+        fast, ref = FastEngine(name).run(q), reference.run(q)
+        _check_a(fast, ref)
+        for draws in (fast, ref):
+            _check_b(draws, bullet.run(q, draws.hand), bullet.check_contacts(q, draws))
+    finally:
+        reference.close()
+        bullet.close()
+
+
+def _check_a(fast: DrawBatch, ref: DrawBatch) -> None:
+    for draws in (fast, ref):  # a closed configuration exactly where the hand closed
+        np.testing.assert_array_equal(np.isnan(draws.hand).all(axis=1),
+                                      draws.outcome == START_COLLISION)
+        assert np.isfinite(draws.hand[draws.outcome != START_COLLISION]).all()
+    a = compare(fast, ref)
+    disagree = a.draws - a.same_outcome + a.list_mismatch + a.stop_mismatch
+    assert disagree <= _allowed(DISAGREE_RATE_A, a.draws), a
+    assert a.contacts > 0 and a.q_pairs > 0, a
+    assert a.point_max <= POINT_TOL_A, a
+    assert a.normal_max <= NORMAL_TOL_A, a
+    assert a.q_abs_max_untied <= Q_ABS_TOL_A, a
+    assert a.q_abs_max <= Q_ABS_TIED_TOL_A, a
+
+
+def _allowed(rate: float, draws: int) -> int:
+    """Disagreeing draws allowed among ``draws``: the 99.9% binomial quantile at twice the
+    measured rate."""
+    return int(binom.ppf(0.999, draws, 2 * rate))
+
+
+def _check_b(engine: DrawBatch, bullet, checks: tuple[np.ndarray, np.ndarray]) -> None:
+    b = compare(engine, bullet, checks)
+    assert b.draws - b.same_outcome + b.list_mismatch <= _allowed(DISAGREE_RATE_B, b.draws), b
+    assert b.offset_max <= OFFSET_TOL_B, b
+    assert b.offset_normal_max <= OFFSET_NORMAL_TOL_B, b
+    assert b.point_median <= POINT_MEDIAN_TOL_B, b
+    # Q where pybullet places every contact where the engine does
+    same, _ = contact_lists_match(engine, bullet)
+    both = same & (engine.outcome == FORCE_CLOSURE) & (bullet.outcome == FORCE_CLOSURE)
+    for i in np.flatnonzero(both):
+        gaps, angles = paired_deviations(engine, bullet, np.arange(len(engine.outcome)) == i)
+        if gaps.max() < WELL_POSED[0] and angles.max() < WELL_POSED[1]:
+            assert abs(engine.quality[i] - bullet.quality[i]) <= Q_ABS_TOL_B, i
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_fast_engine_contacts_agree_with_the_reference_and_with_pybullet(name):
+    """2 grasps x 20 draws x 2 sigmas per object."""
+    _check_engines_agree(name, [0, 5], 20, seed=20)
+
+
+@pytest.mark.expensive
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_fast_engine_contacts_agree_on_every_shipped_grasp(name):
+    """All 12 grasps x 25 draws x 2 sigmas per object (not the measurement's draws)."""
+    _check_engines_agree(name, list(range(12)), 25, seed=40)
+
+
+def test_pybullet_contacts_on_the_cube_are_on_its_faces_with_inward_normals():
+    """The reference's sign convention by hand: at the cube's nominal grasps every contact
+    lies on the box surface and its normal points into the box; on a face interior it is
+    minus that face's outward axis."""
+    obj = load_object("cube")
+    lo, hi = obj.mesh.bounds
+    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    bullet = BulletContactReference("cube")
+    try:
+        grasps = shipped_grasps("cube")
+        fast = FastEngine("cube").run(np.stack([g.q0 for g in grasps]))
+        contacts = bullet.run(np.stack([g.q0 for g in grasps]), fast.hand)
+    finally:
+        bullet.close()
+    assert (contacts.outcome == FORCE_CLOSURE).all()
+    faces = 0
+    for i in range(len(grasps)):
+        for p, n in zip(contacts.points[i, :contacts.n_contacts[i]],
+                        contacts.normals[i, :contacts.n_contacts[i]], strict=True):
+            ratio = np.abs(p - centre) / half
+            assert ratio.max() == pytest.approx(1.0, abs=1e-9)  # on the surface
+            assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-12)
+            assert n @ (centre - p) > 0  # into the box
+            on = np.flatnonzero(np.abs(ratio - 1.0) < 1e-6)
+            if len(on) == 1:  # a face interior
+                axis = np.zeros(3)
+                axis[on[0]] = -np.sign(p - centre)[on[0]]
+                np.testing.assert_allclose(n, axis, atol=1e-6)
+                faces += 1
+    assert faces > 0
+
+
+def _batch(points: np.ndarray, fingers: list[int], hand: float = 0.3) -> DrawBatch:
+    """One draw in force closure with contacts at points (k, 3), normals towards the origin."""
+    out = DrawBatch.empty(1)
+    k = len(points)
+    out.outcome[:], out.quality[:], out.n_contacts[:] = FORCE_CLOSURE, 0.1, k
+    out.points[0, :k] = points
+    out.normals[0, :k] = -points / np.linalg.norm(points, axis=1, keepdims=True)
+    out.finger[0, :k], out.link[0, :k] = fingers, 1
+    out.hand[:] = hand
+    return out
+
+
+def test_compare_counts_list_and_stop_mismatches_instead_of_dropping_them():
+    points = np.array([[0.03, 0.0, 0.0], [-0.03, 0.01, 0.0], [0.0, -0.03, 0.01]])
+    base = _batch(points, [0, 1, 2])
+    same = compare(base, _batch(points + 1e-7, [0, 1, 2]))
+    assert (same.list_mismatch, same.stop_mismatch, same.contacts) == (0, 0, 3)
+    assert same.point_max == pytest.approx(np.sqrt(3) * 1e-7)
+    fewer = compare(base, _batch(points[:2], [0, 1]))
+    assert (fewer.closed, fewer.list_mismatch, fewer.contacts) == (1, 1, 0)
+    other = compare(base, _batch(points, [0, 2, 1]))
+    assert other.list_mismatch == 1
+    moved = compare(base, _batch(points, [0, 1, 2], hand=0.31))
+    assert (moved.list_mismatch, moved.stop_mismatch, moved.contacts) == (0, 1, 0)

@@ -1,0 +1,106 @@
+"""Noise models on the command line: ``evaluate``/``rank --noise-spec`` and sweep ``noise``
+entries give the numbers of the library with the same model and seed."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from kinegrasp_env.cli.main import main
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep
+from kinegrasp_env.montecarlo.sweep_noise import cell_noise
+from kinegrasp_env.sampling.noise_spec import load_noise_model, noise_model_from_spec
+from kinegrasp_env.world.grasps import grasp_by_index, save_grasps, shipped_grasps
+
+SPEC = "joints: {sigma: 0.02, distribution: triangular}\nobject: {translation_sigma: 0.003}\n" \
+       "friction: {distribution: uniform, low: 0.3, high: 0.7}\n"
+
+
+@pytest.fixture()
+def spec_file(tmp_path):
+    path = tmp_path / "noise.yaml"
+    path.write_text(SPEC)
+    return path
+
+
+def test_evaluate_with_a_noise_spec_is_the_library_evaluation(spec_file, capsys):
+    assert main(["evaluate", "--object", "cube", "--grasp", "1", "--noise-spec",
+                 str(spec_file), "--samples", "120", "--seed", "3", "--engine", "fast",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    stats = evaluate_grasp(shipped_grasps("cube")[1], load_noise_model(spec_file), 120, seed=3,
+                           engine="fast")
+    assert out == json.loads(json.dumps(stats.to_json()))
+    assert out["noise_model"]["friction"] == {"distribution": "uniform", "low": 0.3,
+                                              "high": 0.7}
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--sigma", "0.02"], "--sigma and --noise-spec both given"),
+    (["--noise", "uniform"], "--noise and --noise-spec both given"),
+    (["--report", "page.html"], "--report shows joint noise only"),
+])
+def test_noise_spec_conflicts_are_one_line_errors(spec_file, capsys, extra, needle):
+    assert main(["evaluate", "--noise-spec", str(spec_file), *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0]
+
+
+def test_rank_with_a_noise_spec_and_its_resume_settings(spec_file, tmp_path, capsys):
+    candidates = tmp_path / "cands.json"
+    save_grasps(shipped_grasps("cube")[:2], candidates)
+    out = tmp_path / "ranked.csv"
+    args = ["rank", str(candidates), "--noise-spec", str(spec_file), "--samples", "60",
+            "--engine", "fast", "--out", str(out)]
+    assert main(args) == 0
+    rows = out.read_text().splitlines()[1:]
+    model = load_noise_model(spec_file)
+    p_fc = {g.id: evaluate_grasp(g, model, 60, seed=0, engine="fast").p_fc
+            for g in shipped_grasps("cube")[:2]}
+    assert {r.split(",")[0]: float(r.split(",")[1]) for r in rows} == pytest.approx(p_fc,
+                                                                                   abs=1e-6)
+    # an interrupted run's log holds the model: another model does not resume from it
+    partial = out.with_name(out.name + ".partial.jsonl")
+    partial.write_text(json.dumps({"settings": {"noise_model": {"joints": {}}}}) + "\n")
+    assert main(args) == 2
+    assert "settings" in capsys.readouterr().err
+
+
+def test_sweep_noise_entries_are_models_whose_joint_sigma_is_the_cells(spec_file, tmp_path):
+    data = {"objects": ["cube"], "grasps": [0], "sigmas": [0.0, 0.03],
+            "noise": ["gaussian", "noise.yaml", {"preset": "dexnet"}], "engines": ["fast"],
+            "samples": 80, "chunk": 40, "seed": 2}
+    spec = SweepSpec.from_dict(data, base=spec_file.parent)
+    labels = spec.noise
+    assert labels[0] == "gaussian" and labels[1].startswith("noise-")
+    assert labels[2].startswith("model-")
+    with LocalExecutor(1) as ex:
+        rows, _, _ = run_sweep(spec, tmp_path / "out", ex, progress=False)
+    models = dict(spec.models)
+    for row in rows:
+        noise = cell_noise(row["sigma"], row["noise"], models.get(row["noise"]))
+        if row["noise"] != "gaussian":
+            assert noise.joints.sigma == row["sigma"]  # the cell's sigma, the model's rest
+        stats = evaluate_grasp(grasp_by_index("cube", 0), noise, 80, seed=2, engine="fast",
+                               chunk=40)
+        assert row["p_fc"] == stats.p_fc
+        assert row["q_mean"] == stats.q_mean or math.isnan(row["q_mean"])
+    dexnet = cell_noise(0.03, labels[2], models[labels[2]])
+    assert dexnet == noise_model_from_spec({"preset": "dexnet", "joints": {"sigma": 0.03}})
+
+
+@pytest.mark.parametrize("noise, needle", [
+    (["gausian"], "unknown noise 'gausian': give a distribution"),
+    (["missing.yaml"], "noise spec file"),
+    ([{"joints": {"sigma": -1}}], "joints.sigma must be >= 0"),
+    ([{"joints": {"covariance": [[0.0] * 7] * 7}}], "cannot give a covariance"),
+    ([3], "neither a distribution nor a noise model"),
+])
+def test_bad_sweep_noise_entries(noise, needle):
+    with pytest.raises(SpecError) as info:
+        SweepSpec.from_dict({"objects": ["cube"], "sigmas": [0.01], "noise": noise})
+    assert needle in str(info.value) and "\n" not in str(info.value)

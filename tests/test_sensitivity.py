@@ -1,0 +1,150 @@
+"""Sobol estimators against analytic indices; the grasp sensitivity analysis against
+independent evaluations on the same draws; the ``kinegrasp sensitivity`` command."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from cli_helpers import run_cli
+
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+from kinegrasp_env.sampling.sobol import sobol_indices
+from kinegrasp_env.toolkit.sensitivity import analyze
+from kinegrasp_env.world.grasps import shipped_grasps
+
+# Ishigami f = sin x1 + a sin^2 x2 + b x3^4 sin x1, x ~ U(-pi, pi)^3: exact partial variances
+A_ISH, B_ISH = 7.0, 0.1
+V1 = 0.5 * (1 + B_ISH * math.pi**4 / 5) ** 2
+V2 = A_ISH**2 / 8
+V13 = B_ISH**2 * math.pi**8 * (1 / 18 - 1 / 50)
+VAR = V1 + V2 + V13
+
+
+def _ishigami(x: np.ndarray) -> np.ndarray:
+    return np.sin(x[:, 0]) + A_ISH * np.sin(x[:, 1]) ** 2 + B_ISH * x[:, 2] ** 4 * np.sin(x[:, 0])
+
+
+def _saltelli(f, blocks: dict[str, list[int]], n: int, dim: int, seed: int, sample):
+    """y_A, y_B and y_AB per block for inputs drawn by ``sample(rng, (n, dim))``."""
+    rng = np.random.default_rng(seed)
+    a, b = sample(rng, (n, dim)), sample(rng, (n, dim))
+    y_ab = {}
+    for name, cols in blocks.items():
+        mixed = a.copy()
+        mixed[:, cols] = b[:, cols]
+        y_ab[name] = f(mixed)
+    return f(a), f(b), y_ab
+
+
+def _within(result, truth: dict[str, tuple[float, float]]) -> None:
+    for name, (first, total) in truth.items():
+        index = result[name]
+        assert index.first_ci[0] <= first <= index.first_ci[1], (name, "first", index, first)
+        assert index.total_ci[0] <= total <= index.total_ci[1], (name, "total", index, total)
+
+
+def test_sobol_estimators_find_the_ishigami_indices_within_their_intervals():
+    def uniform(rng, shape):
+        return rng.uniform(-math.pi, math.pi, shape)
+
+    y = _saltelli(_ishigami, {"x1": [0], "x2": [1], "x3": [2]}, 5000, 3, 0, uniform)
+    result = sobol_indices(*y, bootstrap=500, confidence=0.99, seed=1)
+    _within(result, {"x1": (V1 / VAR, (V1 + V13) / VAR), "x2": (V2 / VAR, V2 / VAR),
+                     "x3": (0.0, V13 / VAR)})
+    # a factor may be a block of inputs: {x2, x3} explains V2 alone and V2 + V13 in total
+    y = _saltelli(_ishigami, {"x1": [0], "x2, x3": [1, 2]}, 5000, 3, 2, uniform)
+    result = sobol_indices(*y, bootstrap=500, confidence=0.99, seed=3)
+    _within(result, {"x1": (V1 / VAR, (V1 + V13) / VAR),
+                     "x2, x3": (V2 / VAR, (V2 + V13) / VAR)})
+    assert result["x2, x3"].total - result["x2, x3"].total_ci[0] < 0.05  # intervals are tight
+
+
+def test_sobol_estimators_find_the_indices_of_an_indicator():
+    """Y = 1[U1 < p1] 1[U2 < p2], U3 irrelevant: V = p1 p2 (1 - p1 p2), S1 = p2^2 p1 (1 - p1)
+    / V, ST1 = p2 p1 (1 - p1) / V (and symmetrically), S3 = ST3 = 0."""
+    p1, p2 = 0.7, 0.4
+
+    def f(u):
+        return ((u[:, 0] < p1) & (u[:, 1] < p2)).astype(float)
+
+    var = p1 * p2 * (1 - p1 * p2)
+    truth = {"u1": (p2**2 * p1 * (1 - p1) / var, p2 * p1 * (1 - p1) / var),
+             "u2": (p1**2 * p2 * (1 - p2) / var, p1 * p2 * (1 - p2) / var),
+             "u3": (0.0, 0.0)}
+    y = _saltelli(f, {"u1": [0], "u2": [1], "u3": [2]}, 8000, 3, 5,
+                  lambda rng, shape: rng.random(shape))
+    result = sobol_indices(*y, bootstrap=500, confidence=0.99, seed=6)
+    for name in ("u1", "u2"):
+        index = result[name]
+        assert index.first_ci[0] <= truth[name][0] <= index.first_ci[1]
+        assert index.total_ci[0] <= truth[name][1] <= index.total_ci[1]
+    # an input that does not act leaves y_AB = y_A: both indices exactly 0
+    assert result["u3"].total == 0.0 and result["u3"].first == 0.0
+
+
+def test_constant_output_and_bad_lengths():
+    result = sobol_indices(np.ones(10), np.ones(10), {"a": np.ones(10)}, bootstrap=20)
+    assert math.isnan(result["a"].first) and math.isnan(result["a"].total)
+    with pytest.raises(ValueError, match="same length"):
+        sobol_indices(np.ones(10), np.ones(9), {"a": np.ones(10)})
+
+
+@pytest.fixture(scope="module")
+def flask_engine():
+    engine = make_engine("fast", "spray_flask")
+    yield engine
+    engine.close()
+
+
+def test_the_analysis_is_the_evaluations_on_the_same_draws(flask_engine):
+    """P(FC) with all sources, with one alone and without it are what evaluate_grasp gives
+    for the model, model.only(s) and model.without(s) with the same seed: every source keeps
+    its own draws (common random numbers)."""
+    grasp = shipped_grasps("spray_flask")[0]
+    model = noise_model_from_spec({"joints": {"sigma": 0.0233},
+                                   "friction": {"distribution": "gaussian", "mean": 0.5,
+                                                "sigma": 0.1}})
+    n = 300
+    result = analyze(grasp, model, n, seed=4, engine=flask_engine, bootstrap=200)
+
+    def p_fc(noise):
+        return evaluate_grasp(grasp, noise, n, seed=4, engine="fast").p_fc
+
+    assert result.p_all == p_fc(model)
+    for effect in result.effects:
+        assert effect.p_alone == p_fc(model.only(effect.source))
+        assert effect.p_without == p_fc(model.without(effect.source))
+        assert effect.gain == pytest.approx(effect.p_without - result.p_all, abs=1e-12)
+        assert effect.gain_ci[0] <= effect.gain <= effect.gain_ci[1]
+        assert 0 <= effect.total_ci[0] <= effect.total <= effect.total_ci[1]
+    assert [e.source for e in result.effects] == ["joints", "friction"]
+    assert result.dominant in ("joints", "friction")
+    assert json.loads(json.dumps(result.to_json()))["sources"][0]["source"] == "joints"
+
+
+@pytest.mark.expensive
+def test_sensitivity_command_json_plot_and_bad_specs(tmp_path):
+    spec = tmp_path / "noise.yaml"
+    spec.write_text("joints: {sigma: 0.03}\nobject: {translation_sigma: 0.005}\n")
+    plot = tmp_path / "bars.png"
+    done = run_cli("sensitivity", "--object", "cube", "--grasp", "1", "--noise-spec", str(spec),
+                   "--samples", "60", "--bootstrap", "50", "--json", "--plot", str(plot))
+    assert done.returncode == 0, done.stderr
+    payload = json.loads(done.stdout)
+    assert [s["source"] for s in payload["sources"]] == ["joints", "object"]
+    assert payload["samples"] == 60 and payload["engine"] == "fast"
+    assert plot.stat().st_size > 1000
+    spec.write_text("joints: {sigma: 0.03}\nfriction: {distribution: uniform, low: -0.2, "
+                    "high: 0.5}\n")
+    bad = run_cli("sensitivity", "--noise-spec", str(spec), "--samples", "10")
+    assert bad.returncode == 2
+    assert bad.stderr.strip().count("\n") == 0
+    assert "friction.low must be >= 0" in bad.stderr and str(spec) in bad.stderr
+    spec.write_text("{}\n")
+    empty = run_cli("sensitivity", "--noise-spec", str(spec))
+    assert empty.returncode == 2 and "no source of error" in empty.stderr
