@@ -3,7 +3,8 @@
 For each built-in object, one shipped grasp, at two joint-noise sigmas, the same draws as
 ``evaluate_grasp`` would take (chunk 0 of the seed): the physics engine's ``run`` (closing
 under dynamics, contacts, Q) and ``run_lift`` (the same closing, then grip, lift, hold and
-shake), one process, engine built beforehand (world construction reported separately).
+shake), one process, engine built beforehand (world construction reported separately);
+draws/s of wall time and the process's CPU time per draw (the cost on an unshared core).
 Also P(FC) of the physics engine next to the kinematic (fast) engine's on the same draws,
 P(hold), and whether the same seed gives the same numbers twice.
 
@@ -26,30 +27,32 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 
 
 def timed(fn):
-    start = time.perf_counter()
+    """(fn(), wall seconds, CPU seconds of this process): on a shared machine the CPU time
+    is the load-independent cost."""
+    start, cpu = time.perf_counter(), time.process_time()
     out = fn()
-    return out, time.perf_counter() - start
+    return out, time.perf_counter() - start, time.process_time() - cpu
 
 
 def bench_object(name: str, args) -> None:
     grasp = grasp_by_index(name, args.grasp)
-    engine, build = timed(lambda: PhysicsEngine(name))
+    engine, build, _ = timed(lambda: PhysicsEngine(name))
     fast = FastEngine(name)
     print(f"{name}: world built in {build:.2f} s (mass {engine.world.mass:.3f} kg)")
     for sigma in args.sigmas:
         q = chunk_configurations(grasp.q0, JointNoise(sigma), args.seed, [(0, args.draws)])
-        closed, t_run = timed(lambda q=q: engine.run(q))
-        (lifted, lift), t_lift = timed(lambda q=q: engine.run_lift(q))
-        again, _ = timed(lambda q=q: engine.run(q))
+        closed, t_run, cpu_run = timed(lambda q=q: engine.run(q))
+        (lifted, lift), t_lift, cpu_lift = timed(lambda q=q: engine.run_lift(q))
+        again = engine.run(q)
         kinematic = fast.run(q)
         same = (np.array_equal(closed.quality, again.quality)
                 and np.array_equal(closed.quality, lifted.quality))
         n = len(q)
-        print(f"  sigma {sigma:.4f}: closing {n / t_run:6.2f} draws/s ({t_run / n * 1e3:6.0f} ms/"
-              f"draw), closing + lift {n / t_lift:5.2f} draws/s ({t_lift / n * 1e3:6.0f} ms/"
-              f"draw) | P(FC) physics {np.mean(closed.outcome == FORCE_CLOSURE):.2f}, "
-              f"kinematic {np.mean(kinematic.outcome == FORCE_CLOSURE):.2f}, "
-              f"P(hold) {lift.held.mean():.2f} | same seed, same numbers: {same}")
+        p_fc, p_kin = (np.mean(d.outcome == FORCE_CLOSURE) for d in (closed, kinematic))
+        print(f"  sigma {sigma:.4f}: closing {n / t_run:5.2f} draws/s (CPU "
+              f"{cpu_run / n * 1e3:4.0f} ms/draw), closing + lift {n / t_lift:5.2f} draws/s "
+              f"(CPU {cpu_lift / n * 1e3:5.0f} ms/draw) | P(FC) physics {p_fc:.2f}, kinematic "
+              f"{p_kin:.2f}, P(hold) {lift.held.mean():.2f} | same seed, same numbers: {same}")
     engine.close()
 
 

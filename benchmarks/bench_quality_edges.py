@@ -1,7 +1,9 @@
 """Ferrari-Canny cost as a function of the cone edges m: where each exact path pays off.
 
 Run: ``python benchmarks/bench_quality_edges.py [--edges 3 4 6 8 ...] [--batch 400]
-[--contacts 6] [--bound-edges 8 16 24 32 48]``. Single-threaded (BLAS threads pinned to 1).
+[--contacts 6] [--bound-edges 8 16 24 32 48]``. Single-threaded (BLAS threads pinned to 1);
+every time is CPU time of this process (``time.process_time``), which on an idle machine is
+the wall time and on a shared one is not inflated by the other processes.
 
 1. Three contacts (points on a sphere, normals tilted ~0.3 rad, torque scale 1 / radius),
    per m, each exact path as the library runs it, including the qhull fallback for the
@@ -78,16 +80,16 @@ def qhull_q(w: np.ndarray) -> float:
 def timed(path: str, w: np.ndarray, m: int) -> tuple[float, float]:
     """(seconds, certified fraction) of one call of ``path`` on wrench sets w (B, N, 6),
     the qhull fallback of the rows it cannot certify included."""
-    start = time.perf_counter()
+    start = time.process_time()
     if path == "qhull":
         for x in w:
             qhull_q(x)
-        return time.perf_counter() - start, 1.0
+        return time.process_time() - start, 1.0
     run = epsilon_three_contacts if path == "tables" else epsilon_epa_batch
     _, certified = run(w, m) if path == "tables" else run(w)
     for row in np.flatnonzero(~certified):
         qhull_q(w[row])
-    return time.perf_counter() - start, float(certified.mean())
+    return time.process_time() - start, float(certified.mean())
 
 
 def three_contact_worker(m: int, batch: int, seed: int) -> dict:
@@ -96,9 +98,9 @@ def three_contact_worker(m: int, batch: int, seed: int) -> dict:
     epsilon_epa_batch(small)  # load the compiled kernel and qhull first
     qhull_q(small[0])
     w = contact_wrenches(3, m, batch, seed)
-    start = time.perf_counter()
+    start = time.process_time()
     candidate_tables(m)
-    out = {"build": time.perf_counter() - start}
+    out = {"build": time.process_time() - start}
     candidate_tables.cache_clear()
     tracemalloc.start()  # again, traced (tracing slows the build down)
     candidate_tables(m)
@@ -130,9 +132,9 @@ def qhull_worker(k: int, m: int, seed: int) -> dict:
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     times = []
     for x in w:
-        start = time.perf_counter()
+        start = time.process_time()
         qhull_q(x)
-        times.append(time.perf_counter() - start)
+        times.append(time.process_time() - start)
     grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base  # KiB on Linux
     return {"median": float(np.median(times)), "max": max(times), "mb": grown / 1024}
 

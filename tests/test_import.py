@@ -71,6 +71,7 @@ def box_file(path: Path, extents=(0.05, 0.05, 0.05), offset=(0.0, 0.0, 0.0)) -> 
 
 def l_shape() -> trimesh.Trimesh:
     """An L: [0, .06] x [0, .02] x [0, .02] united with [0, .02] x [0, .02] x [0, .06] (m)."""
+    pytest.importorskip("manifold3d")
     a = trimesh.creation.box(extents=(0.06, 0.02, 0.02))
     a.apply_translation((0.03, 0.01, 0.01))
     b = trimesh.creation.box(extents=(0.02, 0.02, 0.06))
@@ -213,6 +214,31 @@ def test_size_check_messages():
     check_size(trimesh.creation.box(extents=(0.3, 0.3, 0.3)), 0.3)  # within the span
 
 
+# ----------------------------------------------------------------------------- file formats
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".off", ".glb"])
+def test_mesh_formats(home, tmp_path, suffix):
+    entry = import_object(box_file(tmp_path / f"b{suffix}", extents=(0.02, 0.03, 0.04))).entry
+    assert entry["parts"] == 1
+    np.testing.assert_allclose(entry["size"], [0.02, 0.03, 0.04], atol=1e-6)
+
+
+def test_urdf_collision_mesh_with_scale_and_origin(home, tmp_path):
+    """The first link with collision geometry: its mesh scaled by the URDF's ``scale`` and
+    turned by its origin (yaw 90 degrees swaps x and y), plus a primitive box."""
+    box_file(tmp_path / "meshes_box.stl", extents=(0.02, 0.03, 0.04))
+    (tmp_path / "thing.urdf").write_text(
+        '<robot name="thing"><link name="world"/><link name="body"><collision>'
+        '<origin xyz="0 0 0" rpy="0 0 1.5707963267948966"/><geometry>'
+        '<mesh filename="package://thing/meshes_box.stl" scale="2 2 2"/></geometry>'
+        '</collision><collision><origin xyz="0 0 0.05"/><geometry><box size="0.01 0.01 0.02"/>'
+        "</geometry></collision></link></robot>")
+    entry = import_object(tmp_path / "thing.urdf").entry
+    # 0.04 x 0.06 x 0.08 turned: 0.06 x 0.04, up to z = 0.04; the box adds 0.04 .. 0.06
+    np.testing.assert_allclose(entry["size"], [0.06, 0.04, 0.1], atol=1e-6)
+    assert "link 'body'" in entry["source"]["description"]
+    assert entry["parts"] == 2
+
+
 # ----------------------------------------------------------------------------- catalog
 def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     path = box_file(tmp_path / "block.stl", extents=(0.04, 0.06, 0.08))
@@ -329,6 +355,19 @@ def test_interrupted_import_leaves_the_catalog_as_it_was(home, tmp_path):
     import_object(box_file(tmp_path / "other.stl"))
     assert not list(root.glob(".tmp-*"))
     assert imported_names() == ("keep", "other")
+
+
+def test_evaluate_a_grasp_of_a_file(home, capsys):
+    """``evaluate --grasps FILE --grasp ID|INDEX`` gives what the shipped set gives."""
+    shipped = str(asset_path("grasps", "cube.json"))
+    common = ("--samples", "8", "--engine", "fast", "--json")
+    runs = [cli(capsys, "evaluate", "--object", "cube", "--grasp", "1", *common),
+            cli(capsys, "evaluate", "--grasps", shipped, "--grasp", "1", *common)]
+    assert [r[0] for r in runs] == [0, 0] and runs[0][1] == runs[1][1]
+    code, _, err = cli(capsys, "evaluate", "--grasps", shipped, "--grasp", "99", *common)
+    assert code == 2 and "no grasp with this id" in err
+    code, _, err = cli(capsys, "evaluate", "--grasps", shipped, "--object", "drill", *common)
+    assert code == 2 and "is a grasp of cube" in err
 
 
 # ----------------------------------------------------------------------------- end to end

@@ -104,3 +104,12 @@ def test_bad_sweep_noise_entries(noise, needle):
     with pytest.raises(SpecError) as info:
         SweepSpec.from_dict({"objects": ["cube"], "sigmas": [0.01], "noise": noise})
     assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_file, capsys):
+    model = load_noise_model(spec_file)
+    with pytest.raises(ValueError, match="physics engine takes joint and hand noise only"):
+        evaluate_grasp(shipped_grasps("cube")[0], model, 10, engine="physics")
+    assert main(["evaluate", "--noise-spec", str(spec_file), "--engine", "physics"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "object, friction errors" in err[0]

@@ -268,11 +268,11 @@ def test_object_error_and_inverse_palm_error_give_the_same_draws(engine_class, n
         engine.close()
     np.testing.assert_array_equal(by_palm.outcome, by_object.outcome)
     np.testing.assert_array_equal(by_palm.n_contacts, by_object.n_contacts)
-    # measured: points 5e-16 m, normals 3e-14, Q 1e-15 relative (rounding of the two
-    # products; pybullet 0): 1e-12 leaves a margin of 30x and more
+    # measured: points 5e-16 m, normals 3e-14, Q 8e-16 (absolute; Q ~ 1e-2) from the
+    # rounding of the two transform products: 1e-12 and 1e-14 leave a margin of 10x and more
     np.testing.assert_allclose(by_palm.points, by_object.points, atol=1e-12)
     np.testing.assert_allclose(by_palm.normals, by_object.normals, atol=1e-12)
-    np.testing.assert_allclose(by_palm.quality, by_object.quality, rtol=1e-12, atol=1e-17)
+    np.testing.assert_allclose(by_palm.quality, by_object.quality, rtol=0, atol=1e-14)
     assert len(set(by_palm.outcome.tolist())) > 1  # mixed outcomes: the test has teeth
     assert not np.array_equal(by_palm.outcome, nominal.outcome)  # the errors matter
 
@@ -386,13 +386,9 @@ def _friction_only_agrees(name: str, index: int, spec: dict, samples: int) -> No
     assert 0.05 < exact < 0.95  # an informative case
 
 
-def test_friction_only_force_closure_is_the_exact_probability_of_mu_above_its_minimum():
-    _friction_only_agrees(*FRICTION_CASES[0], samples=500)
-
-
-@pytest.mark.expensive
-@pytest.mark.parametrize("name, index, spec", FRICTION_CASES[1:])
-def test_friction_only_agrees_with_the_exact_probability_for_several_grasps(name, index, spec):
+@pytest.mark.parametrize("name, index, spec", FRICTION_CASES)
+def test_friction_only_force_closure_is_the_exact_probability_of_mu_above_its_minimum(
+        name, index, spec):
     _friction_only_agrees(name, index, spec, samples=2000)
 
 
@@ -453,3 +449,12 @@ def test_env_takes_a_noise_model_as_an_option():
     _, info = fixed.reset(seed=0)
     assert info["noise_model"]["object"] == {"translation_sigma": 0.004, "rotation_sigma": 0.0}
     fixed.close()
+
+
+def test_the_documented_example_spec_loads():
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "docs" / "noise_example.yaml"
+    model = load_noise_model(example)
+    assert model.sources == ("joints", "palm", "object", "friction")
+    assert model.joints == JointsSource(0.0133)

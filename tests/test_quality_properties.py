@@ -37,7 +37,12 @@ from kinegrasp_env.quality import (
     is_force_closure_batch,
     wrench_matrix,
 )
-from kinegrasp_env.quality.epsilon import TABLES_MAX_EDGES, grasp_wrench_space_volume, uses_tables
+from kinegrasp_env.quality.epsilon import (
+    TABLES_MAX_EDGES,
+    TABLES_MIN_EDGES,
+    grasp_wrench_space_volume,
+    uses_tables,
+)
 from kinegrasp_env.quality.wrenches import FC_TOL, MAX_EDGES
 
 # Tolerances, each with what ~6,000 random examples (8 seeds, outside CI) measured:
@@ -305,6 +310,28 @@ def test_three_contacts_agree_with_qhull_and_an_lp(case):
     check_against_references(case)
 
 
+CUBE_NORMALS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
+
+
+@fixed(30)
+@given(friction=st.floats(-8.0, 0.2).map(lambda e: 10.0**e),
+       half=st.floats(-4.0, 3.0).map(lambda e: 10.0**e),
+       num_edges=st.sampled_from([4, 8, 16]), order=st.permutations(range(6)),
+       method=st.sampled_from(["auto", "qhull"]))
+def test_cube_face_centres_down_to_tiny_margins(friction, half, num_edges, order, method):
+    """Six contacts at the face centres of a cube of half-size a (1e-4..1e3 m), torque scale
+    1 / a: the hand-derived Q = mu / sqrt(3) (m = 4) or mu sqrt(2/3) (m = 8, 16; see
+    test_quality.py) for mu down to 1e-8, so Q spans 6e-9..1 of the wrench scale: small
+    margins the random sets rarely reach, still far above the library's own tolerances
+    (rank 1e-10, boundary 1e-12). (A boundary tolerance of 1e-7 fails here.)"""
+    factor = 1 / np.sqrt(3) if num_edges == 4 else np.sqrt(2 / 3)
+    normals = CUBE_NORMALS[list(order)]
+    q = ferrari_canny(-half * normals, normals, friction=friction, num_edges=num_edges,
+                      torque_scale=1 / half, method=method)
+    scale = 1.0 + friction  # >= max |w| (normal component 1, tangents mu, torques mu)
+    assert abs(q - friction * factor) <= max(RTOL * friction * factor, ATOL * scale)
+
+
 @st.composite
 def batches(draw) -> list[dict]:
     """1..4 grasps with one k, m and friction (a batch shares them), per-row torque scale
@@ -425,8 +452,8 @@ def test_num_edges_that_is_not_an_integer_in_range_is_refused(num_edges):
 
 @pytest.mark.parametrize("k", [3, 6])
 def test_the_bound_itself_is_served(k):
-    """m = MAX_EDGES: 3 contacts (120 degrees apart on a circle) by the tables, 6 (the face
-    centres of a cube) by qhull; Q within the LP's bounds."""
+    """m = MAX_EDGES: 3 contacts (120 degrees apart on a circle) and 6 (the face centres of
+    a cube), both by qhull; Q within the LP's bounds."""
     if k == 3:
         angle = np.deg2rad([0.0, 120.0, 240.0])
         outward = np.stack([np.cos(angle), np.sin(angle), 0.0 * angle], axis=1)
@@ -441,29 +468,30 @@ def test_the_bound_itself_is_served(k):
 
 
 # ----------------------------------------------------------------------------- routing
-def test_tables_serve_below_their_break_even_and_where_nothing_else_can():
-    """Which m the three-contact tables serve: m <= TABLES_MAX_EDGES (bit-identical results
-    as before) and 3 m > expansion.MAX_POINTS (qhull would be ~40x slower)."""
-    from kinegrasp_env.quality.expansion import MAX_POINTS
-
+def test_tables_serve_where_they_are_the_fastest_batched_path():
+    """The three-contact tables serve TABLES_MIN_EDGES <= m <= TABLES_MAX_EDGES (measured in
+    benchmarks/bench_quality_edges.py): the default m = 8 and every m they served before up
+    to 24 keep their bits; m = 3 goes to the expansion (2x faster), m > 24 to qhull."""
     served = [m for m in range(3, MAX_EDGES + 1) if uses_tables(3, m, 0.5, "l1")]
-    assert served == [m for m in range(3, MAX_EDGES + 1)
-                      if m <= TABLES_MAX_EDGES or 3 * m > MAX_POINTS]
-    assert 8 in served  # the default
+    assert served == list(range(TABLES_MIN_EDGES, TABLES_MAX_EDGES + 1))
+    assert 8 in served and TABLES_MAX_EDGES < MAX_EDGES
     assert not uses_tables(3, 8, 0.0, "l1") and not uses_tables(3, 8, 0.5, "linf")
     assert not uses_tables(3, 8, FC_TOL, "l1")  # a cone that narrow: Q = 0 anyway
     assert not any(uses_tables(k, 8, 0.5, "l1") for k in (1, 2, 4, 5, 6))
 
 
-@pytest.mark.parametrize("num_edges", [3, 8, TABLES_MAX_EDGES, TABLES_MAX_EDGES + 1, 22])
+@pytest.mark.parametrize("num_edges", [3, TABLES_MIN_EDGES, 8, TABLES_MAX_EDGES,
+                                       TABLES_MAX_EDGES + 1])
 def test_auto_is_exactly_the_routed_path(num_edges):
-    """auto returns the tables' own numbers where they serve (so results there are the same
-    bits as before the bound), the expansion's where it serves instead."""
-    from kinegrasp_env.quality.expansion import epsilon_epa_batch
+    """auto returns the bits of the path that serves m: the tables' own numbers where they
+    serve (so results there are what they were before the bound), the expansion's or
+    qhull's elsewhere."""
+    from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa_batch
     from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
     rng = np.random.default_rng(num_edges)
-    direction = rng.normal(size=(40, 3, 3))
+    batch = 30 if num_edges <= TABLES_MAX_EDGES else 12  # qhull: ~40 ms per grasp
+    direction = rng.normal(size=(batch, 3, 3))
     direction /= np.linalg.norm(direction, axis=2, keepdims=True)
     normals = -direction + 0.3 * rng.normal(size=direction.shape)
     kw = {"num_edges": num_edges, "torque_scale": 20.0}
@@ -471,7 +499,10 @@ def test_auto_is_exactly_the_routed_path(num_edges):
     w = wrench_matrix(0.05 * direction, normals, **kw)
     if uses_tables(3, num_edges, 0.5, "l1"):
         q, certified = epsilon_three_contacts(w, num_edges)
-    else:
+    elif 3 * num_edges <= MAX_POINTS:
         q, certified = epsilon_epa_batch(np.ascontiguousarray(w))
+    else:
+        q = ferrari_canny_batch(0.05 * direction, normals, method="qhull", **kw)
+        certified = np.ones(q.shape, dtype=bool)
     assert certified.mean() > 0.9 and 0.05 < (auto > 0).mean() < 0.95
     np.testing.assert_array_equal(auto[certified], q[certified])

@@ -21,7 +21,7 @@ import numpy as np
 
 #: ``--engine`` choices; equal to ``montecarlo.evaluate.ENGINES`` (tested), kept here so that
 #: building the parser does not import the engines.
-ENGINE_NAMES = ("pybullet", "fast")
+ENGINE_NAMES = ("pybullet", "fast", "physics")
 #: Largest ``--sigma`` (radians): joint noise is an angle, and a standard deviation beyond
 #: half a turn describes no joint; it also keeps every configuration finite. Equal to
 #: ``montecarlo.evaluate.MAX_SIGMA`` (tested), the bound the library enforces.
@@ -192,11 +192,15 @@ def noise_spec_from(args):
     if getattr(args, "report", None):
         raise CLIError("--report shows joint noise only; it cannot be combined with "
                        "--noise-spec")
+    from kinegrasp_env.montecarlo.evaluate import check_noise_engine
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     with reported(NoiseSpecError):
-        return load_noise_model(path)
+        model = load_noise_model(path)
+    with reported(ValueError):
+        check_noise_engine(model, getattr(args, "engine", "pybullet"))
+    return model
 
 
 def parse_seed(text: str) -> int:
@@ -241,9 +245,10 @@ def executor_from(args):
 
 
 def add_engine_arg(parser: argparse.ArgumentParser) -> None:
-    """``--engine``: pybullet or fast."""
+    """``--engine``: pybullet, fast or physics."""
     parser.add_argument("--engine", default="pybullet", choices=ENGINE_NAMES,
-                        help="pybullet (the reference) or fast (batched, same draws)")
+                        help="pybullet (the reference), fast (batched, same draws) or "
+                             "physics (pybullet dynamics, same draws; slow)")
 
 
 def engine_name(value: str) -> str:

@@ -17,7 +17,16 @@ import traceback
 from collections.abc import Sequence
 
 from kinegrasp_env import __version__
-from kinegrasp_env.cli import arms, elbow, grasping, objects, report, sensitivity, toolkit
+from kinegrasp_env.cli import (
+    arms,
+    elbow,
+    grasping,
+    objects,
+    report,
+    sensitivity,
+    toolkit,
+    validate,
+)
 from kinegrasp_env.cli.common import CLIError, Parser
 
 #: OS errors that are the machine's state, not a bug (disk full, no permission): one line.
@@ -32,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
                     description="Grasp quality under kinematic (joint-angle) noise.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for group in (arms, objects, grasping, toolkit, elbow, report, sensitivity):
+    for group in (arms, objects, grasping, toolkit, elbow, report, sensitivity, validate):
         group.add_commands(sub)
     for command_parser in sub.choices.values():  # its usage errors name the command
         command_parser.set_defaults(command_parser=command_parser)

@@ -25,6 +25,7 @@ from kinegrasp_env.cli.common import (
 
 
 def cmd_sensitivity(args) -> int:
+    from kinegrasp_env.montecarlo.evaluate import check_noise_engine
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
@@ -38,6 +39,8 @@ def cmd_sensitivity(args) -> int:
     seed = parse_seed(args.seed)
     index, grasp = shipped_grasp(args.object, args.grasp)
     engine = engine_name(args.engine)
+    with reported(ValueError):
+        check_noise_engine(model, engine)
     if args.plot:
         output_file(args.plot, "--plot")
     result = _analyze(grasp, model, samples, seed, engine, bootstrap)

@@ -20,8 +20,8 @@ Why the hand's root is moved by its constraint, not the arm by its joints: the m
 exactly the same for every draw and every grasp, whatever the arm's configuration (no IK, no
 failure near a joint limit, no arm link hitting the object), and the stand-in for the arm
 (:data:`~kinegrasp_env.closing.physics_world.ROOT_MASS` behind a stiff constraint) follows it
-with a lag of about 15 ms: within 1 cm of the commanded place at the shake's peak speed
-(measured: 3 mm while lifting, 6 mm while shaking; :attr:`LiftResult.tracking`).
+within 1.5 mm of the commanded place (measured at the shake's peak speed, 1 ms steps:
+:attr:`LiftResult.tracking`).
 
 The draw *holds* when the object's centre of mass stays within ``hold_distance`` (0.05 m) of
 where it was in the palm's frame when the lift began, checked every :data:`HOLD_CHECK`

@@ -11,12 +11,21 @@ steps on the exact gap to where it is zero (:func:`secant_root`, to 1e-9 m), so 
 does not depend on how the bracket was reached. A finger whose joints all reach their limits
 without touching has missed. The coupled spread keeps its pre-shape value.
 
-pybullet measures the gaps; within ``EXACT_BAND`` of contact a finger capsule's gap is
-recomputed exactly from its axis and the object's convex parts (pybullet's convex-hull
-distances were measured up to 1 mm off at edges), so contact decisions are exact. The contact
-itself is the exact closest pair (:mod:`kinegrasp_env.closing.hand_geometry`): the point on the
-object and, as normal, the face's inward normal or, at an edge or corner, the exact
-separating direction (pybullet's own normal is off by degrees there).
+pybullet measures the gaps (one ``getClosestPoints`` per moving finger link and step: the
+conservative advance, the part of this engine that is independent of the fast engine's
+distance grid); within ``EXACT_BAND`` of contact a finger capsule's gap is recomputed exactly
+from its axis and the object's convex parts (pybullet's convex-hull distances were measured
+up to 1 mm off at edges), so contact decisions are exact. The contact itself is the exact
+closest pair (:mod:`kinegrasp_env.closing.hand_geometry`): the point on the object and, as
+normal, the face's inward normal or, at an edge or corner, the exact separating direction
+(pybullet's own normal is off by degrees there).
+
+The capsule axes of those exact gaps come from the hand URDF's kinematics in double precision
+(:func:`zero_flexion_frames` once per pre-shape, then :func:`finger_axes` per evaluation), not
+from pybullet's link states: ``getLinkState``'s link frame (its entries 4 and 5) carries
+single-precision rounding (up to ~5e-7 per entry measured; pybullet's inertial frame, which
+its collision shapes hang from, agrees with these axes to ~1e-15), which kept the secant
+polish from reaching ``POLISH_TOL`` and cost two pybullet calls per evaluation.
 """
 
 from __future__ import annotations
@@ -191,10 +200,12 @@ def zero_flexion_frames(spread: float) -> np.ndarray:
     q = np.zeros(len(HAND_JOINTS))
     q[HAND_JOINTS.index("f1_spread")] = spread
     frames = hand_kinematics().forward(q, [f[2] for f in FINGERS])
-    return np.stack([frames[f[2]][0] for f in FINGERS])
+    out = np.stack([frames[f[2]][0] for f in FINGERS])
+    out.setflags(write=False)  # shared by the cache
+    return out
 
 
-class _Probe:
+class HandProbe:
     """The hand of one auto-close: its pybullet joints and its finger capsules' exact gaps.
 
     pybullet's joints are reset only where the value changed (resetting one to its current
@@ -207,7 +218,7 @@ class _Probe:
         self.world, self.obj = world, world.obj
         self.hand = world.bodies["hand"]
         self.body = world.bodies["object"]
-        self.reset_joint = world.bullet.resetJointState  # bound once per auto-close
+        self.reset_joints = world.bullet.resetJointStatesMultiDof  # bound once per close
         self.closest_points = world.bullet.getClosestPoints
         self.joint_index = world.joint_index
         self.joints: dict[int, float] = {}
@@ -225,12 +236,16 @@ class _Probe:
         self.frames = self.obj.pose_inverse @ root_pose @ zero_flexion_frames(float(preshape[0]))
 
     def set_joints(self, values: dict[str, float]) -> None:
-        """Set hand joints by name (radians) in pybullet."""
+        """Set hand joints by name (radians) in pybullet, those that changed in one call."""
+        joints, targets = [], []
         for name, value in values.items():
             joint, value = self.joint_index[name], float(value)
             if self.joints.get(joint) != value:
-                self.reset_joint(self.hand, joint, value)
+                joints.append(joint)
+                targets.append([value])
                 self.joints[joint] = value
+        if joints:
+            self.reset_joints(self.hand, joints, targets)
 
     def axes(self, finger: int, prox: float, dist: float, links) -> np.ndarray:
         """Capsule axes (m, 2, 3) [a, b] of a finger's links (0 proximal, 1 distal) at
@@ -247,6 +262,7 @@ class _Probe:
         return closest_to_segments(self.obj, axes[:, 0], axes[:, 1])
 
     def radii(self, finger: int, links) -> np.ndarray:
+        """Capsule radii (m,) of a finger's links (0 proximal, 1 distal), metres."""
         return self.chains[finger].radii[list(links)]
 
 
@@ -265,7 +281,7 @@ class _Finger:
         self.t_lo, self.t_hi = 0.0, None
         self.done = False
         self.missed = False
-        #: touching links: (link, closest pair rows of :meth:`_Probe.pairs`), see _contacts
+        #: touching links: (link, closest pair rows of :meth:`HandProbe.pairs`), see _contacts
         self.touches: list[tuple[int, tuple]] = []
         self.speed = dict(zip((1, 2), closing_speeds(), strict=True))
         self.last: tuple | None = None  # (state key, pairs) of the last exact evaluation
@@ -285,8 +301,8 @@ class _Finger:
         return {self.joints[0]: min(prox, self.upper_p),
                 self.joints[1]: min(self.start[1] + self.t, self.upper_d)}
 
-    def exact_at(self, probe: _Probe, t: float) -> tuple:
-        """Closest pairs (see :meth:`_Probe.pairs`) and exact gaps (m,) of the moving links
+    def exact_at(self, probe: HandProbe, t: float) -> tuple:
+        """Closest pairs (see :meth:`HandProbe.pairs`) and exact gaps (m,) of the moving links
         with the finger at parameter t (the last evaluation is reused when t is the same)."""
         self.t = t
         key = (self.phase, self.start[0], self.start[1], t)
@@ -298,7 +314,7 @@ class _Finger:
             self.last = (key, pairs, pairs[2] - probe.radii(self.index, links))
         return self.last[1:]
 
-    def _polish(self, probe: _Probe, gap: float) -> tuple:
+    def _polish(self, probe: HandProbe, gap: float) -> tuple:
         """Move t to the root of the exact gap (see :func:`secant_root`); pairs and gaps
         there."""
         t_min = max(self.t - POLISH_RANGE, 0.0)
@@ -306,7 +322,7 @@ class _Finger:
                            t_min, self.t_max)
         return self.exact_at(probe, root)
 
-    def update(self, gaps: dict[int, float], probe: _Probe) -> None:
+    def update(self, gaps: dict[int, float], probe: HandProbe) -> None:
         """Advance from the gaps (pybullet link index -> metres) measured at the current t."""
         gap = min(gaps.get(self.link_ids[link], QUERY_DISTANCE) for link in self.moving_links)
         bracket_closed = self.t_hi is not None and self.t_hi - self.t_lo < 1e-9
@@ -326,7 +342,7 @@ class _Finger:
             self.t_hi = self.t
         self.t = 0.5 * (self.t_lo + self.t_hi)
 
-    def _touch(self, probe: _Probe, gap: float) -> None:
+    def _touch(self, probe: HandProbe, gap: float) -> None:
         """A link is touching: polish, record the contacts, end the finger or go on with the
         distal joint alone."""
         pairs, link_gaps = self._polish(probe, gap)
@@ -365,7 +381,7 @@ def finger_capsules() -> tuple[tuple[Shape, Shape], ...]:
     return tuple((shapes[f[2]], shapes[f[3]]) for f in FINGERS)
 
 
-def _exact_gaps(probe: _Probe, links: list[int], flexion) -> list[float]:
+def _exact_gaps(probe: HandProbe, links: list[int], flexion) -> list[float]:
     """Exact gaps (metres) of capsule links (pybullet link indices), each finger at
     ``flexion[finger]`` = (proximal, distal) radians."""
     owners = [probe.capsules[link] for link in links]
@@ -375,7 +391,7 @@ def _exact_gaps(probe: _Probe, links: list[int], flexion) -> list[float]:
     return (probe.pairs(axes)[2] - radii).tolist()
 
 
-def _start_collision(probe: _Probe, preshape: np.ndarray) -> bool:
+def _start_collision(probe: HandProbe, preshape: np.ndarray) -> bool:
     """Whether the hand, as placed, penetrates the object by more than ``START_TOL``
     (pybullet's distance, or a finger capsule's exact gap within ``EXACT_BAND``)."""
     near: list[int] = []
@@ -389,7 +405,7 @@ def _start_collision(probe: _Probe, preshape: np.ndarray) -> bool:
     return any(gap < -START_TOL for gap in _exact_gaps(probe, near, flexion)) if near else False
 
 
-def _measure(probe: _Probe, active: list[_Finger]) -> dict[int, float]:
+def _measure(probe: HandProbe, active: list[_Finger]) -> dict[int, float]:
     """Gaps (pybullet link index -> metres) of the active fingers' moving links at the
     current joint values: pybullet's distance (one query per link: a query of the whole hand
     costs as much as six), exact within ``EXACT_BAND``."""
@@ -414,7 +430,8 @@ def _measure(probe: _Probe, active: list[_Finger]) -> dict[int, float]:
 
 
 def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -> CloseResult:
-    """Close the hand placed at ``root_pose`` from ``preshape`` until contact.
+    """Close the hand placed at ``root_pose`` from ``preshape`` until contact; ``world`` is
+    left with the hand at the closed configuration (or the pre-shape on a start collision).
 
     Args:
         world: the grasp world (hand and object).
@@ -422,7 +439,7 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
         preshape: (7,) hand DOF: spread, f1 proximal, f1 distal, f2 ..., f3 ... (radians).
     """
     preshape = np.asarray(preshape, dtype=float)
-    probe = _Probe(world)
+    probe = HandProbe(world)
     probe.set_hand(root_pose, preshape)
     if _start_collision(probe, preshape):
         return CloseResult(start_collision=True)
@@ -442,11 +459,12 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
         iterations += 1
         for finger in active:
             finger.update(gaps, probe)
-    for finger in fingers:  # out of iterations: whatever was found stands
-        finger.done = True
     joints = np.array(preshape, dtype=float)
-    for f in fingers:
-        values = f.values()
-        joints[1 + 2 * f.index], joints[2 + 2 * f.index] = values[f.joints[0]], values[f.joints[1]]
+    final: dict[str, float] = {}
+    for f in fingers:  # out of iterations: whatever was found stands
+        f.done = True
+        final.update(f.values())
+        joints[1 + 2 * f.index], joints[2 + 2 * f.index] = final[f.joints[0]], final[f.joints[1]]
+    probe.set_joints(final)  # the world shows the closed hand
     missed = tuple(f.missed for f in fingers)
     return CloseResult(False, _contacts(world.obj, fingers), missed, joints, iterations)

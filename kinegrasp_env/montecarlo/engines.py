@@ -12,6 +12,7 @@ coefficient (see :mod:`kinegrasp_env.montecarlo.perturbation`).
 
 from __future__ import annotations
 
+import importlib
 import time
 from dataclasses import dataclass
 
@@ -311,11 +312,19 @@ class FastEngine(Engine):
 
 
 ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine}
+#: engines in modules of their own, imported by name on first use as (module, class) (as
+#: :mod:`kinegrasp_env.lazy` does): the physics engine's module imports this one, and pybullet
+#: dynamics is not loaded unless asked for
+LAZY_ENGINES = {"physics": ("kinegrasp_env.montecarlo.physics_engine", "PhysicsEngine")}
 
 
 def make_engine(name: str, object_name: str, friction: float = 0.5,
                 num_edges: int = 8) -> Engine:
-    """An engine by name (``pybullet`` or ``fast``)."""
+    """An engine by name (``pybullet``, ``fast`` or ``physics``)."""
+    if name in LAZY_ENGINES:
+        module, cls = LAZY_ENGINES[name]
+        return getattr(importlib.import_module(module), cls)(object_name, friction, num_edges)
     if name not in ENGINE_CLASSES:
-        raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINE_CLASSES)}")
+        raise ValueError(f"unknown engine {name!r}; choose from "
+                         f"{', '.join([*ENGINE_CLASSES, *LAZY_ENGINES])}")
     return ENGINE_CLASSES[name](object_name, friction, num_edges)

@@ -41,13 +41,15 @@ DEFAULT_CHUNK = 250
 #: cost, so bigger batches are cheaper per draw (10,000 draws on 2 processes, fresh pool:
 #: 4 chunks per call 2.42 s, 10 chunks 2.20 s); results are identical.
 FAST_GROUP = 10
-ENGINES = ("pybullet", "fast")
+ENGINES = ("pybullet", "fast", "physics")
 #: Largest joint-noise sigma accepted (radians). A standard deviation of half a turn already
 #: spreads a joint over its whole circle, so the small-error model the evaluation stands for
 #: has no meaning beyond it (and far beyond it, at 1e308, q0 + eps overflows to inf).
 MAX_SIGMA = math.pi
 #: What every evaluation takes as its noise.
 Noise = JointNoise | NoiseModel
+#: Engines that take a model's palm, object and friction errors (the kinematic ones).
+ERROR_ENGINES = ("pybullet", "fast")
 
 
 @dataclass
@@ -226,6 +228,16 @@ def validate_task(q0: np.ndarray, noise: Noise) -> None:
                          "around its whole circle")
 
 
+def check_noise_engine(noise: Noise, engine: str) -> None:
+    """ValueError (one line) when ``engine`` cannot take a source of the noise model."""
+    if isinstance(noise, NoiseModel) and engine not in ERROR_ENGINES:
+        extra = [s for s in ("palm", "object", "friction") if getattr(noise, s) is not None]
+        if extra:
+            raise ValueError(f"the {engine} engine takes joint and hand noise only; the noise "
+                             f"model has {', '.join(extra)} errors (use "
+                             f"{' or '.join(ERROR_ENGINES)})")
+
+
 def validate_request(n_samples: int, processes: int, chunk: int) -> None:
     if int(n_samples) != n_samples or n_samples < 1:
         raise ValueError(f"samples must be an integer >= 1, got {n_samples}")
@@ -288,6 +300,7 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
     validate_task(grasp.q0, noise)
+    check_noise_engine(noise, engine)
     n_samples = int(sum(sizes))
     key = (engine, grasp.object, float(friction), int(num_edges))
     chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]

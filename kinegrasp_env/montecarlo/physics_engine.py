@@ -46,15 +46,19 @@ class LiftBatch:
             did not close: start collision).
         max_offset: (n,) how far the object moved in the palm frame, metres (NaN: not lifted).
         time: (n,) seconds the test ran (the drop, or its full length; NaN: not lifted).
+        tracking: (n,) largest distance of the palm from its commanded place, metres (NaN:
+            not lifted).
     """
 
     held: np.ndarray
     max_offset: np.ndarray
     time: np.ndarray
+    tracking: np.ndarray
 
     @classmethod
     def empty(cls, n: int) -> LiftBatch:
-        return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan))
+        return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan),
+                   np.full(n, np.nan))
 
 
 def record_close(out: DrawBatch, i: int, result: PhysicsClose) -> None:
@@ -112,8 +116,8 @@ class PhysicsEngine(Engine):
             record_close(out, i, result)
             if lift is not None and not result.start_collision:
                 test = lift_test(self.world, self.profile, self.motors)
-                lift.held[i], lift.max_offset[i], lift.time[i] = (test.held, test.max_offset,
-                                                                   test.time)
+                lift.held[i], lift.max_offset[i] = test.held, test.max_offset
+                lift.time[i], lift.tracking[i] = test.time, test.tracking
         t2 = time.perf_counter()
         self.score(out)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)

@@ -7,10 +7,10 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
   rank-deficient wrench set is not in force closure.
 
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
-for 3 contacts with m <= :data:`TABLES_MAX_EDGES` cone edges (or more edges than the
-expansion takes), the batched facet enumeration of
-:mod:`kinegrasp_env.quality.three_contacts`; and, for everything else with the L1 norm and at
-most ``expansion.MAX_POINTS`` wrenches, a certified nearest-facet-first expansion
+for 3 contacts with :data:`TABLES_MIN_EDGES` <= m <= :data:`TABLES_MAX_EDGES` cone edges,
+the batched facet enumeration of :mod:`kinegrasp_env.quality.three_contacts`; and, for
+everything else with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, a certified
+nearest-facet-first expansion
 (:mod:`kinegrasp_env.quality.expansion`, ~9x faster than qhull on 4-5 contacts). ``"auto"``
 and ``"fast"`` (3 contacts only) fall back to qhull wherever an exact path cannot certify its
 answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
@@ -39,13 +39,15 @@ Method = Literal["auto", "fast", "qhull"]
 Norm = Literal["l1", "linf"]
 #: Largest number of Minkowski-sum points the L-infinity hull is built from.
 LINF_MAX_POINTS = 200_000
-#: Most cone edges for which the three-contact tables are used while the expansion could
-#: take the set (their table and work memory grow as m^3). Measured break-even
-#: (benchmarks/bench_quality_edges.py, batches of 400, 2 loaded cores, us per grasp, tables
-#: vs expansion + its qhull fallback): m = 8: 247 vs 344, 12: 453 vs 484, 14: 725 vs 850,
-#: 16: 1212 vs 1029. Above 3 m > expansion.MAX_POINTS only qhull is left, ~40x slower than
-#: the tables (m = 24: 6.9 ms vs 288 ms per grasp, 91 MB peak), so the tables serve there.
-TABLES_MAX_EDGES = 14
+#: Cone edges m the three-contact tables serve: where they are the fastest batched path
+#: (benchmarks/bench_quality_edges.py, batches of 400, CPU us per grasp, tables vs the
+#: expansion with its qhull fallback vs qhull): m = 3: 15 vs 8 vs 46; 4: 24 vs 24 vs 265;
+#: 8: 91 vs 117 vs 1874; 16: 341 vs 347 vs 12201; 20: 606 vs 854 vs 23306; 24 (3 m beyond
+#: the expansion's reach): 1036 vs - vs 37799. Their constant tables and work arrays grow
+#: as m^3 (peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32): above 24, qhull (95 ms and
+#: ~10 MB per grasp at m = 32).
+TABLES_MIN_EDGES = 4
+TABLES_MAX_EDGES = 24
 #: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing
 #: wide merges (qhull's own advice when nearly coincident wrenches make it stop with a
 #: "wide merge" topology error on a set in force closure).
@@ -78,11 +80,8 @@ def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -
     Not for friction <= FC_TOL: three contacts with a cone that narrow are within FC_TOL of
     three points, Q = 0 however it is computed, and the tables' basis is singular (0 / 0
     for a subnormal mu)."""
-    if not (norm == "l1" and num_contacts == 3 and friction > FC_TOL):
-        return False
-    from kinegrasp_env.quality.expansion import MAX_POINTS
-
-    return num_edges <= TABLES_MAX_EDGES or num_contacts * num_edges > MAX_POINTS
+    return (norm == "l1" and num_contacts == 3 and friction > FC_TOL
+            and TABLES_MIN_EDGES <= num_edges <= TABLES_MAX_EDGES)
 
 
 def _epsilon_from_hull(hull: ConvexHull | None, scale: float) -> float:
@@ -126,7 +125,7 @@ def ferrari_canny_batch(points, normals, *, friction: float | np.ndarray = 0.5,
         friction: Coulomb friction coefficient mu >= 0: a scalar, or (B,) one per grasp
             (the exact paths take it through the wrenches; the three-contact tables serve
             when every mu > 0).
-        num_edges: edges m of the linearized friction cone, 3 <= m <= ``MAX_EDGES`` (24).
+        num_edges: edges m of the linearized friction cone, 3 <= m <= ``MAX_EDGES`` (32).
         torque_scale: scalar or (B,) torque scale s (1 / metres), > 0.
         center: (3,) or (B, 3) centre of mass the torques are taken about.
         method: ``auto``, ``fast`` (3 contacts, L1 only) or ``qhull`` (the reference).

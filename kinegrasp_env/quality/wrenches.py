@@ -22,9 +22,10 @@ FC_TOL = 1e-12
 #: Singular-value ratio below which a wrench set counts as rank-deficient.
 RANK_TOL = 1e-10
 #: Most cone edges m accepted. Every grasp can fall back to qhull, whose cost grows steeply
-#: with the number of wrenches: on 6 contacts (benchmarks/bench_quality_edges.py, 2 loaded
-#: cores) m = 24 takes 0.45-0.81 s and 27 MB per grasp, m = 32 1.1-2.3 s, m = 48 2.6-6.8 s.
-MAX_EDGES = 24
+#: with the number of wrenches: one grasp of 6 contacts (benchmarks/bench_quality_edges.py,
+#: CPU time of one core) takes 0.20 s and 26 MB at m = 24, 0.55 s and 49 MB at m = 32,
+#: 1.24 s at m = 40 and 2.4 s at m = 48; 32 keeps it under ~1 s.
+MAX_EDGES = 32
 #: Largest |wrench coordinate| accepted (torques are torque_scale * |p - c| * |f|; the hull
 #: computations square coordinates, and 1e154 squared overflows).
 MAX_WRENCH = 1e100

@@ -19,6 +19,8 @@ every sigma zero is the nominal grasp. Per draw (units: radians, metres):
 
 A pose error is (translation (3) m, rotation vector (3) rad), each component independent
 N(0, sigma^2) with its own sigma; the transform is [exp([r]x), t] (:func:`offset_transforms`).
+The source classes and their checks are in :mod:`kinegrasp_env.sampling.noise_sources`
+(re-exported here).
 
 Random streams (docs/conventions.md): in chunk c of a run with seed s the joints draw from
 the chunk's stream ``SeedSequence(s, spawn_key=(c,))`` exactly as ``JointNoise`` does, and
@@ -28,261 +30,28 @@ of :data:`STREAM_KEYS`, so adding or removing a source never changes the others'
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_sources import (
+    ARM_JOINTS,
+    FRICTION_DISTRIBUTIONS,
+    FrictionSource,
+    HandSource,
+    JointsSource,
+    NoiseSpecError,
+    PoseSource,
+)
 
 SOURCES = ("joints", "hand", "palm", "object", "friction")
 #: The spawn-key suffix k of each non-joint source's stream: ``SeedSequence(s, spawn_key=(c, k))``.
 STREAM_KEYS = {"hand": 1, "palm": 2, "object": 3, "friction": 4}
-FRICTION_DISTRIBUTIONS = ("gaussian", "uniform", "fixed")
-#: Largest joint sigma or bias (radians): the bound of ``montecarlo.evaluate.MAX_SIGMA``.
-MAX_ANGLE = math.pi
-ARM_JOINTS = 7
 
-
-class NoiseSpecError(ValueError):
-    """A noise model that cannot be used (one line, naming the bad value)."""
-
-
-# ----------------------------------------------------------------------------- value checks
-def values(value, name: str, lengths: tuple[int, ...] = (1,)) -> np.ndarray:
-    """``value`` as a float vector of one of ``lengths`` (a scalar has length 1), finite."""
-    if isinstance(value, bool) or isinstance(value, str):
-        raise NoiseSpecError(f"{name} must be a number or a list of numbers, got {value!r}")
-    try:
-        arr = np.atleast_1d(np.asarray(value, dtype=float))
-    except (TypeError, ValueError):
-        raise NoiseSpecError(f"{name} must be a number or a list of numbers, "
-                             f"got {value!r}") from None
-    if arr.ndim != 1 or arr.size not in lengths:
-        wanted = " or ".join("a scalar" if n == 1 else f"{n} values" for n in lengths)
-        raise NoiseSpecError(f"{name} must be {wanted}, got {value!r}")
-    if not np.all(np.isfinite(arr)):
-        raise NoiseSpecError(f"{name} must be finite, got {value!r}")
-    return arr
-
-
-def sigmas(value, name: str, lengths: tuple[int, ...] = (1, 3), bound: float = math.inf
-           ) -> float | tuple[float, ...]:
-    """Standard deviations: finite, >= 0 and <= ``bound``; a float or a tuple."""
-    arr = values(value, name, lengths)
-    if np.any(arr < 0):
-        raise NoiseSpecError(f"{name} must be >= 0, got {value!r}")
-    if np.any(arr > bound):
-        raise NoiseSpecError(f"{name} must be <= {bound:.5f}, got {value!r}")
-    return float(arr[0]) if arr.size == 1 and np.ndim(value) == 0 else tuple(arr.tolist())
-
-
-def broadcast(value: float | tuple[float, ...], size: int) -> np.ndarray:
-    arr = np.atleast_1d(np.asarray(value, dtype=float))
-    return np.full(size, arr[0]) if arr.size == 1 else arr
-
-
-def covariance_factor(cov: np.ndarray, name: str = "joints.covariance") -> np.ndarray:
-    """L (d, d) with L L^T = cov for a symmetric positive semi-definite cov (d, d): the
-    Cholesky factor of the joints with a nonzero variance (a diagonal cov gives diag(sqrt);
-    a joint of zero variance stays exactly zero), or V sqrt(Lambda) of them when they are
-    still singular. ValueError names an asymmetric entry or the negative eigenvalue."""
-    cov = np.asarray(cov, dtype=float)
-    scale = max(float(np.abs(cov).max()), 1e-300)
-    asym = np.abs(cov - cov.T)
-    if asym.max() > 1e-12 * scale:
-        i, j = (int(k) for k in np.unravel_index(np.argmax(asym), asym.shape))
-        raise NoiseSpecError(f"{name} is not symmetric: entry [{i}][{j}] = {cov[i, j]:g} but "
-                             f"[{j}][{i}] = {cov[j, i]:g}")
-    eig = np.linalg.eigvalsh(cov)
-    if eig[0] < -1e-12 * scale:
-        raise NoiseSpecError(f"{name} is not positive semi-definite: smallest eigenvalue "
-                             f"{eig[0]:.3g}")
-    active = np.ix_(np.diag(cov) > 0, np.diag(cov) > 0)
-    factor = np.zeros_like(cov)
-    try:
-        factor[active] = np.linalg.cholesky(cov[active])
-    except np.linalg.LinAlgError:  # singular: semi-definite
-        lam, vec = np.linalg.eigh(cov[active])
-        factor[active] = vec * np.sqrt(np.maximum(lam, 0.0))
-    return factor
-
-
-# ----------------------------------------------------------------------------- sources
-@dataclass(frozen=True)
-class JointsSource:
-    """Arm-joint error eps (7,) radians: independent (``sigma``, ``distribution``) or Gaussian
-    with ``covariance`` (7x7, symmetric PSD); plus ``bias`` (7,) added to every draw.
-
-    Attributes:
-        sigma: scalar or 7 standard deviations (ignored when ``covariance`` is given).
-        distribution: ``gaussian``, ``uniform`` or ``triangular`` (independent case only).
-        covariance: 7x7 (rad^2) as nested tuples, or None.
-        bias: 7 constant offsets (rad), or None.
-    """
-
-    sigma: float | tuple[float, ...] = 0.0
-    distribution: str = "gaussian"
-    covariance: tuple[tuple[float, ...], ...] | None = None
-    bias: tuple[float, ...] | None = None
-
-    def __post_init__(self) -> None:
-        if self.distribution not in DISTRIBUTIONS:
-            raise NoiseSpecError(f"joints.distribution {self.distribution!r} is unknown; "
-                                 f"choose from {', '.join(DISTRIBUTIONS)}")
-        set_ = object.__setattr__
-        set_(self, "sigma", sigmas(self.sigma, "joints.sigma", (1, ARM_JOINTS), MAX_ANGLE))
-        if self.covariance is not None:
-            if self.distribution != "gaussian":
-                raise NoiseSpecError("joints.covariance needs distribution gaussian, got "
-                                     f"{self.distribution!r}")
-            rows = [values(r, f"joints.covariance[{i}]", (ARM_JOINTS,))
-                    for i, r in enumerate(self._rows(self.covariance))]
-            cov = np.array(rows)
-            covariance_factor(cov)
-            if np.any(np.sqrt(np.diag(cov)) > MAX_ANGLE):
-                raise NoiseSpecError("joints.covariance has a standard deviation above pi")
-            set_(self, "covariance", tuple(tuple(r.tolist()) for r in cov))
-        if self.bias is not None:
-            bias = values(self.bias, "joints.bias", (1, ARM_JOINTS))
-            if np.any(np.abs(bias) > MAX_ANGLE):
-                raise NoiseSpecError(f"joints.bias must be within +-pi, got {self.bias!r}")
-            set_(self, "bias", tuple(broadcast(tuple(bias.tolist()), ARM_JOINTS).tolist()))
-
-    @staticmethod
-    def _rows(covariance) -> list:
-        if isinstance(covariance, (str, bytes)) or np.ndim(covariance) == 0:
-            raise NoiseSpecError(f"joints.covariance must be 7 rows of 7 numbers, got "
-                                 f"{covariance!r}")
-        rows = list(covariance)
-        if len(rows) != ARM_JOINTS:
-            raise NoiseSpecError(f"joints.covariance must be 7 rows of 7 numbers, got "
-                                 f"{len(rows)} rows")
-        return rows
-
-    def sigma_vector(self) -> np.ndarray:
-        """(7,) standard deviations (the square roots of the covariance's diagonal)."""
-        if self.covariance is not None:
-            return np.sqrt(np.diag(np.array(self.covariance)))
-        return broadcast(self.sigma, ARM_JOINTS)
-
-    def sample(self, rng: np.random.Generator, size: int, method: str = "mc") -> np.ndarray:
-        """eps (size, 7), radians. The independent case is ``JointNoise(sigma, distribution)
-        .sample(size, 7, rng, method)`` itself."""
-        if self.covariance is None:
-            eps = JointNoise(self.sigma, self.distribution).sample(size, ARM_JOINTS, rng,
-                                                                   method=method)
-        else:
-            z = JointNoise(1.0).sample(size, ARM_JOINTS, rng, method=method)
-            eps = z @ covariance_factor(np.array(self.covariance)).T
-        return eps if self.bias is None else eps + np.array(self.bias)
-
-    @property
-    def exact(self) -> bool:
-        return not np.any(self.sigma_vector()) and not np.any(self.bias or 0.0)
-
-
-@dataclass(frozen=True)
-class HandSource:
-    """Hand pre-shape error: ``spread_sigma`` (rad) on the spread, ``closing_sigma`` (scalar
-    or 3, rad) per finger, added to both flexion joints of the finger."""
-
-    spread_sigma: float = 0.0
-    closing_sigma: float | tuple[float, ...] = 0.0
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "spread_sigma",
-                           sigmas(self.spread_sigma, "hand.spread_sigma", (1,), MAX_ANGLE))
-        object.__setattr__(self, "closing_sigma",
-                           sigmas(self.closing_sigma, "hand.closing_sigma", (1, 3), MAX_ANGLE))
-
-    def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """(size, 4) offsets, radians: spread, fingers 1, 2, 3."""
-        scale = np.concatenate([[self.spread_sigma], broadcast(self.closing_sigma, 3)])
-        return rng.standard_normal((size, 4)) * scale
-
-    @property
-    def exact(self) -> bool:
-        return self.spread_sigma == 0 and not np.any(self.closing_sigma)
-
-
-@dataclass(frozen=True)
-class PoseSource:
-    """A Gaussian rigid error: ``translation_sigma`` (metres) and ``rotation_sigma`` (radians,
-    of the rotation vector), each a scalar or 3 (per axis)."""
-
-    translation_sigma: float | tuple[float, ...] = 0.0
-    rotation_sigma: float | tuple[float, ...] = 0.0
-    #: the source's name in error messages (``palm`` or ``object``)
-    name: str = field(default="pose", compare=False, repr=False)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "translation_sigma", sigmas(
-            self.translation_sigma, f"{self.name}.translation_sigma"))
-        object.__setattr__(self, "rotation_sigma", sigmas(
-            self.rotation_sigma, f"{self.name}.rotation_sigma", bound=MAX_ANGLE))
-
-    def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """(size, 6): translation (3) metres, rotation vector (3) radians."""
-        scale = np.concatenate([broadcast(self.translation_sigma, 3),
-                                broadcast(self.rotation_sigma, 3)])
-        return rng.standard_normal((size, 6)) * scale
-
-    @property
-    def exact(self) -> bool:
-        return not np.any(self.translation_sigma) and not np.any(self.rotation_sigma)
-
-
-@dataclass(frozen=True)
-class FrictionSource:
-    """The friction coefficient mu of a draw (the same at every contact).
-
-    ``gaussian``: N(mean, sigma^2) truncated to mu >= 0 (mean >= 0); ``uniform``: U(low,
-    high), 0 <= low <= high; ``fixed``: ``value`` >= 0.
-    """
-
-    distribution: str = "gaussian"
-    mean: float = 0.5
-    sigma: float = 0.0
-    low: float = 0.0
-    high: float = 0.0
-    value: float = 0.5
-
-    def __post_init__(self) -> None:
-        if self.distribution not in FRICTION_DISTRIBUTIONS:
-            raise NoiseSpecError(f"friction.distribution {self.distribution!r} is unknown; "
-                                 f"choose from {', '.join(FRICTION_DISTRIBUTIONS)}")
-        for key in ("mean", "sigma", "low", "high", "value"):
-            object.__setattr__(self, key, float(values(getattr(self, key),
-                                                       f"friction.{key}")[0]))
-        checks = {"gaussian": (("mean", self.mean), ("sigma", self.sigma)),
-                  "uniform": (("low", self.low), ("high", self.high)),
-                  "fixed": (("value", self.value),)}[self.distribution]
-        for key, number in checks:
-            if number < 0:
-                raise NoiseSpecError(f"friction.{key} must be >= 0 (mu has no negative "
-                                     f"values), got {number:g}")
-        if self.distribution == "uniform" and self.high < self.low:
-            raise NoiseSpecError(f"friction.high ({self.high:g}) is below friction.low "
-                                 f"({self.low:g})")
-
-    def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """(size,) mu >= 0."""
-        if self.distribution == "fixed":
-            return np.full(size, self.value)
-        if self.distribution == "uniform":
-            return rng.uniform(self.low, self.high, size)
-        u = rng.random(size)
-        if self.sigma == 0:
-            return np.full(size, self.mean)
-        from scipy import stats
-
-        return stats.truncnorm.ppf(u, -self.mean / self.sigma, np.inf, loc=self.mean,
-                                   scale=self.sigma)
-
-    @property
-    def exact(self) -> bool:
-        return False  # a friction source always sets mu
+__all__ = ["FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_KEYS", "FrictionSource", "HandSource",
+           "JointsSource", "NoiseDraws", "NoiseModel", "NoiseSpecError", "PoseSource",
+           "as_noise_model", "chunk_stream", "offset_transforms", "skew"]
 
 
 # ----------------------------------------------------------------------------- draws

@@ -35,6 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import special
 from scipy import stats as sps
 
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
@@ -192,7 +193,9 @@ def sign_test_certifies(wins: np.ndarray, losses: np.ndarray, alpha: float) -> n
     """
     wins = np.asarray(wins)
     m = wins + np.asarray(losses)
-    return (m > 0) & (sps.binom.sf(wins - 1, m, 0.5) <= alpha)
+    # P(Bin(m, 1/2) >= b) = I_{1/2}(b, m - b + 1) (regularized incomplete beta), b >= 1
+    tail = special.betainc(np.maximum(wins, 1), m - wins + 1, 0.5)
+    return (wins > 0) & (tail <= alpha)
 
 
 def win_rate_bounds(wins: int, losses: int, alpha: float) -> tuple[float, float]:

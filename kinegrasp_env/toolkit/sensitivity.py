@@ -28,7 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, DrawBatch, Engine
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_draws, chunk_sizes
+from kinegrasp_env.montecarlo.evaluate import (
+    DEFAULT_CHUNK,
+    check_noise_engine,
+    chunk_draws,
+    chunk_sizes,
+)
 from kinegrasp_env.montecarlo.perturbation import engine_inputs
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
@@ -188,6 +193,7 @@ def analyze(grasp: Grasp, model: NoiseModel, samples: int, seed: int = 0, *,
     sources = model.sources
     if not sources:
         raise ValueError("the noise model has no source of error: nothing to analyze")
+    check_noise_engine(model, engine.name)
     sizes = chunk_sizes(int(samples), chunk)
     draws_a = chunk_draws(model, seed, list(enumerate(sizes)))
     draws_b = chunk_draws(model, seed, [(len(sizes) + c, s) for c, s in enumerate(sizes)])

@@ -33,6 +33,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from kinegrasp_env.world import objects, sdf
 from kinegrasp_env.world.decompose import (
@@ -150,6 +151,7 @@ def import_object(path: str | Path, name: str | None = None,
         CatalogError: bad name or settings, or ``name`` exists with other files or settings
             and ``force`` is False.
     """
+    start = time.perf_counter()
     settings = (settings or ImportSettings()).check()
     source = load_source(path)
     name = check_name(name or default_name(path))
@@ -163,14 +165,13 @@ def import_object(path: str | Path, name: str | None = None,
                            f"{entry.get('source', {}).get('path', '?')}, settings "
                            f"{entry.get('settings')}); add --force to replace it, or give "
                            "another --name")
-    start = time.perf_counter()
+    prepared = prepare(source, settings.scale, Path(path))
     root = catalog_dir()
     root.mkdir(parents=True, exist_ok=True)
     remove_stale(root)
     work = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-{os.getpid()}-", dir=root))
-    work = root / name; work.mkdir(exist_ok=True)  # MUTATION
     try:
-        entry = build_entry(source, name, key, settings, work, Path(path))
+        entry = build_entry(source, prepared, name, key, settings, work, Path(path))
         entry["import_seconds"] = round(time.perf_counter() - start, 3)
         (work / ENTRY_FILE).write_text(json.dumps(entry, indent=1))
         publish(work, root / name)
@@ -181,15 +182,40 @@ def import_object(path: str | Path, name: str | None = None,
     return ImportResult(name, root / name, False, entry["import_seconds"], entry)
 
 
-def build_entry(source: SourceMesh, name: str, key: str, settings: ImportSettings,
-                work: Path, path: Path) -> dict:
-    """Prepare, decompose, measure and write the entry's files into ``work``; returns the
-    ``entry.json`` contents."""
-    mesh = clean_mesh(source.vertices * settings.scale, source.faces)
-    width = check_solid(mesh)
-    check_size(mesh, width)
+@dataclass(frozen=True)
+class Prepared:
+    """A mesh ready to decompose.
+
+    Attributes:
+        mesh: cleaned, metres, object frame.
+        thickness: its smallest width (metres).
+        frame: (4, 4) move from the scaled source frame to the object frame.
+    """
+
+    mesh: trimesh.Trimesh
+    thickness: float
+    frame: np.ndarray
+
+
+def prepare(source: SourceMesh, scale: float, path: Path) -> Prepared:
+    """Scale, clean, check and place the source mesh; :class:`MeshError` naming ``path``
+    when it is no solid or does not suit the hand."""
+    try:
+        mesh = clean_mesh(source.vertices * scale, source.faces)
+        width = check_solid(mesh)
+        check_size(mesh, width)
+    except MeshError as exc:
+        raise MeshError(f"{path}: {exc}") from None
     frame = object_frame(mesh)
     mesh.apply_transform(frame)
+    return Prepared(mesh, width, frame)
+
+
+def build_entry(source: SourceMesh, prepared: Prepared, name: str, key: str,
+                settings: ImportSettings, work: Path, path: Path) -> dict:
+    """Decompose, measure and write the entry's files into ``work``; returns the
+    ``entry.json`` contents."""
+    mesh, width, frame = prepared.mesh, prepared.thickness, prepared.frame
     mesh.export(work / MESH_FILE, file_type="obj", include_normals=False,
                 include_texture=False)
     parts = decompose(mesh, settings.threshold, settings.max_parts)

@@ -69,8 +69,8 @@ def read_mesh(path: Path) -> trimesh.Trimesh:
         raise MeshError(f"{path}: not a readable {path.suffix.lstrip('.').upper()} mesh "
                         f"({' '.join(str(exc).split())[:120]})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise MeshError(f"{path}: no triangles found (is it a "
-                        f"{path.suffix.lstrip('.').upper()} mesh?)")
+        raise MeshError(f"{path}: no triangles found; not a valid "
+                        f"{path.suffix.lstrip('.').upper()} mesh")
     return trimesh.Trimesh(np.asarray(mesh.vertices, dtype=np.float64),
                            np.asarray(mesh.faces, dtype=np.int64), process=False)
 

@@ -1,0 +1,159 @@
+"""``kinegrasp validate``: does P(FC) predict holding? (kinematic and physics closing, lift
+test, per draw and per grasp; see :mod:`kinegrasp_env.toolkit.validation`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    finite_float,
+    grasp_index_help,
+    nonnegative,
+    parse_index,
+    parse_seed,
+    positive_int,
+    print_json,
+    reported,
+    shipped_grasp,
+)
+
+
+def add_commands(sub) -> None:
+    """Register ``validate``."""
+    p = sub.add_parser("validate", help="lift test: does P(FC) predict that the hand holds the "
+                       "object? (kinematic and physics closing on the same draws)")
+    p.add_argument("--object", default="all", help="a built-in object, or `all` for the four "
+                   "(with --grasps: the file's objects)")
+    p.add_argument("--grasp", nargs="+", help=grasp_index_help() + " (several allowed; default "
+                   "all of the object's shipped grasps; with --grasps: indices in the file)")
+    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) instead of "
+                   "the shipped sets")
+    p.add_argument("--sigma", default="0.0133", help="joint noise on the 7 arm joints, radians")
+    p.add_argument("--samples", default="100", help="draws per grasp")
+    p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
+    p.add_argument("--processes", default="1", help="worker processes")
+    p.add_argument("--kinematic-engine", default="fast", choices=("fast", "pybullet"),
+                   help="engine of the kinematic outcome (fast: same outcomes as pybullet "
+                   "draw by draw, much faster)")
+    p.add_argument("--out", required=True, help="output folder (results are cached there: "
+                   "a rerun with the same settings resumes)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=cmd_validate)
+
+
+def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]]:
+    """``(index, grasp)`` of a grasp file: all, or the given indices."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    with reported(ValueError):
+        grasps = load_grasps(path)
+    if not grasps:
+        raise CLIError(f"--grasps {path}: the file has no grasps")
+    if indices is None:
+        return list(enumerate(grasps))
+    out = []
+    for text in indices:
+        index = parse_index(text)
+        if not 0 <= index < len(grasps):
+            raise CLIError(f"--grasp: grasp index {index} out of range: {path} has "
+                           f"{len(grasps)} grasps (0..{len(grasps) - 1})")
+        out.append((index, grasps[index]))
+    return out
+
+
+def selected_grasps(args) -> list[tuple[int, object]]:
+    """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES, is_object
+
+    if args.grasps is not None:
+        chosen = file_grasps(args.grasps, args.grasp)
+    else:
+        if args.object == "all":
+            if args.grasp is not None:
+                raise CLIError("--grasp needs one --object, not `all`")
+            objects = OBJECT_NAMES
+        elif args.object in OBJECT_NAMES or is_object(args.object):
+            objects = (args.object,)
+        else:
+            raise CLIError(f"--object: unknown object {args.object!r}; choose from "
+                           f"{', '.join(OBJECT_NAMES)}, all (or an imported object)")
+        if args.grasp is None:
+            chosen = [pair for name in objects
+                      for pair in enumerate(shipped_grasp_set(name, shipped_grasps))]
+        else:
+            chosen = [shipped_grasp(objects[0], text) for text in args.grasp]
+    seen = set()
+    for index, grasp in chosen:
+        if (grasp.object, index) in seen:
+            raise CLIError(f"--grasp: {grasp.object} grasp {index} is given twice")
+        seen.add((grasp.object, index))
+    return chosen
+
+
+def shipped_grasp_set(name: str, shipped_grasps) -> list:
+    from kinegrasp_env.world.grasps import NoGraspSetError
+
+    with reported(NoGraspSetError):
+        return shipped_grasps(name)
+
+
+def settings_from(args):
+    from kinegrasp_env.cli.common import MAX_SIGMA
+    from kinegrasp_env.toolkit.validation import ValidationSettings
+
+    sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
+    if sigma > MAX_SIGMA:
+        raise CLIError(f"--sigma {sigma:g} rad is above the bound pi ({MAX_SIGMA:.4f} rad)")
+    return ValidationSettings(sigma=sigma, samples=positive_int(args.samples, "--samples"),
+                              seed=parse_seed(args.seed), kinematic=args.kinematic_engine)
+
+
+def output_folder(text: str) -> Path:
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise CLIError(f"--out {text} is a file; give a folder")
+    for parent in path.absolute().parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise CLIError(f"--out {text}: {parent} is not a folder")
+            break
+    return path
+
+
+def cmd_validate(args) -> int:
+    from kinegrasp_env.toolkit.validation import run_validation
+    from kinegrasp_env.toolkit.validation_report import summarize, write_results
+
+    settings = settings_from(args)
+    processes = positive_int(args.processes, "--processes")
+    out = output_folder(args.out)
+    grasps = selected_grasps(args)
+    results = run_validation(grasps, settings, out, processes, progress=True)
+    summary = summarize(results, settings, bootstrap_seed=settings.seed)
+    paths = write_results(out, results, summary)
+    if args.json:
+        print_json({**summary, "files": {k: str(v) for k, v in paths.items()}})
+    else:
+        print_summary(summary, paths)
+    return 0
+
+
+def print_summary(summary: dict, paths: dict) -> None:
+    s = summary["settings"]
+    print(f"validate: {len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
+          f"{s['samples']} draws each, seed {s['seed']} (kinematic engine: {s['kinematic']})")
+    print(f"{'grasp':<18} {'P(FC) kin':>10} {'P(FC) phys':>11} {'P(hold)':>8}  95% CI hold")
+    for g in summary["grasps"]:
+        lo, hi = g["p_hold_ci"]
+        print(f"{g['object'] + ' ' + str(g['index']):<18} {g['p_fc_kinematic']:>10.3f} "
+              f"{g['p_fc_physics']:>11.3f} {g['p_hold']:>8.3f}  [{lo:.2f}, {hi:.2f}]")
+    for name, m in summary["confusion"].items():
+        print(f"{name} (rows predicted F/T, columns actual F/T): {m}")
+    for name, c in summary["spearman"].items():
+        rho = "n/a" if c["rho"] is None else f"{c['rho']:.3f}"
+        lo, hi = ("n/a" if v is None else f"{v:.3f}" for v in c["ci"])
+        print(f"Spearman {name}: {rho} (bootstrap {c['confidence']:.0%} [{lo}, {hi}], "
+              f"{c['n']} grasps)")
+    print("wrote " + ", ".join(str(p) for p in paths.values()))

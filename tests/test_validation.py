@@ -1,0 +1,193 @@
+"""``kinegrasp validate``: its statistics against scipy and hand counts, its cache, the same
+seed giving the same table twice, the CLI's one-line errors, and the physics engine's
+registration."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, NO_FORCE_CLOSURE
+from kinegrasp_env.toolkit import validation
+from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
+from kinegrasp_env.toolkit.validation_report import summarize, write_results
+from kinegrasp_env.toolkit.validation_stats import (
+    average_ranks,
+    bootstrap_spearman,
+    confusion,
+    spearman,
+)
+from kinegrasp_env.world.grasps import shipped_grasps
+from tests.cli_helpers import run_cli
+
+
+def synthetic_columns(seed: int, n: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Two correlated columns of probabilities on a grid of 1/20 (many ties, like P(FC))."""
+    rng = np.random.default_rng(seed)
+    x = np.round(rng.uniform(size=n) * 20) / 20
+    y = np.clip(np.round((x + rng.normal(0, 0.3, n)) * 20) / 20, 0, 1)
+    return x, y
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_ranks_and_spearman_match_scipy(seed):
+    x, y = synthetic_columns(seed)
+    np.testing.assert_array_equal(average_ranks(x), stats.rankdata(x))
+    assert spearman(x, y) == pytest.approx(stats.spearmanr(x, y).statistic, abs=1e-12)
+
+
+def test_spearman_of_a_constant_column_is_nan():
+    assert np.isnan(spearman(np.ones(5), np.arange(5.0)))
+    assert np.isnan(spearman(np.array([1.0]), np.array([2.0])))
+
+
+def test_bootstrap_matches_an_independent_resampling_with_scipy():
+    """Same resamples (the same generator draws), scipy's rho on each, numpy's quantiles."""
+    x, y = synthetic_columns(7, n=25)
+    result = bootstrap_spearman(x, y, seed=3, resamples=300)
+    picks = np.random.default_rng(3).integers(0, x.size, size=(300, x.size))
+    with warnings.catch_warnings():  # scipy warns on a constant resample (rho NaN)
+        warnings.simplefilter("ignore")
+        rhos = np.array([stats.spearmanr(x[p], y[p]).statistic for p in picks])
+    finite = rhos[np.isfinite(rhos)]
+    lo, hi = np.quantile(finite, [0.025, 0.975])
+    assert result.rho == pytest.approx(stats.spearmanr(x, y).statistic, abs=1e-12)
+    assert result.ci == pytest.approx((lo, hi), abs=1e-12)
+    assert result.undefined == rhos.size - finite.size and result.n == 25
+    again = bootstrap_spearman(x, y, seed=3, resamples=300)
+    assert again.ci == result.ci  # same seed, same interval
+    assert bootstrap_spearman(x, y, seed=4, resamples=300).ci != result.ci
+
+
+def test_confusion_against_a_hand_count():
+    predicted = np.array([1, 1, 0, 0, 1, 0, 1, 1], bool)
+    actual = np.array([1, 0, 0, 1, 1, 0, 0, 1], bool)
+    # by hand: (F,F) draws 2, 5 -> 2; (F,T) draw 3 -> 1; (T,F) draws 1, 6 -> 2; (T,T) 0, 4, 7
+    np.testing.assert_array_equal(confusion(predicted, actual), [[2, 1], [2, 3]])
+
+
+def fake_draws(object_name: str, index: int, kin, phys, held) -> GraspDraws:
+    n = len(held)
+    return GraspDraws(object_name, index, str(index), np.array(kin, np.int8),
+                      np.where(np.array(kin) == FORCE_CLOSURE, 0.1, 0.0),
+                      np.array(phys, np.int8), np.zeros(n), np.array(held, bool),
+                      np.full(n, 0.01), np.full(n, 3.5))
+
+
+FC, NFC, MISS = FORCE_CLOSURE, NO_FORCE_CLOSURE, MISSED
+FAKE = [fake_draws("cube", 0, [FC, FC, FC, NFC], [FC, FC, NFC, NFC], [1, 1, 0, 0]),
+        fake_draws("cube", 1, [FC, MISS, NFC, NFC], [FC, FC, NFC, MISS], [0, 1, 0, 1]),
+        fake_draws("mug", 0, [NFC, NFC, NFC, NFC], [NFC, NFC, NFC, FC], [0, 0, 0, 0])]
+
+
+def test_summary_pools_the_draws_and_ranks_the_grasps():
+    settings = ValidationSettings(sigma=0.01, samples=4)
+    summary = summarize(FAKE, settings, bootstrap_seed=0, resamples=50)
+    # hand count over the 12 draws: kinematic FC draws 0-2 (grasp 0) and 4 (grasp 1);
+    # held draws 0, 1, 5, 7
+    assert summary["confusion"]["kinematic_fc_vs_held"] == [[6, 2], [2, 2]]
+    assert summary["confusion"]["physics_fc_vs_held"] == [[6, 2], [2, 2]]
+    assert summary["confusion"]["kinematic_fc_vs_physics_fc"] == [[6, 2], [2, 2]]
+    rows = summary["grasps"]
+    assert [r["p_fc_kinematic"] for r in rows] == [0.75, 0.25, 0.0]
+    assert [r["p_hold"] for r in rows] == [0.5, 0.5, 0.0]
+    expected = stats.spearmanr([0.75, 0.25, 0.0], [0.5, 0.5, 0.0]).statistic
+    assert summary["spearman"]["kinematic_p_fc_vs_p_hold"]["rho"] == pytest.approx(expected)
+    assert summary["draws"] == 12
+
+
+def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch):
+    """The cache: a grasp whose file is there is read, not run (run would fail here)."""
+    settings = ValidationSettings(sigma=0.01, samples=4)
+    grasp = shipped_grasps("cube")[0]
+    path = tmp_path / "cache" / f"cube_0_{validation.settings_key(grasp, settings)}.npz"
+    path.parent.mkdir()
+    path.write_bytes(FAKE[0].to_bytes())
+
+    def refuse(task):
+        raise AssertionError("a cached grasp was run again")
+
+    monkeypatch.setattr(validation, "grasp_draws", refuse)
+    (read,) = run_validation([(0, grasp)], settings, tmp_path)
+    np.testing.assert_array_equal(read.held, FAKE[0].held)
+    np.testing.assert_array_equal(read.kin_outcome, FAKE[0].kin_outcome)
+    other = ValidationSettings(sigma=0.02, samples=4)  # another setting, another file
+    assert validation.settings_key(grasp, other) != validation.settings_key(grasp, settings)
+    paths = write_results(tmp_path, FAKE, summarize(FAKE, settings, resamples=20))
+    assert (tmp_path / "grasps.csv").read_text().count("\n") == 4  # header + 3 grasps
+    assert (tmp_path / "draws.csv").read_text().count("\n") == 13
+    assert set(paths) >= {"draws", "grasps", "summary"}
+
+
+@pytest.mark.expensive
+def test_same_seed_same_table_twice(tmp_path):
+    """The issue's "same seed, same table": two fresh runs (no cache) of two cube grasps,
+    3 draws each, give identical per-draw results and identical grasps.csv files."""
+    settings = ValidationSettings(sigma=0.0333, samples=3, seed=5)
+    grasps = list(enumerate(shipped_grasps("cube")))[:2]
+    tables = []
+    for run in ("a", "b"):
+        results = run_validation(grasps, settings, tmp_path / run, processes=1)
+        write_results(tmp_path / run, results, summarize(results, settings, resamples=20))
+        tables.append((tmp_path / run / "grasps.csv").read_text())
+    assert tables[0] == tables[1]
+    assert (tmp_path / "a" / "draws.csv").read_text() == (tmp_path / "b" / "draws.csv").read_text()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--sigma", "x"], "--sigma: 'x' is not a number"),
+    (["--sigma", "-0.1"], "--sigma must be >= 0"),
+    (["--sigma", "4"], "above the bound pi"),
+    (["--samples", "0"], "--samples must be >= 1"),
+    (["--object", "teapot"], "--object: unknown object 'teapot'"),
+    (["--object", "all", "--grasp", "0"], "--grasp needs one --object"),
+    (["--object", "cube", "--grasp", "99"], "grasp index 99 out of range"),
+    (["--object", "cube", "--grasp", "1", "1"], "cube grasp 1 is given twice"),
+    (["--grasps", "/nonexistent/g.json"], "no such file"),
+    (["--processes", "0"], "--processes must be >= 1"),
+])
+def test_cli_errors_are_one_line(tmp_path, args, message):
+    result = run_cli("validate", "--out", str(tmp_path / "out"), *args)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_cli_refuses_a_file_as_the_output_folder(tmp_path):
+    target = tmp_path / "f"
+    target.write_text("")
+    result = run_cli("validate", "--object", "cube", "--out", str(target))
+    assert result.returncode == 2 and "is a file; give a folder" in result.stderr
+
+
+def test_physics_engine_is_registered():
+    from kinegrasp_env.cli.common import ENGINE_NAMES
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import ENGINES
+
+    assert "physics" in ENGINES and ENGINE_NAMES == ENGINES
+    engine = make_engine("physics", "cube")
+    try:
+        assert engine.name == "physics"
+    finally:
+        engine.close()
+    with pytest.raises(ValueError, match="physics"):
+        make_engine("nope", "cube")
+
+
+@pytest.mark.expensive
+def test_physics_evaluate_in_a_process_pool_equals_one_process():
+    """Engines built once per worker: 2 processes, 2 chunks give the same numbers as 1."""
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    grasp = shipped_grasps("cube")[0]
+    runs = [evaluate_grasp(grasp, JointNoise(0.0133), 6, seed=2, engine="physics",
+                           processes=p, chunk=3) for p in (1, 2)]
+    assert runs[0].outcomes == runs[1].outcomes
+    assert runs[0].q_mean == runs[1].q_mean or (np.isnan(runs[0].q_mean)
+                                                 and np.isnan(runs[1].q_mean))
