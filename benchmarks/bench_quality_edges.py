@@ -24,6 +24,8 @@ the wall time and on a shared one is not inflated by the other processes.
    largest single-grasp time over 5 grasps, and the growth of the peak resident memory (MB;
    qhull allocates outside numpy), each m in a fresh process.
    ``quality.wrenches.MAX_EDGES`` is chosen from this table.
+3. The L-infinity hull (``norm="linf"``: qhull of the (m + 1)^k Minkowski-sum points) per
+   ``--linf`` pair k x m, likewise; ``epsilon.LINF_MAX_POINTS`` is chosen from this table.
 """
 
 from __future__ import annotations
@@ -124,11 +126,22 @@ def three_contact_worker(m: int, batch: int, seed: int) -> dict:
     return out
 
 
-def qhull_worker(k: int, m: int, seed: int) -> dict:
-    """Section 2 for one (k, m), in this (fresh) process."""
+def minkowski_points(w: np.ndarray, k: int) -> np.ndarray:
+    """(m + 1)^k points: sums of one of {0, edge wrenches} per contact (w: (k m, 6))."""
+    total = np.zeros((1, 6))
+    for block in w.reshape(k, -1, 6):
+        options = np.vstack([np.zeros((1, 6)), block])
+        total = (total[:, None, :] + options[None, :, :]).reshape(-1, 6)
+    return total
+
+
+def qhull_worker(k: int, m: int, seed: int, linf: int = 0) -> dict:
+    """Sections 2 and 3 for one (k, m), in this (fresh) process."""
     small = contact_wrenches(4, 3, 1, 99)
     qhull_q(small[0])
     w = contact_wrenches(k, m, 5, seed)
+    if linf:
+        w = np.stack([minkowski_points(x, k) for x in w])
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     times = []
     for x in w:
@@ -183,6 +196,19 @@ def qhull_bound_table(k: int, edges: list[int], seed: int) -> None:
               f"{res['mb']:7.0f}", flush=True)
 
 
+def linf_table(pairs: list[str], seed: int) -> None:
+    print("\n3. L-infinity hull (qhull of the Minkowski sum): one grasp per call, 5 grasps")
+    print(f"{'k x m':>6} {'points':>6} | {'median ms':>9} {'max ms':>9} | {'peak MB':>7}")
+    for pair in pairs:
+        k, m = (int(x) for x in pair.split("x"))
+        res = in_fresh_process("qhull", k, m, seed, 1)
+        if "error" in res:
+            print(f"{pair:>6} {(m + 1) ** k:6d} | failed: {res['error']}", flush=True)
+            continue
+        print(f"{pair:>6} {(m + 1) ** k:6d} | {res['median'] * 1e3:9.1f} "
+              f"{res['max'] * 1e3:9.1f} | {res['mb']:7.0f}", flush=True)
+
+
 def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--worker":
         task, args = sys.argv[2], [int(a) for a in sys.argv[3:]]
@@ -196,10 +222,13 @@ def main() -> None:
     parser.add_argument("--contacts", type=int, default=6)
     parser.add_argument("--bound-edges", type=int, nargs="+",
                         default=[8, 12, 16, 20, 24, 28, 32, 40, 48])
+    parser.add_argument("--linf", nargs="+", default=["3x4", "3x8", "3x10", "4x5", "3x12",
+                                                      "6x3", "3x16"])
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     three_contact_table(args.edges, args.batch, args.seed)
     qhull_bound_table(args.contacts, args.bound_edges, args.seed)
+    linf_table(args.linf, args.seed)
 
 
 if __name__ == "__main__":

@@ -110,7 +110,7 @@ def ground_truth(grasps, folder: Path, processes: int) -> np.ndarray:
 
 def run_seed(task: tuple) -> dict:
     """One repetition: ``rank_adaptive`` on seed ``seed`` with cached per-draw outcomes."""
-    grasps, folder, seed, samples, top_k, delta = task
+    grasps, folder, seed, samples, top_k, delta, fixed = task
     from kinegrasp_env.sampling.stats import StreamingMoments
     from kinegrasp_env.toolkit import ranking
 
@@ -133,11 +133,15 @@ def run_seed(task: tuple) -> dict:
     max_chunks = samples // CHUNK
     report = ranking.rank_adaptive(len(grasps), evaluator, max_chunks, CHUNK, top_k=top_k,
                                    delta=delta)
+    fixed_top = None
+    if fixed:  # the fixed-n run's top k: every candidate's whole budget, best P(FC) first
+        p_hat = [evaluator(i, 0, max_chunks)[0] for i in range(len(grasps))]
+        fixed_top = sorted(np.argsort(-np.array(p_hat), kind="stable")[:top_k].tolist())
     if fresh:
         save_bits(path, store)
     return {"seed": seed, "draws": report.draws, "fixed": report.fixed_draws,
             "top": sorted(report.top), "separated": report.separated, "fresh": fresh,
-            "paired": paired}
+            "paired": paired, "fixed_top": fixed_top}
 
 
 def truth_line(gt: np.ndarray, ids: list[str], top_k: int) -> str:
@@ -162,11 +166,15 @@ def summary(name: str, rows: list[dict], truth: set[int], n: int, samples: int, 
     separated = sum(r["separated"] for r in rows)
     fresh = sum(r["fresh"] for r in rows)
     mode = "paired" if rows[0]["paired"] else "unpaired"
+    fixed = ""
+    if rows[0]["fixed_top"] is not None:
+        fixed_errors = sum(set(r["fixed_top"]) != truth for r in rows)
+        fixed = f"; fixed-n top-k errors {fixed_errors}/{len(rows)}"
     return (f"set {name} ({n} candidates, top {top_k}, {samples} draws each, fixed n "
             f"{n * samples}, delta {delta}, {mode}): draws/fixed-n mean {used.mean():.3f} "
             f"max {used.max():.3f}; top-k errors {errors}/{len(rows)} = "
             f"{errors / len(rows):.3f} (Wilson 95% {lo:.3f}..{hi:.3f}); separated "
-            f"{separated}/{len(rows)}; {seconds:.0f} s, {fresh} draws computed")
+            f"{separated}/{len(rows)}{fixed}; {seconds:.0f} s, {fresh} draws computed")
 
 
 def bench_set(name: str, args, pool) -> None:
@@ -186,7 +194,8 @@ def bench_set(name: str, args, pool) -> None:
     truth = set(np.argsort(-gt.mean(axis=1), kind="stable")[:top_k].tolist())
     print(f"set {name}: {spec['label']} ({ranking.__file__})")
     print(truth_line(gt, ids, top_k), flush=True)
-    tasks = [(grasps, str(folder), seed, samples, top_k, args.delta) for seed in range(args.reps)]
+    tasks = [(grasps, str(folder), seed, samples, top_k, args.delta, args.fixed_n_errors)
+             for seed in range(args.reps)]
     rows = list(pool.imap(run_seed, tasks)) if pool else [run_seed(t) for t in tasks]
     print(summary(name, rows, truth, len(grasps), samples, top_k, args.delta,
                   time.perf_counter() - start), flush=True)
@@ -201,6 +210,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--top-k", type=int, help="default: the set's")
     parser.add_argument("--delta", type=float, default=0.05)
     parser.add_argument("--cache", help="cache folder (default: <cache_root>/bench_ranking)")
+    parser.add_argument("--fixed-n-errors", action="store_true",
+                        help="also the fixed-n run's top-k errors (draws every candidate's "
+                        "whole budget: slow where adaptive ranking saves much)")
     args = parser.parse_args(argv)
     names = args.sets.split(",")
     if unknown := [n for n in names if n not in SETS]:

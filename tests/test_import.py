@@ -170,6 +170,25 @@ def test_winding_number_against_contains(rng):
     np.testing.assert_array_equal(inside, mesh.contains(points))
 
 
+def test_simplified_hull_error_is_exact():
+    """A 642-vertex sphere hull cut to 96 vertices: a subset of the vertices, and the error it
+    reports is the exact distance of the farthest original vertex outside the simplified hull
+    (independent: exact point-to-polytope distances); a tolerance stops it earlier."""
+    from kinegrasp_env.world.decompose import simplify_hull
+
+    vertices = np.asarray(trimesh.creation.icosphere(subdivisions=3, radius=0.03).vertices)
+    kept, error = simplify_hull(vertices, cap=96, tolerance=0.0)
+    assert len(kept) == 96
+    assert {tuple(v) for v in kept} <= {tuple(v) for v in vertices}
+    part = ConvexPart(kept, face_planes(kept))
+    assert error == pytest.approx(part.closest(vertices)[1].max(), abs=1e-12)
+    assert 0 < error < 0.03 * (1 - math.cos(0.5))  # below a 1-radian cap's sagitta
+    coarse, coarse_error = simplify_hull(vertices, cap=96, tolerance=2e-3)
+    assert len(coarse) < 96 and coarse_error <= 2e-3
+    same, none = simplify_hull(vertices[:50], cap=96)
+    assert none == 0.0 and np.array_equal(same, vertices[:50])
+
+
 def test_compiled_grid_distances_equal_numpy(rng):
     """The grid kernel (imported objects) against ConvexPart.closest (numpy) on a CoACD-like
     part with many edges: equal to 1e-12 m, and it keeps ``current`` only where that is

@@ -38,6 +38,7 @@ from kinegrasp_env.quality import (
     wrench_matrix,
 )
 from kinegrasp_env.quality.epsilon import (
+    LINF_MAX_POINTS,
     TABLES_MAX_EDGES,
     TABLES_MIN_EDGES,
     grasp_wrench_space_volume,
@@ -239,8 +240,6 @@ PHASE_ONE = {
 }
 
 
-@pytest.mark.xfail(strict=True, reason="expansion.py: phase-1 'outside' without a certificate "
-                                       "(fix described in the issue 17 report)")
 def test_phase_one_regression():
     """Regression (Hypothesis): auto agrees with qhull and the LP on this force-closure set."""
     kw = keywords(PHASE_ONE)
@@ -390,8 +389,8 @@ def junk_calls(draw) -> dict:
           "num_edges": 8, "torque_scale": 1e10, "center": (0.0, 0.0, 0.0), "method": "auto"})
 def test_any_input_gives_a_quality_or_a_value_error(call):
     """Never a crash nor a numpy warning: any input either gives a finite Q >= 0 or raises
-    a one-line ValueError of the library's own (not numpy's LinAlgError, a subclass). Found:
-    torques overflowing to inf made the SVD raise LinAlgError."""
+    a one-line ValueError of the library's own (not numpy's LinAlgError, a subclass). The
+    explicit example: torques overflowing to inf made the SVD raise LinAlgError."""
     try:
         q = ferrari_canny(**call)
     except ValueError as err:
@@ -401,10 +400,10 @@ def test_any_input_gives_a_quality_or_a_value_error(call):
 
 
 def test_huge_normals_and_overflowing_torques():
-    """Regressions found by Hypothesis: normals of length 1e200 were refused as "zero
-    length" (their squared length overflowed); torques beyond 1e154 raised LinAlgError from
-    the SVD, or gave Q = 0 with overflow warnings. Now: the same Q as unit normals, and one
-    ValueError naming the torques."""
+    """Regressions (an overflow warning in the Hypothesis run above led to them): normals of
+    length 1e200 were refused as "zero length" (their squared length overflowed); torques
+    beyond ~1e154 raised LinAlgError from the SVD, or gave Q = 0 with overflow warnings.
+    Now: the same Q as unit normals, and one ValueError naming the torques."""
     angle = np.deg2rad([0.0, 120.0, 240.0])
     outward = np.stack([np.cos(angle), np.sin(angle), 0.0 * angle], axis=1)
     q = ferrari_canny(0.05 * outward, -outward, torque_scale=20.0)
@@ -442,6 +441,17 @@ def test_num_edges_above_the_bound_is_refused(num_edges):
         with pytest.raises(ValueError, match=rf"num_edges must be an integer >= 3 and <= "
                                              rf"{MAX_EDGES}.*got {num_edges}$"):
             call(pts, -pts / 0.05, num_edges=num_edges)
+
+
+@pytest.mark.parametrize(("k", "num_edges"), [(6, 3), (4, 8), (3, 12)])
+def test_linf_hull_beyond_its_bound_is_refused(k, num_edges):
+    """(m + 1)^k Minkowski-sum points above LINF_MAX_POINTS (1,500; 4,913 points took 5.7 s
+    and 400 MB, the old bound 200,000 would take far more) are one ValueError."""
+    angle = np.linspace(0.0, 2 * np.pi, k, endpoint=False)
+    outward = np.stack([np.cos(angle), np.sin(angle), 0.0 * angle], axis=1)
+    with pytest.raises(ValueError, match=rf"would need {(num_edges + 1) ** k} points \(more "
+                                         rf"than {LINF_MAX_POINTS}\)"):
+        ferrari_canny(0.05 * outward, -outward, num_edges=num_edges, norm="linf")
 
 
 @pytest.mark.parametrize("num_edges", [2, 8.5, float("nan"), float("inf"), "8", None])

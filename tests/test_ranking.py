@@ -229,7 +229,7 @@ def test_adaptive_bad_arguments():
     def short(index, first, count):  # outcomes that do not match the counts
         successes, trials, moments, hits = paired_evaluator([0.5, 0.6], 0)(index, first, count)
         return successes, trials, moments, hits[:-1]
-    with pytest.raises(ValueError, match="candidate 0: .* per-draw outcomes"):
+    with pytest.raises(ValueError, match=r"candidate 0: .* per-draw outcomes"):
         rank_adaptive(2, short, 10, CHUNK)
 
 

@@ -86,11 +86,14 @@ FAKE = [fake_draws("cube", 0, [FC, FC, FC, NFC], [FC, FC, NFC, NFC], [1, 1, 0, 0
 def test_summary_pools_the_draws_and_ranks_the_grasps():
     settings = ValidationSettings(sigma=0.01, samples=4)
     summary = summarize(FAKE, settings, bootstrap_seed=0, resamples=50)
-    # hand count over the 12 draws: kinematic FC draws 0-2 (grasp 0) and 4 (grasp 1);
-    # held draws 0, 1, 5, 7
+    # hand count over the 12 pooled draws 0..11: kinematic FC 0, 1, 2, 4; physics FC 0, 1,
+    # 4, 5, 11; held 0, 1, 5, 7
+    # kinematic vs held: TT 0, 1; TF 2, 4; FT 5, 7; FF the other 6
     assert summary["confusion"]["kinematic_fc_vs_held"] == [[6, 2], [2, 2]]
-    assert summary["confusion"]["physics_fc_vs_held"] == [[6, 2], [2, 2]]
-    assert summary["confusion"]["kinematic_fc_vs_physics_fc"] == [[6, 2], [2, 2]]
+    # physics vs held: TT 0, 1, 5; TF 4, 11; FT 7; FF the other 6
+    assert summary["confusion"]["physics_fc_vs_held"] == [[6, 1], [2, 3]]
+    # kinematic vs physics: TT 0, 1, 4; TF 2; FT 5, 11; FF the other 6
+    assert summary["confusion"]["kinematic_fc_vs_physics_fc"] == [[6, 2], [1, 3]]
     rows = summary["grasps"]
     assert [r["p_fc_kinematic"] for r in rows] == [0.75, 0.25, 0.0]
     assert [r["p_hold"] for r in rows] == [0.5, 0.5, 0.0]
@@ -122,19 +125,39 @@ def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch
     assert set(paths) >= {"draws", "grasps", "summary"}
 
 
+def test_a_cached_grasp_with_fewer_draws_runs_only_the_missing_ones(tmp_path, monkeypatch):
+    settings = ValidationSettings(sigma=0.01, samples=6)
+    grasp = shipped_grasps("cube")[0]
+    path = tmp_path / "cache" / f"cube_0_{validation.settings_key(grasp, settings)}.npz"
+    path.parent.mkdir()
+    path.write_bytes(FAKE[0].to_bytes())  # 4 draws cached
+    starts = []
+
+    def two_more(task):
+        starts.append(task[3])
+        return fake_draws("cube", 0, [MISS, FC], [MISS, FC], [0, 1])
+
+    monkeypatch.setattr(validation, "grasp_draws", two_more)
+    (draws,) = run_validation([(0, grasp)], settings, tmp_path)
+    assert starts == [4]
+    np.testing.assert_array_equal(draws.held, [1, 1, 0, 0, 0, 1])
+    np.testing.assert_array_equal(draws.kin_outcome, [FC, FC, FC, NFC, MISS, FC])
+    assert len(GraspDraws.from_file(path, 100)) == 6  # the cache holds all six now
+
+
 @pytest.mark.expensive
 def test_same_seed_same_table_twice(tmp_path):
-    """The issue's "same seed, same table": two fresh runs (no cache) of two cube grasps,
-    3 draws each, give identical per-draw results and identical grasps.csv files."""
+    """The issue's "same seed, same table": a fresh run of two cube grasps, 3 draws each,
+    and another fresh run made of 2 draws then extended to 3 (the cache) give identical
+    per-draw tables and identical grasps.csv files."""
     settings = ValidationSettings(sigma=0.0333, samples=3, seed=5)
     grasps = list(enumerate(shipped_grasps("cube")))[:2]
-    tables = []
+    run_validation(grasps, ValidationSettings(sigma=0.0333, samples=2, seed=5), tmp_path / "b")
     for run in ("a", "b"):
         results = run_validation(grasps, settings, tmp_path / run, processes=1)
         write_results(tmp_path / run, results, summarize(results, settings, resamples=20))
-        tables.append((tmp_path / run / "grasps.csv").read_text())
-    assert tables[0] == tables[1]
-    assert (tmp_path / "a" / "draws.csv").read_text() == (tmp_path / "b" / "draws.csv").read_text()
+    for table in ("grasps.csv", "draws.csv"):
+        assert (tmp_path / "a" / table).read_text() == (tmp_path / "b" / table).read_text()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -244,9 +244,9 @@ def executor_from(args):
         return make_executor(args.backend, processes, args.address)
 
 
-def add_engine_arg(parser: argparse.ArgumentParser) -> None:
-    """``--engine``: pybullet, fast or physics."""
-    parser.add_argument("--engine", default="pybullet", choices=ENGINE_NAMES,
+def add_engine_arg(parser: argparse.ArgumentParser, default: str = "pybullet") -> None:
+    """``--engine``: pybullet, fast or physics (``default`` unless given)."""
+    parser.add_argument("--engine", default=default, choices=ENGINE_NAMES,
                         help="pybullet (the reference), fast (batched, same draws) or "
                              "physics (pybullet dynamics, same draws; slow)")
 

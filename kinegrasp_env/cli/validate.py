@@ -99,15 +99,15 @@ def shipped_grasp_set(name: str, shipped_grasps) -> list:
         return shipped_grasps(name)
 
 
-def settings_from(args):
+def settings_from(args) -> dict:
+    """The ``ValidationSettings`` fields, checked (without importing the physics)."""
     from kinegrasp_env.cli.common import MAX_SIGMA
-    from kinegrasp_env.toolkit.validation import ValidationSettings
 
     sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
     if sigma > MAX_SIGMA:
         raise CLIError(f"--sigma {sigma:g} rad is above the bound pi ({MAX_SIGMA:.4f} rad)")
-    return ValidationSettings(sigma=sigma, samples=positive_int(args.samples, "--samples"),
-                              seed=parse_seed(args.seed), kinematic=args.kinematic_engine)
+    return {"sigma": sigma, "samples": positive_int(args.samples, "--samples"),
+            "seed": parse_seed(args.seed), "kinematic": args.kinematic_engine}
 
 
 def output_folder(text: str) -> Path:
@@ -123,13 +123,14 @@ def output_folder(text: str) -> Path:
 
 
 def cmd_validate(args) -> int:
-    from kinegrasp_env.toolkit.validation import run_validation
-    from kinegrasp_env.toolkit.validation_report import summarize, write_results
-
-    settings = settings_from(args)
+    fields = settings_from(args)
     processes = positive_int(args.processes, "--processes")
     out = output_folder(args.out)
     grasps = selected_grasps(args)
+    from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
+    from kinegrasp_env.toolkit.validation_report import summarize, write_results
+
+    settings = ValidationSettings(**fields)
     results = run_validation(grasps, settings, out, processes, progress=True)
     summary = summarize(results, settings, bootstrap_seed=settings.seed)
     paths = write_results(out, results, summary)

@@ -37,9 +37,8 @@ import numpy as np
 import pybullet
 from scipy.spatial import ConvexHull
 
-from kinegrasp_env.assets import asset_path
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
+from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
 
 #: Gravity, m/s^2 (world -z).
 GRAVITY = 9.81
@@ -132,21 +131,14 @@ def write_parts_obj(parts: tuple[np.ndarray, ...], path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def load_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
+def load_dynamic_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
     """The hand URDF with a dynamic base: (body, joint name -> index, link name -> index (-1:
     the root)), collision margins zero, friction 1.0 (see the module docstring), the root
     link as heavy as :data:`ROOT_MASS`."""
-    hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=False,
-                           flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
-    joint_index: dict[str, int] = {}
-    link_index: dict[str, int] = {"hand_root": -1}
-    for j in range(bullet.getNumJoints(hand)):
-        info = bullet.getJointInfo(hand, j)
-        joint_index[info[1].decode()] = j
-        link_index[info[12].decode()] = j
+    hand, joint_index, link_index = load_hand(bullet, fixed_base=False)
     for link in link_index.values():
-        bullet.changeDynamics(hand, link, collisionMargin=0.0, lateralFriction=1.0,
-                              linearDamping=0.0, angularDamping=0.0)
+        bullet.changeDynamics(hand, link, lateralFriction=1.0, linearDamping=0.0,
+                              angularDamping=0.0)
     bullet.changeDynamics(hand, -1, mass=ROOT_MASS, localInertiaDiagonal=[ROOT_INERTIA] * 3)
     return hand, joint_index, link_index
 
@@ -171,7 +163,7 @@ class PhysicsWorld(BulletWorld):
         bullet.setTimeStep(self.settings.time_step)
         bullet.setPhysicsEngineParameter(numSolverIterations=self.settings.solver_iterations,
                                          deterministicOverlappingPairs=1)
-        hand, self.joint_index, self.link_index = load_hand(bullet)
+        hand, self.joint_index, self.link_index = load_dynamic_hand(bullet)
         self.bodies["hand"] = hand
         self.mass, moments, self.inertial = mass_properties(obj, self.settings.density)
         self.inertial_inverse = np.linalg.inv(self.inertial)

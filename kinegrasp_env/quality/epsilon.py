@@ -37,15 +37,19 @@ from kinegrasp_env.quality.wrenches import (
 
 Method = Literal["auto", "fast", "qhull"]
 Norm = Literal["l1", "linf"]
-#: Largest number of Minkowski-sum points the L-infinity hull is built from.
-LINF_MAX_POINTS = 200_000
+#: Largest number (m + 1)^k of Minkowski-sum points the L-infinity hull is built from. Its
+#: qhull (benchmarks/bench_quality_edges.py, section 3, CPU of one core, one grasp) takes
+#: 0.36 s and 50 MB for 729 points (3 contacts, m = 8), 0.66-0.87 s and 77-98 MB for
+#: 1,296-1,331, 1.7-2.0 s and 170-190 MB for 2,197-4,096, 5.7 s and 400 MB for 4,913.
+LINF_MAX_POINTS = 1500
 #: Cone edges m the three-contact tables serve: where they are the fastest batched path
-#: (benchmarks/bench_quality_edges.py, batches of 400, CPU us per grasp, tables vs the
-#: expansion with its qhull fallback vs qhull): m = 3: 15 vs 8 vs 46; 4: 24 vs 24 vs 265;
-#: 8: 91 vs 117 vs 1874; 16: 341 vs 347 vs 12201; 20: 606 vs 854 vs 23306; 24 (3 m beyond
-#: the expansion's reach): 1036 vs - vs 37799. Their constant tables and work arrays grow
-#: as m^3 (peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32): above 24, qhull (95 ms and
-#: ~10 MB per grasp at m = 32).
+#: (benchmarks/bench_quality_edges.py, batches of 400, CPU us per grasp, two runs, tables
+#: vs the expansion with its qhull fallback vs qhull): m = 3: 15-17 vs 8 vs 47; 4: 24-26 vs
+#: 24-25 vs 290; 8: 91-104 vs 117-122 vs 1900; 14: 246-263 vs 349-358 vs 8600; 16: 341-406
+#: vs 347-360 vs 12500 (a tie); 20: 606-789 vs 854-866 vs 23500; 24 (3 m beyond the
+#: expansion): 1036-1401 vs - vs 41000. Their constant tables and work arrays grow as m^3
+#: (numpy peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32), so above 24 qhull serves (0.1 s
+#: and ~10 MB per grasp at m = 32).
 TABLES_MIN_EDGES = 4
 TABLES_MAX_EDGES = 24
 #: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing

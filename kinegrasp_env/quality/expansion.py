@@ -88,6 +88,28 @@ def _pivot(tab: np.ndarray, leave: int, enter: int) -> None:
 
 
 @jit.kernel
+def _separates(w: np.ndarray, tab: np.ndarray) -> bool:
+    """True when the final phase-1 tableau (8, N + 8) certifies that the origin is outside
+    conv(W): its duals y_i = 1 - tab[7, N + i] give u = y[:6] with u . w_j < 0 for every
+    wrench w_j (N, 6), by more than rounding (a separating hyperplane). False when rounding
+    (a tiny pivot) has spoiled the tableau: the answer is then left undecided."""
+    n = w.shape[0]
+    u = np.empty(6)
+    size = 0.0
+    for c in range(6):
+        u[c] = 1.0 - tab[7, n + c]
+        size += u[c] * u[c]
+    margin = 1e-9 * np.sqrt(size) * _wrench_scale(w)
+    for j in range(n):
+        d = 0.0
+        for c in range(6):
+            d += u[c] * w[j, c]
+        if d >= -margin:
+            return False
+    return True
+
+
+@jit.kernel
 def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
     """Indices (7,) of wrenches whose simplex contains the origin, [-1] if the origin is
     outside conv(W), [-2] if undecided (degenerate basis)."""
@@ -112,8 +134,8 @@ def _initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
         basis[leave] = enter
     else:
         return np.array([-2])
-    if -tab[rows, cols] > 1e-9:
-        return np.array([-1])
+    if -tab[rows, cols] > 1e-9:  # infeasible, if the duals certify it
+        return np.array([-1]) if _separates(w, tab) else np.array([-2])
     for i in range(rows):
         if basis[i] >= n:
             return np.array([-2])

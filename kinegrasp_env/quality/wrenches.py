@@ -23,8 +23,8 @@ FC_TOL = 1e-12
 RANK_TOL = 1e-10
 #: Most cone edges m accepted. Every grasp can fall back to qhull, whose cost grows steeply
 #: with the number of wrenches: one grasp of 6 contacts (benchmarks/bench_quality_edges.py,
-#: CPU time of one core) takes 0.20 s and 26 MB at m = 24, 0.55 s and 49 MB at m = 32,
-#: 1.24 s at m = 40 and 2.4 s at m = 48; 32 keeps it under ~1 s.
+#: CPU time of one core, two runs) takes 0.20 s and 26 MB at m = 24, 0.55-0.68 s and 50 MB
+#: at m = 32, 1.2-1.6 s at m = 40, 2.4-3.0 s and 127 MB at m = 48; 32 keeps it under ~1 s.
 MAX_EDGES = 32
 #: Largest |wrench coordinate| accepted (torques are torque_scale * |p - c| * |f|; the hull
 #: computations square coordinates, and 1e154 squared overflows).

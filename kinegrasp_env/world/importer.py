@@ -40,6 +40,8 @@ from kinegrasp_env.world.decompose import (
     COACD_SEED,
     DEFAULT_MAX_PARTS,
     DEFAULT_THRESHOLD,
+    HULL_TOLERANCE,
+    MAX_HULL_VERTICES,
     decompose,
     mass_properties,
 )
@@ -137,7 +139,8 @@ def source_digest(source: SourceMesh) -> str:
 def entry_key(digest: str, settings: ImportSettings) -> str:
     """The key an entry is reused by: the files' digest, the settings and the layout."""
     text = json.dumps({"files": digest, **asdict(settings), "seed": COACD_SEED,
-                       "format": FORMAT_VERSION}, sort_keys=True)
+                       "hull": [MAX_HULL_VERTICES, HULL_TOLERANCE], "format": FORMAT_VERSION},
+                      sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -161,10 +164,10 @@ def import_object(path: str | Path, name: str | None = None,
         entry = read_entry(existing)
         if entry.get("key") == key:
             return ImportResult(name, existing, True, 0.0, entry)
+        given = {k: v for k, v in entry.get("settings", {}).items() if k in asdict(settings)}
         raise CatalogError(f"object {name!r} already exists (from "
-                           f"{entry.get('source', {}).get('path', '?')}, settings "
-                           f"{entry.get('settings')}); add --force to replace it, or give "
-                           "another --name")
+                           f"{entry.get('source', {}).get('path', '?')}, settings {given}); "
+                           "add --force to replace it, or give another --name")
     prepared = prepare(source, settings.scale, Path(path))
     root = catalog_dir()
     root.mkdir(parents=True, exist_ok=True)
@@ -233,7 +236,8 @@ def build_entry(source: SourceMesh, prepared: Prepared, name: str, key: str,
         "format": FORMAT_VERSION, "name": name, "key": key,
         "source": {"path": str(path.resolve()), "description": source.description,
                    "sha256": source_digest(source)},
-        "settings": {**asdict(settings), "seed": COACD_SEED},
+        "settings": {**asdict(settings), "seed": COACD_SEED,
+                     "max_hull_vertices": MAX_HULL_VERTICES, "hull_tolerance": HULL_TOLERANCE},
         "source_to_object": to_object.tolist(), "pose": None,
         "center_of_mass": com.tolist(), "r_max": r_max, "volume": volume,
         "size": np.asarray(mesh.extents, dtype=float).tolist(), "thickness": width,

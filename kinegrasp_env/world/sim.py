@@ -148,6 +148,23 @@ class BulletWorld:
             pass
 
 
+def load_hand(bullet, fixed_base: bool = True) -> tuple[int, dict[str, int], dict[str, int]]:
+    """The SDH hand URDF in ``bullet`` (a BulletClient): (body, joint name -> pybullet joint
+    index, link name -> link index (-1: the root ``hand_root``)), every link's collision
+    margin zero; ``fixed_base`` False: a dynamic root (the physics engine)."""
+    hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=fixed_base,
+                           flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+    joint_index: dict[str, int] = {}
+    link_index: dict[str, int] = {"hand_root": -1}
+    for j in range(bullet.getNumJoints(hand)):
+        info = bullet.getJointInfo(hand, j)
+        joint_index[info[1].decode()] = j
+        link_index[info[12].decode()] = j
+    for link in link_index.values():
+        bullet.changeDynamics(hand, link, collisionMargin=0.0)
+    return hand, joint_index, link_index
+
+
 class GraspWorld(BulletWorld):
     """The hand and one object.
 
@@ -160,18 +177,7 @@ class GraspWorld(BulletWorld):
     def __init__(self, obj: GraspObject, gui: bool = False) -> None:
         super().__init__(gui)
         self.obj = obj
-        bullet = self.bullet
-        hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=True,
-                               flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
-        self.bodies["hand"] = hand
-        self.joint_index: dict[str, int] = {}
-        self.link_index: dict[str, int] = {"hand_root": -1}
-        for j in range(bullet.getNumJoints(hand)):
-            info = bullet.getJointInfo(hand, j)
-            self.joint_index[info[1].decode()] = j
-            self.link_index[info[12].decode()] = j
-        for link in self.link_index.values():
-            bullet.changeDynamics(hand, link, collisionMargin=0.0)
+        self.bodies["hand"], self.joint_index, self.link_index = load_hand(self.bullet)
         self.bodies["object"] = self._load_object(obj)
 
     def _load_object(self, obj: GraspObject) -> int:
