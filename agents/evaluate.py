@@ -1,20 +1,48 @@
-"""Compare elbow-angle choices on held-out grasps: nominal IK, random, trained policy, oracle.
+"""Compare elbow-angle choices on held-out grasps: nominal IK, random, palm-spread rule, trained
+policy, oracle and the elbow optimizer.
 
 Example (the committed table):
     python agents/evaluate.py --model agents/models/KineGraspSelect-v0_ppo.zip --seed 0 \
         --out agents/models/evaluation.json
+Recompute the statistics of an existing result from its per-grasp rows (no evaluation run):
+    python agents/evaluate.py --summarize agents/models/evaluation.json
 
-For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each object's
-shipped set) at noise ``--sigma``, the arm configuration chosen by each method is evaluated
-with ``--draws`` Monte Carlo draws (the same seed for every method: common random numbers).
-Methods: ``nominal`` (the grasp's IK configuration), ``random`` (the mean over
-``--random-angles`` uniformly drawn elbow angles, ``--draws`` in all: the expected P(FC)
-of picking the elbow at random), ``spread`` (no learning: of the oracle's grid, the angle
-with the smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))),
-``policy`` (the trained model, deterministic) and ``oracle`` (searches the grid of elbow
-angles with ``--oracle-draws`` draws each, then is evaluated like the others). Prints a
-table of mean P(FC) over the grasps with 95% intervals and the paired differences policy -
-baseline; writes JSON. ``--quick`` shrinks everything.
+**Scoring.** For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each
+object's shipped set) at noise ``--sigma``, the arm configuration chosen by each method is
+evaluated with ``--draws`` Monte Carlo draws of the reference (pybullet) engine on chunks
+``0..K-1`` of ``--seed`` (K = ceil(draws / 250)), the same draws for every method (common
+random numbers).
+
+**Methods.** ``nominal`` (the grasp's IK configuration); ``random`` (the mean over
+``--random-angles`` uniformly drawn elbow angles, ``--draws`` in all: the expected P(FC) of
+picking the elbow at random); ``spread`` (no learning: of the oracle's grid, the angle with the
+smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))); ``policy`` (the
+trained model, deterministic); ``oracle`` (the best of a grid of ``--grid`` elbow angles by
+``--oracle-draws`` draws each, drawn on chunks ``K, K+1, ...`` of the seed: selection draws
+independent of the scoring draws); ``optimizer`` (the reference,
+:func:`kinegrasp_env.toolkit.elbow.optimize_elbow` with ``--optimizer-samples`` fast-engine
+draws per angle and seed ``--optimizer-seed``, default seed + 1: its selection draws are
+independent of the scoring draws too; ``--optimizer-samples 0`` leaves it out). Each row also
+records the decision time of the methods that decide (``seconds_<method>``, wall clock).
+
+**Statistics** (:func:`summarize`, from the per-grasp rows alone; n = number of grasps):
+
+- ``mean_p_fc[m] = [mean, lo, hi]``: the mean P(FC) over the grasps with a 95% Student-t
+  interval, mean +- t(0.975, n-1) s / sqrt(n).
+- ``paired_differences["policy-m"] = [mean, lo, hi]``: the paired difference policy - m per
+  grasp, with an unadjusted 95% Student-t interval (same layout as before).
+- ``paired_tests["policy-m"]``: the paired t-test (two-sided, df = n - 1) of each comparison
+  made (policy vs each baseline present, m of them): ``p``; Holm's step-down adjustment over
+  the m p-values, ``p_holm`` (sort ascending, p_(j) -> max over i <= j of
+  min(1, (m - i + 1) p_(i))); ``ci`` (the unadjusted 95% t-interval) and ``ci_simultaneous``,
+  Bonferroni t-intervals at level 1 - 0.05 / m each, which cover all m differences at once
+  with probability >= 95%. Holm is uniformly more powerful than Bonferroni, so a comparison
+  can be Holm-significant (p_holm < 0.05) while its Bonferroni interval still touches zero;
+  an interval that excludes zero always means p_holm < 0.05. Also the wins/losses/ties of the
+  policy (per-grasp differences > 0, < 0, == 0).
+- ``optimizer_gain_fraction[m]`` (when the optimizer ran): (mean_m - mean_nominal) /
+  (mean_optimizer - mean_nominal), the fraction of the optimizer's gain over nominal that m
+  reaches; ``decision_seconds[m]``: the mean decision time.
 """
 
 from __future__ import annotations
@@ -22,21 +50,180 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import tempfile
+import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from scipy import stats as sps
 
+#: Methods of every evaluation, in table order.
 METHODS = ("nominal", "random", "spread", "policy", "oracle")
+#: Methods added later; a result without them (an older file) is still summarized.
+OPTIONAL_METHODS = ("optimizer",)
+#: Keys :func:`summarize` writes (the rest of a result is its settings and rows).
+SUMMARY_KEYS = ("grasps", "statistics", "mean_p_fc", "paired_differences", "paired_tests",
+                "optimizer_gain_fraction", "decision_seconds")
+STATISTICS = ("Student-t 95% intervals (df = n - 1); paired t-tests of policy vs each "
+              "baseline, Holm step-down adjusted p-values over those comparisons; "
+              "simultaneous 95% intervals by Bonferroni (each at 1 - 0.05/m)")
 
 
-def _interval(values: np.ndarray) -> tuple[float, float, float]:
+class UsageError(ValueError):
+    """Bad command-line input (reported in one line, exit status 2)."""
+
+
+# ---------------------------------------------------------------------------- statistics
+def t_interval(values: np.ndarray, confidence: float = 0.95) -> tuple[float, float, float]:
+    """(mean, lo, hi) of values (n,) with a Student-t interval, df = n - 1 (nan for n < 2;
+    a zero-width interval when every value is equal)."""
+    values = np.asarray(values, dtype=float)
     mean = float(values.mean())
-    half = 1.96 * float(values.std(ddof=1)) / math.sqrt(values.size) if values.size > 1 else \
-        math.nan
+    if values.size < 2:
+        return mean, math.nan, math.nan
+    half = float(sps.t.ppf(0.5 + confidence / 2, values.size - 1)
+                 * values.std(ddof=1) / math.sqrt(values.size))
     return mean, mean - half, mean + half
 
 
+def paired_t_test(d: np.ndarray) -> tuple[float, float]:
+    """(t, two-sided p) of the paired differences d (n,) against a zero mean. Every d equal:
+    p = 1 if they are 0, else 0 (t = +-inf); n < 2: nan."""
+    d = np.asarray(d, dtype=float)
+    if d.size < 2:
+        return math.nan, math.nan
+    sd = float(d.std(ddof=1))
+    mean = float(d.mean())
+    if sd == 0.0:
+        return (0.0, 1.0) if mean == 0.0 else (math.copysign(math.inf, mean), 0.0)
+    t = mean / (sd / math.sqrt(d.size))
+    return t, float(2.0 * sps.t.sf(abs(t), d.size - 1))
+
+
+def holm(p_values: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values, in the input order; nan entries stay nan and do not
+    count as comparisons."""
+    p = np.asarray(p_values, dtype=float)
+    finite = np.flatnonzero(np.isfinite(p))
+    out = np.full(p.shape, math.nan)
+    order = finite[np.argsort(p[finite], kind="stable")]
+    m = order.size
+    running = 0.0
+    for rank, index in enumerate(order):
+        running = max(running, min(1.0, (m - rank) * p[index]))
+        out[index] = running
+    return out.tolist()
+
+
+def methods_in(rows: list[dict]) -> list[str]:
+    """The methods every row has a P(FC) for, in table order."""
+    return [m for m in METHODS + OPTIONAL_METHODS
+            if all(isinstance(r.get(m), (int, float)) for r in rows)]
+
+
+def paired_tests(rows: list[dict], baselines: list[str]) -> dict:
+    """Paired t-tests of policy - b for every baseline b, with Holm and Bonferroni (see the
+    module docstring)."""
+    diffs = {b: np.array([r["policy"] - r[b] for r in rows], dtype=float) for b in baselines}
+    tests = {b: paired_t_test(d) for b, d in diffs.items()}
+    adjusted = holm([tests[b][1] for b in baselines])
+    simultaneous = 1.0 - 0.05 / max(len(baselines), 1)
+    out = {}
+    for b, p_holm in zip(baselines, adjusted, strict=True):
+        d = diffs[b]
+        mean, lo, hi = t_interval(d)
+        _, slo, shi = t_interval(d, simultaneous)
+        out[f"policy-{b}"] = {
+            "mean": mean, "sd": float(d.std(ddof=1)) if d.size > 1 else math.nan,
+            "n": int(d.size), "df": int(d.size - 1), "t": tests[b][0], "p": tests[b][1],
+            "p_holm": p_holm, "ci": [lo, hi], "ci_simultaneous": [slo, shi],
+            "simultaneous_level": simultaneous, "wins": int((d > 0).sum()),
+            "losses": int((d < 0).sum()), "ties": int((d == 0).sum())}
+    return out
+
+
+def summarize(rows: list[dict]) -> dict:
+    """Every summary field of a result (:data:`SUMMARY_KEYS`), from its per-grasp rows alone.
+
+    Raises:
+        ValueError: no rows, or no policy column.
+    """
+    if not rows:
+        raise ValueError("no per-grasp rows to summarize")
+    methods = methods_in(rows)
+    if "policy" not in methods:
+        raise ValueError("the rows have no 'policy' P(FC) for every grasp")
+    baselines = [m for m in methods if m != "policy"]
+    means = {m: list(t_interval(np.array([r[m] for r in rows], dtype=float)))
+             for m in methods}
+    tests = paired_tests(rows, baselines)
+    summary = {"grasps": len(rows), "statistics": STATISTICS, "mean_p_fc": means,
+               "paired_differences": {k: [v["mean"], *v["ci"]] for k, v in tests.items()},
+               "paired_tests": tests}
+    if "optimizer" in methods:
+        gain = means["optimizer"][0] - means["nominal"][0]
+        summary["optimizer_gain_fraction"] = {
+            m: (means[m][0] - means["nominal"][0]) / gain if gain else math.nan
+            for m in methods}
+    timed = [m for m in methods if all(f"seconds_{m}" in r for r in rows)]
+    if timed:
+        summary["decision_seconds"] = {m: float(np.mean([r[f"seconds_{m}"] for r in rows]))
+                                       for m in timed}
+    return summary
+
+
+def resummarize(result: dict) -> dict:
+    """The result with its summary recomputed from its rows (every other key kept)."""
+    out = {k: v for k, v in result.items() if k not in SUMMARY_KEYS}
+    rows = out.pop("rows")
+    summary = summarize(rows)
+    ordered = {**out, "grasps": summary.pop("grasps"), "rows": rows}
+    ordered.update(summary)
+    return ordered
+
+
+def write_json_atomic(path: Path, payload: dict) -> None:
+    """Write payload to path via a temporary file in the same folder and a rename: a reader
+    sees the old file or the new one, never half of one."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as handle:
+            handle.write(json.dumps(payload, indent=1))
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def read_result(path: str) -> dict:
+    """An evaluation JSON with per-grasp rows.
+
+    Raises:
+        UsageError: missing or unreadable file, not JSON, or no rows.
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise UsageError(f"--summarize: no file {path}")
+    try:
+        result = json.loads(file.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise UsageError(f"--summarize: {path} is not a readable JSON file ({error})") from None
+    if not isinstance(result, dict) or not isinstance(result.get("rows"), list):
+        raise UsageError(f"--summarize: {path} has no per-grasp 'rows' list")
+    return result
+
+
+# ---------------------------------------------------------------------------- evaluation
 def palm_spread(env, q: np.ndarray) -> float:
     """Palm-position spread per unit joint noise at arm+hand configuration q (14,): the
     root of the trace of J_p J_p^T over the 7 arm joints (metres per radian)."""
@@ -46,94 +233,172 @@ def palm_spread(env, q: np.ndarray) -> float:
     return float(np.sqrt(np.trace(jac @ jac.T)))
 
 
-def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid: int,
-             seed: int, processes: int = 1, limit: int | None = None,
-             random_angles: int = 4) -> dict:
-    import gymnasium as gym
-    from stable_baselines3 import PPO, SAC
+def scoring_chunks(draws: int) -> int:
+    """Number of chunks (0..K-1 of the seed) the scoring of ``draws`` draws uses; selection
+    draws start at chunk K."""
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_sizes
 
-    import kinegrasp_env  # noqa: F401
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.world.grasps import Grasp
+    return len(chunk_sizes(draws, DEFAULT_CHUNK))
+
+
+class Scorer:
+    """P(FC) of a grasp moved to configuration q, by the reference engine on chunks
+    ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common random numbers)."""
+
+    def __init__(self, noise, seed: int, executor) -> None:
+        self.noise, self.seed, self.executor = noise, int(seed), executor
+
+    def __call__(self, grasp, q: np.ndarray, n: int, first_chunk: int = 0) -> float:
+        from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+        from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_sizes, run_chunks
+        from kinegrasp_env.toolkit.elbow import with_configuration
+
+        counts, _, _ = run_chunks(with_configuration(grasp, q, 0.0), self.noise, self.seed,
+                                  sizes=chunk_sizes(n, DEFAULT_CHUNK), first_chunk=first_chunk,
+                                  executor=self.executor)
+        return float(counts[FORCE_CLOSURE] / counts.sum())
+
+
+def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict,
+           executor) -> tuple[dict, dict]:
+    """Each deciding method's configuration (14,) for the current task, and a dict of
+    extra row entries (decision times in seconds, the oracle's selection estimates)."""
+    def reach(psi: float) -> np.ndarray:
+        return env.configuration_at(psi, q0)[0]
+
+    extra: dict = {}
+    start = time.perf_counter()
+    action, _ = model.predict(obs, deterministic=True)
+    configs = {"nominal": q0, "policy": reach(env.action_angle(action))}
+    extra["seconds_policy"] = time.perf_counter() - start
+    start = time.perf_counter()
+    grid_psi = np.linspace(-math.pi, math.pi, settings["grid"], endpoint=False)
+    candidates = [reach(p) for p in grid_psi]
+    configs["spread"] = candidates[int(np.argmin([palm_spread(env, q) for q in candidates]))]
+    extra["seconds_spread"] = time.perf_counter() - start
+    start = time.perf_counter()
+    first = scoring_chunks(settings["draws"])  # selection draws never scored
+    quick = [score(grasp, q, settings["oracle_draws"], first_chunk=first) for q in candidates]
+    configs["oracle"] = candidates[int(np.argmax(quick))]
+    extra["seconds_oracle"] = time.perf_counter() - start
+    extra["oracle_grid_p_fc"] = quick
+    if settings["optimizer_samples"] > 0:
+        from kinegrasp_env.toolkit.elbow import optimize_elbow
+
+        start = time.perf_counter()
+        found = optimize_elbow(grasp, score.noise, settings["optimizer_samples"],
+                               settings["optimizer_seed"], engine="fast", executor=executor)
+        configs["optimizer"] = np.asarray(found.best_q, dtype=float)
+        extra["seconds_optimizer"] = time.perf_counter() - start
+        extra["optimizer_own_p_fc"] = found.best_p_fc
+    return configs, extra
+
+
+def evaluate_task(env, model, obs, score: Scorer, settings: dict, rng: np.random.Generator,
+                  executor) -> dict:
+    """The row of the env's current task: P(FC) and elbow angle (radians) of every method."""
+    grasp, q0 = env.grasp, env.q.copy()
+    configs, extra = choose(env, model, obs, grasp, q0, score, settings, executor)
+    row = {"object": grasp.object, "grasp": grasp.id,
+           "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
+    for method in [*METHODS, *(m for m in OPTIONAL_METHODS if m in configs)]:
+        if method == "random":
+            angles = rng.uniform(-math.pi, math.pi, settings["random_angles"])
+            share = max(settings["draws"] // settings["random_angles"], 1)
+            row[method] = float(np.mean([score(grasp, env.configuration_at(p, q0)[0], share)
+                                         for p in angles]))
+        else:
+            row[method] = score(grasp, configs[method], settings["draws"])
+        row[f"elbow_{method}"] = (float(env.ik.elbow_angle(configs[method][None])[0])
+                                  if method in configs else None)
+    row.update(extra)
+    return row
+
+
+def load_model(model_path: str):
+    """The SB3 model (SAC when the file name says ``_sac``, else PPO), on the CPU."""
+    from stable_baselines3 import PPO, SAC
 
     path = Path(model_path)
     if not path.exists():
-        raise SystemExit(f"evaluate: error: no model at {path}")
-    algo = SAC if "_sac" in path.stem else PPO
-    model = algo.load(path, device="cpu")
+        raise UsageError(f"no model at {path}")
+    return (SAC if "_sac" in path.stem else PPO).load(path, device="cpu")
+
+
+def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid: int,
+             seed: int, processes: int = 1, limit: int | None = None,
+             random_angles: int = 4, optimizer_samples: int = 0,
+             optimizer_seed: int | None = None) -> dict:
+    """Evaluate every method on the held-out grasps (see the module docstring); the result
+    holds the settings, one row per grasp and :func:`summarize`'s fields."""
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    import kinegrasp_env  # noqa: F401
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    model = load_model(model_path)
     bins = getattr(model.action_space, "n", None)  # a policy over Discrete(bins) elbow angles
     env = gym.make("KineGraspSelect-v0", split="test", n_draws=1,
                    action_bins=None if bins is None else int(bins)).unwrapped
-    noise = JointNoise(sigma)
+    settings = {"draws": draws, "oracle_draws": oracle_draws, "grid": grid,
+                "random_angles": random_angles, "optimizer_samples": optimizer_samples,
+                "optimizer_seed": seed + 1 if optimizer_seed is None else optimizer_seed}
     rng = np.random.default_rng(seed)
     tasks = [(name, i) for name in env.object_names for i in range(len(env.tasks[name]))]
     tasks = tasks[:limit] if limit else tasks
     rows = []
-
-    def score(grasp: Grasp, q: np.ndarray, n: int) -> float:
-        here = Grasp(grasp.object, q, grasp.palm_pose, grasp.points, grasp.normals,
-                     grasp.fingers, grasp.links, grasp.q_nominal, grasp.id)
-        return evaluate_grasp(here, noise, n, seed, executor=executor).p_fc
-
-    from tqdm import tqdm
-
-    from kinegrasp_env.montecarlo.execution import LocalExecutor
-
     # one pool for the whole run: its workers keep their engines between evaluations
     with LocalExecutor(processes) as executor:
+        score = Scorer(JointNoise(sigma), seed, executor)
         for name, index in tqdm(tasks, desc="held-out grasps", file=sys.stderr, disable=None):
             obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
-            grasp, q0 = env.grasp, env.q.copy()
-
-            def reach(psi: float, start: np.ndarray = q0) -> np.ndarray:
-                return env.configuration_at(psi, start)[0]
-
-            action, _ = model.predict(obs, deterministic=True)
-            configs = {"nominal": q0,
-                       "policy": reach(env.action_angle(action))}
-            grid_psi = np.linspace(-math.pi, math.pi, grid, endpoint=False)
-            candidates = [reach(p) for p in grid_psi]
-            configs["spread"] = candidates[int(np.argmin([palm_spread(env, q)
-                                                          for q in candidates]))]
-            quick = [score(grasp, q, oracle_draws) for q in candidates]
-            configs["oracle"] = candidates[int(np.argmax(quick))]
-            row = {"object": name, "grasp": grasp.id,
-                   "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
-            for method in METHODS:
-                if method == "random":
-                    angles = rng.uniform(-math.pi, math.pi, random_angles)
-                    share = max(draws // random_angles, 1)
-                    row[method] = float(np.mean([score(grasp, reach(p), share)
-                                                 for p in angles]))
-                else:
-                    row[method] = score(grasp, configs[method], draws)
-                row[f"elbow_{method}"] = (float(env.ik.elbow_angle(configs[method][None])[0])
-                                          if method in configs else None)
-            rows.append(row)
+            rows.append(evaluate_task(env, model, obs, score, settings, rng, executor))
     env.close()
-    summary = {m: _interval(np.array([r[m] for r in rows])) for m in METHODS}
-    diffs = {f"policy-{m}": _interval(np.array([r["policy"] - r[m] for r in rows]))
-             for m in METHODS if m != "policy"}
-    return {"model": str(path), "sigma": sigma, "draws": draws, "oracle_draws": oracle_draws,
-            "grid": grid, "seed": seed, "random_angles": random_angles,
-            "grasps": len(rows), "rows": rows,
-            "mean_p_fc": summary, "paired_differences": diffs}
+    result = {"model": str(model_path), "sigma": sigma, "draws": draws,
+              "oracle_draws": oracle_draws, "grid": grid, "seed": seed,
+              "random_angles": random_angles,
+              "oracle_selection": f"chunks {scoring_chunks(draws)}.. of the seed (scoring: "
+                                  f"chunks 0..{scoring_chunks(draws) - 1})",
+              "optimizer_samples": optimizer_samples,
+              "optimizer_seed": settings["optimizer_seed"], "rows": rows}
+    return resummarize(result)
+
+
+# ---------------------------------------------------------------------------- output
+def _fmt_p(p: float) -> str:
+    return "nan" if not math.isfinite(p) else f"{p:.1e}" if p < 0.0001 else f"{p:.4f}"
 
 
 def table(result: dict) -> str:
+    """Markdown tables of a result: mean P(FC) per method with 95% t-intervals, then the
+    paired differences with their unadjusted and simultaneous intervals and p-values."""
     lines = [f"held-out grasps: {result['grasps']}, sigma = {result['sigma']}, "
              f"{result['draws']} draws per configuration",
-             "", "| method | mean P(FC) | 95% CI |", "|---|---|---|"]
+             "", "| method | mean P(FC) | 95% t-CI |", "|---|---|---|"]
     for m, (mean, lo, hi) in result["mean_p_fc"].items():
         lines.append(f"| {m} | {mean:.3f} | {lo:.3f} .. {hi:.3f} |")
-    lines += ["", "| paired difference | mean | 95% CI |", "|---|---|---|"]
-    for m, (mean, lo, hi) in result["paired_differences"].items():
-        lines.append(f"| {m} | {mean:+.3f} | {lo:+.3f} .. {hi:+.3f} |")
+    tests = result.get("paired_tests", {})
+    level = next(iter(tests.values()), {}).get("simultaneous_level", math.nan)
+    lines += ["", f"| paired difference | mean | 95% t-CI | simultaneous 95% CI (Bonferroni, "
+                  f"each {100 * level:.2f}%) | p | p (Holm) | wins/losses/ties |",
+              "|---|---|---|---|---|---|---|"]
+    for name, v in tests.items():
+        lines.append(f"| {name} | {v['mean']:+.3f} | {v['ci'][0]:+.3f} .. {v['ci'][1]:+.3f} | "
+                     f"{v['ci_simultaneous'][0]:+.3f} .. {v['ci_simultaneous'][1]:+.3f} | "
+                     f"{_fmt_p(v['p'])} | {_fmt_p(v['p_holm'])} | "
+                     f"{v['wins']}/{v['losses']}/{v['ties']} |")
+    if "optimizer_gain_fraction" in result:
+        lines += ["", "fraction of the optimizer's gain over nominal: " + ", ".join(
+            f"{m} {f:+.2f}" for m, f in result["optimizer_gain_fraction"].items())]
+    if "decision_seconds" in result:
+        lines += ["", "mean decision time (s): " + ", ".join(
+            f"{m} {s:.3g}" for m, s in result["decision_seconds"].items())]
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--model", default="agents/models/KineGraspSelect-v0_ppo.zip")
@@ -143,24 +408,72 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grid", type=int, default=12)
     parser.add_argument("--random-angles", type=int, default=4,
                         help="random elbow angles averaged per grasp (--draws shared)")
+    parser.add_argument("--optimizer-samples", type=int, default=1000,
+                        help="fast-engine draws per angle of the elbow optimizer (0: leave "
+                             "the optimizer out)")
+    parser.add_argument("--optimizer-seed", type=int, default=None,
+                        help="seed of the optimizer's selection draws (default: --seed + 1)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--processes", type=int, default=2)
+    parser.add_argument("--limit", type=int, default=None,
+                        help="evaluate only the first N held-out grasps")
     parser.add_argument("--quick", action="store_true", help="tiny run for tests")
     parser.add_argument("--out", help="write the result as JSON")
-    args = parser.parse_args(argv)
-    if args.sigma < 0 or args.draws < 1 or args.random_angles < 1:
-        print("evaluate: error: --sigma must be >= 0, --draws and --random-angles >= 1",
-              file=sys.stderr)
+    parser.add_argument("--summarize", metavar="FILE",
+                        help="recompute the summary of an existing result JSON from its "
+                             "per-grasp rows and write it back (no evaluation run)")
+    return parser
+
+
+def check_args(args) -> None:
+    """Raises UsageError naming the first bad value."""
+    for name in ("draws", "oracle_draws", "grid", "random_angles", "processes"):
+        if getattr(args, name) < 1:
+            raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got "
+                             f"{getattr(args, name)}")
+    if not 0 <= args.sigma <= math.pi:
+        raise UsageError(f"--sigma must be in [0, pi] radians, got {args.sigma}")
+    if args.optimizer_samples < 0:
+        raise UsageError(f"--optimizer-samples must be >= 0, got {args.optimizer_samples}")
+    if args.limit is not None and args.limit < 1:
+        raise UsageError(f"--limit must be >= 1, got {args.limit}")
+
+
+def run_summarize(path: str) -> int:
+    """``--summarize FILE``: recompute the summary from the rows and write the file back."""
+    result = read_result(path)
+    try:
+        updated = resummarize(result)
+    except (ValueError, KeyError, TypeError) as error:
+        raise UsageError(f"--summarize: {path}: {error}") from None
+    write_json_atomic(Path(path), updated)
+    print(table(updated))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.summarize:
+            return run_summarize(args.summarize)
+        check_args(args)
+        if args.quick:
+            args.draws, args.oracle_draws, args.grid, args.processes = 20, 8, 3, 1
+            args.random_angles, args.optimizer_samples = 2, 20
+            args.limit = args.limit or 2
+        if args.out and not Path(args.out).resolve().parent.is_dir():
+            raise UsageError(f"--out: no folder {Path(args.out).parent}")
+        result = evaluate(args.model, args.sigma, args.draws, args.oracle_draws, args.grid,
+                          args.seed, args.processes, limit=args.limit,
+                          random_angles=args.random_angles,
+                          optimizer_samples=args.optimizer_samples,
+                          optimizer_seed=args.optimizer_seed)
+    except UsageError as error:
+        print(f"evaluate: error: {error}", file=sys.stderr)
         return 2
-    if args.quick:
-        args.draws, args.oracle_draws, args.grid, args.processes = 20, 8, 3, 1
-        args.random_angles = 2
-    result = evaluate(args.model, args.sigma, args.draws, args.oracle_draws, args.grid,
-                      args.seed, args.processes, limit=2 if args.quick else None,
-                      random_angles=args.random_angles)
     print(table(result))
     if args.out:
-        Path(args.out).write_text(json.dumps(result, indent=1))
+        write_json_atomic(Path(args.out), result)
     return 0
 
 

@@ -101,3 +101,174 @@ def test_train_cli_one_line_error(capsys):
 def test_unregistered_env_id():
     with pytest.raises(train.UsageError, match="unknown environment 'Nope-v0'"):
         train.make_env("Nope-v0", {}, "train", 0)
+
+
+# ------------------------------------------------------------- evaluation statistics (issue 22)
+evaluate_module = _load("evaluate")
+COMMITTED = ROOT / "agents" / "models" / "evaluation.json"
+
+
+def _holm_by_hand(p: list[float]) -> list[float]:
+    """Holm's step-down adjusted p-values: sorted ascending, (m - k) p_(k) made monotone."""
+    m = len(p)
+    order = sorted(range(m), key=lambda i: p[i])
+    adjusted, running = [0.0] * m, 0.0
+    for k, i in enumerate(order):
+        running = max(running, (m - k) * p[i])
+        adjusted[i] = min(1.0, running)
+    return adjusted
+
+
+def test_committed_evaluation_summary_recomputed_from_rows():
+    """The committed summary equals an independent recomputation from its per-grasp rows:
+    scipy's t.interval for the means, ttest_rel and its confidence_interval for the paired
+    differences, a hand-written Holm step-down, Bonferroni intervals at 1 - 0.05/m."""
+    from scipy import stats
+
+    result = json.loads(COMMITTED.read_text())
+    rows = result["rows"]
+    n = len(rows)
+    assert n == result["grasps"] == 12
+    for method, stored in result["mean_p_fc"].items():
+        values = np.array([r[method] for r in rows])
+        lo, hi = stats.t.interval(0.95, n - 1, loc=values.mean(), scale=stats.sem(values))
+        assert stored == pytest.approx([values.mean(), lo, hi], rel=1e-12, abs=1e-15)
+    baselines = [m for m in result["mean_p_fc"] if m != "policy"]
+    assert list(result["paired_tests"]) == [f"policy-{b}" for b in baselines]
+    policy = np.array([r["policy"] for r in rows])
+    tests = {b: stats.ttest_rel(policy, np.array([r[b] for r in rows])) for b in baselines}
+    holm = _holm_by_hand([tests[b].pvalue for b in baselines])
+    m = len(baselines)
+    for b, p_holm in zip(baselines, holm, strict=True):
+        stored, test = result["paired_tests"][f"policy-{b}"], tests[b]
+        d = policy - np.array([r[b] for r in rows])
+        ci = test.confidence_interval(0.95)
+        simultaneous = test.confidence_interval(1 - 0.05 / m)
+        assert stored["p"] == pytest.approx(test.pvalue, rel=1e-9)
+        assert stored["t"] == pytest.approx(test.statistic, rel=1e-12)
+        assert stored["p_holm"] == pytest.approx(p_holm, rel=1e-9)
+        assert stored["ci"] == pytest.approx([ci.low, ci.high], rel=1e-9)
+        assert stored["ci_simultaneous"] == pytest.approx([simultaneous.low, simultaneous.high],
+                                                          rel=1e-9)
+        assert result["paired_differences"][f"policy-{b}"] == pytest.approx(
+            [d.mean(), ci.low, ci.high], rel=1e-9)
+        assert (stored["wins"], stored["losses"], stored["ties"]) == (
+            int((d > 0).sum()), int((d < 0).sum()), int((d == 0).sum()))
+    # and the file is what summarize() makes of its own rows
+    fresh = evaluate_module.summarize(rows)
+    assert {k: result[k] for k in fresh} == fresh
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_holm_rejects_exactly_what_the_step_down_procedure_rejects(seed):
+    """Independent definition: Holm rejects H_(1..k) while p_(k) <= alpha / (m - k + 1);
+    adjusted p <= alpha must mark exactly those, for every alpha."""
+    rng = np.random.default_rng(seed)
+    p = (rng.uniform(0, 0.1, 6) ** rng.uniform(0.5, 2)).tolist()
+    p[1] = p[0]  # a tie
+    adjusted = evaluate_module.holm(p)
+    assert adjusted == pytest.approx(_holm_by_hand(p), rel=1e-12)
+    order = np.argsort(p, kind="stable")
+    for alpha in np.linspace(0.001, 0.3, 60):
+        rejected = set()
+        for k, i in enumerate(order):
+            if p[i] > alpha / (len(p) - k):
+                break
+            rejected.add(int(i))
+        assert {i for i, a in enumerate(adjusted) if a <= alpha} == rejected
+
+
+def test_holm_leaves_nan_out():
+    assert evaluate_module.holm([0.01, float("nan"), 0.04]) == pytest.approx(
+        [0.02, float("nan"), 0.04], nan_ok=True)
+
+
+def test_summarize_mode_rewrites_only_the_summary(tmp_path, capsys):
+    """--summarize recomputes a stale summary from the rows; rows and settings untouched."""
+    committed = json.loads(COMMITTED.read_text())
+    stale = {k: v for k, v in committed.items() if k not in ("paired_tests", "statistics")}
+    stale["mean_p_fc"] = {m: [0.0, 0.0, 0.0] for m in stale["mean_p_fc"]}
+    path = tmp_path / "evaluation.json"
+    path.write_text(json.dumps(stale))
+    assert evaluate_module.main(["--summarize", str(path)]) == 0
+    assert "| policy-spread |" in capsys.readouterr().out
+    assert json.loads(path.read_text()) == committed
+    assert list(tmp_path.iterdir()) == [path]  # no temporary file left behind
+
+
+@pytest.mark.parametrize(("content", "needle"), [
+    (None, "no file"),
+    ("{not json", "not a readable JSON file"),
+    (json.dumps({"rows": []}), "no per-grasp rows"),
+    (json.dumps({"rows": [{"nominal": 0.5}]}), "no 'policy' P(FC)"),
+    (json.dumps([1, 2]), "no per-grasp 'rows' list"),
+])
+def test_summarize_bad_file_one_line_error(tmp_path, capsys, content, needle):
+    path = tmp_path / "evaluation.json"
+    if content is not None:
+        path.write_text(content)
+    assert evaluate_module.main(["--summarize", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and needle in err
+    assert (path.read_text() if content is not None else None) == content  # untouched
+
+
+def test_evaluate_bad_arguments_one_line_error(capsys):
+    assert evaluate_module.main(["--draws", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--draws must be >= 1, got 0" in err
+
+
+def test_oracle_selection_draws_are_not_scoring_draws():
+    """Scoring uses chunks 0..K-1 of the seed, the oracle's selection chunks K..: no noise
+    draw is shared."""
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_noise
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    draws, noise = 2000, JointNoise(0.0283)
+    first = evaluate_module.scoring_chunks(draws)
+    assert first * DEFAULT_CHUNK >= draws > (first - 1) * DEFAULT_CHUNK
+    scoring = np.vstack([chunk_noise(noise, 0, c, DEFAULT_CHUNK) for c in range(first)])
+    selection = chunk_noise(noise, 0, first, 200)
+    assert not (selection[:, None, :] == scoring[None, :, :]).all(-1).any()
+
+
+@pytest.mark.expensive
+def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
+    """--limit 1 with few draws through the CLI: the oracle's grid estimates are chunk K of
+    the seed (engine draws recomputed here), the optimizer's choice is scored on chunk 0."""
+    import gymnasium as gym
+
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
+    from kinegrasp_env.montecarlo.evaluate import draw_chunk
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.toolkit.elbow import optimize_elbow
+
+    out = tmp_path / "evaluation.json"
+    argv = ["--limit", "1", "--draws", "10", "--oracle-draws", "5", "--grid", "3",
+            "--random-angles", "2", "--optimizer-samples", "20", "--processes", "1",
+            "--out", str(out)]
+    assert evaluate_module.main(argv) == 0
+    result = json.loads(out.read_text())
+    row = result["rows"][0]
+    assert set(result["mean_p_fc"]) == {*evaluate_module.METHODS, "optimizer"}
+    assert result["optimizer_seed"] == 1 and result["grasps"] == 1
+    assert set(result["decision_seconds"]) == {"policy", "spread", "oracle", "optimizer"}
+    env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
+    env.reset(seed=0, options={"object": row["object"], "grasp": 0, "sigma": 0.0283})
+    engine, noise = make_engine("pybullet", row["object"]), JointNoise(0.0283)
+    grid = [env.configuration_at(p)[0] for p in np.linspace(-np.pi, np.pi, 3, endpoint=False)]
+    selection = [float((draw_chunk(engine, q, noise, 0, 1, 5).outcome == FORCE_CLOSURE).mean())
+                 for q in grid]
+    assert row["oracle_grid_p_fc"] == selection
+    best = grid[int(np.argmax(selection))]
+    assert row["elbow_oracle"] == pytest.approx(float(env.ik.elbow_angle(best[None])[0]))
+    found = optimize_elbow(env.grasp, noise, 20, 1, engine="fast")
+    assert row["elbow_optimizer"] == pytest.approx(
+        float(env.ik.elbow_angle(found.best_q[None])[0]), abs=1e-12)
+    scored = draw_chunk(engine, found.best_q, noise, 0, 0, 10).outcome == FORCE_CLOSURE
+    assert row["optimizer"] == float(scored.mean())
+    engine.close()
+    env.close()
+    for method, (mean, _, _) in evaluate_module.summarize(result["rows"])["mean_p_fc"].items():
+        assert result["mean_p_fc"][method][0] == mean == row[method]
