@@ -330,7 +330,11 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
              random_angles: int = 4, optimizer_samples: int = 0,
              optimizer_seed: int | None = None) -> dict:
     """Evaluate every method on the held-out grasps (see the module docstring); the result
-    holds the settings, one row per grasp and :func:`summarize`'s fields."""
+    holds the settings, one row per grasp and :func:`summarize`'s fields.
+
+    ``optimizer_samples`` defaults to 0 here (no optimizer, as before it existed); the
+    command line's default is 1000. ``optimizer_seed`` defaults to ``seed + 1``.
+    """
     import gymnasium as gym
     from tqdm import tqdm
 

@@ -169,18 +169,38 @@ def ferrari_canny_batch(points, normals, *, friction: float | np.ndarray = 0.5,
         from kinegrasp_env.quality.expansion import epsilon_epa_batch
 
         q, certified = epsilon_epa_batch(np.ascontiguousarray(w[todo]))
-        scale_b = np.abs(w[todo]).max(axis=(1, 2))
-        q = np.where(q > FC_TOL * scale_b, q, 0.0)
-        # a barely positive Q: the reference calls a (numerically) rank-deficient set 0
-        tiny = certified & (q > 0) & (q < 1e-8 * scale_b)
-        for i in np.flatnonzero(tiny):
-            if _rank_deficient(w[todo[i]]):
-                q[i] = 0.0
+        for i in np.flatnonzero(certified):
+            q[i] = _thresholded(q[i], w[todo[i]])
         out[todo[certified]] = q[certified]
         todo = todo[~certified]
     for b in todo:
         out[b] = _qhull_epsilon(w[b], k, norm)
     return out
+
+
+def _thresholded(q: float, w: np.ndarray) -> float:
+    """An exact path's Q of wrenches w (N, 6) under the reference's rules: 0 below FC_TOL of
+    the wrench scale, and 0 for a barely positive Q of a (numerically) rank-deficient set."""
+    scale = float(np.abs(w).max())
+    if not q > FC_TOL * scale:
+        return 0.0
+    if q < 1e-8 * scale and _rank_deficient(w):
+        return 0.0
+    return float(q)
+
+
+def _single_l1(w: np.ndarray, num_contacts: int) -> float:
+    """Q of one grasp's wrenches w (N, 6), L1: the certified expansion (microseconds for one
+    grasp, where the three-contact tables pay their batch set-up), else qhull."""
+    from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa
+
+    if num_contacts <= 2:  # every wrench has zero moment about the line through the points
+        return 0.0
+    if w.shape[0] <= MAX_POINTS:
+        q, certified = epsilon_epa(np.ascontiguousarray(w))
+        if certified:
+            return _thresholded(q, w)
+    return _qhull_epsilon(w, num_contacts, "l1")
 
 
 def row_friction(friction, batch: int) -> np.ndarray:
@@ -200,13 +220,23 @@ def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
                   norm: Norm = "l1") -> float:
     """Ferrari-Canny quality Q of one grasp; points and normals are (k, 3).
 
-    See :func:`ferrari_canny_batch` for the arguments. Raises ValueError for non-finite
-    input, mismatched shapes or zero-length normals.
+    See :func:`ferrari_canny_batch` for the arguments. With ``method="auto"`` and the L1 norm
+    one grasp goes straight to the certified expansion (qhull where it cannot certify), not
+    through the batch path's three-contact tables, whose set-up a batch of one pays whole (at
+    12 edges 13x slower): for 3 contacts it may differ from ``ferrari_canny_batch`` in the
+    last digits (both equal qhull to 1e-10). Raises ValueError for non-finite input,
+    mismatched shapes or zero-length normals.
     """
     points, normals = check_contacts(points, normals, batched=False)
-    return float(ferrari_canny_batch(points[None], normals[None], friction=friction,
-                                     num_edges=num_edges, torque_scale=torque_scale,
-                                     center=center, method=method, norm=norm)[0])
+    if method != "auto" or norm != "l1" or np.ndim(friction) > 0:
+        return float(ferrari_canny_batch(points[None], normals[None], friction=friction,
+                                         num_edges=num_edges, torque_scale=torque_scale,
+                                         center=center, method=method, norm=norm)[0])
+    friction, num_edges = check_parameters(friction, num_edges)
+    scale, ctr = scale_center(torque_scale, center, 1)
+    w = check_wrenches(edge_wrenches(points[None], normals[None], friction, num_edges, scale,
+                                     ctr))[0]
+    return _single_l1(w, points.shape[0])
 
 
 def is_force_closure_batch(points, normals, **kwargs) -> np.ndarray:
