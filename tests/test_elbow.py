@@ -104,3 +104,44 @@ def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
                 "gain_ci", "curve"):
         assert key in payload
     assert {"psi", "p_fc", "p_fc_ci"} <= set(payload["curve"][0])
+
+
+def test_evaluate_elbow_option(capsys):
+    """`evaluate --elbow PSI` evaluates the configuration the optimizer's own move gives (same
+    draws, same numbers); an unreachable angle is one line naming the reachable range."""
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.toolkit.elbow import with_configuration
+
+    grasp = shipped_grasps("spray_flask")[4]
+    psi = 1.0
+    args = ["evaluate", "--object", "spray_flask", "--grasp", "4", "--sigma", "0.0233",
+            "--samples", "60", "--engine", "fast", "--json"]
+    assert main([*args, "--elbow", str(psi)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    moved = with_configuration(grasp, configuration_at(grasp, psi), psi)
+    direct = evaluate_grasp(moved, JointNoise(0.0233), 60, seed=0, engine="fast")
+    assert shown["p_fc"] == direct.p_fc and shown["outcomes"] == direct.outcomes
+    assert main([*args, "--elbow", "3.0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "out of reach" in err[0] and "reachable" in err[0]
+
+
+@pytest.mark.expensive
+def test_rank_best_elbow_ranks_the_optimizers_choice(tmp_path):
+    """`rank --best-elbow N` ranks each candidate at the elbow the optimizer picks on seed + 1,
+    scored on the ranking's own draws (seed): equal to optimizing and evaluating directly."""
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.toolkit.elbow import with_configuration
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasp = shipped_grasps("cube")[0]
+    save_grasps([grasp], tmp_path / "one.json")
+    out = tmp_path / "r.csv"
+    assert main(["rank", str(tmp_path / "one.json"), "--sigma", "0.02", "--samples", "80",
+                 "--engine", "fast", "--best-elbow", "60", "--out", str(out)]) == 0
+    row = out.read_text().splitlines()[1].split(",")
+    best = optimize_elbow(grasp, JointNoise(0.02), 60, seed=1, engine="fast")
+    direct = evaluate_grasp(with_configuration(grasp, best.best_q, best.best_psi),
+                            JointNoise(0.02), 80, seed=0, engine="fast", chunk=80)
+    assert row[0] == f"{grasp.id}e"
+    assert float(row[1]) == pytest.approx(direct.p_fc, abs=1e-12)

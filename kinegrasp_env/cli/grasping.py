@@ -16,6 +16,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     engine_name,
     executor_from,
+    finite_float,
     grasp_index_help,
     noise_from,
     output_file,
@@ -36,6 +37,8 @@ def cmd_evaluate(args) -> int:
 
     noise, sigma, samples, seed = noise_from(args)
     index, grasp = chosen_grasp(args)
+    if args.elbow is not None:
+        grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)
     if args.plot:
         output_file(args.plot, "--plot")
@@ -68,6 +71,17 @@ def cmd_evaluate(args) -> int:
     if args.report:
         evaluate_report(args, grasp, index, stats)
     return 0
+
+
+def grasp_at_elbow(grasp, text: str):
+    """``--elbow PSI``: the grasp reached with the arm moved along its self-motion to elbow
+    angle PSI (radians; same palm pose, same nominal contacts)."""
+    from kinegrasp_env.toolkit.elbow import configuration_at, with_configuration
+
+    psi = finite_float(text, "--elbow")
+    with reported(ValueError):  # out of reach: the message names the reachable range
+        q = configuration_at(grasp, psi)
+    return with_configuration(grasp, q, psi)
 
 
 def chosen_grasp(args):
@@ -169,6 +183,9 @@ def add_commands(sub) -> None:
     add_noise_spec_arg(p)
     add_execution_args(p, 1)
     add_engine_arg(p)
+    p.add_argument("--elbow", help="evaluate the grasp with the arm moved along its "
+                   "self-motion to this elbow angle, radians (same palm pose and contacts; "
+                   "see `kinegrasp elbow`)")
     p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
     p.add_argument("--report", help="write a self-contained interactive HTML page of the "
                    "evaluation (as `kinegrasp report`)")

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import functools
 import hashlib
 import io
@@ -84,6 +85,25 @@ def _fixed(value: float) -> str:
     return "-" if value is None or math.isnan(value) else f"{value:.5f}"
 
 
+def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, executor) -> list:
+    """Each candidate moved to its most robust elbow angle (``kinegrasp elbow``'s optimizer),
+    chosen on draws of seed + 1, so the ranking's own draws (seed) stay independent of the
+    choice."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.elbow import optimize_elbow, with_configuration
+
+    moved = []
+    for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
+                      file=sys.stderr, disable=None):
+        best = optimize_elbow(grasp, noise, samples, seed + 1,
+                              engine="fast" if engine == "physics" else engine,
+                              executor=executor)
+        chosen = with_configuration(grasp, best.best_q, best.best_psi)
+        moved.append(dataclasses.replace(chosen, id=f"{grasp.id}e"))
+    return moved
+
+
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
@@ -120,7 +140,12 @@ def cmd_rank(args) -> int:
     if args.adaptive and partial.exists():
         raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
                        "cannot resume; delete it, or resume without --adaptive")
+    if args.best_elbow:  # a different candidate set: part of the resume settings
+        settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
     with executor_from(args) as executor:
+        if args.best_elbow:
+            grasps = best_elbows(grasps, noise, settings["best_elbow_samples"], seed, engine,
+                                 executor)
         done = {}
         if not args.adaptive:
             existed = partial.exists()
@@ -287,6 +312,9 @@ def add_commands(sub) -> None:
                    "wrong with probability <= 0.05; unseparated at the --samples budget, the "
                    "best estimate is kept and said to be uncertified")
     p.add_argument("--top-k", default="3", help="size of the top set --adaptive separates")
+    p.add_argument("--best-elbow", metavar="SAMPLES", help="first move each candidate to its "
+                   "most robust elbow angle (`kinegrasp elbow`, SAMPLES draws per angle, chosen "
+                   "on seed + 1); the ranked ids get an 'e'")
     add_execution_args(p, 1)
     add_engine_arg(p)
     p.add_argument("--out", default="ranked.csv",
