@@ -20,6 +20,7 @@ outputs, the files a command writes) is also what ``tests/test_readme.py`` runs 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import re
 import shlex
@@ -175,6 +176,12 @@ def kinegrasp_argvs(command: str) -> list[list[str]]:
 
 
 def command_targets(command: str) -> list[str]:
+    """See :func:`parsed_targets` (a list, for the caller to keep)."""
+    return list(parsed_targets(command))
+
+
+@functools.cache
+def parsed_targets(command: str) -> tuple[str, ...]:
     """The paths (files or folders, as written) that the ``kinegrasp`` calls of ``command``
     write, read from the CLI's own parser: ``--out``, ``--plot`` and ``--report`` with their
     defaults, ``reproduce``'s ``out/<figure>`` and ``rank``'s ``<out>.partial.jsonl``."""
@@ -194,7 +201,7 @@ def command_targets(command: str) -> list[str]:
                 targets.append(value)
         if args.command == "rank":
             targets.append(f"{args.out}.partial.jsonl")
-    return targets
+    return tuple(targets)
 
 
 def shown_commands(blocks: list[Block]) -> list[str]:
@@ -234,22 +241,39 @@ def makes_picture(targets: list[str], pictures: list[str]) -> bool:
                for t in targets for picture in pictures)
 
 
+def tour_inputs(command: str, targets: list[str]) -> list[str]:
+    """The out/tour/ paths ``command`` names without writing them (files it reads)."""
+    return [word for word in shlex.split(command)
+            if covers(TOUR, word) and not any(covers(t, word) for t in targets)]
+
+
+def producers(commands: list[str], upto: int, paths: list[str]) -> list[int]:
+    """Indices, ascending, of the commands among ``commands[:upto]`` that write ``paths``
+    (the last writer of each) and, transitively, of those writing what they read."""
+    chosen: set[int] = set()
+    wanted = [(path, upto) for path in paths]
+    while wanted:
+        path, before = wanted.pop()
+        for index in range(before - 1, -1, -1):
+            targets = command_targets(commands[index])
+            if any(covers(t, path) for t in targets):
+                if index not in chosen:
+                    chosen.add(index)
+                    wanted += [(p, index) for p in tour_inputs(commands[index], targets)]
+                break
+    return sorted(chosen)
+
+
 def picture_commands(blocks: list[Block], words: list[str], pictures: list[str]) -> list[str]:
     """The commands that write one of ``pictures`` (those containing one of ``words`` if any),
     plus the earlier ones writing the out/tour/ files they read, in README order."""
     commands = shown_commands(blocks)
-    writes = {c: command_targets(c) for c in commands}
-    chosen = {c for c in commands if makes_picture(writes[c], pictures)
-              and (not words or any(w in c for w in words))}
-    for index in range(len(commands) - 1, -1, -1):  # inputs of chosen commands, backwards
-        command = commands[index]
-        if command not in chosen:
-            continue
-        for word in shlex.split(command):
-            if covers(TOUR, word) and not any(covers(t, word) for t in writes[command]):
-                chosen.update(c for c in commands[:index]
-                              if any(covers(t, word) for t in writes[c]))
-    return [c for c in commands if c in chosen]
+    chosen: set[int] = set()
+    for index, command in enumerate(commands):
+        targets = command_targets(command)
+        if makes_picture(targets, pictures) and (not words or any(w in command for w in words)):
+            chosen |= {index, *producers(commands, index, tour_inputs(command, targets))}
+    return [commands[index] for index in sorted(chosen)]
 
 
 def snapshot(folder: Path) -> dict[Path, tuple[int, int]]:
@@ -284,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     made = [p for p in pictures
             if any(makes_picture(command_targets(c), [p]) for c in commands)]
-    for picture in pictures:
+    for picture in [] if args.words else pictures:
         if picture not in made:
             print(f"note: no README command writing out/tour/ makes {picture}; left as it is")
     if args.list:

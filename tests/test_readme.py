@@ -7,7 +7,11 @@ Every ```console block carries one or more markers right above it (README parser
 - ``<!-- readme-test: exact -->``: its commands run as shown, in order, in a scratch folder
   holding copies of the repository files they read (same relative paths, so the paths they
   print are the README's); every command's stdout must equal the shown output line for line
-  (trailing blanks ignored). For seeded commands: same seed, same numbers.
+  (trailing blanks ignored; durations like ``drawn in 3026 ms`` masked, the one number that
+  depends on the machine). For seeded commands: same seed, same numbers. A block that reads
+  an out/tour/ file an earlier block writes (``rank out/tour/grasps.json`` after the tour's
+  ``plan``) first gets it from that earlier command, run once per session (not compared
+  there). Blocks with ``kinegrasp screenshot`` skip without Chromium.
 - ``<!-- readme-test: stats samples=N -->``: the same, with ``--samples`` replaced by N in the
   commands that take it (the others still compared exactly). The output of those commands is
   compared by structure and by intervals (``stats_problems``): as many lines, of the same
@@ -56,6 +60,15 @@ def _load_parser():
 readme = _load_parser()
 BLOCKS = readme.readme_blocks(README)
 CONSOLE = [b for b in BLOCKS if b.lang == "console"]
+CONSOLE_COMMANDS = [step.command for block in CONSOLE for step in block.steps]
+#: Where each console block's first command is in CONSOLE_COMMANDS.
+FIRST = {block.index: sum(len(b.steps) for b in CONSOLE[:i]) for i, block in enumerate(CONSOLE)}
+#: Commands whose files a later console command reads, and what they wrote (this session).
+PREREQUISITES = {CONSOLE_COMMANDS[j] for i, command in enumerate(CONSOLE_COMMANDS)
+                 for j in readme.producers(CONSOLE_COMMANDS, i, readme.tour_inputs(
+                     command, readme.command_targets(command)))}
+_MADE: dict[str, dict[str, bytes]] = {}
+_DURATION = re.compile(r"\bin \d+(?:\.\d+)? ?(?P<unit>ms|s)\b")
 
 Z95, Z999 = 1.959964, 3.290527  # two-sided normal quantiles, 95% and 99.9%
 _NUMBER = re.compile(r"(?<![A-Za-z_\d])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?:v\d+)?")
@@ -73,6 +86,11 @@ STAT_LINES = {
     "outcomes": re.compile(r"^\s+outcomes: (?P<counts>\w+ \d+(?:, \w+ \d+)*)$"),
     "rank row": re.compile(rf"^\s*\d+\s+(?P<k_id>\S+)\s+{_P}\s+{_CI}\.\.{_HI}\s+\S+\s+"
                            r"(?P<k_q_nominal>\S+)\s+(?P<n>\d+)$"),
+    "report header": re.compile(rf"^(?P<k_what>\S+ grasp .+), (?P<n>\d+) draws: "
+                                rf"P\(FC\) = {_P} \(95% CI {_CI} \.\. {_HI}\)$"),
+    "report written": re.compile(r"^report written to (?P<k_path>\S+) \(\S+ MB\)$"),
+    "screenshot": re.compile(r"^(?P<k_page>\S+): drawn in \d+ ms, (?P<k_errors>\d+) console "
+                             r"errors; screenshot written to (?P<k_png>\S+)$"),
     "fig7 row": re.compile(rf"^(?P<k_object>\S+)\s+(?P<k_role>robust|fragile)\s+id \S+\s+"
                            rf"P\(FC\) {_P}$"),
 }
@@ -197,27 +215,70 @@ def _diff(shown: list[str], now: list[str]) -> str:
     return "\n".join(difflib.unified_diff(shown, now, "README", "now", lineterm=""))
 
 
+def _durations(lines: list[str]) -> list[str]:
+    """The lines with durations (``in 4003 ms``, ``in 2.5 s``) as ``in # ms``: the one
+    machine-dependent number an exact block may print."""
+    return [_DURATION.sub(r"in # \g<unit>", line) for line in lines]
+
+
+def _run(command: str, scratch: Path, env: dict) -> tuple[subprocess.CompletedProcess, dict]:
+    """Run a shell command in scratch; the process and the files it wrote (path -> bytes)."""
+    before = readme.snapshot(scratch)
+    done = subprocess.run(["bash", "-c", command], cwd=scratch, env=env, text=True,
+                          capture_output=True, timeout=900)
+    after = readme.snapshot(scratch)
+    return done, {p.relative_to(scratch).as_posix(): p.read_bytes()
+                  for p, stamp in after.items() if before.get(p) != stamp}
+
+
+def _prerequisites(block, scratch: Path, env: dict) -> list[str]:
+    """Make the out/tour/ files the block reads but earlier blocks write (``rank`` on what the
+    tour's ``plan`` wrote): run those commands (once per session, their files cached) in
+    scratch, output not compared. The problems found."""
+    first = FIRST[block.index]
+    written: list[str] = []
+    needed = []
+    for step in block.steps:
+        targets = readme.command_targets(step.command)
+        needed += [p for p in readme.tour_inputs(step.command, targets)
+                   if not any(readme.covers(t, p) for t in written)]
+        written += targets
+    for index in readme.producers(CONSOLE_COMMANDS, first, needed):
+        command = CONSOLE_COMMANDS[index]
+        if command not in _MADE:
+            _copy_inputs(command, scratch)
+            done, _MADE[command] = _run(command, scratch, env)
+            if done.returncode != 0:
+                return [f"$ {command} (needed first)\nexit {done.returncode}\n"
+                        f"{done.stderr[-3000:]}"]
+        for relative, data in _MADE[command].items():
+            (scratch / relative).parent.mkdir(parents=True, exist_ok=True)
+            (scratch / relative).write_bytes(data)
+    return []
+
+
 def run_block(block, marker, tmp: Path) -> list[str]:
     """Run a console block's steps in a scratch folder under ``tmp``; the problems found."""
     (tmp / "bin").mkdir()
     env = readme.env_with_kinegrasp(tmp / "bin")
     scratch = tmp / "repo"
     scratch.mkdir()
-    problems = []
-    for step in block.steps:
+    problems = _prerequisites(block, scratch, env)
+    for step in [] if problems else block.steps:
         command, n_readme = step.command, _samples(step.command)
         statistic = marker.mode == "stats" and n_readme is not None
         if statistic:
             command = re.sub(r"--samples[ =]\d+", f"--samples {marker.samples}", command)
         _copy_inputs(command, scratch)
-        done = subprocess.run(["bash", "-c", command], cwd=scratch, env=env, text=True,
-                              capture_output=True, timeout=900)
+        done, written = _run(command, scratch, env)
+        if command in PREREQUISITES:  # as shown: what a later block reads
+            _MADE[command] = written
         now = [line.rstrip() for line in done.stdout.rstrip("\n").splitlines()]
         shown = list(step.output)
         if done.returncode != 0:
             return [*problems, f"$ {command}\nexit {done.returncode}\n{done.stderr[-3000:]}"]
         found = (stats_problems(shown, now, n_readme, marker.samples) if statistic
-                 else [] if now == shown else [_diff(shown, now)])
+                 else [] if _durations(now) == _durations(shown) else [_diff(shown, now)])
         if found:
             problems.append(f"$ {command}\n" + "\n".join(found) + "\nprinted:\n"
                             + "\n".join(now))
@@ -253,6 +314,12 @@ def test_every_console_block_has_a_marker():
 @pytest.mark.parametrize(("block", "marker"), _block_cases())
 def test_readme_console_block(block, marker, tmp_path):
     """The block's commands print what the README shows (exactly, or within its intervals)."""
+    if any(argv[:1] == ["screenshot"] for step in block.steps
+           for argv in readme.kinegrasp_argvs(step.command)):
+        from kinegrasp_env.toolkit.report_browser import find_chromium
+
+        if find_chromium() is None:
+            pytest.skip("kinegrasp screenshot needs chromium (Debian: apt-get install chromium)")
     problems = run_block(block, marker, tmp_path)
     assert not problems, "\n\n".join(problems)
 
