@@ -99,16 +99,16 @@ class _PackageCacheLocator(caching._CacheLocator):
 
     def __init__(self, py_func, py_file):
         self._lineno = py_func.__code__.co_firstlineno
-        self._path = kernel_cache_dir() / Path(py_file).resolve().relative_to(
-            PACKAGE_DIR).parent
+        # fixed when the kernel is defined: a later change of $KINEGRASP_CACHE does not move it
+        self._key_dir = kernel_cache_dir()
+        self._path = self._key_dir / Path(py_file).resolve().relative_to(PACKAGE_DIR).parent
 
     def ensure_cache_path(self):
-        key_dir = kernel_cache_dir()
-        fresh = not key_dir.exists()
+        fresh = not self._key_dir.exists()
         os.makedirs(self._path, exist_ok=True)
         tempfile.TemporaryFile(dir=self._path).close()
         if fresh:
-            _remove_stale_keys(key_dir)
+            _remove_stale_keys(self._key_dir)
 
     def get_cache_path(self):
         return str(self._path)

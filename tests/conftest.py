@@ -11,6 +11,16 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 
 
+@pytest.fixture(scope="session", autouse=True)
+def private_catalog(tmp_path_factory):
+    """Imported objects of the tests go to a folder of their own: the user's catalog is never
+    read or written, and tests that list the catalog see the built-in objects only."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("KINEGRASP_HOME", str(tmp_path_factory.mktemp("kinegrasp_home")))
+    yield
+    mp.undo()
+
+
 @pytest.fixture(scope="session")
 def model():
     return kuka_sdh()

@@ -371,3 +371,16 @@ def test_lift_test_needs_a_free_object():
             lift_test(world)
     finally:
         world.close()
+
+
+def test_quaternion_matrix_is_bullets_own():
+    """The same bits as pybullet's getMatrixFromQuaternion (an independent implementation:
+    Bullet's C++) on random unit and non-unit quaternions."""
+    import pybullet
+
+    from kinegrasp_env.closing.physics_world import quaternion_matrix
+
+    rng = np.random.default_rng(0)
+    for q in rng.normal(size=(2000, 4)) * rng.uniform(0.5, 2.0, size=(2000, 1)):
+        expected = np.reshape(pybullet.getMatrixFromQuaternion(q.tolist()), (3, 3))
+        np.testing.assert_array_equal(quaternion_matrix(q), expected)

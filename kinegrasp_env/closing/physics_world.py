@@ -89,10 +89,25 @@ class WorldSettings:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations!r}")
 
 
+def quaternion_matrix(orientation) -> np.ndarray:
+    """(3, 3) rotation of a quaternion (x, y, z, w), by Bullet's own formula
+    (``btMatrix3x3::setRotation``: the same bits as ``getMatrixFromQuaternion``, tested),
+    without a call on pybullet's global client."""
+    x, y, z, w = (float(v) for v in orientation)
+    s = 2.0 / (x * x + y * y + z * z + w * w)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz = w * xs, w * ys, w * zs
+    xx, xy, xz = x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    return np.array([[1.0 - (yy + zz), xy - wz, xz + wy],
+                     [xy + wz, 1.0 - (xx + zz), yz - wx],
+                     [xz - wy, yz + wx, 1.0 - (xx + yy)]])
+
+
 def pose_matrix(position, orientation) -> np.ndarray:
     """(4, 4) transform from a pybullet (position, quaternion xyzw)."""
     out = np.eye(4)
-    out[:3, :3] = np.reshape(pybullet.getMatrixFromQuaternion(orientation), (3, 3))
+    out[:3, :3] = quaternion_matrix(orientation)
     out[:3, 3] = position
     return out
 
