@@ -108,7 +108,7 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
 
-    grasps, digest = _candidates(args.candidates)
+    grasps, digest, rejected = _candidates(args.candidates)
     noise, sigma, samples, seed = noise_from(args)
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
@@ -155,17 +155,25 @@ def cmd_rank(args) -> int:
                       f"{partial}", file=sys.stderr)
         results = _rank(args, grasps, evaluator, layout, chunk, top_k, partial, done)
     _write_ranking(grasps, results, out, partial, engine)
+    _write_rejected(rejected, out)
     if args.report:
         write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
                           engine=engine)
     return 0
 
 
-def _candidates(path: str) -> tuple[list, str]:
-    """The candidate grasps of ``rank`` and the SHA-256 of their file; refuses a file with
-    no grasps and repeated ids (the CSV is keyed by id)."""
+def _candidates(path: str) -> tuple[list, str, list]:
+    """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
+    candidates (none but for a palm-pose file); refuses a file with
+    no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
+    (``kinegrasp_env.toolkit.candidates``) is solved to grasps first; its rejected candidates
+    go to stderr and, once the ranking is written, to ``<out>.rejected.csv``."""
     if Path(path).is_dir():
         raise CLIError(f"{path} is a folder, not a grasp file")
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
+
+    if is_candidate_file(path):
+        return _palm_pose_candidates(path)
     with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
         grasps = load_grasps(path)
     if not grasps:
@@ -176,7 +184,39 @@ def _candidates(path: str) -> tuple[list, str]:
             raise CLIError(f"{path}: grasps {first[grasp.id]} and {i} have the same id "
                            f"{grasp.id!r}; candidate ids must be unique")
         first[grasp.id] = i
-    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
+
+
+def _palm_pose_candidates(path: str) -> tuple[list, str, list]:
+    """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
+    rejected candidates); each rejected one is a line on stderr."""
+    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+
+    with reported(ValueError):  # bad entries: one line naming the candidate
+        name, candidates = load_candidates(path)
+    grasps, rejected = solve_all(name, candidates)
+    for r in rejected:
+        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    if not grasps:
+        raise CLIError(f"{path}: none of the {len(candidates)} candidates is reachable, "
+                       "clear and closing; nothing ranked")
+    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), rejected
+
+
+def _write_rejected(rejected: list, out: Path) -> None:
+    """``<out>.rejected.csv``: id, reason, detail of each rejected palm-pose candidate (an
+    older one is removed when there are none)."""
+    path = out.with_name(out.name + ".rejected.csv")
+    if not rejected:
+        if path.exists():
+            path.unlink()
+        return
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(("id", "reason", "detail"))
+    writer.writerows((r.id, r.reason, r.detail) for r in rejected)
+    write_atomic(path, buffer.getvalue())
+    print(f"{len(rejected)} rejected candidates written to {path}")
 
 
 def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
@@ -299,7 +339,8 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("rank", help="rank candidate grasps by robustness under joint noise")
-    p.add_argument("candidates", help="grasp file (from `kinegrasp plan`)")
+    p.add_argument("candidates", help="grasp file (from `kinegrasp plan`), or a palm-pose "
+                   "file (docs/palm_pose_candidates.json; rejected ones: <out>.rejected.csv)")
     add_noise_args(p, 0.0133)
     add_noise_spec_arg(p)
     p.set_defaults(samples="2000")

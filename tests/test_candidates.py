@@ -1,0 +1,152 @@
+"""Candidates given as palm poses in the object frame (kinegrasp_env.toolkit.candidates):
+IK round trip, ``rank``/``evaluate`` on a palm-pose file, and bad entries."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pybullet
+import pytest
+from cli_helpers import run_cli
+from scipy.spatial.transform import Rotation
+
+from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh, urdf_path
+from kinegrasp_env.toolkit.candidates import (
+    PalmCandidate,
+    quaternion_matrix,
+    solve_all,
+)
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.objects import load_object
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "palm_pose_candidates.json"
+#: Contacts of the round trip against the shipped ones: measured <= 6e-11 m on all 12 drill
+#: grasps (the IK lands on the shipped configuration to ~2e-10 rad); a 1e-8 margin.
+CONTACT_TOL = 1e-8
+
+
+def pybullet_palm(q: np.ndarray) -> np.ndarray:
+    """(4, 4) palm frame at q (14,) from pybullet's own forward kinematics (independent of
+    the package's kinematics that IK iterates on)."""
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(str(urdf_path()), useFixedBase=True, physicsClientId=client)
+        joints, palm = {}, None
+        for j in range(pybullet.getNumJoints(body, physicsClientId=client)):
+            info = pybullet.getJointInfo(body, j, physicsClientId=client)
+            joints[info[1].decode()] = j
+            if info[12].decode() == PALM_LINK:
+                palm = j
+        for name, value in kuka_sdh().expand(q).items():
+            pybullet.resetJointState(body, joints[name], float(value), physicsClientId=client)
+        state = pybullet.getLinkState(body, palm, computeForwardKinematics=True,
+                                      physicsClientId=client)
+    finally:
+        pybullet.disconnect(client)
+    pose = np.eye(4)
+    pose[:3, :3] = np.array(pybullet.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+    pose[:3, 3] = state[4]
+    return pose
+
+
+def test_quaternion_matrix_matches_scipy():
+    quats = Rotation.random(20, random_state=3).as_quat()  # [x, y, z, w]
+    for quat in quats:
+        assert np.allclose(quaternion_matrix(quat), Rotation.from_quat(quat).as_matrix(),
+                           atol=1e-12)
+
+
+def test_shipped_palm_poses_round_trip():
+    """Shipped drill grasps' palm poses, in the object frame, solve to configurations whose
+    palm (pybullet FK) is the target to 1e-6 m / 1e-6 rad, with the shipped contacts."""
+    obj = load_object("drill")
+    shipped = [shipped_grasps("drill")[i] for i in (0, 2, 7)]
+    candidates = [PalmCandidate(g.id, np.linalg.inv(obj.pose) @ g.palm_pose, g.hand.copy())
+                  for g in shipped]
+    grasps, rejected = solve_all("drill", candidates)
+    assert rejected == []
+    for want, got in zip(shipped, grasps, strict=True):
+        reached = pybullet_palm(got.q0)
+        assert np.abs(reached[:3, 3] - want.palm_pose[:3, 3]).max() < 1e-6
+        turn = Rotation.from_matrix(reached[:3, :3].T @ want.palm_pose[:3, :3]).magnitude()
+        assert turn < 1e-6
+        assert got.points.shape == want.points.shape
+        assert np.abs(got.points - want.points).max() < CONTACT_TOL
+        assert np.abs(got.normals - want.normals).max() < CONTACT_TOL
+        assert np.array_equal(got.fingers, want.fingers)
+        assert abs(got.q_nominal - want.q_nominal) < CONTACT_TOL
+
+
+def test_rank_example_file_ranks_reachable_and_lists_rejected(tmp_path):
+    out = tmp_path / "r.csv"
+    proc = run_cli("rank", str(EXAMPLE), "--samples", "40", "--seed", "0", "--engine", "fast",
+                   "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    with out.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert sorted(r["id"] for r in rows) == sorted(
+        ["shipped0", "shipped1", "shipped3", "shipped6_spread", "shipped6_elbow"])
+    p = [float(r["p_fc"]) for r in rows]
+    assert p == sorted(p, reverse=True)
+    with out.with_name("r.csv.rejected.csv").open() as handle:
+        rejected = {r["id"]: r["reason"] for r in csv.DictReader(handle)}
+    assert rejected == {"far_away": "unreachable", "from_below": "unreachable",
+                        "inside_object": "arm_collision"}
+    for cid, reason in rejected.items():
+        assert f"candidate {cid} rejected: {reason}" in proc.stderr
+
+
+def test_evaluate_palm_pose_candidate_and_rejected_one(tmp_path):
+    proc = run_cli("evaluate", "--grasps", str(EXAMPLE), "--grasp", "shipped1", "--samples",
+                   "20", "--engine", "fast", "--json")
+    assert proc.returncode == 0, proc.stderr
+    shipped = shipped_grasps("drill")[1]
+    assert abs(json.loads(proc.stdout)["q_nominal"] - shipped.q_nominal) < CONTACT_TOL
+    proc = run_cli("evaluate", "--grasps", str(EXAMPLE), "--grasp", "far_away", "--samples",
+                   "20", "--engine", "fast")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines()[-1].startswith(
+        "kinegrasp evaluate: error: candidate far_away of ")
+    assert "unreachable" in proc.stderr
+
+
+GOOD = {"id": "c", "position": [0.0, 0.0, 0.3], "quaternion": [1.0, 0.0, 0.0, 0.0],
+        "spread": 0.0}
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"position": None}, "candidate c: missing field 'position'"),
+    ({"quaternion": [1.0, 0.1, 0.0, 0.0]}, "candidate c: quaternion must be unit"),
+    ({"quaternion": [1.0, 0.0, 0.0]}, "candidate c: quaternion must have shape [4]"),
+    ({"spread": None}, "candidate c: missing field 'spread'"),
+    ({"hand": [0.0] * 6}, "candidate c: hand must have shape [7]"),
+    ({"position": None, "quaternion": None, "pose": [[1, 0, 0], [0, 1, 0]]},
+     "candidate c: pose must have shape [4, 4]"),
+    ({"position": None, "quaternion": None, "pose": np.diag([1, 1, 2, 1]).tolist()},
+     "candidate c: pose's rotation is not orthonormal"),
+    ({"elbow": "up"}, "candidate c: elbow must be numbers"),
+])
+def test_bad_entries_are_one_line_errors_naming_the_candidate(tmp_path, change, message):
+    entry = {k: v for k, v in {**GOOD, **change}.items() if v is not None}
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"object": "drill", "candidates": [entry]}))
+    out = tmp_path / "r.csv"
+    proc = run_cli("rank", str(path), "--samples", "10", "--engine", "fast", "--out", str(out))
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], proc.stderr
+    assert list(tmp_path.iterdir()) == [path]
+
+
+def test_repeated_ids_and_unknown_object_are_refused(tmp_path):
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"object": "drill", "candidates": [GOOD, GOOD]}))
+    proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
+    assert proc.returncode == 2 and "the same id 'c'" in proc.stderr
+    path.write_text(json.dumps({"object": "no_such_thing", "candidates": [GOOD]}))
+    proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
+    assert proc.returncode == 2 and "no_such_thing" in proc.stderr
+    assert list(tmp_path.iterdir()) == [path]
