@@ -49,7 +49,6 @@ def test_train_reload_predict_and_evaluate(tmp_path):
     result = evaluate.evaluate(str(model_path), 0.0283, draws=10, oracle_draws=5, grid=3, seed=0,
                                limit=1)
     assert set(result["mean_p_fc"]) == {"nominal", "random", "spread", "policy", "oracle"}
-    assert result["rows"][0]["oracle"] >= 0.0
 
 
 @pytest.mark.expensive
