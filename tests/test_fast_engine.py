@@ -229,3 +229,59 @@ def test_fast_hand_rejects_unknown_closing_and_kernel():
         FastHand(obj, grid, kernel="cuda")
     with pytest.raises(ValueError, match="needs kernel='numba'"):
         FastHand(obj, grid, kernel="numpy", closing="compiled")
+
+
+PRUNING_FREE_SEARCH = """
+import os, sys
+os.environ["NUMBA_DISABLE_JIT"] = "1"
+import numpy as np
+from kinegrasp_env.closing import segment_distance
+from kinegrasp_env.world.objects import load_object
+segment_distance.PRUNE_MARGIN = np.inf  # every margin-guarded pruning off
+inputs = np.load(sys.argv[2])
+found = segment_distance.closest_to_segments(load_object(sys.argv[1]), inputs["a"], inputs["b"])
+np.savez(sys.argv[3], *found)
+"""
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_segment_distance_prunings_change_no_bit(name, tmp_path):
+    # the compiled search against the same search interpreted with every pruning that a
+    # bound decides (part spheres, face planes, limits from other parts and ends) turned
+    # off (PRUNE_MARGIN = inf): identical bit for bit, on segments at the distance of a
+    # capsule axis in contact (where the bounds are tight) and at random
+    import subprocess
+    import sys
+
+    obj = load_object(name)
+    a, b = _random_segments(obj, 6000, seed=7)
+    dist = closest_to_segments(obj, a, b)[2]
+    keep = np.concatenate([np.flatnonzero(np.abs(dist - 0.01) < 0.004)[:600], np.arange(200)])
+    assert keep.size > 500
+    np.savez(tmp_path / "in.npz", a=a[keep], b=b[keep])
+    subprocess.run([sys.executable, "-c", PRUNING_FREE_SEARCH, name, str(tmp_path / "in.npz"),
+                    str(tmp_path / "out.npz")], check=True, timeout=600)
+    plain = np.load(tmp_path / "out.npz")
+    pruned = closest_to_segments(obj, a[keep], b[keep])
+    for i, field in enumerate(("on_obj", "on_seg", "distance", "part")):
+        np.testing.assert_array_equal(pruned[i], plain[f"arr_{i}"], err_msg=field)
+
+
+def test_part_order_is_numbas_argsort_ties_included():
+    # the exact search visits parts in the order numba's np.argsort gives their bounds (the
+    # order decides between parts at equal distance); argsort_into computes it without
+    # allocating: the same permutation, ties included, below and above the insertion-sort
+    # size
+    import numba
+
+    from kinegrasp_env.closing.segment_distance import SMALL_SORT, argsort_into
+
+    numba_argsort = numba.njit(lambda values: np.argsort(values))
+    rng = np.random.default_rng(8)
+    for n in list(range(1, 4 * SMALL_SORT)) * 20:
+        values = rng.integers(0, max(2, n // 3), n) * 0.25  # many ties
+        if rng.random() < 0.3:
+            values = rng.normal(size=n)
+        order, stack = np.empty(n, np.int64), np.empty((n, 2), np.int64)
+        argsort_into(values, order, stack)
+        np.testing.assert_array_equal(order, numba_argsort(values))

@@ -100,7 +100,7 @@ def _golden_numpy(grid: DistanceGrid, a: np.ndarray, axis: np.ndarray, lo: np.nd
     return np.where(better, refined, best), np.where(better, where, s)
 
 
-@jit.kernel
+@jit.kernel(_nrt=False, inline="always")
 def trilinear(values, shape, origin, spacing, x, y, z):
     nx, ny, nz = shape[0], shape[1], shape[2]
     rx = (x - origin[0]) / spacing
@@ -110,7 +110,9 @@ def trilinear(values, shape, origin, spacing, x, y, z):
     cy = min(max(ry, 0.0), ny - 1.0)
     cz = min(max(rz, 0.0), nz - 1.0)
     dx, dy, dz = rx - cx, ry - cy, rz - cz
-    outside = np.sqrt(dx * dx + dy * dy + dz * dz) * spacing
+    outside = 0.0  # what the square root gives inside the grid, without computing it
+    if dx != 0.0 or dy != 0.0 or dz != 0.0:
+        outside = np.sqrt(dx * dx + dy * dy + dz * dz) * spacing
     ix = min(int(cx), nx - 2)
     iy = min(int(cy), ny - 2)
     iz = min(int(cz), nz - 2)
@@ -133,7 +135,7 @@ def trilinear(values, shape, origin, spacing, x, y, z):
     c1 = c10 + (c11 - c10) * fy
     return c0 + (c1 - c0) * fx + outside
 
-@jit.kernel
+@jit.kernel(_nrt=False, inline="always")
 def golden(values, shape, origin, spacing, ax, ay, az, bx, by, bz, lo, hi, best, s,
            refine, gold):
     x1 = hi - gold * (hi - lo)
@@ -159,7 +161,7 @@ def golden(values, shape, origin, spacing, ax, ay, az, bx, by, bz, lo, hi, best,
         return refined, where
     return best, s
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def gap_one(values, shape, origin, spacing, ax, ay, az, ex, ey, ez, radius, samples, near,
             refine, gold, sample):
     """(gap, s) of one capsule with axis [a, e] and radius; sample: (samples,) buffer."""
@@ -197,7 +199,7 @@ def gaps(values, shape, origin, spacing, a, b, radius, samples, near, refine, go
                                        a[i, 2], b[i, 0], b[i, 1], b[i, 2], radius[i],
                                        samples, near, refine, gold, sample)
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def posed_min(values, shape, origin, spacing, rot, trans, local, out):
     for i in range(rot.shape[0]):
         best = np.inf

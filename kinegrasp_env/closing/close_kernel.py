@@ -10,6 +10,14 @@ per-row kernels (:func:`kinegrasp_env.closing.capsule_gap` ``gap_one``,
 :func:`kinegrasp_env.closing.finger_axes.axes_one`) with the same arithmetic in the same order, so
 the closing state, the contacts found and their closest pairs are bit-identical to the
 vectorized loop with numba kernels (tested). ``benchmarks/bench_env.py`` times both.
+
+Two savings that change no result: an exact gap the state machine cannot use is not
+computed (a link that can be neither the smaller gap nor in contact, by a lower bound:
+:func:`bounded_pair`), and the closest pairs where the polish ends are those it computed
+there (:func:`closest_pairs`), not computed again. Kernels that allocate nothing are
+compiled without numba's reference counting (``_nrt=False``): with it, every call that
+passes arrays (these pass tuples of ~20) paid an atomic increment and decrement per array,
+a quarter of the closing time.
 """
 
 from __future__ import annotations
@@ -21,43 +29,65 @@ from kinegrasp_env.closing import capsule_gap, segment_distance
 from kinegrasp_env.closing import reference as hand
 from kinegrasp_env.closing.capsule_gap import gap_one
 from kinegrasp_env.closing.finger_axes import axes_one
-from kinegrasp_env.closing.segment_distance import segment_one
-from kinegrasp_env.world.polytope import INSIDE_TOL
+from kinegrasp_env.closing.segment_distance import (
+    PRUNE_MARGIN,
+    segment_bound,
+    segment_buffers,
+    segment_one,
+    segment_search,
+)
 
 #: Entries of a stored closest pair: distance, point on the object (3), point on the
 #: segment (3), part index.
 PAIR_SIZE = 8
 
 
-@jit.kernel
-def exact_pair(geo, a, e, bounds, out):
-    """Exact closest pair of segment [a, e] (3,) and the object into out (PAIR_SIZE,)."""
-    planes, plane_start, edges, edge_start, scale, mid, half, tol = geo
-    d, ox, oy, oz, sx, sy, sz, part = segment_one(planes, plane_start, edges, edge_start,
-                                                  scale, mid, half, a[0], a[1], a[2], e[0],
-                                                  e[1], e[2], bounds, tol)
+@jit.kernel(_nrt=False)
+def store_pair(out, d, ox, oy, oz, sx, sy, sz, part):
+    """A closest pair (:func:`segment_one`'s result) into out (PAIR_SIZE,)."""
     out[0], out[1], out[2], out[3], out[4], out[5], out[6] = d, ox, oy, oz, sx, sy, sz
     out[7] = part
+
+@jit.kernel(_nrt=False)
+def exact_pair(geo, a, e, sort, out):
+    """Exact closest pair of segment [a, e] (3,) and the object into out (PAIR_SIZE,);
+    sort: the buffers of :func:`segment_one`."""
+    d, ox, oy, oz, sx, sy, sz, part = segment_one(geo, a[0], a[1], a[2], e[0], e[1], e[2],
+                                                  sort)
+    store_pair(out, d, ox, oy, oz, sx, sy, sz, part)
     return d
 
-@jit.kernel
-def link_gap(grid, geo, a, e, radius, sample, bounds, pair):
+@jit.kernel(_nrt=False)
+def bounded_pair(geo, a, e, sort, out, limit):
+    """:func:`exact_pair` where the distance can be below ``limit`` (metres): skipped (out's
+    distance set to inf, inf returned) where a lower bound of it (:func:`segment_bound`)
+    is at least ``limit`` + PRUNE_MARGIN."""
+    if segment_bound(geo, a[0], a[1], a[2], e[0], e[1], e[2], sort) - PRUNE_MARGIN >= limit:
+        out[0] = np.inf
+        return np.inf
+    d, ox, oy, oz, sx, sy, sz, part = segment_search(geo, a[0], a[1], a[2], e[0], e[1], e[2],
+                                                     sort)
+    store_pair(out, d, ox, oy, oz, sx, sy, sz, part)
+    return d
+
+@jit.kernel(_nrt=False)
+def link_gap(grid, geo, a, e, radius, sample, sort, pair):
     """Gap of a capsule: the grid's, exact within the band of contact."""
     values, shape, origin, spacing, samples, near, refine, gold, band = grid
     gap, _ = gap_one(values, shape, origin, spacing, a[0], a[1], a[2], e[0], e[1], e[2],
                      radius, samples, near, refine, gold, sample)
     if abs(gap) <= band:
-        gap = exact_pair(geo, a, e, bounds, pair) - radius
+        gap = exact_pair(geo, a, e, sort, pair) - radius
     return gap
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def flexions(finger, phase, start_p, start_d, t):
     """(proximal, distal) flexion at closing parameter t."""
     up_p, up_d = finger[8], finger[9]
     prox = min(start_p + (t if phase == 1 else 0.0), up_p)
     return prox, min(start_d + t, up_d)
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def t_limit(finger, phase, start_p, start_d):
     """Largest closing parameter before the moving joints reach their limits."""
     up_p, up_d = finger[8], finger[9]
@@ -65,56 +95,98 @@ def t_limit(finger, phase, start_p, start_d):
         return max(max(up_p - start_p, up_d - start_d), 0.0)
     return max(up_d - start_d, 0.0)
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def place_axes(finger, prox, dist, work):
-    """The finger's capsule axes at flexions prox, dist into work's ends (4, 3)."""
+    """The finger's capsule axes at flexions prox, dist into work's ends (4, 3) (work[4])."""
     joint_frame, axis_p, distal_origin, axis_d, ends_p, ends_d = finger[:6]
     rot, frame_p, frame_d, tmp, ends = work[:5]
     axes_one(joint_frame, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, rot,
              frame_p, frame_d, tmp, ends)
-    return ends
 
-@jit.kernel
-def exact_gap(geo, finger, phase, start_p, start_d, t, work):
-    """Smallest exact gap of the finger's moving links at parameter t; their closest
-    pairs in work's pair (2, PAIR_SIZE) (row 0 untouched in phase 2)."""
+@jit.kernel(_nrt=False)
+def both_links(geo, finger, ends, sort, pair, need):
+    """Smallest exact gap of both links of a finger with capsule axes ``ends`` (4, 3); their
+    closest pairs into pair (2, PAIR_SIZE). The distal link first; the proximal one is
+    skipped (row 0's distance inf) where it can be neither the smallest gap nor within
+    ``need`` (metres) (:func:`bounded_pair`), so the result, and which links are within
+    ``need``, are those of both computed."""
     r_p, r_d = finger[6], finger[7]
-    bounds, pair = work[5], work[6]
-    prox, dist = flexions(finger, phase, start_p, start_d, t)
-    ends = place_axes(finger, prox, dist, work)
-    gap_p = np.inf
-    if phase == 1:
-        gap_p = exact_pair(geo, ends[0], ends[1], bounds, pair[0]) - r_p
-    gap_d = exact_pair(geo, ends[2], ends[3], bounds, pair[1]) - r_d
-    return min(gap_p, gap_d)
+    gap = exact_pair(geo, ends[2], ends[3], sort, pair[1]) - r_d
+    return min(gap, bounded_pair(geo, ends[0], ends[1], sort, pair[0],
+                                 max(gap, need) + r_p) - r_p)
 
-@jit.kernel
+@jit.kernel(_nrt=False)
+def exact_gap(geo, finger, phase, start_p, start_d, t, work, need):
+    """Smallest exact gap of the finger's moving links at parameter t; their closest
+    pairs in work's pair (2, PAIR_SIZE) (row 0 untouched in phase 2; in phase 1 a link that
+    cannot matter may be skipped, see :func:`both_links`)."""
+    sort, pair = work[5], work[6]
+    prox, dist = flexions(finger, phase, start_p, start_d, t)
+    place_axes(finger, prox, dist, work)
+    ends = work[4]
+    if phase == 1:
+        return both_links(geo, finger, ends, sort, pair, need)
+    return exact_pair(geo, ends[2], ends[3], sort, pair[1]) - finger[7]
+
+@jit.kernel(_nrt=False)
 def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
     """The t where the exact gap crosses zero (see
-    :func:`kinegrasp_env.closing.reference.secant_root`)."""
+    :func:`kinegrasp_env.closing.reference.secant_root`), and whether it was evaluated
+    there (its closest pairs, as :func:`exact_gap` left them, are then in work[7])."""
     polish_tol, probe, reach, iterations = rules[3], rules[4], rules[5], rules[6]
+    pair, best_pair = work[6], work[7]
     t_max = t_limit(finger, phase, start_p, start_d)
     t_min = max(t - reach, 0.0)
     t0 = max(t - probe, t_min)
     active = t0 < t and abs(gap) > polish_tol
     g0 = 0.0
     if active:
-        g0 = exact_gap(geo, finger, phase, start_p, start_d, t0, work)
+        g0 = exact_gap(geo, finger, phase, start_p, start_d, t0, work, -np.inf)
     t1, g1 = t, gap
     best_t, best_g = t1, abs(g1)
+    evaluated = False
     for _ in range(iterations):
         active = active and g1 != g0
         if not active:
             break
         t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
-        g2 = exact_gap(geo, finger, phase, start_p, start_d, t2, work)
+        g2 = exact_gap(geo, finger, phase, start_p, start_d, t2, work, -np.inf)
         t0, g0, t1, g1 = t1, g1, t2, g2
         if abs(g2) < best_g:
             best_t, best_g = t2, abs(g2)
+            evaluated = True
+            for link in range(2):
+                for k in range(PAIR_SIZE):
+                    best_pair[link, k] = pair[link, k]
         active = active and best_g > polish_tol
-    return best_t
+    return best_t, evaluated
 
-@jit.kernel
+@jit.kernel(_nrt=False)
+def closest_pairs(geo, contact_tol, finger, phase, start_p, start_d, t, evaluated, work):
+    """The closest pairs of the finger's moving links at parameter t into work's pair, as
+    :func:`exact_gap` with ``need = contact_tol`` leaves them: taken from
+    :func:`polish`'s best evaluation there (work[7]) where it made one, a link it skipped
+    completed."""
+    pair = work[6]
+    if not evaluated:
+        exact_gap(geo, finger, phase, start_p, start_d, t, work, contact_tol)
+        return
+    best_pair = work[7]
+    for link in range(2):
+        for k in range(PAIR_SIZE):
+            pair[link, k] = best_pair[link, k]
+    if phase != 1:
+        return
+    radius = (finger[6], finger[7])
+    for link in range(2):
+        if pair[link, 0] == np.inf:
+            prox, dist = flexions(finger, phase, start_p, start_d, t)
+            place_axes(finger, prox, dist, work)
+            ends = work[4]
+            limit = max(pair[1 - link, 0] - radius[1 - link], contact_tol) + radius[link]
+            bounded_pair(geo, ends[2 * link], ends[2 * link + 1], work[5], pair[link], limit)
+
+@jit.kernel(_nrt=False)
 def touch_down(geo, rules, finger, state, gap, work, found, pairs):
     """A touching finger: t polished to the root of the exact gap, the links touching there
     recorded (found (2,) set, their closest pairs into pairs (2, PAIR_SIZE)). A distal
@@ -125,15 +197,16 @@ def touch_down(geo, rules, finger, state, gap, work, found, pairs):
     phase, start_p, start_d, t, t_lo, t_hi = state[:6]
     has_contact = state[7]
     pair = work[6]
-    t = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
+    t, evaluated = polish(geo, rules, finger, phase, start_p, start_d, t, gap, work)
     # the links touching there, and their closest pairs
     prox_t, dist_t = flexions(finger, phase, start_p, start_d, t)
-    exact_gap(geo, finger, phase, start_p, start_d, t, work)
+    closest_pairs(geo, contact_tol, finger, phase, start_p, start_d, t, evaluated, work)
     link_gaps = (pair[0, 0] - r_p if phase == 1 else np.inf, pair[1, 0] - r_d)
     for link in range(2):
         if link_gaps[link] <= contact_tol:
             found[link] = True
-            pairs[link] = pair[link]
+            for k in range(PAIR_SIZE):  # (a slice assignment would allocate)
+                pairs[link, k] = pair[link, k]
             has_contact = True
     if link_gaps[1] <= contact_tol:
         return (phase, start_p, start_d, t, t_lo, t_hi, False, has_contact)
@@ -143,7 +216,7 @@ def touch_down(geo, rules, finger, state, gap, work, found, pairs):
         return (2, prox_t, dist_t, 0.0, 0.0, np.nan, False, has_contact)
     return (2, prox_t, dist_t, min(step_min, t_max), 0.0, np.nan, True, has_contact)
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def step_or_bisect(rules, finger, speed, state, gap):
     """A finger not touching: a conservative step towards contact while no penetration is
     bracketed, else bisection of the bracket [t_lo, t_hi]. Returns (new state, missed: the
@@ -169,7 +242,7 @@ def step_or_bisect(rules, finger, speed, state, gap):
         t = 0.5 * (t_lo + t)
     return (phase, start_p, start_d, t, t_lo, t_hi, active, has_contact), missed
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, pairs,
                  flexion):
     """Close one finger of one draw from flexions prox0, dist0 (radians): one (draw, finger)
@@ -185,22 +258,22 @@ def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, 
     contact_tol, query_distance, max_iterations = rules[0], rules[2], rules[7]
     r_p, r_d = finger[6], finger[7]
     sample, work, scratch = buffers
-    bounds = work[5]
+    sort = work[5]
     state = (1, min(prox0, finger[8]), min(dist0, finger[9]), 0.0, 0.0, np.nan, True, False)
     missed = False
     it = 0
     while state[6] and it < max_iterations:
         it += 1
         # the gap of the moving links (the grid's, exact within the band), at most the
-        # query distance; inline: as a kernel of its own (its ~25 array arguments are
-        # reference-counted per call) it made the loop ~8% slower
+        # query distance
         phase, start_p, start_d, t, t_lo, t_hi = state[:6]
         prox, dist = flexions(finger, phase, start_p, start_d, t)
-        ends = place_axes(finger, prox, dist, work)
-        gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, bounds, scratch)
+        place_axes(finger, prox, dist, work)
+        ends = work[4]
+        gap_d = link_gap(grid, geo, ends[2], ends[3], r_d, sample, sort, scratch)
         gap_p = np.inf
         if phase == 1:
-            gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, bounds, scratch)
+            gap_p = link_gap(grid, geo, ends[0], ends[1], r_p, sample, sort, scratch)
         gap_p = min(gap_p, query_distance)
         gap_d = min(gap_d, query_distance)
         if phase != 1:
@@ -224,10 +297,11 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
     2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3) and the closed flexions (m, 3, 2)
     (proximal, distal; radians); returns the most iterations any problem took.
     """
-    # work buffers: rotation, proximal and distal frames, product, axis ends, part
-    # bounds, the closest pairs of both links
+    # work buffers: rotation, proximal and distal frames, product, axis ends, those of
+    # segment_one, the closest pairs of both links, and those of polish's best evaluation
     work = (np.empty((3, 3)), np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 3)),
-            np.empty((4, 3)), np.empty(geo[1].shape[0] - 1), np.empty((2, PAIR_SIZE)))
+            np.empty((4, 3)), segment_buffers(geo[0], geo[1]), np.empty((2, PAIR_SIZE)),
+            np.empty((2, PAIR_SIZE)))
     buffers = (np.empty(grid[4]), work, np.empty(PAIR_SIZE))
     most = 0
     for i in range(prox0.shape[0]):
@@ -261,6 +335,4 @@ def grid_args(grid, band: float) -> tuple:
 
 def geometry_args(name: str) -> tuple:
     """The object's packed parts as the kernel's ``geo`` tuple."""
-    geo = segment_distance.packed(name)
-    return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
-            geo.edge_half, INSIDE_TOL)
+    return segment_distance.geometry_tuple(name)

@@ -16,7 +16,7 @@ from kinegrasp_env import jit
 from kinegrasp_env.robot.kinematics import axis_angle_matrix
 
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def _rotation(axis: np.ndarray, angle: float, out: np.ndarray) -> None:
     """Rodrigues rotation about unit ``axis`` (3,) by ``angle`` into ``out`` (3, 3)."""
     x, y, z = axis[0], axis[1], axis[2]
@@ -33,7 +33,7 @@ def _rotation(axis: np.ndarray, angle: float, out: np.ndarray) -> None:
     out[2, 2] = c + z * z * t
 
 
-@jit.kernel
+@jit.kernel(_nrt=False)
 def axes_one(joint_frame, axis_p, prox, distal_origin, axis_d, dist, ends_p, ends_d, rot,
              frame_p, frame_d, tmp, out):
     """One row: out (4, 3) for joint_frame (4, 4) and flexions prox, dist; rot, tmp (3, 3),

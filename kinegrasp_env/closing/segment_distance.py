@@ -2,10 +2,21 @@
 
 The same computation as :meth:`kinegrasp_env.world.objects.GraspObject.closest_to_segments` (the
 numpy twin, see :mod:`kinegrasp_env.world.polytope` for the method), as one compiled loop over the
-segments with two cheap prunings that do not change the result: a part is skipped when the
-plane bound max_i min(s_i(a), s_i(b)) already exceeds the best distance found, and an edge
-when the distance between the bounding spheres of the edge and the segment does (parts are
-visited by increasing bound, so the search usually stops after the nearest one).
+segments, with prunings that skip only what provably cannot change the result:
+
+- parts are visited by increasing plane bound max_i min(s_i(a), s_i(b)) until it exceeds the
+  best distance found (the search usually stops after the nearest part); a part whose
+  bounding sphere is farther than the best is skipped;
+- an edge is skipped when a lower bound of its distance exceeds the best found so far: the
+  distance from its bounding sphere, or from the plane of either face it bounds (a point's
+  distance to the edge is at least its distance to that plane: |s_f(x)|; a segment's, the
+  smaller of its ends' when the plane does not separate them).
+
+Every bound is compared with a margin (:data:`PRUNE_MARGIN`) far above its rounding error, so
+every candidate that could win is kept, in the plain search's order and compared as there:
+the results are identical bit for bit (tested: the same search, interpreted, with
+``PRUNE_MARGIN = inf`` turning the prunings off). The kernels allocate nothing and are
+compiled without reference counting (see :mod:`kinegrasp_env.closing.close_kernel`).
 Both engines use it in the near field, where a gap decides contact.
 """
 
@@ -20,16 +31,28 @@ from kinegrasp_env import jit
 from kinegrasp_env.world.objects import GraspObject, load_object
 from kinegrasp_env.world.polytope import INSIDE_TOL
 
+#: Bounds prune only when they exceed the best distance by this much (metres): far above
+#: their rounding error (~1e-16 m) and the faces' plane residuals (< FACE_RESIDUAL).
+PRUNE_MARGIN = 1e-9
+#: An edge bounds a face when both its ends lie within this of the face's plane (metres).
+FACE_RESIDUAL = 1e-12
+#: numba's quicksort sorts runs shorter than this by insertion (:func:`argsort_into`).
+SMALL_SORT = 15
+
 
 @dataclass(frozen=True, eq=False)
 class PackedGeometry:
     """An object's parts as flat arrays for the kernel.
 
     Attributes:
-        planes: (P, 4) all parts' planes; plane_start: (n_parts + 1,) offsets.
+        planes: (P, 4) all parts' planes (unit normals); plane_start: (n_parts + 1,) offsets.
         edges: (E, 2, 3) all parts' edges; edge_start: (n_parts + 1,) offsets.
         scale: (n_parts,) part sizes (tolerance of the on-face test).
         edge_mid: (E, 3) edge midpoints; edge_half: (E,) half lengths (bounding spheres).
+        edge_faces: (E, 2) int64 rows of ``planes`` of the two faces each edge bounds (-1
+            where no plane of its part holds both its ends within ``FACE_RESIDUAL``).
+        part_center: (n_parts, 3), part_radius: (n_parts,): a sphere holding each part
+            (centre: the mean of its edges' end points; radius: the farthest of them).
     """
 
     planes: np.ndarray
@@ -39,6 +62,18 @@ class PackedGeometry:
     scale: np.ndarray
     edge_mid: np.ndarray
     edge_half: np.ndarray
+    edge_faces: np.ndarray
+    part_center: np.ndarray
+    part_radius: np.ndarray
+
+
+def edge_faces(planes: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """(E, 2) int64: for each edge (E, 2, 3) the two planes (P, 4) nearest to both its ends,
+    -1 where that is above ``FACE_RESIDUAL`` (metres)."""
+    residual = np.abs(edges @ planes[:, :3].T + planes[:, 3]).max(axis=1)  # (E, P)
+    nearest = np.argsort(residual, axis=1, kind="stable")[:, :2]
+    close = np.take_along_axis(residual, nearest, axis=1) < FACE_RESIDUAL
+    return np.where(close, nearest, -1).astype(np.int64)
 
 
 def pack(obj: GraspObject) -> PackedGeometry:
@@ -47,11 +82,19 @@ def pack(obj: GraspObject) -> PackedGeometry:
     edges = np.concatenate([p.edges for p in parts])
     plane_start = np.cumsum([0] + [len(p.planes) for p in parts])
     edge_start = np.cumsum([0] + [len(p.edges) for p in parts])
+    faces = np.concatenate([edge_faces(p.planes, p.edges) for p in parts])
+    faces = np.where(faces >= 0, faces + np.repeat(plane_start[:-1], np.diff(edge_start))[:, None],
+                     -1)
+    corners = [p.edges.reshape(-1, 3) for p in parts]
+    center = np.array([c.mean(axis=0) for c in corners])
+    radius = np.array([np.linalg.norm(c - m, axis=1).max()
+                       for c, m in zip(corners, center, strict=True)])
     return PackedGeometry(np.ascontiguousarray(planes), plane_start.astype(np.int64),
                           np.ascontiguousarray(edges), edge_start.astype(np.int64),
                           np.array([p.scale for p in parts]),
                           np.ascontiguousarray(edges.mean(axis=1)),
-                          0.5 * np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1))
+                          0.5 * np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1),
+                          faces.astype(np.int64), center, radius)
 
 
 @lru_cache(maxsize=8)
@@ -59,13 +102,55 @@ def packed(name: str) -> PackedGeometry:
     return pack(load_object(name))
 
 
-@jit.kernel
-def point_part(planes, p0, p1, edges, mid, half, e0, e1, x, y, z, tol):
-    """Signed distance and closest point of (x, y, z) to one part."""
+@jit.kernel(inline="always")
+def point_edges(edges, mid, half, faces, e0, e1, x, y, z, values, side, limit):
+    """Closest point of (x, y, z) (end ``side`` of the segment, plane values (2, P)) on
+    edges e0:e1: (distance, point (3 floats)). An edge is skipped when its bounding sphere
+    is farther than the best so far, or the plane of one of its faces is farther than that
+    or than ``limit`` (a distance found elsewhere: the result is exact wherever it is below
+    ``limit``, and at least ``limit`` elsewhere)."""
+    best = np.inf
+    cap = limit  # min(limit, sqrt(best))
+    bx = by = bz = 0.0
+    for e in range(e0, e1):
+        f0, f1 = faces[e, 0], faces[e, 1]
+        plane = max(abs(values[side, f0]) if f0 >= 0 else 0.0,
+                    abs(values[side, f1]) if f1 >= 0 else 0.0)
+        if plane - 2.0 * PRUNE_MARGIN >= cap:
+            continue
+        sx, sy, sz = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+        dx, dy, dz = edges[e, 1, 0] - sx, edges[e, 1, 1] - sy, edges[e, 1, 2] - sz
+        # bounding sphere of the edge: skip when it cannot beat the best (or the limit)
+        mx, my, mz = x - mid[e, 0], y - mid[e, 1], z - mid[e, 2]
+        r2 = mx * mx + my * my + mz * mz
+        far = cap + half[e] + 2.0 * PRUNE_MARGIN
+        if r2 >= far * far:
+            continue
+        reach = np.sqrt(r2) - half[e]
+        if reach > 0.0 and reach * reach >= best:
+            continue
+        len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
+        t = ((x - sx) * dx + (y - sy) * dy + (z - sz) * dz) / len2
+        t = min(max(t, 0.0), 1.0)
+        qx, qy, qz = sx + t * dx, sy + t * dy, sz + t * dz
+        d2 = (x - qx) ** 2 + (y - qy) ** 2 + (z - qz) ** 2
+        if d2 < best:
+            best = d2
+            cap = min(limit, np.sqrt(d2))
+            bx, by, bz = qx, qy, qz
+    return np.sqrt(best), bx, by, bz
+
+@jit.kernel(inline="always")
+def point_part(geo, part, x, y, z, values, side, limit):
+    """Signed distance and closest point of (x, y, z), end ``side`` of the segment whose
+    plane values (2, P) are given, to one part; exact wherever below ``limit`` (see
+    :func:`point_edges`)."""
+    planes, plane_start, edges, edge_start, scale, mid, half, faces = geo[:8]
+    p0, p1 = plane_start[part], plane_start[part + 1]
     top = -np.inf
     face = p0
     for i in range(p0, p1):
-        v = planes[i, 0] * x + planes[i, 1] * y + planes[i, 2] * z + planes[i, 3]
+        v = values[side, i]
         if v > top:
             top = v
             face = i
@@ -79,38 +164,24 @@ def point_part(planes, p0, p1, edges, mid, half, e0, e1, x, y, z, tol):
         v = planes[i, 0] * cx + planes[i, 1] * cy + planes[i, 2] * cz + planes[i, 3]
         if v > worst:
             worst = v
-    if worst <= tol:
+    if worst <= geo[10] * scale[part]:
         return top, cx, cy, cz
-    best = np.inf
-    bx = by = bz = 0.0
-    for e in range(e0, e1):
-        sx, sy, sz = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-        dx, dy, dz = edges[e, 1, 0] - sx, edges[e, 1, 1] - sy, edges[e, 1, 2] - sz
-        # bounding sphere of the edge: skip when it cannot beat the best
-        mx, my, mz = x - mid[e, 0], y - mid[e, 1], z - mid[e, 2]
-        reach = np.sqrt(mx * mx + my * my + mz * mz) - half[e]
-        if reach > 0.0 and reach * reach >= best:
-            continue
-        len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
-        t = ((x - sx) * dx + (y - sy) * dy + (z - sz) * dz) / len2
-        t = min(max(t, 0.0), 1.0)
-        qx, qy, qz = sx + t * dx, sy + t * dy, sz + t * dz
-        d2 = (x - qx) ** 2 + (y - qy) ** 2 + (z - qz) ** 2
-        if d2 < best:
-            best = d2
-            bx, by, bz = qx, qy, qz
-    return np.sqrt(best), bx, by, bz
+    return point_edges(edges, mid, half, faces, edge_start[part], edge_start[part + 1], x, y,
+                       z, values, side, limit)
 
-@jit.kernel
-def part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds):
+@jit.kernel(_nrt=False)
+def part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds, values):
     """Lower bound of each part's distance to segment [a, e] into bounds (n_parts,): the
     largest over the part's planes of min(s(a), s(e)) (a plane's value s is linear along
-    the segment, and a point's distance to a convex part is at least its largest s)."""
+    the segment, and a point's distance to a convex part is at least its largest s). The
+    plane values at a and e go to values (2, P)."""
     for part in range(plane_start.shape[0] - 1):
         bound = -np.inf
         for k in range(plane_start[part], plane_start[part + 1]):
             va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
             vb = planes[k, 0] * ex + planes[k, 1] * ey + planes[k, 2] * ez + planes[k, 3]
+            values[0, k] = va
+            values[1, k] = vb
             v = min(va, vb)
             if v > bound:
                 bound = v
@@ -140,47 +211,169 @@ def segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0, vx, vy, vz):
     dd = np.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
     return dd, qx, qy, qz, px, py, pz
 
+@jit.kernel(inline="always")
+def plane_gap(va, vb):
+    """Lower bound of a segment's distance to a plane from its ends' values va, vb: the
+    smaller |s| when the plane does not separate them, else 0."""
+    if va > 0.0 and vb > 0.0:
+        return min(va, vb)
+    if va < 0.0 and vb < 0.0:
+        return min(-va, -vb)
+    return 0.0
+
+@jit.kernel(inline="always")
+def sphere_reaches(cx, cy, cz, r, ax, ay, az, ux, uy, uz, inv_uu, limit):
+    """Whether the sphere (centre c, radius r) comes within ``limit`` of the segment
+    a + s u (inv_uu = 1 / u . u)."""
+    reach = limit + r
+    if reach <= 0.0:
+        return False
+    wx, wy, wz = cx - ax, cy - ay, cz - az
+    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return dx * dx + dy * dy + dz * dz < reach * reach
+
 @jit.kernel(inline="always")  # inlined: a call per part made the search ~2% slower
-def segment_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay, az, ex, ey, ez, ptol):
-    """Closest pair of segment [a, e] and one part (planes p0:p1, edges e0:e1, on-face
-    tolerance ptol): (distance, point on the part (3 floats), point on the segment (3
-    floats)). The nearer of the ends' closest points, then every edge whose bounding
-    sphere can come closer than the best so far."""
+def segment_part(geo, part, ax, ay, az, ex, ey, ez, values, limit):
+    """Closest pair of segment [a, e] (plane values of its ends: (2, P)) and one part:
+    (distance, point on the part (3 floats), point on the segment (3 floats)). The nearer
+    of the ends' closest points, then every edge that can come closer than the best so
+    far. ``limit``: the best distance of the other parts; what cannot beat it is skipped
+    too (the result is then the same wherever it is below ``limit``, and at least ``limit``
+    elsewhere)."""
+    edges, edge_start, mid, half, faces = geo[2], geo[3], geo[5], geo[6], geo[7]
     ux, uy, uz = ex - ax, ey - ay, ez - az
     uu = ux * ux + uy * uy + uz * uz
+    inv_uu = 1.0 / max(uu, 1e-300)
     mx, my, mz = ax + 0.5 * ux, ay + 0.5 * uy, az + 0.5 * uz
     seg_half = 0.5 * np.sqrt(uu)
-    da, cxa, cya, cza = point_part(planes, p0, p1, edges, mid, half, e0, e1, ax, ay, az,
-                                   ptol)
-    db, cxb, cyb, czb = point_part(planes, p0, p1, edges, mid, half, e0, e1, ex, ey, ez,
-                                   ptol)
+    da, cxa, cya, cza = point_part(geo, part, ax, ay, az, values, 0, limit)
+    db, cxb, cyb, czb = point_part(geo, part, ex, ey, ez, values, 1, min(da, limit))
     if db < da:
         d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, ex, ey, ez
     else:
         d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
-    for e in range(e0, e1):
-        cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-        vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
+    for e in range(edge_start[part], edge_start[part + 1]):
+        # skip the edge when the plane of one of its faces, or its bounding sphere, is
+        # farther than the best so far (and the other parts' best), by the margin
+        reach = min(d, limit) + PRUNE_MARGIN
+        f0, f1 = faces[e, 0], faces[e, 1]
+        if max(plane_gap(values[0, f0], values[1, f0]) if f0 >= 0 else 0.0,
+               plane_gap(values[0, f1], values[1, f1]) if f1 >= 0 else 0.0) >= reach:
+            continue
+        if not sphere_reaches(mid[e, 0], mid[e, 1], mid[e, 2], half[e], ax, ay, az, ux, uy,
+                              uz, inv_uu, reach):
+            continue
         gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
                        + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
         if gap >= d:
             continue
+        cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+        vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
         dd, qx, qy, qz, px, py, pz = segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0,
                                                   vx, vy, vz)
         if dd < d:
             d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
     return d, ox, oy, oz, sx, sy, sz
 
-@jit.kernel
-def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay, az, ex,
-                ey, ez, bounds, tol):
-    """Closest pair of segment [a, e] and the object: (distance, point on the object
-    (3 floats), point on the segment (3 floats), part); bounds: (n_parts,) buffer.
+@jit.kernel(inline="always")
+def float_lt(a, b):
+    """a < b with NaN last (numba's order for sorting floats)."""
+    return a < b or (np.isnan(b) and not np.isnan(a))
 
-    Parts are visited by increasing :func:`part_bounds`, until the bound reaches the best
-    distance found."""
-    part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds)
-    order = np.argsort(bounds)
+@jit.kernel(_nrt=False)
+def sort_partition(values, order, low, high):
+    """numba's quicksort partition of order[low:high + 1] by values (median-of-three
+    pivot); returns the pivot's final index."""
+    mid = (low + high) >> 1
+    if float_lt(values[order[mid]], values[order[low]]):
+        order[low], order[mid] = order[mid], order[low]
+    if float_lt(values[order[high]], values[order[mid]]):
+        order[high], order[mid] = order[mid], order[high]
+    if float_lt(values[order[mid]], values[order[low]]):
+        order[low], order[mid] = order[mid], order[low]
+    pivot = values[order[mid]]
+    order[high], order[mid] = order[mid], order[high]
+    i, j = low, high - 1
+    while True:
+        while i < high and float_lt(values[order[i]], pivot):
+            i += 1
+        while j >= low and float_lt(pivot, values[order[j]]):
+            j -= 1
+        if i >= j:
+            break
+        order[i], order[j] = order[j], order[i]
+        i += 1
+        j -= 1
+    order[i], order[high] = order[high], order[i]
+    return i
+
+@jit.kernel(_nrt=False)
+def argsort_into(values, order, stack):
+    """``np.argsort(values)`` as numba computes it (its quicksort: partitions down to
+    ``SMALL_SORT`` items, then insertion sort; the same permutation, ties included) into
+    order (n,), without allocating; stack: (n, 2) int64 buffer."""
+    n = values.shape[0]
+    for i in range(n):
+        order[i] = i
+    if n < 2:
+        return
+    top = 1
+    stack[0, 0], stack[0, 1] = 0, n - 1
+    while top > 0:
+        top -= 1
+        low, high = stack[top, 0], stack[top, 1]
+        while high - low >= SMALL_SORT:
+            i = sort_partition(values, order, low, high)
+            if high - i > i - low:  # push the larger side
+                if high > i:
+                    stack[top, 0], stack[top, 1] = i + 1, high
+                    top += 1
+                high = i - 1
+            else:
+                if i > low:
+                    stack[top, 0], stack[top, 1] = low, i - 1
+                    top += 1
+                low = i + 1
+        for i in range(low + 1, high + 1):  # insertion sort of order[low:high + 1]
+            k = order[i]
+            j = i
+            while j > low and float_lt(values[k], values[order[j - 1]]):
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = k
+
+@jit.kernel(inline="always")
+def sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu):
+    """Lower bound of the distance from segment a + s u to a part inside the sphere
+    (center[part], radius[part]) when positive (the segment is then outside the part);
+    -inf when the segment meets the sphere."""
+    wx, wy, wz = center[part, 0] - ax, center[part, 1] - ay, center[part, 2] - az
+    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    bound = np.sqrt(dx * dx + dy * dy + dz * dz) - radius[part] - PRUNE_MARGIN
+    return bound if bound > 0.0 else -np.inf
+
+@jit.kernel(_nrt=False)
+def segment_bound(geo, ax, ay, az, ex, ey, ez, work):
+    """A lower bound of the distance between segment [a, e] and the object (the smallest
+    :func:`part_bounds`), and the first step of :func:`segment_one`: :func:`segment_search`
+    may follow with the same work buffers."""
+    bounds = work[0]
+    part_bounds(geo[0], geo[1], ax, ay, az, ex, ey, ez, bounds, work[3])
+    low = np.inf
+    for part in range(bounds.shape[0]):
+        low = min(low, bounds[part])
+    return low
+
+@jit.kernel(_nrt=False)
+def segment_search(geo, ax, ay, az, ex, ey, ez, work):
+    """:func:`segment_one` after its part bounds are in work (:func:`segment_bound`)."""
+    plane_start, center, radius = geo[1], geo[8], geo[9]
+    bounds, order, stack, values = work
+    argsort_into(bounds, order, stack)
+    ux, uy, uz = ex - ax, ey - ay, ez - az
+    inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
     best = np.inf
     box = boy = boz = bsx = bsy = bsz = 0.0
     bpart = 0
@@ -188,27 +381,54 @@ def segment_one(planes, plane_start, edges, edge_start, scale, mid, half, ax, ay
         part = order[rank]
         if bounds[part] >= best:
             break
-        d, ox, oy, oz, sx, sy, sz = segment_part(
-            planes, plane_start[part], plane_start[part + 1], edges, mid, half,
-            edge_start[part], edge_start[part + 1], ax, ay, az, ex, ey, ez,
-            tol * scale[part])
+        if sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu) >= best:
+            continue
+        d, ox, oy, oz, sx, sy, sz = segment_part(geo, part, ax, ay, az, ex, ey, ez, values,
+                                                 best)
         if d < best:
             best = d
             box, boy, boz, bsx, bsy, bsz = ox, oy, oz, sx, sy, sz
             bpart = part
     return best, box, boy, boz, bsx, bsy, bsz, bpart
 
+@jit.kernel(_nrt=False)
+def segment_one(geo, ax, ay, az, ex, ey, ez, work):
+    """Closest pair of segment [a, e] and the object (``geo``: :func:`geometry_tuple`):
+    (distance, point on the object (3 floats), point on the segment (3 floats), part);
+    work: :func:`segment_buffers`.
+
+    Parts are visited by increasing :func:`part_bounds`, until the bound reaches the best
+    distance found; a part whose bounding sphere is farther than that is skipped."""
+    segment_bound(geo, ax, ay, az, ex, ey, ez, work)
+    return segment_search(geo, ax, ay, az, ex, ey, ez, work)
+
 @jit.kernel
-def segments_closest(planes, plane_start, edges, edge_start, scale, mid, half, a, b, out_d,
-                     out_obj, out_seg, out_part, tol):
+def segment_buffers(planes, plane_start):
+    """The work buffers of :func:`segment_one` for an object's planes (P, 4) in n_parts
+    parts: (bounds (n_parts,), order (n_parts,) int64, stack (n_parts, 2) int64, plane
+    values (2, P))."""
+    n_parts = plane_start.shape[0] - 1
+    return (np.empty(n_parts), np.empty(n_parts, dtype=np.int64),
+            np.empty((n_parts, 2), dtype=np.int64), np.empty((2, planes.shape[0])))
+
+@jit.kernel
+def segments_closest(geo, a, b, out_d, out_obj, out_seg, out_part):
     """Closest pairs of segments [a, b] (n, 3) and the object (see :func:`segment_one`) into
     out_d (n,), out_obj, out_seg (n, 3), out_part (n,)."""
-    bounds = np.empty(plane_start.shape[0] - 1)
+    work = segment_buffers(geo[0], geo[1])
     for i in range(a.shape[0]):
         (out_d[i], out_obj[i, 0], out_obj[i, 1], out_obj[i, 2], out_seg[i, 0],
          out_seg[i, 1], out_seg[i, 2], out_part[i]) = segment_one(
-            planes, plane_start, edges, edge_start, scale, mid, half, a[i, 0], a[i, 1],
-            a[i, 2], b[i, 0], b[i, 1], b[i, 2], bounds, tol)
+            geo, a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2], work)
+
+def geometry_tuple(name: str) -> tuple:
+    """The object's packed parts as the kernels' ``geo`` tuple: planes, plane_start, edges,
+    edge_start, scale, edge_mid, edge_half, edge_faces, part_center, part_radius
+    (:class:`PackedGeometry`), the relative on-face tolerance."""
+    geo = packed(name)
+    return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
+            geo.edge_half, geo.edge_faces, geo.part_center, geo.part_radius, INSIDE_TOL)
+
 
 def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: str = "numba"
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -223,12 +443,9 @@ def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: 
         return obj.closest_to_segments(a, b)
     if kernel != "numba":
         raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
-    geo = packed(obj.name)
     n = len(a)
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))
     out_part = np.zeros(n, dtype=np.int64)
-    segments_closest(geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale,
-                     geo.edge_mid, geo.edge_half, a, b, out_d, out_obj, out_seg, out_part,
-                     INSIDE_TOL)
+    segments_closest(geometry_tuple(obj.name), a, b, out_d, out_obj, out_seg, out_part)
     return out_obj, out_seg, out_d, out_part

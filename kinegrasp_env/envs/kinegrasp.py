@@ -50,7 +50,7 @@ from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
 from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
@@ -61,6 +61,11 @@ from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
 OBS_SIZE = 44
 OBS_LIMIT = 10.0
+
+
+def observed_links(kin: Kinematics) -> list[str]:
+    """The links whose poses the observation needs: the palm's Jacobian chain, the arm angle's."""
+    return list(dict.fromkeys(kin.jacobian_links(PALM_LINK) + list(ARM_ANGLE_LINKS)))
 
 
 def reset_sigma(value) -> float:
@@ -247,14 +252,16 @@ class KineGraspEnv(gym.Env):
 
     def _observation(self) -> np.ndarray:
         obj = load_object(self.grasp.object)
-        palm = self._kin.pose(self.q, PALM_LINK)[0]
+        # one forward-kinematics call for the palm pose, its Jacobian and the elbow angle
+        poses = self._kin.forward(self.q, observed_links(self._kin))
+        palm = poses[PALM_LINK][0]
         rot_obj = obj.pose[:3, :3]
         rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
         rel_rot = rot_obj.T @ palm[:3, :3]
-        jac = self._kin.jacobian(self.q, PALM_LINK)[0][:, :7]
+        jac = self._kin.jacobian_at(poses, PALM_LINK)[0][:, :7]
         jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
         spread = np.sqrt(np.diag(jac @ jac.T))
-        psi = float(self.ik.elbow_angle(self.q[None])[0])
+        psi = float(arm_angle_at(poses)[0])
         onehot = np.array([self.noise.kind == k for k in DISTRIBUTIONS], dtype=float)
         obs = np.concatenate([
             self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [joint_sigma(self.noise)

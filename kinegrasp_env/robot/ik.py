@@ -13,7 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.robot.kinematics import (
+    ARM_ANGLE_LINKS,
+    Kinematics,
+    arm_angle_at,
+    pose_error,
+)
 from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK
 
 POSITION_TOL = 1e-7  # metres
@@ -141,6 +146,33 @@ class ArmIK:
         diff = np.angle(np.exp(1j * (psi[..., 0] - psi[..., 1])))
         return diff / (2 * h)
 
+    def _newton(self, trial: np.ndarray, target: np.ndarray, goal: np.ndarray,
+                iterations: int) -> tuple[np.ndarray, np.ndarray]:
+        """Newton on "palm pose error = 0, psi(q) = goal" from configurations trial (m, dof)
+        for palm targets (m, 4, 4) and elbow angles goal (m,): (q (m, dof), palm pose error
+        (m, 6) there). One forward-kinematics call per iteration gives the error, psi and
+        the Jacobian (the same numbers as separate calls)."""
+        trial = trial.copy()
+        links = list(dict.fromkeys(self.kin.jacobian_links(self.link) + list(ARM_ANGLE_LINKS)))
+        err = None
+        for _ in range(iterations):
+            poses = self.kin.forward(trial, links)
+            err = pose_error(poses[self.link], target)
+            dpsi = np.angle(np.exp(1j * (goal - arm_angle_at(poses))))
+            residual = np.concatenate([err, dpsi[:, None]], axis=1)
+            if np.all(np.linalg.norm(residual, axis=1) < 1e-11):
+                return trial, err
+            jac = np.concatenate(
+                [self.kin.jacobian_at(poses, self.link)[:, :, self.arm_index],
+                 self._psi_gradient(trial)[:, None, :]], axis=1)
+            try:
+                step = np.linalg.solve(jac, residual[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = (np.linalg.pinv(jac) @ residual[..., None])[..., 0]
+            step = np.where(np.isfinite(step), step, 0.0)
+            trial[:, self.arm_index] += np.clip(step, -0.2, 0.2)
+        return trial, self._errors(trial, target)
+
     def set_elbow_angle(self, q: np.ndarray, psi: np.ndarray | float, *, max_step: float = 0.3,
                         newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
         """Move along the self-motion manifold to elbow angle ``psi``, palm pose fixed.
@@ -161,33 +193,15 @@ class ArmIK:
         """
         q = np.array(np.atleast_2d(q), dtype=float)
         n = q.shape[0]
-        target = self.kin.pose(q, self.link)
-        psi0 = self.elbow_angle(q)
+        poses = self.kin.forward(q, [self.link, *ARM_ANGLE_LINKS])
+        target, psi0 = poses[self.link], arm_angle_at(poses)
         delta = np.angle(np.exp(1j * (np.broadcast_to(np.asarray(psi, float), (n,)) - psi0)))
         steps = max(1, int(np.ceil(np.abs(delta).max() / max_step))) if n else 1
         ok = np.ones(n, bool)
         limits_ok = self.kin.model.within_limits
         for s in range(1, steps + 1):
             goal = psi0 + delta * s / steps
-            trial = q[ok].copy()
-            converged = np.zeros(trial.shape[0], bool)
-            for _ in range(newton_iterations):
-                err = self._errors(trial, target[ok])
-                dpsi = np.angle(np.exp(1j * (goal[ok] - self.elbow_angle(trial))))
-                residual = np.concatenate([err, dpsi[:, None]], axis=1)
-                converged = np.linalg.norm(residual, axis=1) < 1e-11
-                if np.all(converged):
-                    break
-                jac = np.concatenate(
-                    [self.kin.jacobian(trial, self.link)[:, :, self.arm_index],
-                     self._psi_gradient(trial)[:, None, :]], axis=1)
-                try:
-                    step = np.linalg.solve(jac, residual[..., None])[..., 0]
-                except np.linalg.LinAlgError:
-                    step = (np.linalg.pinv(jac) @ residual[..., None])[..., 0]
-                step = np.where(np.isfinite(step), step, 0.0)
-                trial[:, self.arm_index] += np.clip(step, -0.2, 0.2)
-            err = self._errors(trial, target[ok])
+            trial, err = self._newton(q[ok], target[ok], goal[ok], newton_iterations)
             good = (np.linalg.norm(err, axis=1) < 1e-9) & limits_ok(trial)
             idx = np.flatnonzero(ok)
             q[idx[good]] = trial[good]

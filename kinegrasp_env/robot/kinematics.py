@@ -113,19 +113,23 @@ def _snap(rot: np.ndarray) -> np.ndarray:
     return out
 
 
-def _times_constant(cols: Columns, const: np.ndarray) -> Columns:
-    """Columns of R @ const for R given by its columns (3 arrays (3, n)) and const (3, 3).
+def _recipe(const: np.ndarray) -> tuple:
+    """The non-zero entries of each column k of const (3, 3): ((row, value), ...) per k."""
+    return tuple(tuple((j, float(const[j, k])) for j in range(3) if const[j, k] != 0.0)
+                 for k in range(3))
+
+
+def _times_constant(cols: Columns, recipe: tuple) -> Columns:
+    """Columns of R @ const for R given by its columns (3 arrays (3, n)) and const (3, 3)
+    given by its :func:`_recipe`.
 
     Exact zeros and ones of ``const`` are skipped, so a signed permutation costs at most a
     negation and the unchanged columns are shared, not copied.
     """
     out = []
-    for k in range(3):
+    for terms in recipe:
         column = None
-        for j in range(3):
-            c = const[j, k]
-            if c == 0.0:
-                continue
+        for j, c in terms:
             term = cols[j] if c == 1.0 else (-cols[j] if c == -1.0 else cols[j] * c)
             column = term if column is None else column + term
         out.append(np.zeros_like(cols[0]) if column is None else column)
@@ -159,16 +163,35 @@ class Kinematics:
         self.model = model
         self._drivers = model.drivers()
         self._parent_joint = {j.child: j for j in model.joints}
-        # per joint: (R_origin @ Q, Q^T or None when identity, translation)
+        # per joint: (R_origin @ Q, Q^T or None when identity, translation); the rotations
+        # as their _recipe, the constant rotation also as a matrix (prismatic joints)
         self._plan = []
         for joint in model.joints:
             rot = _snap(joint.origin[:3, :3])
             if joint.movable and joint.kind != "prismatic":
                 q_frame = _axis_frame(joint.axis)
-                back = None if np.array_equal(q_frame, np.eye(3)) else q_frame.T
-                self._plan.append((rot @ q_frame, back, joint.origin[:3, 3]))
+                back = None if np.array_equal(q_frame, np.eye(3)) else _recipe(q_frame.T)
+                rot = rot @ q_frame
+                self._plan.append((_recipe(rot), rot, back, joint.origin[:3, 3]))
             else:
-                self._plan.append((rot, None, joint.origin[:3, 3]))
+                self._plan.append((_recipe(rot), rot, None, joint.origin[:3, 3]))
+        self._links = model.links
+        self._needed: dict[tuple[str, ...], frozenset[str]] = {}
+
+    def _chains(self, wanted: tuple[str, ...]) -> frozenset[str]:
+        """The links whose frames lead to the ``wanted`` ones (KeyError for unknown ones)."""
+        needed = self._needed.get(wanted)
+        if needed is None:
+            unknown = set(wanted) - set(self._links)
+            if unknown:
+                raise KeyError(f"unknown links {sorted(unknown)}")
+            found: set[str] = set()
+            for link in wanted:  # only compute the chains leading to the requested links
+                while link in self._parent_joint and link not in found:
+                    found.add(link)
+                    link = self._parent_joint[link].parent
+            needed = self._needed[wanted] = frozenset(found)
+        return needed
 
     def forward(self, q: np.ndarray, links: Iterable[str] | None = None) -> dict[str, np.ndarray]:
         """Poses of links in the world (base) frame.
@@ -181,15 +204,8 @@ class Kinematics:
             dict link name -> (n, 4, 4) transforms (batch-last views, see the class doc).
         """
         q = _as_batch(q, self.model.dof)
-        wanted = list(dict.fromkeys(self.model.links if links is None else links))
-        unknown = set(wanted) - set(self.model.links)
-        if unknown:
-            raise KeyError(f"unknown links {sorted(unknown)}")
-        needed = set()
-        for link in wanted:  # only compute the chains leading to the requested links
-            while link in self._parent_joint and link not in needed:
-                needed.add(link)
-                link = self._parent_joint[link].parent
+        wanted = tuple(dict.fromkeys(self._links if links is None else links))
+        needed = self._chains(wanted)
         n = q.shape[0]
         # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
         half_tan = np.tan(0.5 * q.T)
@@ -201,13 +217,14 @@ class Kinematics:
             self.model.base_link: (tuple(np.broadcast_to(eye[:, k, None], (3, n))
                                          for k in range(3)),
                                    np.broadcast_to(np.zeros((3, 1)), (3, n)))}
-        for joint, (rot_const, back, trans) in zip(self.model.joints, self._plan, strict=True):
+        for joint, (recipe, rot_const, back, trans) in zip(self.model.joints, self._plan,
+                                                           strict=True):
             if joint.child not in needed:
                 continue
             cols_p, pos_p = frames[joint.parent]
             shift = _apply(cols_p, trans)
             pos = pos_p if shift is None else pos_p + shift
-            cols = _times_constant(cols_p, rot_const)
+            cols = _times_constant(cols_p, recipe)
             if joint.kind == "prismatic":
                 index, mult, off = self._drivers[joint.name]
                 pos = pos + _apply(cols_p, rot_const @ joint.axis) * (mult * qt[index] + off)
@@ -245,8 +262,8 @@ class Kinematics:
         """(n, 4, 4) pose of one link."""
         return self.forward(q, [link])[link]
 
-    def joint_frames(self, q: np.ndarray, link: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
-        """Movable joints on the chain to ``link``: (name, origin (n, 3), world axis (n, 3))."""
+    def chain(self, link: str) -> list:
+        """The joints from the base to ``link``, base first."""
         chain = []
         current = link
         while current in self._parent_joint:
@@ -254,13 +271,25 @@ class Kinematics:
             chain.append(joint)
             current = joint.parent
         chain.reverse()
-        poses = self.forward(q, [j.child for j in chain])
+        return chain
+
+    def joint_frames(self, q: np.ndarray, link: str) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Movable joints on the chain to ``link``: (name, origin (n, 3), world axis (n, 3))."""
+        chain = self.chain(link)
+        return self._joint_frames(self.forward(q, [j.child for j in chain]), chain)
+
+    def _joint_frames(self, poses: dict[str, np.ndarray], chain: list
+                      ) -> list[tuple[str, np.ndarray, np.ndarray]]:
         out = []
         for joint in chain:
             if joint.movable:
                 frame = poses[joint.child]  # child frame = joint frame (URDF convention)
                 out.append((joint.name, frame[:, :3, 3], frame[:, :3, :3] @ joint.axis))
         return out
+
+    def jacobian_links(self, link: str) -> list[str]:
+        """The links whose poses :meth:`jacobian_at` needs for ``link``'s Jacobian."""
+        return list(dict.fromkeys([link] + [j.child for j in self.chain(link)]))
 
     def jacobian(self, q: np.ndarray, link: str, point: np.ndarray | None = None) -> np.ndarray:
         """Geometric (spatial) Jacobian of a link frame, world frame.
@@ -275,15 +304,21 @@ class Kinematics:
             rows 3-5 to the angular velocity of the link.
         """
         q = _as_batch(q, self.model.dof)
-        pose = self.pose(q, link)
+        return self.jacobian_at(self.forward(q, self.jacobian_links(link)), link, point)
+
+    def jacobian_at(self, poses: dict[str, np.ndarray], link: str,
+                    point: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`jacobian` from link poses (n, 4, 4) already computed by :meth:`forward`
+        (at least those of :meth:`jacobian_links`); the same numbers."""
+        pose = poses[link]
         target = pose[:, :3, 3] if point is None else pose[:, :3, :3] @ point + pose[:, :3, 3]
-        jac = np.zeros((q.shape[0], 6, self.model.dof))
-        for name, origin, axis in self.joint_frames(q, link):
+        jac = np.zeros((pose.shape[0], 6, self.model.dof))
+        for name, origin, axis in self._joint_frames(poses, self.chain(link)):
             index, mult, _ = self._drivers[name]
             if self.model.joint(name).kind == "prismatic":
                 jac[:, :3, index] += mult * axis
             else:
-                jac[:, :3, index] += mult * np.cross(axis, target - origin)
+                jac[:, :3, index] += mult * cross(axis, target - origin)
                 jac[:, 3:, index] += mult * axis
         return jac
 
@@ -295,9 +330,26 @@ class Kinematics:
         joint 3 is zero), positive by the right-hand rule about shoulder -> wrist.
         Undefined (returned as 0) when the elbow lies on the shoulder-wrist line.
         """
-        poses = self.forward(q, [SHOULDER_LINK, ELBOW_LINK, WRIST_LINK])
-        return elbow_angle(poses[SHOULDER_LINK][:, :3, 3], poses[ELBOW_LINK][:, :3, 3],
-                           poses[WRIST_LINK][:, :3, 3])
+        return arm_angle_at(self.forward(q, ARM_ANGLE_LINKS))
+
+
+#: The links whose poses give the arm angle (:func:`arm_angle_at`).
+ARM_ANGLE_LINKS = (SHOULDER_LINK, ELBOW_LINK, WRIST_LINK)
+
+
+def arm_angle_at(poses: dict[str, np.ndarray]) -> np.ndarray:
+    """:meth:`Kinematics.arm_angle` (n,) from link poses (n, 4, 4) that include
+    :data:`ARM_ANGLE_LINKS`."""
+    return elbow_angle(poses[SHOULDER_LINK][:, :3, 3], poses[ELBOW_LINK][:, :3, 3],
+                       poses[WRIST_LINK][:, :3, 3])
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of 3-vectors (..., 3), with its arithmetic (a1 b2 - a2 b1, ...) and
+    without its per-call set-up (a tenth of a Jacobian's time)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def elbow_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
@@ -311,6 +363,6 @@ def elbow_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> n
     fallback = fallback - np.sum(fallback * axis, axis=-1, keepdims=True) * axis
     ref = np.where(ref_norm > 1e-9, ref, fallback)
     ref = ref / np.linalg.norm(ref, axis=-1, keepdims=True)
-    side = np.cross(axis, ref)
+    side = cross(axis, ref)
     e = elbow - shoulder
     return np.arctan2(np.sum(e * side, axis=-1), np.sum(e * ref, axis=-1))
