@@ -24,7 +24,6 @@ import csv
 import io
 import json
 import math
-import re
 import sqlite3
 import time
 from collections.abc import Callable
@@ -38,6 +37,7 @@ from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes, run_chunk
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise, noise_entries
+from kinegrasp_env.sampling.noise_spec import spec_loader
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
 from kinegrasp_env.world.objects import OBJECT_NAMES, object_names
@@ -113,7 +113,7 @@ class SweepSpec:
         import yaml
 
         try:
-            data = yaml.load(path.read_text(), Loader=_spec_loader())  # a SafeLoader
+            data = yaml.load(path.read_text(), Loader=spec_loader())  # a SafeLoader
         except yaml.MarkedYAMLError as exc:
             mark = exc.problem_mark or exc.context_mark
             where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
@@ -156,28 +156,6 @@ def _noise(value: Any, where: str, base: str | Path | None
 
 #: Numbers YAML 1.1 reads as strings but YAML 1.2 (and every reader of the spec) as floats:
 #: an exponent without a decimal point or without a sign (``1e-2``, ``5E3``, ``1.5e3``).
-_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
-
-
-def _spec_loader() -> type:
-    """``yaml.SafeLoader`` that also reads :data:`_EXPONENT_FLOAT` scalars as floats and
-    refuses a key given twice in one mapping (plain YAML keeps the last silently)."""
-    import yaml
-
-    class SpecLoader(yaml.SafeLoader):
-        def construct_mapping(self, node, deep=False):
-            seen = set()
-            for key_node, _ in node.value:
-                key = self.construct_object(key_node, deep=True)
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"key {key!r} appears twice", key_node.start_mark)
-                seen.add(key)
-            return super().construct_mapping(node, deep)
-
-    SpecLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT,
-                                     list("-+0123456789."))
-    return SpecLoader
 
 
 def _unique(values: tuple, key: str, where: str) -> tuple:

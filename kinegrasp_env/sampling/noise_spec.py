@@ -155,7 +155,9 @@ _EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE
 
 
 def spec_loader() -> type:
-    """``yaml.SafeLoader`` that reads ``1e-2`` as a number and refuses a key given twice."""
+    """``yaml.SafeLoader`` that reads ``1e-2`` as a number (YAML 1.1 would read a string) and
+    refuses a key given twice in one mapping (plain YAML keeps the last silently); used for
+    noise specs and sweep specs."""
     import yaml
 
     class NoiseSpecLoader(yaml.SafeLoader):
