@@ -362,7 +362,7 @@ from kinegrasp_env.toolkit.experiments import markdown_table1, table1
 for engine in ("fast", "physics"):
     rows = table1("spray_flask", n(20, 3), f"out_table1_{engine}", grasps=5, engine=engine,
                   processes=2)
-    display(Markdown(f"**{engine} engine**\n\n" + markdown_table1(rows, "spray_flask",
+    display(Markdown(f"**{engine} engine**\\n\\n" + markdown_table1(rows, "spray_flask",
                                                                    n(20, 3))))
 out = "out_validate_cube"
 subprocess.run([sys.executable, "-m", "kinegrasp_env.cli", "validate", "--object", "cube",
