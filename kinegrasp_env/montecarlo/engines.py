@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import auto_close
+from kinegrasp_env.closing.reference import CloseResult, auto_close
 from kinegrasp_env.montecarlo.perturbation import placed_roots, world_to_object
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -198,6 +198,23 @@ class Engine:
             out.outcome[rows[q > 0]] = FORCE_CLOSURE
 
 
+def record_close(out: DrawBatch, i: int, result: CloseResult) -> None:
+    """Draw i's contacts, closed hand and provisional outcome (before scoring) in ``out``,
+    from one closing of the hand (``result``: the reference's or the physics closing's)."""
+    if result.start_collision:
+        out.outcome[i] = START_COLLISION
+        return
+    k = min(len(result.contacts), MAX_CONTACTS)
+    out.n_contacts[i] = k
+    for j, contact in enumerate(result.contacts[:k]):
+        out.points[i, j] = contact.point
+        out.normals[i, j] = contact.normal
+        out.finger[i, j] = contact.finger
+        out.link[i, j] = contact.link
+    out.hand[i] = result.joints
+    out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+
+
 class PybulletEngine(Engine):
     """The reference engine: pybullet collision queries for auto-close, draw by draw.
 
@@ -232,19 +249,7 @@ class PybulletEngine(Engine):
             roots = placed_roots(roots, self.obj.pose, palm, object_offset)
         t1 = time.perf_counter()
         for i in range(n):
-            result = auto_close(self.world, roots[i], q[i, 7:])
-            if result.start_collision:
-                out.outcome[i] = START_COLLISION
-                continue
-            k = min(len(result.contacts), MAX_CONTACTS)
-            out.n_contacts[i] = k
-            for j, contact in enumerate(result.contacts[:k]):
-                out.points[i, j] = contact.point
-                out.normals[i, j] = contact.normal
-                out.finger[i, j] = contact.finger
-                out.link[i, j] = contact.link
-            out.hand[i] = result.joints
-            out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+            record_close(out, i, auto_close(self.world, roots[i], q[i, 7:]))
         t2 = time.perf_counter()
         self.score(out, friction)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)

@@ -20,17 +20,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.closing.lift import LiftProfile, lift_test
-from kinegrasp_env.closing.physics import MotorSettings, PhysicsClose, physics_close
+from kinegrasp_env.closing.physics import MotorSettings, physics_close
 from kinegrasp_env.closing.physics_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.montecarlo.engines import (
     FLANGE_LINK,
-    MAX_CONTACTS,
-    MISSED,
-    NO_FORCE_CLOSURE,
-    START_COLLISION,
     DrawBatch,
     Engine,
     check_configurations,
+    record_close,
 )
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
@@ -59,22 +56,6 @@ class LiftBatch:
     def empty(cls, n: int) -> LiftBatch:
         return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan),
                    np.full(n, np.nan))
-
-
-def record_close(out: DrawBatch, i: int, result: PhysicsClose) -> None:
-    """Draw i's contacts, closed hand and provisional outcome (before scoring) in ``out``."""
-    if result.start_collision:
-        out.outcome[i] = START_COLLISION
-        return
-    k = min(len(result.contacts), MAX_CONTACTS)
-    out.n_contacts[i] = k
-    for j, contact in enumerate(result.contacts[:k]):
-        out.points[i, j] = contact.point
-        out.normals[i, j] = contact.normal
-        out.finger[i, j] = contact.finger
-        out.link[i, j] = contact.link
-    out.hand[i] = result.joints
-    out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
 
 
 class PhysicsEngine(Engine):
