@@ -1,6 +1,8 @@
-"""The toolkit: the grasp planner (``planner``), ranking by robustness (``ranking``), the
+"""The toolkit: the grasp planner (``planner``), candidates given as palm poses
+(``candidates``), ranking by robustness (``ranking``), the most robust elbow (``elbow``), the
 paper's experiments (``experiments``), the sensitivity analysis per source of error
-(``sensitivity``) and plots (``plots``). Uses ``montecarlo`` and below.
+(``sensitivity``), the physics validation (``validation``), HTML reports (``report*``),
+progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ _EXPORTS = {
     "fig7": "experiments",
     "fig9_10": "experiments",
     "Sensitivity": "sensitivity",
+    "optimize_elbow": "elbow",
+    "ElbowResult": "elbow",
+    "run_validation": "validation",
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(_EXPORTS)
