@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import Grasp, read_json_file
 
 log = logging.getLogger(__name__)
 
@@ -162,12 +162,7 @@ def load_candidates(path: str | Path) -> tuple[str, list[PalmCandidate]]:
     from kinegrasp_env.world.objects import is_object, unknown_object
 
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    data = read_json_file(path)
     if not isinstance(data, dict) or not isinstance(data.get("candidates"), list):
         raise ValueError(f"{path}: expected an object with a 'candidates' list")
     name = data.get("object")

@@ -111,15 +111,22 @@ def check_configuration(q0: np.ndarray, where: str = "q0") -> np.ndarray:
     return q0
 
 
-def load_grasps(path: str | Path) -> list[Grasp]:
-    """Read a grasp file; ValueError names the file and the problem."""
+def read_json_file(path: str | Path) -> object:
+    """The parsed JSON of a user's file; a missing file or bad JSON is a ValueError naming
+    the file (grasp files, candidate files)."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except FileNotFoundError:
         raise ValueError(f"{path}: no such file") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: not valid JSON ({exc})") from None
+
+
+def load_grasps(path: str | Path) -> list[Grasp]:
+    """Read a grasp file; ValueError names the file and the problem."""
+    path = Path(path)
+    data = read_json_file(path)
     if not isinstance(data, dict) or not isinstance(data.get("grasps"), list):
         raise ValueError(f"{path}: expected an object with a 'grasps' list")
     return [Grasp.from_dict(g, f"{path} grasp {i}") for i, g in enumerate(data["grasps"])]
