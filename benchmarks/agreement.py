@@ -2,11 +2,13 @@
 
 Run: ``python benchmarks/agreement.py [--grasps 3] [--draws 60] [--seed 0]
 [--objects cube mug] [--sigmas 0.0133 0.0266]`` (about 1 s per 30 draws of a row triple,
-most of it the reference engine).
+most of it the reference engine), or on any object, imported ones included, with the grasps
+of a grasp file (``kinegrasp plan``'s output): ``python benchmarks/agreement.py --grasp-file
+FILE [--grasps 5]`` (the file's object; ``--objects`` may not be given with it).
 
 For every object and noise level sigma (radians, on the 7 arm joints), the first ``--grasps``
-shipped grasps get ``--draws`` noisy configurations each, and each row compares two
-computations of those same draws:
+shipped grasps (or grasps of ``--grasp-file``) get ``--draws`` noisy configurations each, and
+each row compares two computations of those same draws:
 
 (a) ``fast vs pybullet``: the fast engine (distance grid, batched closing) against the
     reference engine (pybullet far-field gaps, per-draw closing). This proves that the batched
@@ -63,7 +65,7 @@ from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
 from kinegrasp_env.montecarlo.engines import FastEngine, PybulletEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 COLUMNS = (f"{'object':11s} {'sigma':>6s} {'comparison':18s} {'same outcome':>11s} "
@@ -72,18 +74,19 @@ COLUMNS = (f"{'object':11s} {'sigma':>6s} {'comparison':18s} {'same outcome':>11
            f"{'Q untied':>8s} (FC pairs)")
 
 
-def configurations(name: str, sigma: float, grasps: int, draws: int, seed: int) -> np.ndarray:
-    """(grasps * draws, 14): the first shipped grasps of ``name``, each with ``draws`` noisy
-    arm configurations (chunk g of the seed's stream for grasp g)."""
+def configurations(grasps: list[Grasp], sigma: float, draws: int, seed: int) -> np.ndarray:
+    """(len(grasps) * draws, 14): each grasp with ``draws`` noisy arm configurations (chunk g
+    of the seed's stream for grasp g)."""
     return np.concatenate([
         chunk_configurations(g.q0, JointNoise(sigma), seed, [(i, draws)])
-        for i, g in enumerate(shipped_grasps(name)[:grasps])])
+        for i, g in enumerate(grasps)])
 
 
-def compare_object(name: str, sigma: float, grasps: int, draws: int,
+def compare_object(name: str, sigma: float, grasps: list[Grasp], draws: int,
                    seed: int) -> dict[str, Agreement]:
-    """The three comparisons of one object and noise level."""
-    q = configurations(name, sigma, grasps, draws, seed)
+    """The three comparisons of one object (built-in or imported) and noise level on the
+    draws of ``grasps`` (grasps of that object)."""
+    q = configurations(grasps, sigma, draws, seed)
     reference, fast, bullet = PybulletEngine(name), FastEngine(name), BulletContactReference(name)
     try:
         ref, fst = reference.run(q), fast.run(q)
@@ -105,23 +108,50 @@ def row(name: str, sigma: float, label: str, a: Agreement) -> str:
             f"{a.q_abs_max:8.1e} {a.q_abs_max_untied:8.1e} ({a.q_pairs})")
 
 
+def grasp_sets(parser: argparse.ArgumentParser, args) -> dict[str, list[Grasp]]:
+    """The first ``--grasps`` grasps of each object: of ``--grasp-file``, else the shipped
+    sets of ``--objects`` (built-in objects by default); bad input ends through
+    ``parser.error`` (one line, exit status 2)."""
+    if args.grasps < 1:
+        parser.error(f"--grasps must be >= 1, got {args.grasps}")
+    try:
+        if args.grasp_file is None:
+            return {name: shipped_grasps(name)[:args.grasps]
+                    for name in args.objects or OBJECT_NAMES}
+        if args.objects:
+            parser.error("--objects and --grasp-file exclude each other (the file names "
+                         "its object)")
+        grasps = load_grasps(args.grasp_file)[:args.grasps]
+    except ValueError as exc:  # unknown object, no shipped set, bad grasp file
+        parser.error(str(exc))
+    if not grasps or len({g.object for g in grasps}) != 1:
+        parser.error(f"{args.grasp_file}: expected grasps of one object, got "
+                     f"{sorted({g.object for g in grasps})}")
+    return {grasps[0].object: grasps}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--grasps", type=int, default=3, help="shipped grasps per object")
+    parser.add_argument("--grasps", type=int, default=3,
+                        help="grasps per object (the first of its set or of --grasp-file)")
     parser.add_argument("--draws", type=int, default=60, help="draws per grasp and sigma")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--objects", nargs="+", default=list(OBJECT_NAMES),
-                        choices=OBJECT_NAMES)
+    parser.add_argument("--objects", nargs="+", help="objects whose shipped grasps to use "
+                        f"(default: {' '.join(OBJECT_NAMES)})")
+    parser.add_argument("--grasp-file", help="a grasp file (e.g. `kinegrasp plan`'s output "
+                        "for an imported object): its object, its first --grasps grasps")
     parser.add_argument("--sigmas", nargs="+", type=float, default=[0.0133, 0.0266])
     args = parser.parse_args()
+    sets = grasp_sets(parser, args)
     start = time.perf_counter()
     print(COLUMNS)
-    for name in args.objects:
+    for name, grasps in sets.items():
         for sigma in args.sigmas:
-            for label, agreement in compare_object(name, sigma, args.grasps, args.draws,
+            for label, agreement in compare_object(name, sigma, grasps, args.draws,
                                                    args.seed).items():
                 print(row(name, sigma, label, agreement), flush=True)
-    print(f"({args.grasps} grasps x {args.draws} draws per row, seed {args.seed}; "
+    counts = "/".join(sorted({str(len(g)) for g in sets.values()}))
+    print(f"({counts} grasps x {args.draws} draws per row, seed {args.seed}; "
           f"{time.perf_counter() - start:.0f} s)")
 
 

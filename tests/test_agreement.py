@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 from scipy.stats import binom
 
 from kinegrasp_env.montecarlo.agreement import compare, contact_lists_match, paired_deviations
@@ -65,17 +66,20 @@ WELL_POSED = (2e-5, 0.1)  # metres, degrees
 Q_ABS_TOL_B = 8e-3
 
 
-def _configurations(name: str, grasps: list[int], draws: int, seed: int) -> np.ndarray:
-    """(2 * len(grasps) * draws, 14): both sigmas, the grasps' noisy configurations."""
-    shipped = shipped_grasps(name)
+def _configurations(name: str, grasps: list[int], draws: int, seed: int,
+                    source: list | None = None) -> np.ndarray:
+    """(2 * len(grasps) * draws, 14): both sigmas, the noisy configurations of grasps
+    ``grasps`` (indices) of ``source`` (default: the object's shipped set)."""
+    shipped = shipped_grasps(name) if source is None else source
     return np.concatenate([
         chunk_configurations(shipped[g].q0, JointNoise(sigma), seed + s, [(g, draws)])
         for s, sigma in enumerate(SIGMAS) for g in grasps])
 
 
-def _check_engines_agree(name: str, grasps: list[int], draws: int, seed: int) -> None:
-    """(a), and (b) for both engines."""
-    q = _configurations(name, grasps, draws, seed)
+def _check_engines_agree(name: str, grasps: list[int], draws: int, seed: int,
+                         source: list | None = None) -> None:
+    """(a), and (b) for both engines (``source``: see :func:`_configurations`)."""
+    q = _configurations(name, grasps, draws, seed, source)
     reference, bullet = PybulletEngine(name), BulletContactReference(name)
     try:
         fast, ref = FastEngine(name).run(q), reference.run(q)
@@ -134,6 +138,24 @@ def test_fast_engine_contacts_agree_with_the_reference_and_with_pybullet(name):
 def test_fast_engine_contacts_agree_on_every_shipped_grasp(name):
     """All 12 grasps x 25 draws x 2 sigmas per object (not the measurement's draws)."""
     _check_engines_agree(name, list(range(12)), 25, seed=40)
+
+
+def test_engines_agree_on_an_imported_object(tmp_path, monkeypatch):
+    """An imported object (``kinegrasp objects add``): a 6 cm box, the built-in cube's shape
+    and frame, with the cube's shipped grasps 0 and 5 as its grasp file; the same tolerances
+    (``benchmarks/agreement.py --grasp-file FILE`` runs it on any imported object)."""
+    from kinegrasp_env.world import importer
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    importer.forget()
+    path = tmp_path / "box6.stl"
+    trimesh.creation.box(extents=(0.06, 0.06, 0.06)).export(path)
+    importer.import_object(path)
+    try:
+        assert load_object("box6").imported
+        _check_engines_agree("box6", [0, 5], 20, seed=20, source=shipped_grasps("cube"))
+    finally:
+        importer.forget()
 
 
 def test_pybullet_contacts_on_the_cube_are_on_its_faces_with_inward_normals():

@@ -216,3 +216,154 @@ def test_discrete_select_bins_are_elbow_angles():
         with pytest.raises(ValueError, match="action_bins must be an integer >= 2"):
             gym.make("KineGraspSelect-v0", action_bins=bad)
     env.close()
+
+
+# ----------------------------------------------------------------------------- given tasks
+#: Contacts of a palm-pose task against the shipped grasp's: measured <= 5.6e-11 m over all
+#: 48 shipped grasps (the IK reaches the palm pose to 1e-7 m / 1e-7 rad at worst, typically
+#: ~1e-10); a 1e-8 m bound (and 1e-8 on Q).
+PALM_TOL = 1e-8
+
+
+@pytest.mark.parametrize(("name", "index"), [("drill", 0), ("drill", 5), ("mug", 3),
+                                             ("spray_flask", 7), ("cube", 11)])
+def test_q0_of_a_shipped_grasp_is_that_grasp(name, index):
+    """Invariant: resetting with a shipped grasp's q0 gives the task of its grasp index: the
+    hand closed at q0 by the env's engine lands on the stored nominal contacts and Q (which
+    the planner recorded with the same reference engine), the same observation, and (same
+    seed) the same reward."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    env = gym.make("KineGrasp-v0", **SMALL).unwrapped
+    shipped = shipped_grasps(name)[index]
+    runs = []
+    for option in ({"grasp": index}, {"q0": shipped.q0.tolist()}):
+        obs, info = env.reset(seed=3, options={"object": name, "sigma": 0.02, **option})
+        grasp = env.grasp
+        _, reward, *_ = env.step(np.array([0.4, -1.0], dtype=np.float32))
+        runs.append((obs, reward, info, grasp))
+    (obs0, reward0, info0, _), (obs1, reward1, info1, given) = runs
+    assert given is not shipped and info1["grasp"] == "q0" and given.meta["source"] == "q0"
+    np.testing.assert_array_equal(given.q0, shipped.q0)
+    assert given.fingers.tolist() == shipped.fingers.tolist()
+    assert given.links.tolist() == shipped.links.tolist()
+    np.testing.assert_allclose(given.points, shipped.points, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(given.normals, shipped.normals, rtol=0, atol=1e-12)
+    assert given.q_nominal == pytest.approx(shipped.q_nominal, rel=1e-9)
+    np.testing.assert_allclose(given.palm_pose, shipped.palm_pose, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(obs1, obs0, rtol=0, atol=1e-6)
+    assert reward1 == reward0
+    assert {k: v for k, v in info1.items() if k != "grasp"} == {
+        k: v for k, v in info0.items() if k != "grasp"}
+    env.close()
+
+
+@pytest.mark.parametrize(("name", "index", "form"), [("drill", 0, "quaternion"),
+                                                     ("drill", 6, "pose"),
+                                                     ("mug", 2, "quaternion"),
+                                                     ("cube", 9, "pose")])
+def test_palm_pose_of_a_shipped_grasp_gives_its_contacts(name, index, form):
+    """A palm pose equal to a shipped grasp's (forward kinematics at its q0, in the object
+    frame; the quaternion from scipy) gives a task with the grasp's nominal contacts and Q
+    within PALM_TOL, whatever elbow the IK picks; with ``elbow`` the arm is at that angle."""
+    from scipy.spatial.transform import Rotation
+
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import load_object
+
+    env = gym.make("KineGraspSelect-v0", **SMALL).unwrapped
+    shipped = shipped_grasps(name)[index]
+    palm_world = env.kinematics.pose(shipped.q0, PALM_LINK)[0]
+    np.testing.assert_allclose(palm_world, shipped.palm_pose, atol=1e-12)  # FK = stored
+    palm = np.linalg.inv(load_object(name).pose) @ palm_world
+    entry = {"pose": palm.tolist()} if form == "pose" else {
+        "position": palm[:3, 3].tolist(),
+        "quaternion": Rotation.from_matrix(palm[:3, :3]).as_quat().tolist()}
+    entry["hand"] = shipped.hand.tolist()
+    psi0 = float(env.ik.elbow_angle(shipped.q0[None])[0])
+    for elbow in (None, psi0 + 0.1):
+        obs, info = env.reset(seed=0, options={"object": name, "palm_pose": {
+            **entry, "elbow": elbow}, "sigma": 0.01})
+        given = env.grasp
+        assert info["grasp"] == "palm_pose" and obs.shape == (44,)
+        assert given.fingers.tolist() == shipped.fingers.tolist()
+        np.testing.assert_allclose(given.points, shipped.points, rtol=0, atol=PALM_TOL)
+        np.testing.assert_allclose(given.normals, shipped.normals, rtol=0, atol=PALM_TOL)
+        assert given.q_nominal == pytest.approx(shipped.q_nominal, abs=PALM_TOL)
+        assert np.abs(pose_error(env.kinematics.pose(env.q, PALM_LINK), palm_world)
+                      ).max() < 1e-6
+        if elbow is not None:
+            assert info["elbow_angle"] == pytest.approx(elbow, abs=1e-6)
+    env.close()
+
+
+def given_task_errors() -> list[tuple[dict, str]]:
+    """(reset options, the error's words) of each bad given task (drill, shipped grasp 0)."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    q0 = shipped_grasps("drill")[0].q0
+    swung = q0.copy()
+    swung[0] += 0.8  # the arm turned away: the hand closes on air
+    beyond = q0.copy()
+    beyond[1] = 2.5  # joint 2's limit is 2.0944 rad
+    nan = q0.copy()
+    nan[9] = np.nan
+    inside = {"pose": [[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0.05], [0, 0, 0, 1]],
+              "spread": 0.0}  # the palm at the drill's axis, 5 cm up: the hand in the drill
+    far = {"position": [1.5, 0.0, 0.8], "quaternion": [1, 0, 0, 0], "spread": 0.0}
+    return [
+        ({"object": "drill", "q0": q0[:13].tolist()}, "q0 must have 14 entries .*got 13"),
+        ({"object": "drill", "q0": nan.tolist()}, "q0 has non-finite entries"),
+        ({"object": "drill", "q0": beyond.tolist()},
+         r"q0\[1\] \(lbr_iiwa_joint_2\) = 2.5000 is outside its limits"),
+        ({"object": "drill", "q0": "up"}, "q0 must be 14 numbers"),
+        ({"object": "drill", "q0": swung.tolist()},
+         r"q0: the hand does not close on drill \(missed: "),
+        ({"object": "drill", "palm_pose": inside},
+         r"palm_pose: the hand does not close on drill \(start_collision: "),
+        ({"object": "drill", "palm_pose": far}, "palm_pose is unreachable on drill: no IK"),
+        ({"object": "drill", "palm_pose": {**far, "quaternion": [0, 0, 0, 2]}},
+         "quaternion must be unit"),
+        ({"object": "drill", "palm_pose": np.eye(4)}, "palm_pose must be a dict"),
+        ({"object": "teapot", "q0": q0.tolist()}, "unknown object 'teapot'; known objects"),
+        ({"q0": q0.tolist()}, "q0 needs the option object"),
+        ({"object": "drill", "q0": q0.tolist(), "grasp": 0}, "not grasp and q0"),
+        ({"object": "drill", "q0": q0.tolist(), "palm_pose": far}, "not q0 and palm_pose"),
+    ]
+
+
+def test_bad_given_tasks_are_value_errors():
+    env = gym.make("KineGrasp-v0", **SMALL).unwrapped
+    for options, needle in given_task_errors():
+        with pytest.raises(ValueError, match=needle):
+            env.reset(seed=0, options=options)
+    env.close()
+
+
+def test_imported_object_with_a_planned_q0(tmp_path, monkeypatch):
+    """An imported 6 cm cube (the built-in cube's shape and frame: centre of the base at the
+    object's pose) with the q0 of a planned grasp of the built-in cube (its shipped set, the
+    planner's output): the task's nominal contacts are the planned ones (to the STL file's
+    float32 rounding, measured 1.4e-9 m; bound 1e-8 m) and one step gives a reward."""
+    import trimesh
+
+    from kinegrasp_env.world import importer
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    importer.forget()
+    path = tmp_path / "box6.stl"
+    trimesh.creation.box(extents=(0.06, 0.06, 0.06)).export(path)
+    importer.import_object(path)
+    planned = shipped_grasps("cube")[4]
+    env = gym.make("KineGrasp-v0", **SMALL).unwrapped  # its objects: the built-in ones
+    obs, info = env.reset(seed=0, options={"object": "box6", "q0": planned.q0.tolist(),
+                                           "sigma": 0.01})
+    assert info["object"] == "box6" and obs.shape == (44,) and np.all(np.isfinite(obs))
+    np.testing.assert_allclose(env.grasp.points, planned.points, rtol=0, atol=1e-8)
+    assert env.grasp.q_nominal == pytest.approx(planned.q_nominal, abs=1e-7)
+    obs, reward, _, _, info = env.step(np.array([0.3, 1.0], dtype=np.float32))
+    assert info["object"] == "box6" and sum(info["outcomes"].values()) == SMALL["n_draws"]
+    assert 0.0 <= reward <= 1.0 and obs.shape == (44,)
+    env.close()
+    importer.forget()

@@ -14,7 +14,7 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
-from kinegrasp_env.world.sdf import build_grid, object_grid
+from kinegrasp_env.world.sdf import build_grid, grid_of, object_grid
 
 
 def _random_segments(obj, n, seed, length=0.0865, pad=0.02):
@@ -85,9 +85,9 @@ def test_distance_grid_is_close_to_exact_distance_near_the_surface(name):
 
 def test_grid_cache_round_trip(tmp_path, monkeypatch):
     monkeypatch.setenv("KINEGRASP_CACHE", str(tmp_path))
-    built = object_grid.__wrapped__("cube")
+    built = grid_of.__wrapped__(load_object("cube"))
     assert len(list((tmp_path / "sdf").glob("cube-*.npz"))) == 1
-    loaded = object_grid.__wrapped__("cube")
+    loaded = grid_of.__wrapped__(load_object("cube"))
     np.testing.assert_array_equal(loaded.values, built.values)
     np.testing.assert_array_equal(loaded.origin, built.origin)
 

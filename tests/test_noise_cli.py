@@ -42,7 +42,6 @@ def test_evaluate_with_a_noise_spec_is_the_library_evaluation(spec_file, capsys)
 @pytest.mark.parametrize("extra, needle", [
     (["--sigma", "0.02"], "--sigma and --noise-spec both given"),
     (["--noise", "uniform"], "--noise and --noise-spec both given"),
-    (["--report", "page.html"], "--report shows joint noise only"),
 ])
 def test_noise_spec_conflicts_are_one_line_errors(spec_file, capsys, extra, needle):
     assert main(["evaluate", "--noise-spec", str(spec_file), *extra]) == 2

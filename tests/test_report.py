@@ -1,5 +1,6 @@
-"""HTML reports (`kinegrasp report`, `evaluate --report`, `rank --report`): their geometry and
-data against independent computations, the command line, and the pages in a real browser.
+"""HTML reports (`kinegrasp report`, `evaluate --report`, `rank --report`, `elbow --report`):
+their geometry and data against independent computations, the command line (noise specs of
+several sources, grasp files of imported objects), and the pages in a real browser.
 
 The browser tests load each page type in headless Chromium with the network off and assert no
 console error, no request leaving the file, every figure drawn and non-blank WebGL canvases
@@ -11,7 +12,9 @@ installs it).
 from __future__ import annotations
 
 import json
+import os
 import re
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -25,7 +28,9 @@ from kinegrasp_env.montecarlo.evaluate import GraspStats, evaluate_grasp
 from kinegrasp_env.quality.wrenches import tangent_basis
 from kinegrasp_env.robot.model import PALM_LINK
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit import report, report_browser, report_scene
+from kinegrasp_env.sampling.noise_spec import load_noise_model
+from kinegrasp_env.toolkit import report, report_browser, report_elbow, report_scene
+from kinegrasp_env.toolkit.elbow import optimize_elbow
 from kinegrasp_env.toolkit.report_charts import quality_histogram
 from kinegrasp_env.toolkit.report_geometry import (
     SKELETON_LINKS,
@@ -37,7 +42,7 @@ from kinegrasp_env.toolkit.report_geometry import (
     visual_poses,
 )
 from kinegrasp_env.toolkit.report_plotly import MeshLibrary, decode_typed_array, plotly_js
-from kinegrasp_env.world.grasps import grasp_by_index, shipped_grasps
+from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
 CHROMIUM = report_browser.find_chromium()
@@ -45,6 +50,11 @@ needs_chromium = pytest.mark.skipif(
     CHROMIUM is None, reason="no chromium on PATH: the browser tests need it (Debian: "
     "apt-get install chromium; .ci/run installs it)")
 SAMPLES = 60
+#: A noise model of four sources (joints, hand, object pose, friction).
+SPEC = ("joints: {sigma: 0.01, distribution: gaussian}\n"
+        "hand: {spread_sigma: 0.01, closing_sigma: 0.02}\n"
+        "object: {translation_sigma: 0.002, rotation_sigma: 0.01}\n"
+        "friction: {distribution: uniform, low: 0.3, high: 0.7}\n")
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +63,20 @@ def run():
     grasp = grasp_by_index("cube", 0)
     return grasp, evaluate_grasp(grasp, JointNoise(0.02), SAMPLES, seed=3, engine="fast",
                                  return_draws=True)
+
+
+@pytest.fixture(scope="module")
+def spec_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("spec") / "noise.yaml"
+    path.write_text(SPEC)
+    return path
+
+
+@pytest.fixture(scope="module")
+def elbow_run():
+    """A small elbow optimization of cube grasp 0 (fast engine, 40 draws per angle)."""
+    grasp = grasp_by_index("cube", 0)
+    return grasp, optimize_elbow(grasp, JointNoise(0.02), 40, seed=3, engine="fast")
 
 
 # ------------------------------------------------------------------------------- geometry
@@ -305,13 +329,15 @@ def test_evaluate_and_rank_write_reports(tmp_path, capsys):
 
 # ------------------------------------------------------------------------------- browser
 @pytest.fixture(scope="module")
-def pages(tmp_path_factory, run):
-    """One page of each type: an evaluation, a P(FC)-vs-sigma page, a ranking."""
+def pages(tmp_path_factory, run, elbow_run, spec_file):
+    """One page of each type: an evaluation, a P(FC)-vs-sigma page, a ranking, an elbow
+    optimization, an evaluation under a noise model of four sources."""
     folder = tmp_path_factory.mktemp("pages")
     grasp, stats = run
     second = evaluate_grasp(grasp, JointNoise(0.04), SAMPLES, seed=3, engine="fast")
     out = {"evaluate": folder / "evaluate.html", "sigmas": folder / "sigmas.html",
-           "rank": folder / "rank.html"}
+           "rank": folder / "rank.html", "elbow": folder / "elbow.html",
+           "spec": folder / "spec.html"}
     report.write_page(out["evaluate"], report.evaluation_page(
         grasp, [stats], command="kinegrasp report ...", settings={}))
     report.write_page(out["sigmas"], report.evaluation_page(
@@ -324,6 +350,14 @@ def pages(tmp_path_factory, run):
     report.write_page(out["rank"], report.rank_page(
         grasps, rows, command="kinegrasp rank ...", settings={}, noise=JointNoise(0.02),
         seed=0, samples=20))
+    elbow_grasp, result = elbow_run
+    report.write_page(out["elbow"], report_elbow.elbow_page(
+        elbow_grasp, result, JointNoise(0.02), command="kinegrasp elbow ...", settings={}))
+    model = load_noise_model(spec_file)
+    report.write_page(out["spec"], report.evaluation_page(
+        grasp, [evaluate_grasp(grasp, model, SAMPLES, seed=3, engine="fast",
+                               return_draws=True)], command="kinegrasp report ...",
+        settings={}))
     return out
 
 
@@ -427,3 +461,215 @@ def test_screenshot_command_writes_the_page_as_png(pages, tmp_path, capsys):
     assert "0 console errors" in capsys.readouterr().out
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert report_browser.pixel_stats(out.read_bytes())["colours"] > 1000
+
+
+# -------------------------------------------------------------------- elbow and noise pages
+def _figures(page: str) -> dict:
+    """The page's figures by key (``fig-KEY``)."""
+    return {key: json.loads(text) for key, text in re.findall(
+        r'<script type="application/json" id="fig-([^"]+)">(.*?)</script>', page, re.S)}
+
+
+def _skeletons(figure: dict, name: str) -> np.ndarray:
+    """A skeleton trace's polylines (n, L, 3) (NaN rows separate them)."""
+    trace = next(t for t in figure["data"] if t["name"] == name)
+    flat = np.stack([decode_typed_array(trace[a]) for a in "xyz"], axis=1)
+    return flat.reshape(-1, len(SKELETON_LINKS) + 1, 3)[:, :-1]
+
+
+def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):
+    """The curve is the optimizer's (psi ascending, Wilson intervals as error bars, nominal
+    and best marked). The two arm views reach the same palm position with elbows apart (the
+    null space); each shows the first draws of its own angle, coloured by the outcomes the
+    optimizer recorded (the fast engine fed those configurations gives them again), and the
+    other elbow's skeleton."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+
+    grasp, result = elbow_run
+    page = report_elbow.elbow_page(grasp, result, JointNoise(0.02), command="c", settings={})
+    figures = _figures(page)
+    assert set(figures) == {"elbow", "arm-nominal", "arm-best"}
+    curve = sorted(result.curve, key=lambda p: p.psi)
+    trace = figures["elbow"]["data"][0]
+    assert trace["x"] == [p.psi for p in curve] and trace["y"] == [p.p_fc for p in curve]
+    y = np.array(trace["y"])
+    np.testing.assert_allclose(y + trace["error_y"]["array"], [p.p_fc_ci[1] for p in curve])
+    np.testing.assert_allclose(y - trace["error_y"]["arrayminus"], [p.p_fc_ci[0] for p in curve])
+    assert [s["x0"] for s in figures["elbow"]["layout"]["shapes"]] == [result.nominal_psi,
+                                                                      result.best_psi]
+    assert f"best elbow {result.best_psi:+.3f} rad: P(FC) {result.best_p_fc:.4f}" in page
+    own = {label: _skeletons(figures[f"arm-{label}"], f"skeleton ({label} elbow, no noise)")[0]
+           for label in ("nominal", "best")}
+    np.testing.assert_allclose(own["nominal"][-1], own["best"][-1], atol=1e-5)  # the palm
+    assert np.linalg.norm(own["nominal"][4] - own["best"][4]) > 0.05  # the elbow (link 4)
+    np.testing.assert_allclose(_skeletons(figures["arm-nominal"], "skeleton at the best elbow")[0],
+                               own["best"], atol=1e-6)
+    engine = make_engine("fast", "cube")
+    for label, psi in (("nominal", result.nominal_psi), ("best", result.best_psi)):
+        point = report_elbow.curve_point(result, psi)
+        q = noisy_configurations(point.q, JointNoise(0.02), 3, 40, report.ARM_DRAWS)
+        outcome = engine.run(q).outcome
+        np.testing.assert_array_equal(outcome, point.outcome[:len(q)])
+        shown = {t["name"] for t in figures[f"arm-{label}"]["data"]
+                 if t["name"].startswith("draws: ")}
+        counts = Counter(OUTCOMES[k] for k in outcome)
+        assert shown == {f"draws: {n.replace('_', ' ')} ({c})" for n, c in counts.items()}
+        for name, count in counts.items():  # each trace: the skeletons of those draws
+            drawn = _skeletons(figures[f"arm-{label}"],
+                               f"draws: {name.replace('_', ' ')} ({count})")
+            np.testing.assert_allclose(drawn, skeletons(q[outcome == OUTCOMES.index(name)]),
+                                       atol=1e-6)
+
+
+def test_elbow_command_writes_its_page(elbow_run, tmp_path, capsys):
+    """`elbow --report`: the library's optimization (same settings, same numbers) on the page,
+    with the command that reproduces it; a folder as --report fails before any draw."""
+    page = tmp_path / "elbow.html"
+    args = ["elbow", "--object", "cube", "--grasp", "0", "--sigma", "0.02", "--samples", "40",
+            "--seed", "3", "--json"]
+    assert main([*args, "--report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--report" in err[0] and "is a folder" in err[0], err
+    assert main([*args, "--report", str(page)]) == 0
+    out, err = capsys.readouterr()
+    printed = json.loads(out)
+    _, result = elbow_run
+    assert printed == json.loads(json.dumps(result.to_json()))
+    assert f"report written to {page}" in err
+    text = page.read_text()
+    curve = _figures(text)["elbow"]["data"][0]
+    assert curve["y"] == [c["p_fc"] for c in sorted(printed["curve"], key=lambda c: c["psi"])]
+    assert ("kinegrasp elbow --object cube --grasp 0 --sigma 0.02 --noise gaussian --samples 40 "
+            f"--seed 3 --engine fast --report {page}") in text
+
+
+def _section(page: str, title: str) -> dict:
+    """The rows (first cell -> second cell) of the table under ``<h2>title</h2>``."""
+    table = re.search(rf"<h2>{title}</h2><table>(.*?)</table>", page, re.S).group(1)
+    return dict(re.findall(r'<tr><td class="kg-text">([^<]*)</td><td class="kg-text">([^<]*)'
+                           r"</td></tr>", table))
+
+
+def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys):
+    """`report --noise-spec F`: the library's evaluation under the model; the page lists the
+    sources with the settings SPEC gives them (read off SPEC by hand), palm exact, and the
+    command names the spec instead of a sigma."""
+    out = tmp_path / "spec.html"
+    assert main(["report", "--object", "cube", "--grasp", "1", "--noise-spec", str(spec_file),
+                 "--samples", "50", "--seed", "2", "--engine", "fast", "--out", str(out),
+                 "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    model = load_noise_model(spec_file)
+    stats = evaluate_grasp(grasp_by_index("cube", 1), model, 50, seed=2, engine="fast",
+                           return_draws=True)
+    assert printed["runs"] == [json.loads(json.dumps(stats.to_json()))]
+    assert report.run_noise(stats) == model
+    page = out.read_text()
+    assert _section(page, "Noise sources") == {
+        "joints": "distribution gaussian; sigma 0.01 rad",
+        "hand": "spread_sigma 0.01 rad; closing_sigma 0.02 rad",
+        "palm": "exact (not in the spec)",
+        "object": "translation_sigma 0.002 m; rotation_sigma 0.01 rad",
+        "friction": "distribution uniform; low 0.3; high 0.7"}
+    settings = _section(page, "Settings")
+    assert settings["noise spec"] == str(spec_file)
+    assert settings["noise sources"] == "joints, hand, object, friction"
+    assert "under a noise model of 4 sources (joints, hand, object, friction)" in page
+    assert "its object, friction errors act on the grasp but are not drawn" in page
+    command = re.search(r'<pre class="kg-command">(.*?)</pre>', page).group(1)
+    assert command.startswith("kinegrasp report --object cube --grasp 1 --noise-spec "
+                              f"{spec_file} --samples 50 --seed 2 --engine fast --out {out}")
+    assert "--sigma" not in command
+
+
+def test_evaluate_report_with_a_noise_spec(spec_file, tmp_path, capsys):
+    page = tmp_path / "evaluate.html"
+    assert main(["evaluate", "--object", "cube", "--grasp", "1", "--noise-spec",
+                 str(spec_file), "--samples", "30", "--engine", "fast", "--report",
+                 str(page)]) == 0
+    assert f"report written to {page}" in capsys.readouterr().out
+    text = page.read_text()
+    assert (f"kinegrasp evaluate --object cube --grasp 1 --noise-spec {spec_file} --samples 30 "
+            f"--seed 0 --engine fast --report {page}") in text
+    assert _section(text, "Noise sources")["friction"] == "distribution uniform; low 0.3; high 0.7"
+
+
+@pytest.fixture(scope="module")
+def imported_page(tmp_path_factory):
+    """``report --grasps FILE --grasp ID`` for a 5 cm box imported into a catalog of its own
+    with one planned grasp (40 draws): (page, grasp, the library's evaluation of it, the
+    object's mesh vertices, the grasp file). The catalog's caches are keyed by its folder,
+    so nothing of it outlives the fixture's catalog."""
+    folder = tmp_path_factory.mktemp("imported")
+    mesh = folder / "report_box.stl"
+    trimesh.creation.box(extents=(0.05, 0.05, 0.05)).export(mesh)
+    grasps, page = folder / "grasps.json", folder / "imported.html"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("KINEGRASP_HOME", str(folder / "home"))
+        assert main(["objects", "add", str(mesh)]) == 0
+        assert main(["plan", "--object", "report_box", "--count", "1", "--seed", "0",
+                     "--out", str(grasps)]) == 0
+        grasp = load_grasps(grasps)[0]
+        assert main(["report", "--grasps", str(grasps), "--grasp", grasp.id, "--sigma", "0.01",
+                     "--samples", "40", "--engine", "fast", "--out", str(page)]) == 0
+        stats = evaluate_grasp(grasp, JointNoise(0.01), 40, seed=0, engine="fast")
+        vertices = np.asarray(load_object("report_box").mesh.vertices)
+    return page, grasp, stats, vertices, grasps
+
+
+def test_report_of_an_imported_objects_grasp_file(imported_page):
+    """The page shows the imported object's own mesh and the library's evaluation of the
+    file's grasp; its command keeps the grasp file and the id given."""
+    page, grasp, stats, vertices, grasps = imported_page
+    text = page.read_text()
+    outcomes = _figures(text)["outcomes"]["data"][0]["x"]
+    assert outcomes == [stats.outcomes[name] for name in OUTCOMES]
+    assert f"<b>P(FC) = {stats.p_fc:.4f}</b>" in text
+    meshes = json.loads(re.search(r'id="kg-meshes">(.*?)</script>', text, re.S).group(1))
+    np.testing.assert_allclose(decode_typed_array(meshes["object:report_box"]["v"])
+                               .reshape(-1, 3), vertices, atol=1e-7)
+    assert _section(text, "Settings")["grasp file"] == str(grasps)
+    assert (f"kinegrasp report --object report_box --grasps {grasps} --grasp {grasp.id} "
+            "--sigma 0.01 --noise gaussian --samples 40 --seed 0 --engine fast") in text
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o077])
+def test_pages_get_the_mode_a_plain_open_gives(tmp_path, mask):
+    """write_page (text as UTF-8, or bytes) gives a new file what open() would under the
+    umask, not a temporary file's private 0600; a rewritten file keeps its mode."""
+    old = os.umask(mask)
+    try:
+        report.write_page(tmp_path / "page.html", "<p>\u00e9</p>")
+        report.write_page(tmp_path / "shot.png", b"\x89PNG")
+        with open(tmp_path / "plain.txt", "w"):
+            pass
+    finally:
+        os.umask(old)
+    plain = os.stat(tmp_path / "plain.txt").st_mode & 0o777
+    assert plain == 0o666 & ~mask
+    for name in ("page.html", "shot.png"):
+        assert os.stat(tmp_path / name).st_mode & 0o777 == plain, name
+    assert (tmp_path / "page.html").read_bytes() == "<p>\u00e9</p>".encode()
+    os.chmod(tmp_path / "page.html", 0o640)
+    report.write_page(tmp_path / "page.html", "again")
+    assert os.stat(tmp_path / "page.html").st_mode & 0o777 == 0o640
+
+
+@needs_chromium
+@pytest.mark.expensive
+@pytest.mark.parametrize(("name", "figures"), [("elbow", 3), ("spec", 4)])
+def test_elbow_and_noise_spec_pages_in_chromium(pages, name, figures):
+    check = report_browser.check_page(pages[name])
+    _report_load(name, check)
+    assert check.problems(scenes=2) == []
+    assert check.rendered == check.expected == figures
+    assert check.ready_ms < 20_000
+
+
+@needs_chromium
+@pytest.mark.expensive
+def test_imported_object_page_in_chromium(imported_page):
+    check = report_browser.check_page(imported_page[0])
+    _report_load("imported object", check)
+    assert check.problems(scenes=2) == []
+    assert check.rendered == check.expected == 4

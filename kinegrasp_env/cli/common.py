@@ -179,7 +179,7 @@ def add_noise_spec_arg(p: argparse.ArgumentParser) -> None:
 
 def noise_spec_from(args):
     """The :class:`~kinegrasp_env.sampling.noise_model.NoiseModel` of ``--noise-spec``, or
-    None without it; a bad spec, and ``--sigma``, ``--noise`` or ``--report`` next to it, are
+    None without it; a bad spec, and ``--sigma`` or ``--noise`` next to it, are
     :class:`CLIError` lines."""
     path = getattr(args, "noise_spec", None)
     if path is None:
@@ -189,9 +189,6 @@ def noise_spec_from(args):
         if parser is not None and getattr(args, option) != parser.get_default(option):
             raise CLIError(f"--{option} and --noise-spec both given: the spec's joints "
                            "section is the joint noise")
-    if getattr(args, "report", None):
-        raise CLIError("--report shows joint noise only; it cannot be combined with "
-                       "--noise-spec")
     from kinegrasp_env.montecarlo.evaluate import check_noise_engine
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model

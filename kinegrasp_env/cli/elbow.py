@@ -1,4 +1,5 @@
-"""``kinegrasp elbow``: the most robust elbow angle of a grasp, with its certificate."""
+"""``kinegrasp elbow``: the most robust elbow angle of a grasp, with its certificate (and,
+with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.write_elbow_report`)."""
 
 from __future__ import annotations
 
@@ -20,12 +21,14 @@ from kinegrasp_env.cli.common import (
 def cmd_elbow(args) -> int:
     from tqdm import tqdm
 
+    from kinegrasp_env.cli.report import report_path, write_elbow_report
     from kinegrasp_env.toolkit.elbow import optimize_elbow
 
     noise, sigma, samples, seed = noise_from(args)
     index, grasp = shipped_grasp(args.object, args.grasp)
     if args.plot:
         output_file(args.plot, "--plot")
+    report_path(args.report)
     bar = tqdm(desc=f"elbow angles of {args.object} grasp {index}", unit="angle",
                file=sys.stderr, disable=None)
     with executor_from(args) as executor:
@@ -42,10 +45,12 @@ def cmd_elbow(args) -> int:
                                f"along the self-motion")
     if args.json:
         print(json.dumps(payload))
-        return 0
-    print(text_summary(payload, index))
-    if args.plot:
-        print(f"  plot written to {args.plot}")
+    else:
+        print(text_summary(payload, index))
+        if args.plot:
+            print(f"  plot written to {args.plot}")
+    if args.report:
+        write_elbow_report(args, grasp, index, result, noise)
     return 0
 
 
@@ -79,4 +84,6 @@ def add_commands(sub) -> None:
     p.add_argument("--engine", default="fast", choices=("fast", "pybullet"),
                    help="fast (default: many angles x draws) or pybullet (the reference)")
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
+    p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
+                   "along the self-motion, the arm at the nominal and at the best elbow in 3-D")
     p.set_defaults(func=cmd_elbow)

@@ -20,15 +20,15 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
-    parse_index,
     parse_seed,
     positive_int,
     reported,
-    shipped_grasp,
 )
+from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, figure_grasps, is_count
+from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
 
-#: ``evaluate``'s object when neither --object nor --grasps is given.
-EVALUATE_OBJECT = "spray_flask"
+#: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
+TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
 
 
 def cmd_evaluate(args) -> int:
@@ -84,61 +84,6 @@ def grasp_at_elbow(grasp, text: str):
     return with_configuration(grasp, q, psi)
 
 
-def chosen_grasp(args):
-    """``(index, grasp)`` for ``evaluate``: grasp ``--grasp`` (an id in the file, else an
-    index) of ``--grasps FILE``, or without it entry ``--grasp`` of ``--object``'s shipped
-    set. Sets ``args.object`` to the grasp's object."""
-    if args.grasps is None:
-        args.object = args.object or EVALUATE_OBJECT
-        return shipped_grasp(args.object, args.grasp)
-    from kinegrasp_env.toolkit.candidates import is_candidate_file
-    from kinegrasp_env.world.grasps import load_grasps
-
-    if Path(args.grasps).is_dir():
-        raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
-    if is_candidate_file(args.grasps):
-        return palm_pose_grasp(args)
-    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
-        grasps = load_grasps(args.grasps)
-    index = index_in(args, [g.id for g in grasps])
-    grasp = grasps[index]
-    if args.object is not None and args.object != grasp.object:
-        raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp of "
-                       f"{grasp.object}")
-    args.object = grasp.object
-    return index, grasp
-
-
-def index_in(args, ids: list[str]) -> int:
-    """The index of ``--grasp`` (an id in ``ids``, else an index) in ``--grasps``."""
-    if args.grasp in ids:
-        index = ids.index(args.grasp)
-    else:
-        index = parse_index(args.grasp)
-        if not 0 <= index < len(ids):
-            raise CLIError(f"--grasp {args.grasp}: no grasp with this id in {args.grasps}, and "
-                           f"not an index 0..{len(ids) - 1}")
-    return index
-
-
-def palm_pose_grasp(args):
-    """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp (IK,
-    clearance, closing); a rejected one is a one-line error with its reason."""
-    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
-
-    with reported(ValueError):  # bad entries: one line naming the candidate
-        name, candidates = load_candidates(args.grasps)
-    index = index_in(args, [c.id for c in candidates])
-    if args.object is not None and args.object != name:
-        raise CLIError(f"--object {args.object}: {args.grasps} holds candidates of {name}")
-    grasps, rejected = solve_all(name, [candidates[index]])
-    if rejected:
-        raise CLIError(f"candidate {rejected[0].id} of {args.grasps} is rejected: "
-                       f"{rejected[0].reason} ({rejected[0].detail})")
-    args.object = name
-    return index, grasps[0]
-
-
 def cmd_reproduce(args) -> int:
     from kinegrasp_env.toolkit import experiments
     from kinegrasp_env.toolkit.experiments import markdown_table1, table1
@@ -150,7 +95,11 @@ def cmd_reproduce(args) -> int:
                        "fig10")
     out = args.out or f"out/{args.figure}"
     seed = parse_seed(args.seed)
-    grasps = table1_grasps(args.grasps, args.object) if args.figure == "table1" else 0
+    if args.figure == "table1":
+        args.object = args.object or TABLE1_OBJECT
+        grasps = table1_grasps(args.grasps or TABLE1_GRASPS, args.object)
+    elif args.figure in ("fig9", "fig10"):
+        objects, sets, count = figure_grasps(args.object, args.grasps)
     with executor_from(args) as executor:
         if args.figure == "fig7":
             rows = experiments.fig7(out, samples=samples, seed=seed, engine=engine,
@@ -162,7 +111,8 @@ def cmd_reproduce(args) -> int:
             print(written(out, ["fig7.csv", *figures]))
         elif args.figure in ("fig9", "fig10"):
             rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
-                                       engine=engine, executor=executor, progress=True)
+                                       count=count, engine=engine, executor=executor,
+                                       progress=True, objects=objects, grasp_sets=sets)
             for r in rows:
                 print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                       f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
@@ -179,6 +129,9 @@ def table1_grasps(text: str, object_name: str) -> int:
     """``--grasps``: how many of the object's shipped grasps Table I uses (1..set size)."""
     from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 
+    if not is_count(text):
+        raise CLIError(f"--grasps: table1 takes a count of the object's shipped grasps, got "
+                       f"{text!r} (a grasp file is for fig9 and fig10)")
     count = positive_int(text, "--grasps")
     with reported(NoGraspSetError):  # an imported object: suggests `kinegrasp plan`
         available = len(shipped_grasps(object_name))
@@ -221,9 +174,14 @@ def add_commands(sub) -> None:
     p = sub.add_parser("reproduce", help="reproduce a table or figure of the paper")
     p.add_argument("figure", choices=("table1", "fig7", "fig9", "fig10"),
                    help="the table or figure")
-    add_object_arg(p, "spray_flask", "catalog object (table1)")
+    add_object_arg(p, None, f"catalog object: table1's (default {TABLE1_OBJECT}); fig9, "
+                   "fig10: only this one (default: the four built-in objects)")
     p.add_argument("--samples", default="10000", help="Monte Carlo draws per cell")
-    p.add_argument("--grasps", default="5", help="grasps of the object in Table I")
+    p.add_argument("--grasps", help=f"a count: the first N shipped grasps (table1, default "
+                   f"{TABLE1_GRASPS}; fig9, default {FIGURE_GRASPS}) or N null-space variants "
+                   f"of grasp 0 (fig10, default {FIGURE_GRASPS}); or for fig9, fig10 a grasp "
+                   "file (`kinegrasp plan`'s output; needed for an imported object): its "
+                   f"first {FIGURE_GRASPS} grasps, or variants of its first")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 2)
     # fast by default: the same draws as the reference, and the same outcome for all but a few

@@ -15,6 +15,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.placement import add_place_command, placement_note
 
 
 def cmd_list(args) -> int:
@@ -30,8 +31,9 @@ def cmd_list(args) -> int:
           f"{'deviation [mm]: lost max/mean, added max/mean':<46} source")
     for r in rows:
         size = ", ".join(f"{v:.3f}" for v in r["size"])
+        up = "" if r["up"] == "z" else f"; up axis {r['up']} (turned to z)"
         print(f"{r['name']:<12} {size:<26} {r['r_max']:>9.4f} {r['parts']:>5}  "
-              f"{deviation_text(r['deviation']):<46} {r['source']}")
+              f"{deviation_text(r['deviation']):<46} {r['source']}{up}{placement_note(r)}")
     return 0
 
 
@@ -55,7 +57,8 @@ def import_settings(args):
     threshold = finite_float(args.threshold, "--threshold")
     if not 0.01 <= threshold <= 1.0:
         raise CLIError(f"--threshold must be between 0.01 and 1, got {args.threshold}")
-    return ImportSettings(scale, threshold, positive_int(args.max_parts, "--max-parts"))
+    return ImportSettings(scale, threshold, positive_int(args.max_parts, "--max-parts"),
+                          args.up)
 
 
 def cmd_add(args) -> int:
@@ -63,8 +66,9 @@ def cmd_add(args) -> int:
 
     settings = import_settings(args)
     if sys.stderr.isatty():  # a person waiting: the convex decomposition can take minutes
-        print(f"importing {args.path} (scale {settings.scale:g}, threshold "
-              f"{settings.threshold:g}, at most {settings.max_parts} parts)...", file=sys.stderr)
+        print(f"importing {args.path} (scale {settings.scale:g}, up axis {settings.up}, "
+              f"threshold {settings.threshold:g}, at most {settings.max_parts} parts)...",
+              file=sys.stderr)
     with reported(MeshError, CatalogError):  # the file, the name, the settings
         result = import_object(args.path, args.name, settings, force=args.force)
     entry = result.entry
@@ -103,14 +107,14 @@ def cmd_show(args) -> int:
 
 
 def add_commands(sub) -> None:
-    """Register ``objects`` and its actions ``add``, ``remove``, ``show``."""
+    """Register ``objects`` and its actions ``add``, ``remove``, ``show``, ``place``."""
     from kinegrasp_env.world.decompose import DEFAULT_MAX_PARTS, DEFAULT_THRESHOLD
 
     p = sub.add_parser("objects", help="list the built-in and imported objects; import "
-                       "(add), remove or draw (show) one")
+                       "(add), remove, draw (show) or place one (position, support table)")
     p.add_argument("--json", action="store_true", help="print the catalog as JSON")
     p.set_defaults(func=cmd_list)
-    actions = p.add_subparsers(dest="action", metavar="{add,remove,show}")
+    actions = p.add_subparsers(dest="action", metavar="{add,remove,show,place}")
 
     a = actions.add_parser("add", help="import a mesh (OBJ, STL, PLY, OFF, GLB/GLTF) or a URDF "
                            "(its first link's collision geometry) as an object")
@@ -119,6 +123,9 @@ def add_commands(sub) -> None:
     a.add_argument("--scale", help="factor from the file's units to metres")
     a.add_argument("--units", choices=("mm", "cm", "m"), help="the file's units (instead of "
                    "--scale)")
+    a.add_argument("--up", default="z", choices=("x", "y", "z"),
+                   help="the file's up axis, turned into +z (many OBJ and glTF meshes are "
+                   "y-up and would otherwise lie on their side)")
     a.add_argument("--threshold", default=str(DEFAULT_THRESHOLD),
                    help="CoACD concavity threshold, 0.01 .. 1 (smaller: more parts, closer to "
                    "the mesh)")
@@ -137,3 +144,5 @@ def add_commands(sub) -> None:
     s.add_argument("name", help="a built-in or imported object")
     s.add_argument("--plot", required=True, help="the PNG file to write")
     s.set_defaults(func=cmd_show)
+
+    add_place_command(actions)

@@ -1,7 +1,8 @@
-"""Report commands: ``report`` (one grasp's evaluation, at one or several noise levels, as a
-self-contained interactive HTML page) and ``screenshot`` (a page rendered to PNG by headless
-Chromium, network off). ``evaluate --report`` and ``rank --report`` write their pages through
-:func:`write_evaluation_report` and :func:`write_rank_report`.
+"""Report commands: ``report`` (one grasp's evaluation, at one or several noise levels or
+under a noise model, as a self-contained interactive HTML page) and ``screenshot`` (a page
+rendered to PNG by headless Chromium, network off). ``evaluate --report``, ``rank --report``
+and ``elbow --report`` write their pages through :func:`write_evaluation_report`,
+:func:`write_rank_report` and :func:`write_elbow_report`.
 """
 
 from __future__ import annotations
@@ -18,16 +19,17 @@ from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
     add_execution_args,
+    add_noise_spec_arg,
     add_object_arg,
     engine_name,
     executor_from,
     float_list,
     grasp_index_help,
+    noise_spec_from,
     nonnegative,
     output_file,
     parse_seed,
     positive_int,
-    shipped_grasp,
 )
 
 FRICTION, NUM_EDGES = 0.5, 8
@@ -48,26 +50,47 @@ def sigmas_from(text: str) -> list[float]:
     return values
 
 
-def _settings(grasp, index: int, sigmas: list[float], noise: str, samples: int, seed: int,
-              engine: str, max_points: int, arm_draws: int) -> dict:
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+def noise_settings(args, noises: list) -> dict:
+    """The noise rows of a page's settings (``noises``: JointNoise or NoiseModel, one per
+    run): the spec file and its sources, or the sigmas and the distribution."""
+    if getattr(args, "noise_spec", None):
+        return {"noise spec": args.noise_spec,
+                "noise sources": ", ".join(noises[0].sources) or "none (every source exact)"}
+    return {"sigma [rad]": ", ".join(sigma_words(n.sigma) for n in noises),
+            "noise": noises[0].kind}
 
-    return {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
-            "sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": noise,
-            "draws per sigma": samples, "seed": seed, "engine": engine,
-            "friction mu": FRICTION, "friction cone edges": NUM_EDGES,
+
+def sigma_words(sigma) -> str:
+    """A run's joint sigma as text (one number, or 7 separated by spaces)."""
+    return f"{sigma:g}" if isinstance(sigma, float) else " ".join(f"{s:g}" for s in sigma)
+
+
+def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int) -> dict:
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+    from kinegrasp_env.toolkit.report import run_noise
+
+    first = runs[0]
+    chosen = {"grasp": f"index {index} (id {grasp.id})"}
+    if getattr(args, "grasps", None):
+        chosen = {"grasp file": args.grasps, **chosen}
+    if getattr(args, "elbow", None) is not None:
+        chosen["elbow angle [rad]"] = args.elbow
+    per_draw = first.noise_model is not None and "friction" in first.noise_model
+    return {"object": grasp.object, **chosen,
+            **noise_settings(args, [run_noise(r) for r in runs]),
+            "draws per run": first.samples, "seed": first.seed, "engine": first.engine,
+            "friction mu": "per draw (the noise spec's friction source)" if per_draw
+            else FRICTION, "friction cone edges": NUM_EDGES,
             "draws per chunk (random streams)": DEFAULT_CHUNK,
             "contact points drawn at most": max_points, "noisy arms drawn": arm_draws}
 
 
-def write_evaluation_report(path: Path, grasp, index: int, runs: list, *, command: list[str],
-                            max_points: int, arm_draws: int) -> int:
+def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
+                            command: list[str], max_points: int, arm_draws: int) -> int:
     """Write the page of ``runs`` (GraspStats, the first with draws); returns its bytes."""
     from kinegrasp_env.toolkit.report import evaluation_page, write_page
 
-    first = runs[0]
-    settings = _settings(grasp, index, [float(r.sigma) for r in runs], first.noise,
-                         first.samples, first.seed, first.engine, max_points, arm_draws)
+    settings = _settings(args, grasp, index, runs, max_points, arm_draws)
     text = evaluation_page(grasp, runs, command=shlex.join(command), settings=settings,
                            friction=FRICTION, num_edges=NUM_EDGES, max_points=max_points,
                            arm_draws=arm_draws)
@@ -75,39 +98,60 @@ def write_evaluation_report(path: Path, grasp, index: int, runs: list, *, comman
     return len(text.encode())
 
 
+def noise_words(args, sigma_text: str) -> list[str]:
+    """A page command's noise options: ``--noise-spec F``, or ``--sigma S --noise K``."""
+    if getattr(args, "noise_spec", None):
+        return ["--noise-spec", str(args.noise_spec)]
+    return ["--sigma", sigma_text, "--noise", args.noise]
+
+
 def evaluation_command(args, name: str, index: int, sigma_text: str, samples: int, seed: int,
                        engine: str, out_option: str, out: Path) -> list[str]:
     """The canonical command line of an evaluation page (every setting spelled out; a grasp
-    from ``evaluate --grasps FILE`` keeps the file and the ``--grasp`` given)."""
+    from ``--grasps FILE`` keeps the file and the ``--grasp`` given; ``--noise-spec`` and
+    ``evaluate --elbow`` are kept)."""
     chosen = ["--grasp", str(index)]
     if getattr(args, "grasps", None):
         chosen = ["--grasps", str(args.grasps), "--grasp", str(args.grasp)]
-    return ["kinegrasp", name, "--object", args.object, *chosen, "--sigma", sigma_text,
-            "--noise", args.noise, "--samples", str(samples), "--seed", str(seed), "--engine",
-            engine, out_option, str(out)]
+    if getattr(args, "elbow", None) is not None:
+        chosen += ["--elbow", str(args.elbow)]
+    return ["kinegrasp", name, "--object", args.object, *chosen, *noise_words(args, sigma_text),
+            "--samples", str(samples), "--seed", str(seed), "--engine", engine, out_option,
+            str(out)]
+
+
+def report_noises(args) -> list:
+    """The noises ``report`` runs: the ``--noise-spec`` model, or one ``JointNoise`` per
+    ``--sigma`` value."""
+    model = noise_spec_from(args)
+    if model is not None:
+        return [model]
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    return [JointNoise(sigma, args.noise) for sigma in sigmas_from(args.sigma)]
 
 
 def cmd_report(args) -> int:
+    from kinegrasp_env.cli.grasp_choice import chosen_grasp
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
 
-    sigmas = sigmas_from(args.sigma)
+    noises = report_noises(args)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
-    index, grasp = shipped_grasp(args.object, args.grasp)
+    index, grasp = chosen_grasp(args)
     engine = engine_name(args.engine)
     max_points = positive_int(args.max_points, "--max-points")
     arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
     out = output_file(args.out, "--out")
     with executor_from(args) as executor:
-        runs = [evaluate_grasp(grasp, JointNoise(sigma, args.noise), samples, seed,
-                               engine=engine, return_draws=i == 0, progress=True,
-                               executor=executor)
-                for i, sigma in enumerate(sigmas)]
-    command = evaluation_command(args, "report", index, ",".join(f"{s:g}" for s in sigmas),
-                                 samples, seed, engine, "--out", out)
+        runs = [evaluate_grasp(grasp, noise, samples, seed, engine=engine,
+                               return_draws=i == 0, progress=True, executor=executor)
+                for i, noise in enumerate(noises)]
+    sigmas = "" if args.noise_spec else ",".join(f"{n.sigma:g}" for n in noises)
+    command = evaluation_command(args, "report", index, sigmas, samples, seed, engine, "--out",
+                                 out)
     command += ["--max-points", str(max_points), "--arm-draws", str(arm_draws)]
-    size = write_evaluation_report(out, grasp, index, runs, command=command,
+    size = write_evaluation_report(out, args, grasp, index, runs, command=command,
                                    max_points=max_points, arm_draws=arm_draws)
     if args.json:
         print(json.dumps({"report": str(out), "bytes": size,
@@ -115,8 +159,10 @@ def cmd_report(args) -> int:
         return 0
     for run in runs:
         lo, hi = run.p_fc_ci
-        print(f"{args.object} grasp {index}, sigma = {run.sigma:g} ({args.noise}), {samples} "
-              f"draws: P(FC) = {run.p_fc:.4f} (95% CI {lo:.4f} .. {hi:.4f})")
+        noise = (f"noise spec {args.noise_spec}" if args.noise_spec else
+                 f"sigma = {run.sigma:g} ({args.noise})")
+        print(f"{args.object} grasp {index}, {noise}, {samples} draws: P(FC) = "
+              f"{run.p_fc:.4f} (95% CI {lo:.4f} .. {hi:.4f})")
     print(f"report written to {out} ({size / 1e6:.1f} MB)")
     return 0
 
@@ -129,9 +175,9 @@ def report_path(text: str | None, name: str = "--report") -> Path | None:
 def evaluate_report(args, grasp, index: int, stats) -> None:
     """``evaluate --report FILE``: the page of one evaluation (``stats`` with its draws)."""
     out = Path(args.report)
-    command = evaluation_command(args, "evaluate", index, f"{stats.sigma:g}", stats.samples,
-                                 stats.seed, stats.engine, "--report", out)
-    size = write_evaluation_report(out, grasp, index, [stats], command=command,
+    command = evaluation_command(args, "evaluate", index, sigma_words(stats.sigma),
+                                 stats.samples, stats.seed, stats.engine, "--report", out)
+    size = write_evaluation_report(out, args, grasp, index, [stats], command=command,
                                    max_points=MAX_POINTS_DEFAULT, arm_draws=ARM_DRAWS_DEFAULT)
     print(f"report written to {out} ({size / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)
@@ -150,13 +196,14 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                      "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std,
                      "q_nominal": grasps[r.index].q_nominal, "samples": r.trials})
-    command = ["kinegrasp", "rank", args.candidates, "--sigma", f"{noise.sigma:g}", "--noise",
-               noise.kind, "--samples", str(samples), "--seed", str(seed), "--criterion",
+    command = ["kinegrasp", "rank", args.candidates, *noise_words(args, sigma_words(
+               noise.sigma)), "--samples", str(samples), "--seed", str(seed), "--criterion",
                args.criterion, *(["--adaptive", "--top-k", str(args.top_k)] if args.adaptive
                                  else []),
+               *(["--best-elbow", str(args.best_elbow)] if args.best_elbow else []),
                "--engine", engine, "--out", str(args.out), "--report", str(args.report)]
     settings = {"candidates": args.candidates, "object": grasps[0].object,
-                "sigma [rad]": f"{noise.sigma:g}", "noise": noise.kind,
+                **noise_settings(args, [noise]),
                 "draws per candidate": samples, "seed": seed, "criterion": args.criterion,
                 "adaptive": f"top {args.top_k}" if args.adaptive else "no",
                 "engine": engine, "friction mu": FRICTION, "friction cone edges": NUM_EDGES}
@@ -164,6 +211,31 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                      seed=seed, samples=samples, friction=FRICTION, num_edges=NUM_EDGES)
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
+
+
+def write_elbow_report(args, grasp, index: int, result, noise) -> None:
+    """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
+    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``)."""
+    from kinegrasp_env.toolkit.report import write_page
+    from kinegrasp_env.toolkit.report_elbow import elbow_page
+
+    out = Path(args.report)
+    command = ["kinegrasp", "elbow", "--object", args.object, "--grasp", str(index),
+               *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
+               "--seed", str(result.seed), "--engine", result.engine, "--report", str(out)]
+    settings = {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
+                **noise_settings(args, [noise]),
+                "draws per elbow angle (selection; scoring again)": result.samples,
+                "seed (selection: chunks 0..K-1, scoring: K..2K-1)": result.seed,
+                "engine": result.engine, "elbow angles evaluated": len(result.curve),
+                "fine grid step [rad]": f"{result.grid_step:.4f}",
+                "friction mu": FRICTION, "friction cone edges": NUM_EDGES,
+                "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
+    text = elbow_page(grasp, result, noise, command=shlex.join(command), settings=settings,
+                      arm_draws=ARM_DRAWS_DEFAULT)
+    write_page(out, text)
+    print(f"report written to {out} ({len(text.encode()) / 1e6:.1f} MB)",
+          file=sys.stderr if args.json else sys.stdout)
 
 
 def show_candidates(page: Path, text: str | None) -> str | None:
@@ -209,17 +281,23 @@ def cmd_screenshot(args) -> int:
 
 def add_commands(sub) -> None:
     """Register ``report`` and ``screenshot``."""
+    from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
     from kinegrasp_env.sampling.noise import DISTRIBUTIONS
 
     p = sub.add_parser("report", help="evaluate one grasp and write a self-contained "
                        "interactive HTML page (3-D views, histogram, P(FC) vs sigma)")
-    add_object_arg(p, "spray_flask", "catalog object")
-    p.add_argument("--grasp", default="0", help=grasp_index_help())
+    add_object_arg(p, None, f"catalog object, built-in or imported (default {EVALUATE_OBJECT}; "
+                   "with --grasps: the grasp's own)")
+    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) or a "
+                   "palm-pose file; --grasp is then an id in it, or an index")
+    p.add_argument("--grasp", default="0", help=grasp_index_help() + "; or with --grasps, an "
+                   "id or index in that file")
     p.add_argument("--sigma", default="0.0133", help="joint noise standard deviation, "
                    "radians; several, comma-separated, give the P(FC)-vs-sigma curve (the "
                    "3-D views are of the first)")
     p.add_argument("--noise", default="gaussian", choices=DISTRIBUTIONS,
                    help="distribution of the joint noise (all with standard deviation sigma)")
+    add_noise_spec_arg(p)
     p.add_argument("--samples", default="2000", help="Monte Carlo draws per sigma")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 1)

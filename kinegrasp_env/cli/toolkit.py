@@ -367,8 +367,9 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("sweep", help="a grid of evaluations (objects x grasps x sigmas x noise "
                        "x engines), resumable, on a process pool or Ray")
-    p.add_argument("spec", help="YAML file with objects, grasps, sigmas, noise, engines, "
-                   "samples, chunk, seed")
+    p.add_argument("spec", help="YAML file with objects, grasps, grasp_files (object: grasp "
+                   "file, needed for an imported object), sigmas, noise, engines, samples, "
+                   "chunk, seed")
     p.add_argument("--out", required=True, help="folder of the results store and summary")
     add_execution_args(p, 1)
     p.set_defaults(func=cmd_sweep)

@@ -36,6 +36,7 @@ from kinegrasp_env.closing.segment_distance import (
     segment_one,
     segment_search,
 )
+from kinegrasp_env.world.objects import GraspObject
 
 #: Entries of a stored closest pair: distance, point on the object (3), point on the
 #: segment (3), part index.
@@ -333,6 +334,6 @@ def grid_args(grid, band: float) -> tuple:
             float(capsule_gap.GOLD), float(band))
 
 
-def geometry_args(name: str) -> tuple:
+def geometry_args(obj: GraspObject) -> tuple:
     """The object's packed parts as the kernel's ``geo`` tuple."""
-    return segment_distance.geometry_tuple(name)
+    return segment_distance.geometry_tuple(obj)

@@ -129,7 +129,7 @@ class FastHand:
         if closing == "compiled":
             # the kernel's fixed arguments: grid, object, rules, then (after the per-call
             # frames and flexions) the finger constants stacked over fingers
-            self._kernel_head = (grid_args(grid, GRID_EXACT_BAND), geometry_args(obj.name),
+            self._kernel_head = (grid_args(grid, GRID_EXACT_BAND), geometry_args(obj),
                                  closing_rules())
             self._kernel_fingers = (
                 np.array(self.axis_p, dtype=float), np.array(self.axis_d, dtype=float),

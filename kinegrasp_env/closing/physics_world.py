@@ -39,6 +39,7 @@ from scipy.spatial import ConvexHull
 
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
+from kinegrasp_env.world.table_probe import table_body
 
 #: Gravity, m/s^2 (world -z).
 GRAVITY = 9.81
@@ -183,6 +184,8 @@ class PhysicsWorld(BulletWorld):
         self.mass, moments, self.inertial = mass_properties(obj, self.settings.density)
         self.inertial_inverse = np.linalg.inv(self.inertial)
         self.bodies["object"] = self._object_body(moments)
+        if obj.table is not None:  # the object rests on it; fingers stall on it
+            self.bodies["table"] = table_body(bullet, obj, self.settings.friction)
         self.anchor = bullet.createConstraint(hand, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0],
                                               [0, 0, 0], [0, 0, 0])
         bullet.setGravity(0, 0, 0)

@@ -97,9 +97,18 @@ def pack(obj: GraspObject) -> PackedGeometry:
                           faces.astype(np.int64), center, radius)
 
 
-@lru_cache(maxsize=8)
 def packed(name: str) -> PackedGeometry:
-    return pack(load_object(name))
+    """The packed parts of catalog object ``name`` as it is now: an object re-imported
+    under the same name is a new :class:`GraspObject` (``load_object`` keys it by its
+    catalog version), so it is packed afresh."""
+    return packed_object(load_object(name))
+
+
+@lru_cache(maxsize=8)
+def packed_object(obj: GraspObject) -> PackedGeometry:
+    """:func:`pack` of ``obj``, cached per object (by identity, not by name: two objects of
+    one name, before and after a re-import, never share an entry)."""
+    return pack(obj)
 
 
 @jit.kernel(inline="always")
@@ -421,11 +430,11 @@ def segments_closest(geo, a, b, out_d, out_obj, out_seg, out_part):
          out_seg[i, 1], out_seg[i, 2], out_part[i]) = segment_one(
             geo, a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2], work)
 
-def geometry_tuple(name: str) -> tuple:
+def geometry_tuple(obj: GraspObject) -> tuple:
     """The object's packed parts as the kernels' ``geo`` tuple: planes, plane_start, edges,
     edge_start, scale, edge_mid, edge_half, edge_faces, part_center, part_radius
     (:class:`PackedGeometry`), the relative on-face tolerance."""
-    geo = packed(name)
+    geo = packed_object(obj)
     return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
             geo.edge_half, geo.edge_faces, geo.part_center, geo.part_radius, INSIDE_TOL)
 
@@ -447,5 +456,5 @@ def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: 
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))
     out_part = np.zeros(n, dtype=np.int64)
-    segments_closest(geometry_tuple(obj.name), a, b, out_d, out_obj, out_seg, out_part)
+    segments_closest(geometry_tuple(obj), a, b, out_d, out_obj, out_seg, out_part)
     return out_obj, out_seg, out_d, out_part

@@ -11,6 +11,23 @@ configuration, plus ``q_weight`` times the mean Ferrari-Canny Q, minus ``limit_p
 the requested motion would leave the joint limits (the arm then stays at the last reachable
 point).
 
+Reset options (all optional): ``object``; the grasp as ONE of ``grasp`` (an index into the
+env's grasps of the object: the shipped set, or ``grasp_file``), ``q0`` (a nominal
+configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md) or
+``palm_pose`` (one palm-pose entry in the object frame, the schema of palm-pose candidate
+files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4 ``pose``, with ``spread`` or a
+7-value ``hand``, optional ``elbow``; solved by the planner's IK, see
+:mod:`kinegrasp_env.robot.palm_pose`); ``sigma`` and ``noise`` (or ``noise_model``); ``psi``
+(an elbow angle to start at). ``q0`` and ``palm_pose`` need ``object``, which may then be any
+built-in or imported object (not only the env's ``objects``); the nominal contacts and Q are
+computed at reset by closing the hand once at q0 with the env's engine, and a hand that does
+not close on the object (``start_collision`` or ``missed``: a task needs >= 2 contacts with
+every finger on the object; ``no_force_closure`` is a task with nominal Q = 0), an
+unreachable palm pose, a q0 of the wrong length, not finite or outside the joint limits are
+ValueErrors (:mod:`kinegrasp_env.envs.tasks`). Such a task's ``info["grasp"]`` is ``"q0"``
+or the palm pose's ``id`` (default ``"palm_pose"``); the observation is as for a shipped
+grasp.
+
 Observation (float32, 44 entries, every one scaled to roughly [-1, 1]):
 
 ====== ===================================================== =========================
@@ -47,7 +64,8 @@ import numpy as np
 from gymnasium import spaces
 
 from kinegrasp_env.envs.render import human_window_available
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, make_engine
+from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
 from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
@@ -99,7 +117,9 @@ class KineGraspEnv(gym.Env):
     Args:
         objects: objects to draw tasks from, built-in or imported (default: every built-in
             one, or with ``grasp_file`` every object of the file). An imported object has no
-            shipped grasp set: give it with ``grasp_file`` (e.g. ``kinegrasp plan``'s output).
+            shipped grasp set: give it with ``grasp_file`` (e.g. ``kinegrasp plan``'s output),
+            or give its task at reset (``options={"object": name, "q0": [...]}`` or
+            ``"palm_pose"``: see the module docstring), which works with any object.
         grasp_file: a grasp file to draw tasks from instead of the shipped sets.
         sigma_range: (low, high) of the noise sigma drawn at reset (radians).
         noise_types: noise distributions drawn at reset.
@@ -176,7 +196,7 @@ class KineGraspEnv(gym.Env):
             raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
         self.engine = engine
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
-        self._engines: dict[str, Engine] = {}
+        self._engines: dict[tuple, Engine] = {}
         self._kin = Kinematics(kuka_sdh())
         self._ik: ArmIK | None = None
         self._viewer = None
@@ -189,9 +209,7 @@ class KineGraspEnv(gym.Env):
 
     # ------------------------------------------------------------------ helpers
     def _engine(self, name: str) -> Engine:
-        if name not in self._engines:
-            self._engines[name] = make_engine(self.engine, name)
-        return self._engines[name]
+        return cached_engine(self._engines, self.engine, name)  # fresh after a re-import
 
     @property
     def kinematics(self) -> Kinematics:
@@ -222,6 +240,15 @@ class KineGraspEnv(gym.Env):
         return moved[0].copy(), bool(ok[0])
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
+        key = grasp_option(options)
+        if key in ("q0", "palm_pose"):
+            grasp = given_grasp(options, key, self._engine, self.ik)
+        else:
+            grasp = self._shipped_task(options)
+        return grasp, self._pick_noise(options)
+
+    def _shipped_task(self, options: dict) -> Grasp:
+        """A grasp of the env's tasks: the ``object`` and ``grasp`` options, or drawn."""
         rng = self.np_random
         name = options.get("object")
         if name is None:
@@ -235,11 +262,17 @@ class KineGraspEnv(gym.Env):
             index = int(rng.integers(len(grasps)))
         elif not 0 <= int(index) < len(grasps):
             raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)}")
+        return grasps[int(index)]
+
+    def _pick_noise(self, options: dict) -> JointNoise | NoiseModel:
+        """The task's noise: the ``noise_model`` option or the env's, else joint noise of the
+        ``sigma`` and ``noise`` options (drawn from the env's ranges where not given)."""
+        rng = self.np_random
         model = options.get("noise_model", self.noise_model)
         if model is not None:
             if options.get("sigma") is not None or options.get("noise") is not None:
                 raise ValueError("give the reset option noise_model or sigma/noise, not both")
-            return grasps[int(index)], noise_model_from(model)
+            return noise_model_from(model)
         sigma = options.get("sigma")
         if sigma is None:
             sigma = float(rng.uniform(*self.sigma_range))
@@ -248,7 +281,7 @@ class KineGraspEnv(gym.Env):
         kind = options.get("noise")
         if kind is None:
             kind = self.noise_types[rng.integers(len(self.noise_types))]
-        return grasps[int(index)], JointNoise(float(sigma), kind)
+        return JointNoise(float(sigma), kind)
 
     def _observation(self) -> np.ndarray:
         obj = load_object(self.grasp.object)
@@ -302,7 +335,8 @@ class KineGraspEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - {"object", "grasp", "sigma", "noise", "psi", "noise_model"}
+        unknown = set(options) - {"object", *GRASP_OPTIONS, "sigma", "noise", "psi",
+                                  "noise_model"}
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}")
         self.grasp, self.noise = self._pick_task(options)

@@ -1,6 +1,7 @@
 """Monte Carlo: engines that turn a batch of draws into outcomes (``engines``: pybullet
 reference and fast), ``evaluate_grasp`` and its chunked random streams (``evaluate``), executors
-(``execution``: local process pool, Ray) and sweeps over a grid of settings (``sweep``).
+(``execution``: local process pool, Ray), sweeps over a grid of settings (``sweep``) and a
+grasp's nominal contacts from one closing (``nominal``).
 """
 
 from __future__ import annotations

@@ -24,8 +24,9 @@ from kinegrasp_env.quality.epsilon import ferrari_canny_batch
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
-from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld
+from kinegrasp_env.world.table_probe import arm_shift
 
 OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
 START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
@@ -74,6 +75,12 @@ class DrawBatch:
 
     def __len__(self) -> int:
         return self.outcome.size
+
+    def put(self, rows: np.ndarray, other: DrawBatch) -> None:
+        """Write ``other``'s draws into rows ``rows`` (len(other),) of this batch."""
+        for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link",
+                  "hand"):
+            getattr(self, f)[rows] = getattr(other, f)
 
     def part(self, start: int, stop: int) -> DrawBatch:
         """Draws start..stop-1 (views)."""
@@ -145,9 +152,12 @@ class Engine:
         self.friction = friction
         self.num_edges = num_edges
         self.timing = EngineTiming()
+        self._table_probe = None  # built on the first draw when the object has a table
 
     def close(self) -> None:
-        """Release what the engine holds (nothing by default)."""
+        """Release what the engine holds (its table probe, if any)."""
+        if self._table_probe is not None:
+            self._table_probe.close()
 
     def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
             object_offset: np.ndarray | None = None,
@@ -171,7 +181,42 @@ class Engine:
             raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
                              f"{', '.join(errors)} errors")
         with single_blas_thread():
-            return self._run(q, **errors)
+            if self.obj.table is None:
+                return self._run(q, **errors)
+            return self.clear_of_table(q, errors, self._run)[0]
+
+    def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
+                   object_offset: np.ndarray | None = None, **_) -> np.ndarray:
+        """(n,) bool: draw i (q (n, 14), radians; per-draw errors as in :meth:`run`) puts an
+        arm or hand link in the object's support table (all False without a table)."""
+        if self.obj.table is None:
+            return np.zeros(len(q), dtype=bool)
+        if self._table_probe is None:
+            from kinegrasp_env.world.table_probe import TableProbe
+
+            self._table_probe = TableProbe(self.obj)
+        probe = self._table_probe
+        roots = None
+        if palm is not None or object_offset is not None:
+            roots = placed_roots(probe.kin.pose(q, FLANGE_LINK), self.obj.pose, palm,
+                                 object_offset)
+        return probe.hits(q, roots, arm_shift(self.obj.pose, object_offset))
+
+    def clear_of_table(self, q: np.ndarray, errors: dict[str, np.ndarray],
+                       run_rows) -> tuple[DrawBatch, np.ndarray]:
+        """(the draws of q (n, 14), the indices of those clear of the table):
+        ``start_collision`` where the robot starts in the table (:meth:`table_hits`, timed as
+        auto-close), the others from ``run_rows(q_rows, **errors_rows)`` (a
+        :class:`DrawBatch` of the rows clear of the table, in order)."""
+        t0 = time.perf_counter()
+        hits = self.table_hits(q, **errors)
+        self.timing.autoclose += time.perf_counter() - t0
+        out = DrawBatch.empty(len(q))
+        out.outcome[hits] = START_COLLISION
+        keep = np.flatnonzero(~hits)
+        if keep.size:
+            out.put(keep, run_rows(q[keep], **{k: v[keep] for k, v in errors.items()}))
+        return out, keep
 
     def _run(self, q: np.ndarray, **errors: np.ndarray) -> DrawBatch:  # pragma: no cover
         raise NotImplementedError  # abstract: errors only where takes_errors
@@ -232,6 +277,7 @@ class PybulletEngine(Engine):
         self.world = GraspWorld(self.obj)
 
     def close(self) -> None:
+        super().close()
         self.world.close()
 
     def flange_poses(self, q: np.ndarray) -> np.ndarray:
@@ -272,10 +318,10 @@ class FastEngine(Engine):
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
                  kernel: str = "numba") -> None:
         from kinegrasp_env.closing.fast import FastHand
-        from kinegrasp_env.world.sdf import object_grid
+        from kinegrasp_env.world.sdf import grid_of
 
         super().__init__(object_name, friction, num_edges)
-        self.hand = FastHand(self.obj, object_grid(object_name), kernel)
+        self.hand = FastHand(self.obj, grid_of(self.obj), kernel)
         #: columns of the hand DOF (7,) holding (proximal, distal) of fingers 1, 2, 3
         self.flexion_columns = [HAND_JOINTS.index(j) for f in FINGERS for j in f[:2]]
 
@@ -333,3 +379,18 @@ def make_engine(name: str, object_name: str, friction: float = 0.5,
         raise ValueError(f"unknown engine {name!r}; choose from "
                          f"{', '.join([*ENGINE_CLASSES, *LAZY_ENGINES])}")
     return ENGINE_CLASSES[name](object_name, friction, num_edges)
+
+
+def cached_engine(cache: dict[tuple, Engine], name: str, object_name: str,
+                  friction: float = 0.5, num_edges: int = 8) -> Engine:
+    """:func:`make_engine`'s engine, kept in ``cache`` (e.g. one per worker process) under
+    its settings and the object's :func:`~kinegrasp_env.world.objects.object_version`: an
+    object re-imported under the same name gets a new engine (the stale one is closed)."""
+    key = (name, object_name, friction, num_edges)
+    versioned = (*key, object_version(object_name))
+    engine = cache.get(versioned)
+    if engine is None:
+        for stale in [k for k in cache if k[:len(key)] == key]:
+            cache.pop(stale).close()
+        engine = cache[versioned] = make_engine(name, object_name, friction, num_edges)
+    return engine

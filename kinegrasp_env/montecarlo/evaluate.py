@@ -26,7 +26,7 @@ from kinegrasp_env.montecarlo.engines import (
     OUTCOMES,
     DrawBatch,
     Engine,
-    make_engine,
+    cached_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
@@ -122,11 +122,9 @@ _ENGINES: dict[tuple, Engine] = {}
 
 
 def _engine(key: tuple) -> Engine:
-    engine = _ENGINES.get(key)
-    if engine is None:
-        name, object_name, friction, num_edges = key
-        engine = _ENGINES[key] = make_engine(name, object_name, friction, num_edges)
-    return engine
+    """The worker's engine of ``key`` = (engine, object, friction, num_edges) (a new one
+    when the object was re-imported since: :func:`cached_engine`)."""
+    return cached_engine(_ENGINES, *key)
 
 
 def chunk_configurations(q0: np.ndarray, noise: Noise, seed: int,

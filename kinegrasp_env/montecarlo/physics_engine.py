@@ -57,6 +57,11 @@ class LiftBatch:
         return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan),
                    np.full(n, np.nan))
 
+    def put(self, rows: np.ndarray, other: LiftBatch) -> None:
+        """Write ``other``'s draws into rows ``rows`` (len(other),) of this batch."""
+        for f in ("held", "max_offset", "time", "tracking"):
+            getattr(self, f)[rows] = getattr(other, f)
+
 
 class PhysicsEngine(Engine):
     """Closing under pybullet dynamics (see the module docstring).
@@ -84,6 +89,7 @@ class PhysicsEngine(Engine):
         self.world = PhysicsWorld(self.obj, self.settings)
 
     def close(self) -> None:
+        super().close()
         self.world.close()
 
     def _close_all(self, q: np.ndarray, lift: LiftBatch | None) -> DrawBatch:
@@ -119,4 +125,15 @@ class PhysicsEngine(Engine):
         q = check_configurations(q)
         lift = LiftBatch.empty(q.shape[0])
         with single_blas_thread():
-            return self._close_all(q, lift), lift
+            if self.obj.table is None:
+                return self._close_all(q, lift), lift
+            clear = LiftBatch.empty(0)
+
+            def close_rows(q_rows: np.ndarray) -> DrawBatch:
+                nonlocal clear
+                clear = LiftBatch.empty(q_rows.shape[0])
+                return self._close_all(q_rows, clear)
+
+            out, keep = self.clear_of_table(q, {}, close_rows)
+            lift.put(keep, clear)
+            return out, lift

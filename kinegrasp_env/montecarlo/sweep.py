@@ -9,6 +9,12 @@ type share their draws (common random numbers make grasps comparable). A ``noise
 also be a noise model (a spec mapping or file: :mod:`kinegrasp_env.montecarlo.sweep_noise`),
 whose joint sigma is the cell's sigma.
 
+Grasps: a built-in object's come from its shipped set; ``grasp_files`` maps an object to a
+grasp file (``kinegrasp plan``'s output, relative to the spec file) whose grasps replace
+the shipped set, which is how an imported object (it has none) is swept. ``grasps`` indexes
+each object's set. The store records every grasp file's SHA-256 and every imported object's
+catalog version: a store made with other grasps or a re-imported object is not extended.
+
 Results go to an SQLite file, ``DIR/results.sqlite``, one row per finished task, committed
 as soon as the task finishes. SQLite because it ships with Python (nothing to install on a
 cluster's head node), a committed transaction survives the process being killed, and the
@@ -21,6 +27,7 @@ each cell's chunks in chunk order, so it is bit-identical however the tasks were
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -28,6 +35,7 @@ import sqlite3
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -39,13 +47,14 @@ from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise, noise_entries
 from kinegrasp_env.sampling.noise_spec import spec_loader
 from kinegrasp_env.sampling.stats import StreamingMoments
-from kinegrasp_env.world.grasps import write_atomic
-from kinegrasp_env.world.objects import OBJECT_NAMES, object_names
+from kinegrasp_env.world.grasps import Grasp, write_atomic
+from kinegrasp_env.world.objects import OBJECT_NAMES, object_names, object_version
 
 #: ``plot(rows, path, title=...) -> path``: draws one P(FC)-vs-sigma figure of summary rows.
 SweepPlot = Callable[..., Path]
 
-SPEC_KEYS = ("objects", "grasps", "sigmas", "noise", "engines", "samples", "chunk", "seed")
+SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
+             "chunk", "seed")
 #: Settings that fix the random streams: a store made with others cannot be extended.
 STREAM_KEYS = ("seed", "chunk")
 SUMMARY_COLUMNS = ("object", "grasp", "sigma", "noise", "engine", "p_fc", "p_fc_lo", "p_fc_hi",
@@ -70,6 +79,8 @@ class SweepSpec:
     seed: int = 0
     #: (label, spec JSON) of the noise models among ``noise``
     models: tuple[tuple[str, str], ...] = ()
+    #: (object, absolute path, SHA-256) of each grasp file replacing a shipped set
+    grasp_files: tuple[tuple[str, str, str], ...] = ()
 
     @classmethod
     def from_dict(cls, data: Any, where: str = "spec",
@@ -86,7 +97,8 @@ class SweepSpec:
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
         objects = _names(data["objects"], object_names(), "objects", where)
-        _check_grasp_sets(objects, where)
+        files = _grasp_files(data.get("grasp_files", {}), objects, where, base)
+        _check_grasp_sets(objects, files, where)
         noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
         engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
         sigmas = _unique(tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where)),
@@ -97,11 +109,12 @@ class SweepSpec:
         else:
             indices = _unique(tuple(_integer(g, "grasps", where, low=0)
                                     for g in _list(grasps, "grasps", where)), "grasps", where)
-            _check_grasp_indices(objects, indices, where)
+            _check_grasp_indices(objects, indices, files, where)
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
-        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models)
+        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
+                   files)
 
     @classmethod
     def from_file(cls, path: str | Path) -> SweepSpec:
@@ -123,12 +136,28 @@ class SweepSpec:
             raise SpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
         return cls.from_dict(data, where=str(path), base=path.parent)
 
-    def grasp_indices(self, object_name: str) -> tuple[int, ...]:
-        from kinegrasp_env.world.grasps import shipped_grasps
+    def grasp_set(self, object_name: str) -> tuple[Grasp, ...]:
+        """The grasps of ``object_name`` the sweep indexes: its grasp file's, else its
+        shipped set."""
+        return _grasp_set(object_name, self.grasp_files)
 
+    def grasp(self, object_name: str, index: int) -> Grasp:
+        return self.grasp_set(object_name)[index]
+
+    def grasp_indices(self, object_name: str) -> tuple[int, ...]:
         if self.grasps is None:
-            return tuple(range(len(shipped_grasps(object_name))))
+            return tuple(range(len(self.grasp_set(object_name))))
         return self.grasps
+
+    def sources(self) -> dict[str, str]:
+        """What the store must have been made with besides the streams: per object, its
+        grasp file's SHA-256 (or ``shipped``) and its catalog version."""
+        files = {name: digest for name, _, digest in self.grasp_files}
+        out = {}
+        for name in self.objects:
+            out[f"grasps:{name}"] = files.get(name, "shipped")
+            out[f"object:{name}"] = object_version(name)
+        return out
 
     def cells(self) -> list[tuple[str, int, float, str, str]]:
         """(object, grasp, sigma, noise, engine) in a fixed order."""
@@ -136,9 +165,11 @@ class SweepSpec:
                 for s in self.sigmas for n in self.noise for e in self.engines]
 
     def tasks(self) -> list[SweepTask]:
+        """Every task, carrying its grasp's q0 (a worker needs no grasp file)."""
         sizes = chunk_sizes(self.samples, self.chunk)
         models = dict(self.models)
-        return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n))
+        return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n),
+                          tuple(self.grasp(o, g).q0.tolist()))
                 for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
 
 
@@ -202,24 +233,79 @@ def _integer(value: Any, key: str, where: str, low: int) -> int:
     return value
 
 
-def _check_grasp_sets(objects: tuple[str, ...], where: str) -> None:
-    """A sweep evaluates shipped grasps: an imported object (which has none) is refused."""
-    from kinegrasp_env.world.grasps import no_grasp_set
+def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
+                 base: str | Path | None) -> tuple[tuple[str, str, str], ...]:
+    """``grasp_files``: (object, absolute path, SHA-256) per entry, each file read and
+    checked (grasps of that object, at least one)."""
+    if not isinstance(value, dict):
+        raise SpecError(f"{where}: 'grasp_files' must map objects to grasp files, e.g. "
+                        "{duck: duck_grasps.json}")
+    out = []
+    for name, text in value.items():
+        if name not in objects:
+            raise SpecError(f"{where}: grasp_files names {name!r}, which is not in 'objects'")
+        if not isinstance(text, str) or not text:
+            raise SpecError(f"{where}: grasp_files: {name}: expected a file name, got {text!r}")
+        path = (Path(base or ".") / text).absolute()
+        try:
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            grasps = _file_grasps(str(path), digest)
+        except FileNotFoundError:
+            raise SpecError(f"{where}: grasp_files: {name}: no such file {path}") from None
+        except (OSError, ValueError) as exc:
+            raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
+        if not grasps:
+            raise SpecError(f"{where}: grasp_files: {name}: {path} holds no grasps")
+        other = next((g for g in grasps if g.object != name), None)
+        if other is not None:
+            raise SpecError(f"{where}: grasp_files: {name}: grasp {other.id} of {path} is a "
+                            f"grasp of {other.object}")
+        out.append((name, str(path), digest))
+    return tuple(out)
 
-    for name in objects:
-        if name not in OBJECT_NAMES:
-            raise SpecError(f"{where}: {no_grasp_set(name)}")
+
+@lru_cache(maxsize=16)
+def _file_grasps(path: str, digest: str) -> tuple[Grasp, ...]:
+    """The grasps of a grasp file whose bytes have SHA-256 ``digest`` (a file changed since
+    the spec was read is a :class:`SpecError`)."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if hashlib.sha256(Path(path).read_bytes()).hexdigest() != digest:
+        raise SpecError(f"{path} changed since the sweep spec was read")
+    return tuple(load_grasps(path))
 
 
-def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...], where: str) -> None:
+def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...]) -> tuple[Grasp, ...]:
     from kinegrasp_env.world.grasps import shipped_grasps
 
+    for object_name, path, digest in files:
+        if object_name == name:
+            return _file_grasps(path, digest)
+    return tuple(shipped_grasps(name))
+
+
+def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
+                      where: str) -> None:
+    """An imported object (no shipped set) needs a grasp file: one line saying how."""
+    given = {name for name, _, _ in files}
     for name in objects:
-        count = len(shipped_grasps(name))
+        if name not in OBJECT_NAMES and name not in given:
+            raise SpecError(
+                f"{where}: {name!r} is an imported object and has no shipped grasp set; give "
+                f"its grasp file in 'grasp_files' (e.g. grasp_files: {{{name}: "
+                f"{name}_grasps.json}}, written by `kinegrasp plan --object {name} --out "
+                f"{name}_grasps.json`)")
+
+
+def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],
+                         files: tuple[tuple[str, str, str], ...], where: str) -> None:
+    for name in objects:
+        count = len(_grasp_set(name, files))
         bad = [i for i in indices if i >= count]
         if bad:
+            kind = "grasp file" if any(f[0] == name for f in files) else "shipped set"
             raise SpecError(f"{where}: grasp {bad[0]} does not exist for {name} "
-                            f"(its shipped set has grasps 0..{count - 1})")
+                            f"(its {kind} has grasps 0..{count - 1})")
 
 
 @dataclass(frozen=True)
@@ -235,6 +321,7 @@ class SweepTask:
     size: int
     seed: int
     model: str | None = None  # the spec JSON of a noise-model cell
+    q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
 
     @property
     def key(self) -> str:
@@ -247,11 +334,11 @@ def run_task(task: SweepTask) -> dict:
     from kinegrasp_env.world.grasps import grasp_by_index
 
     start = time.perf_counter()
-    grasp = grasp_by_index(task.object, task.grasp)
+    q0 = (grasp_by_index(task.object, task.grasp).q0 if task.q0 is None
+          else np.asarray(task.q0, dtype=float))
     key = (task.engine, task.object, 0.5, 8)
-    counts, moments, _ = run_chunk((key, grasp.q0, cell_noise(task.sigma, task.noise,
-                                                                task.model),
-                                     task.seed, task.chunk, task.size, "mc", False))
+    counts, moments, _ = run_chunk((key, q0, cell_noise(task.sigma, task.noise, task.model),
+                                    task.seed, task.chunk, task.size, "mc", False))
     return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
             "q_mean": float(moments.mean[0]), "q_m2": float(moments.m2[0, 0]),
             "q_m3": float(moments.m3[0]), "seconds": time.perf_counter() - start}
@@ -286,10 +373,25 @@ class SweepStore:
                 raise SpecError(f"{self.directory} holds a sweep run with {key} = "
                                 f"{stored[key]}, the spec says {value}: its random streams "
                                 "differ; use another --out")
+        sources = spec.sources()
+        self._check_sources(stored, sources)
+        wanted.update(sources)
         with self._db:
             self._db.executemany("INSERT OR IGNORE INTO meta VALUES (?, ?)", wanted.items())
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_spec', ?)",
                              (json.dumps(asdict(spec)),))
+
+    def _check_sources(self, stored: dict[str, str], sources: dict[str, str]) -> None:
+        """Refuse a store made with another grasp file or object version (see
+        :meth:`SweepSpec.sources`) for an object of the spec."""
+        why = {"grasps": "other grasps (its grasp file changed)",
+               "object": "another version of the object (re-imported since)"}
+        for key, value in sources.items():
+            if key in stored and stored[key] != value:
+                self.close()
+                what, name = key.split(":", 1)
+                raise SpecError(f"{self.directory} holds a sweep of {name} with {why[what]}; "
+                                "use another --out")
 
     def finished(self) -> set[str]:
         return {row[0] for row in self._db.execute("SELECT key FROM tasks")}
@@ -320,8 +422,6 @@ class SweepStore:
 def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     """One row per cell of ``spec``: P(FC), Wilson interval, moments of Q, outcomes (the
     statistics of :func:`kinegrasp_env.montecarlo.evaluate.summarize`, chunks merged in order)."""
-    from kinegrasp_env.world.grasps import grasp_by_index
-
     results = store.results()
     models = dict(spec.models)
     n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
@@ -334,7 +434,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
                 SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
             counts += chunk_counts
             moments.merge(chunk_moments)
-        stats = grasp_stats(grasp_by_index(obj, grasp),
+        stats = grasp_stats(spec.grasp(obj, grasp),
                             cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
                             counts, moments, None)
         summary.append({

@@ -1,6 +1,7 @@
 """The robot: the KUKA + SDH-like hand URDF model (``model``), batched forward kinematics
-and Jacobians (``kinematics``), IK and the elbow's self-motion (``ik``), planar arms
-(``planar``) and end-effector noise statistics (``endeffector``). Uses ``sampling``.
+and Jacobians (``kinematics``), IK and the elbow's self-motion (``ik``), a grasp given as a
+palm pose and its IK (``palm_pose``), planar arms (``planar``) and end-effector noise
+statistics (``endeffector``). Uses ``sampling``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ _EXPORTS = {
     "elbow_angle": "kinematics",
     "ArmIK": "ik",
     "IKResult": "ik",
+    "PalmCandidate": "palm_pose",
+    "parse_palm_pose": "palm_pose",
+    "reach_palm_pose": "palm_pose",
     "PlanarArm": "planar",
     "sample_kuka_end_effector": "endeffector",
     "kuka_end_effector": "endeffector",

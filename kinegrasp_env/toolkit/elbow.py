@@ -59,6 +59,8 @@ class ElbowPoint:
     p_fc: float
     p_fc_ci: tuple[float, float]
     fc: np.ndarray = field(repr=False)  # (n,) bool: force closure per selection draw
+    #: (n,) int8 outcome (index into ``OUTCOMES``) per selection draw, when kept
+    outcome: np.ndarray | None = field(default=None, repr=False)
 
     def to_json(self) -> dict:
         return {"psi": self.psi, "p_fc": self.p_fc, "p_fc_ci": list(self.p_fc_ci)}
@@ -155,7 +157,7 @@ def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: 
     stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, samples, seed,
                            return_draws=True, **kwargs)
     fc = stats.draws.outcome == FORCE_CLOSURE
-    return ElbowPoint(psi, q, stats.p_fc, stats.p_fc_ci, fc)
+    return ElbowPoint(psi, q, stats.p_fc, stats.p_fc_ci, fc, stats.draws.outcome)
 
 
 def _scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed: int,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 
@@ -13,7 +14,8 @@ from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.progress import Progress
-from kinegrasp_env.world.grasps import shipped_grasps, write_atomic
+from kinegrasp_env.world.grasps import Grasp, shipped_grasps, write_atomic
+from kinegrasp_env.world.objects import OBJECT_NAMES
 
 #: Table I's CSV columns; new columns go at the end (readers by position keep working).
 TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_fc_lo", "p_fc_hi",
@@ -185,32 +187,51 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
     return rows
 
 
+def _figure_sets(which: str, objects: Sequence[str], count: int,
+                 grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
+    """Per object, the grasps fig9 (the first ``count`` of its set) or fig10 (``count``
+    null-space variants of its first grasp) evaluates."""
+    from kinegrasp_env.toolkit.planner import GraspPlanner
+
+    sets = {}
+    for name in objects:
+        base = list(grasp_sets[name]) if name in grasp_sets else shipped_grasps(name)
+        if not base:
+            raise ValueError(f"the grasp set of {name} is empty")
+        if which == "fig9":
+            sets[name] = base[:count]
+            continue
+        planner = GraspPlanner(name)
+        try:
+            sets[name] = planner.variants(base[0], count)
+        finally:
+            planner.close()
+    return sets
+
+
 def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
             count: int = 10, seed: int = 0, processes: int = 1,
             engine: str = "pybullet", executor: Executor | None = None,
-            progress: bool = False) -> list[dict]:
+            progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
+            grasp_sets: Mapping[str, Sequence[Grasp]] | None = None) -> list[dict]:
     """Figs. 9 and 10: success rate, mean quality (with its std) and the error
-    (nominal - mean) of ``count`` grasps per object at ``sigma``. fig9: the shipped grasps
-    (different contacts and arms); fig10: null-space variants of shipped grasp 0 (same
-    contacts, different arms). Writes ``<which>.csv``, then ``<which>.png`` (a figure that
-    fails is a warning: the CSV stays). ``progress``: one overall report."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
+    (nominal - mean) of ``count`` grasps per object of ``objects`` at ``sigma``. fig9: the
+    first ``count`` grasps of the object's set (different contacts and arms); fig10:
+    ``count`` null-space variants of its first grasp (same contacts, different arms). An
+    object's set is ``grasp_sets[name]`` if given (how an imported object, which has no
+    shipped set, is drawn), else its shipped set. Writes ``<which>.csv``, then
+    ``<which>.png`` (a figure that fails is a warning: the CSV stays). ``progress``: one
+    overall report.
+
+    Raises:
+        NoGraspSetError: an imported object without a grasp set.
+    """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
-    from kinegrasp_env.world.objects import OBJECT_NAMES
 
     if which not in ("fig9", "fig10"):
         raise ValueError(f"unknown figure {which!r}")
     out = Path(out_dir)
-    sets = {}
-    for name in OBJECT_NAMES:
-        if which == "fig9":
-            sets[name] = shipped_grasps(name)[:count]
-        else:
-            planner = GraspPlanner(name)
-            try:
-                sets[name] = planner.variants(shipped_grasps(name)[0], count)
-            finally:
-                planner.close()
+    sets = _figure_sets(which, objects, count, grasp_sets or {})
     rows = []
     cells = sum(len(g) for g in sets.values())
     with _progress(progress, which, cells, samples) as report:

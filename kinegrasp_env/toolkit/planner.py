@@ -19,15 +19,15 @@ import numpy as np
 
 from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
+from kinegrasp_env.montecarlo.nominal import grasp_from_draw
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK, kuka_sdh
+from kinegrasp_env.robot.palm_pose import IK_SEED  # the planner's IK seed (one copy)
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import load_object
 
 log = logging.getLogger(__name__)
 
-#: A comfortable seed for IK: elbow up, palm forward.
-IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
 #: Clearance required between the arm and the object at the pre-grasp, metres.
 CLEARANCE = 0.004
 #: Palm stand-off that keeps the open fingers clear of the object, metres.
@@ -92,7 +92,7 @@ class GraspPlanner:
 
     def arm_clear(self, q: np.ndarray) -> bool:
         """True when the arm links (not the hand: auto-close judges it) at q (14,) keep
-        CLEARANCE from the object. The world has no table: objects float at their pose."""
+        CLEARANCE from the object (the support table, if any, is the engine's start check)."""
         arm = self._arm_body()
         bullet = self.engine.world.bullet
         for name, value in self.model.expand(q).items():
@@ -102,6 +102,13 @@ class GraspPlanner:
             if bullet.getClosestPoints(arm, obj, CLEARANCE, linkIndexA=link):
                 return False
         return True
+
+    def closed_in_table(self, q0: np.ndarray, hand: np.ndarray) -> bool:
+        """Whether the hand closed to ``hand`` (7,) on the arm joints of q0 (14,) ends in the
+        object's support table (never, without one): such a grasp goes through the table."""
+        if self.obj.table is None:
+            return False
+        return bool(self.engine.table_hits(np.concatenate([q0[:7], hand])[None])[0])
 
     def surface_distance(self, aim: np.ndarray, direction: np.ndarray) -> float | None:
         """Distance from ``aim`` (world) back along -direction to the object's surface."""
@@ -177,17 +184,15 @@ class GraspPlanner:
         q0 = result.q[0]
         if not self.arm_clear(q0):
             return None
-        draw = self.engine.run(q0[None])
-        if draw.outcome[0] != FORCE_CLOSURE:
+        draw = self.engine.run(q0[None])  # with a table: start_collision if in it
+        if draw.outcome[0] != FORCE_CLOSURE or self.closed_in_table(q0, draw.hand[0]):
             return None
         k = int(draw.n_contacts[0])
         if k > self.settings.max_contacts:
             return None
         palm = self.engine.kin.pose(q0, PALM_LINK)[0]
-        return Grasp(self.obj.name, q0, np.ascontiguousarray(palm), draw.points[0, :k].copy(),
-                     draw.normals[0, :k].copy(), draw.finger[0, :k].astype(int),
-                     draw.link[0, :k].astype(int), float(draw.quality[0]),
-                     meta={"elbow_angle": float(self.ik.elbow_angle(q0[None])[0])})
+        return grasp_from_draw(draw, self.obj.name, q0, palm,
+                               meta={"elbow_angle": float(self.ik.elbow_angle(q0[None])[0])})
 
     def plan(self, count: int, seed: int = 0, *, max_attempts: int | None = None,
              time_budget: float | None = None, progress: bool = False) -> list[Grasp]:
@@ -263,10 +268,7 @@ class GraspPlanner:
             draw = self.engine.run(q[None])
             if draw.outcome[0] != FORCE_CLOSURE:
                 continue
-            k = int(draw.n_contacts[0])
-            out.append(Grasp(grasp.object, q, grasp.palm_pose, draw.points[0, :k].copy(),
-                             draw.normals[0, :k].copy(), draw.finger[0, :k].astype(int),
-                             draw.link[0, :k].astype(int), float(draw.quality[0]),
-                             id=f"{grasp.id}v{j + 1}",
-                             meta={"elbow_angle": psi, "variant_of": grasp.id}))
+            out.append(grasp_from_draw(draw, grasp.object, q, grasp.palm_pose,
+                                       grasp_id=f"{grasp.id}v{j + 1}",
+                                       meta={"elbow_angle": psi, "variant_of": grasp.id}))
         return out

@@ -4,8 +4,10 @@ An evaluation page holds the grasp's 3-D view (object, hand, nominal contacts wi
 cones, every draw's contact points by outcome or finger), the arm's 3-D view (nominal links,
 a few noisy draws' skeletons), Q's histogram over the force-closure draws, the outcome
 counts, P(FC) with its Wilson interval, P(FC) against sigma when several sigmas were run, the
-settings and the command that reproduces the page. A ranking page holds the sortable table
-and each candidate's 3-D views on demand. Pages open offline (plotly.js is inline) and are
+settings and the command that reproduces the page; under a noise model of several sources
+(``--noise-spec``) it also lists the sources and their settings. A ranking page holds the
+sortable table and each candidate's 3-D views on demand. The elbow page is
+:mod:`~kinegrasp_env.toolkit.report_elbow`. Pages open offline (plotly.js is inline) and are
 deterministic: the same runs give the same bytes.
 
 Size: plotly.js is about 4.8 MB; a 10,000-draw evaluation page stays under
@@ -16,8 +18,6 @@ random subset past that, said on the page).
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from importlib import metadata
 from pathlib import Path
@@ -25,8 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, GraspStats
+from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, GraspStats, Noise
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import SOURCES
+from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.toolkit.report_charts import outcome_bars, pfc_curve, quality_histogram
 from kinegrasp_env.toolkit.report_geometry import (
     closed_configuration,
@@ -43,7 +45,7 @@ from kinegrasp_env.toolkit.report_html import (
 )
 from kinegrasp_env.toolkit.report_plotly import MeshLibrary, plotly_version
 from kinegrasp_env.toolkit.report_scene import MAX_POINTS, arm_scene, contact_cloud, grasp_scene
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import Grasp, write_atomic
 from kinegrasp_env.world.objects import load_object
 
 #: A 10,000-draw evaluation page stays under this size (bytes); tested.
@@ -64,13 +66,55 @@ def sigma_text(sigma) -> str:
     return f"{sigma:g}" if isinstance(sigma, float) else ",".join(f"{s:g}" for s in sigma)
 
 
+def run_noise(stats: GraspStats) -> Noise:
+    """The noise a run drew: its noise model (``stats.noise_model``) or its joint noise."""
+    if stats.noise_model is not None:
+        return noise_model_from_spec(stats.noise_model)
+    return JointNoise(stats.sigma if isinstance(stats.sigma, float) else tuple(stats.sigma),
+                      stats.noise)
+
+
+#: Units of a noise spec's settings (docs/noise_example.yaml); friction's are plain numbers.
+SPEC_UNITS = {"sigma": "rad", "bias": "rad", "covariance": "rad^2", "spread_sigma": "rad",
+              "closing_sigma": "rad", "translation_sigma": "m", "rotation_sigma": "rad"}
+
+
+def spec_settings(section: dict) -> str:
+    """One source's settings as text: ``key value unit`` pairs."""
+    def value(v):
+        return ", ".join(value(x) for x in v) if isinstance(v, list) else (
+            f"{v:g}" if isinstance(v, float) else str(v))
+
+    return "; ".join(f"{k} {value(v)}" + (f" {SPEC_UNITS[k]}" if k in SPEC_UNITS else "")
+                     for k, v in section.items())
+
+
+def noise_sources_table(spec: dict) -> str:
+    """The sources of a noise model's spec (``spec_of(model)``) and their settings; the
+    sources it leaves out are exact."""
+    rows = "".join(
+        f'<tr><td class="kg-text">{esc(name)}</td><td class="kg-text">'
+        f"{esc(spec_settings(spec[name]) if name in spec else 'exact (not in the spec)')}"
+        "</td></tr>" for name in SOURCES)
+    return (f"<table><tr><th class='kg-text'>source</th><th class='kg-text'>settings</th>"
+            f"</tr>{rows}</table>")
+
+
+def noise_label(stats: GraspStats) -> str:
+    """What the run's noise was, in words."""
+    if stats.noise_model == {}:
+        return "a noise model with every source exact"
+    if stats.noise_model is not None:
+        return f"a noise model of {len(stats.noise_model)} sources ({', '.join(stats.noise_model)})"
+    return f"sigma = {sigma_text(stats.sigma)} rad ({stats.noise})"
+
+
 def headline(stats: GraspStats) -> str:
     lo, hi = stats.p_fc_ci
     q = (f"Q: nominal {stats.q_nominal:.5f}, mean {fmt(stats.q_mean)}, std {fmt(stats.q_std)},"
          f" skewness {fmt(stats.q_skew, 3)}")
     return (f"<p class='kg-headline'><b>P(FC) = {stats.p_fc:.4f}</b> (95% CI {lo:.4f} .. "
-            f"{hi:.4f}) over {stats.samples} draws at sigma = {esc(sigma_text(stats.sigma))} "
-            f"rad ({esc(stats.noise)}); {q}</p>")
+            f"{hi:.4f}) over {stats.samples} draws under {esc(noise_label(stats))}; {q}</p>")
 
 
 def fmt(value: float, digits: int = 5) -> str:
@@ -94,9 +138,8 @@ def evaluation_figures(grasp: Grasp, stats: GraspStats, library: MeshLibrary, *,
     obj = load_object(grasp.object)
     draws = stats.draws
     cloud = contact_cloud(draws, max_points)
-    noise = JointNoise(stats.sigma if isinstance(stats.sigma, float) else tuple(stats.sigma),
-                       stats.noise)
-    noisy = noisy_configurations(grasp.q0, noise, stats.seed, stats.samples, arm_draws, chunk)
+    noisy = noisy_configurations(grasp.q0, run_noise(stats), stats.seed, stats.samples,
+                                 arm_draws, chunk)
     closed, did_close = closed_configuration(grasp.q0, obj)
     title = f"{grasp.object} grasp {grasp.id}: object frame"
     figures = [
@@ -115,6 +158,13 @@ def evaluation_figures(grasp: Grasp, stats: GraspStats, library: MeshLibrary, *,
              f"The arm view shows the skeletons of the first {len(noisy)} draws (the first "
              "draws of the run, same noise), coloured by their outcome; toggle them, the arm "
              "or the object in its legend."]
+    model = stats.noise_model or {}
+    unseen = [s for s in ("palm", "object", "friction") if s in model]
+    if unseen:
+        notes.append(f"The arm view draws each draw's joint{' and hand' if 'hand' in model else ''}"
+                     f" errors; its {', '.join(unseen)} errors act on the grasp but are not "
+                     "drawn there (the object stays where it was believed to be). The contact "
+                     "points of the grasp view, the counts and Q include every source.")
     if cloud.decimated:
         notes.append(f"The grasp view shows {cloud.shown:,} of the {cloud.total:,} contact "
                      "points of the draws (a uniform random subset, seed 0) to keep the page "
@@ -153,12 +203,14 @@ def evaluation_page(grasp: Grasp, runs: Sequence[GraspStats], *, command: str,
                      "the table use every sigma.")
         curve = (f"<h2>P(FC) against sigma</h2><div class='kg-row'>{figures[-1].div()}"
                  f"<div>{runs_table(runs)}</div></div>")
+    sources = ("" if detail.noise_model is None else
+               f"<h2>Noise sources</h2>{noise_sources_table(detail.noise_model)}")
     title = f"kinegrasp report: {grasp.object} grasp {grasp.id}"
     body = (f"<h1>{esc(title)}</h1>{headline(detail)}"
             f"<div class='kg-row'>{figures[0].div()}{figures[1].div()}</div>"
             f"{''.join(note(n) for n in notes)}"
             f"<div class='kg-row'>{figures[2].div()}{figures[3].div()}</div>{curve}"
-            f"<h2>Settings</h2>{settings_table(settings)}"
+            f"{sources}<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
     return page(title, body, figures, library, versions())
 
@@ -200,7 +252,7 @@ def rank_row(position: int, row: dict, psi: float, key: str) -> str:
 
 
 def rank_page(grasps: Sequence[Grasp], rows: Sequence[dict], *, command: str, settings: dict,
-              noise: JointNoise, seed: int, samples: int, arm_draws: int = 10,
+              noise: Noise, seed: int, samples: int, arm_draws: int = 10,
               friction: float = 0.5, num_edges: int = 8) -> str:
     """The HTML page of a ranking.
 
@@ -240,20 +292,9 @@ def rank_page(grasps: Sequence[Grasp], rows: Sequence[dict], *, command: str, se
 
 
 def write_page(path: str | Path, content: str | bytes) -> Path:
-    """Write a page (text, UTF-8) or a screenshot (bytes) atomically: a temporary file in the
-    same folder, then a rename. The file gets the usual permissions (0666 less the umask)."""
+    """Write a page (text, as UTF-8) or a screenshot (bytes) atomically
+    (:func:`~kinegrasp_env.world.grasps.write_atomic`: a temporary file in the same folder,
+    then a rename; a new file gets 0666 less the umask, a rewritten one keeps its mode)."""
     path = Path(path)
-    data = content.encode() if isinstance(content, str) else content
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    write_atomic(path, content.encode() if isinstance(content, str) else content)
     return path

@@ -1,5 +1,6 @@
 """The report's 2-D charts as plotly figures (plain dicts): Q's histogram over the
-force-closure draws, the outcome counts, and P(FC) against sigma with Wilson intervals."""
+force-closure draws, the outcome counts, P(FC) against sigma and P(FC) along the elbow's
+self-motion, both with Wilson intervals."""
 
 from __future__ import annotations
 
@@ -86,3 +87,33 @@ def pfc_curve(runs: Sequence[GraspStats], label: str) -> dict:
                              xaxis={"title": {"text": "sigma [rad]"}},
                              yaxis={"title": {"text": "P(FC)"}, "range": [-0.02, 1.02]},
                              showlegend=True, margin={"l": 60, "r": 20, "t": 40, "b": 50})}
+
+
+def elbow_curve(curve: Sequence[dict], nominal_psi: float, best_psi: float) -> dict:
+    """P(FC) against the elbow angle psi (radians) with the Wilson 95% intervals as error
+    bars (``curve``: dicts of ``psi``, ``p_fc``, ``p_fc_ci``, as ``ElbowPoint.to_json()``),
+    the nominal and the best elbow angle marked by vertical lines."""
+    points = sorted(curve, key=lambda c: c["psi"])
+    p = [c["p_fc"] for c in points]
+    shapes, notes = [], []
+    for value, label, colour, dash, y in ((nominal_psi, "nominal", "#d62728", "dash", 0.97),
+                                          (best_psi, "best", "#2ca02c", "solid", 0.87)):
+        shape, text = _vline(value, f"{label} {value:+.3f} rad", colour, dash, y)
+        shapes.append(shape)
+        notes.append(text)
+    return {"data": [{"type": "scatter", "mode": "lines+markers", "name": "P(FC)",
+                      "x": [c["psi"] for c in points], "y": p,
+                      "error_y": {"type": "data", "symmetric": False,
+                                  "array": [c["p_fc_ci"][1] - v for c, v in zip(points, p,
+                                                                               strict=True)],
+                                  "arrayminus": [v - c["p_fc_ci"][0] for c, v in zip(
+                                      points, p, strict=True)]},
+                      "hovertemplate": "psi %{x:.3f} rad: P(FC) %{y:.4f}<extra></extra>"}],
+            "layout": layout(title={"text": "P(force closure) along the self-motion (selection "
+                                            "draws, 95% Wilson intervals)", "x": 0.01,
+                                    "font": {"size": 14}},
+                             xaxis={"title": {"text": "elbow angle psi [rad]"},
+                                    "zeroline": False},
+                             yaxis={"title": {"text": "P(FC)"}, "range": [-0.02, 1.02]},
+                             shapes=shapes, annotations=notes, showlegend=False,
+                             margin={"l": 60, "r": 20, "t": 40, "b": 50})}

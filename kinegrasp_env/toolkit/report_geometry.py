@@ -16,11 +16,15 @@ import numpy as np
 import trimesh
 
 from kinegrasp_env.montecarlo.engines import FLANGE_LINK
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
+from kinegrasp_env.montecarlo.evaluate import (
+    DEFAULT_CHUNK,
+    Noise,
+    chunk_configurations,
+    chunk_sizes,
+)
 from kinegrasp_env.quality.wrenches import friction_cone_edges
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, rpy_to_matrix, urdf_path
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.objects import GraspObject
 
 #: Links whose frame origins make the arm's skeleton, base to palm.
@@ -163,10 +167,11 @@ def closed_configuration(q0: np.ndarray, obj: GraspObject) -> tuple[np.ndarray, 
     return q, True
 
 
-def noisy_configurations(q0: np.ndarray, noise: JointNoise, seed: int, samples: int,
+def noisy_configurations(q0: np.ndarray, noise: Noise, seed: int, samples: int,
                          count: int, chunk: int = DEFAULT_CHUNK) -> np.ndarray:
     """The first ``count`` draws' configurations (count, 14) of a run: exactly those that
-    ``evaluate_grasp(..., seed, chunk=chunk)`` evaluates first (chunk 0's stream)."""
+    ``evaluate_grasp(..., seed, chunk=chunk)`` evaluates first (chunk 0's stream; a noise
+    model's joint errors and hand offsets, not its palm, object and friction errors)."""
     first = chunk_sizes(samples, chunk)[0]
     return chunk_configurations(q0, noise, seed, [(0, first)])[:min(count, first)]
 

@@ -238,13 +238,15 @@ def skeleton_trace(points: np.ndarray, name: str, colour: str, width: float, **e
 
 
 def arm_scene(obj: GraspObject, closed: np.ndarray, library: MeshLibrary, noisy_q: np.ndarray,
-              noisy_outcomes: np.ndarray | None = None, title: str = "") -> dict:
-    """The arm in the world frame: its links at the nominal configuration with the hand
+              noisy_outcomes: np.ndarray | None = None, title: str = "",
+              label: str = "nominal") -> dict:
+    """The arm in the world frame: its links at the noise-free configuration with the hand
     closed (``closed`` (14,)), the object, the skeleton of it and of the noisy configurations
-    ``noisy_q`` (k, 14), coloured by their outcomes (k,) if given."""
-    data = robot_traces(closed, "arm and hand (nominal)", library, opacity=0.35)
+    ``noisy_q`` (k, 14), coloured by their outcomes (k,) if given; ``label`` names the
+    noise-free configuration in the legend."""
+    data = robot_traces(closed, f"arm and hand ({label})", library, opacity=0.35)
     data += object_traces(obj, library, obj.pose, parts=False)
-    data.append(skeleton_trace(skeletons(closed), "skeleton (nominal)", "black", 6))
+    data.append(skeleton_trace(skeletons(closed), f"skeleton ({label})", "black", 6))
     if len(noisy_q):
         lines = skeletons(noisy_q)
         if noisy_outcomes is None:

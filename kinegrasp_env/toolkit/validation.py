@@ -32,6 +32,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.progress import Progress
 from kinegrasp_env.world.grasps import Grasp, write_atomic
+from kinegrasp_env.world.objects import object_version
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +143,9 @@ _ENGINES: dict[tuple, tuple[Engine, PhysicsEngine]] = {}
 
 
 def worker_engines(object_name: str, settings: ValidationSettings) -> tuple[Engine, PhysicsEngine]:
-    key = (object_name, settings.kinematic, settings.friction, settings.num_edges)
+    # the object's version too: an object re-imported under the same name gets new engines
+    key = (object_name, object_version(object_name), settings.kinematic, settings.friction,
+           settings.num_edges)
     if key not in _ENGINES:
         _ENGINES[key] = (make_engine(settings.kinematic, object_name, settings.friction,
                                      settings.num_edges),

@@ -3,7 +3,11 @@
 A grasp file is JSON: ``{"object": name, "grasps": [grasp, ...]}`` with each grasp a dict of
 ``id``, ``object``, ``q0`` (14 numbers: 7 arm joints then 7 hand DOF, radians), ``palm_pose``
 (4x4, world frame), ``contacts`` (list of ``{"finger", "link", "point", "normal"}`` in the
-object frame) and ``q_nominal``.
+object frame) and ``q_nominal``. :func:`save_grasps` also writes each grasp as a palm-pose
+candidate (:func:`palm_pose_fields`: ``position``, ``quaternion`` of the palm in the object
+frame, ``hand``, ``spread`` and, when known, ``elbow``), so the same file reads as full
+configurations (:func:`load_grasps`, which ignores those fields) or as palm poses to solve by
+IK (``kinegrasp_env.toolkit.candidates.load_candidates``). README: "Candidates as palm poses".
 """
 
 from __future__ import annotations
@@ -12,14 +16,14 @@ import json
 import os
 import stat
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.robot.model import kuka_sdh
-from kinegrasp_env.world.objects import OBJECT_NAMES, is_object, unknown_object
+from kinegrasp_env.world.objects import OBJECT_NAMES, is_object, load_object, unknown_object
 
 ARM_DOF = 7
 HAND_DOF = 7
@@ -59,9 +63,13 @@ class Grasp:
     def hand(self) -> np.ndarray:
         return self.q0[ARM_DOF:]
 
-    def to_dict(self) -> dict:
+    def to_dict(self, object_pose: np.ndarray | None = None) -> dict:
+        """The grasp's JSON entry; given the object's pose (4, 4) in the world frame, with
+        the palm-pose candidate fields (:func:`palm_pose_fields`) after ``object``."""
         return {
-            "id": self.id, "object": self.object, "q0": self.q0.tolist(),
+            "id": self.id, "object": self.object,
+            **({} if object_pose is None else palm_pose_fields(self, object_pose)),
+            "q0": self.q0.tolist(),
             "palm_pose": self.palm_pose.tolist(), "q_nominal": self.q_nominal,
             "contacts": [{"finger": int(f), "link": int(k), "point": p.tolist(),
                           "normal": n.tolist()}
@@ -92,6 +100,26 @@ class Grasp:
         links = np.array([c.get("link", -1) for c in contacts], dtype=int)
         return cls(obj, q0, pose, points, normals, fingers, links, q_nominal,
                    str(data.get("id", "0")), dict(data.get("meta", {})))
+
+
+def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
+    """The grasp as a palm-pose candidate (``kinegrasp_env.toolkit.candidates``):
+    ``position`` (3,) metres and ``quaternion`` (4,) [x, y, z, w] of the palm frame in the
+    object frame, ``hand`` (7,) the pre-shape (radians), ``spread`` (= hand[0], radians) and
+    ``elbow`` (the elbow angle psi, radians; only when ``meta`` records ``elbow_angle``).
+
+    Args:
+        grasp: the grasp (its ``palm_pose`` is in the world frame).
+        object_pose: (4, 4) the object frame in the world frame.
+    """
+    from kinegrasp_env.world.sim import matrix_to_pose
+
+    position, quaternion = matrix_to_pose(np.linalg.solve(object_pose, grasp.palm_pose))
+    fields = {"position": [float(v) for v in position], "quaternion": quaternion,
+              "hand": grasp.hand.tolist(), "spread": float(grasp.hand[0])}
+    if grasp.meta.get("elbow_angle") is not None:
+        fields["elbow"] = float(grasp.meta["elbow_angle"])
+    return fields
 
 
 def check_configuration(q0: np.ndarray, where: str = "q0") -> np.ndarray:
@@ -133,10 +161,12 @@ def load_grasps(path: str | Path) -> list[Grasp]:
 
 
 def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
-    """Write grasps to ``path`` atomically (temporary file, then rename)."""
+    """Write grasps to ``path`` atomically (temporary file, then rename), each with its
+    palm-pose candidate fields in its object's frame (:func:`palm_pose_fields`)."""
     path = Path(path)
+    poses = {name: load_object(name).pose for name in {g.object for g in grasps}}
     payload = {"object": grasps[0].object if grasps else None, **extra,
-               "grasps": [g.to_dict() for g in grasps]}
+               "grasps": [g.to_dict(poses[g.object]) for g in grasps]}
     write_atomic(path, json.dumps(payload, indent=1))
     return path
 
@@ -192,13 +222,27 @@ def no_grasp_set(object_name: str) -> NoGraspSetError:
 def shipped_grasps(object_name: str) -> list[Grasp]:
     """The standard grasp set of a built-in object (``assets/grasps/<object>.json``).
 
+    A placed copy of a built-in object (``kinegrasp objects place drill --as NAME``) that
+    stands where the built-in object stands has the built-in set (its grasps named after the
+    copy): its arm configurations reach the same contacts, and its table may make some of them
+    start in collision.
+
     Raises:
-        NoGraspSetError: for an imported object; ValueError for an unknown name.
+        NoGraspSetError: for an imported object, or a placed copy moved from where its
+            grasps were planned; ValueError for an unknown name.
     """
     if object_name not in OBJECT_NAMES:
-        if is_object(object_name):
+        if not is_object(object_name):
+            raise unknown_object(object_name)
+        obj = load_object(object_name)
+        if obj.base not in OBJECT_NAMES:
             raise no_grasp_set(object_name)
-        raise unknown_object(object_name)
+        if not np.allclose(obj.pose, load_object(obj.base).pose):
+            raise NoGraspSetError(
+                f"{object_name!r} stands elsewhere than {obj.base!r}, so the shipped grasps' arm "
+                f"configurations miss it; plan for it (`kinegrasp plan --object {object_name}"
+                "`) or give palm poses (`kinegrasp rank CANDIDATES.json`)")
+        return [replace(g, object=object_name) for g in shipped_grasps(obj.base)]
     return load_grasps(asset_path("grasps", f"{object_name}.json"))
 
 

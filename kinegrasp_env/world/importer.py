@@ -64,6 +64,14 @@ log = logging.getLogger(__name__)
 
 #: Units a file may be in, and their factor to metres.
 UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+#: The rotation that turns a file's up axis into the object frame's +z (right-handed, so
+#: the winding stays outward): y-up (many OBJ and glTF files) by +90 degrees about x, x-up
+#: by -90 degrees about y.
+UP_ROTATIONS = {
+    "x": np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]),
+    "y": np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]),
+    "z": np.eye(3),
+}
 
 
 @dataclass(frozen=True)
@@ -74,11 +82,14 @@ class ImportSettings:
         scale: factor from the file's units to metres.
         threshold: CoACD's concavity threshold (0.01 .. 1; smaller: more, closer parts).
         max_parts: most convex parts (>= 1).
+        up: the file's up axis (``x``, ``y`` or ``z``), turned into +z at import
+            (:data:`UP_ROTATIONS`).
     """
 
     scale: float = 1.0
     threshold: float = DEFAULT_THRESHOLD
     max_parts: int = DEFAULT_MAX_PARTS
+    up: str = "z"
 
     def check(self) -> ImportSettings:
         """The settings, or :class:`CatalogError` naming the bad one."""
@@ -89,7 +100,17 @@ class ImportSettings:
         if isinstance(self.max_parts, bool) or int(self.max_parts) != self.max_parts \
                 or self.max_parts < 1:
             raise CatalogError(f"max_parts must be an integer >= 1, got {self.max_parts!r}")
+        if self.up not in UP_ROTATIONS:
+            raise CatalogError(f"up must be one of {', '.join(UP_ROTATIONS)}, got {self.up!r}")
         return self
+
+    def key_fields(self) -> dict:
+        """The settings an entry's key is made of (``up`` only when not ``z``, so entries
+        imported before the option existed keep their keys)."""
+        fields = asdict(self)
+        if fields["up"] == "z":
+            del fields["up"]
+        return fields
 
 
 @dataclass(frozen=True)
@@ -138,7 +159,7 @@ def source_digest(source: SourceMesh) -> str:
 
 def entry_key(digest: str, settings: ImportSettings) -> str:
     """The key an entry is reused by: the files' digest, the settings and the layout."""
-    text = json.dumps({"files": digest, **asdict(settings), "seed": COACD_SEED,
+    text = json.dumps({"files": digest, **settings.key_fields(), "seed": COACD_SEED,
                        "hull": [MAX_HULL_VERTICES, HULL_TOLERANCE], "format": FORMAT_VERSION},
                       sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
@@ -164,11 +185,12 @@ def import_object(path: str | Path, name: str | None = None,
         entry = read_entry(existing)
         if entry.get("key") == key:
             return ImportResult(name, existing, True, 0.0, entry)
-        given = {k: v for k, v in entry.get("settings", {}).items() if k in asdict(settings)}
+        stored = entry.get("settings", {})
+        given = {k: stored.get(k, v) for k, v in asdict(ImportSettings()).items()}
         raise CatalogError(f"object {name!r} already exists (from "
                            f"{entry.get('source', {}).get('path', '?')}, settings {given}); "
                            "add --force to replace it, or give another --name")
-    prepared = prepare(source, settings.scale, Path(path))
+    prepared = prepare(source, settings.scale, Path(path), settings.up)
     root = catalog_dir()
     root.mkdir(parents=True, exist_ok=True)
     remove_stale(root)
@@ -192,7 +214,8 @@ class Prepared:
     Attributes:
         mesh: cleaned, metres, object frame.
         thickness: its smallest width (metres).
-        frame: (4, 4) move from the scaled source frame to the object frame.
+        frame: (4, 4) move from the scaled source frame to the object frame (the up
+            axis turned into +z, then the translation to the base centre).
     """
 
     mesh: trimesh.Trimesh
@@ -200,18 +223,22 @@ class Prepared:
     frame: np.ndarray
 
 
-def prepare(source: SourceMesh, scale: float, path: Path) -> Prepared:
-    """Scale, clean, check and place the source mesh; :class:`MeshError` naming ``path``
-    when it is no solid or does not suit the hand."""
+def prepare(source: SourceMesh, scale: float, path: Path, up: str = "z") -> Prepared:
+    """Scale, turn (``up``: the file's up axis becomes +z), clean, check and place the
+    source mesh; :class:`MeshError` naming ``path`` when it is no solid or does not suit the
+    hand."""
+    rotation = UP_ROTATIONS[up]
     try:
-        mesh = clean_mesh(source.vertices * scale, source.faces)
+        mesh = clean_mesh(source.vertices * scale @ rotation.T, source.faces)
         width = check_solid(mesh)
         check_size(mesh, width)
     except MeshError as exc:
         raise MeshError(f"{path}: {exc}") from None
     frame = object_frame(mesh)
     mesh.apply_transform(frame)
-    return Prepared(mesh, width, frame)
+    turn = np.eye(4)
+    turn[:3, :3] = rotation
+    return Prepared(mesh, width, frame @ turn)
 
 
 def build_entry(source: SourceMesh, prepared: Prepared, name: str, key: str,
@@ -318,6 +345,7 @@ def process_alive(pid: int) -> bool:
 
 
 def forget() -> None:
-    """Drop this process's cached objects and grids (after the catalog changed)."""
+    """Drop this process's cached objects and grids (after the catalog changed; they are
+    keyed by the entry's version, so this only frees memory)."""
     objects.imported_object.cache_clear()
-    sdf.object_grid.cache_clear()
+    sdf.grid_of.cache_clear()

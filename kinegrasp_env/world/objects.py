@@ -13,7 +13,7 @@ frame unless its catalog entry gives a pose.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 from pathlib import Path
 
@@ -26,10 +26,13 @@ from kinegrasp_env.world.polytope import ConvexPart
 from kinegrasp_env.world.store import (
     MESH_FILE,
     PARTS_FILE,
+    CatalogError,
+    entry_digest,
     imported_folder,
     imported_names,
     read_entry,
 )
+from kinegrasp_env.world.support import SupportTable
 
 #: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
 OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
@@ -55,6 +58,10 @@ class GraspObject:
         pose: (4, 4) object frame in the world frame.
         mesh_file: the mesh's file (for visual shapes), or None.
         imported: True for an object of the user's catalog.
+        table: the support table under the object (:mod:`kinegrasp_env.world.support`), or
+            None (the object floats at its pose: the paper's setting).
+        base: for a placed object (``kinegrasp objects place ... --as NAME``), the object
+            whose geometry (and, placed as the base is, shipped grasps) it has; else None.
     """
 
     name: str
@@ -66,6 +73,8 @@ class GraspObject:
     pose: np.ndarray = field(default_factory=lambda: np.eye(4), repr=False)
     mesh_file: Path | None = field(default=None, repr=False)
     imported: bool = False
+    table: SupportTable | None = None
+    base: str | None = None
 
     @property
     def torque_scale(self) -> float:
@@ -267,8 +276,31 @@ def load_object(name: str) -> GraspObject:
     folder = imported_folder(name)
     if folder is None:
         raise unknown_object(name)
-    entry = read_entry(folder)
-    return imported_object(str(folder), str(entry.get("key")))
+    entry = read_entry(folder)  # an unreadable or newer entry: its one-line error
+    if entry.get("base") is not None:
+        return placed_object(str(folder), entry_digest(folder))
+    return imported_object(str(folder), entry_digest(folder))
+
+
+#: :func:`object_version` of every built-in object (they never change in a process).
+BUILTIN_VERSION = "built-in"
+
+
+def object_version(name: str) -> str:
+    """What a per-object cache is keyed by besides the name: :data:`BUILTIN_VERSION` for a
+    built-in object, else the digest of the imported entry's ``entry.json``
+    (:func:`~kinegrasp_env.world.store.entry_digest`), which changes when the object is
+    re-imported under the same name (``objects add --force``, here or in another process).
+
+    Raises:
+        ValueError: an unknown name (the message lists the known ones).
+    """
+    if name in OBJECT_NAMES:
+        return BUILTIN_VERSION
+    folder = imported_folder(name)
+    if folder is None:
+        raise unknown_object(name)
+    return entry_digest(folder)
 
 
 @lru_cache(maxsize=8)
@@ -284,17 +316,46 @@ def builtin_object(name: str) -> GraspObject:
 
 
 @lru_cache(maxsize=8)
-def imported_object(folder: str, key: str) -> GraspObject:
-    """An imported object from its entry folder (cached per folder and entry key, so a
-    re-imported entry is read afresh)."""
+def imported_object(folder: str, version: str) -> GraspObject:
+    """An imported object from its entry folder (cached per folder and
+    :func:`object_version`, so a re-imported entry is read afresh)."""
     path = Path(folder)
     entry = read_entry(path)
     mesh = trimesh.load(path / MESH_FILE, force="mesh", process=False)
     data = json.loads((path / PARTS_FILE).read_text())
     parts = [np.asarray(p, dtype=float) for p in data["parts"]]
-    pose = default_pose() if entry.get("pose") is None else np.asarray(entry["pose"], float)
-    return object_from_parts(path.name, mesh, parts, np.asarray(entry["center_of_mass"]),
-                             float(entry["r_max"]), pose, path / MESH_FILE)
+    obj = object_from_parts(path.name, mesh, parts, np.asarray(entry["center_of_mass"]),
+                            float(entry["r_max"]), None, path / MESH_FILE)
+    return replace(obj, **entry_placement(entry))
+
+
+@lru_cache(maxsize=8)
+def placed_object(folder: str, version: str) -> GraspObject:
+    """A placed object (an entry with a ``base``): the base object's geometry under the
+    entry's name, pose and table (cached per folder and :func:`object_version`).
+
+    Raises:
+        CatalogError: the base object is no longer in the catalog.
+    """
+    path = Path(folder)
+    entry = read_entry(path)
+    try:
+        base = load_object(entry["base"])
+    except ValueError:
+        raise CatalogError(f"placed object {path.name!r} stands for {entry['base']!r}, which "
+                           f"is no longer in the catalog; remove it with `kinegrasp objects "
+                           f"remove {path.name}`") from None
+    return replace(base, name=path.name, base=base.base or base.name,
+                   **entry_placement(entry))
+
+
+def entry_placement(entry: dict) -> dict:
+    """``pose`` (4, 4) and ``table`` of a catalog entry (default pose, no table when
+    absent)."""
+    pose = entry.get("pose")
+    table = entry.get("table")
+    return {"pose": default_pose() if pose is None else np.asarray(pose, dtype=float),
+            "table": None if table is None else SupportTable.from_dict(table)}
 
 
 def object_from_parts(name: str, mesh: trimesh.Trimesh, parts: list[np.ndarray],
@@ -309,24 +370,53 @@ def object_from_parts(name: str, mesh: trimesh.Trimesh, parts: list[np.ndarray],
 
 def catalog() -> list[dict]:
     """One summary dict per object, built-in then imported: name, source, size (m), r_max
-    (m), centre of mass (object frame), parts, faces and the decomposition's deviation from
+    (m), centre of mass (object frame), parts, faces, the decomposition's deviation from
     the source mesh (None for built-in objects, whose parts are exact; see
-    :class:`kinegrasp_env.world.deviation.Deviation`)."""
-    rows = []
+    :class:`kinegrasp_env.world.deviation.Deviation`), the source file's up axis (turned
+    into +z at import) and the placement (:func:`placement_fields`); placed objects last."""
+    rows, placed = [], []
     for name in OBJECT_NAMES:
         obj = load_object(name)
         rows.append({"name": name, "source": "built-in", "size": obj.size.round(4).tolist(),
                      "r_max": round(obj.r_max, 4),
                      "center_of_mass": obj.center_of_mass.round(4).tolist(),
-                     "parts": len(obj.parts), "faces": len(obj.mesh.faces), "deviation": None})
+                     "parts": len(obj.parts), "faces": len(obj.mesh.faces), "deviation": None,
+                     "up": "z", **placement_fields(obj)})
     for name in imported_names():
         if name in OBJECT_NAMES:
             continue
         entry = read_entry(imported_folder(name))
+        if entry.get("base") is not None:
+            placed.append((name, entry))
+            continue
         rows.append({"name": name, "source": entry["source"]["description"],
                      "size": [round(v, 4) for v in entry["size"]],
                      "r_max": round(entry["r_max"], 4),
                      "center_of_mass": [round(v, 4) for v in entry["center_of_mass"]],
                      "parts": entry["parts"], "faces": entry["faces"],
-                     "deviation": entry["deviation"]})
-    return rows
+                     "deviation": entry["deviation"],
+                     "up": entry.get("settings", {}).get("up", "z"),
+                     **placement_fields(load_object(name))})
+    return rows + [placed_row(name, entry, rows) for name, entry in placed]
+
+
+def placement_fields(obj: GraspObject) -> dict:
+    """A catalog row's placement: ``position`` (3,) metres, ``yaw`` radians and ``table``
+    (:meth:`SupportTable.to_dict` or None)."""
+    return {"position": [round(float(v), 4) for v in obj.pose[:3, 3]],
+            "yaw": round(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])), 4),
+            "table": None if obj.table is None else obj.table.to_dict()}
+
+
+def placed_row(name: str, entry: dict, base_rows: list[dict]) -> dict:
+    """The catalog row of a placed object: its base's row (among ``base_rows``, the built-in
+    and imported objects') under its own name and placement (source ``placed <base>``)."""
+    base = next((r for r in base_rows if r["name"] == entry["base"]), None)
+    if base is None:  # the base is gone: say so in the row, loading it says how to fix it
+        return {"name": name, "source": f"placed {entry['base']} (missing)", "size": [0, 0, 0],
+                "r_max": 0.0, "center_of_mass": [0, 0, 0], "parts": 0, "faces": 0,
+                "deviation": None, "up": "z", "position": [0, 0, 0], "yaw": 0.0,
+                "table": entry.get("table")}
+    return {**base, "name": name, "source": f"placed {entry['base']}",
+            **placement_fields(load_object(name))}
+

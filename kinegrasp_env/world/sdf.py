@@ -162,11 +162,19 @@ def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGI
     return DistanceGrid(origin, spacing, values.astype(np.float32).astype(np.float64))
 
 
-@lru_cache(maxsize=8)
 def object_grid(name: str, spacing: float = SPACING, margin: float = MARGIN) -> DistanceGrid:
-    """The (cached) distance grid of a catalog object: loaded from disk or built and saved."""
-    obj = load_object(name)
-    folder = imported_folder(name) if obj.imported else None
+    """The distance grid of catalog object ``name`` as it is now: an object re-imported
+    under the same name is a new :class:`GraspObject` (``load_object`` keys it by its
+    catalog version), so it gets its new grid."""
+    return grid_of(load_object(name), spacing, margin)
+
+
+@lru_cache(maxsize=8)
+def grid_of(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN
+            ) -> DistanceGrid:
+    """The distance grid of a catalog object, loaded from disk or built and saved; cached
+    per object (by identity, not by name)."""
+    folder = imported_folder(obj.name) if obj.imported else None
     path = (folder or cache_dir()) / grid_file_name(obj, spacing, margin)
     if path.exists():
         try:

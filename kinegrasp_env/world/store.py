@@ -19,6 +19,7 @@ with a dot are never entries.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from pathlib import Path
@@ -63,6 +64,23 @@ def imported_names() -> tuple[str, ...]:
         return ()
     return tuple(sorted(p.name for p in root.iterdir()
                         if valid_name(p.name) and (p / ENTRY_FILE).is_file()))
+
+
+def entry_digest(folder: Path) -> str:
+    """SHA-256 (16 hex digits) of an entry's ``entry.json`` bytes: it changes whenever the
+    entry is written again (a re-import with ``--force``, another file or setting), so
+    caches keyed by it never serve an entry replaced under the same name.
+
+    Raises:
+        CatalogError: the file cannot be read.
+    """
+    path = Path(folder) / ENTRY_FILE
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CatalogError(f"catalog entry {path} is unreadable ({exc}); remove it with "
+                           f"`kinegrasp objects remove {Path(folder).name}`") from None
+    return hashlib.sha256(data).hexdigest()[:16]
 
 
 def read_entry(folder: Path) -> dict:

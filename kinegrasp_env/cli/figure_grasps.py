@@ -1,0 +1,60 @@
+"""Which grasps ``reproduce fig9|fig10`` evaluates: ``--object`` (default: the built-in
+objects) and ``--grasps``, a count of the shipped grasps or a grasp file (``kinegrasp plan``'s
+output), which is how an imported object (it has no shipped set) is drawn.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from kinegrasp_env.cli.common import CLIError, positive_int, reported
+
+#: ``reproduce fig9|fig10``: grasps (fig9) or null-space variants (fig10) per object.
+FIGURE_GRASPS = 10
+
+
+def is_count(text: str) -> bool:
+    """Whether a ``reproduce --grasps`` value is a number (else it names a grasp file)."""
+    return text.strip().lstrip("+-").isdigit()
+
+
+def figure_grasps(object_name: str | None, grasps: str | None
+                  ) -> tuple[tuple[str, ...], dict[str, list], int]:
+    """fig9/fig10's (objects, grasp sets by object, count) from ``--object`` and
+    ``--grasps``: a count of the shipped grasps (default :data:`FIGURE_GRASPS`) of the
+    object, else of every built-in object; or a grasp file: its object and its grasps. An
+    imported object without a file is a one-line error saying how to make one."""
+    from kinegrasp_env.world.objects import OBJECT_NAMES
+
+    if grasps is None or is_count(grasps):
+        count = positive_int(grasps or str(FIGURE_GRASPS), "--grasps")
+        objects = (object_name,) if object_name else OBJECT_NAMES
+        for name in objects:
+            if name not in OBJECT_NAMES:
+                raise CLIError(f"--object {name} is an imported object and has no shipped "
+                               "grasp set; give its grasps with --grasps FILE (e.g. from "
+                               f"`kinegrasp plan --object {name} --out {name}_grasps.json`)")
+        return objects, {}, count
+    chosen = grasp_file(grasps)
+    name = chosen[0].object
+    if object_name is not None and object_name != name:
+        raise CLIError(f"--object {object_name}: {grasps} holds grasps of {name}")
+    return (name,), {name: chosen}, FIGURE_GRASPS
+
+
+def grasp_file(path: str) -> list:
+    """The grasps of ``--grasps FILE`` (``kinegrasp plan``'s format): at least one, all of
+    one object; a bad file is a one-line :class:`CLIError`."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if Path(path).is_dir():
+        raise CLIError(f"--grasps {path} is a folder, not a grasp file")
+    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+        grasps = load_grasps(path)
+    if not grasps:
+        raise CLIError(f"--grasps {path}: the file holds no grasps")
+    other = next((g for g in grasps if g.object != grasps[0].object), None)
+    if other is not None:
+        raise CLIError(f"--grasps {path}: grasps of {grasps[0].object} and {other.object}; "
+                       "give a file of one object's grasps")
+    return grasps

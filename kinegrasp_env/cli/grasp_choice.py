@@ -1,0 +1,68 @@
+"""Which grasp ``evaluate`` and ``report`` take: entry ``--grasp`` of an object's shipped set,
+or grasp ``--grasp`` (an id, else an index) of a grasp file or a palm-pose file
+(``--grasps FILE``; a palm-pose candidate is solved to a grasp first).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from kinegrasp_env.cli.common import CLIError, parse_index, reported, shipped_grasp
+
+#: ``evaluate``'s and ``report``'s object when neither --object nor --grasps is given.
+EVALUATE_OBJECT = "spray_flask"
+
+
+def chosen_grasp(args):
+    """``(index, grasp)`` for ``evaluate`` and ``report``: grasp ``--grasp`` (an id in the
+    file, else an index) of ``--grasps FILE``, or without it entry ``--grasp`` of
+    ``--object``'s shipped set. Sets ``args.object`` to the grasp's object."""
+    if args.grasps is None:
+        args.object = args.object or EVALUATE_OBJECT
+        return shipped_grasp(args.object, args.grasp)
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if Path(args.grasps).is_dir():
+        raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
+    if is_candidate_file(args.grasps):
+        return palm_pose_grasp(args)
+    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+        grasps = load_grasps(args.grasps)
+    index = index_in(args, [g.id for g in grasps])
+    grasp = grasps[index]
+    if args.object is not None and args.object != grasp.object:
+        raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp of "
+                       f"{grasp.object}")
+    args.object = grasp.object
+    return index, grasp
+
+
+def index_in(args, ids: list[str]) -> int:
+    """The index of ``--grasp`` (an id in ``ids``, else an index) in ``--grasps``."""
+    if args.grasp in ids:
+        index = ids.index(args.grasp)
+    else:
+        index = parse_index(args.grasp)
+        if not 0 <= index < len(ids):
+            raise CLIError(f"--grasp {args.grasp}: no grasp with this id in {args.grasps}, and "
+                           f"not an index 0..{len(ids) - 1}")
+    return index
+
+
+def palm_pose_grasp(args):
+    """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp (IK,
+    clearance, closing); a rejected one is a one-line error with its reason."""
+    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+
+    with reported(ValueError):  # bad entries: one line naming the candidate
+        name, candidates = load_candidates(args.grasps)
+    index = index_in(args, [c.id for c in candidates])
+    if args.object is not None and args.object != name:
+        raise CLIError(f"--object {args.object}: {args.grasps} holds candidates of {name}")
+    grasps, rejected = solve_all(name, [candidates[index]])
+    if rejected:
+        raise CLIError(f"candidate {rejected[0].id} of {args.grasps} is rejected: "
+                       f"{rejected[0].reason} ({rejected[0].detail})")
+    args.object = name
+    return index, grasps[0]

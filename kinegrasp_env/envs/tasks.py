@@ -1,0 +1,113 @@
+"""A task's grasp given the way a user describes one: an object (built-in or imported) and a
+nominal arm+hand configuration ``q0`` or a palm pose (the envs' reset options).
+
+The nominal contacts and Q are computed on the spot: the hand closes once, without noise, at
+q0 with the env's engine (as the planner records a grasp). A task needs the hand to close
+ON the object: the closing must touch it with >= 2 contacts and every finger closing on it
+(outcome ``force_closure`` or ``no_force_closure``; the latter is a valid task with nominal
+Q = 0, whose reward may still rise with the elbow or the noise). ``start_collision`` (the
+open hand already in the object) and ``missed`` (fewer than 2 contacts, or a finger closing
+on nothing) leave no nominal contacts and are ValueErrors naming the outcome. The arm links
+are not checked against the object (the draws do not check them either).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION, Engine
+from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.model import PALM_LINK
+from kinegrasp_env.robot.palm_pose import parse_palm_pose, reach_palm_pose
+from kinegrasp_env.world.grasps import Grasp, check_configuration
+from kinegrasp_env.world.objects import is_object, load_object, unknown_object
+
+#: The reset options that name a task's grasp; at most one of them is given.
+GRASP_OPTIONS = ("grasp", "q0", "palm_pose")
+
+
+def grasp_option(options: dict) -> str | None:
+    """Which of :data:`GRASP_OPTIONS` the reset options give (None: none); ValueError when
+    more than one is given."""
+    given = [key for key in GRASP_OPTIONS if options.get(key) is not None]
+    if len(given) > 1:
+        raise ValueError(f"give one of the reset options {', '.join(GRASP_OPTIONS)}, not "
+                         f"{' and '.join(given)}")
+    return given[0] if given else None
+
+
+def task_object(options: dict, key: str) -> str:
+    """The ``object`` option that a ``q0`` or ``palm_pose`` option needs: any built-in or
+    imported object (not only the env's ``objects``); ValueError if missing or unknown."""
+    name = options.get("object")
+    if name is None:
+        raise ValueError(f"the reset option {key} needs the option object (the name of a "
+                         "built-in or imported object)")
+    if not isinstance(name, str) or not is_object(name):
+        raise unknown_object(name)
+    return name
+
+
+def reset_q0(value) -> np.ndarray:
+    """(14,) a ``q0`` reset option, validated: 7 arm joints then 7 hand DOF (radians), finite,
+    within the joint limits (docs/conventions.md); ValueError names the bad entry."""
+    try:
+        q0 = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"reset option q0 must be 14 numbers (radians), got {value!r}") from None
+    if q0.ndim != 1:
+        raise ValueError(f"reset option q0 must be a flat list of 14 numbers (7 arm + 7 hand), "
+                         f"got shape {list(q0.shape)}")
+    return check_configuration(q0, "reset option q0").copy()
+
+
+def palm_pose_configuration(ik: ArmIK, object_name: str, entry) -> tuple[np.ndarray, dict]:
+    """(q0 (14,), meta) reaching a ``palm_pose`` reset option (one palm-pose entry in the
+    object frame: :mod:`kinegrasp_env.robot.palm_pose`) with the object at its pose, by the
+    planner's IK; ValueError for a malformed entry or an unreachable pose."""
+    where = "reset option palm_pose"
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where} must be a dict: 'position' + 'quaternion' or 'pose' (4x4), "
+                         f"with 'spread' or 'hand' (optional 'elbow', 'id'); got "
+                         f"{type(entry).__name__}")
+    candidate = parse_palm_pose(entry, where, default_id="palm_pose")
+    target = load_object(object_name).pose @ candidate.pose
+    q0, why = reach_palm_pose(ik, target, candidate.hand, candidate.elbow)
+    if q0 is None:
+        raise ValueError(f"{where} is unreachable on {object_name}: {why}")
+    return q0, {"id": candidate.id, "palm_pose_object": candidate.pose.tolist()}
+
+
+def nominal_grasp(engine: Engine, ik: ArmIK, object_name: str, q0: np.ndarray,
+                  grasp_id: str, source: str, meta: dict | None = None) -> Grasp:
+    """The task's grasp: the hand closed once at q0 (14,) with ``engine`` (the object's).
+
+    Raises:
+        ValueError: the closing is ``start_collision`` or ``missed`` (no nominal contacts);
+            the message names ``source`` (the option) and the outcome.
+    """
+    draw = engine.run(q0[None])
+    outcome = int(draw.outcome[0])
+    if outcome in (START_COLLISION, MISSED):
+        raise ValueError(f"reset option {source}: the hand does not close on {object_name} "
+                         f"({outcome_detail(outcome)}; {int(draw.n_contacts[0])} contacts); "
+                         "a task needs >= 2 contacts with every finger on the object")
+    palm = ik.kin.pose(q0, PALM_LINK)[0]
+    meta = {"source": source, "elbow_angle": float(ik.elbow_angle(q0[None])[0]),
+            **(meta or {})}
+    return grasp_from_draw(draw, object_name, q0, palm, grasp_id=grasp_id, meta=meta)
+
+
+def given_grasp(options: dict, key: str, engine_of: Callable[[str], Engine],
+                ik: ArmIK) -> Grasp:
+    """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) on the ``object``
+    option; ``engine_of(name)`` gives the env's engine of an object."""
+    name = task_object(options, key)
+    if key == "q0":
+        q0, meta = reset_q0(options["q0"]), {"id": "q0"}
+    else:
+        q0, meta = palm_pose_configuration(ik, name, options["palm_pose"])
+    return nominal_grasp(engine_of(name), ik, name, q0, meta.pop("id"), key, meta)

@@ -1,0 +1,171 @@
+"""A grasp given as a palm pose: its schema (one entry of a palm-pose file, or the envs'
+``palm_pose`` reset option) and the arm configuration that reaches it.
+
+One entry is a dict::
+
+    {"id": "a", "position": [x, y, z], "quaternion": [x, y, z, w], "spread": 0.0}
+    {"id": "b", "pose": [[...4 numbers...] x 4], "hand": [7 numbers], "elbow": 0.1}
+
+The palm pose is the SDH palm frame in the OBJECT frame (metres; quaternion scalar last,
+unit to :data:`UNIT_TOL`), or a 4x4 homogeneous matrix (rotation orthonormal to
+:data:`UNIT_TOL`, last row 0 0 0 1). The pre-shape is ``hand`` (7 values, radians: spread,
+then proximal and distal of the three fingers) or ``spread`` (radians) with the planner's
+mid-range proximal/distal values (:data:`DEFAULT_PROXIMAL`, :data:`DEFAULT_DISTAL`);
+``elbow`` (radians, optional) is the elbow angle to move to along the self-motion.
+
+:func:`reach_palm_pose` solves it as the planner does: IK from :data:`IK_SEED` with 4 random
+restarts seeded by :data:`IK_RNG_SEED` (the result does not depend on other candidates), then
+the self-motion to ``elbow`` when given. Used by ``toolkit.candidates`` and the envs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh
+
+#: A comfortable seed for IK (the planner's): elbow up, palm forward; 7 arm joints, radians.
+IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
+#: Seed of each palm pose's IK restarts (per pose: the result does not depend on order).
+IK_RNG_SEED = 0
+#: Random IK restarts after the seed, as the planner's.
+IK_RESTARTS = 4
+#: Finger joint values used with ``spread`` alone: mid-range of the planner's sampling.
+DEFAULT_PROXIMAL, DEFAULT_DISTAL = -0.55, 0.05
+#: Tolerance of a unit quaternion's norm and of a rotation matrix's orthonormality.
+UNIT_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class PalmCandidate:
+    """One validated palm pose.
+
+    Attributes:
+        id: its id (unique in a file).
+        pose: (4, 4) palm frame in the object frame (metres).
+        hand: (7,) hand pre-shape, radians.
+        elbow: elbow angle to move to (radians), or None for the planner's IK choice.
+    """
+
+    id: str
+    pose: np.ndarray
+    hand: np.ndarray
+    elbow: float | None = None
+
+
+def quaternion_matrix(quat: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation of a unit quaternion (4,) [x, y, z, w]."""
+    x, y, z, w = quat
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _numbers(entry: dict, key: str, shape: tuple[int, ...], where: str) -> np.ndarray:
+    try:
+        value = np.asarray(entry[key], dtype=float)
+    except KeyError:
+        raise ValueError(f"{where}: missing field {key!r}") from None
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {key} must be numbers") from None
+    if value.shape != shape:
+        raise ValueError(f"{where}: {key} must have shape {list(shape)}, got "
+                         f"{list(value.shape)}")
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"{where}: {key} has non-finite entries")
+    return value
+
+
+def parse_pose(entry: dict, where: str) -> np.ndarray:
+    """(4, 4) palm pose of one entry: ``pose`` (4x4) or ``position`` + ``quaternion``."""
+    if "pose" in entry:
+        pose = _numbers(entry, "pose", (4, 4), where)
+        rot = pose[:3, :3]
+        if not np.allclose(pose[3], [0, 0, 0, 1], atol=UNIT_TOL):
+            raise ValueError(f"{where}: pose's last row must be [0, 0, 0, 1]")
+        if (np.abs(rot.T @ rot - np.eye(3)).max() > UNIT_TOL
+                or np.linalg.det(rot) < 0):
+            raise ValueError(f"{where}: pose's rotation is not orthonormal (right-handed)")
+        return pose
+    position = _numbers(entry, "position", (3,), where)
+    quat = _numbers(entry, "quaternion", (4,), where)
+    if abs(np.linalg.norm(quat) - 1.0) > UNIT_TOL:
+        raise ValueError(f"{where}: quaternion must be unit (norm {np.linalg.norm(quat):.6g})")
+    pose = np.eye(4)
+    pose[:3, :3] = quaternion_matrix(quat / np.linalg.norm(quat))
+    pose[:3, 3] = position
+    return pose
+
+
+def parse_hand(entry: dict, where: str) -> np.ndarray:
+    """(7,) pre-shape: ``hand``, or ``spread`` with the default finger values."""
+    if "hand" in entry:
+        hand = _numbers(entry, "hand", (7,), where)
+        if "spread" in entry and not np.isclose(float(entry["spread"]), hand[0]):
+            raise ValueError(f"{where}: spread {entry['spread']} differs from hand[0] {hand[0]}")
+    else:
+        spread = _numbers(entry, "spread", (), where)
+        hand = np.array([float(spread), *[DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3])
+    model = kuka_sdh()
+    lo, hi = model.lower[7:], model.upper[7:]
+    bad = np.flatnonzero((hand < lo - 1e-9) | (hand > hi + 1e-9))
+    if bad.size:
+        j = int(bad[0])
+        raise ValueError(f"{where}: hand[{j}] = {hand[j]:.4f} is outside its limits "
+                         f"[{lo[j]:.4f}, {hi[j]:.4f}]")
+    return hand
+
+
+def parse_palm_pose(entry, where: str, default_id: str = "0") -> PalmCandidate:
+    """Validate one palm-pose entry (a dict of the schema above); ValueError starts with
+    ``where`` and names the field. ``default_id``: its id when it has none."""
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where}: expected an object, got {type(entry).__name__}")
+    elbow = None
+    if entry.get("elbow") is not None:
+        elbow = float(_numbers(entry, "elbow", (), where))
+    return PalmCandidate(str(entry.get("id", default_id)), parse_pose(entry, where),
+                         parse_hand(entry, where), elbow)
+
+
+def ik_seed(hand: np.ndarray) -> np.ndarray:
+    """(14,) IK start: the arm at :data:`IK_SEED`, the hand at ``hand`` (7,), radians."""
+    model = kuka_sdh()
+    seed = np.zeros(model.dof)
+    seed[model.index(ARM_JOINTS)] = IK_SEED
+    seed[7:] = hand
+    return seed
+
+
+def reach_palm_pose(ik: ArmIK, target: np.ndarray, hand: np.ndarray,
+                    elbow: float | None = None) -> tuple[np.ndarray | None, str]:
+    """(q (14,), "") whose palm is at ``target`` with pre-shape ``hand``, or (None, why).
+
+    Args:
+        ik: the arm's IK (palm link).
+        target: (4, 4) palm pose in the WORLD frame (the object's pose times the pose in the
+            object frame).
+        hand: (7,) pre-shape, radians.
+        elbow: elbow angle to move to along the self-motion (radians), or None for the IK's.
+
+    Returns:
+        The configuration, or None with why: no IK solution within the joint limits (the
+        closest miss in metres and radians), or an elbow angle the self-motion cannot reach.
+    """
+    result = ik.solve(target, ik_seed(hand), rng=np.random.default_rng(IK_RNG_SEED),
+                      restarts=IK_RESTARTS)
+    if not result.success[0]:
+        pos, rot = float(result.position_error[0]), float(result.orientation_error[0])
+        return None, (f"no IK solution within the joint limits (closest: {pos:.3g} m, "
+                      f"{rot:.3g} rad off)")
+    q = result.q[0]
+    if elbow is not None:
+        moved, ok = ik.set_elbow_angle(q, elbow)
+        if not ok[0]:
+            return None, f"elbow angle {elbow:g} rad leaves the joint limits"
+        q = moved[0]
+    return q, ""

@@ -1,0 +1,132 @@
+"""The HTML page of an elbow optimization (``kinegrasp elbow --report FILE``).
+
+It holds P(FC) along the grasp's self-motion with Wilson intervals (the nominal and the best
+elbow angle marked), the arm at the nominal and at the best elbow in 3-D (each with the
+skeletons of its first noisy selection draws coloured by outcome, and the other elbow's
+skeleton for comparison: same palm pose, another arm), the headline numbers (the best and
+the nominal elbow scored on independent draws, the paired gain, the bound on a missed better
+angle), a table of the curve, the settings and the command that reproduces the page. The
+page machinery (shell, figures, shared meshes) is the evaluation page's
+(:mod:`~kinegrasp_env.toolkit.report`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, Noise
+from kinegrasp_env.toolkit.elbow import ElbowPoint, ElbowResult
+from kinegrasp_env.toolkit.report import ARM_DRAWS, sigma_text, versions
+from kinegrasp_env.toolkit.report_charts import elbow_curve
+from kinegrasp_env.toolkit.report_geometry import (
+    closed_configuration,
+    noisy_configurations,
+    skeletons,
+)
+from kinegrasp_env.toolkit.report_html import Figure, command_block, esc, note, page, settings_table
+from kinegrasp_env.toolkit.report_plotly import MeshLibrary
+from kinegrasp_env.toolkit.report_scene import arm_scene, skeleton_trace
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import GraspObject, load_object
+
+#: The other elbow's skeleton in an arm view.
+OTHER_COLOUR = "#505050"
+
+
+def curve_point(result: ElbowResult, psi: float) -> ElbowPoint:
+    """The curve's point at elbow angle ``psi`` (the nominal and the best one are on it)."""
+    return min(result.curve, key=lambda p: abs(p.psi - psi))
+
+
+def elbow_arm_figure(obj: GraspObject, point: ElbowPoint, other: np.ndarray, label: str,
+                     other_label: str, library: MeshLibrary, noise: Noise, seed: int,
+                     samples: int, arm_draws: int, chunk: int) -> tuple[dict, int]:
+    """The arm at ``point``'s configuration, closed on the object, with the skeletons of its
+    first ``arm_draws`` selection draws by outcome and the skeleton of the configuration
+    ``other`` (14,) dashed; returns the figure and the number of noisy draws drawn."""
+    closed, _ = closed_configuration(point.q, obj)
+    noisy = noisy_configurations(point.q, noise, seed, samples, arm_draws, chunk)
+    outcomes = None if point.outcome is None else point.outcome[:len(noisy)]
+    if outcomes is None:
+        noisy = noisy[:0]
+    figure = arm_scene(obj, closed, library, noisy, outcomes,
+                       f"{label} elbow, psi = {point.psi:+.3f} rad: world frame",
+                       label=f"{label} elbow, no noise")
+    figure["data"].append(skeleton_trace(
+        skeletons(other), f"skeleton at the {other_label} elbow", OTHER_COLOUR, 5,
+        line={"color": OTHER_COLOUR, "width": 5, "dash": "dash"}))
+    return figure, len(noisy)
+
+
+def headline(result: ElbowResult) -> str:
+    nlo, nhi = result.nominal_p_fc_ci
+    lo, hi = result.best_p_fc_ci
+    glo, ghi = result.gain_ci
+    return (f"<p class='kg-headline'>Nominal elbow {result.nominal_psi:+.3f} rad: P(FC) "
+            f"{result.nominal_p_fc:.4f} (95% CI {nlo:.4f} .. {nhi:.4f}); <b>best elbow "
+            f"{result.best_psi:+.3f} rad: P(FC) {result.best_p_fc:.4f}</b> (95% CI "
+            f"{lo:.4f} .. {hi:.4f}), both on {result.samples} independent scoring draws; gain "
+            f"{result.gain:+.4f} (95% CI {glo:+.4f} .. {ghi:+.4f}, paired). P(a better "
+            f"evaluated angle was missed) &le; {result.miss_probability:.3f} (grid step "
+            f"{result.grid_step:.3f} rad). Sigma = {esc(sigma_text(result.sigma))} rad, "
+            f"{esc(result.engine)} engine.</p>")
+
+
+def curve_table(result: ElbowResult) -> str:
+    """The curve's points, psi ascending, the nominal and the best one named."""
+    head = "".join(f"<th>{h}</th>" for h in ("psi [rad]", "P(FC)", "95% CI", ""))
+    rows = []
+    for p in sorted(result.curve, key=lambda p: p.psi):
+        tag = " / ".join(name for name, psi in (("nominal", result.nominal_psi),
+                                                 ("best", result.best_psi)) if p.psi == psi)
+        rows.append(f"<tr><td>{p.psi:+.3f}</td><td>{p.p_fc:.4f}</td><td>{p.p_fc_ci[0]:.4f} .. "
+                    f"{p.p_fc_ci[1]:.4f}</td><td class='kg-text'>{tag}</td></tr>")
+    return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
+
+
+def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
+               settings: dict, arm_draws: int = ARM_DRAWS,
+               chunk: int = DEFAULT_CHUNK) -> str:
+    """The HTML page of ``result`` (``optimize_elbow(grasp, noise, ...)``; its curve points
+    keep their outcomes, as ``optimize_elbow`` gives them).
+
+    Args:
+        grasp: the grasp (its q0 is the nominal elbow).
+        result: the optimization.
+        noise: the noise it ran with (the arm views redraw its first draws).
+        command: the command line that reproduces the page.
+        settings: name -> value, shown as a table.
+        arm_draws: noisy draws whose skeletons each arm view shows.
+        chunk: the draws per chunk the optimization used.
+    """
+    obj = load_object(grasp.object)
+    library = MeshLibrary()
+    nominal, best = curve_point(result, result.nominal_psi), curve_point(result, result.best_psi)
+    views = []
+    for key, point, other, label, other_label in (("arm-nominal", nominal, best.q, "nominal",
+                                                   "best"),
+                                                  ("arm-best", best, nominal.q, "best",
+                                                   "nominal")):
+        figure, shown = elbow_arm_figure(obj, point, other, label, other_label, library, noise,
+                                         result.seed, result.samples, arm_draws, chunk)
+        views.append(Figure(key, figure, "49%", "520px"))
+    curve = Figure("elbow", elbow_curve([p.to_json() for p in result.curve],
+                                        result.nominal_psi, result.best_psi), "99%", "340px")
+    notes = [f"The curve: P(FC) of each evaluated elbow angle on the same {result.samples} "
+             "selection draws (common random numbers), with 95% Wilson intervals; the headline "
+             "scores the chosen and the nominal elbow again on draws the selection never used.",
+             f"Each arm view shows the arm and the closed hand at its elbow, the skeletons of "
+             f"its first {shown} selection draws coloured by their outcome, and the other "
+             "elbow's skeleton dashed: the palm pose and the contacts are the same, the arm "
+             "is not. Toggle any of them in the legend."]
+    if nominal is best:
+        notes.append("The best elbow is the nominal one: both views show the same arm.")
+    title = f"kinegrasp elbow report: {grasp.object} grasp {grasp.id}"
+    body = (f"<h1>{esc(title)}</h1>{headline(result)}"
+            f"<div class='kg-row'>{curve.div()}</div>"
+            f"<div class='kg-row'>{views[0].div()}{views[1].div()}</div>"
+            f"{''.join(note(n) for n in notes)}"
+            f"<h2>P(FC) of every evaluated elbow angle</h2>{curve_table(result)}"
+            f"<h2>Settings</h2>{settings_table(settings)}"
+            f"<h2>Command that reproduces this page</h2>{command_block(command)}")
+    return page(title, body, [curve, *views], library, versions())

@@ -1,0 +1,129 @@
+"""Whether the robot is in the support table, for a batch of configurations.
+
+A :class:`TableProbe` holds a pybullet world of its own (one ``BulletClient``) with the arm
+(the composed arm+hand URDF, of which only the arm's links are asked about), the hand (the
+SDH URDF on its own, placed at the hand root as the engines place it, so that a palm-mount
+error moves it) and the table box (:class:`~kinegrasp_env.world.support.SupportTable`). A
+configuration is *in the table* when pybullet reports a closest-point pair at distance <= 0
+between the box and any arm link (base included) or hand link, every collision margin set to
+zero, so the test is the exact intersection of the collision shapes (GJK on the links'
+convex meshes, capsules and cylinders).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.quiet import quiet_c_output
+
+with quiet_c_output():
+    import pybullet
+
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, urdf_path
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
+
+#: The link whose pose is the hand root (the arm's flange).
+FLANGE_LINK = "sdh_base"
+
+
+def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.ndarray | None:
+    """(n, 4, 4) M = W_O D^-1 W_O^-1: moves the whole robot so that, the object left at its
+    believed pose W_O (4, 4), the robot stands where it truly is relative to the object
+    (object errors D (n, 4, 4), see :mod:`kinegrasp_env.montecarlo.perturbation`); None when
+    there are no object errors."""
+    if object_offset is None:
+        return None
+    return object_pose @ np.linalg.inv(object_offset) @ np.linalg.inv(object_pose)
+
+
+def table_body(bullet, obj: GraspObject, friction: float | None = None) -> int:
+    """A static box body for ``obj``'s table in ``bullet`` (a BulletClient), collision
+    margin zero (``friction``: its lateral friction, else pybullet's default)."""
+    pose, half = obj.table.box(obj.pose)
+    shape = bullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half.tolist())
+    position, orientation = matrix_to_pose(pose)
+    body = bullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
+                                  basePosition=position, baseOrientation=orientation)
+    bullet.changeDynamics(body, -1, collisionMargin=0.0)
+    if friction is not None:
+        bullet.changeDynamics(body, -1, lateralFriction=friction)
+    return body
+
+
+class TableProbe(BulletWorld):
+    """The arm, the hand and the table of ``obj`` (which must have a table).
+
+    Args:
+        obj: the object; its ``table`` and ``pose`` place the box.
+
+    Raises:
+        ValueError: the object has no table.
+    """
+
+    def __init__(self, obj: GraspObject) -> None:
+        if obj.table is None:
+            raise ValueError(f"object {obj.name!r} has no support table")
+        super().__init__()
+        bullet = self.bullet
+        self.model = kuka_sdh()
+        self.kin = Kinematics(self.model)
+        with quiet_c_output():
+            arm = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
+        self.bodies["arm"] = arm
+        self.arm_joints = {bullet.getJointInfo(arm, j)[1].decode(): j
+                           for j in range(bullet.getNumJoints(arm))}
+        self.arm_links = [-1, *(self.arm_joints[name] for name in ARM_JOINTS)]
+        for link in range(-1, bullet.getNumJoints(arm)):
+            bullet.changeDynamics(arm, link, collisionMargin=0.0)
+        self.bodies["hand"], self.hand_joints, _ = load_hand(bullet)
+        self.bodies["table"] = table_body(bullet, obj)
+        self._arm_moved = False
+
+    def hits(self, q: np.ndarray, roots: np.ndarray | None = None,
+             shifts: np.ndarray | None = None) -> np.ndarray:
+        """(n,) bool: configuration i (q (n, 14), radians) puts an arm or hand link in the
+        table.
+
+        Args:
+            q: arm joints and hand DOF (the hand's joints are set from q[:, 7:]).
+            roots: (n, 4, 4) world poses of the hand root (default: the flange pose of q).
+            shifts: (n, 4, 4) rigid moves of the whole robot (:func:`arm_shift`; default
+                none); ``roots`` are taken as already moved.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if roots is None:
+            roots = self.kin.pose(q, FLANGE_LINK)
+            if shifts is not None:
+                roots = shifts @ roots
+        values = self.model.expand(q)
+        hand_names = [name for name in self.hand_joints if name in values]
+        out = np.zeros(q.shape[0], dtype=bool)
+        for i in range(q.shape[0]):
+            self._place(i, values, hand_names, roots[i], None if shifts is None else shifts[i])
+            out[i] = self._touching()
+        return out
+
+    def _place(self, i: int, values: dict[str, np.ndarray], hand_names: list[str],
+               root: np.ndarray, shift: np.ndarray | None) -> None:
+        bullet = self.bullet
+        arm, hand = self.bodies["arm"], self.bodies["hand"]
+        if shift is not None or self._arm_moved:
+            base = np.eye(4) if shift is None else shift
+            bullet.resetBasePositionAndOrientation(arm, *matrix_to_pose(base))
+            self._arm_moved = shift is not None
+        for name in ARM_JOINTS:
+            bullet.resetJointState(arm, self.arm_joints[name], float(values[name][i]))
+        bullet.resetBasePositionAndOrientation(hand, *matrix_to_pose(root))
+        for name in hand_names:
+            bullet.resetJointState(hand, self.hand_joints[name], float(values[name][i]))
+
+    def _touching(self) -> bool:
+        bullet = self.bullet
+        table = self.bodies["table"]
+        if bullet.getClosestPoints(self.bodies["hand"], table, 0.0):
+            return True
+        arm = self.bodies["arm"]
+        return any(bullet.getClosestPoints(arm, table, 0.0, linkIndexA=link)
+                   for link in self.arm_links)

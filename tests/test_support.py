@@ -1,0 +1,240 @@
+"""Object placement and the support table.
+
+What each test proves:
+- ``test_probe_matches_point_sampling``: the table test (pybullet's GJK on the links'
+  collision shapes) agrees with an independent computation: points sampled on every link's
+  collision geometry, read from the URDF here (meshes via trimesh, capsules and cylinders
+  sampled by formula) and placed by the project's forward kinematics, tested for lying
+  inside the box; draws within a 2 mm band of touching (where sampling cannot decide) are
+  left out and counted.
+- ``test_table_changes_only_the_draws_in_it``: with a table, exactly the draws the probe
+  flags become ``start_collision`` (both kinematic engines), every other draw is the same
+  bits as without the table.
+- ``test_turning_the_scene_leaves_the_grasp``: an invariant of placement: the object turned
+  by yaw about the robot's base axis and the first arm joint turned by the same angle give
+  the same contacts in the object frame and the same Q (both engines).
+- the placed copies' shipped grasps, the CLI's one-line errors, the planner avoiding the
+  table, and the physics engine marking draws in the table.
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+import trimesh
+
+from kinegrasp_env.montecarlo.engines import START_COLLISION, make_engine
+from kinegrasp_env.robot.model import rpy_to_matrix, urdf_path
+from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
+from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.placement import place_object
+from kinegrasp_env.world.support import SupportTable, placement_pose
+from kinegrasp_env.world.table_probe import TableProbe
+from tests.cli_helpers import run_cli
+
+
+@pytest.fixture(scope="module")
+def tabled():
+    """Placed copies of the cube and the mug on the default table (their shipped grasps: 11
+    and 7 of 12 start in it at zero noise)."""
+    for name in ("cube", "mug"):
+        place_object(name, as_name=f"{name}_on_table", table=SupportTable(), force=True)
+    return {name: f"{name}_on_table" for name in ("cube", "mug")}
+
+
+def noisy(q0s: np.ndarray, sigma: float, per: int, seed: int) -> np.ndarray:
+    """(len(q0s) * per, 14) configurations with N(0, sigma) on the arm joints."""
+    q = np.repeat(q0s, per, axis=0)
+    q[:, :7] += np.random.default_rng(seed).normal(0.0, sigma, (len(q), 7))
+    return q
+
+
+def link_samples(per_shape: int = 1500) -> dict[str, np.ndarray]:
+    """Points (m, 3) on every link's collision geometry, in the link frame, from the URDF."""
+    rng = np.random.default_rng(0)
+    root = ET.parse(urdf_path()).getroot()
+    out: dict[str, list[np.ndarray]] = {}
+    for link in root.iter("link"):
+        for col in link.iter("collision"):
+            origin = col.find("origin")
+            tf = np.eye(4)
+            if origin is not None:
+                tf[:3, :3] = rpy_to_matrix(*map(float, origin.get("rpy", "0 0 0").split()))
+                tf[:3, 3] = list(map(float, origin.get("xyz", "0 0 0").split()))
+            pts = shape_samples(col.find("geometry")[0], per_shape, rng)
+            out.setdefault(link.get("name"), []).append(pts @ tf[:3, :3].T + tf[:3, 3])
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def shape_samples(geom, n: int, rng) -> np.ndarray:
+    """Points on one URDF geometry (mesh: its vertices and surface samples; capsule and
+    cylinder along z: surface samples)."""
+    if geom.tag == "mesh":
+        mesh = trimesh.load(urdf_path().parent / geom.get("filename"), force="mesh")
+        return np.vstack([mesh.vertices, trimesh.sample.sample_surface(mesh, n, seed=1)[0]])
+    r, length = float(geom.get("radius")), float(geom.get("length"))
+    phi = rng.uniform(0, 2 * np.pi, n)
+    z = rng.uniform(-length / 2, length / 2, n)
+    side = np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+    if geom.tag == "cylinder":
+        rad = r * np.sqrt(rng.uniform(0, 1, n))
+        caps = np.column_stack([rad * np.cos(phi), rad * np.sin(phi),
+                                np.where(rng.uniform(size=n) < 0.5, -1, 1) * length / 2])
+        return np.vstack([side, caps])
+    assert geom.tag == "capsule", geom.tag
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    ends = np.where(d[:, 2:3] < 0, -length / 2, length / 2) * np.array([0, 0, 1.0])
+    return np.vstack([side, r * d + ends])
+
+
+def sampled_hits(q: np.ndarray, kin, box_pose: np.ndarray, half: np.ndarray,
+                 samples: dict[str, np.ndarray]) -> np.ndarray:
+    """(n,) whether any sampled link point lies inside the box."""
+    inv = np.linalg.inv(box_pose)
+    hit = np.zeros(len(q), dtype=bool)
+    for name, pts in samples.items():
+        poses = inv @ kin.pose(q, name)  # (n, 4, 4) link in the box frame
+        local = pts @ np.swapaxes(poses[:, :3, :3], 1, 2) + poses[:, None, :3, 3]
+        hit |= np.all(np.abs(local) <= half, axis=2).any(axis=1)
+    return hit
+
+
+def probe_distance(probe: TableProbe, q: np.ndarray) -> np.ndarray:
+    """(n,) pybullet's smallest signed distance robot-table (capped at 0.05 m)."""
+    out = np.empty(len(q))
+    bullet, table = probe.bullet, probe.bodies["table"]
+    for i, row in enumerate(q):
+        probe.hits(row[None])
+        pairs = bullet.getClosestPoints(probe.bodies["hand"], table, 0.05)
+        for link in probe.arm_links:
+            pairs += bullet.getClosestPoints(probe.bodies["arm"], table, 0.05, linkIndexA=link)
+        out[i] = min([p[8] for p in pairs], default=0.05)
+    return out
+
+
+def test_probe_matches_point_sampling(tabled, kin):
+    samples = link_samples()
+    checked = 0
+    for base, name in tabled.items():
+        obj = load_object(name)
+        q = noisy(np.array([g.q0 for g in shipped_grasps(name)]), 0.05, 10, seed=3)
+        probe = TableProbe(obj)
+        hits = probe.hits(q)
+        box_pose, half = obj.table.box(obj.pose)
+        sampled = sampled_hits(q, kin, box_pose, half, samples)
+        clear = np.abs(probe_distance(probe, q)) > 0.002
+        assert hits[clear].any() and (~hits[clear]).any(), base  # both verdicts are tested
+        assert np.array_equal(hits[clear], sampled[clear]), base
+        checked += int(clear.sum())
+        probe.close()
+    assert checked >= 200
+
+
+@pytest.mark.parametrize("engine", ["fast", "pybullet"])
+def test_table_changes_only_the_draws_in_it(tabled, engine):
+    name = tabled["mug"]
+    q = noisy(np.array([g.q0 for g in shipped_grasps(name)]), 0.02, 6, seed=4)
+    with_table, without = make_engine(engine, name), make_engine(engine, "mug")
+    hits = with_table.table_hits(q)
+    assert 0 < hits.sum() < len(q)
+    a, b = with_table.run(q), without.run(q)
+    assert np.all(a.outcome[hits] == START_COLLISION)
+    assert np.all(a.n_contacts[hits] == 0) and np.all(np.isnan(a.hand[hits]))
+    for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "hand"):
+        np.testing.assert_array_equal(getattr(a, f)[~hits], getattr(b, f)[~hits], err_msg=f)
+    with_table.close()
+    without.close()
+
+
+@pytest.mark.parametrize("engine", ["fast", "pybullet"])
+def test_turning_the_scene_leaves_the_grasp(engine):
+    yaw = 0.4
+    pose = load_object("spray_flask").pose
+    turned = placement_pose(placement_pose([0, 0, 0], yaw)[:3, :3] @ pose[:3, 3], yaw)
+    place_object("spray_flask", as_name="flask_turned", position=turned[:3, 3], yaw=yaw,
+                 force=True)
+    q = noisy(np.array([g.q0 for g in shipped_grasps("spray_flask")[:4]]), 0.01, 5, seed=5)
+    q_turned = q.copy()
+    q_turned[:, 0] += yaw  # joint 1 turns about the base's z axis
+    a = make_engine(engine, "spray_flask").run(q)
+    b = make_engine(engine, "flask_turned").run(q_turned)
+    assert np.array_equal(a.outcome, b.outcome)
+    fc = a.outcome == 3
+    assert fc.sum() >= 10
+    # measured: points agree to 3e-12 m and Q to 2e-11 relative (rounding in the turned
+    # frames); the margins are 100x
+    np.testing.assert_allclose(b.points[fc], a.points[fc], atol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(b.quality[fc], a.quality[fc], rtol=1e-8)
+
+
+def test_placed_copies_and_their_grasps(tabled):
+    assert [g.q0.tolist() for g in shipped_grasps(tabled["cube"])] == \
+        [g.q0.tolist() for g in shipped_grasps("cube")]
+    assert {g.object for g in shipped_grasps(tabled["cube"])} == {tabled["cube"]}
+    place_object("cube", as_name="cube_moved", position=[0.5, 0.1, 0.1], force=True)
+    with pytest.raises(NoGraspSetError, match="stands elsewhere"):
+        shipped_grasps("cube_moved")
+    moved = load_object("cube_moved")
+    assert moved.table is None and moved.base == "cube"
+    np.testing.assert_allclose(moved.pose[:3, 3], [0.5, 0.1, 0.1])
+
+
+@pytest.mark.expensive
+def test_place_cli_errors_write_nothing(tabled, tmp_path):
+    from kinegrasp_env.world.store import catalog_dir
+
+    before = sorted(p.name for p in catalog_dir().iterdir())
+    for args, message in (
+            (["drill", "--table"], "built-in object"),
+            (["nope", "--table"], "unknown object 'nope'"),
+            (["drill", "--as", tabled["cube"], "--table"], "exists; use --force"),
+            (["drill", "--as", "bad name"], "invalid object name"),
+            (["drill", "--as", "d9", "--position", "0", "0", "inf"], "not a finite number"),
+            (["drill", "--as", "d9", "--table-size", "0", "1"], "must be > 0"),
+            (["drill", "--as", "d9", "--no-table", "--table"], "cannot go with")):
+        result = run_cli("objects", "place", *args)
+        assert result.returncode == 2, (args, result.stderr)
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], (args, result.stderr)
+    assert sorted(p.name for p in catalog_dir().iterdir()) == before
+    listed = json.loads(run_cli("objects", "--json").stdout)
+    row = next(r for r in listed if r["name"] == tabled["cube"])
+    assert row["source"] == "placed cube" and row["table"]["size"] == [0.6, 0.8]
+
+
+@pytest.mark.expensive
+def test_planner_avoids_the_table(tabled, kin):
+    from kinegrasp_env.toolkit.planner import GraspPlanner
+
+    name = tabled["cube"]
+    planner = GraspPlanner(name)
+    grasps = planner.plan(3, seed=0, time_budget=240)
+    assert len(grasps) >= 2
+    q0 = np.array([g.q0 for g in grasps])
+    draws = planner.engine.run(q0)
+    assert np.all(draws.outcome == 3)  # the nominal draw closes in force closure
+    obj = load_object(name)
+    box_pose, half = obj.table.box(obj.pose)
+    closed = np.concatenate([q0[:, :7], draws.hand], axis=1)
+    samples = link_samples()
+    assert not sampled_hits(q0, kin, box_pose, half, samples).any()      # open hand
+    assert not sampled_hits(closed, kin, box_pose, half, samples).any()  # closed hand
+    planner.close()
+
+
+@pytest.mark.expensive
+def test_physics_engine_marks_draws_in_the_table(tabled):
+    name = tabled["cube"]
+    grasps = shipped_grasps(name)
+    q = np.array([grasps[8].q0, grasps[0].q0])  # measured: 8 clear of the table, 0 in it
+    engine = make_engine("physics", name)
+    hits = engine.table_hits(q)
+    assert hits.tolist() == [False, True]
+    draws, lift = engine.run_lift(q)
+    assert draws.outcome[1] == START_COLLISION and not lift.held[1]
+    assert draws.outcome[0] != START_COLLISION and np.isfinite(lift.time[0])
+    engine.close()
