@@ -27,12 +27,13 @@ def cmd_list(args) -> int:
     if args.json:
         print(json.dumps(rows))
         return 0
-    print(f"{'name':<12} {'size x, y, z [m]':<26} {'r_max [m]':>9} {'parts':>5}  "
+    width = max(12, *(len(r["name"]) for r in rows))
+    print(f"{'name':<{width}} {'size x, y, z [m]':<26} {'r_max [m]':>9} {'parts':>5}  "
           f"{'deviation [mm]: lost max/mean, added max/mean':<46} source")
     for r in rows:
         size = ", ".join(f"{v:.3f}" for v in r["size"])
         up = "" if r["up"] == "z" else f"; up axis {r['up']} (turned to z)"
-        print(f"{r['name']:<12} {size:<26} {r['r_max']:>9.4f} {r['parts']:>5}  "
+        print(f"{r['name']:<{width}} {size:<26} {r['r_max']:>9.4f} {r['parts']:>5}  "
               f"{deviation_text(r['deviation']):<46} {r['source']}{up}{placement_note(r)}")
     return 0
 
