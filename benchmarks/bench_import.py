@@ -1,15 +1,24 @@
-"""Importing meshes nobody here wrote, and what imported objects cost the engines.
+"""Importing meshes nobody here wrote, and using them end to end.
 
-Run: ``python benchmarks/bench_import.py [--home DIR] [--grasps 5] [--draws 200]
-[--reference-draws 40] [--only duck bunny]`` (tens of minutes on 2 cores: CoACD and the
-planner dominate; ``--home`` keeps the catalog, so a second run reuses the imports).
+Run: ``python benchmarks/bench_import.py [--home DIR] [--grasps 5] [--draws 2000]
+[--reference-draws 200] [--rank-samples 200] [--agree-draws 40] [--only duck bunny]`` (tens
+of minutes on 2 cores: CoACD and the planner dominate; ``--home`` keeps the catalog, so a
+second run reuses the imports; the planned grasp files go to ``DIR/bench_grasps``).
 
-1. Import five meshes of ``pybullet_data`` (duck.obj, bunny.obj scaled from its 2 m to 0.2 m,
-   objects/mug.obj, teddy2_VHACD_CHs.obj and random_urdfs/000/000.urdf) with the default
-   settings: wall time, parts, size, r_max and the deviation of the parts from the mesh.
+1. Import five meshes of ``pybullet_data`` (duck.obj, y-up, scaled to 0.05; bunny.obj scaled
+   from its 2 m to 0.2 m, objects/mug.obj, teddy2_VHACD_CHs.obj and random_urdfs/000/000.urdf)
+   with the default CoACD settings: wall time, parts, size, r_max and the deviation of the
+   parts from the mesh.
 2. Plan ``--grasps`` force-closure grasps of each (``kinegrasp plan``'s planner): time and
-   count.
-3. Grasp 0 of each, ``--draws`` noisy draws (sigma = 0.0133 rad) with the fast engine and
+   count; the grasps are written as a grasp file.
+3. Per object, on that file: ``kinegrasp rank`` (fast engine, ``--rank-samples`` draws per
+   grasp, sigma 0.0133): the top grasp and its P(FC) with its 95% interval; one episode of
+   ``KineGraspEnv`` (reset, one step that moves the elbow and ends the episode): the reward;
+   the engines' agreement of ``benchmarks/agreement.py`` (every planned grasp x
+   ``--agree-draws`` draws x sigma 0.0133 and 0.0266): draws with the same outcome and the
+   largest contact point, normal and Q differences, fast vs pybullet engine and each engine
+   vs pybullet's own collision queries.
+4. Grasp 0 of each, ``--draws`` noisy draws (sigma = 0.0133 rad) with the fast engine and
    ``--reference-draws`` with the pybullet engine, on one process, engines warm: draws/s,
    P(FC) of each engine, next to the built-in objects' shipped grasp 0, with the number of
    convex parts (both engines' cost per draw grows with the parts near the fingers).
@@ -18,22 +27,32 @@ planner dominate; ``--home`` keeps the catalog, so a second run reuses the impor
 from __future__ import annotations
 
 import argparse
+import contextlib
+import csv
+import io
 import os
 import tempfile
 import time
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet_data
 
-#: (file in pybullet_data, --scale, name)
+if TYPE_CHECKING:
+    from kinegrasp_env.montecarlo.agreement import Agreement
+
+#: (file in pybullet_data, --scale, --up, name)
 MESHES = (
-    ("duck.obj", 0.05, "duck"),
-    ("bunny.obj", 0.1, "bunny"),
-    ("objects/mug.obj", 1.0, "pb_mug"),
-    ("teddy2_VHACD_CHs.obj", 0.1, "teddy"),
-    ("random_urdfs/000/000.urdf", 1.0, "blob000"),
+    ("duck.obj", 0.05, "y", "duck"),
+    ("bunny.obj", 0.1, "z", "bunny"),
+    ("objects/mug.obj", 1.0, "z", "pb_mug"),
+    ("teddy2_VHACD_CHs.obj", 0.1, "z", "teddy"),
+    ("random_urdfs/000/000.urdf", 1.0, "z", "blob000"),
 )
 SIGMA = 0.0133
+#: Noise levels of the agreement check (radians), as in ``benchmarks/agreement.py``.
+AGREE_SIGMAS = (0.0133, 0.0266)
 
 
 def import_all(names: list[str]) -> list[str]:
@@ -42,11 +61,11 @@ def import_all(names: list[str]) -> list[str]:
     done = []
     print(f"{'object':<8} {'import [s]':>10} {'parts':>5} {'size x, y, z [m]':<22} "
           f"{'r_max [m]':>9}  deviation [mm] lost max/mean, added max/mean")
-    for file, scale, name in MESHES:
+    for file, scale, up, name in MESHES:
         if name not in names:
             continue
         path = os.path.join(pybullet_data.getDataPath(), file)
-        result = import_object(path, name, ImportSettings(scale=scale))
+        result = import_object(path, name, ImportSettings(scale=scale, up=up))
         e, d = result.entry, result.entry["deviation"]
         seconds = e["import_seconds"]
         size = ", ".join(f"{v:.3f}" for v in e["size"])
@@ -58,9 +77,12 @@ def import_all(names: list[str]) -> list[str]:
     return done
 
 
-def plan_all(names: list[str], count: int) -> dict:
+def plan_all(names: list[str], count: int, folder: Path) -> dict:
+    """{name: planned grasps}; each object's grasps also written to ``folder/NAME.json``."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
+    from kinegrasp_env.world.grasps import save_grasps
 
+    folder.mkdir(parents=True, exist_ok=True)
     grasps = {}
     for name in names:
         planner = GraspPlanner(name)
@@ -70,6 +92,8 @@ def plan_all(names: list[str], count: int) -> dict:
         finally:
             planner.close()
         grasps[name] = found
+        if found:
+            save_grasps(found, folder / f"{name}.json", planner_seed=0)
         print(f"{name:<8} plan: {len(found)} force-closure grasps in "
               f"{time.perf_counter() - start:.1f} s; nominal Q "
               + ", ".join(f"{g.q_nominal:.4f}" for g in found), flush=True)
@@ -110,6 +134,92 @@ def engines(grasps: dict, draws: int, reference: int) -> None:
               f"{slow:>16.0f} {p_slow:>6.3f}", flush=True)
 
 
+def rank_file(grasp_file: Path, samples: int) -> tuple[float, dict]:
+    """(seconds, best CSV row) of ``kinegrasp rank grasp_file --engine fast`` (in this process,
+    its console table swallowed; the ranking goes next to the file as ``*_ranked.csv``)."""
+    from kinegrasp_env.cli.main import main as kinegrasp
+
+    out = grasp_file.with_name(f"{grasp_file.stem}_ranked.csv")
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):
+        code = kinegrasp(["rank", str(grasp_file), "--samples", str(samples), "--seed", "0",
+                          "--sigma", str(SIGMA), "--engine", "fast", "--out", str(out)])
+    seconds = time.perf_counter() - start
+    if code != 0:
+        raise SystemExit(f"kinegrasp rank {grasp_file} failed with exit status {code}")
+    with open(out, newline="") as f:
+        return seconds, next(csv.DictReader(f))
+
+
+def episode(name: str, grasp_file: Path) -> tuple[float, float, dict]:
+    """(seconds, reward, info) of one ``KineGraspEnv`` episode on the object's grasp file:
+    reset(seed=0), then one step that moves the elbow half a step and ends the episode."""
+    from kinegrasp_env.envs.kinegrasp import KineGraspEnv
+
+    start = time.perf_counter()
+    env = KineGraspEnv(objects=(name,), grasp_file=str(grasp_file), n_draws=8, engine="fast")
+    try:
+        env.reset(seed=0)
+        _, reward, *_, info = env.step(np.array([0.5, 1.0], dtype=np.float32))
+    finally:
+        env.close()
+    return time.perf_counter() - start, float(reward), info
+
+
+def agree(name: str, grasps: list, draws: int) -> tuple[float, dict]:
+    """(seconds, {comparison: Agreement over both sigmas}) of ``benchmarks/agreement.py``'s
+    comparisons on ``grasps`` x ``draws`` draws x :data:`AGREE_SIGMAS` (seed 0)."""
+    from agreement import compare_object  # benchmarks/agreement.py, next to this script
+
+    start = time.perf_counter()
+    per_sigma = [compare_object(name, sigma, grasps, draws, 0) for sigma in AGREE_SIGMAS]
+    return time.perf_counter() - start, {
+        label: merge([rows[label] for rows in per_sigma]) for label in per_sigma[0]}
+
+
+def merge(parts: list[Agreement]) -> Agreement:
+    """One Agreement of several runs: counts summed, largest differences the largest."""
+    from kinegrasp_env.montecarlo.agreement import Agreement
+
+    def most(field: str) -> float:
+        values = [getattr(a, field) for a in parts if not np.isnan(getattr(a, field))]
+        return max(values) if values else float("nan")
+
+    return Agreement(**{f: sum(getattr(a, f) for a in parts) for f in (
+        "draws", "same_outcome", "closed", "list_mismatch", "stop_mismatch", "contacts",
+        "q_pairs")}, **{f: most(f) for f in (
+        "point_max", "normal_max", "offset_max", "offset_normal_max", "q_max", "q_abs_max",
+        "q_abs_max_untied")}, point_median=float("nan"))
+
+
+def end_to_end(grasps: dict, folder: Path, rank_samples: int, agree_draws: int) -> None:
+    """Rank, one env episode and the engines' agreement of each object's planned grasps."""
+    print(f"\nrank: fast engine, {rank_samples} draws per grasp, sigma {SIGMA}; env: reset "
+          f"+ one step, 8 draws; agreement: every grasp x {agree_draws} draws x sigma "
+          f"{'/'.join(map(str, AGREE_SIGMAS))}")
+    for name, found in grasps.items():
+        if not found:
+            continue
+        grasp_file = folder / f"{name}.json"
+        seconds, best = rank_file(grasp_file, rank_samples)
+        print(f"{name:<8} rank: {len(found)} grasps in {seconds:.1f} s; top {best['id']} "
+              f"P(FC) {float(best['p_fc']):.3f} [{float(best['p_fc_lo']):.3f}, "
+              f"{float(best['p_fc_hi']):.3f}]", flush=True)
+        seconds, reward, info = episode(name, grasp_file)
+        print(f"{name:<8} env: grasp {info['grasp']}, sigma {info['sigma']:.4f}, reward "
+              f"{reward:.3f} (P(FC) {info['p_fc']:.3f}) in {seconds:.1f} s", flush=True)
+        seconds, rows = agree(name, found, agree_draws)
+        for label, a in rows.items():
+            offset = "" if np.isnan(a.offset_max) else (
+                f", offset max {a.offset_max:.1e} m, off.nrm max {a.offset_normal_max:.3f} deg")
+            print(f"{name:<8} {label:<18} same outcome {a.same_outcome}/{a.draws} "
+                  f"({a.same_outcome / a.draws:.3f}); point max {a.point_max:.1e} m, normal "
+                  f"max {a.normal_max:.3f} deg, Q abs max {a.q_abs_max:.1e} (untied "
+                  f"{a.q_abs_max_untied:.1e}, rel {a.q_max:.1e}, {a.q_pairs} FC pairs)"
+                  f"{offset}", flush=True)
+        print(f"{name:<8} agreement: {seconds:.1f} s", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -119,13 +229,20 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=2000, help="fast-engine draws")
     parser.add_argument("--reference-draws", type=int, default=200,
                         help="pybullet-engine draws")
-    parser.add_argument("--only", nargs="*", default=[m[2] for m in MESHES],
+    parser.add_argument("--rank-samples", type=int, default=200,
+                        help="rank: fast-engine draws per planned grasp")
+    parser.add_argument("--agree-draws", type=int, default=40,
+                        help="agreement: draws per planned grasp and sigma")
+    names = [m[-1] for m in MESHES]
+    parser.add_argument("--only", nargs="*", default=names, choices=names,
                         help="meshes to use, by name")
     args = parser.parse_args()
     os.environ["KINEGRASP_HOME"] = args.home or tempfile.mkdtemp(prefix="kinegrasp-home-")
     print(f"catalog: {os.environ['KINEGRASP_HOME']}")
+    folder = Path(os.environ["KINEGRASP_HOME"]) / "bench_grasps"
     names = import_all(args.only)
-    grasps = plan_all(names, args.grasps) if args.grasps > 0 else {}
+    grasps = plan_all(names, args.grasps, folder) if args.grasps > 0 else {}
+    end_to_end(grasps, folder, args.rank_samples, args.agree_draws)
     engines(grasps, args.draws, args.reference_draws)
 
 

@@ -1,0 +1,69 @@
+"""The README's physics-validation figures, from the files `kinegrasp validate` writes.
+
+    python scripts/validation_findings.py out/validate_0133 out/validate_0333
+
+Per folder (one sigma): draws per grasp, the median and largest half-width of the P(hold)
+intervals, mean P(FC) kinematic / physics / P(hold) over the grasps, Spearman's rho (from
+``summary.json``: the validate command's bootstrap), the per-draw confusion of kinematic force
+closure with holding, the share of force-closure (and other) draws held, per object the share
+of its force-closure draws held, and within force closure the AUC of the kinematic Q for
+holding (Mann-Whitney: the probability that a held draw has a larger Q than a dropped one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import mannwhitneyu
+
+
+def read_rows(path: Path) -> list[dict]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def findings(folder: Path) -> None:
+    grasps = read_rows(folder / "grasps.csv")
+    draws = read_rows(folder / "draws.csv")
+    summary = json.loads((folder / "summary.json").read_text())
+    half = np.array([(float(g["p_hold_hi"]) - float(g["p_hold_lo"])) / 2 for g in grasps])
+    means = [np.mean([float(g[k]) for g in grasps])
+             for k in ("p_fc_kinematic", "p_fc_physics", "p_hold")]
+    fc = np.array([d["kinematic_outcome"] == "force_closure" for d in draws])
+    held = np.array([d["held"] == "1" for d in draws])
+    objects = np.array([d["object"] for d in draws])
+    q = np.array([float(d["kinematic_q"]) for d in draws])
+    sigma = summary["settings"].get("sigma")
+    print(f"{folder} (sigma {sigma}): {len(grasps)} grasps, {grasps[0]['samples']} draws each; "
+          f"P(hold) interval half-width median {np.median(half):.3f}, max {half.max():.3f}")
+    print(f"  mean P(FC) kinematic / physics / P(hold): {means[0]:.3f} / {means[1]:.3f} / "
+          f"{means[2]:.3f}")
+    for key, value in summary["spearman"].items():
+        print(f"  Spearman {key}: {value}")
+    confusion = [[int((~fc & ~held).sum()), int((~fc & held).sum())],
+                 [int((fc & ~held).sum()), int((fc & held).sum())]]
+    print(f"  kinematic FC vs held (rows FC no/yes, columns held no/yes): {confusion}")
+    print(f"  held: {held[fc].mean():.1%} of force-closure draws, {held[~fc].mean():.1%} of "
+          "the others")
+    for name in dict.fromkeys(objects):
+        sel = fc & (objects == name)
+        print(f"  {name}: {held[sel].mean():.1%} of {int(sel.sum())} force-closure draws held")
+    a, b = q[fc & held], q[fc & ~held]
+    auc = mannwhitneyu(a, b).statistic / (len(a) * len(b))
+    print(f"  within force closure, AUC of Q for holding: {auc:.2f}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folders", nargs="+", type=Path, help="`kinegrasp validate --out` folders")
+    for folder in parser.parse_args().folders:
+        findings(folder)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
