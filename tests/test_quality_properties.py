@@ -479,9 +479,10 @@ def test_the_bound_itself_is_served(k):
 
 # ----------------------------------------------------------------------------- routing
 def test_tables_serve_where_they_are_the_fastest_batched_path():
-    """The three-contact tables serve TABLES_MIN_EDGES <= m <= TABLES_MAX_EDGES (measured in
-    benchmarks/bench_quality_edges.py): the default m = 8 and every m they served before up
-    to 24 keep their bits; m = 3 goes to the expansion (2x faster), m > 24 to qhull."""
+    """The three-contact tables back the expansion for TABLES_MIN_EDGES <= m <=
+    TABLES_MAX_EDGES (measured in benchmarks/bench_quality_edges.py): what the expansion does
+    not certify, and every grasp past its size (m = 22-24); m = 3 has the expansion alone,
+    m > 24 falls to qhull."""
     served = [m for m in range(3, MAX_EDGES + 1) if uses_tables(3, m, 0.5, "l1")]
     assert served == list(range(TABLES_MIN_EDGES, TABLES_MAX_EDGES + 1))
     assert 8 in served and TABLES_MAX_EDGES < MAX_EDGES
@@ -493,9 +494,8 @@ def test_tables_serve_where_they_are_the_fastest_batched_path():
 @pytest.mark.parametrize("num_edges", [3, TABLES_MIN_EDGES, 8, TABLES_MAX_EDGES,
                                        TABLES_MAX_EDGES + 1])
 def test_auto_is_exactly_the_routed_path(num_edges):
-    """auto returns the bits of the path that serves m: the tables' own numbers where they
-    serve (so results there are what they were before the bound), the expansion's or
-    qhull's elsewhere."""
+    """auto returns the bits of the path that serves m first: the expansion's where the
+    wrenches fit it (3 m <= MAX_POINTS), the tables' past it, qhull's past the tables."""
     from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa_batch
     from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
@@ -507,10 +507,10 @@ def test_auto_is_exactly_the_routed_path(num_edges):
     kw = {"num_edges": num_edges, "torque_scale": 20.0}
     auto = ferrari_canny_batch(0.05 * direction, normals, **kw)
     w = wrench_matrix(0.05 * direction, normals, **kw)
-    if uses_tables(3, num_edges, 0.5, "l1"):
-        q, certified = epsilon_three_contacts(w, num_edges)
-    elif 3 * num_edges <= MAX_POINTS:
+    if 3 * num_edges <= MAX_POINTS:
         q, certified = epsilon_epa_batch(np.ascontiguousarray(w))
+    elif uses_tables(3, num_edges, 0.5, "l1"):
+        q, certified = epsilon_three_contacts(w, num_edges)
     else:
         q = ferrari_canny_batch(0.05 * direction, normals, method="qhull", **kw)
         certified = np.ones(q.shape, dtype=bool)

@@ -7,11 +7,13 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
   rank-deficient wrench set is not in force closure.
 
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
-for 3 contacts with :data:`TABLES_MIN_EDGES` <= m <= :data:`TABLES_MAX_EDGES` cone edges,
-the batched facet enumeration of :mod:`kinegrasp_env.quality.three_contacts`; and, for
-everything else with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, a certified
-nearest-facet-first expansion
-(:mod:`kinegrasp_env.quality.expansion`, ~9x faster than qhull on 4-5 contacts). ``"auto"``
+with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, first a certified
+nearest-facet-first expansion (:mod:`kinegrasp_env.quality.expansion`, the fastest exact
+path: 40-110x faster than the qhull loop, benchmarks/bench_quality.py); for 3 contacts with
+:data:`TABLES_MIN_EDGES` <= m <= :data:`TABLES_MAX_EDGES` cone edges, the grasps the expansion
+does not certify (or all of them, past its size) go to the batched facet enumeration of
+:mod:`kinegrasp_env.quality.three_contacts`, after a phase-1 screen that settles those
+certified out of force closure (Q = 0 on every path; a few us each). ``"auto"``
 and ``"fast"`` (3 contacts only) fall back to qhull wherever an exact path cannot certify its
 answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
 ``wrenches.MAX_EDGES``.
@@ -49,7 +51,10 @@ LINF_MAX_POINTS = 1500
 #: vs 347-360 vs 12500 (a tie); 20: 606-789 vs 854-866 vs 23500; 24 (3 m beyond the
 #: expansion): 1036-1401 vs - vs 41000. Their constant tables and work arrays grow as m^3
 #: (numpy peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32), so above 24 qhull serves (0.1 s
-#: and ~10 MB per grasp at m = 32).
+#: and ~10 MB per grasp at m = 32). Since the expansion's per-facet work was cut (issue 21) it
+#: is the faster one at every m (sphere contacts, us per grasp, tables vs expansion: m = 8:
+#: 195 vs 24, 16: 721 vs 59; engine draws at m = 8: 72 vs 39), so it serves first and the
+#: tables take what it cannot certify and the 3-contact sets past its size (m = 22-24).
 TABLES_MIN_EDGES = 4
 TABLES_MAX_EDGES = 24
 #: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing
@@ -79,7 +84,8 @@ def _hull(points: np.ndarray) -> ConvexHull | None:
 
 
 def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -> bool:
-    """True when ``auto``/``fast`` compute these grasps with the three-contact tables.
+    """True when ``auto``/``fast`` give these grasps to the three-contact tables when the
+    expansion does not certify them (every one, past the expansion's size).
 
     Not for friction <= FC_TOL: three contacts with a cone that narrow are within FC_TOL of
     three points, Q = 0 however it is computed, and the tables' basis is singular (0 / 0
@@ -158,19 +164,27 @@ def ferrari_canny_batch(points, normals, *, friction: float | np.ndarray = 0.5,
         return out
     cone = friction if rows_mu is None else rows_mu[:, None, None, None]
     w = check_wrenches(edge_wrenches(points, normals, cone, num_edges, scale, ctr))
+    from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa_batch
+
     todo = np.arange(batch)
-    if method != "qhull" and uses_tables(k, num_edges, friction, norm):
+    if norm == "l1" and method != "qhull" and w.shape[1] <= MAX_POINTS:
+        # the certified expansion first: the fastest exact path wherever it fits (3 x 8:
+        # 39 us per engine draw, the tables 72)
+        q, certified = epsilon_epa_batch(np.ascontiguousarray(w))
+        for i in np.flatnonzero(certified):
+            q[i] = _thresholded(q[i], w[i])
+        out[certified] = q[certified]
+        todo = todo[~certified]
+    if method != "qhull" and todo.size and uses_tables(k, num_edges, friction, norm):
+        from kinegrasp_env.quality.expansion import outside_batch
         from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
-        q, certified = epsilon_three_contacts(w, num_edges)
-        out[certified] = q[certified]
-        todo = np.flatnonzero(~certified)
-    if norm == "l1" and method != "qhull" and todo.size:
-        from kinegrasp_env.quality.expansion import epsilon_epa_batch
-
-        q, certified = epsilon_epa_batch(np.ascontiguousarray(w[todo]))
-        for i in np.flatnonzero(certified):
-            q[i] = _thresholded(q[i], w[todo[i]])
+        # grasps certified out of force closure (3-8 us each) have Q = 0 on the tables too:
+        # only the rest pay for them (~100 us per grasp at m = 8)
+        outside = outside_batch(np.ascontiguousarray(w[todo]))
+        out[todo[outside]] = 0.0
+        todo = todo[~outside]
+        q, certified = epsilon_three_contacts(w[todo], num_edges)
         out[todo[certified]] = q[certified]
         todo = todo[~certified]
     for b in todo:

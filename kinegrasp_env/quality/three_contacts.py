@@ -30,6 +30,7 @@ from itertools import combinations, permutations
 
 import numpy as np
 
+from kinegrasp_env import jit
 from kinegrasp_env.quality.wrenches import FC_TOL
 
 #: Relative tolerance of the supporting-hyperplane test.
@@ -183,23 +184,47 @@ def _polygon_basis(wrenches: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray
     return centre, np.swapaxes(basis, 1, 2)  # (B, 6, 8): columns are the basis vectors
 
 
+@lru_cache(maxsize=8)
+def _test_arrays(num_edges: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The blocks of :func:`candidate_tables` per tested candidate: polygons (C - 3, 3) and
+    the coefficients a, b (3, C - 3) of its three tests."""
+    blocks = candidate_tables(num_edges)[3]
+    polys = np.concatenate([np.tile(np.array(p, dtype=np.int64), (hi - lo, 1))
+                            for lo, hi, p, _, _ in blocks])
+    coef_a = np.ascontiguousarray(np.concatenate([blk[3] for blk in blocks], axis=1))
+    coef_b = np.ascontiguousarray(np.concatenate([blk[4] for blk in blocks], axis=1))
+    return polys, coef_a, coef_b
+
+
+@jit.kernel
+def _run_tests(y, tol, polys, coef_a, coef_b, up, down) -> None:
+    """up/down (b, C - 3) of the tested candidates (see :func:`_supporting`): test t of
+    candidate c is y[2 p, c] a[t, c] + y[2 p + 1, c] b[t, c] (p = polys[c, t]), the same
+    products and sum as numpy forms them, so the same decisions."""
+    for r in range(y.shape[0]):
+        for c in range(coef_a.shape[1]):
+            above = True
+            below = True
+            for t in range(3):
+                p = polys[c, t]
+                test = y[r, 2 * p, c] * coef_a[t, c] + y[r, 2 * p + 1, c] * coef_b[t, c]
+                above = above and test >= -tol[r, c]
+                below = below and test <= tol[r, c]
+            up[r, c] = above
+            down[r, c] = below
+
+
 def _supporting(y: np.ndarray, tol: np.ndarray, tables: tuple) -> tuple[np.ndarray, np.ndarray]:
     """(up, down) (b, C) bool: every wrench on the candidate's positive (negative) side, to
     tol (b, C), for the candidates' y vectors (b, 8, C)."""
-    pts, ref, _, blocks = tables
+    pts, ref = tables[0], tables[1]
     nb, n_cand = y.shape[0], y.shape[2]
     n_tested = n_cand - 3
     up = np.empty((nb, n_cand), dtype=bool)
     down = np.empty((nb, n_cand), dtype=bool)
-    for lo, hi, polys, coef_a, coef_b in blocks:
-        t_tol = tol[:, lo:hi]
-        up_b = np.ones((nb, hi - lo), dtype=bool)
-        down_b = np.ones((nb, hi - lo), dtype=bool)
-        for t, p in enumerate(polys):
-            test = y[:, 2 * p, lo:hi] * coef_a[t] + y[:, 2 * p + 1, lo:hi] * coef_b[t]
-            up_b &= test >= -t_tol
-            down_b &= test <= t_tol
-        up[:, lo:hi], down[:, lo:hi] = up_b, down_b
+    polys, coef_a, coef_b = _test_arrays(pts.shape[0] // 3)
+    _run_tests(np.ascontiguousarray(y), np.ascontiguousarray(tol), polys, coef_a, coef_b,
+               up[:, :n_tested], down[:, :n_tested])
     last = np.swapaxes(y[:, :, n_tested:], 1, 2)  # (b, 3, 8)
     values = last @ pts.T - np.einsum("bck,ck->bc", last, ref[n_tested:])[..., None]
     l_tol = tol[:, n_tested:, None]
