@@ -4,14 +4,18 @@ policy, oracle and the elbow optimizer.
 Example (the committed table):
     python agents/evaluate.py --model agents/models/KineGraspSelect-v0_ppo.zip --seed 0 \
         --out agents/models/evaluation.json
+The open-world table (objects never used for any decision; ``agents/prepare.py`` first):
+    python agents/evaluate.py --model agents/models/KineGraspSelect-v0_ppo_openworld.zip \
+        --grasp-file agents/grasps/test.json --out agents/models/evaluation_openworld.json
 Recompute the statistics of an existing result from its per-grasp rows (no evaluation run):
     python agents/evaluate.py --summarize agents/models/evaluation.json
 
 **Scoring.** For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each
-object's shipped set) at noise ``--sigma``, the arm configuration chosen by each method is
-evaluated with ``--draws`` Monte Carlo draws of the reference (pybullet) engine on chunks
-``0..K-1`` of ``--seed`` (K = ceil(draws / 250)), the same draws for every method (common
-random numbers).
+object's shipped set), or with ``--grasp-file`` every grasp of that file, at noise
+``--sigma``, the arm configuration chosen by each method is evaluated with ``--draws`` Monte
+Carlo draws of ``--engine`` (default the reference, pybullet) on chunks ``0..K-1`` of
+``--seed`` (K = ceil(draws / 250)), the same draws for every method (common random
+numbers).
 
 **Methods.** ``nominal`` (the grasp's IK configuration); ``random`` (the mean over
 ``--random-angles`` uniformly drawn elbow angles, ``--draws`` in all: the expected P(FC) of
@@ -19,7 +23,7 @@ picking the elbow at random); ``spread`` (no learning: of the oracle's grid, the
 smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))); ``policy`` (the
 trained model, deterministic); ``oracle`` (the best of a grid of ``--grid`` elbow angles by
 ``--oracle-draws`` draws each, drawn on chunks ``K, K+1, ...`` of the seed: selection draws
-independent of the scoring draws); ``optimizer`` (the reference,
+independent of the scoring draws; ``--oracle-draws 0`` leaves it out); ``optimizer`` (the reference,
 :func:`kinegrasp_env.toolkit.elbow.optimize_elbow` with ``--optimizer-samples`` fast-engine
 draws per angle and seed ``--optimizer-seed``, default seed + 1: its selection draws are
 independent of the scoring draws too; ``--optimizer-samples 0`` leaves it out). Each row also
@@ -61,9 +65,10 @@ import numpy as np
 from scipy import stats as sps
 
 #: Methods of every evaluation, in table order.
-METHODS = ("nominal", "random", "spread", "policy", "oracle")
-#: Methods added later; a result without them (an older file) is still summarized.
-OPTIONAL_METHODS = ("optimizer",)
+METHODS = ("nominal", "random", "spread", "policy")
+#: Methods a run may leave out (``--oracle-draws 0``, ``--optimizer-samples 0``); a result
+#: without them is still summarized.
+OPTIONAL_METHODS = ("oracle", "optimizer")
 #: Keys :func:`summarize` writes (the rest of a result is its settings and rows).
 SUMMARY_KEYS = ("grasps", "statistics", "mean_p_fc", "paired_differences", "paired_tests",
                 "optimizer_gain_fraction", "decision_seconds")
@@ -242,11 +247,13 @@ def scoring_chunks(draws: int) -> int:
 
 
 class Scorer:
-    """P(FC) of a grasp moved to configuration q, by the reference engine on chunks
-    ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common random numbers)."""
+    """P(FC) of a grasp moved to configuration q, by ``engine`` (default the reference,
+    pybullet) on chunks ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common random
+    numbers)."""
 
-    def __init__(self, noise, seed: int, executor) -> None:
+    def __init__(self, noise, seed: int, executor, engine: str = "pybullet") -> None:
         self.noise, self.seed, self.executor = noise, int(seed), executor
+        self.engine = engine
 
     def __call__(self, grasp, q: np.ndarray, n: int, first_chunk: int = 0) -> float:
         from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
@@ -255,7 +262,7 @@ class Scorer:
 
         counts, _, _ = run_chunks(with_configuration(grasp, q, 0.0), self.noise, self.seed,
                                   sizes=chunk_sizes(n, DEFAULT_CHUNK), first_chunk=first_chunk,
-                                  executor=self.executor)
+                                  executor=self.executor, engine=self.engine)
         return float(counts[FORCE_CLOSURE] / counts.sum())
 
 
@@ -276,12 +283,14 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
     candidates = [reach(p) for p in grid_psi]
     configs["spread"] = candidates[int(np.argmin([palm_spread(env, q) for q in candidates]))]
     extra["seconds_spread"] = time.perf_counter() - start
-    start = time.perf_counter()
-    first = scoring_chunks(settings["draws"])  # selection draws never scored
-    quick = [score(grasp, q, settings["oracle_draws"], first_chunk=first) for q in candidates]
-    configs["oracle"] = candidates[int(np.argmax(quick))]
-    extra["seconds_oracle"] = time.perf_counter() - start
-    extra["oracle_grid_p_fc"] = quick
+    if settings["oracle_draws"] > 0:
+        start = time.perf_counter()
+        first = scoring_chunks(settings["draws"])  # selection draws never scored
+        quick = [score(grasp, q, settings["oracle_draws"], first_chunk=first)
+                 for q in candidates]
+        configs["oracle"] = candidates[int(np.argmax(quick))]
+        extra["seconds_oracle"] = time.perf_counter() - start
+        extra["oracle_grid_p_fc"] = quick
     if settings["optimizer_samples"] > 0:
         from kinegrasp_env.toolkit.elbow import optimize_elbow
 
@@ -291,6 +300,8 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
         configs["optimizer"] = np.asarray(found.best_q, dtype=float)
         extra["seconds_optimizer"] = time.perf_counter() - start
         extra["optimizer_own_p_fc"] = found.best_p_fc
+        # its selection curve, [psi (rad), P(FC)] per evaluated angle (fast engine)
+        extra["optimizer_curve"] = [[round(p.psi, 4), p.p_fc] for p in found.curve]
     return configs, extra
 
 
@@ -328,9 +339,11 @@ def load_model(model_path: str):
 def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid: int,
              seed: int, processes: int = 1, limit: int | None = None,
              random_angles: int = 4, optimizer_samples: int = 0,
-             optimizer_seed: int | None = None) -> dict:
-    """Evaluate every method on the held-out grasps (see the module docstring); the result
-    holds the settings, one row per grasp and :func:`summarize`'s fields.
+             optimizer_seed: int | None = None, grasp_file: str | None = None,
+             engine: str = "pybullet") -> dict:
+    """Evaluate every method on the held-out grasps, or on every grasp of ``grasp_file``
+    (see the module docstring); the result holds the settings, one row per grasp and
+    :func:`summarize`'s fields.
 
     ``optimizer_samples`` defaults to 0 here (no optimizer, as before it existed); the
     command line's default is 1000. ``optimizer_seed`` defaults to ``seed + 1``.
@@ -344,8 +357,14 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
 
     model = load_model(model_path)
     bins = getattr(model.action_space, "n", None)  # a policy over Discrete(bins) elbow angles
-    env = gym.make("KineGraspSelect-v0", split="test", n_draws=1,
-                   action_bins=None if bins is None else int(bins)).unwrapped
+    tasks_from = ({"grasp_file": grasp_file} if grasp_file is not None
+                  else {"split": "test"})
+    try:
+        env = gym.make("KineGraspSelect-v0", n_draws=1, **tasks_from,
+                       action_bins=None if bins is None else int(bins)).unwrapped
+    except ValueError as error:  # a grasp file naming an object not in the catalog, ...
+        raise UsageError(f"--grasp-file: {error}; for agents/grasps/*.json, run "
+                         "agents/prepare.py first") from None
     settings = {"draws": draws, "oracle_draws": oracle_draws, "grid": grid,
                 "random_angles": random_angles, "optimizer_samples": optimizer_samples,
                 "optimizer_seed": seed + 1 if optimizer_seed is None else optimizer_seed}
@@ -355,12 +374,13 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     rows = []
     # one pool for the whole run: its workers keep their engines between evaluations
     with LocalExecutor(processes) as executor:
-        score = Scorer(JointNoise(sigma), seed, executor)
+        score = Scorer(JointNoise(sigma), seed, executor, engine)
         for name, index in tqdm(tasks, desc="held-out grasps", file=sys.stderr, disable=None):
             obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
             rows.append(evaluate_task(env, model, obs, score, settings, rng, executor))
     env.close()
-    result = {"model": str(model_path), "sigma": sigma, "draws": draws,
+    result = {"model": str(model_path), "grasp_file": grasp_file, "engine": engine,
+              "sigma": sigma, "draws": draws,
               "oracle_draws": oracle_draws, "grid": grid, "seed": seed,
               "random_angles": random_angles,
               "oracle_selection": f"chunks {scoring_chunks(draws)}.. of the seed (scoring: "
@@ -378,8 +398,10 @@ def _fmt_p(p: float) -> str:
 def table(result: dict) -> str:
     """Markdown tables of a result: mean P(FC) per method with 95% t-intervals, then the
     paired differences with their unadjusted and simultaneous intervals and p-values."""
-    lines = [f"held-out grasps: {result['grasps']}, sigma = {result['sigma']}, "
-             f"{result['draws']} draws per configuration",
+    lines = [f"held-out grasps: {result['grasps']}"
+             + (f" of {result['grasp_file']}" if result.get("grasp_file") else "")
+             + f", sigma = {result['sigma']}, {result['draws']} draws per configuration "
+               f"({result.get('engine', 'pybullet')} engine)",
              "", "| method | mean P(FC) | 95% t-CI |", "|---|---|---|"]
     for m, (mean, lo, hi) in result["mean_p_fc"].items():
         lines.append(f"| {m} | {mean:.3f} | {lo:.3f} .. {hi:.3f} |")
@@ -408,7 +430,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--model", default="agents/models/KineGraspSelect-v0_ppo.zip")
     parser.add_argument("--sigma", type=float, default=0.0283)
     parser.add_argument("--draws", type=int, default=2000)
-    parser.add_argument("--oracle-draws", type=int, default=200)
+    parser.add_argument("--oracle-draws", type=int, default=200,
+                        help="draws per grid angle of the oracle's selection (0: leave the "
+                             "oracle out)")
     parser.add_argument("--grid", type=int, default=12)
     parser.add_argument("--random-angles", type=int, default=4,
                         help="random elbow angles averaged per grasp (--draws shared)")
@@ -417,6 +441,11 @@ def build_parser() -> argparse.ArgumentParser:
                              "the optimizer out)")
     parser.add_argument("--optimizer-seed", type=int, default=None,
                         help="seed of the optimizer's selection draws (default: --seed + 1)")
+    parser.add_argument("--grasp-file", help="evaluate every grasp of this file (e.g. "
+                        "agents/grasps/test.json, objects never trained on) instead of the "
+                        "shipped sets' held-out split")
+    parser.add_argument("--engine", default="pybullet", choices=("pybullet", "fast"),
+                        help="engine of the scoring draws")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--limit", type=int, default=None,
@@ -431,7 +460,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def check_args(args) -> None:
     """Raises UsageError naming the first bad value."""
-    for name in ("draws", "oracle_draws", "grid", "random_angles", "processes"):
+    if args.oracle_draws < 0:
+        raise UsageError(f"--oracle-draws must be >= 0, got {args.oracle_draws}")
+    if args.grasp_file is not None and not Path(args.grasp_file).is_file():
+        raise UsageError(f"--grasp-file: no file {args.grasp_file} (run agents/prepare.py)")
+    for name in ("draws", "grid", "random_angles", "processes"):
         if getattr(args, name) < 1:
             raise UsageError(f"--{name.replace('_', '-')} must be >= 1, got "
                              f"{getattr(args, name)}")
@@ -471,7 +504,8 @@ def main(argv: list[str] | None = None) -> int:
                           args.seed, args.processes, limit=args.limit,
                           random_angles=args.random_angles,
                           optimizer_samples=args.optimizer_samples,
-                          optimizer_seed=args.optimizer_seed)
+                          optimizer_seed=args.optimizer_seed, grasp_file=args.grasp_file,
+                          engine=args.engine)
     except UsageError as error:
         print(f"evaluate: error: {error}", file=sys.stderr)
         return 2

@@ -3,10 +3,14 @@
 Example (the committed policy):
     python agents/train.py --env KineGraspSelect-v0 --algo ppo --seed 0 --out agents/models
 
+The open-world policy (built-in + imported training objects, ``agents/prepare.py`` first):
+    python agents/train.py --grasp-file agents/grasps/train.json --name openworld
+
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` keyed by environment ID
 (rl-baselines3-zoo format, ``env_kwargs`` included). Training uses the ``train`` split of the
-grasp sets; ``agents/evaluate.py`` uses the held-out ``test`` split. Writes
-``<out>/<env>_<algo>.zip``, checkpoints under ``<out>/checkpoints/`` and a JSON summary.
+shipped grasp sets (``agents/evaluate.py`` uses the held-out ``test`` split), or with
+``--grasp-file`` every grasp of that file. Writes ``<out>/<env>_<algo>[_<name>].zip``,
+checkpoints under ``<out>/checkpoints/`` and a JSON summary.
 """
 
 from __future__ import annotations
@@ -45,7 +49,10 @@ def load_hyperparams(env_id: str, algo: str, folder: Path = HERE / "hyperparams"
     return params
 
 
-def make_env(env_id: str, env_kwargs: dict, split: str, seed: int):
+def make_env(env_id: str, env_kwargs: dict, split: str | None, seed: int,
+             grasp_file: str | None = None):
+    """The env, reset with ``seed``: the ``split`` of the shipped grasp sets, or with
+    ``grasp_file`` every grasp of that file (``split`` then ignored)."""
     import gymnasium as gym
 
     import kinegrasp_env
@@ -53,15 +60,26 @@ def make_env(env_id: str, env_kwargs: dict, split: str, seed: int):
     if env_id not in kinegrasp_env.ENV_IDS:
         raise UsageError(f"unknown environment {env_id!r}; registered: "
                          f"{', '.join(kinegrasp_env.ENV_IDS)}")
-    env = gym.make(env_id, split=split, **env_kwargs)
+    if grasp_file is not None:
+        if not Path(grasp_file).is_file():
+            raise UsageError(f"--grasp-file: no file {grasp_file} (run agents/prepare.py)")
+        try:
+            env = gym.make(env_id, grasp_file=grasp_file, **env_kwargs)
+        except ValueError as error:
+            raise UsageError(f"--grasp-file: {error}; for agents/grasps/*.json, run "
+                             "agents/prepare.py first") from None
+    else:
+        env = gym.make(env_id, split=split, **env_kwargs)
     env.reset(seed=seed)
     env.action_space.seed(seed)
     return env
 
 
 def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | None = None,
-          checkpoint_every: int = 1000, progress: bool = True) -> dict:
-    """Train and save; returns the summary written to ``<out>/<env>_<algo>.json``."""
+          checkpoint_every: int = 1000, progress: bool = True, grasp_file: str | None = None,
+          name: str | None = None) -> dict:
+    """Train and save; returns the summary written to ``<out>/<env>_<algo>[_<name>].json``
+    (tasks: see :func:`make_env`)."""
     if algo not in ALGOS:
         raise UsageError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
     params = load_hyperparams(env_id, algo)
@@ -73,10 +91,11 @@ def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | N
     from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
     from stable_baselines3.common.monitor import Monitor
 
-    env = Monitor(make_env(env_id, env_kwargs, "train", seed))
+    env = Monitor(make_env(env_id, env_kwargs, "train", seed, grasp_file))
     model = {"ppo": PPO, "sac": SAC}[algo](policy, env, seed=seed, verbose=0, **params)
     out.mkdir(parents=True, exist_ok=True)
-    name = f"{env_id}_{algo}"
+    tasks = env.unwrapped.tasks
+    name = f"{env_id}_{algo}" + (f"_{name}" if name else "")
 
     class Bar(BaseCallback):
         def _on_training_start(self) -> None:
@@ -106,7 +125,9 @@ def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | N
                "mean_reward_first_100": (sum(rewards[:100]) / len(rewards[:100])
                                          if rewards else None),
                "hyperparams": {k: str(v) for k, v in params.items()},
-               "env_kwargs": env_kwargs, "model": str(out / f"{name}.zip")}
+               "env_kwargs": env_kwargs, "model": str(out / f"{name}.zip"),
+               "grasp_file": grasp_file,
+               "tasks": {obj: len(tasks[obj]) for obj in sorted(tasks)}}
     (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
     env.close()
     return summary
@@ -120,9 +141,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--total-timesteps", type=int)
     parser.add_argument("--out", default=str(HERE / "models"))
+    parser.add_argument("--grasp-file", help="train on every grasp of this file (e.g. "
+                        "agents/grasps/train.json) instead of the shipped sets' train split")
+    parser.add_argument("--name", help="suffix of the output files: <env>_<algo>_<name>")
     args = parser.parse_args(argv)
     try:
-        summary = train(args.env, args.algo, args.seed, Path(args.out), args.total_timesteps)
+        if args.name is not None and not args.name.replace("-", "").replace("_", "").isalnum():
+            raise UsageError(f"--name must be letters, digits, '-' or '_', got {args.name!r}")
+        summary = train(args.env, args.algo, args.seed, Path(args.out), args.total_timesteps,
+                        grasp_file=args.grasp_file, name=args.name)
     except UsageError as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 2

@@ -97,6 +97,20 @@ def test_train_cli_one_line_error(capsys):
     assert err.count("\n") == 0 and "unknown algorithm 'a2c'" in err
 
 
+def test_make_env_from_a_grasp_file(tmp_path):
+    """--grasp-file: every grasp of the file is a task (no split), whatever its objects; a
+    missing file is a UsageError naming it."""
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    path = save_grasps(shipped_grasps("cube")[:3] + shipped_grasps("mug")[5:6],
+                       tmp_path / "g.json")
+    env = train.make_env("KineGraspSelect-v0", {"action_bins": 12}, "train", 0, str(path))
+    assert {k: len(v) for k, v in env.unwrapped.tasks.items()} == {"cube": 3, "mug": 1}
+    env.close()
+    with pytest.raises(train.UsageError, match="--grasp-file: no file"):
+        train.make_env("KineGraspSelect-v0", {}, "train", 0, str(tmp_path / "none.json"))
+
+
 def test_unregistered_env_id():
     with pytest.raises(train.UsageError, match="unknown environment 'Nope-v0'"):
         train.make_env("Nope-v0", {}, "train", 0)
@@ -105,6 +119,9 @@ def test_unregistered_env_id():
 # ------------------------------------------------------------- evaluation statistics (issue 22)
 evaluate_module = _load("evaluate")
 COMMITTED = ROOT / "agents" / "models" / "evaluation.json"
+#: the open-world evaluation: held-out imported objects (agents/heldout.yaml), with the
+#: optimizer as the reference
+OPENWORLD = ROOT / "agents" / "models" / "evaluation_openworld.json"
 
 
 def _holm_by_hand(p: list[float]) -> list[float]:
@@ -118,16 +135,19 @@ def _holm_by_hand(p: list[float]) -> list[float]:
     return adjusted
 
 
-def test_committed_evaluation_summary_recomputed_from_rows():
+@pytest.mark.parametrize(("path", "grasps"), [(COMMITTED, 12), (OPENWORLD, 16)],
+                         ids=["in-distribution", "open-world"])
+def test_committed_evaluation_summary_recomputed_from_rows(path, grasps):
     """The committed summary equals an independent recomputation from its per-grasp rows:
     scipy's t.interval for the means, ttest_rel and its confidence_interval for the paired
-    differences, a hand-written Holm step-down, Bonferroni intervals at 1 - 0.05/m."""
+    differences, a hand-written Holm step-down, Bonferroni intervals at 1 - 0.05/m; the
+    fraction of the optimizer's gain and the mean decision times from the rows' means."""
     from scipy import stats
 
-    result = json.loads(COMMITTED.read_text())
+    result = json.loads(path.read_text())
     rows = result["rows"]
     n = len(rows)
-    assert n == result["grasps"] == 12
+    assert n == result["grasps"] == grasps
     for method, stored in result["mean_p_fc"].items():
         values = np.array([r[method] for r in rows])
         lo, hi = stats.t.interval(0.95, n - 1, loc=values.mean(), scale=stats.sem(values))
@@ -153,6 +173,13 @@ def test_committed_evaluation_summary_recomputed_from_rows():
             [d.mean(), ci.low, ci.high], rel=1e-9)
         assert (stored["wins"], stored["losses"], stored["ties"]) == (
             int((d > 0).sum()), int((d < 0).sum()), int((d == 0).sum()))
+    if "optimizer" in result["mean_p_fc"]:
+        mean = {m: np.mean([r[m] for r in rows]) for m in result["mean_p_fc"]}
+        for method, fraction in result["optimizer_gain_fraction"].items():
+            assert fraction == pytest.approx((mean[method] - mean["nominal"])
+                                             / (mean["optimizer"] - mean["nominal"]), rel=1e-9)
+        for method, seconds in result["decision_seconds"].items():
+            assert seconds == pytest.approx(np.mean([r[f"seconds_{method}"] for r in rows]))
     # and the file is what summarize() makes of its own rows
     fresh = evaluate_module.summarize(rows)
     assert {k: result[k] for k in fresh} == fresh
@@ -212,10 +239,18 @@ def test_summarize_bad_file_one_line_error(tmp_path, capsys, content, needle):
     assert (path.read_text() if content is not None else None) == content  # untouched
 
 
-def test_evaluate_bad_arguments_one_line_error(capsys):
-    assert evaluate_module.main(["--draws", "0"]) == 2
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--draws", "0"], "--draws must be >= 1, got 0"),
+    (["--oracle-draws", "-1"], "--oracle-draws must be >= 0, got -1"),
+    (["--grasp-file", "nowhere.json"], "--grasp-file: no file nowhere.json"),
+    # the tests' empty catalog: the held-out blobs are not imported (agents/prepare.py is not
+    # run), and the file is refused in one line naming the object
+    (["--grasp-file", str(ROOT / "agents" / "grasps" / "test.json")], "'blob200'"),
+])
+def test_evaluate_bad_arguments_one_line_error(capsys, argv, needle):
+    assert evaluate_module.main(argv) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "--draws must be >= 1, got 0" in err
+    assert err.count("\n") == 0 and needle in err
 
 
 def test_oracle_selection_draws_are_not_scoring_draws():
@@ -250,7 +285,7 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     assert evaluate_module.main(argv) == 0
     result = json.loads(out.read_text())
     row = result["rows"][0]
-    assert set(result["mean_p_fc"]) == {*evaluate_module.METHODS, "optimizer"}
+    assert set(result["mean_p_fc"]) == {*evaluate_module.METHODS, "oracle", "optimizer"}
     assert result["optimizer_seed"] == 1 and result["grasps"] == 1
     assert set(result["decision_seconds"]) == {"policy", "spread", "oracle", "optimizer"}
     env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
@@ -271,3 +306,61 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     env.close()
     for method, (mean, _, _) in evaluate_module.summarize(result["rows"])["mean_p_fc"].items():
         assert result["mean_p_fc"][method][0] == mean == row[method]
+
+
+# ------------------------------------------------------------- open-world data (issue 22)
+prepare_module = _load("prepare")
+
+
+def test_heldout_objects_never_in_the_training_file():
+    """The committed grasp sets follow agents/heldout.yaml: test.json holds exactly the spec's
+    held-out objects with test_grasps grasps each, train.json the built-in training grasps
+    (i % 4 != 3 of the shipped sets, compared by q0) plus the spec's training objects, and no
+    held-out object is trained on."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES
+
+    spec = prepare_module.read_spec()
+    used = {i: spec["replaced"].get(i, i) for i in spec["train"] + spec["test"]}
+    test = json.loads((ROOT / "agents" / "grasps" / "test.json").read_text())
+    train_set = json.loads((ROOT / "agents" / "grasps" / "train.json").read_text())
+    held_out = [f"blob{used[i]:03d}" for i in spec["test"]]
+    counts: dict[str, int] = {}
+    for g in test["grasps"]:
+        counts[g["object"]] = counts.get(g["object"], 0) + 1
+    assert counts == {name: spec["test_grasps"] for name in held_out}
+    trained = {g["object"] for g in train_set["grasps"]}
+    assert trained == set(OBJECT_NAMES) | {f"blob{used[i]:03d}" for i in spec["train"]}
+    assert not trained & set(held_out)
+    for name in OBJECT_NAMES:
+        expected = [g.q0.tolist() for i, g in enumerate(shipped_grasps(name)) if i % 4 != 3]
+        assert [g["q0"] for g in train_set["grasps"] if g["object"] == name] == expected
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ("train: [1]\ntest: [1]\ntrain_grasps: 2\ntest_grasps: 2\n", "share indices [1]"),
+    ("train: [1]\ntest: [1000]\ntrain_grasps: 2\ntest_grasps: 2\n", "'test' must be a list"),
+    ("train: [1]\ntest: [2]\ntrain_grasps: 0\ntest_grasps: 2\n", "'train_grasps' must be"),
+])
+def test_prepare_bad_spec_one_line_error(tmp_path, capsys, text, needle):
+    path = tmp_path / "spec.yaml"
+    path.write_text(text)
+    assert prepare_module.main(["--spec", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and needle in err
+
+
+def test_multistep_reach_loss_by_hand():
+    """Two hand-made curves: the first's best angle (P 0.9 at psi 2.0) is 2.5 rad from the
+    nominal -0.5, beyond a 1.5 rad reach (best within: 0.6 at psi 0.5); the second's best
+    (0.7 at psi 3.0) is 0.4 rad from the nominal -2.883 across the +-pi seam, so within."""
+    multistep = _load("multistep")
+    rows = [{"elbow_nominal": -0.5, "optimizer_curve": [[-1.0, 0.5], [0.5, 0.6], [2.0, 0.9]]},
+            {"elbow_nominal": -2.883, "optimizer_curve": [[-1.0, 0.65], [3.0, 0.7]]}]
+    out = multistep.reach_loss(rows, 1.5)
+    assert out["best_within_reach"] == pytest.approx((0.6 + 0.7) / 2)
+    assert out["best_anywhere"] == pytest.approx((0.9 + 0.7) / 2)
+    assert out["loss_mean"] == pytest.approx(0.15) and out["loss_max"] == pytest.approx(0.3)
+    assert out["grasps_best_beyond_reach"] == 1
+    with pytest.raises(ValueError, match="no optimizer_curve"):
+        multistep.reach_loss([{"object": "cube", "grasp": "0", "elbow_nominal": 0.0}], 1.5)
