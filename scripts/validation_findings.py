@@ -1,6 +1,7 @@
 """The README's physics-validation figures, from the files `kinegrasp validate` writes.
 
-    python scripts/validation_findings.py out/validate_0133 out/validate_0333
+    python scripts/validation_findings.py out/validate_0133 out/validate_0333 \
+        --table1 out/table1_fast200 out/table1_physics200
 
 Per folder (one sigma): draws per grasp, the median and largest half-width of the P(hold)
 intervals, mean P(FC) kinematic / physics / P(hold) over the grasps, Spearman's rho (from
@@ -8,6 +9,9 @@ intervals, mean P(FC) kinematic / physics / P(hold) over the grasps, Spearman's 
 closure with holding, the share of force-closure (and other) draws held, per object the share
 of its force-closure draws held, and within force closure the AUC of the kinematic Q for
 holding (Mann-Whitney: the probability that a held draw has a larger Q than a dropped one).
+``--table1 KIN PHYS``: two ``reproduce table1`` folders (the same seed and draws, kinematic
+and physics engine): the largest and mean difference of P(FC) per cell and how many cells'
+Wilson intervals overlap.
 """
 
 from __future__ import annotations
@@ -57,11 +61,37 @@ def findings(folder: Path) -> None:
     print(f"  within force closure, AUC of Q for holding: {auc:.2f}")
 
 
+def compare_tables(kinematic: Path, physics: Path) -> None:
+    def cells(folder: Path) -> dict:
+        return {(r["grasp"], r["sigma"]): r for r in read_rows(folder / "table1.csv")}
+
+    a, b = cells(kinematic), cells(physics)
+    diff = np.array([float(b[k]["p_fc"]) - float(a[k]["p_fc"]) for k in a])
+    overlap = sum(float(a[k]["p_fc_lo"]) <= float(b[k]["p_fc_hi"])
+                  and float(b[k]["p_fc_lo"]) <= float(a[k]["p_fc_hi"]) for k in a)
+    sigmas = list(dict.fromkeys(k[1] for k in a))
+    print("| grasp | " + " | ".join(f"sigma {x}" for x in sigmas) + " |")
+    print("|---|" + "---|" * len(sigmas))
+    for grasp in dict.fromkeys(k[0] for k in a):
+        print(f"| {grasp} | " + " | ".join(f"{float(a[grasp, x]['p_fc']):.3f} / "
+                                          f"{float(b[grasp, x]['p_fc']):.3f}" for x in sigmas)
+              + " |")
+    worst = list(a)[int(np.argmax(np.abs(diff)))]
+    print(f"Table I, physics - kinematic P(FC) over {len(diff)} cells: mean {diff.mean():+.3f}, "
+          f"largest {diff[np.argmax(np.abs(diff))]:+.3f} (grasp {worst[0]}, sigma {worst[1]}: "
+          f"{a[worst]['p_fc']} vs {b[worst]['p_fc']}); intervals overlap in {overlap}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("folders", nargs="+", type=Path, help="`kinegrasp validate --out` folders")
-    for folder in parser.parse_args().folders:
+    parser.add_argument("folders", nargs="*", type=Path, help="`kinegrasp validate --out` folders")
+    parser.add_argument("--table1", nargs=2, type=Path, metavar=("KINEMATIC", "PHYSICS"),
+                        help="two `reproduce table1 --out` folders to compare")
+    args = parser.parse_args()
+    for folder in args.folders:
         findings(folder)
+    if args.table1:
+        compare_tables(*args.table1)
     return 0
 
 
