@@ -164,9 +164,18 @@ def ferrari_canny_batch(points, normals, *, friction: float | np.ndarray = 0.5,
         return out
     cone = friction if rows_mu is None else rows_mu[:, None, None, None]
     w = check_wrenches(edge_wrenches(points, normals, cone, num_edges, scale, ctr))
+    return exact_quality(w, k, num_edges, friction, norm, method)
+
+
+def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: Norm,
+                  method: Method) -> np.ndarray:
+    """(B,) Q of B grasps' edge wrenches w (B, k m, 6) through the exact paths in their order
+    (the expansion, the three-contact tables, qhull; see the module docstring); ``friction``:
+    the smallest mu of the batch."""
     from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa_batch
 
-    todo = np.arange(batch)
+    out = np.empty(w.shape[0])
+    todo = np.arange(w.shape[0])
     if norm == "l1" and method != "qhull" and w.shape[1] <= MAX_POINTS:
         # the certified expansion first: the fastest exact path wherever it fits (3 x 8:
         # 39 us per engine draw, the tables 72)
