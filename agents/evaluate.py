@@ -9,6 +9,10 @@ The open-world table (objects never used for any decision; ``agents/prepare.py``
         --grasp-file agents/grasps/test.json --out agents/models/evaluation_openworld.json
 Recompute the statistics of an existing result from its per-grasp rows (no evaluation run):
     python agents/evaluate.py --summarize agents/models/evaluation.json
+Compare the policies of two results on the same grasps and draws, A - B per grasp (paired
+t-test, one comparison; :func:`compare_results`):
+    python agents/evaluate.py --compare agents/models/evaluation_openworld.json \
+        agents/models/evaluation_openworld_builtin_policy.json
 
 **Scoring.** For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each
 object's shipped set), or with ``--grasp-file`` every grasp of that file, at noise
@@ -190,6 +194,64 @@ def resummarize(result: dict) -> dict:
     return ordered
 
 
+#: Settings that fix the scoring draws: two results that agree on them (and on the grasps)
+#: scored every configuration on the same draws, so their rows can be paired.
+SCORING_SETTINGS = ("sigma", "draws", "seed", "engine")
+
+
+def compare_results(a: dict, b: dict, method: str = "policy") -> dict:
+    """Paired comparison of ``method``'s P(FC) in result ``a`` minus result ``b`` (two
+    evaluations of different models on the same grasps and draws), per grasp: the mean
+    difference with its 95% Student-t interval (df = n - 1), the two-sided paired t-test and
+    the wins/losses/ties of ``a`` (differences > 0, < 0, == 0). One comparison: no
+    multiplicity adjustment.
+
+    Raises:
+        ValueError: different grasps (object, id, in order), different
+            :data:`SCORING_SETTINGS`, a nominal P(FC) that differs on some grasp (not the same
+            draws), or a row without ``method``.
+    """
+    keys_a = [(r.get("object"), r.get("grasp")) for r in a["rows"]]
+    keys_b = [(r.get("object"), r.get("grasp")) for r in b["rows"]]
+    if keys_a != keys_b:
+        raise ValueError(f"not the same grasps ({len(keys_a)} vs {len(keys_b)} rows, first "
+                         f"difference at row {_first_difference(keys_a, keys_b)})")
+    for key in SCORING_SETTINGS:
+        if _setting(a, key) != _setting(b, key):
+            raise ValueError(f"different scoring settings: {key} = {_setting(a, key)!r} vs "
+                             f"{_setting(b, key)!r}")
+    for (obj, grasp), ra, rb in zip(keys_a, a["rows"], b["rows"], strict=True):
+        if ra.get("nominal") != rb.get("nominal"):
+            raise ValueError(f"not the same draws: nominal P(FC) of {obj} grasp {grasp} is "
+                             f"{ra.get('nominal')!r} vs {rb.get('nominal')!r}")
+        if not all(isinstance(r.get(method), (int, float)) for r in (ra, rb)):
+            raise ValueError(f"no {method!r} P(FC) for {obj} grasp {grasp}")
+    d = np.array([ra[method] - rb[method] for ra, rb in zip(a["rows"], b["rows"],
+                                                           strict=True)], dtype=float)
+    mean, lo, hi = t_interval(d)
+    t, p = paired_t_test(d)
+    return {"method": method, "grasps": int(d.size), "df": int(d.size - 1),
+            "mean_a": float(np.mean([r[method] for r in a["rows"]])),
+            "mean_b": float(np.mean([r[method] for r in b["rows"]])),
+            "mean": mean, "sd": float(d.std(ddof=1)) if d.size > 1 else math.nan,
+            "ci": [lo, hi], "t": t, "p": p, "wins": int((d > 0).sum()),
+            "losses": int((d < 0).sum()), "ties": int((d == 0).sum()),
+            "statistics": "paired Student-t (df = n - 1), 95% interval, two-sided p; one "
+                          "comparison, no multiplicity adjustment; nominal P(FC) identical "
+                          "on every grasp (common draws)"}
+
+
+def _first_difference(a: list, b: list) -> int:
+    """Index of the first differing entry of two lists (the shorter length if none)."""
+    return next((i for i, (x, y) in enumerate(zip(a, b, strict=False)) if x != y),
+                min(len(a), len(b)))
+
+
+def _setting(result: dict, key: str):
+    """A scoring setting of a result (results from before ``engine`` was recorded: pybullet)."""
+    return result.get(key, "pybullet" if key == "engine" else None)
+
+
 def write_json_atomic(path: Path, payload: dict) -> None:
     """Write payload to path via a temporary file in the same folder and a rename: a reader
     sees the old file or the new one, never half of one."""
@@ -210,21 +272,22 @@ def _umask() -> int:
     return mask
 
 
-def read_result(path: str) -> dict:
-    """An evaluation JSON with per-grasp rows.
+def read_result(path: str, option: str = "--summarize") -> dict:
+    """An evaluation JSON with per-grasp rows (``option`` names the command-line option in
+    the error messages).
 
     Raises:
         UsageError: missing or unreadable file, not JSON, or no rows.
     """
     file = Path(path)
     if not file.is_file():
-        raise UsageError(f"--summarize: no file {path}")
+        raise UsageError(f"{option}: no file {path}")
     try:
         result = json.loads(file.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise UsageError(f"--summarize: {path} is not a readable JSON file ({error})") from None
+        raise UsageError(f"{option}: {path} is not a readable JSON file ({error})") from None
     if not isinstance(result, dict) or not isinstance(result.get("rows"), list):
-        raise UsageError(f"--summarize: {path} has no per-grasp 'rows' list")
+        raise UsageError(f"{option}: {path} has no per-grasp 'rows' list")
     return result
 
 
@@ -455,6 +518,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--summarize", metavar="FILE",
                         help="recompute the summary of an existing result JSON from its "
                              "per-grasp rows and write it back (no evaluation run)")
+    parser.add_argument("--compare", nargs=2, metavar=("A", "B"),
+                        help="paired comparison of the policy column of two result JSONs on "
+                             "the same grasps and draws, A - B per grasp (no evaluation run; "
+                             "--out writes it as JSON)")
     return parser
 
 
@@ -488,11 +555,34 @@ def run_summarize(path: str) -> int:
     return 0
 
 
+def run_compare(path_a: str, path_b: str, out: str | None) -> int:
+    """``--compare A B``: the paired comparison of the policy column, A - B; printed, and
+    written as JSON to ``out`` when given."""
+    a, b = read_result(path_a, "--compare"), read_result(path_b, "--compare")
+    try:
+        result = {"a": path_a, "b": path_b, **compare_results(a, b)}
+    except (ValueError, KeyError, TypeError) as error:
+        raise UsageError(f"--compare: {path_a} vs {path_b}: {error}") from None
+    if out and not Path(out).resolve().parent.is_dir():
+        raise UsageError(f"--out: no folder {Path(out).parent}")
+    print(f"| {result['method']}: A - B | mean A | mean B | mean difference | 95% t-CI | p "
+          f"| wins/losses/ties of A |\n|---|---|---|---|---|---|---|\n"
+          f"| {path_a} - {path_b} (n = {result['grasps']}) | {result['mean_a']:.3f} | "
+          f"{result['mean_b']:.3f} | {result['mean']:+.4f} | {result['ci'][0]:+.4f} .. "
+          f"{result['ci'][1]:+.4f} | {_fmt_p(result['p'])} | "
+          f"{result['wins']}/{result['losses']}/{result['ties']} |")
+    if out:
+        write_json_atomic(Path(out), result)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if args.summarize:
             return run_summarize(args.summarize)
+        if args.compare:
+            return run_compare(*args.compare, args.out)
         check_args(args)
         if args.quick:
             args.draws, args.oracle_draws, args.grid, args.processes = 20, 8, 3, 1

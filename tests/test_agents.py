@@ -122,6 +122,8 @@ COMMITTED = ROOT / "agents" / "models" / "evaluation.json"
 #: the open-world evaluation: held-out imported objects (agents/heldout.yaml), with the
 #: optimizer as the reference
 OPENWORLD = ROOT / "agents" / "models" / "evaluation_openworld.json"
+#: the built-in-only policy scored on the open-world held-out grasps, same draws as OPENWORLD
+OPENWORLD_BUILTIN = ROOT / "agents" / "models" / "evaluation_openworld_builtin_policy.json"
 
 
 def _holm_by_hand(p: list[float]) -> list[float]:
@@ -135,8 +137,9 @@ def _holm_by_hand(p: list[float]) -> list[float]:
     return adjusted
 
 
-@pytest.mark.parametrize(("path", "grasps"), [(COMMITTED, 12), (OPENWORLD, 16)],
-                         ids=["in-distribution", "open-world"])
+@pytest.mark.parametrize(("path", "grasps"), [(COMMITTED, 12), (OPENWORLD, 16),
+                                             (OPENWORLD_BUILTIN, 16)],
+                         ids=["in-distribution", "open-world", "open-world-builtin-policy"])
 def test_committed_evaluation_summary_recomputed_from_rows(path, grasps):
     """The committed summary equals an independent recomputation from its per-grasp rows:
     scipy's t.interval for the means, ttest_rel and its confidence_interval for the paired
@@ -265,6 +268,60 @@ def test_oracle_selection_draws_are_not_scoring_draws():
     scoring = np.vstack([chunk_noise(noise, 0, c, DEFAULT_CHUNK) for c in range(first)])
     selection = chunk_noise(noise, 0, first, 200)
     assert not (selection[:, None, :] == scoring[None, :, :]).all(-1).any()
+
+
+def test_openworld_vs_builtin_policy_paired_comparison(tmp_path, capsys):
+    """The two open-world results share grasps and draws (every column that does not depend on
+    the model is identical, row by row), and --compare's paired comparison of their policy
+    columns equals scipy's ttest_rel and its confidence interval on those rows."""
+    from scipy import stats
+
+    a, b = (json.loads(p.read_text()) for p in (OPENWORLD, OPENWORLD_BUILTIN))
+    assert [(r["object"], r["grasp"]) for r in a["rows"]] == [
+        (r["object"], r["grasp"]) for r in b["rows"]]
+    for column in ("nominal", "random", "spread", "elbow_nominal", "elbow_spread"):
+        assert [r[column] for r in a["rows"]] == [r[column] for r in b["rows"]], column
+    policy_a, policy_b = (np.array([r["policy"] for r in x["rows"]]) for x in (a, b))
+    test = stats.ttest_rel(policy_a, policy_b)
+    ci = test.confidence_interval(0.95)
+    d = policy_a - policy_b
+    out = tmp_path / "compare.json"
+    assert evaluate_module.main(["--compare", str(OPENWORLD), str(OPENWORLD_BUILTIN),
+                                 "--out", str(out)]) == 0
+    assert "| policy: A - B |" in capsys.readouterr().out
+    result = json.loads(out.read_text())
+    assert result["grasps"] == len(d) == 16 and result["df"] == 15
+    assert result["mean"] == pytest.approx(d.mean(), rel=1e-12)
+    assert result["ci"] == pytest.approx([ci.low, ci.high], rel=1e-9)
+    assert result["t"] == pytest.approx(test.statistic, rel=1e-12)
+    assert result["p"] == pytest.approx(test.pvalue, rel=1e-9)
+    assert (result["mean_a"], result["mean_b"]) == pytest.approx(
+        (policy_a.mean(), policy_b.mean()), rel=1e-12)
+    assert (result["wins"], result["losses"], result["ties"]) == (
+        int((d > 0).sum()), int((d < 0).sum()), int((d == 0).sum()))
+
+
+def _tampered(result: dict, change) -> dict:
+    out = json.loads(json.dumps(result))
+    change(out)
+    return out
+
+
+@pytest.mark.parametrize(("change", "needle"), [
+    (lambda r: r["rows"].pop(), "not the same grasps (16 vs 15 rows, first difference at row 15)"),
+    (lambda r: r.update(seed=1), "different scoring settings: seed = 0 vs 1"),
+    (lambda r: r["rows"][2].update(nominal=0.5), "not the same draws: nominal P(FC) of"),
+    (lambda r: r["rows"][3].pop("policy"), "no 'policy' P(FC) for"),
+], ids=["grasps", "seed", "nominal", "no-policy"])
+def test_compare_refuses_unpaired_results_one_line_error(tmp_path, capsys, change, needle):
+    base = json.loads(OPENWORLD.read_text())
+    path_a, path_b, out = tmp_path / "a.json", tmp_path / "b.json", tmp_path / "out.json"
+    path_a.write_text(json.dumps(base))
+    path_b.write_text(json.dumps(_tampered(base, change)))
+    assert evaluate_module.main(["--compare", str(path_a), str(path_b), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and needle in err and err.startswith("evaluate: error: --compare")
+    assert not out.exists()
 
 
 @pytest.mark.expensive
