@@ -13,6 +13,8 @@ What each test proves:
 - ``test_turning_the_scene_leaves_the_grasp``: an invariant of placement: the object turned
   by yaw about the robot's base axis and the first arm joint turned by the same angle give
   the same contacts in the object frame and the same Q (both engines).
+- ``test_screen_never_drops_a_draw_in_the_table``: the probe's forward-kinematics screen
+  changes no verdict (pybullet asked about every draw gives the same answers).
 - the placed copies' shipped grasps, the CLI's one-line errors, the planner avoiding the
   table, and the physics engine marking draws in the table.
 """
@@ -132,6 +134,32 @@ def test_probe_matches_point_sampling(tabled, kin):
         checked += int(clear.sum())
         probe.close()
     assert checked >= 200
+
+
+def test_screen_never_drops_a_draw_in_the_table(tabled):
+    """The forward-kinematics screen before the pybullet queries (bounding balls of the links'
+    collision geometry) changes no verdict: the screened answer equals pybullet asked about
+    every draw, with the hand moved by palm errors and the robot by object errors too."""
+    from kinegrasp_env.world.table_probe import arm_shift
+
+    rng = np.random.default_rng(6)
+    for name in tabled.values():
+        obj = load_object(name)
+        probe = TableProbe(obj)
+        q = noisy(np.array([g.q0 for g in shipped_grasps(name)]), 0.05, 15, seed=7)
+        offsets = np.repeat(np.eye(4)[None], len(q), axis=0)
+        offsets[:, :3, 3] = rng.normal(0.0, 0.01, (len(q), 3))
+        shifts = arm_shift(obj.pose, offsets)
+        roots = shifts @ probe.kin.pose(q, "sdh_base")
+        roots[:, :3, 3] += rng.normal(0.0, 0.005, (len(q), 3))  # a palm-mount error
+        screened = probe.hits(q, roots, shifts)
+        values = probe.model.expand(q)
+        joints = [n for n in probe.hand_joints if n in values]
+        every = np.array([(probe._place(i, values, joints, roots[i], shifts[i]),
+                           probe._touching())[1] for i in range(len(q))])
+        assert 0 < every.sum() < len(q)
+        assert np.array_equal(screened, every), name
+        probe.close()
 
 
 @pytest.mark.parametrize("engine", ["fast", "pybullet"])
