@@ -255,3 +255,16 @@ def test_a_forced_reimport_reaches_every_cache_in_the_process(tmp_path, monkeypa
         assert big[engine]["outcomes"] == cube[engine]["outcomes"]
         assert big[engine]["q_mean"] == pytest.approx(cube[engine]["q_mean"], rel=1e-9)
         assert small[engine]["outcomes"] != big[engine]["outcomes"]
+
+
+def test_every_re_import_is_a_new_version(catalog):
+    """A re-import with the same file and settings, at once (within the same second), still
+    gives the entry a new version: caches and results stores keyed by it never take the new
+    entry for the old one."""
+    from kinegrasp_env.world.objects import object_version
+
+    versions = {object_version(BOX)}
+    for _ in range(3):
+        import_object(catalog / "box6.obj", BOX, force=True)
+        versions.add(object_version(BOX))
+    assert len(versions) == 4

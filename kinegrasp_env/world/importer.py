@@ -28,6 +28,7 @@ import os
 import shutil
 import tempfile
 import time
+import uuid
 from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -270,6 +271,9 @@ def build_entry(source: SourceMesh, prepared: Prepared, name: str, key: str,
         "size": np.asarray(mesh.extents, dtype=float).tolist(), "thickness": width,
         "faces": len(mesh.faces), "parts": len(parts), "deviation": dev.to_dict(),
         "grid": grid_name, "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        # unique per import: the entry's version (world.store.entry_digest) changes with every
+        # re-import, even one within the same second with the same settings
+        "import_id": uuid.uuid4().hex,
         "versions": versions(),
     }
 
