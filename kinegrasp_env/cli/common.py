@@ -107,12 +107,18 @@ def output_file(text: str, name: str) -> Path:
     path = Path(text)
     if path.is_dir():
         raise CLIError(f"{name} {text} is a folder; give a file name")
+    check_parents(path, f"{name} {text}")
+    return path
+
+
+def check_parents(path: Path, label: str) -> None:
+    """CLIError (``label: PARENT is not a folder``) when the nearest existing folder above
+    ``path`` is a file (missing folders are created when the path is written)."""
     for parent in path.absolute().parents:
         if parent.exists():
             if not parent.is_dir():
-                raise CLIError(f"{name} {text}: {parent} is not a folder")
+                raise CLIError(f"{label}: {parent} is not a folder")
             break
-    return path
 
 
 def positive_float(text: str, name: str) -> float:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from kinegrasp_env.cli.common import (
     CLIError,
+    check_parents,
     finite_float,
     grasp_index_help,
     nonnegative,
@@ -114,11 +115,7 @@ def output_folder(text: str) -> Path:
     path = Path(text)
     if path.exists() and not path.is_dir():
         raise CLIError(f"--out {text} is a file; give a folder")
-    for parent in path.absolute().parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise CLIError(f"--out {text}: {parent} is not a folder")
-            break
+    check_parents(path, f"--out {text}")
     return path
 
 
