@@ -19,14 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
-from kinegrasp_env.montecarlo.perturbation import placed_roots, world_to_object
+from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots, world_to_object
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld
-from kinegrasp_env.world.table_probe import arm_shift
 
 OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
 START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)

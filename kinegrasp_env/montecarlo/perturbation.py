@@ -113,6 +113,16 @@ def placed_roots(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray |
     return object_pose @ hand_in_object(flange, object_pose, palm, object_offset)
 
 
+def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.ndarray | None:
+    """(n, 4, 4) M = W_O D^-1 W_O^-1: the rigid move of the whole robot that, the object left
+    at its believed pose W_O (4, 4), puts the robot where it truly is relative to the object
+    (object errors D (n, 4, 4); :func:`placed_roots` moves the hand by the same M); None when
+    there are no object errors."""
+    if object_offset is None:
+        return None
+    return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
+
+
 def world_to_object(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
                     object_offset: np.ndarray | None) -> np.ndarray:
     """M (n, 4, 4) = X W_F^-1: maps a hand link's world pose from the arm's kinematics

@@ -37,16 +37,6 @@ from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
 FLANGE_LINK = "sdh_base"
 
 
-def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.ndarray | None:
-    """(n, 4, 4) M = W_O D^-1 W_O^-1: moves the whole robot so that, the object left at its
-    believed pose W_O (4, 4), the robot stands where it truly is relative to the object
-    (object errors D (n, 4, 4), see :mod:`kinegrasp_env.montecarlo.perturbation`); None when
-    there are no object errors."""
-    if object_offset is None:
-        return None
-    return object_pose @ np.linalg.inv(object_offset) @ np.linalg.inv(object_pose)
-
-
 @lru_cache(maxsize=2)
 def link_radii(urdf: Path) -> dict[str, float]:
     """Per link of ``urdf``, the radius (metres) of a ball about the link frame's origin that
@@ -123,16 +113,18 @@ class TableProbe(BulletWorld):
         self.bodies["hand"], self.hand_joints, _ = load_hand(bullet)
         self.bodies["table"] = table_body(bullet, obj)
         self._arm_moved = False
-        self.box_inverse = np.linalg.inv(obj.table.box(obj.pose)[0])
-        self.half = obj.table.box(obj.pose)[1]
-        arm_radii, hand_radii = link_radii(urdf_path()), link_radii(
-            asset_path("robots", "sdh_hand.urdf"))
-        #: links screened by forward kinematics before pybullet is asked: (composed-robot
-        #: link name, radius); the hand's links as the hand body has them
-        self.screen = [(name, arm_radii[name]) for name in
-                       ("lbr_iiwa_link_0", *(bullet.getJointInfo(arm, j)[12].decode()
-                                             for j in self.arm_links[1:])) if name in arm_radii]
-        self.hand_screen = [(name, r) for name, r in hand_radii.items()]
+        box_pose, self.half = obj.table.box(obj.pose)
+        self.box_inverse = np.linalg.inv(box_pose)
+        # the links screened by forward kinematics before pybullet is asked (names as in the
+        # composed robot, whose hand links the hand body shares) and their balls' radii
+        arm_radii = link_radii(urdf_path())
+        hand_radii = link_radii(asset_path("robots", "sdh_hand.urdf"))
+        self.arm_names = [name for name in ("lbr_iiwa_link_0", *(
+            bullet.getJointInfo(arm, j)[12].decode() for j in self.arm_links[1:]))
+            if name in arm_radii]
+        self.hand_names = list(hand_radii)
+        self.radii = np.array([arm_radii[name] for name in self.arm_names]
+                              + [hand_radii[name] for name in self.hand_names])
 
     def hits(self, q: np.ndarray, roots: np.ndarray | None = None,
              shifts: np.ndarray | None = None) -> np.ndarray:
@@ -142,8 +134,9 @@ class TableProbe(BulletWorld):
         Args:
             q: arm joints and hand DOF (the hand's joints are set from q[:, 7:]).
             roots: (n, 4, 4) world poses of the hand root (default: the flange pose of q).
-            shifts: (n, 4, 4) rigid moves of the whole robot (:func:`arm_shift`; default
-                none); ``roots`` are taken as already moved.
+            shifts: (n, 4, 4) rigid moves of the whole robot (default none; see
+                :func:`kinegrasp_env.montecarlo.perturbation.arm_shift`); ``roots`` are taken
+                as already moved.
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if roots is None:
@@ -163,20 +156,17 @@ class TableProbe(BulletWorld):
         """(n,) bool, False only where no link can reach the table: every link's bounding
         ball (:func:`link_radii`, about the link frame's origin from forward kinematics) is
         clear of the box; pybullet is asked about the others only."""
-        names = [name for name, _ in self.screen] + [name for name, _ in self.hand_screen]
-        poses = self.kin.forward(q, [FLANGE_LINK, *names])
-        arm = np.stack([poses[name][:, :3, 3] for name, _ in self.screen], axis=1)
+        poses = self.kin.forward(q, [FLANGE_LINK, *self.arm_names, *self.hand_names])
+        arm = np.stack([poses[name][:, :3, 3] for name in self.arm_names], axis=1)
         if shifts is not None:
             arm = arm @ np.swapaxes(shifts[:, :3, :3], 1, 2) + shifts[:, None, :3, 3]
         # the hand body's links where the engine puts it: root . flange^-1 . link
         to_root = roots @ np.linalg.inv(poses[FLANGE_LINK])
-        hand = np.stack([(to_root @ poses[FLANGE_LINK if name == "hand_root" else name])
-                         [:, :3, 3] for name, _ in self.hand_screen], axis=1)
+        hand = np.stack([(to_root @ poses[name])[:, :3, 3] for name in self.hand_names], axis=1)
         points = np.concatenate([arm, hand], axis=1)  # (n, L, 3) link origins, world
         local = points @ self.box_inverse[:3, :3].T + self.box_inverse[:3, 3]
         outside = np.linalg.norm(np.maximum(np.abs(local) - self.half, 0.0), axis=2)
-        radii = np.array([r for _, r in self.screen] + [r for _, r in self.hand_screen])
-        return np.any(outside <= radii + 1e-6, axis=1)
+        return np.any(outside <= self.radii + 1e-6, axis=1)
 
     def _place(self, i: int, values: dict[str, np.ndarray], hand_names: list[str],
                root: np.ndarray, shift: np.ndarray | None) -> None:
