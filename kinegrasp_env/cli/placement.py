@@ -12,9 +12,6 @@ import math
 
 from kinegrasp_env.cli.common import CLIError, finite_float, positive_float, reported
 
-#: The default placement's position (metres), as printed (:data:`world.objects.OBJECT_POSITION`).
-DEFAULT_POSITION = (0.6, 0.0, 0.1)
-
 
 def table_setting(args):
     """The table asked for: a ``SupportTable``, None (``--no-table``) or ``KEEP``."""
@@ -56,8 +53,10 @@ def cmd_place(args) -> int:
 def placement_note(row: dict) -> str:
     """``; at (x, y, z) m, yaw d deg`` when not the default placement, ``; on a table X x Y
     m`` when there is a table (empty otherwise), for a catalog row."""
+    from kinegrasp_env.world.objects import OBJECT_POSITION
+
     note = ""
-    if any(abs(a - b) > 1e-9 for a, b in zip(row["position"], DEFAULT_POSITION, strict=True)) \
+    if any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION, strict=True)) \
             or abs(row["yaw"]) > 1e-9:
         x, y, z = row["position"]
         note += f"; at ({x:.3f}, {y:.3f}, {z:.3f}) m, yaw {math.degrees(row['yaw']):.1f} deg"
