@@ -84,3 +84,63 @@ def test_self_motion_result_does_not_depend_on_the_continuation_step(kin):
     assert ok_fine.any()
     np.testing.assert_array_equal(ok_fine, ok_coarse)
     np.testing.assert_allclose(coarse[ok_fine], fine[ok_fine], atol=1e-6)
+
+
+def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng):
+    """The compiled Newton's chain poses, elbow angle and palm error against the batched
+    numpy kinematics (an independent implementation: column-wise rotations from half-angle
+    tangents, not 4x4 products with Rodrigues matrices), rotations near pi included (the
+    other branch of the rotation log). Tolerances 1e-13 (rotation errors: 5e-13, measured 1.0e-13 where the angle is
+    ~2 rad; near pi 1e-10, see below)."""
+    from kinegrasp_env.robot.kinematics import arm_angle_at, axis_angle_matrix
+    from kinegrasp_env.robot.self_motion import (
+        arm_chain,
+        chain_forward,
+        elbow_angle_one,
+        palm_error,
+    )
+
+    ik = ArmIK(kin)
+    chain = arm_chain(kin, PALM_LINK, ik.arm_index)
+    links = [joint.child for joint in kin.chain(PALM_LINK)]
+    q = rng.uniform(model.lower, model.upper, size=(200, model.dof))
+    poses = kin.forward(q, links)
+    targets = kin.pose(rng.uniform(model.lower, model.upper, size=(200, model.dof)), PALM_LINK)
+    targets = np.array(targets)
+    # half of the targets a rotation of pi - 1e-6 .. pi - 1e-5 away from the palm
+    axis = rng.normal(size=(100, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    near_pi = np.stack([axis_angle_matrix(a, np.pi - rng.uniform(1e-6, 1e-5)) for a in axis])
+    targets[:100, :3, :3] = near_pi @ poses[PALM_LINK][:100, :3, :3]
+    expected_err = pose_error(poses[PALM_LINK], targets)
+    expected_psi = arm_angle_at(poses)
+    frames = np.empty((len(links), 4, 4))
+    err = np.empty(6)
+    for i in range(len(q)):
+        chain_forward(chain.origins, chain.axes, chain.index, q[i, ik.arm_index], frames)
+        for j, link in enumerate(links):
+            np.testing.assert_allclose(frames[j], poses[link][i], rtol=0, atol=1e-13)
+        assert abs(elbow_angle_one(frames, chain.marks) - expected_psi[i]) < 1e-13
+        palm_error(frames, targets[i], err)
+        # near pi the angle comes from an arccos at its end: rounding of 1e-16 in the cosine
+        # moves it by ~1e-16 / sin(angle) ~ 1e-11 (measured 2.6e-11)
+        np.testing.assert_allclose(err, expected_err[i], rtol=0, atol=1e-10 if i < 100 else 5e-13)
+    assert np.linalg.norm(expected_err[:100, 3:], axis=1).min() > np.pi - 1e-4
+
+
+def test_compiled_self_motion_converges_on_the_shipped_grasps(kin):
+    """Newton's own residual test: from every shipped grasp, 0.25 rad of elbow motion in one
+    continuation step reaches the palm pose and the angle (checked with the numpy
+    kinematics) where the path stays within the limits."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+    from kinegrasp_env.world.objects import OBJECT_NAMES
+
+    ik = ArmIK(kin)
+    q0 = np.array([g.q0 for name in OBJECT_NAMES for g in shipped_grasps(name)])
+    psi0 = ik.elbow_angle(q0)
+    moved, ok = ik.set_elbow_angle(q0, psi0 + 0.25)
+    assert ok.mean() > 0.8
+    err = pose_error(kin.pose(moved[ok], PALM_LINK), kin.pose(q0[ok], PALM_LINK))
+    assert np.abs(err).max() < 1e-10
+    dpsi = np.angle(np.exp(1j * (ik.elbow_angle(moved[ok]) - psi0[ok])))
+    np.testing.assert_allclose(dpsi, 0.25, rtol=0, atol=1e-10)

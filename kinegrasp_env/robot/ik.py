@@ -4,7 +4,8 @@ The 7 arm joints are redundant for the 6-D palm pose: the elbow can swing about 
 shoulder-wrist line while the palm stays put. :func:`solve_ik` finds one solution (damped
 least squares, joint limits respected, random restarts); :func:`set_elbow_angle` moves a
 solution along its self-motion manifold to a requested elbow angle psi (Newton on the square
-system "palm pose error = 0, psi(q) = psi*"), keeping the palm pose to ~1e-9 m.
+system "palm pose error = 0, psi(q) = psi*", compiled: :mod:`kinegrasp_env.robot.self_motion`),
+keeping the palm pose to ~1e-9 m.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from kinegrasp_env.robot.kinematics import (
     pose_error,
 )
 from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK
+from kinegrasp_env.robot.self_motion import arm_chain, self_motion_newton
 
 POSITION_TOL = 1e-7  # metres
 ORIENTATION_TOL = 1e-7  # radians
@@ -58,6 +60,7 @@ class ArmIK:
         self.arm_index = kin.model.index(arm_joints)
         self.lower = kin.model.lower[self.arm_index]
         self.upper = kin.model.upper[self.arm_index]
+        self._chain = arm_chain(kin, link, self.arm_index)
 
     def _errors(self, q: np.ndarray, target: np.ndarray) -> np.ndarray:
         return pose_error(self.kin.pose(q, self.link), target)
@@ -135,44 +138,6 @@ class ArmIK:
         """Elbow angle psi (n,) of configurations (n, dof); see ``Kinematics.arm_angle``."""
         return self.kin.arm_angle(q)
 
-    def _psi_gradient(self, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
-        """(n, 7) d psi / d q_arm by central differences (batched in one FK call)."""
-        n, k = q.shape[0], self.arm_index.size
-        probes = np.repeat(q[:, None, :], 2 * k, axis=1)
-        for i, j in enumerate(self.arm_index):
-            probes[:, 2 * i, j] += h
-            probes[:, 2 * i + 1, j] -= h
-        psi = self.kin.arm_angle(probes.reshape(-1, q.shape[1])).reshape(n, k, 2)
-        diff = np.angle(np.exp(1j * (psi[..., 0] - psi[..., 1])))
-        return diff / (2 * h)
-
-    def _newton(self, trial: np.ndarray, target: np.ndarray, goal: np.ndarray,
-                iterations: int) -> tuple[np.ndarray, np.ndarray]:
-        """Newton on "palm pose error = 0, psi(q) = goal" from configurations trial (m, dof)
-        for palm targets (m, 4, 4) and elbow angles goal (m,): (q (m, dof), palm pose error
-        (m, 6) there). One forward-kinematics call per iteration gives the error, psi and
-        the Jacobian (the same numbers as separate calls)."""
-        trial = trial.copy()
-        links = list(dict.fromkeys(self.kin.jacobian_links(self.link) + list(ARM_ANGLE_LINKS)))
-        err = None
-        for _ in range(iterations):
-            poses = self.kin.forward(trial, links)
-            err = pose_error(poses[self.link], target)
-            dpsi = np.angle(np.exp(1j * (goal - arm_angle_at(poses))))
-            residual = np.concatenate([err, dpsi[:, None]], axis=1)
-            if np.all(np.linalg.norm(residual, axis=1) < 1e-11):
-                return trial, err
-            jac = np.concatenate(
-                [self.kin.jacobian_at(poses, self.link)[:, :, self.arm_index],
-                 self._psi_gradient(trial)[:, None, :]], axis=1)
-            try:
-                step = np.linalg.solve(jac, residual[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                step = (np.linalg.pinv(jac) @ residual[..., None])[..., 0]
-            step = np.where(np.isfinite(step), step, 0.0)
-            trial[:, self.arm_index] += np.clip(step, -0.2, 0.2)
-        return trial, self._errors(trial, target)
-
     def set_elbow_angle(self, q: np.ndarray, psi: np.ndarray | float, *, max_step: float = 0.3,
                         newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
         """Move along the self-motion manifold to elbow angle ``psi``, palm pose fixed.
@@ -201,7 +166,9 @@ class ArmIK:
         limits_ok = self.kin.model.within_limits
         for s in range(1, steps + 1):
             goal = psi0 + delta * s / steps
-            trial, err = self._newton(q[ok], target[ok], goal[ok], newton_iterations)
+            trial = q[ok].copy()
+            trial[:, self.arm_index], err = self_motion_newton(
+                self._chain, trial[:, self.arm_index], target[ok], goal[ok], newton_iterations)
             good = (np.linalg.norm(err, axis=1) < 1e-9) & limits_ok(trial)
             idx = np.flatnonzero(ok)
             q[idx[good]] = trial[good]

@@ -101,7 +101,7 @@ Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
 SNAP_TOL = 1e-10
 
 
-def _snap(rot: np.ndarray) -> np.ndarray:
+def snap_rotation(rot: np.ndarray) -> np.ndarray:
     """Round entries within SNAP_TOL of 0 or +-1 to exactly that value.
 
     URDF files write right angles to ~11 digits (1.57079632679), leaving 1e-11-sized
@@ -167,7 +167,7 @@ class Kinematics:
         # as their _recipe, the constant rotation also as a matrix (prismatic joints)
         self._plan = []
         for joint in model.joints:
-            rot = _snap(joint.origin[:3, :3])
+            rot = snap_rotation(joint.origin[:3, :3])
             if joint.movable and joint.kind != "prismatic":
                 q_frame = _axis_frame(joint.axis)
                 back = None if np.array_equal(q_frame, np.eye(3)) else _recipe(q_frame.T)

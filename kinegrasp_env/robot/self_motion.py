@@ -1,0 +1,265 @@
+"""Newton on the arm's self-motion as one compiled loop: the palm held, the elbow angle moved.
+
+:meth:`kinegrasp_env.robot.ik.ArmIK.set_elbow_angle` solves, at each continuation step, the
+square system "palm pose error = 0 (6 rows), elbow angle - goal = 0 (1 row)" in the 7 arm
+joints. For one configuration (what the environment asks for at every step) the batched
+numpy kinematics spend almost all their time in per-call overhead (~3 ms a step, ~30 of
+them for a curve of elbow angles); here each row runs its whole Newton loop compiled: the
+chain base -> palm as 4x4 products, the palm's geometric Jacobian, the elbow angle's
+gradient by central differences, a 7x7 solve.
+
+The quantities are those of :mod:`kinegrasp_env.robot.kinematics` (``pose_error``,
+``elbow_angle``, ``jacobian_at``), written for one row; ``tests/test_ik.py`` checks the
+results against that numpy kinematics (an independent implementation: column-wise batched
+rotations), and against this kernel run interpreted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env import jit
+from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, snap_rotation
+
+#: Newton stops where the residual (palm error, metres and radians, and the elbow angle
+#: error, radians) has a norm below this.
+RESIDUAL_TOL = 1e-11
+#: Largest change of one joint per Newton iteration (radians).
+MAX_JOINT_STEP = 0.2
+#: Central-difference step of the elbow angle's gradient (radians).
+GRADIENT_STEP = 1e-6
+
+
+@dataclass(frozen=True, eq=False)
+class ArmChain:
+    """The serial chain from the robot's base to one link, as arrays for the kernel.
+
+    Attributes:
+        origins: (J, 4, 4) each joint's fixed origin transform (parent link -> joint frame;
+            rotation entries within 1e-10 of 0 or +-1 set to that value, as
+            :func:`kinegrasp_env.robot.kinematics.snap_rotation` does for the numpy FK).
+        axes: (J, 3) unit joint axes in the joint frame.
+        index: (J,) int64: the arm joint (0..6) that drives each joint, -1 for fixed joints.
+        marks: (3,) int64: the joints whose child frames are the shoulder, elbow and wrist
+            (:data:`kinegrasp_env.robot.kinematics.ARM_ANGLE_LINKS`).
+    """
+
+    origins: np.ndarray
+    axes: np.ndarray
+    index: np.ndarray
+    marks: np.ndarray
+
+
+def arm_chain(kin: Kinematics, link: str, arm_index: np.ndarray) -> ArmChain:
+    """The chain to ``link`` whose movable joints are the actuated joints ``arm_index``
+    (driven directly: multiplier 1, offset 0). ValueError for any other chain."""
+    drivers = kin.model.drivers()
+    chain = kin.chain(link)
+    arm = [int(i) for i in arm_index]
+    index = []
+    for joint in chain:
+        if not joint.movable:
+            index.append(-1)
+            continue
+        source, mult, off = drivers[joint.name]
+        driven = source in arm and mult == 1.0 and off == 0.0
+        if joint.kind not in ("revolute", "continuous") or not driven:
+            raise ValueError(f"joint {joint.name!r} is not an arm joint driven directly")
+        index.append(arm.index(source))
+    children = [joint.child for joint in chain]
+    missing = [name for name in ARM_ANGLE_LINKS if name not in children]
+    if missing:
+        raise ValueError(f"the chain to {link!r} does not pass {missing}")
+    origins = np.array([j.origin for j in chain], dtype=float)
+    for origin in origins:  # URDF right angles rounded as the numpy kinematics round them
+        origin[:3, :3] = snap_rotation(origin[:3, :3])
+    return ArmChain(np.ascontiguousarray(origins),
+                    np.ascontiguousarray([j.axis for j in chain], dtype=float),
+                    np.array(index, dtype=np.int64),
+                    np.array([children.index(name) for name in ARM_ANGLE_LINKS],
+                             dtype=np.int64))
+
+
+@jit.kernel
+def chain_forward(origins, axes, index, q, frames):
+    """Poses (J, 4, 4) of every joint's child frame at arm joints q (7,) into frames."""
+    rot = np.empty((3, 3))
+    parent = np.eye(4)
+    for j in range(origins.shape[0]):
+        # pose = parent @ origin
+        for r in range(4):
+            for c in range(4):
+                frames[j, r, c] = (parent[r, 0] * origins[j, 0, c]
+                                   + parent[r, 1] * origins[j, 1, c]
+                                   + parent[r, 2] * origins[j, 2, c]
+                                   + parent[r, 3] * origins[j, 3, c])
+        if index[j] >= 0:  # then @ the joint's rotation about its axis (Rodrigues)
+            x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
+            angle = q[index[j]]
+            co, si = np.cos(angle), np.sin(angle)
+            t = 1.0 - co
+            rot[0, 0], rot[0, 1], rot[0, 2] = co + x * x * t, x * y * t - z * si, \
+                x * z * t + y * si
+            rot[1, 0], rot[1, 1], rot[1, 2] = y * x * t + z * si, co + y * y * t, \
+                y * z * t - x * si
+            rot[2, 0], rot[2, 1], rot[2, 2] = z * x * t - y * si, z * y * t + x * si, \
+                co + z * z * t
+            for r in range(3):
+                a0, a1, a2 = frames[j, r, 0], frames[j, r, 1], frames[j, r, 2]
+                for c in range(3):
+                    frames[j, r, c] = a0 * rot[0, c] + a1 * rot[1, c] + a2 * rot[2, c]
+        for r in range(4):
+            for c in range(4):
+                parent[r, c] = frames[j, r, c]
+
+
+@jit.kernel
+def elbow_angle_one(frames, marks):
+    """Elbow angle (radians) from the shoulder, elbow and wrist origins in frames (J, 4, 4);
+    :func:`kinegrasp_env.robot.kinematics.elbow_angle` for one row."""
+    s, e, w = marks[0], marks[1], marks[2]
+    ax, ay, az = (frames[w, 0, 3] - frames[s, 0, 3], frames[w, 1, 3] - frames[s, 1, 3],
+                  frames[w, 2, 3] - frames[s, 2, 3])
+    norm = np.sqrt(ax * ax + ay * ay + az * az)
+    ax, ay, az = ax / norm, ay / norm, az / norm
+    rx, ry, rz = -az * ax, -az * ay, 1.0 - az * az  # z minus its part along the axis
+    if np.sqrt(rx * rx + ry * ry + rz * rz) <= 1e-9:
+        rx, ry, rz = 1.0 - ax * ax, -ax * ay, -ax * az  # x minus its part along the axis
+    norm = np.sqrt(rx * rx + ry * ry + rz * rz)
+    rx, ry, rz = rx / norm, ry / norm, rz / norm
+    sx, sy, sz = ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx
+    ex, ey, ez = (frames[e, 0, 3] - frames[s, 0, 3], frames[e, 1, 3] - frames[s, 1, 3],
+                  frames[e, 2, 3] - frames[s, 2, 3])
+    return np.arctan2(ex * sx + ey * sy + ez * sz, ex * rx + ey * ry + ez * rz)
+
+
+@jit.kernel
+def rotation_log_one(m, out):
+    """Rotation vector (axis * angle, radians) of rotation m (3, 3) into out[3:6];
+    :func:`kinegrasp_env.robot.kinematics.rotation_log` for one rotation."""
+    cos_angle = min(max((m[0, 0] + m[1, 1] + m[2, 2] - 1.0) / 2.0, -1.0), 1.0)
+    angle = np.arccos(cos_angle)
+    vx, vy, vz = m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]
+    sin_angle = np.sin(angle)
+    if sin_angle < 1e-6:
+        scale = 0.5 + angle * angle / 12.0
+    else:
+        scale = angle / (2.0 * sin_angle)
+    out[3], out[4], out[5] = vx * scale, vy * scale, vz * scale
+    if angle > np.pi - 1e-4:  # near pi: the axis from the symmetric part
+        k = 0
+        best = -np.inf
+        for i in range(3):
+            d = (m[i, i] - cos_angle) / (1.0 - cos_angle)
+            if d > best:
+                best, k = d, i
+        row = np.empty(3)
+        for c in range(3):
+            row[c] = (0.5 * (m[k, c] + m[c, k]) - (cos_angle if c == k else 0.0)) / (
+                1.0 - cos_angle)
+        norm = np.sqrt(row[0] ** 2 + row[1] ** 2 + row[2] ** 2)
+        sign = np.sign((row[0] * vx + row[1] * vy + row[2] * vz) / norm)
+        if sign == 0.0:
+            sign = 1.0
+        for c in range(3):
+            out[3 + c] = row[c] / norm * angle * sign
+
+
+@jit.kernel
+def palm_error(frames, target, out):
+    """Pose error of the chain's last frame against target (4, 4) into out[0:6]
+    (:func:`kinegrasp_env.robot.kinematics.pose_error`: position, then the rotation vector
+    of R_target R^T)."""
+    last = frames.shape[0] - 1
+    m = np.empty((3, 3))
+    for r in range(3):
+        out[r] = target[r, 3] - frames[last, r, 3]
+        for c in range(3):
+            m[r, c] = (target[r, 0] * frames[last, c, 0] + target[r, 1] * frames[last, c, 1]
+                       + target[r, 2] * frames[last, c, 2])
+    rotation_log_one(m, out)
+
+
+@jit.kernel
+def newton_row(origins, axes, index, marks, q, target, goal, iterations, err):
+    """Newton on "palm error = 0, elbow angle = goal" from arm joints q (7,), in place;
+    the palm error (6,) at the result into err."""
+    n_joints = origins.shape[0]
+    frames = np.empty((n_joints, 4, 4))
+    probe = np.empty((n_joints, 4, 4))
+    jac = np.empty((7, 7))
+    residual = np.empty(7)
+    shifted = np.empty(7)
+    last = n_joints - 1
+    for _ in range(iterations):
+        chain_forward(origins, axes, index, q, frames)
+        palm_error(frames, target, residual)
+        diff = goal - elbow_angle_one(frames, marks)
+        residual[6] = np.arctan2(np.sin(diff), np.cos(diff))
+        if np.sqrt(np.sum(residual * residual)) < RESIDUAL_TOL:
+            break
+        jac[:, :] = 0.0
+        for j in range(n_joints):  # geometric Jacobian of the palm origin and frame
+            k = index[j]
+            if k < 0:
+                continue
+            x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
+            wx = frames[j, 0, 0] * x + frames[j, 0, 1] * y + frames[j, 0, 2] * z
+            wy = frames[j, 1, 0] * x + frames[j, 1, 1] * y + frames[j, 1, 2] * z
+            wz = frames[j, 2, 0] * x + frames[j, 2, 1] * y + frames[j, 2, 2] * z
+            dx, dy, dz = (frames[last, 0, 3] - frames[j, 0, 3],
+                          frames[last, 1, 3] - frames[j, 1, 3],
+                          frames[last, 2, 3] - frames[j, 2, 3])
+            jac[0, k] += wy * dz - wz * dy
+            jac[1, k] += wz * dx - wx * dz
+            jac[2, k] += wx * dy - wy * dx
+            jac[3, k] += wx
+            jac[4, k] += wy
+            jac[5, k] += wz
+        for k in range(7):  # the elbow angle's gradient, by central differences
+            shifted[:] = q
+            shifted[k] = q[k] + GRADIENT_STEP
+            chain_forward(origins, axes, index, shifted, probe)
+            plus = elbow_angle_one(probe, marks)
+            shifted[k] = q[k] - GRADIENT_STEP
+            chain_forward(origins, axes, index, shifted, probe)
+            diff = plus - elbow_angle_one(probe, marks)
+            jac[6, k] = np.arctan2(np.sin(diff), np.cos(diff)) / (2.0 * GRADIENT_STEP)
+        step = solve_or_least_squares(jac, residual)
+        for k in range(7):
+            if np.isfinite(step[k]):
+                q[k] += min(max(step[k], -MAX_JOINT_STEP), MAX_JOINT_STEP)
+    chain_forward(origins, axes, index, q, frames)
+    palm_error(frames, target, err)
+
+
+@jit.kernel
+def solve_or_least_squares(jac, residual):
+    """jac^-1 residual, or the least-squares step (pseudo-inverse) where jac is singular."""
+    try:
+        return np.linalg.solve(jac, residual)
+    except Exception:  # numba raises a LinAlgError it cannot name here
+        return np.linalg.pinv(jac) @ residual
+
+
+@jit.kernel
+def newton_rows(origins, axes, index, marks, q, target, goal, iterations, err):
+    """:func:`newton_row` for every row: q (m, 7) in place, target (m, 4, 4), goal (m,),
+    err (m, 6)."""
+    for i in range(q.shape[0]):
+        newton_row(origins, axes, index, marks, q[i], target[i], goal[i], iterations, err[i])
+
+
+def self_motion_newton(chain: ArmChain, q_arm: np.ndarray, target: np.ndarray,
+                       goal: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """Newton from arm joints q_arm (m, 7) (radians) towards palm poses target (m, 4, 4)
+    (world frame, metres) and elbow angles goal (m,) (radians): (arm joints (m, 7), palm
+    pose error (m, 6) there: metres, then radians)."""
+    q = np.array(q_arm, dtype=float, order="C")
+    err = np.empty((q.shape[0], 6))
+    newton_rows(chain.origins, chain.axes, chain.index, chain.marks, q,
+                np.ascontiguousarray(target, dtype=float),
+                np.ascontiguousarray(goal, dtype=float), int(iterations), err)
+    return q, err
