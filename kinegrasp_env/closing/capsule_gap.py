@@ -7,7 +7,12 @@ segment is at least (smallest sample) - (half the sample spacing). When that bou
 otherwise the minimum is refined by golden-section search over the two sample intervals
 around the smallest sample, then over every other interval whose Lipschitz bound
 (v_j + v_j+1 - spacing) / 2 is still below the best value found (:data:`REFINE` steps each:
-0.1 mm of a 10 cm link; the distance is flat at its minimum, so it changes far less).
+the minimum located to 0.5 mm of a 10 cm link, its value within 0.27 mm where the distance
+has a kink and far closer where it is flat at its minimum). The value only sizes the
+conservative steps and decides whether a gap is within the band where the exact distance
+is computed (1 mm, against a contact tolerance of 0.2 mm): every contact decision is exact.
+14 steps (0.03 mm) gave the same contacts found on 9,600 draws of the four objects, points
+within 7.4e-10 m, at 5-21% more closing time (``python benchmarks/bench_env.py``).
 
 Two implementations with the same arithmetic: :func:`capsule_gaps_numpy` (vectorized over
 capsules) and :func:`capsule_gaps_numba` (a compiled loop, used when numba is installed);
@@ -26,7 +31,7 @@ SAMPLES = 9
 #: Gaps (lower bounds) above this are not refined (metres).
 NEAR = 2e-3
 #: Golden-section steps of the refinement.
-REFINE = 14
+REFINE = 8
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
 
 

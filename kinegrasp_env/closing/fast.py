@@ -51,10 +51,14 @@ from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sdf import DistanceGrid
 
-#: Spacing of the sample points on the palm and knuckle cylinders (metres), and of the
-#: coarse pass that decides whether the fine one is needed.
+#: Spacing of the sample points on the palm and knuckle cylinders (metres), of the
+#: coarse pass that decides whether the fine one is needed, and of the screen that decides
+#: whether the coarse one is (each pass's samples lie within its spacing of any surface
+#: point, and the distance is 1-Lipschitz: a pass can only send on what a finer one could
+#: flag).
 CYLINDER_SPACING = 2e-3
 COARSE_SPACING = 1.2e-2
+SCREEN_SPACING = 3e-2
 #: Capsule gaps within +-this (metres) are computed exactly: above the grid's largest
 #: measured error (0.35 mm), so every decision near contact is the exact one.
 GRID_EXACT_BAND = 1e-3
@@ -115,8 +119,8 @@ class FastHand:
         shapes = {s.link: s for s in hand_shapes()}
         self.capsules = [[shapes[f[2]], shapes[f[3]]] for f in FINGERS]
         self.cylinders = [s for s in hand_shapes() if s.kind == "cylinder"]
-        self.samples = [(s.surface_samples(COARSE_SPACING), s.surface_samples(CYLINDER_SPACING))
-                        for s in self.cylinders]
+        self.samples = [(s.surface_samples(SCREEN_SPACING), s.surface_samples(COARSE_SPACING),
+                         s.surface_samples(CYLINDER_SPACING)) for s in self.cylinders]
         self.axis_p = [self.model.joint(f[0]).axis for f in FINGERS]
         self.axis_d = [self.model.joint(f[1]).axis for f in FINGERS]
         self.distal_origin = [self.model.joint(f[1]).origin for f in FINGERS]
@@ -163,10 +167,15 @@ class FastHand:
         """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL."""
         n = next(iter(frames.values())).shape[0]
         hit = np.zeros(n, dtype=bool)
-        for shape, (coarse, fine) in zip(self.cylinders, self.samples, strict=True):
+        for shape, (screen, coarse, fine) in zip(self.cylinders, self.samples, strict=True):
             pose = frames[shape.link]
+            # every coarse sample lies within SCREEN_SPACING of a screen sample: the coarse
+            # check below cannot pass where the screen's distance exceeds its threshold by that
+            near = np.flatnonzero(posed_min_distance(self.grid, pose, screen, self.kernel)
+                                  < COARSE_SPACING - START_TOL + SCREEN_SPACING)
             # every surface point lies within COARSE_SPACING of a coarse sample
-            check = posed_min_distance(self.grid, pose, coarse, self.kernel) < (
+            check = np.zeros(n, dtype=bool)
+            check[near] = posed_min_distance(self.grid, pose[near], coarse, self.kernel) < (
                 COARSE_SPACING - START_TOL)
             rows = np.flatnonzero(check & ~hit)
             if rows.size:

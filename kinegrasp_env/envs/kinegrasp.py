@@ -202,6 +202,7 @@ class KineGraspEnv(gym.Env):
         self._viewer = None
         self.grasp: Grasp | None = None
         self.q = None
+        self._psi = 0.0  # elbow angle of self.q (radians), set by every observation
         self.steps = 0
 
     def _action_space(self) -> spaces.Box:
@@ -294,7 +295,7 @@ class KineGraspEnv(gym.Env):
         jac = self._kin.jacobian_at(poses, PALM_LINK)[0][:, :7]
         jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
         spread = np.sqrt(np.diag(jac @ jac.T))
-        psi = float(arm_angle_at(poses)[0])
+        psi = self._psi = float(arm_angle_at(poses)[0])
         onehot = np.array([self.noise.kind == k for k in DISTRIBUTIONS], dtype=float)
         obs = np.concatenate([
             self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [joint_sigma(self.noise)
@@ -326,7 +327,7 @@ class KineGraspEnv(gym.Env):
         reward = info["p_fc"] + self.q_weight * info["q_mean"] - penalty
         info.update({"reward_p_fc": info["p_fc"], "reward_q": self.q_weight * info["q_mean"],
                      "reward_limit_penalty": -penalty, "within_limits": within_limits,
-                     "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0]),
+                     "elbow_angle": self._psi,
                      "object": self.grasp.object, "grasp": self.grasp.id,
                      **noise_info(self.noise)})
         return float(reward), info
@@ -355,13 +356,14 @@ class KineGraspEnv(gym.Env):
         if self.grasp is None:
             raise RuntimeError("call reset() before step()")
         action = np.clip(np.asarray(action, dtype=np.float64).ravel(), -1.0, 1.0)
-        psi = float(self.ik.elbow_angle(self.q[None])[0]) + self.step_size * float(action[0])
-        within = self._move_to(psi)
+        # the current elbow angle: the one the last observation computed (self._psi)
+        within = self._move_to(self._psi + self.step_size * float(action[0]))
         self.steps += 1
+        observation = self._observation()  # (sets self._psi to the new configuration's)
         reward, info = self._reward(within)
         terminated = bool(action[1] > 0.0)
         truncated = self.steps >= self.max_steps and not terminated
-        return self._observation(), reward, terminated, truncated, info
+        return observation, reward, terminated, truncated, info
 
     def render(self):
         if self.render_mode is None or self.grasp is None:
@@ -421,5 +423,6 @@ class KineGraspSelectEnv(KineGraspEnv):
             raise RuntimeError("call reset() before step()")
         within = self._move_to(self.action_angle(action))
         self.steps += 1
+        observation = self._observation()  # (sets self._psi, which the reward's info reports)
         reward, info = self._reward(within)
-        return self._observation(), reward, True, False, info
+        return observation, reward, True, False, info

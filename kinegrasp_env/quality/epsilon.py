@@ -180,9 +180,8 @@ def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: 
         # the certified expansion first: the fastest exact path wherever it fits (3 x 8:
         # 39 us per engine draw, the tables 72)
         q, certified = epsilon_epa_batch(np.ascontiguousarray(w))
-        for i in np.flatnonzero(certified):
-            q[i] = _thresholded(q[i], w[i])
-        out[certified] = q[certified]
+        rows = np.flatnonzero(certified)
+        out[rows] = thresholded_batch(q[rows], w[rows])
         todo = todo[~certified]
     if method != "qhull" and todo.size and uses_tables(k, num_edges, friction, norm):
         from kinegrasp_env.quality.expansion import outside_batch
@@ -204,12 +203,17 @@ def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: 
 def _thresholded(q: float, w: np.ndarray) -> float:
     """An exact path's Q of wrenches w (N, 6) under the reference's rules: 0 below FC_TOL of
     the wrench scale, and 0 for a barely positive Q of a (numerically) rank-deficient set."""
-    scale = float(np.abs(w).max())
-    if not q > FC_TOL * scale:
-        return 0.0
-    if q < 1e-8 * scale and _rank_deficient(w):
-        return 0.0
-    return float(q)
+    return float(thresholded_batch(np.array([q]), w[None])[0])
+
+
+def thresholded_batch(q: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """:func:`_thresholded` of B grasps at once: Q (B,) of wrenches w (B, N, 6) -> (B,)."""
+    scale = np.abs(w).max(axis=(1, 2)) if w.shape[0] else np.empty(0)
+    out = np.where(q > FC_TOL * scale, q, 0.0)
+    for i in np.flatnonzero((out > 0.0) & (out < 1e-8 * scale)):  # rare: barely positive
+        if _rank_deficient(w[i]):
+            out[i] = 0.0
+    return out
 
 
 def _single_l1(w: np.ndarray, num_contacts: int) -> float:
