@@ -90,8 +90,8 @@ def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng)
     """The compiled Newton's chain poses, elbow angle and palm error against the batched
     numpy kinematics (an independent implementation: column-wise rotations from half-angle
     tangents, not 4x4 products with Rodrigues matrices), rotations near pi included (the
-    other branch of the rotation log). Tolerances 1e-13 (rotation errors: 5e-13, measured 1.0e-13 where the angle is
-    ~2 rad; near pi 1e-10, see below)."""
+    other branch of the rotation log). Tolerances 1e-13 (rotation errors: 5e-13, measured
+    1.0e-13 where the angle is ~2 rad; near pi 1e-10, see below)."""
     from kinegrasp_env.robot.kinematics import arm_angle_at, axis_angle_matrix
     from kinegrasp_env.robot.self_motion import (
         arm_chain,
