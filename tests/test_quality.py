@@ -341,3 +341,43 @@ def test_batch_thresholding_applies_the_single_grasp_rule():
     expected = [_thresholded(qi, wi) for qi, wi in zip(q, w, strict=True)]
     assert expected == [0.0, 0.0, q[2], 0.0, 0.0, q[5], 0.3]
     np.testing.assert_array_equal(thresholded_batch(q, w), expected)
+
+
+def test_plain_input_fast_checks_match_the_full_checks():
+    """The compiled pass for plain input (float64 arrays) against the full numpy checks (taken
+    for the same values given as lists): bit-identical unit normals over lengths 1e-6..1e6,
+    single and batched; huge normals (whose squares overflow) and every bad input still go
+    through the full checks (same results, same errors); the float-and-tuple fast path of
+    the torque scale and centre gives the arrays per_row gives."""
+    from kinegrasp_env.quality.wrenches import (
+        _plain_contacts,
+        check_contacts,
+        per_row,
+        scale_center,
+    )
+
+    rng = np.random.default_rng(11)
+    for batched, shape in ((False, (5, 3)), (True, (40, 4, 3))):
+        points = rng.normal(size=shape)
+        normals = rng.normal(size=shape) * 10.0 ** rng.uniform(-6, 6, size=(*shape[:-1], 1))
+        fast = check_contacts(points, normals, batched)
+        full = check_contacts(points.tolist(), normals.tolist(), batched)
+        assert _plain_contacts(points, normals, batched) is not None
+        np.testing.assert_array_equal(fast[0], full[0])
+        np.testing.assert_array_equal(fast[1], full[1])
+    huge = np.array([[1e200, 0.0, 0.0], [0.0, 3e300, 4e300]])
+    assert _plain_contacts(np.zeros((2, 3)), huge, False) is None
+    np.testing.assert_allclose(check_contacts(np.zeros((2, 3)), huge, False)[1],
+                               [[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]], rtol=1e-15)
+    for bad_points, bad_normals, message in (
+            (np.array([[np.nan, 0, 0]]), np.ones((1, 3)), "points contains NaN"),
+            (np.zeros((1, 3)), np.zeros((1, 3)), "has zero length"),
+            (np.zeros((2, 3)), np.ones((3, 3)), "differ in shape")):
+        with pytest.raises(ValueError, match=message):
+            check_contacts(bad_points, bad_normals, False)
+    scale, center = scale_center(20.0, (0.1, -0.2, 0.3), 4)
+    np.testing.assert_array_equal(scale, per_row(np.float64(20.0), 4, (), "torque_scale"))
+    np.testing.assert_array_equal(center, per_row(np.array([0.1, -0.2, 0.3]), 4, (3,), "c"))
+    assert scale_center(20.0, (0.1, -0.2, 0.3), 1)[1].shape == (1, 3)
+    with pytest.raises(ValueError, match="torque_scale must be > 0"):
+        scale_center(-1.0, (0.0, 0.0, 0.0), 1)

@@ -56,7 +56,46 @@ def normal_lengths(normals: np.ndarray) -> np.ndarray:
     return lengths
 
 
+@jit.kernel(_nrt=False)
+def unit_normals_into(points, normals, out):
+    """Whether every entry of points and normals (..., 3 flattened to (N, 3)) is finite and
+    every normal's length (np.linalg.norm's arithmetic: sqrt((x x + y y) + z z)) is finite and
+    at least 1e-12; where so, the unit normals (normals / lengths) are in out (N, 3)."""
+    for i in range(points.shape[0]):
+        for j in range(3):
+            if not np.isfinite(points[i, j]):
+                return False
+    for i in range(normals.shape[0]):
+        x, y, z = normals[i, 0], normals[i, 1], normals[i, 2]
+        length = np.sqrt(x * x + y * y + z * z)
+        if not np.isfinite(length) or length < 1e-12:
+            return False
+        out[i, 0], out[i, 1], out[i, 2] = x / length, y / length, z / length
+    return True
+
+
+def _plain_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`check_contacts`'s result in one compiled pass for the common input (float64
+    C-ordered arrays of the right shapes, finite, normals neither tiny nor huge); None for
+    anything else, which the full checks then handle (and word the error of)."""
+    want = 3 if batched else 2
+    if not (type(points) is np.ndarray and type(normals) is np.ndarray
+            and points.dtype == np.float64 and normals.dtype == np.float64
+            and points.ndim == want and points.shape == normals.shape
+            and points.shape[-1] == 3 and points.shape[-2] >= 1
+            and points.flags.c_contiguous and normals.flags.c_contiguous):
+        return None
+    unit = np.empty_like(normals)
+    if not unit_normals_into(points.reshape(-1, 3), normals.reshape(-1, 3),
+                             unit.reshape(-1, 3)):
+        return None
+    return points, unit
+
+
 def check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarray]:
+    plain = _plain_contacts(points, normals, batched)
+    if plain is not None:
+        return plain
     points = finite_array(points, "points")
     normals = finite_array(normals, "normals")
     want = 3 if batched else 2
@@ -222,6 +261,14 @@ def wrench_matrix(points, normals, *, friction: float = 0.5, num_edges: int = 8,
 
 
 def scale_center(torque_scale, center, batch: int) -> tuple[np.ndarray, np.ndarray]:
+    if type(torque_scale) is float and math.isfinite(torque_scale) and torque_scale > 0 \
+            and type(center) in (tuple, list) and len(center) == 3 \
+            and all(type(c) is float and math.isfinite(c) for c in center):
+        # the common call (a float and a 3-tuple of floats), without numpy's checks: the
+        # arrays per_row makes of them (3 us of a single grasp's ~30)
+        row = np.array(center).reshape(1, 3)
+        return (np.full(batch, torque_scale),
+                row if batch == 1 else np.broadcast_to(row, (batch, 3)))
     scale = per_row(torque_scale, batch, (), "torque_scale")
     if (scale <= 0).any():
         raise ValueError(f"torque_scale must be > 0, got {np.min(scale)!r}")
