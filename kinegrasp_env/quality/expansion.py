@@ -268,13 +268,27 @@ def _wrench_scale(w: np.ndarray) -> float:
 
 
 @jit.kernel
-def _new_polytope(n: int):
-    """Empty tables of a polytope of n wrenches: (verts (F, 6) vertex ids, normal (F, 6)
-    unit outward normals, offset (F,) (a . x = b), alive (F,), interior (6,) a point inside,
-    used (n,) wrenches that are vertices, visible (F,) scratch), F = :data:`MAX_FACETS`."""
+def _new_polytope():
+    """Tables of a polytope of up to :data:`MAX_POINTS` wrenches: (verts (F, 6) vertex ids,
+    normal (F, 6) unit outward normals, offset (F,) (a . x = b), alive (F,), interior (6,) a
+    point inside, used (MAX_POINTS,) wrenches that are vertices, visible (F,) scratch), F =
+    :data:`MAX_FACETS`; :func:`_clear_polytope` empties them for the next wrench set."""
     return (np.empty((MAX_FACETS, 6), np.int64), np.empty((MAX_FACETS, 6)),
             np.empty(MAX_FACETS), np.zeros(MAX_FACETS, np.bool_), np.zeros(6),
-            np.zeros(n, np.bool_), np.zeros(MAX_FACETS, np.bool_))
+            np.zeros(MAX_POINTS, np.bool_), np.zeros(MAX_FACETS, np.bool_))
+
+
+@jit.kernel
+def _clear_polytope(poly) -> None:
+    """No wrench used, the interior point at 0 (read before they are written), and no facet
+    alive or visible (each facet below the count is written before it is read; cleared so
+    that no facet of an earlier set can ever count). verts, normal and offset are written
+    before they are read."""
+    alive, interior, used, visible = poly[3], poly[4], poly[5], poly[6]
+    alive[:] = False
+    interior[:] = 0.0
+    used[:] = False
+    visible[:] = False
 
 
 @jit.kernel
@@ -471,17 +485,31 @@ def _expand(w, poly, count, tol, scale, ridges) -> int:
 def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
     """(Q, certified) for wrenches w (N, 6); Q = 0 if the origin is outside. More than
     :data:`MAX_POINTS` wrenches: not certified (the caller uses qhull)."""
-    n = w.shape[0]
-    if n > MAX_POINTS:
-        return 0.0, False
+    start, q, certified = _screen(w)
+    if start[0] < 0:
+        return q, certified
+    return _expand_from(w, start, _new_polytope(), _new_ridges())
+
+
+@jit.kernel
+def _screen(w: np.ndarray):
+    """Phase 1 of :func:`epsilon_epa`: (start (7,), the initial simplex, or [code] (see
+    :func:`_initial_simplex`; [-2] past :data:`MAX_POINTS` wrenches), and where it is a code,
+    the answer (Q, certified): Q = 0, certified unless undecided)."""
+    if w.shape[0] > MAX_POINTS:
+        return np.array([-2]), 0.0, False
+    start = _initial_simplex(w, 1e-12)
+    return start, 0.0, start[0] == -1 or start[0] == -3
+
+
+@jit.kernel
+def _expand_from(w: np.ndarray, start: np.ndarray, poly, ridges) -> tuple[float, bool]:
+    """:func:`epsilon_epa` from the initial simplex ``start`` (:func:`_screen`), in the
+    polytope and ridge tables given (:func:`_new_polytope`, :func:`_new_ridges`: ~2 MB, so a
+    batch allocates them once, and a set that phase 1 settles needs none)."""
     scale = _wrench_scale(w)
     tol = REL_TOL * scale
-    start = _initial_simplex(w, 1e-12)
-    if start[0] == -1 or start[0] == -3:
-        return 0.0, True
-    if start[0] == -2:
-        return 0.0, False
-    poly = _new_polytope(n)
+    _clear_polytope(poly)
     verts, offset, alive, interior, used = poly[0], poly[2], poly[3], poly[4], poly[5]
     for i in range(7):
         for c in range(6):
@@ -490,7 +518,6 @@ def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
         return 0.0, False
     for i in range(7):
         used[start[i]] = True
-    ridges = _new_ridges()
     count = _expand(w, poly, 7, tol, scale, ridges)
     # certify: closed (every ridge in exactly two facets) and convex
     if count < 0 or not _is_closed(verts, alive, count, ridges):
@@ -520,6 +547,9 @@ def epsilon_epa_batch(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(Q (B,), certified (B,)) for wrench sets w (B, N, 6)."""
     q = np.zeros(w.shape[0])
     ok = np.zeros(w.shape[0], np.bool_)
+    poly, ridges = _new_polytope(), _new_ridges()
     for b in range(w.shape[0]):
-        q[b], ok[b] = epsilon_epa(w[b])
+        start, q[b], ok[b] = _screen(w[b])
+        if start[0] >= 0:
+            q[b], ok[b] = _expand_from(w[b], start, poly, ridges)
     return q, ok
