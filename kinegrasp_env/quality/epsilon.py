@@ -61,6 +61,13 @@ TABLES_MAX_EDGES = 24
 #: wide merges (qhull's own advice when nearly coincident wrenches make it stop with a
 #: "wide merge" topology error on a set in force closure).
 QHULL_OPTIONS = (None, "Qx Q12 Q14")
+#: Wrenches closer than this fraction of the wrench scale (max |w|; Euclidean distance in 6-D)
+#: are merged into one before qhull is tried again, where it declines a set under every
+#: option (found by Hypothesis: coincident or 1e-12-apart contacts, whose identical wrenches
+#: make qhull stop with a topology error on a set in force closure). Moving each point by at
+#: most d changes every support value, hence Q, by at most d: the merged hull's Q is within
+#: MERGE_TOL of the wrench scale of the unmerged one's.
+MERGE_TOL = 1e-11
 
 
 # ----------------------------------------------------------------------------- qhull path
@@ -70,17 +77,39 @@ def _rank_deficient(w: np.ndarray) -> bool:
     return bool(sv[-1] <= RANK_TOL * max(sv[0], 1e-300))
 
 
-def _hull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient or
-    qhull declines them with every option of :data:`QHULL_OPTIONS`."""
-    if points.shape[0] < 7 or _rank_deficient(points):
-        return None
+def merge_close(points: np.ndarray, tol: float) -> np.ndarray:
+    """The points (N, d) with each one closer than ``tol`` (Euclidean) to an earlier kept
+    point dropped: (M, d), M <= N, every dropped point within tol of a kept one."""
+    kept = [0] if len(points) else []
+    for i in range(1, len(points)):
+        if np.min(np.linalg.norm(points[kept] - points[i], axis=1)) > tol:
+            kept.append(i)
+    return points[kept]
+
+
+def _qhull(points: np.ndarray) -> ConvexHull | None:
+    """Qhull hull of (N, 6) points under the first option of :data:`QHULL_OPTIONS` qhull
+    accepts, or None when it declines them all."""
     for options in QHULL_OPTIONS:
         try:
             return ConvexHull(points, qhull_options=options)
         except QhullError:
             continue
     return None
+
+
+def _hull(points: np.ndarray) -> ConvexHull | None:
+    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient or
+    qhull declines them with every option of :data:`QHULL_OPTIONS`, also after merging the
+    points within :data:`MERGE_TOL` of the wrench scale of each other."""
+    if points.shape[0] < 7 or _rank_deficient(points):
+        return None
+    hull = _qhull(points)
+    if hull is None:
+        merged = merge_close(points, MERGE_TOL * float(np.abs(points).max()))
+        if 7 <= len(merged) < len(points):
+            hull = _qhull(merged)
+    return hull
 
 
 def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -> bool:
