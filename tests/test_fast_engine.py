@@ -285,3 +285,32 @@ def test_part_order_is_numbas_argsort_ties_included():
         order, stack = np.empty(n, np.int64), np.empty((n, 2), np.int64)
         argsort_into(values, order, stack)
         np.testing.assert_array_equal(order, numba_argsort(values))
+
+
+@pytest.mark.parametrize("name", ["cube", "mug"])
+def test_screened_cylinder_check_equals_the_full_fine_check(name):
+    """The start check of the palm and knuckle cylinders (compiled: screen, coarse, fine per
+    draw) against the unscreened rule computed directly: some cylinder's smallest grid
+    distance over all its fine samples below -START_TOL (numpy grid interpolation). Equal
+    draw by draw: the screens drop no hit. The numpy-kernel path agrees too."""
+    from kinegrasp_env.closing.fast import FastHand
+    from kinegrasp_env.closing.reference import START_TOL
+
+    obj, grid = load_object(name), object_grid(name)
+    compiled, twin = FastHand(obj, grid), FastHand(obj, grid, kernel="numpy")
+    rng = np.random.default_rng(4)
+    q = np.tile(shipped_grasps(name)[0].q0, (400, 1))
+    q[:, :7] += rng.normal(scale=0.03, size=(400, 7))
+    frames = compiled._frames(q, [s.link for s in compiled.cylinders])
+    shift = rng.uniform(-0.12, 0.12, size=(400, 3))  # the hand moved: many palms inside
+    for pose in frames.values():
+        pose[:, :3, 3] += shift
+    hit = compiled._cylinder_collision(frames)
+    direct = np.zeros(len(q), dtype=bool)
+    for shape, (_, _, fine) in zip(compiled.cylinders, compiled.samples, strict=True):
+        pose = frames[shape.link]
+        points = np.einsum("nij,pj->npi", pose[:, :3, :3], fine) + pose[:, None, :3, 3]
+        direct |= grid.distance(points).min(axis=1) < -START_TOL
+    assert 20 < direct.sum() < 380, direct.sum()
+    np.testing.assert_array_equal(hit, direct)
+    np.testing.assert_array_equal(twin._cylinder_collision(frames), hit)

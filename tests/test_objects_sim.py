@@ -85,3 +85,31 @@ def test_no_global_pybullet_calls():
     offenders = [f"{path.name}: {m.group(0)}" for path in package.rglob("*.py")
                  for m in re.finditer(r"\bpybullet\.[a-z]\w*\(", path.read_text())]
     assert offenders == []
+
+
+@pytest.mark.parametrize("name", ["cube", "mug"])
+def test_surface_projection_against_a_plain_hull_reading(name):
+    """GraspObject.surface (compiled) against a reading of each part's trimesh hull: on a
+    face interior the projection is the closest point of the hull's surface (trimesh's exact
+    query, within 1e-9 m: its triangle arithmetic) and the normal that triangle's inward
+    normal (1e-9); on edges and corners (planes within edge_tol) the point is kept. Points:
+    surface samples moved 1e-7 m off (the closing's exact closest pairs lie on it)."""
+    obj = load_object(name)
+    rng = np.random.default_rng(2)
+    checked = edges = 0
+    for index, part in enumerate(obj.parts[:6]):
+        hull = trimesh.convex.convex_hull(part)
+        sample, _ = trimesh.sample.sample_surface(hull, 200, seed=index)
+        points = sample + rng.normal(scale=1e-7, size=sample.shape)  # on it, as exact pairs
+        projected, normal = obj.surface(points, np.full(len(points), index))
+        signed = points @ obj.planes[index][:, :3].T + obj.planes[index][:, 3]
+        on_edge = (signed >= signed.max(axis=1, keepdims=True) - 5e-5).sum(axis=1) > 1
+        np.testing.assert_array_equal(projected[on_edge], points[on_edge])
+        face = ~on_edge  # over a face interior (either side of it)
+        closest, _, triangle = trimesh.proximity.closest_point(hull, points[face])
+        np.testing.assert_allclose(projected[face], closest, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(normal[face], -hull.face_normals[triangle], rtol=0,
+                                   atol=1e-9)
+        checked += face.sum()
+        edges += on_edge.sum()
+    assert checked > 100 and edges > 0

@@ -204,19 +204,45 @@ def gaps(values, shape, origin, spacing, a, b, radius, samples, near, refine, go
                                        a[i, 2], b[i, 0], b[i, 1], b[i, 2], radius[i],
                                        samples, near, refine, gold, sample)
 
+@jit.kernel(_nrt=False, inline="always")
+def posed_min_one(values, shape, origin, spacing, rot, trans, local, low, high):
+    """Smallest grid distance over points local[low:high] (3,) placed by rot (3, 3) and
+    trans (3,)."""
+    best = np.inf
+    for p in range(low, high):
+        lx, ly, lz = local[p, 0], local[p, 1], local[p, 2]
+        x = rot[0, 0] * lx + rot[0, 1] * ly + rot[0, 2] * lz + trans[0]
+        y = rot[1, 0] * lx + rot[1, 1] * ly + rot[1, 2] * lz + trans[1]
+        z = rot[2, 0] * lx + rot[2, 1] * ly + rot[2, 2] * lz + trans[2]
+        v = trilinear(values, shape, origin, spacing, x, y, z)
+        if v < best:
+            best = v
+    return best
+
 @jit.kernel(_nrt=False)
 def posed_min(values, shape, origin, spacing, rot, trans, local, out):
     for i in range(rot.shape[0]):
-        best = np.inf
-        for p in range(local.shape[0]):
-            lx, ly, lz = local[p, 0], local[p, 1], local[p, 2]
-            x = rot[i, 0, 0] * lx + rot[i, 0, 1] * ly + rot[i, 0, 2] * lz + trans[i, 0]
-            y = rot[i, 1, 0] * lx + rot[i, 1, 1] * ly + rot[i, 1, 2] * lz + trans[i, 1]
-            z = rot[i, 2, 0] * lx + rot[i, 2, 1] * ly + rot[i, 2, 2] * lz + trans[i, 2]
-            v = trilinear(values, shape, origin, spacing, x, y, z)
-            if v < best:
-                best = v
-        out[i] = best
+        out[i] = posed_min_one(values, shape, origin, spacing, rot[i], trans[i], local, 0,
+                               local.shape[0])
+
+@jit.kernel(_nrt=False)
+def screened_hits(values, shape, origin, spacing, rot, trans, local, starts, limits, hit):
+    """Where bodies sampled at three spacings come closer than a limit, screened coarse to
+    fine: for each draw i and body s (rot (S, n, 3, 3), trans (S, n, 3)), while hit[i] is
+    False: the smallest distance over its samples local[starts[s, t]:starts[s, t + 1]] for
+    t = 0, 1, 2 (coarse to fine), stopping at the first that is not below limits[t]; hit[i]
+    set where the finest one is below limits[2]."""
+    for i in range(rot.shape[1]):
+        for s in range(rot.shape[0]):
+            if hit[i]:
+                break
+            for t in range(3):
+                low, high = starts[s, t], starts[s, t + 1]
+                if not posed_min_one(values, shape, origin, spacing, rot[s, i], trans[s, i],
+                                     local, low, high) < limits[t]:
+                    break
+                if t == 2:
+                    hit[i] = True
 
 def posed_min_distance(grid: DistanceGrid, poses: np.ndarray, local: np.ndarray,
                        kernel: str = "numba") -> np.ndarray:

@@ -23,7 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
+from kinegrasp_env.closing.capsule_gap import (
+    capsule_gaps,
+    posed_min_distance,
+    screened_hits,
+)
 from kinegrasp_env.closing.close_kernel import (
     PAIR_SIZE,
     close_all,
@@ -121,6 +125,15 @@ class FastHand:
         self.cylinders = [s for s in hand_shapes() if s.kind == "cylinder"]
         self.samples = [(s.surface_samples(SCREEN_SPACING), s.surface_samples(COARSE_SPACING),
                          s.surface_samples(CYLINDER_SPACING)) for s in self.cylinders]
+        # the same, stacked for the compiled check: samples, their offsets per cylinder and
+        # spacing, and the three thresholds (see _cylinder_collision)
+        stacked = [block for blocks in self.samples for block in blocks]
+        self._screen = (np.ascontiguousarray(np.vstack(stacked), dtype=float),
+                        np.concatenate([[0], np.cumsum([len(b) for b in stacked])])
+                        .astype(np.int64)[np.arange(len(self.cylinders))[:, None] * 3
+                                          + np.arange(4)],
+                        np.array([COARSE_SPACING - START_TOL + SCREEN_SPACING,
+                                  COARSE_SPACING - START_TOL, -START_TOL]))
         self.axis_p = [self.model.joint(f[0]).axis for f in FINGERS]
         self.axis_d = [self.model.joint(f[1]).axis for f in FINGERS]
         self.distal_origin = [self.model.joint(f[1]).origin for f in FINGERS]
@@ -164,23 +177,32 @@ class FastHand:
         return gap
 
     def _cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
-        """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL."""
+        """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL.
+
+        Every coarse sample lies within SCREEN_SPACING of a screen sample, every surface
+        point within COARSE_SPACING of a coarse one (distances are 1-Lipschitz): the fine
+        check runs only where the coarse one can fire, the coarse one where the screen can."""
         n = next(iter(frames.values())).shape[0]
         hit = np.zeros(n, dtype=bool)
+        if self.kernel == "numba":  # the three passes per draw in one compiled loop
+            poses = np.stack([frames[shape.link] for shape in self.cylinders])
+            screened_hits(self.grid.values.reshape(-1), np.array(self.grid.shape, np.int64),
+                          self.grid.origin, float(self.grid.spacing),
+                          np.ascontiguousarray(poses[..., :3, :3]),
+                          np.ascontiguousarray(poses[..., :3, 3]), *self._screen, hit)
+            return hit
+        limits = self._screen[2]
         for shape, (screen, coarse, fine) in zip(self.cylinders, self.samples, strict=True):
             pose = frames[shape.link]
-            # every coarse sample lies within SCREEN_SPACING of a screen sample: the coarse
-            # check below cannot pass where the screen's distance exceeds its threshold by that
             near = np.flatnonzero(posed_min_distance(self.grid, pose, screen, self.kernel)
-                                  < COARSE_SPACING - START_TOL + SCREEN_SPACING)
-            # every surface point lies within COARSE_SPACING of a coarse sample
+                                  < limits[0])
             check = np.zeros(n, dtype=bool)
             check[near] = posed_min_distance(self.grid, pose[near], coarse, self.kernel) < (
-                COARSE_SPACING - START_TOL)
+                limits[1])
             rows = np.flatnonzero(check & ~hit)
             if rows.size:
                 hit[rows] = posed_min_distance(self.grid, pose[rows], fine,
-                                               self.kernel) < -START_TOL
+                                               self.kernel) < limits[2]
         return hit
 
     def _link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,

@@ -12,6 +12,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass
 from kinegrasp_env.robot.model import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK, RobotModel
 
 
@@ -97,7 +98,6 @@ def _axis_frame(axis: np.ndarray) -> np.ndarray:
     return np.stack([x, np.cross(axis, x), axis], axis=1)
 
 
-Columns = tuple[np.ndarray, np.ndarray, np.ndarray]
 SNAP_TOL = 1e-10
 
 
@@ -113,47 +113,12 @@ def snap_rotation(rot: np.ndarray) -> np.ndarray:
     return out
 
 
-def _recipe(const: np.ndarray) -> tuple:
-    """The non-zero entries of each column k of const (3, 3): ((row, value), ...) per k."""
-    return tuple(tuple((j, float(const[j, k])) for j in range(3) if const[j, k] != 0.0)
-                 for k in range(3))
-
-
-def _times_constant(cols: Columns, recipe: tuple) -> Columns:
-    """Columns of R @ const for R given by its columns (3 arrays (3, n)) and const (3, 3)
-    given by its :func:`_recipe`.
-
-    Exact zeros and ones of ``const`` are skipped, so a signed permutation costs at most a
-    negation and the unchanged columns are shared, not copied.
-    """
-    out = []
-    for terms in recipe:
-        column = None
-        for j, c in terms:
-            term = cols[j] if c == 1.0 else (-cols[j] if c == -1.0 else cols[j] * c)
-            column = term if column is None else column + term
-        out.append(np.zeros_like(cols[0]) if column is None else column)
-    return out[0], out[1], out[2]
-
-
-def _apply(cols: Columns, vec: np.ndarray) -> np.ndarray | None:
-    """R @ constant vec (3,) -> (3, n), skipping zeros (None when vec = 0)."""
-    out = None
-    for j in range(3):
-        if vec[j] != 0.0:
-            term = cols[j] * vec[j]
-            out = term if out is None else out + term
-    return out
-
-
 class Kinematics:
     """Batched FK / Jacobians for one :class:`RobotModel`.
 
-    Internally every rotation is kept as its three columns, each a (3, n) array with the
-    batch axis last, so a joint update is a handful of contiguous vector operations and
-    permutation-like constant rotations cost nothing. Poses are returned as (n, 4, 4) arrays
-    that are *views* of one batch-last (L, 4, 4, n) buffer (not C-contiguous; use
-    ``np.ascontiguousarray`` where a C-ordered copy is needed).
+    Forward kinematics run as one compiled pass (:mod:`kinegrasp_env.robot.fk_kernel`);
+    constant rotations are snapped (:func:`snap_rotation`) so that permutation-like ones cost
+    nothing. Poses are returned as C-contiguous (n, 4, 4) views of one (L, n, 4, 4) buffer.
 
     Args:
         model: the robot.
@@ -163,23 +128,60 @@ class Kinematics:
         self.model = model
         self._drivers = model.drivers()
         self._parent_joint = {j.child: j for j in model.joints}
-        # per joint: (R_origin @ Q, Q^T or None when identity, translation); the rotations
-        # as their _recipe, the constant rotation also as a matrix (prismatic joints)
-        self._plan = []
-        for joint in model.joints:
-            rot = snap_rotation(joint.origin[:3, :3])
-            if joint.movable and joint.kind != "prismatic":
-                q_frame = _axis_frame(joint.axis)
-                back = None if np.array_equal(q_frame, np.eye(3)) else _recipe(q_frame.T)
-                rot = rot @ q_frame
-                self._plan.append((_recipe(rot), rot, back, joint.origin[:3, 3]))
-            else:
-                self._plan.append((_recipe(rot), rot, None, joint.origin[:3, 3]))
         self._links = model.links
-        self._needed: dict[tuple[str, ...], frozenset[str]] = {}
+        self._needed: dict[tuple[str, ...], tuple[frozenset[str], np.ndarray]] = {}
+        self._slot = {model.base_link: 0} | {j.child: i + 1 for i, j in enumerate(model.joints)}
+        count = len(model.joints)
+        kind = np.zeros(count, dtype=np.int64)
+        const = np.zeros((count, 3, 3))
+        back = np.tile(np.eye(3), (count, 1, 1))
+        has_back = np.zeros(count, dtype=bool)
+        slide = np.zeros((count, 3))
+        for i, joint in enumerate(model.joints):
+            # per joint: the constant rotation R_origin (snapped) @ Q, where Q e_z = the axis,
+            # then Q^T after the rotation about z (unless Q is the identity)
+            rot = snap_rotation(joint.origin[:3, :3])
+            if joint.kind == "prismatic":
+                kind[i] = PRISMATIC
+                slide[i] = rot @ joint.axis
+            elif joint.movable:
+                kind[i] = ROTATING
+                q_frame = _axis_frame(joint.axis)
+                if not np.array_equal(q_frame, np.eye(3)):
+                    back[i], has_back[i] = q_frame.T, True
+                rot = rot @ q_frame
+            const[i] = rot
+        self._driven = self._driver_groups()
+        self._pass = (np.array([self._slot[j.parent] for j in model.joints], dtype=np.int64),
+                      kind, const, np.array([j.origin[:3, 3] for j in model.joints], dtype=float)
+                      .reshape(count, 3), back, has_back, slide)
 
-    def _chains(self, wanted: tuple[str, ...]) -> frozenset[str]:
-        """The links whose frames lead to the ``wanted`` ones (KeyError for unknown ones)."""
+    def _driver_groups(self) -> tuple:
+        """Joints by how their value follows from q: rotating and driven directly (rows,
+        actuated indices), negated (rows, indices), by another multiplier or an offset
+        (rows), prismatic (rows)."""
+        direct, direct_q, negated, negated_q, general, prismatic = [], [], [], [], [], []
+        for i, joint in enumerate(self.model.joints):
+            if not joint.movable:
+                continue
+            index, mult, off = self._drivers[joint.name]
+            if joint.kind == "prismatic":
+                prismatic.append(i)
+            elif mult == 1.0 and off == 0.0:
+                direct.append(i)
+                direct_q.append(index)
+            elif mult == -1.0 and off == 0.0:
+                negated.append(i)
+                negated_q.append(index)
+            else:
+                general.append(i)
+        rows = [np.array(r, dtype=np.int64) for r in (direct, direct_q, negated, negated_q,
+                                                       general, prismatic)]
+        return (rows[0], rows[1]), (rows[2], rows[3]), rows[4], rows[5]
+
+    def _chains(self, wanted: tuple[str, ...]) -> tuple[frozenset[str], np.ndarray]:
+        """The links whose frames lead to the ``wanted`` ones, and the same as a (J,) bool
+        mask over the joints (KeyError for unknown links)."""
         needed = self._needed.get(wanted)
         if needed is None:
             unknown = set(wanted) - set(self._links)
@@ -190,73 +192,54 @@ class Kinematics:
                 while link in self._parent_joint and link not in found:
                     found.add(link)
                     link = self._parent_joint[link].parent
-            needed = self._needed[wanted] = frozenset(found)
+            mask = np.array([j.child in found for j in self.model.joints], dtype=bool)
+            needed = self._needed[wanted] = (frozenset(found), mask)
         return needed
 
+    def _angles(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per joint and draw (J, n): cos and sin of the rotating joints' angles, values of
+        the prismatic ones (zeros elsewhere), from configurations q (n, dof)."""
+        count, n = len(self.model.joints), q.shape[0]
+        cos, sin, shift = np.zeros((count, n)), np.zeros((count, n)), np.zeros((count, n))
+        # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
+        half_tan = np.tan(0.5 * q.T)
+        denom = 1.0 / (1.0 + half_tan * half_tan)
+        cos_all, sin_all = (1.0 - half_tan * half_tan) * denom, 2.0 * half_tan * denom
+        (direct, direct_q), (negated, negated_q), general, prismatic = self._driven
+        cos[direct], sin[direct] = cos_all[direct_q], sin_all[direct_q]
+        cos[negated], sin[negated] = cos_all[negated_q], -sin_all[negated_q]
+        if general.size or prismatic.size:
+            qt = np.ascontiguousarray(q.T)
+            for rows, out in ((general, None), (prismatic, shift)):
+                for i in rows:
+                    index, mult, off = self._drivers[self.model.joints[i].name]
+                    value = mult * qt[index] + off
+                    if out is None:
+                        cos[i], sin[i] = np.cos(value), np.sin(value)
+                    else:
+                        out[i] = value
+        return cos, sin, shift
+
     def forward(self, q: np.ndarray, links: Iterable[str] | None = None) -> dict[str, np.ndarray]:
-        """Poses of links in the world (base) frame.
+        """Poses of links in the world (base) frame (one compiled pass over draws and joints:
+        :func:`kinegrasp_env.robot.fk_kernel.forward_pass`).
 
         Args:
             q: (n, dof) or (dof,) actuated configurations (radians / metres).
             links: link names to return (default: all links).
 
         Returns:
-            dict link name -> (n, 4, 4) transforms (batch-last views, see the class doc).
+            dict link name -> (n, 4, 4) transforms (C-contiguous views of one buffer).
         """
         q = _as_batch(q, self.model.dof)
         wanted = tuple(dict.fromkeys(self._links if links is None else links))
-        needed = self._chains(wanted)
-        n = q.shape[0]
-        # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
-        half_tan = np.tan(0.5 * q.T)
-        denom = 1.0 / (1.0 + half_tan * half_tan)
-        cos_all, sin_all = (1.0 - half_tan * half_tan) * denom, 2.0 * half_tan * denom
-        qt = np.ascontiguousarray(q.T)
-        eye = np.eye(3)
-        frames: dict[str, tuple[Columns, np.ndarray]] = {
-            self.model.base_link: (tuple(np.broadcast_to(eye[:, k, None], (3, n))
-                                         for k in range(3)),
-                                   np.broadcast_to(np.zeros((3, 1)), (3, n)))}
-        for joint, (recipe, rot_const, back, trans) in zip(self.model.joints, self._plan,
-                                                           strict=True):
-            if joint.child not in needed:
-                continue
-            cols_p, pos_p = frames[joint.parent]
-            shift = _apply(cols_p, trans)
-            pos = pos_p if shift is None else pos_p + shift
-            cols = _times_constant(cols_p, recipe)
-            if joint.kind == "prismatic":
-                index, mult, off = self._drivers[joint.name]
-                pos = pos + _apply(cols_p, rot_const @ joint.axis) * (mult * qt[index] + off)
-            elif joint.movable:
-                index, mult, off = self._drivers[joint.name]
-                if mult == 1.0 and off == 0.0:
-                    c, s = cos_all[index], sin_all[index]
-                elif mult == -1.0 and off == 0.0:
-                    c, s = cos_all[index], -sin_all[index]
-                else:
-                    value = mult * qt[index] + off
-                    c, s = np.cos(value), np.sin(value)
-                m0, m1, m2 = cols
-                r0 = m0 * c
-                r0 += m1 * s
-                r1 = m1 * c
-                r1 -= m0 * s
-                cols = (r0, r1, m2)
-                if back is not None:
-                    cols = _times_constant(cols, back)
-            frames[joint.child] = (cols, pos)
-        block = np.empty((len(wanted), 4, 4, n))
-        block[:, 3, :3] = 0.0
-        block[:, 3, 3] = 1.0
-        out = {}
-        for i, link in enumerate(wanted):
-            cols, pos = frames[link]
-            for k in range(3):
-                block[i, :3, k] = cols[k]
-            block[i, :3, 3] = pos
-            out[link] = block[i].transpose(2, 0, 1)
-        return out
+        _, mask = self._chains(wanted)
+        slots = len(self.model.joints) + 1
+        out = np.empty((len(wanted), q.shape[0], 4, 4))
+        forward_pass(*self._pass, mask, *self._angles(q),
+                     np.array([self._slot[link] for link in wanted], dtype=np.int64),
+                     np.empty((slots, 3, 3)), np.empty((slots, 3)), np.empty((slots, 3, 3)), out)
+        return {link: out[i] for i, link in enumerate(wanted)}
 
     def pose(self, q: np.ndarray, link: str) -> np.ndarray:
         """(n, 4, 4) pose of one link."""

@@ -33,6 +33,7 @@ from kinegrasp_env.world.store import (
     read_entry,
 )
 from kinegrasp_env.world.support import SupportTable
+from kinegrasp_env.world.surface_kernel import project_onto_parts
 
 #: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
 OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
@@ -117,31 +118,23 @@ class GraspObject:
             of the part gives the normal and, unless the point is on an edge or corner, the
             projection (there the plane projection could leave the part: the point is kept).
         """
-        points = np.atleast_2d(np.asarray(points, dtype=float))
+        points = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
         if part is None:
             part = self.nearest_part(points)
         out_p = np.empty_like(points)
         out_n = np.empty_like(points)
-        for index in np.unique(part):
-            sel = part == index
-            planes = self.planes[index]
-            # term by term (not a matrix product, whose rounding may depend on the batch
-            # size): the same point gives the same bits however many are projected with it
-            mine = points[sel]
-            signed = (mine[:, 0:1] * planes[:, 0] + mine[:, 1:2] * planes[:, 1]
-                      + mine[:, 2:3] * planes[:, 2] + planes[:, 3])
-            face = np.argmax(signed, axis=1)
-            top = signed[np.arange(face.size), face]
-            normal = planes[face, :3]
-            projected = points[sel] - top[:, None] * normal
-            active = signed >= top[:, None] - edge_tol
-            edge = active.sum(axis=1) > 1
-            # on a face: project onto its plane; on an edge or corner the plane projection
-            # could leave the part, so the point (pybullet's exact closest point) is kept
-            projected[edge] = points[sel][edge]
-            out_p[sel] = projected
-            out_n[sel] = -normal
+        project_onto_parts(*self.packed_planes, points,
+                           np.ascontiguousarray(part, dtype=np.int64), float(edge_tol), out_p,
+                           out_n)
         return out_p, out_n
+
+    @cached_property
+    def packed_planes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every part's planes stacked (P, 4), and the (n_parts + 1,) int64 offsets of each
+        part's rows."""
+        counts = [len(p) for p in self.planes]
+        return (np.ascontiguousarray(np.vstack(self.planes), dtype=float),
+                np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
 
     def part_distance(self, points: np.ndarray) -> np.ndarray:
         """(n, n_parts) signed plane distance of points to each part (<= 0 inside)."""
