@@ -166,15 +166,28 @@ class FastHand:
         left = self.obj.pose_inverse if to_object is None else to_object
         return {name: left @ pose for name, pose in world.items()}
 
-    def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, shape: Shape) -> np.ndarray:
-        """Gaps (m,) of one capsule with axis ends a, b (m, 3): exact within
-        ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
-        gap, _ = capsule_gaps(self.grid, a, b, np.full(len(a), shape.radius), self.kernel)
+    def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, radius: float | np.ndarray
+                      ) -> np.ndarray:
+        """Gaps (m,) of capsules with axis ends a, b (m, 3) and radius (a float, or (m,)
+        metres): exact within ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
+        radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(a),))
+        gap, _ = capsule_gaps(self.grid, a, b, radius, self.kernel)
         near = np.flatnonzero(np.abs(gap) <= GRID_EXACT_BAND)
         if near.size:
             gap[near] = closest_to_segments(self.obj, a[near], b[near],
-                                            self.kernel)[2] - shape.radius
+                                            self.kernel)[2] - radius[near]
         return gap
+
+    def _capsule_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
+        """(n,) True where a finger link's capsule penetrates more than START_TOL (the six
+        capsules' gaps in one call)."""
+        shapes = [shape for pair in self.capsules for shape in pair]
+        ends = [_axis(frames[shape.link], shape) for shape in shapes]
+        n = len(ends[0][0])
+        radius = np.repeat([shape.radius for shape in shapes], n)
+        gap = self._capsule_gaps(np.concatenate([e[0] for e in ends]),
+                                 np.concatenate([e[1] for e in ends]), radius)
+        return (gap.reshape(len(shapes), n) < -START_TOL).any(axis=0)
 
     def _cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
         """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL.
@@ -222,11 +235,7 @@ class FastHand:
         n = q.shape[0]
         finger_links = [link for f in FINGERS for link in f[2:]]
         frames = self._frames(q, [s.link for s in self.cylinders] + finger_links, to_object)
-        start = self._cylinder_collision(frames)
-        for proximal, distal in self.capsules:
-            for shape in (proximal, distal):
-                gap = self._capsule_gaps(*_axis(frames[shape.link], shape), shape)
-                start |= gap < -START_TOL
+        start = self._cylinder_collision(frames) | self._capsule_collision(frames)
         out = BatchClose(start, np.zeros((n, 3), bool), np.zeros((n, 3, 2), bool),
                          np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan),
                          np.full((n, 3, 2), np.nan))
@@ -305,11 +314,12 @@ class FastHand:
         phase1 = prob.phase[rows] == 1
         prox, dist = prob.values(rows)
         ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
-        gap_d = self._capsule_gaps(ends[:, 2], ends[:, 3], self.capsules[f][1])
+        gap_d = self._capsule_gaps(ends[:, 2], ends[:, 3], self.capsules[f][1].radius)
         gap_p = np.full(rows.size, np.inf)
         if phase1.any():
             sub = np.flatnonzero(phase1)
-            gap_p[sub] = self._capsule_gaps(ends[sub, 0], ends[sub, 1], self.capsules[f][0])
+            gap_p[sub] = self._capsule_gaps(ends[sub, 0], ends[sub, 1],
+                                             self.capsules[f][0].radius)
         gap_p = np.minimum(gap_p, QUERY_DISTANCE)
         gap_d = np.minimum(gap_d, QUERY_DISTANCE)
         gap_p[~phase1] = np.inf
