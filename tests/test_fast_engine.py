@@ -314,3 +314,45 @@ def test_screened_cylinder_check_equals_the_full_fine_check(name):
     assert 20 < direct.sum() < 380, direct.sum()
     np.testing.assert_array_equal(hit, direct)
     np.testing.assert_array_equal(twin._cylinder_collision(frames), hit)
+
+
+@pytest.mark.parametrize("name", ["cube", "spray_flask", "mug"])
+def test_search_started_near_a_known_point_changes_no_bit(name):
+    """The exact search started from an object point found by an earlier query (the closing
+    loop's: segment_search_near) against the plain search, bit for bit, on segments at
+    random (many through the object), with four kinds of point: the closest point of the
+    segment moved 0.1 mm (what the closing loop passes), a part's vertex at random, the
+    segment's midpoint where it lies inside the object (closer to the segment than the
+    distance function there, which for a segment through a part is an edge distance: the
+    plain search must take over), and none (NaN)."""
+    from kinegrasp_env.closing.segment_distance import (
+        geometry_tuple,
+        segment_bound,
+        segment_buffers,
+        segment_search,
+        segment_search_near,
+    )
+
+    obj = load_object(name)
+    geo = geometry_tuple(obj)
+    work = segment_buffers(geo[0], geo[1])
+    a, b = _random_segments(obj, 1500, seed=9)
+    on_obj = closest_to_segments(obj, a, b)[0]
+    rng = np.random.default_rng(10)
+    shift = rng.normal(scale=1e-4, size=a.shape)
+    vertices = geo[2].reshape(-1, 3)
+    mid = 0.5 * (a + b) + shift
+    inside = (obj.part_distance(mid) < 0).any(axis=1)
+    through = 0
+    for i in range(len(a)):
+        ends = (*(a[i] + shift[i]), *(b[i] + shift[i]))
+        segment_bound(geo, *ends, work)
+        plain = segment_search(geo, *ends, work)
+        points = [on_obj[i], vertices[rng.integers(len(vertices))], np.full(3, np.nan)]
+        if inside[i]:
+            points.append(mid[i])
+            through += plain[0] > 1e-9  # the start (0 + the margin) is below the result
+        for point in points:
+            segment_bound(geo, *ends, work)
+            assert segment_search_near(geo, *ends, work, *point) == plain, (i, point)
+    assert through > 20  # the take-over was exercised

@@ -10,7 +10,10 @@ segments, with prunings that skip only what provably cannot change the result:
 - an edge is skipped when a lower bound of its distance exceeds the best found so far: the
   distance from its bounding sphere, or from the plane of either face it bounds (a point's
   distance to the edge is at least its distance to that plane: |s_f(x)|; a segment's, the
-  smaller of its ends' when the plane does not separate them).
+  smaller of its ends' when the plane does not separate them);
+- the closing loop starts each query's best distance at that of an object point an earlier
+  query found (:func:`segment_search_near`: the same result, the plain search taking over
+  where it does not hold), instead of inf.
 
 Every bound is compared with a margin (:data:`PRUNE_MARGIN`) far above its rounding error, so
 every candidate that could win is kept, in the plain search's order and compared as there:
@@ -376,14 +379,17 @@ def segment_bound(geo, ax, ay, az, ex, ey, ez, work):
     return low
 
 @jit.kernel(_nrt=False)
-def segment_search(geo, ax, ay, az, ex, ey, ez, work):
-    """:func:`segment_one` after its part bounds are in work (:func:`segment_bound`)."""
+def search_parts(geo, ax, ay, az, ex, ey, ez, work, start):
+    """The part search of :func:`segment_search` with the best distance starting at
+    ``start`` (metres) instead of inf: the result is the same wherever the object's distance
+    is below ``start`` (the argument of :func:`segment_part`'s ``limit``, applied from the
+    first part on), and ``start`` (nothing found) elsewhere."""
     plane_start, center, radius = geo[1], geo[8], geo[9]
     bounds, order, stack, values = work
     argsort_into(bounds, order, stack)
     ux, uy, uz = ex - ax, ey - ay, ez - az
     inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
-    best = np.inf
+    best = start
     box = boy = boz = bsx = bsy = bsz = 0.0
     bpart = 0
     for rank in range(plane_start.shape[0] - 1):
@@ -399,6 +405,41 @@ def segment_search(geo, ax, ay, az, ex, ey, ez, work):
             box, boy, boz, bsx, bsy, bsz = ox, oy, oz, sx, sy, sz
             bpart = part
     return best, box, boy, boz, bsx, bsy, bsz, bpart
+
+@jit.kernel(_nrt=False)
+def segment_search(geo, ax, ay, az, ex, ey, ez, work):
+    """:func:`segment_one` after its part bounds are in work (:func:`segment_bound`)."""
+    return search_parts(geo, ax, ay, az, ex, ey, ez, work, np.inf)
+
+@jit.kernel(inline="always")
+def point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez):
+    """Distance (metres) from point p to segment [a, e]."""
+    ux, uy, uz = ex - ax, ey - ay, ez - az
+    wx, wy, wz = px - ax, py - ay, pz - az
+    s = min(max((wx * ux + wy * uy + wz * uz) / max(ux * ux + uy * uy + uz * uz, 1e-300),
+                0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+@jit.kernel(_nrt=False)
+def segment_search_near(geo, ax, ay, az, ex, ey, ez, work, px, py, pz):
+    """:func:`segment_search`, faster when (px, py, pz) is a point of the object near the
+    closest one (the one a query a moment earlier found): the same result, bit for bit.
+
+    :func:`search_parts` runs from start = |p - segment| + PRUNE_MARGIN. Where the result d
+    is below start (the usual case: every point of the object is at least d from the
+    segment; the margin keeps the point that is itself the closest one above rounding), it
+    is d exactly: the parts are visited in the same order and compared as in the plain
+    search, the parts that beat ``start`` give the same values, the first of the smallest
+    wins as there; far more is pruned. Elsewhere (nothing below start: a segment through a
+    part, whose distance function can exceed |p - segment|, or no point given: NaN) the
+    plain search runs. The result never depends on p; only the time does."""
+    start = point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez) + PRUNE_MARGIN
+    if start < np.inf:
+        found = search_parts(geo, ax, ay, az, ex, ey, ez, work, start)
+        if found[0] < start:
+            return found
+    return search_parts(geo, ax, ay, az, ex, ey, ez, work, np.inf)
 
 @jit.kernel(_nrt=False)
 def segment_one(geo, ax, ay, az, ex, ey, ez, work):
