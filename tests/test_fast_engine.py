@@ -267,24 +267,22 @@ def test_segment_distance_prunings_change_no_bit(name, tmp_path):
         np.testing.assert_array_equal(pruned[i], plain[f"arr_{i}"], err_msg=field)
 
 
-def test_part_order_is_numbas_argsort_ties_included():
-    # the exact search visits parts in the order numba's np.argsort gives their bounds (the
-    # order decides between parts at equal distance); argsort_into computes it without
-    # allocating: the same permutation, ties included, below and above the insertion-sort
-    # size
-    import numba
+def test_part_order_is_a_stable_argsort():
+    # the exact search visits parts by increasing bound, ties by part index (the order
+    # decides between parts at equal distance); part_order computes it without allocating:
+    # numpy's stable argsort, NaN last, on values with many ties
+    from kinegrasp_env.closing.segment_distance import part_order
 
-    from kinegrasp_env.closing.segment_distance import SMALL_SORT, argsort_into
-
-    numba_argsort = numba.njit(lambda values: np.argsort(values))
     rng = np.random.default_rng(8)
-    for n in list(range(1, 4 * SMALL_SORT)) * 20:
+    for n in list(range(1, 60)) * 20:
         values = rng.integers(0, max(2, n // 3), n) * 0.25  # many ties
         if rng.random() < 0.3:
             values = rng.normal(size=n)
-        order, stack = np.empty(n, np.int64), np.empty((n, 2), np.int64)
-        argsort_into(values, order, stack)
-        np.testing.assert_array_equal(order, numba_argsort(values))
+        if rng.random() < 0.2:
+            values[rng.integers(n)] = np.nan
+        order = np.empty(n, np.int64)
+        part_order(values, order)
+        np.testing.assert_array_equal(order, np.argsort(values, kind="stable"))
 
 
 @pytest.mark.parametrize("name", ["cube", "mug"])
@@ -353,6 +351,7 @@ def test_search_started_near_a_known_point_changes_no_bit(name):
             points.append(mid[i])
             through += plain[0] > 1e-9  # the start (0 + the margin) is below the result
         for point in points:
-            segment_bound(geo, *ends, work)
-            assert segment_search_near(geo, *ends, work, *point) == plain, (i, point)
+            for known in (False, True):  # part bounds computed here, or already in work
+                segment_bound(geo, *ends, work)
+                assert segment_search_near(geo, *ends, work, *point, known) == plain, (i, point)
     assert through > 20  # the take-over was exercised

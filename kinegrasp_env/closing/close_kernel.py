@@ -64,10 +64,9 @@ def exact_pair(geo, a, e, sort, out, near):
     sort: the buffers of :func:`segment_one`; near (3,): the object point the link's last
     query found (NaN: none), replaced by this one's (it only speeds the search up:
     :func:`kinegrasp_env.closing.segment_distance.segment_search_near`)."""
-    segment_bound(geo, a[0], a[1], a[2], e[0], e[1], e[2], sort)
     d, ox, oy, oz, sx, sy, sz, part = segment_search_near(geo, a[0], a[1], a[2], e[0], e[1],
                                                           e[2], sort, near[0], near[1],
-                                                          near[2])
+                                                          near[2], False)
     store_pair(out, d, ox, oy, oz, sx, sy, sz, part)
     store_near(near, d, ox, oy, oz)
     return d
@@ -82,7 +81,7 @@ def bounded_pair(geo, a, e, sort, out, limit, near):
         return np.inf
     d, ox, oy, oz, sx, sy, sz, part = segment_search_near(geo, a[0], a[1], a[2], e[0], e[1],
                                                           e[2], sort, near[0], near[1],
-                                                          near[2])
+                                                          near[2], True)
     store_pair(out, d, ox, oy, oz, sx, sy, sz, part)
     store_near(near, d, ox, oy, oz)
     return d

@@ -4,9 +4,9 @@ The same computation as :meth:`kinegrasp_env.world.objects.GraspObject.closest_t
 numpy twin, see :mod:`kinegrasp_env.world.polytope` for the method), as one compiled loop over the
 segments, with prunings that skip only what provably cannot change the result:
 
-- parts are visited by increasing plane bound max_i min(s_i(a), s_i(b)) until it exceeds the
-  best distance found (the search usually stops after the nearest part); a part whose
-  bounding sphere is farther than the best is skipped;
+- parts are visited by increasing plane bound max_i min(s_i(a), s_i(b)) (ties by part
+  index) until it exceeds the best distance found (the search usually stops after the
+  nearest part); a part whose bounding sphere is farther than the best is skipped;
 - an edge is skipped when a lower bound of its distance exceeds the best found so far: the
   distance from its bounding sphere, or from the plane of either face it bounds (a point's
   distance to the edge is at least its distance to that plane: |s_f(x)|; a segment's, the
@@ -39,8 +39,6 @@ from kinegrasp_env.world.polytope import INSIDE_TOL
 PRUNE_MARGIN = 1e-9
 #: An edge bounds a face when both its ends lie within this of the face's plane (metres).
 FACE_RESIDUAL = 1e-12
-#: numba's quicksort sorts runs shorter than this by insertion (:func:`argsort_into`).
-SMALL_SORT = 15
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,16 +186,21 @@ def part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds, values):
     the segment, and a point's distance to a convex part is at least its largest s). The
     plane values at a and e go to values (2, P)."""
     for part in range(plane_start.shape[0] - 1):
-        bound = -np.inf
-        for k in range(plane_start[part], plane_start[part + 1]):
-            va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
-            vb = planes[k, 0] * ex + planes[k, 1] * ey + planes[k, 2] * ez + planes[k, 3]
-            values[0, k] = va
-            values[1, k] = vb
-            v = min(va, vb)
-            if v > bound:
-                bound = v
-        bounds[part] = bound
+        bounds[part] = part_bound(planes, plane_start, part, ax, ay, az, ex, ey, ez, values)
+
+@jit.kernel(inline="always")
+def part_bound(planes, plane_start, part, ax, ay, az, ex, ey, ez, values):
+    """:func:`part_bounds` of one part."""
+    bound = -np.inf
+    for k in range(plane_start[part], plane_start[part + 1]):
+        va = planes[k, 0] * ax + planes[k, 1] * ay + planes[k, 2] * az + planes[k, 3]
+        vb = planes[k, 0] * ex + planes[k, 1] * ey + planes[k, 2] * ez + planes[k, 3]
+        values[0, k] = va
+        values[1, k] = vb
+        v = min(va, vb)
+        if v > bound:
+            bound = v
+    return bound
 
 @jit.kernel(inline="always")  # inlined: a call per edge made the search ~3% slower
 def segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0, vx, vy, vz):
@@ -290,70 +293,27 @@ def segment_part(geo, part, ax, ay, az, ex, ey, ez, values, limit):
 
 @jit.kernel(inline="always")
 def float_lt(a, b):
-    """a < b with NaN last (numba's order for sorting floats)."""
+    """a < b with NaN last."""
     return a < b or (np.isnan(b) and not np.isnan(a))
 
-@jit.kernel(_nrt=False)
-def sort_partition(values, order, low, high):
-    """numba's quicksort partition of order[low:high + 1] by values (median-of-three
-    pivot); returns the pivot's final index."""
-    mid = (low + high) >> 1
-    if float_lt(values[order[mid]], values[order[low]]):
-        order[low], order[mid] = order[mid], order[low]
-    if float_lt(values[order[high]], values[order[mid]]):
-        order[high], order[mid] = order[mid], order[high]
-    if float_lt(values[order[mid]], values[order[low]]):
-        order[low], order[mid] = order[mid], order[low]
-    pivot = values[order[mid]]
-    order[high], order[mid] = order[mid], order[high]
-    i, j = low, high - 1
-    while True:
-        while i < high and float_lt(values[order[i]], pivot):
-            i += 1
-        while j >= low and float_lt(pivot, values[order[j]]):
-            j -= 1
-        if i >= j:
-            break
-        order[i], order[j] = order[j], order[i]
-        i += 1
+@jit.kernel(inline="always")
+def insert_part(bounds, order, k, part):
+    """Insert ``part`` into order[:k] (sorted by bounds, ties by part index, NaN last),
+    after every entry of equal bound: parts inserted by increasing index end in the order
+    of ``np.argsort(bounds, kind="stable")``."""
+    value = bounds[part]
+    j = k
+    while j > 0 and float_lt(value, bounds[order[j - 1]]):
+        order[j] = order[j - 1]
         j -= 1
-    order[i], order[high] = order[high], order[i]
-    return i
+    order[j] = part
 
 @jit.kernel(_nrt=False)
-def argsort_into(values, order, stack):
-    """``np.argsort(values)`` as numba computes it (its quicksort: partitions down to
-    ``SMALL_SORT`` items, then insertion sort; the same permutation, ties included) into
-    order (n,), without allocating; stack: (n, 2) int64 buffer."""
-    n = values.shape[0]
-    for i in range(n):
-        order[i] = i
-    if n < 2:
-        return
-    top = 1
-    stack[0, 0], stack[0, 1] = 0, n - 1
-    while top > 0:
-        top -= 1
-        low, high = stack[top, 0], stack[top, 1]
-        while high - low >= SMALL_SORT:
-            i = sort_partition(values, order, low, high)
-            if high - i > i - low:  # push the larger side
-                if high > i:
-                    stack[top, 0], stack[top, 1] = i + 1, high
-                    top += 1
-                high = i - 1
-            else:
-                if i > low:
-                    stack[top, 0], stack[top, 1] = low, i - 1
-                    top += 1
-                low = i + 1
-        for i in range(low + 1, high + 1):  # insertion sort of order[low:high + 1]
-            k = order[i]
-            j = i
-            while j > low and float_lt(values[k], values[order[j - 1]]):
-                order[j] = order[j - 1]
-                j -= 1
-            order[j] = k
+def part_order(bounds, order):
+    """order = ``np.argsort(bounds, kind="stable")`` (NaN last), without allocating: the
+    order the search visits parts in (it decides between parts at equal distance)."""
+    for part in range(bounds.shape[0]):
+        insert_part(bounds, order, part, part)
 
 @jit.kernel(inline="always")
 def sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu):
@@ -372,27 +332,27 @@ def segment_bound(geo, ax, ay, az, ex, ey, ez, work):
     :func:`part_bounds`), and the first step of :func:`segment_one`: :func:`segment_search`
     may follow with the same work buffers."""
     bounds = work[0]
-    part_bounds(geo[0], geo[1], ax, ay, az, ex, ey, ez, bounds, work[3])
+    part_bounds(geo[0], geo[1], ax, ay, az, ex, ey, ez, bounds, work[2])
     low = np.inf
     for part in range(bounds.shape[0]):
         low = min(low, bounds[part])
     return low
 
 @jit.kernel(_nrt=False)
-def search_parts(geo, ax, ay, az, ex, ey, ez, work, start):
-    """The part search of :func:`segment_search` with the best distance starting at
-    ``start`` (metres) instead of inf: the result is the same wherever the object's distance
-    is below ``start`` (the argument of :func:`segment_part`'s ``limit``, applied from the
-    first part on), and ``start`` (nothing found) elsewhere."""
-    plane_start, center, radius = geo[1], geo[8], geo[9]
-    bounds, order, stack, values = work
-    argsort_into(bounds, order, stack)
+def visit_parts(geo, ax, ay, az, ex, ey, ez, work, start, k):
+    """The search proper: parts order[:k] (work's order: by increasing bound, their bounds
+    and plane values in work) visited until a bound reaches the best distance, which starts
+    at ``start`` (metres): the result is the same wherever the object's distance is below
+    ``start`` (the argument of :func:`segment_part`'s ``limit``, applied from the first
+    part on), and ``start`` (nothing found) elsewhere."""
+    center, radius = geo[8], geo[9]
+    bounds, order, values = work[0], work[1], work[2]
     ux, uy, uz = ex - ax, ey - ay, ez - az
     inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
     best = start
     box = boy = boz = bsx = bsy = bsz = 0.0
     bpart = 0
-    for rank in range(plane_start.shape[0] - 1):
+    for rank in range(k):
         part = order[rank]
         if bounds[part] >= best:
             break
@@ -409,7 +369,32 @@ def search_parts(geo, ax, ay, az, ex, ey, ez, work, start):
 @jit.kernel(_nrt=False)
 def segment_search(geo, ax, ay, az, ex, ey, ez, work):
     """:func:`segment_one` after its part bounds are in work (:func:`segment_bound`)."""
-    return search_parts(geo, ax, ay, az, ex, ey, ez, work, np.inf)
+    part_order(work[0], work[1])
+    return visit_parts(geo, ax, ay, az, ex, ey, ez, work, np.inf, work[0].shape[0])
+
+@jit.kernel(_nrt=False)
+def near_candidates(geo, ax, ay, az, ex, ey, ez, work, start, known):
+    """The parts that can come closer than ``start`` to segment [a, e]: those whose
+    bounding sphere and plane bound are below it, into work's order[:k] by increasing
+    bound (ties by index), their bounds and plane values into work; returns k. The other
+    parts' plane values are not computed. ``known``: every part's bound and plane values
+    are in work already (:func:`segment_bound`)."""
+    planes, plane_start, center, radius = geo[0], geo[1], geo[8], geo[9]
+    bounds, order, values = work[0], work[1], work[2]
+    ux, uy, uz = ex - ax, ey - ay, ez - az
+    inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
+    k = 0
+    for part in range(plane_start.shape[0] - 1):
+        if sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu) >= start:
+            continue
+        if not known:
+            bounds[part] = part_bound(planes, plane_start, part, ax, ay, az, ex, ey, ez,
+                                      values)
+        bound = bounds[part]
+        if bound < start:
+            insert_part(bounds, order, k, part)
+            k += 1
+    return k
 
 @jit.kernel(inline="always")
 def point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez):
@@ -422,24 +407,30 @@ def point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez):
     return np.sqrt(dx * dx + dy * dy + dz * dz)
 
 @jit.kernel(_nrt=False)
-def segment_search_near(geo, ax, ay, az, ex, ey, ez, work, px, py, pz):
-    """:func:`segment_search`, faster when (px, py, pz) is a point of the object near the
+def segment_search_near(geo, ax, ay, az, ex, ey, ez, work, px, py, pz, known):
+    """:func:`segment_one`, faster when (px, py, pz) is a point of the object near the
     closest one (the one a query a moment earlier found): the same result, bit for bit.
 
-    :func:`search_parts` runs from start = |p - segment| + PRUNE_MARGIN. Where the result d
-    is below start (the usual case: every point of the object is at least d from the
-    segment; the margin keeps the point that is itself the closest one above rounding), it
-    is d exactly: the parts are visited in the same order and compared as in the plain
-    search, the parts that beat ``start`` give the same values, the first of the smallest
-    wins as there; far more is pruned. Elsewhere (nothing below start: a segment through a
-    part, whose distance function can exceed |p - segment|, or no point given: NaN) the
-    plain search runs. The result never depends on p; only the time does."""
+    The search runs from start = |p - segment| + PRUNE_MARGIN, over the parts that can come
+    closer than that (:func:`near_candidates`: the mug's queries compute the plane values
+    of ~5 of its 52 parts). Where the result d is below start (the usual case: every point
+    of the object is at least d from the segment; the margin keeps the point that is itself
+    the closest one above rounding), it is d exactly: the candidates are visited in the
+    plain search's order and compared as there (a part left out could neither be visited
+    nor beat ``start``), the parts that beat ``start`` give the same values, the first of
+    the smallest wins as there. Elsewhere (nothing below start: a segment through a part,
+    whose distance function can exceed |p - segment|, or no point given: NaN) the plain
+    search runs. The result never depends on p; only the time does. ``known``: the part
+    bounds are in work already (:func:`segment_bound`)."""
     start = point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez) + PRUNE_MARGIN
     if start < np.inf:
-        found = search_parts(geo, ax, ay, az, ex, ey, ez, work, start)
+        k = near_candidates(geo, ax, ay, az, ex, ey, ez, work, start, known)
+        found = visit_parts(geo, ax, ay, az, ex, ey, ez, work, start, k)
         if found[0] < start:
             return found
-    return search_parts(geo, ax, ay, az, ex, ey, ez, work, np.inf)
+    if known:
+        return segment_search(geo, ax, ay, az, ex, ey, ez, work)
+    return segment_one(geo, ax, ay, az, ex, ey, ez, work)
 
 @jit.kernel(_nrt=False)
 def segment_one(geo, ax, ay, az, ex, ey, ez, work):
@@ -455,11 +446,10 @@ def segment_one(geo, ax, ay, az, ex, ey, ez, work):
 @jit.kernel
 def segment_buffers(planes, plane_start):
     """The work buffers of :func:`segment_one` for an object's planes (P, 4) in n_parts
-    parts: (bounds (n_parts,), order (n_parts,) int64, stack (n_parts, 2) int64, plane
-    values (2, P))."""
+    parts: (bounds (n_parts,), order (n_parts,) int64, plane values (2, P))."""
     n_parts = plane_start.shape[0] - 1
     return (np.empty(n_parts), np.empty(n_parts, dtype=np.int64),
-            np.empty((n_parts, 2), dtype=np.int64), np.empty((2, planes.shape[0])))
+            np.empty((2, planes.shape[0])))
 
 @jit.kernel
 def segments_closest(geo, a, b, out_d, out_obj, out_seg, out_part):
