@@ -355,3 +355,28 @@ def test_search_started_near_a_known_point_changes_no_bit(name):
                 segment_bound(geo, *ends, work)
                 assert segment_search_near(geo, *ends, work, *point, known) == plain, (i, point)
     assert through > 20  # the take-over was exercised
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_edge_blocks_cover_each_part_and_hold_their_edges(name):
+    """The packed geometry's edge blocks: each part's edges are the part's own (the same
+    set, reordered), split into consecutive blocks of at most BLOCK_EDGES, and every edge's
+    ends lie inside its block's sphere (what skipping a block whole relies on)."""
+    from kinegrasp_env.closing.segment_distance import BLOCK_EDGES, pack
+
+    obj = load_object(name)
+    geo = pack(obj)
+    for index, part in enumerate(obj.convex_parts):
+        mine = geo.edges[geo.edge_start[index]:geo.edge_start[index + 1]]
+        key = np.sort(np.round(part.edges.reshape(len(part.edges), 6), 12), axis=0)
+        np.testing.assert_array_equal(np.sort(np.round(mine.reshape(len(mine), 6), 12),
+                                              axis=0), key)
+        blocks = range(geo.block_start[index], geo.block_start[index + 1])
+        assert geo.block_edge[blocks[0]] == geo.edge_start[index]
+        assert geo.block_edge[blocks[-1] + 1] == geo.edge_start[index + 1]
+        for block in blocks:
+            first, last = geo.block_edge[block], geo.block_edge[block + 1]
+            assert 0 < last - first <= BLOCK_EDGES
+            ends = geo.edges[first:last].reshape(-1, 3)
+            assert (np.linalg.norm(ends - geo.block_center[block], axis=1)
+                    <= geo.block_radius[block]).all()

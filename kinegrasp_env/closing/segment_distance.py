@@ -10,7 +10,10 @@ segments, with prunings that skip only what provably cannot change the result:
 - an edge is skipped when a lower bound of its distance exceeds the best found so far: the
   distance from its bounding sphere, or from the plane of either face it bounds (a point's
   distance to the edge is at least its distance to that plane: |s_f(x)|; a segment's, the
-  smaller of its ends' when the plane does not separate them);
+  smaller of its ends' when the plane does not separate them); each part's edges are
+  packed in blocks of nearby edges (:func:`spatial_blocks`), and a block whose bounding
+  sphere is farther than the best is skipped whole (exact queries on the spray flask's
+  144-edge prisms 25% faster, the mug's 15-25%);
 - the closing loop starts each query's best distance at that of an object point an earlier
   query found (:func:`segment_search_near`: the same result, the plain search taking over
   where it does not hold), instead of inf.
@@ -27,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from itertools import pairwise
 
 import numpy as np
 
@@ -39,6 +43,10 @@ from kinegrasp_env.world.polytope import INSIDE_TOL
 PRUNE_MARGIN = 1e-9
 #: An edge bounds a face when both its ends lie within this of the face's plane (metres).
 FACE_RESIDUAL = 1e-12
+#: Largest number of edges in a block: each part's edges are ordered so that blocks of
+#: nearby edges are consecutive, and a block whose bounding sphere cannot beat the best
+#: distance is skipped whole (the spray flask's 48-gon prisms have 144 edges a part).
+BLOCK_EDGES = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +62,10 @@ class PackedGeometry:
             where no plane of its part holds both its ends within ``FACE_RESIDUAL``).
         part_center: (n_parts, 3), part_radius: (n_parts,): a sphere holding each part
             (centre: the mean of its edges' end points; radius: the farthest of them).
+        block_start: (n_parts + 1,) int64 offsets of each part's edge blocks;
+            block_edge: (n_blocks + 1,) int64 offsets of each block's edges (a part's edges
+            are ordered by :func:`spatial_blocks`); block_center (n_blocks, 3),
+            block_radius (n_blocks,): a sphere holding each block's edges.
     """
 
     planes: np.ndarray
@@ -66,6 +78,10 @@ class PackedGeometry:
     edge_faces: np.ndarray
     part_center: np.ndarray
     part_radius: np.ndarray
+    block_start: np.ndarray
+    block_edge: np.ndarray
+    block_center: np.ndarray
+    block_radius: np.ndarray
 
 
 def edge_faces(planes: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -77,25 +93,56 @@ def edge_faces(planes: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.where(close, nearest, -1).astype(np.int64)
 
 
+def spatial_blocks(mid: np.ndarray, size: int = BLOCK_EDGES) -> list[np.ndarray]:
+    """Indices of points mid (E, 3) in blocks of at most ``size`` nearby points: halved at
+    the median of the widest coordinate until small enough (a k-d tree's leaves, in order)."""
+    todo, leaves = [np.arange(len(mid))], []
+    while todo:
+        idx = todo.pop()
+        if len(idx) <= size:
+            leaves.append(idx)
+            continue
+        axis = int(np.argmax(np.ptp(mid[idx], axis=0)))
+        idx = idx[np.argsort(mid[idx, axis], kind="stable")]
+        todo += [idx[len(idx) // 2:], idx[:len(idx) // 2]]  # the lower half next
+    return leaves
+
+
 def pack(obj: GraspObject) -> PackedGeometry:
     parts = obj.convex_parts
     planes = np.concatenate([p.planes for p in parts])
-    edges = np.concatenate([p.edges for p in parts])
     plane_start = np.cumsum([0] + [len(p.planes) for p in parts])
-    edge_start = np.cumsum([0] + [len(p.edges) for p in parts])
-    faces = np.concatenate([edge_faces(p.planes, p.edges) for p in parts])
-    faces = np.where(faces >= 0, faces + np.repeat(plane_start[:-1], np.diff(edge_start))[:, None],
-                     -1)
+    part_edges, faces, blocks = [], [], []
+    for part, first in zip(parts, plane_start[:-1], strict=True):
+        leaves = spatial_blocks(part.edges.mean(axis=1)) if len(part.edges) else []
+        ordered = part.edges[np.concatenate(leaves)] if leaves else part.edges
+        part_edges.append(ordered)
+        found = edge_faces(part.planes, ordered)
+        faces.append(np.where(found >= 0, found + first, -1))
+        blocks.append([len(leaf) for leaf in leaves])
+    edges = np.concatenate(part_edges)
+    edge_start = np.cumsum([0] + [len(e) for e in part_edges])
     corners = [p.edges.reshape(-1, 3) for p in parts]
     center = np.array([c.mean(axis=0) for c in corners])
     radius = np.array([np.linalg.norm(c - m, axis=1).max()
                        for c, m in zip(corners, center, strict=True)])
+    block_edge = np.cumsum([0] + [n for part in blocks for n in part])
+    block_start = np.cumsum([0] + [len(part) for part in blocks])
+    ends = [edges[a:b].reshape(-1, 3) for a, b in pairwise(block_edge)]
+    block_center = np.array([0.5 * (e.min(axis=0) + e.max(axis=0)) for e in ends])
+    # a sphere holding both ends of every edge of the block holds the edges (convex); the
+    # relative margin covers the rounding of the distances it is compared with
+    block_radius = np.array([np.linalg.norm(e - c, axis=1).max() for e, c in
+                             zip(ends, block_center, strict=True)]) * (1 + 1e-9) + 1e-12
     return PackedGeometry(np.ascontiguousarray(planes), plane_start.astype(np.int64),
                           np.ascontiguousarray(edges), edge_start.astype(np.int64),
                           np.array([p.scale for p in parts]),
                           np.ascontiguousarray(edges.mean(axis=1)),
                           0.5 * np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1),
-                          faces.astype(np.int64), center, radius)
+                          np.concatenate(faces).astype(np.int64), center, radius,
+                          block_start.astype(np.int64), block_edge.astype(np.int64),
+                          np.ascontiguousarray(block_center.reshape(-1, 3)),
+                          block_radius.reshape(-1))
 
 
 def packed(name: str) -> PackedGeometry:
@@ -113,41 +160,50 @@ def packed_object(obj: GraspObject) -> PackedGeometry:
 
 
 @jit.kernel(inline="always")
-def point_edges(edges, mid, half, faces, e0, e1, x, y, z, values, side, limit):
-    """Closest point of (x, y, z) (end ``side`` of the segment, plane values (2, P)) on
-    edges e0:e1: (distance, point (3 floats)). An edge is skipped when its bounding sphere
-    is farther than the best so far, or the plane of one of its faces is farther than that
-    or than ``limit`` (a distance found elsewhere: the result is exact wherever it is below
-    ``limit``, and at least ``limit`` elsewhere)."""
+def point_edges(geo, part, x, y, z, values, side, limit):
+    """Closest point of (x, y, z) (end ``side`` of the segment, plane values (2, P)) on the
+    edges of one part: (distance, point (3 floats)). A block of edges is skipped when its
+    bounding sphere is farther than the best so far (or ``limit``), an edge when its own is,
+    or the plane of one of its faces is farther than that or than ``limit`` (a distance
+    found elsewhere: the result is exact wherever it is below ``limit``, and at least
+    ``limit`` elsewhere)."""
+    edges, mid, half, faces = geo[2], geo[5], geo[6], geo[7]
+    block_start, block_edge, block_center, block_radius = geo[11], geo[12], geo[13], geo[14]
     best = np.inf
     cap = limit  # min(limit, sqrt(best))
     bx = by = bz = 0.0
-    for e in range(e0, e1):
-        f0, f1 = faces[e, 0], faces[e, 1]
-        plane = max(abs(values[side, f0]) if f0 >= 0 else 0.0,
-                    abs(values[side, f1]) if f1 >= 0 else 0.0)
-        if plane - 2.0 * PRUNE_MARGIN >= cap:
+    for block in range(block_start[part], block_start[part + 1]):
+        mx, my, mz = (x - block_center[block, 0], y - block_center[block, 1],
+                      z - block_center[block, 2])
+        far = cap + block_radius[block] + 2.0 * PRUNE_MARGIN
+        if mx * mx + my * my + mz * mz >= far * far:
             continue
-        sx, sy, sz = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-        dx, dy, dz = edges[e, 1, 0] - sx, edges[e, 1, 1] - sy, edges[e, 1, 2] - sz
-        # bounding sphere of the edge: skip when it cannot beat the best (or the limit)
-        mx, my, mz = x - mid[e, 0], y - mid[e, 1], z - mid[e, 2]
-        r2 = mx * mx + my * my + mz * mz
-        far = cap + half[e] + 2.0 * PRUNE_MARGIN
-        if r2 >= far * far:
-            continue
-        reach = np.sqrt(r2) - half[e]
-        if reach > 0.0 and reach * reach >= best:
-            continue
-        len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
-        t = ((x - sx) * dx + (y - sy) * dy + (z - sz) * dz) / len2
-        t = min(max(t, 0.0), 1.0)
-        qx, qy, qz = sx + t * dx, sy + t * dy, sz + t * dz
-        d2 = (x - qx) ** 2 + (y - qy) ** 2 + (z - qz) ** 2
-        if d2 < best:
-            best = d2
-            cap = min(limit, np.sqrt(d2))
-            bx, by, bz = qx, qy, qz
+        for e in range(block_edge[block], block_edge[block + 1]):
+            f0, f1 = faces[e, 0], faces[e, 1]
+            plane = max(abs(values[side, f0]) if f0 >= 0 else 0.0,
+                        abs(values[side, f1]) if f1 >= 0 else 0.0)
+            if plane - 2.0 * PRUNE_MARGIN >= cap:
+                continue
+            sx, sy, sz = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+            dx, dy, dz = edges[e, 1, 0] - sx, edges[e, 1, 1] - sy, edges[e, 1, 2] - sz
+            # bounding sphere of the edge: skip when it cannot beat the best (or the limit)
+            mx, my, mz = x - mid[e, 0], y - mid[e, 1], z - mid[e, 2]
+            r2 = mx * mx + my * my + mz * mz
+            far = cap + half[e] + 2.0 * PRUNE_MARGIN
+            if r2 >= far * far:
+                continue
+            reach = np.sqrt(r2) - half[e]
+            if reach > 0.0 and reach * reach >= best:
+                continue
+            len2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
+            t = ((x - sx) * dx + (y - sy) * dy + (z - sz) * dz) / len2
+            t = min(max(t, 0.0), 1.0)
+            qx, qy, qz = sx + t * dx, sy + t * dy, sz + t * dz
+            d2 = (x - qx) ** 2 + (y - qy) ** 2 + (z - qz) ** 2
+            if d2 < best:
+                best = d2
+                cap = min(limit, np.sqrt(d2))
+                bx, by, bz = qx, qy, qz
     return np.sqrt(best), bx, by, bz
 
 @jit.kernel(inline="always")
@@ -155,7 +211,7 @@ def point_part(geo, part, x, y, z, values, side, limit):
     """Signed distance and closest point of (x, y, z), end ``side`` of the segment whose
     plane values (2, P) are given, to one part; exact wherever below ``limit`` (see
     :func:`point_edges`)."""
-    planes, plane_start, edges, edge_start, scale, mid, half, faces = geo[:8]
+    planes, plane_start, scale = geo[0], geo[1], geo[4]
     p0, p1 = plane_start[part], plane_start[part + 1]
     top = -np.inf
     face = p0
@@ -176,8 +232,7 @@ def point_part(geo, part, x, y, z, values, side, limit):
             worst = v
     if worst <= geo[10] * scale[part]:
         return top, cx, cy, cz
-    return point_edges(edges, mid, half, faces, edge_start[part], edge_start[part + 1], x, y,
-                       z, values, side, limit)
+    return point_edges(geo, part, x, y, z, values, side, limit)
 
 @jit.kernel(_nrt=False)
 def part_bounds(planes, plane_start, ax, ay, az, ex, ey, ez, bounds, values):
@@ -256,7 +311,8 @@ def segment_part(geo, part, ax, ay, az, ex, ey, ez, values, limit):
     far. ``limit``: the best distance of the other parts; what cannot beat it is skipped
     too (the result is then the same wherever it is below ``limit``, and at least ``limit``
     elsewhere)."""
-    edges, edge_start, mid, half, faces = geo[2], geo[3], geo[5], geo[6], geo[7]
+    edges, mid, half, faces = geo[2], geo[5], geo[6], geo[7]
+    block_start, block_edge, block_center, block_radius = geo[11], geo[12], geo[13], geo[14]
     ux, uy, uz = ex - ax, ey - ay, ez - az
     uu = ux * ux + uy * uy + uz * uz
     inv_uu = 1.0 / max(uu, 1e-300)
@@ -268,27 +324,34 @@ def segment_part(geo, part, ax, ay, az, ex, ey, ez, values, limit):
         d, ox, oy, oz, sx, sy, sz = db, cxb, cyb, czb, ex, ey, ez
     else:
         d, ox, oy, oz, sx, sy, sz = da, cxa, cya, cza, ax, ay, az
-    for e in range(edge_start[part], edge_start[part + 1]):
-        # skip the edge when the plane of one of its faces, or its bounding sphere, is
-        # farther than the best so far (and the other parts' best), by the margin
-        reach = min(d, limit) + PRUNE_MARGIN
-        f0, f1 = faces[e, 0], faces[e, 1]
-        if max(plane_gap(values[0, f0], values[1, f0]) if f0 >= 0 else 0.0,
-               plane_gap(values[0, f1], values[1, f1]) if f1 >= 0 else 0.0) >= reach:
+    for block in range(block_start[part], block_start[part + 1]):
+        # skip the block when its bounding sphere is farther than the best so far (and the
+        # other parts' best), by the margin
+        if not sphere_reaches(block_center[block, 0], block_center[block, 1],
+                              block_center[block, 2], block_radius[block], ax, ay, az, ux,
+                              uy, uz, inv_uu, min(d, limit) + PRUNE_MARGIN):
             continue
-        if not sphere_reaches(mid[e, 0], mid[e, 1], mid[e, 2], half[e], ax, ay, az, ux, uy,
-                              uz, inv_uu, reach):
-            continue
-        gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
-                       + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
-        if gap >= d:
-            continue
-        cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
-        vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
-        dd, qx, qy, qz, px, py, pz = segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0,
-                                                  vx, vy, vz)
-        if dd < d:
-            d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
+        for e in range(block_edge[block], block_edge[block + 1]):
+            # skip the edge when the plane of one of its faces, or its bounding sphere, is
+            # farther than the best so far (and the other parts' best), by the margin
+            reach = min(d, limit) + PRUNE_MARGIN
+            f0, f1 = faces[e, 0], faces[e, 1]
+            if max(plane_gap(values[0, f0], values[1, f0]) if f0 >= 0 else 0.0,
+                   plane_gap(values[0, f1], values[1, f1]) if f1 >= 0 else 0.0) >= reach:
+                continue
+            if not sphere_reaches(mid[e, 0], mid[e, 1], mid[e, 2], half[e], ax, ay, az, ux,
+                                  uy, uz, inv_uu, reach):
+                continue
+            gap = (np.sqrt((mid[e, 0] - mx) ** 2 + (mid[e, 1] - my) ** 2
+                           + (mid[e, 2] - mz) ** 2) - seg_half - half[e])
+            if gap >= d:
+                continue
+            cx0, cy0, cz0 = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+            vx, vy, vz = edges[e, 1, 0] - cx0, edges[e, 1, 1] - cy0, edges[e, 1, 2] - cz0
+            dd, qx, qy, qz, px, py, pz = segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0,
+                                                      cz0, vx, vy, vz)
+            if dd < d:
+                d, ox, oy, oz, sx, sy, sz = dd, qx, qy, qz, px, py, pz
     return d, ox, oy, oz, sx, sy, sz
 
 @jit.kernel(inline="always")
@@ -463,11 +526,13 @@ def segments_closest(geo, a, b, out_d, out_obj, out_seg, out_part):
 
 def geometry_tuple(obj: GraspObject) -> tuple:
     """The object's packed parts as the kernels' ``geo`` tuple: planes, plane_start, edges,
-    edge_start, scale, edge_mid, edge_half, edge_faces, part_center, part_radius
-    (:class:`PackedGeometry`), the relative on-face tolerance."""
+    edge_start, scale, edge_mid, edge_half, edge_faces, part_center, part_radius, the
+    relative on-face tolerance, block_start, block_edge, block_center, block_radius
+    (:class:`PackedGeometry`)."""
     geo = packed_object(obj)
     return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
-            geo.edge_half, geo.edge_faces, geo.part_center, geo.part_radius, INSIDE_TOL)
+            geo.edge_half, geo.edge_faces, geo.part_center, geo.part_radius, INSIDE_TOL,
+            geo.block_start, geo.block_edge, geo.block_center, geo.block_radius)
 
 
 def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: str = "numba"
