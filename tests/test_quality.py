@@ -302,7 +302,13 @@ def test_expansion_path_on_a_known_polytope():
 def test_expansion_path_matches_qhull_on_random_clouds():
     from scipy.spatial import ConvexHull
 
-    from kinegrasp_env.quality.expansion import epsilon_epa, epsilon_epa_batch
+    from kinegrasp_env.quality.expansion import (
+        epsilon_epa,
+        epsilon_epa_batch,
+        epsilon_epa_in,
+        new_polytope,
+        new_ridges,
+    )
 
     rng = np.random.default_rng(11)
     clouds = rng.normal(size=(150, 40, 6)) + rng.normal(scale=0.6, size=(150, 1, 6))
@@ -317,6 +323,10 @@ def test_expansion_path_matches_qhull_on_random_clouds():
         assert epsilon_epa.py_func(cloud) == epsilon_epa(cloud)
     # the batch reuses one set of tables for every grasp: the same answers as fresh ones
     assert [epsilon_epa(cloud) for cloud in clouds] == list(zip(q, certified, strict=True))
+    # and so do single calls that share tables (ferrari_canny's, one set per thread)
+    tables = (new_polytope(), new_ridges())
+    assert [epsilon_epa_in(cloud, *tables) for cloud in clouds] == list(
+        zip(q, certified, strict=True))
 
 
 def test_expansion_path_declines_sets_beyond_its_bound():
