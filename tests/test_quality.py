@@ -305,9 +305,10 @@ def test_expansion_path_matches_qhull_on_random_clouds():
     from kinegrasp_env.quality.expansion import (
         epsilon_epa,
         epsilon_epa_batch,
-        epsilon_epa_in,
+        expand_from,
         new_polytope,
         new_ridges,
+        screen,
     )
 
     rng = np.random.default_rng(11)
@@ -325,8 +326,11 @@ def test_expansion_path_matches_qhull_on_random_clouds():
     assert [epsilon_epa(cloud) for cloud in clouds] == list(zip(q, certified, strict=True))
     # and so do single calls that share tables (ferrari_canny's, one set per thread)
     tables = (new_polytope(), new_ridges())
-    assert [epsilon_epa_in(cloud, *tables) for cloud in clouds] == list(
-        zip(q, certified, strict=True))
+    shared = []
+    for cloud in clouds:
+        start, value, done = screen(cloud)
+        shared.append((value, done) if start[0] < 0 else expand_from(cloud, start, *tables))
+    assert shared == list(zip(q, certified, strict=True))
 
 
 def test_expansion_path_declines_sets_beyond_its_bound():

@@ -505,24 +505,14 @@ def _expand(w, poly, count, tol, scale, ridges) -> int:
 def epsilon_epa(w: np.ndarray) -> tuple[float, bool]:
     """(Q, certified) for wrenches w (N, 6); Q = 0 if the origin is outside. More than
     :data:`MAX_POINTS` wrenches: not certified (the caller uses qhull)."""
-    start, q, certified = _screen(w)
+    start, q, certified = screen(w)
     if start[0] < 0:
         return q, certified
-    return _expand_from(w, start, new_polytope(), new_ridges())
+    return expand_from(w, start, new_polytope(), new_ridges())
 
 
 @jit.kernel
-def epsilon_epa_in(w: np.ndarray, poly, ridges) -> tuple[float, bool]:
-    """:func:`epsilon_epa` in the tables given (:func:`new_polytope`, :func:`new_ridges`:
-    ~2 MB, allocated once by a caller that computes one grasp at a time)."""
-    start, q, certified = _screen(w)
-    if start[0] < 0:
-        return q, certified
-    return _expand_from(w, start, poly, ridges)
-
-
-@jit.kernel
-def _screen(w: np.ndarray):
+def screen(w: np.ndarray):
     """Phase 1 of :func:`epsilon_epa`: (start (7,), the initial simplex, or [code] (see
     :func:`_initial_simplex`; [-2] past :data:`MAX_POINTS` wrenches), and where it is a code,
     the answer (Q, certified): Q = 0, certified unless undecided)."""
@@ -533,8 +523,8 @@ def _screen(w: np.ndarray):
 
 
 @jit.kernel(_nrt=False)
-def _expand_from(w: np.ndarray, start: np.ndarray, poly, ridges) -> tuple[float, bool]:
-    """:func:`epsilon_epa` from the initial simplex ``start`` (:func:`_screen`), in the
+def expand_from(w: np.ndarray, start: np.ndarray, poly, ridges) -> tuple[float, bool]:
+    """:func:`epsilon_epa` from the initial simplex ``start`` (:func:`screen`), in the
     polytope and ridge tables given (:func:`new_polytope`, :func:`new_ridges`: ~2 MB, so a
     batch allocates them once, and a set that phase 1 settles needs none)."""
     scale = _wrench_scale(w)
@@ -579,7 +569,7 @@ def epsilon_epa_batch(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ok = np.zeros(w.shape[0], np.bool_)
     poly, ridges = new_polytope(), new_ridges()
     for b in range(w.shape[0]):
-        start, q[b], ok[b] = _screen(w[b])
+        start, q[b], ok[b] = screen(w[b])
         if start[0] >= 0:
-            q[b], ok[b] = _expand_from(w[b], start, poly, ridges)
+            q[b], ok[b] = expand_from(w[b], start, poly, ridges)
     return q, ok
