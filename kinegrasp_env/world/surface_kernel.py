@@ -5,9 +5,10 @@ closing batch).
 
 The arithmetic is the numpy formulation's, term by term in the same order (a plane's value
 at x is ((x n_x + y n_y) + z n_z) + offset; the first face of largest value wins, as argmax
-picks it), so the same point gives the same bits (checked when it was written, on the
-closing's contacts of 4 x 2,400 draws); ``tests/test_objects_sim.py`` checks the kernel
-against the per-part numpy projection.
+picks it), so the same point gives the same bits (checked when it was written, on 320,000
+points of the four objects: exact closest points of random segments, and random points);
+``tests/test_objects_sim.py`` checks the kernel against trimesh's closest points on each
+part's hull.
 """
 
 from __future__ import annotations
