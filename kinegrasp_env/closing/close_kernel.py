@@ -142,8 +142,8 @@ def exact_gap(geo, finger, phase, start_p, start_d, t, work, need):
     place_axes(finger, prox, dist, work)
     ends = work[4]
     if phase == 1:
-        return both_links(geo, finger, ends, sort, pair, need, work[8])
-    return exact_pair(geo, ends[2], ends[3], sort, pair[1], work[8][1]) - finger[7]
+        return both_links(geo, finger, ends, sort, pair, need, finger[10])
+    return exact_pair(geo, ends[2], ends[3], sort, pair[1], finger[10][1]) - finger[7]
 
 @jit.kernel(_nrt=False)
 def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
@@ -202,7 +202,7 @@ def closest_pairs(geo, contact_tol, finger, phase, start_p, start_d, t, evaluate
             ends = work[4]
             limit = max(pair[1 - link, 0] - radius[1 - link], contact_tol) + radius[link]
             bounded_pair(geo, ends[2 * link], ends[2 * link + 1], work[5], pair[link], limit,
-                         work[8][link])
+                         finger[10][link])
 
 @jit.kernel(_nrt=False)
 def touch_down(geo, rules, finger, state, gap, work, found, pairs):
@@ -271,14 +271,14 @@ def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, 
     The state is (phase, start_p, start_d, t, t_lo, t_hi, active, has_contact): phase 1
     moves both joints, phase 2 (after a proximal contact) the distal one; the flexions are
     start + t (to the joint limits); [t_lo, t_hi] brackets contact (t_hi NaN until a
-    penetration is seen). buffers: (sample, work, scratch) of :func:`close_all`; work[8]
+    penetration is seen). buffers: (sample, work, scratch) of :func:`close_all`; finger[10]
     (2, 3): an object point near each link (``near`` of :func:`exact_pair`: NaN for none; it
     changes the speed of the exact queries, not their results), updated as it closes.
     """
     contact_tol, query_distance, max_iterations = rules[0], rules[2], rules[7]
     r_p, r_d = finger[6], finger[7]
     sample, work, scratch = buffers
-    sort, near = work[5], work[8]
+    sort, near = work[5], finger[10]
     state = (1, min(prox0, finger[8]), min(dist0, finger[9]), 0.0, 0.0, np.nan, True, False)
     missed = False
     it = 0
@@ -319,11 +319,10 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
     (proximal, distal; radians); returns the most iterations any problem took.
     """
     # work buffers: rotation, proximal and distal frames, product, axis ends, those of
-    # segment_one, the closest pairs of both links, those of polish's best evaluation, and
-    # each link's last object point (exact_pair)
+    # segment_one, the closest pairs of both links, and those of polish's best evaluation
     work = (np.empty((3, 3)), np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 3)),
             np.empty((4, 3)), segment_buffers(geo[0], geo[1]), np.empty((2, PAIR_SIZE)),
-            np.empty((2, PAIR_SIZE)), np.empty((2, 3)))
+            np.empty((2, PAIR_SIZE)))
     buffers = (np.empty(grid[4]), work, np.empty(PAIR_SIZE))
     # per finger and link, the object point its last exact query found: the draws are
     # nearby configurations, so the previous draw's points start the next one's queries
@@ -331,18 +330,12 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
     most = 0
     for i in range(prox0.shape[0]):
         for f in range(3):
-            for link in range(2):
-                for c in range(3):
-                    work[8][link, c] = near[f, link, c]
             finger = (joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
                       ends_p[f], ends_d[f], radius[f, 0], radius[f, 1], upper[f, 0],
-                      upper[f, 1])
+                      upper[f, 1], near[f])
             it, missed[i, f] = close_finger(grid, geo, rules, finger, speed, prox0[i, f],
                                             dist0[i, f], buffers, found[i, f], pairs[i, f],
                                             flexion[i, f])
-            for link in range(2):
-                for c in range(3):
-                    near[f, link, c] = work[8][link, c]
             most = max(most, it)
     return most
 

@@ -125,13 +125,14 @@ class FastHand:
         self.cylinders = [s for s in hand_shapes() if s.kind == "cylinder"]
         self.samples = [(s.surface_samples(SCREEN_SPACING), s.surface_samples(COARSE_SPACING),
                          s.surface_samples(CYLINDER_SPACING)) for s in self.cylinders]
-        # the same, stacked for the compiled check: samples, their offsets per cylinder and
-        # spacing, and the three thresholds (see _cylinder_collision)
+        # the same, stacked for the compiled check: samples, where cylinder s's samples at
+        # spacing t start (starts[s, t]; its finest end at starts[s, 3]), and the three
+        # thresholds (see _cylinder_collision)
         stacked = [block for blocks in self.samples for block in blocks]
-        self._screen = (np.ascontiguousarray(np.vstack(stacked), dtype=float),
-                        np.concatenate([[0], np.cumsum([len(b) for b in stacked])])
-                        .astype(np.int64)[np.arange(len(self.cylinders))[:, None] * 3
-                                          + np.arange(4)],
+        offsets = np.cumsum([0] + [len(block) for block in stacked])
+        starts = np.array([offsets[3 * s:3 * s + 4] for s in range(len(self.cylinders))],
+                          dtype=np.int64)
+        self._screen = (np.ascontiguousarray(np.vstack(stacked), dtype=float), starts,
                         np.array([COARSE_SPACING - START_TOL + SCREEN_SPACING,
                                   COARSE_SPACING - START_TOL, -START_TOL]))
         self.axis_p = [self.model.joint(f[0]).axis for f in FINGERS]

@@ -110,8 +110,7 @@ def spatial_blocks(mid: np.ndarray, size: int = BLOCK_EDGES) -> list[np.ndarray]
 
 def pack(obj: GraspObject) -> PackedGeometry:
     parts = obj.convex_parts
-    planes = np.concatenate([p.planes for p in parts])
-    plane_start = np.cumsum([0] + [len(p.planes) for p in parts])
+    planes, plane_start = obj.packed_planes  # the parts' planes, stacked
     part_edges, faces, blocks = [], [], []
     for part, first in zip(parts, plane_start[:-1], strict=True):
         leaves = spatial_blocks(part.edges.mean(axis=1)) if len(part.edges) else []
@@ -134,7 +133,7 @@ def pack(obj: GraspObject) -> PackedGeometry:
     # relative margin covers the rounding of the distances it is compared with
     block_radius = np.array([np.linalg.norm(e - c, axis=1).max() for e, c in
                              zip(ends, block_center, strict=True)]) * (1 + 1e-9) + 1e-12
-    return PackedGeometry(np.ascontiguousarray(planes), plane_start.astype(np.int64),
+    return PackedGeometry(planes, plane_start,
                           np.ascontiguousarray(edges), edge_start.astype(np.int64),
                           np.array([p.scale for p in parts]),
                           np.ascontiguousarray(edges.mean(axis=1)),
@@ -379,14 +378,20 @@ def part_order(bounds, order):
         insert_part(bounds, order, part, part)
 
 @jit.kernel(inline="always")
+def point_to_segment(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu):
+    """Distance (metres) from point p to segment a + s u, s in [0, 1] (inv_uu = 1 / u . u)."""
+    wx, wy, wz = px - ax, py - ay, pz - az
+    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return np.sqrt(dx * dx + dy * dy + dz * dz)
+
+@jit.kernel(inline="always")
 def sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu):
     """Lower bound of the distance from segment a + s u to a part inside the sphere
     (center[part], radius[part]) when positive (the segment is then outside the part);
     -inf when the segment meets the sphere."""
-    wx, wy, wz = center[part, 0] - ax, center[part, 1] - ay, center[part, 2] - az
-    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
-    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
-    bound = np.sqrt(dx * dx + dy * dy + dz * dz) - radius[part] - PRUNE_MARGIN
+    bound = (point_to_segment(center[part, 0], center[part, 1], center[part, 2], ax, ay, az,
+                              ux, uy, uz, inv_uu) - radius[part] - PRUNE_MARGIN)
     return bound if bound > 0.0 else -np.inf
 
 @jit.kernel(_nrt=False)
@@ -459,16 +464,6 @@ def near_candidates(geo, ax, ay, az, ex, ey, ez, work, start, known):
             k += 1
     return k
 
-@jit.kernel(inline="always")
-def point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez):
-    """Distance (metres) from point p to segment [a, e]."""
-    ux, uy, uz = ex - ax, ey - ay, ez - az
-    wx, wy, wz = px - ax, py - ay, pz - az
-    s = min(max((wx * ux + wy * uy + wz * uz) / max(ux * ux + uy * uy + uz * uz, 1e-300),
-                0.0), 1.0)
-    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
-    return np.sqrt(dx * dx + dy * dy + dz * dz)
-
 @jit.kernel(_nrt=False)
 def segment_search_near(geo, ax, ay, az, ex, ey, ez, work, px, py, pz, known):
     """:func:`segment_one`, faster when (px, py, pz) is a point of the object near the
@@ -485,7 +480,9 @@ def segment_search_near(geo, ax, ay, az, ex, ey, ez, work, px, py, pz, known):
     whose distance function can exceed |p - segment|, or no point given: NaN) the plain
     search runs. The result never depends on p; only the time does. ``known``: the part
     bounds are in work already (:func:`segment_bound`)."""
-    start = point_to_segment(px, py, pz, ax, ay, az, ex, ey, ez) + PRUNE_MARGIN
+    ux, uy, uz = ex - ax, ey - ay, ez - az
+    inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
+    start = point_to_segment(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu) + PRUNE_MARGIN
     if start < np.inf:
         k = near_candidates(geo, ax, ay, az, ex, ey, ez, work, start, known)
         found = visit_parts(geo, ax, ay, az, ex, ey, ez, work, start, k)

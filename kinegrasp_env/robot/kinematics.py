@@ -129,7 +129,7 @@ class Kinematics:
         self._drivers = model.drivers()
         self._parent_joint = {j.child: j for j in model.joints}
         self._links = model.links
-        self._needed: dict[tuple[str, ...], tuple[frozenset[str], np.ndarray]] = {}
+        self._needed: dict[tuple[str, ...], np.ndarray] = {}
         self._slot = {model.base_link: 0} | {j.child: i + 1 for i, j in enumerate(model.joints)}
         count = len(model.joints)
         kind = np.zeros(count, dtype=np.int64)
@@ -179,9 +179,9 @@ class Kinematics:
                                                        general, prismatic)]
         return (rows[0], rows[1]), (rows[2], rows[3]), rows[4], rows[5]
 
-    def _chains(self, wanted: tuple[str, ...]) -> tuple[frozenset[str], np.ndarray]:
-        """The links whose frames lead to the ``wanted`` ones, and the same as a (J,) bool
-        mask over the joints (KeyError for unknown links)."""
+    def _chains(self, wanted: tuple[str, ...]) -> np.ndarray:
+        """(J,) bool mask of the joints whose child frames lead to the ``wanted`` links
+        (KeyError for unknown links)."""
         needed = self._needed.get(wanted)
         if needed is None:
             unknown = set(wanted) - set(self._links)
@@ -192,8 +192,8 @@ class Kinematics:
                 while link in self._parent_joint and link not in found:
                     found.add(link)
                     link = self._parent_joint[link].parent
-            mask = np.array([j.child in found for j in self.model.joints], dtype=bool)
-            needed = self._needed[wanted] = (frozenset(found), mask)
+            needed = self._needed[wanted] = np.array(
+                [j.child in found for j in self.model.joints], dtype=bool)
         return needed
 
     def _angles(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -233,7 +233,7 @@ class Kinematics:
         """
         q = _as_batch(q, self.model.dof)
         wanted = tuple(dict.fromkeys(self._links if links is None else links))
-        _, mask = self._chains(wanted)
+        mask = self._chains(wanted)
         slots = len(self.model.joints) + 1
         out = np.empty((len(wanted), q.shape[0], 4, 4))
         forward_pass(*self._pass, mask, *self._angles(q),
