@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pytest
 from quality_cases import box_contacts, sphere_contacts
@@ -363,7 +365,9 @@ def test_expansion_facets_lie_on_the_hyperplanes_of_their_vertices(k, m):
     3.7e-13 on 80 sets), offsets within 3e-13 of the wrench scale (measured 1.5e-13), every
     vertex within PENCIL_TOL = 1e-13 of its facet (measured 4e-14); the normal points away
     from the interior point. Neighbours: facet f's neighbour across the ridge opposite its
-    vertex j is live, holds exactly f's vertices but that one, and has f as a neighbour."""
+    vertex j is live, holds exactly f's vertices but that one, and has f as a neighbour; and
+    the polytope is closed (the expansion no longer checks it, its construction keeps it):
+    every ridge of the live facets, counted here, lies in exactly two of them."""
     pts, nrm = sphere_contacts(np.random.default_rng(7), 12, k, jitter=0.3)
     w = np.ascontiguousarray(wrench_matrix(pts, nrm, num_edges=m, torque_scale=20.0))
     polytopes = [(cloud, poly) for cloud in w if (poly := _expanded(cloud)) is not None]
@@ -373,6 +377,8 @@ def test_expansion_facets_lie_on_the_hyperplanes_of_their_vertices(k, m):
         scale = np.abs(cloud).max()
         live = np.flatnonzero(alive)
         assert live.size > 20
+        ridges = Counter(tuple(sorted(np.delete(verts[f], j))) for f in live for j in range(6))
+        assert set(ridges.values()) == {2}
         for f in live:
             a, b = _hyperplane_svd(cloud[verts[f]])
             if a @ interior > b:
