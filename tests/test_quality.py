@@ -429,6 +429,32 @@ def test_pencil_facet_against_the_hyperplane_through_ridge_and_apex():
     assert checked >= 10
 
 
+@pytest.mark.parametrize("dantzig", [50, 0])
+def test_phase_one_finds_a_simplex_around_the_origin(monkeypatch, dantzig):
+    """Phase 1 (Dantzig's pivot rule, then Bland's; ``dantzig = 0``: Bland's alone, run
+    interpreted so that the module constant can be changed): every simplex it returns
+    contains the origin (barycentric weights from a 7 x 7 solve >= -1e-12), and it says
+    "outside" exactly where an LP (SciPy's HiGHS) finds no convex combination equal to 0."""
+    from scipy.optimize import linprog
+
+    from kinegrasp_env.quality import expansion
+
+    monkeypatch.setattr(expansion, "DANTZIG_PIVOTS", dantzig)
+    pts, nrm = sphere_contacts(np.random.default_rng(5), 40, 5, jitter=0.3)
+    w = np.ascontiguousarray(wrench_matrix(pts, nrm, num_edges=12, torque_scale=20.0))
+    inside = 0
+    for cloud in w:
+        start = expansion._initial_simplex.py_func(cloud, 1e-12)
+        lp = linprog(np.zeros(len(cloud)), A_eq=np.vstack([cloud.T, np.ones(len(cloud))]),
+                     b_eq=np.r_[np.zeros(6), 1.0], bounds=(0, None), method="highs")
+        assert (start[0] == -1) == (lp.status == 2)
+        if start[0] >= 0:
+            lam = np.linalg.solve(np.vstack([cloud[start].T, np.ones(7)]), np.r_[np.zeros(6), 1])
+            assert lam.min() >= -1e-12
+            inside += 1
+    assert 10 <= inside <= 35
+
+
 def test_expansion_path_declines_sets_beyond_its_bound():
     from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa
 
