@@ -299,25 +299,23 @@ def new_polytope():
     point inside, used (MAX_POINTS,) wrenches that are vertices, visible (F,) scratch, basis
     (5, 6) scratch of :func:`_hyperplane`, neighbour (F, 6): the facet across the ridge
     opposite each vertex, height (F,) scratch: how far the wrench being added lies beyond
-    each visible facet, live (F,) scratch: facet ids), F = :data:`MAX_FACETS`;
+    each visible facet, planes (7, F) scratch of :func:`_is_convex`), F = :data:`MAX_FACETS`;
     :func:`_clear_polytope` empties them for the next wrench set."""
     return (np.empty((MAX_FACETS, 6), np.int64), np.empty((MAX_FACETS, 6)),
             np.empty(MAX_FACETS), np.zeros(MAX_FACETS, np.bool_), np.zeros(6),
             np.zeros(MAX_POINTS, np.bool_), np.zeros(MAX_FACETS, np.bool_),
             np.zeros((5, 6)), np.empty((MAX_FACETS, 6), np.int64), np.empty(MAX_FACETS),
-            np.empty(MAX_FACETS, np.int64))
+            np.empty((7, MAX_FACETS)))
 
 
 @jit.kernel(_nrt=False)
 def _clear_polytope(poly) -> None:
-    """No wrench used, the interior point at 0 (read before they are written), and no facet
-    alive or visible (each facet below the count is written before it is read; cleared so
-    that no facet of an earlier set can ever count). verts, normal and offset are written
-    before they are read."""
-    alive, interior, used, visible = poly[3], poly[4], poly[5], poly[6]
-    for f in range(alive.shape[0]):
-        alive[f] = False
-        visible[f] = False
+    """No wrench used and the interior point at 0 (both read before they are written). The
+    facet tables need no clearing: every loop over facets stops at the set's own count, and
+    each facet below it is written (made alive, or the set is abandoned) before it is read,
+    its ``visible`` flag in the step that reads it (clearing the 4,096 rows cost ~3 us of a
+    45 us set)."""
+    interior, used = poly[4], poly[5]
     for c in range(6):
         interior[c] = 0.0
     for i in range(used.shape[0]):
@@ -542,23 +540,30 @@ def _cone_horizon(w, far, poly, count, ridges, scale) -> int:
 
 @jit.kernel(_nrt=False)
 def _is_convex(w, poly, count, tol) -> bool:
-    """Every vertex lies on the inner side (to tol) of every live facet (listed first in
-    poly's ``live`` scratch, so that the inner loop runs over live facets only)."""
-    normal, offset, alive, used, live = poly[1], poly[2], poly[3], poly[5], poly[10]
+    """Every vertex lies on the inner side (to tol) of every live facet. The live facets'
+    normals and offsets are first copied column by column into poly's ``planes`` (7, F), so
+    that the inner loop, over facets, runs on contiguous rows, in SIMD lanes (the sums may be
+    reordered and fused: a change of ~1e-16 of the wrench scale, against tol = 1e-11; 5 x 12
+    sets: 5.3 -> 1.6 us of their ~42 us)."""
+    normal, offset, alive, used, planes = poly[1], poly[2], poly[3], poly[5], poly[10]
     n_live = 0
     for f in range(count):
         if alive[f]:
-            live[n_live] = f
+            for c in range(6):
+                planes[c, n_live] = normal[f, c]
+            planes[6, n_live] = offset[f]
             n_live += 1
     for i in range(w.shape[0]):
         if used[i]:
+            w0, w1, w2, w3, w4, w5 = w[i, 0], w[i, 1], w[i, 2], w[i, 3], w[i, 4], w[i, 5]
+            beyond = 0
             for t in range(n_live):
-                f = live[t]
-                d = -offset[f]
-                for c in range(6):
-                    d += normal[f, c] * w[i, c]
-                if d > tol:
-                    return False
+                d = (planes[0, t] * w0 + planes[1, t] * w1 + planes[2, t] * w2
+                     + planes[3, t] * w3 + planes[4, t] * w4 + planes[5, t] * w5
+                     - planes[6, t])
+                beyond += d > tol
+            if beyond:
+                return False
     return True
 
 
