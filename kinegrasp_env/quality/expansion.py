@@ -53,7 +53,7 @@ MAX_FACETS = 4096
 #: Phase-1 pivots by Dantzig's rule before Bland's takes over (measured: 5 contacts x 12
 #: edges need ~49 pivots by Bland's rule alone).
 DANTZIG_PIVOTS = 50
-MAX_POINTS = 64  # ridge keys pack 4 vertex ids of 6 bits
+MAX_POINTS = 64  # ridge keys are sets of vertex ids, the bits of an int64
 REL_TOL = 1e-11  # beyond/visible tolerance, relative to the wrench scale
 #: A facet hyperplane from its neighbours' (:func:`_pencil_facet`) must pass within this
 #: (relative to the wrench scale) of each of its vertices, else it is computed afresh.
@@ -439,21 +439,13 @@ def _pencil_facet(w, poly, g, f, h, scale) -> bool:
 
 
 @jit.kernel(_nrt=False)
-def _subridge_key(verts: np.ndarray, skip: int) -> np.int64:
-    """Sorted 4 vertex ids (each < 64) of verts[:5] without verts[skip], packed: with the
-    apex, the ridge a new facet shares with another new facet."""
-    a0 = verts[0] if skip > 0 else verts[1]
-    a1 = verts[1] if skip > 1 else verts[2]
-    a2 = verts[2] if skip > 2 else verts[3]
-    a3 = verts[3] if skip > 3 else verts[4]
-    # the optimal 4-input sorting network (5 compare-exchanges)
-    a0, a1 = min(a0, a1), max(a0, a1)
-    a2, a3 = min(a2, a3), max(a2, a3)
-    a0, a2 = min(a0, a2), max(a0, a2)
-    a1, a3 = min(a1, a3), max(a1, a3)
-    a1, a2 = min(a1, a2), max(a1, a2)
-    return ((np.int64(a0) << np.int64(18)) | (np.int64(a1) << np.int64(12))
-            | (np.int64(a2) << np.int64(6)) | np.int64(a3))
+def _vertex_set(verts: np.ndarray) -> np.int64:
+    """The 6 vertex ids (each < :data:`MAX_POINTS` = 64) of a facet as the bits of one
+    integer: a set, whatever their order, so that a ridge's key needs no sorting."""
+    bits = np.int64(0)
+    for v in range(6):
+        bits |= np.int64(1) << np.int64(verts[v])
+    return bits
 
 
 @jit.kernel(_nrt=False)
@@ -472,8 +464,10 @@ def _link_new_facets(poly, first: int, count: int, ridges) -> bool:
         table[s] = -1
     pending = 0
     for g in range(first, count):
+        # the ridge without vertex k, less the apex (verts[g, 5]), shared by all of them
+        base = _vertex_set(verts[g]) ^ (np.int64(1) << np.int64(verts[g, 5]))
         for k in range(5):
-            key = _subridge_key(verts[g], k)
+            key = base ^ (np.int64(1) << np.int64(verts[g, k]))
             s = np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
             while table[s] != -1 and table[s] != key:
                 s = (s + 1) & mask
