@@ -9,7 +9,7 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
 with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, first a certified
 nearest-facet-first expansion (:mod:`kinegrasp_env.quality.expansion`, the fastest exact
-path: 40-110x faster than the qhull loop, benchmarks/bench_quality.py); for 3 contacts with
+path: 200-800x faster than the qhull loop, benchmarks/bench_quality.py); for 3 contacts with
 :data:`TABLES_MIN_EDGES` <= m <= :data:`TABLES_MAX_EDGES` cone edges, the grasps the expansion
 does not certify (or all of them, past its size) go to the batched facet enumeration of
 :mod:`kinegrasp_env.quality.three_contacts`, after a phase-1 screen that settles those
