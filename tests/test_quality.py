@@ -455,6 +455,30 @@ def test_phase_one_finds_a_simplex_around_the_origin(monkeypatch, dantzig):
     assert 10 <= inside <= 35
 
 
+def test_expansion_tables_reused_after_a_set_abandoned_midway():
+    """64 points on the trigonometric moment curve (a cyclic polytope: more facets than the
+    4,096-row table) make the expansion give up in the middle of a step, with neighbour
+    slots already rewritten; a batch that alternates it with other sets (grasps, up to vertex
+    id 63) on the same tables gives each set the answer of fresh tables (nothing of an
+    abandoned set is read), and every certified answer equals qhull's to 1e-9."""
+    from kinegrasp_env.quality.expansion import epsilon_epa, epsilon_epa_batch
+
+    t = 2 * np.pi * np.arange(64) / 64
+    full = np.stack([np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t), np.cos(3 * t),
+                     np.sin(3 * t)], axis=1)
+    assert epsilon_epa(full) == (0.0, False)
+    rng = np.random.default_rng(4)
+    pts, nrm = sphere_contacts(rng, 40, 4, jitter=0.3)
+    grasps = wrench_matrix(pts, nrm, num_edges=16, torque_scale=20.0)  # 64 wrenches each
+    sets = np.ascontiguousarray(np.stack([x for g in grasps[:8] for x in (full, g)]))
+    q, certified = epsilon_epa_batch(sets)
+    assert [epsilon_epa(x) for x in sets] == list(zip(q, certified, strict=True))
+    assert certified[1::2].sum() >= 3
+    for w, value in zip(sets[certified], q[certified], strict=True):
+        expected = max(-ConvexHull(w).equations[:, -1].max(), 0.0)
+        assert value == pytest.approx(expected, rel=1e-9, abs=1e-12)
+
+
 def test_expansion_path_declines_sets_beyond_its_bound():
     from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa
 
