@@ -108,9 +108,10 @@ def _golden_numpy(grid: DistanceGrid, a: np.ndarray, axis: np.ndarray, lo: np.nd
 @jit.kernel(_nrt=False, inline="always")
 def trilinear(values, shape, origin, spacing, x, y, z):
     nx, ny, nz = shape[0], shape[1], shape[2]
-    rx = (x - origin[0]) / spacing
-    ry = (y - origin[1]) / spacing
-    rz = (z - origin[2]) / spacing
+    inv = 1.0 / spacing  # one division, hoisted out of the callers' loops once inlined
+    rx = (x - origin[0]) * inv
+    ry = (y - origin[1]) * inv
+    rz = (z - origin[2]) * inv
     cx = min(max(rx, 0.0), nx - 1.0)
     cy = min(max(ry, 0.0), ny - 1.0)
     cz = min(max(rz, 0.0), nz - 1.0)
