@@ -291,16 +291,27 @@ def plane_gap(va, vb):
     return 0.0
 
 @jit.kernel(inline="always")
+def point_to_segment2(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu):
+    """Squared distance (m^2) from point p to segment a + s u, s in [0, 1] (inv_uu =
+    1 / u . u)."""
+    wx, wy, wz = px - ax, py - ay, pz - az
+    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return dx * dx + dy * dy + dz * dz
+
+@jit.kernel(inline="always")
+def point_to_segment(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu):
+    """Distance (metres) from point p to segment a + s u, s in [0, 1] (inv_uu = 1 / u . u)."""
+    return np.sqrt(point_to_segment2(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu))
+
+@jit.kernel(inline="always")
 def sphere_reaches(cx, cy, cz, r, ax, ay, az, ux, uy, uz, inv_uu, limit):
     """Whether the sphere (centre c, radius r) comes within ``limit`` of the segment
     a + s u (inv_uu = 1 / u . u)."""
     reach = limit + r
     if reach <= 0.0:
         return False
-    wx, wy, wz = cx - ax, cy - ay, cz - az
-    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
-    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
-    return dx * dx + dy * dy + dz * dz < reach * reach
+    return point_to_segment2(cx, cy, cz, ax, ay, az, ux, uy, uz, inv_uu) < reach * reach
 
 @jit.kernel(inline="always")  # inlined: a call per part made the search ~2% slower
 def segment_part(geo, part, ax, ay, az, ex, ey, ez, values, limit):
@@ -376,14 +387,6 @@ def part_order(bounds, order):
     order the search visits parts in (it decides between parts at equal distance)."""
     for part in range(bounds.shape[0]):
         insert_part(bounds, order, part, part)
-
-@jit.kernel(inline="always")
-def point_to_segment(px, py, pz, ax, ay, az, ux, uy, uz, inv_uu):
-    """Distance (metres) from point p to segment a + s u, s in [0, 1] (inv_uu = 1 / u . u)."""
-    wx, wy, wz = px - ax, py - ay, pz - az
-    s = min(max((wx * ux + wy * uy + wz * uz) * inv_uu, 0.0), 1.0)
-    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
-    return np.sqrt(dx * dx + dy * dy + dz * dz)
 
 @jit.kernel(inline="always")
 def sphere_bound(center, radius, part, ax, ay, az, ux, uy, uz, inv_uu):

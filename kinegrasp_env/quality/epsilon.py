@@ -277,7 +277,8 @@ def _single_l1(w: np.ndarray, num_contacts: int) -> float:
         return 0.0
     if w.shape[0] <= MAX_POINTS:
         w = np.ascontiguousarray(w)
-        # phase 1 alone where it settles the set (passing the 14 table arrays costs ~3 us)
+        # phase 1 alone where it settles the set (no tables passed), else the expansion in
+        # this thread's tables
         start, q, certified = screen(w)
         if start[0] >= 0:
             q, certified = expand_from(w, start, *_expansion_tables())

@@ -69,8 +69,8 @@ class DistanceGrid:
     def _cells(self, points: np.ndarray):
         """Cell corner flat index (n,), fractions (n, 3) and distance outside the box (n,)."""
         nx, ny, nz = self.shape
-        # times the inverse spacing, as the compiled twin (capsule_gap.trilinear) computes it:
-        # three divisions per lookup made a fifth of its time
+        # times the inverse spacing, as the compiled twin (capsule_gap.trilinear) computes it
+        # (three divisions per lookup made one compiled grid gap 14% slower)
         rel = (points - self.origin) * (1.0 / self.spacing)
         upper = np.array([nx - 1, ny - 1, nz - 1], dtype=float)
         clamped = np.minimum(np.maximum(rel, 0.0), upper)
