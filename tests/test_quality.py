@@ -543,3 +543,84 @@ def test_plain_input_fast_checks_match_the_full_checks():
     assert scale_center(20.0, (0.1, -0.2, 0.3), 1)[1].shape == (1, 3)
     with pytest.raises(ValueError, match="torque_scale must be > 0"):
         scale_center(-1.0, (0.0, 0.0, 0.0), 1)
+
+
+# ----------------------------------------------------------------------------- one call
+def _step_by_step(points, normals, friction, num_edges, torque_scale, center) -> float:
+    """The single-grasp path as it ran before the one compiled call: numpy checks, the
+    wrench kernel, phase 1 and the expansion called from Python, qhull where uncertified."""
+    from kinegrasp_env.quality.epsilon import _single_l1
+    from kinegrasp_env.quality.wrenches import check_contacts, edge_wrenches, scale_center
+
+    points, normals = check_contacts(points, normals, batched=False)
+    scale, ctr = scale_center(torque_scale, center, 1)
+    w = edge_wrenches(points[None], normals[None], friction, num_edges, scale, ctr)[0]
+    return _single_l1(w, points.shape[0])
+
+
+def test_one_compiled_call_equals_the_step_by_step_path():
+    """``ferrari_canny`` on plain input (one compiled call, quality/single.py) gives, bit for
+    bit, the Q of the same steps run one by one from Python (a re-plumbing: the same kernels,
+    the same arithmetic), over 1-6 contacts, 3-12 edges (k m up to 64 and past it, where
+    qhull serves), friction 0-1.2, normals of any length, centres as tuples, lists and
+    arrays, torque scales as int, float and numpy float; and both equal qhull to 1e-9
+    relative (the independent check). Sphere and box contacts: on boxes many grasps are
+    equilibria on the hull (the certified-zero ends of phase 1)."""
+    rng = np.random.default_rng(2026)
+    calls = 0
+    for k in range(1, 7):
+        for num_edges in (3, 4, 8, 12):
+            for shape in ("sphere", "box"):
+                if shape == "sphere":
+                    pts, nrm = sphere_contacts(rng, 6, k, jitter=0.3)
+                else:
+                    pts, nrm = box_contacts(rng, 6, k)
+                nrm = nrm * rng.uniform(0.1, 10.0, size=(6, k, 1))
+                for b in range(6):
+                    friction = float(rng.choice([0.0, 0.3, 0.5, 1.2]))
+                    torque_scale = [20, 20.0, np.float64(12.5)][b % 3]
+                    center = [(0.0, 0.0, 0.0), [0.01, -0.02, 0.0],
+                              rng.normal(scale=0.01, size=3)][b % 3]
+                    args = (pts[b], nrm[b], friction, num_edges, torque_scale, center)
+                    q = ferrari_canny(pts[b], nrm[b], friction=friction, num_edges=num_edges,
+                                      torque_scale=torque_scale, center=center)
+                    assert q == _step_by_step(*args), (k, num_edges, shape, b)
+                    reference = ferrari_canny(pts[b], nrm[b], friction=friction,
+                                              num_edges=num_edges, torque_scale=torque_scale,
+                                              center=center, method="qhull")
+                    assert q == pytest.approx(reference, rel=1e-9, abs=0.0)
+                    calls += 1
+    assert calls == 6 * 4 * 2 * 6
+
+
+def test_one_compiled_call_hands_back_what_needs_python(monkeypatch):
+    """The statuses the compiled call returns are served as the step-by-step path serves
+    them (the call wrapped so that it reports a status it would rarely report): not
+    certified -> qhull on the wrenches it left, exactly the reference's Q; a barely positive
+    Q -> 0 where the set is rank-deficient (friction 0: three distinct wrenches), else that
+    Q; a rejected input -> the full checks' one-line error."""
+    import kinegrasp_env.quality.single as single
+
+    real = single.single_epsilon
+    forced = {}
+
+    def wrapped(*args):
+        status, q = real(*args)
+        return forced.get("status", status), forced.get("q", q)
+
+    monkeypatch.setattr(single, "single_epsilon", wrapped)
+    pts, nrm = sphere_contacts(np.random.default_rng(3), 8, 4, jitter=0.3)
+    forced["status"] = single.NOT_CERTIFIED
+    for p, n in zip(pts, nrm, strict=True):
+        assert ferrari_canny(p, n, torque_scale=20.0) == ferrari_canny(
+            p, n, torque_scale=20.0, method="qhull")
+    forced.update(status=single.CHECK_RANK, q=1e-10)
+    assert ferrari_canny(pts[0], nrm[0], torque_scale=20.0, friction=0.0) == 0.0
+    assert ferrari_canny(pts[0], nrm[0], torque_scale=20.0) == 1e-10
+    forced.clear()
+    with pytest.raises(ValueError, match="points contains NaN"):
+        ferrari_canny(np.full((3, 3), np.nan), nrm[0, :3])
+    with pytest.raises(ValueError, match="has zero length"):
+        ferrari_canny(pts[0], np.zeros((4, 3)))
+    with pytest.raises(ValueError, match=r"the torques reach"):
+        ferrari_canny(1e300 * pts[0], nrm[0], torque_scale=1e10)

@@ -1,7 +1,8 @@
 """Grasp quality: friction cones and edge wrenches (``wrenches``), the Ferrari-Canny L1
 quality and force closure (``epsilon``: the entry point, qhull reference), and its two fast
 exact paths: the three-contact facet tables (``three_contacts``) and the certified
-nearest-facet-first expansion for 4+ contacts (``expansion``). Conventions:
+nearest-facet-first expansion (``expansion``), which ``single`` runs for one grasp in one
+compiled call. Conventions:
 docs/conventions.md. Depends on nothing else in the package.
 """
 

@@ -21,6 +21,7 @@ answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Literal
 
@@ -29,10 +30,12 @@ from scipy.spatial import ConvexHull, QhullError
 
 from kinegrasp_env.quality.wrenches import (
     FC_TOL,
+    MAX_EDGES,
     RANK_TOL,
     check_contacts,
     check_parameters,
     check_wrenches,
+    cone_angles,
     edge_wrenches,
     scale_center,
     wrench_matrix,
@@ -258,13 +261,15 @@ _TABLES = threading.local()
 
 
 def _expansion_tables() -> tuple:
-    """This thread's polytope and ridge tables for the expansion (~2 MB, allocated on its
-    first single-grasp call: allocating them per call cost ~10 us of a ~45 us call)."""
+    """This thread's polytope and ridge tables for the expansion and its wrench scratch
+    (~2 MB, allocated on its first single-grasp call: allocating them per call cost ~10 us of
+    a ~45 us call)."""
     tables = getattr(_TABLES, "value", None)
     if tables is None:
         from kinegrasp_env.quality.expansion import new_polytope, new_ridges
+        from kinegrasp_env.quality.single import new_wrench_buffer
 
-        tables = _TABLES.value = (new_polytope(), new_ridges())
+        tables = _TABLES.value = (new_polytope(), new_ridges(), new_wrench_buffer())
     return tables
 
 
@@ -281,10 +286,66 @@ def _single_l1(w: np.ndarray, num_contacts: int) -> float:
         # this thread's tables
         start, q, certified = screen(w)
         if start[0] >= 0:
-            q, certified = expand_from(w, start, *_expansion_tables())
+            poly, ridges, _ = _expansion_tables()
+            q, certified = expand_from(w, start, poly, ridges)
         if certified:
             return _thresholded(q, w)
     return _qhull_epsilon(w, num_contacts, "l1")
+
+
+def _plain_number(value) -> bool:
+    """True for a finite Python float or int (not a bool) or numpy float64."""
+    return type(value) in (float, int, np.float64) and math.isfinite(value)
+
+
+def _plain_center(center) -> np.ndarray | None:
+    """A centre given as 3 plain numbers or a finite float64 (3,) array, as a new C-ordered
+    (3,) array (one compiled signature whatever the caller's layout); None for anything
+    else."""
+    if type(center) in (tuple, list):
+        if not (len(center) == 3 and all(_plain_number(c) for c in center)):
+            return None
+    elif not (type(center) is np.ndarray and center.dtype == np.float64
+              and center.shape == (3,) and np.isfinite(center).all()):
+        return None
+    return np.array(center, dtype=float)
+
+
+def _compiled_single(points, normals, friction, num_edges, torque_scale,
+                     center) -> float | None:
+    """Q of one grasp through :func:`~kinegrasp_env.quality.single.single_epsilon` (one
+    compiled call: the checks, the wrenches, the expansion) for the common input: float64
+    C-ordered (k, 3) arrays, plain numbers, k m <= the expansion's size; qhull where the
+    expansion cannot certify. None for anything else, or an input its checks reject: the
+    step-by-step path then computes it, or words the error."""
+    from kinegrasp_env.quality.expansion import MAX_POINTS
+    from kinegrasp_env.quality.single import CHECK_RANK, DONE, NOT_CERTIFIED, single_epsilon
+
+    if not (type(points) is np.ndarray and type(normals) is np.ndarray
+            and points.dtype == np.float64 and normals.dtype == np.float64
+            and points.ndim == 2 and points.shape == normals.shape and points.shape[1] == 3
+            and points.shape[0] >= 1 and points.flags.c_contiguous
+            and normals.flags.c_contiguous
+            and _plain_number(friction) and friction >= 0
+            and type(num_edges) is int and 3 <= num_edges <= MAX_EDGES
+            and points.shape[0] * num_edges <= MAX_POINTS
+            and _plain_number(torque_scale) and torque_scale > 0):
+        return None
+    center = _plain_center(center)
+    if center is None:
+        return None
+    poly, ridges, w = _expansion_tables()
+    cos_t, sin_t = cone_angles(num_edges)
+    status, q = single_epsilon(points, normals, float(friction), cos_t, sin_t,
+                               float(torque_scale), center, w, poly, ridges)
+    if status == DONE:
+        return q
+    rows = w[:points.shape[0] * num_edges]
+    if status == CHECK_RANK:
+        return 0.0 if _rank_deficient(rows) else q
+    if status == NOT_CERTIFIED:
+        return _qhull_epsilon(rows.copy(), points.shape[0], "l1")
+    return None
 
 
 def row_friction(friction, batch: int) -> np.ndarray:
@@ -305,12 +366,18 @@ def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
     """Ferrari-Canny quality Q of one grasp; points and normals are (k, 3).
 
     See :func:`ferrari_canny_batch` for the arguments. With ``method="auto"`` and the L1 norm
-    one grasp goes straight to the certified expansion (qhull where it cannot certify), not
+    one grasp goes straight to the certified expansion (qhull where it cannot certify): for
+    plain input (float64 arrays, numbers, a centre of 3 numbers) in one compiled call
+    (:mod:`kinegrasp_env.quality.single`; ~10 us at 3 contacts x 8 edges, ~45 at 5 x 12), not
     through the batch path's three-contact tables, whose set-up a batch of one pays whole (at
     12 edges 13x slower): for 3 contacts it may differ from ``ferrari_canny_batch`` in the
     last digits (both equal qhull to 1e-10). Raises ValueError for non-finite input,
     mismatched shapes or zero-length normals.
     """
+    if method == "auto" and norm == "l1":
+        q = _compiled_single(points, normals, friction, num_edges, torque_scale, center)
+        if q is not None:
+            return q
     points, normals = check_contacts(points, normals, batched=False)
     if method != "auto" or norm != "l1" or np.ndim(friction) > 0:
         return float(ferrari_canny_batch(points[None], normals[None], friction=friction,

@@ -189,9 +189,9 @@ def edge_wrenches(points: np.ndarray, normals: np.ndarray, friction, num_edges: 
     mu = np.asarray(friction, dtype=float).reshape(-1)
     if mu.shape[0] != batch:  # one scalar for every grasp
         mu = np.repeat(mu, batch)
-    cos_t, sin_t = _cone_angles(num_edges)
+    cos_t, sin_t = cone_angles(num_edges)
     out = np.empty((batch, k * num_edges, 6))
-    _wrench_kernel(np.ascontiguousarray(points, dtype=float),
+    wrenches_into(np.ascontiguousarray(points, dtype=float),
                    np.ascontiguousarray(normals, dtype=float), mu, cos_t, sin_t,
                    np.ascontiguousarray(torque_scale, dtype=float),
                    np.ascontiguousarray(center, dtype=float), out)
@@ -199,7 +199,7 @@ def edge_wrenches(points: np.ndarray, normals: np.ndarray, friction, num_edges: 
 
 
 @lru_cache(maxsize=64)  # m <= MAX_EDGES
-def _cone_angles(num_edges: int) -> tuple[np.ndarray, np.ndarray]:
+def cone_angles(num_edges: int) -> tuple[np.ndarray, np.ndarray]:
     """(cos, sin) (m,) of the edge angles 2 pi j / m, as :func:`friction_cone_edges` takes
     them (read-only; cached: one grasp's set-up is microseconds)."""
     theta = 2.0 * np.pi * np.arange(num_edges) / num_edges
@@ -215,8 +215,10 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @jit.kernel
-def _wrench_kernel(points, normals, mu, cos_t, sin_t, torque_scale, center, out) -> None:
-    """Edge wrenches into out (B, k m, 6) (see :func:`edge_wrenches`; cos_t, sin_t (m,))."""
+def wrenches_into(points, normals, mu, cos_t, sin_t, torque_scale, center, out) -> None:
+    """Edge wrenches into out (B, k m, 6) (see :func:`edge_wrenches`: points, unit normals
+    (B, k, 3), mu and torque_scale (B,), center (B, 3); cos_t, sin_t (m,) from
+    :func:`cone_angles`)."""
     m = cos_t.shape[0]
     for b in range(points.shape[0]):
         for i in range(points.shape[1]):

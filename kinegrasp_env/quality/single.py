@@ -1,0 +1,88 @@
+"""One grasp's L1 Ferrari-Canny Q in one compiled call (the path ``ferrari_canny`` takes).
+
+A user's planner calls ``ferrari_canny`` once per grasp, in a loop. Done step by step from
+Python (check and normalize the contacts, build the wrenches, check their size, phase 1, the
+expansion, the threshold) each step paid numpy's and numba's call overhead: ~16 us of a
+~60 us call at 5 contacts x 12 edges, ~18 of ~25 at 3 x 8 (benchmarks/bench_quality.py).
+:func:`single_epsilon` does those steps in one kernel with the same arithmetic (the same
+kernels, called from compiled code), so its Q is the step-by-step one, bit for bit (tested);
+it hands back to Python only what needs Python: an input its checks reject (the caller's
+full checks word the error), a set the expansion cannot certify (qhull), and a barely
+positive Q whose rank must be checked (an SVD).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env import jit
+from kinegrasp_env.quality.expansion import MAX_POINTS, expand_from, screen
+from kinegrasp_env.quality.wrenches import FC_TOL, MAX_WRENCH, unit_normals_into, wrenches_into
+
+#: :func:`single_epsilon`'s status codes: Q is final (thresholded as the reference
+#: thresholds it) ...
+DONE = 0
+#: ... Q is barely positive (below 1e-8 of the wrench scale): 0 if the set is
+#: rank-deficient (the caller's SVD), else Q ...
+CHECK_RANK = 1
+#: ... the expansion did not certify the set: the caller asks qhull (the wrenches are in
+#: ``w[:k m]``) ...
+NOT_CERTIFIED = 2
+#: ... the input fails a check (a non-finite entry, a normal shorter than 1e-12, a torque
+#: beyond ``MAX_WRENCH``): the caller's full checks raise the error.
+REJECTED = 3
+
+
+def new_wrench_buffer() -> np.ndarray:
+    """Scratch (:data:`~kinegrasp_env.quality.expansion.MAX_POINTS`, 6) for the wrenches of
+    one grasp (:func:`single_epsilon`'s ``w``)."""
+    return np.empty((MAX_POINTS, 6))
+
+
+@jit.kernel
+def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center, w, poly,
+                   ridges) -> tuple[int, float]:
+    """(status, Q) of one grasp, L1 norm.
+
+    Args:
+        points: (k, 3) contact points (metres), k m <= MAX_POINTS; normals (k, 3) inward
+            contact normals of any nonzero length (normalized here as ``check_contacts``
+            does).
+        friction: mu >= 0; cos_t, sin_t (m,) the cone's edge angles
+            (:func:`~kinegrasp_env.quality.wrenches.cone_angles`).
+        torque_scale: s > 0 (1 / metres); center (3,) the centre of mass (metres).
+        w: (MAX_POINTS, 6) scratch: the k m edge wrenches are left in its first rows.
+        poly, ridges: the expansion's tables (``expansion.new_polytope``, ``new_ridges``).
+
+    Returns:
+        (status, Q): see :data:`DONE`, :data:`CHECK_RANK`, :data:`NOT_CERTIFIED`,
+        :data:`REJECTED`; Q is meaningful for the first two.
+    """
+    k = points.shape[0]
+    unit = np.empty((k, 3))
+    if not unit_normals_into(points, normals, unit):
+        return REJECTED, 0.0
+    n = k * cos_t.shape[0]
+    wrenches = w[:n]
+    wrenches_into(points.reshape(1, k, 3), unit.reshape(1, k, 3), np.full(1, friction),
+                  cos_t, sin_t, np.full(1, torque_scale), center.reshape(1, 3),
+                  wrenches.reshape(1, n, 6))
+    scale = 0.0
+    for i in range(n):
+        for c in range(6):
+            size = abs(wrenches[i, c])
+            if not size <= MAX_WRENCH:  # also NaN / inf
+                return REJECTED, 0.0
+            scale = max(scale, size)
+    if k <= 2:  # every wrench has zero moment about the line through the points
+        return DONE, 0.0
+    start, q, certified = screen(wrenches)
+    if start[0] >= 0:
+        q, certified = expand_from(wrenches, start, poly, ridges)
+    if not certified:
+        return NOT_CERTIFIED, 0.0
+    if not q > FC_TOL * scale:
+        return DONE, 0.0
+    if q < 1e-8 * scale:
+        return CHECK_RANK, q
+    return DONE, q
