@@ -21,8 +21,8 @@ answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
 
 from __future__ import annotations
 
-import math
 import threading
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -293,57 +293,57 @@ def _single_l1(w: np.ndarray, num_contacts: int) -> float:
     return _qhull_epsilon(w, num_contacts, "l1")
 
 
-def _plain_number(value) -> bool:
-    """True for a finite Python float or int (not a bool) or numpy float64."""
-    return type(value) in (float, int, np.float64) and math.isfinite(value)
+#: Python number types the one-call path takes as they are (bool is not one of them).
+_PLAIN_NUMBERS = (float, int, np.float64)
 
 
-def _plain_center(center) -> np.ndarray | None:
-    """A centre given as 3 plain numbers or a finite float64 (3,) array, as a new C-ordered
-    (3,) array (one compiled signature whatever the caller's layout); None for anything
-    else."""
-    if type(center) in (tuple, list):
-        if not (len(center) == 3 and all(_plain_number(c) for c in center)):
-            return None
-    elif not (type(center) is np.ndarray and center.dtype == np.float64
-              and center.shape == (3,) and np.isfinite(center).all()):
-        return None
-    return np.array(center, dtype=float)
+@lru_cache(maxsize=1)
+def _single_module():
+    """:mod:`kinegrasp_env.quality.single`, imported on first use (as the other compiled
+    paths are)."""
+    from kinegrasp_env.quality import single
+
+    return single
 
 
 def _compiled_single(points, normals, friction, num_edges, torque_scale,
                      center) -> float | None:
     """Q of one grasp through :func:`~kinegrasp_env.quality.single.single_epsilon` (one
     compiled call: the checks, the wrenches, the expansion) for the common input: float64
-    C-ordered (k, 3) arrays, plain numbers, k m <= the expansion's size; qhull where the
-    expansion cannot certify. None for anything else, or an input its checks reject: the
-    step-by-step path then computes it, or words the error."""
-    from kinegrasp_env.quality.expansion import MAX_POINTS
-    from kinegrasp_env.quality.single import CHECK_RANK, DONE, NOT_CERTIFIED, single_epsilon
-
+    C-ordered (k, 3) arrays, numbers (float, int, numpy float64), a centre of 3 numbers or a
+    float64 (3,) array, k m <= the expansion's size; qhull where the expansion cannot
+    certify. None for anything else, or an input its checks reject: the step-by-step path
+    then computes it, or words the error. (Its checks cost ~1 us: a call's overhead was a
+    third of a 3-contact call.)"""
+    if type(center) is np.ndarray:
+        if center.shape != (3,) or center.dtype != np.float64:
+            return None
+    elif type(center) not in (tuple, list) or len(center) != 3:
+        return None
+    center_x, center_y, center_z = center
+    single = _single_module()
     if not (type(points) is np.ndarray and type(normals) is np.ndarray
             and points.dtype == np.float64 and normals.dtype == np.float64
             and points.ndim == 2 and points.shape == normals.shape and points.shape[1] == 3
             and points.shape[0] >= 1 and points.flags.c_contiguous
             and normals.flags.c_contiguous
-            and _plain_number(friction) and friction >= 0
             and type(num_edges) is int and 3 <= num_edges <= MAX_EDGES
-            and points.shape[0] * num_edges <= MAX_POINTS
-            and _plain_number(torque_scale) and torque_scale > 0):
-        return None
-    center = _plain_center(center)
-    if center is None:
+            and points.shape[0] * num_edges <= single.MAX_POINTS
+            and type(friction) in _PLAIN_NUMBERS and type(torque_scale) in _PLAIN_NUMBERS
+            and type(center_x) in _PLAIN_NUMBERS and type(center_y) in _PLAIN_NUMBERS
+            and type(center_z) in _PLAIN_NUMBERS):
         return None
     poly, ridges, w = _expansion_tables()
     cos_t, sin_t = cone_angles(num_edges)
-    status, q = single_epsilon(points, normals, float(friction), cos_t, sin_t,
-                               float(torque_scale), center, w, poly, ridges)
-    if status == DONE:
+    status, q = single.single_epsilon(points, normals, float(friction), cos_t, sin_t,
+                                       float(torque_scale), float(center_x),
+                                       float(center_y), float(center_z), w, poly, ridges)
+    if status == single.DONE:
         return q
     rows = w[:points.shape[0] * num_edges]
-    if status == CHECK_RANK:
+    if status == single.CHECK_RANK:
         return 0.0 if _rank_deficient(rows) else q
-    if status == NOT_CERTIFIED:
+    if status == single.NOT_CERTIFIED:
         return _qhull_epsilon(rows.copy(), points.shape[0], "l1")
     return None
 

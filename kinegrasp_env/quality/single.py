@@ -40,8 +40,8 @@ def new_wrench_buffer() -> np.ndarray:
 
 
 @jit.kernel
-def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center, w, poly,
-                   ridges) -> tuple[int, float]:
+def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center_x, center_y,
+                   center_z, w, poly, ridges) -> tuple[int, float]:
     """(status, Q) of one grasp, L1 norm.
 
     Args:
@@ -50,7 +50,8 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
             does).
         friction: mu >= 0; cos_t, sin_t (m,) the cone's edge angles
             (:func:`~kinegrasp_env.quality.wrenches.cone_angles`).
-        torque_scale: s > 0 (1 / metres); center (3,) the centre of mass (metres).
+        torque_scale: s > 0 (1 / metres); center_x, center_y, center_z: the centre of mass
+            (metres).
         w: (MAX_POINTS, 6) scratch: the k m edge wrenches are left in its first rows.
         poly, ridges: the expansion's tables (``expansion.new_polytope``, ``new_ridges``).
 
@@ -58,15 +59,20 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
         (status, Q): see :data:`DONE`, :data:`CHECK_RANK`, :data:`NOT_CERTIFIED`,
         :data:`REJECTED`; Q is meaningful for the first two.
     """
+    if not (np.isfinite(friction) and friction >= 0.0 and np.isfinite(torque_scale)
+            and torque_scale > 0.0 and np.isfinite(center_x) and np.isfinite(center_y)
+            and np.isfinite(center_z)):
+        return REJECTED, 0.0
     k = points.shape[0]
     unit = np.empty((k, 3))
     if not unit_normals_into(points, normals, unit):
         return REJECTED, 0.0
     n = k * cos_t.shape[0]
     wrenches = w[:n]
+    center = np.empty((1, 3))
+    center[0, 0], center[0, 1], center[0, 2] = center_x, center_y, center_z
     wrenches_into(points.reshape(1, k, 3), unit.reshape(1, k, 3), np.full(1, friction),
-                  cos_t, sin_t, np.full(1, torque_scale), center.reshape(1, 3),
-                  wrenches.reshape(1, n, 6))
+                  cos_t, sin_t, np.full(1, torque_scale), center, wrenches.reshape(1, n, 6))
     scale = 0.0
     for i in range(n):
         for c in range(6):
