@@ -235,10 +235,19 @@ def touch_down(geo, rules, finger, state, gap, work, found, pairs):
     return (2, prox_t, dist_t, min(step_min, t_max), 0.0, np.nan, True, has_contact)
 
 @jit.kernel(_nrt=False)
-def step_or_bisect(rules, finger, speed, state, gap):
-    """A finger not touching: a conservative step towards contact while no penetration is
-    bracketed, else bisection of the bracket [t_lo, t_hi]. Returns (new state, missed: the
-    joints reached their limits without any contact)."""
+def travel(speed, phase, gap_p, gap_d):
+    """:func:`kinegrasp_env.closing.reference.closing_travel` (radians; speed (3,): its
+    ``LinkSpeeds``), the same arithmetic."""
+    if phase != 1:
+        return gap_d / speed[2]
+    return min(gap_d / speed[1], gap_p / speed[0])
+
+@jit.kernel(_nrt=False)
+def step_or_bisect(rules, finger, state, gap, step_free):
+    """A finger not touching: a conservative step towards contact (``step_free``: see
+    :func:`travel`) while no penetration is bracketed, else bisection of the bracket
+    [t_lo, t_hi]. Returns (new state, missed: the joints reached their limits without any
+    contact)."""
     contact_tol, step_min = rules[0], rules[1]
     phase, start_p, start_d, t, t_lo, t_hi, active, has_contact = state
     missed = False
@@ -250,7 +259,7 @@ def step_or_bisect(rules, finger, speed, state, gap):
                 active = False
                 missed = not has_contact
             else:
-                step = max(gap / (speed[0] if phase == 1 else speed[1]), step_min)
+                step = max(step_free, step_min)
                 t = min(t + step, t_max)
         else:  # bisection, below the bracket
             t_lo = t
@@ -304,7 +313,8 @@ def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, 
         if (-contact_tol <= gap <= contact_tol) or (bracket_closed and gap <= contact_tol):
             state = touch_down(geo, rules, finger, state, gap, work, found, pairs)
         else:
-            state, missed = step_or_bisect(rules, finger, speed, state, gap)
+            state, missed = step_or_bisect(rules, finger, state, gap,
+                                           travel(speed, phase, gap_p, gap_d))
     flexion[0], flexion[1] = flexions(finger, state[0], state[1], state[2], state[3])
     return it, missed
 

@@ -298,7 +298,8 @@ class FastHand:
         rows = np.flatnonzero(prob.active)
         if rows.size == 0:
             return
-        gap = self._gaps_now(f, prob, rows)
+        gap_p, gap_d = self._gaps_now(f, prob, rows)
+        gap = np.minimum(gap_p, gap_d)
         t, t_lo, t_hi = prob.t[rows], prob.t_lo[rows], prob.t_hi[rows]
         bracket_closed = ~np.isnan(t_hi) & (t_hi - t_lo < 1e-9)
         touch = ((gap >= -CONTACT_TOL) & (gap <= CONTACT_TOL)) | (bracket_closed
@@ -306,12 +307,21 @@ class FastHand:
         if touch.any():
             self._touch_down(f, prob, rows[touch], t[touch], gap[touch], out)
         apart = ~touch
-        self._step_or_bisect(prob, rows[apart], t[apart], t_lo[apart], t_hi[apart], gap[apart])
+        self._step_or_bisect(prob, rows[apart], t[apart], t_lo[apart], t_hi[apart], gap[apart],
+                             self._travel(prob.phase[rows[apart]], gap_p[apart], gap_d[apart]))
 
-    def _gaps_now(self, f: int, prob: _Problems, rows: np.ndarray) -> np.ndarray:
-        """Gaps (m,) of finger f's moving links for problem rows at their current t (the
-        grid's, exact within ``GRID_EXACT_BAND``; at most ``QUERY_DISTANCE``; the proximal
-        link only counts in phase 1)."""
+    def _travel(self, phase: np.ndarray, gap_p: np.ndarray, gap_d: np.ndarray) -> np.ndarray:
+        """:func:`~kinegrasp_env.closing.reference.closing_travel` of m problems (phase,
+        gaps (m,)), the same arithmetic: radians (m,)."""
+        phase1 = phase == 1
+        travel = gap_d / np.where(phase1, self.speed.distal, self.speed.distal_alone)
+        return np.where(phase1, np.minimum(travel, gap_p / self.speed.proximal), travel)
+
+    def _gaps_now(self, f: int, prob: _Problems, rows: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """Gaps (m,) of finger f's proximal and distal links for problem rows at their
+        current t (the grid's, exact within ``GRID_EXACT_BAND``; at most ``QUERY_DISTANCE``;
+        the proximal one inf outside phase 1, where it does not move)."""
         phase1 = prob.phase[rows] == 1
         prox, dist = prob.values(rows)
         ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
@@ -324,7 +334,7 @@ class FastHand:
         gap_p = np.minimum(gap_p, QUERY_DISTANCE)
         gap_d = np.minimum(gap_d, QUERY_DISTANCE)
         gap_p[~phase1] = np.inf
-        return np.minimum(gap_p, gap_d)
+        return gap_p, gap_d
 
     def _touch_down(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
                     gap: np.ndarray, out: BatchClose) -> None:
@@ -367,10 +377,12 @@ class FastHand:
             prob.has_contact[rows[sel]] = True
 
     def _step_or_bisect(self, prob: _Problems, rows: np.ndarray, t: np.ndarray,
-                        t_lo: np.ndarray, t_hi: np.ndarray, gap: np.ndarray) -> None:
+                        t_lo: np.ndarray, t_hi: np.ndarray, gap: np.ndarray,
+                        travel: np.ndarray) -> None:
         """Problem rows (m,) not touching at t (gap (m,), bracket [t_lo, t_hi], t_hi NaN
-        until a penetration is seen): a conservative step towards contact while unbracketed
-        (missed at the joint limits without a contact), else bisection of the bracket."""
+        until a penetration is seen): a conservative step towards contact (``travel`` (m,),
+        see :meth:`_travel`) while unbracketed (missed at the joint limits without a
+        contact), else bisection of the bracket."""
         free = gap > CONTACT_TOL
         unbracketed = free & np.isnan(t_hi)
         if unbracketed.any():
@@ -380,8 +392,7 @@ class FastHand:
             prob.t_lo[r] = t[unbracketed]
             prob.active[r[at_limit]] = False
             prob.missed[r[at_limit]] = ~prob.has_contact[r[at_limit]]
-            speed = np.where(prob.phase[r] == 1, self.speed[0], self.speed[1])
-            step = np.maximum(gap[unbracketed] / speed, STEP)
+            step = np.maximum(travel[unbracketed], STEP)
             go = ~at_limit
             prob.t[r[go]] = np.minimum(t[unbracketed] + step, t_max)[go]
         bracketed = free & ~np.isnan(t_hi)

@@ -5,7 +5,8 @@ close together at the same rate (each stops at its own upper limit). When a link
 object, the joints proximal to it stop and the joints distal to it keep closing: a proximal
 contact freezes the proximal joint while the distal joint goes on; a distal contact ends the
 finger. Each contact is located by stepping (conservative advancement: a step never exceeds
-the one that could close the current gap, but is at least ``STEP`` radians) and then bisection
+the one that could close the current gap: each moving link's gap over a bound on its
+speed, :func:`closing_travel`; but at least ``STEP`` radians) and then bisection
 until the gap is within ``CONTACT_TOL`` (0.2 mm); the contact is then polished by secant
 steps on the exact gap to where it is zero (:func:`secant_root`, to 1e-9 m), so the result
 does not depend on how the bracket was reached. A finger whose joints all reach their limits
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -120,13 +122,37 @@ def _finger_geometry() -> tuple[float, float, float, float]:
             model.joint("f1_proximal").upper, model.joint("f1_distal").upper)
 
 
-def closing_speeds() -> tuple[float, float]:
-    """Bounds on how fast any finger surface point moves per radian of closing (metres/rad):
-    (phase 1, both joints closing; phase 2, the distal joint only)."""
+class LinkSpeeds(NamedTuple):
+    """Bounds on how fast any surface point of a finger link moves per radian of closing
+    (metres/rad): the proximal and the distal link while both joints close (phase 1), the
+    distal link while only the distal joint closes (phase 2; the proximal link is then still).
+    """
+
+    proximal: float
+    distal: float
+    distal_alone: float
+
+
+def closing_speeds() -> LinkSpeeds:
+    """:class:`LinkSpeeds` of the hand's fingers: a point at distance r from a joint axis
+    turning at 1 rad per radian of t moves at most r per radian; the proximal link's points
+    lie within length_p + R of the proximal axis, the distal link's within
+    length_p + length_d + R of it and length_d + R of the distal axis (R: a bound on the
+    capsule radius)."""
     length_p, length_d, _, _ = _finger_geometry()
     reach_p = length_p + length_d + _RADIUS_BOUND
     reach_d = length_d + _RADIUS_BOUND
-    return (length_p + _RADIUS_BOUND) + (reach_p + reach_d), reach_d
+    return LinkSpeeds(length_p + _RADIUS_BOUND, reach_p + reach_d, reach_d)
+
+
+def closing_travel(gap_p: float, gap_d: float, phase: int, speeds: LinkSpeeds) -> float:
+    """Largest closing step (radians) before a moving link could touch: each link's gap
+    (metres) over its speed bound, the smaller; the proximal link counts in phase 1 only.
+    (One bound for the whole finger, the sum of the three reaches, took 1.4-3.5x smaller
+    steps: 7-9% more closing time in the fast engine.)"""
+    if phase != 1:
+        return gap_d / speeds.distal_alone
+    return min(gap_d / speeds.distal, gap_p / speeds.proximal)
 
 
 def secant_root(gap_at, t: float, gap: float, t_min: float, t_max: float) -> float:
@@ -283,7 +309,7 @@ class _Finger:
         self.missed = False
         #: touching links: (link, closest pair rows of :meth:`HandProbe.pairs`), see _contacts
         self.touches: list[tuple[int, tuple]] = []
-        self.speed = dict(zip((1, 2), closing_speeds(), strict=True))
+        self.speeds = closing_speeds()
         self.last: tuple | None = None  # (state key, pairs) of the last exact evaluation
 
     @property
@@ -324,7 +350,8 @@ class _Finger:
 
     def update(self, gaps: dict[int, float], probe: HandProbe) -> None:
         """Advance from the gaps (pybullet link index -> metres) measured at the current t."""
-        gap = min(gaps.get(self.link_ids[link], QUERY_DISTANCE) for link in self.moving_links)
+        gap_p, gap_d = (gaps.get(link, QUERY_DISTANCE) for link in self.link_ids)
+        gap = min(gap_p, gap_d) if self.phase == 1 else gap_d
         bracket_closed = self.t_hi is not None and self.t_hi - self.t_lo < 1e-9
         if -CONTACT_TOL <= gap <= CONTACT_TOL or (bracket_closed and gap <= CONTACT_TOL):
             self._touch(probe, gap)
@@ -336,7 +363,8 @@ class _Finger:
                     self.done = True
                     self.missed = not self.touches
                     return
-                self.t = min(self.t + max(gap / self.speed[self.phase], STEP), self.t_max)
+                travel = closing_travel(gap_p, gap_d, self.phase, self.speeds)
+                self.t = min(self.t + max(travel, STEP), self.t_max)
                 return
         else:
             self.t_hi = self.t
