@@ -16,10 +16,13 @@ top k by P(FC). Repetition s runs ``rank_adaptive`` exactly as ``kinegrasp rank 
 same chunks), and counts the draws it made and whether its top k equals the truth's.
 
 Each draw's force-closure outcome is cached per (set, seed, candidate) under
-``<cache>/bench_ranking`` (``--cache``), so a rerun, or the same script on another version of
-the ranking code (``PYTHONPATH=/old/checkout python benchmarks/bench_ranking.py``), costs
-little: chunk c of seed s is the same draws whoever asks for it (common random numbers), and
-what is measured is exactly what ``rank_adaptive`` asks for. Per-draw Q is not cached: the
+``<cache>/bench_ranking`` (``--cache``), in a folder named after the engine's compiled sources
+as well (``jit.source_key``: a change of the closing or quality kernels starts afresh instead
+of serving outcomes the engine no longer gives), so a rerun, or the same script on another
+version of the ranking code with the same engine (``PYTHONPATH=/old/checkout python
+benchmarks/bench_ranking.py``), costs little: chunk c of seed s is the same draws whoever
+asks for it (common random numbers), and what is measured is exactly what ``rank_adaptive``
+asks for. Per-draw Q is not cached: the
 runs' moments are empty, which changes neither the decisions nor the top k (they use P(FC)).
 
 Usage: ``nice -n 10 python benchmarks/bench_ranking.py [--reps 100] [--processes 2]``.
@@ -178,6 +181,7 @@ def summary(name: str, rows: list[dict], truth: set[int], n: int, samples: int, 
 
 
 def bench_set(name: str, args, pool) -> None:
+    from kinegrasp_env.jit import source_key
     from kinegrasp_env.paths import cache_root
     from kinegrasp_env.toolkit import ranking
 
@@ -187,7 +191,7 @@ def bench_set(name: str, args, pool) -> None:
     start = time.perf_counter()
     grasps, digest = candidates(name)
     folder = Path(args.cache or cache_root() / "bench_ranking") / \
-        f"{name}_{digest}_sigma{SIGMA}_chunk{CHUNK}"
+        f"{name}_{digest}_sigma{SIGMA}_chunk{CHUNK}_engine{source_key()}"
     folder.mkdir(parents=True, exist_ok=True)
     gt = ground_truth(grasps, folder, args.processes)
     ids = [g.id for g in grasps]
