@@ -463,6 +463,33 @@ def test_huge_normals_and_overflowing_torques():
             ferrari_canny(points * outward, -outward, torque_scale=torque_scale)
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_numbers_beyond_a_floats_range():
+    """Regressions (found by a review of the one-call path): normals whose length itself
+    exceeds a float's range (entries at the largest float) became zero vectors (normals / inf)
+    and the wrench kernel divided by zero; now the same Q as their unit normals (to 1e-14
+    relative), single and batched. A Python int beyond a float's range (10**400) as friction,
+    torque scale or centre raised OverflowError; now the library's one-line ValueError, and
+    an earlier bad argument (NaN points) is still reported first, as the full checks order
+    them."""
+    angle = np.deg2rad([0.0, 120.0, 240.0])
+    outward = np.stack([np.cos(angle), np.sin(angle), 0.0 * angle], axis=1)
+    q = ferrari_canny(0.05 * outward, -outward, torque_scale=20.0)
+    largest = -np.finfo(float).max * outward / np.abs(outward).max(axis=1, keepdims=True)
+    assert ferrari_canny(0.05 * outward, largest, torque_scale=20.0) == (
+        pytest.approx(q, rel=1e-14))
+    assert ferrari_canny_batch(0.05 * outward[None], largest[None], torque_scale=20.0)[0] == (
+        pytest.approx(q, rel=1e-14))
+    for kwargs, needle in ((dict(friction=10**400), "friction must be finite"),
+                           (dict(torque_scale=10**400), "torque_scale contains a number beyond"),
+                           (dict(center=(0.0, 0.0, 10**400)), "center contains a number beyond")):
+        with pytest.raises(ValueError, match=needle) as err:
+            ferrari_canny(0.05 * outward, -outward, **kwargs)
+        assert type(err.value) is ValueError and "\n" not in str(err.value)
+        with pytest.raises(ValueError, match="points contains NaN"):
+            ferrari_canny(np.full((3, 3), np.nan), -outward, **kwargs)
+
+
 # ----------------------------------------------------------------------------- bounds, B = 0
 @pytest.mark.parametrize("method", ["auto", "fast", "qhull"])
 @pytest.mark.parametrize("k", [1, 2, 3, 4, 6])

@@ -38,6 +38,8 @@ MAX_WRENCH = 1e100
 def finite_array(value, name: str) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
+    except OverflowError:  # a Python int beyond a float's range
+        raise ValueError(f"{name} contains a number beyond a float's range") from None
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
     if not np.isfinite(arr).all():  # method reductions: a third of np.all's call cost
@@ -52,7 +54,8 @@ def normal_lengths(normals: np.ndarray) -> np.ndarray:
     huge = np.isinf(lengths)  # finite entries above ~1e154
     if huge.any():
         peak = np.abs(normals[huge]).max(axis=-1)
-        lengths[huge] = peak * np.linalg.norm(normals[huge] / peak[:, None], axis=-1)
+        with np.errstate(over="ignore"):  # inf where the length itself exceeds ~1.8e308
+            lengths[huge] = peak * np.linalg.norm(normals[huge] / peak[:, None], axis=-1)
     return lengths
 
 
@@ -112,7 +115,12 @@ def check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarr
         bad = np.argwhere(lengths < 1e-12)[0]
         raise ValueError(f"normals: contact {tuple(int(i) for i in bad)} has zero length "
                          f"(below 1e-12: {lengths[tuple(bad)]:.3g})")
-    return points, normals / lengths[..., None]
+    unit = normals / lengths[..., None]
+    huge = np.isinf(lengths)  # a length beyond a float's range (entries near 1.8e308)
+    if huge.any():
+        scaled = normals[huge] / np.abs(normals[huge]).max(axis=-1, keepdims=True)
+        unit[huge] = scaled / np.linalg.norm(scaled, axis=-1, keepdims=True)
+    return points, unit
 
 
 def check_wrenches(w: np.ndarray) -> np.ndarray:
@@ -131,6 +139,9 @@ def check_parameters(friction: float, num_edges: int) -> tuple[float, int]:
     >= 0 and num_edges an integer in [3, MAX_EDGES] (integral floats are accepted)."""
     try:
         value = float(friction)
+    except OverflowError:  # a Python int beyond a float's range
+        raise ValueError("friction must be finite and >= 0, got an integer beyond a float's "
+                         "range") from None
     except (TypeError, ValueError):
         value = math.nan
     if not math.isfinite(value) or value < 0:
