@@ -235,19 +235,11 @@ def touch_down(geo, rules, finger, state, gap, work, found, pairs):
     return (2, prox_t, dist_t, min(step_min, t_max), 0.0, np.nan, True, has_contact)
 
 @jit.kernel(_nrt=False)
-def travel(speed, phase, gap_p, gap_d):
-    """:func:`kinegrasp_env.closing.reference.closing_travel` (radians; speed (3,): its
-    ``LinkSpeeds``), the same arithmetic."""
-    if phase != 1:
-        return gap_d / speed[2]
-    return min(gap_d / speed[1], gap_p / speed[0])
-
-@jit.kernel(_nrt=False)
 def step_or_bisect(rules, finger, state, gap, step_free):
     """A finger not touching: a conservative step towards contact (``step_free``: see
-    :func:`travel`) while no penetration is bracketed, else bisection of the bracket
-    [t_lo, t_hi]. Returns (new state, missed: the joints reached their limits without any
-    contact)."""
+    :func:`kinegrasp_env.closing.reference.closing_travel`) while no penetration is
+    bracketed, else bisection of the bracket [t_lo, t_hi]. Returns (new state, missed: the
+    joints reached their limits without any contact)."""
     contact_tol, step_min = rules[0], rules[1]
     phase, start_p, start_d, t, t_lo, t_hi, active, has_contact = state
     missed = False
@@ -314,7 +306,7 @@ def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, 
             state = touch_down(geo, rules, finger, state, gap, work, found, pairs)
         else:
             state, missed = step_or_bisect(rules, finger, state, gap,
-                                           travel(speed, phase, gap_p, gap_d))
+                                           hand.closing_travel(gap_p, gap_d, phase, speed))
     flexion[0], flexion[1] = flexions(finger, state[0], state[1], state[2], state[3])
     return it, missed
 

@@ -334,14 +334,14 @@ def _compiled_single(points, normals, friction, num_edges, torque_scale,
             and type(center_z) in _PLAIN_NUMBERS):
         return None
     try:  # an int beyond a float's range: the step-by-step checks word the error
-        numbers = tuple(float(x) for x in (friction, torque_scale, center_x, center_y,
-                                           center_z))
+        mu, scale = float(friction), float(torque_scale)
+        center = (float(center_x), float(center_y), float(center_z))
     except OverflowError:
         return None
     poly, ridges, w = _expansion_tables()
     cos_t, sin_t = cone_angles(num_edges)
-    status, q = single.single_epsilon(points, normals, numbers[0], cos_t, sin_t, *numbers[1:],
-                                       w, poly, ridges)
+    status, q = single.single_epsilon(points, normals, mu, cos_t, sin_t, scale, *center, w,
+                                       poly, ridges)
     if status == single.DONE:
         return q
     rows = w[:points.shape[0] * num_edges]

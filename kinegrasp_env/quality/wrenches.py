@@ -203,9 +203,9 @@ def edge_wrenches(points: np.ndarray, normals: np.ndarray, friction, num_edges: 
     cos_t, sin_t = cone_angles(num_edges)
     out = np.empty((batch, k * num_edges, 6))
     wrenches_into(np.ascontiguousarray(points, dtype=float),
-                   np.ascontiguousarray(normals, dtype=float), mu, cos_t, sin_t,
-                   np.ascontiguousarray(torque_scale, dtype=float),
-                   np.ascontiguousarray(center, dtype=float), out)
+                  np.ascontiguousarray(normals, dtype=float), mu, cos_t, sin_t,
+                  np.ascontiguousarray(torque_scale, dtype=float),
+                  np.ascontiguousarray(center, dtype=float), out)
     return out
 
 
