@@ -12,14 +12,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.closing.lift import LiftProfile, hand_path, lift_test, moved, smoothstep
-from kinegrasp_env.closing.physics import (
-    MotorSettings,
-    grip,
-    merge_records,
-    physics_close,
-)
-from kinegrasp_env.closing.physics_world import PhysicsWorld, WorldSettings, pose_matrix
 from kinegrasp_env.closing.reference import auto_close, hand_joint_values
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
@@ -31,6 +23,14 @@ from kinegrasp_env.montecarlo.engines import (
 )
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+from kinegrasp_env.physics.pybullet_closing import (
+    MotorSettings,
+    grip,
+    merge_records,
+    physics_close,
+)
+from kinegrasp_env.physics.pybullet_lift import LiftProfile, hand_path, lift_test, moved, smoothstep
+from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings, pose_matrix
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.model import FINGERS, kuka_sdh
@@ -378,7 +378,7 @@ def test_quaternion_matrix_is_bullets_own():
     Bullet's C++) on random unit and non-unit quaternions."""
     import pybullet
 
-    from kinegrasp_env.closing.physics_world import quaternion_matrix
+    from kinegrasp_env.physics.pybullet_world import quaternion_matrix
 
     rng = np.random.default_rng(0)
     for q in rng.normal(size=(2000, 4)) * rng.uniform(0.5, 2.0, size=(2000, 1)):

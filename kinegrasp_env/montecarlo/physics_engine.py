@@ -3,10 +3,10 @@
 Same interface and scoring as the kinematic engines (:class:`~kinegrasp_env.montecarlo.engines.
 Engine`): ``run(q (n, 14)) -> DrawBatch``, the same outcomes and Q from the same contacts'
 friction cones, the same eps for the same seed. The closing is
-:func:`~kinegrasp_env.closing.physics.physics_close` (motors close the fingers until they
+:func:`~kinegrasp_env.physics.pybullet_closing.physics_close` (motors close the fingers until they
 stall; the object free or fixed), the contacts are in the object's frame where the object
 ended. :meth:`PhysicsEngine.run_lift` adds the lift test
-(:func:`~kinegrasp_env.closing.lift.lift_test`) to every draw that closed.
+(:func:`~kinegrasp_env.physics.pybullet_lift.lift_test`) to every draw that closed.
 
 Every draw starts from the same saved simulator state, so a draw's result depends only on its
 configuration: the same configurations give the same bits in any order, in any chunking.
@@ -19,9 +19,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.closing.lift import LiftProfile, lift_test
-from kinegrasp_env.closing.physics import MotorSettings, physics_close
-from kinegrasp_env.closing.physics_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.montecarlo.engines import (
     FLANGE_LINK,
     DrawBatch,
@@ -29,6 +26,9 @@ from kinegrasp_env.montecarlo.engines import (
     check_configurations,
     record_close,
 )
+from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
+from kinegrasp_env.physics.pybullet_lift import LiftProfile, lift_test
+from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
@@ -70,10 +70,10 @@ class PhysicsEngine(Engine):
         object_name: catalog object.
         friction, num_edges: friction cone of the quality measure; ``friction`` is also the
             simulated finger-object friction.
-        world: :class:`~kinegrasp_env.closing.physics_world.WorldSettings` (density, object
+        world: :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings` (density, object
             free or fixed, time step); its friction is replaced by ``friction``.
-        motors: :class:`~kinegrasp_env.closing.physics.MotorSettings`.
-        profile: :class:`~kinegrasp_env.closing.lift.LiftProfile` of :meth:`run_lift`.
+        motors: :class:`~kinegrasp_env.physics.pybullet_closing.MotorSettings`.
+        profile: :class:`~kinegrasp_env.physics.pybullet_lift.LiftProfile` of :meth:`run_lift`.
     """
 
     name = "physics"

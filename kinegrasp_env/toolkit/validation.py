@@ -21,13 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.closing.lift import LiftProfile
-from kinegrasp_env.closing.physics import MotorSettings
-from kinegrasp_env.closing.physics_world import WorldSettings
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine, make_engine
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+from kinegrasp_env.physics.pybullet_closing import MotorSettings
+from kinegrasp_env.physics.pybullet_lift import LiftProfile
+from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.progress import Progress

@@ -1,7 +1,7 @@
 """The paper's closing under dynamics: finger motors close the hand until they stall.
 
 One draw (:func:`physics_close`): the hand root is put at the draw's flange pose and held
-there (:class:`~kinegrasp_env.closing.physics_world.PhysicsWorld`), the hand at its pre-shape.
+there (:class:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld`), the hand at its pre-shape.
 A hand already penetrating the object by more than ``START_TOL`` (pybullet's distance, hand
 links against the object's convex parts) is a start collision, as in the kinematic closing.
 Otherwise, with gravity off, every flexion joint is driven by a velocity motor towards closing
@@ -41,7 +41,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinegrasp_env.closing.physics_world import PhysicsWorld
 from kinegrasp_env.closing.reference import (
     CONTACT_TOL,
     START_TOL,
@@ -49,6 +48,7 @@ from kinegrasp_env.closing.reference import (
     Contact,
     hand_joint_values,
 )
+from kinegrasp_env.physics.pybullet_world import PhysicsWorld
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
 
 #: The spread joints of the hand (finger 2's mimics finger 1's; both are held).

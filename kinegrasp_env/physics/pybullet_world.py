@@ -3,7 +3,7 @@ constraint, and one catalog object as a rigid body.
 
 The kinematic closing (:mod:`kinegrasp_env.closing.reference`) never steps the simulation;
 here the hand's finger motors close under dynamics, the object may be pushed, and for the lift
-test (:mod:`kinegrasp_env.closing.lift`) the hand moves. Therefore:
+test (:mod:`kinegrasp_env.physics.pybullet_lift`) the hand moves. Therefore:
 
 * the hand (``sdh_hand.urdf``, the same URDF and collision capsules as the reference's
   :class:`~kinegrasp_env.world.sim.GraspWorld`) is loaded with a *dynamic* base, and a fixed

@@ -1,7 +1,7 @@
 """The lift test: after the physics closing, does the hand hold the object?
 
-Run right after :func:`~kinegrasp_env.closing.physics.physics_close` on the same world. The
-hand grips (:func:`~kinegrasp_env.closing.physics.grip`: every distal joint's motor presses
+Run right after :func:`~kinegrasp_env.physics.pybullet_closing.physics_close` on the same world. The
+hand grips (:func:`~kinegrasp_env.physics.pybullet_closing.grip`: every distal joint's motor presses
 with its full torque, the proximal joints stay held) for ``grip_time`` (0.25 s, gravity still
 off); then gravity is switched on and the object's support damping off, and the constraint
 that holds the hand's root moves it along :class:`LiftProfile`:
@@ -19,7 +19,7 @@ that holds the hand's root moves it along :class:`LiftProfile`:
 Why the hand's root is moved by its constraint, not the arm by its joints: the motion is then
 exactly the same for every draw and every grasp, whatever the arm's configuration (no IK, no
 failure near a joint limit, no arm link hitting the object), and the stand-in for the arm
-(:data:`~kinegrasp_env.closing.physics_world.ROOT_MASS` behind a stiff constraint) follows it
+(:data:`~kinegrasp_env.physics.pybullet_world.ROOT_MASS` behind a stiff constraint) follows it
 within 1.5 mm of the commanded place (measured at the shake's peak speed, 1 ms steps:
 :attr:`LiftResult.tracking`).
 
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.physics import MotorSettings, grip
-from kinegrasp_env.closing.physics_world import PhysicsWorld
+from kinegrasp_env.physics.pybullet_closing import MotorSettings, grip
+from kinegrasp_env.physics.pybullet_world import PhysicsWorld
 from kinegrasp_env.robot.kinematics import axis_angle_matrix
 from kinegrasp_env.world.sim import matrix_to_pose
 
