@@ -92,7 +92,12 @@ STAT_LINES = {
     "screenshot": re.compile(r"^(?P<k_page>\S+): drawn in \d+ ms, (?P<k_errors>\d+) console "
                              r"errors; screenshot written to (?P<k_png>\S+)$"),
     "fig7 row": re.compile(rf"^(?P<k_object>\S+)\s+(?P<k_role>robust|fragile)\s+id \S+\s+"
-                           rf"P\(FC\) {_P}$"),
+                           rf"P\(FC\) {_P} \(95% CI {_CI} \.\. {_HI}\), chosen at \S+$"),
+    "fig7 gap": re.compile(r"^(?P<k_object>\S+)\s+robust - fragile \S+ \(95% CI \S+ \.\. \S+\), "
+                           r"paired$"),
+    "fig7 provenance": re.compile(r"^robust and fragile (?P<k_what>.+) chosen on (?P<n>\d+) "
+                                  r"draws per candidate \(seed \d+, chunks \S+\), reported on "
+                                  r"(?P=n) fresh draws \(chunks \S+\)$"),
 }
 
 

@@ -1,5 +1,6 @@
 """Grasp commands: ``evaluate`` (Monte Carlo P(FC) of one grasp) and
-``reproduce`` (the paper's tables and figures).
+``reproduce`` (the paper's tables and figures: its protocol run on this project's stand-in
+hand, objects and grasps).
 """
 
 from __future__ import annotations
@@ -87,6 +88,7 @@ def grasp_at_elbow(grasp, text: str):
 def cmd_reproduce(args) -> int:
     from kinegrasp_env.toolkit import experiments
     from kinegrasp_env.toolkit.experiments import markdown_table1, table1
+    from kinegrasp_env.toolkit.selection import provenance
 
     samples = positive_int(args.samples, "--samples")
     engine = engine_name(args.engine)
@@ -104,9 +106,8 @@ def cmd_reproduce(args) -> int:
         if args.figure == "fig7":
             rows = experiments.fig7(out, samples=samples, seed=seed, engine=engine,
                                     executor=executor, progress=True)
-            for r in rows:
-                print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} "
-                      f"P(FC) {r['p_fc']:.3f}")
+            print(f"robust and fragile arm configurations {provenance(samples, seed)}")
+            print_pairs(rows)
             figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             print(written(out, ["fig7.csv", *figures]))
         elif args.figure in ("fig9", "fig10"):
@@ -116,6 +117,11 @@ def cmd_reproduce(args) -> int:
             for r in rows:
                 print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                       f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+            pairs = [{**r, "p_fc": r["fresh_p_fc"], "p_fc_lo": r["fresh_p_fc_lo"],
+                      "p_fc_hi": r["fresh_p_fc_hi"]} for r in rows if r.get("config")]
+            if pairs:
+                print(f"robust and fragile variants {provenance(samples, seed)}")
+                print_pairs(pairs)
             print(written(out, [f"{args.figure}.csv", f"{args.figure}.png"]))
         else:
             rows = table1(args.object, samples, out, grasps=grasps, seed=seed, progress=True,
@@ -123,6 +129,19 @@ def cmd_reproduce(args) -> int:
             print(markdown_table1(rows, args.object, samples))
             print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
     return 0
+
+
+def print_pairs(rows: list[dict]) -> None:
+    """The robust and fragile rows of fig7/fig10 (fresh draws), and per object their paired
+    gap."""
+    from kinegrasp_env.toolkit.selection import format_gap
+
+    for r in rows:
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) {r['p_fc']:.3f} "
+              f"(95% CI {r['p_fc_lo']:.3f} .. {r['p_fc_hi']:.3f}), chosen at "
+              f"{r['selection_p_fc']:.3f}")
+        if r["config"] == "fragile":
+            print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
 
 
 def table1_grasps(text: str, object_name: str) -> int:
@@ -171,7 +190,8 @@ def add_commands(sub) -> None:
                    "evaluation (as `kinegrasp report`)")
     p.set_defaults(func=cmd_evaluate)
 
-    p = sub.add_parser("reproduce", help="reproduce a table or figure of the paper")
+    p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "
+                       "paper on this project's stand-in models (hand, objects, grasps)")
     p.add_argument("figure", choices=("table1", "fig7", "fig9", "fig10"),
                    help="the table or figure")
     add_object_arg(p, None, f"catalog object: table1's (default {TABLE1_OBJECT}); fig9, "

@@ -14,6 +14,7 @@ from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.progress import Progress
+from kinegrasp_env.toolkit.selection import robust_fragile, stats_from_chunk
 from kinegrasp_env.world.grasps import Grasp, shipped_grasps, write_atomic
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
@@ -152,39 +153,56 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
          samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
          processes: int = 1, engine: str = "pybullet", executor: Executor | None = None,
          progress: bool = False) -> list[dict]:
-    """Fig. 7: the same contacts reached with two arm configurations (the most and the least
-    robust of ``variants`` null-space variants of shipped grasp 0): P(FC) and the scatter of
-    contact points and normals for each. Writes ``fig7.csv``, then ``fig7_<object>.png`` (a
-    figure that fails is a warning: the CSV stays). ``progress``: one overall report."""
+    """Fig. 7: the same contacts reached with two arm configurations, the most and the least
+    robust of shipped grasp 0 and ``variants`` null-space variants of it: P(FC), the moments
+    of Q and the scatter of contact points and normals for each.
+
+    The two are chosen by P(FC) on ``samples`` selection draws per configuration and
+    reported on ``samples`` fresh draws (:mod:`.selection`: chunks ``0..K-1`` and ``K..2K-1``
+    of ``seed``), so the reported gap is not inflated by the choice. Writes ``fig7.csv``
+    (:func:`~.selection.robust_fragile`'s rows), then ``fig7_<object>.png`` of the fresh
+    draws (a figure that fails is a warning: the CSV stays). ``progress``: one overall
+    report."""
     from kinegrasp_env.toolkit.plots import plot_contacts_pair, safe_figure
     from kinegrasp_env.world.objects import load_object
 
     out = Path(out_dir)
     candidates = _fig7_candidates(objects, variants)
-    cells = sum(len(c) for c in candidates.values())
+    cells = sum(len(c) + 2 for c in candidates.values())
     rows, pairs = [], []
-    with _progress(progress, "fig7", cells, samples) as report:
+    with _executor(executor, processes) as run_on, \
+            _progress(progress, "fig7", cells, samples) as report:
         for name in objects:
             stats = _evaluate_set(candidates[name], sigma, samples, seed, processes, engine,
-                                  return_draws=True, executor=executor, report=report)
-            best = max(range(len(stats)), key=lambda i: stats[i].p_fc)
-            worst = min(range(len(stats)), key=lambda i: stats[i].p_fc)
-            for label, i in (("robust", best), ("fragile", worst)):
-                rows.append({"object": name, "config": label, "id": candidates[name][i].id,
-                             "elbow_angle": candidates[name][i].meta.get("elbow_angle"),
-                             "p_fc": stats[i].p_fc, "p_fc_lo": stats[i].p_fc_ci[0],
-                             "p_fc_hi": stats[i].p_fc_ci[1], "q_mean": stats[i].q_mean,
-                             "q_nominal": stats[i].q_nominal, "samples": samples})
-            pairs.append((name, [(candidates[name][i], stats[i]) for i in (best, worst)]))
+                                  executor=run_on, report=report)
+            chosen, fresh = robust_fragile(
+                name, candidates[name], stats,
+                _fresh_evaluator(sigma, samples, seed, engine, run_on, report), samples, seed)
+            rows += [{**row, "sigma": sigma} for row in chosen]
+            pairs.append((name, [(row, s) for row, s in zip(chosen, fresh, strict=True)]))
     _write_rows(out, "fig7.csv", rows)
     for name, pair in pairs:
         path = out / f"fig7_{name}.png"
         safe_figure(lambda name=name, pair=pair, path=path: plot_contacts_pair(
             load_object(name).mesh, [s.draws for _, s in pair],
-            [f"elbow {g.meta.get('elbow_angle', 0):.2f} rad: P(FC) = {s.p_fc:.3f}"
-             for g, s in pair], path,
-            title=f"{name}: same contacts, two arm configurations, sigma = {sigma:g}"), path)
+            [f"elbow {row['elbow_angle'] or 0:.2f} rad: P(FC) = {s.p_fc:.3f}"
+             for row, s in pair], path,
+            title=f"{name}: same contacts, two arm configurations, sigma = {sigma:g} "
+                  f"(fresh draws)"), path)
     return rows
+
+
+def _fresh_evaluator(sigma: float, samples: int, seed: int, engine: str, executor: Executor,
+                     report: Progress | None):
+    """:data:`~.selection.Evaluator` of the fresh draws, one progress cell each."""
+    def evaluate(grasp: Grasp, first_chunk: int):
+        stats = stats_from_chunk(grasp, JointNoise(sigma), samples, seed, first_chunk,
+                                 engine=engine, executor=executor,
+                                 progress=_cell_callback(report))
+        _cell_done(report, f"{grasp.object} grasp {grasp.id} sigma {sigma:g} (fresh draws)",
+                   stats)
+        return stats
+    return evaluate
 
 
 def _figure_sets(which: str, objects: Sequence[str], count: int,
@@ -223,6 +241,12 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     ``<which>.png`` (a figure that fails is a warning: the CSV stays). ``progress``: one
     overall report.
 
+    Each grasp's row is its estimate on ``samples`` draws (chunks ``0..K-1`` of ``seed``).
+    fig10 also names, per object of two variants or more, the most and the least robust
+    variant (``config`` robust / fragile, empty for the others), chosen on those draws and
+    reported on fresh ones (:mod:`.selection`): their rows carry ``fresh_p_fc`` with its
+    interval, ``fresh_samples`` and the paired ``gap`` (robust - fragile) on the fresh draws.
+
     Raises:
         NoGraspSetError: an imported object without a grasp set.
     """
@@ -233,17 +257,48 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     out = Path(out_dir)
     sets = _figure_sets(which, objects, count, grasp_sets or {})
     rows = []
-    cells = sum(len(g) for g in sets.values())
-    with _progress(progress, which, cells, samples) as report:
+    chooses = {name: which == "fig10" and len(g) >= 2 for name, g in sets.items()}
+    cells = sum(len(g) + 2 * chooses[name] for name, g in sets.items())
+    with _executor(executor, processes) as run_on, \
+            _progress(progress, which, cells, samples) as report:
         for name, grasps in sets.items():
-            for g, s in zip(grasps, _evaluate_set(grasps, sigma, samples, seed, processes,
-                                                  engine, executor=executor, report=report),
-                            strict=True):
-                rows.append({"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
-                             "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
-                             "samples": samples})
+            stats = _evaluate_set(grasps, sigma, samples, seed, processes, engine,
+                                  executor=run_on, report=report)
+            block = [{"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
+                      "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
+                      "samples": samples, "sigma": sigma}
+                     for g, s in zip(grasps, stats, strict=True)]
+            if which == "fig10":
+                _mark_pair(block, name, grasps, stats, chooses[name],
+                           _fresh_evaluator(sigma, samples, seed, engine, run_on, report),
+                           samples, seed)
+            rows += block
     _write_rows(out, f"{which}.csv", rows)
     safe_figure(lambda: plot_success_quality(
         rows, out / f"{which}.png",
         title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp"), out / f"{which}.png")
     return rows
+
+
+#: fig10's columns of the chosen pair (empty for the other variants).
+PAIR_COLUMNS = ("config", "fresh_p_fc", "fresh_p_fc_lo", "fresh_p_fc_hi", "fresh_samples",
+                "selection_p_fc", "gap", "gap_lo", "gap_hi")
+
+
+def _mark_pair(block: list[dict], name: str, grasps: list[Grasp], stats: list, chooses: bool,
+               evaluate, samples: int, seed: int) -> None:
+    """Add :data:`PAIR_COLUMNS` to one object's fig10 rows: the robust and fragile variants
+    (chosen on the rows' draws) with their fresh-draw numbers, empty elsewhere."""
+    for row in block:
+        row.update(dict.fromkeys(PAIR_COLUMNS, ""))
+    if not chooses:
+        return
+    chosen, _ = robust_fragile(name, grasps, stats, evaluate, samples, seed)
+    by_id = {g.id: row for g, row in zip(grasps, block, strict=True)}
+    for pair_row in chosen:
+        by_id[pair_row["id"]].update({
+            "config": pair_row["config"], "fresh_p_fc": pair_row["p_fc"],
+            "fresh_p_fc_lo": pair_row["p_fc_lo"], "fresh_p_fc_hi": pair_row["p_fc_hi"],
+            "fresh_samples": pair_row["samples"], "selection_p_fc": pair_row["selection_p_fc"],
+            "gap": pair_row["gap"],
+            "gap_lo": pair_row["gap_lo"], "gap_hi": pair_row["gap_hi"]})
