@@ -4,47 +4,78 @@ Criteria: ``pfc`` (P(FC)), ``q_mean`` (mean Q over force-closure draws), ``pfc_l
 lower end of the Wilson 95% interval of P(FC)), ``weighted`` (P(FC) x (1 + w mean Q),
 w = :data:`WEIGHT`: P(FC) with a bonus for quality; Q is dimensionless).
 
-Adaptive mode (:func:`rank_adaptive`): top-k identification on paired draws. Every candidate
-draws chunk c of the same seed, that is the same joint-noise draws (common random numbers),
-so two candidates i and j are compared draw by draw. Of the draws on which exactly one of
-the two holds (m discordant draws), the number b on which i holds is Binomial(m, theta)
-given m, and theta > 1/2 exactly when P(FC)_i > P(FC)_j: the exact one-sided sign test
-(McNemar's) certifies "i is more robust than j" when P(Bin(m, 1/2) >= b) <= alpha. Its
-noise is the discordance of the pair, not the variance of each estimate, which is what
-common random numbers buy (at sigma 0.0133 rad neighbouring elbow angles of one grasp
-disagree on 3-4% of the draws, different grasps on 25-55%).
-Certificates are closed under transitivity; a candidate certified above n - k others is *in*
-the top k, one certified below k others is *out* (then every *in* is above every *out*).
-Round r draws, up to r chunks each, the candidates of the pairs across the current top-k
-boundary that are not yet certified (every candidate in round 1); the run stops when k
-candidates are in (or n - k out), or after the fixed-n budget's number of rounds.
+Adaptive mode (:func:`rank_adaptive`): PAC top-k identification on paired draws, with an
+indifference zone epsilon (as LUCB, Kalyanakrishnan et al. 2012: a set of k candidates each
+of whose P(FC) is within epsilon of the true k-th best; epsilon 0: exactly the top k). Every
+candidate draws chunk c of the same seed, that is the same joint-noise draws (common random
+numbers), so two candidates are compared draw by draw (:mod:`~kinegrasp_env.toolkit.
+certificates`): their noise is the pair's discordance, not the variance of each estimate (at
+sigma 0.0133 rad neighbouring elbow angles of one grasp disagree on 3-4% of the draws,
+different grasps on 25-55%). Claims about an ordered pair (i, j): strict, P_i > P_j (exact
+sign test); within, P_i > P_j - epsilon (exact bounds on the win and discordance rates).
+Strict claims close under transitivity; a candidate strictly above n - k others is *in*
+the top k, one strictly below k others *out*; one within-above n - k others (strict chains
+included, :func:`~kinegrasp_env.toolkit.certificates.close_within`) is *within epsilon* of
+the k-th best. The run stops when k candidates are in or within (or n - k out), or after the
+fixed-n budget's number of rounds; round r draws, up to r chunks each, the candidates of the
+uncertified pairs across the current top-k boundary (every candidate in round 1).
 
-Guarantee: every test is run at alpha = delta / (n (n - 1) / 2 x chunks), one per candidate
-pair and chunk mark (the number of common chunks the pair is tested on), so with probability
-at least 1 - delta no certificate of the whole run is wrong (union bound; exact tests, no
-normal approximation). Hence P(a run reports ``separated`` and its top k is wrong) <= delta.
-A run that reaches the budget unseparated returns its best estimate of the top k (certified
-candidates first, then by P(FC)) without that guarantee, and says so (``separated`` False).
-An evaluator without per-draw outcomes falls back to unpaired bounds (each candidate's exact
-Clopper-Pearson interval at delta / (2 n chunks) per side), with the same guarantee.
+Guarantee. Each test is run at alpha = delta / (n (n - 1) x chunks), one per ordered pair
+and chunk mark (a pair's number of common chunks). Proof: fix the seed; then chunk c of every
+candidate is determined whether drawn or not, and within a candidate the draws are
+independent (the ``mc`` sampler), so the test of (i, j) at mark c sees a sample of N_c
+i.i.d. draw pairs, N_c fixed by the chunk layout. Let F(i, j, c) be the event that this test
+certifies a false claim about (i, j). With epsilon 0, P(F) <= alpha: given the M discordant
+draws, i's wins are Binomial(M, theta) with theta <= 1/2 when P_i <= P_j, and the sign test
+is exact. With epsilon > 0, F implies theta_lo > theta or pi_hi < pi (otherwise a strict
+claim means theta >= theta_lo > 1/2, P_i > P_j, and a within claim P_i - P_j >= L >
+-epsilon), each of probability <= alpha / 2 (exact one-sided Clopper-Pearson bounds;
+theta_lo's holds given M, hence unconditionally). A union bound over the n (n - 1) ordered
+pairs and the chunks marks: P(any F) <= delta. A run reads only tests among these (in
+whatever order and round; a second look at a mark sees the same draws), so with probability
+>= 1 - delta every claim it makes is true. Then so is every consequence: strict claims are
+transitive, and strict-within-strict chains give P_i > P_j - epsilon. A candidate strictly
+above n - k others has at most k - 1 others at or above it: it is in every top k; strictly
+below k others: in none. k candidates in: the n - k below the least of them are not among
+them, so they are all the others, each below every one of the k (likewise n - k out). A
+candidate i within-above n - k others: if i is not in a true top k T, T lies among the
+other n - 1, of which only k - 1 are not within-below i, so P_i > P_t - epsilon >= P_(k) -
+epsilon for some t in T. Hence P(a row's certified label is false) <= delta, in a separated
+run (its top k) or not (the candidates certified in or out so far). An evaluator without
+per-draw outcomes falls back to unpaired bounds (each candidate's exact Clopper-Pearson
+bounds, one-sided at delta / (2 n chunks) each), with the same guarantee.
 
-Cost: a pair with P(FC) gap g, discordant on a fraction d of the draws, is certified after
-about d (z / g)^2 paired draws, z the normal quantile of alpha (about 4 for 10 candidates,
-8 chunks, delta 0.05). Candidates far from the top-k boundary stop after a chunk or two; a
-boundary pair closer than the budget can certify draws to the end (``separated`` False).
+Cost: a boundary pair with P(FC) gap g, discordant on a fraction d of the draws, is certified
+after about d (z / (g + epsilon))^2 paired draws, z the normal quantile of alpha (about 4
+for 12 candidates, 8 chunks, delta 0.05): epsilon bounds the cost of a near tie, which
+without it grows without bound as g -> 0 (``separated`` False at the budget).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special
-from scipy import stats as sps
 
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
+from kinegrasp_env.toolkit.certificates import (
+    PairedDraws,
+    close_certificates,
+    close_within,
+    linear_extension,
+    paired_certificates,
+    sign_test_level,
+    unpaired_certificates,
+)
+
+#: The indifference zone of :func:`rank_adaptive` (and ``kinegrasp rank --epsilon``): a
+#: certified top k whose members are each within 0.01 of the k-th best P(FC).
+DEFAULT_EPSILON = 0.01
+#: Labels of the ``certified`` column: in the certified top k; certified out of it (or, once
+#: separated, not in it); neither yet.
+TOP, REST, UNRESOLVED = "top-k", "rest", "unresolved"
 
 CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted")
 #: Weight of mean Q in the ``weighted`` criterion.
@@ -142,8 +173,9 @@ class AdaptiveProgress:
             never grows.
         rounds: rounds finished; max_rounds: the per-candidate chunk budget (round r draws
             every drawing candidate up to r chunks, so there are at most that many rounds).
-        undecided: candidates neither certified in nor out of the top k (0 once separated);
-            in a chunk's report (``round_done`` False): the candidates drawing this round.
+        undecided: candidates neither certified in (or within epsilon) nor out of the top k
+            (0 once separated); in a chunk's report (``round_done`` False): the candidates
+            drawing this round.
         round_done: this report closes a round (its decisions are made).
     """
 
@@ -160,13 +192,23 @@ class AdaptiveReport:
     """Outcome of an adaptive ranking.
 
     Attributes:
-        results: every candidate's draws, ordered by the criterion.
-        top: the top k by P(FC), best first: certified when ``separated``.
-        separated: the top k is certified at confidence 1 - ``delta``.
+        results: every candidate's draws in the order to show them: the certified top k
+            (``certified`` "top-k"), then the unresolved, then the rest; within each, an
+            order that lists every strictly certified pair the right way round, otherwise
+            by the criterion.
+        certified: (n,) label of each entry of ``results``: :data:`TOP`, :data:`REST` or
+            :data:`UNRESOLVED` (see :data:`TOP`).
+        top: the indices of the first k entries of ``results``: the certified top k when
+            ``separated`` (each within ``epsilon`` of the true k-th best P(FC), wrong with
+            probability <= ``delta``), else the certified ones and the best estimates.
+        separated: the top k is certified.
         rounds, draws: rounds run and draws made (all candidates); fixed_draws: the fixed-n
             run's draws (candidates x chunks x chunk size).
         paired: certified on paired draws (sign tests) rather than unpaired intervals.
-        alpha: the level of each test (delta over pairs and chunk marks).
+        alpha: the level of each test (delta over ordered pairs and chunk marks).
+        delta, epsilon: the run's error probability and indifference zone.
+        strict: (n, n) bool by candidate index, [i, j]: certified P(FC)_i > P(FC)_j
+            (closed under transitivity); ``results`` lists no such j before its i.
     """
 
     results: list[CandidateResult]
@@ -177,142 +219,42 @@ class AdaptiveReport:
     fixed_draws: int
     paired: bool = True
     alpha: float = math.nan
+    certified: list[str] = field(default_factory=list)
+    delta: float = math.nan
+    epsilon: float = 0.0
+    strict: np.ndarray | None = None
 
 
-def sign_test_level(n_candidates: int, max_chunks: int, delta: float) -> float:
-    """Level alpha of each paired test: ``delta`` shared by every pair of candidates and
-    every chunk mark a pair can be tested at (union bound)."""
-    return delta / (n_candidates * (n_candidates - 1) / 2 * max_chunks)
-
-
-def sign_test_certifies(wins: np.ndarray, losses: np.ndarray, alpha: float) -> np.ndarray:
-    """Exact one-sided sign test (McNemar) of "i holds more often than j" on paired draws.
-
-    Args:
-        wins, losses: draws on which i holds and j fails, and the reverse (same shape).
-        alpha: level of each test.
-
-    Returns:
-        bool array: P(Binomial(wins + losses, 1/2) >= wins) <= alpha. Under P(FC)_i <=
-        P(FC)_j, True with probability at most alpha (given the number of discordant draws,
-        wins is Binomial(m, theta) with theta <= 1/2).
-    """
-    wins = np.asarray(wins)
-    m = wins + np.asarray(losses)
-    # P(Bin(m, 1/2) >= b) = I_{1/2}(b, m - b + 1) (regularized incomplete beta), b >= 1
-    tail = special.betainc(np.maximum(wins, 1), m - wins + 1, 0.5)
-    return (wins > 0) & (tail <= alpha)
-
-
-def win_rate_bounds(wins: int, losses: int, alpha: float) -> tuple[float, float]:
-    """Exact (Clopper-Pearson) one-sided bounds at level ``alpha`` each on theta = P(i holds
-    | exactly one of i, j holds): theta > 1/2 iff P(FC)_i > P(FC)_j; the lower bound
-    exceeds 1/2 exactly when :func:`sign_test_certifies` does. (0, 1) without discordance."""
-    lo = float(sps.beta.ppf(alpha, wins, losses + 1)) if wins else 0.0
-    hi = float(sps.beta.isf(alpha, wins + 1, losses)) if losses else 1.0
-    return lo, hi
-
-
-def difference_interval(wins: int, losses: int, n: int,
-                        confidence: float = 0.95) -> tuple[float, float]:
-    """Interval on P(FC)_i - P(FC)_j from ``n`` paired draws (``wins``: i holds, j fails;
-    ``losses``: the reverse), covering with probability >= ``confidence``.
-
-    The difference is pi (2 theta - 1), pi = P(discordant draw), theta as in
-    :func:`win_rate_bounds`; exact two-sided Clopper-Pearson intervals on both, at half of
-    1 - confidence each, and the extremes of the product over the box (union bound).
-    """
-    alpha = (1.0 - confidence) / 4  # per side, two quantities
-    m = wins + losses
-    pi_lo = float(sps.beta.ppf(alpha, m, n - m + 1)) if m else 0.0
-    pi_hi = float(sps.beta.isf(alpha, m + 1, n - m)) if m < n else 1.0
-    th_lo, th_hi = win_rate_bounds(wins, losses, alpha)
-    lo, hi = 2 * th_lo - 1, 2 * th_hi - 1
-    return (lo * (pi_lo if lo >= 0 else pi_hi), hi * (pi_hi if hi >= 0 else pi_lo))
-
-
-class PairedDraws:
-    """Per-draw force-closure outcomes of every candidate, chunk by chunk (chunk c is the
-    same noise for all), and per ordered pair the discordant counts on their common chunks.
-
-    Attributes:
-        wins: (n, n) int, draws of the common chunks on which i holds and j fails.
-        marks: (n, n) int, common chunks of i and j (the number the pair is tested on).
-    """
-
-    def __init__(self, n_candidates: int) -> None:
-        self.chunks: list[list[np.ndarray]] = [[] for _ in range(n_candidates)]
-        self.wins = np.zeros((n_candidates, n_candidates), dtype=np.int64)
-        self.marks = np.zeros((n_candidates, n_candidates), dtype=np.int64)
-
-    def add(self, index: int, outcomes: np.ndarray) -> None:
-        """Candidate ``index``'s next chunk: (size,) bool, True where it holds."""
-        c = len(self.chunks[index])
-        self.chunks[index].append(outcomes)
-        for j, theirs in enumerate(self.chunks):
-            if j == index or len(theirs) <= c:
-                continue
-            if theirs[c].shape != outcomes.shape:
-                raise ValueError(f"chunk {c} has {outcomes.size} draws for candidate {index}"
-                                 f" but {theirs[c].size} for candidate {j}")
-            self.wins[index, j] += int(np.count_nonzero(outcomes & ~theirs[c]))
-            self.wins[j, index] += int(np.count_nonzero(theirs[c] & ~outcomes))
-            self.marks[index, j] = self.marks[j, index] = c + 1
-
-
-def unpaired_certifies(results: list[CandidateResult], alpha: float) -> np.ndarray:
-    """(n, n) bool: i's exact lower bound above j's upper bound (Clopper-Pearson, one-sided
-    at ``alpha`` each), for evaluators without per-draw outcomes."""
-    s = np.array([r.successes for r in results])
-    t = np.array([r.trials for r in results])
-    lo = np.where(s > 0, sps.beta.ppf(alpha, np.maximum(s, 1), t - s + 1), 0.0)
-    hi = np.where(s < t, sps.beta.isf(alpha, s + 1, np.maximum(t - s, 1)), 1.0)
-    return (t[:, None] > 0) & (t[None, :] > 0) & (lo[:, None] > hi[None, :])
-
-
-def close_certificates(certified: np.ndarray, top_k: int
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Consequences of the certificates ``certified`` (n, n) bool, [i, j]: i above j.
-
-    Returns (closed, inside, outside): the transitive closure, with every candidate in the
-    top k placed above every candidate out of it; inside (n,) bool: certified above
-    n - top_k others; outside: certified below top_k others.
-    """
-    n = len(certified)
-    closed = certified.copy()
-    while True:
-        for k in range(n):  # Warshall
-            closed |= closed[:, k, None] & closed[None, k, :]
-        np.fill_diagonal(closed, False)  # a cycle (only after a wrong certificate)
-        inside = closed.sum(axis=1) >= n - top_k
-        outside = closed.sum(axis=0) >= top_k
-        grown = closed | (inside[:, None] & outside[None, :])
-        np.fill_diagonal(grown, False)
-        if (grown == closed).all():
-            return closed, inside, outside
-        closed = grown
-
-
-def boundary(closed: np.ndarray, inside: np.ndarray, outside: np.ndarray,
-             p_hat: np.ndarray, top_k: int) -> tuple[np.ndarray, np.ndarray]:
+def boundary(relation: np.ndarray, inside: np.ndarray, outside: np.ndarray,
+             p_hat: np.ndarray, top_k: int, done_inside: bool = False
+             ) -> tuple[np.ndarray, np.ndarray]:
     """The current top k (certified in first, then the undecided by estimated P(FC), then the
-    certified out; (top_k,) indices) and the candidates of the uncertified pairs across it
-    ((n,) bool): the ones whose draws can still separate it."""
+    certified out; (top_k,) indices) and the candidates of the pairs across it whose claim
+    ``relation[top, rest]`` is not certified ((n,) bool): the ones whose draws can still
+    separate it. ``done_inside``: a certified-in member needs no more claims (epsilon > 0:
+    being within-above n - k others is all it needs)."""
     p = np.where(np.isnan(p_hat), -1.0, p_hat)
     rank = np.lexsort((np.arange(len(p)), -p, outside, ~inside))
     top, rest = rank[:top_k], rank[top_k:]
-    open_pairs = ~closed[np.ix_(top, rest)]
+    open_pairs = ~relation[np.ix_(top, rest)]
+    if done_inside:
+        open_pairs &= ~inside[top, None]
     needed = np.zeros(len(p), dtype=bool)
     needed[top] = open_pairs.any(axis=1)
     needed[rest] = open_pairs.any(axis=0)
     return top, needed
 
 
-def may_draw(closed: np.ndarray, inside: np.ndarray, outside: np.ndarray) -> np.ndarray:
+def may_draw(relation: np.ndarray, inside: np.ndarray, outside: np.ndarray,
+             directed: bool = False) -> np.ndarray:
     """(n,) bool, the candidates that can be needed again: the undecided and those with an
-    uncertified pair with one of them (pairs between decided ones are settled)."""
+    uncertified pair with one of them (pairs between decided ones are settled); ``directed``
+    (epsilon > 0, where ``relation`` is not an order): uncertified from an undecided one to
+    them."""
     undecided = ~(inside | outside)
-    related = closed | closed.T
+    if directed:
+        return undecided | (undecided[:, None] & ~relation).any(axis=0)
+    related = relation | relation.T
     return undecided | (~related & undecided[None, :]).any(axis=1)
 
 
@@ -321,20 +263,22 @@ class AdaptiveRun:
     certificates so far (see the module docstring)."""
 
     def __init__(self, n_candidates: int, evaluator: Evaluator, max_chunks: int,
-                 top_k: int, delta: float) -> None:
+                 top_k: int, delta: float, epsilon: float = 0.0) -> None:
         self.evaluator, self.max_chunks, self.top_k = evaluator, max_chunks, top_k
         self.results = [CandidateResult(i) for i in range(n_candidates)]
         self.pairs = PairedDraws(n_candidates)
         self.paired: bool | None = None  # known after the first draw
-        self.delta = delta
-        self.certified = np.zeros((n_candidates, n_candidates), dtype=bool)
-        self.closed = self.certified.copy()
+        self.delta, self.epsilon = delta, epsilon
+        empty = np.zeros((n_candidates, n_candidates), dtype=bool)
+        self.certified, self.within = empty.copy(), empty.copy()
+        self.closed, self.close_within = empty.copy(), empty.copy()
         self.inside = np.zeros(n_candidates, dtype=bool)
         self.outside = np.zeros(n_candidates, dtype=bool)
 
     @property
     def alpha(self) -> float:
-        """The level of each test (pairs and chunk marks, or candidates, sides and marks)."""
+        """The level of each test (ordered pairs and chunk marks, or candidates, sides and
+        marks)."""
         n = len(self.results)
         if self.paired is False:
             return self.delta / (2 * n * self.max_chunks)
@@ -364,12 +308,21 @@ class AdaptiveRun:
     def decide(self) -> None:
         """New certificates from the draws so far, and their consequences."""
         if self.paired:
-            new = sign_test_certifies(self.pairs.wins, self.pairs.wins.T, self.alpha)
+            strict, within = paired_certificates(self.pairs.wins, self.pairs.draws,
+                                                 self.alpha, self.epsilon)
         else:
-            new = unpaired_certifies(self.results, self.alpha)
-        self.certified |= new
-        self.closed, self.inside, self.outside = close_certificates(self.certified,
-                                                                    self.top_k)
+            strict, within = unpaired_certificates(
+                np.array([r.successes for r in self.results]),
+                np.array([r.trials for r in self.results]), self.alpha, self.epsilon)
+        self.certified |= strict
+        self.within |= within
+        self.closed, inside, self.outside = close_certificates(self.certified, self.top_k)
+        if self.epsilon > 0:
+            self.close_within = close_within(self.closed, self.within)
+            inside = self.close_within.sum(axis=1) >= len(self.results) - self.top_k
+        else:
+            self.close_within = self.closed
+        self.inside = inside
 
     @property
     def separated(self) -> bool:
@@ -379,22 +332,51 @@ class AdaptiveRun:
     def boundary(self) -> tuple[np.ndarray, np.ndarray]:
         """(top k indices, candidates needed to separate it): :func:`boundary`."""
         p_hat = np.array([r.p_fc for r in self.results])
-        return boundary(self.closed, self.inside, self.outside, p_hat, self.top_k)
+        return boundary(self.close_within, self.inside, self.outside, p_hat, self.top_k,
+                        done_inside=self.epsilon > 0)
 
     def owed(self) -> int:
         """Chunks that may still be drawn (candidates that may be needed again)."""
         chunks = np.array([r.chunks for r in self.results])
         left = self.max_chunks - chunks
-        return int(left[may_draw(self.closed, self.inside, self.outside)].sum())
+        drawing = may_draw(self.close_within, self.inside, self.outside,
+                           directed=self.epsilon > 0)
+        return int(left[drawing].sum())
+
+    def table(self, criterion: str) -> tuple[list[CandidateResult], list[str]]:
+        """(results, labels) in the order to show them (:class:`AdaptiveReport`)."""
+        n = len(self.results)
+        p = np.array([r.p_fc for r in self.results])
+        p = np.where(np.isnan(p), -1.0, p)
+        # an order no strict certificate contradicts, the certified in first, the out last
+        ranked = linear_extension(self.closed, [(not self.inside[i], bool(self.outside[i]),
+                                                 -p[i], i) for i in range(n)])
+        if self.separated:  # the first k in, or else the complement of n - k out
+            first = [i for i in ranked if self.inside[i]][:self.top_k]
+            if len(first) < self.top_k:
+                first = ranked[:self.top_k]
+            label = np.full(n, REST, dtype=object)
+            label[first] = TOP
+        else:
+            label = np.where(self.inside, TOP, np.where(self.outside, REST, UNRESOLVED))
+        group = {TOP: 0, UNRESOLVED: 1, REST: 2}
+
+        def key(i: int) -> tuple:
+            s = score(self.results[i], criterion)
+            return (group[label[i]], *((1, 0.0) if math.isnan(s) else (0, -s)), i)
+
+        shown = linear_extension(self.closed, [key(i) for i in range(n)])
+        return [self.results[i] for i in shown], [str(label[i]) for i in shown]
 
 
 def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max_chunks: int,
                   chunk_size: int, *, top_k: int = 1, delta: float = 0.05,
-                  criterion: str = "pfc",
+                  epsilon: float = DEFAULT_EPSILON, criterion: str = "pfc",
                   progress: Callable[[AdaptiveProgress], None] | None = None
                   ) -> AdaptiveReport:
-    """The top ``top_k`` candidates by P(FC), certified at confidence 1 - ``delta`` on paired
-    draws (module docstring: method and guarantee).
+    """A top ``top_k`` of the candidates by P(FC), each member within ``epsilon`` of the true
+    k-th best, certified at confidence 1 - ``delta`` on paired draws (module docstring:
+    method and proof).
 
     Round r draws every candidate of an uncertified pair across the current top-k boundary
     up to r chunks (all candidates in round 1), then certifies; the run stops when the top k
@@ -411,8 +393,10 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
         max_chunks: per-candidate budget (the fixed-n run uses exactly this many chunks).
         chunk_size: draws per chunk (for the report and the progress bound).
         top_k: size of the set to separate.
-        delta: allowed probability of a certified (``separated``) top k being wrong.
-        criterion: the final ordering (separation is always decided on P(FC)).
+        delta: allowed probability of a certified label being wrong.
+        epsilon: indifference zone in P(FC), >= 0 (0: exactly the top k, which a near tie
+            at the boundary may keep from being certified within any budget).
+        criterion: the order within each certified group (certificates are on P(FC)).
         progress: called with an :class:`AdaptiveProgress` after every chunk drawn and after
             every round.
     """
@@ -420,11 +404,13 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
         raise ValueError(f"top_k must be between 1 and {n_candidates - 1}, got {top_k}")
     if not 0 < delta < 1:
         raise ValueError(f"delta must be in (0, 1), got {delta}")
+    if not 0 <= epsilon < 1:
+        raise ValueError(f"epsilon must be in [0, 1), got {epsilon}")
     if criterion not in CRITERIA:
         raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
     if max_chunks < 1:
         raise ValueError(f"max_chunks must be at least 1, got {max_chunks}")
-    run = AdaptiveRun(n_candidates, evaluator, max_chunks, top_k, delta)
+    run = AdaptiveRun(n_candidates, evaluator, max_chunks, top_k, delta, float(epsilon))
     draws, rounds, owed = 0, 0, n_candidates * max_chunks
     needed = np.ones(n_candidates, dtype=bool)
 
@@ -442,12 +428,13 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
                 report(len(drawing), False)
         rounds += 1
         run.decide()
-        top, needed = run.boundary()
+        _, needed = run.boundary()
         separated = run.separated
         owed = 0 if separated or rounds == max_chunks else run.owed()
         report(0 if separated else int((~(run.inside | run.outside)).sum()), True)
         if separated:
             break
-    return AdaptiveReport(order(run.results, criterion), [int(i) for i in top], separated,
-                          rounds, draws, n_candidates * max_chunks * chunk_size,
-                          bool(run.paired), run.alpha)
+    results, labels = run.table(criterion)
+    return AdaptiveReport(results, [r.index for r in results[:top_k]], separated, rounds,
+                          draws, n_candidates * max_chunks * chunk_size, bool(run.paired),
+                          run.alpha, labels, delta, float(epsilon), run.closed.copy())
