@@ -1,21 +1,23 @@
 """Cold start: what a user feels when a fresh process runs kinegrasp.
 
 Every measurement runs in a NEW Python process (users run the CLI as fresh processes), side by
-side in one run:
+side in one run, each the best of ``--repeat`` runs (the machine's other load only adds):
 
-* ``import kinegrasp_env`` (and ``gym.make``), seconds;
-* the first 10 fast-engine draws beyond imports, with an EMPTY compiled-kernel cache (the first
-  run on a machine: numba compiles every kernel) and again with the cache that run left (every
-  later run: the kernels are loaded from disk);
-* the same for the first step of ``KineGrasp-v0`` with the fast engine;
-* ``kinegrasp evaluate --engine fast --samples 10000 --processes 2`` wall time, start-up
-  included, warm cache (pool workers are forked after the parent loaded the kernels, so they
-  compile nothing).
+* ``python -c pass``: the interpreter's own start, the floor of every figure below;
+* ``kinegrasp --help``, ``kinegrasp evaluate --help``: building the parser;
+* ``kinegrasp objects``: the catalog listing;
+* ``kinegrasp evaluate --engine fast --samples 10``: a small evaluation with the compiled
+  kernels already in the cache (every run after the first on a machine);
+* the same evaluation with an EMPTY cache (``KINEGRASP_CACHE`` pointed at a new folder: the
+  first run on a machine compiles every kernel its path needs, and builds the object's distance
+  grid): its wall time, and how soon its first line reaches stderr (the notice that it is
+  compiling). Run once (it takes a minute or more).
 
-The cold figures use a temporary ``KINEGRASP_CACHE``, so they also rebuild the object's distance
-grid; the grid build is timed separately and reported.
+``--all`` adds the library-level figures: ``import kinegrasp_env``, the first 10 draws and the
+first env step beyond imports (empty and warm cache), and a 10,000-draw ``evaluate`` with two
+processes.
 
-    python benchmarks/bench_coldstart.py
+    python benchmarks/bench_coldstart.py [--json-out result.json] [--skip-cold] [--all]
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 FIRST_DRAWS = """
 import json, time
@@ -55,6 +58,17 @@ t3 = time.perf_counter()
 print(json.dumps({"make": t1 - t0, "reset": t2 - t1, "first_step": t3 - t2}))
 """
 
+#: The 10-draw evaluation of the figures (the issue's "a 10-draw fast evaluate").
+EVALUATE_10 = ["evaluate", "--object", "spray_flask", "--grasp", "2", "--sigma", "0.0133",
+               "--samples", "10", "--seed", "0", "--engine", "fast"]
+
+
+def kinegrasp() -> list[str]:
+    """The command that runs ``kinegrasp``: the console script next to this interpreter if
+    installed (what a user types), else ``python -m kinegrasp_env.cli``."""
+    script = Path(sys.executable).with_name("kinegrasp")
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "kinegrasp_env.cli"]
+
 
 def run_json(code: str, env: dict) -> dict:
     out = subprocess.run([sys.executable, "-c", code], env=env, check=True,
@@ -68,21 +82,78 @@ def wall(args: list[str], env: dict) -> float:
     return time.perf_counter() - start
 
 
+def best(args: list[str], env: dict, repeat: int) -> float:
+    wall(args, env)  # the first run warms the OS file cache
+    return min(wall(args, env) for _ in range(repeat))
+
+
+def first_run(args: list[str], env: dict) -> dict:
+    """Wall time of ``args`` and the time its first stderr line arrived (None: none came)."""
+    start = time.perf_counter()
+    proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    first_line = proc.stderr.readline()
+    first = time.perf_counter() - start if first_line else None
+    _, err = proc.communicate()
+    total = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed: {(first_line + err).decode()[-2000:]}")
+    return {"wall_s": total, "first_stderr_line_s": first,
+            "first_stderr_line": first_line.decode().strip()[:200]}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--samples", type=int, default=10000)
+    parser.add_argument("--repeat", type=int, default=5, help="runs per figure (best kept)")
+    parser.add_argument("--json-out", type=Path, help="also write the figures to this file")
+    parser.add_argument("--skip-cold", action="store_true",
+                        help="skip the empty-cache run (a minute or more)")
+    parser.add_argument("--all", action="store_true", help="add the library-level figures")
+    parser.add_argument("--samples", type=int, default=10000,
+                        help="draws of the --all evaluate run")
     args = parser.parse_args()
+    env = dict(os.environ)
+    cli = kinegrasp()
+    figures: dict[str, float | dict] = {
+        "python -c pass": best([sys.executable, "-c", "pass"], env, args.repeat),
+        "kinegrasp --help": best([*cli, "--help"], env, args.repeat),
+        "kinegrasp evaluate --help": best([*cli, "evaluate", "--help"], env, args.repeat),
+        "kinegrasp objects": best([*cli, "objects"], env, args.repeat),
+        "kinegrasp evaluate --engine fast --samples 10 (warm cache)":
+            best(cli + EVALUATE_10, env, args.repeat),
+    }
+    if not args.skip_cold:
+        with tempfile.TemporaryDirectory() as cache:
+            figures["first run, empty cache"] = first_run(
+                cli + EVALUATE_10, {**env, "KINEGRASP_CACHE": cache})
+    print(f"{'fresh process (best of ' + str(args.repeat) + ')':<60} {'wall':>8}")
+    for name, value in figures.items():
+        if isinstance(value, dict):
+            print(f"{'evaluate --samples 10, ' + name:<60} {value['wall_s']:>6.2f} s")
+            first = value["first_stderr_line_s"]
+            print(f"{'  its first line on stderr after':<60} "
+                  + (f"{first:>6.2f} s" if first is not None else "  none"))
+            print(f"    {value['first_stderr_line']}")
+        else:
+            print(f"{name:<60} {value:>6.3f} s")
+    if args.all:
+        figures.update(library_figures(env, args.samples))
+    if args.json_out is not None:
+        args.json_out.write_text(json.dumps(figures, indent=2) + "\n")
+
+
+def library_figures(env: dict, samples: int) -> dict:
+    """The library-level figures of ``--all`` (printed, and returned for the JSON result)."""
     with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, "KINEGRASP_CACHE": cache}
+        env = {**env, "KINEGRASP_CACHE": cache}
         imports = min(wall([sys.executable, "-c", "import kinegrasp_env"], env)
                       for _ in range(3))
         cold = run_json(FIRST_DRAWS, env)
         warm = run_json(FIRST_DRAWS, env)
         step_cold = run_json(FIRST_STEP, env)  # compiles what the env's path adds
         step_warm = run_json(FIRST_STEP, env)
-        cli = [sys.executable, "-m", "kinegrasp_env.cli", "evaluate", "--object", "spray_flask",
-               "--grasp", "2", "--sigma", "0.0133", "--samples", str(args.samples), "--seed",
-               "0", "--engine", "fast", "--processes", "2", "--json"]
+        cli = [*kinegrasp(), "evaluate", "--object", "spray_flask", "--grasp", "2",
+               "--sigma", "0.0133", "--samples", str(samples), "--seed", "0", "--engine",
+               "fast", "--processes", "2", "--json"]
         cli_first = wall(cli, env)  # compiles what 10,000 draws add (e.g. 4+ contacts)
         cli_warm = wall(cli, env)
     print(f"python -c 'import kinegrasp_env' (whole process, best of 3): {imports:.2f} s")
@@ -94,10 +165,13 @@ def main() -> None:
     print(f"{'env first 64-draw step (gym.make, reset before)':<44} "
           f"{step_cold['first_step']:>10.2f} s {step_warm['first_step']:>9.2f} s")
     print(f"{'kinegrasp evaluate --engine fast --samples':<44}")
-    print(f"{f'  {args.samples} --processes 2, wall':<44} {cli_first:>10.2f} s {cli_warm:>9.2f} s")
+    print(f"{f'  {samples} --processes 2, wall':<44} {cli_first:>10.2f} s {cli_warm:>9.2f} s")
     print("(the first env step and the first evaluate run compile the kernels their paths add "
           "to those the\n 10 draws compiled: they show the cost once per machine; the warm "
           "column is every later run)")
+    return {"import kinegrasp_env": imports, "first draws": {"empty": cold, "warm": warm},
+            "first env step": {"empty": step_cold, "warm": step_warm},
+            f"evaluate {samples} --processes 2": {"empty": cli_first, "warm": cli_warm}}
 
 
 if __name__ == "__main__":

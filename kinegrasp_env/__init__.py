@@ -12,14 +12,14 @@ checked by import-linter). Conventions: docs/conventions.md.
 
 Importing the package registers its Gymnasium environments (see ``ENV_IDS``):
 ``gym.make("KineGrasp-v0")`` after ``import kinegrasp_env``, or
-``gym.make("kinegrasp_env:KineGrasp-v0")`` without it.
+``gym.make("kinegrasp_env:KineGrasp-v0")`` without it. Gymnasium itself is not imported
+for it: the IDs are registered at once if Gymnasium is already loaded, else the moment it is
+(so ``kinegrasp --help`` never pays for Gymnasium and NumPy).
 """
 
 from __future__ import annotations
 
-import gymnasium
-
-from kinegrasp_env.lazy import lazy_exports
+from kinegrasp_env.lazy import lazy_exports, when_imported
 
 __version__ = "0.1.0"
 
@@ -30,9 +30,16 @@ _ENTRY_POINTS = {
     "KineGrasp-v0": ("kinegrasp_env.envs:KineGraspEnv", 10),
     "KineGraspSelect-v0": ("kinegrasp_env.envs:KineGraspSelectEnv", 1),
 }
-for _env_id, (_entry, _steps) in _ENTRY_POINTS.items():
-    if _env_id not in gymnasium.registry:
-        gymnasium.register(id=_env_id, entry_point=_entry, max_episode_steps=_steps)
+
+
+def _register_envs(gymnasium) -> None:
+    """Register :data:`ENV_IDS` with ``gymnasium`` (the module), once."""
+    for env_id, (entry, steps) in _ENTRY_POINTS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(id=env_id, entry_point=entry, max_episode_steps=steps)
+
+
+when_imported("gymnasium", _register_envs)
 
 _EXPORTS = {
     "evaluate_grasp": "montecarlo.evaluate",

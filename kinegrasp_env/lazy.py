@@ -7,6 +7,7 @@ or matplotlib until a name that needs them is used).
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import sys
 from collections.abc import Callable
 
@@ -35,3 +36,45 @@ def lazy_exports(package: str, exports: dict[str, str]) -> tuple[Callable, Calla
         return sorted(set(vars(sys.modules[package])) | set(exports))
 
     return __getattr__, __dir__
+
+
+class _AfterImport:
+    """Meta path finder that runs ``callback(module)`` right after ``name`` is first imported
+    (duck-typed: ``importlib.abc`` itself costs a tenth of a second to import)."""
+
+    def __init__(self, name: str, callback: Callable) -> None:
+        self.name, self.callback = name, callback
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != self.name:
+            return None
+        sys.meta_path.remove(self)  # one shot; the other finders locate the real module
+        spec = importlib.util.find_spec(fullname)
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+            return spec
+        loader, callback = spec.loader, self.callback
+
+        class _Loader:
+            def create_module(self, spec):
+                return loader.create_module(spec)
+
+            def exec_module(self, module):
+                loader.exec_module(module)
+                callback(module)
+
+            def __getattr__(self, attr):  # the rest of the loader's interface
+                return getattr(loader, attr)
+
+        spec.loader = _Loader()
+        return spec
+
+
+def when_imported(name: str, callback: Callable) -> None:
+    """Run ``callback(module)`` once top-level module ``name`` is imported: now if it already
+    is, else right after its import completes (without importing it here)."""
+    module = sys.modules.get(name)
+    if module is not None:
+        callback(module)
+        return
+    if not any(isinstance(f, _AfterImport) and f.name == name for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterImport(name, callback))

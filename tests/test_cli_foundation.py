@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -237,7 +238,8 @@ def test_every_option_has_help_with_its_default():
 
 
 def test_help_shows_the_choices_from_their_sources():
-    """Choices in --help come from the catalog and the library, not from a copy."""
+    """Choices and defaults in --help equal the catalog's and the library's (the parser keeps
+    copies of a few, so that building it imports none of the library's heavy modules)."""
     from kinegrasp_env.cli.common import ENGINE_NAMES, MAX_SIGMA
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.montecarlo.execution import BACKENDS
@@ -263,4 +265,114 @@ def test_help_shows_the_choices_from_their_sources():
     assert f"--criterion {braces(CRITERIA)}" in subs["rank"].format_help()
     counts = {len(shipped_grasps(name)) for name in OBJECT_NAMES}
     assert counts == {12}
+    from kinegrasp_env.cli import objects as objects_cli
+    from kinegrasp_env.world import decompose
+
+    assert (objects_cli.DEFAULT_THRESHOLD, objects_cli.DEFAULT_MAX_PARTS) == (
+        decompose.DEFAULT_THRESHOLD, decompose.DEFAULT_MAX_PARTS)
     assert "shipped grasp set, 0..11" in " ".join(subs["evaluate"].format_help().split())
+
+
+# ------------------------------------------------------------------ a CLI that answers at once
+HEAVY = ("numpy", "scipy", "trimesh", "pybullet", "numba", "gymnasium", "matplotlib", "torch")
+
+
+def _fresh_modules(code: str, env: dict | None = None) -> set[str]:
+    """Top-level modules loaded by ``code`` in a fresh interpreter (it prints nothing)."""
+    import os
+    import subprocess
+    import sys
+
+    probe = (code + "\nimport sys, json\n"
+             "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True, env={**os.environ, **(env or {})})
+    return set(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def test_building_the_parser_imports_nothing_heavy():
+    """``kinegrasp --help`` (and every command's --help, which the same parser holds) loads
+    none of NumPy, SciPy, trimesh, pybullet, numba, Gymnasium, matplotlib: what keeps it
+    under a few tenths of a second. Checked in a fresh interpreter's ``sys.modules``."""
+    loaded = _fresh_modules("from kinegrasp_env.cli.main import build_parser\n"
+                            "p = build_parser()\n"
+                            "[s.format_help() for s in p._subparsers._group_actions[0]"
+                            ".choices.values()]")
+    assert not loaded & set(HEAVY), loaded & set(HEAVY)
+
+
+def test_gymnasium_ids_registered_when_gymnasium_loads():
+    """``import kinegrasp_env`` does not load Gymnasium, yet its IDs are registered the moment
+    Gymnasium is imported, in either order, and ``gym.make("kinegrasp_env:...")`` finds them
+    (the registry is Gymnasium's own: independent of how the IDs got there)."""
+    loaded = _fresh_modules("import kinegrasp_env")
+    assert "gymnasium" not in loaded and "numpy" not in loaded
+    for code in ("import kinegrasp_env\nimport gymnasium as gym",
+                 "import gymnasium as gym\nimport kinegrasp_env",
+                 "import kinegrasp_env.envs\nimport gymnasium as gym"):
+        _fresh_modules(code + "\nassert all(i in gym.registry for i in kinegrasp_env.ENV_IDS)\n"
+                       "assert gym.spec('KineGrasp-v0').entry_point == "
+                       "'kinegrasp_env.envs:KineGraspEnv'")
+    _fresh_modules("import gymnasium as gym\n"
+                   "from gymnasium.envs.registration import load_env_creator\n"
+                   "import importlib; importlib.import_module('kinegrasp_env')\n"
+                   "assert 'KineGraspSelect-v0' in gym.registry")
+
+
+def test_the_listing_is_recomputed_whenever_the_catalog_changes(tmp_path, monkeypatch, capsys):
+    """``kinegrasp objects`` serves its rows from a disk copy (no geometry loaded), so the
+    copy must never be stale: after a placement and after a removal the listing equals the
+    catalog computed from scratch (``world.objects.catalog``, no copy involved); an unchanged
+    catalog is served without importing the geometry modules."""
+    from kinegrasp_env.world.catalog_cache import cached_catalog
+    from kinegrasp_env.world.objects import catalog
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("KINEGRASP_CACHE", str(tmp_path / "cache"))
+    assert cached_catalog() == catalog()
+    assert main(["objects", "place", "cube", "--as", "cube_moved", "--position", "0.5", "0.1",
+                 "0.1"]) == 0
+    rows = cached_catalog()
+    assert rows == catalog() and rows[-1]["name"] == "cube_moved"
+    assert rows[-1]["position"] == [0.5, 0.1, 0.1]
+    env = {"KINEGRASP_HOME": str(tmp_path / "home"), "KINEGRASP_CACHE": str(tmp_path / "cache")}
+    loaded = _fresh_modules("from kinegrasp_env.cli.main import main\nimport io, contextlib\n"
+                            "with contextlib.redirect_stdout(io.StringIO()):\n"
+                            "    main(['objects', '--json'])", env)
+    assert not loaded & {"numpy", "trimesh", "numba", "scipy"}, loaded & set(HEAVY)
+    assert main(["objects", "remove", "cube_moved"]) == 0
+    assert cached_catalog() == catalog() and cached_catalog()[-1]["name"] == "mug"
+    capsys.readouterr()
+
+
+def test_a_compile_is_announced_with_progress(monkeypatch):
+    """A real numba compile of a package function (numba's own ``numba:compile`` event) makes
+    the report print the once-per-machine notice with an estimate, and, at the end, the count
+    and time; compiles of code outside the package are not counted."""
+    import io
+
+    import numba
+
+    from kinegrasp_env import kernel_notice
+
+    stream = io.StringIO()
+    report = kernel_notice.CompileReport(stream, Path("/nonexistent/numba/key"), cold=True)
+    monkeypatch.setattr(kernel_notice.atexit, "register", lambda f: None)
+    kernel_notice._attach(report)
+
+    def outside(x):
+        return x + 1
+
+    def inside(x):
+        return x * 2
+
+    inside.__module__ = "kinegrasp_env.probe"
+    assert numba.njit(outside)(1) == 2
+    assert stream.getvalue() == "" and report.count == 0
+    assert numba.njit(inside)(3) == 6
+    assert report.count == 1 and report.current == "probe.inside"
+    report.finish()
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("kinegrasp: the numerical kernels are compiled on first use, "
+                               "once per machine (about 2 minutes on a 2-core machine)")
+    assert lines[-1].startswith("kinegrasp: 1 kernels compiled in 0:0")

@@ -7,8 +7,6 @@ from __future__ import annotations
 import json
 import sys
 
-import numpy as np
-
 from kinegrasp_env.cli.common import (
     CLIError,
     add_noise_args,
@@ -23,6 +21,8 @@ from kinegrasp_env.cli.common import (
 
 
 def cmd_planar(args) -> int:
+    import numpy as np
+
     from kinegrasp_env.robot.planar import PlanarArm
     from kinegrasp_env.sampling.stats import moments
 
@@ -58,6 +58,8 @@ def cmd_planar(args) -> int:
 
 
 def cmd_kuka_ee(args) -> int:
+    import numpy as np
+
     from kinegrasp_env.robot.endeffector import check_kuka_q0, sample_kuka_end_effector
     from kinegrasp_env.sampling.stats import moments
 
@@ -79,6 +81,7 @@ def cmd_kuka_ee(args) -> int:
 
 
 def cmd_convergence(args) -> int:
+    import numpy as np
     from tqdm import tqdm
 
     from kinegrasp_env.robot.endeffector import (

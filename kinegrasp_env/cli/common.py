@@ -17,11 +17,16 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
+# Building the parser imports nothing heavy (no NumPy, SciPy, trimesh, pybullet or numba):
+# ``kinegrasp --help`` answers at once. The choices below are copies of the library's
+# definitions, kept here for that reason and tested equal to them.
 
-#: ``--engine`` choices; equal to ``montecarlo.evaluate.ENGINES`` (tested), kept here so that
-#: building the parser does not import the engines.
+#: ``--engine`` choices; equal to ``montecarlo.evaluate.ENGINES`` (tested).
 ENGINE_NAMES = ("pybullet", "fast", "physics")
+#: ``--noise`` choices; equal to ``sampling.noise.DISTRIBUTIONS`` (tested).
+DISTRIBUTION_NAMES = ("gaussian", "uniform", "triangular")
+#: ``--backend`` choices; equal to ``montecarlo.execution.BACKENDS`` (tested).
+BACKEND_NAMES = ("local", "ray")
 #: Largest ``--sigma`` (radians): joint noise is an angle, and a standard deviation beyond
 #: half a turn describes no joint; it also keeps every configuration finite. Equal to
 #: ``montecarlo.evaluate.MAX_SIGMA`` (tested), the bound the library enforces.
@@ -130,10 +135,9 @@ def positive_float(text: str, name: str) -> float:
 
 
 def to_jsonable(value):
-    if isinstance(value, np.ndarray):
+    """``value`` with NumPy arrays and scalars turned into lists and Python numbers."""
+    if hasattr(value, "tolist") and hasattr(value, "dtype"):  # ndarray or NumPy scalar
         return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
     return value
 
 
@@ -142,17 +146,17 @@ def print_json(payload: dict) -> None:
 
 
 def format_moments(label: str, mean, cov, skew=None) -> str:
+    import numpy as np
+
     with np.printoptions(precision=6, suppress=False):
         text = f"{label}\n  mean: {np.asarray(mean)}\n  cov:\n{np.asarray(cov)}"
         return text if skew is None else f"{text}\n  skew: {np.asarray(skew)}"
 
 
 def add_noise_args(p: argparse.ArgumentParser, sigma_default: float) -> None:
-    from kinegrasp_env.sampling.noise import DISTRIBUTIONS
-
     p.add_argument("--sigma", default=str(sigma_default),
                    help="standard deviation of the noise on each joint, radians (0 .. pi)")
-    p.add_argument("--noise", default="gaussian", choices=DISTRIBUTIONS,
+    p.add_argument("--noise", default="gaussian", choices=DISTRIBUTION_NAMES,
                    help="distribution of the joint noise (all with standard deviation sigma)")
     p.add_argument("--samples", default="10000", help="number of Monte Carlo draws")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
@@ -219,9 +223,7 @@ def parse_seed(text: str) -> int:
 
 def add_execution_args(parser: argparse.ArgumentParser, default_processes: int) -> None:
     """``--backend``, ``--address`` and ``--processes`` (see :func:`executor_from`)."""
-    from kinegrasp_env.montecarlo.execution import BACKENDS
-
-    parser.add_argument("--backend", default="local", choices=BACKENDS,
+    parser.add_argument("--backend", default="local", choices=BACKEND_NAMES,
                         help="local (a process pool on this machine) or ray")
     parser.add_argument("--address", help="Ray cluster to use with --backend ray (e.g. "
                         "ray://head:10001); without it a local Ray instance is started")
@@ -274,7 +276,7 @@ def parse_index(text: str) -> int:
 def object_name(text: str) -> str:
     """``--object``: a built-in or imported object's name (argparse ``type``; a bad name is a
     usage error)."""
-    from kinegrasp_env.world.objects import is_object, unknown_object
+    from kinegrasp_env.world.names import is_object, unknown_object
 
     if not is_object(text):
         raise argparse.ArgumentTypeError(str(unknown_object(text)))
@@ -283,7 +285,7 @@ def object_name(text: str) -> str:
 
 def add_object_arg(parser: argparse.ArgumentParser, default: str, help: str) -> None:
     """``--object`` with the catalog's names (built-in and imported) as choices."""
-    from kinegrasp_env.world.objects import object_names
+    from kinegrasp_env.world.names import object_names
 
     parser.add_argument("--object", default=default, type=object_name, choices=object_names(),
                         help=help)
@@ -291,10 +293,9 @@ def add_object_arg(parser: argparse.ArgumentParser, default: str, help: str) -> 
 
 def grasp_index_help() -> str:
     """Help of ``--grasp``: the index range of every object's shipped grasp set."""
-    from kinegrasp_env.world.grasps import shipped_grasps
-    from kinegrasp_env.world.objects import OBJECT_NAMES
+    from kinegrasp_env.world.names import OBJECT_NAMES, shipped_grasp_count
 
-    ranges = {name: f"0..{len(shipped_grasps(name)) - 1}" for name in OBJECT_NAMES}
+    ranges = {name: f"0..{shipped_grasp_count(name) - 1}" for name in OBJECT_NAMES}
     if len(set(ranges.values())) == 1:
         return f"index in the object's shipped grasp set, {next(iter(ranges.values()))}"
     return "index in the object's shipped grasp set: " + ", ".join(

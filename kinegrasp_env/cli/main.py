@@ -16,7 +16,7 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from kinegrasp_env import __version__
+from kinegrasp_env import __version__, kernel_notice
 from kinegrasp_env.cli import (
     arms,
     elbow,
@@ -69,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(_glue_negative_values(argv))
     if unknown:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    kernel_notice.install()  # the first run on a machine compiles the kernels: say so
     try:
         return int(args.func(args) or 0)
     except CLIError as exc:

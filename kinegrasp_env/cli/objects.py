@@ -19,11 +19,11 @@ from kinegrasp_env.cli.placement import add_place_command, placement_note
 
 
 def cmd_list(args) -> int:
-    from kinegrasp_env.world.objects import catalog
+    from kinegrasp_env.world.catalog_cache import cached_catalog
     from kinegrasp_env.world.store import CatalogError
 
     with reported(CatalogError):  # an unreadable entry (the message says how to fix it)
-        rows = catalog()
+        rows = cached_catalog()
     if args.json:
         print(json.dumps(rows))
         return 0
@@ -107,10 +107,13 @@ def cmd_show(args) -> int:
     return 0
 
 
+#: ``objects add``'s defaults: equal to ``world.decompose.DEFAULT_THRESHOLD`` and
+#: ``DEFAULT_MAX_PARTS`` (tested), copied so that building the parser imports no trimesh.
+DEFAULT_THRESHOLD, DEFAULT_MAX_PARTS = 0.05, 32
+
+
 def add_commands(sub) -> None:
     """Register ``objects`` and its actions ``add``, ``remove``, ``show``, ``place``."""
-    from kinegrasp_env.world.decompose import DEFAULT_MAX_PARTS, DEFAULT_THRESHOLD
-
     p = sub.add_parser("objects", help="list the built-in and imported objects; import "
                        "(add), remove, draw (show) or place one (position, support table)")
     p.add_argument("--json", action="store_true", help="print the catalog as JSON")

@@ -53,7 +53,7 @@ def cmd_place(args) -> int:
 def placement_note(row: dict) -> str:
     """``; at (x, y, z) m, yaw d deg`` when not the default placement, ``; on a table X x Y
     m`` when there is a table (empty otherwise), for a catalog row."""
-    from kinegrasp_env.world.objects import OBJECT_POSITION
+    from kinegrasp_env.world.names import OBJECT_POSITION
 
     note = ""
     if any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION, strict=True)) \

@@ -13,8 +13,8 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from kinegrasp_env.cli import resume
 from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
@@ -24,6 +24,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     engine_name,
     executor_from,
+    finite_float,
     noise_from,
     output_file,
     parse_seed,
@@ -31,15 +32,13 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.toolkit.ranking import (
-    CRITERIA,
-    CandidateResult,
-    order,
-    rank_adaptive,
-    rank_fixed,
-)
-from kinegrasp_env.world.grasps import load_grasps, save_grasps, write_atomic
 
+if TYPE_CHECKING:
+    from kinegrasp_env.toolkit.ranking import CandidateResult
+
+#: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
+#: building the parser imports no NumPy or SciPy.
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted")
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
                "error", "samples", "engine")
 CHUNK = 250
@@ -50,6 +49,7 @@ FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
 
 def cmd_plan(args) -> int:
     from kinegrasp_env.toolkit.planner import GraspPlanner
+    from kinegrasp_env.world.grasps import save_grasps
 
     count = positive_int(args.count, "--count")
     variants = positive_int(args.variants, "--variants", low=0)
@@ -105,6 +105,7 @@ def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, execu
 
 
 def cmd_rank(args) -> int:
+    from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
 
@@ -135,6 +136,7 @@ def cmd_rank(args) -> int:
 
         settings["noise_model"] = spec_of(noise)
     top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
+    certify = _certify_settings(args) if args.adaptive else {}
     if args.adaptive and top_k >= len(grasps):
         raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
     if args.adaptive and partial.exists():
@@ -153,8 +155,9 @@ def cmd_rank(args) -> int:
             if existed:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
-        results = _rank(args, grasps, evaluator, layout, chunk, top_k, partial, done)
-    _write_ranking(grasps, results, out, partial, engine)
+        results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
+                                  done, certify)
+    _write_ranking(grasps, results, out, partial, engine, adaptive)
     _write_rejected(rejected, out)
     if args.report:
         write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
@@ -168,6 +171,8 @@ def _candidates(path: str) -> tuple[list, str, list]:
     no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
     (``kinegrasp_env.toolkit.candidates``) is solved to grasps first; its rejected candidates
     go to stderr and, once the ranking is written, to ``<out>.rejected.csv``."""
+    from kinegrasp_env.world.grasps import load_grasps
+
     if Path(path).is_dir():
         raise CLIError(f"{path} is a folder, not a grasp file")
     from kinegrasp_env.toolkit.candidates import is_candidate_file
@@ -206,6 +211,8 @@ def _palm_pose_candidates(path: str) -> tuple[list, str, list]:
 def _write_rejected(rejected: list, out: Path) -> None:
     """``<out>.rejected.csv``: id, reason, detail of each rejected palm-pose candidate (an
     older one is removed when there are none)."""
+    from kinegrasp_env.world.grasps import write_atomic
+
     path = out.with_name(out.name + ".rejected.csv")
     if not rejected:
         if path.exists():
@@ -219,14 +226,31 @@ def _write_rejected(rejected: list, out: Path) -> None:
     print(f"{len(rejected)} rejected candidates written to {path}")
 
 
+def _certify_settings(args) -> dict:
+    """``--delta`` in (0, 1) and ``--epsilon`` in [0, 1) of ``rank --adaptive``."""
+    delta = finite_float(args.delta, "--delta")
+    if not 0 < delta < 1:
+        raise CLIError(f"--delta must be in (0, 1), got {delta:g}")
+    epsilon = finite_float(args.epsilon, "--epsilon")
+    if not 0 <= epsilon < 1:
+        raise CLIError(f"--epsilon must be in [0, 1), got {epsilon:g}")
+    return {"delta": delta, "epsilon": epsilon}
+
+
 def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
-          done: dict[int, CandidateResult]) -> list[CandidateResult]:
+          done: dict[int, CandidateResult], certify: dict) -> tuple[list, object]:
     """Fixed-n (``done``: candidates read back from ``partial``; each one finished now is
-    appended to it) or adaptive ranking, best first."""
+    appended to it) or adaptive ranking (``certify``: its delta and epsilon): (the results
+    in the order to show, the adaptive run's report or None)."""
     from tqdm import tqdm
 
+    from kinegrasp_env.cli import resume
+    from kinegrasp_env.toolkit.ranking import CandidateResult, order, rank_fixed
+
     if args.adaptive:
-        return _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion)
+        report = _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion,
+                                **certify)
+        return report.results, report
     bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
     with partial.open("a") as log:
 
@@ -249,15 +273,15 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
         results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
                                    done=done), args.criterion)
     bar.close()
-    return results
+    return results, None
 
 
-def _rank_adaptive(grasps, evaluator, layout, chunk, top_k,
-                   criterion: str) -> list[CandidateResult]:
+def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
+                   delta: float, epsilon: float):
     """Adaptive ranking under one overall progress report (a bar that advances with every
     chunk drawn, or a line per round off a terminal); the summary comes after the bar."""
     from kinegrasp_env.toolkit.progress import Progress
-    from kinegrasp_env.toolkit.ranking import AdaptiveProgress
+    from kinegrasp_env.toolkit.ranking import AdaptiveProgress, rank_adaptive
 
     with Progress("rank", len(grasps) * sum(layout), len(layout), word="round") as bar:
         def update(state: AdaptiveProgress) -> None:
@@ -267,17 +291,44 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k,
 
         paired = functools.partial(evaluator, outcomes=True)
         report = rank_adaptive(len(grasps), paired, len(layout), chunk, top_k=top_k,
-                               criterion=criterion, progress=update)
+                               delta=delta, epsilon=epsilon, criterion=criterion,
+                               progress=update)
     print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
           f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
-          f"{'separated' if report.separated else 'NOT separated'} after {report.rounds} "
-          "rounds", file=sys.stderr)
-    return report.results
+          f"{'certified' if report.separated else 'NOT certified'} (delta {delta:g}, epsilon "
+          f"{epsilon:g}) after {report.rounds} rounds", file=sys.stderr)
+    return report
+
+
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
+def certified_line(report, samples: int) -> str:
+    """What an adaptive run certified, at which delta and epsilon (the line under its
+    table)."""
+    k, delta, eps = len(report.top), f"{report.delta:g}", f"{report.epsilon:g}"
+    count = {label: report.certified.count(label) for label in ("top-k", "rest", "unresolved")}
+    best = "best" if k == 1 else f"{_ordinal(k)} best"
+    if eps == "0":
+        claim = "the most robust" if k == 1 else f"in the top {k} by P(FC)"
+    else:
+        claim = f"within {eps} of the {best} P(FC)"
+    rows = "the row marked top-k is" if k == 1 else f"each of the {k} rows marked top-k is"
+    if report.separated:
+        return (f"certified at delta {delta}, epsilon {eps}: {rows} {claim} (false with "
+                f"probability <= {delta})")
+    return (f"NOT certified at delta {delta}, epsilon {eps} within {samples} draws per "
+            f"candidate: {count['top-k']} rows {claim}, {count['rest']} out of the top {k}, "
+            f"{count['unresolved']} unresolved (ordered by estimate)")
 
 
 def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
-                   engine: str) -> None:
-    """The ranking as CSV (atomically), then as a console table."""
+                   engine: str, adaptive=None) -> None:
+    """The ranking as CSV (atomically), then as a console table; ``adaptive`` (an adaptive
+    run's report) adds the ``certified`` column and the line saying what it certified."""
+    from kinegrasp_env.world.grasps import write_atomic
+
     rows = []
     for r in results:
         g = grasps[r.index]
@@ -289,19 +340,23 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
                      "samples": r.trials, "engine": engine})
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for row in rows:
+    labels = adaptive.certified if adaptive is not None else [None] * len(rows)
+    extra = ("certified",) if adaptive is not None else ()
+    writer.writerow(CSV_COLUMNS + extra)
+    for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
-                         row["engine"]])
+                         row["engine"], *([label] if extra else [])])
     write_atomic(out, buffer.getvalue())
     if partial.exists():
         partial.unlink()
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
-          f"{'draws':>6}")
-    for i, row in enumerate(rows, 1):
+          f"{'draws':>6}" + (f" {'certified':>10}" if extra else ""))
+    for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
         print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
-              f"{row['q_nominal']:>9.5f} {row['samples']:>6}")
+              f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + (f" {label:>10}" if extra else ""))
+    if adaptive is not None:
+        print(certified_line(adaptive, max(r.trials for r in results)))
     print(f"written to {out}")
 
 
@@ -348,11 +403,19 @@ def add_commands(sub) -> None:
                    help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
                    "interval, or P(FC) x (1 + mean Q)")
     p.add_argument("--adaptive", action="store_true",
-                   help="stop drawing once the top k is certified: exact sign tests on the "
-                   "paired draws of every two candidates (common noise), a certified top k "
-                   "wrong with probability <= 0.05; unseparated at the --samples budget, the "
-                   "best estimate is kept and said to be uncertified")
+                   help="stop drawing once a top k is certified: exact tests on the paired "
+                   "draws of every two candidates (common noise); the table lists the "
+                   "certified top k first (column 'certified': top-k, rest, unresolved), "
+                   "each label wrong with probability <= --delta; not certified within the "
+                   "--samples budget, the run says so")
     p.add_argument("--top-k", default="3", help="size of the top set --adaptive separates")
+    # the default is toolkit.ranking.DEFAULT_EPSILON (tested; copied: no NumPy to build this)
+    p.add_argument("--epsilon", default="0.01", help="--adaptive's indifference zone: certify "
+                   "a top k each of whose members has P(FC) within EPSILON of the true k-th "
+                   "best (0: exactly the top k, which a near tie can keep from being "
+                   "certified at any budget)")
+    p.add_argument("--delta", default="0.05",
+                   help="--adaptive's probability of a wrong certified label")
     p.add_argument("--best-elbow", metavar="SAMPLES", help="first move each candidate to its "
                    "most robust elbow angle (`kinegrasp elbow`, SAMPLES draws per angle, chosen "
                    "on seed + 1); the ranked ids get an 'e'")

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.assets import asset_path
 from kinegrasp_env.robot.model import kuka_sdh
-from kinegrasp_env.world.objects import OBJECT_NAMES, is_object, load_object, unknown_object
+from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
+from kinegrasp_env.world.objects import load_object
 
 ARM_DOF = 7
 HAND_DOF = 7
@@ -243,7 +243,7 @@ def shipped_grasps(object_name: str) -> list[Grasp]:
                 f"configurations miss it; plan for it (`kinegrasp plan --object {object_name}"
                 "`) or give palm poses (`kinegrasp rank CANDIDATES.json`)")
         return [replace(g, object=object_name) for g in shipped_grasps(obj.base)]
-    return load_grasps(asset_path("grasps", f"{object_name}.json"))
+    return load_grasps(shipped_grasp_file(object_name))
 
 
 def grasp_by_index(object_name: str, index: int) -> Grasp:

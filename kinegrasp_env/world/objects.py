@@ -22,6 +22,13 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.world.names import (  # noqa: F401 (is_object, object_names: re-exported)
+    OBJECT_NAMES,
+    OBJECT_POSITION,
+    is_object,
+    object_names,
+    unknown_object,
+)
 from kinegrasp_env.world.polytope import ConvexPart
 from kinegrasp_env.world.store import (
     MESH_FILE,
@@ -34,12 +41,6 @@ from kinegrasp_env.world.store import (
 )
 from kinegrasp_env.world.support import SupportTable
 from kinegrasp_env.world.surface_kernel import project_onto_parts
-
-#: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
-OBJECT_NAMES: tuple[str, ...] = ("cube", "spray_flask", "drill", "mug")
-#: Where the object frame sits in the world (robot base) frame: 0.6 m in front of the
-#: robot, on a table 0.1 m above the robot's base plane.
-OBJECT_POSITION: tuple[float, float, float] = (0.6, 0.0, 0.1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,22 +240,6 @@ def default_pose() -> np.ndarray:
     pose = np.eye(4)
     pose[:3, 3] = OBJECT_POSITION
     return pose
-
-
-def object_names() -> tuple[str, ...]:
-    """Every object name: the built-in ones, then the imported ones (sorted)."""
-    return OBJECT_NAMES + tuple(n for n in imported_names() if n not in OBJECT_NAMES)
-
-
-def is_object(name: str) -> bool:
-    """Whether ``name`` is a built-in or imported object."""
-    return name in OBJECT_NAMES or imported_folder(name) is not None
-
-
-def unknown_object(name: str) -> ValueError:
-    """The error for a name that is no object (lists the known ones)."""
-    return ValueError(f"unknown object {name!r}; known objects: {', '.join(object_names())} "
-                      "(import one with `kinegrasp objects add FILE`)")
 
 
 def load_object(name: str) -> GraspObject:
