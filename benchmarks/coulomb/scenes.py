@@ -22,8 +22,9 @@ Settings (1 ms steps in both):
   bodies' friction as their product, so the fingers get lateralFriction 1 and the object mu;
   rolling and spinning friction 0; collision margins 0; the frustum a convex mesh with the
   solid's inertia.
-* MuJoCo: condim 3 (sliding friction only), the elliptic (exact Coulomb) cone,
-  ``solref`` (0.002 s, 1), ``solimp`` (0.99, 0.999, 0.001 m): stiff contacts; ``impratio``
+* MuJoCo: the holding test's contact settings (``kinegrasp_env.physics.mujoco_model.
+  CONTACT``): condim 3 (sliding friction only), the elliptic (exact Coulomb) cone,
+  ``solref`` (0.002 s, 1), ``solimp`` (0.99, 0.999, 0.001 m, 0.5, 2): stiff contacts; ``impratio``
   100 (friction 100 times stiffer than the normal direction: MuJoCo's soft friction gives way
   elastically inside the cone, at the default ratio 1 by ~1 mm here, at 10 the box tripod
   turned 0.87 degrees under its torque while holding, at 100 0.09); no noslip iterations
@@ -52,11 +53,6 @@ TEST_TIME = 1.0
 #: Slip thresholds: centre-of-mass displacement (m) and rotation (rad) at the end.
 SLIP_DISTANCE = 1e-3
 SLIP_ANGLE = math.radians(1.0)
-#: MuJoCo contact settings (module docstring).
-MJ_SOLREF = (0.002, 1.0)
-MJ_SOLIMP = (0.99, 0.999, 0.001)
-MJ_NOSLIP = 0
-MJ_IMPRATIO = 100.0
 
 
 @dataclass(frozen=True)
@@ -161,7 +157,10 @@ def _vec(values) -> str:
 
 
 def mujoco_xml(grasp: CoulombGrasp, mu: float) -> str:
-    """The MJCF of the test scene at friction ``mu`` (module docstring)."""
+    """The MJCF of the test scene at friction ``mu`` (module docstring), with the holding
+    test's MuJoCo contact settings (:data:`kinegrasp_env.physics.mujoco_model.CONTACT`)."""
+    from kinegrasp_env.physics.mujoco_model import CONTACT as c
+
     if grasp.shape == "box":
         asset = ""
         geom = f'type="box" size="{_vec(grasp.vertices.max(axis=0))}"'
@@ -176,10 +175,10 @@ def mujoco_xml(grasp: CoulombGrasp, mu: float) -> str:
             f'<geom type="sphere" size="{FINGER_RADIUS}" mass="{FINGER_MASS}"/></body>')
         motors.append(f'<motor name="press{i}" joint="slide{i}" gear="1"/>')
     return f"""<mujoco model="coulomb_{grasp.name}">
-  <option timestep="{TIME_STEP}" gravity="0 0 0" cone="elliptic" impratio="{MJ_IMPRATIO}"
-          noslip_iterations="{MJ_NOSLIP}"/>
-  <default><geom condim="3" friction="{mu} 0 0" solref="{_vec(MJ_SOLREF)}"
-                 solimp="{_vec(MJ_SOLIMP)}"/></default>
+  <option timestep="{TIME_STEP}" gravity="0 0 0" cone="elliptic" impratio="{c.impratio}"
+          noslip_iterations="{c.noslip_iterations}"/>
+  <default><geom condim="3" friction="{mu} 0 0" solref="{_vec(c.solref)}"
+                 solimp="{_vec(c.solimp)}"/></default>
   {asset}
   <worldbody>
     <body name="object"><freejoint/><geom {geom} density="{DENSITY}"/></body>

@@ -1,9 +1,67 @@
-"""MuJoCo, imported on first use (an optional dependency: ``pip install kinegrasp-env[mujoco]``).
+"""The MuJoCo model of the holding test: the hand from its URDF, one catalog object, its table.
+
+MuJoCo is an optional dependency (``pip install kinegrasp-env[mujoco]``), imported on first
+use (:func:`import_mujoco`). The model (:func:`build_model`) is compiled from an
+:class:`mujoco.MjSpec`:
+
+* the hand: ``sdh_hand.urdf`` parsed by MuJoCo's own URDF reader (the same file pybullet
+  loads: the same links, inertials, capsules, joint axes and limits, the coupled spread as
+  MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies, visuals dropped).
+  Its root ``hand_root`` is a *mocap* body: where the arm's flange is, moved only by the
+  protocol (the lift and shake), as pybullet's anchor constraint moves its hand. Every hand
+  joint gets one ``general`` actuator whose gains the controller switches (velocity servo,
+  position hold, the grip's spring-damper: :mod:`~kinegrasp_env.physics.mujoco_world`);
+* the object: a free body at ``obj.pose`` whose collision shape is its exact convex parts (one
+  mesh geom per part: MuJoCo collides with each mesh's convex hull), mass and inertia those
+  of the uniform-density mesh (:func:`~kinegrasp_env.physics.pybullet_world.mass_properties`,
+  the same numbers pybullet gets), pinned to the world by a weld equality while the hand
+  closes and grips;
+* the table, when the object has one: a static box (``obj.table.box``).
+
+Contacts (:data:`CONTACT`): hand geoms collide only with the object and the table (the
+hand's links never with each other, as pybullet loads a URDF without self-collision),
+condim 3 (sliding friction only: point contacts), the elliptic cone (Coulomb's), friction mu
+on every geom (MuJoCo takes the larger of two: mu), stiff ``solref``/``solimp`` and
+``impratio`` 100 (friction stiff against MuJoCo's soft-constraint creep). The same settings
+are the ones ``benchmarks/coulomb_consistency.py`` checks against Coulomb's law.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import ModuleType
+
+import numpy as np
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.world.objects import GraspObject
+
+#: Collision bit masks: hand geoms (type 1, affinity 2) touch object and table (2, 1) only.
+HAND_BITS, OBJECT_BITS = (1, 2), (2, 1)
+
+
+@dataclass(frozen=True)
+class ContactSettings:
+    """MuJoCo contact parameters (see the module docstring).
+
+    Attributes:
+        solref: (time constant s, damping ratio) of every contact.
+        solimp: (dmin, dmax, width m, midpoint, power) impedance of every contact.
+        impratio: friction-to-normal impedance ratio (elliptic cones).
+        noslip_iterations: MuJoCo's no-slip post-solver (0: off; see the Coulomb
+            benchmark for why).
+        pin_solref: (time constant, damping ratio) of the weld that pins the object.
+    """
+
+    solref: tuple[float, float] = (0.002, 1.0)
+    solimp: tuple[float, float, float, float, float] = (0.99, 0.999, 0.001, 0.5, 2.0)
+    impratio: float = 100.0
+    noslip_iterations: int = 0
+    pin_solref: tuple[float, float] = (0.002, 1.0)
+
+
+#: The settings used by the holding test and by the Coulomb consistency benchmark.
+CONTACT = ContactSettings()
 
 
 def import_mujoco() -> ModuleType:
@@ -14,3 +72,99 @@ def import_mujoco() -> ModuleType:
         raise ImportError("MuJoCo is not installed: pip install 'kinegrasp-env[mujoco]' "
                           "(or pip install mujoco)") from exc
     return mujoco
+
+
+def matrix_quat(rotation: np.ndarray) -> np.ndarray:
+    """(4,) unit quaternion (w, x, y, z: MuJoCo's order) of a (3, 3) rotation."""
+    mujoco = import_mujoco()
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).ravel())
+    return quat
+
+
+def hand_urdf() -> str:
+    """The hand's URDF text with MuJoCo's compiler options (visuals dropped, static links
+    kept as bodies so that ``palm`` and the tips have frames)."""
+    text = asset_path("robots", "sdh_hand.urdf").read_text()
+    head = '<robot name="sdh_hand">'
+    if head not in text:
+        raise ValueError("sdh_hand.urdf: no <robot name=\"sdh_hand\"> element")
+    options = ('<mujoco><compiler discardvisual="true" fusestatic="false" '
+               'balanceinertia="true"/></mujoco>')
+    return text.replace(head, head + options, 1)
+
+
+def set_contact(geom, friction: float, bits: tuple[int, int], margin: float,
+                settings: ContactSettings) -> None:
+    """Contact parameters of one spec geom (module docstring); ``margin`` (m): contacts are
+    reported from this gap on and push only when touching (gap = margin)."""
+    geom.condim = 3
+    geom.friction = [friction, 0.0, 0.0]
+    geom.contype, geom.conaffinity = bits
+    geom.solref = list(settings.solref)
+    geom.solimp = list(settings.solimp)
+    geom.margin = geom.gap = margin
+
+
+def build_model(obj: GraspObject, friction: float, density: float, time_step: float,
+                margin: float, settings: ContactSettings = CONTACT):
+    """The compiled :class:`mujoco.MjModel` of hand, object and table (module docstring).
+
+    Args:
+        obj: the catalog object (at ``obj.pose``).
+        friction: Coulomb friction mu between finger and object (and table).
+        density: the object's, kg/m^3.
+        time_step: seconds.
+        margin: contacts are reported from this gap on (the closing's touch distance), m.
+        settings: :class:`ContactSettings`.
+    """
+    from kinegrasp_env.physics.pybullet_world import mass_properties
+
+    mujoco = import_mujoco()
+    spec = mujoco.MjSpec.from_string(hand_urdf())
+    spec.option.timestep = time_step
+    spec.option.gravity = [0.0, 0.0, 0.0]
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = settings.impratio
+    spec.option.noslip_iterations = settings.noslip_iterations
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.body("hand_root").mocap = True
+    for geom in spec.geoms:
+        set_contact(geom, friction, HAND_BITS, margin, settings)
+    for joint in spec.joints:
+        actuator = spec.add_actuator(name=f"motor_{joint.name}", target=joint.name)
+        actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        actuator.forcerange = [-1.0, 1.0]  # set by the controller
+    mass, moments, inertial = mass_properties(obj, density)
+    body = spec.worldbody.add_body(name="object", pos=obj.pose[:3, 3].tolist(),
+                                   quat=matrix_quat(obj.pose[:3, :3]).tolist())
+    body.add_freejoint(name="object_free")
+    body.explicitinertial = True
+    body.mass = mass
+    body.ipos = inertial[:3, 3].tolist()
+    body.iquat = matrix_quat(inertial[:3, :3]).tolist()
+    body.inertia = moments.tolist()
+    for i, part in enumerate(obj.parts):
+        spec.add_mesh(name=f"part_{i}", uservert=np.asarray(part, float).ravel().tolist())
+        geom = body.add_geom(name=f"object_part_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
+                             meshname=f"part_{i}", mass=0.0)
+        set_contact(geom, friction, OBJECT_BITS, margin, settings)
+    if obj.table is not None:
+        pose, half = obj.table.box(obj.pose)
+        table = spec.worldbody.add_body(name="table", pos=pose[:3, 3].tolist(),
+                                        quat=matrix_quat(pose[:3, :3]).tolist())
+        geom = table.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=half.tolist())
+        set_contact(geom, friction, OBJECT_BITS, margin, settings)
+    pin = spec.add_equality(name="pin", type=mujoco.mjtEq.mjEQ_WELD,
+                            objtype=mujoco.mjtObj.mjOBJ_BODY, name1="object")
+    pin.solref = list(settings.pin_solref)
+    # anchor (in the world, body2's frame) at the object's centre of mass (at the world
+    # origin, 0.6 m away, the weld's rotational softness let the object swing by millimetres),
+    # relative pose from the reference configuration (the catalog pose: all zeros), torque
+    # scale 1
+    com = obj.pose[:3, :3] @ obj.center_of_mass + obj.pose[:3, 3]
+    pin.data = [*com.tolist()] + [0.0] * 7 + [1.0, 0.0]
+    return spec.compile()

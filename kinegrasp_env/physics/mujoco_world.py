@@ -1,0 +1,249 @@
+"""The MuJoCo world of the holding test: the hand on a mocap root, one free object, its table.
+
+The MuJoCo counterpart of :class:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld`, built
+from the same URDF and the same convex parts (:func:`~kinegrasp_env.physics.mujoco_model.
+build_model`), with the same :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings`
+(density, friction, 1 ms step). Every draw starts from MuJoCo's reset state (``mj_resetData``:
+nothing of a previous draw survives, warm starts included), so a draw's result depends only
+on its inputs.
+
+Joint control: each hand joint has one actuator whose gains, and the joint's damping, are
+switched. pybullet's velocity motor is a constraint of its solver (the torque needed for the
+target speed, up to the limit); MuJoCo has none, and a velocity servo whose torque saturates
+on these light links (2.1 N m on ~1e-4 kg m^2: 20 rad/s per 1 ms step) chatters between the
+limits. So a motor is a DC motor's torque-speed line: :meth:`MujocoWorld.velocity` applies
+the limit as a constant torque against a joint damping of limit / target speed, which MuJoCo
+integrates implicitly: unloaded the joint runs at the target speed, blocked it presses with
+the limit (pybullet's motor: the same two ends, full torque below the target speed).
+:meth:`MujocoWorld.position` holds a joint (a clipped spring, :data:`HOLD_GAIN`, and damping
+:data:`HOLD_DAMPING`).
+
+Contacts are MuJoCo's hand-object contact records (``mj_contactForce`` for their normal
+forces), reported from ``touch_distance`` away (the geoms' margin; they push only when
+touching). A record's point on the object is ``pos + dist / 2 * n`` (MuJoCo's ``pos`` lies
+midway between the two surfaces), its normal ``n`` points from the finger into the object.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.reference import CONTACT_TOL
+from kinegrasp_env.physics.mujoco_model import (
+    CONTACT,
+    ContactSettings,
+    build_model,
+    import_mujoco,
+    matrix_quat,
+)
+from kinegrasp_env.physics.pybullet_world import WorldSettings
+from kinegrasp_env.robot.model import FINGERS
+from kinegrasp_env.world.objects import GraspObject
+
+#: Position-hold stiffness (N m/rad) and damping (N m s/rad): the stiffness is explicit, so
+#: HOLD_GAIN dt^2 / I stays below 1 for the lightest link (I ~ 1.3e-4 kg m^2 at 1 ms: 0.15).
+HOLD_GAIN, HOLD_DAMPING = 20.0, 0.5
+#: The torque of a distal joint creeping at ``creep_speed`` when blocked, N m (what
+#: pybullet's velocity motor builds up for so slow a target, ~0.3 N m).
+CREEP_TORQUE = 0.3
+
+
+def pose_of(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(4, 4) from a position (3,) and a row-major rotation (9,) or (3, 3)."""
+    out = np.eye(4)
+    out[:3, :3] = np.reshape(rotation, (3, 3))
+    out[:3, 3] = position
+    return out
+
+
+class MujocoWorld:
+    """The hand, the object and its table in one MuJoCo model (module docstring).
+
+    Args:
+        obj: the catalog object (placed at ``obj.pose``).
+        settings: density, friction and time step (its pybullet-only fields are unused).
+        touch_distance: contacts are reported from this gap on, metres.
+        contact: MuJoCo's contact parameters.
+
+    Attributes:
+        model, data: MuJoCo's.
+        mass: the object's mass, kg.
+    """
+
+    def __init__(self, obj: GraspObject, settings: WorldSettings | None = None,
+                 touch_distance: float = CONTACT_TOL, contact: ContactSettings = CONTACT) -> None:
+        self.mujoco = import_mujoco()
+        self.obj = obj
+        self.settings = settings or WorldSettings()
+        if not self.settings.object_free:
+            raise ValueError("the MuJoCo world's object is always free (object_free=True)")
+        self.model = build_model(obj, self.settings.friction, self.settings.density,
+                                 self.settings.time_step, touch_distance, contact)
+        self.data = self.mujoco.MjData(self.model)
+        model = self.model
+        self.mass = float(model.body("object").mass[0])
+        self.joint_names = [model.joint(j).name for j in range(model.njnt)
+                            if model.joint(j).name != "object_free"]
+        self.qpos_adr = {n: int(model.joint(n).qposadr[0]) for n in self.joint_names}
+        self.dof_adr = {n: int(model.joint(n).dofadr[0]) for n in self.joint_names}
+        self.actuator = {n: model.actuator(f"motor_{n}").id for n in self.joint_names}
+        self.object_body = model.body("object").id
+        self.object_qpos = int(model.joint("object_free").qposadr[0])
+        self.mocap = int(model.body_mocapid[model.body("hand_root").id])
+        self.pin = model.equality("pin").id
+        object_geoms = np.flatnonzero(model.geom_bodyid == self.object_body)
+        self.object_geoms = frozenset(int(g) for g in object_geoms)
+        links = {model.body(FINGERS[f][2 + k]).id: (f, k) for f in range(3) for k in range(2)}
+        self.finger_geom = {g: links[int(model.geom_bodyid[g])] for g in range(model.ngeom)
+                            if int(model.geom_bodyid[g]) in links}
+        hand_root = model.body("hand_root").id
+        self.hand_geoms = frozenset(g for g in range(model.ngeom)
+                                    if self._under(int(model.geom_bodyid[g]), hand_root))
+        self.table_geom = model.geom("table").id if obj.table is not None else None
+        self._table_bits = (None if self.table_geom is None else
+                            (int(model.geom_contype[self.table_geom]),
+                             int(model.geom_conaffinity[self.table_geom])))
+
+    def _under(self, body: int, root: int) -> bool:
+        while body > 0:
+            if body == root:
+                return True
+            body = int(self.model.body_parentid[body])
+        return False
+
+    # ------------------------------------------------------------------ draw state
+    def reset(self, root_pose: np.ndarray, joints: dict[str, float], pin: bool = True) -> None:
+        """Start a draw: MuJoCo's reset state, gravity off, the table back, the hand root
+        (flange frame) at ``root_pose`` (4, 4), hand joints at ``joints`` (radians; those not
+        named at 0), the object at its catalog pose, pinned there when ``pin``."""
+        mj, model, data = self.mujoco, self.model, self.data
+        mj.mj_resetData(model, data)
+        model.opt.gravity[:] = 0.0
+        if self.table_geom is not None:
+            model.geom_contype[self.table_geom], model.geom_conaffinity[self.table_geom] = \
+                self._table_bits
+        self.set_root(root_pose)
+        for name, value in joints.items():
+            data.qpos[self.qpos_adr[name]] = float(value)
+        data.qpos[self.object_qpos:self.object_qpos + 3] = self.obj.pose[:3, 3]
+        data.qpos[self.object_qpos + 3:self.object_qpos + 7] = matrix_quat(self.obj.pose[:3, :3])
+        data.eq_active[self.pin] = 1 if pin else 0  # welded at the model's reference pose,
+        mj.mj_forward(model, data)  # which is the catalog pose
+
+    def set_root(self, root_pose: np.ndarray) -> None:
+        """The mocap hand root (flange frame) at ``root_pose`` (4, 4)."""
+        self.data.mocap_pos[self.mocap] = root_pose[:3, 3]
+        self.data.mocap_quat[self.mocap] = matrix_quat(root_pose[:3, :3])
+
+    def root_at(self, position: np.ndarray, quat_xyzw: np.ndarray) -> None:
+        """The mocap root at a position (3,) and a quaternion in pybullet's (x, y, z, w)."""
+        self.data.mocap_pos[self.mocap] = position
+        x, y, z, w = quat_xyzw
+        self.data.mocap_quat[self.mocap] = (w, x, y, z)
+
+    def release_object(self) -> None:
+        """Switch the pin off."""
+        self.data.eq_active[self.pin] = 0
+
+    def remove_table(self) -> None:
+        """Take the table, if any, out of collisions until the next :meth:`reset`."""
+        if self.table_geom is not None:
+            self.model.geom_contype[self.table_geom] = 0
+            self.model.geom_conaffinity[self.table_geom] = 0
+
+    def set_gravity(self, acceleration) -> None:
+        """Gravity as a vector (3,), m/s^2, world frame."""
+        self.model.opt.gravity[:] = np.asarray(acceleration, dtype=float)
+
+    def save_state(self) -> np.ndarray:
+        """The full integration state (MuJoCo's ``mjSTATE_INTEGRATION``: positions,
+        velocities, controls, mocap, equality switches, warm start)."""
+        kind = self.mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(self.mujoco.mj_stateSize(self.model, kind))
+        self.mujoco.mj_getState(self.model, self.data, state, kind)
+        return state
+
+    def restore_state(self, state: np.ndarray) -> None:
+        self.mujoco.mj_setState(self.model, self.data, state,
+                                self.mujoco.mjtState.mjSTATE_INTEGRATION)
+        self.mujoco.mj_forward(self.model, self.data)
+
+    def step(self, steps: int = 1) -> None:
+        for _ in range(steps):
+            self.mujoco.mj_step(self.model, self.data)
+
+    # ------------------------------------------------------------------ servos
+    def velocity(self, names: list[str], speeds, limits) -> None:
+        """Motors towards target speeds with torque limits, per joint (module docstring): a
+        constant torque ``limit`` (signed as the speed) against the joint's damping
+        ``limit / |speed|`` (integrated implicitly): free, the joint runs at the target
+        speed; blocked, it presses with the limit."""
+        n = len(names)
+        for name, speed, limit in zip(names, np.broadcast_to(speeds, n),
+                                      np.broadcast_to(limits, n), strict=True):
+            a = self.actuator[name]
+            self.model.actuator_gainprm[a, 0] = 1.0
+            self.model.actuator_biasprm[a, :3] = 0.0
+            self.model.actuator_forcerange[a] = (-limit, limit)
+            self.model.dof_damping[self.dof_adr[name]] = limit / max(abs(float(speed)), 1e-9)
+            self.data.ctrl[a] = np.copysign(limit, speed)
+
+    def position(self, names: list[str], targets, limits) -> None:
+        """Position holds: torque = HOLD_GAIN (target - angle), clipped to the limits, and
+        the joint's damping HOLD_DAMPING (implicit)."""
+        n = len(names)
+        for name, target, limit in zip(names, np.broadcast_to(targets, n),
+                                       np.broadcast_to(limits, n), strict=True):
+            a = self.actuator[name]
+            self.model.actuator_gainprm[a, 0] = HOLD_GAIN
+            self.model.actuator_biasprm[a, :3] = (0.0, -HOLD_GAIN, 0.0)
+            self.model.actuator_forcerange[a] = (-limit, limit)
+            self.model.dof_damping[self.dof_adr[name]] = HOLD_DAMPING
+            self.data.ctrl[a] = target
+
+    # ------------------------------------------------------------------ queries
+    def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """(positions (k,), velocities (k,)) of hand joints, radians and rad/s."""
+        return (np.array([self.data.qpos[self.qpos_adr[n]] for n in names]),
+                np.array([self.data.qvel[self.dof_adr[n]] for n in names]))
+
+    def object_pose(self) -> np.ndarray:
+        """(4, 4) world pose of the object frame now."""
+        b = self.object_body
+        return pose_of(self.data.xpos[b], self.data.xmat[b])
+
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a hand link's URDF frame."""
+        b = self.model.body(link).id
+        return pose_of(self.data.xpos[b], self.data.xmat[b])
+
+    def contact_records(self) -> list[tuple]:
+        """Hand-object contacts now, each (hand geom, point on the object (3,), normal into
+        the object (3,), distance m (< 0: penetrating), normal force N), world frame."""
+        out, force = [], np.zeros(6)
+        for i in range(self.data.ncon):
+            c = self.data.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if g1 in self.hand_geoms and g2 in self.object_geoms:
+                hand, sign = g1, 1.0
+            elif g2 in self.hand_geoms and g1 in self.object_geoms:
+                hand, sign = g2, -1.0
+            else:
+                continue
+            normal = sign * np.array(c.frame[:3])  # geom1 -> geom2, made finger -> object
+            self.mujoco.mj_contactForce(self.model, self.data, i, force)
+            point = np.array(c.pos) + 0.5 * c.dist * normal
+            out.append((hand, point, normal, float(c.dist), float(force[0])))
+        return out
+
+    def penetration(self) -> float:
+        """The deepest hand-object penetration now, metres (0 when nothing overlaps)."""
+        return max([0.0] + [-rec[3] for rec in self.contact_records()])
+
+    def finger_forces(self) -> np.ndarray:
+        """(3,) each finger's total normal force on the object now, newtons."""
+        forces = np.zeros(3)
+        for geom, _, _, _, force in self.contact_records():
+            if geom in self.finger_geom:
+                forces[self.finger_geom[geom][0]] += force
+        return forces
