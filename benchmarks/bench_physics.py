@@ -1,12 +1,13 @@
-"""Physics engine throughput: draws/s of the closing alone and of closing + lift test.
+"""Physics engine throughput: draws/s of the closing alone and of the holding test.
 
 For each built-in object, one shipped grasp, at two joint-noise sigmas, the same draws as
 ``evaluate_grasp`` would take (chunk 0 of the seed): the physics engine's ``run`` (closing
-under dynamics, contacts, Q) and ``run_lift`` (the same closing, then grip, lift, hold and
-shake), one process, engine built beforehand (world construction reported separately);
-draws/s of wall time and the process's CPU time per draw (the cost on an unshared core).
-Also P(FC) of the physics engine next to the kinematic (fast) engine's on the same draws,
-P(hold), and whether the same seed gives the same numbers twice.
+under dynamics, contacts, Q) and ``run_hold`` (the closing on the pinned object, then grip,
+release, six gravity directions and the lift), one process, engine built beforehand (world
+construction reported separately); draws/s of wall time and the process's CPU time per draw
+(the cost on an unshared core). Also P(FC) of the physics engine next to the kinematic (fast)
+engine's on the same draws, P(hold), and whether the same configurations give the same
+numbers twice.
 
     python benchmarks/bench_physics.py [--draws 20] [--grasp 0] [--sigmas 0.0133 0.0333]
 """
@@ -42,17 +43,20 @@ def bench_object(name: str, args) -> None:
     for sigma in args.sigmas:
         q = chunk_configurations(grasp.q0, JointNoise(sigma), args.seed, [(0, args.draws)])
         closed, t_run, cpu_run = timed(lambda q=q: engine.run(q))
-        (lifted, lift), t_lift, cpu_lift = timed(lambda q=q: engine.run_lift(q))
+        (pinned, hold), t_lift, cpu_lift = timed(lambda q=q: engine.run_hold(q))
         again = engine.run(q)
+        _, hold_again = engine.run_hold(q)
         kinematic = fast.run(q)
         same = (np.array_equal(closed.quality, again.quality)
-                and np.array_equal(closed.quality, lifted.quality))
+                and np.array_equal(hold.grip_shift, hold_again.grip_shift, equal_nan=True)
+                and np.array_equal(hold.outcome, hold_again.outcome))
         n = len(q)
         p_fc, p_kin = (np.mean(d.outcome == FORCE_CLOSURE) for d in (closed, kinematic))
         print(f"  sigma {sigma:.4f}: closing {n / t_run:5.2f} draws/s (CPU "
-              f"{cpu_run / n * 1e3:4.0f} ms/draw), closing + lift {n / t_lift:5.2f} draws/s "
-              f"(CPU {cpu_lift / n * 1e3:5.0f} ms/draw) | P(FC) physics {p_fc:.2f}, kinematic "
-              f"{p_kin:.2f}, P(hold) {lift.held.mean():.2f} | same seed, same numbers: {same}")
+              f"{cpu_run / n * 1e3:4.0f} ms/draw), holding test {n / t_lift:5.2f} draws/s "
+              f"(CPU {cpu_lift / n * 1e3:5.0f} ms/draw) | P(FC) physics {p_fc:.2f} (pinned "
+              f"{np.mean(pinned.outcome == FORCE_CLOSURE):.2f}), kinematic {p_kin:.2f}, "
+              f"P(hold) {hold.held.mean():.2f} | same numbers twice: {same}")
     engine.close()
 
 

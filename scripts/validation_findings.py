@@ -7,8 +7,10 @@ Per folder (one sigma): draws per grasp, the median and largest half-width of th
 intervals, mean P(FC) kinematic / physics / P(hold) over the grasps, Spearman's rho (from
 ``summary.json``: the validate command's bootstrap), the per-draw confusion of kinematic force
 closure with holding, the share of force-closure (and other) draws held, per object the share
-of its force-closure draws held, and within force closure the AUC of the kinematic Q for
-holding (Mann-Whitney: the probability that a held draw has a larger Q than a dropped one).
+of its force-closure draws held and how its force-closure draws ended (no grip, grip lost,
+dropped, held; the grip's median shift and net pinned force), the held / run counts of each
+phase, and within force closure the AUC of the kinematic Q and of the grip's net pinned force
+for holding (Mann-Whitney: the probability that a held draw has a larger value than another).
 ``--table1 KIN PHYS``: two ``reproduce table1`` folders (the same seed and draws, kinematic
 and physics engine): the largest and mean difference of P(FC) per cell and how many cells'
 Wilson intervals overlap.
@@ -38,9 +40,12 @@ def findings(folder: Path) -> None:
     means = [np.mean([float(g[k]) for g in grasps])
              for k in ("p_fc_kinematic", "p_fc_physics", "p_hold")]
     fc = np.array([d["kinematic_outcome"] == "force_closure" for d in draws])
-    held = np.array([d["held"] == "1" for d in draws])
+    held = np.array([d["hold_outcome"] == "held" for d in draws])
+    outcome = np.array([d["hold_outcome"] for d in draws])
     objects = np.array([d["object"] for d in draws])
     q = np.array([float(d["kinematic_q"]) for d in draws])
+    shift = np.array([float(d["grip_shift_mm"]) for d in draws])
+    pin = np.array([float(d["pin_force_n"]) for d in draws])
     sigma = summary["settings"].get("sigma")
     print(f"{folder} (sigma {sigma}): {len(grasps)} grasps, {grasps[0]['samples']} draws each; "
           f"P(hold) interval half-width median {np.median(half):.3f}, max {half.max():.3f}")
@@ -55,10 +60,17 @@ def findings(folder: Path) -> None:
           "the others")
     for name in dict.fromkeys(objects):
         sel = fc & (objects == name)
-        print(f"  {name}: {held[sel].mean():.1%} of {int(sel.sum())} force-closure draws held")
-    a, b = q[fc & held], q[fc & ~held]
-    auc = mannwhitneyu(a, b).statistic / (len(a) * len(b))
-    print(f"  within force closure, AUC of Q for holding: {auc:.2f}")
+        ends = {k: int(np.sum(outcome[sel] == k)) for k in dict.fromkeys(outcome)}
+        print(f"  {name}: {held[sel].mean():.1%} of {int(sel.sum())} force-closure draws held; "
+              f"outcomes {ends}; grip shift median {np.nanmedian(shift[sel]):.1f} mm, net "
+              f"pinned grip force median {np.nanmedian(pin[sel]):.1f} N")
+    print("  phases held / run: " + ", ".join(f"{k} {v['held']}/{v['run']}"
+                                              for k, v in summary["phases"].items()))
+    for label, values in (("Q", q), ("net pinned grip force", pin)):
+        a, b = values[fc & held], values[fc & ~held & np.isfinite(values)]
+        if len(a) and len(b):
+            auc = mannwhitneyu(a, b).statistic / (len(a) * len(b))
+            print(f"  within force closure, AUC of {label} for holding: {auc:.2f}")
 
 
 def compare_tables(kinematic: Path, physics: Path) -> None:

@@ -29,6 +29,7 @@ import pytest
 import trimesh
 
 from kinegrasp_env.montecarlo.engines import START_COLLISION, make_engine
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
 from kinegrasp_env.robot.model import rpy_to_matrix, urdf_path
 from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 from kinegrasp_env.world.objects import load_object
@@ -271,7 +272,9 @@ def test_physics_engine_marks_draws_in_the_table(tabled):
     engine = make_engine("physics", name)
     hits = engine.table_hits(q)
     assert hits.tolist() == [False, True]
-    draws, lift = engine.run_lift(q)
-    assert draws.outcome[1] == START_COLLISION and not lift.held[1]
-    assert draws.outcome[0] != START_COLLISION and np.isfinite(lift.time[0])
+    draws, hold = engine.run_hold(q)
+    assert draws.outcome[1] == START_COLLISION
+    assert HOLD_OUTCOMES[hold.outcome[1]] == "start_collision"
+    assert draws.outcome[0] != START_COLLISION
+    assert HOLD_OUTCOMES[hold.outcome[0]] != "start_collision"
     engine.close()

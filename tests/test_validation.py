@@ -1,6 +1,7 @@
-"""``kinegrasp validate``: its statistics against scipy and hand counts, its cache, the same
-seed giving the same table twice, the CLI's one-line errors, and the physics engine's
-registration."""
+"""``kinegrasp validate``: its statistics against scipy and hand counts, the holding test's
+phase and outcome counts against hand counts, its cache, the same seed giving the same table
+twice, the CLI's one-line errors (simulator and torque scale included), and the physics
+engine's registration."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import pytest
 from scipy import stats
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, NO_FORCE_CLOSURE
+from kinegrasp_env.physics import simulators
+from kinegrasp_env.physics.protocol import DROPPED, GRIP_LOST, HELD, NO_GRIP, PHASES
 from kinegrasp_env.toolkit import validation
 from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
 from kinegrasp_env.toolkit.validation_report import summarize, write_results
@@ -69,12 +72,29 @@ def test_confusion_against_a_hand_count():
     np.testing.assert_array_equal(confusion(predicted, actual), [[2, 1], [2, 3]])
 
 
-def fake_draws(object_name: str, index: int, kin, phys, held) -> GraspDraws:
+def fake_draws(object_name: str, index: int, kin, phys, held, outcome=None,
+               phases=None) -> GraspDraws:
+    """Draws with the given outcomes: ``held`` 1 -> holding outcome held (every phase but
+    the shake held), 0 -> ``outcome`` (default dropped: ``gravity_-z`` failed, the rest held),
+    or the given (n,) ``outcome`` codes and (n, P) ``phases``."""
     n = len(held)
+    held = np.array(held, bool)
+    if outcome is None:
+        outcome = np.where(held, HELD, DROPPED)
+    outcome = np.array(outcome, np.int8)
+    if phases is None:
+        phases = np.ones((n, len(PHASES)), np.int8)
+        phases[:, PHASES.index("shake")] = -1
+        phases[outcome == DROPPED, PHASES.index("gravity_-z")] = 0
+        phases[(outcome != HELD) & (outcome != DROPPED)] = -1
+    released = (outcome == HELD) | (outcome == DROPPED) | (outcome == GRIP_LOST)
+    shift = np.where(released, 0.001 * (1 + np.arange(n)), np.nan)
     return GraspDraws(object_name, index, str(index), np.array(kin, np.int8),
                       np.where(np.array(kin) == FORCE_CLOSURE, 0.1, 0.0),
-                      np.array(phys, np.int8), np.zeros(n), np.array(held, bool),
-                      np.full(n, 0.01), np.full(n, 3.5))
+                      np.array(phys, np.int8), np.zeros(n), outcome, shift, shift * 10,
+                      np.full((n, 3), 5.0), np.full((n, 3), 4.0), np.full(n, 1.0),
+                      np.array(phases, np.int8),
+                      np.where(phases >= 0, 0.003, np.nan), np.where(phases >= 0, 0.01, np.nan))
 
 
 FC, NFC, MISS = FORCE_CLOSURE, NO_FORCE_CLOSURE, MISSED
@@ -100,6 +120,38 @@ def test_summary_pools_the_draws_and_ranks_the_grasps():
     expected = stats.spearmanr([0.75, 0.25, 0.0], [0.5, 0.5, 0.0]).statistic
     assert summary["spearman"]["kinematic_p_fc_vs_p_hold"]["rho"] == pytest.approx(expected)
     assert summary["draws"] == 12
+
+
+def test_phase_and_outcome_counts_against_a_hand_count():
+    """Two grasps with mixed outcomes, counted by hand: a phase's ``run`` counts the draws
+    whose grip stood (held or dropped), ``held`` those that passed it; outcomes per name;
+    grip shifts in millimetres per draw (None where nothing was released)."""
+    phases = np.full((4, len(PHASES)), -1, np.int8)
+    phases[0, :7] = 1                      # held: six directions and the lift
+    phases[1, :7] = 1
+    phases[1, PHASES.index("gravity_+x")] = 0  # dropped in +x only
+    phases[1, PHASES.index("lift")] = 0        # and in the lift
+    draws = fake_draws("cube", 0, [FC] * 4, [FC] * 4, [1, 0, 0, 0],
+                       outcome=[HELD, DROPPED, GRIP_LOST, NO_GRIP], phases=phases)
+    other = fake_draws("cube", 1, [FC, NFC], [FC, NFC], [1, 1])
+    summary = summarize([draws, other], ValidationSettings(sigma=0.01, samples=4),
+                        resamples=10)
+    first = summary["grasps"][0]
+    assert first["outcomes"] == {"start_collision": 0, "no_grip": 1, "grip_lost": 1,
+                                 "dropped": 1, "held": 1}
+    assert first["draw_outcomes"] == ["held", "dropped", "grip_lost", "no_grip"]
+    assert first["phases"]["gravity_+x"] == {"run": 2, "held": 1}
+    assert first["phases"]["gravity_-y"] == {"run": 2, "held": 2}
+    assert first["phases"]["lift"] == {"run": 2, "held": 1}
+    assert "shake" not in first["phases"]  # not part of a protocol without the shake
+    assert first["grip_shift_mm"] == [1.0, 2.0, 3.0, None]
+    assert first["p_hold"] == 0.25
+    # pooled: grasp 1 has two held draws, every phase but the shake run and held
+    assert summary["phases"]["gravity_+x"] == {"run": 4, "held": 3}
+    assert summary["outcomes"]["held"] == 3 and sum(summary["outcomes"].values()) == 6
+    assert summary["grip_shift_mm"]["released"] == {"n": 5, "median": 2.0, "max": 3.0}
+    assert summary["grip_shift_mm"]["force_closure"]["n"] == 4  # grasp 1's draw 1 is NFC
+    assert summary["protocol"]["torques_nm"] == {"proximal": 2.1, "distal": 1.4, "hold": 10.0}
 
 
 def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch):
@@ -171,6 +223,9 @@ def test_same_seed_same_table_twice(tmp_path):
     (["--object", "cube", "--grasp", "1", "1"], "cube grasp 1 is given twice"),
     (["--grasps", "/nonexistent/g.json"], "no such file"),
     (["--processes", "0"], "--processes must be >= 1"),
+    (["--torque-scale", "0"], "--torque-scale must be > 0"),
+    (["--torque-scale", "nan"], "--torque-scale"),
+    (["--simulator", "gazebo"], "invalid choice: 'gazebo'"),
 ])
 def test_cli_errors_are_one_line(tmp_path, args, message):
     result = run_cli("validate", "--out", str(tmp_path / "out"), *args)
@@ -178,6 +233,20 @@ def test_cli_errors_are_one_line(tmp_path, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], result.stderr
     assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_a_simulator_whose_package_is_missing_is_refused_in_one_line(monkeypatch):
+    """A registered simulator whose package is not installed: a one-line ValueError naming
+    the package, before any work (the CLI reports it as its error line)."""
+    monkeypatch.setitem(simulators.SIMULATORS, "nosuchsim",
+                        ("kinegrasp_env.nosuchsim", "Sim", "no_such_package_kinegrasp"))
+    with pytest.raises(ValueError, match="needs the Python package 'no_such_package_kinegrasp'"):
+        simulators.check_simulator("nosuchsim")
+    with pytest.raises(ValueError, match="needs the Python package"):
+        ValidationSettings(sigma=0.0, samples=1, simulator="nosuchsim")
+    with pytest.raises(ValueError, match="unknown simulator 'x'"):
+        simulators.check_simulator("x")
+    assert simulators.simulator_class("pybullet").name == "pybullet"
 
 
 def test_cli_refuses_a_file_as_the_output_folder(tmp_path):

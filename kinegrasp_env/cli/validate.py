@@ -1,8 +1,15 @@
-"""``kinegrasp validate``: does P(FC) predict holding? (kinematic and physics closing, lift
-test, per draw and per grasp; see :mod:`kinegrasp_env.toolkit.validation`)."""
+"""``kinegrasp validate``: does P(FC) predict holding? The kinematic closing and the holding
+test (closing on the pinned object, grip, release, six gravity directions, lift, optional
+shake; :mod:`kinegrasp_env.physics.protocol`) on the same draws, per draw and per grasp
+(:mod:`kinegrasp_env.toolkit.validation`).
+
+``--json`` prints the summary (keys: :mod:`kinegrasp_env.toolkit.validation_report`): per
+grasp ``grip_shift_mm`` and ``draw_outcomes`` (per draw), ``outcomes`` and ``phases`` (each
+phase's ``run`` and ``held`` counts), P(FC) of both closings and P(hold)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from kinegrasp_env.cli.common import (
@@ -22,8 +29,11 @@ from kinegrasp_env.cli.common import (
 
 def add_commands(sub) -> None:
     """Register ``validate``."""
-    p = sub.add_parser("validate", help="lift test: does P(FC) predict that the hand holds the "
-                       "object? (kinematic and physics closing on the same draws)")
+    from kinegrasp_env.physics.simulators import SIMULATORS
+
+    p = sub.add_parser("validate", help="holding test: does P(FC) predict that the hand holds "
+                       "the object? (grip shift, six gravity directions, lift; same draws as "
+                       "the kinematic closing)")
     p.add_argument("--object", default="all", help="a built-in object, or `all` for the four "
                    "(with --grasps: the file's objects)")
     p.add_argument("--grasp", nargs="+", help=grasp_index_help() + " (several allowed; default "
@@ -37,6 +47,13 @@ def add_commands(sub) -> None:
     p.add_argument("--kinematic-engine", default="fast", choices=("fast", "pybullet"),
                    help="engine of the kinematic outcome (fast: same outcomes as pybullet "
                    "draw by draw, much faster)")
+    p.add_argument("--simulator", default="pybullet", choices=tuple(SIMULATORS),
+                   help="the simulator that runs the holding test")
+    p.add_argument("--torque-scale", default="1", help="multiplies the assumed torque limits "
+                   "of the hand's joints (2.1 N m proximal, 1.4 N m distal, 10 N m holding: "
+                   "stated assumptions)")
+    p.add_argument("--shake", action="store_true", help="add the shake phase after the lift "
+                   "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--out", required=True, help="output folder (results are cached there: "
                    "a rerun with the same settings resumes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -107,8 +124,16 @@ def settings_from(args) -> dict:
     sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
     if sigma > MAX_SIGMA:
         raise CLIError(f"--sigma {sigma:g} rad is above the bound pi ({MAX_SIGMA:.4f} rad)")
+    from kinegrasp_env.physics.simulators import check_simulator
+
+    scale = finite_float(args.torque_scale, "--torque-scale")
+    if scale <= 0:
+        raise CLIError(f"--torque-scale must be > 0, got {args.torque_scale}")
+    with reported(ValueError):
+        check_simulator(args.simulator)
     return {"sigma": sigma, "samples": positive_int(args.samples, "--samples"),
-            "seed": parse_seed(args.seed), "kinematic": args.kinematic_engine}
+            "seed": parse_seed(args.seed), "kinematic": args.kinematic_engine,
+            "simulator": args.simulator, "torque_scale": scale, "shake": args.shake}
 
 
 def output_folder(text: str) -> Path:
@@ -139,14 +164,30 @@ def cmd_validate(args) -> int:
 
 
 def print_summary(summary: dict, paths: dict) -> None:
-    s = summary["settings"]
+    s, p = summary["settings"], summary["protocol"]
     print(f"validate: {len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
-          f"{s['samples']} draws each, seed {s['seed']} (kinematic engine: {s['kinematic']})")
-    print(f"{'grasp':<18} {'P(FC) kin':>10} {'P(FC) phys':>11} {'P(hold)':>8}  95% CI hold")
+          f"{s['samples']} draws each, seed {s['seed']} (kinematic engine: {s['kinematic']}, "
+          f"simulator: {s['simulator']})")
+    torques = p["torques_nm"]
+    shake = (f"shake {p['shake_amplitude'] * 100:g} cm / {math.degrees(p['shake_angle']):g} deg "
+             f"at {p['shake_frequency']:g} Hz" if p["shake"] else "no shake")
+    print(f"holding test: held = within {p['max_shift'] * 100:g} cm and "
+          f"{math.degrees(p['max_turn']):g} deg of the post-grip pose (palm frame); gravity "
+          f"{p['gravity_time']:g} s per direction, lift {p['lift_height'] * 100:g} cm, {shake}; "
+          f"torque limits {torques['proximal']:g} / {torques['distal']:g} / "
+          f"{torques['hold']:g} N m (assumed x {p['torque_scale']:g})")
+    print(f"{'grasp':<18} {'P(FC) kin':>10} {'P(FC) phys':>11} {'P(hold)':>8}  95% CI hold"
+          f"  {'grip shift mm (median)':>22}  outcomes")
     for g in summary["grasps"]:
         lo, hi = g["p_hold_ci"]
+        shifts = [v for v in g["grip_shift_mm"] if v is not None]
+        shift = f"{sorted(shifts)[len(shifts) // 2]:.1f}" if shifts else "-"
+        counts = ", ".join(f"{k} {v}" for k, v in g["outcomes"].items() if v)
         print(f"{g['object'] + ' ' + str(g['index']):<18} {g['p_fc_kinematic']:>10.3f} "
-              f"{g['p_fc_physics']:>11.3f} {g['p_hold']:>8.3f}  [{lo:.2f}, {hi:.2f}]")
+              f"{g['p_fc_physics']:>11.3f} {g['p_hold']:>8.3f}  [{lo:.2f}, {hi:.2f}]"
+              f"  {shift:>22}  {counts}")
+    print("phases held / run: " + ", ".join(f"{name} {c['held']}/{c['run']}"
+                                            for name, c in summary["phases"].items()))
     for name, m in summary["confusion"].items():
         print(f"{name} (rows predicted F/T, columns actual F/T): {m}")
     for name, c in summary["spearman"].items():

@@ -1,12 +1,15 @@
-"""The physics engine: the paper's closing under pybullet dynamics, draw by draw.
+"""The physics engine: the paper's closing under pybullet dynamics, draw by draw, and the
+holding test.
 
 Same interface and scoring as the kinematic engines (:class:`~kinegrasp_env.montecarlo.engines.
 Engine`): ``run(q (n, 14)) -> DrawBatch``, the same outcomes and Q from the same contacts'
 friction cones, the same eps for the same seed. The closing is
 :func:`~kinegrasp_env.physics.pybullet_closing.physics_close` (motors close the fingers until they
 stall; the object free or fixed), the contacts are in the object's frame where the object
-ended. :meth:`PhysicsEngine.run_lift` adds the lift test
-(:func:`~kinegrasp_env.physics.pybullet_lift.lift_test`) to every draw that closed.
+ended. :meth:`PhysicsEngine.run_hold` runs the holding test
+(:mod:`~kinegrasp_env.physics.protocol`) in a registered simulator instead: its closing on the
+pinned object gives the outcomes and Q, and every draw gets a
+:class:`~kinegrasp_env.physics.protocol.HoldResult` (:class:`HoldBatch`).
 
 Every draw starts from the same saved simulator state, so a draw's result depends only on its
 configuration: the same configurations give the same bits in any order, in any chunking.
@@ -26,41 +29,75 @@ from kinegrasp_env.montecarlo.engines import (
     check_configurations,
     record_close,
 )
+from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
-from kinegrasp_env.physics.pybullet_lift import LiftProfile, lift_test
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
+from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
 
 
 @dataclass
-class LiftBatch:
-    """Lift-test results of n draws.
+class HoldBatch:
+    """Holding-test results of n draws (:class:`~kinegrasp_env.physics.protocol.HoldResult`
+    as arrays).
 
     Attributes:
-        held: (n,) bool, the object held through lift, hold and shake (False for draws that
-            did not close: start collision).
-        max_offset: (n,) how far the object moved in the palm frame, metres (NaN: not lifted).
-        time: (n,) seconds the test ran (the drop, or its full length; NaN: not lifted).
-        tracking: (n,) largest distance of the palm from its commanded place, metres (NaN:
-            not lifted).
+        outcome: (n,) int8 index into :data:`~kinegrasp_env.physics.protocol.HOLD_OUTCOMES`.
+        grip_shift, grip_turn: (n,) the grip's own displacement after the release, metres and
+            radians (NaN: not released).
+        forces_gripped, forces_released: (n, 3) the fingers' normal forces, newtons (NaN).
+        pin_force: (n,) the net force of the grip on the pinned object, newtons (NaN).
+        phase_held: (n, P) int8 per phase of :data:`~kinegrasp_env.physics.protocol.PHASES`:
+            1 held, 0 failed, -1 not run.
+        phase_shift, phase_turn: (n, P) the largest displacement (m) and rotation (rad) in
+            each phase (NaN: not run).
     """
 
-    held: np.ndarray
-    max_offset: np.ndarray
-    time: np.ndarray
-    tracking: np.ndarray
+    outcome: np.ndarray
+    grip_shift: np.ndarray
+    grip_turn: np.ndarray
+    forces_gripped: np.ndarray
+    forces_released: np.ndarray
+    pin_force: np.ndarray
+    phase_held: np.ndarray
+    phase_shift: np.ndarray
+    phase_turn: np.ndarray
+
+    FIELDS = ("outcome", "grip_shift", "grip_turn", "forces_gripped", "forces_released",
+              "pin_force", "phase_held", "phase_shift", "phase_turn")
 
     @classmethod
-    def empty(cls, n: int) -> LiftBatch:
-        return cls(np.zeros(n, bool), np.full(n, np.nan), np.full(n, np.nan),
-                   np.full(n, np.nan))
+    def empty(cls, n: int) -> HoldBatch:
+        p = len(PHASES)
+        return cls(np.full(n, START_COLLISION, np.int8), np.full(n, np.nan), np.full(n, np.nan),
+                   np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full(n, np.nan),
+                   np.full((n, p), -1, np.int8),
+                   np.full((n, p), np.nan), np.full((n, p), np.nan))
 
-    def put(self, rows: np.ndarray, other: LiftBatch) -> None:
+    def record(self, i: int, result: HoldResult) -> None:
+        """Draw i's result."""
+        self.outcome[i] = result.outcome
+        self.grip_shift[i], self.grip_turn[i] = result.grip_shift, result.grip_turn
+        self.forces_gripped[i], self.forces_released[i] = (result.forces_gripped,
+                                                           result.forces_released)
+        self.pin_force[i] = result.pin_force
+        for k, name in enumerate(PHASES):
+            if name in result.phase_held:
+                self.phase_held[i, k] = int(result.phase_held[name])
+                self.phase_shift[i, k] = result.phase_shift[name]
+                self.phase_turn[i, k] = result.phase_turn[name]
+
+    def put(self, rows: np.ndarray, other: HoldBatch) -> None:
         """Write ``other``'s draws into rows ``rows`` (len(other),) of this batch."""
-        for f in ("held", "max_offset", "time", "tracking"):
+        for f in self.FIELDS:
             getattr(self, f)[rows] = getattr(other, f)
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: outcome ``held``."""
+        return self.outcome == HELD
 
 
 class PhysicsEngine(Engine):
@@ -73,38 +110,51 @@ class PhysicsEngine(Engine):
         world: :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings` (density, object
             free or fixed, time step); its friction is replaced by ``friction``.
         motors: :class:`~kinegrasp_env.physics.pybullet_closing.MotorSettings`.
-        profile: :class:`~kinegrasp_env.physics.pybullet_lift.LiftProfile` of :meth:`run_lift`.
+        protocol: :class:`~kinegrasp_env.physics.protocol.HoldProtocol` of :meth:`run_hold`.
+        simulator: the registered simulator of :meth:`run_hold`
+            (:data:`~kinegrasp_env.physics.simulators.SIMULATORS`).
     """
 
     name = "physics"
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
                  world: WorldSettings | None = None, motors: MotorSettings | None = None,
-                 profile: LiftProfile | None = None) -> None:
+                 protocol: HoldProtocol | None = None, simulator: str = "pybullet") -> None:
         super().__init__(object_name, friction, num_edges)
         self.settings = replace(world or WorldSettings(), friction=friction)
         self.motors = motors or MotorSettings()
-        self.profile = profile or LiftProfile()
+        self.protocol = protocol or HoldProtocol()
+        self.simulator_class = simulator_class(simulator)
         self.kin = Kinematics(kuka_sdh())
         self.world = PhysicsWorld(self.obj, self.settings)
+        self._holder: HoldSimulator | None = None
 
     def close(self) -> None:
         super().close()
         self.world.close()
+        if self._holder is not None:
+            self._holder.close()
 
-    def _close_all(self, q: np.ndarray, lift: LiftBatch | None) -> DrawBatch:
+    @property
+    def holder(self) -> HoldSimulator:
+        """The simulator of :meth:`run_hold` (built on first use)."""
+        if self._holder is None:
+            self._holder = self.simulator_class(self.obj, self.friction, self.protocol)
+        return self._holder
+
+    def _close_all(self, q: np.ndarray, hold: HoldBatch | None) -> DrawBatch:
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
         roots = self.kin.pose(q, FLANGE_LINK)
         t1 = time.perf_counter()
         for i in range(n):
-            result = physics_close(self.world, roots[i], q[i, 7:], self.motors)
+            if hold is None:
+                result = physics_close(self.world, roots[i], q[i, 7:], self.motors)
+            else:
+                result, test = self.holder.run_draw(roots[i], q[i, 7:])
+                hold.record(i, test)
             record_close(out, i, result)
-            if lift is not None and not result.start_collision:
-                test = lift_test(self.world, self.profile, self.motors)
-                lift.held[i], lift.max_offset[i] = test.held, test.max_offset
-                lift.time[i], lift.tracking[i] = test.time, test.tracking
         t2 = time.perf_counter()
         self.score(out)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
@@ -113,27 +163,28 @@ class PhysicsEngine(Engine):
     def _run(self, q: np.ndarray) -> DrawBatch:
         return self._close_all(q, None)
 
-    def run_lift(self, q: np.ndarray) -> tuple[DrawBatch, LiftBatch]:
-        """Outcomes of configurations q (n, 14) (as :meth:`run`: the same numbers) and the
-        lift test of every draw that closed (its time counts as auto-close time).
+    def run_hold(self, q: np.ndarray) -> tuple[DrawBatch, HoldBatch]:
+        """The holding test of configurations q (n, 14): the outcomes and Q of its closing
+        (the object pinned) and every draw's :class:`HoldBatch` row (its time counts as
+        auto-close time). Draws whose robot starts in the support table are start collisions.
 
         Raises:
             ValueError: bad configurations, or the engine's object is fixed.
         """
         if not self.settings.object_free:
-            raise ValueError("the lift test needs a free object (object_free=True)")
+            raise ValueError("the holding test needs a free object (object_free=True)")
         q = check_configurations(q)
-        lift = LiftBatch.empty(q.shape[0])
+        hold = HoldBatch.empty(q.shape[0])
         with single_blas_thread():
             if self.obj.table is None:
-                return self._close_all(q, lift), lift
-            clear = LiftBatch.empty(0)
+                return self._close_all(q, hold), hold
+            clear = HoldBatch.empty(0)
 
             def close_rows(q_rows: np.ndarray) -> DrawBatch:
                 nonlocal clear
-                clear = LiftBatch.empty(q_rows.shape[0])
+                clear = HoldBatch.empty(q_rows.shape[0])
                 return self._close_all(q_rows, clear)
 
             out, keep = self.clear_of_table(q, {}, close_rows)
-            lift.put(keep, clear)
-            return out, lift
+            hold.put(keep, clear)
+            return out, hold

@@ -5,8 +5,9 @@ there (:class:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld`), the hand at
 A hand already penetrating the object by more than ``START_TOL`` (pybullet's distance, hand
 links against the object's convex parts) is a start collision, as in the kinematic closing.
 Otherwise, with gravity off, every flexion joint is driven by a velocity motor towards closing
-at ``closing_speed`` with a torque limit (:class:`MotorSettings`: 2.1 N m proximal, 1.4 N m
-distal, from the SDH data sheet); the spread joints hold the pre-shape. The kinematic
+at ``closing_speed`` with a torque limit (:class:`MotorSettings`: by default the stated
+assumptions :data:`~kinegrasp_env.physics.protocol.ASSUMED_TORQUES`, 2.1 N m proximal, 1.4 N m
+distal, no measured values); the spread joints hold the pre-shape. The kinematic
 closing's joint logic is kept, as a controller reacting to pybullet's contacts (records within
 ``touch_distance``, checked every step):
 
@@ -19,25 +20,24 @@ closing's joint logic is kept, as a controller reacting to pybullet's contacts (
 Motors that keep closing at full speed and torque after contact (tried first) let the proximal
 joint be back-driven and the fingers roll over edges or slide off slanted faces: with the
 object fixed their contacts ended up to 5 cm from the kinematic ones; with this controller
-they are within 1 mm (tests). The full motor torque comes with the lift test's grip
+they are within 1 mm (tests). The full motor torque comes with the holding test's grip
 (:func:`grip`). The object, when free, is pushed by whatever touches it, palm and knuckles
-included. The closing ends when every flexion joint has stalled (mean speed below
-``stall_speed`` over ``stall_checks`` consecutive windows of ``stall_window``) or after
-``max_time``.
-
-Contacts are then read from ``getContactPoints``: per finger link the records within
-``touch_distance`` are merged into one contact, as the kinematic closing has one contact per
-link (:func:`merge_records`: the deepest record, the kinematic closing's closest pair, and
-the records on the same face, averaged by normal force: the centre of pressure of a line or
-patch contact), in the object's frame *where the object is now* (it may have been pushed).
-Normals point into the object (minus pybullet's ``contactNormalOnB``, which points from the
-object to the finger). Only finger links make contacts, as in the kinematic closing (the palm
-may push the object, but its contact does not enter Q). A finger without contact has missed.
+included, unless it is pinned (``pin=True``: the holding test's closing). The closing ends when
+every flexion joint has stalled (mean speed below ``stall_speed`` over ``stall_checks``
+consecutive windows of ``stall_window``) or after ``max_time``. Contacts are then read from
+``getContactPoints``: per finger link the records within ``touch_distance`` are merged into one
+contact, as the kinematic closing has one contact per link (:func:`merge_records`: the deepest
+record, the kinematic closing's closest pair, and the records on the same face, averaged by
+normal force: the centre of pressure of a line or patch contact), in the object's frame *where
+the object is now* (it may have been pushed). Normals point into the object (minus pybullet's
+``contactNormalOnB``, which points from the object to the finger). Only finger links make
+contacts, as in the kinematic closing (the palm may push the object, but its contact does not
+enter Q). A finger without contact has missed.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -48,6 +48,7 @@ from kinegrasp_env.closing.reference import (
     Contact,
     hand_joint_values,
 )
+from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
 
@@ -66,16 +67,16 @@ class MotorSettings:
 
     Attributes:
         closing_speed: target speed of a closing joint, rad/s (the URDF's velocity limit).
-        proximal_torque, distal_torque: torque limits of the closing motors, N m (assumed
-            from the Schunk SDH data sheet: 2.1 N m proximal, 1.4 N m distal).
+        proximal_torque, distal_torque: torque limits of the closing motors, N m (stated
+            assumptions, :data:`~kinegrasp_env.physics.protocol.ASSUMED_TORQUES`).
         hold_torque: torque limit of the position controllers that hold the spread and a
             stopped proximal joint, N m (the URDF's effort limit: the joint's gear holds).
         creep_speed: a distal joint whose link touches is driven at this speed towards
             closing while the hand closes, rad/s, with its torque limit: it follows the object
             slowly if the object gives way and presses it lightly (blocked, pybullet's
             iterative solver builds up only ~0.3 N m for so slow a target).
-        grip_speed: for the lift test every distal joint is driven at this target speed
-            (the SDH's largest joint speed, 210 deg/s), with its torque limit: blocked by the
+        grip_speed: for the holding test every distal joint is driven at this target speed
+            (210 deg/s, an assumed top joint speed), with its torque limit: blocked by the
             object, the motor presses with its full torque (tests: the contact forces'
             moment about the joint).
         touch_distance: a contact record within this distance (metres) is a contact.
@@ -86,9 +87,9 @@ class MotorSettings:
     """
 
     closing_speed: float = 1.0
-    proximal_torque: float = 2.1
-    distal_torque: float = 1.4
-    hold_torque: float = 10.0
+    proximal_torque: float = ASSUMED_TORQUES.proximal
+    distal_torque: float = ASSUMED_TORQUES.distal
+    hold_torque: float = ASSUMED_TORQUES.hold
     creep_speed: float = 0.05
     grip_speed: float = np.radians(210.0)
     touch_distance: float = CONTACT_TOL
@@ -108,6 +109,11 @@ class MotorSettings:
             raise ValueError(f"creep_speed must be >= 0, got {self.creep_speed!r}")
         if self.stall_checks < 1:
             raise ValueError(f"stall_checks must be >= 1, got {self.stall_checks!r}")
+
+    def with_torques(self, torques: TorqueLimits) -> MotorSettings:
+        """These settings with the torque limits ``torques``."""
+        return replace(self, proximal_torque=torques.proximal, distal_torque=torques.distal,
+                       hold_torque=torques.hold)
 
 
 @dataclass
@@ -191,6 +197,17 @@ def finger_links(world: PhysicsWorld) -> dict[int, tuple[int, int]]:
     return {world.link_index[FINGERS[f][2 + k]]: (f, k) for f in range(3) for k in range(2)}
 
 
+def finger_forces(world: PhysicsWorld) -> np.ndarray:
+    """(3,) each finger's total normal force on the object from the last step, newtons (the
+    sum of pybullet's ``normalForce`` over its links' contact records)."""
+    links = finger_links(world)
+    forces = np.zeros(3)
+    for rec in world.contact_points():
+        if rec[3] in links:
+            forces[links[rec[3]][0]] += rec[9]
+    return forces
+
+
 def touching_links(world: PhysicsWorld, links: dict[int, tuple[int, int]],
                    distance: float) -> set[tuple[int, int]]:
     """(finger, link) of the finger links with a contact record within ``distance`` (m)."""
@@ -262,7 +279,7 @@ def close_until_stall(world: PhysicsWorld, motors: FingerMotors, settings: Motor
 
 
 def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarray,
-                  settings: MotorSettings | None = None) -> PhysicsClose:
+                  settings: MotorSettings | None = None, pin: bool = False) -> PhysicsClose:
     """Close the hand at ``root_pose`` from ``preshape`` under dynamics (module docstring).
 
     Args:
@@ -270,11 +287,16 @@ def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarr
         root_pose: (4, 4) world pose of the hand root (the arm's flange frame).
         preshape: (7,) hand DOF (``HAND_JOINTS`` order), radians.
         settings: :class:`MotorSettings` (default values when None).
+        pin: pin the (free) object where it is placed while the hand closes (it stays
+            pinned after: :meth:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld.
+            release_object` frees it).
     """
     settings = settings or MotorSettings()
     preshape = np.asarray(preshape, dtype=float)
     values = hand_joint_values(preshape)
     world.reset(root_pose, values)
+    if pin:
+        world.pin_object()
     if world.penetration() > START_TOL:
         return PhysicsClose(start_collision=True)
     motors = FingerMotors(world, settings, {name: values[name] for name in SPREAD_JOINTS})

@@ -2,14 +2,15 @@
 constraint, and one catalog object as a rigid body.
 
 The kinematic closing (:mod:`kinegrasp_env.closing.reference`) never steps the simulation;
-here the hand's finger motors close under dynamics, the object may be pushed, and for the lift
-test (:mod:`kinegrasp_env.physics.pybullet_lift`) the hand moves. Therefore:
+here the hand's finger motors close under dynamics, the object may be pushed (or pinned where
+it is, :meth:`PhysicsWorld.pin_object`), and in the holding test
+(:mod:`kinegrasp_env.physics.pybullet_hold`) gravity turns and the hand moves. Therefore:
 
 * the hand (``sdh_hand.urdf``, the same URDF and collision capsules as the reference's
   :class:`~kinegrasp_env.world.sim.GraspWorld`) is loaded with a *dynamic* base, and a fixed
   constraint (the "arm") holds its root at the flange pose reached by the draw's arm joints.
   The arm itself is not simulated: its joints would only set where the flange is, which is all
-  the constraint needs, and moving the constraint's target is how the lift test moves the hand
+  the constraint needs, and moving the constraint's target is how the holding test moves the hand
   (no IK, no arm-object collisions, no joint-limit failures of the arm during the shake);
 * the object is one rigid body whose collision shape is a compound of its exact convex parts
   (written to a temporary ``.obj`` with one ``o`` group per part, which pybullet loads as one
@@ -43,8 +44,12 @@ from kinegrasp_env.world.table_probe import table_body
 
 #: Gravity, m/s^2 (world -z).
 GRAVITY = 9.81
-#: Largest force the constraint that holds the hand may apply, newtons (the arm is stiff).
+#: Largest force the constraint that holds the hand may apply, newtons (the arm is stiff);
+#: also the largest force of the constraint that pins the object.
 ANCHOR_FORCE = 1.0e4
+#: Where a support table is put while the holding test runs (world frame, metres): out of
+#: reach of the hand and the object.
+TABLE_AWAY = (0.0, 0.0, -100.0)
 #: Mass (kg) and principal moments of inertia (kg m^2) given to the hand's root link: it stands
 #: in for the arm behind the flange. With the URDF's 0.01 kg root, the anchor constraint let
 #: the hand wander by up to 1 mm under the grip forces and pybullet's solver stopped short of
@@ -65,7 +70,7 @@ class WorldSettings:
             angular velocities are damped at this rate, 1/s (pybullet's damping: a push of
             v m/s carries the object about v / support_damping metres): it stands in for the
             support the object rests on, so the object moves while pushed and stops soon
-            after instead of floating away. 0: floating. Off during the lift test.
+            after instead of floating away. 0: floating. Off during the holding test.
         time_step: simulation step, seconds (1 ms: at pybullet's default 1/240 s the light
             finger links sank up to 2.5 mm into the object under the grip and five-contact
             cube grasps with Q = 0.23 dropped it at once; at 1 ms they hold it within 2 mm).
@@ -186,6 +191,9 @@ class PhysicsWorld(BulletWorld):
         self.bodies["object"] = self._object_body(moments)
         if obj.table is not None:  # the object rests on it; fingers stall on it
             self.bodies["table"] = table_body(bullet, obj, self.settings.friction)
+            self.table_pose = bullet.getBasePositionAndOrientation(self.bodies["table"])
+        #: the constraint that pins the object (:meth:`pin_object`), None when free
+        self.pin: int | None = None
         self.anchor = bullet.createConstraint(hand, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0],
                                               [0, 0, 0], [0, 0, 0])
         bullet.setGravity(0, 0, 0)
@@ -227,7 +235,10 @@ class PhysicsWorld(BulletWorld):
         (flange frame) at ``root_pose`` (4, 4) with the anchor holding it there, hand joints
         at ``joints`` (radians; every hand joint not named keeps its saved value)."""
         bullet = self.bullet
+        self.release_object()
         bullet.restoreState(self.initial_state)
+        if "table" in self.bodies:
+            bullet.resetBasePositionAndOrientation(self.bodies["table"], *self.table_pose)
         # the hand is parked again: a collision pass drops the previous draw's hand-object
         # pair and its per-part contact caches (restoreState leaves them; see the module doc)
         bullet.performCollisionDetection()
@@ -251,7 +262,47 @@ class PhysicsWorld(BulletWorld):
                                      maxForce=ANCHOR_FORCE)
 
     def gravity(self, on: bool) -> None:
+        """Gravity along world -z (:data:`GRAVITY`), or none."""
         self.bullet.setGravity(0, 0, -GRAVITY if on else 0.0)
+
+    def set_gravity(self, acceleration) -> None:
+        """Gravity as a vector (3,), m/s^2, world frame."""
+        self.bullet.setGravity(*(float(a) for a in acceleration))
+
+    def pin_object(self) -> None:
+        """Pin the (free) object where it is now: a fixed constraint to the world, at most
+        :data:`ANCHOR_FORCE` newtons (a free object: it stays a dynamic body, so the contact
+        forces on it are computed as for a free one)."""
+        if not self.settings.object_free:
+            raise ValueError("only a free object (object_free=True) can be pinned")
+        self.release_object()
+        bullet = self.bullet
+        position, orientation = bullet.getBasePositionAndOrientation(self.object_body)
+        bullet.resetBaseVelocity(self.object_body, [0, 0, 0], [0, 0, 0])
+        self.pin = bullet.createConstraint(self.object_body, -1, -1, -1, pybullet.JOINT_FIXED,
+                                           [0, 0, 0], [0, 0, 0], position,
+                                           childFrameOrientation=orientation)
+        bullet.changeConstraint(self.pin, jointChildPivot=position,
+                                jointChildFrameOrientation=orientation, maxForce=ANCHOR_FORCE)
+
+    def pin_load(self) -> tuple[float, float]:
+        """What the pin holds now (the net wrench the rest of the world puts on the pinned
+        object, from pybullet's constraint state): (force, newtons; torque, N m), norms."""
+        state = self.bullet.getConstraintState(self.pin)
+        return float(np.linalg.norm(state[:3])), float(np.linalg.norm(state[3:6]))
+
+    def release_object(self) -> None:
+        """Remove the object's pin, if any."""
+        if self.pin is not None:
+            self.bullet.removeConstraint(self.pin)
+            self.pin = None
+
+    def remove_table(self) -> None:
+        """Put the support table, if any, out of reach (:data:`TABLE_AWAY`) until the next
+        :meth:`reset`."""
+        if "table" in self.bodies:
+            self.bullet.resetBasePositionAndOrientation(self.bodies["table"], TABLE_AWAY,
+                                                        self.table_pose[1])
 
     def damp_object(self, on: bool) -> None:
         """Switch the free object's support damping (see :class:`WorldSettings`) on or off."""

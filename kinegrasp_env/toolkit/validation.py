@@ -1,6 +1,9 @@
 """Does P(FC) predict holding? ``kinegrasp validate``: per grasp, the same noisy draws through
-a kinematic engine (force closure as kinegrasp computes it), the physics engine (the paper's
-closing under pybullet dynamics) and its lift test (held or dropped).
+a kinematic engine (force closure as kinegrasp computes it) and the holding test
+(:mod:`~kinegrasp_env.physics.protocol`) in a registered simulator: its closing on the pinned
+object (the physics outcome and Q), the grip's own displacement of the object after the
+release, and the disturbance phases (six gravity directions, the lift, optionally the shake),
+each held or not.
 
 The draws are :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations` of the seed,
 the same as ``kinegrasp evaluate`` with that seed and sigma (any engine). The kinematic
@@ -25,9 +28,10 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine, make_engine
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.physics.pybullet_closing import MotorSettings
-from kinegrasp_env.physics.pybullet_lift import LiftProfile
 from kinegrasp_env.physics.pybullet_world import WorldSettings
+from kinegrasp_env.physics.simulators import check_simulator
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.progress import Progress
@@ -48,6 +52,10 @@ class ValidationSettings:
         seed: the draws' seed (the same draws as ``evaluate`` with this seed).
         friction, num_edges: the quality's friction cone (also the simulated mu).
         kinematic: the kinematic engine, ``fast`` (default) or ``pybullet``.
+        simulator: the simulator of the holding test (registered names:
+            :data:`~kinegrasp_env.physics.simulators.SIMULATORS`).
+        torque_scale: multiplies the assumed torque limits of the hand's joints.
+        shake: run the shake phase after the lift.
     """
 
     sigma: float
@@ -56,6 +64,9 @@ class ValidationSettings:
     friction: float = 0.5
     num_edges: int = 8
     kinematic: str = "fast"
+    simulator: str = "pybullet"
+    torque_scale: float = 1.0
+    shake: bool = False
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0 <= self.sigma <= np.pi):
@@ -65,10 +76,18 @@ class ValidationSettings:
         if self.kinematic not in KINEMATIC_ENGINES:
             raise ValueError(f"kinematic engine must be one of {', '.join(KINEMATIC_ENGINES)}, "
                              f"got {self.kinematic!r}")
+        check_simulator(self.simulator)
+        self.protocol  # noqa: B018 - checks torque_scale
+
+    @property
+    def protocol(self) -> HoldProtocol:
+        """The holding protocol of these settings."""
+        return HoldProtocol(shake=bool(self.shake), torque_scale=float(self.torque_scale))
 
 
-ARRAYS = ("kin_outcome", "kin_quality", "phys_outcome", "phys_quality", "held", "max_offset",
-          "lift_time")
+ARRAYS = ("kin_outcome", "kin_quality", "phys_outcome", "phys_quality", "hold_outcome",
+          "grip_shift", "grip_turn", "forces_gripped", "forces_released", "pin_force",
+          "phase_held", "phase_shift", "phase_turn")
 
 
 @dataclass
@@ -78,10 +97,11 @@ class GraspDraws:
     Attributes:
         object, index, id: the grasp (index in its set, id in its file).
         kin_outcome, phys_outcome: (n,) int8 outcome indices (``OUTCOMES``) of the kinematic
-            and the physics closing; kin_quality, phys_quality: (n,) their Q.
-        held: (n,) bool, the object held through the lift test (False: not closed).
-        max_offset: (n,) largest object offset in the palm frame during the test, metres
-            (NaN: not lifted); lift_time: (n,) seconds the test ran (NaN: not lifted).
+            and the physics closing (the holding test's, object pinned); kin_quality,
+            phys_quality: (n,) their Q.
+        hold_outcome ... phase_turn: the holding test, as
+            :class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch` (outcome index into
+            ``HOLD_OUTCOMES``; phases in ``PHASES`` order, 1 held, 0 failed, -1 not run).
     """
 
     object: str
@@ -91,9 +111,21 @@ class GraspDraws:
     kin_quality: np.ndarray
     phys_outcome: np.ndarray
     phys_quality: np.ndarray
-    held: np.ndarray
-    max_offset: np.ndarray
-    lift_time: np.ndarray
+    hold_outcome: np.ndarray
+    grip_shift: np.ndarray
+    grip_turn: np.ndarray
+    forces_gripped: np.ndarray
+    forces_released: np.ndarray
+    pin_force: np.ndarray
+    phase_held: np.ndarray
+    phase_shift: np.ndarray
+    phase_turn: np.ndarray
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: the draw's holding outcome is ``held`` (grip stood, every phase run
+        held)."""
+        return self.hold_outcome == HELD
 
     @property
     def kin_fc(self) -> np.ndarray:
@@ -110,7 +142,7 @@ class GraspDraws:
         return buffer.getvalue()
 
     def __len__(self) -> int:
-        return int(self.held.size)
+        return int(self.hold_outcome.size)
 
     @classmethod
     def from_file(cls, path: Path, samples: int) -> GraspDraws:
@@ -134,7 +166,7 @@ def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     bit, as scoring is batched by contact count: 3e-17 measured)."""
     kept = [(f.name, getattr(settings, f.name)) for f in fields(settings) if f.name != "samples"]
     text = repr((grasp.object, grasp.q0.tobytes().hex(), kept, WorldSettings(),
-                 MotorSettings(), LiftProfile(), DEFAULT_CHUNK))
+                 MotorSettings(), settings.protocol, DEFAULT_CHUNK))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -145,26 +177,28 @@ _ENGINES: dict[tuple, tuple[Engine, PhysicsEngine]] = {}
 def worker_engines(object_name: str, settings: ValidationSettings) -> tuple[Engine, PhysicsEngine]:
     # the object's version too: an object re-imported under the same name gets new engines
     key = (object_name, object_version(object_name), settings.kinematic, settings.friction,
-           settings.num_edges)
+           settings.num_edges, settings.simulator, settings.protocol)
     if key not in _ENGINES:
         _ENGINES[key] = (make_engine(settings.kinematic, object_name, settings.friction,
                                      settings.num_edges),
-                         PhysicsEngine(object_name, settings.friction, settings.num_edges))
+                         PhysicsEngine(object_name, settings.friction, settings.num_edges,
+                                       protocol=settings.protocol,
+                                       simulator=settings.simulator))
     return _ENGINES[key]
 
 
 def grasp_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
     """Run one grasp ``(index, grasp, settings, start)``: its draws start..samples-1 through
-    both engines and the lift test (every draw is independent of the others)."""
+    the kinematic engine and the holding test (every draw is independent of the others)."""
     index, grasp, settings, start = task
     kinematic, physics = worker_engines(grasp.object, settings)
     chunks = list(enumerate(chunk_sizes(settings.samples, DEFAULT_CHUNK)))
     q = chunk_configurations(grasp.q0, JointNoise(settings.sigma), settings.seed,
                              chunks)[start:]
     kin = kinematic.run(q)
-    phys, lift = physics.run_lift(q)
+    phys, hold = physics.run_hold(q)
     return GraspDraws(grasp.object, index, grasp.id, kin.outcome, kin.quality, phys.outcome,
-                      phys.quality, lift.held, lift.max_offset, lift.time)
+                      phys.quality, *(getattr(hold, f) for f in hold.FIELDS))
 
 
 def summary_text(draws: GraspDraws) -> str:
@@ -209,9 +243,29 @@ def run_validation(grasps: list[tuple[int, Grasp]], settings: ValidationSettings
     return [r for r in results if r is not None]
 
 
+def phase_counts(draws: GraspDraws, phases: tuple[str, ...] = PHASES) -> dict[str, dict]:
+    """Per phase: ``{"run": draws that ran it, "held": of those, held}``."""
+    out = {}
+    for name in phases:
+        column = draws.phase_held[:, PHASES.index(name)]
+        out[name] = {"run": int(np.sum(column >= 0)), "held": int(np.sum(column == 1))}
+    return out
+
+
+def outcome_counts(draws: GraspDraws) -> dict[str, int]:
+    """Draws per holding outcome (every name of ``HOLD_OUTCOMES``)."""
+    return {name: int(np.sum(draws.hold_outcome == k)) for k, name in enumerate(HOLD_OUTCOMES)}
+
+
+def millimetres(values: np.ndarray) -> list[float | None]:
+    """Metres (n,) as millimetres rounded to 0.01 (None: NaN), for JSON."""
+    return [None if not np.isfinite(v) else round(float(v) * 1e3, 2) for v in values]
+
+
 @dataclass
 class GraspRow:
-    """Per-grasp estimates: P(FC) of each engine and P(hold), with Wilson 95% intervals."""
+    """Per-grasp estimates: P(FC) of each engine and P(hold), with Wilson 95% intervals;
+    the holding outcomes, each phase's counts and the grip's shift per draw."""
 
     object: str
     index: int
@@ -223,15 +277,26 @@ class GraspRow:
     p_fc_physics_ci: tuple[float, float]
     p_hold: float
     p_hold_ci: tuple[float, float]
+    outcomes: dict[str, int]
+    phases: dict[str, dict]
+    draw_outcomes: list[str]
+    grip_shift_mm: list[float | None]
+    grip_turn_deg: list[float | None]
+    pin_force_n: list[float | None]
 
     @classmethod
-    def of(cls, draws: GraspDraws) -> GraspRow:
-        n = int(draws.held.size)
+    def of(cls, draws: GraspDraws, phases: tuple[str, ...] = PHASES) -> GraspRow:
+        n = len(draws)
         values = []
         for flags in (draws.kin_fc, draws.phys_fc, draws.held):
             k = int(np.sum(flags))
             values += [k / n, wilson_interval(k, n)]
-        return cls(draws.object, draws.index, draws.id, n, *values)
+        turns = [None if not np.isfinite(v) else round(float(np.degrees(v)), 2)
+                 for v in draws.grip_turn]
+        return cls(draws.object, draws.index, draws.id, n, *values, outcome_counts(draws),
+                   phase_counts(draws, phases), [HOLD_OUTCOMES[k] for k in draws.hold_outcome],
+                   millimetres(draws.grip_shift), turns,
+                   [None if not np.isfinite(v) else round(float(v), 2) for v in draws.pin_force])
 
     def to_json(self) -> dict:
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)

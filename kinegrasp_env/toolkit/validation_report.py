@@ -1,6 +1,17 @@
-"""What ``kinegrasp validate`` writes: per-draw and per-grasp CSV tables, a JSON summary
-(confusion matrices, Spearman correlations of P(FC) with P(hold) and their bootstrap
-intervals) and a scatter plot, results before the figure, every file atomically."""
+"""What ``kinegrasp validate`` writes: per-draw and per-grasp CSV tables, a JSON summary and a
+scatter plot, results before the figure, every file atomically.
+
+The summary's keys: ``settings`` (the validation settings), ``protocol`` (the holding test's
+constants: thresholds in metres and radians, durations in seconds, ``torques_nm`` the torque
+limits it ran with, stated assumptions x ``torque_scale``), ``grasps`` (per grasp:
+``p_fc_kinematic``, ``p_fc_physics``, ``p_hold`` with ``_ci`` Wilson 95% intervals;
+``outcomes``: draws per holding outcome; ``phases``: per phase ``{"run", "held"}`` draw
+counts; ``draw_outcomes``, ``grip_shift_mm``, ``grip_turn_deg``, ``pin_force_n`` (the net
+force of the pinned grip on the object: zero for a grip in equilibrium): per draw, in draw
+order, None where not reached), ``draws``, ``outcomes`` and ``phases`` pooled over
+the grasps, ``grip_shift_mm`` (median and max over the released draws, and over those
+whose kinematic outcome is force closure), ``confusion`` (per-draw matrices),
+``spearman`` (rho of P(FC) with P(hold) across grasps, bootstrap interval)."""
 
 from __future__ import annotations
 
@@ -13,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.toolkit.plots import safe_figure, save_figure
 from kinegrasp_env.toolkit.validation import GraspDraws, GraspRow, ValidationSettings
 from kinegrasp_env.toolkit.validation_stats import bootstrap_spearman, confusion
@@ -35,7 +47,8 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
     """The JSON summary: settings, per-grasp rows, pooled confusion matrices (rows: predicted
     False/True, columns: actual False/True) and, across grasps, Spearman's rho of P(FC)
     (each engine) with P(hold), with percentile bootstrap intervals over the grasps."""
-    rows = [GraspRow.of(r) for r in results]
+    protocol = settings.protocol
+    rows = [GraspRow.of(r, protocol.phases) for r in results]
     p_hold = np.array([r.p_hold for r in rows])
     correlations = {}
     for name, column in (("kinematic", "p_fc_kinematic"), ("physics", "p_fc_physics")):
@@ -44,11 +57,35 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
             p_fc, p_hold, bootstrap_seed, resamples).to_json()
     matrices = {name: confusion(pooled(results, a), pooled(results, b)).tolist()
                 for name, (a, b) in CONFUSIONS.items()}
-    return {"settings": asdict(settings), "grasps": [r.to_json() for r in rows],
-            "draws": int(sum(r.held.size for r in results)),
+    outcomes = {name: sum(r.outcomes[name] for r in rows) for name in HOLD_OUTCOMES}
+    phases = {name: {key: sum(r.phases[name][key] for r in rows) for key in ("run", "held")}
+              for name in protocol.phases}
+    return {"settings": asdict(settings),
+            "protocol": {**asdict(protocol), "phases": list(protocol.phases),
+                         "torques_nm": asdict(protocol.torques)},
+            "grasps": [r.to_json() for r in rows],
+            "draws": int(sum(len(r) for r in results)), "outcomes": outcomes, "phases": phases,
+            "grip_shift_mm": shift_stats(results),
             "confusion": matrices, "confusion_layout": "[[F,F],[F,T]],[[T,F],[T,T]]: rows "
             "predicted False/True, columns actual False/True",
             "spearman": correlations, "bootstrap_seed": bootstrap_seed}
+
+
+def shift_stats(results: list[GraspDraws]) -> dict:
+    """Median and max grip shift (mm) over the released draws, and over those of them in
+    kinematic force closure (None: no such draw)."""
+    if not results:
+        return {"released": None, "force_closure": None}
+    shift = pooled(results, "grip_shift")
+    fc = pooled(results, "kin_fc")
+
+    def stats(values: np.ndarray) -> dict | None:
+        values = values[np.isfinite(values)]
+        if not values.size:
+            return None
+        return {"n": int(values.size), "median": round(float(np.median(values)) * 1e3, 2),
+                "max": round(float(values.max()) * 1e3, 2)}
+    return {"released": stats(shift), "force_closure": stats(shift[fc])}
 
 
 def csv_text(header: list[str], rows) -> str:
@@ -59,13 +96,20 @@ def csv_text(header: list[str], rows) -> str:
     return buffer.getvalue()
 
 
+PHASE_CODES = {1: "held", 0: "failed", -1: "not_run"}
+
+
 def draw_rows(results: list[GraspDraws]):
     for r in results:
-        for i in range(r.held.size):
+        for i in range(len(r)):
             yield (r.object, r.index, r.id, i, OUTCOMES[r.kin_outcome[i]],
                    f"{r.kin_quality[i]:.6g}", OUTCOMES[r.phys_outcome[i]],
-                   f"{r.phys_quality[i]:.6g}", int(r.held[i]), f"{r.max_offset[i]:.6g}",
-                   f"{r.lift_time[i]:.6g}")
+                   f"{r.phys_quality[i]:.6g}", HOLD_OUTCOMES[r.hold_outcome[i]],
+                   f"{r.grip_shift[i] * 1e3:.4g}", f"{np.degrees(r.grip_turn[i]):.4g}",
+                   *(f"{v:.4g}" for v in r.forces_gripped[i]),
+                   *(f"{v:.4g}" for v in r.forces_released[i]), f"{r.pin_force[i]:.4g}",
+                   *(PHASE_CODES[int(v)] for v in r.phase_held[i]),
+                   *(f"{v * 1e3:.4g}" for v in r.phase_shift[i]))
 
 
 def grasp_rows(summary: dict):
@@ -84,7 +128,10 @@ def write_results(out_dir: str | Path, results: list[GraspDraws],
              "summary": out / "summary.json"}
     write_atomic(paths["draws"], csv_text(
         ["object", "grasp", "id", "draw", "kinematic_outcome", "kinematic_q",
-         "physics_outcome", "physics_q", "held", "max_offset_m", "lift_time_s"],
+         "physics_outcome", "physics_q", "hold_outcome", "grip_shift_mm", "grip_turn_deg"]
+        + [f"force_{when}_f{k + 1}_n" for when in ("gripped", "released") for k in range(3)]
+        + ["pin_force_n"]
+        + list(PHASES) + [f"{name}_max_shift_mm" for name in PHASES],
         draw_rows(results)))
     write_atomic(paths["grasps"], csv_text(
         ["object", "grasp", "id", "samples"] + [f"{key}{end}" for key in
@@ -118,8 +165,9 @@ def plot_scatter(summary: dict, path: Path) -> Path:
                     elinewidth=0.5, label=f"{label} (Spearman {text})")
     ax.plot([0, 1], [0, 1], color="grey", lw=0.5, ls="--")
     settings = summary["settings"]
-    ax.set(xlabel="P(FC)", ylabel="P(hold) (lift, hold, shake)", xlim=(-0.03, 1.03),
-           ylim=(-0.03, 1.03), title=f"{len(grasps)} grasps, sigma {settings['sigma']:g} rad, "
+    ax.set(xlabel="P(FC)", ylabel="P(hold) (grip, six gravity directions, lift)",
+           xlim=(-0.03, 1.03), ylim=(-0.03, 1.03),
+           title=f"{len(grasps)} grasps, sigma {settings['sigma']:g} rad, "
            f"{settings['samples']} draws each")
     ax.legend(loc="lower right", fontsize=8)
     return save_figure(fig, path)

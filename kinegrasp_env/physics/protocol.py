@@ -1,0 +1,241 @@
+"""The holding test, simulator-independent: its phases, thresholds, assumptions and results.
+
+Every simulator runs the same protocol on one draw (the hand at the draw's flange pose, the
+fingers at the grasp's pre-shape), step by step:
+
+1. **closing**, the object held fixed (a constraint pins it where the catalog places it): the
+   finger motors close the hand until the joints stall (the simulator's closing controller);
+   the contacts give the draw's physics outcome and Q, as in the kinematic closing, whose
+   object never moves either;
+2. **grip**, the object still fixed, gravity off: every finger's motors press with their
+   torque limits until the contact forces are steady (each finger's total normal force
+   changes by less than ``steady_change`` relative, or ``steady_floor`` newtons, over
+   ``steady_window``, twice in a row; at least ``grip_min_time``, at most ``grip_max_time``).
+   A finger *presses* when its links' normal forces sum to more than ``contact_force``; with
+   fewer than two pressing fingers the draw ends as ``no_grip``;
+3. **release**: the pin goes (and any support table with it), gravity still off, and the
+   object moves under the grip's own forces only, for ``settle_time``. Its displacement in
+   the palm frame from the last pinned instant is the draw's ``grip_shift_mm`` (centre of
+   mass, millimetres) and ``grip_turn_deg`` (rotation angle). If fewer than two fingers press
+   now, or a finger that pressed at the end of the grip carries ``contact_force`` or less,
+   the grip lost a contact: ``grip_lost`` (the grip itself failed; nothing was dropped);
+4. **disturbances**, each from the same post-release state (the reference pose: the object in
+   the palm frame then), the hand motors still pressing:
+
+   * ``gravity_+x`` ... ``gravity_-z``: gravity of ``gravity`` m/s^2 along each world axis in
+     turn (the six-direction test of DexGraspNet and BODex), for ``gravity_time`` each, the
+     hand still;
+   * ``lift``: gravity along world -z, the hand lifted by ``lift_height`` in ``lift_time``
+     (minimum-jerk), then still for ``hold_time`` (:mod:`~kinegrasp_env.physics.motion`);
+   * ``shake`` (only with ``shake=True``, right after a held lift): ``shake_time`` at
+     ``shake_frequency``, a translation of ``shake_amplitude`` along (0, 1, 1)/sqrt(2) and a
+     rotation of ``shake_angle`` about world x through the palm centre, ramped over
+     ``ramp_time``.
+
+   A phase *holds* when, at every check (every ``check_interval`` and at its end), the
+   object's centre of mass is within ``max_shift`` of the reference and its rotation from
+   the reference is within ``max_turn`` (palm frame); a phase stops at its first failed check.
+
+The draw's outcome (:data:`HOLD_OUTCOMES`): ``start_collision`` (the closing's), ``no_grip``,
+``grip_lost``, ``dropped`` (some phase run failed), ``held`` (every phase run held).
+
+The torque limits of the finger joints are **assumptions** (:data:`ASSUMED_TORQUES`), not
+measured values of a real hand; ``torque_scale`` multiplies all of them, so a reader can see
+how much a conclusion depends on them (``benchmarks/hold_torque_sensitivity.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: The six gravity phases: name -> unit direction of gravity (world frame).
+GRAVITY_PHASES: dict[str, tuple[float, float, float]] = {
+    "gravity_+x": (1.0, 0.0, 0.0), "gravity_-x": (-1.0, 0.0, 0.0),
+    "gravity_+y": (0.0, 1.0, 0.0), "gravity_-y": (0.0, -1.0, 0.0),
+    "gravity_+z": (0.0, 0.0, 1.0), "gravity_-z": (0.0, 0.0, -1.0),
+}
+#: Every disturbance phase, in the order they run.
+PHASES: tuple[str, ...] = (*GRAVITY_PHASES, "lift", "shake")
+#: The outcomes of a draw's holding test.
+HOLD_OUTCOMES: tuple[str, ...] = ("start_collision", "no_grip", "grip_lost", "dropped", "held")
+START_COLLISION, NO_GRIP, GRIP_LOST, DROPPED, HELD = range(len(HOLD_OUTCOMES))
+
+
+@dataclass(frozen=True)
+class TorqueLimits:
+    """Torque limits of the hand's joints, N m.
+
+    Attributes:
+        proximal, distal: the flexion motors (closing and gripping).
+        hold: the position controllers that hold the spread joints and a stopped proximal
+            joint (the joint's gear holding it: the URDF's effort limit).
+    """
+
+    proximal: float
+    distal: float
+    hold: float
+
+    def scaled(self, factor: float) -> TorqueLimits:
+        """Every limit times ``factor`` (> 0)."""
+        if not (np.isfinite(factor) and factor > 0):
+            raise ValueError(f"torque scale must be a positive number, got {factor!r}")
+        return TorqueLimits(self.proximal * factor, self.distal * factor, self.hold * factor)
+
+
+#: The assumed torque limits (stated assumptions: proximal 2.1 N m and distal 1.4 N m are
+#: the order of magnitude of a small three-finger hand's joints; no data sheet was read;
+#: hold 10 N m is the hand URDF's effort limit).
+ASSUMED_TORQUES = TorqueLimits(proximal=2.1, distal=1.4, hold=10.0)
+
+
+@dataclass(frozen=True)
+class HoldProtocol:
+    """The holding test's settings (module docstring; metres, seconds, radians, newtons,
+    hertz). Frozen: a protocol is a value, hashed into result caches."""
+
+    grip_min_time: float = 0.05
+    grip_max_time: float = 0.5
+    steady_window: float = 0.02
+    steady_change: float = 0.02
+    steady_floor: float = 0.02
+    contact_force: float = 0.05
+    settle_time: float = 0.2
+    max_shift: float = 0.02
+    max_turn: float = float(np.radians(10.0))
+    check_interval: float = 0.01
+    gravity: float = 9.81
+    gravity_time: float = 0.5
+    lift_height: float = 0.10
+    lift_time: float = 1.0
+    hold_time: float = 1.0
+    shake: bool = False
+    shake_time: float = 1.5
+    shake_frequency: float = 2.0
+    shake_amplitude: float = 0.03
+    shake_angle: float = float(np.radians(20.0))
+    ramp_time: float = 0.25
+    torque_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        positive = ("grip_max_time", "steady_window", "contact_force", "max_shift", "max_turn",
+                    "check_interval", "gravity_time", "lift_time", "torque_scale")
+        for name in positive:
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        for name in ("grip_min_time", "steady_change", "steady_floor", "settle_time",
+                     "gravity", "lift_height", "hold_time", "shake_time", "shake_frequency",
+                     "shake_amplitude", "shake_angle", "ramp_time"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+        if self.grip_min_time > self.grip_max_time:
+            raise ValueError(f"grip_min_time {self.grip_min_time!r} exceeds grip_max_time "
+                             f"{self.grip_max_time!r}")
+
+    @property
+    def torques(self) -> TorqueLimits:
+        """The torque limits this protocol runs with: :data:`ASSUMED_TORQUES` x
+        ``torque_scale``."""
+        return ASSUMED_TORQUES.scaled(self.torque_scale)
+
+    @property
+    def phases(self) -> tuple[str, ...]:
+        """The phases this protocol runs (``shake`` only with ``shake=True``)."""
+        return PHASES if self.shake else PHASES[:-1]
+
+
+def pose_change(reference: np.ndarray, current: np.ndarray,
+                center_of_mass: np.ndarray) -> tuple[float, float]:
+    """How far an object moved between two of its poses (4, 4) in one frame (the palm's):
+    (distance its centre of mass ``center_of_mass`` (3,) (object frame) moved, metres; the
+    angle of the rotation between the two poses, radians)."""
+    com = np.append(np.asarray(center_of_mass, dtype=float), 1.0)
+    distance = float(np.linalg.norm((current @ com - reference @ com)[:3]))
+    relative = reference[:3, :3].T @ current[:3, :3]
+    cosine = np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)
+    return distance, float(np.arccos(cosine))
+
+
+def within(protocol: HoldProtocol, distance: float, angle: float) -> bool:
+    """The holding criterion: moved at most ``max_shift`` metres and ``max_turn`` radians."""
+    return distance <= protocol.max_shift and angle <= protocol.max_turn
+
+
+def pressing(forces: np.ndarray, protocol: HoldProtocol) -> np.ndarray:
+    """(3,) bool: the fingers whose total normal force (3,) (newtons) exceeds
+    ``contact_force``."""
+    return np.asarray(forces, dtype=float) > protocol.contact_force
+
+
+def grip_verdict(before: np.ndarray, after: np.ndarray, protocol: HoldProtocol) -> int:
+    """The grip's outcome from the fingers' total normal forces (3,) (newtons) at the end of
+    the pinned grip (``before``) and after the release (``after``): :data:`NO_GRIP` (fewer
+    than two pressed before), :data:`GRIP_LOST` (fewer than two press after, or a finger that
+    pressed before carries ``contact_force`` or less), else :data:`HELD` (the grip stands;
+    the phases decide)."""
+    was, now = pressing(before, protocol), pressing(after, protocol)
+    if was.sum() < 2:
+        return NO_GRIP
+    if now.sum() < 2 or np.any(was & ~now):
+        return GRIP_LOST
+    return HELD
+
+
+def steady(previous: np.ndarray, current: np.ndarray, protocol: HoldProtocol) -> bool:
+    """Whether the fingers' total normal forces (3,) changed by at most ``steady_change``
+    (relative) or ``steady_floor`` newtons, whichever is larger, over one window."""
+    previous, current = np.asarray(previous, float), np.asarray(current, float)
+    bound = np.maximum(protocol.steady_change * np.abs(current), protocol.steady_floor)
+    return bool(np.all(np.abs(current - previous) <= bound))
+
+
+@dataclass
+class HoldResult:
+    """One draw's holding test.
+
+    Attributes:
+        outcome: index into :data:`HOLD_OUTCOMES`.
+        grip_shift: the object's displacement by the grip after the release, metres (NaN:
+            no release: start collision or no grip); grip_turn: its rotation, radians.
+        forces_gripped, forces_released: (3,) each finger's total normal force at the end of
+            the pinned grip and after the release, newtons (NaN: not reached).
+        grip_time: how long the pinned grip ran until steady, seconds (NaN: not reached).
+        pin_force, pin_torque: the net force (N) and torque (N m) the grip puts on the
+            pinned object at the end of the grip (what the pin holds: zero for a grip in
+            equilibrium; NaN: not reached).
+        phase_held: phase name -> held, for the phases run (none unless the grip stood).
+        phase_shift, phase_turn: phase name -> the largest displacement (m) and rotation (rad)
+            from the reference seen in that phase (up to its first failed check).
+    """
+
+    outcome: int
+    grip_shift: float = float("nan")
+    grip_turn: float = float("nan")
+    forces_gripped: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    forces_released: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    grip_time: float = float("nan")
+    pin_force: float = float("nan")
+    pin_torque: float = float("nan")
+    phase_held: dict[str, bool] = field(default_factory=dict)
+    phase_shift: dict[str, float] = field(default_factory=dict)
+    phase_turn: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def grip_shift_mm(self) -> float:
+        return self.grip_shift * 1e3
+
+    @property
+    def held(self) -> bool:
+        return self.outcome == HELD
+
+
+def final_outcome(grip: int, phase_held: dict[str, bool]) -> int:
+    """A draw's outcome from its grip verdict (:func:`grip_verdict`) and its phases:
+    the grip's failure if it failed, else :data:`DROPPED` if any phase failed, else
+    :data:`HELD`."""
+    if grip != HELD:
+        return grip
+    return HELD if all(phase_held.values()) else DROPPED
