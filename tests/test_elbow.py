@@ -1,5 +1,6 @@
-"""The elbow optimizer: what it promises (same palm pose, independent scoring draws, valid
-intervals), each checked against an independent computation."""
+"""The elbow optimizer: what it promises (same palm pose, fresh scoring draws, valid
+intervals, a certificate that holds at its stated level), each checked against an independent
+computation or by its frequency on curves whose truth is known."""
 
 from __future__ import annotations
 
@@ -16,13 +17,12 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import (
-    ElbowPoint,
     configuration_at,
-    miss_probability,
     optimize_elbow,
     paired_interval,
     reachable_configurations,
 )
+from kinegrasp_env.toolkit.elbow_certificate import certify, difference_upper_bound
 from kinegrasp_env.world.grasps import shipped_grasps
 
 
@@ -35,23 +35,122 @@ def test_paired_interval_is_the_t_interval():
     assert (lo, hi) == pytest.approx(ref, rel=1e-12)
 
 
-def test_miss_probability_by_hand():
-    """One rival with paired differences of known mean and standard error: the bound is
-    Phi(mean / se), computed here by hand; a dominated rival adds 0."""
-    best_fc = np.array([1, 1, 1, 0, 0, 1, 0, 1] * 10, bool)
-    rival_fc = best_fc.copy()
-    rival_fc[[3, 4]] = True      # rival wins two draws ...
-    rival_fc[[0]] = False        # ... and loses one
-    dominated = best_fc & False
-    best = ElbowPoint(0.0, np.zeros(14), best_fc.mean(), (0, 1), best_fc)
-    rival = ElbowPoint(0.1, np.zeros(14), rival_fc.mean(), (0, 1), rival_fc)
-    low = ElbowPoint(0.2, np.zeros(14), 0.0, (0, 1), dominated)
-    d = rival_fc.astype(float) - best_fc.astype(float)
-    expected = 0.5 * (1 + math.erf(d.mean() / (d.std(ddof=1) / math.sqrt(d.size)) / math.sqrt(2)))
-    low_d = dominated.astype(float) - best_fc.astype(float)
-    expected += 0.5 * (1 + math.erf(low_d.mean() / (low_d.std(ddof=1) / math.sqrt(80))
-                                    / math.sqrt(2)))
-    assert miss_probability([best, rival, low], best) == pytest.approx(expected, rel=1e-12)
+def test_rival_bound_is_the_two_exact_one_sided_intervals():
+    """The bound of one rival is scipy's exact (Clopper-Pearson) one-sided upper limit of its
+    win rate at delta/2 minus the one-sided lower limit of its loss rate at delta/2
+    (``binomtest(...).proportion_ci``: an independent implementation), including the
+    boundary counts 0 and n."""
+    n, delta = 300, 0.05
+    for wins, losses in [(0, 0), (3, 0), (0, 7), (25, 18), (300, 0), (0, 300), (140, 160)]:
+        up = sps.binomtest(wins, n, alternative="less").proportion_ci(1 - delta / 2, "exact")
+        lo = sps.binomtest(losses, n, alternative="greater").proportion_ci(1 - delta / 2,
+                                                                          "exact")
+        bound = float(difference_upper_bound(np.array(wins), np.array(losses), n, delta))
+        assert bound == pytest.approx(up.high - lo.low, abs=1e-9), (wins, losses)
+
+
+def test_rival_bound_covers_where_a_t_bound_does_not():
+    """Coverage of one rival's bound on exact binomial draws with a known advantage, 4,000
+    repetitions each: it is below the true advantage in at most delta of them (+ a binomial
+    margin: the 99.9% quantile of Binomial(4000, delta)), also with few discordant draws
+    (win rate 0.003 and no losses: 1.2 wins expected in 400 draws), where the paired t-bound
+    misses far more often than delta (it is 0 whenever no draw is discordant)."""
+    rng = np.random.default_rng(11)
+    n, delta, reps = 400, 0.05, 4000
+    margin = sps.binom.ppf(0.999, reps, delta) / reps
+    for p_win, p_loss in [(0.003, 0.0), (0.05, 0.03), (0.2, 0.2)]:
+        counts = rng.multinomial(n, [p_win, p_loss, 1 - p_win - p_loss], size=reps)
+        wins, losses = counts[:, 0], counts[:, 1]
+        truth = p_win - p_loss
+        miss = np.mean(difference_upper_bound(wins, losses, n, delta) < truth)
+        assert miss <= margin, (p_win, p_loss, miss)
+        if p_loss == 0.0:
+            mean = (wins - losses) / n
+            var = (wins + losses) / n - mean ** 2
+            t_bound = mean + sps.t.ppf(1 - delta, n - 1) * np.sqrt(var * n / (n - 1) / n)
+            assert np.mean(t_bound < truth) > 3 * delta
+
+
+#: 18 angles: two near-tied best angles (0.600 and 0.598: the best unique), the rest at
+#: 0.45; a better angle is missed in about half of the runs (selection noise >> 0.002).
+NEAR_TIE = np.where(np.arange(18) == 6, 0.600, np.where(np.arange(18) == 7, 0.598, 0.45))
+#: 18 angles: six tied best angles at 0.6, 0.02 lower per angle outside them.
+PLATEAU = np.clip(0.6 - 0.02 * np.maximum(np.maximum(6 - np.arange(18), np.arange(18) - 11),
+                                          0), 0, 1)
+
+
+def latent_draws(p: np.ndarray, n: int, rng: np.random.Generator, rho: float = 0.5,
+                 phi: float = 0.5) -> np.ndarray:
+    """(m, n) bool: draw i in force closure at angle j when rho Z_i + sqrt(1 - rho^2) W_ji <
+    Phi^-1(p_j), Z shared by the angles (common random numbers), W AR(phi) along them."""
+    w = np.empty((p.size, n))
+    w[0] = rng.standard_normal(n)
+    for j in range(1, p.size):
+        w[j] = phi * w[j - 1] + math.sqrt(1 - phi ** 2) * rng.standard_normal(n)
+    latent = rho * rng.standard_normal(n) + math.sqrt(1 - rho ** 2) * w
+    return latent < sps.norm.ppf(p)[:, None]
+
+
+def certificate_claim(selection: np.ndarray, fresh: np.ndarray, p: np.ndarray,
+                      delta: float) -> tuple[float, bool]:
+    """The optimizer's procedure on one synthetic run: choose on the selection draws,
+    certify on the fresh ones; (stated error level, whether the statement is false)."""
+    chosen = int(np.argmax(selection.mean(axis=1)))
+    others = [j for j in range(p.size) if j != chosen]
+    cert = certify(float(chosen), fresh[chosen], [float(j) for j in others], fresh[others],
+                   0.05, delta)
+    return delta, bool(p[others].max() - p[chosen] > cert.bound)
+
+
+def false_claims(claim, p: np.ndarray, reps: int, n: int, delta: float,
+                 seed: int) -> list[tuple[float, bool]]:
+    rng = np.random.default_rng(seed)
+    return [claim(latent_draws(p, n, rng), latent_draws(p, n, rng), p, delta)
+            for _ in range(reps)]
+
+
+def assert_calibrated(runs: list[tuple[float, bool]], levels=(0.05, 0.2)) -> None:
+    """For each level a: among the runs that stated an error level <= a, the false ones are
+    not significantly more than a (one-sided exact binomial test at 1%)."""
+    for a in levels:
+        flags = [false for level, false in runs if level <= a]
+        if flags:
+            p = sps.binomtest(sum(flags), len(flags), a, alternative="greater").pvalue
+            assert p >= 0.01, f"level {a}: {sum(flags)} of {len(flags)} statements false"
+
+
+@pytest.mark.parametrize("curve", ["near_tie", "plateau"])
+def test_printed_statement_holds_at_its_level(curve):
+    """The certificate on synthetic curves with a known truth, 200 runs of 18 angles x 1,000
+    selection and 1,000 fresh draws each: "no evaluated angle beats the chosen one by more
+    than B" (stated at delta = 0.05) is false in at most delta of the runs, up to a binomial
+    margin: the test fails when the count of false runs has a one-sided exact p-value below
+    1% against a true rate of delta (19 or more of 200). On the near tie the replaced formula
+    (a Phi-sum on the selection draws, "P(a better evaluated angle was missed) <= x") fails
+    the same check: about 40% of its runs with x <= 0.2 and a third of those with x <= 0.05
+    had missed the better angle."""
+    p = NEAR_TIE if curve == "near_tie" else PLATEAU
+    runs = false_claims(certificate_claim, p, 200, 1000, 0.05, seed=5)
+    assert_calibrated(runs)
+
+
+def test_certificate_words_and_levels():
+    """The statement says what is claimed, rounded up (never stronger than computed); a
+    bound below zero is worded as a lead; bad levels are one-line errors naming the value."""
+    chosen = np.array([1] * 60 + [0] * 40, bool)
+    rival = np.array([1] * 50 + [0] * 50, bool)  # 10 losses, no wins
+    cert = certify(0.5, chosen, [0.1], rival[None], epsilon=0.05, delta=0.05)
+    assert cert.certified and cert.bound < 0
+    assert "at least" in cert.statement() and "below that of psi = +0.500" in cert.statement()
+    rival2 = rival.copy()
+    rival2[60:75] = True  # 15 wins, 10 losses
+    cert2 = certify(0.5, chosen, [0.1], rival2[None], epsilon=0.05, delta=0.05)
+    shown = float(cert2.statement().split("by more than ")[1].split()[0])
+    assert shown >= cert2.bound and shown - cert2.bound < 1e-3 and not cert2.certified
+    for eps, delta, word in [(-0.1, 0.05, "epsilon"), (0.05, 0.0, "delta"),
+                             (0.05, 1.0, "delta"), (float("nan"), 0.05, "epsilon")]:
+        with pytest.raises(ValueError, match=word):
+            certify(0.5, chosen, [0.1], rival[None], epsilon=eps, delta=delta)
 
 
 def test_self_motion_keeps_the_palm_pose_and_out_of_reach_is_an_error():
@@ -74,7 +173,8 @@ def test_self_motion_keeps_the_palm_pose_and_out_of_reach_is_an_error():
 def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
     """The best angle's P(FC) comes from draws the selection never saw (chunks K..2K-1), equal
     to evaluating that configuration on those chunks directly; the gain interval is the paired
-    t-interval of those draws; the curve holds the nominal angle."""
+    t-interval of those draws; the curve holds the nominal angle; the certificate counts each
+    rival's wins and losses on those same fresh chunks (counted here from the engine)."""
     grasp = shipped_grasps("spray_flask")[1]
     noise = JointNoise(0.0266)
     result = optimize_elbow(grasp, noise, 200, seed=4, engine="fast", chunk=100)
@@ -99,11 +199,26 @@ def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
     nominal_point = next(p for p in result.curve if abs(p.psi - result.nominal_psi) < 1e-12)
     direct = evaluate_grasp(grasp, noise, 200, seed=4, engine="fast", chunk=100)
     assert nominal_point.p_fc == direct.p_fc
+    # the certificate: every other curve angle on the same fresh chunks, wins and losses
+    # against the chosen one counted here from the engine's own draws
+    fresh = {p.psi: np.concatenate([draw_chunk(engine, p.q, noise, 4, c, 100).outcome
+                                    for c in (2, 3)]) == FORCE_CLOSURE for p in result.curve}
+    cert = result.certificate
+    assert len(cert.rivals) == len(result.curve) - 1 and cert.draws == 200
+    for rival in cert.rivals:
+        assert rival.wins == int(np.sum(fresh[rival.psi] & ~fc_best))
+        assert rival.losses == int(np.sum(~fresh[rival.psi] & fc_best))
+        assert rival.upper == pytest.approx(float(difference_upper_bound(
+            np.array(rival.wins), np.array(rival.losses), 200, 0.05)), abs=1e-12)
+    assert cert.bound == max(r.upper for r in cert.rivals)
+    assert cert.certified == (cert.bound <= cert.epsilon)
     payload = json.loads(json.dumps(result.to_json()))
     for key in ("best_psi", "best_p_fc", "best_p_fc_ci", "nominal_psi", "nominal_p_fc",
-                "gain_ci", "curve"):
+                "gain_ci", "curve", "certificate"):
         assert key in payload
-    assert {"psi", "p_fc", "p_fc_ci"} <= set(payload["curve"][0])
+    assert {"psi", "p_fc", "p_fc_ci", "fresh_p_fc"} <= set(payload["curve"][0])
+    assert {"statement", "certified", "epsilon", "delta", "bound", "worst_psi",
+            "fresh_draws", "method", "rivals"} <= set(payload["certificate"])
 
 
 def test_evaluate_elbow_option(capsys):

@@ -1,5 +1,9 @@
 """``kinegrasp elbow``: the most robust elbow angle of a grasp, with its certificate (and,
-with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.write_elbow_report`)."""
+with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.write_elbow_report`).
+
+The certificate (:mod:`kinegrasp_env.toolkit.elbow_certificate`) is printed as the claim it
+makes: "with 95% confidence no evaluated elbow angle beats psi = ... by more than B in P(FC)",
+then whether B is within ``--epsilon`` (certified) or not."""
 
 from __future__ import annotations
 
@@ -7,15 +11,29 @@ import json
 import sys
 
 from kinegrasp_env.cli.common import (
+    CLIError,
     add_execution_args,
     add_noise_args,
     add_object_arg,
     executor_from,
+    finite_float,
     grasp_index_help,
     noise_from,
     output_file,
     shipped_grasp,
 )
+from kinegrasp_env.toolkit.elbow_certificate import DEFAULT_DELTA, DEFAULT_EPSILON
+
+
+def certificate_levels(args) -> tuple[float, float]:
+    """``--epsilon`` in [0, 1) and ``--delta`` in (0, 1), or a one-line CLIError."""
+    epsilon = finite_float(args.epsilon, "--epsilon")
+    delta = finite_float(args.delta, "--delta")
+    if not 0 <= epsilon < 1:
+        raise CLIError(f"--epsilon must be a P(FC) margin in [0, 1), got {args.epsilon}")
+    if not 0 < delta < 1:
+        raise CLIError(f"--delta must be an error level in (0, 1), got {args.delta}")
+    return epsilon, delta
 
 
 def cmd_elbow(args) -> int:
@@ -25,15 +43,16 @@ def cmd_elbow(args) -> int:
     from kinegrasp_env.toolkit.elbow import optimize_elbow
 
     noise, sigma, samples, seed = noise_from(args)
+    epsilon, delta = certificate_levels(args)
     index, grasp = shipped_grasp(args.object, args.grasp)
     if args.plot:
         output_file(args.plot, "--plot")
     report_path(args.report)
-    bar = tqdm(desc=f"elbow angles of {args.object} grasp {index}", unit="angle",
-               file=sys.stderr, disable=None)
+    bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} (selection, then fresh "
+               "draws)", unit="angle", file=sys.stderr, disable=None)
     with executor_from(args) as executor:
         result = optimize_elbow(grasp, noise, samples, seed, engine=args.engine,
-                                executor=executor,
+                                epsilon=epsilon, delta=delta, executor=executor,
                                 progress=lambda done: bar.update(done - bar.n))
     bar.close()
     payload = result.to_json()
@@ -61,15 +80,27 @@ def text_summary(result: dict, index: int) -> str:
     glo, ghi = result["gain_ci"]
     return "\n".join([
         f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, "
-        f"{len(result['curve'])} elbow angles x {result['samples']} draws "
-        f"({result['engine']} engine)",
+        f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again on "
+        f"{result['samples']} fresh draws ({result['engine']} engine)",
         f"  nominal elbow {result['nominal_psi']:+.3f} rad: P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best elbow    {result['best_psi']:+.3f} rad: P(FC) "
-        f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [independent draws]",
+        f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
         f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
-        f"  P(a better evaluated angle was missed) <= {result['miss_probability']:.3f} "
-        f"(grid step {result['grid_step']:.3f} rad)"])
+        *certificate_lines(result["certificate"], result["grid_step"])])
+
+
+def certificate_lines(cert: dict, grid_step: float) -> list[str]:
+    """The certificate (``Certificate.to_json()``) in words: the claim, then the verdict."""
+    if cert["bound"] is None:
+        return [f"  {cert['statement']}"]
+    verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
+               f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
+               "rad is the rival it cannot rule out)")
+    return [f"  {cert['statement']}",
+            f"    {verdict}; {len(cert['rivals'])} other angles, exact one-sided binomial "
+            f"bounds on {cert['fresh_draws']} fresh draws; angles between the {grid_step:.3f} "
+            "rad grid points not covered"]
 
 
 def add_commands(sub) -> None:
@@ -83,6 +114,13 @@ def add_commands(sub) -> None:
     add_execution_args(p, 1)
     p.add_argument("--engine", default="fast", choices=("fast", "pybullet"),
                    help="fast (default: many angles x draws) or pybullet (the reference)")
+    p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
+                   help="margin in P(FC) of the certificate: certified when, with confidence "
+                   f"1 - delta, no evaluated angle beats the chosen one by more than it "
+                   f"(default {DEFAULT_EPSILON})")
+    p.add_argument("--delta", default=str(DEFAULT_DELTA),
+                   help=f"error level of the certificate (default {DEFAULT_DELTA}: 95%% "
+                   "confidence)")
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")

@@ -11,15 +11,16 @@ self-motion and picks the most robust elbow:
 2. **Refinement**: around the best coarse angles, every configuration of the fine grid is
    evaluated with the same draws.
 3. **Selection**: the best angle of the curve by P(FC).
-4. **Scoring** (independent draws): the chosen angle and the nominal one are evaluated again on
-   chunks the selection never used (chunks ``K..2K-1`` of the same seed), so the reported
-   P(FC) of the best angle is not biased upwards by the selection (winner's curse), and the
-   gain over the nominal is a paired difference on common draws with a t-interval.
-5. **Certificate**: for every other evaluated angle j, the paired difference d_j = FC_j -
-   FC_best on the selection draws gives the probability that j is in truth better,
-   Phi(mean(d_j) / se(d_j)); their sum bounds the probability that a better evaluated angle
-   was missed (union bound). Angles between fine-grid points are not covered: the grid step is
-   reported with it.
+4. **Scoring** (fresh draws): every evaluated angle is evaluated again on chunks the
+   selection never used (chunks ``K..2K-1`` of the same seed, common random numbers across
+   the angles), so the reported P(FC) of the best angle is not biased upwards by the selection
+   (winner's curse), and the gain over the nominal is a paired difference on common draws
+   with a t-interval.
+5. **Certificate** (the same fresh draws, :mod:`~kinegrasp_env.toolkit.elbow_certificate`):
+   with confidence 1 - delta, no evaluated angle beats the chosen one by more than a bound B
+   in P(FC) (exact one-sided binomial bounds on each rival's wins and losses); certified at
+   epsilon when B <= epsilon. Angles between fine-grid points are not covered: the grid step
+   is reported with it.
 """
 
 from __future__ import annotations
@@ -39,6 +40,13 @@ from kinegrasp_env.montecarlo.evaluate import (
 )
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.toolkit.elbow_certificate import (
+    DEFAULT_DELTA,
+    DEFAULT_EPSILON,
+    Certificate,
+    certify,
+    check_levels,
+)
 from kinegrasp_env.toolkit.planner import GraspPlanner
 from kinegrasp_env.world.grasps import Grasp
 
@@ -52,7 +60,8 @@ REFINE_TOP = 2
 
 @dataclass
 class ElbowPoint:
-    """P(FC) of one elbow angle on the selection draws."""
+    """P(FC) of one elbow angle on the selection draws (and on the fresh draws, once they
+    are run)."""
 
     psi: float
     q: np.ndarray = field(repr=False)
@@ -61,9 +70,14 @@ class ElbowPoint:
     fc: np.ndarray = field(repr=False)  # (n,) bool: force closure per selection draw
     #: (n,) int8 outcome (index into ``OUTCOMES``) per selection draw, when kept
     outcome: np.ndarray | None = field(default=None, repr=False)
+    #: (n,) bool: force closure per fresh draw (chunks the selection never used)
+    fresh_fc: np.ndarray | None = field(default=None, repr=False)
 
     def to_json(self) -> dict:
-        return {"psi": self.psi, "p_fc": self.p_fc, "p_fc_ci": list(self.p_fc_ci)}
+        out = {"psi": self.psi, "p_fc": self.p_fc, "p_fc_ci": list(self.p_fc_ci)}
+        if self.fresh_fc is not None:
+            out["fresh_p_fc"] = float(self.fresh_fc.mean())
+        return out
 
 
 @dataclass
@@ -85,18 +99,18 @@ class ElbowResult:
     best_p_fc_ci: tuple[float, float]
     gain: float
     gain_ci: tuple[float, float]
-    miss_probability: float
+    certificate: Certificate
     grid_step: float
     curve: list[ElbowPoint] = field(repr=False)
 
     def to_json(self) -> dict:
         keys = ("object", "grasp", "sigma", "samples", "seed", "engine", "nominal_psi",
-                "nominal_p_fc", "best_psi", "best_p_fc", "gain", "miss_probability",
-                "grid_step")
+                "nominal_p_fc", "best_psi", "best_p_fc", "gain", "grid_step")
         out = {k: getattr(self, k) for k in keys}
         out.update(nominal_p_fc_ci=list(self.nominal_p_fc_ci),
                    best_p_fc_ci=list(self.best_p_fc_ci), gain_ci=list(self.gain_ci),
-                   best_q=self.best_q.tolist(), curve=[p.to_json() for p in self.curve])
+                   best_q=self.best_q.tolist(), certificate=self.certificate.to_json(),
+                   curve=[p.to_json() for p in self.curve])
         return out
 
 
@@ -181,22 +195,6 @@ def paired_interval(d: np.ndarray, confidence: float = 0.95) -> tuple[float, flo
     return mean, mean - half, mean + half
 
 
-def miss_probability(curve: list[ElbowPoint], best: ElbowPoint) -> float:
-    """Union bound on P(some other evaluated angle is truly better than ``best``), from the
-    paired differences on the selection draws (normal approximation)."""
-    total = 0.0
-    for point in curve:
-        if point is best:
-            continue
-        d = point.fc.astype(float) - best.fc.astype(float)
-        se = d.std(ddof=1) / math.sqrt(d.size) if d.size > 1 else 0.0
-        if se == 0.0:
-            total += 1.0 if d.mean() > 0 else 0.0
-        else:
-            total += float(sps.norm.cdf(d.mean() / se))
-    return min(total, 1.0)
-
-
 def _evaluate_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], noise: JointNoise,
                     samples: int, seed: int, kwargs: dict, progress) -> list[ElbowPoint]:
     """Coarse grid, then the fine grid around the REFINE_TOP best coarse angles."""
@@ -222,31 +220,49 @@ def _nominal_index(grasp: Grasp, reach: list[tuple[float, np.ndarray]]) -> int:
 
 
 def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
-                   engine: str = "fast", step: float = FINE_STEP, progress=None,
+                   engine: str = "fast", step: float = FINE_STEP,
+                   epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
+                   reach: list[tuple[float, np.ndarray]] | None = None, progress=None,
                    **evaluate_kwargs) -> ElbowResult:
     """The most robust elbow angle of ``grasp`` under ``noise`` (see the module docstring).
 
     Args:
         grasp: the grasp; its palm pose and nominal contacts stay fixed.
         noise: joint noise.
-        samples: draws per evaluated angle, for the selection and again for the scoring.
-        seed: run seed (selection: chunks 0..K-1, scoring: chunks K..2K-1).
+        samples: draws per evaluated angle, for the selection and again (fresh) for the
+            scoring and the certificate.
+        seed: run seed (selection: chunks 0..K-1, fresh draws: chunks K..2K-1).
         engine: ``fast`` (default) or ``pybullet``.
         step: fine-grid spacing of psi, radians.
-        progress: optional ``progress(evaluated_angles)`` callback.
+        epsilon: margin in P(FC) at which the certificate is certified.
+        delta: error level of the certificate (confidence 1 - delta).
+        reach: ``reachable_configurations(grasp, step)``, when already computed (the
+            curve's points then hold its configuration arrays themselves).
+        progress: optional ``progress(evaluations)`` callback: the angles evaluated so far,
+            on the selection draws and then again on the fresh draws.
+
+    Raises:
+        ValueError: epsilon outside [0, 1) or delta outside (0, 1) (before any draw).
         evaluate_kwargs: passed to :func:`evaluate_grasp` (``executor``, ``processes``,
             ``friction``, ``num_edges``, ``chunk``).
     """
+    check_levels(epsilon, delta)
     kwargs = {"engine": engine, **evaluate_kwargs}
-    reach = reachable_configurations(grasp, step)
-    nominal_psi = reach[_nominal_index(grasp, reach)][0]
-    curve = _evaluate_curve(grasp, reach, noise, samples, seed, kwargs,
-                            progress or (lambda done: None))
+    report = progress or (lambda done: None)
+    reach = reach if reach is not None else reachable_configurations(grasp, step)
+    nominal_psi, nominal_q = reach[_nominal_index(grasp, reach)]
+    curve = _evaluate_curve(grasp, reach, noise, samples, seed, kwargs, report)
     best = max(curve, key=lambda p: p.p_fc)
-    best_fc = _scoring_draws(grasp, best.q, noise, samples, seed, kwargs)
-    nominal_fc = _scoring_draws(grasp, np.asarray(grasp.q0, float), noise, samples, seed,
-                                kwargs)
+    for k, point in enumerate(curve):
+        point.fresh_fc = _scoring_draws(grasp, point.q, noise, samples, seed, kwargs)
+        report(len(curve) + k + 1)
+    nominal = next(p for p in curve if p.q is nominal_q)
+    best_fc, nominal_fc = best.fresh_fc, nominal.fresh_fc
     gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
+    rivals = [p for p in curve if p is not best]
+    certificate = certify(best.psi, best_fc, [p.psi for p in rivals],
+                          np.array([p.fresh_fc for p in rivals]).reshape(len(rivals), -1),
+                          epsilon, delta)
     n = best_fc.size
     return ElbowResult(
         object=grasp.object, grasp=str(grasp.id),
@@ -256,4 +272,4 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
         nominal_p_fc_ci=wilson_interval(int(nominal_fc.sum()), n), best_psi=best.psi,
         best_q=best.q, best_p_fc=float(best_fc.mean()),
         best_p_fc_ci=wilson_interval(int(best_fc.sum()), n), gain=gain, gain_ci=(lo, hi),
-        miss_probability=miss_probability(curve, best), grid_step=float(step), curve=curve)
+        certificate=certificate, grid_step=float(step), curve=curve)

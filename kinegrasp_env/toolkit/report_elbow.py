@@ -4,10 +4,10 @@ It holds P(FC) along the grasp's self-motion with Wilson intervals (the nominal 
 elbow angle marked), the arm at the nominal and at the best elbow in 3-D (each with the
 skeletons of its first noisy selection draws coloured by outcome, and the other elbow's
 skeleton for comparison: same palm pose, another arm), the headline numbers (the best and
-the nominal elbow scored on independent draws, the paired gain, the bound on a missed better
-angle), a table of the curve, the settings and the command that reproduces the page. The
-page machinery (shell, figures, shared meshes) is the evaluation page's
-(:mod:`~kinegrasp_env.toolkit.report`).
+the nominal elbow scored on fresh draws, the paired gain, the certificate: how much better
+than the chosen elbow any evaluated one can be), a table of the curve, the settings and the
+command that reproduces the page. The page machinery (shell, figures, shared meshes) is the
+evaluation page's (:mod:`~kinegrasp_env.toolkit.report`).
 """
 
 from __future__ import annotations
@@ -62,14 +62,16 @@ def headline(result: ElbowResult) -> str:
     nlo, nhi = result.nominal_p_fc_ci
     lo, hi = result.best_p_fc_ci
     glo, ghi = result.gain_ci
+    cert = result.certificate
+    claim = cert.statement()
     return (f"<p class='kg-headline'>Nominal elbow {result.nominal_psi:+.3f} rad: P(FC) "
             f"{result.nominal_p_fc:.4f} (95% CI {nlo:.4f} .. {nhi:.4f}); <b>best elbow "
             f"{result.best_psi:+.3f} rad: P(FC) {result.best_p_fc:.4f}</b> (95% CI "
-            f"{lo:.4f} .. {hi:.4f}), both on {result.samples} independent scoring draws; gain "
-            f"{result.gain:+.4f} (95% CI {glo:+.4f} .. {ghi:+.4f}, paired). P(a better "
-            f"evaluated angle was missed) &le; {result.miss_probability:.3f} (grid step "
-            f"{result.grid_step:.3f} rad). Sigma = {esc(sigma_text(result.sigma))} rad, "
-            f"{esc(result.engine)} engine.</p>")
+            f"{lo:.4f} .. {hi:.4f}), both on {result.samples} fresh draws; gain "
+            f"{result.gain:+.4f} (95% CI {glo:+.4f} .. {ghi:+.4f}, paired). "
+            f"{esc(claim[:1].upper() + claim[1:])}: {esc(cert.verdict())}; angles between "
+            f"the {result.grid_step:.3f} rad grid points not covered. Sigma = "
+            f"{esc(sigma_text(result.sigma))} rad, {esc(result.engine)} engine.</p>")
 
 
 def curve_table(result: ElbowResult) -> str:
