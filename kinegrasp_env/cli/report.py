@@ -222,13 +222,17 @@ def write_elbow_report(args, grasp, index: int, result, noise) -> None:
     out = Path(args.report)
     command = ["kinegrasp", "elbow", "--object", args.object, "--grasp", str(index),
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
-               "--seed", str(result.seed), "--engine", result.engine, "--report", str(out)]
+               "--seed", str(result.seed), "--engine", result.engine,
+               "--epsilon", f"{result.certificate.epsilon:g}",
+               "--delta", f"{result.certificate.delta:g}", "--report", str(out)]
     settings = {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
                 **noise_settings(args, [noise]),
-                "draws per elbow angle (selection; scoring again)": result.samples,
-                "seed (selection: chunks 0..K-1, scoring: K..2K-1)": result.seed,
+                "draws per elbow angle (selection; fresh again)": result.samples,
+                "seed (selection: chunks 0..K-1, fresh: K..2K-1)": result.seed,
                 "engine": result.engine, "elbow angles evaluated": len(result.curve),
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
+                "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
+                                              f"{result.certificate.delta:g}",
                 "friction mu": FRICTION, "friction cone edges": NUM_EDGES,
                 "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
     text = elbow_page(grasp, result, noise, command=shlex.join(command), settings=settings,
