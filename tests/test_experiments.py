@@ -296,3 +296,29 @@ def test_fresh_draws_are_the_next_chunks_of_the_seed():
 def test_a_pair_needs_two_candidates():
     with pytest.raises(ValueError, match="at least 2, got 1"):
         selection_mod.extremes([0.5])
+
+
+def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
+    """fig10 on three cube variants at sigma 0.02 (250 draws): the rows marked robust and
+    fragile are the largest and the smallest P(FC) of the rows (the selection draws), and
+    each one's fresh P(FC) is exactly its share of force closure in draws 250..499 of the
+    same seed, computed here through the public evaluate_grasp on 500 draws (so the fresh
+    draws are neither the selection draws nor a recount of them)."""
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.toolkit.experiments import _figure_sets
+
+    rows = experiments.fig9_10("fig10", tmp_path, samples=250, sigma=0.02, count=3, seed=5,
+                               engine="fast", objects=("cube",))
+    marked = {r["config"]: r for r in rows if r["config"]}
+    assert set(marked) == {"robust", "fragile"} and marked["robust"] is not marked["fragile"]
+    assert marked["robust"]["p_fc"] == max(r["p_fc"] for r in rows)
+    assert marked["fragile"]["p_fc"] == min(r["p_fc"] for r in rows)
+    variants = {g.id: g for g in _figure_sets("fig10", ("cube",), 3, {})["cube"]}
+    for row in marked.values():
+        both = evaluate_grasp(variants[row["id"]], JointNoise(0.02), 500, 5, engine="fast")
+        assert row["p_fc"] * 250 + row["fresh_p_fc"] * 250 == pytest.approx(both.p_fc * 500)
+        assert row["fresh_samples"] == 250
+        assert row["fresh_p_fc_lo"] <= row["fresh_p_fc"] <= row["fresh_p_fc_hi"]
+    csv_rows = _read(tmp_path / "fig10.csv")
+    assert [r["config"] for r in csv_rows] == [r["config"] for r in rows]
