@@ -106,24 +106,61 @@ def positive_int(text: str | int, name: str, low: int = 1) -> int:
     return value
 
 
-def output_file(text: str, name: str) -> Path:
-    """A file the command will write: not a folder, and no file where a folder must be
-    (missing folders are created when it is written)."""
+def output_file(text: str, name: str, *, figure: bool | None = None) -> Path:
+    """A file the command will write, checked before any work: not a folder, its folder
+    exists and can be written (:func:`check_parents`), and for a figure (``figure``; by
+    default when ``name`` is ``--plot``) a format matplotlib writes. Nothing is created
+    here, nor later outside the folder named: a missing folder is an error."""
     path = Path(text)
     if path.is_dir():
         raise CLIError(f"{name} {text} is a folder; give a file name")
     check_parents(path, f"{name} {text}")
+    if figure or (figure is None and name == "--plot"):
+        check_figure_format(path, name)
     return path
 
 
-def check_parents(path: Path, label: str) -> None:
-    """CLIError (``label: PARENT is not a folder``) when the nearest existing folder above
-    ``path`` is a file (missing folders are created when the path is written)."""
-    for parent in path.absolute().parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise CLIError(f"{label}: {parent} is not a folder")
-            break
+def output_folder(text: str, name: str = "--out") -> Path:
+    """A folder the command will write into, checked before any work: not a file, and the
+    nearest existing folder on its path can be written. The command creates the folder
+    (and the missing folders on the path named), nothing else."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise CLIError(f"{name} {text} is a file; give a folder")
+    check_parents(path, f"{name} {text}", create_missing=True)
+    return path
+
+
+def check_parents(path: Path, label: str, *, create_missing: bool = False) -> None:
+    """CLIError (``label: ...``, one line) unless ``path`` can be written where it is: its
+    folder exists (or, with ``create_missing``, the nearest existing folder above it), is a
+    folder, and a file can be created in it (tried: a read-only mount or ``/proc`` refuse
+    what permission bits would allow)."""
+    import tempfile
+
+    parent = path.absolute().parent
+    if not create_missing and not parent.exists():
+        missing = next(p for p in [parent, *parent.parents] if p.parent.exists())
+        raise CLIError(f"{label}: folder {missing} does not exist (create it first)")
+    target = path.absolute() if create_missing else parent
+    existing = next(p for p in [target, *target.parents] if p.exists())
+    if not existing.is_dir():
+        raise CLIError(f"{label}: {existing} is not a folder")
+    try:
+        tempfile.TemporaryFile(dir=existing).close()
+    except OSError as exc:
+        raise CLIError(f"{label}: cannot write in {existing} ({exc.strerror or exc})") from None
+
+
+def check_figure_format(path: Path, name: str) -> None:
+    """CLIError unless ``path``'s extension is a format matplotlib writes (png, pdf, svg...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in formats:
+        raise CLIError(f"{name} {path}: {('.' + suffix) if suffix else 'no extension'} is not "
+                       f"a figure format; use one of {', '.join(sorted(formats))}")
 
 
 def positive_float(text: str, name: str) -> float:
@@ -228,10 +265,35 @@ def add_execution_args(parser: argparse.ArgumentParser, default_processes: int) 
     parser.add_argument("--address", help="Ray cluster to use with --backend ray (e.g. "
                         "ray://head:10001); without it a local Ray instance is started")
     parser.add_argument("--processes", default=None,
-                        help=f"local worker processes (default {default_processes}); with "
+                        help=f"local worker processes (default {default_processes}); more "
+                        "than this machine's cores is capped to them, with a warning; with "
                         "--backend ray and no --address, the local Ray instance's CPUs "
                         "(default: all)")
     parser.set_defaults(default_processes=default_processes)
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity, else ``os.cpu_count()``)."""
+    import os
+
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def processes_from(text: str | int, name: str = "--processes") -> int:
+    """A worker count >= 1, capped to :func:`available_cores` (more workers than cores only
+    add start-up and switching): the cap is said in one warning line on stderr."""
+    import sys
+
+    wanted = positive_int(text, name)
+    cores = available_cores()
+    if wanted > cores:
+        print(f"kinegrasp: warning: {name} {wanted} is more than the {cores} cores this machine "
+              f"gives the command; using {cores}", file=sys.stderr)
+        return cores
+    return wanted
 
 
 def executor_from(args):
@@ -240,9 +302,14 @@ def executor_from(args):
 
     if args.backend not in BACKENDS:
         raise CLIError(f"--backend must be one of {', '.join(BACKENDS)}, got {args.backend!r}")
-    processes = None if args.processes is None else positive_int(args.processes, "--processes")
+    if args.processes is None:
+        processes = None
+    elif args.backend == "local" or args.address is None:  # processes on this machine
+        processes = processes_from(args.processes)
+    else:  # a cluster's processes: not bounded by this machine's cores
+        processes = positive_int(args.processes, "--processes")
     if args.backend == "local" and processes is None:
-        processes = args.default_processes
+        processes = min(args.default_processes, available_cores())
     # make_executor's ValueErrors are about these settings: Ray missing, an unreachable or
     # malformed --address
     with reported(ValueError):

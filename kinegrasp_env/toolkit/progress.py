@@ -7,8 +7,11 @@ finished cell, e.g. ``table1: cell 3/20 spray_flask grasp 0 sigma 0.0133: P(FC) 
 
 The rate and the ETA leave the start-up out (worker pool, compiled kernels, engines): they
 are measured between reports of finished work, over the later half of the time since the
-first report (the warm-up of workers that start late falls out too); before a second report
-they are unknown (``?``).
+first report (the warm-up of workers that start late falls out too) and never over less than
+:data:`MIN_WINDOW` seconds (work that comes back at once, e.g. results found already done,
+would otherwise read as millions of draws per second); until then the line says the rate is
+being measured. A total revised on the way (an adaptive run that stops early) is shown with
+the first one (``20500/20500 draws (down from 24000)``).
 """
 
 from __future__ import annotations
@@ -19,6 +22,9 @@ import sys
 import time
 from collections.abc import Callable
 from typing import TextIO
+
+#: Shortest span of reports (seconds) a rate is measured over.
+MIN_WINDOW = 1.0
 
 
 def format_eta(seconds: float | None) -> str:
@@ -51,6 +57,7 @@ class Progress:
         self.name = name
         self.word = word
         self.total = int(total)
+        self.most = self.total  # the first total: what a revised one is shown against
         self.cells = int(cells)
         self.stream = sys.stderr if stream is None else stream
         if interactive is None:
@@ -87,15 +94,18 @@ class Progress:
 
     # ------------------------------------------------------------------ measurements
     def rate(self) -> float | None:
-        """Draws per second over the later half of the time since the first report (so the
-        start-up, and the warm-up of late-starting workers, fall out as the run goes on);
-        None before two reports."""
+        """Draws per second over the later half of the time since the first report, and over
+        at least :data:`MIN_WINDOW` seconds (so the start-up, the warm-up of late-starting
+        workers and work that came back at once fall out); None until the reports span
+        that long."""
         if len(self.times) < 2:
             return None
-        cut = (self.times[0] + self.times[-1]) / 2
-        i = min(bisect.bisect_left(self.times, cut), len(self.times) - 2)
+        span = max(MIN_WINDOW, (self.times[-1] - self.times[0]) / 2)
+        i = bisect.bisect_right(self.times, self.times[-1] - span) - 1
+        if i < 0:
+            return None
         elapsed = self.times[-1] - self.times[i]
-        return (self.history[-1] - self.history[i]) / elapsed if elapsed > 0 else None
+        return (self.history[-1] - self.history[i]) / elapsed
 
     def eta(self) -> float | None:
         """Seconds left at the current rate (None while unknown)."""
@@ -103,9 +113,15 @@ class Progress:
         return None if not rate else (self.total - self.done) / rate
 
     def status(self) -> str:
+        """``done/total draws, R draws/s, ETA mm:ss`` (``rate being measured`` until known;
+        a revised total with the first one)."""
+        draws = f"{self.done}/{self.total} draws"
+        if self.total != self.most:
+            draws += f" (down from {self.most})"
         rate = self.rate()
-        speed = "? draws/s" if rate is None else f"{rate:.0f} draws/s"
-        return f"{self.done}/{self.total} draws, {speed}, ETA {format_eta(self.eta())}"
+        if rate is None:
+            return f"{draws}, rate being measured"
+        return f"{draws}, {rate:.0f} draws/s, ETA {format_eta(self.eta())}"
 
     # ------------------------------------------------------------------ reports
     def advance(self, done: int, total: int | None = None) -> None:
