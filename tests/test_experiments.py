@@ -293,7 +293,11 @@ def test_fresh_draws_are_the_next_chunks_of_the_seed():
         "draws (chunks 2-3)")
 
 
-def test_a_pair_needs_two_candidates():
+def test_a_pair_is_two_candidates():
+    """Largest first, smallest among the others: two different candidates even when every
+    estimate ties (all at P(FC) 1 at small noise); fewer than two is a one-line error."""
+    assert selection_mod.extremes([0.2, 0.9, 0.1, 0.9, 0.1]) == (1, 2)
+    assert selection_mod.extremes([1.0, 1.0, 1.0]) == (0, 1)
     with pytest.raises(ValueError, match="at least 2, got 1"):
         selection_mod.extremes([0.5])
 

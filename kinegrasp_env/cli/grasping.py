@@ -136,7 +136,9 @@ def print_pairs(rows: list[dict]) -> None:
     gap."""
     from kinegrasp_env.toolkit.selection import format_gap
 
-    for r in rows:
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    order = {"robust": 0, "fragile": 1}
+    for r in sorted(rows, key=lambda r: (objects.index(r["object"]), order[r["config"]])):
         print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) {r['p_fc']:.3f} "
               f"(95% CI {r['p_fc_lo']:.3f} .. {r['p_fc_hi']:.3f}), chosen at "
               f"{r['selection_p_fc']:.3f}")

@@ -64,12 +64,15 @@ def stats_from_chunk(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
 
 
 def extremes(estimates: Sequence[float]) -> tuple[int, int]:
-    """(index of the largest, index of the smallest) of ``estimates`` (the first on ties)."""
+    """(index of the largest, index of the smallest) of ``estimates``: the first largest,
+    and the first smallest among the others (two different candidates even when all tie)."""
     if len(estimates) < 2:
         raise ValueError(f"choosing a robust and a fragile candidate needs at least 2, got "
                          f"{len(estimates)}")
     values = list(estimates)
-    return values.index(max(values)), values.index(min(values))
+    best = values.index(max(values))
+    worst = min((i for i in range(len(values)) if i != best), key=values.__getitem__)
+    return best, worst
 
 
 def _fc(stats: GraspStats) -> np.ndarray:
