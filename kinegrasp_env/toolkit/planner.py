@@ -6,6 +6,12 @@ roll about d. The arm reaches it by IK (collision-free, within limits), the hand
 from an open pre-shape, and the candidate is kept when its contacts are in force closure.
 The nominal contacts and Q are computed by the same engine the Monte Carlo draws use, so a
 draw with zero noise reproduces them exactly.
+
+The planner keeps or rejects a candidate on its nominal (zero-noise) closing alone and returns
+the grasps in the order it found them; it picks no "best" by Monte Carlo estimates, so nothing
+it returns is flattered by a choice made on noisy draws. Choosing among grasps by robustness
+is ``rank``'s job (its estimates come from its own draws), and a robust/fragile pair of arm
+configurations is chosen and reported on separate draws (:mod:`.selection`).
 """
 
 from __future__ import annotations
