@@ -319,8 +319,8 @@ def certified_line(report, samples: int) -> str:
         return (f"certified at delta {delta}, epsilon {eps}: {rows} {claim} (false with "
                 f"probability <= {delta})")
     return (f"NOT certified at delta {delta}, epsilon {eps} within {samples} draws per "
-            f"candidate: {count['top-k']} rows {claim}, {count['rest']} out of the top {k}, "
-            f"{count['unresolved']} unresolved (ordered by estimate)")
+            f"candidate: {count['top-k']} rows marked top-k (each {claim}), {count['rest']} "
+            f"rest (out of the top {k}), {count['unresolved']} unresolved")
 
 
 def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
