@@ -75,7 +75,9 @@ def _pair(rows: list[dict], name: str, p_fc: str, lo: str, hi: str) -> dict[str,
     out = {k: f"{num(r[p_fc])} [{num(r[lo])}, {num(r[hi])}] (id {r['id']})"
            for k, r in chosen.items()}
     r = chosen["fragile"]
-    out["gap"] = f"{float(r['gap']):+.3f} [{float(r['gap_lo']):+.3f}, {float(r['gap_hi']):+.3f}]"
+    out["gap"] = (f"{float(r['gap']):+.3f} (no discordant draw)" if r["gap_lo"] == r["gap_hi"]
+                  else f"{float(r['gap']):+.3f} [{float(r['gap_lo']):+.3f}, "
+                       f"{float(r['gap_hi']):+.3f}]")
     out["samples"] = r.get("fresh_samples") or r["samples"]
     out["sigma"] = r.get("sigma") or "?"
     out["moments"] = {k: f"{num(c['q_mean'], 4, 'g')} / {num(c['q_var'], 3, 'g')} / "
@@ -111,7 +113,7 @@ def pairs_section(fig7: list[dict] | None, fig10: list[dict] | None, values: dic
                 moments = values.get("fig7_q_moments") or MISSING
                 lines.append(f"| {name} | Q mean / var / skew, {key} | {moments} | "
                              f"{seven['moments'][key]} | - |")
-        lines.append(f"| {name} | sigma (rad), fresh draws | {MISSING} | "
+        lines.append(f"| {name} | sigma (rad), fresh draws per configuration | {MISSING} | "
                      f"{seven.get('sigma', '-')}, {seven.get('samples', '-')} | "
                      f"{ten.get('sigma', '-')}, {ten.get('samples', '-')} |")
     return lines

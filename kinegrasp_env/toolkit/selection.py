@@ -128,7 +128,10 @@ def provenance(samples: int, seed: int, chunk: int = DEFAULT_CHUNK) -> str:
 
 
 def format_gap(row: dict) -> str:
-    """``+0.057 (95% CI +0.040 .. +0.074)`` of a robust/fragile row's paired gap."""
+    """``+0.057 (95% CI +0.040 .. +0.074)`` of a robust/fragile row's paired gap
+    (``+0.000 (no discordant draw)`` where the two agree on every fresh draw)."""
     if math.isnan(row["gap"]):
         return "n/a"
+    if row["gap_lo"] == row["gap_hi"]:  # every pair of fresh draws agrees: no spread to use
+        return f"{row['gap']:+.3f} (no discordant draw)"
     return f"{row['gap']:+.3f} (95% CI {row['gap_lo']:+.3f} .. {row['gap_hi']:+.3f})"
