@@ -63,7 +63,7 @@ class ClosingMotors:
         self.world, self.settings = world, settings
         self.held = [False] * 3
         self.pressing = [False] * 3
-        world.position(list(spread), list(spread.values()), settings.hold_torque)
+        world.position(list(spread), list(spread.values()))
         world.velocity(FLEXION_JOINTS, settings.closing_speed,
                        [settings.proximal_torque, settings.distal_torque] * 3)
 
@@ -74,7 +74,7 @@ class ClosingMotors:
                 self.held[finger] = True
                 joint = FINGERS[finger][0]
                 angle, _ = world.joint_states([joint])
-                world.position([joint], angle, s.hold_torque)
+                world.position([joint], angle)
             if ((finger, 1) in touching) != self.pressing[finger]:
                 self.pressing[finger] = not self.pressing[finger]
                 if self.pressing[finger]:
@@ -169,7 +169,7 @@ class MujocoHold:
         settings = replace(world or WorldSettings(), friction=friction)
         self.protocol = protocol
         self.motors = (motors or MotorSettings()).with_torques(protocol.torques)
-        self.world = MujocoWorld(obj, settings, self.motors.touch_distance)
+        self.world = MujocoWorld(obj, settings)
 
     def run_draw(self, root_pose: np.ndarray, preshape: np.ndarray
                  ) -> tuple[CloseResult, HoldResult]:
@@ -225,6 +225,7 @@ class MujocoHold:
         dt = world.settings.time_step
         self.grip()
         gripped, grip_time = self.grip_until_steady()
+        pin_force, pin_torque = world.pin_load()
         pinned = object_in_palm(world)
         world.release_object()
         world.remove_table()
@@ -233,7 +234,7 @@ class MujocoHold:
         reference = object_in_palm(world)
         shift, turn = pose_change(pinned, reference, world.obj.center_of_mass)
         result = HoldResult(grip_verdict(gripped, released, p), shift, turn, gripped, released,
-                            grip_time)
+                            grip_time, pin_force, pin_torque)
         if result.outcome != HELD:
             return result
         state = world.save_state()

@@ -7,10 +7,13 @@ use (:func:`import_mujoco`). The model (:func:`build_model`) is compiled from an
 * the hand: ``sdh_hand.urdf`` parsed by MuJoCo's own URDF reader (the same file pybullet
   loads: the same links, inertials, capsules, joint axes and limits, the coupled spread as
   MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies, visuals dropped).
-  Its root ``hand_root`` is a *mocap* body: where the arm's flange is, moved only by the
-  protocol (the lift and shake), as pybullet's anchor constraint moves its hand. Every hand
-  joint gets one ``general`` actuator whose gains the controller switches (velocity servo,
-  position hold, the grip's spring-damper: :mod:`~kinegrasp_env.physics.mujoco_world`);
+  Its root ``hand_root`` is a free body as heavy as pybullet's (``ROOT_MASS``, standing in
+  for the arm) welded to a *mocap* body ``anchor``: where the arm's flange is, moved only by
+  the protocol (the lift and shake), as pybullet's anchor constraint moves its hand (a mocap
+  hand root itself would move without a velocity, and friction, which MuJoCo resolves on
+  velocities, held the object back: it slipped out in the lift). Every hand
+  joint gets one ``general`` actuator (its motor) and one joint equality, off until the
+  controller holds the joint there (:mod:`~kinegrasp_env.physics.mujoco_world`);
 * the object: a free body at ``obj.pose`` whose collision shape is its exact convex parts (one
   mesh geom per part: MuJoCo collides with each mesh's convex hull), mass and inertia those
   of the uniform-density mesh (:func:`~kinegrasp_env.physics.pybullet_world.mass_properties`,
@@ -94,20 +97,21 @@ def hand_urdf() -> str:
     return text.replace(head, head + options, 1)
 
 
-def set_contact(geom, friction: float, bits: tuple[int, int], margin: float,
-                settings: ContactSettings) -> None:
-    """Contact parameters of one spec geom (module docstring); ``margin`` (m): contacts are
-    reported from this gap on and push only when touching (gap = margin)."""
+def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactSettings) -> None:
+    """Contact parameters of one spec geom (module docstring). Margin 0: MuJoCo's contact
+    pushes from ``dist < margin`` on (the sum of the two geoms' margins, whatever their
+    ``gap``: measured), so a margin would leave the fingers that far from the surface;
+    with 0 a contact exists only once the surfaces touch."""
     geom.condim = 3
     geom.friction = [friction, 0.0, 0.0]
     geom.contype, geom.conaffinity = bits
     geom.solref = list(settings.solref)
     geom.solimp = list(settings.solimp)
-    geom.margin = geom.gap = margin
+    geom.margin = geom.gap = 0.0
 
 
 def build_model(obj: GraspObject, friction: float, density: float, time_step: float,
-                margin: float, settings: ContactSettings = CONTACT):
+                settings: ContactSettings = CONTACT):
     """The compiled :class:`mujoco.MjModel` of hand, object and table (module docstring).
 
     Args:
@@ -115,10 +119,9 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
         friction: Coulomb friction mu between finger and object (and table).
         density: the object's, kg/m^3.
         time_step: seconds.
-        margin: contacts are reported from this gap on (the closing's touch distance), m.
         settings: :class:`ContactSettings`.
     """
-    from kinegrasp_env.physics.pybullet_world import mass_properties
+    from kinegrasp_env.physics.pybullet_world import ROOT_INERTIA, ROOT_MASS, mass_properties
 
     mujoco = import_mujoco()
     spec = mujoco.MjSpec.from_string(hand_urdf())
@@ -128,16 +131,32 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
     spec.option.impratio = settings.impratio
     spec.option.noslip_iterations = settings.noslip_iterations
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.body("hand_root").mocap = True
     for geom in spec.geoms:
-        set_contact(geom, friction, HAND_BITS, margin, settings)
+        set_contact(geom, friction, HAND_BITS, settings)
     for joint in spec.joints:
+        hold = spec.add_equality(name=f"hold_{joint.name}", type=mujoco.mjtEq.mjEQ_JOINT,
+                                 objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=joint.name)
+        hold.data = [0.0] * 11 + [0.0]  # joint = data[0] (set by the controller)
+        hold.active = False
+        hold.solref = list(settings.pin_solref)
         actuator = spec.add_actuator(name=f"motor_{joint.name}", target=joint.name)
         actuator.trntype = mujoco.mjtTrn.mjTRN_JOINT
         actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
         actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         actuator.forcerange = [-1.0, 1.0]  # set by the controller
+    root = spec.body("hand_root")
+    root.add_freejoint(name="hand_free")
+    root.explicitinertial = True
+    root.mass, root.inertia = ROOT_MASS, [ROOT_INERTIA] * 3
+    root.fullinertia = [float("nan")] + [0.0] * 5  # the URDF's full inertia dropped
+    root.ipos, root.iquat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]
+    spec.worldbody.add_body(name="anchor", mocap=True)
+    anchor = spec.add_equality(name="anchor", type=mujoco.mjtEq.mjEQ_WELD,
+                               objtype=mujoco.mjtObj.mjOBJ_BODY, name1="hand_root",
+                               name2="anchor")
+    anchor.data = [0.0] * 6 + [1.0, 0.0, 0.0, 0.0] + [1.0, 0.0]  # coincident frames
+    anchor.solref = list(settings.pin_solref)
     mass, moments, inertial = mass_properties(obj, density)
     body = spec.worldbody.add_body(name="object", pos=obj.pose[:3, 3].tolist(),
                                    quat=matrix_quat(obj.pose[:3, :3]).tolist())
@@ -151,13 +170,13 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
         spec.add_mesh(name=f"part_{i}", uservert=np.asarray(part, float).ravel().tolist())
         geom = body.add_geom(name=f"object_part_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
                              meshname=f"part_{i}", mass=0.0)
-        set_contact(geom, friction, OBJECT_BITS, margin, settings)
+        set_contact(geom, friction, OBJECT_BITS, settings)
     if obj.table is not None:
         pose, half = obj.table.box(obj.pose)
         table = spec.worldbody.add_body(name="table", pos=pose[:3, 3].tolist(),
                                         quat=matrix_quat(pose[:3, :3]).tolist())
         geom = table.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_BOX, size=half.tolist())
-        set_contact(geom, friction, OBJECT_BITS, margin, settings)
+        set_contact(geom, friction, OBJECT_BITS, settings)
     pin = spec.add_equality(name="pin", type=mujoco.mjtEq.mjEQ_WELD,
                             objtype=mujoco.mjtObj.mjOBJ_BODY, name1="object")
     pin.solref = list(settings.pin_solref)

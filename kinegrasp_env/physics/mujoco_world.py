@@ -15,12 +15,15 @@ limits. So a motor is a DC motor's torque-speed line: :meth:`MujocoWorld.velocit
 the limit as a constant torque against a joint damping of limit / target speed, which MuJoCo
 integrates implicitly: unloaded the joint runs at the target speed, blocked it presses with
 the limit (pybullet's motor: the same two ends, full torque below the target speed).
-:meth:`MujocoWorld.position` holds a joint (a clipped spring, :data:`HOLD_GAIN`, and damping
-:data:`HOLD_DAMPING`).
+:meth:`MujocoWorld.position` holds a joint with an equality constraint of MuJoCo's solver
+(as stiff as the object's pin; a spring stiff enough to hold a finger against its distal
+motor's 1.4 N m, ~1000 N m/rad, is unstable at 1 ms on these links). Unlike pybullet's
+position motor it has no torque cap (pybullet's: ``hold_torque``, 10 N m).
 
 Contacts are MuJoCo's hand-object contact records (``mj_contactForce`` for their normal
-forces), reported from ``touch_distance`` away (the geoms' margin; they push only when
-touching). A record's point on the object is ``pos + dist / 2 * n`` (MuJoCo's ``pos`` lies
+forces); they exist only where the surfaces touch (margin 0: pybullet reports records from
+the closing's touch distance, 0.2 mm, on). A record's point on the object is
+``pos + dist / 2 * n`` (MuJoCo's ``pos`` lies
 midway between the two surfaces), its normal ``n`` points from the finger into the object.
 """
 
@@ -28,7 +31,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import CONTACT_TOL
 from kinegrasp_env.physics.mujoco_model import (
     CONTACT,
     ContactSettings,
@@ -40,9 +42,10 @@ from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.robot.model import FINGERS
 from kinegrasp_env.world.objects import GraspObject
 
-#: Position-hold stiffness (N m/rad) and damping (N m s/rad): the stiffness is explicit, so
-#: HOLD_GAIN dt^2 / I stays below 1 for the lightest link (I ~ 1.3e-4 kg m^2 at 1 ms: 0.15).
-HOLD_GAIN, HOLD_DAMPING = 20.0, 0.5
+#: MuJoCo steps per time step of the protocol (1 ms): at 1 ms MuJoCo's stiff contacts and the
+#: joint holds (time constant 2 ms, the smallest MuJoCo keeps at 1 ms) made the light finger
+#: links chatter (contact forces flickering between 0 and 100 N); at 0.25 ms they are steady.
+SUBSTEPS = 4
 #: The torque of a distal joint creeping at ``creep_speed`` when blocked, N m (what
 #: pybullet's velocity motor builds up for so slow a target, ~0.3 N m).
 CREEP_TORQUE = 0.3
@@ -62,7 +65,6 @@ class MujocoWorld:
     Args:
         obj: the catalog object (placed at ``obj.pose``).
         settings: density, friction and time step (its pybullet-only fields are unused).
-        touch_distance: contacts are reported from this gap on, metres.
         contact: MuJoCo's contact parameters.
 
     Attributes:
@@ -71,25 +73,27 @@ class MujocoWorld:
     """
 
     def __init__(self, obj: GraspObject, settings: WorldSettings | None = None,
-                 touch_distance: float = CONTACT_TOL, contact: ContactSettings = CONTACT) -> None:
+                 contact: ContactSettings = CONTACT) -> None:
         self.mujoco = import_mujoco()
         self.obj = obj
         self.settings = settings or WorldSettings()
         if not self.settings.object_free:
             raise ValueError("the MuJoCo world's object is always free (object_free=True)")
         self.model = build_model(obj, self.settings.friction, self.settings.density,
-                                 self.settings.time_step, touch_distance, contact)
+                                 self.settings.time_step / SUBSTEPS, contact)
         self.data = self.mujoco.MjData(self.model)
         model = self.model
         self.mass = float(model.body("object").mass[0])
         self.joint_names = [model.joint(j).name for j in range(model.njnt)
-                            if model.joint(j).name != "object_free"]
+                            if model.joint(j).name not in ("object_free", "hand_free")]
+        self.root_qpos = int(model.joint("hand_free").qposadr[0])
         self.qpos_adr = {n: int(model.joint(n).qposadr[0]) for n in self.joint_names}
         self.dof_adr = {n: int(model.joint(n).dofadr[0]) for n in self.joint_names}
         self.actuator = {n: model.actuator(f"motor_{n}").id for n in self.joint_names}
+        self.hold = {n: model.equality(f"hold_{n}").id for n in self.joint_names}
         self.object_body = model.body("object").id
         self.object_qpos = int(model.joint("object_free").qposadr[0])
-        self.mocap = int(model.body_mocapid[model.body("hand_root").id])
+        self.mocap = int(model.body_mocapid[model.body("anchor").id])
         self.pin = model.equality("pin").id
         object_geoms = np.flatnonzero(model.geom_bodyid == self.object_body)
         self.object_geoms = frozenset(int(g) for g in object_geoms)
@@ -123,6 +127,8 @@ class MujocoWorld:
             model.geom_contype[self.table_geom], model.geom_conaffinity[self.table_geom] = \
                 self._table_bits
         self.set_root(root_pose)
+        data.qpos[self.root_qpos:self.root_qpos + 3] = root_pose[:3, 3]
+        data.qpos[self.root_qpos + 3:self.root_qpos + 7] = matrix_quat(root_pose[:3, :3])
         for name, value in joints.items():
             data.qpos[self.qpos_adr[name]] = float(value)
         data.qpos[self.object_qpos:self.object_qpos + 3] = self.obj.pose[:3, 3]
@@ -131,12 +137,12 @@ class MujocoWorld:
         mj.mj_forward(model, data)  # which is the catalog pose
 
     def set_root(self, root_pose: np.ndarray) -> None:
-        """The mocap hand root (flange frame) at ``root_pose`` (4, 4)."""
+        """The anchor of the hand root (flange frame) at ``root_pose`` (4, 4)."""
         self.data.mocap_pos[self.mocap] = root_pose[:3, 3]
         self.data.mocap_quat[self.mocap] = matrix_quat(root_pose[:3, :3])
 
     def root_at(self, position: np.ndarray, quat_xyzw: np.ndarray) -> None:
-        """The mocap root at a position (3,) and a quaternion in pybullet's (x, y, z, w)."""
+        """The anchor at a position (3,) and a quaternion in pybullet's (x, y, z, w)."""
         self.data.mocap_pos[self.mocap] = position
         x, y, z, w = quat_xyzw
         self.data.mocap_quat[self.mocap] = (w, x, y, z)
@@ -169,8 +175,9 @@ class MujocoWorld:
         self.mujoco.mj_forward(self.model, self.data)
 
     def step(self, steps: int = 1) -> None:
-        for _ in range(steps):
-            self.mujoco.mj_step(self.model, self.data)
+        """Advance ``steps`` time steps of ``settings.time_step`` (:data:`SUBSTEPS` MuJoCo
+        steps each)."""
+        self.mujoco.mj_step(self.model, self.data, nstep=steps * SUBSTEPS)
 
     # ------------------------------------------------------------------ servos
     def velocity(self, names: list[str], speeds, limits) -> None:
@@ -182,24 +189,24 @@ class MujocoWorld:
         for name, speed, limit in zip(names, np.broadcast_to(speeds, n),
                                       np.broadcast_to(limits, n), strict=True):
             a = self.actuator[name]
+            self.data.eq_active[self.hold[name]] = 0
             self.model.actuator_gainprm[a, 0] = 1.0
             self.model.actuator_biasprm[a, :3] = 0.0
             self.model.actuator_forcerange[a] = (-limit, limit)
             self.model.dof_damping[self.dof_adr[name]] = limit / max(abs(float(speed)), 1e-9)
             self.data.ctrl[a] = np.copysign(limit, speed)
 
-    def position(self, names: list[str], targets, limits) -> None:
-        """Position holds: torque = HOLD_GAIN (target - angle), clipped to the limits, and
-        the joint's damping HOLD_DAMPING (implicit)."""
-        n = len(names)
-        for name, target, limit in zip(names, np.broadcast_to(targets, n),
-                                       np.broadcast_to(limits, n), strict=True):
-            a = self.actuator[name]
-            self.model.actuator_gainprm[a, 0] = HOLD_GAIN
-            self.model.actuator_biasprm[a, :3] = (0.0, -HOLD_GAIN, 0.0)
-            self.model.actuator_forcerange[a] = (-limit, limit)
-            self.model.dof_damping[self.dof_adr[name]] = HOLD_DAMPING
-            self.data.ctrl[a] = target
+    def position(self, names: list[str], targets) -> None:
+        """Hold joints at target angles (radians): each joint's equality constraint on, its
+        motor off (module docstring)."""
+        for name, target in zip(names, np.broadcast_to(targets, len(names)), strict=True):
+            a, hold = self.actuator[name], self.hold[name]
+            self.model.actuator_gainprm[a, 0] = 0.0
+            self.model.actuator_biasprm[a, :3] = 0.0
+            self.data.ctrl[a] = 0.0
+            self.model.dof_damping[self.dof_adr[name]] = 0.0
+            self.model.eq_data[hold, 0] = float(target)
+            self.data.eq_active[hold] = 1
 
     # ------------------------------------------------------------------ queries
     def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -239,6 +246,27 @@ class MujocoWorld:
     def penetration(self) -> float:
         """The deepest hand-object penetration now, metres (0 when nothing overlaps)."""
         return max([0.0] + [-rec[3] for rec in self.contact_records()])
+
+    def pin_load(self) -> tuple[float, float]:
+        """What the pin holds now: the norms of the net force (N) and torque about the centre
+        of mass (N m) that the hand's contacts put on the object (gravity is off while it is
+        pinned; the table, when there is one, does not touch the pinned object)."""
+        com = self.data.xipos[self.object_body]
+        force, torque, local = np.zeros(3), np.zeros(3), np.zeros(6)
+        for i in range(self.data.ncon):
+            c = self.data.contact[i]
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if g2 in self.object_geoms and g1 in self.hand_geoms:
+                sign = 1.0  # the force on geom2 is along the frame's normal (geom1 -> geom2)
+            elif g1 in self.object_geoms and g2 in self.hand_geoms:
+                sign = -1.0
+            else:
+                continue
+            self.mujoco.mj_contactForce(self.model, self.data, i, local)
+            f = sign * (np.reshape(c.frame, (3, 3)).T @ local[:3])
+            force += f
+            torque += np.cross(np.array(c.pos) - com, f)
+        return float(np.linalg.norm(force)), float(np.linalg.norm(torque))
 
     def finger_forces(self) -> np.ndarray:
         """(3,) each finger's total normal force on the object now, newtons."""

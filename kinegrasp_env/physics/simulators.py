@@ -39,6 +39,7 @@ if TYPE_CHECKING:  # the registry stays cheap to import (the CLI's parser reads 
 #: name -> (module, class name, the Python package it needs).
 SIMULATORS: dict[str, tuple[str, str, str]] = {
     "pybullet": ("kinegrasp_env.physics.pybullet_hold", "PybulletHold", "pybullet"),
+    "mujoco": ("kinegrasp_env.physics.mujoco_hold", "MujocoHold", "mujoco"),
 }
 
 
