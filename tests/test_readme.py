@@ -39,6 +39,7 @@ import shutil
 import subprocess
 import sys
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -68,6 +69,37 @@ PREREQUISITES = {CONSOLE_COMMANDS[j] for i, command in enumerate(CONSOLE_COMMAND
                  for j in readme.producers(CONSOLE_COMMANDS, i, readme.tour_inputs(
                      command, readme.command_targets(command)))}
 _MADE: dict[str, dict[str, bytes]] = {}
+
+
+@dataclass(frozen=True)
+class Page:
+    """A Markdown page whose console blocks are run (the README, or a page of the docs site):
+    its blocks, their commands in order, where each block's first command is among them, and
+    the commands whose files a later block of the same page reads."""
+
+    name: str
+    console: tuple
+    commands: tuple[str, ...]
+    first: dict
+    prerequisites: frozenset
+
+
+def page_of(name: str, text: str) -> Page:
+    """The :class:`Page` of Markdown ``text`` (``name``: where it comes from, for test ids)."""
+    console = tuple(b for b in readme.readme_blocks(text) if b.lang == "console")
+    commands = tuple(step.command for block in console for step in block.steps)
+    first = {block.index: sum(len(b.steps) for b in console[:i])
+             for i, block in enumerate(console)}
+    needed = frozenset(commands[j] for i, command in enumerate(commands)
+                       for j in readme.producers(list(commands), i, readme.tour_inputs(
+                           command, readme.command_targets(command))))
+    return Page(name, console, commands, first, needed)
+
+
+README_PAGE = page_of("README.md", README)
+#: The documentation site's pages (docs/**/*.md), their console blocks run the same way.
+DOC_PAGES = [page_of(path.relative_to(ROOT).as_posix(), path.read_text())
+             for path in sorted((ROOT / "docs").rglob("*.md"))]
 _DURATION = re.compile(r"\bin \d+(?:\.\d+)? ?(?P<unit>ms|s)\b")
 
 Z95, Z999 = 1.959964, 3.290527  # two-sided normal quantiles, 95% and 99.9%
@@ -236,11 +268,11 @@ def _run(command: str, scratch: Path, env: dict) -> tuple[subprocess.CompletedPr
                   for p, stamp in after.items() if before.get(p) != stamp}
 
 
-def _prerequisites(block, scratch: Path, env: dict) -> list[str]:
+def _prerequisites(block, scratch: Path, env: dict, page: Page = README_PAGE) -> list[str]:
     """Make the out/tour/ files the block reads but earlier blocks write (``rank`` on what the
     tour's ``plan`` wrote): run those commands (once per session, their files cached) in
     scratch, output not compared. The problems found."""
-    first = FIRST[block.index]
+    first = page.first[block.index]
     written: list[str] = []
     needed = []
     for step in block.steps:
@@ -248,8 +280,8 @@ def _prerequisites(block, scratch: Path, env: dict) -> list[str]:
         needed += [p for p in readme.tour_inputs(step.command, targets)
                    if not any(readme.covers(t, p) for t in written)]
         written += targets
-    for index in readme.producers(CONSOLE_COMMANDS, first, needed):
-        command = CONSOLE_COMMANDS[index]
+    for index in readme.producers(list(page.commands), first, needed):
+        command = page.commands[index]
         if command not in _MADE:
             _copy_inputs(command, scratch)
             done, _MADE[command] = _run(command, scratch, env)
@@ -262,13 +294,13 @@ def _prerequisites(block, scratch: Path, env: dict) -> list[str]:
     return []
 
 
-def run_block(block, marker, tmp: Path) -> list[str]:
+def run_block(block, marker, tmp: Path, page: Page = README_PAGE) -> list[str]:
     """Run a console block's steps in a scratch folder under ``tmp``; the problems found."""
     (tmp / "bin").mkdir()
     env = readme.env_with_kinegrasp(tmp / "bin")
     scratch = tmp / "repo"
     scratch.mkdir()
-    problems = _prerequisites(block, scratch, env)
+    problems = _prerequisites(block, scratch, env, page)
     for step in [] if problems else block.steps:
         command, n_readme = step.command, _samples(step.command)
         statistic = marker.mode == "stats" and n_readme is not None
@@ -276,7 +308,7 @@ def run_block(block, marker, tmp: Path) -> list[str]:
             command = re.sub(r"--samples[ =]\d+", f"--samples {marker.samples}", command)
         _copy_inputs(command, scratch)
         done, written = _run(command, scratch, env)
-        if command in PREREQUISITES:  # as shown: what a later block reads
+        if command in page.prerequisites:  # as shown: what a later block reads
             _MADE[command] = written
         now = [line.rstrip() for line in done.stdout.rstrip("\n").splitlines()]
         shown = list(step.output)
@@ -327,6 +359,68 @@ def test_readme_console_block(block, marker, tmp_path):
             pytest.skip("kinegrasp screenshot needs chromium (Debian: apt-get install chromium)")
     problems = run_block(block, marker, tmp_path)
     assert not problems, "\n\n".join(problems)
+
+
+def _shown(block, marker) -> tuple:
+    """What a console block's test runs and compares: its steps and how (mode, samples)."""
+    return block.steps, marker.mode, marker.samples
+
+
+def _doc_block_cases():
+    """The docs pages' console blocks, as README blocks are run; a block the README shows
+    too (the same commands, output and marker) is run once, as the README's."""
+    in_readme = {_shown(b, m) for b in README_PAGE.console for m in b.markers}
+    cases = []
+    for page in DOC_PAGES:
+        for block in page.console:
+            first = block.steps[0].command.split()[:2] if block.steps else ["empty"]
+            for marker in block.markers:
+                if marker.mode == "skip" or _shown(block, marker) in in_readme:
+                    continue
+                mode = marker.mode + (str(marker.samples) if marker.samples else "")
+                marks = [pytest.mark.expensive] if marker.expensive else []
+                cases.append(pytest.param(page, block, marker, marks=marks,
+                                          id=f"{page.name}:{block.line}-{'-'.join(first)}-{mode}"))
+    return cases
+
+
+def test_every_docs_console_block_has_a_marker():
+    """A console block of the documentation says how it is tested, as the README's do."""
+    assert any(page.console for page in DOC_PAGES)
+    for page in DOC_PAGES:
+        for block in page.console:
+            assert block.markers, (f"{page.name} line {block.line}: a console block without a "
+                                   "<!-- readme-test: exact|stats samples=N|skip reason=... -->")
+
+
+@pytest.mark.parametrize(("page", "block", "marker"), _doc_block_cases())
+def test_docs_console_block(page, block, marker, tmp_path):
+    """A docs page's block prints what the page shows (exactly, or within its intervals)."""
+    if any(argv[:1] == ["screenshot"] for step in block.steps
+           for argv in readme.kinegrasp_argvs(step.command)):
+        from kinegrasp_env.toolkit.report_browser import find_chromium
+
+        if find_chromium() is None:
+            pytest.skip("kinegrasp screenshot needs chromium (Debian: apt-get install chromium)")
+    problems = run_block(block, marker, tmp_path, page)
+    assert not problems, "\n\n".join(problems)
+
+
+def _doc_python_blocks():
+    """The docs pages' Python blocks that the README does not show (those run there)."""
+    in_readme = set(re.findall(r"```python\n(.*?)```", README, flags=re.S))
+    return [pytest.param(code, id=f"{page.name}:{i}")
+            for page in DOC_PAGES
+            for i, code in enumerate(re.findall(r"```python\n(.*?)```",
+                                                (ROOT / page.name).read_text(), flags=re.S))
+            if code not in in_readme]
+
+
+@pytest.mark.parametrize("code", _doc_python_blocks())
+def test_docs_python_blocks_run(code, tmp_path, monkeypatch):
+    """Each Python block of the documentation that the README does not show runs."""
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "docs python block", "exec"), {"__name__": "__docs__"})
 
 
 def test_stats_comparison_accepts_sampling_and_catches_drift():

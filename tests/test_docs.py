@@ -1,0 +1,251 @@
+"""The documentation site: it builds with ``mkdocs build --strict``, and the built site, opened
+from disk in headless Chromium with every network request refused, loads every page without a
+console error, finds pages with its search box, and links only to itself (or to the stated
+external references below). Its generated pages come from the code: the CLI reference has
+every command and option of the parser, the benchmarks page every script.
+
+The console blocks of the pages are run by ``tests/test_readme.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: External addresses a page may link to (stated references; anything else is a failure):
+#: the two formats the changelog follows.
+ALLOWED_EXTERNAL: tuple[str, ...] = ("https://keepachangelog.com/en/1.1.0/",
+                                     "https://semver.org/spec/v2.0.0.html")
+
+#: The Chromium flags of the browser test (no network services, a fresh profile per run).
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync")
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory) -> Path:
+    """The site built into a fresh folder with ``mkdocs build --strict`` (fails on any
+    warning: a broken link, an unresolved reference, a docstring mkdocstrings cannot read)."""
+    folder = tmp_path_factory.mktemp("site")
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "DISABLE_MKDOCS_2_WARNING": "true"}
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
+                           str(folder)], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-5000:]
+    return folder
+
+
+def pages(site: Path) -> list[Path]:
+    """Every page of the site but 404.html (a web server's error page: its links are
+    root-relative, for the server's root, so it is no page to open from disk)."""
+    return sorted(p for p in site.rglob("*.html") if p.relative_to(site).as_posix() != "404.html")
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    """A headless Chromium context (the system's browser, a fresh user-data-dir) whose every
+    request that is not file: or data: is aborted and recorded in ``context.refused``."""
+    from kinegrasp_env.toolkit.report_browser import find_chromium
+
+    executable = find_chromium()
+    if executable is None:
+        pytest.skip("the browser test needs Chromium (Debian: apt-get install chromium)")
+    sync_api = pytest.importorskip("playwright.sync_api")
+    with sync_api.sync_playwright() as playwright:
+        context = playwright.chromium.launch_persistent_context(
+            str(tmp_path_factory.mktemp("profile")), executable_path=executable,
+            headless=True, args=list(CHROMIUM_FLAGS))
+        context.refused = []
+
+        def route(route):
+            url = route.request.url
+            if url.startswith(("file:", "data:")):
+                route.continue_()
+            else:
+                context.refused.append(url)
+                route.abort()
+
+        context.route("**/*", route)
+        yield context
+        context.close()
+
+
+def open_page(context, path: Path):
+    """Open ``path``; (page, console errors and page errors seen while it loaded)."""
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}")
+            if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+    page.goto(path.as_uri(), wait_until="load")
+    page.wait_for_timeout(150)  # scripts run after load (search worker, palette)
+    return page, errors
+
+
+def outside(url: str, site: Path) -> str | None:
+    """Why ``url`` (absolute, as the browser resolved it) is not a reference into the site,
+    or None when it is one (or an allowed external one)."""
+    parsed = urlparse(url)
+    if parsed.scheme in ("data", "javascript", "about", "blob") or url in ALLOWED_EXTERNAL:
+        return None
+    if parsed.scheme != "file":
+        return "outside the site"
+    target = Path(unquote(parsed.path))
+    if not target.resolve().is_relative_to(site.resolve()):
+        return "a file outside the site folder"
+    if not target.exists():
+        return "no such file in the site"
+    return None
+
+
+LINKS = ("() => [...document.querySelectorAll('a[href], link[href], script[src], img[src], "
+         "iframe[src], source[src]')].map(e => e.href || e.src)")
+
+
+@pytest.mark.expensive
+def test_every_page_loads_without_console_errors_and_links_only_inside(site, browser):
+    """Every page of the built site loads from disk with no console error, requests nothing
+    off the machine, and every link, script, stylesheet and image it references is a file of
+    the site (or a stated external reference)."""
+    found = pages(site)
+    assert len(found) >= 20, [p.name for p in found]
+    problems = []
+    for path in found:
+        page, errors = open_page(browser, path)
+        relative = path.relative_to(site)
+        problems += [f"{relative}: {e}" for e in errors]
+        for url in page.evaluate(LINKS):
+            why = outside(url, site)
+            if why:
+                problems.append(f"{relative}: link {url}: {why}")
+        page.close()
+    problems += [f"request refused: {url}" for url in browser.refused]
+    assert not problems, "\n".join(problems[:50])
+
+
+@pytest.mark.expensive
+def test_search_finds_pages(site, browser):
+    """Typing into Material's search box lists results: pages of the site, the elbow guide
+    among them for words of its subject."""
+    page, errors = open_page(browser, site / "index.html")
+    page.locator("input.md-search__input").click()
+    page.keyboard.type("self-motion elbow", delay=30)
+    page.wait_for_selector(".md-search-result__item", timeout=15000)
+    hrefs = page.eval_on_selector_all(".md-search-result__item a", "els => els.map(e => e.href)")
+    assert hrefs
+    assert [outside(href, site) for href in hrefs] == [None] * len(hrefs), hrefs
+    assert any("/guides/elbow.html" in href for href in hrefs), hrefs
+    assert not errors, errors
+    page.close()
+
+
+def test_outside_rule():
+    """The link rule on hand-made cases: a file of the site passes; the web, a file outside
+    the folder and a missing file fail."""
+    site = ROOT / "docs"
+    assert outside((site / "conventions.md").as_uri(), site) is None
+    assert outside("data:image/png;base64,AAAA", site) is None
+    assert outside("https://example.org/", site) == "outside the site"
+    assert outside((ROOT / "README.md").as_uri(), site) == "a file outside the site folder"
+    assert outside((site / "nope.html").as_uri(), site) == "no such file in the site"
+
+
+def _generated(name: str):
+    """Run one of docs/gen_*.py with mkdocs-gen-files' ``open`` captured; {path: text}."""
+    import importlib.util
+
+    import mkdocs_gen_files
+
+    written: dict[str, str] = {}
+
+    class _Capture:
+        def __init__(self, path, mode="w"):
+            self.path, self.mode = path, mode
+
+        def __enter__(self):
+            return self
+
+        def write(self, data):
+            written[self.path] = written.get(self.path, "") + (
+                data.decode() if isinstance(data, bytes) else data)
+
+        def __exit__(self, *exc):
+            return False
+
+    original = mkdocs_gen_files.open
+    mkdocs_gen_files.open = _Capture
+    try:
+        spec = importlib.util.spec_from_file_location(f"docs_{name}", ROOT / "docs" / name)
+        spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    finally:
+        mkdocs_gen_files.open = original
+    return written
+
+
+def test_cli_reference_has_every_command_and_option():
+    """The generated CLI page names every sub-command (and nested sub-command) and every
+    option string of the argparse parser (``-h/--help`` aside), walked here independently of
+    the generator."""
+    from kinegrasp_env.cli.main import build_parser
+
+    text = _generated("gen_cli.py")["reference/cli.md"]
+    missing = []
+
+    def walk(parser, name):
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                for sub, subparser in action.choices.items():
+                    if f"## `{name} {sub}`" not in text:
+                        missing.append(f"{name} {sub}")
+                    walk(subparser, f"{name} {sub}")
+            elif action.help != argparse.SUPPRESS and not isinstance(
+                    action, argparse._HelpAction):  # -h/--help: on every command, said once
+                missing.extend(f"{name} {s}" for s in action.option_strings
+                               if f"`{s}`" not in text)
+
+    walk(build_parser(), "kinegrasp")
+    assert not missing, missing
+
+
+def test_benchmarks_page_lists_every_script_and_renders_its_result():
+    """Every benchmarks/*.py has a section; a script with a JSON result in
+    benchmarks/results/ shows its figures (every top-level number of the file appears, as
+    the generator formats it), one without says it was not run yet."""
+    import json
+
+    text = _generated("gen_benchmarks.py")["reference/benchmarks.md"]
+    sections = {s.split("\n", 1)[0]: s for s in text.split("\n## ")[1:]}
+    for script in sorted((ROOT / "benchmarks").glob("*.py")):
+        assert script.stem in sections, script.name
+        section = sections[script.stem]
+        result = ROOT / "benchmarks" / "results" / f"{script.stem}.json"
+        if not result.is_file():
+            assert "Not run yet" in section, script.stem
+            continue
+        assert "Not run yet" not in section
+        data = json.loads(result.read_text())
+        numbers = [v for v in (data.values() if isinstance(data, dict) else [])
+                   if isinstance(v, float)]
+        for value in numbers:
+            assert f"{value:.4g}" in section, (script.stem, value)
+
+
+def test_ci_runs_the_readme_test_command_with_the_docs_build():
+    """``.ci/run`` runs exactly the README's test command, and that command builds the site
+    with ``mkdocs build --strict`` before pytest."""
+    readme = (ROOT / "README.md").read_text()
+    ci = [line for line in (ROOT / ".ci" / "run").read_text().splitlines()
+          if "pytest" in line and not line.startswith("#")]
+    assert len(ci) == 1, ci
+    assert f"```bash\n{ci[0]}\n```" in readme, "the README's test command differs from .ci/run"
+    build, tests = ci[0].find("mkdocs build --strict"), ci[0].find("-m pytest")
+    assert 0 < build < tests, ci[0]
