@@ -31,6 +31,7 @@ from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
     HELD,
+    REST_PHASE,
     START_COLLISION,
     HoldProtocol,
     HoldResult,
@@ -238,29 +239,41 @@ class MujocoHold:
         if result.outcome != HELD:
             return result
         state = world.save_state()
-
-        def record(name: str, outcome: tuple[bool, float, float]) -> None:
-            result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
-
-        for name, direction in GRAVITY_PHASES.items():
-            world.restore_state(state)
-            world.set_gravity(p.gravity * np.asarray(direction))
-            record(name, self.watch(reference, steps_of(p.gravity_time, dt)))
-        world.restore_state(state)
-        world.set_gravity([0.0, 0.0, -p.gravity])
         root, palm = world.link_pose("hand_root"), world.link_pose("palm")[:3, 3]
-        times = dt * np.arange(1, steps_of(p.lift_time + p.hold_time, dt) + 1)
-        path = hand_path(lift_motion(p, times), np.zeros(times.size), root, palm)
-        record("lift", self.watch(reference, times.size, path))
-        if p.shake and result.phase_held["lift"]:
+        for name in p.phases:
+            if name == "shake":  # right after a held lift, from where it left the hand
+                if not result.phase_held.get("lift", False):
+                    continue
+            else:
+                world.restore_state(state)
+            outcome = self.run_phase(name, reference, root, palm)
+            result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
+        result.outcome = final_outcome(HELD, result.phase_held)
+        return result
+
+    def run_phase(self, name: str, reference: np.ndarray, root: np.ndarray,
+                  palm: np.ndarray) -> tuple[bool, float, float]:
+        """One phase of the protocol from the saved post-release state (module docstring),
+        the hand root at ``root`` (4, 4) and palm centre at ``palm`` (3,) at its start."""
+        p, world = self.protocol, self.world
+        dt = world.settings.time_step
+        if name == REST_PHASE or name in GRAVITY_PHASES:
+            direction = np.zeros(3) if name == REST_PHASE else np.asarray(GRAVITY_PHASES[name])
+            world.set_gravity(p.gravity * direction)
+            return self.watch(reference, steps_of(p.gravity_time, dt))
+        world.set_gravity([0.0, 0.0, -p.gravity])
+        if name == "lift":
+            times = dt * np.arange(1, steps_of(p.lift_time + p.hold_time, dt) + 1)
+            path = hand_path(lift_motion(p, times), np.zeros(times.size), root, palm)
+            return self.watch(reference, times.size, path)
+        if name == "shake":
             lifted = np.eye(4)
             lifted[:3, 3] = [0.0, 0.0, p.lift_height]
             times = dt * np.arange(1, steps_of(p.shake_time, dt) + 1)
             shifts, angles = shake_motion(p, times)
             path = hand_path(shifts, angles, lifted @ root, palm + lifted[:3, 3])
-            record("shake", self.watch(reference, times.size, path))
-        result.outcome = final_outcome(HELD, result.phase_held)
-        return result
+            return self.watch(reference, times.size, path)
+        raise ValueError(f"the MuJoCo holding test has no phase {name!r}")
 
     def close(self) -> None:
         """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""
