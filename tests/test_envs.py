@@ -18,7 +18,8 @@ from kinegrasp_env.robot.kinematics import pose_error
 from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.world.grasps import Grasp
 
-SMALL = {"n_draws": 8}
+# the reference engine: these tests hold the env to it exactly (the default is "fast")
+SMALL = {"n_draws": 8, "engine": "pybullet"}
 #: every registered env, and the discrete-action variant of the one-step env
 VARIANTS = [(env_id, {}) for env_id in ENV_IDS] + [("KineGraspSelect-v0", {"action_bins": 6})]
 
@@ -133,7 +134,7 @@ def test_make_by_module_string():
 def test_action_keeps_the_palm_and_moves_the_elbow():
     env = gym.make("KineGrasp-v0", **SMALL).unwrapped
     env.reset(seed=0, options={"object": "drill", "grasp": 0, "sigma": 0.01})
-    kin = env._engine("drill").kin
+    kin = env.kinematics
     palm0 = kin.pose(env.q, PALM_LINK)
     elbow0 = kin.pose(env.q, ELBOW_LINK)[0, :3, 3]
     env.step(np.array([0.8, -1.0], dtype=np.float32))

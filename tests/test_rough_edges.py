@@ -201,3 +201,93 @@ def test_a_revised_total_is_shown_against_the_first():
     assert stream.getvalue() == ("rank: round 1/4 0 of 12 candidates undecided, "
                                  "20500/20500 draws (down from 24000), 5250 draws/s, "
                                  "ETA 00:00\n")
+
+
+# ------------------------------------------------------------------ the environments
+def test_the_env_default_engine_is_fast_and_agrees_with_the_reference():
+    """The default a user gets is the fast engine, and it is the right default: on the same
+    task, seed and draws the reference engine (pybullet) gives the same outcome draw for
+    draw (``info["outcomes"]`` counts of 64 draws at two elbow steps; agreement.py's figure:
+    9,599 of 9,600 draws the same, so one draw in 64 may differ)."""
+    import gymnasium as gym
+    import numpy as np
+
+    import kinegrasp_env  # noqa: F401 (registers the IDs)
+
+    fast = gym.make("KineGrasp-v0", n_draws=64).unwrapped
+    reference = gym.make("KineGrasp-v0", n_draws=64, engine="pybullet").unwrapped
+    assert fast.engine == "fast" and "benchmarks/agreement.py" in type(fast).__doc__
+    options = {"object": "spray_flask", "grasp": 2, "sigma": 0.0266}
+    for env in (fast, reference):
+        env.reset(seed=4, options=options)
+    for action in ([0.0, -1.0], [0.6, -1.0]):
+        *_, i_fast = fast.step(np.array(action, dtype=np.float32))
+        *_, i_ref = reference.step(np.array(action, dtype=np.float32))
+        assert i_fast["draw_seed"] == i_ref["draw_seed"]
+        differ = sum(abs(i_fast["outcomes"][k] - i_ref["outcomes"][k])
+                     for k in i_ref["outcomes"])
+        assert differ <= 2, (i_fast["outcomes"], i_ref["outcomes"])  # one draw moved: 2
+    fast.close()
+    reference.close()
+
+
+@pytest.fixture(scope="module")
+def stepped_envs():
+    import gymnasium as gym
+
+    import kinegrasp_env  # noqa: F401
+
+    envs = {"multi": gym.make("KineGrasp-v0", n_draws=4).unwrapped,
+            "select": gym.make("KineGraspSelect-v0", n_draws=4).unwrapped,
+            "bins": gym.make("KineGraspSelect-v0", n_draws=4, action_bins=4).unwrapped}
+    for env in envs.values():
+        env.reset(seed=0, options={"object": "cube", "grasp": 0, "sigma": 0.01})
+    yield envs
+    for env in envs.values():
+        env.close()
+
+
+@pytest.mark.parametrize(("which", "action", "wrong"), [
+    ("multi", float("nan"), "got shape ()"),
+    ("multi", [float("nan"), 0.0], "(not finite)"),
+    ("multi", 0.5, "got shape ()"),
+    ("multi", [0.1, 0.2, 0.3], "got shape (3,)"),
+    ("multi", [[0.1, 0.2]], "got shape (1, 2)"),
+    ("multi", [1.5, 0.0], "[1.5, 0.0] (outside [-1, 1])"),
+    ("multi", ["left", "done"], "got ['left', 'done']"),
+    ("select", [0.2, 0.3], "got shape (2,)"),
+    ("select", [-1.01], "(outside [-1, 1])"),
+])
+def test_a_bad_action_is_one_line_naming_shape_and_range(stepped_envs, which, action, wrong):
+    """NaN, a scalar, a wrong shape, an entry outside [-1, 1], text: a one-line ValueError
+    that names the expected shape and range and what was wrong (was: "cannot convert float
+    NaN to integer", "index 1 is out of bounds", a (3,) action accepted)."""
+    shape = "(2,)" if which == "multi" else "(1,)"
+    with pytest.raises(ValueError) as caught:
+        stepped_envs[which].step(action)
+    message = str(caught.value)
+    assert "\n" not in message
+    assert message.startswith(f"the action must be a float array of shape {shape} in [-1, 1]")
+    assert wrong in message
+
+
+@pytest.mark.parametrize("action", [4, -1, 1.5, [1, 2]])
+def test_a_bad_discrete_action_names_the_bins(stepped_envs, action):
+    with pytest.raises(ValueError, match=r"outside Discrete\(4\): the action must be an "
+                                         r"integer in 0\.\.3"):
+        stepped_envs["bins"].step(action)
+
+
+def test_good_actions_still_step(stepped_envs):
+    """The checks refuse nothing the action space holds (its own samples, its bounds)."""
+    import numpy as np
+
+    for env in stepped_envs.values():
+        env.action_space.seed(0)
+        space = env.action_space
+        bounds = (space.high, space.low) if hasattr(space, "high") else (0, space.n - 1)
+        for action in (space.sample(), *bounds):
+            if isinstance(action, np.ndarray) and space.shape == (2,):
+                action = action.copy()
+                action[1] = -1.0  # keep the episode going
+            env.step(action)
