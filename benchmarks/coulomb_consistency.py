@@ -20,7 +20,10 @@ free, gravity off):
   between those two (``--bisect`` steps).
 
     python benchmarks/coulomb_consistency.py [--bisect 7] [--simulators pybullet mujoco]
-        [--json-out benchmarks/results/coulomb_consistency.json]
+        [--json-out benchmarks/results/coulomb_consistency.json] [--no-readme]
+
+It also writes its table into README.md (between ``<!-- coulomb-consistency:start -->`` and
+``<!-- coulomb-consistency:end -->``).
 
 About 1 s per grasp and simulator without bisection, ~5 s with 7 steps.
 """
@@ -47,6 +50,8 @@ from coulomb.scenes import (
 
 #: Friction factors of the two checks (resist at HIGH mu*, slip at LOW mu*).
 HIGH, LOW = 1.5, 0.67
+#: The README section this script writes.
+START, END = "<!-- coulomb-consistency:start -->", "<!-- coulomb-consistency:end -->"
 
 
 def simulated_critical_mu(simulate, grasp: CoulombGrasp, low: float, high: float,
@@ -104,6 +109,35 @@ def table(rows: dict[str, dict], simulators: list[str]) -> str:
     return "\n".join(lines)
 
 
+def markdown(rows: dict[str, dict], simulators: list[str]) -> str:
+    """The README table: per grasp and simulator, resisted at 1.5 mu* (displacement),
+    slipped at 0.67 mu*, the simulator's critical mu."""
+    lines = ["| grasp | k | mu* | mu*32 | mu*FC | simulator | resists at 1.5 mu* | "
+             "slips at 0.67 mu* | simulated critical mu |", "|---" * 9 + "|"]
+    for name, row in rows.items():
+        fc = "-" if row["mu_fc"] is None else f"{row['mu_fc']:.3f}"
+        for sim in simulators:
+            r = row[sim]
+            critical = r.get("sim_mu_star")
+            lines.append(
+                f"| {name} | {row['contacts']} | {row['mu_star']:.4f} | "
+                f"{row['mu_star_m32']:.4f} | {fc} | {sim} | "
+                f"{'yes' if r['resisted_at_1.5'] else 'NO'} ({r['disp_mm_at_1.5']:.3f} mm, "
+                f"{r['turn_deg_at_1.5']:.2f} deg) | {'yes' if r['slipped_at_0.67'] else 'NO'} | "
+                + ("-" if critical is None else f"{critical:.4f}") + " |")
+    return "\n".join(lines)
+
+
+def write_readme(path: Path, body: str) -> None:
+    """Replace the README's text between :data:`START` and :data:`END` with ``body``."""
+    text = path.read_text()
+    if START not in text or END not in text:
+        raise ValueError(f"{path} has no {START} ... {END} markers")
+    head, rest = text.split(START, 1)
+    _, tail = rest.split(END, 1)
+    path.write_text(f"{head}{START}\n{body}\n{END}{tail}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--simulators", nargs="+", default=list(SIMULATORS),
@@ -113,6 +147,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json-out", type=Path,
                         default=Path(__file__).resolve().parent / "results"
                         / "coulomb_consistency.json")
+    parser.add_argument("--readme", type=Path,
+                        default=Path(__file__).resolve().parents[1] / "README.md",
+                        help="write the table into this file between its markers")
+    parser.add_argument("--no-readme", action="store_true")
     args = parser.parse_args(argv)
     if args.bisect < 0:
         parser.error(f"--bisect must be >= 0, got {args.bisect}")
@@ -137,6 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     args.json_out.parent.mkdir(parents=True, exist_ok=True)
     args.json_out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"wrote {args.json_out}", file=sys.stderr)
+    if not args.no_readme:
+        write_readme(args.readme, markdown(rows, args.simulators))
     return 0 if passed else 1
 
 
