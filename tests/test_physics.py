@@ -449,9 +449,10 @@ def _pose(matrix):
 
 @pytest.mark.parametrize("weld", [True, False])
 def test_the_phases_against_known_truths(weld):
-    """Six gravity directions, the lift and the shake: an object welded to the palm holds in
-    every one (it moves with the hand: within 1 mm); an object nothing touches fails every
-    one (it falls 2 cm in 64 ms under g, well inside a phase), whatever the direction."""
+    """Rest, six gravity directions, the lift and the shake: an object welded to the palm
+    holds in every one (it moves with the hand: within 1 mm); an object nothing touches stays
+    put at rest (no force on it) and fails every other one (it falls 2 cm in 64 ms under g,
+    well inside a phase), whatever the direction."""
     import dataclasses
 
     sim, control = _phase_world(weld)
@@ -468,7 +469,8 @@ def test_the_phases_against_known_truths(weld):
             assert result.phase_held == dict.fromkeys(PHASES, True)
             assert max(result.phase_shift.values()) < 1e-3
         else:
-            assert result.phase_held == dict.fromkeys(PHASES[:-1], False)  # no lift, no shake
+            # the lift fails, so the shake is not run
+            assert result.phase_held == {**dict.fromkeys(PHASES[:-1], False), "rest": True}
             assert set(result.phase_held) >= set(GRAVITY_PHASES)
     finally:
         sim.close()
@@ -479,11 +481,15 @@ def test_hold_counts_are_consistent_on_real_draws(cube_engine):
     every phase run held, the shake never run without the flag, shifts only where released."""
     q = np.array([g.q0 for g in shipped_grasps("cube")[3:6]])
     _, hold = cube_engine.run_hold(q)
-    stood = np.isin(hold.outcome, [HOLD_OUTCOMES.index("held"), HOLD_OUTCOMES.index("dropped")])
-    ran = hold.phase_held[:, :7] >= 0
+    stood = np.isin(hold.outcome, [HOLD_OUTCOMES.index(k)
+                                   for k in ("held", "dropped", "grip_unsteady")])
+    ran = hold.phase_held[:, :8] >= 0
     assert np.array_equal(ran.all(axis=1), stood) and np.array_equal(ran.any(axis=1), stood)
     assert np.all(hold.phase_held[:, PHASES.index("shake")] == -1)
-    assert np.array_equal(hold.held, stood & (hold.phase_held[:, :7] == 1).all(axis=1))
+    assert np.array_equal(hold.held, stood & (hold.phase_held[:, :8] == 1).all(axis=1))
+    rest = hold.phase_held[:, PHASES.index("rest")]
+    assert np.array_equal(hold.outcome == HOLD_OUTCOMES.index("grip_unsteady"),
+                          stood & (rest == 0))
     released = hold.outcome != HOLD_OUTCOMES.index("no_grip")
     assert np.array_equal(np.isfinite(hold.grip_shift), released)
 

@@ -127,8 +127,8 @@ def test_phase_and_outcome_counts_against_a_hand_count():
     whose grip stood (held or dropped), ``held`` those that passed it; outcomes per name;
     grip shifts in millimetres per draw (None where nothing was released)."""
     phases = np.full((4, len(PHASES)), -1, np.int8)
-    phases[0, :7] = 1                      # held: six directions and the lift
-    phases[1, :7] = 1
+    phases[0, :8] = 1                      # held: rest, six directions and the lift
+    phases[1, :8] = 1
     phases[1, PHASES.index("gravity_+x")] = 0  # dropped in +x only
     phases[1, PHASES.index("lift")] = 0        # and in the lift
     draws = fake_draws("cube", 0, [FC] * 4, [FC] * 4, [1, 0, 0, 0],
@@ -138,7 +138,7 @@ def test_phase_and_outcome_counts_against_a_hand_count():
                         resamples=10)
     first = summary["grasps"][0]
     assert first["outcomes"] == {"start_collision": 0, "no_grip": 1, "grip_lost": 1,
-                                 "dropped": 1, "held": 1}
+                                 "grip_unsteady": 0, "dropped": 1, "held": 1}
     assert first["draw_outcomes"] == ["held", "dropped", "grip_lost", "no_grip"]
     assert first["phases"]["gravity_+x"] == {"run": 2, "held": 1}
     assert first["phases"]["gravity_-y"] == {"run": 2, "held": 2}

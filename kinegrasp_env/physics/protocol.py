@@ -19,9 +19,12 @@ fingers at the grasp's pre-shape), step by step:
    mass, millimetres) and ``grip_turn_deg`` (rotation angle). If fewer than two fingers press
    now, or a finger that pressed at the end of the grip carries ``contact_force`` or less,
    the grip lost a contact: ``grip_lost`` (the grip itself failed; nothing was dropped);
-4. **disturbances**, each from the same post-release state (the reference pose: the object in
+4. **phases**, each from the same post-release state (the reference pose: the object in
    the palm frame then), the hand motors still pressing:
 
+   * ``rest``: the control, no disturbance (gravity off, the hand still) for ``gravity_time``:
+     does the grip alone keep the object where it is? If not, the draw is ``grip_unsteady``
+     (the grip, not a disturbance, moved it; the other phases still run and are reported);
    * ``gravity_+x`` ... ``gravity_-z``: gravity of ``gravity`` m/s^2 along each world axis in
      turn (the six-direction test of DexGraspNet and BODex), for ``gravity_time`` each, the
      hand still;
@@ -37,7 +40,8 @@ fingers at the grasp's pre-shape), step by step:
    the reference is within ``max_turn`` (palm frame); a phase stops at its first failed check.
 
 The draw's outcome (:data:`HOLD_OUTCOMES`): ``start_collision`` (the closing's), ``no_grip``,
-``grip_lost``, ``dropped`` (some phase run failed), ``held`` (every phase run held).
+``grip_lost``, ``grip_unsteady`` (the rest phase failed), ``dropped`` (the rest phase held, a
+disturbance phase failed), ``held`` (every phase run held).
 
 The torque limits of the finger joints are **assumptions** (:data:`ASSUMED_TORQUES`), not
 measured values of a real hand; ``torque_scale`` multiplies all of them, so a reader can see
@@ -56,11 +60,14 @@ GRAVITY_PHASES: dict[str, tuple[float, float, float]] = {
     "gravity_+y": (0.0, 1.0, 0.0), "gravity_-y": (0.0, -1.0, 0.0),
     "gravity_+z": (0.0, 0.0, 1.0), "gravity_-z": (0.0, 0.0, -1.0),
 }
-#: Every disturbance phase, in the order they run.
-PHASES: tuple[str, ...] = (*GRAVITY_PHASES, "lift", "shake")
+#: The control phase: no disturbance.
+REST_PHASE = "rest"
+#: Every phase, in the order they run.
+PHASES: tuple[str, ...] = (REST_PHASE, *GRAVITY_PHASES, "lift", "shake")
 #: The outcomes of a draw's holding test.
-HOLD_OUTCOMES: tuple[str, ...] = ("start_collision", "no_grip", "grip_lost", "dropped", "held")
-START_COLLISION, NO_GRIP, GRIP_LOST, DROPPED, HELD = range(len(HOLD_OUTCOMES))
+HOLD_OUTCOMES: tuple[str, ...] = ("start_collision", "no_grip", "grip_lost", "grip_unsteady",
+                                  "dropped", "held")
+START_COLLISION, NO_GRIP, GRIP_LOST, GRIP_UNSTEADY, DROPPED, HELD = range(len(HOLD_OUTCOMES))
 
 
 @dataclass(frozen=True)
@@ -234,8 +241,10 @@ class HoldResult:
 
 def final_outcome(grip: int, phase_held: dict[str, bool]) -> int:
     """A draw's outcome from its grip verdict (:func:`grip_verdict`) and its phases:
-    the grip's failure if it failed, else :data:`DROPPED` if any phase failed, else
-    :data:`HELD`."""
+    the grip's failure if it failed, else :data:`GRIP_UNSTEADY` if the rest phase failed,
+    else :data:`DROPPED` if any phase failed, else :data:`HELD`."""
     if grip != HELD:
         return grip
+    if not phase_held.get(REST_PHASE, True):
+        return GRIP_UNSTEADY
     return HELD if all(phase_held.values()) else DROPPED

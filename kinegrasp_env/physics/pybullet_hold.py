@@ -11,10 +11,10 @@ pinned (:meth:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld.pin_object`), 
   normal forces (:func:`~kinegrasp_env.physics.pybullet_closing.finger_forces`) are steady;
 * release: the pin removed, the support table (if any) put out of reach, object damping off,
   gravity off, ``settle_time``; then the state is saved (``saveState``);
-* each phase starts from that saved state (``restoreState``; the motors' commands are set
-  again), the object's pose in the palm frame checked every ``check_interval``. The lift and
-  the shake move the constraint that holds the hand's root along
-  :func:`~kinegrasp_env.physics.motion.hand_path`.
+* each phase (the rest control first, then the disturbances) starts from that saved state
+  (``restoreState``; the motors' commands are set again), the object's pose in the palm frame
+  checked every ``check_interval``. The lift and the shake move the constraint that holds the
+  hand's root along :func:`~kinegrasp_env.physics.motion.hand_path`.
 
 Within a draw the phases run in a fixed order from one saved state, so a draw's result
 depends only on its inputs (the world's :meth:`reset` drops the previous draw's contact
@@ -33,6 +33,7 @@ from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
     HELD,
+    REST_PHASE,
     START_COLLISION,
     HoldProtocol,
     HoldResult,
@@ -179,6 +180,9 @@ def run_phases(world: PhysicsWorld, control: MotorGrip, protocol: HoldProtocol,
         control.restart()
         world.set_gravity(gravity)
 
+    restart(np.zeros(3))
+    record(REST_PHASE, watch(world, control, protocol, reference,
+                             steps_of(protocol.gravity_time, dt)))
     for name, direction in GRAVITY_PHASES.items():
         restart(protocol.gravity * np.asarray(direction))
         steps = steps_of(protocol.gravity_time, dt)

@@ -166,7 +166,7 @@ def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     bit, as scoring is batched by contact count: 3e-17 measured)."""
     kept = [(f.name, getattr(settings, f.name)) for f in fields(settings) if f.name != "samples"]
     text = repr((grasp.object, grasp.q0.tobytes().hex(), kept, WorldSettings(),
-                 MotorSettings(), settings.protocol, DEFAULT_CHUNK))
+                 MotorSettings(), settings.protocol, PHASES, HOLD_OUTCOMES, DEFAULT_CHUNK))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
