@@ -204,7 +204,7 @@ def test_progress_rate_unknown_before_two_reports_and_eta_format():
     report.evaluation()(100, 100)
     report.cell_done("drill grasp 0 sigma 0.0133: P(FC) 1.000")
     assert stream.getvalue() == ("fig7: cell 1/1 drill grasp 0 sigma 0.0133: P(FC) 1.000, "
-                                 "100/100 draws, ? draws/s, ETA ?\n")
+                                 "100/100 draws, rate being measured\n")
     assert [format_eta(s) for s in (None, 0.4, 59.6, 3599, 3600, 7384)] == [
         "?", "00:00", "01:00", "59:59", "1:00:00", "2:03:04"]
 
