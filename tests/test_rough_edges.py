@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import io
 import subprocess
+from pathlib import Path
 
 import pytest
 from cli_helpers import COMMAND
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli.common import CLIError, available_cores, output_file, output_folder
+from kinegrasp_env.cli.main import main
 from kinegrasp_env.toolkit.progress import MIN_WINDOW, Progress
 
 #: Draws that no command finishes within the timeout below.
@@ -291,3 +293,85 @@ def test_good_actions_still_step(stepped_envs):
                 action = action.copy()
                 action[1] = -1.0  # keep the episode going
             env.step(action)
+
+
+# ------------------------------------------------------------------ one grasp-file schema
+def _write(path, payload) -> str:
+    import json
+
+    path.write_text(json.dumps(payload))
+    return str(path)
+
+
+def test_a_grasp_file_written_from_the_readme_table_is_read(tmp_path, capsys):
+    """A file with the table's fields only (``object`` once at the top, entries with ``id``
+    and ``q0``) is read and evaluated; the palm pose left out is the palm at q0, equal to
+    the one the shipped file records for the same q0 (its own planner's value, 1e-9 m/rad);
+    contacts default to none, Q to 0."""
+    import json
+
+    import numpy as np
+
+    from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
+
+    shipped = shipped_grasps("cube")[:2]
+    path = _write(tmp_path / "g.json", {"object": "cube", "grasps": [
+        {"id": "first", "q0": shipped[0].q0.tolist()}, {"q0": shipped[1].q0.tolist()}]})
+    grasps = load_grasps(path)
+    assert [g.id for g in grasps] == ["first", "1"] and {g.object for g in grasps} == {"cube"}
+    for read, ref in zip(grasps, shipped, strict=True):
+        np.testing.assert_allclose(read.palm_pose, ref.palm_pose, atol=1e-9, rtol=0)
+        assert read.points.shape == (0, 3) and read.q_nominal == 0.0
+    assert main(["evaluate", "--grasps", path, "--grasp", "first", "--samples", "20",
+                 "--engine", "fast", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["samples"] == 20
+
+
+@pytest.mark.parametrize(("entry", "needle"), [
+    ({}, "grasp 0: field 'q0' missing (14 joint angles in radians: 7 arm, then 7 hand)"),
+    ({"id": "a", "q0": [0.0] * 3}, "grasp 0 (id 'a'): field 'q0': q0 must have 14 entries"),
+    ({"q0": "zero"}, "grasp 0: field 'q0': expected 14 joint angles"),
+    ({"object": "teapot", "q0": []}, "grasp 0: field 'object': unknown object 'teapot'"),
+    ({"q0": None, "palm_pose": 1}, "grasp 0: field 'q0': q0 must have 14 entries"),
+    ({"SHIPPED": True, "palm_pose": [[1, 0], [0, 1]]},
+     "grasp 0: field 'palm_pose': must be a finite 4x4 matrix, got shape (2, 2)"),
+    ({"SHIPPED": True, "contacts": [{"point": [0, 0], "normal": [0, 0, 1]}]},
+     "grasp 0: field 'contacts' entry 0: field 'point': expected 3 finite numbers"),
+    ({"SHIPPED": True, "contacts": {"point": 1}}, "grasp 0: field 'contacts': must be a list"),
+    ({"SHIPPED": True, "q_nominal": "high"}, "grasp 0: field 'q_nominal': must be a finite"),
+    ({"SHIPPED": True, "meta": [1]}, "grasp 0: field 'meta': must be an object"),
+])
+def test_a_bad_entry_names_the_entry_and_the_field(tmp_path, entry, needle):
+    """Every malformed field is refused in one line that names the file, the entry (with its
+    id when it has one) and the field (was: "missing or malformed field ('object')" for a
+    file whose top level named the object)."""
+    from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
+
+    if entry.pop("SHIPPED", False):
+        entry = {"q0": shipped_grasps("cube")[0].q0.tolist(), **entry}
+    path = _write(tmp_path / "g.json", {"object": "cube", "grasps": [entry]})
+    with pytest.raises(ValueError) as caught:
+        load_grasps(path)
+    message = str(caught.value)
+    assert "\n" not in message and message.startswith(f"{path} ") and needle in message
+
+
+def test_the_readme_table_lists_every_field_the_reader_takes():
+    """The schema is documented once: every field name the reader looks up in an entry is a
+    row of README's grasp-file table, and every row is a field that some reader takes."""
+    import re
+
+    from kinegrasp_env.world import grasps
+
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    table = readme[readme.index("| field | where | meaning, units, frame |"):]
+    table = table[:table.index("\n\n")]
+    documented = set(re.findall(r"`([a-z_0-9]+)`", "\n".join(
+        line.split("|")[1] for line in table.splitlines()[2:])))
+    source = Path(grasps.__file__).read_text()
+    reader = source[source.index("    def from_dict"):source.index("def palm_at")]
+    read = set(re.findall(r"data(?:\.get)?\(?\[?\"([a-z_0-9]+)\"", reader))
+    read |= set(re.findall(r"_array_field\(data, \"([a-z_0-9]+)\"", reader))
+    assert read <= documented, read - documented
+    palm_pose_only = {"position", "quaternion", "pose", "hand", "spread", "elbow"}
+    assert documented - read <= palm_pose_only, documented - read

@@ -323,7 +323,7 @@ def test_rank_bad_candidates(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"grasps": [{"object": "cube"}]}')
     proc = run_cli("rank", str(bad))
-    assert proc.returncode == 2 and "bad.json grasp 0: missing or malformed field" in proc.stderr
+    assert proc.returncode == 2 and "bad.json grasp 0: field 'q0' missing" in proc.stderr
     assert "Traceback" not in proc.stderr
 
 

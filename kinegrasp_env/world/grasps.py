@@ -13,6 +13,7 @@ IK (``kinegrasp_env.toolkit.candidates.load_candidates``). README: "Candidates a
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 import tempfile
@@ -79,27 +80,95 @@ class Grasp:
         }
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "grasp") -> Grasp:
-        """Build and validate a grasp; ValueError names the bad field."""
-        try:
-            obj = data["object"]
-            q0 = np.asarray(data["q0"], dtype=float)
-            pose = np.asarray(data["palm_pose"], dtype=float)
-            contacts = data.get("contacts", [])
-            q_nominal = float(data.get("q_nominal", 0.0))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{where}: missing or malformed field ({exc})") from None
+    def from_dict(cls, data: dict, where: str = "grasp", *, object_name: str | None = None,
+                  default_id: str = "0") -> Grasp:
+        """Build and validate a grasp from its entry of a grasp file (the fields of README's
+        grasp-file table). ``object`` defaults to the file's top-level one (``object_name``),
+        ``palm_pose`` to the palm at ``q0`` (forward kinematics, world frame), ``contacts`` to
+        none, ``q_nominal`` to 0 and ``id`` to ``default_id``.
+
+        Raises:
+            ValueError: one line naming the entry (``where``) and the field.
+        """
+        if not isinstance(data, dict):
+            raise ValueError(f"{where}: expected an object with a grasp's fields, got "
+                             f"{type(data).__name__}")
+        label = where if "id" not in data else f"{where} (id {data['id']!r})"
+        obj = data.get("object", object_name)
+        if obj is None:
+            raise ValueError(f"{label}: field 'object' missing (give it in the entry or once "
+                             "at the top of the file)")
         if not isinstance(obj, str) or not is_object(obj):
-            raise ValueError(f"{where}: {unknown_object(obj)}")
-        check_configuration(q0, where)
-        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"{where}: palm_pose must be a finite 4x4 matrix")
-        points = np.array([c["point"] for c in contacts], dtype=float).reshape(-1, 3)
-        normals = np.array([c["normal"] for c in contacts], dtype=float).reshape(-1, 3)
-        fingers = np.array([c.get("finger", -1) for c in contacts], dtype=int)
-        links = np.array([c.get("link", -1) for c in contacts], dtype=int)
+            raise ValueError(f"{label}: field 'object': {unknown_object(obj)}")
+        q0 = _array_field(data, "q0", label, "14 joint angles in radians: 7 arm, then 7 hand")
+        check_configuration(q0, f"{label}: field 'q0'")
+        if data.get("palm_pose") is None:
+            pose = palm_at(q0)
+        else:
+            pose = _array_field(data, "palm_pose", label, "a 4x4 matrix (world frame)")
+            if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+                raise ValueError(f"{label}: field 'palm_pose': must be a finite 4x4 matrix, "
+                                 f"got shape {pose.shape}")
+        contacts = data.get("contacts", [])
+        if not isinstance(contacts, list):
+            raise ValueError(f"{label}: field 'contacts': must be a list of "
+                             "{finger, link, point, normal} objects")
+        rows = [_contact(c, f"{label}: field 'contacts' entry {j}")
+                for j, c in enumerate(contacts)]
+        try:
+            q_nominal = float(data.get("q_nominal", 0.0))
+        except (TypeError, ValueError):
+            q_nominal = math.nan
+        if not math.isfinite(q_nominal):
+            raise ValueError(f"{label}: field 'q_nominal': must be a finite number, got "
+                             f"{data.get('q_nominal')!r}")
+        meta = data.get("meta", {})
+        if not isinstance(meta, dict):
+            raise ValueError(f"{label}: field 'meta': must be an object")
+        points = np.array([r[2] for r in rows], dtype=float).reshape(-1, 3)
+        normals = np.array([r[3] for r in rows], dtype=float).reshape(-1, 3)
+        fingers = np.array([r[0] for r in rows], dtype=int)
+        links = np.array([r[1] for r in rows], dtype=int)
         return cls(obj, q0, pose, points, normals, fingers, links, q_nominal,
-                   str(data.get("id", "0")), dict(data.get("meta", {})))
+                   str(data.get("id", default_id)), dict(meta))
+
+
+def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
+    """Field ``name`` of an entry as a float array (ValueError naming entry and field)."""
+    if name not in data:
+        raise ValueError(f"{label}: field {name!r} missing ({what})")
+    try:
+        return np.asarray(data[name], dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{label}: field {name!r}: expected {what}, got "
+                         f"{data[name]!r:.60}") from None
+
+
+def _contact(entry, label: str) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """(finger, link, point (3,), normal (3,)) of one ``contacts`` entry."""
+    if not isinstance(entry, dict):
+        raise ValueError(f"{label}: expected an object with point, normal, finger, link")
+    out = []
+    for name in ("point", "normal"):
+        value = _array_field(entry, name, label, "3 numbers (object frame)")
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise ValueError(f"{label}: field {name!r}: expected 3 finite numbers, got "
+                             f"{entry[name]!r:.60}")
+        out.append(value)
+    try:
+        finger, link = int(entry.get("finger", -1)), int(entry.get("link", -1))
+    except (TypeError, ValueError):
+        raise ValueError(f"{label}: fields 'finger', 'link' must be integers") from None
+    return finger, link, out[0], out[1]
+
+
+def palm_at(q0: np.ndarray) -> np.ndarray:
+    """(4, 4) the palm frame at configuration ``q0`` (14,), world frame (forward kinematics of
+    the robot's URDF): a grasp entry's ``palm_pose`` when the file leaves it out."""
+    from kinegrasp_env.robot.kinematics import Kinematics
+    from kinegrasp_env.robot.model import PALM_LINK
+
+    return Kinematics(kuka_sdh()).pose(np.asarray(q0, dtype=float)[None], PALM_LINK)[0]
 
 
 def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
@@ -152,12 +221,19 @@ def read_json_file(path: str | Path) -> object:
 
 
 def load_grasps(path: str | Path) -> list[Grasp]:
-    """Read a grasp file; ValueError names the file and the problem."""
+    """Read a grasp file: ``{"object": NAME, "grasps": [entry, ...]}``, each entry with the
+    fields of README's grasp-file table (see :meth:`Grasp.from_dict`; an entry's ``object``
+    defaults to the top-level one, its ``id`` to its index). ValueError names the file, the
+    entry and the field."""
     path = Path(path)
     data = read_json_file(path)
     if not isinstance(data, dict) or not isinstance(data.get("grasps"), list):
         raise ValueError(f"{path}: expected an object with a 'grasps' list")
-    return [Grasp.from_dict(g, f"{path} grasp {i}") for i, g in enumerate(data["grasps"])]
+    top = data.get("object")
+    if top is not None and (not isinstance(top, str) or not is_object(top)):
+        raise ValueError(f"{path}: field 'object': {unknown_object(top)}")
+    return [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i))
+            for i, g in enumerate(data["grasps"])]
 
 
 def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
