@@ -375,3 +375,55 @@ def test_the_readme_table_lists_every_field_the_reader_takes():
     assert read <= documented, read - documented
     palm_pose_only = {"position", "quaternion", "pose", "hand", "spread", "elbow"}
     assert documented - read <= palm_pose_only, documented - read
+
+
+# ------------------------------------------------------------------ objects add
+def _box(path: Path, drop_faces: int = 0) -> Path:
+    """A 5 cm box (12 triangles) as STL, with its last ``drop_faces`` triangles removed."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(0.05, 0.05, 0.05))
+    mesh = trimesh.Trimesh(box.vertices, box.faces[:len(box.faces) - drop_faces], process=False)
+    mesh.export(path)
+    return path
+
+
+def test_an_open_mesh_is_warned_about_with_what_the_import_does(tmp_path, caplog):
+    """A box without its top (two triangles removed: 4 border edges, an independent count
+    of a box's square top) is refused nothing but warned about in one record: how many
+    edges are open, that the decomposition remeshes it into a closed solid, slowly, and how
+    to check the result; a closed box gives no warning."""
+    import logging
+
+    from kinegrasp_env.world.importer import prepare
+    from kinegrasp_env.world.meshfile import load_source
+    from kinegrasp_env.world.meshprep import open_edges
+
+    caplog.set_level(logging.WARNING, logger="kinegrasp_env.world.importer")
+    open_box = _box(tmp_path / "open.stl", drop_faces=2)
+    prepared = prepare(load_source(open_box), 1.0, open_box)
+    assert open_edges(prepared.mesh) == (4, 0)
+    [record] = caplog.records
+    text = record.getMessage()
+    assert "\n" not in text and "not closed (4 edges on a hole or an open border, 0 " in text
+    assert "remeshes it into a closed solid" in text and "kinegrasp objects show" in text
+    caplog.clear()
+    closed = _box(tmp_path / "closed.stl")
+    assert open_edges(prepare(load_source(closed), 1.0, closed).mesh) == (0, 0)
+    assert caplog.records == []
+
+
+def test_an_import_reports_each_stage(tmp_path, monkeypatch, capsys):
+    """``objects add`` off a terminal: one line as each stage begins (decomposition,
+    deviation, grid), in order, and the import's own result after; the stages are the
+    importer's (``STAGES``)."""
+    from kinegrasp_env.world import importer
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    importer.forget()
+    assert main(["objects", "add", str(_box(tmp_path / "box.stl")), "--name", "box5"]) == 0
+    out, err = capsys.readouterr()
+    lines = err.splitlines()
+    assert lines == [f"  stage {k + 1}/3: {stage}" for k, stage in enumerate(importer.STAGES)]
+    assert out.startswith("box5: 1 convex parts")
+    importer.forget()

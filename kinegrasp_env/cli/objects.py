@@ -63,15 +63,16 @@ def import_settings(args):
 
 
 def cmd_add(args) -> int:
-    from kinegrasp_env.world.importer import CatalogError, MeshError, import_object
+    from kinegrasp_env.world.importer import STAGES, CatalogError, MeshError, import_object
 
     settings = import_settings(args)
-    if sys.stderr.isatty():  # a person waiting: the convex decomposition can take minutes
+    if sys.stderr.isatty():  # a person waiting (off a terminal: a line per stage begun)
         print(f"importing {args.path} (scale {settings.scale:g}, up axis {settings.up}, "
-              f"threshold {settings.threshold:g}, at most {settings.max_parts} parts)...",
+              f"threshold {settings.threshold:g}, at most {settings.max_parts} parts)",
               file=sys.stderr)
-    with reported(MeshError, CatalogError):  # the file, the name, the settings
-        result = import_object(args.path, args.name, settings, force=args.force)
+    with reported(MeshError, CatalogError), StageProgress(STAGES) as progress:
+        result = import_object(args.path, args.name, settings, force=args.force,
+                               progress=progress)
     entry = result.entry
     if result.reused:
         print(f"{result.name}: already imported from this file with these settings "
@@ -84,6 +85,49 @@ def cmd_add(args) -> int:
           f"{deviation_text(entry['deviation'])}")
     print(f"  stored in {result.folder}; use it with --object {result.name}")
     return 0
+
+
+class StageProgress:
+    """Progress of an import's stages on stderr: on a terminal one bar (stage k of n, what
+    it is, the time it has run, refreshed every second: the decomposition can take
+    minutes); elsewhere one line as each stage begins. Call it with ``(k, stage)``."""
+
+    def __init__(self, stages: tuple[str, ...]) -> None:
+        self.stages = stages
+        self.bar = None
+        self.stop = None
+
+    def __call__(self, k: int, stage: str) -> None:
+        if not sys.stderr.isatty():
+            print(f"  stage {k + 1}/{len(self.stages)}: {stage}", file=sys.stderr, flush=True)
+            return
+        if self.bar is None:
+            self._start()
+        self.bar.n = k
+        self.bar.set_description_str(f"  stage {k + 1}/{len(self.stages)}: {stage}")
+
+    def _start(self) -> None:
+        import threading
+
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=len(self.stages), file=sys.stderr, leave=False,
+                        bar_format="{desc} |{bar}| {elapsed} elapsed")
+        self.stop = threading.Event()
+
+        def tick() -> None:
+            while not self.stop.wait(1.0):
+                self.bar.refresh()
+
+        threading.Thread(target=tick, daemon=True).start()
+
+    def __enter__(self) -> StageProgress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.stop.set()
+            self.bar.close()
 
 
 def cmd_remove(args) -> int:

@@ -29,6 +29,7 @@ import shutil
 import tempfile
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -48,7 +49,13 @@ from kinegrasp_env.world.decompose import (
 )
 from kinegrasp_env.world.deviation import deviation
 from kinegrasp_env.world.meshfile import MeshError, SourceMesh, load_source
-from kinegrasp_env.world.meshprep import check_size, check_solid, clean_mesh, object_frame
+from kinegrasp_env.world.meshprep import (
+    check_size,
+    check_solid,
+    clean_mesh,
+    object_frame,
+    open_edges,
+)
 from kinegrasp_env.world.store import (
     ENTRY_FILE,
     FORMAT_VERSION,
@@ -166,9 +173,19 @@ def entry_key(digest: str, settings: ImportSettings) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: The stages of an import after reading and cleaning the mesh, in order (``progress``).
+STAGES = ("convex decomposition (CoACD; the long stage)",
+          "deviation of the parts from the mesh", "distance grid of the fast engine")
+
+
 def import_object(path: str | Path, name: str | None = None,
-                  settings: ImportSettings | None = None, force: bool = False) -> ImportResult:
+                  settings: ImportSettings | None = None, force: bool = False,
+                  progress: Callable[[int, str], None] | None = None) -> ImportResult:
     """Import a mesh file or URDF as catalog object ``name`` (default: from the file name).
+
+    ``progress(k, stage)`` is called as stage ``k`` of :data:`STAGES` begins (for a progress
+    display; an open or non-manifold mesh is logged as a warning before, by
+    :func:`prepare`).
 
     Raises:
         MeshError: the file cannot be read, is not a solid, or is too large or too small for
@@ -197,7 +214,8 @@ def import_object(path: str | Path, name: str | None = None,
     remove_stale(root)
     work = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-{os.getpid()}-", dir=root))
     try:
-        entry = build_entry(source, prepared, name, key, settings, work, Path(path))
+        entry = build_entry(source, prepared, name, key, settings, work, Path(path),
+                            progress or (lambda k, stage: None))
         entry["import_seconds"] = round(time.perf_counter() - start, 3)
         (work / ENTRY_FILE).write_text(json.dumps(entry, indent=1))
         publish(work, root / name)
@@ -235,6 +253,14 @@ def prepare(source: SourceMesh, scale: float, path: Path, up: str = "z") -> Prep
         check_size(mesh, width)
     except MeshError as exc:
         raise MeshError(f"{path}: {exc}") from None
+    boundary, nonmanifold = open_edges(mesh)
+    if boundary or nonmanifold:
+        log.warning("%s: the mesh is not closed (%d edges on a hole or an open border, %d "
+                    "shared by more than two faces); the decomposition first remeshes it into "
+                    "a closed solid, which is slow (minutes for a few triangles) and can give "
+                    "many small parts that fill the holes or thicken an open surface; check "
+                    "the result with `kinegrasp objects show NAME --plot parts.png`, or close "
+                    "the mesh first for a truer object", path, boundary, nonmanifold)
     frame = object_frame(mesh)
     mesh.apply_transform(frame)
     turn = np.eye(4)
@@ -243,19 +269,23 @@ def prepare(source: SourceMesh, scale: float, path: Path, up: str = "z") -> Prep
 
 
 def build_entry(source: SourceMesh, prepared: Prepared, name: str, key: str,
-                settings: ImportSettings, work: Path, path: Path) -> dict:
-    """Decompose, measure and write the entry's files into ``work``; returns the
-    ``entry.json`` contents."""
+                settings: ImportSettings, work: Path, path: Path,
+                progress: Callable[[int, str], None]) -> dict:
+    """Decompose, measure and write the entry's files into ``work`` (``progress(k, stage)``
+    as each of :data:`STAGES` begins); returns the ``entry.json`` contents."""
     mesh, width, frame = prepared.mesh, prepared.thickness, prepared.frame
     mesh.export(work / MESH_FILE, file_type="obj", include_normals=False,
                 include_texture=False)
+    progress(0, STAGES[0])
     parts = decompose(mesh, settings.threshold, settings.max_parts)
     if not parts:
         raise MeshError(f"{path}: the convex decomposition found no solid part")
     com, r_max, volume = mass_properties(parts)
+    progress(1, STAGES[1])
     dev = deviation(mesh, parts)
     (work / PARTS_FILE).write_text(json.dumps({"parts": [p.tolist() for p in parts]}))
     obj = objects.object_from_parts(name, mesh, parts, com, r_max)
+    progress(2, STAGES[2])
     grid_name = sdf.grid_file_name(obj)
     sdf.save_grid(sdf.build_grid(obj), work / grid_name)
     to_object = frame.copy()

@@ -4,6 +4,8 @@
   unused vertices, make the winding consistent and the normals point outwards.
 * :func:`check_solid`: at least 4 faces and not flat (a solid has a volume).
 * :func:`check_size`: the SDH-like hand must be able to hold it (see :data:`HAND_SPAN`).
+* :func:`open_edges`: edges that do not join exactly two faces (an open or non-manifold
+  mesh; :func:`kinegrasp_env.world.importer.prepare` warns what the import does with it).
 * :func:`object_frame`: the import convention for the object frame, the one of the built-in
   objects (docs/conventions.md): origin at the centre of the bottom of the bounding box,
   axes those of the source file, +z up.
@@ -35,6 +37,15 @@ SMALLEST = PHALANX_RADIUS
 FLAT = 1e-4
 #: A typical object size for the ``--scale`` suggestion (metres).
 TYPICAL_SIZE = 0.1
+
+
+def open_edges(mesh: trimesh.Trimesh) -> tuple[int, int]:
+    """(boundary, non-manifold): the mesh's edges used by one face (holes, an open surface)
+    and by more than two faces. Both 0: the mesh is closed (watertight)."""
+    if len(mesh.faces) == 0:
+        return 0, 0
+    _, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    return int(np.sum(counts == 1)), int(np.sum(counts > 2))
 
 
 def clean_mesh(vertices: np.ndarray, faces: np.ndarray) -> trimesh.Trimesh:
