@@ -34,11 +34,11 @@ epsilon; it is implied by the first, so it is false at most as often.
   difference, so a run within 2 of them can be seen).
 
 Each false rate comes with its exact (Clopper-Pearson) 95% interval. Writes
-``benchmarks/results/elbow_calibration.json`` and prints one summary line.
+``benchmarks/results/bench_elbow_calibration.json`` and prints one summary line.
 
 Usage: ``nice -n 10 python benchmarks/bench_elbow_calibration.py [--reps 400]
 [--samples 250,1000] [--grasps spray_flask:4,spray_flask:2] [--runs 30] [--real-samples 250]
-[--truth 20000] [--only both|synthetic|real]``.
+[--truth 20000] [--processes 1] [--only both|synthetic|real]``.
 """
 
 from __future__ import annotations
@@ -152,7 +152,15 @@ def synthetic(reps: int, sizes: list[int], epsilon: float, delta: float, seed: i
 
 
 def real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsilon: float,
-         delta: float) -> dict:
+         delta: float, processes: int = 1) -> dict:
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+
+    with LocalExecutor(processes) as executor:
+        return _real(grasp_names, runs, samples, truth_draws, epsilon, delta, executor)
+
+
+def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsilon: float,
+          delta: float, executor) -> dict:
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
@@ -177,7 +185,8 @@ def real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsi
             if i not in truth:
                 psi, q = reach[i]
                 stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, truth_draws,
-                                       seed=TRUTH_SEED, engine="fast", return_draws=True)
+                                       seed=TRUTH_SEED, engine="fast", return_draws=True,
+                                       executor=executor)
                 truth[i] = stats.draws.outcome == FORCE_CLOSURE
             return truth[i]
 
@@ -185,7 +194,8 @@ def real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsi
         rows = []
         for r in range(runs):
             result = optimize_elbow(grasp, noise, samples, RUN_SEED0 + r, engine="fast",
-                                    epsilon=epsilon, delta=delta, reach=reach)
+                                    epsilon=epsilon, delta=delta, reach=reach,
+                                    executor=executor)
             evaluated = [index_of[id(p.q)] for p in result.curve]
             chosen = index_of[id(result.best_q)]
             best = truth_fc(chosen)
@@ -243,12 +253,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=30)
     ap.add_argument("--real-samples", type=int, default=250)
     ap.add_argument("--truth", type=int, default=20_000)
+    ap.add_argument("--processes", type=int, default=1)
     ap.add_argument("--epsilon", type=float, default=0.05)
     ap.add_argument("--delta", type=float, default=0.05)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--only", choices=("both", "synthetic", "real"), default="both",
-                    help="run one part and replace only its section of an existing --out")
-    ap.add_argument("--out", default=str(ROOT / "benchmarks/results/elbow_calibration.json"))
+                    help="run one part and update only its section of an existing --out "
+                    "(real: the grasps run, others kept)")
+    ap.add_argument("--out",
+                    default=str(ROOT / "benchmarks/results/bench_elbow_calibration.json"))
     args = ap.parse_args(argv)
     start = time.time()
     out = Path(args.out)
@@ -264,10 +277,14 @@ def main(argv: list[str] | None = None) -> int:
               f"{percent(result['old_formula_pooled'])}", file=sys.stderr)
     if args.only in ("both", "real"):
         rl = real(args.grasps.split(","), args.runs, args.real_samples, args.truth,
-                  args.epsilon, args.delta)
-        result.update(sigma=SIGMA, real=rl, real_pooled=pooled(rl), real_command=command(argv),
-                      real_setting=f"{args.grasps}, {args.real_samples} draws per angle, "
-                                   f"truth {args.truth} draws")
+                  args.epsilon, args.delta, args.processes)
+        if args.only == "real":  # grasps run before (by another --only real) are kept
+            rl = {**result.get("real", {}), **rl}
+        sizes = sorted({(v["draws"], v["truth_draws"]) for v in rl.values()})
+        result.update(sigma=SIGMA, real=rl, real_pooled=pooled(rl),
+                      real_setting=f"{', '.join(rl)}; draws per angle, truth draws: "
+                                   f"{', '.join(f'{n}, {t}' for n, t in sizes)}")
+        result.setdefault("real_commands", []).append(command(argv))
     line = f"elbow certificate, delta {args.delta:g}: printed statement false in "
     if "synthetic_pooled" in result:
         line += f"{percent(result['synthetic_pooled'])} of synthetic runs"

@@ -116,11 +116,9 @@ def add_commands(sub) -> None:
                    help="fast (default: many angles x draws) or pybullet (the reference)")
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "
-                   f"1 - delta, no evaluated angle beats the chosen one by more than it "
-                   f"(default {DEFAULT_EPSILON})")
+                   "1 - delta, no evaluated angle beats the chosen one by more than it")
     p.add_argument("--delta", default=str(DEFAULT_DELTA),
-                   help=f"error level of the certificate (default {DEFAULT_DELTA}: 95%% "
-                   "confidence)")
+                   help="error level of the certificate (0.05: 95%% confidence)")
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")

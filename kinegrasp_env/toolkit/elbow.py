@@ -240,11 +240,11 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
             curve's points then hold its configuration arrays themselves).
         progress: optional ``progress(evaluations)`` callback: the angles evaluated so far,
             on the selection draws and then again on the fresh draws.
+        evaluate_kwargs: passed to :func:`evaluate_grasp` (``executor``, ``processes``,
+            ``friction``, ``num_edges``, ``chunk``).
 
     Raises:
         ValueError: epsilon outside [0, 1) or delta outside (0, 1) (before any draw).
-        evaluate_kwargs: passed to :func:`evaluate_grasp` (``executor``, ``processes``,
-            ``friction``, ``num_edges``, ``chunk``).
     """
     check_levels(epsilon, delta)
     kwargs = {"engine": engine, **evaluate_kwargs}
@@ -261,7 +261,8 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
     gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
     rivals = [p for p in curve if p is not best]
     certificate = certify(best.psi, best_fc, [p.psi for p in rivals],
-                          np.array([p.fresh_fc for p in rivals]).reshape(len(rivals), -1),
+                          np.array([p.fresh_fc for p in rivals]).reshape(len(rivals),
+                                                                          best_fc.size),
                           epsilon, delta)
     n = best_fc.size
     return ElbowResult(
