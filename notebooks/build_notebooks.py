@@ -20,6 +20,7 @@ import numpy as np
 import matplotlib.pyplot as plt
 
 SCALE = float(os.environ.get("KINEGRASP_NB_SCALE", "1.0"))  # 1.0: the committed full run
+os.makedirs("out", exist_ok=True)  # every file a notebook writes goes here (git ignores it)
 
 
 def n(full: int, least: int = 10) -> int:
@@ -118,7 +119,7 @@ for i, sigma in enumerate(PAPER_SIGMAS):
     curves["KUKA iiwa"][sigma] = kuka_convergence(
         DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=n(10, 3), truth_samples=n(100000, 2000),
         seed=np.random.default_rng([1, i]))
-path = plot_convergence(curves, "convergence.png")
+path = plot_convergence(curves, "out/convergence.png")
 from IPython.display import Image
 Image(filename=str(path))'''),
     ],
@@ -240,7 +241,7 @@ from kinegrasp_env.toolkit import experiments
 from kinegrasp_env.toolkit.selection import format_gap, provenance
 
 samples7 = n(2000, 60)
-rows7 = experiments.fig7("out_fig7", samples=samples7, variants=8, engine="fast",
+rows7 = experiments.fig7("out/fig7", samples=samples7, variants=8, engine="fast",
                          processes=2)
 print(provenance(samples7, 0))
 for r in rows7:
@@ -249,16 +250,16 @@ for r in rows7:
           f"{r['selection_p_fc']:.3f}" + (f"; gap {format_gap(r)}" if r['config'] == 'fragile'
                                            else ""))
 for name in ("drill", "spray_flask"):
-    display(Image(filename=f"out_fig7/fig7_{name}.png"))
+    display(Image(filename=f"out/fig7/fig7_{name}.png"))
 samples10 = n(1000, 40)
-rows10 = experiments.fig9_10("fig10", "out_fig10", samples=samples10, engine="fast",
+rows10 = experiments.fig9_10("fig10", "out/fig10", samples=samples10, engine="fast",
                              processes=2)
 print(provenance(samples10, 0))
 for r in rows10:
     if r["config"]:
         print(f"{r['object']:12s} {r['config']:8s} id {r['id']:5s} P(FC) {r['fresh_p_fc']:.3f} "
               f"[{r['fresh_p_fc_lo']:.3f}, {r['fresh_p_fc_hi']:.3f}], chosen at {r['p_fc']:.3f}")
-display(Image(filename="out_fig10/fig10.png"))"""),
+display(Image(filename="out/fig10/fig10.png"))"""),
         ("md", """## Beside the paper's numbers
 
 The paper's values come from `docs/paper_values.yaml` (each with its source; most are not
@@ -273,7 +274,7 @@ spec = importlib.util.spec_from_file_location("paper_side_by_side",
                                               root / "scripts" / "paper_side_by_side.py")
 side = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(side)
-display(Markdown(side.side_by_side(None, Path("out_fig7"), Path("out_fig10"))))"""),
+display(Markdown(side.side_by_side(None, Path("out/fig7"), Path("out/fig10"))))"""),
     ],
     "04_noise_levels.ipynb": [
         ("md", """# 04 - Noise levels (paper Table I, Figs. 8 and 9)
@@ -290,15 +291,15 @@ what differs: hand model, object meshes, grasp set, torque scale."""),
 from kinegrasp_env.toolkit.experiments import fig9_10, markdown_table1, table1
 
 samples = n(10000, 60)
-rows = table1("spray_flask", samples, "out_table1", grasps=5, engine="fast", processes=2)
+rows = table1("spray_flask", samples, "out/table1", grasps=5, engine="fast", processes=2)
 display(Markdown(markdown_table1(rows, "spray_flask", samples)))
-display(Image(filename="out_table1/pfc_vs_sigma.png"))"""),
-        ("code", """rows9 = fig9_10("fig9", "out_fig9", samples=n(1000, 40), engine="fast", processes=2)
-display(Image(filename="out_fig9/fig9.png"))"""),
+display(Image(filename="out/table1/pfc_vs_sigma.png"))"""),
+        ("code", """rows9 = fig9_10("fig9", "out/fig9", samples=n(1000, 40), engine="fast", processes=2)
+display(Image(filename="out/fig9/fig9.png"))"""),
         ("md", """## Table I beside the paper's
 
 The paper's values come from `docs/paper_values.yaml` (each with its source);
-`scripts/paper_side_by_side.py` writes the table from this run's `out_table1/table1.csv`."""),
+`scripts/paper_side_by_side.py` writes the table from this run's `out/table1/table1.csv`."""),
         ("code", """import importlib.util
 from pathlib import Path
 
@@ -309,7 +310,7 @@ spec = importlib.util.spec_from_file_location("paper_side_by_side",
                                               root / "scripts" / "paper_side_by_side.py")
 side = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(side)
-display(Markdown(side.side_by_side(Path("out_table1"), None, None)))"""),
+display(Markdown(side.side_by_side(Path("out/table1"), None, None)))"""),
     ],
     "05_ranking_and_learning.ipynb": [
         ("md", """# 05 - Plan, rank, learn
@@ -327,14 +328,14 @@ def kinegrasp(*args):
     print(out.stdout[-1500:])
 
 kinegrasp("plan", "--object", "drill", "--count", "4", "--seed", "0", "--variants", "2",
-          "--out", "candidates.json")
+          "--out", "out/candidates.json")
 samples = str(n(2000, 100))
-kinegrasp("rank", "candidates.json", "--sigma", "0.0133", "--samples", samples,
-          "--engine", "fast", "--out", "ranked_fixed.csv")
-kinegrasp("rank", "candidates.json", "--sigma", "0.0133", "--samples", samples,
-          "--engine", "fast", "--adaptive", "--top-k", "2", "--out", "ranked_adaptive.csv")
-fixed = list(csv.DictReader(open("ranked_fixed.csv")))
-adaptive = list(csv.DictReader(open("ranked_adaptive.csv")))
+kinegrasp("rank", "out/candidates.json", "--sigma", "0.0133", "--samples", samples,
+          "--engine", "fast", "--out", "out/ranked_fixed.csv")
+kinegrasp("rank", "out/candidates.json", "--sigma", "0.0133", "--samples", samples,
+          "--engine", "fast", "--adaptive", "--top-k", "2", "--out", "out/ranked_adaptive.csv")
+fixed = list(csv.DictReader(open("out/ranked_fixed.csv")))
+adaptive = list(csv.DictReader(open("out/ranked_adaptive.csv")))
 print("fixed n   :", [r["id"] for r in fixed])
 print("adaptive  :", [r["id"] for r in adaptive])
 print("draws used:", sum(int(r["samples"]) for r in adaptive), "adaptive vs",
@@ -408,11 +409,11 @@ from IPython.display import Image, Markdown, display
 from kinegrasp_env.toolkit.experiments import markdown_table1, table1
 
 for engine in ("fast", "physics"):
-    rows = table1("spray_flask", n(20, 3), f"out_table1_{engine}", grasps=5, engine=engine,
+    rows = table1("spray_flask", n(20, 3), f"out/table1_{engine}", grasps=5, engine=engine,
                   processes=2)
     display(Markdown(f"**{engine} engine**\\n\\n" + markdown_table1(rows, "spray_flask",
                                                                    n(20, 3))))
-out = "out_validate_cube"
+out = "out/validate_cube"
 subprocess.run([sys.executable, "-m", "kinegrasp_env.cli", "validate", "--object", "cube",
                 "--sigma", "0.0133", "--samples", str(n(10, 2)), "--processes", "2",
                 "--out", out], check=True, capture_output=True)

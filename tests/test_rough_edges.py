@@ -427,3 +427,44 @@ def test_an_import_reports_each_stage(tmp_path, monkeypatch, capsys):
     assert lines == [f"  stage {k + 1}/3: {stage}" for k, stage in enumerate(importer.STAGES)]
     assert out.startswith("box5: 1 convex parts")
     importer.forget()
+
+
+# ------------------------------------------------------------------ notebooks
+def test_notebooks_write_only_into_an_ignored_folder():
+    """Every relative file or folder path a notebook's code names (string literals ending
+    in a file extension or naming an ``out`` folder; inputs that exist in the repository,
+    like the committed policy, excepted) lies below ``out/``, which the setup cell creates and
+    git ignores in ``notebooks/`` (asked of git itself: ``git check-ignore``). Executing the
+    notebooks then changes no tracked file."""
+    import ast
+    import json
+    import re
+
+    root = Path(__file__).resolve().parent.parent
+    folder = root / "notebooks"
+    written = re.compile(r"^(out\b|[\w./{}-]+\.(csv|json|png|md|html|txt|npz)$)")
+    checked = 0
+    for nb in sorted(folder.glob("*.ipynb")):
+        cells = json.loads(nb.read_text())["cells"]
+        code = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+        tree = ast.parse("\n".join(line for line in code.splitlines()
+                                   if not line.lstrip().startswith(("%", "!"))))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.JoinedStr):
+                text = "".join(v.value if isinstance(v, ast.Constant) else "{}"
+                               for v in node.values)
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                text = node.value
+            else:
+                continue
+            if "\n" in text or " " in text or not written.match(text) or text.startswith("/"):
+                continue
+            if text.startswith("{}") or (root / text).exists():
+                continue  # a path built on one already checked, or an input
+            checked += 1
+            assert text == "out" or text.startswith("out/"), f"{nb.name} writes {text!r}"
+        assert 'os.makedirs("out", exist_ok=True)' in code, nb.name
+    assert checked >= 10
+    ignored = subprocess.run(["git", "check-ignore", "-q", "notebooks/out/fig7/fig7.csv"],
+                             cwd=root, check=False)
+    assert ignored.returncode == 0
