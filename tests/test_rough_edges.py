@@ -468,3 +468,22 @@ def test_notebooks_write_only_into_an_ignored_folder():
     ignored = subprocess.run(["git", "check-ignore", "-q", "notebooks/out/fig7/fig7.csv"],
                              cwd=root, check=False)
     assert ignored.returncode == 0
+
+
+# ------------------------------------------------------------------ what the output says
+def test_sweep_names_the_figures_it_wrote(tmp_path, capsys):
+    """The sweep's last line names each figure it wrote (one per noise x engine), every one
+    a file that exists, and no placeholder like ``<noise>`` (was: the literal
+    ``pfc_vs_sigma_<noise>_<engine>.png``)."""
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("objects: [cube]\ngrasps: [0]\nsigmas: [0.0133]\n"
+                    "noise: [gaussian, uniform]\nengines: [fast]\nsamples: 20\nchunk: 10\n"
+                    "seed: 0\n")
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(spec), "--out", str(out), "--processes", "1"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert "<" not in last and ">" not in last
+    assert last.endswith(f"written in {out}: summary.csv, summary.txt, "
+                         "pfc_vs_sigma_gaussian_fast.png, pfc_vs_sigma_uniform_fast.png")
+    for name in last.split(": ", 1)[1].split(", "):
+        assert (out / name).is_file(), name

@@ -27,6 +27,7 @@ from kinegrasp_env.cli.common import (
     finite_float,
     noise_from,
     output_file,
+    output_folder,
     parse_seed,
     positive_float,
     positive_int,
@@ -361,22 +362,27 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
 
 
 def cmd_sweep(args) -> int:
-    from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep, summary_table
+    from kinegrasp_env.montecarlo.sweep import (
+        SpecError,
+        SweepSpec,
+        figure_names,
+        run_sweep,
+        summary_table,
+    )
     from kinegrasp_env.toolkit.plots import plot_sweep
 
     with reported(SpecError):
         spec = SweepSpec.from_file(args.spec)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CLIError(f"--out {out} exists and is not a folder")
+    out = output_folder(args.out)
     with executor_from(args) as executor:
         print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws on "
               f"{executor.description}", file=sys.stderr)
         with reported(SpecError):  # the store in --out was made with other random streams
             rows, ran, skipped = run_sweep(spec, out, executor, plot=plot_sweep)
     print(summary_table(rows), end="")
+    figures = ", ".join(name for _, _, name in figure_names(spec))
     print(f"{ran} tasks run, {skipped} found finished in {out / 'results.sqlite'}; "
-          f"written: {out}/summary.csv, summary.txt, pfc_vs_sigma_<noise>_<engine>.png")
+          f"written in {out}: summary.csv, summary.txt, {figures}")
     return 0
 
 

@@ -468,6 +468,12 @@ def summary_table(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def figure_names(spec: SweepSpec) -> list[tuple[str, str, str]]:
+    """``(noise, engine, file name)`` of each P(FC)-vs-sigma figure a sweep writes."""
+    return [(noise, engine, f"pfc_vs_sigma_{noise}_{engine}.png")
+            for noise in spec.noise for engine in spec.engines]
+
+
 def write_outputs(spec: SweepSpec, rows: list[dict], directory: Path,
                   plot: SweepPlot | None = None) -> list[Path]:
     """``summary.csv``, ``summary.txt`` and, given ``plot``, one P(FC)-vs-sigma figure per
@@ -477,12 +483,10 @@ def write_outputs(spec: SweepSpec, rows: list[dict], directory: Path,
     written = [directory / "summary.csv", directory / "summary.txt"]
     if plot is None:
         return written
-    for noise in spec.noise:
-        for engine in spec.engines:
-            sub = [r for r in rows if r["noise"] == noise and r["engine"] == engine]
-            path = directory / f"pfc_vs_sigma_{noise}_{engine}.png"
-            written.append(plot(sub, path, title=f"{noise} noise, {engine} engine, "
-                                      f"{spec.samples} draws per cell"))
+    for noise, engine, name in figure_names(spec):
+        sub = [r for r in rows if r["noise"] == noise and r["engine"] == engine]
+        written.append(plot(sub, directory / name, title=f"{noise} noise, {engine} engine, "
+                                  f"{spec.samples} draws per cell"))
     return written
 
 
