@@ -373,7 +373,8 @@ def _doc_block_cases():
     cases = []
     for page in DOC_PAGES:
         for block in page.console:
-            first = block.steps[0].command.split()[:2] if block.steps else ["empty"]
+            named = [s.command for s in block.steps if not s.command.startswith("mkdir ")]
+            first = named[0].split()[:2] if named else ["empty"]
             for marker in block.markers:
                 if marker.mode == "skip" or _shown(block, marker) in in_readme:
                     continue
