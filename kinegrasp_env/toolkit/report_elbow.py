@@ -75,14 +75,17 @@ def headline(result: ElbowResult) -> str:
 
 
 def curve_table(result: ElbowResult) -> str:
-    """The curve's points, psi ascending, the nominal and the best one named."""
-    head = "".join(f"<th>{h}</th>" for h in ("psi [rad]", "P(FC)", "95% CI", ""))
+    """The curve's points, psi ascending, on the selection and on the fresh draws, the nominal
+    and the best one named."""
+    head = "".join(f"<th>{h}</th>" for h in ("psi [rad]", "P(FC), selection draws", "95% CI",
+                                              "P(FC), fresh draws", ""))
     rows = []
     for p in sorted(result.curve, key=lambda p: p.psi):
         tag = " / ".join(name for name, psi in (("nominal", result.nominal_psi),
                                                  ("best", result.best_psi)) if p.psi == psi)
+        fresh = "" if p.fresh_fc is None else f"{p.fresh_fc.mean():.4f}"
         rows.append(f"<tr><td>{p.psi:+.3f}</td><td>{p.p_fc:.4f}</td><td>{p.p_fc_ci[0]:.4f} .. "
-                    f"{p.p_fc_ci[1]:.4f}</td><td class='kg-text'>{tag}</td></tr>")
+                    f"{p.p_fc_ci[1]:.4f}</td><td>{fresh}</td><td class='kg-text'>{tag}</td></tr>")
     return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
 
 
