@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
 from kinegrasp_env.closing.reference import secant_root
@@ -27,16 +28,49 @@ def _random_segments(obj, n, seed, length=0.0865, pad=0.02):
 
 
 def _clear(obj, a, b, samples=30, margin=2e-3):
-    """Segments that stay more than ``margin`` away from the object (sampled exactly)."""
+    """Segments that stay more than ``margin`` away from the object (sampled exactly): a
+    selection of inputs only, the checks below compare with :func:`reference_distance`."""
     t = np.linspace(0.0, 1.0, samples)[None, :, None]
     pts = (a[:, None] + t * (b - a)[:, None]).reshape(-1, 3)
     return obj.closest_points(pts)[1].reshape(len(a), samples).min(axis=1) > margin
 
 
-def _dense_distance(obj, a, b, samples=801):
-    """Distance of a segment to the object by dense sampling of exact point distances."""
-    t = np.linspace(0.0, 1.0, samples)[:, None]
-    return obj.closest_points(a + t * (b - a))[1].min()
+def reference_distance(obj, points: np.ndarray, chunk: int = 2_000_000) -> np.ndarray:
+    """(n,) signed distance (metres) of points (n, 3) to the union of ``obj``'s convex parts,
+    sharing no code with the library's geometry: each part's hull is rebuilt by trimesh
+    (qhull) from its vertices; a point inside a hull has the largest of trimesh's face-plane
+    values (its depth, negative; the smallest over the hulls that hold it), a point outside
+    every hull the distance to the nearest triangle of all hulls, by trimesh's exact
+    point-triangle closest point over every triangle (brute force:
+    ``trimesh.proximity.closest_point``'s tree search was measured to miss the nearest
+    triangle by 6e-7 m on the mug)."""
+    hulls = [trimesh.convex.convex_hull(part.vertices) for part in obj.convex_parts]
+    depth = np.full(len(points), np.inf)
+    for hull in hulls:
+        values = np.einsum("pfk,fk->pf", points[:, None, :] - hull.triangles[None, :, 0, :],
+                           hull.face_normals).max(axis=1)
+        depth = np.minimum(depth, np.where(values < 0.0, values, np.inf))
+    triangles = np.concatenate([hull.triangles for hull in hulls])
+    out = depth.copy()
+    outside = np.flatnonzero(np.isinf(depth))
+    step = max(1, chunk // len(triangles))
+    for start in range(0, len(outside), step):
+        rows = outside[start:start + step]
+        p = np.repeat(points[rows], len(triangles), axis=0)
+        near = trimesh.triangles.closest_point(np.tile(triangles, (len(rows), 1, 1)), p)
+        out[rows] = np.linalg.norm(near - p, axis=1).reshape(len(rows), -1).min(axis=1)
+    return out
+
+
+def test_reference_distance_matches_the_box_formula():
+    """The trimesh reference itself, on the cube (centre (0, 0, 0.03), half-width 0.03 m)
+    against the box's signed-distance formula, inside and outside."""
+    cube = load_object("cube")
+    pts = np.random.default_rng(12).uniform(-0.06, 0.09, size=(3000, 3))
+    rel = np.abs(pts - np.array([0.0, 0.0, 0.03])) - 0.03
+    box = np.linalg.norm(np.maximum(rel, 0.0), axis=1) + np.minimum(rel.max(axis=1), 0.0)
+    assert (box < 0).sum() > 100
+    np.testing.assert_allclose(reference_distance(cube, pts), box, rtol=0, atol=1e-15)
 
 
 def test_point_distance_to_the_cube_matches_the_box_formula():
@@ -54,6 +88,13 @@ def test_point_distance_to_the_cube_matches_the_box_formula():
 
 @pytest.mark.parametrize("name", ["spray_flask", "mug"])
 def test_segment_distance_matches_dense_sampling_and_kernels_agree(name):
+    """closest_to_segments on segments clear of the object: the compiled and numpy kernels
+    agree; the object point lies on the surface and the distance is that of the pair, both
+    by the trimesh reference (:func:`reference_distance`, no shared code); and the distance
+    is the minimum over the segment: below the reference distance of each of 801 samples,
+    and above the smallest of them by at most the sampling error (h/2)^2 / (2 d) (h: sample
+    spacing, d: the distance; at an interior minimum the pair's direction is normal to the
+    segment, so a sample x away lies within sqrt(d^2 + x^2) of the object point)."""
     obj = load_object(name)
     a, b = _random_segments(obj, 400, seed=1)
     on_obj, on_seg, dist, _ = closest_to_segments(obj, a, b)
@@ -62,24 +103,36 @@ def test_segment_distance_matches_dense_sampling_and_kernels_agree(name):
     np.testing.assert_allclose(dist[clear], twin[2][clear], atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(on_obj - on_seg, axis=1)[clear], dist[clear],
                                atol=1e-12)
-    for i in np.flatnonzero(clear)[:60]:
-        dense = _dense_distance(obj, a[i], b[i])
-        # the exact minimum is below every sample and within the sampling error of them
-        assert dist[i] <= dense + 1e-12
-        assert dense - dist[i] < 2e-5
+    rows = np.flatnonzero(clear)[:25]
+    assert len(rows) == 25
+    np.testing.assert_allclose(reference_distance(obj, on_obj[rows]), 0.0, atol=1e-12)
+    samples = 801
+    t = np.linspace(0.0, 1.0, samples)[None, :, None]
+    pts = a[rows, None] + t * (b - a)[rows, None]
+    dense = reference_distance(obj, pts.reshape(-1, 3)).reshape(len(rows), samples).min(axis=1)
+    half_step = 0.5 * np.linalg.norm(b - a, axis=1)[rows] / (samples - 1)
+    assert (dist[rows] <= dense + 1e-12).all()
+    assert (dense - dist[rows] <= half_step**2 / (2.0 * dist[rows]) + 1e-12).all()
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)
 def test_distance_grid_is_close_to_exact_distance_near_the_surface(name):
+    """The distance grid (written from the library's exact point distances) against the
+    trimesh reference (:func:`reference_distance`, no shared code) at 6000 random points
+    within 3 mm of the surface: the trilinear error of the 1.5 mm grid next to edges and
+    corners, measured (seed 2) at the 99th percentile 1.6e-4 / 3.0e-4 / 3.1e-4 / 5.0e-4 m
+    (cube, spray flask, drill, mug) and at most 3.0e-4 / 5.9e-4 / 6.5e-4 / 7.2e-4 m; bounds
+    1.5x and 2x the largest."""
     obj = load_object(name)
     grid = object_grid(name)
     rng = np.random.default_rng(2)
     lo, hi = obj.mesh.bounds
-    pts = rng.uniform(lo - 0.01, hi + 0.01, size=(20000, 3))
-    exact = obj.closest_points(pts)[1]
+    pts = rng.uniform(lo - 0.01, hi + 0.01, size=(6000, 3))
+    exact = reference_distance(obj, pts)
     near = np.abs(exact) < 3e-3
+    assert near.sum() > 300
     err = np.abs(grid.distance(pts) - exact)[near]
-    assert np.percentile(err, 99) < 5e-4
+    assert np.percentile(err, 99) < 7.5e-4
     assert err.max() < 1.5e-3
 
 
@@ -147,10 +200,14 @@ def test_fast_engine_at_sigma_zero_reproduces_the_nominal_grasps(name):
     draws = FastEngine(name).run(np.stack([g.q0 for g in grasps]))
     assert np.all(draws.outcome == FORCE_CLOSURE)
     # both engines polish each contact to a gap of 1e-9 m, so they agree far inside the
-    # 0.2 mm contact tolerance (not to round-off: the roots are found from different brackets)
+    # 0.2 mm contact tolerance (not to round-off: the roots are found from different
+    # brackets). Measured over the 48 shipped grasps: Q 2.95e-7 relative (drill), points
+    # 2.5e-9 m (spray flask); tolerances about 3.4x and 4x that
     for i, g in enumerate(grasps):
-        assert draws.quality[i] == pytest.approx(g.q_nominal, rel=1e-4)
-        np.testing.assert_allclose(draws.points[i, :len(g.points)], g.points, atol=1e-5)
+        assert draws.n_contacts[i] == len(g.points)
+        assert draws.quality[i] == pytest.approx(g.q_nominal, rel=1e-6, abs=0)
+        np.testing.assert_allclose(draws.points[i, :len(g.points)], g.points, rtol=0,
+                                   atol=1e-8)
 
 
 def test_evaluate_with_the_fast_engine_is_reproducible_across_processes():

@@ -53,7 +53,8 @@ RTOL = 1e-10
 #: ... or absolute, in units of the wrench scale max|w| (measured <= 9.6e-14 where Q is
 #: tiny): FC_TOL, the margin below which the library calls the origin "on the boundary".
 ATOL = FC_TOL
-#: One path on the same grasp in another batch shape, relative (measured <= 1.1e-14).
+#: One path on the same grasp in another batch shape, relative (measured <= 1.1e-14; the
+#: three-contact tables under OPENBLAS_CORETYPE=Haswell or Zen: <= 1.3e-13, 30 x 40 grasps).
 RTOL_SAME = 1e-12
 #: The LP's margin delta vs the exact one from qhull's facets, in units of the wrench scale
 #: (HiGHS with 1e-9 feasibility tolerances; measured <= 2e-10).
@@ -569,8 +570,13 @@ def test_tables_serve_where_they_are_the_fastest_batched_path():
 @pytest.mark.parametrize("num_edges", [3, TABLES_MIN_EDGES, 8, TABLES_MAX_EDGES,
                                        TABLES_MAX_EDGES + 1])
 def test_auto_is_exactly_the_routed_path(num_edges):
-    """auto returns the bits of the path that serves m first: the expansion's where the
-    wrenches fit it (3 m <= MAX_POINTS), the tables' past it, qhull's past the tables."""
+    """auto returns what the path that serves m first returns: the expansion's where the
+    wrenches fit it (3 m <= MAX_POINTS), the tables' past it, qhull's past the tables.
+    Bit for bit where auto runs that path's code on the same input rows (the compiled
+    expansion, one grasp at a time; qhull, one grasp at a time); to RTOL_SAME where auto
+    runs the tables on another batch (the rows the screen left) than the call here: their
+    numpy and BLAS products are ordered by batch shape and CPU (OpenBLAS's Haswell and Zen
+    kernels differ from SkylakeX's here by up to 1.3e-13 relative)."""
     from kinegrasp_env.quality.expansion import MAX_POINTS, epsilon_epa_batch
     from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
 
@@ -590,4 +596,8 @@ def test_auto_is_exactly_the_routed_path(num_edges):
         q = ferrari_canny_batch(0.05 * direction, normals, method="qhull", **kw)
         certified = np.ones(q.shape, dtype=bool)
     assert certified.mean() > 0.9 and 0.05 < (auto > 0).mean() < 0.95
-    np.testing.assert_array_equal(auto[certified], q[certified])
+    if 3 * num_edges <= MAX_POINTS or not uses_tables(3, num_edges, 0.5, "l1"):
+        np.testing.assert_array_equal(auto[certified], q[certified])
+    else:
+        np.testing.assert_array_equal(auto[certified] > 0, q[certified] > 0)
+        np.testing.assert_allclose(auto[certified], q[certified], rtol=RTOL_SAME, atol=0)
