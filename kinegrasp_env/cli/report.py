@@ -198,14 +198,16 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                      "q_nominal": grasps[r.index].q_nominal, "samples": r.trials})
     command = ["kinegrasp", "rank", args.candidates, *noise_words(args, sigma_words(
                noise.sigma)), "--samples", str(samples), "--seed", str(seed), "--criterion",
-               args.criterion, *(["--adaptive", "--top-k", str(args.top_k)] if args.adaptive
-                                 else []),
+               args.criterion, *(["--adaptive", "--top-k", str(args.top_k), "--epsilon",
+                                  str(args.epsilon), "--delta", str(args.delta)]
+                                 if args.adaptive else []),
                *(["--best-elbow", str(args.best_elbow)] if args.best_elbow else []),
                "--engine", engine, "--out", str(args.out), "--report", str(args.report)]
     settings = {"candidates": args.candidates, "object": grasps[0].object,
                 **noise_settings(args, [noise]),
                 "draws per candidate": samples, "seed": seed, "criterion": args.criterion,
-                "adaptive": f"top {args.top_k}" if args.adaptive else "no",
+                "adaptive": f"top {args.top_k}, epsilon {args.epsilon}, delta {args.delta}"
+                if args.adaptive else "no",
                 "engine": engine, "friction mu": FRICTION, "friction cone edges": NUM_EDGES}
     text = rank_page(grasps, rows, command=shlex.join(command), settings=settings, noise=noise,
                      seed=seed, samples=samples, friction=FRICTION, num_edges=NUM_EDGES)
