@@ -45,6 +45,8 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 ROOT = Path(__file__).resolve().parents[1]
 SIMULATORS = ("pybullet", "mujoco")
 START, END = "<!-- simulator-agreement:start -->", "<!-- simulator-agreement:end -->"
+#: A grip shift above this (mm) marks a disagreement that follows an unsteady release.
+SHIFT_MM = 5.0
 
 
 def run_validate(simulator: str, obj: str, args, out: Path) -> Path:
@@ -153,6 +155,20 @@ def markdown(summary: dict, args) -> str:
               "| pybullet \\ MuJoCo | " + " | ".join(used) + " |",
               "|---" * (len(used) + 1) + "|"]
     lines += [f"| {o} | " + " | ".join(str(cross[o][p]) for p in used) + " |" for o in used]
+    moved = [d for d in s["disagreements"]
+             if max(d["pybullet_grip_shift_mm"] or 0.0, d["mujoco_grip_shift_mm"] or 0.0)
+             > SHIFT_MM]
+    lines += ["", f"The {len(s['disagreements'])} disagreeing draws ({len(moved)} of them "
+              f"after a grip that moved the object by more than {SHIFT_MM:g} mm on release in "
+              "at least one simulator):", "",
+              "| draw | pybullet | MuJoCo | first failed phase (pybullet / MuJoCo) | "
+              "grip shift mm (pybullet / MuJoCo) |", "|---|---|---|---|---|"]
+    for d in s["disagreements"]:
+        shifts = " / ".join("-" if v is None else f"{v:.1f}"
+                            for v in (d["pybullet_grip_shift_mm"], d["mujoco_grip_shift_mm"]))
+        lines.append(f"| {d['object']} {d['grasp']} #{d['draw']} | {d['pybullet']} | "
+                     f"{d['mujoco']} | {d['pybullet_first_failed'] or '-'} / "
+                     f"{d['mujoco_first_failed'] or '-'} | {shifts} |")
     lines += ["", "What both simulators support: held in every draw by both: "
               + (", ".join(s["held_by_both_every_draw"]) or "none")
               + "; held in no draw by either: " + (", ".join(s["held_by_neither"]) or "none")
