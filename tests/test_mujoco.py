@@ -96,6 +96,7 @@ def test_pin_holds_and_release_falls_along_each_gravity_direction(cube_world, ph
     assert np.linalg.norm(moved - along * g / 9.81) < 1e-6
 
 
+@pytest.mark.expensive
 def test_closing_on_the_pinned_cube_touches_what_pybullet_touches():
     """The closing on the pinned cube at sigma 0, MuJoCo against pybullet (two simulators,
     the same controller rules): on shipped grasps 0-5 the same touching (finger, link)s in the
