@@ -535,3 +535,35 @@ def test_quaternion_matrix_is_bullets_own():
     for q in rng.normal(size=(2000, 4)) * rng.uniform(0.5, 2.0, size=(2000, 1)):
         expected = np.reshape(pybullet.getMatrixFromQuaternion(q.tolist()), (3, 3))
         np.testing.assert_array_equal(quaternion_matrix(q), expected)
+
+
+def test_a_phase_verdict_does_not_depend_on_the_phases_before():
+    """The phases run twice from one saved post-release state, the second time right after
+    the first run's lift (the hand 10 cm up, its contacts cached): the same verdicts, shifts
+    and turns, bit for bit: every phase restarts from the state, the hand's anchor (which
+    ``restoreState`` leaves where the lift put it) included. Cube grasp 7 at twice the
+    assumed torques (a draw close to its limits)."""
+    from kinegrasp_env.physics.protocol import HoldResult
+
+    q0 = shipped_grasps("cube")[7].q0
+    protocol = HoldProtocol(torque_scale=2.0)
+    sim = PybulletHold(load_object("cube"), 0.5, protocol)
+    try:
+        world = sim.world
+        physics_close(world, KIN.pose(q0[None], "sdh_base")[0], q0[7:], sim.motors, pin=True)
+        control = MotorGrip(world, sim.motors)
+        grip_until_steady(world, control, protocol)
+        world.release_object()
+        control.step(200)
+        reference, state = object_in_palm(world), world.bullet.saveState()
+        runs = []
+        for _ in range(2):
+            result = HoldResult(HELD)
+            run_phases(world, control, protocol, reference, state, result)
+            runs.append(result)
+        world.bullet.removeState(state)
+        assert runs[0].phase_held == runs[1].phase_held
+        assert runs[0].phase_shift == runs[1].phase_shift
+        assert runs[0].phase_turn == runs[1].phase_turn
+    finally:
+        sim.close()

@@ -285,6 +285,16 @@ class PhysicsWorld(BulletWorld):
         bullet.changeConstraint(self.pin, jointChildPivot=position,
                                 jointChildFrameOrientation=orientation, maxForce=ANCHOR_FORCE)
 
+    def restore_without_contacts(self, state: int) -> None:
+        """``restoreState(state)`` with no contact cached: the object is first moved out of
+        reach and a collision pass drops its contact pairs (``restoreState`` keeps them, with
+        their solver warm-start impulses), then the state is restored."""
+        bullet = self.bullet
+        bullet.restoreState(state)
+        bullet.resetBasePositionAndOrientation(self.object_body, TABLE_AWAY, [0, 0, 0, 1])
+        bullet.performCollisionDetection()
+        bullet.restoreState(state)
+
     def pin_load(self) -> tuple[float, float]:
         """What the pin holds now (the net wrench the rest of the world puts on the pinned
         object, from pybullet's constraint state): (force, newtons; torque, N m), norms."""
