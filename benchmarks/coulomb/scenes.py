@@ -15,7 +15,7 @@ grip is the final one throughout). Outcome: the object's centre-of-mass displace
 (metres) and rotation (radians) at the end, from where it started; it *slipped* when either
 exceeds :data:`SLIP_DISTANCE` or :data:`SLIP_ANGLE`.
 
-Settings (1 ms steps in both):
+Settings (1 ms steps; MuJoCo in 4 substeps of 0.25 ms, as in the holding test):
 
 * pybullet: the fingers are prismatic links of one fixed-base body (their motors off, the
   press a ``TORQUE_CONTROL`` force each step), 100 solver iterations; Bullet combines two
@@ -160,6 +160,7 @@ def mujoco_xml(grasp: CoulombGrasp, mu: float) -> str:
     """The MJCF of the test scene at friction ``mu`` (module docstring), with the holding
     test's MuJoCo contact settings (:data:`kinegrasp_env.physics.mujoco_model.CONTACT`)."""
     from kinegrasp_env.physics.mujoco_model import CONTACT as c
+    from kinegrasp_env.physics.mujoco_world import SUBSTEPS
 
     if grasp.shape == "box":
         asset = ""
@@ -175,7 +176,7 @@ def mujoco_xml(grasp: CoulombGrasp, mu: float) -> str:
             f'<geom type="sphere" size="{FINGER_RADIUS}" mass="{FINGER_MASS}"/></body>')
         motors.append(f'<motor name="press{i}" joint="slide{i}" gear="1"/>')
     return f"""<mujoco model="coulomb_{grasp.name}">
-  <option timestep="{TIME_STEP}" gravity="0 0 0" cone="elliptic" impratio="{c.impratio}"
+  <option timestep="{TIME_STEP / SUBSTEPS}" gravity="0 0 0" cone="elliptic" impratio="{c.impratio}"
           noslip_iterations="{c.noslip_iterations}"/>
   <default><geom condim="3" friction="{mu} 0 0" solref="{_vec(c.solref)}"
                  solimp="{_vec(c.solimp)}"/></default>
@@ -191,6 +192,7 @@ def mujoco_xml(grasp: CoulombGrasp, mu: float) -> str:
 def simulate_mujoco(grasp: CoulombGrasp, mu: float) -> SlipResult:
     """Run the test in MuJoCo at friction ``mu``."""
     from kinegrasp_env.physics.mujoco_model import import_mujoco
+    from kinegrasp_env.physics.mujoco_world import SUBSTEPS
 
     mujoco = import_mujoco()
     model = mujoco.MjModel.from_xml_string(mujoco_xml(grasp, mu))
@@ -202,7 +204,7 @@ def simulate_mujoco(grasp: CoulombGrasp, mu: float) -> SlipResult:
         s = load_factor(step * TIME_STEP)
         data.ctrl[:] = s * grasp.forces
         data.xfrc_applied[body] = s * grasp.wrench
-        mujoco.mj_step(model, data)
+        mujoco.mj_step(model, data, nstep=SUBSTEPS)
     return SlipResult(float(np.linalg.norm(data.xipos[body] - start_pos)),
                       rotation_angle(start_quat, data.xquat[body]))
 
