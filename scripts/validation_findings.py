@@ -60,7 +60,7 @@ def findings(folder: Path) -> None:
           "the others")
     for name in dict.fromkeys(objects):
         sel = fc & (objects == name)
-        ends = {k: int(np.sum(outcome[sel] == k)) for k in dict.fromkeys(outcome)}
+        ends = {str(k): int(np.sum(outcome[sel] == k)) for k in dict.fromkeys(outcome[sel])}
         print(f"  {name}: {held[sel].mean():.1%} of {int(sel.sum())} force-closure draws held; "
               f"outcomes {ends}; grip shift median {np.nanmedian(shift[sel]):.1f} mm, net "
               f"pinned grip force median {np.nanmedian(pin[sel]):.1f} N")
