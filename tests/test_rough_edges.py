@@ -76,23 +76,31 @@ def test_an_unwritable_output_is_one_line_before_any_work(case, spec):
     assert "Traceback" not in proc.stderr and "bug" not in proc.stderr
 
 
-def test_a_missing_folder_is_an_error_and_nothing_is_created(tmp_path):
-    """``--plot DIR/p.png`` with DIR missing: refused before the work, DIR not created (a file
-    output is written only into a folder that exists); a folder output (``--out`` of
-    ``reproduce``) may be created, with the folders on the path the user named, never
-    elsewhere."""
+def test_a_missing_folder_is_an_error_and_nothing_is_created(tmp_path, monkeypatch):
+    """``--plot DIR/p.png`` with DIR missing outside the current folder: refused before the
+    work, DIR not created (was: ``/nonexistent_dir`` made, even at the root). Missing folders
+    are made only inside the current folder (the README's ``out/tour/...``); a folder output
+    (``reproduce --out``) is the folder named, made when its parent exists. Checking creates
+    nothing."""
     missing = tmp_path / "nonexistent_dir"
     proc = _cli("evaluate", "--engine", "fast", "--samples", HOURS_OF_DRAWS,
                 "--plot", str(missing / "p.png"))
     assert proc.returncode == 2
-    assert proc.stderr.strip() == (f"kinegrasp evaluate: error: --plot {missing / 'p.png'}: "
-                                   f"folder {missing} does not exist (create it first)")
+    assert proc.stderr.strip() == (
+        f"kinegrasp evaluate: error: --plot {missing / 'p.png'}: folder {missing} does not "
+        "exist (create it first: only folders inside the current folder are made)")
     assert not missing.exists()
-    before = set(tmp_path.rglob("*"))
-    assert output_folder(str(tmp_path / "a" / "b")) == tmp_path / "a" / "b"
-    assert set(tmp_path.rglob("*")) == before  # checked, not created
+    with pytest.raises(CLIError, match=f"folder {tmp_path / 'a'} does not exist"):
+        output_folder(str(tmp_path / "a" / "b"))
+    assert output_folder(str(tmp_path / "a")) == tmp_path / "a"
     with pytest.raises(CLIError, match="is a file; give a folder"):
         output_folder(str(asset_path("grasps", "cube.json")))
+    monkeypatch.chdir(tmp_path)
+    assert output_file("out/tour/p.png", "--plot") == Path("out/tour/p.png")
+    assert output_folder("out/a/b") == Path("out/a/b")
+    with pytest.raises(CLIError, match="does not exist"):
+        output_file("../elsewhere/p.png", "--plot")
+    assert sorted(tmp_path.rglob("*")) == []  # checked, nothing created
 
 
 @pytest.mark.parametrize("argv", [
@@ -487,3 +495,12 @@ def test_sweep_names_the_figures_it_wrote(tmp_path, capsys):
                          "pfc_vs_sigma_gaussian_fast.png, pfc_vs_sigma_uniform_fast.png")
     for name in last.split(": ", 1)[1].split(", "):
         assert (out / name).is_file(), name
+
+
+def test_counts_take_the_singular_for_one(capsys):
+    """"1 angles" and the like: a count of one takes the singular word."""
+    from kinegrasp_env.cli.common import plural
+
+    assert [plural(n, "angle") for n in (0, 1, 2)] == ["0 angles", "1 angle", "2 angles"]
+    assert main(["planar", "--links", "2", "--q0", "0,1"]) == 2
+    assert "--links has 1 length but --q0 has 2 angles" in capsys.readouterr().err

@@ -15,6 +15,7 @@ from kinegrasp_env.cli.common import (
     noise_from,
     output_file,
     parse_seed,
+    plural,
     positive_int,
     print_json,
 )
@@ -29,7 +30,8 @@ def cmd_planar(args) -> int:
     links = float_list(args.links, "--links")
     q0 = float_list(args.q0, "--q0")
     if len(links) != len(q0):
-        raise CLIError(f"--links has {len(links)} lengths but --q0 has {len(q0)} angles")
+        raise CLIError(f"--links has {plural(len(links), 'length')} but --q0 has "
+                       f"{plural(len(q0), 'angle')}")
     if any(v <= 0 for v in links):
         raise CLIError(f"--links: link lengths must be > 0, got {args.links}")
     noise, sigma, samples, seed = noise_from(args)
@@ -101,7 +103,7 @@ def cmd_convergence(args) -> int:
     if max_n < 10:
         raise CLIError(f"--max-samples must be >= 10, got {max_n}")
     seed = parse_seed(args.seed)
-    output_file(args.out, "--out")
+    output_file(args.out, "--out", figure=True)
     sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
     arm = PlanarArm(DEFAULT_PLANAR_LINKS)
     jobs = [(label, s) for label in ("2-link planar arm", "KUKA iiwa") for s in PAPER_SIGMAS]

@@ -108,42 +108,48 @@ def positive_int(text: str | int, name: str, low: int = 1) -> int:
 
 def output_file(text: str, name: str, *, figure: bool | None = None) -> Path:
     """A file the command will write, checked before any work: not a folder, its folder
-    exists and can be written (:func:`check_parents`), and for a figure (``figure``; by
-    default when ``name`` is ``--plot``) a format matplotlib writes. Nothing is created
-    here, nor later outside the folder named: a missing folder is an error."""
+    can be written (:func:`check_parents`: missing folders are created only inside the
+    current folder), and for a figure (``figure``; by default when ``name`` is ``--plot``)
+    a format matplotlib writes. Nothing is created here."""
     path = Path(text)
     if path.is_dir():
         raise CLIError(f"{name} {text} is a folder; give a file name")
-    check_parents(path, f"{name} {text}")
+    check_parents(path.parent, f"{name} {text}")
     if figure or (figure is None and name == "--plot"):
         check_figure_format(path, name)
     return path
 
 
 def output_folder(text: str, name: str = "--out") -> Path:
-    """A folder the command will write into, checked before any work: not a file, and the
-    nearest existing folder on its path can be written. The command creates the folder
-    (and the missing folders on the path named), nothing else."""
+    """A folder the command will write into (and create), checked before any work: not a
+    file, and writable where it will be made (:func:`check_parents`)."""
     path = Path(text)
     if path.exists() and not path.is_dir():
         raise CLIError(f"{name} {text} is a file; give a folder")
-    check_parents(path, f"{name} {text}", create_missing=True)
+    if not path.exists():
+        check_parents(path.parent, f"{name} {text}")
+    else:
+        check_parents(path, f"{name} {text}")
     return path
 
 
-def check_parents(path: Path, label: str, *, create_missing: bool = False) -> None:
-    """CLIError (``label: ...``, one line) unless ``path`` can be written where it is: its
-    folder exists (or, with ``create_missing``, the nearest existing folder above it), is a
-    folder, and a file can be created in it (tried: a read-only mount or ``/proc`` refuse
-    what permission bits would allow)."""
+def check_parents(folder: Path, label: str) -> None:
+    """CLIError (``label: ...``, one line) unless files can be written in ``folder``: it
+    exists, or it lies inside the current folder (then it is created when the command
+    writes, and nothing outside the current folder ever is); the nearest existing folder
+    on its path is a folder; and a file can be created there (tried: a read-only mount or
+    ``/proc`` refuse what permission bits would allow)."""
+    import os
     import tempfile
 
-    parent = path.absolute().parent
-    if not create_missing and not parent.exists():
-        missing = next(p for p in [parent, *parent.parents] if p.parent.exists())
-        raise CLIError(f"{label}: folder {missing} does not exist (create it first)")
-    target = path.absolute() if create_missing else parent
-    existing = next(p for p in [target, *target.parents] if p.exists())
+    folder = Path(os.path.abspath(folder))  # ".." resolved, links kept
+    existing = next(p for p in [folder, *folder.parents] if p.exists())
+    if existing != folder and existing.is_dir():
+        inside = Path(os.path.abspath(Path.cwd()))
+        if not (folder.is_relative_to(inside) and existing.is_relative_to(inside)):
+            missing = next(p for p in [folder, *folder.parents] if p.parent == existing)
+            raise CLIError(f"{label}: folder {missing} does not exist (create it first: "
+                           "only folders inside the current folder are made)")
     if not existing.is_dir():
         raise CLIError(f"{label}: {existing} is not a folder")
     try:
@@ -169,6 +175,11 @@ def positive_float(text: str, name: str) -> float:
     if value <= 0:
         raise CLIError(f"{name} must be > 0, got {value:g}")
     return value
+
+
+def plural(count: int, word: str, many: str | None = None) -> str:
+    """``1 angle``, ``2 angles`` (``many``: the plural when not ``word + "s"``)."""
+    return f"{count} {word if count == 1 else (many or word + 's')}"
 
 
 def to_jsonable(value):

@@ -10,18 +10,18 @@ phase's ``run`` and ``held`` counts), P(FC) of both closings and P(hold)."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from kinegrasp_env.cli.common import (
     CLIError,
-    check_parents,
     finite_float,
     grasp_index_help,
     nonnegative,
+    output_folder,
     parse_index,
     parse_seed,
     positive_int,
     print_json,
+    processes_from,
     reported,
     shipped_grasp,
 )
@@ -43,7 +43,8 @@ def add_commands(sub) -> None:
     p.add_argument("--sigma", default="0.0133", help="joint noise on the 7 arm joints, radians")
     p.add_argument("--samples", default="100", help="draws per grasp")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
-    p.add_argument("--processes", default="1", help="worker processes")
+    p.add_argument("--processes", default="1", help="worker processes (more than this "
+                   "machine's cores is capped to them, with a warning)")
     p.add_argument("--kinematic-engine", default="fast", choices=("fast", "pybullet"),
                    help="engine of the kinematic outcome (fast: same outcomes as pybullet "
                    "draw by draw, much faster)")
@@ -136,17 +137,9 @@ def settings_from(args) -> dict:
             "simulator": args.simulator, "torque_scale": scale, "shake": args.shake}
 
 
-def output_folder(text: str) -> Path:
-    path = Path(text)
-    if path.exists() and not path.is_dir():
-        raise CLIError(f"--out {text} is a file; give a folder")
-    check_parents(path, f"--out {text}")
-    return path
-
-
 def cmd_validate(args) -> int:
     fields = settings_from(args)
-    processes = positive_int(args.processes, "--processes")
+    processes = processes_from(args.processes)
     out = output_folder(args.out)
     grasps = selected_grasps(args)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
