@@ -21,6 +21,7 @@ import pybullet
 import pybullet_data
 import pytest
 import trimesh
+from env_helpers import check_reward_is_the_evaluation
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli.main import main
@@ -424,8 +425,8 @@ def test_bunny_end_to_end(home, tmp_path, capsys):
     env = KineGraspEnv(objects=("bunny",), grasp_file=str(grasps), n_draws=8, engine="fast")
     obs, info = env.reset(seed=0)
     assert info["object"] == "bunny" and np.all(np.isfinite(obs))
-    _, reward, *_ = env.step(np.array([0.5, 1.0], dtype=np.float32))
-    assert 0.0 <= reward <= 1.0
+    _, reward, _, _, info = env.step(np.array([0.5, 1.0], dtype=np.float32))
+    check_reward_is_the_evaluation(env, reward, info)
     env.close()
 
 
