@@ -24,6 +24,7 @@ from __future__ import annotations
 import atexit
 import itertools
 import json
+import os
 import sys
 import threading
 import time
@@ -58,6 +59,7 @@ class CompileReport:
 
     def __init__(self, stream: TextIO | None, cache: Path, cold: bool) -> None:
         self._stream, self.cache, self.cold = stream, cache, cold
+        self.pid = os.getpid()  # a pool worker forked from this process reports as one
         self.start: float | None = None
         self.count = 0
         self.current = ""
@@ -102,6 +104,10 @@ class CompileReport:
         module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
         if not module.startswith("kinegrasp_env"):
             return
+        if os.getpid() != self.pid:  # a forked pool worker: its own lock, count and clock
+            self.lock = threading.Lock()  # (the parent's may have been held at the fork)
+            self.pid, self.start, self.count = os.getpid(), None, 0
+            self.noticed = True  # the command's own process said it
         with self.lock:
             if self.start is None:
                 self.start = time.monotonic()
@@ -128,8 +134,9 @@ class CompileReport:
         elapsed = time.monotonic() - self.start
         _, kernels = self.estimate
         of = f" of about {kernels}" if kernels else ""
-        self.say(f"kinegrasp: compiling kernels: {self.count}{of} compiled, {_fmt(elapsed)} "
-                 f"elapsed (now {self.current})")
+        where = "" if os.getpid() == _main_pid else f" in worker process {os.getpid()}"
+        self.say(f"kinegrasp: compiling kernels{where}: {self.count}{of} compiled, "
+                 f"{_fmt(elapsed)} elapsed (now {self.current})")
 
     def finish(self) -> None:
         """The closing line, and the record for the next estimate (only after a first
@@ -164,15 +171,16 @@ def _attach(report: CompileReport) -> None:
 def install(stream: TextIO | None = None) -> None:
     """Report kernel compiles of this process on ``stream`` (default stderr); see the module
     docstring. Idempotent."""
-    global _installed
+    global _installed, _main_pid
     if _installed:
         return
-    _installed = True
+    _installed, _main_pid = True, os.getpid()
     already = "kinegrasp_env.jit" in sys.modules
 
     def loaded(jit) -> None:
         cache = jit.kernel_cache_dir()
-        cold = not already and not any(cache.glob("**/*.nbi"))
+        cold = (not already and os.getpid() == _main_pid
+                and not any(cache.glob("**/*.nbi")))
         report = CompileReport(stream, cache, cold)
         if cold:
             report.notice()
@@ -182,3 +190,4 @@ def install(stream: TextIO | None = None) -> None:
 
 
 _installed = False
+_main_pid = os.getpid()
