@@ -490,7 +490,7 @@ def test_batch_thresholding_applies_the_single_grasp_rule():
     """The engines' vectorized thresholding against the single-grasp rule, row by row, on the
     cases the rule tells apart: NaN, Q on either side of FC_TOL of the wrench scale, a barely
     positive Q of a rank-deficient set (zeroed) and of a full-rank one (kept), ordinary Q."""
-    from kinegrasp_env.quality.epsilon import FC_TOL, _thresholded, thresholded_batch
+    from kinegrasp_env.quality.epsilon import FC_TOL, thresholded, thresholded_batch
 
     rng = np.random.default_rng(5)
     full = rng.normal(size=(24, 6))
@@ -500,7 +500,7 @@ def test_batch_thresholding_applies_the_single_grasp_rule():
     scale = np.abs(full).max()
     q = np.array([np.nan, 0.5 * FC_TOL * scale, 2.0 * FC_TOL * scale, 0.0,
                   1e-9 * np.abs(flat).max(), 1e-9 * scale, 0.3])
-    expected = [_thresholded(qi, wi) for qi, wi in zip(q, w, strict=True)]
+    expected = [thresholded(qi, wi) for qi, wi in zip(q, w, strict=True)]
     assert expected == [0.0, 0.0, q[2], 0.0, 0.0, q[5], 0.3]
     np.testing.assert_array_equal(thresholded_batch(q, w), expected)
 

@@ -29,12 +29,16 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from kinegrasp_env.quality.wrenches import (
+    BARELY_CLOSED,
     FC_TOL,
     MAX_EDGES,
+    NOT_CLOSED,
     RANK_TOL,
     check_contacts,
     check_parameters,
     check_wrenches,
+    closure_class,
+    closure_classes,
     cone_angles,
     edge_wrenches,
     scale_center,
@@ -132,7 +136,7 @@ def _epsilon_from_hull(hull: ConvexHull | None, scale: float) -> float:
         return 0.0
     offsets = hull.equations[:, -1]  # unit outward normals: n . x + offset <= 0 inside
     q = float(-offsets.max())
-    return q if q > FC_TOL * scale else 0.0
+    return 0.0 if closure_class(q, scale) == NOT_CLOSED else q
 
 
 def linf_points(w: np.ndarray, num_contacts: int) -> np.ndarray:
@@ -233,25 +237,24 @@ def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: 
     return out
 
 
-def _thresholded(q: float, w: np.ndarray) -> float:
-    """An exact path's Q of wrenches w (N, 6) under the reference's rules: 0 below FC_TOL of
-    the wrench scale, and 0 for a barely positive Q of a (numerically) rank-deficient set.
-    (:func:`thresholded_batch` applies the same rule to many grasps at once; a test checks
-    that the two agree.)"""
-    scale = float(np.abs(w).max())
-    if not q > FC_TOL * scale:
-        return 0.0
-    if q < 1e-8 * scale and _rank_deficient(w):
+def thresholded(q: float, w: np.ndarray) -> float:
+    """An exact path's Q of wrenches w (N, 6) under the force-closure rule
+    (:func:`~kinegrasp_env.quality.wrenches.closure_class` on the wrench scale max |w|): 0
+    below FC_TOL of the scale, and 0 for a barely positive Q of a (numerically)
+    rank-deficient set."""
+    closure = closure_class(q, float(np.abs(w).max()))
+    if closure == NOT_CLOSED or (closure == BARELY_CLOSED and _rank_deficient(w)):
         return 0.0
     return float(q)
 
 
 def thresholded_batch(q: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """:func:`_thresholded` of B grasps at once (its rule, vectorized: a Python loop over the
-    engine's draws cost ~3 us each): Q (B,) of wrenches w (B, N, 6) -> (B,)."""
+    """:func:`thresholded` of B grasps at once (the rule in one compiled pass: a Python loop
+    over the engine's draws cost ~3 us each): Q (B,) of wrenches w (B, N, 6) -> (B,)."""
     scale = np.abs(w).max(axis=(1, 2)) if w.shape[0] else np.empty(0)
-    out = np.where(q > FC_TOL * scale, q, 0.0)
-    for i in np.flatnonzero((out > 0.0) & (out < 1e-8 * scale)):  # rare: barely positive
+    closure = closure_classes(np.ascontiguousarray(q, dtype=float), scale)
+    out = np.where(closure == NOT_CLOSED, 0.0, q)
+    for i in np.flatnonzero(closure == BARELY_CLOSED):  # rare: barely positive
         if _rank_deficient(w[i]):
             out[i] = 0.0
     return out
@@ -289,7 +292,7 @@ def _single_l1(w: np.ndarray, num_contacts: int) -> float:
             poly, ridges, _ = _expansion_tables()
             q, certified = expand_from(w, start, poly, ridges)
         if certified:
-            return _thresholded(q, w)
+            return thresholded(q, w)
     return _qhull_epsilon(w, num_contacts, "l1")
 
 

@@ -17,19 +17,26 @@ import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.quality.expansion import MAX_POINTS, expand_from, screen
-from kinegrasp_env.quality.wrenches import FC_TOL, MAX_WRENCH, unit_normals_into, wrenches_into
+from kinegrasp_env.quality.wrenches import (
+    BARELY_CLOSED,
+    NOT_CLOSED,
+    closure_class,
+    unit_normals_into,
+    wrench_size_ok,
+    wrenches_into,
+)
 
 #: :func:`single_epsilon`'s status codes: Q is final (thresholded as the reference
 #: thresholds it) ...
 DONE = 0
-#: ... Q is barely positive (below 1e-8 of the wrench scale): 0 if the set is
+#: ... Q is barely positive (``wrenches.closure_class``): 0 if the set is
 #: rank-deficient (the caller's SVD), else Q ...
 CHECK_RANK = 1
 #: ... the expansion did not certify the set: the caller asks qhull (the wrenches are in
 #: ``w[:k m]``) ...
 NOT_CERTIFIED = 2
-#: ... the input fails a check (a non-finite entry, a normal shorter than 1e-12, a torque
-#: beyond ``MAX_WRENCH``): the caller's full checks raise the error.
+#: ... the input fails a check (a non-finite entry, a normal too short, a torque too large:
+#: the rules of ``wrenches``): the caller's full checks raise the error.
 REJECTED = 3
 
 
@@ -77,7 +84,7 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
     for i in range(n):
         for c in range(6):
             size = abs(wrenches[i, c])
-            if not size <= MAX_WRENCH:  # also NaN / inf
+            if not wrench_size_ok(size):
                 return REJECTED, 0.0
             scale = max(scale, size)
     if k <= 2:  # every wrench has zero moment about the line through the points
@@ -87,8 +94,9 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
         q, certified = expand_from(wrenches, start, poly, ridges)
     if not certified:
         return NOT_CERTIFIED, 0.0
-    if not q > FC_TOL * scale:
+    closure = closure_class(q, scale)
+    if closure == NOT_CLOSED:
         return DONE, 0.0
-    if q < 1e-8 * scale:
+    if closure == BARELY_CLOSED:
         return CHECK_RANK, q
     return DONE, q

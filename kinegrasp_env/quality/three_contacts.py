@@ -31,7 +31,7 @@ from itertools import combinations, permutations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.quality.wrenches import FC_TOL
+from kinegrasp_env.quality.wrenches import NOT_CLOSED, closure_classes
 
 #: Relative tolerance of the supporting-hyperplane test.
 SUPPORT_TOL = 1e-10
@@ -304,7 +304,7 @@ def epsilon_three_contacts(wrenches: np.ndarray, num_edges: int, return_normal: 
         best, unit = _nearest_facets(idx, tables, centre, svd, col_norm, return_normal)
         found = np.isfinite(best)
         certified[idx[~found]] = False
-        q[idx] = np.where(found & (best > FC_TOL * scale[idx]), best, 0.0)
+        q[idx] = np.where(found & (closure_classes(best, scale[idx]) != NOT_CLOSED), best, 0.0)
         if return_normal:
             nearest[idx[found]] = unit[found]
     if return_normal:

@@ -8,7 +8,10 @@
 * wrench of an edge at contact point p: w = (f, s (p - c) x f), s the torque scale (1 / r_max,
   1/metres), c the centre of mass (metres).
 
-Also the input checks every quality path shares, and the force-closure tolerance.
+Also the rules every quality path shares, each defined once as a compiled function that the
+kernels call and the numpy side calls too: the input checks (:func:`all_finite`,
+:func:`normal_long_enough`, :func:`wrench_size_ok`) and the force-closure threshold on Q
+(:func:`closure_class`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,73 @@ MAX_EDGES = 32
 #: Largest |wrench coordinate| accepted (torques are torque_scale * |p - c| * |f|; the hull
 #: computations square coordinates, and 1e154 squared overflows).
 MAX_WRENCH = 1e100
+#: Shortest contact normal accepted (its length before normalization).
+MIN_NORMAL_LENGTH = 1e-12
+#: Relative Q (to the wrench scale) below which a positive Q is "barely positive": the grasp
+#: is in force closure only if its wrenches span 6-D (the caller's rank check decides).
+BARELY_POSITIVE = 1e-8
+
+#: :func:`closure_class` results: Q counts as 0 (not in force closure) ...
+NOT_CLOSED = 0
+#: ... Q is barely positive: 0 if the wrench set is rank-deficient, else Q ...
+BARELY_CLOSED = 1
+#: ... Q stands (force closure).
+CLOSED = 2
+
+
+# ----------------------------------------------------------------------------- the rules
+@jit.kernel
+def closure_class(q, scale):
+    """The force-closure rule on a Q (float) of wrenches whose largest |coordinate| is scale:
+    :data:`NOT_CLOSED` unless q > FC_TOL * scale (also for NaN), :data:`BARELY_CLOSED` for
+    q < BARELY_POSITIVE * scale, else :data:`CLOSED`. Every quality path applies it."""
+    if not q > FC_TOL * scale:
+        return NOT_CLOSED
+    if q < BARELY_POSITIVE * scale:
+        return BARELY_CLOSED
+    return CLOSED
+
+
+@jit.kernel
+def closure_classes(q, scale):
+    """:func:`closure_class` of B values: q, scale (B,) -> (B,) int8."""
+    out = np.empty(q.shape[0], dtype=np.int8)
+    for i in range(q.shape[0]):
+        out[i] = closure_class(q[i], scale[i])
+    return out
+
+
+@jit.kernel(_nrt=False)
+def all_finite(values):
+    """Whether every entry of an array (any shape) is finite (the contact and parameter
+    checks' rule)."""
+    for v in values.flat:
+        if not np.isfinite(v):
+            return False
+    return True
+
+
+@jit.kernel
+def normal_long_enough(length):
+    """Whether a contact normal of this length (metres-free, before normalization) is
+    accepted: length >= :data:`MIN_NORMAL_LENGTH` (False for NaN)."""
+    return length >= MIN_NORMAL_LENGTH
+
+
+@jit.kernel(_nrt=False)
+def first_short_normal(lengths):
+    """Index of the first normal length (N,) that :func:`normal_long_enough` rejects, or -1."""
+    for i in range(lengths.shape[0]):
+        if not normal_long_enough(lengths[i]):
+            return i
+    return -1
+
+
+@jit.kernel
+def wrench_size_ok(size):
+    """Whether a |wrench coordinate| is accepted: size <= :data:`MAX_WRENCH` (False for NaN
+    and inf)."""
+    return size <= MAX_WRENCH
 
 
 # ----------------------------------------------------------------------------- validation
@@ -42,7 +112,7 @@ def finite_array(value, name: str) -> np.ndarray:
         raise ValueError(f"{name} contains a number beyond a float's range") from None
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be an array of numbers, got {value!r}") from None
-    if not np.isfinite(arr).all():  # method reductions: a third of np.all's call cost
+    if not all_finite(arr.reshape(-1)):
         raise ValueError(f"{name} contains NaN or infinite values")
     return arr
 
@@ -61,17 +131,16 @@ def normal_lengths(normals: np.ndarray) -> np.ndarray:
 
 @jit.kernel(_nrt=False)
 def unit_normals_into(points, normals, out):
-    """Whether every entry of points and normals (..., 3 flattened to (N, 3)) is finite and
-    every normal's length (np.linalg.norm's arithmetic: sqrt((x x + y y) + z z)) is finite and
-    at least 1e-12; where so, the unit normals (normals / lengths) are in out (N, 3)."""
-    for i in range(points.shape[0]):
-        for j in range(3):
-            if not np.isfinite(points[i, j]):
-                return False
+    """Whether every entry of points (N, 3) is finite (:func:`all_finite`) and every normal's
+    length (N normals (N, 3); np.linalg.norm's arithmetic: sqrt((x x + y y) + z z)) is finite
+    and :func:`normal_long_enough` (a NaN entry gives a NaN length); where so, the unit
+    normals (normals / lengths) are in out (N, 3)."""
+    if not all_finite(points):
+        return False
     for i in range(normals.shape[0]):
         x, y, z = normals[i, 0], normals[i, 1], normals[i, 2]
         length = np.sqrt(x * x + y * y + z * z)
-        if not np.isfinite(length) or length < 1e-12:
+        if not np.isfinite(length) or not normal_long_enough(length):
             return False
         out[i, 0], out[i, 1], out[i, 2] = x / length, y / length, z / length
     return True
@@ -111,10 +180,11 @@ def check_contacts(points, normals, batched: bool) -> tuple[np.ndarray, np.ndarr
     if points.shape[-2] < 1:
         raise ValueError("need at least one contact, got 0")
     lengths = normal_lengths(normals)
-    if (lengths < 1e-12).any():
-        bad = np.argwhere(lengths < 1e-12)[0]
+    first = first_short_normal(lengths.reshape(-1))
+    if first >= 0:
+        bad = np.unravel_index(first, lengths.shape)
         raise ValueError(f"normals: contact {tuple(int(i) for i in bad)} has zero length "
-                         f"(below 1e-12: {lengths[tuple(bad)]:.3g})")
+                         f"(below {MIN_NORMAL_LENGTH:g}: {lengths[bad]:.3g})")
     unit = normals / lengths[..., None]
     huge = np.isinf(lengths)  # a length beyond a float's range (entries near 1.8e308)
     if huge.any():
@@ -127,7 +197,7 @@ def check_wrenches(w: np.ndarray) -> np.ndarray:
     """w unchanged; ValueError when a torque overflows or exceeds :data:`MAX_WRENCH` (the
     hull computations square coordinates), i.e. torque_scale * |p - c| is absurdly large."""
     peak = float(np.abs(w).max()) if w.size else 0.0
-    if not peak <= MAX_WRENCH:  # also NaN / inf
+    if not wrench_size_ok(peak):
         raise ValueError(f"the torques reach {peak:.3g} (torque_scale * |points - center|); "
                          f"at most {MAX_WRENCH:g} is supported: use metres and "
                          "torque_scale = 1 / r_max")
