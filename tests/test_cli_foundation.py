@@ -270,6 +270,11 @@ def test_help_shows_the_choices_from_their_sources():
 
     assert (objects_cli.DEFAULT_THRESHOLD, objects_cli.DEFAULT_MAX_PARTS) == (
         decompose.DEFAULT_THRESHOLD, decompose.DEFAULT_MAX_PARTS)
+    from kinegrasp_env.cli import elbow as elbow_cli
+    from kinegrasp_env.toolkit import elbow_certificate
+
+    assert (elbow_cli.DEFAULT_EPSILON, elbow_cli.DEFAULT_DELTA) == (
+        elbow_certificate.DEFAULT_EPSILON, elbow_certificate.DEFAULT_DELTA)
     assert "shipped grasp set, 0..11" in " ".join(subs["evaluate"].format_help().split())
 
 

@@ -113,8 +113,9 @@ _HI = r"(?P<hi>[01]\.\d+)"
 STAT_LINES = {
     "evaluate header": re.compile(r"^(?P<k_what>\S+ grasp .+), (?P<n>\d+) draws$"),
     "evaluate P(FC)": re.compile(rf"^\s+P\(FC\)\s+= {_P}\s+\(95% CI {_CI} \.\. {_HI}\)$"),
-    "evaluate Q": re.compile(r"^\s+Q: nominal (?P<k_nominal>\S+), mean \S+, std \S+, "
-                             r"skewness \S+, error \S+$"),
+    "evaluate Q": re.compile(r"^\s+Q \(Ferrari-Canny, dimensionless; mean, std, skewness over "
+                             r"the force-closure draws\): nominal (?P<k_nominal>\S+), mean \S+, "
+                             r"std \S+, skewness \S+, error \(nominal - mean\) \S+$"),
     "outcomes": re.compile(r"^\s+outcomes: (?P<counts>\w+ \d+(?:, \w+ \d+)*)$"),
     "rank row": re.compile(rf"^\s*\d+\s+(?P<k_id>\S+)\s+{_P}\s+{_CI}\.\.{_HI}\s+\S+\s+"
                            r"(?P<k_q_nominal>\S+)\s+(?P<n>\d+)$"),

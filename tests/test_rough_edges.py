@@ -504,3 +504,23 @@ def test_counts_take_the_singular_for_one(capsys):
     assert [plural(n, "angle") for n in (0, 1, 2)] == ["0 angles", "1 angle", "2 angles"]
     assert main(["planar", "--links", "2", "--q0", "0,1"]) == 2
     assert "--links has 1 length but --q0 has 2 angles" in capsys.readouterr().err
+
+
+def test_evaluate_says_what_each_number_is(capsys):
+    """``evaluate``'s lines carry units and meanings: sigma in radians, Q named (Ferrari-
+    Canny, dimensionless, its moments over the force-closure draws) and "error" spelled out
+    as nominal - mean, which it is (checked against the JSON's own two numbers)."""
+    import json
+
+    argv = ["evaluate", "--object", "cube", "--grasp", "0", "--samples", "40", "--engine",
+            "fast"]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "cube grasp 0, sigma = 0.0133 rad (gaussian), 40 draws"
+    q_line = lines[2]
+    assert q_line.startswith("  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the "
+                             "force-closure draws): nominal ")
+    assert main([*argv, "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    error = float(q_line.rsplit("error (nominal - mean) ", 1)[1])
+    assert error == pytest.approx(stats["q_nominal"] - stats["q_mean"], abs=5e-6)

@@ -20,9 +20,14 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
+    plural,
     shipped_grasp,
 )
-from kinegrasp_env.toolkit.elbow_certificate import DEFAULT_DELTA, DEFAULT_EPSILON
+
+#: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s
+#: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
+#: imports no NumPy.
+DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
 
 
 def certificate_levels(args) -> tuple[float, float]:
@@ -98,7 +103,8 @@ def certificate_lines(cert: dict, grid_step: float) -> list[str]:
                f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
                "rad is the rival it cannot rule out)")
     return [f"  {cert['statement']}",
-            f"    {verdict}; {len(cert['rivals'])} other angles, exact one-sided binomial "
+            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, exact one-sided "
+            "binomial "
             f"bounds on {cert['fresh_draws']} fresh draws; angles between the {grid_step:.3f} "
             "rad grid points not covered"]
 

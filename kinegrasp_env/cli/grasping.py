@@ -21,6 +21,7 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
+    output_folder,
     parse_seed,
     positive_int,
     reported,
@@ -48,7 +49,7 @@ def cmd_evaluate(args) -> int:
         stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine,
                                return_draws=bool(args.plot or args.report), progress=True,
                                executor=executor)
-    label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g}"
+    label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     if args.json:
         print(json.dumps(stats.to_json()))
     else:
@@ -56,8 +57,10 @@ def cmd_evaluate(args) -> int:
         full = label if args.noise_spec else f"{label} ({args.noise})"
         print(f"{args.object} grasp {index}, {full}, {samples} draws")
         print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
-        print(f"  Q: nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
-              f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error {stats.error:.5f}")
+        print(f"  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the force-closure "
+              f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
+              f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error (nominal - mean) "
+              f"{stats.error:.5f}")
         print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
@@ -95,7 +98,7 @@ def cmd_reproduce(args) -> int:
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
-    out = args.out or f"out/{args.figure}"
+    out = str(output_folder(args.out or f"out/{args.figure}"))  # before any work
     seed = parse_seed(args.seed)
     if args.figure == "table1":
         args.object = args.object or TABLE1_OBJECT
