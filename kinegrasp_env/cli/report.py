@@ -287,8 +287,8 @@ def cmd_screenshot(args) -> int:
 
 def add_commands(sub) -> None:
     """Register ``report`` and ``screenshot``."""
+    from kinegrasp_env.cli.common import DISTRIBUTION_NAMES as DISTRIBUTIONS
     from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
-    from kinegrasp_env.sampling.noise import DISTRIBUTIONS
 
     p = sub.add_parser("report", help="evaluate one grasp and write a self-contained "
                        "interactive HTML page (3-D views, histogram, P(FC) vs sigma)")
