@@ -98,7 +98,7 @@ def main() -> None:
     parser.add_argument("--grasps", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    print("targets (issue 21): batch >= 50x the plain loop on 3 contacts x 8 edges, >= 20x on "
+    print("targets: batch >= 50x the plain loop on 3 contacts x 8 edges, >= 20x on "
           "4-5 contacts; single call median <= 50 us for k <= 5, m <= 12; exact")
     for k, m in ((3, 8), (3, 12), (3, 16), (4, 8), (5, 8), (5, 12)):
         run(k, m, args.grasps if k == 3 else max(100, args.grasps // 10), args.seed)

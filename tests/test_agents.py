@@ -116,7 +116,7 @@ def test_unregistered_env_id():
         train.make_env("Nope-v0", {}, "train", 0)
 
 
-# ------------------------------------------------------------- evaluation statistics (issue 22)
+# ------------------------------------------------------------- evaluation statistics
 evaluate_module = _load("evaluate")
 COMMITTED = ROOT / "agents" / "models" / "evaluation.json"
 #: the open-world evaluation: held-out imported objects (agents/heldout.yaml), with the
@@ -365,7 +365,7 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
         assert result["mean_p_fc"][method][0] == mean == row[method]
 
 
-# ------------------------------------------------------------- open-world data (issue 22)
+# ------------------------------------------------------------- open-world data
 prepare_module = _load("prepare")
 
 

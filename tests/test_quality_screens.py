@@ -1,4 +1,4 @@
-"""The quality paths' shortcuts (issue 21): each against an independent computation.
+"""The quality paths' shortcuts: each against an independent computation.
 
 * the compiled edge wrenches equal the numpy formula (friction_cone_edges and np.cross), bit
   for bit, also where |n| ties pick the tangent axis;

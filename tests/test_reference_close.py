@@ -136,7 +136,7 @@ def test_the_polish_reaches_the_exact_gaps_zero(closed):
     assert gaps.size > 200
     assert gaps.max() <= CONTACT_TOL
     # measured 98.7% on 4 objects x 3 grasps; 13.8% when the capsules were placed by
-    # pybullet's single-precision link frames (issue 21)
+    # pybullet's single-precision link frames
     assert np.mean(gaps <= POLISH_TOL) >= 0.95
 
 

@@ -59,7 +59,7 @@ LINF_MAX_POINTS = 1500
 #: vs 347-360 vs 12500 (a tie); 20: 606-789 vs 854-866 vs 23500; 24 (3 m beyond the
 #: expansion): 1036-1401 vs - vs 41000. Their constant tables and work arrays grow as m^3
 #: (numpy peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32), so above 24 qhull serves (0.1 s
-#: and ~10 MB per grasp at m = 32). Since the expansion's per-facet work was cut (issue 21) it
+#: and ~10 MB per grasp at m = 32). Since its per-facet work was cut the expansion
 #: is the faster one at every m (sphere contacts, us per grasp, tables vs expansion: m = 8:
 #: 195 vs 24, 16: 721 vs 59; engine draws at m = 8: 72 vs 39), so it serves first and the
 #: tables take what it cannot certify and the 3-contact sets past its size (m = 22-24).
