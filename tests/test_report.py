@@ -540,7 +540,7 @@ def test_elbow_command_writes_its_page(elbow_run, tmp_path, capsys):
     curve = _figures(text)["elbow"]["data"][0]
     assert curve["y"] == [c["p_fc"] for c in sorted(printed["curve"], key=lambda c: c["psi"])]
     assert ("kinegrasp elbow --object cube --grasp 0 --sigma 0.02 --noise gaussian --samples 40 "
-            f"--seed 3 --engine fast --report {page}") in text
+            f"--seed 3 --engine fast --epsilon 0.05 --delta 0.05 --report {page}") in text
 
 
 def _section(page: str, title: str) -> dict:
