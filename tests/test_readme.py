@@ -10,7 +10,7 @@ Every ```console block carries one or more markers right above it (README parser
   (trailing blanks ignored; durations like ``drawn in 3026 ms`` masked, the one number that
   depends on the machine). For seeded commands: same seed, same numbers. A block that reads
   an out/tour/ file an earlier block writes (``rank out/tour/grasps.json`` after the tour's
-  ``plan``) first gets it from that earlier command, run once per session (not compared
+  ``plan``) first gets it from that earlier command, run once per test run (not compared
   there). Blocks with ``kinegrasp screenshot`` skip without Chromium.
 - ``<!-- readme-test: stats samples=N -->``: the same, with ``--samples`` replaced by N in the
   commands that take it (the others still compared exactly). The output of those commands is
@@ -64,7 +64,7 @@ CONSOLE = [b for b in BLOCKS if b.lang == "console"]
 CONSOLE_COMMANDS = [step.command for block in CONSOLE for step in block.steps]
 #: Where each console block's first command is in CONSOLE_COMMANDS.
 FIRST = {block.index: sum(len(b.steps) for b in CONSOLE[:i]) for i, block in enumerate(CONSOLE)}
-#: Commands whose files a later console command reads, and what they wrote (this session).
+#: Commands whose files a later console command reads, and what they wrote (this test run).
 PREREQUISITES = {CONSOLE_COMMANDS[j] for i, command in enumerate(CONSOLE_COMMANDS)
                  for j in readme.producers(CONSOLE_COMMANDS, i, readme.tour_inputs(
                      command, readme.command_targets(command)))}
