@@ -154,7 +154,8 @@ class CompileReport:
                 pass
 
 
-def _attach(report: CompileReport) -> None:
+def attach_report(report: CompileReport) -> None:
+    """Send this process's numba compile events to ``report`` and its summary to exit."""
     from numba.core import event
 
     class Listener(event.Listener):
@@ -184,7 +185,7 @@ def install(stream: TextIO | None = None) -> None:
         report = CompileReport(stream, cache, cold)
         if cold:
             report.notice()
-        _attach(report)
+        attach_report(report)
 
     when_imported("kinegrasp_env.jit", loaded)
 

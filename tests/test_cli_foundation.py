@@ -65,9 +65,9 @@ def test_kuka_ee_json_and_errors(capsys):
     out = json.loads(capsys.readouterr().out)
     assert np.shape(out["cov"]) == (3, 3) and out["samples"] == 20000
     # propagated covariance J Sigma J^T is a first-order check of the sampled one
-    from kinegrasp_env.robot.endeffector import _kuka
+    from kinegrasp_env.robot.endeffector import kuka_arm
 
-    kin, arm = _kuka()
+    kin, arm = kuka_arm()
     q = np.zeros(kin.model.dof)
     q[arm] = [0, 0.6, 0, -1.2, 0, 0.8, 0]
     jac = kin.jacobian(q, "palm")[0, :3][:, arm]
@@ -363,7 +363,7 @@ def test_a_compile_is_announced_with_progress(monkeypatch):
     stream = io.StringIO()
     report = kernel_notice.CompileReport(stream, Path("/nonexistent/numba/key"), cold=True)
     monkeypatch.setattr(kernel_notice.atexit, "register", lambda f: None)
-    kernel_notice._attach(report)
+    kernel_notice.attach_report(report)
 
     def outside(x):
         return x + 1

@@ -310,7 +310,7 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
     draws are neither the selection draws nor a recount of them)."""
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.experiments import _figure_sets
+    from kinegrasp_env.toolkit.experiments import figure_sets
 
     rows = experiments.fig9_10("fig10", tmp_path, samples=250, sigma=0.02, count=3, seed=5,
                                engine="fast", objects=("cube",))
@@ -318,7 +318,7 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
     assert set(marked) == {"robust", "fragile"} and marked["robust"] is not marked["fragile"]
     assert marked["robust"]["p_fc"] == max(r["p_fc"] for r in rows)
     assert marked["fragile"]["p_fc"] == min(r["p_fc"] for r in rows)
-    variants = {g.id: g for g in _figure_sets("fig10", ("cube",), 3, {})["cube"]}
+    variants = {g.id: g for g in figure_sets("fig10", ("cube",), 3, {})["cube"]}
     for row in marked.values():
         both = evaluate_grasp(variants[row["id"]], JointNoise(0.02), 500, 5, engine="fast")
         assert row["p_fc"] * 250 + row["fresh_p_fc"] * 250 == pytest.approx(both.p_fc * 500)

@@ -552,13 +552,13 @@ def test_plain_input_fast_checks_match_the_full_checks():
 def _step_by_step(points, normals, friction, num_edges, torque_scale, center) -> float:
     """The single-grasp path as it ran before the one compiled call: numpy checks, the
     wrench kernel, phase 1 and the expansion called from Python, qhull where uncertified."""
-    from kinegrasp_env.quality.epsilon import _single_l1
+    from kinegrasp_env.quality.epsilon import single_l1
     from kinegrasp_env.quality.wrenches import check_contacts, edge_wrenches, scale_center
 
     points, normals = check_contacts(points, normals, batched=False)
     scale, ctr = scale_center(torque_scale, center, 1)
     w = edge_wrenches(points[None], normals[None], friction, num_edges, scale, ctr)[0]
-    return _single_l1(w, points.shape[0])
+    return single_l1(w, points.shape[0])
 
 
 def test_one_compiled_call_equals_the_step_by_step_path():

@@ -165,8 +165,8 @@ def test_screen_never_drops_a_draw_in_the_table(tabled):
         screened = probe.hits(q, roots, shifts)
         values = probe.model.expand(q)
         joints = [n for n in probe.hand_joints if n in values]
-        every = np.array([(probe._place(i, values, joints, roots[i], shifts[i]),
-                           probe._touching())[1] for i in range(len(q))])
+        every = np.array([(probe.place(i, values, joints, roots[i], shifts[i]),
+                           probe.touching())[1] for i in range(len(q))])
         assert 0 < every.sum() < len(q)
         assert np.array_equal(screened, every), name
         probe.close()

@@ -276,7 +276,7 @@ def _expansion_tables() -> tuple:
     return tables
 
 
-def _single_l1(w: np.ndarray, num_contacts: int) -> float:
+def single_l1(w: np.ndarray, num_contacts: int) -> float:
     """Q of one grasp's wrenches w (N, 6), L1: the certified expansion (microseconds for one
     grasp, where the three-contact tables pay their batch set-up), else qhull."""
     from kinegrasp_env.quality.expansion import MAX_POINTS, expand_from, screen
@@ -394,7 +394,7 @@ def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
     scale, ctr = scale_center(torque_scale, center, 1)
     w = check_wrenches(edge_wrenches(points[None], normals[None], friction, num_edges, scale,
                                      ctr))[0]
-    return _single_l1(w, points.shape[0])
+    return single_l1(w, points.shape[0])
 
 
 def is_force_closure_batch(points, normals, **kwargs) -> np.ndarray:

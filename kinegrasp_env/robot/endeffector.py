@@ -28,7 +28,8 @@ CONVERGENCE_SIZES: tuple[int, ...] = (10, 20, 50, 100, 200, 500, 1000, 2000, 500
 
 
 @lru_cache(maxsize=1)
-def _kuka() -> tuple[Kinematics, np.ndarray]:
+def kuka_arm() -> tuple[Kinematics, np.ndarray]:
+    """The default robot's kinematics and the indices of its arm joints in its q, shape (7,)."""
     model = kuka_sdh()
     return Kinematics(model), model.index(ARM_JOINTS)
 
@@ -36,7 +37,7 @@ def _kuka() -> tuple[Kinematics, np.ndarray]:
 def check_kuka_q0(q0: Sequence[float]) -> np.ndarray:
     """Validate a 7-vector of arm joint angles (finite, within limits) and return it."""
     q0 = np.asarray(q0, dtype=float)
-    kin, arm = _kuka()
+    kin, arm = kuka_arm()
     if q0.shape != (arm.size,):
         raise ValueError(f"the KUKA arm needs {arm.size} joint angles, got {q0.size}")
     if not np.all(np.isfinite(q0)):
@@ -52,7 +53,7 @@ def check_kuka_q0(q0: Sequence[float]) -> np.ndarray:
 
 def kuka_end_effector(q_arm: np.ndarray) -> np.ndarray:
     """Palm positions (n, 3), metres, for arm configurations (n, 7)."""
-    kin, arm = _kuka()
+    kin, arm = kuka_arm()
     q_arm = np.atleast_2d(np.asarray(q_arm, dtype=float))
     q = np.zeros((q_arm.shape[0], kin.model.dof))
     q[:, arm] = q_arm

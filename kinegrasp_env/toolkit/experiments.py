@@ -205,8 +205,8 @@ def _fresh_evaluator(sigma: float, samples: int, seed: int, engine: str, executo
     return evaluate
 
 
-def _figure_sets(which: str, objects: Sequence[str], count: int,
-                 grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
+def figure_sets(which: str, objects: Sequence[str], count: int,
+                grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
     """Per object, the grasps fig9 (the first ``count`` of its set) or fig10 (``count``
     null-space variants of its first grasp) evaluates."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
@@ -255,7 +255,7 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     if which not in ("fig9", "fig10"):
         raise ValueError(f"unknown figure {which!r}")
     out = Path(out_dir)
-    sets = _figure_sets(which, objects, count, grasp_sets or {})
+    sets = figure_sets(which, objects, count, grasp_sets or {})
     rows = []
     chooses = {name: which == "fig10" and len(g) >= 2 for name, g in sets.items()}
     cells = sum(len(g) + 2 * chooses[name] for name, g in sets.items())

@@ -147,8 +147,8 @@ class TableProbe(BulletWorld):
         hand_names = [name for name in self.hand_joints if name in values]
         out = np.zeros(q.shape[0], dtype=bool)
         for i in np.flatnonzero(self.maybe_hits(q, roots, shifts)):
-            self._place(i, values, hand_names, roots[i], None if shifts is None else shifts[i])
-            out[i] = self._touching()
+            self.place(i, values, hand_names, roots[i], None if shifts is None else shifts[i])
+            out[i] = self.touching()
         return out
 
     def maybe_hits(self, q: np.ndarray, roots: np.ndarray, shifts: np.ndarray | None
@@ -168,8 +168,10 @@ class TableProbe(BulletWorld):
         outside = np.linalg.norm(np.maximum(np.abs(local) - self.half, 0.0), axis=2)
         return np.any(outside <= self.radii + 1e-6, axis=1)
 
-    def _place(self, i: int, values: dict[str, np.ndarray], hand_names: list[str],
-               root: np.ndarray, shift: np.ndarray | None) -> None:
+    def place(self, i: int, values: dict[str, np.ndarray], hand_names: list[str],
+              root: np.ndarray, shift: np.ndarray | None) -> None:
+        """Put draw ``i`` in the probe's world: the arm (shifted by ``shift``, (4, 4), if
+        given), its joints from ``values`` (name -> (N,) radians), the hand at ``root`` (4, 4)."""
         bullet = self.bullet
         arm, hand = self.bodies["arm"], self.bodies["hand"]
         if shift is not None or self._arm_moved:
@@ -182,7 +184,8 @@ class TableProbe(BulletWorld):
         for name in hand_names:
             bullet.resetJointState(hand, self.hand_joints[name], float(values[name][i]))
 
-    def _touching(self) -> bool:
+    def touching(self) -> bool:
+        """Whether the placed robot touches the table (pybullet's closest points at 0 m)."""
         bullet = self.bullet
         table = self.bodies["table"]
         if bullet.getClosestPoints(self.bodies["hand"], table, 0.0):
