@@ -16,10 +16,10 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.elbow import (
     configuration_at,
     optimize_elbow,
-    paired_interval,
     reachable_configurations,
 )
 from kinegrasp_env.toolkit.elbow_certificate import certify, difference_upper_bound

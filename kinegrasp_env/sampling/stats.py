@@ -46,6 +46,16 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
     return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
 
 
+def paired_interval(d: np.ndarray, confidence: float = 0.95) -> tuple[float, float, float]:
+    """(mean, lo, hi) of paired differences d (n,), Student-t interval."""
+    n = d.size
+    mean = float(d.mean())
+    if n < 2:
+        return mean, -math.inf, math.inf
+    half = float(sps.t.ppf(0.5 + confidence / 2, n - 1) * d.std(ddof=1) / math.sqrt(n))
+    return mean, mean - half, mean + half
+
+
 def skewness(x: np.ndarray, axis: int = 0) -> np.ndarray:
     """M3 = (1/n) sum(((x - mean) / s)^3) along ``axis``, s the sample std (n - 1).
 

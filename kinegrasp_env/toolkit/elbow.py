@@ -25,11 +25,9 @@ self-motion and picks the most robust elbow:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats as sps
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import (
@@ -39,7 +37,7 @@ from kinegrasp_env.montecarlo.evaluate import (
     run_chunks,
 )
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.sampling.stats import paired_interval, wilson_interval
 from kinegrasp_env.toolkit.elbow_certificate import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
@@ -183,16 +181,6 @@ def _scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int,
     _, _, draws = run_chunks(with_configuration(grasp, q, 0.0), noise, seed, sizes=sizes,
                              first_chunk=len(sizes), return_draws=True, **run)
     return draws.outcome == FORCE_CLOSURE
-
-
-def paired_interval(d: np.ndarray, confidence: float = 0.95) -> tuple[float, float, float]:
-    """(mean, lo, hi) of paired differences d (n,), Student-t interval."""
-    n = d.size
-    mean = float(d.mean())
-    if n < 2:
-        return mean, -math.inf, math.inf
-    half = float(sps.t.ppf(0.5 + confidence / 2, n - 1) * d.std(ddof=1) / math.sqrt(n))
-    return mean, mean - half, mean + half
 
 
 def _evaluate_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], noise: JointNoise,

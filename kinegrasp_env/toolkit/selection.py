@@ -33,7 +33,7 @@ from kinegrasp_env.montecarlo.evaluate import (
 )
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.elbow import paired_interval
+from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.world.grasps import Grasp
 
 #: ``evaluate(candidate, first_chunk) -> GraspStats`` (with its draws): the candidate's
