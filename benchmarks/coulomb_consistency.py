@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
                         default=Path(__file__).resolve().parent / "results"
                         / "coulomb_consistency.json")
     parser.add_argument("--readme", type=Path,
-                        default=Path(__file__).resolve().parents[1] / "README.md",
+                        default=Path(__file__).resolve().parents[1] / "docs/guides/physics.md",
                         help="write the table into this file between its markers")
     parser.add_argument("--no-readme", action="store_true")
     args = parser.parse_args(argv)
