@@ -280,6 +280,23 @@ def test_builtin_cube_pinch():
 
 
 # ----------------------------------------------------------------------------- consistency
+@pytest.mark.parametrize("offset", [0.0, 0.004])
+def test_linf_q_is_qhull_of_the_minkowski_sum(offset):
+    """L-infinity Q (each contact's force bounded by 1) of a soft pinch against qhull of the
+    Minkowski sum of each contact's {0} U primitives, built here with itertools."""
+    from itertools import product
+
+    p, n = pinch(offset=offset)
+    kw = soft(friction=0.6, num_edges=4, finger_radius=0.01)
+    w = contact_wrenches(p, n, **kw).reshape(2, 6, 6)
+    sums = np.array([a + b for a, b in product(np.vstack([np.zeros(6), w[0]]),
+                                               np.vstack([np.zeros(6), w[1]]))])
+    offsets = ConvexHull(sums).equations[:, -1]
+    q = contact_quality(p, n, **kw, norm="linf")
+    assert offsets.max() < 0
+    assert q == pytest.approx(-offsets.max(), rel=QHULL_REL)
+
+
 def test_soft_without_torsion_is_point_quality():
     """gamma = 0: the torsional primitives are the normal wrenches, the centroids of each
     contact's edges, inside the point hull: the same Q as point contacts (3-5 contacts)."""

@@ -30,9 +30,10 @@ of a uniform pressure f_n / (pi r^2) over a disc of radius r sliding about its c
 tau_max = integral of mu (f_n / (pi r^2)) rho dA = (2 / 3) mu r f_n, so gamma = (2 / 3) mu r
 (:func:`torsion_coefficient`); ``torsion=`` sets gamma directly. Torques are scaled as every
 torque of Q is: s = torque_scale = 1 / r_max (1/metres), so a torsional primitive's torque is
-s gamma n, dimensionless like the others. Dex-Net adds, instead, two pure torques
-(0, +-pi r^2 mu s n) per contact (no normal force, and pi r^2 mu is an area, not a length);
-its magnitude is ``torsion=pi * r**2 * mu`` here, in this model's primitives.
+s gamma n, dimensionless like the others. Dex-Net's ``soft_fingers`` adds, instead, two pure
+torques (0, +-pi r^2 mu s f n) per contact (f <= 1 the normal part of the jaw's unit push):
+torsion with no normal force behind it, and pi r^2 mu is an area, not a length; its
+magnitude (f = 1) is ``torsion=pi * r**2 * mu`` here, in this model's primitives.
 
 Q and force closure of a primitive set are the project's (docs/conventions.md): the
 distance from the origin to the nearest facet of the convex hull of the primitives, through
