@@ -16,6 +16,8 @@ import kinegrasp_env
 
 ROOMS = ("sampling", "quality", "robot", "world", "closing", "physics", "montecarlo",
          "toolkit", "envs", "cli")
+#: Rooms inside a room: documented on their parent's page, in a section of their own.
+SUBROOMS = {"toolkit": ("report",)}
 
 
 def exports(package: str) -> dict[str, str]:
@@ -31,8 +33,8 @@ def exports(package: str) -> dict[str, str]:
     return found
 
 
-def room_page(package: str, title: str, names: dict[str, str]) -> str:
-    lines = [f"# {title}", "", f"::: {package}", "    options:",
+def room_page(package: str, title: str, names: dict[str, str], level: int = 1) -> str:
+    lines = [f"{'#' * level} {title}", "", f"::: {package}", "    options:",
              "      members: false", "      show_root_heading: false", ""]
     for name, module in names.items():
         if name.startswith("__"):
@@ -83,7 +85,8 @@ top = {name: module for name, module in exports("kinegrasp_env").items()
        if name not in ("ENV_IDS", "__version__")}
 #: Where each room page renders a name: (module, name) -> room.
 rendered = {(module, name): room for room in rooms
-            for name, module in exports(f"kinegrasp_env.{room}").items()}
+            for package in (room, *(f"{room}.{sub}" for sub in SUBROOMS.get(room, ())))
+            for name, module in exports(f"kinegrasp_env.{package}").items()}
 with mkdocs_gen_files.open("reference/api/kinegrasp_env.md", "w") as handle:
     handle.write(top_page(top, rendered))
 for room in rooms:
@@ -92,5 +95,8 @@ for room in rooms:
     index.append(f"| [`{package}`]({room}.md) | {' '.join(doc.split()).replace('|', '/')} |")
     with mkdocs_gen_files.open(f"reference/api/{room}.md", "w") as handle:
         handle.write(room_page(package, package, exports(package)))
+        for sub in SUBROOMS.get(room, ()):
+            inner = f"{package}.{sub}"
+            handle.write("\n" + room_page(inner, inner, exports(inner), level=2))
 with mkdocs_gen_files.open("reference/api/index.md", "w") as handle:
     handle.write("\n".join(index) + "\n")

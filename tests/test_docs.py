@@ -25,11 +25,6 @@ ROOT = Path(__file__).resolve().parents[1]
 ALLOWED_EXTERNAL: tuple[str, ...] = ("https://keepachangelog.com/en/1.1.0/",
                                      "https://semver.org/spec/v2.0.0.html")
 
-#: The Chromium flags of the browser test (no network services, a fresh profile per run).
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync")
-
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
@@ -51,41 +46,23 @@ def pages(site: Path) -> list[Path]:
 
 
 @pytest.fixture(scope="module")
-def browser(tmp_path_factory):
-    """A headless Chromium context (the system's browser, a fresh user-data-dir) whose every
-    request that is not file: or data: is aborted and recorded in ``context.refused``."""
-    from kinegrasp_env.toolkit.report_browser import find_chromium
+def browser():
+    """The report room's offline Chromium (the system's browser under Playwright, a fresh
+    context): every request that is not file:, data:, blob: or about: is aborted and listed
+    in ``browser.remote``."""
+    from kinegrasp_env.toolkit.report.browser import OfflineChromium, find_chromium
 
-    executable = find_chromium()
-    if executable is None:
+    if find_chromium() is None:
         pytest.skip("the browser test needs Chromium (Debian: apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as playwright:
-        context = playwright.chromium.launch_persistent_context(
-            str(tmp_path_factory.mktemp("profile")), executable_path=executable,
-            headless=True, args=list(CHROMIUM_FLAGS))
-        context.refused = []
-
-        def route(route):
-            url = route.request.url
-            if url.startswith(("file:", "data:")):
-                route.continue_()
-            else:
-                context.refused.append(url)
-                route.abort()
-
-        context.route("**/*", route)
-        yield context
-        context.close()
+    pytest.importorskip("playwright.sync_api")
+    with OfflineChromium() as chromium:
+        yield chromium
 
 
-def open_page(context, path: Path):
-    """Open ``path``; (page, console errors and page errors seen while it loaded)."""
-    page = context.new_page()
-    errors: list[str] = []
-    page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}")
-            if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+def open_page(browser, path: Path):
+    """Open ``path``; (page, console errors, uncaught exceptions and failed local requests
+    seen while it loaded)."""
+    page, errors = browser.new_page()
     page.goto(path.as_uri(), wait_until="load")
     page.wait_for_timeout(150)  # scripts run after load (search worker, palette)
     return page, errors
@@ -128,7 +105,7 @@ def test_every_page_loads_without_console_errors_and_links_only_inside(site, bro
             if why:
                 problems.append(f"{relative}: link {url}: {why}")
         page.close()
-    problems += [f"request refused: {url}" for url in browser.refused]
+    problems += [f"request refused: {url}" for url in browser.remote]
     assert not problems, "\n".join(problems[:50])
 
 

@@ -354,7 +354,7 @@ def test_readme_console_block(block, marker, tmp_path):
     """The block's commands print what the README shows (exactly, or within its intervals)."""
     if any(argv[:1] == ["screenshot"] for step in block.steps
            for argv in readme.kinegrasp_argvs(step.command)):
-        from kinegrasp_env.toolkit.report_browser import find_chromium
+        from kinegrasp_env.toolkit.report.browser import find_chromium
 
         if find_chromium() is None:
             pytest.skip("kinegrasp screenshot needs chromium (Debian: apt-get install chromium)")
@@ -400,7 +400,7 @@ def test_docs_console_block(page, block, marker, tmp_path):
     """A docs page's block prints what the page shows (exactly, or within its intervals)."""
     if any(argv[:1] == ["screenshot"] for step in block.steps
            for argv in readme.kinegrasp_argvs(step.command)):
-        from kinegrasp_env.toolkit.report_browser import find_chromium
+        from kinegrasp_env.toolkit.report.browser import find_chromium
 
         if find_chromium() is None:
             pytest.skip("kinegrasp screenshot needs chromium (Debian: apt-get install chromium)")

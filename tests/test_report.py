@@ -2,18 +2,22 @@
 their geometry and data against independent computations, the command line (noise specs of
 several sources, grasp files of imported objects), and the pages in a real browser.
 
-The browser tests load each page type in headless Chromium with the network off and assert no
-console error, no request leaving the file, every figure drawn and non-blank WebGL canvases
-(:meth:`PageCheck.problems`); a deliberately broken page must fail the same check. They skip,
-saying why, when no Chromium is installed (Debian: ``apt-get install chromium``; `.ci/run`
-installs it).
+The browser tests load each page type in the system's headless Chromium, driven by Playwright,
+with every request off the machine refused, and assert no console error, no request leaving
+the file, every figure drawn and non-blank WebGL canvases (:meth:`PageCheck.problems`); a
+deliberately broken page (a script error, an empty figure, a request to the web) must fail the
+same check. They skip, saying why, when no Chromium is installed (Debian: ``apt-get install
+chromium``; `.ci/run` installs it) or Playwright is missing (the ``screenshot`` extra).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
+import subprocess
+import sys
 from collections import Counter
 
 import numpy as np
@@ -29,10 +33,11 @@ from kinegrasp_env.quality.wrenches import tangent_basis
 from kinegrasp_env.robot.model import PALM_LINK
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model
-from kinegrasp_env.toolkit import report, report_browser, report_elbow, report_scene
+from kinegrasp_env.toolkit import report
 from kinegrasp_env.toolkit.elbow import optimize_elbow
-from kinegrasp_env.toolkit.report_charts import quality_histogram
-from kinegrasp_env.toolkit.report_geometry import (
+from kinegrasp_env.toolkit.report.charts import quality_histogram
+from kinegrasp_env.toolkit.report.elbow import curve_point
+from kinegrasp_env.toolkit.report.geometry import (
     SKELETON_LINKS,
     closed_configuration,
     cone_meshes,
@@ -41,14 +46,18 @@ from kinegrasp_env.toolkit.report_geometry import (
     transform,
     visual_poses,
 )
-from kinegrasp_env.toolkit.report_plotly import MeshLibrary, decode_typed_array, plotly_js
+from kinegrasp_env.toolkit.report.page import run_noise
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary, decode_typed_array, plotly_js
+from kinegrasp_env.toolkit.report.scene import contact_cloud, robot_traces
 from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
-CHROMIUM = report_browser.find_chromium()
+CHROMIUM = report.find_chromium()
+PLAYWRIGHT = importlib.util.find_spec("playwright") is not None
 needs_chromium = pytest.mark.skipif(
-    CHROMIUM is None, reason="no chromium on PATH: the browser tests need it (Debian: "
-    "apt-get install chromium; .ci/run installs it)")
+    CHROMIUM is None or not PLAYWRIGHT, reason="the browser tests need Chromium on PATH "
+    "(Debian: apt-get install chromium; .ci/run installs it) and Playwright (the screenshot "
+    "extra)")
 SAMPLES = 60
 #: A noise model of four sources (joints, hand, object pose, friction).
 SPEC = ("joints: {sigma: 0.01, distribution: gaussian}\n"
@@ -85,7 +94,7 @@ def test_typed_arrays_equal_plotlys_own_encoding():
     uint32 arrays (plotly.io, an independent implementation), and decode back exactly."""
     import plotly.io as pio
 
-    from kinegrasp_env.toolkit.report_plotly import typed_array
+    from kinegrasp_env.toolkit.report.plotly import typed_array
 
     rng = np.random.default_rng(0)
     for values in (rng.normal(size=50).astype(np.float32), np.arange(7, dtype=np.uint32)):
@@ -190,16 +199,16 @@ def _synthetic_draws(n: int, seed: int = 0) -> DrawBatch:
 
 def test_contact_cloud_keeps_every_point_or_a_uniform_subset():
     draws = _synthetic_draws(100)
-    whole = report_scene.contact_cloud(draws, limit=10_000)
+    whole = contact_cloud(draws, limit=10_000)
     assert whole.total == whole.shown == 600 and not whole.decimated
     np.testing.assert_array_equal(whole.points, draws.points.reshape(-1, 3))
-    part = report_scene.contact_cloud(draws, limit=250, seed=4)
+    part = contact_cloud(draws, limit=250, seed=4)
     assert (part.shown, part.total, part.decimated) == (250, 600, True)
     assert np.all(np.diff(part.draw) >= 0)  # in draw order
     for point, draw, finger in zip(part.points, part.draw, part.finger, strict=True):
         slot = np.flatnonzero(np.all(draws.points[draw] == point, axis=1))
         assert slot.size == 1 and draws.finger[draw, slot[0]] == finger
-    again = report_scene.contact_cloud(draws, limit=250, seed=4)
+    again = contact_cloud(draws, limit=250, seed=4)
     np.testing.assert_array_equal(again.points, part.points)
 
 
@@ -235,7 +244,7 @@ def test_mesh_instances_place_the_library_meshes(run):
     grasp, _ = run
     obj = load_object("cube")
     library = MeshLibrary()
-    traces = report_scene.robot_traces(grasp.q0, "hand", library, obj.pose_inverse, arm=False)
+    traces = robot_traces(grasp.q0, "hand", library, obj.pose_inverse, arm=False)
     placed = [library.placed(key, np.vstack([np.reshape(rows, (3, 4)), [0, 0, 0, 1]]))[0]
               for trace in traces for key, rows in trace["kgInstances"]]
     expected = [transform(v.vertices, pose)
@@ -257,7 +266,7 @@ def test_ten_thousand_draw_page_stays_under_its_limit(run):
 
 
 def test_parser_defaults_equal_the_library_constants():
-    assert cli_report.MAX_POINTS_DEFAULT == report_scene.MAX_POINTS
+    assert cli_report.MAX_POINTS_DEFAULT == report.MAX_POINTS
     assert cli_report.ARM_DRAWS_DEFAULT == report.ARM_DRAWS
 
 
@@ -351,7 +360,7 @@ def pages(tmp_path_factory, run, elbow_run, spec_file):
         grasps, rows, command="kinegrasp rank ...", settings={}, noise=JointNoise(0.02),
         seed=0, samples=20))
     elbow_grasp, result = elbow_run
-    report.write_page(out["elbow"], report_elbow.elbow_page(
+    report.write_page(out["elbow"], report.elbow_page(
         elbow_grasp, result, JointNoise(0.02), command="kinegrasp elbow ...", settings={}))
     model = load_noise_model(spec_file)
     report.write_page(out["spec"], report.evaluation_page(
@@ -374,13 +383,13 @@ def _report_load(name: str, check) -> None:
           f"{check.ready_ms:.0f} ms (from navigation start; wall {check.wall_s:.1f} s), "
           f"{len(check.canvases)} WebGL canvases: "
           + ", ".join(f"std {s['std']:.0f}, {s['colours']} colours" for s in (
-              report_browser.pixel_stats(check.screenshot, r) for r in check.canvases)))
+              report.pixel_stats(check.screenshot, r) for r in check.canvases)))
 
 
 @needs_chromium
 @pytest.mark.expensive
 def test_evaluation_page_in_chromium(pages, run):
-    check = report_browser.check_page(pages["evaluate"], probe=HAND_VERTICES)
+    check = report.check_page(pages["evaluate"], probe=HAND_VERTICES)
     _report_load("evaluation", check)
     assert check.problems(scenes=2) == []
     assert check.requests and all(u.startswith("file:") for u in check.requests)
@@ -390,7 +399,7 @@ def test_evaluation_page_in_chromium(pages, run):
     obj = load_object("cube")
     closed, _ = closed_configuration(grasp.q0, obj)
     library = MeshLibrary()
-    traces = report_scene.robot_traces(closed, "hand", library, obj.pose_inverse, arm=False)
+    traces = robot_traces(closed, "hand", library, obj.pose_inverse, arm=False)
     assert len(check.probe) == len(traces)
     for (x, y, z), trace in zip(check.probe, traces, strict=True):
         expected = np.concatenate([library.placed(key, np.vstack([np.reshape(m, (3, 4)),
@@ -402,7 +411,7 @@ def test_evaluation_page_in_chromium(pages, run):
 @needs_chromium
 @pytest.mark.expensive
 def test_sigma_curve_page_in_chromium(pages):
-    check = report_browser.check_page(pages["sigmas"])
+    check = report.check_page(pages["sigmas"])
     _report_load("P(FC)-vs-sigma", check)
     assert check.problems(scenes=2) == []
     assert check.rendered == check.expected == 5
@@ -415,7 +424,7 @@ def test_rank_page_in_chromium_sorts_and_draws_views_on_demand(pages):
     candidate); 'show 3-D' draws the candidate's two scenes."""
     opened = ("document.querySelectorAll('table.kg-sortable th')[2].click();"
               "document.querySelector('button.kg-show').click()")
-    check = report_browser.check_page(pages["rank"], before_screenshot=opened,
+    check = report.check_page(pages["rank"], before_screenshot=opened,
                                       probe=RANK_ORDER)
     _report_load("ranking", check)
     assert check.expected == 0 and check.rendered == 2
@@ -425,21 +434,35 @@ def test_rank_page_in_chromium_sorts_and_draws_views_on_demand(pages):
                            for x in (i, f"detail-of-detail-c{i}")]
 
 
+#: A page that asks for the web: an image and a fetch (both must be refused and reported).
+REMOTE = ('<img src="http://example.com/kg.png"><script>fetch("https://example.org/kg.json")'
+          '.catch(() => {});</script></body>')
+
+
 @needs_chromium
 @pytest.mark.expensive
-@pytest.mark.parametrize("breakage", ["script error", "empty figure"])
-def test_a_broken_page_fails_the_check(pages, tmp_path, breakage):
+@pytest.mark.parametrize(("breakage", "expected"), [
+    ("script error", "kgNoSuchFunction is not defined"),
+    ("empty figure", "1 WebGL canvases, expected 2"),
+    ("remote request", "network request: http://example.com/kg.png")])
+def test_a_broken_page_fails_the_check(pages, tmp_path, breakage, expected):
     page = pages["evaluate"].read_text()
     if breakage == "script error":
         page = page.replace("</body>", "<script>kgNoSuchFunction();</script></body>")
-    else:
+    elif breakage == "empty figure":
         page = re.sub(r'(<script type="application/json" id="fig-grasp">)\{"data":\[.*?\],'
                       r'"layout"', r'\1{"data":[],"layout"', page, count=1, flags=re.S)
+    else:
+        page = page.replace("</body>", REMOTE)
     broken = tmp_path / "broken.html"
     broken.write_text(page)
-    problems = report_browser.check_page(broken).problems(scenes=2)
+    check = report.check_page(broken)
+    problems = check.problems(scenes=2)
     print(f"\n{breakage}: {problems}")
-    assert problems
+    assert any(expected in p for p in problems), problems
+    if breakage == "remote request":
+        assert sorted(check.remote) == ["http://example.com/kg.png",
+                                        "https://example.org/kg.json"]
 
 
 def test_screenshot_bad_input_is_one_line(pages, tmp_path, capsys):
@@ -460,7 +483,43 @@ def test_screenshot_command_writes_the_page_as_png(pages, tmp_path, capsys):
     assert main(["screenshot", str(pages["rank"]), "--show", "1", "--out", str(out)]) == 0
     assert "0 console errors" in capsys.readouterr().out
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert report_browser.pixel_stats(out.read_bytes())["colours"] > 1000
+    assert report.pixel_stats(out.read_bytes())["colours"] > 1000
+
+
+@needs_chromium
+@pytest.mark.expensive
+def test_screenshot_command_fails_on_a_request_off_the_machine(pages, tmp_path, capsys):
+    page = tmp_path / "remote.html"
+    page.write_text(pages["evaluate"].read_text().replace("</body>", REMOTE))
+    assert main(["screenshot", str(page), "--out", str(tmp_path / "remote.png")]) == 1
+    err = capsys.readouterr().err
+    assert "network request refused: http://example.com/kg.png" in err, err
+    assert "network request refused: https://example.org/kg.json" in err, err
+
+
+def test_screenshot_without_playwright_names_the_extra(pages, tmp_path, capsys, monkeypatch):
+    """Without Playwright the command stops with one line naming the extra to install."""
+    monkeypatch.setitem(sys.modules, "playwright", None)
+    monkeypatch.setitem(sys.modules, "playwright.sync_api", None)
+    out = tmp_path / "shot.png"
+    assert main(["screenshot", str(pages["rank"]), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'kinegrasp-env[screenshot]'" in err[0], err
+    assert not out.exists()
+
+
+def test_the_parser_and_the_report_room_do_not_import_playwright():
+    """Playwright loads when a browser starts, never with ``--help`` or the report modules
+    (checked in a fresh interpreter's ``sys.modules``)."""
+    code = ("import sys\n"
+            "from kinegrasp_env.cli.main import build_parser\n"
+            "p = build_parser()\n"
+            "[s.format_help() for s in p._subparsers._group_actions[0].choices.values()]\n"
+            "import kinegrasp_env.toolkit.report.browser, kinegrasp_env.cli.report\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'playwright'))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip() == "[]", done.stdout
 
 
 # -------------------------------------------------------------------- elbow and noise pages
@@ -486,7 +545,7 @@ def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):
     from kinegrasp_env.montecarlo.engines import make_engine
 
     grasp, result = elbow_run
-    page = report_elbow.elbow_page(grasp, result, JointNoise(0.02), command="c", settings={})
+    page = report.elbow_page(grasp, result, JointNoise(0.02), command="c", settings={})
     figures = _figures(page)
     assert set(figures) == {"elbow", "arm-nominal", "arm-best"}
     curve = sorted(result.curve, key=lambda p: p.psi)
@@ -506,7 +565,7 @@ def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):
                                own["best"], atol=1e-6)
     engine = make_engine("fast", "cube")
     for label, psi in (("nominal", result.nominal_psi), ("best", result.best_psi)):
-        point = report_elbow.curve_point(result, psi)
+        point = curve_point(result, psi)
         q = noisy_configurations(point.q, JointNoise(0.02), 3, 40, report.ARM_DRAWS)
         outcome = engine.run(q).outcome
         np.testing.assert_array_equal(outcome, point.outcome[:len(q)])
@@ -563,7 +622,7 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
     stats = evaluate_grasp(grasp_by_index("cube", 1), model, 50, seed=2, engine="fast",
                            return_draws=True)
     assert printed["runs"] == [json.loads(json.dumps(stats.to_json()))]
-    assert report.run_noise(stats) == model
+    assert run_noise(stats) == model
     page = out.read_text()
     assert _section(page, "Noise sources") == {
         "joints": "distribution gaussian; sigma 0.01 rad",
@@ -659,7 +718,7 @@ def test_pages_get_the_mode_a_plain_open_gives(tmp_path, mask):
 @pytest.mark.expensive
 @pytest.mark.parametrize(("name", "figures"), [("elbow", 3), ("spec", 4)])
 def test_elbow_and_noise_spec_pages_in_chromium(pages, name, figures):
-    check = report_browser.check_page(pages[name])
+    check = report.check_page(pages[name])
     _report_load(name, check)
     assert check.problems(scenes=2) == []
     assert check.rendered == check.expected == figures
@@ -669,7 +728,7 @@ def test_elbow_and_noise_spec_pages_in_chromium(pages, name, figures):
 @needs_chromium
 @pytest.mark.expensive
 def test_imported_object_page_in_chromium(imported_page):
-    check = report_browser.check_page(imported_page[0])
+    check = report.check_page(imported_page[0])
     _report_load("imported object", check)
     assert check.problems(scenes=2) == []
     assert check.rendered == check.expected == 4

@@ -1,8 +1,9 @@
 """Report commands: ``report`` (one grasp's evaluation, at one or several noise levels or
 under a noise model, as a self-contained interactive HTML page) and ``screenshot`` (a page
-rendered to PNG by headless Chromium, network off). ``evaluate --report``, ``rank --report``
-and ``elbow --report`` write their pages through :func:`write_evaluation_report`,
-:func:`write_rank_report` and :func:`write_elbow_report`.
+rendered to PNG by the system's headless Chromium through Playwright, the ``screenshot``
+extra; network off). ``evaluate --report``, ``rank --report`` and ``elbow --report`` write
+their pages through :func:`write_evaluation_report`, :func:`write_rank_report` and
+:func:`write_elbow_report`.
 """
 
 from __future__ import annotations
@@ -33,8 +34,8 @@ from kinegrasp_env.cli.common import (
 )
 
 FRICTION, NUM_EDGES = 0.5, 8
-#: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report_scene.MAX_POINTS`` and
-#: ``report.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.
+#: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
+#: ``report.page.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.
 MAX_POINTS_DEFAULT = 15_000
 ARM_DRAWS_DEFAULT = 20
 
@@ -67,7 +68,7 @@ def sigma_words(sigma) -> str:
 
 def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int) -> dict:
     from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
-    from kinegrasp_env.toolkit.report import run_noise
+    from kinegrasp_env.toolkit.report.page import run_noise
 
     first = runs[0]
     chosen = {"grasp": f"index {index} (id {grasp.id})"}
@@ -88,7 +89,7 @@ def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: i
 def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
                             command: list[str], max_points: int, arm_draws: int) -> int:
     """Write the page of ``runs`` (GraspStats, the first with draws); returns its bytes."""
-    from kinegrasp_env.toolkit.report import evaluation_page, write_page
+    from kinegrasp_env.toolkit.report.page import evaluation_page, write_page
 
     settings = _settings(args, grasp, index, runs, max_points, arm_draws)
     text = evaluation_page(grasp, runs, command=shlex.join(command), settings=settings,
@@ -186,7 +187,7 @@ def evaluate_report(args, grasp, index: int, stats) -> None:
 def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                       engine: str) -> None:
     """``rank --report FILE``: the sortable table and each candidate's 3-D views."""
-    from kinegrasp_env.toolkit.report import rank_page, write_page
+    from kinegrasp_env.toolkit.report.page import rank_page, write_page
 
     rows = []
     for r in results:
@@ -218,8 +219,8 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
 def write_elbow_report(args, grasp, index: int, result, noise) -> None:
     """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
     elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``)."""
-    from kinegrasp_env.toolkit.report import write_page
-    from kinegrasp_env.toolkit.report_elbow import elbow_page
+    from kinegrasp_env.toolkit.report.elbow import elbow_page
+    from kinegrasp_env.toolkit.report.page import write_page
 
     out = Path(args.report)
     command = ["kinegrasp", "elbow", "--object", args.object, "--grasp", str(index),
@@ -260,7 +261,12 @@ def show_candidates(page: Path, text: str | None) -> str | None:
 
 
 def cmd_screenshot(args) -> int:
-    from kinegrasp_env.toolkit.report_browser import BrowserError, check_page, find_chromium
+    from kinegrasp_env.toolkit.report.browser import (
+        BrowserError,
+        check_page,
+        find_chromium,
+        load_playwright,
+    )
 
     page = Path(args.page)
     if not page.is_file():
@@ -269,20 +275,26 @@ def cmd_screenshot(args) -> int:
     width = positive_int(args.width, "--width")
     height = positive_int(args.height, "--height")
     opener = show_candidates(page, args.show)
+    try:
+        load_playwright()
+    except BrowserError as exc:
+        raise CLIError(f"screenshot: {exc}") from None
     if find_chromium() is None:
         raise CLIError("no chromium on PATH (Debian: apt-get install chromium)")
     try:
         check = check_page(page, before_screenshot=opener, width=width, height=height)
     except BrowserError as exc:
         raise CLIError(f"chromium: {exc}") from None
-    from kinegrasp_env.toolkit.report import write_page
+    from kinegrasp_env.toolkit.report.page import write_page
 
     write_page(out, check.screenshot)
     drawn = "not drawn" if check.ready_ms is None else f"drawn in {check.ready_ms:.0f} ms"
     print(f"{page}: {drawn}, {len(check.errors)} console errors; screenshot written to {out}")
     for error in check.errors:
         print(f"  {error}", file=sys.stderr)
-    return 0 if not check.errors and check.ready_ms is not None else 1
+    for url in check.remote:
+        print(f"  network request refused: {url}", file=sys.stderr)
+    return 0 if not check.errors and not check.remote and check.ready_ms is not None else 1
 
 
 def add_commands(sub) -> None:
@@ -316,8 +328,9 @@ def add_commands(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_report)
 
-    p = sub.add_parser("screenshot", help="render an HTML report to PNG in headless Chromium "
-                       "(network off); exit 1 on console errors")
+    p = sub.add_parser("screenshot", help="render an HTML report to PNG in the system's "
+                       "headless Chromium (network off; needs the screenshot extra: "
+                       "Playwright); exit 1 on console errors or a request off the machine")
     p.add_argument("page", help="the HTML file")
     p.add_argument("--out", required=True, help="the PNG file to write")
     p.add_argument("--width", default="1400", help="viewport width, CSS pixels")

@@ -1,7 +1,7 @@
 """The toolkit: the grasp planner (``planner``), candidates given as palm poses
 (``candidates``), ranking by robustness (``ranking``), the most robust elbow (``elbow``), the
 paper's experiments (``experiments``), the sensitivity analysis per source of error
-(``sensitivity``), the physics validation (``validation``), HTML reports (``report*``),
+(``sensitivity``), the physics validation (``validation``), HTML reports (the ``report`` room),
 progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
 """
 

@@ -7,7 +7,7 @@ skeleton for comparison: same palm pose, another arm), the headline numbers (the
 the nominal elbow scored on fresh draws, the paired gain, the certificate: how much better
 than the chosen elbow any evaluated one can be), a table of the curve, the settings and the
 command that reproduces the page. The page machinery (shell, figures, shared meshes) is the
-evaluation page's (:mod:`~kinegrasp_env.toolkit.report`).
+evaluation page's (:mod:`~kinegrasp_env.toolkit.report.page`).
 """
 
 from __future__ import annotations
@@ -16,16 +16,16 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, Noise
 from kinegrasp_env.toolkit.elbow import ElbowPoint, ElbowResult
-from kinegrasp_env.toolkit.report import ARM_DRAWS, sigma_text, versions
-from kinegrasp_env.toolkit.report_charts import elbow_curve
-from kinegrasp_env.toolkit.report_geometry import (
+from kinegrasp_env.toolkit.report.charts import elbow_curve
+from kinegrasp_env.toolkit.report.geometry import (
     closed_configuration,
     noisy_configurations,
     skeletons,
 )
-from kinegrasp_env.toolkit.report_html import Figure, command_block, esc, note, page, settings_table
-from kinegrasp_env.toolkit.report_plotly import MeshLibrary
-from kinegrasp_env.toolkit.report_scene import arm_scene, skeleton_trace
+from kinegrasp_env.toolkit.report.html import Figure, command_block, esc, note, page, settings_table
+from kinegrasp_env.toolkit.report.page import ARM_DRAWS, sigma_text, versions
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary
+from kinegrasp_env.toolkit.report.scene import arm_scene, skeleton_trace
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject, load_object
 

@@ -4,7 +4,7 @@ Figures are stored as JSON in ``<script type="application/json">`` elements and 
 few lines of JavaScript: eagerly on load, or on demand (``lazy``: a candidate's 3-D view in a
 ranking). Meshes shared by figures (robot links, the object) are stored once (``kg-meshes``)
 and placed by the script where a trace lists ``kgInstances``
-(:func:`~kinegrasp_env.toolkit.report_plotly.instanced_mesh`). When every eager figure is
+(:func:`~kinegrasp_env.toolkit.report.plotly.instanced_mesh`). When every eager figure is
 drawn the page sets ``window.kgReady`` to ``performance.now()`` (milliseconds since
 navigation start) and ``window.kgRendered`` counts drawn figures; the browser test reads
 both. Tables with class ``kg-sortable`` sort by a click on a column header.
@@ -15,7 +15,7 @@ from __future__ import annotations
 import html
 from dataclasses import dataclass
 
-from kinegrasp_env.toolkit.report_plotly import MeshLibrary, figure_json, plotly_js
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary, figure_json, plotly_js
 
 STYLE = """
 body { font-family: Helvetica, Arial, sans-serif; margin: 16px 24px; color: #222; }

@@ -11,8 +11,8 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.evaluate import GraspStats
-from kinegrasp_env.toolkit.report_plotly import layout
-from kinegrasp_env.toolkit.report_scene import OUTCOME_COLOURS
+from kinegrasp_env.toolkit.report.plotly import layout
+from kinegrasp_env.toolkit.report.scene import OUTCOME_COLOURS
 
 HISTOGRAM_BINS = 40
 

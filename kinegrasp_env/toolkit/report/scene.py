@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES, DrawBatch
-from kinegrasp_env.toolkit.report_geometry import cone_meshes, skeletons, visual_poses
-from kinegrasp_env.toolkit.report_plotly import (
+from kinegrasp_env.toolkit.report.geometry import cone_meshes, skeletons, visual_poses
+from kinegrasp_env.toolkit.report.plotly import (
     MESH_STYLE,
     MeshLibrary,
     instanced_mesh,
@@ -207,7 +207,7 @@ def grasp_scene(obj: GraspObject, grasp: Grasp, library: MeshLibrary, closed: np
                 friction: float, num_edges: int, cloud: ContactCloud | None = None,
                 title: str = "") -> dict:
     """The grasp in the object frame: the object, the hand closed on it (``closed`` (14,),
-    see :func:`~kinegrasp_env.toolkit.report_geometry.closed_configuration`) and, hidden
+    see :func:`~kinegrasp_env.toolkit.report.geometry.closed_configuration`) and, hidden
     until toggled, at its pre-shape (q0), the nominal contacts and cones, and the draws'
     contact points (with outcome/finger buttons) when ``cloud`` is given."""
     data = object_traces(obj, library)

@@ -7,7 +7,7 @@ counts, P(FC) with its Wilson interval, P(FC) against sigma when several sigmas 
 settings and the command that reproduces the page; under a noise model of several sources
 (``--noise-spec``) it also lists the sources and their settings. A ranking page holds the
 sortable table and each candidate's 3-D views on demand. The elbow page is
-:mod:`~kinegrasp_env.toolkit.report_elbow`. Pages open offline (plotly.js is inline) and are
+:mod:`~kinegrasp_env.toolkit.report.elbow`. Pages open offline (plotly.js is inline) and are
 deterministic: the same runs give the same bytes.
 
 Size: plotly.js is about 4.8 MB; a 10,000-draw evaluation page stays under
@@ -29,13 +29,13 @@ from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, GraspStats, Noise
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import SOURCES
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-from kinegrasp_env.toolkit.report_charts import outcome_bars, pfc_curve, quality_histogram
-from kinegrasp_env.toolkit.report_geometry import (
+from kinegrasp_env.toolkit.report.charts import outcome_bars, pfc_curve, quality_histogram
+from kinegrasp_env.toolkit.report.geometry import (
     closed_configuration,
     kinematics,
     noisy_configurations,
 )
-from kinegrasp_env.toolkit.report_html import (
+from kinegrasp_env.toolkit.report.html import (
     Figure,
     command_block,
     esc,
@@ -43,8 +43,8 @@ from kinegrasp_env.toolkit.report_html import (
     page,
     settings_table,
 )
-from kinegrasp_env.toolkit.report_plotly import MeshLibrary, plotly_version
-from kinegrasp_env.toolkit.report_scene import MAX_POINTS, arm_scene, contact_cloud, grasp_scene
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary, plotly_version
+from kinegrasp_env.toolkit.report.scene import MAX_POINTS, arm_scene, contact_cloud, grasp_scene
 from kinegrasp_env.world.grasps import Grasp, write_atomic
 from kinegrasp_env.world.objects import load_object
 
