@@ -23,6 +23,7 @@ from kinegrasp_env.cli import (
     grasping,
     objects,
     report,
+    robots,
     sensitivity,
     toolkit,
     validate,
@@ -41,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
                     description="Grasp quality under kinematic (joint-angle) noise.")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    for group in (arms, objects, grasping, toolkit, elbow, report, sensitivity, validate):
+    for group in (arms, objects, robots, grasping, toolkit, elbow, report, sensitivity, validate):
         group.add_commands(sub)
     for command_parser in sub.choices.values():  # its usage errors name the command
         command_parser.set_defaults(command_parser=command_parser)

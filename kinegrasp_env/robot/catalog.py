@@ -1,0 +1,206 @@
+"""The robot catalog: the built-in robots and the ones a user adds.
+
+Built in (``assets/robots``): ``kuka_sdh`` (the default: the KUKA iiwa with the SDH-like
+hand) and ``panda`` (the Franka Panda with its parallel-jaw hand). A user's robots live in
+``<data_root>/robots`` (:func:`kinegrasp_env.paths.data_root`: ``$KINEGRASP_HOME`` or the
+platform's user data folder), one folder per robot, named as the robot:
+
+- ``robot.yaml``: the description (:mod:`kinegrasp_env.robot.description`), its ``urdf`` and
+  ``packages`` pointing inside the folder;
+- ``source.yaml``: the user's description file, byte for byte;
+- ``files/``: the URDF and every mesh it references (OBJ material files too), in the
+  folder layout they had (relative to their common folder), so relative and ``package://``
+  paths resolve as before; a copied URDF is rewritten only where it gave a mesh as an
+  absolute path (to the copy's relative path); the user's files are never changed;
+- ``entry.json``: the name, the source file and the copied files.
+
+An entry appears complete or not at all: it is written in a hidden folder (``.tmp-...``) and
+renamed into place after the copy is read back and checked.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from kinegrasp_env.assets import asset_path
+from kinegrasp_env.paths import data_root
+from kinegrasp_env.robot.description import (
+    RobotDescription,
+    RobotDescriptionError,
+    load_description,
+)
+
+#: Built-in robots: name -> the description's path parts under ``assets/``.
+BUILTIN: dict[str, tuple[str, ...]] = {
+    "kuka_sdh": ("robots", "kuka_sdh.yaml"),
+    "panda": ("robots", "panda", "panda.yaml"),
+}
+DEFAULT_ROBOT = "kuka_sdh"
+ENTRY_FILE = "entry.json"
+DESCRIPTION_FILE = "robot.yaml"
+SOURCE_FILE = "source.yaml"
+FORMAT_VERSION = 1
+
+
+def robots_dir() -> Path:
+    """The folder holding one sub-folder per user robot (not created here)."""
+    return data_root() / "robots"
+
+
+def user_names() -> tuple[str, ...]:
+    """Names of the user's robots, sorted."""
+    root = robots_dir()
+    if not root.is_dir():
+        return ()
+    return tuple(sorted(p.name for p in root.iterdir()
+                        if not p.name.startswith(".") and (p / DESCRIPTION_FILE).is_file()))
+
+
+def robot_names() -> tuple[str, ...]:
+    """Every robot: the built-in ones, then the user's."""
+    return (*BUILTIN, *user_names())
+
+
+def description_path(name: str) -> Path:
+    """The description file of robot ``name``.
+
+    Raises:
+        RobotDescriptionError: no robot of that name.
+    """
+    if name in BUILTIN:
+        return asset_path(*BUILTIN[name])
+    if isinstance(name, str) and not name.startswith(".") and "/" not in name:
+        path = robots_dir() / name / DESCRIPTION_FILE
+        if path.is_file():
+            return path
+    raise RobotDescriptionError(f"unknown robot {name!r}; known: {', '.join(robot_names())}")
+
+
+def load_robot(name: str = DEFAULT_ROBOT) -> RobotDescription:
+    """The checked description of a built-in or user robot.
+
+    Raises:
+        RobotDescriptionError: unknown name, or an entry that no longer checks out.
+    """
+    return load_description(description_path(name))
+
+
+def catalog_rows() -> list[dict]:
+    """One row per robot: name, source (built-in/user), arm DOF, hand joints, palm link,
+    fingertips, contact model, description file."""
+    rows = []
+    for name in robot_names():
+        d = load_robot(name)
+        rows.append({"name": name, "source": "built-in" if name in BUILTIN else "user",
+                     "arm_dof": d.arm_dof, "hand_joints": list(d.hand_joints),
+                     "palm_link": d.palm_link, "fingertips": list(d.fingertip_links),
+                     "contact_model": d.contact_model, "description": str(d.path)})
+    return rows
+
+
+def _mesh_files(description: RobotDescription) -> list[Path]:
+    """The mesh files and, for OBJ meshes, the material files they name that exist."""
+    out: list[Path] = []
+    for mesh in description.meshes:
+        out.append(mesh.path)
+        if mesh.path.suffix.lower() == ".obj":
+            for line in mesh.path.read_text(errors="replace").splitlines():
+                if line.startswith("mtllib "):
+                    mtl = (mesh.path.parent / line[len("mtllib "):].strip())
+                    if mtl.is_file():
+                        out.append(mtl.resolve())
+    return list(dict.fromkeys(out))
+
+
+def _copied_urdf(description: RobotDescription, root: Path, target: Path) -> str:
+    """The URDF's text, with each absolute mesh path replaced by its copy's path relative to
+    the copied URDF at ``target`` (nothing else changes)."""
+    text = description.urdf.read_text()
+    for mesh in description.meshes:
+        written = mesh.filename.removeprefix("file://")
+        if Path(written).is_absolute():
+            copy = target.parent.parent / "files" / mesh.path.relative_to(root)
+            relative = os.path.relpath(copy, target.parent)
+            text = text.replace(f'"{mesh.filename}"', f'"{relative}"')
+    return text
+
+
+def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescription, Path]:
+    """Check the description at ``path`` and copy it, its URDF and meshes into the catalog.
+
+    Args:
+        path: the user's description YAML.
+        force: replace a user robot of the same name.
+
+    Returns:
+        (the stored robot's description, its folder).
+
+    Raises:
+        RobotDescriptionError: a bad description, a built-in name, or a name taken (without
+            ``force``); the catalog is untouched.
+    """
+    import yaml
+
+    source = Path(path)
+    description = load_description(source)
+    name = description.name
+    if name in BUILTIN:
+        raise RobotDescriptionError(f"{source.name}: name: {name!r} is a built-in robot; "
+                                    "choose another name")
+    folder = robots_dir() / name
+    if folder.exists() and not force:
+        raise RobotDescriptionError(f"{source.name}: name: a robot {name!r} is already in the "
+                                    f"catalog ({folder}); remove it first or use --force")
+    files = [description.urdf, *_mesh_files(description)]
+    root = Path(os.path.commonpath([p.parent for p in files]
+                                   + list(description.packages.values())))
+    robots_dir().mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=robots_dir()))
+    try:
+        for f in files[1:]:
+            target = tmp / "files" / f.relative_to(root)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(f, target)
+        urdf_copy = tmp / "files" / description.urdf.relative_to(root)
+        urdf_copy.parent.mkdir(parents=True, exist_ok=True)
+        urdf_copy.write_text(_copied_urdf(description, root, urdf_copy))
+        shutil.copyfile(source, tmp / SOURCE_FILE)
+        data = yaml.safe_load(source.read_text())
+        data["urdf"] = urdf_copy.relative_to(tmp).as_posix()
+        if description.packages:
+            data["packages"] = {k: (Path("files") / v.relative_to(root)).as_posix()
+                                for k, v in description.packages.items()}
+        (tmp / DESCRIPTION_FILE).write_text(yaml.safe_dump(data, sort_keys=False))
+        (tmp / ENTRY_FILE).write_text(json.dumps({
+            "format": FORMAT_VERSION, "name": name, "source": str(source.resolve()),
+            "files": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*")
+                            if p.is_file())}, indent=1))
+        try:
+            load_description(tmp / DESCRIPTION_FILE)
+        except RobotDescriptionError as exc:
+            raise RobotDescriptionError(f"{source.name}: its files could not be copied "
+                                        f"consistently ({exc})") from None
+        if folder.exists():
+            shutil.rmtree(folder)
+        tmp.rename(folder)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
+    return load_description(folder / DESCRIPTION_FILE), folder
+
+
+def remove_robot(name: str) -> Path:
+    """Delete a user robot's folder; returns it.
+
+    Raises:
+        RobotDescriptionError: a built-in or unknown name.
+    """
+    if name in BUILTIN:
+        raise RobotDescriptionError(f"{name!r} is a built-in robot and cannot be removed")
+    path = description_path(name)
+    shutil.rmtree(path.parent)
+    return path.parent

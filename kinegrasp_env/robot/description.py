@@ -1,0 +1,378 @@
+"""A robot as data: a short YAML description next to a URDF, read and checked.
+
+The description names what the URDF cannot say (which joints are the noisy arm, which link
+is the palm, which joints close the hand and in which direction); everything else (finger
+chains, fingertips, mimic followers, limits) is derived from the URDF through
+:func:`kinegrasp_env.robot.model.load_urdf`. Keys::
+
+    name: panda                      # catalog name: a letter or digit, then [A-Za-z0-9_.-]
+    urdf: panda.urdf                 # path relative to the YAML file (or absolute)
+    arm_joints: [panda_joint1, ...]  # base to flange: the noisy joints, a serial chain
+    palm_link: panda_hand            # the hand's frame; the arm chain ends here
+    hand_joints: [panda_finger_joint1]  # actuated hand joints (mimic joints follow)
+    close: {panda_finger_joint1: -1} # direction (+1 or -1) that closes a hand joint;
+                                     # hand joints left out are pre-shape only (a spread)
+    open: {panda_finger_joint1: 0.04}  # optional pre-shape (within the joint's limits;
+                                     # a joint left out: 0 clipped into its limits)
+    finger_links: [...]              # optional: the links that touch (default: every link
+                                     # a hand joint moves)
+    efforts: {joint: 20.0}           # optional motor effort overrides, N m or N (> 0)
+    contact_model: point             # optional: point (default) or soft
+    packages: {NAME: path}           # optional: folders for package://NAME/... meshes
+    arm_angle_links: [s, e, w]       # optional: shoulder, elbow, wrist links of the arm
+                                     # angle (default for 7 arm joints: the links moved by
+                                     # arm joints 2, 4 and 6)
+
+Mesh paths are resolved as URDF readers do: relative to the URDF's folder, absolute (or
+``file://``), or ``package://NAME/rest``: through ``packages`` when it names NAME, else a
+folder NAME beside the URDF or beside any folder above it (or a folder above it named NAME).
+
+Every problem is one :class:`RobotDescriptionError` line naming the file, the key and the
+bad value, raised before anything is written anywhere.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from kinegrasp_env.robot.model import RobotModel, load_urdf
+
+#: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
+NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "close")
+OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
+                 "arm_angle_links")
+CONTACT_MODELS = ("point", "soft")
+
+
+class RobotDescriptionError(ValueError):
+    """A robot description refused: one line naming the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class Finger:
+    """One finger: the chain from the palm to a fingertip link.
+
+    Attributes:
+        tip: the fingertip link (a leaf of the finger links).
+        joints: the closing joints on the chain, palm to tip (hand joints with a close
+            direction and the mimic joints that follow them).
+        links: the child link of each of ``joints``.
+        directions: for each of ``joints``, +1 or -1: the sign of the joint's motion when
+            the hand closes (the driver's close direction times the mimic multiplier's sign).
+    """
+
+    tip: str
+    joints: tuple[str, ...]
+    links: tuple[str, ...]
+    directions: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class MeshFile:
+    """A mesh the URDF references: ``link``'s ``filename`` (as written), found at ``path``."""
+
+    link: str
+    filename: str
+    path: Path
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """A checked robot description (see the module docstring for the keys).
+
+    ``model`` is the URDF's :class:`~kinegrasp_env.robot.model.RobotModel` with the actuated
+    vector ``arm_joints + hand_joints``; ``open`` holds a value for every hand joint.
+    """
+
+    name: str
+    path: Path
+    urdf: Path
+    model: RobotModel
+    arm_joints: tuple[str, ...]
+    palm_link: str
+    hand_joints: tuple[str, ...]
+    close: dict[str, int]
+    open: dict[str, float]
+    finger_links: tuple[str, ...]
+    fingertip_links: tuple[str, ...]
+    fingers: tuple[Finger, ...]
+    efforts: dict[str, float] = field(default_factory=dict)
+    contact_model: str = "point"
+    packages: dict[str, Path] = field(default_factory=dict)
+    arm_angle_links: tuple[str, str, str] | None = None
+    meshes: tuple[MeshFile, ...] = ()
+
+    @property
+    def arm_dof(self) -> int:
+        return len(self.arm_joints)
+
+    def open_configuration(self):
+        """(dof,) actuated vector: arm at zero, hand at its ``open`` pre-shape."""
+        import numpy as np
+
+        return np.array([0.0] * self.arm_dof + [self.open[j] for j in self.hand_joints])
+
+
+def _fail(where: str, key: str, problem: str) -> RobotDescriptionError:
+    return RobotDescriptionError(" ".join(f"{where}: {key}: {problem}".split()))
+
+
+def _names(value, where: str, key: str) -> tuple[str, ...]:
+    if (not isinstance(value, list) or not value
+            or not all(isinstance(v, str) and v for v in value)):
+        raise _fail(where, key, f"expected a non-empty list of names, got {value!r}")
+    if len(set(value)) != len(value):
+        raise _fail(where, key, f"names repeated in {value!r}")
+    return tuple(value)
+
+
+def _mapping(value, where: str, key: str) -> dict:
+    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+        raise _fail(where, key, f"expected a mapping of names to values, got {value!r}")
+    return value
+
+
+def _number(value, where: str, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _fail(where, key, f"{value!r} is not a finite number")
+    return float(value)
+
+
+def load_description(path: str | Path) -> RobotDescription:
+    """Read and check a robot description YAML file.
+
+    Raises:
+        RobotDescriptionError: one line naming the file, the key and the bad value.
+    """
+    import yaml
+
+    path = Path(path)
+    where = path.name
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RobotDescriptionError(f"{path}: cannot be read ({exc})") from None
+    except yaml.YAMLError as exc:
+        raise RobotDescriptionError(" ".join(f"{where}: not valid YAML ({exc})".split())) \
+            from None
+    if not isinstance(data, dict):
+        raise RobotDescriptionError(f"{where}: expected a mapping of keys, got {data!r}")
+    return parse_description(data, path)
+
+
+def parse_description(data: dict, path: Path) -> RobotDescription:
+    """Check the mapping ``data`` read from the file ``path`` (relative paths start at its
+    folder); see :func:`load_description`."""
+    where = path.name
+    unknown = [k for k in data if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
+    if unknown:
+        raise _fail(where, str(unknown[0]), f"unknown key (known: "
+                    f"{', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)})")
+    missing = [k for k in REQUIRED_KEYS if k not in data]
+    if missing:
+        raise _fail(where, missing[0], "missing (required)")
+    name = data["name"]
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise _fail(where, "name", f"{name!r} is not a valid name (a letter or digit, then "
+                    "letters, digits, _ - .; 64 at most)")
+    if not isinstance(data["urdf"], str) or not data["urdf"]:
+        raise _fail(where, "urdf", f"expected a file path, got {data['urdf']!r}")
+    urdf = (path.parent / data["urdf"]).resolve()
+    if not urdf.is_file():
+        raise _fail(where, "urdf", f"{data['urdf']!r}: no such file ({urdf})")
+    try:
+        model = _read_urdf(urdf)
+    except (ValueError, ET.ParseError) as exc:
+        raise _fail(where, "urdf", f"{data['urdf']!r} is not a usable URDF ({exc})") from None
+    movable = {j.name: j for j in model.joints if j.movable}
+    by_child = {j.child: j for j in model.joints}
+    links = set(model.links)
+
+    def known_joint(key: str, joint: str) -> None:
+        if joint not in movable:
+            kind = "a fixed joint" if any(j.name == joint for j in model.joints) else \
+                "unknown joint"
+            raise _fail(where, key, f"{kind} {joint!r} (movable joints in {urdf.name}: "
+                        f"{', '.join(movable)})")
+        if movable[joint].mimic is not None:
+            raise _fail(where, key, f"{joint!r} is a mimic joint (it follows "
+                        f"{movable[joint].mimic[0]!r}); name the joint it follows")
+
+    def known_link(key: str, link: str) -> None:
+        if not isinstance(link, str) or link not in links:
+            raise _fail(where, key, f"unknown link {link!r} in {urdf.name}")
+
+    def ancestors(link: str) -> list[str]:
+        """The links from ``link`` up to the root, ``link`` first."""
+        chain = [link]
+        while chain[-1] in by_child:
+            chain.append(by_child[chain[-1]].parent)
+        return chain
+
+    arm = _names(data["arm_joints"], where, "arm_joints")
+    for j in arm:
+        known_joint("arm_joints", j)
+    palm = data["palm_link"]
+    known_link("palm_link", palm)
+    hand = _names(data["hand_joints"], where, "hand_joints")
+    for j in hand:
+        known_joint("hand_joints", j)
+        if palm not in ancestors(movable[j].parent):
+            raise _fail(where, "hand_joints", f"{j!r} moves link {movable[j].child!r}, which "
+                        f"is not beyond palm_link {palm!r}")
+    # the arm: exactly the movable joints on the path from the base to the palm, in order
+    path_links = ancestors(palm)[::-1]
+    chain = [by_child[link].name for link in path_links[1:] if by_child[link].movable]
+    if list(arm) != chain:
+        stray = [j for j in arm if j not in chain]
+        if stray:
+            problem = (f"{stray[0]!r} is not on the chain from the base {model.base_link!r} "
+                       f"to palm_link {palm!r}")
+        else:
+            problem = (f"{list(arm)} is not the chain from the base {model.base_link!r} to "
+                       f"palm_link {palm!r}: its movable joints are {chain}")
+        raise _fail(where, "arm_joints", problem)
+
+    close = {}
+    for j, d in _mapping(data["close"], where, "close").items():
+        if j not in hand:
+            raise _fail(where, "close", f"{j!r} is not one of hand_joints")
+        if isinstance(d, bool) or d not in (1, -1):
+            raise _fail(where, "close", f"{j}: {d!r} is not +1 or -1")
+        close[j] = int(d)
+    if not close:
+        raise _fail(where, "close", "give the closing direction of at least one hand joint")
+    given_open = _mapping(data.get("open", {}) or {}, where, "open")
+    opened = {}
+    for j in hand:
+        lo, hi = movable[j].lower, movable[j].upper
+        if j in given_open:
+            v = _number(given_open[j], where, f"open: {j}")
+            if not lo - 1e-12 <= v <= hi + 1e-12:
+                raise _fail(where, "open", f"{j}: {v:g} is outside the joint's limits "
+                            f"[{lo:g}, {hi:g}]")
+        else:
+            v = min(max(0.0, lo), hi)
+        opened[j] = v
+    extra = [j for j in given_open if j not in hand]
+    if extra:
+        raise _fail(where, "open", f"{extra[0]!r} is not one of hand_joints")
+
+    # links a hand joint moves (mimic followers included), and the finger links
+    driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
+              for j in movable.values()}
+    moved = [j.child for j in model.joints if j.movable and driver[j.name][0] in hand]
+    hand_links = [link for link in model.links
+                  if any(m in ancestors(link) for m in moved)]
+    if "finger_links" in data:
+        finger_links = _names(data["finger_links"], where, "finger_links")
+        for link in finger_links:
+            known_link("finger_links", link)
+            if link not in hand_links:
+                raise _fail(where, "finger_links", f"{link!r} is not moved by any of "
+                            "hand_joints")
+    else:
+        finger_links = tuple(hand_links)
+    parents = {by_child[link].parent for link in finger_links}
+    tips = tuple(link for link in finger_links if link not in parents)
+    fingers = []
+    for tip in tips:
+        up = ancestors(tip)
+        on_path = [by_child[link] for link in reversed(up[:up.index(palm)])]
+        closing = [j for j in on_path if j.movable and driver[j.name][0] in close]
+        fingers.append(Finger(tip, tuple(j.name for j in closing),
+                              tuple(j.child for j in closing),
+                              tuple(int(close[driver[j.name][0]]
+                                        * math.copysign(1.0, driver[j.name][1]))
+                                    for j in closing)))
+
+    efforts = {}
+    for j, v in _mapping(data.get("efforts", {}) or {}, where, "efforts").items():
+        if j not in movable:
+            raise _fail(where, "efforts", f"unknown movable joint {j!r}")
+        value = _number(v, where, f"efforts: {j}")
+        if value <= 0:
+            raise _fail(where, "efforts", f"{j}: {value:g} is not > 0")
+        efforts[j] = value
+    contact_model = data.get("contact_model", "point")
+    if contact_model not in CONTACT_MODELS:
+        raise _fail(where, "contact_model", f"{contact_model!r} is not one of "
+                    f"{', '.join(CONTACT_MODELS)}")
+    packages = {}
+    for pkg, folder in _mapping(data.get("packages", {}) or {}, where, "packages").items():
+        if not isinstance(folder, str):
+            raise _fail(where, "packages", f"{pkg}: expected a folder path, got {folder!r}")
+        resolved = (path.parent / folder).resolve()
+        if not resolved.is_dir():
+            raise _fail(where, "packages", f"{pkg}: {folder!r} is not a folder ({resolved})")
+        packages[pkg] = resolved
+    angle_links = _arm_angle_links(data, where, arm, movable, path_links)
+    meshes = urdf_meshes(urdf, packages, where)
+    return RobotDescription(name, path.resolve(), urdf, _read_urdf(urdf, arm + hand),
+                            arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
+                            efforts, contact_model, packages, angle_links, meshes)
+
+
+def _read_urdf(urdf: Path, actuated: tuple[str, ...] | None = None) -> RobotModel:
+    """:func:`load_urdf`, quiet about a fixed joint's zero axis (URDFs may write
+    ``<axis xyz="0 0 0"/>`` on fixed joints, whose axis is never used)."""
+    import numpy as np
+
+    with np.errstate(invalid="ignore"):
+        return load_urdf(urdf, actuated=actuated)
+
+
+def _arm_angle_links(data, where, arm, movable, path_links) -> tuple[str, str, str] | None:
+    if "arm_angle_links" not in data:
+        if len(arm) != 7:
+            return None
+        return tuple(movable[arm[i]].child for i in (1, 3, 5))
+    names = _names(data["arm_angle_links"], where, "arm_angle_links")
+    if len(names) != 3:
+        raise _fail(where, "arm_angle_links", f"expected 3 links (shoulder, elbow, wrist), "
+                    f"got {list(names)}")
+    for link in names:
+        if link not in path_links:
+            raise _fail(where, "arm_angle_links", f"{link!r} is not a link of the arm chain")
+    return names
+
+
+def resolve_mesh(filename: str, urdf: Path, packages: dict[str, Path]) -> Path | None:
+    """Where a URDF's mesh ``filename`` lies, or None when no candidate file exists."""
+    if filename.startswith("file://"):
+        filename = filename[len("file://"):]
+    if filename.startswith("package://"):
+        pkg, _, rest = filename[len("package://"):].partition("/")
+        if pkg in packages:
+            candidates = [packages[pkg] / rest]
+        else:
+            folders = [urdf.parent, *urdf.parent.parents]
+            candidates = [c for d in folders
+                          for c in ((d / pkg / rest),) + (((d / rest),) if d.name == pkg else ())]
+    else:
+        candidates = [Path(filename) if Path(filename).is_absolute() else urdf.parent / filename]
+    return next((c.resolve() for c in candidates if c.is_file()), None)
+
+
+def urdf_meshes(urdf: Path, packages: dict[str, Path], where: str) -> tuple[MeshFile, ...]:
+    """Every mesh file the links of ``urdf`` reference, resolved.
+
+    Raises:
+        RobotDescriptionError: a mesh file that is not found (named).
+    """
+    out = []
+    for link in ET.parse(urdf).getroot().findall("link"):
+        for mesh in link.iter("mesh"):
+            filename = mesh.get("filename", "")
+            found = resolve_mesh(filename, urdf, packages)
+            if found is None:
+                key = "packages" if filename.startswith("package://") else "urdf"
+                raise _fail(where, key, f"mesh {filename!r} of link {link.get('name')!r} "
+                            f"in {urdf.name} not found")
+            out.append(MeshFile(link.get("name"), filename, found))
+    return tuple(out)
