@@ -191,7 +191,7 @@ def test_simplified_hull_error_is_exact():
 
 
 def test_compiled_grid_distances_equal_numpy(rng):
-    """The grid kernel (imported objects) against ConvexPart.closest (numpy) on a CoACD-like
+    """The grid kernel (every object's grid) against ConvexPart.closest (numpy) on a CoACD-like
     part with many edges: equal to 1e-12 m, and it keeps ``current`` only where that is
     provably not larger."""
     from kinegrasp_env.world.sdf import node_distances
@@ -200,10 +200,10 @@ def test_compiled_grid_distances_equal_numpy(rng):
     part = ConvexPart(vertices, face_planes(vertices))
     points = rng.uniform(-0.07, 0.07, size=(3000, 3))
     exact = part.closest(points)[1]
-    fast = node_distances(part, points, np.full(len(points), np.inf), compiled=True)
+    fast = node_distances(part, points, np.full(len(points), np.inf))
     np.testing.assert_allclose(fast, exact, atol=1e-12)
     current = np.full(len(points), 0.01)
-    capped = node_distances(part, points, current, compiled=True)
+    capped = node_distances(part, points, current)
     np.testing.assert_allclose(np.minimum(capped, current), np.minimum(exact, current),
                                atol=1e-12)
 

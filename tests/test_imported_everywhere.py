@@ -222,6 +222,7 @@ def test_a_forced_reimport_reaches_every_cache_in_the_process(tmp_path, monkeypa
     """Import a box at half size, use it (engines, packed parts, grid), re-import it at full
     size under the same name in the same process: every engine now gives the built-in
     cube's numbers, the exact segment distance and the grid see the new top face."""
+    from kinegrasp_env.closing.capsule_gap import posed_min_distance
     from kinegrasp_env.closing.segment_distance import closest_to_segments, packed
     from kinegrasp_env.world.sdf import object_grid
 
@@ -236,7 +237,7 @@ def test_a_forced_reimport_reaches_every_cache_in_the_process(tmp_path, monkeypa
         obj = load_object("blk")
         above = np.array([[-0.01, 0.0, 0.07], [0.01, 0.0, 0.07]])  # 1 cm over a 6 cm top
         gap = float(closest_to_segments(obj, above[:1], above[1:])[2][0])
-        grid = float(object_grid("blk").distance(above[:1])[0])
+        grid = float(posed_min_distance(object_grid("blk"), np.eye(4)[None], above[:1])[0])
         assert packed("blk").planes[:, 3].min() == pytest.approx(-obj.size[2], abs=1e-12)
         return stats, gap, grid
 

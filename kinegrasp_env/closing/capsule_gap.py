@@ -14,9 +14,9 @@ is computed (1 mm, against a contact tolerance of 0.2 mm): every contact decisio
 14 steps (0.03 mm) gave the same contacts found on 9,600 draws of the four objects, points
 within 7.4e-10 m, at 6-18% more closing time (``python benchmarks/bench_refine.py``).
 
-Two implementations with the same arithmetic: :func:`capsule_gaps_numpy` (vectorized over
-capsules) and :func:`capsule_gaps_numba` (a compiled loop, used when numba is installed);
-``benchmarks/bench_engines.py`` times both.
+One compiled loop over the capsules (:func:`capsule_gaps`); the grid is read by
+:func:`trilinear`, also behind the palm and knuckle cylinders' start check
+(:func:`posed_min_distance`, :func:`screened_hits`).
 """
 
 from __future__ import annotations
@@ -33,76 +33,6 @@ NEAR = 2e-3
 #: Golden-section steps of the refinement.
 REFINE = 8
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
-
-
-def capsule_gaps_numpy(grid: DistanceGrid, a: np.ndarray, b: np.ndarray, radius: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Gaps of m capsules.
-
-    Args:
-        grid: the object's distance grid (object frame).
-        a, b: (m, 3) axis end points, object frame, metres.
-        radius: (m,) capsule radii, metres.
-
-    Returns:
-        (gap (m,), s (m,)): the gap (metres; a lower bound when above ``NEAR``) and where on
-        the axis it is attained (0 at a, 1 at b).
-    """
-    m = a.shape[0]
-    frac = np.arange(SAMPLES) / (SAMPLES - 1)
-    axis = b - a
-    pts = a[:, None, :] + frac[None, :, None] * axis[:, None, :]
-    values = grid.distance(pts)  # (m, K)
-    k = np.argmin(values, axis=1)
-    best = values[np.arange(m), k]
-    s = frac[k]
-    half = 0.5 * np.sqrt(axis[:, 0] * axis[:, 0] + axis[:, 1] * axis[:, 1]
-                         + axis[:, 2] * axis[:, 2]) / (SAMPLES - 1)
-    gap = best - half - radius
-    near = np.flatnonzero(gap <= NEAR)
-    if near.size:
-        step = 1.0 / (SAMPLES - 1)
-        an, bn, vn = a[near], axis[near], values[near]
-        best_n, s_n = best[near], s[near]
-        lo = np.maximum(s_n - step, 0.0)
-        hi = np.minimum(s_n + step, 1.0)
-        best_n, s_n = _golden_numpy(grid, an, bn, lo, hi, best_n, s_n)
-        # any other sample interval whose Lipschitz bound is below the best: refine it too
-        spacing = 2.0 * half[near]
-        for j in range(SAMPLES - 1):
-            bound = 0.5 * (vn[:, j] + vn[:, j + 1] - spacing)
-            rows = np.flatnonzero(bound < best_n)
-            if rows.size:
-                b_r, s_r = _golden_numpy(grid, an[rows], bn[rows], np.full(rows.size, j * step),
-                                         np.full(rows.size, (j + 1) * step), best_n[rows],
-                                         s_n[rows])
-                best_n[rows], s_n[rows] = b_r, s_r
-        s[near] = s_n
-        gap[near] = best_n - radius[near]
-    return gap, s
-
-
-def _golden_numpy(grid: DistanceGrid, a: np.ndarray, axis: np.ndarray, lo: np.ndarray,
-                  hi: np.ndarray, best: np.ndarray, s: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Golden-section minimum of the distance on a + x axis, x in [lo, hi]; merged with
-    (best, s)."""
-    x1 = hi - GOLD * (hi - lo)
-    x2 = lo + GOLD * (hi - lo)
-    f1 = grid.distance(a + x1[:, None] * axis)
-    f2 = grid.distance(a + x2[:, None] * axis)
-    for _ in range(REFINE):
-        left = f1 < f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        x_new = np.where(left, hi - GOLD * (hi - lo), lo + GOLD * (hi - lo))
-        f_new = grid.distance(a + x_new[:, None] * axis)
-        x1, x2 = np.where(left, x_new, x2), np.where(left, x1, x_new)
-        f1, f2 = np.where(left, f_new, f2), np.where(left, f1, f_new)
-    refined = np.minimum(f1, f2)
-    where = np.where(f1 < f2, x1, x2)
-    better = refined < best
-    return np.where(better, refined, best), np.where(better, where, s)
 
 
 @jit.kernel(_nrt=False, inline="always")
@@ -245,40 +175,39 @@ def screened_hits(values, shape, origin, spacing, rot, trans, local, starts, lim
                 if t == 2:
                     hit[i] = True
 
-def posed_min_distance(grid: DistanceGrid, poses: np.ndarray, local: np.ndarray,
-                       kernel: str = "numba") -> np.ndarray:
-    """Smallest distance over points ``local`` (P, 3) placed by each pose (n, 4, 4): (n,)."""
+def grid_arrays(grid: DistanceGrid) -> tuple:
+    """The grid as the kernels take it: flat values, shape, origin, spacing."""
+    return (grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
+            float(grid.spacing))
+
+
+def posed_min_distance(grid: DistanceGrid, poses: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """Smallest grid distance (n,) over points ``local`` (P, 3) placed by each pose (n, 4, 4)
+    (metres, object frame)."""
     poses = np.asarray(poses, dtype=float)
-    if kernel == "numpy":
-        pts = np.einsum("nij,pj->npi", poses[:, :3, :3], local) + poses[:, None, :3, 3]
-        return grid.distance(pts).min(axis=1)
-    if kernel != "numba":
-        raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
     out = np.empty(poses.shape[0])
-    posed_min(grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
-                  float(grid.spacing), np.ascontiguousarray(poses[:, :3, :3]),
-                  np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(local, dtype=float),
-                  out)
+    posed_min(*grid_arrays(grid), np.ascontiguousarray(poses[:, :3, :3]),
+              np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(local, dtype=float),
+              out)
     return out
 
 
-def capsule_gaps_numba(grid: DistanceGrid, a: np.ndarray, b: np.ndarray, radius: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Same as :func:`capsule_gaps_numpy`, compiled (first call compiles, then cached)."""
+def capsule_gaps(grid: DistanceGrid, a: np.ndarray, b: np.ndarray, radius: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Gaps of m capsules (first call compiles, then cached).
+
+    Args:
+        grid: the object's distance grid (object frame).
+        a, b: (m, 3) axis end points, object frame, metres.
+        radius: (m,) capsule radii, metres.
+
+    Returns:
+        (gap (m,), s (m,)): the gap (metres; a lower bound when above ``NEAR``) and where on
+        the axis it is attained (0 at a, 1 at b).
+    """
     m = a.shape[0]
     gap, s = np.empty(m), np.empty(m)
-    gaps(grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
-            float(grid.spacing), np.ascontiguousarray(a, dtype=float),
-            np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(radius, dtype=float),
-            SAMPLES, NEAR, REFINE, GOLD, gap, s)
+    gaps(*grid_arrays(grid), np.ascontiguousarray(a, dtype=float),
+         np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(radius, dtype=float),
+         SAMPLES, NEAR, REFINE, GOLD, gap, s)
     return gap, s
-
-
-def capsule_gaps(grid: DistanceGrid, a: np.ndarray, b: np.ndarray, radius: np.ndarray,
-                 kernel: str = "numba") -> tuple[np.ndarray, np.ndarray]:
-    """Gaps of capsules with the chosen implementation (``numba`` or ``numpy``)."""
-    if kernel == "numba":
-        return capsule_gaps_numba(grid, a, b, radius)
-    if kernel == "numpy":
-        return capsule_gaps_numpy(grid, a, b, radius)
-    raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")

@@ -23,11 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.capsule_gap import (
-    capsule_gaps,
-    posed_min_distance,
-    screened_hits,
-)
+from kinegrasp_env.closing.capsule_gap import capsule_gaps, grid_arrays, screened_hits
 from kinegrasp_env.closing.close_kernel import (
     PAIR_SIZE,
     close_all,
@@ -99,24 +95,17 @@ class FastHand:
     Args:
         obj: the object (placed at ``obj.pose``).
         grid: its distance grid.
-        kernel: geometry kernels, ``numba`` or ``numpy`` (the interpreted twins).
         closing: ``compiled`` (the whole closing loop in one compiled call,
-            :mod:`kinegrasp_env.closing.close_kernel`; needs ``kernel="numba"``) or ``vectorized``
-            (one array-operation iteration at a time); the same results.
+            :mod:`kinegrasp_env.closing.close_kernel`) or ``vectorized`` (one array-operation
+            iteration at a time); the same results.
     """
 
-    def __init__(self, obj: GraspObject, grid: DistanceGrid, kernel: str = "numba",
-                 closing: str | None = None) -> None:
-        if kernel not in ("numba", "numpy"):
-            raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
-        closing = closing or ("compiled" if kernel == "numba" else "vectorized")
+    def __init__(self, obj: GraspObject, grid: DistanceGrid, closing: str = "compiled"
+                 ) -> None:
         if closing not in CLOSINGS:
             raise ValueError(f"unknown closing {closing!r}; choose from {', '.join(CLOSINGS)}")
-        if closing == "compiled" and kernel != "numba":
-            raise ValueError("the compiled closing loop needs kernel='numba'")
         self.obj = obj
         self.grid = grid
-        self.kernel = kernel
         self.closing = closing
         self.model = kuka_sdh()
         self.kin = Kinematics(self.model)
@@ -172,11 +161,10 @@ class FastHand:
         """Gaps (m,) of capsules with axis ends a, b (m, 3) and radius (a float, or (m,)
         metres): exact within ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
         radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(a),))
-        gap, _ = capsule_gaps(self.grid, a, b, radius, self.kernel)
+        gap, _ = capsule_gaps(self.grid, a, b, radius)
         near = np.flatnonzero(np.abs(gap) <= GRID_EXACT_BAND)
         if near.size:
-            gap[near] = closest_to_segments(self.obj, a[near], b[near],
-                                            self.kernel)[2] - radius[near]
+            gap[near] = closest_to_segments(self.obj, a[near], b[near])[2] - radius[near]
         return gap
 
     def _capsule_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
@@ -195,28 +183,13 @@ class FastHand:
 
         Every coarse sample lies within SCREEN_SPACING of a screen sample, every surface
         point within COARSE_SPACING of a coarse one (distances are 1-Lipschitz): the fine
-        check runs only where the coarse one can fire, the coarse one where the screen can."""
+        check runs only where the coarse one can fire, the coarse one where the screen can; the
+        three passes per draw run in one compiled loop."""
         n = next(iter(frames.values())).shape[0]
         hit = np.zeros(n, dtype=bool)
-        if self.kernel == "numba":  # the three passes per draw in one compiled loop
-            poses = np.stack([frames[shape.link] for shape in self.cylinders])
-            screened_hits(self.grid.values.reshape(-1), np.array(self.grid.shape, np.int64),
-                          self.grid.origin, float(self.grid.spacing),
-                          np.ascontiguousarray(poses[..., :3, :3]),
-                          np.ascontiguousarray(poses[..., :3, 3]), *self._screen, hit)
-            return hit
-        limits = self._screen[2]
-        for shape, (screen, coarse, fine) in zip(self.cylinders, self.samples, strict=True):
-            pose = frames[shape.link]
-            near = np.flatnonzero(posed_min_distance(self.grid, pose, screen, self.kernel)
-                                  < limits[0])
-            check = np.zeros(n, dtype=bool)
-            check[near] = posed_min_distance(self.grid, pose[near], coarse, self.kernel) < (
-                limits[1])
-            rows = np.flatnonzero(check & ~hit)
-            if rows.size:
-                hit[rows] = posed_min_distance(self.grid, pose[rows], fine,
-                                               self.kernel) < limits[2]
+        poses = np.stack([frames[shape.link] for shape in self.cylinders])
+        screened_hits(*grid_arrays(self.grid), np.ascontiguousarray(poses[..., :3, :3]),
+                      np.ascontiguousarray(poses[..., :3, 3]), *self._screen, hit)
         return hit
 
     def _link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
@@ -224,7 +197,7 @@ class FastHand:
         """Axis ends (m, 4, 3) [proximal a, b, distal a, b] for flexions prox, dist (m,)."""
         ends_p, ends_d = self.axis_ends[finger]
         return finger_axes(joint_frames, self.axis_p[finger], prox, self.distal_origin[finger],
-                           self.axis_d[finger], dist, ends_p, ends_d, self.kernel)
+                           self.axis_d[finger], dist, ends_p, ends_d)
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, to_object: np.ndarray | None = None) -> BatchClose:
@@ -421,8 +394,7 @@ class FastHand:
         moving = np.flatnonzero(prob.phase[rows] == 1)
         starts = np.concatenate([ends[moving, 0], ends[:, 2]])
         stops = np.concatenate([ends[moving, 1], ends[:, 3]])
-        on_obj, on_seg, distance, part = closest_to_segments(self.obj, starts, stops,
-                                                             self.kernel)
+        on_obj, on_seg, distance, part = closest_to_segments(self.obj, starts, stops)
         gaps[moving, 0] = distance[:moving.size] - self.capsules[f][0].radius
         gaps[:, 1] = distance[moving.size:] - self.capsules[f][1].radius
         # the closest pairs, by link: rows of the query for (row, link), -1 if not computed

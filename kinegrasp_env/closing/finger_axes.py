@@ -1,4 +1,4 @@
-"""Capsule axes of a finger's two links for many flexions: compiled kernel and numpy twin.
+"""Capsule axes of a finger's two links for many flexions: one compiled kernel.
 
 A finger link's capsule axis in the object frame is the link frame applied to the axis end
 points in the link frame. The proximal link frame is the (fixed) joint frame rotated about
@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.robot.kinematics import axis_angle_matrix
 
 
 @jit.kernel(_nrt=False)
@@ -81,7 +80,7 @@ def _axes_kernel(joint_frames, axis_p, prox, distal_origin, axis_d, dist, ends_p
 
 def finger_axes(joint_frames: np.ndarray, axis_p: np.ndarray, prox: np.ndarray,
                 distal_origin: np.ndarray, axis_d: np.ndarray, dist: np.ndarray,
-                ends_p: np.ndarray, ends_d: np.ndarray, kernel: str = "numba") -> np.ndarray:
+                ends_p: np.ndarray, ends_d: np.ndarray) -> np.ndarray:
     """Axis end points (m, 4, 3) [proximal a, proximal b, distal a, distal b] (object frame).
 
     Args:
@@ -89,20 +88,7 @@ def finger_axes(joint_frames: np.ndarray, axis_p: np.ndarray, prox: np.ndarray,
         axis_p, axis_d: (3,) unit joint axes; prox, dist: (m,) flexions (radians).
         distal_origin: (4, 4) distal joint origin in the proximal link frame.
         ends_p, ends_d: (2, 3) axis end points in each link's frame (metres).
-        kernel: ``numba`` or ``numpy`` (the twin).
     """
-    if kernel == "numpy":
-        frame_p = joint_frames.copy()
-        frame_p[:, :3, :3] = joint_frames[:, :3, :3] @ axis_angle_matrix(axis_p, prox)
-        frame_d = frame_p @ distal_origin
-        frame_d[:, :3, :3] = frame_d[:, :3, :3] @ axis_angle_matrix(axis_d, dist)
-        out = np.empty((len(prox), 4, 3))
-        for k in range(2):
-            out[:, k] = frame_p[:, :3, :3] @ ends_p[k] + frame_p[:, :3, 3]
-            out[:, 2 + k] = frame_d[:, :3, :3] @ ends_d[k] + frame_d[:, :3, 3]
-        return out
-    if kernel != "numba":
-        raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
     out = np.empty((len(prox), 4, 3))
     _axes_kernel(np.ascontiguousarray(joint_frames, dtype=np.float64),
                  np.asarray(axis_p, np.float64), np.ascontiguousarray(prox, dtype=np.float64),

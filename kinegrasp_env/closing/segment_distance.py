@@ -1,8 +1,10 @@
 """Exact distance between segments (finger-capsule axes) and an object: compiled kernel.
 
-The same computation as :meth:`kinegrasp_env.world.objects.GraspObject.closest_to_segments` (the
-numpy twin, see :mod:`kinegrasp_env.world.polytope` for the method), as one compiled loop over the
-segments, with prunings that skip only what provably cannot change the result:
+The closest pair of a segment and a convex part is at an end of the segment (its closest
+point being anywhere on the part, :mod:`kinegrasp_env.world.polytope`) or between the segment
+and an edge of the part; the smallest over the parts is the answer, exact for segments that do
+not cross the object (a finger axis at contact is a capsule radius away). One compiled loop
+over the segments, with prunings that skip only what provably cannot change the result:
 
 - parts are visited by increasing plane bound max_i min(s_i(a), s_i(b)) (ties by part
   index) until it exceeds the best distance found (the search usually stops after the
@@ -535,19 +537,15 @@ def geometry_tuple(obj: GraspObject) -> tuple:
             geo.block_start, geo.block_edge, geo.block_center, geo.block_radius)
 
 
-def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray, kernel: str = "numba"
+def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Exact closest pairs between segments [a, b] (n, 3) (object frame) and the object.
+    """Exact closest pairs between segments [a, b] (n, 3) (object frame, metres) that do
+    not cross the object, and the object.
 
-    Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)), as
-    :meth:`GraspObject.closest_to_segments` (``kernel="numpy"`` calls it).
+    Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)).
     """
     a = np.ascontiguousarray(np.atleast_2d(a), dtype=float)
     b = np.ascontiguousarray(np.atleast_2d(b), dtype=float)
-    if kernel == "numpy":
-        return obj.closest_to_segments(a, b)
-    if kernel != "numba":
-        raise ValueError(f"unknown kernel {kernel!r}; choose numba or numpy")
     n = len(a)
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))

@@ -308,19 +308,17 @@ class FastEngine(Engine):
     Args:
         object_name: catalog object.
         friction, num_edges: friction cone of the quality measure.
-        kernel: capsule-gap implementation, ``numba`` (default) or ``numpy``.
     """
 
     name = "fast"
     takes_errors = True
 
-    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
-                 kernel: str = "numba") -> None:
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         from kinegrasp_env.closing.fast import FastHand
         from kinegrasp_env.world.sdf import grid_of
 
         super().__init__(object_name, friction, num_edges)
-        self.hand = FastHand(self.obj, grid_of(self.obj), kernel)
+        self.hand = FastHand(self.obj, grid_of(self.obj))
         #: columns of the hand DOF (7,) holding (proximal, distal) of fingers 1, 2, 3
         self.flexion_columns = [HAND_JOINTS.index(j) for f in FINGERS for j in f[:2]]
 

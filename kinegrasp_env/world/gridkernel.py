@@ -1,12 +1,14 @@
-"""Compiled signed distances of lattice nodes to one convex part (distance-grid building).
+"""Compiled signed distances of lattice nodes to one convex part: the distance grids of every
+object (:func:`kinegrasp_env.world.sdf.build_grid`) are built from it.
 
-The same computation as :meth:`kinegrasp_env.world.polytope.ConvexPart.closest`, node by
-node: the largest plane value s = max_i (n_i . x + d_i) is the signed distance when x is
-inside (s <= 0) or when its projection on that plane lies in the part; otherwise the
-distance is the exact distance to the nearest edge. A node whose plane value already
-reaches the value it holds (``current``) keeps it: s is a lower bound of the distance, so
-the minimum over the parts is unchanged. Used for imported objects, whose CoACD parts have
-many edges (up to a few hundred) where the numpy twin's node x edge arrays are slow.
+The rule of :meth:`kinegrasp_env.world.polytope.ConvexPart.closest` (which also returns
+the closest points), node by node: the largest plane value s = max_i (n_i . x + d_i) is the
+signed distance when x is inside (s <= 0) or when its projection on that plane lies in the
+part; otherwise the distance is the exact distance to the nearest edge. A node whose plane
+value already reaches the value it holds (``current``) keeps it: s is a lower bound of the
+distance, so the minimum over the parts is unchanged. The built-in objects' (float32) grids
+equal those of ``ConvexPart.closest`` node by node bit for bit, built in 0.6-2 s instead of
+1-38 s (measured on the four).
 """
 
 from __future__ import annotations

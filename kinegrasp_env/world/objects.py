@@ -193,33 +193,6 @@ class GraspObject:
             best_d[rows], best_p[rows], best_i[rows] = distance[better], closest[better], index
         return best_p, best_d, best_i
 
-    def closest_to_segments(self, a: np.ndarray, b: np.ndarray
-                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Exact closest pairs between object-frame segments [a, b] (n, 3) and the object.
-
-        For segments that do not cross a part (a finger axis at contact is a capsule radius
-        away). Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)).
-        """
-        a = np.atleast_2d(np.asarray(a, dtype=float))
-        b = np.atleast_2d(np.asarray(b, dtype=float))
-        # along the segment each plane value is smallest at an end, so the largest of these
-        # minima over a part's planes is a lower bound of the distance to that part
-        bound = np.stack([np.max(np.minimum(a @ pl[:, :3].T, b @ pl[:, :3].T) + pl[:, 3], axis=1)
-                          for pl in self.planes], axis=1)
-        best_d = np.full(len(a), np.inf)
-        on_obj, on_seg = np.empty_like(a), np.empty_like(a)
-        best_i = np.zeros(len(a), dtype=np.intp)
-        for index in np.argsort(bound.min(axis=0)):
-            rows = np.flatnonzero(bound[:, index] < best_d)
-            if rows.size == 0:
-                continue
-            p_obj, p_seg, dist = self.convex_parts[index].closest_to_segments(a[rows], b[rows])
-            better = dist < best_d[rows]
-            rows = rows[better]
-            best_d[rows], best_i[rows] = dist[better], index
-            on_obj[rows], on_seg[rows] = p_obj[better], p_seg[better]
-        return on_obj, on_seg, best_d, best_i
-
     def nearest_part(self, points: np.ndarray) -> np.ndarray:
         """(n,) index of the part whose boundary is nearest (by plane distance)."""
         return np.argmin(np.abs(self.part_distance(points)), axis=1)

@@ -80,66 +80,6 @@ class ConvexPart:
                 closest[off_face], distance[off_face] = near, dist
         return closest, distance
 
-    def closest_to_segments(self, a: np.ndarray, b: np.ndarray
-                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Closest pairs between segments [a, b] (n, 3) that do not cross the part and it.
-
-        The pair is at an end point of the segment (its closest point being anywhere on the
-        part) or between the segment and an edge of the part; the smallest is exact.
-
-        Returns:
-            (on the part (n, 3), on the segment (n, 3), distance (n,)).
-        """
-        a = np.atleast_2d(np.asarray(a, dtype=float))
-        b = np.atleast_2d(np.asarray(b, dtype=float))
-        n = len(a)
-        ends = np.concatenate([a, b])
-        near_end, dist_end = self.closest(ends)
-        pick_b = dist_end[n:] < dist_end[:n]
-        on_part = np.where(pick_b[:, None], near_end[n:], near_end[:n])
-        on_seg = np.where(pick_b[:, None], b, a)
-        dist = np.where(pick_b, dist_end[n:], dist_end[:n])
-        edges = self.edges
-        start, direction = edges[:, 0], edges[:, 1] - edges[:, 0]
-        axis = b - a
-        block = max(1, BLOCK_BYTES // (48 * len(edges)))
-        for lo in range(0, n, block):
-            sl = slice(lo, lo + block)
-            s, t = segment_pairs(a[sl], axis[sl], start, direction)
-            p = a[sl, None, :] + s[..., None] * axis[sl, None, :]
-            q = start[None] + t[..., None] * direction[None]
-            d = np.sqrt(np.einsum("nek,nek->ne", p - q, p - q))
-            best = np.argmin(d, axis=1)
-            rows = np.arange(len(best))
-            better = d[rows, best] < dist[sl]
-            idx = np.flatnonzero(better) + lo
-            on_part[idx] = q[rows, best][better]
-            on_seg[idx] = p[rows, best][better]
-            dist[idx] = d[rows, best][better]
-        return on_part, on_seg, dist
-
-
-def segment_pairs(a: np.ndarray, u: np.ndarray, c: np.ndarray, v: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Closest-pair parameters of segments a + s u (n,) against segments c + t v (E,).
-
-    Returns:
-        (s (n, E), t (n, E)) in [0, 1] (Ericson's clamped solution; parallel pairs take s = 0).
-    """
-    r = a[:, None, :] - c[None]  # (n, E, 3)
-    aa = np.einsum("nk,nk->n", u, u)[:, None]
-    ee = np.einsum("ek,ek->e", v, v)[None, :]
-    bb = u @ v.T
-    cc = np.einsum("nek,nk->ne", r, u)
-    ff = np.einsum("nek,ek->ne", r, v)
-    denom = aa * ee - bb * bb
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(denom > 1e-14 * aa * ee, np.clip((bb * ff - cc * ee) / denom, 0.0, 1.0), 0.0)
-        t = (bb * s + ff) / ee
-        s = np.where(t < 0.0, np.clip(-cc / aa, 0.0, 1.0),
-                     np.where(t > 1.0, np.clip((bb - cc) / aa, 0.0, 1.0), s))
-    return s, np.clip(t, 0.0, 1.0)
-
 
 def segment_closest(points: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Closest point over a set of segments, and its distance, for each point.

@@ -3,8 +3,9 @@
 The grid holds, at every node of a regular lattice over the object's bounding box plus a
 margin, the exact signed distance to the object's union of convex parts (the smallest
 per-part signed distance: what pybullet reports for the same parts), computed by
-:meth:`kinegrasp_env.world.objects.GraspObject.closest_points`. Nodes farther than the margin from
-a part are given the margin (a lower bound). Queries interpolate trilinearly; outside the
+:func:`kinegrasp_env.world.gridkernel.part_distances` for every object, built-in or imported.
+Nodes farther than the margin from a part are given the margin (a lower bound). Queries
+(:func:`kinegrasp_env.closing.capsule_gap.trilinear`) interpolate trilinearly; outside the
 lattice the value at the nearest lattice point plus the distance to the lattice box is
 returned (a lower bound away from the object).
 
@@ -37,8 +38,6 @@ SPACING = 1.5e-3
 MARGIN = 0.03
 #: Bump when the way grids are computed changes (invalidates the cache).
 FORMAT_VERSION = 1
-#: Nodes per block when building.
-BUILD_BLOCK = 200_000
 #: A part reaching beyond the mesh's bounding box by more than this widens the lattice (m).
 BEYOND = 1e-6
 
@@ -66,54 +65,6 @@ class DistanceGrid:
     def shape(self) -> tuple[int, int, int]:
         return self.values.shape
 
-    def _cells(self, points: np.ndarray):
-        """Cell corner flat index (n,), fractions (n, 3) and distance outside the box (n,)."""
-        nx, ny, nz = self.shape
-        # times the inverse spacing, as the compiled twin (capsule_gap.trilinear) computes it
-        # (three divisions per lookup made one compiled grid gap 14% slower)
-        rel = (points - self.origin) * (1.0 / self.spacing)
-        upper = np.array([nx - 1, ny - 1, nz - 1], dtype=float)
-        clamped = np.minimum(np.maximum(rel, 0.0), upper)
-        d = rel - clamped
-        outside = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
-                          + d[..., 2] * d[..., 2]) * self.spacing
-        cell = np.minimum(clamped.astype(np.intp), np.array([nx - 2, ny - 2, nz - 2]))
-        frac = clamped - cell
-        flat = (cell[..., 0] * ny + cell[..., 1]) * nz + cell[..., 2]
-        return flat, frac, outside
-
-    def distance(self, points: np.ndarray, gradient: bool = False):
-        """Signed distance at points (..., 3); with ``gradient``, also d/dx (..., 3)."""
-        points = np.asarray(points, dtype=float)
-        flat, frac, outside = self._cells(points)
-        _, ny, nz = self.shape
-        v = self.values.reshape(-1)
-        fx, fy, fz = frac[..., 0], frac[..., 1], frac[..., 2]
-        c000 = v[flat]
-        c001 = v[flat + 1]
-        c010 = v[flat + nz]
-        c011 = v[flat + nz + 1]
-        step = ny * nz
-        c100 = v[flat + step]
-        c101 = v[flat + step + 1]
-        c110 = v[flat + step + nz]
-        c111 = v[flat + step + nz + 1]
-        c00 = c000 + (c001 - c000) * fz
-        c01 = c010 + (c011 - c010) * fz
-        c10 = c100 + (c101 - c100) * fz
-        c11 = c110 + (c111 - c110) * fz
-        c0 = c00 + (c01 - c00) * fy
-        c1 = c10 + (c11 - c10) * fy
-        value = c0 + (c1 - c0) * fx + outside
-        if not gradient:
-            return value
-        gx = c1 - c0
-        gy = (c01 - c00) * (1 - fx) + (c11 - c10) * fx
-        dz0 = (c001 - c000) * (1 - fy) + (c011 - c010) * fy
-        dz1 = (c101 - c100) * (1 - fy) + (c111 - c110) * fy
-        gz = dz0 * (1 - fx) + dz1 * fx
-        return value, np.stack([gx, gy, gz], axis=-1) / self.spacing
-
 
 def grid_key(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN) -> str:
     """Hex key of a grid: the object's parts and the grid settings."""
@@ -126,13 +77,10 @@ def grid_key(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN)
 
 def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN,
                progress: bool = False) -> DistanceGrid:
-    """Compute the grid of ``obj`` (exact distances at the nodes).
+    """Compute the grid of ``obj`` (exact distances at the nodes, :func:`node_distances`).
 
     The lattice covers the mesh's bounding box, widened where a part reaches beyond it by
-    more than :data:`BEYOND` (an imported object's hulls may). An imported object's nodes go
-    through the compiled :func:`kinegrasp_env.world.gridkernel.part_distances` (the same
-    method; its parts have many more edges), the built-in objects' through
-    :meth:`~kinegrasp_env.world.polytope.ConvexPart.closest` (their grids stay bit for bit).
+    more than :data:`BEYOND` (an imported object's hulls may).
     """
     lo, hi = obj.mesh.bounds
     p_lo = np.min([p.min(axis=0) for p in obj.parts], axis=0)
@@ -157,7 +105,7 @@ def build_grid(obj: GraspObject, spacing: float = SPACING, margin: float = MARGI
         grid = np.stack(np.meshgrid(*(axes[k][ranges[k]] for k in range(3)), indexing="ij"),
                         axis=-1).reshape(-1, 3)
         block = values[np.ix_(*ranges)]
-        dist = node_distances(part, grid, block.reshape(-1), compiled=obj.imported)
+        dist = node_distances(part, grid, block.reshape(-1))
         np.minimum(block, dist.reshape(block.shape), out=block)
         values[np.ix_(*ranges)] = block
     # kept in float32 precision (2e-9 m at the margin) so a fresh grid equals a cached one
@@ -193,18 +141,13 @@ def grid_of(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN
     return grid
 
 
-def node_distances(part: ConvexPart, nodes: np.ndarray, current: np.ndarray,
-                   compiled: bool = False) -> np.ndarray:
-    """Signed distances (n,) of nodes (n, 3) to ``part``; ``compiled``: or ``current`` (n,)
-    where the part's plane bound shows the distance is not smaller (see
+def node_distances(part: ConvexPart, nodes: np.ndarray, current: np.ndarray) -> np.ndarray:
+    """Signed distances (n,) of nodes (n, 3) to ``part`` (metres), or ``current`` (n,) where
+    the part's plane bound shows the distance is not smaller (see
     :mod:`kinegrasp_env.world.gridkernel`)."""
-    if compiled:
-        return part_distances(nodes, part.planes, part.edges, INSIDE_TOL * part.scale,
-                              np.ascontiguousarray(current, dtype=np.float64))
-    dist = np.empty(len(nodes))
-    for start in range(0, len(nodes), BUILD_BLOCK):
-        dist[start:start + BUILD_BLOCK] = part.closest(nodes[start:start + BUILD_BLOCK])[1]
-    return dist
+    return part_distances(np.ascontiguousarray(nodes, dtype=np.float64), part.planes,
+                          part.edges, INSIDE_TOL * part.scale,
+                          np.ascontiguousarray(current, dtype=np.float64))
 
 
 def grid_file_name(obj: GraspObject, spacing: float = SPACING, margin: float = MARGIN) -> str:
