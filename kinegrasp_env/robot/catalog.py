@@ -5,13 +5,14 @@ hand) and ``panda`` (the Franka Panda with its parallel-jaw hand). A user's robo
 ``<data_root>/robots`` (:func:`kinegrasp_env.paths.data_root`: ``$KINEGRASP_HOME`` or the
 platform's user data folder), one folder per robot, named as the robot:
 
-- ``robot.yaml``: the description (:mod:`kinegrasp_env.robot.description`), its ``urdf`` and
-  ``packages`` pointing inside the folder;
+- ``robot.yaml``: the description (:mod:`kinegrasp_env.robot.description`), its ``urdf``
+  pointing inside the folder, no ``packages`` (none needed);
 - ``source.yaml``: the user's description file, byte for byte;
-- ``files/``: the URDF and every mesh it references (OBJ material files too), in the
-  folder layout they had (relative to their common folder), so relative and ``package://``
-  paths resolve as before; a copied URDF is rewritten only where it gave a mesh as an
-  absolute path (to the copy's relative path); the user's files are never changed;
+- ``files/``: the URDF and every mesh it references (OBJ material files too): a
+  ``package://NAME/...`` mesh in the folder ``NAME`` beside the URDF, a relative one where
+  it was (below the URDF's folder); the copied URDF is rewritten only for meshes given by
+  an absolute path or one climbing above its folder (:func:`_copy_plan`), so pybullet loads
+  it as it is; the user's files are never changed;
 - ``entry.json``: the name, the source file and the copied files.
 
 An entry appears complete or not at all: it is written in a hidden folder (``.tmp-...``) and
@@ -21,7 +22,7 @@ renamed into place after the copy is read back and checked.
 from __future__ import annotations
 
 import json
-import os
+import posixpath
 import shutil
 import tempfile
 from pathlib import Path
@@ -102,31 +103,45 @@ def catalog_rows() -> list[dict]:
     return rows
 
 
-def _mesh_files(description: RobotDescription) -> list[Path]:
-    """The mesh files and, for OBJ meshes, the material files they name that exist."""
-    out: list[Path] = []
+def _copy_plan(description: RobotDescription) -> tuple[dict[str, Path], dict[str, str]]:
+    """What goes into an entry's ``files/`` folder: (destination relative to it -> source
+    file, mesh filename as written -> the filename the copied URDF gives instead).
+
+    A ``package://NAME/rest`` mesh goes to ``NAME/rest`` (a package folder beside the URDF:
+    found by this module's resolver and by pybullet alike); a relative path that stays below
+    the URDF's folder keeps its place; any other (absolute, ``file://``, or climbing above the
+    URDF's folder with ``..``) goes to ``external/<k>/<file name>`` and is rewritten. An OBJ
+    mesh's material files (``mtllib``) that exist go beside its copy.
+
+    Raises:
+        RobotDescriptionError: two different files would land on one destination.
+    """
+    plan: dict[str, Path] = {}
+    rewrites: dict[str, str] = {}
+
+    def put(dest: str, source: Path) -> None:
+        if plan.setdefault(dest, source) != source:
+            raise RobotDescriptionError(f"{description.path.name}: urdf: {plan[dest]} and "
+                                        f"{source} would both be copied to {dest}")
+
     for mesh in description.meshes:
-        out.append(mesh.path)
+        written = mesh.filename
+        if written.startswith("package://"):
+            dest = posixpath.normpath(written[len("package://"):])
+        else:
+            dest = posixpath.normpath(written.removeprefix("file://"))
+            if posixpath.isabs(dest) or dest.startswith(".."):
+                dest = rewrites.get(written) or f"external/{len(rewrites)}/{mesh.path.name}"
+                rewrites[written] = dest
+        put(dest, mesh.path)
         if mesh.path.suffix.lower() == ".obj":
             for line in mesh.path.read_text(errors="replace").splitlines():
                 if line.startswith("mtllib "):
-                    mtl = (mesh.path.parent / line[len("mtllib "):].strip())
-                    if mtl.is_file():
-                        out.append(mtl.resolve())
-    return list(dict.fromkeys(out))
-
-
-def _copied_urdf(description: RobotDescription, root: Path, target: Path) -> str:
-    """The URDF's text, with each absolute mesh path replaced by its copy's path relative to
-    the copied URDF at ``target`` (nothing else changes)."""
-    text = description.urdf.read_text()
-    for mesh in description.meshes:
-        written = mesh.filename.removeprefix("file://")
-        if Path(written).is_absolute():
-            copy = target.parent.parent / "files" / mesh.path.relative_to(root)
-            relative = os.path.relpath(copy, target.parent)
-            text = text.replace(f'"{mesh.filename}"', f'"{relative}"')
-    return text
+                    name = line[len("mtllib "):].strip()
+                    mtl_dest = posixpath.normpath(posixpath.join(posixpath.dirname(dest), name))
+                    if (mesh.path.parent / name).is_file() and not mtl_dest.startswith(".."):
+                        put(mtl_dest, (mesh.path.parent / name).resolve())
+    return plan, rewrites
 
 
 def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescription, Path]:
@@ -155,25 +170,23 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
     if folder.exists() and not force:
         raise RobotDescriptionError(f"{source.name}: name: a robot {name!r} is already in the "
                                     f"catalog ({folder}); remove it first or use --force")
-    files = [description.urdf, *_mesh_files(description)]
-    root = Path(os.path.commonpath([p.parent for p in files]
-                                   + list(description.packages.values())))
+    plan, rewrites = _copy_plan(description)
     robots_dir().mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{name}-", dir=robots_dir()))
     try:
-        for f in files[1:]:
-            target = tmp / "files" / f.relative_to(root)
+        for dest, f in plan.items():
+            target = tmp / "files" / dest
             target.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(f, target)
-        urdf_copy = tmp / "files" / description.urdf.relative_to(root)
-        urdf_copy.parent.mkdir(parents=True, exist_ok=True)
-        urdf_copy.write_text(_copied_urdf(description, root, urdf_copy))
+        text = description.urdf.read_text()
+        for written, dest in rewrites.items():
+            text = text.replace(f'"{written}"', f'"{dest}"').replace(f"'{written}'", f"'{dest}'")
+        urdf_copy = tmp / "files" / description.urdf.name
+        urdf_copy.write_text(text)
         shutil.copyfile(source, tmp / SOURCE_FILE)
         data = yaml.safe_load(source.read_text())
         data["urdf"] = urdf_copy.relative_to(tmp).as_posix()
-        if description.packages:
-            data["packages"] = {k: (Path("files") / v.relative_to(root)).as_posix()
-                                for k, v in description.packages.items()}
+        data.pop("packages", None)  # the package folders lie beside the copied URDF
         (tmp / DESCRIPTION_FILE).write_text(yaml.safe_dump(data, sort_keys=False))
         (tmp / ENTRY_FILE).write_text(json.dumps({
             "format": FORMAT_VERSION, "name": name, "source": str(source.resolve()),

@@ -1,0 +1,387 @@
+"""Robot descriptions and the robot catalog.
+
+Independent references: pybullet's own reading of each URDF (``getJointInfo``: names, types,
+parents, limits; parent indices for the chains and the leaves), the constants of
+``robot/model.py`` for the built-in KUKA, and pybullet_data's untouched Panda for the copy.
+The xArm 6 with its gripper (pybullet_data) is added as a user would add it: a description
+written here, in a temporary data folder; the library knows none of its names.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pybullet
+import pybullet_data
+import pytest
+import yaml
+from pybullet_utils.bullet_client import BulletClient
+
+from kinegrasp_env.cli.main import main
+from kinegrasp_env.robot import model as kuka
+from kinegrasp_env.robot.catalog import (
+    BUILTIN,
+    DEFAULT_ROBOT,
+    add_robot,
+    load_robot,
+    remove_robot,
+    robot_names,
+    robots_dir,
+)
+from kinegrasp_env.robot.description import (
+    RobotDescriptionError,
+    load_description,
+    resolve_mesh,
+)
+
+DATA = Path(pybullet_data.getDataPath())
+XARM = DATA / "xarm"
+XARM_URDF = XARM / "xarm6_with_gripper.urdf"
+#: pybullet's joint type codes.
+TYPES = {"revolute": pybullet.JOINT_REVOLUTE, "prismatic": pybullet.JOINT_PRISMATIC,
+         "fixed": pybullet.JOINT_FIXED}
+
+
+@pytest.fixture()
+def home(tmp_path, monkeypatch):
+    """A data folder of this test's own (the robot catalog lives in it)."""
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    return tmp_path / "home"
+
+
+def bullet_tree(urdf: Path) -> dict:
+    """pybullet's reading of ``urdf``: per joint (in pybullet's order) its name, type, parent
+    link name, child link name, limits; the base link's name."""
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        body = client.loadURDF(str(urdf), useFixedBase=True)
+        base = client.getBodyInfo(body)[0].decode()
+        infos = [client.getJointInfo(body, i) for i in range(client.getNumJoints(body))]
+    finally:
+        client.disconnect()
+    child = [info[12].decode() for info in infos]
+    return {"base": base, "joints": [
+        {"name": info[1].decode(), "type": info[2], "child": child[i],
+         "parent": base if info[16] == -1 else child[info[16]],
+         "lower": info[8], "upper": info[9]} for i, info in enumerate(infos)]}
+
+
+def chain_to(tree: dict, link: str) -> list[dict]:
+    """pybullet's joints from the base to ``link``, base first."""
+    by_child = {j["child"]: j for j in tree["joints"]}
+    out = []
+    while link in by_child:
+        out.append(by_child[link])
+        link = by_child[link]["parent"]
+    return out[::-1]
+
+
+def mimic_drivers(urdf: Path) -> dict[str, str]:
+    """Mimic joint -> the joint it follows, read from the XML (pybullet does not report it)."""
+    return {j.get("name"): j.find("mimic").get("joint")
+            for j in ET.parse(urdf).getroot().findall("joint") if j.find("mimic") is not None}
+
+
+def leaves_moved_by(tree: dict, urdf: Path, hand: tuple[str, ...]) -> set[str]:
+    """Links with no child below a joint that a hand joint drives (itself or a mimic)."""
+    drivers = mimic_drivers(urdf)
+    moved = {j["child"] for j in tree["joints"] if j["type"] != pybullet.JOINT_FIXED
+             and drivers.get(j["name"], j["name"]) in hand}
+    parents = {j["parent"] for j in tree["joints"]}
+    return {j["child"] for j in tree["joints"] if j["child"] not in parents
+            and any(k["child"] in moved for k in chain_to(tree, j["child"]))}
+
+
+# ------------------------------------------------------------------------ built-in robots
+def test_kuka_sdh_description_is_the_model_constants():
+    """The built-in description says exactly what robot/model.py's constants say (so moving
+    the engines onto descriptions keeps every output), and builds the same model."""
+    from kinegrasp_env.robot.palm_pose import DEFAULT_DISTAL, DEFAULT_PROXIMAL
+
+    d = load_robot("kuka_sdh")
+    assert DEFAULT_ROBOT == "kuka_sdh"
+    assert d.arm_joints == kuka.ARM_JOINTS
+    assert d.hand_joints == kuka.HAND_JOINTS
+    assert d.palm_link == kuka.PALM_LINK
+    assert d.fingertip_links == kuka.FINGERTIP_LINKS
+    assert tuple((*f.joints, *f.links) for f in d.fingers) == kuka.FINGERS
+    assert d.arm_angle_links == (kuka.SHOULDER_LINK, kuka.ELBOW_LINK, kuka.WRIST_LINK)
+    assert d.urdf == kuka.urdf_path().resolve()
+    model = kuka.kuka_sdh()
+    assert d.model.actuated == model.actuated
+    assert np.array_equal(d.model.lower, model.lower)
+    assert np.array_equal(d.model.upper, model.upper)
+    assert [d.open[j] for j in kuka.HAND_JOINTS[1:]] == [DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3
+    assert d.contact_model == "point"
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN))
+def test_builtin_descriptions_agree_with_pybullet(name):
+    """Joint names, types, parent links and limits of the description's model equal
+    pybullet's getJointInfo on the same URDF; the arm is pybullet's chain from the base to
+    the palm; the fingertips are pybullet's leaves below the hand joints."""
+    d = load_robot(name)
+    tree = bullet_tree(d.urdf)
+    assert tree["base"] == d.model.base_link
+    ours = {j.name: j for j in d.model.joints}
+    assert sorted(ours) == sorted(j["name"] for j in tree["joints"])
+    for j in tree["joints"]:
+        mine = ours[j["name"]]
+        assert TYPES[mine.kind] == j["type"], j["name"]
+        assert (mine.parent, mine.child) == (j["parent"], j["child"]), j["name"]
+        if j["type"] != pybullet.JOINT_FIXED:
+            assert (mine.lower, mine.upper) == (j["lower"], j["upper"]), j["name"]
+    chain = [j["name"] for j in chain_to(tree, d.palm_link) if j["type"] != pybullet.JOINT_FIXED]
+    assert list(d.arm_joints) == chain
+    assert set(d.fingertip_links) == leaves_moved_by(tree, d.urdf, d.hand_joints)
+    for j in d.hand_joints:
+        assert d.model.lower[d.model.actuated.index(j)] <= d.open[j] \
+            <= d.model.upper[d.model.actuated.index(j)]
+
+
+def test_panda_copy_is_pybullet_datas_panda_but_for_visual_meshes():
+    """The shipped panda.urdf reads in pybullet exactly as pybullet_data's original: every
+    joint's full getJointInfo, every link's dynamics and collision shapes, the collision mesh files' bytes
+    (only the visual meshes differ: they point at the collision meshes)."""
+    def reading(urdf: Path):
+        client = BulletClient(connection_mode=pybullet.DIRECT)
+        try:
+            body = client.loadURDF(str(urdf), useFixedBase=True)
+            n = client.getNumJoints(body)
+            joints = [client.getJointInfo(body, i) for i in range(n)]
+            dynamics = [client.getDynamicsInfo(body, i) for i in range(-1, n)]
+            shapes = [[s[:4] + s[5:] for s in client.getCollisionShapeData(body, i)]
+                      for i in range(-1, n)]  # s[4]: the mesh file's path
+            files = [[hashlib.sha256(Path(s[4].decode()).read_bytes()).hexdigest()
+                      for s in client.getCollisionShapeData(body, i)] for i in range(-1, n)]
+        finally:
+            client.disconnect()
+        return joints, dynamics, shapes, files
+
+    shipped = load_robot("panda").urdf
+    assert reading(shipped) == reading(DATA / "franka_panda" / "panda.urdf")
+    assert (shipped.parent / "LICENSE.txt").read_bytes() == \
+        (DATA / "franka_panda" / "LICENSE.txt").read_bytes()
+
+
+def test_panda_hand_is_derived_from_the_urdf():
+    """One actuated jaw; both jaws are fingers (the second through its mimic joint), and
+    closing moves both jaw joints towards their lower limit (0: the jaws together)."""
+    d = load_robot("panda")
+    assert d.fingertip_links == ("panda_leftfinger", "panda_rightfinger")
+    assert [f.joints for f in d.fingers] == [("panda_finger_joint1",), ("panda_finger_joint2",)]
+    assert [f.directions for f in d.fingers] == [(-1,), (-1,)]
+    assert d.open == {"panda_finger_joint1": 0.04} and d.contact_model == "soft"
+    assert all(m.path.is_relative_to(d.urdf.parent) for m in d.meshes)
+
+
+# ------------------------------------------------------------------- a user's robot: xArm 6
+XARM_DESCRIPTION = {
+    "name": "xarm6",
+    "arm_joints": ["joint1", "joint2", "joint3", "joint4", "joint5", "joint6"],
+    "palm_link": "xarm_gripper_base_link",
+    "hand_joints": ["drive_joint"],
+    "close": {"drive_joint": 1},
+    "open": {"drive_joint": 0.0},
+    "finger_links": ["left_finger", "right_finger"],
+    "contact_model": "soft",
+}
+
+
+def user_files(tmp_path: Path, layout: str, **changes) -> Path:
+    """The xArm description a user writes: ``beside`` (the URDF where pybullet_data has it,
+    its package folders beside it), ``absolute`` (a copy of the URDF in the user's folder,
+    every mesh given by its absolute path) or ``packages`` (a copy of the URDF in the user's folder,
+    the packages given by the ``packages:`` map). Returns the YAML path."""
+    folder = tmp_path / "user"
+    folder.mkdir(exist_ok=True)
+    data = dict(XARM_DESCRIPTION)
+    if layout == "beside":
+        data["urdf"] = str(XARM_URDF)
+    elif layout == "absolute":
+        (folder / "urdf").mkdir(exist_ok=True)
+        text = XARM_URDF.read_text().replace("package://", f"{XARM.as_posix()}/")
+        (folder / "urdf" / "xarm6.urdf").write_text(text)
+        data["urdf"] = "urdf/xarm6.urdf"
+    else:
+        (folder / "urdf").mkdir(exist_ok=True)
+        shutil.copyfile(XARM_URDF, folder / "urdf" / "xarm6.urdf")
+        data["urdf"] = "urdf/xarm6.urdf"
+        data["packages"] = {p: str(XARM / p) for p in ("xarm_description", "xarm_gripper")}
+    data.update(changes)
+    path = folder / "xarm6.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    """Every file under ``folder``: relative path -> SHA-256."""
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()} if folder.exists() else {}
+
+
+@pytest.mark.parametrize("layout", ["beside", "absolute", "packages"])
+def test_a_user_robot_added_listed_shown_removed(home, tmp_path, capsys, layout):
+    """``robots add`` checks and copies the xArm (the user's files unchanged, the entry
+    self-contained: every mesh inside it); the description agrees with pybullet's reading;
+    ``robots`` lists it; ``robots show`` draws a non-blank PNG; ``robots remove`` deletes it."""
+    path = user_files(tmp_path, layout)
+    before = snapshot(tmp_path / "user")
+    assert main(["robots", "add", str(path)]) == 0
+    assert "xarm6: 6 arm joints" in capsys.readouterr().out
+    assert snapshot(tmp_path / "user") == before
+    if layout != "beside":
+        shutil.rmtree(tmp_path / "user")  # the catalog needs none of the user's files
+
+    d = load_robot("xarm6")
+    folder = robots_dir() / "xarm6"
+    assert d.path.parent == folder
+    assert d.meshes and all(m.path.is_relative_to(folder) for m in d.meshes)
+    tree = bullet_tree(d.urdf)
+    assert list(d.arm_joints) == [j["name"] for j in chain_to(tree, d.palm_link)
+                                  if j["type"] != pybullet.JOINT_FIXED]
+    assert d.fingertip_links == ("left_finger", "right_finger")
+    assert [f.directions for f in d.fingers] == [(1, 1), (1, 1)]  # mimics multiply by +1
+    assert [len(f.joints) for f in d.fingers] == [2, 2]
+
+    assert main(["robots", "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
+    assert list(rows) == ["kuka_sdh", "panda", "xarm6"]
+    assert rows["xarm6"] | {"description": None} == {
+        "name": "xarm6", "source": "user", "arm_dof": 6, "hand_joints": ["drive_joint"],
+        "palm_link": "xarm_gripper_base_link", "fingertips": ["left_finger", "right_finger"],
+        "contact_model": "soft", "description": None}
+    assert rows["panda"]["source"] == "built-in" and rows["panda"]["arm_dof"] == 7
+    assert main(["robots"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[0].split()[:2] == ["name", "source"] and table[3].split()[:3] == [
+        "xarm6", "user", "6"]
+
+    png = tmp_path / "robot.png"
+    assert main(["robots", "show", "xarm6", "--out", str(png)]) == 0
+    from PIL import Image
+
+    image = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+    background = image[0, 0]
+    robot = np.any(np.abs(image - background) > 30, axis=-1)
+    assert image.shape == (480, 640, 3) and 0.02 < robot.mean() < 0.9, robot.mean()
+
+    assert main(["robots", "remove", "xarm6"]) == 0
+    assert not folder.exists() and "xarm6" not in robot_names()
+    capsys.readouterr()
+
+
+def test_the_derived_hand_without_finger_links(home, tmp_path):
+    """Without ``finger_links`` every link a hand joint moves is a finger link: the
+    fingertips are all of pybullet's leaves below the gripper's joints (the inner knuckles
+    too)."""
+    data = {k: v for k, v in XARM_DESCRIPTION.items() if k != "finger_links"}
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump({**data, "urdf": str(XARM_URDF)}))
+    d = load_description(path)
+    assert set(d.fingertip_links) == leaves_moved_by(bullet_tree(XARM_URDF), XARM_URDF,
+                                                     ("drive_joint",))
+    assert len(d.fingertip_links) == 4
+
+
+def _missing_mesh(tmp_path: Path) -> dict:
+    """A packages map whose xarm_description lacks one collision mesh."""
+    broken = tmp_path / "broken" / "xarm_description"
+    shutil.copytree(XARM / "xarm_description", broken)
+    (broken / "meshes" / "xarm6" / "collision" / "link3_vhacd.obj").unlink()
+    return {"packages": {"xarm_description": str(broken),
+                         "xarm_gripper": str(XARM / "xarm_gripper")}}
+
+
+BAD = {
+    "unknown joint": (lambda t: {"arm_joints": [*XARM_DESCRIPTION["arm_joints"][:5], "joint9"]},
+                      "arm_joints", "unknown joint 'joint9'"),
+    "broken chain": (lambda t: {"arm_joints": ["joint1", "joint2", "joint4", "joint5",
+                                               "joint6"]}, "arm_joints", "is not the chain"),
+    "arm out of order": (lambda t: {"arm_joints": ["joint2", "joint1", "joint3", "joint4",
+                                                   "joint5", "joint6"]}, "arm_joints",
+                         "is not the chain"),
+    "hand joint before the palm": (lambda t: {"arm_joints": XARM_DESCRIPTION["arm_joints"][:5],
+                                              "hand_joints": ["joint6"],
+                                              "close": {"joint6": 1}},
+                                   "hand_joints", "'joint6' moves link 'link6'"),
+    "close 2": (lambda t: {"close": {"drive_joint": 2}}, "close", "2 is not +1 or -1"),
+    "missing mesh": (_missing_mesh, "packages", "link3_vhacd.obj"),
+    "mimic as hand joint": (lambda t: {"hand_joints": ["left_finger_joint"],
+                                       "close": {"left_finger_joint": 1}}, "hand_joints",
+                            "mimic joint"),
+    "open beyond the limit": (lambda t: {"open": {"drive_joint": 1.0}}, "open",
+                              "outside the joint's limits"),
+    "unknown key": (lambda t: {"palm": "link6"}, "palm", "unknown key"),
+    "unknown finger link": (lambda t: {"finger_links": ["link5"]}, "finger_links",
+                            "'link5' is not moved"),
+    "contact model": (lambda t: {"contact_model": "hard"}, "contact_model", "'hard'"),
+    "built-in name": (lambda t: {"name": "panda"}, "name", "built-in"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_a_bad_description_is_one_line_naming_the_key(home, tmp_path, capsys, case):
+    """Each bad description is refused with one line naming the key and the bad value, and
+    the catalog (already holding a robot) is left exactly as it was; the command says the
+    same in one line with exit status 2."""
+    add_robot(user_files(tmp_path, "beside"))
+    before = snapshot(home)
+    change, key, needle = BAD[case]
+    path = user_files(tmp_path, "beside", **change(tmp_path))
+    with pytest.raises(RobotDescriptionError) as info:
+        add_robot(path, force=True)
+    message = str(info.value)
+    assert "\n" not in message and f"xarm6.yaml: {key}: " in message and needle in message, \
+        message
+    assert snapshot(home) == before
+    capsys.readouterr()
+    assert main(["robots", "add", str(path), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+    assert snapshot(home) == before
+
+
+def test_names_taken_and_builtins_are_refused(home, tmp_path):
+    path = user_files(tmp_path, "beside")
+    add_robot(path)
+    with pytest.raises(RobotDescriptionError, match="already in the catalog"):
+        add_robot(path)
+    add_robot(path, force=True)  # replaced in place
+    with pytest.raises(RobotDescriptionError, match="built-in robot and cannot be removed"):
+        remove_robot("panda")
+    with pytest.raises(RobotDescriptionError, match="unknown robot 'nope'"):
+        load_robot("nope")
+    assert robot_names() == ("kuka_sdh", "panda", "xarm6")
+
+
+def test_mesh_paths_resolve_as_urdf_readers_write_them(tmp_path):
+    """Relative, absolute, file://, and package:// through the map, a folder of that name
+    beside the URDF or beside a folder above it, and a folder above it of that name (the ROS
+    layout ``pkg/urdf/robot.urdf`` with ``package://pkg/meshes/...``)."""
+    pkg = tmp_path / "ws" / "pkg"
+    (pkg / "urdf").mkdir(parents=True)
+    (pkg / "meshes").mkdir()
+    urdf = pkg / "urdf" / "robot.urdf"
+    mesh = pkg / "meshes" / "a.stl"
+    mesh.write_text("solid a\nendsolid a\n")
+    other = tmp_path / "ws" / "other" / "b.obj"
+    other.parent.mkdir()
+    other.write_text("v 0 0 0\n")
+    mapped = tmp_path / "elsewhere" / "c.obj"
+    mapped.parent.mkdir()
+    mapped.write_text("v 0 0 0\n")
+    packages = {"mapped": mapped.parent}
+    assert resolve_mesh("../meshes/a.stl", urdf, {}) == mesh
+    assert resolve_mesh(str(mesh), urdf, {}) == mesh
+    assert resolve_mesh(f"file://{mesh}", urdf, {}) == mesh
+    assert resolve_mesh("package://pkg/meshes/a.stl", urdf, {}) == mesh
+    assert resolve_mesh("package://other/b.obj", urdf, {}) == other
+    assert resolve_mesh("package://mapped/c.obj", urdf, packages) == mapped
+    assert resolve_mesh("package://mapped/c.obj", urdf, {}) is None
+    assert resolve_mesh("package://pkg/meshes/none.stl", urdf, {}) is None
