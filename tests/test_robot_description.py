@@ -146,8 +146,8 @@ def test_builtin_descriptions_agree_with_pybullet(name):
 
 def test_panda_copy_is_pybullet_datas_panda_but_for_visual_meshes():
     """The shipped panda.urdf reads in pybullet exactly as pybullet_data's original: every
-    joint's full getJointInfo, every link's dynamics and collision shapes, the collision mesh files' bytes
-    (only the visual meshes differ: they point at the collision meshes)."""
+    joint's full getJointInfo, every link's dynamics and collision shapes, the collision
+    mesh files' bytes (only the visual meshes differ: they point at the collision meshes)."""
     def reading(urdf: Path):
         client = BulletClient(connection_mode=pybullet.DIRECT)
         try:
