@@ -322,6 +322,9 @@ BAD = {
                             "'link5' is not moved"),
     "contact model": (lambda t: {"contact_model": "hard"}, "contact_model", "'hard'"),
     "built-in name": (lambda t: {"name": "panda"}, "name", "built-in"),
+    "effort not positive": (lambda t: {"efforts": {"drive_joint": -1}}, "efforts",
+                            "-1 is not > 0"),
+    "no urdf": (lambda t: {"urdf": "nowhere.urdf"}, "urdf", "'nowhere.urdf': no such file"),
 }
 
 
@@ -345,6 +348,25 @@ def test_a_bad_description_is_one_line_naming_the_key(home, tmp_path, capsys, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err
     assert snapshot(home) == before
+
+
+def test_unreadable_files_are_one_line(home, tmp_path, capsys):
+    """A missing file, a YAML syntax error and a YAML list each give one line, exit 2."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: [unclosed\n")
+    listed = tmp_path / "list.yaml"
+    listed.write_text("- a\n- b\n")
+    for path, needle in ((tmp_path / "none.yaml", "cannot be read"),
+                         (bad, "bad.yaml: not valid YAML"),
+                         (listed, "list.yaml: expected a mapping")):
+        assert main(["robots", "add", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err, err
+    assert not robots_dir().exists()
+
+
+def test_builtin_names_are_their_descriptions_names():
+    assert all(load_robot(name).name == name for name in BUILTIN)
 
 
 def test_names_taken_and_builtins_are_refused(home, tmp_path):

@@ -95,7 +95,11 @@ def catalog_rows() -> list[dict]:
     fingertips, contact model, description file."""
     rows = []
     for name in robot_names():
-        d = load_robot(name)
+        try:
+            d = load_robot(name)
+        except RobotDescriptionError as exc:
+            raise RobotDescriptionError(f"robot {name!r} no longer checks out ({exc}); remove "
+                                        f"it with `kinegrasp robots remove {name}`") from None
         rows.append({"name": name, "source": "built-in" if name in BUILTIN else "user",
                      "arm_dof": d.arm_dof, "hand_joints": list(d.hand_joints),
                      "palm_link": d.palm_link, "fingertips": list(d.fingertip_links),
