@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import pose_error
+from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, pose_error
 from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 
 
@@ -87,12 +87,17 @@ def test_self_motion_result_does_not_depend_on_the_continuation_step(kin):
 
 
 def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng):
-    """The compiled Newton's chain poses, elbow angle and palm error against the batched
-    numpy kinematics (an independent implementation: column-wise rotations from half-angle
-    tangents, not 4x4 products with Rodrigues matrices), rotations near pi included (the
+    """The compiled Newton's chain poses against the batched numpy kinematics (an
+    independent implementation: column-wise rotations from half-angle tangents, not 4x4
+    products with Rodrigues matrices); its elbow angle against the dihedral angle between
+    the planes (shoulder-wrist line, z) and (shoulder-wrist line, elbow) from numpy's cross
+    products, and its palm error against the position difference and scipy's rotation
+    vector of R_target R^T (independent derivations); rotations near pi included (the
     other branch of the rotation log). Tolerances 1e-13 (rotation errors: 5e-13, measured
     1.0e-13 where the angle is ~2 rad; near pi 1e-10, see below)."""
-    from kinegrasp_env.robot.kinematics import arm_angle_at, axis_angle_matrix
+    from scipy.spatial.transform import Rotation
+
+    from kinegrasp_env.robot.kinematics import axis_angle_matrix
     from kinegrasp_env.robot.self_motion import (
         arm_chain,
         chain_forward,
@@ -112,8 +117,16 @@ def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng)
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     near_pi = np.stack([axis_angle_matrix(a, np.pi - rng.uniform(1e-6, 1e-5)) for a in axis])
     targets[:100, :3, :3] = near_pi @ poses[PALM_LINK][:100, :3, :3]
-    expected_err = pose_error(poses[PALM_LINK], targets)
-    expected_psi = arm_angle_at(poses)
+    palm = poses[PALM_LINK]
+    relative = targets[:, :3, :3] @ np.swapaxes(palm[:, :3, :3], -1, -2)
+    expected_err = np.concatenate([targets[:, :3, 3] - palm[:, :3, 3],
+                                   Rotation.from_matrix(relative).as_rotvec()], axis=1)
+    shoulder, elbow, wrist = (poses[name][:, :3, 3] for name in ARM_ANGLE_LINKS)
+    line = (wrist - shoulder) / np.linalg.norm(wrist - shoulder, axis=1, keepdims=True)
+    plane_z = np.cross(line, [0.0, 0.0, 1.0])  # the normal of the plane through line and z
+    plane_e = np.cross(line, elbow - shoulder)
+    expected_psi = np.arctan2(np.sum(line * np.cross(plane_z, plane_e), axis=1),
+                              np.sum(plane_z * plane_e, axis=1))
     frames = np.empty((len(links), 4, 4))
     err = np.empty(6)
     for i in range(len(q)):
@@ -123,8 +136,9 @@ def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng)
         assert abs(elbow_angle_one(frames, chain.marks) - expected_psi[i]) < 1e-13
         palm_error(frames, targets[i], err)
         # near pi the angle comes from an arccos at its end: rounding of 1e-16 in the cosine
-        # moves it by ~1e-16 / sin(angle) ~ 1e-11 (measured 2.6e-11)
-        np.testing.assert_allclose(err, expected_err[i], rtol=0, atol=1e-10 if i < 100 else 5e-13)
+        # moves it by ~1e-16 / sin(angle), up to 1e-10 at pi - 1e-6 (measured 1.3e-10
+        # against scipy's quaternion-based rotation vector; margin 4x)
+        np.testing.assert_allclose(err, expected_err[i], rtol=0, atol=5e-10 if i < 100 else 5e-13)
     assert np.linalg.norm(expected_err[:100, 3:], axis=1).min() > np.pi - 1e-4
 
 

@@ -14,6 +14,12 @@ import numpy as np
 
 from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass
 from kinegrasp_env.robot.model import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK, RobotModel
+from kinegrasp_env.robot.pose_rules import (
+    add_joint_columns,
+    elbow_angles,
+    pose_errors,
+    rotation_logs,
+)
 
 
 def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -36,40 +42,24 @@ def axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
 
 
 def rotation_log(rot: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) (axis * angle, radians) of rotations (..., 3, 3)."""
+    """Rotation vectors (..., 3) (axis * angle, radians) of rotations (..., 3, 3)
+    (:func:`kinegrasp_env.robot.pose_rules.rotation_log_into` on each)."""
     rot = np.asarray(rot, dtype=float)
-    trace = rot[..., 0, 0] + rot[..., 1, 1] + rot[..., 2, 2]
-    cos_angle = np.clip((trace - 1.0) / 2.0, -1.0, 1.0)
-    angle = np.arccos(cos_angle)
-    vee = np.stack(
-        [rot[..., 2, 1] - rot[..., 1, 2], rot[..., 0, 2] - rot[..., 2, 0],
-         rot[..., 1, 0] - rot[..., 0, 1]], axis=-1)
-    sin_angle = np.sin(angle)
-    small = sin_angle < 1e-6
-    scale = np.where(small, 0.5 + angle**2 / 12.0, angle / (2.0 * np.where(small, 1.0, sin_angle)))
-    out = vee * scale[..., None]
-    # near pi: axis from the symmetric part
-    near_pi = angle > np.pi - 1e-4
-    if np.any(near_pi):
-        # symmetric part = cos I + (1 - cos) a a^T: a row of a a^T with the largest diagonal
-        cos_pi = cos_angle[near_pi, None, None]
-        outer = ((rot[near_pi] + np.swapaxes(rot[near_pi], -1, -2)) / 2.0
-                 - cos_pi * np.eye(3)) / (1.0 - cos_pi)
-        k = np.argmax(np.diagonal(outer, axis1=-2, axis2=-1), axis=-1)
-        rows = np.take_along_axis(outer, k[:, None, None].repeat(3, axis=2), axis=1)[:, 0]
-        axis = rows / np.linalg.norm(rows, axis=-1, keepdims=True)
-        sign = np.sign(np.sum(axis * vee[near_pi], axis=-1))
-        sign[sign == 0] = 1.0
-        out[near_pi] = axis * (angle[near_pi] * sign)[:, None]
+    out = np.empty((*rot.shape[:-2], 3))
+    rotation_logs(np.ascontiguousarray(rot.reshape(-1, 3, 3)), out.reshape(-1, 3))
     return out
 
 
 def pose_error(current: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Twist-like error (..., 6): target position - current, then rotation vector of
-    R_target R_current^T (world frame)."""
-    dp = target[..., :3, 3] - current[..., :3, 3]
-    dr = rotation_log(target[..., :3, :3] @ np.swapaxes(current[..., :3, :3], -1, -2))
-    return np.concatenate([dp, dr], axis=-1)
+    """Twist-like error (..., 6) of poses current against target (..., 4, 4), broadcast:
+    target position - current, then rotation vector of R_target R_current^T (world frame;
+    :func:`kinegrasp_env.robot.pose_rules.pose_error_into` on each)."""
+    current, target = np.broadcast_arrays(np.asarray(current, dtype=float),
+                                          np.asarray(target, dtype=float))
+    out = np.empty((*current.shape[:-2], 6))
+    pose_errors(np.ascontiguousarray(current.reshape(-1, 4, 4)),
+                np.ascontiguousarray(target.reshape(-1, 4, 4)), out.reshape(-1, 6))
+    return out
 
 
 def _as_batch(q: np.ndarray, dof: int) -> np.ndarray:
@@ -298,11 +288,8 @@ class Kinematics:
         jac = np.zeros((pose.shape[0], 6, self.model.dof))
         for name, origin, axis in self._joint_frames(poses, self.chain(link)):
             index, mult, _ = self._drivers[name]
-            if self.model.joint(name).kind == "prismatic":
-                jac[:, :3, index] += mult * axis
-            else:
-                jac[:, :3, index] += mult * cross(axis, target - origin)
-                jac[:, 3:, index] += mult * axis
+            add_joint_columns(jac, index, float(mult), self.model.joint(name).kind != "prismatic",
+                              origin, axis, target)
         return jac
 
     def arm_angle(self, q: np.ndarray) -> np.ndarray:
@@ -327,25 +314,12 @@ def arm_angle_at(poses: dict[str, np.ndarray]) -> np.ndarray:
                        poses[WRIST_LINK][:, :3, 3])
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross`` of 3-vectors (..., 3), with its arithmetic (a1 b2 - a2 b1, ...) and
-    without its per-call set-up (a tenth of a Jacobian's time)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
 def elbow_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:
-    """Arm angle (n,) from shoulder, elbow and wrist centres (n, 3); see ``arm_angle``."""
-    axis = wrist - shoulder
-    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-    up = np.broadcast_to(np.array([0.0, 0.0, 1.0]), axis.shape)
-    ref = up - np.sum(up * axis, axis=-1, keepdims=True) * axis
-    ref_norm = np.linalg.norm(ref, axis=-1, keepdims=True)
-    fallback = np.broadcast_to(np.array([1.0, 0.0, 0.0]), axis.shape)
-    fallback = fallback - np.sum(fallback * axis, axis=-1, keepdims=True) * axis
-    ref = np.where(ref_norm > 1e-9, ref, fallback)
-    ref = ref / np.linalg.norm(ref, axis=-1, keepdims=True)
-    side = cross(axis, ref)
-    e = elbow - shoulder
-    return np.arctan2(np.sum(e * side, axis=-1), np.sum(e * ref, axis=-1))
+    """Arm angle (...,) from shoulder, elbow and wrist centres (..., 3), broadcast; see
+    ``arm_angle`` (:func:`kinegrasp_env.robot.pose_rules.elbow_angle_of` on each row)."""
+    shoulder, elbow, wrist = np.broadcast_arrays(*(np.asarray(a, dtype=float)
+                                                   for a in (shoulder, elbow, wrist)))
+    out = np.empty(shoulder.shape[:-1])
+    elbow_angles(shoulder.reshape(-1, 3), elbow.reshape(-1, 3), wrist.reshape(-1, 3),
+                 out.reshape(-1))
+    return out

@@ -8,10 +8,11 @@ them for a curve of elbow angles); here each row runs its whole Newton loop comp
 chain base -> palm as 4x4 products, the palm's geometric Jacobian, the elbow angle's
 gradient by central differences, a 7x7 solve.
 
-The quantities are those of :mod:`kinegrasp_env.robot.kinematics` (``pose_error``,
-``elbow_angle``, ``jacobian_at``), written for one row; ``tests/test_ik.py`` checks the
-results against that numpy kinematics (an independent implementation: column-wise batched
-rotations), and against this kernel run interpreted.
+The pose error, the elbow angle and the Jacobian's joint columns are the row functions of
+:mod:`kinegrasp_env.robot.pose_rules`, which :mod:`kinegrasp_env.robot.kinematics` applies
+to batches; ``tests/test_ik.py`` checks the chain poses against the batched kinematics (an
+independent implementation: column-wise rotations), and the Newton's results against this
+kernel run interpreted.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, snap_rotation
+from kinegrasp_env.robot.pose_rules import add_joint_column, elbow_angle_of, pose_error_into
 
 #: Newton stops where the residual (palm error, metres and radians, and the elbow angle
 #: error, radians) has a norm below this.
@@ -117,69 +119,19 @@ def chain_forward(origins, axes, index, q, frames):
 
 @jit.kernel
 def elbow_angle_one(frames, marks):
-    """Elbow angle (radians) from the shoulder, elbow and wrist origins in frames (J, 4, 4);
-    :func:`kinegrasp_env.robot.kinematics.elbow_angle` for one row."""
+    """Elbow angle (radians) from the shoulder, elbow and wrist origins in frames (J, 4, 4)
+    (:func:`kinegrasp_env.robot.pose_rules.elbow_angle_of`)."""
     s, e, w = marks[0], marks[1], marks[2]
-    ax, ay, az = (frames[w, 0, 3] - frames[s, 0, 3], frames[w, 1, 3] - frames[s, 1, 3],
-                  frames[w, 2, 3] - frames[s, 2, 3])
-    norm = np.sqrt(ax * ax + ay * ay + az * az)
-    ax, ay, az = ax / norm, ay / norm, az / norm
-    rx, ry, rz = -az * ax, -az * ay, 1.0 - az * az  # z minus its part along the axis
-    if np.sqrt(rx * rx + ry * ry + rz * rz) <= 1e-9:
-        rx, ry, rz = 1.0 - ax * ax, -ax * ay, -ax * az  # x minus its part along the axis
-    norm = np.sqrt(rx * rx + ry * ry + rz * rz)
-    rx, ry, rz = rx / norm, ry / norm, rz / norm
-    sx, sy, sz = ay * rz - az * ry, az * rx - ax * rz, ax * ry - ay * rx
-    ex, ey, ez = (frames[e, 0, 3] - frames[s, 0, 3], frames[e, 1, 3] - frames[s, 1, 3],
-                  frames[e, 2, 3] - frames[s, 2, 3])
-    return np.arctan2(ex * sx + ey * sy + ez * sz, ex * rx + ey * ry + ez * rz)
-
-
-@jit.kernel
-def rotation_log_one(m, out):
-    """Rotation vector (axis * angle, radians) of rotation m (3, 3) into out[3:6];
-    :func:`kinegrasp_env.robot.kinematics.rotation_log` for one rotation."""
-    cos_angle = min(max((m[0, 0] + m[1, 1] + m[2, 2] - 1.0) / 2.0, -1.0), 1.0)
-    angle = np.arccos(cos_angle)
-    vx, vy, vz = m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]
-    sin_angle = np.sin(angle)
-    if sin_angle < 1e-6:
-        scale = 0.5 + angle * angle / 12.0
-    else:
-        scale = angle / (2.0 * sin_angle)
-    out[3], out[4], out[5] = vx * scale, vy * scale, vz * scale
-    if angle > np.pi - 1e-4:  # near pi: the axis from the symmetric part
-        k = 0
-        best = -np.inf
-        for i in range(3):
-            d = (m[i, i] - cos_angle) / (1.0 - cos_angle)
-            if d > best:
-                best, k = d, i
-        row = np.empty(3)
-        for c in range(3):
-            row[c] = (0.5 * (m[k, c] + m[c, k]) - (cos_angle if c == k else 0.0)) / (
-                1.0 - cos_angle)
-        norm = np.sqrt(row[0] ** 2 + row[1] ** 2 + row[2] ** 2)
-        sign = np.sign((row[0] * vx + row[1] * vy + row[2] * vz) / norm)
-        if sign == 0.0:
-            sign = 1.0
-        for c in range(3):
-            out[3 + c] = row[c] / norm * angle * sign
+    return elbow_angle_of(frames[s, 0, 3], frames[s, 1, 3], frames[s, 2, 3],
+                          frames[e, 0, 3], frames[e, 1, 3], frames[e, 2, 3],
+                          frames[w, 0, 3], frames[w, 1, 3], frames[w, 2, 3])
 
 
 @jit.kernel
 def palm_error(frames, target, out):
-    """Pose error of the chain's last frame against target (4, 4) into out[0:6]
-    (:func:`kinegrasp_env.robot.kinematics.pose_error`: position, then the rotation vector
-    of R_target R^T)."""
-    last = frames.shape[0] - 1
-    m = np.empty((3, 3))
-    for r in range(3):
-        out[r] = target[r, 3] - frames[last, r, 3]
-        for c in range(3):
-            m[r, c] = (target[r, 0] * frames[last, c, 0] + target[r, 1] * frames[last, c, 1]
-                       + target[r, 2] * frames[last, c, 2])
-    rotation_log_one(m, out)
+    """Pose error (6,) of the chain's last frame against target (4, 4) into out
+    (:func:`kinegrasp_env.robot.pose_rules.pose_error_into`)."""
+    pose_error_into(frames[frames.shape[0] - 1], target, out)
 
 
 @jit.kernel
@@ -212,12 +164,7 @@ def newton_row(origins, axes, index, marks, q, target, goal, iterations, err):
             dx, dy, dz = (frames[last, 0, 3] - frames[j, 0, 3],
                           frames[last, 1, 3] - frames[j, 1, 3],
                           frames[last, 2, 3] - frames[j, 2, 3])
-            jac[0, k] += wy * dz - wz * dy
-            jac[1, k] += wz * dx - wx * dz
-            jac[2, k] += wx * dy - wy * dx
-            jac[3, k] += wx
-            jac[4, k] += wy
-            jac[5, k] += wz
+            add_joint_column(jac, k, 1.0, True, wx, wy, wz, dx, dy, dz)
         for k in range(7):  # the elbow angle's gradient, by central differences
             shifted[:] = q
             shifted[k] = q[k] + GRADIENT_STEP
