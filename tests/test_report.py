@@ -508,6 +508,17 @@ def test_screenshot_without_playwright_names_the_extra(pages, tmp_path, capsys, 
     assert not out.exists()
 
 
+@pytest.mark.skipif(not PLAYWRIGHT, reason="needs Playwright (the screenshot extra)")
+def test_screenshot_with_a_browser_that_does_not_start_is_one_line(pages, tmp_path, capsys,
+                                                                   monkeypatch):
+    monkeypatch.setenv("KINEGRASP_CHROMIUM", "false")  # exits at once, never answers
+    out = tmp_path / "shot.png"
+    assert main(["screenshot", str(pages["rank"]), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "chromium did not start" in err[0], err
+    assert not out.exists()
+
+
 def test_the_parser_and_the_report_room_do_not_import_playwright():
     """Playwright loads when a browser starts, never with ``--help`` or the report modules
     (checked in a fresh interpreter's ``sys.modules``)."""

@@ -72,6 +72,17 @@ def load_playwright():
     return start
 
 
+def from_playwright(exc: BaseException) -> bool:
+    """Whether ``exc`` is one of Playwright's errors (its classes load with it, lazily)."""
+    return type(exc).__module__.startswith("playwright")
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an error's message (its class name when it has none)."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 def is_local(url: str) -> bool:
     """Whether ``url`` stays on the machine (file:, data:, blob:, about:)."""
     return url.startswith(LOCAL_SCHEMES)
@@ -110,16 +121,17 @@ class OfflineChromium:
         try:
             self.browser = self._playwright.chromium.launch(
                 executable_path=self.executable, headless=True, args=list(CHROMIUM_FLAGS))
+            width, height = self.size
+            self.context = self.browser.new_context(
+                viewport={"width": width, "height": height}, device_scale_factor=1,
+                service_workers="block")
+            self.context.on("request", lambda request: self.requests.append(request.url))
+            self.context.route("**/*", self._route)
         except Exception as exc:
             self._playwright.stop()
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise BrowserError(f"chromium did not start: {first}") from None
-        width, height = self.size
-        self.context = self.browser.new_context(
-            viewport={"width": width, "height": height}, device_scale_factor=1,
-            service_workers="block")
-        self.context.on("request", lambda request: self.requests.append(request.url))
-        self.context.route("**/*", self._route)
+            if not from_playwright(exc):
+                raise
+            raise BrowserError(f"chromium did not start: {first_line(exc)}") from None
         return self
 
     def __exit__(self, *exc) -> None:
@@ -233,7 +245,7 @@ def _wait_ready(page, timeout: float) -> tuple[float | None, float]:
         page.wait_for_function("window.kgReady !== undefined", timeout=timeout * 1000,
                                polling=50)
     except Exception as exc:  # playwright's TimeoutError, imported lazily
-        if type(exc).__name__ != "TimeoutError":
+        if not (from_playwright(exc) and type(exc).__name__ == "TimeoutError"):
             raise
         return None, time.monotonic() - start
     return float(page.evaluate("window.kgReady")), time.monotonic() - start
@@ -255,8 +267,21 @@ def check_page(path: str | Path, *, timeout: float = 60.0, settle: float = 0.5,
         executable, width, height: as for :class:`OfflineChromium`.
     """
     path = Path(path)
+    try:
+        check = _check(path, timeout, settle, before_screenshot, probe,
+                       OfflineChromium(executable, width, height))
+    except Exception as exc:
+        if not from_playwright(exc):
+            raise
+        raise BrowserError(f"{path}: {first_line(exc)}") from None
+    log.info("%s: ready after %s ms, %d errors", path, check.ready_ms, len(check.errors))
+    return check
+
+
+def _check(path: Path, timeout: float, settle: float, before_screenshot: str | None,
+           probe: str | None, chromium: OfflineChromium) -> PageCheck:
     check = PageCheck()
-    with OfflineChromium(executable, width, height) as browser:
+    with chromium as browser:
         page, errors = browser.new_page()
         page.goto(path.resolve().as_uri(), wait_until="commit")
         check.ready_ms, check.wall_s = _wait_ready(page, timeout)
@@ -275,7 +300,6 @@ def check_page(path: str | Path, *, timeout: float = 60.0, settle: float = 0.5,
         check.probe = page.evaluate(probe) if probe else None
         check.errors = list(errors)
         check.requests = list(browser.requests)
-    log.info("%s: ready after %s ms, %d errors", path, check.ready_ms, len(check.errors))
     return check
 
 
