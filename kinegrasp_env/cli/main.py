@@ -4,7 +4,8 @@ Every sub-command validates its input up front and reports a bad value in one li
 stderr with exit status 2 (no traceback), usage errors included; results go to stdout
 (``--json`` for machines), progress bars to stderr. Any other exception is a bug: its
 traceback, then one line asking to report it, exit status 1. One module per command group:
-``arms``, ``objects``, ``grasping``, ``toolkit``; ``common`` holds what they share.
+``arms``, ``objects``, ``robots``, ``grasping``, ``toolkit``, ``elbow``, ``report``,
+``sensitivity``, ``validate``; ``common`` holds what they share.
 """
 
 from __future__ import annotations

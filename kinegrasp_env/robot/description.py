@@ -186,7 +186,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     if not urdf.is_file():
         raise _fail(where, "urdf", f"{data['urdf']!r}: no such file ({urdf})")
     try:
-        model = _read_urdf(urdf)
+        model = load_urdf(urdf)
     except (ValueError, ET.ParseError) as exc:
         raise _fail(where, "urdf", f"{data['urdf']!r} is not a usable URDF ({exc})") from None
     movable = {j.name: j for j in model.joints if j.movable}
@@ -313,18 +313,9 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         packages[pkg] = resolved
     angle_links = _arm_angle_links(data, where, arm, movable, path_links)
     meshes = urdf_meshes(urdf, packages, where)
-    return RobotDescription(name, path.resolve(), urdf, _read_urdf(urdf, arm + hand),
+    return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes)
-
-
-def _read_urdf(urdf: Path, actuated: tuple[str, ...] | None = None) -> RobotModel:
-    """:func:`load_urdf`, quiet about a fixed joint's zero axis (URDFs may write
-    ``<axis xyz="0 0 0"/>`` on fixed joints, whose axis is never used)."""
-    import numpy as np
-
-    with np.errstate(invalid="ignore"):
-        return load_urdf(urdf, actuated=actuated)
 
 
 def _arm_angle_links(data, where, arm, movable, path_links) -> tuple[str, str, str] | None:

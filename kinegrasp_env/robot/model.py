@@ -191,7 +191,11 @@ def load_urdf(path: str | Path, actuated: tuple[str, ...] | None = None) -> Robo
         axis_el = element.find("axis")
         axis = np.array(_floats(axis_el.get("xyz") if axis_el is not None else None,
                                 (1.0, 0.0, 0.0)))
-        axis = axis / np.linalg.norm(axis)
+        length = np.linalg.norm(axis)
+        if length == 0.0 and kind != "fixed":
+            raise ValueError(f"joint {element.get('name')!r}: axis {axis.tolist()} has no "
+                             "direction")
+        axis = axis / length if length > 0.0 else np.array([1.0, 0.0, 0.0])
         limit_el = element.find("limit")
         lower, upper = -math.inf, math.inf
         if kind in ("revolute", "prismatic") and limit_el is not None:
