@@ -1,7 +1,7 @@
 """One schema for grasp files and palm-pose files: ``plan``'s output read back as full
 configurations (``load_grasps``) and as palm-pose candidates (``load_candidates``) solved by IK
 gives the same palm poses, the same configurations when the elbow angle is given, and the
-same P(FC) on the same seed (README: "Candidates as palm poses")."""
+same P(FC) on the same seed (docs: the palm-poses guide)."""
 
 from __future__ import annotations
 
