@@ -12,6 +12,7 @@ from kinegrasp_env.sampling.stats import (
     StreamingMoments,
     convergence_curve,
     moments,
+    normal_quantile,
     skewness,
     wilson_interval,
 )
@@ -142,3 +143,10 @@ def test_convergence_errors_shrink_like_one_over_sqrt_n():
     again = convergence_curve(draw, [10, 100, 1000, 10000], trials=20, truth_samples=200_000,
                               seed=1)
     np.testing.assert_array_equal(curve.mean_error, again.mean_error)
+
+
+@pytest.mark.parametrize("confidence", [0.95, 0.99, 0.999, 0.8])
+def test_normal_quantile_is_scipys(confidence):
+    """The two-sided quantile equals scipy.stats.norm.ppf(0.5 + c/2) to the bit, the stored
+    95% value included (an independent implementation: scipy's distribution object)."""
+    assert normal_quantile(confidence) == float(sps.norm.ppf(0.5 + confidence / 2))

@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special, stats
 
 DISTRIBUTIONS = ("gaussian", "uniform", "triangular")
 METHODS = ("mc", "antithetic", "sobol")
@@ -37,6 +36,8 @@ def as_generator(seed: SeedLike) -> np.random.Generator:
 def _inverse_cdf(kind: str, u: np.ndarray) -> np.ndarray:
     """Unit-variance quantiles of the distribution at probabilities u in (0, 1)."""
     if kind == "gaussian":
+        from scipy import special
+
         return math.sqrt(2.0) * special.erfinv(2.0 * u - 1.0)
     if kind == "uniform":
         return math.sqrt(3.0) * (2.0 * u - 1.0)
@@ -99,7 +100,9 @@ class JointNoise:
         gen = as_generator(rng)
         sig = self.sigma_vector(dim)
         if method == "sobol":
-            sampler = stats.qmc.Sobol(d=dim, scramble=True, seed=gen)
+            from scipy.stats import qmc
+
+            sampler = qmc.Sobol(d=dim, scramble=True, seed=gen)
             m = max(0, math.ceil(math.log2(max(n, 1))))
             u = sampler.random_base2(m)[:n]
             u = np.clip(u, 1e-12, 1 - 1e-12)
