@@ -279,7 +279,8 @@ def test_help_shows_the_choices_from_their_sources():
 
 
 # ------------------------------------------------------------------ a CLI that answers at once
-HEAVY = ("numpy", "scipy", "trimesh", "pybullet", "numba", "gymnasium", "matplotlib", "torch")
+HEAVY = ("numpy", "scipy", "trimesh", "pybullet", "numba", "gymnasium", "matplotlib", "torch",
+         "playwright")
 
 
 def _fresh_modules(code: str, env: dict | None = None) -> set[str]:
