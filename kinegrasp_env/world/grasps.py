@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
+from kinegrasp_env.robot.model import RobotModel, kuka_sdh
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
 
@@ -43,6 +44,8 @@ class Grasp:
         q_nominal: Ferrari-Canny quality of the nominal contacts.
         id: identifier within its set.
         meta: free-form extra information (e.g. the elbow angle, the planner's settings).
+        robot: the catalog robot whose configuration ``q0`` is (default ``kuka_sdh``; for
+            another robot ``q0`` is its actuated vector: arm joints, then hand joints).
     """
 
     object: str
@@ -55,6 +58,7 @@ class Grasp:
     q_nominal: float
     id: str = "0"
     meta: dict = field(default_factory=dict)
+    robot: str = DEFAULT_ROBOT
 
     @property
     def arm(self) -> np.ndarray:
@@ -77,13 +81,15 @@ class Grasp:
                          for f, k, p, n in zip(self.fingers, self.links, self.points,
                                                self.normals, strict=True)],
             "meta": self.meta,
+            **({} if self.robot == DEFAULT_ROBOT else {"robot": self.robot}),
         }
 
     @classmethod
     def from_dict(cls, data: dict, where: str = "grasp", *, object_name: str | None = None,
-                  default_id: str = "0") -> Grasp:
+                  default_id: str = "0", robot_name: str | None = None) -> Grasp:
         """Build and validate a grasp from its entry of a grasp file (the fields of README's
         grasp-file table). ``object`` defaults to the file's top-level one (``object_name``),
+        ``robot`` to the file's (``robot_name``), else ``kuka_sdh``,
         ``palm_pose`` to the palm at ``q0`` (forward kinematics, world frame), ``contacts`` to
         none, ``q_nominal`` to 0 and ``id`` to ``default_id``.
 
@@ -100,10 +106,13 @@ class Grasp:
                              "at the top of the file)")
         if not isinstance(obj, str) or not is_object(obj):
             raise ValueError(f"{label}: field 'object': {unknown_object(obj)}")
-        q0 = _array_field(data, "q0", label, "14 joint angles in radians: 7 arm, then 7 hand")
-        check_configuration(q0, f"{label}: field 'q0'")
+        robot = data.get("robot", robot_name or DEFAULT_ROBOT)
+        robot_model(robot, f"{label}: field 'robot'")
+        q0 = _array_field(data, "q0", label, "14 joint angles in radians: 7 arm, then 7 hand"
+                          if robot == DEFAULT_ROBOT else f"the actuated joints of {robot}")
+        check_configuration(q0, f"{label}: field 'q0'", robot=robot)
         if data.get("palm_pose") is None:
-            pose = palm_at(q0)
+            pose = palm_at(q0, robot)
         else:
             pose = _array_field(data, "palm_pose", label, "a 4x4 matrix (world frame)")
             if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
@@ -130,7 +139,7 @@ class Grasp:
         fingers = np.array([r[0] for r in rows], dtype=int)
         links = np.array([r[1] for r in rows], dtype=int)
         return cls(obj, q0, pose, points, normals, fingers, links, q_nominal,
-                   str(data.get("id", default_id)), dict(meta))
+                   str(data.get("id", default_id)), dict(meta), robot)
 
 
 def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
@@ -162,13 +171,31 @@ def _contact(entry, label: str) -> tuple[int, int, np.ndarray, np.ndarray]:
     return finger, link, out[0], out[1]
 
 
-def palm_at(q0: np.ndarray) -> np.ndarray:
-    """(4, 4) the palm frame at configuration ``q0`` (14,), world frame (forward kinematics of
-    the robot's URDF): a grasp entry's ``palm_pose`` when the file leaves it out."""
+def palm_at(q0: np.ndarray, robot: str = DEFAULT_ROBOT) -> np.ndarray:
+    """(4, 4) the palm frame at configuration ``q0`` (14,) (another ``robot``: its actuated
+    vector), world frame (forward kinematics of the robot's URDF): a grasp entry's
+    ``palm_pose`` when the file leaves it out."""
     from kinegrasp_env.robot.kinematics import Kinematics
     from kinegrasp_env.robot.model import PALM_LINK
 
-    return Kinematics(kuka_sdh()).pose(np.asarray(q0, dtype=float)[None], PALM_LINK)[0]
+    if robot == DEFAULT_ROBOT:
+        return Kinematics(kuka_sdh()).pose(np.asarray(q0, dtype=float)[None], PALM_LINK)[0]
+    description = load_robot(robot)
+    return Kinematics(description.model).pose(np.asarray(q0, dtype=float)[None],
+                                              description.palm_link)[0]
+
+
+def robot_model(robot, where: str = "robot") -> RobotModel:
+    """The model of catalog robot ``robot``; ValueError (one line, naming ``where``) for an
+    unknown one."""
+    if robot == DEFAULT_ROBOT:
+        return kuka_sdh()
+    if not isinstance(robot, str):
+        raise ValueError(f"{where}: expected a robot name, got {robot!r}")
+    try:
+        return load_robot(robot).model
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
 
 
 def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
@@ -191,12 +218,16 @@ def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
     return fields
 
 
-def check_configuration(q0: np.ndarray, where: str = "q0") -> np.ndarray:
-    """Validate a 14-entry arm+hand configuration (finite, within the joint limits)."""
+def check_configuration(q0: np.ndarray, where: str = "q0",
+                        robot: str = DEFAULT_ROBOT) -> np.ndarray:
+    """Validate a 14-entry arm+hand configuration (finite, within the joint limits); another
+    ``robot``: its actuated vector."""
     q0 = np.asarray(q0, dtype=float)
-    model = kuka_sdh()
+    model = robot_model(robot)
     if q0.shape != (model.dof,):
-        raise ValueError(f"{where}: q0 must have {model.dof} entries (7 arm + 7 hand), "
+        parts = ("7 arm + 7 hand" if robot == DEFAULT_ROBOT
+                 else f"the actuated joints of {robot}")
+        raise ValueError(f"{where}: q0 must have {model.dof} entries ({parts}), "
                          f"got {q0.size}")
     if not np.all(np.isfinite(q0)):
         raise ValueError(f"{where}: q0 has non-finite entries")
@@ -232,7 +263,11 @@ def load_grasps(path: str | Path) -> list[Grasp]:
     top = data.get("object")
     if top is not None and (not isinstance(top, str) or not is_object(top)):
         raise ValueError(f"{path}: field 'object': {unknown_object(top)}")
-    return [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i))
+    robot = data.get("robot")
+    if robot is not None:
+        robot_model(robot, f"{path}: field 'robot'")
+    return [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i),
+                            robot_name=robot)
             for i, g in enumerate(data["grasps"])]
 
 
@@ -241,6 +276,9 @@ def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
     palm-pose candidate fields in its object's frame (:func:`palm_pose_fields`)."""
     path = Path(path)
     poses = {name: load_object(name).pose for name in {g.object for g in grasps}}
+    robots = {g.robot for g in grasps}
+    if len(robots) == 1 and robots != {DEFAULT_ROBOT}:
+        extra = {"robot": robots.pop(), **extra}
     payload = {"object": grasps[0].object if grasps else None, **extra,
                "grasps": [g.to_dict(poses[g.object]) for g in grasps]}
     write_atomic(path, json.dumps(payload, indent=1))

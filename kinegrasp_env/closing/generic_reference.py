@@ -1,0 +1,311 @@
+"""Auto-close of any description robot, the reference: pybullet closest points on the URDF's
+own collision geometry.
+
+**The closing model.** The whole robot (its URDF, fixed base at the world origin: the robot
+base frame) and the object stand in one pybullet world; the object is fixed (as in Dex-Net's
+jaw closing and this project's GraspIt-style closing). A configuration q (the description's
+actuated vector: arm joints, then hand joints) is set joint by joint, every mimic joint from
+its driver (:meth:`~kinegrasp_env.robot.model.RobotModel.expand`), so the arm places the palm
+where forward kinematics of the URDF puts it. Then:
+
+1. *Start collision*: some robot link (arm or hand) penetrates the object by more than
+   :data:`START_TOL` at q (the hand at its pre-shape).
+2. *Closing*: each finger (:attr:`RobotDescription.fingers`: the chain palm -> fingertip)
+   closes on its own, by a parameter t >= 0 (driver units: metres or radians): each of its
+   closing joints takes the value it has when its driver moves from the pre-shape by
+   ``close * t`` (a mimic follower through its multiplier), clipped at the joint's limit. So
+   the coupled jaws of a parallel gripper close together at one rate, but each finger stops
+   where it touches: the jaws of a self-centring gripper. t advances by conservative
+   advancement: the finger's gap g (pybullet's closest-point distance between its links and
+   the object, collision margins zero) over a bound v on how fast any point of those links
+   moves per unit t (:func:`finger_speed`), so that a step never closes more than the gap;
+   should pybullet's distances disagree (penetration beyond :data:`CONTACT_TOL` after a step)
+   the step is halved until it does not. The finger *touches* when g <= :data:`CONTACT_TOL`
+   and has *missed* when every closing joint is at its limit with g > :data:`CONTACT_TOL`.
+3. *Contacts*: one per touching finger link: pybullet's closest pair of that link and the
+   object (distance within :data:`CONTACT_TOL`), the point on the object, both in the object
+   frame. The normal into the object: where the point lies on one face of the object's exact
+   convex parts (one face plane within :data:`EDGE_TOL`), that face's inward normal (the
+   direction of a closest pair touching a face's interior; pybullet's own normal was measured
+   4.6 degrees off there); at an edge or a corner, pybullet's ``-contactNormalOnB``.
+
+The outcome (the engines' codes) follows: start collision, missed (a finger missed, or fewer
+than two contacts), else force closure or not by the contacts' quality (scored above this
+layer, with the robot's contact model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sim import BulletWorld, GraspWorld
+
+#: Gaps beyond this are not measured (a step is then bounded by it), metres.
+QUERY_DISTANCE = 0.05
+#: Closing steps per finger at most (conservative advancement converges in a few for jaws).
+MAX_STEPS = 200
+#: Halvings of a step that pybullet reports as penetrating, at most.
+MAX_HALVINGS = 30
+#: A contact point within this of exactly one face plane lies on that face, metres.
+EDGE_TOL = 5e-5
+
+__all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
+           "RobotCloseResult", "RobotContact", "RobotWorld", "face_normal", "finger_speed"]
+
+
+@dataclass(frozen=True)
+class RobotContact:
+    """One finger-object contact (object frame).
+
+    Attributes:
+        finger: index into the description's ``fingers``.
+        link: index into that finger's ``links``.
+        point: (3,) on the object's surface, metres.
+        normal: (3,) unit normal into the object.
+        distance: pybullet's gap of the pair, metres (<= CONTACT_TOL).
+    """
+
+    finger: int
+    link: int
+    point: np.ndarray
+    normal: np.ndarray
+    distance: float
+
+
+@dataclass
+class RobotCloseResult:
+    """One closing.
+
+    Attributes:
+        start_collision: a robot link penetrated the object at q.
+        contacts: the contacts (at most one per finger link).
+        missed: per finger, True when it closed to its limits without touching.
+        gaps: (fingers,) final gap of each finger, metres (NaN after a start collision).
+        travel: (fingers,) final closing parameter t of each finger.
+        joints: final value of every closing joint (name -> value).
+        queries: closest-point queries used.
+    """
+
+    start_collision: bool
+    contacts: list[RobotContact] = field(default_factory=list)
+    missed: tuple[bool, ...] = ()
+    gaps: np.ndarray = field(default_factory=lambda: np.empty(0))
+    travel: np.ndarray = field(default_factory=lambda: np.empty(0))
+    joints: dict[str, float] = field(default_factory=dict)
+    queries: int = 0
+
+
+def face_normal(obj: GraspObject, point: np.ndarray) -> np.ndarray | None:
+    """(3,) the inward normal of the one face of ``obj``'s nearest convex part that the
+    object-frame ``point`` (3,) lies on (within :data:`EDGE_TOL`), or None at an edge or a
+    corner (two or more face planes that near) or off the surface."""
+    part = int(obj.nearest_part(point[None])[0])
+    planes = obj.planes[part]
+    on = np.abs(planes[:, :3] @ point + planes[:, 3]) < EDGE_TOL
+    if int(on.sum()) != 1:
+        return None
+    return -planes[on][0, :3] / np.linalg.norm(planes[on][0, :3])
+
+
+def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
+    """Bound v (metres per unit t) on the speed of any point of a finger's links.
+
+    Args:
+        kinds: per closing joint, its URDF type.
+        rates: (j,) d(joint value)/dt of each closing joint (the mimic multiplier times the
+            close direction).
+        reach: (j,) metres: the largest distance from each joint's origin to a corner of the
+            bounding box of the links it moves (pybullet's AABBs at the pre-shape).
+
+    A prismatic joint moves its links at |rate|; a revolute one at |rate| times the distance
+    from its axis (at most ``reach``, doubled as margin: the distal joints of a finger also
+    move the links it carries). The sum bounds the speed of a point moved by all of them.
+    """
+    speed = 0.0
+    for kind, rate, r in zip(kinds, rates, reach, strict=True):
+        speed += abs(rate) * (1.0 if kind == "prismatic" else 2.0 * r)
+    return max(speed, 1e-9)
+
+
+class RobotWorld(GraspWorld):
+    """A description robot (the whole URDF, fixed at the world origin) and one object.
+
+    Attributes:
+        description: the robot.
+        obj: the catalog object (fixed at ``obj.pose``).
+        joint_index: movable joint name -> pybullet joint index.
+        link_index: link name -> pybullet link index (-1: the base link).
+    """
+
+    def __init__(self, description: RobotDescription, obj: GraspObject,
+                 gui: bool = False) -> None:
+        BulletWorld.__init__(self, gui)  # not the SDH hand of GraspWorld: the robot itself
+        self.obj = obj
+        self.description = description
+        self.model = description.model
+        bullet = self.bullet
+        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+        self.bodies["robot"] = robot
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {self.model.base_link: -1}
+        for j in range(bullet.getNumJoints(robot)):
+            info = bullet.getJointInfo(robot, j)
+            self.joint_index[info[1].decode()] = j
+            self.link_index[info[12].decode()] = j
+        for link in self.link_index.values():
+            bullet.changeDynamics(robot, link, collisionMargin=0.0)
+        self.bodies["object"] = self._load_object(obj)
+        self._movable = [j.name for j in self.model.joints if j.movable]
+        self._speeds: dict[tuple, float] = {}
+
+    # ------------------------------------------------------------------ state
+    def set_configuration(self, q: np.ndarray) -> dict[str, float]:
+        """Set every movable joint from the actuated vector q (dof,); returns the values."""
+        values = {name: float(v) for name, v in self.model.expand(np.asarray(q, float)).items()}
+        self.set_joint_values(values)
+        return values
+
+    def set_joint_values(self, values: dict[str, float]) -> None:
+        bullet, robot = self.bullet, self.bodies["robot"]
+        for name, value in values.items():
+            bullet.resetJointState(robot, self.joint_index[name], float(value))
+
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics)."""
+        bullet, robot = self.bullet, self.bodies["robot"]
+        index = self.link_index[link]
+        if index < 0:
+            position, quaternion = bullet.getBasePositionAndOrientation(robot)
+        else:
+            state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
+            position, quaternion = state[4], state[5]
+        pose = np.eye(4)
+        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
+        pose[:3, 3] = position
+        return pose
+
+    def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
+        """pybullet closest points between the robot (or one of its links) and the object."""
+        kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
+        return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
+                                            max_distance, **kwargs)
+
+    def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
+        """(smallest distance of ``links`` to the object, capped at QUERY_DISTANCE; queries)."""
+        best = QUERY_DISTANCE
+        for link in links:
+            for row in self.closest(QUERY_DISTANCE, link):
+                best = min(best, row[8])
+        return best, len(links)
+
+    # ------------------------------------------------------------------ closing
+    def _finger_path(self, index: int, start: dict[str, float]):
+        """(joints, kinds, start values, rates, lower, upper) of finger ``index``'s closing."""
+        finger = self.description.fingers[index]
+        drivers = self.model.drivers()
+        kinds, rates, lo, hi, v0 = [], [], [], [], []
+        for name in finger.joints:
+            joint = self.model.joint(name)
+            _, mult, _ = drivers[name]
+            driver = self.model.actuated[drivers[name][0]]
+            kinds.append(joint.kind)
+            rates.append(mult * self.description.close[driver])
+            lo.append(joint.lower)
+            hi.append(joint.upper)
+            v0.append(start[name])
+        return (finger.joints, kinds, np.array(v0), np.array(rates), np.array(lo),
+                np.array(hi))
+
+    def _speed(self, index: int, joints, kinds, rates) -> float:
+        key = (index, tuple(rates))
+        if key not in self._speeds:
+            reach = []
+            finger = self.description.fingers[index]
+            for k in range(len(joints)):
+                origin = self.link_pose(finger.links[k])[:3, 3]
+                corners = []
+                for link in finger.links[k:]:
+                    lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
+                    corners += [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
+                                for c in (lo[2], hi[2])]
+                reach.append(float(np.max(np.linalg.norm(np.array(corners) - origin, axis=1))))
+            self._speeds[key] = finger_speed(kinds, rates, np.array(reach))
+        return self._speeds[key]
+
+    def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
+                   start_tol: float = START_TOL) -> RobotCloseResult:
+        """Close the hand of configuration q (dof,) on the object (the module's model).
+
+        The world is left at the final state (every finger where it stopped).
+        """
+        start = self.set_configuration(q)
+        queries = 1
+        if any(row[8] < -start_tol for row in self.closest(0.0)):
+            return RobotCloseResult(True, queries=queries,
+                                    missed=(False,) * len(self.description.fingers),
+                                    gaps=np.full(len(self.description.fingers), np.nan),
+                                    travel=np.zeros(len(self.description.fingers)))
+        fingers = self.description.fingers
+        missed, gaps, travel, final = [], [], [], {}
+        contacts: list[RobotContact] = []
+        for f, finger in enumerate(fingers):
+            joints, kinds, v0, rates, lo, hi = self._finger_path(f, start)
+            speed = self._speed(f, joints, kinds, rates)
+            with np.errstate(divide="ignore"):
+                t_end = float(np.max(np.where(rates > 0, (hi - v0) / rates,
+                                              np.where(rates < 0, (lo - v0) / rates, 0.0))))
+            t_end = max(t_end, 0.0)
+
+            def put(t: float, joints=joints, v0=v0, rates=rates, lo=lo, hi=hi) -> dict:
+                values = dict(zip(joints, np.clip(v0 + rates * t, lo, hi).tolist(),
+                                  strict=True))
+                self.set_joint_values(values)
+                return values
+
+            t = 0.0
+            values = put(t)
+            g, n = self.gap(finger.links)
+            queries += n
+            for _ in range(MAX_STEPS):
+                if g <= contact_tol or t >= t_end:
+                    break
+                step = min(g / speed, t_end - t)
+                for _ in range(MAX_HALVINGS):
+                    values = put(t + step)
+                    g_new, n = self.gap(finger.links)
+                    queries += n
+                    if g_new >= -contact_tol:
+                        break
+                    step *= 0.5
+                t, g = t + step, g_new
+            missed.append(bool(g > contact_tol))
+            gaps.append(g)
+            travel.append(t)
+            final.update(values)
+            if g <= contact_tol:
+                contacts += self._contacts(f, contact_tol)
+        return RobotCloseResult(False, contacts, tuple(missed), np.array(gaps),
+                                np.array(travel), final, queries)
+
+    def _contacts(self, f: int, contact_tol: float) -> list[RobotContact]:
+        """The touching links of finger f at the current state, one contact each."""
+        out = []
+        rot = self.obj.pose[:3, :3]
+        for k, link in enumerate(self.description.fingers[f].links):
+            rows = self.closest(contact_tol, link)
+            if not rows:
+                continue
+            row = min(rows, key=lambda r: r[8])
+            point = self.obj.to_object(np.array(row[6]))
+            normal = face_normal(self.obj, point)
+            if normal is None:
+                normal = -np.array(row[7]) @ rot
+            out.append(RobotContact(f, k, point, normal / np.linalg.norm(normal),
+                                    float(row[8])))
+        return out
+

@@ -1,0 +1,241 @@
+"""Grasp planning for a parallel-jaw description robot: antipodal pairs, palm poses, IK.
+
+1. **Antipodal pairs** (Dex-Net's antipodal sampler): points and outward normals sampled on
+   the object's surface (``trimesh.sample.sample_surface``, seeded); a pair (p1, p2) is kept
+   when its normals are nearly opposite (n1 . n2 <= -cos ``max_normal_angle``), the line
+   p1 -> p2 lies within ``max_normal_angle`` of each inward normal (so within the friction
+   cones for mu >= tan of it) and its width |p2 - p1| fits the jaws' opening less
+   ``2 * width_margin``.
+2. **Palm pose**: the jaw frame of the hand (:func:`jaw_frame`: in the palm frame at the open
+   pre-shape, the closing axis from one fingertip link to the other, the approach axis from
+   the palm to the jaws, and the jaws' centre) is aligned with the pair: closing axis along
+   p1 -> p2, the pair's midpoint ``depth`` beyond the jaws' centre along the approach
+   (sampled in [0, ``max_depth``]: towards the fingertips), approach axis at a sampled angle
+   about the pair's line, kept where it points downward (approach . -z >= ``min_downward``);
+   the first ``attempts`` pairs are tried.
+3. **IK**: damped least squares on the arm joints for that palm pose
+   (:func:`solve_palm_ik`: :class:`~kinegrasp_env.robot.kinematics.Kinematics`' pose and
+   Jacobian, random restarts within the joint limits, joints within their limits).
+4. **Checks**: the nominal closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
+   RobotReferenceEngine`, sigma 0) must start clear of the object and end in force closure
+   with the robot's contact model; the grasps kept record their robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.sampling.noise import SeedLike, as_generator
+from kinegrasp_env.world.grasps import Grasp
+
+
+@dataclass(frozen=True)
+class RobotPlannerSettings:
+    """Planner settings (angles in radians, lengths in metres)."""
+
+    surface_samples: int = 400
+    max_normal_angle: float = 0.25
+    width_margin: float = 0.005
+    max_depth: float = 0.025
+    min_downward: float = 0.5
+    attempts: int = 200
+    ik_restarts: int = 6
+    ik_iterations: int = 200
+
+
+@dataclass(frozen=True)
+class JawFrame:
+    """The jaws of a two-finger hand in its palm frame at the open pre-shape.
+
+    Attributes:
+        center: (3,) midpoint of the fingertip links' bounding-box centres.
+        closing: (3,) unit axis from the first fingertip link to the second.
+        approach: (3,) unit axis from the palm origin towards ``center``, normal to closing.
+        opening: the fingers' clearance at the open pre-shape (pybullet's distance between
+            the two fingertip links).
+    """
+
+    center: np.ndarray
+    closing: np.ndarray
+    approach: np.ndarray
+    opening: float
+
+
+def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
+    """The hand's :class:`JawFrame` (measured in the engine's pybullet world).
+
+    Raises:
+        ValueError: the hand does not have exactly two fingers.
+    """
+    description = engine.description
+    if len(description.fingers) != 2:
+        raise ValueError(f"robot {description.name!r} has {len(description.fingers)} fingers; "
+                         "the antipodal planner plans for two (parallel jaws)")
+    world = engine.world
+    q = description.open_configuration()
+    q[:description.arm_dof] = np.clip(0.0, description.model.lower[:description.arm_dof],
+                                      description.model.upper[:description.arm_dof])
+    world.set_configuration(q)
+    palm_inv = np.linalg.inv(world.link_pose(description.palm_link))
+    robot = world.bodies["robot"]
+    tips = [world.link_index[f.tip] for f in description.fingers]
+    centres = []
+    for tip in tips:
+        lo, hi = world.bullet.getAABB(robot, tip)
+        centres.append((palm_inv @ np.r_[0.5 * (np.array(lo) + np.array(hi)), 1.0])[:3])
+    closing = centres[1] - centres[0]
+    closing /= np.linalg.norm(closing)
+    center = 0.5 * (centres[0] + centres[1])
+    approach = center - closing * (center @ closing)
+    approach /= np.linalg.norm(approach)
+    rows = world.bullet.getClosestPoints(robot, robot, 1.0, linkIndexA=tips[0],
+                                         linkIndexB=tips[1])
+    opening = min(r[8] for r in rows)
+    return JawFrame(center, closing, approach, float(opening))
+
+
+def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
+                    rng: np.random.Generator) -> np.ndarray:
+    """(P, 2, 3) antipodal point pairs (object frame) of a trimesh ``mesh``, shuffled."""
+    import trimesh
+
+    points, faces = trimesh.sample.sample_surface(mesh, settings.surface_samples,
+                                                  seed=int(rng.integers(2**31)))
+    normals = mesh.face_normals[faces]  # outward
+    cos = np.cos(settings.max_normal_angle)
+    d = points[None, :, :] - points[:, None, :]  # d[i, j] = p_j - p_i
+    width = np.linalg.norm(d, axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = d / width[..., None]
+    keep = ((normals @ normals.T <= -cos) & (width > 1e-6) & (width <= max_width)
+            & (np.einsum("ijk,ik->ij", u, -normals) >= cos)
+            & (np.einsum("ijk,jk->ij", u, normals) >= cos))
+    i, j = np.nonzero(np.triu(keep, 1))
+    pairs = np.stack([points[i], points[j]], axis=1)
+    return pairs[rng.permutation(len(pairs))]
+
+
+def palm_pose_for(pair_world: np.ndarray, jaw: JawFrame, angle: float,
+                  depth: float) -> np.ndarray:
+    """(4, 4) palm pose putting the jaws on a pair (2, 3) (world frame): closing axis along
+    p1 -> p2, approach at ``angle`` about the pair's line, the midpoint ``depth`` beyond the
+    jaws' centre along the approach."""
+    a = pair_world[1] - pair_world[0]
+    a /= np.linalg.norm(a)
+    helper = np.eye(3)[np.argmin(np.abs(a))]
+    b1 = np.cross(a, helper)
+    b1 /= np.linalg.norm(b1)
+    b2 = np.cross(a, b1)
+    approach = np.cos(angle) * b1 + np.sin(angle) * b2
+    world_axes = np.stack([a, approach, np.cross(a, approach)], axis=1)
+    palm_axes = np.stack([jaw.closing, jaw.approach, np.cross(jaw.closing, jaw.approach)],
+                         axis=1)
+    pose = np.eye(4)
+    pose[:3, :3] = world_axes @ palm_axes.T
+    target = pair_world.mean(axis=0) - depth * approach
+    pose[:3, 3] = target - pose[:3, :3] @ jaw.center
+    return pose
+
+
+def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.ndarray,
+                  rng: np.random.Generator, *, restarts: int = 6, iterations: int = 200,
+                  damping: float = 1e-2, tol: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
+    """Arm joints putting the palm at each of ``targets`` (n, 4, 4), batched.
+
+    Damped least squares from the middle of the joint ranges, then from ``restarts``
+    uniform random starts within the limits for the targets not reached yet; a step is
+    clipped into the limits; success when the position error (metres) and the rotation
+    error (radians) are below ``tol``.
+
+    Returns:
+        (arm joints (n, arm_dof), success (n,) bool).
+    """
+    model = description.model
+    arm = np.arange(description.arm_dof)
+    lo, hi = model.lower[arm], model.upper[arm]
+    n = len(targets)
+    q = np.repeat(description.open_configuration()[None], n, axis=0)
+    q[:, arm] = 0.5 * (lo + hi)
+    done = np.zeros(n, bool)
+    eye = np.eye(6)
+    for attempt in range(restarts + 1):
+        rows = np.flatnonzero(~done)
+        if rows.size == 0:
+            break
+        if attempt > 0:
+            q[np.ix_(rows, arm)] = rng.uniform(lo, hi, size=(rows.size, arm.size))
+        for _ in range(iterations):
+            err = pose_error(kin.pose(q[rows], description.palm_link), targets[rows])
+            ok = (np.linalg.norm(err[:, :3], axis=1) < tol) & (
+                np.linalg.norm(err[:, 3:], axis=1) < tol)
+            done[rows[ok]] = True
+            rows, err = rows[~ok], err[~ok]
+            if rows.size == 0:
+                break
+            jac = kin.jacobian(q[rows], description.palm_link)[:, :, arm]
+            lam = (damping * np.minimum(np.linalg.norm(err, axis=1), 1.0))[:, None, None] ** 2
+            jt = np.swapaxes(jac, 1, 2)
+            step = (jt @ np.linalg.solve(jac @ jt + lam * eye, err[..., None]))[..., 0]
+            step *= np.minimum(1.0, 0.5 / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
+            q[np.ix_(rows, arm)] = np.clip(q[np.ix_(rows, arm)] + step, lo, hi)
+    return q[:, arm], done
+
+
+def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
+                      seed: SeedLike = 0, settings: RobotPlannerSettings | None = None,
+                      friction: float = 0.5) -> list[Grasp]:
+    """Up to ``count`` grasps of a parallel-jaw robot on an object (the module's steps),
+    each in force closure at its nominal closing.
+
+    Raises:
+        ValueError: bad count, a hand that is not two-fingered.
+    """
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise ValueError(f"count must be a positive number of grasps, got {count!r}")
+    settings = settings or RobotPlannerSettings()
+    rng = as_generator(seed)
+    description = load_robot(robot) if isinstance(robot, str) else robot
+    found: list[Grasp] = []
+    with RobotReferenceEngine(description, object_name, friction=friction) as engine:
+        jaw = jaw_frame(engine)
+        kin = Kinematics(description.model)
+        obj = engine.obj
+        pairs = antipodal_pairs(obj.mesh, settings, jaw.opening - 2 * settings.width_margin,
+                                rng)
+        pairs = pairs[:settings.attempts]
+        angles = rng.uniform(0.0, 2.0 * np.pi, len(pairs))
+        depths = rng.uniform(0.0, settings.max_depth, len(pairs))
+        targets = np.array([palm_pose_for(obj.to_world(pair), jaw, angle, depth)
+                            for pair, angle, depth in zip(pairs, angles, depths, strict=True)])
+        targets = targets.reshape(-1, 4, 4)
+        downward = -(targets[:, :3, :3] @ jaw.approach)[:, 2] >= settings.min_downward
+        arms, reached = solve_palm_ik(kin, description, targets[downward], rng,
+                                      restarts=settings.ik_restarts,
+                                      iterations=settings.ik_iterations)
+        for c, arm in zip(np.flatnonzero(downward)[reached], arms[reached], strict=True):
+            if len(found) >= count:
+                break
+            pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
+            q0 = description.open_configuration()
+            q0[:description.arm_dof] = arm
+            draws = engine.run(q0[None])
+            if draws.outcome[0] != FORCE_CLOSURE:
+                continue
+            k = int(draws.n_contacts[0])
+            found.append(Grasp(
+                object_name, q0, kin.pose(q0, description.palm_link)[0],
+                draws.points[0, :k].copy(), draws.normals[0, :k].copy(),
+                draws.finger[0, :k].astype(int), draws.link[0, :k].astype(int),
+                float(draws.quality[0]), str(len(found)),
+                {"planner": "antipodal", "pair": pair.tolist(), "approach_angle": angle,
+                 "depth": depth, "contact_model": description.contact_model,
+                 "settings": asdict(settings)},
+                description.name))
+    return found

@@ -1,0 +1,141 @@
+"""The Panda (a description robot with parallel jaws) through the reference closing:
+planning, closing, contacts and Monte Carlo evaluation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.closing.generic_reference import CONTACT_TOL
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.world.grasps import Grasp, load_grasps, save_grasps
+
+#: pybullet's GJK distances between convex hulls: measured at most 6e-8 m below zero on the
+#: closed grasps here; 1e-6 m stated as margin.
+GJK_TOL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def grasps():
+    return plan_robot_grasps("panda", "cube", count=3, seed=0)
+
+
+@pytest.fixture(scope="module")
+def engine():
+    with RobotReferenceEngine("panda", "cube") as e:
+        yield e
+
+
+def test_planner_finds_grasps_of_the_panda(grasps):
+    assert len(grasps) == 3
+    for g in grasps:
+        assert g.robot == "panda" and g.q0.shape == (8,)
+        assert g.q_nominal > 0 and len(g.points) == 2
+
+
+def test_palm_by_forward_kinematics_matches_pybullet(grasps, engine):
+    kin = Kinematics(engine.description.model)
+    for g in grasps:
+        engine.world.set_configuration(g.q0)
+        np.testing.assert_allclose(engine.world.link_pose("panda_hand"),
+                                   kin.pose(g.q0, "panda_hand")[0], atol=1e-6)
+
+
+def test_contacts_against_pybullet_and_the_exact_object(grasps, engine):
+    """A separate closest-point query at the final state agrees with the contacts; the
+    contact point lies on the object's surface (its exact convex parts) and the normal is the
+    face's inward normal there."""
+    world, obj = engine.world, engine.obj
+    for g in grasps:
+        result = engine.close_one(g.q0)
+        assert not result.start_collision and not any(result.missed)
+        assert len(result.contacts) == 2
+        for c in result.contacts:
+            link = engine.description.fingers[c.finger].links[c.link]
+            rows = world.bullet.getClosestPoints(world.bodies["robot"], world.bodies["object"],
+                                                 1.0, linkIndexA=world.link_index[link])
+            row = min(rows, key=lambda r: r[8])
+            assert -GJK_TOL <= row[8] <= CONTACT_TOL
+            np.testing.assert_allclose(c.point, obj.to_object(np.array(row[6])), atol=1e-9)
+            bullet_normal = -np.array(row[7]) @ obj.pose[:3, :3]
+            _, distance, _ = obj.closest_points(c.point[None])
+            assert abs(distance[0]) < 1e-6
+            # the cube: faces at +-0.03 in x and y, 0 and 0.06 in z (object frame)
+            on = np.abs(np.r_[np.abs(c.point[:2]) - 0.03, c.point[2] * (c.point[2] - 0.06)])
+            faces = np.flatnonzero(on < 1e-6)
+            if faces.size == 1:  # on one face, off its edges: the face's inward normal
+                expected = np.zeros(3)
+                k = int(faces[0])
+                expected[k] = -np.sign(c.point[k] - (0.03 if k == 2 else 0.0))
+                np.testing.assert_allclose(c.normal, expected, atol=1e-12)
+                assert np.degrees(np.arccos(c.normal @ bullet_normal)) < 10.0
+            else:  # an edge or a corner: pybullet's normal
+                np.testing.assert_allclose(c.normal, bullet_normal, atol=1e-9)
+
+
+def test_jaws_stop_within_contact_tol_of_touching(grasps, engine):
+    """Each jaw ends with a gap in [0, CONTACT_TOL] (0.2 mm); 1 mm further it penetrates,
+    1 mm back it is clear by more than CONTACT_TOL."""
+    world = engine.world
+    for g in grasps:
+        result = engine.close_one(g.q0)
+        for f, finger in enumerate(engine.description.fingers):
+            assert -GJK_TOL <= result.gaps[f] <= CONTACT_TOL
+            (joint,) = finger.joints
+            value = result.joints[joint]
+            for shift, check in ((-1e-3, lambda d: d < -5e-4), (1e-3, lambda d: d > CONTACT_TOL)):
+                # the jaws close as the joint value decreases (close: -1)
+                world.set_joint_values({joint: value + shift})
+                gap, _ = world.gap(finger.links)
+                assert check(gap), (g.id, f, shift, gap)
+            world.set_joint_values({joint: value})
+
+
+def test_sigma_zero_is_force_closure_on_planned_grasps(grasps, engine):
+    for g in grasps:
+        r = evaluate_robot_grasp(g, sigma=0.0, n=3, seed=0, engine=engine)
+        assert r.p_fc == 1.0 and r.counts["force_closure"] == 3
+        np.testing.assert_allclose(r.draws.quality, g.q_nominal, rtol=1e-9)
+
+
+def test_same_seed_same_result(grasps, engine):
+    g = grasps[0]
+    a = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
+    b = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
+    c = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=6, engine=engine)
+    np.testing.assert_array_equal(a.draws.outcome, b.draws.outcome)
+    np.testing.assert_array_equal(a.draws.quality, b.draws.quality)
+    assert not np.array_equal(a.draws.quality, c.draws.quality)
+    again = plan_robot_grasps("panda", "cube", count=1, seed=0)
+    np.testing.assert_array_equal(again[0].q0, grasps[0].q0)
+
+
+def test_noise_gives_sensible_outcomes(grasps, engine):
+    r = evaluate_robot_grasp(grasps[0], sigma=0.0133, n=20, seed=0, engine=engine)
+    assert sum(r.counts.values()) == 20
+    assert r.ci[0] <= r.p_fc <= r.ci[1]
+    fc = r.draws.outcome == FORCE_CLOSURE
+    assert np.all(r.draws.quality[fc] > 0) and np.all(r.draws.quality[~fc] == 0)
+
+
+def test_grasp_file_records_its_robot(grasps, tmp_path):
+    path = save_grasps(grasps, tmp_path / "g.json")
+    data = json.loads(path.read_text())
+    assert data["robot"] == "panda" and all(e["robot"] == "panda" for e in data["grasps"])
+    loaded = load_grasps(path)
+    assert [g.robot for g in loaded] == ["panda"] * len(grasps)
+    np.testing.assert_array_equal(loaded[0].q0, grasps[0].q0)
+    with pytest.raises(ValueError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
+        evaluate_robot_grasp(loaded[0], sigma=0.0, n=1, robot="kuka_sdh")
+    # a grasp file without a robot is the default robot's, and writes no robot field
+    entry = {k: v for k, v in data["grasps"][0].items() if k != "robot"}
+    with pytest.raises(ValueError, match="q0 must have 14 entries"):
+        Grasp.from_dict(entry)
+    default = Grasp("cube", np.zeros(14), np.eye(4), np.zeros((0, 3)), np.zeros((0, 3)),
+                    np.zeros(0, int), np.zeros(0, int), 0.0)
+    assert "robot" not in default.to_dict()
