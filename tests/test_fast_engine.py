@@ -500,7 +500,7 @@ def test_edge_blocks_cover_each_part_and_hold_their_edges(name):
     """The packed geometry's edge blocks: each part's edges are the part's own (the same
     set, reordered), split into consecutive blocks of at most BLOCK_EDGES, and every edge's
     ends lie inside its block's sphere (what skipping a block whole relies on)."""
-    from kinegrasp_env.closing.segment_distance import BLOCK_EDGES, pack
+    from kinegrasp_env.closing.packed_geometry import BLOCK_EDGES, pack
 
     obj = load_object(name)
     geo = pack(obj)

@@ -223,7 +223,8 @@ def test_a_forced_reimport_reaches_every_cache_in_the_process(tmp_path, monkeypa
     size under the same name in the same process: every engine now gives the built-in
     cube's numbers, the exact segment distance and the grid see the new top face."""
     from kinegrasp_env.closing.capsule_gap import posed_min_distance
-    from kinegrasp_env.closing.segment_distance import closest_to_segments, packed
+    from kinegrasp_env.closing.packed_geometry import packed
+    from kinegrasp_env.closing.segment_distance import closest_to_segments
     from kinegrasp_env.world.sdf import object_grid
 
     monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))

@@ -360,7 +360,7 @@ def _expanded(cloud: np.ndarray) -> tuple | None:
 @pytest.mark.parametrize("k, m", [(4, 8), (5, 12)])
 def test_expansion_facets_lie_on_the_hyperplanes_of_their_vertices(k, m):
     """Every live facet of the expanded polytope (most from their neighbours' hyperplanes,
-    :func:`_pencil_facet`) against the hyperplane through its 6 vertices by SVD (whose own
+    ``facets.pencil_facet``) against the hyperplane through its 6 vertices by SVD (whose own
     vertex residuals are below 1e-15 of the wrench scale): normals within 1e-12 (measured
     3.7e-13 on 80 sets), offsets within 3e-13 of the wrench scale (measured 1.5e-13), every
     vertex within PENCIL_TOL = 1e-13 of its facet (measured 4e-14); the normal points away
@@ -397,7 +397,7 @@ def test_pencil_facet_against_the_hyperplane_through_ridge_and_apex():
     """One new facet from a visible facet f and its neighbour h across a ridge: the pencil
     combination is accepted (not left to Gram-Schmidt) and equals the SVD hyperplane through
     the ridge's 5 vertices and the apex to 1e-12."""
-    from kinegrasp_env.quality.expansion import _pencil_facet
+    from kinegrasp_env.quality.facets import pencil_facet
 
     rng = np.random.default_rng(3)
     checked = 0
@@ -419,7 +419,7 @@ def test_pencil_facet_against_the_hyperplane_through_ridge_and_apex():
         verts[g, :5] = verts[f, 1:]
         verts[g, 5] = len(cloud)
         height[f] = normal[f] @ apex - offset[f]
-        assert _pencil_facet(w, poly, g, f, h, scale)
+        assert pencil_facet(w, poly, g, f, h, scale)
         a, b = _hyperplane_svd(w[verts[g]])
         if a @ interior > b:
             a, b = -a, -b
@@ -437,14 +437,14 @@ def test_phase_one_finds_a_simplex_around_the_origin(monkeypatch, dantzig):
     "outside" exactly where an LP (SciPy's HiGHS) finds no convex combination equal to 0."""
     from scipy.optimize import linprog
 
-    from kinegrasp_env.quality import expansion
+    from kinegrasp_env.quality import phase_one
 
-    monkeypatch.setattr(expansion, "DANTZIG_PIVOTS", dantzig)
+    monkeypatch.setattr(phase_one, "DANTZIG_PIVOTS", dantzig)
     pts, nrm = sphere_contacts(np.random.default_rng(5), 40, 5, jitter=0.3)
     w = np.ascontiguousarray(wrench_matrix(pts, nrm, num_edges=12, torque_scale=20.0))
     inside = 0
     for cloud in w:
-        start = expansion._initial_simplex.py_func(cloud, 1e-12)
+        start = phase_one.initial_simplex.py_func(cloud, 1e-12)
         lp = linprog(np.zeros(len(cloud)), A_eq=np.vstack([cloud.T, np.ones(len(cloud))]),
                      b_eq=np.r_[np.zeros(6), 1.0], bounds=(0, None), method="highs")
         assert (start[0] == -1) == (lp.status == 2)

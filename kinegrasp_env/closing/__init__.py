@@ -1,10 +1,12 @@
 """Auto-close: the fingers closed until they touch the object, GraspIt-style.
 
-Entry points: ``reference.auto_close`` (one draw, pybullet distance queries: the reference)
-and ``fast.FastHand`` (a batch of draws: distance grids and compiled kernels). Both share
-the exact near-contact geometry of ``hand_geometry`` and ``segment_distance``; the
-compiled closing loop is ``close_kernel``, its per-row helpers ``finger_axes`` and
-``capsule_gap``. Uses ``world`` and ``robot``.
+Entry points: ``reference.auto_close`` (one draw, pybullet distance queries: the reference;
+its hand in pybullet: ``hand_probe``) and ``fast.FastHand`` (a batch of draws: distance grids
+and compiled kernels). Both follow the rules of ``close_rules`` and share the exact
+near-contact geometry of ``hand_geometry`` and ``segment_distance`` (its packed parts:
+``packed_geometry``, its small kernels: ``segment_primitives``); the compiled closing loop is
+``close_kernel``, its per-row helpers ``finger_axes`` and ``capsule_gap``. Uses ``world`` and
+``robot``.
 """
 
 from __future__ import annotations

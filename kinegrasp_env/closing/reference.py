@@ -21,279 +21,44 @@ closest pair (:mod:`kinegrasp_env.closing.hand_geometry`): the point on the obje
 normal, the face's inward normal or, at an edge or corner, the exact separating direction
 (pybullet's own normal is off by degrees there).
 
-The capsule axes of those exact gaps come from the hand URDF's kinematics in double precision
-(:func:`zero_flexion_frames` once per pre-shape, then :func:`finger_axes` per evaluation), not
-from pybullet's link states: ``getLinkState``'s link frame (its entries 4 and 5) carries
-single-precision rounding (up to ~5e-7 per entry measured; pybullet's inertial frame, which
-its collision shapes hang from, agrees with these axes to ~1e-15), which kept the secant
-polish from reaching ``POLISH_TOL`` and cost two pybullet calls per evaluation.
+The hand's joints in pybullet and the placement of its capsule axes:
+:mod:`kinegrasp_env.closing.hand_probe`; the constants and rules shared with the fast closing:
+:mod:`kinegrasp_env.closing.close_rules`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import lru_cache
-from typing import NamedTuple
-
 import numpy as np
 
-from kinegrasp_env import jit
-from kinegrasp_env.assets import asset_path
-from kinegrasp_env.closing.finger_axes import finger_axes
-from kinegrasp_env.closing.hand_geometry import Shape, hand_shapes, pair_contacts
-from kinegrasp_env.closing.segment_distance import closest_to_segments
-from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh, load_urdf
+from kinegrasp_env.closing.close_rules import (
+    CONTACT_TOL,
+    EXACT_BAND,
+    MAX_ITERATIONS,
+    POLISH_ITERATIONS,
+    POLISH_PROBE,
+    POLISH_RANGE,
+    POLISH_TOL,
+    QUERY_DISTANCE,
+    START_TOL,
+    STEP,
+    CloseResult,
+    Contact,
+    LinkSpeeds,
+    closing_speeds,
+    closing_travel,
+    finger_geometry,
+    secant_root,
+)
+from kinegrasp_env.closing.hand_geometry import pair_contacts
+from kinegrasp_env.closing.hand_probe import HandProbe, finger_capsules, hand_joint_values
+from kinegrasp_env.robot.model import FINGERS
 from kinegrasp_env.world.sim import GraspWorld
 
-#: Largest gap (or penetration) at which a link counts as touching, metres.
-CONTACT_TOL = 2e-4
-#: Smallest closing step, radians (bisection takes over after an overshoot).
-STEP = 0.02
-#: Gaps beyond this are not computed exactly (the step is then bounded by it), metres.
-QUERY_DISTANCE = 0.05
-#: Gaps of finger capsules within +-this are recomputed exactly (pybullet's convex-hull
-#: distances are off by up to ~1 mm at edges), metres.
-EXACT_BAND = 2e-3
-#: Contact polish: once touching (gap within CONTACT_TOL), secant steps on the exact gap
-#: move the finger to where the gap is zero (to POLISH_TOL), within POLISH_RANGE radians.
-POLISH_TOL = 1e-9
-POLISH_PROBE = 1e-3
-POLISH_RANGE = 0.05
-POLISH_ITERATIONS = 8
-#: Penetration below which the pre-grasp pose counts as a start collision, metres.
-START_TOL = CONTACT_TOL
-#: Radius of the finger capsules plus margin, for the speed bound (metres).
-_RADIUS_BOUND = 0.02
-MAX_ITERATIONS = 400
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One finger-object contact (object frame).
-
-    Attributes:
-        finger: 0, 1, 2 (fingers f1, f2, f3).
-        link: 0 proximal, 1 distal.
-        point: (3,) on the object's surface, metres.
-        normal: (3,) inward unit surface normal.
-    """
-
-    finger: int
-    link: int
-    point: np.ndarray
-    normal: np.ndarray
-
-
-@dataclass
-class CloseResult:
-    """Outcome of one auto-close.
-
-    Attributes:
-        start_collision: the hand penetrated the object before closing.
-        contacts: contacts found (at most one per link).
-        missed: per finger, True if it closed to its limits without touching.
-        joints: final hand DOF (7,) in ``HAND_JOINTS`` order.
-        iterations: collision queries used.
-    """
-
-    start_collision: bool
-    contacts: list[Contact] = field(default_factory=list)
-    missed: tuple[bool, bool, bool] = (False, False, False)
-    joints: np.ndarray | None = None
-    iterations: int = 0
-
-
-def hand_joint_values(preshape: np.ndarray) -> dict[str, float]:
-    """Every hand joint's value (coupled spread expanded) from the 7 hand DOF."""
-    model = kuka_sdh()
-    q = np.zeros(model.dof)
-    q[model.index(HAND_JOINTS)] = preshape
-    values = model.expand(q)
-    return {name: float(values[name]) for name in values if not name.startswith("lbr_")}
-
-
-@lru_cache(maxsize=1)
-def _finger_geometry() -> tuple[float, float, float, float]:
-    """(proximal length, distal length, upper limit proximal, upper limit distal)."""
-    model = kuka_sdh()
-    distal = model.joint("f1_distal").origin[:3, 3]
-    tip = model.joint("f1_distal_to_tip").origin[:3, 3]
-    return (float(np.linalg.norm(distal)), float(np.linalg.norm(tip)),
-            model.joint("f1_proximal").upper, model.joint("f1_distal").upper)
-
-
-class LinkSpeeds(NamedTuple):
-    """Bounds on how fast any surface point of a finger link moves per radian of closing
-    (metres/rad): the proximal and the distal link while both joints close (phase 1), the
-    distal link while only the distal joint closes (phase 2; the proximal link is then still).
-    """
-
-    proximal: float
-    distal: float
-    distal_alone: float
-
-
-def closing_speeds() -> LinkSpeeds:
-    """:class:`LinkSpeeds` of the hand's fingers: a point at distance r from a joint axis
-    turning at 1 rad per radian of t moves at most r per radian; the proximal link's points
-    lie within length_p + R of the proximal axis, the distal link's within
-    length_p + length_d + R of it and length_d + R of the distal axis (R: a bound on the
-    capsule radius)."""
-    length_p, length_d, _, _ = _finger_geometry()
-    reach_p = length_p + length_d + _RADIUS_BOUND
-    reach_d = length_d + _RADIUS_BOUND
-    return LinkSpeeds(length_p + _RADIUS_BOUND, reach_p + reach_d, reach_d)
-
-
-@jit.kernel(_nrt=False)
-def closing_travel(gap_p: float, gap_d: float, phase: int, speeds: np.ndarray) -> float:
-    """Largest closing step (radians) before a moving link could touch: each link's gap
-    (metres) over its speed bound, the smaller; the proximal link counts in phase 1 only.
-    speeds: (3,) the :class:`LinkSpeeds` as an array. Compiled: the fast engine's closing
-    loop calls it too (its vectorized twin, ``FastHand._travel``, repeats the arithmetic).
-    (One bound for the whole finger, the sum of the three reaches, took 1.4-3.5x smaller
-    steps: 7-9% more closing time in the fast engine.)"""
-    if phase != 1:
-        return gap_d / speeds[2]
-    return min(gap_d / speeds[1], gap_p / speeds[0])
-
-
-def secant_root(gap_at, t: float, gap: float, t_min: float, t_max: float) -> float:
-    """Polish a contact: the t in [t_min, t_max] where the exact gap crosses zero.
-
-    Secant steps from (t - ``POLISH_PROBE``, t) until the gap is within ``POLISH_TOL``
-    (at most ``POLISH_ITERATIONS``); the best t seen is returned (the start t when nothing
-    improves it, e.g. a grazing touch).
-    """
-    t0 = max(t - POLISH_PROBE, t_min)
-    if t0 >= t or abs(gap) <= POLISH_TOL:
-        return t
-    g0, t1, g1 = gap_at(t0), t, gap
-    best_t, best_g = t1, abs(g1)
-    for _ in range(POLISH_ITERATIONS):
-        if g1 == g0:
-            break
-        t2 = min(max(t1 - g1 * (t1 - t0) / (g1 - g0), t_min), t_max)
-        g2 = gap_at(t2)
-        t0, g0, t1, g1 = t1, g1, t2, g2
-        if abs(g2) < best_g:
-            best_t, best_g = t2, abs(g2)
-        if best_g <= POLISH_TOL:
-            break
-    return best_t
-
-
-@dataclass(frozen=True)
-class FingerChain:
-    """What places one finger's capsule axes, from the hand URDF (the file pybullet loads).
-
-    Attributes:
-        axis_p, axis_d: (3,) unit axes of the proximal and distal joints.
-        distal_origin: (4, 4) the distal joint's origin in the proximal link frame.
-        ends_p, ends_d: (2, 3) capsule axis end points in the proximal and distal link frames,
-            metres.
-        radii: (2,) capsule radii (proximal, distal), metres.
-    """
-
-    axis_p: np.ndarray
-    axis_d: np.ndarray
-    distal_origin: np.ndarray
-    ends_p: np.ndarray
-    ends_d: np.ndarray
-    radii: np.ndarray
-
-
-@lru_cache(maxsize=1)
-def hand_kinematics() -> Kinematics:
-    """Forward kinematics of the hand alone (``sdh_hand.urdf``, root = the flange frame)."""
-    return Kinematics(load_urdf(asset_path("robots", "sdh_hand.urdf"), actuated=HAND_JOINTS))
-
-
-@lru_cache(maxsize=1)
-def finger_chains() -> tuple[FingerChain, ...]:
-    """The :class:`FingerChain` of fingers 1, 2, 3."""
-    model = hand_kinematics().model
-    chains = []
-    for (prox, dist, _, _), (shape_p, shape_d) in zip(FINGERS, finger_capsules(), strict=True):
-        chains.append(FingerChain(
-            model.joint(prox).axis, model.joint(dist).axis, model.joint(dist).origin,
-            np.array(shape_p.axis_points()), np.array(shape_d.axis_points()),
-            np.array([shape_p.radius, shape_d.radius])))
-    return tuple(chains)
-
-
-@lru_cache(maxsize=64)
-def zero_flexion_frames(spread: float) -> np.ndarray:
-    """(3, 4, 4) frames of the fingers' proximal links at zero flexion, in the hand root
-    frame, for a spread (radians); cached: a Monte Carlo run repeats one pre-shape."""
-    q = np.zeros(len(HAND_JOINTS))
-    q[HAND_JOINTS.index("f1_spread")] = spread
-    frames = hand_kinematics().forward(q, [f[2] for f in FINGERS])
-    out = np.stack([frames[f[2]][0] for f in FINGERS])
-    out.setflags(write=False)  # shared by the cache
-    return out
-
-
-class HandProbe:
-    """The hand of one auto-close: its pybullet joints and its finger capsules' exact gaps.
-
-    pybullet's joints are reset only where the value changed (resetting one to its current
-    value leaves the state as it was). A finger capsule's exact closest pair with the object
-    comes from its axis, placed by the proximal joint frame of the draw (hand root and spread,
-    object frame) and the finger's two flexions (:func:`finger_axes`), not from pybullet.
-    """
-
-    def __init__(self, world: GraspWorld) -> None:
-        self.world, self.obj = world, world.obj
-        self.hand = world.bodies["hand"]
-        self.body = world.bodies["object"]
-        self.reset_joints = world.bullet.resetJointStatesMultiDof  # bound once per close
-        self.closest_points = world.bullet.getClosestPoints
-        self.joint_index = world.joint_index
-        self.joints: dict[int, float] = {}
-        self.chains = finger_chains()
-        #: pybullet link index -> (finger, link 0 proximal / 1 distal)
-        self.capsules = {world.link_index[f[2 + link]]: (i, link)
-                         for i, f in enumerate(FINGERS) for link in (0, 1)}
-        self.frames = np.empty((3, 4, 4))
-
-    def set_hand(self, root_pose: np.ndarray, preshape: np.ndarray) -> None:
-        """Place the hand root ((4, 4) world) and set every hand joint from the pre-shape."""
-        joints = hand_joint_values(preshape)
-        self.world.set_hand(root_pose, joints)
-        self.joints = {self.joint_index[name]: float(v) for name, v in joints.items()}
-        self.frames = self.obj.pose_inverse @ root_pose @ zero_flexion_frames(float(preshape[0]))
-
-    def set_joints(self, values: dict[str, float]) -> None:
-        """Set hand joints by name (radians) in pybullet, those that changed in one call."""
-        joints, targets = [], []
-        for name, value in values.items():
-            joint, value = self.joint_index[name], float(value)
-            if self.joints.get(joint) != value:
-                joints.append(joint)
-                targets.append([value])
-                self.joints[joint] = value
-        if joints:
-            self.reset_joints(self.hand, joints, targets)
-
-    def axes(self, finger: int, prox: float, dist: float, links) -> np.ndarray:
-        """Capsule axes (m, 2, 3) [a, b] of a finger's links (0 proximal, 1 distal) at
-        flexions prox, dist (radians), object frame."""
-        chain = self.chains[finger]
-        ends = finger_axes(self.frames[finger:finger + 1], chain.axis_p, np.array([prox]),
-                           chain.distal_origin, chain.axis_d, np.array([dist]),
-                           chain.ends_p, chain.ends_d)[0].reshape(2, 2, 3)
-        return ends[list(links)]
-
-    def pairs(self, axes: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Exact closest pairs of capsule axes (m, 2, 3) and the object: (on the object
-        (m, 3), on the axis (m, 3), axis distance (m,), part (m,))."""
-        return closest_to_segments(self.obj, axes[:, 0], axes[:, 1])
-
-    def radii(self, finger: int, links) -> np.ndarray:
-        """Capsule radii (m,) of a finger's links (0 proximal, 1 distal), metres."""
-        return self.chains[finger].radii[list(links)]
+#: Importable from here too (the reference closing's constants, result types and helpers).
+__all__ = ["CONTACT_TOL", "EXACT_BAND", "MAX_ITERATIONS", "POLISH_ITERATIONS", "POLISH_PROBE",
+           "POLISH_RANGE", "POLISH_TOL", "QUERY_DISTANCE", "START_TOL", "STEP", "CloseResult",
+           "Contact", "HandProbe", "LinkSpeeds", "auto_close", "closing_speeds",
+           "closing_travel", "finger_capsules", "hand_joint_values", "secant_root"]
 
 
 class _Finger:
@@ -406,13 +171,6 @@ def _contacts(obj, fingers: list[_Finger]) -> list[Contact]:
             for i, (finger, link, _) in enumerate(found)]
 
 
-@lru_cache(maxsize=1)
-def finger_capsules() -> tuple[tuple[Shape, Shape], ...]:
-    """(proximal, distal) capsule of each finger."""
-    shapes = {s.link: s for s in hand_shapes()}
-    return tuple((shapes[f[2]], shapes[f[3]]) for f in FINGERS)
-
-
 def _exact_gaps(probe: HandProbe, links: list[int], flexion) -> list[float]:
     """Exact gaps (metres) of capsule links (pybullet link indices), each finger at
     ``flexion[finger]`` = (proximal, distal) radians."""
@@ -475,7 +233,7 @@ def auto_close(world: GraspWorld, root_pose: np.ndarray, preshape: np.ndarray) -
     probe.set_hand(root_pose, preshape)
     if _start_collision(probe, preshape):
         return CloseResult(start_collision=True)
-    geometry = _finger_geometry()
+    geometry = finger_geometry()
     fingers = [_Finger(i, preshape[1 + 2 * i], preshape[2 + 2 * i], geometry,
                        world.link_index) for i in range(3)]
     iterations = 0

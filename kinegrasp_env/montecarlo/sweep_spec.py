@@ -1,0 +1,301 @@
+"""A sweep's specification (``kinegrasp sweep SPEC``): the grid read from YAML or JSON, every
+entry checked before any work starts (:class:`SweepSpec`; one :class:`SpecError` line naming the
+first bad entry), and its tasks (:class:`SweepTask`: one chunk of one cell).
+
+The grid is objects x grasps x sigmas x noise types x engines; each cell is ``samples``
+draws split into chunks of ``chunk``. A ``noise`` entry may also be a noise model (a spec
+mapping or file: :mod:`kinegrasp_env.montecarlo.sweep_noise`), whose joint sigma is the cell's
+sigma.
+
+Grasps: a built-in object's come from its shipped set; ``grasp_files`` maps an object to a
+grasp file (``kinegrasp plan``'s output, relative to the spec file) whose grasps replace
+the shipped set, which is how an imported object (it has none) is swept. ``grasps`` indexes
+each object's set; each grasp file's SHA-256 is kept with the spec
+(:meth:`SweepSpec.sources`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
+from kinegrasp_env.montecarlo.sweep_noise import noise_entries
+from kinegrasp_env.sampling.noise_spec import spec_loader
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import OBJECT_NAMES, object_names, object_version
+
+SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
+             "chunk", "seed")
+
+
+class SpecError(ValueError):
+    """A sweep specification that cannot run (raised before any work starts)."""
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep grid (see the module docstring)."""
+
+    objects: tuple[str, ...]
+    grasps: tuple[int, ...] | None  # None: every shipped grasp
+    sigmas: tuple[float, ...]
+    noise: tuple[str, ...] = ("gaussian",)
+    engines: tuple[str, ...] = ("pybullet",)
+    samples: int = 1000
+    chunk: int = 250
+    seed: int = 0
+    #: (label, spec JSON) of the noise models among ``noise``
+    models: tuple[tuple[str, str], ...] = ()
+    #: (object, absolute path, SHA-256) of each grasp file replacing a shipped set
+    grasp_files: tuple[tuple[str, str, str], ...] = ()
+
+    @classmethod
+    def from_dict(cls, data: Any, where: str = "spec",
+                  base: str | Path | None = None) -> SweepSpec:
+        """Validate every entry; one :class:`SpecError` naming the first bad one (``base``:
+        the folder noise spec files are relative to)."""
+        if not isinstance(data, dict):
+            raise SpecError(f"{where}: expected a mapping of {', '.join(SPEC_KEYS)}")
+        unknown = sorted(set(data) - set(SPEC_KEYS))
+        if unknown:
+            raise SpecError(f"{where}: unknown key {unknown[0]!r}; allowed keys: "
+                            f"{', '.join(SPEC_KEYS)}")
+        for key in ("objects", "sigmas"):
+            if key not in data:
+                raise SpecError(f"{where}: missing key {key!r}")
+        objects = _names(data["objects"], object_names(), "objects", where)
+        files = _grasp_files(data.get("grasp_files", {}), objects, where, base)
+        _check_grasp_sets(objects, files, where)
+        noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
+        engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
+        sigmas = _unique(tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where)),
+                         "sigmas", where)
+        grasps = data.get("grasps", "all")
+        if grasps == "all":
+            indices = None
+        else:
+            indices = _unique(tuple(_integer(g, "grasps", where, low=0)
+                                    for g in _list(grasps, "grasps", where)), "grasps", where)
+            _check_grasp_indices(objects, indices, files, where)
+        samples = _integer(data.get("samples", 1000), "samples", where, low=1)
+        chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
+        seed = _integer(data.get("seed", 0), "seed", where, low=0)
+        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
+                   files)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> SweepSpec:
+        """Read a YAML (or JSON) spec file (numbers as YAML 1.2 reads them: ``1e-2`` is a
+        number); a syntax error is one :class:`SpecError` line: file, line, column, what."""
+        path = Path(path)
+        if not path.is_file():
+            raise SpecError(f"spec file {path} not found")
+        import yaml
+
+        try:
+            data = yaml.load(path.read_text(), Loader=spec_loader())  # a SafeLoader
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark or exc.context_mark
+            where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+            what = exc.problem or exc.context or "syntax error"
+            raise SpecError(f"{where}: not valid YAML: {what}") from None
+        except yaml.YAMLError as exc:
+            raise SpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+        return cls.from_dict(data, where=str(path), base=path.parent)
+
+    def grasp_set(self, object_name: str) -> tuple[Grasp, ...]:
+        """The grasps of ``object_name`` the sweep indexes: its grasp file's, else its
+        shipped set."""
+        return _grasp_set(object_name, self.grasp_files)
+
+    def grasp(self, object_name: str, index: int) -> Grasp:
+        return self.grasp_set(object_name)[index]
+
+    def grasp_indices(self, object_name: str) -> tuple[int, ...]:
+        if self.grasps is None:
+            return tuple(range(len(self.grasp_set(object_name))))
+        return self.grasps
+
+    def sources(self) -> dict[str, str]:
+        """What the store must have been made with besides the streams: per object, its
+        grasp file's SHA-256 (or ``shipped``) and its catalog version."""
+        files = {name: digest for name, _, digest in self.grasp_files}
+        out = {}
+        for name in self.objects:
+            out[f"grasps:{name}"] = files.get(name, "shipped")
+            out[f"object:{name}"] = object_version(name)
+        return out
+
+    def cells(self) -> list[tuple[str, int, float, str, str]]:
+        """(object, grasp, sigma, noise, engine) in a fixed order."""
+        return [(o, g, s, n, e) for o in self.objects for g in self.grasp_indices(o)
+                for s in self.sigmas for n in self.noise for e in self.engines]
+
+    def tasks(self) -> list[SweepTask]:
+        """Every task, carrying its grasp's q0 (a worker needs no grasp file)."""
+        sizes = chunk_sizes(self.samples, self.chunk)
+        models = dict(self.models)
+        return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n),
+                          tuple(self.grasp(o, g).q0.tolist()))
+                for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
+
+
+def _noise(value: Any, where: str, base: str | Path | None
+           ) -> tuple[tuple[str, ...], tuple[tuple[str, str], ...]]:
+    """``noise``: distribution names and noise models (labels, models)."""
+    from kinegrasp_env.sampling.noise_model import NoiseSpecError
+
+    try:
+        labels, models = noise_entries(_list(value, "noise", where), base)
+    except NoiseSpecError as exc:
+        raise SpecError(f"{where}: noise: {exc}") from None
+    return _unique(labels, "noise", where), models
+
+
+#: Numbers YAML 1.1 reads as strings but YAML 1.2 (and every reader of the spec) as floats:
+#: an exponent without a decimal point or without a sign (``1e-2``, ``5E3``, ``1.5e3``).
+
+
+def _unique(values: tuple, key: str, where: str) -> tuple:
+    """``values`` if no entry repeats; else a :class:`SpecError` naming the first repeat."""
+    for i, value in enumerate(values):
+        if value in values[:i]:
+            raise SpecError(f"{where}: {value!r} appears twice in {key!r}; list each "
+                            "entry once")
+    return values
+
+
+def _list(value: Any, key: str, where: str) -> list:
+    values = list(value) if isinstance(value, (list, tuple)) else [value]
+    if not values:
+        raise SpecError(f"{where}: {key!r} is empty")
+    return values
+
+
+def _names(value: Any, known: tuple[str, ...], key: str, where: str) -> tuple[str, ...]:
+    names = _list(value, key, where)
+    for name in names:
+        if name not in known:
+            raise SpecError(f"{where}: unknown {key[:-1] if key.endswith('s') else key} "
+                            f"{name!r} in {key!r}; known: {', '.join(known)}")
+    return _unique(tuple(names), key, where)
+
+
+def _sigma(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{where}: sigma {value!r} is not a number")
+    if not math.isfinite(value) or value < 0:
+        raise SpecError(f"{where}: sigma must be finite and >= 0, got {value}")
+    if value > MAX_SIGMA:
+        raise SpecError(f"{where}: sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {value}")
+    return float(value)
+
+
+def _integer(value: Any, key: str, where: str, low: int) -> int:
+    """An integer >= ``low``; a float with no fractional part counts (``samples: 1e4``)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise SpecError(f"{where}: {key!r} must be an integer >= {low}, got {value!r}")
+    return value
+
+
+def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
+                 base: str | Path | None) -> tuple[tuple[str, str, str], ...]:
+    """``grasp_files``: (object, absolute path, SHA-256) per entry, each file read and
+    checked (grasps of that object, at least one)."""
+    if not isinstance(value, dict):
+        raise SpecError(f"{where}: 'grasp_files' must map objects to grasp files, e.g. "
+                        "{duck: duck_grasps.json}")
+    out = []
+    for name, text in value.items():
+        if name not in objects:
+            raise SpecError(f"{where}: grasp_files names {name!r}, which is not in 'objects'")
+        if not isinstance(text, str) or not text:
+            raise SpecError(f"{where}: grasp_files: {name}: expected a file name, got {text!r}")
+        path = (Path(base or ".") / text).absolute()
+        try:
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            grasps = _file_grasps(str(path), digest)
+        except FileNotFoundError:
+            raise SpecError(f"{where}: grasp_files: {name}: no such file {path}") from None
+        except (OSError, ValueError) as exc:
+            raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
+        if not grasps:
+            raise SpecError(f"{where}: grasp_files: {name}: {path} holds no grasps")
+        other = next((g for g in grasps if g.object != name), None)
+        if other is not None:
+            raise SpecError(f"{where}: grasp_files: {name}: grasp {other.id} of {path} is a "
+                            f"grasp of {other.object}")
+        out.append((name, str(path), digest))
+    return tuple(out)
+
+
+@lru_cache(maxsize=16)
+def _file_grasps(path: str, digest: str) -> tuple[Grasp, ...]:
+    """The grasps of a grasp file whose bytes have SHA-256 ``digest`` (a file changed since
+    the spec was read is a :class:`SpecError`)."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if hashlib.sha256(Path(path).read_bytes()).hexdigest() != digest:
+        raise SpecError(f"{path} changed since the sweep spec was read")
+    return tuple(load_grasps(path))
+
+
+def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...]) -> tuple[Grasp, ...]:
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    for object_name, path, digest in files:
+        if object_name == name:
+            return _file_grasps(path, digest)
+    return tuple(shipped_grasps(name))
+
+
+def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
+                      where: str) -> None:
+    """An imported object (no shipped set) needs a grasp file: one line saying how."""
+    given = {name for name, _, _ in files}
+    for name in objects:
+        if name not in OBJECT_NAMES and name not in given:
+            raise SpecError(
+                f"{where}: {name!r} is an imported object and has no shipped grasp set; give "
+                f"its grasp file in 'grasp_files' (e.g. grasp_files: {{{name}: "
+                f"{name}_grasps.json}}, written by `kinegrasp plan --object {name} --out "
+                f"{name}_grasps.json`)")
+
+
+def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],
+                         files: tuple[tuple[str, str, str], ...], where: str) -> None:
+    for name in objects:
+        count = len(_grasp_set(name, files))
+        bad = [i for i in indices if i >= count]
+        if bad:
+            kind = "grasp file" if any(f[0] == name for f in files) else "shipped set"
+            raise SpecError(f"{where}: grasp {bad[0]} does not exist for {name} "
+                            f"(its {kind} has grasps 0..{count - 1})")
+
+
+@dataclass(frozen=True)
+class SweepTask:
+    """One chunk of one cell; ``key`` is its identity in the store."""
+
+    object: str
+    grasp: int
+    sigma: float
+    noise: str
+    engine: str
+    chunk: int
+    size: int
+    seed: int
+    model: str | None = None  # the spec JSON of a noise-model cell
+    q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
+
+    @property
+    def key(self) -> str:
+        return (f"{self.object}/{self.grasp}/{self.sigma!r}/{self.noise}/{self.engine}/"
+                f"{self.chunk}")
