@@ -13,8 +13,10 @@ thresholds and hand motion (:mod:`~kinegrasp_env.physics.motion`) as
    at ``creep_speed`` while the distal link touches; the end when every flexion joint has
    stalled. Contacts: one per touching finger link, merged from MuJoCo's records by the same
    rule (:func:`~kinegrasp_env.physics.pybullet_closing.merge_records`), object frame;
-2. grip: every distal joint driven towards ``grip_speed`` with its torque limit (the
-   proximal joints as the closing left them), until the fingers' normal forces are steady;
+2. grip: pybullet's rule (:mod:`~kinegrasp_env.physics.grip_forces`): the closing's
+   contacts give balanced joint torques, each loaded flexion joint a spring (a ``general``
+   actuator: gain k, bias -k q, its torque limit as force range), the others held, until the
+   fingers' normal forces are steady;
 3. release (pin off, table away), ``settle_time``; ``grip_shift`` and the grip verdict;
 4. the phases from the saved state (``mj_getState`` / ``mj_setState``).
 """
@@ -26,11 +28,19 @@ from dataclasses import replace
 import numpy as np
 
 from kinegrasp_env.closing.reference import START_TOL, CloseResult, Contact, hand_joint_values
+from kinegrasp_env.physics.grip_forces import (
+    GripContact,
+    SpringGrip,
+    balanced_torques,
+    loaded_joints,
+    tip_offsets,
+)
 from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
     HELD,
+    NO_GRIP,
     REST_PHASE,
     START_COLLISION,
     HoldProtocol,
@@ -48,7 +58,7 @@ from kinegrasp_env.physics.pybullet_closing import (
     merge_records,
 )
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
+from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS, HAND_JOINTS
 from kinegrasp_env.world.objects import GraspObject
 
 
@@ -111,8 +121,8 @@ def close_until_stall(world: MujocoWorld, motors: ClosingMotors, settings: Motor
     return max_steps
 
 
-def merged_contacts(world: MujocoWorld, distance: float) -> list[Contact]:
-    """One contact per touching finger link, object frame (pybullet's merge rule on records
+def world_contacts(world: MujocoWorld, distance: float) -> list[GripContact]:
+    """One contact per touching finger link, world frame (pybullet's merge rule on records
     laid out as pybullet's: [6] point on the object, [7] normal object -> finger, [8]
     distance, [9] normal force)."""
     records: dict[tuple[int, int], list[tuple]] = {}
@@ -120,13 +130,15 @@ def merged_contacts(world: MujocoWorld, distance: float) -> list[Contact]:
         if geom in world.finger_geom and dist <= distance:
             rec = (None,) * 6 + (point, -normal, dist, force)
             records.setdefault(world.finger_geom[geom], []).append(rec)
+    return [GripContact(finger, link, *merge_records(records[(finger, link)]))
+            for finger, link in sorted(records)]
+
+
+def merged_contacts(world: MujocoWorld, distance: float) -> list[Contact]:
+    """:func:`world_contacts` in the object's frame."""
     inverse = np.linalg.inv(world.object_pose())
-    out = []
-    for finger, link in sorted(records):
-        point, normal = merge_records(records[(finger, link)])
-        out.append(Contact(finger, link, inverse[:3, :3] @ point + inverse[:3, 3],
-                           inverse[:3, :3] @ normal))
-    return out
+    return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],
+                    inverse[:3, :3] @ c.normal) for c in world_contacts(world, distance)]
 
 
 def mujoco_close(world: MujocoWorld, root_pose: np.ndarray, preshape: np.ndarray,
@@ -179,13 +191,31 @@ class MujocoHold:
             return closing, HoldResult(START_COLLISION)
         return closing, self.hold_test()
 
-    def grip(self) -> None:
-        """The grip's motors (step 2): every distal joint driven towards ``grip_speed`` with
-        its torque limit; a proximal joint the closing stopped stays held (``hold_torque``),
-        one it did not keeps closing (pybullet's :func:`~kinegrasp_env.physics.
-        pybullet_closing.grip`)."""
-        m = self.motors
-        self.world.velocity([finger[1] for finger in FINGERS], m.grip_speed, m.distal_torque)
+    def grip(self) -> bool:
+        """The grip's joint rule (step 2, pybullet's :func:`~kinegrasp_env.physics.
+        pybullet_hold.grip_control`): False when no contact forces in equilibrium exist."""
+        m, world = self.motors, self.world
+        contacts = world_contacts(world, m.touch_distance)
+        axes, origins = world.joint_frames(FLEXION_JOINTS)
+        tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
+        pose = world.object_pose()
+        center = pose[:3, :3] @ world.obj.center_of_mass + pose[:3, 3]
+        limits = np.array([m.proximal_torque, m.distal_torque] * 3)
+        solution = balanced_torques(contacts, axes, origins, center, limits,
+                                    world.settings.friction)
+        if solution is None:
+            return False
+        stall, _ = world.joint_states(FLEXION_JOINTS)
+        offsets = tip_offsets(axes, origins, tips, self.protocol.grip_advance)
+        spring = SpringGrip.of(stall, solution, offsets, limits, loaded_joints(contacts))
+        names = np.array(FLEXION_JOINTS)
+        loaded = spring.loaded
+        if (~loaded).any():
+            world.position(list(names[~loaded]), spring.stall[~loaded])
+        if loaded.any():
+            world.spring(list(names[loaded]), spring.targets[loaded],
+                         spring.stiffness[loaded], spring.limits[loaded])
+        return True
 
     def grip_until_steady(self) -> tuple[np.ndarray, float]:
         p, world = self.protocol, self.world
@@ -224,7 +254,8 @@ class MujocoHold:
     def hold_test(self) -> HoldResult:
         p, world = self.protocol, self.world
         dt = world.settings.time_step
-        self.grip()
+        if not self.grip():
+            return HoldResult(NO_GRIP)
         gripped, grip_time = self.grip_until_steady()
         pin_force, pin_torque = world.pin_load()
         pinned = object_in_palm(world)

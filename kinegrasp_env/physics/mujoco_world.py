@@ -208,6 +208,27 @@ class MujocoWorld:
             self.model.eq_data[hold, 0] = float(target)
             self.data.eq_active[hold] = 1
 
+    def spring(self, names: list[str], targets, stiffness, limits) -> None:
+        """Springs on joints (:class:`~kinegrasp_env.physics.grip_forces.SpringGrip`):
+        torque ``stiffness (target - q)`` capped at +-``limit`` (N m/rad, radians, N m, per
+        joint), the joint's hold and damping off."""
+        n = len(names)
+        for name, target, k, limit in zip(names, np.broadcast_to(targets, n),
+                                          np.broadcast_to(stiffness, n),
+                                          np.broadcast_to(limits, n), strict=True):
+            a = self.actuator[name]
+            self.data.eq_active[self.hold[name]] = 0
+            self.model.actuator_gainprm[a, 0] = float(k)
+            self.model.actuator_biasprm[a, :3] = (0.0, -float(k), 0.0)
+            self.model.actuator_forcerange[a] = (-float(limit), float(limit))
+            self.model.dof_damping[self.dof_adr[name]] = 0.0
+            self.data.ctrl[a] = float(target)
+
+    def joint_frames(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """(unit axes (k, 3), anchors (k, 3)) of hand joints now, world frame."""
+        ids = [self.model.joint(n).id for n in names]
+        return np.array(self.data.xaxis[ids]), np.array(self.data.xanchor[ids])
+
     # ------------------------------------------------------------------ queries
     def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
         """(positions (k,), velocities (k,)) of hand joints, radians and rad/s."""

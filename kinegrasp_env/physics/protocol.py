@@ -7,12 +7,22 @@ fingers at the grasp's pre-shape), step by step:
    finger motors close the hand until the joints stall (the simulator's closing controller);
    the contacts give the draw's physics outcome and Q, as in the kinematic closing, whose
    object never moves either;
-2. **grip**, the object still fixed, gravity off: every finger's motors press with their
-   torque limits until the contact forces are steady (each finger's total normal force
+2. **grip**, the object still fixed, gravity off: the fingers press with contact forces in
+   equilibrium (:mod:`~kinegrasp_env.physics.grip_forces`). From the closing's contacts one
+   linear programme gives contact forces inside the friction cones (mu reduced to the
+   smallest fraction that allows a solution) whose net force and torque on the object are
+   zero, with joint torques tau = J^T f between zero and the torque limits, the smallest
+   normal force as large as possible; none: the draw ends as ``no_grip``. Each flexion joint
+   with a contact on its link or beyond is then a spring towards its stall angle plus the
+   angle that moves its finger's tip by ``grip_advance``, as stiff as makes it press with its
+   balanced torque at the stall angle, capped at its torque limit; the other joints are held
+   where they stalled. The object held by internal forces alone, releasing the pin should
+   not move it; a finger it gives way to follows it for ``grip_advance``, pressing less.
+   The grip runs until the contact forces are steady (each finger's total normal force
    changes by less than ``steady_change`` relative, or ``steady_floor`` newtons, over
-   ``steady_window``, twice in a row; at least ``grip_min_time``, at most ``grip_max_time``).
-   A finger *presses* when its links' normal forces sum to more than ``contact_force``; with
-   fewer than two pressing fingers the draw ends as ``no_grip``;
+   ``steady_window``, twice in a row; at least ``grip_min_time``, at most
+   ``grip_max_time``). A finger *presses* when its links' normal forces sum to more than
+   ``contact_force``; with fewer than two pressing fingers the draw ends as ``no_grip``;
 3. **release**: the pin goes (and any support table with it), gravity still off, and the
    object moves under the grip's own forces only, for ``settle_time``. Its displacement in
    the palm frame from the last pinned instant is the draw's ``grip_shift_mm`` (centre of
@@ -20,7 +30,7 @@ fingers at the grasp's pre-shape), step by step:
    now, or a finger that pressed at the end of the grip carries ``contact_force`` or less,
    the grip lost a contact: ``grip_lost`` (the grip itself failed; nothing was dropped);
 4. **phases**, each from the same post-release state (the reference pose: the object in
-   the palm frame then), the hand motors still pressing:
+   the palm frame then), the grip's joint rule still on:
 
    * ``rest``: the control, no disturbance (gravity off, the hand still) for ``gravity_time``:
      does the grip alone keep the object where it is? If not, the draw is ``grip_unsteady``
@@ -44,8 +54,10 @@ The draw's outcome (:data:`HOLD_OUTCOMES`): ``start_collision`` (the closing's),
 disturbance phase failed), ``held`` (every phase run held).
 
 The torque limits of the finger joints are **assumptions** (:data:`ASSUMED_TORQUES`), not
-measured values of a real hand; ``torque_scale`` multiplies all of them, so a reader can see
-how much a conclusion depends on them (``benchmarks/hold_torque_sensitivity.py``).
+measured values of a real hand (the grip's torques stay within ``proximal`` and ``distal``;
+``hold`` is what holds a joint that is not loaded); ``torque_scale`` multiplies all of them,
+so a reader can see how much a conclusion depends on them
+(``benchmarks/hold_torque_sensitivity.py``).
 """
 
 from __future__ import annotations
@@ -108,6 +120,7 @@ class HoldProtocol:
     steady_change: float = 0.02
     steady_floor: float = 0.02
     contact_force: float = 0.05
+    grip_advance: float = 0.0015
     settle_time: float = 0.2
     max_shift: float = 0.02
     max_turn: float = float(np.radians(10.0))
@@ -126,7 +139,8 @@ class HoldProtocol:
     torque_scale: float = 1.0
 
     def __post_init__(self) -> None:
-        positive = ("grip_max_time", "steady_window", "contact_force", "max_shift", "max_turn",
+        positive = ("grip_max_time", "steady_window", "contact_force", "grip_advance",
+                    "max_shift", "max_turn",
                     "check_interval", "gravity_time", "lift_time", "torque_scale")
         for name in positive:
             value = getattr(self, name)
@@ -211,8 +225,9 @@ class HoldResult:
             the pinned grip and after the release, newtons (NaN: not reached).
         grip_time: how long the pinned grip ran until steady, seconds (NaN: not reached).
         pin_force, pin_torque: the net force (N) and torque (N m) the grip puts on the
-            pinned object at the end of the grip (what the pin holds: zero for a grip in
-            equilibrium; NaN: not reached).
+            pinned object at the end of the grip (what the pin holds; not zero even for
+            balanced joint torques: the force components the joints do not move, along
+            their axes, are the structure's and the pin's to share; NaN: not reached).
         phase_held: phase name -> held, for the phases run (none unless the grip stood).
         phase_shift, phase_turn: phase name -> the largest displacement (m) and rotation (rad)
             from the reference seen in that phase (up to its first failed check).

@@ -20,11 +20,12 @@ closing's joint logic is kept, as a controller reacting to pybullet's contacts (
 Motors that keep closing at full speed and torque after contact (tried first) let the proximal
 joint be back-driven and the fingers roll over edges or slide off slanted faces: with the
 object fixed their contacts ended up to 5 cm from the kinematic ones; with this controller
-they are within 1 mm (tests). The full motor torque comes with the holding test's grip
-(:func:`grip`). The object, when free, is pushed by whatever touches it, palm and knuckles
-included, unless it is pinned (``pin=True``: the holding test's closing). The closing ends when
-every flexion joint has stalled (mean speed below ``stall_speed`` over ``stall_checks``
-consecutive windows of ``stall_window``) or after ``max_time``. Contacts are then read from
+they are within 1 mm (tests). The holding test's grip follows the closing
+(:mod:`~kinegrasp_env.physics.grip_forces`). The object, when free, is pushed by whatever
+touches it, palm and knuckles included, unless it is pinned (``pin=True``: the holding test's
+closing). The closing ends when every flexion joint has stalled (mean speed below
+``stall_speed`` over ``stall_checks`` consecutive windows of ``stall_window``) or after
+``max_time``. Contacts are then read from
 ``getContactPoints``: per finger link the records within ``touch_distance`` are merged into one
 contact, as the kinematic closing has one contact per link (:func:`merge_records`: the deepest
 record, the kinematic closing's closest pair, and the records on the same face, averaged by
@@ -48,9 +49,10 @@ from kinegrasp_env.closing.reference import (
     Contact,
     hand_joint_values,
 )
+from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
+from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS, HAND_JOINTS
 
 #: The spread joints of the hand (finger 2's mimics finger 1's; both are held).
 SPREAD_JOINTS = ("f1_spread", "f2_spread")
@@ -75,10 +77,6 @@ class MotorSettings:
             closing while the hand closes, rad/s, with its torque limit: it follows the object
             slowly if the object gives way and presses it lightly (blocked, pybullet's
             iterative solver builds up only ~0.3 N m for so slow a target).
-        grip_speed: for the holding test every distal joint is driven at this target speed
-            (210 deg/s, an assumed top joint speed), with its torque limit: blocked by the
-            object, the motor presses with its full torque (tests: the contact forces'
-            moment about the joint).
         touch_distance: a contact record within this distance (metres) is a contact.
         stall_speed: a joint whose mean speed over ``stall_window`` seconds is below this
             (rad/s) has stalled; the closing ends when every flexion joint has, at
@@ -91,7 +89,6 @@ class MotorSettings:
     distal_torque: float = ASSUMED_TORQUES.distal
     hold_torque: float = ASSUMED_TORQUES.hold
     creep_speed: float = 0.05
-    grip_speed: float = np.radians(210.0)
     touch_distance: float = CONTACT_TOL
     stall_speed: float = 0.1
     stall_window: float = 0.1
@@ -100,8 +97,7 @@ class MotorSettings:
 
     def __post_init__(self) -> None:
         for name in ("closing_speed", "proximal_torque", "distal_torque", "hold_torque",
-                     "touch_distance", "stall_speed", "stall_window", "max_time",
-                     "grip_speed"):
+                     "touch_distance", "stall_speed", "stall_window", "max_time"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -182,16 +178,6 @@ class FingerMotors:
                 self.press(finger, not self.pressing[finger])
 
 
-def grip(world: PhysicsWorld, settings: MotorSettings) -> None:
-    """Grip with the motors' force: every distal joint driven towards ``grip_speed`` with its
-    torque limit (the proximal joints as the closing left them: held, or closing)."""
-    bullet = world.bullet
-    bullet.setJointMotorControlArray(
-        world.hand, [world.joint_index[finger[1]] for finger in FINGERS],
-        bullet.VELOCITY_CONTROL, targetVelocities=[settings.grip_speed] * 3,
-        forces=[settings.distal_torque] * 3)
-
-
 def finger_links(world: PhysicsWorld) -> dict[int, tuple[int, int]]:
     """pybullet link index -> (finger 0-2, link 0 proximal / 1 distal)."""
     return {world.link_index[FINGERS[f][2 + k]]: (f, k) for f in range(3) for k in range(2)}
@@ -236,21 +222,37 @@ def merge_records(records: list[tuple], max_angle: float = MERGE_ANGLE
     return point, normal / np.linalg.norm(normal)
 
 
-def merged_contacts(world: PhysicsWorld, distance: float) -> list[Contact]:
-    """One contact per touching finger link (:func:`merge_records`), in the object's frame
-    where the object is now, finger-major, proximal before distal."""
+def world_contacts(world: PhysicsWorld, distance: float) -> list[GripContact]:
+    """One contact per touching finger link (:func:`merge_records`), world frame,
+    finger-major, proximal before distal."""
     links = finger_links(world)
     records: dict[tuple[int, int], list[tuple]] = {}
     for rec in world.contact_points():
         if rec[3] in links and rec[8] <= distance:
             records.setdefault(links[rec[3]], []).append(rec)
+    return [GripContact(finger, link, *merge_records(records[(finger, link)]))
+            for finger, link in sorted(records)]
+
+
+def merged_contacts(world: PhysicsWorld, distance: float) -> list[Contact]:
+    """:func:`world_contacts` in the object's frame where the object is now."""
     inverse = np.linalg.inv(world.object_pose())
-    contacts = []
-    for finger, link in sorted(records):
-        point, normal = merge_records(records[(finger, link)])
-        contacts.append(Contact(finger, link, inverse[:3, :3] @ point + inverse[:3, 3],
-                                inverse[:3, :3] @ normal))
-    return contacts
+    return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],
+                    inverse[:3, :3] @ c.normal) for c in world_contacts(world, distance)]
+
+
+def joint_frames(world: PhysicsWorld) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The flexion joints now, world frame: (unit axes (6, 3), closing positive; points on
+    them (6, 3), the child links' frames; the fingers' tips (3, 3))."""
+    bullet = world.bullet
+    axes, origins = np.zeros((6, 3)), np.zeros((6, 3))
+    for j in range(6):
+        joint, link = FINGERS[j // 2][j % 2], FINGERS[j // 2][2 + j % 2]
+        pose = world.link_pose(link)  # the joint's child link: its frame is the joint's
+        local = np.asarray(bullet.getJointInfo(world.hand, world.joint_index[joint])[13])
+        axes[j], origins[j] = pose[:3, :3] @ local, pose[:3, 3]
+    tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
+    return axes, origins, tips
 
 
 def close_until_stall(world: PhysicsWorld, motors: FingerMotors, settings: MotorSettings) -> int:

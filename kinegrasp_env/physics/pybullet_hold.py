@@ -5,10 +5,10 @@
 pinned (:meth:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld.pin_object`), then
 :func:`hold_test`:
 
-* grip: :func:`~kinegrasp_env.physics.pybullet_closing.grip` (every distal motor presses with
-  its torque limit; a proximal joint the closing stopped stays held by its position
-  controller, ``hold_torque``), stepped in windows of ``steady_window`` until the fingers'
-  normal forces (:func:`~kinegrasp_env.physics.pybullet_closing.finger_forces`) are steady;
+* grip: :func:`grip_control` (the balanced torques of the closing's contacts,
+  :mod:`~kinegrasp_env.physics.grip_forces`, as joint springs, applied as joint torques at
+  every step), stepped in windows of ``steady_window`` until the fingers' normal forces
+  (:func:`~kinegrasp_env.physics.pybullet_closing.finger_forces`) are steady;
 * release: the pin removed, the support table (if any) put out of reach, object damping off,
   gravity off, ``settle_time``; then the state is saved (``saveState``);
 * each phase (the rest control first, then the disturbances) starts from that saved state
@@ -32,10 +32,17 @@ from dataclasses import replace
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult
+from kinegrasp_env.physics.grip_forces import (
+    SpringGrip,
+    balanced_torques,
+    loaded_joints,
+    tip_offsets,
+)
 from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
     HELD,
+    NO_GRIP,
     REST_PHASE,
     START_COLLISION,
     HoldProtocol,
@@ -47,10 +54,12 @@ from kinegrasp_env.physics.protocol import (
     within,
 )
 from kinegrasp_env.physics.pybullet_closing import (
+    FLEXION_JOINTS,
     MotorSettings,
     finger_forces,
-    grip,
+    joint_frames,
     physics_close,
+    world_contacts,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.world.objects import GraspObject
@@ -65,28 +74,70 @@ def steps_of(seconds: float, time_step: float) -> int:
     return max(1, round(seconds / time_step))
 
 
-class MotorGrip:
-    """The grip's motors: :func:`~kinegrasp_env.physics.pybullet_closing.grip` (every distal
-    motor presses with its torque limit; a proximal joint the closing stopped stays held by
-    its position controller at ``hold_torque``), set again after a ``restoreState``.
+class GripControl:
+    """The grip (:class:`~kinegrasp_env.physics.grip_forces.SpringGrip`) in pybullet: the
+    loaded flexion joints torque-controlled at every step (their motors off), the others
+    held by their position controllers (``hold_torque``) where they stalled; set again
+    after a ``restoreState``.
 
     Args:
         world: the physics world right after the closing.
-        motors: the finger motors (torque limits: the protocol's).
+        motors: the finger motors (``hold_torque``).
+        spring: the grip's joint rule.
     """
 
-    def __init__(self, world: PhysicsWorld, motors: MotorSettings) -> None:
-        self.world, self.motors = world, motors
+    def __init__(self, world: PhysicsWorld, motors: MotorSettings, spring: SpringGrip) -> None:
+        self.world, self.motors, self.spring = world, motors, spring
+        self.indices = [world.joint_index[j] for j in FLEXION_JOINTS]
+        self.loaded = [i for i, on in zip(self.indices, spring.loaded, strict=True) if on]
         self.restart()
 
     def restart(self) -> None:
-        grip(self.world, self.motors)
+        bullet, hand, spring = self.world.bullet, self.world.hand, self.spring
+        held = [i for i, on in zip(self.indices, spring.loaded, strict=True) if not on]
+        if held:
+            bullet.setJointMotorControlArray(
+                hand, held, bullet.POSITION_CONTROL,
+                targetPositions=spring.stall[~spring.loaded].tolist(),
+                forces=[self.motors.hold_torque] * len(held))
+        if self.loaded:
+            bullet.setJointMotorControlArray(hand, self.loaded, bullet.VELOCITY_CONTROL,
+                                             targetVelocities=[0.0] * len(self.loaded),
+                                             forces=[0.0] * len(self.loaded))
 
     def step(self, steps: int = 1) -> None:
-        self.world.step(steps)
+        bullet, hand = self.world.bullet, self.world.hand
+        for _ in range(steps):
+            if self.loaded:
+                angles = np.array([s[0] for s in bullet.getJointStates(hand, self.indices)])
+                torques = self.spring.torques(angles)[self.spring.loaded]
+                bullet.setJointMotorControlArray(hand, self.loaded, bullet.TORQUE_CONTROL,
+                                                 forces=torques.tolist())
+            bullet.stepSimulation()
 
 
-def grip_until_steady(world: PhysicsWorld, control: MotorGrip,
+def grip_control(world: PhysicsWorld, motors: MotorSettings,
+                 protocol: HoldProtocol) -> GripControl | None:
+    """The grip of a hand just closed on the pinned object: the balanced torques of its
+    contacts (:func:`~kinegrasp_env.physics.grip_forces.balanced_torques`, the world's
+    friction, the motors' torque limits) as springs (``protocol.grip_advance``); None when
+    no contact forces in equilibrium exist."""
+    contacts = world_contacts(world, motors.touch_distance)
+    axes, origins, tips = joint_frames(world)
+    pose = world.object_pose()
+    center = pose[:3, :3] @ world.obj.center_of_mass + pose[:3, 3]
+    limits = np.array([motors.proximal_torque, motors.distal_torque] * 3)
+    solution = balanced_torques(contacts, axes, origins, center, limits,
+                                world.settings.friction)
+    if solution is None:
+        return None
+    stall, _ = world.joint_states(FLEXION_JOINTS)
+    offsets = tip_offsets(axes, origins, tips, protocol.grip_advance)
+    return GripControl(world, motors, SpringGrip.of(stall, solution, offsets, limits,
+                                                    loaded_joints(contacts)))
+
+
+def grip_until_steady(world: PhysicsWorld, control: GripControl,
                       protocol: HoldProtocol) -> tuple[np.ndarray, float]:
     """Press until the fingers' forces are steady twice in a row (after at least
     ``grip_min_time``) or ``grip_max_time``: (the forces (3,), newtons; seconds run)."""
@@ -104,7 +155,7 @@ def grip_until_steady(world: PhysicsWorld, control: MotorGrip,
     return previous, steps * dt
 
 
-def watch(world: PhysicsWorld, control: MotorGrip, protocol: HoldProtocol,
+def watch(world: PhysicsWorld, control: GripControl, protocol: HoldProtocol,
           reference: np.ndarray, steps: int, before_step=None) -> tuple[bool, float, float]:
     """Step ``steps`` times (calling ``before_step(k)`` before step k, 0-based), checking the
     object against ``reference`` (its pose in the palm frame) every ``check_interval`` and at
@@ -147,7 +198,9 @@ def hold_test(world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol
         raise ValueError("the holding test starts from a pinned object (physics_close pin=True)")
     dt = world.settings.time_step
     world.damp_object(False)
-    control = MotorGrip(world, motors)
+    control = grip_control(world, motors, protocol)
+    if control is None:
+        return HoldResult(NO_GRIP)
     gripped, grip_time = grip_until_steady(world, control, protocol)
     pinned = object_in_palm(world)
     pin_force, pin_torque = world.pin_load()
@@ -170,7 +223,7 @@ def hold_test(world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol
     return result
 
 
-def run_phases(world: PhysicsWorld, control: MotorGrip, protocol: HoldProtocol,
+def run_phases(world: PhysicsWorld, control: GripControl, protocol: HoldProtocol,
                reference: np.ndarray, state: int, result: HoldResult) -> None:
     """Every phase of ``protocol`` from the saved ``state``, recorded in ``result`` (the
     hand's anchor, which ``restoreState`` does not restore, put back where the state has the

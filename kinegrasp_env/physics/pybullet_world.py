@@ -158,8 +158,11 @@ def load_dynamic_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
     link as heavy as :data:`ROOT_MASS`."""
     hand, joint_index, link_index = load_hand(bullet, fixed_base=False)
     for link in link_index.values():
-        bullet.changeDynamics(hand, link, lateralFriction=1.0, linearDamping=0.0,
-                              angularDamping=0.0)
+        # one call per setting: pybullet ignores a whole changeDynamics call on a link (index
+        # >= 0) that also names linearDamping or angularDamping (base-only settings), which
+        # left the fingers at pybullet's default friction 0.5, a finger-object mu of 0.25
+        bullet.changeDynamics(hand, link, lateralFriction=1.0)
+    bullet.changeDynamics(hand, -1, linearDamping=0.0, angularDamping=0.0)
     bullet.changeDynamics(hand, -1, mass=ROOT_MASS, localInertiaDiagonal=[ROOT_INERTIA] * 3)
     return hand, joint_index, link_index
 
