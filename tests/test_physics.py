@@ -294,12 +294,12 @@ def test_fixed_object_contacts_match_the_kinematic_closing_on_every_shipped_gras
 
 
 #: Largest gap between a loaded joint's commanded torque and the moment of pybullet's contact
-#: forces about its axis, after the grip on the pinned cube (measured on shipped grasps 4 and
-#: 9: at most 0.031 N m of torques 0.2-2.1 N m), x 2.
-MOMENT_TOL = 0.06
+#: forces about its axis, after the grip on the pinned cube (measured over the twelve shipped
+#: grasps: at most 0.027 N m, grasp 2, of torques 0.03-2.1 N m), x 2.
+MOMENT_TOL = 0.055
 
 
-@pytest.mark.parametrize("index", [4, 9])
+@pytest.mark.parametrize("index", range(12))
 def test_grip_contact_forces_carry_the_commanded_joint_torques(index):
     """After the grip, the moment of pybullet's contact forces (normal and both friction
     directions, from its own records) about each loaded flexion joint's axis equals the torque
