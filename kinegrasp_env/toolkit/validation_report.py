@@ -7,8 +7,9 @@ limits it ran with, stated assumptions x ``torque_scale``), ``grasps`` (per gras
 ``p_fc_kinematic``, ``p_fc_physics``, ``p_hold`` with ``_ci`` Wilson 95% intervals;
 ``outcomes``: draws per holding outcome; ``phases``: per phase ``{"run", "held"}`` draw
 counts; ``draw_outcomes``, ``grip_shift_mm``, ``grip_turn_deg``, ``pin_force_n`` (the net
-force of the pinned grip on the object: zero for a grip in equilibrium): per draw, in draw
-order, None where not reached), ``draws``, ``outcomes`` and ``phases`` pooled over
+force of the pinned grip on the object, what the pin holds: not zero even for balanced joint
+torques, as the pin shares the force components along the joints' axes with the hand): per
+draw, in draw order, None where not reached), ``draws``, ``outcomes`` and ``phases`` pooled over
 the grasps, ``grip_shift_mm`` (median and max over the released draws, and over those
 whose kinematic outcome is force closure), ``confusion`` (per-draw matrices),
 ``spearman`` (rho of P(FC) with P(hold) across grasps, bootstrap interval)."""
