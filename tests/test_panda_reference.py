@@ -47,10 +47,18 @@ def test_palm_by_forward_kinematics_matches_pybullet(grasps, engine):
 
 
 def test_contacts_against_pybullet_and_the_exact_object(grasps, engine):
-    """A separate closest-point query at the final state agrees with the contacts; the
-    contact point lies on the object's surface (its exact convex parts) and the normal is the
-    face's inward normal there."""
+    """Contacts at pybullet's own points (no patch centres): a separate closest-point query
+    at the final state agrees with them; the point lies on the object's surface (its exact
+    convex parts) and the normal is the face's inward normal there."""
     world, obj = engine.world, engine.obj
+    world.patch = False
+    try:
+        _pybullet_contacts(grasps, engine, world, obj)
+    finally:
+        world.patch = True
+
+
+def _pybullet_contacts(grasps, engine, world, obj):
     for g in grasps:
         result = engine.close_one(g.q0)
         assert not result.start_collision and not any(result.missed)
@@ -60,7 +68,9 @@ def test_contacts_against_pybullet_and_the_exact_object(grasps, engine):
             rows = world.bullet.getClosestPoints(world.bodies["robot"], world.bodies["object"],
                                                  1.0, linkIndexA=world.link_index[link])
             row = min(rows, key=lambda r: r[8])
-            assert -GJK_TOL <= row[8] <= CONTACT_TOL
+            margins = [world.bullet.getDynamicsInfo(row[i], row[j])[11] for i, j in ((1, 3),
+                                                                                 (2, 4))]
+            assert -GJK_TOL <= row[8] + sum(margins) <= CONTACT_TOL
             np.testing.assert_allclose(c.point, obj.to_object(np.array(row[6])), atol=1e-9)
             bullet_normal = -np.array(row[7]) @ obj.pose[:3, :3]
             _, distance, _ = obj.closest_points(c.point[None])
@@ -139,3 +149,42 @@ def test_grasp_file_records_its_robot(grasps, tmp_path):
     default = Grasp("cube", np.zeros(14), np.eye(4), np.zeros((0, 3)), np.zeros((0, 3)),
                     np.zeros(0, int), np.zeros(0, int), 0.0)
     assert "robot" not in default.to_dict()
+
+
+def test_patch_geometry_against_rectangles():
+    """Clipping and centroids against overlaps of axis-aligned rectangles worked by hand."""
+    from kinegrasp_env.closing.contact_patch import centroid_2d, clip_convex, patch_centre
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    moved = square * [2.0, 0.5] + [0.5, 0.25]  # [0.5, 2.5] x [0.25, 0.75]
+    np.testing.assert_allclose(centroid_2d(clip_convex(moved, square)), [0.75, 0.5])
+    segment = np.array([[-1.0, 0.5], [0.5, 0.5]])
+    np.testing.assert_allclose(clip_convex(segment, square), [[0.0, 0.5], [0.5, 0.5]])
+    assert len(clip_convex(np.array([[2.0, 2.0]]), square)) == 0
+    # a 2 x 1 pad 0.1 above the face z = 0 of a unit cube's top... seen from above
+    pad = np.array([[x, y, z] for x in (0.5, 2.5) for y in (0.25, 1.25) for z in (0.1, 0.6)])
+    face = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    centre = patch_centre(pad, face, np.array([0.0, 0.0, -1.0]), np.zeros(3))
+    np.testing.assert_allclose(centre, [0.75, 0.625, 0.0], atol=1e-12)
+
+
+def test_patch_centres_lie_under_the_pad(grasps, engine):
+    """With patches, a contact is on the face, under the pad's lowest vertices (the pad's
+    geometry by trimesh: its hull vertices' distances to the exact object agree with
+    pybullet's gap)."""
+    from kinegrasp_env.closing.contact_patch import link_hull_vertices
+
+    world, obj = engine.world, engine.obj
+    for g in grasps:
+        result = engine.close_one(g.q0)
+        for c in result.contacts:
+            link = engine.description.fingers[c.finger].links[c.link]
+            v = obj.to_object(link_hull_vertices(world.bullet, world.bodies["robot"],
+                                                 world.link_index[link]))
+            _, d, _ = obj.closest_points(v)
+            assert abs(d.min() - result.gaps[c.finger]) < 1e-6
+            near = v[d <= d.min() + 1e-3]
+            offset = near - c.point
+            tangential = offset - np.outer(offset @ c.normal, c.normal)
+            lo, hi = tangential.min(axis=0), tangential.max(axis=0)
+            assert np.all(lo <= 1e-9) and np.all(hi >= -1e-9)  # the point within their box

@@ -17,8 +17,9 @@ where forward kinematics of the URDF puts it. Then:
    the coupled jaws of a parallel gripper close together at one rate, but each finger stops
    where it touches: the jaws of a self-centring gripper. t advances by conservative
    advancement: the finger's gap g (pybullet's closest-point distance between its links and
-   the object, collision margins zero) over a bound v on how fast any point of those links
-   moves per unit t (:func:`finger_speed`), so that a step never closes more than the gap;
+   the object, plus the collision margins pybullet subtracts: :meth:`RobotWorld.distance`)
+   over a bound v on how fast any point of those links moves per unit t
+   (:func:`finger_speed`), so that a step never closes more than the gap;
    should pybullet's distances disagree (penetration beyond :data:`CONTACT_TOL` after a step)
    the step is halved until it does not. The finger *touches* when g <= :data:`CONTACT_TOL`
    and has *missed* when every closing joint is at its limit with g > :data:`CONTACT_TOL`.
@@ -27,7 +28,10 @@ where forward kinematics of the URDF puts it. Then:
    frame. The normal into the object: where the point lies on one face of the object's exact
    convex parts (one face plane within :data:`EDGE_TOL`), that face's inward normal (the
    direction of a closest pair touching a face's interior; pybullet's own normal was measured
-   4.6 degrees off there); at an edge or a corner, pybullet's ``-contactNormalOnB``.
+   4.6 degrees off there); at an edge or a corner, pybullet's ``-contactNormalOnB``. On a
+   face, the point is moved to the centre of the finger's contact patch
+   (:mod:`~kinegrasp_env.closing.contact_patch`: a flat pad's closest point is an arbitrary
+   corner of the overlap); ``RobotWorld(patch=False)`` keeps pybullet's point.
 
 The outcome (the engines' codes) follows: start collision, missed (a finger missed, or fewer
 than two contacts), else force closure or not by the contacts' quality (scored above this
@@ -41,6 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.contact_patch import FACE_TOL, link_hull_vertices, patch_centre
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld
@@ -55,7 +60,7 @@ MAX_HALVINGS = 30
 EDGE_TOL = 5e-5
 
 __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
-           "RobotCloseResult", "RobotContact", "RobotWorld", "face_normal", "finger_speed"]
+           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of", "finger_speed"]
 
 
 @dataclass(frozen=True)
@@ -100,16 +105,18 @@ class RobotCloseResult:
     queries: int = 0
 
 
-def face_normal(obj: GraspObject, point: np.ndarray) -> np.ndarray | None:
-    """(3,) the inward normal of the one face of ``obj``'s nearest convex part that the
-    object-frame ``point`` (3,) lies on (within :data:`EDGE_TOL`), or None at an edge or a
-    corner (two or more face planes that near) or off the surface."""
+def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | None:
+    """(part, its face plane (4,): outward unit normal, offset) of the one face of ``obj``'s
+    nearest convex part that the object-frame ``point`` (3,) lies on (within
+    :data:`EDGE_TOL`), or None at an edge or a corner (two or more face planes that near) or
+    off the surface."""
     part = int(obj.nearest_part(point[None])[0])
     planes = obj.planes[part]
     on = np.abs(planes[:, :3] @ point + planes[:, 3]) < EDGE_TOL
     if int(on.sum()) != 1:
         return None
-    return -planes[on][0, :3] / np.linalg.norm(planes[on][0, :3])
+    plane = planes[on][0]
+    return part, plane / np.linalg.norm(plane[:3])
 
 
 def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
@@ -138,15 +145,17 @@ class RobotWorld(GraspWorld):
     Attributes:
         description: the robot.
         obj: the catalog object (fixed at ``obj.pose``).
+        patch: place a contact on a face at its patch's centre (step 3 of the module).
         joint_index: movable joint name -> pybullet joint index.
         link_index: link name -> pybullet link index (-1: the base link).
     """
 
     def __init__(self, description: RobotDescription, obj: GraspObject,
-                 gui: bool = False) -> None:
+                 gui: bool = False, patch: bool = True) -> None:
         BulletWorld.__init__(self, gui)  # not the SDH hand of GraspWorld: the robot itself
         self.obj = obj
         self.description = description
+        self.patch = patch
         self.model = description.model
         bullet = self.bullet
         robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
@@ -160,6 +169,13 @@ class RobotWorld(GraspWorld):
         for link in self.link_index.values():
             bullet.changeDynamics(robot, link, collisionMargin=0.0)
         self.bodies["object"] = self._load_object(obj)
+        # what pybullet's distances leave out: the margins that changeDynamics did not reach
+        # (the children of a link's compound shape keep the URDF importer's 1 mm)
+        self.margins = {(body, link): float(bullet.getDynamicsInfo(body, link)[11])
+                        for body, count in ((robot, bullet.getNumJoints(robot)),
+                                            (self.bodies["object"],
+                                             bullet.getNumJoints(self.bodies["object"])))
+                        for link in range(-1, count)}
         self._movable = [j.name for j in self.model.joints if j.movable]
         self._speeds: dict[tuple, float] = {}
 
@@ -190,17 +206,23 @@ class RobotWorld(GraspWorld):
         return pose
 
     def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
-        """pybullet closest points between the robot (or one of its links) and the object."""
+        """pybullet closest points between the robot (or one of its links) and the object
+        (rows as pybullet gives them; their distance: :meth:`distance`)."""
         kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
         return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
                                             max_distance, **kwargs)
+
+    def distance(self, row: tuple) -> float:
+        """The distance (metres) of the geometry of a closest-point row: pybullet's, plus
+        the collision margins of the two shapes (which pybullet's distance subtracts)."""
+        return (row[8] + self.margins[(row[1], row[3])] + self.margins[(row[2], row[4])])
 
     def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
         """(smallest distance of ``links`` to the object, capped at QUERY_DISTANCE; queries)."""
         best = QUERY_DISTANCE
         for link in links:
             for row in self.closest(QUERY_DISTANCE, link):
-                best = min(best, row[8])
+                best = min(best, self.distance(row))
         return best, len(links)
 
     # ------------------------------------------------------------------ closing
@@ -245,7 +267,7 @@ class RobotWorld(GraspWorld):
         """
         start = self.set_configuration(q)
         queries = 1
-        if any(row[8] < -start_tol for row in self.closest(0.0)):
+        if any(self.distance(row) < -start_tol for row in self.closest(0.0)):
             return RobotCloseResult(True, queries=queries,
                                     missed=(False,) * len(self.description.fingers),
                                     gaps=np.full(len(self.description.fingers), np.nan),
@@ -292,20 +314,41 @@ class RobotWorld(GraspWorld):
         return RobotCloseResult(False, contacts, tuple(missed), np.array(gaps),
                                 np.array(travel), final, queries)
 
+    def _patch_point(self, link: str, face: tuple[int, np.ndarray],
+                     point: np.ndarray) -> np.ndarray:
+        """The centre of ``link``'s patch on the face (:mod:`~kinegrasp_env.closing.
+        contact_patch`), or ``point`` where there is none."""
+        vertices = link_hull_vertices(self.bullet, self.bodies["robot"], self.link_index[link])
+        if vertices is None:
+            return point
+        part, plane = face
+        corners = self.obj.parts[part]
+        on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
+        if len(on_face) < 3:
+            return point
+        on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
+        centre = patch_centre(self.obj.to_object(vertices), on_face, -plane[:3], on_plane)
+        return point if centre is None else centre
+
     def _contacts(self, f: int, contact_tol: float) -> list[RobotContact]:
         """The touching links of finger f at the current state, one contact each."""
         out = []
         rot = self.obj.pose[:3, :3]
         for k, link in enumerate(self.description.fingers[f].links):
-            rows = self.closest(contact_tol, link)
+            rows = [r for r in self.closest(contact_tol, link)
+                    if self.distance(r) <= contact_tol]
             if not rows:
                 continue
-            row = min(rows, key=lambda r: r[8])
+            row = min(rows, key=self.distance)
             point = self.obj.to_object(np.array(row[6]))
-            normal = face_normal(self.obj, point)
-            if normal is None:
+            face = face_of(self.obj, point)
+            if face is None:
                 normal = -np.array(row[7]) @ rot
+            else:
+                normal = -face[1][:3]
+                if self.patch:
+                    point = self._patch_point(link, face, point)
             out.append(RobotContact(f, k, point, normal / np.linalg.norm(normal),
-                                    float(row[8])))
+                                    self.distance(row)))
         return out
 

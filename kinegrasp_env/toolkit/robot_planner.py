@@ -9,9 +9,10 @@
 2. **Palm pose**: the jaw frame of the hand (:func:`jaw_frame`: in the palm frame at the open
    pre-shape, the closing axis from one fingertip link to the other, the approach axis from
    the palm to the jaws, and the jaws' centre) is aligned with the pair: closing axis along
-   p1 -> p2, the pair's midpoint ``depth`` beyond the jaws' centre along the approach
-   (sampled in [0, ``max_depth``]: towards the fingertips), approach axis at a sampled angle
-   about the pair's line, kept where it points downward (approach . -z >= ``min_downward``);
+   n2 - n1 (the pads parallel to the faces), the pair's midpoint ``depth`` beyond the jaws'
+   centre along the approach (sampled in [0, ``max_depth``]: towards the fingertips),
+   approach axis at a sampled angle about the closing axis, kept where it points downward
+   (approach . -z >= ``min_downward``);
    the first ``attempts`` pairs are tried.
 3. **IK**: damped least squares on the arm joints for that palm pose
    (:func:`solve_palm_ik`: :class:`~kinegrasp_env.robot.kinematics.Kinematics`' pose and
@@ -102,8 +103,9 @@ def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
 
 
 def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
-                    rng: np.random.Generator) -> np.ndarray:
-    """(P, 2, 3) antipodal point pairs (object frame) of a trimesh ``mesh``, shuffled."""
+                    rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Antipodal pairs of a trimesh ``mesh``, shuffled: points (P, 2, 3) and their outward
+    unit normals (P, 2, 3), object frame."""
     import trimesh
 
     points, faces = trimesh.sample.sample_surface(mesh, settings.surface_samples,
@@ -118,16 +120,19 @@ def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
             & (np.einsum("ijk,ik->ij", u, -normals) >= cos)
             & (np.einsum("ijk,jk->ij", u, normals) >= cos))
     i, j = np.nonzero(np.triu(keep, 1))
-    pairs = np.stack([points[i], points[j]], axis=1)
-    return pairs[rng.permutation(len(pairs))]
+    order = rng.permutation(len(i))
+    i, j = i[order], j[order]
+    return (np.stack([points[i], points[j]], axis=1),
+            np.stack([normals[i], normals[j]], axis=1))
 
 
-def palm_pose_for(pair_world: np.ndarray, jaw: JawFrame, angle: float,
-                  depth: float) -> np.ndarray:
-    """(4, 4) palm pose putting the jaws on a pair (2, 3) (world frame): closing axis along
-    p1 -> p2, approach at ``angle`` about the pair's line, the midpoint ``depth`` beyond the
-    jaws' centre along the approach."""
-    a = pair_world[1] - pair_world[0]
+def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFrame,
+                  angle: float, depth: float) -> np.ndarray:
+    """(4, 4) palm pose putting the jaws on a pair (2, 3) with outward normals (2, 3) (world
+    frame): closing axis along n2 - n1 (the pads parallel to the two faces), approach at
+    ``angle`` about it, the pair's midpoint ``depth`` beyond the jaws' centre along the
+    approach."""
+    a = normals_world[1] - normals_world[0]
     a /= np.linalg.norm(a)
     helper = np.eye(3)[np.argmin(np.abs(a))]
     b1 = np.cross(a, helper)
@@ -207,13 +212,15 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
         jaw = jaw_frame(engine)
         kin = Kinematics(description.model)
         obj = engine.obj
-        pairs = antipodal_pairs(obj.mesh, settings, jaw.opening - 2 * settings.width_margin,
-                                rng)
-        pairs = pairs[:settings.attempts]
+        pairs, normals = antipodal_pairs(obj.mesh, settings,
+                                         jaw.opening - 2 * settings.width_margin, rng)
+        pairs, normals = pairs[:settings.attempts], normals[:settings.attempts]
+        rot = obj.pose[:3, :3]
         angles = rng.uniform(0.0, 2.0 * np.pi, len(pairs))
         depths = rng.uniform(0.0, settings.max_depth, len(pairs))
-        targets = np.array([palm_pose_for(obj.to_world(pair), jaw, angle, depth)
-                            for pair, angle, depth in zip(pairs, angles, depths, strict=True)])
+        targets = np.array([palm_pose_for(obj.to_world(pair), n @ rot.T, jaw, angle, depth)
+                            for pair, n, angle, depth in zip(pairs, normals, angles, depths,
+                                                             strict=True)])
         targets = targets.reshape(-1, 4, 4)
         downward = -(targets[:, :3, :3] @ jaw.approach)[:, 2] >= settings.min_downward
         arms, reached = solve_palm_ik(kin, description, targets[downward], rng,
