@@ -188,3 +188,22 @@ def test_patch_centres_lie_under_the_pad(grasps, engine):
             tangential = offset - np.outer(offset @ c.normal, c.normal)
             lo, hi = tangential.min(axis=0), tangential.max(axis=0)
             assert np.all(lo <= 1e-9) and np.all(hi >= -1e-9)  # the point within their box
+
+
+def test_cli_plans_and_evaluates_the_panda(tmp_path):
+    from cli_helpers import run_cli
+
+    out = tmp_path / "g.json"
+    done = run_cli("plan", "--robot", "panda", "--object", "cube", "--count", "2", "--seed", "0",
+                   "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert json.loads(out.read_text())["robot"] == "panda"
+    done = run_cli("evaluate", "--grasps", str(out), "--sigma", "0", "--samples", "4", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["robot"] == "panda" and result["p_fc"] == 1.0
+    done = run_cli("evaluate", "--grasps", str(out), "--robot", "kuka_sdh")
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines()[-1] == (
+        "kinegrasp evaluate: error: grasp '0' is a grasp of robot 'panda', not of 'kuka_sdh'; "
+        "evaluate it with --robot panda")

@@ -28,6 +28,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, figure_grasps, is_count
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, evaluate_robot
 
 #: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
 TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
@@ -39,6 +40,9 @@ def cmd_evaluate(args) -> int:
 
     noise, sigma, samples, seed = noise_from(args)
     index, grasp = chosen_grasp(args)
+    robot = args.robot or grasp.robot
+    if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
+        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)
@@ -193,6 +197,8 @@ def add_commands(sub) -> None:
     p.add_argument("--plot", help="write a PNG of the draws' contacts on the object")
     p.add_argument("--report", help="write a self-contained interactive HTML page of the "
                    "evaluation (as `kinegrasp report`)")
+    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
+                   f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

@@ -33,6 +33,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -49,6 +50,8 @@ FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
 
 
 def cmd_plan(args) -> int:
+    if args.robot not in (None, DEFAULT_ROBOT):
+        return cmd_plan_robot(args)
     from kinegrasp_env.toolkit.planner import GraspPlanner
     from kinegrasp_env.world.grasps import save_grasps
 
@@ -397,6 +400,8 @@ def add_commands(sub) -> None:
                    help="null-space variants per grasp (same palm pose, other elbow angles)")
     p.add_argument("--time-budget", help="seconds at most (default: no limit)")
     p.add_argument("--max-attempts", help="palm poses to try at most (default: no limit)")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
+                   "antipodal parallel-jaw grasps, recorded in the file)")
     p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("rank", help="rank candidate grasps by robustness under joint noise")

@@ -150,7 +150,8 @@ class RobotEvaluation:
         n: draws.
         counts: outcome name -> draws.
         p_fc: fraction in force closure; ci: its Wilson 95% interval.
-        q_mean, q_std, q_skew: Q over the force-closure draws (NaN where too few).
+        q_mean, q_std, q_skew: Q over the force-closure draws (NaN where too few; the
+            skewness NaN too where every Q is the same).
         draws: the per-draw results.
     """
 
@@ -175,7 +176,7 @@ def summarize(draws: RobotDraws) -> RobotEvaluation:
         k / n if n else float("nan"), wilson_interval(k, n),
         float(q.mean()) if k else float("nan"),
         float(q.std(ddof=1)) if k > 1 else float("nan"),
-        float(skewness(q)) if k > 2 else float("nan"), draws)
+        float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws)
 
 
 def check_robot(grasp: Grasp, robot: str) -> None:

@@ -1,0 +1,86 @@
+"""``plan --robot`` and ``evaluate`` of a description robot's grasp (a robot other than the
+default ``kuka_sdh``): the antipodal planner (:mod:`kinegrasp_env.toolkit.robot_planner`) and
+the reference engine (:mod:`kinegrasp_env.montecarlo.robot_evaluate`). The default robot's
+commands are untouched (:mod:`kinegrasp_env.cli.toolkit`, :mod:`kinegrasp_env.cli.grasping`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from kinegrasp_env.cli.common import CLIError, output_file, parse_seed, positive_int, reported
+
+#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied so that building the
+#: parser imports nothing heavy).
+DEFAULT_ROBOT = "kuka_sdh"
+
+
+def _refuse(args, options: dict[str, object], robot: str) -> None:
+    """CLIError naming the first of ``options`` (flag -> its value when not given) given."""
+    for flag, unset in options.items():
+        if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
+            raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
+                           f"{DEFAULT_ROBOT})")
+
+
+def cmd_plan_robot(args) -> int:
+    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps, each in force closure
+    at its nominal closing, written with their robot."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.world.grasps import save_grasps
+
+    _refuse(args, {"--variants": "0", "--time-budget": None, "--max-attempts": None},
+            args.robot)
+    count = positive_int(args.count, "--count")
+    seed = parse_seed(args.seed)
+    output_file(args.out, "--out")
+    with reported(RobotDescriptionError):
+        description = load_robot(args.robot)
+    with reported(ValueError):
+        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed)
+    if not grasps:
+        raise CLIError(f"no force-closure grasp of {args.object} found for robot "
+                       f"{args.robot}; nothing written")
+    save_grasps(grasps, args.out, planner_seed=seed)
+    print(f"{len(grasps)} grasps of {args.object} for robot {args.robot} written to {args.out}")
+    return 0
+
+
+def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: int,
+                   seed: int) -> int:
+    """``kinegrasp evaluate`` of a description robot's grasp (joint noise on its arm joints,
+    the reference engine)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+
+    _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None},
+            robot)
+    if args.engine != "pybullet":
+        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
+                       "engine only")
+    with reported(ValueError):
+        check_robot(grasp, robot)
+        stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
+                                     noise=args.noise, robot=robot)
+    if args.json:
+        finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
+        print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
+                          "sigma": sigma, "noise": args.noise, "samples": samples,
+                          "seed": seed, "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
+                          "q_nominal": grasp.q_nominal, "q_mean": finite(stats.q_mean),
+                          "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
+                          "outcomes": stats.counts}))
+        return 0
+    lo, hi = stats.ci
+    print(f"{grasp.object} grasp {index} of robot {robot}, sigma = {sigma:g} rad "
+          f"({args.noise}), {samples} draws")
+    print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
+    model = load_robot(robot).contact_model
+    print(f"  Q (Ferrari-Canny, {model} contacts; mean, "
+          f"std, skewness over the force-closure draws): nominal {grasp.q_nominal:.5f}, mean "
+          f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
+    print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
+    return 0
