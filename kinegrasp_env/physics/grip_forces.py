@@ -4,8 +4,8 @@ The holding test's grip (:mod:`~kinegrasp_env.physics.protocol`, step 2) presses
 with contact forces whose net wrench on it is zero (internal forces only), so releasing the
 pin leaves the object where it was. From the contacts the closing ended with (one per
 touching finger link, world frame, normals into the object), :func:`balanced_torques` solves
-one linear programme over the friction cones' edges (docs/conventions.md: f_j = n +
-mu' (cos t1 + sin t2), normal component 1):
+a linear programme over the friction cones' edges, one per friction fraction tried
+(docs/conventions.md: f_j = n + mu' (cos t1 + sin t2), normal component 1):
 
 * the contact forces f_c = sum_j lambda_cj e_cj, lambda >= 0, with friction mu' = s mu,
   s the smallest of :data:`FRICTION_FRACTIONS` for which a solution exists (forces as far

@@ -9,10 +9,11 @@ fingers at the grasp's pre-shape), step by step:
    object never moves either;
 2. **grip**, the object still fixed, gravity off: the fingers press with contact forces in
    equilibrium (:mod:`~kinegrasp_env.physics.grip_forces`). From the closing's contacts one
-   linear programme gives contact forces inside the friction cones (mu reduced to the
-   smallest fraction that allows a solution) whose net force and torque on the object are
+   linear programme gives contact forces inside the friction cones (mu times the smallest
+   of 0.2, 0.3, ..., 1 that allows a solution) whose net force and torque on the object are
    zero, with joint torques tau = J^T f between zero and the torque limits, the smallest
-   normal force as large as possible; none: the draw ends as ``no_grip``. Each flexion joint
+   normal force as large as possible; none (or fewer than two fingers touching): the draw
+   ends as ``no_grip``. The spread joints stay held as the closing held them. Each flexion joint
    with a contact on its link or beyond is then a spring towards its stall angle plus the
    angle that moves its finger's tip by ``grip_advance``, as stiff as makes it press with its
    balanced torque at the stall angle, capped at its torque limit; the other joints are held
