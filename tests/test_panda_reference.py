@@ -207,3 +207,19 @@ def test_cli_plans_and_evaluates_the_panda(tmp_path):
     assert done.stderr.strip().splitlines()[-1] == (
         "kinegrasp evaluate: error: grasp '0' is a grasp of robot 'panda', not of 'kuka_sdh'; "
         "evaluate it with --robot panda")
+
+
+def test_generic_closing_takes_any_description_robot():
+    """The same closing on the default robot's description (three revolute fingers): a
+    shipped cube grasp closes with every finger within CONTACT_TOL of the object, its contacts
+    on the exact surface."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    grasp = shipped_grasps("cube")[0]
+    with RobotReferenceEngine("kuka_sdh", "cube") as kuka:
+        result = kuka.close_one(grasp.q0)
+        assert not result.start_collision and not any(result.missed)
+        assert np.all((result.gaps >= -GJK_TOL) & (result.gaps <= CONTACT_TOL))
+        points = np.array([c.point for c in result.contacts])
+        _, distance, _ = kuka.obj.closest_points(points)
+        assert len(points) >= 3 and np.all(np.abs(distance) < 1e-6)

@@ -17,7 +17,9 @@
 3. **IK**: damped least squares on the arm joints for that palm pose
    (:func:`solve_palm_ik`: :class:`~kinegrasp_env.robot.kinematics.Kinematics`' pose and
    Jacobian, random restarts within the joint limits, joints within their limits).
-4. **Checks**: the nominal closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
+4. **Checks**: at q0 every robot link but the fingers clears the object by
+   ``min_clearance`` (pybullet's distance: the palm is not grazing the object); the nominal
+   closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
    RobotReferenceEngine`, sigma 0) must start clear of the object and end in force closure
    with the robot's contact model; the grasps kept record their robot.
 """
@@ -28,6 +30,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
@@ -46,6 +49,7 @@ class RobotPlannerSettings:
     width_margin: float = 0.005
     max_depth: float = 0.025
     min_downward: float = 0.5
+    min_clearance: float = 0.005
     attempts: int = 200
     ik_restarts: int = 6
     ik_iterations: int = 200
@@ -193,6 +197,16 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
     return q[:, arm], done
 
 
+def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
+    """Smallest distance (metres) from the object of the robot's links other than the
+    fingers at configuration q (dof,) (pybullet; capped at the query distance)."""
+    world = engine.world
+    world.set_configuration(q)
+    fingers = {world.link_index[link] for link in engine.description.finger_links}
+    rows = [r for r in world.closest(QUERY_DISTANCE) if r[3] not in fingers]
+    return min((world.distance(r) for r in rows), default=QUERY_DISTANCE)
+
+
 def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
                       seed: SeedLike = 0, settings: RobotPlannerSettings | None = None,
                       friction: float = 0.5) -> list[Grasp]:
@@ -232,6 +246,8 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
             pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
             q0 = description.open_configuration()
             q0[:description.arm_dof] = arm
+            if clearance(engine, q0) < settings.min_clearance:
+                continue
             draws = engine.run(q0[None])
             if draws.outcome[0] != FORCE_CLOSURE:
                 continue
