@@ -202,6 +202,11 @@ def test_cli_plans_and_evaluates_the_panda(tmp_path):
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert result["robot"] == "panda" and result["p_fc"] == 1.0
+    ranked = tmp_path / "r.csv"
+    done = run_cli("rank", str(out), "--sigma", "0", "--samples", "3", "--out", str(ranked))
+    assert done.returncode == 0, done.stderr
+    rows = ranked.read_text().splitlines()
+    assert len(rows) == 3 and all(r.split(",")[1] == "1" for r in rows[1:])
     done = run_cli("evaluate", "--grasps", str(out), "--robot", "kuka_sdh")
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1] == (

@@ -1,7 +1,8 @@
-"""``plan --robot`` and ``evaluate`` of a description robot's grasp (a robot other than the
-default ``kuka_sdh``): the antipodal planner (:mod:`kinegrasp_env.toolkit.robot_planner`) and
-the reference engine (:mod:`kinegrasp_env.montecarlo.robot_evaluate`). The default robot's
-commands are untouched (:mod:`kinegrasp_env.cli.toolkit`, :mod:`kinegrasp_env.cli.grasping`).
+"""``plan --robot``, ``evaluate`` and ``rank`` of a description robot's grasps (a robot other
+than the default ``kuka_sdh``): the antipodal planner
+(:mod:`kinegrasp_env.toolkit.robot_planner`) and the reference engine
+(:mod:`kinegrasp_env.montecarlo.robot_evaluate`). The default robot's commands are untouched
+(:mod:`kinegrasp_env.cli.toolkit`, :mod:`kinegrasp_env.cli.grasping`).
 """
 
 from __future__ import annotations
@@ -84,3 +85,42 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
     print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
     return 0
+
+
+def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed: int) -> list:
+    """``kinegrasp rank`` of a description robot's grasps: each evaluated on ``samples``
+    draws (the same seed for every candidate: common noise), ordered by ``--criterion``
+    (:func:`kinegrasp_env.toolkit.ranking.order`); returns the ordered
+    :class:`~kinegrasp_env.toolkit.ranking.CandidateResult` list."""
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.robot_evaluate import (
+        RobotReferenceEngine,
+        check_robot,
+        evaluate_robot_grasp,
+    )
+    from kinegrasp_env.sampling.stats import StreamingMoments
+    from kinegrasp_env.toolkit.ranking import CandidateResult, order
+
+    _refuse(args, {"--noise-spec": None, "--adaptive": False, "--best-elbow": None,
+                   "--report": None}, robot)
+    if args.engine != "pybullet":
+        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
+                       "engine only")
+    objects = {g.object for g in grasps}
+    if len(objects) != 1:
+        raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
+                       f"{', '.join(sorted(objects))}")
+    with reported(ValueError):
+        for g in grasps:
+            check_robot(g, robot)
+    results = []
+    with RobotReferenceEngine(robot, objects.pop()) as engine:
+        for index, g in enumerate(grasps):
+            stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
+                                         noise=args.noise, engine=engine)
+            fc = stats.draws.outcome == FORCE_CLOSURE
+            result = CandidateResult(index)
+            result.add(int(fc.sum()), samples,
+                       StreamingMoments(1).update(stats.draws.quality[fc]), 1)
+            results.append(result)
+    return order(results, args.criterion)

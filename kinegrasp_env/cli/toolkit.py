@@ -33,7 +33,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot, rank_robot
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -117,6 +117,13 @@ def cmd_rank(args) -> int:
     noise, sigma, samples, seed = noise_from(args)
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
+    robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
+    if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
+        results = rank_robot(args, grasps, robot, sigma, samples, seed)
+        _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
+                       "pybullet")
+        _write_rejected(rejected, out)
+        return 0
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
@@ -437,6 +444,8 @@ def add_commands(sub) -> None:
                    "<out>.partial.jsonl and the same command resumes from them")
     p.add_argument("--report", help="also write a self-contained HTML page: the sortable "
                    "table and each candidate's 3-D views")
+    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
+                   f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
     p.set_defaults(func=cmd_rank)
 
     p = sub.add_parser("sweep", help="a grid of evaluations (objects x grasps x sigmas x noise "
