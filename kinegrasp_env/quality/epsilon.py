@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import threading
 from functools import lru_cache
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+
+if TYPE_CHECKING:
+    from scipy.spatial import ConvexHull
 
 from kinegrasp_env.quality.wrenches import (
     BARELY_CLOSED,
@@ -98,6 +100,8 @@ def merge_close(points: np.ndarray, tol: float) -> np.ndarray:
 def _qhull(points: np.ndarray) -> ConvexHull | None:
     """Qhull hull of (N, 6) points under the first option of :data:`QHULL_OPTIONS` qhull
     accepts, or None when it declines them all."""
+    from scipy.spatial import ConvexHull, QhullError
+
     for options in QHULL_OPTIONS:
         try:
             return ConvexHull(points, qhull_options=options)

@@ -12,16 +12,19 @@ frame unless its catalog entry gives a pose.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy.spatial import ConvexHull
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.paths import cache_root
 from kinegrasp_env.world.names import (  # noqa: F401 (is_object, object_names: re-exported)
     OBJECT_NAMES,
     OBJECT_POSITION,
@@ -42,6 +45,9 @@ from kinegrasp_env.world.store import (
 from kinegrasp_env.world.support import SupportTable
 from kinegrasp_env.world.surface_kernel import project_onto_parts
 
+if TYPE_CHECKING:
+    import trimesh
+
 
 @dataclass(frozen=True, eq=False)
 class GraspObject:
@@ -49,8 +55,8 @@ class GraspObject:
 
     Attributes:
         name: catalog name.
-        mesh: triangle mesh, object frame: for a built-in object the watertight union of the
-            parts, for an imported one its cleaned source mesh.
+        mesh_source: returns the triangle mesh (:attr:`mesh`; called on first use, so code
+            that needs only the parts never loads trimesh).
         parts: convex parts, each an (n_i, 3) vertex array (object frame).
         planes: per part, (F_i, 4) outward face planes [normal (3), offset] with
             normal . x + offset <= 0 inside.
@@ -64,10 +70,12 @@ class GraspObject:
             None (the object floats at its pose: the paper's setting).
         base: for a placed object (``kinegrasp objects place ... --as NAME``), the object
             whose geometry (and, placed as the base is, shipped grasps) it has; else None.
+        part_edges: per part, its true edges (E_i, 2, 3) as computed before, or None
+            (:attr:`ConvexPart.edges` computes them).
     """
 
     name: str
-    mesh: trimesh.Trimesh
+    mesh_source: Callable[[], trimesh.Trimesh] = field(repr=False)
     parts: tuple[np.ndarray, ...]
     planes: tuple[np.ndarray, ...] = field(repr=False)
     center_of_mass: np.ndarray = field(repr=False)
@@ -77,6 +85,13 @@ class GraspObject:
     imported: bool = False
     table: SupportTable | None = None
     base: str | None = None
+    part_edges: tuple[np.ndarray, ...] | None = field(default=None, repr=False)
+
+    @cached_property
+    def mesh(self) -> trimesh.Trimesh:
+        """Triangle mesh, object frame: for a built-in object the watertight union of the
+        parts, for an imported one its cleaned source mesh."""
+        return self.mesh_source()
 
     @property
     def torque_scale(self) -> float:
@@ -167,7 +182,9 @@ class GraspObject:
     @cached_property
     def convex_parts(self) -> tuple[ConvexPart, ...]:
         """The parts as :class:`ConvexPart` (exact closest points)."""
-        return tuple(ConvexPart(v, p) for v, p in zip(self.parts, self.planes, strict=True))
+        edges = self.part_edges or (None,) * len(self.parts)
+        return tuple(ConvexPart(v, p, e)
+                     for v, p, e in zip(self.parts, self.planes, edges, strict=True))
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Exact closest points on the object of object-frame points (n, 3).
@@ -200,6 +217,8 @@ class GraspObject:
 
 def face_planes(vertices: np.ndarray) -> np.ndarray:
     """(F, 4) unique outward face planes [unit normal, offset] of the hull of (V, 3) points."""
+    from scipy.spatial import ConvexHull
+
     hull = ConvexHull(vertices)
     eq = hull.equations
     # merge coplanar triangles: unique planes
@@ -254,16 +273,98 @@ def object_version(name: str) -> str:
     return entry_digest(folder)
 
 
+@lru_cache(maxsize=16)
+def mesh_file(path: Path, process: bool) -> trimesh.Trimesh:
+    """The triangle mesh of an OBJ file (trimesh's ``process`` merges duplicate vertices);
+    one copy per file and setting in a process."""
+    import trimesh
+
+    return trimesh.load(path, force="mesh", process=process)
+
+
+@dataclass(frozen=True)
+class MeshFile:
+    """A mesh source that reads an OBJ file (:func:`mesh_file`) when called."""
+
+    path: Path
+    process: bool
+
+    def __call__(self) -> trimesh.Trimesh:
+        return mesh_file(self.path, self.process)
+
+
+@dataclass(frozen=True)
+class GivenMesh:
+    """A mesh source that is a mesh already (an object built in memory)."""
+
+    mesh: trimesh.Trimesh
+
+    def __call__(self) -> trimesh.Trimesh:
+        return self.mesh
+
+
+#: The sources of a built-in object's derived geometry (a change of any gives a new key).
+GEOMETRY_SOURCES = ("objects.py", "polytope.py")
+
+
+def builtin_geometry(name: str) -> dict[str, np.ndarray]:
+    """A built-in object's centre of mass (3,), r_max (), its parts' face planes (every
+    part's (F_i, 4) rows stacked, with (n_parts + 1,) offsets) and true edges (stacked
+    (E, 2, 3), with offsets), computed from its mesh and parts once and kept on disk
+    (``cache_root()/objects``, keyed by the asset files, the code and trimesh's version), so
+    that loading it needs neither trimesh nor qhull."""
+    from importlib.metadata import version
+
+    obj_file, parts_file = (asset_path("objects", f"{name}.obj"),
+                            asset_path("objects", f"{name}_parts.json"))
+    digest = hashlib.sha256(obj_file.read_bytes() + b"\0" + parts_file.read_bytes())
+    for source in GEOMETRY_SOURCES:
+        digest.update(b"\0" + (Path(__file__).parent / source).read_bytes())
+    digest.update(b"\0" + version("trimesh").encode())
+    path = cache_root() / "objects" / f"{name}-{digest.hexdigest()[:16]}.npz"
+    try:
+        with np.load(path) as data:
+            return {key: data[key] for key in data.files}
+    except (OSError, ValueError):
+        pass
+    mesh = mesh_file(obj_file, True)
+    com = np.asarray(mesh.center_mass, dtype=float)
+    parts = json.loads(parts_file.read_text())["parts"]
+    polytopes = [ConvexPart(v, face_planes(v)) for v in (np.asarray(p, dtype=float)
+                                                          for p in parts)]
+    geometry = {"center_of_mass": com,
+                "r_max": np.array(np.linalg.norm(mesh.vertices - com, axis=1).max()),
+                "planes": np.vstack([p.planes for p in polytopes]),
+                "offsets": np.cumsum([0] + [len(p.planes) for p in polytopes]),
+                "edges": np.concatenate([p.edges.reshape(-1, 2, 3) for p in polytopes]),
+                "edge_offsets": np.cumsum([0] + [len(p.edges) for p in polytopes])}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(tmp, **geometry)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # read-only cache: computed again next time
+    return geometry
+
+
+def split_rows(rows: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The blocks ``rows[offsets[k]:offsets[k + 1]]`` of stacked per-part rows."""
+    return tuple(rows[offsets[k]:offsets[k + 1]] for k in range(len(offsets) - 1))
+
+
 @lru_cache(maxsize=8)
 def builtin_object(name: str) -> GraspObject:
     """A built-in object (``assets/objects``)."""
-    mesh = trimesh.load(asset_path("objects", f"{name}.obj"), force="mesh", process=True)
     data = json.loads(asset_path("objects", f"{name}_parts.json").read_text())
     parts = tuple(np.asarray(p, dtype=float) for p in data["parts"])
-    com = np.asarray(mesh.center_mass, dtype=float)
-    r_max = float(np.linalg.norm(mesh.vertices - com, axis=1).max())
-    return GraspObject(name, mesh, parts, tuple(face_planes(p) for p in parts), com, r_max,
-                       default_pose(), asset_path("objects", f"{name}.obj"))
+    geometry = builtin_geometry(name)
+    planes, edges = (split_rows(geometry[rows], geometry[offsets])
+                     for rows, offsets in (("planes", "offsets"), ("edges", "edge_offsets")))
+    obj_file = asset_path("objects", f"{name}.obj")
+    return GraspObject(name, MeshFile(obj_file, True), parts, planes,
+                       geometry["center_of_mass"], float(geometry["r_max"]), default_pose(),
+                       obj_file, part_edges=edges)
 
 
 @lru_cache(maxsize=8)
@@ -272,11 +373,11 @@ def imported_object(folder: str, version: str) -> GraspObject:
     :func:`object_version`, so a re-imported entry is read afresh)."""
     path = Path(folder)
     entry = read_entry(path)
-    mesh = trimesh.load(path / MESH_FILE, force="mesh", process=False)
     data = json.loads((path / PARTS_FILE).read_text())
     parts = [np.asarray(p, dtype=float) for p in data["parts"]]
-    obj = object_from_parts(path.name, mesh, parts, np.asarray(entry["center_of_mass"]),
-                            float(entry["r_max"]), None, path / MESH_FILE)
+    obj = object_from_parts(path.name, MeshFile(path / MESH_FILE, False), parts,
+                            np.asarray(entry["center_of_mass"]), float(entry["r_max"]), None,
+                            path / MESH_FILE)
     return replace(obj, **entry_placement(entry))
 
 
@@ -309,12 +410,15 @@ def entry_placement(entry: dict) -> dict:
             "table": None if table is None else SupportTable.from_dict(table)}
 
 
-def object_from_parts(name: str, mesh: trimesh.Trimesh, parts: list[np.ndarray],
+def object_from_parts(name: str, mesh: trimesh.Trimesh | Callable[[], trimesh.Trimesh],
+                      parts: list[np.ndarray],
                       center_of_mass: np.ndarray, r_max: float, pose: np.ndarray | None = None,
                       mesh_file: Path | None = None) -> GraspObject:
-    """An imported object from its mesh and convex parts (object frame, metres)."""
+    """An imported object from its mesh (or a callable that returns it) and convex parts
+    (object frame, metres)."""
     parts_t = tuple(np.ascontiguousarray(p, dtype=float) for p in parts)
-    return GraspObject(name, mesh, parts_t, tuple(face_planes(p) for p in parts_t),
+    source = mesh if callable(mesh) else GivenMesh(mesh)
+    return GraspObject(name, source, parts_t, tuple(face_planes(p) for p in parts_t),
                        np.asarray(center_of_mass, dtype=float), float(r_max),
                        default_pose() if pose is None else pose, mesh_file, True)
 

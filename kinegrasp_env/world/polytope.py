@@ -13,11 +13,10 @@ s_i = n_i . x + d_i (outward unit normals):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 #: Relative tolerance for "the face projection lies in the part" (metres, times the size).
 INSIDE_TOL = 1e-12
@@ -32,14 +31,22 @@ class ConvexPart:
     Attributes:
         vertices: (V, 3) metres.
         planes: (F, 4) unique outward face planes [unit normal, offset], n . x + d <= 0 inside.
+        known_edges: (E, 2, 3) :attr:`edges` as computed before (kept with a catalog
+            object's cached geometry), or None to compute them.
     """
 
     vertices: np.ndarray
     planes: np.ndarray
+    known_edges: np.ndarray | None = field(default=None, repr=False)
 
     @cached_property
     def edges(self) -> np.ndarray:
-        """(E, 2, 3) end points of the true edges (between non-coplanar faces)."""
+        """(E, 2, 3) end points of the true edges (between non-coplanar faces), from the
+        vertices' convex hull (qhull)."""
+        if self.known_edges is not None:
+            return self.known_edges
+        from scipy.spatial import ConvexHull
+
         hull = ConvexHull(self.vertices)
         seen: set[tuple[int, int]] = set()
         edges = []
