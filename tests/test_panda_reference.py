@@ -228,3 +228,20 @@ def test_generic_closing_takes_any_description_robot():
         points = np.array([c.point for c in result.contacts])
         _, distance, _ = kuka.obj.closest_points(points)
         assert len(points) >= 3 and np.all(np.abs(distance) < 1e-6)
+        # each touching capsule against the exact object: its axis sampled (URDF collision
+        # frame from pybullet's shape data), distance minus radius
+        world, bullet = kuka.world, kuka.world.bullet
+        robot = world.bodies["robot"]
+        for c in result.contacts:
+            link = kuka.description.fingers[c.finger].links[c.link]
+            (shape,) = bullet.getCollisionShapeData(robot, world.link_index[link])
+            assert shape[2] == 7  # GEOM_CAPSULE: (length, radius)
+            length, radius = shape[3][:2]
+            state = bullet.getLinkState(robot, world.link_index[link],
+                                        computeForwardKinematics=True)
+            pos, orn = bullet.multiplyTransforms(state[0], state[1], shape[5], shape[6])
+            axis = np.reshape(bullet.getMatrixFromQuaternion(orn), (3, 3))[:, 2]
+            s = np.linspace(-0.5 * length, 0.5 * length, 401)
+            axis_points = kuka.obj.to_object(np.asarray(pos) + s[:, None] * axis)
+            _, d, _ = kuka.obj.closest_points(axis_points)
+            assert -GJK_TOL <= d.min() - radius <= CONTACT_TOL + 1e-5, (link, d.min() - radius)

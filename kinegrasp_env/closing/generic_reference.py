@@ -17,7 +17,7 @@ where forward kinematics of the URDF puts it. Then:
    the coupled jaws of a parallel gripper close together at one rate, but each finger stops
    where it touches: the jaws of a self-centring gripper. t advances by conservative
    advancement: the finger's gap g (pybullet's closest-point distance between its links and
-   the object, plus the collision margins pybullet subtracts: :meth:`RobotWorld.distance`)
+   the object, plus the collision margins pybullet subtracts: :func:`hull_margin`)
    over a bound v on how fast any point of those links moves per unit t
    (:func:`finger_speed`), so that a step never closes more than the gap;
    should pybullet's distances disagree (penetration beyond :data:`CONTACT_TOL` after a step)
@@ -48,7 +48,7 @@ from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import FACE_TOL, link_hull_vertices, patch_centre
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, GraspWorld
+from kinegrasp_env.world.sim import BulletWorld, GraspWorld, pybullet
 
 #: Gaps beyond this are not measured (a step is then bounded by it), metres.
 QUERY_DISTANCE = 0.05
@@ -56,11 +56,13 @@ QUERY_DISTANCE = 0.05
 MAX_STEPS = 200
 #: Halvings of a step that pybullet reports as penetrating, at most.
 MAX_HALVINGS = 30
+GEOM_MESH = pybullet.GEOM_MESH
 #: A contact point within this of exactly one face plane lies on that face, metres.
 EDGE_TOL = 5e-5
 
 __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
-           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of", "finger_speed"]
+           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of", "finger_speed",
+           "hull_margin"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,19 @@ def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | Non
     return part, plane / np.linalg.norm(plane[:3])
 
 
+def hull_margin(bullet, body: int, link: int) -> float:
+    """The collision margin (metres) pybullet's distances subtract from a link's geometry:
+    its reported margin when every collision shape of the link is a mesh (a convex hull,
+    which Bullet inflates by the margin; the children of a link's compound shape keep the URDF
+    importer's 1 mm whatever changeDynamics sets), else 0 (boxes and cylinders are shrunk by
+    their margin, a sphere's or capsule's margin is its radius: their distances are exact;
+    a link mixing meshes with those is left uncorrected)."""
+    shapes = bullet.getCollisionShapeData(body, link)
+    if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
+        return float(bullet.getDynamicsInfo(body, link)[11])
+    return 0.0
+
+
 def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
     """Bound v (metres per unit t) on the speed of any point of a finger's links.
 
@@ -169,9 +184,7 @@ class RobotWorld(GraspWorld):
         for link in self.link_index.values():
             bullet.changeDynamics(robot, link, collisionMargin=0.0)
         self.bodies["object"] = self._load_object(obj)
-        # what pybullet's distances leave out: the margins that changeDynamics did not reach
-        # (the children of a link's compound shape keep the URDF importer's 1 mm)
-        self.margins = {(body, link): float(bullet.getDynamicsInfo(body, link)[11])
+        self.margins = {(body, link): hull_margin(bullet, body, link)
                         for body, count in ((robot, bullet.getNumJoints(robot)),
                                             (self.bodies["object"],
                                              bullet.getNumJoints(self.bodies["object"])))
