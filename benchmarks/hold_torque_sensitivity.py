@@ -11,7 +11,9 @@ exact two-sided McNemar p-value (scipy's binomial test), Holm-corrected over the
     python benchmarks/hold_torque_sensitivity.py [--objects cube drill] [--sigma 0]
         [--samples 1] [--scales 0.5 1 2] [--processes 2] [--out benchmarks/results/...]
 
-Results are cached per scale under ``--cache`` (a rerun resumes); the JSON goes to ``--out``.
+Results are cached per scale under ``--cache`` (a rerun resumes); the JSON goes to ``--out``,
+the table into the physics guide (``--page``, between ``<!-- hold-torques:start -->`` and
+``<!-- hold-torques:end -->``; ``--no-page`` prints it only).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from marked_section import write_between
 from scipy.stats import binomtest
 
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
@@ -31,6 +34,8 @@ from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 ROOT = Path(__file__).resolve().parent
+#: The physics guide's section this script writes.
+START, END = "<!-- hold-torques:start -->", "<!-- hold-torques:end -->"
 
 
 def scale_summary(results, settings) -> dict:
@@ -70,6 +75,27 @@ def holm(p_values: list[float]) -> list[float]:
     return adjusted
 
 
+def markdown(rows: list[dict]) -> str:
+    """The table of the physics guide: per torque scale its limits, P(hold), the outcomes,
+    the grip's shift and the paired comparison with 1x."""
+    lines = ["| torque scale | limits prox / dist / hold N m | P(hold) [95% CI] | "
+             + " | ".join(HOLD_OUTCOMES[1:]) + " | grip shift mm median / max | vs 1x |",
+             "|---|---|---|" + "---|" * (len(HOLD_OUTCOMES) - 1) + "---|---|"]
+    for row in rows:
+        t, shift, pair = row["torques_nm"], row["grip_shift_mm"]["released"], row[
+            "paired_with_1x"]
+        lo, hi = row["p_hold_ci"]
+        versus = "-" if pair is None else (f"{pair['held_at_1x_only']} / "
+                                           f"{pair['held_here_only']}, Holm p "
+                                           f"{pair['holm_p']:.2g}")
+        shifts = "-" if shift is None else f"{shift['median']:.2f} / {shift['max']:.2f}"
+        lines.append(f"| {row['torque_scale']:g}x | {t['proximal']:g} / {t['distal']:g} / "
+                     f"{t['hold']:g} | {row['p_hold']:.3f} [{lo:.2f}, {hi:.2f}] | "
+                     + " | ".join(str(row["outcomes"][k]) for k in HOLD_OUTCOMES[1:])
+                     + f" | {shifts} | {versus} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="+", default=list(OBJECT_NAMES))
@@ -80,6 +106,9 @@ def main() -> None:
     parser.add_argument("--processes", type=int, default=1)
     parser.add_argument("--cache", default="out/hold_torque_sensitivity")
     parser.add_argument("--out", default=str(ROOT / "results" / "hold_torque_sensitivity.json"))
+    parser.add_argument("--page", type=Path, default=ROOT.parent / "docs" / "guides" / "physics.md",
+                        help="the page whose generated section gets the table")
+    parser.add_argument("--no-page", action="store_true", help="print the table only")
     args = parser.parse_args()
     if 1.0 not in args.scales:
         parser.error("--scales must include 1 (the paired comparisons are against it)")
@@ -103,22 +132,11 @@ def main() -> None:
            "seed": args.seed, "grasps": len(grasps), "scales": rows}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    body = markdown(rows)
     print(f"{len(grasps)} grasps x {args.samples} draws, sigma {args.sigma:g}, seed {args.seed}")
-    print("| torque scale | limits prox / dist / hold N m | P(hold) [95% CI] | "
-          + " | ".join(HOLD_OUTCOMES[1:]) + " | grip shift mm median / max | vs 1x |")
-    print("|---|---|---|" + "---|" * (len(HOLD_OUTCOMES) - 1) + "---|---|")
-    for row in rows:
-        t, shift, pair = row["torques_nm"], row["grip_shift_mm"]["released"], row[
-            "paired_with_1x"]
-        lo, hi = row["p_hold_ci"]
-        versus = "-" if pair is None else (f"{pair['held_at_1x_only']} / "
-                                           f"{pair['held_here_only']}, Holm p "
-                                           f"{pair['holm_p']:.2g}")
-        shifts = "-" if shift is None else f"{shift['median']:.1f} / {shift['max']:.1f}"
-        print(f"| {row['torque_scale']:g}x | {t['proximal']:g} / {t['distal']:g} / "
-              f"{t['hold']:g} | {row['p_hold']:.3f} [{lo:.2f}, {hi:.2f}] | "
-              + " | ".join(str(row["outcomes"][k]) for k in HOLD_OUTCOMES[1:])
-              + f" | {shifts} | {versus} |")
+    print(body)
+    if not args.no_page:
+        write_between(args.page, START, END, body)
     print(f"wrote {args.out}")
 
 
