@@ -245,3 +245,18 @@ def test_generic_closing_takes_any_description_robot():
             axis_points = kuka.obj.to_object(np.asarray(pos) + s[:, None] * axis)
             _, d, _ = kuka.obj.closest_points(axis_points)
             assert -GJK_TOL <= d.min() - radius <= CONTACT_TOL + 1e-5, (link, d.min() - radius)
+
+
+def test_the_default_robots_engines_refuse_another_robots_grasp():
+    """evaluate_grasp (the fast and reference engines of the default robot) refuses a Panda
+    grasp in one line naming both robots, before any draw."""
+    import dataclasses
+
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    grasp = dataclasses.replace(shipped_grasps("cube")[0], robot="panda")
+    for engine in ("fast", "pybullet"):
+        with pytest.raises(ValueError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
+            evaluate_grasp(grasp, JointNoise(0.01), 10, engine=engine)

@@ -34,7 +34,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_robot
 
 DEFAULT_CHUNK = 250
 #: Most chunks the fast engine runs in one call: its auto-close iterations have a fixed
@@ -297,6 +297,7 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
+    check_robot(grasp, DEFAULT_ROBOT)
     validate_task(grasp.q0, noise)
     check_noise_engine(noise, engine)
     n_samples = int(sum(sizes))

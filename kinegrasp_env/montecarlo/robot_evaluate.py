@@ -28,7 +28,7 @@ from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise, SeedLike, as_generator
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import Grasp, check_robot
 from kinegrasp_env.world.objects import load_object
 
 
@@ -177,13 +177,6 @@ def summarize(draws: RobotDraws) -> RobotEvaluation:
         float(q.mean()) if k else float("nan"),
         float(q.std(ddof=1)) if k > 1 else float("nan"),
         float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws)
-
-
-def check_robot(grasp: Grasp, robot: str) -> None:
-    """ValueError (one line) when the grasp was made for another robot than ``robot``."""
-    if grasp.robot != robot:
-        raise ValueError(f"grasp {grasp.id!r} is a grasp of robot {grasp.robot!r}, not of "
-                         f"{robot!r}; evaluate it with --robot {grasp.robot}")
 
 
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
