@@ -1,7 +1,7 @@
 """Two simulators, one holding test: ``kinegrasp validate --simulator mujoco`` against
 ``--simulator pybullet`` on the same draws, draw by draw and grasp by grasp.
 
-For each built-in object, the shipped grasps ``--grasp`` (default 0-5) get ``--samples``
+For each built-in object, the shipped grasps ``--grasp`` (default all 12) get ``--samples``
 draws each at joint noise ``--sigma`` (default 0.0133 rad) and seed ``--seed``: the same
 configurations in both simulators (the CLI's draws of that seed). Each simulator runs the
 same protocol (``kinegrasp_env.physics.protocol``: the object pinned while the hand closes and
@@ -18,15 +18,17 @@ grips, released, then rest, six gravity directions, lift). Reported:
   neither, and the disputed rest.
 
 The validate runs are cached in ``--out`` (a rerun resumes). The summary is written as JSON
-(``--json-out``) and as a Markdown section of README.md between the markers
-``<!-- simulator-agreement:start -->`` and ``<!-- simulator-agreement:end -->``
-(``--readme``; ``--no-readme`` to skip).
+(``--json-out``), as a Markdown section of README.md (the agreement, the confusion per object,
+what both support) between ``<!-- simulator-agreement:start -->`` and
+``<!-- simulator-agreement:end -->`` (``--readme``), and the per-grasp and per-draw tables into
+the physics guide between ``<!-- simulator-agreement-detail:start -->`` and
+``<!-- simulator-agreement-detail:end -->`` (``--page``; ``--no-readme`` writes neither).
 
     python benchmarks/simulator_agreement.py [--objects cube drill] [--grasp 0 1 2]
         [--samples 3] [--sigma 0.0133] [--seed 0] [--out out/simulator_agreement]
 
-About 1-4 s per draw and simulator on one core (72 draws x 2 at the defaults: 4.5 min
-measured).
+About 1-4 s per draw and simulator on one core (144 draws x 2 at the defaults: 11 min
+measured on a loaded 2-core machine).
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ import sys
 import time
 from pathlib import Path
 
+from marked_section import write_between
+
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -46,6 +50,8 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 ROOT = Path(__file__).resolve().parents[1]
 SIMULATORS = ("pybullet", "mujoco")
 START, END = "<!-- simulator-agreement:start -->", "<!-- simulator-agreement:end -->"
+DETAIL_START, DETAIL_END = ("<!-- simulator-agreement-detail:start -->",
+                            "<!-- simulator-agreement-detail:end -->")
 #: A grip shift above this (mm) marks a disagreement that follows an unsteady release.
 SHIFT_MM = 5.0
 
@@ -132,7 +138,8 @@ def summarize(draws: dict[str, dict], objects: list[str]) -> dict:
 
 
 def markdown(summary: dict, args) -> str:
-    """The README section's body (between the markers)."""
+    """The README section's body (between the markers): the agreement, the confusion per
+    object and what both simulators support."""
     s = summary
     lines = [
         f"`python benchmarks/simulator_agreement.py` (sigma {args.sigma}, seed {args.seed}, "
@@ -146,7 +153,18 @@ def markdown(summary: dict, args) -> str:
         lines.append(f"| {obj} | {nn} | {nm} | {pn} | {pm} |")
     (nn, nm), (pn, pm) = s["confusion_all"]
     lines += [f"| all | {nn} | {nm} | {pn} | {pm} |", "",
-              "| grasp | P(hold) pybullet | P(hold) MuJoCo |", "|---|---|---|"]
+              "What both simulators support: held in every draw by both: "
+              + (", ".join(s["held_by_both_every_draw"]) or "none")
+              + "; held in no draw by either: " + (", ".join(s["held_by_neither"]) or "none")
+              + "; disputed (no conclusion): " + (", ".join(s["disputed"]) or "none") + "."]
+    return "\n".join(lines)
+
+
+def detail_markdown(summary: dict) -> str:
+    """The physics guide's section: per grasp the P(hold) pair, the outcomes' cross table
+    and every disagreeing draw."""
+    s = summary
+    lines = ["| grasp | P(hold) pybullet | P(hold) MuJoCo |", "|---|---|---|"]
     for grasp, r in s["per_grasp"].items():
         lines.append(f"| {grasp} | {r['p_hold_pybullet']:.2f} | {r['p_hold_mujoco']:.2f} |")
     cross = s["outcomes_pybullet_rows_mujoco_columns"]
@@ -170,27 +188,14 @@ def markdown(summary: dict, args) -> str:
         lines.append(f"| {d['object']} {d['grasp']} #{d['draw']} | {d['pybullet']} | "
                      f"{d['mujoco']} | {d['pybullet_first_failed'] or '-'} / "
                      f"{d['mujoco_first_failed'] or '-'} | {shifts} |")
-    lines += ["", "What both simulators support: held in every draw by both: "
-              + (", ".join(s["held_by_both_every_draw"]) or "none")
-              + "; held in no draw by either: " + (", ".join(s["held_by_neither"]) or "none")
-              + "; disputed (no conclusion): " + (", ".join(s["disputed"]) or "none") + "."]
     return "\n".join(lines)
-
-
-def write_readme(path: Path, body: str) -> None:
-    text = path.read_text()
-    if START not in text or END not in text:
-        raise ValueError(f"{path} has no {START} ... {END} markers")
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    path.write_text(f"{head}{START}\n{body}\n{END}{tail}")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--objects", nargs="+", default=list(OBJECT_NAMES),
                         choices=list(OBJECT_NAMES))
-    parser.add_argument("--grasp", nargs="+", type=int, default=list(range(6)))
+    parser.add_argument("--grasp", nargs="+", type=int, default=list(range(12)))
     parser.add_argument("--samples", type=int, default=3)
     parser.add_argument("--sigma", type=float, default=0.0133)
     parser.add_argument("--seed", type=int, default=0)
@@ -198,7 +203,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json-out", type=Path,
                         default=ROOT / "benchmarks" / "results" / "simulator_agreement.json")
     parser.add_argument("--readme", type=Path, default=ROOT / "README.md")
-    parser.add_argument("--no-readme", action="store_true")
+    parser.add_argument("--page", type=Path, default=ROOT / "docs" / "guides" / "physics.md",
+                        help="the page that gets the per-grasp and per-draw tables")
+    parser.add_argument("--no-readme", action="store_true", help="print only")
     args = parser.parse_args(argv)
     if args.samples < 1:
         parser.error(f"--samples must be >= 1, got {args.samples}")
@@ -209,12 +216,13 @@ def main(argv: list[str] | None = None) -> int:
     summary = summarize(draws, args.objects)
     summary["settings"] = {"sigma": args.sigma, "seed": args.seed, "samples": args.samples,
                            "grasps": args.grasp, "objects": args.objects}
-    body = markdown(summary, args)
-    print(body)
+    body, detail = markdown(summary, args), detail_markdown(summary)
+    print(body + "\n\n" + detail)
     args.json_out.parent.mkdir(parents=True, exist_ok=True)
     args.json_out.write_text(json.dumps(summary, indent=1) + "\n")
     if not args.no_readme:
-        write_readme(args.readme, body)
+        write_between(args.readme, START, END, body)
+        write_between(args.page, DETAIL_START, DETAIL_END, detail)
     return 0
 
 
