@@ -34,15 +34,19 @@ NO_STANDING_GRIP = ("no_grip", "grip_lost", "start_collision")
 
 
 def mark(value: str) -> str:
-    """One phase cell: 1 held, 0 failed, - not run."""
+    """One phase's digit: 1 held, 0 failed, - not run."""
     return {"held": "1", "not_run": "-"}.get(value, "0")
+
+
+def closed(outcome: str) -> str:
+    """yes for a force-closure outcome, else the outcome."""
+    return "yes" if outcome == "force_closure" else outcome
 
 
 def table(folders: list[Path]) -> str:
     """The Markdown of the module docstring."""
-    lines = ["| grasp | kinematic / physics | outcome | grip shift mm | grip turn deg | "
-             "pin force N | phases held (rest, +x, -x, +y, -y, +z, -z, lift) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| grasp | FC kinematic / physics | outcome | grip shift mm | grip turn deg | "
+             "pin force N | phases held |", "|---|---|---|---|---|---|---|"]
     notes = []
     for folder in folders:
         rows = list(csv.DictReader((folder / "draws.csv").open(newline="")))
@@ -50,10 +54,11 @@ def table(folders: list[Path]) -> str:
         standing = []
         for r in rows:
             lines.append(
-                f"| {r['object']} {r['grasp']} | {r['kinematic_outcome']} / "
-                f"{r['physics_outcome']} | {r['hold_outcome']} | {float(r['grip_shift_mm']):.2f}"
-                f" | {float(r['grip_turn_deg']):.2f} | {float(r['pin_force_n']):.1f} | "
-                + " ".join(mark(r[p]) for p in PHASE_COLUMNS) + " |")
+                f"| {r['object']} {r['grasp']} | {closed(r['kinematic_outcome'])} / "
+                f"{closed(r['physics_outcome'])} | {r['hold_outcome']} | "
+                f"{float(r['grip_shift_mm']):.2f} | {float(r['grip_turn_deg']):.2f} | "
+                f"{float(r['pin_force_n']):.1f} | `"
+                + "".join(mark(r[p]) for p in PHASE_COLUMNS) + "` |")
             for p in PHASE_COLUMNS:
                 if r[p] != "not_run":
                     counts[p][1] += 1
@@ -67,7 +72,9 @@ def table(folders: list[Path]) -> str:
         notes.append(f"{name}: {held} of {len(rows)} held; phases held / run: {phases}; "
                      f"largest grip shift over the {len(standing)} force-closure grasps whose "
                      f"grip stood: {max(standing, default=float('nan')):.2f} mm.")
-    return "\n".join(lines) + "\n\n" + "\n\n".join(notes)
+    legend = ("Phases held: one digit per phase in the order rest, gravity +x, -x, +y, -y, +z, "
+              "-z, lift (1 held, 0 failed, - not run).")
+    return "\n".join(lines) + "\n\n" + legend + "\n\n" + "\n\n".join(notes)
 
 
 def main() -> None:
