@@ -15,6 +15,8 @@ from kinegrasp_env.cli.common import CLIError, output_file, parse_seed, positive
 #: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied so that building the
 #: parser imports nothing heavy).
 DEFAULT_ROBOT = "kuka_sdh"
+#: The executor options (a description robot's draws run in this process), unset.
+IN_PROCESS = {"--backend": "local", "--address": None, "--processes": None}
 
 
 def _refuse(args, options: dict[str, object], robot: str) -> None:
@@ -57,8 +59,8 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
 
-    _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None},
-            robot)
+    _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None,
+                   **IN_PROCESS}, robot)
     if args.engine != "pybullet":
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
                        "engine only")
@@ -102,7 +104,7 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
     from kinegrasp_env.toolkit.ranking import CandidateResult, order
 
     _refuse(args, {"--noise-spec": None, "--adaptive": False, "--best-elbow": None,
-                   "--report": None}, robot)
+                   "--report": None, "--json": False, **IN_PROCESS}, robot)
     if args.engine != "pybullet":
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
                        "engine only")

@@ -190,7 +190,6 @@ class RobotWorld(GraspWorld):
                                              bullet.getNumJoints(self.bodies["object"])))
                         for link in range(-1, count)}
         self._movable = [j.name for j in self.model.joints if j.movable]
-        self._speeds: dict[tuple, float] = {}
 
     # ------------------------------------------------------------------ state
     def set_configuration(self, q: np.ndarray) -> dict[str, float]:
@@ -257,20 +256,24 @@ class RobotWorld(GraspWorld):
                 np.array(hi))
 
     def _speed(self, index: int, joints, kinds, rates) -> float:
-        key = (index, tuple(rates))
-        if key not in self._speeds:
-            reach = []
-            finger = self.description.fingers[index]
-            for k in range(len(joints)):
-                origin = self.link_pose(finger.links[k])[:3, 3]
-                corners = []
-                for link in finger.links[k:]:
-                    lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
-                    corners += [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
-                                for c in (lo[2], hi[2])]
-                reach.append(float(np.max(np.linalg.norm(np.array(corners) - origin, axis=1))))
-            self._speeds[key] = finger_speed(kinds, rates, np.array(reach))
-        return self._speeds[key]
+        """:func:`finger_speed` of finger ``index`` at the current state (its pre-shape).
+
+        Measured anew for every closing: the world-aligned AABBs depend on the arm's pose, so
+        a bound kept from another configuration would make a closing depend on the draws
+        closed before it (and an evaluation on the grasps evaluated before it)."""
+        if all(kind == "prismatic" for kind in kinds):
+            return finger_speed(kinds, rates, np.zeros(len(joints)))
+        reach = []
+        finger = self.description.fingers[index]
+        for k in range(len(joints)):
+            origin = self.link_pose(finger.links[k])[:3, 3]
+            corners = []
+            for link in finger.links[k:]:
+                lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
+                corners += [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
+                            for c in (lo[2], hi[2])]
+            reach.append(float(np.max(np.linalg.norm(np.array(corners) - origin, axis=1))))
+        return finger_speed(kinds, rates, np.array(reach))
 
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
                    start_tol: float = START_TOL) -> RobotCloseResult:

@@ -61,12 +61,17 @@ class Grasp:
     robot: str = DEFAULT_ROBOT
 
     @property
+    def arm_dof(self) -> int:
+        """Arm joints at the head of ``q0``: 7 for the default robot, else its description's."""
+        return ARM_DOF if self.robot == DEFAULT_ROBOT else load_robot(self.robot).arm_dof
+
+    @property
     def arm(self) -> np.ndarray:
-        return self.q0[:ARM_DOF]
+        return self.q0[:self.arm_dof]
 
     @property
     def hand(self) -> np.ndarray:
-        return self.q0[ARM_DOF:]
+        return self.q0[self.arm_dof:]
 
     def to_dict(self, object_pose: np.ndarray | None = None) -> dict:
         """The grasp's JSON entry; given the object's pose (4, 4) in the world frame, with
