@@ -17,7 +17,9 @@ side in one run, each the best of ``--repeat`` runs (the machine's other load on
 first env step beyond imports (empty and warm cache), and a 10,000-draw ``evaluate`` with two
 processes.
 
-    python benchmarks/bench_coldstart.py [--json-out result.json] [--skip-cold] [--all]
+    python benchmarks/bench_coldstart.py [--json-out result.json | --no-json] [--skip-cold] [--all]
+
+The figures (seconds) go to ``benchmarks/results/bench_coldstart.json`` (``--json-out``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from results_file import add_options, settings, write_result
 
 FIRST_DRAWS = """
 import json, time
@@ -104,12 +108,12 @@ def first_run(args: list[str], env: dict) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=5, help="runs per figure (best kept)")
-    parser.add_argument("--json-out", type=Path, help="also write the figures to this file")
     parser.add_argument("--skip-cold", action="store_true",
                         help="skip the empty-cache run (a minute or more)")
     parser.add_argument("--all", action="store_true", help="add the library-level figures")
     parser.add_argument("--samples", type=int, default=10000,
                         help="draws of the --all evaluate run")
+    add_options(parser, __file__)
     args = parser.parse_args()
     env = dict(os.environ)
     cli = kinegrasp()
@@ -137,8 +141,8 @@ def main() -> None:
             print(f"{name:<60} {value:>6.3f} s")
     if args.all:
         figures.update(library_figures(env, args.samples))
-    if args.json_out is not None:
-        args.json_out.write_text(json.dumps(figures, indent=2) + "\n")
+    if not args.no_json:
+        write_result(__file__, {**figures, "settings": settings(args)}, args.json_out)
 
 
 def library_figures(env: dict, samples: int) -> dict:

@@ -12,6 +12,9 @@ Run: ``python benchmarks/bench_engines.py [--draws 10000] [--processes 2]``.
    near-contact gaps and polish, contacts), and quality (the certified expansion, its
    fallbacks).
 3. The capsule-gap and exact segment-distance kernels on 20,000 and 5,000 random segments.
+
+The figures (seconds, draws/s, ratios) also go to ``benchmarks/results/bench_engines.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import argparse
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps
 from kinegrasp_env.closing.segment_distance import closest_to_segments
@@ -38,12 +42,13 @@ def _timed(fn):
     return out, time.perf_counter() - start
 
 
-def engines(args) -> None:
+def engines(args) -> dict:
     grasp = grasp_by_index(args.object, args.grasp)
     noise = JointNoise(args.sigma)
     # warm-up: grid built or loaded, numba compiled
     FastEngine(args.object).run(np.repeat(grasp.q0[None], 4, axis=0))
     stats = {}
+    rows: list[dict] = []
     for engine in ("fast", "pybullet"):
         n = args.draws if engine == "fast" else args.reference_draws
         _, cold = _timed(lambda e=engine, n=n: evaluate_grasp(
@@ -60,6 +65,9 @@ def engines(args) -> None:
             _, again = _timed(lambda e=engine, n=n, pool=pool: evaluate_grasp(
                 grasp, noise, n, seed=0, engine=e, executor=pool))
         stats[engine] = (result, wall, n)
+        rows.append({"engine": engine, "draws": n, "processes": args.processes,
+                     "wall_s": wall, "draws_per_s": n / wall, "fresh_pool_wall_s": cold,
+                     "run_again_wall_s": again, "p_fc": result.p_fc, "q_mean": result.q_mean})
         print(f"{engine:8s}: {n:6d} draws in {wall:7.2f} s = {n / wall:8.0f} draws/s, warm "
               f"workers ({args.processes} processes; {cold:.2f} s with pool start-up, "
               f"{again:.2f} s run again)  P(FC) = {result.p_fc:.4f}  "
@@ -69,12 +77,16 @@ def engines(args) -> None:
     print(f"fast / pybullet throughput: {fast_rate / ref_rate:.1f}x; fast engine, "
           f"{args.draws} draws: {stats['fast'][1]:.2f} s (target: 10,000 draws <= 0.6 s on 2 "
           f"processes, warm workers)")
+    same = None
     if args.reference_draws == args.draws:
         same = stats["fast"][0].outcomes == stats["pybullet"][0].outcomes
         print(f"identical outcome counts from both engines: {same}")
+    return {"fast_over_pybullet_throughput": fast_rate / ref_rate,
+            "fast_wall_s": stats["fast"][1], "identical_outcome_counts": same,
+            "engines": rows}
 
 
-def stages(args) -> None:
+def stages(args) -> dict:
     grasp = grasp_by_index(args.object, args.grasp)
     engine = FastEngine(args.object)
     n = min(args.draws, 5000)
@@ -91,9 +103,13 @@ def stages(args) -> None:
           f"({t.quality / total:.0%}), packing {t.kinematics / n * 1e6:5.1f} us/draw")
     print("contacts per closed draw: " + ", ".join(f"{k}: {c}" for k, c in enumerate(contacts)
                                                    if c))
+    return {"stage_draws": n, "autoclose_s_per_draw": t.autoclose / n,
+            "quality_s_per_draw": t.quality / n, "packing_s_per_draw": t.kinematics / n,
+            "autoclose_share": t.autoclose / total, "quality_share": t.quality / total,
+            "contacts_per_closed_draw": {str(k): int(c) for k, c in enumerate(contacts) if c}}
 
 
-def kernels(args) -> None:
+def kernels(args) -> list[dict]:
     obj = load_object(args.object)
     grid = object_grid(args.object)
     rng = np.random.default_rng(0)
@@ -102,12 +118,16 @@ def kernels(args) -> None:
     d = rng.normal(size=a.shape)
     b = a + 0.0865 * d / np.linalg.norm(d, axis=1, keepdims=True)
     radius = np.full(len(a), 0.011)
+    rows = []
     for name, call in (("capsule gap (grid)", lambda: capsule_gaps(grid, a, b, radius)),
                        ("segment distance (exact)",
                         lambda: closest_to_segments(obj, a[:5000], b[:5000]))):
         call()  # compiled or loaded from the cache
         _, seconds = _timed(call)
         print(f"{name:26s}: {seconds * 1e3:7.1f} ms")
+        rows.append({"kernel": name, "segments": 20000 if "grid" in name else 5000,
+                     "seconds": seconds})
+    return rows
 
 
 def main() -> None:
@@ -119,12 +139,17 @@ def main() -> None:
     parser.add_argument("--object", default="spray_flask")
     parser.add_argument("--grasp", type=int, default=0)
     parser.add_argument("--sigma", type=float, default=0.0133)
+    add_options(parser, __file__)
     args = parser.parse_args()
     if args.reference_draws is None:
         args.reference_draws = args.draws
-    engines(args)
-    stages(args)
-    kernels(args)
+    record = engines(args)
+    split = stages(args)
+    record["contacts_per_closed_draw"] = [
+        {"contacts": k, "draws": c} for k, c in split.pop("contacts_per_closed_draw").items()]
+    record = {**record, **split, "kernels": kernels(args)}
+    if not args.no_json:
+        write_result(__file__, {**record, "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,9 @@ machine shared with other work still shows). Then the fast engine at 64 draws on
 a time, and the fast engine's auto-close of one step's
 draws, the compiled closing loop against the vectorized one it replaced (same results,
 tested).
+
+The figures (steps/s, seconds) also go to ``benchmarks/results/bench_env.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import argparse
 import time
 
 import gymnasium as gym
+from results_file import add_options, settings, write_result
 
 import kinegrasp_env  # noqa: F401  (registers the envs)
 
@@ -22,7 +26,9 @@ import kinegrasp_env  # noqa: F401  (registers the envs)
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=40)
+    add_options(parser, __file__)
     args = parser.parse_args()
+    steps_rows, closing_rows = [], []
     from kinegrasp_env.montecarlo.engines import FastEngine
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -46,8 +52,11 @@ def main() -> None:
         print(f"{engine:8s} n_draws = {n_draws:3d}: {args.steps / wall:6.1f} steps/s "
               f"({wall / args.steps * 1e3:6.1f} ms/step; {args.steps / cpu:6.1f} steps/s of CPU "
               f"time; target >= 100 steps/s at 64, fast)")
+        steps_rows.append({"engine": engine, "n_draws": n_draws, "steps": args.steps,
+                           "steps_per_s": args.steps / wall, "s_per_step": wall / args.steps,
+                           "steps_per_cpu_s": args.steps / cpu})
 
-    per_object(OBJECT_NAMES, args.steps)
+    object_rows = per_object(OBJECT_NAMES, args.steps)
 
     import numpy as np
 
@@ -74,13 +83,21 @@ def main() -> None:
         compiled, vectorized = (timings[c] / calls * 1e3 for c in ("compiled", "vectorized"))
         print(f"auto-close of {n_draws:3d} draws: compiled loop {compiled:5.1f} ms, "
               f"vectorized {vectorized:5.1f} ms ({vectorized / compiled:.1f}x)")
+        closing_rows.append({"n_draws": n_draws, "compiled_s": compiled / 1e3,
+                             "vectorized_s": vectorized / 1e3,
+                             "vectorized_over_compiled": vectorized / compiled})
+    if not args.no_json:
+        write_result(__file__, {"steps": steps_rows, "fast_64_draws_per_object": object_rows,
+                                "autoclose": closing_rows, "settings": settings(args)},
+                     args.json_out)
 
 
-def per_object(names, steps: int) -> None:
+def per_object(names, steps: int) -> list[dict]:
     """Fast-engine steps/s at 64 draws with every episode on one object (the mixed figure
     above moves with the env's draw of tasks: its objects cost 2x apart)."""
     env = gym.make("KineGrasp-v0", n_draws=64, engine="fast")
     env.action_space.seed(0)
+    rows = []
     for name in names:
         env.reset(seed=0, options={"object": name})
         env.step(env.action_space.sample())  # warm-up
@@ -94,7 +111,9 @@ def per_object(names, steps: int) -> None:
         wall = time.perf_counter() - start
         print(f"fast     n_draws =  64, {name:12s}: {steps / wall:6.1f} steps/s "
               f"({wall / steps * 1e3:6.1f} ms/step)")
+        rows.append({"object": name, "steps_per_s": steps / wall, "s_per_step": wall / steps})
     env.close()
+    return rows
 
 
 if __name__ == "__main__":

@@ -9,6 +9,9 @@ processes on the 2-core machine.
 
 The machine's load average is printed before and after: on a shared machine the wall times
 scale with it, the CPU time per draw much less.
+
+The figures (seconds, draws/s) also go to ``benchmarks/results/bench_evaluate.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import os
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES, PybulletEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
@@ -33,7 +37,7 @@ def load_line() -> str:
     return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
 
 
-def throughput(grasp, draws: int) -> None:
+def throughput(grasp, draws: int) -> dict:
     """Wall time and statistics on 1 and 2 processes."""
     noise = JointNoise(SIGMA)
     results = {}
@@ -51,9 +55,16 @@ def throughput(grasp, draws: int) -> None:
     print(f"{TARGET_DRAWS} draws on 2 processes: {wall:.1f} s"
           f"{'' if draws == TARGET_DRAWS else ' (scaled from this run)'} "
           f"(target < {TARGET_SECONDS:.0f} s)")
+    return {"processes": [{"processes": p, "draws": draws, "wall_s": w, "draws_per_s": draws / w,
+                           "p_fc": st.p_fc, "q_mean": st.q_mean}
+                          for p, (st, w) in results.items()],
+            "identical_statistics_1_and_2_processes": same,
+            f"wall_s_{TARGET_DRAWS}_draws_2_processes": wall,
+            "wall_scaled_from_this_run": draws != TARGET_DRAWS,
+            "target_s": TARGET_SECONDS}
 
 
-def stage_split(object_name: str, grasp, draws: int) -> None:
+def stage_split(object_name: str, grasp, draws: int) -> dict:
     """Stages on one process over the first ``draws`` draws of the run's first chunk."""
     engine = PybulletEngine(object_name)
     q = np.repeat(grasp.q0[None], draws, axis=0)
@@ -75,6 +86,13 @@ def stage_split(object_name: str, grasp, draws: int) -> None:
     print("outcomes: " + ", ".join(f"{o} {c}" for o, c in zip(OUTCOMES, counts, strict=True)))
     print("contacts per draw: " + ", ".join(f"{k}: {c}" for k, c in enumerate(contacts) if c))
     engine.close()
+    return {"stage_draws": draws, "kinematics_s_per_draw": t.kinematics / draws,
+            "autoclose_s_per_draw": t.autoclose / draws, "quality_s_per_draw": t.quality / draws,
+            "wall_s_per_draw": total / draws, "cpu_s_per_draw": cpu / draws,
+            "outcomes": [{"outcome": o, "draws": int(c)}
+                         for o, c in zip(OUTCOMES, counts, strict=True)],
+            "contacts_per_draw": [{"contacts": k, "draws": int(c)}
+                                  for k, c in enumerate(contacts) if c]}
 
 
 def main() -> None:
@@ -82,12 +100,16 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=TARGET_DRAWS)
     parser.add_argument("--grasp", type=int, default=0)
     parser.add_argument("--object", default="spray_flask")
+    add_options(parser, __file__)
     args = parser.parse_args()
     grasp = grasp_by_index(args.object, args.grasp)
     print(f"{args.object} grasp {args.grasp}, sigma {SIGMA}, {args.draws} draws; {load_line()}")
-    throughput(grasp, args.draws)
-    stage_split(args.object, grasp, min(args.draws, 2000))
+    record = throughput(grasp, args.draws)
+    record.update(stage_split(args.object, grasp, min(args.draws, 2000)))
     print(f"after: {load_line()}")
+    if not args.no_json:
+        write_result(__file__, {**record, "settings": {**settings(args), "sigma": SIGMA}},
+                     args.json_out)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 
 Run: ``python benchmarks/bench_fk.py [--draws 10000]``. Both compute every link frame of the
 same configurations in one run; prints wall times, draws/s and the ratio (target >= 50x).
+The figures (seconds, draws/s, ratios, metres) also go to ``benchmarks/results/bench_fk.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import time
 import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh, urdf_path
@@ -53,6 +56,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--draws", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=5)
+    add_options(parser, __file__)
     args = parser.parse_args()
     model = kuka_sdh()
     kin = Kinematics(model)
@@ -79,6 +83,16 @@ def main() -> None:
     print(f"ratio vs fastest pybullet loop : {t_loop / t_batch:9.1f}x  (target >= 50x)")
     print(f"ratio vs per-call pybullet loop: {t_naive / t_batch:9.1f}x")
     print(f"max |difference| : {err:.2e} m")
+    if not args.no_json:
+        write_result(__file__, {
+            "link_frames_per_draw": len(links) + 1,
+            "batched_numpy_s": t_batch, "batched_numpy_draws_per_s": args.draws / t_batch,
+            "pybullet_loop_s": t_loop, "pybullet_loop_draws_per_s": args.draws / t_loop,
+            "pybullet_per_call_s": t_naive, "pybullet_per_call_scaled_from_draws":
+                max(1, args.draws // 5),
+            "ratio_vs_pybullet_loop": t_loop / t_batch,
+            "ratio_vs_pybullet_per_call": t_naive / t_batch, "max_difference_m": float(err),
+            "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,9 @@ sphere, normals tilted up to ~0.3 rad); prints microseconds per grasp of the bat
 single ``ferrari_canny`` calls, the share the exact paths could not certify (qhull serves
 those), and that the answers agree (max relative difference over force-closure grasps, FC
 decisions).
+
+The figures (seconds per grasp, ratios, shares) also go to
+``benchmarks/results/bench_quality.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from results_file import add_options, settings, write_result  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -48,7 +52,7 @@ def plain_loop(wrenches: np.ndarray) -> np.ndarray:
     return out
 
 
-def run(k: int, m: int, grasps: int, seed: int) -> None:
+def run(k: int, m: int, grasps: int, seed: int) -> dict:
     pts, nrm = sphere_contacts(np.random.default_rng(seed), grasps, k, jitter=0.3)
     w = wrench_matrix(pts, nrm, num_edges=m, torque_scale=TORQUE_SCALE)
     if k == 3:
@@ -76,11 +80,18 @@ def run(k: int, m: int, grasps: int, seed: int) -> None:
         fallback = 1.0 - epsilon_three_contacts(w, m)[1].mean()
     else:
         fallback = 1.0 - epsilon_epa_batch(np.ascontiguousarray(w))[1].mean()
+    single = single_median(pts, nrm, m)
     print(f"{k} contacts x {m:2d} edges: fast {t_fast / grasps * 1e6:8.1f} us/grasp | plain "
           f"ConvexHull loop {t_plain / grasps * 1e6:8.1f} us/grasp | ratio "
-          f"{t_plain / t_fast:6.1f}x | single call median {single_median(pts, nrm, m):6.1f} us"
+          f"{t_plain / t_fast:6.1f}x | single call median {single:6.1f} us"
           f" | qhull fallback {fallback:6.1%} | same FC: {same_fc} | "
           f"max rel diff {rel:.1e} | FC {fc.mean():.0%} | origin on hull {boundary.mean():.0%}")
+    return {"contacts": k, "edges": m, "grasps": grasps, "plain_grasps": n_plain,
+            "fast_s_per_grasp": t_fast / grasps, "plain_s_per_grasp": t_plain / grasps,
+            "plain_over_fast": t_plain / t_fast, "single_call_median_s": single * 1e-6,
+            "qhull_fallback_share": float(fallback), "same_fc": bool(same_fc),
+            "max_rel_diff": float(rel), "fc_share": float(fc.mean()),
+            "origin_on_hull_share": float(boundary.mean())}
 
 
 def single_median(pts: np.ndarray, nrm: np.ndarray, m: int, calls: int = 100) -> float:
@@ -97,11 +108,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--grasps", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
+    add_options(parser, __file__)
     args = parser.parse_args()
     print("targets: batch >= 50x the plain loop on 3 contacts x 8 edges, >= 20x on "
           "4-5 contacts; single call median <= 50 us for k <= 5, m <= 12; exact")
-    for k, m in ((3, 8), (3, 12), (3, 16), (4, 8), (5, 8), (5, 12)):
-        run(k, m, args.grasps if k == 3 else max(100, args.grasps // 10), args.seed)
+    rows = [run(k, m, args.grasps if k == 3 else max(100, args.grasps // 10), args.seed)
+            for k, m in ((3, 8), (3, 12), (3, 16), (4, 8), (5, 8), (5, 12))]
+    if not args.no_json:
+        write_result(__file__, {"cases": rows, "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

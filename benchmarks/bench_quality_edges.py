@@ -26,6 +26,9 @@ the wall time and on a shared one is not inflated by the other processes.
    ``quality.wrenches.MAX_EDGES`` is chosen from this table.
 3. The L-infinity hull (``norm="linf"``: qhull of the (m + 1)^k Minkowski-sum points) per
    ``--linf`` pair k x m, likewise; ``epsilon.LINF_MAX_POINTS`` is chosen from this table.
+
+The three tables (seconds, MB, certified shares) also go to
+``benchmarks/results/bench_quality_edges.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ import tracemalloc  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from results_file import add_options, settings, write_result  # noqa: E402
 from scipy.spatial import ConvexHull, QhullError  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -160,15 +164,17 @@ def in_fresh_process(task: str, *args: int) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def three_contact_table(edges: list[int], batch: int, seed: int) -> None:
+def three_contact_table(edges: list[int], batch: int, seed: int) -> list[dict]:
     print(f"1. three contacts, batch {batch}: us per grasp (single call / batched)")
     print(f"{'m':>3} | {'tables: build s':>15} {'MB':>5} {'single':>7} {'batch':>7} | "
           f"{'expansion: single':>17} {'batch':>7} {'cert':>5} | {'qhull: single':>13} "
           f"{'batch':>7} | fastest batched")
+    rows = []
     for m in edges:
         res = in_fresh_process("three", m, batch, seed)
         if "error" in res:
             print(f"{m:3d} | failed: {res['error']}", flush=True)
+            rows.append({"edges": m, "error": res["error"]})
             continue
         tab, hull = res["tables"], res["qhull"]
         if "expansion" in res:
@@ -182,31 +188,50 @@ def three_contact_table(edges: list[int], batch: int, seed: int) -> None:
         print(f"{m:3d} | {res['build']:15.2f} {res['mb']:5.0f} {tab['single'] * 1e6:7.0f} "
               f"{tab['batch'] * 1e6:7.0f} | {exp_text} | {hull['single'] * 1e6:13.0f} "
               f"{hull['batch'] * 1e6:7.0f} | {fastest}", flush=True)
+        row = {"edges": m, "tables_build_s": res["build"], "tables_mb": res["mb"]}
+        for path in paths:
+            row |= {f"{path}_single_s": res[path]["single"],
+                    f"{path}_batch_s_per_grasp": res[path]["batch"]}
+            if path == "expansion":
+                row["expansion_certified"] = res[path]["cert"]
+        rows.append({**row, "fastest_batched": fastest})
+    return rows
 
 
-def qhull_bound_table(k: int, edges: list[int], seed: int) -> None:
+def qhull_bound_table(k: int, edges: list[int], seed: int) -> list[dict]:
     print(f"\n2. qhull on {k} contacts: one grasp per call, 5 grasps")
     print(f"{'m':>3} {'points':>6} | {'median ms':>9} {'max ms':>9} | {'peak MB':>7}")
+    rows = []
     for m in edges:
         res = in_fresh_process("qhull", k, m, seed)
         if "error" in res:
             print(f"{m:3d} {k * m:6d} | failed: {res['error']}", flush=True)
+            rows.append({"contacts": k, "edges": m, "points": k * m, "error": res["error"]})
             continue
         print(f"{m:3d} {k * m:6d} | {res['median'] * 1e3:9.1f} {res['max'] * 1e3:9.1f} | "
               f"{res['mb']:7.0f}", flush=True)
+        rows.append({"contacts": k, "edges": m, "points": k * m, "median_s": res["median"],
+                     "max_s": res["max"], "peak_mb": res["mb"]})
+    return rows
 
 
-def linf_table(pairs: list[str], seed: int) -> None:
+def linf_table(pairs: list[str], seed: int) -> list[dict]:
     print("\n3. L-infinity hull (qhull of the Minkowski sum): one grasp per call, 5 grasps")
     print(f"{'k x m':>6} {'points':>6} | {'median ms':>9} {'max ms':>9} | {'peak MB':>7}")
+    rows = []
     for pair in pairs:
         k, m = (int(x) for x in pair.split("x"))
+        row = {"pair": pair, "contacts": k, "edges": m, "points": (m + 1) ** k}
         res = in_fresh_process("qhull", k, m, seed, 1)
         if "error" in res:
             print(f"{pair:>6} {(m + 1) ** k:6d} | failed: {res['error']}", flush=True)
+            rows.append({**row, "error": res["error"]})
             continue
         print(f"{pair:>6} {(m + 1) ** k:6d} | {res['median'] * 1e3:9.1f} "
               f"{res['max'] * 1e3:9.1f} | {res['mb']:7.0f}", flush=True)
+        rows.append({**row, "median_s": res["median"], "max_s": res["max"],
+                     "peak_mb": res["mb"]})
+    return rows
 
 
 def main() -> None:
@@ -225,10 +250,13 @@ def main() -> None:
     parser.add_argument("--linf", nargs="+", default=["3x4", "3x8", "3x10", "4x5", "3x12",
                                                       "6x3", "3x16"])
     parser.add_argument("--seed", type=int, default=0)
+    add_options(parser, __file__)
     args = parser.parse_args()
-    three_contact_table(args.edges, args.batch, args.seed)
-    qhull_bound_table(args.contacts, args.bound_edges, args.seed)
-    linf_table(args.linf, args.seed)
+    record = {"three_contacts": three_contact_table(args.edges, args.batch, args.seed),
+              "qhull": qhull_bound_table(args.contacts, args.bound_edges, args.seed),
+              "linf": linf_table(args.linf, args.seed)}
+    if not args.no_json:
+        write_result(__file__, {**record, "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":
