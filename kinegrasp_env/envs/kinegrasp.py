@@ -54,6 +54,13 @@ has one step and a 1-D action: the
 elbow angle psi itself, a in [-1, 1] -> psi = pi a; or, with ``action_bins=K``, Discrete(K):
 k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the reachable
 range at once, which a Gaussian one centred between them cannot).
+
+Robots: ``robot`` (default ``kuka_sdh``, the paper's robot and everything above) or another
+robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion, the
+reference engine's draws (16 by default: 30 to 70 steps/s for the Panda) and an observation
+sized by its arm and hand (:mod:`kinegrasp_env.envs.robot_task`). For such a robot the
+tasks are the env's grasps (no ``q0``/``palm_pose`` reset options), the noise is joint
+noise (no ``noise_model``) and there is no rendering.
 """
 
 from __future__ import annotations
@@ -66,9 +73,17 @@ import numpy as np
 from gymnasium import spaces
 
 from kinegrasp_env.envs.render import human_window_available
+from kinegrasp_env.envs.robot_task import (
+    ROBOT_N_DRAWS,
+    RobotTask,
+    check_grasps_robot,
+    check_robot_name,
+    robot_tasks,
+)
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
 from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
@@ -146,7 +161,8 @@ class KineGraspEnv(gym.Env):
         grasp_file: a grasp file to draw tasks from instead of the shipped sets.
         sigma_range: (low, high) of the noise sigma drawn at reset (radians).
         noise_types: noise distributions drawn at reset.
-        n_draws: Monte Carlo draws per reward.
+        n_draws: Monte Carlo draws per reward (default 64; 16 for a robot other than the
+            default, whose reference draws take 1.5 to 7 ms each for the Panda).
         q_weight: weight of the mean Q in the reward.
         limit_penalty: subtracted when an action would leave the joint limits.
         max_steps: steps before truncation.
@@ -158,28 +174,43 @@ class KineGraspEnv(gym.Env):
             pybullet end the process.
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
-        engine: the engine of the reward's draws: ``fast`` (the default: batched, many times
-            the steps per second: ``benchmarks/bench_env.py``) or ``pybullet`` (the reference; see
+        engine: the engine of the reward's draws: ``fast`` (the default robot's default:
+            batched, many times the steps per second: ``benchmarks/bench_env.py``) or
+            ``pybullet`` (the reference; see
             :class:`kinegrasp_env.montecarlo.engines.FastEngine`). Both take the same draws
             for the same seed, and they agree draw by draw: ``benchmarks/agreement.py`` on
             all 12 shipped grasps of the four objects, sigma 0.0133 and 0.0266 rad, 100
             draws each (9,600 draws): the same outcome for 9,599, contact points within
             6.1e-6 m, Q within 1.9e-5 (``tests/test_agreement.py`` holds these bounds).
+            Another robot has the reference engine only (``pybullet``, its default).
         noise_model: every task's noise instead of the drawn joint noise: a
             :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
             file (YAML/JSON); the observation shows its joint sigma and distribution.
+        robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
+            listing the known ones. Another robot: see the module docstring.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
 
     def __init__(self, objects: tuple[str, ...] | None = None, grasp_file: str | None = None,
                  sigma_range: tuple[float, float] = (0.0033, 0.0333),
-                 noise_types: tuple[str, ...] = ("gaussian",), n_draws: int = 64,
+                 noise_types: tuple[str, ...] = ("gaussian",), n_draws: int | None = None,
                  q_weight: float = 0.0, limit_penalty: float = 0.1, max_steps: int = 10,
                  step_size: float = 0.3, render_mode: str | None = None,
-                 split: str | None = None, engine: str = "fast",
-                 noise_model: NoiseModel | dict | str | None = None) -> None:
+                 split: str | None = None, engine: str | None = None,
+                 noise_model: NoiseModel | dict | str | None = None,
+                 robot: str = DEFAULT_ROBOT) -> None:
         super().__init__()
+        self.robot = check_robot_name(robot)
+        own = robot == DEFAULT_ROBOT
+        if n_draws is None:
+            n_draws = 64 if own else ROBOT_N_DRAWS
+        if engine is None:
+            engine = "fast" if own else "pybullet"
+        if not own and (engine != "pybullet" or noise_model is not None
+                        or render_mode is not None):
+            raise ValueError(f"robot {robot!r} takes engine 'pybullet', no noise_model and no "
+                             f"render_mode; got {engine!r}, {noise_model!r}, {render_mode!r}")
         if render_mode not in (None, "rgb_array", "human"):
             raise ValueError(f"unknown render_mode {render_mode!r}")
         if n_draws < 1 or max_steps < 1:
@@ -190,8 +221,11 @@ class KineGraspEnv(gym.Env):
         for kind in noise_types:
             if kind not in DISTRIBUTIONS:
                 raise ValueError(f"unknown noise type {kind!r}; choose from {DISTRIBUTIONS}")
-        if grasp_file is not None:
+        if not own:
+            self.tasks = robot_tasks(robot, objects, grasp_file)
+        elif grasp_file is not None:
             grasps = load_grasps(grasp_file)
+            check_grasps_robot(grasps, DEFAULT_ROBOT, grasp_file)
             names = tuple(objects) if objects else tuple({g.object for g in grasps})
             self.tasks = {name: [g for g in grasps if g.object == name] for name in names}
             empty = [name for name, gs in self.tasks.items() if not gs]
@@ -216,7 +250,9 @@ class KineGraspEnv(gym.Env):
         self.step_size = float(step_size)
         self.render_mode = render_mode
         self._window = render_mode == "human" and human_window_available()
-        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (OBS_SIZE,), np.float32)
+        self._robot = None if own else RobotTask(robot)
+        size = OBS_SIZE if own else self._robot.obs_size
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
         self.action_space = self._action_space()
         from kinegrasp_env.montecarlo.evaluate import ENGINES
 
@@ -225,7 +261,7 @@ class KineGraspEnv(gym.Env):
         self.engine = engine
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         self._engines: dict[tuple, Engine] = {}
-        self._kin = Kinematics(kuka_sdh())
+        self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
         self._ik: ArmIK | None = None
         self._viewer = None
         self.grasp: Grasp | None = None
@@ -265,11 +301,16 @@ class KineGraspEnv(gym.Env):
             joint limits (when not, the arm stops at its limit). The env's state is unchanged.
         """
         q = self.q if start is None else np.asarray(start, dtype=float)
+        if self._robot is not None:
+            return self._robot.motion.set_elbow_angle(q, psi)
         moved, ok = self.ik.set_elbow_angle(q, psi)
         return moved[0].copy(), bool(ok[0])
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
         key = grasp_option(options)
+        if key in ("q0", "palm_pose") and self._robot is not None:
+            raise ValueError(f"the reset option {key} is for the default robot; robot "
+                             f"{self.robot!r} takes the env's grasps (a grasp_file)")
         if key in ("q0", "palm_pose"):
             grasp = given_grasp(options, key, self._engine, self.ik)
         else:
@@ -298,6 +339,9 @@ class KineGraspEnv(gym.Env):
         ``sigma`` and ``noise`` options (drawn from the env's ranges where not given)."""
         rng = self.np_random
         model = options.get("noise_model", self.noise_model)
+        if model is not None and self._robot is not None:
+            raise ValueError(f"robot {self.robot!r} takes joint noise (sigma, noise), not a "
+                             "noise_model")
         if model is not None:
             if options.get("sigma") is not None or options.get("noise") is not None:
                 raise ValueError("give the reset option noise_model or sigma/noise, not both")
@@ -313,6 +357,10 @@ class KineGraspEnv(gym.Env):
         return JointNoise(float(sigma), kind)
 
     def _observation(self) -> np.ndarray:
+        if self._robot is not None:
+            obs, self._psi = self._robot.observation(self.grasp, self.q, self.noise,
+                                                     self.steps / self.max_steps)
+            return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
         obj = load_object(self.grasp.object)
         # one forward-kinematics call for the palm pose, its Jacobian and the elbow angle
         poses = self._kin.forward(self.q, observed_links(self._kin))
@@ -336,6 +384,8 @@ class KineGraspEnv(gym.Env):
     def _estimate(self) -> dict:
         """Monte Carlo draws at the current configuration, seeded from the env's RNG."""
         seed = int(self.np_random.integers(2**31 - 1))
+        if self._robot is not None:
+            return self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws)
         draws = draw_chunk(self._engine(self.grasp.object), self.q, self.noise, seed, 0,
                            self.n_draws)
         fc = draws.outcome == FORCE_CLOSURE
@@ -376,8 +426,11 @@ class KineGraspEnv(gym.Env):
             if not isinstance(psi, (int, float, np.number)) or not math.isfinite(psi):
                 raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
             self._move_to(float(psi))
+        elbow = self.ik if self._robot is None else self._robot.motion
         info = {"object": self.grasp.object, "grasp": self.grasp.id, **noise_info(self.noise),
-                "elbow_angle": float(self.ik.elbow_angle(self.q[None])[0])}
+                "elbow_angle": float(elbow.elbow_angle(self.q[None])[0])}
+        if self._robot is not None:
+            info["robot"] = self.robot
         return self._observation(), info
 
     def step(self, action):
@@ -409,6 +462,8 @@ class KineGraspEnv(gym.Env):
         for engine in self._engines.values():
             engine.close()
         self._engines.clear()
+        if self._robot is not None:
+            self._robot.close()
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None

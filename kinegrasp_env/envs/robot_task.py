@@ -1,0 +1,178 @@
+"""KineGrasp-v0 with a robot of the catalog other than the default (``robot="panda"``).
+
+Everything robot-specific is derived from the robot's description
+(:mod:`kinegrasp_env.robot.description`):
+
+- **grasps**: the robot's shipped grasp sets (``assets/grasps/<robot>/<object>.json``, the
+  antipodal planner's output: ``kinegrasp plan --robot panda --count 4``; for the Panda:
+  cube, drill and spray_flask, 4 grasps each) or a ``grasp_file`` of grasps of the robot;
+- **self-motion**: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (7 arm joints:
+  the palm held, the elbow angle of the description's ``arm_angle_links`` moved);
+- **reward draws**: :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`
+  (pybullet closest points on the URDF's collision geometry, the robot's contact model),
+  joint noise on the arm joints, the hand at its pre-shape;
+- **observation**: the default robot's layout (:mod:`kinegrasp_env.envs.kinegrasp`) with
+  the arm's and the hand's sizes: ``2 * arm_dof + hand_dof + 23`` entries (44 for the
+  default robot, 38 for the Panda).
+"""
+
+from __future__ import annotations
+
+import difflib
+
+import numpy as np
+
+from kinegrasp_env.assets import assets_dir
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot, robot_names
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import elbow_angle
+from kinegrasp_env.robot.null_motion import ArmSelfMotion
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.world.grasps import Grasp, load_grasps
+from kinegrasp_env.world.objects import load_object
+
+#: Reward draws per step for a description robot (the reference engine, draw by draw: 1.5
+#: to 7 ms a draw for the Panda's shipped grasps, so 15 to 35 ms a step: see
+#: :class:`RobotTask`).
+ROBOT_N_DRAWS = 16
+#: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
+#: orientation, psi's sin and cos, palm spread, nominal Q, episode fraction.
+OBS_EXTRA = 23
+
+
+def check_robot_name(robot) -> str:
+    """``robot`` when it names a catalog robot; else one ValueError line listing them."""
+    names = robot_names()
+    if not isinstance(robot, str) or robot not in names:
+        close = difflib.get_close_matches(str(robot), names, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ValueError(f"unknown robot {robot!r}{hint}; known robots: {', '.join(names)}")
+    return robot
+
+
+def shipped_robot_objects(robot: str) -> tuple[str, ...]:
+    """The objects with a shipped grasp set for ``robot``, sorted."""
+    folder = assets_dir() / "grasps" / robot
+    return tuple(sorted(p.stem for p in folder.glob("*.json"))) if folder.is_dir() else ()
+
+
+def check_grasps_robot(grasps: list[Grasp], robot: str, source) -> None:
+    """ValueError (one line) when a grasp of ``source`` is a grasp of another robot."""
+    other = next((g for g in grasps if g.robot != robot), None)
+    if other is not None:
+        raise ValueError(f"{source} holds grasps of robot {other.robot!r}; make the env with "
+                         f"robot={other.robot!r} (this one is {robot!r})")
+
+
+def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[Grasp]]:
+    """object -> grasps of ``robot``: from ``grasp_file`` or the shipped sets.
+
+    Raises:
+        ValueError: no grasps for an object, grasps of another robot.
+    """
+    if grasp_file is not None:
+        grasps = load_grasps(grasp_file)
+        check_grasps_robot(grasps, robot, grasp_file)
+        names = tuple(objects) if objects else tuple(sorted({g.object for g in grasps}))
+        tasks = {name: [g for g in grasps if g.object == name] for name in names}
+        empty = [name for name, gs in tasks.items() if not gs]
+        if empty:
+            raise ValueError(f"{grasp_file} has no grasp of {empty[0]!r}")
+        return tasks
+    shipped = shipped_robot_objects(robot)
+    names = tuple(objects) if objects else shipped
+    missing = [name for name in names if name not in shipped]
+    if missing or not names:
+        what = repr(missing[0]) if missing else "any object"
+        raise ValueError(f"robot {robot!r} has no shipped grasps of {what}"
+                         f" (shipped: {', '.join(shipped) or 'none'}); give a grasp_file "
+                         f"(kinegrasp plan --robot {robot})")
+    folder = assets_dir() / "grasps" / robot
+    return {name: load_grasps(folder / f"{name}.json") for name in names}
+
+
+class RobotTask:
+    """The robot-specific pieces of the env for a description robot.
+
+    Speed (the Panda, 16 draws, one core; 3 episodes of 10 random actions per object):
+    30 steps/s on the cube, 60-70 on the drill and the spray flask
+    (the reference closing 1.5 to 7 ms a draw, the self-motion ~4 ms per 0.1 rad of elbow
+    angle).
+
+    Args:
+        robot: a catalog robot other than the default.
+    """
+
+    def __init__(self, robot: str) -> None:
+        if robot == DEFAULT_ROBOT:
+            raise ValueError("the default robot is the env's own path")
+        self.description: RobotDescription = load_robot(robot)
+        self.motion = ArmSelfMotion(self.description)
+        self.kin = self.motion.kin
+        self.arm = self.description.arm_dof
+        self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
+        self._engines: dict[str, RobotReferenceEngine] = {}
+        links = [*self.kin.jacobian_links(self.description.palm_link), *self.motion.angle_links]
+        self.links = list(dict.fromkeys(links))
+
+    def engine(self, object_name: str) -> RobotReferenceEngine:
+        """The reference engine of ``object_name`` (one pybullet world, kept)."""
+        if object_name not in self._engines:
+            self._engines[object_name] = RobotReferenceEngine(self.description, object_name)
+        return self._engines[object_name]
+
+    def close(self) -> None:
+        for engine in self._engines.values():
+            engine.close()
+        self._engines.clear()
+
+    def sigma(self, noise: JointNoise) -> float:
+        """The joint sigma an observation shows (radians): the largest over the arm joints."""
+        return float(noise.sigma_vector(self.arm).max())
+
+    def observation(self, grasp: Grasp, q: np.ndarray, noise: JointNoise, fraction: float
+                    ) -> tuple[np.ndarray, float]:
+        """(observation (obs_size,) float64 unclipped, elbow angle psi of q (radians)).
+
+        Layout: q0's arm joints / pi, q0's hand joints / pi, sigma / 0.05 rad, noise one-hot
+        (3), palm position in the object frame / 0.3 m (3), palm orientation in the object
+        frame (the first two columns of R: 6), sin and cos psi, current arm joints / pi,
+        palm-pose std per unit joint noise (6), 10 x nominal Q, ``fraction``.
+        """
+        obj = load_object(grasp.object)
+        palm_link = self.description.palm_link
+        poses = self.kin.forward(q[None], self.links)
+        palm = poses[palm_link][0]
+        rot_obj = obj.pose[:3, :3]
+        rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
+        rel_rot = rot_obj.T @ palm[:3, :3]
+        jac = self.kin.jacobian_at(poses, palm_link)[0][:, :self.arm]
+        jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
+        spread = np.sqrt(np.diag(jac @ jac.T))
+        s, e, w = (poses[link][0, :3, 3] for link in self.motion.angle_links)
+        psi = float(elbow_angle(s, e, w))
+        onehot = np.array([noise.kind == k for k in DISTRIBUTIONS], dtype=float)
+        obs = np.concatenate([
+            grasp.q0[:self.arm] / np.pi, grasp.q0[self.arm:] / np.pi,
+            [self.sigma(noise) / 0.05], onehot, rel_pos / 0.3, rel_rot[:, :2].T.ravel(),
+            [np.sin(psi), np.cos(psi)], q[:self.arm] / np.pi, spread,
+            [10.0 * grasp.q_nominal], [fraction]])
+        return obs, psi
+
+    def estimate(self, grasp: Grasp, q: np.ndarray, noise: JointNoise, seed: int,
+                 n_draws: int) -> dict:
+        """``n_draws`` reference draws at q (dof,): arm joints q + eps (eps from ``noise``
+        seeded by ``seed``), hand at q's pre-shape; the reward's statistics."""
+        eps = noise.sample(n_draws, self.arm, np.random.default_rng(seed))
+        batch = np.repeat(np.asarray(q, float)[None], n_draws, axis=0)
+        batch[:, :self.arm] += eps
+        draws = self.engine(grasp.object).run(batch)
+        fc = draws.outcome == FORCE_CLOSURE
+        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+        q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
+        return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+                "q_mean": q_mean, "draws": n_draws, "draw_seed": seed,
+                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
