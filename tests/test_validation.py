@@ -89,12 +89,12 @@ def fake_draws(object_name: str, index: int, kin, phys, held, outcome=None,
         phases[(outcome != HELD) & (outcome != DROPPED)] = -1
     released = (outcome == HELD) | (outcome == DROPPED) | (outcome == GRIP_LOST)
     shift = np.where(released, 0.001 * (1 + np.arange(n)), np.nan)
-    return GraspDraws(object_name, index, str(index), np.array(kin, np.int8),
-                      np.where(np.array(kin) == FORCE_CLOSURE, 0.1, 0.0),
-                      np.array(phys, np.int8), np.zeros(n), outcome, shift, shift * 10,
-                      np.full((n, 3), 5.0), np.full((n, 3), 4.0), np.full(n, 1.0),
-                      np.array(phases, np.int8),
-                      np.where(phases >= 0, 0.003, np.nan), np.where(phases >= 0, 0.01, np.nan))
+    return GraspDraws.from_arrays(object_name, index, str(index), np.array(kin, np.int8),
+                                  np.where(np.array(kin) == FORCE_CLOSURE, 0.1, 0.0),
+                                  np.array(phys, np.int8), np.zeros(n), outcome, shift, shift * 10,
+                                  np.full((n, 3), 5.0), np.full((n, 3), 4.0), np.full(n, 1.0),
+                                  np.array(phases, np.int8), np.where(phases >= 0, 0.003, np.nan),
+                                  np.where(phases >= 0, 0.01, np.nan))
 
 
 FC, NFC, MISS = FORCE_CLOSURE, NO_FORCE_CLOSURE, MISSED

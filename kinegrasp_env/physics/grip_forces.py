@@ -182,3 +182,29 @@ class SpringGrip:
         """(6,) the loaded joints' torques at joint angles (6,), N m (0 where not loaded)."""
         tau = np.clip(self.stiffness * (self.targets - angles), -self.limits, self.limits)
         return np.where(self.loaded, tau, 0.0)
+
+
+def spring_grip(contacts: list[GripContact], axes: np.ndarray, origins: np.ndarray,
+                tips: np.ndarray, object_pose: np.ndarray, center_of_mass: np.ndarray,
+                stall: np.ndarray, torque_limits: tuple[float, float], friction: float,
+                advance: float) -> SpringGrip | None:
+    """The grip of a hand just closed on the object: the balanced torques of its contacts
+    (:func:`balanced_torques`) as springs (:class:`SpringGrip`); None when no contact forces
+    in equilibrium exist.
+
+    Args:
+        contacts: the closing's contacts, world frame.
+        axes, origins: (6, 3) the flexion joints' unit axes (closing positive) and points on
+            them, world frame; tips: (3, 3) the fingertips, world frame.
+        object_pose: (4, 4) the object's pose; center_of_mass: (3,) object frame, metres.
+        stall: (6,) the flexion joints' angles now, radians.
+        torque_limits: (proximal, distal) the flexion joints' torque limits, N m.
+        friction: Coulomb friction; advance: the tips' advance past the stall, metres.
+    """
+    center = object_pose[:3, :3] @ center_of_mass + object_pose[:3, 3]
+    limits = np.array(list(torque_limits) * 3)
+    solution = balanced_torques(contacts, axes, origins, center, limits, friction)
+    if solution is None:
+        return None
+    offsets = tip_offsets(axes, origins, tips, advance)
+    return SpringGrip.of(stall, solution, offsets, limits, loaded_joints(contacts))

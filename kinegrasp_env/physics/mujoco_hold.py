@@ -27,43 +27,21 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import START_TOL, CloseResult, Contact, hand_joint_values
-from kinegrasp_env.physics.grip_forces import (
-    GripContact,
-    SpringGrip,
-    balanced_torques,
-    loaded_joints,
-    tip_offsets,
-)
-from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
-from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
-from kinegrasp_env.physics.protocol import (
-    GRAVITY_PHASES,
-    HELD,
-    NO_GRIP,
-    REST_PHASE,
-    START_COLLISION,
-    HoldProtocol,
-    HoldResult,
-    final_outcome,
-    grip_verdict,
-    pose_change,
-    steady,
-    within,
-)
-from kinegrasp_env.physics.pybullet_closing import (
+from kinegrasp_env.closing.reference import START_TOL, CloseResult, hand_joint_values
+from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.grip_forces import GripContact, spring_grip
+from kinegrasp_env.physics.hold_runner import (
     FLEXION_JOINTS,
     SPREAD_JOINTS,
-    MotorSettings,
-    merge_records,
+    WorldSteps,
+    close_fingers,
 )
+from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
+from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
+from kinegrasp_env.physics.pybullet_closing import MotorSettings, merge_records
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS, HAND_JOINTS
+from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS
 from kinegrasp_env.world.objects import GraspObject
-
-
-def steps_of(seconds: float, time_step: float) -> int:
-    return max(1, round(seconds / time_step))
 
 
 class ClosingMotors:
@@ -101,26 +79,6 @@ def touching(world: MujocoWorld, distance: float) -> set[tuple[int, int]]:
             if rec[0] in world.finger_geom and rec[3] <= distance}
 
 
-def close_until_stall(world: MujocoWorld, motors: ClosingMotors, settings: MotorSettings) -> int:
-    """Step until the flexion joints stall (the rule of pybullet's closing) or ``max_time``."""
-    dt = world.settings.time_step
-    max_steps = int(np.ceil(settings.max_time / dt))
-    window = max(1, round(settings.stall_window / dt))
-    still = settings.stall_speed * window * dt
-    last, _ = world.joint_states(FLEXION_JOINTS)
-    quiet = 0
-    for step in range(1, max_steps + 1):
-        world.step()
-        motors.update(touching(world, settings.touch_distance))
-        if step % window == 0:
-            positions, _ = world.joint_states(FLEXION_JOINTS)
-            quiet = quiet + 1 if np.abs(positions - last).max() < still else 0
-            last = positions
-            if quiet >= settings.stall_checks:
-                return step
-    return max_steps
-
-
 def world_contacts(world: MujocoWorld, distance: float) -> list[GripContact]:
     """One contact per touching finger link, world frame (pybullet's merge rule on records
     laid out as pybullet's: [6] point on the object, [7] normal object -> finger, [8]
@@ -134,13 +92,6 @@ def world_contacts(world: MujocoWorld, distance: float) -> list[GripContact]:
             for finger, link in sorted(records)]
 
 
-def merged_contacts(world: MujocoWorld, distance: float) -> list[Contact]:
-    """:func:`world_contacts` in the object's frame."""
-    inverse = np.linalg.inv(world.object_pose())
-    return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],
-                    inverse[:3, :3] @ c.normal) for c in world_contacts(world, distance)]
-
-
 def mujoco_close(world: MujocoWorld, root_pose: np.ndarray, preshape: np.ndarray,
                  settings: MotorSettings) -> CloseResult:
     """The closing on the pinned object (step 1): a :class:`CloseResult` (``iterations``:
@@ -150,16 +101,10 @@ def mujoco_close(world: MujocoWorld, root_pose: np.ndarray, preshape: np.ndarray
     if world.penetration() > START_TOL:
         return CloseResult(start_collision=True)
     motors = ClosingMotors(world, settings, {n: values[n] for n in SPREAD_JOINTS})
-    steps = close_until_stall(world, motors, settings)
-    contacts = merged_contacts(world, settings.touch_distance)
-    touched = {c.finger for c in contacts}
-    positions, _ = world.joint_states(list(HAND_JOINTS))
-    return CloseResult(False, contacts, tuple(f not in touched for f in range(3)), positions,
-                       steps)
-
-
-def object_in_palm(world: MujocoWorld) -> np.ndarray:
-    return np.linalg.inv(world.link_pose("palm")) @ world.object_pose()
+    steps, contacts, missed, positions = close_fingers(
+        world, lambda: motors.update(touching(world, settings.touch_distance)),
+        lambda: world_contacts(world, settings.touch_distance), settings)
+    return CloseResult(False, contacts, missed, positions, steps)
 
 
 class MujocoHold:
@@ -191,23 +136,45 @@ class MujocoHold:
             return closing, HoldResult(START_COLLISION)
         return closing, self.hold_test()
 
+    def hold_test(self) -> HoldResult:
+        """The holding test (:func:`~kinegrasp_env.physics.hold_runner.hold_test`) of the
+        hand just closed on the pinned object."""
+        return hold_runner.hold_test(MujocoSteps(self.world, self.motors, self.protocol),
+                                     self.protocol)
+
+    def close(self) -> None:
+        """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""
+
+
+class MujocoSteps(WorldSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
+    in a :class:`MujocoWorld`: the grip's joint rule as MuJoCo servos (the loaded joints
+    ``general`` springs, the others held), a saved state MuJoCo's integration state
+    (``mj_getState`` / ``mj_setState``), the hand's root moved by its mocap body.
+
+    Args:
+        world: the world right after :func:`mujoco_close`.
+        motors, protocol: the closing controller's settings and the holding test's.
+    """
+
+    def __init__(self, world: MujocoWorld, motors: MotorSettings,
+                 protocol: HoldProtocol) -> None:
+        super().__init__(world, motors, protocol)
+        self.state = self.start = None
+
     def grip(self) -> bool:
-        """The grip's joint rule (step 2, pybullet's :func:`~kinegrasp_env.physics.
-        pybullet_hold.grip_control`): False when no contact forces in equilibrium exist."""
+        """The grip's joint rule (pybullet's :func:`~kinegrasp_env.physics.pybullet_hold.
+        grip_control`): False when no contact forces in equilibrium exist."""
         m, world = self.motors, self.world
-        contacts = world_contacts(world, m.touch_distance)
         axes, origins = world.joint_frames(FLEXION_JOINTS)
         tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
-        pose = world.object_pose()
-        center = pose[:3, :3] @ world.obj.center_of_mass + pose[:3, 3]
-        limits = np.array([m.proximal_torque, m.distal_torque] * 3)
-        solution = balanced_torques(contacts, axes, origins, center, limits,
-                                    world.settings.friction)
-        if solution is None:
-            return False
         stall, _ = world.joint_states(FLEXION_JOINTS)
-        offsets = tip_offsets(axes, origins, tips, self.protocol.grip_advance)
-        spring = SpringGrip.of(stall, solution, offsets, limits, loaded_joints(contacts))
+        spring = spring_grip(world_contacts(world, m.touch_distance), axes, origins, tips,
+                             world.object_pose(), world.obj.center_of_mass, stall,
+                             (m.proximal_torque, m.distal_torque), world.settings.friction,
+                             self.protocol.grip_advance)
+        if spring is None:
+            return False
         names = np.array(FLEXION_JOINTS)
         loaded = spring.loaded
         if (~loaded).any():
@@ -217,94 +184,26 @@ class MujocoHold:
                          spring.stiffness[loaded], spring.limits[loaded])
         return True
 
-    def grip_until_steady(self) -> tuple[np.ndarray, float]:
-        p, world = self.protocol, self.world
-        dt = world.settings.time_step
-        window = steps_of(p.steady_window, dt)
-        previous, calm, steps = None, 0, 0
-        while steps * dt < p.grip_max_time - 1e-12:
-            world.step(window)
-            steps += window
-            forces = world.finger_forces()
-            calm = calm + 1 if previous is not None and steady(previous, forces, p) else 0
-            previous = forces
-            if calm >= 2 and steps * dt >= p.grip_min_time - 1e-12:
-                break
-        return previous, steps * dt
+    def advance(self, steps: int = 1) -> None:
+        self.world.step(steps)
 
-    def watch(self, reference: np.ndarray, steps: int, path=None) -> tuple[bool, float, float]:
-        """Step ``steps`` times (the mocap root along ``path`` if given), checking the object
-        every ``check_interval``: (held, largest distance m, largest angle rad)."""
-        p, world = self.protocol, self.world
-        every = steps_of(p.check_interval, world.settings.time_step)
-        com = world.obj.center_of_mass
-        worst_d = worst_a = 0.0
-        for k in range(steps):
-            if path is not None:
-                world.root_at(path[0][k], path[1][k])
-            world.step()
-            if (k + 1) % every and k + 1 < steps:
-                continue
-            distance, angle = pose_change(reference, object_in_palm(world), com)
-            worst_d, worst_a = max(worst_d, distance), max(worst_a, angle)
-            if not within(p, distance, angle):
-                return False, worst_d, worst_a
-        return True, worst_d, worst_a
+    def finger_forces(self) -> np.ndarray:
+        return self.world.finger_forces()
 
-    def hold_test(self) -> HoldResult:
-        p, world = self.protocol, self.world
-        dt = world.settings.time_step
-        if not self.grip():
-            return HoldResult(NO_GRIP)
-        gripped, grip_time = self.grip_until_steady()
-        pin_force, pin_torque = world.pin_load()
-        pinned = object_in_palm(world)
-        world.release_object()
-        world.remove_table()
-        world.step(steps_of(p.settle_time, dt))
-        released = world.finger_forces()
-        reference = object_in_palm(world)
-        shift, turn = pose_change(pinned, reference, world.obj.center_of_mass)
-        result = HoldResult(grip_verdict(gripped, released, p), shift, turn, gripped, released,
-                            grip_time, pin_force, pin_torque)
-        if result.outcome != HELD:
-            return result
-        state = world.save_state()
-        root, palm = world.link_pose("hand_root"), world.link_pose("palm")[:3, 3]
-        for name in p.phases:
-            if name == "shake":  # right after a held lift, from where it left the hand
-                if not result.phase_held.get("lift", False):
-                    continue
-            else:
-                world.restore_state(state)
-            outcome = self.run_phase(name, reference, root, palm)
-            result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
-        result.outcome = final_outcome(HELD, result.phase_held)
-        return result
+    def save(self) -> None:
+        world = self.world
+        self.state = world.save_state()
+        self.start = world.link_pose("hand_root"), world.link_pose("palm")[:3, 3]
 
-    def run_phase(self, name: str, reference: np.ndarray, root: np.ndarray,
-                  palm: np.ndarray) -> tuple[bool, float, float]:
-        """One phase of the protocol from the saved post-release state (module docstring),
-        the hand root at ``root`` (4, 4) and palm centre at ``palm`` (3,) at its start."""
-        p, world = self.protocol, self.world
-        dt = world.settings.time_step
-        if name == REST_PHASE or name in GRAVITY_PHASES:
-            direction = np.zeros(3) if name == REST_PHASE else np.asarray(GRAVITY_PHASES[name])
-            world.set_gravity(p.gravity * direction)
-            return self.watch(reference, steps_of(p.gravity_time, dt))
-        world.set_gravity([0.0, 0.0, -p.gravity])
-        if name == "lift":
-            times = dt * np.arange(1, steps_of(p.lift_time + p.hold_time, dt) + 1)
-            path = hand_path(lift_motion(p, times), np.zeros(times.size), root, palm)
-            return self.watch(reference, times.size, path)
-        if name == "shake":
-            lifted = np.eye(4)
-            lifted[:3, 3] = [0.0, 0.0, p.lift_height]
-            times = dt * np.arange(1, steps_of(p.shake_time, dt) + 1)
-            shifts, angles = shake_motion(p, times)
-            path = hand_path(shifts, angles, lifted @ root, palm + lifted[:3, 3])
-            return self.watch(reference, times.size, path)
-        raise ValueError(f"the MuJoCo holding test has no phase {name!r}")
+    def start_phase(self, gravity: np.ndarray) -> None:
+        self.world.restore_state(self.state)
+        self.world.set_gravity(gravity)
 
-    def close(self) -> None:
-        """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.start
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        self.world.root_at(position, orientation)
+
+    def discard(self) -> None:
+        self.state = self.start = None

@@ -83,6 +83,13 @@ HOLD_OUTCOMES: tuple[str, ...] = ("start_collision", "no_grip", "grip_lost", "gr
 START_COLLISION, NO_GRIP, GRIP_LOST, GRIP_UNSTEADY, DROPPED, HELD = range(len(HOLD_OUTCOMES))
 
 
+def check_number(name: str, value: float, *, positive: bool) -> None:
+    """Raise ValueError unless ``value`` is a finite number > 0 (``positive``) or >= 0."""
+    if not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
+        rule = "a positive number" if positive else "a number >= 0"
+        raise ValueError(f"{name} must be {rule}, got {value!r}")
+
+
 @dataclass(frozen=True)
 class TorqueLimits:
     """Torque limits of the hand's joints, N m.
@@ -99,8 +106,7 @@ class TorqueLimits:
 
     def scaled(self, factor: float) -> TorqueLimits:
         """Every limit times ``factor`` (> 0)."""
-        if not (np.isfinite(factor) and factor > 0):
-            raise ValueError(f"torque scale must be a positive number, got {factor!r}")
+        check_number("torque scale", factor, positive=True)
         return TorqueLimits(self.proximal * factor, self.distal * factor, self.hold * factor)
 
 
@@ -140,19 +146,14 @@ class HoldProtocol:
     torque_scale: float = 1.0
 
     def __post_init__(self) -> None:
-        positive = ("grip_max_time", "steady_window", "contact_force", "grip_advance",
-                    "max_shift", "max_turn",
-                    "check_interval", "gravity_time", "lift_time", "torque_scale")
-        for name in positive:
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        for name in ("grip_max_time", "steady_window", "contact_force", "grip_advance",
+                     "max_shift", "max_turn", "check_interval", "gravity_time", "lift_time",
+                     "torque_scale"):
+            check_number(name, getattr(self, name), positive=True)
         for name in ("grip_min_time", "steady_change", "steady_floor", "settle_time",
                      "gravity", "lift_height", "hold_time", "shake_time", "shake_frequency",
                      "shake_amplitude", "shake_angle", "ramp_time"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+            check_number(name, getattr(self, name), positive=False)
         if self.grip_min_time > self.grip_max_time:
             raise ValueError(f"grip_min_time {self.grip_min_time!r} exceeds grip_max_time "
                              f"{self.grip_max_time!r}")

@@ -46,18 +46,14 @@ from kinegrasp_env.closing.reference import (
     CONTACT_TOL,
     START_TOL,
     CloseResult,
-    Contact,
     hand_joint_values,
 )
 from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.hold_runner import FLEXION_JOINTS, SPREAD_JOINTS, close_fingers
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS, HAND_JOINTS
+from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS
 
-#: The spread joints of the hand (finger 2's mimics finger 1's; both are held).
-SPREAD_JOINTS = ("f1_spread", "f2_spread")
-#: Flexion joints, finger-major: f1 proximal, f1 distal, f2 ..., f3 ...
-FLEXION_JOINTS = [joint for finger in FINGERS for joint in finger[:2]]
 #: Contact records of one link whose normals are within this angle of the deepest record's
 #: are merged into one contact (the same face), radians.
 MERGE_ANGLE = np.radians(10.0)
@@ -234,13 +230,6 @@ def world_contacts(world: PhysicsWorld, distance: float) -> list[GripContact]:
             for finger, link in sorted(records)]
 
 
-def merged_contacts(world: PhysicsWorld, distance: float) -> list[Contact]:
-    """:func:`world_contacts` in the object's frame where the object is now."""
-    inverse = np.linalg.inv(world.object_pose())
-    return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],
-                    inverse[:3, :3] @ c.normal) for c in world_contacts(world, distance)]
-
-
 def joint_frames(world: PhysicsWorld) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The flexion joints now, world frame: (unit axes (6, 3), closing positive; points on
     them (6, 3), the child links' frames; the fingers' tips (3, 3))."""
@@ -253,31 +242,6 @@ def joint_frames(world: PhysicsWorld) -> tuple[np.ndarray, np.ndarray, np.ndarra
         axes[j], origins[j] = pose[:3, :3] @ local, pose[:3, 3]
     tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
     return axes, origins, tips
-
-
-def close_until_stall(world: PhysicsWorld, motors: FingerMotors, settings: MotorSettings) -> int:
-    """Step until the flexion joints stall (or ``max_time``); the number of steps.
-
-    Speeds are measured from position changes over ``stall_window``: pybullet's reported
-    joint velocity of a finger pressing on the object does not go to zero.
-    """
-    links = finger_links(world)
-    time_step = world.settings.time_step
-    max_steps = int(np.ceil(settings.max_time / time_step))
-    window = max(1, round(settings.stall_window / time_step))
-    still = settings.stall_speed * window * time_step  # radians per window
-    last, _ = world.joint_states(FLEXION_JOINTS)
-    quiet = 0
-    for step in range(1, max_steps + 1):
-        world.step()
-        motors.update(touching_links(world, links, settings.touch_distance))
-        if step % window == 0:
-            positions, _ = world.joint_states(FLEXION_JOINTS)
-            quiet = quiet + 1 if np.abs(positions - last).max() < still else 0
-            last = positions
-            if quiet >= settings.stall_checks:
-                return step
-    return max_steps
 
 
 def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarray,
@@ -302,9 +266,8 @@ def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarr
     if world.penetration() > START_TOL:
         return PhysicsClose(start_collision=True)
     motors = FingerMotors(world, settings, {name: values[name] for name in SPREAD_JOINTS})
-    steps = close_until_stall(world, motors, settings)
-    contacts = merged_contacts(world, settings.touch_distance)
-    touched = {c.finger for c in contacts}
-    positions, _ = world.joint_states(list(HAND_JOINTS))
-    return PhysicsClose(False, contacts, tuple(f not in touched for f in range(3)), positions,
-                        steps, world.object_pose())
+    links = finger_links(world)
+    steps, contacts, missed, positions = close_fingers(
+        world, lambda: motors.update(touching_links(world, links, settings.touch_distance)),
+        lambda: world_contacts(world, settings.touch_distance), settings)
+    return PhysicsClose(False, contacts, missed, positions, steps, world.object_pose())

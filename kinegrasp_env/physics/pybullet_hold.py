@@ -26,33 +26,16 @@ only on its inputs (the world's :meth:`reset` drops the previous draw's contact 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult
-from kinegrasp_env.physics.grip_forces import (
-    SpringGrip,
-    balanced_torques,
-    loaded_joints,
-    tip_offsets,
-)
-from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
-from kinegrasp_env.physics.protocol import (
-    GRAVITY_PHASES,
-    HELD,
-    NO_GRIP,
-    REST_PHASE,
-    START_COLLISION,
-    HoldProtocol,
-    HoldResult,
-    final_outcome,
-    grip_verdict,
-    pose_change,
-    steady,
-    within,
-)
+from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.grip_forces import SpringGrip, spring_grip
+from kinegrasp_env.physics.hold_runner import WorldSteps
+from kinegrasp_env.physics.hold_runner import object_in_palm as object_in_palm  # re-exported
+from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import (
     FLEXION_JOINTS,
     MotorSettings,
@@ -63,15 +46,6 @@ from kinegrasp_env.physics.pybullet_closing import (
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.world.objects import GraspObject
-
-
-def object_in_palm(world: PhysicsWorld) -> np.ndarray:
-    """(4, 4) the object's pose in the palm frame now."""
-    return np.linalg.inv(world.link_pose("palm")) @ world.object_pose()
-
-
-def steps_of(seconds: float, time_step: float) -> int:
-    return max(1, round(seconds / time_step))
 
 
 class GripControl:
@@ -119,71 +93,77 @@ class GripControl:
 def grip_control(world: PhysicsWorld, motors: MotorSettings,
                  protocol: HoldProtocol) -> GripControl | None:
     """The grip of a hand just closed on the pinned object: the balanced torques of its
-    contacts (:func:`~kinegrasp_env.physics.grip_forces.balanced_torques`, the world's
-    friction, the motors' torque limits) as springs (``protocol.grip_advance``); None when
-    no contact forces in equilibrium exist."""
-    contacts = world_contacts(world, motors.touch_distance)
+    contacts (:func:`~kinegrasp_env.physics.grip_forces.spring_grip`, the world's friction,
+    the motors' torque limits) as springs (``protocol.grip_advance``); None when no contact
+    forces in equilibrium exist."""
     axes, origins, tips = joint_frames(world)
-    pose = world.object_pose()
-    center = pose[:3, :3] @ world.obj.center_of_mass + pose[:3, 3]
-    limits = np.array([motors.proximal_torque, motors.distal_torque] * 3)
-    solution = balanced_torques(contacts, axes, origins, center, limits,
-                                world.settings.friction)
-    if solution is None:
-        return None
     stall, _ = world.joint_states(FLEXION_JOINTS)
-    offsets = tip_offsets(axes, origins, tips, protocol.grip_advance)
-    return GripControl(world, motors, SpringGrip.of(stall, solution, offsets, limits,
-                                                    loaded_joints(contacts)))
+    spring = spring_grip(world_contacts(world, motors.touch_distance), axes, origins, tips,
+                         world.object_pose(), world.obj.center_of_mass, stall,
+                         (motors.proximal_torque, motors.distal_torque),
+                         world.settings.friction, protocol.grip_advance)
+    return None if spring is None else GripControl(world, motors, spring)
+
+
+class PybulletSteps(WorldSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
+    in a :class:`PhysicsWorld`: the grip is :class:`GripControl`; a saved state is pybullet's
+    ``saveState``, each phase restored from it without cached contacts and with the hand's
+    anchor (which ``restoreState`` does not restore) put back where the state has the hand's
+    root.
+
+    Args:
+        world: the physics world right after the closing.
+        motors, protocol: the finger motors and the holding test's settings.
+        control: the grip, when it is already on.
+        state: a saved state, when there is one.
+    """
+
+    def __init__(self, world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol,
+                 control: GripControl | None = None, state: int | None = None) -> None:
+        super().__init__(world, motors, protocol)
+        self.control, self.state, self.anchor = control, state, None
+
+    def grip(self) -> bool:
+        self.control = grip_control(self.world, self.motors, self.protocol)
+        return self.control is not None
+
+    def advance(self, steps: int = 1) -> None:
+        self.control.step(steps)
+
+    def finger_forces(self) -> np.ndarray:
+        return finger_forces(self.world)
+
+    def save(self) -> None:
+        self.state, self.anchor = self.world.bullet.saveState(), None
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        world = self.world
+        if self.anchor is None:
+            world.restore_without_contacts(self.state)
+            self.anchor = world.link_pose("hand_root")
+        world.restore_without_contacts(self.state)
+        world.move_anchor(self.anchor)
+        self.control.restart()
+        world.set_gravity(gravity)
+
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.world.link_pose("hand_root"), self.world.link_pose("palm")[:3, 3]
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        self.world.anchor_at(position.tolist(), orientation.tolist())
+
+    def discard(self) -> None:
+        self.world.bullet.removeState(self.state)
+        self.state = None
 
 
 def grip_until_steady(world: PhysicsWorld, control: GripControl,
                       protocol: HoldProtocol) -> tuple[np.ndarray, float]:
-    """Press until the fingers' forces are steady twice in a row (after at least
-    ``grip_min_time``) or ``grip_max_time``: (the forces (3,), newtons; seconds run)."""
-    dt = world.settings.time_step
-    window = steps_of(protocol.steady_window, dt)
-    previous, calm, steps = None, 0, 0
-    while steps * dt < protocol.grip_max_time - 1e-12:
-        control.step(window)
-        steps += window
-        forces = finger_forces(world)
-        calm = calm + 1 if previous is not None and steady(previous, forces, protocol) else 0
-        previous = forces
-        if calm >= 2 and steps * dt >= protocol.grip_min_time - 1e-12:
-            break
-    return previous, steps * dt
-
-
-def watch(world: PhysicsWorld, control: GripControl, protocol: HoldProtocol,
-          reference: np.ndarray, steps: int, before_step=None) -> tuple[bool, float, float]:
-    """Step ``steps`` times (calling ``before_step(k)`` before step k, 0-based), checking the
-    object against ``reference`` (its pose in the palm frame) every ``check_interval`` and at
-    the end; stop at the first failed check: (held, largest distance m, largest angle rad)."""
-    every = steps_of(protocol.check_interval, world.settings.time_step)
-    com = world.obj.center_of_mass
-    worst_distance = worst_angle = 0.0
-    for k in range(steps):
-        if before_step is not None:
-            before_step(k)
-        control.step()
-        if (k + 1) % every and k + 1 < steps:
-            continue
-        distance, angle = pose_change(reference, object_in_palm(world), com)
-        worst_distance, worst_angle = max(worst_distance, distance), max(worst_angle, angle)
-        if not within(protocol, distance, angle):
-            return False, worst_distance, worst_angle
-    return True, worst_distance, worst_angle
-
-
-def follow(world: PhysicsWorld, path) -> Callable[[int], None]:
-    """A ``before_step`` for :func:`watch` that moves the hand's anchor along ``path``
-    (positions (s, 3), orientations (s, 4), :func:`hand_path`)."""
-    positions, orientations = path[0], path[1]
-
-    def move(k: int) -> None:
-        world.anchor_at(positions[k].tolist(), orientations[k].tolist())
-    return move
+    """:func:`~kinegrasp_env.physics.hold_runner.grip_until_steady` with ``control``: (the
+    fingers' forces (3,), newtons; seconds run)."""
+    return hold_runner.grip_until_steady(
+        PybulletSteps(world, control.motors, protocol, control), protocol)
 
 
 def hold_test(world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol) -> HoldResult:
@@ -196,70 +176,16 @@ def hold_test(world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol
     """
     if world.pin is None:
         raise ValueError("the holding test starts from a pinned object (physics_close pin=True)")
-    dt = world.settings.time_step
     world.damp_object(False)
-    control = grip_control(world, motors, protocol)
-    if control is None:
-        return HoldResult(NO_GRIP)
-    gripped, grip_time = grip_until_steady(world, control, protocol)
-    pinned = object_in_palm(world)
-    pin_force, pin_torque = world.pin_load()
-    world.release_object()
-    world.remove_table()
-    control.step(steps_of(protocol.settle_time, dt))
-    released = finger_forces(world)
-    reference = object_in_palm(world)
-    shift, turn = pose_change(pinned, reference, world.obj.center_of_mass)
-    result = HoldResult(grip_verdict(gripped, released, protocol), shift, turn, gripped,
-                        released, grip_time, pin_force, pin_torque)
-    if result.outcome != HELD:
-        return result
-    state = world.bullet.saveState()
-    try:
-        run_phases(world, control, protocol, reference, state, result)
-    finally:
-        world.bullet.removeState(state)
-    result.outcome = final_outcome(HELD, result.phase_held)
-    return result
+    return hold_runner.hold_test(PybulletSteps(world, motors, protocol), protocol)
 
 
 def run_phases(world: PhysicsWorld, control: GripControl, protocol: HoldProtocol,
                reference: np.ndarray, state: int, result: HoldResult) -> None:
-    """Every phase of ``protocol`` from the saved ``state``, recorded in ``result`` (the
-    hand's anchor, which ``restoreState`` does not restore, put back where the state has the
-    hand's root)."""
-    dt = world.settings.time_step
-    world.restore_without_contacts(state)
-    anchor = world.link_pose("hand_root")
-
-    def record(name: str, outcome: tuple[bool, float, float]) -> None:
-        result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
-
-    def restart(gravity: np.ndarray) -> None:
-        world.restore_without_contacts(state)
-        world.move_anchor(anchor)
-        control.restart()
-        world.set_gravity(gravity)
-
-    restart(np.zeros(3))
-    record(REST_PHASE, watch(world, control, protocol, reference,
-                             steps_of(protocol.gravity_time, dt)))
-    for name, direction in GRAVITY_PHASES.items():
-        restart(protocol.gravity * np.asarray(direction))
-        steps = steps_of(protocol.gravity_time, dt)
-        record(name, watch(world, control, protocol, reference, steps))
-    restart(np.array([0.0, 0.0, -protocol.gravity]))
-    root, palm = world.link_pose("hand_root"), world.link_pose("palm")[:3, 3]
-    times = dt * np.arange(1, steps_of(protocol.lift_time + protocol.hold_time, dt) + 1)
-    path = hand_path(lift_motion(protocol, times), np.zeros(times.size), root, palm)
-    record("lift", watch(world, control, protocol, reference, times.size, follow(world, path)))
-    if protocol.shake and result.phase_held["lift"]:
-        lifted = np.eye(4)
-        lifted[:3, 3] = [0.0, 0.0, protocol.lift_height]
-        times = dt * np.arange(1, steps_of(protocol.shake_time, dt) + 1)
-        shifts, angles = shake_motion(protocol, times)
-        path = hand_path(shifts, angles, lifted @ root, palm + lifted[:3, 3])
-        record("shake", watch(world, control, protocol, reference, times.size, follow(world, path)))
+    """Every phase of ``protocol`` from the saved ``state`` (kept: the caller removes it),
+    recorded in ``result`` (:func:`~kinegrasp_env.physics.hold_runner.run_phases`)."""
+    steps = PybulletSteps(world, control.motors, protocol, control, state)
+    hold_runner.run_phases(steps, protocol, reference, result)
 
 
 class PybulletHold:

@@ -27,7 +27,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine, make_engine
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.execution import LocalExecutor
-from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+from kinegrasp_env.montecarlo.physics_engine import HoldBatch, PhysicsEngine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.physics.pybullet_closing import MotorSettings
 from kinegrasp_env.physics.pybullet_world import WorldSettings
@@ -85,9 +85,13 @@ class ValidationSettings:
         return HoldProtocol(shake=bool(self.shake), torque_scale=float(self.torque_scale))
 
 
-ARRAYS = ("kin_outcome", "kin_quality", "phys_outcome", "phys_quality", "hold_outcome",
-          "grip_shift", "grip_turn", "forces_gripped", "forces_released", "pin_force",
-          "phase_held", "phase_shift", "phase_turn")
+#: The kinematic and physics closing's arrays of :class:`GraspDraws`.
+CLOSING_ARRAYS = ("kin_outcome", "kin_quality", "phys_outcome", "phys_quality")
+#: The holding test's arrays of :class:`GraspDraws`: name -> the field of
+#: :class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch` it is.
+HOLD_ARRAYS = {("hold_outcome" if f == "outcome" else f): f for f in HoldBatch.FIELDS}
+#: Every array of :class:`GraspDraws`, in the order :meth:`GraspDraws.from_arrays` takes them.
+ARRAYS = CLOSING_ARRAYS + tuple(HOLD_ARRAYS)
 
 
 @dataclass
@@ -99,9 +103,10 @@ class GraspDraws:
         kin_outcome, phys_outcome: (n,) int8 outcome indices (``OUTCOMES``) of the kinematic
             and the physics closing (the holding test's, object pinned); kin_quality,
             phys_quality: (n,) their Q.
-        hold_outcome ... phase_turn: the holding test, as
-            :class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch` (outcome index into
-            ``HOLD_OUTCOMES``; phases in ``PHASES`` order, 1 held, 0 failed, -1 not run).
+        hold: the holding test (outcome index into ``HOLD_OUTCOMES``; phases in ``PHASES``
+            order, 1 held, 0 failed, -1 not run); its arrays are attributes of the draws too
+            (:data:`HOLD_ARRAYS`: ``hold_outcome`` is ``hold.outcome``, ``grip_shift`` ...
+            ``phase_turn`` the same names).
     """
 
     object: str
@@ -111,15 +116,21 @@ class GraspDraws:
     kin_quality: np.ndarray
     phys_outcome: np.ndarray
     phys_quality: np.ndarray
-    hold_outcome: np.ndarray
-    grip_shift: np.ndarray
-    grip_turn: np.ndarray
-    forces_gripped: np.ndarray
-    forces_released: np.ndarray
-    pin_force: np.ndarray
-    phase_held: np.ndarray
-    phase_shift: np.ndarray
-    phase_turn: np.ndarray
+    hold: HoldBatch
+
+    @classmethod
+    def from_arrays(cls, object: str, index: int, id: str, *arrays: np.ndarray) -> GraspDraws:
+        """The draws of a grasp from its arrays in :data:`ARRAYS` order."""
+        if len(arrays) != len(ARRAYS):
+            raise ValueError(f"expected {len(ARRAYS)} arrays ({', '.join(ARRAYS)}), "
+                             f"got {len(arrays)}")
+        closing = len(CLOSING_ARRAYS)
+        return cls(object, index, id, *arrays[:closing], HoldBatch(*arrays[closing:]))
+
+    def __getattr__(self, name: str):
+        if name in HOLD_ARRAYS:  # only names of the holding test (no recursion on "hold")
+            return getattr(self.hold, HOLD_ARRAYS[name])
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def held(self) -> np.ndarray:
@@ -148,13 +159,14 @@ class GraspDraws:
     def from_file(cls, path: Path, samples: int) -> GraspDraws:
         """The first ``samples`` draws cached in ``path`` (all of them if it holds fewer)."""
         with np.load(path) as data:
-            return cls(str(data["object"]), int(data["index"]), str(data["id"]),
-                       *(data[name][:samples] for name in ARRAYS))
+            return cls.from_arrays(str(data["object"]), int(data["index"]), str(data["id"]),
+                                   *(data[name][:samples] for name in ARRAYS))
 
     def extended(self, more: GraspDraws) -> GraspDraws:
         """These draws followed by ``more`` (the next draws of the same grasp)."""
-        return GraspDraws(self.object, self.index, self.id,
-                          *(np.concatenate([getattr(self, n), getattr(more, n)]) for n in ARRAYS))
+        return GraspDraws.from_arrays(
+            self.object, self.index, self.id,
+            *(np.concatenate([getattr(self, n), getattr(more, n)]) for n in ARRAYS))
 
 
 def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
@@ -198,7 +210,7 @@ def grasp_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
     kin = kinematic.run(q)
     phys, hold = physics.run_hold(q)
     return GraspDraws(grasp.object, index, grasp.id, kin.outcome, kin.quality, phys.outcome,
-                      phys.quality, *(getattr(hold, f) for f in hold.FIELDS))
+                      phys.quality, hold)
 
 
 def summary_text(draws: GraspDraws) -> str:

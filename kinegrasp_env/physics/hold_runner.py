@@ -1,0 +1,287 @@
+"""The closing and holding test's sequence, simulator-independent.
+
+:mod:`~kinegrasp_env.physics.protocol` states the protocol; this module runs it once, over
+the primitives a simulator supplies (:class:`HoldSteps`: step the grip, read the fingers'
+forces and the object's pose in the palm frame, release the pin, save and restore a state,
+move the hand). Each simulator (:mod:`~kinegrasp_env.physics.pybullet_hold`,
+:mod:`~kinegrasp_env.physics.mujoco_hold`) implements those primitives and calls
+:func:`hold_test`; its closing controller calls :func:`close_until_stall`, and both state
+their contacts in the object's frame with :func:`in_object_frame`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
+from kinegrasp_env.closing.reference import Contact
+from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
+from kinegrasp_env.physics.protocol import (
+    GRAVITY_PHASES,
+    HELD,
+    NO_GRIP,
+    REST_PHASE,
+    HoldProtocol,
+    HoldResult,
+    final_outcome,
+    grip_verdict,
+    pose_change,
+    steady,
+    within,
+)
+from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
+
+#: The spread joints of the hand (finger 2's mimics finger 1's; both are held).
+SPREAD_JOINTS = ("f1_spread", "f2_spread")
+#: Flexion joints, finger-major: f1 proximal, f1 distal, f2 ..., f3 ...
+FLEXION_JOINTS = [joint for finger in FINGERS for joint in finger[:2]]
+
+
+def steps_of(seconds: float, time_step: float) -> int:
+    """The number of time steps (at least one) closest to ``seconds``."""
+    return max(1, round(seconds / time_step))
+
+
+class StallRule(Protocol):
+    """The closing's stall rule (:class:`~kinegrasp_env.physics.pybullet_closing.
+    MotorSettings`): seconds, radians per second, a count."""
+
+    max_time: float
+    stall_window: float
+    stall_speed: float
+    stall_checks: int
+
+
+def close_until_stall(step: Callable[[], None], flexion: Callable[[], np.ndarray],
+                      rule: StallRule, time_step: float) -> int:
+    """Call ``step()`` (one time step and the controller's update) until the flexion joints'
+    angles ``flexion()`` (6,) (radians) move less than ``stall_speed`` over ``stall_window``
+    ``stall_checks`` windows in a row, or ``max_time``: the number of steps.
+
+    Speeds are measured from position changes over a window: a simulator's reported joint
+    velocity of a finger pressing on the object need not go to zero.
+    """
+    max_steps = int(np.ceil(rule.max_time / time_step))
+    window = max(1, round(rule.stall_window / time_step))
+    still = rule.stall_speed * window * time_step  # radians per window
+    last = flexion()
+    quiet = 0
+    for count in range(1, max_steps + 1):
+        step()
+        if count % window == 0:
+            positions = flexion()
+            quiet = quiet + 1 if np.abs(positions - last).max() < still else 0
+            last = positions
+            if quiet >= rule.stall_checks:
+                return count
+    return max_steps
+
+
+def in_object_frame(contacts: list[GripContact], object_pose: np.ndarray) -> list[Contact]:
+    """World-frame contacts as :class:`~kinegrasp_env.closing.reference.Contact` in the frame
+    of an object at ``object_pose`` (4, 4)."""
+    inverse = np.linalg.inv(object_pose)
+    return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],
+                    inverse[:3, :3] @ c.normal) for c in contacts]
+
+
+def close_fingers(world, update: Callable[[], None],
+                  contacts: Callable[[], list[GripContact]], rule: StallRule
+                  ) -> tuple[int, list[Contact], tuple[bool, bool, bool], np.ndarray]:
+    """The closing controller run to the stall on a simulator's world (its ``step()``,
+    ``joint_states(names)``, ``object_pose()`` and ``settings.time_step``), ``update()``
+    after every step; then its contacts (world frame, ``contacts()``) in the object's frame.
+
+    Returns:
+        (steps run, the contacts (object frame), per finger whether it touches nothing, the
+        hand's joint angles (7,) in ``HAND_JOINTS`` order).
+    """
+
+    def step() -> None:
+        world.step()
+        update()
+
+    steps = close_until_stall(step, lambda: world.joint_states(FLEXION_JOINTS)[0], rule,
+                              world.settings.time_step)
+    found = in_object_frame(contacts(), world.object_pose())
+    touched = {c.finger for c in found}
+    positions, _ = world.joint_states(list(HAND_JOINTS))
+    return steps, found, tuple(f not in touched for f in range(3)), positions
+
+
+def object_in_palm(world) -> np.ndarray:
+    """(4, 4) the object's pose in the palm frame now (a simulator's world: ``link_pose``,
+    ``object_pose``)."""
+    return np.linalg.inv(world.link_pose("palm")) @ world.object_pose()
+
+
+class HoldSteps(Protocol):
+    """What a simulator supplies to :func:`hold_test`, on a hand just closed on the pinned
+    object.
+
+    Attributes:
+        time_step: seconds per step.
+        center_of_mass: (3,) the object's centre of mass, object frame, metres.
+    """
+
+    time_step: float
+    center_of_mass: np.ndarray
+
+    def grip(self) -> bool:
+        """Switch the grip's joint rule on (False: no contact forces in equilibrium)."""
+
+    def advance(self, steps: int = 1) -> None:
+        """``steps`` time steps under the grip's joint rule."""
+
+    def finger_forces(self) -> np.ndarray:
+        """(3,) each finger's total normal force on the object, newtons."""
+
+    def object_in_palm(self) -> np.ndarray:
+        """(4, 4) the object's pose in the palm frame."""
+
+    def pin_load(self) -> tuple[float, float]:
+        """The net force (N) and torque (N m) the pin holds."""
+
+    def release(self) -> None:
+        """The pin off and the support table (if any) out of reach."""
+
+    def save(self) -> None:
+        """Keep the state now; every phase but the shake starts from it."""
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        """Back to the saved state, the grip's rule on, gravity (3,) m/s^2."""
+
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        """The saved state's hand root pose (4, 4) and palm centre (3,), world frame."""
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        """The hand's root at ``position`` (3,) and quaternion ``orientation`` (4,)
+        (x, y, z, w)."""
+
+    def discard(self) -> None:
+        """Forget the saved state."""
+
+
+class WorldSteps:
+    """The primitives of :class:`HoldSteps` that read a simulator's world alone (its
+    ``link_pose``, ``object_pose``, ``pin_load``, ``release_object``, ``remove_table``,
+    ``settings.time_step``, ``obj``): the base of each simulator's steps.
+
+    Args:
+        world: the world right after the closing.
+        motors, protocol: the closing controller's settings and the holding test's.
+    """
+
+    def __init__(self, world, motors, protocol: HoldProtocol) -> None:
+        self.world, self.motors, self.protocol = world, motors, protocol
+        self.time_step = world.settings.time_step
+        self.center_of_mass = world.obj.center_of_mass
+
+    def object_in_palm(self) -> np.ndarray:
+        return object_in_palm(self.world)
+
+    def pin_load(self) -> tuple[float, float]:
+        return self.world.pin_load()
+
+    def release(self) -> None:
+        self.world.release_object()
+        self.world.remove_table()
+
+
+def grip_until_steady(sim: HoldSteps, protocol: HoldProtocol) -> tuple[np.ndarray, float]:
+    """Press until the fingers' forces are steady twice in a row (after at least
+    ``grip_min_time``) or ``grip_max_time``: (the forces (3,), newtons; seconds run)."""
+    dt = sim.time_step
+    window = steps_of(protocol.steady_window, dt)
+    previous, calm, steps = None, 0, 0
+    while steps * dt < protocol.grip_max_time - 1e-12:
+        sim.advance(window)
+        steps += window
+        forces = sim.finger_forces()
+        calm = calm + 1 if previous is not None and steady(previous, forces, protocol) else 0
+        previous = forces
+        if calm >= 2 and steps * dt >= protocol.grip_min_time - 1e-12:
+            break
+    return previous, steps * dt
+
+
+def watch(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray, steps: int,
+          path: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[bool, float, float]:
+    """Step ``steps`` times (the hand's root along ``path``, positions (steps, 3) and
+    orientations (steps, 4), if given), checking the object against ``reference`` (its pose in
+    the palm frame) every ``check_interval`` and at the end; stop at the first failed check:
+    (held, largest distance m, largest angle rad)."""
+    every = steps_of(protocol.check_interval, sim.time_step)
+    worst_distance = worst_angle = 0.0
+    for k in range(steps):
+        if path is not None:
+            sim.move_hand(path[0][k], path[1][k])
+        sim.advance()
+        if (k + 1) % every and k + 1 < steps:
+            continue
+        distance, angle = pose_change(reference, sim.object_in_palm(), sim.center_of_mass)
+        worst_distance, worst_angle = max(worst_distance, distance), max(worst_angle, angle)
+        if not within(protocol, distance, angle):
+            return False, worst_distance, worst_angle
+    return True, worst_distance, worst_angle
+
+
+def run_phases(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray,
+               result: HoldResult) -> None:
+    """Every phase of ``protocol`` from the saved state, recorded in ``result``: the rest and
+    the gravity phases and the lift each from the saved state, the shake right after a held
+    lift, from where it left the hand."""
+    dt = sim.time_step
+    root = palm = None
+    for name in protocol.phases:
+        path = None
+        if name == "shake":
+            if not result.phase_held.get("lift", False):
+                continue
+            lifted = np.eye(4)
+            lifted[:3, 3] = [0.0, 0.0, protocol.lift_height]
+            times = dt * np.arange(1, steps_of(protocol.shake_time, dt) + 1)
+            shifts, angles = shake_motion(protocol, times)
+            path = hand_path(shifts, angles, lifted @ root, palm + lifted[:3, 3])
+            steps = times.size
+        elif name == "lift":
+            sim.start_phase(np.array([0.0, 0.0, -protocol.gravity]))
+            root, palm = sim.hand_start()
+            times = dt * np.arange(1, steps_of(protocol.lift_time + protocol.hold_time, dt) + 1)
+            path = hand_path(lift_motion(protocol, times), np.zeros(times.size), root, palm)
+            steps = times.size
+        else:
+            direction = np.zeros(3) if name == REST_PHASE else np.asarray(GRAVITY_PHASES[name])
+            sim.start_phase(protocol.gravity * direction)
+            steps = steps_of(protocol.gravity_time, dt)
+        outcome = watch(sim, protocol, reference, steps, path)
+        result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
+
+
+def hold_test(sim: HoldSteps, protocol: HoldProtocol) -> HoldResult:
+    """The holding test (grip, release, phases: :mod:`~kinegrasp_env.physics.protocol`) of a
+    hand just closed on the pinned object."""
+    if not sim.grip():
+        return HoldResult(NO_GRIP)
+    gripped, grip_time = grip_until_steady(sim, protocol)
+    pin_force, pin_torque = sim.pin_load()
+    pinned = sim.object_in_palm()
+    sim.release()
+    sim.advance(steps_of(protocol.settle_time, sim.time_step))
+    released = sim.finger_forces()
+    reference = sim.object_in_palm()
+    shift, turn = pose_change(pinned, reference, sim.center_of_mass)
+    result = HoldResult(grip_verdict(gripped, released, protocol), shift, turn, gripped,
+                        released, grip_time, pin_force, pin_torque)
+    if result.outcome != HELD:
+        return result
+    sim.save()
+    try:
+        run_phases(sim, protocol, reference, result)
+    finally:
+        sim.discard()
+    result.outcome = final_outcome(HELD, result.phase_held)
+    return result
