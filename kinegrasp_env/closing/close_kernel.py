@@ -351,12 +351,12 @@ def closing_rules() -> tuple:
             int(hand.POLISH_ITERATIONS), int(hand.MAX_ITERATIONS))
 
 
-def grid_args(grid, band: float) -> tuple:
-    """The distance grid, the capsule-gap constants and the band (metres) within which gaps
-    are computed exactly, as the kernel's ``grid`` tuple."""
-    return (grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
-            float(grid.spacing), capsule_gap.SAMPLES, capsule_gap.NEAR, capsule_gap.REFINE,
-            float(capsule_gap.GOLD), float(band))
+def grid_args(grid, band: float, refine: int = capsule_gap.REFINE) -> tuple:
+    """The distance grid, the capsule-gap constants (``refine`` golden-section steps per
+    gap) and the band (metres) within which gaps are computed exactly, as the kernel's
+    ``grid`` tuple."""
+    return (*capsule_gap.grid_arrays(grid), capsule_gap.SAMPLES, capsule_gap.NEAR,
+            int(refine), float(capsule_gap.GOLD), float(band))
 
 
 def geometry_args(obj: GraspObject) -> tuple:
