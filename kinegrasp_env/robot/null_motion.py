@@ -12,7 +12,8 @@ with the palm's geometric Jacobian (:meth:`~kinegrasp_env.robot.kinematics.Kinem
 jacobian`, arm columns) and psi's gradient by central differences; the first 6 rows keep
 dq in the Jacobian's null space to first order, the last one moves the elbow. Nothing in it
 names a joint or link: :mod:`kinegrasp_env.robot.ik` is the compiled twin for the default
-robot's fixed chain.
+robot's fixed chain, and on the default robot's description the two agree to 1e-9 rad
+(``tests/test_env_robot.py``). One move of 0.3 rad (3 steps) takes ~12 ms for the Panda.
 """
 
 from __future__ import annotations
