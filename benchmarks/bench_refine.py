@@ -3,7 +3,8 @@
 Run: ``python benchmarks/bench_refine.py [--draws 400] [--steps 14 8]``. On the same noisy
 draws of the first 6 shipped grasps of each object (sigma 0.0133), the compiled closing loop
 is run with each number of refinement steps (:data:`kinegrasp_env.closing.capsule_gap.REFINE`
-is the default; the others are passed to the same kernel), side by side in one run: closing
+is the default; the others through
+:meth:`~kinegrasp_env.closing.fast.FastHand.with_refine_steps`), side by side in one run: closing
 time per draw, the share of draws whose contacts found, missed fingers and start collisions
 equal those of the first setting, and the largest difference of a contact point (metres).
 The settings run interleaved ``--repeats`` times; the fastest time of each is kept (the
@@ -24,10 +25,6 @@ from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 from kinegrasp_env.world.sdf import object_grid
 
-#: Position of the number of refinement steps in the kernel's grid tuple
-#: (:func:`kinegrasp_env.closing.close_kernel.grid_args`).
-REFINE_SLOT = 6
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
@@ -45,17 +42,14 @@ def main() -> None:
             draws[:, :7] += JointNoise(0.0133, "gaussian").sample(args.draws, 7, rng)
             q.append(draws)
         q = np.concatenate(q)
-        head = hand._kernel_head
+        hands = {steps: hand.with_refine_steps(steps) for steps in args.steps}
         times: dict[int, float] = {}
         results = {}
         for _ in range(args.repeats):  # interleaved; the fastest of the repeats is kept
             for steps in args.steps:
-                grid = list(head[0])
-                grid[REFINE_SLOT] = int(steps)
-                hand._kernel_head = (tuple(grid), *head[1:])
-                hand.close(q[:5])  # compiled kernels loaded
+                hands[steps].close(q[:5])  # compiled kernels loaded
                 start = time.perf_counter()
-                results[steps] = hand.close(q)
+                results[steps] = hands[steps].close(q)
                 seconds = time.perf_counter() - start
                 times[steps] = min(times.get(steps, np.inf), seconds / len(q))
         first = results[args.steps[0]]
@@ -69,7 +63,6 @@ def main() -> None:
             print(f"{name:12s} {steps:2d} steps: {times[steps] * 1e6:6.1f} us per draw "
                   f"({times[steps] / times[args.steps[0]]:.2f}x), same contacts found "
                   f"{same.mean():.4f} of {len(q)}, points within {diff:.1e} m")
-        hand._kernel_head = head
 
 
 if __name__ == "__main__":

@@ -47,6 +47,7 @@ from coulomb.scenes import (
     TEST_TIME,
     TIME_STEP,
 )
+from marked_section import write_between
 
 #: Friction factors of the two checks (resist at HIGH mu*, slip at LOW mu*).
 HIGH, LOW = 1.5, 0.67
@@ -128,16 +129,6 @@ def markdown(rows: dict[str, dict], simulators: list[str]) -> str:
     return "\n".join(lines)
 
 
-def write_readme(path: Path, body: str) -> None:
-    """Replace the README's text between :data:`START` and :data:`END` with ``body``."""
-    text = path.read_text()
-    if START not in text or END not in text:
-        raise ValueError(f"{path} has no {START} ... {END} markers")
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    path.write_text(f"{head}{START}\n{body}\n{END}{tail}")
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--simulators", nargs="+", default=list(SIMULATORS),
@@ -176,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     args.json_out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"wrote {args.json_out}", file=sys.stderr)
     if not args.no_readme:
-        write_readme(args.readme, markdown(rows, args.simulators))
+        write_between(args.readme, START, END, markdown(rows, args.simulators))
     return 0 if passed else 1
 
 

@@ -311,7 +311,7 @@ def test_finger_axes_equal_the_capsule_axes_of_forward_kinematics():
     URDF chain, tested against pybullet in tests/test_kinematics.py), for random arm
     configurations, spreads and flexions over and past the joint ranges: to 4e-16 m
     (measured 1.1e-16: coordinates ~0.5 m, two code paths)."""
-    from kinegrasp_env.closing.fast import FastHand, _axis
+    from kinegrasp_env.closing.fast import FastHand, capsule_axis
     from kinegrasp_env.closing.finger_axes import finger_axes
     from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
 
@@ -321,16 +321,16 @@ def test_finger_axes_equal_the_capsule_axes_of_forward_kinematics():
     q[:, :7] += rng.normal(scale=0.3, size=(50, 7))
     q[:, 7:] = rng.uniform(-0.2, 1.6, size=(50, 7))
     q_zero = q.copy()
-    q_zero[:, hand._flex] = 0.0
+    q_zero[:, hand.flexion_columns] = 0.0
     links = [link for f in FINGERS for link in f[2:]]
-    frames, zero = hand._frames(q, links), hand._frames(q_zero, [f[2] for f in FINGERS])
+    frames, zero = hand.frames(q, links), hand.frames(q_zero, [f[2] for f in FINGERS])
     for f, finger in enumerate(FINGERS):
         prox = q[:, 7 + HAND_JOINTS.index(finger[0])]
         dist = q[:, 7 + HAND_JOINTS.index(finger[1])]
         ends = finger_axes(zero[finger[2]], hand.axis_p[f], prox, hand.distal_origin[f],
                            hand.axis_d[f], dist, *hand.axis_ends[f])
-        expected = np.stack([*_axis(frames[finger[2]], hand.capsules[f][0]),
-                             *_axis(frames[finger[3]], hand.capsules[f][1])], axis=1)
+        expected = np.stack([*capsule_axis(frames[finger[2]], hand.capsules[f][0]),
+                             *capsule_axis(frames[finger[3]], hand.capsules[f][1])], axis=1)
         np.testing.assert_allclose(ends, expected, rtol=0, atol=4e-16)
 
 
@@ -368,6 +368,31 @@ def test_fast_hand_rejects_an_unknown_closing():
     obj, grid = load_object("cube"), object_grid("cube")
     with pytest.raises(ValueError, match="closing 'fastest'"):
         FastHand(obj, grid, closing="fastest")
+
+
+def test_refine_steps_reach_the_compiled_closing():
+    """``with_refine_steps``: the default number of golden-section steps closes bit for bit
+    as the hand itself; one step moves some contact points (the setting reaches the kernel);
+    the hand it was made from keeps its own; bad input is refused."""
+    from kinegrasp_env.closing.capsule_gap import REFINE
+    from kinegrasp_env.closing.fast import FastHand
+
+    obj, grid = load_object("spray_flask"), object_grid("spray_flask")
+    hand = FastHand(obj, grid)
+    rng = np.random.default_rng(5)
+    q = np.tile(shipped_grasps("spray_flask")[0].q0, (60, 1))
+    q[:, :7] += rng.normal(scale=0.0133, size=(60, 7))
+    base = hand.close(q)
+    same = hand.with_refine_steps(REFINE).close(q)
+    coarse = hand.with_refine_steps(1).close(q)
+    np.testing.assert_array_equal(same.points, base.points)
+    np.testing.assert_array_equal(same.found, base.found)
+    assert not np.array_equal(coarse.points, base.points, equal_nan=True)
+    np.testing.assert_array_equal(hand.close(q).points, base.points)
+    with pytest.raises(ValueError, match="integer >= 1"):
+        hand.with_refine_steps(0)
+    with pytest.raises(ValueError, match="compiled closing"):
+        FastHand(obj, grid, closing="vectorized").with_refine_steps(REFINE)
 
 
 PRUNING_FREE_SEARCH = """
@@ -438,11 +463,11 @@ def test_screened_cylinder_check_equals_the_full_fine_check(name):
     rng = np.random.default_rng(4)
     q = np.tile(shipped_grasps(name)[0].q0, (400, 1))
     q[:, :7] += rng.normal(scale=0.03, size=(400, 7))
-    frames = compiled._frames(q, [s.link for s in compiled.cylinders])
+    frames = compiled.frames(q, [s.link for s in compiled.cylinders])
     shift = rng.uniform(-0.12, 0.12, size=(400, 3))  # the hand moved: many palms inside
     for pose in frames.values():
         pose[:, :3, 3] += shift
-    hit = compiled._cylinder_collision(frames)
+    hit = compiled.cylinder_collision(frames)
     direct = np.zeros(len(q), dtype=bool)
     for shape, (_, _, fine) in zip(compiled.cylinders, compiled.samples, strict=True):
         pose = frames[shape.link]

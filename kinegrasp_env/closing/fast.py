@@ -19,6 +19,7 @@ Contacts are computed as in the reference engine, exactly, from the touching cap
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,6 +99,12 @@ class FastHand:
         closing: ``compiled`` (the whole closing loop in one compiled call,
             :mod:`kinegrasp_env.closing.close_kernel`) or ``vectorized`` (one array-operation
             iteration at a time); the same results.
+
+    Attributes:
+        cylinders: the palm and knuckle cylinders (:class:`~kinegrasp_env.closing.
+            hand_geometry.Shape`); capsules: per finger its (proximal, distal) capsules.
+        flexion_columns: the six flexion joints' columns of a configuration (14,) (per
+            finger proximal, distal).
     """
 
     def __init__(self, obj: GraspObject, grid: DistanceGrid, closing: str = "compiled"
@@ -116,7 +123,7 @@ class FastHand:
                          s.surface_samples(CYLINDER_SPACING)) for s in self.cylinders]
         # the same, stacked for the compiled check: samples, where cylinder s's samples at
         # spacing t start (starts[s, t]; its finest end at starts[s, 3]), and the three
-        # thresholds (see _cylinder_collision)
+        # thresholds (see cylinder_collision)
         stacked = [block for blocks in self.samples for block in blocks]
         offsets = np.cumsum([0] + [len(block) for block in stacked])
         starts = np.array([offsets[3 * s:3 * s + 4] for s in range(len(self.cylinders))],
@@ -132,7 +139,7 @@ class FastHand:
         self.upper = np.array([[self.model.joint(f[0]).upper, self.model.joint(f[1]).upper]
                                for f in FINGERS])
         self.speed = closing_speeds()
-        self._flex = self.model.index([j for f in FINGERS for j in f[:2]])
+        self.flexion_columns = self.model.index([j for f in FINGERS for j in f[:2]])
         if closing == "compiled":
             # the kernel's fixed arguments: grid, object, rules, then (after the per-call
             # frames and flexions) the finger constants stacked over fingers
@@ -146,12 +153,27 @@ class FastHand:
                 np.array([[c.radius for c in pair] for pair in self.capsules]), self.upper,
                 np.array(self.speed, dtype=float))
 
+    def with_refine_steps(self, steps: int) -> FastHand:
+        """This hand (a shallow copy) with its compiled closing refining each grid gap by
+        ``steps`` golden-section steps instead of
+        :data:`~kinegrasp_env.closing.capsule_gap.REFINE`: what the refinement costs and
+        changes (``benchmarks/bench_refine.py``). Only for ``closing="compiled"``."""
+        if self.closing != "compiled":
+            raise ValueError(f"refine steps apply to the compiled closing, not {self.closing!r}")
+        if isinstance(steps, bool) or int(steps) != steps or steps < 1:
+            raise ValueError(f"refine steps must be an integer >= 1, got {steps!r}")
+        twin = copy.copy(self)
+        twin._kernel_head = (grid_args(self.grid, GRID_EXACT_BAND, int(steps)),
+                             *self._kernel_head[1:])
+        return twin
+
     # ------------------------------------------------------------------ geometry
-    def _frames(self, q: np.ndarray, links: list[str],
+    def frames(self, q: np.ndarray, links: list[str],
                 to_object: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Object-frame poses (n, 4, 4) of links at configurations q (n, 14); ``to_object``
-        (n, 4, 4) maps each draw's world poses to the object frame (default: the inverse
-        of the object's pose)."""
+        """Object-frame poses (n, 4, 4) of links (by name) at configurations q (n, 14);
+        ``to_object`` (n, 4, 4) maps each draw's world poses to the object frame (default: the
+        inverse of the object's pose): link name -> poses, what :meth:`cylinder_collision`
+        takes."""
         world = self.kin.forward(q, links)
         left = self.obj.pose_inverse if to_object is None else to_object
         return {name: left @ pose for name, pose in world.items()}
@@ -171,15 +193,16 @@ class FastHand:
         """(n,) True where a finger link's capsule penetrates more than START_TOL (the six
         capsules' gaps in one call)."""
         shapes = [shape for pair in self.capsules for shape in pair]
-        ends = [_axis(frames[shape.link], shape) for shape in shapes]
+        ends = [capsule_axis(frames[shape.link], shape) for shape in shapes]
         n = len(ends[0][0])
         radius = np.repeat([shape.radius for shape in shapes], n)
         gap = self._capsule_gaps(np.concatenate([e[0] for e in ends]),
                                  np.concatenate([e[1] for e in ends]), radius)
         return (gap.reshape(len(shapes), n) < -START_TOL).any(axis=0)
 
-    def _cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
-        """(n,) True where a palm or knuckle cylinder penetrates more than START_TOL.
+    def cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
+        """(n,) True where a palm or knuckle cylinder (``self.cylinders``) penetrates more
+        than START_TOL, from :meth:`frames` of (at least) the cylinders' links.
 
         Every coarse sample lies within SCREEN_SPACING of a screen sample, every surface
         point within COARSE_SPACING of a coarse one (distances are 1-Lipschitz): the fine
@@ -208,8 +231,8 @@ class FastHand:
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n = q.shape[0]
         finger_links = [link for f in FINGERS for link in f[2:]]
-        frames = self._frames(q, [s.link for s in self.cylinders] + finger_links, to_object)
-        start = self._cylinder_collision(frames) | self._capsule_collision(frames)
+        frames = self.frames(q, [s.link for s in self.cylinders] + finger_links, to_object)
+        start = self.cylinder_collision(frames) | self._capsule_collision(frames)
         out = BatchClose(start, np.zeros((n, 3), bool), np.zeros((n, 3, 2), bool),
                          np.full((n, 3, 2, 3), np.nan), np.full((n, 3, 2, 3), np.nan),
                          np.full((n, 3, 2), np.nan))
@@ -218,8 +241,8 @@ class FastHand:
             return out
         # joint frames of the proximal joints (flexion zero): fixed while closing
         q_zero = q[draws].copy()
-        q_zero[:, self._flex] = 0.0
-        zero = self._frames(q_zero, [f[2] for f in FINGERS],
+        q_zero[:, self.flexion_columns] = 0.0
+        zero = self.frames(q_zero, [f[2] for f in FINGERS],
                             None if to_object is None else to_object[draws])
         hand = q[draws, 7:]
         if self.closing == "compiled":
@@ -430,8 +453,9 @@ class FastHand:
         return best_t
 
 
-def _axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
-    """(m, 3) end points of a capsule's axis for link frames (m, 4, 4)."""
+def capsule_axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """The end points (m, 3) and (m, 3) of a capsule's axis (``shape``, in its link's frame)
+    placed by link frames (m, 4, 4) (:meth:`FastHand.frames`)."""
     a_local, b_local = shape.axis_points()
     rot, trans = frames[:, :3, :3], frames[:, :3, 3]
     return rot @ a_local + trans, rot @ b_local + trans
