@@ -51,14 +51,19 @@ the link to that point (degrees); the largest relative and absolute Q difference
 draws in force closure on both sides (their number in brackets), and the absolute one
 without the draws where a normal's tangent basis is tied (``agreement.TIE_TOL``: a 1e-12
 change of such a normal can turn the linearized friction cone and change Q by ~1%).
+
+Every row (the same counts and differences, plus the same-outcome fraction) also goes to
+``benchmarks/results/agreement.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.agreement import Agreement, compare
 from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
@@ -141,18 +146,28 @@ def main() -> None:
     parser.add_argument("--grasp-file", help="a grasp file (e.g. `kinegrasp plan`'s output "
                         "for an imported object): its object, its first --grasps grasps")
     parser.add_argument("--sigmas", nargs="+", type=float, default=[0.0133, 0.0266])
+    add_options(parser, __file__)
     args = parser.parse_args()
     sets = grasp_sets(parser, args)
     start = time.perf_counter()
+    rows = []
     print(COLUMNS)
     for name, grasps in sets.items():
         for sigma in args.sigmas:
             for label, agreement in compare_object(name, sigma, grasps, args.draws,
                                                    args.seed).items():
                 print(row(name, sigma, label, agreement), flush=True)
+                rows.append({"object": name, "sigma": sigma, "comparison": label,
+                             "grasps": len(grasps),
+                             "same_outcome_fraction": agreement.same_outcome / agreement.draws,
+                             **dataclasses.asdict(agreement)})
     counts = "/".join(sorted({str(len(g)) for g in sets.values()}))
+    seconds = time.perf_counter() - start
     print(f"({counts} grasps x {args.draws} draws per row, seed {args.seed}; "
-          f"{time.perf_counter() - start:.0f} s)")
+          f"{seconds:.0f} s)")
+    if not args.no_json:
+        write_result(__file__, {"wall_s": seconds, "rows": rows, "settings": settings(args)},
+                     args.json_out)
 
 
 if __name__ == "__main__":

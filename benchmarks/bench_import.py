@@ -22,6 +22,10 @@ second run reuses the imports; the planned grasp files go to ``DIR/bench_grasps`
    ``--reference-draws`` with the pybullet engine, on one process, engines warm: draws/s,
    P(FC) of each engine, next to the built-in objects' shipped grasp 0, with the number of
    convex parts (both engines' cost per draw grows with the parts near the fingers).
+
+Every table (seconds, draws/s, P(FC), millimetre deviations, agreement counts and
+differences) also goes to ``benchmarks/results/bench_import.json`` (``--json-out PATH``,
+``--no-json``).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import dataclasses
 import io
 import os
 import tempfile
@@ -38,6 +43,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet_data
+from results_file import add_options, settings, write_result
 
 if TYPE_CHECKING:
     from kinegrasp_env.montecarlo.agreement import Agreement
@@ -55,7 +61,8 @@ SIGMA = 0.0133
 AGREE_SIGMAS = (0.0133, 0.0266)
 
 
-def import_all(names: list[str]) -> list[str]:
+def import_all(names: list[str], rows: list[dict]) -> list[str]:
+    """Import the meshes of ``names``; print a line and append a row to ``rows`` each."""
     from kinegrasp_env.world.importer import ImportSettings, import_object
 
     done = []
@@ -73,12 +80,18 @@ def import_all(names: list[str]) -> list[str]:
               f"{1e3 * d['missing_max']:.2f}/{1e3 * d['missing_mean']:.2f}, "
               f"{1e3 * d['added_max']:.2f}/{1e3 * d['added_mean']:.2f}"
               f"{'  (reused entry)' if result.reused else ''}", flush=True)
+        rows.append({"object": name, "file": file, "import_s": seconds, "parts": e["parts"],
+                     "size_m": list(e["size"]), "r_max_m": e["r_max"],
+                     "lost_max_mm": 1e3 * d["missing_max"], "lost_mean_mm": 1e3 * d["missing_mean"],
+                     "added_max_mm": 1e3 * d["added_max"], "added_mean_mm": 1e3 * d["added_mean"],
+                     "reused": bool(result.reused)})
         done.append(name)
     return done
 
 
-def plan_all(names: list[str], count: int, folder: Path) -> dict:
-    """{name: planned grasps}; each object's grasps also written to ``folder/NAME.json``."""
+def plan_all(names: list[str], count: int, folder: Path, rows: list[dict]) -> dict:
+    """{name: planned grasps}; each object's grasps also written to ``folder/NAME.json``, a
+    row per object appended to ``rows``."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
     from kinegrasp_env.world.grasps import save_grasps
 
@@ -91,12 +104,15 @@ def plan_all(names: list[str], count: int, folder: Path) -> dict:
             found = planner.plan(count, seed=0)
         finally:
             planner.close()
+        seconds = time.perf_counter() - start
         grasps[name] = found
         if found:
             save_grasps(found, folder / f"{name}.json", planner_seed=0)
         print(f"{name:<8} plan: {len(found)} force-closure grasps in "
-              f"{time.perf_counter() - start:.1f} s; nominal Q "
+              f"{seconds:.1f} s; nominal Q "
               + ", ".join(f"{g.q_nominal:.4f}" for g in found), flush=True)
+        rows.append({"object": name, "grasps": len(found), "plan_s": seconds,
+                     "nominal_q": [g.q_nominal for g in found]})
     return grasps
 
 
@@ -119,7 +135,7 @@ def rate(engine_name: str, name: str, q0: np.ndarray, draws: int) -> tuple[float
     return draws / wall, float(np.mean(out.outcome == FORCE_CLOSURE))
 
 
-def engines(grasps: dict, draws: int, reference: int) -> None:
+def engines(grasps: dict, draws: int, reference: int) -> list[dict]:
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
@@ -127,11 +143,17 @@ def engines(grasps: dict, draws: int, reference: int) -> None:
     rows += [(name, found[0]) for name, found in grasps.items() if found]
     print(f"\n{'object':<12} {'parts':>5} {'fast draws/s':>12} {'P(FC)':>6} "
           f"{'pybullet draws/s':>16} {'P(FC)':>6}   (grasp 0, sigma {SIGMA} rad, 1 process)")
+    out = []
     for name, grasp in rows:
         fast, p_fast = rate("fast", name, grasp.q0, draws)
         slow, p_slow = rate("pybullet", name, grasp.q0, reference)
-        print(f"{name:<12} {len(load_object(name).parts):>5} {fast:>12.0f} {p_fast:>6.3f} "
+        parts = len(load_object(name).parts)
+        print(f"{name:<12} {parts:>5} {fast:>12.0f} {p_fast:>6.3f} "
               f"{slow:>16.0f} {p_slow:>6.3f}", flush=True)
+        out.append({"object": name, "parts": parts, "fast_draws": draws,
+                    "fast_draws_per_s": fast, "fast_p_fc": p_fast, "pybullet_draws": reference,
+                    "pybullet_draws_per_s": slow, "pybullet_p_fc": p_slow})
+    return out
 
 
 def rank_file(grasp_file: Path, samples: int) -> tuple[float, dict]:
@@ -192,11 +214,13 @@ def merge(parts: list[Agreement]) -> Agreement:
         "q_abs_max_untied")}, point_median=float("nan"))
 
 
-def end_to_end(grasps: dict, folder: Path, rank_samples: int, agree_draws: int) -> None:
-    """Rank, one env episode and the engines' agreement of each object's planned grasps."""
+def end_to_end(grasps: dict, folder: Path, rank_samples: int, agree_draws: int) -> dict:
+    """Rank, one env episode and the engines' agreement of each object's planned grasps
+    (printed; returned as lists of rows ``rank``, ``env`` and ``agreement``)."""
     print(f"\nrank: fast engine, {rank_samples} draws per grasp, sigma {SIGMA}; env: reset "
           f"+ one step, 8 draws; agreement: every grasp x {agree_draws} draws x sigma "
           f"{'/'.join(map(str, AGREE_SIGMAS))}")
+    out: dict[str, list[dict]] = {"rank": [], "env": [], "agreement": []}
     for name, found in grasps.items():
         if not found:
             continue
@@ -205,9 +229,15 @@ def end_to_end(grasps: dict, folder: Path, rank_samples: int, agree_draws: int) 
         print(f"{name:<8} rank: {len(found)} grasps in {seconds:.1f} s; top {best['id']} "
               f"P(FC) {float(best['p_fc']):.3f} [{float(best['p_fc_lo']):.3f}, "
               f"{float(best['p_fc_hi']):.3f}]", flush=True)
+        out["rank"].append({"object": name, "grasps": len(found), "rank_s": seconds,
+                            "top": best["id"], "p_fc": float(best["p_fc"]),
+                            "p_fc_lo": float(best["p_fc_lo"]),
+                            "p_fc_hi": float(best["p_fc_hi"])})
         seconds, reward, info = episode(name, grasp_file)
         print(f"{name:<8} env: grasp {info['grasp']}, sigma {info['sigma']:.4f}, reward "
               f"{reward:.3f} (P(FC) {info['p_fc']:.3f}) in {seconds:.1f} s", flush=True)
+        out["env"].append({"object": name, "grasp": info["grasp"], "sigma": info["sigma"],
+                           "reward": reward, "p_fc": info["p_fc"], "episode_s": seconds})
         seconds, rows = agree(name, found, agree_draws)
         for label, a in rows.items():
             offset = "" if np.isnan(a.offset_max) else (
@@ -217,7 +247,14 @@ def end_to_end(grasps: dict, folder: Path, rank_samples: int, agree_draws: int) 
                   f"max {a.normal_max:.3f} deg, Q abs max {a.q_abs_max:.1e} (untied "
                   f"{a.q_abs_max_untied:.1e}, rel {a.q_max:.1e}, {a.q_pairs} FC pairs)"
                   f"{offset}", flush=True)
+            out["agreement"].append({"object": name, "comparison": label,
+                                     "same_outcome_fraction": a.same_outcome / a.draws,
+                                     **dataclasses.asdict(a)})
         print(f"{name:<8} agreement: {seconds:.1f} s", flush=True)
+        for row in out["agreement"]:
+            if row["object"] == name:
+                row["agreement_s"] = seconds
+    return out
 
 
 def main() -> None:
@@ -236,14 +273,20 @@ def main() -> None:
     names = [m[-1] for m in MESHES]
     parser.add_argument("--only", nargs="*", default=names, choices=names,
                         help="meshes to use, by name")
+    add_options(parser, __file__)
     args = parser.parse_args()
     os.environ["KINEGRASP_HOME"] = args.home or tempfile.mkdtemp(prefix="kinegrasp-home-")
     print(f"catalog: {os.environ['KINEGRASP_HOME']}")
     folder = Path(os.environ["KINEGRASP_HOME"]) / "bench_grasps"
-    names = import_all(args.only)
-    grasps = plan_all(names, args.grasps, folder) if args.grasps > 0 else {}
-    end_to_end(grasps, folder, args.rank_samples, args.agree_draws)
-    engines(grasps, args.draws, args.reference_draws)
+    imports: list[dict] = []
+    plans: list[dict] = []
+    names = import_all(args.only, imports)
+    grasps = plan_all(names, args.grasps, folder, plans) if args.grasps > 0 else {}
+    record = {"imports": imports, "plans": plans,
+              **end_to_end(grasps, folder, args.rank_samples, args.agree_draws),
+              "engines": engines(grasps, args.draws, args.reference_draws)}
+    if not args.no_json:
+        write_result(__file__, {**record, "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

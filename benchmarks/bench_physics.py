@@ -10,6 +10,9 @@ engine's on the same draws, P(hold), and whether the same configurations give th
 numbers twice.
 
     python benchmarks/bench_physics.py [--draws 20] [--grasp 0] [--sigmas 0.0133 0.0333]
+
+The figures (seconds, draws/s, P(FC), P(hold)) also go to
+``benchmarks/results/bench_physics.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import argparse
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations
@@ -35,11 +39,13 @@ def timed(fn):
     return out, time.perf_counter() - start, time.process_time() - cpu
 
 
-def bench_object(name: str, args) -> None:
+def bench_object(name: str, args) -> tuple[dict, list[dict]]:
+    """Print one object's lines; return its world row and its per-sigma rows."""
     grasp = grasp_by_index(name, args.grasp)
     engine, build, _ = timed(lambda: PhysicsEngine(name))
     fast = FastEngine(name)
     print(f"{name}: world built in {build:.2f} s (mass {engine.world.mass:.3f} kg)")
+    rows = []
     for sigma in args.sigmas:
         q = chunk_configurations(grasp.q0, JointNoise(sigma), args.seed, [(0, args.draws)])
         closed, t_run, cpu_run = timed(lambda q=q: engine.run(q))
@@ -57,7 +63,16 @@ def bench_object(name: str, args) -> None:
               f"(CPU {cpu_lift / n * 1e3:5.0f} ms/draw) | P(FC) physics {p_fc:.2f} (pinned "
               f"{np.mean(pinned.outcome == FORCE_CLOSURE):.2f}), kinematic {p_kin:.2f}, "
               f"P(hold) {hold.held.mean():.2f} | same numbers twice: {same}")
+        rows.append({"object": name, "sigma": sigma, "draws": n,
+                     "closing_draws_per_s": n / t_run, "closing_cpu_s_per_draw": cpu_run / n,
+                     "holding_draws_per_s": n / t_lift, "holding_cpu_s_per_draw": cpu_lift / n,
+                     "p_fc_physics": p_fc,
+                     "p_fc_pinned": np.mean(pinned.outcome == FORCE_CLOSURE),
+                     "p_fc_kinematic": p_kin, "p_hold": hold.held.mean(),
+                     "same_numbers_twice": bool(same)})
+    world = {"object": name, "world_build_s": build, "mass_kg": engine.world.mass}
     engine.close()
+    return world, rows
 
 
 def main() -> None:
@@ -67,9 +82,16 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--sigmas", type=float, nargs="+", default=[0.0133, 0.0333])
     parser.add_argument("--objects", nargs="+", default=list(OBJECT_NAMES))
+    add_options(parser, __file__)
     args = parser.parse_args()
+    worlds, rows = [], []
     for name in args.objects:
-        bench_object(name, args)
+        world, object_rows = bench_object(name, args)
+        worlds.append(world)
+        rows += object_rows
+    if not args.no_json:
+        write_result(__file__, {"worlds": worlds, "draws": rows, "settings": settings(args)},
+                     args.json_out)
 
 
 if __name__ == "__main__":

@@ -39,6 +39,10 @@ runs' moments are empty, which changes neither the decisions nor the top k (they
 
 Usage: ``nice -n 10 python benchmarks/bench_ranking.py [--sets a,a3] [--reps 100]
 [--epsilon 0.01] [--processes 2]``.
+
+The figures of each set (the ground truth's order and boundary, draws against the fixed-n
+budget, error counts and rates, seconds) also go to ``benchmarks/results/bench_ranking.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 SIGMA = 0.0133
 CHUNK = 250
@@ -189,43 +194,67 @@ def labels_are_false(row: dict, p: np.ndarray, top_k: int, epsilon: float) -> bo
     return top_is_false(p, row["marked"], top_k, epsilon) or rest_false
 
 
-def truth_line(gt: np.ndarray, ids: list[str], top_k: int) -> str:
-    """The ground truth's order and its top-k boundary pair (gap, discordance)."""
+def truth_figures(gt: np.ndarray, ids: list[str], top_k: int) -> dict:
+    """The ground truth's order (id, P(FC)) and its top-k boundary pair (gap, discordance)."""
     p = gt.mean(axis=1)
     rank = np.argsort(-p, kind="stable")
     i, j = rank[top_k - 1], rank[top_k]
-    discordant = float(np.mean(gt[i] != gt[j]))
-    order = ", ".join(f"{ids[r]} {p[r]:.4f}" for r in rank)
+    return {"order": [{"id": ids[r], "p_fc": float(p[r])} for r in rank],
+            "boundary": [ids[i], ids[j]], "boundary_gap": float(p[i] - p[j]),
+            "boundary_discordant": float(np.mean(gt[i] != gt[j]))}
+
+
+def truth_line(gt: np.ndarray, ids: list[str], top_k: int) -> str:
+    """The ground truth's order and its top-k boundary pair (gap, discordance)."""
+    t = truth_figures(gt, ids, top_k)
+    order = ", ".join(f"{r['id']} {r['p_fc']:.4f}" for r in t["order"])
+    first, second = t["boundary"]
     return (f"  ground truth ({GT_DRAWS} draws, seed {GT_SEED}): {order}\n"
-            f"  top-{top_k} boundary {ids[i]} | {ids[j]}: gap {p[i] - p[j]:.4f}, discordant "
-            f"on {discordant:.1%} of the draws")
+            f"  top-{top_k} boundary {first} | {second}: gap {t['boundary_gap']:.4f}, "
+            f"discordant on {t['boundary_discordant']:.1%} of the draws")
+
+
+def summary_figures(rows: list[dict], p: np.ndarray, samples: int, top_k: int,
+                    epsilon: float) -> dict:
+    """The repetitions' figures of one set (see :func:`summary`)."""
+    from kinegrasp_env.sampling.stats import wilson_interval
+
+    used = np.array([r["draws"] / r["fixed"] for r in rows])
+    errors = sum(labels_are_false(r, p, top_k, epsilon) for r in rows)
+    lo, hi = wilson_interval(errors, len(rows))
+    fixed_errors = None
+    if rows[0]["fixed_top"] is not None:
+        fixed_errors = sum(top_is_false(p, r["fixed_top"], top_k, epsilon) for r in rows)
+    return {"candidates": len(p), "top_k": top_k, "samples": samples,
+            "fixed_n": len(p) * samples, "mode": "paired" if rows[0]["paired"] else "unpaired",
+            "reps": len(rows), "draws_over_fixed_n_mean": float(used.mean()),
+            "draws_over_fixed_n_max": float(used.max()),
+            "separated": sum(r["separated"] for r in rows), "label_errors": errors,
+            "label_error_rate": errors / len(rows), "label_error_wilson_lo": lo,
+            "label_error_wilson_hi": hi,
+            "first_k_errors": sum(top_is_false(p, r["first"], top_k, epsilon) for r in rows),
+            "fixed_n_top_k_errors": fixed_errors,
+            "draws_computed": sum(r["fresh"] for r in rows)}
 
 
 def summary(name: str, rows: list[dict], p: np.ndarray, samples: int, top_k: int,
             delta: float, epsilon: float, seconds: float) -> str:
-    from kinegrasp_env.sampling.stats import wilson_interval
-
-    n = len(p)
-    used = np.array([r["draws"] / r["fixed"] for r in rows])
-    errors = sum(labels_are_false(r, p, top_k, epsilon) for r in rows)
-    lo, hi = wilson_interval(errors, len(rows))
-    first = sum(top_is_false(p, r["first"], top_k, epsilon) for r in rows)
-    separated = sum(r["separated"] for r in rows)
-    fresh = sum(r["fresh"] for r in rows)
-    mode = "paired" if rows[0]["paired"] else "unpaired"
-    fixed = ""
-    if rows[0]["fixed_top"] is not None:
-        fixed_errors = sum(top_is_false(p, r["fixed_top"], top_k, epsilon) for r in rows)
-        fixed = f"; fixed-n top-k errors {fixed_errors}/{len(rows)}"
-    return (f"set {name} ({n} candidates, top {top_k}, {samples} draws each, fixed n "
-            f"{n * samples}, delta {delta}, epsilon {epsilon}, {mode}): draws/fixed-n mean "
-            f"{used.mean():.3f} max {used.max():.3f}; separated {separated}/{len(rows)}; "
-            f"label errors {errors}/{len(rows)} = {errors / len(rows):.3f} (Wilson 95% "
-            f"{lo:.3f}..{hi:.3f}); first-k errors {first}/{len(rows)}{fixed}; "
-            f"{seconds:.0f} s, {fresh} draws computed")
+    f = summary_figures(rows, p, samples, top_k, epsilon)
+    reps = f["reps"]
+    fixed = ("" if f["fixed_n_top_k_errors"] is None
+             else f"; fixed-n top-k errors {f['fixed_n_top_k_errors']}/{reps}")
+    return (f"set {name} ({f['candidates']} candidates, top {top_k}, {samples} draws each, "
+            f"fixed n {f['fixed_n']}, delta {delta}, epsilon {epsilon}, {f['mode']}): "
+            f"draws/fixed-n mean {f['draws_over_fixed_n_mean']:.3f} max "
+            f"{f['draws_over_fixed_n_max']:.3f}; separated {f['separated']}/{reps}; "
+            f"label errors {f['label_errors']}/{reps} = {f['label_error_rate']:.3f} (Wilson 95% "
+            f"{f['label_error_wilson_lo']:.3f}..{f['label_error_wilson_hi']:.3f}); first-k "
+            f"errors {f['first_k_errors']}/{reps}{fixed}; "
+            f"{seconds:.0f} s, {f['draws_computed']} draws computed")
 
 
-def bench_set(name: str, args, pool) -> None:
+def bench_set(name: str, args, pool) -> dict:
+    """Print one set's lines; return its figures (the ground truth's order as well)."""
     from kinegrasp_env.jit import source_key
     from kinegrasp_env.paths import cache_root
     from kinegrasp_env.toolkit import ranking
@@ -244,15 +273,24 @@ def bench_set(name: str, args, pool) -> None:
     kth = np.sort(p)[::-1][top_k - 1]
     print(f"set {name}: {spec['label']} ({ranking.__file__})")
     print(truth_line(gt, ids, top_k))
+    acceptable = [ids[i] for i in np.argsort(-p, kind="stable")
+                  if (p[i] > kth - args.epsilon if args.epsilon > 0 else p[i] >= kth)]
     print(f"  acceptable in a top {top_k} at epsilon {args.epsilon}: "
-          + ", ".join(ids[i] for i in np.argsort(-p, kind="stable")
-                      if (p[i] > kth - args.epsilon if args.epsilon > 0 else p[i] >= kth)),
-          flush=True)
+          + ", ".join(acceptable), flush=True)
     tasks = [(grasps, str(folder), seed, samples, top_k, args.delta, args.epsilon,
               args.fixed_n_errors) for seed in range(args.reps)]
     rows = list(pool.imap(run_seed, tasks)) if pool else [run_seed(t) for t in tasks]
-    print(summary(name, rows, p, samples, top_k, args.delta, args.epsilon,
-                  time.perf_counter() - start), flush=True)
+    seconds = time.perf_counter() - start
+    print(summary(name, rows, p, samples, top_k, args.delta, args.epsilon, seconds),
+          flush=True)
+    truth = truth_figures(gt, ids, top_k)
+    return {"set": name, "label": spec["label"], "delta": args.delta, "epsilon": args.epsilon,
+            **summary_figures(rows, p, samples, top_k, args.epsilon), "wall_s": seconds,
+            "truth_boundary": " | ".join(truth["boundary"]),
+            "truth_boundary_gap": truth["boundary_gap"],
+            "truth_boundary_discordant": truth["boundary_discordant"],
+            "acceptable": ", ".join(acceptable),
+            "truth_order": ", ".join(f"{r['id']} {r['p_fc']:.4f}" for r in truth["order"])}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -270,6 +308,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fixed-n-errors", action="store_true",
                         help="also the fixed-n run's top-k errors (draws every candidate's "
                         "whole budget: slow where adaptive ranking saves much)")
+    add_options(parser, __file__)
     args = parser.parse_args(argv)
     names = args.sets.split(",")
     if unknown := [n for n in names if n not in SETS]:
@@ -279,12 +318,15 @@ def main(argv: list[str] | None = None) -> int:
     context = multiprocessing.get_context("spawn")
     pool = context.Pool(args.processes) if args.processes > 1 else None
     try:
-        for name in names:
-            bench_set(name, args, pool)
+        sets = [bench_set(name, args, pool) for name in names]
     finally:
         if pool:
             pool.close()
             pool.join()
+    if not args.no_json:
+        write_result(__file__, {"truth_draws": GT_DRAWS, "truth_seed": GT_SEED, "sigma": SIGMA,
+                                "chunk": CHUNK, "sets": sets, "settings": settings(args)},
+                     args.json_out)
     return 0
 
 

@@ -9,6 +9,9 @@ Run: ``python benchmarks/bench_scale.py [--samples 500] [--chunk 50] [--engine f
    wall time and tasks/s, checks that all summaries are byte-identical.
 2. Per-task overhead: ``--trivial`` no-op tasks through the inline executor and through Ray
    (its scheduling, serialization and result transfer; one CPU busy per task).
+
+The figures (seconds, tasks/s, ratios) also go to ``benchmarks/results/bench_scale.json``
+(``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.execution import LocalExecutor, RayExecutor
 from kinegrasp_env.montecarlo.sweep import SweepSpec, run_sweep
@@ -38,10 +43,12 @@ def main() -> None:
     parser.add_argument("--chunk", type=int, default=50)
     parser.add_argument("--engine", default="fast")
     parser.add_argument("--trivial", type=int, default=2000)
+    add_options(parser, __file__)
     args = parser.parse_args()
-    spec = SweepSpec.from_dict({"objects": ["cube", "spray_flask"], "grasps": [0, 1],
-                                "sigmas": [0.0133, 0.0266], "engines": [args.engine],
-                                "samples": args.samples, "chunk": args.chunk})
+    spec_dict = {"objects": ["cube", "spray_flask"], "grasps": [0, 1],
+                 "sigmas": [0.0133, 0.0266], "engines": [args.engine],
+                 "samples": args.samples, "chunk": args.chunk}
+    spec = SweepSpec.from_dict(spec_dict)
     tasks = len(spec.tasks())
     print(f"sweep: {len(spec.cells())} cells x {args.samples} draws ({args.engine} engine) = "
           f"{tasks} tasks of {args.chunk} draws")
@@ -50,7 +57,7 @@ def main() -> None:
         # warm-up in this process: distance grids loaded, numba kernels compiled (forked
         # local workers inherit them; Ray workers are fresh processes and load them again)
         with LocalExecutor(1) as ex:
-            run_sweep(SweepSpec.from_dict({**spec.__dict__, "grasps": [0], "sigmas": [0.01],
+            run_sweep(SweepSpec.from_dict({**spec_dict, "grasps": [0], "sigmas": [0.01],
                                            "noise": ["gaussian"], "samples": args.chunk}),
                       root / "warm", ex, progress=False)
         timings: dict[str, float] = {}
@@ -79,6 +86,17 @@ def main() -> None:
           f"{ray_trivial * 1e3:.2f} ms, inline {inline_trivial * 1e6:.1f} us "
           f"({args.trivial} no-op tasks)")
     print(f"ray overhead / task work: {ray_trivial / per_task:.1%}")
+    if not args.no_json:
+        write_result(__file__, {
+            "cells": len(spec.cells()), "tasks": tasks,
+            "summaries_byte_identical": identical,
+            "work_s_per_task_local_1_process": per_task,
+            "ray_overhead_s_per_task": ray_trivial, "inline_overhead_s_per_task": inline_trivial,
+            "ray_overhead_over_task_work": ray_trivial / per_task,
+            "backends": [{"backend": name, "wall_s": seconds, "tasks_per_s": tasks / seconds,
+                          "speed_vs_local_1_process": base / seconds}
+                         for name, seconds in timings.items()],
+            "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,9 @@ when B uses another seed (unpaired), and their ratio; and the same from one run'
 indicators: Var(Y_A - Y_B) / n against (Var Y_A + Var Y_B) / n.
 
     python benchmarks/crn_variance.py --samples 500 --replicates 20
+
+The figures (differences, variances, ratios, seconds) also go to
+``benchmarks/results/crn_variance.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import argparse
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
@@ -50,8 +54,10 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=500)
     parser.add_argument("--replicates", type=int, default=20)
     parser.add_argument("--grasps", default="0,1,4")
+    add_options(parser, __file__)
     args = parser.parse_args()
     start = time.perf_counter()
+    rows = []
     print(f"{'pair':<44} {'grasp':>5} {'p_A - p_B':>9} {'var paired':>11} "
           f"{'var unpaired':>12} {'ratio':>6} | per-draw ratio")
     for name, (spec_a, spec_b) in PAIRS.items():
@@ -68,8 +74,16 @@ def main() -> None:
             print(f"{name:<44} {index:>5} {np.mean(p_a - p_b):>9.4f} {paired:>11.2e} "
                   f"{unpaired:>12.2e} {paired / unpaired:>6.3f} | {np.mean(per_draw):.3f}",
                   flush=True)
+            rows.append({"pair": name, "grasp": index, "p_a_minus_p_b": np.mean(p_a - p_b),
+                         "var_paired": paired, "var_unpaired": unpaired,
+                         "paired_over_unpaired": paired / unpaired,
+                         "per_draw_ratio": np.mean(per_draw)})
+    seconds = time.perf_counter() - start
     print(f"{args.samples} draws x {args.replicates} seeds per setting, "
-          f"{time.perf_counter() - start:.0f} s")
+          f"{seconds:.0f} s")
+    if not args.no_json:
+        write_result(__file__, {"wall_s": seconds, "pairs": rows, "settings": settings(args)},
+                     args.json_out)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,9 @@ grasps planned on the cube and the drill with the table: each checked at zero no
 closure, open and closed hand clear of the table).
 
     python benchmarks/table_effect.py [--draws 200] [--plan 5]
+
+The figures (fractions, P(FC), draws/s, seconds) also go to
+``benchmarks/results/table_effect.json`` (``--json-out PATH``, ``--no-json``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import tempfile
 import time
 
 import numpy as np
+from results_file import add_options, settings, write_result
 
 
 def draws_per_second(engine, q: np.ndarray, repeats: int = 3) -> float:
@@ -33,7 +37,7 @@ def draws_per_second(engine, q: np.ndarray, repeats: int = 3) -> float:
     return len(q) / best
 
 
-def object_rows(name: str, draws: int) -> None:
+def object_rows(name: str, draws: int) -> dict:
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION, make_engine
     from kinegrasp_env.world.grasps import shipped_grasps
 
@@ -41,7 +45,9 @@ def object_rows(name: str, draws: int) -> None:
     q0 = np.array([g.q0 for g in shipped_grasps(name)])
     bare, tabled = make_engine("fast", name), make_engine("fast", placed)
     nominal = tabled.table_hits(q0)
-    cells = []
+    cells, record = [], {"object": name, "shipped_in_table": int(nominal.sum()),
+                         "shipped": len(q0),
+                         "shipped_in_table_indices": np.flatnonzero(nominal).tolist()}
     for sigma in (0.0133, 0.0333):
         q = np.repeat(q0, draws, axis=0)
         q[:, :7] += np.random.default_rng(7).normal(0.0, sigma, (len(q), 7))
@@ -50,14 +56,19 @@ def object_rows(name: str, draws: int) -> None:
         cells.append(f"{in_table.mean():.3f} / {(a.outcome == FORCE_CLOSURE).mean():.3f} -> "
                      f"{(b.outcome == FORCE_CLOSURE).mean():.3f}")
         assert np.all(b.outcome[in_table] == START_COLLISION)
+        record |= {f"in_table_{sigma}": in_table.mean(),
+                   f"p_fc_without_{sigma}": (a.outcome == FORCE_CLOSURE).mean(),
+                   f"p_fc_with_{sigma}": (b.outcome == FORCE_CLOSURE).mean()}
     q = np.repeat(q0, 100, axis=0)
     q[:, :7] += np.random.default_rng(8).normal(0.0, 0.0133, (len(q), 7))
-    speed = f"{draws_per_second(bare, q):.0f} / {draws_per_second(tabled, q):.0f}"
+    rates = draws_per_second(bare, q), draws_per_second(tabled, q)
+    speed = f"{rates[0]:.0f} / {rates[1]:.0f}"
     print(f"| {name} | {int(nominal.sum())}/12 ({', '.join(map(str, np.flatnonzero(nominal)))}) "
           f"| {cells[0]} | {cells[1]} | {speed} |", flush=True)
+    return {**record, "fast_draws_per_s_without": rates[0], "fast_draws_per_s_with": rates[1]}
 
 
-def plan_rows(name: str, count: int) -> None:
+def plan_rows(name: str, count: int) -> dict:
     from kinegrasp_env.toolkit.planner import GraspPlanner
 
     planner = GraspPlanner(f"{name}_on_table")
@@ -73,12 +84,16 @@ def plan_rows(name: str, count: int) -> None:
           f"{int((draws.outcome == 3).sum())}/{len(grasps)} force closure | open hand in the "
           f"table: {int(open_in.sum())}, closed hand: {int(closed_in.sum())} |", flush=True)
     planner.close()
+    return {"object": name, "planned": len(grasps), "plan_s": seconds,
+            "force_closure": int((draws.outcome == 3).sum()),
+            "open_hand_in_table": int(open_in.sum()), "closed_hand_in_table": int(closed_in.sum())}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=200, help="draws per grasp and sigma")
     parser.add_argument("--plan", type=int, default=5, help="grasps to plan per object")
+    add_options(parser, __file__)
     args = parser.parse_args()
     os.environ["KINEGRASP_HOME"] = tempfile.mkdtemp(prefix="kinegrasp_table_")
     from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -91,12 +106,12 @@ def main() -> int:
     print("| object | shipped grasps in the table at zero noise | sigma 0.0133: in the table / "
           "P(FC) without -> with | sigma 0.0333: same | fast draws/s without / with |")
     print("|---|---|---|---|---|")
-    for name in OBJECT_NAMES:
-        object_rows(name, args.draws)
+    record = {"objects": [object_rows(name, args.draws) for name in OBJECT_NAMES]}
     if args.plan:
         print("\n| planned | grasps | at zero noise | in the table |\n|---|---|---|---|")
-        for name in ("cube", "drill"):
-            plan_rows(name, args.plan)
+        record["planned"] = [plan_rows(name, args.plan) for name in ("cube", "drill")]
+    if not args.no_json:
+        write_result(__file__, {**record, "settings": settings(args)}, args.json_out)
     return 0
 
 
