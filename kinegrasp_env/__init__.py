@@ -41,20 +41,16 @@ def _register_envs(gymnasium) -> None:
 
 when_imported("gymnasium", _register_envs)
 
-_EXPORTS = {
-    "evaluate_grasp": "montecarlo.evaluate",
-    "GraspStats": "montecarlo.evaluate",
-    "JointNoise": "sampling.noise",
-    "NoiseModel": "sampling.noise_model",
-    "load_noise_model": "sampling.noise_spec",
-    "ferrari_canny": "quality.epsilon",
-    "ferrari_canny_batch": "quality.epsilon",
-    "load_object": "world.objects",
-    "shipped_grasps": "world.grasps",
-    "GraspPlanner": "toolkit.planner",
-    "rank_fixed": "toolkit.ranking",
-    "rank_adaptive": "toolkit.ranking",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__getattr__, __dir__, _LAZY = lazy_exports(__name__, {
+    "montecarlo.evaluate": ("evaluate_grasp", "GraspStats"),
+    "sampling.noise": ("JointNoise",),
+    "sampling.noise_model": ("NoiseModel",),
+    "sampling.noise_spec": ("load_noise_model",),
+    "quality.epsilon": ("ferrari_canny", "ferrari_canny_batch"),
+    "world.objects": ("load_object",),
+    "world.grasps": ("shipped_grasps",),
+    "toolkit.planner": ("GraspPlanner",),
+    "toolkit.ranking": ("rank_fixed", "rank_adaptive"),
+})
 
-__all__ = ["ENV_IDS", "__version__", *sorted(_EXPORTS)]
+__all__ = ["ENV_IDS", "__version__", *_LAZY]

@@ -12,13 +12,26 @@ import sys
 from collections.abc import Callable
 
 
-def lazy_exports(package: str, exports: dict[str, str]) -> tuple[Callable, Callable]:
-    """``__getattr__`` and ``__dir__`` for ``package``.
+def lazy_exports(package: str, modules: dict[str, tuple[str, ...]]
+                 ) -> tuple[Callable, Callable, list[str]]:
+    """``__getattr__``, ``__dir__`` and ``__all__`` for ``package``.
 
     Args:
         package: the package's dotted name (``__name__`` in its ``__init__``).
-        exports: public name -> the submodule (relative to ``package``) that defines it.
+        modules: each submodule (relative to ``package``) -> the public names it defines.
+
+    Returns:
+        (``__getattr__``, ``__dir__``, the public names sorted: ``__all__``).
+
+    Raises:
+        ValueError: a name listed under two modules.
     """
+    exports: dict[str, str] = {}
+    for module, names in modules.items():
+        for name in names:
+            if exports.setdefault(name, module) != module:
+                raise ValueError(f"{package}: {name!r} listed under {exports[name]!r} and "
+                                 f"{module!r}")
 
     def __getattr__(name: str):
         module = exports.get(name)
@@ -35,7 +48,7 @@ def lazy_exports(package: str, exports: dict[str, str]) -> tuple[Callable, Calla
     def __dir__() -> list[str]:
         return sorted(set(vars(sys.modules[package])) | set(exports))
 
-    return __getattr__, __dir__
+    return __getattr__, __dir__, sorted(exports)
 
 
 class _AfterImport:

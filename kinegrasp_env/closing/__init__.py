@@ -13,12 +13,7 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "auto_close": "reference",
-    "CloseResult": "reference",
-    "Contact": "reference",
-    "FastHand": "fast",
-    "BatchClose": "fast",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "reference": ("auto_close", "CloseResult", "Contact"),
+    "fast": ("FastHand", "BatchClose"),
+})

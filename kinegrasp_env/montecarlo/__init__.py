@@ -8,19 +8,9 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "make_engine": "engines",
-    "Engine": "engines",
-    "DrawBatch": "engines",
-    "evaluate_grasp": "evaluate",
-    "GraspStats": "evaluate",
-    "ENGINES": "evaluate",
-    "make_executor": "execution",
-    "Executor": "execution",
-    "LocalExecutor": "execution",
-    "RayExecutor": "execution",
-    "SweepSpec": "sweep",
-    "run_sweep": "sweep",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "engines": ("make_engine", "Engine", "DrawBatch"),
+    "evaluate": ("evaluate_grasp", "GraspStats", "ENGINES"),
+    "execution": ("make_executor", "Executor", "LocalExecutor", "RayExecutor"),
+    "sweep": ("SweepSpec", "run_sweep"),
+})

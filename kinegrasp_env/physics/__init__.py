@@ -15,19 +15,10 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "PhysicsWorld": "pybullet_world",
-    "WorldSettings": "pybullet_world",
-    "MotorSettings": "pybullet_closing",
-    "physics_close": "pybullet_closing",
-    "HoldProtocol": "protocol",
-    "HoldResult": "protocol",
-    "ASSUMED_TORQUES": "protocol",
-    "PHASES": "protocol",
-    "HOLD_OUTCOMES": "protocol",
-    "PybulletHold": "pybullet_hold",
-    "SIMULATORS": "simulators",
-    "simulator_class": "simulators",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "pybullet_world": ("PhysicsWorld", "WorldSettings"),
+    "pybullet_closing": ("MotorSettings", "physics_close"),
+    "protocol": ("HoldProtocol", "HoldResult", "ASSUMED_TORQUES", "PHASES", "HOLD_OUTCOMES"),
+    "pybullet_hold": ("PybulletHold",),
+    "simulators": ("SIMULATORS", "simulator_class"),
+})

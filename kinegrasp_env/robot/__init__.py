@@ -10,24 +10,12 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "RobotModel": "model",
-    "kuka_sdh": "model",
-    "load_urdf": "model",
-    "urdf_path": "model",
-    "Kinematics": "kinematics",
-    "elbow_angle": "kinematics",
-    "ArmIK": "ik",
-    "IKResult": "ik",
-    "PalmCandidate": "palm_pose",
-    "parse_palm_pose": "palm_pose",
-    "reach_palm_pose": "palm_pose",
-    "PlanarArm": "planar",
-    "sample_kuka_end_effector": "endeffector",
-    "kuka_end_effector": "endeffector",
-    "RobotDescription": "description",
-    "RobotDescriptionError": "description",
-    "load_description": "description",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "model": ("RobotModel", "kuka_sdh", "load_urdf", "urdf_path"),
+    "kinematics": ("Kinematics", "elbow_angle"),
+    "ik": ("ArmIK", "IKResult"),
+    "palm_pose": ("PalmCandidate", "parse_palm_pose", "reach_palm_pose"),
+    "planar": ("PlanarArm",),
+    "endeffector": ("sample_kuka_end_effector", "kuka_end_effector"),
+    "description": ("RobotDescription", "RobotDescriptionError", "load_description"),
+})

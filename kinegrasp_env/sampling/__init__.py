@@ -9,30 +9,13 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "JointNoise": "noise",
-    "DISTRIBUTIONS": "noise",
-    "METHODS": "noise",
-    "as_generator": "noise",
-    "NoiseModel": "noise_model",
-    "NoiseDraws": "noise_model",
-    "NoiseSpecError": "noise_sources",
-    "JointsSource": "noise_sources",
-    "HandSource": "noise_sources",
-    "PoseSource": "noise_sources",
-    "FrictionSource": "noise_sources",
-    "as_noise_model": "noise_model",
-    "noise_model_from_spec": "noise_spec",
-    "load_noise_model": "noise_spec",
-    "spec_of": "noise_spec",
-    "sobol_indices": "sobol",
-    "wilson_interval": "stats",
-    "skewness": "stats",
-    "Moments": "stats",
-    "moments": "stats",
-    "StreamingMoments": "stats",
-    "ConvergenceCurve": "stats",
-    "convergence_curve": "stats",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "noise": ("JointNoise", "DISTRIBUTIONS", "METHODS", "as_generator"),
+    "noise_model": ("NoiseModel", "NoiseDraws", "as_noise_model"),
+    "noise_sources": ("NoiseSpecError", "JointsSource", "HandSource", "PoseSource",
+                      "FrictionSource"),
+    "noise_spec": ("noise_model_from_spec", "load_noise_model", "spec_of"),
+    "sobol": ("sobol_indices",),
+    "stats": ("wilson_interval", "skewness", "Moments", "moments", "StreamingMoments",
+              "ConvergenceCurve", "convergence_curve"),
+})

@@ -9,19 +9,11 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "GraspPlanner": "planner",
-    "PlannerSettings": "planner",
-    "rank_fixed": "ranking",
-    "rank_adaptive": "ranking",
-    "CandidateResult": "ranking",
-    "table1": "experiments",
-    "fig7": "experiments",
-    "fig9_10": "experiments",
-    "Sensitivity": "sensitivity",
-    "optimize_elbow": "elbow",
-    "ElbowResult": "elbow",
-    "run_validation": "validation",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "planner": ("GraspPlanner", "PlannerSettings"),
+    "ranking": ("rank_fixed", "rank_adaptive", "CandidateResult"),
+    "experiments": ("table1", "fig7", "fig9_10"),
+    "sensitivity": ("Sensitivity",),
+    "elbow": ("optimize_elbow", "ElbowResult"),
+    "validation": ("run_validation",),
+})

@@ -10,24 +10,11 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "GraspObject": "objects",
-    "load_object": "objects",
-    "catalog": "objects",
-    "object_names": "objects",
-    "import_object": "importer",
-    "remove_object": "importer",
-    "ImportSettings": "importer",
-    "BulletWorld": "sim",
-    "GraspWorld": "sim",
-    "DistanceGrid": "sdf",
-    "object_grid": "sdf",
-    "Grasp": "grasps",
-    "shipped_grasps": "grasps",
-    "grasp_by_index": "grasps",
-    "load_grasps": "grasps",
-    "save_grasps": "grasps",
-    "write_atomic": "grasps",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "objects": ("GraspObject", "load_object", "catalog", "object_names"),
+    "importer": ("import_object", "remove_object", "ImportSettings"),
+    "sim": ("BulletWorld", "GraspWorld"),
+    "sdf": ("DistanceGrid", "object_grid"),
+    "grasps": ("Grasp", "shipped_grasps", "grasp_by_index", "load_grasps", "save_grasps",
+               "write_atomic"),
+})
