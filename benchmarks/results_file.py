@@ -89,8 +89,8 @@ def machine_facts(load_before: tuple[float, float, float] | None = None) -> dict
     return {
         "cpu_count": os.cpu_count(),
         "cpu_model": cpu_model(),
-        "load_before": list(load_before or LOAD_AT_START),
-        "load_after": list(os.getloadavg()),
+        "load_before": [round(x, 2) for x in load_before or LOAD_AT_START],
+        "load_after": [round(x, 2) for x in os.getloadavg()],
         "python": sys.version.split()[0],
         "numpy": numpy_version,
         "platform": platform.platform(),

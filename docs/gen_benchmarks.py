@@ -16,6 +16,9 @@ import mkdocs_gen_files
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "benchmarks"
 RESULTS = SCRIPTS / "results"
+#: Keys ``benchmarks/results_file.py`` adds to every result: the run's options and the
+#: machine's facts, each rendered as a name/value table of its own after the figures.
+META = ("settings", "machine")
 
 
 def number(value: object) -> str:
@@ -55,6 +58,8 @@ def render(result: object) -> list[str]:
         return [f"`{cell(result)}`", ""]
     if not isinstance(result, dict):
         return [f"`{cell(result)}`", ""]
+    meta = {k: result[k] for k in META if isinstance(result.get(k), dict)}
+    result = {k: v for k, v in result.items() if k not in meta}
     scalars = [(k, {"value": v}) for k, v in result.items() if not isinstance(v, (dict, list))]
     records = [(k, flat(v)) for k, v in result.items() if isinstance(v, dict)]
     lines = table(scalars, "figure") if scalars else []
@@ -63,6 +68,9 @@ def render(result: object) -> list[str]:
     for key, value in result.items():
         if isinstance(value, list):
             lines += [f"**{key}**", "", *render(value)]
+    for key, value in meta.items():
+        lines += [f"**{key}**", "",
+                  *table([(k, {"value": v}) for k, v in flat(value).items()], "name")]
     return lines
 
 
@@ -87,6 +95,8 @@ def summary(script: Path) -> str:
 def json_option(script: Path) -> str | None:
     """The option the script writes its JSON result with, if it has one."""
     source = script.read_text()
+    if "from results_file import" in source:  # benchmarks/results_file.add_options
+        return "--json-out"
     for option in ("--json-out", "--json"):
         if f'"{option}"' in source:
             return option
