@@ -90,7 +90,7 @@ def main() -> None:
         worlds.append(world)
         rows += object_rows
     if not args.no_json:
-        write_result(__file__, {"worlds": worlds, "draws": rows, "settings": settings(args)},
+        write_result(__file__, {"worlds": worlds, "sigmas": rows, "settings": settings(args)},
                      args.json_out)
 
 
