@@ -21,7 +21,9 @@ def lazy_exports(package: str, modules: dict[str, tuple[str, ...]]
         modules: each submodule (relative to ``package``) -> the public names it defines.
 
     Returns:
-        (``__getattr__``, ``__dir__``, the public names sorted: ``__all__``).
+        (``__getattr__``, ``__dir__``, the public names sorted: ``__all__``). The table,
+        name -> submodule, stays on the package as ``_EXPORTS`` (where each name is defined,
+        for the API reference: docs/gen_api.py).
 
     Raises:
         ValueError: a name listed under two modules.
@@ -32,6 +34,7 @@ def lazy_exports(package: str, modules: dict[str, tuple[str, ...]]
             if exports.setdefault(name, module) != module:
                 raise ValueError(f"{package}: {name!r} listed under {exports[name]!r} and "
                                  f"{module!r}")
+    sys.modules[package]._EXPORTS = exports
 
     def __getattr__(name: str):
         module = exports.get(name)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import ast
 import importlib
+import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -31,6 +33,7 @@ def test_every_listed_name_is_its_modules_object(room):
     names = listed(PACKAGE / room / "__init__.py")
     package = importlib.import_module(f"kinegrasp_env.{room}")
     assert package.__all__ == sorted(names)
+    assert package._EXPORTS == names  # the table the API reference reads
     assert set(names) <= set(dir(package))
     for name, module in names.items():
         defining = importlib.import_module(f"kinegrasp_env.{room}.{module}")
@@ -46,10 +49,13 @@ def test_the_package_lists_its_starting_names():
         "kinegrasp_env.world.objects").load_object
 
 
-def test_a_name_listed_twice_or_unknown_is_refused():
+def test_a_name_listed_twice_or_unknown_is_refused(monkeypatch):
     with pytest.raises(ValueError, match="'x' listed under 'a' and 'b'"):
         lazy_exports("kinegrasp_env", {"a": ("x",), "b": ("y", "x")})
-    getattr_, _, names = lazy_exports("kinegrasp_env.world", {"objects": ("load_object",)})
-    assert names == ["load_object"]
+    probe = types.ModuleType("kinegrasp_env.probe")  # a package of its own: nothing shared
+    monkeypatch.setitem(sys.modules, probe.__name__, probe)
+    getattr_, _, names = lazy_exports(probe.__name__, {"objects": ("load_object", "catalog")})
+    assert names == ["catalog", "load_object"]
+    assert probe._EXPORTS == {"load_object": "objects", "catalog": "objects"}
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         getattr_("nothing")
