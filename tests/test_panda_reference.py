@@ -260,3 +260,22 @@ def test_the_default_robots_engines_refuse_another_robots_grasp():
     for engine in ("fast", "pybullet"):
         with pytest.raises(ValueError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
             evaluate_grasp(grasp, JointNoise(0.01), 10, engine=engine)
+
+
+def test_shipped_grasp_sets_per_robot():
+    """The Panda's shipped sets are its own files (grasps recording robot 'panda'); an object
+    without one is a one-line error naming those there are; the default robot's are the
+    built-in objects' sets."""
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps, shipped_objects
+    from kinegrasp_env.world.names import OBJECT_NAMES
+
+    assert shipped_objects() == OBJECT_NAMES
+    objects = shipped_objects("panda")
+    assert objects and set(objects) < set(OBJECT_NAMES)
+    for name in objects:
+        grasps = shipped_grasps(name, "panda")
+        assert grasps and all(g.robot == "panda" and g.object == name for g in grasps)
+    missing = next(n for n in OBJECT_NAMES if n not in objects)
+    with pytest.raises(NoGraspSetError, match=f"no shipped grasps of {missing!r} \\(shipped: "
+                       + ", ".join(objects)):
+        shipped_grasps(missing, "panda")

@@ -77,13 +77,12 @@ from kinegrasp_env.envs.robot_task import (
     ROBOT_N_DRAWS,
     RobotTask,
     check_grasps_robot,
-    check_robot_name,
     robot_tasks,
 )
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
 from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh

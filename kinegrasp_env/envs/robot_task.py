@@ -18,20 +18,17 @@ Everything robot-specific is derived from the robot's description
 
 from __future__ import annotations
 
-import difflib
-
 import numpy as np
 
-from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot, robot_names
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import elbow_angle
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
-from kinegrasp_env.world.grasps import Grasp, load_grasps
+from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
 
 #: Reward draws per step for a description robot (the reference engine, draw by draw: 1.5
@@ -41,22 +38,6 @@ ROBOT_N_DRAWS = 16
 #: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
 #: orientation, psi's sin and cos, palm spread, nominal Q, episode fraction.
 OBS_EXTRA = 23
-
-
-def check_robot_name(robot) -> str:
-    """``robot`` when it names a catalog robot; else one ValueError line listing them."""
-    names = robot_names()
-    if not isinstance(robot, str) or robot not in names:
-        close = difflib.get_close_matches(str(robot), names, n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ValueError(f"unknown robot {robot!r}{hint}; known robots: {', '.join(names)}")
-    return robot
-
-
-def shipped_robot_objects(robot: str) -> tuple[str, ...]:
-    """The objects with a shipped grasp set for ``robot``, sorted."""
-    folder = assets_dir() / "grasps" / robot
-    return tuple(sorted(p.stem for p in folder.glob("*.json"))) if folder.is_dir() else ()
 
 
 def check_grasps_robot(grasps: list[Grasp], robot: str, source) -> None:
@@ -82,16 +63,11 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
         if empty:
             raise ValueError(f"{grasp_file} has no grasp of {empty[0]!r}")
         return tasks
-    shipped = shipped_robot_objects(robot)
-    names = tuple(objects) if objects else shipped
-    missing = [name for name in names if name not in shipped]
-    if missing or not names:
-        what = repr(missing[0]) if missing else "any object"
-        raise ValueError(f"robot {robot!r} has no shipped grasps of {what}"
-                         f" (shipped: {', '.join(shipped) or 'none'}); give a grasp_file "
+    names = tuple(objects) if objects else shipped_objects(robot)
+    if not names:
+        raise ValueError(f"robot {robot!r} has no shipped grasps; give a grasp_file "
                          f"(kinegrasp plan --robot {robot})")
-    folder = assets_dir() / "grasps" / robot
-    return {name: load_grasps(folder / f"{name}.json") for name in names}
+    return {name: shipped_grasps(name, robot) for name in names}
 
 
 class RobotTask:

@@ -21,6 +21,7 @@ renamed into place after the copy is read back and checked.
 
 from __future__ import annotations
 
+import difflib
 import json
 import posixpath
 import shutil
@@ -78,7 +79,23 @@ def description_path(name: str) -> Path:
         path = robots_dir() / name / DESCRIPTION_FILE
         if path.is_file():
             return path
-    raise RobotDescriptionError(f"unknown robot {name!r}; known: {', '.join(robot_names())}")
+    raise unknown_robot(name)
+
+
+def unknown_robot(name) -> RobotDescriptionError:
+    """The one-line error of a name that is no catalog robot (the nearest name suggested)."""
+    names = robot_names()
+    close = difflib.get_close_matches(str(name), names, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return RobotDescriptionError(f"unknown robot {name!r}{hint}; known robots: "
+                                 f"{', '.join(names)}")
+
+
+def check_robot_name(robot) -> str:
+    """``robot`` when it names a catalog robot, else :func:`unknown_robot`'s error."""
+    if not isinstance(robot, str) or robot not in robot_names():
+        raise unknown_robot(robot)
+    return robot
 
 
 def load_robot(name: str = DEFAULT_ROBOT) -> RobotDescription:

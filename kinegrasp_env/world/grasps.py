@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.model import RobotModel, kuka_sdh
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
@@ -344,8 +345,19 @@ def no_grasp_set(object_name: str) -> NoGraspSetError:
         "that file (e.g. `kinegrasp evaluate --grasps FILE`, `kinegrasp rank FILE`)")
 
 
-def shipped_grasps(object_name: str) -> list[Grasp]:
-    """The standard grasp set of a built-in object (``assets/grasps/<object>.json``).
+def shipped_objects(robot: str = DEFAULT_ROBOT) -> tuple[str, ...]:
+    """The objects with a shipped grasp set for ``robot``: every built-in object for the
+    default robot, those of ``assets/grasps/<robot>/`` (sorted) for another."""
+    if robot == DEFAULT_ROBOT:
+        return OBJECT_NAMES
+    folder = assets_dir() / "grasps" / robot
+    return tuple(sorted(p.stem for p in folder.glob("*.json"))) if folder.is_dir() else ()
+
+
+def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
+    """The standard grasp set of a built-in object (``assets/grasps/<object>.json``; for
+    another robot than the default, ``assets/grasps/<robot>/<object>.json``, the antipodal
+    planner's output, where one is shipped: :func:`shipped_objects`).
 
     A placed copy of a built-in object (``kinegrasp objects place drill --as NAME``) that
     stands where the built-in object stands has the built-in set (its grasps named after the
@@ -354,8 +366,17 @@ def shipped_grasps(object_name: str) -> list[Grasp]:
 
     Raises:
         NoGraspSetError: for an imported object, or a placed copy moved from where its
-            grasps were planned; ValueError for an unknown name.
+            grasps were planned, or an object with no shipped set for ``robot``; ValueError
+            for an unknown name.
     """
+    if robot != DEFAULT_ROBOT:
+        shipped = shipped_objects(robot)
+        if object_name not in shipped:
+            raise NoGraspSetError(
+                f"robot {robot!r} has no shipped grasps of {object_name!r} (shipped: "
+                f"{', '.join(shipped) or 'none'}); plan them (`kinegrasp plan --robot {robot} "
+                f"--object {object_name}`)")
+        return load_grasps(shipped_grasp_file(object_name, robot))
     if object_name not in OBJECT_NAMES:
         if not is_object(object_name):
             raise unknown_object(object_name)

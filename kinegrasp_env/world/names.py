@@ -38,9 +38,11 @@ def unknown_object(name: str) -> ValueError:
                       "(import one with `kinegrasp objects add FILE`)")
 
 
-def shipped_grasp_file(name: str) -> Path:
-    """The shipped grasp file of built-in object ``name`` (``assets/grasps/<name>.json``)."""
-    return asset_path("grasps", f"{name}.json")
+def shipped_grasp_file(name: str, robot: str | None = None) -> Path:
+    """The shipped grasp file of built-in object ``name``: ``assets/grasps/<name>.json`` for
+    the default robot (``robot`` None), ``assets/grasps/<robot>/<name>.json`` for another."""
+    return asset_path("grasps", f"{name}.json") if robot is None else asset_path(
+        "grasps", robot, f"{name}.json")
 
 
 @cache
