@@ -273,10 +273,9 @@ def object_version(name: str) -> str:
     return entry_digest(folder)
 
 
-@lru_cache(maxsize=16)
 def mesh_file(path: Path, process: bool) -> trimesh.Trimesh:
-    """The triangle mesh of an OBJ file (trimesh's ``process`` merges duplicate vertices);
-    one copy per file and setting in a process."""
+    """The triangle mesh of an OBJ file (trimesh's ``process`` merges duplicate vertices),
+    read afresh (an object keeps the one it read: :attr:`GraspObject.mesh`)."""
     import trimesh
 
     return trimesh.load(path, force="mesh", process=process)
