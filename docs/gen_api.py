@@ -2,7 +2,7 @@
 (the names ``kinegrasp_env/__init__`` exports) and, for each room of the package, the public
 names its ``__init__`` exports, each rendered by mkdocstrings from its docstring.
 
-The lists come from the package itself (each room's ``_EXPORTS`` or ``__all__``), so a name a
+The lists come from the package itself (each room's lazy export table or ``__all__``), so a name a
 room adds or drops shows up here at the next build.
 """
 
@@ -13,6 +13,7 @@ import importlib
 import mkdocs_gen_files
 
 import kinegrasp_env
+from kinegrasp_env.lazy import defining_modules
 
 ROOMS = ("sampling", "quality", "robot", "world", "closing", "physics", "montecarlo",
          "toolkit", "envs", "cli")
@@ -23,7 +24,7 @@ SUBROOMS = {"toolkit": ("report",)}
 def exports(package: str) -> dict[str, str]:
     """Public name -> the dotted path of the module that defines it, for ``package``."""
     module = importlib.import_module(package)
-    lazy = getattr(module, "_EXPORTS", None)
+    lazy = defining_modules(module)
     if lazy is not None:
         return {name: f"{package}.{sub}" for name, sub in lazy.items()}
     found = {}

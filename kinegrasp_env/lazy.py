@@ -54,6 +54,14 @@ def lazy_exports(package: str, modules: dict[str, tuple[str, ...]]
     return __getattr__, __dir__, sorted(exports)
 
 
+def defining_modules(package) -> dict[str, str] | None:
+    """Public name -> the submodule that defines it, of a package whose ``__init__`` uses
+    :func:`lazy_exports` (None for any other module): where the API reference documents
+    each name."""
+    table = getattr(package, "_EXPORTS", None)
+    return dict(table) if table is not None else None
+
+
 class _AfterImport:
     """Meta path finder that runs ``callback(module)`` right after ``name`` is first imported
     (duck-typed: ``importlib.abc`` itself costs a tenth of a second to import)."""
