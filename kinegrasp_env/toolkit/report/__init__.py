@@ -14,20 +14,10 @@ from __future__ import annotations
 
 from kinegrasp_env.lazy import lazy_exports
 
-_EXPORTS = {
-    "evaluation_page": "page",
-    "rank_page": "page",
-    "write_page": "page",
-    "PAGE_LIMIT_BYTES": "page",
-    "ARM_DRAWS": "page",
-    "elbow_page": "elbow",
-    "MAX_POINTS": "scene",
-    "OfflineChromium": "browser",
-    "PageCheck": "browser",
-    "BrowserError": "browser",
-    "check_page": "browser",
-    "find_chromium": "browser",
-    "pixel_stats": "browser",
-}
-__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__getattr__, __dir__, __all__ = lazy_exports(__name__, {
+    "page": ("evaluation_page", "rank_page", "write_page", "PAGE_LIMIT_BYTES", "ARM_DRAWS"),
+    "elbow": ("elbow_page",),
+    "scene": ("MAX_POINTS",),
+    "browser": ("OfflineChromium", "PageCheck", "BrowserError", "check_page", "find_chromium",
+                "pixel_stats"),
+})
