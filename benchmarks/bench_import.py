@@ -282,7 +282,7 @@ def main() -> None:
     plans: list[dict] = []
     names = import_all(args.only, imports)
     grasps = plan_all(names, args.grasps, folder, plans) if args.grasps > 0 else {}
-    record = {"imports": imports, "plans": plans,
+    record = {"catalog": os.environ["KINEGRASP_HOME"], "imports": imports, "plans": plans,
               **end_to_end(grasps, folder, args.rank_samples, args.agree_draws),
               "engines": engines(grasps, args.draws, args.reference_draws)}
     if not args.no_json:
