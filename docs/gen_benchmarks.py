@@ -2,7 +2,6 @@
 wrote: for every ``benchmarks/*.py``, its purpose (the script's docstring), the command, and
 the tables of its JSON result ``benchmarks/results/<script>.json`` when one exists. A script
 with no result file yet is listed as not run yet; no figure on the page is typed by hand.
-Modules the scripts share (no ``__main__`` block) are not listed.
 """
 
 from __future__ import annotations
@@ -111,8 +110,6 @@ def page() -> str:
              "machine and at the date of its last run; ratios are measured within one run. "
              "A script without a result file is listed as not run yet.", ""]
     for script in sorted(SCRIPTS.glob("*.py")):
-        if '__name__ == "__main__"' not in script.read_text():
-            continue  # a module the scripts share (results_file, marked_section), no benchmark
         result = RESULTS / f"{script.stem}.json"
         option = json_option(script)
         command = f"python benchmarks/{script.name}"
