@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.world import objects
+from kinegrasp_env.world import object_geometry as geometry
 from kinegrasp_env.world.names import OBJECT_NAMES
+from kinegrasp_env.world.polytope import face_planes
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)
@@ -28,9 +29,9 @@ def test_cached_geometry_is_the_meshs_and_qhulls(name, tmp_path, monkeypatch):
     from kinegrasp_env.world.polytope import ConvexPart
 
     monkeypatch.setenv("KINEGRASP_CACHE", str(tmp_path))
-    first = objects.builtin_geometry(name)
+    first = geometry.builtin_geometry(name)
     assert list((tmp_path / "objects").glob(f"{name}-*.npz"))
-    second = objects.builtin_geometry(name)
+    second = geometry.builtin_geometry(name)
     for key, value in first.items():
         assert np.array_equal(value, second[key]), key
     mesh = trimesh.load(asset_path("objects", f"{name}.obj"), force="mesh", process=True)
@@ -38,11 +39,11 @@ def test_cached_geometry_is_the_meshs_and_qhulls(name, tmp_path, monkeypatch):
     assert float(first["r_max"]) == np.linalg.norm(mesh.vertices - mesh.center_mass,
                                                    axis=1).max()
     parts = json.loads(asset_path("objects", f"{name}_parts.json").read_text())["parts"]
-    planes = objects.split_rows(first["planes"], first["offsets"])
-    edges = objects.split_rows(first["edges"], first["edge_offsets"])
+    planes = geometry.split_rows(first["planes"], first["offsets"])
+    edges = geometry.split_rows(first["edges"], first["edge_offsets"])
     for k, vertices in enumerate(parts):
         fresh = ConvexPart(np.asarray(vertices, dtype=float),
-                           objects.face_planes(np.asarray(vertices, dtype=float)))
+                           face_planes(np.asarray(vertices, dtype=float)))
         assert np.array_equal(planes[k], fresh.planes)
         assert np.array_equal(edges[k], fresh.edges)
 

@@ -23,8 +23,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, cKDTree
 
-from kinegrasp_env.world.objects import face_planes
-from kinegrasp_env.world.polytope import ConvexPart
+from kinegrasp_env.world.polytope import ConvexPart, face_planes
 
 #: Surface samples per direction.
 SAMPLES = 2000

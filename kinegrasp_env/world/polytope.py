@@ -24,6 +24,18 @@ INSIDE_TOL = 1e-12
 BLOCK_BYTES = 64 * 2**20
 
 
+def face_planes(vertices: np.ndarray) -> np.ndarray:
+    """(F, 4) unique outward face planes [unit normal, offset] of the hull of (V, 3) points."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(vertices)
+    eq = hull.equations
+    # merge coplanar triangles: unique planes
+    keys = np.round(eq, 9)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return eq[np.sort(first)]
+
+
 @dataclass(frozen=True, eq=False)
 class ConvexPart:
     """One convex polytope.
