@@ -103,13 +103,20 @@ def json_option(script: Path) -> str | None:
     return None
 
 
+def benchmark_scripts() -> list[Path]:
+    """The scripts of ``benchmarks/``, sorted: its modules that run as a program (a
+    ``__main__`` block); the modules they share are not benchmarks."""
+    return [script for script in sorted(SCRIPTS.glob("*.py"))
+            if 'if __name__ == "__main__":' in script.read_text()]
+
+
 def page() -> str:
     lines = ["# Benchmarks", "",
              "Speed and agreement scripts in `benchmarks/`. Each section below is rendered from "
              "the JSON result the script wrote into `benchmarks/results/<script>.json` on the "
              "machine and at the date of its last run; ratios are measured within one run. "
              "A script without a result file is listed as not run yet.", ""]
-    for script in sorted(SCRIPTS.glob("*.py")):
+    for script in benchmark_scripts():
         result = RESULTS / f"{script.stem}.json"
         option = json_option(script)
         command = f"python benchmarks/{script.name}"
