@@ -1,5 +1,6 @@
-"""Arm commands: ``planar`` (end-effector noise of a planar arm), ``kuka-ee`` (palm-position
-noise of the KUKA) and ``convergence`` (the estimators' convergence, the paper's Fig. 3).
+"""Arm commands: ``planar`` (end-effector noise of a planar arm), ``ee`` (palm-position noise
+of any catalog robot's arm, sampled and first order), ``kuka-ee`` (the KUKA's, sampled) and
+``convergence`` (the estimators' convergence, the paper's Fig. 3).
 """
 
 from __future__ import annotations
@@ -18,7 +19,12 @@ from kinegrasp_env.cli.common import (
     plural,
     positive_int,
     print_json,
+    reported,
 )
+
+#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied so that building the
+#: parser imports nothing heavy).
+DEFAULT_ROBOT = "kuka_sdh"
 
 
 def cmd_planar(args) -> int:
@@ -82,6 +88,41 @@ def cmd_kuka_ee(args) -> int:
     return 0
 
 
+def cmd_ee(args) -> int:
+    """``kinegrasp ee --robot NAME``: the palm position's mean and covariance under joint
+    noise on the robot's arm, sampled and to first order (J Sigma J^T)."""
+    import numpy as np
+
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.robot.endeffector import ArmEndEffector, default_q0
+    from kinegrasp_env.sampling.stats import moments
+
+    with reported(RobotDescriptionError):
+        description = load_robot(args.robot)
+    effector = ArmEndEffector.of(description)
+    q0 = default_q0(effector, args.robot) if args.q0 is None else float_list(args.q0, "--q0")
+    try:
+        q0 = effector.check_q0(q0)
+    except ValueError as exc:
+        raise CLIError(f"--q0: {exc}") from None
+    noise, sigma, samples, seed = noise_from(args)
+    ee = effector.sample(q0, noise, samples, np.random.default_rng(seed))
+    mom = moments(ee)
+    linear_mean, linear_cov = effector.first_order(q0, noise)
+    if args.json:
+        print_json({"robot": args.robot, "palm_link": effector.palm, "q0": q0,
+                    "mean": mom.mean, "cov": mom.cov, "skew": mom.skew,
+                    "first_order_mean": linear_mean, "first_order_cov": linear_cov,
+                    "samples": samples, "sigma": sigma, "noise": args.noise, "seed": seed})
+    else:
+        print(format_moments(f"{args.robot} palm position ({effector.palm} origin, "
+                              f"{samples} draws)", mom.mean, mom.cov, mom.skew))
+        print(format_moments("first order (mean p(q0), cov J Sigma J^T)", linear_mean,
+                              linear_cov))
+    return 0
+
+
 def cmd_convergence(args) -> int:
     import numpy as np
     from tqdm import tqdm
@@ -131,7 +172,7 @@ def cmd_convergence(args) -> int:
 
 
 def add_commands(sub) -> None:
-    """Register ``planar``, ``kuka-ee`` and ``convergence``."""
+    """Register ``planar``, ``ee``, ``kuka-ee`` and ``convergence``."""
     p = sub.add_parser("planar", help="end-effector statistics of a planar arm under joint noise")
     p.add_argument("--links", default="2,2", help="comma-separated link lengths, metres")
     p.add_argument("--q0", default="0.0,1.5708", help="comma-separated joint angles, radians")
@@ -139,7 +180,17 @@ def add_commands(sub) -> None:
     p.add_argument("--plot", help="write a PNG of the arm, the sampled cloud and its ellipse")
     p.set_defaults(func=cmd_planar)
 
-    p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise")
+    p = sub.add_parser("ee", help="palm-position statistics of a catalog robot's arm under "
+                       "joint noise, sampled and first order (J Sigma J^T)")
+    p.add_argument("--robot", default=DEFAULT_ROBOT, help="catalog robot")
+    p.add_argument("--q0", help="the arm's joint angles, comma-separated, radians (default: "
+                   f"0,0.6,0,-1.2,0,0.8,0 for {DEFAULT_ROBOT}, the middle of each joint's "
+                   "range for another robot)")
+    add_noise_args(p, 0.0133)
+    p.set_defaults(func=cmd_ee)
+
+    p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise "
+                       "(sampled; `ee --robot kuka_sdh` adds the first order)")
     p.add_argument("--q0", default="0,0.6,0,-1.2,0,0.8,0", help="7 arm joint angles, radians")
     add_noise_args(p, 0.0133)
     p.set_defaults(func=cmd_kuka_ee)
