@@ -1,7 +1,8 @@
 """``plan --robot``, ``evaluate`` and ``rank`` of a description robot's grasps (a robot other
 than the default ``kuka_sdh``): the antipodal planner
-(:mod:`kinegrasp_env.toolkit.robot_planner`) and the reference engine
-(:mod:`kinegrasp_env.montecarlo.robot_evaluate`). The default robot's commands are untouched
+(:mod:`kinegrasp_env.toolkit.robot_planner`), the reference engine
+(:mod:`kinegrasp_env.montecarlo.robot_evaluate`) and the fast one (``--engine fast``:
+:mod:`kinegrasp_env.montecarlo.robot_fast`). The default robot's commands are untouched
 (:mod:`kinegrasp_env.cli.toolkit`, :mod:`kinegrasp_env.cli.grasping`).
 """
 
@@ -25,6 +26,15 @@ def _refuse(args, options: dict[str, object], robot: str) -> None:
         if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
             raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
                            f"{DEFAULT_ROBOT})")
+
+
+def _check_engine(engine: str, robot: str) -> None:
+    """CLIError unless ``engine`` is one of a description robot's engines."""
+    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
+
+    if engine not in ENGINES:
+        raise CLIError(f"--engine {engine}: robot {robot!r} is evaluated by the "
+                       f"{' or '.join(ENGINES)} engine only")
 
 
 def cmd_plan_robot(args) -> int:
@@ -61,13 +71,11 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
 
     _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None,
                    **IN_PROCESS}, robot)
-    if args.engine != "pybullet":
-        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
-                       "engine only")
+    _check_engine(args.engine, robot)
     with reported(ValueError):
         check_robot(grasp, robot)
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                     noise=args.noise, robot=robot)
+                                     noise=args.noise, robot=robot, engine=args.engine)
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
@@ -96,18 +104,16 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
     :class:`~kinegrasp_env.toolkit.ranking.CandidateResult` list."""
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
     from kinegrasp_env.montecarlo.robot_evaluate import (
-        RobotReferenceEngine,
         check_robot,
         evaluate_robot_grasp,
+        make_engine,
     )
     from kinegrasp_env.sampling.stats import StreamingMoments
     from kinegrasp_env.toolkit.ranking import CandidateResult, order
 
     _refuse(args, {"--noise-spec": None, "--adaptive": False, "--best-elbow": None,
                    "--report": None, "--json": False, **IN_PROCESS}, robot)
-    if args.engine != "pybullet":
-        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
-                       "engine only")
+    _check_engine(args.engine, robot)
     objects = {g.object for g in grasps}
     if len(objects) != 1:
         raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
@@ -116,7 +122,7 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
         for g in grasps:
             check_robot(g, robot)
     results = []
-    with RobotReferenceEngine(robot, objects.pop()) as engine:
+    with make_engine(args.engine, robot, objects.pop()) as engine:
         for index, g in enumerate(grasps):
             stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
                                          noise=args.noise, engine=engine)

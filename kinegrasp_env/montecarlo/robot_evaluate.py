@@ -3,8 +3,10 @@
 Each draw: the arm joints at q0 + eps (eps from :class:`~kinegrasp_env.sampling.noise.
 JointNoise` on the description's arm joints, the hand at its pre-shape exactly), the hand
 closed on the object by :meth:`~kinegrasp_env.closing.generic_reference.RobotWorld.auto_close`
-(pybullet closest points on the URDF's own collision geometry), the contacts scored with the
-robot's contact model (``soft`` for parallel jaws: :mod:`kinegrasp_env.quality.soft_contacts`).
+(pybullet closest points on the URDF's own collision geometry; or by the batched closing of
+the same model, :class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`), the contacts
+scored with the robot's contact model (``soft`` for parallel jaws:
+:mod:`kinegrasp_env.quality.soft_contacts`) by one function for every engine (:func:`score`).
 Every draw ends in one of the engines' outcomes (:data:`~kinegrasp_env.montecarlo.engines.
 OUTCOMES`); P(FC) comes with its Wilson interval, Q's moments are over the force-closure draws.
 """
@@ -69,8 +71,28 @@ def outcome_of(result: RobotCloseResult) -> int:
     return NO_FORCE_CLOSURE
 
 
-class RobotReferenceEngine:
-    """The reference engine for a description robot: one pybullet world, draw by draw.
+def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
+    """Per-draw results of closings: each one's outcome (:func:`outcome_of`), its contacts
+    (at most ``max_contacts``) and, for a candidate, Q by ``quality(points, normals)`` (force
+    closure where Q > 0). Every engine of a description robot scores its closings here."""
+    out = RobotDraws.empty(len(results), max_contacts)
+    for i, result in enumerate(results):
+        out.outcome[i] = outcome_of(result)
+        k = min(len(result.contacts), max_contacts)
+        out.n_contacts[i] = k
+        for j, c in enumerate(result.contacts[:k]):
+            out.points[i, j], out.normals[i, j] = c.point, c.normal
+            out.finger[i, j], out.link[i, j] = c.finger, c.link
+        if out.outcome[i] == NO_FORCE_CLOSURE:
+            out.quality[i] = quality(out.points[i, :k], out.normals[i, :k])
+            if out.quality[i] > 0:
+                out.outcome[i] = FORCE_CLOSURE
+    return out
+
+
+class RobotEngine:
+    """What every engine of a description robot shares: the robot, the object, the quality
+    measure, the input check and the scoring; a subclass closes (:meth:`close_all`).
 
     Args:
         robot: a catalog name or a loaded description.
@@ -79,7 +101,7 @@ class RobotReferenceEngine:
         finger_radius: soft contacts' patch radius (metres).
     """
 
-    name = "pybullet"
+    name = ""
 
     def __init__(self, robot: str | RobotDescription, object_name: str, *,
                  friction: float = 0.5, num_edges: int = 8,
@@ -87,13 +109,12 @@ class RobotReferenceEngine:
         self.description = load_robot(robot) if isinstance(robot, str) else robot
         self.obj = load_object(object_name)
         self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
-        self.world = RobotWorld(self.description, self.obj)
         self.max_contacts = len(self.description.finger_links)
 
     def close(self) -> None:
-        self.world.close()
+        """Release what the engine holds (nothing by default)."""
 
-    def __enter__(self) -> RobotReferenceEngine:
+    def __enter__(self) -> RobotEngine:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -119,27 +140,34 @@ class RobotReferenceEngine:
                                **({"finger_radius": self.finger_radius}
                                   if self.description.contact_model == "soft" else {}))
 
+    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
+        """One closing per configuration of q (n, dof) (checked)."""
+        raise NotImplementedError
+
+    def run(self, q: np.ndarray) -> RobotDraws:
+        """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape)."""
+        return score(self.close_all(self.check(q)), self.max_contacts, self.quality)
+
+
+class RobotReferenceEngine(RobotEngine):
+    """The reference engine for a description robot: one pybullet world, draw by draw
+    (arguments: :class:`RobotEngine`)."""
+
+    name = "pybullet"
+
+    def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
+        super().__init__(robot, object_name, **kwargs)
+        self.world = RobotWorld(self.description, self.obj)
+
+    def close(self) -> None:
+        self.world.close()
+
     def close_one(self, q: np.ndarray) -> RobotCloseResult:
         """One closing at configuration q (dof,) (the world is left at its final state)."""
         return self.world.auto_close(self.check(q)[0])
 
-    def run(self, q: np.ndarray) -> RobotDraws:
-        """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape)."""
-        q = self.check(q)
-        out = RobotDraws.empty(q.shape[0], self.max_contacts)
-        for i, row in enumerate(q):
-            result = self.world.auto_close(row)
-            out.outcome[i] = outcome_of(result)
-            k = min(len(result.contacts), self.max_contacts)
-            out.n_contacts[i] = k
-            for j, c in enumerate(result.contacts[:k]):
-                out.points[i, j], out.normals[i, j] = c.point, c.normal
-                out.finger[i, j], out.link[i, j] = c.finger, c.link
-            if out.outcome[i] == NO_FORCE_CLOSURE:
-                out.quality[i] = self.quality(out.points[i, :k], out.normals[i, :k])
-                if out.quality[i] > 0:
-                    out.outcome[i] = FORCE_CLOSURE
-        return out
+    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
+        return [self.world.auto_close(row) for row in q]
 
 
 @dataclass(frozen=True)
@@ -179,9 +207,25 @@ def summarize(draws: RobotDraws) -> RobotEvaluation:
         float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws)
 
 
+#: The engines of a description robot, by name.
+ENGINES = ("pybullet", "fast")
+
+
+def make_engine(name: str, robot: str | RobotDescription, object_name: str,
+                **kwargs) -> RobotEngine:
+    """A new engine by name (:data:`ENGINES`) for ``robot`` and catalog ``object_name``."""
+    if name == "fast":
+        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
+
+        return RobotFastEngine(robot, object_name, **kwargs)
+    if name == "pybullet":
+        return RobotReferenceEngine(robot, object_name, **kwargs)
+    raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
+
+
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
                          seed: SeedLike = 0, noise: str = "gaussian",
-                         engine: RobotReferenceEngine | None = None,
+                         engine: RobotEngine | str = "pybullet",
                          robot: str | RobotDescription | None = None) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints.
 
@@ -191,16 +235,20 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         n: draws (>= 1).
         seed: seed or Generator of the noise.
         noise: ``gaussian``, ``uniform`` or ``triangular``.
-        engine: a reference engine to reuse (its robot and object must be the grasp's).
+        engine: an engine to reuse (its robot and object must be the grasp's), or the name
+            of one to build: ``pybullet`` (the reference) or ``fast``
+            (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`).
         robot: the robot to evaluate with (default: the grasp's).
 
     Raises:
-        ValueError: a grasp of another robot or object, bad n or sigma.
+        ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine.
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
     noise_model = JointNoise(sigma, noise)
-    if engine is not None:
+    if isinstance(engine, str) and engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if not isinstance(engine, str):
         name = engine.description.name
         if engine.obj.name != grasp.object:
             raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
@@ -208,9 +256,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     else:
         name = grasp.robot if robot is None else getattr(robot, "name", robot)
     check_robot(grasp, name)
-    own = engine is None
+    own = isinstance(engine, str)
     if own:
-        engine = RobotReferenceEngine(grasp.robot if robot is None else robot, grasp.object)
+        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object)
     try:
         q0 = engine.check(grasp.q0)[0]
         arm = engine.description.arm_dof

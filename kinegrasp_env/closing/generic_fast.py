@@ -1,0 +1,484 @@
+"""Auto-close of any description robot, batched over draws: the closing model of
+:mod:`~kinegrasp_env.closing.generic_reference` on sampled link geometry.
+
+**Geometry.** Each robot link's collision geometry is read once from pybullet (a DIRECT
+client: the convex hull of every collision mesh, scaled, or a box's corners, as pybullet
+collides them: :func:`~kinegrasp_env.closing.contact_patch.link_hull_vertices`), expressed
+in the link's URDF frame, and sampled as points on its hull's surface: the hull's vertices
+and rows of points on every triangle (:func:`hull_samples`, :data:`FINGER_SPACING`
+apart on the finger links, :data:`ARM_SPACING` on the others). The distance of a link to the
+object is the smallest exact distance of its points (:meth:`GraspObject.closest_points`);
+the hull's continuous surface is within the lattice spacing of them.
+
+**The closing** follows the reference step for step, every draw of a batch at once:
+
+1. *Start collision*: some link at q penetrates the object deeper than ``start_tol`` (its
+   closest pair with the object, exact; links whose bounding ball or whose samples stay
+   clear of the object by the grid, less its error bound, are not examined).
+2. *Closing*: each finger by its parameter t (its closing joints at the pre-shape value plus
+   ``rate * t``, clipped at their limits), by conservative advancement: t grows by the gap's
+   lower bound over the finger's speed bound
+   (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). Far from the object the
+   lower bound is the distance grid's (:func:`~kinegrasp_env.closing.capsule_gap.
+   posed_min_distance`, less its interpolation error :data:`GRID_ERROR` and the lattice
+   spacing); within :data:`BAND` the points' exact distance. A finger touches when that is
+   within ``contact_tol``, and misses at its limits.
+3. *Contacts*: per touching finger link, its point of least distance, the object's exact
+   closest point to it, the inward normal of the one face that point lies on
+   (:func:`~kinegrasp_env.closing.generic_reference.face_of`) and the point moved to the
+   pad's patch centre (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`), or at an
+   edge or corner the direction from the finger point to the object point.
+
+Results are the reference's :class:`~kinegrasp_env.closing.generic_reference.RobotCloseResult`
+(``queries`` counts exact point distances).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.capsule_gap import posed_min_distance
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.contact_patch import FACE_TOL, link_hull_vertices, patch_centre
+from kinegrasp_env.closing.generic_reference import (
+    EDGE_TOL,
+    MAX_STEPS,
+    RobotCloseResult,
+    RobotContact,
+    face_of,
+    finger_speed,
+)
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.polytope import ConvexPart, face_planes
+from kinegrasp_env.world.sdf import DistanceGrid, grid_of
+
+#: Lattice spacing of the hand links' surface samples (metres).
+FINGER_SPACING = 1.0e-3
+#: Lattice spacing of the other links' surface samples (metres): they only decide start
+#: collisions.
+ARM_SPACING = 6.0e-3
+#: Lower bounds of the gap above this are from the grid, below it exact (metres).
+BAND = 3.0e-3
+#: Golden-section steps along an object edge (its parameter to 0.618**22 = 2.5e-5).
+SEARCH = 22
+GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
+#: Draws whose exact point distances are computed at once (bounds the memory).
+CHUNK = 64
+
+__all__ = ["ARM_SPACING", "BAND", "FINGER_SPACING", "FastRobotHand", "LinkGeometry",
+           "grid_error", "hull_samples", "link_geometry"]
+
+
+def grid_error(grid: DistanceGrid) -> float:
+    """Bound (metres) on |trilinear grid value - exact distance| for a 1-Lipschitz distance
+    with exact node values: sum_i w_i |x_i - x| <= sqrt(sum_k f_k (1 - f_k)) h <= h sqrt(3)/2."""
+    return 0.5 * np.sqrt(3.0) * float(grid.spacing)
+
+
+@dataclass(frozen=True)
+class LinkGeometry:
+    """One link's collision geometry in its URDF frame.
+
+    Attributes:
+        vertices: (V, 3) hull vertices of every collision shape, metres.
+        points: (P, 3) surface samples (the vertices first), metres.
+        spacing: the lattice spacing of the samples, metres.
+        parts: each collision shape's hull as a :class:`~kinegrasp_env.world.polytope.
+            ConvexPart` (exact closest points on it).
+    """
+
+    vertices: np.ndarray
+    points: np.ndarray
+    spacing: float
+    parts: tuple[ConvexPart, ...]
+
+    @property
+    def sphere(self) -> tuple[np.ndarray, float]:
+        """((1, 3) centre, radius): a ball (metres) holding every point."""
+        centre = 0.5 * (self.points.min(axis=0) + self.points.max(axis=0))
+        return centre[None], float(np.linalg.norm(self.points - centre, axis=1).max())
+
+
+def hull_samples(vertices: np.ndarray, spacing: float) -> np.ndarray:
+    """(P, 3) points on the convex hull of ``vertices`` (V, 3): the vertices, then on every
+    hull triangle rows parallel to its longest edge, ceil(height / spacing) + 1 rows of
+    ceil(length / spacing) + 1 evenly spaced points each (every surface point within
+    ``spacing`` of a sample)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(vertices)
+    out = [vertices[hull.vertices]]
+    for tri in hull.simplices:
+        p = vertices[tri]
+        lengths = [np.linalg.norm(p[(i + 1) % 3] - p[i]) for i in range(3)]
+        i = int(np.argmax(lengths))
+        a, b, c = p[i], p[(i + 1) % 3], p[(i + 2) % 3]
+        base = b - a
+        height = np.linalg.norm(np.cross(base, c - a)) / max(lengths[i], 1e-300)
+        rows = int(np.ceil(height / spacing))
+        for w in np.linspace(0.0, 1.0, rows + 1):
+            start, end = a + w * (c - a), b + w * (c - b)
+            count = int(np.ceil(np.linalg.norm(end - start) / spacing)) + 1
+            s = np.linspace(0.0, 1.0, count)[:, None]
+            out.append(start + s * (end - start))
+    return np.unique(np.round(np.vstack(out), 12), axis=0)
+
+
+def link_geometry(description: RobotDescription, finger_spacing: float = FINGER_SPACING,
+                  arm_spacing: float = ARM_SPACING) -> dict[str, LinkGeometry]:
+    """Every link with collision geometry -> its :class:`LinkGeometry` (read from pybullet
+    once, the robot at its open configuration; each shape's hull sampled on its own)."""
+    from pybullet_utils.bullet_client import BulletClient
+
+    from kinegrasp_env.world.sim import pybullet
+
+    bullet = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+        names = {-1: description.model.base_link}
+        for j in range(bullet.getNumJoints(robot)):
+            names[j] = bullet.getJointInfo(robot, j)[12].decode()
+        hand = set(description.finger_links)
+        out = {}
+        for index, name in names.items():
+            world = link_hull_vertices(bullet, robot, index)
+            if world is None:
+                continue
+            if index < 0:  # the base's URDF frame: the world origin (its fixed base)
+                position, quaternion = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+            else:
+                state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
+                position, quaternion = state[4], state[5]
+            rot = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
+            local = (world - np.asarray(position)) @ rot
+            counts = [_shape_vertex_count(bullet, robot, index, s)
+                      for s in bullet.getCollisionShapeData(robot, index)]
+            spacing = finger_spacing if name in hand else arm_spacing
+            pieces, parts, start = [], [], 0
+            for count in counts:
+                shape = local[start:start + count]
+                pieces.append(hull_samples(shape, spacing))
+                parts.append(ConvexPart(shape, face_planes(shape)))
+                start += count
+            out[name] = LinkGeometry(local, np.vstack([local, *pieces]), spacing, tuple(parts))
+        return out
+    finally:
+        bullet.disconnect()
+
+
+def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
+    """Vertices :func:`link_hull_vertices` gives one collision shape (its rows, in order)."""
+    from kinegrasp_env.closing.contact_patch import _mesh_hull
+
+    return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))
+
+
+class FastRobotHand:
+    """The batched closing of a description robot on one object.
+
+    Args:
+        description: the robot.
+        obj: the catalog object (at ``obj.pose`` in the robot's base frame).
+        grid: the object's distance grid (default: :func:`~kinegrasp_env.world.sdf.grid_of`).
+        geometry: link name -> :class:`LinkGeometry` (default: :func:`link_geometry`).
+        patch: place a contact on a face at its patch's centre (as ``RobotWorld(patch=)``).
+    """
+
+    def __init__(self, description: RobotDescription, obj: GraspObject, *,
+                 grid: DistanceGrid | None = None,
+                 geometry: dict[str, LinkGeometry] | None = None, patch: bool = True) -> None:
+        self.description, self.obj, self.patch = description, obj, patch
+        self.model = description.model
+        self.grid = grid_of(obj) if grid is None else grid
+        self.grid_err = grid_error(self.grid)
+        self.geometry = link_geometry(description) if geometry is None else geometry
+        self.kinematics = Kinematics(self.model)
+        self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
+        self._drivers = self.model.drivers()
+        self._parent = {j.child: j for j in self.model.joints}
+        self.paths = [self._finger_path(f) for f in range(len(description.fingers))]
+        self.edges = np.concatenate([part.edges for part in obj.convex_parts])
+
+    # ------------------------------------------------------------------ kinematics
+    def _chain(self, link: str) -> list:
+        """Joints from the palm to ``link``, palm first."""
+        chain = []
+        while link != self.description.palm_link:
+            joint = self._parent[link]
+            chain.append(joint)
+            link = joint.parent
+        return chain[::-1]
+
+    def _finger_path(self, index: int) -> dict:
+        """Finger ``index``'s closing: joints, rates, limits, per-link chains and speed."""
+        finger = self.description.fingers[index]
+        rates, lo, hi, kinds = [], [], [], []
+        for name in finger.joints:
+            joint = self.model.joint(name)
+            driver, mult, _ = self._drivers[name]
+            rates.append(mult * self.description.close[self.model.actuated[driver]])
+            lo.append(joint.lower)
+            hi.append(joint.upper)
+            kinds.append(joint.kind)
+        links = [link for link in finger.links if link in self.geometry]
+        chains = {link: self._chain(link) for link in links}
+        reach = []
+        for name in finger.joints:  # largest distance from the joint to points it moves
+            far = 0.0
+            for link in links:
+                names = [j.name for j in chains[link]]
+                if name in names:
+                    pts = self.geometry[link].points
+                    far = max(far, float(np.linalg.norm(pts, axis=1).max())
+                              + sum(float(np.linalg.norm(j.origin[:3, 3]))
+                                    for j in chains[link][names.index(name) + 1:]))
+            reach.append(far)
+        return {"joints": finger.joints, "rates": np.array(rates), "lo": np.array(lo),
+                "hi": np.array(hi), "links": links, "chains": chains,
+                "speed": finger_speed(kinds, np.array(rates), np.array(reach))}
+
+    def _link_poses(self, palm: np.ndarray, values: dict[str, np.ndarray], link: str,
+                    chain: list) -> np.ndarray:
+        """(n, 4, 4) object-frame pose of ``link`` from the palm's (n, 4, 4) object-frame
+        pose and the joint values (name -> (n,))."""
+        pose = palm
+        for joint in chain:
+            step = np.broadcast_to(joint.origin, pose.shape).copy()
+            if joint.movable:
+                v = values[joint.name]
+                if joint.kind == "prismatic":
+                    step[:, :3, 3] += (joint.origin[:3, :3] @ joint.axis) * v[:, None]
+                else:
+                    step[:, :3, :3] = joint.origin[:3, :3] @ axis_angle_matrix(joint.axis, v)
+            pose = pose @ step
+        return pose
+
+    # ------------------------------------------------------------------ distances
+    def _exact(self, poses: np.ndarray, link: str, below: float = np.inf
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
+        pair of ``link`` placed by object-frame poses (n, 4, 4) and the object, exact: the
+        least of the link's hull vertices against the object and of the object's edges
+        against each link hull (the distance along an edge is convex: :data:`SEARCH` golden
+        steps; edges whose plane bound exceeds the best distance so far are skipped). Every
+        closest pair of two convex polytopes is a vertex of one or lies on an edge of the
+        other. With ``below``, edges that cannot bring a distance under it are skipped (a
+        distance left at or above ``below`` is then only an upper bound)."""
+        geom = self.geometry[link]
+        n = poses.shape[0]
+        rot, trans = poses[:, :3, :3], poses[:, :3, 3]
+        verts = geom.vertices @ np.swapaxes(rot, 1, 2) + trans[:, None]
+        closest, d, _ = self.obj.closest_points(verts.reshape(-1, 3))
+        d, closest = d.reshape(verts.shape[:2]), closest.reshape(verts.shape)
+        best = np.argmin(d, axis=1)
+        rows = np.arange(n)
+        dist, fp, op = d[rows, best], verts[rows, best], closest[rows, best]
+        ends = self.edges  # (E, 2, 3) object frame
+        local = (ends[None] - trans[:, None, None]) @ rot[:, None]  # (n, E, 2, 3) link frame
+        for part in geom.parts:
+            values = local @ part.planes[:, :3].T + part.planes[:, 3]  # (n, E, 2, F)
+            bound = values.min(axis=2).max(axis=2)
+            draw, edge = np.nonzero(bound < np.minimum(dist, below)[:, None])
+            if draw.size == 0:
+                continue
+            a, b = local[draw, edge, 0], local[draw, edge, 1]
+            lo, hi = np.zeros(draw.size), np.ones(draw.size)
+            at = lambda s, a=a, b=b, part=part: part.closest(a + s[:, None] * (b - a))  # noqa: E731
+            x1, x2 = hi - GOLD * (hi - lo), lo + GOLD * (hi - lo)
+            f1, f2 = at(x1)[1], at(x2)[1]
+            for _ in range(SEARCH):
+                left = f1 < f2
+                hi = np.where(left, x2, hi)
+                lo = np.where(left, lo, x1)
+                x2n = np.where(left, x1, lo + GOLD * (hi - lo))
+                x1n = np.where(left, hi - GOLD * (hi - lo), x2)
+                fn = at(np.where(left, x1n, x2n))[1]
+                f1, f2 = np.where(left, fn, f2), np.where(left, f1, fn)
+                x1, x2 = x1n, x2n
+            s = 0.5 * (lo + hi)
+            s = np.where(at(np.zeros_like(s))[1] < at(s)[1], 0.0, s)
+            s = np.where(at(np.ones_like(s))[1] < at(s)[1], 1.0, s)
+            near, dd = at(s)
+            order = np.lexsort((dd, draw))  # per draw, its least first
+            keep = order[np.r_[True, draw[order][1:] != draw[order][:-1]]]
+            better = dd[keep] < dist[draw[keep]]
+            k = keep[better]
+            i = draw[k]
+            dist[i] = dd[k]
+            on_edge = a[k] + s[k, None] * (b[k] - a[k])
+            op[i] = np.einsum("nij,nj->ni", rot[i], on_edge) + trans[i]
+            fp[i] = np.einsum("nij,nj->ni", rot[i], near[k]) + trans[i]
+        return dist, fp, op
+
+    def start_collision(self, q: np.ndarray, start_tol: float = START_TOL) -> np.ndarray:
+        """(n,) bool: some link at q (n, dof) deeper than ``start_tol`` in the object (the
+        grid screens: a link whose samples' grid distance less the grid's error stays above
+        -``start_tol`` is not examined exactly)."""
+        poses = self.kinematics.forward(q, list(self.geometry))
+        inv = self.obj.pose_inverse
+        hit = np.zeros(q.shape[0], dtype=bool)
+        for link, geom in self.geometry.items():
+            pose = inv @ poses[link]
+            centre, radius = self._spheres[link]
+            rows = np.flatnonzero(~hit & (posed_min_distance(self.grid, pose, centre)
+                                          - self.grid_err < radius))
+            if rows.size == 0:
+                continue
+            screen = (posed_min_distance(self.grid, pose[rows], geom.points) - self.grid_err
+                      - geom.spacing)
+            rows = rows[screen < -start_tol]
+            if rows.size:
+                dist, _, _ = self._exact(pose[rows], link, -start_tol)
+                hit[rows[dist < -start_tol]] = True
+        return hit
+
+    def _grid_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
+        """(n,) lower bound of the exact distance of ``link``'s hull from the grid."""
+        geom = self.geometry[link]
+        return (posed_min_distance(self.grid, poses, geom.points) - self.grid_err
+                - geom.spacing)
+
+    # ------------------------------------------------------------------ closing
+    def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
+              start_tol: float = START_TOL) -> list[RobotCloseResult]:
+        """Close the hand of every configuration q (n, dof) (the module's model)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n, fingers = q.shape[0], self.description.fingers
+        start = self.start_collision(q, start_tol)
+        values0 = self.model.expand(q)
+        palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
+        gaps = np.full((n, len(fingers)), np.nan)
+        travel = np.zeros((n, len(fingers)))
+        final = {name: values0[name].copy() for name in values0}
+        touching: list[list[tuple]] = [[] for _ in range(n)]
+        queries = np.zeros(n, dtype=np.int64)
+        free = np.flatnonzero(~start)
+        for f in range(len(fingers)):
+            path = self.paths[f]
+            t, g, values = self._close_finger(path, palm[free], {k: v[free] for k, v in
+                                                                    values0.items()},
+                                              contact_tol, queries, free)
+            gaps[free, f], travel[free, f] = g, t
+            for name in path["joints"]:
+                final[name][free] = values[name]
+            touch = free[g <= contact_tol]
+            if touch.size:
+                vals = {k: v[touch] for k, v in final.items()}
+                for k, link in enumerate(fingers[f].links):
+                    if link not in self.geometry:
+                        continue
+                    pose = self._link_poses(palm[touch], vals, link, path["chains"][link])
+                    d, fp, op = self._exact(pose, link)
+                    queries[touch] += 1
+                    for i in np.flatnonzero(d <= contact_tol):
+                        touching[touch[i]].append((f, k, link, pose[i], d[i], fp[i], op[i]))
+        out = []
+        for i in range(n):
+            if start[i]:
+                out.append(RobotCloseResult(True, queries=int(queries[i]),
+                                            missed=(False,) * len(fingers),
+                                            gaps=np.full(len(fingers), np.nan),
+                                            travel=np.zeros(len(fingers))))
+                continue
+            contacts = [self._contact(*c) for c in touching[i]]
+            out.append(RobotCloseResult(
+                False, contacts, tuple(bool(x > contact_tol) for x in gaps[i]), gaps[i].copy(),
+                travel[i].copy(), {name: float(v[i]) for name, v in final.items()},
+                int(queries[i])))
+        return out
+
+    def _close_finger(self, path: dict, palm: np.ndarray, values0: dict, contact_tol: float,
+                      queries: np.ndarray, rows: np.ndarray):
+        """Conservative advancement of one finger over draws: (t (m,), gap (m,), values)."""
+        m = palm.shape[0]
+        v0 = np.stack([values0[name] for name in path["joints"]], axis=1)
+        rates, lo, hi, speed = path["rates"], path["lo"], path["hi"], path["speed"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ends = np.where(rates > 0, (hi - v0) / rates,
+                            np.where(rates < 0, (lo - v0) / rates, 0.0))
+        t_end = np.maximum(ends.max(axis=1), 0.0)
+        t, g = np.zeros(m), np.full(m, np.inf)
+        active = np.arange(m)
+        values = dict(values0)
+        for _ in range(MAX_STEPS):
+            if active.size == 0:
+                break
+            vals = {k: v[active] for k, v in values0.items()}
+            setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
+            for j, name in enumerate(path["joints"]):
+                vals[name] = setting[:, j]
+            bound = np.full(active.size, np.inf)
+            poses = {}
+            for link in path["links"]:
+                poses[link] = self._link_poses(palm[active], vals, link, path["chains"][link])
+                bound = np.minimum(bound, self._grid_bound(poses[link], link))
+            near = np.flatnonzero(bound <= BAND)
+            gap = bound.copy()
+            if near.size:  # the exact distance replaces the grid's bound
+                exact = np.full(near.size, np.inf)
+                for link in path["links"]:
+                    d, _, _ = self._exact(poses[link][near], link)
+                    queries[rows[active[near]]] += 1
+                    exact = np.minimum(exact, d)
+                gap[near] = exact
+            g[active] = gap
+            stop = (gap <= contact_tol) | (t[active] >= t_end[active])
+            go = ~stop
+            t[active[go]] += np.minimum(np.maximum(gap[go], 0.0) / speed,
+                                        t_end[active[go]] - t[active[go]])
+            active = active[go]
+        setting = np.clip(v0 + rates * t[:, None], lo, hi)
+        for j, name in enumerate(path["joints"]):
+            values[name] = setting[:, j]
+        return t, g, values
+
+    def _contact(self, f: int, k: int, link: str, pose: np.ndarray, distance: float,
+                 finger_point: np.ndarray, point: np.ndarray) -> RobotContact:
+        """The contact of finger f's link k (its object-frame pose (4, 4)): the object point
+        nearest the link, its face's inward normal and the patch centre, or at an edge the
+        direction from the finger point to it."""
+        face = face_of(self.obj, point)
+        if face is None:
+            normal = self._link_normal(link, pose, finger_point)
+            if normal is None:
+                normal = (point - finger_point) * np.sign(distance)
+            if np.linalg.norm(normal) < 1e-12:
+                normal = self.obj.surface(point[None])[1][0]
+        else:
+            normal = -face[1][:3]
+            if self.patch:
+                vertices = self.geometry[link].vertices @ pose[:3, :3].T + pose[:3, 3]
+                point = self.patch_point(vertices, face, point)
+        return RobotContact(f, k, point, normal / np.linalg.norm(normal), float(distance))
+
+    def _link_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray
+                     ) -> np.ndarray | None:
+        """(3,) outward normal (object frame) of the one face of ``link``'s hulls that the
+        object-frame ``finger_point`` lies on (within EDGE_TOL), or None at an edge or
+        corner: the direction of a closest pair whose link point is inside a face."""
+        local = (finger_point - pose[:3, 3]) @ pose[:3, :3]
+        found = None
+        for part in self.geometry[link].parts:
+            on = np.abs(part.planes[:, :3] @ local + part.planes[:, 3]) < EDGE_TOL
+            if int(on.sum()) == 1 and found is None:
+                found = pose[:3, :3] @ part.planes[on][0, :3]
+            elif on.any():
+                return None
+        return found
+
+    def patch_point(self, vertices: np.ndarray, face: tuple[int, np.ndarray],
+                    point: np.ndarray) -> np.ndarray:
+        """The centre of the patch of a link (hull vertices (V, 3), object frame) on
+        ``face`` (part, plane), or ``point`` (3,) where there is none."""
+        part, plane = face
+        corners = self.obj.parts[part]
+        on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
+        if len(on_face) < 3:
+            return point
+        on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
+        centre = patch_centre(vertices, on_face, -plane[:3], on_plane)
+        return point if centre is None else centre

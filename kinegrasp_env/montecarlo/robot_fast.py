@@ -1,0 +1,35 @@
+"""The fast engine of a description robot: the reference engine's closing model
+(:mod:`~kinegrasp_env.closing.generic_reference`) batched over draws
+(:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), scored exactly as the
+reference engine scores its closings (:func:`~kinegrasp_env.montecarlo.robot_evaluate.score`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.generic_fast import FastRobotHand
+from kinegrasp_env.closing.generic_reference import RobotCloseResult
+from kinegrasp_env.montecarlo.robot_evaluate import RobotEngine
+from kinegrasp_env.robot.description import RobotDescription
+
+#: Draws closed in one batch (bounds the batch's temporaries).
+BATCH = 256
+
+
+class RobotFastEngine(RobotEngine):
+    """Batched closing of a description robot (arguments: :class:`~kinegrasp_env.montecarlo.
+    robot_evaluate.RobotEngine`); the object's distance grid is built on first use and
+    cached."""
+
+    name = "fast"
+
+    def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
+        super().__init__(robot, object_name, **kwargs)
+        self.hand = FastRobotHand(self.description, self.obj)
+
+    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
+        out: list[RobotCloseResult] = []
+        for start in range(0, q.shape[0], BATCH):
+            out += self.hand.close(q[start:start + BATCH])
+        return out
