@@ -20,7 +20,9 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
+    parse_index,
     plural,
+    reported,
     shipped_grasp,
 )
 
@@ -28,6 +30,11 @@ from kinegrasp_env.cli.common import (
 #: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
 #: imports no NumPy.
 DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
+#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied, as above).
+DEFAULT_ROBOT = "kuka_sdh"
+#: Options a description robot's elbow does not take: flag -> its value when not given.
+ROBOT_REFUSED = {"--backend": "local", "--address": None, "--processes": None,
+                 "--report": None}
 
 
 def certificate_levels(args) -> tuple[float, float]:
@@ -42,6 +49,9 @@ def certificate_levels(args) -> tuple[float, float]:
 
 
 def cmd_elbow(args) -> int:
+    if getattr(args, "robot", None) not in (None, DEFAULT_ROBOT):
+        return cmd_elbow_robot(args)
+    args.engine = getattr(args, "engine", None) or "fast"
     from tqdm import tqdm
 
     from kinegrasp_env.cli.report import report_path, write_elbow_report
@@ -75,6 +85,61 @@ def cmd_elbow(args) -> int:
             print(f"  plot written to {args.plot}")
     if args.report:
         write_elbow_report(args, grasp, index, result, noise)
+    return 0
+
+
+def cmd_elbow_robot(args) -> int:
+    """``kinegrasp elbow --robot NAME``: a description robot's grasp along its self-motion
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, the reference engine)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
+
+    robot = args.robot
+    for flag, unset in ROBOT_REFUSED.items():
+        if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
+            raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
+                           f"{DEFAULT_ROBOT})")
+    if args.engine not in (None, "pybullet"):
+        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
+                       "engine only")
+    noise, sigma, samples, seed = noise_from(args)
+    epsilon, delta = certificate_levels(args)
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    if description.arm_dof != 7 or description.arm_angle_links is None:
+        raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
+                       "self-motion needs 7 and arm_angle_links")
+    index = parse_index(args.grasp)
+    with reported(NoGraspSetError):
+        grasps = shipped_grasps(args.object, robot)
+    if not 0 <= index < len(grasps):
+        raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
+                       f"{len(grasps)} grasps of robot {robot} (0..{len(grasps) - 1})")
+    if args.plot:
+        output_file(args.plot, "--plot")
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+
+    bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} (selection, "
+               "then fresh draws)", unit="angle", file=sys.stderr, disable=None)
+    result = optimize_robot_elbow(grasps[index], noise, samples, seed, epsilon=epsilon,
+                                  delta=delta, progress=lambda done: bar.update(done - bar.n))
+    bar.close()
+    payload = {"robot": robot, **result.to_json()}
+    if args.plot:
+        from kinegrasp_env.toolkit.plots import plot_elbow_curve
+
+        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, args.plot,
+                         title=f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad: "
+                               "P(FC) along the self-motion")
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(f"robot {robot}, " + text_summary(payload, index))
+        if args.plot:
+            print(f"  plot written to {args.plot}")
     return 0
 
 
@@ -118,8 +183,9 @@ def add_commands(sub) -> None:
     add_noise_args(p, 0.0133)
     p.set_defaults(samples="1000")
     add_execution_args(p, 1)
-    p.add_argument("--engine", default="fast", choices=("fast", "pybullet"),
-                   help="fast (default: many angles x draws) or pybullet (the reference)")
+    p.add_argument("--engine", default=None, choices=("fast", "pybullet"),
+                   help="fast (the default robot's default: many angles x draws) or pybullet "
+                   "(the reference; a robot given with --robot: the only one)")
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "
                    "1 - delta, no evaluated angle beats the chosen one by more than it")
@@ -128,4 +194,6 @@ def add_commands(sub) -> None:
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
+                   "its shipped grasps, its arm's self-motion, the pybullet engine)")
     p.set_defaults(func=cmd_elbow)
