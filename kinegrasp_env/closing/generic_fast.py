@@ -1,14 +1,18 @@
 """Auto-close of any description robot, batched over draws: the closing model of
-:mod:`~kinegrasp_env.closing.generic_reference` on sampled link geometry.
+:mod:`~kinegrasp_env.closing.generic_reference` on the links' exact convex hulls.
 
 **Geometry.** Each robot link's collision geometry is read once from pybullet (a DIRECT
 client: the convex hull of every collision mesh, scaled, or a box's corners, as pybullet
 collides them: :func:`~kinegrasp_env.closing.contact_patch.link_hull_vertices`), expressed
-in the link's URDF frame, and sampled as points on its hull's surface: the hull's vertices
-and rows of points on every triangle (:func:`hull_samples`, :data:`FINGER_SPACING`
-apart on the finger links, :data:`ARM_SPACING` on the others). The distance of a link to the
-object is the smallest exact distance of its points (:meth:`GraspObject.closest_points`);
-the hull's continuous surface is within the lattice spacing of them.
+in the link's URDF frame, each shape a :class:`~kinegrasp_env.world.polytope.ConvexPart`.
+The distance of a link to the object is exact: the closest pair of two convex polytopes has
+a vertex of one or a point on an edge of each, so it is the least of the link's hull vertices
+against the object (:meth:`GraspObject.closest_points`) and of the object's edges against the
+link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`). Points on the
+hulls' surfaces (:func:`hull_samples`, :data:`FINGER_SPACING` apart on the finger links,
+:data:`ARM_SPACING` on the others) give cheap lower bounds through the object's distance
+grid (their grid distance less the grid's error bound and the spacing), which decide where
+the exact distance is not needed.
 
 **The closing** follows the reference step for step, every draw of a batch at once:
 
@@ -20,17 +24,19 @@ the hull's continuous surface is within the lattice spacing of them.
    lower bound over the finger's speed bound
    (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). Far from the object the
    lower bound is the distance grid's (:func:`~kinegrasp_env.closing.capsule_gap.
-   posed_min_distance`, less its interpolation error :data:`GRID_ERROR` and the lattice
-   spacing); within :data:`BAND` the points' exact distance. A finger touches when that is
-   within ``contact_tol``, and misses at its limits.
-3. *Contacts*: per touching finger link, its point of least distance, the object's exact
-   closest point to it, the inward normal of the one face that point lies on
-   (:func:`~kinegrasp_env.closing.generic_reference.face_of`) and the point moved to the
-   pad's patch centre (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`), or at an
-   edge or corner the direction from the finger point to the object point.
+   posed_min_distance` over the samples, less :func:`grid_error` and the spacing); within
+   :data:`BAND` the exact distance. A finger touches when that is within ``contact_tol``,
+   and misses at its limits.
+3. *Contacts*: per touching finger link, its exact closest pair with the object. On one
+   face of the object (:func:`~kinegrasp_env.closing.generic_reference.face_of`): that
+   face's inward normal, the point moved to the pad's patch centre
+   (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`). At an edge or a corner: the
+   pair's direction (the link face's normal where the link point is inside one face;
+   perpendicular to both edges for two edges; else the points' difference), which is what
+   pybullet's normal is there.
 
 Results are the reference's :class:`~kinegrasp_env.closing.generic_reference.RobotCloseResult`
-(``queries`` counts exact point distances).
+(``queries`` counts exact link-object distances, per draw).
 """
 
 from __future__ import annotations
@@ -50,21 +56,22 @@ from kinegrasp_env.closing.generic_reference import (
     face_of,
     finger_speed,
 )
+from kinegrasp_env.closing.hull_edges import edges_against_hull
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.polytope import ConvexPart, face_planes
+from kinegrasp_env.world.polytope import INSIDE_TOL, ConvexPart, face_planes
 from kinegrasp_env.world.sdf import DistanceGrid, grid_of
 
-#: Lattice spacing of the hand links' surface samples (metres).
-FINGER_SPACING = 1.0e-3
-#: Lattice spacing of the other links' surface samples (metres): they only decide start
-#: collisions.
+#: Spacing of the finger links' surface samples (metres): they bound the gap far from the
+#: object, so the spacing sets only how soon the exact distance takes over.
+FINGER_SPACING = 3.0e-3
+#: Spacing of the other links' surface samples (metres): they screen start collisions.
 ARM_SPACING = 6.0e-3
 #: Lower bounds of the gap above this are from the grid, below it exact (metres).
 BAND = 3.0e-3
-#: Golden-section steps along an object edge (its parameter to 0.618**22 = 2.5e-5).
-SEARCH = 22
+#: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
+SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
 #: Draws whose exact point distances are computed at once (bounds the memory).
 CHUNK = 64
@@ -177,6 +184,24 @@ def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
     return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))
 
 
+def _edge_along(segments: np.ndarray, point: np.ndarray, tol: float = 1e-7
+                ) -> np.ndarray | None:
+    """(3,) unit direction of the one segment of ``segments`` (E, 2, 3) whose interior holds
+    ``point`` (3,) (within ``tol`` metres, not within ``tol`` of its ends), or None."""
+    a, b = segments[:, 0], segments[:, 1]
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / np.maximum(length2, 1e-300), 0.0, 1.0)
+    gap = np.linalg.norm(a + s[:, None] * ab - point, axis=1)
+    length = np.sqrt(length2)
+    inside = (gap < tol) & (s * length > tol) & ((1.0 - s) * length > tol)
+    on_end = np.any((np.linalg.norm(a - point, axis=1) < tol)
+                    | (np.linalg.norm(b - point, axis=1) < tol))
+    if int(inside.sum()) != 1 or on_end:
+        return None
+    return ab[inside][0] / length[inside][0]
+
+
 class FastRobotHand:
     """The batched closing of a description robot on one object.
 
@@ -263,11 +288,11 @@ class FastRobotHand:
         """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
         pair of ``link`` placed by object-frame poses (n, 4, 4) and the object, exact: the
         least of the link's hull vertices against the object and of the object's edges
-        against each link hull (the distance along an edge is convex: :data:`SEARCH` golden
-        steps; edges whose plane bound exceeds the best distance so far are skipped). Every
-        closest pair of two convex polytopes is a vertex of one or lies on an edge of the
-        other. With ``below``, edges that cannot bring a distance under it are skipped (a
-        distance left at or above ``below`` is then only an upper bound)."""
+        against each link hull (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`:
+        :data:`SEARCH` golden steps along an edge). Every closest pair of two convex
+        polytopes has a vertex of one or a point on an edge of each. With ``below``, edges
+        that cannot bring a distance under it are skipped (a distance left at or above
+        ``below`` is then only an upper bound)."""
         geom = self.geometry[link]
         n = poses.shape[0]
         rot, trans = poses[:, :3, :3], poses[:, :3, 3]
@@ -277,41 +302,10 @@ class FastRobotHand:
         best = np.argmin(d, axis=1)
         rows = np.arange(n)
         dist, fp, op = d[rows, best], verts[rows, best], closest[rows, best]
-        ends = self.edges  # (E, 2, 3) object frame
-        local = (ends[None] - trans[:, None, None]) @ rot[:, None]  # (n, E, 2, 3) link frame
+        rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
         for part in geom.parts:
-            values = local @ part.planes[:, :3].T + part.planes[:, 3]  # (n, E, 2, F)
-            bound = values.min(axis=2).max(axis=2)
-            draw, edge = np.nonzero(bound < np.minimum(dist, below)[:, None])
-            if draw.size == 0:
-                continue
-            a, b = local[draw, edge, 0], local[draw, edge, 1]
-            lo, hi = np.zeros(draw.size), np.ones(draw.size)
-            at = lambda s, a=a, b=b, part=part: part.closest(a + s[:, None] * (b - a))  # noqa: E731
-            x1, x2 = hi - GOLD * (hi - lo), lo + GOLD * (hi - lo)
-            f1, f2 = at(x1)[1], at(x2)[1]
-            for _ in range(SEARCH):
-                left = f1 < f2
-                hi = np.where(left, x2, hi)
-                lo = np.where(left, lo, x1)
-                x2n = np.where(left, x1, lo + GOLD * (hi - lo))
-                x1n = np.where(left, hi - GOLD * (hi - lo), x2)
-                fn = at(np.where(left, x1n, x2n))[1]
-                f1, f2 = np.where(left, fn, f2), np.where(left, f1, fn)
-                x1, x2 = x1n, x2n
-            s = 0.5 * (lo + hi)
-            s = np.where(at(np.zeros_like(s))[1] < at(s)[1], 0.0, s)
-            s = np.where(at(np.ones_like(s))[1] < at(s)[1], 1.0, s)
-            near, dd = at(s)
-            order = np.lexsort((dd, draw))  # per draw, its least first
-            keep = order[np.r_[True, draw[order][1:] != draw[order][:-1]]]
-            better = dd[keep] < dist[draw[keep]]
-            k = keep[better]
-            i = draw[k]
-            dist[i] = dd[k]
-            on_edge = a[k] + s[k, None] * (b[k] - a[k])
-            op[i] = np.einsum("nij,nj->ni", rot[i], on_edge) + trans[i]
-            fp[i] = np.einsum("nij,nj->ni", rot[i], near[k]) + trans[i]
+            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
+                               self.edges, float(below), SEARCH, GOLD, dist, fp, op)
         return dist, fp, op
 
     def start_collision(self, q: np.ndarray, start_tol: float = START_TOL) -> np.ndarray:
@@ -445,7 +439,7 @@ class FastRobotHand:
         if face is None:
             normal = self._link_normal(link, pose, finger_point)
             if normal is None:
-                normal = (point - finger_point) * np.sign(distance)
+                normal = self._edge_normal(link, pose, finger_point, point, distance)
             if np.linalg.norm(normal) < 1e-12:
                 normal = self.obj.surface(point[None])[1][0]
         else:
@@ -469,6 +463,25 @@ class FastRobotHand:
             elif on.any():
                 return None
         return found
+
+    def _edge_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray,
+                     point: np.ndarray, distance: float) -> np.ndarray:
+        """(3,) the direction of a closest pair (link point -> object point, object frame)
+        at an object edge: perpendicular to both edges where the link point lies on a link
+        edge too (the pair's exact direction), else perpendicular to the object's edge (the
+        link point at a corner), else the points' difference."""
+        direction = (point - finger_point) * np.sign(distance)
+        u = _edge_along(self.edges, point)
+        if u is None:
+            return direction
+        local = (finger_point - pose[:3, 3]) @ pose[:3, :3]
+        for part in self.geometry[link].parts:
+            w = _edge_along(part.edges, local)
+            if w is not None:
+                cross = np.cross(u, pose[:3, :3] @ w)
+                if np.linalg.norm(cross) > 1e-6:
+                    return cross * np.sign(cross @ direction)
+        return direction - (direction @ u) * u
 
     def patch_point(self, vertices: np.ndarray, face: tuple[int, np.ndarray],
                     point: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The fast engine of a description robot: the reference engine's closing model
 (:mod:`~kinegrasp_env.closing.generic_reference`) batched over draws
 (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), scored exactly as the
-reference engine scores its closings (:func:`~kinegrasp_env.montecarlo.robot_evaluate.score`).
+reference engine scores its closings (:func:`~kinegrasp_env.montecarlo.robot_engine.score`).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 
 from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
-from kinegrasp_env.montecarlo.robot_evaluate import RobotEngine
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 
 #: Draws closed in one batch (bounds the batch's temporaries).
@@ -19,7 +19,7 @@ BATCH = 256
 
 class RobotFastEngine(RobotEngine):
     """Batched closing of a description robot (arguments: :class:`~kinegrasp_env.montecarlo.
-    robot_evaluate.RobotEngine`); the object's distance grid is built on first use and
+    robot_engine.RobotEngine`); the object's distance grid is built on first use and
     cached."""
 
     name = "fast"

@@ -1,0 +1,119 @@
+"""The object's edges against a robot link's convex hull, compiled: the half of the exact
+closest pair of two convex polytopes that the object's vertices cannot give (every closest
+pair has a vertex of one polytope, or points on an edge of each; the link's vertices against
+the object are the other half, :meth:`~kinegrasp_env.world.objects.GraspObject.closest_points`).
+
+The signed distance from a point on an edge to a convex hull is a convex function of the
+point's parameter along the edge, so its minimum is found by golden-section search
+(:data:`~kinegrasp_env.closing.generic_fast.SEARCH` steps, then the two ends compared). An
+edge whose plane bound (the largest over the hull's face planes of the smaller plane value of
+its two ends: a lower bound of its distance) cannot beat the best distance so far is skipped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env import jit
+
+
+@jit.kernel(_nrt=False, inline="always")
+def point_hull(planes, edges, tol, x, y, z):
+    """(signed distance, closest x, y, z) of a point to a convex hull given by its face
+    planes (F, 4) (outward unit normals) and edges (H, 2, 3): exact, as
+    :meth:`~kinegrasp_env.world.polytope.ConvexPart.closest`."""
+    top = -np.inf
+    face = 0
+    for f in range(planes.shape[0]):
+        v = planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z + planes[f, 3]
+        if v > top:
+            top, face = v, f
+    px = x - top * planes[face, 0]
+    py = y - top * planes[face, 1]
+    pz = z - top * planes[face, 2]
+    if top <= 0.0:
+        return top, px, py, pz
+    worst = -np.inf
+    for f in range(planes.shape[0]):
+        v = planes[f, 0] * px + planes[f, 1] * py + planes[f, 2] * pz + planes[f, 3]
+        if v > worst:
+            worst = v
+    if worst <= tol:
+        return top, px, py, pz
+    best = np.inf
+    bx, by, bz = px, py, pz
+    for e in range(edges.shape[0]):
+        ax, ay, az = edges[e, 0, 0], edges[e, 0, 1], edges[e, 0, 2]
+        dx, dy, dz = edges[e, 1, 0] - ax, edges[e, 1, 1] - ay, edges[e, 1, 2] - az
+        length2 = max(dx * dx + dy * dy + dz * dz, 1e-300)
+        s = ((x - ax) * dx + (y - ay) * dy + (z - az) * dz) / length2
+        s = min(max(s, 0.0), 1.0)
+        cx, cy, cz = ax + s * dx, ay + s * dy, az + s * dz
+        d2 = (x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2
+        if d2 < best:
+            best, bx, by, bz = d2, cx, cy, cz
+    return np.sqrt(best), bx, by, bz
+
+
+@jit.kernel(_nrt=False, inline="always")
+def edge_at(planes, edges, tol, rot, trans, ends, e, i, s):
+    """Distance and closest hull point (link frame) of the point at parameter s of object
+    edge e, placed in the link frame of draw i."""
+    wx = ends[e, 0, 0] + s * (ends[e, 1, 0] - ends[e, 0, 0]) - trans[i, 0]
+    wy = ends[e, 0, 1] + s * (ends[e, 1, 1] - ends[e, 0, 1]) - trans[i, 1]
+    wz = ends[e, 0, 2] + s * (ends[e, 1, 2] - ends[e, 0, 2]) - trans[i, 2]
+    x = rot[i, 0, 0] * wx + rot[i, 1, 0] * wy + rot[i, 2, 0] * wz
+    y = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
+    z = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
+    return point_hull(planes, edges, tol, x, y, z)
+
+
+@jit.kernel(_nrt=False)
+def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold, best,
+                       link_point, object_point):
+    """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
+    best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull where
+    that is smaller, with its link point and object point (object frame, (n, 3)); edges
+    whose plane bound is not below min(best[i], below) are skipped."""
+    for i in range(rot.shape[0]):
+        for e in range(ends.shape[0]):
+            bound = -np.inf
+            for f in range(planes.shape[0]):
+                lowest = np.inf
+                for k in range(2):
+                    wx = ends[e, k, 0] - trans[i, 0]
+                    wy = ends[e, k, 1] - trans[i, 1]
+                    wz = ends[e, k, 2] - trans[i, 2]
+                    x = rot[i, 0, 0] * wx + rot[i, 1, 0] * wy + rot[i, 2, 0] * wz
+                    y = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
+                    z = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
+                    v = planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z + planes[f, 3]
+                    lowest = min(lowest, v)
+                bound = max(bound, lowest)
+            if not bound < min(best[i], below):
+                continue
+            lo, hi = 0.0, 1.0
+            x1, x2 = hi - gold * (hi - lo), lo + gold * (hi - lo)
+            f1 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x1)[0]
+            f2 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x2)[0]
+            for _ in range(steps):
+                if f1 < f2:
+                    hi, x2, f2 = x2, x1, f1
+                    x1 = hi - gold * (hi - lo)
+                    f1 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x1)[0]
+                else:
+                    lo, x1, f1 = x1, x2, f2
+                    x2 = lo + gold * (hi - lo)
+                    f2 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x2)[0]
+            s = 0.5 * (lo + hi)
+            d, cx, cy, cz = edge_at(planes, edges, tol, rot, trans, ends, e, i, s)
+            for end in (0.0, 1.0):
+                de, ex, ey, ez = edge_at(planes, edges, tol, rot, trans, ends, e, i, end)
+                if de < d:
+                    s, d, cx, cy, cz = end, de, ex, ey, ez
+            if d < best[i]:
+                best[i] = d
+                for k in range(3):
+                    object_point[i, k] = ends[e, 0, k] + s * (ends[e, 1, k] - ends[e, 0, k])
+                    link_point[i, k] = (rot[i, k, 0] * cx + rot[i, k, 1] * cy
+                                        + rot[i, k, 2] * cz + trans[i, k])

@@ -1,0 +1,140 @@
+"""What every engine of a description robot shares: per-draw results (:class:`RobotDraws`),
+the outcome of a closing (:func:`outcome_of`), the scoring of closings with the robot's
+contact model (:func:`score`) and the engine's base (:class:`RobotEngine`: robot, object,
+quality measure, input check); the engines close
+(:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`,
+:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.generic_reference import RobotCloseResult
+from kinegrasp_env.montecarlo.engines import (
+    FORCE_CLOSURE,
+    MISSED,
+    NO_FORCE_CLOSURE,
+    START_COLLISION,
+)
+from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.world.objects import load_object
+
+
+@dataclass
+class RobotDraws:
+    """Per-draw results of n draws with k contacts at most (k = the finger links).
+
+    Attributes:
+        outcome: (n,) int8 index into OUTCOMES.
+        quality: (n,) Q (0 unless force closure).
+        n_contacts: (n,) contacts found.
+        points, normals: (n, k, 3) contacts (object frame, normals inward), NaN-padded.
+        finger, link: (n, k) int8 finger index and link index within it, -1 padded.
+    """
+
+    outcome: np.ndarray
+    quality: np.ndarray
+    n_contacts: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    finger: np.ndarray
+    link: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int, k: int) -> RobotDraws:
+        return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
+                   np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
+                   np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8))
+
+
+def outcome_of(result: RobotCloseResult) -> int:
+    """The provisional outcome of one closing before scoring: start collision, missed (a
+    finger missed, or fewer than two contacts) or no force closure (a candidate)."""
+    if result.start_collision:
+        return START_COLLISION
+    if any(result.missed) or len(result.contacts) < 2:
+        return MISSED
+    return NO_FORCE_CLOSURE
+
+
+def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
+    """Per-draw results of closings: each one's outcome (:func:`outcome_of`), its contacts
+    (at most ``max_contacts``) and, for a candidate, Q by ``quality(points, normals)`` (force
+    closure where Q > 0). Every engine of a description robot scores its closings here."""
+    out = RobotDraws.empty(len(results), max_contacts)
+    for i, result in enumerate(results):
+        out.outcome[i] = outcome_of(result)
+        k = min(len(result.contacts), max_contacts)
+        out.n_contacts[i] = k
+        for j, c in enumerate(result.contacts[:k]):
+            out.points[i, j], out.normals[i, j] = c.point, c.normal
+            out.finger[i, j], out.link[i, j] = c.finger, c.link
+        if out.outcome[i] == NO_FORCE_CLOSURE:
+            out.quality[i] = quality(out.points[i, :k], out.normals[i, :k])
+            if out.quality[i] > 0:
+                out.outcome[i] = FORCE_CLOSURE
+    return out
+
+
+class RobotEngine:
+    """What every engine of a description robot shares: the robot, the object, the quality
+    measure, the input check and the scoring; a subclass closes (:meth:`close_all`).
+
+    Args:
+        robot: a catalog name or a loaded description.
+        object_name: catalog object.
+        friction, num_edges: friction cone of the quality measure.
+        finger_radius: soft contacts' patch radius (metres).
+    """
+
+    name = ""
+
+    def __init__(self, robot: str | RobotDescription, object_name: str, *,
+                 friction: float = 0.5, num_edges: int = 8,
+                 finger_radius: float = FINGER_RADIUS) -> None:
+        self.description = load_robot(robot) if isinstance(robot, str) else robot
+        self.obj = load_object(object_name)
+        self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
+        self.max_contacts = len(self.description.finger_links)
+
+    def close(self) -> None:
+        """Release what the engine holds (nothing by default)."""
+
+    def __enter__(self) -> RobotEngine:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def check(self, q: np.ndarray) -> np.ndarray:
+        """q as a finite (n, dof) float array; ValueError otherwise."""
+        dof = self.description.model.dof
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if q.ndim != 2 or q.shape[1] != dof:
+            raise ValueError(f"configurations of robot {self.description.name!r} must have "
+                             f"shape (n, {dof}), got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ValueError("configurations have NaN or infinite entries")
+        return q
+
+    def quality(self, points: np.ndarray, normals: np.ndarray) -> float:
+        """Q of contacts (k, 3) with the robot's contact model."""
+        return contact_quality(points, normals, contact_model=self.description.contact_model,
+                               friction=self.friction, num_edges=self.num_edges,
+                               torque_scale=self.obj.torque_scale,
+                               center=self.obj.center_of_mass,
+                               **({"finger_radius": self.finger_radius}
+                                  if self.description.contact_model == "soft" else {}))
+
+    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
+        """One closing per configuration of q (n, dof) (checked)."""
+        raise NotImplementedError
+
+    def run(self, q: np.ndarray) -> RobotDraws:
+        """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape)."""
+        return score(self.close_all(self.check(q)), self.max_contacts, self.quality)
