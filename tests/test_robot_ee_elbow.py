@@ -1,0 +1,226 @@
+"""`kinegrasp ee --robot NAME` and `kinegrasp elbow --robot NAME`: a catalog robot's palm
+noise and its grasps' most robust elbow, checked against pybullet's own kinematics."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.world.grasps import shipped_grasps
+
+SIGMA = 0.0133
+
+
+class BulletArm:
+    """pybullet's forward kinematics of a description robot's URDF (its own client, the
+    base fixed at the origin): the independent reference of these tests."""
+
+    def __init__(self, robot: str) -> None:
+        import pybullet
+        from pybullet_utils.bullet_client import BulletClient
+
+        self.description = load_robot(robot)
+        self.bullet = BulletClient(connection_mode=pybullet.DIRECT)
+        self.body = self.bullet.loadURDF(str(self.description.urdf), useFixedBase=True)
+        info = [self.bullet.getJointInfo(self.body, j)
+                for j in range(self.bullet.getNumJoints(self.body))]
+        joints = {i[1].decode(): i for i in info}
+        links = {i[12].decode(): i[0] for i in info}
+        self.arm = [joints[name][0] for name in self.description.arm_joints]
+        self.limits = np.array([joints[name][8:10] for name in self.description.arm_joints])
+        self.palm = links[self.description.palm_link]
+        self.links = links
+
+    def pose(self, q_arm: np.ndarray, link: str | None = None) -> np.ndarray:
+        """(4, 4) URDF frame of ``link`` (default the palm) at arm joints q_arm (7,)."""
+        for j, v in zip(self.arm, q_arm, strict=True):
+            self.bullet.resetJointState(self.body, j, float(v))
+        index = self.palm if link is None else self.links[link]
+        state = self.bullet.getLinkState(self.body, index, computeForwardKinematics=True)
+        out = np.eye(4)
+        out[:3, :3] = np.reshape(self.bullet.getMatrixFromQuaternion(state[5]), (3, 3))
+        out[:3, 3] = state[4]
+        return out
+
+    def positions(self, q_arm: np.ndarray) -> np.ndarray:
+        return np.array([self.pose(q)[:3, 3] for q in np.atleast_2d(q_arm)])
+
+
+@pytest.fixture(scope="module")
+def panda_arm():
+    arm = BulletArm("panda")
+    yield arm
+    arm.bullet.disconnect()
+
+
+def run_json(capsys, *args: str) -> dict:
+    assert main(list(args)) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_ee_of_the_panda_against_pybullet(capsys, panda_arm):
+    """The same draws (seed 5) through pybullet, whose link frames agree with ours to ~5e-8 m
+    (its single-precision offsets): sampled mean (measured 1.3e-9 m; bound 2e-7) and
+    covariance (measured 1.2e-11 m^2, 1e-7 of its largest entry; bound 1e-6 relative); p(q0)
+    (measured 5e-8 m; bound 2e-7); J Sigma J^T against pybullet's central differences with
+    step 3e-3 rad (measured 1.1e-5 relative; bound 1e-4); the default q0 is the middle of the
+    URDF's limits."""
+    n, seed = 3000, 5
+    out = run_json(capsys, "ee", "--robot", "panda", "--samples", str(n), "--seed", str(seed),
+                   "--json")
+    q0 = np.asarray(out["q0"])
+    assert np.allclose(q0, panda_arm.limits.mean(axis=1), atol=1e-12)
+    eps = JointNoise(SIGMA).sample(n, 7, np.random.default_rng(seed))
+    ee = panda_arm.positions(q0 + eps)
+    assert np.abs(np.asarray(out["mean"]) - ee.mean(axis=0)).max() < 2e-7
+    cov = np.cov(ee.T)
+    assert np.abs(np.asarray(out["cov"]) - cov).max() < 1e-6 * np.abs(cov).max()
+    # first order: p(q0) and J Sigma J^T with J by central differences of pybullet's FK
+    assert np.abs(np.asarray(out["first_order_mean"]) - panda_arm.positions(q0)[0]).max() < 2e-7
+    h = 3e-3
+    jac = np.stack([(panda_arm.positions(q0 + h * e)[0] - panda_arm.positions(q0 - h * e)[0])
+                    / (2 * h) for e in np.eye(7)], axis=1)
+    linear = SIGMA**2 * jac @ jac.T
+    first = np.asarray(out["first_order_cov"])
+    assert np.abs(first - linear).max() < 1e-4 * np.abs(linear).max()
+    # sampled against first order: sampling error ~ sqrt(var_i var_j / n), plus 3% for the
+    # linearization (measured 2.2 se at most)
+    se = np.sqrt(np.outer(linear.diagonal(), linear.diagonal()) / n)
+    assert np.all(np.abs(np.asarray(out["cov"]) - first) < 5 * se + 0.03 * np.abs(first))
+
+
+#: Regression pin: `kinegrasp kuka-ee --json` (defaults) as the command printed it before
+#: `ee` existed (commit c443c2e).
+KUKA_EE_PIN = {
+    "mean": [0.7353164099714355, -0.00011131720917207549, 0.4351308797387478],
+    "cov": [[1.947563870547703e-05, -6.917912568485009e-07, 1.7429969451658404e-05],
+            [-6.917912568485009e-07, 0.00015752286866695743, 9.509528426743483e-08],
+            [1.7429969451658404e-05, 9.509528426743483e-08, 0.00014276355440916781]],
+    "skew": [-0.016250005925463842, -0.008629794906081885, 0.010284923626902339],
+    "samples": 10000, "sigma": 0.0133, "noise": "gaussian", "seed": 0}
+#: Regression pin: `kinegrasp kuka-ee --samples 500 --seed 3 --noise uniform` (commit c443c2e).
+KUKA_EE_TEXT_PIN = """KUKA palm position (500 draws)
+  mean: [ 7.353625e-01 -5.543865e-04  4.352423e-01]
+  cov:
+[[ 2.108052e-05  6.794307e-07  1.821276e-05]
+ [ 6.794307e-07  1.657720e-04 -4.631080e-06]
+ [ 1.821276e-05 -4.631080e-06  1.412960e-04]]
+  skew: [-0.072017 -0.025773 -0.019237]
+"""
+
+
+def test_kuka_ee_output_unchanged_and_ee_agrees(capsys):
+    assert run_json(capsys, "kuka-ee", "--json") == KUKA_EE_PIN
+    assert main(["kuka-ee", "--samples", "500", "--seed", "3", "--noise", "uniform"]) == 0
+    assert capsys.readouterr().out == KUKA_EE_TEXT_PIN
+    assert main(["kuka-ee", "--q0", "0,1,2"]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        "--q0: the KUKA arm needs 7 joint angles, got 3")
+    # `ee` on the default robot's description: the same draws, the same palm (the
+    # description's model and the shipped one agree to float precision: measured 1e-16)
+    out = run_json(capsys, "ee", "--robot", "kuka_sdh", "--json")
+    assert out["q0"] == [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0]
+    for key in ("mean", "cov", "skew"):
+        assert np.allclose(out[key], KUKA_EE_PIN[key], rtol=1e-9, atol=1e-15), key
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--q0", "0,0,0"], "--q0: the arm of robot 'panda' needs 7 joint angles, got 3"),
+    (["--q0", "0,0,0,0.5,0,1.5,0"], "--q0: joint 4 angle 0.5 outside its limits"),
+    (["--q0", "0,0,0,-1,0,nan,0"], "--q0"),
+    (["--robot", "no_such_robot"], "unknown robot 'no_such_robot'"),
+])
+def test_ee_refuses_bad_input_in_one_line(capsys, args, message):
+    argv = ["ee", *args] if args[0] == "--robot" else ["ee", "--robot", "panda", *args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+
+
+@pytest.fixture(scope="module")
+def panda_elbow():
+    """A small elbow run of the Panda's first cube grasp (0.25 rad grid, 30 draws)."""
+    from kinegrasp_env.toolkit.robot_elbow import (
+        optimize_robot_elbow,
+        robot_reachable_configurations,
+    )
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    with RobotReferenceEngine("panda", "cube") as engine:
+        reach = robot_reachable_configurations(grasp, engine, step=0.25)
+        result = optimize_robot_elbow(grasp, JointNoise(SIGMA), 30, 7, engine=engine,
+                                      step=0.25, reach=reach)
+        yield grasp, reach, result, engine
+
+
+def test_panda_self_motion_keeps_the_palm_pose(panda_elbow, panda_arm):
+    """Every configuration of the curve, by pybullet's FK: the grasp's palm pose (pose
+    matrix entries, metres and rotation; measured 2.4e-8, pybullet's single precision;
+    bound 2e-7), within the URDF's limits, the elbow moved (link4, the elbow of
+    arm_angle_links, travels > 10 cm over the curve)."""
+    grasp, reach, result, _ = panda_elbow
+    assert len(reach) >= 5 and len(result.curve) >= 5
+    elbows = []
+    for point in result.curve:
+        q = point.q[:7]
+        deviation = np.abs(panda_arm.pose(q) - grasp.palm_pose).max()
+        assert deviation < 2e-7, (point.psi, deviation)
+        assert np.all((q >= panda_arm.limits[:, 0]) & (q <= panda_arm.limits[:, 1]))
+        assert point.q[7:] == pytest.approx(grasp.q0[7:])
+        elbows.append(panda_arm.pose(q, "panda_link4")[:3, 3])
+    elbows = np.array(elbows)
+    assert np.linalg.norm(elbows.max(axis=0) - elbows.min(axis=0)) > 0.1
+    assert any(np.array_equal(p.q, grasp.q0) for p in result.curve)  # the nominal itself
+
+
+def test_panda_best_angle_is_reported_on_fresh_draws(panda_elbow):
+    """The best angle is the selection's argmax; its reported P(FC) is that of an
+    independent evaluation on the fresh stream SeedSequence([seed, 1]) (not the selection's),
+    the nominal's too, and the certificate bounds every rival's observed fresh advantage."""
+    from dataclasses import replace
+
+    grasp, _, result, engine = panda_elbow
+    best = max(result.curve, key=lambda p: p.p_fc)
+    assert result.best_psi == best.psi and result.engine == "pybullet"
+    fresh = np.random.SeedSequence([7, 1])
+    again = evaluate_robot_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=fresh,
+                                 engine=engine)
+    assert result.best_p_fc == again.p_fc
+    selection = evaluate_robot_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=7,
+                                     engine=engine)
+    assert best.p_fc == selection.p_fc
+    noise = JointNoise(SIGMA)
+    assert not np.allclose(noise.sample(30, 7, np.random.default_rng(7)),
+                           noise.sample(30, 7, np.random.default_rng(fresh)))
+    nominal = evaluate_robot_grasp(grasp, sigma=SIGMA, n=30, seed=fresh, engine=engine)
+    assert result.nominal_p_fc == nominal.p_fc
+    cert = result.certificate.to_json()
+    assert cert["chosen_psi"] == result.best_psi and cert["fresh_draws"] == 30
+    best_fresh = again.draws.outcome == FORCE_CLOSURE
+    for rival in cert["rivals"]:
+        point = next(p for p in result.curve if p.psi == rival["psi"])
+        observed = point.fresh_fc.mean() - best_fresh.mean()
+        assert rival["difference"] == pytest.approx(observed)
+        assert observed <= rival["upper"] <= cert["bound"] + 1e-12
+
+
+def test_elbow_cli_for_the_panda(capsys):
+    out = run_json(capsys, "elbow", "--robot", "panda", "--object", "cube", "--grasp", "1",
+                   "--samples", "4", "--json")
+    assert out["robot"] == "panda" and out["engine"] == "pybullet" and out["samples"] == 4
+    assert out["certificate"]["fresh_draws"] == 4 and len(out["curve"]) >= 3
+    for args, message in [(["--engine", "fast"], "--engine fast: robot 'panda'"),
+                          (["--processes", "2"], "--processes is not available"),
+                          (["--report", "x.html"], "--report is not available"),
+                          (["--grasp", "99"], "--grasp: grasp index 99 out of range"),
+                          (["--object", "mug"], "no shipped grasps of 'mug'")]:
+        assert main(["elbow", "--robot", "panda", "--object", "cube", *args]) == 2
+        err = capsys.readouterr().err.strip()
+        assert message in err and "\n" not in err, err
