@@ -4,6 +4,8 @@ sigma-0 force closure of the planned grasps and the P(FC) of a ranking."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -147,3 +149,25 @@ def test_hull_samples_lie_on_and_cover_the_hull():
     probe = np.einsum("nk,nkj->nj", w, pick)
     nearest = np.min(np.linalg.norm(probe[:, None] - points[None], axis=2), axis=1)
     assert nearest.max() <= spacing
+
+
+def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
+    """``rank --engine fast`` and ``evaluate --engine fast`` of the Panda's grasps print the
+    P(FC) that evaluate_robot_grasp gives; ``--engine physics`` is refused in one line."""
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.world.grasps import save_grasps
+
+    path = tmp_path / "g.json"
+    save_grasps(grasps[:2], path, planner_seed=0)
+    out = tmp_path / "ranked.csv"
+    assert main(["rank", str(path), "--sigma", str(SIGMA), "--samples", "40", "--engine",
+                 "fast", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for g in grasps[:2]:
+        expected = evaluate_robot_grasp(g, sigma=SIGMA, n=40, seed=0, engine="fast")
+        assert f"{expected.p_fc:.3f}" in printed
+    assert main(["evaluate", "--grasps", str(path), "--sigma", str(SIGMA), "--samples",
+                 "10", "--engine", "fast", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["samples"] == 10
+    assert main(["rank", str(path), "--samples", "10", "--engine", "physics"]) == 2
+    assert "pybullet or fast engine only" in capsys.readouterr().err
