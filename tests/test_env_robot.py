@@ -122,7 +122,7 @@ def test_reward_equals_the_robot_evaluation():
     """Plumbing: the reward is evaluate_robot_grasp at the env's configuration with the
     draw seed it reports (a wrong configuration, seed, noise or draw count fails it)."""
     env = gym.make("KineGrasp-v0", robot="panda", n_draws=12).unwrapped
-    env.reset(seed=1, options={"object": "spray_flask", "grasp": 1, "sigma": 0.01})
+    env.reset(seed=1, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
     _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
     evaluation = evaluate_robot_grasp(here, sigma=info["sigma"], n=12, seed=info["draw_seed"],

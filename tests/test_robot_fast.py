@@ -171,3 +171,24 @@ def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["samples"] == 10
     assert main(["rank", str(path), "--samples", "10", "--engine", "physics"]) == 2
     assert "pybullet or fast engine only" in capsys.readouterr().err
+
+
+def test_a_mesh_object_same_outcomes_on_the_same_draws():
+    """The drill (a mesh object, whose pybullet points lie up to its collision margin off the
+    surface): the Panda's shipped drill grasps give the same outcome in both engines on at
+    least SAME_OUTCOME of the same draws."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    fast, reference = make_engine("fast", "panda", "drill"), make_engine("pybullet", "panda",
+                                                                        "drill")
+    rng = np.random.default_rng(4)
+    same = total = 0
+    for g in shipped_grasps("drill", "panda")[:2]:
+        q = np.repeat(np.asarray(g.q0)[None], DRAWS, axis=0)
+        q[:, :7] += JointNoise(SIGMA).sample(DRAWS, 7, rng)
+        a, b = fast.run(q), reference.run(q)
+        same += int((a.outcome == b.outcome).sum())
+        total += DRAWS
+    fast.close()
+    reference.close()
+    assert same >= SAME_OUTCOME * total, f"{same} of {total}"

@@ -356,7 +356,9 @@ class RobotWorld(GraspWorld):
             if not rows:
                 continue
             row = min(rows, key=self.distance)
-            point = self.obj.to_object(np.array(row[6]))
+            # pybullet's object point lies up to the object's collision margin off its
+            # surface (mesh shapes): the exact surface point decides the face
+            point = self.obj.closest_points(self.obj.to_object(np.array(row[6]))[None])[0][0]
             face = face_of(self.obj, point)
             if face is None:
                 normal = -np.array(row[7]) @ rot
