@@ -382,3 +382,24 @@ def test_a_compile_is_announced_with_progress(monkeypatch):
     assert lines[0].startswith("kinegrasp: the numerical kernels are compiled on first use, "
                                "once per machine (about 2 minutes on a 2-core machine)")
     assert lines[-1].startswith("kinegrasp: 1 kernels compiled in 0:0")
+
+
+def test_finish_runs_the_exit_handlers_flushes_and_waits_for_working_threads():
+    """The console script's exit (cli.main.finish): the exit status given, every atexit
+    handler run, buffered output flushed (a pipe, not a terminal), and a non-daemon thread
+    still working finished before the process ends."""
+    import subprocess
+    import sys
+
+    code = ("import atexit, sys, threading, time\n"
+            "from kinegrasp_env.cli.main import finish\n"
+            "atexit.register(lambda: print('handler', end=''))\n"
+            "def work():\n"
+            "    time.sleep(0.3); print('thread ', end='')\n"
+            "threading.Thread(target=work).start() if len(sys.argv) > 1 else None\n"
+            "print('out ', end='')\n"
+            "finish(3)\n")
+    for argv, expected in (([], "out handler"), (["thread"], "out thread handler")):
+        done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True,
+                              text=True, timeout=60)
+        assert (done.returncode, done.stdout) == (3, expected), (argv, done)

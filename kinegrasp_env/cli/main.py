@@ -11,11 +11,15 @@ traceback, then one line asking to report it, exit status 1. One module per comm
 from __future__ import annotations
 
 import argparse
+import atexit
 import errno
+import os
 import re
 import sys
+import threading
 import traceback
 from collections.abc import Sequence
+from typing import NoReturn
 
 from kinegrasp_env import __version__, kernel_notice
 from kinegrasp_env.cli import (
@@ -94,3 +98,30 @@ def _bug(command: str) -> int:
     traceback.print_exc()
     print(f"kinegrasp {command}: {BUG_HINT}", file=sys.stderr)
     return 1
+
+
+def run() -> NoReturn:
+    """The ``kinegrasp`` console script and ``python -m kinegrasp_env.cli``: :func:`main`,
+    then :func:`finish`."""
+    finish(main())
+
+
+def finish(code: int) -> NoReturn:
+    """Leave the process with exit status ``code`` once its work is done: the exit handlers
+    run (``atexit``: the kernel notice's summary, multiprocessing's clean-up), stdout and
+    stderr are flushed, then the process ends without Python's finalization, which with the
+    compiled kernels loaded tears down numba's LLVM objects for about 0.15 s after every
+    command (``benchmarks/bench_coldstart.py``). Every file a command writes is closed by the
+    command itself. While a thread other than the main one and daemons still runs, the
+    ordinary exit waits for it instead."""
+    if any(t is not threading.main_thread() and not t.daemon and t.is_alive()
+           for t in threading.enumerate()):
+        sys.exit(code)
+    atexit._run_exitfuncs()  # what the interpreter's own exit would run first
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nothing more can reach it
+            pass
+    os._exit(code)
+
