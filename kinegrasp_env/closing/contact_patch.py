@@ -165,3 +165,26 @@ def patch_centre(finger_vertices: np.ndarray, face_vertices: np.ndarray, inward:
     if len(patch) == 0:
         return None
     return on_plane + centroid_2d(_hull_2d(patch) if len(patch) >= 3 else patch) @ basis
+
+
+def face_patch_point(parts: tuple[np.ndarray, ...], finger_vertices: np.ndarray,
+                     face: tuple[int, np.ndarray], point: np.ndarray) -> np.ndarray:
+    """The contact point of a finger pressing on a face: the centre of its patch
+    (:func:`patch_centre`), or ``point`` (3,) where the face has fewer than three vertices or
+    the footprint misses it.
+
+    Args:
+        parts: the object's convex parts, each (n_i, 3) vertices (object frame).
+        finger_vertices: (V, 3) the finger link's geometry (object frame).
+        face: (part index, its face plane (4,): outward unit normal, offset).
+        point: (3,) the closest point found on that face (object frame).
+    """
+    part, plane = face
+    corners = parts[part]
+    on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
+    if len(on_face) < 3:
+        return point
+    on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
+    centre = patch_centre(finger_vertices, on_face, -plane[:3], on_plane)
+    return point if centre is None else centre
+

@@ -47,7 +47,7 @@ import numpy as np
 
 from kinegrasp_env.closing.capsule_gap import posed_min_distance
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import FACE_TOL, link_hull_vertices, patch_centre
+from kinegrasp_env.closing.contact_patch import face_patch_point, link_hull_vertices
 from kinegrasp_env.closing.generic_reference import (
     EDGE_TOL,
     MAX_STEPS,
@@ -487,11 +487,4 @@ class FastRobotHand:
                     point: np.ndarray) -> np.ndarray:
         """The centre of the patch of a link (hull vertices (V, 3), object frame) on
         ``face`` (part, plane), or ``point`` (3,) where there is none."""
-        part, plane = face
-        corners = self.obj.parts[part]
-        on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
-        if len(on_face) < 3:
-            return point
-        on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
-        centre = patch_centre(vertices, on_face, -plane[:3], on_plane)
-        return point if centre is None else centre
+        return face_patch_point(self.obj.parts, vertices, face, point)

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import FACE_TOL, link_hull_vertices, patch_centre
+from kinegrasp_env.closing.contact_patch import face_patch_point, link_hull_vertices
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, pybullet
@@ -337,14 +337,7 @@ class RobotWorld(GraspWorld):
         vertices = link_hull_vertices(self.bullet, self.bodies["robot"], self.link_index[link])
         if vertices is None:
             return point
-        part, plane = face
-        corners = self.obj.parts[part]
-        on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
-        if len(on_face) < 3:
-            return point
-        on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
-        centre = patch_centre(self.obj.to_object(vertices), on_face, -plane[:3], on_plane)
-        return point if centre is None else centre
+        return face_patch_point(self.obj.parts, self.obj.to_object(vertices), face, point)
 
     def _contacts(self, f: int, contact_tol: float) -> list[RobotContact]:
         """The touching links of finger f at the current state, one contact each."""

@@ -220,14 +220,12 @@ def contact_quality(points, normals, *, contact_model: ContactModel = "point",
         return ferrari_canny(points, normals, friction=friction, num_edges=num_edges,
                              torque_scale=torque_scale, center=center, method=method,
                              norm=norm)
-    _check_soft_method(method, norm)
     if np.ndim(points) != 2:
         raise ValueError(f"points must have shape (k, 3), got {np.shape(points)}")
-    w = contact_wrenches(points, normals, contact_model=model, friction=friction,
-                         num_edges=num_edges, torque_scale=torque_scale, center=center,
-                         finger_radius=finger_radius, torsion=torsion)
-    return float(_soft_quality(w[None], np.shape(points)[0], num_edges, friction, norm,
-                               method)[0])
+    return float(contact_quality_batch(
+        np.asarray(points)[None], np.asarray(normals)[None], contact_model=model,
+        friction=friction, num_edges=num_edges, torque_scale=torque_scale, center=center,
+        finger_radius=finger_radius, torsion=torsion, method=method, norm=norm)[0])
 
 
 def contact_force_closure(points, normals, **kwargs) -> bool:

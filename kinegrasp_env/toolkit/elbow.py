@@ -245,6 +245,16 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
         point.fresh_fc = _scoring_draws(grasp, point.q, noise, samples, seed, kwargs)
         report(len(curve) + k + 1)
     nominal = next(p for p in curve if p.q is nominal_q)
+    return elbow_result(grasp, curve, best, nominal, nominal_psi, noise, samples, seed, engine,
+                        step, epsilon, delta)
+
+
+def elbow_result(grasp: Grasp, curve: list[ElbowPoint], best: ElbowPoint, nominal: ElbowPoint,
+                 nominal_psi: float, noise: JointNoise, samples: int, seed: int, engine: str,
+                 step: float, epsilon: float, delta: float) -> ElbowResult:
+    """The result of an elbow search whose curve (each point with its ``fresh_fc`` scored)
+    chose ``best``: the best and the nominal angle's P(FC) on the fresh draws with Wilson
+    intervals, the paired gain and the certificate over the rivals (any robot)."""
     best_fc, nominal_fc = best.fresh_fc, nominal.fresh_fc
     gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
     rivals = [p for p in curve if p is not best]

@@ -36,19 +36,18 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.stats import paired_interval, wilson_interval
 from kinegrasp_env.toolkit.elbow import (
     COARSE_EVERY,
     FINE_STEP,
     REFINE_TOP,
     ElbowPoint,
     ElbowResult,
+    elbow_result,
     wrap_angle,
 )
 from kinegrasp_env.toolkit.elbow_certificate import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
-    certify,
     check_levels,
 )
 from kinegrasp_env.toolkit.robot_planner import clearance
@@ -169,20 +168,5 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
             engine.close()
     best = max(curve, key=lambda p: p.p_fc)
     nominal = next(p for p in curve if p.q is reach[nominal_index][1])
-    best_fc, nominal_fc = best.fresh_fc, nominal.fresh_fc
-    gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
-    rivals = [p for p in curve if p is not best]
-    certificate = certify(best.psi, best_fc, [p.psi for p in rivals],
-                          np.array([p.fresh_fc for p in rivals]).reshape(len(rivals),
-                                                                          best_fc.size),
-                          epsilon, delta)
-    n = best_fc.size
-    return ElbowResult(
-        object=grasp.object, grasp=str(grasp.id),
-        sigma=noise.sigma if isinstance(noise.sigma, float) else list(noise.sigma),
-        samples=int(samples), seed=int(seed), engine="pybullet", nominal_psi=nominal.psi,
-        nominal_p_fc=float(nominal_fc.mean()),
-        nominal_p_fc_ci=wilson_interval(int(nominal_fc.sum()), n), best_psi=best.psi,
-        best_q=best.q, best_p_fc=float(best_fc.mean()),
-        best_p_fc_ci=wilson_interval(int(best_fc.sum()), n), gain=gain, gain_ci=(lo, hi),
-        certificate=certificate, grid_step=float(step), curve=curve)
+    return elbow_result(grasp, curve, best, nominal, nominal.psi, noise, samples, seed,
+                        "pybullet", step, epsilon, delta)
