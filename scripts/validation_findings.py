@@ -1,4 +1,4 @@
-"""The physics-validation figures of the docs' physics guide, from the files `kinegrasp validate` writes.
+"""The physics guide's validation figures, from the files `kinegrasp validate` writes.
 
     python scripts/validation_findings.py out/validate_0133 out/validate_0333 \
         --table1 out/table1_fast200 out/table1_physics200
