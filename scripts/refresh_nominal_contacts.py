@@ -9,7 +9,7 @@ that would be a different grasp, for ``scripts/make_grasp_sets.py`` to plan agai
 
 The contacts are the root of the exact gap to 1e-9 m (the polish), reached from wherever the
 conservative steps left the finger: a change of those steps moves them by ~1e-10-1e-9 m (the
-per-link speed bounds of issue 21: points by at most 2e-9 m, Q by 1.8e-7 relative).
+per-link speed bounds moved points by at most 2e-9 m, Q by 1.8e-7 relative).
 """
 
 from __future__ import annotations
