@@ -1,0 +1,332 @@
+"""The ``rank`` command: candidates (grasp files or palm-pose candidates) ranked by
+robustness on common draws, fixed-n or adaptive with its certificate, resumable, written as a
+CSV with the rejected candidates beside it."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import functools
+import hashlib
+import io
+import json
+import math
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    engine_name,
+    executor_from,
+    finite_float,
+    noise_from,
+    output_file,
+    positive_int,
+    reported,
+)
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot
+
+if TYPE_CHECKING:
+    from kinegrasp_env.toolkit.ranking import CandidateResult
+
+
+CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
+               "error", "samples", "engine")
+CHUNK = 250
+#: The friction cone ``rank`` scores with (the library's defaults, docs/conventions.md) and
+#: its noise sampler: fixed, but recorded in the resume log with every other setting.
+FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
+
+def _fmt(value: float) -> str:
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else \
+        f"{value:.6g}"
+
+
+def _fixed(value: float) -> str:
+    """Five decimals for the console table ('-' where undefined)."""
+    return "-" if value is None or math.isnan(value) else f"{value:.5f}"
+
+
+def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, executor) -> list:
+    """Each candidate moved to its most robust elbow angle (``kinegrasp elbow``'s optimizer),
+    chosen on draws of seed + 1, so the ranking's own draws (seed) stay independent of the
+    choice."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.elbow import optimize_elbow, with_configuration
+
+    moved = []
+    for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
+                      file=sys.stderr, disable=None):
+        best = optimize_elbow(grasp, noise, samples, seed + 1,
+                              engine="fast" if engine == "physics" else engine,
+                              executor=executor)
+        chosen = with_configuration(grasp, best.best_q, best.best_psi)
+        moved.append(dataclasses.replace(chosen, id=f"{grasp.id}e"))
+    return moved
+
+
+def cmd_rank(args) -> int:
+    from kinegrasp_env.cli import resume
+    from kinegrasp_env.cli.report import report_path, write_rank_report
+    from kinegrasp_env.montecarlo import evaluate
+
+    grasps, digest, rejected = _candidates(args.candidates)
+    noise, sigma, samples, seed = noise_from(args)
+    engine = engine_name(args.engine)
+    out = output_file(args.out, "--out")
+    robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
+    if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
+        results = rank_robot(args, grasps, robot, sigma, samples, seed)
+        _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
+                       "pybullet")
+        _write_rejected(rejected, out)
+        return 0
+    report_path(args.report)
+    chunk = min(CHUNK, samples)
+    layout = evaluate.chunk_sizes(samples, chunk)
+
+    def evaluator(index: int, first: int, count: int, outcomes: bool = False):
+        """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
+        each draw's force-closure outcome (what adaptive ranking pairs across candidates)."""
+        counts, moments, draws = evaluate.run_chunks(
+            grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
+            friction=FRICTION, num_edges=NUM_EDGES, engine=engine, method=METHOD,
+            executor=executor, return_draws=outcomes)
+        value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
+        return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
+
+    partial = out.with_name(out.name + ".partial.jsonl")
+    settings = {"candidates_sha256": digest, "engine": engine, "friction": FRICTION,
+                "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
+                "samples": samples, "chunk": chunk, "seed": seed}
+    if args.noise_spec:  # the whole model is a setting: another model does not resume
+        from kinegrasp_env.sampling.noise_spec import spec_of
+
+        settings["noise_model"] = spec_of(noise)
+    top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
+    certify = _certify_settings(args) if args.adaptive else {}
+    if args.adaptive and top_k >= len(grasps):
+        raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
+    if args.adaptive and partial.exists():
+        raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
+                       "cannot resume; delete it, or resume without --adaptive")
+    if args.best_elbow:  # a different candidate set: part of the resume settings
+        settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
+    with executor_from(args) as executor:
+        if args.best_elbow:
+            grasps = best_elbows(grasps, noise, settings["best_elbow_samples"], seed, engine,
+                                 executor)
+        done = {}
+        if not args.adaptive:
+            existed = partial.exists()
+            done = resume.resume(partial, settings, len(grasps))
+            if existed:
+                print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
+                      f"{partial}", file=sys.stderr)
+        results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
+                                  done, certify)
+    _write_ranking(grasps, results, out, partial, engine, adaptive)
+    _write_rejected(rejected, out)
+    if args.report:
+        write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
+                          engine=engine)
+    return 0
+
+
+def _candidates(path: str) -> tuple[list, str, list]:
+    """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
+    candidates (none but for a palm-pose file); refuses a file with
+    no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
+    (``kinegrasp_env.toolkit.candidates``) is solved to grasps first; its rejected candidates
+    go to stderr and, once the ranking is written, to ``<out>.rejected.csv``."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    if Path(path).is_dir():
+        raise CLIError(f"{path} is a folder, not a grasp file")
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
+
+    if is_candidate_file(path):
+        return _palm_pose_candidates(path)
+    with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+        grasps = load_grasps(path)
+    if not grasps:
+        raise CLIError(f"{path}: the file holds no grasps")
+    first: dict[str, int] = {}
+    for i, grasp in enumerate(grasps):
+        if grasp.id in first:
+            raise CLIError(f"{path}: grasps {first[grasp.id]} and {i} have the same id "
+                           f"{grasp.id!r}; candidate ids must be unique")
+        first[grasp.id] = i
+    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
+
+
+def _palm_pose_candidates(path: str) -> tuple[list, str, list]:
+    """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
+    rejected candidates); each rejected one is a line on stderr."""
+    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+
+    with reported(ValueError):  # bad entries: one line naming the candidate
+        name, candidates = load_candidates(path)
+    grasps, rejected = solve_all(name, candidates)
+    for r in rejected:
+        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    if not grasps:
+        raise CLIError(f"{path}: none of the {len(candidates)} candidates is reachable, "
+                       "clear and closing; nothing ranked")
+    return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), rejected
+
+
+def _write_rejected(rejected: list, out: Path) -> None:
+    """``<out>.rejected.csv``: id, reason, detail of each rejected palm-pose candidate (an
+    older one is removed when there are none)."""
+    from kinegrasp_env.world.grasps import write_atomic
+
+    path = out.with_name(out.name + ".rejected.csv")
+    if not rejected:
+        if path.exists():
+            path.unlink()
+        return
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(("id", "reason", "detail"))
+    writer.writerows((r.id, r.reason, r.detail) for r in rejected)
+    write_atomic(path, buffer.getvalue())
+    print(f"{len(rejected)} rejected candidates written to {path}")
+
+
+def _certify_settings(args) -> dict:
+    """``--delta`` in (0, 1) and ``--epsilon`` in [0, 1) of ``rank --adaptive``."""
+    delta = finite_float(args.delta, "--delta")
+    if not 0 < delta < 1:
+        raise CLIError(f"--delta must be in (0, 1), got {delta:g}")
+    epsilon = finite_float(args.epsilon, "--epsilon")
+    if not 0 <= epsilon < 1:
+        raise CLIError(f"--epsilon must be in [0, 1), got {epsilon:g}")
+    return {"delta": delta, "epsilon": epsilon}
+
+
+def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
+          done: dict[int, CandidateResult], certify: dict) -> tuple[list, object]:
+    """Fixed-n (``done``: candidates read back from ``partial``; each one finished now is
+    appended to it) or adaptive ranking (``certify``: its delta and epsilon): (the results
+    in the order to show, the adaptive run's report or None)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.cli import resume
+    from kinegrasp_env.toolkit.ranking import CandidateResult, order, rank_fixed
+
+    if args.adaptive:
+        report = _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion,
+                                **certify)
+        return report.results, report
+    bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
+    with partial.open("a") as log:
+
+        def record(index: int) -> None:
+            bar.update(1)
+            if index in done:
+                return
+            log.write(json.dumps(resume.result_to_json(results_so_far[index])) + "\n")
+            log.flush()
+
+        results_so_far: dict[int, CandidateResult] = {}
+
+        def tracked(index: int, first: int, count: int):
+            value = evaluator(index, first, count)
+            result = CandidateResult(index)
+            result.add(*value, count)
+            results_so_far[index] = result
+            return value
+
+        results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
+                                   done=done), args.criterion)
+    bar.close()
+    return results, None
+
+
+def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
+                   delta: float, epsilon: float):
+    """Adaptive ranking under one overall progress report (a bar that advances with every
+    chunk drawn, or a line per round off a terminal); the summary comes after the bar."""
+    from kinegrasp_env.toolkit.progress import Progress
+    from kinegrasp_env.toolkit.ranking import AdaptiveProgress, rank_adaptive
+
+    with Progress("rank", len(grasps) * sum(layout), len(layout), word="round") as bar:
+        def update(state: AdaptiveProgress) -> None:
+            bar.advance(state.draws, state.bound)
+            if state.round_done:
+                bar.cell_done(f"{state.undecided} of {len(grasps)} candidates undecided")
+
+        paired = functools.partial(evaluator, outcomes=True)
+        report = rank_adaptive(len(grasps), paired, len(layout), chunk, top_k=top_k,
+                               delta=delta, epsilon=epsilon, criterion=criterion,
+                               progress=update)
+    print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
+          f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
+          f"{'certified' if report.separated else 'NOT certified'} (delta {delta:g}, epsilon "
+          f"{epsilon:g}) after {report.rounds} rounds", file=sys.stderr)
+    return report
+
+
+def _ordinal(k: int) -> str:
+    return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
+
+
+def certified_line(report, samples: int) -> str:
+    """What an adaptive run certified, at which delta and epsilon (the line under its
+    table)."""
+    k, delta, eps = len(report.top), f"{report.delta:g}", f"{report.epsilon:g}"
+    count = {label: report.certified.count(label) for label in ("top-k", "rest", "unresolved")}
+    best = "best" if k == 1 else f"{_ordinal(k)} best"
+    if eps == "0":
+        claim = "the most robust" if k == 1 else f"in the top {k} by P(FC)"
+    else:
+        claim = f"within {eps} of the {best} P(FC)"
+    rows = "the row marked top-k is" if k == 1 else f"each of the {k} rows marked top-k is"
+    if report.separated:
+        return (f"certified at delta {delta}, epsilon {eps}: {rows} {claim} (false with "
+                f"probability <= {delta})")
+    return (f"NOT certified at delta {delta}, epsilon {eps} within {samples} draws per "
+            f"candidate: {count['top-k']} rows marked top-k (each {claim}), {count['rest']} "
+            f"rest (out of the top {k}), {count['unresolved']} unresolved")
+
+
+def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
+                   engine: str, adaptive=None) -> None:
+    """The ranking as CSV (atomically), then as a console table; ``adaptive`` (an adaptive
+    run's report) adds the ``certified`` column and the line saying what it certified."""
+    from kinegrasp_env.world.grasps import write_atomic
+
+    rows = []
+    for r in results:
+        g = grasps[r.index]
+        lo, hi = r.interval()
+        mean, std, skew = r.q_stats()
+        rows.append({"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
+                     "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
+                     "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
+                     "samples": r.trials, "engine": engine})
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    labels = adaptive.certified if adaptive is not None else [None] * len(rows)
+    extra = ("certified",) if adaptive is not None else ()
+    writer.writerow(CSV_COLUMNS + extra)
+    for row, label in zip(rows, labels, strict=True):
+        writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
+                         row["engine"], *([label] if extra else [])])
+    write_atomic(out, buffer.getvalue())
+    if partial.exists():
+        partial.unlink()
+    print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
+          f"{'draws':>6}" + (f" {'certified':>10}" if extra else ""))
+    for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
+        print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
+              f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
+              f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + (f" {label:>10}" if extra else ""))
+    if adaptive is not None:
+        print(certified_line(adaptive, max(r.trials for r in results)))
+    print(f"written to {out}")
+
+
