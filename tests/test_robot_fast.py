@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from kinegrasp_env.closing.generic_fast import hull_samples
+from kinegrasp_env.closing.link_geometry import hull_samples
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise

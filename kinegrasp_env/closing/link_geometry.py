@@ -1,0 +1,142 @@
+"""A robot link's collision geometry for the fast generic closing: its hull vertices,
+surface samples and convex parts in the link's frame (read once from pybullet), the distance
+grid's error bound, and where a point lies along an edge."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.contact_patch import link_hull_vertices
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.world.polytope import ConvexPart, face_planes
+from kinegrasp_env.world.sdf import DistanceGrid
+
+#: Spacing of the finger links' surface samples (metres): they bound the gap far from the
+#: object, so the spacing sets only how soon the exact distance takes over.
+FINGER_SPACING = 3.0e-3
+#: Spacing of the other links' surface samples (metres): they screen start collisions.
+ARM_SPACING = 6.0e-3
+
+
+def grid_error(grid: DistanceGrid) -> float:
+    """Bound (metres) on |trilinear grid value - exact distance| for a 1-Lipschitz distance
+    with exact node values: sum_i w_i |x_i - x| <= sqrt(sum_k f_k (1 - f_k)) h <= h sqrt(3)/2."""
+    return 0.5 * np.sqrt(3.0) * float(grid.spacing)
+
+
+@dataclass(frozen=True)
+class LinkGeometry:
+    """One link's collision geometry in its URDF frame.
+
+    Attributes:
+        vertices: (V, 3) hull vertices of every collision shape, metres.
+        points: (P, 3) surface samples (the vertices first), metres.
+        spacing: the lattice spacing of the samples, metres.
+        parts: each collision shape's hull as a :class:`~kinegrasp_env.world.polytope.
+            ConvexPart` (exact closest points on it).
+    """
+
+    vertices: np.ndarray
+    points: np.ndarray
+    spacing: float
+    parts: tuple[ConvexPart, ...]
+
+    @property
+    def sphere(self) -> tuple[np.ndarray, float]:
+        """((1, 3) centre, radius): a ball (metres) holding every point."""
+        centre = 0.5 * (self.points.min(axis=0) + self.points.max(axis=0))
+        return centre[None], float(np.linalg.norm(self.points - centre, axis=1).max())
+
+
+def hull_samples(vertices: np.ndarray, spacing: float) -> np.ndarray:
+    """(P, 3) points on the convex hull of ``vertices`` (V, 3): the vertices, then on every
+    hull triangle rows parallel to its longest edge, ceil(height / spacing) + 1 rows of
+    ceil(length / spacing) + 1 evenly spaced points each (every surface point within
+    ``spacing`` of a sample)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(vertices)
+    out = [vertices[hull.vertices]]
+    for tri in hull.simplices:
+        p = vertices[tri]
+        lengths = [np.linalg.norm(p[(i + 1) % 3] - p[i]) for i in range(3)]
+        i = int(np.argmax(lengths))
+        a, b, c = p[i], p[(i + 1) % 3], p[(i + 2) % 3]
+        base = b - a
+        height = np.linalg.norm(np.cross(base, c - a)) / max(lengths[i], 1e-300)
+        rows = int(np.ceil(height / spacing))
+        for w in np.linspace(0.0, 1.0, rows + 1):
+            start, end = a + w * (c - a), b + w * (c - b)
+            count = int(np.ceil(np.linalg.norm(end - start) / spacing)) + 1
+            s = np.linspace(0.0, 1.0, count)[:, None]
+            out.append(start + s * (end - start))
+    return np.unique(np.round(np.vstack(out), 12), axis=0)
+
+
+def link_geometry(description: RobotDescription, finger_spacing: float = FINGER_SPACING,
+                  arm_spacing: float = ARM_SPACING) -> dict[str, LinkGeometry]:
+    """Every link with collision geometry -> its :class:`LinkGeometry` (read from pybullet
+    once, the robot at its open configuration; each shape's hull sampled on its own)."""
+    from pybullet_utils.bullet_client import BulletClient
+
+    from kinegrasp_env.world.sim import pybullet
+
+    bullet = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+        names = {-1: description.model.base_link}
+        for j in range(bullet.getNumJoints(robot)):
+            names[j] = bullet.getJointInfo(robot, j)[12].decode()
+        hand = set(description.finger_links)
+        out = {}
+        for index, name in names.items():
+            world = link_hull_vertices(bullet, robot, index)
+            if world is None:
+                continue
+            if index < 0:  # the base's URDF frame: the world origin (its fixed base)
+                position, quaternion = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+            else:
+                state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
+                position, quaternion = state[4], state[5]
+            rot = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
+            local = (world - np.asarray(position)) @ rot
+            counts = [_shape_vertex_count(bullet, robot, index, s)
+                      for s in bullet.getCollisionShapeData(robot, index)]
+            spacing = finger_spacing if name in hand else arm_spacing
+            pieces, parts, start = [], [], 0
+            for count in counts:
+                shape = local[start:start + count]
+                pieces.append(hull_samples(shape, spacing))
+                parts.append(ConvexPart(shape, face_planes(shape)))
+                start += count
+            out[name] = LinkGeometry(local, np.vstack([local, *pieces]), spacing, tuple(parts))
+        return out
+    finally:
+        bullet.disconnect()
+
+
+def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
+    """Vertices :func:`link_hull_vertices` gives one collision shape (its rows, in order)."""
+    from kinegrasp_env.closing.contact_patch import _mesh_hull
+
+    return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))
+
+
+def edge_along(segments: np.ndarray, point: np.ndarray, tol: float = 1e-7
+                ) -> np.ndarray | None:
+    """(3,) unit direction of the one segment of ``segments`` (E, 2, 3) whose interior holds
+    ``point`` (3,) (within ``tol`` metres, not within ``tol`` of its ends), or None."""
+    a, b = segments[:, 0], segments[:, 1]
+    ab = b - a
+    length2 = np.einsum("ij,ij->i", ab, ab)
+    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / np.maximum(length2, 1e-300), 0.0, 1.0)
+    gap = np.linalg.norm(a + s[:, None] * ab - point, axis=1)
+    length = np.sqrt(length2)
+    inside = (gap < tol) & (s * length > tol) & ((1.0 - s) * length > tol)
+    on_end = np.any((np.linalg.norm(a - point, axis=1) < tol)
+                    | (np.linalg.norm(b - point, axis=1) < tol))
+    if int(inside.sum()) != 1 or on_end:
+        return None
+    return ab[inside][0] / length[inside][0]
