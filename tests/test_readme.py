@@ -271,7 +271,7 @@ def _run(command: str, scratch: Path, env: dict) -> tuple[subprocess.CompletedPr
 
 def _prerequisites(block, scratch: Path, env: dict, page: Page = README_PAGE) -> list[str]:
     """Make the out/tour/ files the block reads but earlier blocks write (``rank`` on what the
-    tour's ``plan`` wrote): run those commands (once per session, their files cached) in
+    tour's ``plan`` wrote): run those commands (once per pytest run, their files cached) in
     scratch, output not compared. The problems found."""
     first = page.first[block.index]
     written: list[str] = []

@@ -41,8 +41,8 @@ from tests.cli_helpers import run_cli
 
 @pytest.fixture(scope="module", autouse=True)
 def own_catalog(tmp_path_factory):
-    """The placed copies of these tests live in a catalog of their own (the session's stays
-    as the other tests expect it: built-in objects only)."""
+    """The placed copies of these tests live in a catalog of their own (the one the other
+    tests share stays as they expect it: built-in objects only)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("KINEGRASP_HOME", str(tmp_path_factory.mktemp("support_home")))
         yield
