@@ -14,14 +14,23 @@ import pytest
 
 from kinegrasp_env.physics.grip_forces import (
     GripContact,
+    GripJoints,
     GripTorques,
     SpringGrip,
     balanced_torques,
+    hand_joints,
     loaded_joints,
     tip_offsets,
+    torque_rows,
 )
 
 LIMITS = np.array([2.1, 1.4] * 3)
+
+
+def flexion(axes, origins, tips=None, scale: float = 1.0) -> GripJoints:
+    """The six flexion joints (torque limits ``scale`` x LIMITS), no spread joint."""
+    tips = np.zeros((3, 3)) if tips is None else tips
+    return hand_joints(axes, origins, tips, (2.1 * scale, 1.4 * scale))
 
 
 def planar_finger(base: np.ndarray, direction: np.ndarray, axis: np.ndarray,
@@ -59,7 +68,7 @@ def three_finger_cube(offset: float = 0.0):
 def test_the_solution_is_in_equilibrium_inside_the_cones_and_within_the_limits():
     contacts, axes, origins = three_finger_cube(offset=0.01)
     friction = 0.5
-    out = balanced_torques(contacts, axes, origins, np.zeros(3), LIMITS, friction)
+    out = balanced_torques(contacts, flexion(axes, origins), np.zeros(3), friction)
     assert isinstance(out, GripTorques)
     points = np.array([c.point for c in contacts])
     normals = np.array([c.normal for c in contacts])
@@ -90,11 +99,9 @@ def test_the_torques_are_the_power_of_the_forces_by_finite_differences():
     origins, tip = planar_finger(base, direction, axis, angles)
     force = np.array([0.3, 0.1, -1.0])
     contact = GripContact(0, 1, tip, np.array([0.0, 0.0, -1.0]))
-    from kinegrasp_env.physics.grip_forces import torque_rows
-
     axes6 = np.tile(axis, (6, 1))
     origins6 = np.vstack([origins, np.zeros((4, 3))])
-    rows = torque_rows([contact], axes6, origins6, force[None, None, :])[:, 0]
+    rows = torque_rows([contact], flexion(axes6, origins6), force[None, None, :])[:, 0]
     h = 1e-6
     for j in range(2):
         bumped = list(angles)
@@ -106,7 +113,7 @@ def test_the_torques_are_the_power_of_the_forces_by_finite_differences():
 def test_antipodal_contacts_need_the_least_friction():
     contacts, axes, origins = three_finger_cube()
     two = contacts[:2]
-    out = balanced_torques(two, axes, origins, np.zeros(3), LIMITS, 0.5)
+    out = balanced_torques(two, flexion(axes, origins), np.zeros(3), 0.5)
     assert out is not None and out.fraction == 0.2
     np.testing.assert_allclose(out.forces[0], -out.forces[1], atol=1e-9)
 
@@ -114,29 +121,82 @@ def test_antipodal_contacts_need_the_least_friction():
 def test_two_contacts_pushing_one_face_have_no_equilibrium():
     contacts, axes, origins = three_finger_cube()
     same = [contacts[0], GripContact(1, 1, np.array([0.01, 0.03, 0.0]), contacts[0].normal)]
-    assert balanced_torques(same, axes, origins, np.zeros(3), LIMITS, 0.5) is None
-    assert balanced_torques(contacts[:1], axes, origins, np.zeros(3), LIMITS, 0.5) is None
+    joints = flexion(axes, origins)
+    assert balanced_torques(same, joints, np.zeros(3), 0.5) is None
+    assert balanced_torques(contacts[:1], joints, np.zeros(3), 0.5) is None
 
 
 def test_torques_scale_with_the_limits():
     contacts, axes, origins = three_finger_cube()
-    one = balanced_torques(contacts, axes, origins, np.zeros(3), LIMITS, 0.5)
-    two = balanced_torques(contacts, axes, origins, np.zeros(3), 2 * LIMITS, 0.5)
+    one = balanced_torques(contacts, flexion(axes, origins), np.zeros(3), 0.5)
+    two = balanced_torques(contacts, flexion(axes, origins, scale=2.0), np.zeros(3), 0.5)
     np.testing.assert_allclose(two.torques, 2 * one.torques, rtol=1e-6, atol=1e-9)
 
 
 def test_spring_presses_with_the_balanced_torque_at_the_stall_angle():
     contacts, axes, origins = three_finger_cube()
-    out = balanced_torques(contacts, axes, origins, np.zeros(3), LIMITS, 0.5)
     tips = np.array([c.point for c in contacts])
-    offsets = tip_offsets(axes, origins, tips, 0.0015)
+    joints = flexion(axes, origins, tips)
+    out = balanced_torques(contacts, joints, np.zeros(3), 0.5)
+    offsets = tip_offsets(joints, 0.0015)
     radial = [np.linalg.norm(np.cross(axes[j], tips[j // 2] - origins[j])) for j in range(6)]
     np.testing.assert_allclose(offsets * radial, 0.0015)
     stall = np.linspace(0.1, 0.6, 6)
-    spring = SpringGrip.of(stall, out, offsets, LIMITS, loaded_joints(contacts))
+    spring = SpringGrip.of(stall, out, offsets, LIMITS, loaded_joints(contacts, joints))
     np.testing.assert_allclose(spring.torques(stall), out.torques)
     np.testing.assert_allclose(spring.torques(spring.targets), 0.0, atol=1e-12)
     assert np.all(spring.torques(stall - 1.0) <= LIMITS + 1e-12)
     loaded = loaded_joints([GripContact(0, 1, tips[0], contacts[0].normal),
-                            GripContact(2, 0, tips[2], contacts[2].normal)])
+                            GripContact(2, 0, tips[2], contacts[2].normal)], joints)
     assert loaded.tolist() == [True, True, False, False, True, False]
+
+
+def with_spread(contacts, axes, origins, limit: float = 10.0) -> GripJoints:
+    """The flexion joints plus a spread joint on fingers 0 and 1: each turns its finger
+    about the vertical through a point above the cube (as the hand's spread does)."""
+    tips = np.array([c.point for c in contacts])
+    spread_axes = np.tile([0.0, 0.0, 1.0], (2, 1))
+    spread_origins = np.array([[0.02, 0.0, 0.15], [-0.02, 0.0, 0.15]])
+    return hand_joints(axes, origins, tips, (2.1, 1.4),
+                       (spread_axes, spread_origins, np.array([0, 1]), limit))
+
+
+def test_spread_joints_carry_their_fingers_forces_and_set_them():
+    """With the spread joints in the grip: their torques are J^T f of every contact of their
+    finger (recomputed here from the forces), within +-limit, and a finger with two flexion
+    joints and a spread joint has its force fixed by those three torques (J^T f = tau has
+    one solution, the LP's force), which a held spread joint would leave to the simulator."""
+    contacts, axes, origins = three_finger_cube(offset=0.01)
+    joints = with_spread(contacts, axes, origins)
+    out = balanced_torques(contacts, joints, np.zeros(3), 0.5)
+    assert out is not None and out.torques.shape == (8,)
+    np.testing.assert_allclose(out.forces.sum(axis=0), 0.0, atol=1e-9)
+    for j in (6, 7):
+        finger = j - 6
+        expected = sum(np.cross(joints.axes[j], c.point - joints.origins[j]) @ f
+                       for c, f in zip(contacts, out.forces, strict=True) if c.finger == finger)
+        assert out.torques[j] == pytest.approx(expected, abs=1e-9)
+        assert -10.0 - 1e-9 <= out.torques[j] <= 10.0 + 1e-9
+    for finger in (0, 1):
+        rows = [j for j in range(8) if joints.fingers[j] == finger]
+        c = contacts[finger]
+        jacobian = np.array([np.cross(joints.axes[j], c.point - joints.origins[j])
+                             for j in rows])  # (3, 3): tau = J f
+        assert np.linalg.matrix_rank(jacobian) == 3
+        solved = np.linalg.solve(jacobian, out.torques[rows])
+        np.testing.assert_allclose(solved, out.forces[finger], atol=1e-9)
+
+
+def test_a_spring_presses_with_a_negative_balanced_torque_too():
+    contacts, axes, origins = three_finger_cube(offset=0.01)
+    joints = with_spread(contacts, axes, origins)
+    out = balanced_torques(contacts, joints, np.zeros(3), 0.5)
+    torques = out.torques.copy()
+    torques[6] = -abs(torques[6]) - 0.05  # a spread torque turning the other way
+    solution = GripTorques(torques, out.forces, out.fraction, out.min_normal)
+    stall = np.linspace(0.1, 0.8, 8)
+    spring = SpringGrip.of(stall, solution, tip_offsets(joints, 0.0015), joints.upper,
+                           loaded_joints(contacts, joints))
+    np.testing.assert_allclose(spring.torques(stall), torques, atol=1e-12)
+    np.testing.assert_allclose(spring.torques(spring.targets), 0.0, atol=1e-12)
+    assert spring.targets[6] < stall[6]

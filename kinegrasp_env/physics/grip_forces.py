@@ -16,6 +16,12 @@ a linear programme over the friction cones' edges, one per friction fraction tri
   contact c on its link or a link beyond it (a_j its axis, o_j a point on it: the velocity of
   p_c per unit joint speed is a_j x (p_c - o_j), so tau_j qdot_j is the power f_c . v_c);
   every flexion joint presses towards closing, within its torque limit: 0 <= tau_j <= limit_j;
+  a spread joint (it carries every contact of its finger) either way: |tau_j| <= limit_j. With
+  the spread joints in the grip each finger's force is set by its joints' torques; a spread
+  joint held rigid instead leaves the force's component across the finger's flexion plane to
+  the simulator's solver, which on a pinned object may put it at the friction limit, and the
+  release then slides the object (shipped cube grasp 6 at sigma 0 in pybullet: 15.7 mm and a
+  contact lost; with the spread joints in the grip, 0.15 mm);
 * objective: the largest t with every contact's normal force >= t (the firmest grip).
 
 Pure numpy and scipy (``linprog``, HiGHS); the simulators read contacts and joint frames and
@@ -54,11 +60,72 @@ class GripContact:
 
 
 @dataclass(frozen=True)
+class GripJoints:
+    """The hand joints the grip sets, world frame, now (J of them).
+
+    Attributes:
+        axes: (J, 3) unit axes (a flexion joint's closing positive); origins: (J, 3) points
+            on them, metres.
+        fingers: (J,) the finger each joint moves; first_links: (J,) the joint carries its
+            finger's contacts on links >= this (a flexion joint: its own link, 0 proximal,
+            1 distal; a spread joint: 0, every link of its finger).
+        lower, upper: (J,) the torque bounds, N m (a flexion joint presses: [0, limit]; a
+            spread joint may turn either way: [-limit, limit]).
+        tips: (J, 3) the tip of each joint's finger, metres.
+    """
+
+    axes: np.ndarray
+    origins: np.ndarray
+    fingers: np.ndarray
+    first_links: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    tips: np.ndarray
+
+    def carries(self, contacts: list[GripContact]) -> np.ndarray:
+        """(J, k) bool: joint j carries contact c (it is on the joint's link or beyond)."""
+        finger = np.array([c.finger for c in contacts])
+        link = np.array([c.link for c in contacts])
+        return ((finger[None, :] == self.fingers[:, None])
+                & (link[None, :] >= self.first_links[:, None]))
+
+
+def hand_joints(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
+                torque_limits: tuple[float, float],
+                spread: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+                ) -> GripJoints:
+    """The three-finger hand's grip joints: the six flexion joints (finger-major, proximal
+    before distal) and, with ``spread``, the spread joints after them.
+
+    Args:
+        axes, origins: (6, 3) the flexion joints' unit axes (closing positive) and points on
+            them, world frame; tips: (3, 3) the fingertips, world frame.
+        torque_limits: (proximal, distal) the flexion joints' torque limits, N m.
+        spread: (axes (s, 3), origins (s, 3), fingers (s,), torque limit N m) of the spread
+            joints, or None (then they are not part of the grip: held where they are).
+    """
+    limits = np.array(list(torque_limits) * 3, dtype=float)
+    fingers, first = np.repeat(np.arange(3), 2), np.tile(np.arange(2), 3)
+    lower = np.zeros(6)
+    if spread is not None:
+        s_axes, s_origins, s_fingers, s_limit = spread
+        s_fingers = np.asarray(s_fingers, dtype=int)
+        axes, origins = np.vstack([axes, s_axes]), np.vstack([origins, s_origins])
+        fingers = np.concatenate([fingers, s_fingers])
+        first = np.concatenate([first, np.zeros(s_fingers.size, dtype=int)])
+        limits = np.concatenate([limits, np.full(s_fingers.size, float(s_limit))])
+        lower = np.concatenate([lower, -limits[6:]])
+    tips = np.asarray(tips, dtype=float)[fingers]
+    return GripJoints(np.asarray(axes, dtype=float), np.asarray(origins, dtype=float),
+                      fingers, first, lower, limits, tips)
+
+
+@dataclass(frozen=True)
 class GripTorques:
     """A solution of :func:`balanced_torques`.
 
     Attributes:
-        torques: (6,) flexion joint torques (finger-major, proximal before distal), N m.
+        torques: (J,) the grip joints' torques (:class:`GripJoints` order), N m.
         forces: (k, 3) the contact forces on the object, newtons, world frame.
         fraction: the friction fraction s used.
         min_normal: the smallest contact normal force, newtons.
@@ -70,46 +137,42 @@ class GripTorques:
     min_normal: float
 
 
-def torque_rows(contacts: list[GripContact], axes: np.ndarray, origins: np.ndarray,
+def torque_rows(contacts: list[GripContact], joints: GripJoints,
                 forces: np.ndarray) -> np.ndarray:
-    """(6, n) the flexion torques of forces (k, n, 3) (n per contact), for joint axes (6, 3)
-    (unit) through origins (6, 3), world frame: tau_j = sum (a_j x (p_c - o_j)) . f."""
-    rows = np.zeros((6, forces.shape[0] * forces.shape[1]))
-    n = forces.shape[1]
-    for c, contact in enumerate(contacts):
-        for link in range(contact.link + 1):
-            j = 2 * contact.finger + link
-            lever = np.cross(axes[j], contact.point - origins[j])
-            rows[j, c * n:(c + 1) * n] = forces[c] @ lever
+    """(J, k n) the joints' torques of forces (k, n, 3) (n per contact), world frame:
+    tau_j = sum over the contacts c joint j carries of (a_j x (p_c - o_j)) . f."""
+    k, n = forces.shape[:2]
+    rows = np.zeros((joints.axes.shape[0], k * n))
+    carries = joints.carries(contacts)
+    for j, c in zip(*np.nonzero(carries), strict=True):
+        lever = np.cross(joints.axes[j], contacts[c].point - joints.origins[j])
+        rows[j, c * n:(c + 1) * n] = forces[c] @ lever
     return rows
 
 
-def balanced_torques(contacts: list[GripContact], axes: np.ndarray, origins: np.ndarray,
-                     center: np.ndarray, limits: np.ndarray, friction: float,
-                     num_edges: int = 8) -> GripTorques | None:
+def balanced_torques(contacts: list[GripContact], joints: GripJoints, center: np.ndarray,
+                     friction: float, num_edges: int = 8) -> GripTorques | None:
     """The grip's joint torques (module docstring), or None when no contact force
-    distribution in equilibrium exists (fewer than two contacts, or none within the cones
-    at the full friction and the torque limits).
+    distribution in equilibrium exists (fewer than two fingers touching, or none within the
+    cones at the full friction and the torque bounds).
 
     Args:
         contacts: the closing's contacts, world frame.
-        axes, origins: (6, 3) the flexion joints' unit axes (closing positive) and points on
-            them, world frame, finger-major.
+        joints: the grip joints (:func:`hand_joints`).
         center: (3,) the object's centre of mass, world frame.
-        limits: (6,) the joints' torque limits, N m (> 0).
         friction: Coulomb mu; num_edges: edges per cone.
     """
     if len({c.finger for c in contacts}) < 2:
         return None
     points = np.array([c.point for c in contacts])
     normals = np.array([c.normal for c in contacts])
-    k = len(contacts)
+    k, count = len(contacts), joints.axes.shape[0]
     for fraction in FRICTION_FRACTIONS:
         edges = friction_cone_edges(normals, fraction * friction, num_edges)  # (k, m, 3)
         flat = edges.reshape(-1, 3)
         arms = np.repeat(points - center, num_edges, axis=0)
         wrench = np.vstack([flat.T, np.cross(arms, flat).T])  # (6, k m)
-        torque = torque_rows(contacts, axes, origins, edges)  # (6, k m)
+        torque = torque_rows(contacts, joints, edges)  # (J, k m)
         size = k * num_edges
         cost = np.zeros(size + 1)
         cost[-1] = -1.0  # maximise t
@@ -117,9 +180,9 @@ def balanced_torques(contacts: list[GripContact], axes: np.ndarray, origins: np.
         for c in range(k):
             normal[c, c * num_edges:(c + 1) * num_edges] = -1.0  # -(normal force) + t <= 0
         normal[:, -1] = 1.0
-        upper = np.hstack([torque, np.zeros((6, 1))])
+        upper = np.hstack([torque, np.zeros((count, 1))])
         rows = np.vstack([upper, -upper, normal])
-        bounds = np.concatenate([limits, np.zeros(6), np.zeros(k)])
+        bounds = np.concatenate([joints.upper, -joints.lower, np.zeros(k)])
         result = linprog(cost, A_ub=rows, b_ub=bounds,
                          A_eq=np.hstack([wrench, np.zeros((6, 1))]), b_eq=np.zeros(6),
                          bounds=[(0, None)] * (size + 1), method="highs")
@@ -130,39 +193,33 @@ def balanced_torques(contacts: list[GripContact], axes: np.ndarray, origins: np.
     return None
 
 
-def tip_offsets(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
-                advance: float) -> np.ndarray:
-    """(6,) the joint angles (radians) that move each finger's tip by ``advance`` metres:
-    advance / (distance from the joint's axis to its finger's tip); tips (3, 3) world."""
-    out = np.empty(6)
-    for j in range(6):
-        arm = tips[j // 2] - origins[j]
-        radial = arm - axes[j] * (arm @ axes[j])
-        out[j] = advance / max(float(np.linalg.norm(radial)), 1e-6)
-    return out
+def tip_offsets(joints: GripJoints, advance: float) -> np.ndarray:
+    """(J,) the joint angles (radians) that move each joint's fingertip by ``advance``
+    metres: advance / (distance from the joint's axis to the tip)."""
+    arm = joints.tips - joints.origins
+    radial = arm - joints.axes * np.einsum("jd,jd->j", arm, joints.axes)[:, None]
+    return advance / np.maximum(np.linalg.norm(radial, axis=1), 1e-6)
 
 
-def loaded_joints(contacts: list[GripContact]) -> np.ndarray:
-    """(6,) bool: the flexion joints with a contact on their link or a link beyond."""
-    out = np.zeros(6, dtype=bool)
-    for c in contacts:
-        out[2 * c.finger:2 * c.finger + c.link + 1] = True
-    return out
+def loaded_joints(contacts: list[GripContact], joints: GripJoints) -> np.ndarray:
+    """(J,) bool: the grip joints that carry a contact."""
+    return joints.carries(contacts).any(axis=1)
 
 
 @dataclass(frozen=True)
 class SpringGrip:
-    """The grip's joint control, the same in every simulator: each loaded flexion joint j
+    """The grip's joint control, the same in every simulator: each loaded grip joint j
     (:func:`loaded_joints`) a spring towards ``target_j`` = its stall angle + ``offset_j``
-    (:func:`tip_offsets`) of stiffness ``stiffness_j`` = ``torque_j`` / ``offset_j``, capped
-    at its torque limit: tau_j = clip(stiffness_j (target_j - q_j), -limit_j, limit_j). At
-    the stall angle it presses with the balanced torque; a finger the object gives way to
-    follows it, pressing less, for up to ``offset_j``; one pushed back presses more. A joint
-    that is not loaded is held where it stalled (the simulator's joint hold).
+    (:func:`tip_offsets`, signed as the balanced torque: a spread joint's may be negative)
+    of stiffness ``stiffness_j`` = ``|torque_j|`` / ``offset_j``, capped at its torque limit:
+    tau_j = clip(stiffness_j (target_j - q_j), -limit_j, limit_j). At the stall angle it
+    presses with the balanced torque; a finger the object gives way to follows it, pressing
+    less, for up to ``offset_j``; one pushed back presses more. A joint that is not loaded is
+    held where it stalled (the simulator's joint hold).
 
     Attributes:
-        stall, targets, stiffness, limits: (6,) radians, radians, N m/rad, N m.
-        loaded: (6,) bool.
+        stall, targets, stiffness, limits: (J,) radians, radians, N m/rad, N m.
+        loaded: (J,) bool.
     """
 
     stall: np.ndarray
@@ -175,18 +232,18 @@ class SpringGrip:
     def of(cls, stall: np.ndarray, solution: GripTorques, offsets: np.ndarray,
            limits: np.ndarray, loaded: np.ndarray) -> SpringGrip:
         stall = np.asarray(stall, dtype=float)
-        return cls(stall, stall + offsets, solution.torques / offsets,
+        sign = np.where(solution.torques < 0, -1.0, 1.0)
+        return cls(stall, stall + sign * offsets, np.abs(solution.torques) / offsets,
                    np.asarray(limits, dtype=float), np.asarray(loaded, dtype=bool))
 
     def torques(self, angles: np.ndarray) -> np.ndarray:
-        """(6,) the loaded joints' torques at joint angles (6,), N m (0 where not loaded)."""
+        """(J,) the loaded joints' torques at joint angles (J,), N m (0 where not loaded)."""
         tau = np.clip(self.stiffness * (self.targets - angles), -self.limits, self.limits)
         return np.where(self.loaded, tau, 0.0)
 
 
-def spring_grip(contacts: list[GripContact], axes: np.ndarray, origins: np.ndarray,
-                tips: np.ndarray, object_pose: np.ndarray, center_of_mass: np.ndarray,
-                stall: np.ndarray, torque_limits: tuple[float, float], friction: float,
+def spring_grip(contacts: list[GripContact], joints: GripJoints, object_pose: np.ndarray,
+                center_of_mass: np.ndarray, stall: np.ndarray, friction: float,
                 advance: float) -> SpringGrip | None:
     """The grip of a hand just closed on the object: the balanced torques of its contacts
     (:func:`balanced_torques`) as springs (:class:`SpringGrip`); None when no contact forces
@@ -194,17 +251,14 @@ def spring_grip(contacts: list[GripContact], axes: np.ndarray, origins: np.ndarr
 
     Args:
         contacts: the closing's contacts, world frame.
-        axes, origins: (6, 3) the flexion joints' unit axes (closing positive) and points on
-            them, world frame; tips: (3, 3) the fingertips, world frame.
+        joints: the grip joints now (:func:`hand_joints`).
         object_pose: (4, 4) the object's pose; center_of_mass: (3,) object frame, metres.
-        stall: (6,) the flexion joints' angles now, radians.
-        torque_limits: (proximal, distal) the flexion joints' torque limits, N m.
+        stall: (J,) the grip joints' angles now, radians.
         friction: Coulomb friction; advance: the tips' advance past the stall, metres.
     """
     center = object_pose[:3, :3] @ center_of_mass + object_pose[:3, 3]
-    limits = np.array(list(torque_limits) * 3)
-    solution = balanced_torques(contacts, axes, origins, center, limits, friction)
+    solution = balanced_torques(contacts, joints, center, friction)
     if solution is None:
         return None
-    offsets = tip_offsets(axes, origins, tips, advance)
-    return SpringGrip.of(stall, solution, offsets, limits, loaded_joints(contacts))
+    return SpringGrip.of(stall, solution, tip_offsets(joints, advance), joints.upper,
+                         loaded_joints(contacts, joints))

@@ -17,7 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from kinegrasp_env.closing.reference import Contact
-from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, hand_joints
 from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
@@ -34,15 +34,40 @@ from kinegrasp_env.physics.protocol import (
 )
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
 
-#: The spread joints of the hand (finger 2's mimics finger 1's; both are held).
+#: The spread joints of the hand (finger 2's mimics finger 1's; each simulator holds both).
 SPREAD_JOINTS = ("f1_spread", "f2_spread")
+#: The finger each spread joint turns.
+SPREAD_FINGERS = (0, 1)
 #: Flexion joints, finger-major: f1 proximal, f1 distal, f2 ..., f3 ...
 FLEXION_JOINTS = [joint for finger in FINGERS for joint in finger[:2]]
+#: The joints the grip sets (:func:`grip_joints`): the flexion joints, then the spread joints.
+GRIP_JOINTS = [*FLEXION_JOINTS, *SPREAD_JOINTS]
+
+
+def grip_joints(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
+                motors: TorqueLimits) -> GripJoints:
+    """The hand's grip joints (:func:`~kinegrasp_env.physics.grip_forces.hand_joints`) from
+    the frames of :data:`GRIP_JOINTS` now: axes (8, 3) (flexion closing positive) and points
+    on them (8, 3), the fingertips (3, 3), world frame; the flexion joints within the motors'
+    proximal and distal torque limits, the spread joints within their holding torque."""
+    n = len(FLEXION_JOINTS)
+    return hand_joints(axes[:n], origins[:n], tips,
+                       (motors.proximal_torque, motors.distal_torque),
+                       (axes[n:], origins[n:], np.array(SPREAD_FINGERS), motors.hold_torque))
 
 
 def steps_of(seconds: float, time_step: float) -> int:
     """The number of time steps (at least one) closest to ``seconds``."""
     return max(1, round(seconds / time_step))
+
+
+class TorqueLimits(Protocol):
+    """The finger motors' torque limits (:class:`~kinegrasp_env.physics.pybullet_closing.
+    MotorSettings`), N m."""
+
+    proximal_torque: float
+    distal_torque: float
+    hold_torque: float
 
 
 class StallRule(Protocol):

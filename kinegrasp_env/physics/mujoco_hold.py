@@ -14,7 +14,7 @@ thresholds and hand motion (:mod:`~kinegrasp_env.physics.motion`) as
    stalled. Contacts: one per touching finger link, merged from MuJoCo's records by the same
    rule (:func:`~kinegrasp_env.physics.pybullet_closing.merge_records`), object frame;
 2. grip: pybullet's rule (:mod:`~kinegrasp_env.physics.grip_forces`): the closing's
-   contacts give balanced joint torques, each loaded flexion joint a spring (a ``general``
+   contacts give balanced joint torques, each loaded flexion or spread joint a spring (a ``general``
    actuator: gain k, bias -k q, its torque limit as force range), the others held, until the
    fingers' normal forces are steady;
 3. release (pin off, table away), ``settle_time``; ``grip_shift`` and the grip verdict;
@@ -32,9 +32,11 @@ from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact, spring_grip
 from kinegrasp_env.physics.hold_runner import (
     FLEXION_JOINTS,
+    GRIP_JOINTS,
     SPREAD_JOINTS,
     WorldSteps,
     close_fingers,
+    grip_joints,
 )
 from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
@@ -166,17 +168,18 @@ class MujocoSteps(WorldSteps):
         """The grip's joint rule (pybullet's :func:`~kinegrasp_env.physics.pybullet_hold.
         grip_control`): False when no contact forces in equilibrium exist."""
         m, world = self.motors, self.world
-        axes, origins = world.joint_frames(FLEXION_JOINTS)
+        axes, origins = world.joint_frames(GRIP_JOINTS)
         tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
-        stall, _ = world.joint_states(FLEXION_JOINTS)
-        spring = spring_grip(world_contacts(world, m.touch_distance), axes, origins, tips,
-                             world.object_pose(), world.obj.center_of_mass, stall,
-                             (m.proximal_torque, m.distal_torque), world.settings.friction,
+        stall, _ = world.joint_states(GRIP_JOINTS)
+        spring = spring_grip(world_contacts(world, m.touch_distance),
+                             grip_joints(axes, origins, tips, m), world.object_pose(),
+                             world.obj.center_of_mass, stall, world.settings.friction,
                              self.protocol.grip_advance)
         if spring is None:
             return False
-        names = np.array(FLEXION_JOINTS)
+        names = np.array(GRIP_JOINTS)
         loaded = spring.loaded
+        world.uncouple()  # each spread joint set on its own, as in pybullet
         if (~loaded).any():
             world.position(list(names[~loaded]), spring.stall[~loaded])
         if loaded.any():

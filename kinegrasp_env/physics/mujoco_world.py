@@ -95,6 +95,10 @@ class MujocoWorld:
         self.object_qpos = int(model.joint("object_free").qposadr[0])
         self.mocap = int(model.body_mocapid[model.body("anchor").id])
         self.pin = model.equality("pin").id
+        holds = set(self.hold.values())
+        #: the joint equalities of the URDF's mimic couplings (on after every reset)
+        self.couplings = [e for e in range(model.neq) if e not in holds
+                          and model.eq_type[e] == self.mujoco.mjtEq.mjEQ_JOINT]
         object_geoms = np.flatnonzero(model.geom_bodyid == self.object_body)
         self.object_geoms = frozenset(int(g) for g in object_geoms)
         links = {model.body(FINGERS[f][2 + k]).id: (f, k) for f in range(3) for k in range(2)}
@@ -135,6 +139,12 @@ class MujocoWorld:
         data.qpos[self.object_qpos + 3:self.object_qpos + 7] = matrix_quat(self.obj.pose[:3, :3])
         data.eq_active[self.pin] = 1 if pin else 0  # welded at the model's reference pose,
         mj.mj_forward(model, data)  # which is the catalog pose
+
+    def uncouple(self) -> None:
+        """Switch the mimic couplings off until the next :meth:`reset` (each coupled joint
+        then moves under its own actuator, as pybullet's URDF joints do)."""
+        for e in self.couplings:
+            self.data.eq_active[e] = 0
 
     def set_root(self, root_pose: np.ndarray) -> None:
         """The anchor of the hand root (flange frame) at ``root_pose`` (4, 4)."""

@@ -52,7 +52,7 @@ from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hold_runner import FLEXION_JOINTS, SPREAD_JOINTS, close_fingers
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS
+from kinegrasp_env.robot.model import FINGERS
 
 #: Contact records of one link whose normals are within this angle of the deepest record's
 #: are merged into one contact (the same face), radians.
@@ -230,18 +230,12 @@ def world_contacts(world: PhysicsWorld, distance: float) -> list[GripContact]:
             for finger, link in sorted(records)]
 
 
-def joint_frames(world: PhysicsWorld) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The flexion joints now, world frame: (unit axes (6, 3), closing positive; points on
-    them (6, 3), the child links' frames; the fingers' tips (3, 3))."""
-    bullet = world.bullet
-    axes, origins = np.zeros((6, 3)), np.zeros((6, 3))
-    for j in range(6):
-        joint, link = FINGERS[j // 2][j % 2], FINGERS[j // 2][2 + j % 2]
-        pose = world.link_pose(link)  # the joint's child link: its frame is the joint's
-        local = np.asarray(bullet.getJointInfo(world.hand, world.joint_index[joint])[13])
-        axes[j], origins[j] = pose[:3, :3] @ local, pose[:3, 3]
-    tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
-    return axes, origins, tips
+def joint_frame(world: PhysicsWorld, joint: str) -> tuple[np.ndarray, np.ndarray]:
+    """(unit axis (3,), a point on it (3,)) of a hand joint now, world frame: the joint's
+    child link's frame (a URDF joint's frame is its child link's) and its axis there."""
+    info = world.bullet.getJointInfo(world.hand, world.joint_index[joint])
+    pose = world.link_pose(info[12].decode())
+    return pose[:3, :3] @ np.asarray(info[13]), pose[:3, 3]
 
 
 def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarray,

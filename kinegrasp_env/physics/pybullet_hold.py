@@ -6,8 +6,9 @@ pinned (:meth:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld.pin_object`), 
 :func:`hold_test`:
 
 * grip: :func:`grip_control` (the balanced torques of the closing's contacts,
-  :mod:`~kinegrasp_env.physics.grip_forces`, as joint springs, applied as joint torques at
-  every step), stepped in windows of ``steady_window`` until the fingers' normal forces
+  :mod:`~kinegrasp_env.physics.grip_forces`, on the flexion and spread joints, as joint
+  springs, applied as joint torques at every step), stepped in windows of
+  ``steady_window`` until the fingers' normal forces
   (:func:`~kinegrasp_env.physics.pybullet_closing.finger_forces`) are steady;
 * release: the pin removed, the support table (if any) put out of reach, object damping off,
   gravity off, ``settle_time``; then the state is saved (``saveState``);
@@ -32,27 +33,27 @@ import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult
 from kinegrasp_env.physics import hold_runner
-from kinegrasp_env.physics.grip_forces import SpringGrip, spring_grip
-from kinegrasp_env.physics.hold_runner import WorldSteps
+from kinegrasp_env.physics.grip_forces import GripJoints, SpringGrip, spring_grip
+from kinegrasp_env.physics.hold_runner import GRIP_JOINTS, WorldSteps, grip_joints
 from kinegrasp_env.physics.hold_runner import object_in_palm as object_in_palm  # re-exported
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import (
-    FLEXION_JOINTS,
     MotorSettings,
     finger_forces,
-    joint_frames,
+    joint_frame,
     physics_close,
     world_contacts,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
+from kinegrasp_env.robot.model import FINGERTIP_LINKS
 from kinegrasp_env.world.objects import GraspObject
 
 
 class GripControl:
     """The grip (:class:`~kinegrasp_env.physics.grip_forces.SpringGrip`) in pybullet: the
-    loaded flexion joints torque-controlled at every step (their motors off), the others
-    held by their position controllers (``hold_torque``) where they stalled; set again
-    after a ``restoreState``.
+    loaded grip joints (:data:`~kinegrasp_env.physics.hold_runner.GRIP_JOINTS`) torque-
+    controlled at every step (their motors off), the others held by their position
+    controllers (``hold_torque``) where they stalled; set again after a ``restoreState``.
 
     Args:
         world: the physics world right after the closing.
@@ -62,7 +63,7 @@ class GripControl:
 
     def __init__(self, world: PhysicsWorld, motors: MotorSettings, spring: SpringGrip) -> None:
         self.world, self.motors, self.spring = world, motors, spring
-        self.indices = [world.joint_index[j] for j in FLEXION_JOINTS]
+        self.indices = [world.joint_index[j] for j in GRIP_JOINTS]
         self.loaded = [i for i, on in zip(self.indices, spring.loaded, strict=True) if on]
         self.restart()
 
@@ -90,18 +91,26 @@ class GripControl:
             bullet.stepSimulation()
 
 
+def grip_joints_now(world: PhysicsWorld, motors: MotorSettings) -> GripJoints:
+    """The hand's grip joints in ``world`` now (:func:`~kinegrasp_env.physics.hold_runner.
+    grip_joints`)."""
+    frames = [joint_frame(world, joint) for joint in GRIP_JOINTS]
+    tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
+    return grip_joints(np.array([a for a, _ in frames]), np.array([o for _, o in frames]),
+                       tips, motors)
+
+
 def grip_control(world: PhysicsWorld, motors: MotorSettings,
                  protocol: HoldProtocol) -> GripControl | None:
     """The grip of a hand just closed on the pinned object: the balanced torques of its
     contacts (:func:`~kinegrasp_env.physics.grip_forces.spring_grip`, the world's friction,
     the motors' torque limits) as springs (``protocol.grip_advance``); None when no contact
     forces in equilibrium exist."""
-    axes, origins, tips = joint_frames(world)
-    stall, _ = world.joint_states(FLEXION_JOINTS)
-    spring = spring_grip(world_contacts(world, motors.touch_distance), axes, origins, tips,
-                         world.object_pose(), world.obj.center_of_mass, stall,
-                         (motors.proximal_torque, motors.distal_torque),
-                         world.settings.friction, protocol.grip_advance)
+    stall, _ = world.joint_states(GRIP_JOINTS)
+    spring = spring_grip(world_contacts(world, motors.touch_distance),
+                         grip_joints_now(world, motors), world.object_pose(),
+                         world.obj.center_of_mass, stall, world.settings.friction,
+                         protocol.grip_advance)
     return None if spring is None else GripControl(world, motors, spring)
 
 
