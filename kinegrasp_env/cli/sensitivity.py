@@ -3,6 +3,11 @@
 P(FC) with every source of a noise spec, with each source alone and with all but one, and the
 first-order and total Sobol indices of force closure per source, with bootstrap intervals
 (:mod:`kinegrasp_env.toolkit.sensitivity`); optionally a bar chart.
+
+``--robot NAME`` (a catalog robot other than ``kuka_sdh``): the factors are the robot's arm
+joints, the noise the spec's joints section (a distribution and a sigma, scalar or one per
+joint; other sources refused in one line), the grasp one of the robot's shipped set, closed
+by the robot's engine (:func:`kinegrasp_env.toolkit.sensitivity.analyze_joints`).
 """
 
 from __future__ import annotations
@@ -17,11 +22,13 @@ from kinegrasp_env.cli.common import (
     engine_name,
     grasp_index_help,
     output_file,
+    parse_index,
     parse_seed,
     positive_int,
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT
 
 
 def cmd_sensitivity(args) -> int:
@@ -37,13 +44,19 @@ def cmd_sensitivity(args) -> int:
     samples = positive_int(args.samples, "--samples", low=2)
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
-    index, grasp = shipped_grasp(args.object, args.grasp)
-    engine = engine_name(args.engine)
-    with reported(ValueError):
-        check_noise_engine(model, engine)
-    if args.plot:
-        output_file(args.plot, "--plot")
-    result = _analyze(grasp, model, samples, seed, engine, bootstrap)
+    if args.robot not in (None, DEFAULT_ROBOT):
+        index, grasp, noise = _robot_request(args, model)
+        if args.plot:
+            output_file(args.plot, "--plot")
+        result = _analyze_robot(grasp, noise, samples, seed, args.engine, bootstrap)
+    else:
+        index, grasp = shipped_grasp(args.object, args.grasp)
+        engine = engine_name(args.engine)
+        with reported(ValueError):
+            check_noise_engine(model, engine)
+        if args.plot:
+            output_file(args.plot, "--plot")
+        result = _analyze(grasp, model, samples, seed, engine, bootstrap)
     payload = result.to_json()
     if args.json:
         print(json.dumps(payload))
@@ -52,7 +65,8 @@ def cmd_sensitivity(args) -> int:
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_sensitivity, safe_figure
 
-        title = (f"{args.object} grasp {index}: P(FC) {result.p_all:.3f} with every source, "
+        robot = "" if result.robot is None else f"robot {result.robot}, "
+        title = (f"{robot}{args.object} grasp {index}: P(FC) {result.p_all:.3f} with every source, "
                  f"{samples} draws per setting")
         written = safe_figure(lambda: plot_sensitivity(payload, args.plot, title=title),
                               args.plot)
@@ -61,26 +75,86 @@ def cmd_sensitivity(args) -> int:
     return 0
 
 
-def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int):
-    """The analysis with a progress bar on stderr (one step per setting)."""
+def _robot_request(args, model):
+    """``(index, grasp, JointNoise)`` of ``--robot NAME``: the robot's shipped grasp
+    ``--grasp`` of ``--object``, the spec's joint noise; one line for what the robot's engines
+    cannot take (checked before any work)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.world.grasps import NoGraspSetError, check_robot, shipped_grasps
+
+    robot = args.robot
+    with reported(RobotDescriptionError):
+        arm = load_robot(robot).arm_dof
+    other = [s for s in model.sources if s != "joints"]
+    if other or model.joints is None:
+        raise CLIError(f"--noise-spec {args.noise_spec}: robot {robot!r} takes joint noise on "
+                       f"its arm joints only; the spec has "
+                       f"{', '.join(other) if other else 'no joints'} noise (hand, palm, object "
+                       f"and friction noise are for {DEFAULT_ROBOT} alone)")
+    joints = model.joints
+    if joints.covariance is not None or joints.bias is not None:
+        raise CLIError(f"--noise-spec {args.noise_spec}: robot {robot!r} takes independent "
+                       "joint noise (sigma and distribution); a joints covariance or bias is "
+                       f"for {DEFAULT_ROBOT} alone")
+    if args.engine not in ENGINES:
+        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the "
+                       f"{' or '.join(ENGINES)} engine only")
+    index = parse_index(args.grasp)
+    with reported(NoGraspSetError):
+        grasps = shipped_grasps(args.object, robot)
+    if not 0 <= index < len(grasps):
+        raise CLIError(f"--grasp: grasp index {index} out of range: robot {robot!r} has "
+                       f"{len(grasps)} grasps of {args.object} (0..{len(grasps) - 1})")
+    with reported(ValueError):
+        check_robot(grasps[index], robot)
+        noise = JointNoise(joints.sigma, joints.distribution)
+        noise.sigma_vector(arm)
+    return index, grasps[index], noise
+
+
+def _progress_bar():
+    """(tqdm bar on stderr, progress callback(done, total)) of one step per setting."""
     from tqdm import tqdm
 
-    from kinegrasp_env.montecarlo.engines import make_engine
-    from kinegrasp_env.toolkit.sensitivity import analyze
-
-    runner = make_engine(engine, grasp.object)
     bar = tqdm(total=None, desc="sensitivity", unit="setting", file=sys.stderr, disable=None)
 
     def progress(done: int, total: int) -> None:
         bar.total = total
         bar.update(done - bar.n)
 
+    return bar, progress
+
+
+def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int):
+    """The analysis with a progress bar on stderr (one step per setting)."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.toolkit.sensitivity import analyze
+
+    runner = make_engine(engine, grasp.object)
+    bar, progress = _progress_bar()
     try:
         return analyze(grasp, model, samples, seed, engine=runner, bootstrap=bootstrap,
                        progress=progress)
     finally:
         bar.close()
         runner.close()
+
+
+def _analyze_robot(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int):
+    """A description robot's analysis over its arm joints, with the progress bar."""
+    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.toolkit.sensitivity import analyze_joints
+
+    bar, progress = _progress_bar()
+    try:
+        with make_engine(engine, grasp.robot, grasp.object) as runner:
+            return analyze_joints(grasp, noise, samples, seed, engine=runner,
+                                  bootstrap=bootstrap, progress=progress)
+    finally:
+        bar.close()
 
 
 def add_commands(sub) -> None:
@@ -101,4 +175,7 @@ def add_commands(sub) -> None:
     p.set_defaults(engine="fast")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a PNG bar chart of the indices and P(FC)s")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}); another robot: "
+                   "one factor per arm joint, the spec's joints section its noise, the grasp "
+                   "from the robot's shipped set")
     p.set_defaults(func=cmd_sensitivity)

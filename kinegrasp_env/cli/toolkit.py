@@ -71,10 +71,11 @@ def cmd_sweep(args) -> int:
     from kinegrasp_env.toolkit.plots import plot_sweep
 
     with reported(SpecError):
-        spec = SweepSpec.from_file(args.spec)
+        spec = SweepSpec.from_file(args.spec, robot=args.robot)
     out = output_folder(args.out)
+    robot = "" if spec.robot == DEFAULT_ROBOT else f" of robot {spec.robot}"
     with executor_from(args) as executor:
-        print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws on "
+        print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws{robot} on "
               f"{executor.description}", file=sys.stderr)
         with reported(SpecError):  # the store in --out was made with other random streams
             rows, ran, skipped = run_sweep(spec, out, executor, plot=plot_sweep)
@@ -141,7 +142,10 @@ def add_commands(sub) -> None:
                        "x engines), resumable, on a process pool or Ray")
     p.add_argument("spec", help="YAML file with objects, grasps, grasp_files (object: grasp "
                    "file, needed for an imported object), sigmas, noise, engines, samples, "
-                   "chunk, seed")
+                   "chunk, seed, robot")
     p.add_argument("--out", required=True, help="folder of the results store and summary")
+    p.add_argument("--robot", help=f"catalog robot (replaces the spec's robot, default "
+                   f"{DEFAULT_ROBOT}); another robot's grasps are its shipped sets or the "
+                   "spec's grasp files, with joint noise on its arm joints")
     add_execution_args(p, 1)
     p.set_defaults(func=cmd_sweep)

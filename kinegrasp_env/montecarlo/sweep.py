@@ -16,6 +16,11 @@ the shipped set, which is how an imported object (it has none) is swept. ``grasp
 each object's set. The store records every grasp file's SHA-256 and every imported object's
 catalog version: a store made with other grasps or a re-imported object is not extended.
 
+Robot: the spec's ``robot`` (default ``kuka_sdh``). Another robot's cells are joint noise on
+its arm joints closed by its own engines, a cell equal to ``kinegrasp evaluate --robot`` with
+the same seed (:mod:`kinegrasp_env.montecarlo.sweep_robot`); its summary has a first column
+``robot``, and a store made for another robot is not extended.
+
 Results go to an SQLite file, ``DIR/results.sqlite``, one row per finished task, committed
 as soon as the task finishes. SQLite because it ships with Python (nothing to install on a
 cluster's head node), a committed transaction survives the process being killed, and the
@@ -44,6 +49,7 @@ from kinegrasp_env.montecarlo.evaluate import chunk_sizes, run_chunk
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
 
@@ -60,6 +66,10 @@ def run_task(task: SweepTask) -> dict:
     """Evaluate one task (in a worker): outcome counts and Q moments of its chunk."""
     from kinegrasp_env.world.grasps import grasp_by_index
 
+    if task.robot != DEFAULT_ROBOT:
+        from kinegrasp_env.montecarlo.sweep_robot import run_robot_task
+
+        return run_robot_task(task)
     start = time.perf_counter()
     q0 = (grasp_by_index(task.object, task.grasp).q0 if task.q0 is None
           else np.asarray(task.q0, dtype=float))
@@ -100,6 +110,13 @@ class SweepStore:
                 raise SpecError(f"{self.directory} holds a sweep run with {key} = "
                                 f"{stored[key]}, the spec says {value}: its random streams "
                                 "differ; use another --out")
+        robot = json.loads(stored.get("robot", json.dumps(DEFAULT_ROBOT)))
+        if stored and robot != spec.robot:
+            self.close()
+            raise SpecError(f"{self.directory} holds a sweep of robot {robot!r}, the spec's "
+                            f"robot is {spec.robot!r}; use another --out")
+        if spec.robot != DEFAULT_ROBOT:
+            wanted["robot"] = json.dumps(spec.robot)
         sources = spec.sources()
         self._check_sources(stored, sources)
         wanted.update(sources)
@@ -158,13 +175,15 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
         moments = StreamingMoments(1)
         for c in range(n_chunks):
             chunk_counts, chunk_moments = results[
-                SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed).key]
+                SweepTask(obj, grasp, sigma, noise, engine, c, 0, spec.seed,
+                          robot=spec.robot).key]
             counts += chunk_counts
             moments.merge(chunk_moments)
         stats = grasp_stats(spec.grasp(obj, grasp),
                             cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
                             counts, moments, None)
         summary.append({
+            **({} if spec.robot == DEFAULT_ROBOT else {"robot": spec.robot}),
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
             "p_fc": stats.p_fc, "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
             "q_mean": stats.q_mean, "q_std": stats.q_std, "q_skew": stats.q_skew,
@@ -173,19 +192,24 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
 
 
 def summary_csv(rows: list[dict]) -> str:
+    """The summary CSV: :data:`SUMMARY_COLUMNS`, after a column ``robot`` when the rows
+    are another robot's than the default."""
+    columns = (("robot",) if rows and "robot" in rows[0] else ()) + SUMMARY_COLUMNS
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(SUMMARY_COLUMNS)
+    writer.writerow(columns)
     for row in rows:
         writer.writerow(["" if isinstance(row[c], float) and math.isnan(row[c]) else
                          (repr(row[c]) if isinstance(row[c], float) else row[c])
-                         for c in SUMMARY_COLUMNS])
+                         for c in columns])
     return buffer.getvalue()
 
 
 def summary_table(rows: list[dict]) -> str:
-    """Console table of the summary."""
-    lines = [f"{'object':<12} {'grasp':>5} {'sigma':>7} {'noise':<10} {'engine':<8} "
+    """Console table of the summary (another robot's than the default: a first line naming
+    it)."""
+    head = [f"robot {rows[0]['robot']}"] if rows and "robot" in rows[0] else []
+    lines = [*head, f"{'object':<12} {'grasp':>5} {'sigma':>7} {'noise':<10} {'engine':<8} "
              f"{'P(FC)':>6} {'95% CI':>13} {'Q mean':>8} {'draws':>6}"]
     for r in rows:
         q = "-" if math.isnan(r["q_mean"]) else f"{r['q_mean']:.5f}"
@@ -212,8 +236,9 @@ def write_outputs(spec: SweepSpec, rows: list[dict], directory: Path,
         return written
     for noise, engine, name in figure_names(spec):
         sub = [r for r in rows if r["noise"] == noise and r["engine"] == engine]
-        written.append(plot(sub, directory / name, title=f"{noise} noise, {engine} engine, "
-                                  f"{spec.samples} draws per cell"))
+        robot = "" if spec.robot == DEFAULT_ROBOT else f"robot {spec.robot}, "
+        written.append(plot(sub, directory / name, title=f"{robot}{noise} noise, {engine} "
+                                  f"engine, {spec.samples} draws per cell"))
     return written
 
 

@@ -12,6 +12,12 @@ grasp file (``kinegrasp plan``'s output, relative to the spec file) whose grasps
 the shipped set, which is how an imported object (it has none) is swept. ``grasps`` indexes
 each object's set; each grasp file's SHA-256 is kept with the spec
 (:meth:`SweepSpec.sources`).
+
+Robot: ``robot`` (default ``kuka_sdh``; ``kinegrasp sweep --robot`` overrides it) names the
+catalog robot. Another robot's grasps come from its shipped sets (``assets/grasps/<robot>/``)
+or from ``grasp_files`` (every grasp of a file must be a grasp of that robot); its draws are
+joint noise on its arm joints (a distribution entry of ``noise``; noise models are refused),
+closed by its own engines (:mod:`kinegrasp_env.montecarlo.sweep_robot`).
 """
 
 from __future__ import annotations
@@ -25,12 +31,13 @@ from typing import Any
 
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
 from kinegrasp_env.montecarlo.sweep_noise import noise_entries
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_spec import spec_loader
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import Grasp, check_robot
 from kinegrasp_env.world.objects import OBJECT_NAMES, object_names, object_version
 
 SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
-             "chunk", "seed")
+             "chunk", "seed", "robot")
 
 
 class SpecError(ValueError):
@@ -53,12 +60,15 @@ class SweepSpec:
     models: tuple[tuple[str, str], ...] = ()
     #: (object, absolute path, SHA-256) of each grasp file replacing a shipped set
     grasp_files: tuple[tuple[str, str, str], ...] = ()
+    #: the catalog robot whose grasps are swept
+    robot: str = DEFAULT_ROBOT
 
     @classmethod
-    def from_dict(cls, data: Any, where: str = "spec",
-                  base: str | Path | None = None) -> SweepSpec:
+    def from_dict(cls, data: Any, where: str = "spec", base: str | Path | None = None,
+                  robot: str | None = None) -> SweepSpec:
         """Validate every entry; one :class:`SpecError` naming the first bad one (``base``:
-        the folder noise spec files are relative to)."""
+        the folder noise spec files are relative to; ``robot``: replaces the spec's
+        ``robot``, as ``--robot`` does)."""
         if not isinstance(data, dict):
             raise SpecError(f"{where}: expected a mapping of {', '.join(SPEC_KEYS)}")
         unknown = sorted(set(data) - set(SPEC_KEYS))
@@ -68,11 +78,15 @@ class SweepSpec:
         for key in ("objects", "sigmas"):
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
+        robot = _robot(data.get("robot", DEFAULT_ROBOT) if robot is None else robot,
+                       where if robot is None else "--robot")
         objects = _names(data["objects"], object_names(), "objects", where)
-        files = _grasp_files(data.get("grasp_files", {}), objects, where, base)
-        _check_grasp_sets(objects, files, where)
+        files = _grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
+        _check_grasp_sets(objects, files, where, robot)
         noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
         engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
+        if robot != DEFAULT_ROBOT:
+            _check_robot_cells(robot, models, engines, where)
         sigmas = _unique(tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where)),
                          "sigmas", where)
         grasps = data.get("grasps", "all")
@@ -81,17 +95,18 @@ class SweepSpec:
         else:
             indices = _unique(tuple(_integer(g, "grasps", where, low=0)
                                     for g in _list(grasps, "grasps", where)), "grasps", where)
-            _check_grasp_indices(objects, indices, files, where)
+            _check_grasp_indices(objects, indices, files, where, robot)
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
         return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
-                   files)
+                   files, robot)
 
     @classmethod
-    def from_file(cls, path: str | Path) -> SweepSpec:
+    def from_file(cls, path: str | Path, robot: str | None = None) -> SweepSpec:
         """Read a YAML (or JSON) spec file (numbers as YAML 1.2 reads them: ``1e-2`` is a
-        number); a syntax error is one :class:`SpecError` line: file, line, column, what."""
+        number); a syntax error is one :class:`SpecError` line: file, line, column, what.
+        ``robot``: replaces the spec's (``--robot``)."""
         path = Path(path)
         if not path.is_file():
             raise SpecError(f"spec file {path} not found")
@@ -106,12 +121,12 @@ class SweepSpec:
             raise SpecError(f"{where}: not valid YAML: {what}") from None
         except yaml.YAMLError as exc:
             raise SpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
-        return cls.from_dict(data, where=str(path), base=path.parent)
+        return cls.from_dict(data, where=str(path), base=path.parent, robot=robot)
 
     def grasp_set(self, object_name: str) -> tuple[Grasp, ...]:
         """The grasps of ``object_name`` the sweep indexes: its grasp file's, else its
         shipped set."""
-        return _grasp_set(object_name, self.grasp_files)
+        return _grasp_set(object_name, self.grasp_files, self.robot)
 
     def grasp(self, object_name: str, index: int) -> Grasp:
         return self.grasp_set(object_name)[index]
@@ -123,7 +138,8 @@ class SweepSpec:
 
     def sources(self) -> dict[str, str]:
         """What the store must have been made with besides the streams: per object, its
-        grasp file's SHA-256 (or ``shipped``) and its catalog version."""
+        grasp file's SHA-256 (or ``shipped``) and its catalog version (the robot is
+        checked with the streams: :class:`~kinegrasp_env.montecarlo.sweep.SweepStore`)."""
         files = {name: digest for name, _, digest in self.grasp_files}
         out = {}
         for name in self.objects:
@@ -141,8 +157,37 @@ class SweepSpec:
         sizes = chunk_sizes(self.samples, self.chunk)
         models = dict(self.models)
         return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n),
-                          tuple(self.grasp(o, g).q0.tolist()))
+                          tuple(self.grasp(o, g).q0.tolist()), self.robot, c * self.chunk)
                 for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
+
+
+def _robot(value: Any, where: str) -> str:
+    """A catalog robot's name; else one :class:`SpecError` line listing the known ones."""
+    from kinegrasp_env.robot.catalog import check_robot_name
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    try:
+        return check_robot_name(value)
+    except RobotDescriptionError as exc:
+        raise SpecError(f"{where}: {exc}" if where == "--robot" else f"{where}: robot: {exc}"
+                        ) from None
+
+
+def _check_robot_cells(robot: str, models: tuple, engines: tuple[str, ...],
+                       where: str) -> None:
+    """What a description robot's engines take: joint noise of a distribution on the arm
+    joints, the ``pybullet`` and ``fast`` engines; one line naming what is not."""
+    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES as ROBOT_ENGINES
+
+    if models:
+        raise SpecError(f"{where}: noise: robot {robot!r} takes joint noise on its arm joints "
+                        "only (gaussian, uniform, triangular); noise models (hand, palm, "
+                        f"object, friction, joint bias or covariance) are for {DEFAULT_ROBOT} "
+                        f"alone, got {models[0][0]!r}")
+    bad = [e for e in engines if e not in ROBOT_ENGINES]
+    if bad:
+        raise SpecError(f"{where}: engines: {bad[0]!r} is not available for robot {robot!r} "
+                        f"(its engines: {', '.join(ROBOT_ENGINES)})")
 
 
 def _noise(value: Any, where: str, base: str | Path | None
@@ -206,9 +251,9 @@ def _integer(value: Any, key: str, where: str, low: int) -> int:
 
 
 def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
-                 base: str | Path | None) -> tuple[tuple[str, str, str], ...]:
+                 base: str | Path | None, robot: str) -> tuple[tuple[str, str, str], ...]:
     """``grasp_files``: (object, absolute path, SHA-256) per entry, each file read and
-    checked (grasps of that object, at least one)."""
+    checked (grasps of that object and of ``robot``, at least one)."""
     if not isinstance(value, dict):
         raise SpecError(f"{where}: 'grasp_files' must map objects to grasp files, e.g. "
                         "{duck: duck_grasps.json}")
@@ -232,6 +277,11 @@ def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
         if other is not None:
             raise SpecError(f"{where}: grasp_files: {name}: grasp {other.id} of {path} is a "
                             f"grasp of {other.object}")
+        for grasp in grasps:
+            try:
+                check_robot(grasp, robot)
+            except ValueError as exc:
+                raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
         out.append((name, str(path), digest))
     return tuple(out)
 
@@ -247,19 +297,38 @@ def _file_grasps(path: str, digest: str) -> tuple[Grasp, ...]:
     return tuple(load_grasps(path))
 
 
-def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...]) -> tuple[Grasp, ...]:
-    from kinegrasp_env.world.grasps import shipped_grasps
-
+def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
+               robot: str = DEFAULT_ROBOT) -> tuple[Grasp, ...]:
     for object_name, path, digest in files:
         if object_name == name:
             return _file_grasps(path, digest)
-    return tuple(shipped_grasps(name))
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    return tuple(shipped_grasps(name)) if robot == DEFAULT_ROBOT else _shipped_set(name, robot)
+
+
+@lru_cache(maxsize=32)
+def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
+    """Another robot's shipped set of ``name`` (``assets/grasps/<robot>/``, read once)."""
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    return tuple(shipped_grasps(name, robot))
 
 
 def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
-                      where: str) -> None:
-    """An imported object (no shipped set) needs a grasp file: one line saying how."""
+                      where: str, robot: str = DEFAULT_ROBOT) -> None:
+    """An imported object (no shipped set) needs a grasp file, and so does an object
+    another robot has no shipped set of: one line saying how."""
     given = {name for name, _, _ in files}
+    if robot != DEFAULT_ROBOT:
+        from kinegrasp_env.world.grasps import NoGraspSetError
+
+        for name in (n for n in objects if n not in given):
+            try:
+                _shipped_set(name, robot)
+            except NoGraspSetError as exc:
+                raise SpecError(f"{where}: {exc}, and give the file in 'grasp_files'") from None
+        return
     for name in objects:
         if name not in OBJECT_NAMES and name not in given:
             raise SpecError(
@@ -270,9 +339,10 @@ def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str
 
 
 def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],
-                         files: tuple[tuple[str, str, str], ...], where: str) -> None:
+                         files: tuple[tuple[str, str, str], ...], where: str,
+                         robot: str = DEFAULT_ROBOT) -> None:
     for name in objects:
-        count = len(_grasp_set(name, files))
+        count = len(_grasp_set(name, files, robot))
         bad = [i for i in indices if i >= count]
         if bad:
             kind = "grasp file" if any(f[0] == name for f in files) else "shipped set"
@@ -294,8 +364,12 @@ class SweepTask:
     seed: int
     model: str | None = None  # the spec JSON of a noise-model cell
     q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
+    robot: str = DEFAULT_ROBOT
+    #: the chunk's first draw within its cell (another robot's draws are rows of one stream)
+    offset: int = 0
 
     @property
     def key(self) -> str:
-        return (f"{self.object}/{self.grasp}/{self.sigma!r}/{self.noise}/{self.engine}/"
+        head = "" if self.robot == DEFAULT_ROBOT else f"{self.robot}/"
+        return (f"{head}{self.object}/{self.grasp}/{self.sigma!r}/{self.noise}/{self.engine}/"
                 f"{self.chunk}")

@@ -17,6 +17,13 @@ The sample A is the run's draws (chunks 0, 1, ... of the seed: its "all sources"
 A. Friction only enters the scoring, so draws that share their geometric blocks are closed
 once and only re-scored. Cost: N (2 + 3 g) draws for g geometric sources (friction adds
 none), plus one.
+
+A description robot (any catalog robot but ``kuka_sdh``): :func:`analyze_joints`, the same
+analysis with one factor per arm joint (:mod:`kinegrasp_env.montecarlo.robot_evaluate`'s
+joint noise, the robot's engine). A is ``evaluate_robot_grasp``'s draws with the same seed
+(rows 0 .. N-1 of the stream ``JointNoise.sample(2 N, arm_dof, default_rng(seed))``), B the
+rows N .. 2N-1; a setting is closed once per distinct geometry (a joint of sigma 0 draws 0 in
+A and in B), so with g noisy joints it costs N (2 + 3 g) draws at most, plus one.
 """
 
 from __future__ import annotations
@@ -35,6 +42,8 @@ from kinegrasp_env.montecarlo.evaluate import (
     chunk_sizes,
 )
 from kinegrasp_env.montecarlo.perturbation import engine_inputs
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.sobol import sobol_indices
@@ -77,6 +86,8 @@ class Sensitivity:
     variance: float
     effects: list[SourceEffect] = field(default_factory=list)
     noise_model: dict = field(default_factory=dict)
+    #: a description robot's name (its factors are its arm joints); None: ``kuka_sdh``
+    robot: str | None = None
 
     @property
     def dominant(self) -> str | None:
@@ -102,6 +113,8 @@ class Sensitivity:
 
         out = {k: getattr(self, k) for k in ("object", "grasp", "samples", "seed", "engine",
                                              "p_all", "p_all_ci", "variance", "noise_model")}
+        if self.robot is not None:
+            out = {"robot": self.robot, **out}
         out["dominant"] = self.dominant
         out["most_to_gain"] = self.most_to_gain
         out["sources"] = [vars(e) for e in self.effects]
@@ -110,14 +123,16 @@ class Sensitivity:
     def table(self) -> str:
         """A console table, one row per source."""
         lo, hi = self.p_all_ci
-        lines = [f"{self.object} grasp {self.grasp}, {self.samples} draws per setting, "
+        robot = "" if self.robot is None else f"robot {self.robot}, "
+        w = max([9, *(len(e.source) + 1 for e in self.effects)])
+        lines = [f"{robot}{self.object} grasp {self.grasp}, {self.samples} draws per setting, "
                  f"{self.engine} engine: P(FC) with all sources {self.p_all:.3f} "
                  f"({lo:.3f} .. {hi:.3f})",
-                 f"{'source':<9} {'P(FC) alone':>11} {'all but it':>10} "
+                 f"{'source':<{w}} {'P(FC) alone':>11} {'all but it':>10} "
                  f"{'gain if exact (95%)':>24} {'first-order S (95%)':>22} "
                  f"{'total ST (95%)':>22}"]
         for e in self.effects:
-            lines.append(f"{e.source:<9} {e.p_alone:>11.3f} {e.p_without:>10.3f} "
+            lines.append(f"{e.source:<{w}} {e.p_alone:>11.3f} {e.p_without:>10.3f} "
                          f"{_index(e.gain, e.gain_ci):>24} {_index(e.first, e.first_ci):>22} "
                          f"{_index(e.total, e.total_ci):>22}")
         lines.append(f"dominant source (largest total index): {self.dominant or 'undefined'};"
@@ -204,11 +219,19 @@ def analyze(grasp: Grasp, model: NoiseModel, samples: int, seed: int = 0, *,
         y[name] = oracle.force_closure(variant, key).astype(float)
         if progress is not None:
             progress(done, len(settings))
-    indices = sobol_indices(y["A"], y["B"], {s: y[f"AB:{s}"] for s in sources},
+    return _result(grasp, y, sources, int(samples), int(seed), engine.name, bootstrap,
+                   spec_of(model))
+
+
+def _result(grasp: Grasp, y: dict[str, np.ndarray], factors: tuple[str, ...], n: int,
+            seed: int, engine: str, bootstrap: int, noise_model: dict,
+            robot: str | None = None) -> Sensitivity:
+    """The :class:`Sensitivity` of the force-closure indicators ``y`` (setting name -> (n,)
+    0/1; the settings of :func:`_settings`) of every factor."""
+    indices = sobol_indices(y["A"], y["B"], {s: y[f"AB:{s}"] for s in factors},
                             bootstrap=bootstrap, seed=seed)
-    n = int(samples)
     effects = []
-    for s in sources:
+    for s in factors:
         alone, without = y[f"alone:{s}"], y[f"without:{s}"]
         effects.append(SourceEffect(
             s, float(alone.mean()), wilson_interval(int(alone.sum()), n),
@@ -216,9 +239,83 @@ def analyze(grasp: Grasp, model: NoiseModel, samples: int, seed: int = 0, *,
             *paired_gain(y["A"], without), indices[s].first, indices[s].first_ci,
             indices[s].total, indices[s].total_ci))
     both = np.concatenate([y["A"], y["B"]])
-    return Sensitivity(grasp.object, str(grasp.id), n, int(seed), engine.name,
+    return Sensitivity(grasp.object, str(grasp.id), n, seed, engine,
                        float(y["A"].mean()), wilson_interval(int(y["A"].sum()), n),
-                       float(both.var(ddof=1)), effects, spec_of(model))
+                       float(both.var(ddof=1)), effects, noise_model, robot)
+
+
+def analyze_joints(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+                   engine: RobotEngine, bootstrap: int = 1000,
+                   progress: Callable[[int, int], None] | None = None) -> Sensitivity:
+    """P(FC) per arm joint and Sobol indices of force closure of a description robot's
+    grasp, one factor per arm joint (module docstring; the factors are named by the
+    description's ``arm_joints``).
+
+    Args:
+        grasp: a grasp of ``engine``'s robot and object (q0: its actuated vector).
+        noise: joint noise on the arm joints (sigma scalar or one per arm joint, radians).
+        samples: N, draws per setting (>= 2).
+        seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
+        engine: the robot's engine (``robot_evaluate.make_engine``).
+        bootstrap: resamples for the Sobol intervals.
+        progress: called with (settings done, settings) after every setting.
+
+    Raises:
+        ValueError: a grasp of another robot or object, bad samples or sigma.
+    """
+    from kinegrasp_env.world.grasps import check_robot
+
+    if int(samples) != samples or samples < 2:
+        raise ValueError(f"samples must be an integer >= 2, got {samples}")
+    description = engine.description
+    check_robot(grasp, description.name)
+    if grasp.object != engine.obj.name:
+        raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
+                         f"holds {engine.obj.name!r}")
+    n, arm = int(samples), description.arm_dof
+    q0 = engine.check(grasp.q0)[0]
+    stream = noise.sample(2 * n, arm, np.random.default_rng(seed))
+    noisy = noise.sigma_vector(arm) > 0
+    joints = tuple(description.arm_joints)
+    blocks = {"A": stream[:n], "B": stream[n:]}
+    settings = _joint_settings(joints)
+    closed: dict[tuple, np.ndarray] = {}
+    y: dict[str, np.ndarray] = {}
+    for done, (name, rows) in enumerate(settings, 1):
+        key = tuple(r if noisy[j] else "0" for j, r in enumerate(rows))
+        if key not in closed:
+            closed[key] = _joint_fc(engine, q0, n, key, blocks)
+        y[name] = closed[key]
+        if progress is not None:
+            progress(done, len(settings))
+    return _result(grasp, y, joints, n, int(seed), engine.name, bootstrap,
+                   {"joints": {"sigma": noise.sigma if isinstance(noise.sigma, float)
+                               else list(noise.sigma), "distribution": noise.kind}},
+                   description.name)
+
+
+def _joint_settings(joints: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]]:
+    """(name, per joint the rows it draws: ``A``, ``B`` or ``0`` exact) of every setting:
+    A, B, and per joint AB, alone and without (as :func:`_settings`)."""
+    k = len(joints)
+    out = [("A", ("A",) * k), ("B", ("B",) * k)]
+    for j, name in enumerate(joints):
+        out.append((f"AB:{name}", tuple("B" if i == j else "A" for i in range(k))))
+        out.append((f"alone:{name}", tuple("A" if i == j else "0" for i in range(k))))
+        out.append((f"without:{name}", tuple("0" if i == j else "A" for i in range(k))))
+    return out
+
+
+def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...],
+              blocks: dict[str, np.ndarray]) -> np.ndarray:
+    """(n,) 0/1 force closure with joint j at ``blocks[rows[j]][:, j]`` (0: exact)."""
+    if all(r == "0" for r in rows):  # the nominal grasp: closed once
+        return np.repeat(float(engine.run(q0[None]).outcome[0] == FORCE_CLOSURE), n)
+    q = np.repeat(q0[None], n, axis=0)
+    for j, r in enumerate(rows):
+        if r != "0":
+            q[:, j] += blocks[r][:, j]
+    return (engine.run(q).outcome == FORCE_CLOSURE).astype(float)
 
 
 def _settings(sources: tuple[str, ...], a: NoiseDraws, b: NoiseDraws
