@@ -134,8 +134,13 @@ def report_noises(args) -> list:
 
 def cmd_report(args) -> int:
     from kinegrasp_env.cli.grasp_choice import chosen_grasp
+    from kinegrasp_env.cli.robot_report import cmd_report_robot, is_robot_report
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
+    if is_robot_report(args):
+        return cmd_report_robot(args, sigmas_from(args.sigma), str(MAX_POINTS_DEFAULT),
+                                str(ARM_DRAWS_DEFAULT))
+    args.grasp = "0" if args.grasp is None else args.grasp
     noises = report_noises(args)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
@@ -308,8 +313,12 @@ def add_commands(sub) -> None:
                    "with --grasps: the grasp's own)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) or a "
                    "palm-pose file; --grasp is then an id in it, or an index")
-    p.add_argument("--grasp", default="0", help=grasp_index_help() + "; or with --grasps, an "
-                   "id or index in that file")
+    p.add_argument("--grasp", help=grasp_index_help() + " (default 0); or with --grasps, an "
+                   "id or index in that file; for another robot than kuka_sdh: ids or indices, "
+                   "comma-separated (default: every grasp)")
+    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else kuka_sdh); "
+                   "another robot's page: a P(FC) and Q table of its grasps and each grasp's "
+                   "3-D scene (joint noise on its arm joints; engines pybullet or fast)")
     p.add_argument("--sigma", default="0.0133", help="joint noise standard deviation, "
                    "radians; several, comma-separated, give the P(FC)-vs-sigma curve (the "
                    "3-D views are of the first)")

@@ -1,17 +1,38 @@
-"""A picture of a robot: pybullet's software renderer in its own DIRECT client.
+"""A robot's picture and its geometry, both read by pybullet from the URDF in one way.
 
-The robot stands at its open configuration (arm joints at zero, hand at the description's
-``open`` pre-shape, mimic joints following), seen from the front-left, the camera aimed at
-the centre of the robot's bounding box.
+:func:`loaded_robot` loads the URDF (mesh paths resolved: :func:`resolved_urdf_text`) into a
+DIRECT client of its own with the joints set. :func:`draw_robot` renders it with pybullet's
+software renderer (the robot at its open configuration, seen from the front-left, the camera
+aimed at the centre of its bounding box); :func:`robot_geometry` reads the same loaded robot's
+triangles and link frames for the HTML reports' 3-D scenes:
+
+- a link whose visuals are primitives (box, sphere, cylinder, capsule) is drawn from its
+  visual geometry (pybullet's visual shape data: kind, dimensions, visual frame);
+- a link with a mesh visual is drawn from its collision geometry (pybullet gives a visual
+  mesh's file name only, not its triangles): each collision mesh as the convex hull of the
+  vertices pybullet holds for it (``getMeshData``: what the closing touches), each collision
+  primitive from its dimensions.
+
+Lengths in metres; a pose is a (4, 4) homogeneous transform; link frames are the URDF's.
 """
 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from kinegrasp_env.quiet import quiet_c_output
 from kinegrasp_env.robot.description import RobotDescription
+
+#: pybullet geometry kinds (``GEOM_*``) -> names.
+GEOMETRY_KINDS = {2: "sphere", 3: "box", 4: "cylinder", 5: "mesh", 6: "plane", 7: "capsule"}
+CYLINDER_SECTIONS = 16
+CAPSULE_COUNT = (12, 12)
 
 
 def resolved_urdf_text(description: RobotDescription) -> str:
@@ -21,6 +42,44 @@ def resolved_urdf_text(description: RobotDescription) -> str:
     for mesh in {m.filename: m for m in description.meshes}.values():
         text = text.replace(f'"{mesh.filename}"', f'"{mesh.path.as_posix()}"')
     return text
+
+
+@contextmanager
+def loaded_robot(description: RobotDescription,
+                 values: Mapping[str, float] | None = None) -> Iterator[tuple]:
+    """The robot in a DIRECT pybullet client of its own, fixed at the origin.
+
+    Args:
+        description: the robot.
+        values: movable joint name -> value (radians / metres); default: the open
+            configuration (arm joints at 0, hand at the ``open`` pre-shape, mimics following).
+
+    Yields:
+        (client, body id, link name -> pybullet link index (-1: the base link)).
+    """
+    if values is None:
+        values = description.model.expand(description.open_configuration())
+    with quiet_c_output():  # pybullet's banner, "argv[0]=" on connect
+        import pybullet
+        from pybullet_utils.bullet_client import BulletClient
+
+        bullet = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        with tempfile.TemporaryDirectory() as folder, quiet_c_output():  # mesh-loader notes
+            urdf = Path(folder) / description.urdf.name
+            urdf.write_text(resolved_urdf_text(description))
+            body = bullet.loadURDF(str(urdf), useFixedBase=True)
+        links = {description.model.base_link: -1}
+        joints = {}
+        for i in range(bullet.getNumJoints(body)):
+            info = bullet.getJointInfo(body, i)
+            joints[info[1].decode()] = i
+            links[info[12].decode()] = i
+        for joint, value in values.items():
+            bullet.resetJointState(body, joints[joint], float(value))
+        yield bullet, body, links
+    finally:
+        bullet.disconnect()
 
 
 def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 640,
@@ -36,26 +95,12 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
     Returns:
         The path written.
     """
-    import numpy as np
+    import pybullet
     from PIL import Image
 
     out = Path(out)
-    values = description.model.expand(description.open_configuration())
-    with quiet_c_output():  # pybullet's banner, "argv[0]=" on connect
-        import pybullet
-        from pybullet_utils.bullet_client import BulletClient
-
-        bullet = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        with tempfile.TemporaryDirectory() as folder, quiet_c_output():  # mesh-loader notes
-            urdf = Path(folder) / description.urdf.name
-            urdf.write_text(resolved_urdf_text(description))
-            body = bullet.loadURDF(str(urdf), useFixedBase=True)
-        names = {bullet.getJointInfo(body, i)[1].decode(): i
-                 for i in range(bullet.getNumJoints(body))}
-        for joint, value in values.items():
-            bullet.resetJointState(body, names[joint], float(value))
-        boxes = [bullet.getAABB(body, i) for i in range(-1, len(names))]
+    with loaded_robot(description) as (bullet, body, links):
+        boxes = [bullet.getAABB(body, i) for i in links.values()]
         low = np.min([b[0] for b in boxes], axis=0)
         high = np.max([b[1] for b in boxes], axis=0)
         centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
@@ -65,9 +110,166 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
                                                        5.0 * size)
         image = bullet.getCameraImage(width, height, view, projection,
                                       renderer=pybullet.ER_TINY_RENDERER)[2]
-    finally:
-        bullet.disconnect()
     rgb = np.asarray(image, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(rgb).save(out, format="PNG")
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class LinkShape:
+    """One piece of a link's drawn geometry.
+
+    Attributes:
+        link: the link's name.
+        vertices: (V, 3) in the link's URDF frame, metres; faces: (F, 3) vertex indices.
+        color: ``rgb(r, g, b)`` (the link's visual colour).
+        source: ``visual`` or ``collision`` (see the module docstring).
+        kind: ``mesh``, ``box``, ``sphere``, ``cylinder`` or ``capsule``.
+    """
+
+    link: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    color: str
+    source: str
+    kind: str
+
+
+@dataclass(frozen=True, eq=False)
+class RobotGeometry:
+    """A robot's drawn geometry and its link frames at some configurations.
+
+    Attributes:
+        shapes: every piece, links in the URDF's order.
+        frames: per configuration asked for, link name -> (4, 4) world pose of its URDF
+            frame (pybullet's kinematics).
+    """
+
+    shapes: tuple[LinkShape, ...]
+    frames: tuple[dict[str, np.ndarray], ...]
+
+    def links_from(self, source: str) -> tuple[str, ...]:
+        """The links drawn from ``visual`` or ``collision`` geometry."""
+        return tuple(dict.fromkeys(s.link for s in self.shapes if s.source == source))
+
+
+def _pose(position: Sequence[float], quaternion: Sequence[float]) -> np.ndarray:
+    """(4, 4) pose of a pybullet position and (x, y, z, w) quaternion."""
+    from scipy.spatial.transform import Rotation
+
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+    pose[:3, 3] = position
+    return pose
+
+
+def _primitive(kind: str, dimensions: Sequence[float]):
+    """A trimesh of a pybullet primitive (dimensions as pybullet gives them), in its frame."""
+    import trimesh
+
+    if kind == "box":
+        return trimesh.creation.box([2 * float(v) for v in dimensions[:3]])
+    if kind == "sphere":
+        return trimesh.creation.icosphere(2, float(dimensions[0]))
+    if kind == "cylinder":
+        return trimesh.creation.cylinder(radius=float(dimensions[1]),
+                                         height=float(dimensions[0]),
+                                         sections=CYLINDER_SECTIONS)
+    if kind == "capsule":
+        return trimesh.creation.capsule(height=float(dimensions[0]),
+                                        radius=float(dimensions[1]), count=list(CAPSULE_COUNT))
+    raise ValueError(f"cannot draw a {kind} geometry")
+
+
+def _rgb(rgba: Sequence[float]) -> str:
+    r, g, b = (round(255 * float(v)) for v in rgba[:3])
+    return f"rgb({r}, {g}, {b})"
+
+
+def _link_frame(bullet, body: int, index: int) -> np.ndarray:
+    """World pose of link ``index``'s URDF frame (the base's: its inertial frame times the
+    inverse of its local inertial pose, which is how pybullet places the base)."""
+    if index >= 0:
+        state = bullet.getLinkState(body, index, computeForwardKinematics=True)
+        return _pose(state[4], state[5])
+    position, quaternion = bullet.getBasePositionAndOrientation(body)
+    local = bullet.getDynamicsInfo(body, -1)
+    return _pose(position, quaternion) @ np.linalg.inv(_pose(local[3], local[4]))
+
+
+def _collision_shapes(bullet, body: int, index: int, link: str,
+                      color: str) -> list[LinkShape]:
+    """Link ``index``'s collision geometry in its URDF frame (pybullet's collision frames
+    and mesh vertices are in the link's inertial frame)."""
+    from scipy.spatial import ConvexHull
+
+    local = bullet.getDynamicsInfo(body, index)
+    inertial = _pose(local[3], local[4])
+    out = []
+    for k, row in enumerate(bullet.getCollisionShapeData(body, index)):
+        kind = GEOMETRY_KINDS.get(row[2], "unknown")
+        if kind == "mesh":
+            count, points = bullet.getMeshData(body, index, collisionShapeIndex=k)
+            points = np.asarray(points, dtype=float).reshape(-1, 3)
+            if count < 4:
+                continue
+            faces = ConvexHull(points).simplices
+            vertices = points @ inertial[:3, :3].T + inertial[:3, 3]
+        else:
+            mesh = _primitive(kind, row[3])
+            frame = inertial @ _pose(row[5], row[6])
+            vertices = np.asarray(mesh.vertices) @ frame[:3, :3].T + frame[:3, 3]
+            faces = np.asarray(mesh.faces)
+        out.append(LinkShape(link, vertices, np.asarray(faces), color, "collision", kind))
+    return out
+
+
+def _shapes(bullet, body: int, links: Mapping[str, int]) -> tuple[LinkShape, ...]:
+    """Every link's drawn geometry (see the module docstring), links in the URDF's order."""
+    visuals: dict[int, list] = {}
+    for row in bullet.getVisualShapeData(body):
+        visuals.setdefault(row[1], []).append(row)
+    out: list[LinkShape] = []
+    for link, index in links.items():
+        rows = visuals.get(index, [])
+        if not rows:
+            continue
+        color = _rgb(rows[0][7])
+        if any(GEOMETRY_KINDS.get(r[2]) == "mesh" for r in rows):
+            out += _collision_shapes(bullet, body, index, link, color)
+            continue
+        for row in rows:
+            kind = GEOMETRY_KINDS.get(row[2], "unknown")
+            mesh = _primitive(kind, row[3])
+            frame = _pose(row[5], row[6])  # the visual frame, in the link's URDF frame
+            out.append(LinkShape(link, np.asarray(mesh.vertices) @ frame[:3, :3].T
+                                 + frame[:3, 3], np.asarray(mesh.faces), _rgb(row[7]),
+                                 "visual", kind))
+    return tuple(out)
+
+
+def robot_geometry(description: RobotDescription,
+                   configurations: Sequence[Mapping[str, float]]) -> RobotGeometry:
+    """The robot's drawn geometry and its link frames at each of ``configurations``.
+
+    Args:
+        description: the robot.
+        configurations: each a mapping movable joint name -> value (radians / metres),
+            e.g. ``description.model.expand(q)`` or a closing's final joint values (joints
+            left out keep the open configuration's values).
+
+    Returns:
+        :class:`RobotGeometry` (its ``frames[i]`` for ``configurations[i]``).
+    """
+    open_values = description.model.expand(description.open_configuration())
+    frames = []
+    with loaded_robot(description) as (bullet, body, links):
+        shapes = _shapes(bullet, body, links)
+        joints = {bullet.getJointInfo(body, i)[1].decode(): i for i in links.values() if i >= 0}
+        for values in configurations:
+            for joint, value in {**open_values, **values}.items():
+                bullet.resetJointState(body, joints[joint], float(value))
+            frames.append({link: _link_frame(bullet, body, index)
+                           for link, index in links.items()})
+    return RobotGeometry(shapes, tuple(frames))

@@ -1,0 +1,176 @@
+"""``kinegrasp report`` of a description robot's grasps (``--robot NAME``, or a grasp file of
+a robot other than the default ``kuka_sdh``): every chosen grasp evaluated at each sigma by
+the robot's engine (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`,
+the draws of ``kinegrasp evaluate`` with the same options), written as one page
+(:func:`~kinegrasp_env.toolkit.report.robot.robot_page`). The default robot's page is
+:mod:`kinegrasp_env.cli.report`'s.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shlex
+from pathlib import Path
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    output_file,
+    parse_index,
+    parse_seed,
+    positive_int,
+    reported,
+)
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, IN_PROCESS, _check_engine, _refuse
+
+FRICTION, NUM_EDGES = 0.5, 8
+
+
+def grasp_file_robot(args) -> str | None:
+    """The robot of ``--grasps FILE`` when it is a readable grasp file, else None (the
+    default robot's path then reports a bad file)."""
+    if not getattr(args, "grasps", None) or not Path(args.grasps).is_file():
+        return None
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
+    from kinegrasp_env.world.grasps import load_grasps
+
+    try:
+        if is_candidate_file(args.grasps):
+            return None
+        grasps = load_grasps(args.grasps)
+    except ValueError:
+        return None
+    return grasps[0].robot if grasps else None
+
+
+def is_robot_report(args) -> bool:
+    """Whether ``report`` draws a description robot's grasps."""
+    return (args.robot not in (None, DEFAULT_ROBOT)
+            or grasp_file_robot(args) not in (None, DEFAULT_ROBOT))
+
+
+def chosen_grasps(args, robot: str) -> tuple[str, list]:
+    """(object, grasps): ``--grasp`` (comma-separated ids or indices; default: all) of
+    ``--grasps FILE`` or of the robot's shipped set of ``--object``; every grasp must be of
+    ``robot`` and of one object."""
+    from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
+    from kinegrasp_env.world.grasps import (
+        NoGraspSetError,
+        check_robot,
+        load_grasps,
+        shipped_grasps,
+    )
+
+    if args.grasps is not None:
+        if Path(args.grasps).is_dir():
+            raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
+        with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+            grasps = load_grasps(args.grasps)
+        source = args.grasps
+    else:
+        args.object = args.object or EVALUATE_OBJECT
+        with reported(NoGraspSetError):
+            grasps = shipped_grasps(args.object, robot)
+        source = f"the shipped grasps of {args.object} for robot {robot}"
+    if not grasps:
+        raise CLIError(f"--grasps {args.grasps}: the file holds no grasps")
+    if args.grasp is not None:
+        ids = [g.id for g in grasps]
+        picked = []
+        for text in (t.strip() for t in args.grasp.split(",")):
+            index = ids.index(text) if text in ids else parse_index(text)
+            if not 0 <= index < len(grasps):
+                raise CLIError(f"--grasp {text}: no grasp with this id in {source}, and not "
+                               f"an index 0..{len(grasps) - 1}")
+            if index in picked:
+                raise CLIError(f"--grasp: {args.grasp!r} names grasp {ids[index]} twice")
+            picked.append(index)
+        grasps = [grasps[i] for i in picked]
+    objects = sorted({g.object for g in grasps})
+    if len(objects) != 1:
+        raise CLIError(f"--grasps {args.grasps}: grasps of {', '.join(objects)}; a report "
+                       "draws one object's grasps")
+    if args.object is not None and args.object != objects[0]:
+        raise CLIError(f"--object {args.object}: {source} holds grasps of {objects[0]}")
+    with reported(ValueError):
+        for g in grasps:
+            check_robot(g, robot)
+    return objects[0], grasps
+
+
+def report_command(args, robot: str, sigmas: list[float], samples: int, seed: int,
+                   out: Path) -> list[str]:
+    """The canonical command line of the page (every setting spelled out)."""
+    chosen = ["--grasps", str(args.grasps)] if args.grasps else ["--object", args.object]
+    if args.grasp is not None:
+        chosen += ["--grasp", args.grasp]
+    return ["kinegrasp", "report", "--robot", robot, *chosen, "--sigma",
+            ",".join(f"{s:g}" for s in sigmas), "--noise", args.noise, "--samples",
+            str(samples), "--seed", str(seed), "--engine", args.engine, "--out", str(out)]
+
+
+def _finite(value):
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
+def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
+                     arm_draws_default: str) -> int:
+    """``kinegrasp report --robot NAME``: the page of a description robot's grasps
+    (``sigmas``: the validated ``--sigma`` values; the defaults of the default robot's
+    ``--max-points`` and ``--arm-draws``, refused when given otherwise)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.report.page import write_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
+    from kinegrasp_env.world.objects import load_object
+
+    robot = args.robot or grasp_file_robot(args)
+    _refuse(args, {"--noise-spec": None, "--max-points": max_points_default,
+                   "--arm-draws": arm_draws_default, **IN_PROCESS}, robot)
+    _check_engine(args.engine, robot)
+    samples = positive_int(args.samples, "--samples")
+    seed = parse_seed(args.seed)
+    out = output_file(args.out, "--out")
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    name, grasps = chosen_grasps(args, robot)
+    runs = []
+    with make_engine(args.engine, description, name) as engine:
+        for index, grasp in enumerate(grasps):
+            for sigma in sigmas:
+                runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
+                    grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
+                    engine=engine)))
+    command = report_command(args, robot, sigmas, samples, seed, out)
+    settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
+                "grasp source": args.grasps or f"shipped set of {name} for {robot}",
+                "sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": args.noise,
+                "noisy joints": ", ".join(description.arm_joints),
+                "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
+                "engine": args.engine, "contact model": description.contact_model,
+                "friction mu": FRICTION, "friction cone edges": NUM_EDGES}
+    text = robot_page(description, load_object(name), grasps, runs,
+                      command=shlex.join(command), settings=settings, friction=FRICTION,
+                      num_edges=NUM_EDGES)
+    write_page(out, text)
+    size = len(text.encode())
+    if args.json:
+        print(json.dumps({"report": str(out), "bytes": size, "robot": robot, "object": name,
+                          "runs": [{"grasp": grasps[r.grasp].id, "sigma": r.sigma,
+                                    "noise": args.noise, "samples": samples, "seed": seed,
+                                    "p_fc": r.evaluation.p_fc,
+                                    "p_fc_ci": list(r.evaluation.ci),
+                                    "q_nominal": grasps[r.grasp].q_nominal,
+                                    "q_mean": _finite(r.evaluation.q_mean),
+                                    "q_std": _finite(r.evaluation.q_std),
+                                    "q_skew": _finite(r.evaluation.q_skew),
+                                    "outcomes": r.evaluation.counts} for r in runs]}))
+        return 0
+    for r in runs:
+        lo, hi = r.evaluation.ci
+        print(f"{name} grasp {grasps[r.grasp].id} of robot {robot}, sigma = {r.sigma:g} "
+              f"({args.noise}), {samples} draws: P(FC) = {r.evaluation.p_fc:.4f} (95% CI "
+              f"{lo:.4f} .. {hi:.4f})")
+    print(f"report written to {out} ({size / 1e6:.1f} MB)")
+    return 0

@@ -1,0 +1,236 @@
+"""The report page of a description robot's grasps (a robot other than the default one).
+
+One page per grasp set: the table of P(FC) (with its Wilson 95% interval) and Q's moments
+over the force-closure draws for each grasp and sigma, and one rotatable 3-D scene per grasp
+in the world (robot base) frame: the object at its pose, the whole robot at the grasp's
+nominal closing (the reference closing from q0, :meth:`~kinegrasp_env.closing.
+generic_reference.RobotWorld.auto_close`), hidden until toggled at its pre-shape q0, and the
+nominal contacts with their friction cones. The robot is drawn as
+:func:`~kinegrasp_env.robot.picture.robot_geometry` reads it (the picture of ``kinegrasp
+robots show``: pybullet's reading of the URDF; links with mesh visuals are drawn from their
+collision geometry, and the page says which). Metres throughout; pages are deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.picture import RobotGeometry, robot_geometry
+from kinegrasp_env.toolkit.report.geometry import cone_meshes, transform
+from kinegrasp_env.toolkit.report.html import (
+    Figure,
+    command_block,
+    esc,
+    note,
+    page,
+    settings_table,
+)
+from kinegrasp_env.toolkit.report.page import fmt, versions
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary, instanced_mesh, layout
+from kinegrasp_env.toolkit.report.scene import (
+    CONE_SCALE,
+    LEGEND,
+    close_up,
+    mesh_trace,
+    object_traces,
+    scene_axes,
+)
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import GraspObject
+
+#: Outcome counts shown in the table, in this order.
+OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
+
+
+@dataclass(frozen=True)
+class RobotRun:
+    """One grasp evaluated at one sigma.
+
+    Attributes:
+        grasp: index of the grasp in the page's list.
+        sigma: joint noise standard deviation, radians (scalar or one per arm joint).
+        evaluation: :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotEvaluation`.
+    """
+
+    grasp: int
+    sigma: float | tuple[float, ...]
+    evaluation: object
+
+
+def nominal_closings(description: RobotDescription, obj: GraspObject,
+                     grasps: Sequence[Grasp]) -> list[tuple[dict[str, float], bool]]:
+    """Per grasp: (every movable joint's value at its nominal closing, True), or (its values
+    at q0, False) when the hand starts in collision at q0 and does not close."""
+    from kinegrasp_env.closing.generic_reference import RobotWorld
+
+    world = RobotWorld(description, obj)
+    out = []
+    try:
+        for grasp in grasps:
+            values = {k: float(v) for k, v in description.model.expand(grasp.q0).items()}
+            result = world.auto_close(np.asarray(grasp.q0, dtype=float))
+            out.append(({**values, **result.joints}, True) if not result.start_collision
+                       else (values, False))
+    finally:
+        world.close()
+    return out
+
+
+def robot_traces(geometry: RobotGeometry, index: int, name: str, library: MeshLibrary, *,
+                 robot: str, opacity: float = 1.0, **extra) -> list[dict]:
+    """The robot's pieces placed at ``geometry.frames[index]``: one Mesh3d per colour, one
+    legend entry (the pieces are stored once in ``library``)."""
+    by_colour: dict[str, list] = {}
+    for k, shape in enumerate(geometry.shapes):
+        key = library.add(f"robot:{robot}:{k}", shape.vertices, shape.faces)
+        by_colour.setdefault(shape.color, []).append((key, geometry.frames[index][shape.link]))
+    return [instanced_mesh(pieces, name, colour, opacity=opacity, legendgroup=name,
+                           showlegend=i == 0, **extra)
+            for i, (colour, pieces) in enumerate(by_colour.items())]
+
+
+def contact_traces(grasp: Grasp, obj: GraspObject, description: RobotDescription,
+                   friction: float, num_edges: int) -> list[dict]:
+    """The nominal contacts (world frame markers, named by their finger's tip link) and
+    their friction cones (one mesh, drawn outside the object)."""
+    if len(grasp.points) == 0:
+        return []
+    points = transform(grasp.points, obj.pose)
+    normals = np.asarray(grasp.normals) @ obj.pose[:3, :3].T
+    height = CONE_SCALE * float(np.max(obj.size))
+    vertices, faces = cone_meshes(points, normals, friction, num_edges, height)
+    tips = description.fingertip_links
+    labels = [f"finger {f + 1} ({tips[f] if f < len(tips) else '?'})" for f in grasp.fingers]
+    return [mesh_trace(vertices, faces, f"friction cones (mu {friction:g}, {num_edges} edges, "
+                       "drawn outside)", "#9467bd", opacity=0.6),
+            {"type": "scatter3d", "mode": "markers", "name": "nominal contacts",
+             "x": points[:, 0].tolist(), "y": points[:, 1].tolist(),
+             "z": points[:, 2].tolist(), "text": labels, "hoverinfo": "text+name",
+             "marker": {"size": 6, "color": "black", "symbol": "diamond"}}]
+
+
+def view_buttons(obj: GraspObject) -> dict:
+    """Buttons switching a scene between a close-up of the object and the whole robot."""
+    low, high = (transform(c, obj.pose) for c in close_up(obj))
+    low, high = np.minimum(low, high), np.maximum(low, high)
+    extent = high - low
+    near = {f"scene.{a}axis.range": [float(low[k]), float(high[k])]
+            for k, a in enumerate("xyz")}
+    near.update({"scene.aspectmode": "manual", "scene.aspectratio": dict(zip(
+        "xyz", (extent / extent.max()).tolist(), strict=True))})
+    whole = {f"scene.{a}axis.autorange": True for a in "xyz"}
+    whole["scene.aspectmode"] = "data"
+    return {"type": "buttons", "direction": "right", "x": 0.0, "y": 1.0, "xanchor": "left",
+            "yanchor": "top", "showactive": True, "active": 0,
+            "buttons": [{"label": "close-up", "method": "relayout", "args": [near]},
+                        {"label": "whole robot", "method": "relayout", "args": [whole]}]}
+
+
+def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
+                geometry: RobotGeometry, closed: int, shaped: int, library: MeshLibrary, *,
+                did_close: bool, friction: float, num_edges: int, title: str) -> dict:
+    """One grasp's scene in the world frame: the object, the robot at
+    ``geometry.frames[closed]`` (its nominal closing) and, hidden until toggled, at
+    ``geometry.frames[shaped]`` (its pre-shape q0), the nominal contacts and cones. Opens on
+    the close-up of the object (a button shows the whole robot)."""
+    label = "robot (closed, nominal)" if did_close else "robot (q0: starts in collision)"
+    data = object_traces(obj, library, obj.pose, parts=False)
+    data += robot_traces(geometry, closed, label, library, robot=description.name,
+                         opacity=0.55)
+    data += robot_traces(geometry, shaped, "robot (pre-shape q0)", library,
+                         robot=description.name, opacity=0.3, visible="legendonly")
+    data += contact_traces(grasp, obj, description, friction, num_edges)
+    box = tuple(transform(c, obj.pose) for c in close_up(obj))
+    scene = scene_axes((np.minimum(*box), np.maximum(*box)))
+    return {"data": data, "layout": layout(
+        scene=scene, updatemenus=[view_buttons(obj)], legend=LEGEND, uirevision="grasp",
+        title={"text": title, "x": 0.01, "font": {"size": 14}})}
+
+
+def sigma_words(sigma) -> str:
+    return f"{sigma:g}" if isinstance(sigma, float) else ",".join(f"{s:g}" for s in sigma)
+
+
+def results_table(grasps: Sequence[Grasp], runs: Sequence[RobotRun]) -> str:
+    """The table of every run: P(FC) (``class="kg-pfc"``, its full value in ``data-value``),
+    its interval, Q nominal, Q's moments over the force-closure draws, the outcomes."""
+    head = ("grasp", "sigma [rad]", "P(FC)", "95% CI", "Q nominal", "Q mean", "Q std",
+            "Q skewness", *(c.replace("_", " ") for c in OUTCOME_COLUMNS), "draws")
+    rows = []
+    for run in runs:
+        e, grasp = run.evaluation, grasps[run.grasp]
+        cells = [f'<td class="kg-text">{esc(grasp.id)}</td>',
+                 f"<td>{esc(sigma_words(run.sigma))}</td>",
+                 f'<td class="kg-pfc" data-grasp="{esc(grasp.id)}" '
+                 f'data-value="{e.p_fc!r}">{e.p_fc:.4f}</td>',
+                 f"<td>{e.ci[0]:.4f} .. {e.ci[1]:.4f}</td>", f"<td>{fmt(grasp.q_nominal)}</td>",
+                 f"<td>{fmt(e.q_mean)}</td>", f"<td>{fmt(e.q_std)}</td>",
+                 f"<td>{fmt(e.q_skew, 3)}</td>",
+                 *(f"<td>{e.counts.get(c, 0)}</td>" for c in OUTCOME_COLUMNS), f"<td>{e.n}</td>"]
+        rows.append(f"<tr>{''.join(cells)}</tr>")
+    header = "".join(f"<th>{esc(h)}</th>" for h in head)
+    return f"<table><tr>{header}</tr>{''.join(rows)}</table>"
+
+
+def geometry_note(geometry: RobotGeometry) -> str:
+    """Which links are drawn from which geometry."""
+    visual, collision = geometry.links_from("visual"), geometry.links_from("collision")
+    parts = []
+    if visual:
+        parts.append(f"from their visual geometry (primitives): {', '.join(visual)}")
+    if collision:
+        parts.append("from their collision geometry (their visuals are meshes, whose "
+                     "triangles pybullet does not give; meshes drawn as the convex hulls "
+                     f"pybullet collides with): {', '.join(collision)}")
+    return "Links drawn " + "; ".join(parts) + "." if parts else "The robot has no geometry."
+
+
+def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence[Grasp],
+               runs: Sequence[RobotRun], *, command: str, settings: dict,
+               friction: float = 0.5, num_edges: int = 8) -> str:
+    """The HTML page of a description robot's grasps of one object.
+
+    Args:
+        description: the robot; obj: the object (every grasp's).
+        grasps: the grasps, in the order of the page.
+        runs: the evaluations (:class:`RobotRun`), in the order of the table.
+        command: the command line that reproduces the page; settings: name -> value.
+    """
+    closings = nominal_closings(description, obj, grasps)
+    configurations = []
+    for grasp, (values, _) in zip(grasps, closings, strict=True):
+        configurations += [values, {k: float(v) for k, v in
+                                    description.model.expand(grasp.q0).items()}]
+    geometry = robot_geometry(description, configurations)
+    library, figures, sections = MeshLibrary(), [], []
+    for k, (grasp, (_, did_close)) in enumerate(zip(grasps, closings, strict=True)):
+        title = f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame"
+        figure = Figure(f"scene-{k}", grasp_scene(
+            description, obj, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
+            friction=friction, num_edges=num_edges, title=title), "100%", "560px")
+        figures.append(figure)
+        state = ("drawn closed on the object from the pre-shape of q0 (the reference "
+                 "closing, as in every draw)" if did_close else
+                 "starts in collision at q0 and does not close: drawn at q0")
+        sections.append(f"<h2>Grasp {esc(grasp.id)}</h2><p>Q nominal "
+                        f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.</p>"
+                        f"{figure.div()}")
+    model = description.contact_model
+    title = f"kinegrasp report: robot {description.name}, {len(grasps)} grasps of {obj.name}"
+    finite = [r for r in runs if math.isfinite(r.evaluation.p_fc)]
+    best = max(finite, key=lambda r: r.evaluation.p_fc) if finite else None
+    lead = ("" if best is None else f" Highest P(FC): grasp {grasps[best.grasp].id} "
+            f"({best.evaluation.p_fc:.4f} at sigma {sigma_words(best.sigma)} rad).")
+    body = (f"<h1>{esc(title)}</h1><p class='kg-headline'>P(FC) and Q (Ferrari-Canny, "
+            f"{esc(model)} contacts) under joint noise on the {description.arm_dof} arm "
+            f"joints; Q's moments over the force-closure draws.{esc(lead)}</p>"
+            f"<h2>Results</h2>{results_table(grasps, runs)}"
+            f"{note(geometry_note(geometry))}{''.join(sections)}"
+            f"<h2>Settings</h2>{settings_table(settings)}"
+            f"<h2>Command that reproduces this page</h2>{command_block(command)}")
+    return page(title, body, figures, library, versions())
