@@ -1,6 +1,7 @@
 """Grasp commands: ``evaluate`` (Monte Carlo P(FC) of one grasp) and
 ``reproduce`` (the paper's tables and figures: its protocol run on this project's stand-in
-hand, objects and grasps).
+hand, objects and grasps; with ``--robot NAME`` the one figure that asks its question of
+another robot's arm, fig10: :data:`ROBOT_EXPERIMENTS`).
 """
 
 from __future__ import annotations
@@ -28,10 +29,24 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, figure_grasps, is_count
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, evaluate_robot
+from kinegrasp_env.cli.robot_grasps import (
+    DEFAULT_ROBOT,
+    IN_PROCESS,
+    _check_engine,
+    _refuse,
+    evaluate_robot,
+)
 
 #: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
 TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
+#: The experiments ``reproduce --robot NAME`` runs for another robot than the default one.
+ROBOT_EXPERIMENTS = ("fig10",)
+#: Why the others are the default robot's only (one line, with the error).
+ROBOT_REFUSAL = ("only fig10 takes another robot than kuka_sdh (null-space variants of a "
+                 "grasp along a 7-joint arm's self-motion: a question of the arm); table1 and "
+                 "fig9 tabulate kuka_sdh's shipped grasps against the paper's numbers (another "
+                 "robot's grasps: `kinegrasp report --robot NAME`), fig7 draws the SDH's "
+                 "contact scatter (fig10 names the robust and fragile pair)")
 
 
 def cmd_evaluate(args) -> int:
@@ -102,6 +117,8 @@ def cmd_reproduce(args) -> int:
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
+    if args.robot not in (None, DEFAULT_ROBOT):
+        return reproduce_robot(args, samples)
     out = str(output_folder(args.out or f"out/{args.figure}"))  # before any work
     seed = parse_seed(args.seed)
     if args.figure == "table1":
@@ -135,6 +152,82 @@ def cmd_reproduce(args) -> int:
                           engine=engine, executor=executor)
             print(markdown_table1(rows, args.object, samples))
             print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
+    return 0
+
+
+def robot_grasp_sets(args, robot: str) -> tuple[dict[str, list], int]:
+    """``reproduce fig10 --robot NAME``'s (grasp sets by object, variants per object): the
+    robot's shipped sets (of ``--object``, else of every object it has one for) and a count,
+    or a grasp file of the robot."""
+    from kinegrasp_env.cli.figure_grasps import grasp_file
+    from kinegrasp_env.world.grasps import (
+        NoGraspSetError,
+        check_robot,
+        shipped_grasps,
+        shipped_objects,
+    )
+
+    if args.grasps is None or is_count(args.grasps):
+        count = positive_int(args.grasps or str(FIGURE_GRASPS), "--grasps")
+        objects = (args.object,) if args.object else shipped_objects(robot)
+        if not objects:
+            raise CLIError(f"robot {robot!r} has no shipped grasps; give them with --grasps "
+                           f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
+                           "--out grasps.json`)")
+        with reported(NoGraspSetError):
+            return {name: shipped_grasps(name, robot) for name in objects}, count
+    grasps = grasp_file(args.grasps)
+    if args.object is not None and args.object != grasps[0].object:
+        raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of "
+                       f"{grasps[0].object}")
+    with reported(ValueError):
+        for g in grasps:
+            check_robot(g, robot)
+    return {grasps[0].object: grasps}, FIGURE_GRASPS
+
+
+def reproduce_robot(args, samples: int) -> int:
+    """``reproduce fig10 --robot NAME``: null-space variants of a description robot's grasp
+    (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); the other experiments are
+    refused in one line (:data:`ROBOT_REFUSAL`)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    robot = args.robot
+    if args.figure not in ROBOT_EXPERIMENTS:
+        raise CLIError(f"reproduce {args.figure} --robot {robot}: {ROBOT_REFUSAL}")
+    _refuse(args, IN_PROCESS, robot)
+    _check_engine(args.engine, robot)
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    if description.arm_dof != 7 or description.arm_angle_links is None:
+        raise CLIError(f"reproduce fig10 --robot {robot}: the robot has "
+                       f"{description.arm_dof} arm joints"
+                       f"{'' if description.arm_angle_links else ' and no elbow angle'}; fig10 "
+                       "moves a 7-joint arm along its self-motion")
+    sets, count = robot_grasp_sets(args, robot)
+    out = str(output_folder(args.out or f"out/{args.figure}"))
+    seed = parse_seed(args.seed)
+    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
+
+    with reported(ValueError):
+        rows = robot_fig10(description, out, grasp_sets=sets, samples=samples, count=count,
+                           seed=seed, engine=args.engine)
+    for r in rows:
+        print(f"{r['object']:<12} id {r['id']:<5} elbow {r['elbow_angle']:+.3f} rad P(FC) "
+              f"{r['p_fc']:.3f} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+    pairs = [r for r in rows if r["config"]]
+    if pairs:
+        print(f"robust and fragile variants chosen on {samples} draws per variant (seed "
+              f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
+    for r in pairs:
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) "
+              f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
+              f"{r['fresh_p_fc_hi']:.3f}), chosen at {r['selection_p_fc']:.3f}")
+        if r["config"] == "fragile":
+            print(f"{r['object']:<12} robust - fragile {r['gap']:+.3f} (95% CI "
+                  f"{r['gap_lo']:+.3f} .. {r['gap_hi']:+.3f}), paired")
+    print(written(out, ["fig10.csv", "fig10.png"]))
     return 0
 
 
@@ -202,7 +295,8 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "
-                       "paper on this project's stand-in models (hand, objects, grasps)")
+                       "paper on this project's stand-in models (hand, objects, grasps); "
+                       "with --robot NAME: fig10 of another 7-joint arm")
     p.add_argument("figure", choices=("table1", "fig7", "fig9", "fig10"),
                    help="the table or figure")
     add_object_arg(p, None, f"catalog object: table1's (default {TABLE1_OBJECT}); fig9, "
@@ -219,4 +313,12 @@ def add_commands(sub) -> None:
     # in 10,000 of them (benchmarks/agreement.py); --engine pybullet runs the reference
     add_engine_arg(p, "fast")
     p.add_argument("--out", help="output folder (default out/<figure>)")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's). "
+                   "Another robot: fig10 only, for a 7-joint arm with an elbow angle "
+                   "(null-space variants of its first grasp per object along the arm's "
+                   "self-motion, its shipped grasps or --grasps FILE; engine pybullet or fast, "
+                   "in this process); table1, fig7 and fig9 are refused: table1 and fig9 "
+                   "tabulate kuka_sdh's shipped grasps against the paper's numbers (another "
+                   "robot's grasps: `kinegrasp report --robot NAME`), fig7 draws the SDH's "
+                   "contact scatter (fig10 names the robust and fragile pair)")
     p.set_defaults(func=cmd_reproduce)

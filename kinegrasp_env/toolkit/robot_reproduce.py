@@ -1,0 +1,120 @@
+"""Fig. 10 of the paper for a description robot with a 7-joint arm: the same contacts reached
+with different arm configurations.
+
+The paper's Fig. 10 evaluates null-space variants of a grasp: configurations with the grasp's
+palm pose (hence its nominal contacts) and elbow angles spread over the self-motion. For a
+description robot the variants are ``count`` configurations picked evenly (by index) from
+:func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations` (the self-motion
+walked every :data:`~kinegrasp_env.toolkit.elbow.FINE_STEP` radians of psi, within the joint
+limits and clear of the object), kept where their nominal closing is in force closure (as the
+default robot's variants are). Each is evaluated on ``samples`` draws of joint noise on the
+arm joints (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed
+``seed``: the draws of ``kinegrasp evaluate --robot NAME --seed SEED``); with two variants or
+more, the most and the least robust (chosen on those draws) are reported again on fresh draws
+(:func:`~kinegrasp_env.toolkit.robot_elbow.fresh_seed`, common to both) with the paired
+difference of their force-closure indicators and its Student-t 95% interval.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.robot_evaluate import (
+    RobotReferenceEngine,
+    evaluate_robot_grasp,
+    make_engine,
+)
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.sampling.stats import paired_interval
+from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, _write_rows
+from kinegrasp_env.toolkit.robot_elbow import fresh_seed, robot_reachable_configurations
+from kinegrasp_env.toolkit.selection import extremes
+from kinegrasp_env.world.grasps import Grasp
+
+#: fig10.csv's columns for a description robot (the default robot's, the robot and the
+#: variant's elbow angle first).
+COLUMNS = ("robot", "object", "id", "elbow_angle", "p_fc", "q_mean", "q_std", "q_nominal",
+           "error", "samples", "sigma", *PAIR_COLUMNS)
+
+
+def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[Grasp]:
+    """Up to ``count`` configurations of the grasp's self-motion (see the module docstring),
+    as grasps with the grasp's palm pose and contacts, ids ``<id>v<k>``, their nominal Q and
+    ``meta["elbow_angle"]`` (radians)."""
+    reach = robot_reachable_configurations(grasp, engine)
+    pick = np.unique(np.round(np.linspace(0, len(reach) - 1, count)).astype(int))
+    out = []
+    for j, index in enumerate(pick):
+        psi, q = reach[index]
+        draw = engine.run(q[None])
+        if draw.outcome[0] != FORCE_CLOSURE:
+            continue
+        out.append(replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}v{j + 1}",
+                           q_nominal=float(draw.quality[0]),
+                           meta={**grasp.meta, "elbow_angle": float(psi),
+                                 "variant_of": grasp.id}))
+    return out
+
+
+def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
+                grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
+                sigma: float = 0.0033, count: int = 10, seed: int = 0,
+                engine: str = "pybullet") -> list[dict]:
+    """Fig. 10 of ``description`` (7 arm joints with an elbow angle): per object of
+    ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
+    (:data:`COLUMNS`), then ``fig10.png`` (a figure that fails is a warning: the CSV stays).
+
+    Args:
+        engine: the Monte Carlo engine (``pybullet`` or ``fast``); the self-motion and the
+            variants' nominal closings use the reference engine.
+
+    Raises:
+        ValueError: an arm without self-motion (not 7 joints with ``arm_angle_links``).
+    """
+    from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
+
+    if description.arm_dof != 7 or description.arm_angle_links is None:
+        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
+                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
+                         "fig10's variants move a 7-joint arm along its self-motion")
+    rows = []
+    for name, grasps in grasp_sets.items():
+        with RobotReferenceEngine(description, name) as reference:
+            variants = robot_variants(grasps[0], reference, count)
+        with make_engine(engine, description, name) as runner:
+            stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed,
+                                          engine=runner) for v in variants]
+            block = [{"robot": description.name, "object": name, "id": v.id,
+                      "elbow_angle": v.meta["elbow_angle"], "p_fc": s.p_fc,
+                      "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": v.q_nominal,
+                      "error": v.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
+                      **dict.fromkeys(PAIR_COLUMNS, "")}
+                     for v, s in zip(variants, stats, strict=True)]
+            if len(variants) >= 2:
+                best, worst = extremes([s.p_fc for s in stats])
+                fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples,
+                                              seed=fresh_seed(seed), engine=runner)
+                         for i in (best, worst)]
+                fc = [f.draws.outcome == FORCE_CLOSURE for f in fresh]
+                gap, lo, hi = paired_interval(fc[0].astype(float) - fc[1].astype(float))
+                for label, i, f in (("robust", best, fresh[0]), ("fragile", worst, fresh[1])):
+                    block[i].update({"config": label, "fresh_p_fc": f.p_fc,
+                                     "fresh_p_fc_lo": f.ci[0], "fresh_p_fc_hi": f.ci[1],
+                                     "fresh_samples": samples,
+                                     "selection_p_fc": stats[i].p_fc, "gap": gap,
+                                     "gap_lo": lo, "gap_hi": hi})
+        rows += block
+    out = Path(out_dir)
+    if not rows:
+        raise ValueError(f"no variant of robot {description.name!r}'s first grasp closes in "
+                         "force closure; nothing written")
+    _write_rows(out, "fig10.csv", rows, COLUMNS)
+    safe_figure(lambda: plot_success_quality(
+        rows, out / "fig10.png", title=f"fig10, robot {description.name}: sigma = {sigma:g}, "
+                                       f"{samples} draws per variant"), out / "fig10.png")
+    return rows
