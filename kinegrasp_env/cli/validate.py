@@ -55,6 +55,10 @@ def add_commands(sub) -> None:
                    "stated assumptions)")
     p.add_argument("--shake", action="store_true", help="add the shake phase after the lift "
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
+    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
+                   "kuka_sdh); another robot's shipped grasps (assets/grasps/NAME/) or "
+                   "--grasps of it are held by its own hand in pybullet, its motors at the "
+                   "URDF's effort limits (or the description's efforts)")
     p.add_argument("--out", required=True, help="output folder (results are cached there: "
                    "a rerun with the same settings resumes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -81,13 +85,66 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
     return out
 
 
-def selected_grasps(args) -> list[tuple[int, object]]:
+def robot_grasps(args, robot: str) -> list[tuple[int, object]]:
+    """A description robot's shipped grasps (``--object``: one of its shipped objects, or
+    ``all``), as ``(index, grasp)``."""
+    from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
+
+    objects = shipped_objects(robot)
+    if args.object == "all":
+        if args.grasp is not None:
+            raise CLIError("--grasp needs one --object, not `all`")
+        names = objects
+    elif args.object in objects:
+        names = (args.object,)
+    else:
+        raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r} "
+                       f"(shipped: {', '.join(objects) or 'none'}); give --grasps")
+    chosen = [pair for name in names for pair in enumerate(shipped_grasps(name, robot))]
+    if args.grasp is None:
+        return chosen
+    out = []
+    for text in args.grasp:
+        index = parse_index(text)
+        if not 0 <= index < len(chosen):
+            raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
+                           f"{len(chosen)} grasps of robot {robot} (0..{len(chosen) - 1})")
+        out.append(chosen[index])
+    return out
+
+
+def selected_robot(args) -> str:
+    """The robot: ``--robot``, else the grasp file's, else the default; a grasp file of
+    another robot than ``--robot`` refused (checked before any grasp is read in full)."""
+    from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT
+
+    if args.robot is not None:
+        from kinegrasp_env.robot.catalog import robot_names
+
+        if args.robot not in robot_names():
+            raise CLIError(f"--robot: unknown robot {args.robot!r}; choose from "
+                           f"{', '.join(robot_names())}")
+    if args.grasps is None:
+        return args.robot or DEFAULT_ROBOT
+    robots = {g.robot for _, g in file_grasps(args.grasps, None)}
+    found = robots.pop() if len(robots) == 1 else None
+    if found is None:
+        raise CLIError(f"--grasps {args.grasps}: the file's grasps are of several robots")
+    if args.robot is not None and found != args.robot:
+        raise CLIError(f"--grasps {args.grasps}: grasps of robot {found!r}, not of "
+                       f"{args.robot!r}")
+    return found
+
+
+def selected_grasps(args, robot: str = "kuka_sdh") -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES, is_object
 
     if args.grasps is not None:
         chosen = file_grasps(args.grasps, args.grasp)
+    elif robot != "kuka_sdh":
+        chosen = robot_grasps(args, robot)
     else:
         if args.object == "all":
             if args.grasp is not None:
@@ -138,16 +195,20 @@ def settings_from(args) -> dict:
 
 
 def cmd_validate(args) -> int:
+    robot = selected_robot(args)
     fields = settings_from(args)
     processes = processes_from(args.processes)
     out = output_folder(args.out)
-    grasps = selected_grasps(args)
+    grasps = selected_grasps(args, robot)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
     from kinegrasp_env.toolkit.validation_report import summarize, write_results
 
     settings = ValidationSettings(**fields)
-    results = run_validation(grasps, settings, out, processes, progress=True)
-    summary = summarize(results, settings, bootstrap_seed=settings.seed)
+    if robot == "kuka_sdh":
+        results = run_validation(grasps, settings, out, processes, progress=True)
+        summary = summarize(results, settings, bootstrap_seed=settings.seed)
+    else:
+        summary, results = validate_robot(robot, grasps, settings, out, processes)
     paths = write_results(out, results, summary)
     if args.json:
         print_json({**summary, "files": {k: str(v) for k, v in paths.items()}})
@@ -156,19 +217,43 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def validate_robot(robot: str, grasps, settings, out, processes: int):
+    """(summary, results) of a description robot's grasps (in this process)."""
+    from kinegrasp_env.toolkit.robot_validation import motors_summary, run_robot_validation
+    from kinegrasp_env.toolkit.validation_report import summarize
+
+    if processes != 1:
+        raise CLIError(f"--processes: robot {robot!r} is validated in this process only")
+    with reported(ValueError):
+        motors = motors_summary(robot, settings.torque_scale)
+        results = run_robot_validation(grasps, settings, out, progress=True)
+    return summarize(results, settings, bootstrap_seed=settings.seed,
+                     robot={"name": robot, "motors": motors}), results
+
+
+def limits_text(summary: dict) -> str:
+    """The motor limits of a run, in words."""
+    p = summary["protocol"]
+    if "motors" in p:
+        return "motors " + ", ".join(f"{m['joint']} {m['effort']:g} {m['unit']} ({m['source']})"
+                                     for m in p["motors"])
+    torques = p["torques_nm"]
+    return (f"torque limits {torques['proximal']:g} / {torques['distal']:g} / "
+            f"{torques['hold']:g} N m (assumed x {p['torque_scale']:g})")
+
+
 def print_summary(summary: dict, paths: dict) -> None:
     s, p = summary["settings"], summary["protocol"]
-    print(f"validate: {len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
+    robot = f"robot {s['robot']}, " if "robot" in s else ""
+    print(f"validate: {robot}{len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
           f"{s['samples']} draws each, seed {s['seed']} (kinematic engine: {s['kinematic']}, "
           f"simulator: {s['simulator']})")
-    torques = p["torques_nm"]
     shake = (f"shake {p['shake_amplitude'] * 100:g} cm / {math.degrees(p['shake_angle']):g} deg "
              f"at {p['shake_frequency']:g} Hz" if p["shake"] else "no shake")
     print(f"holding test: held = within {p['max_shift'] * 100:g} cm and "
           f"{math.degrees(p['max_turn']):g} deg of the post-grip pose (palm frame); gravity "
           f"{p['gravity_time']:g} s per direction, lift {p['lift_height'] * 100:g} cm, {shake}; "
-          f"torque limits {torques['proximal']:g} / {torques['distal']:g} / "
-          f"{torques['hold']:g} N m (assumed x {p['torque_scale']:g})")
+          f"{limits_text(summary)}")
     print(f"{'grasp':<18} {'P(FC) kin':>10} {'P(FC) phys':>11} {'P(hold)':>8}  95% CI hold"
           f"  {'grip shift mm (median)':>22}  outcomes")
     for g in summary["grasps"]:

@@ -32,6 +32,7 @@ from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, PHASES, HoldProt
 from kinegrasp_env.physics.pybullet_closing import MotorSettings
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.simulators import check_simulator
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.progress import Progress
@@ -218,15 +219,26 @@ def summary_text(draws: GraspDraws) -> str:
             f"physics {draws.phys_fc.mean():.2f}, P(hold) {draws.held.mean():.2f}")
 
 
+def robot_prefix(grasp: Grasp) -> str:
+    """The cache file prefix of a grasp: none for the default robot's, else its robot's name
+    and ``_``."""
+    return "" if grasp.robot == DEFAULT_ROBOT else f"{grasp.robot}_"
+
+
 def run_validation(grasps: list[tuple[int, Grasp]], settings: ValidationSettings,
                    out_dir: str | Path, processes: int = 1,
-                   progress: bool = False) -> list[GraspDraws]:
+                   progress: bool = False, task=None, key=None) -> list[GraspDraws]:
     """Every grasp's draws (``grasps``: (index in its set, grasp) pairs), in the order given;
     each grasp is read from ``<out_dir>/cache`` when it is there, else run and cached there
     at once (atomically), so a rerun resumes; a cached grasp with fewer draws than
-    ``settings.samples`` runs only the missing ones."""
+    ``settings.samples`` runs only the missing ones. ``task`` and ``key`` replace
+    :func:`grasp_draws` and :func:`settings_key` (a description robot's grasps:
+    :mod:`~kinegrasp_env.toolkit.robot_validation`; their cache files start with the robot's
+    name)."""
+    task, key = task or grasp_draws, key or settings_key
     cache = Path(out_dir) / "cache"
-    paths = [cache / f"{g.object}_{i}_{settings_key(g, settings)}.npz" for i, g in grasps]
+    paths = [cache / f"{robot_prefix(g)}{g.object}_{i}_{key(g, settings)}.npz"
+             for i, g in grasps]
     results: list[GraspDraws | None] = [
         GraspDraws.from_file(p, settings.samples) if p.exists() else None for p in paths]
     todo = [k for k, r in enumerate(results) if r is None or len(r) < settings.samples]
@@ -241,7 +253,7 @@ def run_validation(grasps: list[tuple[int, Grasp]], settings: ValidationSettings
     with LocalExecutor(processes) as executor:
         tasks = [(*grasps[k], settings, 0 if results[k] is None else len(results[k]))
                  for k in todo]
-        for position, new in executor.as_completed(grasp_draws, tasks):
+        for position, new in executor.as_completed(task, tasks):
             k = todo[position]
             draws = new if results[k] is None else results[k].extended(new)
             write_atomic(paths[k], draws.to_bytes())

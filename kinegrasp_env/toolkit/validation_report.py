@@ -44,10 +44,15 @@ def pooled(results: list[GraspDraws], attribute: str) -> np.ndarray:
 
 
 def summarize(results: list[GraspDraws], settings: ValidationSettings,
-              bootstrap_seed: int = 0, resamples: int = 2000) -> dict:
+              bootstrap_seed: int = 0, resamples: int = 2000,
+              robot: dict | None = None) -> dict:
     """The JSON summary: settings, per-grasp rows, pooled confusion matrices (rows: predicted
     False/True, columns: actual False/True) and, across grasps, Spearman's rho of P(FC)
-    (each engine) with P(hold), with percentile bootstrap intervals over the grasps."""
+    (each engine) with P(hold), with percentile bootstrap intervals over the grasps.
+
+    ``robot``: a description robot's ``{"name", "motors"}`` (:func:`~kinegrasp_env.toolkit.
+    robot_validation.motors_summary`); its name goes into ``settings`` as ``robot`` and its
+    motors replace the SDH's ``torques_nm`` in ``protocol`` as ``motors``."""
     protocol = settings.protocol
     rows = [GraspRow.of(r, protocol.phases) for r in results]
     p_hold = np.array([r.p_hold for r in rows])
@@ -61,9 +66,11 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
     outcomes = {name: sum(r.outcomes[name] for r in rows) for name in HOLD_OUTCOMES}
     phases = {name: {key: sum(r.phases[name][key] for r in rows) for key in ("run", "held")}
               for name in protocol.phases}
-    return {"settings": asdict(settings),
-            "protocol": {**asdict(protocol), "phases": list(protocol.phases),
-                         "torques_nm": asdict(protocol.torques)},
+    limits = ({"torques_nm": asdict(protocol.torques)} if robot is None
+              else {"motors": robot["motors"]})
+    return {"settings": asdict(settings) if robot is None
+            else {"robot": robot["name"], **asdict(settings)},
+            "protocol": {**asdict(protocol), "phases": list(protocol.phases), **limits},
             "grasps": [r.to_json() for r in rows],
             "draws": int(sum(len(r) for r in results)), "outcomes": outcomes, "phases": phases,
             "grip_shift_mm": shift_stats(results),
@@ -125,12 +132,14 @@ def write_results(out_dir: str | Path, results: list[GraspDraws],
     """draws.csv, grasps.csv, summary.json, then scatter.png (a figure failure is a warning:
     the results are already written). Returns the paths written."""
     out = Path(out_dir)
+    fingers = results[0].forces_gripped.shape[1] if results else 3
     paths = {"draws": out / "draws.csv", "grasps": out / "grasps.csv",
              "summary": out / "summary.json"}
     write_atomic(paths["draws"], csv_text(
         ["object", "grasp", "id", "draw", "kinematic_outcome", "kinematic_q",
          "physics_outcome", "physics_q", "hold_outcome", "grip_shift_mm", "grip_turn_deg"]
-        + [f"force_{when}_f{k + 1}_n" for when in ("gripped", "released") for k in range(3)]
+        + [f"force_{when}_f{k + 1}_n" for when in ("gripped", "released")
+           for k in range(fingers)]
         + ["pin_force_n"]
         + list(PHASES) + [f"{name}_max_shift_mm" for name in PHASES],
         draw_rows(results)))

@@ -1,0 +1,300 @@
+"""The holding test (:mod:`~kinegrasp_env.physics.protocol`) of any description robot, in
+pybullet: its hand (:class:`~kinegrasp_env.physics.robot_world.RobotPhysicsWorld`) at the
+palm pose the draw's arm joints give (forward kinematics of the URDF), the object pinned.
+
+One draw (:meth:`RobotHold.run_draw`):
+
+1. **closing**, gravity off, the object pinned: a hand link penetrating the object by more
+   than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
+   collision. Otherwise every closing joint of every finger (the description's fingers:
+   hand joints with a ``close`` direction and the mimic joints that follow them) is driven
+   by a velocity motor of its own towards closing at its URDF velocity limit, with its
+   effort limit (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's
+   ``<limit effort>`` unless the description's ``efforts`` overrides it). A mimic joint is
+   driven by a motor of its own, not coupled to its driver: each finger stops where it
+   touches, as in the kinematic closing's self-centring jaws
+   (:mod:`~kinegrasp_env.closing.generic_reference`; the hand is held by the anchor, so a
+   coupled pair could not centre itself on the pinned object). A mimic joint that closes no
+   finger follows its driver's mimic value (a position motor, its effort limit). The
+   closing ends when the closing joints stall (:func:`~kinegrasp_env.physics.hold_runner.
+   close_until_stall` on positions divided by their closing speeds: moving at less than
+   ``stall_fraction`` of the closing speed) or after ``max_time``; then one contact per
+   touching finger link (pybullet's contact records within ``touch_distance``, merged as the
+   SDH closing merges them: :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`),
+   in the object frame (:func:`~kinegrasp_env.physics.hold_runner.in_object_frame`).
+2. **grip**: the rule for jaws. The balanced-grip linear programme
+   (:mod:`~kinegrasp_env.physics.grip_forces`) maps contact forces to revolute joint
+   torques through levers a x (p - o); a prismatic jaw has no lever (its force is the joint
+   force along its axis), so it is not used here. Instead **every closing motor keeps
+   pushing with its full effort limit** (the velocity motor of the closing, held on through
+   the grip, the release and every phase): two opposed jaws with equal efforts press the
+   object with equal and opposite forces along the closing axis, an internal force when the
+   contacts face each other. Fewer than two touching fingers: ``no_grip``. The same rule
+   holds a revolute finger (its motors at their effort limits; no balance of its torques).
+3. the release and the phases: :func:`~kinegrasp_env.physics.hold_runner.hold_test`, the
+   SDH test's sequence and rules (grip until steady, ``grip_shift_mm``, ``grip_lost``, the
+   rest control, six gravity directions, the lift, the optional shake), over the primitives
+   of :class:`RobotSteps`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotContact
+from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.hold_runner import WorldSteps, close_until_stall, in_object_frame
+from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
+from kinegrasp_env.physics.pybullet_closing import merge_records
+from kinegrasp_env.physics.pybullet_world import WorldSettings
+from kinegrasp_env.physics.robot_world import (
+    ROOT_LINK,
+    JointMotor,
+    RobotPhysicsWorld,
+    motor_efforts,
+)
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.world.objects import GraspObject
+
+
+@dataclass(frozen=True)
+class RobotMotorSettings:
+    """The closing's end (the motors themselves: :func:`~kinegrasp_env.physics.robot_world.
+    motor_efforts`).
+
+    Attributes:
+        stall_fraction: a closing joint has stalled when it moves at less than this fraction
+            of its closing speed, averaged over ``stall_window`` seconds; the closing ends
+            when every closing joint has, at ``stall_checks`` consecutive windows.
+        max_time: longest closing, seconds.
+        touch_distance: a contact record within this distance (metres) is a contact.
+    """
+
+    stall_fraction: float = 0.02
+    stall_window: float = 0.05
+    stall_checks: int = 2
+    max_time: float = 2.0
+    touch_distance: float = CONTACT_TOL
+
+    @property
+    def stall_speed(self) -> float:
+        """The stall rule of :func:`~kinegrasp_env.physics.hold_runner.close_until_stall` on
+        positions in seconds of travel (position / closing speed)."""
+        return self.stall_fraction
+
+
+class JawMotors:
+    """The closing motors (module docstring, steps 1 and 2) of a :class:`RobotPhysicsWorld`.
+
+    Args:
+        world: the world, hand at its pre-shape.
+        motors: :func:`~kinegrasp_env.physics.robot_world.motor_efforts`.
+    """
+
+    def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor]) -> None:
+        self.world, self.motors = world, motors
+        self.indices = [world.joint_index[m.joint] for m in motors]
+        self.speeds = np.array([m.speed for m in motors])
+        model, driven = world.description.model, {m.joint for m in motors}
+        efforts = {m.joint: m.effort for m in motors}
+        self.followers = []  # (index, driver index, multiplier, offset, effort)
+        for joint in model.joints:
+            if (joint.mimic is None or joint.name in driven
+                    or joint.name not in world.joint_index
+                    or joint.mimic[0] not in world.joint_index):
+                continue
+            effort = efforts.get(joint.mimic[0], max(efforts.values()))
+            self.followers.append((world.joint_index[joint.name],
+                                   world.joint_index[joint.mimic[0]], *joint.mimic[1:],
+                                   effort))
+        self.restart()
+
+    def restart(self) -> None:
+        """Every closing motor on (again: after a ``restoreState``)."""
+        bullet, hand = self.world.bullet, self.world.hand
+        bullet.setJointMotorControlArray(
+            hand, self.indices, bullet.VELOCITY_CONTROL,
+            targetVelocities=[m.direction * m.speed for m in self.motors],
+            forces=[m.effort for m in self.motors])
+        self.follow()
+
+    def follow(self) -> None:
+        """The followers' position motors at their mimic values now."""
+        bullet, hand = self.world.bullet, self.world.hand
+        for index, driver, multiplier, offset, effort in self.followers:
+            value = bullet.getJointState(hand, driver)[0]
+            bullet.setJointMotorControl2(hand, index, bullet.POSITION_CONTROL,
+                                         targetPosition=multiplier * value + offset,
+                                         force=effort)
+
+    def step(self, steps: int = 1) -> None:
+        for _ in range(steps):
+            if self.followers:
+                self.follow()
+            self.world.bullet.stepSimulation()
+
+    def travel(self) -> np.ndarray:
+        """(m,) the closing joints' positions in seconds of travel (value / closing speed)."""
+        states = self.world.bullet.getJointStates(self.world.hand, self.indices)
+        return np.array([s[0] for s in states]) / self.speeds
+
+
+def finger_links(world: RobotPhysicsWorld) -> dict[int, tuple[int, int]]:
+    """pybullet link index -> (finger, index of the link in the finger's ``links``)."""
+    out: dict[int, tuple[int, int]] = {}
+    for f, finger in enumerate(world.description.fingers):
+        for k, link in enumerate(finger.links):
+            out.setdefault(world.link_index[link], (f, k))
+    return out
+
+
+def finger_forces(world: RobotPhysicsWorld) -> np.ndarray:
+    """(fingers,) each finger's total normal force on the object from the last step, N."""
+    links = finger_links(world)
+    forces = np.zeros(len(world.description.fingers))
+    for rec in world.contact_points():
+        if rec[3] in links:
+            forces[links[rec[3]][0]] += rec[9]
+    return forces
+
+
+def world_contacts(world: RobotPhysicsWorld, distance: float) -> list[GripContact]:
+    """One contact per touching finger link, world frame, finger-major: its records on the
+    deepest record's face (:func:`~kinegrasp_env.physics.pybullet_closing.merge_records`)
+    averaged without force weights, i.e. the centre of the corners of the pad's overlap
+    with the face (a rigid pad tilted by a fraction of a degree puts its whole force on one
+    corner, whichever the solver picks: the centre of pressure is not the patch's)."""
+    links = finger_links(world)
+    records: dict[tuple[int, int], list[tuple]] = {}
+    for rec in world.contact_points():
+        if rec[3] in links and rec[8] <= distance:
+            records.setdefault(links[rec[3]], []).append(rec)
+    return [GripContact(finger, link,
+                        *merge_records([(*r[:9], 0.0, *r[10:]) for r in records[(f, link)]]))
+            for f, link in sorted(records) for finger in (f,)]
+
+
+class RobotSteps(WorldSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
+    in a :class:`RobotPhysicsWorld`: the grip is the closing motors held on (:class:`JawMotors`);
+    a saved state is pybullet's ``saveState``, each phase restored from it without cached
+    contacts, the anchor put back where the state has the hand's root."""
+
+    def __init__(self, world: RobotPhysicsWorld, jaws: JawMotors, protocol: HoldProtocol) -> None:
+        super().__init__(world, jaws.motors, protocol)
+        self.jaws, self.state, self.anchor = jaws, None, None
+
+    def grip(self) -> bool:
+        touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
+        return len(touched) >= 2
+
+    def advance(self, steps: int = 1) -> None:
+        self.jaws.step(steps)
+
+    def finger_forces(self) -> np.ndarray:
+        return finger_forces(self.world)
+
+    def object_in_palm(self) -> np.ndarray:
+        world = self.world
+        return np.linalg.inv(world.link_pose(world.description.palm_link)) @ world.object_pose()
+
+    def save(self) -> None:
+        self.state, self.anchor = self.world.bullet.saveState(), None
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        world = self.world
+        if self.anchor is None:
+            world.restore_without_contacts(self.state)
+            self.anchor = world.link_pose(ROOT_LINK)
+        world.restore_without_contacts(self.state)
+        world.move_anchor(self.anchor)
+        self.jaws.restart()
+        world.set_gravity(gravity)
+
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        world = self.world
+        return world.link_pose(ROOT_LINK), world.link_pose(world.description.palm_link)[:3, 3]
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        self.world.anchor_at(position.tolist(), orientation.tolist())
+
+    def discard(self) -> None:
+        self.world.bullet.removeState(self.state)
+        self.state = None
+
+
+class RobotHold:
+    """The holding test of a description robot in pybullet, one draw at a time.
+
+    Args:
+        description: the robot.
+        obj: the catalog object.
+        friction: Coulomb friction between finger and object (the quality's mu).
+        protocol: the holding test's settings; ``torque_scale`` multiplies every motor's
+            effort.
+        world: :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings` (object free).
+        settings: :class:`RobotMotorSettings`.
+
+    Attributes:
+        motors: the closing motors (their efforts and where they came from).
+    """
+
+    name = "pybullet"
+
+    def __init__(self, description: RobotDescription, obj: GraspObject, friction: float,
+                 protocol: HoldProtocol, world: WorldSettings | None = None,
+                 settings: RobotMotorSettings | None = None) -> None:
+        world_settings = replace(world or WorldSettings(), friction=friction)
+        if not world_settings.object_free:
+            raise ValueError("the holding test needs a free object (object_free=True)")
+        self.description, self.protocol = description, protocol
+        self.settings = settings or RobotMotorSettings()
+        self.motors = motor_efforts(description, protocol.torque_scale)
+        self.kinematics = Kinematics(description.model)
+        self.world = RobotPhysicsWorld(description, obj, world_settings)
+
+    def palm_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
+        return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
+                                    self.description.palm_link)
+
+    def close_hand(self, q: np.ndarray) -> tuple[RobotCloseResult, JawMotors | None]:
+        """The closing of configuration q (dof,) on the pinned object (module docstring,
+        step 1): its contacts in the object frame, and the motors (None: start collision)."""
+        world, fingers = self.world, self.description.fingers
+        values = {name: value for name, value in self.description.model.expand(
+            np.asarray(q, dtype=float)).items() if name in world.joint_index}
+        world.reset(self.palm_poses(q)[0], values)
+        world.pin_object()
+        if world.penetration() > START_TOL:
+            return RobotCloseResult(True, missed=(False,) * len(fingers)), None
+        jaws = JawMotors(world, self.motors)
+        steps = close_until_stall(jaws.step, jaws.travel, self.settings,
+                                  world.settings.time_step)
+        found = in_object_frame(world_contacts(world, self.settings.touch_distance),
+                                world.object_pose())
+        contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
+        touched = {c.finger for c in contacts}
+        joints = dict(zip([m.joint for m in self.motors], (jaws.travel() * jaws.speeds).tolist(),
+                          strict=True))
+        return RobotCloseResult(False, contacts,
+                                tuple(f not in touched for f in range(len(fingers))),
+                                joints=joints, queries=steps), jaws
+
+    def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
+        """One draw at configuration q (dof,): the closing on the pinned object and the
+        holding test."""
+        closing, jaws = self.close_hand(q)
+        if jaws is None:
+            return closing, HoldResult(START_COLLISION)
+        self.world.damp_object(False)
+        return closing, hold_runner.hold_test(RobotSteps(self.world, jaws, self.protocol),
+                                              self.protocol)
+
+    def close(self) -> None:
+        self.world.close()

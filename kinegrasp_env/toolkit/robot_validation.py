@@ -1,0 +1,144 @@
+"""``kinegrasp validate`` of a description robot's grasps (a robot other than the default
+``kuka_sdh``): the same noisy draws through a kinematic engine of the robot
+(:mod:`~kinegrasp_env.montecarlo.robot_evaluate`: ``pybullet``, the reference, or ``fast``)
+and the holding test of its own hand in pybullet
+(:class:`~kinegrasp_env.physics.robot_hold.RobotHold`); results in the default robot's
+per-draw form (:class:`~kinegrasp_env.toolkit.validation.GraspDraws`), summarized and
+written by the same code.
+
+The draws are those of ``kinegrasp evaluate --robot`` with the same seed and sigma
+(:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`: joint noise on the
+description's arm joints, the hand at its pre-shape). The fingers' normal forces are stored
+one column per finger of the description.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine, score
+from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
+from kinegrasp_env.physics.pybullet_world import WorldSettings
+from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
+from kinegrasp_env.physics.robot_world import motor_efforts
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.sampling.noise import JointNoise, as_generator
+from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
+from kinegrasp_env.world.grasps import Grasp
+
+#: The simulator that holds description robots.
+ROBOT_SIMULATOR = "pybullet"
+
+
+class RobotHoldEngine(RobotEngine):
+    """The holding test of a description robot as an engine: the physics closing's outcomes
+    and Q scored as every engine of the robot scores (:func:`~kinegrasp_env.montecarlo.
+    robot_engine.score`), and the holding results (arguments: :class:`RobotEngine`;
+    ``protocol``: the holding test's settings)."""
+
+    name = "physics"
+
+    def __init__(self, robot, object_name: str, *, protocol: HoldProtocol,
+                 **kwargs) -> None:
+        super().__init__(robot, object_name, **kwargs)
+        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol)
+
+    def close(self) -> None:
+        self.simulator.close()
+
+    def run_hold(self, q: np.ndarray) -> tuple[RobotDraws, HoldBatch]:
+        """Configurations q (n, dof): (the physics closings scored, their holding tests; the
+        fingers' forces (n, fingers))."""
+        q = self.check(q)
+        n, fingers = q.shape[0], len(self.description.fingers)
+        hold = HoldBatch.empty(n)
+        hold.forces_gripped = np.full((n, fingers), np.nan)
+        hold.forces_released = np.full((n, fingers), np.nan)
+        closings = []
+        for i, row in enumerate(q):
+            closing, result = self.simulator.run_draw(row)
+            closings.append(closing)
+            if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
+                result.forces_gripped = result.forces_released = np.full(fingers, np.nan)
+            hold.record(i, result)
+        return score(closings, self.max_contacts, self.quality), hold
+
+
+def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict]:
+    """The motors a robot's holding test runs with: per closing joint its effort (times
+    ``torque_scale``), unit, source (``urdf`` or ``description``) and closing speed."""
+    return [m.to_json() for m in motor_efforts(load_robot(robot), torque_scale)]
+
+
+def check_robot_settings(robot: str, settings: ValidationSettings) -> None:
+    """ValueError (one line) for settings a description robot's holding test cannot
+    honour, or a robot whose motors lack an effort limit."""
+    if settings.simulator != ROBOT_SIMULATOR:
+        raise ValueError(f"--simulator {settings.simulator}: only {ROBOT_SIMULATOR} holds "
+                         f"description robots (robot {robot!r})")
+    motor_efforts(load_robot(robot))
+
+
+def robot_key(grasp: Grasp, settings: ValidationSettings) -> str:
+    """A hash of everything a description robot's grasp draws depend on (cf.
+    :func:`~kinegrasp_env.toolkit.validation.settings_key`): the robot's description and URDF
+    too."""
+    description = load_robot(grasp.robot)
+    kept = [(f.name, getattr(settings, f.name)) for f in fields(settings) if f.name != "samples"]
+    files = [hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in
+             (description.path, description.urdf)]
+    text = repr((grasp.robot, files, grasp.object, grasp.q0.tobytes().hex(), kept,
+                 WorldSettings(), RobotMotorSettings(), settings.protocol, PHASES,
+                 HOLD_OUTCOMES))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+# a worker's engines, built on first use: (kinematic, physics) per (robot, object, settings)
+_ENGINES: dict[tuple, tuple[RobotEngine, RobotHoldEngine]] = {}
+
+
+def robot_engines(grasp: Grasp, settings: ValidationSettings
+                  ) -> tuple[RobotEngine, RobotHoldEngine]:
+    key = (grasp.robot, grasp.object, settings.kinematic, settings.friction,
+           settings.num_edges, settings.protocol)
+    if key not in _ENGINES:
+        options = {"friction": settings.friction, "num_edges": settings.num_edges}
+        _ENGINES[key] = (make_engine(settings.kinematic, grasp.robot, grasp.object, **options),
+                         RobotHoldEngine(grasp.robot, grasp.object,
+                                         protocol=settings.protocol, **options))
+    return _ENGINES[key]
+
+
+def robot_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
+    """Run one grasp ``(index, grasp, settings, start)`` of a description robot: its draws
+    start..samples-1 through the kinematic engine and the holding test."""
+    index, grasp, settings, start = task
+    kinematic, physics = robot_engines(grasp, settings)
+    arm = kinematic.description.arm_dof
+    eps = JointNoise(settings.sigma).sample(int(settings.samples), arm,
+                                            as_generator(settings.seed))
+    q = np.repeat(kinematic.check(grasp.q0), settings.samples, axis=0)
+    q[:, :arm] += eps
+    q = q[start:]
+    kin = kinematic.run(q)
+    phys, hold = physics.run_hold(q)
+    return GraspDraws(grasp.object, index, grasp.id, kin.outcome, kin.quality, phys.outcome,
+                      phys.quality, hold)
+
+
+def run_robot_validation(grasps: list[tuple[int, Grasp]], settings: ValidationSettings,
+                         out_dir: str | Path, progress: bool = False) -> list[GraspDraws]:
+    """:func:`~kinegrasp_env.toolkit.validation.run_validation` of one description robot's
+    grasps (every grasp of that robot), in this process."""
+    robots = {g.robot for _, g in grasps}
+    if len(robots) != 1:
+        raise ValueError(f"the grasps are of several robots: {', '.join(sorted(robots))}")
+    check_robot_settings(robots.pop(), settings)
+    return run_validation(grasps, settings, out_dir, 1, progress,
+                          task=robot_draws, key=robot_key)
