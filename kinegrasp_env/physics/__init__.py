@@ -6,9 +6,11 @@ The protocol itself (phases, thresholds, stated torque assumptions, the per-draw
 simulator-independent (``protocol``; the hand's lift and shake motion: ``motion``); each
 simulator executes it in modules of its own: pybullet's world (``pybullet_world``: a free
 hand held by a constraint, the object as a rigid body that can be pinned), its closing
-controller (``pybullet_closing``) and its holding test (``pybullet_hold``). ``simulators``
-names them and states the interface a simulator implements. Uses ``closing`` (the kinematic
-closing's contact rules and result type), ``world`` and ``robot``.
+controller (``pybullet_closing``) and its holding test (``pybullet_hold``); any other
+catalog robot's hand cut from its URDF (``robot_world``), its holding test (``robot_hold``)
+and its closing against the kinematic one (``robot_agreement``). ``simulators`` names them
+and states the interface a simulator implements. Uses ``closing`` (the kinematic closing's
+contact rules and result type), ``world`` and ``robot``.
 """
 
 from __future__ import annotations
@@ -21,4 +23,5 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "protocol": ("HoldProtocol", "HoldResult", "ASSUMED_TORQUES", "PHASES", "HOLD_OUTCOMES"),
     "pybullet_hold": ("PybulletHold",),
     "simulators": ("SIMULATORS", "simulator_class"),
+    "robot_hold": ("RobotHold",),
 })

@@ -8,15 +8,18 @@ One draw (:meth:`RobotHold.run_draw`):
    than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
    collision. Otherwise every closing joint of every finger (the description's fingers:
    hand joints with a ``close`` direction and the mimic joints that follow them) is driven
-   by a velocity motor of its own towards closing at its URDF velocity limit, with its
+   closes as the kinematic closing closes it, on its own: its first closing joint (from the
+   palm) by a velocity motor of its own towards closing at its URDF velocity limit, with its
    effort limit (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's
-   ``<limit effort>`` unless the description's ``efforts`` overrides it). A mimic joint is
-   driven by a motor of its own, not coupled to its driver: each finger stops where it
-   touches, as in the kinematic closing's self-centring jaws
+   ``<limit effort>`` unless the description's ``efforts`` overrides it); the finger's other
+   closing joints follow it by position motors (their effort limits) at the values the
+   kinematic closing's one parameter gives them (each moving at its rate: the mimic
+   multiplier times the close direction). The fingers are not coupled to each other: each
+   stops where it touches, as the kinematic closing's self-centring jaws do
    (:mod:`~kinegrasp_env.closing.generic_reference`; the hand is held by the anchor, so a
    coupled pair could not centre itself on the pinned object). A mimic joint that closes no
-   finger follows its driver's mimic value (a position motor, its effort limit). The
-   closing ends when the closing joints stall (:func:`~kinegrasp_env.physics.hold_runner.
+   finger follows its driver's mimic value (a position motor, its driver's effort). The
+   closing ends when the fingers' first joints stall (:func:`~kinegrasp_env.physics.hold_runner.
    close_until_stall` on positions divided by their closing speeds: moving at less than
    ``stall_fraction`` of the closing speed) or after ``max_time``; then one contact per
    touching finger link (pybullet's contact records within ``touch_distance``, merged as the
@@ -97,21 +100,42 @@ class JawMotors:
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor]) -> None:
-        self.world, self.motors = world, motors
-        self.indices = [world.joint_index[m.joint] for m in motors]
-        self.speeds = np.array([m.speed for m in motors])
-        model, driven = world.description.model, {m.joint for m in motors}
+        self.world = world
+        description, model = world.description, world.description.model
+        drivers = model.drivers()
+
+        def rate(joint: str) -> float:  # d(value)/dt of the kinematic closing's parameter t
+            index, multiplier, _ = drivers[joint]
+            return multiplier * description.close[model.actuated[index]]
+
+        leaders = {finger.joints[0] for finger in description.fingers if finger.joints}
+        self.motors = [m for m in motors if m.joint in leaders]
+        self.indices = [world.joint_index[m.joint] for m in self.motors]
+        self.speeds = np.array([m.speed for m in self.motors])
         efforts = {m.joint: m.effort for m in motors}
-        self.followers = []  # (index, driver index, multiplier, offset, effort)
+        start = {name: world.bullet.getJointState(world.hand, index)[0]
+                 for name, index in world.joint_index.items()}
+        #: (joint index, source joint index, ratio, source start, target start, effort):
+        #: target = target start + ratio (source - source start)
+        self.followers: list[tuple[int, int, float, float, float, float]] = []
+        followed = set(leaders)
+        for finger in description.fingers:
+            for joint in finger.joints[1:]:
+                if joint not in followed:
+                    followed.add(joint)
+                    leader = finger.joints[0]
+                    self.followers.append((world.joint_index[joint], world.joint_index[leader],
+                                           rate(joint) / rate(leader), start[leader],
+                                           start[joint], efforts[joint]))
         for joint in model.joints:
-            if (joint.mimic is None or joint.name in driven
+            if (joint.mimic is None or joint.name in followed
                     or joint.name not in world.joint_index
                     or joint.mimic[0] not in world.joint_index):
                 continue
-            effort = efforts.get(joint.mimic[0], max(efforts.values()))
             self.followers.append((world.joint_index[joint.name],
-                                   world.joint_index[joint.mimic[0]], *joint.mimic[1:],
-                                   effort))
+                                   world.joint_index[joint.mimic[0]], joint.mimic[1], 0.0,
+                                   joint.mimic[2],
+                                   efforts.get(joint.mimic[0], max(efforts.values()))))
         self.restart()
 
     def restart(self) -> None:
@@ -124,13 +148,13 @@ class JawMotors:
         self.follow()
 
     def follow(self) -> None:
-        """The followers' position motors at their mimic values now."""
+        """The followers' position motors at their values now."""
         bullet, hand = self.world.bullet, self.world.hand
-        for index, driver, multiplier, offset, effort in self.followers:
-            value = bullet.getJointState(hand, driver)[0]
-            bullet.setJointMotorControl2(hand, index, bullet.POSITION_CONTROL,
-                                         targetPosition=multiplier * value + offset,
-                                         force=effort)
+        for index, source, ratio, source_start, target_start, effort in self.followers:
+            value = bullet.getJointState(hand, source)[0]
+            bullet.setJointMotorControl2(
+                hand, index, bullet.POSITION_CONTROL,
+                targetPosition=target_start + ratio * (value - source_start), force=effort)
 
     def step(self, steps: int = 1) -> None:
         for _ in range(steps):
@@ -280,8 +304,8 @@ class RobotHold:
                                 world.object_pose())
         contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
         touched = {c.finger for c in contacts}
-        joints = dict(zip([m.joint for m in self.motors], (jaws.travel() * jaws.speeds).tolist(),
-                          strict=True))
+        joints = {m.joint: world.bullet.getJointState(world.hand, world.joint_index[m.joint])[0]
+                  for m in self.motors}
         return RobotCloseResult(False, contacts,
                                 tuple(f not in touched for f in range(len(fingers))),
                                 joints=joints, queries=steps), jaws

@@ -21,6 +21,11 @@ entry here and implements :class:`HoldSimulator`:
   (:func:`~kinegrasp_env.physics.protocol.grip_verdict`, ``pose_change``, ``within``,
   ``final_outcome``). A draw's result depends only on its inputs;
 * ``close()``: frees the simulator (idempotent).
+
+These simulators hold the default robot's hand. A description robot (any other catalog
+robot) is held in pybullet alone, by :class:`~kinegrasp_env.physics.robot_hold.RobotHold`
+(``run_draw(q)``: the robot's actuated configuration; the palm pose from its forward
+kinematics): :data:`DESCRIPTION_ROBOT_SIMULATORS`.
 """
 
 from __future__ import annotations
@@ -41,6 +46,10 @@ SIMULATORS: dict[str, tuple[str, str, str]] = {
     "pybullet": ("kinegrasp_env.physics.pybullet_hold", "PybulletHold", "pybullet"),
     "mujoco": ("kinegrasp_env.physics.mujoco_hold", "MujocoHold", "mujoco"),
 }
+
+
+#: The simulators that hold a description robot's hand.
+DESCRIPTION_ROBOT_SIMULATORS: tuple[str, ...] = ("pybullet",)
 
 
 class HoldSimulator(Protocol):

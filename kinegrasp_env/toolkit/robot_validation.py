@@ -27,13 +27,11 @@ from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
 from kinegrasp_env.physics.robot_world import motor_efforts
+from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise import JointNoise, as_generator
 from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
 from kinegrasp_env.world.grasps import Grasp
-
-#: The simulator that holds description robots.
-ROBOT_SIMULATOR = "pybullet"
 
 
 class RobotHoldEngine(RobotEngine):
@@ -79,9 +77,10 @@ def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict]:
 def check_robot_settings(robot: str, settings: ValidationSettings) -> None:
     """ValueError (one line) for settings a description robot's holding test cannot
     honour, or a robot whose motors lack an effort limit."""
-    if settings.simulator != ROBOT_SIMULATOR:
-        raise ValueError(f"--simulator {settings.simulator}: only {ROBOT_SIMULATOR} holds "
-                         f"description robots (robot {robot!r})")
+    if settings.simulator not in DESCRIPTION_ROBOT_SIMULATORS:
+        raise ValueError(f"--simulator {settings.simulator}: only "
+                         f"{' and '.join(DESCRIPTION_ROBOT_SIMULATORS)} holds description "
+                         f"robots (robot {robot!r})")
     motor_efforts(load_robot(robot))
 
 
