@@ -184,3 +184,20 @@ def test_bad_robot_sensitivity_input(tmp_path, capsys):
         capsys, "sensitivity", "--robot", "pand", "--object", "cube", "--noise-spec", joint)
     assert "no shipped grasps of 'mug'" in fails(
         capsys, "sensitivity", "--robot", "panda", "--object", "mug", "--noise-spec", joint)
+
+
+def test_sensitivity_grasp_file_names_its_robot(tmp_path, capsys):
+    """``--grasps`` of the Panda's file without ``--robot``: the file's robot, the same
+    analysis as its shipped grasp; a grasp of one robot given to the other is refused with
+    the line ``evaluate`` gives."""
+    joint = single_joint_spec(tmp_path, 1, 0.02)
+    args = ("--grasp", str(GRASP), "--noise-spec", joint, "--samples", "8", "--bootstrap",
+            "20", "--engine", "pybullet", "--json")
+    from_file = run(capsys, "sensitivity", "--grasps", str(PANDA_CUBE), *args)
+    shipped = run(capsys, "sensitivity", "--robot", "panda", "--object", "cube", *args)
+    assert json.loads(from_file)["robot"] == "panda"
+    assert from_file == shipped
+    assert "grasp '1' is a grasp of robot 'panda', not of 'kuka_sdh'" in fails(
+        capsys, "sensitivity", "--grasps", str(PANDA_CUBE), "--robot", "kuka_sdh", *args)
+    assert "grasp '1' is a grasp of robot 'kuka_sdh', not of 'panda'" in fails(
+        capsys, "sensitivity", "--grasps", str(KUKA_CUBE), "--robot", "panda", *args)

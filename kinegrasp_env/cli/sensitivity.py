@@ -8,6 +8,8 @@ first-order and total Sobol indices of force closure per source, with bootstrap 
 joints, the noise the spec's joints section (a distribution and a sigma, scalar or one per
 joint; other sources refused in one line), the grasp one of the robot's shipped set, closed
 by the robot's engine (:func:`kinegrasp_env.toolkit.sensitivity.analyze_joints`).
+``--grasps FILE`` takes grasp ``--grasp`` (an id, else an index) of a grasp file instead; the
+robot is then the file's unless ``--robot`` names it (a grasp of another robot is refused).
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT
 
+#: The object without --object or --grasps.
+DEFAULT_OBJECT = "spray_flask"
+
 
 def cmd_sensitivity(args) -> int:
     from kinegrasp_env.montecarlo.evaluate import check_noise_engine
@@ -44,13 +49,22 @@ def cmd_sensitivity(args) -> int:
     samples = positive_int(args.samples, "--samples", low=2)
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
-    if args.robot not in (None, DEFAULT_ROBOT):
-        index, grasp, noise = _robot_request(args, model)
+    index, grasp = _file_grasp(args) if args.grasps is not None else (None, None)
+    robot = args.robot or (DEFAULT_ROBOT if grasp is None else grasp.robot)
+    if robot != DEFAULT_ROBOT:
+        index, grasp, noise = _robot_request(args, model, robot, index, grasp)
         if args.plot:
             output_file(args.plot, "--plot")
         result = _analyze_robot(grasp, noise, samples, seed, args.engine, bootstrap)
     else:
-        index, grasp = shipped_grasp(args.object, args.grasp)
+        if grasp is None:
+            args.object = args.object or DEFAULT_OBJECT
+            index, grasp = shipped_grasp(args.object, args.grasp)
+        else:
+            from kinegrasp_env.world.grasps import check_robot
+
+            with reported(ValueError):
+                check_robot(grasp, robot)
         engine = engine_name(args.engine)
         with reported(ValueError):
             check_noise_engine(model, engine)
@@ -75,17 +89,35 @@ def cmd_sensitivity(args) -> int:
     return 0
 
 
-def _robot_request(args, model):
-    """``(index, grasp, JointNoise)`` of ``--robot NAME``: the robot's shipped grasp
-    ``--grasp`` of ``--object``, the spec's joint noise; one line for what the robot's engines
-    cannot take (checked before any work)."""
+def _file_grasp(args):
+    """``(index, grasp)``: grasp ``--grasp`` (an id, else an index) of ``--grasps FILE``;
+    sets ``args.object`` to its object (one line when ``--object`` names another)."""
+    from kinegrasp_env.cli.grasp_choice import index_in
+    from kinegrasp_env.world.grasps import load_grasps
+
+    with reported(ValueError):  # a missing file, bad JSON, bad fields
+        grasps = load_grasps(args.grasps)
+    if not grasps:
+        raise CLIError(f"--grasps {args.grasps} holds no grasps")
+    index = index_in(args, [g.id for g in grasps])
+    grasp = grasps[index]
+    if args.object is not None and args.object != grasp.object:
+        raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp "
+                       f"of {grasp.object}")
+    args.object = grasp.object
+    return index, grasp
+
+
+def _robot_request(args, model, robot: str, index: int | None, grasp):
+    """``(index, grasp, JointNoise)`` of a description robot: ``grasp`` (from ``--grasps``)
+    or the robot's shipped grasp ``--grasp`` of ``--object``, the spec's joint noise; one line
+    for what the robot's engines cannot take (checked before any work)."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.world.grasps import NoGraspSetError, check_robot, shipped_grasps
 
-    robot = args.robot
     with reported(RobotDescriptionError):
         arm = load_robot(robot).arm_dof
     other = [s for s in model.sources if s != "joints"]
@@ -102,17 +134,20 @@ def _robot_request(args, model):
     if args.engine not in ENGINES:
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the "
                        f"{' or '.join(ENGINES)} engine only")
-    index = parse_index(args.grasp)
-    with reported(NoGraspSetError):
-        grasps = shipped_grasps(args.object, robot)
-    if not 0 <= index < len(grasps):
-        raise CLIError(f"--grasp: grasp index {index} out of range: robot {robot!r} has "
-                       f"{len(grasps)} grasps of {args.object} (0..{len(grasps) - 1})")
+    if grasp is None:
+        args.object = args.object or DEFAULT_OBJECT
+        index = parse_index(args.grasp)
+        with reported(NoGraspSetError):
+            grasps = shipped_grasps(args.object, robot)
+        if not 0 <= index < len(grasps):
+            raise CLIError(f"--grasp: grasp index {index} out of range: robot {robot!r} has "
+                           f"{len(grasps)} grasps of {args.object} (0..{len(grasps) - 1})")
+        grasp = grasps[index]
     with reported(ValueError):
-        check_robot(grasps[index], robot)
+        check_robot(grasp, robot)
         noise = JointNoise(joints.sigma, joints.distribution)
         noise.sigma_vector(arm)
-    return index, grasps[index], noise
+    return index, grasp, noise
 
 
 def _progress_bar():
@@ -161,8 +196,14 @@ def add_commands(sub) -> None:
     """Register ``sensitivity``."""
     p = sub.add_parser("sensitivity", help="P(FC) per source of error and Sobol indices of "
                        "force closure: which source limits a grasp")
-    add_object_arg(p, "spray_flask", "catalog object")
-    p.add_argument("--grasp", default="0", help=grasp_index_help())
+    add_object_arg(p, DEFAULT_OBJECT, f"catalog object (default {DEFAULT_OBJECT}; with "
+                   "--grasps: the grasp's)")
+    p.set_defaults(object=None)  # resolved in cmd_sensitivity: --grasps names its own
+    p.add_argument("--grasp", default="0", help=grasp_index_help() + "; with --grasps: an id "
+                   "in the file, else an index")
+    p.add_argument("--grasps", help="grasp file (from `kinegrasp plan`): analyze its grasp "
+                   "--grasp (its robot unless --robot names one; a grasp of another robot is "
+                   "refused)")
     p.add_argument("--noise-spec", required=True,
                    help="YAML or JSON noise model: joints, hand, palm, object, friction "
                    "(or preset: dexnet); every source present is a factor")
