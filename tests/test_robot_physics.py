@@ -126,3 +126,25 @@ def test_validate_robot_refusals(capsys, tmp_path):
         assert main(base + extra) == 2, extra
         err = capsys.readouterr().err.strip()
         assert words in err and len(err.splitlines()) == 1, (extra, err)
+
+
+def test_validate_draws_are_evaluates_draws(capsys, tmp_path):
+    """Validate's kinematic outcomes and Q per draw equal ``evaluate_robot_grasp``'s with the
+    same seed and sigma (the draws of ``kinegrasp evaluate --robot``)."""
+    from kinegrasp_env.montecarlo.engines import OUTCOMES
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    grasp = shipped_grasps("drill", "panda")[0]
+    path = tmp_path / "drill.json"
+    save_grasps([grasp], path)
+    status = main(["validate", "--grasps", str(path), "--sigma", "0.01", "--samples", "3",
+                   "--seed", "4", "--kinematic-engine", "pybullet", "--json",
+                   "--out", str(tmp_path / "out")])
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    rows = (tmp_path / "out" / "draws.csv").read_text().splitlines()[1:]
+    reference = evaluate_robot_grasp(grasp, sigma=0.01, n=3, seed=4).draws
+    assert [r.split(",")[4] for r in rows] == [OUTCOMES[k] for k in reference.outcome]
+    np.testing.assert_allclose([float(r.split(",")[5]) for r in rows], reference.quality,
+                               rtol=1e-5)
+    assert json.loads(out)["settings"]["robot"] == "panda"  # the file's robot
