@@ -107,7 +107,7 @@ def contact_traces(grasp: Grasp, obj: GraspObject, description: RobotDescription
     tips = description.fingertip_links
     labels = [f"finger {f + 1} ({tips[f] if f < len(tips) else '?'})" for f in grasp.fingers]
     return [mesh_trace(vertices, faces, f"friction cones (mu {friction:g}, {num_edges} edges, "
-                       "drawn outside)", "#9467bd", opacity=0.6),
+                       "drawn outside)", "#9467bd", opacity=0.6, showlegend=True),
             {"type": "scatter3d", "mode": "markers", "name": "nominal contacts",
              "x": points[:, 0].tolist(), "y": points[:, 1].tolist(),
              "z": points[:, 2].tolist(), "text": labels, "hoverinfo": "text+name",
@@ -140,6 +140,7 @@ def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
     the close-up of the object (a button shows the whole robot)."""
     label = "robot (closed, nominal)" if did_close else "robot (q0: starts in collision)"
     data = object_traces(obj, library, obj.pose, parts=False)
+    data[0]["showlegend"] = True  # a mesh trace has no legend entry unless asked
     data += robot_traces(geometry, closed, label, library, robot=description.name,
                          opacity=0.55)
     data += robot_traces(geometry, shaped, "robot (pre-shape q0)", library,
@@ -221,7 +222,8 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
                         f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.</p>"
                         f"{figure.div()}")
     model = description.contact_model
-    title = f"kinegrasp report: robot {description.name}, {len(grasps)} grasps of {obj.name}"
+    count = f"{len(grasps)} grasp{'' if len(grasps) == 1 else 's'}"
+    title = f"kinegrasp report: robot {description.name}, {count} of {obj.name}"
     finite = [r for r in runs if math.isfinite(r.evaluation.p_fc)]
     best = max(finite, key=lambda r: r.evaluation.p_fc) if finite else None
     lead = ("" if best is None else f" Highest P(FC): grasp {grasps[best.grasp].id} "
