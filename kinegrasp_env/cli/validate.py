@@ -40,7 +40,8 @@ def add_commands(sub) -> None:
                    "all of the object's shipped grasps; with --grasps: indices in the file)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) instead of "
                    "the shipped sets")
-    p.add_argument("--sigma", default="0.0133", help="joint noise on the 7 arm joints, radians")
+    p.add_argument("--sigma", default="0.0133", help="joint noise on the robot's arm joints "
+                   "(the default robot's 7), radians")
     p.add_argument("--samples", default="100", help="draws per grasp")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     p.add_argument("--processes", default="1", help="worker processes (more than this "
@@ -198,8 +199,10 @@ def cmd_validate(args) -> int:
     robot = selected_robot(args)
     fields = settings_from(args)
     processes = processes_from(args.processes)
-    out = output_folder(args.out)
     grasps = selected_grasps(args, robot)
+    if robot != "kuka_sdh":
+        check_robot_run(robot, fields, processes)
+    out = output_folder(args.out)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
     from kinegrasp_env.toolkit.validation_report import summarize, write_results
 
@@ -217,16 +220,25 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def check_robot_run(robot: str, fields: dict, processes: int) -> None:
+    """CLIError (one line) for what a description robot's run cannot honour (before any
+    output is written)."""
+    from kinegrasp_env.toolkit.robot_validation import check_robot_settings
+    from kinegrasp_env.toolkit.validation import ValidationSettings
+
+    if processes != 1:
+        raise CLIError(f"--processes: robot {robot!r} is validated in this process only")
+    with reported(ValueError):
+        check_robot_settings(robot, ValidationSettings(**fields))
+
+
 def validate_robot(robot: str, grasps, settings, out, processes: int):
     """(summary, results) of a description robot's grasps (in this process)."""
     from kinegrasp_env.toolkit.robot_validation import motors_summary, run_robot_validation
     from kinegrasp_env.toolkit.validation_report import summarize
 
-    if processes != 1:
-        raise CLIError(f"--processes: robot {robot!r} is validated in this process only")
-    with reported(ValueError):
-        motors = motors_summary(robot, settings.torque_scale)
-        results = run_robot_validation(grasps, settings, out, progress=True)
+    motors = motors_summary(robot, settings.torque_scale)
+    results = run_robot_validation(grasps, settings, out, progress=True)
     return summarize(results, settings, bootstrap_seed=settings.seed,
                      robot={"name": robot, "motors": motors}), results
 

@@ -6,11 +6,12 @@ One draw (:meth:`RobotHold.run_draw`):
 
 1. **closing**, gravity off, the object pinned: a hand link penetrating the object by more
    than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
-   collision. Otherwise every closing joint of every finger (the description's fingers:
-   hand joints with a ``close`` direction and the mimic joints that follow them) is driven
-   closes as the kinematic closing closes it, on its own: its first closing joint (from the
-   palm) by a velocity motor of its own towards closing at its URDF velocity limit, with its
-   effort limit (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's
+   collision. Otherwise every finger (the description's fingers: the chain from the palm to
+   a fingertip, its closing joints the hand joints with a ``close`` direction and the mimic
+   joints that follow them) closes as the kinematic closing closes it, on its own: its
+   first closing joint (from the palm) by a velocity motor of its own towards closing at
+   its URDF velocity limit, with its effort limit
+   (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's
    ``<limit effort>`` unless the description's ``efforts`` overrides it); the finger's other
    closing joints follow it by position motors (their effort limits) at the values the
    kinematic closing's one parameter gives them (each moving at its rate: the mimic
@@ -22,9 +23,12 @@ One draw (:meth:`RobotHold.run_draw`):
    closing ends when the fingers' first joints stall (:func:`~kinegrasp_env.physics.hold_runner.
    close_until_stall` on positions divided by their closing speeds: moving at less than
    ``stall_fraction`` of the closing speed) or after ``max_time``; then one contact per
-   touching finger link (pybullet's contact records within ``touch_distance``, merged as the
-   SDH closing merges them: :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`),
-   in the object frame (:func:`~kinegrasp_env.physics.hold_runner.in_object_frame`).
+   touching finger link (pybullet's contact records within ``touch_distance`` on the
+   deepest record's face, :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`,
+   averaged without force weights: :func:`world_contacts`), in the object frame
+   (:func:`~kinegrasp_env.physics.hold_runner.in_object_frame`). Hand and object carry
+   Bullet's polyhedral (SAT) contact features, so a pad on a face touches it at the corners
+   of their overlap (:class:`~kinegrasp_env.physics.robot_world.RobotPhysicsWorld`).
 2. **grip**: the rule for jaws. The balanced-grip linear programme
    (:mod:`~kinegrasp_env.physics.grip_forces`) maps contact forces to revolute joint
    torques through levers a x (p - o); a prismatic jaw has no lever (its force is the joint
@@ -298,8 +302,7 @@ class RobotHold:
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         jaws = JawMotors(world, self.motors)
-        steps = close_until_stall(jaws.step, jaws.travel, self.settings,
-                                  world.settings.time_step)
+        close_until_stall(jaws.step, jaws.travel, self.settings, world.settings.time_step)
         found = in_object_frame(world_contacts(world, self.settings.touch_distance),
                                 world.object_pose())
         contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
@@ -308,7 +311,7 @@ class RobotHold:
                   for m in self.motors}
         return RobotCloseResult(False, contacts,
                                 tuple(f not in touched for f in range(len(fingers))),
-                                joints=joints, queries=steps), jaws
+                                joints=joints), jaws
 
     def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
         """One draw at configuration q (dof,): the closing on the pinned object and the

@@ -11,6 +11,13 @@ description resolved; the URDF's ``<contact>`` elements (soft contact stiffness 
 damping, extra friction) are dropped, so every robot's contacts are the same rigid
 contacts with the friction product mu as the SDH world's (hand links 1.0, the object mu).
 
+Hand and object are loaded with Bullet's polyhedral contact features
+(``URDF_INITIALIZE_SAT_FEATURES``; the object from a URDF of its own with
+:class:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld`'s shape, mass and inertia):
+without them a flat pad pressed on a face touched it at one arbitrary corner of the overlap
+(one contact record per pad, 11 mm from the patch centre on the Panda's cube grasps), with
+them at the overlap's corners.
+
 Everything else is :class:`~kinegrasp_env.physics.pybullet_world.PhysicsWorld`'s: the anchor
 constraint that holds the hand root at the palm pose the arm's forward kinematics gives,
 the object as a rigid body of its exact convex parts (pinned while the hand closes), the

@@ -10,6 +10,10 @@ the same as ``kinegrasp evaluate`` with that seed and sigma (any engine). The ki
 outcome comes from the ``fast`` engine by default (it agrees with the ``pybullet`` reference
 draw by draw, see ``benchmarks/agreement.py``); ``kinematic="pybullet"`` uses the reference.
 
+A description robot's grasps (another robot than ``kuka_sdh``) run through
+:mod:`~kinegrasp_env.toolkit.robot_validation`, which hands its own draw and cache-key
+functions to :func:`run_validation`.
+
 Each grasp's per-draw results are cached in ``<out>/cache`` under a key of every setting (and
 of the physics, motor and lift settings), so an interrupted run resumes where it stopped.
 """
