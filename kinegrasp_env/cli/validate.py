@@ -201,7 +201,7 @@ def cmd_validate(args) -> int:
     processes = processes_from(args.processes)
     grasps = selected_grasps(args, robot)
     if robot != "kuka_sdh":
-        check_robot_run(robot, fields, processes)
+        check_robot_run(robot, fields, positive_int(args.processes, "--processes"))
     out = output_folder(args.out)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
     from kinegrasp_env.toolkit.validation_report import summarize, write_results
@@ -222,7 +222,7 @@ def cmd_validate(args) -> int:
 
 def check_robot_run(robot: str, fields: dict, processes: int) -> None:
     """CLIError (one line) for what a description robot's run cannot honour (before any
-    output is written)."""
+    output is written): ``processes`` is the worker count asked for."""
     from kinegrasp_env.toolkit.robot_validation import check_robot_settings
     from kinegrasp_env.toolkit.validation import ValidationSettings
 
