@@ -204,11 +204,16 @@ class RobotWorld(GraspWorld):
             bullet.resetJointState(robot, self.joint_index[name], float(value))
 
     def link_pose(self, link: str) -> np.ndarray:
-        """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics)."""
+        """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics; the base's
+        from its centre-of-mass frame, which is what pybullet gives for a base, and its
+        inertial offset)."""
         bullet, robot = self.bullet, self.bodies["robot"]
         index = self.link_index[link]
         if index < 0:
             position, quaternion = bullet.getBasePositionAndOrientation(robot)
+            offset = bullet.getDynamicsInfo(robot, -1)[3:5]  # inertial frame in the URDF's
+            position, quaternion = bullet.multiplyTransforms(
+                position, quaternion, *bullet.invertTransform(*offset))
         else:
             state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
             position, quaternion = state[4], state[5]

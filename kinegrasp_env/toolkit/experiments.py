@@ -48,7 +48,7 @@ def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int =
              "samples": stats.samples, "q_skew": stats.q_skew}
             for (grasp, sigma), stats in zip(cells, all_stats, strict=True)]
     out = Path(out_dir)
-    _write_rows(out, "table1.csv", rows, TABLE1_COLUMNS)
+    write_rows(out, "table1.csv", rows, TABLE1_COLUMNS)
     write_atomic(out / "table1.md", markdown_table1(rows, object_name, samples))
     from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
 
@@ -123,7 +123,7 @@ def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
     return stats
 
 
-def _write_rows(out: Path, name: str, rows: list[dict],
+def write_rows(out: Path, name: str, rows: list[dict],
                 columns: tuple[str, ...] | None = None) -> None:
     """``rows`` as CSV ``out/name`` (atomically); columns default to the first row's keys."""
     out.mkdir(parents=True, exist_ok=True)
@@ -180,7 +180,7 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
                 _fresh_evaluator(sigma, samples, seed, engine, run_on, report), samples, seed)
             rows += [{**row, "sigma": sigma} for row in chosen]
             pairs.append((name, [(row, s) for row, s in zip(chosen, fresh, strict=True)]))
-    _write_rows(out, "fig7.csv", rows)
+    write_rows(out, "fig7.csv", rows)
     for name, pair in pairs:
         path = out / f"fig7_{name}.png"
         safe_figure(lambda name=name, pair=pair, path=path: plot_contacts_pair(
@@ -273,7 +273,7 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
                            _fresh_evaluator(sigma, samples, seed, engine, run_on, report),
                            samples, seed)
             rows += block
-    _write_rows(out, f"{which}.csv", rows)
+    write_rows(out, f"{which}.csv", rows)
     safe_figure(lambda: plot_success_quality(
         rows, out / f"{which}.png",
         title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp"), out / f"{which}.png")

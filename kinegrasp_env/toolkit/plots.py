@@ -282,9 +282,13 @@ def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
         left.bar(x + offset, np.nan_to_num(value), 0.4, yerr=err, capsize=3, color=color,
                  label=label)
     left.axhline(0, color="0.3", lw=0.8)
-    left.set_xticks(x, names)
+    turn = len(names) > 4  # many factors (an arm's joints): slanted names, legends inside
+    ticks = {"rotation": 50, "ha": "right", "rotation_mode": "anchor"} if turn else {}
+    place = ({"loc": "upper left", "framealpha": 0.8} if turn else
+             {"loc": "upper center", "bbox_to_anchor": (0.5, -0.1)})
+    left.set_xticks(x, names, **ticks)
     left.set_ylabel("Sobol index of force closure")
-    left.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
+    left.legend(fontsize=8, ncol=2, **place)
     for offset, key, label, color in ((-0.2, "p_alone", "source alone", "C2"),
                                       (0.2, "p_without", "all but the source", "C3")):
         value = np.array([r[key] for r in rows], dtype=float)
@@ -293,10 +297,10 @@ def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
                   label=label)
     right.axhline(result["p_all"], color="k", ls="--", lw=1,
                   label=f"all sources {result['p_all']:.3f}")
-    right.set_xticks(x, names)
-    right.set_ylim(0, 1.05)
+    right.set_xticks(x, names, **ticks)
+    right.set_ylim(0, 1.22 if turn else 1.05)
     right.set_ylabel("P(force closure)")
-    right.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3)
+    right.legend(fontsize=8, ncol=3, **place)
     fig.suptitle(title)
     fig.tight_layout()
     return save_figure(fig, path)

@@ -31,7 +31,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
 )
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.stats import paired_interval
-from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, _write_rows
+from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
 from kinegrasp_env.toolkit.robot_elbow import fresh_seed, robot_reachable_configurations
 from kinegrasp_env.toolkit.selection import extremes
 from kinegrasp_env.world.grasps import Grasp
@@ -113,7 +113,7 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
     if not rows:
         raise ValueError(f"no variant of robot {description.name!r}'s first grasp closes in "
                          "force closure; nothing written")
-    _write_rows(out, "fig10.csv", rows, COLUMNS)
+    write_rows(out, "fig10.csv", rows, COLUMNS)
     safe_figure(lambda: plot_success_quality(
         rows, out / "fig10.png", title=f"fig10, robot {description.name}: sigma = {sigma:g}, "
                                        f"{samples} draws per variant"), out / "fig10.png")
