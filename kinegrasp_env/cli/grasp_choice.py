@@ -21,14 +21,24 @@ def chosen_grasp(args):
         args.object = args.object or EVALUATE_OBJECT
         return shipped_grasp(args.object, args.grasp)
     from kinegrasp_env.toolkit.candidates import is_candidate_file
-    from kinegrasp_env.world.grasps import load_grasps
 
     if Path(args.grasps).is_dir():
         raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
     if is_candidate_file(args.grasps):
         return palm_pose_grasp(args)
+    return file_grasp(args)
+
+
+def file_grasp(args):
+    """``(index, grasp)``: grasp ``--grasp`` (an id, else an index) of the grasp file
+    ``--grasps``; sets ``args.object`` to its object (one line when ``--object`` names
+    another, when the file holds no grasps or cannot be read)."""
+    from kinegrasp_env.world.grasps import load_grasps
+
     with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
         grasps = load_grasps(args.grasps)
+    if not grasps:
+        raise CLIError(f"--grasps {args.grasps} holds no grasps")
     index = index_in(args, [g.id for g in grasps])
     grasp = grasps[index]
     if args.object is not None and args.object != grasp.object:

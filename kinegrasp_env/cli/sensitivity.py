@@ -49,7 +49,9 @@ def cmd_sensitivity(args) -> int:
     samples = positive_int(args.samples, "--samples", low=2)
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
-    index, grasp = _file_grasp(args) if args.grasps is not None else (None, None)
+    from kinegrasp_env.cli.grasp_choice import file_grasp
+
+    index, grasp = file_grasp(args) if args.grasps is not None else (None, None)
     robot = args.robot or (DEFAULT_ROBOT if grasp is None else grasp.robot)
     if robot != DEFAULT_ROBOT:
         index, grasp, noise = _robot_request(args, model, robot, index, grasp)
@@ -87,25 +89,6 @@ def cmd_sensitivity(args) -> int:
         if written is not None and not args.json:
             print(f"plot written to {args.plot}")
     return 0
-
-
-def _file_grasp(args):
-    """``(index, grasp)``: grasp ``--grasp`` (an id, else an index) of ``--grasps FILE``;
-    sets ``args.object`` to its object (one line when ``--object`` names another)."""
-    from kinegrasp_env.cli.grasp_choice import index_in
-    from kinegrasp_env.world.grasps import load_grasps
-
-    with reported(ValueError):  # a missing file, bad JSON, bad fields
-        grasps = load_grasps(args.grasps)
-    if not grasps:
-        raise CLIError(f"--grasps {args.grasps} holds no grasps")
-    index = index_in(args, [g.id for g in grasps])
-    grasp = grasps[index]
-    if args.object is not None and args.object != grasp.object:
-        raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp "
-                       f"of {grasp.object}")
-    args.object = grasp.object
-    return index, grasp
 
 
 def _robot_request(args, model, robot: str, index: int | None, grasp):
