@@ -128,6 +128,9 @@ class PybulletSteps(WorldSteps):
         state: a saved state, when there is one.
     """
 
+    #: the hand's root link (the anchor constraint holds it) and its palm link
+    root_link, palm_link = "hand_root", "palm"
+
     def __init__(self, world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol,
                  control: GripControl | None = None, state: int | None = None) -> None:
         super().__init__(world, motors, protocol)
@@ -150,14 +153,15 @@ class PybulletSteps(WorldSteps):
         world = self.world
         if self.anchor is None:
             world.restore_without_contacts(self.state)
-            self.anchor = world.link_pose("hand_root")
+            self.anchor = world.link_pose(self.root_link)
         world.restore_without_contacts(self.state)
         world.move_anchor(self.anchor)
         self.control.restart()
         world.set_gravity(gravity)
 
     def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.world.link_pose("hand_root"), self.world.link_pose("palm")[:3, 3]
+        world = self.world
+        return world.link_pose(self.root_link), world.link_pose(self.palm_link)[:3, 3]
 
     def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
         self.world.anchor_at(position.tolist(), orientation.tolist())

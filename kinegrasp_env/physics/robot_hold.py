@@ -54,9 +54,10 @@ from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotContact
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact
-from kinegrasp_env.physics.hold_runner import WorldSteps, close_until_stall, in_object_frame
+from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import merge_records
+from kinegrasp_env.physics.pybullet_hold import PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import (
     ROOT_LINK,
@@ -207,53 +208,27 @@ def world_contacts(world: RobotPhysicsWorld, distance: float) -> list[GripContac
             for f, link in sorted(records) for finger in (f,)]
 
 
-class RobotSteps(WorldSteps):
-    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
-    in a :class:`RobotPhysicsWorld`: the grip is the closing motors held on (:class:`JawMotors`);
-    a saved state is pybullet's ``saveState``, each phase restored from it without cached
-    contacts, the anchor put back where the state has the hand's root."""
+class RobotSteps(PybulletSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.pybullet_hold.
+    PybulletSteps`) in a :class:`RobotPhysicsWorld`: the grip is the closing motors held on
+    (:class:`JawMotors`, the steps' ``control``), the fingers and the palm the description's."""
+
+    root_link = ROOT_LINK
 
     def __init__(self, world: RobotPhysicsWorld, jaws: JawMotors, protocol: HoldProtocol) -> None:
-        super().__init__(world, jaws.motors, protocol)
-        self.jaws, self.state, self.anchor = jaws, None, None
+        super().__init__(world, jaws.motors, protocol, control=jaws)
+        self.palm_link = world.description.palm_link
 
     def grip(self) -> bool:
         touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
         return len(touched) >= 2
-
-    def advance(self, steps: int = 1) -> None:
-        self.jaws.step(steps)
 
     def finger_forces(self) -> np.ndarray:
         return finger_forces(self.world)
 
     def object_in_palm(self) -> np.ndarray:
         world = self.world
-        return np.linalg.inv(world.link_pose(world.description.palm_link)) @ world.object_pose()
-
-    def save(self) -> None:
-        self.state, self.anchor = self.world.bullet.saveState(), None
-
-    def start_phase(self, gravity: np.ndarray) -> None:
-        world = self.world
-        if self.anchor is None:
-            world.restore_without_contacts(self.state)
-            self.anchor = world.link_pose(ROOT_LINK)
-        world.restore_without_contacts(self.state)
-        world.move_anchor(self.anchor)
-        self.jaws.restart()
-        world.set_gravity(gravity)
-
-    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
-        world = self.world
-        return world.link_pose(ROOT_LINK), world.link_pose(world.description.palm_link)[:3, 3]
-
-    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
-        self.world.anchor_at(position.tolist(), orientation.tolist())
-
-    def discard(self) -> None:
-        self.world.bullet.removeState(self.state)
-        self.state = None
+        return np.linalg.inv(world.link_pose(self.palm_link)) @ world.object_pose()
 
 
 class RobotHold:
