@@ -178,7 +178,7 @@ def test_bad_robot_sensitivity_input(tmp_path, capsys):
         capsys, *base, "--noise-spec", str(every))
     assert "--engine physics: robot 'panda' is evaluated by the pybullet or fast engine" in (
         fails(capsys, *base, "--noise-spec", joint, "--engine", "physics"))
-    assert "grasp index 9 out of range: robot 'panda' has 4 grasps of cube" in fails(
+    assert "grasp index 9 out of range: cube has 4 grasps of robot panda" in fails(
         capsys, *base, "--noise-spec", joint, "--grasp", "9")
     assert "unknown robot 'pand'" in fails(
         capsys, "sensitivity", "--robot", "pand", "--object", "cube", "--noise-spec", joint)
@@ -201,3 +201,16 @@ def test_sensitivity_grasp_file_names_its_robot(tmp_path, capsys):
         capsys, "sensitivity", "--grasps", str(PANDA_CUBE), "--robot", "kuka_sdh", *args)
     assert "grasp '1' is a grasp of robot 'kuka_sdh', not of 'panda'" in fails(
         capsys, "sensitivity", "--grasps", str(KUKA_CUBE), "--robot", "panda", *args)
+
+
+def test_evaluate_takes_the_robots_own_shipped_grasp(capsys):
+    """``evaluate --robot panda --object cube --grasp 1`` is entry 1 of the Panda's shipped
+    cube set (the same JSON as naming that file), not the default robot's grasp 1 (which
+    would be refused as a grasp of another robot)."""
+    common = ["--grasp", "1", "--sigma", "0.0133", "--samples", "20", "--seed", "4", "--json",
+              "--engine", "pybullet"]
+    by_set = json.loads(run(capsys, "evaluate", "--robot", "panda", "--object", "cube", *common))
+    by_file = json.loads(run(capsys, "evaluate", "--robot", "panda", "--grasps",
+                             str(asset_path("grasps", "panda", "cube.json")), *common))
+    assert by_set == by_file
+    assert by_set["grasp"] == shipped_grasps("cube", "panda")[1].id

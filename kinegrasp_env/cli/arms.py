@@ -21,10 +21,7 @@ from kinegrasp_env.cli.common import (
     print_json,
     reported,
 )
-
-#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied so that building the
-#: parser imports nothing heavy).
-DEFAULT_ROBOT = "kuka_sdh"
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def cmd_planar(args) -> int:

@@ -17,6 +17,8 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
+
 # Building the parser imports nothing heavy (no NumPy, SciPy, trimesh, pybullet or numba):
 # ``kinegrasp --help`` answers at once. The choices below are copies of the library's
 # definitions, kept here for that reason and tested equal to them.
@@ -380,15 +382,18 @@ def grasp_index_help() -> str:
         f"{name} {r}" for name, r in ranges.items())
 
 
-def shipped_grasp(object_name: str, text: str):
-    """``(index, grasp)``: entry ``--grasp`` of the object's shipped set, range-checked (an
-    imported object has none: one line suggesting ``kinegrasp plan``)."""
+def shipped_grasp(object_name: str, text: str, robot: str | None = None):
+    """``(index, grasp)``: entry ``--grasp`` of the object's shipped set for ``robot`` (None:
+    the default robot), range-checked (an imported object has none: one line suggesting
+    ``kinegrasp plan``)."""
     from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 
     index = parse_index(text)
     with reported(NoGraspSetError):
-        grasps = shipped_grasps(object_name)
+        grasps = (shipped_grasps(object_name) if robot in (None, DEFAULT_ROBOT)
+                  else shipped_grasps(object_name, robot))
     if not 0 <= index < len(grasps):
+        whose = "" if robot in (None, DEFAULT_ROBOT) else f" of robot {robot}"
         raise CLIError(f"--grasp: grasp index {index} out of range: {object_name} has "
-                       f"{len(grasps)} grasps (0..{len(grasps) - 1})")
+                       f"{len(grasps)} grasps{whose} (0..{len(grasps) - 1})")
     return index, grasps[index]

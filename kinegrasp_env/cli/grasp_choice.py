@@ -16,10 +16,11 @@ EVALUATE_OBJECT = "spray_flask"
 def chosen_grasp(args):
     """``(index, grasp)`` for ``evaluate`` and ``report``: grasp ``--grasp`` (an id in the
     file, else an index) of ``--grasps FILE``, or without it entry ``--grasp`` of
-    ``--object``'s shipped set. Sets ``args.object`` to the grasp's object."""
+    ``--object``'s shipped set (of ``--robot``'s, where the command has one). Sets
+    ``args.object`` to the grasp's object."""
     if args.grasps is None:
         args.object = args.object or EVALUATE_OBJECT
-        return shipped_grasp(args.object, args.grasp)
+        return shipped_grasp(args.object, args.grasp, getattr(args, "robot", None))
     from kinegrasp_env.toolkit.candidates import is_candidate_file
 
     if Path(args.grasps).is_dir():

@@ -12,10 +12,8 @@ import json
 import math
 
 from kinegrasp_env.cli.common import CLIError, output_file, parse_seed, positive_int, reported
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
-#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied so that building the
-#: parser imports nothing heavy).
-DEFAULT_ROBOT = "kuka_sdh"
 #: The executor options (a description robot's draws run in this process), unset.
 IN_PROCESS = {"--backend": "local", "--address": None, "--processes": None}
 

@@ -24,7 +24,6 @@ from kinegrasp_env.cli.common import (
     engine_name,
     grasp_index_help,
     output_file,
-    parse_index,
     parse_seed,
     positive_int,
     reported,
@@ -99,7 +98,7 @@ def _robot_request(args, model, robot: str, index: int | None, grasp):
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.world.grasps import NoGraspSetError, check_robot, shipped_grasps
+    from kinegrasp_env.world.grasps import check_robot
 
     with reported(RobotDescriptionError):
         arm = load_robot(robot).arm_dof
@@ -119,13 +118,7 @@ def _robot_request(args, model, robot: str, index: int | None, grasp):
                        f"{' or '.join(ENGINES)} engine only")
     if grasp is None:
         args.object = args.object or DEFAULT_OBJECT
-        index = parse_index(args.grasp)
-        with reported(NoGraspSetError):
-            grasps = shipped_grasps(args.object, robot)
-        if not 0 <= index < len(grasps):
-            raise CLIError(f"--grasp: grasp index {index} out of range: robot {robot!r} has "
-                           f"{len(grasps)} grasps of {args.object} (0..{len(grasps) - 1})")
-        grasp = grasps[index]
+        index, grasp = shipped_grasp(args.object, args.grasp, robot)
     with reported(ValueError):
         check_robot(grasp, robot)
         noise = JointNoise(joints.sigma, joints.distribution)

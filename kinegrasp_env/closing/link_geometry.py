@@ -79,13 +79,13 @@ def link_geometry(description: RobotDescription, finger_spacing: float = FINGER_
                   arm_spacing: float = ARM_SPACING) -> dict[str, LinkGeometry]:
     """Every link with collision geometry -> its :class:`LinkGeometry` (read from pybullet
     once, the robot at its open configuration; each shape's hull sampled on its own)."""
-    from pybullet_utils.bullet_client import BulletClient
+    from kinegrasp_env.quiet import quiet_c_output
+    from kinegrasp_env.world.sim import BulletWorld
 
-    from kinegrasp_env.world.sim import pybullet
-
-    bullet = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+    with BulletWorld() as sim:  # a DIRECT client of its own, its banner kept off stdout
+        bullet = sim.bullet
+        with quiet_c_output():  # mesh-loader notes
+            robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
         names = {-1: description.model.base_link}
         for j in range(bullet.getNumJoints(robot)):
             names[j] = bullet.getJointInfo(robot, j)[12].decode()
@@ -113,8 +113,6 @@ def link_geometry(description: RobotDescription, finger_spacing: float = FINGER_
                 start += count
             out[name] = LinkGeometry(local, np.vstack([local, *pieces]), spacing, tuple(parts))
         return out
-    finally:
-        bullet.disconnect()
 
 
 def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.paths import data_root
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.description import (
     RobotDescription,
     RobotDescriptionError,
@@ -41,7 +42,6 @@ BUILTIN: dict[str, tuple[str, ...]] = {
     "kuka_sdh": ("robots", "kuka_sdh.yaml"),
     "panda": ("robots", "panda", "panda.yaml"),
 }
-DEFAULT_ROBOT = "kuka_sdh"
 ENTRY_FILE = "entry.json"
 DESCRIPTION_FILE = "robot.yaml"
 SOURCE_FILE = "source.yaml"
