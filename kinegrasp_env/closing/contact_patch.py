@@ -13,6 +13,12 @@ is placed at the centre of its patch instead:
 * the *patch*: the footprint clipped to the face (a convex polygon of the object's convex
   part), and the contact point its centroid (area centroid; a segment's midpoint), on the
   face. An empty clip (the pad's footprint beside the face) leaves the point as it was.
+
+One compiled loop places any number of contacts (:func:`patch_points`: both generic closings
+call it, the reference one contact at a time, the fast one every contact of a batch at once);
+its steps are compiled functions of their own (:func:`hull_2d`, :func:`clip_convex`,
+:func:`centroid_2d`), without allocation: the caller hands every buffer in. Which face a
+contact lies on is decided by :func:`faces_of`.
 """
 
 from __future__ import annotations
@@ -20,7 +26,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
+
+from kinegrasp_env import jit
 
 #: The depth of the pad counted as pressing (metres): vertices within it of the lowest.
 PATCH_DEPTH = 1e-3
@@ -62,115 +69,292 @@ def link_hull_vertices(bullet, body: int, link: int) -> np.ndarray | None:
     return np.vstack(out) if out else None
 
 
-def _plane_basis(normal: np.ndarray) -> np.ndarray:
-    """(2, 3) orthonormal tangents of a plane with unit ``normal``."""
-    helper = np.eye(3)[np.argmin(np.abs(normal))]
-    t1 = np.cross(normal, helper)
-    t1 /= np.linalg.norm(t1)
-    return np.stack([t1, np.cross(normal, t1)])
+# ----------------------------------------------------------------------------- compiled steps
+@jit.kernel(_nrt=False, inline="always")
+def _side(ax, ay, bx, by, px, py):
+    """> 0 where the point (px, py) lies left of the directed line a -> b."""
+    return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
 
 
-def _hull_2d(points: np.ndarray) -> np.ndarray:
-    """Counter-clockwise convex polygon (m, 2) of points (n, 2): m = 1 (a point), 2 (a
-    segment) or more."""
-    unique = np.unique(np.round(points, 12), axis=0)
-    if len(unique) >= 3:
-        try:
-            return unique[ConvexHull(unique).vertices]
-        except QhullError:  # collinear
-            pass
-    if len(unique) == 1:
-        return unique
-    direction = unique[-1] - unique[0]
-    s = unique @ direction
-    return unique[[int(np.argmin(s)), int(np.argmax(s))]]
+@jit.kernel(_nrt=False)
+def hull_2d(points, n, out):
+    """The convex hull of ``points[:n]`` (rows (x, y); rounded to 12 decimals, sorted and
+    deduplicated in place) into ``out`` (at least 2 n rows), counter-clockwise from the
+    lowest-leftmost vertex; returns its vertex count: 1 (a point), 2 (a segment: the two
+    extreme points, every point on one line) or more (Andrew's monotone chain)."""
+    for i in range(n):
+        points[i, 0] = round(points[i, 0], 12)
+        points[i, 1] = round(points[i, 1], 12)
+    for i in range(1, n):  # insertion sort by (x, y): n is a pad's few vertices
+        x, y = points[i, 0], points[i, 1]
+        j = i - 1
+        while j >= 0 and (points[j, 0] > x or (points[j, 0] == x and points[j, 1] > y)):
+            points[j + 1, 0], points[j + 1, 1] = points[j, 0], points[j, 1]
+            j -= 1
+        points[j + 1, 0], points[j + 1, 1] = x, y
+    m = 0
+    for i in range(n):
+        if m == 0 or points[i, 0] != points[m - 1, 0] or points[i, 1] != points[m - 1, 1]:
+            points[m, 0], points[m, 1] = points[i, 0], points[i, 1]
+            m += 1
+    if m == 1:
+        out[0, 0], out[0, 1] = points[0, 0], points[0, 1]
+        return 1
+    k = 0
+    for i in range(m):  # lower chain
+        while k >= 2 and _side(out[k - 2, 0], out[k - 2, 1], out[k - 1, 0], out[k - 1, 1],
+                               points[i, 0], points[i, 1]) <= 0.0:
+            k -= 1
+        out[k, 0], out[k, 1] = points[i, 0], points[i, 1]
+        k += 1
+    lower = k + 1
+    for i in range(m - 2, -1, -1):  # upper chain
+        while k >= lower and _side(out[k - 2, 0], out[k - 2, 1], out[k - 1, 0],
+                                   out[k - 1, 1], points[i, 0], points[i, 1]) <= 0.0:
+            k -= 1
+        out[k, 0], out[k, 1] = points[i, 0], points[i, 1]
+        k += 1
+    k -= 1  # the chain ends where it started
+    if k < 3:
+        out[0, 0], out[0, 1] = points[0, 0], points[0, 1]
+        out[1, 0], out[1, 1] = points[m - 1, 0], points[m - 1, 1]
+        return 2
+    return k
 
 
-def _side(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """> 0 where points p (..., 2) lie left of the directed line a -> b."""
-    edge = b - a
-    return edge[0] * (p[..., 1] - a[1]) - edge[1] * (p[..., 0] - a[0])
+@jit.kernel(_nrt=False)
+def clip_polygon(subject, ns, clip, nc, out, work):
+    """The part of a convex polygon (ns >= 3 rows), segment (2) or point (1) ``subject``
+    inside the counter-clockwise convex polygon ``clip[:nc]``, into ``out``; returns its
+    vertex count (0: none). Sutherland-Hodgman for a polygon, the parameter interval of a
+    segment, a point kept or not. ``out`` and ``work``: at least ns + nc rows each."""
+    if ns == 1:
+        for e in range(nc):
+            f = (e + 1) % nc
+            if _side(clip[e, 0], clip[e, 1], clip[f, 0], clip[f, 1], subject[0, 0],
+                     subject[0, 1]) < 0.0:
+                return 0
+        out[0, 0], out[0, 1] = subject[0, 0], subject[0, 1]
+        return 1
+    if ns == 2:
+        px, py, qx, qy = subject[0, 0], subject[0, 1], subject[1, 0], subject[1, 1]
+        t0, t1 = 0.0, 1.0
+        for e in range(nc):
+            f = (e + 1) % nc
+            sp = _side(clip[e, 0], clip[e, 1], clip[f, 0], clip[f, 1], px, py)
+            sq = _side(clip[e, 0], clip[e, 1], clip[f, 0], clip[f, 1], qx, qy)
+            if sp < 0.0 and sq < 0.0:
+                return 0
+            if (sp < 0.0) != (sq < 0.0):
+                t = sp / (sp - sq)
+                if sp < 0.0:
+                    t0 = max(t0, t)
+                else:
+                    t1 = min(t1, t)
+        if t0 > t1:
+            return 0
+        out[0, 0], out[0, 1] = px + (qx - px) * t0, py + (qy - py) * t0
+        out[1, 0], out[1, 1] = px + (qx - px) * t1, py + (qy - py) * t1
+        return 2
+    count = ns
+    for j in range(ns):
+        out[j, 0], out[j, 1] = subject[j, 0], subject[j, 1]
+    for e in range(nc):
+        f = (e + 1) % nc
+        ax, ay, bx, by = clip[e, 0], clip[e, 1], clip[f, 0], clip[f, 1]
+        kept = 0
+        for j in range(count):
+            k = (j + 1) % count
+            sp = _side(ax, ay, bx, by, out[j, 0], out[j, 1])
+            sq = _side(ax, ay, bx, by, out[k, 0], out[k, 1])
+            if sp >= 0.0:
+                work[kept, 0], work[kept, 1] = out[j, 0], out[j, 1]
+                kept += 1
+            if (sp >= 0.0) != (sq >= 0.0):
+                t = sp / (sp - sq)
+                work[kept, 0] = out[j, 0] + (out[k, 0] - out[j, 0]) * t
+                work[kept, 1] = out[j, 1] + (out[k, 1] - out[j, 1]) * t
+                kept += 1
+        for j in range(kept):
+            out[j, 0], out[j, 1] = work[j, 0], work[j, 1]
+        count = kept
+        if count == 0:
+            break
+    return count
+
+
+@jit.kernel(_nrt=False)
+def polygon_centroid(polygon, k):
+    """(x, y): the area centroid of ``polygon[:k]`` (k >= 3, ordered), a segment's midpoint
+    (k = 2), the point (k = 1); the vertices' mean where the area vanishes (< 1e-16)."""
+    mx, my = 0.0, 0.0
+    for j in range(k):
+        mx += polygon[j, 0] / k
+        my += polygon[j, 1] / k
+    if k < 3:
+        return mx, my
+    area, cx, cy = 0.0, 0.0, 0.0
+    for j in range(k):
+        n = (j + 1) % k
+        cross = polygon[j, 0] * polygon[n, 1] - polygon[n, 0] * polygon[j, 1]
+        area += 0.5 * cross
+        cx += (polygon[j, 0] + polygon[n, 0]) * cross
+        cy += (polygon[j, 1] + polygon[n, 1]) * cross
+    if abs(area) < 1e-16:
+        return mx, my
+    return cx / (6.0 * area), cy / (6.0 * area)
+
+
+@jit.kernel(_nrt=False)
+def patch_points(vertices, poses, corners, starts, parts, planes, points, depth, face_tol,
+                 work, out, found):
+    """The patch centre of a link on a face, for M contacts (the module's steps).
+
+    Args:
+        vertices: (V, 3) the link's hull vertices in its own frame (metres).
+        poses: (M, 4, 4) the link's pose in the object frame, per contact.
+        corners: (C, 3) every convex part's vertices, stacked (object frame).
+        starts: (P + 1,) int64: part p's corners are rows starts[p] .. starts[p + 1] - 1.
+        parts: (M,) the part of each contact's face; planes: (M, 4) the face's plane
+            (outward unit normal, offset); points: (M, 3) the closest point found on it.
+        depth: :data:`PATCH_DEPTH`; face_tol: :data:`FACE_TOL` (metres).
+        work: (5, S, 2) scratch, S >= 2 (V + C) + 8.
+        out: (M, 3) the contact points: the patch centre, else the point as given.
+        found: (M,) bool, True where a patch centre was placed.
+    """
+    for i in range(points.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = points[i, 0], points[i, 1], points[i, 2]
+        found[i] = False
+        nx, ny, nz, off = planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3]
+        s = points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz + off
+        ox, oy, oz = points[i, 0] - s * nx, points[i, 1] - s * ny, points[i, 2] - s * nz
+        ix, iy, iz = -nx, -ny, -nz  # inward
+        hx, hy, hz = 1.0, 0.0, 0.0  # the axis of the smallest |inward| (lowest index)
+        if abs(iy) < abs(ix) and abs(iy) <= abs(iz):
+            hx, hy = 0.0, 1.0
+        elif abs(iz) < abs(ix) and abs(iz) < abs(iy):
+            hx, hz = 0.0, 1.0
+        ux, uy, uz = iy * hz - iz * hy, iz * hx - ix * hz, ix * hy - iy * hx
+        norm = np.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        vx, vy, vz = iy * uz - iz * uy, iz * ux - ix * uz, ix * uy - iy * ux
+        nf = 0
+        for c in range(starts[parts[i]], starts[parts[i] + 1]):
+            cx, cy, cz = corners[c, 0], corners[c, 1], corners[c, 2]
+            if abs(cx * nx + cy * ny + cz * nz + off) < face_tol:
+                cx, cy, cz = cx - ox, cy - oy, cz - oz
+                work[0, nf, 0] = cx * ux + cy * uy + cz * uz
+                work[0, nf, 1] = cx * vx + cy * vy + cz * vz
+                nf += 1
+        if nf < 3:
+            continue
+        mf = hull_2d(work[0], nf, work[1])
+        if mf < 3:
+            continue
+        low = np.inf
+        for pas in range(2):  # the lowest vertex above the plane, then those near it
+            k = 0
+            for v in range(vertices.shape[0]):
+                wx = (poses[i, 0, 0] * vertices[v, 0] + poses[i, 0, 1] * vertices[v, 1]
+                      + poses[i, 0, 2] * vertices[v, 2] + poses[i, 0, 3]) - ox
+                wy = (poses[i, 1, 0] * vertices[v, 0] + poses[i, 1, 1] * vertices[v, 1]
+                      + poses[i, 1, 2] * vertices[v, 2] + poses[i, 1, 3]) - oy
+                wz = (poses[i, 2, 0] * vertices[v, 0] + poses[i, 2, 1] * vertices[v, 1]
+                      + poses[i, 2, 2] * vertices[v, 2] + poses[i, 2, 3]) - oz
+                height = -(wx * ix + wy * iy + wz * iz)
+                if pas == 0:
+                    low = min(low, height)
+                elif height <= low + depth:
+                    work[2, k, 0] = wx * ux + wy * uy + wz * uz
+                    work[2, k, 1] = wx * vx + wy * vy + wz * vz
+                    k += 1
+        mp = hull_2d(work[2], k, work[3])
+        mc = clip_polygon(work[3], mp, work[1], mf, work[4], work[2])
+        if mc == 0:
+            continue
+        if mc >= 3:
+            mc = hull_2d(work[4], mc, work[3])
+            px, py = polygon_centroid(work[3], mc)
+        else:
+            px, py = polygon_centroid(work[4], mc)
+        out[i, 0] = ox + px * ux + py * vx
+        out[i, 1] = oy + px * uy + py * vy
+        out[i, 2] = oz + px * uz + py * vz
+        found[i] = True
+
+
+# ----------------------------------------------------------------------------- from Python
+def _buffer(rows: int) -> np.ndarray:
+    return np.empty((rows, 2))
 
 
 def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
     """The part (k, 2) of a convex polygon (k >= 3), segment (2) or point (1) ``subject``
     inside the counter-clockwise convex polygon ``clip`` (empty (0, 2) when none):
-    Sutherland-Hodgman for a polygon, the parameter interval of a segment, a point kept or
-    not."""
-    edges = [(clip[i], clip[(i + 1) % len(clip)]) for i in range(len(clip))]
-    if len(subject) == 1:
-        inside = all(_side(a, b, subject[0]) >= 0 for a, b in edges)
-        return subject if inside else np.empty((0, 2))
-    if len(subject) == 2:
-        p, q = subject
-        t0, t1 = 0.0, 1.0
-        for a, b in edges:
-            sp, sq = float(_side(a, b, p)), float(_side(a, b, q))
-            if sp < 0 and sq < 0:
-                return np.empty((0, 2))
-            if (sp < 0) != (sq < 0):
-                t = sp / (sp - sq)
-                t0, t1 = (max(t0, t), t1) if sp < 0 else (t0, min(t1, t))
-        if t0 > t1:
-            return np.empty((0, 2))
-        return np.array([p + (q - p) * t0, p + (q - p) * t1])
-    out = subject
-    for a, b in edges:
-        kept = []
-        for j in range(len(out)):
-            p, q = out[j], out[(j + 1) % len(out)]
-            sp, sq = float(_side(a, b, p)), float(_side(a, b, q))
-            if sp >= 0:
-                kept.append(p)
-            if (sp >= 0) != (sq >= 0):
-                kept.append(p + (q - p) * (sp / (sp - sq)))
-        out = np.array(kept).reshape(-1, 2)
-        if len(out) == 0:
-            break
-    return out
+    :func:`clip_polygon`."""
+    subject, clip = np.asarray(subject, dtype=float), np.asarray(clip, dtype=float)
+    rows = len(subject) + len(clip) + 1
+    out = _buffer(rows)
+    count = clip_polygon(subject, len(subject), clip, len(clip), out, _buffer(rows))
+    return out[:count].copy()
 
 
 def centroid_2d(polygon: np.ndarray) -> np.ndarray:
-    """(2,) area centroid of a polygon (k >= 3, ordered), a segment's midpoint (k = 2), the
-    point (k = 1); the vertices' mean where the area vanishes."""
-    if len(polygon) < 3:
-        return polygon.mean(axis=0)
-    x, y = polygon[:, 0], polygon[:, 1]
-    cross = x * np.roll(y, -1) - np.roll(x, -1) * y
-    area = 0.5 * cross.sum()
-    if abs(area) < 1e-16:
-        return polygon.mean(axis=0)
-    return np.array([((x + np.roll(x, -1)) * cross).sum(),
-                     ((y + np.roll(y, -1)) * cross).sum()]) / (6.0 * area)
+    """(2,) :func:`polygon_centroid` of a polygon (k, 2)."""
+    polygon = np.asarray(polygon, dtype=float)
+    return np.array(polygon_centroid(polygon, len(polygon)))
+
+
+class PatchGeometry:
+    """An object's convex parts packed for :func:`patch_points` (corners stacked, offsets).
+
+    Args:
+        parts: each convex part's (n_i, 3) vertices (object frame).
+    """
+
+    def __init__(self, parts: tuple[np.ndarray, ...]) -> None:
+        self.corners = np.ascontiguousarray(np.vstack(parts), dtype=float)
+        self.starts = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+
+    def place(self, vertices: np.ndarray, poses: np.ndarray, parts: np.ndarray,
+              planes: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((M, 3) contact points, (M,) bool found): :func:`patch_points` of a link's
+        vertices (V, 3, its frame) at poses (M, 4, 4) on faces (part (M,), plane (M, 4)),
+        the closest points (M, 3) found on them."""
+        m = len(points)
+        out, found = np.empty((m, 3)), np.empty(m, dtype=np.bool_)
+        work = np.empty((5, 2 * (len(vertices) + len(self.corners)) + 8, 2))
+        patch_points(np.ascontiguousarray(vertices, dtype=float),
+                     np.ascontiguousarray(poses, dtype=float), self.corners, self.starts,
+                     np.ascontiguousarray(parts, dtype=np.int64),
+                     np.ascontiguousarray(planes, dtype=float),
+                     np.ascontiguousarray(points, dtype=float), PATCH_DEPTH, FACE_TOL, work,
+                     out, found)
+        return out, found
 
 
 def patch_centre(finger_vertices: np.ndarray, face_vertices: np.ndarray, inward: np.ndarray,
                  on_plane: np.ndarray) -> np.ndarray | None:
-    """(3,) the centre of a finger's patch on a face, or None when the footprint misses it.
+    """(3,) the centre of a finger's patch on a face, or None when the footprint misses it
+    (or the face has fewer than three vertices).
 
     Args:
         finger_vertices: (V, 3) the finger link's geometry (object frame).
-        face_vertices: (F, 3) the face's vertices (object frame; F >= 3).
+        face_vertices: (F, 3) the face's vertices (object frame; on its plane).
         inward: (3,) the face's unit inward normal.
         on_plane: (3,) a point of the face's plane.
     """
-    basis = _plane_basis(inward)
-    height = (on_plane - finger_vertices) @ inward  # > 0 above the face (outside)
-    near = finger_vertices[height <= height.min() + PATCH_DEPTH]
-    footprint = _hull_2d((near - on_plane) @ basis.T)
-    face = _hull_2d((face_vertices - on_plane) @ basis.T)
-    if len(face) < 3:
-        return None
-    patch = clip_convex(footprint, face)
-    if len(patch) == 0:
-        return None
-    return on_plane + centroid_2d(_hull_2d(patch) if len(patch) >= 3 else patch) @ basis
+    inward, on_plane = np.asarray(inward, dtype=float), np.asarray(on_plane, dtype=float)
+    plane = np.append(-inward, inward @ on_plane)
+    out, found = PatchGeometry((np.asarray(face_vertices, dtype=float),)).place(
+        finger_vertices, np.eye(4)[None], np.zeros(1, np.int64), plane[None], on_plane[None])
+    return out[0] if found[0] else None
 
 
 def face_patch_point(parts: tuple[np.ndarray, ...], finger_vertices: np.ndarray,
                      face: tuple[int, np.ndarray], point: np.ndarray) -> np.ndarray:
     """The contact point of a finger pressing on a face: the centre of its patch
-    (:func:`patch_centre`), or ``point`` (3,) where the face has fewer than three vertices or
+    (:func:`patch_points`), or ``point`` (3,) where the face has fewer than three vertices or
     the footprint misses it.
 
     Args:
@@ -180,11 +364,27 @@ def face_patch_point(parts: tuple[np.ndarray, ...], finger_vertices: np.ndarray,
         point: (3,) the closest point found on that face (object frame).
     """
     part, plane = face
-    corners = parts[part]
-    on_face = corners[np.abs(corners @ plane[:3] + plane[3]) < FACE_TOL]
-    if len(on_face) < 3:
-        return point
-    on_plane = point - (point @ plane[:3] + plane[3]) * plane[:3]
-    centre = patch_centre(finger_vertices, on_face, -plane[:3], on_plane)
-    return point if centre is None else centre
+    out, _ = PatchGeometry((parts[part],)).place(
+        finger_vertices, np.eye(4)[None], np.zeros(1, np.int64), np.asarray(plane)[None],
+        np.asarray(point, dtype=float)[None])
+    return out[0]
 
+
+def faces_of(obj, points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The face each object-frame point (n, 3) lies on: ((n,) its part, -1 where none;
+    (n, 4) its plane, outward unit normal and offset). A point's part is the object's
+    nearest part (``GraspObject.nearest_part``); its face the one face plane of that part
+    within ``tol`` metres; none at an edge or a corner (two or more planes that near) or off
+    the surface."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    part = obj.nearest_part(points)
+    found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
+    for p in np.unique(part):
+        rows = np.flatnonzero(part == p)
+        pl = obj.planes[p]
+        on = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
+        one = on.sum(axis=1) == 1
+        chosen = pl[np.argmax(on[one], axis=1)]
+        planes[rows[one]] = chosen / np.linalg.norm(chosen[:, :3], axis=1, keepdims=True)
+        found[rows[one]] = p
+    return found, planes

@@ -28,7 +28,7 @@ the exact distance is not needed.
    :data:`BAND` the exact distance. A finger touches when that is within ``contact_tol``,
    and misses at its limits.
 3. *Contacts*: per touching finger link, its exact closest pair with the object. On one
-   face of the object (:func:`~kinegrasp_env.closing.generic_reference.face_of`): that
+   face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
    face's inward normal, the point moved to the pad's patch centre
    (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`). At an edge or a corner: the
    pair's direction (the link face's normal where the link point is inside one face;
@@ -45,18 +45,18 @@ import numpy as np
 
 from kinegrasp_env.closing.capsule_gap import posed_min_distance
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import face_patch_point
+from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
 from kinegrasp_env.closing.generic_reference import (
     EDGE_TOL,
     MAX_STEPS,
     RobotCloseResult,
     RobotContact,
-    face_of,
     finger_speed,
 )
-from kinegrasp_env.closing.hull_edges import edges_against_hull
+from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
     LinkGeometry,
+    clustered_bound,
     edge_along,
     grid_error,
     link_geometry,
@@ -103,6 +103,13 @@ class FastRobotHand:
         self._parent = {j.child: j for j in self.model.joints}
         self.paths = [self._finger_path(f) for f in range(len(description.fingers))]
         self.edges = np.concatenate([part.edges for part in obj.convex_parts])
+        self._patch = PatchGeometry(obj.parts)
+        parts = obj.convex_parts
+        self._parts = (np.ascontiguousarray(np.vstack([p.planes for p in parts])),
+                       np.cumsum([0] + [len(p.planes) for p in parts]).astype(np.int64),
+                       np.ascontiguousarray(np.concatenate([p.edges for p in parts])),
+                       np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64),
+                       np.array([INSIDE_TOL * p.scale for p in parts]))
 
     # ------------------------------------------------------------------ kinematics
     def _chain(self, link: str) -> list:
@@ -172,13 +179,9 @@ class FastRobotHand:
         geom = self.geometry[link]
         n = poses.shape[0]
         rot, trans = poses[:, :3, :3], poses[:, :3, 3]
-        verts = geom.vertices @ np.swapaxes(rot, 1, 2) + trans[:, None]
-        closest, d, _ = self.obj.closest_points(verts.reshape(-1, 3))
-        d, closest = d.reshape(verts.shape[:2]), closest.reshape(verts.shape)
-        best = np.argmin(d, axis=1)
-        rows = np.arange(n)
-        dist, fp, op = d[rows, best], verts[rows, best], closest[rows, best]
         rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
+        dist, fp, op = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
+        vertices_against_parts(*self._parts, rot, trans, geom.vertices, dist, fp, op)
         for part in geom.parts:
             edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
                                self.edges, float(below), SEARCH, GOLD, dist, fp, op)
@@ -198,8 +201,7 @@ class FastRobotHand:
                                           - self.grid_err < radius))
             if rows.size == 0:
                 continue
-            screen = (posed_min_distance(self.grid, pose[rows], geom.points) - self.grid_err
-                      - geom.spacing)
+            screen = clustered_bound(self.grid, pose[rows], geom, -start_tol)
             rows = rows[screen < -start_tol]
             if rows.size:
                 dist, _, _ = self._exact(pose[rows], link, -start_tol)
@@ -208,9 +210,7 @@ class FastRobotHand:
 
     def _grid_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
         """(n,) lower bound of the exact distance of ``link``'s hull from the grid."""
-        geom = self.geometry[link]
-        return (posed_min_distance(self.grid, poses, geom.points) - self.grid_err
-                - geom.spacing)
+        return clustered_bound(self.grid, poses, self.geometry[link])
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -224,7 +224,7 @@ class FastRobotHand:
         gaps = np.full((n, len(fingers)), np.nan)
         travel = np.zeros((n, len(fingers)))
         final = {name: values0[name].copy() for name in values0}
-        touching: list[list[tuple]] = [[] for _ in range(n)]
+        touching: list[tuple] = []
         queries = np.zeros(n, dtype=np.int64)
         free = np.flatnonzero(~start)
         for f in range(len(fingers)):
@@ -244,8 +244,14 @@ class FastRobotHand:
                     pose = self._link_poses(palm[touch], vals, link, path["chains"][link])
                     d, fp, op = self._exact(pose, link)
                     queries[touch] += 1
-                    for i in np.flatnonzero(d <= contact_tol):
-                        touching[touch[i]].append((f, k, link, pose[i], d[i], fp[i], op[i]))
+                    on = d <= contact_tol
+                    if on.any():
+                        touching.append((f, k, link, touch[on], pose[on], d[on], fp[on],
+                                         op[on]))
+        contacts: list[list[RobotContact]] = [[] for _ in range(n)]
+        for record in touching:
+            for row, contact in zip(record[3], self._contacts(*record), strict=True):
+                contacts[row].append(contact)
         out = []
         for i in range(n):
             if start[i]:
@@ -254,9 +260,8 @@ class FastRobotHand:
                                             gaps=np.full(len(fingers), np.nan),
                                             travel=np.zeros(len(fingers))))
                 continue
-            contacts = [self._contact(*c) for c in touching[i]]
             out.append(RobotCloseResult(
-                False, contacts, tuple(bool(x > contact_tol) for x in gaps[i]), gaps[i].copy(),
+                False, contacts[i], tuple(bool(x > contact_tol) for x in gaps[i]), gaps[i].copy(),
                 travel[i].copy(), {name: float(v[i]) for name, v in final.items()},
                 int(queries[i])))
         return out
@@ -306,24 +311,32 @@ class FastRobotHand:
             values[name] = setting[:, j]
         return t, g, values
 
-    def _contact(self, f: int, k: int, link: str, pose: np.ndarray, distance: float,
-                 finger_point: np.ndarray, point: np.ndarray) -> RobotContact:
-        """The contact of finger f's link k (its object-frame pose (4, 4)): the object point
-        nearest the link, its face's inward normal and the patch centre, or at an edge the
-        direction from the finger point to it."""
-        face = face_of(self.obj, point)
-        if face is None:
-            normal = self._link_normal(link, pose, finger_point)
+    def _contacts(self, f: int, k: int, link: str, rows: np.ndarray, poses: np.ndarray,
+                  distance: np.ndarray, finger_point: np.ndarray, point: np.ndarray
+                  ) -> list[RobotContact]:
+        """The contacts of finger f's link k at its object-frame poses (m, 4, 4) (the
+        draws ``rows``; closest pairs: distances (m,), link points and object points
+        (m, 3)): on a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`) its
+        inward normal and the patch centre, or at an edge the direction of the pair."""
+        part, plane = faces_of(self.obj, point, EDGE_TOL)
+        on_face = part >= 0
+        normals = -plane[:, :3]
+        points = point.copy()
+        if self.patch and on_face.any():
+            placed, _ = self._patch.place(self.geometry[link].vertices, poses[on_face],
+                                          part[on_face], plane[on_face], point[on_face])
+            points[on_face] = placed
+        for i in np.flatnonzero(~on_face):
+            normal = self._link_normal(link, poses[i], finger_point[i])
             if normal is None:
-                normal = self._edge_normal(link, pose, finger_point, point, distance)
+                normal = self._edge_normal(link, poses[i], finger_point[i], point[i],
+                                           distance[i])
             if np.linalg.norm(normal) < 1e-12:
-                normal = self.obj.surface(point[None])[1][0]
-        else:
-            normal = -face[1][:3]
-            if self.patch:
-                vertices = self.geometry[link].vertices @ pose[:3, :3].T + pose[:3, 3]
-                point = self.patch_point(vertices, face, point)
-        return RobotContact(f, k, point, normal / np.linalg.norm(normal), float(distance))
+                normal = self.obj.surface(point[i][None])[1][0]
+            normals[i] = normal
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+        return [RobotContact(f, k, points[i], normals[i], float(distance[i]))
+                for i in range(len(rows))]
 
     def _link_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray
                      ) -> np.ndarray | None:
@@ -358,9 +371,3 @@ class FastRobotHand:
                 if np.linalg.norm(cross) > 1e-6:
                     return cross * np.sign(cross @ direction)
         return direction - (direction @ u) * u
-
-    def patch_point(self, vertices: np.ndarray, face: tuple[int, np.ndarray],
-                    point: np.ndarray) -> np.ndarray:
-        """The centre of the patch of a link (hull vertices (V, 3), object frame) on
-        ``face`` (part, plane), or ``point`` (3,) where there is none."""
-        return face_patch_point(self.obj.parts, vertices, face, point)

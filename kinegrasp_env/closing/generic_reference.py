@@ -45,7 +45,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import face_patch_point, link_hull_vertices
+from kinegrasp_env.closing.contact_patch import (
+    face_patch_point,
+    faces_of,
+    link_hull_vertices,
+)
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, pybullet
@@ -111,14 +115,9 @@ def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | Non
     """(part, its face plane (4,): outward unit normal, offset) of the one face of ``obj``'s
     nearest convex part that the object-frame ``point`` (3,) lies on (within
     :data:`EDGE_TOL`), or None at an edge or a corner (two or more face planes that near) or
-    off the surface."""
-    part = int(obj.nearest_part(point[None])[0])
-    planes = obj.planes[part]
-    on = np.abs(planes[:, :3] @ point + planes[:, 3]) < EDGE_TOL
-    if int(on.sum()) != 1:
-        return None
-    plane = planes[on][0]
-    return part, plane / np.linalg.norm(plane[:3])
+    off the surface: :func:`~kinegrasp_env.closing.contact_patch.faces_of`."""
+    part, plane = faces_of(obj, point[None], EDGE_TOL)
+    return None if part[0] < 0 else (int(part[0]), plane[0])
 
 
 def hull_margin(bullet, body: int, link: int) -> float:

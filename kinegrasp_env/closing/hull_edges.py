@@ -117,3 +117,29 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
                     object_point[i, k] = ends[e, 0, k] + s * (ends[e, 1, k] - ends[e, 0, k])
                     link_point[i, k] = (rot[i, k, 0] * cx + rot[i, k, 1] * cy
                                         + rot[i, k, 2] * cz + trans[i, k])
+
+
+@jit.kernel(_nrt=False)
+def vertices_against_parts(planes, plane_starts, edges, edge_starts, tols, rot, trans,
+                           vertices, best, link_point, object_point):
+    """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), the
+    least signed distance of the link's vertices (V, 3, its frame) to the object's convex
+    parts (part p: face planes planes[plane_starts[p]:plane_starts[p + 1]], edges
+    edges[edge_starts[p]:edge_starts[p + 1]], tolerance tols[p]; :func:`point_hull`), into
+    best[i], with that vertex (link_point, object frame (n, 3)) and its closest object point
+    (object_point)."""
+    for i in range(rot.shape[0]):
+        best[i] = np.inf
+        for v in range(vertices.shape[0]):
+            lx, ly, lz = vertices[v, 0], vertices[v, 1], vertices[v, 2]
+            x = rot[i, 0, 0] * lx + rot[i, 0, 1] * ly + rot[i, 0, 2] * lz + trans[i, 0]
+            y = rot[i, 1, 0] * lx + rot[i, 1, 1] * ly + rot[i, 1, 2] * lz + trans[i, 1]
+            z = rot[i, 2, 0] * lx + rot[i, 2, 1] * ly + rot[i, 2, 2] * lz + trans[i, 2]
+            for p in range(plane_starts.shape[0] - 1):
+                d, cx, cy, cz = point_hull(planes[plane_starts[p]:plane_starts[p + 1]],
+                                           edges[edge_starts[p]:edge_starts[p + 1]], tols[p],
+                                           x, y, z)
+                if d < best[i]:
+                    best[i] = d
+                    link_point[i, 0], link_point[i, 1], link_point[i, 2] = x, y, z
+                    object_point[i, 0], object_point[i, 1], object_point[i, 2] = cx, cy, cz

@@ -19,7 +19,7 @@ from kinegrasp_env.montecarlo.engines import (
     NO_FORCE_CLOSURE,
     START_COLLISION,
 )
-from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality
+from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
@@ -65,7 +65,8 @@ def outcome_of(result: RobotCloseResult) -> int:
 def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
     """Per-draw results of closings: each one's outcome (:func:`outcome_of`), its contacts
     (at most ``max_contacts``) and, for a candidate, Q by ``quality(points, normals)`` (force
-    closure where Q > 0). Every engine of a description robot scores its closings here."""
+    closure where Q > 0): points and normals (B, k, 3) of every candidate with k contacts at
+    once, Q (B,). Every engine of a description robot scores its closings here."""
     out = RobotDraws.empty(len(results), max_contacts)
     for i, result in enumerate(results):
         out.outcome[i] = outcome_of(result)
@@ -74,10 +75,11 @@ def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotD
         for j, c in enumerate(result.contacts[:k]):
             out.points[i, j], out.normals[i, j] = c.point, c.normal
             out.finger[i, j], out.link[i, j] = c.finger, c.link
-        if out.outcome[i] == NO_FORCE_CLOSURE:
-            out.quality[i] = quality(out.points[i, :k], out.normals[i, :k])
-            if out.quality[i] > 0:
-                out.outcome[i] = FORCE_CLOSURE
+    candidate = out.outcome == NO_FORCE_CLOSURE
+    for k in np.unique(out.n_contacts[candidate]):
+        rows = np.flatnonzero(candidate & (out.n_contacts == k))
+        out.quality[rows] = quality(out.points[rows, :k], out.normals[rows, :k])
+    out.outcome[candidate & (out.quality > 0)] = FORCE_CLOSURE
     return out
 
 
@@ -122,14 +124,14 @@ class RobotEngine:
             raise ValueError("configurations have NaN or infinite entries")
         return q
 
-    def quality(self, points: np.ndarray, normals: np.ndarray) -> float:
-        """Q of contacts (k, 3) with the robot's contact model."""
-        return contact_quality(points, normals, contact_model=self.description.contact_model,
-                               friction=self.friction, num_edges=self.num_edges,
-                               torque_scale=self.obj.torque_scale,
-                               center=self.obj.center_of_mass,
-                               **({"finger_radius": self.finger_radius}
-                                  if self.description.contact_model == "soft" else {}))
+    def quality(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """(B,) Q of B contact sets (B, k, 3) with the robot's contact model."""
+        return contact_quality_batch(
+            points, normals, contact_model=self.description.contact_model,
+            friction=self.friction, num_edges=self.num_edges,
+            torque_scale=self.obj.torque_scale, center=self.obj.center_of_mass,
+            **({"finger_radius": self.finger_radius}
+               if self.description.contact_model == "soft" else {}))
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
         """One closing per configuration of q (n, dof) (checked)."""
