@@ -192,3 +192,96 @@ def test_a_mesh_object_same_outcomes_on_the_same_draws():
     fast.close()
     reference.close()
     assert same >= SAME_OUTCOME * total, f"{same} of {total}"
+
+
+def _random_convex(rng, k: int) -> np.ndarray:
+    """A counter-clockwise convex polygon (m, 2): scipy's hull of k random points."""
+    from scipy.spatial import ConvexHull
+
+    points = rng.normal(size=(k, 2))
+    return points[ConvexHull(points).vertices]
+
+
+def test_hull_2d_against_scipy():
+    """The compiled 2-D hull (monotone chain) has scipy's (qhull's) vertices, counter-
+    clockwise; collinear points give the segment of the extremes, one point itself."""
+    from scipy.spatial import ConvexHull
+
+    from kinegrasp_env.closing.contact_patch import hull_2d
+
+    rng = np.random.default_rng(1)
+    for k in (3, 5, 12, 40):
+        for _ in range(20):
+            points = np.round(rng.normal(size=(k, 2)), 12)
+            out = np.empty((2 * k, 2))
+            m = hull_2d(points.copy(), k, out)
+            expected = points[ConvexHull(points).vertices]
+            assert m == len(expected)
+            assert {tuple(p) for p in out[:m]} == {tuple(p) for p in expected}
+            x, y = out[:m, 0], out[:m, 1]
+            assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0  # CCW
+    line = np.round(np.outer(rng.uniform(size=7), [1.0, 2.0]), 12)
+    out = np.empty((14, 2))
+    assert hull_2d(line.copy(), 7, out) == 2
+    assert {tuple(p) for p in out[:2]} == {tuple(line[line[:, 0].argmin()]),
+                                           tuple(line[line[:, 0].argmax()])}
+    assert hull_2d(np.array([[0.5, 0.5], [0.5, 0.5]]), 2, out) == 1
+
+
+def test_patch_clip_and_centroid_against_halfspaces():
+    """Clipping a convex polygon by another, and the area centroid of the result, against
+    scipy's half-space intersection of the two polygons' edges (qhull) and the centroid of a
+    fan of its triangles; a disjoint pair clips to nothing."""
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    from kinegrasp_env.closing.contact_patch import centroid_2d, clip_convex
+
+    rng = np.random.default_rng(2)
+    checked = 0
+    for _ in range(60):
+        a, b = _random_convex(rng, 8), _random_convex(rng, 8) + rng.normal(scale=0.5, size=2)
+        clipped = clip_convex(a, b)
+        halfspaces = np.vstack([ConvexHull(p).equations for p in (a, b)])
+        inside = np.mean(np.vstack([a, b]), axis=0)
+        if len(clipped) < 3 or np.max(halfspaces[:, :2] @ inside + halfspaces[:, 2]) >= 0:
+            continue  # the polygons' mean is no interior point of the overlap
+        vertices = HalfspaceIntersection(halfspaces, inside).intersections
+        ring = vertices[ConvexHull(vertices).vertices]
+        tri = np.stack([np.repeat(ring[:1], len(ring) - 2, axis=0), ring[1:-1], ring[2:]], 1)
+        u, w = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        area = 0.5 * np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0])
+        expected = (area[:, None] * tri.mean(axis=1)).sum(axis=0) / area.sum()
+        np.testing.assert_allclose(centroid_2d(clipped), expected, atol=1e-9)
+        checked += 1
+    assert checked >= 10
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert len(clip_convex(square + 3.0, square)) == 0
+
+
+def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
+    """The link vertices against the object's parts (compiled) equal the numpy closest points
+    of ``GraspObject.closest_points``; the clustered grid bound lies below the exact link
+    distance and never below the plain bound over every sample (``posed_min_distance``)."""
+    from kinegrasp_env.closing.capsule_gap import posed_min_distance
+    from kinegrasp_env.closing.hull_edges import vertices_against_parts
+    from kinegrasp_env.closing.link_geometry import clustered_bound, grid_error
+
+    hand = engines[0].hand
+    rng = np.random.default_rng(5)
+    q = np.repeat(np.asarray(grasps[0].q0)[None], 40, axis=0)
+    q[:, :7] += JointNoise(3 * SIGMA).sample(40, 7, rng)
+    poses = hand.kinematics.forward(q, list(hand.geometry))
+    for link, geom in hand.geometry.items():
+        pose = hand.obj.pose_inverse @ poses[link]
+        rot = np.ascontiguousarray(pose[:, :3, :3])
+        trans = np.ascontiguousarray(pose[:, :3, 3])
+        dist, fp, op = np.empty(40), np.empty((40, 3)), np.empty((40, 3))
+        vertices_against_parts(*hand._parts, rot, trans, geom.vertices, dist, fp, op)
+        verts = geom.vertices @ np.swapaxes(rot, 1, 2) + trans[:, None]
+        _, d, _ = hand.obj.closest_points(verts.reshape(-1, 3))
+        np.testing.assert_allclose(dist, d.reshape(40, -1).min(axis=1), atol=1e-12)
+        bound = clustered_bound(hand.grid, pose, geom)
+        plain = (posed_min_distance(hand.grid, pose, geom.points) - grid_error(hand.grid)
+                 - geom.spacing)
+        exact, _, _ = hand._exact(pose, link)
+        assert np.all(bound <= exact) and np.all(bound >= plain - 1e-12), link

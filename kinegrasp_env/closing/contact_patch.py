@@ -81,7 +81,8 @@ def hull_2d(points, n, out):
     """The convex hull of ``points[:n]`` (rows (x, y); rounded to 12 decimals, sorted and
     deduplicated in place) into ``out`` (at least 2 n rows), counter-clockwise from the
     lowest-leftmost vertex; returns its vertex count: 1 (a point), 2 (a segment: the two
-    extreme points, every point on one line) or more (Andrew's monotone chain)."""
+    extreme points, every point on one line to round-off) or more (Andrew's monotone chain,
+    turns below 1e-12 of the extent squared taken as straight)."""
     for i in range(n):
         points[i, 0] = round(points[i, 0], 12)
         points[i, 1] = round(points[i, 1], 12)
@@ -100,17 +101,23 @@ def hull_2d(points, n, out):
     if m == 1:
         out[0, 0], out[0, 1] = points[0, 0], points[0, 1]
         return 1
+    # a turn smaller than this (relative to the points' extent squared) is no turn: points
+    # on one line up to round-off give a segment
+    low, high = points[0, 1], points[0, 1]
+    for i in range(m):
+        low, high = min(low, points[i, 1]), max(high, points[i, 1])
+    flat = 1e-12 * ((points[m - 1, 0] - points[0, 0]) ** 2 + (high - low) ** 2)
     k = 0
     for i in range(m):  # lower chain
         while k >= 2 and _side(out[k - 2, 0], out[k - 2, 1], out[k - 1, 0], out[k - 1, 1],
-                               points[i, 0], points[i, 1]) <= 0.0:
+                               points[i, 0], points[i, 1]) <= flat:
             k -= 1
         out[k, 0], out[k, 1] = points[i, 0], points[i, 1]
         k += 1
     lower = k + 1
     for i in range(m - 2, -1, -1):  # upper chain
         while k >= lower and _side(out[k - 2, 0], out[k - 2, 1], out[k - 1, 0],
-                                   out[k - 1, 1], points[i, 0], points[i, 1]) <= 0.0:
+                                   out[k - 1, 1], points[i, 0], points[i, 1]) <= flat:
             k -= 1
         out[k, 0], out[k, 1] = points[i, 0], points[i, 1]
         k += 1

@@ -7,7 +7,11 @@ The signed distance from a point on an edge to a convex hull is a convex functio
 point's parameter along the edge, so its minimum is found by golden-section search
 (:data:`~kinegrasp_env.closing.generic_fast.SEARCH` steps, then the two ends compared). An
 edge whose plane bound (the largest over the hull's face planes of the smaller plane value of
-its two ends: a lower bound of its distance) cannot beat the best distance so far is skipped.
+its two ends: a lower bound of its distance) cannot beat the best distance so far is skipped;
+a search stops as soon as the distance's Lipschitz bound over the bracket (the edge's length
+times the bracket's width below the smaller of its two values) cannot beat it either. The
+link's vertices against the object's parts are compiled here too
+(:func:`vertices_against_parts`).
 """
 
 from __future__ import annotations
@@ -74,7 +78,8 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
     best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull where
     that is smaller, with its link point and object point (object frame, (n, 3)); edges
-    whose plane bound is not below min(best[i], below) are skipped."""
+    whose plane bound is not below min(best[i], below) are skipped, and so is the rest of an
+    edge's search once its Lipschitz bound over the bracket is not below it either."""
     for i in range(rot.shape[0]):
         for e in range(ends.shape[0]):
             bound = -np.inf
@@ -96,7 +101,16 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
             x1, x2 = hi - gold * (hi - lo), lo + gold * (hi - lo)
             f1 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x1)[0]
             f2 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x2)[0]
+            length = np.sqrt((ends[e, 1, 0] - ends[e, 0, 0]) ** 2
+                             + (ends[e, 1, 1] - ends[e, 0, 1]) ** 2
+                             + (ends[e, 1, 2] - ends[e, 0, 2]) ** 2)
+            hopeless = False
             for _ in range(steps):
+                # the distance is length-Lipschitz in s: nothing in [lo, hi] (where the
+                # minimum lies) can come below the limit
+                if min(f1, f2) - length * (hi - lo) - tol >= min(best[i], below):
+                    hopeless = True
+                    break
                 if f1 < f2:
                     hi, x2, f2 = x2, x1, f1
                     x1 = hi - gold * (hi - lo)
@@ -105,6 +119,8 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
                     lo, x1, f1 = x1, x2, f2
                     x2 = lo + gold * (hi - lo)
                     f2 = edge_at(planes, edges, tol, rot, trans, ends, e, i, x2)[0]
+            if hopeless:
+                continue
             s = 0.5 * (lo + hi)
             d, cx, cy, cz = edge_at(planes, edges, tol, rot, trans, ends, e, i, s)
             for end in (0.0, 1.0):

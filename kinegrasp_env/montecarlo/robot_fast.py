@@ -14,7 +14,7 @@ from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 
 #: Draws closed in one batch (bounds the batch's temporaries).
-BATCH = 256
+BATCH = 1024
 
 
 class RobotFastEngine(RobotEngine):
