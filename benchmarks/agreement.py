@@ -52,6 +52,14 @@ draws in force closure on both sides (their number in brackets), and the absolut
 without the draws where a normal's tangent basis is tied (``agreement.TIE_TOL``: a 1e-12
 change of such a normal can turn the linearized friction cone and change Q by ~1%).
 
+The Panda's rows (``--robots``: ``kuka_sdh`` and ``panda`` by default; ``--panda-objects``,
+default cube and drill, their first ``--grasps`` shipped Panda grasps, ``--draws`` each, per
+sigma) come from :mod:`robot_agreement`: fast vs reference, reference vs bullet and fast vs
+bullet, "bullet" being pybullet's own closest point and normal of each touching link at the
+reference's final state; columns: same outcome, paired contacts, the median, 90% quantile and
+largest point distance (metres), the 90% quantile and largest normal angle (degrees), and
+each side's force-closure count per grasp.
+
 Every row (the same counts and differences, plus the same-outcome fraction) also goes to
 ``benchmarks/results/agreement.json`` (``--json-out PATH``, ``--no-json``).
 """
@@ -64,6 +72,7 @@ import time
 
 import numpy as np
 from results_file import add_options, settings, write_result
+from robot_agreement import robot_agreement
 
 from kinegrasp_env.montecarlo.agreement import Agreement, compare
 from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
@@ -146,12 +155,17 @@ def main() -> None:
     parser.add_argument("--grasp-file", help="a grasp file (e.g. `kinegrasp plan`'s output "
                         "for an imported object): its object, its first --grasps grasps")
     parser.add_argument("--sigmas", nargs="+", type=float, default=[0.0133, 0.0266])
+    parser.add_argument("--robots", nargs="+", default=["kuka_sdh", "panda"],
+                        choices=["kuka_sdh", "panda"], help="the robots whose rows to run")
+    parser.add_argument("--panda-objects", nargs="+", default=["cube", "drill"],
+                        help="objects of the Panda rows (their shipped Panda grasps)")
     add_options(parser, __file__)
     args = parser.parse_args()
-    sets = grasp_sets(parser, args)
+    sets = grasp_sets(parser, args) if "kuka_sdh" in args.robots else {}
     start = time.perf_counter()
     rows = []
-    print(COLUMNS)
+    if sets:
+        print(COLUMNS)
     for name, grasps in sets.items():
         for sigma in args.sigmas:
             for label, agreement in compare_object(name, sigma, grasps, args.draws,
@@ -162,12 +176,42 @@ def main() -> None:
                              "same_outcome_fraction": agreement.same_outcome / agreement.draws,
                              **dataclasses.asdict(agreement)})
     counts = "/".join(sorted({str(len(g)) for g in sets.values()}))
+    if sets:
+        print(f"({counts} grasps x {args.draws} draws per row, seed {args.seed})")
+    robot_rows = panda_rows(args) if "panda" in args.robots else []
     seconds = time.perf_counter() - start
-    print(f"({counts} grasps x {args.draws} draws per row, seed {args.seed}; "
-          f"{seconds:.0f} s)")
+    print(f"({seconds:.0f} s)")
     if not args.no_json:
-        write_result(__file__, {"wall_s": seconds, "rows": rows, "settings": settings(args)},
-                     args.json_out)
+        write_result(__file__, {"wall_s": seconds, "rows": rows, "robot_rows": robot_rows,
+                                "settings": settings(args)}, args.json_out)
+
+
+ROBOT_COLUMNS = (f"{'robot':6s} {'object':11s} {'sigma':>6s} {'comparison':20s} "
+                 f"{'same outcome':>12s} {'contacts':>8s} {'point med':>9s} {'point q90':>9s} "
+                 f"{'point max':>9s} {'nrm q90':>8s} {'nrm max':>8s}  FC per grasp (first / "
+                 "second)")
+
+
+def panda_rows(args) -> list[dict]:
+    """The Panda's rows (:func:`robot_agreement.robot_agreement`): the first ``--grasps``
+    shipped Panda grasps of each of ``--panda-objects``, ``--draws`` draws each, per sigma."""
+    print(ROBOT_COLUMNS)
+    out = []
+    for name in args.panda_objects:
+        grasps = shipped_grasps(name, "panda")[:args.grasps]
+        for sigma in args.sigmas:
+            for label, r in robot_agreement("panda", name, grasps, sigma, args.draws,
+                                            args.seed).items():
+                print(f"{'panda':6s} {name:11s} {sigma:6.4f} {label:20s} "
+                      f"{r['same_outcome']:6d}/{r['draws']:<5d} {r['contacts']:8d} "
+                      f"{r['point_median']:9.2e} {r['point_q90']:9.2e} {r['point_max']:9.2e} "
+                      f"{r['normal_q90_deg']:8.3f} {r['normal_max_deg']:8.3f}  "
+                      f"{r['fc_first']} / {r['fc_second']}", flush=True)
+                out.append({"robot": "panda", "object": name, "sigma": sigma,
+                            "comparison": label, "grasps": len(grasps), **r})
+    print(f"({args.grasps} Panda grasps x {args.draws} draws per row; normals in degrees; "
+          "bullet: pybullet's own closest point and normal at the reference's final state)")
+    return out
 
 
 if __name__ == "__main__":

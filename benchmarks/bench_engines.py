@@ -12,6 +12,11 @@ Run: ``python benchmarks/bench_engines.py [--draws 10000] [--processes 2]``.
    near-contact gaps and polish, contacts), and quality (the certified expansion, its
    fallbacks).
 3. The capsule-gap and exact segment-distance kernels on 20,000 and 5,000 random segments.
+4. The Panda (a description robot, :mod:`robot_speed`) on its four shipped cube grasps: the
+   fast and the reference engine (pybullet closest points) per draw on one process, the same
+   ``--panda-draws`` draws of each grasp, their ratio and force-closure counts; and
+   ``--draws`` fast draws of grasp 0 on ``--processes`` warm workers (``--robots`` picks the
+   parts: ``kuka_sdh`` for 1-3, ``panda`` for 4).
 
 The figures (seconds, draws/s, ratios) also go to ``benchmarks/results/bench_engines.json``
 (``--json-out PATH``, ``--no-json``).
@@ -24,6 +29,7 @@ import time
 
 import numpy as np
 from results_file import add_options, settings, write_result
+from robot_speed import per_draw, pool_run
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps
 from kinegrasp_env.closing.segment_distance import closest_to_segments
@@ -130,6 +136,26 @@ def kernels(args) -> list[dict]:
     return rows
 
 
+def panda(args) -> dict:
+    rows = per_draw("panda", "cube", args.sigma, args.panda_draws, 0)
+    fast, ref = rows["fast"], rows["pybullet"]
+    ratio = ref["s_per_draw"] / fast["s_per_draw"]
+    print(f"panda cube, per draw (1 process, {fast['draws']} draws of 4 grasps): fast "
+          f"{fast['s_per_draw'] * 1e6:.0f} us, pybullet {ref['s_per_draw'] * 1e6:.0f} us: "
+          f"{ratio:.1f}x; force closure fast {fast['force_closure']}, pybullet "
+          f"{ref['force_closure']}")
+    pool = pool_run("panda", "cube", args.sigma, args.draws, args.processes, 0)
+    print(f"panda cube, fast: {pool['draws']} draws in {pool['wall_s']:.2f} s on "
+          f"{pool['processes']} warm processes ({pool['run_again_wall_s']:.2f} s run again; "
+          f"pool start {pool['pool_start_s']:.1f} s)  P(FC) = {pool['p_fc']:.4f}")
+    return {"panda_fast_over_pybullet_per_draw": ratio,
+            "panda_fast_wall_s": pool["wall_s"],
+            "panda_identical_fc_counts": fast["force_closure"] == ref["force_closure"],
+            "panda_per_draw": [{**r, "force_closure": str(r["force_closure"])}
+                               for r in (fast, ref)],
+            "panda_pool": [pool]}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--draws", type=int, default=10_000)
@@ -139,15 +165,24 @@ def main() -> None:
     parser.add_argument("--object", default="spray_flask")
     parser.add_argument("--grasp", type=int, default=0)
     parser.add_argument("--sigma", type=float, default=0.0133)
+    parser.add_argument("--panda-draws", type=int, default=500,
+                        help="draws per Panda grasp of the per-draw timing")
+    parser.add_argument("--robots", nargs="+", default=["kuka_sdh", "panda"],
+                        choices=["kuka_sdh", "panda"], help="the parts to run")
     add_options(parser, __file__)
     args = parser.parse_args()
     if args.reference_draws is None:
         args.reference_draws = args.draws
-    record = engines(args)
-    split = stages(args)
-    record["contacts_per_closed_draw"] = [
-        {"contacts": k, "draws": c} for k, c in split.pop("contacts_per_closed_draw").items()]
-    record = {**record, **split, "kernels": kernels(args)}
+    record = {}
+    if "kuka_sdh" in args.robots:
+        record = engines(args)
+        split = stages(args)
+        record["contacts_per_closed_draw"] = [
+            {"contacts": k, "draws": c}
+            for k, c in split.pop("contacts_per_closed_draw").items()]
+        record = {**record, **split, "kernels": kernels(args)}
+    if "panda" in args.robots:
+        record.update(panda(args))
     if not args.no_json:
         write_result(__file__, {**record, "settings": settings(args)}, args.json_out)
 

@@ -23,10 +23,11 @@ the exact distance is not needed.
    ``rate * t``, clipped at their limits), by conservative advancement: t grows by the gap's
    lower bound over the finger's speed bound
    (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). Far from the object the
-   lower bound is the distance grid's (:func:`~kinegrasp_env.closing.capsule_gap.
-   posed_min_distance` over the samples, less :func:`grid_error` and the spacing); within
-   :data:`BAND` the exact distance. A finger touches when that is within ``contact_tol``,
-   and misses at its limits.
+   lower bound is the distance grid's over the samples, less :func:`grid_error` and the
+   spacing (:func:`~kinegrasp_env.closing.link_geometry.clustered_bound`: clusters of
+   samples stand in for them where they cannot hold the least); within :data:`BAND` the
+   exact distance, and for a draw once within it the exact distance only. A finger
+   touches when that is within ``contact_tol``, and misses at its limits.
 3. *Contacts*: per touching finger link, its exact closest pair with the object. On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
    face's inward normal, the point moved to the pad's patch centre
@@ -286,13 +287,19 @@ class FastRobotHand:
             setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
             for j, name in enumerate(path["joints"]):
                 vals[name] = setting[:, j]
-            bound = np.full(active.size, np.inf)
+            # a draw already within the band stays there (its gap only shrinks, and the
+            # exact distance is the truth): only the others need the grid's bound
+            far = np.flatnonzero(g[active] > BAND)
+            bound = np.full(active.size, -np.inf)
+            bound[far] = np.inf
             poses = {}
             for link in path["links"]:
                 poses[link] = self._link_poses(palm[active], vals, link, path["chains"][link])
-                bound = np.minimum(bound, self._grid_bound(poses[link], link))
+                if far.size:
+                    bound[far] = np.minimum(bound[far],
+                                            self._grid_bound(poses[link][far], link))
             near = np.flatnonzero(bound <= BAND)
-            gap = bound.copy()
+            gap = bound.copy()  # -inf nowhere once the exact distances are in
             if near.size:  # the exact distance replaces the grid's bound
                 exact = np.full(near.size, np.inf)
                 for link in path["links"]:

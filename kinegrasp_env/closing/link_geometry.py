@@ -130,22 +130,40 @@ def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
     return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))
 
 
+@jit.kernel(_nrt=False)
+def segment_holding(segments, x, y, z, tol, direction):
+    """Index of the one segment of ``segments`` (E, 2, 3) whose interior holds the point
+    (x, y, z) (within ``tol`` metres, not within ``tol`` of its ends), its unit direction in
+    ``direction`` (3,); -1 where none, several, or the point lies at an end of one."""
+    found = -1
+    for e in range(segments.shape[0]):
+        ax, ay, az = segments[e, 0, 0], segments[e, 0, 1], segments[e, 0, 2]
+        dx, dy, dz = segments[e, 1, 0] - ax, segments[e, 1, 1] - ay, segments[e, 1, 2] - az
+        if (np.sqrt((x - ax) ** 2 + (y - ay) ** 2 + (z - az) ** 2) < tol
+                or np.sqrt((x - ax - dx) ** 2 + (y - ay - dy) ** 2 + (z - az - dz) ** 2) < tol):
+            return -1
+        length2 = dx * dx + dy * dy + dz * dz
+        s = ((x - ax) * dx + (y - ay) * dy + (z - az) * dz) / max(length2, 1e-300)
+        s = min(max(s, 0.0), 1.0)
+        gap = np.sqrt((ax + s * dx - x) ** 2 + (ay + s * dy - y) ** 2 + (az + s * dz - z) ** 2)
+        length = np.sqrt(length2)
+        if gap < tol and s * length > tol and (1.0 - s) * length > tol:
+            if found >= 0:
+                return -1
+            found = e
+            direction[0], direction[1], direction[2] = dx / length, dy / length, dz / length
+    return found
+
+
 def edge_along(segments: np.ndarray, point: np.ndarray, tol: float = 1e-7
-                ) -> np.ndarray | None:
+               ) -> np.ndarray | None:
     """(3,) unit direction of the one segment of ``segments`` (E, 2, 3) whose interior holds
-    ``point`` (3,) (within ``tol`` metres, not within ``tol`` of its ends), or None."""
-    a, b = segments[:, 0], segments[:, 1]
-    ab = b - a
-    length2 = np.einsum("ij,ij->i", ab, ab)
-    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / np.maximum(length2, 1e-300), 0.0, 1.0)
-    gap = np.linalg.norm(a + s[:, None] * ab - point, axis=1)
-    length = np.sqrt(length2)
-    inside = (gap < tol) & (s * length > tol) & ((1.0 - s) * length > tol)
-    on_end = np.any((np.linalg.norm(a - point, axis=1) < tol)
-                    | (np.linalg.norm(b - point, axis=1) < tol))
-    if int(inside.sum()) != 1 or on_end:
-        return None
-    return ab[inside][0] / length[inside][0]
+    ``point`` (3,) (within ``tol`` metres, not within ``tol`` of its ends), or None
+    (:func:`segment_holding`)."""
+    direction = np.empty(3)
+    found = segment_holding(segments, float(point[0]), float(point[1]), float(point[2]),
+                            float(tol), direction)
+    return None if found < 0 else direction
 
 
 def cluster_samples(points: np.ndarray, size: float = CLUSTER
