@@ -3,7 +3,12 @@ with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.write_elb
 
 The certificate (:mod:`kinegrasp_env.toolkit.elbow_certificate`) is printed as the claim it
 makes: "with 95% confidence no evaluated elbow angle beats psi = ... by more than B in P(FC)",
-then whether B is within ``--epsilon`` (certified) or not."""
+then whether B is within ``--epsilon`` (certified) or not.
+
+A description robot (``--robot NAME``, or ``--grasps FILE`` of one) takes the reference
+engine; its variants are the self-motion of a 7-joint arm, or the IK branches of a 6-joint
+one (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`: every branch, the
+best on fresh draws, the same certificate over the other branches)."""
 
 from __future__ import annotations
 
@@ -22,6 +27,7 @@ from kinegrasp_env.cli.common import (
     output_file,
     parse_index,
     plural,
+    positive_int,
     reported,
     shipped_grasp,
 )
@@ -32,6 +38,10 @@ from kinegrasp_env.cli.common import (
 DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
 #: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied, as above).
 DEFAULT_ROBOT = "kuka_sdh"
+#: The object without --object or --grasps.
+DEFAULT_OBJECT = "spray_flask"
+#: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
+DEFAULT_IK_STARTS = 200
 #: Options a description robot's elbow does not take: flag -> its value when not given.
 ROBOT_REFUSED = {"--backend": "local", "--address": None, "--processes": None,
                  "--report": None}
@@ -48,9 +58,30 @@ def certificate_levels(args) -> tuple[float, float]:
     return epsilon, delta
 
 
+def file_choice(args):
+    """``(index, grasp)`` of ``--grasps FILE`` (its robot taken for ``--robot`` when not
+    given; a grasp of another robot than ``--robot`` is one line), or None without it (then
+    ``--object`` defaults to :data:`DEFAULT_OBJECT`)."""
+    if getattr(args, "grasps", None) is None:
+        args.object = getattr(args, "object", None) or DEFAULT_OBJECT
+        return None
+    from kinegrasp_env.cli.grasp_choice import file_grasp
+    from kinegrasp_env.world.grasps import check_robot
+
+    index, grasp = file_grasp(args)
+    args.robot = getattr(args, "robot", None) or grasp.robot
+    with reported(ValueError):
+        check_robot(grasp, args.robot)
+    return index, grasp
+
+
 def cmd_elbow(args) -> int:
+    chosen = file_choice(args)
     if getattr(args, "robot", None) not in (None, DEFAULT_ROBOT):
-        return cmd_elbow_robot(args)
+        return cmd_elbow_robot(args, chosen)
+    if getattr(args, "ik_starts", None) is not None:
+        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; {DEFAULT_ROBOT}'s arm "
+                       "has 7 joints (its variants: the self-motion)")
     args.engine = getattr(args, "engine", None) or "fast"
     from tqdm import tqdm
 
@@ -59,7 +90,7 @@ def cmd_elbow(args) -> int:
 
     noise, sigma, samples, seed = noise_from(args)
     epsilon, delta = certificate_levels(args)
-    index, grasp = shipped_grasp(args.object, args.grasp)
+    index, grasp = chosen or shipped_grasp(args.object, args.grasp)
     if args.plot:
         output_file(args.plot, "--plot")
     report_path(args.report)
@@ -88,14 +119,16 @@ def cmd_elbow(args) -> int:
     return 0
 
 
-def cmd_elbow_robot(args) -> int:
+def cmd_elbow_robot(args, chosen=None) -> int:
     """``kinegrasp elbow --robot NAME``: a description robot's grasp along its self-motion
-    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, the reference engine)."""
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, the reference engine),
+    or for a 6-joint arm across its IK branches (:func:`cmd_elbow_branches`). ``chosen``:
+    ``(index, grasp)`` of ``--grasps FILE``, else grasp ``--grasp`` of the robot's shipped set
+    of ``--object``."""
     from tqdm import tqdm
 
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 
     robot = args.robot
     for flag, unset in ROBOT_REFUSED.items():
@@ -109,22 +142,26 @@ def cmd_elbow_robot(args) -> int:
     epsilon, delta = certificate_levels(args)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
-    if description.arm_dof != 7 or description.arm_angle_links is None:
+    branches = description.arm_dof == 6
+    if not branches and (description.arm_dof != 7 or description.arm_angle_links is None):
         raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
-                       "self-motion needs 7 and arm_angle_links")
-    index = parse_index(args.grasp)
-    with reported(NoGraspSetError):
-        grasps = shipped_grasps(args.object, robot)
-    if not 0 <= index < len(grasps):
-        raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
-                       f"{len(grasps)} grasps of robot {robot} (0..{len(grasps) - 1})")
+                       "variants are the self-motion of 7 with arm_angle_links or the IK "
+                       "branches of 6")
+    starts = ik_starts(args, branches, robot)
+    if branches and args.plot:
+        raise CLIError(f"--plot draws P(FC) against the elbow angle; robot {robot!r}'s "
+                       "6-joint arm has IK branches instead (no self-motion)")
+    index, grasp = chosen or robot_shipped_grasp(args, robot)
     if args.plot:
         output_file(args.plot, "--plot")
+    if branches:
+        return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                                  starts)
     from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 
     bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} (selection, "
                "then fresh draws)", unit="angle", file=sys.stderr, disable=None)
-    result = optimize_robot_elbow(grasps[index], noise, samples, seed, epsilon=epsilon,
+    result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
                                   delta=delta, progress=lambda done: bar.update(done - bar.n))
     bar.close()
     payload = {"robot": robot, **result.to_json()}
@@ -141,6 +178,86 @@ def cmd_elbow_robot(args) -> int:
         if args.plot:
             print(f"  plot written to {args.plot}")
     return 0
+
+
+def ik_starts(args, branches: bool, robot: str) -> int | None:
+    """``--ik-starts``: a positive count for a 6-joint arm (default: ``ik_branches``'), None
+    otherwise (where giving it is one line)."""
+    if getattr(args, "ik_starts", None) is None:
+        return DEFAULT_IK_STARTS if branches else None
+    if not branches:
+        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; robot {robot!r}'s "
+                       "variants are its self-motion")
+    return positive_int(args.ik_starts, "--ik-starts")
+
+
+def robot_shipped_grasp(args, robot: str):
+    """``(index, grasp)``: entry ``--grasp`` of the robot's shipped set of ``--object``."""
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
+
+    index = parse_index(args.grasp)
+    with reported(NoGraspSetError):
+        grasps = shipped_grasps(args.object, robot)
+    if not 0 <= index < len(grasps):
+        raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
+                       f"{len(grasps)} grasps of robot {robot} (0..{len(grasps) - 1})")
+    return index, grasps[index]
+
+
+def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                       starts) -> int:
+    """A 6-joint arm's grasp across its IK branches
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
+
+    bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
+               "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
+    result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
+                                     epsilon=epsilon, delta=delta,
+                                     progress=lambda done: bar.update(done - bar.n))
+    bar.close()
+    payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(branch_summary(payload, index))
+    return 0
+
+
+def branch_summary(result: dict, index: int) -> str:
+    """The console summary of a 6-joint arm's IK-branch search (``BranchResult.to_json()``
+    with ``robot`` and ``ik_starts``)."""
+    lo, hi = result["best_p_fc_ci"]
+    nlo, nhi = result["nominal_p_fc_ci"]
+    glo, ghi = result["gain_ci"]
+    n, cert = len(result["branches"]), result["certificate"]
+    lines = [
+        f"robot {result['robot']}: a 6-joint arm has no self-motion; the variants of "
+        f"{result['object']} grasp {index} are its {plural(n, 'IK branch', 'IK branches')} "
+        f"({result['ik_starts']} IK starts)",
+        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, "
+        f"{plural(n, 'IK branch', 'IK branches')} x {result['samples']} draws, then again on "
+        f"{result['samples']} fresh draws ({result['engine']} engine)",
+        f"  nominal branch {result['nominal_branch']} ({result['nominal_label']}): P(FC) "
+        f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
+        f"  best branch    {result['best_branch']} ({result['best_label']}): P(FC) "
+        f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
+        f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
+        f"  {cert['statement']}"]
+    if cert["bound"] is not None:
+        verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
+                   f"not certified at epsilon {cert['epsilon']:g} (branch "
+                   f"{cert['worst_branch']} is the rival it cannot rule out)")
+        rivals = plural(len(cert["rivals"]), "other branch", "other branches")
+        lines.append(f"    {verdict}; {rivals}, exact one-sided binomial bounds on "
+                     f"{cert['fresh_draws']} fresh draws; branches the IK starts did not find "
+                     "not covered")
+    for point in result["curve"]:
+        lines.append(f"  branch {point['branch']} ({point['label']}): P(FC) {point['p_fc']:.3f} "
+                     f"selection, {point['fresh_p_fc']:.3f} fresh")
+    return "\n".join(lines)
 
 
 def text_summary(result: dict, index: int) -> str:
@@ -178,7 +295,8 @@ def add_commands(sub) -> None:
     """Register ``elbow``."""
     p = sub.add_parser("elbow", help="P(FC) along a grasp's self-motion: the most robust elbow "
                        "angle, its gain over the nominal one, with intervals")
-    add_object_arg(p, "spray_flask", "catalog object")
+    add_object_arg(p, DEFAULT_OBJECT, "catalog object (with --grasps: the file's)")
+    p.set_defaults(object=None)  # resolved in cmd_elbow: --grasps names its own
     p.add_argument("--grasp", default="0", help=grasp_index_help())
     add_noise_args(p, 0.0133)
     p.set_defaults(samples="1000")
@@ -194,6 +312,11 @@ def add_commands(sub) -> None:
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")
-    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
-                   "its shipped grasps, its arm's self-motion, the pybullet engine)")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
+                   "robot; another one: its shipped grasps, its arm's self-motion (7 joints) "
+                   "or IK branches (6 joints), the pybullet engine)")
+    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output): its grasp "
+                   "--grasp (an id, else an index) instead of a shipped one")
+    p.add_argument("--ik-starts", help="random IK starts that find a 6-joint arm's IK "
+                   f"branches (default {DEFAULT_IK_STARTS})")
     p.set_defaults(func=cmd_elbow)

@@ -1,5 +1,7 @@
 """The most robust elbow of a description robot's grasp (a 7-joint arm other than the
-default robot's), through the reference engine, with the same protocol and certificate.
+default robot's), through the reference engine, with the same protocol and certificate; for
+a 6-joint arm (no self-motion) the most robust of its IK branches
+(:func:`optimize_robot_branches`).
 
 The protocol is :mod:`kinegrasp_env.toolkit.elbow`'s, robot-independent in every rule but
 two: the self-motion and the engine.
@@ -28,7 +30,7 @@ robot's; the result is an :class:`~kinegrasp_env.toolkit.elbow.ElbowResult`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -48,13 +50,24 @@ from kinegrasp_env.toolkit.elbow import (
 from kinegrasp_env.toolkit.elbow_certificate import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
+    Certificate,
     check_levels,
+    rounded_up,
+)
+from kinegrasp_env.toolkit.ik_branches import (
+    DEFAULT_STARTS,
+    MERGE_TOL,
+    IKBranch,
+    ik_branches,
+    joint_difference,
 )
 from kinegrasp_env.toolkit.robot_planner import clearance
 from kinegrasp_env.world.grasps import Grasp
 
 #: The fresh draws' stream: ``SeedSequence([seed, FRESH_STREAM])``.
 FRESH_STREAM = 1
+#: The IK starts' stream of a 6-joint arm's branches: ``SeedSequence([seed, IK_STREAM])``.
+IK_STREAM = 2
 
 
 def fresh_seed(seed: int) -> np.random.SeedSequence:
@@ -123,6 +136,20 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, engine, report
     return [done[i] for i in sorted(done)]
 
 
+def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, samples: int,
+                 seed: int, engine: RobotReferenceEngine, report) -> None:
+    """Every point of the curve again on the fresh draws (its ``fresh_fc``)."""
+    fresh = fresh_seed(seed)
+    for k, point in enumerate(curve):
+        point.fresh_fc = _point(grasp, point.psi, point.q, noise, samples, fresh, engine)[0]
+        report(len(curve) + k + 1)
+
+
+def _check_samples(samples) -> None:
+    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
+        raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
+
+
 def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
                          engine: RobotReferenceEngine | None = None, step: float = FINE_STEP,
                          epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
@@ -147,8 +174,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
             whose arm has no self-motion.
     """
     check_levels(epsilon, delta)
-    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
-        raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
+    _check_samples(samples)
     report = progress or (lambda done: None)
     own = engine is None
     engine = engine or RobotReferenceEngine(grasp.robot, grasp.object)
@@ -159,10 +185,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         nominal_index = min(range(len(reach)),
                             key=lambda i: float(np.abs(reach[i][1] - q0).max()))
         curve = _curve(grasp, reach, nominal_index, noise, samples, seed, engine, report)
-        fresh = fresh_seed(seed)
-        for k, point in enumerate(curve):
-            point.fresh_fc = _point(grasp, point.psi, point.q, noise, samples, fresh, engine)[0]
-            report(len(curve) + k + 1)
+        _score_fresh(grasp, curve, noise, samples, seed, engine, report)
     finally:
         if own:
             engine.close()
@@ -170,3 +193,123 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
     nominal = next(p for p in curve if p.q is reach[nominal_index][1])
     return elbow_result(grasp, curve, best, nominal, nominal.psi, noise, samples, seed,
                         "pybullet", step, epsilon, delta)
+
+
+def _branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int, seed: int
+                     ) -> tuple[list[IKBranch], int]:
+    """The IK branches of the grasp's palm pose (:func:`ik_branches`, starts seeded by
+    ``SeedSequence([seed, IK_STREAM])``) and the index of the grasp's own one: the branch
+    within ``MERGE_TOL`` of its arm joints takes them exactly, or they are added as a
+    branch of their own (labelled ``nominal``)."""
+    description = engine.description
+    dof = description.arm_dof
+    q0 = engine.check(grasp.q0)[0]
+    branches = ik_branches(description, grasp.palm_pose, starts=starts,
+                           seed=np.random.SeedSequence([int(seed), IK_STREAM]))
+    gaps = [float(joint_difference(description, b.q, q0[:dof])) for b in branches]
+    if gaps and min(gaps) <= MERGE_TOL:
+        k = int(np.argmin(gaps))
+        branches[k] = replace(branches[k], q=q0[:dof].copy())
+        return branches, k
+    return [IKBranch(q0[:dof].copy(), "nominal", 0), *branches], 0
+
+
+@dataclass
+class BranchResult:
+    """The most robust IK branch of a 6-joint arm's grasp: an :class:`ElbowResult` whose
+    "angles" are branch indices (``curve[i]`` is ``branches[i]``), and the branches."""
+
+    result: ElbowResult
+    branches: list[IKBranch]
+    nominal: int
+    best: int
+
+    def to_json(self) -> dict:
+        """``ElbowResult.to_json()`` with branches for angles: ``best_branch``,
+        ``nominal_branch``, the curve's and the certificate's ``branch`` entries (no psi),
+        ``variants: "ik_branches"`` and the ``branches`` (index, label, arm joints, hits)."""
+        out = self.result.to_json()
+        for key in ("best_psi", "nominal_psi", "grid_step"):
+            out.pop(key)
+        out.update(variants="ik_branches", best_branch=self.best,
+                   best_label=self.branches[self.best].label, nominal_branch=self.nominal,
+                   nominal_label=self.branches[self.nominal].label)
+        for i, point in enumerate(out["curve"]):
+            point.pop("psi")
+            point.update(branch=i, label=self.branches[i].label)
+        cert = out["certificate"]
+        cert["chosen_branch"] = round(cert.pop("chosen_psi"))
+        worst = cert.pop("worst_psi")
+        cert["worst_branch"] = None if worst is None else round(worst)
+        for rival in cert["rivals"]:
+            rival["branch"] = round(rival.pop("psi"))
+        cert["statement"] = branch_statement(self.result.certificate, self.branches)
+        out["branches"] = [{"branch": i, "label": b.label, "q": b.q.tolist(), "hits": b.hits}
+                           for i, b in enumerate(self.branches)]
+        return out
+
+
+def branch_statement(cert: Certificate, branches: list[IKBranch]) -> str:
+    """The certificate's claim (:meth:`Certificate.statement`) in words of IK branches."""
+    chosen = round(cert.chosen_psi)
+    name = f"branch {chosen} ({branches[chosen].label})"
+    if cert.bound is None:
+        return f"{name} is the only IK branch found"
+    shown = rounded_up(cert.bound)
+    if shown < 0:
+        return (f"with {cert.confidence} confidence every other IK branch found has a P(FC) "
+                f"at least {-shown:.3f} below that of {name}")
+    return (f"with {cert.confidence} confidence no other IK branch found beats {name} by "
+            f"more than {shown:.3f} in P(FC)")
+
+
+def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+                            engine: RobotReferenceEngine | None = None,
+                            starts: int = DEFAULT_STARTS, epsilon: float = DEFAULT_EPSILON,
+                            delta: float = DEFAULT_DELTA,
+                            progress: Callable[[int], None] | None = None) -> BranchResult:
+    """The most robust IK branch of a 6-joint arm's ``grasp`` under ``noise``: the protocol
+    of :func:`optimize_robot_elbow` with the IK branches of the grasp's palm pose for the
+    elbow angles. Every branch is evaluated on the selection draws (``seed``; a branch whose
+    arm or hand meets the object scores as the engine scores it), the best is chosen, every
+    branch is scored again on the fresh draws (:func:`fresh_seed`), with the paired gain
+    over the grasp's own branch and the certificate
+    (:func:`~kinegrasp_env.toolkit.elbow_certificate.certify`) over the other branches.
+
+    Args:
+        grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
+        noise: joint noise on the arm joints.
+        samples: draws per branch, for the selection and again (fresh) for the scoring.
+        seed: run seed (also of the IK starts: ``SeedSequence([seed, IK_STREAM])``).
+        engine: a reference engine of the grasp's robot and object to reuse.
+        starts: random IK starts (:func:`~kinegrasp_env.toolkit.ik_branches.ik_branches`).
+        epsilon, delta: the certificate's margin and error level.
+        progress: optional ``progress(evaluations)`` callback (2 per branch).
+
+    Raises:
+        ValueError: epsilon or delta out of range, bad samples or starts (before any draw).
+    """
+    check_levels(epsilon, delta)
+    _check_samples(samples)
+    if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
+        raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
+    report = progress or (lambda done: None)
+    own = engine is None
+    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object)
+    try:
+        branches, nominal = _branch_variants(grasp, engine, int(starts), seed)
+        hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
+        curve = []
+        for i, branch in enumerate(branches):
+            q = np.concatenate([branch.q, hand])
+            fc, p_fc, ci = _point(grasp, float(i), q, noise, samples, seed, engine)
+            curve.append(ElbowPoint(float(i), q, p_fc, ci, fc))
+            report(i + 1)
+        _score_fresh(grasp, curve, noise, samples, seed, engine, report)
+    finally:
+        if own:
+            engine.close()
+    best = max(range(len(curve)), key=lambda i: curve[i].p_fc)
+    result = elbow_result(grasp, curve, curve[best], curve[nominal], float(nominal), noise,
+                          samples, seed, "pybullet", 0.0, epsilon, delta)
+    return BranchResult(result, branches, nominal, best)

@@ -155,13 +155,14 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
 
 def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.ndarray,
                   rng: np.random.Generator, *, restarts: int = 6, iterations: int = 200,
-                  damping: float = 1e-2, tol: float = 1e-7) -> tuple[np.ndarray, np.ndarray]:
+                  damping: float = 1e-2, tol: float = 1e-7, starts: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Arm joints putting the palm at each of ``targets`` (n, 4, 4), batched.
 
-    Damped least squares from the middle of the joint ranges, then from ``restarts``
-    uniform random starts within the limits for the targets not reached yet; a step is
-    clipped into the limits; success when the position error (metres) and the rotation
-    error (radians) are below ``tol``.
+    Damped least squares from ``starts`` (n, arm_dof) radians or metres, default the middle
+    of the joint ranges, then from ``restarts`` uniform random starts within the limits for
+    the targets not reached yet; a step is clipped into the limits; success when the
+    position error (metres) and the rotation error (radians) are below ``tol``.
 
     Returns:
         (arm joints (n, arm_dof), success (n,) bool).
@@ -171,7 +172,7 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
     lo, hi = model.lower[arm], model.upper[arm]
     n = len(targets)
     q = np.repeat(description.open_configuration()[None], n, axis=0)
-    q[:, arm] = 0.5 * (lo + hi)
+    q[:, arm] = 0.5 * (lo + hi) if starts is None else np.clip(starts, lo, hi)
     done = np.zeros(n, bool)
     eye = np.eye(6)
     for attempt in range(restarts + 1):

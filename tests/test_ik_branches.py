@@ -1,0 +1,167 @@
+"""The IK branches of a 6-joint arm's palm pose, and `kinegrasp elbow` across them.
+
+The arm is the xArm 6 of ``tests/test_user_robot.py`` (its description written at run time in
+a data folder of this test's own; the library knows none of its names), the palm pose that of
+its first planned cube grasp. Independent references: pybullet's own forward kinematics of
+the URDF (``getLinkState``) for the pose each branch reaches, pybullet's joint limits for the
+limits, joint differences computed here (angles wrapped where pybullet's range exceeds
+2 pi) for distinctness, and ``kinegrasp evaluate`` of the grasp (same seed: the same draws)
+for the nominal branch's P(FC) on the selection draws.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pybullet
+import pytest
+import yaml
+from pybullet_utils.bullet_client import BulletClient
+
+from kinegrasp_env.cli.main import main
+from tests.test_user_robot import ARM, DESCRIPTION, XARM_URDF, bullet_palm_pose, run
+
+#: Draws per branch of the CLI runs (small: the protocol, not the numbers, is checked).
+SAMPLES = 12
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    """The xArm 6 added to a data folder of this module's own, and two cube grasps planned
+    (``plan --robot xarm6 --seed 0``): (grasp file path, its grasps as JSON)."""
+    root = tmp_path_factory.mktemp("ik_branches")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("KINEGRASP_HOME", str(root / "home"))
+        patch.chdir(root)
+        (root / "xarm6.yaml").write_text(yaml.safe_dump(DESCRIPTION))
+        assert main(["robots", "add", str(root / "xarm6.yaml")]) == 0
+        assert main(["plan", "--robot", "xarm6", "--object", "cube", "--count", "1",
+                     "--seed", "0", "--out", "g.json"]) == 0
+        yield root / "g.json", json.loads((root / "g.json").read_text())["grasps"]
+
+
+@pytest.fixture()
+def home(planned, monkeypatch):
+    """The module's data folder for one test."""
+    monkeypatch.setenv("KINEGRASP_HOME", str(planned[0].parent / "home"))
+    monkeypatch.chdir(planned[0].parent)
+    return planned
+
+
+def bullet_limits() -> tuple[np.ndarray, np.ndarray]:
+    """(lower (6,), upper (6,)) of the arm joints as pybullet reads the URDF."""
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        body = client.loadURDF(str(XARM_URDF), useFixedBase=True)
+        info = {client.getJointInfo(body, j)[1].decode(): client.getJointInfo(body, j)
+                for j in range(client.getNumJoints(body))}
+    finally:
+        client.disconnect()
+    return (np.array([info[n][8] for n in ARM]), np.array([info[n][9] for n in ARM]))
+
+
+def rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle (radians) of the rotation between two (3, 3) rotations (atan2 of its sine and
+    cosine: exact near 0, where an arccos of the trace loses half the digits)."""
+    r = a.T @ b
+    sine = 0.5 * np.linalg.norm([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    return float(np.arctan2(sine, 0.5 * (np.trace(r) - 1.0)))
+
+
+def test_every_branch_reaches_the_palm_pose_and_they_differ(home):
+    """Each branch puts pybullet's palm at the grasp's palm pose (position < 1e-4 m, angle
+    < 1e-3 rad; measured at most 1e-7 m and 3e-8 rad on both planned cube grasps, starts seeds
+    0-2: the IK stops at 1e-7 and pybullet's link states are single precision), within
+    pybullet's joint limits; at least 2 branches (measured 3), pairwise more than 0.1 rad
+    apart on some joint (measured: 1.99 rad at the least; the solutions merged into one
+    branch agree to ~1e-6); the planner's own configuration is one of them (within 1e-3)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.ik_branches import ik_branches
+
+    grasp = home[1][0]
+    target = np.array(grasp["palm_pose"])
+    branches = ik_branches(load_robot("xarm6"), target, starts=200, seed=0)
+    assert len(branches) >= 2
+    lower, upper = bullet_limits()
+    for b in branches:
+        pose = bullet_palm_pose(b.q)
+        assert np.linalg.norm(pose[:3, 3] - target[:3, 3]) < 1e-4
+        assert rotation_angle(pose[:3, :3], target[:3, :3]) < 1e-3
+        assert np.all(b.q >= lower - 1e-9) and np.all(b.q <= upper + 1e-9)
+        assert b.hits >= 1 and b.label
+    wrap = (upper - lower) > 2 * np.pi
+    for i, a in enumerate(branches):
+        for b in branches[i + 1:]:
+            d = a.q - b.q
+            d = np.where(wrap, (d + np.pi) % (2 * np.pi) - np.pi, d)
+            assert np.abs(d).max() > 0.1
+    assert len({b.label for b in branches}) == len(branches)
+    q0 = np.array(grasp["q0"][:6])
+    gaps = [np.abs(np.where(wrap, (b.q - q0 + np.pi) % (2 * np.pi) - np.pi, b.q - q0)).max()
+            for b in branches]
+    assert min(gaps) < 1e-3
+    again = ik_branches(load_robot("xarm6"), target, starts=200, seed=0)
+    assert [b.q.tolist() for b in again] == [b.q.tolist() for b in branches]  # seeded
+
+
+def test_bad_input_to_ik_branches(home):
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.ik_branches import ik_branches
+
+    robot = load_robot("xarm6")
+    for pose, starts, message in [(np.eye(3), 10, "palm_pose must be a finite (4, 4)"),
+                                  (np.full((4, 4), np.nan), 10, "palm_pose must be a finite"),
+                                  (2 * np.eye(4), 10, "not a rigid transform"),
+                                  (np.eye(4), 0, "starts must be a positive"),
+                                  (np.eye(4), True, "starts must be a positive")]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            ik_branches(robot, pose, starts=starts)
+
+
+def test_elbow_cli_across_the_ik_branches(home, capsys):
+    """``kinegrasp elbow`` of the 6-joint arm's grasp: one line on the IK branches, every
+    branch evaluated, the best chosen on the selection draws and scored on fresh ones; the
+    nominal branch's selection P(FC) is ``evaluate``'s of the grasp on the same seed."""
+    path, grasps = home
+    args = ["elbow", "--grasps", str(path), "--grasp", "0", "--samples", str(SAMPLES),
+            "--seed", "3"]
+    text = run(capsys, *args)
+    assert "a 6-joint arm has no self-motion; the variants of cube grasp 0 are its" in text
+    assert "IK branches (200 IK starts)" in text
+    out = json.loads(run(capsys, *args, "--json"))
+    assert out["variants"] == "ik_branches" and out["robot"] == "xarm6"
+    assert out["engine"] == "pybullet" and out["samples"] == SAMPLES
+    n = len(out["branches"])
+    assert n >= 2 and len(out["curve"]) == n and f"its {n} IK branches" in text
+    selection = [p["p_fc"] for p in out["curve"]]
+    assert out["best_branch"] == int(np.argmax(selection))
+    assert out["best_p_fc"] == out["curve"][out["best_branch"]]["fresh_p_fc"]
+    cert = out["certificate"]
+    assert cert["chosen_branch"] == out["best_branch"] and len(cert["rivals"]) == n - 1
+    assert "IK branch" in cert["statement"]
+    nominal = out["nominal_branch"]
+    assert out["branches"][nominal]["q"] == grasps[0]["q0"][:6]
+    alone = json.loads(run(capsys, "evaluate", "--grasps", str(path), "--grasp", "0",
+                           "--samples", str(SAMPLES), "--seed", "3", "--json"))
+    assert out["curve"][nominal]["p_fc"] == alone["p_fc"]
+    best_q = np.array(out["best_q"])
+    pose = bullet_palm_pose(best_q[:6])
+    assert np.linalg.norm(pose[:3, 3] - np.array(grasps[0]["palm_pose"])[:3, 3]) < 1e-4
+
+
+def test_elbow_cli_bad_input_is_one_line(home, capsys):
+    path = str(home[0])
+    for args, message in [
+            (["--grasps", path, "--ik-starts", "0"], "--ik-starts must be"),
+            (["--grasps", path, "--plot", "x.png"], "has IK branches instead"),
+            (["--grasps", path, "--robot", "panda"], "xarm6"),
+            (["--grasps", path, "--object", "mug"], "--object mug"),
+            (["--object", "cube", "--ik-starts", "50"], "--ik-starts is for a 6-joint arm"),
+            (["--robot", "panda", "--object", "cube", "--ik-starts", "50"],
+             "--ik-starts is for a 6-joint arm")]:
+        capsys.readouterr()
+        assert main(["elbow", "--samples", "2", *args]) == 2, args
+        err = capsys.readouterr().err.strip()
+        assert message in err and "\n" not in err, (args, err)
