@@ -295,7 +295,8 @@ def add_commands(sub) -> None:
     """Register ``elbow``."""
     p = sub.add_parser("elbow", help="P(FC) along a grasp's self-motion: the most robust elbow "
                        "angle, its gain over the nominal one, with intervals")
-    add_object_arg(p, DEFAULT_OBJECT, "catalog object (with --grasps: the file's)")
+    add_object_arg(p, DEFAULT_OBJECT, f"catalog object (default {DEFAULT_OBJECT}; with --grasps: "
+                   "the file's)")
     p.set_defaults(object=None)  # resolved in cmd_elbow: --grasps names its own
     p.add_argument("--grasp", default="0", help=grasp_index_help())
     add_noise_args(p, 0.0133)
