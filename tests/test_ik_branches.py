@@ -113,6 +113,8 @@ def test_bad_input_to_ik_branches(home):
     robot = load_robot("xarm6")
     for pose, starts, message in [(np.eye(3), 10, "palm_pose must be a finite (4, 4)"),
                                   (np.full((4, 4), np.nan), 10, "palm_pose must be a finite"),
+                                  (np.diag([2.0, 2.0, 2.0, 1.0]), 10, "not a rigid transform"),
+                                  (np.diag([1.0, 1.0, -1.0, 1.0]), 10, "not a rigid transform"),
                                   (2 * np.eye(4), 10, "not a rigid transform"),
                                   (np.eye(4), 0, "starts must be a positive"),
                                   (np.eye(4), True, "starts must be a positive")]:

@@ -16,9 +16,11 @@ range exceeds 2 pi, or a continuous one, compared modulo 2 pi: q and q + 2 pi ar
 branch). Numeric IK from random starts finds each branch reachable within the limits with a
 probability that rises with the number of starts (each start falls into the basin of one
 branch, or of none); it never proves that no other branch exists. Measured on the xArm 6's
-cube grasps of ``tests/test_ik_branches.py`` (``plan --robot`` seed 0; starts seed 0):
-3 branches at 50, 200 and 1000 starts (and at 5000 and 20,000 starts on another seed), but 1
-at 10 and 20 starts; 27% of the starts converge within the limits; 1000 starts take 0.3 s.
+two cube grasps of ``kinegrasp plan --robot xarm6 --object cube --count 2 --seed 0`` (the
+first is the grasp of ``tests/test_ik_branches.py``): 3 branches each at 50, 200 and 1000
+starts (starts seed 0), on the first also at 5000 and 20,000 starts but 1 at 10 and 20
+(seed 1); a quarter to a third of the starts converge within the limits; 1000
+starts take 0.3 s.
 
 A branch's label is the sign pattern, among the branches found, of what differs in sign
 between them: for a 6-joint arm the determinant of the palm's 6x6 Jacobian (it changes sign
