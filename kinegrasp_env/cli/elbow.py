@@ -25,19 +25,17 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
-    parse_index,
     plural,
     positive_int,
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s
 #: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
 #: imports no NumPy.
 DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
-#: The default robot (equal to ``robot.catalog.DEFAULT_ROBOT``; copied, as above).
-DEFAULT_ROBOT = "kuka_sdh"
 #: The object without --object or --grasps.
 DEFAULT_OBJECT = "spray_flask"
 #: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
@@ -151,7 +149,7 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     if branches and args.plot:
         raise CLIError(f"--plot draws P(FC) against the elbow angle; robot {robot!r}'s "
                        "6-joint arm has IK branches instead (no self-motion)")
-    index, grasp = chosen or robot_shipped_grasp(args, robot)
+    index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
     if args.plot:
         output_file(args.plot, "--plot")
     if branches:
@@ -189,19 +187,6 @@ def ik_starts(args, branches: bool, robot: str) -> int | None:
         raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; robot {robot!r}'s "
                        "variants are its self-motion")
     return positive_int(args.ik_starts, "--ik-starts")
-
-
-def robot_shipped_grasp(args, robot: str):
-    """``(index, grasp)``: entry ``--grasp`` of the robot's shipped set of ``--object``."""
-    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
-
-    index = parse_index(args.grasp)
-    with reported(NoGraspSetError):
-        grasps = shipped_grasps(args.object, robot)
-    if not 0 <= index < len(grasps):
-        raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
-                       f"{len(grasps)} grasps of robot {robot} (0..{len(grasps) - 1})")
-    return index, grasps[index]
 
 
 def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,

@@ -25,6 +25,7 @@ from kinegrasp_env.cli.common import (
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def add_commands(sub) -> None:
@@ -137,14 +138,14 @@ def selected_robot(args) -> str:
     return found
 
 
-def selected_grasps(args, robot: str = "kuka_sdh") -> list[tuple[int, object]]:
+def selected_grasps(args, robot: str = DEFAULT_ROBOT) -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES, is_object
 
     if args.grasps is not None:
         chosen = file_grasps(args.grasps, args.grasp)
-    elif robot != "kuka_sdh":
+    elif robot != DEFAULT_ROBOT:
         chosen = robot_grasps(args, robot)
     else:
         if args.object == "all":
@@ -200,14 +201,14 @@ def cmd_validate(args) -> int:
     fields = settings_from(args)
     processes = processes_from(args.processes)
     grasps = selected_grasps(args, robot)
-    if robot != "kuka_sdh":
+    if robot != DEFAULT_ROBOT:
         check_robot_run(robot, fields, positive_int(args.processes, "--processes"))
     out = output_folder(args.out)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
     from kinegrasp_env.toolkit.validation_report import summarize, write_results
 
     settings = ValidationSettings(**fields)
-    if robot == "kuka_sdh":
+    if robot == DEFAULT_ROBOT:
         results = run_validation(grasps, settings, out, processes, progress=True)
         summary = summarize(results, settings, bootstrap_seed=settings.seed)
     else:

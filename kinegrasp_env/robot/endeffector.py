@@ -14,6 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK, kuka_sdh
@@ -134,7 +135,7 @@ def kuka_end_effector_model() -> ArmEndEffector:
 def default_q0(effector: ArmEndEffector, robot: str) -> np.ndarray:
     """The arm configuration the end-effector study starts from: :data:`DEFAULT_KUKA_Q0`
     for the default robot ``kuka_sdh``, the middle of each joint's range for another."""
-    return np.array(DEFAULT_KUKA_Q0) if robot == "kuka_sdh" else effector.middle()
+    return np.array(DEFAULT_KUKA_Q0) if robot == DEFAULT_ROBOT else effector.middle()
 
 
 def check_kuka_q0(q0: Sequence[float]) -> np.ndarray:
