@@ -211,7 +211,7 @@ def test_cli_plans_and_evaluates_the_panda(tmp_path):
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1] == (
         "kinegrasp evaluate: error: grasp '0' is a grasp of robot 'panda', not of 'kuka_sdh'; "
-        "evaluate it with --robot panda")
+        "use it with robot 'panda' (--robot panda)")
 
 
 def test_generic_closing_takes_any_description_robot():

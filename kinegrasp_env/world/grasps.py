@@ -152,7 +152,7 @@ def check_robot(grasp: Grasp, robot: str) -> None:
     """ValueError (one line) when the grasp was made for another robot than ``robot``."""
     if grasp.robot != robot:
         raise ValueError(f"grasp {grasp.id!r} is a grasp of robot {grasp.robot!r}, not of "
-                         f"{robot!r}; evaluate it with --robot {grasp.robot}")
+                         f"{robot!r}; use it with robot {grasp.robot!r} (--robot {grasp.robot})")
 
 def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
     """Field ``name`` of an entry as a float array (ValueError naming entry and field)."""
