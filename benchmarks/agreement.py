@@ -69,9 +69,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+from pathlib import Path
 
 import numpy as np
-from results_file import add_options, settings, write_result
+from marked_section import write_between
+from results_file import ROOT, add_options, settings, write_result
 from robot_agreement import robot_agreement
 
 from kinegrasp_env.montecarlo.agreement import Agreement, compare
@@ -159,6 +161,9 @@ def main() -> None:
                         choices=["kuka_sdh", "panda"], help="the robots whose rows to run")
     parser.add_argument("--panda-objects", nargs="+", default=["cube", "drill"],
                         help="objects of the Panda rows (their shipped Panda grasps)")
+    parser.add_argument("--guide", type=Path, default=ROOT / "docs" / "guides" / "robot.md",
+                        help="the page whose Panda agreement table to rewrite")
+    parser.add_argument("--no-guide", action="store_true", help="leave the page as it is")
     add_options(parser, __file__)
     args = parser.parse_args()
     sets = grasp_sets(parser, args) if "kuka_sdh" in args.robots else {}
@@ -179,6 +184,8 @@ def main() -> None:
     if sets:
         print(f"({counts} grasps x {args.draws} draws per row, seed {args.seed})")
     robot_rows = panda_rows(args) if "panda" in args.robots else []
+    if robot_rows and not args.no_guide:
+        write_between(args.guide, START, END, markdown(robot_rows, args))
     seconds = time.perf_counter() - start
     print(f"({seconds:.0f} s)")
     if not args.no_json:
@@ -212,6 +219,30 @@ def panda_rows(args) -> list[dict]:
     print(f"({args.grasps} Panda grasps x {args.draws} draws per row; normals in degrees; "
           "bullet: pybullet's own closest point and normal at the reference's final state)")
     return out
+
+
+
+START, END = "<!-- panda-agreement:start -->", "<!-- panda-agreement:end -->"
+
+
+def markdown(rows: list[dict], args) -> str:
+    """The Panda rows as the guide's table."""
+    lines = ["| object | sigma (rad) | comparison | same outcome | paired contacts | point "
+             "median (m) | point 90% (m) | point max (m) | normal 90% (deg) | normal max "
+             "(deg) | force closure per grasp |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['object']} | {r['sigma']:.4f} | {r['comparison']} | "
+                     f"{r['same_outcome']}/{r['draws']} | {r['contacts']} | "
+                     f"{r['point_median']:.1e} | {r['point_q90']:.1e} | {r['point_max']:.1e} | "
+                     f"{r['normal_q90_deg']:.3f} | {r['normal_max_deg']:.3f} | "
+                     f"{r['fc_first']} vs {r['fc_second']} |")
+    lines.append("")
+    lines.append(f"(`python benchmarks/agreement.py --robots panda`: the first {args.grasps} "
+                 f"shipped Panda grasps of each object, {args.draws} draws each per sigma, "
+                 f"seed {args.seed}; bullet: pybullet's own closest point and normal of each "
+                 "touching link at the reference's final state.)")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
