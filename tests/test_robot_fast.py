@@ -4,6 +4,7 @@ sigma-0 force closure of the planned grasps and the P(FC) of a ranking."""
 
 from __future__ import annotations
 
+import csv
 import json
 
 import numpy as np
@@ -166,6 +167,8 @@ def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
     for g in grasps[:2]:
         expected = evaluate_robot_grasp(g, sigma=SIGMA, n=40, seed=0, engine="fast")
         assert f"{expected.p_fc:.3f}" in printed
+    with open(out, newline="") as handle:
+        assert {row["engine"] for row in csv.DictReader(handle)} == {"fast"}
     assert main(["evaluate", "--grasps", str(path), "--sigma", str(SIGMA), "--samples",
                  "10", "--engine", "fast", "--json"]) == 0
     assert json.loads(capsys.readouterr().out.strip().splitlines()[-1])["samples"] == 10

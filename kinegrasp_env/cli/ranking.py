@@ -80,7 +80,7 @@ def cmd_rank(args) -> int:
     if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
         results = rank_robot(args, grasps, robot, sigma, samples, seed)
         _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
-                       "pybullet")
+                       engine)
         _write_rejected(rejected, out)
         return 0
     report_path(args.report)
