@@ -28,7 +28,8 @@ the exact distance is not needed.
    samples stand in for them where they cannot hold the least); within :data:`BAND` the
    exact distance, and for a draw once within it the exact distance only. A finger
    touches when that is within ``contact_tol``, and misses at its limits.
-3. *Contacts*: per touching finger link, its exact closest pair with the object. On one
+3. *Contacts*: per touching finger link, its exact closest pair with the object (the
+   closing's last one: a touching draw took it at its final joint values). On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
    face's inward normal, the point moved to the pad's patch centre
    (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`). At an edge or a corner: the
@@ -230,21 +231,19 @@ class FastRobotHand:
         free = np.flatnonzero(~start)
         for f in range(len(fingers)):
             path = self.paths[f]
-            t, g, values = self._close_finger(path, palm[free], {k: v[free] for k, v in
-                                                                    values0.items()},
-                                              contact_tol, queries, free)
+            t, g, values, last = self._close_finger(path, palm[free],
+                                                    {k: v[free] for k, v in values0.items()},
+                                                    contact_tol, queries, free)
             gaps[free, f], travel[free, f] = g, t
             for name in path["joints"]:
                 final[name][free] = values[name]
-            touch = free[g <= contact_tol]
-            if touch.size:
-                vals = {k: v[touch] for k, v in final.items()}
+            held = np.flatnonzero(g <= contact_tol)
+            touch = free[held]
+            if touch.size:  # the closing's last exact pairs are at the final joint values
                 for k, link in enumerate(fingers[f].links):
                     if link not in self.geometry:
                         continue
-                    pose = self._link_poses(palm[touch], vals, link, path["chains"][link])
-                    d, fp, op = self._exact(pose, link)
-                    queries[touch] += 1
+                    pose, d, fp, op = (a[held] for a in last[link])
                     on = d <= contact_tol
                     if on.any():
                         touching.append((f, k, link, touch[on], pose[on], d[on], fp[on],
@@ -269,8 +268,14 @@ class FastRobotHand:
 
     def _close_finger(self, path: dict, palm: np.ndarray, values0: dict, contact_tol: float,
                       queries: np.ndarray, rows: np.ndarray):
-        """Conservative advancement of one finger over draws: (t (m,), gap (m,), values)."""
+        """Conservative advancement of one finger over draws: (t (m,), gap (m,), values,
+        last): ``last`` maps each finger link to its (pose (m, 4, 4), distance (m,), link
+        point (m, 3), object point (m, 3)) of the draw's last exact distance (a draw whose
+        gap is within ``contact_tol`` took it at its final joint values; other rows are
+        unset)."""
         m = palm.shape[0]
+        last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)))
+                for link in path["links"]}
         v0 = np.stack([values0[name] for name in path["joints"]], axis=1)
         rates, lo, hi, speed = path["rates"], path["lo"], path["hi"], path["speed"]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -303,9 +308,12 @@ class FastRobotHand:
             if near.size:  # the exact distance replaces the grid's bound
                 exact = np.full(near.size, np.inf)
                 for link in path["links"]:
-                    d, _, _ = self._exact(poses[link][near], link)
+                    pose = poses[link][near]
+                    d, fp, op = self._exact(pose, link)
                     queries[rows[active[near]]] += 1
                     exact = np.minimum(exact, d)
+                    for store, value in zip(last[link], (pose, d, fp, op), strict=True):
+                        store[active[near]] = value
                 gap[near] = exact
             g[active] = gap
             stop = (gap <= contact_tol) | (t[active] >= t_end[active])
@@ -316,7 +324,7 @@ class FastRobotHand:
         setting = np.clip(v0 + rates * t[:, None], lo, hi)
         for j, name in enumerate(path["joints"]):
             values[name] = setting[:, j]
-        return t, g, values
+        return t, g, values, last
 
     def _contacts(self, f: int, k: int, link: str, rows: np.ndarray, poses: np.ndarray,
                   distance: np.ndarray, finger_point: np.ndarray, point: np.ndarray
