@@ -32,7 +32,7 @@ def _check_engine(engine: str, robot: str) -> None:
 
     if engine not in ENGINES:
         raise CLIError(f"--engine {engine}: robot {robot!r} is evaluated by the "
-                       f"{' or '.join(ENGINES)} engine only")
+                       f"{', '.join(ENGINES[:-1])} or {ENGINES[-1]} engine only")
 
 
 def cmd_plan_robot(args) -> int:

@@ -95,7 +95,7 @@ def summarize(draws: RobotDraws) -> RobotEvaluation:
 
 
 #: The engines of a description robot, by name.
-ENGINES = ("pybullet", "fast")
+ENGINES = ("pybullet", "fast", "physics")
 
 
 def make_engine(name: str, robot: str | RobotDescription, object_name: str,
@@ -107,6 +107,10 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
         return RobotFastEngine(robot, object_name, **kwargs)
     if name == "pybullet":
         return RobotReferenceEngine(robot, object_name, **kwargs)
+    if name == "physics":
+        from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+
+        return RobotPhysicsEngine(robot, object_name, **kwargs)
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
 
 
@@ -123,8 +127,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         seed: seed or Generator of the noise.
         noise: ``gaussian``, ``uniform`` or ``triangular``.
         engine: an engine to reuse (its robot and object must be the grasp's), or the name
-            of one to build: ``pybullet`` (the reference) or ``fast``
-            (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`).
+            of one to build: ``pybullet`` (the reference), ``fast``
+            (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) or ``physics``
+            (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`).
         robot: the robot to evaluate with (default: the grasp's).
 
     Raises:

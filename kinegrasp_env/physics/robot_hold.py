@@ -266,14 +266,18 @@ class RobotHold:
         return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
                                     self.description.palm_link)
 
-    def close_hand(self, q: np.ndarray) -> tuple[RobotCloseResult, JawMotors | None]:
+    def close_hand(self, q: np.ndarray, pin: bool = True
+                   ) -> tuple[RobotCloseResult, JawMotors | None]:
         """The closing of configuration q (dof,) on the pinned object (module docstring,
-        step 1): its contacts in the object frame, and the motors (None: start collision)."""
+        step 1; ``pin=False``: the object free, with its support damping, as the default
+        robot's physics engine closes): its contacts in the object frame where the object
+        ended, and the motors (None: start collision)."""
         world, fingers = self.world, self.description.fingers
         values = {name: value for name, value in self.description.model.expand(
             np.asarray(q, dtype=float)).items() if name in world.joint_index}
         world.reset(self.palm_poses(q)[0], values)
-        world.pin_object()
+        if pin:
+            world.pin_object()
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         jaws = JawMotors(world, self.motors)
