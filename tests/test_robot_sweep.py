@@ -136,8 +136,6 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
 
 @pytest.mark.parametrize(("change", "message"), [
     ({"robot": "pandaa"}, "unknown robot 'pandaa' (did you mean 'panda'?)"),
-    ({"robot": "panda", "engines": ["physics"]},
-     "engines: 'physics' is not available for robot 'panda' (its engines: pybullet, fast)"),
     ({"robot": "panda", "noise": ["gaussian", {"joints": {"sigma": 0.01}}]},
      "noise: robot 'panda' takes joint noise on its arm joints only"),
     ({"robot": "panda", "objects": ["mug"]}, "robot 'panda' has no shipped grasps of 'mug'"),
@@ -176,8 +174,6 @@ def test_bad_robot_sensitivity_input(tmp_path, capsys):
     base = ("sensitivity", "--robot", "panda", "--object", "cube", "--samples", "8")
     assert "the spec has palm, object, friction noise" in fails(
         capsys, *base, "--noise-spec", str(every))
-    assert "--engine physics: robot 'panda' is evaluated by the pybullet or fast engine" in (
-        fails(capsys, *base, "--noise-spec", joint, "--engine", "physics"))
     assert "grasp index 9 out of range: cube has 4 grasps of robot panda" in fails(
         capsys, *base, "--noise-spec", joint, "--grasp", "9")
     assert "unknown robot 'pand'" in fails(
