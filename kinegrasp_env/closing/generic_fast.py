@@ -346,7 +346,7 @@ class FastRobotHand:
             if normal is None:
                 normal = self._edge_normal(link, poses[i], finger_point[i], point[i],
                                            distance[i])
-            if np.linalg.norm(normal) < 1e-12:
+            if np.sqrt(normal @ normal) < 1e-12:
                 normal = self.obj.surface(point[i][None])[1][0]
             normals[i] = normal
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
@@ -382,7 +382,9 @@ class FastRobotHand:
         for part in self.geometry[link].parts:
             w = edge_along(part.edges, local)
             if w is not None:
-                cross = np.cross(u, pose[:3, :3] @ w)
-                if np.linalg.norm(cross) > 1e-6:
+                v = pose[:3, :3] @ w
+                cross = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                                  u[0] * v[1] - u[1] * v[0]])  # u x v
+                if np.sqrt(cross @ cross) > 1e-6:
                     return cross * np.sign(cross @ direction)
         return direction - (direction @ u) * u
