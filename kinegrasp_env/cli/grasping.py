@@ -316,8 +316,8 @@ def add_commands(sub) -> None:
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's). "
                    "Another robot: fig10 only, for a 7-joint arm with an elbow angle "
                    "(null-space variants of its first grasp per object along the arm's "
-                   "self-motion, its shipped grasps or --grasps FILE; engine pybullet or fast, "
-                   "in this process); table1, fig7 and fig9 are refused: table1 and fig9 "
+                   "self-motion, its shipped grasps or --grasps FILE; engine pybullet, fast or "
+                   "physics, in this process); table1, fig7 and fig9 are refused: table1 and fig9 "
                    "tabulate kuka_sdh's shipped grasps against the paper's numbers (another "
                    "robot's grasps: `kinegrasp report --robot NAME`), fig7 draws the SDH's "
                    "contact scatter (fig10 names the robust and fragile pair)")

@@ -318,7 +318,7 @@ def add_commands(sub) -> None:
                    "comma-separated (default: every grasp)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else kuka_sdh); "
                    "another robot's page: a P(FC) and Q table of its grasps and each grasp's "
-                   "3-D scene (joint noise on its arm joints; engines pybullet or fast)")
+                   "3-D scene (joint noise on its arm joints; engines pybullet, fast or physics)")
     p.add_argument("--sigma", default="0.0133", help="joint noise standard deviation, "
                    "radians; several, comma-separated, give the P(FC)-vs-sigma curve (the "
                    "3-D views are of the first)")

@@ -70,8 +70,8 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
     (:data:`COLUMNS`), then ``fig10.png`` (a figure that fails is a warning: the CSV stays).
 
     Args:
-        engine: the Monte Carlo engine (``pybullet`` or ``fast``); the self-motion and the
-            variants' nominal closings use the reference engine.
+        engine: the Monte Carlo engine (``pybullet``, ``fast`` or ``physics``); the
+            self-motion and the variants' nominal closings use the reference engine.
 
     Raises:
         ValueError: an arm without self-motion (not 7 joints with ``arm_angle_links``).
