@@ -206,31 +206,9 @@ class FastRobotHand:
             screen = clustered_bound(self.grid, pose[rows], geom, -start_tol)
             rows = rows[screen < -start_tol]
             if rows.size:
-                hit[rows[self._deeper(pose[rows], link, -start_tol)]] = True
+                dist, _, _ = self._exact(pose[rows], link, -start_tol)
+                hit[rows[dist < -start_tol]] = True
         return hit
-
-    def _deeper(self, poses: np.ndarray, link: str, depth: float) -> np.ndarray:
-        """(n,) bool: the exact signed distance of ``link`` at object-frame poses (n, 4, 4)
-        is below ``depth`` (as ``_exact(poses, link, depth)[0] < depth``): the object's edges
-        against the link's hulls first (searched only where they can come below ``depth``),
-        then the link's vertices only where no edge came below it (the least over both is
-        below ``depth`` where either is, so one below decides alone)."""
-        geom = self.geometry[link]
-        rot = np.ascontiguousarray(poses[:, :3, :3])
-        trans = np.ascontiguousarray(poses[:, :3, 3])
-        n = poses.shape[0]
-        dist, fp, op = np.full(n, np.inf), np.empty((n, 3)), np.empty((n, 3))
-        for part in geom.parts:
-            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
-                               self.edges, float(depth), SEARCH, GOLD, dist, fp, op)
-        deeper = dist < depth
-        rest = np.flatnonzero(~deeper)
-        if rest.size:
-            d, p, o = np.empty(rest.size), np.empty((rest.size, 3)), np.empty((rest.size, 3))
-            vertices_against_parts(*self._parts, np.ascontiguousarray(rot[rest]),
-                                   np.ascontiguousarray(trans[rest]), geom.vertices, d, p, o)
-            deeper[rest] = d < depth
-        return deeper
 
     def _grid_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
         """(n,) lower bound of the exact distance of ``link``'s hull from the grid."""
