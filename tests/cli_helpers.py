@@ -1,4 +1,4 @@
-"""Run the ``kinegrasp`` command in a subprocess (as a user would)."""
+"""Run the ``kinegrasp`` command in a subprocess (as a user would), or in-process."""
 
 from __future__ import annotations
 
@@ -17,3 +17,15 @@ def start_cli(*args: str) -> subprocess.Popen:
     line to follow the run), its stdout is discarded."""
     return subprocess.Popen([*COMMAND, *args], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
+
+
+def run_in_process(capsys, *argv: str) -> str:
+    """``kinegrasp ARGV`` in this process; its stdout (exit status 0 asserted, stderr shown
+    when not)."""
+    from kinegrasp_env.cli import main
+
+    capsys.readouterr()
+    status = main(list(argv))
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    return out

@@ -13,6 +13,7 @@ import re
 
 import numpy as np
 import pytest
+from cli_helpers import run_in_process as run
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
@@ -33,15 +34,6 @@ GRASP, SIGMA, SEED = 1, 0.02, 3
 def _engines():
     yield
     close_engines()
-
-
-def run(capsys, *argv: str) -> str:
-    """``kinegrasp ARGV`` in-process; its stdout (exit status 0 asserted)."""
-    capsys.readouterr()
-    status = main(list(argv))
-    out, err = capsys.readouterr()
-    assert status == 0, err
-    return out
 
 
 def fails(capsys, *argv: str, lines: int = 1) -> str:

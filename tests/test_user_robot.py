@@ -23,9 +23,9 @@ import pybullet
 import pybullet_data
 import pytest
 import yaml
+from cli_helpers import run_in_process as run
 from pybullet_utils.bullet_client import BulletClient
 
-from kinegrasp_env.cli.main import main
 from kinegrasp_env.world.objects import load_object
 
 XARM_URDF = Path(pybullet_data.getDataPath()) / "xarm" / "xarm6_with_gripper.urdf"
@@ -55,15 +55,6 @@ def workspace(tmp_path, monkeypatch):
     monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
     monkeypatch.chdir(tmp_path)
     return tmp_path
-
-
-def run(capsys, *argv: str) -> str:
-    """``kinegrasp ARGV`` in-process; its stdout (exit status 0 asserted)."""
-    capsys.readouterr()
-    status = main(list(argv))
-    out, err = capsys.readouterr()
-    assert status == 0, err
-    return out
 
 
 def bullet_palm_pose(arm: np.ndarray) -> np.ndarray:
