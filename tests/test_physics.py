@@ -316,8 +316,8 @@ def test_grip_contact_forces_carry_the_commanded_joint_torques(index):
     """After the grip, the moment of pybullet's contact forces (normal and both friction
     directions, from its own records) about each loaded grip joint's axis (flexion and spread)
     equals the torque the grip commands there: the fingers press with the balanced torques,
-    not with more. A joint resting on its stop (the spread of grasps with the fingers side by
-    side) gets the stop's reaction added, only in the direction the stop pushes."""
+    not with more. A joint resting on its limit (the spread of grasps with the fingers side by
+    side) gets the limit's reaction added, only in the direction the limit pushes."""
     sim, _ = _closed_on_pinned("cube", shipped_grasps("cube")[index].q0)
     try:
         world = sim.world
@@ -347,7 +347,7 @@ def test_grip_contact_forces_carry_the_commanded_joint_torques(index):
         at_upper = np.abs(angles - bounds[:, 1]) < LIMIT_ANGLE
         free = loaded & ~at_lower & ~at_upper
         np.testing.assert_allclose(moments[free], commanded[free], atol=MOMENT_TOL)
-        # a joint resting on its limit: the stop adds its reaction, in the stop's direction
+        # a joint resting on its limit: the limit adds its reaction, in its own direction
         assert np.all(gap[loaded & at_upper] <= MOMENT_TOL)
         assert np.all(gap[loaded & at_lower] >= -MOMENT_TOL)
         assert np.all(np.abs(commanded[loaded]) <= control.spring.limits[loaded] + 1e-12)
