@@ -45,7 +45,7 @@ GRIP_JOINTS = [*FLEXION_JOINTS, *SPREAD_JOINTS]
 
 
 def grip_joints(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
-                motors: TorqueLimits) -> GripJoints:
+                motors: MotorLimits) -> GripJoints:
     """The hand's grip joints (:func:`~kinegrasp_env.physics.grip_forces.hand_joints`) from
     the frames of :data:`GRIP_JOINTS` now: axes (8, 3) (flexion closing positive) and points
     on them (8, 3), the fingertips (3, 3), world frame; the flexion joints within the motors'
@@ -61,9 +61,10 @@ def steps_of(seconds: float, time_step: float) -> int:
     return max(1, round(seconds / time_step))
 
 
-class TorqueLimits(Protocol):
-    """The finger motors' torque limits (:class:`~kinegrasp_env.physics.pybullet_closing.
-    MotorSettings`), N m."""
+class MotorLimits(Protocol):
+    """The finger motors' torque limits as the closing controller's settings hold them
+    (:class:`~kinegrasp_env.physics.pybullet_closing.MotorSettings`, set from the protocol's
+    :class:`~kinegrasp_env.physics.protocol.TorqueLimits`), N m."""
 
     proximal_torque: float
     distal_torque: float
