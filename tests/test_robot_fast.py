@@ -10,7 +10,6 @@ import json
 import numpy as np
 import pytest
 
-from kinegrasp_env.closing.link_geometry import hull_samples
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise
@@ -134,24 +133,6 @@ def test_engine_by_name_and_bad_name(grasps):
         evaluate_robot_grasp(grasps[0], sigma=0.0, n=1, engine="mujoco")
 
 
-def test_hull_samples_lie_on_and_cover_the_hull():
-    from scipy.spatial import ConvexHull
-
-    rng = np.random.default_rng(0)
-    vertices = rng.normal(size=(20, 3)) * [0.01, 0.02, 0.03]
-    spacing = 2e-3
-    points = hull_samples(vertices, spacing)
-    hull = ConvexHull(vertices)
-    values = points @ hull.equations[:, :3].T + hull.equations[:, 3]
-    assert values.max() <= 1e-12 and np.all(np.abs(values).min(axis=1) <= 1e-12)
-    tri = vertices[hull.simplices]  # random points on random triangles: within spacing
-    w = rng.dirichlet(np.ones(3), size=500)
-    pick = tri[rng.integers(len(tri), size=500)]
-    probe = np.einsum("nk,nkj->nj", w, pick)
-    nearest = np.min(np.linalg.norm(probe[:, None] - points[None], axis=2), axis=1)
-    assert nearest.max() <= spacing
-
-
 def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
     """``rank --engine fast`` and ``evaluate --engine fast`` of the Panda's grasps print the
     P(FC) that evaluate_robot_grasp gives; ``--engine physics`` is refused in one line."""
@@ -262,11 +243,10 @@ def test_patch_clip_and_centroid_against_halfspaces():
 
 def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
     """The link vertices against the object's parts (compiled) equal the numpy closest points
-    of ``GraspObject.closest_points``; the clustered grid bound lies below the exact link
-    distance and never below the plain bound over every sample (``posed_min_distance``)."""
-    from kinegrasp_env.closing.capsule_gap import posed_min_distance
+    of ``GraspObject.closest_points``, and with a limit ``below`` they are those wherever
+    that is below it (at or above it elsewhere); GJK's bound lies below the exact link
+    distance."""
     from kinegrasp_env.closing.hull_edges import vertices_against_parts
-    from kinegrasp_env.closing.link_geometry import clustered_bound, grid_error
 
     hand = engines[0].hand
     rng = np.random.default_rng(5)
@@ -277,13 +257,15 @@ def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
         pose = hand.obj.pose_inverse @ poses[link]
         rot = np.ascontiguousarray(pose[:, :3, :3])
         trans = np.ascontiguousarray(pose[:, :3, 3])
-        dist, fp, op = np.empty(40), np.empty((40, 3)), np.empty((40, 3))
-        vertices_against_parts(*hand._parts, rot, trans, geom.vertices, dist, fp, op)
         verts = geom.vertices @ np.swapaxes(rot, 1, 2) + trans[:, None]
         _, d, _ = hand.obj.closest_points(verts.reshape(-1, 3))
-        np.testing.assert_allclose(dist, d.reshape(40, -1).min(axis=1), atol=1e-12)
-        bound = clustered_bound(hand.grid, pose, geom)
-        plain = (posed_min_distance(hand.grid, pose, geom.points) - grid_error(hand.grid)
-                 - geom.spacing)
+        d = d.reshape(40, -1).min(axis=1)
+        for below in (np.inf, float(np.median(d))):
+            dist, fp, op = np.empty(40), np.empty((40, 3)), np.empty((40, 3))
+            vertices_against_parts(*hand._parts, rot, trans, geom.vertices, below, dist, fp,
+                                   op)
+            under = d < below
+            np.testing.assert_allclose(dist[under], d[under], atol=1e-12)
+            assert np.all(dist[~under] >= below), link
         exact, _, _ = hand._exact(pose, link)
-        assert np.all(bound <= exact) and np.all(bound >= plain - 1e-12), link
+        assert np.all(hand.distance_bound(pose, link) <= exact + 1e-14), link

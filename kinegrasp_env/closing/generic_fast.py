@@ -8,26 +8,23 @@ in the link's URDF frame, each shape a :class:`~kinegrasp_env.world.polytope.Con
 The distance of a link to the object is exact: the closest pair of two convex polytopes has
 a vertex of one or a point on an edge of each, so it is the least of the link's hull vertices
 against the object (:meth:`GraspObject.closest_points`) and of the object's edges against the
-link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`). Points on the
-hulls' surfaces (:func:`hull_samples`, :data:`FINGER_SPACING` apart on the finger links,
-:data:`ARM_SPACING` on the others) give cheap lower bounds through the object's distance
-grid (their grid distance less the grid's error bound and the spacing), which decide where
-the exact distance is not needed.
+link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`). A certified
+lower bound of the same distance, within 1e-8 of it (relative) where the link and the object
+are apart, comes far cheaper from GJK on the hulls' vertices
+(:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`); the exact pair is taken
+only where that bound is within reach of a contact or says the two overlap.
 
 **The closing** follows the reference step for step, every draw of a batch at once:
 
 1. *Start collision*: some link at q penetrates the object deeper than ``start_tol`` (its
-   closest pair with the object, exact; links whose bounding ball or whose samples stay
-   clear of the object by the grid, less its error bound, are not examined).
+   closest pair with the object, exact; links whose bounding ball the distance grid puts
+   clear of the object, or whose hulls GJK finds apart from it, are not examined).
 2. *Closing*: each finger by its parameter t (its closing joints at the pre-shape value plus
    ``rate * t``, clipped at their limits), by conservative advancement: t grows by the gap's
    lower bound over the finger's speed bound
-   (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). Far from the object the
-   lower bound is the distance grid's over the samples, less :func:`grid_error` and the
-   spacing (:func:`~kinegrasp_env.closing.link_geometry.clustered_bound`: clusters of
-   samples stand in for them where they cannot hold the least); within :data:`BAND` the
-   exact distance, and for a draw once within it the exact distance only. A finger
-   touches when that is within ``contact_tol``, and misses at its limits.
+   (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). The lower bound is GJK's;
+   where it is within ``contact_tol`` (or the hulls overlap) the exact distance replaces it.
+   A finger touches when that is within ``contact_tol``, and misses at its limits.
 3. *Contacts*: per touching finger link, its exact closest pair with the object (the
    closing's last one: a touching draw took it at its final joint values). On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
@@ -48,6 +45,11 @@ import numpy as np
 from kinegrasp_env.closing.capsule_gap import posed_min_distance
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
+from kinegrasp_env.closing.convex_distance import (
+    hull_distance_bounds,
+    new_simplex,
+    stacked_vertices,
+)
 from kinegrasp_env.closing.generic_reference import (
     EDGE_TOL,
     MAX_STEPS,
@@ -58,7 +60,6 @@ from kinegrasp_env.closing.generic_reference import (
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
     LinkGeometry,
-    clustered_bound,
     edge_along,
     grid_error,
     link_geometry,
@@ -69,15 +70,16 @@ from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.polytope import INSIDE_TOL
 from kinegrasp_env.world.sdf import DistanceGrid, grid_of
 
-#: Lower bounds of the gap above this are from the grid, below it exact (metres).
-BAND = 3.0e-3
+#: Exact distances are taken below NEAR x the contact tolerance (above it the certified
+#: bound, within 1e-8 of them relative, stands).
+NEAR = 2.0
 #: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
 SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
 #: Draws whose exact point distances are computed at once (bounds the memory).
 CHUNK = 64
 
-__all__ = ["BAND", "FastRobotHand"]
+__all__ = ["FastRobotHand"]
 
 
 class FastRobotHand:
@@ -105,6 +107,11 @@ class FastRobotHand:
         self._parent = {j.child: j for j in self.model.joints}
         self.paths = [self._finger_path(f) for f in range(len(description.fingers))]
         self.edges = np.concatenate([part.edges for part in obj.convex_parts])
+        self._local_edges = np.empty_like(self.edges)
+        self._object_hulls = stacked_vertices(obj.convex_parts)
+        self._link_hulls = {link: stacked_vertices(geom.parts)
+                            for link, geom in self.geometry.items()}
+        self._simplex = new_simplex()
         self._patch = PatchGeometry(obj.parts)
         parts = obj.convex_parts
         self._parts = (np.ascontiguousarray(np.vstack([p.planes for p in parts])),
@@ -142,7 +149,7 @@ class FastRobotHand:
             for link in links:
                 names = [j.name for j in chains[link]]
                 if name in names:
-                    pts = self.geometry[link].points
+                    pts = self.geometry[link].vertices
                     far = max(far, float(np.linalg.norm(pts, axis=1).max())
                               + sum(float(np.linalg.norm(j.origin[:3, 3]))
                                     for j in chains[link][names.index(name) + 1:]))
@@ -168,8 +175,8 @@ class FastRobotHand:
         return pose
 
     # ------------------------------------------------------------------ distances
-    def _exact(self, poses: np.ndarray, link: str, below: float = np.inf
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _exact(self, poses: np.ndarray, link: str, below: float = np.inf,
+               decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
         pair of ``link`` placed by object-frame poses (n, 4, 4) and the object, exact: the
         least of the link's hull vertices against the object and of the object's edges
@@ -177,42 +184,56 @@ class FastRobotHand:
         :data:`SEARCH` golden steps along an edge). Every closest pair of two convex
         polytopes has a vertex of one or a point on an edge of each. With ``below``, edges
         that cannot bring a distance under it are skipped (a distance left at or above
-        ``below`` is then only an upper bound)."""
+        ``below`` is then only an upper bound); with ``decide`` too, a draw whose vertices
+        already bring it below ``below`` is not searched further (its distance then only an
+        upper bound below ``below``: the answer to "is it below?")."""
         geom = self.geometry[link]
         n = poses.shape[0]
         rot, trans = poses[:, :3, :3], poses[:, :3, 3]
         rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
         dist, fp, op = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
-        vertices_against_parts(*self._parts, rot, trans, geom.vertices, dist, fp, op)
+        vertices_against_parts(*self._parts, rot, trans, geom.vertices, float(below), dist, fp,
+                               op)
+        rows = np.flatnonzero(~(dist < below)) if decide else np.arange(n)
+        if rows.size < n:
+            rot, trans = rot[rows], trans[rows]
+        d, f, o = dist[rows], fp[rows], op[rows]
         for part in geom.parts:
             edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
-                               self.edges, float(below), SEARCH, GOLD, dist, fp, op)
+                               self.edges, float(below), SEARCH, GOLD, d, f, o,
+                               self._local_edges)
+        dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
 
     def start_collision(self, q: np.ndarray, start_tol: float = START_TOL) -> np.ndarray:
-        """(n,) bool: some link at q (n, dof) deeper than ``start_tol`` in the object (the
-        grid screens: a link whose samples' grid distance less the grid's error stays above
-        -``start_tol`` is not examined exactly)."""
+        """(n,) bool: some link at q (n, dof) deeper than ``start_tol`` in the object (a
+        link whose bounding ball the grid puts clear of the object, or whose hulls are apart
+        from the object's (:meth:`distance_bound`), is not examined exactly)."""
         poses = self.kinematics.forward(q, list(self.geometry))
         inv = self.obj.pose_inverse
         hit = np.zeros(q.shape[0], dtype=bool)
-        for link, geom in self.geometry.items():
+        for link in self.geometry:
             pose = inv @ poses[link]
             centre, radius = self._spheres[link]
             rows = np.flatnonzero(~hit & (posed_min_distance(self.grid, pose, centre)
                                           - self.grid_err < radius))
             if rows.size == 0:
                 continue
-            screen = clustered_bound(self.grid, pose[rows], geom, -start_tol)
-            rows = rows[screen < -start_tol]
+            rows = rows[self.distance_bound(pose[rows], link) < -start_tol]
             if rows.size:
-                dist, _, _ = self._exact(pose[rows], link, -start_tol)
+                dist, _, _ = self._exact(pose[rows], link, -start_tol, decide=True)
                 hit[rows[dist < -start_tol]] = True
         return hit
 
-    def _grid_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
-        """(n,) lower bound of the exact distance of ``link``'s hull from the grid."""
-        return clustered_bound(self.grid, poses, self.geometry[link])
+    def distance_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
+        """(n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed by
+        object-frame poses (n, 4, 4), to the object's convex parts; -inf where they touch or
+        overlap (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`)."""
+        out = np.empty(poses.shape[0])
+        hull_distance_bounds(*self._link_hulls[link], np.ascontiguousarray(poses[:, :3, :3]),
+                             np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
+                             self._simplex, out)
+        return out
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -292,29 +313,23 @@ class FastRobotHand:
             setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
             for j, name in enumerate(path["joints"]):
                 vals[name] = setting[:, j]
-            # a draw already within the band stays there (its gap only shrinks, and the
-            # exact distance is the truth): only the others need the grid's bound
-            far = np.flatnonzero(g[active] > BAND)
-            bound = np.full(active.size, -np.inf)
-            bound[far] = np.inf
+            bound = np.full(active.size, np.inf)
             poses = {}
             for link in path["links"]:
                 poses[link] = self._link_poses(palm[active], vals, link, path["chains"][link])
-                if far.size:
-                    bound[far] = np.minimum(bound[far],
-                                            self._grid_bound(poses[link][far], link))
-            near = np.flatnonzero(bound <= BAND)
-            gap = bound.copy()  # -inf nowhere once the exact distances are in
-            if near.size:  # the exact distance replaces the grid's bound
+                bound = np.minimum(bound, self.distance_bound(poses[link], link))
+            near = np.flatnonzero(bound <= contact_tol)
+            gap = bound.copy()
+            if near.size:  # the exact distance replaces the bound where it is below NEAR
                 exact = np.full(near.size, np.inf)
                 for link in path["links"]:
                     pose = poses[link][near]
-                    d, fp, op = self._exact(pose, link)
+                    d, fp, op = self._exact(pose, link, NEAR * contact_tol)
                     queries[rows[active[near]]] += 1
                     exact = np.minimum(exact, d)
                     for store, value in zip(last[link], (pose, d, fp, op), strict=True):
                         store[active[near]] = value
-                gap[near] = exact
+                gap[near] = np.where(exact < NEAR * contact_tol, exact, bound[near])
             g[active] = gap
             stop = (gap <= contact_tol) | (t[active] >= t_end[active])
             go = ~stop

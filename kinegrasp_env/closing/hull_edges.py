@@ -22,10 +22,12 @@ from kinegrasp_env import jit
 
 
 @jit.kernel(_nrt=False, inline="always")
-def point_hull(planes, edges, tol, x, y, z):
+def point_hull(planes, edges, tol, x, y, z, limit):
     """(signed distance, closest x, y, z) of a point to a convex hull given by its face
     planes (F, 4) (outward unit normals) and edges (H, 2, 3): exact, as
-    :meth:`~kinegrasp_env.world.polytope.ConvexPart.closest`."""
+    :meth:`~kinegrasp_env.world.polytope.ConvexPart.closest`; where the largest plane value
+    (a lower bound of the distance) is at or above ``limit``, that value (and its plane
+    projection) instead."""
     top = -np.inf
     face = 0
     for f in range(planes.shape[0]):
@@ -35,7 +37,7 @@ def point_hull(planes, edges, tol, x, y, z):
     px = x - top * planes[face, 0]
     py = y - top * planes[face, 1]
     pz = z - top * planes[face, 2]
-    if top <= 0.0:
+    if top <= 0.0 or top >= limit:
         return top, px, py, pz
     worst = -np.inf
     for f in range(planes.shape[0]):
@@ -69,32 +71,35 @@ def edge_at(planes, edges, tol, rot, trans, ends, e, i, s):
     x = rot[i, 0, 0] * wx + rot[i, 1, 0] * wy + rot[i, 2, 0] * wz
     y = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
     z = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
-    return point_hull(planes, edges, tol, x, y, z)
+    return point_hull(planes, edges, tol, x, y, z, np.inf)
 
 
 @jit.kernel(_nrt=False)
 def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold, best,
-                       link_point, object_point):
+                       link_point, object_point, local):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
     best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull where
     that is smaller, with its link point and object point (object frame, (n, 3)); edges
     whose plane bound is not below min(best[i], below) are skipped, and so is the rest of an
-    edge's search once its Lipschitz bound over the bracket is not below it either."""
+    edge's search once its Lipschitz bound over the bracket is not below it either.
+    ``local`` (E, 2, 3) is scratch: the edges' ends in the link frame of the draw."""
     for i in range(rot.shape[0]):
+        for e in range(ends.shape[0]):  # the edges' ends in the link frame of draw i
+            for k in range(2):
+                wx = ends[e, k, 0] - trans[i, 0]
+                wy = ends[e, k, 1] - trans[i, 1]
+                wz = ends[e, k, 2] - trans[i, 2]
+                local[e, k, 0] = rot[i, 0, 0] * wx + rot[i, 1, 0] * wy + rot[i, 2, 0] * wz
+                local[e, k, 1] = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
+                local[e, k, 2] = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
         for e in range(ends.shape[0]):
             bound = -np.inf
             for f in range(planes.shape[0]):
-                lowest = np.inf
-                for k in range(2):
-                    wx = ends[e, k, 0] - trans[i, 0]
-                    wy = ends[e, k, 1] - trans[i, 1]
-                    wz = ends[e, k, 2] - trans[i, 2]
-                    x = rot[i, 0, 0] * wx + rot[i, 1, 0] * wy + rot[i, 2, 0] * wz
-                    y = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
-                    z = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
-                    v = planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z + planes[f, 3]
-                    lowest = min(lowest, v)
-                bound = max(bound, lowest)
+                v0 = (planes[f, 0] * local[e, 0, 0] + planes[f, 1] * local[e, 0, 1]
+                      + planes[f, 2] * local[e, 0, 2] + planes[f, 3])
+                v1 = (planes[f, 0] * local[e, 1, 0] + planes[f, 1] * local[e, 1, 1]
+                      + planes[f, 2] * local[e, 1, 2] + planes[f, 3])
+                bound = max(bound, min(v0, v1))
             if not bound < min(best[i], below):
                 continue
             lo, hi = 0.0, 1.0
@@ -137,13 +142,14 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
 
 @jit.kernel(_nrt=False)
 def vertices_against_parts(planes, plane_starts, edges, edge_starts, tols, rot, trans,
-                           vertices, best, link_point, object_point):
+                           vertices, below, best, link_point, object_point):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), the
     least signed distance of the link's vertices (V, 3, its frame) to the object's convex
     parts (part p: face planes planes[plane_starts[p]:plane_starts[p + 1]], edges
     edges[edge_starts[p]:edge_starts[p + 1]], tolerance tols[p]; :func:`point_hull`), into
     best[i], with that vertex (link_point, object frame (n, 3)) and its closest object point
-    (object_point)."""
+    (object_point); a vertex whose largest plane value is not below min(best[i], below) is
+    not examined further (a best[i] left at or above ``below`` is only an upper bound)."""
     for i in range(rot.shape[0]):
         best[i] = np.inf
         for v in range(vertices.shape[0]):
@@ -154,7 +160,7 @@ def vertices_against_parts(planes, plane_starts, edges, edge_starts, tols, rot, 
             for p in range(plane_starts.shape[0] - 1):
                 d, cx, cy, cz = point_hull(planes[plane_starts[p]:plane_starts[p + 1]],
                                            edges[edge_starts[p]:edge_starts[p + 1]], tols[p],
-                                           x, y, z)
+                                           x, y, z, min(best[i], below))
                 if d < best[i]:
                     best[i] = d
                     link_point[i, 0], link_point[i, 1], link_point[i, 2] = x, y, z

@@ -1,0 +1,219 @@
+"""Distance between two convex polytopes given by their vertices, compiled: the
+Gilbert-Johnson-Keerthi iteration (GJK) on the Minkowski difference A - B, with the closest
+point of each simplex to the origin found by its Voronoi regions.
+
+What it returns is a *certified lower bound* of the distance: every support point w of A - B
+in the direction -v gives the separating plane bound v . w / |v| <= distance, and the
+iteration stops once |v|^2 - v . w <= :data:`GAP_REL` |v|^2 (then the bound is within that
+relative amount of the distance, from below) or when it makes no progress. Where the origin
+lies inside the simplex (the polytopes touch or overlap) the bound is -inf: the caller
+decides such cases by an exact signed distance
+(:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull` and
+:func:`~kinegrasp_env.closing.hull_edges.vertices_against_parts`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env import jit
+
+#: Relative gap |v|^2 - v . w <= GAP_REL |v|^2 at which the iteration stops.
+GAP_REL = 1e-10
+#: Iterations at most (a polytope pair of a few hundred vertices needs a dozen).
+MAX_ITER = 64
+
+__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "new_simplex", "stacked_vertices"]
+
+
+def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray]:
+    """Convex parts' (:class:`~kinegrasp_env.world.polytope.ConvexPart`) vertices stacked
+    (V, 3) and each part's first row (P + 1,) int64: the layout
+    :func:`hull_distance_bounds` reads."""
+    return (np.ascontiguousarray(np.vstack([p.vertices for p in parts]), dtype=float),
+            np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64))
+
+
+def new_simplex() -> np.ndarray:
+    """(4, 3) scratch for :func:`hull_distance_bounds` (the simplex's points)."""
+    return np.empty((4, 3))
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _keep(w, m, a, b, c):
+    """Keep the simplex points with indices a, b, c (-1: none) in that order; their count."""
+    ax, ay, az = w[a, 0], w[a, 1], w[a, 2]
+    bx, by, bz = w[max(b, 0), 0], w[max(b, 0), 1], w[max(b, 0), 2]
+    cx, cy, cz = w[max(c, 0), 0], w[max(c, 0), 1], w[max(c, 0), 2]
+    w[0, 0], w[0, 1], w[0, 2] = ax, ay, az
+    if b < 0:
+        return 1
+    w[1, 0], w[1, 1], w[1, 2] = bx, by, bz
+    if c < 0:
+        return 2
+    w[2, 0], w[2, 1], w[2, 2] = cx, cy, cz
+    return 3
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _segment(w, a, b):
+    """Closest point to the origin on segment w[a] w[b]: (x, y, z, index a or -1 for a
+    dropped, index b or -1)."""
+    ex, ey, ez = w[b, 0] - w[a, 0], w[b, 1] - w[a, 1], w[b, 2] - w[a, 2]
+    length2 = ex * ex + ey * ey + ez * ez
+    t = -(w[a, 0] * ex + w[a, 1] * ey + w[a, 2] * ez) / max(length2, 1e-300)
+    if t <= 0.0:
+        return w[a, 0], w[a, 1], w[a, 2], a, -1
+    if t >= 1.0:
+        return w[b, 0], w[b, 1], w[b, 2], b, -1
+    return w[a, 0] + t * ex, w[a, 1] + t * ey, w[a, 2] + t * ez, a, b
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _triangle(w, a, b, c):
+    """Closest point to the origin on triangle w[a] w[b] w[c] by its Voronoi regions:
+    (x, y, z, i, j, k) with i, j, k the indices of the feature's points (-1 padded)."""
+    abx, aby, abz = w[b, 0] - w[a, 0], w[b, 1] - w[a, 1], w[b, 2] - w[a, 2]
+    acx, acy, acz = w[c, 0] - w[a, 0], w[c, 1] - w[a, 1], w[c, 2] - w[a, 2]
+    apx, apy, apz = -w[a, 0], -w[a, 1], -w[a, 2]
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return w[a, 0], w[a, 1], w[a, 2], a, -1, -1
+    bpx, bpy, bpz = -w[b, 0], -w[b, 1], -w[b, 2]
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return w[b, 0], w[b, 1], w[b, 2], b, -1, -1
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3)
+        return w[a, 0] + t * abx, w[a, 1] + t * aby, w[a, 2] + t * abz, a, b, -1
+    cpx, cpy, cpz = -w[c, 0], -w[c, 1], -w[c, 2]
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return w[c, 0], w[c, 1], w[c, 2], c, -1, -1
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6)
+        return w[a, 0] + t * acx, w[a, 1] + t * acy, w[a, 2] + t * acz, a, c, -1
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return (w[b, 0] + t * (w[c, 0] - w[b, 0]), w[b, 1] + t * (w[c, 1] - w[b, 1]),
+                w[b, 2] + t * (w[c, 2] - w[b, 2]), b, c, -1)
+    total = va + vb + vc
+    if not total > 0.0:  # a degenerate triangle: its best edge
+        x1, y1, z1, i1, j1 = _segment(w, a, b)
+        x2, y2, z2, i2, j2 = _segment(w, a, c)
+        if x2 * x2 + y2 * y2 + z2 * z2 < x1 * x1 + y1 * y1 + z1 * z1:
+            return x2, y2, z2, i2, j2, -1
+        return x1, y1, z1, i1, j1, -1
+    v, u = vb / total, vc / total
+    return (w[a, 0] + v * abx + u * acx, w[a, 1] + v * aby + u * acy,
+            w[a, 2] + v * abz + u * acz, a, b, c)
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _outside(w, a, b, c, d):
+    """True where the origin may lie beyond face (a, b, c) of the tetrahedron (away from
+    its fourth point d; a flat tetrahedron counts every face)."""
+    abx, aby, abz = w[b, 0] - w[a, 0], w[b, 1] - w[a, 1], w[b, 2] - w[a, 2]
+    acx, acy, acz = w[c, 0] - w[a, 0], w[c, 1] - w[a, 1], w[c, 2] - w[a, 2]
+    nx, ny, nz = aby * acz - abz * acy, abz * acx - abx * acz, abx * acy - aby * acx
+    origin = -(nx * w[a, 0] + ny * w[a, 1] + nz * w[a, 2])
+    other = nx * (w[d, 0] - w[a, 0]) + ny * (w[d, 1] - w[a, 1]) + nz * (w[d, 2] - w[a, 2])
+    return origin * other <= 0.0
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _reduce(w, m):
+    """Replace the simplex w[:m] by the least subset whose hull holds its closest point to
+    the origin; (x, y, z of that point, its new size; 4 where the origin is inside)."""
+    if m == 1:
+        return w[0, 0], w[0, 1], w[0, 2], 1
+    if m == 2:
+        x, y, z, i, j = _segment(w, 0, 1)
+        return x, y, z, _keep(w, m, i, j, -1)
+    if m == 3:
+        x, y, z, i, j, k = _triangle(w, 0, 1, 2)
+        return x, y, z, _keep(w, m, i, j, k)
+    best, bx, by, bz, bi, bj, bk = np.inf, 0.0, 0.0, 0.0, -1, -1, -1
+    for face in range(4):  # the face opposite point `face`
+        a, b, c = (1, 2, 3) if face == 0 else ((0, 2, 3) if face == 1 else
+                                               ((0, 1, 3) if face == 2 else (0, 1, 2)))
+        if _outside(w, a, b, c, face):
+            x, y, z, i, j, k = _triangle(w, a, b, c)
+            d2 = x * x + y * y + z * z
+            if d2 < best:
+                best, bx, by, bz, bi, bj, bk = d2, x, y, z, i, j, k
+    if bi < 0:
+        return 0.0, 0.0, 0.0, 4
+    return bx, by, bz, _keep(w, m, bi, bj, bk)
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start, b_stop, w):
+    """Certified lower bound of the distance between hull(a_vertices[a_start:a_stop]),
+    posed by draw i's rot (3, 3) and trans (3,), and hull(b_vertices[b_start:b_stop]); -inf
+    where they touch or overlap (the module's iteration)."""
+    r = rot[i]
+    ax, ay, az = a_vertices[a_start, 0], a_vertices[a_start, 1], a_vertices[a_start, 2]
+    vx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[b_start, 0]
+    vy = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az + trans[i, 1] - b_vertices[b_start, 1]
+    vz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[b_start, 2]
+    w[0, 0], w[0, 1], w[0, 2] = vx, vy, vz
+    m = 1
+    lower = -np.inf
+    previous = np.inf
+    for _ in range(MAX_ITER):
+        vv = vx * vx + vy * vy + vz * vz
+        if vv == 0.0:
+            return -np.inf
+        # support of posed A along -v: the vertex maximising (-v) . (R a), i.e. (-R^T v) . a
+        dx = -(r[0, 0] * vx + r[1, 0] * vy + r[2, 0] * vz)
+        dy = -(r[0, 1] * vx + r[1, 1] * vy + r[2, 1] * vz)
+        dz = -(r[0, 2] * vx + r[1, 2] * vy + r[2, 2] * vz)
+        top, pick = -np.inf, a_start
+        for k in range(a_start, a_stop):
+            s = dx * a_vertices[k, 0] + dy * a_vertices[k, 1] + dz * a_vertices[k, 2]
+            if s > top:
+                top, pick = s, k
+        ax, ay, az = a_vertices[pick, 0], a_vertices[pick, 1], a_vertices[pick, 2]
+        top, other = -np.inf, b_start
+        for k in range(b_start, b_stop):  # support of B along +v
+            s = vx * b_vertices[k, 0] + vy * b_vertices[k, 1] + vz * b_vertices[k, 2]
+            if s > top:
+                top, other = s, k
+        wx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[other, 0]
+        wy = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az + trans[i, 1] - b_vertices[other, 1]
+        wz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[other, 2]
+        vw = vx * wx + vy * wy + vz * wz
+        norm = np.sqrt(vv)
+        lower = max(lower, vw / norm)  # the plane through w normal to v separates
+        if vv - vw <= GAP_REL * vv or not vv < previous:
+            break
+        previous = vv
+        w[m, 0], w[m, 1], w[m, 2] = wx, wy, wz
+        vx, vy, vz, m = _reduce(w, m + 1)
+        if m == 4:
+            return -np.inf
+    return lower if lower > 0.0 else -np.inf
+
+
+@jit.kernel(_nrt=False)
+def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, w, out):
+    """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
+    overlaps) of the least distance between the convex parts of A (part p: the hull of
+    a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
+    trans[i] (n, 3)) and those of B (b_vertices (U, 3) split by b_starts). ``w`` (4, 3) is
+    scratch (:func:`new_simplex`)."""
+    for i in range(rot.shape[0]):
+        best = np.inf
+        for p in range(a_starts.shape[0] - 1):
+            for q in range(b_starts.shape[0] - 1):
+                bound = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1], rot, trans, i,
+                                    b_vertices, b_starts[q], b_starts[q + 1], w)
+                best = min(best, bound)
+        out[i] = best
