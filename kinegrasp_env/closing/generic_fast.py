@@ -43,6 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.capsule_gap import posed_min_distance
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
 from kinegrasp_env.closing.convex_distance import (
@@ -54,7 +55,6 @@ from kinegrasp_env.closing.generic_reference import (
     EDGE_TOL,
     MAX_STEPS,
     RobotCloseResult,
-    RobotContact,
     finger_speed,
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
@@ -238,7 +238,14 @@ class FastRobotHand:
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
               start_tol: float = START_TOL) -> list[RobotCloseResult]:
-        """Close the hand of every configuration q (n, dof) (the module's model)."""
+        """Close the hand of every configuration q (n, dof) (the module's model): one
+        result per draw (:meth:`close_batch`'s, draw by draw)."""
+        return self.close_batch(q, contact_tol=contact_tol, start_tol=start_tol).results()
+
+    def close_batch(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
+                    start_tol: float = START_TOL) -> RobotCloseBatch:
+        """Close the hand of every configuration q (n, dof) (the module's model), as
+        arrays."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n, fingers = q.shape[0], self.description.fingers
         start = self.start_collision(q, start_tol)
@@ -247,7 +254,8 @@ class FastRobotHand:
         gaps = np.full((n, len(fingers)), np.nan)
         travel = np.zeros((n, len(fingers)))
         final = {name: values0[name].copy() for name in values0}
-        touching: list[tuple] = []
+        found: dict[str, list] = {key: [] for key in ("row", "finger", "link", "points",
+                                                      "normals", "distances")}
         queries = np.zeros(n, dtype=np.int64)
         free = np.flatnonzero(~start)
         for f in range(len(fingers)):
@@ -259,33 +267,27 @@ class FastRobotHand:
             for name in path["joints"]:
                 final[name][free] = values[name]
             held = np.flatnonzero(g <= contact_tol)
-            touch = free[held]
-            if touch.size:  # the closing's last exact pairs are at the final joint values
+            if held.size:  # the closing's last exact pairs are at the final joint values
                 for k, link in enumerate(fingers[f].links):
                     if link not in self.geometry:
                         continue
                     pose, d, fp, op = (a[held] for a in last[link])
                     on = d <= contact_tol
                     if on.any():
-                        touching.append((f, k, link, touch[on], pose[on], d[on], fp[on],
-                                         op[on]))
-        contacts: list[list[RobotContact]] = [[] for _ in range(n)]
-        for record in touching:
-            for row, contact in zip(record[3], self._contacts(*record), strict=True):
-                contacts[row].append(contact)
-        out = []
-        for i in range(n):
-            if start[i]:
-                out.append(RobotCloseResult(True, queries=int(queries[i]),
-                                            missed=(False,) * len(fingers),
-                                            gaps=np.full(len(fingers), np.nan),
-                                            travel=np.zeros(len(fingers))))
-                continue
-            out.append(RobotCloseResult(
-                False, contacts[i], tuple(bool(x > contact_tol) for x in gaps[i]), gaps[i].copy(),
-                travel[i].copy(), {name: float(v[i]) for name, v in final.items()},
-                int(queries[i])))
-        return out
+                        points, normals = self._contacts(link, pose[on], d[on], fp[on], op[on])
+                        for key, value in (("row", free[held][on]), ("finger", f), ("link", k),
+                                           ("points", points), ("normals", normals),
+                                           ("distances", d[on])):
+                            found[key].append(np.broadcast_to(value, points.shape[:1]
+                                                              + np.shape(value)[1:]))
+        empty = {"row": (np.int64, ()), "finger": (np.int64, ()), "link": (np.int64, ()),
+                 "points": (float, (3,)), "normals": (float, (3,)), "distances": (float, ())}
+        columns = {key: np.concatenate([*found[key], np.empty((0, *shape), kind)])
+                   for key, (kind, shape) in empty.items()}
+        order = np.argsort(columns["row"], kind="stable")  # by finger, then link, per draw
+        return RobotCloseBatch(start, np.where(start[:, None], False, gaps > contact_tol),
+                               gaps, travel, final, queries,
+                               **{key: value[order] for key, value in columns.items()})
 
     def _close_finger(self, path: dict, palm: np.ndarray, values0: dict, contact_tol: float,
                       queries: np.ndarray, rows: np.ndarray):
@@ -341,13 +343,13 @@ class FastRobotHand:
             values[name] = setting[:, j]
         return t, g, values, last
 
-    def _contacts(self, f: int, k: int, link: str, rows: np.ndarray, poses: np.ndarray,
-                  distance: np.ndarray, finger_point: np.ndarray, point: np.ndarray
-                  ) -> list[RobotContact]:
-        """The contacts of finger f's link k at its object-frame poses (m, 4, 4) (the
-        draws ``rows``; closest pairs: distances (m,), link points and object points
-        (m, 3)): on a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`) its
-        inward normal and the patch centre, or at an edge the direction of the pair."""
+    def _contacts(self, link: str, poses: np.ndarray, distance: np.ndarray,
+                  finger_point: np.ndarray, point: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """(points (m, 3), unit normals (m, 3)) of the contacts of ``link`` at its
+        object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
+        points (m, 3)): on a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`)
+        its inward normal and the patch centre, or at an edge the direction of the pair."""
         part, plane = faces_of(self.obj, point, EDGE_TOL)
         on_face = part >= 0
         normals = -plane[:, :3]
@@ -365,8 +367,7 @@ class FastRobotHand:
                 normal = self.obj.surface(point[i][None])[1][0]
             normals[i] = normal
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-        return [RobotContact(f, k, points[i], normals[i], float(distance[i]))
-                for i in range(len(rows))]
+        return points, normals
 
     def _link_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray
                      ) -> np.ndarray | None:

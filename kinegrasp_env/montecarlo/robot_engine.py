@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
@@ -52,35 +53,51 @@ class RobotDraws:
                    np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8))
 
 
+def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
+                         contact_counts: np.ndarray) -> np.ndarray:
+    """(n,) int8 outcomes of n closings before scoring (start_collision (n,) bool, missed
+    (n, F) bool, contact_counts (n,)): start collision, missed (a finger missed, or fewer than
+    two contacts) or no force closure (a candidate)."""
+    out = np.full(len(start_collision), NO_FORCE_CLOSURE, dtype=np.int8)
+    out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
+    out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
+    return out
+
+
 def outcome_of(result: RobotCloseResult) -> int:
-    """The provisional outcome of one closing before scoring: start collision, missed (a
-    finger missed, or fewer than two contacts) or no force closure (a candidate)."""
-    if result.start_collision:
-        return START_COLLISION
-    if any(result.missed) or len(result.contacts) < 2:
-        return MISSED
-    return NO_FORCE_CLOSURE
+    """The provisional outcome of one closing (:func:`provisional_outcomes`)."""
+    missed = np.array([result.missed], dtype=bool).reshape(1, -1)
+    return int(provisional_outcomes(np.array([result.start_collision]), missed,
+                                    np.array([len(result.contacts)]))[0])
 
 
-def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
-    """Per-draw results of closings: each one's outcome (:func:`outcome_of`), its contacts
-    (at most ``max_contacts``) and, for a candidate, Q by ``quality(points, normals)`` (force
-    closure where Q > 0): points and normals (B, k, 3) of every candidate with k contacts at
-    once, Q (B,). Every engine of a description robot scores its closings here."""
-    out = RobotDraws.empty(len(results), max_contacts)
-    for i, result in enumerate(results):
-        out.outcome[i] = outcome_of(result)
-        k = min(len(result.contacts), max_contacts)
-        out.n_contacts[i] = k
-        for j, c in enumerate(result.contacts[:k]):
-            out.points[i, j], out.normals[i, j] = c.point, c.normal
-            out.finger[i, j], out.link[i, j] = c.finger, c.link
+def score_batch(batch: RobotCloseBatch, max_contacts: int, quality) -> RobotDraws:
+    """Per-draw results of closings: each one's outcome (:func:`provisional_outcomes`), its
+    contacts (at most ``max_contacts``, in the batch's order) and, for a candidate, Q by
+    ``quality(points, normals)`` (force closure where Q > 0): points and normals (B, k, 3)
+    of every candidate with k contacts at once, Q (B,). Every engine of a description robot
+    scores its closings here."""
+    n = len(batch)
+    out = RobotDraws.empty(n, max_contacts)
+    counts = batch.contact_counts
+    out.outcome[:] = provisional_outcomes(batch.start_collision, batch.missed, counts)
+    out.n_contacts[:] = np.minimum(counts, max_contacts)
+    slot = batch.slot
+    keep = slot < max_contacts
+    row, slot = batch.row[keep], slot[keep]
+    out.points[row, slot], out.normals[row, slot] = batch.points[keep], batch.normals[keep]
+    out.finger[row, slot], out.link[row, slot] = batch.finger[keep], batch.link[keep]
     candidate = out.outcome == NO_FORCE_CLOSURE
     for k in np.unique(out.n_contacts[candidate]):
         rows = np.flatnonzero(candidate & (out.n_contacts == k))
         out.quality[rows] = quality(out.points[rows, :k], out.normals[rows, :k])
     out.outcome[candidate & (out.quality > 0)] = FORCE_CLOSURE
     return out
+
+
+def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
+    """:func:`score_batch` of closings given one by one."""
+    return score_batch(RobotCloseBatch.of_results(results), max_contacts, quality)
 
 
 class RobotEngine:
@@ -137,6 +154,10 @@ class RobotEngine:
         """One closing per configuration of q (n, dof) (checked)."""
         raise NotImplementedError
 
+    def close_batch(self, q: np.ndarray) -> RobotCloseBatch:
+        """The closings of q (n, dof) (checked) as arrays (default: :meth:`close_all`'s)."""
+        return RobotCloseBatch.of_results(self.close_all(q))
+
     def run(self, q: np.ndarray) -> RobotDraws:
         """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape)."""
-        return score(self.close_all(self.check(q)), self.max_contacts, self.quality)
+        return score_batch(self.close_batch(self.check(q)), self.max_contacts, self.quality)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
@@ -29,7 +30,11 @@ class RobotFastEngine(RobotEngine):
         self.hand = FastRobotHand(self.description, self.obj)
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
-        out: list[RobotCloseResult] = []
-        for start in range(0, q.shape[0], BATCH):
-            out += self.hand.close(q[start:start + BATCH])
-        return out
+        return self.close_batch(q).results()
+
+    def close_batch(self, q: np.ndarray) -> RobotCloseBatch:
+        if q.shape[0] == 0:
+            return RobotCloseBatch.of_results([])
+        batches = [self.hand.close_batch(q[start:start + BATCH])
+                   for start in range(0, q.shape[0], BATCH)]
+        return batches[0] if len(batches) == 1 else RobotCloseBatch.joined(batches)
