@@ -60,10 +60,10 @@ from kinegrasp_env.closing.generic_reference import (
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
     LinkGeometry,
-    edge_along,
     grid_error,
     link_geometry,
 )
+from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.world.objects import GraspObject
@@ -112,6 +112,11 @@ class FastRobotHand:
         self._link_hulls = {link: stacked_vertices(geom.parts)
                             for link, geom in self.geometry.items()}
         self._simplex = new_simplex()
+        self._link_features = {
+            link: (np.ascontiguousarray(np.vstack([p.planes for p in geom.parts])),
+                   np.ascontiguousarray(np.concatenate([p.edges for p in geom.parts])),
+                   np.cumsum([0] + [len(p.edges) for p in geom.parts]).astype(np.int64))
+            for link, geom in self.geometry.items()}
         self._patch = PatchGeometry(obj.parts)
         parts = obj.convex_parts
         self._parts = (np.ascontiguousarray(np.vstack([p.planes for p in parts])),
@@ -358,49 +363,17 @@ class FastRobotHand:
             placed, _ = self._patch.place(self.geometry[link].vertices, poses[on_face],
                                           part[on_face], plane[on_face], point[on_face])
             points[on_face] = placed
-        for i in np.flatnonzero(~on_face):
-            normal = self._link_normal(link, poses[i], finger_point[i])
-            if normal is None:
-                normal = self._edge_normal(link, poses[i], finger_point[i], point[i],
-                                           distance[i])
-            if np.sqrt(normal @ normal) < 1e-12:
-                normal = self.obj.surface(point[i][None])[1][0]
-            normals[i] = normal
+        edge = np.flatnonzero(~on_face)
+        if edge.size:
+            planes, edges, starts = self._link_features[link]
+            found = np.empty((edge.size, 3))
+            pair_normals(planes, edges, starts, self.edges,
+                         np.ascontiguousarray(poses[edge, :3, :3]),
+                         np.ascontiguousarray(poses[edge, :3, 3]), finger_point[edge],
+                         point[edge], distance[edge], EDGE_TOL, LINE_TOL, np.empty((2, 3)),
+                         found)
+            for i in np.flatnonzero(np.linalg.norm(found, axis=1) < 1e-12):
+                found[i] = self.obj.surface(point[edge[i]][None])[1][0]
+            normals[edge] = found
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return points, normals
-
-    def _link_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray
-                     ) -> np.ndarray | None:
-        """(3,) outward normal (object frame) of the one face of ``link``'s hulls that the
-        object-frame ``finger_point`` lies on (within EDGE_TOL), or None at an edge or
-        corner: the direction of a closest pair whose link point is inside a face."""
-        local = (finger_point - pose[:3, 3]) @ pose[:3, :3]
-        found = None
-        for part in self.geometry[link].parts:
-            on = np.abs(part.planes[:, :3] @ local + part.planes[:, 3]) < EDGE_TOL
-            if int(on.sum()) == 1 and found is None:
-                found = pose[:3, :3] @ part.planes[on][0, :3]
-            elif on.any():
-                return None
-        return found
-
-    def _edge_normal(self, link: str, pose: np.ndarray, finger_point: np.ndarray,
-                     point: np.ndarray, distance: float) -> np.ndarray:
-        """(3,) the direction of a closest pair (link point -> object point, object frame)
-        at an object edge: perpendicular to both edges where the link point lies on a link
-        edge too (the pair's exact direction), else perpendicular to the object's edge (the
-        link point at a corner), else the points' difference."""
-        direction = (point - finger_point) * np.sign(distance)
-        u = edge_along(self.edges, point)
-        if u is None:
-            return direction
-        local = (finger_point - pose[:3, 3]) @ pose[:3, :3]
-        for part in self.geometry[link].parts:
-            w = edge_along(part.edges, local)
-            if w is not None:
-                v = pose[:3, :3] @ w
-                cross = np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                                  u[0] * v[1] - u[1] * v[0]])  # u x v
-                if np.sqrt(cross @ cross) > 1e-6:
-                    return cross * np.sign(cross @ direction)
-        return direction - (direction @ u) * u

@@ -1,6 +1,6 @@
 """A robot link's collision geometry for the fast generic closing: its hull vertices and
 convex parts in the link's frame (read once from pybullet), the distance grid's error bound,
-and where a point lies along an edge."""
+and the one segment whose interior holds a point."""
 
 from __future__ import annotations
 
@@ -107,14 +107,3 @@ def segment_holding(segments, x, y, z, tol, direction):
             found = e
             direction[0], direction[1], direction[2] = dx / length, dy / length, dz / length
     return found
-
-
-def edge_along(segments: np.ndarray, point: np.ndarray, tol: float = 1e-7
-               ) -> np.ndarray | None:
-    """(3,) unit direction of the one segment of ``segments`` (E, 2, 3) whose interior holds
-    ``point`` (3,) (within ``tol`` metres, not within ``tol`` of its ends), or None
-    (:func:`segment_holding`)."""
-    direction = np.empty(3)
-    found = segment_holding(segments, float(point[0]), float(point[1]), float(point[2]),
-                            float(tol), direction)
-    return None if found < 0 else direction
