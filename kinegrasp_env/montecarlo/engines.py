@@ -35,6 +35,17 @@ CONFIGURATION_SIZE = 14
 FLANGE_LINK = "sdh_base"
 
 
+def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
+                         contact_counts: np.ndarray) -> np.ndarray:
+    """(n,) int8 outcomes of n closings before scoring (start_collision (n,) bool, missed
+    (n, F) bool, contact_counts (n,)): start collision, missed (a finger missed, or fewer than
+    two contacts) or no force closure (a candidate)."""
+    out = np.full(len(start_collision), NO_FORCE_CLOSURE, dtype=np.int8)
+    out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
+    out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
+    return out
+
+
 @dataclass
 class DrawBatch:
     """Per-draw results of n draws.
@@ -256,7 +267,8 @@ def record_close(out: DrawBatch, i: int, result: CloseResult) -> None:
         out.finger[i, j] = contact.finger
         out.link[i, j] = contact.link
     out.hand[i] = result.joints
-    out.outcome[i] = MISSED if (k < 2 or any(result.missed)) else NO_FORCE_CLOSURE
+    out.outcome[i] = provisional_outcomes(np.zeros(1, bool), np.array([result.missed]),
+                                          np.array([k]))[0]
 
 
 class PybulletEngine(Engine):
@@ -346,8 +358,7 @@ class FastEngine(Engine):
         out.finger[take] = fingers[take]
         out.link[take] = links[take]
         out.n_contacts[:] = k
-        out.outcome[:] = np.where((k < 2) | result.missed.any(axis=1), MISSED, NO_FORCE_CLOSURE)
-        out.outcome[result.start_collision] = START_COLLISION
+        out.outcome[:] = provisional_outcomes(result.start_collision, result.missed, k)
         out.n_contacts[result.start_collision] = 0
         out.hand[:] = q[:, 7:]
         out.hand[:, self.flexion_columns] = result.flexion.reshape(n, 6)

@@ -16,9 +16,8 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
-    MISSED,
     NO_FORCE_CLOSURE,
-    START_COLLISION,
+    provisional_outcomes,
 )
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
 from kinegrasp_env.robot.catalog import load_robot
@@ -51,17 +50,6 @@ class RobotDraws:
         return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
                    np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
                    np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8))
-
-
-def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
-                         contact_counts: np.ndarray) -> np.ndarray:
-    """(n,) int8 outcomes of n closings before scoring (start_collision (n,) bool, missed
-    (n, F) bool, contact_counts (n,)): start collision, missed (a finger missed, or fewer than
-    two contacts) or no force closure (a candidate)."""
-    out = np.full(len(start_collision), NO_FORCE_CLOSURE, dtype=np.int8)
-    out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
-    out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
-    return out
 
 
 def outcome_of(result: RobotCloseResult) -> int:
