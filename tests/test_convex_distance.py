@@ -25,17 +25,20 @@ ABOVE_TOL = 1e-14
 BELOW_TOL = 1e-10
 
 
-def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None):
+def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, motion=None,
+            travel=False):
     n = rot.shape[0]
     a_starts = np.array([0, len(a_vertices)]) if a_starts is None else a_starts
     b_starts = np.array([0, len(b_vertices)]) if b_starts is None else b_starts
-    out = np.empty(n)
+    out, far = np.empty(n), np.empty(n)
+    motion = np.zeros((n, 3)) if motion is None else motion
     hull_distance_bounds(np.ascontiguousarray(a_vertices, dtype=float),
                          np.asarray(a_starts, dtype=np.int64), np.ascontiguousarray(rot),
                          np.ascontiguousarray(trans), np.ascontiguousarray(b_vertices,
                                                                            dtype=float),
-                         np.asarray(b_starts, dtype=np.int64), new_simplex(), out)
-    return out
+                         np.asarray(b_starts, dtype=np.int64), np.ascontiguousarray(motion),
+                         new_simplex(), out, far)
+    return (out, far) if travel else out
 
 
 def _box(lo, hi):
@@ -83,7 +86,7 @@ def test_panda_links_against_the_exact_pair(panda_hands, object_name, link):
     poses = np.tile(np.eye(4), (n, 1, 1))
     poses[:, :3, :3], poses[:, :3, 3] = rot, trans
     exact, _, _ = hand._exact(poses, link)
-    bound = hand.distance_bound(poses, link)
+    bound = hand.distance_bound(poses, link)[0]
     apart = exact > 1e-9
     assert apart.sum() > 300 and (exact < 0).sum() > 100
     assert np.all(np.isneginf(bound[exact < 0]))
@@ -102,9 +105,9 @@ from kinegrasp_env.closing.convex_distance import (
     stacked_vertices,
 )
 d = np.load(sys.argv[1])
-out = np.empty(len(d["rot"]))
+out, far = np.empty(len(d["rot"])), np.empty(len(d["rot"]))
 hull_distance_bounds(d["a"], d["a_starts"], d["rot"], d["trans"], d["b"], d["b_starts"],
-                     new_simplex(), out)
+                     np.zeros((len(out), 3)), new_simplex(), out, far)
 np.save(sys.argv[2], out)
 """
 
@@ -127,3 +130,49 @@ def test_the_kernel_interpreted_gives_the_same_bounds(panda_hands, tmp_path):
     np.testing.assert_array_equal(np.isneginf(compiled), np.isneginf(plain))
     finite = np.isfinite(compiled)
     np.testing.assert_allclose(compiled[finite], plain[finite], rtol=0, atol=1e-15)
+
+
+def test_travel_of_boxes_moving_along_an_axis():
+    # a box moving straight at another along x (faces parallel): its separating plane is
+    # that face's, so the travel is the gap over the speed exactly; moving away (or across,
+    # past it) no plane stands in the way: inf; touching: 0
+    a = _box(np.full(3, -0.01), np.full(3, 0.01))
+    b = _box([0.03, -0.02, -0.02], [0.05, 0.02, 0.02])  # gap 0.02 along x
+    rot = np.tile(np.eye(3), (4, 1, 1))
+    trans = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.05, 0.0],
+                      [0.01, 0.0, 0.0]])
+    motion = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0], [0.0, 0.0, 0.3],
+                       [0.5, 0.0, 0.0]])
+    bound, far = _bounds(a, rot, trans, b, motion=motion, travel=True)
+    np.testing.assert_allclose(bound[:2], 0.02, rtol=1e-12)
+    assert far[0] == pytest.approx(0.02 / 0.5, rel=1e-12)
+    assert np.isinf(far[1]) and np.isinf(far[2])
+    trans[3, 0] = 0.02  # touching
+    bound, far = _bounds(a, rot, trans, b, motion=motion, travel=True)
+    assert np.isneginf(bound[3]) and far[3] == 0.0
+
+
+@pytest.mark.parametrize("link", ["panda_leftfinger", "panda_hand"])
+def test_travel_never_lets_a_link_through_the_object(panda_hands, link):
+    # the certificate: translated by 0.999 of its travel along the motion, the link is still
+    # apart from the object (exact pair); the travel is not vacuous (often finite and at
+    # least the plain bound over the speed)
+    hand = panda_hands["drill"]
+    n = 1200
+    rng = np.random.default_rng(9)
+    rot = Rotation.random(n, random_state=10).as_matrix()
+    trans = hand.obj.center_of_mass + rng.normal(size=(n, 3)) * 0.08
+    motion = rng.normal(size=(n, 3)) * 0.3
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    poses[:, :3, :3], poses[:, :3, 3] = rot, trans
+    bound, far = hand.distance_bound(poses, link, motion)
+    apart = np.isfinite(bound)
+    finite = apart & np.isfinite(far)
+    assert finite.sum() > 200
+    assert np.all(far[apart] >= bound[apart] / np.linalg.norm(motion[apart], axis=1)
+                  * (1 - 1e-12))
+    moved = poses[finite].copy()
+    moved[:, :3, 3] += 0.999 * far[finite, None] * motion[finite]
+    exact, _, _ = hand._exact(moved, link)
+    assert np.all(exact > 0), exact.min()
+

@@ -268,4 +268,4 @@ def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
             np.testing.assert_allclose(dist[under], d[under], atol=1e-12)
             assert np.all(dist[~under] >= below), link
         exact, _, _ = hand._exact(pose, link)
-        assert np.all(hand.distance_bound(pose, link) <= exact + 1e-14), link
+        assert np.all(hand.distance_bound(pose, link)[0] <= exact + 1e-14), link

@@ -155,9 +155,11 @@ def _reduce(w, m):
 
 @jit.kernel(_nrt=False, inline="always")
 def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start, b_stop, w):
-    """Certified lower bound of the distance between hull(a_vertices[a_start:a_stop]),
-    posed by draw i's rot (3, 3) and trans (3,), and hull(b_vertices[b_start:b_stop]); -inf
-    where they touch or overlap (the module's iteration)."""
+    """(certified lower bound of the distance between hull(a_vertices[a_start:a_stop]),
+    posed by draw i's rot (3, 3) and trans (3,), and hull(b_vertices[b_start:b_stop]), and
+    the unit normal (x, y, z) of the plane that gives it: every point x of A - B has
+    n . x >= the bound); -inf (and a zero normal) where they touch or overlap (the module's
+    iteration)."""
     r = rot[i]
     ax, ay, az = a_vertices[a_start, 0], a_vertices[a_start, 1], a_vertices[a_start, 2]
     vx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[b_start, 0]
@@ -165,12 +167,12 @@ def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start,
     vz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[b_start, 2]
     w[0, 0], w[0, 1], w[0, 2] = vx, vy, vz
     m = 1
-    lower = -np.inf
+    lower, nx, ny, nz = -np.inf, 0.0, 0.0, 0.0
     previous = np.inf
     for _ in range(MAX_ITER):
         vv = vx * vx + vy * vy + vz * vz
         if vv == 0.0:
-            return -np.inf
+            return -np.inf, 0.0, 0.0, 0.0
         # support of posed A along -v: the vertex maximising (-v) . (R a), i.e. (-R^T v) . a
         dx = -(r[0, 0] * vx + r[1, 0] * vy + r[2, 0] * vz)
         dy = -(r[0, 1] * vx + r[1, 1] * vy + r[2, 1] * vz)
@@ -191,29 +193,47 @@ def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start,
         wz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[other, 2]
         vw = vx * wx + vy * wy + vz * wz
         norm = np.sqrt(vv)
-        lower = max(lower, vw / norm)  # the plane through w normal to v separates
+        if vw / norm > lower:  # the plane through w normal to v separates
+            lower, nx, ny, nz = vw / norm, vx / norm, vy / norm, vz / norm
         if vv - vw <= GAP_REL * vv or not vv < previous:
             break
         previous = vv
         w[m, 0], w[m, 1], w[m, 2] = wx, wy, wz
         vx, vy, vz, m = _reduce(w, m + 1)
         if m == 4:
-            return -np.inf
-    return lower if lower > 0.0 else -np.inf
+            return -np.inf, 0.0, 0.0, 0.0
+    if lower > 0.0:
+        return lower, nx, ny, nz
+    return -np.inf, 0.0, 0.0, 0.0
 
 
 @jit.kernel(_nrt=False)
-def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, w, out):
+def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, motion, w,
+                         out, travel):
     """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
     overlaps) of the least distance between the convex parts of A (part p: the hull of
     a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
-    trans[i] (n, 3)) and those of B (b_vertices (U, 3) split by b_starts). ``w`` (4, 3) is
-    scratch (:func:`new_simplex`)."""
+    trans[i] (n, 3)) and those of B (b_vertices (U, 3) split by b_starts). Where ``motion``
+    (n, 3) is given (its rows: a displacement of A per unit of a parameter, object frame;
+    zero rows: none given), travel[i] is how far in that parameter A can be translated along
+    motion[i] before any pair's separating plane lets it touch B (inf where no plane
+    stands in its way; 0 where a pair touches already), else 0 (nothing certified). ``w``
+    (4, 3) is scratch (:func:`new_simplex`)."""
     for i in range(rot.shape[0]):
-        best = np.inf
+        mx, my, mz = motion[i, 0], motion[i, 1], motion[i, 2]
+        moving = mx != 0.0 or my != 0.0 or mz != 0.0
+        best, far = np.inf, (np.inf if moving else 0.0)
         for p in range(a_starts.shape[0] - 1):
             for q in range(b_starts.shape[0] - 1):
-                bound = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1], rot, trans, i,
-                                    b_vertices, b_starts[q], b_starts[q + 1], w)
+                bound, nx, ny, nz = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1], rot,
+                                                trans, i, b_vertices, b_starts[q],
+                                                b_starts[q + 1], w)
                 best = min(best, bound)
+                if moving:  # the plane n . x >= bound moves by (n . motion) per unit
+                    closing = -(nx * mx + ny * my + nz * mz)
+                    if not bound > 0.0:
+                        far = 0.0
+                    elif closing > 0.0:
+                        far = min(far, bound / closing)
         out[i] = best
+        travel[i] = far

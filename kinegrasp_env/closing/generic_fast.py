@@ -161,7 +161,8 @@ class FastRobotHand:
             reach.append(far)
         return {"joints": finger.joints, "rates": np.array(rates), "lo": np.array(lo),
                 "hi": np.array(hi), "links": links, "chains": chains,
-                "speed": finger_speed(kinds, np.array(rates), np.array(reach))}
+                "speed": finger_speed(kinds, np.array(rates), np.array(reach)),
+                "translating": all(kind == "prismatic" for kind in kinds)}
 
     def _link_poses(self, palm: np.ndarray, values: dict[str, np.ndarray], link: str,
                     chain: list) -> np.ndarray:
@@ -224,21 +225,26 @@ class FastRobotHand:
                                           - self.grid_err < radius))
             if rows.size == 0:
                 continue
-            rows = rows[self.distance_bound(pose[rows], link) < -start_tol]
+            rows = rows[self.distance_bound(pose[rows], link)[0] < -start_tol]
             if rows.size:
                 dist, _, _ = self._exact(pose[rows], link, -start_tol, decide=True)
                 hit[rows[dist < -start_tol]] = True
         return hit
 
-    def distance_bound(self, poses: np.ndarray, link: str) -> np.ndarray:
-        """(n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed by
-        object-frame poses (n, 4, 4), to the object's convex parts; -inf where they touch or
-        overlap (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`)."""
-        out = np.empty(poses.shape[0])
+    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
+        by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
+        or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
+        before a separating plane lets it touch, 0 without a motion)
+        (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`)."""
+        n = poses.shape[0]
+        out, travel = np.empty(n), np.empty(n)
+        motion = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
         hull_distance_bounds(*self._link_hulls[link], np.ascontiguousarray(poses[:, :3, :3]),
                              np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
-                             self._simplex, out)
-        return out
+                             motion, self._simplex, out, travel)
+        return out, travel
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -300,7 +306,10 @@ class FastRobotHand:
         last): ``last`` maps each finger link to its (pose (m, 4, 4), distance (m,), link
         point (m, 3), object point (m, 3)) of the draw's last exact distance (a draw whose
         gap is within ``contact_tol`` took it at its final joint values; other rows are
-        unset)."""
+        unset). A step is the gap's lower bound over the finger's speed bound; for a finger
+        whose closing joints are all prismatic (its links translate) it is at least the
+        travel its links' separating planes allow, up to the first joint's limit (the
+        translation's direction is fixed until then)."""
         m = palm.shape[0]
         last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)))
                 for link in path["links"]}
@@ -310,23 +319,34 @@ class FastRobotHand:
             ends = np.where(rates > 0, (hi - v0) / rates,
                             np.where(rates < 0, (lo - v0) / rates, 0.0))
         t_end = np.maximum(ends.max(axis=1), 0.0)
+        t_turn = np.maximum(np.where(rates != 0, ends, np.inf).min(axis=1), 0.0)
+        chains = {link: path["chains"][link] for link in path["links"]}
+        names = {j.name for chain in chains.values() for j in chain}
+        fixed = {k: v for k, v in values0.items() if k in names}
+        motion = {link: None for link in path["links"]}
+        if path["translating"]:  # each link's displacement per unit t, object frame
+            moved = dict(fixed)
+            for j, name in enumerate(path["joints"]):
+                moved[name] = v0[:, j] + rates[j]
+            for link in path["links"]:
+                motion[link] = (self._link_poses(palm, moved, link, chains[link])[:, :3, 3]
+                                - self._link_poses(palm, fixed, link, chains[link])[:, :3, 3])
         t, g = np.zeros(m), np.full(m, np.inf)
         active = np.arange(m)
-        values = dict(values0)
         for _ in range(MAX_STEPS):
             if active.size == 0:
                 break
-            vals = {k: v[active] for k, v in values0.items()}
+            vals = {k: v[active] for k, v in fixed.items()}
             setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
             for j, name in enumerate(path["joints"]):
                 vals[name] = setting[:, j]
-            bound = np.full(active.size, np.inf)
-            poses = {}
+            poses, lower, travel = {}, {}, {}
             for link in path["links"]:
-                poses[link] = self._link_poses(palm[active], vals, link, path["chains"][link])
-                bound = np.minimum(bound, self.distance_bound(poses[link], link))
-            near = np.flatnonzero(bound <= contact_tol)
-            gap = bound.copy()
+                poses[link] = self._link_poses(palm[active], vals, link, chains[link])
+                lower[link], travel[link] = self.distance_bound(
+                    poses[link], link, None if motion[link] is None else motion[link][active])
+            gap = np.min([lower[link] for link in path["links"]], axis=0)
+            near = np.flatnonzero(gap <= contact_tol)
             if near.size:  # the exact distance replaces the bound where it is below NEAR
                 exact = np.full(near.size, np.inf)
                 for link in path["links"]:
@@ -334,15 +354,21 @@ class FastRobotHand:
                     d, fp, op = self._exact(pose, link, NEAR * contact_tol)
                     queries[rows[active[near]]] += 1
                     exact = np.minimum(exact, d)
+                    lower[link][near] = np.where(d < NEAR * contact_tol, d, lower[link][near])
                     for store, value in zip(last[link], (pose, d, fp, op), strict=True):
                         store[active[near]] = value
-                gap[near] = np.where(exact < NEAR * contact_tol, exact, bound[near])
+                gap[near] = np.where(exact < NEAR * contact_tol, exact, gap[near])
             g[active] = gap
             stop = (gap <= contact_tol) | (t[active] >= t_end[active])
             go = ~stop
-            t[active[go]] += np.minimum(np.maximum(gap[go], 0.0) / speed,
-                                        t_end[active[go]] - t[active[go]])
-            active = active[go]
+            now = active[go]
+            turn = np.maximum(t_turn[now] - t[now], 0.0)
+            step = np.min([np.maximum(np.maximum(lower[link][go], 0.0) / speed,
+                                      np.minimum(travel[link][go], turn))
+                           for link in path["links"]], axis=0)
+            t[now] += np.minimum(step, t_end[now] - t[now])
+            active = now
+        values = dict(values0)
         setting = np.clip(v0 + rates * t[:, None], lo, hi)
         for j, name in enumerate(path["joints"]):
             values[name] = setting[:, j]
