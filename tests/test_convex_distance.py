@@ -26,7 +26,7 @@ BELOW_TOL = 1e-10
 
 
 def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, motion=None,
-            travel=False):
+            travel=False, short=0.0):
     n = rot.shape[0]
     a_starts = np.array([0, len(a_vertices)]) if a_starts is None else a_starts
     b_starts = np.array([0, len(b_vertices)]) if b_starts is None else b_starts
@@ -37,7 +37,7 @@ def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, mo
                          np.ascontiguousarray(trans), np.ascontiguousarray(b_vertices,
                                                                            dtype=float),
                          np.asarray(b_starts, dtype=np.int64), np.ascontiguousarray(motion),
-                         new_simplex(), out, far)
+                         short, new_simplex(), out, far)
     return (out, far) if travel else out
 
 
@@ -107,7 +107,7 @@ from kinegrasp_env.closing.convex_distance import (
 d = np.load(sys.argv[1])
 out, far = np.empty(len(d["rot"])), np.empty(len(d["rot"]))
 hull_distance_bounds(d["a"], d["a_starts"], d["rot"], d["trans"], d["b"], d["b_starts"],
-                     np.zeros((len(out), 3)), new_simplex(), out, far)
+                     np.zeros((len(out), 3)), 0.0, new_simplex(), out, far)
 np.save(sys.argv[2], out)
 """
 
@@ -146,6 +146,8 @@ def test_travel_of_boxes_moving_along_an_axis():
     bound, far = _bounds(a, rot, trans, b, motion=motion, travel=True)
     np.testing.assert_allclose(bound[:2], 0.02, rtol=1e-12)
     assert far[0] == pytest.approx(0.02 / 0.5, rel=1e-12)
+    _, short = _bounds(a, rot, trans, b, motion=motion, travel=True, short=0.005)
+    assert short[0] == pytest.approx(0.015 / 0.5, rel=1e-12)  # stops 5 mm short
     assert np.isinf(far[1]) and np.isinf(far[2])
     trans[3, 0] = 0.02  # touching
     bound, far = _bounds(a, rot, trans, b, motion=motion, travel=True)

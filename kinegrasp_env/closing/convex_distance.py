@@ -208,17 +208,17 @@ def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start,
 
 
 @jit.kernel(_nrt=False)
-def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, motion, w,
-                         out, travel):
+def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, motion, short,
+                         w, out, travel):
     """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
     overlaps) of the least distance between the convex parts of A (part p: the hull of
     a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
     trans[i] (n, 3)) and those of B (b_vertices (U, 3) split by b_starts). Where ``motion``
     (n, 3) is given (its rows: a displacement of A per unit of a parameter, object frame;
     zero rows: none given), travel[i] is how far in that parameter A can be translated along
-    motion[i] before any pair's separating plane lets it touch B (inf where no plane
-    stands in its way; 0 where a pair touches already), else 0 (nothing certified). ``w``
-    (4, 3) is scratch (:func:`new_simplex`)."""
+    motion[i] before any pair's separating plane lets it come within ``short`` (metres) of B
+    (inf where no plane stands in its way; 0 where a pair is that near already), else 0
+    (nothing certified). ``w`` (4, 3) is scratch (:func:`new_simplex`)."""
     for i in range(rot.shape[0]):
         mx, my, mz = motion[i, 0], motion[i, 1], motion[i, 2]
         moving = mx != 0.0 or my != 0.0 or mz != 0.0
@@ -231,9 +231,9 @@ def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts,
                 best = min(best, bound)
                 if moving:  # the plane n . x >= bound moves by (n . motion) per unit
                     closing = -(nx * mx + ny * my + nz * mz)
-                    if not bound > 0.0:
+                    if not bound > short:
                         far = 0.0
                     elif closing > 0.0:
-                        far = min(far, bound / closing)
+                        far = min(far, (bound - short) / closing)
         out[i] = best
         travel[i] = far

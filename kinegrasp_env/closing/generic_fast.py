@@ -73,6 +73,9 @@ from kinegrasp_env.world.sdf import DistanceGrid, grid_of
 #: Exact distances are taken below NEAR x the contact tolerance (above it the certified
 #: bound, within 1e-8 of them relative, stands).
 NEAR = 2.0
+#: A separating plane's step ends this many contact tolerances short of the plane (a pair
+#: left a little apart, whose direction is defined, as the reference's steps leave it).
+SHORT = 0.5
 #: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
 SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
@@ -231,19 +234,20 @@ class FastRobotHand:
                 hit[rows[dist < -start_tol]] = True
         return hit
 
-    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
+                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
         by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
         or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
-        before a separating plane lets it touch, 0 without a motion)
+        before a separating plane lets it come within ``short`` (metres), 0 without a
+        motion)
         (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`)."""
         n = poses.shape[0]
         out, travel = np.empty(n), np.empty(n)
         motion = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
         hull_distance_bounds(*self._link_hulls[link], np.ascontiguousarray(poses[:, :3, :3]),
                              np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
-                             motion, self._simplex, out, travel)
+                             motion, float(short), self._simplex, out, travel)
         return out, travel
 
     # ------------------------------------------------------------------ closing
@@ -344,7 +348,8 @@ class FastRobotHand:
             for link in path["links"]:
                 poses[link] = self._link_poses(palm[active], vals, link, chains[link])
                 lower[link], travel[link] = self.distance_bound(
-                    poses[link], link, None if motion[link] is None else motion[link][active])
+                    poses[link], link, None if motion[link] is None else motion[link][active],
+                    SHORT * contact_tol)
             gap = np.min([lower[link] for link in path["links"]], axis=0)
             near = np.flatnonzero(gap <= contact_tol)
             if near.size:  # the exact distance replaces the bound where it is below NEAR
