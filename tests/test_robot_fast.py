@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise
@@ -104,8 +105,8 @@ def test_exact_distance_against_pybullet(draws, engines):
                 world.set_joint_values({k: float(v[0]) for k, v in values.items()})
                 palm = hand.obj.pose_inverse @ hand.kinematics.pose(q, hand.description.palm_link)
                 for path in hand.paths:
-                    for link in path["links"]:
-                        pose = hand._link_poses(palm, values, link, path["chains"][link])
+                    for link in path.links:
+                        pose = link_poses(palm, values, path.chains[link])
                         d, _, _ = hand._exact(pose, link)
                         expected, _ = world.gap((link,))
                         assert abs(d[0] - expected) <= GAP_TOL, (link, d[0], expected)

@@ -24,7 +24,10 @@ only where that bound is within reach of a contact or says the two overlap.
    lower bound over the finger's speed bound
    (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). The lower bound is GJK's;
    where it is within ``contact_tol`` (or the hulls overlap) the exact distance replaces it.
-   A finger touches when that is within ``contact_tol``, and misses at its limits.
+   A finger whose closing joints are all prismatic translates its links: it steps at least
+   as far as their separating planes allow (:data:`SHORT` contact tolerances short of
+   them), up to its first joint's limit. A finger touches when the gap is within
+   ``contact_tol``, and misses at its limits.
 3. *Contacts*: per touching finger link, its exact closest pair with the object (the
    closing's last one: a touching draw took it at its final joint values). On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
@@ -51,11 +54,11 @@ from kinegrasp_env.closing.convex_distance import (
     new_simplex,
     stacked_vertices,
 )
+from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths, link_poses
 from kinegrasp_env.closing.generic_reference import (
     EDGE_TOL,
     MAX_STEPS,
     RobotCloseResult,
-    finger_speed,
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
@@ -65,7 +68,7 @@ from kinegrasp_env.closing.link_geometry import (
 )
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
+from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.polytope import INSIDE_TOL
 from kinegrasp_env.world.sdf import DistanceGrid, grid_of
@@ -106,9 +109,7 @@ class FastRobotHand:
         self.geometry = link_geometry(description) if geometry is None else geometry
         self.kinematics = Kinematics(self.model)
         self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
-        self._drivers = self.model.drivers()
-        self._parent = {j.child: j for j in self.model.joints}
-        self.paths = [self._finger_path(f) for f in range(len(description.fingers))]
+        self.paths = finger_paths(description, self.geometry)
         self.edges = np.concatenate([part.edges for part in obj.convex_parts])
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
@@ -127,61 +128,6 @@ class FastRobotHand:
                        np.ascontiguousarray(np.concatenate([p.edges for p in parts])),
                        np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64),
                        np.array([INSIDE_TOL * p.scale for p in parts]))
-
-    # ------------------------------------------------------------------ kinematics
-    def _chain(self, link: str) -> list:
-        """Joints from the palm to ``link``, palm first."""
-        chain = []
-        while link != self.description.palm_link:
-            joint = self._parent[link]
-            chain.append(joint)
-            link = joint.parent
-        return chain[::-1]
-
-    def _finger_path(self, index: int) -> dict:
-        """Finger ``index``'s closing: joints, rates, limits, per-link chains and speed."""
-        finger = self.description.fingers[index]
-        rates, lo, hi, kinds = [], [], [], []
-        for name in finger.joints:
-            joint = self.model.joint(name)
-            driver, mult, _ = self._drivers[name]
-            rates.append(mult * self.description.close[self.model.actuated[driver]])
-            lo.append(joint.lower)
-            hi.append(joint.upper)
-            kinds.append(joint.kind)
-        links = [link for link in finger.links if link in self.geometry]
-        chains = {link: self._chain(link) for link in links}
-        reach = []
-        for name in finger.joints:  # largest distance from the joint to points it moves
-            far = 0.0
-            for link in links:
-                names = [j.name for j in chains[link]]
-                if name in names:
-                    pts = self.geometry[link].vertices
-                    far = max(far, float(np.linalg.norm(pts, axis=1).max())
-                              + sum(float(np.linalg.norm(j.origin[:3, 3]))
-                                    for j in chains[link][names.index(name) + 1:]))
-            reach.append(far)
-        return {"joints": finger.joints, "rates": np.array(rates), "lo": np.array(lo),
-                "hi": np.array(hi), "links": links, "chains": chains,
-                "speed": finger_speed(kinds, np.array(rates), np.array(reach)),
-                "translating": all(kind == "prismatic" for kind in kinds)}
-
-    def _link_poses(self, palm: np.ndarray, values: dict[str, np.ndarray], link: str,
-                    chain: list) -> np.ndarray:
-        """(n, 4, 4) object-frame pose of ``link`` from the palm's (n, 4, 4) object-frame
-        pose and the joint values (name -> (n,))."""
-        pose = palm
-        for joint in chain:
-            step = np.broadcast_to(joint.origin, pose.shape).copy()
-            if joint.movable:
-                v = values[joint.name]
-                if joint.kind == "prismatic":
-                    step[:, :3, 3] += (joint.origin[:3, :3] @ joint.axis) * v[:, None]
-                else:
-                    step[:, :3, :3] = joint.origin[:3, :3] @ axis_angle_matrix(joint.axis, v)
-            pose = pose @ step
-        return pose
 
     # ------------------------------------------------------------------ distances
     def _exact(self, poses: np.ndarray, link: str, below: float = np.inf,
@@ -279,7 +225,7 @@ class FastRobotHand:
                                                     {k: v[free] for k, v in values0.items()},
                                                     contact_tol, queries, free)
             gaps[free, f], travel[free, f] = g, t
-            for name in path["joints"]:
+            for name in path.joints:
                 final[name][free] = values[name]
             held = np.flatnonzero(g <= contact_tol)
             if held.size:  # the closing's last exact pairs are at the final joint values
@@ -304,7 +250,7 @@ class FastRobotHand:
                                gaps, travel, final, queries,
                                **{key: value[order] for key, value in columns.items()})
 
-    def _close_finger(self, path: dict, palm: np.ndarray, values0: dict, contact_tol: float,
+    def _close_finger(self, path: FingerPath, palm: np.ndarray, values0: dict, contact_tol: float,
                       queries: np.ndarray, rows: np.ndarray):
         """Conservative advancement of one finger over draws: (t (m,), gap (m,), values,
         last): ``last`` maps each finger link to its (pose (m, 4, 4), distance (m,), link
@@ -316,25 +262,25 @@ class FastRobotHand:
         translation's direction is fixed until then)."""
         m = palm.shape[0]
         last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)))
-                for link in path["links"]}
-        v0 = np.stack([values0[name] for name in path["joints"]], axis=1)
-        rates, lo, hi, speed = path["rates"], path["lo"], path["hi"], path["speed"]
+                for link in path.links}
+        v0 = np.stack([values0[name] for name in path.joints], axis=1)
+        rates, lo, hi, speed = path.rates, path.lower, path.upper, path.speed
         with np.errstate(divide="ignore", invalid="ignore"):
             ends = np.where(rates > 0, (hi - v0) / rates,
                             np.where(rates < 0, (lo - v0) / rates, 0.0))
         t_end = np.maximum(ends.max(axis=1), 0.0)
         t_turn = np.maximum(np.where(rates != 0, ends, np.inf).min(axis=1), 0.0)
-        chains = {link: path["chains"][link] for link in path["links"]}
+        chains = {link: path.chains[link] for link in path.links}
         names = {j.name for chain in chains.values() for j in chain}
         fixed = {k: v for k, v in values0.items() if k in names}
-        motion = {link: None for link in path["links"]}
-        if path["translating"]:  # each link's displacement per unit t, object frame
+        motion = {link: None for link in path.links}
+        if path.translating:  # each link's displacement per unit t, object frame
             moved = dict(fixed)
-            for j, name in enumerate(path["joints"]):
+            for j, name in enumerate(path.joints):
                 moved[name] = v0[:, j] + rates[j]
-            for link in path["links"]:
-                motion[link] = (self._link_poses(palm, moved, link, chains[link])[:, :3, 3]
-                                - self._link_poses(palm, fixed, link, chains[link])[:, :3, 3])
+            for link in path.links:
+                motion[link] = (link_poses(palm, moved, chains[link])[:, :3, 3]
+                                - link_poses(palm, fixed, chains[link])[:, :3, 3])
         t, g = np.zeros(m), np.full(m, np.inf)
         active = np.arange(m)
         for _ in range(MAX_STEPS):
@@ -342,19 +288,19 @@ class FastRobotHand:
                 break
             vals = {k: v[active] for k, v in fixed.items()}
             setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
-            for j, name in enumerate(path["joints"]):
+            for j, name in enumerate(path.joints):
                 vals[name] = setting[:, j]
             poses, lower, travel = {}, {}, {}
-            for link in path["links"]:
-                poses[link] = self._link_poses(palm[active], vals, link, chains[link])
+            for link in path.links:
+                poses[link] = link_poses(palm[active], vals, chains[link])
                 lower[link], travel[link] = self.distance_bound(
                     poses[link], link, None if motion[link] is None else motion[link][active],
                     SHORT * contact_tol)
-            gap = np.min([lower[link] for link in path["links"]], axis=0)
+            gap = np.min([lower[link] for link in path.links], axis=0)
             near = np.flatnonzero(gap <= contact_tol)
             if near.size:  # the exact distance replaces the bound where it is below NEAR
                 exact = np.full(near.size, np.inf)
-                for link in path["links"]:
+                for link in path.links:
                     pose = poses[link][near]
                     d, fp, op = self._exact(pose, link, NEAR * contact_tol)
                     queries[rows[active[near]]] += 1
@@ -370,12 +316,12 @@ class FastRobotHand:
             turn = np.maximum(t_turn[now] - t[now], 0.0)
             step = np.min([np.maximum(np.maximum(lower[link][go], 0.0) / speed,
                                       np.minimum(travel[link][go], turn))
-                           for link in path["links"]], axis=0)
+                           for link in path.links], axis=0)
             t[now] += np.minimum(step, t_end[now] - t[now])
             active = now
         values = dict(values0)
         setting = np.clip(v0 + rates * t[:, None], lo, hi)
-        for j, name in enumerate(path["joints"]):
+        for j, name in enumerate(path.joints):
             values[name] = setting[:, j]
         return t, g, values, last
 
