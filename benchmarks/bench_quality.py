@@ -6,7 +6,8 @@ sphere, normals tilted up to ~0.3 rad); prints microseconds per grasp of the bat
 (compiled kernels loaded and tables built first), the ratio to the loop, the median of 100
 single ``ferrari_canny`` calls, the share the exact paths could not certify (qhull serves
 those), and that the answers agree (max relative difference over force-closure grasps, FC
-decisions).
+decisions); and one soft-finger ``contact_quality`` call against one point-contact call on
+the same contact sets (2-4 contacts).
 
 The figures (seconds per grasp, ratios, shares) also go to
 ``benchmarks/results/bench_quality.json`` (``--json-out PATH``, ``--no-json``).
@@ -38,6 +39,7 @@ from kinegrasp_env.quality import (  # noqa: E402
     wrench_matrix,
 )
 from kinegrasp_env.quality.expansion import epsilon_epa_batch  # noqa: E402
+from kinegrasp_env.quality.soft_contacts import contact_quality  # noqa: E402
 from kinegrasp_env.quality.three_contacts import candidate_tables, epsilon_three_contacts  # noqa: E402
 
 TORQUE_SCALE = 20.0
@@ -104,6 +106,27 @@ def single_median(pts: np.ndarray, nrm: np.ndarray, m: int, calls: int = 100) ->
     return float(np.median(times)) * 1e6
 
 
+def soft_single(k: int, m: int, seed: int, calls: int = 200) -> dict:
+    """Median microseconds of one ``contact_quality`` call, soft fingers against point
+    contacts, on the same ``calls`` contact sets of k contacts (m cone edges)."""
+    pts, nrm = sphere_contacts(np.random.default_rng(seed), calls, k, jitter=0.3)
+    medians = {}
+    for model in ("point", "soft"):
+        for p, n in zip(pts[:5], nrm[:5], strict=True):  # loads the compiled kernels
+            contact_quality(p, n, contact_model=model, num_edges=m, torque_scale=TORQUE_SCALE)
+        times = []
+        for p, n in zip(pts, nrm, strict=True):
+            start = time.perf_counter()
+            contact_quality(p, n, contact_model=model, num_edges=m, torque_scale=TORQUE_SCALE)
+            times.append(time.perf_counter() - start)
+        medians[model] = float(np.median(times))
+    ratio = medians["soft"] / medians["point"]
+    print(f"{k} contacts x {m:2d} edges, one call: soft {medians['soft'] * 1e6:6.1f} us, point "
+          f"{medians['point'] * 1e6:6.1f} us: {ratio:.2f}x")
+    return {"contacts": k, "edges": m, "calls": calls, "soft_median_s": medians["soft"],
+            "point_median_s": medians["point"], "soft_over_point": ratio}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--grasps", type=int, default=2000)
@@ -114,8 +137,11 @@ def main() -> None:
           "4-5 contacts; single call median <= 50 us for k <= 5, m <= 12; exact")
     rows = [run(k, m, args.grasps if k == 3 else max(100, args.grasps // 10), args.seed)
             for k, m in ((3, 8), (3, 12), (3, 16), (4, 8), (5, 8), (5, 12))]
+    print("target: a soft-finger call <= 2x a point-contact call at the same contact count")
+    soft = [soft_single(k, 8, args.seed) for k in (2, 3, 4)]
     if not args.no_json:
-        write_result(__file__, {"cases": rows, "settings": settings(args)}, args.json_out)
+        write_result(__file__, {"cases": rows, "soft_single_calls": soft,
+                                "settings": settings(args)}, args.json_out)
 
 
 if __name__ == "__main__":

@@ -203,6 +203,34 @@ def test_force_closure_agrees_with_an_lp(random_sets):
     assert 0.2 * len(random_sets) < closed < 0.8 * len(random_sets)  # both verdicts tested
 
 
+def test_one_compiled_call_gives_the_batch_q(monkeypatch):
+    """``contact_quality`` of one soft grasp takes one compiled call (the wrenches, the
+    expansion) and gives the batch path's verdict and Q (the same primitives in another
+    order: measured at most 4.6e-14 relative; 1e-12 held). Both share the expansion: the
+    independent checks of this path are the LP and qhull tests (their Q comes from it)."""
+    import kinegrasp_env.quality.single as single
+
+    calls = []
+    real = single.single_epsilon
+
+    def counted(*args):
+        calls.append(args[9])  # gamma
+        return real(*args)
+
+    monkeypatch.setattr(single, "single_epsilon", counted)
+    rng = np.random.default_rng(7)
+    closed = 0
+    for k in (2, 3, 4):
+        for points, normals, kwargs in random_soft_cases(rng, 60, k):
+            one = contact_quality(points, normals, **kwargs)
+            batch = contact_quality_batch(points[None], normals[None], **kwargs)[0]
+            assert (one > 0) == (batch > 0)
+            assert one == pytest.approx(batch, rel=1e-12, abs=0.0)
+            closed += one > 0
+    assert len(calls) == 180 and all(g > 0 for g in calls)
+    assert 30 < closed < 150  # both verdicts tested
+
+
 # ----------------------------------------------------------------------------- (3) qhull
 def test_q_matches_qhull_on_the_primitives(random_sets):
     """Q against scipy.spatial.ConvexHull run on the primitives directly: the smallest

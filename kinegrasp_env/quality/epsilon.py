@@ -313,14 +313,15 @@ def _single_module():
     return single
 
 
-def _compiled_single(points, normals, friction, num_edges, torque_scale,
-                     center) -> float | None:
+def compiled_single(points, normals, friction, num_edges, torque_scale, center,
+                    gamma: float = 0.0) -> float | None:
     """Q of one grasp through :func:`~kinegrasp_env.quality.single.single_epsilon` (one
     compiled call: the checks, the wrenches, the expansion) for the common input: float64
     C-ordered (k, 3) arrays, numbers (float, int, numpy float64), a centre of 3 numbers or a
     float64 (3,) array, k m <= the expansion's size; qhull where the expansion cannot
-    certify. None for anything else, or an input its checks reject: the step-by-step path
-    then computes it, or words the error. (Its checks cost ~1 us: a call's overhead was a
+    certify; ``gamma`` > 0 (metres): soft fingers with that torsional coefficient. None for
+    anything else, or an input its checks reject: the step-by-step path then computes it,
+    or words the error. (Its checks cost ~1 us: a call's overhead was a
     third of a 3-contact call.)"""
     if type(center) is np.ndarray:
         if center.shape != (3,) or center.dtype != np.float64:
@@ -335,7 +336,7 @@ def _compiled_single(points, normals, friction, num_edges, torque_scale,
             and points.shape[0] >= 1 and points.flags.c_contiguous
             and normals.flags.c_contiguous
             and type(num_edges) is int and 3 <= num_edges <= MAX_EDGES
-            and points.shape[0] * num_edges <= single.MAX_POINTS
+            and points.shape[0] * (num_edges + (2 if gamma > 0.0 else 0)) <= single.MAX_POINTS
             and type(friction) in _PLAIN_NUMBERS and type(torque_scale) in _PLAIN_NUMBERS
             and type(center_x) in _PLAIN_NUMBERS and type(center_y) in _PLAIN_NUMBERS
             and type(center_z) in _PLAIN_NUMBERS):
@@ -347,11 +348,11 @@ def _compiled_single(points, normals, friction, num_edges, torque_scale,
         return None
     poly, ridges, w = _expansion_tables()
     cos_t, sin_t = cone_angles(num_edges)
-    status, q = single.single_epsilon(points, normals, mu, cos_t, sin_t, scale, *center, w,
-                                       poly, ridges)
+    status, q = single.single_epsilon(points, normals, mu, cos_t, sin_t, scale, *center,
+                                       float(gamma), w, poly, ridges)
     if status == single.DONE:
         return q
-    rows = w[:points.shape[0] * num_edges]
+    rows = w[:points.shape[0] * (num_edges + (2 if gamma > 0.0 else 0))]
     if status == single.CHECK_RANK:
         return 0.0 if _rank_deficient(rows) else q
     if status == single.NOT_CERTIFIED:
@@ -386,7 +387,7 @@ def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
     mismatched shapes or zero-length normals.
     """
     if method == "auto" and norm == "l1":
-        q = _compiled_single(points, normals, friction, num_edges, torque_scale, center)
+        q = compiled_single(points, normals, friction, num_edges, torque_scale, center)
         if q is not None:
             return q
     points, normals = check_contacts(points, normals, batched=False)

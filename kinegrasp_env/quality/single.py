@@ -48,8 +48,11 @@ def new_wrench_buffer() -> np.ndarray:
 
 @jit.kernel
 def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center_x, center_y,
-                   center_z, w, poly, ridges) -> tuple[int, float]:
-    """(status, Q) of one grasp, L1 norm.
+                   center_z, gamma, w, poly, ridges) -> tuple[int, float]:
+    """(status, Q) of one grasp, L1 norm: point contacts (``gamma`` 0), or soft fingers
+    (``gamma`` > 0, metres: the torsional coefficient of
+    :mod:`~kinegrasp_env.quality.soft_contacts`, whose primitives are the k m cone edges
+    followed by each contact's two torsional ones, (n, s (p - c) x n +- s gamma n)).
 
     Args:
         points: (k, 3) contact points (metres), k m <= MAX_POINTS; normals (k, 3) inward
@@ -59,7 +62,8 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
             (:func:`~kinegrasp_env.quality.wrenches.cone_angles`).
         torque_scale: s > 0 (1 / metres); center_x, center_y, center_z: the centre of mass
             (metres).
-        w: (MAX_POINTS, 6) scratch: the k m edge wrenches are left in its first rows.
+        w: (MAX_POINTS, 6) scratch: the k m edge wrenches (and with gamma > 0 the 2 k
+            torsional ones after them) are left in its first rows.
         poly, ridges: the expansion's tables (``expansion.new_polytope``, ``new_ridges``).
 
     Returns:
@@ -68,18 +72,23 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
     """
     if not (np.isfinite(friction) and friction >= 0.0 and np.isfinite(torque_scale)
             and torque_scale > 0.0 and np.isfinite(center_x) and np.isfinite(center_y)
-            and np.isfinite(center_z)):
+            and np.isfinite(center_z) and np.isfinite(gamma) and gamma >= 0.0):
         return REJECTED, 0.0
     k = points.shape[0]
     unit = np.empty((k, 3))
     if not unit_normals_into(points, normals, unit):
         return REJECTED, 0.0
-    n = k * cos_t.shape[0]
+    edges = k * cos_t.shape[0]
+    n = edges + (2 * k if gamma > 0.0 else 0)
     wrenches = w[:n]
     center = np.empty((1, 3))
     center[0, 0], center[0, 1], center[0, 2] = center_x, center_y, center_z
     wrenches_into(points.reshape(1, k, 3), unit.reshape(1, k, 3), np.full(1, friction),
-                  cos_t, sin_t, np.full(1, torque_scale), center, wrenches.reshape(1, n, 6))
+                  cos_t, sin_t, np.full(1, torque_scale), center,
+                  w[:edges].reshape(1, edges, 6))
+    if gamma > 0.0:
+        torsion_into(points, unit, torque_scale, center_x, center_y, center_z, gamma,
+                     w[edges:n])
     scale = 0.0
     for i in range(n):
         for c in range(6):
@@ -87,7 +96,7 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
             if not wrench_size_ok(size):
                 return REJECTED, 0.0
             scale = max(scale, size)
-    if k <= 2:  # every wrench has zero moment about the line through the points
+    if k <= 2 and gamma == 0.0:  # every point wrench has zero moment about that line
         return DONE, 0.0
     start, q, certified = screen(wrenches)
     if start[0] >= 0:
@@ -100,3 +109,23 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
     if closure == BARELY_CLOSED:
         return CHECK_RANK, q
     return DONE, q
+
+
+@jit.kernel(inline="always")
+def torsion_into(points, unit, torque_scale, center_x, center_y, center_z, gamma, out):
+    """The soft contacts' torsional primitives into out (2 k, 6): rows 2 i and 2 i + 1 are
+    contact i's (n, s (p - c) x n + s gamma n) and (n, s (p - c) x n - s gamma n) (points,
+    unit normals (k, 3); s the torque scale, c the centre, gamma in metres)."""
+    for i in range(points.shape[0]):
+        n0, n1, n2 = unit[i, 0], unit[i, 1], unit[i, 2]
+        l0 = (points[i, 0] - center_x) * torque_scale
+        l1 = (points[i, 1] - center_y) * torque_scale
+        l2 = (points[i, 2] - center_z) * torque_scale
+        t0, t1, t2 = l1 * n2 - l2 * n1, l2 * n0 - l0 * n2, l0 * n1 - l1 * n0
+        g = torque_scale * gamma
+        for sign in range(2):
+            row = out[2 * i + sign]
+            twist = g if sign == 0 else -g
+            row[0], row[1], row[2] = n0, n1, n2
+            row[3], row[4], row[5] = t0 + twist * n0, t1 + twist * n1, t2 + twist * n2
+

@@ -52,6 +52,7 @@ import numpy as np
 from kinegrasp_env.quality.epsilon import (
     Method,
     Norm,
+    compiled_single,
     exact_quality,
     ferrari_canny,
     ferrari_canny_batch,
@@ -214,12 +215,27 @@ def contact_quality(points, normals, *, contact_model: ContactModel = "point",
                     torsion: float | None = None, method: Method = "auto",
                     norm: Norm = "l1") -> float:
     """Q of one grasp (k, 3) under a contact model (:func:`contact_quality_batch`'s
-    arguments); ``point``: :func:`~kinegrasp_env.quality.epsilon.ferrari_canny`'s value."""
+    arguments); ``point``: :func:`~kinegrasp_env.quality.epsilon.ferrari_canny`'s value.
+    ``soft`` with the defaults' method and norm and plain input: one compiled call, as the
+    point model's (:func:`~kinegrasp_env.quality.epsilon.compiled_single`: the wrenches,
+    the expansion, qhull where it cannot certify); its Q may differ from
+    :func:`contact_quality_batch`'s in the last digits (the primitives in another order)."""
     model = check_contact_model(contact_model)
     if model == "point":
         return ferrari_canny(points, normals, friction=friction, num_edges=num_edges,
                              torque_scale=torque_scale, center=center, method=method,
                              norm=norm)
+    if method == "auto" and norm == "l1" and (torsion is None or type(torsion) is float):
+        try:
+            gamma = (torsion_coefficient(friction, finger_radius) if torsion is None
+                     else torsion)
+        except (TypeError, ValueError):
+            gamma = None  # the batch path's checks word the error
+        if gamma is not None and gamma > 0.0:
+            q = compiled_single(points, normals, friction, num_edges, torque_scale, center,
+                                gamma)
+            if q is not None:
+                return q
     if np.ndim(points) != 2:
         raise ValueError(f"points must have shape (k, 3), got {np.shape(points)}")
     return float(contact_quality_batch(
