@@ -37,7 +37,8 @@ magnitude (f = 1) is ``torsion=pi * r**2 * mu`` here, in this model's primitives
 
 Q and force closure of a primitive set are the project's (docs/conventions.md): the
 distance from the origin to the nearest facet of the convex hull of the primitives, through
-:func:`~kinegrasp_env.quality.epsilon.exact_quality` (the certified expansion, else qhull).
+:func:`~kinegrasp_env.quality.epsilon.exact_quality` (the certified expansion, else qhull;
+one grasp in one compiled call, :func:`~kinegrasp_env.quality.epsilon.compiled_single`).
 With ``contact_model="point"`` every function here returns what the point-contact functions
 return, bit for bit (it calls them).
 """
