@@ -330,13 +330,14 @@ def compiled_single(points, normals, friction, num_edges, torque_scale, center,
         return None
     center_x, center_y, center_z = center
     single = _single_module()
+    torsion_rows = 2 if gamma > 0.0 else 0  # a soft contact's two torsional primitives
     if not (type(points) is np.ndarray and type(normals) is np.ndarray
             and points.dtype == np.float64 and normals.dtype == np.float64
             and points.ndim == 2 and points.shape == normals.shape and points.shape[1] == 3
             and points.shape[0] >= 1 and points.flags.c_contiguous
             and normals.flags.c_contiguous
             and type(num_edges) is int and 3 <= num_edges <= MAX_EDGES
-            and points.shape[0] * (num_edges + (2 if gamma > 0.0 else 0)) <= single.MAX_POINTS
+            and points.shape[0] * (num_edges + torsion_rows) <= single.MAX_POINTS
             and type(friction) in _PLAIN_NUMBERS and type(torque_scale) in _PLAIN_NUMBERS
             and type(center_x) in _PLAIN_NUMBERS and type(center_y) in _PLAIN_NUMBERS
             and type(center_z) in _PLAIN_NUMBERS):
@@ -352,7 +353,7 @@ def compiled_single(points, normals, friction, num_edges, torque_scale, center,
                                        float(gamma), w, poly, ridges)
     if status == single.DONE:
         return q
-    rows = w[:points.shape[0] * (num_edges + (2 if gamma > 0.0 else 0))]
+    rows = w[:points.shape[0] * (num_edges + torsion_rows)]
     if status == single.CHECK_RANK:
         return 0.0 if _rank_deficient(rows) else q
     if status == single.NOT_CERTIFIED:

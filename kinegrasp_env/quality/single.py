@@ -21,6 +21,7 @@ from kinegrasp_env.quality.wrenches import (
     BARELY_CLOSED,
     NOT_CLOSED,
     closure_class,
+    torsion_into,
     unit_normals_into,
     wrench_size_ok,
     wrenches_into,
@@ -109,23 +110,3 @@ def single_epsilon(points, normals, friction, cos_t, sin_t, torque_scale, center
     if closure == BARELY_CLOSED:
         return CHECK_RANK, q
     return DONE, q
-
-
-@jit.kernel(inline="always")
-def torsion_into(points, unit, torque_scale, center_x, center_y, center_z, gamma, out):
-    """The soft contacts' torsional primitives into out (2 k, 6): rows 2 i and 2 i + 1 are
-    contact i's (n, s (p - c) x n + s gamma n) and (n, s (p - c) x n - s gamma n) (points,
-    unit normals (k, 3); s the torque scale, c the centre, gamma in metres)."""
-    for i in range(points.shape[0]):
-        n0, n1, n2 = unit[i, 0], unit[i, 1], unit[i, 2]
-        l0 = (points[i, 0] - center_x) * torque_scale
-        l1 = (points[i, 1] - center_y) * torque_scale
-        l2 = (points[i, 2] - center_z) * torque_scale
-        t0, t1, t2 = l1 * n2 - l2 * n1, l2 * n0 - l0 * n2, l0 * n1 - l1 * n0
-        g = torque_scale * gamma
-        for sign in range(2):
-            row = out[2 * i + sign]
-            twist = g if sign == 0 else -g
-            row[0], row[1], row[2] = n0, n1, n2
-            row[3], row[4], row[5] = t0 + twist * n0, t1 + twist * n1, t2 + twist * n2
-

@@ -65,6 +65,7 @@ from kinegrasp_env.quality.wrenches import (
     check_wrenches,
     edge_wrenches,
     scale_center,
+    torsion_wrenches,
     wrench_matrix,
 )
 
@@ -149,19 +150,15 @@ def soft_primitives(points: np.ndarray, normals: np.ndarray, friction: float, nu
                     torque_scale: np.ndarray, center: np.ndarray, gamma: float) -> np.ndarray:
     """(B, k (m + 2), 6) soft-contact primitives of checked input (points, unit normals
     (B, k, 3), torque_scale (B,), center (B, 3); gamma in metres), laid out as
-    :func:`contact_wrenches` says. The cone edges and the normal wrenches (n, s (p - c) x n)
-    are ``edge_wrenches``' (the latter its edges at friction 0: f = n + 0 = n exactly)."""
+    :func:`contact_wrenches` says: the cone edges are ``edge_wrenches``', the torsional
+    primitives ``torsion_wrenches``' (the one compiled rule the single-grasp call uses too)."""
     batch, k = points.shape[:2]
     m = num_edges
-    edges = edge_wrenches(points, normals, friction, m, torque_scale, center)
-    normal = edge_wrenches(points, normals, 0.0, 3, torque_scale, center)[:, ::3]  # (B, k, 6)
-    twist = (torque_scale * gamma)[:, None, None] * normals  # (B, k, 3): s gamma n
     out = np.empty((batch, k, m + TORSION_PRIMITIVES, 6))
-    out[:, :, :m] = edges.reshape(batch, k, m, 6)
-    out[:, :, m] = normal
-    out[:, :, m + 1] = normal
-    out[:, :, m, 3:] += twist
-    out[:, :, m + 1, 3:] -= twist
+    out[:, :, :m] = edge_wrenches(points, normals, friction, m, torque_scale,
+                                  center).reshape(batch, k, m, 6)
+    out[:, :, m:] = torsion_wrenches(points, normals, torque_scale, center,
+                                     gamma).reshape(batch, k, TORSION_PRIMITIVES, 6)
     return out.reshape(batch, k * (m + TORSION_PRIMITIVES), 6)
 
 
