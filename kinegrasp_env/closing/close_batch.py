@@ -76,7 +76,8 @@ class RobotCloseBatch:
                    {name: np.concatenate([b.joints[name] for b in batches])
                     for name in batches[0].joints},
                    np.concatenate([b.queries for b in batches]),
-                   np.concatenate([b.row + o for b, o in zip(batches, offsets, strict=False)]),
+                   np.concatenate([b.row + o
+                                   for b, o in zip(batches, offsets[:-1], strict=True)]),
                    *(np.concatenate([getattr(b, key) for b in batches])
                      for key in ("finger", "link", "points", "normals", "distances")))
 

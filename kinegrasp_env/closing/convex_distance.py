@@ -23,7 +23,8 @@ GAP_REL = 1e-10
 #: Iterations at most (a polytope pair of a few hundred vertices needs a dozen).
 MAX_ITER = 64
 
-__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "new_simplex", "stacked_vertices"]
+__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "new_simplex", "stacked_faces",
+           "stacked_vertices"]
 
 
 def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray]:
@@ -32,6 +33,16 @@ def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray]:
     :func:`hull_distance_bounds` reads."""
     return (np.ascontiguousarray(np.vstack([p.vertices for p in parts]), dtype=float),
             np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64))
+
+
+def stacked_faces(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Convex parts' face planes stacked (F, 4) with each part's first row (P + 1,) int64,
+    and their edges stacked (E, 2, 3) with each part's first row (P + 1,) int64: the layout
+    the compiled exact distances read."""
+    return (np.ascontiguousarray(np.vstack([p.planes for p in parts]), dtype=float),
+            np.cumsum([0] + [len(p.planes) for p in parts]).astype(np.int64),
+            np.ascontiguousarray(np.concatenate([p.edges for p in parts]), dtype=float),
+            np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64))
 
 
 def new_simplex() -> np.ndarray:

@@ -52,6 +52,7 @@ from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
 from kinegrasp_env.closing.convex_distance import (
     hull_distance_bounds,
     new_simplex,
+    stacked_faces,
     stacked_vertices,
 )
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths, link_poses
@@ -82,8 +83,6 @@ SHORT = 0.5
 #: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
 SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
-#: Draws whose exact point distances are computed at once (bounds the memory).
-CHUNK = 64
 
 __all__ = ["FastRobotHand"]
 
@@ -110,24 +109,17 @@ class FastRobotHand:
         self.kinematics = Kinematics(self.model)
         self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
         self.paths = finger_paths(description, self.geometry)
-        self.edges = np.concatenate([part.edges for part in obj.convex_parts])
+        planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
         self._link_hulls = {link: stacked_vertices(geom.parts)
                             for link, geom in self.geometry.items()}
         self._simplex = new_simplex()
-        self._link_features = {
-            link: (np.ascontiguousarray(np.vstack([p.planes for p in geom.parts])),
-                   np.ascontiguousarray(np.concatenate([p.edges for p in geom.parts])),
-                   np.cumsum([0] + [len(p.edges) for p in geom.parts]).astype(np.int64))
-            for link, geom in self.geometry.items()}
+        self._link_faces = {link: stacked_faces(geom.parts)
+                            for link, geom in self.geometry.items()}
         self._patch = PatchGeometry(obj.parts)
-        parts = obj.convex_parts
-        self._parts = (np.ascontiguousarray(np.vstack([p.planes for p in parts])),
-                       np.cumsum([0] + [len(p.planes) for p in parts]).astype(np.int64),
-                       np.ascontiguousarray(np.concatenate([p.edges for p in parts])),
-                       np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64),
-                       np.array([INSIDE_TOL * p.scale for p in parts]))
+        self._parts = (planes, plane_starts, self.edges, edge_starts,
+                       np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
     # ------------------------------------------------------------------ distances
     def _exact(self, poses: np.ndarray, link: str, below: float = np.inf,
@@ -149,15 +141,18 @@ class FastRobotHand:
         dist, fp, op = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
         vertices_against_parts(*self._parts, rot, trans, geom.vertices, float(below), dist, fp,
                                op)
-        rows = np.flatnonzero(~(dist < below)) if decide else np.arange(n)
-        if rows.size < n:
+        rows = np.flatnonzero(~(dist < below)) if decide else None
+        if rows is not None:  # the edges of the undecided draws only
             rot, trans = rot[rows], trans[rows]
-        d, f, o = dist[rows], fp[rows], op[rows]
+            d, f, o = dist[rows], fp[rows], op[rows]
+        else:
+            d, f, o = dist, fp, op
         for part in geom.parts:
             edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
                                self.edges, float(below), SEARCH, GOLD, d, f, o,
                                self._local_edges)
-        dist[rows], fp[rows], op[rows] = d, f, o
+        if rows is not None:
+            dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
 
     def start_collision(self, q: np.ndarray, start_tol: float = START_TOL) -> np.ndarray:
@@ -215,8 +210,10 @@ class FastRobotHand:
         gaps = np.full((n, len(fingers)), np.nan)
         travel = np.zeros((n, len(fingers)))
         final = {name: values0[name].copy() for name in values0}
-        found: dict[str, list] = {key: [] for key in ("row", "finger", "link", "points",
-                                                      "normals", "distances")}
+        found: dict[str, list] = {  # each column's pieces, an empty one first
+            "row": [np.empty(0, np.int64)], "finger": [np.empty(0, np.int64)],
+            "link": [np.empty(0, np.int64)], "points": [np.empty((0, 3))],
+            "normals": [np.empty((0, 3))], "distances": [np.empty(0)]}
         queries = np.zeros(n, dtype=np.int64)
         free = np.flatnonzero(~start)
         for f in range(len(fingers)):
@@ -241,10 +238,7 @@ class FastRobotHand:
                                            ("distances", d[on])):
                             found[key].append(np.broadcast_to(value, points.shape[:1]
                                                               + np.shape(value)[1:]))
-        empty = {"row": (np.int64, ()), "finger": (np.int64, ()), "link": (np.int64, ()),
-                 "points": (float, (3,)), "normals": (float, (3,)), "distances": (float, ())}
-        columns = {key: np.concatenate([*found[key], np.empty((0, *shape), kind)])
-                   for key, (kind, shape) in empty.items()}
+        columns = {key: np.concatenate(pieces) for key, pieces in found.items()}
         order = np.argsort(columns["row"], kind="stable")  # by finger, then link, per draw
         return RobotCloseBatch(start, np.where(start[:, None], False, gaps > contact_tol),
                                gaps, travel, final, queries,
@@ -342,7 +336,7 @@ class FastRobotHand:
             points[on_face] = placed
         edge = np.flatnonzero(~on_face)
         if edge.size:
-            planes, edges, starts = self._link_features[link]
+            planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))
             pair_normals(planes, edges, starts, self.edges,
                          np.ascontiguousarray(poses[edge, :3, :3]),
