@@ -11,7 +11,7 @@ import numpy as np
 from kinegrasp_env.closing.generic_reference import finger_speed
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import axis_angle_matrix
+from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 
 __all__ = ["FingerPath", "finger_paths", "link_poses"]
 
@@ -42,23 +42,14 @@ class FingerPath:
     translating: bool
 
 
-def _chain(description: RobotDescription, parent: dict, link: str) -> list:
-    """Joints from the palm to ``link``, palm first."""
-    chain = []
-    while link != description.palm_link:
-        joint = parent[link]
-        chain.append(joint)
-        link = joint.parent
-    return chain[::-1]
-
-
-def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry]
-                 ) -> list[FingerPath]:
+def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry],
+                 kinematics: Kinematics) -> list[FingerPath]:
     """Every finger's :class:`FingerPath` (its links: those of ``geometry``, link name ->
-    collision geometry)."""
+    collision geometry; ``kinematics``: the robot's, whose chains from the base give those
+    from the palm)."""
     model = description.model
     drivers = model.drivers()
-    parent = {j.child: j for j in model.joints}
+    palm = len(kinematics.chain(description.palm_link))
     out = []
     for finger in description.fingers:
         rates, lower, upper, kinds = [], [], [], []
@@ -70,7 +61,7 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
             upper.append(joint.upper)
             kinds.append(joint.kind)
         links = tuple(link for link in finger.links if link in geometry)
-        chains = {link: _chain(description, parent, link) for link in links}
+        chains = {link: kinematics.chain(link)[palm:] for link in links}
         reach = []
         for name in finger.joints:  # largest distance from the joint to points it moves
             far = 0.0

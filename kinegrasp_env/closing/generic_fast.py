@@ -108,7 +108,7 @@ class FastRobotHand:
         self.geometry = link_geometry(description) if geometry is None else geometry
         self.kinematics = Kinematics(self.model)
         self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
-        self.paths = finger_paths(description, self.geometry)
+        self.paths = finger_paths(description, self.geometry, self.kinematics)
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
