@@ -1,6 +1,6 @@
 """A robot link's collision geometry for the fast generic closing: its hull vertices and
-convex parts in the link's frame (read once from pybullet), the distance grid's error bound,
-and the one segment whose interior holds a point."""
+convex parts in the link's frame (read once from pybullet), and the distance grid's error
+bound."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env import jit
 from kinegrasp_env.closing.contact_patch import link_hull_vertices
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.polytope import ConvexPart, face_planes
@@ -82,28 +81,3 @@ def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
     from kinegrasp_env.closing.contact_patch import _mesh_hull
 
     return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))
-
-
-@jit.kernel(_nrt=False)
-def segment_holding(segments, x, y, z, tol, direction):
-    """Index of the one segment of ``segments`` (E, 2, 3) whose interior holds the point
-    (x, y, z) (within ``tol`` metres, not within ``tol`` of its ends), its unit direction in
-    ``direction`` (3,); -1 where none, several, or the point lies at an end of one."""
-    found = -1
-    for e in range(segments.shape[0]):
-        ax, ay, az = segments[e, 0, 0], segments[e, 0, 1], segments[e, 0, 2]
-        dx, dy, dz = segments[e, 1, 0] - ax, segments[e, 1, 1] - ay, segments[e, 1, 2] - az
-        if (np.sqrt((x - ax) ** 2 + (y - ay) ** 2 + (z - az) ** 2) < tol
-                or np.sqrt((x - ax - dx) ** 2 + (y - ay - dy) ** 2 + (z - az - dz) ** 2) < tol):
-            return -1
-        length2 = dx * dx + dy * dy + dz * dz
-        s = ((x - ax) * dx + (y - ay) * dy + (z - az) * dz) / max(length2, 1e-300)
-        s = min(max(s, 0.0), 1.0)
-        gap = np.sqrt((ax + s * dx - x) ** 2 + (ay + s * dy - y) ** 2 + (az + s * dz - z) ** 2)
-        length = np.sqrt(length2)
-        if gap < tol and s * length > tol and (1.0 - s) * length > tol:
-            if found >= 0:
-                return -1
-            found = e
-            direction[0], direction[1], direction[2] = dx / length, dy / length, dz / length
-    return found

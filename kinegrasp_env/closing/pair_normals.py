@@ -17,14 +17,38 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing.link_geometry import segment_holding
 
 #: A point within this of a segment's interior (metres) lies on it (:func:`segment_holding`).
 LINE_TOL = 1e-7
 #: Below this |u x v| two unit edge directions count as parallel.
 PARALLEL = 1e-6
 
-__all__ = ["LINE_TOL", "PARALLEL", "pair_normals"]
+__all__ = ["LINE_TOL", "PARALLEL", "pair_normals", "segment_holding"]
+
+
+@jit.kernel(_nrt=False)
+def segment_holding(segments, x, y, z, tol, direction):
+    """Index of the one segment of ``segments`` (E, 2, 3) whose interior holds the point
+    (x, y, z) (within ``tol`` metres, not within ``tol`` of its ends), its unit direction in
+    ``direction`` (3,); -1 where none, several, or the point lies at an end of one."""
+    found = -1
+    for e in range(segments.shape[0]):
+        ax, ay, az = segments[e, 0, 0], segments[e, 0, 1], segments[e, 0, 2]
+        dx, dy, dz = segments[e, 1, 0] - ax, segments[e, 1, 1] - ay, segments[e, 1, 2] - az
+        if (np.sqrt((x - ax) ** 2 + (y - ay) ** 2 + (z - az) ** 2) < tol
+                or np.sqrt((x - ax - dx) ** 2 + (y - ay - dy) ** 2 + (z - az - dz) ** 2) < tol):
+            return -1
+        length2 = dx * dx + dy * dy + dz * dz
+        s = ((x - ax) * dx + (y - ay) * dy + (z - az) * dz) / max(length2, 1e-300)
+        s = min(max(s, 0.0), 1.0)
+        gap = np.sqrt((ax + s * dx - x) ** 2 + (ay + s * dy - y) ** 2 + (az + s * dz - z) ** 2)
+        length = np.sqrt(length2)
+        if gap < tol and s * length > tol and (1.0 - s) * length > tol:
+            if found >= 0:
+                return -1
+            found = e
+            direction[0], direction[1], direction[2] = dx / length, dy / length, dz / length
+    return found
 
 
 @jit.kernel(_nrt=False)
