@@ -35,6 +35,7 @@ from kinegrasp_env.cli.robot_grasps import (
     _check_engine,
     _refuse,
     evaluate_robot,
+    refuse_static_hold,
 )
 
 #: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
@@ -58,6 +59,7 @@ def cmd_evaluate(args) -> int:
     robot = args.robot or grasp.robot
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
         return evaluate_robot(args, index, grasp, robot, sigma, samples, seed)
+    refuse_static_hold(args, robot)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)
@@ -292,6 +294,11 @@ def add_commands(sub) -> None:
                    "evaluation (as `kinegrasp report`)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
                    f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
+    p.add_argument("--static-hold", action="store_true",
+                   help="also check each draw's static hold: can its contacts carry the "
+                   "object's weight (catalog mass) in six gravity directions and the lift "
+                   "with forces in the friction cones and the hand's effort limits; prints "
+                   "P(hold, static) (robots other than the default)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

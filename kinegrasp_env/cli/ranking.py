@@ -25,7 +25,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot, refuse_static_hold
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -33,6 +33,8 @@ if TYPE_CHECKING:
 
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
                "error", "samples", "engine")
+#: The static hold check's columns (``--static-hold``, ``--criterion hold_static``).
+HOLD_COLUMNS = ("p_hold_static", "p_hold_static_lo", "p_hold_static_hi")
 CHUNK = 250
 #: The friction cone ``rank`` scores with (the library's defaults, docs/conventions.md) and
 #: its noise sampler: fixed, but recorded in the resume log with every other setting.
@@ -83,6 +85,7 @@ def cmd_rank(args) -> int:
                        engine)
         _write_rejected(rejected, out)
         return 0
+    refuse_static_hold(args, robot)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
@@ -304,27 +307,38 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
         g = grasps[r.index]
         lo, hi = r.interval()
         mean, std, skew = r.q_stats()
+        hold_lo, hold_hi = r.hold_interval()
         rows.append({"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
                      "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
-                     "samples": r.trials, "engine": engine})
+                     "samples": r.trials, "engine": engine, "p_hold_static": r.p_hold,
+                     "p_hold_static_lo": hold_lo, "p_hold_static_hi": hold_hi})
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     labels = adaptive.certified if adaptive is not None else [None] * len(rows)
     extra = ("certified",) if adaptive is not None else ()
-    writer.writerow(CSV_COLUMNS + extra)
+    hold = HOLD_COLUMNS if any(r.hold_trials for r in results) else ()
+    writer.writerow(CSV_COLUMNS + hold + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
-                         row["engine"], *([label] if extra else [])])
+                         row["engine"], *(_fmt(row[c]) for c in hold),
+                         *([label] if extra else [])])
     write_atomic(out, buffer.getvalue())
     if partial.exists():
         partial.unlink()
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
-          f"{'draws':>6}" + (f" {'certified':>10}" if extra else ""))
+          f"{'draws':>6}" + (f" {'P(hold)':>7} {'95% CI':>15}" if hold else "")
+          + (f" {'certified':>10}" if extra else ""))
     for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
+        held = (f" {row['p_hold_static']:>7.3f} {row['p_hold_static_lo']:>7.3f}.."
+                f"{row['p_hold_static_hi']:<6.3f}" if hold else "")
         print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
-              f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + (f" {label:>10}" if extra else ""))
+              f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held
+              + (f" {label:>10}" if extra else ""))
+    if hold:
+        print("P(hold): the static hold check (the contacts carry the object's weight in six "
+              "gravity directions and the lift within the hand's effort limits)")
     if adaptive is not None:
         print(certified_line(adaptive, max(r.trials for r in results)))
     print(f"written to {out}")

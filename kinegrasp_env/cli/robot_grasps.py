@@ -26,6 +26,14 @@ def _refuse(args, options: dict[str, object], robot: str) -> None:
                            f"{DEFAULT_ROBOT})")
 
 
+def refuse_static_hold(args, robot: str) -> None:
+    """CLIError for ``--static-hold`` (or ``--criterion hold_static``) of the default robot,
+    whose engines do not run the static hold check."""
+    if getattr(args, "static_hold", False) or getattr(args, "criterion", None) == "hold_static":
+        raise CLIError(f"the static hold check (--static-hold, --criterion hold_static) runs "
+                       f"for description robots such as --robot panda, not for {robot}")
+
+
 def _check_engine(engine: str, robot: str) -> None:
     """CLIError unless ``engine`` is one of a description robot's engines."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
@@ -73,7 +81,10 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     with reported(ValueError):
         check_robot(grasp, robot)
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                     noise=args.noise, robot=robot, engine=args.engine)
+                                     noise=args.noise, robot=robot, engine=args.engine,
+                                     static_hold=args.static_hold)
+    hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
+             "mass_kg": stats.mass} if args.static_hold else {})
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
@@ -81,7 +92,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                           "seed": seed, "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
                           "q_nominal": grasp.q_nominal, "q_mean": finite(stats.q_mean),
                           "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
-                          "outcomes": stats.counts}))
+                          "outcomes": stats.counts, **hold}))
         return 0
     lo, hi = stats.ci
     print(f"{grasp.object} grasp {index} of robot {robot}, sigma = {sigma:g} rad "
@@ -91,6 +102,11 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     print(f"  Q (Ferrari-Canny, {model} contacts; mean, "
           f"std, skewness over the force-closure draws): nominal {grasp.q_nominal:.5f}, mean "
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
+    if args.static_hold:
+        lo, hi = stats.hold_ci
+        print(f"  P(hold, static) = {stats.p_hold_static:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
+              f"object mass {stats.mass:.3f} kg, six gravity directions and the lift, the "
+              f"hand's effort limits)")
     print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
     return 0
 
@@ -120,7 +136,8 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
         for g in grasps:
             check_robot(g, robot)
     results = []
-    with make_engine(args.engine, robot, objects.pop()) as engine:
+    static_hold = args.static_hold or args.criterion == "hold_static"
+    with make_engine(args.engine, robot, objects.pop(), static_hold=static_hold) as engine:
         for index, g in enumerate(grasps):
             stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
                                          noise=args.noise, engine=engine)
@@ -128,5 +145,7 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
             result = CandidateResult(index)
             result.add(int(fc.sum()), samples,
                        StreamingMoments(1).update(stats.draws.quality[fc]), 1)
+            if static_hold:
+                result.add_holds(int(stats.draws.holds.sum()), samples)
             results.append(result)
     return order(results, args.criterion)

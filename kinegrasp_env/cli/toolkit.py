@@ -27,7 +27,7 @@ from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
 #: building the parser imports no NumPy or SciPy.
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static")
 
 
 def cmd_plan(args) -> int:
@@ -109,7 +109,14 @@ def add_commands(sub) -> None:
     p.set_defaults(samples="2000")
     p.add_argument("--criterion", default="pfc", choices=CRITERIA,
                    help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
-                   "interval, or P(FC) x (1 + mean Q)")
+                   "interval, P(FC) x (1 + mean Q), or P(hold, static): the fraction of draws "
+                   "whose contacts can carry the object's weight in six directions with the "
+                   "hand's effort limits (robots other than the default)")
+    p.add_argument("--static-hold", action="store_true",
+                   help="also check each draw's static hold: can its contacts carry the "
+                   "object's weight (catalog mass) in six gravity directions and the lift "
+                   "with forces in the friction cones and the hand's effort limits; adds the "
+                   "column P(hold, static) (robots other than the default)")
     p.add_argument("--adaptive", action="store_true",
                    help="stop drawing once a top k is certified: exact tests on the paired "
                    "draws of every two candidates (common noise); the table lists the "

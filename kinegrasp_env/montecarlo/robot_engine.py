@@ -20,6 +20,7 @@ from kinegrasp_env.montecarlo.engines import (
     provisional_outcomes,
 )
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
+from kinegrasp_env.quality.static_hold import HOLD_LOADS
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
@@ -35,6 +36,9 @@ class RobotDraws:
         n_contacts: (n,) contacts found.
         points, normals: (n, k, 3) contacts (object frame, normals inward), NaN-padded.
         finger, link: (n, k) int8 finger index and link index within it, -1 padded.
+        held: (n, 6) bool, the static hold check's verdict per load
+            (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`; all False where
+            the engine does not check it).
     """
 
     outcome: np.ndarray
@@ -44,12 +48,19 @@ class RobotDraws:
     normals: np.ndarray
     finger: np.ndarray
     link: np.ndarray
+    held: np.ndarray
 
     @classmethod
     def empty(cls, n: int, k: int) -> RobotDraws:
         return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
                    np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
-                   np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8))
+                   np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8),
+                   np.zeros((n, HOLD_LOADS), bool))
+
+    @property
+    def holds(self) -> np.ndarray:
+        """(n,) bool: the static hold check held every load."""
+        return self.held.all(axis=1)
 
 
 def outcome_of(result: RobotCloseResult) -> int:
@@ -97,17 +108,26 @@ class RobotEngine:
         object_name: catalog object.
         friction, num_edges: friction cone of the quality measure.
         finger_radius: soft contacts' patch radius (metres).
+        static_hold: also run the static hold check on every closing that touches
+            (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`).
     """
 
     name = ""
 
     def __init__(self, robot: str | RobotDescription, object_name: str, *,
                  friction: float = 0.5, num_edges: int = 8,
-                 finger_radius: float = FINGER_RADIUS) -> None:
+                 finger_radius: float = FINGER_RADIUS, static_hold: bool = False) -> None:
         self.description = load_robot(robot) if isinstance(robot, str) else robot
         self.obj = load_object(object_name)
         self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
         self.max_contacts = len(self.description.finger_links)
+        self.hold_check = None
+        if static_hold:
+            from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
+
+            self.hold_check = StaticHoldCheck(self.description, self.obj, friction=friction,
+                                              num_edges=num_edges,
+                                              finger_radius=finger_radius)
 
     def close(self) -> None:
         """Release what the engine holds (nothing by default)."""
@@ -147,5 +167,17 @@ class RobotEngine:
         return RobotCloseBatch.of_results(self.close_all(q))
 
     def run(self, q: np.ndarray) -> RobotDraws:
-        """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape)."""
-        return score_batch(self.close_batch(self.check(q)), self.max_contacts, self.quality)
+        """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape), with
+        the static hold check where the engine was asked for it."""
+        q = self.check(q)
+        batch = self.close_batch(q)
+        draws = score_batch(batch, self.max_contacts, self.quality)
+        if self.hold_check is not None:
+            touched = np.flatnonzero((draws.outcome == NO_FORCE_CLOSURE)
+                                     | (draws.outcome == FORCE_CLOSURE))
+            if touched.size:
+                values = {name: v[touched] for name, v in batch.joints.items()}
+                draws.held[touched] = self.hold_check.held(
+                    q[touched], values, draws.points[touched], draws.normals[touched],
+                    draws.finger[touched], draws.link[touched])
+        return draws

@@ -68,6 +68,9 @@ class RobotEvaluation:
         q_mean, q_std, q_skew: Q over the force-closure draws (NaN where too few; the
             skewness NaN too where every Q is the same).
         draws: the per-draw results.
+        p_hold_static, hold_ci: the fraction of draws the static hold check held and its
+            Wilson 95% interval (NaN where the engine did not check it).
+        mass: the object's mass the check used, kg (NaN where not checked).
     """
 
     n: int
@@ -78,20 +81,29 @@ class RobotEvaluation:
     q_std: float
     q_skew: float
     draws: RobotDraws
+    p_hold_static: float = float("nan")
+    hold_ci: tuple[float, float] = (float("nan"), float("nan"))
+    mass: float = float("nan")
 
 
-def summarize(draws: RobotDraws) -> RobotEvaluation:
-    """The statistics of per-draw results (see :class:`RobotEvaluation`)."""
+def summarize(draws: RobotDraws, mass: float | None = None) -> RobotEvaluation:
+    """The statistics of per-draw results (see :class:`RobotEvaluation`); ``mass`` (kg): the
+    draws carry the static hold check's verdicts, for an object of this mass."""
     n = int(draws.outcome.size)
     fc = draws.outcome == FORCE_CLOSURE
     k = int(fc.sum())
     q = draws.quality[fc]
+    hold = {}
+    if mass is not None:
+        held = int(draws.holds.sum())
+        hold = {"p_hold_static": held / n if n else float("nan"),
+                "hold_ci": wilson_interval(held, n), "mass": float(mass)}
     return RobotEvaluation(
         n, {name: int((draws.outcome == i).sum()) for i, name in enumerate(OUTCOMES)},
         k / n if n else float("nan"), wilson_interval(k, n),
         float(q.mean()) if k else float("nan"),
         float(q.std(ddof=1)) if k > 1 else float("nan"),
-        float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws)
+        float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws, **hold)
 
 
 #: The engines of a description robot, by name.
@@ -117,7 +129,8 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
                          seed: SeedLike = 0, noise: str = "gaussian",
                          engine: RobotEngine | str = "pybullet",
-                         robot: str | RobotDescription | None = None) -> RobotEvaluation:
+                         robot: str | RobotDescription | None = None,
+                         static_hold: bool = False) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints.
 
     Args:
@@ -131,6 +144,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
             (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) or ``physics``
             (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`).
         robot: the robot to evaluate with (default: the grasp's).
+        static_hold: run the static hold check too (an engine to build; a given engine
+            checks when it was made with ``static_hold=True``).
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine.
@@ -150,14 +165,16 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     check_robot(grasp, name)
     own = isinstance(engine, str)
     if own:
-        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object)
+        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
+                             static_hold=static_hold)
     try:
         q0 = engine.check(grasp.q0)[0]
         arm = engine.description.arm_dof
         eps = noise_model.sample(int(n), arm, as_generator(seed))
         q = np.repeat(q0[None], int(n), axis=0)
         q[:, :arm] += eps
-        return summarize(engine.run(q))
+        check = engine.hold_check
+        return summarize(engine.run(q), None if check is None else check.mass)
     finally:
         if own:
             engine.close()

@@ -44,6 +44,15 @@ def lift_motion(protocol: HoldProtocol, times: np.ndarray) -> np.ndarray:
     return shifts
 
 
+def peak_lift_acceleration(protocol: HoldProtocol, samples: int = 4001) -> float:
+    """The largest upward acceleration of the lift (m/s^2): the second derivative of
+    :func:`lift_motion`'s height, by finite differences over ``samples`` times."""
+    times = np.linspace(0.0, protocol.lift_time, samples)
+    height = lift_motion(protocol, times)[:, 2]
+    step = times[1] - times[0]
+    return float(np.max(np.gradient(np.gradient(height, step), step)))
+
+
 def shake_motion(protocol: HoldProtocol, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The shake at times (s,) (seconds since it began): (translations (s, 3) of the palm
     centre, world frame, metres; rotation angles (s,) about :data:`SHAKE_AXIS` through the

@@ -79,7 +79,7 @@ class MujocoWorld:
         self.settings = settings or WorldSettings()
         if not self.settings.object_free:
             raise ValueError("the MuJoCo world's object is always free (object_free=True)")
-        self.model = build_model(obj, self.settings.friction, self.settings.density,
+        self.model = build_model(obj, self.settings.friction, self.settings.object_density(obj),
                                  self.settings.time_step / SUBSTEPS, contact)
         self.data = self.mujoco.MjData(self.model)
         model = self.model

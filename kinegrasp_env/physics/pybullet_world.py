@@ -63,7 +63,8 @@ class WorldSettings:
     """Physical settings of the world.
 
     Attributes:
-        density: of the object, kg/m^3 (default 500: wood, or a plastic part with air inside).
+        density: of the object, kg/m^3; None (the default): the catalog object's own
+            (:attr:`~kinegrasp_env.world.objects.GraspObject.density`).
         friction: Coulomb friction mu between a finger and the object (the quality's mu).
         object_free: the object is a dynamic body (it can be pushed); False: static.
         support_damping: while the hand closes (gravity off) a free object's linear and
@@ -77,7 +78,7 @@ class WorldSettings:
         solver_iterations: pybullet's constraint-solver iterations per step.
     """
 
-    density: float = 500.0
+    density: float | None = None
     friction: float = 0.5
     object_free: bool = True
     support_damping: float = 20.0
@@ -87,12 +88,18 @@ class WorldSettings:
     def __post_init__(self) -> None:
         for name in ("density", "friction", "time_step"):
             value = getattr(self, name)
+            if name == "density" and value is None:
+                continue
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
         if not (np.isfinite(self.support_damping) and self.support_damping >= 0):
             raise ValueError(f"support_damping must be >= 0, got {self.support_damping!r}")
         if self.solver_iterations < 1:
             raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations!r}")
+
+    def object_density(self, obj: GraspObject) -> float:
+        """kg/m^3: :attr:`density`, or the object's own where it is None."""
+        return obj.density if self.density is None else float(self.density)
 
 
 def quaternion_matrix(orientation) -> np.ndarray:
@@ -189,7 +196,7 @@ class PhysicsWorld(BulletWorld):
                                          deterministicOverlappingPairs=1)
         hand, self.joint_index, self.link_index = load_dynamic_hand(bullet)
         self.bodies["hand"] = hand
-        self.mass, moments, self.inertial = mass_properties(obj, self.settings.density)
+        self.mass, moments, self.inertial = mass_properties(obj, self.settings.object_density(obj))
         self.inertial_inverse = np.linalg.inv(self.inertial)
         self.bodies["object"] = self._object_body(moments)
         if obj.table is not None:  # the object rests on it; fingers stall on it

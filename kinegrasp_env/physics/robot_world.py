@@ -188,7 +188,7 @@ class RobotPhysicsWorld(PhysicsWorld):
         bullet.setPhysicsEngineParameter(numSolverIterations=self.settings.solver_iterations,
                                          deterministicOverlappingPairs=1)
         self.bodies["hand"] = self._load_hand()
-        self.mass, moments, self.inertial = mass_properties(obj, self.settings.density)
+        self.mass, moments, self.inertial = mass_properties(obj, self.settings.object_density(obj))
         self.inertial_inverse = np.linalg.inv(self.inertial)
         self.bodies["object"] = self._object_body(moments)
         if obj.table is not None:

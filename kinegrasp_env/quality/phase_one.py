@@ -51,7 +51,7 @@ def _phase_one_tableau(w: np.ndarray) -> np.ndarray:
 
 
 @jit.kernel(_nrt=False)
-def _leaving_row(tab: np.ndarray, basis: np.ndarray, enter: int, tol: float) -> int:
+def leaving_row(tab: np.ndarray, basis: np.ndarray, enter: int, tol: float) -> int:
     """Ratio test for entering column ``enter``, ties to the smallest basic index (Bland);
     -1 if no row qualifies."""
     rows, cols = basis.shape[0], tab.shape[1] - 1
@@ -68,7 +68,7 @@ def _leaving_row(tab: np.ndarray, basis: np.ndarray, enter: int, tol: float) -> 
 
 
 @jit.kernel(_nrt=False)
-def _pivot(tab: np.ndarray, leave: int, enter: int) -> None:
+def pivot(tab: np.ndarray, leave: int, enter: int) -> None:
     """Gauss-Jordan pivot of the tableau on (leave, enter)."""
     piv = tab[leave, enter]
     for j in range(tab.shape[1]):
@@ -158,10 +158,10 @@ def initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
                     break
         if enter < 0:
             break
-        leave = _leaving_row(tab, basis, enter, tol)
+        leave = leaving_row(tab, basis, enter, tol)
         if leave < 0:
             return np.array([-2])
-        _pivot(tab, leave, enter)
+        pivot(tab, leave, enter)
         basis[leave] = enter
     else:
         return np.array([-2])

@@ -77,7 +77,7 @@ DEFAULT_EPSILON = 0.01
 #: separated, not in it); neither yet.
 TOP, REST, UNRESOLVED = "top-k", "rest", "unresolved"
 
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static")
 #: Weight of mean Q in the ``weighted`` criterion.
 WEIGHT = 1.0
 #: evaluator(candidate index, first chunk, number of chunks) -> (successes, trials, moments)
@@ -96,6 +96,21 @@ class CandidateResult:
     trials: int = 0
     chunks: int = 0
     moments: StreamingMoments | None = None
+    holds: int = 0
+    hold_trials: int = 0
+
+    def add_holds(self, holds: int, trials: int) -> None:
+        """Count draws of the static hold check (held every load) among ``trials``."""
+        self.holds += holds
+        self.hold_trials += trials
+
+    @property
+    def p_hold(self) -> float:
+        """The fraction of draws the static hold check held (NaN where not checked)."""
+        return self.holds / self.hold_trials if self.hold_trials else math.nan
+
+    def hold_interval(self, confidence: float = 0.95) -> tuple[float, float]:
+        return wilson_interval(self.holds, self.hold_trials, confidence)
 
     def add(self, successes: int, trials: int, moments: StreamingMoments, chunks: int) -> None:
         self.successes += successes
@@ -133,6 +148,8 @@ def score(result: CandidateResult, criterion: str) -> float:
     if criterion == "weighted":
         mean = result.q_stats()[0]
         return result.p_fc * (1.0 + WEIGHT * (0.0 if math.isnan(mean) else mean))
+    if criterion == "hold_static":
+        return result.p_hold
     raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
 
 

@@ -52,6 +52,10 @@ if TYPE_CHECKING:
     import trimesh
 
 
+#: Density of an object whose catalog entry gives none, kg/m^3 (wood, or a plastic part with
+#: air inside).
+DEFAULT_DENSITY = 500.0
+
 @dataclass(frozen=True, eq=False)
 class GraspObject:
     """One catalog object.
@@ -75,6 +79,8 @@ class GraspObject:
             whose geometry (and, placed as the base is, shipped grasps) it has; else None.
         part_edges: per part, its true edges (E_i, 2, 3) as computed before, or None
             (:attr:`ConvexPart.edges` computes them).
+        density: kg/m^3, uniform (:data:`DEFAULT_DENSITY` unless the catalog entry gives
+            one); the mass is this times the mesh's volume (:attr:`mass`).
     """
 
     name: str
@@ -89,12 +95,18 @@ class GraspObject:
     table: SupportTable | None = None
     base: str | None = None
     part_edges: tuple[np.ndarray, ...] | None = field(default=None, repr=False)
+    density: float = DEFAULT_DENSITY
 
     @cached_property
     def mesh(self) -> trimesh.Trimesh:
         """Triangle mesh, object frame: for a built-in object the watertight union of the
         parts, for an imported one its cleaned source mesh."""
         return self.mesh_source()
+
+    @property
+    def mass(self) -> float:
+        """kg: :attr:`density` times the mesh's volume (uniform density)."""
+        return float(self.density * self.mesh.volume)
 
     @property
     def torque_scale(self) -> float:
@@ -289,7 +301,8 @@ def imported_object(folder: str, version: str) -> GraspObject:
     obj = object_from_parts(path.name, MeshFile(path / MESH_FILE, False), parts,
                             np.asarray(entry["center_of_mass"]), float(entry["r_max"]), None,
                             path / MESH_FILE)
-    return replace(obj, **entry_placement(entry))
+    return replace(obj, density=float(entry.get("density", DEFAULT_DENSITY)),
+                   **entry_placement(entry))
 
 
 @lru_cache(maxsize=8)
@@ -309,6 +322,7 @@ def placed_object(folder: str, version: str) -> GraspObject:
                            f"is no longer in the catalog; remove it with `kinegrasp objects "
                            f"remove {path.name}`") from None
     return replace(base, name=path.name, base=base.base or base.name,
+                   density=float(entry.get("density", base.density)),
                    **entry_placement(entry))
 
 
