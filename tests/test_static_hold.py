@@ -171,3 +171,18 @@ def test_panda_holds_the_cube_and_not_a_thousandfold_heavier_one(panda_cube) -> 
     batch = engine.close_batch(q)
     held = heavy.held(q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
     assert not held.any()
+
+
+def test_capacity_is_the_edge_of_the_held_loads(panda_cube) -> None:
+    """The bisection's capacity c is where the verdict turns: every load times 0.99 c held,
+    some load times 1.01 c not (invariant of the check itself, on the shipped cube grasps)."""
+    engine, grasps = panda_cube
+    check = engine.hold_check
+    q = np.array([g.q0 for g in grasps], dtype=float)
+    batch = engine.close_batch(q)
+    draws = engine.run(q)
+    terms = (q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
+    capacity = check.capacity(*terms, top=1e4, steps=30)
+    assert (capacity > 1).all() and (capacity < 1e4).all()
+    assert check.held(*terms, scale=0.99 * capacity).all()
+    assert not check.held(*terms, scale=1.01 * capacity).all(axis=1).any()

@@ -130,9 +130,10 @@ class StaticHoldCheck:
                     rows[draws[hit], joint_index, slot * per:(slot + 1) * per] = sign * effort
         return rows
 
-    def held(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
-             normals: np.ndarray, finger: np.ndarray, link: np.ndarray) -> np.ndarray:
-        """(B, 6) which of the six loads each closing holds.
+    def contact_terms(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
+                      normals: np.ndarray, finger: np.ndarray, link: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """(primitives (B, k P, 6), torque rows (B, J, k P)) of B closings.
 
         Args:
             q: (B, dof) the draws' configurations (the palm pose); values: joint name ->
@@ -140,15 +141,44 @@ class StaticHoldCheck:
             points, normals: (B, k, 3) the contacts (object frame; NaN where absent);
             finger, link: (B, k) their finger and link index (-1 where absent).
         """
-        batch = q.shape[0]
-        if batch == 0:
-            return np.zeros((0, self.loads.shape[0]), dtype=bool)
         palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
         full = self.description.model.expand(q)
         full.update({name: np.asarray(v, dtype=float) for name, v in values.items()})
-        present = finger >= 0
-        w = self.primitives(points, normals, present)
-        rows = self.torque_rows(palm, full, finger, link, w)
-        batch_lower = np.broadcast_to(self.lower, (batch, self.lower.size))
-        batch_upper = np.broadcast_to(self.upper, (batch, self.upper.size))
-        return static_hold(w, rows, batch_lower, batch_upper, self.loads)
+        w = self.primitives(points, normals, finger >= 0)
+        return w, self.torque_rows(palm, full, finger, link, w)
+
+    def held(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
+             normals: np.ndarray, finger: np.ndarray, link: np.ndarray,
+             scale: np.ndarray | float = 1.0) -> np.ndarray:
+        """(B, 6) which of the six loads, times ``scale`` (a number or (B,)), each closing
+        holds (arguments: :meth:`contact_terms`)."""
+        if q.shape[0] == 0:
+            return np.zeros((0, self.loads.shape[0]), dtype=bool)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link)
+        return self._verdicts(w, rows, np.broadcast_to(scale, q.shape[:1]))
+
+    def _verdicts(self, w: np.ndarray, rows: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        # the programme is homogeneous: loads times s hold iff the loads hold with the
+        # limits divided by s
+        size = 1.0 / np.asarray(scale, dtype=float)[:, None]
+        return static_hold(w, rows, self.lower * size, self.upper * size, self.loads)
+
+    def capacity(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
+                 normals: np.ndarray, finger: np.ndarray, link: np.ndarray, *,
+                 top: float = 64.0, steps: int = 12) -> np.ndarray:
+        """(B,) the largest multiple of the object's weight (and lift) each closing holds in
+        all six directions, in [0, ``top``], by bisection on a log scale to a factor
+        ``top ** (2 ** -steps)`` (arguments: :meth:`contact_terms`); 0 where even
+        ``1 / top`` of it is not held."""
+        batch = q.shape[0]
+        if batch == 0:
+            return np.zeros(0)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link)
+        low, high = np.full(batch, -np.log(top)), np.full(batch, np.log(top))
+        at_top = self._verdicts(w, rows, np.exp(high)).all(axis=1)
+        above = self._verdicts(w, rows, np.exp(low)).all(axis=1)
+        for _ in range(steps):
+            middle = 0.5 * (low + high)
+            ok = self._verdicts(w, rows, np.exp(middle)).all(axis=1)
+            low, high = np.where(ok, middle, low), np.where(ok, high, middle)
+        return np.where(at_top, top, np.where(above, np.exp(low), 0.0))

@@ -1,0 +1,250 @@
+"""Which score predicts what physics does: every kinematic score of a draw against the holding
+test's verdict on the same draw, as ROC AUCs with bootstrap intervals.
+
+Draws and labels:
+
+* **kuka_sdh** (the paper's arm and hand): the shipped grasps of ``--objects`` (default the four
+  built-in ones), ``--samples`` draws each at joint noise ``--sigma`` and ``--seed``: exactly the
+  draws of ``kinegrasp validate`` with those options, labelled *held* or not by the holding test
+  in pybullet and in MuJoCo (the runs of ``benchmarks/simulator_agreement.py``, cached in
+  ``--out``; run together they share the cache).
+* **panda** (parallel jaws): its shipped grasps (and, on an object with none shipped, the
+  antipodal planner's, ``--plan`` of them), ``--samples`` draws each at every joint noise of
+  ``--panda-sigmas`` (palm poses a little and further off the planned one: at 0.0133 rad most
+  of its draws drop, near 0 most hold, so both occur), labelled by the holding test in
+  pybullet (MuJoCo holds only the default robot).
+
+Scores of each draw (the kinematic engines of a description robot, on the same
+configuration; higher: predicted to hold):
+
+* ``fc``: its closing in force closure (0/1); ``q``: its Ferrari-Canny Q;
+* ``p_fc``: P(FC) of ``--pfc-samples`` further draws at ``--sigma`` around it (fast engine);
+* ``static_hold``: the static hold check's verdict (0/1: the contacts carry the catalog mass
+  in six gravity directions and the lift within the hand's effort limits);
+* ``hold_capacity``: the largest multiple of that load they carry (continuous);
+* baselines from geometry alone: ``-centre_distance`` (the fingertips' centre at the
+  pre-shape to the centre of mass, negated).
+
+AUC: the Mann-Whitney probability that a held draw scores above a dropped one (ties count
+half); its interval: the 2.5 and 97.5 percentiles of 2,000 bootstrap resamples of the draws
+(seed 0). A score predicts better than chance where the interval's lower end is above 0.5.
+Written as JSON (``benchmarks/results/physics_agreement.json``) and as a table in the physics
+guide between ``<!-- physics-agreement:start -->`` and ``<!-- physics-agreement:end -->``.
+
+    python benchmarks/physics_agreement.py [--objects cube drill] [--samples 3]
+        [--sigma 0.0133] [--panda-sigmas 0.0033 0.0133] [--out out/simulator_agreement]
+
+The holding tests take most of the time: 1-4 s per draw and simulator for kuka_sdh, about
+0.5 s for panda.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from marked_section import write_between
+from results_file import add_options, settings, write_result
+from scipy.stats import rankdata
+from simulator_agreement import SIMULATORS, run_validate
+
+from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
+from kinegrasp_env.montecarlo.robot_engine import RobotDraws
+from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, HoldProtocol
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
+from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
+from kinegrasp_env.world.objects import OBJECT_NAMES
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "guides" / "physics.md"
+START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
+SCORES = ("fc", "q", "p_fc", "static_hold", "hold_capacity", "-centre_distance")
+BOOTSTRAP = 2000
+
+
+def auc(score: np.ndarray, label: np.ndarray) -> float:
+    """The Mann-Whitney AUC (ties count half); NaN without both classes."""
+    positives, negatives = int(label.sum()), int((~label).sum())
+    if positives == 0 or negatives == 0:
+        return float("nan")
+    ranks = rankdata(score)
+    return float((ranks[label].sum() - positives * (positives + 1) / 2)
+                 / (positives * negatives))
+
+
+def auc_interval(score: np.ndarray, label: np.ndarray, seed: int = 0) -> list[float]:
+    """The 95% percentile bootstrap interval of :func:`auc` (resampling draws)."""
+    rng = np.random.default_rng(seed)
+    n = label.size
+    values = []
+    for _ in range(BOOTSTRAP):
+        pick = rng.integers(0, n, n)
+        value = auc(score[pick], label[pick])
+        if not np.isnan(value):
+            values.append(value)
+    return [float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))]
+
+
+def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: int,
+                seed: int) -> dict[str, np.ndarray]:
+    """Every score (module docstring) of configurations q (n, dof)."""
+    engine_name = "pybullet" if robot == "kuka_sdh" else "fast"  # the SDH's capsule tips
+    with make_engine(engine_name, robot, obj, static_hold=True) as engine:
+        draws: RobotDraws = engine.run(q)
+        batch = engine.close_batch(q)
+        touched = draws.n_contacts > 0
+        capacity = np.zeros(q.shape[0])
+        if touched.any():
+            rows = np.flatnonzero(touched)
+            capacity[rows] = engine.hold_check.capacity(
+                q[rows], {k: v[rows] for k, v in batch.joints.items()}, draws.points[rows],
+                draws.normals[rows], draws.finger[rows], draws.link[rows])
+        description = engine.description
+        tips = [finger.tip for finger in description.fingers]
+        open_q = q.copy()
+        poses = engine.hold_check.kinematics.forward(open_q, tips)
+        centre = np.mean([poses[t][:, :3, 3] for t in tips], axis=0)
+        centre = centre @ engine.obj.pose_inverse[:3, :3].T + engine.obj.pose_inverse[:3, 3]
+        distance = np.linalg.norm(centre - engine.obj.center_of_mass, axis=1)
+        fc = (draws.outcome == 3).astype(float)
+    with make_engine("fast" if robot != "kuka_sdh" else "pybullet", robot, obj) as engine:
+        arm = engine.description.arm_dof
+        rng = np.random.default_rng(seed)
+        p_fc = np.zeros(q.shape[0])
+        count = pfc_samples if robot != "kuka_sdh" else max(pfc_samples // 10, 10)
+        for i, row in enumerate(q):
+            around = np.repeat(row[None], count, axis=0)
+            around[:, :arm] += JointNoise(sigma).sample(count, arm, rng)
+            p_fc[i] = float((engine.run(around).outcome == 3).mean())
+    return {"fc": fc, "q": draws.quality, "p_fc": p_fc,
+            "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
+            "-centre_distance": -distance}
+
+
+def kuka_draws(objects: list[str], args) -> tuple[dict, dict]:
+    """The kuka_sdh draws' scores and their labels per simulator."""
+    labels: dict[str, list[bool]] = {s: [] for s in SIMULATORS}
+    scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
+    validate = argparse.Namespace(grasp=list(range(12)), sigma=args.sigma,
+                                  samples=args.samples, seed=args.seed)
+    chunks = list(enumerate(chunk_sizes(args.samples, DEFAULT_CHUNK)))
+    for obj in objects:
+        held = {}
+        for simulator in SIMULATORS:
+            path = run_validate(simulator, obj, validate, args.out)
+            with path.open() as handle:
+                held[simulator] = {(int(r["grasp"]), int(r["draw"])): r["hold_outcome"] == "held"
+                                   for r in csv.DictReader(handle)}
+        grasps = shipped_grasps(obj)
+        q = np.concatenate([chunk_configurations(g.q0, JointNoise(args.sigma), args.seed,
+                                                 chunks) for g in grasps])
+        keys = [(i, d) for i in range(len(grasps)) for d in range(args.samples)]
+        for simulator in SIMULATORS:
+            labels[simulator] += [held[simulator][k] for k in keys]
+        for name, value in draw_scores("kuka_sdh", obj, q, args.sigma, args.pfc_samples,
+                                       args.seed).items():
+            scores[name].append(value)
+        print(f"  kuka_sdh {obj}: {len(keys)} draws scored", file=sys.stderr)
+    return ({k: np.concatenate(v) for k, v in scores.items()},
+            {k: np.array(v) for k, v in labels.items()})
+
+
+def panda_draws(objects: list[str], args) -> tuple[dict, dict]:
+    """The panda draws' scores and their pybullet labels."""
+    labels: list[bool] = []
+    scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
+    protocol = HoldProtocol()
+    for obj in objects:
+        grasps = (shipped_grasps(obj, robot="panda") if obj in shipped_objects("panda")
+                  else plan_robot_grasps("panda", obj, count=args.plan, seed=args.seed))
+        if not grasps:
+            print(f"  panda {obj}: no grasp planned, skipped", file=sys.stderr)
+            continue
+        rng = np.random.default_rng(args.seed)
+        rows = []
+        for g in grasps:
+            for sigma in args.panda_sigmas:
+                q = np.repeat(np.asarray(g.q0, dtype=float)[None], args.samples, axis=0)
+                q[:, :7] += JointNoise(sigma).sample(args.samples, 7, rng)
+                rows.append(q)
+        q = np.concatenate(rows)
+        start = time.perf_counter()
+        with RobotHoldEngine("panda", obj, protocol=protocol) as physics:
+            _, hold = physics.run_hold(q)
+        labels += list(hold.outcome == HELD)
+        counts = np.bincount(hold.outcome, minlength=len(HOLD_OUTCOMES))
+        print(f"  panda {obj}: " + ", ".join(f"{name} {count}" for name, count
+                                           in zip(HOLD_OUTCOMES, counts, strict=True)),
+              file=sys.stderr)
+        for name, value in draw_scores("panda", obj, q, args.sigma, args.pfc_samples,
+                                       args.seed).items():
+            scores[name].append(value)
+        print(f"  panda {obj}: {q.shape[0]} draws, holding tests "
+              f"{time.perf_counter() - start:.0f} s", file=sys.stderr)
+    return ({k: np.concatenate(v) for k, v in scores.items()},
+            {"pybullet": np.array(labels)})
+
+
+def table(scores: dict, labels: dict) -> dict:
+    """Per simulator: draws, held, and per score its AUC and interval."""
+    out = {}
+    for simulator, label in labels.items():
+        record = {"draws": int(label.size), "held": int(label.sum())}
+        for name in SCORES:
+            record[name] = {"auc": auc(scores[name], label),
+                            "ci95": auc_interval(scores[name], label)}
+        out[simulator] = record
+    return out
+
+
+def markdown(result: dict) -> str:
+    lines = ["| robot | simulator | draws | held | " + " | ".join(SCORES) + " |",
+             "|---" * (len(SCORES) + 4) + "|"]
+    for robot, per in result["robots"].items():
+        for simulator, record in per.items():
+            cells = [f"{record[s]['auc']:.2f} [{record[s]['ci95'][0]:.2f}, "
+                     f"{record[s]['ci95'][1]:.2f}]" for s in SCORES]
+            lines.append(f"| {robot} | {simulator} | {record['draws']} | {record['held']} | "
+                         + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--objects", nargs="+", default=list(OBJECT_NAMES),
+                        choices=OBJECT_NAMES)
+    parser.add_argument("--robots", nargs="+", default=["kuka_sdh", "panda"],
+                        choices=["kuka_sdh", "panda"])
+    parser.add_argument("--samples", type=int, default=3)
+    parser.add_argument("--sigma", type=float, default=0.0133)
+    parser.add_argument("--panda-sigmas", type=float, nargs="+", default=[0.0033, 0.0133])
+    parser.add_argument("--pfc-samples", type=int, default=200)
+    parser.add_argument("--plan", type=int, default=4)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=ROOT / "out" / "simulator_agreement")
+    parser.add_argument("--page", type=Path, default=PAGE)
+    parser.add_argument("--no-page", action="store_true")
+    add_options(parser, __file__)
+    args = parser.parse_args()
+    result = {"robots": {}}
+    for robot in args.robots:
+        runner = kuka_draws if robot == "kuka_sdh" else panda_draws
+        scores, labels = runner(args.objects, args)
+        result["robots"][robot] = table(scores, labels)
+    text = markdown(result)
+    print(text)
+    if not args.no_json:
+        write_result(__file__, {**result, "settings": settings(args)}, args.json_out)
+    if not args.no_page:
+        write_between(args.page, START, END, text)
+
+
+if __name__ == "__main__":
+    main()
