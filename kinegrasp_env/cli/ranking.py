@@ -33,8 +33,16 @@ if TYPE_CHECKING:
 
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
                "error", "samples", "engine")
-#: The static hold check's columns (``--static-hold``, ``--criterion hold_static``).
-HOLD_COLUMNS = ("p_hold_static", "p_hold_static_lo", "p_hold_static_hi")
+#: The hold scores' columns (``toolkit.ranking.HOLD_SCORES`` -> (CSV column, table header));
+#: each CSV column comes with its ``_lo`` and ``_hi`` interval ends.
+HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(hold)")}
+#: What each hold score is, printed under the table.
+HOLD_NOTES = {
+    "static": "P(stat): the static hold check (the contacts carry the object's weight in six "
+              "gravity directions and the lift within the hand's effort limits)",
+    "test": "P(hold): the quick holding test in pybullet (the hand closed on the object under "
+            "dynamics, six gravity directions and the lift; it agrees with the full test on "
+            "most draws: benchmarks/quick_hold.py)"}
 CHUNK = 250
 #: The friction cone ``rank`` scores with (the library's defaults, docs/conventions.md) and
 #: its noise sampler: fixed, but recorded in the resume log with every other setting.
@@ -307,17 +315,21 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
         g = grasps[r.index]
         lo, hi = r.interval()
         mean, std, skew = r.q_stats()
-        hold_lo, hold_hi = r.hold_interval()
-        rows.append({"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
-                     "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
-                     "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
-                     "samples": r.trials, "engine": engine, "p_hold_static": r.p_hold,
-                     "p_hold_static_lo": hold_lo, "p_hold_static_hi": hold_hi})
+        row = {"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
+               "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
+               "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
+               "samples": r.trials, "engine": engine}
+        for score, (column, _) in HOLD_COLUMNS.items():
+            row[column] = r.p_hold(score)
+            row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
+        rows.append(row)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     labels = adaptive.certified if adaptive is not None else [None] * len(rows)
     extra = ("certified",) if adaptive is not None else ()
-    hold = HOLD_COLUMNS if any(r.hold_trials for r in results) else ()
+    scores = [score for score in HOLD_COLUMNS if any(score in r.holds for r in results)]
+    hold = tuple(f"{HOLD_COLUMNS[score][0]}{end}" for score in scores
+                 for end in ("", "_lo", "_hi"))
     writer.writerow(CSV_COLUMNS + hold + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
@@ -327,18 +339,17 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
     if partial.exists():
         partial.unlink()
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
-          f"{'draws':>6}" + (f" {'P(hold)':>7} {'95% CI':>15}" if hold else "")
+          f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)
           + (f" {'certified':>10}" if extra else ""))
     for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
-        held = (f" {row['p_hold_static']:>7.3f} {row['p_hold_static_lo']:>7.3f}.."
-                f"{row['p_hold_static_hi']:<6.3f}" if hold else "")
+        held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
+                       for c in (HOLD_COLUMNS[s][0] for s in scores))
         print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held
               + (f" {label:>10}" if extra else ""))
-    if hold:
-        print("P(hold): the static hold check (the contacts carry the object's weight in six "
-              "gravity directions and the lift within the hand's effort limits)")
+    for score in scores:
+        print(HOLD_NOTES[score])
     if adaptive is not None:
         print(certified_line(adaptive, max(r.trials for r in results)))
     print(f"written to {out}")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 
 from kinegrasp_env.cli.common import CLIError, output_file, parse_seed, positive_int, reported
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -29,9 +30,20 @@ def _refuse(args, options: dict[str, object], robot: str) -> None:
 def refuse_static_hold(args, robot: str) -> None:
     """CLIError for ``--static-hold`` (or ``--criterion hold_static``) of the default robot,
     whose engines do not run the static hold check."""
-    if getattr(args, "static_hold", False) or getattr(args, "criterion", None) == "hold_static":
-        raise CLIError(f"the static hold check (--static-hold, --criterion hold_static) runs "
+    if getattr(args, "static_hold", False) or getattr(args, "criterion", None) in (
+            "hold_static", "hold"):
+        raise CLIError(f"the hold scores (--static-hold, --criterion hold_static or hold) run "
                        f"for description robots such as --robot panda, not for {robot}")
+
+
+def quick_hold_engine(robot: str, object_name: str):
+    """The quick holding test of ``robot`` on a catalog object, in pybullet
+    (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`)."""
+    from kinegrasp_env.physics.protocol import QUICK_PROTOCOL
+    from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
+    from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
+
+    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS)
 
 
 def _check_engine(engine: str, robot: str) -> None:
@@ -121,7 +133,9 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
         check_robot,
         evaluate_robot_grasp,
         make_engine,
+        robot_configurations,
     )
+    from kinegrasp_env.physics.protocol import HELD
     from kinegrasp_env.sampling.stats import StreamingMoments
     from kinegrasp_env.toolkit.ranking import CandidateResult, order
 
@@ -137,15 +151,28 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
             check_robot(g, robot)
     results = []
     static_hold = args.static_hold or args.criterion == "hold_static"
-    with make_engine(args.engine, robot, objects.pop(), static_hold=static_hold) as engine:
-        for index, g in enumerate(grasps):
-            stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
-                                         noise=args.noise, engine=engine)
-            fc = stats.draws.outcome == FORCE_CLOSURE
-            result = CandidateResult(index)
-            result.add(int(fc.sum()), samples,
-                       StreamingMoments(1).update(stats.draws.quality[fc]), 1)
-            if static_hold:
-                result.add_holds(int(stats.draws.holds.sum()), samples)
-            results.append(result)
+    name = objects.pop()
+    tester = quick_hold_engine(robot, name) if args.criterion == "hold" else None
+    try:
+        with make_engine(args.engine, robot, name, static_hold=static_hold) as engine:
+            for index, g in enumerate(grasps):
+                stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
+                                             noise=args.noise, engine=engine)
+                fc = stats.draws.outcome == FORCE_CLOSURE
+                result = CandidateResult(index)
+                result.add(int(fc.sum()), samples,
+                           StreamingMoments(1).update(stats.draws.quality[fc]), 1)
+                if static_hold:
+                    result.add_holds("static", int(stats.draws.holds.sum()), samples)
+                if tester is not None:
+                    q = robot_configurations(g, engine, sigma=sigma, n=samples, seed=seed,
+                                             noise=args.noise)
+                    held = int((tester.run_hold(q)[1].outcome == HELD).sum())
+                    result.add_holds("test", held, samples)
+                    print(f"rank: candidate {index + 1}/{len(grasps)} ({g.id}): holding test "
+                          f"{held}/{samples} held", file=sys.stderr)
+                results.append(result)
+    finally:
+        if tester is not None:
+            tester.close()
     return order(results, args.criterion)

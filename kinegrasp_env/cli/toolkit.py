@@ -27,7 +27,7 @@ from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
 #: building the parser imports no NumPy or SciPy.
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold")
 
 
 def cmd_plan(args) -> int:
@@ -109,9 +109,11 @@ def add_commands(sub) -> None:
     p.set_defaults(samples="2000")
     p.add_argument("--criterion", default="pfc", choices=CRITERIA,
                    help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
-                   "interval, P(FC) x (1 + mean Q), or P(hold, static): the fraction of draws "
+                   "interval, P(FC) x (1 + mean Q), P(hold, static): the fraction of draws "
                    "whose contacts can carry the object's weight in six directions with the "
-                   "hand's effort limits (robots other than the default)")
+                   "hand's effort limits, or P(hold): the fraction the quick holding test in "
+                   "pybullet holds (both: robots other than the default; the holding test "
+                   "costs about 0.05-0.1 s a draw)")
     p.add_argument("--static-hold", action="store_true",
                    help="also check each draw's static hold: can its contacts carry the "
                    "object's weight (catalog mass) in six gravity directions and the lift "

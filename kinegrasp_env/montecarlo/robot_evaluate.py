@@ -53,7 +53,8 @@ class RobotReferenceEngine(RobotEngine):
 
 
 __all__ = ["ENGINES", "RobotDraws", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
-           "check_robot", "evaluate_robot_grasp", "make_engine", "outcome_of", "score",
+           "check_robot", "evaluate_robot_grasp", "make_engine", "outcome_of",
+           "robot_configurations", "score",
            "summarize"]
 
 
@@ -126,6 +127,19 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
 
 
+def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
+                         n: int, seed: SeedLike = 0, noise: str = "gaussian") -> np.ndarray:
+    """(n, dof) the draws :func:`evaluate_robot_grasp` evaluates: the grasp's q0 with joint
+    noise of ``sigma`` (radians) on the engine's robot's arm joints, the hand at its
+    pre-shape."""
+    q0 = engine.check(grasp.q0)[0]
+    arm = engine.description.arm_dof
+    eps = JointNoise(sigma, noise).sample(int(n), arm, as_generator(seed))
+    q = np.repeat(q0[None], int(n), axis=0)
+    q[:, :arm] += eps
+    return q
+
+
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
                          seed: SeedLike = 0, noise: str = "gaussian",
                          engine: RobotEngine | str = "pybullet",
@@ -152,7 +166,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
-    noise_model = JointNoise(sigma, noise)
+    JointNoise(sigma, noise)  # sigma and noise checked before any work
     if isinstance(engine, str) and engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     if not isinstance(engine, str):
@@ -168,11 +182,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
                              static_hold=static_hold)
     try:
-        q0 = engine.check(grasp.q0)[0]
-        arm = engine.description.arm_dof
-        eps = noise_model.sample(int(n), arm, as_generator(seed))
-        q = np.repeat(q0[None], int(n), axis=0)
-        q[:, :arm] += eps
+        q = robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise)
         check = engine.hold_check
         return summarize(engine.run(q), None if check is None else check.mass)
     finally:

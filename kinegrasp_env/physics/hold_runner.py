@@ -239,9 +239,11 @@ def watch(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray, steps: 
     """Step ``steps`` times (the hand's root along ``path``, positions (steps, 3) and
     orientations (steps, 4), if given), checking the object against ``reference`` (its pose in
     the palm frame) every ``check_interval`` and at the end; stop at the first failed check:
-    (held, largest distance m, largest angle rad)."""
+    (held, largest distance m, largest angle rad). With ``protocol.early_exit`` a phase
+    without a path also ends early by :func:`projected_verdict`."""
     every = steps_of(protocol.check_interval, sim.time_step)
     worst_distance = worst_angle = 0.0
+    previous, streak = None, 0
     for k in range(steps):
         if path is not None:
             sim.move_hand(path[0][k], path[1][k])
@@ -252,7 +254,44 @@ def watch(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray, steps: 
         worst_distance, worst_angle = max(worst_distance, distance), max(worst_angle, angle)
         if not within(protocol, distance, angle):
             return False, worst_distance, worst_angle
+        if protocol.early_exit and path is None and previous is not None:
+            verdict = projected_verdict(protocol, (distance, angle), previous,
+                                        every * sim.time_step, (k + 1) * sim.time_step,
+                                        (steps - k - 1) * sim.time_step)
+            streak = streak + 1 if verdict is not None else 0
+            if verdict is not None and streak >= EXIT_CHECKS:
+                return verdict, worst_distance, worst_angle
+        previous = (distance, angle)
     return True, worst_distance, worst_angle
+
+
+#: Consecutive checks that must agree before a phase ends early (:func:`projected_verdict`).
+EXIT_CHECKS = 2
+#: A phase ends early only after this long, seconds (the object's first sag under a new
+#: load is over by then).
+EXIT_MIN_TIME = 0.02
+#: A phase ends early as held where the object stays within the holding criterion moving
+#: on at this many times its present rate to the phase's end.
+EXIT_RATE_FACTOR = 2.0
+
+
+def projected_verdict(protocol: HoldProtocol, now: tuple[float, float],
+                      before: tuple[float, float], interval: float, elapsed: float,
+                      remaining: float) -> bool | None:
+    """A phase's verdict before its end, from two checks ``interval`` seconds apart
+    ((distance m, angle rad) from the reference, ``before`` then ``now``), ``elapsed``
+    seconds into it with ``remaining`` to go: True where the object, moving on at
+    :data:`EXIT_RATE_FACTOR` times its present rate (away from the reference) to the phase's
+    end, stays within the holding criterion, after :data:`EXIT_MIN_TIME`; None (go on)
+    otherwise. A phase fails only by the criterion itself (an object moving away may yet
+    stop: a jaw pushing it reaches its joint limit)."""
+    if elapsed < EXIT_MIN_TIME:
+        return None
+    speed = max(now[0] - before[0], 0.0) / interval
+    turn = max(now[1] - before[1], 0.0) / interval
+    far = now[0] + EXIT_RATE_FACTOR * speed * remaining
+    wide = now[1] + EXIT_RATE_FACTOR * turn * remaining
+    return True if within(protocol, far, wide) else None
 
 
 def run_phases(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray,
@@ -285,6 +324,8 @@ def run_phases(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray,
             steps = steps_of(protocol.gravity_time, dt)
         outcome = watch(sim, protocol, reference, steps, path)
         result.phase_held[name], result.phase_shift[name], result.phase_turn[name] = outcome
+        if protocol.early_exit and not outcome[0]:
+            return
 
 
 def hold_test(sim: HoldSteps, protocol: HoldProtocol) -> HoldResult:

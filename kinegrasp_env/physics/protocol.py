@@ -50,6 +50,15 @@ fingers at the grasp's pre-shape), step by step:
    object's centre of mass is within ``max_shift`` of the reference and its rotation from
    the reference is within ``max_turn`` (palm frame); a phase stops at its first failed check.
 
+**The quick test** (:data:`QUICK_PROTOCOL`, a score to rank with): the same sequence with
+short settle, grip and lift (the lift's peak acceleration kept: its height shrinks with the
+square of its time), checks every 5 ms, and ``early_exit``: the test stops at the first failed
+phase (the draw is not held), and a phase ends as held once, two checks in a row after 20 ms,
+the object moving on at twice its present rate would stay within the criterion to the
+phase's end (:func:`~kinegrasp_env.physics.hold_runner.projected_verdict`). A phase still
+fails only by the criterion itself. ``benchmarks/quick_hold.py`` measures its agreement with
+the full protocol on the same draws and its speed.
+
 The draw's outcome (:data:`HOLD_OUTCOMES`): ``start_collision`` (the closing's), ``no_grip``,
 ``grip_lost``, ``grip_unsteady`` (the rest phase failed), ``dropped`` (the rest phase held, a
 disturbance phase failed), ``held`` (every phase run held).
@@ -144,6 +153,7 @@ class HoldProtocol:
     shake_angle: float = float(np.radians(20.0))
     ramp_time: float = 0.25
     torque_scale: float = 1.0
+    early_exit: bool = False
 
     def __post_init__(self) -> None:
         for name in ("grip_max_time", "steady_window", "contact_force", "grip_advance",
@@ -168,6 +178,12 @@ class HoldProtocol:
     def phases(self) -> tuple[str, ...]:
         """The phases this protocol runs (``shake`` only with ``shake=True``)."""
         return PHASES if self.shake else PHASES[:-1]
+
+
+#: The quick holding test (module docstring): a ranking score, not the reference protocol.
+QUICK_PROTOCOL = HoldProtocol(settle_time=0.02, grip_min_time=0.02, steady_window=0.01,
+                              lift_time=0.07, lift_height=0.10 * 0.07 ** 2, hold_time=0.03,
+                              grip_max_time=0.25, check_interval=0.005, early_exit=True)
 
 
 def pose_change(reference: np.ndarray, current: np.ndarray,

@@ -96,6 +96,11 @@ class RobotMotorSettings:
         return self.stall_fraction
 
 
+#: The closing's end for the quick holding test
+#: (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`): stalled over two 10 ms windows.
+QUICK_MOTORS = RobotMotorSettings(stall_window=0.01)
+
+
 class JawMotors:
     """The closing motors (module docstring, steps 1 and 2) of a :class:`RobotPhysicsWorld`.
 

@@ -77,7 +77,9 @@ DEFAULT_EPSILON = 0.01
 #: separated, not in it); neither yet.
 TOP, REST, UNRESOLVED = "top-k", "rest", "unresolved"
 
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold")
+#: The hold scores a candidate may carry: the static hold check, the (quick) holding test.
+HOLD_SCORES = ("static", "test")
 #: Weight of mean Q in the ``weighted`` criterion.
 WEIGHT = 1.0
 #: evaluator(candidate index, first chunk, number of chunks) -> (successes, trials, moments)
@@ -96,21 +98,21 @@ class CandidateResult:
     trials: int = 0
     chunks: int = 0
     moments: StreamingMoments | None = None
-    holds: int = 0
-    hold_trials: int = 0
+    holds: dict[str, tuple[int, int]] = field(default_factory=dict)
 
-    def add_holds(self, holds: int, trials: int) -> None:
-        """Count draws of the static hold check (held every load) among ``trials``."""
-        self.holds += holds
-        self.hold_trials += trials
+    def add_holds(self, score: str, holds: int, trials: int) -> None:
+        """Count ``holds`` held draws among ``trials`` of a hold score (:data:`HOLD_SCORES`)."""
+        held, tried = self.holds.get(score, (0, 0))
+        self.holds[score] = (held + holds, tried + trials)
 
-    @property
-    def p_hold(self) -> float:
-        """The fraction of draws the static hold check held (NaN where not checked)."""
-        return self.holds / self.hold_trials if self.hold_trials else math.nan
+    def p_hold(self, score: str) -> float:
+        """The fraction of draws a hold score held (NaN where not run)."""
+        held, tried = self.holds.get(score, (0, 0))
+        return held / tried if tried else math.nan
 
-    def hold_interval(self, confidence: float = 0.95) -> tuple[float, float]:
-        return wilson_interval(self.holds, self.hold_trials, confidence)
+    def hold_interval(self, score: str, confidence: float = 0.95) -> tuple[float, float]:
+        held, tried = self.holds.get(score, (0, 0))
+        return wilson_interval(held, tried, confidence)
 
     def add(self, successes: int, trials: int, moments: StreamingMoments, chunks: int) -> None:
         self.successes += successes
@@ -149,7 +151,9 @@ def score(result: CandidateResult, criterion: str) -> float:
         mean = result.q_stats()[0]
         return result.p_fc * (1.0 + WEIGHT * (0.0 if math.isnan(mean) else mean))
     if criterion == "hold_static":
-        return result.p_hold
+        return result.p_hold("static")
+    if criterion == "hold":
+        return result.p_hold("test")
     raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
 
 

@@ -38,14 +38,15 @@ class RobotHoldEngine(RobotEngine):
     """The holding test of a description robot as an engine: the physics closing's outcomes
     and Q scored as every engine of the robot scores (:func:`~kinegrasp_env.montecarlo.
     robot_engine.score`), and the holding results (arguments: :class:`RobotEngine`;
-    ``protocol``: the holding test's settings)."""
+    ``protocol``: the holding test's settings; ``motors``: the closing's end)."""
 
     name = "physics"
 
     def __init__(self, robot, object_name: str, *, protocol: HoldProtocol,
-                 **kwargs) -> None:
+                 motors: RobotMotorSettings | None = None, **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
-        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol)
+        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol,
+                                   settings=motors)
 
     def close(self) -> None:
         self.simulator.close()

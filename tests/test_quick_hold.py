@@ -1,0 +1,155 @@
+"""The quick holding test's rules on a scripted object (no simulator: the object's motion in
+each phase is given), its lift against the full protocol's, and ``rank --criterion hold``."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.physics.hold_runner import (
+    EXIT_MIN_TIME,
+    EXIT_RATE_FACTOR,
+    projected_verdict,
+    run_phases,
+)
+from kinegrasp_env.physics.motion import peak_lift_acceleration
+from kinegrasp_env.physics.protocol import (
+    GRAVITY_PHASES,
+    QUICK_PROTOCOL,
+    HoldProtocol,
+    HoldResult,
+    final_outcome,
+)
+
+
+class ScriptedObject:
+    """The primitives the phases use: the object slides along palm x at ``speeds[phase]``
+    m/s (0: at rest) under each phase's gravity, counting the steps run per phase."""
+
+    time_step = 0.001
+    center_of_mass = np.zeros(3)
+
+    def __init__(self, speeds: dict[str, float]) -> None:
+        self.speeds, self.steps = speeds, {}
+        self.phase, self.shift = None, 0.0
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        unit = tuple(np.sign(gravity).astype(float)) if np.any(gravity) else None
+        names = {tuple(map(float, d)): n for n, d in GRAVITY_PHASES.items()}
+        self.phase = names.get(unit, "rest") if unit != (0.0, 0.0, -1.0) or \
+            self.phase != "gravity_-z" else "lift"
+        self.shift = 0.0
+        self.steps[self.phase] = 0
+
+    def hand_start(self):
+        return np.eye(4), np.zeros(3)
+
+    def move_hand(self, position, orientation) -> None:
+        pass
+
+    def advance(self, steps: int = 1) -> None:
+        self.steps[self.phase] += steps
+        self.shift += self.speeds.get(self.phase, 0.0) * self.time_step * steps
+
+    def object_in_palm(self) -> np.ndarray:
+        pose = np.eye(4)
+        pose[0, 3] = self.shift
+        return pose
+
+
+def phases(protocol: HoldProtocol, speeds: dict[str, float]) -> tuple[HoldResult, dict]:
+    sim = ScriptedObject(speeds)
+    result = HoldResult(5)
+    run_phases(sim, protocol, np.eye(4), result)
+    return result, sim.steps
+
+
+def test_a_still_object_ends_each_phase_early_and_is_held() -> None:
+    """At rest the quick test ends every phase without a path two checks after its minimum
+    time (the full test runs each to its end); the verdict is the same: held."""
+    quick, quick_steps = phases(QUICK_PROTOCOL, {})
+    full, full_steps = phases(HoldProtocol(), {})
+    assert final_outcome(5, quick.phase_held) == final_outcome(5, full.phase_held) == 5
+    interval = QUICK_PROTOCOL.check_interval
+    for name, steps in quick_steps.items():
+        if name != "lift":
+            assert steps * 0.001 == pytest.approx(EXIT_MIN_TIME + interval, abs=1.5e-3)
+            assert full_steps[name] == 500
+
+
+def test_early_exit_stops_at_the_first_failed_phase() -> None:
+    """An object sliding off under gravity along +x fails that phase; the quick test runs no
+    phase after it (the full test runs them all); both call the draw dropped."""
+    speeds = {"gravity_+x": 1.0}
+    quick, steps = phases(QUICK_PROTOCOL, speeds)
+    full, _ = phases(HoldProtocol(), speeds)
+    assert list(quick.phase_held) == ["rest", "gravity_+x"]
+    assert not quick.phase_held["gravity_+x"]
+    assert len(full.phase_held) == len(HoldProtocol().phases)
+    assert final_outcome(5, quick.phase_held) == final_outcome(5, full.phase_held) == 4
+
+
+def test_a_creeping_object_is_watched_to_the_end() -> None:
+    """Hand derivation: an object creeping at v with 0.5 s to go is projected to
+    v x EXIT_RATE_FACTOR x 0.5 further; at 30 mm/s that leaves the 20 mm criterion, so the
+    phase does not end early; at 1 mm/s it does."""
+    protocol = QUICK_PROTOCOL
+    step = protocol.check_interval
+    creeping = projected_verdict(protocol, (0.03 * 0.1, 0.0), (0.03 * (0.1 - step), 0.0), step,
+                                 0.1, 0.5)
+    assert 0.03 * EXIT_RATE_FACTOR * 0.5 > protocol.max_shift and creeping is None
+    slow = projected_verdict(protocol, (0.001 * 0.1, 0.0), (0.001 * (0.1 - step), 0.0), step,
+                             0.1, 0.5)
+    assert slow is True
+    assert projected_verdict(protocol, (0.0, 0.0), (0.0, 0.0), step, 0.5 * EXIT_MIN_TIME,
+                             0.5) is None
+
+
+def test_quick_lift_has_the_full_lifts_peak_acceleration() -> None:
+    """The quick lift is shorter and lower but as hard on the grip: the same peak
+    acceleration (minimum jerk: 10 h / (sqrt 3 T^2)), to 1e-5."""
+    full = peak_lift_acceleration(HoldProtocol())
+    assert peak_lift_acceleration(QUICK_PROTOCOL) == pytest.approx(full, rel=1e-5)
+    assert full == pytest.approx(10 * 0.1 / math.sqrt(3), rel=1e-5)
+
+
+def test_early_exit_is_part_of_the_protocols_value() -> None:
+    """Result caches hash the protocol: the quick one differs from the full one."""
+    assert replace(QUICK_PROTOCOL, early_exit=False) != QUICK_PROTOCOL
+    assert HoldProtocol().early_exit is False
+
+
+def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
+    """``rank --criterion hold`` of the panda's shipped cube grasps names its score, writes
+    the P(hold) columns, and orders the candidates by them."""
+    import csv
+
+    from cli_helpers import run_in_process
+
+    from kinegrasp_env.world.grasps import shipped_grasp_file
+
+    out = tmp_path / "ranked.csv"
+    text = run_in_process(capsys, "rank", str(shipped_grasp_file("cube", robot="panda")),
+                          "--sigma", "0.0033", "--samples", "3", "--engine", "fast",
+                          "--criterion", "hold", "--out", str(out))
+    assert "P(hold): the quick holding test in pybullet" in text
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 4
+    held = [float(r["p_hold"]) for r in rows]
+    assert held == sorted(held, reverse=True)
+    assert all(float(r["p_hold_lo"]) <= h <= float(r["p_hold_hi"]) for r, h in zip(rows, held,
+                                                                                     strict=True))
+
+
+def test_hold_scores_are_refused_for_the_default_robot(capsys) -> None:
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.world.grasps import shipped_grasp_file
+
+    status = main(["rank", str(shipped_grasp_file("cube")), "--criterion", "hold",
+                   "--samples", "10"])
+    assert status != 0
+    err = capsys.readouterr().err
+    assert "description robots" in err and err.count("\n") == 1
