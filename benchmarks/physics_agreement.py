@@ -9,7 +9,10 @@ Draws and labels:
   in pybullet and in MuJoCo (the runs of ``benchmarks/simulator_agreement.py``, cached in
   ``--out``; run together they share the cache).
 * **panda** (parallel jaws): its shipped grasps (and, on an object with none shipped, the
-  antipodal planner's, ``--plan`` of them), ``--samples`` draws each at every joint noise of
+  antipodal planner's, ``--plan`` of them), on the built-in objects and on thin-walled and
+  handled ones imported as a user imports a mesh (``--imported``: ``benchmarks/
+  thin_objects.py``'s tube, tray and cup, in a catalog of the benchmark's own under
+  ``--out`` unless ``KINEGRASP_HOME`` is set), ``--samples`` draws each at every joint noise of
   ``--panda-sigmas`` (palm poses a little and further off the planned one: at 0.0133 rad most
   of its draws drop, near 0 most hold, so both occur), labelled by the holding test in
   pybullet (MuJoCo holds only the default robot).
@@ -42,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 import sys
 import time
 from pathlib import Path
@@ -51,6 +55,7 @@ from marked_section import write_between
 from results_file import add_options, settings, write_result
 from scipy.stats import rankdata
 from simulator_agreement import SIMULATORS, run_validate
+from thin_objects import THIN_OBJECTS, import_thin_objects
 
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws
@@ -128,9 +133,11 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
             "-centre_distance": -distance}
 
 
-def kuka_draws(objects: list[str], args) -> tuple[dict, dict]:
-    """The kuka_sdh draws' scores and their labels per simulator."""
+def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
+    """The kuka_sdh draws' scores, their labels per simulator, and per object the draws and
+    those held in pybullet."""
     labels: dict[str, list[bool]] = {s: [] for s in SIMULATORS}
+    composition = {}
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     validate = argparse.Namespace(grasp=list(range(12)), sigma=args.sigma,
                                   samples=args.samples, seed=args.seed)
@@ -148,17 +155,21 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict]:
         keys = [(i, d) for i in range(len(grasps)) for d in range(args.samples)]
         for simulator in SIMULATORS:
             labels[simulator] += [held[simulator][k] for k in keys]
+        composition[obj] = {"draws": len(keys),
+                            "held_pybullet": sum(held["pybullet"][k] for k in keys)}
         for name, value in draw_scores("kuka_sdh", obj, q, args.sigma, args.pfc_samples,
                                        args.seed).items():
             scores[name].append(value)
         print(f"  kuka_sdh {obj}: {len(keys)} draws scored", file=sys.stderr)
     return ({k: np.concatenate(v) for k, v in scores.items()},
-            {k: np.array(v) for k, v in labels.items()})
+            {k: np.array(v) for k, v in labels.items()}, composition)
 
 
-def panda_draws(objects: list[str], args) -> tuple[dict, dict]:
-    """The panda draws' scores and their pybullet labels."""
+def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
+    """The panda draws' scores, their pybullet labels, and per object the draws and those
+    held."""
     labels: list[bool] = []
+    composition = {}
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     protocol = HoldProtocol()
     for obj in objects:
@@ -179,6 +190,8 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict]:
         with RobotHoldEngine("panda", obj, protocol=protocol) as physics:
             _, hold = physics.run_hold(q)
         labels += list(hold.outcome == HELD)
+        composition[obj] = {"grasps": len(grasps), "draws": int(q.shape[0]),
+                            "held_pybullet": int((hold.outcome == HELD).sum())}
         counts = np.bincount(hold.outcome, minlength=len(HOLD_OUTCOMES))
         print(f"  panda {obj}: " + ", ".join(f"{name} {count}" for name, count
                                            in zip(HOLD_OUTCOMES, counts, strict=True)),
@@ -189,7 +202,7 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict]:
         print(f"  panda {obj}: {q.shape[0]} draws, holding tests "
               f"{time.perf_counter() - start:.0f} s", file=sys.stderr)
     return ({k: np.concatenate(v) for k, v in scores.items()},
-            {"pybullet": np.array(labels)})
+            {"pybullet": np.array(labels)}, composition)
 
 
 def table(scores: dict, labels: dict) -> dict:
@@ -205,6 +218,7 @@ def table(scores: dict, labels: dict) -> dict:
 
 
 def markdown(result: dict) -> str:
+    """The AUC table, then the draws per object."""
     lines = ["| robot | simulator | draws | held | " + " | ".join(SCORES) + " |",
              "|---" * (len(SCORES) + 4) + "|"]
     for robot, per in result["robots"].items():
@@ -213,6 +227,10 @@ def markdown(result: dict) -> str:
                      f"{record[s]['ci95'][1]:.2f}]" for s in SCORES]
             lines.append(f"| {robot} | {simulator} | {record['draws']} | {record['held']} | "
                          + " | ".join(cells) + " |")
+    lines += ["", "| robot | object | draws | held (pybullet) |", "|---|---|---|---|"]
+    for robot, per in result["composition"].items():
+        for obj, record in per.items():
+            lines.append(f"| {robot} | {obj} | {record['draws']} | {record['held_pybullet']} |")
     return "\n".join(lines)
 
 
@@ -227,17 +245,23 @@ def main() -> None:
     parser.add_argument("--panda-sigmas", type=float, nargs="+", default=[0.0033, 0.0133])
     parser.add_argument("--pfc-samples", type=int, default=200)
     parser.add_argument("--plan", type=int, default=4)
+    parser.add_argument("--imported", nargs="*", default=list(THIN_OBJECTS),
+                        choices=THIN_OBJECTS)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "out" / "simulator_agreement")
     parser.add_argument("--page", type=Path, default=PAGE)
     parser.add_argument("--no-page", action="store_true")
     add_options(parser, __file__)
     args = parser.parse_args()
-    result = {"robots": {}}
+    os.environ.setdefault("KINEGRASP_HOME", str(args.out / "catalog"))
+    imported = import_thin_objects(args.out / "meshes", args.imported)
+    result = {"robots": {}, "composition": {}}
     for robot in args.robots:
         runner = kuka_draws if robot == "kuka_sdh" else panda_draws
-        scores, labels = runner(args.objects, args)
+        scores, labels, composition = runner(
+            args.objects + (imported if robot == "panda" else []), args)
         result["robots"][robot] = table(scores, labels)
+        result["composition"][robot] = composition
     text = markdown(result)
     print(text)
     if not args.no_json:

@@ -84,7 +84,7 @@ def test_early_exit_stops_at_the_first_failed_phase() -> None:
     """An object sliding off under gravity along +x fails that phase; the quick test runs no
     phase after it (the full test runs them all); both call the draw dropped."""
     speeds = {"gravity_+x": 1.0}
-    quick, steps = phases(QUICK_PROTOCOL, speeds)
+    quick, _ = phases(QUICK_PROTOCOL, speeds)
     full, _ = phases(HoldProtocol(), speeds)
     assert list(quick.phase_held) == ["rest", "gravity_+x"]
     assert not quick.phase_held["gravity_+x"]

@@ -108,8 +108,11 @@ def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
 
 def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Antipodal pairs of a trimesh ``mesh``, shuffled: points (P, 2, 3) and their outward
-    unit normals (P, 2, 3), object frame."""
+    """Antipodal pairs of a trimesh ``mesh``: points (P, 2, 3) and their outward unit normals
+    (P, 2, 3), object frame. First the pairs among the surface samples, shuffled; then, in
+    sample order, each sample with the point where a ray from it into the object leaves it
+    again (Dex-Net's partner search: the only way to find the two faces of a thin wall,
+    whose opposite samples almost never line up)."""
     import trimesh
 
     points, faces = trimesh.sample.sample_surface(mesh, settings.surface_samples,
@@ -126,8 +129,31 @@ def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
     i, j = np.nonzero(np.triu(keep, 1))
     order = rng.permutation(len(i))
     i, j = i[order], j[order]
-    return (np.stack([points[i], points[j]], axis=1),
-            np.stack([normals[i], normals[j]], axis=1))
+    rays = ray_partners(mesh, points, normals, cos, max_width)
+    return (np.concatenate([np.stack([points[i], points[j]], axis=1), rays[0]]),
+            np.concatenate([np.stack([normals[i], normals[j]], axis=1), rays[1]]))
+
+
+#: How far inside the surface a partner ray starts (metres): past the sample's own face.
+RAY_OFFSET = 1e-6
+
+
+def ray_partners(mesh, points: np.ndarray, normals: np.ndarray, cos: float,
+                 max_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (P, 2, 3) and outward normals (P, 2, 3) of each sample (points, normals (S, 3))
+    with the first face a ray from it along its inward normal meets, kept where that face's
+    normal is within the cone angle (arccos ``cos``) of the opposite one and the pair is at
+    most ``max_width`` apart; in sample order."""
+    located, ray, triangle = mesh.ray.intersects_location(
+        points - RAY_OFFSET * normals, -normals, multiple_hits=False)
+    partner_normals = mesh.face_normals[triangle]
+    width = np.linalg.norm(located - points[ray], axis=1)
+    keep = ((np.einsum("ij,ij->i", partner_normals, normals[ray]) <= -cos)
+            & (width > 1e-6) & (width <= max_width))
+    order = np.argsort(ray[keep], kind="stable")
+    first, second = points[ray][keep][order], located[keep][order]
+    return (np.stack([first, second], axis=1),
+            np.stack([normals[ray][keep][order], partner_normals[keep][order]], axis=1))
 
 
 def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFrame,
