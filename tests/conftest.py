@@ -48,3 +48,26 @@ def bullet_robot():
 @pytest.fixture()
 def rng():
     return np.random.default_rng(12345)
+
+
+#: The line closing a run whose browser tests were skipped for want of Chromium.
+NO_CHROMIUM = ("browser tests skipped: chromium not on PATH; install it with apt-get install "
+               "chromium")
+
+
+@pytest.hookimpl(hookwrapper=True, tryfirst=True)
+def pytest_terminal_summary(terminalreporter):
+    """End the summary with :data:`NO_CHROMIUM` (and how many tests it skipped) when no
+    Chromium is found and tests that need it were skipped: their skip reasons alone are easily
+    missed among the other lines of the summary. Written after the short summary (``-ra``),
+    just above the final counts."""
+    yield
+    from kinegrasp_env.toolkit.report.browser import find_chromium
+
+    if find_chromium() is not None:
+        return
+    skipped = [report for report in terminalreporter.stats.get("skipped", [])
+               if "chromium" in str(report.longrepr).lower()]
+    if skipped:
+        count = f"{len(skipped)} test" + ("s" if len(skipped) > 1 else "")
+        terminalreporter.write_sep("!", f"{NO_CHROMIUM} ({count})", yellow=True, bold=True)

@@ -153,6 +153,36 @@ def test_bad_values_are_one_line(capsys, argv, needle):
     assert err[0].startswith(f"kinegrasp {argv[0]}: error: ") and needle in err[0], err
 
 
+#: Every command that takes ``--robot``, with the arguments it requires besides.
+ROBOT_COMMANDS = {
+    "ee": [],
+    "evaluate": ["--object", "cube", "--grasp", "0", "--sigma", "0.01", "--samples", "10"],
+    "reproduce": ["fig10"],
+    "plan": ["--object", "cube"],
+    "rank": ["candidates.json"],
+    "sweep": ["spec.yaml", "--out", "sweep"],
+    "elbow": [],
+    "report": ["--out", "report"],
+    "sensitivity": ["--noise-spec", "spec.yaml"],
+    "validate": ["--out", "validation"],
+}
+
+
+def test_an_unknown_robot_is_named_first_by_every_command(capsys):
+    """``--robot nosuch`` is refused before anything else is looked at (the shipped grasps,
+    the input files): one line saying the robot is unknown and naming the known ones."""
+    takes_robot = {name for name, sub in _subparsers().items()
+                   if any("--robot" in a.option_strings for a in sub._actions)}
+    assert takes_robot == set(ROBOT_COMMANDS)
+    for command, args in ROBOT_COMMANDS.items():
+        code, err = _run(capsys, command, *args, "--robot", "nosuch")
+        assert code == 2 and len(err) == 1, (command, err)
+        assert err[0].startswith(f"kinegrasp {command}: error: "), err
+        assert "unknown robot 'nosuch'; known robots: kuka_sdh, panda" in err[0], err
+    code, err = _run(capsys, "plan", "--object", "cube", "--robot", "pand")
+    assert code == 2 and "unknown robot 'pand' (did you mean 'panda'?)" in err[0], err
+
+
 def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
     a_file = tmp_path / "file"
     a_file.write_text("")

@@ -281,6 +281,24 @@ def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     assert os.listdir(catalog_dir()) == []
 
 
+def test_a_scale_equal_but_for_its_last_digits_reuses_the_entry(home, tmp_path, capsys):
+    """``objects add`` again with the scale typed to more digits (equal to the stored one
+    within a relative 1e-6) reuses the entry; a scale 1e-5 off is another setting."""
+    path = box_file(tmp_path / "inch_box.stl", extents=(2.0, 2.0, 2.0))  # inches
+    code, _, err = cli(capsys, "objects", "add", str(path), "--scale", "0.0254")
+    assert code == 0, err
+    before = snapshot(home)
+    for retyped in ("0.025400001", "0.0254000001", "0.02539999999999"):  # 8th digit and on
+        code, out, err = cli(capsys, "objects", "add", str(path), "--scale", retyped)
+        assert code == 0 and "already imported from this file with these settings" in out, \
+            (retyped, err)
+        assert snapshot(home) == before, retyped
+    code, _, err = cli(capsys, "objects", "add", str(path), "--scale", "0.02540025")
+    assert code == 2 and "already exists" in err and "--force" in err
+    assert snapshot(home) == before
+    assert load_object("inch_box").size == pytest.approx([0.0508] * 3)
+
+
 def test_show_draws_a_png(home, tmp_path, capsys):
     import_object(box_file(tmp_path / "cube5.stl"))
     code, _, _ = cli(capsys, "objects", "show", "cube5", "--plot", str(tmp_path / "c.png"))

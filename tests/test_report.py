@@ -417,6 +417,20 @@ def test_sigma_curve_page_in_chromium(pages):
     assert check.rendered == check.expected == 5
 
 
+def test_a_run_without_chromium_says_so_in_its_last_lines(tmp_path):
+    """With no Chromium (``$KINEGRASP_CHROMIUM`` naming none) a run whose browser tests skip
+    ends, just above its final counts, with a line saying so and how to install it: the
+    README's test command does not skip them silently (tests/conftest.py)."""
+    env = {**os.environ, "KINEGRASP_CHROMIUM": "no-such-chromium-here"}
+    proc = subprocess.run([sys.executable, "-m", "pytest", __file__, "-q", "-p",
+                           "no:cacheprovider", "-k", "test_sigma_curve_page_in_chromium"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, check=False)
+    lines = proc.stdout.strip().splitlines()
+    assert proc.returncode == 0 and lines[-1].startswith("1 skipped"), proc.stdout[-2000:]
+    assert ("browser tests skipped: chromium not on PATH; install it with apt-get install "
+            "chromium (1 test)") in lines[-2], proc.stdout[-2000:]
+
+
 @needs_chromium
 @pytest.mark.expensive
 def test_rank_page_in_chromium_sorts_and_draws_views_on_demand(pages):

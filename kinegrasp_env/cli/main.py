@@ -34,6 +34,7 @@ from kinegrasp_env.cli import (
     validate,
 )
 from kinegrasp_env.cli.common import CLIError, Parser
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: OS errors that are the machine's state, not a bug (disk full, no permission): one line.
 ENVIRONMENT_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM,
@@ -77,6 +78,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     kernel_notice.install()  # the first run on a machine compiles the kernels: say so
     try:
+        check_robot_option(args)
         return int(args.func(args) or 0)
     except CLIError as exc:
         print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
@@ -91,6 +93,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except Exception:
         return _bug(args.command)
+
+
+def check_robot_option(args) -> None:
+    """Refuse an unknown ``--robot`` before the command runs: one line naming the known
+    robots (every command's ``--robot`` is a catalog name, resolved by
+    :func:`kinegrasp_env.robot.catalog.check_robot_name`). The default robot is built in, so
+    naming it (or none) loads nothing."""
+    robot = getattr(args, "robot", None)
+    if robot is None or robot == DEFAULT_ROBOT:
+        return
+    from kinegrasp_env.robot.catalog import check_robot_name
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    try:
+        check_robot_name(robot)
+    except RobotDescriptionError as exc:
+        raise CLIError(f"--robot: {exc}") from None
 
 
 def _bug(command: str) -> int:

@@ -95,10 +95,11 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
     Returns:
         The path written.
     """
-    import pybullet
     from PIL import Image
 
     out = Path(out)
+    # pybullet's first import (it prints a banner), the connection and the loading happen in
+    # loaded_robot, C-level output silenced: importing pybullet here would print the banner
     with loaded_robot(description) as (bullet, body, links):
         boxes = [bullet.getAABB(body, i) for i in links.values()]
         low = np.min([b[0] for b in boxes], axis=0)
@@ -109,7 +110,7 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
         projection = bullet.computeProjectionMatrixFOV(50.0, width / height, 0.05 * size,
                                                        5.0 * size)
         image = bullet.getCameraImage(width, height, view, projection,
-                                      renderer=pybullet.ER_TINY_RENDERER)[2]
+                                      renderer=bullet.ER_TINY_RENDERER)[2]
     rgb = np.asarray(image, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(rgb).save(out, format="PNG")

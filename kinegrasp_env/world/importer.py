@@ -15,7 +15,8 @@ Replacing an entry (``force``) renames the old one aside (``.old-...``) first an
 after; removing one renames it to ``.rm-...`` and deletes that.
 
 Re-import: an entry is keyed by the SHA-256 of the files read and the settings; importing
-the same files with the same settings reuses the entry, other settings need ``force``.
+the same files with the same settings (the scale to within :data:`SCALE_RTOL`, relative)
+reuses the entry, other settings need ``force``.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import tempfile
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -173,6 +174,25 @@ def entry_key(digest: str, settings: ImportSettings) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: Relative tolerance within which a scale is the one an entry was imported with: a scale
+#: typed again from a printout, or computed another way, differs in its last digits, and the
+#: object it gives differs by less than a micrometre per metre.
+SCALE_RTOL = 1e-6
+
+
+def same_import(entry: dict, digest: str, settings: ImportSettings) -> bool:
+    """Whether ``entry`` holds the import of the files of ``digest`` with ``settings``: its
+    key is theirs, with the entry's own scale when the two scales agree to within
+    :data:`SCALE_RTOL` (relative; no absolute tolerance)."""
+    if entry.get("key") == entry_key(digest, settings):
+        return True
+    stored = entry.get("settings", {}).get("scale")
+    if isinstance(stored, bool) or not isinstance(stored, (int, float)) or not np.isclose(
+            stored, settings.scale, rtol=SCALE_RTOL, atol=0.0):
+        return False
+    return entry.get("key") == entry_key(digest, replace(settings, scale=stored))
+
+
 #: The stages of an import after reading and cleaning the mesh, in order (``progress``).
 STAGES = ("convex decomposition (CoACD; the long stage)",
           "deviation of the parts from the mesh", "distance grid of the fast engine")
@@ -197,11 +217,12 @@ def import_object(path: str | Path, name: str | None = None,
     settings = (settings or ImportSettings()).check()
     source = load_source(path)
     name = check_name(name or default_name(path))
-    key = entry_key(source_digest(source), settings)
+    digest = source_digest(source)
+    key = entry_key(digest, settings)
     existing = imported_folder(name)
     if existing is not None and not force:
         entry = read_entry(existing)
-        if entry.get("key") == key:
+        if same_import(entry, digest, settings):
             return ImportResult(name, existing, True, 0.0, entry)
         stored = entry.get("settings", {})
         given = {k: stored.get(k, v) for k, v in asdict(ImportSettings()).items()}
