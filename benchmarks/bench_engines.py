@@ -16,7 +16,8 @@ Run: ``python benchmarks/bench_engines.py [--draws 10000] [--processes 2]``.
    fast and the reference engine (pybullet closest points) per draw on one process, the same
    ``--panda-draws`` draws of each grasp, their ratio and force-closure counts; and
    ``--draws`` fast draws of grasp 0 on ``--processes`` warm workers (``--robots`` picks the
-   parts: ``kuka_sdh`` for 1-3, ``panda`` for 4).
+   parts: ``kuka_sdh`` for 1-3, ``panda`` for 4), and the fast engine's time per draw with
+   the static hold check beside it without.
 
 The figures (seconds, draws/s, ratios) also go to ``benchmarks/results/bench_engines.json``
 (``--json-out PATH``, ``--no-json``).
@@ -29,7 +30,7 @@ import time
 
 import numpy as np
 from results_file import add_options, settings, write_result
-from robot_speed import per_draw, pool_run
+from robot_speed import per_draw, pool_run, static_hold_cost
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps
 from kinegrasp_env.closing.segment_distance import closest_to_segments
@@ -144,11 +145,15 @@ def panda(args) -> dict:
           f"{fast['s_per_draw'] * 1e6:.0f} us, pybullet {ref['s_per_draw'] * 1e6:.0f} us: "
           f"{ratio:.1f}x; force closure fast {fast['force_closure']}, pybullet "
           f"{ref['force_closure']}")
+    hold = static_hold_cost("panda", "cube", args.sigma, args.panda_draws, 0)
+    print(f"panda cube, fast per draw: {hold['fast_s_per_draw'] * 1e6:.0f} us, with the static "
+          f"hold check {hold['fast_static_hold_s_per_draw'] * 1e6:.0f} us "
+          f"({hold['static_hold_over_fast']:.2f}x)")
     pool = pool_run("panda", "cube", args.sigma, args.draws, args.processes, 0)
     print(f"panda cube, fast: {pool['draws']} draws in {pool['wall_s']:.2f} s on "
           f"{pool['processes']} warm processes ({pool['run_again_wall_s']:.2f} s run again; "
           f"pool start {pool['pool_start_s']:.1f} s)  P(FC) = {pool['p_fc']:.4f}")
-    return {"panda_fast_over_pybullet_per_draw": ratio,
+    return {"panda_fast_over_pybullet_per_draw": ratio, "panda_static_hold": hold,
             "panda_fast_wall_s": pool["wall_s"],
             "panda_identical_fc_counts": fast["force_closure"] == ref["force_closure"],
             "panda_per_draw": [{**r, "force_closure": str(r["force_closure"])}

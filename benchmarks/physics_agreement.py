@@ -25,6 +25,8 @@ configuration; higher: predicted to hold):
 * ``static_hold``: the static hold check's verdict (0/1: the contacts carry the catalog mass
   in six gravity directions and the lift within the hand's effort limits);
 * ``hold_capacity``: the largest multiple of that load they carry (continuous);
+* ``quick_hold``: the quick holding test in pybullet (``QUICK_PROTOCOL``; 0/1): against
+  MuJoCo's labels it is a dynamic score judged by the other simulator;
 * baselines from geometry alone: ``-centre_distance`` (the fingertips' centre at the
   pre-shape to the centre of mass, negated).
 
@@ -58,9 +60,11 @@ from simulator_agreement import SIMULATORS, run_validate
 from thin_objects import THIN_OBJECTS, import_thin_objects
 
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
+from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
-from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, HoldProtocol
+from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
+from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
@@ -70,7 +74,7 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
-SCORES = ("fc", "q", "p_fc", "static_hold", "hold_capacity", "-centre_distance")
+SCORES = ("fc", "q", "p_fc", "static_hold", "hold_capacity", "quick_hold", "-centre_distance")
 BOOTSTRAP = 2000
 
 
@@ -130,7 +134,19 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
             p_fc[i] = float((engine.run(around).outcome == 3).mean())
     return {"fc": fc, "q": draws.quality, "p_fc": p_fc,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
-            "-centre_distance": -distance}
+            "quick_hold": quick_hold(robot, obj, q), "-centre_distance": -distance}
+
+
+def quick_hold(robot: str, obj: str, q: np.ndarray) -> np.ndarray:
+    """(n,) 1.0 where the quick holding test in pybullet holds configuration q (n, dof)."""
+    if robot == "kuka_sdh":
+        engine = PhysicsEngine(obj, protocol=QUICK_PROTOCOL, simulator="pybullet")
+    else:
+        engine = RobotHoldEngine(robot, obj, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS)
+    try:
+        return (engine.run_hold(q)[1].outcome == HELD).astype(float)
+    finally:
+        engine.close()
 
 
 def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:

@@ -41,6 +41,30 @@ def _chunk(task: tuple) -> int:
     return int((engine.run(q).outcome == FORCE_CLOSURE).sum())
 
 
+def static_hold_cost(robot: str, object_name: str, sigma: float, draws: int, seed: int,
+                     pairs: int = 3) -> dict:
+    """Seconds per draw of the fast engine without and with the static hold check on the same
+    draws of each shipped grasp, one process, ``pairs`` alternating runs (the minimum of each
+    kept), after a first run of both."""
+    plain = make_engine("fast", robot, object_name)
+    checked = make_engine("fast", robot, object_name, static_hold=True)
+    grasps = shipped_grasps(object_name, robot)
+    arm = plain.description.arm_dof
+    qs = [draws_of(g.q0, arm, sigma, draws, [seed, i]) for i, g in enumerate(grasps)]
+    best = {"fast": np.inf, "fast_static_hold": np.inf}
+    for engine in (plain, checked):
+        for q in qs:
+            engine.run(q)
+    for _ in range(pairs):
+        for name, engine in (("fast", plain), ("fast_static_hold", checked)):
+            start = time.perf_counter()
+            for q in qs:
+                engine.run(q)
+            best[name] = min(best[name], (time.perf_counter() - start) / (draws * len(qs)))
+    return {**{f"{k}_s_per_draw": v for k, v in best.items()},
+            "static_hold_over_fast": best["fast_static_hold"] / best["fast"]}
+
+
 def per_draw(robot: str, object_name: str, sigma: float, draws: int, seed: int) -> dict:
     """Seconds per draw of both engines on one process over the same ``draws`` draws of each
     shipped grasp (the fast engine's timed run is its second over them: the first loads its
