@@ -153,3 +153,22 @@ def test_hold_scores_are_refused_for_the_default_robot(capsys) -> None:
     assert status != 0
     err = capsys.readouterr().err
     assert "description robots" in err and err.count("\n") == 1
+
+
+def test_evaluate_reports_both_hold_scores(capsys) -> None:
+    """``evaluate --static-hold --hold-test --json`` of a panda grasp: P(hold) of the quick
+    test with its Wilson interval, P(hold, static), and the mass it used: the cube's
+    500 kg/m^3 times its volume (a 6 cm cube: 0.108 kg, by hand)."""
+    import json
+
+    from cli_helpers import run_in_process
+
+    out = run_in_process(capsys, "evaluate", "--robot", "panda", "--object", "cube", "--grasp",
+                         "0", "--sigma", "0.0033", "--samples", "3", "--engine", "fast",
+                         "--static-hold", "--hold-test", "--json")
+    record = json.loads(out)
+    assert record["mass_kg"] == pytest.approx(500 * 0.06 ** 3, rel=1e-9)
+    for key in ("p_hold", "p_hold_static"):
+        lo, hi = record[f"{key}_ci"]
+        assert 0.0 <= lo <= record[key] <= hi <= 1.0
+        assert record[key] * 3 == pytest.approx(round(record[key] * 3))

@@ -299,6 +299,9 @@ def add_commands(sub) -> None:
                    "object's weight (catalog mass) in six gravity directions and the lift "
                    "with forces in the friction cones and the hand's effort limits; prints "
                    "P(hold, static) (robots other than the default)")
+    p.add_argument("--hold-test", action="store_true",
+                   help="also run the quick holding test in pybullet on the same draws and "
+                   "print P(hold) (robots other than the default; about 0.04-0.2 s a draw)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

@@ -30,10 +30,11 @@ def _refuse(args, options: dict[str, object], robot: str) -> None:
 def refuse_static_hold(args, robot: str) -> None:
     """CLIError for ``--static-hold`` (or ``--criterion hold_static``) of the default robot,
     whose engines do not run the static hold check."""
-    if getattr(args, "static_hold", False) or getattr(args, "criterion", None) in (
-            "hold_static", "hold"):
-        raise CLIError(f"the hold scores (--static-hold, --criterion hold_static or hold) run "
-                       f"for description robots such as --robot panda, not for {robot}")
+    if getattr(args, "static_hold", False) or getattr(args, "hold_test", False) or getattr(
+            args, "criterion", None) in ("hold_static", "hold"):
+        raise CLIError(f"the hold scores (--static-hold, --hold-test, --criterion hold_static "
+                       f"or hold) run for description robots such as --robot panda, not for "
+                       f"{robot}")
 
 
 def quick_hold_engine(robot: str, object_name: str):
@@ -44,6 +45,16 @@ def quick_hold_engine(robot: str, object_name: str):
     from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
 
     return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS)
+
+
+def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str) -> int:
+    """How many of ``evaluate``'s draws of a grasp the quick holding test holds."""
+    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
+    from kinegrasp_env.physics.protocol import HELD
+
+    with quick_hold_engine(robot, grasp.object) as engine:
+        q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise)
+        return int((engine.run_hold(q)[1].outcome == HELD).sum())
 
 
 def _check_engine(engine: str, robot: str) -> None:
@@ -86,6 +97,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     the reference engine)."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.sampling.stats import wilson_interval
 
     _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None,
                    **IN_PROCESS}, robot)
@@ -97,6 +109,10 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                                      static_hold=args.static_hold)
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
+    if args.hold_test:
+        held = holding_test_count(grasp, robot, sigma, samples, seed, args.noise)
+        hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held,
+                                                                                 samples))})
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
@@ -114,6 +130,10 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     print(f"  Q (Ferrari-Canny, {model} contacts; mean, "
           f"std, skewness over the force-closure draws): nominal {grasp.q_nominal:.5f}, mean "
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
+    if args.hold_test:
+        lo, hi = hold["p_hold_ci"]
+        print(f"  P(hold) = {hold['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the quick "
+              f"holding test in pybullet on the same draws)")
     if args.static_hold:
         lo, hi = stats.hold_ci
         print(f"  P(hold, static) = {stats.p_hold_static:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
