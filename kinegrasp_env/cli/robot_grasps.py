@@ -109,6 +109,8 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                                      static_hold=args.static_hold)
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
+    if math.isfinite(stats.push_median):
+        hold["jaw_push_mm"] = {"median": 1e3 * stats.push_median, "p95": 1e3 * stats.push_p95}
     if args.hold_test:
         held = holding_test_count(grasp, robot, sigma, samples, seed, args.noise)
         hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held,
@@ -139,6 +141,11 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         print(f"  P(hold, static) = {stats.p_hold_static:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
               f"object mass {stats.mass:.3f} kg, six gravity directions and the lift, the "
               f"hand's effort limits)")
+    if math.isfinite(stats.push_median):
+        print(f"  coupled jaws: one jaw touches first and would push the object "
+              f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "
+              f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the closing scores "
+              f"the object where it stands")
     print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
     return 0
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
@@ -36,6 +37,9 @@ class RobotDraws:
         n_contacts: (n,) contacts found.
         points, normals: (n, k, 3) contacts (object frame, normals inward), NaN-padded.
         finger, link: (n, k) int8 finger index and link index within it, -1 padded.
+        push: (n,) metres a coupled pair of jaws would push the object before both touch
+            (:func:`~kinegrasp_env.closing.coupled_jaws.jaw_push`; NaN for other hands, and
+            where a jaw missed).
         held: (n, 6) bool, the static hold check's verdict per load
             (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`; all False where
             the engine does not check it).
@@ -49,13 +53,14 @@ class RobotDraws:
     finger: np.ndarray
     link: np.ndarray
     held: np.ndarray
+    push: np.ndarray
 
     @classmethod
     def empty(cls, n: int, k: int) -> RobotDraws:
         return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
                    np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
                    np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8),
-                   np.zeros((n, HOLD_LOADS), bool))
+                   np.zeros((n, HOLD_LOADS), bool), np.full(n, np.nan))
 
     @property
     def holds(self) -> np.ndarray:
@@ -121,6 +126,7 @@ class RobotEngine:
         self.obj = load_object(object_name)
         self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
         self.max_contacts = len(self.description.finger_links)
+        self.jaw_speeds = jaw_speeds(self.description)
         self.hold_check = None
         if static_hold:
             from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
@@ -172,6 +178,9 @@ class RobotEngine:
         q = self.check(q)
         batch = self.close_batch(q)
         draws = score_batch(batch, self.max_contacts, self.quality)
+        if self.jaw_speeds is not None and len(batch):
+            draws.push[:] = jaw_push(self.jaw_speeds, batch.travel, batch.missed,
+                                     batch.start_collision)
         if self.hold_check is not None:
             touched = np.flatnonzero((draws.outcome == NO_FORCE_CLOSURE)
                                      | (draws.outcome == FORCE_CLOSURE))

@@ -72,6 +72,10 @@ class RobotEvaluation:
         p_hold_static, hold_ci: the fraction of draws the static hold check held and its
             Wilson 95% interval (NaN where the engine did not check it).
         mass: the object's mass the check used, kg (NaN where not checked).
+        push_median, push_p95: over the draws where both jaws of a coupled pair touched, the
+            median and 95th percentile of the push a coupled pair would give the object,
+            metres (:func:`~kinegrasp_env.closing.coupled_jaws.jaw_push`; NaN for other
+            hands).
     """
 
     n: int
@@ -85,6 +89,8 @@ class RobotEvaluation:
     p_hold_static: float = float("nan")
     hold_ci: tuple[float, float] = (float("nan"), float("nan"))
     mass: float = float("nan")
+    push_median: float = float("nan")
+    push_p95: float = float("nan")
 
 
 def summarize(draws: RobotDraws, mass: float | None = None) -> RobotEvaluation:
@@ -95,10 +101,14 @@ def summarize(draws: RobotDraws, mass: float | None = None) -> RobotEvaluation:
     k = int(fc.sum())
     q = draws.quality[fc]
     hold = {}
+    pushed = draws.push[np.isfinite(draws.push)]
+    if pushed.size:
+        hold.update(push_median=float(np.median(pushed)),
+                    push_p95=float(np.percentile(pushed, 95)))
     if mass is not None:
         held = int(draws.holds.sum())
-        hold = {"p_hold_static": held / n if n else float("nan"),
-                "hold_ci": wilson_interval(held, n), "mass": float(mass)}
+        hold.update(p_hold_static=held / n if n else float("nan"),
+                    hold_ci=wilson_interval(held, n), mass=float(mass))
     return RobotEvaluation(
         n, {name: int((draws.outcome == i).sum()) for i, name in enumerate(OUTCOMES)},
         k / n if n else float("nan"), wilson_interval(k, n),
