@@ -336,6 +336,16 @@ def add_engine_arg(parser: argparse.ArgumentParser, default: str = "pybullet") -
                              "physics (pybullet dynamics, same draws; slow)")
 
 
+def add_static_hold_arg(parser: argparse.ArgumentParser, shows: str) -> None:
+    """``--static-hold``: the static hold check of every draw; ``shows``: what the command
+    then prints."""
+    parser.add_argument("--static-hold", action="store_true",
+                        help="also check each draw's static hold: can its contacts carry the "
+                        "object's weight (catalog mass) in six gravity directions and the "
+                        "lift with forces in the friction cones and the hand's effort "
+                        f"limits; {shows} (robots other than the default)")
+
+
 def engine_name(value: str) -> str:
     """Validated ``--engine`` value."""
     from kinegrasp_env.montecarlo.evaluate import ENGINES

@@ -16,6 +16,7 @@ from kinegrasp_env.cli.common import (
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
+    add_static_hold_arg,
     engine_name,
     executor_from,
     finite_float,
@@ -294,11 +295,7 @@ def add_commands(sub) -> None:
                    "evaluation (as `kinegrasp report`)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
                    f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
-    p.add_argument("--static-hold", action="store_true",
-                   help="also check each draw's static hold: can its contacts carry the "
-                   "object's weight (catalog mass) in six gravity directions and the lift "
-                   "with forces in the friction cones and the hand's effort limits; prints "
-                   "P(hold, static) (robots other than the default)")
+    add_static_hold_arg(p, "prints P(hold, static)")
     p.add_argument("--hold-test", action="store_true",
                    help="also run the quick holding test in pybullet on the same draws and "
                    "print P(hold) (robots other than the default; about 0.04-0.2 s a draw)")

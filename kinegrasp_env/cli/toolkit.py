@@ -14,6 +14,7 @@ from kinegrasp_env.cli.common import (
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
+    add_static_hold_arg,
     executor_from,
     output_file,
     output_folder,
@@ -114,11 +115,7 @@ def add_commands(sub) -> None:
                    "hand's effort limits, or P(hold): the fraction the quick holding test in "
                    "pybullet holds (both: robots other than the default; the holding test "
                    "costs about 0.05-0.1 s a draw)")
-    p.add_argument("--static-hold", action="store_true",
-                   help="also check each draw's static hold: can its contacts carry the "
-                   "object's weight (catalog mass) in six gravity directions and the lift "
-                   "with forces in the friction cones and the hand's effort limits; adds the "
-                   "column P(hold, static) (robots other than the default)")
+    add_static_hold_arg(p, "adds the column P(hold, static)")
     p.add_argument("--adaptive", action="store_true",
                    help="stop drawing once a top k is certified: exact tests on the paired "
                    "draws of every two candidates (common noise); the table lists the "

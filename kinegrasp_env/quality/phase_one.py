@@ -68,6 +68,23 @@ def leaving_row(tab: np.ndarray, basis: np.ndarray, enter: int, tol: float) -> i
 
 
 @jit.kernel(_nrt=False)
+def entering_column(tab: np.ndarray, objective: int, dantzig: bool, tol: float) -> int:
+    """The column to enter the basis, by the reduced costs in row ``objective`` of the
+    tableau (last column the right-hand side): the most negative one (Dantzig's rule: few
+    pivots) or the first negative one (Bland's rule, which cannot cycle); -1 when none is
+    below -``tol`` (optimal)."""
+    enter = -1
+    lowest = -tol
+    for j in range(tab.shape[1] - 1):
+        if tab[objective, j] < lowest:
+            if not dantzig:
+                return j
+            lowest = tab[objective, j]
+            enter = j
+    return enter
+
+
+@jit.kernel(_nrt=False)
 def pivot(tab: np.ndarray, leave: int, enter: int) -> None:
     """Gauss-Jordan pivot of the tableau on (leave, enter)."""
     piv = tab[leave, enter]
@@ -144,18 +161,7 @@ def initial_simplex(w: np.ndarray, tol: float) -> np.ndarray:
     for i in range(rows):
         basis[i] = n + i
     for it in range(200):
-        enter = -1
-        if it < DANTZIG_PIVOTS:  # the most negative reduced cost: few pivots
-            lowest = -tol
-            for j in range(cols):
-                if tab[rows, j] < lowest:
-                    lowest = tab[rows, j]
-                    enter = j
-        else:  # then Bland's rule (the first negative one), which cannot cycle
-            for j in range(cols):
-                if tab[rows, j] < -tol:
-                    enter = j
-                    break
+        enter = entering_column(tab, rows, it < DANTZIG_PIVOTS, tol)
         if enter < 0:
             break
         leave = leaving_row(tab, basis, enter, tol)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.quality.phase_one import leaving_row, pivot
+from kinegrasp_env.quality.phase_one import entering_column, leaving_row, pivot
 
 __all__ = ["HOLD_LOADS", "axis_loads", "feasible", "hold_directions", "static_hold"]
 
@@ -90,18 +90,7 @@ def feasible(a_eq: np.ndarray, b_eq: np.ndarray, a_ub: np.ndarray, b_ub: np.ndar
         s += tab[i, cols]
     tab[rows, cols] = -s
     for it in range(MAX_PIVOTS):
-        enter = -1
-        if it < DANTZIG_PIVOTS:
-            lowest = -PIVOT_TOL
-            for j in range(cols):
-                if tab[rows, j] < lowest:
-                    lowest = tab[rows, j]
-                    enter = j
-        else:
-            for j in range(cols):
-                if tab[rows, j] < -PIVOT_TOL:
-                    enter = j
-                    break
+        enter = entering_column(tab, rows, it < DANTZIG_PIVOTS, PIVOT_TOL)
         if enter < 0:
             break
         leave = leaving_row(tab, basis, enter, PIVOT_TOL)
