@@ -262,8 +262,9 @@ for r in rows10:
 display(Image(filename="out/fig10/fig10.png"))"""),
         ("md", """## Beside the paper's numbers
 
-The paper's values come from `docs/paper_values.yaml` (each with its source; most are not
-available here); `scripts/paper_side_by_side.py` sets them beside the runs above."""),
+The paper's values, read from its text, come from `docs/paper_values.yaml` (each with the
+table or figure it comes from); `scripts/paper_side_by_side.py` sets them beside the runs
+above."""),
         ("code", """import importlib.util
 from pathlib import Path
 
@@ -281,11 +282,12 @@ display(Markdown(side.side_by_side(None, Path("out/fig7"), Path("out/fig10"))))"
 
 Table I: mean and variance of Q and P(FC) for five spray-flask grasps at the paper's four
 noise levels; Fig. 8: P(FC) against sigma; Fig. 9: success rate and mean quality of ten
-grasps per object. The paper's own numbers are for its GraspIt models of these objects and
-its grasps, so only the trends compare: P(FC) falls with sigma, the mean Q of the closing draws
-moves away from the nominal Q, and the variance grows. The table at the end sets the paper's
-Table I beside this run cell by cell (where the paper's value is available here) and names
-what differs: hand model, object meshes, grasp set, torque scale."""),
+grasps per object. The paper's own numbers are for its own models of these objects and its
+grasps, closed in V-REP, so only the trends compare: P(FC) falls with sigma, the mean Q of the
+closing draws moves away from the nominal Q, and the variance grows. The table at the end sets
+the paper's Table I beside this run cell by cell (the paper's grasps 1-5 beside grasps 0-4
+here: different grasps, paired by position) and names what differs: hand model, object
+meshes, grasp set, torque scale, closing."""),
         ("code", SETUP),
         ("code", """from IPython.display import Image, Markdown, display
 from kinegrasp_env.toolkit.experiments import fig9_10, markdown_table1, table1
@@ -298,7 +300,7 @@ display(Image(filename="out/table1/pfc_vs_sigma.png"))"""),
 display(Image(filename="out/fig9/fig9.png"))"""),
         ("md", """## Table I beside the paper's
 
-The paper's values come from `docs/paper_values.yaml` (each with its source);
+The paper's Table I, read from its text, is in `docs/paper_values.yaml`;
 `scripts/paper_side_by_side.py` writes the table from this run's `out/table1/table1.csv`."""),
         ("code", """import importlib.util
 from pathlib import Path
