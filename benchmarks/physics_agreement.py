@@ -54,11 +54,13 @@ from pathlib import Path
 
 import numpy as np
 from marked_section import write_between
+from quick_hold import configurations
 from results_file import add_options, settings, write_result
 from scipy.stats import rankdata
 from simulator_agreement import SIMULATORS, run_validate
 from thin_objects import THIN_OBJECTS, import_thin_objects
 
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws
@@ -106,8 +108,8 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
     """Every score (module docstring) of configurations q (n, dof)."""
     engine_name = "pybullet" if robot == "kuka_sdh" else "fast"  # the SDH's capsule tips
     with make_engine(engine_name, robot, obj, static_hold=True) as engine:
-        draws: RobotDraws = engine.run(q)
-        batch = engine.close_batch(q)
+        batch = engine.close_batch(engine.check(q))
+        draws: RobotDraws = engine.scored(q, batch)
         touched = draws.n_contacts > 0
         capacity = np.zeros(q.shape[0])
         if touched.any():
@@ -117,12 +119,11 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
                 draws.normals[rows], draws.finger[rows], draws.link[rows])
         description = engine.description
         tips = [finger.tip for finger in description.fingers]
-        open_q = q.copy()
-        poses = engine.hold_check.kinematics.forward(open_q, tips)
+        poses = engine.hold_check.kinematics.forward(q, tips)
         centre = np.mean([poses[t][:, :3, 3] for t in tips], axis=0)
         centre = centre @ engine.obj.pose_inverse[:3, :3].T + engine.obj.pose_inverse[:3, 3]
         distance = np.linalg.norm(centre - engine.obj.center_of_mass, axis=1)
-        fc = (draws.outcome == 3).astype(float)
+        fc = (draws.outcome == FORCE_CLOSURE).astype(float)
     with make_engine("fast" if robot != "kuka_sdh" else "pybullet", robot, obj) as engine:
         arm = engine.description.arm_dof
         rng = np.random.default_rng(seed)
@@ -131,7 +132,7 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
         for i, row in enumerate(q):
             around = np.repeat(row[None], count, axis=0)
             around[:, :arm] += JointNoise(sigma).sample(count, arm, rng)
-            p_fc[i] = float((engine.run(around).outcome == 3).mean())
+            p_fc[i] = float((engine.run(around).outcome == FORCE_CLOSURE).mean())
     return {"fc": fc, "q": draws.quality, "p_fc": p_fc,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
             "quick_hold": quick_hold(robot, obj, q), "-centre_distance": -distance}
@@ -194,14 +195,7 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
         if not grasps:
             print(f"  panda {obj}: no grasp planned, skipped", file=sys.stderr)
             continue
-        rng = np.random.default_rng(args.seed)
-        rows = []
-        for g in grasps:
-            for sigma in args.panda_sigmas:
-                q = np.repeat(np.asarray(g.q0, dtype=float)[None], args.samples, axis=0)
-                q[:, :7] += JointNoise(sigma).sample(args.samples, 7, rng)
-                rows.append(q)
-        q = np.concatenate(rows)
+        q = configurations(grasps, args.panda_sigmas, args.samples, args.seed)
         start = time.perf_counter()
         with RobotHoldEngine("panda", obj, protocol=protocol) as physics:
             _, hold = physics.run_hold(q)

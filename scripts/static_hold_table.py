@@ -32,7 +32,7 @@ def rows(robot: str, obj: str) -> list[str]:
     with make_engine(engine_name, robot, obj, static_hold=True) as engine:
         q = np.array([g.q0 for g in grasps], dtype=float)
         batch = engine.close_batch(q)
-        draws = engine.run(q)
+        draws = engine.scored(q, batch)
         check = engine.hold_check
         capacity = check.capacity(q, batch.joints, draws.points, draws.normals, draws.finger,
                                   draws.link)

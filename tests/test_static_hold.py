@@ -11,7 +11,7 @@ import pytest
 from scipy.optimize import linprog
 
 from kinegrasp_env.quality.soft_contacts import contact_wrenches, torsion_coefficient
-from kinegrasp_env.quality.static_hold import axis_loads, feasible, static_hold
+from kinegrasp_env.quality.static_hold import feasible, gravity_loads, static_hold
 
 MU, GRIP = 0.5, 20.0  # friction; each jaw's largest push, newtons
 
@@ -79,18 +79,24 @@ def test_soft_pinch_carries_an_offset_weight_within_its_torsion() -> None:
     assert not _held("point", 0.01 * limit, (0, 0, -1), offset=d)
 
 
-def test_axis_loads_turn_with_the_object() -> None:
-    """The six loads are the world axes' gravity in the object frame (R^T d), the lift's
-    acceleration added to the downward one; no torque about the centre of mass."""
+def test_loads_turn_with_the_object() -> None:
+    """The six loads are the world axes' gravity in the object frame (R^T d), in the order
+    +x, -x, +y, -y, +z, -z, the lift's peak acceleration (minimum jerk, closed form
+    10 h / (sqrt 3 T^2)) added to the downward one; no torque about the centre of mass."""
+    from kinegrasp_env.montecarlo.hold_check import load_accelerations
+    from kinegrasp_env.physics.protocol import HoldProtocol
+
     angle = 0.3
     rot = np.array([[math.cos(angle), -math.sin(angle), 0.0],
                     [math.sin(angle), math.cos(angle), 0.0], [0.0, 0.0, 1.0]])
-    loads = axis_loads(2.0, 9.81, rot, lift_acceleration=0.5)
+    protocol = HoldProtocol(gravity=9.81, lift_height=0.1, lift_time=1.0)
+    lift = 10 * 0.1 / math.sqrt(3)
+    loads = gravity_loads(2.0, load_accelerations(protocol), rot)
     world = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
     for load, d in zip(loads, world, strict=True):
-        size = 2.0 * (9.81 + (0.5 if d == (0, 0, -1) else 0.0))
+        size = 2.0 * (9.81 + (lift if d == (0, 0, -1) else 0.0))
         np.testing.assert_allclose(load[:3], size * (rot.T @ np.array(d, dtype=float)),
-                                   atol=1e-12)
+                                   rtol=1e-6, atol=1e-12)
         np.testing.assert_array_equal(load[3:], 0.0)
 
 
@@ -134,7 +140,7 @@ def test_panda_jaw_rows_are_the_push_along_the_normal(panda_cube) -> None:
     check = engine.hold_check
     q = np.array([g.q0 for g in grasps], dtype=float)
     batch = engine.close_batch(q)
-    draws = engine.run(q)
+    draws = engine.scored(q, batch)
     touched = draws.n_contacts >= 2
     assert touched.all()
     palm = engine.obj.pose_inverse @ check.kinematics.pose(q, engine.description.palm_link)
@@ -167,8 +173,8 @@ def test_panda_holds_the_cube_and_not_a_thousandfold_heavier_one(panda_cube) -> 
                             friction=engine.friction, num_edges=engine.num_edges,
                             finger_radius=engine.finger_radius)
     assert heavy.mass == pytest.approx(1000 * engine.hold_check.mass)
-    draws = engine.run(q)
     batch = engine.close_batch(q)
+    draws = engine.scored(q, batch)
     held = heavy.held(q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
     assert not held.any()
 
@@ -180,7 +186,7 @@ def test_capacity_is_the_edge_of_the_held_loads(panda_cube) -> None:
     check = engine.hold_check
     q = np.array([g.q0 for g in grasps], dtype=float)
     batch = engine.close_batch(q)
-    draws = engine.run(q)
+    draws = engine.scored(q, batch)
     terms = (q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
     capacity = check.capacity(*terms, top=1e4, steps=30)
     assert (capacity > 1).all() and (capacity < 1e4).all()

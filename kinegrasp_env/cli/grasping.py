@@ -36,7 +36,7 @@ from kinegrasp_env.cli.robot_grasps import (
     _check_engine,
     _refuse,
     evaluate_robot,
-    refuse_static_hold,
+    refuse_hold_scores,
 )
 
 #: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
@@ -60,7 +60,7 @@ def cmd_evaluate(args) -> int:
     robot = args.robot or grasp.robot
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
         return evaluate_robot(args, index, grasp, robot, sigma, samples, seed)
-    refuse_static_hold(args, robot)
+    refuse_hold_scores(args, robot)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)
@@ -298,7 +298,8 @@ def add_commands(sub) -> None:
     add_static_hold_arg(p, "prints P(hold, static)")
     p.add_argument("--hold-test", action="store_true",
                    help="also run the quick holding test in pybullet on the same draws and "
-                   "print P(hold) (robots other than the default; about 0.04-0.2 s a draw)")
+                   "print P(hold) (robots other than the default; about 0.04 s a draw for the "
+                   "Panda)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

@@ -25,7 +25,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot, refuse_static_hold
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot, refuse_hold_scores
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -93,7 +93,7 @@ def cmd_rank(args) -> int:
                        engine)
         _write_rejected(rejected, out)
         return 0
-    refuse_static_hold(args, robot)
+    refuse_hold_scores(args, robot)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)

@@ -27,9 +27,9 @@ def _refuse(args, options: dict[str, object], robot: str) -> None:
                            f"{DEFAULT_ROBOT})")
 
 
-def refuse_static_hold(args, robot: str) -> None:
-    """CLIError for ``--static-hold`` (or ``--criterion hold_static``) of the default robot,
-    whose engines do not run the static hold check."""
+def refuse_hold_scores(args, robot: str) -> None:
+    """CLIError for a hold score (``--static-hold``, ``--hold-test``, ``--criterion
+    hold_static`` or ``hold``) of the default robot, whose engines run neither."""
     if getattr(args, "static_hold", False) or getattr(args, "hold_test", False) or getattr(
             args, "criterion", None) in ("hold_static", "hold"):
         raise CLIError(f"the hold scores (--static-hold, --hold-test, --criterion hold_static "

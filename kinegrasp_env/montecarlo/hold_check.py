@@ -27,15 +27,25 @@ import numpy as np
 
 from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.physics.motion import peak_lift_acceleration
-from kinegrasp_env.physics.protocol import HoldProtocol
+from kinegrasp_env.physics.protocol import GRAVITY_PHASES, HoldProtocol
 from kinegrasp_env.physics.robot_world import motor_efforts
 from kinegrasp_env.quality.soft_contacts import TORSION_PRIMITIVES, contact_wrenches
-from kinegrasp_env.quality.static_hold import axis_loads, static_hold
+from kinegrasp_env.quality.static_hold import gravity_loads, static_hold
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
 
-__all__ = ["StaticHoldCheck"]
+__all__ = ["StaticHoldCheck", "load_accelerations"]
+
+
+def load_accelerations(protocol: HoldProtocol) -> np.ndarray:
+    """(6, 3) the accelerations of gravity the check loads the object with, world frame,
+    m/s^2: the protocol's gravity phases in their order, the lift's peak acceleration added
+    to the downward one (the lift runs under gravity along world -z)."""
+    accelerations = protocol.gravity * np.array(list(GRAVITY_PHASES.values()))
+    accelerations[list(GRAVITY_PHASES).index("gravity_-z"), 2] -= peak_lift_acceleration(
+        protocol)
+    return accelerations
 
 
 class StaticHoldCheck:
@@ -73,8 +83,7 @@ class StaticHoldCheck:
                            for position, joint in enumerate(chain) if joint.name in signs]
                 self.carriers[(f, k)] = (chain, carried)
         self.mass = obj.mass
-        self.loads = axis_loads(self.mass, protocol.gravity, obj.pose[:3, :3],
-                                peak_lift_acceleration(protocol))
+        self.loads = gravity_loads(self.mass, load_accelerations(protocol), obj.pose[:3, :3])
         self.per_contact = num_edges + (TORSION_PRIMITIVES
                                         if description.contact_model == "soft" else 0)
 

@@ -20,8 +20,8 @@ from kinegrasp_env.montecarlo.engines import (
     NO_FORCE_CLOSURE,
     provisional_outcomes,
 )
+from kinegrasp_env.physics.protocol import GRAVITY_PHASES
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
-from kinegrasp_env.quality.static_hold import HOLD_LOADS
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
@@ -60,7 +60,7 @@ class RobotDraws:
         return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
                    np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
                    np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8),
-                   np.zeros((n, HOLD_LOADS), bool), np.full(n, np.nan))
+                   np.zeros((n, len(GRAVITY_PHASES)), bool), np.full(n, np.nan))
 
     @property
     def holds(self) -> np.ndarray:
@@ -176,7 +176,11 @@ class RobotEngine:
         """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape), with
         the static hold check where the engine was asked for it."""
         q = self.check(q)
-        batch = self.close_batch(q)
+        return self.scored(q, self.close_batch(q))
+
+    def scored(self, q: np.ndarray, batch: RobotCloseBatch) -> RobotDraws:
+        """:meth:`run`'s results of the closings ``batch`` of checked configurations q
+        (n, dof): for a caller that needs the closings too (their final joint values)."""
         draws = score_batch(batch, self.max_contacts, self.quality)
         if self.jaw_speeds is not None and len(batch):
             draws.push[:] = jaw_push(self.jaw_speeds, batch.travel, batch.missed,

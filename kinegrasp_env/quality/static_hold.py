@@ -27,10 +27,8 @@ import numpy as np
 from kinegrasp_env import jit
 from kinegrasp_env.quality.phase_one import entering_column, leaving_row, pivot
 
-__all__ = ["HOLD_LOADS", "axis_loads", "feasible", "hold_directions", "static_hold"]
+__all__ = ["feasible", "gravity_loads", "static_hold"]
 
-#: The loads of :func:`axis_loads`: gravity along +-x, +-y, +-z.
-HOLD_LOADS = 6
 #: Pivots by Dantzig's rule before Bland's rule takes over (it cannot cycle).
 DANTZIG_PIVOTS = 60
 #: Most pivots of one programme before it is called infeasible (never reached in tests).
@@ -147,10 +145,9 @@ def static_hold(primitives: np.ndarray, torque_rows: np.ndarray, lower: np.ndarr
         ValueError: non-finite input, mismatched shapes, or bounds that exclude 0.
     """
     single = np.ndim(primitives) == 2
-    prim = np.atleast_3d(np.asarray(primitives, dtype=float)) if not single else \
-        np.asarray(primitives, dtype=float)[None]
-    rows = np.asarray(torque_rows, dtype=float)
-    rows = rows[None] if single else rows
+    prim, rows = (np.asarray(a, dtype=float) for a in (primitives, torque_rows))
+    if single:
+        prim, rows = prim[None], rows[None]
     low = np.asarray(lower, dtype=float).reshape(rows.shape[:2])
     high = np.asarray(upper, dtype=float).reshape(rows.shape[:2])
     loads = np.atleast_2d(np.asarray(loads, dtype=float))
@@ -173,23 +170,11 @@ def static_hold(primitives: np.ndarray, torque_rows: np.ndarray, lower: np.ndarr
     return out[0] if single else out
 
 
-def axis_loads(mass: float, gravity: float, rotation: np.ndarray,
-               lift_acceleration: float = 0.0) -> np.ndarray:
-    """(6, 6) the load wrenches (object frame) of gravity along +x, -x, +y, -y, +z, -z of the
-    world (the holding test's order), the lift's upward acceleration added to the -z one.
-
-    Args:
-        mass: kg; gravity, lift_acceleration: m/s^2; rotation: (3, 3) the object's
-            orientation in the world.
-    """
-    directions = np.repeat(np.eye(3), 2, axis=0) * np.tile([1.0, -1.0], 3)[:, None]
-    size = np.full(6, mass * gravity)
-    size[5] += mass * lift_acceleration
-    loads = np.zeros((6, 6))
-    loads[:, :3] = (directions * size[:, None]) @ np.asarray(rotation, dtype=float)
+def gravity_loads(mass: float, accelerations: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(D, 6) the load wrenches (object frame: force N, torque N m about the centre of mass)
+    of an object of ``mass`` kg under accelerations (D, 3) of gravity (world frame, m/s^2),
+    the object oriented by ``rotation`` (3, 3) in the world: forces m R^T a, no torque."""
+    accelerations = np.atleast_2d(np.asarray(accelerations, dtype=float))
+    loads = np.zeros((accelerations.shape[0], 6))
+    loads[:, :3] = mass * accelerations @ np.asarray(rotation, dtype=float)
     return loads
-
-
-def hold_directions(held: np.ndarray) -> np.ndarray:
-    """(B,) the number of loads held per grasp of ``held`` (B, D) bool."""
-    return np.asarray(held, dtype=bool).sum(axis=-1)

@@ -22,14 +22,13 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine, score
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
 from kinegrasp_env.physics.robot_world import motor_efforts
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS
 from kinegrasp_env.robot.catalog import load_robot
-from kinegrasp_env.sampling.noise import JointNoise, as_generator
 from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
 from kinegrasp_env.world.grasps import Grasp
 
@@ -120,12 +119,8 @@ def robot_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
     start..samples-1 through the kinematic engine and the holding test."""
     index, grasp, settings, start = task
     kinematic, physics = robot_engines(grasp, settings)
-    arm = kinematic.description.arm_dof
-    eps = JointNoise(settings.sigma).sample(int(settings.samples), arm,
-                                            as_generator(settings.seed))
-    q = np.repeat(kinematic.check(grasp.q0), settings.samples, axis=0)
-    q[:, :arm] += eps
-    q = q[start:]
+    q = robot_configurations(grasp, kinematic, sigma=settings.sigma, n=settings.samples,
+                             seed=settings.seed)[start:]
     kin = kinematic.run(q)
     phys, hold = physics.run_hold(q)
     return GraspDraws(grasp.object, index, grasp.id, kin.outcome, kin.quality, phys.outcome,
