@@ -1,0 +1,205 @@
+"""One batch of closings over the palm's deviation, re-weighted to any elbow and noise level.
+
+For one palm pose and one hand pre-shape, a draw's outcome depends only on where the hand
+truly is: the hand root's deviation delta (6,) from its nominal pose, in the flange frame
+(translation t, metres, then rotation vector r, radians: the engines' palm error,
+:func:`~kinegrasp_env.sampling.noise_model.offset_transforms`). The arm's links do not close
+or score (the engines close the hand alone; an object with a support table is the exception,
+refused here). The elbow angle psi and the joint noise change only the distribution of delta:
+to first order, joint errors e ~ N(0, S_q) give delta = J_b(q) e ~ N(0, J_b S_q J_b^T), J_b
+the flange's body Jacobian (6, 7) (:func:`palm_covariance`). So one batch of closings over
+delta drawn from a mixture that covers the targets (:class:`~kinegrasp_env.sampling.reweight.
+MixtureProposal`) answers P(FC) and Q's moments at every psi and sigma by importance weights
+(:meth:`PalmBatch.estimate`), and, the weights being smooth in psi, their derivative too.
+
+What the linearisation costs (the first-order density against joint noise through the exact
+kinematics) is measured by ``benchmarks/bench_reweight.py``; :func:`linear_draws` gives the
+linear-Gaussian deltas that comparison needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, make_engine
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.sampling.noise import as_generator
+from kinegrasp_env.sampling.noise_model import offset_transforms
+from kinegrasp_env.sampling.reweight import (
+    MixtureProposal,
+    WeightedEstimate,
+    gaussian_logpdf,
+    gaussian_score,
+    normalised_weights,
+    weighted_estimate,
+)
+
+ARM = 7
+#: Draws per engine call of a batch.
+BATCH_CHUNK = 2000
+#: Below this effective sample size a re-weighted estimate is not used: the caller falls
+#: back to direct draws (and says so).
+MIN_ESS = 1000.0
+
+
+def joint_covariance(sigma) -> np.ndarray:
+    """(7, 7) covariance of Gaussian arm joint errors: sigma (radians) a scalar, 7 per-joint
+    values, or a (7, 7) covariance itself.
+
+    Raises:
+        ValueError: another shape, a negative or non-finite entry.
+    """
+    s = np.asarray(sigma, dtype=float)
+    if not np.all(np.isfinite(s)):
+        raise ValueError(f"sigma must be finite, got {sigma!r}")
+    if s.shape == (ARM, ARM):
+        return 0.5 * (s + s.T)
+    if s.ndim == 0 or s.shape == (ARM,):
+        if np.any(s < 0):
+            raise ValueError(f"sigma must be >= 0, got {sigma!r}")
+        return np.diag(np.broadcast_to(s, (ARM,)) ** 2)
+    raise ValueError(f"sigma must be a scalar, 7 values or a 7x7 covariance, got shape "
+                     f"{s.shape}")
+
+
+class PalmJacobian:
+    """The flange's body Jacobian of the default robot's arm (one kinematics, reused)."""
+
+    def __init__(self) -> None:
+        self.kin = Kinematics(kuka_sdh())
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        """(n, 6, 7) d delta / d q_arm at configurations q (n, 14) or (14,): rows 0-2 the
+        flange origin's velocity, rows 3-5 its angular velocity, both in the flange frame."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        rot = self.kin.pose(q, FLANGE_LINK)[:, :3, :3]
+        jac = self.kin.jacobian(q, FLANGE_LINK)[:, :, :ARM]
+        rt = np.swapaxes(rot, 1, 2)
+        return np.concatenate([rt @ jac[:, :3], rt @ jac[:, 3:]], axis=1)
+
+    def covariance(self, q: np.ndarray, sigma) -> np.ndarray:
+        """(n, 6, 6) J_b S_q J_b^T at configurations q (n, 14) for joint noise ``sigma``
+        (:func:`joint_covariance`)."""
+        jac = self(q)
+        return jac @ joint_covariance(sigma) @ np.swapaxes(jac, 1, 2)
+
+
+def palm_covariance(q: np.ndarray, sigma) -> np.ndarray:
+    """(n, 6, 6) the first-order covariance of the palm's deviation at configurations q
+    (n, 14) under Gaussian joint noise ``sigma`` (:meth:`PalmJacobian.covariance`)."""
+    return PalmJacobian().covariance(q, sigma)
+
+
+def linear_draws(covariance: np.ndarray, n: int, seed) -> np.ndarray:
+    """(n, 6) deltas drawn from N(0, covariance (6, 6)) (the linear-Gaussian model)."""
+    return as_generator(seed).multivariate_normal(np.zeros(6), covariance, size=n,
+                                                  method="cholesky")
+
+
+@dataclass
+class PalmEstimate:
+    """What one target distribution of delta gets from a batch.
+
+    Attributes:
+        p_fc: P(force closure) (its derivative along psi where asked for).
+        q_mean, q_std: Q's mean and standard deviation over the force-closure draws,
+            weighted (NaN where no draw is in force closure).
+        ess: the effective sample size of the target's weights (draws).
+    """
+
+    p_fc: WeightedEstimate
+    q_mean: float
+    q_std: float
+
+    @property
+    def ess(self) -> float:
+        return self.p_fc.ess
+
+    @property
+    def usable(self) -> bool:
+        """The effective sample size is at least :data:`MIN_ESS`."""
+        return self.ess >= MIN_ESS
+
+
+@dataclass
+class PalmBatch:
+    """Closings of one grasp at palm deviations drawn from a proposal.
+
+    Attributes:
+        q: (14,) the configuration closed (its palm pose is the grasp's).
+        deltas: (n, 6) the palm deviations (flange frame: metres, then radians).
+        log_proposal: (n,) the proposal's log density at each delta.
+        outcome: (n,) int8 outcome per draw; quality: (n,) Q (0 unless force closure).
+    """
+
+    q: np.ndarray
+    deltas: np.ndarray
+    log_proposal: np.ndarray
+    outcome: np.ndarray
+    quality: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.deltas)
+
+    @property
+    def fc(self) -> np.ndarray:
+        """(n,) bool: force closure per draw."""
+        return self.outcome == FORCE_CLOSURE
+
+    def estimate(self, covariance: np.ndarray, derivative: np.ndarray | None = None
+                 ) -> PalmEstimate:
+        """P(FC) and Q's moments for deltas ~ N(0, covariance (6, 6)); with ``derivative``
+        (6, 6) = d covariance / d psi, P(FC)'s derivative along psi too."""
+        log_target = gaussian_logpdf(self.deltas, covariance)
+        score = None if derivative is None else gaussian_score(self.deltas, covariance,
+                                                               derivative)
+        p = weighted_estimate(self.fc, log_target, self.log_proposal, score)
+        w = normalised_weights(log_target, self.log_proposal) * self.fc
+        if w.sum() <= 0.0:
+            return PalmEstimate(p, float("nan"), float("nan"))
+        w = w / w.sum()
+        mean = float(w @ self.quality)
+        var = float(w @ (self.quality - mean) ** 2)
+        return PalmEstimate(p, mean, float(np.sqrt(max(var, 0.0))))
+
+
+def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine: str = "fast",
+                 friction: float = 0.5, progress=None) -> tuple[np.ndarray, np.ndarray]:
+    """((n,) outcome, (n,) Q) of closing the hand at configuration q (14,) with the hand
+    root moved by each delta (n, 6) in the flange frame, in chunks of
+    :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
+    from kinegrasp_env.world.objects import load_object
+
+    if load_object(object_name).table is not None:
+        raise ValueError(f"object {object_name!r} stands on a support table: the arm's links "
+                         f"then matter, and one batch of palm deviations cannot stand for "
+                         f"every elbow; use --method direct")
+    n = len(deltas)
+    outcome, quality = np.empty(n, np.int8), np.empty(n)
+    eng = make_engine(engine, object_name, friction)
+    try:
+        for start in range(0, n, BATCH_CHUNK):
+            stop = min(n, start + BATCH_CHUNK)
+            rows = np.tile(np.asarray(q, dtype=float), (stop - start, 1))
+            out = eng.run(rows, palm=offset_transforms(deltas[start:stop]))
+            outcome[start:stop], quality[start:stop] = out.outcome, out.quality
+            if progress is not None:
+                progress(stop, n)
+    finally:
+        eng.close()
+    return outcome, quality
+
+
+def close_batch(q: np.ndarray, object_name: str, covariances: np.ndarray, n: int, seed, *,
+                engine: str = "fast", friction: float = 0.5, progress=None) -> PalmBatch:
+    """A :class:`PalmBatch` of n closings at configuration q (14,), deltas drawn from the
+    stratified mixture over ``covariances`` (K, 6, 6) (:class:`MixtureProposal`), seeded."""
+    proposal = MixtureProposal.covering(covariances, n)
+    deltas = proposal.sample(as_generator(seed))
+    outcome, quality = close_deltas(q, deltas, object_name, engine=engine, friction=friction,
+                                    progress=progress)
+    return PalmBatch(np.asarray(q, dtype=float).copy(), deltas, proposal.logpdf(deltas),
+                     outcome, quality)

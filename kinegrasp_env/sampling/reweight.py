@@ -1,0 +1,176 @@
+"""Self-normalised importance weights for zero-mean Gaussian targets.
+
+One batch of draws x_1..x_n (n, d) from a proposal g answers the expectation of any f under
+any target density p whose support g covers:
+
+    E_p[f] ~ sum_i w_i f(x_i) / sum_i w_i,      w_i = p(x_i) / g(x_i),
+
+with the effective sample size ESS = (sum w)^2 / sum w^2 (how many direct draws the batch
+is worth for that target) and the delta-method standard error
+sqrt(sum w_i^2 (f_i - E)^2) / sum w_i (Owen, *Monte Carlo theory, methods and examples*,
+ch. 9). The proposal here is a *stratified Gaussian mixture*: n_k = n / K draws from each of K
+zero-mean components N(0, S_k), weighted with the mixture's density (the balance heuristic),
+so that a target equal to one component has weights below K, and a *defensive* component
+(the components' mean covariance, widened) keeps the weights bounded for targets between
+them. The score d log p / dt of a target N(0, S(t)) along a parameter t gives the estimate's
+derivative, dE/dt ~ sum_i w_i (f_i - E) s_i / sum_i w_i.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.sampling.stats import Z95
+
+#: The defensive component's covariance: the components' mean, times this squared scale.
+DEFENSIVE_SCALE = 1.5
+#: The share of the draws given to the defensive component.
+DEFENSIVE_SHARE = 0.1
+
+
+def _checked_covariances(covariances: np.ndarray) -> np.ndarray:
+    cov = np.asarray(covariances, dtype=float)
+    if cov.ndim == 2:
+        cov = cov[None]
+    if cov.ndim != 3 or cov.shape[1] != cov.shape[2] or not len(cov):
+        raise ValueError(f"covariances must have shape (K, d, d), got {np.shape(covariances)}")
+    if not np.all(np.isfinite(cov)):
+        raise ValueError("covariances have NaN or infinite entries")
+    return 0.5 * (cov + np.swapaxes(cov, 1, 2))
+
+
+def gaussian_logpdf(x: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """(n,) log density of N(0, covariance (d, d)) at points x (n, d).
+
+    Raises:
+        ValueError: the covariance is not positive definite.
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    cov = _checked_covariances(covariance)[0]
+    try:
+        chol = np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise ValueError("the covariance is not positive definite (a joint noise that "
+                         "leaves a direction of the palm's pose without error)") from None
+    z = np.linalg.solve(chol, x.T)
+    d = cov.shape[0]
+    return (-0.5 * np.sum(z * z, axis=0) - np.sum(np.log(np.diag(chol)))
+            - 0.5 * d * math.log(2.0 * math.pi))
+
+
+def gaussian_score(x: np.ndarray, covariance: np.ndarray, derivative: np.ndarray
+                   ) -> np.ndarray:
+    """(n,) d/dt log N(x; 0, S(t)) at points x (n, d), given S (d, d) and dS/dt (d, d):
+    -tr(S^-1 S') / 2 + x^T S^-1 S' S^-1 x / 2."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    inv = np.linalg.inv(_checked_covariances(covariance)[0])
+    a = inv @ np.asarray(derivative, dtype=float) @ inv
+    return -0.5 * np.trace(inv @ derivative) + 0.5 * np.einsum("ni,ij,nj->n", x, a, x)
+
+
+@dataclass(frozen=True)
+class MixtureProposal:
+    """A stratified mixture of zero-mean Gaussians and a defensive one.
+
+    Attributes:
+        covariances: (K, d, d) the components (the targets of interest).
+        defensive: (d, d) the defensive component's covariance.
+        counts: (K + 1,) draws per component (the last: defensive) for a batch of n.
+    """
+
+    covariances: np.ndarray
+    defensive: np.ndarray
+    counts: np.ndarray
+
+    @classmethod
+    def covering(cls, covariances: np.ndarray, n: int, *,
+                 defensive_scale: float = DEFENSIVE_SCALE,
+                 defensive_share: float = DEFENSIVE_SHARE) -> MixtureProposal:
+        """The proposal of n draws over components (K, d, d) (a (d, d) is one component)."""
+        cov = _checked_covariances(covariances)
+        if n < len(cov) + 1:
+            raise ValueError(f"a batch of {n} draws cannot cover {len(cov)} targets and a "
+                             f"defensive component: ask for at least {len(cov) + 1}")
+        if not 0.0 < defensive_share < 1.0 or defensive_scale < 1.0:
+            raise ValueError("the defensive share must lie in (0, 1) and its scale be >= 1, "
+                             f"got {defensive_share:g} and {defensive_scale:g}")
+        n_def = max(1, int(round(defensive_share * n)))
+        base, extra = divmod(n - n_def, len(cov))
+        counts = np.array([base + (k < extra) for k in range(len(cov))] + [n_def])
+        return cls(cov, defensive_scale**2 * cov.mean(axis=0), counts)
+
+    @property
+    def shares(self) -> np.ndarray:
+        """(K + 1,) the mixture's weights: each component's share of the draws."""
+        return self.counts / self.counts.sum()
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        """(n, d) draws, component by component (stratified)."""
+        parts = []
+        for cov, count in zip([*self.covariances, self.defensive], self.counts, strict=True):
+            chol = np.linalg.cholesky(cov)
+            parts.append(rng.standard_normal((count, cov.shape[0])) @ chol.T)
+        return np.vstack(parts)
+
+    def logpdf(self, x: np.ndarray) -> np.ndarray:
+        """(n,) log density of the mixture at x (n, d)."""
+        logs = np.stack([gaussian_logpdf(x, c) for c in [*self.covariances, self.defensive]])
+        logs += np.log(self.shares)[:, None]
+        top = logs.max(axis=0)
+        return top + np.log(np.exp(logs - top).sum(axis=0))
+
+
+@dataclass(frozen=True)
+class WeightedEstimate:
+    """A self-normalised importance-sampling estimate.
+
+    Attributes:
+        value: the estimate of E_p[f].
+        se: its delta-method standard error.
+        ess: the effective sample size (draws).
+        derivative: dE/dt along a target parameter (NaN unless asked for).
+        derivative_se: its standard error (NaN unless asked for).
+    """
+
+    value: float
+    se: float
+    ess: float
+    derivative: float = math.nan
+    derivative_se: float = math.nan
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """The normal 95% interval value +- 1.96 se, clipped to [0, 1] (a probability's)."""
+        return (max(0.0, self.value - Z95 * self.se), min(1.0, self.value + Z95 * self.se))
+
+
+def normalised_weights(log_target: np.ndarray, log_proposal: np.ndarray) -> np.ndarray:
+    """(n,) weights p / g summing to 1, from log densities (n,) (overflow-safe)."""
+    log_w = np.asarray(log_target, dtype=float) - np.asarray(log_proposal, dtype=float)
+    w = np.exp(log_w - log_w.max())
+    return w / w.sum()
+
+
+def weighted_estimate(values: np.ndarray, log_target: np.ndarray, log_proposal: np.ndarray,
+                      score: np.ndarray | None = None) -> WeightedEstimate:
+    """E_p[f] from draws with values f (n,), log target and log proposal densities (n,);
+    with ``score`` (n,) = d log p / dt, its derivative along t too (a delta-method standard
+    error from the influence function)."""
+    f = np.asarray(values, dtype=float)
+    w = normalised_weights(log_target, log_proposal)
+    value = float(w @ f)
+    resid = f - value
+    se = float(np.sqrt(np.sum(w * w * resid * resid)))
+    ess = float(1.0 / np.sum(w * w))
+    if score is None:
+        return WeightedEstimate(value, se, ess)
+    s = np.asarray(score, dtype=float)
+    mean_s = float(w @ s)
+    derivative = float(w @ (resid * s))
+    # influence of draw i on sum w (f - E)(s - s_bar): the product minus its mean
+    influence = resid * (s - mean_s) - derivative
+    derivative_se = float(np.sqrt(np.sum(w * w * influence * influence)))
+    return WeightedEstimate(value, se, ess, derivative, derivative_se)
