@@ -23,7 +23,6 @@ from kinegrasp_env.montecarlo.palm_batch import (
 )
 from kinegrasp_env.robot.kinematics import rotation_log
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.noise_model import offset_transforms
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
 from kinegrasp_env.world.grasps import shipped_grasps
 

@@ -92,14 +92,21 @@ def cmd_elbow(args) -> int:
     if args.plot:
         output_file(args.plot, "--plot")
     report_path(args.report)
-    bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} (selection, then fresh "
-               "draws)", unit="angle", file=sys.stderr, disable=None)
-    with executor_from(args) as executor:
-        result = optimize_elbow(grasp, noise, samples, seed, engine=args.engine,
-                                epsilon=epsilon, delta=delta, executor=executor,
-                                progress=lambda done: bar.update(done - bar.n))
-    bar.close()
+    if args.method == "reweight":
+        result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
+                                            delta)
+    else:
+        evidence = None
+        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} (selection, then fresh "
+                   "draws)", unit="angle", file=sys.stderr, disable=None)
+        with executor_from(args) as executor:
+            result = optimize_elbow(grasp, noise, samples, seed, engine=args.engine,
+                                    epsilon=epsilon, delta=delta, executor=executor,
+                                    progress=lambda done: bar.update(done - bar.n))
+        bar.close()
     payload = result.to_json()
+    if evidence is not None:
+        payload["reweight"] = evidence.to_json()
     if args.plot:
         from kinegrasp_env.toolkit.plots import plot_elbow_curve
 
@@ -110,11 +117,49 @@ def cmd_elbow(args) -> int:
         print(json.dumps(payload))
     else:
         print(text_summary(payload, index))
+        if evidence is not None:
+            print(reweight_lines(payload["reweight"], samples))
         if args.plot:
             print(f"  plot written to {args.plot}")
     if args.report:
         write_elbow_report(args, grasp, index, result, noise)
     return 0
+
+
+def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta):
+    """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
+    closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted
+
+    batch = None if args.batch is None else positive_int(args.batch, "--batch")
+    bar = tqdm(desc=f"elbow of {args.object} grasp {index} (batch, fresh draws, "
+               "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
+    with reported(ValueError), executor_from(args) as executor:
+        out = optimize_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
+                                        epsilon=epsilon, delta=delta, batch=batch,
+                                        executor=executor,
+                                        progress=lambda stage: bar.update(1))
+    bar.close()
+    return out
+
+
+def reweight_lines(evidence: dict, samples: int) -> str:
+    """What the batch method adds to the summary (``ReweightEvidence.to_json()``)."""
+    points = evidence["points"]
+    ess = [p["ess"] for p in points]
+    fallback = evidence["fallback_angles"]
+    lines = [f"  one batch of {evidence['batch']} closings re-weighted to every angle "
+             f"(effective sample size {min(ess):.0f} .. {max(ess):.0f}; "
+             + (f"{plural(len(fallback), 'angle')} below {samples} evaluated directly: "
+                + ", ".join(f"{p:+.3f}" for p in fallback) if fallback
+                else "no angle needed direct draws") + ")",
+             f"  re-weighted P(FC) at the best elbow {evidence['chosen_reweighted_p_fc']:.3f}: "
+             + ("agrees with the fresh draws" if evidence["chosen_agrees_with_fresh_draws"]
+                else "DISAGREES with the fresh draws beyond both sampling errors (the "
+                     "linearisation may not hold here: rerun with --method direct)")]
+    return "\n".join(lines)
 
 
 def cmd_elbow_robot(args, chosen=None) -> int:
@@ -250,10 +295,16 @@ def text_summary(result: dict, index: int) -> str:
     lo, hi = result["best_p_fc_ci"]
     nlo, nhi = result["nominal_p_fc_ci"]
     glo, ghi = result["gain_ci"]
+    if "reweight" in result:
+        how = (f"{len(result['curve'])} elbow angles from one batch of "
+               f"{result['reweight']['batch']} closings, the best and the nominal again on "
+               f"{result['samples']} fresh draws")
+    else:
+        how = (f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again "
+               f"on {result['samples']} fresh draws")
     return "\n".join([
-        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, "
-        f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again on "
-        f"{result['samples']} fresh draws ({result['engine']} engine)",
+        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, {how} "
+        f"({result['engine']} engine)",
         f"  nominal elbow {result['nominal_psi']:+.3f} rad: P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best elbow    {result['best_psi']:+.3f} rad: P(FC) "
@@ -270,9 +321,8 @@ def certificate_lines(cert: dict, grid_step: float) -> list[str]:
                f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
                "rad is the rival it cannot rule out)")
     return [f"  {cert['statement']}",
-            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, exact one-sided "
-            "binomial "
-            f"bounds on {cert['fresh_draws']} fresh draws; angles between the {grid_step:.3f} "
+            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {cert['method']} "
+            f"({cert['fresh_draws']} fresh draws); angles between the {grid_step:.3f} "
             "rad grid points not covered"]
 
 
@@ -295,6 +345,12 @@ def add_commands(sub) -> None:
                    "1 - delta, no evaluated angle beats the chosen one by more than it")
     p.add_argument("--delta", default=str(DEFAULT_DELTA),
                    help="error level of the certificate (0.05: 95%% confidence)")
+    p.add_argument("--method", default="direct", choices=("direct", "reweight"),
+                   help="direct: fresh closings at every angle; reweight: one batch of "
+                   "closings over the palm's deviation re-weighted to every angle (Gaussian "
+                   "joint noise; the best angle still scored on fresh direct draws)")
+    p.add_argument("--batch", help="closings per batch with --method reweight (default twice "
+                   "--samples)")
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")

@@ -97,7 +97,7 @@ class MixtureProposal:
         if not 0.0 < defensive_share < 1.0 or defensive_scale < 1.0:
             raise ValueError("the defensive share must lie in (0, 1) and its scale be >= 1, "
                              f"got {defensive_share:g} and {defensive_scale:g}")
-        n_def = max(1, int(round(defensive_share * n)))
+        n_def = max(1, round(defensive_share * n))
         base, extra = divmod(n - n_def, len(cov))
         counts = np.array([base + (k < extra) for k in range(len(cov))] + [n_def])
         return cls(cov, defensive_scale**2 * cov.mean(axis=0), counts)

@@ -164,15 +164,16 @@ def with_configuration(grasp: Grasp, q: np.ndarray, psi: float) -> Grasp:
                  id=f"{grasp.id}@{psi:.3f}", meta={**grasp.meta, "elbow_angle": psi})
 
 
-def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
+def evaluated_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
            seed: int, kwargs: dict) -> ElbowPoint:
+    """One angle evaluated on ``samples`` direct draws of ``seed`` (the selection's)."""
     stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, samples, seed,
                            return_draws=True, **kwargs)
     fc = stats.draws.outcome == FORCE_CLOSURE
     return ElbowPoint(psi, q, stats.p_fc, stats.p_fc_ci, fc, stats.draws.outcome)
 
 
-def _scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed: int,
+def scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed: int,
                    kwargs: dict) -> np.ndarray:
     """(samples,) force-closure indicators on chunks the selection never used."""
     chunk = kwargs.get("chunk", DEFAULT_CHUNK)
@@ -186,22 +187,22 @@ def _scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int,
 def _evaluate_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], noise: JointNoise,
                     samples: int, seed: int, kwargs: dict, progress) -> list[ElbowPoint]:
     """Coarse grid, then the fine grid around the REFINE_TOP best coarse angles."""
-    nominal = _nominal_index(grasp, reach)
+    nominal = nominal_index(grasp, reach)
     coarse = sorted(set(range(0, len(reach), COARSE_EVERY)) | {len(reach) - 1, nominal})
     done: dict[int, ElbowPoint] = {}
     for i in coarse:
-        done[i] = _point(grasp, *reach[i], noise, samples, seed, kwargs)
+        done[i] = evaluated_point(grasp, *reach[i], noise, samples, seed, kwargs)
         progress(len(done))
     top = sorted(coarse, key=lambda i: -done[i].p_fc)[:REFINE_TOP]
     for centre in top:
         for i in range(max(centre - COARSE_EVERY, 0), min(centre + COARSE_EVERY + 1, len(reach))):
             if i not in done:
-                done[i] = _point(grasp, *reach[i], noise, samples, seed, kwargs)
+                done[i] = evaluated_point(grasp, *reach[i], noise, samples, seed, kwargs)
                 progress(len(done))
     return [done[i] for i in sorted(done)]
 
 
-def _nominal_index(grasp: Grasp, reach: list[tuple[float, np.ndarray]]) -> int:
+def nominal_index(grasp: Grasp, reach: list[tuple[float, np.ndarray]]) -> int:
     """Index in ``reach`` of the grasp's own configuration q0."""
     q0 = np.asarray(grasp.q0, dtype=float)
     return min(range(len(reach)), key=lambda i: float(np.abs(reach[i][1] - q0).max()))
@@ -238,11 +239,11 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
     kwargs = {"engine": engine, **evaluate_kwargs}
     report = progress or (lambda done: None)
     reach = reach if reach is not None else reachable_configurations(grasp, step)
-    nominal_psi, nominal_q = reach[_nominal_index(grasp, reach)]
+    nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
     curve = _evaluate_curve(grasp, reach, noise, samples, seed, kwargs, report)
     best = max(curve, key=lambda p: p.p_fc)
     for k, point in enumerate(curve):
-        point.fresh_fc = _scoring_draws(grasp, point.q, noise, samples, seed, kwargs)
+        point.fresh_fc = scoring_draws(grasp, point.q, noise, samples, seed, kwargs)
         report(len(curve) + k + 1)
     nominal = next(p for p in curve if p.q is nominal_q)
     return elbow_result(grasp, curve, best, nominal, nominal_psi, noise, samples, seed, engine,
@@ -251,14 +252,16 @@ def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
 
 def elbow_result(grasp: Grasp, curve: list[ElbowPoint], best: ElbowPoint, nominal: ElbowPoint,
                  nominal_psi: float, noise: JointNoise, samples: int, seed: int, engine: str,
-                 step: float, epsilon: float, delta: float) -> ElbowResult:
-    """The result of an elbow search whose curve (each point with its ``fresh_fc`` scored)
-    chose ``best``: the best and the nominal angle's P(FC) on the fresh draws with Wilson
-    intervals, the paired gain and the certificate over the rivals (any robot)."""
+                 step: float, epsilon: float, delta: float,
+                 certificate: Certificate | None = None) -> ElbowResult:
+    """The result of an elbow search whose curve chose ``best``: the best and the nominal
+    angle's P(FC) on their fresh draws (``fresh_fc``) with Wilson intervals, the paired gain
+    and the certificate over the rivals (any robot): ``certificate`` when given, else the
+    exact one from every curve point's ``fresh_fc``."""
     best_fc, nominal_fc = best.fresh_fc, nominal.fresh_fc
     gain, lo, hi = paired_interval(best_fc.astype(float) - nominal_fc.astype(float))
     rivals = [p for p in curve if p is not best]
-    certificate = certify(best.psi, best_fc, [p.psi for p in rivals],
+    certificate = certificate or certify(best.psi, best_fc, [p.psi for p in rivals],
                           np.array([p.fresh_fc for p in rivals]).reshape(len(rivals),
                                                                           best_fc.size),
                           epsilon, delta)

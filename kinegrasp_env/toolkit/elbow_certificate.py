@@ -91,7 +91,7 @@ class Rival:
     psi: float
     p_fc: float        # its P(FC) on the fresh draws
     wins: int          # fresh draws in force closure here and not at the chosen angle
-    losses: int        # the opposite
+    losses: int        # the opposite (both -1 where the bound is not a binomial one)
     difference: float  # (wins - losses) / n: its estimated advantage over the chosen angle
     upper: float       # one-sided (1 - delta) upper bound on that advantage
 
@@ -112,6 +112,7 @@ class Certificate:
     bound: float | None        # B = max of the rivals' upper bounds (None: no rival)
     worst_psi: float | None    # the rival attaining B
     certified: bool            # B <= epsilon (or no rival)
+    method: str = METHOD       # how each rival's bound was computed, in words
 
     @property
     def confidence(self) -> str:
@@ -135,7 +136,7 @@ class Certificate:
         if self.bound is None:
             return "certified (nothing to compare)"
         evidence = (f"{len(self.rivals)} other angles, {self.draws} fresh draws each, "
-                    f"{METHOD}")
+                    f"{self.method}")
         if self.certified:
             return f"certified at epsilon {self.epsilon:g} ({evidence})"
         return (f"not certified at epsilon {self.epsilon:g}: psi = {self.worst_psi:+.3f} rad "
@@ -145,7 +146,7 @@ class Certificate:
         return {"statement": self.statement(), "certified": self.certified,
                 "epsilon": self.epsilon, "delta": self.delta, "bound": self.bound,
                 "worst_psi": self.worst_psi, "chosen_psi": self.chosen_psi,
-                "fresh_draws": self.draws, "method": METHOD,
+                "fresh_draws": self.draws, "method": self.method,
                 "rivals": [r.to_json() for r in self.rivals]}
 
 

@@ -1,0 +1,224 @@
+"""Re-weighted P(FC) against direct draws: calibration, the linearisation's bias, timings.
+
+For grasps of the default robot (``--grasps`` per object, the first ones of each shipped
+set, fixed before any run), at ``--angles`` elbow angles spread over each grasp's reachable
+self-motion and the paper's four noise levels:
+
+* **calibration**: one batch of ``--batch`` closings over the palm's deviation (a mixture over
+  all angle x sigma targets) re-weighted to each case, against a direct evaluation of
+  ``--direct`` joint-noise draws: the case agrees when the difference lies within the 95%
+  interval of both sampling errors (the re-weighted one's from its weights' delta-method
+  standard error, the direct one's binomial);
+* **the linearisation's bias**: ``--direct`` deltas drawn from the linear-Gaussian model
+  N(0, J S_q J^T), closed directly, against the direct joint-noise draws (what the first-order
+  density gets wrong, sampling error aside: its interval is printed with it);
+* **timings** (warm, alone on the machine): ``elbow`` by both methods at ``--samples`` draws per
+  angle, and Table I's four noise levels at the nominal configuration from one batch against
+  four direct runs of ``--levels-samples`` draws, with each method's standard errors beside.
+
+Writes ``benchmarks/results/bench_reweight.json`` and the table in docs/guides/elbow.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from marked_section import write_between
+from results_file import add_options, settings, write_result
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.palm_batch import (
+    PalmJacobian,
+    close_batch,
+    close_deltas,
+    linear_draws,
+)
+from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.stats import Z95
+from kinegrasp_env.toolkit.elbow import (
+    optimize_elbow,
+    reachable_configurations,
+    with_configuration,
+)
+from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted
+from kinegrasp_env.world.grasps import shipped_grasps
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "elbow.md"
+START, END = "<!-- reweight-calibration:start -->", "<!-- reweight-calibration:end -->"
+
+
+def binomial_se(p: float, n: int) -> float:
+    return math.sqrt(max(p * (1 - p), 0.0) / n)
+
+
+def spread_angles(reach: list, count: int) -> list:
+    """``count`` configurations evenly spread over the reachable self-motion (all if fewer)."""
+    idx = np.unique(np.linspace(0, len(reach) - 1, count).round().astype(int))
+    return [reach[i] for i in idx]
+
+
+def calibration(grasp, args, seed: int) -> list[dict]:
+    """One record per (angle, sigma) case of one grasp."""
+    angles = spread_angles(reachable_configurations(grasp), args.angles)
+    jac = PalmJacobian()
+    qs = np.stack([q for _, q in angles])
+    covs = np.concatenate([jac.covariance(qs, s) for s in args.sigmas])
+    batch = close_batch(angles[0][1], grasp.object, covs, args.batch, seed)
+    cases, k = [], 0
+    for sigma in args.sigmas:
+        for psi, q in angles:
+            est = batch.estimate(covs[k]).p_fc
+            k += 1
+            direct = evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma),
+                                    args.direct, seed + 1, engine="fast")
+            outcome, _ = close_deltas(q, linear_draws(covs[k - 1], args.direct, seed + 2),
+                                      grasp.object)
+            linear = float(np.mean(outcome == FORCE_CLOSURE))
+            se_d, se_l = binomial_se(direct.p_fc, args.direct), binomial_se(linear, args.direct)
+            half = Z95 * math.hypot(est.se, se_d)
+            cases.append({
+                "object": grasp.object, "grasp": int(grasp.id), "psi": psi, "sigma": sigma,
+                "reweighted": est.value, "reweighted_se": est.se, "ess": est.ess,
+                "direct": direct.p_fc, "difference": est.value - direct.p_fc,
+                "half_width": half, "agrees": abs(est.value - direct.p_fc) <= half,
+                "linear": linear, "linear_bias": linear - direct.p_fc,
+                "linear_bias_half_width": Z95 * math.hypot(se_l, se_d)})
+        print(f"  {grasp.object} grasp {grasp.id} sigma {sigma:g}: "
+              f"{sum(c['agrees'] for c in cases[-len(angles):])}/{len(angles)} agree",
+              file=sys.stderr)
+    return cases
+
+
+def elbow_timing(grasp, args) -> dict:
+    """Both elbow methods on one grasp, warm, at 0.0133 rad."""
+    noise = JointNoise(0.0133)
+    reach = reachable_configurations(grasp)
+    t0 = time.perf_counter()
+    direct = optimize_elbow(grasp, noise, args.samples, 0, reach=reach)
+    t1 = time.perf_counter()
+    batch, evidence = optimize_elbow_reweighted(grasp, noise, args.samples, 0, reach=reach)
+    t2 = time.perf_counter()
+    return {"object": grasp.object, "grasp": int(grasp.id), "direct_s": t1 - t0,
+            "reweight_s": t2 - t1, "ratio": (t2 - t1) / (t1 - t0),
+            "direct_angles": len(direct.curve), "reweight_angles": len(batch.curve),
+            "direct_best_psi": direct.best_psi, "reweight_best_psi": batch.best_psi,
+            "direct_best_fresh": direct.best_p_fc, "reweight_best_fresh": batch.best_p_fc,
+            "min_ess": min(c.ess for c in evidence.curve),
+            "fallback_angles": sum(c.fallback for c in evidence.curve),
+            "reweight_certified": batch.certificate.certified,
+            "direct_certified": direct.certificate.certified}
+
+
+def levels_timing(grasp, args) -> dict:
+    """Table I's noise levels at the nominal configuration: one batch against direct runs."""
+    q = np.asarray(grasp.q0, dtype=float)
+    covs = np.concatenate([PalmJacobian().covariance(q, s) for s in args.sigmas])
+    t0 = time.perf_counter()
+    direct = [evaluate_grasp(grasp, JointNoise(s), args.levels_samples, 0, engine="fast")
+              for s in args.sigmas]
+    t1 = time.perf_counter()
+    batch = close_batch(q, grasp.object, covs, args.levels_batch, 0)
+    est = [batch.estimate(c).p_fc for c in covs]
+    t2 = time.perf_counter()
+    return {"object": grasp.object, "grasp": int(grasp.id), "direct_s": t1 - t0,
+            "reweight_s": t2 - t1, "ratio": (t2 - t1) / (t1 - t0),
+            "direct_se": [binomial_se(d.p_fc, args.levels_samples) for d in direct],
+            "reweight_se": [e.se for e in est], "ess": [e.ess for e in est],
+            "direct_p_fc": [d.p_fc for d in direct], "reweight_p_fc": [e.value for e in est]}
+
+
+def summary(cases: list[dict], elbows: list[dict], levels: list[dict]) -> dict:
+    agree = sum(c["agrees"] for c in cases)
+    bias = np.array([c["linear_bias"] for c in cases])
+    beyond = [c for c in cases if abs(c["linear_bias"]) > 0.01
+              and abs(c["linear_bias"]) - c["linear_bias_half_width"] > 0.01]
+    return {"cases": len(cases), "agree": agree, "agree_share": agree / len(cases),
+            "max_abs_linear_bias": float(np.abs(bias).max()),
+            "mean_abs_linear_bias": float(np.abs(bias).mean()),
+            "linear_bias_surely_above_0.01": len(beyond),
+            "min_ess": float(min(c["ess"] for c in cases)),
+            "elbow_ratio_mean": float(np.mean([e["ratio"] for e in elbows])),
+            "levels_ratio_mean": float(np.mean([v["ratio"] for v in levels]))}
+
+
+def markdown(result: dict) -> str:
+    s = result["summary"]
+    lines = [
+        f"Re-weighted P(FC) against {result['settings']['direct']:,} direct draws per case "
+        f"({s['cases']} cases: {result['settings']['angles']} elbow angles x "
+        f"{len(result['settings']['sigmas'])} noise levels x "
+        f"{len(result['settings']['objects'])} grasps; one batch of "
+        f"{result['settings']['batch']:,} closings per grasp). Written by "
+        "`python benchmarks/bench_reweight.py`.", "",
+        "| figure | value |", "|---|---|",
+        f"| cases within the 95% interval of their difference | {s['agree']} / {s['cases']} "
+        f"({100 * s['agree_share']:.1f}%) |",
+        f"| smallest effective sample size | {s['min_ess']:.0f} |",
+        f"| linearisation bias, largest / mean absolute | {s['max_abs_linear_bias']:.4f} / "
+        f"{s['mean_abs_linear_bias']:.4f} |",
+        f"| cases whose bias is above 0.01 beyond its interval | "
+        f"{s['linear_bias_surely_above_0.01']} |",
+        f"| elbow time, re-weighted / direct (mean) | {s['elbow_ratio_mean']:.2f} |",
+        f"| four noise levels, one batch / four direct runs (mean) | "
+        f"{s['levels_ratio_mean']:.2f} |", "",
+        "| object | sigma | cases agreeing | largest abs. difference | largest abs. bias |",
+        "|---|---|---|---|---|"]
+    for obj in result["settings"]["objects"]:
+        for sigma in result["settings"]["sigmas"]:
+            rows = [c for c in result["cases"] if c["object"] == obj and c["sigma"] == sigma]
+            lines.append(
+                f"| {obj} | {sigma:g} | {sum(c['agrees'] for c in rows)} / {len(rows)} | "
+                f"{max(abs(c['difference']) for c in rows):.4f} | "
+                f"{max(abs(c['linear_bias']) for c in rows):.4f} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--objects", nargs="+", default=["cube", "spray_flask", "drill", "mug"])
+    parser.add_argument("--grasps", type=int, default=1, help="first N shipped grasps each")
+    parser.add_argument("--angles", type=int, default=18)
+    parser.add_argument("--sigmas", type=float, nargs="+", default=list(PAPER_SIGMAS))
+    parser.add_argument("--batch", type=int, default=40000)
+    parser.add_argument("--direct", type=int, default=20000)
+    parser.add_argument("--samples", type=int, default=1000, help="elbow draws per angle")
+    parser.add_argument("--levels-samples", type=int, default=10000)
+    parser.add_argument("--levels-batch", type=int, default=20000)
+    parser.add_argument("--no-calibration", action="store_true")
+    add_options(parser, __file__)
+    args = parser.parse_args()
+    grasps = [g for obj in args.objects for g in shipped_grasps(obj)[:args.grasps]]
+    # warm the compiled kernels once, outside every timing
+    optimize_elbow_reweighted(grasps[0], JointNoise(0.0133), 200, 0)
+    optimize_elbow(grasps[0], JointNoise(0.0133), 200, 0)
+    elbows = [elbow_timing(g, args) for g in grasps]
+    levels = [levels_timing(g, args) for g in grasps]
+    for e in elbows:
+        print(f"elbow {e['object']} {e['grasp']}: direct {e['direct_s']:.2f} s, re-weighted "
+              f"{e['reweight_s']:.2f} s ({e['ratio']:.2f}); best {e['direct_best_psi']:+.3f} "
+              f"/ {e['reweight_best_psi']:+.3f} rad, fresh P(FC) {e['direct_best_fresh']:.3f} "
+              f"/ {e['reweight_best_fresh']:.3f}")
+    for v in levels:
+        print(f"levels {v['object']} {v['grasp']}: direct {v['direct_s']:.2f} s, one batch "
+              f"{v['reweight_s']:.2f} s ({v['ratio']:.2f}); ESS "
+              f"{', '.join(f'{e:.0f}' for e in v['ess'])}")
+    if args.no_calibration:
+        return
+    cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
+    result = {"summary": summary(cases, elbows, levels), "elbow": elbows, "levels": levels,
+              "cases": cases, "settings": settings(args)}
+    print(markdown(result))
+    if not args.no_json:
+        write_result(__file__, result, args.json_out)
+        write_between(DOC, START, END, markdown(result))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,280 @@
+"""The most robust elbow from one batch of closings: P(FC) along the self-motion by weights.
+
+:func:`~kinegrasp_env.toolkit.elbow.optimize_elbow` closes fresh draws at every angle. Here
+(:mod:`kinegrasp_env.montecarlo.palm_batch`) one batch of closings over the palm's deviation
+answers every angle, because the elbow angle psi changes only the deviation's distribution,
+N(0, J(psi) S_q J(psi)^T) to first order:
+
+1. **Curve** (the selection batch): every reachable angle of the fine grid re-weighted, with
+   its standard error, effective sample size (ESS) and the slope dP/dpsi (the weights'
+   derivative: the covariance's derivative along the self-motion, by central differences of
+   the Jacobian at psi +- :data:`SLOPE_STEP`). An angle whose ESS falls below the draws asked
+   for is evaluated directly instead, and marked so.
+2. **Continuous optimum**: from the best grid angle, the zero of the slope between its
+   neighbours (bisection on the slope's sign), so the choice is not tied to grid points.
+3. **Scoring** (fresh direct draws): the chosen and the nominal angle on joint-noise draws the
+   batch never saw, common to both: P(FC) with Wilson intervals, the paired gain with a
+   t-interval. The re-weighted value at the chosen angle is checked against them (a
+   disagreement beyond both sampling errors is reported: the linearisation does not hold).
+4. **Certificate** (a second, fresh batch): for each evaluated rival, the re-weighted
+   difference p_j - p_b on the fresh batch and its one-sided normal upper bound at level
+   delta (the weights' delta-method standard error); the claim "no evaluated angle beats the
+   chosen one by more than B" fails only if the bound of the best true rival fails (the
+   intersection-union argument of :mod:`~kinegrasp_env.toolkit.elbow_certificate`). Unlike
+   the direct certificate's exact binomial bounds this one is asymptotic: its coverage is
+   measured in ``benchmarks/bench_reweight.py``.
+
+Joint noise must be Gaussian (a scalar or per-joint sigma); objects on a support table are
+refused (their arm links matter).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.reweight import gaussian_logpdf, normalised_weights
+from kinegrasp_env.sampling.stats import normal_quantile
+from kinegrasp_env.toolkit.elbow import (
+    FINE_STEP,
+    ElbowPoint,
+    ElbowResult,
+    elbow_result,
+    evaluated_point,
+    nominal_index,
+    reachable_configurations,
+    scoring_draws,
+)
+from kinegrasp_env.toolkit.elbow_certificate import (
+    DEFAULT_DELTA,
+    DEFAULT_EPSILON,
+    Certificate,
+    Rival,
+    check_levels,
+)
+from kinegrasp_env.world.grasps import Grasp
+
+#: Closings per batch, as a multiple of the draws per angle asked for.
+BATCH_FACTOR = 2
+#: Half-step of the central difference of the covariance along psi (radians).
+SLOPE_STEP = 1e-4
+#: Bisection steps of the continuous optimum (the bracket shrinks 2^-steps).
+BISECTION_STEPS = 10
+#: The certificate's method, in words.
+BATCH_METHOD = ("one-sided normal bounds on each rival's re-weighted advantage, "
+                "on a fresh batch")
+
+
+def check_gaussian(noise: JointNoise) -> None:
+    """ValueError unless the noise is Gaussian joint noise (what the weights assume)."""
+    if not isinstance(noise, JointNoise) or noise.kind != "gaussian":
+        kind = getattr(noise, "kind", type(noise).__name__)
+        raise ValueError(f"--method reweight needs Gaussian joint noise (got {kind}); "
+                         f"use --method direct")
+
+
+class SelfMotionCovariance:
+    """The palm deviation's covariance and its derivative along one grasp's self-motion."""
+
+    def __init__(self, sigma) -> None:
+        self.jac = PalmJacobian()
+        self.ik = ArmIK(self.jac.kin)  # the palm held: the flange is rigid with it
+        self.sigma = sigma
+
+    def at(self, q: np.ndarray) -> np.ndarray:
+        """(n, 6, 6) covariance at configurations q (n, 14)."""
+        return self.jac.covariance(q, self.sigma)
+
+    def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
+        """(14,) q moved to elbow angle psi (radians), None where the path fails."""
+        moved, ok = self.ik.set_elbow_angle(q, psi)
+        return moved[0] if ok[0] else None
+
+    def derivative(self, q: np.ndarray, psi: float) -> np.ndarray | None:
+        """(6, 6) d covariance / d psi at configuration q (14,) of angle psi, by central
+        differences; None at a limit of the self-motion."""
+        plus = self.configuration(q, psi + SLOPE_STEP)
+        minus = self.configuration(q, psi - SLOPE_STEP)
+        if plus is None or minus is None:
+            return None
+        cov = self.at(np.stack([plus, minus]))
+        return (cov[0] - cov[1]) / (2 * SLOPE_STEP)
+
+
+@dataclass
+class CurvePoint:
+    """One angle's re-weighted estimate (:class:`ElbowPoint` plus the weights' evidence)."""
+
+    point: ElbowPoint
+    se: float
+    ess: float
+    slope: float
+    slope_se: float
+    fallback: bool
+
+
+def _estimate_point(batch: PalmBatch, motion: SelfMotionCovariance, psi: float, q: np.ndarray
+                    ) -> tuple[float, float, float, float, float]:
+    """(P, se, ess, slope, slope se) at one angle from the batch."""
+    derivative = motion.derivative(q, psi)
+    est = batch.estimate(motion.at(q[None])[0], derivative).p_fc
+    return est.value, est.se, est.ess, est.derivative, est.derivative_se
+
+
+def batch_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
+                motion: SelfMotionCovariance, noise: JointNoise, samples: int, seed: int,
+                kwargs: dict) -> list[CurvePoint]:
+    """Every reachable angle re-weighted; direct draws where the ESS is below ``samples``."""
+    out = []
+    for psi, q in reach:
+        value, se, ess, slope, slope_se = _estimate_point(batch, motion, psi, q)
+        if ess < samples:
+            point = evaluated_point(grasp, psi, q, noise, samples, seed, kwargs)
+            out.append(CurvePoint(point, math.nan, float(samples), slope, slope_se, True))
+            continue
+        z = normal_quantile(0.95)
+        ci = (max(0.0, value - z * se), min(1.0, value + z * se))
+        point = ElbowPoint(psi, q, value, ci, np.zeros(0, bool))
+        out.append(CurvePoint(point, se, ess, slope, slope_se, False))
+    return out
+
+
+def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
+                       motion: SelfMotionCovariance) -> tuple[float, np.ndarray, float]:
+    """(psi, q (14,), P) of the batch's best angle: the best grid angle, moved to the zero
+    of the slope between its neighbours where the slope changes sign there."""
+    usable = [c for c in curve if not c.fallback]
+    if not usable:
+        best = max(curve, key=lambda c: c.point.p_fc)
+        return best.point.psi, best.point.q, best.point.p_fc
+    best = max(usable, key=lambda c: c.point.p_fc)
+    i = curve.index(best)
+    psi, q, value = best.point.psi, best.point.q, best.point.p_fc
+    lo = curve[i - 1] if i > 0 else None
+    hi = curve[i + 1] if i + 1 < len(curve) else None
+    # bracket [a, b] with slope > 0 at a and < 0 at b
+    if hi is not None and best.slope > 0 > hi.slope:
+        a, b = best, hi
+    elif lo is not None and lo.slope > 0 > best.slope:
+        a, b = lo, best
+    else:
+        return psi, q, value
+    pa, pb, qa = a.point.psi, b.point.psi, a.point.q
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (pa + pb)
+        qm = motion.configuration(qa, mid)
+        if qm is None:
+            break
+        _, _, _, slope, _ = _estimate_point(batch, motion, mid, qm)
+        if slope > 0:
+            pa, qa = mid, qm
+        else:
+            pb = mid
+    mid = 0.5 * (pa + pb)
+    qm = motion.configuration(qa, mid)
+    if qm is None:
+        return psi, q, value
+    found = batch.estimate(motion.at(qm[None])[0]).p_fc.value
+    return (mid, qm, found) if found >= value else (psi, q, value)
+
+
+def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float, np.ndarray]],
+                      fresh: PalmBatch, motion: SelfMotionCovariance, epsilon: float,
+                      delta: float) -> Certificate:
+    """The certificate of the chosen angle from a fresh batch (module docstring, step 4)."""
+    z = normal_quantile(1.0 - 2.0 * delta)  # one-sided at level delta
+    covs = motion.at(np.stack([chosen[1]] + [q for _, q in rivals]))
+    weights = [normalised_weights(gaussian_logpdf(fresh.deltas, c), fresh.log_proposal)
+               for c in covs]
+    f = fresh.fc.astype(float)
+    p_best = float(weights[0] @ f)
+    out = []
+    for (psi, _), w in zip(rivals, weights[1:], strict=True):
+        p = float(w @ f)
+        influence = w * (f - p) - weights[0] * (f - p_best)
+        se = float(np.sqrt(np.sum(influence**2)))
+        diff = p - p_best
+        out.append(Rival(float(psi), p, -1, -1, diff, diff + z * se))
+    if not out:
+        return Certificate(float(chosen[0]), epsilon, delta, len(fresh), [], None, None, True,
+                           method=BATCH_METHOD)
+    worst = max(out, key=lambda r: r.upper)
+    return Certificate(float(chosen[0]), epsilon, delta, len(fresh), out, worst.upper,
+                       worst.psi, worst.upper <= epsilon, method=BATCH_METHOD)
+
+
+@dataclass
+class ReweightEvidence:
+    """What the batch method adds to an :class:`ElbowResult`."""
+
+    batch: int
+    curve: list[CurvePoint]
+    chosen_estimate: float
+    chosen_agrees: bool
+
+    def to_json(self) -> dict:
+        return {"batch": self.batch, "chosen_reweighted_p_fc": self.chosen_estimate,
+                "chosen_agrees_with_fresh_draws": self.chosen_agrees,
+                "fallback_angles": [c.point.psi for c in self.curve if c.fallback],
+                "points": [{"psi": c.point.psi, "se": c.se, "ess": c.ess, "slope": c.slope,
+                            "slope_se": c.slope_se} for c in self.curve]}
+
+
+def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+                              engine: str = "fast", step: float = FINE_STEP,
+                              epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
+                              batch: int | None = None,
+                              reach: list[tuple[float, np.ndarray]] | None = None,
+                              progress=None, **evaluate_kwargs
+                              ) -> tuple[ElbowResult, ReweightEvidence]:
+    """The most robust elbow from one batch of closings (module docstring).
+
+    Args:
+        grasp, noise (Gaussian joint noise), samples (the accuracy asked for: each angle's
+            ESS at least this, else direct draws; fresh direct draws per scored angle),
+            seed, engine, step, epsilon, delta: as :func:`~kinegrasp_env.toolkit.elbow.
+            optimize_elbow`.
+        batch: closings per batch (default :data:`BATCH_FACTOR` x samples).
+        progress: optional ``progress(stage)`` callback with a stage name.
+
+    Raises:
+        ValueError: noise not Gaussian, epsilon or delta out of range, an object on a
+            support table (before any closing).
+    """
+    check_levels(epsilon, delta)
+    check_gaussian(noise)
+    report = progress or (lambda stage: None)
+    kwargs = {"engine": engine, **evaluate_kwargs}
+    n = int(batch or BATCH_FACTOR * samples)
+    reach = reach if reach is not None else reachable_configurations(grasp, step)
+    motion = SelfMotionCovariance(noise.sigma)
+    covs = motion.at(np.stack([q for _, q in reach]))
+    rng = np.random.SeedSequence(seed).spawn(2)
+    report("batch")
+    selection = close_batch(reach[0][1], grasp.object, covs, n, rng[0], engine=engine)
+    curve = batch_curve(grasp, reach, selection, motion, noise, samples, seed, kwargs)
+    psi, q, estimate = continuous_optimum(curve, selection, motion)
+    report("fresh draws")
+    nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
+    best = ElbowPoint(psi, q, estimate, (estimate, estimate), np.zeros(0, bool))
+    nominal = next(c.point for c in curve if c.point.q is nominal_q)
+    best.fresh_fc = scoring_draws(grasp, q, noise, samples, seed, kwargs)
+    nominal.fresh_fc = (best.fresh_fc if nominal is best
+                        else scoring_draws(grasp, nominal_q, noise, samples, seed, kwargs))
+    report("certificate")
+    fresh = close_batch(reach[0][1], grasp.object, covs, n, rng[1], engine=engine)
+    rivals = [(c.point.psi, c.point.q) for c in curve if abs(c.point.psi - psi) > 1e-9]
+    certificate = batch_certificate((psi, q), rivals, fresh, motion, epsilon, delta)
+    result = elbow_result(grasp, [c.point for c in curve], best, nominal, nominal_psi, noise,
+                          samples, seed, engine, step, epsilon, delta,
+                          certificate=certificate)
+    p_fresh = float(best.fresh_fc.mean())
+    se = math.hypot(math.sqrt(max(p_fresh * (1 - p_fresh), 1e-12) / samples),
+                    min((c.se for c in curve if not c.fallback), default=0.0))
+    agrees = abs(estimate - p_fresh) <= normal_quantile(0.95) * se
+    return result, ReweightEvidence(n, curve, estimate, agrees)
