@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 from marked_section import write_between
-from results_file import add_options, settings, write_result
+from results_file import add_options, plain, settings, write_result
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
@@ -64,6 +64,31 @@ def spread_angles(reach: list, count: int) -> list:
     return [reach[i] for i in idx]
 
 
+def judged(case: dict, n: int) -> dict:
+    """The case with its verdicts. ``agrees``: the difference within the 95% interval of two
+    proportions, one from the effective sample size and one from the n direct draws, with the
+    pooled proportion's variance (the two-proportion test's: it stays honest where one
+    estimate is 0 or 1). ``agrees_delta``: within the interval of the weights' delta-method
+    standard error and the binomial one (which understates the error of a rare outcome
+    seen in few draws). The linear-Gaussian bias: its 95% interval from both binomial
+    errors."""
+    p_rw, p_d, ess = case["reweighted"], case["direct"], case["ess"]
+    pooled = (p_rw * ess + p_d * n) / (ess + n)
+    half = Z95 * math.sqrt(max(pooled * (1 - pooled), 0.0) * (1 / ess + 1 / n))
+    half_delta = Z95 * math.hypot(case["reweighted_se"], binomial_se(p_d, n))
+    diff = p_rw - p_d
+    p_l = case["linear"]
+    pooled_l = (p_rw * ess + p_l * n) / (ess + n)
+    half_l = Z95 * math.sqrt(max(pooled_l * (1 - pooled_l), 0.0) * (1 / ess + 1 / n))
+    return {**case, "weights_difference": p_rw - p_l,
+            "agrees_with_linear": abs(p_rw - p_l) <= half_l, "difference": diff,
+            "half_width": half, "agrees": abs(diff) <= half,
+            "half_width_delta": half_delta, "agrees_delta": abs(diff) <= half_delta,
+            "linear_bias": case["linear"] - p_d,
+            "linear_bias_half_width": Z95 * math.hypot(binomial_se(case["linear"], n),
+                                                       binomial_se(p_d, n))}
+
+
 def calibration(grasp, args, seed: int) -> list[dict]:
     """One record per (angle, sigma) case of one grasp."""
     angles = spread_angles(reachable_configurations(grasp), args.angles)
@@ -81,15 +106,10 @@ def calibration(grasp, args, seed: int) -> list[dict]:
             outcome, _ = close_deltas(q, linear_draws(covs[k - 1], args.direct, seed + 2),
                                       grasp.object)
             linear = float(np.mean(outcome == FORCE_CLOSURE))
-            se_d, se_l = binomial_se(direct.p_fc, args.direct), binomial_se(linear, args.direct)
-            half = Z95 * math.hypot(est.se, se_d)
-            cases.append({
+            cases.append(judged({
                 "object": grasp.object, "grasp": int(grasp.id), "psi": psi, "sigma": sigma,
                 "reweighted": est.value, "reweighted_se": est.se, "ess": est.ess,
-                "direct": direct.p_fc, "difference": est.value - direct.p_fc,
-                "half_width": half, "agrees": abs(est.value - direct.p_fc) <= half,
-                "linear": linear, "linear_bias": linear - direct.p_fc,
-                "linear_bias_half_width": Z95 * math.hypot(se_l, se_d)})
+                "direct": direct.p_fc, "linear": linear}, args.direct))
         print(f"  {grasp.object} grasp {grasp.id} sigma {sigma:g}: "
               f"{sum(c['agrees'] for c in cases[-len(angles):])}/{len(angles)} agree",
               file=sys.stderr)
@@ -136,10 +156,16 @@ def levels_timing(grasp, args) -> dict:
 
 def summary(cases: list[dict], elbows: list[dict], levels: list[dict]) -> dict:
     agree = sum(c["agrees"] for c in cases)
+    # each difference in units of its standard error (N(0, 1) if both errors are right)
+    z = np.array([c["difference"] / (c["half_width"] / Z95) for c in cases
+                  if c["half_width"] > 0])
     bias = np.array([c["linear_bias"] for c in cases])
     beyond = [c for c in cases if abs(c["linear_bias"]) > 0.01
               and abs(c["linear_bias"]) - c["linear_bias_half_width"] > 0.01]
     return {"cases": len(cases), "agree": agree, "agree_share": agree / len(cases),
+            "agree_delta": sum(c["agrees_delta"] for c in cases),
+            "agree_with_linear": sum(c["agrees_with_linear"] for c in cases),
+            "z_mean": float(np.mean(z)), "z_sd": float(np.std(z, ddof=1)),
             "max_abs_linear_bias": float(np.abs(bias).max()),
             "mean_abs_linear_bias": float(np.abs(bias).mean()),
             "linear_bias_surely_above_0.01": len(beyond),
@@ -158,8 +184,15 @@ def markdown(result: dict) -> str:
         f"{result['settings']['batch']:,} closings per grasp). Written by "
         "`python benchmarks/bench_reweight.py`.", "",
         "| figure | value |", "|---|---|",
-        f"| cases within the 95% interval of their difference | {s['agree']} / {s['cases']} "
-        f"({100 * s['agree_share']:.1f}%) |",
+        f"| cases within the 95% interval of their difference (ESS and draws, pooled) | "
+        f"{s['agree']} / {s['cases']} ({100 * s['agree_share']:.1f}%) |",
+        f"| the same with the weights' delta-method standard error | {s['agree_delta']} / "
+        f"{s['cases']} |",
+        f"| the weights alone: re-weighted against {result['settings']['direct']:,} direct "
+        f"linear-Gaussian deviations, within the same interval | {s['agree_with_linear']} / "
+        f"{s['cases']} |",
+        f"| differences in standard errors: mean, s.d. (0 and 1 if the errors are right) | "
+        f"{s['z_mean']:+.2f}, {s['z_sd']:.2f} |",
         f"| smallest effective sample size | {s['min_ess']:.0f} |",
         f"| linearisation bias, largest / mean absolute | {s['max_abs_linear_bias']:.4f} / "
         f"{s['mean_abs_linear_bias']:.4f} |",
@@ -168,16 +201,33 @@ def markdown(result: dict) -> str:
         f"| elbow time, re-weighted / direct (mean) | {s['elbow_ratio_mean']:.2f} |",
         f"| four noise levels, one batch / four direct runs (mean) | "
         f"{s['levels_ratio_mean']:.2f} |", "",
-        "| object | sigma | cases agreeing | largest abs. difference | largest abs. bias |",
-        "|---|---|---|---|---|"]
+        "| object | sigma | cases agreeing | weights alone agreeing | largest abs. "
+        "difference | mean bias of the linearisation | largest abs. bias |",
+        "|---|---|---|---|---|---|---|"]
     for obj in result["settings"]["objects"]:
         for sigma in result["settings"]["sigmas"]:
             rows = [c for c in result["cases"] if c["object"] == obj and c["sigma"] == sigma]
             lines.append(
                 f"| {obj} | {sigma:g} | {sum(c['agrees'] for c in rows)} / {len(rows)} | "
+                f"{sum(c['agrees_with_linear'] for c in rows)} / {len(rows)} | "
                 f"{max(abs(c['difference']) for c in rows):.4f} | "
+                f"{np.mean([c['linear_bias'] for c in rows]):+.4f} | "
                 f"{max(abs(c['linear_bias']) for c in rows):.4f} |")
     return "\n".join(lines)
+
+
+def render_again(args) -> None:
+    """Re-judge a written result's cases (``--render-only``) and rewrite it and the table."""
+    import json
+
+    result = json.loads(Path(args.json_out).read_text())
+    n = result["settings"]["direct"]
+    result["cases"] = [judged(c, n) for c in result["cases"]]
+    result["summary"] = summary(result["cases"], result["elbow"], result["levels"])
+    print(markdown(result))
+    # the measuring run's date and machine stay: only the verdicts are recomputed
+    Path(args.json_out).write_text(json.dumps(plain(result), indent=1) + "\n")
+    write_between(DOC, START, END, markdown(result))
 
 
 def main() -> None:
@@ -192,8 +242,14 @@ def main() -> None:
     parser.add_argument("--levels-samples", type=int, default=10000)
     parser.add_argument("--levels-batch", type=int, default=20000)
     parser.add_argument("--no-calibration", action="store_true")
+    parser.add_argument("--render-only", action="store_true",
+                        help="judge the cases of the JSON result again and rewrite it and "
+                        "the docs table (no closing)")
     add_options(parser, __file__)
     args = parser.parse_args()
+    if args.render_only:
+        render_again(args)
+        return
     grasps = [g for obj in args.objects for g in shipped_grasps(obj)[:args.grasps]]
     # warm the compiled kernels once, outside every timing
     optimize_elbow_reweighted(grasps[0], JointNoise(0.0133), 200, 0)

@@ -100,3 +100,28 @@ def test_reweighted_p_fc_agrees_with_direct_draws(grasp):
         bound = 4 * np.hypot(est.se, se_direct) + LINEAR_BIAS
         assert abs(est.value - direct.p_fc) <= bound, (psi, est, direct.p_fc)
         assert est.ess > 2000
+
+
+def test_fragile_direction_of_a_band_field():
+    """A band field, force closure where |u . delta| < c: failures lie out along u, which in
+    the whitened space z = L^-1 delta is the direction L^T u (u . delta = (L^T u) . z). The
+    most fragile direction is that one, the second no more spread than the draws."""
+    from kinegrasp_env.montecarlo.engines import NO_FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.palm_batch import PalmBatch, fragile_directions
+    from kinegrasp_env.sampling.reweight import MixtureProposal
+
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((6, 6))
+    ref = a @ a.T / 6 + 0.1 * np.eye(6)
+    u = rng.standard_normal(6)
+    proposal = MixtureProposal.covering(np.stack([ref, 1.2 * ref]), 20000)
+    deltas = proposal.sample(rng)
+    c = 1.0 * np.sqrt(u @ ref @ u)
+    outcome = np.where(np.abs(deltas @ u) < c, FORCE_CLOSURE, NO_FORCE_CLOSURE)
+    batch = PalmBatch(np.zeros(14), deltas, proposal.logpdf(deltas), outcome.astype(np.int8),
+                      np.zeros(len(deltas)))
+    found = fragile_directions(batch, ref)
+    expected = np.linalg.cholesky(ref).T @ u
+    expected /= np.linalg.norm(expected)
+    assert abs(found.directions[0] @ expected) > 0.99
+    assert found.spread[0] > 2.0 and found.spread[1] < 1.2

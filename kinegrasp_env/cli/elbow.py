@@ -42,7 +42,7 @@ DEFAULT_OBJECT = "spray_flask"
 DEFAULT_IK_STARTS = 200
 #: Options a description robot's elbow does not take: flag -> its value when not given.
 ROBOT_REFUSED = {"--backend": "local", "--address": None, "--processes": None,
-                 "--report": None}
+                 "--report": None, "--method": "direct", "--batch": None}
 
 
 def certificate_levels(args) -> tuple[float, float]:
@@ -107,7 +107,14 @@ def cmd_elbow(args) -> int:
     payload = result.to_json()
     if evidence is not None:
         payload["reweight"] = evidence.to_json()
-    if args.plot:
+    if args.plot and evidence is not None:
+        from kinegrasp_env.toolkit.plots import plot_elbow_fragility
+
+        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi,
+                             evidence.picture(), args.plot,
+                             title=f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) "
+                                   "along the self-motion, and why")
+    elif args.plot:
         from kinegrasp_env.toolkit.plots import plot_elbow_curve
 
         plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, args.plot,
@@ -320,10 +327,14 @@ def certificate_lines(cert: dict, grid_step: float) -> list[str]:
     verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
                f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
                "rad is the rival it cannot rule out)")
+    from kinegrasp_env.toolkit.elbow_certificate import METHOD
+
+    how = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
+           if cert["method"] == METHOD
+           else f"{cert['method']} ({cert['fresh_draws']} fresh draws)")
     return [f"  {cert['statement']}",
-            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {cert['method']} "
-            f"({cert['fresh_draws']} fresh draws); angles between the {grid_step:.3f} "
-            "rad grid points not covered"]
+            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {how}; angles "
+            f"between the {grid_step:.3f} rad grid points not covered"]
 
 
 def add_commands(sub) -> None:

@@ -203,3 +203,67 @@ def close_batch(q: np.ndarray, object_name: str, covariances: np.ndarray, n: int
                                     progress=progress)
     return PalmBatch(np.asarray(q, dtype=float).copy(), deltas, proposal.logpdf(deltas),
                      outcome, quality)
+
+
+#: The deviation's components, in the flange frame.
+DELTA_NAMES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+@dataclass
+class FragileDirections:
+    """The palm directions in which a grasp loses force closure soonest.
+
+    Under a reference distribution N(0, S) of delta (S = L L^T), with whitened deviations
+    z = L^-1 delta, the failing draws' second moment M = E[z z^T | not force closure] is the
+    identity where failure does not depend on the deviation; its eigenvectors with the largest
+    eigenvalues are the directions along which the failures lie further out than the draws
+    do: the fragile ones.
+
+    Attributes:
+        directions: (k, 6) unit vectors in the whitened space, most fragile first.
+        spread: (k,) their eigenvalues (1: no more fragile than any direction).
+        whitening: (6, 6) L.
+    """
+
+    directions: np.ndarray
+    spread: np.ndarray
+    whitening: np.ndarray
+
+    def coordinates(self, deltas: np.ndarray) -> np.ndarray:
+        """(n, k) deviations (n, 6) in the fragile directions (reference standard deviations)."""
+        z = np.linalg.solve(self.whitening, np.atleast_2d(deltas).T).T
+        return z @ self.directions.T
+
+    def projected(self, covariance: np.ndarray) -> np.ndarray:
+        """(k, k) a covariance (6, 6) of delta seen in the fragile directions."""
+        inv = np.linalg.inv(self.whitening)
+        return self.directions @ inv @ covariance @ inv.T @ self.directions.T
+
+    def label(self, i: int) -> str:
+        """Direction i in words: its largest components of delta, in reference s.d."""
+        v = self.whitening @ self.directions[i]
+        scale = np.sqrt(np.sum(self.whitening**2, axis=1))  # the reference s.d. per component
+        share = (v / scale) ** 2
+        share /= share.sum()
+        top = np.argsort(-share)[:2]
+        return " + ".join(f"{DELTA_NAMES[j]} {100 * share[j]:.0f}%" for j in top)
+
+
+def fragile_directions(batch: PalmBatch, reference: np.ndarray, count: int = 2
+                       ) -> FragileDirections:
+    """The ``count`` most fragile directions of the batch's grasp under deltas ~ N(0,
+    reference (6, 6)) (:class:`FragileDirections`).
+
+    Raises:
+        ValueError: no draw of the batch fails (nothing is fragile).
+    """
+    chol = np.linalg.cholesky(reference)
+    w = normalised_weights(gaussian_logpdf(batch.deltas, reference), batch.log_proposal)
+    w = w * ~batch.fc
+    if w.sum() <= 0:
+        raise ValueError("no draw of the batch loses force closure: no fragile direction")
+    z = np.linalg.solve(chol, batch.deltas.T).T
+    moment = (z * (w / w.sum())[:, None]).T @ z
+    values, vectors = np.linalg.eigh(moment)
+    order = np.argsort(values)[::-1][:count]
+    return FragileDirections(vectors[:, order].T, values[order], chol)

@@ -264,6 +264,51 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     return save_figure(fig, path)
 
 
+def _ellipse(ax, cov: np.ndarray, color: str, label: str, scale: float = 2.0) -> None:
+    """The scale-s.d. contour of a 2-D covariance (2, 2), centred at the origin."""
+    values, vectors = np.linalg.eigh(cov)
+    t = np.linspace(0.0, 2.0 * np.pi, 200)
+    circle = np.stack([np.cos(t), np.sin(t)])
+    pts = vectors @ (scale * np.sqrt(np.maximum(values, 0.0))[:, None] * circle)
+    ax.plot(pts[0], pts[1], color=color, lw=2, label=label)
+
+
+def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
+                         picture: dict, path: str | Path, title: str = "") -> Path:
+    """Two panels. Left: P(FC) with its 95% band along the self-motion (``curve`` as
+    :func:`plot_elbow_curve`'s). Right: the batch's palm deviations in the two most fragile
+    directions (``picture``: ``points`` (m, 2), ``fc`` (m,), ``ellipses`` {label: (2, 2)
+    covariance}, ``labels`` (2,), ``spread`` (2,)), force closure grey, failures red, and each
+    elbow's 2-s.d. error ellipse: the elbow whose ellipse is shorter along the fragile
+    direction fails less."""
+    plt = _pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
+    psi = np.array([c["psi"] for c in curve])
+    p = np.array([c["p_fc"] for c in curve])
+    lo = np.array([c["p_fc_ci"][0] for c in curve])
+    hi = np.array([c["p_fc_ci"][1] for c in curve])
+    left.fill_between(psi, lo, hi, color="C0", alpha=0.2, label="95% interval")
+    left.plot(psi, p, "o-", ms=3, color="C0", label="P(FC), re-weighted")
+    left.axvline(nominal_psi, color="C3", ls="--", label=f"nominal {nominal_psi:.2f} rad")
+    left.axvline(best_psi, color="C2", label=f"best {best_psi:.2f} rad")
+    left.set_xlabel("elbow angle psi [rad]")
+    left.set_ylabel("P(force closure)")
+    left.legend(fontsize=8)
+    pts, fc = np.asarray(picture["points"]), np.asarray(picture["fc"], dtype=bool)
+    right.scatter(pts[fc, 0], pts[fc, 1], s=3, color="0.75", label="force closure")
+    right.scatter(pts[~fc, 0], pts[~fc, 1], s=4, color="C3", alpha=0.6, label="lost")
+    for (label, cov), color in zip(picture["ellipses"].items(), ("C3", "C2"), strict=False):
+        _ellipse(right, np.asarray(cov), color, f"{label} elbow, 2 s.d.")
+    xl, yl = picture["labels"]
+    s1, s2 = picture["spread"]
+    right.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")
+    right.set_ylabel(f"fragile direction 2 ({yl}; x{s2:.1f}) [s.d.]")
+    right.set_aspect("equal", adjustable="datalim")
+    right.legend(fontsize=8, loc="upper right")
+    fig.suptitle(title)
+    return save_figure(fig, path)
+
+
 def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
     """Bars per noise source (``result``: ``Sensitivity.to_json()``): left, the first-order
     and total Sobol indices of force closure with their intervals; right, P(FC) with the

@@ -1,0 +1,112 @@
+"""The elbow from one batch: what it scores on fresh draws, how often its certificate is false
+on outcome fields with a known truth, and its command-line refusals.
+
+The certificate test replaces the closing by a half-space field over the palm's deviation,
+f(delta) = [u . delta < c], whose P(FC) at each elbow is Phi(c / sqrt(u^T S(psi) u)) exactly,
+S(psi) the real self-motion's covariances of a shipped grasp: the claim "no evaluated angle
+beats the chosen one by more than B" is then checked against the closed form, run after run.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE
+from kinegrasp_env.montecarlo.palm_batch import PalmBatch
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
+from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
+from kinegrasp_env.toolkit.elbow_reweight import (
+    SelfMotionCovariance,
+    batch_certificate,
+    optimize_elbow_reweighted,
+)
+from kinegrasp_env.world.grasps import shipped_grasps
+
+SIGMA = 0.0233
+
+
+@pytest.fixture(scope="module")
+def grasp():
+    return shipped_grasps("spray_flask")[4]
+
+
+@pytest.fixture(scope="module")
+def field(grasp):
+    """(reach, covariances, u, c, truth per angle) of a half-space field over delta."""
+    reach = reachable_configurations(grasp)[::3]
+    motion = SelfMotionCovariance(SIGMA)
+    covs = motion.at(np.stack([q for _, q in reach]))
+    # the direction whose spread changes most along the self-motion
+    spread = np.array([np.diag(c) for c in covs])
+    u = np.zeros(6)
+    u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
+    c = 0.6 * float(np.sqrt(np.median(spread @ u)))
+    truth = np.array([stats.norm.cdf(c / np.sqrt(u @ s @ u)) for s in covs])
+    return reach, motion, covs, u, c, truth
+
+
+def synthetic_batch(covs, u, c, n, seed) -> PalmBatch:
+    proposal = MixtureProposal.covering(covs, n)
+    deltas = proposal.sample(np.random.default_rng(seed))
+    outcome = np.where(deltas @ u < c, FORCE_CLOSURE, NO_FORCE_CLOSURE).astype(np.int8)
+    return PalmBatch(np.zeros(14), deltas, proposal.logpdf(deltas), outcome, np.zeros(n))
+
+
+def test_certificate_is_false_at_most_at_its_level(field):
+    """200 runs: the angle chosen on a selection batch, the certificate from a fresh one.
+    The statement is false when a rival's true P(FC) exceeds the chosen one's by more than
+    B; at delta 0.05, 200 runs with a true false rate <= 0.05 give more than 18 false ones
+    with probability < 0.01."""
+    reach, motion, covs, u, c, truth = field
+    assert truth.max() - truth.min() > 0.02  # the angles differ: a real choice
+    false = 0
+    for run in range(200):
+        selection = synthetic_batch(covs, u, c, 600, 2 * run)
+        values = [float(np.exp(gaussian_logpdf(selection.deltas, s) - selection.log_proposal)
+                        @ selection.fc) for s in covs]
+        b = int(np.argmax(values))
+        rivals = [reach[j] for j in range(len(reach)) if j != b]
+        fresh = synthetic_batch(covs, u, c, 600, 2 * run + 1)
+        cert = batch_certificate(reach[b], rivals, fresh, motion, 0.05, 0.05)
+        gap = max(truth[j] - truth[b] for j in range(len(reach)) if j != b)
+        false += gap > cert.bound
+    assert false <= 18, false
+
+
+def test_best_angle_scored_on_fresh_direct_draws(grasp):
+    """The chosen angle's P(FC) is that of the configuration on the direct method's fresh
+    chunks (chunks K..2K-1 of the seed), computed here by evaluate_grasp on those chunks."""
+    noise = JointNoise(SIGMA)
+    result, evidence = optimize_elbow_reweighted(grasp, noise, 300, seed=3, chunk=300)
+    moved = with_configuration(grasp, result.best_q, result.best_psi)
+    from kinegrasp_env.montecarlo.evaluate import run_chunks
+
+    counts, _ = run_chunks(moved, noise, 3, sizes=[300], first_chunk=1, engine="fast")[:2]
+    assert result.best_p_fc == pytest.approx(counts[FORCE_CLOSURE] / 300, abs=1e-12)
+    assert evidence.batch == 600 and len(evidence.curve) == len(result.curve)
+    # the best angle is the curve's best or between its neighbours
+    psis = [p.psi for p in result.curve]
+    assert psis[0] <= result.best_psi <= psis[-1]
+
+
+def test_cli_reweight_and_its_refusals(capsys):
+    from kinegrasp_env.cli import main
+
+    args = ["elbow", "--object", "spray_flask", "--grasp", "4", "--sigma", str(SIGMA),
+            "--samples", "200", "--method", "reweight"]
+    assert main([*args, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["reweight"]["batch"] == 400
+    assert {"psi", "ess", "slope", "se"} <= set(payload["reweight"]["points"][0])
+    assert "re-weighted" in payload["certificate"]["method"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "from one batch of 400 closings" in out and "effective sample size" in out
+    assert main([*args, "--noise", "uniform"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Gaussian joint noise" in err[0]
