@@ -20,7 +20,11 @@ Draws and labels:
 Scores of each draw (the kinematic engines of a description robot, on the same
 configuration; higher: predicted to hold):
 
-* ``fc``: its closing in force closure (0/1); ``q``: its Ferrari-Canny Q;
+* ``fc``: its closing in force closure (0/1); ``q``: its Ferrari-Canny Q (both with the
+  robot's contact model);
+* ``fc_patch``, ``q_patch``: the same with the patch contact model (a flat pad on a face
+  scored as its patch's corners: :mod:`kinegrasp_env.montecarlo.patch_contacts`; rounded
+  fingertips stay points);
 * ``p_fc``: P(FC) of ``--pfc-samples`` further draws at ``--sigma`` around it (fast engine);
 * ``static_hold``: the static hold check's verdict (0/1: the contacts carry the catalog mass
   in six gravity directions and the lift within the hand's effort limits);
@@ -47,6 +51,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import os
 import sys
 import time
@@ -76,7 +81,8 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
-SCORES = ("fc", "q", "p_fc", "static_hold", "hold_capacity", "quick_hold", "-centre_distance")
+SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "static_hold", "hold_capacity",
+          "quick_hold", "-centre_distance")
 BOOTSTRAP = 2000
 
 
@@ -124,6 +130,9 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
         centre = centre @ engine.obj.pose_inverse[:3, :3].T + engine.obj.pose_inverse[:3, 3]
         distance = np.linalg.norm(centre - engine.obj.center_of_mass, axis=1)
         fc = (draws.outcome == FORCE_CLOSURE).astype(float)
+    patched = dataclasses.replace(description, contact_model="patch")
+    with make_engine(engine_name, patched, obj) as engine:
+        patch_draws = engine.run(q)
     with make_engine("fast" if robot != "kuka_sdh" else "pybullet", robot, obj) as engine:
         arm = engine.description.arm_dof
         rng = np.random.default_rng(seed)
@@ -133,7 +142,9 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
             around = np.repeat(row[None], count, axis=0)
             around[:, :arm] += JointNoise(sigma).sample(count, arm, rng)
             p_fc[i] = float((engine.run(around).outcome == FORCE_CLOSURE).mean())
-    return {"fc": fc, "q": draws.quality, "p_fc": p_fc,
+    return {"fc": fc, "q": draws.quality,
+            "fc_patch": (patch_draws.outcome == FORCE_CLOSURE).astype(float),
+            "q_patch": patch_draws.quality, "p_fc": p_fc,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
             "quick_hold": quick_hold(robot, obj, q), "-centre_distance": -distance}
 

@@ -33,6 +33,9 @@ from kinegrasp_env import jit
 PATCH_DEPTH = 1e-3
 #: Object vertices within this of a face plane lie on the face (metres).
 FACE_TOL = 1e-7
+#: Corners of a patch kept for the patch contact model (a box pad's patch on a larger face
+#: is a quadrilateral; a patch of more corners is thinned to this many: :func:`thin_polygon`).
+PATCH_CORNERS = 4
 
 
 @lru_cache(maxsize=32)
@@ -213,9 +216,30 @@ def polygon_centroid(polygon, k):
 
 
 @jit.kernel(_nrt=False)
+def thin_polygon(polygon, k, most):
+    """Thin the convex polygon ``polygon[:k]`` (ordered) in place to at most ``most``
+    vertices, each time dropping the vertex whose triangle with its two neighbours has the
+    least area (the one whose loss shrinks the polygon least); returns the count kept. The
+    result is a subset of the polygon."""
+    while k > most and k > 2:
+        drop, least = 0, np.inf
+        for j in range(k):
+            a, c = (j + k - 1) % k, (j + 1) % k
+            area = abs(_side(polygon[a, 0], polygon[a, 1], polygon[j, 0], polygon[j, 1],
+                             polygon[c, 0], polygon[c, 1]))
+            if area < least:
+                drop, least = j, area
+        for j in range(drop, k - 1):
+            polygon[j, 0], polygon[j, 1] = polygon[j + 1, 0], polygon[j + 1, 1]
+        k -= 1
+    return k
+
+
+@jit.kernel(_nrt=False)
 def patch_points(vertices, poses, corners, starts, parts, planes, points, depth, face_tol,
-                 work, out, found):
-    """The patch centre of a link on a face, for M contacts (the module's steps).
+                 work, out, found, poly, counts):
+    """The patch centre of a link on a face, and the patch's corners, for M contacts (the
+    module's steps).
 
     Args:
         vertices: (V, 3) the link's hull vertices in its own frame (metres).
@@ -228,10 +252,15 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         work: (5, S, 2) scratch, S >= 2 (V + C) + 8.
         out: (M, 3) the contact points: the patch centre, else the point as given.
         found: (M,) bool, True where a patch centre was placed.
+        poly: (M, K, 3) the patch's corners (object frame), in order around it; a patch of
+            more than K corners is thinned to K of them (:func:`thin_polygon`: a subset of
+            the patch).
+        counts: (M,) int64 corners given (0 where no patch was placed).
     """
     for i in range(points.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = points[i, 0], points[i, 1], points[i, 2]
         found[i] = False
+        counts[i] = 0
         nx, ny, nz, off = planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3]
         s = points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz + off
         ox, oy, oz = points[i, 0] - s * nx, points[i, 1] - s * ny, points[i, 2] - s * nz
@@ -279,15 +308,26 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         mc = clip_polygon(work[3], mp, work[1], mf, work[4], work[2])
         if mc == 0:
             continue
+        corners_at = 4
         if mc >= 3:
             mc = hull_2d(work[4], mc, work[3])
             px, py = polygon_centroid(work[3], mc)
+            corners_at = 3
         else:
             px, py = polygon_centroid(work[4], mc)
         out[i, 0] = ox + px * ux + py * vx
         out[i, 1] = oy + px * uy + py * vy
         out[i, 2] = oz + px * uz + py * vz
         found[i] = True
+        for j in range(mc):  # the patch, to thin in place
+            work[2, j, 0], work[2, j, 1] = work[corners_at, j, 0], work[corners_at, j, 1]
+        keep = thin_polygon(work[2], mc, poly.shape[1])
+        for j in range(keep):
+            ax, ay = work[2, j, 0], work[2, j, 1]
+            poly[i, j, 0] = ox + ax * ux + ay * vx
+            poly[i, j, 1] = oy + ax * uy + ay * vy
+            poly[i, j, 2] = oz + ax * uz + ay * vz
+        counts[i] = keep
 
 
 # ----------------------------------------------------------------------------- from Python
@@ -328,16 +368,25 @@ class PatchGeometry:
         """((M, 3) contact points, (M,) bool found): :func:`patch_points` of a link's
         vertices (V, 3, its frame) at poses (M, 4, 4) on faces (part (M,), plane (M, 4)),
         the closest points (M, 3) found on them."""
+        out, found, _, _ = self.patches(vertices, poses, parts, planes, points)
+        return out, found
+
+    def patches(self, vertices: np.ndarray, poses: np.ndarray, parts: np.ndarray,
+                planes: np.ndarray, points: np.ndarray, corners: int = PATCH_CORNERS
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`place`'s centres and flags, and each patch's corners: ((M, corners, 3)
+        object frame, NaN beyond each count; (M,) int64 counts, 0 where no patch)."""
         m = len(points)
         out, found = np.empty((m, 3)), np.empty(m, dtype=np.bool_)
+        poly, counts = np.full((m, corners, 3), np.nan), np.zeros(m, dtype=np.int64)
         work = np.empty((5, 2 * (len(vertices) + len(self.corners)) + 8, 2))
         patch_points(np.ascontiguousarray(vertices, dtype=float),
                      np.ascontiguousarray(poses, dtype=float), self.corners, self.starts,
                      np.ascontiguousarray(parts, dtype=np.int64),
                      np.ascontiguousarray(planes, dtype=float),
                      np.ascontiguousarray(points, dtype=float), PATCH_DEPTH, FACE_TOL, work,
-                     out, found)
-        return out, found
+                     out, found, poly, counts)
+        return out, found, poly, counts
 
 
 def patch_centre(finger_vertices: np.ndarray, face_vertices: np.ndarray, inward: np.ndarray,

@@ -40,9 +40,13 @@ class LinkGeometry:
         return centre[None], float(np.linalg.norm(self.vertices - centre, axis=1).max())
 
 
-def link_geometry(description: RobotDescription) -> dict[str, LinkGeometry]:
-    """Every link with collision geometry -> its :class:`LinkGeometry` (read from pybullet
-    once, the robot at its open configuration)."""
+def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None
+                  ) -> dict[str, LinkGeometry]:
+    """Every link with collision geometry (or those of ``links`` that have it) -> its
+    :class:`LinkGeometry` (read from pybullet once, the robot at its open configuration).
+
+    Raises:
+        ValueError: a collision mesh of a link read cannot be loaded."""
     from kinegrasp_env.quiet import quiet_c_output
     from kinegrasp_env.world.sim import BulletWorld
 
@@ -55,6 +59,8 @@ def link_geometry(description: RobotDescription) -> dict[str, LinkGeometry]:
             names[j] = bullet.getJointInfo(robot, j)[12].decode()
         out = {}
         for index, name in names.items():
+            if links is not None and name not in links:
+                continue
             world = link_hull_vertices(bullet, robot, index)
             if world is None:
                 continue

@@ -81,7 +81,7 @@ from kinegrasp_env.envs.robot_task import (
 )
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
-from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, draw_chunk
+from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, draw_chunk
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
@@ -116,6 +116,58 @@ def box_action(action, shape: tuple[int, ...], meaning: str) -> np.ndarray:
     if np.any(np.abs(array) > 1.0):
         raise ValueError(f"{expected}; got {array.tolist()} (outside [-1, 1])")
     return array
+
+
+def positive_count(name: str, value) -> int:
+    """``value`` as an int >= 1 (``n_draws``, ``max_steps``); ValueError (one line, naming
+    ``name`` and the value) for anything else, a bool or a float included."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def finite_number(name: str, value, *, positive: bool = False) -> float:
+    """``value`` as a finite float (``> 0`` where ``positive``); ValueError (one line, naming
+    ``name`` and the value) otherwise."""
+    kind = "a finite number > 0" if positive else "a finite number"
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be {kind}, got {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {kind}, got {value!r}") from None
+    if not math.isfinite(number) or (positive and number <= 0):
+        raise ValueError(f"{name} must be {kind}, got {value!r}")
+    return number
+
+
+def names_of(name: str, value, known: tuple[str, ...] | None = None) -> tuple[str, ...]:
+    """``value`` as a non-empty tuple of strings (``objects``, ``noise_types``), each one of
+    ``known`` where given; ValueError (one line, naming ``name`` and the bad value)
+    otherwise. A lone string is refused: it is not a sequence of names."""
+    shape = f"{name} must be a non-empty list or tuple of names"
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or not value:
+        raise ValueError(f"{shape}, got {value!r}")
+    for item in value:
+        if not isinstance(item, str):
+            raise ValueError(f"{shape}, got {item!r} in {value!r}")
+        if known is not None and item not in known:
+            raise ValueError(f"unknown {name} entry {item!r}; choose from {', '.join(known)}")
+    return tuple(value)
+
+
+def sigma_bounds(value) -> tuple[float, float]:
+    """``sigma_range`` as (low, high) radians with 0 <= low <= high <= pi; ValueError (one
+    line, naming the value) otherwise."""
+    expected = f"sigma_range must be (low, high) radians with 0 <= low <= high <= pi " \
+               f"({MAX_SIGMA:.4f})"
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{expected}, got {value!r}") from None
+    if not 0 <= low <= high <= MAX_SIGMA:  # (False for NaN)
+        raise ValueError(f"{expected}, got {value!r}")
+    return low, high
 
 
 def observed_links(kin: Kinematics) -> list[str]:
@@ -205,21 +257,26 @@ class KineGraspEnv(gym.Env):
         if n_draws is None:
             n_draws = 64 if own else ROBOT_N_DRAWS
         if engine is None:
-            engine = "fast" if own else "pybullet"
-        if not own and (engine != "pybullet" or noise_model is not None
-                        or render_mode is not None):
-            raise ValueError(f"robot {robot!r} takes engine 'pybullet', no noise_model and no "
-                             f"render_mode; got {engine!r}, {noise_model!r}, {render_mode!r}")
-        if render_mode not in (None, "rgb_array", "human"):
-            raise ValueError(f"unknown render_mode {render_mode!r}")
-        if n_draws < 1 or max_steps < 1:
-            raise ValueError(f"n_draws and max_steps must be >= 1, got {n_draws}, {max_steps}")
-        if not 0 <= sigma_range[0] <= sigma_range[1] <= MAX_SIGMA:
-            raise ValueError(f"sigma_range must be 0 <= low <= high <= pi ({MAX_SIGMA:.4f}) "
-                             f"radians, got {sigma_range}")
-        for kind in noise_types:
-            if kind not in DISTRIBUTIONS:
-                raise ValueError(f"unknown noise type {kind!r}; choose from {DISTRIBUTIONS}")
+            engine = "fast"
+        if not own and noise_model is not None:
+            raise ValueError(f"robot {robot!r} takes joint noise (sigma_range, noise_types), "
+                             f"not a noise_model; got noise_model={noise_model!r}")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or one of "
+                             f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
+        n_draws = positive_count("n_draws", n_draws)
+        max_steps = positive_count("max_steps", max_steps)
+        sigma_range = sigma_bounds(sigma_range)
+        noise_types = names_of("noise_types", noise_types, DISTRIBUTIONS)
+        q_weight = finite_number("q_weight", q_weight)
+        limit_penalty = finite_number("limit_penalty", limit_penalty)
+        step_size = finite_number("step_size", step_size, positive=True)
+        if split not in (None, "train", "test"):
+            raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
+        if engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+        if objects is not None:
+            objects = names_of("objects", objects)
         if not own:
             self.tasks = robot_tasks(robot, objects, grasp_file)
         elif grasp_file is not None:
@@ -233,8 +290,6 @@ class KineGraspEnv(gym.Env):
         else:
             names = objects or OBJECT_NAMES
             self.tasks = {name: shipped_grasps(name) for name in names}
-        if split not in (None, "train", "test"):
-            raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
         if split is not None:
             keep = (lambda i: i % 4 == 3) if split == "test" else (lambda i: i % 4 != 3)
             self.tasks = {name: [g for i, g in enumerate(gs) if keep(i)]
@@ -249,14 +304,10 @@ class KineGraspEnv(gym.Env):
         self.step_size = float(step_size)
         self.render_mode = render_mode
         self._window = render_mode == "human" and human_window_available()
-        self._robot = None if own else RobotTask(robot)
+        self._robot = None if own else RobotTask(robot, engine)
         size = OBS_SIZE if own else self._robot.obs_size
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
         self.action_space = self._action_space()
-        from kinegrasp_env.montecarlo.evaluate import ENGINES
-
-        if engine not in ENGINES:
-            raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
         self.engine = engine
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         self._engines: dict[tuple, Engine] = {}
@@ -339,8 +390,12 @@ class KineGraspEnv(gym.Env):
         index = options.get("grasp")
         if index is None:
             index = int(rng.integers(len(grasps)))
-        elif not 0 <= int(index) < len(grasps):
-            raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)}")
+        elif isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+            raise ValueError(f"reset option grasp must be an integer index into {name}'s "
+                             f"{len(grasps)} grasps, got {index!r}")
+        elif not 0 <= index < len(grasps):
+            raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)} "
+                             f"(0..{len(grasps) - 1})")
         return grasps[int(index)]
 
     def _pick_noise(self, options: dict) -> JointNoise | NoiseModel:
@@ -422,6 +477,8 @@ class KineGraspEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"reset options must be a dict or None, got {options!r}")
         options = dict(options or {})
         unknown = set(options) - {"object", *GRASP_OPTIONS, "sigma", "noise", "psi",
                                   "noise_model"}
@@ -463,8 +520,9 @@ class KineGraspEnv(gym.Env):
             return None  # no display: warned at construction, nothing to show
         from kinegrasp_env.envs.render import render_scene
 
-        image, self._viewer = render_scene(self.grasp.object, self.q, self._viewer,
-                                           gui=self.render_mode == "human")
+        image, self._viewer = render_scene(
+            self.grasp.object, self.q, self._viewer, gui=self.render_mode == "human",
+            robot=None if self._robot is None else self._robot.description)
         return image if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:

@@ -1,5 +1,11 @@
 """Pictures of the arm, hand and object (pybullet's CPU renderer: works headless), and the
-check that a ``human`` (GUI window) render mode can show anything here."""
+check that a ``human`` (GUI window) render mode can show anything here.
+
+The default robot is drawn by :class:`SceneViewer`, a robot of the catalog described by its
+URDF (``robot="panda"``) by :class:`RobotSceneViewer`; each holds a pybullet client of its
+own (never pybullet's global state) and draws with the same camera: 320 x 240 pixels,
+looking at (0.35, 0, 0.35) m from 1.6 m, yaw 50 degrees, pitch -25 degrees.
+"""
 
 from __future__ import annotations
 
@@ -7,9 +13,12 @@ import warnings
 
 import numpy as np
 
+from kinegrasp_env.closing.generic_reference import RobotWorld
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 from kinegrasp_env.world.objects import load_object
-from kinegrasp_env.world.sim import GraspWorld, display_available, pybullet
+from kinegrasp_env.world.sim import BulletClient, GraspWorld, display_available, pybullet
 
 
 class NoDisplayWarning(UserWarning):
@@ -29,11 +38,21 @@ def human_window_available() -> bool:
 WIDTH, HEIGHT = 320, 240
 
 
+def camera_image(bullet: BulletClient) -> np.ndarray:
+    """(HEIGHT, WIDTH, 3) uint8 RGB picture of ``bullet``'s world from the envs' camera."""
+    view = bullet.computeViewMatrixFromYawPitchRoll([0.35, 0.0, 0.35], 1.6, 50, -25, 0, 2)
+    proj = bullet.computeProjectionMatrixFOV(60, WIDTH / HEIGHT, 0.05, 5.0)
+    _, _, rgba, _, _ = bullet.getCameraImage(WIDTH, HEIGHT, view, proj,
+                                             renderer=pybullet.ER_TINY_RENDERER)
+    return np.asarray(rgba, dtype=np.uint8).reshape(HEIGHT, WIDTH, 4)[:, :, :3].copy()
+
+
 class SceneViewer:
-    """A world with the whole robot and one object, for rendering."""
+    """A world with the whole default robot and one object, for rendering."""
 
     def __init__(self, object_name: str, gui: bool = False) -> None:
         self.object_name = object_name
+        self.robot = DEFAULT_ROBOT
         self.world = GraspWorld(load_object(object_name), gui=gui)
         bullet = self.world.bullet
         # the stand-alone hand of the grasp world is parked out of view
@@ -45,27 +64,66 @@ class SceneViewer:
                        for j in range(bullet.getNumJoints(robot))}
 
     def show(self, q: np.ndarray) -> np.ndarray:
+        """(HEIGHT, WIDTH, 3) uint8 picture of the robot at q (14,) (radians)."""
         bullet = self.world.bullet
         for name, value in kuka_sdh().expand(q).items():
             bullet.resetJointState(self.world.bodies["robot"], self.joints[name], float(value))
-        view = bullet.computeViewMatrixFromYawPitchRoll([0.35, 0.0, 0.35], 1.6, 50, -25, 0, 2)
-        proj = bullet.computeProjectionMatrixFOV(60, WIDTH / HEIGHT, 0.05, 5.0)
-        _, _, rgba, _, _ = bullet.getCameraImage(WIDTH, HEIGHT, view, proj,
-                                                 renderer=pybullet.ER_TINY_RENDERER)
-        return np.asarray(rgba, dtype=np.uint8).reshape(HEIGHT, WIDTH, 4)[:, :, :3].copy()
+        return camera_image(bullet)
 
     def close(self) -> None:
         self.world.close()
 
 
-def render_scene(object_name: str, q: np.ndarray, viewer: SceneViewer | None,
-                 gui: bool = False) -> tuple[np.ndarray, SceneViewer]:
-    """(H, W, 3) uint8 picture of the robot at q with the object; reuses ``viewer``."""
-    if viewer is None or viewer.object_name != object_name:
+class RobotSceneViewer:
+    """A world with a description robot's whole URDF (arm and hand, fixed at the world
+    origin) and one object at its catalog pose, for rendering.
+
+    Args:
+        description: the robot.
+        object_name: a catalog object.
+        gui: open pybullet's GUI window (see :func:`human_window_available`).
+    """
+
+    def __init__(self, description: RobotDescription, object_name: str,
+                 gui: bool = False) -> None:
+        self.object_name = object_name
+        self.robot = description.name
+        self.world = RobotWorld(description, load_object(object_name), gui=gui)
+
+    def show(self, q: np.ndarray) -> np.ndarray:
+        """(HEIGHT, WIDTH, 3) uint8 picture of the robot at q (dof,) (arm joints then hand
+        joints, radians: the description's actuated vector)."""
+        self.world.set_configuration(q)
+        return camera_image(self.world.bullet)
+
+    def close(self) -> None:
+        self.world.close()
+
+
+Viewer = SceneViewer | RobotSceneViewer
+
+
+def render_scene(object_name: str, q: np.ndarray, viewer: Viewer | None, gui: bool = False,
+                 robot: RobotDescription | None = None) -> tuple[np.ndarray, Viewer]:
+    """(HEIGHT, WIDTH, 3) uint8 picture of the robot at q with the object; reuses ``viewer``
+    when it shows the same robot and object.
+
+    Args:
+        object_name: a catalog object.
+        q: the robot's configuration (radians): (14,) for the default robot, (dof,) for
+            ``robot``.
+        viewer: the viewer of the previous picture (or None).
+        gui: open pybullet's GUI window for a new viewer.
+        robot: a description robot (None: the default robot).
+    """
+    name = DEFAULT_ROBOT if robot is None else robot.name
+    if viewer is None or viewer.object_name != object_name or viewer.robot != name:
         if viewer is not None:
             viewer.close()
-        viewer = SceneViewer(object_name, gui=gui)
+        viewer = (SceneViewer(object_name, gui=gui) if robot is None
+                  else RobotSceneViewer(robot, object_name, gui=gui))
     return viewer.show(q), viewer
 
 
-__all__ = ["NoDisplayWarning", "SceneViewer", "human_window_available", "render_scene"]
+__all__ = ["HEIGHT", "WIDTH", "NoDisplayWarning", "RobotSceneViewer", "SceneViewer",
+           "camera_image", "human_window_available", "render_scene"]

@@ -8,12 +8,18 @@ Everything robot-specific is derived from the robot's description
   cube, drill and spray_flask, 4 grasps each) or a ``grasp_file`` of grasps of the robot;
 - **self-motion**: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (7 arm joints:
   the palm held, the elbow angle of the description's ``arm_angle_links`` moved);
-- **reward draws**: :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`
-  (pybullet closest points on the URDF's collision geometry, the robot's contact model),
-  joint noise on the arm joints, the hand at its pre-shape;
+- **reward draws**: an engine of the robot by name
+  (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast``
+  (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`, the reference closing
+  batched over the draws), ``pybullet``
+  (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`: pybullet closest
+  points on the URDF's collision geometry) or ``physics``; the robot's contact model, joint
+  noise on the arm joints, the hand at its pre-shape;
 - **observation**: the default robot's layout (:mod:`kinegrasp_env.envs.kinegrasp`) with
   the arm's and the hand's sizes: ``2 * arm_dof + hand_dof + 23`` entries (44 for the
-  default robot, 38 for the Panda).
+  default robot, 38 for the Panda);
+- **pictures**: the whole URDF (arm and hand, its visual geometry) and the object in a
+  pybullet world of their own (:class:`~kinegrasp_env.envs.render.RobotSceneViewer`).
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import elbow_angle
@@ -31,8 +37,8 @@ from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
 
-#: Reward draws per step for a description robot (the reference engine, draw by draw: 1.5
-#: to 7 ms a draw for the Panda's shipped grasps, so 15 to 35 ms a step: see
+#: Reward draws per step for a description robot (for the Panda's shipped grasps the fast
+#: engine closes 16 draws in 2.5 to 4 ms, the reference engine in 12 to 21 ms: see
 #: :class:`RobotTask`).
 ROBOT_N_DRAWS = 16
 #: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
@@ -73,31 +79,40 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
 class RobotTask:
     """The robot-specific pieces of the env for a description robot.
 
-    Speed (the Panda, 16 draws, one core; 3 episodes of 10 random actions per object):
-    30 steps/s on the cube, 60-70 on the drill and the spray flask
-    (the reference closing 1.5 to 7 ms a draw, the self-motion ~4 ms per 0.1 rad of elbow
-    angle).
+    Speed (the Panda, 16 draws, one core; ``python benchmarks/bench_env.py --robot panda``):
+    see the benchmarks page; per step, the self-motion takes ~4 ms per 0.1 rad of elbow
+    angle and the draws 2.5 to 4 ms with the fast engine, 12 to 21 ms with the reference.
 
     Args:
         robot: a catalog robot other than the default.
+        engine: the reward draws' engine by name: ``fast``, ``pybullet`` or ``physics``
+            (:data:`~kinegrasp_env.montecarlo.robot_evaluate.ENGINES`).
+
+    Raises:
+        ValueError: an unknown engine (one line naming it and the known ones).
     """
 
-    def __init__(self, robot: str) -> None:
+    def __init__(self, robot: str, engine: str = "fast") -> None:
         if robot == DEFAULT_ROBOT:
             raise ValueError("the default robot is the env's own path")
+        if engine not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+        self.engine_name = engine
         self.description: RobotDescription = load_robot(robot)
         self.motion = ArmSelfMotion(self.description)
         self.kin = self.motion.kin
         self.arm = self.description.arm_dof
         self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
-        self._engines: dict[str, RobotReferenceEngine] = {}
+        self._engines: dict[str, RobotEngine] = {}
         links = [*self.kin.jacobian_links(self.description.palm_link), *self.motion.angle_links]
         self.links = list(dict.fromkeys(links))
 
-    def engine(self, object_name: str) -> RobotReferenceEngine:
-        """The reference engine of ``object_name`` (one pybullet world, kept)."""
+    def engine(self, object_name: str) -> RobotEngine:
+        """The engine of ``object_name`` (built on first use and kept: a pybullet world, or
+        the fast engine's distance grid and compiled kernels)."""
         if object_name not in self._engines:
-            self._engines[object_name] = RobotReferenceEngine(self.description, object_name)
+            self._engines[object_name] = make_engine(self.engine_name, self.description,
+                                                     object_name)
         return self._engines[object_name]
 
     def close(self) -> None:
@@ -140,8 +155,10 @@ class RobotTask:
 
     def estimate(self, grasp: Grasp, q: np.ndarray, noise: JointNoise, seed: int,
                  n_draws: int) -> dict:
-        """``n_draws`` reference draws at q (dof,): arm joints q + eps (eps from ``noise``
-        seeded by ``seed``), hand at q's pre-shape; the reward's statistics."""
+        """``n_draws`` draws of the task's engine at q (dof,): arm joints q + eps (eps from
+        ``noise`` seeded by ``seed``: the same eps for every engine), hand at q's pre-shape;
+        the reward's statistics (P(FC), its Wilson interval, mean Q over the force-closure
+        draws, outcome counts)."""
         eps = noise.sample(n_draws, self.arm, np.random.default_rng(seed))
         batch = np.repeat(np.asarray(q, float)[None], n_draws, axis=0)
         batch[:, :self.arm] += eps

@@ -84,8 +84,13 @@ class StaticHoldCheck:
                 self.carriers[(f, k)] = (chain, carried)
         self.mass = obj.mass
         self.loads = gravity_loads(self.mass, load_accelerations(protocol), obj.pose[:3, :3])
+        #: the quality-level model of each contact given: the patch model's contacts come
+        #: as the patches' corners (:mod:`~kinegrasp_env.montecarlo.patch_contacts`), each a
+        #: point contact
+        self.contact_model = ("point" if description.contact_model == "patch"
+                              else description.contact_model)
         self.per_contact = num_edges + (TORSION_PRIMITIVES
-                                        if description.contact_model == "soft" else 0)
+                                        if self.contact_model == "soft" else 0)
 
     def primitives(self, points: np.ndarray, normals: np.ndarray,
                    present: np.ndarray) -> np.ndarray:
@@ -94,7 +99,7 @@ class StaticHoldCheck:
         False."""
         filled = np.where(present[..., None], points, self.obj.center_of_mass)
         unit = np.where(present[..., None], normals, np.array([0.0, 0.0, 1.0]))
-        w = contact_wrenches(filled, unit, contact_model=self.description.contact_model,
+        w = contact_wrenches(filled, unit, contact_model=self.contact_model,
                              friction=self.friction, num_edges=self.num_edges,
                              torque_scale=1.0, center=tuple(map(float,
                                                                 self.obj.center_of_mass)),

@@ -79,8 +79,9 @@ def score_batch(batch: RobotCloseBatch, max_contacts: int, quality) -> RobotDraw
     """Per-draw results of closings: each one's outcome (:func:`provisional_outcomes`), its
     contacts (at most ``max_contacts``, in the batch's order) and, for a candidate, Q by
     ``quality(points, normals)`` (force closure where Q > 0): points and normals (B, k, 3)
-    of every candidate with k contacts at once, Q (B,). Every engine of a description robot
-    scores its closings here."""
+    of every candidate with k contacts at once, Q (B,); ``quality`` None leaves the
+    candidates unscored (outcome ``no_force_closure``, Q 0) for the caller. Every engine of a
+    description robot scores its closings here."""
     n = len(batch)
     out = RobotDraws.empty(n, max_contacts)
     counts = batch.contact_counts
@@ -91,6 +92,8 @@ def score_batch(batch: RobotCloseBatch, max_contacts: int, quality) -> RobotDraw
     row, slot = batch.row[keep], slot[keep]
     out.points[row, slot], out.normals[row, slot] = batch.points[keep], batch.normals[keep]
     out.finger[row, slot], out.link[row, slot] = batch.finger[keep], batch.link[keep]
+    if quality is None:  # the caller scores the candidates
+        return out
     candidate = out.outcome == NO_FORCE_CLOSURE
     for k in np.unique(out.n_contacts[candidate]):
         rows = np.flatnonzero(candidate & (out.n_contacts == k))
@@ -127,6 +130,11 @@ class RobotEngine:
         self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
         self.max_contacts = len(self.description.finger_links)
         self.jaw_speeds = jaw_speeds(self.description)
+        self.patches = None
+        if self.description.contact_model == "patch":
+            from kinegrasp_env.montecarlo.patch_contacts import PatchContacts
+
+            self.patches = PatchContacts(self.description, self.obj)
         self.hold_check = None
         if static_hold:
             from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
@@ -156,9 +164,11 @@ class RobotEngine:
         return q
 
     def quality(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        """(B,) Q of B contact sets (B, k, 3) with the robot's contact model."""
+        """(B,) Q of B contact sets (B, k, 3) with the robot's contact model (the patch
+        model's sets: the patches' corners, each a point contact)."""
+        model = self.description.contact_model
         return contact_quality_batch(
-            points, normals, contact_model=self.description.contact_model,
+            points, normals, contact_model="point" if model == "patch" else model,
             friction=self.friction, num_edges=self.num_edges,
             torque_scale=self.obj.torque_scale, center=self.obj.center_of_mass,
             **({"finger_radius": self.finger_radius}
@@ -181,7 +191,11 @@ class RobotEngine:
     def scored(self, q: np.ndarray, batch: RobotCloseBatch) -> RobotDraws:
         """:meth:`run`'s results of the closings ``batch`` of checked configurations q
         (n, dof): for a caller that needs the closings too (their final joint values)."""
-        draws = score_batch(batch, self.max_contacts, self.quality)
+        draws = score_batch(batch, self.max_contacts,
+                            None if self.patches is not None else self.quality)
+        contacts = None
+        if self.patches is not None:
+            contacts = self._score_patches(q, batch, draws)
         if self.jaw_speeds is not None and len(batch):
             draws.push[:] = jaw_push(self.jaw_speeds, batch.travel, batch.missed,
                                      batch.start_collision)
@@ -190,7 +204,26 @@ class RobotEngine:
                                      | (draws.outcome == FORCE_CLOSURE))
             if touched.size:
                 values = {name: v[touched] for name, v in batch.joints.items()}
+                given = (draws.points, draws.normals, draws.finger, draws.link)
+                if contacts is not None:
+                    given = contacts
                 draws.held[touched] = self.hold_check.held(
-                    q[touched], values, draws.points[touched], draws.normals[touched],
-                    draws.finger[touched], draws.link[touched])
+                    q[touched], values, *(a[touched] for a in given))
         return draws
+
+    def _score_patches(self, q: np.ndarray, batch: RobotCloseBatch, draws: RobotDraws
+                       ) -> tuple[np.ndarray, ...]:
+        """Q and force closure of the candidates of ``draws`` with the patch model; returns
+        every draw's contacts expanded to their patches' corners ((n, k C, 3) points and
+        normals, (n, k C) finger and link: :class:`~kinegrasp_env.montecarlo.
+        patch_contacts.PatchContacts`)."""
+        expanded = self.patches.expand(q, batch.joints, draws.points, draws.normals,
+                                       draws.finger, draws.link)
+        candidate = draws.outcome == NO_FORCE_CLOSURE
+        per = expanded[0].shape[1] // max(self.max_contacts, 1)
+        for k in np.unique(draws.n_contacts[candidate]):
+            rows = np.flatnonzero(candidate & (draws.n_contacts == k))
+            draws.quality[rows] = self.quality(expanded[0][rows, :k * per],
+                                               expanded[1][rows, :k * per])
+        draws.outcome[candidate & (draws.quality > 0)] = FORCE_CLOSURE
+        return expanded

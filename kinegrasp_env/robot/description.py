@@ -17,7 +17,7 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     finger_links: [...]              # optional: the links that touch (default: every link
                                      # a hand joint moves)
     efforts: {joint: 20.0}           # optional motor effort overrides, N m or N (> 0)
-    contact_model: point             # optional: point (default) or soft
+    contact_model: point             # optional: point (default), soft or patch
     packages: {NAME: path}           # optional: folders for package://NAME/... meshes
     arm_angle_links: [s, e, w]       # optional: shoulder, elbow, wrist links of the arm
                                      # angle (default for 7 arm joints: the links moved by
@@ -46,7 +46,7 @@ NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "close")
 OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
                  "arm_angle_links")
-CONTACT_MODELS = ("point", "soft")
+CONTACT_MODELS = ("point", "soft", "patch")
 
 
 class RobotDescriptionError(ValueError):

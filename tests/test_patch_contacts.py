@@ -1,0 +1,181 @@
+"""The patch contact model against independent references.
+
+* **pybullet's contact point**: at a closed Panda grasp, the point pybullet's collision
+  detection reports for a pad on the object is a corner of the patch computed here (the pad's
+  hull clipped to the face), and lies in the thinned patch the model scores.
+* **an LP of the patch's wrench set**: force closure of the corners' friction cones (the
+  quality code's Q > 0) against HiGHS: the origin is strictly inside the convex hull of the
+  wrenches W (6, m) iff max s s.t. W lam = 0, sum lam = 1, lam >= s has s > 0 and W has
+  rank 6. On random opposed pads on a thin wall, and on the engine's own draws.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.patch_contacts import PatchContacts
+from kinegrasp_env.montecarlo.robot_engine import score_batch
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, make_engine
+from kinegrasp_env.quality.soft_contacts import contact_quality_batch, contact_wrenches
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.world.grasps import shipped_grasps
+
+MU, EDGES = 0.5, 8
+
+
+def lp_force_closure(points: np.ndarray, normals: np.ndarray, scale: float,
+                     center: np.ndarray) -> bool:
+    """Force closure of point contacts (m, 3) by the LP of the module docstring."""
+    w = contact_wrenches(points[None], normals[None], contact_model="point", friction=MU,
+                         num_edges=EDGES, torque_scale=scale, center=tuple(center))[0].T
+    if np.linalg.matrix_rank(w, tol=1e-9) < 6:
+        return False
+    m = w.shape[1]
+    c = np.zeros(m + 1)
+    c[-1] = -1.0  # maximise s
+    a_eq = np.vstack([np.hstack([w, np.zeros((6, 1))]), np.append(np.ones(m), 0.0)])
+    b_eq = np.append(np.zeros(6), 1.0)
+    a_ub = np.hstack([-np.eye(m), np.ones((m, 1))])  # s - lam_i <= 0
+    res = linprog(c, A_ub=a_ub, b_ub=np.zeros(m), A_eq=a_eq, b_eq=b_eq,
+                  bounds=[(0, None)] * m + [(None, None)], method="highs")
+    return bool(res.status == 0 and -res.fun > 1e-9)
+
+
+def square(centre: np.ndarray, half: float) -> np.ndarray:
+    """(4, 3) corners of a square in a plane x = const."""
+    y, z = centre[1], centre[2]
+    return np.array([[centre[0], y + sy * half, z + sz * half]
+                     for sy, sz in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def test_thin_wall_pinch_is_force_closure_only_as_patches():
+    """Two 10 mm pads on an 8 mm wall, their centres 12 mm apart in height: the centres as
+    points are not in force closure (the line between them leaves both cones), the patches
+    overlap across the wall and are; the LP says the same of both."""
+    left, right = np.array([-0.004, 0.0, 0.0]), np.array([0.004, 0.0, 0.012])
+    centres = np.stack([left, right])
+    normals = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    corners = np.vstack([square(left, 0.01), square(right, 0.01)])
+    corner_normals = np.repeat(normals, 4, axis=0)
+    scale, centre = 10.0, np.zeros(3)
+    q_point = contact_quality_batch(centres[None], normals[None], torque_scale=scale)[0]
+    q_patch = contact_quality_batch(corners[None], corner_normals[None], torque_scale=scale)[0]
+    assert q_point == 0 and not lp_force_closure(centres, normals, scale, centre)
+    assert q_patch > 0 and lp_force_closure(corners, corner_normals, scale, centre)
+
+
+def test_patch_quality_agrees_with_the_lp_on_random_pinches():
+    """200 random pairs of opposed square pads: Q > 0 exactly where the LP finds force
+    closure (both outcomes occur)."""
+    rng = np.random.default_rng(0)
+    verdicts = []
+    for _ in range(200):
+        left = np.array([-0.004, *rng.uniform(-0.02, 0.02, 2)])
+        right = np.array([0.004, *rng.uniform(-0.02, 0.02, 2)])
+        half = rng.uniform(0.002, 0.012)
+        pts = np.vstack([square(left, half), square(right, half)])
+        nrm = np.repeat(np.array([[1.0, 0, 0], [-1.0, 0, 0]]), 4, axis=0)
+        q = contact_quality_batch(pts[None], nrm[None], torque_scale=10.0)[0]
+        lp = lp_force_closure(pts, nrm, 10.0, np.zeros(3))
+        assert (q > 0) == lp
+        verdicts.append(lp)
+    assert 20 < sum(verdicts) < 180
+
+
+@pytest.fixture(scope="module")
+def reference():
+    with RobotReferenceEngine("panda", "cube") as engine:
+        yield engine
+
+
+def test_pybullets_contact_point_is_a_patch_corner(reference):
+    """Three shipped Panda grasps of the cube, closed by the reference engine: pybullet's
+    contact point for each pad (performCollisionDetection, the object side) is within 0.05 mm
+    of a corner of the full patch (every corner kept) and within 0.05 mm of the thinned
+    patch's plane region (inside its polygon)."""
+    engine = reference
+    patches = PatchContacts(engine.description, engine.obj)
+    world, bullet = engine.world, engine.world.bullet
+    checked = 0
+    for grasp in shipped_grasps("cube", "panda")[:3]:
+        q = np.asarray(grasp.q0, dtype=float)[None]
+        batch = RobotCloseBatch.of_results([engine.close_one(grasp.q0)])
+        draws = score_batch(batch, engine.max_contacts, None)
+        corners, normals, _, _ = patches.expand(q, batch.joints, draws.points, draws.normals,
+                                                draws.finger, draws.link)
+        world.set_configuration(grasp.q0)
+        world.set_joint_values({k: float(v[0]) for k, v in batch.joints.items()})
+        bullet.performCollisionDetection()
+        for j in range(int(draws.n_contacts[0])):
+            f, k = int(draws.finger[0, j]), int(draws.link[0, j])
+            name = engine.description.fingers[f].links[k]
+            found = bullet.getContactPoints(bodyA=world.bodies["robot"],
+                                            bodyB=world.bodies["object"],
+                                            linkIndexA=world.link_index[name])
+            assert found, name
+            point = engine.obj.to_object(np.array(found[0][6]))
+            full = full_patch(patches, q, batch, draws, j)
+            assert np.min(np.linalg.norm(full - point, axis=1)) < 5e-5
+            thinned = corners[0, j * PATCH_CORNERS:(j + 1) * PATCH_CORNERS]
+            assert inside(thinned, normals[0, j * PATCH_CORNERS], point, 5e-5)
+            checked += 1
+    assert checked == 6
+
+
+def full_patch(patches: PatchContacts, q, batch, draws, j) -> np.ndarray:
+    """Every corner of contact j's patch (none thinned)."""
+    from kinegrasp_env.closing.contact_patch import faces_of
+    from kinegrasp_env.closing.finger_paths import link_poses
+    from kinegrasp_env.closing.generic_reference import EDGE_TOL
+
+    name, chain = patches.links[(int(draws.finger[0, j]), int(draws.link[0, j]))]
+    palm = patches.obj.pose_inverse @ patches.kinematics.pose(q, patches.description.palm_link)
+    full = patches.description.model.expand(q)
+    full.update({k: np.asarray(v, dtype=float) for k, v in batch.joints.items()})
+    pose = link_poses(palm, full, chain)
+    part, plane = faces_of(patches.obj, draws.points[0, j][None], EDGE_TOL)
+    _, _, corners, counts = patches.patch.patches(patches.geometry[name].vertices, pose, part,
+                                                  plane, draws.points[0, j][None], 32)
+    return corners[0, :counts[0]]
+
+
+def inside(polygon: np.ndarray, normal: np.ndarray, point: np.ndarray, tol: float) -> bool:
+    """point within tol of the convex polygon (k, 3) (ordered, in a plane of normal n)."""
+    centre = polygon.mean(axis=0)
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        out = np.cross(b - a, normal)  # in-plane, perpendicular to the edge
+        out /= np.linalg.norm(out)
+        if (centre - a) @ out > 0:
+            out = -out  # pointing away from the polygon
+        if (point - a) @ out > tol:
+            return False
+    return True
+
+
+def test_engine_scores_the_patch_corners():
+    """The fast engine with the patch model on 60 noisy Panda draws: force closure exactly
+    where the LP finds it for the corners PatchContacts gives (the scoring uses them)."""
+    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
+    grasp = shipped_grasps("cube", "panda")[0]
+    rng = np.random.default_rng(1)
+    q = np.tile(np.asarray(grasp.q0, dtype=float), (60, 1))
+    q[:, :7] += 0.0133 * rng.standard_normal((60, 7))
+    with make_engine("fast", description, "cube") as engine:
+        batch = engine.close_batch(engine.check(q))
+        draws = engine.scored(q, batch)
+        corners, normals, finger, _ = engine.patches.expand(
+            q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
+        scale, centre = engine.obj.torque_scale, engine.obj.center_of_mass
+    touched = np.flatnonzero(draws.n_contacts == 2)
+    assert touched.size > 30
+    for i in touched:
+        present = finger[i] >= 0
+        lp = lp_force_closure(corners[i, present], normals[i, present], scale, centre)
+        assert (draws.outcome[i] == FORCE_CLOSURE) == lp, i
