@@ -407,3 +407,19 @@ def test_mesh_paths_resolve_as_urdf_readers_write_them(tmp_path):
     assert resolve_mesh("package://mapped/c.obj", urdf, packages) == mapped
     assert resolve_mesh("package://mapped/c.obj", urdf, {}) is None
     assert resolve_mesh("package://pkg/meshes/none.stl", urdf, {}) is None
+
+
+def test_contact_model_defaults_by_finger_count(tmp_path):
+    """A description naming no contact model: soft for the xArm's two fingers (two point
+    contacts are never in force closure), point for the SDH's three; named, it is kept."""
+    data = {k: v for k, v in XARM_DESCRIPTION.items() if k != "contact_model"}
+    path = user_files(tmp_path, "beside")
+    path.write_text(yaml.safe_dump({**data, "urdf": str(XARM_URDF)}))
+    two = load_description(path)
+    assert len(two.fingers) == 2 and two.contact_model == "soft"
+    path.write_text(yaml.safe_dump({**data, "urdf": str(XARM_URDF), "contact_model": "point"}))
+    assert load_description(path).contact_model == "point"
+    assert len(load_robot("kuka_sdh").fingers) == 3
+    from kinegrasp_env.robot.description import default_contact_model
+
+    assert default_contact_model(3) == "point" and default_contact_model(1) == "point"

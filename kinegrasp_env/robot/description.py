@@ -17,7 +17,8 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     finger_links: [...]              # optional: the links that touch (default: every link
                                      # a hand joint moves)
     efforts: {joint: 20.0}           # optional motor effort overrides, N m or N (> 0)
-    contact_model: point             # optional: point (default), soft or patch
+    contact_model: soft              # optional: point, soft or patch (default: soft
+                                     # for a two-finger hand, else point)
     packages: {NAME: path}           # optional: folders for package://NAME/... meshes
     arm_angle_links: [s, e, w]       # optional: shoulder, elbow, wrist links of the arm
                                      # angle (default for 7 arm joints: the links moved by
@@ -299,7 +300,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         if value <= 0:
             raise _fail(where, "efforts", f"{j}: {value:g} is not > 0")
         efforts[j] = value
-    contact_model = data.get("contact_model", "point")
+    contact_model = data.get("contact_model", default_contact_model(len(fingers)))
     if contact_model not in CONTACT_MODELS:
         raise _fail(where, "contact_model", f"{contact_model!r} is not one of "
                     f"{', '.join(CONTACT_MODELS)}")
@@ -316,6 +317,14 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes)
+
+
+def default_contact_model(fingers: int) -> str:
+    """The contact model of a description that names none: ``soft`` for a two-finger hand
+    (point contacts never put two fingers in force closure, and of the models the physics
+    benchmark compares on the Panda, soft predicts its holding best:
+    docs/guides/physics.md), ``point`` otherwise (the paper's hard fingers)."""
+    return "soft" if fingers == 2 else "point"
 
 
 def _arm_angle_links(data, where, arm, movable, path_links) -> tuple[str, str, str] | None:
