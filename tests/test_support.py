@@ -221,6 +221,38 @@ def test_placed_copies_and_their_grasps(tabled):
     np.testing.assert_allclose(moved.pose[:3, 3], [0.5, 0.1, 0.1])
 
 
+def test_full_orientation_as_a_data_set_gives_it(tabled, capsys):
+    """``--orientation X Y Z W``: the object's rotation is scipy's matrix of that quaternion
+    (an independent conversion); position and table as asked; a tilted object stands without
+    a table (one-line refusal, nothing written); a later move keeps the tilt."""
+    from scipy.spatial.transform import Rotation
+
+    from kinegrasp_env.cli.main import main
+    from kinegrasp_env.world.store import catalog_dir
+
+    quat = Rotation.from_euler("xyz", [90, 0, 30], degrees=True).as_quat()
+    args = ["objects", "place", "cube", "--as", "cube_tilted", "--force", "--position",
+            "0.6", "0.05", "0.12", "--orientation", *map(str, quat)]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "orientation (" in out and "yaw" not in out
+    tilted = load_object("cube_tilted")
+    np.testing.assert_allclose(tilted.pose[:3, :3], Rotation.from_quat(quat).as_matrix(),
+                               atol=1e-12)
+    np.testing.assert_allclose(tilted.pose[:3, 3], [0.6, 0.05, 0.12])
+    place_object("cube_tilted", as_name="cube_tilted2", position=[0.5, 0, 0.1], force=True)
+    np.testing.assert_allclose(load_object("cube_tilted2").pose[:3, :3], tilted.pose[:3, :3])
+    before = sorted(p.name for p in catalog_dir().iterdir())
+    for call, message in (([*args, "--table"], "upright object"),
+                          ([*args, "--yaw", "10"], "give one"),
+                          ([*args[:-5], "--orientation", "0", "0", "0", "2"],
+                           "not a unit one")):
+        assert main(call) == 2, call
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], (call, err)
+    assert sorted(p.name for p in catalog_dir().iterdir()) == before
+
+
 @pytest.mark.expensive
 def test_place_cli_errors_write_nothing(tabled, tmp_path):
     from kinegrasp_env.world.store import catalog_dir

@@ -1,6 +1,7 @@
 """``kinegrasp objects place``: where an object stands, and its support table.
 
-``objects place NAME [--as NEW] [--position X Y Z] [--yaw DEG] [--table | --no-table]
+``objects place NAME [--as NEW] [--position X Y Z] [--yaw DEG | --orientation X Y Z W]
+[--table | --no-table]
 [--table-size X Y] [--table-thickness T] [--force]``: an imported object's placement is
 changed in its entry; a built-in object gets a placed copy (``--as NEW``), used by name like
 any other object.
@@ -39,10 +40,14 @@ def cmd_place(args) -> int:
     position = None if args.position is None else [
         finite_float(v, "--position") for v in args.position]
     yaw = None if args.yaw is None else math.radians(finite_float(args.yaw, "--yaw"))
+    orientation = None if args.orientation is None else [
+        finite_float(v, "--orientation") for v in args.orientation]
+    if yaw is not None and orientation is not None:
+        raise CLIError("--yaw and --orientation both set the rotation: give one")
     table = table_setting(args)
     with reported(CatalogError, ValueError):  # unknown or built-in name, taken --as name
         name = place_object(args.name, as_name=args.as_name, position=position, yaw=yaw,
-                            table=table, force=args.force)
+                            table=table, force=args.force, orientation=orientation)
     from kinegrasp_env.world.objects import load_object, placement_fields
 
     fields = placement_fields(load_object(name))
@@ -56,9 +61,13 @@ def placement_note(row: dict) -> str:
     from kinegrasp_env.world.names import OBJECT_POSITION
 
     note = ""
-    if any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION, strict=True)) \
-            or abs(row["yaw"]) > 1e-9:
-        x, y, z = row["position"]
+    x, y, z = row["position"]
+    if row["yaw"] is None:  # tilted
+        qx, qy, qz, qw = row["orientation"]
+        note += (f"; at ({x:.3f}, {y:.3f}, {z:.3f}) m, orientation ({qx:.4f}, {qy:.4f}, "
+                 f"{qz:.4f}, {qw:.4f})")
+    elif any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION,
+                                                 strict=True)) or abs(row["yaw"]) > 1e-9:
         note += f"; at ({x:.3f}, {y:.3f}, {z:.3f}) m, yaw {math.degrees(row['yaw']):.1f} deg"
     if row["table"] is not None:
         sx, sy = row["table"]["size"]
@@ -69,7 +78,8 @@ def placement_note(row: dict) -> str:
 def add_place_command(actions) -> None:
     """Register ``objects place`` among the ``objects`` actions."""
     p = actions.add_parser(
-        "place", help="set where an object stands (position, yaw) and its support table; for "
+        "place", help="set where an object stands (position, yaw or orientation) and its "
+        "support table; for "
         "a built-in object, as a placed copy (--as NEW)")
     p.add_argument("name", help="a built-in, imported or placed object")
     p.add_argument("--as", dest="as_name", metavar="NEW",
@@ -78,6 +88,10 @@ def add_place_command(actions) -> None:
                    help="the object frame's origin (centre of its base) in the robot's base "
                    "frame, metres (default: as now; built-in objects stand at 0.6 0 0.1)")
     p.add_argument("--yaw", metavar="DEG", help="rotation about the vertical, degrees")
+    p.add_argument("--orientation", nargs=4, metavar=("X", "Y", "Z", "W"),
+                   help="the object frame's full orientation in the robot's base frame, a "
+                   "unit quaternion (scalar last), as a data set gives it (instead of --yaw; "
+                   "an object that is not upright stands without a support table)")
     p.add_argument("--table", action="store_true",
                    help="put a support table under the object (top at its base, reaching down "
                    "to the robot's base plane): a draw whose hand or arm starts in it is "

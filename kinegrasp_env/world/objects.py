@@ -381,10 +381,18 @@ def catalog() -> list[dict]:
 
 
 def placement_fields(obj: GraspObject) -> dict:
-    """A catalog row's placement: ``position`` (3,) metres, ``yaw`` radians and ``table``
-    (:meth:`SupportTable.to_dict` or None)."""
+    """A catalog row's placement: ``position`` (3,) metres, ``yaw`` radians (of an upright
+    object; None for a tilted one), ``orientation`` (4,) quaternion [x, y, z, w] and
+    ``table`` (:meth:`SupportTable.to_dict` or None)."""
+    from scipy.spatial.transform import Rotation
+
+    from kinegrasp_env.world.support import is_upright
+
     return {"position": [round(float(v), 4) for v in obj.pose[:3, 3]],
-            "yaw": round(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])), 4),
+            "yaw": (round(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])), 4)
+                    if is_upright(obj.pose) else None),
+            "orientation": [round(float(v), 6)
+                            for v in Rotation.from_matrix(obj.pose[:3, :3]).as_quat()],
             "table": None if obj.table is None else obj.table.to_dict()}
 
 
@@ -396,7 +404,7 @@ def placed_row(name: str, entry: dict, base_rows: list[dict]) -> dict:
         return {"name": name, "source": f"placed {entry['base']} (missing)", "size": [0, 0, 0],
                 "r_max": 0.0, "center_of_mass": [0, 0, 0], "parts": 0, "faces": 0,
                 "deviation": None, "up": "z", "position": [0, 0, 0], "yaw": 0.0,
-                "table": entry.get("table")}
+                "orientation": [0.0, 0.0, 0.0, 1.0], "table": entry.get("table")}
     return {**base, "name": name, "source": f"placed {entry['base']}",
             **placement_fields(load_object(name))}
 

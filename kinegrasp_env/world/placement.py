@@ -30,7 +30,7 @@ from kinegrasp_env.world.store import (
     read_entry,
     valid_name,
 )
-from kinegrasp_env.world.support import SupportTable, placement_pose, pose_yaw
+from kinegrasp_env.world.support import SupportTable, is_upright, placement_pose, pose_yaw
 
 #: ``table`` argument of :func:`place_object` meaning "leave the table as it is".
 KEEP = "keep"
@@ -50,18 +50,59 @@ class Placement:
                 "table": None if self.table is None else self.table.to_dict()}
 
 
+#: A quaternion's norm may differ from 1 by this much (a data set's rounding).
+UNIT_TOL = 1e-6
+
+
+def orientation_matrix(quaternion) -> np.ndarray:
+    """(3, 3) rotation of a unit quaternion (4,) [x, y, z, w] (scalar last).
+
+    Raises:
+        ValueError: not 4 finite numbers, or a norm further than :data:`UNIT_TOL` from 1.
+    """
+    from kinegrasp_env.robot.palm_pose import quaternion_matrix
+
+    quat = np.asarray(quaternion, dtype=float)
+    if quat.shape != (4,) or not np.all(np.isfinite(quat)):
+        raise ValueError(f"an orientation is a quaternion of 4 finite numbers x y z w, got "
+                         f"{np.atleast_1d(quat).tolist()}")
+    norm = float(np.linalg.norm(quat))
+    if abs(norm - 1.0) > UNIT_TOL:
+        raise ValueError(f"the orientation quaternion {quat.tolist()} is not a unit one "
+                         f"(norm {norm:.9g})")
+    return quaternion_matrix(quat / norm)
+
+
 def new_placement(current: objects.GraspObject, position=None, yaw: float | None = None,
-                  table: SupportTable | str | None = KEEP) -> Placement:
-    """``current``'s placement with the given fields changed (None / :data:`KEEP`: as now)."""
+                  table: SupportTable | str | None = KEEP, orientation=None) -> Placement:
+    """``current``'s placement with the given fields changed (None / :data:`KEEP`: as now):
+    the position, the rotation (``yaw`` radians about the vertical, or a full
+    ``orientation`` quaternion [x, y, z, w]) and the table.
+
+    Raises:
+        ValueError: both ``yaw`` and ``orientation``; a bad position, yaw or quaternion; a
+            support table under an object that is not upright (the table's top is the plane
+            of the object's base)."""
+    if yaw is not None and orientation is not None:
+        raise ValueError("give the rotation as a yaw or as an orientation, not both")
     now = current.pose
     pose = placement_pose(now[:3, 3] if position is None else position,
                           pose_yaw(now) if yaw is None else yaw)
-    return Placement(pose, current.table if table == KEEP else table)
+    if orientation is not None:
+        pose[:3, :3] = orientation_matrix(orientation)
+    elif yaw is None:
+        pose[:3, :3] = now[:3, :3]  # as now, tilted or not
+    table = current.table if table == KEEP else table
+    if table is not None and not is_upright(pose):
+        raise ValueError("a support table stands under an upright object (its top is the "
+                         "plane of the object's base): remove it with --no-table, or turn the "
+                         "object about the vertical only")
+    return Placement(pose, table)
 
 
 def place_object(name: str, *, as_name: str | None = None, position=None,
                  yaw: float | None = None, table: SupportTable | str | None = KEEP,
-                 force: bool = False) -> str:
+                 force: bool = False, orientation=None) -> str:
     """Set the placement of object ``name`` (or of a new placed copy ``as_name``); returns
     the name of the object written.
 
@@ -70,6 +111,8 @@ def place_object(name: str, *, as_name: str | None = None, position=None,
         as_name: write a placed copy under this name instead (required for built-in
             objects).
         position: (3,) metres in the robot's base frame; yaw: radians about the vertical;
+            orientation: (4,) a unit quaternion [x, y, z, w] of the object frame in the world
+            frame (instead of ``yaw``; an object that is not upright stands without a table);
             table: a :class:`SupportTable`, None (no table) or :data:`KEEP`.
         force: replace an existing entry ``as_name``.
 
@@ -79,7 +122,7 @@ def place_object(name: str, *, as_name: str | None = None, position=None,
     """
     current = objects.load_object(name)  # an unknown name: its one-line error
     try:
-        placement = new_placement(current, position, yaw, table)
+        placement = new_placement(current, position, yaw, table, orientation)
     except ValueError as exc:
         raise CatalogError(str(exc)) from None
     if as_name is None:

@@ -45,6 +45,11 @@ def placement_pose(position, yaw: float = 0.0) -> np.ndarray:
     return pose
 
 
+def is_upright(pose: np.ndarray, tol: float = 1e-9) -> bool:
+    """The pose (4, 4) turns its object about the vertical only (its z axis is the world's)."""
+    return bool(abs(pose[2, 2] - 1.0) <= tol)
+
+
 def pose_yaw(pose: np.ndarray) -> float:
     """The yaw (radians) of an upright placement ``pose`` (4, 4)."""
     return math.atan2(pose[1, 0], pose[0, 0])
