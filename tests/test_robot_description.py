@@ -269,7 +269,10 @@ def test_a_user_robot_added_listed_shown_removed(home, tmp_path, capsys, layout)
     image = np.asarray(Image.open(png).convert("RGB"), dtype=float)
     background = image[0, 0]
     robot = np.any(np.abs(image - background) > 30, axis=-1)
-    assert image.shape == (480, 640, 3) and 0.02 < robot.mean() < 0.9, robot.mean()
+    # two 640 x 480 panels: the robot, then its hand close up (each with something drawn)
+    assert image.shape == (480, 1280, 3), image.shape
+    for panel in (robot[:, :640], robot[:, 640:]):
+        assert 0.02 < panel.mean() < 0.9, panel.mean()
 
     assert main(["robots", "remove", "xarm6"]) == 0
     assert not folder.exists() and "xarm6" not in robot_names()
@@ -423,3 +426,24 @@ def test_contact_model_defaults_by_finger_count(tmp_path):
     from kinegrasp_env.robot.description import default_contact_model
 
     assert default_contact_model(3) == "point" and default_contact_model(1) == "point"
+
+
+def test_hand_frames_of_the_built_in_hands():
+    """Worked from the URDFs by hand: the Panda's jaws slide along the hand frame's y axis
+    (its finger joints' axes, mirrored), the fingertips lie ahead along z between the finger
+    joints' origin (0.0584 m) and Franka's stated flange-to-fingertip length (0.1034 m); the
+    SDH's three tips close inwards and towards the palm's z, spaced 120 degrees about it."""
+    from kinegrasp_env.robot.hand_frame import hand_frame
+
+    panda = hand_frame(load_robot("panda"))
+    np.testing.assert_allclose(panda.approach, [0, 0, 1], atol=1e-6)
+    # pybullet's link frames are good to ~1e-8 m over the 1e-3 m closing step: 1e-4 margin
+    np.testing.assert_allclose(panda.closing, [[0, -1, 0], [0, 1, 0]], atol=1e-4)
+    assert 0.0584 < panda.depth < 0.1034 and panda.opening > 0.08
+    sdh = hand_frame(load_robot("kuka_sdh"))
+    np.testing.assert_allclose(sdh.approach, [0, 0, 1], atol=1e-6)
+    assert np.all(sdh.closing[:, 2] > 0)
+    inward = -sdh.tip_centres[:, :2] / np.linalg.norm(sdh.tip_centres[:, :2], axis=1)[:, None]
+    assert np.all(np.sum(sdh.closing[:, :2] * inward, axis=1) > 0)
+    angles = np.sort(np.degrees(np.arctan2(sdh.tip_centres[:, 1], sdh.tip_centres[:, 0])))
+    np.testing.assert_allclose(np.diff(angles), [120, 120], atol=1.0)

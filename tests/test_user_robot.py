@@ -206,13 +206,17 @@ FRANKA = {
 
 def test_robots_show_writes_its_one_line_and_nothing_else(workspace, capsys):
     """``robots show`` in a fresh process (pybullet writes its banner on its first import)
-    prints the one line saying where the picture is: no pybullet banner, no mesh-loader
-    notes, for the xArm 6 and for the copied Franka whose materials name a missing texture."""
+    prints the line saying where the picture is, then the hand frame's lines (no pybullet
+    banner, no mesh-loader notes), for the xArm 6 and for the copied Franka whose materials
+    name a missing texture."""
     for name, description in (("xarm6", DESCRIPTION), ("franka", FRANKA)):
         path = workspace / f"{name}.yaml"
         path.write_text(yaml.safe_dump(description))
         run(capsys, "robots", "add", str(path))
         proc = run_cli("robots", "show", name, "--out", f"{name}.png")
         assert proc.returncode == 0 and proc.stderr == "", (name, proc.stderr[:300])
-        assert proc.stdout == f"{name}: drawn at its open pre-shape in {name}.png\n"
+        lines = proc.stdout.splitlines()
+        assert lines[0].startswith(f"{name}: drawn at its open pre-shape in {name}.png")
+        assert lines[1].startswith("palm frame: link ") and "approach axis" in lines[2]
+        assert len(lines) == 3 + 2 + 1  # a line per finger, the opening of two
         assert Path(f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

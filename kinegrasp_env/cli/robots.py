@@ -53,8 +53,13 @@ def cmd_show(args) -> int:
         raise CLIError(f"--out {args.out}: give a .png file")
     with reported(RobotDescriptionError):  # unknown name
         robot = load_robot(args.name)
-    path = draw_robot(robot, out)
-    print(f"{robot.name}: drawn at its open pre-shape in {path}")
+    from kinegrasp_env.robot.hand_frame import hand_frame
+
+    frame = hand_frame(robot)
+    path = draw_robot(robot, out, frame=frame)
+    print(f"{robot.name}: drawn at its open pre-shape in {path} (right: the hand, its approach "
+          "axis blue, closing directions red)")
+    print("\n".join(frame.lines()))
     return 0
 
 

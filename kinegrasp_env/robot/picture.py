@@ -82,20 +82,63 @@ def loaded_robot(description: RobotDescription,
         bullet.disconnect()
 
 
+def _render(bullet, centre, distance: float, yaw: float, pitch: float, width: int,
+            height: int, eye=None, up=None) -> tuple[np.ndarray, np.ndarray]:
+    """((height, width, 3) uint8 image, (4, 4) world -> clip matrix) of a camera looking at
+    ``centre`` (3,) from ``distance`` metres (pybullet's yaw and pitch, degrees), or from the
+    point ``eye`` (3,) with the image's up direction ``up`` (3,)."""
+    if eye is None:
+        view = bullet.computeViewMatrixFromYawPitchRoll(list(map(float, centre)), distance,
+                                                        yaw, pitch, 0.0, 2)
+    else:
+        view = bullet.computeViewMatrix(list(map(float, eye)), list(map(float, centre)),
+                                        list(map(float, up)))
+    projection = bullet.computeProjectionMatrixFOV(50.0, width / height, 0.05 * distance,
+                                                   5.0 * distance)
+    image = bullet.getCameraImage(width, height, view, projection,
+                                  renderer=bullet.ER_TINY_RENDERER)[2]
+    rgb = np.asarray(image, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
+    # pybullet's matrices are column-major 4x4 lists
+    clip = np.reshape(projection, (4, 4)).T @ np.reshape(view, (4, 4)).T
+    return rgb, clip
+
+
+def _pixels(clip: np.ndarray, points: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(n, 2) pixel coordinates of world points (n, 3) through ``clip`` (4, 4)."""
+    h = np.c_[points, np.ones(len(points))] @ clip.T
+    ndc = h[:, :2] / h[:, 3:4]
+    return np.c_[(ndc[:, 0] + 1) * width / 2, (1 - ndc[:, 1]) * height / 2]
+
+
+def _in_hand(description: RobotDescription, link: str) -> bool:
+    """The link hangs below the palm link (the hand's own links)."""
+    model = description.model
+    parents = {j.child: j.parent for j in model.joints}
+    while link in parents:
+        link = parents[link]
+        if link == description.palm_link:
+            return True
+    return False
+
+
 def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 640,
-               height: int = 480, yaw: float = 50.0, pitch: float = -20.0) -> Path:
+               height: int = 480, yaw: float = 50.0, pitch: float = -20.0,
+               frame=None) -> Path:
     """Render the robot at its open configuration into the PNG ``out``.
 
     Args:
         description: the robot.
         out: the PNG file to write.
-        width, height: image size, pixels.
+        width, height: image size, pixels (per panel).
         yaw, pitch: camera direction, degrees (pybullet's convention).
+        frame: a :class:`~kinegrasp_env.robot.hand_frame.HandFrame` of the robot: a second
+            panel, the hand close up, draws it (the approach axis blue from the palm frame's
+            origin to the fingertip centre, each finger's closing direction red).
 
     Returns:
         The path written.
     """
-    from PIL import Image
+    from PIL import Image, ImageDraw
 
     out = Path(out)
     # pybullet's first import (it prints a banner), the connection and the loading happen in
@@ -105,15 +148,44 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
         low = np.min([b[0] for b in boxes], axis=0)
         high = np.max([b[1] for b in boxes], axis=0)
         centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
-        view = bullet.computeViewMatrixFromYawPitchRoll(centre.tolist(), 1.25 * size, yaw,
-                                                        pitch, 0.0, 2)
-        projection = bullet.computeProjectionMatrixFOV(50.0, width / height, 0.05 * size,
-                                                       5.0 * size)
-        image = bullet.getCameraImage(width, height, view, projection,
-                                      renderer=bullet.ER_TINY_RENDERER)[2]
-    rgb = np.asarray(image, dtype=np.uint8).reshape(height, width, 4)[:, :, :3]
+        rgb, _ = _render(bullet, centre, 1.25 * size, yaw, pitch, width, height)
+        panels = [Image.fromarray(rgb)]
+        if frame is not None:
+            palm = _link_frame(bullet, body, links[description.palm_link])
+            world = (palm @ np.append(frame.centre, 1.0))[:3]
+            # the hand alone: every link outside the hand drawn transparent
+            hand_links = set(description.finger_links) | {description.palm_link}
+            for name, index in links.items():
+                if name not in hand_links and not _in_hand(description, name):
+                    bullet.changeVisualShape(body, index, rgbaColor=[1, 1, 1, 0])
+            # from the side: across the plane of the approach axis and the first finger's
+            # closing direction (the jaws move in the image), the arm up
+            side = np.cross(frame.approach, frame.closing[0])
+            if np.linalg.norm(side) < 1e-6:
+                side = np.cross(frame.approach, [1.0, 0.0, 0.0])
+            side = palm[:3, :3] @ (side / np.linalg.norm(side))
+            distance = 3.0 * max(frame.depth, 0.05)
+            close, clip = _render(bullet, world, distance, yaw, pitch, width, height,
+                                  eye=world + distance * side,
+                                  up=-(palm[:3, :3] @ frame.approach))
+            hand = Image.fromarray(close)
+            pen = ImageDraw.Draw(hand)
+            arrow = 0.6 * max(frame.depth, 0.05)
+            origin, tip_end = palm[:3, 3], world
+            ends = _pixels(clip, np.array([origin, tip_end]), width, height)
+            pen.line([tuple(ends[0]), tuple(ends[1])], fill=(30, 80, 220), width=3)
+            pen.ellipse([*(ends[1] - 4), *(ends[1] + 4)], fill=(30, 80, 220))
+            for centre_tip, direction in zip(frame.tip_centres, frame.closing, strict=True):
+                at = (palm @ np.append(centre_tip, 1.0))[:3]
+                end = at + palm[:3, :3] @ direction * 0.5 * arrow
+                a, b = _pixels(clip, np.array([at, end]), width, height)
+                pen.line([tuple(a), tuple(b)], fill=(220, 40, 40), width=3)
+            panels.append(hand)
+    canvas = Image.new("RGB", (width * len(panels), height), (255, 255, 255))
+    for i, panel in enumerate(panels):
+        canvas.paste(panel, (i * width, 0))
     out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(rgb).save(out, format="PNG")
+    canvas.save(out, format="PNG")
     return out
 
 
