@@ -65,6 +65,49 @@ def joint_covariance(sigma) -> np.ndarray:
                      f"{s.shape}")
 
 
+def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
+    """((7, 7) joint covariance, (6, 6) palm covariance) of a noise whose every source is a
+    zero-mean Gaussian on the arm joints or on the palm: Gaussian ``JointNoise`` (scalar or
+    per-joint sigma), or a noise model of ``joints`` (Gaussian, independent or with a
+    covariance, no bias) and ``palm`` sources. To first order the palm's deviation is then
+    N(0, J S_q J^T + S_palm).
+
+    Raises:
+        ValueError: another distribution, a bias, or another source (hand, object,
+            friction: the deviation of the palm does not carry them).
+    """
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.sampling.noise_model import NoiseModel
+
+    if isinstance(noise, JointNoise):
+        if noise.kind != "gaussian":
+            raise ValueError(f"re-weighting needs Gaussian joint noise, got {noise.kind} "
+                             f"noise; use --method direct")
+        return joint_covariance(noise.sigma), np.zeros((6, 6))
+    if not isinstance(noise, NoiseModel):
+        raise ValueError(f"re-weighting needs joint noise or a noise model, got "
+                         f"{type(noise).__name__}")
+    extra = [s for s in noise.sources if s not in ("joints", "palm")]
+    if extra:
+        raise ValueError(f"re-weighting covers the joints and palm sources only, not "
+                         f"{', '.join(extra)}; use --method direct")
+    joints, palm = noise.joints, noise.palm
+    if joints is None:
+        cov = np.zeros((ARM, ARM))
+    elif joints.distribution != "gaussian" or joints.bias is not None:
+        raise ValueError("re-weighting needs zero-mean Gaussian joint noise (no bias); use "
+                         "--method direct")
+    else:
+        cov = (np.array(joints.covariance) if joints.covariance is not None
+               else np.diag(joints.sigma_vector() ** 2))
+    palm_cov = np.zeros((6, 6))
+    if palm is not None:
+        scale = np.concatenate([np.broadcast_to(palm.translation_sigma, 3),
+                                np.broadcast_to(palm.rotation_sigma, 3)])
+        palm_cov = np.diag(scale**2)
+    return cov, palm_cov
+
+
 class PalmJacobian:
     """The flange's body Jacobian of the default robot's arm (one kinematics, reused)."""
 

@@ -25,8 +25,9 @@ N(0, J(psi) S_q J(psi)^T) to first order:
    the direct certificate's exact binomial bounds this one is asymptotic: its coverage is
    measured in ``benchmarks/bench_reweight.py``.
 
-Joint noise must be Gaussian (a scalar or per-joint sigma); objects on a support table are
-refused (their arm links matter).
+The noise must be zero-mean Gaussian on the arm joints (a scalar or per-joint sigma, or a
+covariance) and optionally on the palm (:func:`~kinegrasp_env.montecarlo.palm_batch.
+gaussian_terms`); objects on a support table are refused (their arm links matter).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
     close_batch,
     fragile_directions,
+    gaussian_terms,
 )
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.sampling.noise import JointNoise
@@ -76,25 +78,24 @@ BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-wei
                 "advantage, on a fresh batch")
 
 
-def check_gaussian(noise: JointNoise) -> None:
-    """ValueError unless the noise is Gaussian joint noise (what the weights assume)."""
-    if not isinstance(noise, JointNoise) or noise.kind != "gaussian":
-        kind = getattr(noise, "kind", type(noise).__name__)
-        raise ValueError(f"--method reweight needs Gaussian joint noise (got {kind}); "
-                         f"use --method direct")
-
-
 class SelfMotionCovariance:
-    """The palm deviation's covariance and its derivative along one grasp's self-motion."""
+    """The palm deviation's covariance and its derivative along one grasp's self-motion.
 
-    def __init__(self, sigma) -> None:
+    Args:
+        joints: the arm joints' noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
+            joint_covariance`: sigma, 7 sigmas or a (7, 7) covariance, radians).
+        palm: (6, 6) covariance of a palm error added to the deviation (metres, radians).
+    """
+
+    def __init__(self, joints, palm: np.ndarray | None = None) -> None:
         self.jac = PalmJacobian()
         self.ik = ArmIK(self.jac.kin)  # the palm held: the flange is rigid with it
-        self.sigma = sigma
+        self.joints = joints
+        self.palm = np.zeros((6, 6)) if palm is None else np.asarray(palm, dtype=float)
 
     def at(self, q: np.ndarray) -> np.ndarray:
         """(n, 6, 6) covariance at configurations q (n, 14)."""
-        return self.jac.covariance(q, self.sigma)
+        return self.jac.covariance(q, self.joints) + self.palm
 
     def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
         """(14,) q moved to elbow angle psi (radians), None where the path fails."""
@@ -263,7 +264,8 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
     """The most robust elbow from one batch of closings (module docstring).
 
     Args:
-        grasp, noise (Gaussian joint noise), samples (the accuracy asked for: each angle's
+        grasp, noise (Gaussian joint noise, or a noise model of Gaussian joints and palm
+            sources), samples (the accuracy asked for: each angle's
             ESS at least this, else direct draws; fresh direct draws per scored angle),
             seed, engine, step, epsilon, delta: as :func:`~kinegrasp_env.toolkit.elbow.
             optimize_elbow`.
@@ -275,12 +277,12 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
             support table (before any closing).
     """
     check_levels(epsilon, delta)
-    check_gaussian(noise)
+    joint_cov, palm_cov = gaussian_terms(noise)
     report = progress or (lambda stage: None)
     kwargs = {"engine": engine, **evaluate_kwargs}
     n = int(batch or BATCH_FACTOR * samples)
     reach = reach if reach is not None else reachable_configurations(grasp, step)
-    motion = SelfMotionCovariance(noise.sigma)
+    motion = SelfMotionCovariance(joint_cov, palm_cov)
     covs = motion.at(np.stack([q for _, q in reach]))
     rng = np.random.SeedSequence(seed).spawn(2)
     report("batch")
