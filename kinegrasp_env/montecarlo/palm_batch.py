@@ -43,6 +43,8 @@ BATCH_CHUNK = 2000
 #: Below this effective sample size a re-weighted estimate is not used: the caller falls
 #: back to direct draws (and says so).
 MIN_ESS = 1000.0
+#: Closings per batch, as a multiple of the direct draws per target it stands for.
+BATCH_FACTOR = 2
 
 
 def joint_covariance(sigma) -> np.ndarray:
@@ -148,14 +150,16 @@ class PalmEstimate:
 
     Attributes:
         p_fc: P(force closure) (its derivative along psi where asked for).
-        q_mean, q_std: Q's mean and standard deviation over the force-closure draws,
-            weighted (NaN where no draw is in force closure).
+        q_mean, q_std, q_skew: Q's mean, standard deviation and skewness over the
+            force-closure draws, weighted (NaN where no draw is in force closure; the
+            skewness NaN where Q does not vary).
         ess: the effective sample size of the target's weights (draws).
     """
 
     p_fc: WeightedEstimate
     q_mean: float
     q_std: float
+    q_skew: float = float("nan")
 
     @property
     def ess(self) -> float:
@@ -205,8 +209,9 @@ class PalmBatch:
             return PalmEstimate(p, float("nan"), float("nan"))
         w = w / w.sum()
         mean = float(w @ self.quality)
-        var = float(w @ (self.quality - mean) ** 2)
-        return PalmEstimate(p, mean, float(np.sqrt(max(var, 0.0))))
+        std = float(np.sqrt(max(float(w @ (self.quality - mean) ** 2), 0.0)))
+        skew = float(w @ ((self.quality - mean) / std) ** 3) if std > 0 else float("nan")
+        return PalmEstimate(p, mean, std, skew)
 
 
 def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine: str = "fast",

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.montecarlo.palm_batch import (
+    BATCH_FACTOR,
     PalmBatch,
     PalmJacobian,
     close_batch,
@@ -67,8 +68,6 @@ from kinegrasp_env.toolkit.elbow_certificate import (
 )
 from kinegrasp_env.world.grasps import Grasp
 
-#: Closings per batch, as a multiple of the draws per angle asked for.
-BATCH_FACTOR = 2
 #: Half-step of the central difference of the covariance along psi (radians).
 SLOPE_STEP = 1e-4
 #: Bisection steps of the continuous optimum (the bracket shrinks 2^-steps).

@@ -231,7 +231,8 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
             count: int = 10, seed: int = 0, processes: int = 1,
             engine: str = "pybullet", executor: Executor | None = None,
             progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
-            grasp_sets: Mapping[str, Sequence[Grasp]] | None = None) -> list[dict]:
+            grasp_sets: Mapping[str, Sequence[Grasp]] | None = None,
+            method: str = "direct") -> list[dict]:
     """Figs. 9 and 10: success rate, mean quality (with its std) and the error
     (nominal - mean) of ``count`` grasps per object of ``objects`` at ``sigma``. fig9: the
     first ``count`` grasps of the object's set (different contacts and arms); fig10:
@@ -247,13 +248,25 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     reported on fresh ones (:mod:`.selection`): their rows carry ``fresh_p_fc`` with its
     interval, ``fresh_samples`` and the paired ``gap`` (robust - fragile) on the fresh draws.
 
+    ``method`` ``reweight`` (fig10 only): each object's variants from one batch of closings
+    (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`; ``samples`` then reads as
+    each row's effective sample size); the robust and fragile pair is still reported on
+    fresh direct draws.
+
     Raises:
         NoGraspSetError: an imported object without a grasp set.
+        ValueError: an unknown figure or method, or ``reweight`` for fig9 (its grasps have
+            different palm poses).
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
     if which not in ("fig9", "fig10"):
         raise ValueError(f"unknown figure {which!r}")
+    if method not in ("direct", "reweight"):
+        raise ValueError(f"unknown method {method!r}: direct or reweight")
+    if method == "reweight" and which != "fig10":
+        raise ValueError("--method reweight is for fig10 (variants of one palm pose); fig9's "
+                         "grasps have different palm poses")
     out = Path(out_dir)
     sets = figure_sets(which, objects, count, grasp_sets or {})
     rows = []
@@ -262,11 +275,19 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     with _executor(executor, processes) as run_on, \
             _progress(progress, which, cells, samples) as report:
         for name, grasps in sets.items():
-            stats = _evaluate_set(grasps, sigma, samples, seed, processes, engine,
-                                  executor=run_on, report=report)
+            if method == "reweight":
+                from kinegrasp_env.toolkit.batch_stats import variant_stats
+
+                stats = variant_stats(list(grasps), sigma, samples, seed, engine=engine,
+                                      executor=run_on)
+                for g, s in zip(grasps, stats, strict=True):
+                    _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", s)
+            else:
+                stats = _evaluate_set(grasps, sigma, samples, seed, processes, engine,
+                                      executor=run_on, report=report)
             block = [{"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
                       "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
-                      "samples": samples, "sigma": sigma}
+                      "samples": s.samples, "sigma": sigma}
                      for g, s in zip(grasps, stats, strict=True)]
             if which == "fig10":
                 _mark_pair(block, name, grasps, stats, chooses[name],
