@@ -13,8 +13,10 @@ self-motion and the paper's four noise levels:
   N(0, J S_q J^T), closed directly, against the direct joint-noise draws (what the first-order
   density gets wrong, sampling error aside: its interval is printed with it);
 * **timings** (warm, alone on the machine): ``elbow`` by both methods at ``--samples`` draws per
-  angle, and Table I's four noise levels at the nominal configuration from one batch against
-  four direct runs of ``--levels-samples`` draws, with each method's standard errors beside.
+  angle; Table I's four noise levels at the nominal configuration from one batch against
+  four direct runs of ``--levels-samples`` draws, with each method's standard errors beside;
+  fig10's ``--variants`` null-space variants per object on the reference engine
+  (``reproduce fig10 --method reweight``) against a run per variant.
 
 Writes ``benchmarks/results/bench_reweight.json`` and the table in docs/guides/elbow.md.
 """
@@ -154,7 +156,27 @@ def levels_timing(grasp, args) -> dict:
             "direct_p_fc": [d.p_fc for d in direct], "reweight_p_fc": [e.value for e in est]}
 
 
-def summary(cases: list[dict], elbows: list[dict], levels: list[dict]) -> dict:
+def variants_timing(obj: str, args) -> dict:
+    """fig10's null-space variants of one object: one batch against one run per variant, on
+    the reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
+    from kinegrasp_env.toolkit.batch_stats import variant_stats
+    from kinegrasp_env.toolkit.experiments import figure_sets
+
+    grasps = list(figure_sets("fig10", (obj,), args.variants, {})[obj])
+    noise = JointNoise(0.0033)
+    t0 = time.perf_counter()
+    direct = [evaluate_grasp(g, noise, args.samples, 0, engine="pybullet") for g in grasps]
+    t1 = time.perf_counter()
+    batch = variant_stats(grasps, 0.0033, args.samples, 0, engine="pybullet")
+    t2 = time.perf_counter()
+    return {"object": obj, "variants": len(grasps), "direct_s": t1 - t0,
+            "reweight_s": t2 - t1, "ratio": (t2 - t1) / (t1 - t0),
+            "direct_p_fc": [d.p_fc for d in direct], "reweight_p_fc": [b.p_fc for b in batch],
+            "effective_samples": [b.samples for b in batch]}
+
+
+def summary(cases: list[dict], elbows: list[dict], levels: list[dict],
+            variants: list[dict] | None = None) -> dict:
     agree = sum(c["agrees"] for c in cases)
     # each difference in units of its standard error (N(0, 1) if both errors are right)
     z = np.array([c["difference"] / (c["half_width"] / Z95) for c in cases
@@ -171,7 +193,9 @@ def summary(cases: list[dict], elbows: list[dict], levels: list[dict]) -> dict:
             "linear_bias_surely_above_0.01": len(beyond),
             "min_ess": float(min(c["ess"] for c in cases)),
             "elbow_ratio_mean": float(np.mean([e["ratio"] for e in elbows])),
-            "levels_ratio_mean": float(np.mean([v["ratio"] for v in levels]))}
+            "levels_ratio_mean": float(np.mean([v["ratio"] for v in levels])),
+            "variants_ratio_mean": (float(np.mean([v["ratio"] for v in variants]))
+                                    if variants else None)}
 
 
 def markdown(result: dict) -> str:
@@ -200,7 +224,9 @@ def markdown(result: dict) -> str:
         f"{s['linear_bias_surely_above_0.01']} |",
         f"| elbow time, re-weighted / direct (mean) | {s['elbow_ratio_mean']:.2f} |",
         f"| four noise levels, one batch / four direct runs (mean) | "
-        f"{s['levels_ratio_mean']:.2f} |", "",
+        f"{s['levels_ratio_mean']:.2f} |",
+        *([f"| fig10's variants (reference engine), one batch / a run per variant (mean) | "
+           f"{s['variants_ratio_mean']:.2f} |"] if s.get("variants_ratio_mean") else []), "",
         "| object | sigma | cases agreeing | weights alone agreeing | largest abs. "
         "difference | mean bias of the linearisation | largest abs. bias |",
         "|---|---|---|---|---|---|---|"]
@@ -223,7 +249,8 @@ def render_again(args) -> None:
     result = json.loads(Path(args.json_out).read_text())
     n = result["settings"]["direct"]
     result["cases"] = [judged(c, n) for c in result["cases"]]
-    result["summary"] = summary(result["cases"], result["elbow"], result["levels"])
+    result["summary"] = summary(result["cases"], result["elbow"], result["levels"],
+                                result.get("variants"))
     print(markdown(result))
     # the measuring run's date and machine stay: only the verdicts are recomputed
     Path(args.json_out).write_text(json.dumps(plain(result), indent=1) + "\n")
@@ -241,7 +268,10 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=1000, help="elbow draws per angle")
     parser.add_argument("--levels-samples", type=int, default=10000)
     parser.add_argument("--levels-batch", type=int, default=20000)
-    parser.add_argument("--no-calibration", action="store_true")
+    parser.add_argument("--variants", type=int, default=10, help="fig10 variants timed")
+    parser.add_argument("--no-calibration", action="store_true",
+                        help="time only; with a written result, replace its timings and keep "
+                        "its calibration cases")
     parser.add_argument("--render-only", action="store_true",
                         help="judge the cases of the JSON result again and rewrite it and "
                         "the docs table (no closing)")
@@ -256,6 +286,7 @@ def main() -> None:
     optimize_elbow(grasps[0], JointNoise(0.0133), 200, 0)
     elbows = [elbow_timing(g, args) for g in grasps]
     levels = [levels_timing(g, args) for g in grasps]
+    variants = [variants_timing(obj, args) for obj in args.objects]
     for e in elbows:
         print(f"elbow {e['object']} {e['grasp']}: direct {e['direct_s']:.2f} s, re-weighted "
               f"{e['reweight_s']:.2f} s ({e['ratio']:.2f}); best {e['direct_best_psi']:+.3f} "
@@ -265,11 +296,24 @@ def main() -> None:
         print(f"levels {v['object']} {v['grasp']}: direct {v['direct_s']:.2f} s, one batch "
               f"{v['reweight_s']:.2f} s ({v['ratio']:.2f}); ESS "
               f"{', '.join(f'{e:.0f}' for e in v['ess'])}")
+    for v in variants:
+        print(f"fig10 {v['object']}: {v['variants']} variants, direct {v['direct_s']:.2f} s, "
+              f"one batch {v['reweight_s']:.2f} s ({v['ratio']:.2f})")
     if args.no_calibration:
-        return
-    cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
-    result = {"summary": summary(cases, elbows, levels), "elbow": elbows, "levels": levels,
-              "cases": cases, "settings": settings(args)}
+        import json
+
+        if args.no_json or not Path(args.json_out).exists():
+            return
+        old = json.loads(Path(args.json_out).read_text())
+        cases, kept = old["cases"], old["settings"]
+        run = settings(args)
+        kept.update({k: run[k] for k in ("samples", "levels_samples", "levels_batch",
+                                         "variants")})
+    else:
+        cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
+        kept = settings(args)
+    result = {"summary": summary(cases, elbows, levels, variants), "elbow": elbows,
+              "levels": levels, "variants": variants, "cases": cases, "settings": kept}
     print(markdown(result))
     if not args.no_json:
         write_result(__file__, result, args.json_out)

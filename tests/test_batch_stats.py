@@ -51,3 +51,22 @@ def test_refusals(tmp_path, variants):
         variant_stats([variants[0], other], 0.0233, 100, 0)
     with pytest.raises(ValueError, match="fig9's grasps have different palm poses"):
         fig9_10("fig9", tmp_path, method="reweight", objects=("cube",), count=2)
+
+
+def test_reproduce_fig10_reweight_and_its_refusals(tmp_path, capsys):
+    from kinegrasp_env.cli import main
+
+    out = tmp_path / "f10"
+    assert main(["reproduce", "fig10", "--object", "spray_flask", "--grasps", "3",
+                 "--samples", "300", "--method", "reweight", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.count("(effective sample ") == 3
+    assert "chosen on one batch of 600 closings re-weighted to every candidate" in text
+    assert (out / "fig10.csv").exists()
+    for args, message in ((["fig9"], "is for fig10"), (["table1"], "is for fig10"),
+                          (["fig10", "--robot", "panda"], "not available for robot 'panda'")):
+        assert main(["reproduce", *args, "--method", "reweight",
+                     "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "x").exists()

@@ -120,7 +120,14 @@ def cmd_reproduce(args) -> int:
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
+    method = getattr(args, "method", "direct")
+    if method != "direct" and args.figure != "fig10":
+        raise CLIError(f"--method {method} is for fig10 (variants of one palm pose); "
+                       f"{args.figure} runs direct")
     if args.robot not in (None, DEFAULT_ROBOT):
+        if method != "direct":
+            raise CLIError(f"--method {method} is not available for robot {args.robot!r} "
+                           f"(only for {DEFAULT_ROBOT})")
         return reproduce_robot(args, samples)
     out = str(output_folder(args.out or f"out/{args.figure}"))  # before any work
     seed = parse_seed(args.seed)
@@ -138,16 +145,22 @@ def cmd_reproduce(args) -> int:
             figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             print(written(out, ["fig7.csv", *figures]))
         elif args.figure in ("fig9", "fig10"):
-            rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
-                                       count=count, engine=engine, executor=executor,
-                                       progress=True, objects=objects, grasp_sets=sets)
+            with reported(ValueError):  # variants that do not share a palm pose
+                rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
+                                           count=count, engine=engine, executor=executor,
+                                           progress=True, objects=objects, grasp_sets=sets,
+                                           method=method)
             for r in rows:
+                shown = "" if method == "direct" else f" (effective sample {r['samples']})"
                 print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
-                      f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+                      f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}{shown}")
             pairs = [{**r, "p_fc": r["fresh_p_fc"], "p_fc_lo": r["fresh_p_fc_lo"],
                       "p_fc_hi": r["fresh_p_fc_hi"]} for r in rows if r.get("config")]
             if pairs:
-                print(f"robust and fragile variants {provenance(samples, seed)}")
+                from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
+
+                batch = None if method == "direct" else BATCH_FACTOR * samples
+                print(f"robust and fragile variants {provenance(samples, seed, batch=batch)}")
                 print_pairs(pairs)
             print(written(out, [f"{args.figure}.csv", f"{args.figure}.png"]))
         else:
@@ -321,6 +334,11 @@ def add_commands(sub) -> None:
     # in 10,000 of them (benchmarks/agreement.py); --engine pybullet runs the reference
     add_engine_arg(p, "fast")
     p.add_argument("--out", help="output folder (default out/<figure>)")
+    p.add_argument("--method", default="direct", choices=("direct", "reweight"),
+                   help="fig10: direct (each variant on its own draws) or reweight (every "
+                   "variant from one batch of closings over the palm's deviation, each row's "
+                   "samples its effective sample size; the robust and fragile pair still on "
+                   "fresh direct draws); the other experiments run direct")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's). "
                    "Another robot: fig10 only, for a 7-joint arm with an elbow angle "
                    "(null-space variants of its first grasp per object along the arm's "

@@ -116,15 +116,21 @@ def robust_fragile(name: str, candidates: Sequence[Grasp], selection: Sequence[G
     return rows, fresh
 
 
-def provenance(samples: int, seed: int, chunk: int = DEFAULT_CHUNK) -> str:
-    """The one-line statement of where a chosen pair's numbers come from."""
+def provenance(samples: int, seed: int, chunk: int = DEFAULT_CHUNK,
+               batch: int | None = None) -> str:
+    """The one-line statement of where a chosen pair's numbers come from (``batch``: the
+    closings of one re-weighted batch the choice was made on, instead of draws per
+    candidate)."""
     first, count = report_chunks(samples, chunk)
 
     def span(start: int, n: int) -> str:
         return f"chunk {start}" if n == 1 else f"chunks {start}-{start + n - 1}"
 
-    return (f"chosen on {samples} draws per candidate (seed {seed}, {span(0, count)}), "
-            f"reported on {samples} fresh draws ({span(first, count)})")
+    chosen = (f"chosen on {samples} draws per candidate (seed {seed}, {span(0, count)})"
+              if batch is None else
+              f"chosen on one batch of {batch} closings re-weighted to every candidate "
+              f"(seed {seed})")
+    return f"{chosen}, reported on {samples} fresh draws ({span(first, count)})"
 
 
 def format_gap(row: dict) -> str:
