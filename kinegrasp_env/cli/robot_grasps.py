@@ -99,14 +99,27 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.stats import wilson_interval
 
-    _refuse(args, {"--noise-spec": None, "--elbow": None, "--plot": None, "--report": None,
-                   **IN_PROCESS}, robot)
+    _refuse(args, {"--noise-spec": None, "--report": None, **IN_PROCESS}, robot)
     _check_engine(args.engine, robot)
+    if args.plot:
+        output_file(args.plot, "--plot")
     with reported(ValueError):
         check_robot(grasp, robot)
+        if args.elbow is not None:
+            grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                      noise=args.noise, robot=robot, engine=args.engine,
                                      static_hold=args.static_hold)
+    if args.plot:  # before the results are printed: a failing figure is a warning
+        from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
+        from kinegrasp_env.world.objects import load_object
+
+        wrote = safe_figure(lambda: plot_contacts(
+            load_object(grasp.object).mesh, stats.draws, args.plot,
+            title=f"{grasp.object} grasp {index} of {robot}, sigma = {sigma:g} rad: "
+                  f"P(FC) = {stats.p_fc:.3f}"), args.plot)
+        if wrote is None:
+            args.plot = None
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
     if math.isfinite(stats.push_median):
@@ -147,7 +160,35 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
               f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the closing scores "
               f"the object where it stands")
     print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
+    if args.plot:
+        print(f"  plot written to {args.plot}")
     return 0
+
+
+def robot_grasp_at_elbow(grasp, robot: str, text: str):
+    """``evaluate --elbow PSI`` of a description robot with a 7-joint arm: the grasp with its
+    arm moved along the self-motion to elbow angle PSI (radians; the palm pose kept). A bad
+    or unreachable angle, or an arm without a self-motion, is a ValueError line."""
+    import dataclasses
+
+    import numpy as np
+
+    from kinegrasp_env.cli.common import finite_float
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.null_motion import ArmSelfMotion
+    from kinegrasp_env.toolkit.elbow import wrap_angle
+
+    psi = finite_float(text, "--elbow")
+    motion = ArmSelfMotion(load_robot(robot))
+    q0 = np.asarray(grasp.q0, dtype=float)
+    moved, ok = motion.set_elbow_angle(q0, psi)
+    if not ok:
+        psi0 = float(motion.elbow_angle(q0[None])[0])
+        raise ValueError(f"elbow angle {psi:g} rad is out of reach for grasp {grasp.id} of "
+                         f"{grasp.object} (nominal {psi0:.3f} rad: the self-motion leaves the "
+                         f"joint limits on the way)")
+    return dataclasses.replace(grasp, q0=moved, id=f"{grasp.id}@{wrap_angle(psi):.3f}",
+                               meta={**grasp.meta, "elbow_angle": psi})
 
 
 def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed: int) -> list:

@@ -1,0 +1,43 @@
+"""``evaluate --elbow`` and ``--plot`` for a description robot (the Panda)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.null_motion import ArmSelfMotion
+from kinegrasp_env.world.grasps import shipped_grasps
+
+
+def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
+    """The grasp evaluated at --elbow PSI is the shipped one with its arm moved: the palm
+    pose by forward kinematics equal to 1e-9, the elbow angle PSI; its draws are those of
+    evaluate_robot_grasp at that configuration (the same numbers); an unreachable angle is
+    one line; --plot writes a PNG."""
+    from kinegrasp_env.cli.robot_grasps import robot_grasp_at_elbow
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    moved = robot_grasp_at_elbow(grasp, "panda", "0.4")
+    description = load_robot("panda")
+    kin = Kinematics(description.model)
+    np.testing.assert_allclose(kin.pose(moved.q0[None], description.palm_link),
+                               kin.pose(np.asarray(grasp.q0)[None], description.palm_link),
+                               atol=1e-9)
+    assert abs(ArmSelfMotion(description).elbow_angle(moved.q0[None])[0] - 0.4) < 1e-6
+    png = tmp_path / "contacts.png"
+    args = ["evaluate", "--robot", "panda", "--object", "cube", "--grasp", "0", "--sigma",
+            "0.0133", "--samples", "60", "--json", "--engine", "fast"]
+    assert main([*args, "--elbow", "0.4", "--plot", str(png)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    direct = evaluate_robot_grasp(moved, sigma=0.0133, n=60, seed=0, robot="panda",
+                                  engine="fast")
+    assert shown["p_fc"] == direct.p_fc and shown["outcomes"] == direct.counts
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main([*args, "--elbow", "3.0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "out of reach" in err[0]
