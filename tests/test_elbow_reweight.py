@@ -94,7 +94,7 @@ def test_best_angle_scored_on_fresh_direct_draws(grasp):
     assert psis[0] <= result.best_psi <= psis[-1]
 
 
-def test_cli_reweight_and_its_refusals(capsys):
+def test_cli_reweight_and_its_refusals(capsys, tmp_path):
     from kinegrasp_env.cli import main
 
     args = ["elbow", "--object", "spray_flask", "--grasp", "4", "--sigma", str(SIGMA),
@@ -107,6 +107,11 @@ def test_cli_reweight_and_its_refusals(capsys):
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "from one batch of 400 closings" in out and "effective sample size" in out
+    page = tmp_path / "elbow.html"
+    assert main([*args, "--report", str(page)]) == 0
+    capsys.readouterr()
+    text = page.read_text()
+    assert "Why this elbow" in text and "--method reweight --batch 400" in text
     assert main([*args, "--noise", "uniform"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Gaussian joint noise" in err[0]

@@ -129,7 +129,7 @@ def cmd_elbow(args) -> int:
         if args.plot:
             print(f"  plot written to {args.plot}")
     if args.report:
-        write_elbow_report(args, grasp, index, result, noise)
+        write_elbow_report(args, grasp, index, result, noise, evidence)
     return 0
 
 

@@ -221,9 +221,11 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
-def write_elbow_report(args, grasp, index: int, result, noise) -> None:
+def write_elbow_report(args, grasp, index: int, result, noise, evidence=None) -> None:
     """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
-    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``)."""
+    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``; or
+    the re-weighted search's, with its ``evidence``: then the batch, and the fragile
+    directions drawn)."""
     from kinegrasp_env.toolkit.report.elbow import elbow_page
     from kinegrasp_env.toolkit.report.page import write_page
 
@@ -233,6 +235,8 @@ def write_elbow_report(args, grasp, index: int, result, noise) -> None:
                "--seed", str(result.seed), "--engine", result.engine,
                "--epsilon", f"{result.certificate.epsilon:g}",
                "--delta", f"{result.certificate.delta:g}", "--report", str(out)]
+    if evidence is not None:
+        command[-2:-2] = ["--method", "reweight", "--batch", str(evidence.batch)]
     settings = {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
                 **noise_settings(args, [noise]),
                 "draws per elbow angle (selection; fresh again)": result.samples,
@@ -243,8 +247,13 @@ def write_elbow_report(args, grasp, index: int, result, noise) -> None:
                                               f"{result.certificate.delta:g}",
                 "friction mu": FRICTION, "friction cone edges": NUM_EDGES,
                 "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
+    if evidence is not None:
+        settings["method"] = (f"reweight: one batch of {evidence.batch} closings over the "
+                              "palm's deviation, the chosen and nominal elbow on fresh "
+                              "direct draws")
     text = elbow_page(grasp, result, noise, command=shlex.join(command), settings=settings,
-                      arm_draws=ARM_DRAWS_DEFAULT)
+                      arm_draws=ARM_DRAWS_DEFAULT,
+                      fragility=None if evidence is None else evidence.picture())
     write_page(out, text)
     print(f"report written to {out} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)

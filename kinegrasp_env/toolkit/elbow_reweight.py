@@ -132,6 +132,11 @@ def _estimate_point(batch: PalmBatch, motion: SelfMotionCovariance, psi: float, 
     return est.value, est.se, est.ess, est.derivative, est.derivative_se
 
 
+def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> float:
+    """The weights' standard error of P(FC) at configuration q (14,)."""
+    return batch.estimate(motion.at(q[None])[0]).p_fc.se
+
+
 def batch_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
                 motion: SelfMotionCovariance, noise: JointNoise, samples: int, seed: int,
                 kwargs: dict) -> list[CurvePoint]:
@@ -290,8 +295,15 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
     psi, q, estimate = continuous_optimum(curve, selection, motion)
     report("fresh draws")
     nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
-    best = ElbowPoint(psi, q, estimate, (estimate, estimate), np.zeros(0, bool))
-    nominal = next(c.point for c in curve if c.point.q is nominal_q)
+    points = [c.point for c in curve]
+    best = next((p for p in points if abs(p.psi - psi) < 1e-12), None)
+    if best is None:  # between grid points: the continuous optimum joins the curve
+        z = normal_quantile(0.95)
+        se = batch_se(selection, motion, q)
+        best = ElbowPoint(psi, q, estimate, (max(0.0, estimate - z * se),
+                                             min(1.0, estimate + z * se)), np.zeros(0, bool))
+        points = sorted([*points, best], key=lambda p: p.psi)
+    nominal = next(p for p in points if p.q is nominal_q)
     best.fresh_fc = scoring_draws(grasp, q, noise, samples, seed, kwargs)
     nominal.fresh_fc = (best.fresh_fc if nominal is best
                         else scoring_draws(grasp, nominal_q, noise, samples, seed, kwargs))
@@ -299,7 +311,7 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
     fresh = close_batch(reach[0][1], grasp.object, covs, n, rng[1], engine=engine)
     rivals = [(c.point.psi, c.point.q) for c in curve if abs(c.point.psi - psi) > 1e-9]
     certificate = batch_certificate((psi, q), rivals, fresh, motion, epsilon, delta)
-    result = elbow_result(grasp, [c.point for c in curve], best, nominal, nominal_psi, noise,
+    result = elbow_result(grasp, points, best, nominal, nominal_psi, noise,
                           samples, seed, engine, step, epsilon, delta,
                           certificate=certificate)
     p_fresh = float(best.fresh_fc.mean())

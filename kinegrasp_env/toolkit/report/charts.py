@@ -89,10 +89,12 @@ def pfc_curve(runs: Sequence[GraspStats], label: str) -> dict:
                              showlegend=True, margin={"l": 60, "r": 20, "t": 40, "b": 50})}
 
 
-def elbow_curve(curve: Sequence[dict], nominal_psi: float, best_psi: float) -> dict:
-    """P(FC) against the elbow angle psi (radians) with the Wilson 95% intervals as error
-    bars (``curve``: dicts of ``psi``, ``p_fc``, ``p_fc_ci``, as ``ElbowPoint.to_json()``),
-    the nominal and the best elbow angle marked by vertical lines."""
+def elbow_curve(curve: Sequence[dict], nominal_psi: float, best_psi: float,
+                source: str = "selection draws, 95% Wilson intervals") -> dict:
+    """P(FC) against the elbow angle psi (radians) with its 95% intervals as error bars
+    (``curve``: dicts of ``psi``, ``p_fc``, ``p_fc_ci``, as ``ElbowPoint.to_json()``), the
+    nominal and the best elbow angle marked by vertical lines; ``source`` says where the
+    values and intervals come from (in the title)."""
     points = sorted(curve, key=lambda c: c["psi"])
     p = [c["p_fc"] for c in points]
     shapes, notes = [], []
@@ -109,11 +111,45 @@ def elbow_curve(curve: Sequence[dict], nominal_psi: float, best_psi: float) -> d
                                   "arrayminus": [v - c["p_fc_ci"][0] for c, v in zip(
                                       points, p, strict=True)]},
                       "hovertemplate": "psi %{x:.3f} rad: P(FC) %{y:.4f}<extra></extra>"}],
-            "layout": layout(title={"text": "P(force closure) along the self-motion (selection "
-                                            "draws, 95% Wilson intervals)", "x": 0.01,
+            "layout": layout(title={"text": f"P(force closure) along the self-motion "
+                                            f"({source})", "x": 0.01,
                                     "font": {"size": 14}},
                              xaxis={"title": {"text": "elbow angle psi [rad]"},
                                     "zeroline": False},
                              yaxis={"title": {"text": "P(FC)"}, "range": [-0.02, 1.02]},
                              shapes=shapes, annotations=notes, showlegend=False,
+                             margin={"l": 60, "r": 20, "t": 40, "b": 50})}
+
+
+def fragility_chart(picture: dict) -> dict:
+    """The batch's palm deviations in the two most fragile directions, force closure grey,
+    lost red, with the nominal and the best elbow's 2-s.d. error ellipses (``picture``: as
+    ``ReweightEvidence.picture()`` gives it: ``points`` (m, 2), ``fc`` (m,), ``ellipses``
+    {label: (2, 2) covariance}, ``labels`` (2,), ``spread`` (2,))."""
+    pts = np.asarray(picture["points"], dtype=float)
+    fc = np.asarray(picture["fc"], dtype=bool)
+    data = [{"type": "scattergl", "mode": "markers", "name": name,
+             "x": pts[mask, 0].round(4).tolist(), "y": pts[mask, 1].round(4).tolist(),
+             "marker": {"size": 3, "color": colour, "opacity": 0.6}, "hoverinfo": "skip"}
+            for name, mask, colour in (("force closure", fc, "#aaaaaa"),
+                                       ("lost", ~fc, "#d62728"))]
+    t = np.linspace(0.0, 2.0 * np.pi, 120)
+    for (label, cov), colour in zip(picture["ellipses"].items(), ("#d62728", "#2ca02c"),
+                                    strict=False):
+        values, vectors = np.linalg.eigh(np.asarray(cov, dtype=float))
+        ring = vectors @ (2.0 * np.sqrt(np.maximum(values, 0.0))[:, None]
+                          * np.stack([np.cos(t), np.sin(t)]))
+        data.append({"type": "scatter", "mode": "lines", "name": f"{label} elbow, 2 s.d.",
+                     "x": ring[0].round(4).tolist(), "y": ring[1].round(4).tolist(),
+                     "line": {"color": colour, "width": 3}})
+    (xl, yl), (s1, s2) = picture["labels"], picture["spread"]
+    return {"data": data,
+            "layout": layout(title={"text": "Why this elbow: the directions in which force "
+                                            "closure is lost soonest", "x": 0.01,
+                                    "font": {"size": 14}},
+                             xaxis={"title": {"text": f"fragile direction 1 ({xl}; failures "
+                                                      f"x{s1:.1f} spread) [s.d.]"}},
+                             yaxis={"title": {"text": f"fragile direction 2 ({yl}; "
+                                                      f"x{s2:.1f}) [s.d.]"},
+                                    "scaleanchor": "x"},
                              margin={"l": 60, "r": 20, "t": 40, "b": 50})}

@@ -16,7 +16,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, Noise
 from kinegrasp_env.toolkit.elbow import ElbowPoint, ElbowResult
-from kinegrasp_env.toolkit.report.charts import elbow_curve
+from kinegrasp_env.toolkit.report.charts import elbow_curve, fragility_chart
 from kinegrasp_env.toolkit.report.geometry import (
     closed_configuration,
     noisy_configurations,
@@ -91,7 +91,7 @@ def curve_table(result: ElbowResult) -> str:
 
 def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
                settings: dict, arm_draws: int = ARM_DRAWS,
-               chunk: int = DEFAULT_CHUNK) -> str:
+               chunk: int = DEFAULT_CHUNK, fragility: dict | None = None) -> str:
     """The HTML page of ``result`` (``optimize_elbow(grasp, noise, ...)``; its curve points
     keep their outcomes, as ``optimize_elbow`` gives them).
 
@@ -103,6 +103,8 @@ def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
         settings: name -> value, shown as a table.
         arm_draws: noisy draws whose skeletons each arm view shows.
         chunk: the draws per chunk the optimization used.
+        fragility: for a curve from one re-weighted batch, its picture
+            (``ReweightEvidence.picture()``): drawn as the page's third chart.
     """
     obj = load_object(grasp.object)
     library = MeshLibrary()
@@ -115,23 +117,38 @@ def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
         figure, shown = elbow_arm_figure(obj, point, other, label, other_label, library, noise,
                                          result.seed, result.samples, arm_draws, chunk)
         views.append(Figure(key, figure, "49%", "520px"))
-    curve = Figure("elbow", elbow_curve([p.to_json() for p in result.curve],
-                                        result.nominal_psi, result.best_psi), "99%", "340px")
-    notes = [f"The curve: P(FC) of each evaluated elbow angle on the same {result.samples} "
-             "selection draws (common random numbers), with 95% Wilson intervals; the headline "
-             "scores the chosen and the nominal elbow again on draws the selection never used.",
-             f"Each arm view shows the arm and the closed hand at its elbow, the skeletons of "
-             f"its first {shown} selection draws coloured by their outcome, and the other "
-             "elbow's skeleton dashed: the palm pose and the contacts are the same, the arm "
-             "is not. Toggle any of them in the legend."]
+    curve = Figure("elbow", elbow_curve(
+        [p.to_json() for p in result.curve], result.nominal_psi, result.best_psi,
+        "selection draws, 95% Wilson intervals" if fragility is None else
+        "one re-weighted batch, 95% intervals"), "99%", "340px")
+    curve_note = (f"The curve: P(FC) of each evaluated elbow angle on the same "
+                  f"{result.samples} selection draws (common random numbers), with 95% Wilson "
+                  "intervals; the headline scores the chosen and the nominal elbow again on "
+                  "draws the selection never used." if fragility is None else
+                  "The curve: P(FC) of each elbow angle from one batch of closings over the "
+                  "palm's deviation, re-weighted to that angle (95% normal intervals of the "
+                  "weights' standard error); the headline scores the chosen and the nominal "
+                  "elbow on fresh direct draws. The third chart says why: the batch's palm "
+                  "deviations in the two directions in which force closure is lost soonest, "
+                  "and each elbow's error ellipse there.")
+    skeletons = (f", the skeletons of its first {shown} selection draws coloured by their "
+                 "outcome," if shown else "")
+    notes = [curve_note,
+             f"Each arm view shows the arm and the closed hand at its elbow{skeletons} and the "
+             "other elbow's skeleton dashed: the palm pose and the contacts are the same, the "
+             "arm is not. Toggle any of them in the legend."]
     if nominal is best:
         notes.append("The best elbow is the nominal one: both views show the same arm.")
     title = f"kinegrasp elbow report: {grasp.object} grasp {grasp.id}"
+    extra = []
+    if fragility is not None:
+        extra = [Figure("fragility", fragility_chart(fragility), "99%", "520px")]
     body = (f"<h1>{esc(title)}</h1>{headline(result)}"
             f"<div class='kg-row'>{curve.div()}</div>"
+            + "".join(f"<div class='kg-row'>{f.div()}</div>" for f in extra) +
             f"<div class='kg-row'>{views[0].div()}{views[1].div()}</div>"
             f"{''.join(note(n) for n in notes)}"
             f"<h2>P(FC) of every evaluated elbow angle</h2>{curve_table(result)}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
-    return page(title, body, [curve, *views], library, versions())
+    return page(title, body, [curve, *extra, *views], library, versions())
