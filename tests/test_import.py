@@ -281,6 +281,25 @@ def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     assert os.listdir(catalog_dir()) == []
 
 
+def test_density_gives_the_mass(home, tmp_path, capsys):
+    """``objects add --density``: the mass is density x the box's volume (worked by hand:
+    0.04 x 0.06 x 0.08 m at 2,700 kg/m^3 is 0.5184 kg); the default 500 kg/m^3 without it;
+    given again for the same file and settings it is set alone (nothing re-imported); a bad
+    density is one line and writes nothing."""
+    path = box_file(tmp_path / "block.stl", extents=(0.04, 0.06, 0.08))
+    code, _, err = cli(capsys, "objects", "add", str(path))
+    assert code == 0, err
+    assert load_object("block").mass == pytest.approx(500 * 0.04 * 0.06 * 0.08, rel=1e-9)
+    code, out, err = cli(capsys, "objects", "add", str(path), "--density", "2700")
+    assert code == 0 and "density set to 2700 kg/m^3" in out, err
+    assert load_object("block").mass == pytest.approx(0.5184, rel=1e-9)
+    before = snapshot(home)
+    for bad in ("0", "-1", "nan"):
+        code, _, err = cli(capsys, "objects", "add", str(path), "--density", bad)
+        assert code == 2 and len(err.strip().splitlines()) == 1 and "--density" in err, bad
+    assert snapshot(home) == before
+
+
 def test_a_scale_equal_but_for_its_last_digits_reuses_the_entry(home, tmp_path, capsys):
     """``objects add`` again with the scale typed to more digits (equal to the stored one
     within a relative 1e-6) reuses the entry; a scale 1e-5 off is another setting."""

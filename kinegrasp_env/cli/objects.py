@@ -70,13 +70,16 @@ def cmd_add(args) -> int:
         print(f"importing {args.path} (scale {settings.scale:g}, up axis {settings.up}, "
               f"threshold {settings.threshold:g}, at most {settings.max_parts} parts)",
               file=sys.stderr)
+    density = None if args.density is None else positive_float(args.density, "--density")
     with reported(MeshError, CatalogError), StageProgress(STAGES) as progress:
         result = import_object(args.path, args.name, settings, force=args.force,
-                               progress=progress)
+                               progress=progress, density=density)
     entry = result.entry
     if result.reused:
+        done = ("density set to " f"{density:g} kg/m^3" if density is not None
+                else "nothing to do")
         print(f"{result.name}: already imported from this file with these settings "
-              f"(entry {result.folder}); nothing to do")
+              f"(entry {result.folder}); {done}")
         return 0
     size = ", ".join(f"{v:.3f}" for v in entry["size"])
     print(f"{result.name}: {entry['parts']} convex parts, size {size} m, r_max "
@@ -179,6 +182,10 @@ def add_commands(sub) -> None:
                    "the mesh)")
     a.add_argument("--max-parts", default=str(DEFAULT_MAX_PARTS),
                    help="most convex parts (each costs time in every draw)")
+    a.add_argument("--density", metavar="KG_M3",
+                   help="the object's uniform density, kg/m^3, which with its volume gives "
+                   "the mass the hold scores and the simulators use (default 500); on an "
+                   "object already imported from the same file and settings, it is set alone")
     a.add_argument("--force", action="store_true",
                    help="replace an object of the same name imported from another file or "
                    "with other settings")

@@ -49,6 +49,7 @@ from kinegrasp_env.world.decompose import (
     mass_properties,
 )
 from kinegrasp_env.world.deviation import deviation
+from kinegrasp_env.world.grasps import write_atomic
 from kinegrasp_env.world.meshfile import MeshError, SourceMesh, load_source
 from kinegrasp_env.world.meshprep import (
     check_size,
@@ -198,23 +199,43 @@ STAGES = ("convex decomposition (CoACD; the long stage)",
           "deviation of the parts from the mesh", "distance grid of the fast engine")
 
 
+def check_density(density: float | None) -> float | None:
+    """``density`` (kg/m^3) if finite and > 0 (or None); :class:`CatalogError` otherwise."""
+    if density is not None and not (np.isfinite(density) and density > 0):
+        raise CatalogError(f"density must be a finite number of kg/m^3 > 0, got {density!r}")
+    return None if density is None else float(density)
+
+
+def set_density(folder: Path, entry: dict, density: float) -> dict:
+    """The entry with its ``density`` (kg/m^3) set, rewritten in place (atomically)."""
+    entry = {**entry, "density": density}
+    write_atomic(folder / ENTRY_FILE, json.dumps(entry, indent=1))
+    forget()
+    return entry
+
+
 def import_object(path: str | Path, name: str | None = None,
                   settings: ImportSettings | None = None, force: bool = False,
-                  progress: Callable[[int, str], None] | None = None) -> ImportResult:
+                  progress: Callable[[int, str], None] | None = None,
+                  density: float | None = None) -> ImportResult:
     """Import a mesh file or URDF as catalog object ``name`` (default: from the file name).
 
     ``progress(k, stage)`` is called as stage ``k`` of :data:`STAGES` begins (for a progress
     display; an open or non-manifold mesh is logged as a warning before, by
-    :func:`prepare`).
+    :func:`prepare`). ``density`` (kg/m^3; default the catalog's
+    :data:`~kinegrasp_env.world.objects.DEFAULT_DENSITY`) gives the object's mass with its
+    volume; it is no import setting: given for an entry already imported from the same files
+    with the same settings, it is set on that entry (nothing else is redone).
 
     Raises:
         MeshError: the file cannot be read, is not a solid, or is too large or too small for
             the hand (the message suggests ``--scale``/``--units``).
-        CatalogError: bad name or settings, or ``name`` exists with other files or settings
-            and ``force`` is False.
+        CatalogError: bad name, settings or density, or ``name`` exists with other files or
+            settings and ``force`` is False.
     """
     start = time.perf_counter()
     settings = (settings or ImportSettings()).check()
+    density = check_density(density)
     source = load_source(path)
     name = check_name(name or default_name(path))
     digest = source_digest(source)
@@ -223,6 +244,8 @@ def import_object(path: str | Path, name: str | None = None,
     if existing is not None and not force:
         entry = read_entry(existing)
         if same_import(entry, digest, settings):
+            if density is not None and entry.get("density") != density:
+                entry = set_density(existing, entry, density)
             return ImportResult(name, existing, True, 0.0, entry)
         stored = entry.get("settings", {})
         given = {k: stored.get(k, v) for k, v in asdict(ImportSettings()).items()}
@@ -237,6 +260,8 @@ def import_object(path: str | Path, name: str | None = None,
     try:
         entry = build_entry(source, prepared, name, key, settings, work, Path(path),
                             progress or (lambda k, stage: None))
+        if density is not None:
+            entry["density"] = density
         entry["import_seconds"] = round(time.perf_counter() - start, 3)
         (work / ENTRY_FILE).write_text(json.dumps(entry, indent=1))
         publish(work, root / name)
