@@ -123,6 +123,13 @@ def test_proposal_refuses_a_batch_too_small(setting):
     covs, _, _ = setting
     with pytest.raises(ValueError, match="at least 5"):
         MixtureProposal.covering(covs, 3)
+    assert np.all(MixtureProposal.covering(covs, 5).counts >= 1)
+    many = np.repeat(covs, 19, axis=0)  # 76 targets: 80 draws leave some without one
+    with pytest.raises(ValueError, match="at least 84"):
+        MixtureProposal.covering(many, 80)
+    assert np.all(MixtureProposal.covering(many, 84).counts >= 1)
+    with pytest.raises(ValueError, match="not positive definite"):
+        MixtureProposal.covering(np.zeros((1, D, D)), 10)
 
 
 def test_a_degenerate_target_is_a_one_line_error():

@@ -92,6 +92,9 @@ def cmd_elbow(args) -> int:
     if args.plot:
         output_file(args.plot, "--plot")
     report_path(args.report)
+    if args.method == "direct" and args.batch is not None:
+        raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
+                       "takes none")
     if args.method == "reweight":
         result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
                                             delta)
@@ -107,11 +110,12 @@ def cmd_elbow(args) -> int:
     payload = result.to_json()
     if evidence is not None:
         payload["reweight"] = evidence.to_json()
-    if args.plot and evidence is not None:
+    picture = None if evidence is None or not args.plot else evidence.picture()
+    if picture is not None:
         from kinegrasp_env.toolkit.plots import plot_elbow_fragility
 
-        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi,
-                             evidence.picture(), args.plot,
+        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi, picture,
+                             args.plot,
                              title=f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) "
                                    "along the self-motion, and why")
     elif args.plot:
@@ -138,12 +142,14 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta):
     closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`)."""
     from tqdm import tqdm
 
-    from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted
+    from kinegrasp_env.toolkit.elbow_reweight import check_reweight, optimize_elbow_reweighted
 
     batch = None if args.batch is None else positive_int(args.batch, "--batch")
+    with reported(ValueError):  # noise, object, batch: refused before any closing
+        check_reweight(grasp, noise, samples, epsilon, delta, batch)
     bar = tqdm(desc=f"elbow of {args.object} grasp {index} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
-    with reported(ValueError), executor_from(args) as executor:
+    with executor_from(args) as executor:
         out = optimize_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
                                         epsilon=epsilon, delta=delta, batch=batch,
                                         executor=executor,

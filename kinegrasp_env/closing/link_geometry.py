@@ -40,10 +40,12 @@ class LinkGeometry:
         return centre[None], float(np.linalg.norm(self.vertices - centre, axis=1).max())
 
 
-def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None
-                  ) -> dict[str, LinkGeometry]:
+def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None, *,
+                  skip_meshed: bool = False) -> dict[str, LinkGeometry]:
     """Every link with collision geometry (or those of ``links`` that have it) -> its
-    :class:`LinkGeometry` (read from pybullet once, the robot at its open configuration).
+    :class:`LinkGeometry` (read from pybullet once, the robot at its open configuration);
+    ``skip_meshed``: leave out a link with a shape pybullet meshed itself (a cylinder, whose
+    vertices it does not give) instead of failing on it.
 
     Raises:
         ValueError: a collision mesh of a link read cannot be loaded."""
@@ -61,7 +63,7 @@ def link_geometry(description: RobotDescription, links: tuple[str, ...] | None =
         for index, name in names.items():
             if links is not None and name not in links:
                 continue
-            world = link_hull_vertices(bullet, robot, index)
+            world = link_hull_vertices(bullet, robot, index, skip_meshed=skip_meshed)
             if world is None:
                 continue
             if index < 0:  # the base's URDF frame: the world origin (its fixed base)

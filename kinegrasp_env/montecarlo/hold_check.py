@@ -84,11 +84,7 @@ class StaticHoldCheck:
                 self.carriers[(f, k)] = (chain, carried)
         self.mass = obj.mass
         self.loads = gravity_loads(self.mass, load_accelerations(protocol), obj.pose[:3, :3])
-        #: the quality-level model of each contact given: the patch model's contacts come
-        #: as the patches' corners (:mod:`~kinegrasp_env.montecarlo.patch_contacts`), each a
-        #: point contact
-        self.contact_model = ("point" if description.contact_model == "patch"
-                              else description.contact_model)
+        self.contact_model = description.quality_model
         self.per_contact = num_edges + (TORSION_PRIMITIVES
                                         if self.contact_model == "soft" else 0)
 

@@ -40,9 +40,9 @@ from kinegrasp_env.sampling.reweight import (
 ARM = 7
 #: Draws per engine call of a batch.
 BATCH_CHUNK = 2000
-#: Below this effective sample size a re-weighted estimate is not used: the caller falls
-#: back to direct draws (and says so).
-MIN_ESS = 1000.0
+#: The spawn key's first entry of the batches' random streams: a three-entry key, which no
+#: chunk stream of a run has (:func:`~kinegrasp_env.sampling.noise_model.chunk_stream`).
+BATCH_STREAM = 0xBA7C4
 #: Closings per batch, as a multiple of the direct draws per target it stands for.
 BATCH_FACTOR = 2
 
@@ -67,6 +67,24 @@ def joint_covariance(sigma) -> np.ndarray:
                      f"{s.shape}")
 
 
+def batch_stream(seed: int, index: int) -> np.random.Generator:
+    """The generator of batch ``index`` (0, 1, ...) of a run with ``seed``: independent of
+    every chunk's draws of that run."""
+    key = (BATCH_STREAM, 0, int(index))
+    return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=key))
+
+
+def check_batch_object(object_name: str) -> None:
+    """ValueError for an object on a support table (its arm links then matter, and one
+    batch over the palm's deviation cannot stand for every arm)."""
+    from kinegrasp_env.world.objects import load_object
+
+    if load_object(object_name).table is not None:
+        raise ValueError(f"object {object_name!r} stands on a support table: the arm's links "
+                         f"then matter, and one batch of palm deviations cannot stand for "
+                         f"every elbow; use --method direct")
+
+
 def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
     """((7, 7) joint covariance, (6, 6) palm covariance) of a noise whose every source is a
     zero-mean Gaussian on the arm joints or on the palm: Gaussian ``JointNoise`` (scalar or
@@ -85,7 +103,7 @@ def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
         if noise.kind != "gaussian":
             raise ValueError(f"re-weighting needs Gaussian joint noise, got {noise.kind} "
                              f"noise; use --method direct")
-        return joint_covariance(noise.sigma), np.zeros((6, 6))
+        return _nonzero(joint_covariance(noise.sigma)), np.zeros((6, 6))
     if not isinstance(noise, NoiseModel):
         raise ValueError(f"re-weighting needs joint noise or a noise model, got "
                          f"{type(noise).__name__}")
@@ -102,12 +120,19 @@ def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
     else:
         cov = (np.array(joints.covariance) if joints.covariance is not None
                else np.diag(joints.sigma_vector() ** 2))
-    palm_cov = np.zeros((6, 6))
-    if palm is not None:
-        scale = np.concatenate([np.broadcast_to(palm.translation_sigma, 3),
-                                np.broadcast_to(palm.rotation_sigma, 3)])
-        palm_cov = np.diag(scale**2)
+    palm_cov = np.zeros((6, 6)) if palm is None else np.diag(palm.variances())
+    if not np.any(palm_cov):
+        cov = _nonzero(cov)
     return cov, palm_cov
+
+
+def _nonzero(cov: np.ndarray) -> np.ndarray:
+    """``cov`` (7, 7), or ValueError where it leaves the palm's deviation degenerate (a
+    joint noise of rank below 6: every weight would be undefined)."""
+    if np.linalg.matrix_rank(cov) < 6:
+        raise ValueError("re-weighting needs joint noise on at least six joints (the palm's "
+                         "deviation has six dimensions); use --method direct")
+    return cov
 
 
 class PalmJacobian:
@@ -130,12 +155,6 @@ class PalmJacobian:
         (:func:`joint_covariance`)."""
         jac = self(q)
         return jac @ joint_covariance(sigma) @ np.swapaxes(jac, 1, 2)
-
-
-def palm_covariance(q: np.ndarray, sigma) -> np.ndarray:
-    """(n, 6, 6) the first-order covariance of the palm's deviation at configurations q
-    (n, 14) under Gaussian joint noise ``sigma`` (:meth:`PalmJacobian.covariance`)."""
-    return PalmJacobian().covariance(q, sigma)
 
 
 def linear_draws(covariance: np.ndarray, n: int, seed) -> np.ndarray:
@@ -164,11 +183,6 @@ class PalmEstimate:
     @property
     def ess(self) -> float:
         return self.p_fc.ess
-
-    @property
-    def usable(self) -> bool:
-        """The effective sample size is at least :data:`MIN_ESS`."""
-        return self.ess >= MIN_ESS
 
 
 @dataclass
@@ -219,12 +233,7 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
     """((n,) outcome, (n,) Q) of closing the hand at configuration q (14,) with the hand
     root moved by each delta (n, 6) in the flange frame, in chunks of
     :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
-    from kinegrasp_env.world.objects import load_object
-
-    if load_object(object_name).table is not None:
-        raise ValueError(f"object {object_name!r} stands on a support table: the arm's links "
-                         f"then matter, and one batch of palm deviations cannot stand for "
-                         f"every elbow; use --method direct")
+    check_batch_object(object_name)
     n = len(deltas)
     outcome, quality = np.empty(n, np.int8), np.empty(n)
     eng = make_engine(engine, object_name, friction)
@@ -244,7 +253,8 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
 def close_batch(q: np.ndarray, object_name: str, covariances: np.ndarray, n: int, seed, *,
                 engine: str = "fast", friction: float = 0.5, progress=None) -> PalmBatch:
     """A :class:`PalmBatch` of n closings at configuration q (14,), deltas drawn from the
-    stratified mixture over ``covariances`` (K, 6, 6) (:class:`MixtureProposal`), seeded."""
+    stratified mixture over ``covariances`` (K, 6, 6) (:class:`MixtureProposal`); ``seed``
+    an integer or a ``numpy.random.Generator`` (:func:`batch_stream`)."""
     proposal = MixtureProposal.covering(covariances, n)
     deltas = proposal.sample(as_generator(seed))
     outcome, quality = close_deltas(q, deltas, object_name, engine=engine, friction=friction,

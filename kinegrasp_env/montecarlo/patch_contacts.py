@@ -41,12 +41,10 @@ class PatchContacts:
     def __init__(self, description: RobotDescription, obj: GraspObject) -> None:
         self.description, self.obj = description, obj
         self.kinematics = Kinematics(description.model)
-        self.geometry = {}
-        for name in description.finger_links:
-            try:
-                self.geometry.update(link_geometry(description, (name,)))
-            except ValueError:  # a shape pybullet makes itself (a capsule tip): a point
-                continue
+        # a finger link without a readable hull (a capsule or cylinder tip) keeps its
+        # contacts as points
+        self.geometry = link_geometry(description, tuple(description.finger_links),
+                                      skip_meshed=True)
         self.patch = PatchGeometry(obj.parts)
         palm = len(self.kinematics.chain(description.palm_link))
         #: (finger, link index) -> (link name, joint chain from the palm)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
 from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
@@ -166,13 +167,13 @@ class RobotEngine:
     def quality(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(B,) Q of B contact sets (B, k, 3) with the robot's contact model (the patch
         model's sets: the patches' corners, each a point contact)."""
-        model = self.description.contact_model
+        model = self.description.quality_model
         return contact_quality_batch(
-            points, normals, contact_model="point" if model == "patch" else model,
+            points, normals, contact_model=model,
             friction=self.friction, num_edges=self.num_edges,
             torque_scale=self.obj.torque_scale, center=self.obj.center_of_mass,
             **({"finger_radius": self.finger_radius}
-               if self.description.contact_model == "soft" else {}))
+               if model == "soft" else {}))
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
         """One closing per configuration of q (n, dof) (checked)."""
@@ -220,7 +221,7 @@ class RobotEngine:
         expanded = self.patches.expand(q, batch.joints, draws.points, draws.normals,
                                        draws.finger, draws.link)
         candidate = draws.outcome == NO_FORCE_CLOSURE
-        per = expanded[0].shape[1] // max(self.max_contacts, 1)
+        per = PATCH_CORNERS
         for k in np.unique(draws.n_contacts[candidate]):
             rows = np.flatnonzero(candidate & (draws.n_contacts == k))
             draws.quality[rows] = self.quality(expanded[0][rows, :k * per],

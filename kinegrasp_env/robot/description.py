@@ -109,6 +109,13 @@ class RobotDescription:
     meshes: tuple[MeshFile, ...] = ()
 
     @property
+    def quality_model(self) -> str:
+        """The contact model each contact given to the quality is scored with: ``point`` for
+        the patch model (its contacts come as the patches' corners, each a point contact),
+        else :attr:`contact_model`."""
+        return "point" if self.contact_model == "patch" else self.contact_model
+
+    @property
     def arm_dof(self) -> int:
         return len(self.arm_joints)
 

@@ -201,11 +201,17 @@ class PoseSource:
         object.__setattr__(self, "rotation_sigma", sigmas(
             self.rotation_sigma, f"{self.name}.rotation_sigma", bound=MAX_ANGLE))
 
+    def variances(self) -> np.ndarray:
+        """(6,) variances: translation (3) m^2, rotation vector (3) rad^2."""
+        return self._scale() ** 2
+
+    def _scale(self) -> np.ndarray:
+        return np.concatenate([broadcast(self.translation_sigma, 3),
+                               broadcast(self.rotation_sigma, 3)])
+
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
         """(size, 6): translation (3) metres, rotation vector (3) radians."""
-        scale = np.concatenate([broadcast(self.translation_sigma, 3),
-                                broadcast(self.rotation_sigma, 3)])
-        return rng.standard_normal((size, 6)) * scale
+        return rng.standard_normal((size, 6)) * self._scale()
 
     @property
     def exact(self) -> bool:

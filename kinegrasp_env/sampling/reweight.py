@@ -10,7 +10,8 @@ is worth for that target) and the delta-method standard error
 sqrt(sum w_i^2 (f_i - E)^2) / sum w_i (Owen, *Monte Carlo theory, methods and examples*,
 ch. 9). The proposal here is a *stratified Gaussian mixture*: n_k = n / K draws from each of K
 zero-mean components N(0, S_k), weighted with the mixture's density (the balance heuristic),
-so that a target equal to one component has weights below K, and a *defensive* component
+so that a target equal to one component has weights below about K / (1 - the defensive
+share), and a *defensive* component
 (the components' mean covariance, widened) keeps the weights bounded for targets between
 them. The score d log p / dt of a target N(0, S(t)) along a parameter t gives the estimate's
 derivative, dE/dt ~ sum_i w_i (f_i - E) s_i / sum_i w_i.
@@ -91,13 +92,26 @@ class MixtureProposal:
                  defensive_share: float = DEFENSIVE_SHARE) -> MixtureProposal:
         """The proposal of n draws over components (K, d, d) (a (d, d) is one component)."""
         cov = _checked_covariances(covariances)
-        if n < len(cov) + 1:
-            raise ValueError(f"a batch of {n} draws cannot cover {len(cov)} targets and a "
-                             f"defensive component: ask for at least {len(cov) + 1}")
         if not 0.0 < defensive_share < 1.0 or defensive_scale < 1.0:
             raise ValueError("the defensive share must lie in (0, 1) and its scale be >= 1, "
                              f"got {defensive_share:g} and {defensive_scale:g}")
-        n_def = max(1, round(defensive_share * n))
+        def defensive(m: int) -> int:
+            return max(1, round(defensive_share * m))
+
+        n_def = defensive(n)
+        if n - n_def < len(cov):
+            need = len(cov) + 1
+            while need - defensive(need) < len(cov):
+                need += 1
+            raise ValueError(f"a batch of {n} draws cannot cover {len(cov)} targets and a "
+                             f"defensive component: ask for at least {need} (--batch)")
+        for c in cov:
+            try:
+                np.linalg.cholesky(c)
+            except np.linalg.LinAlgError:
+                raise ValueError("a target covariance is not positive definite (a noise that "
+                                 "leaves a direction of the palm's pose without error)"
+                                 ) from None
         base, extra = divmod(n - n_def, len(cov))
         counts = np.array([base + (k < extra) for k in range(len(cov))] + [n_def])
         return cls(cov, defensive_scale**2 * cov.mean(axis=0), counts)

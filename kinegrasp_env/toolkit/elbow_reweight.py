@@ -37,17 +37,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.evaluate import Noise
 from kinegrasp_env.montecarlo.palm_batch import (
     BATCH_FACTOR,
     PalmBatch,
     PalmJacobian,
+    batch_stream,
+    check_batch_object,
     close_batch,
     fragile_directions,
     gaussian_terms,
 )
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.reweight import gaussian_logpdf, normalised_weights
+from kinegrasp_env.sampling.reweight import (
+    WeightedEstimate,
+    gaussian_logpdf,
+    normalised_weights,
+)
 from kinegrasp_env.sampling.stats import normal_quantile
 from kinegrasp_env.toolkit.elbow import (
     FINE_STEP,
@@ -74,7 +80,8 @@ SLOPE_STEP = 1e-4
 BISECTION_STEPS = 10
 #: The certificate's method, in words.
 BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-weighted "
-                "advantage, on a fresh batch")
+                "advantage under the first-order model of the palm's deviation, on a fresh "
+                "batch")
 
 
 class SelfMotionCovariance:
@@ -125,11 +132,10 @@ class CurvePoint:
 
 
 def _estimate_point(batch: PalmBatch, motion: SelfMotionCovariance, psi: float, q: np.ndarray
-                    ) -> tuple[float, float, float, float, float]:
-    """(P, se, ess, slope, slope se) at one angle from the batch."""
-    derivative = motion.derivative(q, psi)
-    est = batch.estimate(motion.at(q[None])[0], derivative).p_fc
-    return est.value, est.se, est.ess, est.derivative, est.derivative_se
+                    ) -> WeightedEstimate:
+    """P(FC) at one angle from the batch, with its slope along psi (NaN at a limit of the
+    self-motion)."""
+    return batch.estimate(motion.at(q[None])[0], motion.derivative(q, psi)).p_fc
 
 
 def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> float:
@@ -138,27 +144,29 @@ def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> f
 
 
 def batch_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
-                motion: SelfMotionCovariance, noise: JointNoise, samples: int, seed: int,
+                motion: SelfMotionCovariance, noise: Noise, samples: int, seed: int,
                 kwargs: dict) -> list[CurvePoint]:
     """Every reachable angle re-weighted; direct draws where the ESS is below ``samples``."""
     out = []
     for psi, q in reach:
-        value, se, ess, slope, slope_se = _estimate_point(batch, motion, psi, q)
-        if ess < samples:
+        est = _estimate_point(batch, motion, psi, q)
+        if not est.ess >= samples:  # a NaN effective sample size falls back too
             point = evaluated_point(grasp, psi, q, noise, samples, seed, kwargs)
-            out.append(CurvePoint(point, math.nan, float(samples), slope, slope_se, True))
+            out.append(CurvePoint(point, est.se, est.ess, est.derivative, est.derivative_se,
+                                  True))
             continue
-        z = normal_quantile(0.95)
-        ci = (max(0.0, value - z * se), min(1.0, value + z * se))
-        point = ElbowPoint(psi, q, value, ci, np.zeros(0, bool))
-        out.append(CurvePoint(point, se, ess, slope, slope_se, False))
+        point = ElbowPoint(psi, q, est.value, est.interval, np.zeros(0, bool))
+        out.append(CurvePoint(point, est.se, est.ess, est.derivative, est.derivative_se,
+                              False))
     return out
 
 
 def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
-                       motion: SelfMotionCovariance) -> tuple[float, np.ndarray, float]:
+                       motion: SelfMotionCovariance, step: float = FINE_STEP
+                       ) -> tuple[float, np.ndarray, float]:
     """(psi, q (14,), P) of the batch's best angle: the best grid angle, moved to the zero
-    of the slope between its neighbours where the slope changes sign there."""
+    of the slope between it and a neighbour one grid ``step`` (radians) away where the slope
+    changes sign there."""
     usable = [c for c in curve if not c.fallback]
     if not usable:
         best = max(curve, key=lambda c: c.point.p_fc)
@@ -168,10 +176,14 @@ def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
     psi, q, value = best.point.psi, best.point.q, best.point.p_fc
     lo = curve[i - 1] if i > 0 else None
     hi = curve[i + 1] if i + 1 < len(curve) else None
-    # bracket [a, b] with slope > 0 at a and < 0 at b
-    if hi is not None and best.slope > 0 > hi.slope:
+    # bracket [a, b] with slope > 0 at a and < 0 at b, between neighbours one grid step
+    # apart (both reachable and clear of the object: the path between them is taken as clear)
+    def adjacent(u: CurvePoint, v: CurvePoint) -> bool:
+        return not (u.fallback or v.fallback) and abs(v.point.psi - u.point.psi) <= 1.01 * step
+
+    if hi is not None and adjacent(best, hi) and best.slope > 0 > hi.slope:
         a, b = best, hi
-    elif lo is not None and lo.slope > 0 > best.slope:
+    elif lo is not None and adjacent(lo, best) and lo.slope > 0 > best.slope:
         a, b = lo, best
     else:
         return psi, q, value
@@ -181,8 +193,7 @@ def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
         qm = motion.configuration(qa, mid)
         if qm is None:
             break
-        _, _, _, slope, _ = _estimate_point(batch, motion, mid, qm)
-        if slope > 0:
+        if _estimate_point(batch, motion, mid, qm).derivative > 0:
             pa, qa = mid, qm
         else:
             pb = mid
@@ -238,10 +249,13 @@ class ReweightEvidence:
     nominal_cov: np.ndarray | None = field(default=None, repr=False)
     best_cov: np.ndarray | None = field(default=None, repr=False)
 
-    def picture(self, points: int = 3000) -> dict:
+    def picture(self, points: int = 3000) -> dict | None:
         """What :func:`~kinegrasp_env.toolkit.plots.plot_elbow_fragility` draws: ``points``
         of the batch's deviations in the two most fragile directions under the nominal
-        elbow's distribution, their outcomes, and both elbows' covariances seen there."""
+        elbow's distribution, their outcomes, and both elbows' covariances seen there (None
+        where no draw of the batch loses force closure)."""
+        if self.selection.fc.all():
+            return None  # no draw loses force closure: nothing is fragile
         frag = fragile_directions(self.selection, self.nominal_cov)
         rows = np.unique(np.linspace(0, len(self.selection) - 1, points).astype(int))
         return {"points": frag.coordinates(self.selection.deltas[rows]),
@@ -254,11 +268,31 @@ class ReweightEvidence:
         return {"batch": self.batch, "chosen_reweighted_p_fc": self.chosen_estimate,
                 "chosen_agrees_with_fresh_draws": self.chosen_agrees,
                 "fallback_angles": [c.point.psi for c in self.curve if c.fallback],
-                "points": [{"psi": c.point.psi, "se": c.se, "ess": c.ess, "slope": c.slope,
-                            "slope_se": c.slope_se} for c in self.curve]}
+                "points": [{"psi": c.point.psi, "se": _finite(c.se), "ess": _finite(c.ess),
+                            "slope": _finite(c.slope), "slope_se": _finite(c.slope_se),
+                            "direct": c.fallback} for c in self.curve]}
 
 
-def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+def _finite(value: float) -> float | None:
+    """A JSON number, or None for NaN (strict JSON has no NaN)."""
+    return None if not math.isfinite(value) else float(value)
+
+
+def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
+                   batch: int | None) -> None:
+    """Every input of :func:`optimize_elbow_reweighted` that can be refused before any
+    closing: the levels, the noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
+    gaussian_terms`), the object (no support table) and the batch (at least ``samples``:
+    a smaller one sends every angle to direct draws). ValueError naming the bad one."""
+    check_levels(epsilon, delta)
+    gaussian_terms(noise)
+    check_batch_object(grasp.object)
+    if batch is not None and batch < samples:
+        raise ValueError(f"a batch of {batch} closings cannot stand for {samples} direct "
+                         f"draws per angle: give --batch >= --samples")
+
+
+def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: int = 0, *,
                               engine: str = "fast", step: float = FINE_STEP,
                               epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                               batch: int | None = None,
@@ -280,7 +314,7 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
         ValueError: noise not Gaussian, epsilon or delta out of range, an object on a
             support table (before any closing).
     """
-    check_levels(epsilon, delta)
+    check_reweight(grasp, noise, samples, epsilon, delta, batch)
     joint_cov, palm_cov = gaussian_terms(noise)
     report = progress or (lambda stage: None)
     kwargs = {"engine": engine, **evaluate_kwargs}
@@ -288,11 +322,11 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
     reach = reach if reach is not None else reachable_configurations(grasp, step)
     motion = SelfMotionCovariance(joint_cov, palm_cov)
     covs = motion.at(np.stack([q for _, q in reach]))
-    rng = np.random.SeedSequence(seed).spawn(2)
     report("batch")
-    selection = close_batch(reach[0][1], grasp.object, covs, n, rng[0], engine=engine)
+    selection = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 0),
+                            engine=engine)
     curve = batch_curve(grasp, reach, selection, motion, noise, samples, seed, kwargs)
-    psi, q, estimate = continuous_optimum(curve, selection, motion)
+    psi, q, estimate = continuous_optimum(curve, selection, motion, step)
     report("fresh draws")
     nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
     points = [c.point for c in curve]
@@ -308,15 +342,19 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int, see
     nominal.fresh_fc = (best.fresh_fc if nominal is best
                         else scoring_draws(grasp, nominal_q, noise, samples, seed, kwargs))
     report("certificate")
-    fresh = close_batch(reach[0][1], grasp.object, covs, n, rng[1], engine=engine)
+    fresh = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 1),
+                        engine=engine)
     rivals = [(c.point.psi, c.point.q) for c in curve if abs(c.point.psi - psi) > 1e-9]
     certificate = batch_certificate((psi, q), rivals, fresh, motion, epsilon, delta)
     result = elbow_result(grasp, points, best, nominal, nominal_psi, noise,
                           samples, seed, engine, step, epsilon, delta,
                           certificate=certificate)
+    # the chosen angle's estimate against its fresh draws: both errors (the re-weighted
+    # one's at that angle; the choice of the largest of many estimates biases it up, so a
+    # disagreement is a hint, not a proof, that the linearisation fails there)
     p_fresh = float(best.fresh_fc.mean())
     se = math.hypot(math.sqrt(max(p_fresh * (1 - p_fresh), 1e-12) / samples),
-                    min((c.se for c in curve if not c.fallback), default=0.0))
+                    batch_se(selection, motion, q))
     agrees = abs(estimate - p_fresh) <= normal_quantile(0.95) * se
     return result, ReweightEvidence(n, curve, estimate, agrees, selection,
                                     motion.at(nominal_q[None])[0], motion.at(q[None])[0])

@@ -20,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine, score
+from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
@@ -35,8 +36,9 @@ from kinegrasp_env.world.grasps import Grasp
 
 class RobotHoldEngine(RobotEngine):
     """The holding test of a description robot as an engine: the physics closing's outcomes
-    and Q scored as every engine of the robot scores (:func:`~kinegrasp_env.montecarlo.
-    robot_engine.score`), and the holding results (arguments: :class:`RobotEngine`;
+    and Q scored as every engine of the robot scores (:meth:`~kinegrasp_env.montecarlo.
+    robot_engine.RobotEngine.scored`: its contact model, the patch model's corners
+    included), and the holding results (arguments: :class:`RobotEngine`;
     ``protocol``: the holding test's settings; ``motors``: the closing's end)."""
 
     name = "physics"
@@ -65,7 +67,7 @@ class RobotHoldEngine(RobotEngine):
             if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
                 result.forces_gripped = result.forces_released = np.full(fingers, np.nan)
             hold.record(i, result)
-        return score(closings, self.max_contacts, self.quality), hold
+        return self.scored(q, RobotCloseBatch.of_results(closings)), hold
 
 
 def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict]:
