@@ -148,7 +148,8 @@ def panda(args) -> dict:
     hold = static_hold_cost("panda", "cube", args.sigma, args.panda_draws, 0)
     print(f"panda cube, fast per draw: {hold['fast_s_per_draw'] * 1e6:.0f} us, with the static "
           f"hold check {hold['fast_static_hold_s_per_draw'] * 1e6:.0f} us "
-          f"({hold['static_hold_over_fast']:.2f}x)")
+          f"({hold['static_hold_over_fast']:.2f}x), with the patch contact model "
+          f"{hold['fast_patch_s_per_draw'] * 1e6:.0f} us ({hold['patch_over_fast']:.2f}x)")
     pool = pool_run("panda", "cube", args.sigma, args.draws, args.processes, 0)
     print(f"panda cube, fast: {pool['draws']} draws in {pool['wall_s']:.2f} s on "
           f"{pool['processes']} warm processes ({pool['run_again_wall_s']:.2f} s run again; "

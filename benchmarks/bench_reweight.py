@@ -175,6 +175,60 @@ def variants_timing(obj: str, args) -> dict:
             "effective_samples": [b.samples for b in batch]}
 
 
+def certificate_coverage(args) -> list[dict]:
+    """How often the batch certificate's statement is false on a field with a known truth:
+    force closure where u . delta < c (u the deviation's component whose spread changes most
+    along spray flask grasp 4's self-motion, c 0.6 of its median spread), whose P(FC) at
+    every angle is Phi(c / sqrt(u^T S(psi) u)); the angle chosen on one batch, the
+    certificate from another, ``--coverage-runs`` runs per batch size. The statement is false
+    when a rival's true P(FC) beats the chosen one's by more than the bound. The same bounds
+    at level delta each (batch_certificate at 2 delta) are counted beside, judged at delta."""
+    from scipy import stats as sps
+
+    from kinegrasp_env.montecarlo.engines import NO_FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.palm_batch import PalmBatch
+    from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
+    from kinegrasp_env.toolkit.elbow_reweight import SelfMotionCovariance, batch_certificate
+
+    grasp = shipped_grasps("spray_flask")[4]
+    reach = reachable_configurations(grasp)[::3]
+    motion = SelfMotionCovariance(0.0233)
+    covs = motion.at(np.stack([q for _, q in reach]))
+    spread = np.array([np.diag(c) for c in covs])
+    u = np.zeros(6)
+    u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
+    c = 0.6 * float(np.sqrt(np.median(spread @ u)))
+    truth = np.array([sps.norm.cdf(c / np.sqrt(u @ s @ u)) for s in covs])
+
+    def batch(n: int, seed: int) -> PalmBatch:
+        proposal = MixtureProposal.covering(covs, n)
+        deltas = proposal.sample(np.random.default_rng(seed))
+        outcome = np.where(deltas @ u < c, FORCE_CLOSURE, NO_FORCE_CLOSURE).astype(np.int8)
+        return PalmBatch(np.zeros(14), deltas, proposal.logpdf(deltas), outcome, np.zeros(n))
+
+    out = []
+    for n in args.coverage_batches:
+        false = {0.05: 0, 0.1: 0}
+        for run in range(args.coverage_runs):
+            selection = batch(n, 10**6 + 2 * run)
+            values = [float(np.exp(gaussian_logpdf(selection.deltas, s) - selection.log_proposal)
+                            @ selection.fc) for s in covs]
+            b = int(np.argmax(values))
+            rivals = [reach[j] for j in range(len(reach)) if j != b]
+            gap = max(truth[j] - truth[b] for j in range(len(reach)) if j != b)
+            fresh = batch(n, 10**6 + 2 * run + 1)
+            for level in false:
+                cert = batch_certificate(reach[b], rivals, fresh, motion, 0.05, level)
+                false[level] += gap > cert.bound
+        out.append({"batch": n, "runs": args.coverage_runs, "delta": 0.05,
+                    "false_at_half_delta_bounds": false[0.05],
+                    "false_at_delta_bounds": false[0.1]})
+        print(f"certificate, batches of {n}: false {false[0.05]}/{args.coverage_runs} "
+              f"(bounds at delta/2, as used), {false[0.1]}/{args.coverage_runs} (bounds at "
+              f"delta)", file=sys.stderr)
+    return out
+
+
 def summary(cases: list[dict], elbows: list[dict], levels: list[dict],
             variants: list[dict] | None = None) -> dict:
     agree = sum(c["agrees"] for c in cases)
@@ -226,7 +280,11 @@ def markdown(result: dict) -> str:
         f"| four noise levels, one batch / four direct runs (mean) | "
         f"{s['levels_ratio_mean']:.2f} |",
         *([f"| fig10's variants (reference engine), one batch / a run per variant (mean) | "
-           f"{s['variants_ratio_mean']:.2f} |"] if s.get("variants_ratio_mean") else []), "",
+           f"{s['variants_ratio_mean']:.2f} |"] if s.get("variants_ratio_mean") else []),
+        *[f"| batch certificate at delta 0.05 false (half-space field, batches of "
+          f"{c['batch']}) | {c['false_at_half_delta_bounds']} / {c['runs']} (its bounds at "
+          f"delta/2); {c['false_at_delta_bounds']} / {c['runs']} with bounds at delta |"
+          for c in result.get("certificate", [])], "",
         "| object | sigma | cases agreeing | weights alone agreeing | largest abs. "
         "difference | mean bias of the linearisation | largest abs. bias |",
         "|---|---|---|---|---|---|---|"]
@@ -269,6 +327,8 @@ def main() -> None:
     parser.add_argument("--levels-samples", type=int, default=10000)
     parser.add_argument("--levels-batch", type=int, default=20000)
     parser.add_argument("--variants", type=int, default=10, help="fig10 variants timed")
+    parser.add_argument("--coverage-runs", type=int, default=1000)
+    parser.add_argument("--coverage-batches", type=int, nargs="+", default=[600, 2000])
     parser.add_argument("--no-calibration", action="store_true",
                         help="time only; with a written result, replace its timings and keep "
                         "its calibration cases")
@@ -299,6 +359,7 @@ def main() -> None:
     for v in variants:
         print(f"fig10 {v['object']}: {v['variants']} variants, direct {v['direct_s']:.2f} s, "
               f"one batch {v['reweight_s']:.2f} s ({v['ratio']:.2f})")
+    coverage = certificate_coverage(args)
     if args.no_calibration:
         import json
 
@@ -308,12 +369,13 @@ def main() -> None:
         cases, kept = old["cases"], old["settings"]
         run = settings(args)
         kept.update({k: run[k] for k in ("samples", "levels_samples", "levels_batch",
-                                         "variants")})
+                                         "variants", "coverage_runs", "coverage_batches")})
     else:
         cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
         kept = settings(args)
     result = {"summary": summary(cases, elbows, levels, variants), "elbow": elbows,
-              "levels": levels, "variants": variants, "cases": cases, "settings": kept}
+              "levels": levels, "variants": variants, "certificate": coverage,
+              "cases": cases, "settings": kept}
     print(markdown(result))
     if not args.no_json:
         write_result(__file__, result, args.json_out)

@@ -43,26 +43,32 @@ def _chunk(task: tuple) -> int:
 
 def static_hold_cost(robot: str, object_name: str, sigma: float, draws: int, seed: int,
                      pairs: int = 3) -> dict:
-    """Seconds per draw of the fast engine without and with the static hold check on the same
-    draws of each shipped grasp, one process, ``pairs`` alternating runs (the minimum of each
-    kept), after a first run of both."""
+    """Seconds per draw of the fast engine without and with the static hold check, and with
+    the patch contact model, on the same draws of each shipped grasp, one process, ``pairs``
+    alternating runs (the minimum of each kept), after a first run of each."""
+    import dataclasses
+
     plain = make_engine("fast", robot, object_name)
     checked = make_engine("fast", robot, object_name, static_hold=True)
+    patched = make_engine("fast", dataclasses.replace(plain.description,
+                                                      contact_model="patch"), object_name)
     grasps = shipped_grasps(object_name, robot)
     arm = plain.description.arm_dof
     qs = [draws_of(g.q0, arm, sigma, draws, [seed, i]) for i, g in enumerate(grasps)]
-    best = {"fast": np.inf, "fast_static_hold": np.inf}
-    for engine in (plain, checked):
+    timed = (("fast", plain), ("fast_static_hold", checked), ("fast_patch", patched))
+    best = {name: np.inf for name, _ in timed}
+    for _, engine in timed:
         for q in qs:
             engine.run(q)
     for _ in range(pairs):
-        for name, engine in (("fast", plain), ("fast_static_hold", checked)):
+        for name, engine in timed:
             start = time.perf_counter()
             for q in qs:
                 engine.run(q)
             best[name] = min(best[name], (time.perf_counter() - start) / (draws * len(qs)))
     return {**{f"{k}_s_per_draw": v for k, v in best.items()},
-            "static_hold_over_fast": best["fast_static_hold"] / best["fast"]}
+            "static_hold_over_fast": best["fast_static_hold"] / best["fast"],
+            "patch_over_fast": best["fast_patch"] / best["fast"]}
 
 
 def per_draw(robot: str, object_name: str, sigma: float, draws: int, seed: int) -> dict:

@@ -26,9 +26,9 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
 from kinegrasp_env.world.grasps import shipped_grasps
 
-#: The linear-Gaussian model's bias on P(FC) at the paper's noise levels, as measured by
-#: benchmarks/bench_reweight.py (<= 0.01 where the method is used).
-LINEAR_BIAS = 0.01
+#: The linear-Gaussian model's bias on P(FC) at the paper's noise levels: at most 0.0113
+#: in benchmarks/bench_reweight.py's 288 cases, rounded up.
+LINEAR_BIAS = 0.012
 
 
 @pytest.fixture(scope="module")

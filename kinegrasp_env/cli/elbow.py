@@ -337,7 +337,7 @@ def certificate_lines(cert: dict, grid_step: float) -> list[str]:
 
     how = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
            if cert["method"] == METHOD
-           else f"{cert['method']} ({cert['fresh_draws']} fresh draws)")
+           else f"{cert['method']} ({cert['fresh_draws']} closings)")
     return [f"  {cert['statement']}",
             f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {how}; angles "
             f"between the {grid_step:.3f} rad grid points not covered"]

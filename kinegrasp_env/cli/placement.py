@@ -87,7 +87,8 @@ def add_place_command(actions) -> None:
     p.add_argument("--position", nargs=3, metavar=("X", "Y", "Z"),
                    help="the object frame's origin (centre of its base) in the robot's base "
                    "frame, metres (default: as now; built-in objects stand at 0.6 0 0.1)")
-    p.add_argument("--yaw", metavar="DEG", help="rotation about the vertical, degrees")
+    p.add_argument("--yaw", metavar="DEG", help="rotation about the vertical, degrees (the "
+                   "object then upright: a tilt set by --orientation is replaced)")
     p.add_argument("--orientation", nargs=4, metavar=("X", "Y", "Z", "W"),
                    help="the object frame's full orientation in the robot's base frame, a "
                    "unit quaternion (scalar last), as a data set gives it (instead of --yaw; "

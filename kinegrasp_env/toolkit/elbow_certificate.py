@@ -90,8 +90,8 @@ class Rival:
 
     psi: float
     p_fc: float        # its P(FC) on the fresh draws
-    wins: int          # fresh draws in force closure here and not at the chosen angle
-    losses: int        # the opposite (both -1 where the bound is not a binomial one)
+    wins: int | None   # fresh draws in force closure here and not at the chosen angle
+    losses: int | None  # the opposite (both None where the bound is not a binomial one)
     difference: float  # (wins - losses) / n: its estimated advantage over the chosen angle
     upper: float       # one-sided (1 - delta) upper bound on that advantage
 

@@ -22,8 +22,9 @@ N(0, J(psi) S_q J(psi)^T) to first order:
    ratio estimators' finite-sample bias, measured); the claim "no evaluated angle beats the
    chosen one by more than B" fails only if the bound of the best true rival fails (the
    intersection-union argument of :mod:`~kinegrasp_env.toolkit.elbow_certificate`). Unlike
-   the direct certificate's exact binomial bounds this one is asymptotic: its coverage is
-   measured in ``benchmarks/bench_reweight.py``.
+   the direct certificate's exact binomial bounds this one is asymptotic, and it bounds the
+   first-order model's P(FC) (whose own bias is measured beside it): its coverage is measured
+   in ``benchmarks/bench_reweight.py``.
 
 The noise must be zero-mean Gaussian on the arm joints (a scalar or per-joint sigma, or a
 covariance) and optionally on the palm (:func:`~kinegrasp_env.montecarlo.palm_batch.
@@ -210,11 +211,9 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
                       delta: float) -> Certificate:
     """The certificate of the chosen angle from a fresh batch (module docstring, step 4)."""
     # one-sided at level delta / 2: at delta itself the normal bound of two near angles
-    # (strongly correlated weights, a difference of a few standard errors) is false more
-    # often than delta (the ratio estimators' finite-sample bias and skew: 6.6% of 1,000
-    # runs at delta 0.05 on a half-space field over a real self-motion); at delta / 2 the
-    # certificate was false in 4.3% (600 draws a batch) and 3.2% (2,000) of 1,000 runs
-    # (tests/test_elbow_reweight.py checks the rate)
+    # (strongly correlated weights, a difference of a few standard errors) can be false more
+    # often than delta (the ratio estimators' finite-sample bias and skew); how often each
+    # is false on a field with a known truth: benchmarks/bench_reweight.py's "certificate"
     z = normal_quantile(1.0 - delta)
     covs = motion.at(np.stack([chosen[1]] + [q for _, q in rivals]))
     weights = [normalised_weights(gaussian_logpdf(fresh.deltas, c), fresh.log_proposal)
@@ -227,7 +226,7 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
         influence = w * (f - p) - weights[0] * (f - p_best)
         se = float(np.sqrt(np.sum(influence**2)))
         diff = p - p_best
-        out.append(Rival(float(psi), p, -1, -1, diff, diff + z * se))
+        out.append(Rival(float(psi), p, None, None, diff, diff + z * se))
     if not out:
         return Certificate(float(chosen[0]), epsilon, delta, len(fresh), [], None, None, True,
                            method=BATCH_METHOD)

@@ -264,15 +264,6 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     return save_figure(fig, path)
 
 
-def _ellipse(ax, cov: np.ndarray, color: str, label: str, scale: float = 2.0) -> None:
-    """The scale-s.d. contour of a 2-D covariance (2, 2), centred at the origin."""
-    values, vectors = np.linalg.eigh(cov)
-    t = np.linspace(0.0, 2.0 * np.pi, 200)
-    circle = np.stack([np.cos(t), np.sin(t)])
-    pts = vectors @ (scale * np.sqrt(np.maximum(values, 0.0))[:, None] * circle)
-    ax.plot(pts[0], pts[1], color=color, lw=2, label=label)
-
-
 def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
                          picture: dict, path: str | Path, title: str = "") -> Path:
     """Two panels. Left: P(FC) with its 95% band along the self-motion (``curve`` as
@@ -298,7 +289,8 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     right.scatter(pts[fc, 0], pts[fc, 1], s=3, color="0.75", label="force closure")
     right.scatter(pts[~fc, 0], pts[~fc, 1], s=4, color="C3", alpha=0.6, label="lost")
     for (label, cov), color in zip(picture["ellipses"].items(), ("C3", "C2"), strict=False):
-        _ellipse(right, np.asarray(cov), color, f"{label} elbow, 2 s.d.")
+        ring = covariance_ellipse(np.zeros(2), np.asarray(cov))
+        right.plot(ring[:, 0], ring[:, 1], color=color, lw=2, label=f"{label} elbow, 2 s.d.")
     xl, yl = picture["labels"]
     s1, s2 = picture["spread"]
     right.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")

@@ -1,8 +1,10 @@
 """Where an object stands: its placement in the robot's base frame and an optional support
 table under it, and the test of whether the robot is in that table.
 
-A placement is a position (metres, robot base frame) and a yaw about the vertical (radians):
-objects stand upright, their frame's +z along the world's +z (:func:`placement_pose`).
+A placement is a position (metres, robot base frame) and a rotation: a yaw about the
+vertical (radians; the object upright, its frame's +z along the world's +z:
+:func:`placement_pose`) or a full orientation (a tilted object: :func:`is_upright` False,
+and then no table under it).
 
 The table (:class:`SupportTable`) is a box whose top face is the object frame's z = 0 plane
 (the plane of the object's base), centred under the object's origin, its sides along the

@@ -11,6 +11,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.evaluate import GraspStats
+from kinegrasp_env.toolkit.plots import covariance_ellipse
 from kinegrasp_env.toolkit.report.plotly import layout
 from kinegrasp_env.toolkit.report.scene import OUTCOME_COLOURS
 
@@ -133,14 +134,11 @@ def fragility_chart(picture: dict) -> dict:
              "marker": {"size": 3, "color": colour, "opacity": 0.6}, "hoverinfo": "skip"}
             for name, mask, colour in (("force closure", fc, "#aaaaaa"),
                                        ("lost", ~fc, "#d62728"))]
-    t = np.linspace(0.0, 2.0 * np.pi, 120)
     for (label, cov), colour in zip(picture["ellipses"].items(), ("#d62728", "#2ca02c"),
                                     strict=False):
-        values, vectors = np.linalg.eigh(np.asarray(cov, dtype=float))
-        ring = vectors @ (2.0 * np.sqrt(np.maximum(values, 0.0))[:, None]
-                          * np.stack([np.cos(t), np.sin(t)]))
+        ring = covariance_ellipse(np.zeros(2), np.asarray(cov, dtype=float))
         data.append({"type": "scatter", "mode": "lines", "name": f"{label} elbow, 2 s.d.",
-                     "x": ring[0].round(4).tolist(), "y": ring[1].round(4).tolist(),
+                     "x": ring[:, 0].round(4).tolist(), "y": ring[:, 1].round(4).tolist(),
                      "line": {"color": colour, "width": 3}})
     (xl, yl), (s1, s2) = picture["labels"], picture["spread"]
     return {"data": data,
