@@ -1,15 +1,24 @@
-"""Environment steps per second (KineGrasp-v0, one process) at n_draws = 64 and 256.
+"""Environment steps per second (KineGrasp-v0, one process), the default robot and others.
 
-Run: ``python benchmarks/bench_env.py [--steps 40]``. Both engines, side by side in one
-run (the fast engine's grids built and kernels compiled beforehand). Target: >= 100 steps/s
-at 64 draws with the fast engine. Steps/s of wall time, and of the process's CPU time (what a
-machine shared with other work still shows). Then the fast engine at 64 draws one object at
-a time, and the fast engine's auto-close of one step's
-draws, the compiled closing loop against the vectorized one it replaced (same results,
-tested).
+Run: ``python benchmarks/bench_env.py [--steps 40] [--robot kuka_sdh --robot panda]``.
+Both engines, side by side in one run (the fast engine's grids built and kernels compiled
+beforehand). Steps/s of wall time, and of the process's CPU time (what a machine shared with
+other work still shows).
+
+The default robot (``kuka_sdh``): n_draws = 64 and 256; target >= 100 steps/s at 64 draws
+with the fast engine. Then the fast engine at 64 draws one object at a time, and the fast
+engine's auto-close of one step's draws, the compiled closing loop against the vectorized one
+it replaced (same results, tested).
+
+Another robot of the catalog (``--robot panda``, timed by default): n_draws = 16 (its env's
+default) and 64, every object's engine built in the env before the clock starts; target >= 100
+steps/s at 16 draws with the fast engine. Then the fast engine at 16 draws one object at a
+time.
 
 The figures (steps/s, seconds) also go to ``benchmarks/results/bench_env.json``
-(``--json-out PATH``, ``--no-json``).
+(``--json-out PATH``, ``--no-json``): the default robot's in ``steps``,
+``fast_64_draws_per_object`` and ``autoclose``, another robot's in ``robot_steps`` and
+``robot_fast_per_object`` (a ``robot`` column each); a run without a robot has no rows of it.
 """
 
 from __future__ import annotations
@@ -22,12 +31,97 @@ from results_file import add_options, settings, write_result
 
 import kinegrasp_env  # noqa: F401  (registers the envs)
 
+#: The robots timed when no ``--robot`` is given.
+ROBOTS = ("kuka_sdh", "panda")
+
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=40)
+    parser.add_argument("--robot", action="append", default=None, metavar="NAME",
+                        help="a catalog robot to time (repeatable; default: "
+                             f"{' and '.join(ROBOTS)})")
     add_options(parser, __file__)
     args = parser.parse_args()
+    if args.steps < 1:
+        parser.error(f"--steps must be >= 1, got {args.steps}")
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, robot_names
+
+    args.robot = list(dict.fromkeys(args.robot or ROBOTS))
+    for robot in args.robot:
+        if robot not in robot_names():
+            parser.error(f"unknown robot {robot!r}; known robots: {', '.join(robot_names())}")
+    result = {}
+    if DEFAULT_ROBOT in args.robot:
+        result.update(default_robot(args.steps))
+    others = [robot for robot in args.robot if robot != DEFAULT_ROBOT]
+    if others:
+        result["robot_steps"], result["robot_fast_per_object"] = [], []
+    for robot in others:
+        steps_rows, object_rows = description_robot(robot, args.steps)
+        result["robot_steps"] += steps_rows
+        result["robot_fast_per_object"] += object_rows
+    if not args.no_json:
+        write_result(__file__, {**result, "settings": settings(args)}, args.json_out)
+
+
+def timed_steps(env, steps: int, options: dict | None = None) -> tuple[float, float]:
+    """(wall seconds, CPU seconds) of ``steps`` random steps of ``env`` (the done signal
+    off; a truncated episode is reset with ``options``)."""
+    start, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        action = env.action_space.sample()
+        action[1] = -1.0
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset(options=options)
+    return time.perf_counter() - start, time.process_time() - cpu
+
+
+def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
+    """Steps/s of KineGrasp-v0 with ``robot`` (not the default robot): both engines at 16
+    and 64 draws over the env's drawn tasks, then the fast engine at 16 draws per object."""
+    from kinegrasp_env.world.grasps import shipped_objects
+
+    objects = shipped_objects(robot)
+    steps_rows, object_rows = [], []
+
+    def warmed(engine: str, n_draws: int):
+        """The env with every object's engine built (grids, compiled kernels, worlds)."""
+        env = gym.make("KineGrasp-v0", robot=robot, n_draws=n_draws, engine=engine)
+        env.action_space.seed(0)
+        for name in objects:
+            env.reset(seed=0, options={"object": name})
+            env.step(env.action_space.sample())
+        env.reset(seed=0)
+        return env
+
+    for engine, n_draws in (("pybullet", 16), ("fast", 16), ("pybullet", 64), ("fast", 64)):
+        env = warmed(engine, n_draws)
+        wall, cpu = timed_steps(env, steps)
+        env.close()
+        print(f"{robot:8s} {engine:8s} n_draws = {n_draws:3d}: {steps / wall:6.1f} steps/s "
+              f"({wall / steps * 1e3:6.1f} ms/step; {steps / cpu:6.1f} steps/s of CPU time; "
+              f"target >= 100 steps/s at 16, fast)")
+        steps_rows.append({"robot": robot, "engine": engine, "n_draws": n_draws,
+                           "steps": steps, "steps_per_s": steps / wall,
+                           "s_per_step": wall / steps, "steps_per_cpu_s": steps / cpu})
+    env = warmed("fast", 16)
+    for name in objects:
+        options = {"object": name}
+        env.reset(seed=0, options=options)
+        wall, _ = timed_steps(env, steps, options)
+        print(f"{robot:8s} fast     n_draws =  16, {name:12s}: {steps / wall:6.1f} steps/s "
+              f"({wall / steps * 1e3:6.1f} ms/step)")
+        object_rows.append({"robot": robot, "object": name, "n_draws": 16,
+                            "steps_per_s": steps / wall, "s_per_step": wall / steps})
+    env.close()
+    return steps_rows, object_rows
+
+
+def default_robot(steps: int) -> dict:
+    """The default robot's figures: ``steps``, ``fast_64_draws_per_object``, ``autoclose``."""
     steps_rows, closing_rows = [], []
     from kinegrasp_env.montecarlo.engines import FastEngine
     from kinegrasp_env.world.grasps import shipped_grasps
@@ -40,23 +134,16 @@ def main() -> None:
         env.reset(seed=0)
         env.action_space.seed(0)
         env.step(env.action_space.sample())  # warm-up (engine construction)
-        start, cpu = time.perf_counter(), time.process_time()
-        for _ in range(args.steps):
-            action = env.action_space.sample()
-            action[1] = -1.0
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset()
-        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        wall, cpu = timed_steps(env, steps)
         env.close()
-        print(f"{engine:8s} n_draws = {n_draws:3d}: {args.steps / wall:6.1f} steps/s "
-              f"({wall / args.steps * 1e3:6.1f} ms/step; {args.steps / cpu:6.1f} steps/s of CPU "
+        print(f"{engine:8s} n_draws = {n_draws:3d}: {steps / wall:6.1f} steps/s "
+              f"({wall / steps * 1e3:6.1f} ms/step; {steps / cpu:6.1f} steps/s of CPU "
               f"time; target >= 100 steps/s at 64, fast)")
-        steps_rows.append({"engine": engine, "n_draws": n_draws, "steps": args.steps,
-                           "steps_per_s": args.steps / wall, "s_per_step": wall / args.steps,
-                           "steps_per_cpu_s": args.steps / cpu})
+        steps_rows.append({"engine": engine, "n_draws": n_draws, "steps": steps,
+                           "steps_per_s": steps / wall, "s_per_step": wall / steps,
+                           "steps_per_cpu_s": steps / cpu})
 
-    object_rows = per_object(OBJECT_NAMES, args.steps)
+    object_rows = per_object(OBJECT_NAMES, steps)
 
     import numpy as np
 
@@ -86,10 +173,8 @@ def main() -> None:
         closing_rows.append({"n_draws": n_draws, "compiled_s": compiled / 1e3,
                              "vectorized_s": vectorized / 1e3,
                              "vectorized_over_compiled": vectorized / compiled})
-    if not args.no_json:
-        write_result(__file__, {"steps": steps_rows, "fast_64_draws_per_object": object_rows,
-                                "autoclose": closing_rows, "settings": settings(args)},
-                     args.json_out)
+    return {"steps": steps_rows, "fast_64_draws_per_object": object_rows,
+            "autoclose": closing_rows}
 
 
 def per_object(names, steps: int) -> list[dict]:
@@ -101,14 +186,7 @@ def per_object(names, steps: int) -> list[dict]:
     for name in names:
         env.reset(seed=0, options={"object": name})
         env.step(env.action_space.sample())  # warm-up
-        start = time.perf_counter()
-        for _ in range(steps):
-            action = env.action_space.sample()
-            action[1] = -1.0
-            _, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                env.reset(options={"object": name})
-        wall = time.perf_counter() - start
+        wall, _ = timed_steps(env, steps, {"object": name})
         print(f"fast     n_draws =  64, {name:12s}: {steps / wall:6.1f} steps/s "
               f"({wall / steps * 1e3:6.1f} ms/step)")
         rows.append({"object": name, "steps_per_s": steps / wall, "s_per_step": wall / steps})

@@ -56,11 +56,13 @@ k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the re
 range at once, which a Gaussian one centred between them cannot).
 
 Robots: ``robot`` (default ``kuka_sdh``, the paper's robot and everything above) or another
-robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion, the
-reference engine's draws (16 by default: 30 to 70 steps/s for the Panda) and an observation
-sized by its arm and hand (:mod:`kinegrasp_env.envs.robot_task`). For such a robot the
-tasks are the env's grasps (no ``q0``/``palm_pose`` reset options), the noise is joint
-noise (no ``noise_model``) and there is no rendering.
+robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion, its
+engine's draws (``engine``, fast by default; 16 draws by default), an observation sized by
+its arm and hand, and pictures of its whole URDF with the object
+(:mod:`kinegrasp_env.envs.robot_task`). For such a robot the tasks are the env's grasps (no
+``q0``/``palm_pose`` reset options) and the noise is joint noise (no ``noise_model``).
+
+Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
 
 from __future__ import annotations
@@ -159,8 +161,8 @@ def names_of(name: str, value, known: tuple[str, ...] | None = None) -> tuple[st
 def sigma_bounds(value) -> tuple[float, float]:
     """``sigma_range`` as (low, high) radians with 0 <= low <= high <= pi; ValueError (one
     line, naming the value) otherwise."""
-    expected = f"sigma_range must be (low, high) radians with 0 <= low <= high <= pi " \
-               f"({MAX_SIGMA:.4f})"
+    expected = f"sigma_range must be 0 <= low <= high <= pi ({MAX_SIGMA:.4f}): (low, high) " \
+               "radians"
     try:
         low, high = (float(v) for v in value)
     except (TypeError, ValueError):
@@ -212,28 +214,35 @@ class KineGraspEnv(gym.Env):
         grasp_file: a grasp file to draw tasks from instead of the shipped sets.
         sigma_range: (low, high) of the noise sigma drawn at reset (radians).
         noise_types: noise distributions drawn at reset.
-        n_draws: Monte Carlo draws per reward (default 64; 16 for a robot other than the
-            default, whose reference draws take 1.5 to 7 ms each for the Panda).
+        n_draws: Monte Carlo draws per reward (an integer >= 1; default 64, 16 for a robot
+            other than the default).
         q_weight: weight of the mean Q in the reward.
         limit_penalty: subtracted when an action would leave the joint limits.
         max_steps: steps before truncation.
         step_size: radians of psi per unit action.
-        render_mode: None, ``rgb_array`` or ``human`` (a pybullet GUI window). Where no
+        render_mode: None, ``rgb_array`` ((240, 320, 3) uint8 pictures of the whole robot at
+            its current configuration and the object, from pybullet's CPU renderer in a
+            world of the env's own; any robot of the catalog) or ``human`` (a pybullet GUI
+            window). Where no
             display can show a window (Linux without a reachable ``$DISPLAY``), ``human``
             warns once (:class:`~kinegrasp_env.envs.render.NoDisplayWarning`) and renders
             nothing (``render()`` returns None, as in human mode) instead of letting
             pybullet end the process.
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
-        engine: the engine of the reward's draws: ``fast`` (the default robot's default:
-            batched, many times the steps per second: ``benchmarks/bench_env.py``) or
-            ``pybullet`` (the reference; see
+        engine: the engine of the reward's draws: ``fast`` (the default: batched, many
+            times the steps per second: ``benchmarks/bench_env.py``), ``pybullet`` (the
+            reference) or ``physics`` (pybullet dynamics; see
             :class:`kinegrasp_env.montecarlo.engines.FastEngine`). Both take the same draws
             for the same seed, and they agree draw by draw: ``benchmarks/agreement.py`` on
             all 12 shipped grasps of the four objects, sigma 0.0133 and 0.0266 rad, 100
             draws each (9,600 draws): the same outcome for 9,599, contact points within
             6.1e-6 m, Q within 1.9e-5 (``tests/test_agreement.py`` holds these bounds).
-            Another robot has the reference engine only (``pybullet``, its default).
+            Another robot takes the same names, fast by default
+            (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`: its fast engine
+            batches the reference closing); on the Panda's env rewards of 16 draws, the
+            engines' P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
+            ``tests/test_env_robot.py``).
         noise_model: every task's noise instead of the drawn joint noise: a
             :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
             file (YAML/JSON); the observation shows its joint sigma and distribution.
