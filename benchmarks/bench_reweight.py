@@ -175,6 +175,43 @@ def variants_timing(obj: str, args) -> dict:
             "effective_samples": [b.samples for b in batch]}
 
 
+def env_timing(args) -> dict:
+    """KineGrasp-v0 steps per second with the draws' reward and with the batch reward on the
+    spray flask's grasps (the batches built in a first pass of ``--env-episodes`` episodes,
+    then as many timed), and each reward's error against 4,000 direct draws at 16 states."""
+    from kinegrasp_env.envs.kinegrasp import KineGraspEnv
+
+    def episodes(env, first: int, rng, check: bool = False) -> tuple[int, list[float]]:
+        steps, errors = 0, []
+        for ep in range(args.env_episodes if not check else 8):
+            env.reset(seed=first + ep)
+            for _ in range(10 if not check else 2):
+                _, _, _, _, info = env.step(np.array([rng.uniform(-1, 1), -1.0], np.float32))
+                steps += 1
+                if check:
+                    direct = evaluate_grasp(with_configuration(env.grasp, env.q, 0.0),
+                                            env.noise, 4000, 9, engine="fast")
+                    errors.append(info["p_fc"] - direct.p_fc)
+        return steps, errors
+
+    out = {}
+    for reward in ("draws", "batch"):
+        env = KineGraspEnv(objects=("spray_flask",), reward=reward)
+        episodes(env, 0, np.random.default_rng(0))  # builds the batches
+        start = time.perf_counter()
+        steps, _ = episodes(env, 10**5, np.random.default_rng(1))
+        elapsed = time.perf_counter() - start
+        _, errors = episodes(env, 2 * 10**5, np.random.default_rng(2), check=True)
+        out[reward] = {"steps_per_s": steps / elapsed,
+                       "p_fc_rms_error": float(np.sqrt(np.mean(np.square(errors))))}
+    out["ratio"] = out["batch"]["steps_per_s"] / out["draws"]["steps_per_s"]
+    print(f"env: draws {out['draws']['steps_per_s']:.0f} steps/s, batch "
+          f"{out['batch']['steps_per_s']:.0f} steps/s ({out['ratio']:.1f}x); P(FC) rms error "
+          f"against 4,000 draws {out['draws']['p_fc_rms_error']:.4f} / "
+          f"{out['batch']['p_fc_rms_error']:.4f}", file=sys.stderr)
+    return out
+
+
 def certificate_coverage(args) -> list[dict]:
     """How often the batch certificate's statement is false on a field with a known truth:
     force closure where u . delta < c (u the deviation's component whose spread changes most
@@ -281,6 +318,11 @@ def markdown(result: dict) -> str:
         f"{s['levels_ratio_mean']:.2f} |",
         *([f"| fig10's variants (reference engine), one batch / a run per variant (mean) | "
            f"{s['variants_ratio_mean']:.2f} |"] if s.get("variants_ratio_mean") else []),
+        *([f"| KineGrasp-v0 steps/s, batch reward / draws' reward (grasps' batches built) "
+           f"| {result['env']['ratio']:.1f} ({result['env']['batch']['steps_per_s']:.0f} / "
+           f"{result['env']['draws']['steps_per_s']:.0f}); P(FC) rms error against 4,000 "
+           f"draws {result['env']['batch']['p_fc_rms_error']:.3f} / "
+           f"{result['env']['draws']['p_fc_rms_error']:.3f} |"] if result.get("env") else []),
         *[f"| batch certificate at delta 0.05 false (half-space field, batches of "
           f"{c['batch']}) | {c['false_at_half_delta_bounds']} / {c['runs']} (its bounds at "
           f"delta/2); {c['false_at_delta_bounds']} / {c['runs']} with bounds at delta |"
@@ -328,6 +370,7 @@ def main() -> None:
     parser.add_argument("--levels-batch", type=int, default=20000)
     parser.add_argument("--variants", type=int, default=10, help="fig10 variants timed")
     parser.add_argument("--coverage-runs", type=int, default=1000)
+    parser.add_argument("--env-episodes", type=int, default=40)
     parser.add_argument("--coverage-batches", type=int, nargs="+", default=[600, 2000])
     parser.add_argument("--no-calibration", action="store_true",
                         help="time only; with a written result, replace its timings and keep "
@@ -360,6 +403,7 @@ def main() -> None:
         print(f"fig10 {v['object']}: {v['variants']} variants, direct {v['direct_s']:.2f} s, "
               f"one batch {v['reweight_s']:.2f} s ({v['ratio']:.2f})")
     coverage = certificate_coverage(args)
+    env = env_timing(args)
     if args.no_calibration:
         import json
 
@@ -369,12 +413,13 @@ def main() -> None:
         cases, kept = old["cases"], old["settings"]
         run = settings(args)
         kept.update({k: run[k] for k in ("samples", "levels_samples", "levels_batch",
-                                         "variants", "coverage_runs", "coverage_batches")})
+                                         "variants", "coverage_runs", "coverage_batches",
+                                         "env_episodes")})
     else:
         cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
         kept = settings(args)
     result = {"summary": summary(cases, elbows, levels, variants), "elbow": elbows,
-              "levels": levels, "variants": variants, "certificate": coverage,
+              "levels": levels, "variants": variants, "certificate": coverage, "env": env,
               "cases": cases, "settings": kept}
     print(markdown(result))
     if not args.no_json:

@@ -74,6 +74,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from kinegrasp_env.envs.batch_reward import (
+    BatchReward,
+    covered_angles,
+    grasp_seed,
+    sigma_levels,
+)
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.robot_task import (
     ROBOT_N_DRAWS,
@@ -84,6 +90,7 @@ from kinegrasp_env.envs.robot_task import (
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, draw_chunk
+from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
@@ -243,6 +250,13 @@ class KineGraspEnv(gym.Env):
             batches the reference closing); on the Panda's env rewards of 16 draws, the
             engines' P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
             ``tests/test_env_robot.py``).
+        reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (the
+            default robot with Gaussian joint noise: one batch of ``batch_size`` closings
+            per grasp, kept across episodes, re-weighted to each step's configuration and
+            sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise, or a step whose
+            effective sample size is below ``n_draws``, takes draws;
+            ``info["reward_method"]`` says which).
+        batch_size: the closings of a ``batch`` reward's grasp batch (an integer >= 1).
         noise_model: every task's noise instead of the drawn joint noise: a
             :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
             file (YAML/JSON); the observation shows its joint sigma and distribution.
@@ -259,7 +273,8 @@ class KineGraspEnv(gym.Env):
                  step_size: float = 0.3, render_mode: str | None = None,
                  split: str | None = None, engine: str | None = None,
                  noise_model: NoiseModel | dict | str | None = None,
-                 robot: str = DEFAULT_ROBOT) -> None:
+                 robot: str = DEFAULT_ROBOT, reward: str = "draws",
+                 batch_size: int = 4096) -> None:
         super().__init__()
         self.robot = check_robot_name(robot)
         own = robot == DEFAULT_ROBOT
@@ -273,6 +288,12 @@ class KineGraspEnv(gym.Env):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of "
                              f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
+        if reward not in ("draws", "batch"):
+            raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
+        if reward == "batch" and not own:
+            raise ValueError(f"reward 'batch' is for robot {DEFAULT_ROBOT!r}; robot {robot!r} "
+                             f"takes 'draws'")
+        batch_size = positive_count("batch_size", batch_size)
         n_draws = positive_count("n_draws", n_draws)
         max_steps = positive_count("max_steps", max_steps)
         sigma_range = sigma_bounds(sigma_range)
@@ -318,6 +339,10 @@ class KineGraspEnv(gym.Env):
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
         self.action_space = self._action_space()
         self.engine = engine
+        self.reward_method, self.batch_size = reward, int(batch_size)
+        self._batch: BatchReward | None = None
+        self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
+        self._jacobian = PalmJacobian() if reward == "batch" else None
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         self._engines: dict[tuple, Engine] = {}
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
@@ -455,7 +480,12 @@ class KineGraspEnv(gym.Env):
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
     def _estimate(self) -> dict:
-        """Monte Carlo draws at the current configuration, seeded from the env's RNG."""
+        """The episode's batch re-weighted to the current configuration (``reward="batch"``),
+        else Monte Carlo draws at it, seeded from the env's RNG."""
+        if self._batch is not None:
+            found = self._batch.estimate(self.q, self.noise.sigma, self.n_draws)
+            if found is not None:
+                return found
         seed = int(self.np_random.integers(2**31 - 1))
         if self._robot is not None:
             return self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws)
@@ -466,7 +496,26 @@ class KineGraspEnv(gym.Env):
         q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
         return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
                 "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
-                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
+                "reward_method": "draws"}
+
+    def _episode_batch(self) -> BatchReward | None:
+        """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
+        built at the grasp's first episode and kept; else None."""
+        if (self.reward_method != "batch" or not isinstance(self.noise, JointNoise)
+                or self.noise.kind != "gaussian" or np.ndim(self.noise.sigma) != 0):
+            return None
+        grasp = self.grasp
+        key = (grasp.object, str(grasp.id), tuple(np.round(grasp.palm_pose, 9).ravel()))
+        if key not in self._batches:
+            q0 = np.asarray(grasp.q0, dtype=float)
+            psis = np.array(covered_angles(float(self.ik.elbow_angle(q0[None])[0])))
+            moved, reached = self.ik.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
+            self._batches[key] = BatchReward.build(
+                self.engine, grasp.object, q0, list(moved[reached]),
+                sigma_levels(*self.sigma_range), self.batch_size, grasp_seed(key),
+                self._jacobian)
+        return self._batches[key]
 
     def _move_to(self, psi: float) -> bool:
         self.q, reached = self.configuration_at(psi)
@@ -502,8 +551,10 @@ class KineGraspEnv(gym.Env):
                 raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
             self._move_to(float(psi))
         elbow = self.ik if self._robot is None else self._robot.motion
+        psi0 = float(elbow.elbow_angle(self.q[None])[0])
+        self._batch = self._episode_batch()
         info = {"object": self.grasp.object, "grasp": self.grasp.id, **noise_info(self.noise),
-                "elbow_angle": float(elbow.elbow_angle(self.q[None])[0])}
+                "elbow_angle": psi0}
         if self._robot is not None:
             info["robot"] = self.robot
         return self._observation(), info

@@ -1,0 +1,103 @@
+"""The environment's reward from one batch of closings per grasp (``reward="batch"``).
+
+Every step keeps the palm pose of the episode's grasp and moves only the elbow; for the
+default robot a draw's outcome then depends only on the palm's deviation
+(:mod:`kinegrasp_env.montecarlo.palm_batch`), and the noise level only changes its spread.
+The first episode of a grasp draws one batch of closings from a mixture of the deviation's
+first-order Gaussians at the grasp's elbow and at angles around it (every
+:data:`SPAN_STEP` radians within :data:`SPAN`, where reachable), each at
+:data:`SIGMA_LEVELS` noise levels spread over the env's ``sigma_range``; the batch is kept
+for every later episode of that grasp, and each step's reward is it re-weighted to the
+current configuration and noise: no closing per step. The batch's seed comes from the grasp
+alone, so a reward does not depend on which episodes came before.
+
+What changes for an agent: the reward is a deterministic, smooth function of the grasp, the
+elbow angle and sigma (the batch's error is fixed per grasp, where the draws' reward is a
+fresh estimate each step): less noise to learn through, and one systematic error per grasp
+it could fit. Where the effective sample size falls below the env's ``n_draws`` the step
+takes draws as usual; ``info["reward_method"]`` says which.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
+from kinegrasp_env.sampling.reweight import gaussian_logpdf, normalised_weights
+
+#: Elbow angles (radians) either side of the episode's start the batch covers.
+SPAN = 1.2
+#: The spacing of the covered angles (radians).
+SPAN_STEP = 0.3
+#: Noise levels of the batch's mixture, spread geometrically over the env's sigma range.
+SIGMA_LEVELS = 5
+
+
+class BatchReward:
+    """One episode's batch and its re-weighted estimates.
+
+    Args:
+        batch: the closings (:class:`~kinegrasp_env.montecarlo.palm_batch.PalmBatch`).
+        sigma: the episode's Gaussian joint noise (radians, scalar or 7).
+        jacobian: the flange's body Jacobian (reused across episodes).
+    """
+
+    def __init__(self, batch: PalmBatch, jacobian: PalmJacobian) -> None:
+        self.batch, self.jacobian = batch, jacobian
+
+    @classmethod
+    def build(cls, engine: str, object_name: str, q0: np.ndarray, moved: list[np.ndarray],
+              sigmas: list[float], size: int, seed: int,
+              jacobian: PalmJacobian) -> BatchReward:
+        """The batch of ``size`` closings of a grasp reached at q0 (14,): its mixture over
+        q0 and the configurations ``moved`` (each (14,): the same palm pose), each at every
+        noise level of ``sigmas`` (radians)."""
+        qs = np.stack([q0, *moved])
+        covs = np.concatenate([jacobian.covariance(qs, s) for s in sigmas])
+        batch = close_batch(q0, object_name, covs, size, seed, engine=engine)
+        return cls(batch, jacobian)
+
+    def estimate(self, q: np.ndarray, sigma: float, minimum: int) -> dict | None:
+        """The reward's estimate at configuration q (14,) and Gaussian joint noise ``sigma``
+        (radians) (the keys of the draws' estimate), or None where the effective sample size
+        is below ``minimum``."""
+        cov = self.jacobian.covariance(q, sigma)[0]
+        est = self.batch.estimate(cov)
+        if not est.ess >= minimum:
+            return None
+        w = self.weights(cov)
+        shares = [float(w @ (self.batch.outcome == k)) for k in range(len(OUTCOMES))]
+        return {"p_fc": est.p_fc.value, "p_fc_ci": est.p_fc.interval,
+                "q_mean": est.q_mean if est.p_fc.value > 0 else 0.0,
+                "draws": len(self.batch), "effective_draws": est.ess,
+                "outcome_shares": dict(zip(OUTCOMES, shares, strict=True)),
+                "reward_method": "batch"}
+
+    def weights(self, cov: np.ndarray) -> np.ndarray:
+        """(n,) the batch's normalised weights for deviations ~ N(0, cov (6, 6))."""
+        return normalised_weights(gaussian_logpdf(self.batch.deltas, cov),
+                                  self.batch.log_proposal)
+
+
+def covered_angles(psi0: float) -> list[float]:
+    """The elbow angles (radians) besides ``psi0`` the batch covers."""
+    steps = round(SPAN / SPAN_STEP)
+    return [psi0 + sign * k * SPAN_STEP for k in range(1, steps + 1) for sign in (-1.0, 1.0)]
+
+
+def sigma_levels(low: float, high: float) -> list[float]:
+    """:data:`SIGMA_LEVELS` noise levels (radians) spread geometrically over [low, high]
+    (one where they are equal; a zero low end starts the spread at high / 10)."""
+    if high <= low:
+        return [float(high)]
+    start = low if low > 0 else high / 10.0
+    return np.geomspace(start, high, SIGMA_LEVELS).tolist()
+
+
+def grasp_seed(key: tuple) -> int:
+    """The batch seed of a grasp (its object, id and palm pose): the same in every env."""
+    return zlib.crc32(repr(key).encode())
+

@@ -1,0 +1,70 @@
+"""The environment's batch reward: history-independent, close to direct draws, and refused or
+falling back where it does not apply."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.envs.kinegrasp import KineGraspEnv
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.toolkit.elbow import with_configuration
+
+#: The first-order density's bias on P(FC), as benchmarks/bench_reweight.py measures it.
+LINEAR_BIAS = 0.012
+ACTIONS = [np.array([a, -1.0], np.float32) for a in (0.7, -0.4, 1.0, -1.0)]
+
+
+def rollout(env: KineGraspEnv, seed: int) -> list:
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    for action in ACTIONS:
+        obs, reward, _, _, info = env.step(action)
+        out += [obs, reward, info["reward_method"]]
+    return out
+
+
+def test_a_rollout_does_not_depend_on_earlier_episodes():
+    """The grasp's batch is seeded by the grasp alone: a seed's rollout is the same in a
+    fresh env and after other episodes (which built other grasps' batches, or this one's)."""
+    fresh = KineGraspEnv(objects=("spray_flask",), reward="batch", batch_size=1024)
+    used = KineGraspEnv(objects=("spray_flask",), reward="batch", batch_size=1024)
+    for seed in (11, 12, 13):
+        rollout(used, seed)
+    first = rollout(fresh, 5)
+    again = rollout(used, 5)
+    assert all(np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b
+               for a, b in zip(first, again, strict=True))
+    assert any(isinstance(x, str) and x == "batch" for x in first)
+
+
+def test_batch_reward_agrees_with_direct_draws():
+    """At the states of a rollout, the batch's P(FC) against 4,000 direct draws of the same
+    configuration and noise: within four combined standard errors plus the linearisation's
+    bias."""
+    env = KineGraspEnv(objects=("spray_flask",), reward="batch", batch_size=2048)
+    env.reset(seed=3)
+    checked = 0
+    for action in ACTIONS:
+        _, _, _, _, info = env.step(action)
+        if info["reward_method"] != "batch":
+            continue
+        direct = evaluate_grasp(with_configuration(env.grasp, env.q, 0.0), env.noise, 4000, 9,
+                                engine="fast")
+        lo, hi = info["p_fc_ci"]
+        se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))
+        assert abs(info["p_fc"] - direct.p_fc) <= 4 * se + LINEAR_BIAS, (info, direct.p_fc)
+        checked += 1
+    assert checked >= 3
+
+
+def test_other_noise_takes_draws_and_bad_settings_are_refused():
+    env = KineGraspEnv(objects=("cube",), reward="batch", noise_types=("uniform",),
+                       batch_size=256)
+    env.reset(seed=0)
+    assert env.step(ACTIONS[0])[4]["reward_method"] == "draws"
+    for kwargs, message in (({"reward": "batch", "robot": "panda"}, "is for robot"),
+                            ({"reward": "mean"}, "reward must be"),
+                            ({"reward": "batch", "batch_size": 0}, "batch_size")):
+        with pytest.raises(ValueError, match=message):
+            KineGraspEnv(**kwargs)
