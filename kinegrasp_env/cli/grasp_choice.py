@@ -63,15 +63,17 @@ def index_in(args, ids: list[str]) -> int:
 
 def palm_pose_grasp(args):
     """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp (IK,
-    clearance, closing); a rejected one is a one-line error with its reason."""
-    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+    clearance, closing) for the file's robot or ``--robot``; a rejected one is a one-line
+    error with its reason."""
+    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
 
     with reported(ValueError):  # bad entries: one line naming the candidate
-        name, candidates = load_candidates(args.grasps)
+        read = read_candidates(args.grasps, getattr(args, "robot", None))
+    name, candidates = read.object, read.candidates
     index = index_in(args, [c.id for c in candidates])
     if args.object is not None and args.object != name:
         raise CLIError(f"--object {args.object}: {args.grasps} holds candidates of {name}")
-    grasps, rejected = solve_all(name, [candidates[index]])
+    grasps, rejected = solve_all(name, [candidates[index]], read.robot)
     if rejected:
         raise CLIError(f"candidate {rejected[0].id} of {args.grasps} is rejected: "
                        f"{rejected[0].reason} ({rejected[0].detail})")

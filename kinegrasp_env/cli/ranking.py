@@ -82,7 +82,7 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
 
-    grasps, digest, rejected = _candidates(args.candidates)
+    grasps, digest, rejected = _candidates(args.candidates, args.robot)
     noise, sigma, samples, seed = noise_from(args)
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
@@ -146,12 +146,13 @@ def cmd_rank(args) -> int:
     return 0
 
 
-def _candidates(path: str) -> tuple[list, str, list]:
+def _candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
     """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
     candidates (none but for a palm-pose file); refuses a file with
     no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
-    (``kinegrasp_env.toolkit.candidates``) is solved to grasps first; its rejected candidates
-    go to stderr and, once the ranking is written, to ``<out>.rejected.csv``."""
+    (``kinegrasp_env.toolkit.candidates``) is solved to grasps first, for its robot or
+    ``robot`` (``--robot``); its rejected candidates go to stderr and, once the ranking is
+    written, to ``<out>.rejected.csv``."""
     from kinegrasp_env.world.grasps import load_grasps
 
     if Path(path).is_dir():
@@ -159,7 +160,7 @@ def _candidates(path: str) -> tuple[list, str, list]:
     from kinegrasp_env.toolkit.candidates import is_candidate_file
 
     if is_candidate_file(path):
-        return _palm_pose_candidates(path)
+        return _palm_pose_candidates(path, robot)
     with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
         grasps = load_grasps(path)
     if not grasps:
@@ -173,18 +174,23 @@ def _candidates(path: str) -> tuple[list, str, list]:
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
 
 
-def _palm_pose_candidates(path: str) -> tuple[list, str, list]:
+def _palm_pose_candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
     """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
-    rejected candidates); each rejected one is a line on stderr."""
-    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+    rejected candidates); each rejected one is a line on stderr, and so is each accepted one
+    whose nominal closing is not in force closure (ranked all the same)."""
+    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
 
     with reported(ValueError):  # bad entries: one line naming the candidate
-        name, candidates = load_candidates(path)
-    grasps, rejected = solve_all(name, candidates)
+        read = read_candidates(path, robot)
+    grasps, rejected = solve_all(read.object, read.candidates, read.robot)
     for r in rejected:
         print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    for g in grasps:
+        if g.meta.get("nominal_force_closure") is False:
+            print(f"candidate {g.id}: its nominal closing is not in force closure (Q = 0); "
+                  "ranked all the same", file=sys.stderr)
     if not grasps:
-        raise CLIError(f"{path}: none of the {len(candidates)} candidates is reachable, "
+        raise CLIError(f"{path}: none of the {len(read.candidates)} candidates is reachable, "
                        "clear and closing; nothing ranked")
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), rejected
 

@@ -27,8 +27,8 @@ FRICTION, NUM_EDGES = 0.5, 8
 
 
 def grasp_file_robot(args) -> str | None:
-    """The robot of ``--grasps FILE`` when it is a readable grasp file, else None (the
-    default robot's path then reports a bad file)."""
+    """The robot of ``--grasps FILE`` when it is a readable grasp file or a palm-pose file
+    that names one, else None (the default robot's path then reports a bad file)."""
     if not getattr(args, "grasps", None) or not Path(args.grasps).is_file():
         return None
     from kinegrasp_env.toolkit.candidates import is_candidate_file
@@ -36,7 +36,8 @@ def grasp_file_robot(args) -> str | None:
 
     try:
         if is_candidate_file(args.grasps):
-            return None
+            robot = json.loads(Path(args.grasps).read_text()).get("robot")
+            return robot if isinstance(robot, str) else None
         grasps = load_grasps(args.grasps)
     except ValueError:
         return None
@@ -54,6 +55,7 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
     ``--grasps FILE`` or of the robot's shipped set of ``--object``; every grasp must be of
     ``robot`` and of one object."""
     from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
     from kinegrasp_env.world.grasps import (
         NoGraspSetError,
         check_robot,
@@ -64,8 +66,11 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
     if args.grasps is not None:
         if Path(args.grasps).is_dir():
             raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
-        with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
-            grasps = load_grasps(args.grasps)
+        if is_candidate_file(args.grasps):
+            grasps = solved_candidates(args.grasps, robot)
+        else:
+            with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
+                grasps = load_grasps(args.grasps)
         source = args.grasps
     else:
         args.object = args.object or EVALUATE_OBJECT
@@ -96,6 +101,21 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         for g in grasps:
             check_robot(g, robot)
     return objects[0], grasps
+
+
+def solved_candidates(path: str, robot: str) -> list:
+    """The grasps of a palm-pose file's candidates solved for ``robot``; each rejected one is
+    a line on stderr (and left out)."""
+    import sys
+
+    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
+
+    with reported(ValueError):  # bad entries, a robot conflict: one line
+        read = read_candidates(path, robot)
+    grasps, rejected = solve_all(read.object, read.candidates, read.robot)
+    for r in rejected:
+        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    return grasps
 
 
 def report_command(args, robot: str, sigmas: list[float], samples: int, seed: int,

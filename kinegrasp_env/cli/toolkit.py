@@ -140,8 +140,9 @@ def add_commands(sub) -> None:
                    "<out>.partial.jsonl and the same command resumes from them")
     p.add_argument("--report", help="also write a self-contained HTML page: the sortable "
                    "table and each candidate's 3-D views")
-    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
-                   f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
+    p.add_argument("--robot", help="catalog robot (default: the grasp or palm-pose file's, "
+                   f"else {DEFAULT_ROBOT}); a grasp of another robot is refused, and a "
+                   "palm-pose file naming another robot is an error")
     p.set_defaults(func=cmd_rank)
 
     p = sub.add_parser("sweep", help="a grid of evaluations (objects x grasps x sigmas x noise "

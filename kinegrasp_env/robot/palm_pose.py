@@ -5,27 +5,46 @@ One entry is a dict::
 
     {"id": "a", "position": [x, y, z], "quaternion": [x, y, z, w], "spread": 0.0}
     {"id": "b", "pose": [[...4 numbers...] x 4], "hand": [7 numbers], "elbow": 0.1}
+    {"id": "c", "position": [x, y, z], "quaternion": [x, y, z, w],
+     "hand": {"panda_finger_joint1": 0.04}}
 
-The palm pose is the SDH palm frame in the OBJECT frame (metres; quaternion scalar last,
-unit to :data:`UNIT_TOL`), or a 4x4 homogeneous matrix (rotation orthonormal to
-:data:`UNIT_TOL`, last row 0 0 0 1). The pre-shape is ``hand`` (7 values, radians: spread,
-then proximal and distal of the three fingers) or ``spread`` (radians) with the planner's
-mid-range proximal/distal values (:data:`DEFAULT_PROXIMAL`, :data:`DEFAULT_DISTAL`);
-``elbow`` (radians, optional) is the elbow angle to move to along the self-motion.
+The palm pose is the robot's palm link frame (the description's ``palm_link``: ``palm`` of
+the default robot's SDH) in the OBJECT frame (metres; quaternion scalar last, unit to
+:data:`UNIT_TOL`), or a 4x4 homogeneous matrix (rotation orthonormal to :data:`UNIT_TOL`,
+last row 0 0 0 1). The pre-shape, radians or metres per hand joint:
 
-:func:`reach_palm_pose` solves it as the planner does: IK from :data:`IK_SEED` with 4 random
-restarts seeded by :data:`IK_RNG_SEED` (the result does not depend on other candidates), then
-the self-motion to ``elbow`` when given. Used by ``toolkit.candidates`` and the envs.
+- any robot: ``hand`` as ``{joint name: value}`` of the description's ``hand_joints`` (a
+  joint left out takes its ``open`` value) or as a list in the ``hand_joints`` order;
+- the default robot (``kuka_sdh``) also takes the SDH's ``spread`` (radians) alone, with the
+  planner's mid-range proximal/distal values (:data:`DEFAULT_PROXIMAL`,
+  :data:`DEFAULT_DISTAL`), and needs one of ``hand`` and ``spread``;
+- another robot without ``hand`` takes its description's ``open`` pre-shape; ``spread`` is
+  the SDH's only and refused for it.
+
+``elbow`` (radians, optional) is the elbow angle to move to along the self-motion (a 7-joint
+arm with an arm angle).
+
+:func:`reach_palm_pose` solves an entry of the default robot as the planner does: IK from
+:data:`IK_SEED` with 4 random restarts seeded by :data:`IK_RNG_SEED` (the result does not
+depend on other candidates), then the self-motion to ``elbow`` when given. Used by
+``toolkit.candidates`` (which solves another robot's entries with that robot's planner IK)
+and the envs.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh
+from kinegrasp_env.robot.model import ARM_JOINTS, HAND_JOINTS, kuka_sdh
+
+if TYPE_CHECKING:
+    from kinegrasp_env.robot.description import RobotDescription
 
 #: A comfortable seed for IK (the planner's): elbow up, palm forward; 7 arm joints, radians.
 IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
@@ -46,7 +65,8 @@ class PalmCandidate:
     Attributes:
         id: its id (unique in a file).
         pose: (4, 4) palm frame in the object frame (metres).
-        hand: (7,) hand pre-shape, radians.
+        hand: (h,) hand pre-shape in the robot's ``hand_joints`` order (radians or metres;
+            h = 7 for the default robot).
         elbow: elbow angle to move to (radians), or None for the planner's IK choice.
     """
 
@@ -102,8 +122,17 @@ def parse_pose(entry: dict, where: str) -> np.ndarray:
 
 
 def parse_hand(entry: dict, where: str) -> np.ndarray:
-    """(7,) pre-shape: ``hand``, or ``spread`` with the default finger values."""
-    if "hand" in entry:
+    """(7,) the default robot's pre-shape: ``hand`` (7 values, or by joint name), or
+    ``spread`` with the default finger values."""
+    if isinstance(entry.get("hand"), dict):
+        from kinegrasp_env.robot.catalog import load_robot
+
+        hand = named_hand(entry["hand"], where, load_robot(DEFAULT_ROBOT))
+        if "spread" in entry and not np.isclose(float(_numbers(entry, "spread", (), where)),
+                                                hand[0]):
+            raise ValueError(f"{where}: spread {entry['spread']} differs from hand's "
+                             f"{HAND_JOINTS[0]} {hand[0]}")
+    elif "hand" in entry:
         hand = _numbers(entry, "hand", (7,), where)
         if "spread" in entry and not np.isclose(float(entry["spread"]), hand[0]):
             raise ValueError(f"{where}: spread {entry['spread']} differs from hand[0] {hand[0]}")
@@ -111,25 +140,96 @@ def parse_hand(entry: dict, where: str) -> np.ndarray:
         spread = _numbers(entry, "spread", (), where)
         hand = np.array([float(spread), *[DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3])
     model = kuka_sdh()
-    lo, hi = model.lower[7:], model.upper[7:]
+    return _within_limits(hand, model.lower[7:], model.upper[7:], where)
+
+
+def _within_limits(hand: np.ndarray, lo: np.ndarray, hi: np.ndarray, where: str,
+                   names: tuple[str, ...] = ()) -> np.ndarray:
+    """``hand`` (h,) when every value is within [lo, hi] (h,) (1e-9 slack), else ValueError
+    (naming the joint, when ``names`` gives them)."""
     bad = np.flatnonzero((hand < lo - 1e-9) | (hand > hi + 1e-9))
     if bad.size:
         j = int(bad[0])
-        raise ValueError(f"{where}: hand[{j}] = {hand[j]:.4f} is outside its limits "
+        name = f" ({names[j]})" if names else ""
+        raise ValueError(f"{where}: hand[{j}]{name} = {hand[j]:.4f} is outside its limits "
                          f"[{lo[j]:.4f}, {hi[j]:.4f}]")
     return hand
 
 
-def parse_palm_pose(entry, where: str, default_id: str = "0") -> PalmCandidate:
+def hand_hint(description: RobotDescription) -> str:
+    """How robot ``description`` takes its pre-shape (one line, for error messages)."""
+    example = ", ".join(f'"{j}": {description.open[j]:g}' for j in description.hand_joints)
+    return (f"'hand' by joint name ({{{example}}}; a joint left out keeps its open value) or "
+            f"as a list of {len(description.hand_joints)} in that order; without 'hand', "
+            f"its open pre-shape")
+
+
+def named_hand(value: dict, where: str, description: RobotDescription) -> np.ndarray:
+    """(h,) pre-shape from ``{hand joint name: value}``: the description's ``open`` value
+    for a joint left out; ValueError for an unknown name or a value that is no finite
+    number."""
+    names = description.hand_joints
+    unknown = [k for k in value if k not in names]
+    if unknown:
+        raise ValueError(f"{where}: hand: {unknown[0]!r} is not a hand joint of robot "
+                         f"{description.name!r} (its hand joints: {', '.join(names)})")
+    hand = np.array([description.open[j] for j in names], dtype=float)
+    for k, v in value.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"{where}: hand: {k}: {v!r} is not a finite number")
+        hand[names.index(k)] = float(v)
+    return hand
+
+
+def parse_robot_hand(entry: dict, where: str, description: RobotDescription) -> np.ndarray:
+    """(h,) pre-shape of robot ``description`` (not the default robot): ``hand`` by joint
+    name or as a list in ``hand_joints`` order, else the description's ``open`` pre-shape;
+    within the joint limits. The SDH's ``spread`` is refused, naming what to give instead."""
+    names = description.hand_joints
+    if "spread" in entry:
+        raise ValueError(f"{where}: 'spread' is the SDH's field (robot {DEFAULT_ROBOT}); robot "
+                         f"{description.name!r} takes {hand_hint(description)}")
+    value = entry.get("hand")
+    if value is None:
+        hand = np.array([description.open[j] for j in names], dtype=float)
+    elif isinstance(value, dict):
+        hand = named_hand(value, where, description)
+    else:
+        if np.size(value) != len(names) and np.ndim(value) == 1:
+            raise ValueError(f"{where}: hand has {np.size(value)} values; robot "
+                             f"{description.name!r} has {len(names)} hand joints: give "
+                             f"{hand_hint(description)}")
+        hand = _numbers(entry, "hand", (len(names),), where)
+    arm = description.arm_dof
+    return _within_limits(hand, description.model.lower[arm:], description.model.upper[arm:],
+                          where, names)
+
+
+def has_elbow(description: RobotDescription) -> bool:
+    """Whether robot ``description`` has an elbow angle to move along (7 arm joints and
+    ``arm_angle_links``)."""
+    return description.arm_dof == 7 and description.arm_angle_links is not None
+
+
+def parse_palm_pose(entry, where: str, default_id: str = "0",
+                    robot: RobotDescription | None = None) -> PalmCandidate:
     """Validate one palm-pose entry (a dict of the schema above); ValueError starts with
-    ``where`` and names the field. ``default_id``: its id when it has none."""
+    ``where`` and names the field. ``default_id``: its id when it has none. ``robot``: the
+    robot whose pre-shape ``hand`` is (default: the default robot, ``kuka_sdh``)."""
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: expected an object, got {type(entry).__name__}")
     elbow = None
     if entry.get("elbow") is not None:
         elbow = float(_numbers(entry, "elbow", (), where))
-    return PalmCandidate(str(entry.get("id", default_id)), parse_pose(entry, where),
-                         parse_hand(entry, where), elbow)
+    pose = parse_pose(entry, where)
+    if robot is None or robot.name == DEFAULT_ROBOT:
+        hand = parse_hand(entry, where)
+    else:
+        hand = parse_robot_hand(entry, where, robot)
+        if elbow is not None and not has_elbow(robot):
+            raise ValueError(f"{where}: elbow: robot {robot.name!r} has no elbow angle (its "
+                             f"arm has {robot.arm_dof} joints); leave elbow out")
+    return PalmCandidate(str(entry.get("id", default_id)), pose, hand, elbow)
 
 
 def ik_seed(hand: np.ndarray) -> np.ndarray:

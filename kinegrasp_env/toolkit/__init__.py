@@ -1,8 +1,9 @@
 """The toolkit: the grasp planner (``planner``), candidates given as palm poses
-(``candidates``), ranking by robustness (``ranking``), the most robust elbow (``elbow``), the
-paper's experiments (``experiments``), the sensitivity analysis per source of error
-(``sensitivity``), the physics validation (``validation``), HTML reports (the ``report`` room),
-progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
+(``candidates``; a description robot's solved by ``robot_candidates``), ranking by
+robustness (``ranking``), the most robust elbow (``elbow``), the paper's experiments
+(``experiments``), the sensitivity analysis per source of error (``sensitivity``), the
+physics validation (``validation``), HTML reports (the ``report`` room), progress
+(``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Candidate grasps given as palm poses (from another planner, a person, a data set).
+"""Candidate grasps given as palm poses (from another planner, a person, a data set), for any
+catalog robot.
 
 A palm-pose file is JSON::
 
@@ -7,35 +8,51 @@ A palm-pose file is JSON::
        {"id": "a", "position": [x, y, z], "quaternion": [x, y, z, w], "spread": 0.0},
        {"id": "b", "pose": [[...4 numbers...] x 4], "hand": [7 numbers], "elbow": 0.1}]}
 
-Each palm pose is the SDH palm frame in the OBJECT frame (metres; quaternion scalar last,
-unit to 1e-6), or a 4x4 homogeneous matrix (rotation orthonormal to 1e-6, last row 0 0 0 1).
-The pre-shape is ``hand`` (7 values, radians: spread, then proximal and distal of the three
-fingers) or ``spread`` (radians) with the planner's mid-range proximal/distal values (one
-entry's schema, its parsing and its IK: :mod:`kinegrasp_env.robot.palm_pose`, which the envs'
-``palm_pose`` reset option shares). Each candidate is solved like a planner
-candidate (:meth:`GraspPlanner.try_candidate`): IK from the planner's seed for the palm pose
-in the world frame (the object at its catalog pose), or moved along the self-motion to
-``elbow`` (radians) when given; the arm links must keep the planner's clearance; the hand
-closes with the reference engine and must reach force closure. A candidate that fails is
-returned with its reason (:data:`REASONS`) instead of a grasp.
+    {"object": "my_box", "robot": "panda", "frame": "source",
+     "candidates": [{"id": "top", "position": [x, y, z], "quaternion": [x, y, z, w],
+                     "hand": {"panda_finger_joint1": 0.04}}]}
+
+``robot`` (the file's top level; default ``kuka_sdh``) names the catalog robot; a caller's
+robot (``rank --robot``) must agree with it (:func:`file_robot`). Each palm pose is that
+robot's palm link frame (metres; quaternion scalar last, unit to 1e-6; or a 4x4 homogeneous
+matrix) in the frame ``frame`` names (:data:`FRAMES`): ``object`` (the default) or ``source``,
+the imported mesh's own frame, mapped to the object frame through the catalog entry's
+``source_to_object`` (:func:`source_pose_to_object`). The pre-shape is ``hand`` by the
+robot's hand joint names or as a list in its description's order (one entry's schema, its
+parsing and the default robot's IK: :mod:`kinegrasp_env.robot.palm_pose`, which the envs'
+``palm_pose`` reset option shares).
+
+The default robot's candidates are solved like a planner candidate
+(:meth:`GraspPlanner.try_candidate`): IK from the planner's seed for the palm pose in the
+world frame (the object at its catalog pose), or moved along the self-motion to ``elbow``
+(radians) when given; the arm links must keep the planner's clearance; the hand closes with
+the reference engine. Another robot's are solved by its own planner's IK, clearance and
+reference engine (:mod:`kinegrasp_env.toolkit.robot_candidates`). A candidate whose hand closes
+on the object but not in force closure is still a grasp (Q = 0, ``meta
+["nominal_force_closure"]`` False); one that fails is returned with its reason
+(:data:`REASONS`) instead of a grasp.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
 from kinegrasp_env.world.grasps import Grasp, read_json_file
 
 log = logging.getLogger(__name__)
 
 #: Why a candidate was rejected (the first word of its reason).
-REASONS = ("unreachable", "arm_collision", "start_collision", "missed", "no_force_closure")
+REASONS = ("unreachable", "arm_collision", "start_collision", "missed")
+#: The frames a file's poses may be given in (``frame`` at its top level; the first is the
+#: default).
+FRAMES = ("object", "source")
 
 
 @dataclass(frozen=True)
@@ -47,6 +64,24 @@ class Rejected:
     detail: str
 
 
+@dataclass(frozen=True)
+class CandidateFile:
+    """A palm-pose file read and checked.
+
+    Attributes:
+        object: the catalog object every candidate grasps.
+        robot: the catalog robot whose palm and hand the candidates give.
+        frame: the frame the file gave its poses in (:data:`FRAMES`); ``candidates`` hold
+            them in the object frame either way.
+        candidates: in file order; each pose (4, 4) in the object frame.
+    """
+
+    object: str
+    robot: str
+    frame: str
+    candidates: list[PalmCandidate]
+
+
 def is_candidate_file(path: str | Path) -> bool:
     """True when ``path`` is a JSON object with a ``candidates`` list (not a grasp file)."""
     try:
@@ -56,18 +91,87 @@ def is_candidate_file(path: str | Path) -> bool:
     return isinstance(data, dict) and "candidates" in data
 
 
-def parse_candidate(entry, index: int, source: str) -> PalmCandidate:
-    """Validate entry ``index`` of a candidate file; ValueError names it."""
+def parse_candidate(entry, index: int, source: str, robot=None) -> PalmCandidate:
+    """Validate entry ``index`` of a candidate file; ValueError names it. ``robot``: the
+    :class:`~kinegrasp_env.robot.description.RobotDescription` whose hand the entry gives
+    (default: the default robot)."""
     where = f"{source} candidate {index}"
     if isinstance(entry, dict):
         where = f"{source} candidate {entry.get('id', index)!s}"
-    return parse_palm_pose(entry, where, str(index))
+    return parse_palm_pose(entry, where, str(index), robot)
 
 
-def load_candidates(path: str | Path) -> tuple[str, list[PalmCandidate]]:
-    """(object name, candidates) of a palm-pose file, or of a grasp file read as palm poses
-    (its ``grasps`` list: see :func:`grasp_entry_as_candidate`); ValueError names the file,
-    the candidate and the problem (also for repeated ids and an unknown object)."""
+def file_robot(data: dict, entries: list, path: Path, robot: str | None) -> str:
+    """The catalog robot of a palm-pose file: its top-level ``robot`` (entries that name one
+    must agree with it; a grasp file may name it in its entries only), else ``robot``, else
+    the default robot. ValueError (one line) when the file and ``robot`` (``rank --robot``)
+    name two robots, or for an unknown robot."""
+    from kinegrasp_env.robot.catalog import check_robot_name
+
+    named = data.get("robot")
+    for i, entry in enumerate(entries):
+        own = entry.get("robot") if isinstance(entry, dict) else None
+        if own is None:
+            continue
+        if named is None:
+            named = own
+        elif own != named:
+            label = entry.get("id", i)
+            raise ValueError(f"{path}: candidate {label} names robot {own!r}, the file "
+                             f"{named!r}; one file holds one robot's candidates")
+    if named is not None and robot is not None and named != robot:
+        raise ValueError(f"{path}: the file's robot {named!r} conflicts with --robot {robot}; "
+                         f"give one of them (or the same robot in both)")
+    name = named if named is not None else robot or DEFAULT_ROBOT
+    try:
+        return check_robot_name(name)
+    except ValueError as exc:
+        raise ValueError(f"{path}: field 'robot': {exc}") from None
+
+
+def source_pose_to_object(pose: np.ndarray, to_object: np.ndarray) -> np.ndarray:
+    """(4, 4) a palm pose given in an imported mesh's source frame (``pose`` (4, 4): position
+    in the source file's units, a rotation) in the object frame: ``to_object`` (4, 4) is the
+    entry's ``source_to_object`` (scale s times a rotation, then a translation, metres); the
+    position maps as the mesh's vertices do, the rotation turns by the rotation alone."""
+    linear = to_object[:3, :3]
+    scale = float(np.cbrt(np.linalg.det(linear)))
+    out = np.eye(4)
+    out[:3, :3] = (linear / scale) @ pose[:3, :3]
+    out[:3, 3] = linear @ pose[:3, 3] + to_object[:3, 3]
+    return out
+
+
+def file_frame(data: dict, key: str, name: str, path: Path) -> np.ndarray | None:
+    """The ``source_to_object`` (4, 4) to map the file's poses through (``frame`` is
+    ``source``), or None (``object``, the default). ValueError (one line) for another frame,
+    a grasp file given in the source frame, or an object without ``source_to_object``."""
+    from kinegrasp_env.world.objects import source_to_object
+
+    frame = data.get("frame", FRAMES[0])
+    if frame not in FRAMES:
+        raise ValueError(f"{path}: frame {frame!r} is not one of 'object' (the default: poses "
+                         f"in the object frame) or 'source' (poses in the imported mesh's own "
+                         f"frame)")
+    if frame == "object":
+        return None
+    if key == "grasps":
+        raise ValueError(f"{path}: frame 'source' is for a 'candidates' list; a grasp file's "
+                         f"palm poses are in the object frame")
+    to_object = source_to_object(name)
+    if to_object is None:
+        raise ValueError(f"{path}: frame 'source' needs an object imported from a mesh (its "
+                         f"catalog entry records source_to_object); {name!r} has none: give "
+                         f"its poses in the object frame (\"frame\": \"object\")")
+    return to_object
+
+
+def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile:
+    """A palm-pose file, or a grasp file read as palm poses (its ``grasps`` list: see
+    :func:`grasp_entry_as_candidate`), checked; ``robot``: the robot asked for (``rank
+    --robot``; None: the file's). ValueError names the file, the candidate and the problem
+    (also for repeated ids, an unknown object or robot, a robot conflict and a bad frame)."""
+    from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.world.objects import is_object, load_object, unknown_object
 
     path = Path(path)
@@ -80,10 +184,13 @@ def load_candidates(path: str | Path) -> tuple[str, list[PalmCandidate]]:
     if not isinstance(name, str) or not is_object(name):
         raise ValueError(f"{path}: {unknown_object(name)}")
     entries = data[key]
+    robot_name = file_robot(data, entries, path, robot)
+    to_object = file_frame(data, key, name, path)
     if key == "grasps":
         pose = load_object(name).pose
-        entries = [grasp_entry_as_candidate(e, pose) for e in entries]
-    found = [parse_candidate(e, i, str(path)) for i, e in enumerate(entries)]
+        entries = [grasp_entry_as_candidate(e, pose, robot_name) for e in entries]
+    description = None if robot_name == DEFAULT_ROBOT else load_robot(robot_name)
+    found = [parse_candidate(e, i, str(path), description) for i, e in enumerate(entries)]
     if not found:
         raise ValueError(f"{path}: the file holds no candidates")
     ids = [c.id for c in found]
@@ -91,24 +198,47 @@ def load_candidates(path: str | Path) -> tuple[str, list[PalmCandidate]]:
         if cid in ids[:i]:
             raise ValueError(f"{path}: candidates {ids.index(cid)} and {i} have the same id "
                              f"{cid!r}; candidate ids must be unique")
-    return name, found
+    if to_object is not None:
+        found = [replace(c, pose=source_pose_to_object(c.pose, to_object)) for c in found]
+    return CandidateFile(name, robot_name, FRAMES[to_object is not None], found)
 
 
-def grasp_entry_as_candidate(entry, object_pose: np.ndarray):
+def load_candidates(path: str | Path, robot: str | None = None
+                    ) -> tuple[str, list[PalmCandidate]]:
+    """(object name, candidates in the object frame) of a palm-pose file
+    (:func:`read_candidates`, which also says the robot)."""
+    read = read_candidates(path, robot)
+    return read.object, read.candidates
+
+
+def grasp_entry_as_candidate(entry, object_pose: np.ndarray, robot: str = DEFAULT_ROBOT):
     """A grasp file's entry as a palm-pose entry: as it is when it has the candidate fields
     (``world.grasps.palm_pose_fields``: every file ``save_grasps`` writes); an older entry
     gets ``pose`` = its world-frame ``palm_pose`` in the object frame (``object_pose``, (4, 4):
-    the object's catalog pose) and its ``hand`` from ``q0[7:]``. ``q0`` is not used."""
-    if not isinstance(entry, dict) or "pose" in entry or "position" in entry:
+    the object's catalog pose) and its ``hand`` from ``q0`` past the arm joints. ``q0`` is not
+    used. For a robot other than the default one the ``spread`` such a file may repeat
+    (``hand[0]``) is dropped: ``hand`` holds the pre-shape."""
+    if not isinstance(entry, dict):
         return entry
     out = dict(entry)
+    if robot != DEFAULT_ROBOT:
+        out.pop("spread", None)
+    if "pose" in out or "position" in out:
+        return out
     try:
         out["pose"] = np.linalg.solve(object_pose, np.asarray(entry["palm_pose"],
                                                               dtype=float)).tolist()
     except (KeyError, TypeError, ValueError, np.linalg.LinAlgError):
-        return entry  # parsing then names the missing palm pose
-    if "hand" not in out and "spread" not in out and np.size(entry.get("q0", [])) == 14:
-        out["hand"] = list(entry["q0"][7:])
+        return out  # parsing then names the missing palm pose
+    if robot == DEFAULT_ROBOT:
+        if "hand" not in out and "spread" not in out and np.size(entry.get("q0", [])) == 14:
+            out["hand"] = list(entry["q0"][7:])
+    elif "hand" not in out and isinstance(entry.get("q0"), list):
+        from kinegrasp_env.robot.catalog import load_robot
+
+        description = load_robot(robot)
+        if len(entry["q0"]) == description.model.dof:
+            out["hand"] = list(entry["q0"][description.arm_dof:])
     return out
 
 
@@ -120,9 +250,11 @@ def configuration(planner, candidate: PalmCandidate) -> tuple[np.ndarray | None,
 
 
 def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Rejected:
-    """The candidate's grasp (IK, arm clearance, closing with the planner's reference
-    engine), or why it is rejected. ``planner``: a :class:`GraspPlanner` of the object."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+    """The default robot's candidate's grasp (IK, arm clearance, closing with the planner's
+    reference engine), or why it is rejected. ``planner``: a :class:`GraspPlanner` of the
+    object. A closing that touches but is not in force closure is a grasp (Q = 0) whose
+    ``meta["nominal_force_closure"]`` is False."""
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
     from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
     from kinegrasp_env.robot.model import PALM_LINK
 
@@ -134,28 +266,42 @@ def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Reject
                         "the planner's clearance of the object")
     draw = planner.engine.run(q0[None])
     outcome = int(draw.outcome[0])
-    if outcome != FORCE_CLOSURE:
+    if outcome in (START_COLLISION, MISSED):
         name = OUTCOMES[outcome]
         return Rejected(candidate.id, name, OUTCOME_DETAILS.get(name, name))
     palm = planner.engine.kin.pose(q0, PALM_LINK)[0]
     psi = float(planner.ik.elbow_angle(q0[None])[0])
     return grasp_from_draw(draw, object_name, q0, palm, grasp_id=candidate.id,
-                           meta={"elbow_angle": psi, "source": "palm_pose"})
+                           meta={"elbow_angle": psi, "source": "palm_pose",
+                                 "nominal_force_closure": outcome == FORCE_CLOSURE})
 
 
-def solve_all(object_name: str, candidates: list[PalmCandidate]
+def solve_all(object_name: str, candidates: list[PalmCandidate], robot: str = DEFAULT_ROBOT
               ) -> tuple[list[Grasp], list[Rejected]]:
-    """(grasps of the accepted candidates, rejected candidates), both in file order."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
-
-    planner = GraspPlanner(object_name)
+    """(grasps of the accepted candidates, rejected candidates), both in file order;
+    ``robot``: the catalog robot the candidates are of (their poses in the object frame)."""
     grasps, rejected = [], []
+    if robot == DEFAULT_ROBOT:
+        from kinegrasp_env.toolkit.planner import GraspPlanner
+
+        planner = GraspPlanner(object_name)
+
+        def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
+            return solve(planner, candidate, object_name)
+    else:
+        from kinegrasp_env.toolkit.robot_candidates import RobotCandidateSolver
+
+        planner = RobotCandidateSolver(robot, object_name)
+
+        def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
+            result = planner.solve(candidate, object_name)
+            return result if isinstance(result, Grasp) else Rejected(candidate.id, *result)
     try:
         for candidate in candidates:
-            result = solve(planner, candidate, object_name)
+            result = solve_one(candidate)
             (grasps if isinstance(result, Grasp) else rejected).append(result)
     finally:
         planner.close()
-    log.info("%s: %d of %d palm-pose candidates accepted", object_name, len(grasps),
-             len(candidates))
+    log.info("%s: %d of %d palm-pose candidates of robot %s accepted", object_name,
+             len(grasps), len(candidates), robot)
     return grasps, rejected

@@ -213,8 +213,10 @@ def robot_model(robot, where: str = "robot") -> RobotModel:
 def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
     """The grasp as a palm-pose candidate (``kinegrasp_env.toolkit.candidates``):
     ``position`` (3,) metres and ``quaternion`` (4,) [x, y, z, w] of the palm frame in the
-    object frame, ``hand`` (7,) the pre-shape (radians), ``spread`` (= hand[0], radians) and
-    ``elbow`` (the elbow angle psi, radians; only when ``meta`` records ``elbow_angle``).
+    object frame, ``hand`` (h,) the pre-shape (radians or metres, in the robot's hand joint
+    order; h = 7 for the default robot), for the default robot ``spread`` (= hand[0],
+    radians: the SDH's field) and ``elbow`` (the elbow angle psi, radians; only when
+    ``meta`` records ``elbow_angle``).
 
     Args:
         grasp: the grasp (its ``palm_pose`` is in the world frame).
@@ -224,7 +226,9 @@ def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
 
     position, quaternion = matrix_to_pose(np.linalg.solve(object_pose, grasp.palm_pose))
     fields = {"position": [float(v) for v in position], "quaternion": quaternion,
-              "hand": grasp.hand.tolist(), "spread": float(grasp.hand[0])}
+              "hand": grasp.hand.tolist()}
+    if grasp.robot == DEFAULT_ROBOT:
+        fields["spread"] = float(grasp.hand[0])
     if grasp.meta.get("elbow_angle") is not None:
         fields["elbow"] = float(grasp.meta["elbow_angle"])
     return fields

@@ -255,6 +255,28 @@ def load_object(name: str) -> GraspObject:
     return imported_object(str(folder), entry_digest(folder))
 
 
+def source_to_object(name: str) -> np.ndarray | None:
+    """(4, 4) the map from an imported object's source mesh frame (the file's own coordinates
+    and units) to its object frame, as ``objects add`` recorded it (its scale times its up
+    turn, then the translation to the base centre: ``p_object = A[:3, :3] @ p_source +
+    A[:3, 3]``); a placed copy has its base's. None for a built-in object (or an entry that
+    records none).
+
+    Raises:
+        ValueError: an unknown name (the message lists the known ones).
+    """
+    if name in OBJECT_NAMES:
+        return None
+    folder = imported_folder(name)
+    if folder is None:
+        raise unknown_object(name)
+    entry = read_entry(folder)
+    if entry.get("base") is not None:
+        return source_to_object(entry["base"])
+    value = entry.get("source_to_object")
+    return None if value is None else np.asarray(value, dtype=float)
+
+
 #: :func:`object_version` of every built-in object (they never change in a process).
 BUILTIN_VERSION = "built-in"
 
@@ -386,11 +408,10 @@ def placement_fields(obj: GraspObject) -> dict:
     ``table`` (:meth:`SupportTable.to_dict` or None)."""
     from scipy.spatial.transform import Rotation
 
-    from kinegrasp_env.world.support import is_upright
+    from kinegrasp_env.world.support import is_upright, pose_yaw
 
     return {"position": [round(float(v), 4) for v in obj.pose[:3, 3]],
-            "yaw": (round(float(np.arctan2(obj.pose[1, 0], obj.pose[0, 0])), 4)
-                    if is_upright(obj.pose) else None),
+            "yaw": round(pose_yaw(obj.pose), 4) if is_upright(obj.pose) else None,
             "orientation": [round(float(v), 6)
                             for v in Rotation.from_matrix(obj.pose[:3, :3]).as_quat()],
             "table": None if obj.table is None else obj.table.to_dict()}

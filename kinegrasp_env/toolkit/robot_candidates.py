@@ -1,0 +1,116 @@
+"""Palm-pose candidates of a description robot (any catalog robot but the default one), solved
+as that robot's planner solves its own palm poses
+(:mod:`kinegrasp_env.toolkit.robot_planner`):
+
+1. **IK**: :func:`~kinegrasp_env.toolkit.robot_planner.solve_palm_ik` on the arm joints for
+   the palm pose in the world frame (the object at its catalog pose), with the planner's
+   restarts and iterations (:class:`~kinegrasp_env.toolkit.robot_planner.
+   RobotPlannerSettings`), its random restarts seeded by :data:`IK_RNG_SEED` for each
+   candidate (a candidate's configuration does not depend on the others); then, when the
+   candidate gives ``elbow``, the self-motion to that arm angle
+   (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
+2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
+   from the object (:func:`~kinegrasp_env.toolkit.robot_planner.clearance`).
+3. **Closing**: the robot's reference engine
+   (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`, no noise) with
+   its contact model. ``start_collision`` and ``missed`` reject the candidate; a closing
+   that touches but is not in force closure gives a grasp (Q = 0) whose
+   ``meta["nominal_force_closure"]`` is False.
+
+The planner's own sampling filters (antipodal pairs, a downward approach) are not applied: a
+given palm pose is taken as it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.robot.null_motion import ArmSelfMotion
+from kinegrasp_env.robot.palm_pose import IK_RNG_SEED, PalmCandidate, has_elbow
+from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, clearance, solve_palm_ik
+from kinegrasp_env.world.grasps import Grasp
+
+
+class RobotCandidateSolver:
+    """Solve palm-pose candidates of one description robot on one catalog object.
+
+    Args:
+        robot: a catalog robot's name or its description.
+        object_name: the catalog object (built-in or imported).
+        settings: the planner's settings (IK restarts and iterations, ``min_clearance``).
+        friction: the closing's friction coefficient.
+    """
+
+    def __init__(self, robot: str | RobotDescription, object_name: str,
+                 settings: RobotPlannerSettings | None = None, friction: float = 0.5) -> None:
+        self.description = load_robot(robot) if isinstance(robot, str) else robot
+        self.settings = settings or RobotPlannerSettings()
+        self.engine = RobotReferenceEngine(self.description, object_name, friction=friction)
+        self.kin = Kinematics(self.description.model)
+        self.motion = (ArmSelfMotion(self.description, self.kin)
+                       if has_elbow(self.description) else None)
+
+    def close(self) -> None:
+        self.engine.close()
+
+    def __enter__(self) -> RobotCandidateSolver:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def configuration(self, candidate: PalmCandidate) -> tuple[np.ndarray | None, str]:
+        """(q (dof,): arm joints then the candidate's pre-shape, "") whose palm is at the
+        candidate's pose (object frame, the object at its catalog pose), or (None, why)."""
+        d = self.description
+        target = self.engine.obj.pose @ candidate.pose
+        arm, ok = solve_palm_ik(self.kin, d, target[None],
+                                np.random.default_rng(IK_RNG_SEED),
+                                restarts=self.settings.ik_restarts,
+                                iterations=self.settings.ik_iterations)
+        q = np.concatenate([arm[0], candidate.hand])
+        if not ok[0]:
+            err = pose_error(self.kin.pose(q[None], d.palm_link), target[None])[0]
+            return None, (f"no IK solution within the joint limits (closest: "
+                          f"{np.linalg.norm(err[:3]):.3g} m, {np.linalg.norm(err[3:]):.3g} "
+                          f"rad off)")
+        if candidate.elbow is not None:
+            moved, reached = self.motion.set_elbow_angle(q, candidate.elbow)
+            if not reached:
+                return None, f"elbow angle {candidate.elbow:g} rad leaves the joint limits"
+            q = moved
+        return q, ""
+
+    def solve(self, candidate: PalmCandidate, object_name: str) -> Grasp | tuple[str, str]:
+        """The candidate's grasp, or (reason, detail) of its rejection: ``unreachable``,
+        ``arm_collision``, ``start_collision`` or ``missed``."""
+        q0, why = self.configuration(candidate)
+        if q0 is None:
+            return "unreachable", why
+        gap = clearance(self.engine, q0)
+        if gap < self.settings.min_clearance:
+            where = (f"{1e3 * gap:.1f} mm from" if gap >= 0 else
+                     f"{-1e3 * gap:.1f} mm deep in")
+            return "arm_collision", (f"a robot link other than the fingers is {where} the "
+                                     f"object (the planner keeps "
+                                     f"{1e3 * self.settings.min_clearance:g} mm clear)")
+        draws = self.engine.run(q0[None])
+        outcome = int(draws.outcome[0])
+        if outcome in (START_COLLISION, MISSED):
+            name = OUTCOMES[outcome]
+            return name, OUTCOME_DETAILS.get(name, name)
+        k = int(draws.n_contacts[0])
+        meta = {"source": "palm_pose", "nominal_force_closure": outcome == FORCE_CLOSURE,
+                "contact_model": self.description.contact_model}
+        if self.motion is not None:
+            meta["elbow_angle"] = float(self.motion.elbow_angle(q0[None])[0])
+        return Grasp(object_name, q0, self.kin.pose(q0[None], self.description.palm_link)[0],
+                     draws.points[0, :k].copy(), draws.normals[0, :k].copy(),
+                     draws.finger[0, :k].astype(int), draws.link[0, :k].astype(int),
+                     float(draws.quality[0]), candidate.id, meta, self.description.name)

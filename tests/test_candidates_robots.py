@@ -1,0 +1,290 @@
+"""Palm-pose candidate files of every catalog robot (kinegrasp_env.toolkit.candidates): the
+Panda's poses given in an imported mesh's own frame, ranked end to end; the object frame and
+the source frame give the same grasps; a candidate that closes out of force closure is kept
+and flagged; the robot, hand and frame mistakes are one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cli_helpers import run_cli
+
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.palm_pose import PalmCandidate
+from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+from kinegrasp_env.world.objects import load_object, source_to_object
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+#: The mesh written at test time: a 50 x 80 x 40 mm box, y up (as many OBJ files are), its
+#: centre away from the origin; imported with --units mm --up y.
+BOX_EXTENTS_MM = (50.0, 80.0, 40.0)
+BOX_CENTRE_MM = (120.0, 260.0, -75.0)
+#: The solver's IK stops within 1e-7 m and rad of the target (the planner's tolerance).
+IK_TOL = 1e-6
+
+
+@pytest.fixture(scope="module")
+def home(tmp_path_factory):
+    """A catalog of its own, holding ``ybox`` (the test mesh) and ``palm_box`` (the docs
+    example's mesh, docs/palm_box.obj)."""
+    import trimesh
+
+    folder = tmp_path_factory.mktemp("robot_candidates")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("KINEGRASP_HOME", str(folder / "home"))
+        box = trimesh.creation.box(extents=BOX_EXTENTS_MM)
+        box.apply_translation(BOX_CENTRE_MM)
+        box.export(folder / "ybox.obj")
+        for args in ((str(folder / "ybox.obj"), "--units", "mm", "--up", "y"),
+                     (str(DOCS / "palm_box.obj"),)):
+            proc = run_cli("objects", "add", *args)
+            assert proc.returncode == 0, proc.stderr
+        yield folder
+
+
+@pytest.fixture(scope="module")
+def planned(home):
+    """Three Panda grasps of ``ybox`` from its planner (each in force closure): their palm
+    poses in the object frame (n, 4, 4) and the grasps."""
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+
+    grasps = plan_robot_grasps("panda", "ybox", count=3, seed=0)
+    assert len(grasps) == 3
+    obj = load_object("ybox")
+    return np.array([np.linalg.solve(obj.pose, g.palm_pose) for g in grasps]), grasps
+
+
+def to_source(pose: np.ndarray, to_object: np.ndarray) -> np.ndarray:
+    """A palm pose (4, 4) in the object frame written in the source frame (the inverse of
+    ``source_to_object`` (4, 4), scale s times a rotation then a translation, done here
+    by hand): position A^-1 (p - t), rotation (A / s)^T R."""
+    linear = to_object[:3, :3]
+    scale = np.linalg.norm(linear[:, 0])
+    out = np.eye(4)
+    out[:3, :3] = (linear / scale).T @ pose[:3, :3]
+    out[:3, 3] = np.linalg.solve(linear, pose[:3, 3] - to_object[:3, 3])
+    return out
+
+
+def write(path: Path, candidates: list[dict], **top) -> Path:
+    path.write_text(json.dumps({"object": "ybox", **top, "candidates": candidates}))
+    return path
+
+
+def entries(poses: np.ndarray, ids: list[str]) -> list[dict]:
+    return [{"id": i, "pose": p.tolist()} for i, p in zip(ids, poses, strict=True)]
+
+
+def test_the_entry_maps_the_mesh_as_the_docs_say(home):
+    """The import turned y into z and mm into m: a source corner maps to the object's box."""
+    to_object = source_to_object("ybox")
+    assert np.allclose(np.linalg.norm(to_object[:3, :3], axis=0), 1e-3)
+    assert source_to_object("cube") is None
+    corner = np.array(BOX_CENTRE_MM) - np.array(BOX_EXTENTS_MM) / 2
+    mapped = to_object[:3, :3] @ corner + to_object[:3, 3]
+    lo, hi = load_object("ybox").mesh.bounds
+    assert np.allclose(mapped, [lo[0], hi[1], lo[2]], atol=1e-9)  # source +y is object +z
+
+
+def test_panda_poses_in_the_source_frame_rank_end_to_end(home, planned, tmp_path):
+    """The planner's palm poses written in the mesh's own frame (mm, y up) and an unreachable
+    one, in a file without a robot: `rank --robot panda` solves them with the Panda's IK
+    (palm at the planned pose to 1e-6), ranks the three (each in force closure at its
+    nominal closing, nominal Q the planner's) and lists the unreachable one."""
+    poses, grasps = planned
+    to_object = source_to_object("ybox")
+    source = np.array([to_source(p, to_object) for p in poses])
+    far = source[0].copy()
+    far[:3, 3] += [0.0, 0.0, 3000.0]  # 3 m farther along the source's z (mm)
+    ids = ["a", "b", "c"]
+    path = write(tmp_path / "c.json", [*entries(source, ids), {"id": "far", "pose": far.tolist()}],
+                 frame="source")
+    read = read_candidates(path, "panda")
+    assert (read.robot, read.frame) == ("panda", "source")
+    solved, rejected = solve_all(read.object, read.candidates, read.robot)
+    assert [r.id for r in rejected] == ["far"] and rejected[0].reason == "unreachable"
+    kin = Kinematics(load_robot("panda").model)
+    for want, got in zip(grasps, solved, strict=True):
+        assert got.robot == "panda" and got.meta["nominal_force_closure"] is True
+        palm = kin.pose(got.q0[None], "panda_hand")[0]
+        assert np.abs(palm - want.palm_pose).max() < IK_TOL
+        assert got.q_nominal > 0 and abs(got.q_nominal - want.q_nominal) < 1e-4
+    out = tmp_path / "r.csv"
+    proc = run_cli("rank", str(path), "--robot", "panda", "--samples", "30", "--engine", "fast",
+                   "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    with out.open() as handle:
+        assert sorted(r["id"] for r in csv.DictReader(handle)) == ids
+    with out.with_name("r.csv.rejected.csv").open() as handle:
+        assert [(r["id"], r["reason"]) for r in csv.DictReader(handle)] == [
+            ("far", "unreachable")]
+    assert "candidate far rejected: unreachable" in proc.stderr
+
+
+def test_object_and_source_frames_give_the_same_grasps(home, planned, tmp_path):
+    """An invariant: the same candidates in the object frame and in the source frame solve to
+    the same configurations (1e-9 rad) and nominal contacts; ``frame`` left out is the
+    object frame."""
+    poses, _ = planned
+    to_object = source_to_object("ybox")
+    source = np.array([to_source(p, to_object) for p in poses])
+    hands = [{"hand": {"panda_finger_joint1": 0.038}}, {"hand": [0.04]}, {}]
+    a = [{**e, **h} for e, h in zip(entries(poses, ["a", "b", "c"]), hands, strict=True)]
+    b = [{**e, **h} for e, h in zip(entries(source, ["a", "b", "c"]), hands, strict=True)]
+    in_object = read_candidates(write(tmp_path / "o.json", a, robot="panda"))
+    in_source = read_candidates(write(tmp_path / "s.json", b, robot="panda", frame="source"))
+    assert in_object.frame == "object"
+    first, none = solve_all("ybox", in_object.candidates, "panda")
+    second, none_either = solve_all("ybox", in_source.candidates, "panda")
+    assert none == none_either == [] and len(first) == 3
+    assert first[0].hand[0] == 0.038 and first[1].hand[0] == first[2].hand[0] == 0.04
+    for x, y in zip(first, second, strict=True):
+        assert np.abs(x.q0 - y.q0).max() < 1e-9
+        assert np.abs(x.points - y.points).max() < 1e-9
+        assert abs(x.q_nominal - y.q_nominal) < 1e-9
+
+
+def test_a_closing_out_of_force_closure_is_ranked_and_flagged(home, tmp_path):
+    """The docs example (docs/palm_pose_panda.json on docs/palm_box.obj): the candidates that
+    close in force closure, the one whose jaws close on an edge (kept, Q = 0, flagged), and
+    the unreachable and colliding ones rejected with their reasons."""
+    read = read_candidates(DOCS / "palm_pose_panda.json", "panda")
+    assert (read.object, read.robot, read.frame) == ("palm_box", "panda", "source")
+    grasps, rejected = solve_all(read.object, read.candidates, read.robot)
+    flags = {g.id: g.meta["nominal_force_closure"] for g in grasps}
+    assert flags == {"top": True, "turned": True, "diagonal": True, "off_edge": False,
+                     "side": True}
+    off_edge = next(g for g in grasps if g.id == "off_edge")
+    assert off_edge.q_nominal == 0.0 and len(off_edge.points) >= 2
+    assert next(g for g in grasps if g.id == "turned").hand[0] == 0.035
+    assert {r.id: r.reason for r in rejected} == {"too_far": "unreachable",
+                                                  "too_low": "arm_collision"}
+    shutil.copy(DOCS / "palm_pose_panda.json", tmp_path / "p.json")
+    out = tmp_path / "r.csv"
+    proc = run_cli("rank", str(tmp_path / "p.json"), "--samples", "20", "--engine", "fast",
+                   "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    with out.open() as handle:
+        rows = {r["id"]: r for r in csv.DictReader(handle)}
+    assert set(rows) == set(flags) and float(rows["off_edge"]["q_nominal"]) == 0.0
+    assert "candidate off_edge: its nominal closing is not in force closure" in proc.stderr
+
+
+def test_the_default_robot_keeps_a_closing_out_of_force_closure_too():
+    """kuka_sdh: a shipped cube grasp's palm pose with the spread closed to 0 closes on the
+    cube out of force closure: a grasp (Q = 0, flagged), not a rejection."""
+    obj = load_object("cube")
+    grasp = shipped_grasps("cube")[1]
+    hand = grasp.hand.copy()
+    hand[0] = 0.0
+    solved, rejected = solve_all("cube", [PalmCandidate(
+        "s0", np.linalg.solve(obj.pose, grasp.palm_pose), hand)])
+    assert rejected == [] and solved[0].meta["nominal_force_closure"] is False
+    assert solved[0].q_nominal == 0.0 and solved[0].robot == "kuka_sdh"
+
+
+def test_a_panda_plan_reads_back_as_candidates(home, planned, tmp_path):
+    """What `plan --robot panda` writes (no SDH spread), its list renamed to candidates,
+    solves back to palm poses at the planned ones."""
+    _, grasps = planned
+    path = save_grasps(grasps, tmp_path / "g.json")
+    data = json.loads(path.read_text())
+    assert "spread" not in data["grasps"][0] and data["robot"] == "panda"
+    data["candidates"] = data.pop("grasps")
+    path.write_text(json.dumps(data))
+    read = read_candidates(path)
+    solved, rejected = solve_all(read.object, read.candidates, read.robot)
+    assert rejected == [] and read.robot == "panda"
+    for want, got in zip(grasps, solved, strict=True):
+        assert np.abs(got.palm_pose - want.palm_pose).max() < IK_TOL
+
+
+def test_a_user_robot_takes_its_own_hand_and_no_elbow(home, tmp_path):
+    """A robot the user added (the xArm 6 of pybullet_data: 6 arm joints, a linkage gripper
+    driven by ``drive_joint``): its planner's palm pose in a file naming the robot, its hand
+    by joint name, solves to that palm pose and ranks; ``elbow`` (it has no arm angle) is a
+    one-line error."""
+    import pybullet_data
+    import yaml
+
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+
+    description = tmp_path / "xarm6.yaml"
+    description.write_text(yaml.safe_dump({
+        "name": "xarm6",
+        "urdf": str(Path(pybullet_data.getDataPath()) / "xarm" / "xarm6_with_gripper.urdf"),
+        "arm_joints": [f"joint{i}" for i in range(1, 7)], "palm_link": "xarm_gripper_base_link",
+        "hand_joints": ["drive_joint"], "close": {"drive_joint": 1},
+        "open": {"drive_joint": 0.0}, "finger_links": ["left_finger", "right_finger"],
+        "contact_model": "soft"}))
+    proc = run_cli("robots", "add", str(description))
+    assert proc.returncode == 0, proc.stderr
+    [planned] = plan_robot_grasps("xarm6", "cube", count=1, seed=0)
+    pose = np.linalg.solve(load_object("cube").pose, planned.palm_pose)
+    entry = {"id": "p", "pose": pose.tolist(), "hand": {"drive_joint": 0.0}}
+    path = tmp_path / "x.json"
+    path.write_text(json.dumps({"object": "cube", "robot": "xarm6", "candidates": [entry]}))
+    read = read_candidates(path)
+    [solved], rejected = solve_all(read.object, read.candidates, read.robot)
+    assert rejected == [] and solved.robot == "xarm6"
+    assert np.abs(solved.palm_pose - planned.palm_pose).max() < IK_TOL
+    assert abs(solved.q_nominal - planned.q_nominal) < 1e-4
+    proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "x.csv"))
+    assert proc.returncode == 0, proc.stderr
+    path.write_text(json.dumps({"object": "cube", "robot": "xarm6",
+                                "candidates": [{**entry, "elbow": 0.2}]}))
+    assert "elbow: robot 'xarm6' has no elbow angle" in _one_line_error(tmp_path, path)
+
+
+def _one_line_error(tmp_path: Path, path: Path, *extra: str) -> str:
+    proc = run_cli("rank", str(path), "--samples", "10", "--engine", "fast", "--out",
+                   str(tmp_path / "r.csv"), *extra)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert not (tmp_path / "r.csv").exists()
+    return lines[0]
+
+
+GOOD = {"id": "c", "position": [0.0, 0.0, 0.2], "quaternion": [0.0, 1.0, 0.0, 0.0]}
+
+
+def test_the_files_robot_and_robot_option_conflict_in_one_line(home, tmp_path):
+    line = _one_line_error(tmp_path, write(tmp_path / "c.json", [GOOD], robot="panda"),
+                           "--robot", "kuka_sdh")
+    assert "'panda'" in line and "--robot kuka_sdh" in line
+
+
+@pytest.mark.parametrize("field, words", [
+    ({"spread": 0.0}, ["'spread' is the SDH's", "panda_finger_joint1"]),
+    ({"hand": [0.0] * 7}, ["hand has 7 values", "1 hand joints", "panda_finger_joint1"]),
+    ({"hand": {"f1_spread": 0.0}}, ["'f1_spread' is not a hand joint of robot 'panda'",
+                                    "panda_finger_joint1"]),
+    ({"hand": {"panda_finger_joint1": 0.07}}, ["(panda_finger_joint1) = 0.0700 is outside"]),
+])
+def test_sdh_fields_for_the_panda_are_one_line_errors(home, tmp_path, field, words):
+    path = write(tmp_path / "c.json", [{**GOOD, **field}])
+    line = _one_line_error(tmp_path, path, "--robot", "panda")
+    assert "candidate c:" in line
+    for word in words:
+        assert word in line, line
+
+
+@pytest.mark.parametrize("top, words", [
+    ({"frame": "world"}, ["frame 'world' is not one of 'object'", "'source'"]),
+    ({"frame": "source", "object": "cube"}, ["frame 'source' needs an object imported",
+                                             "'cube'"]),
+])
+def test_a_bad_frame_is_a_one_line_error(home, tmp_path, top, words):
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"object": "ybox", **top, "candidates": [GOOD]}))
+    line = _one_line_error(tmp_path, path, "--robot", "panda")
+    for word in words:
+        assert word in line, line
