@@ -2,36 +2,31 @@
 (the names ``kinegrasp_env/__init__`` exports) and, for each room of the package, the public
 names its ``__init__`` exports, each rendered by mkdocstrings from its docstring.
 
-The lists come from the package itself (each room's lazy export table or ``__all__``), so a name a
-room adds or drops shows up here at the next build.
+Which page renders which name is ``api_layout.py``'s (the lists come from the package itself:
+each room's lazy export table or ``__all__``, so a name a room adds or drops shows up here at the
+next build). The docstring text copied onto the pages (the summaries of the tables) has its
+Sphinx roles rewritten as the griffe extension ``sphinx_roles.py`` rewrites those mkdocstrings
+renders.
 """
 
 from __future__ import annotations
 
 import importlib
+import sys
+from pathlib import Path
 
 import mkdocs_gen_files
 
 import kinegrasp_env
-from kinegrasp_env.lazy import defining_modules
 
-ROOMS = ("sampling", "quality", "robot", "world", "closing", "physics", "montecarlo",
-         "toolkit", "envs", "cli")
-#: Rooms inside a room: documented on their parent's page, in a section of their own.
-SUBROOMS = {"toolkit": ("report",)}
+DOCS = str(Path(__file__).resolve().parent)
+if DOCS not in sys.path:  # the docs tooling's modules, beside this one
+    sys.path.insert(0, DOCS)
 
+from api_layout import exports, placement, room_packages, rooms, top_names  # noqa: E402
+from sphinx_roles import References  # noqa: E402
 
-def exports(package: str) -> dict[str, str]:
-    """Public name -> the dotted path of the module that defines it, for ``package``."""
-    module = importlib.import_module(package)
-    lazy = defining_modules(module)
-    if lazy is not None:
-        return {name: f"{package}.{sub}" for name, sub in lazy.items()}
-    found = {}
-    for name in getattr(module, "__all__", ()):
-        value = getattr(module, name)
-        found[name] = getattr(value, "__module__", package)
-    return found
+REFERENCES = References.load()
 
 
 def room_page(package: str, title: str, names: dict[str, str], level: int = 1) -> str:
@@ -45,9 +40,10 @@ def room_page(package: str, title: str, names: dict[str, str], level: int = 1) -
 
 
 def first_line(module: str, name: str) -> str:
-    """The first sentence of a public name's docstring."""
+    """The first sentence of a public name's docstring, its Sphinx roles as cross-references."""
     doc = getattr(importlib.import_module(module), name).__doc__ or ""
     text = " ".join(doc.strip().split("\n\n")[0].split())
+    text = REFERENCES.markdown(text, REFERENCES.find(f"{module}.{name}"))
     return text.replace("|", "/")
 
 
@@ -73,7 +69,6 @@ def top_page(top: dict[str, str], rendered: dict[tuple[str, str], str]) -> str:
     return "\n".join(lines)
 
 
-rooms = [room for room in ROOMS if importlib.util.find_spec(f"kinegrasp_env.{room}")]
 index = ["# Python API", "",
          "Generated from the docstrings. Start from the names the package exports (the first "
          "page); each room of the package (a sub-package with one concern) has its own page "
@@ -82,22 +77,16 @@ index = ["# Python API", "",
          "`quality`, `sampling`).", "",
          "| page | what it holds |", "|---|---|",
          "| [`kinegrasp_env`](kinegrasp_env.md) | the names a user starts from |"]
-top = {name: module for name, module in exports("kinegrasp_env").items()
-       if name not in ("ENV_IDS", "__version__")}
-#: Where each room page renders a name: (module, name) -> room.
-rendered = {(module, name): room for room in rooms
-            for package in (room, *(f"{room}.{sub}" for sub in SUBROOMS.get(room, ())))
-            for name, module in exports(f"kinegrasp_env.{package}").items()}
 with mkdocs_gen_files.open("reference/api/kinegrasp_env.md", "w") as handle:
-    handle.write(top_page(top, rendered))
-for room in rooms:
-    package = f"kinegrasp_env.{room}"
+    handle.write(top_page(top_names(), placement()))
+for room in rooms():
+    package, *subs = room_packages(room)
     doc = (importlib.import_module(package).__doc__ or "").strip().split("\n\n")[0]
-    index.append(f"| [`{package}`]({room}.md) | {' '.join(doc.split()).replace('|', '/')} |")
+    doc = REFERENCES.markdown(" ".join(doc.split()), REFERENCES.find(package))
+    index.append(f"| [`{package}`]({room}.md) | {doc.replace('|', '/')} |")
     with mkdocs_gen_files.open(f"reference/api/{room}.md", "w") as handle:
         handle.write(room_page(package, package, exports(package)))
-        for sub in SUBROOMS.get(room, ()):
-            inner = f"{package}.{sub}"
+        for inner in subs:
             handle.write("\n" + room_page(inner, inner, exports(inner), level=2))
 with mkdocs_gen_files.open("reference/api/index.md", "w") as handle:
     handle.write("\n".join(index) + "\n")

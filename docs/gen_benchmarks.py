@@ -9,9 +9,18 @@ from __future__ import annotations
 import ast
 import json
 import re
+import sys
 from pathlib import Path
 
 import mkdocs_gen_files
+
+DOCS = str(Path(__file__).resolve().parent)
+if DOCS not in sys.path:  # the docs tooling's modules, beside this one
+    sys.path.insert(0, DOCS)
+
+from sphinx_roles import References  # noqa: E402
+
+REFERENCES = References.load()
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "benchmarks"
@@ -86,10 +95,11 @@ def flat(record: dict, prefix: str = "") -> dict:
 
 
 def summary(script: Path) -> str:
-    """The first paragraph of the script's docstring, reST literals as Markdown code."""
+    """The first paragraph of the script's docstring, reST literals as Markdown code and
+    Sphinx roles as cross-references (``sphinx_roles.py``)."""
     doc = ast.get_docstring(ast.parse(script.read_text())) or ""
     text = " ".join(doc.split("\n\n")[0].split())
-    return re.sub(r"``([^`]+)``", r"`\1`", text)
+    return REFERENCES.markdown(re.sub(r"``([^`]+)``", r"`\1`", text))
 
 
 def json_option(script: Path) -> str | None:

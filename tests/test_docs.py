@@ -4,13 +4,19 @@ console error, finds pages with its search box, and links only to itself (or to 
 external references below). Its generated pages come from the code: the CLI reference has
 every command and option of the parser, the benchmarks page every script.
 
+The API pages show the docstrings' Sphinx roles (``:func:`~a.b.f```) as cross-references to
+the objects the pages render, and as inline code where no page renders the target
+(``docs/sphinx_roles.py``).
+
 The console blocks of the pages are run by ``tests/test_readme.py``.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -230,3 +236,120 @@ def test_ci_runs_the_readme_test_command_with_the_docs_build():
     assert f"```bash\n{ci[0]}\n```" in readme, "the README's test command differs from .ci/run"
     build, tests = ci[0].find("mkdocs build --strict"), ci[0].find("-m pytest")
     assert 0 < build < tests, ci[0]
+
+
+def docs_module(name: str):
+    """A module of the docs tooling (``docs/<name>.py``), imported as the build imports it."""
+    docs = str(ROOT / "docs")
+    if docs not in sys.path:
+        sys.path.insert(0, docs)
+    return importlib.import_module(name)
+
+
+#: A Sphinx role as a page would show it unconverted (its backticks rendered as <code>, or left).
+RAW_ROLE = re.compile(r":(?:py:)?(?:func|class|mod|meth|data|attr|exc|obj|const):(?:`|<code>)")
+#: A link mkdocs-autorefs resolved: (its attributes, its text).
+AUTOREF = re.compile(r'<a ([^>]*class="autorefs[^"]*"[^>]*)>(.*?)</a>', re.DOTALL)
+
+
+@pytest.mark.expensive
+def test_api_pages_show_sphinx_roles_as_cross_references(site):
+    """No page of the built site shows a raw Sphinx role; every cross-reference of the API
+    pages lands on an element of the site (ferrari_canny's among them, a role of a quality
+    docstring: quality.html, at the function's heading); and the objects the griffe extension
+    links to are exactly the objects the API pages render (each heading id), so it neither
+    links to a missing anchor nor leaves a rendered object unlinked."""
+    raw = [f"{path.relative_to(site)}: {m.group()}" for path in pages(site)
+           for m in RAW_ROLE.finditer(path.read_text())]
+    assert not raw, raw[:20]
+
+    api = sorted((site / "reference" / "api").glob("*.html"))
+    assert len(api) >= 10, [p.name for p in api]
+    ids = {path: set(re.findall(r'\bid="([^"]+)"', path.read_text())) for path in api}
+    links, broken = [], []
+    for path in api:
+        for attributes, text in AUTOREF.findall(path.read_text()):
+            href = re.search(r'href="([^"]*)"', attributes).group(1)
+            file, _, anchor = href.partition("#")
+            target = (path.parent / file).resolve() if file else path
+            if anchor not in ids.get(target, ()):
+                broken.append(f"{path.name}: {href}")
+            links.append((target.name, anchor, text))
+    assert not broken, broken[:20]
+    assert ("quality.html", "kinegrasp_env.quality.epsilon.ferrari_canny",
+            "<code>ferrari_canny</code>") in links
+
+    rendered = {i for found in ids.values() for i in found
+                if i == "kinegrasp_env" or i.startswith("kinegrasp_env.")}
+    linked = set(docs_module("sphinx_roles").References.load().anchors.values())
+    assert linked == rendered, (sorted(linked - rendered)[:20], sorted(rendered - linked)[:20])
+
+
+@pytest.fixture(scope="module")
+def toy_references():
+    """The references of a small package read by griffe: ``pkg.mod``'s ``f`` and ``C`` (with
+    its method ``m``) and ``pkg.room.a.h`` rendered, as the API pages render a room's exports;
+    ``pkg.f`` and ``pkg.room.h`` lazy exports of them; ``pkg.other`` (no page), private,
+    undocumented and imported names beside them."""
+    import griffe
+
+    sphinx_roles = docs_module("sphinx_roles")
+    modules = {
+        "__init__.py": '"""The package."""\n',
+        "other.py": 'def helper():\n    """Helper."""\n',
+        "room/__init__.py": '"""A room."""\n',
+        "room/a.py": 'def h():\n    """H."""\n',
+        "room/b.py": '"""Uses h."""\n',
+        "mod.py": ('"""A module."""\nfrom pkg.other import helper\n\n\n'
+                   'def f():\n    """F."""\n\n\ndef _g():\n    """G."""\n\n\n'
+                   'def undocumented():\n    pass\n\n\n'
+                   'class C:\n    """C."""\n\n    def m(self):\n        """M."""\n\n'
+                   '    def _p(self):\n        """P."""\n'),
+    }
+    with griffe.temporary_visited_package("pkg", modules) as package:
+        yield sphinx_roles.References(
+            package, {"pkg": False, "pkg.mod.f": True, "pkg.mod.C": True, "pkg.room.a.h": True},
+            {"pkg.f": "pkg.mod.f", "pkg.room.h": "pkg.room.a.h"})
+
+
+@pytest.mark.parametrize(("scope", "content", "markdown"), [
+    ("pkg.mod", "~pkg.mod.f", "[`f`][pkg.mod.f]"),
+    ("pkg.mod", "pkg.mod.f", "[`pkg.mod.f`][pkg.mod.f]"),
+    ("pkg.mod", "f", "[`f`][pkg.mod.f]"),                      # relative to the module
+    ("pkg.mod", "f()", "[`f()`][pkg.mod.f]"),
+    ("pkg.mod", "C.m", "[`C.m`][pkg.mod.C.m]"),
+    ("pkg.mod.C", "m", "[`m`][pkg.mod.C.m]"),                  # relative to the class
+    ("pkg.mod.C.m", "~C.m", "[`m`][pkg.mod.C.m]"),
+    ("pkg.mod", "~pkg.mod.\n    f", "[`f`][pkg.mod.f]"),      # a target wrapped in the source
+    ("pkg.other", "pkg.f", "[`pkg.f`][pkg.mod.f]"),           # a lazy export
+    ("pkg.room.b", "h", "[`h`][pkg.room.a.h]"),               # a name its room exports
+    ("pkg", ".m", "[`m`][pkg.mod.C.m]"),                      # the one object ending in .m
+    ("pkg.mod", "the F <pkg.mod.f>", "[`the F`][pkg.mod.f]"),
+    ("pkg", "pkg", "[`pkg`][pkg]"),
+    ("pkg.mod", "!pkg.mod.f", "`pkg.mod.f`"),                 # Sphinx's "no link"
+    ("pkg.mod", "_g", "`_g`"),                                # private: not rendered
+    ("pkg.mod", "C._p", "`C._p`"),
+    ("pkg.mod", "undocumented", "`undocumented`"),            # mkdocstrings skips it
+    ("pkg.mod", "~pkg.other", "`other`"),                     # a module with no page
+    ("pkg.mod", "helper", "`helper`"),                        # imported from pkg.other
+    ("pkg.other", "f", "`f`"),                                # not in scope
+    ("pkg.mod", "numpy.ndarray", "`numpy.ndarray`"),          # outside the package
+    ("pkg.mod", "Engine.run", "`Engine.run`"),                # no such object
+])
+def test_role_becomes_a_link_to_a_rendered_object_or_inline_code(toy_references, scope,
+                                                                  content, markdown):
+    """A role's target resolves as Sphinx's Python domain resolves it (class, module, then
+    absolute; ``.name`` by its unique suffix; here also the room's exports) and links only to
+    an object the pages render;
+    the displayed name follows Sphinx (``~``: the last component; ``title <target>``)."""
+    assert toy_references.role(content, toy_references.find(scope)) == markdown
+
+
+def test_markdown_rewrites_every_role_outside_code_blocks(toy_references):
+    """Every role of a docstring is rewritten, with or without the ``py`` domain; a fenced
+    code block is left as written."""
+    text = ("Calls :func:`f` and :py:meth:`C.m`; see :mod:`pkg.other`.\n\n"
+            "```text\n:func:`f`\n```\n")
+    assert toy_references.markdown(text, toy_references.find("pkg.mod")) == (
+        "Calls [`f`][pkg.mod.f] and [`C.m`][pkg.mod.C.m]; see `pkg.other`.\n\n"
+        "```text\n:func:`f`\n```\n")
