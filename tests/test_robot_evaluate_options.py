@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -41,3 +42,27 @@ def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
     assert main([*args, "--elbow", "3.0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "out of reach" in err[0]
+
+
+def test_rank_json_for_any_robot(capsys, tmp_path):
+    """``rank --json`` prints one JSON object: the rows in rank order as the CSV has them
+    (P(FC) equal to the CSV's to its printed digits), no hold columns that were not scored;
+    for the Panda's grasps and for the default robot's palm poses alike."""
+    import csv
+
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasps = tmp_path / "g.json"
+    save_grasps(shipped_grasps("cube", "panda")[:2], grasps)
+    candidates = Path(__file__).resolve().parents[1] / "docs" / "palm_pose_candidates.json"
+    for source, extra in ((grasps, []), (candidates, [])):
+        out = tmp_path / "r.csv"
+        assert main(["rank", str(source), "--sigma", "0.0133", "--samples", "30", "--out",
+                     str(out), "--json", *extra]) == 0
+        shown = json.loads(capsys.readouterr().out)
+        rows = list(csv.DictReader(out.open()))
+        assert [r["rank"] for r in shown["ranking"]] == list(range(1, len(rows) + 1))
+        assert [r["id"] for r in shown["ranking"]] == [r["id"] for r in rows]
+        for js, row in zip(shown["ranking"], rows, strict=True):
+            assert abs(js["p_fc"] - float(row["p_fc"])) < 1e-4
+        assert "p_hold" not in shown["ranking"][0] and shown["written"] == str(out)

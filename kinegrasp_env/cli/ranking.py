@@ -90,8 +90,8 @@ def cmd_rank(args) -> int:
     if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
         results = rank_robot(args, grasps, robot, sigma, samples, seed)
         _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
-                       engine)
-        _write_rejected(rejected, out)
+                       engine, as_json=args.json)
+        _write_rejected(rejected, out, args.json)
         return 0
     refuse_hold_scores(args, robot)
     report_path(args.report)
@@ -138,8 +138,8 @@ def cmd_rank(args) -> int:
                       f"{partial}", file=sys.stderr)
         results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
                                   done, certify)
-    _write_ranking(grasps, results, out, partial, engine, adaptive)
-    _write_rejected(rejected, out)
+    _write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json)
+    _write_rejected(rejected, out, args.json)
     if args.report:
         write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
                           engine=engine)
@@ -195,9 +195,10 @@ def _palm_pose_candidates(path: str, robot: str | None = None) -> tuple[list, st
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), rejected
 
 
-def _write_rejected(rejected: list, out: Path) -> None:
+def _write_rejected(rejected: list, out: Path, quiet: bool = False) -> None:
     """``<out>.rejected.csv``: id, reason, detail of each rejected palm-pose candidate (an
-    older one is removed when there are none)."""
+    older one is removed when there are none); the line saying so on stderr when ``quiet``
+    (stdout holds JSON)."""
     from kinegrasp_env.world.grasps import write_atomic
 
     path = out.with_name(out.name + ".rejected.csv")
@@ -210,7 +211,8 @@ def _write_rejected(rejected: list, out: Path) -> None:
     writer.writerow(("id", "reason", "detail"))
     writer.writerows((r.id, r.reason, r.detail) for r in rejected)
     write_atomic(path, buffer.getvalue())
-    print(f"{len(rejected)} rejected candidates written to {path}")
+    print(f"{len(rejected)} rejected candidates written to {path}",
+          file=sys.stderr if quiet else sys.stdout)
 
 
 def _certify_settings(args) -> dict:
@@ -311,9 +313,11 @@ def certified_line(report, samples: int) -> str:
 
 
 def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
-                   engine: str, adaptive=None) -> None:
-    """The ranking as CSV (atomically), then as a console table; ``adaptive`` (an adaptive
-    run's report) adds the ``certified`` column and the line saying what it certified."""
+                   engine: str, adaptive=None, as_json: bool = False) -> None:
+    """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
+    JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV);
+    ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
+    saying what it certified."""
     from kinegrasp_env.world.grasps import write_atomic
 
     rows = []
@@ -344,6 +348,17 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
     write_atomic(out, buffer.getvalue())
     if partial.exists():
         partial.unlink()
+    if as_json:
+        def plain(value):
+            return None if isinstance(value, float) and math.isnan(value) else value
+
+        absent = {f"{column}{end}" for score, (column, _) in HOLD_COLUMNS.items()
+                  if score not in scores for end in ("", "_lo", "_hi")}
+        shown = [{"rank": i, **{k: plain(v) for k, v in row.items() if k not in absent},
+                  **({"certified": label} if extra else {})}
+                 for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1)]
+        print(json.dumps({"ranking": shown, "written": str(out)}))
+        return
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)
           + (f" {'certified':>10}" if extra else ""))

@@ -208,7 +208,7 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
     from kinegrasp_env.toolkit.ranking import CandidateResult, order
 
     _refuse(args, {"--noise-spec": None, "--adaptive": False, "--best-elbow": None,
-                   "--report": None, "--json": False, **IN_PROCESS}, robot)
+                   "--report": None, **IN_PROCESS}, robot)
     _check_engine(args.engine, robot)
     objects = {g.object for g in grasps}
     if len(objects) != 1:
