@@ -26,7 +26,6 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
-from kinegrasp_env.sampling.reweight import gaussian_logpdf, normalised_weights
 
 #: Elbow angles (radians) either side of the episode's start the batch covers.
 SPAN = 1.2
@@ -37,12 +36,11 @@ SIGMA_LEVELS = 5
 
 
 class BatchReward:
-    """One episode's batch and its re-weighted estimates.
+    """One grasp's batch and its re-weighted estimates.
 
     Args:
         batch: the closings (:class:`~kinegrasp_env.montecarlo.palm_batch.PalmBatch`).
-        sigma: the episode's Gaussian joint noise (radians, scalar or 7).
-        jacobian: the flange's body Jacobian (reused across episodes).
+        jacobian: the flange's body Jacobian (shared by the env's batches).
     """
 
     def __init__(self, batch: PalmBatch, jacobian: PalmJacobian) -> None:
@@ -64,22 +62,15 @@ class BatchReward:
         """The reward's estimate at configuration q (14,) and Gaussian joint noise ``sigma``
         (radians) (the keys of the draws' estimate), or None where the effective sample size
         is below ``minimum``."""
-        cov = self.jacobian.covariance(q, sigma)[0]
-        est = self.batch.estimate(cov)
+        est = self.batch.estimate(self.jacobian.covariance(q, sigma)[0])
         if not est.ess >= minimum:
             return None
-        w = self.weights(cov)
-        shares = [float(w @ (self.batch.outcome == k)) for k in range(len(OUTCOMES))]
         return {"p_fc": est.p_fc.value, "p_fc_ci": est.p_fc.interval,
                 "q_mean": est.q_mean if est.p_fc.value > 0 else 0.0,
                 "draws": len(self.batch), "effective_draws": est.ess,
-                "outcome_shares": dict(zip(OUTCOMES, shares, strict=True)),
+                "outcome_shares": {name: float(v) for name, v in
+                                   zip(OUTCOMES, est.outcome_shares, strict=True)},
                 "reward_method": "batch"}
-
-    def weights(self, cov: np.ndarray) -> np.ndarray:
-        """(n,) the batch's normalised weights for deviations ~ N(0, cov (6, 6))."""
-        return normalised_weights(gaussian_logpdf(self.batch.deltas, cov),
-                                  self.batch.log_proposal)
 
 
 def covered_angles(psi0: float) -> list[float]:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, make_engine
+from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, OUTCOMES, make_engine
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.sampling.noise import as_generator
@@ -172,6 +172,7 @@ class PalmEstimate:
         q_mean, q_std, q_skew: Q's mean, standard deviation and skewness over the
             force-closure draws, weighted (NaN where no draw is in force closure; the
             skewness NaN where Q does not vary).
+        outcome_shares: (len(OUTCOMES),) each outcome's weighted share of the draws.
         ess: the effective sample size of the target's weights (draws).
     """
 
@@ -179,6 +180,7 @@ class PalmEstimate:
     q_mean: float
     q_std: float
     q_skew: float = float("nan")
+    outcome_shares: np.ndarray | None = None
 
     @property
     def ess(self) -> float:
@@ -218,14 +220,16 @@ class PalmBatch:
         score = None if derivative is None else gaussian_score(self.deltas, covariance,
                                                                derivative)
         p = weighted_estimate(self.fc, log_target, self.log_proposal, score)
-        w = normalised_weights(log_target, self.log_proposal) * self.fc
+        weights = normalised_weights(log_target, self.log_proposal)
+        shares = np.bincount(self.outcome, weights=weights, minlength=len(OUTCOMES))
+        w = weights * self.fc
         if w.sum() <= 0.0:
-            return PalmEstimate(p, float("nan"), float("nan"))
+            return PalmEstimate(p, float("nan"), float("nan"), outcome_shares=shares)
         w = w / w.sum()
         mean = float(w @ self.quality)
         std = float(np.sqrt(max(float(w @ (self.quality - mean) ** 2), 0.0)))
         skew = float(w @ ((self.quality - mean) / std) ** 3) if std > 0 else float("nan")
-        return PalmEstimate(p, mean, std, skew)
+        return PalmEstimate(p, mean, std, skew, shares)
 
 
 def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine: str = "fast",
