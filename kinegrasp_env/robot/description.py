@@ -15,7 +15,8 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     open: {panda_finger_joint1: 0.04}  # optional pre-shape (within the joint's limits;
                                      # a joint left out: 0 clipped into its limits)
     finger_links: [...]              # optional: the links that touch (default: every link
-                                     # a hand joint moves)
+                                     # a hand joint moves; the tips then leave out a
+                                     # linkage's bars, see linkage_bars)
     efforts: {joint: 20.0}           # optional motor effort overrides, N m or N (> 0)
     contact_model: soft              # optional: point, soft or patch (default: soft
                                      # for a two-finger hand, else point)
@@ -59,7 +60,8 @@ class Finger:
     """One finger: the chain from the palm to a fingertip link.
 
     Attributes:
-        tip: the fingertip link (a leaf of the finger links).
+        tip: the fingertip link (a leaf of the finger links; with ``finger_links`` derived,
+            not a linkage's bar: :func:`linkage_bars`).
         joints: the closing joints on the chain, palm to tip (hand joints with a close
             direction and the mimic joints that follow them).
         links: the child link of each of ``joints``.
@@ -288,10 +290,19 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         finger_links = tuple(hand_links)
     parents = {by_child[link].parent for link in finger_links}
     tips = tuple(link for link in finger_links if link not in parents)
+
+    def below_palm(tip: str) -> list:
+        """The joints from the palm to ``tip``, in order."""
+        up = ancestors(tip)
+        return [by_child[link] for link in reversed(up[:up.index(palm)])]
+
+    if "finger_links" not in data:  # derived: a linkage's bars are no fingertips
+        bars = linkage_bars({tip: [j.name for j in below_palm(tip) if j.movable]
+                             for tip in tips}, {j: driver[j][0] for j in driver})
+        tips = tuple(tip for tip in tips if tip not in bars)
     fingers = []
     for tip in tips:
-        up = ancestors(tip)
-        on_path = [by_child[link] for link in reversed(up[:up.index(palm)])]
+        on_path = below_palm(tip)
         closing = [j for j in on_path if j.movable and driver[j.name][0] in close]
         fingers.append(Finger(tip, tuple(j.name for j in closing),
                               tuple(j.child for j in closing),
@@ -324,6 +335,39 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes)
+
+
+def linkage_bars(chains: dict[str, list[str]], drivers: dict[str, str]) -> set[str]:
+    """The leaves of a hand's tree that are a linkage's bars, not fingertips.
+
+    A linkage finger (the four-bar of a Robotiq 2F-style gripper) is a closed loop, which a
+    URDF's tree cuts open: one bar of the loop (the inner knuckle) becomes a leaf of its
+    own, one movable joint from where it leaves a finger's chain (the palm, or a link of the
+    chain), its joint following an actuator of that finger (a mimic joint). Such a leaf
+    ``t`` is a bar, not a fingertip, when another leaf ``u``
+
+    - has more movable joints below the palm than ``t`` (``u``'s chain is the distal one);
+    - is moved by every actuator that moves ``t`` (``t`` moves with ``u``, not on its own);
+    - has every movable joint of ``t``'s but the last as its own first ones (``t`` hangs
+      off ``u``'s chain, or off the palm, by one joint at most: one rigid bar).
+
+    A hand whose fingers each have an actuator of their own (the SDH-like hand), or whose
+    coupled fingers are equally long (the Panda's jaws), has no bar.
+
+    Args:
+        chains: per leaf, the names of the movable joints from the palm to it, in order.
+        drivers: per movable joint, the actuated joint setting it (itself, or the joint a
+            mimic joint follows).
+    """
+    moved_by = {leaf: {drivers[j] for j in chain} for leaf, chain in chains.items()}
+    bars = set()
+    for t, chain in chains.items():
+        for u, other in chains.items():
+            if (u != t and len(other) > len(chain) and moved_by[t] <= moved_by[u]
+                    and chain[:-1] == other[:len(chain) - 1]):
+                bars.add(t)
+                break
+    return bars
 
 
 def default_contact_model(fingers: int) -> str:
