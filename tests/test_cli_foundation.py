@@ -279,6 +279,13 @@ def test_help_shows_the_choices_from_their_sources():
     from kinegrasp_env.world.objects import OBJECT_NAMES
 
     assert ENGINE_NAMES == evaluate.ENGINES and MAX_SIGMA == evaluate.MAX_SIGMA
+    from kinegrasp_env.cli.common import DEFAULT_FRICTION, NUM_EDGES
+    from kinegrasp_env.cli.ranking import OUTCOME_COLUMNS
+    from kinegrasp_env.quality import wrenches
+
+    assert (DEFAULT_FRICTION, NUM_EDGES) == (wrenches.DEFAULT_FRICTION,
+                                             wrenches.DEFAULT_NUM_EDGES)
+    assert OUTCOME_COLUMNS == evaluate.OUTCOMES
     subs = _subparsers()
 
     def braces(names) -> str:

@@ -12,7 +12,7 @@ import pytest
 from cli_helpers import run_cli, start_cli
 
 from kinegrasp_env import cli
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.quality import ferrari_canny
 from kinegrasp_env.robot.kinematics import pose_error
 from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
@@ -79,8 +79,12 @@ def test_plan_then_rank(tmp_path, obj):
     assert proc.returncode == 0, proc.stderr
     rows = _read(ranked)
     assert list(rows[0]) == ["id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew",
-                             "q_nominal", "error", "samples", "engine"]
+                             "q_nominal", "error", "samples", "engine", *OUTCOMES]
     assert {r["engine"] for r in rows} == {"pybullet"}
+    for r in rows:  # every draw has one outcome; P(FC) is the force-closure share
+        counts = [int(r[name]) for name in OUTCOMES]
+        assert sum(counts) == int(r["samples"]) == 60
+        assert int(r["force_closure"]) / 60 == pytest.approx(float(r["p_fc"]), abs=1e-6)
     p = [float(r["p_fc"]) for r in rows]
     assert p == sorted(p, reverse=True)
     assert all(float(r["p_fc_lo"]) <= float(r["p_fc"]) <= float(r["p_fc_hi"]) for r in rows)
@@ -135,7 +139,10 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
     assert out.read_text() == (tmp_path / "full.csv").read_text()
     assert not partial.exists()
     rows = _read(out)
-    assert list(rows[0])[-1] == "engine" and {r["engine"] for r in rows} == {"fast"}
+    assert list(rows[0])[-5:] == ["engine", *OUTCOMES] and {r["engine"] for r in rows} == {
+        "fast"}
+    # the resumed candidates' outcome counts came back from the log
+    assert all(sum(int(r[name]) for name in OUTCOMES) == 40 for r in rows)
 
 
 def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:

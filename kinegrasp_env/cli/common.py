@@ -33,6 +33,9 @@ BACKEND_NAMES = ("local", "ray")
 #: half a turn describes no joint; it also keeps every configuration finite. Equal to
 #: ``montecarlo.evaluate.MAX_SIGMA`` (tested), the bound the library enforces.
 MAX_SIGMA = math.pi
+#: ``--friction``'s default and the friction cones' edges every command uses; equal to
+#: ``quality.wrenches.DEFAULT_FRICTION`` and ``DEFAULT_NUM_EDGES`` (tested).
+DEFAULT_FRICTION, NUM_EDGES = 0.5, 8
 
 
 class CLIError(ValueError):
@@ -327,6 +330,38 @@ def executor_from(args):
     # malformed --address
     with reported(ValueError):
         return make_executor(args.backend, processes, args.address)
+
+
+def add_friction_arg(parser: argparse.ArgumentParser) -> None:
+    """``--friction MU`` (see :func:`friction_from`)."""
+    parser.add_argument("--friction", default=str(DEFAULT_FRICTION),
+                        help="Coulomb friction coefficient mu at every contact: the friction "
+                        "cones of the quality and of the hold checks, the simulated mu in "
+                        "physics (a number >= 0)")
+
+
+def friction_from(args, noise=None) -> float:
+    """``--friction``: a finite mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
+    check_parameters`' rule); given beside a noise model (``noise``) with a friction source,
+    which sets mu per draw, it is a :class:`CLIError` line."""
+    from kinegrasp_env.quality.wrenches import check_parameters
+
+    text = getattr(args, "friction", str(DEFAULT_FRICTION))
+    value = finite_float(text, "--friction")
+    try:
+        check_parameters(value, NUM_EDGES)
+    except ValueError:
+        raise CLIError(f"--friction must be >= 0, got {text}") from None
+    if getattr(noise, "friction", None) is not None and value != DEFAULT_FRICTION:
+        raise CLIError("--friction and the noise spec's friction source both set mu: the "
+                       "source draws mu per draw; give one of them")
+    return value
+
+
+def friction_words(args) -> list[str]:
+    """``--friction MU`` as a page's command line spells it (nothing at the default)."""
+    text = getattr(args, "friction", str(DEFAULT_FRICTION))
+    return [] if float(text) == DEFAULT_FRICTION else ["--friction", str(text)]
 
 
 def add_engine_arg(parser: argparse.ArgumentParser, default: str = "pybullet") -> None:

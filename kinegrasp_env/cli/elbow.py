@@ -18,10 +18,12 @@ import sys
 from kinegrasp_env.cli.common import (
     CLIError,
     add_execution_args,
+    add_friction_arg,
     add_noise_args,
     add_object_arg,
     executor_from,
     finite_float,
+    friction_from,
     grasp_index_help,
     noise_from,
     output_file,
@@ -87,6 +89,7 @@ def cmd_elbow(args) -> int:
     from kinegrasp_env.toolkit.elbow import optimize_elbow
 
     noise, sigma, samples, seed = noise_from(args)
+    friction = friction_from(args, noise)
     epsilon, delta = certificate_levels(args)
     index, grasp = chosen or shipped_grasp(args.object, args.grasp)
     if args.plot:
@@ -97,7 +100,7 @@ def cmd_elbow(args) -> int:
                        "takes none")
     if args.method == "reweight":
         result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
-                                            delta)
+                                            delta, friction)
     else:
         evidence = None
         bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} (selection, then fresh "
@@ -105,6 +108,7 @@ def cmd_elbow(args) -> int:
         with executor_from(args) as executor:
             result = optimize_elbow(grasp, noise, samples, seed, engine=args.engine,
                                     epsilon=epsilon, delta=delta, executor=executor,
+                                    friction=friction,
                                     progress=lambda done: bar.update(done - bar.n))
         bar.close()
     payload = result.to_json()
@@ -133,11 +137,12 @@ def cmd_elbow(args) -> int:
         if args.plot:
             print(f"  plot written to {args.plot}")
     if args.report:
-        write_elbow_report(args, grasp, index, result, noise, evidence)
+        write_elbow_report(args, grasp, index, result, noise, evidence, friction)
     return 0
 
 
-def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta):
+def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
+                     friction: float = 0.5):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
     closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`)."""
     from tqdm import tqdm
@@ -152,7 +157,7 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta):
     with executor_from(args) as executor:
         out = optimize_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
                                         epsilon=epsilon, delta=delta, batch=batch,
-                                        executor=executor,
+                                        executor=executor, friction=friction,
                                         progress=lambda stage: bar.update(1))
     bar.close()
     return out
@@ -195,6 +200,7 @@ def cmd_elbow_robot(args, chosen=None) -> int:
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
                        "engine only")
     noise, sigma, samples, seed = noise_from(args)
+    friction = friction_from(args, noise)
     epsilon, delta = certificate_levels(args)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
@@ -212,13 +218,14 @@ def cmd_elbow_robot(args, chosen=None) -> int:
         output_file(args.plot, "--plot")
     if branches:
         return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
-                                  starts)
+                                  starts, friction)
     from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 
     bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} (selection, "
                "then fresh draws)", unit="angle", file=sys.stderr, disable=None)
     result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
-                                  delta=delta, progress=lambda done: bar.update(done - bar.n))
+                                  delta=delta, progress=lambda done: bar.update(done - bar.n),
+                                  friction=friction)
     bar.close()
     payload = {"robot": robot, **result.to_json()}
     if args.plot:
@@ -248,7 +255,7 @@ def ik_starts(args, branches: bool, robot: str) -> int | None:
 
 
 def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
-                       starts) -> int:
+                       starts, friction: float = 0.5) -> int:
     """A 6-joint arm's grasp across its IK branches
     (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`)."""
     from tqdm import tqdm
@@ -258,7 +265,7 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
     bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
                "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
     result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
-                                     epsilon=epsilon, delta=delta,
+                                     epsilon=epsilon, delta=delta, friction=friction,
                                      progress=lambda done: bar.update(done - bar.n))
     bar.close()
     payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
@@ -357,6 +364,7 @@ def add_commands(sub) -> None:
     p.add_argument("--engine", default=None, choices=("fast", "pybullet"),
                    help="fast (the default robot's default: many angles x draws) or pybullet "
                    "(the reference; a robot given with --robot: the only one)")
+    add_friction_arg(p)
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "
                    "1 - delta, no evaluated angle beats the chosen one by more than it")

@@ -13,6 +13,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
     add_execution_args,
+    add_friction_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
@@ -20,6 +21,7 @@ from kinegrasp_env.cli.common import (
     engine_name,
     executor_from,
     finite_float,
+    friction_from,
     grasp_index_help,
     noise_from,
     output_file,
@@ -56,10 +58,11 @@ def cmd_evaluate(args) -> int:
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     noise, sigma, samples, seed = noise_from(args)
+    friction = friction_from(args, noise)
     index, grasp = chosen_grasp(args)
     robot = args.robot or grasp.robot
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
-        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed)
+        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction)
     refuse_hold_scores(args, robot)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
@@ -68,16 +71,17 @@ def cmd_evaluate(args) -> int:
         output_file(args.plot, "--plot")
     report_path(args.report)
     with executor_from(args) as executor:
-        stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine,
+        stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
                                return_draws=bool(args.plot or args.report), progress=True,
                                executor=executor)
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     if args.json:
-        print(json.dumps(stats.to_json()))
+        print(json.dumps({**stats.to_json(), "friction": friction}))
     else:
         lo, hi = stats.p_fc_ci
         full = label if args.noise_spec else f"{label} ({args.noise})"
-        print(f"{args.object} grasp {index}, {full}, {samples} draws")
+        print(f"{args.object} grasp {index}, {full}, {samples} draws, friction mu "
+              f"{friction:g}")
         print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
         print(f"  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the force-closure "
               f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
@@ -117,6 +121,7 @@ def cmd_reproduce(args) -> int:
 
     samples = positive_int(args.samples, "--samples")
     engine = engine_name(args.engine)
+    friction = friction_from(args)
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")
@@ -128,7 +133,7 @@ def cmd_reproduce(args) -> int:
         if method != "direct":
             raise CLIError(f"--method {method} is not available for robot {args.robot!r} "
                            f"(only for {DEFAULT_ROBOT})")
-        return reproduce_robot(args, samples)
+        return reproduce_robot(args, samples, friction)
     out = str(output_folder(args.out or f"out/{args.figure}"))  # before any work
     seed = parse_seed(args.seed)
     if args.figure == "table1":
@@ -139,7 +144,7 @@ def cmd_reproduce(args) -> int:
     with executor_from(args) as executor:
         if args.figure == "fig7":
             rows = experiments.fig7(out, samples=samples, seed=seed, engine=engine,
-                                    executor=executor, progress=True)
+                                    executor=executor, progress=True, friction=friction)
             print(f"robust and fragile arm configurations {provenance(samples, seed)}")
             print_pairs(rows)
             figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
@@ -149,7 +154,7 @@ def cmd_reproduce(args) -> int:
                 rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
                                            count=count, engine=engine, executor=executor,
                                            progress=True, objects=objects, grasp_sets=sets,
-                                           method=method)
+                                           method=method, friction=friction)
             for r in rows:
                 shown = "" if method == "direct" else f" (effective sample {r['samples']})"
                 print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
@@ -165,7 +170,7 @@ def cmd_reproduce(args) -> int:
             print(written(out, [f"{args.figure}.csv", f"{args.figure}.png"]))
         else:
             rows = table1(args.object, samples, out, grasps=grasps, seed=seed, progress=True,
-                          engine=engine, executor=executor)
+                          engine=engine, executor=executor, friction=friction)
             print(markdown_table1(rows, args.object, samples))
             print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
     return 0
@@ -202,7 +207,7 @@ def robot_grasp_sets(args, robot: str) -> tuple[dict[str, list], int]:
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
-def reproduce_robot(args, samples: int) -> int:
+def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     """``reproduce fig10 --robot NAME``: null-space variants of a description robot's grasp
     (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); the other experiments are
     refused in one line (:data:`ROBOT_REFUSAL`)."""
@@ -228,7 +233,7 @@ def reproduce_robot(args, samples: int) -> int:
 
     with reported(ValueError):
         rows = robot_fig10(description, out, grasp_sets=sets, samples=samples, count=count,
-                           seed=seed, engine=args.engine)
+                           seed=seed, engine=args.engine, friction=friction)
     for r in rows:
         print(f"{r['object']:<12} id {r['id']:<5} elbow {r['elbow_angle']:+.3f} rad P(FC) "
               f"{r['p_fc']:.3f} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
@@ -300,6 +305,7 @@ def add_commands(sub) -> None:
     add_noise_spec_arg(p)
     add_execution_args(p, 1)
     add_engine_arg(p)
+    add_friction_arg(p)
     p.add_argument("--elbow", help="evaluate the grasp with the arm moved along its "
                    "self-motion to this elbow angle, radians (same palm pose and contacts; "
                    "see `kinegrasp elbow`)")
@@ -333,6 +339,7 @@ def add_commands(sub) -> None:
     # fast by default: the same draws as the reference, and the same outcome for all but a few
     # in 10,000 of them (benchmarks/agreement.py); --engine pybullet runs the reference
     add_engine_arg(p, "fast")
+    add_friction_arg(p)
     p.add_argument("--out", help="output folder (default out/<figure>)")
     p.add_argument("--method", default="direct", choices=("direct", "reweight"),
                    help="fig10: direct (each variant on its own draws) or reweight (every "

@@ -16,10 +16,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from kinegrasp_env.cli.common import (
+    NUM_EDGES,
     CLIError,
     engine_name,
     executor_from,
     finite_float,
+    friction_from,
     noise_from,
     output_file,
     positive_int,
@@ -33,6 +35,9 @@ if TYPE_CHECKING:
 
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
                "error", "samples", "engine")
+#: The draws per outcome, after :data:`CSV_COLUMNS`; equal to ``montecarlo.engines.OUTCOMES``
+#: (tested), copied so that building the parser stays cheap.
+OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
 #: The hold scores' columns (``toolkit.ranking.HOLD_SCORES`` -> (CSV column, table header));
 #: each CSV column comes with its ``_lo`` and ``_hi`` interval ends.
 HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(hold)")}
@@ -44,9 +49,9 @@ HOLD_NOTES = {
             "dynamics, six gravity directions and the lift; it agrees with the full test on "
             "most draws: benchmarks/quick_hold.py)"}
 CHUNK = 250
-#: The friction cone ``rank`` scores with (the library's defaults, docs/conventions.md) and
-#: its noise sampler: fixed, but recorded in the resume log with every other setting.
-FRICTION, NUM_EDGES, METHOD = 0.5, 8, "mc"
+#: ``rank``'s noise sampler: fixed, but recorded in the resume log with every other setting.
+METHOD = "mc"
+
 
 def _fmt(value: float) -> str:
     return "" if value is None or (isinstance(value, float) and math.isnan(value)) else \
@@ -58,7 +63,8 @@ def _fixed(value: float) -> str:
     return "-" if value is None or math.isnan(value) else f"{value:.5f}"
 
 
-def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, executor) -> list:
+def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, executor,
+                friction: float = 0.5) -> list:
     """Each candidate moved to its most robust elbow angle (``kinegrasp elbow``'s optimizer),
     chosen on draws of seed + 1, so the ranking's own draws (seed) stay independent of the
     choice."""
@@ -71,7 +77,7 @@ def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, execu
                       file=sys.stderr, disable=None):
         best = optimize_elbow(grasp, noise, samples, seed + 1,
                               engine="fast" if engine == "physics" else engine,
-                              executor=executor)
+                              executor=executor, friction=friction)
         chosen = with_configuration(grasp, best.best_q, best.best_psi)
         moved.append(dataclasses.replace(chosen, id=f"{grasp.id}e"))
     return moved
@@ -81,14 +87,16 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo.nominal import nominal_quality
 
-    grasps, digest, rejected = _candidates(args.candidates, args.robot)
     noise, sigma, samples, seed = noise_from(args)
+    friction = friction_from(args, noise)
+    grasps, digest, rejected = _candidates(args.candidates, args.robot, friction)
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
-        results = rank_robot(args, grasps, robot, sigma, samples, seed)
+        results, grasps = rank_robot(args, grasps, robot, sigma, samples, seed, friction)
         _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
                        engine, as_json=args.json)
         _write_rejected(rejected, out, args.json)
@@ -98,18 +106,24 @@ def cmd_rank(args) -> int:
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
 
+    outcome_counts: dict[int, dict[str, int]] = {}
+
     def evaluator(index: int, first: int, count: int, outcomes: bool = False):
         """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
-        each draw's force-closure outcome (what adaptive ranking pairs across candidates)."""
+        each draw's force-closure outcome (what adaptive ranking pairs across candidates);
+        the draws per outcome are added to ``outcome_counts``."""
         counts, moments, draws = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
-            friction=FRICTION, num_edges=NUM_EDGES, engine=engine, method=METHOD,
+            friction=friction, num_edges=NUM_EDGES, engine=engine, method=METHOD,
             executor=executor, return_draws=outcomes)
+        tally = outcome_counts.setdefault(index, dict.fromkeys(evaluate.OUTCOMES, 0))
+        for name, c in zip(evaluate.OUTCOMES, counts, strict=True):
+            tally[name] += int(c)
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
         return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
 
     partial = out.with_name(out.name + ".partial.jsonl")
-    settings = {"candidates_sha256": digest, "engine": engine, "friction": FRICTION,
+    settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed}
     if args.noise_spec:  # the whole model is a setting: another model does not resume
@@ -128,7 +142,7 @@ def cmd_rank(args) -> int:
     with executor_from(args) as executor:
         if args.best_elbow:
             grasps = best_elbows(grasps, noise, settings["best_elbow_samples"], seed, engine,
-                                 executor)
+                                 executor, friction)
         done = {}
         if not args.adaptive:
             existed = partial.exists()
@@ -137,16 +151,21 @@ def cmd_rank(args) -> int:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
         results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
-                                  done, certify)
+                                  done, certify, outcome_counts)
+    for r in results:  # resumed candidates carry theirs from the log
+        r.outcomes = r.outcomes or outcome_counts.get(r.index, {})
+    grasps = [dataclasses.replace(g, q_nominal=nominal_quality(g, friction, NUM_EDGES))
+              for g in grasps]
     _write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json)
     _write_rejected(rejected, out, args.json)
     if args.report:
         write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
-                          engine=engine)
+                          engine=engine, friction=friction)
     return 0
 
 
-def _candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
+def _candidates(path: str, robot: str | None = None,
+                friction: float = 0.5) -> tuple[list, str, list]:
     """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
     candidates (none but for a palm-pose file); refuses a file with
     no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
@@ -160,7 +179,7 @@ def _candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
     from kinegrasp_env.toolkit.candidates import is_candidate_file
 
     if is_candidate_file(path):
-        return _palm_pose_candidates(path, robot)
+        return _palm_pose_candidates(path, robot, friction)
     with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
         grasps = load_grasps(path)
     if not grasps:
@@ -174,7 +193,8 @@ def _candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
 
 
-def _palm_pose_candidates(path: str, robot: str | None = None) -> tuple[list, str, list]:
+def _palm_pose_candidates(path: str, robot: str | None = None,
+                          friction: float = 0.5) -> tuple[list, str, list]:
     """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
     rejected candidates); each rejected one is a line on stderr, and so is each accepted one
     whose nominal closing is not in force closure (ranked all the same)."""
@@ -182,7 +202,7 @@ def _palm_pose_candidates(path: str, robot: str | None = None) -> tuple[list, st
 
     with reported(ValueError):  # bad entries: one line naming the candidate
         read = read_candidates(path, robot)
-    grasps, rejected = solve_all(read.object, read.candidates, read.robot)
+    grasps, rejected = solve_all(read.object, read.candidates, read.robot, friction)
     for r in rejected:
         print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
     for g in grasps:
@@ -227,10 +247,12 @@ def _certify_settings(args) -> dict:
 
 
 def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
-          done: dict[int, CandidateResult], certify: dict) -> tuple[list, object]:
+          done: dict[int, CandidateResult], certify: dict,
+          outcome_counts: dict[int, dict[str, int]]) -> tuple[list, object]:
     """Fixed-n (``done``: candidates read back from ``partial``; each one finished now is
-    appended to it) or adaptive ranking (``certify``: its delta and epsilon): (the results
-    in the order to show, the adaptive run's report or None)."""
+    appended to it, with its draws per outcome from ``outcome_counts``) or adaptive ranking
+    (``certify``: its delta and epsilon): (the results in the order to show, the adaptive
+    run's report or None)."""
     from tqdm import tqdm
 
     from kinegrasp_env.cli import resume
@@ -256,6 +278,7 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
             value = evaluator(index, first, count)
             result = CandidateResult(index)
             result.add(*value, count)
+            result.add_outcomes(outcome_counts.get(index, {}))
             results_so_far[index] = result
             return value
 
@@ -328,7 +351,8 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
         row = {"id": g.id, "p_fc": r.p_fc, "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
                "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
-               "samples": r.trials, "engine": engine}
+               "samples": r.trials, "engine": engine,
+               **{name: r.outcomes.get(name, 0) for name in OUTCOME_COLUMNS}}
         for score, (column, _) in HOLD_COLUMNS.items():
             row[column] = r.p_hold(score)
             row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
@@ -340,10 +364,11 @@ def _write_ranking(grasps, results: list[CandidateResult], out: Path, partial: P
     scores = [score for score in HOLD_COLUMNS if any(score in r.holds for r in results)]
     hold = tuple(f"{HOLD_COLUMNS[score][0]}{end}" for score in scores
                  for end in ("", "_lo", "_hi"))
-    writer.writerow(CSV_COLUMNS + hold + extra)
+    writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + hold + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
-                         row["engine"], *(_fmt(row[c]) for c in hold),
+                         row["engine"], *(row[c] for c in OUTCOME_COLUMNS),
+                         *(_fmt(row[c]) for c in hold),
                          *([label] if extra else [])])
     write_atomic(out, buffer.getvalue())
     if partial.exists():

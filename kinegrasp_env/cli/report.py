@@ -17,14 +17,18 @@ from pathlib import Path
 
 from kinegrasp_env.cli.common import (
     MAX_SIGMA,
+    NUM_EDGES,
     CLIError,
     add_engine_arg,
     add_execution_args,
+    add_friction_arg,
     add_noise_spec_arg,
     add_object_arg,
     engine_name,
     executor_from,
     float_list,
+    friction_from,
+    friction_words,
     grasp_index_help,
     noise_spec_from,
     nonnegative,
@@ -33,7 +37,6 @@ from kinegrasp_env.cli.common import (
     positive_int,
 )
 
-FRICTION, NUM_EDGES = 0.5, 8
 #: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
 #: ``report.page.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.
 MAX_POINTS_DEFAULT = 15_000
@@ -81,7 +84,7 @@ def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: i
             **noise_settings(args, [run_noise(r) for r in runs]),
             "draws per run": first.samples, "seed": first.seed, "engine": first.engine,
             "friction mu": "per draw (the noise spec's friction source)" if per_draw
-            else FRICTION, "friction cone edges": NUM_EDGES,
+            else friction_from(args), "friction cone edges": NUM_EDGES,
             "draws per chunk (random streams)": DEFAULT_CHUNK,
             "contact points drawn at most": max_points, "noisy arms drawn": arm_draws}
 
@@ -93,7 +96,8 @@ def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
 
     settings = _settings(args, grasp, index, runs, max_points, arm_draws)
     text = evaluation_page(grasp, runs, command=shlex.join(command), settings=settings,
-                           friction=FRICTION, num_edges=NUM_EDGES, max_points=max_points,
+                           friction=friction_from(args), num_edges=NUM_EDGES,
+                           max_points=max_points,
                            arm_draws=arm_draws)
     write_page(path, text)
     return len(text.encode())
@@ -117,8 +121,8 @@ def evaluation_command(args, name: str, index: int, sigma_text: str, samples: in
     if getattr(args, "elbow", None) is not None:
         chosen += ["--elbow", str(args.elbow)]
     return ["kinegrasp", name, "--object", args.object, *chosen, *noise_words(args, sigma_text),
-            "--samples", str(samples), "--seed", str(seed), "--engine", engine, out_option,
-            str(out)]
+            "--samples", str(samples), "--seed", str(seed), "--engine", engine,
+            *friction_words(args), out_option, str(out)]
 
 
 def report_noises(args) -> list:
@@ -142,6 +146,7 @@ def cmd_report(args) -> int:
                                 str(ARM_DRAWS_DEFAULT))
     args.grasp = "0" if args.grasp is None else args.grasp
     noises = report_noises(args)
+    friction = friction_from(args, noises[0])
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
     index, grasp = chosen_grasp(args)
@@ -150,7 +155,7 @@ def cmd_report(args) -> int:
     arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
     out = output_file(args.out, "--out")
     with executor_from(args) as executor:
-        runs = [evaluate_grasp(grasp, noise, samples, seed, engine=engine,
+        runs = [evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
                                return_draws=i == 0, progress=True, executor=executor)
                 for i, noise in enumerate(noises)]
     sigmas = "" if args.noise_spec else ",".join(f"{n.sigma:g}" for n in noises)
@@ -190,7 +195,7 @@ def evaluate_report(args, grasp, index: int, stats) -> None:
 
 
 def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
-                      engine: str) -> None:
+                      engine: str, friction: float = 0.5) -> None:
     """``rank --report FILE``: the sortable table and each candidate's 3-D views."""
     from kinegrasp_env.toolkit.report.page import rank_page, write_page
 
@@ -208,20 +213,22 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                                   str(args.epsilon), "--delta", str(args.delta)]
                                  if args.adaptive else []),
                *(["--best-elbow", str(args.best_elbow)] if args.best_elbow else []),
-               "--engine", engine, "--out", str(args.out), "--report", str(args.report)]
+               "--engine", engine, *friction_words(args), "--out", str(args.out), "--report",
+               str(args.report)]
     settings = {"candidates": args.candidates, "object": grasps[0].object,
                 **noise_settings(args, [noise]),
                 "draws per candidate": samples, "seed": seed, "criterion": args.criterion,
                 "adaptive": f"top {args.top_k}, epsilon {args.epsilon}, delta {args.delta}"
                 if args.adaptive else "no",
-                "engine": engine, "friction mu": FRICTION, "friction cone edges": NUM_EDGES}
+                "engine": engine, "friction mu": friction, "friction cone edges": NUM_EDGES}
     text = rank_page(grasps, rows, command=shlex.join(command), settings=settings, noise=noise,
-                     seed=seed, samples=samples, friction=FRICTION, num_edges=NUM_EDGES)
+                     seed=seed, samples=samples, friction=friction, num_edges=NUM_EDGES)
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
-def write_elbow_report(args, grasp, index: int, result, noise, evidence=None) -> None:
+def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
+                       friction: float = 0.5) -> None:
     """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
     elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``; or
     the re-weighted search's, with its ``evidence``: then the batch, and the fragile
@@ -234,7 +241,8 @@ def write_elbow_report(args, grasp, index: int, result, noise, evidence=None) ->
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
                "--seed", str(result.seed), "--engine", result.engine,
                "--epsilon", f"{result.certificate.epsilon:g}",
-               "--delta", f"{result.certificate.delta:g}", "--report", str(out)]
+               "--delta", f"{result.certificate.delta:g}", *friction_words(args), "--report",
+               str(out)]
     if evidence is not None:
         command[-2:-2] = ["--method", "reweight", "--batch", str(evidence.batch)]
     settings = {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
@@ -245,7 +253,7 @@ def write_elbow_report(args, grasp, index: int, result, noise, evidence=None) ->
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
                 "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
                                               f"{result.certificate.delta:g}",
-                "friction mu": FRICTION, "friction cone edges": NUM_EDGES,
+                "friction mu": friction, "friction cone edges": NUM_EDGES,
                 "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
     if evidence is not None:
         settings["method"] = (f"reweight: one batch of {evidence.batch} closings over the "
@@ -338,6 +346,7 @@ def add_commands(sub) -> None:
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 1)
     add_engine_arg(p)
+    add_friction_arg(p)
     p.add_argument("--out", required=True, help="the HTML file to write")
     p.add_argument("--max-points", default=str(MAX_POINTS_DEFAULT),
                    help="most draw contact points drawn (a uniform random subset past it)")

@@ -98,7 +98,7 @@ def result_to_json(result: CandidateResult) -> dict:
     moments = None if m is None else {"n": m.n, "mean": m.mean.tolist(), "m2": m.m2.tolist(),
                                       "m3": m.m3.tolist()}
     return {"index": result.index, "successes": result.successes, "trials": result.trials,
-            "chunks": result.chunks, "moments": moments}
+            "chunks": result.chunks, "moments": moments, "outcomes": result.outcomes}
 
 
 def result_from_json(item: dict) -> CandidateResult:
@@ -106,5 +106,6 @@ def result_from_json(item: dict) -> CandidateResult:
     data = item["moments"]
     moments = None if data is None else StreamingMoments.from_state(
         data["n"], data["mean"], data["m2"], data["m3"])
+    outcomes = {str(name): int(count) for name, count in dict(item.get("outcomes") or {}).items()}
     return CandidateResult(int(item["index"]), int(item["successes"]), int(item["trials"]),
-                           int(item["chunks"]), moments)
+                           int(item["chunks"]), moments, outcomes=outcomes)

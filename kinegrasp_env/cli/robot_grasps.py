@@ -12,7 +12,14 @@ import json
 import math
 import sys
 
-from kinegrasp_env.cli.common import CLIError, output_file, parse_seed, positive_int, reported
+from kinegrasp_env.cli.common import (
+    CLIError,
+    friction_from,
+    output_file,
+    parse_seed,
+    positive_int,
+    reported,
+)
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The executor options (a description robot's draws run in this process), unset.
@@ -37,22 +44,24 @@ def refuse_hold_scores(args, robot: str) -> None:
                        f"{robot}")
 
 
-def quick_hold_engine(robot: str, object_name: str):
+def quick_hold_engine(robot: str, object_name: str, friction: float = 0.5):
     """The quick holding test of ``robot`` on a catalog object, in pybullet
-    (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`)."""
+    (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), friction mu ``friction``."""
     from kinegrasp_env.physics.protocol import QUICK_PROTOCOL
     from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
     from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
 
-    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS)
+    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
+                           friction=friction)
 
 
-def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str) -> int:
+def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
+                       friction: float = 0.5) -> int:
     """How many of ``evaluate``'s draws of a grasp the quick holding test holds."""
     from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
     from kinegrasp_env.physics.protocol import HELD
 
-    with quick_hold_engine(robot, grasp.object) as engine:
+    with quick_hold_engine(robot, grasp.object, friction) as engine:
         q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise)
         return int((engine.run_hold(q)[1].outcome == HELD).sum())
 
@@ -82,7 +91,8 @@ def cmd_plan_robot(args) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
     with reported(ValueError):
-        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed)
+        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
+                                   friction=friction_from(args))
     if not grasps:
         raise CLIError(f"no force-closure grasp of {args.object} found for robot "
                        f"{args.robot}; nothing written")
@@ -92,9 +102,9 @@ def cmd_plan_robot(args) -> int:
 
 
 def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: int,
-                   seed: int) -> int:
+                   seed: int, friction: float) -> int:
     """``kinegrasp evaluate`` of a description robot's grasp (joint noise on its arm joints,
-    the reference engine)."""
+    friction mu ``friction``)."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.stats import wilson_interval
@@ -109,7 +119,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
             grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                      noise=args.noise, robot=robot, engine=args.engine,
-                                     static_hold=args.static_hold)
+                                     static_hold=args.static_hold, friction=friction)
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object
@@ -125,7 +135,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if math.isfinite(stats.push_median):
         hold["jaw_push_mm"] = {"median": 1e3 * stats.push_median, "p95": 1e3 * stats.push_p95}
     if args.hold_test:
-        held = holding_test_count(grasp, robot, sigma, samples, seed, args.noise)
+        held = holding_test_count(grasp, robot, sigma, samples, seed, args.noise, friction)
         hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held,
                                                                                  samples))})
     if args.json:
@@ -133,8 +143,9 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
                           "sigma": sigma, "noise": args.noise, "samples": samples,
                           "seed": seed, "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
-                          "q_nominal": grasp.q_nominal, "q_mean": finite(stats.q_mean),
-                          "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
+                          "friction": friction, "q_nominal": stats.q_nominal,
+                          "q_mean": finite(stats.q_mean), "q_std": finite(stats.q_std),
+                          "q_skew": finite(stats.q_skew),
                           "outcomes": stats.counts, **hold}))
         return 0
     lo, hi = stats.ci
@@ -143,7 +154,8 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
     model = load_robot(robot).contact_model
     print(f"  Q (Ferrari-Canny, {model} contacts; mean, "
-          f"std, skewness over the force-closure draws): nominal {grasp.q_nominal:.5f}, mean "
+          f"std, skewness over the force-closure draws; mu {friction:g}): nominal "
+          f"{stats.q_nominal:.5f}, mean "
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
     if args.hold_test:
         lo, hi = hold["p_hold_ci"]
@@ -191,11 +203,15 @@ def robot_grasp_at_elbow(grasp, robot: str, text: str):
                                meta={**grasp.meta, "elbow_angle": psi})
 
 
-def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed: int) -> list:
+def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed: int,
+               friction: float) -> tuple[list, list]:
     """``kinegrasp rank`` of a description robot's grasps: each evaluated on ``samples``
-    draws (the same seed for every candidate: common noise), ordered by ``--criterion``
-    (:func:`kinegrasp_env.toolkit.ranking.order`); returns the ordered
-    :class:`~kinegrasp_env.toolkit.ranking.CandidateResult` list."""
+    draws (the same seed for every candidate: common noise) at friction mu ``friction``,
+    ordered by ``--criterion`` (:func:`kinegrasp_env.toolkit.ranking.order`); returns the
+    ordered :class:`~kinegrasp_env.toolkit.ranking.CandidateResult` list (with each one's
+    draws per outcome) and the grasps with their nominal Q computed by the same engine."""
+    import dataclasses
+
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
     from kinegrasp_env.montecarlo.robot_evaluate import (
         check_robot,
@@ -220,16 +236,20 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
     results = []
     static_hold = args.static_hold or args.criterion == "hold_static"
     name = objects.pop()
-    tester = quick_hold_engine(robot, name) if args.criterion == "hold" else None
+    tester = quick_hold_engine(robot, name, friction) if args.criterion == "hold" else None
+    nominal = []
     try:
-        with make_engine(args.engine, robot, name, static_hold=static_hold) as engine:
+        with make_engine(args.engine, robot, name, static_hold=static_hold,
+                         friction=friction) as engine:
             for index, g in enumerate(grasps):
                 stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
                                              noise=args.noise, engine=engine)
+                nominal.append(dataclasses.replace(g, q_nominal=stats.q_nominal))
                 fc = stats.draws.outcome == FORCE_CLOSURE
                 result = CandidateResult(index)
                 result.add(int(fc.sum()), samples,
                            StreamingMoments(1).update(stats.draws.quality[fc]), 1)
+                result.add_outcomes(stats.counts)
                 if static_hold:
                     result.add_holds("static", int(stats.draws.holds.sum()), samples)
                 if tester is not None:
@@ -243,4 +263,4 @@ def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed:
     finally:
         if tester is not None:
             tester.close()
-    return order(results, args.criterion)
+    return order(results, args.criterion), nominal

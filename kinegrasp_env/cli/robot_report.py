@@ -8,13 +8,17 @@ the draws of ``kinegrasp evaluate`` with the same options), written as one page
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import shlex
 from pathlib import Path
 
 from kinegrasp_env.cli.common import (
+    NUM_EDGES,
     CLIError,
+    friction_from,
+    friction_words,
     output_file,
     parse_index,
     parse_seed,
@@ -22,8 +26,6 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, IN_PROCESS, _check_engine, _refuse
-
-FRICTION, NUM_EDGES = 0.5, 8
 
 
 def grasp_file_robot(args) -> str | None:
@@ -126,7 +128,8 @@ def report_command(args, robot: str, sigmas: list[float], samples: int, seed: in
         chosen += ["--grasp", args.grasp]
     return ["kinegrasp", "report", "--robot", robot, *chosen, "--sigma",
             ",".join(f"{s:g}" for s in sigmas), "--noise", args.noise, "--samples",
-            str(samples), "--seed", str(seed), "--engine", args.engine, "--out", str(out)]
+            str(samples), "--seed", str(seed), "--engine", args.engine, *friction_words(args),
+            "--out", str(out)]
 
 
 def _finite(value):
@@ -149,6 +152,7 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
     _refuse(args, {"--noise-spec": None, "--max-points": max_points_default,
                    "--arm-draws": arm_draws_default, **IN_PROCESS}, robot)
     _check_engine(args.engine, robot)
+    friction = friction_from(args)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
     out = output_file(args.out, "--out")
@@ -156,12 +160,15 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
         description = load_robot(robot)
     name, grasps = chosen_grasps(args, robot)
     runs = []
-    with make_engine(args.engine, description, name) as engine:
+    with make_engine(args.engine, description, name, friction=friction) as engine:
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
                     grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
                     engine=engine)))
+    # each grasp's nominal Q as this engine computes it at this friction
+    nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
+    grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]
     command = report_command(args, robot, sigmas, samples, seed, out)
     settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
                 "grasp source": args.grasps or f"shipped set of {name} for {robot}",
@@ -169,9 +176,9 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
                 "noisy joints": ", ".join(description.arm_joints),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
-                "friction mu": FRICTION, "friction cone edges": NUM_EDGES}
+                "friction mu": friction, "friction cone edges": NUM_EDGES}
     text = robot_page(description, load_object(name), grasps, runs,
-                      command=shlex.join(command), settings=settings, friction=FRICTION,
+                      command=shlex.join(command), settings=settings, friction=friction,
                       num_edges=NUM_EDGES)
     write_page(out, text)
     size = len(text.encode())
@@ -181,7 +188,7 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
                                     "noise": args.noise, "samples": samples, "seed": seed,
                                     "p_fc": r.evaluation.p_fc,
                                     "p_fc_ci": list(r.evaluation.ci),
-                                    "q_nominal": grasps[r.grasp].q_nominal,
+                                    "q_nominal": r.evaluation.q_nominal,
                                     "q_mean": _finite(r.evaluation.q_mean),
                                     "q_std": _finite(r.evaluation.q_std),
                                     "q_skew": _finite(r.evaluation.q_skew),

@@ -20,8 +20,10 @@ import sys
 from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
+    add_friction_arg,
     add_object_arg,
     engine_name,
+    friction_from,
     grasp_index_help,
     output_file,
     parse_seed,
@@ -46,6 +48,7 @@ def cmd_sensitivity(args) -> int:
         raise CLIError(f"--noise-spec {args.noise_spec}: the model has no source of error; "
                        "nothing to analyze")
     samples = positive_int(args.samples, "--samples", low=2)
+    friction = friction_from(args, model)
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
     from kinegrasp_env.cli.grasp_choice import file_grasp
@@ -56,7 +59,7 @@ def cmd_sensitivity(args) -> int:
         index, grasp, noise = _robot_request(args, model, robot, index, grasp)
         if args.plot:
             output_file(args.plot, "--plot")
-        result = _analyze_robot(grasp, noise, samples, seed, args.engine, bootstrap)
+        result = _analyze_robot(grasp, noise, samples, seed, args.engine, bootstrap, friction)
     else:
         if grasp is None:
             args.object = args.object or DEFAULT_OBJECT
@@ -71,7 +74,7 @@ def cmd_sensitivity(args) -> int:
             check_noise_engine(model, engine)
         if args.plot:
             output_file(args.plot, "--plot")
-        result = _analyze(grasp, model, samples, seed, engine, bootstrap)
+        result = _analyze(grasp, model, samples, seed, engine, bootstrap, friction)
     payload = result.to_json()
     if args.json:
         print(json.dumps(payload))
@@ -139,12 +142,14 @@ def _progress_bar():
     return bar, progress
 
 
-def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int):
-    """The analysis with a progress bar on stderr (one step per setting)."""
+def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int,
+             friction: float):
+    """The analysis with a progress bar on stderr (one step per setting), friction mu
+    ``friction`` (where the model has no friction source)."""
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.toolkit.sensitivity import analyze
 
-    runner = make_engine(engine, grasp.object)
+    runner = make_engine(engine, grasp.object, friction)
     bar, progress = _progress_bar()
     try:
         return analyze(grasp, model, samples, seed, engine=runner, bootstrap=bootstrap,
@@ -154,14 +159,15 @@ def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int)
         runner.close()
 
 
-def _analyze_robot(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int):
+def _analyze_robot(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
+                   friction: float):
     """A description robot's analysis over its arm joints, with the progress bar."""
     from kinegrasp_env.montecarlo.robot_evaluate import make_engine
     from kinegrasp_env.toolkit.sensitivity import analyze_joints
 
     bar, progress = _progress_bar()
     try:
-        with make_engine(engine, grasp.robot, grasp.object) as runner:
+        with make_engine(engine, grasp.robot, grasp.object, friction=friction) as runner:
             return analyze_joints(grasp, noise, samples, seed, engine=runner,
                                   bootstrap=bootstrap, progress=progress)
     finally:
@@ -190,6 +196,7 @@ def add_commands(sub) -> None:
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_engine_arg(p)
     p.set_defaults(engine="fast")
+    add_friction_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a PNG bar chart of the indices and P(FC)s")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}); another robot: "

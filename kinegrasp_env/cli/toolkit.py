@@ -11,11 +11,13 @@ from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
     add_execution_args,
+    add_friction_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
     add_static_hold_arg,
     executor_from,
+    friction_from,
     output_file,
     output_folder,
     parse_seed,
@@ -43,7 +45,7 @@ def cmd_plan(args) -> int:
     attempts = positive_int(args.max_attempts, "--max-attempts") if args.max_attempts else None
     seed = parse_seed(args.seed)
     output_file(args.out, "--out")
-    planner = GraspPlanner(args.object)
+    planner = GraspPlanner(args.object, friction=friction_from(args))
     try:
         grasps = planner.plan(count, seed=seed, time_budget=budget, max_attempts=attempts,
                               progress=True)
@@ -73,6 +75,10 @@ def cmd_sweep(args) -> int:
 
     with reported(SpecError):
         spec = SweepSpec.from_file(args.spec, robot=args.robot)
+    if args.friction is not None:
+        import dataclasses
+
+        spec = dataclasses.replace(spec, friction=friction_from(args))
     out = output_folder(args.out)
     robot = "" if spec.robot == DEFAULT_ROBOT else f" of robot {spec.robot}"
     with executor_from(args) as executor:
@@ -100,6 +106,7 @@ def add_commands(sub) -> None:
     p.add_argument("--max-attempts", help="palm poses to try at most (default: no limit)")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
                    "antipodal parallel-jaw grasps, recorded in the file)")
+    add_friction_arg(p)
     p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("rank", help="rank candidate grasps by robustness under joint noise")
@@ -135,6 +142,7 @@ def add_commands(sub) -> None:
                    "on seed + 1); the ranked ids get an 'e'")
     add_execution_args(p, 1)
     add_engine_arg(p)
+    add_friction_arg(p)
     p.add_argument("--out", default="ranked.csv",
                    help="CSV to write; an interrupted run keeps its finished candidates in "
                    "<out>.partial.jsonl and the same command resumes from them")
@@ -149,10 +157,12 @@ def add_commands(sub) -> None:
                        "x engines), resumable, on a process pool or Ray")
     p.add_argument("spec", help="YAML file with objects, grasps, grasp_files (object: grasp "
                    "file, needed for an imported object), sigmas, noise, engines, samples, "
-                   "chunk, seed, robot")
+                   "chunk, seed, robot, friction")
     p.add_argument("--out", required=True, help="folder of the results store and summary")
     p.add_argument("--robot", help=f"catalog robot (replaces the spec's robot, default "
                    f"{DEFAULT_ROBOT}); another robot's grasps are its shipped sets or the "
                    "spec's grasp files, with joint noise on its arm joints")
+    p.add_argument("--friction", help="Coulomb friction coefficient mu at every contact "
+                   "(replaces the spec's friction, default 0.5; a number >= 0)")
     add_execution_args(p, 1)
     p.set_defaults(func=cmd_sweep)

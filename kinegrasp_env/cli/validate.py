@@ -13,7 +13,9 @@ import math
 
 from kinegrasp_env.cli.common import (
     CLIError,
+    add_friction_arg,
     finite_float,
+    friction_from,
     grasp_index_help,
     nonnegative,
     output_folder,
@@ -61,6 +63,7 @@ def add_commands(sub) -> None:
                    "kuka_sdh); another robot's shipped grasps (assets/grasps/NAME/) or "
                    "--grasps of it are held by its own hand in pybullet, its motors at the "
                    "URDF's effort limits (or the description's efforts)")
+    add_friction_arg(p)
     p.add_argument("--out", required=True, help="output folder (results are cached there: "
                    "a rerun with the same settings resumes)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -193,7 +196,8 @@ def settings_from(args) -> dict:
         check_simulator(args.simulator)
     return {"sigma": sigma, "samples": positive_int(args.samples, "--samples"),
             "seed": parse_seed(args.seed), "kinematic": args.kinematic_engine,
-            "simulator": args.simulator, "torque_scale": scale, "shake": args.shake}
+            "simulator": args.simulator, "torque_scale": scale, "shake": args.shake,
+            "friction": friction_from(args)}
 
 
 def cmd_validate(args) -> int:

@@ -29,6 +29,7 @@ from kinegrasp_env.montecarlo.engines import (
     cached_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
@@ -280,7 +281,8 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
         grasp, noise, seed, sizes=chunk_sizes(n_samples, chunk), processes=processes,
         friction=friction, num_edges=num_edges, engine=engine, method=method,
         return_draws=return_draws, progress=progress, executor=executor)
-    return summarize(grasp, noise, seed, engine, counts, moments, draws)
+    return summarize(grasp, noise, seed, engine, counts, moments, draws,
+                     q_nominal=nominal_quality(grasp, friction, num_edges))
 
 
 def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
@@ -333,7 +335,11 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
 
 
 def summarize(grasp: Grasp, noise: Noise, seed: int, engine: str, counts: np.ndarray,
-              moments: StreamingMoments, draws: DrawBatch | None) -> GraspStats:
+              moments: StreamingMoments, draws: DrawBatch | None, *,
+              q_nominal: float | None = None) -> GraspStats:
+    """The statistics of merged chunks; ``q_nominal``: the grasp's nominal Q at the run's
+    friction (default: the grasp's recorded ``q_nominal``)."""
+    q_nominal = grasp.q_nominal if q_nominal is None else float(q_nominal)
     n = int(counts.sum())
     fc = int(counts[FORCE_CLOSURE])
     result = moments.result()
@@ -343,8 +349,8 @@ def summarize(grasp: Grasp, noise: Noise, seed: int, engine: str, counts: np.nda
     return GraspStats(
         p_fc=fc / n, p_fc_ci=wilson_interval(fc, n), q_mean=mean, q_var=var,
         q_std=math.sqrt(var) if fc > 1 else math.nan,
-        q_skew=float(result.skew[0]) if fc > 1 else math.nan, q_nominal=grasp.q_nominal,
-        error=grasp.q_nominal - mean if fc else math.nan, samples=n,
+        q_skew=float(result.skew[0]) if fc > 1 else math.nan, q_nominal=q_nominal,
+        error=q_nominal - mean if fc else math.nan, samples=n,
         outcomes={name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
         sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws,
         noise_model=spec_of(noise) if isinstance(noise, NoiseModel) else None)

@@ -13,7 +13,7 @@ OUTCOMES`); P(FC) comes with its Wilson interval, Q's moments are over the force
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -53,7 +53,8 @@ class RobotReferenceEngine(RobotEngine):
 
 
 __all__ = ["ENGINES", "RobotDraws", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
-           "check_robot", "evaluate_robot_grasp", "make_engine", "outcome_of",
+           "check_robot", "evaluate_robot_grasp", "make_engine", "nominal_robot_quality",
+           "outcome_of",
            "robot_configurations", "score",
            "summarize"]
 
@@ -72,6 +73,8 @@ class RobotEvaluation:
         p_hold_static, hold_ci: the fraction of draws the static hold check held and its
             Wilson 95% interval (NaN where the engine did not check it).
         mass: the object's mass the check used, kg (NaN where not checked).
+        q_nominal: Q of the nominal closing (the hand closed once at q0, without noise; 0
+            where it is not in force closure; NaN where not computed).
         push_median, push_p95: over the draws where both jaws of a coupled pair touched, the
             median and 95th percentile of the push a coupled pair would give the object,
             metres (:func:`~kinegrasp_env.closing.coupled_jaws.jaw_push`; NaN for other
@@ -89,6 +92,7 @@ class RobotEvaluation:
     p_hold_static: float = float("nan")
     hold_ci: tuple[float, float] = (float("nan"), float("nan"))
     mass: float = float("nan")
+    q_nominal: float = float("nan")
     push_median: float = float("nan")
     push_p95: float = float("nan")
 
@@ -137,6 +141,14 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
 
 
+def nominal_robot_quality(grasp: Grasp, engine: RobotEngine) -> float:
+    """Q of the grasp's nominal closing by ``engine`` (the hand closed once at q0, no noise,
+    scored with the robot's contact model at the engine's friction); 0 where that closing
+    is not in force closure."""
+    draw = engine.run(engine.check(grasp.q0))
+    return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0
+
+
 def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
                          n: int, seed: SeedLike = 0, noise: str = "gaussian") -> np.ndarray:
     """(n, dof) the draws :func:`evaluate_robot_grasp` evaluates: the grasp's q0 with joint
@@ -154,8 +166,10 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                          seed: SeedLike = 0, noise: str = "gaussian",
                          engine: RobotEngine | str = "pybullet",
                          robot: str | RobotDescription | None = None,
-                         static_hold: bool = False) -> RobotEvaluation:
-    """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints.
+                         static_hold: bool = False, friction: float = 0.5
+                         ) -> RobotEvaluation:
+    """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
+    its nominal Q (:func:`nominal_robot_quality`).
 
     Args:
         grasp: its ``robot`` names the robot (default: ``robot``, or the engine's).
@@ -170,6 +184,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         robot: the robot to evaluate with (default: the grasp's).
         static_hold: run the static hold check too (an engine to build; a given engine
             checks when it was made with ``static_hold=True``).
+        friction: the contacts' mu (an engine to build; a given engine has its own).
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine.
@@ -190,11 +205,12 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
-                             static_hold=static_hold)
+                             static_hold=static_hold, friction=friction)
     try:
         q = robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise)
         check = engine.hold_check
-        return summarize(engine.run(q), None if check is None else check.mass)
+        stats = summarize(engine.run(q), None if check is None else check.mass)
+        return replace(stats, q_nominal=nominal_robot_quality(grasp, engine))
     finally:
         if own:
             engine.close()

@@ -49,6 +49,7 @@ from kinegrasp_env.montecarlo.evaluate import chunk_sizes, run_chunk
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
+from kinegrasp_env.quality.wrenches import DEFAULT_NUM_EDGES
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
@@ -73,7 +74,7 @@ def run_task(task: SweepTask) -> dict:
     start = time.perf_counter()
     q0 = (grasp_by_index(task.object, task.grasp).q0 if task.q0 is None
           else np.asarray(task.q0, dtype=float))
-    key = (task.engine, task.object, 0.5, 8)
+    key = (task.engine, task.object, float(task.friction), DEFAULT_NUM_EDGES)
     counts, moments, _ = run_chunk((key, q0, cell_noise(task.sigma, task.noise, task.model),
                                     task.seed, task.chunk, task.size, "mc", False))
     return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
@@ -117,6 +118,13 @@ class SweepStore:
                             f"robot is {spec.robot!r}; use another --out")
         if spec.robot != DEFAULT_ROBOT:
             wanted["robot"] = json.dumps(spec.robot)
+        friction = json.loads(stored.get("friction", "0.5"))
+        if stored and friction != spec.friction:
+            self.close()
+            raise SpecError(f"{self.directory} holds a sweep at friction {friction:g}, the "
+                            f"spec's is {spec.friction:g}; use another --out")
+        if spec.friction != 0.5:
+            wanted["friction"] = json.dumps(spec.friction)
         sources = spec.sources()
         self._check_sources(stored, sources)
         wanted.update(sources)
@@ -169,6 +177,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     results = store.results()
     models = dict(spec.models)
     n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
+    nominal = nominal_qualities(spec)
     summary = []
     for obj, grasp, sigma, noise, engine in spec.cells():
         counts = np.zeros(len(OUTCOMES), dtype=np.int64)
@@ -181,7 +190,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
             moments.merge(chunk_moments)
         stats = grasp_stats(spec.grasp(obj, grasp),
                             cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
-                            counts, moments, None)
+                            counts, moments, None, q_nominal=nominal[obj, grasp])
         summary.append({
             **({} if spec.robot == DEFAULT_ROBOT else {"robot": spec.robot}),
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
@@ -189,6 +198,25 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
             "q_mean": stats.q_mean, "q_std": stats.q_std, "q_skew": stats.q_skew,
             "q_nominal": stats.q_nominal, "samples": stats.samples, **stats.outcomes})
     return summary
+
+
+def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int], float]:
+    """(object, grasp index) -> the grasp's nominal Q at the spec's friction: its nominal
+    contacts re-scored (the default robot: :func:`~kinegrasp_env.montecarlo.nominal.
+    nominal_quality`), or its nominal closing by the robot's reference engine."""
+    from kinegrasp_env.montecarlo.nominal import nominal_quality
+
+    if spec.robot == DEFAULT_ROBOT:
+        return {(o, g): nominal_quality(spec.grasp(o, g), spec.friction)
+                for o in spec.objects for g in spec.grasp_indices(o)}
+    from kinegrasp_env.montecarlo.robot_evaluate import make_engine, nominal_robot_quality
+
+    out = {}
+    for o in spec.objects:
+        with make_engine("pybullet", spec.robot, o, friction=spec.friction) as engine:
+            for g in spec.grasp_indices(o):
+                out[o, g] = nominal_robot_quality(spec.grasp(o, g), engine)
+    return out
 
 
 def summary_csv(rows: list[dict]) -> str:

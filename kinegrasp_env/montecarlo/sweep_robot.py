@@ -25,18 +25,20 @@ from kinegrasp_env.sampling.stats import StreamingMoments
 
 #: Engines a process keeps (the oldest is closed when one more is needed).
 MAX_ENGINES = 4
-_ENGINES: dict[tuple[str, str, str], RobotEngine] = {}
+_ENGINES: dict[tuple[str, str, str, float], RobotEngine] = {}
 
 
-def robot_engine(engine: str, robot: str, object_name: str) -> RobotEngine:
-    """This process's engine ``engine`` of ``robot`` and ``object_name`` (built on first use)."""
-    key = (engine, robot, object_name)
+def robot_engine(engine: str, robot: str, object_name: str,
+                 friction: float = 0.5) -> RobotEngine:
+    """This process's engine ``engine`` of ``robot`` and ``object_name`` at friction mu
+    ``friction`` (built on first use)."""
+    key = (engine, robot, object_name, float(friction))
     if key not in _ENGINES:
         from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 
         while len(_ENGINES) >= MAX_ENGINES:
             _ENGINES.pop(next(iter(_ENGINES))).close()
-        _ENGINES[key] = make_engine(engine, robot, object_name)
+        _ENGINES[key] = make_engine(engine, robot, object_name, friction=friction)
     return _ENGINES[key]
 
 
@@ -61,7 +63,7 @@ def run_robot_task(task) -> dict:
     """Evaluate one :class:`~kinegrasp_env.montecarlo.sweep_spec.SweepTask` of a description
     robot: outcome counts and Q moments of its chunk (the fields of ``sweep.run_task``)."""
     start = time.perf_counter()
-    engine = robot_engine(task.engine, task.robot, task.object)
+    engine = robot_engine(task.engine, task.robot, task.object, task.friction)
     q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
                              task.sigma, task.noise, task.seed, task.offset, task.size)
     draws = engine.run(q)

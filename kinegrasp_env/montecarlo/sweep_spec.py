@@ -37,7 +37,7 @@ from kinegrasp_env.world.grasps import Grasp, check_robot
 from kinegrasp_env.world.objects import OBJECT_NAMES, object_names, object_version
 
 SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
-             "chunk", "seed", "robot")
+             "chunk", "seed", "robot", "friction")
 
 
 class SpecError(ValueError):
@@ -62,6 +62,8 @@ class SweepSpec:
     grasp_files: tuple[tuple[str, str, str], ...] = ()
     #: the catalog robot whose grasps are swept
     robot: str = DEFAULT_ROBOT
+    #: the contacts' friction coefficient mu in every cell
+    friction: float = 0.5
 
     @classmethod
     def from_dict(cls, data: Any, where: str = "spec", base: str | Path | None = None,
@@ -99,8 +101,9 @@ class SweepSpec:
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
+        friction = _friction(data.get("friction", 0.5), where)
         return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
-                   files, robot)
+                   files, robot, friction)
 
     @classmethod
     def from_file(cls, path: str | Path, robot: str | None = None) -> SweepSpec:
@@ -157,7 +160,8 @@ class SweepSpec:
         sizes = chunk_sizes(self.samples, self.chunk)
         models = dict(self.models)
         return [SweepTask(o, g, s, n, e, c, size, self.seed, models.get(n),
-                          tuple(self.grasp(o, g).q0.tolist()), self.robot, c * self.chunk)
+                          tuple(self.grasp(o, g).q0.tolist()), self.robot, c * self.chunk,
+                          self.friction)
                 for (o, g, s, n, e) in self.cells() for c, size in enumerate(sizes)]
 
 
@@ -239,6 +243,19 @@ def _sigma(value: Any, where: str) -> float:
     if value > MAX_SIGMA:
         raise SpecError(f"{where}: sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {value}")
     return float(value)
+
+
+def _friction(value: Any, where: str) -> float:
+    """``friction``: a number mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
+    check_parameters`' rule)."""
+    from kinegrasp_env.quality.wrenches import DEFAULT_NUM_EDGES, check_parameters
+
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{where}: friction {value!r} is not a number")
+    try:
+        return check_parameters(value, DEFAULT_NUM_EDGES)[0]
+    except ValueError as exc:
+        raise SpecError(f"{where}: {exc}") from None
 
 
 def _integer(value: Any, key: str, where: str, low: int) -> int:
@@ -367,6 +384,8 @@ class SweepTask:
     robot: str = DEFAULT_ROBOT
     #: the chunk's first draw within its cell (another robot's draws are rows of one stream)
     offset: int = 0
+    #: the contacts' friction coefficient mu
+    friction: float = 0.5
 
     @property
     def key(self) -> str:

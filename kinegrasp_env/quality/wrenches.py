@@ -32,6 +32,9 @@ RANK_TOL = 1e-10
 #: CPU time of one core, two runs) takes 0.20 s and 26 MB at m = 24, 0.55-0.68 s and 50 MB
 #: at m = 32, 1.2-1.6 s at m = 40, 2.4-3.0 s and 127 MB at m = 48; 32 keeps it under ~1 s.
 MAX_EDGES = 32
+#: The library's friction coefficient mu and cone edges m where none is given
+#: (docs/conventions.md).
+DEFAULT_FRICTION, DEFAULT_NUM_EDGES = 0.5, 8
 #: Largest |wrench coordinate| accepted (torques are torque_scale * |p - c| * |f|; the hull
 #: computations square coordinates, and 1e154 squared overflows).
 MAX_WRENCH = 1e100

@@ -26,7 +26,8 @@ SAME_POSE_TOL = 1e-6
 
 
 def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
-                  engine: str = "pybullet", **evaluate_kwargs) -> list[GraspStats]:
+                  engine: str = "pybullet", friction: float = 0.5,
+                  **evaluate_kwargs) -> list[GraspStats]:
     """One :class:`GraspStats` per variant (same object, same palm pose) at Gaussian joint
     noise ``sigma`` (radians): re-weighted from one batch of ``BATCH_FACTOR * samples``
     closings (``samples`` then reads as the estimate's effective sample size, rounded; its
@@ -45,15 +46,17 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                              f"(one batch answers variants of one palm pose only)")
     q0 = np.stack([np.asarray(g.q0, dtype=float) for g in grasps])
     covs = PalmJacobian().covariance(q0, sigma)
-    batch = close_batch(q0[0], first.object, covs, BATCH_FACTOR * samples, seed, engine=engine)
-    _, quality = close_deltas(q0[0], np.zeros((1, 6)), first.object, engine=engine)
+    batch = close_batch(q0[0], first.object, covs, BATCH_FACTOR * samples, seed, engine=engine,
+                        friction=friction)
+    _, quality = close_deltas(q0[0], np.zeros((1, 6)), first.object, engine=engine,
+                              friction=friction)
     nominal = float(quality[0])
     out = []
     for grasp, cov in zip(grasps, covs, strict=True):
         est = batch.estimate(cov)
         if est.ess < samples:
             out.append(evaluate_grasp(grasp, JointNoise(sigma), samples, seed, engine=engine,
-                                      **evaluate_kwargs))
+                                      friction=friction, **evaluate_kwargs))
             continue
         p = est.p_fc
         out.append(GraspStats(p.value, p.interval, est.q_mean, est.q_std**2, est.q_std,

@@ -276,22 +276,23 @@ def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Reject
                                  "nominal_force_closure": outcome == FORCE_CLOSURE})
 
 
-def solve_all(object_name: str, candidates: list[PalmCandidate], robot: str = DEFAULT_ROBOT
-              ) -> tuple[list[Grasp], list[Rejected]]:
+def solve_all(object_name: str, candidates: list[PalmCandidate], robot: str = DEFAULT_ROBOT,
+              friction: float = 0.5) -> tuple[list[Grasp], list[Rejected]]:
     """(grasps of the accepted candidates, rejected candidates), both in file order;
-    ``robot``: the catalog robot the candidates are of (their poses in the object frame)."""
+    ``robot``: the catalog robot the candidates are of (their poses in the object frame);
+    ``friction``: the mu their nominal closings are scored with."""
     grasps, rejected = [], []
     if robot == DEFAULT_ROBOT:
         from kinegrasp_env.toolkit.planner import GraspPlanner
 
-        planner = GraspPlanner(object_name)
+        planner = GraspPlanner(object_name, friction=friction)
 
         def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
             return solve(planner, candidate, object_name)
     else:
         from kinegrasp_env.toolkit.robot_candidates import RobotCandidateSolver
 
-        planner = RobotCandidateSolver(robot, object_name)
+        planner = RobotCandidateSolver(robot, object_name, friction=friction)
 
         def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
             result = planner.solve(candidate, object_name)

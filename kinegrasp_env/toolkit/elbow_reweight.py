@@ -296,7 +296,7 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
                               epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                               batch: int | None = None,
                               reach: list[tuple[float, np.ndarray]] | None = None,
-                              progress=None, **evaluate_kwargs
+                              progress=None, friction: float = 0.5, **evaluate_kwargs
                               ) -> tuple[ElbowResult, ReweightEvidence]:
     """The most robust elbow from one batch of closings (module docstring).
 
@@ -308,6 +308,7 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
             optimize_elbow`.
         batch: closings per batch (default :data:`BATCH_FACTOR` x samples).
         progress: optional ``progress(stage)`` callback with a stage name.
+        friction: the contacts' mu (the batches' and the direct draws').
 
     Raises:
         ValueError: noise not Gaussian, epsilon or delta out of range, an object on a
@@ -316,14 +317,14 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
     check_reweight(grasp, noise, samples, epsilon, delta, batch)
     joint_cov, palm_cov = gaussian_terms(noise)
     report = progress or (lambda stage: None)
-    kwargs = {"engine": engine, **evaluate_kwargs}
+    kwargs = {"engine": engine, "friction": friction, **evaluate_kwargs}
     n = int(batch or BATCH_FACTOR * samples)
     reach = reach if reach is not None else reachable_configurations(grasp, step)
     motion = SelfMotionCovariance(joint_cov, palm_cov)
     covs = motion.at(np.stack([q for _, q in reach]))
     report("batch")
     selection = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 0),
-                            engine=engine)
+                            engine=engine, friction=friction)
     curve = batch_curve(grasp, reach, selection, motion, noise, samples, seed, kwargs)
     psi, q, estimate = continuous_optimum(curve, selection, motion, step)
     report("fresh draws")
@@ -342,7 +343,7 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
                         else scoring_draws(grasp, nominal_q, noise, samples, seed, kwargs))
     report("certificate")
     fresh = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 1),
-                        engine=engine)
+                        engine=engine, friction=friction)
     rivals = [(c.point.psi, c.point.q) for c in curve if abs(c.point.psi - psi) > 1e-9]
     certificate = batch_certificate((psi, q), rivals, fresh, motion, epsilon, delta)
     result = elbow_result(grasp, points, best, nominal, nominal_psi, noise,

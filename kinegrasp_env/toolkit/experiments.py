@@ -26,7 +26,8 @@ TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_f
 def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int = 5,
            sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0, processes: int = 1,
            noise: str = "gaussian", progress: bool = False,
-           engine: str = "pybullet", executor: Executor | None = None) -> list[dict]:
+           engine: str = "pybullet", executor: Executor | None = None,
+           friction: float = 0.5) -> list[dict]:
     """Table I: mean, variance, skewness of Q and P(FC) with its Wilson 95% interval for the
     first ``grasps`` shipped grasps at each sigma (radians). Writes ``table1.csv`` and
     ``table1.md``, then the figure ``pfc_vs_sigma.png`` (a figure that fails is a warning:
@@ -39,7 +40,7 @@ def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int =
         for grasp, sigma in cells:
             stats = evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
                                    progress=_cell_callback(report), engine=engine,
-                                   executor=run_on)
+                                   executor=run_on, friction=friction)
             all_stats.append(stats)
             _cell_done(report, f"{object_name} grasp {grasp.id} sigma {sigma:g}", stats)
     rows = [{"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
@@ -111,14 +112,15 @@ def _executor(executor: Executor | None, processes: int) -> AbstractContextManag
 
 def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
                   engine: str = "pybullet", return_draws: bool = False,
-                  executor: Executor | None = None, report: Progress | None = None) -> list:
-    """Evaluate ``grasps`` at ``sigma``; one progress cell each."""
+                  executor: Executor | None = None, report: Progress | None = None,
+                  friction: float = 0.5) -> list:
+    """Evaluate ``grasps`` at ``sigma`` (friction mu ``friction``); one progress cell each."""
     stats = []
     with _executor(executor, processes) as run_on:
         for g in grasps:
             stats.append(evaluate_grasp(g, JointNoise(sigma), samples, seed, engine=engine,
                                         return_draws=return_draws, executor=run_on,
-                                        progress=_cell_callback(report)))
+                                        progress=_cell_callback(report), friction=friction))
             _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", stats[-1])
     return stats
 
@@ -152,7 +154,7 @@ def _fig7_candidates(objects: tuple[str, ...], variants: int) -> dict[str, list]
 def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
          samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
          processes: int = 1, engine: str = "pybullet", executor: Executor | None = None,
-         progress: bool = False) -> list[dict]:
+         progress: bool = False, friction: float = 0.5) -> list[dict]:
     """Fig. 7: the same contacts reached with two arm configurations, the most and the least
     robust of shipped grasp 0 and ``variants`` null-space variants of it: P(FC), the moments
     of Q and the scatter of contact points and normals for each.
@@ -174,10 +176,11 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
             _progress(progress, "fig7", cells, samples) as report:
         for name in objects:
             stats = _evaluate_set(candidates[name], sigma, samples, seed, processes, engine,
-                                  executor=run_on, report=report)
+                                  executor=run_on, report=report, friction=friction)
             chosen, fresh = robust_fragile(
                 name, candidates[name], stats,
-                _fresh_evaluator(sigma, samples, seed, engine, run_on, report), samples, seed)
+                _fresh_evaluator(sigma, samples, seed, engine, run_on, report, friction),
+                samples, seed)
             rows += [{**row, "sigma": sigma} for row in chosen]
             pairs.append((name, [(row, s) for row, s in zip(chosen, fresh, strict=True)]))
     write_rows(out, "fig7.csv", rows)
@@ -193,11 +196,11 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
 
 
 def _fresh_evaluator(sigma: float, samples: int, seed: int, engine: str, executor: Executor,
-                     report: Progress | None):
+                     report: Progress | None, friction: float = 0.5):
     """:data:`~.selection.Evaluator` of the fresh draws, one progress cell each."""
     def evaluate(grasp: Grasp, first_chunk: int):
         stats = stats_from_chunk(grasp, JointNoise(sigma), samples, seed, first_chunk,
-                                 engine=engine, executor=executor,
+                                 engine=engine, executor=executor, friction=friction,
                                  progress=_cell_callback(report))
         _cell_done(report, f"{grasp.object} grasp {grasp.id} sigma {sigma:g} (fresh draws)",
                    stats)
@@ -232,7 +235,7 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
             engine: str = "pybullet", executor: Executor | None = None,
             progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
             grasp_sets: Mapping[str, Sequence[Grasp]] | None = None,
-            method: str = "direct") -> list[dict]:
+            method: str = "direct", friction: float = 0.5) -> list[dict]:
     """Figs. 9 and 10: success rate, mean quality (with its std) and the error
     (nominal - mean) of ``count`` grasps per object of ``objects`` at ``sigma``. fig9: the
     first ``count`` grasps of the object's set (different contacts and arms); fig10:
@@ -279,20 +282,20 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
                 from kinegrasp_env.toolkit.batch_stats import variant_stats
 
                 stats = variant_stats(list(grasps), sigma, samples, seed, engine=engine,
-                                      executor=run_on)
+                                      executor=run_on, friction=friction)
                 for g, s in zip(grasps, stats, strict=True):
                     _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", s)
             else:
                 stats = _evaluate_set(grasps, sigma, samples, seed, processes, engine,
-                                      executor=run_on, report=report)
+                                      executor=run_on, report=report, friction=friction)
             block = [{"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
                       "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
                       "samples": s.samples, "sigma": sigma}
                      for g, s in zip(grasps, stats, strict=True)]
             if which == "fig10":
                 _mark_pair(block, name, grasps, stats, chooses[name],
-                           _fresh_evaluator(sigma, samples, seed, engine, run_on, report),
-                           samples, seed)
+                           _fresh_evaluator(sigma, samples, seed, engine, run_on, report,
+                                            friction), samples, seed)
             rows += block
     write_rows(out, f"{which}.csv", rows)
     safe_figure(lambda: plot_success_quality(

@@ -99,6 +99,12 @@ class CandidateResult:
     chunks: int = 0
     moments: StreamingMoments | None = None
     holds: dict[str, tuple[int, int]] = field(default_factory=dict)
+    outcomes: dict[str, int] = field(default_factory=dict)
+
+    def add_outcomes(self, counts: dict[str, int]) -> None:
+        """Count draws per outcome name (``montecarlo.engines.OUTCOMES``)."""
+        for name, count in counts.items():
+            self.outcomes[name] = self.outcomes.get(name, 0) + int(count)
 
     def add_holds(self, score: str, holds: int, trials: int) -> None:
         """Count ``holds`` held draws among ``trials`` of a hold score (:data:`HOLD_SCORES`)."""

@@ -154,7 +154,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
                          engine: RobotReferenceEngine | None = None, step: float = FINE_STEP,
                          epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                          reach: list[tuple[float, np.ndarray]] | None = None,
-                         progress: Callable[[int], None] | None = None) -> ElbowResult:
+                         progress: Callable[[int], None] | None = None,
+                         friction: float = 0.5) -> ElbowResult:
     """The most robust elbow angle of a description robot's ``grasp`` under ``noise``.
 
     Args:
@@ -168,6 +169,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         epsilon, delta: the certificate's margin and error level.
         reach: :func:`robot_reachable_configurations`, when already computed.
         progress: optional ``progress(evaluations)`` callback.
+        friction: the contacts' mu (of the engine built when none is given).
 
     Raises:
         ValueError: epsilon or delta out of range, bad samples (before any draw); a robot
@@ -177,7 +179,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
     _check_samples(samples)
     report = progress or (lambda done: None)
     own = engine is None
-    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object)
+    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
     try:
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
                                                                                step)
@@ -267,7 +269,8 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
                             engine: RobotReferenceEngine | None = None,
                             starts: int = DEFAULT_STARTS, epsilon: float = DEFAULT_EPSILON,
                             delta: float = DEFAULT_DELTA,
-                            progress: Callable[[int], None] | None = None) -> BranchResult:
+                            progress: Callable[[int], None] | None = None,
+                            friction: float = 0.5) -> BranchResult:
     """The most robust IK branch of a 6-joint arm's ``grasp`` under ``noise``: the protocol
     of :func:`optimize_robot_elbow` with the IK branches of the grasp's palm pose for the
     elbow angles. Every branch is evaluated on the selection draws (``seed``; a branch whose
@@ -295,7 +298,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
         raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
     report = progress or (lambda done: None)
     own = engine is None
-    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object)
+    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
     try:
         branches, nominal = _branch_variants(grasp, engine, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]

@@ -64,7 +64,7 @@ def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> li
 def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                 grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                 sigma: float = 0.0033, count: int = 10, seed: int = 0,
-                engine: str = "pybullet") -> list[dict]:
+                engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
     """Fig. 10 of ``description`` (7 arm joints with an elbow angle): per object of
     ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
     (:data:`COLUMNS`), then ``fig10.png`` (a figure that fails is a warning: the CSV stays).
@@ -86,13 +86,13 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
     for name, grasps in grasp_sets.items():
         with RobotReferenceEngine(description, name) as reference:
             variants = robot_variants(grasps[0], reference, count)
-        with make_engine(engine, description, name) as runner:
+        with make_engine(engine, description, name, friction=friction) as runner:
             stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed,
                                           engine=runner) for v in variants]
             block = [{"robot": description.name, "object": name, "id": v.id,
                       "elbow_angle": v.meta["elbow_angle"], "p_fc": s.p_fc,
-                      "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": v.q_nominal,
-                      "error": v.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
+                      "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
+                      "error": s.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
                       **dict.fromkeys(PAIR_COLUMNS, "")}
                      for v, s in zip(variants, stats, strict=True)]
             if len(variants) >= 2:

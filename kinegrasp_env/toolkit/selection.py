@@ -32,6 +32,7 @@ from kinegrasp_env.montecarlo.evaluate import (
     validate_request,
 )
 from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.world.grasps import Grasp
@@ -52,15 +53,18 @@ def report_chunks(samples: int, chunk: int = DEFAULT_CHUNK) -> tuple[int, int]:
 def stats_from_chunk(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
                      first_chunk: int, *, engine: str = "fast",
                      executor: Executor | None = None, chunk: int = DEFAULT_CHUNK,
-                     return_draws: bool = True, progress=False) -> GraspStats:
+                     return_draws: bool = True, progress=False,
+                     friction: float = 0.5) -> GraspStats:
     """:func:`evaluate_grasp`'s statistics of ``grasp`` on ``samples`` draws that start at
     chunk ``first_chunk`` of ``seed`` (``first_chunk = 0``: exactly ``evaluate_grasp``'s
     draws; :func:`report_chunks`' first: the fresh draws)."""
     validate_request(samples, 1, chunk)
     counts, moments, draws = run_chunks(
         grasp, noise, seed, sizes=chunk_sizes(samples, chunk), first_chunk=first_chunk,
-        engine=engine, return_draws=return_draws, executor=executor, progress=progress)
-    return summarize(grasp, noise, seed, engine, counts, moments, draws)
+        engine=engine, return_draws=return_draws, executor=executor, progress=progress,
+        friction=friction)
+    return summarize(grasp, noise, seed, engine, counts, moments, draws,
+                     q_nominal=nominal_quality(grasp, friction))
 
 
 def extremes(estimates: Sequence[float]) -> tuple[int, int]:

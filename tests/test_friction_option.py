@@ -1,0 +1,122 @@
+"""``--friction MU`` on the scoring commands, for the default robot and a description robot.
+
+What each test proves:
+
+* a larger mu can only widen each contact's friction pyramid (its edges n + mu t, docs/
+  conventions.md), so on the same draws (same seed; the closing's geometry does not depend on
+  mu) the wrench hull at a larger mu contains the one at a smaller: force closure and Q can
+  only grow draw by draw, and the start-collision and missed counts stay the same. A
+  command that ignored ``--friction`` would print the same numbers at every mu; one that
+  changed the draws with it would break the equal geometry counts;
+* the nominal Q printed is the grasp's nominal contacts re-scored at that mu (an exact
+  formula for point contacts: the hull of the edge wrenches, here by the public
+  ``ferrari_canny``), and it equals the recorded value at the default mu;
+* ``rank``, ``sweep`` and ``reproduce`` run the same draws as ``evaluate`` at the same mu
+  (common seeds), so their P(FC) equals evaluate's: the option reaches every command;
+* bad values and a friction noise source beside ``--friction`` are one line each.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.quality import ferrari_canny
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+from kinegrasp_env.world.objects import load_object
+
+SAMPLES = "200"
+GEOMETRY = ("start_collision", "missed")
+
+
+def _evaluate(capsys, *extra: str) -> dict:
+    assert main(["evaluate", "--object", "cube", "--grasp", "0", "--sigma", "0.0133",
+                 "--samples", SAMPLES, "--engine", "fast", "--json", *extra]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("robot", [[], ["--robot", "panda"]], ids=["kuka_sdh", "panda"])
+def test_friction_widens_the_cones_draw_by_draw(capsys, robot):
+    runs = {mu: _evaluate(capsys, *robot, "--friction", str(mu)) for mu in (0.2, 0.5, 1.0)}
+    for low, high in ((0.2, 0.5), (0.5, 1.0)):
+        a, b = runs[low], runs[high]
+        assert {k: a["outcomes"][k] for k in GEOMETRY} == {k: b["outcomes"][k]
+                                                            for k in GEOMETRY}
+        assert a["p_fc"] <= b["p_fc"] and a["q_nominal"] <= b["q_nominal"] + 1e-12
+    assert runs[0.2]["p_fc"] < runs[1.0]["p_fc"]  # the option reaches the scoring
+    assert runs[0.5] == _evaluate(capsys, *robot)  # the default is mu 0.5
+
+
+def test_nominal_q_is_the_contacts_rescored(capsys):
+    grasp = shipped_grasps("cube")[0]
+    obj = load_object("cube")
+    for mu in (0.3, 0.5, 0.9):
+        shown = _evaluate(capsys, "--friction", str(mu))
+        exact = ferrari_canny(grasp.points, grasp.normals, friction=mu,
+                              torque_scale=obj.torque_scale, center=obj.center_of_mass)
+        assert shown["q_nominal"] == pytest.approx(exact, rel=1e-12, abs=1e-15)
+    assert _evaluate(capsys)["q_nominal"] == pytest.approx(grasp.q_nominal, rel=1e-12)
+
+
+@pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])
+def test_rank_and_sweep_run_evaluate_at_the_same_friction(capsys, tmp_path, robot):
+    grasps = tmp_path / "g.json"
+    save_grasps(shipped_grasps("cube", robot)[:2], grasps)
+    out = tmp_path / "r.csv"
+    assert main(["rank", str(grasps), "--sigma", "0.0133", "--samples", SAMPLES, "--engine",
+                 "fast", "--friction", "0.3", "--out", str(out)]) == 0
+    capsys.readouterr()
+    rows = {r["id"]: r for r in csv.DictReader(out.open())}
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(f"objects: [cube]\ngrasps: [0, 1]\nsigmas: [0.0133]\nengines: [fast]\n"
+                    f"samples: {SAMPLES}\nrobot: {robot}\ngrasp_files: {{cube: {grasps}}}\n"
+                    "friction: 0.3\n")
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "sweep")]) == 0
+    capsys.readouterr()
+    cells = list(csv.DictReader((tmp_path / "sweep" / "summary.csv").open()))
+    for index, grasp in enumerate(shipped_grasps("cube", robot)[:2]):
+        shown = _evaluate(capsys, "--robot", robot, "--grasps", str(grasps), "--grasp",
+                          str(index), "--friction", "0.3")
+        row = rows[grasp.id]
+        assert float(row["p_fc"]) == pytest.approx(shown["p_fc"], abs=1e-6)
+        assert int(row["force_closure"]) == shown["outcomes"]["force_closure"]
+        assert float(row["q_nominal"]) == pytest.approx(shown["q_nominal"], rel=1e-6)
+        cell = next(c for c in cells if int(c["grasp"]) == index)
+        assert float(cell["p_fc"]) == pytest.approx(shown["p_fc"], abs=1e-9)
+        # the sweep's nominal Q is the reference engine's closing, evaluate's the fast
+        # engine's: their contacts agree to 1e-8 m, the Panda's Q to 2.1e-6 relative
+        # (measured); 1e-5 leaves a margin
+        assert float(cell["q_nominal"]) == pytest.approx(shown["q_nominal"], rel=1e-5,
+                                                         abs=1e-12)
+
+
+def test_reproduce_table1_at_another_friction(capsys, tmp_path):
+    assert main(["reproduce", "table1", "--object", "cube", "--grasps", "1", "--samples",
+                 SAMPLES, "--friction", "0.3", "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    row = next(r for r in csv.DictReader((tmp_path / "table1.csv").open())
+               if float(r["sigma"]) == 0.0133)
+    assert float(row["p_fc"]) == pytest.approx(
+        _evaluate(capsys, "--friction", "0.3")["p_fc"], abs=1e-9)
+
+
+@pytest.mark.parametrize(("value", "words"), [("-0.1", "--friction must be >= 0"),
+                                              ("nan", "not a finite number"),
+                                              ("x", "is not a number")])
+def test_bad_friction_is_one_line(capsys, value, words):
+    for command in (["evaluate"], ["rank", "nosuch.json"], ["elbow"], ["plan"]):
+        assert main([*command, "--friction", value]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], (command, err)
+
+
+def test_friction_beside_a_friction_source_is_refused(capsys, tmp_path):
+    spec = tmp_path / "noise.yaml"
+    spec.write_text("joints: {sigma: 0.01}\nfriction: {distribution: gaussian, mean: 0.5, "
+                    "sigma: 0.1}\n")
+    assert main(["evaluate", "--noise-spec", str(spec), "--friction", "0.3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "friction source" in err[0]
