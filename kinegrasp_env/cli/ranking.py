@@ -27,7 +27,8 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, rank_robot, refuse_hold_scores
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, refuse_hold_scores
+from kinegrasp_env.cli.robot_ranking import check_robot_candidates, robot_best_elbows
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -83,6 +84,20 @@ def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, execu
     return moved
 
 
+def _merge_side(result: CandidateResult, side: dict[int, CandidateResult]) -> None:
+    """A candidate's draws per outcome and hold scores from ``side`` where it has none yet
+    (a resumed candidate has them from the log)."""
+    if result.index in side:
+        result.outcomes = result.outcomes or dict(side[result.index].outcomes)
+        result.holds = result.holds or dict(side[result.index].holds)
+
+
+def _hold_scores(args) -> tuple[bool, bool]:
+    """(static hold check, quick holding test) a description robot's ranking runs."""
+    static = bool(args.static_hold) or args.criterion == "hold_static"
+    return static, args.criterion == "hold"
+
+
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.report import report_path, write_rank_report
@@ -95,30 +110,29 @@ def cmd_rank(args) -> int:
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
-    if robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps):
-        results, grasps = rank_robot(args, grasps, robot, sigma, samples, seed, friction)
-        _write_ranking(grasps, results, out, out.with_name(out.name + ".partial.jsonl"),
-                       engine, as_json=args.json)
-        _write_rejected(rejected, out, args.json)
-        return 0
-    refuse_hold_scores(args, robot)
+    described = robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps)
+    if described:
+        check_robot_candidates(args, grasps, robot)
+    else:
+        refuse_hold_scores(args, robot)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
-
-    outcome_counts: dict[int, dict[str, int]] = {}
+    # each candidate's draws per outcome and hold scores, beside what the ranking keeps
+    side: dict[int, CandidateResult] = {}
 
     def evaluator(index: int, first: int, count: int, outcomes: bool = False):
         """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
         each draw's force-closure outcome (what adaptive ranking pairs across candidates);
-        the draws per outcome are added to ``outcome_counts``."""
+        the draws per outcome are added to ``side``."""
+        from kinegrasp_env.toolkit.ranking import CandidateResult
+
         counts, moments, draws = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
             friction=friction, num_edges=NUM_EDGES, engine=engine, method=METHOD,
             executor=executor, return_draws=outcomes)
-        tally = outcome_counts.setdefault(index, dict.fromkeys(evaluate.OUTCOMES, 0))
-        for name, c in zip(evaluate.OUTCOMES, counts, strict=True):
-            tally[name] += int(c)
+        side.setdefault(index, CandidateResult(index)).add_outcomes(
+            dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
         return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
 
@@ -126,6 +140,8 @@ def cmd_rank(args) -> int:
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed}
+    if described:  # another robot's draws: one stream's rows, with its hold scores
+        settings.update(robot=robot, criterion_scores=list(_hold_scores(args)))
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 
@@ -140,9 +156,21 @@ def cmd_rank(args) -> int:
     if args.best_elbow:  # a different candidate set: part of the resume settings
         settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
     with executor_from(args) as executor:
-        if args.best_elbow:
+        if args.best_elbow and described:
+            grasps = robot_best_elbows(grasps, robot, noise, settings["best_elbow_samples"],
+                                       seed, friction)
+        elif args.best_elbow:
             grasps = best_elbows(grasps, noise, settings["best_elbow_samples"], seed, engine,
                                  executor, friction)
+        ranking = None
+        if described:
+            from kinegrasp_env.cli.robot_ranking import RobotRanking
+
+            static, test = _hold_scores(args)
+            ranking = evaluator = RobotRanking(
+                grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
+                friction=friction, static_hold=static, hold_test=test, layout=layout,
+                executor=executor, side=side)
         done = {}
         if not args.adaptive:
             existed = partial.exists()
@@ -150,12 +178,18 @@ def cmd_rank(args) -> int:
             if existed:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
-        results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
-                                  done, certify, outcome_counts)
+        try:
+            results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
+                                      done, certify, side)
+            nominal = [ranking.nominal(i) if ranking is not None
+                       else nominal_quality(g, friction, NUM_EDGES)
+                       for i, g in enumerate(grasps)]
+        finally:
+            if ranking is not None:
+                ranking.close()
     for r in results:  # resumed candidates carry theirs from the log
-        r.outcomes = r.outcomes or outcome_counts.get(r.index, {})
-    grasps = [dataclasses.replace(g, q_nominal=nominal_quality(g, friction, NUM_EDGES))
-              for g in grasps]
+        _merge_side(r, side)
+    grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
     _write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json)
     _write_rejected(rejected, out, args.json)
     if args.report:
@@ -248,11 +282,11 @@ def _certify_settings(args) -> dict:
 
 def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
           done: dict[int, CandidateResult], certify: dict,
-          outcome_counts: dict[int, dict[str, int]]) -> tuple[list, object]:
+          side: dict[int, CandidateResult]) -> tuple[list, object]:
     """Fixed-n (``done``: candidates read back from ``partial``; each one finished now is
-    appended to it, with its draws per outcome from ``outcome_counts``) or adaptive ranking
-    (``certify``: its delta and epsilon): (the results in the order to show, the adaptive
-    run's report or None)."""
+    appended to it, with its draws per outcome and hold scores from ``side``) or adaptive
+    ranking (``certify``: its delta and epsilon): (the results in the order to show, the
+    adaptive run's report or None)."""
     from tqdm import tqdm
 
     from kinegrasp_env.cli import resume
@@ -278,12 +312,16 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
             value = evaluator(index, first, count)
             result = CandidateResult(index)
             result.add(*value, count)
-            result.add_outcomes(outcome_counts.get(index, {}))
+            if index in side:
+                result.outcomes = dict(side[index].outcomes)
+                result.holds = dict(side[index].holds)
             results_so_far[index] = result
             return value
 
-        results = order(rank_fixed(len(grasps), tracked, len(layout), progress=record,
-                                   done=done), args.criterion)
+        results = rank_fixed(len(grasps), tracked, len(layout), progress=record, done=done)
+        for r in results:  # the hold scores order the ranking too
+            _merge_side(r, side)
+        results = order(results, args.criterion)
     bar.close()
     return results, None
 

@@ -36,6 +36,10 @@ SETTING_LABELS = {
     "samples": "--samples",
     "chunk": "chunk size",
     "seed": "--seed",
+    "noise_model": "--noise-spec",
+    "best_elbow_samples": "--best-elbow",
+    "robot": "--robot",
+    "criterion_scores": "hold scores (static check, holding test)",
 }
 
 
@@ -46,9 +50,10 @@ def check_settings(path: Path, stored: object, settings: dict) -> None:
                        "start over")
     for key, label in SETTING_LABELS.items():
         old = stored.get(key, "not recorded")
-        if old != settings[key]:
+        new = json.loads(json.dumps(settings.get(key, "not recorded")))  # as the log has it
+        if old != new:
             raise CLIError(f"{path} holds an interrupted ranking with other settings "
-                           f"({label}: {_show(old)} there, {_show(settings[key])} now); delete "
+                           f"({label}: {_show(old)} there, {_show(new)} now); delete "
                            f"it to start over, or resume with the same settings")
 
 
@@ -98,7 +103,8 @@ def result_to_json(result: CandidateResult) -> dict:
     moments = None if m is None else {"n": m.n, "mean": m.mean.tolist(), "m2": m.m2.tolist(),
                                       "m3": m.m3.tolist()}
     return {"index": result.index, "successes": result.successes, "trials": result.trials,
-            "chunks": result.chunks, "moments": moments, "outcomes": result.outcomes}
+            "chunks": result.chunks, "moments": moments, "outcomes": result.outcomes,
+            "holds": {score: list(pair) for score, pair in result.holds.items()}}
 
 
 def result_from_json(item: dict) -> CandidateResult:
@@ -107,5 +113,7 @@ def result_from_json(item: dict) -> CandidateResult:
     moments = None if data is None else StreamingMoments.from_state(
         data["n"], data["mean"], data["m2"], data["m3"])
     outcomes = {str(name): int(count) for name, count in dict(item.get("outcomes") or {}).items()}
+    holds = {str(score): (int(pair[0]), int(pair[1]))
+             for score, pair in dict(item.get("holds") or {}).items()}
     return CandidateResult(int(item["index"]), int(item["successes"]), int(item["trials"]),
-                           int(item["chunks"]), moments, outcomes=outcomes)
+                           int(item["chunks"]), moments, holds=holds, outcomes=outcomes)

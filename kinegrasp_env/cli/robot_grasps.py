@@ -1,19 +1,19 @@
-"""``plan --robot``, ``evaluate`` and ``rank`` of a description robot's grasps (a robot other
-than the default ``kuka_sdh``): the antipodal planner
-(:mod:`kinegrasp_env.toolkit.robot_planner`), the reference engine
-(:mod:`kinegrasp_env.montecarlo.robot_evaluate`) and the fast one (``--engine fast``:
-:mod:`kinegrasp_env.montecarlo.robot_fast`). The default robot's commands are untouched
-(:mod:`kinegrasp_env.cli.toolkit`, :mod:`kinegrasp_env.cli.grasping`).
+"""``plan --robot`` and ``evaluate`` of a description robot's grasps (a robot other than the
+default ``kuka_sdh``), and what its ``rank`` shares (the option checks, the quick holding
+test: :mod:`kinegrasp_env.cli.robot_ranking`): the antipodal planner
+(:mod:`kinegrasp_env.toolkit.robot_planner`) and the robot's engines
+(:mod:`kinegrasp_env.montecarlo.robot_evaluate`), their draws in chunks on the command's
+executor (:mod:`kinegrasp_env.montecarlo.robot_chunks`).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 
 from kinegrasp_env.cli.common import (
     CLIError,
+    executor_from,
     friction_from,
     output_file,
     parse_seed,
@@ -109,7 +109,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.stats import wilson_interval
 
-    _refuse(args, {"--noise-spec": None, "--report": None, **IN_PROCESS}, robot)
+    _refuse(args, {"--noise-spec": None, "--report": None}, robot)
     _check_engine(args.engine, robot)
     if args.plot:
         output_file(args.plot, "--plot")
@@ -117,9 +117,11 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         check_robot(grasp, robot)
         if args.elbow is not None:
             grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
+    with executor_from(args) as executor, reported(ValueError):
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                      noise=args.noise, robot=robot, engine=args.engine,
-                                     static_hold=args.static_hold, friction=friction)
+                                     static_hold=args.static_hold, friction=friction,
+                                     executor=executor)
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object
@@ -201,66 +203,3 @@ def robot_grasp_at_elbow(grasp, robot: str, text: str):
                          f"joint limits on the way)")
     return dataclasses.replace(grasp, q0=moved, id=f"{grasp.id}@{wrap_angle(psi):.3f}",
                                meta={**grasp.meta, "elbow_angle": psi})
-
-
-def rank_robot(args, grasps: list, robot: str, sigma: float, samples: int, seed: int,
-               friction: float) -> tuple[list, list]:
-    """``kinegrasp rank`` of a description robot's grasps: each evaluated on ``samples``
-    draws (the same seed for every candidate: common noise) at friction mu ``friction``,
-    ordered by ``--criterion`` (:func:`kinegrasp_env.toolkit.ranking.order`); returns the
-    ordered :class:`~kinegrasp_env.toolkit.ranking.CandidateResult` list (with each one's
-    draws per outcome) and the grasps with their nominal Q computed by the same engine."""
-    import dataclasses
-
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-    from kinegrasp_env.montecarlo.robot_evaluate import (
-        check_robot,
-        evaluate_robot_grasp,
-        make_engine,
-        robot_configurations,
-    )
-    from kinegrasp_env.physics.protocol import HELD
-    from kinegrasp_env.sampling.stats import StreamingMoments
-    from kinegrasp_env.toolkit.ranking import CandidateResult, order
-
-    _refuse(args, {"--noise-spec": None, "--adaptive": False, "--best-elbow": None,
-                   "--report": None, **IN_PROCESS}, robot)
-    _check_engine(args.engine, robot)
-    objects = {g.object for g in grasps}
-    if len(objects) != 1:
-        raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
-                       f"{', '.join(sorted(objects))}")
-    with reported(ValueError):
-        for g in grasps:
-            check_robot(g, robot)
-    results = []
-    static_hold = args.static_hold or args.criterion == "hold_static"
-    name = objects.pop()
-    tester = quick_hold_engine(robot, name, friction) if args.criterion == "hold" else None
-    nominal = []
-    try:
-        with make_engine(args.engine, robot, name, static_hold=static_hold,
-                         friction=friction) as engine:
-            for index, g in enumerate(grasps):
-                stats = evaluate_robot_grasp(g, sigma=sigma, n=samples, seed=seed,
-                                             noise=args.noise, engine=engine)
-                nominal.append(dataclasses.replace(g, q_nominal=stats.q_nominal))
-                fc = stats.draws.outcome == FORCE_CLOSURE
-                result = CandidateResult(index)
-                result.add(int(fc.sum()), samples,
-                           StreamingMoments(1).update(stats.draws.quality[fc]), 1)
-                result.add_outcomes(stats.counts)
-                if static_hold:
-                    result.add_holds("static", int(stats.draws.holds.sum()), samples)
-                if tester is not None:
-                    q = robot_configurations(g, engine, sigma=sigma, n=samples, seed=seed,
-                                             noise=args.noise)
-                    held = int((tester.run_hold(q)[1].outcome == HELD).sum())
-                    result.add_holds("test", held, samples)
-                    print(f"rank: candidate {index + 1}/{len(grasps)} ({g.id}): holding test "
-                          f"{held}/{samples} held", file=sys.stderr)
-                results.append(result)
-    finally:
-        if tester is not None:
-            tester.close()
-    return order(results, args.criterion), nominal

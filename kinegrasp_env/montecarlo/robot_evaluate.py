@@ -17,40 +17,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotWorld
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.robot_engine import (
     RobotDraws,
     RobotEngine,
     outcome_of,
     score,
 )
+from kinegrasp_env.montecarlo.robot_engines import ENGINES, RobotReferenceEngine, make_engine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise, SeedLike, as_generator
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
 from kinegrasp_env.world.grasps import Grasp, check_robot
-
-
-class RobotReferenceEngine(RobotEngine):
-    """The reference engine for a description robot: one pybullet world, draw by draw
-    (arguments: :class:`RobotEngine`)."""
-
-    name = "pybullet"
-
-    def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
-        super().__init__(robot, object_name, **kwargs)
-        self.world = RobotWorld(self.description, self.obj)
-
-    def close(self) -> None:
-        self.world.close()
-
-    def close_one(self, q: np.ndarray) -> RobotCloseResult:
-        """One closing at configuration q (dof,) (the world is left at its final state)."""
-        return self.world.auto_close(self.check(q)[0])
-
-    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
-        return [self.world.auto_close(row) for row in q]
-
 
 __all__ = ["ENGINES", "RobotDraws", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
            "check_robot", "evaluate_robot_grasp", "make_engine", "nominal_robot_quality",
@@ -121,26 +100,6 @@ def summarize(draws: RobotDraws, mass: float | None = None) -> RobotEvaluation:
         float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws, **hold)
 
 
-#: The engines of a description robot, by name.
-ENGINES = ("pybullet", "fast", "physics")
-
-
-def make_engine(name: str, robot: str | RobotDescription, object_name: str,
-                **kwargs) -> RobotEngine:
-    """A new engine by name (:data:`ENGINES`) for ``robot`` and catalog ``object_name``."""
-    if name == "fast":
-        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
-
-        return RobotFastEngine(robot, object_name, **kwargs)
-    if name == "pybullet":
-        return RobotReferenceEngine(robot, object_name, **kwargs)
-    if name == "physics":
-        from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
-
-        return RobotPhysicsEngine(robot, object_name, **kwargs)
-    raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
-
-
 def nominal_robot_quality(grasp: Grasp, engine: RobotEngine) -> float:
     """Q of the grasp's nominal closing by ``engine`` (the hand closed once at q0, no noise,
     scored with the robot's contact model at the engine's friction); 0 where that closing
@@ -166,8 +125,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                          seed: SeedLike = 0, noise: str = "gaussian",
                          engine: RobotEngine | str = "pybullet",
                          robot: str | RobotDescription | None = None,
-                         static_hold: bool = False, friction: float = 0.5
-                         ) -> RobotEvaluation:
+                         static_hold: bool = False, friction: float = 0.5,
+                         executor: Executor | None = None) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
     its nominal Q (:func:`nominal_robot_quality`).
 
@@ -185,9 +144,14 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         static_hold: run the static hold check too (an engine to build; a given engine
             checks when it was made with ``static_hold=True``).
         friction: the contacts' mu (an engine to build; a given engine has its own).
+        executor: run the draws in chunks on it (:mod:`~kinegrasp_env.montecarlo.
+            robot_chunks`: the same draws, row for row, whatever the processes or backend;
+            the seed an integer, the robot a catalog one). None, or a local executor of one
+            process: in this process.
 
     Raises:
-        ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine.
+        ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
+            a Generator as the seed of a chunked run.
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
@@ -202,6 +166,10 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     else:
         name = grasp.robot if robot is None else getattr(robot, "name", robot)
     check_robot(grasp, name)
+    if executor is not None and not (isinstance(executor, LocalExecutor)
+                                     and executor.workers == 1):
+        return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                        static_hold=static_hold, friction=friction, executor=executor)
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
@@ -214,3 +182,29 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     finally:
         if own:
             engine.close()
+
+
+def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
+             seed: SeedLike, noise: str, static_hold: bool, friction: float,
+             executor: Executor) -> RobotEvaluation:
+    """:func:`evaluate_robot_grasp`'s run in chunks on ``executor`` (a given engine passes
+    its name and settings to the workers, which build their own)."""
+    from kinegrasp_env.montecarlo.robot_chunks import (
+        RobotChunk,
+        chunked_draws,
+        nominal_closing_quality,
+    )
+    from kinegrasp_env.world.objects import load_object
+
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"a run in chunks takes an integer seed >= 0 (each chunk draws its "
+                         f"rows of the seed's stream), got {seed!r}")
+    if not isinstance(engine, str):
+        static_hold = engine.hold_check is not None
+        engine, friction = engine.name, engine.friction
+    first = RobotChunk(robot, grasp.object, engine, tuple(np.asarray(grasp.q0, float)),
+                       sigma if np.ndim(sigma) == 0 else tuple(sigma), noise, int(seed), 0,
+                       n, friction, static_hold)
+    draws = chunked_draws(first, n, executor)
+    stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)
+    return replace(stats, q_nominal=nominal_closing_quality(first, executor))

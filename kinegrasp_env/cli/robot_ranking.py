@@ -1,0 +1,147 @@
+"""``kinegrasp rank`` of a description robot's grasps: the candidates checked, and the
+evaluator that :mod:`kinegrasp_env.cli.ranking` ranks them with (fixed-n, resumable, or
+adaptive), its draws in chunks on the command's executor
+(:mod:`~kinegrasp_env.montecarlo.robot_chunks`: the same draws whatever the processes or
+backend), each candidate on the same rows of one stream (common noise), with the hold
+scores where asked."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+
+from kinegrasp_env.cli.common import CLIError, reported
+from kinegrasp_env.cli.robot_grasps import _check_engine, _refuse, quick_hold_engine
+
+
+def check_robot_candidates(args, grasps: list, robot: str) -> str:
+    """The object of a description robot's candidates (one object, each a grasp of
+    ``robot``), and the options its ranking takes; CLIError lines otherwise."""
+    from kinegrasp_env.montecarlo.robot_evaluate import check_robot
+
+    _refuse(args, {"--noise-spec": None, "--report": None}, robot)
+    _check_engine(args.engine, robot)
+    objects = {g.object for g in grasps}
+    if len(objects) != 1:
+        raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
+                       f"{', '.join(sorted(objects))}")
+    with reported(ValueError):
+        for g in grasps:
+            check_robot(g, robot)
+    if args.adaptive and args.criterion in ("hold", "hold_static"):
+        raise CLIError(f"--adaptive certifies P(FC) on paired draws; --criterion "
+                       f"{args.criterion} ranks by a hold score, which it does not certify: "
+                       "rank without --adaptive")
+    return objects.pop()
+
+
+class RobotRanking:
+    """``rank``'s evaluator of a description robot's candidates (see
+    :data:`kinegrasp_env.toolkit.ranking.Evaluator`): chunks ``first .. first + count`` of
+    ``layout`` of candidate ``index`` closed on ``executor``; each draw's outcome and the
+    hold scores are added to ``side[index]`` (a
+    :class:`~kinegrasp_env.toolkit.ranking.CandidateResult`).
+
+    Args:
+        grasps: the candidates; robot: the catalog robot; sigma, noise, seed: the joint noise.
+        engine, friction: the engine's name and the contacts' mu.
+        static_hold: run the static hold check on every draw; hold_test: the quick holding
+            test in pybullet on every draw (in this process).
+        layout: the chunk sizes of one candidate's draws.
+    """
+
+    def __init__(self, grasps: list, robot: str, *, sigma, noise: str, seed: int,
+                 engine: str, friction: float, static_hold: bool, hold_test: bool,
+                 layout: list[int], executor, side: dict) -> None:
+        self.grasps, self.robot, self.layout = grasps, robot, layout
+        self.sigma, self.noise, self.seed = sigma, noise, seed
+        self.engine, self.friction, self.static_hold = engine, friction, static_hold
+        self.executor, self.side = executor, side
+        self.tester = quick_hold_engine(robot, grasps[0].object, friction) if hold_test \
+            else None
+
+    def chunk(self, index: int):
+        """Candidate ``index``'s run as a :class:`~kinegrasp_env.montecarlo.robot_chunks.
+        RobotChunk` (its first row)."""
+        import numpy as np
+
+        from kinegrasp_env.montecarlo.robot_chunks import RobotChunk
+
+        g = self.grasps[index]
+        return RobotChunk(self.robot, g.object, self.engine,
+                          tuple(np.asarray(g.q0, dtype=float)), self.sigma, self.noise,
+                          self.seed, 0, 0, self.friction, self.static_hold)
+
+    def __call__(self, index: int, first: int, count: int, outcomes: bool = False):
+        from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+        from kinegrasp_env.montecarlo.robot_chunks import chunked_draws
+        from kinegrasp_env.sampling.stats import StreamingMoments
+        from kinegrasp_env.toolkit.ranking import CandidateResult
+
+        offset, n = sum(self.layout[:first]), sum(self.layout[first:first + count])
+        start = dataclasses.replace(self.chunk(index), offset=offset)
+        draws = chunked_draws(start, n, self.executor, chunk=max(self.layout))
+        fc = draws.outcome == FORCE_CLOSURE
+        tally = self.side.setdefault(index, CandidateResult(index))
+        tally.add_outcomes({name: int((draws.outcome == i).sum())
+                            for i, name in enumerate(OUTCOMES)})
+        if self.static_hold:
+            tally.add_holds("static", int(draws.holds.sum()), n)
+        if self.tester is not None:
+            tally.add_holds("test", self._held(index, start, n), n)
+        value = int(fc.sum()), n, StreamingMoments(1).update(draws.quality[fc])
+        return (*value, fc) if outcomes else value
+
+    def _held(self, index: int, start, n: int) -> int:
+        """Draws of rows ``start.offset .. + n`` of candidate ``index`` the quick holding
+        test holds."""
+        import numpy as np
+
+        from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+        from kinegrasp_env.physics.protocol import HELD
+
+        q = chunk_configurations(np.asarray(start.q0), self.tester.description.arm_dof,
+                                 start.sigma, start.noise, start.seed, start.offset, n)
+        held = int((self.tester.run_hold(q)[1].outcome == HELD).sum())
+        print(f"rank: candidate {self.grasps[index].id}: holding test {held}/{n} held",
+              file=sys.stderr)
+        return held
+
+    def nominal(self, index: int) -> float:
+        """Candidate ``index``'s nominal Q: its closing at q0 (no noise) by the engine."""
+        from kinegrasp_env.montecarlo.robot_chunks import nominal_closing_quality
+
+        return nominal_closing_quality(self.chunk(index), self.executor)
+
+    def close(self) -> None:
+        from kinegrasp_env.montecarlo.robot_chunks import close_engines
+
+        if self.tester is not None:
+            self.tester.close()
+        close_engines()
+
+
+def robot_best_elbows(grasps: list, robot: str, noise, samples: int, seed: int,
+                      friction: float) -> list:
+    """Each candidate moved to its most robust elbow angle (7 joints: the self-motion) or IK
+    branch (6 joints) (``kinegrasp elbow --robot``'s optimizer), chosen on draws of seed + 1,
+    so the ranking's own draws (seed) stay independent of the choice."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches, optimize_robot_elbow
+
+    branches = load_robot(robot).arm_dof == 6
+    moved = []
+    for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
+                      file=sys.stderr, disable=None):
+        with reported(ValueError):  # an arm without self-motion or branches
+            if branches:
+                best = optimize_robot_branches(grasp, noise, samples, seed + 1,
+                                               friction=friction).result
+            else:
+                best = optimize_robot_elbow(grasp, noise, samples, seed + 1,
+                                            friction=friction)
+        meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
+        moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
+    return moved

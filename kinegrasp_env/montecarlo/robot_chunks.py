@@ -1,0 +1,121 @@
+"""A description robot's draws in chunks, on any executor (a local process pool or Ray).
+
+Draw i of a run is row i of one stream: ``JointNoise(sigma, noise).sample(n, arm_dof,
+default_rng(seed))`` added to the arm joints of q0 (the hand at its pre-shape exactly). The
+rows of a stream do not depend on how many are drawn, so a chunk of rows ``offset .. offset
++ size`` closes the same configurations whichever process runs it: a run split into chunks
+over any number of processes gives the draws of the run in one process, row for row.
+
+Engines are built once per process and kept (:func:`robot_engine`), so a worker's later
+chunks of the same robot, object and settings reuse them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.sampling.noise import JointNoise
+
+#: Draws per chunk.
+CHUNK = 250
+#: Engines a process keeps (the oldest is closed when one more is needed).
+MAX_ENGINES = 4
+_ENGINES: dict[tuple, RobotEngine] = {}
+
+
+def robot_engine(engine: str, robot: str, object_name: str, friction: float = 0.5,
+                 static_hold: bool = False) -> RobotEngine:
+    """This process's engine ``engine`` of catalog robot ``robot`` and ``object_name`` at
+    friction mu ``friction`` (with the static hold check when asked), built on first use."""
+    key = (engine, robot, object_name, float(friction), bool(static_hold))
+    if key not in _ENGINES:
+        from kinegrasp_env.montecarlo.robot_engines import make_engine
+
+        while len(_ENGINES) >= MAX_ENGINES:
+            _ENGINES.pop(next(iter(_ENGINES))).close()
+        _ENGINES[key] = make_engine(engine, robot, object_name, friction=friction,
+                                    static_hold=static_hold)
+    return _ENGINES[key]
+
+
+def close_engines() -> None:
+    """Close every engine this process keeps."""
+    while _ENGINES:
+        _ENGINES.popitem()[1].close()
+
+
+def chunk_configurations(q0: np.ndarray, arm_dof: int, sigma: float | tuple[float, ...],
+                         noise: str, seed: int, offset: int, size: int) -> np.ndarray:
+    """(size, dof) configurations: q0 (dof,) with rows ``offset .. offset + size`` of the
+    run's stream (sigma: radians, scalar or one per arm joint) added to its first ``arm_dof``
+    entries."""
+    eps = JointNoise(sigma, noise).sample(offset + size, arm_dof,
+                                          np.random.default_rng(seed))[offset:]
+    q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
+    q[:, :arm_dof] += eps
+    return q
+
+
+@dataclass(frozen=True)
+class RobotChunk:
+    """Rows ``offset .. offset + size`` of one run (what a worker needs, picklable).
+
+    Attributes:
+        robot, object: catalog names; engine: ``pybullet``, ``fast`` or ``physics``.
+        q0: the grasp's nominal configuration (dof,), radians (metres for prismatic joints).
+        sigma, noise, seed: the run's joint noise and seed.
+        friction: the contacts' mu; static_hold: run the static hold check too.
+    """
+
+    robot: str
+    object: str
+    engine: str
+    q0: tuple[float, ...]
+    sigma: float | tuple[float, ...]
+    noise: str
+    seed: int
+    offset: int
+    size: int
+    friction: float = 0.5
+    static_hold: bool = False
+
+
+def run_robot_chunk(task: RobotChunk) -> RobotDraws:
+    """The draws of one chunk (in a worker, or inline)."""
+    engine = robot_engine(task.engine, task.robot, task.object, task.friction,
+                          task.static_hold)
+    q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
+                             task.sigma, task.noise, task.seed, task.offset, task.size)
+    return engine.run(q)
+
+
+def concatenate(parts: list[RobotDraws]) -> RobotDraws:
+    """The draws of ``parts`` (at least one) one after the other."""
+    return RobotDraws(*(np.concatenate([getattr(p, f.name) for p in parts])
+                        for f in fields(RobotDraws)))
+
+
+def chunked_draws(first: RobotChunk, n: int, executor: Executor,
+                  chunk: int = CHUNK) -> RobotDraws:
+    """Rows ``first.offset .. first.offset + n`` of ``first``'s run (its ``size`` is
+    ignored), split into chunks of ``chunk`` draws run on ``executor``, in row order."""
+    from dataclasses import replace
+
+    tasks = [replace(first, offset=first.offset + start, size=min(chunk, n - start))
+             for start in range(0, n, chunk)]
+    return concatenate(list(executor.map(run_robot_chunk, tasks)))
+
+
+def nominal_closing_quality(first: RobotChunk, executor: Executor) -> float:
+    """Q of the closing at ``first``'s q0 without noise (its engine and friction, run on
+    ``executor``); 0 where it is not in force closure."""
+    from dataclasses import replace
+
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+
+    draw = next(executor.map(run_robot_chunk, [replace(first, sigma=0.0, offset=0, size=1)]))
+    return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0

@@ -1,0 +1,54 @@
+"""The engines of a description robot by name: the reference (pybullet closest points, draw
+by draw: :class:`RobotReferenceEngine`), the batched fast one
+(:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) and the physics closing
+(:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`), all scoring as
+:class:`~kinegrasp_env.montecarlo.robot_engine.RobotEngine` does."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotWorld
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.robot.description import RobotDescription
+
+
+class RobotReferenceEngine(RobotEngine):
+    """The reference engine for a description robot: one pybullet world, draw by draw
+    (arguments: :class:`RobotEngine`)."""
+
+    name = "pybullet"
+
+    def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
+        super().__init__(robot, object_name, **kwargs)
+        self.world = RobotWorld(self.description, self.obj)
+
+    def close(self) -> None:
+        self.world.close()
+
+    def close_one(self, q: np.ndarray) -> RobotCloseResult:
+        """One closing at configuration q (dof,) (the world is left at its final state)."""
+        return self.world.auto_close(self.check(q)[0])
+
+    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
+        return [self.world.auto_close(row) for row in q]
+
+
+#: The engines of a description robot, by name.
+ENGINES = ("pybullet", "fast", "physics")
+
+
+def make_engine(name: str, robot: str | RobotDescription, object_name: str,
+                **kwargs) -> RobotEngine:
+    """A new engine by name (:data:`ENGINES`) for ``robot`` and catalog ``object_name``."""
+    if name == "fast":
+        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
+
+        return RobotFastEngine(robot, object_name, **kwargs)
+    if name == "pybullet":
+        return RobotReferenceEngine(robot, object_name, **kwargs)
+    if name == "physics":
+        from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+
+        return RobotPhysicsEngine(robot, object_name, **kwargs)
+    raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
