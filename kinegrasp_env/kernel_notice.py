@@ -1,9 +1,9 @@
 """Say so when the compiled kernels are being built, and show how far it has got.
 
 The first run on a machine (or the first after an upgrade) compiles the package's numba
-kernels, a minute or more, once: later runs load them from the cache
-(:mod:`kinegrasp_env.jit`). Without a word that would look like a hung command. The command
-line calls :func:`install` before it runs a command; then
+kernels once, which takes a while (``benchmarks/bench_coldstart.py`` times it): later runs
+load them from the cache (:mod:`kinegrasp_env.jit`). Without a word that would look like
+a hung command. The command line calls :func:`install` before it runs a command; then
 
 * as soon as the kernel module is loaded (before any kernel compiles) and the cache holds no
   kernels of the current sources, one line on the stream says that the kernels are compiled

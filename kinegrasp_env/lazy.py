@@ -64,7 +64,7 @@ def defining_modules(package) -> dict[str, str] | None:
 
 class _AfterImport:
     """Meta path finder that runs ``callback(module)`` right after ``name`` is first imported
-    (duck-typed: ``importlib.abc`` itself costs a tenth of a second to import)."""
+    (duck-typed: importing ``importlib.abc`` itself would slow the package's import)."""
 
     def __init__(self, name: str, callback: Callable) -> None:
         self.name, self.callback = name, callback

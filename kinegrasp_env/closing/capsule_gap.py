@@ -12,7 +12,7 @@ has a kink and far closer where it is flat at its minimum). The value only sizes
 conservative steps and decides whether a gap is within the band where the exact distance
 is computed (1 mm, against a contact tolerance of 0.2 mm): every contact decision is exact.
 14 steps (0.03 mm) gave the same contacts found on 9,600 draws of the four objects, points
-within 7.4e-10 m, at 6-18% more closing time (``python benchmarks/bench_refine.py``).
+within 7.4e-10 m, at more closing time for no gain (``python benchmarks/bench_refine.py``).
 
 One compiled loop over the capsules (:func:`capsule_gaps`); the grid is read by
 :func:`trilinear`, also behind the palm and knuckle cylinders' start check

@@ -17,11 +17,11 @@ computed (a link that can be neither the smaller gap nor in contact, by a lower 
 there (:func:`closest_pairs`), not computed again, and each exact query starts from the
 object point the same link's last query found (this draw's, or the previous draw's: the
 draws are nearby configurations), which prunes most of its search
-(:func:`kinegrasp_env.closing.segment_distance.segment_search_near`; spray-flask closing
-9-10% faster, the mug's 4-8%). Kernels that allocate nothing are
+(:func:`kinegrasp_env.closing.segment_distance.segment_search_near`; it saves more on the
+spray flask's closing than on the mug's). Kernels that allocate nothing are
 compiled without numba's reference counting (``_nrt=False``): with it, every call that
 passes arrays (these pass tuples of ~20) paid an atomic increment and decrement per array,
-a quarter of the closing time.
+a sizeable share of the closing time.
 """
 
 from __future__ import annotations

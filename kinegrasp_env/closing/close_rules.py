@@ -115,8 +115,8 @@ def closing_travel(gap_p: float, gap_d: float, phase: int, speeds: np.ndarray) -
     (metres) over its speed bound, the smaller; the proximal link counts in phase 1 only.
     speeds: (3,) the :class:`LinkSpeeds` as an array. Compiled: the fast engine's closing
     loop calls it too (its vectorized twin, ``FastHand._travel``, repeats the arithmetic).
-    (One bound for the whole finger, the sum of the three reaches, took 1.4-3.5x smaller
-    steps: 7-9% more closing time in the fast engine.)"""
+    (One bound for the whole finger, the sum of the three reaches, took smaller steps, hence
+    more closing iterations in the fast engine.)"""
     if phase != 1:
         return gap_d / speeds[2]
     return min(gap_d / speeds[1], gap_p / speeds[0])

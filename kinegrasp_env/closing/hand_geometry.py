@@ -3,7 +3,7 @@
 A finger link is a capsule: the points within ``radius`` of its axis segment. When a link
 touches the object (its gap within the contact tolerance), the contact is the exact closest
 pair between the axis segment and the object's convex parts
-(:meth:`~kinegrasp_env.world.objects.GraspObject.closest_to_segments`): the point on the object,
+(:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`): the point on the object,
 and as normal the direction from it to the axis (inward: towards the object), which on a
 face interior is the face normal and at an edge or corner lies in the cone of the adjacent
 faces. Both engines use this, so they differ only in where the fingers stop.

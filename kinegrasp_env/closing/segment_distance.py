@@ -14,8 +14,8 @@ over the segments, with prunings that skip only what provably cannot change the 
   distance to the edge is at least its distance to that plane: |s_f(x)|; a segment's, the
   smaller of its ends' when the plane does not separate them); each part's edges are
   packed in blocks of nearby edges (:func:`spatial_blocks`), and a block whose bounding
-  sphere is farther than the best is skipped whole (exact queries on the spray flask's
-  144-edge prisms 25% faster, the mug's 15-25%);
+  sphere is farther than the best is skipped whole (it pays most on parts of many edges,
+  such as the spray flask's 144-edge prisms);
 - the closing loop starts each query's best distance at that of an object point an earlier
   query found (:func:`segment_search_near`: the same result, the plain search taking over
   where it does not hold), instead of inf.

@@ -37,9 +37,8 @@ from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
 
-#: Reward draws per step for a description robot (for the Panda's shipped grasps the fast
-#: engine closes 16 draws in 2.5 to 4 ms, the reference engine in 12 to 21 ms: see
-#: :class:`RobotTask`).
+#: Reward draws per step for a description robot (what they cost per step with each
+#: engine: see :class:`RobotTask`).
 ROBOT_N_DRAWS = 16
 #: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
 #: orientation, psi's sin and cos, palm spread, nominal Q, episode fraction.
@@ -80,8 +79,8 @@ class RobotTask:
     """The robot-specific pieces of the env for a description robot.
 
     Speed (the Panda, 16 draws, one core; ``python benchmarks/bench_env.py --robot panda``):
-    see the benchmarks page; per step, the self-motion takes ~4 ms per 0.1 rad of elbow
-    angle and the draws 2.5 to 4 ms with the fast engine, 12 to 21 ms with the reference.
+    see the benchmarks page; per step, the self-motion's cost grows with the elbow angle
+    moved, and the draws are much cheaper with the fast engine than with the reference.
 
     Args:
         robot: a catalog robot other than the default.

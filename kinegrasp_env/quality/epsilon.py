@@ -9,11 +9,13 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
 Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
 with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, first a certified
 nearest-facet-first expansion (:mod:`kinegrasp_env.quality.expansion`, the fastest exact
-path: 200-800x faster than the qhull loop, benchmarks/bench_quality.py); for 3 contacts with
+path: far cheaper than qhull, as it builds only the facets needed to certify the nearest one;
+timings in benchmarks/bench_quality.py); for 3 contacts with
 :data:`TABLES_MIN_EDGES` <= m <= :data:`TABLES_MAX_EDGES` cone edges, the grasps the expansion
 does not certify (or all of them, past its size) go to the batched facet enumeration of
 :mod:`kinegrasp_env.quality.three_contacts`, after a phase-1 screen that settles those
-certified out of force closure (Q = 0 on every path; a few us each). ``"auto"``
+certified out of force closure (Q = 0 on every path; the screen is cheap next to the
+tables). ``"auto"``
 and ``"fast"`` (3 contacts only) fall back to qhull wherever an exact path cannot certify its
 answer; ``"auto"`` also for the L-infinity hull. The cone edges are bounded by
 ``wrenches.MAX_EDGES``.
@@ -49,22 +51,20 @@ from kinegrasp_env.quality.wrenches import (
 
 Method = Literal["auto", "fast", "qhull"]
 Norm = Literal["l1", "linf"]
-#: Largest number (m + 1)^k of Minkowski-sum points the L-infinity hull is built from. Its
-#: qhull (benchmarks/bench_quality_edges.py, section 3, CPU of one core, one grasp) takes
-#: 0.36 s and 50 MB for 729 points (3 contacts, m = 8), 0.66-0.87 s and 77-98 MB for
-#: 1,296-1,331, 1.7-2.0 s and 170-190 MB for 2,197-4,096, 5.7 s and 400 MB for 4,913.
+#: Largest number (m + 1)^k of Minkowski-sum points the L-infinity hull is built from. The
+#: hull's qhull time and memory grow steeply with the points (one grasp: 50 MB for 729 points
+#: (3 contacts, m = 8), 77-98 MB for 1,296-1,331, 170-190 MB for 2,197-4,096, 400 MB for
+#: 4,913; timings in benchmarks/bench_quality_edges.py, section 3).
 LINF_MAX_POINTS = 1500
-#: Cone edges m the three-contact tables serve: where they are the fastest batched path
-#: (benchmarks/bench_quality_edges.py, batches of 400, CPU us per grasp, two runs, tables
-#: vs the expansion with its qhull fallback vs qhull): m = 3: 15-17 vs 8 vs 47; 4: 24-26 vs
-#: 24-25 vs 290; 8: 91-104 vs 117-122 vs 1900; 14: 246-263 vs 349-358 vs 8600; 16: 341-406
-#: vs 347-360 vs 12500 (a tie); 20: 606-789 vs 854-866 vs 23500; 24 (3 m beyond the
-#: expansion): 1036-1401 vs - vs 41000. Their constant tables and work arrays grow as m^3
-#: (numpy peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32), so above 24 qhull serves (0.1 s
-#: and ~10 MB per grasp at m = 32). Since its per-facet work was cut the expansion
-#: is the faster one at every m (sphere contacts, us per grasp, tables vs expansion: m = 8:
-#: 195 vs 24, 16: 721 vs 59; engine draws at m = 8: 72 vs 39), so it serves first and the
-#: tables take what it cannot certify and the 3-contact sets past its size (m = 22-24).
+#: Cone edges m the three-contact tables serve: where they were the cheapest batched path
+#: against the expansion with its qhull fallback and against qhull (at m = 3 the expansion
+#: was cheaper; at 4 and 16 the two tied; at 24, 3 m beyond the expansion, only the tables
+#: and qhull apply; timings in benchmarks/bench_quality_edges.py). Their constant tables and
+#: work arrays grow as m^3 (numpy peak 30 MB at m = 8, 96 MB at 24, 217 MB at 32), so above
+#: 24 qhull serves (~10 MB per grasp at m = 32). Since its per-facet work was cut the
+#: expansion is the cheaper one at every m (same benchmark, sphere contacts and engine
+#: draws), so it serves first and the tables take what it cannot certify and the 3-contact
+#: sets past its size (m = 22-24).
 TABLES_MIN_EDGES = 4
 TABLES_MAX_EDGES = 24
 #: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing
@@ -253,8 +253,8 @@ def thresholded(q: float, w: np.ndarray) -> float:
 
 
 def thresholded_batch(q: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """:func:`thresholded` of B grasps at once (the rule in one compiled pass: a Python loop
-    over the engine's draws cost ~3 us each): Q (B,) of wrenches w (B, N, 6) -> (B,)."""
+    """:func:`thresholded` of B grasps at once (the rule in one compiled pass, so a batch pays
+    no Python loop over its draws): Q (B,) of wrenches w (B, N, 6) -> (B,)."""
     scale = np.abs(w).max(axis=(1, 2)) if w.shape[0] else np.empty(0)
     closure = closure_classes(np.ascontiguousarray(q, dtype=float), scale)
     out = np.where(closure == NOT_CLOSED, 0.0, q)
@@ -269,8 +269,8 @@ _TABLES = threading.local()
 
 def _expansion_tables() -> tuple:
     """This thread's polytope and ridge tables for the expansion and its wrench scratch
-    (~2 MB, allocated on its first single-grasp call: allocating them per call cost ~10 us of
-    a ~45 us call)."""
+    (~2 MB, allocated on its first single-grasp call and reused: allocating them per call
+    was a sizeable share of a single-grasp call)."""
     tables = getattr(_TABLES, "value", None)
     if tables is None:
         from kinegrasp_env.quality.expansion import new_polytope, new_ridges
@@ -281,8 +281,8 @@ def _expansion_tables() -> tuple:
 
 
 def single_l1(w: np.ndarray, num_contacts: int) -> float:
-    """Q of one grasp's wrenches w (N, 6), L1: the certified expansion (microseconds for one
-    grasp, where the three-contact tables pay their batch set-up), else qhull."""
+    """Q of one grasp's wrenches w (N, 6), L1: the certified expansion (cheap for one grasp,
+    where the three-contact tables pay their whole batch set-up), else qhull."""
     from kinegrasp_env.quality.expansion import MAX_POINTS, expand_from, screen
 
     if num_contacts <= 2:  # every wrench has zero moment about the line through the points
@@ -321,8 +321,8 @@ def compiled_single(points, normals, friction, num_edges, torque_scale, center,
     float64 (3,) array, k m <= the expansion's size; qhull where the expansion cannot
     certify; ``gamma`` > 0 (metres): soft fingers with that torsional coefficient. None for
     anything else, or an input its checks reject: the step-by-step path then computes it,
-    or words the error. (Its checks cost ~1 us: a call's overhead was a
-    third of a 3-contact call.)"""
+    or words the error. (Its checks are a few type and shape tests: the step-by-step path's
+    call overhead was a large share of a 3-contact call.)"""
     if type(center) is np.ndarray:
         if center.shape != (3,) or center.dtype != np.float64:
             return None
@@ -381,9 +381,9 @@ def ferrari_canny(points, normals, *, friction: float = 0.5, num_edges: int = 8,
     See :func:`ferrari_canny_batch` for the arguments. With ``method="auto"`` and the L1 norm
     one grasp goes straight to the certified expansion (qhull where it cannot certify): for
     plain input (float64 arrays, numbers, a centre of 3 numbers) in one compiled call
-    (:mod:`kinegrasp_env.quality.single`; ~10 us at 3 contacts x 8 edges, ~45 at 5 x 12), not
-    through the batch path's three-contact tables, whose set-up a batch of one pays whole (at
-    12 edges 13x slower): for 3 contacts it may differ from ``ferrari_canny_batch`` in the
+    (:mod:`kinegrasp_env.quality.single`; timings in benchmarks/bench_quality.py), not
+    through the batch path's three-contact tables, whose set-up a batch of one pays whole (far
+    slower for one grasp): for 3 contacts it may differ from ``ferrari_canny_batch`` in the
     last digits (both equal qhull to 1e-10). Raises ValueError for non-finite input,
     mismatched shapes or zero-length normals.
     """

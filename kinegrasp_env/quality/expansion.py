@@ -20,7 +20,7 @@ origin outwards (the expanding-polytope idea of EPA):
    vertices lie within 1e-13 of the wrench scale of it, else computed afresh), and the
    facets that give Q are recomputed from their vertices at the end
    (:func:`_exact_nearest`): the same Q as Gram-Schmidt on every facet to ~1e-13 relative,
-   in ~35% less time for 4-5 contacts.
+   for less work (timings: ``benchmarks/bench_quality.py``).
 3. The answer is *certified* before it is returned: the final facet supports every wrench
    (so Q <= b: it is a facet hyperplane of conv(W)) and the polytope is closed (every ridge
    in exactly two facets) and convex (every facet has every vertex on its inner side,
@@ -289,7 +289,7 @@ def _exact_nearest(w, poly, count, tol, scale) -> tuple[float, bool]:
 def outside_batch(w: np.ndarray) -> np.ndarray:
     """(B,) bool: True where phase 1 of :func:`epsilon_epa` certifies that the origin is
     outside conv(W) of the wrench set w[b] (w: (B, N, 6)) by a separating hyperplane: Q = 0
-    on every exact path. A few microseconds per grasp: a screen before a costlier path."""
+    on every exact path. Cheap (phase 1 only): a screen before a costlier path."""
     out = np.zeros(w.shape[0], np.bool_)
     for b in range(w.shape[0]):
         out[b] = initial_simplex(w[b], 1e-12)[0] == -1

@@ -133,8 +133,8 @@ def clear_polytope(poly) -> None:
     """No wrench used and the interior point at 0 (both read before they are written). The
     facet tables need no clearing: every loop over facets stops at the set's own count, and
     each facet below it is written (made alive, or the set is abandoned) before it is read,
-    its ``visible`` flag in the step that reads it (clearing the 4,096 rows cost ~3 us of a
-    45 us set)."""
+    its ``visible`` flag in the step that reads it (clearing the 4,096 rows was a noticeable
+    share of a set's work)."""
     interior, used = poly[4], poly[5]
     for c in range(6):
         interior[c] = 0.0
@@ -225,7 +225,7 @@ def _slot(key: np.int64, mask: np.int64) -> np.int64:
     """Hash slot of a ridge key in a table of mask + 1 (a power of two <= 2^16) slots:
     Fibonacci hashing, the key times 2^64 / golden ratio modulo 2^64 (the product wraps, as
     intended; run interpreted, numpy warns of the overflow), bits 40 and up. (A product of
-    32-bit halves that cannot overflow probed longer: 5 x 8 sets 4-7% slower.)"""
+    32-bit halves that cannot overflow probed longer, which made 5 x 8 sets slower.)"""
     return np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
 
 

@@ -2,8 +2,8 @@
 
 A user's planner calls ``ferrari_canny`` once per grasp, in a loop. Done step by step from
 Python (check and normalize the contacts, build the wrenches, check their size, phase 1, the
-expansion, the threshold) each step paid numpy's and numba's call overhead: ~16 us of a
-~60 us call at 5 contacts x 12 edges, ~18 of ~25 at 3 x 8 (benchmarks/bench_quality.py).
+expansion, the threshold) each step paid numpy's and numba's call overhead, a large share
+of a one-grasp call, the more so the fewer the contacts (benchmarks/bench_quality.py).
 :func:`single_epsilon` does those steps in one kernel with the same arithmetic (the same
 kernels, called from compiled code), so its Q is the step-by-step one, bit for bit (tested);
 it hands back to Python only what needs Python: an input its checks reject (the caller's

@@ -16,7 +16,8 @@ contact forces exist that
 
 One feasibility linear programme per load, solved by the phase-1 simplex method in one
 compiled kernel (:func:`feasible`, the pivots of :mod:`~kinegrasp_env.quality.phase_one`):
-a few microseconds for a two- or three-finger grasp. Rigid bodies and static equilibrium are
+small programmes for a two- or three-finger grasp, solved without leaving compiled code.
+Rigid bodies and static equilibrium are
 assumed: the check says the forces *exist*, not that a simulator's solver finds them.
 """
 

@@ -27,10 +27,10 @@ from kinegrasp_env import jit
 FC_TOL = 1e-12
 #: Singular-value ratio below which a wrench set counts as rank-deficient.
 RANK_TOL = 1e-10
-#: Most cone edges m accepted. Every grasp can fall back to qhull, whose cost grows steeply
-#: with the number of wrenches: one grasp of 6 contacts (benchmarks/bench_quality_edges.py,
-#: CPU time of one core, two runs) takes 0.20 s and 26 MB at m = 24, 0.55-0.68 s and 50 MB
-#: at m = 32, 1.2-1.6 s at m = 40, 2.4-3.0 s and 127 MB at m = 48; 32 keeps it under ~1 s.
+#: Most cone edges m accepted. Every grasp can fall back to qhull, whose time and memory
+#: grow steeply with the number of wrenches (one grasp of 6 contacts: 26 MB at m = 24, 50 MB
+#: at m = 32, 127 MB at m = 48; timings in benchmarks/bench_quality_edges.py): 32 keeps one
+#: grasp's fallback affordable.
 MAX_EDGES = 32
 #: The library's friction coefficient mu and cone edges m where none is given
 #: (docs/conventions.md).
@@ -285,7 +285,7 @@ def edge_wrenches(points: np.ndarray, normals: np.ndarray, friction, num_edges: 
 @lru_cache(maxsize=64)  # m <= MAX_EDGES
 def cone_angles(num_edges: int) -> tuple[np.ndarray, np.ndarray]:
     """(cos, sin) (m,) of the edge angles 2 pi j / m, as :func:`friction_cone_edges` takes
-    them (read-only; cached: one grasp's set-up is microseconds)."""
+    them (read-only; cached, so a one-grasp call does not pay for the trigonometry)."""
     theta = 2.0 * np.pi * np.arange(num_edges) / num_edges
     cos_t, sin_t = np.cos(theta), np.sin(theta)
     cos_t.flags.writeable = sin_t.flags.writeable = False

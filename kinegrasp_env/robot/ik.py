@@ -147,8 +147,8 @@ class ArmIK:
             psi: (n,) or scalar target elbow angles (radians).
             max_step: largest change of psi per continuation step (radians). Where the path
                 stays within the limits the result does not depend on it (the same branch
-                to 1e-6 rad on all 48 shipped grasps from 0.05 to 0.4; 0.3 is ~3.5x faster
-                than 0.05, and one step for the env's 0.3 rad moves); a path that leaves
+                to 1e-6 rad on all 48 shipped grasps from 0.05 to 0.4; 0.3 takes fewer
+                steps than 0.05, and one step for the env's 0.3 rad moves); a path that leaves
                 them stops within one step of the limit.
             newton_iterations: Newton iterations per step.
 

@@ -13,7 +13,8 @@ jacobian`, arm columns) and psi's gradient by central differences; the first 6 r
 dq in the Jacobian's null space to first order, the last one moves the elbow. Nothing in it
 names a joint or link: :mod:`kinegrasp_env.robot.ik` is the compiled twin for the default
 robot's fixed chain, and on the default robot's description the two agree to 1e-9 rad
-(``tests/test_env_robot.py``). One move of 0.3 rad (3 steps) takes ~12 ms for the Panda.
+(``tests/test_env_robot.py``). A move of 0.3 rad takes 3 steps; its cost for the Panda is
+timed by ``python benchmarks/bench_env.py --robot panda``.
 """
 
 from __future__ import annotations

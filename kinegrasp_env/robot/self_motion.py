@@ -3,8 +3,9 @@
 :meth:`kinegrasp_env.robot.ik.ArmIK.set_elbow_angle` solves, at each continuation step, the
 square system "palm pose error = 0 (6 rows), elbow angle - goal = 0 (1 row)" in the 7 arm
 joints. For one configuration (what the environment asks for at every step) the batched
-numpy kinematics spend almost all their time in per-call overhead (~3 ms a step, ~30 of
-them for a curve of elbow angles); here each row runs its whole Newton loop compiled: the
+numpy kinematics spend almost all their time in per-call overhead (paid at every step, and
+a curve of elbow angles takes ~30 of them); here each row runs its whole Newton loop
+compiled (timings: ``benchmarks/bench_self_motion.py``): the
 chain base -> palm as 4x4 products, the palm's geometric Jacobian, the elbow angle's
 gradient by central differences, a 7x7 solve.
 

@@ -19,8 +19,8 @@ branch, or of none); it never proves that no other branch exists. Measured on th
 two cube grasps of ``kinegrasp plan --robot xarm6 --object cube --count 2 --seed 0`` (the
 first is the grasp of ``tests/test_ik_branches.py``): 3 branches each at 50, 200 and 1000
 starts (starts seed 0), on the first also at 5000 and 20,000 starts but 1 at 10 and 20
-(seed 1); a quarter to a third of the starts converge within the limits; 1000
-starts take 0.3 s.
+(seed 1); a quarter to a third of the starts converge within the limits; each start is
+one numeric IK solve, so the cost grows with the number of starts.
 
 A branch's label is the sign pattern, among the branches found, of what differs in sign
 between them: for a 6-joint arm the determinant of the palm's 6x6 Jacobian (it changes sign

@@ -11,7 +11,8 @@ returned (a lower bound away from the object).
 
 Trilinear interpolation reproduces the distance exactly wherever it is linear (next to a face
 of a part, inside or outside); near edges and corners it is within a fraction of the spacing.
-The grids are built on first use (a few seconds) and cached on disk, keyed by the object's
+The grids are built on first use (once: the build is slow next to a lookup) and cached on
+disk, keyed by the object's
 parts and the grid settings: ``$KINEGRASP_CACHE`` or ``~/.cache/kinegrasp``; an imported
 object's grid is built at import and kept in its catalog entry (:mod:`kinegrasp_env.world.store`).
 """

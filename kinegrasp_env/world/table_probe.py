@@ -9,8 +9,8 @@ between the box and any arm link (base included) or hand link, every collision m
 zero, so the test is the exact intersection of the collision shapes (GJK on the links'
 convex meshes, capsules and cylinders). Draws whose every link is farther from the box than
 the ball holding its collision geometry (:func:`link_radii`, placed by forward kinematics)
-are answered without pybullet (a few microseconds: most draws of a grasp well above the
-table).
+are answered without pybullet (cheap: forward kinematics and a distance per link; most
+draws of a grasp well above the table).
 """
 
 from __future__ import annotations
