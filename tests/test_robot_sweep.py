@@ -128,8 +128,10 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
 
 @pytest.mark.parametrize(("change", "message"), [
     ({"robot": "pandaa"}, "unknown robot 'pandaa' (did you mean 'panda'?)"),
-    ({"robot": "panda", "noise": ["gaussian", {"joints": {"sigma": 0.01}}]},
-     "noise: robot 'panda' takes joint noise on its arm joints only"),
+    ({"robot": "panda", "noise": ["gaussian", {"hand": {"spread_sigma": 0.01}}]},
+     "the hand source (the SDH pre-shape's spread"),
+    ({"robot": "panda", "engines": ["physics"],
+      "noise": [{"palm": {"translation_sigma": 0.001}}]}, "not palm errors"),
     ({"robot": "panda", "objects": ["mug"]}, "robot 'panda' has no shipped grasps of 'mug'"),
     ({"robot": "panda", "grasps": [0, 4]},
      "grasp 4 does not exist for cube (its shipped set has grasps 0..3)"),

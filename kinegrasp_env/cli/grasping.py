@@ -62,7 +62,8 @@ def cmd_evaluate(args) -> int:
     index, grasp = chosen_grasp(args)
     robot = args.robot or grasp.robot
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
-        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction)
+        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction,
+                              noise)
     refuse_hold_scores(args, robot)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
@@ -75,13 +76,14 @@ def cmd_evaluate(args) -> int:
                                return_draws=bool(args.plot or args.report), progress=True,
                                executor=executor)
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
+    per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
     if args.json:
-        print(json.dumps({**stats.to_json(), "friction": friction}))
+        print(json.dumps({**stats.to_json(), **({} if per_draw else {"friction": friction})}))
     else:
         lo, hi = stats.p_fc_ci
         full = label if args.noise_spec else f"{label} ({args.noise})"
-        print(f"{args.object} grasp {index}, {full}, {samples} draws, friction mu "
-              f"{friction:g}")
+        mu = "friction mu per draw" if per_draw else f"friction mu {friction:g}"
+        print(f"{args.object} grasp {index}, {full}, {samples} draws, {mu}")
         print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
         print(f"  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the force-closure "
               f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
@@ -317,8 +319,8 @@ def add_commands(sub) -> None:
     add_static_hold_arg(p, "prints P(hold, static)")
     p.add_argument("--hold-test", action="store_true",
                    help="also run the quick holding test in pybullet on the same draws and "
-                   "print P(hold) (robots other than the default; about 0.04 s a draw for the "
-                   "Panda)")
+                   "print P(hold) (robots other than the default; it runs pybullet dynamics "
+                   "per draw, far slower than the kinematic draws: benchmarks/quick_hold.py)")
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

@@ -112,7 +112,7 @@ def cmd_rank(args) -> int:
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     described = robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps)
     if described:
-        check_robot_candidates(args, grasps, robot)
+        check_robot_candidates(args, grasps, robot, noise)
     else:
         refuse_hold_scores(args, robot)
     report_path(args.report)
@@ -170,7 +170,8 @@ def cmd_rank(args) -> int:
             ranking = evaluator = RobotRanking(
                 grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
                 friction=friction, static_hold=static, hold_test=test, layout=layout,
-                executor=executor, side=side)
+                executor=executor, side=side,
+                model=noise if args.noise_spec else None)
         done = {}
         if not args.adaptive:
             existed = partial.exists()

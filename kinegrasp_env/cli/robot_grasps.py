@@ -102,15 +102,24 @@ def cmd_plan_robot(args) -> int:
 
 
 def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: int,
-                   seed: int, friction: float) -> int:
-    """``kinegrasp evaluate`` of a description robot's grasp (joint noise on its arm joints,
-    friction mu ``friction``)."""
+                   seed: int, friction: float, noise=None) -> int:
+    """``kinegrasp evaluate`` of a description robot's grasp: joint noise on its arm joints
+    (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,
+    object, friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); friction mu
+    ``friction``."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.sampling.noise_model import NoiseModel
     from kinegrasp_env.sampling.stats import wilson_interval
 
-    _refuse(args, {"--noise-spec": None, "--report": None}, robot)
+    _refuse(args, {"--report": None}, robot)
     _check_engine(args.engine, robot)
+    model = noise if isinstance(noise, NoiseModel) else None
+    if model is not None and args.hold_test:
+        raise CLIError("--hold-test draws joint noise alone (--sigma, --noise); drop it or "
+                       "--noise-spec")
+    label = (f"noise spec {args.noise_spec}" if model is not None
+             else f"sigma = {sigma:g} rad ({args.noise})")
     if args.plot:
         output_file(args.plot, "--plot")
     with reported(ValueError):
@@ -121,14 +130,14 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                      noise=args.noise, robot=robot, engine=args.engine,
                                      static_hold=args.static_hold, friction=friction,
-                                     executor=executor)
+                                     executor=executor, noise_model=model)
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object
 
         wrote = safe_figure(lambda: plot_contacts(
             load_object(grasp.object).mesh, stats.draws, args.plot,
-            title=f"{grasp.object} grasp {index} of {robot}, sigma = {sigma:g} rad: "
+            title=f"{grasp.object} grasp {index} of {robot}, {label}: "
                   f"P(FC) = {stats.p_fc:.3f}"), args.plot)
         if wrote is None:
             args.plot = None
@@ -143,7 +152,9 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
-                          "sigma": sigma, "noise": args.noise, "samples": samples,
+                          "sigma": sigma, "noise": args.noise,
+                          **({"noise_spec": str(args.noise_spec)} if model else {}),
+                          "samples": samples,
                           "seed": seed, "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
                           "friction": friction, "q_nominal": stats.q_nominal,
                           "q_mean": finite(stats.q_mean), "q_std": finite(stats.q_std),
@@ -151,12 +162,13 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                           "outcomes": stats.counts, **hold}))
         return 0
     lo, hi = stats.ci
-    print(f"{grasp.object} grasp {index} of robot {robot}, sigma = {sigma:g} rad "
-          f"({args.noise}), {samples} draws")
+    print(f"{grasp.object} grasp {index} of robot {robot}, {label}, {samples} draws")
     print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
-    model = load_robot(robot).contact_model
-    print(f"  Q (Ferrari-Canny, {model} contacts; mean, "
-          f"std, skewness over the force-closure draws; mu {friction:g}): nominal "
+    contacts = load_robot(robot).contact_model
+    print(f"  Q (Ferrari-Canny, {contacts} contacts; mean, "
+          f"std, skewness over the force-closure draws; "
+          f"{'mu per draw' if model is not None and model.friction else f'mu {friction:g}'}"
+          f"): nominal "
           f"{stats.q_nominal:.5f}, mean "
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
     if args.hold_test:

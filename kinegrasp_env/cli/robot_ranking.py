@@ -14,12 +14,19 @@ from kinegrasp_env.cli.common import CLIError, reported
 from kinegrasp_env.cli.robot_grasps import _check_engine, _refuse, quick_hold_engine
 
 
-def check_robot_candidates(args, grasps: list, robot: str) -> str:
+def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
     """The object of a description robot's candidates (one object, each a grasp of
-    ``robot``), and the options its ranking takes; CLIError lines otherwise."""
+    ``robot``), and the options and the noise (``--noise-spec``'s model, or joint noise) its
+    ranking takes; CLIError lines otherwise."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot
+    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
 
-    _refuse(args, {"--noise-spec": None, "--report": None}, robot)
+    _refuse(args, {"--report": None}, robot)
+    if args.noise_spec and args.criterion == "hold":
+        raise CLIError("--criterion hold runs the holding test on joint noise alone (--sigma, "
+                       "--noise); drop it or --noise-spec")
     _check_engine(args.engine, robot)
     objects = {g.object for g in grasps}
     if len(objects) != 1:
@@ -28,6 +35,10 @@ def check_robot_candidates(args, grasps: list, robot: str) -> str:
     with reported(ValueError):
         for g in grasps:
             check_robot(g, robot)
+    if args.noise_spec:
+        with reported(ValueError, RobotDescriptionError):
+            check_robot_noise(noise, robot, load_robot(robot).arm_dof, args.engine,
+                              bool(args.static_hold) or args.criterion == "hold_static")
     if args.adaptive and args.criterion in ("hold", "hold_static"):
         raise CLIError(f"--adaptive certifies P(FC) on paired draws; --criterion "
                        f"{args.criterion} ranks by a hold score, which it does not certify: "
@@ -48,11 +59,17 @@ class RobotRanking:
         static_hold: run the static hold check on every draw; hold_test: the quick holding
             test in pybullet on every draw (in this process).
         layout: the chunk sizes of one candidate's draws.
+        model: the ``--noise-spec`` model (every source; replaces sigma and noise), or None.
     """
 
     def __init__(self, grasps: list, robot: str, *, sigma, noise: str, seed: int,
                  engine: str, friction: float, static_hold: bool, hold_test: bool,
-                 layout: list[int], executor, side: dict) -> None:
+                 layout: list[int], executor, side: dict, model=None) -> None:
+        import json
+
+        from kinegrasp_env.sampling.noise_spec import spec_of
+
+        self.model = None if model is None else json.dumps(spec_of(model))
         self.grasps, self.robot, self.layout = grasps, robot, layout
         self.sigma, self.noise, self.seed = sigma, noise, seed
         self.engine, self.friction, self.static_hold = engine, friction, static_hold
@@ -70,7 +87,7 @@ class RobotRanking:
         g = self.grasps[index]
         return RobotChunk(self.robot, g.object, self.engine,
                           tuple(np.asarray(g.q0, dtype=float)), self.sigma, self.noise,
-                          self.seed, 0, 0, self.friction, self.static_hold)
+                          self.seed, 0, 0, self.friction, self.static_hold, self.model)
 
     def __call__(self, index: int, first: int, count: int, outcomes: bool = False):
         from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES

@@ -121,7 +121,8 @@ def add_commands(sub) -> None:
                    "whose contacts can carry the object's weight in six directions with the "
                    "hand's effort limits, or P(hold): the fraction the quick holding test in "
                    "pybullet holds (both: robots other than the default; the holding test "
-                   "costs about 0.04 s a draw for the Panda)")
+                   "runs pybullet dynamics per draw, far slower than the kinematic criteria: "
+                   "benchmarks/quick_hold.py)")
     add_static_hold_arg(p, "adds the column P(hold, static)")
     p.add_argument("--adaptive", action="store_true",
                    help="stop drawing once a top k is certified: exact tests on the paired "

@@ -61,6 +61,12 @@ from kinegrasp_env.closing.generic_reference import (
     MAX_STEPS,
     RobotCloseResult,
 )
+from kinegrasp_env.closing.hand_errors import (
+    arm_to_object,
+    flange_link,
+    hand_links,
+    world_to_object,
+)
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
     LinkGeometry,
@@ -118,6 +124,7 @@ class FastRobotHand:
         self._link_faces = {link: stacked_faces(geom.parts)
                             for link, geom in self.geometry.items()}
         self._patch = PatchGeometry(obj.parts)
+        self._flange, self._hand = flange_link(description), hand_links(description)
         self._parts = (planes, plane_starts, self.edges, edge_starts,
                        np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
@@ -155,15 +162,19 @@ class FastRobotHand:
             dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
 
-    def start_collision(self, q: np.ndarray, start_tol: float = START_TOL) -> np.ndarray:
+    def start_collision(self, q: np.ndarray, start_tol: float = START_TOL,
+                        maps: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(n,) bool: some link at q (n, dof) deeper than ``start_tol`` in the object (a
         link whose bounding ball the grid puts clear of the object, or whose hulls are apart
-        from the object's (:meth:`distance_bound`), is not examined exactly)."""
+        from the object's (:meth:`distance_bound`), is not examined exactly); ``maps``: the
+        (n, 4, 4) maps of an arm link's and of a hand link's world pose to the true object's
+        frame (:meth:`error_maps`; default: the believed object pose's inverse)."""
         poses = self.kinematics.forward(q, list(self.geometry))
         inv = self.obj.pose_inverse
         hit = np.zeros(q.shape[0], dtype=bool)
         for link in self.geometry:
-            pose = inv @ poses[link]
+            to_object = inv if maps is None else maps[link in self._hand]
+            pose = to_object @ poses[link]
             centre, radius = self._spheres[link]
             rows = np.flatnonzero(~hit & (posed_min_distance(self.grid, pose, centre)
                                           - self.grid_err < radius))
@@ -198,15 +209,32 @@ class FastRobotHand:
         result per draw (:meth:`close_batch`'s, draw by draw)."""
         return self.close_batch(q, contact_tol=contact_tol, start_tol=start_tol).results()
 
+    def error_maps(self, q: np.ndarray, palm: np.ndarray | None,
+                   object_offset: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """(arm map, hand map), each (n, 4, 4): an arm link's and a hand link's world pose at
+        q (n, dof) to the true object's frame, under palm errors and object errors (n, 4, 4;
+        None = exact) (:mod:`~kinegrasp_env.closing.hand_errors`)."""
+        n = q.shape[0]
+        flange = self.kinematics.pose(q, self._flange)
+        return (arm_to_object(self.obj.pose, object_offset, n),
+                world_to_object(flange, self.obj.pose, palm, object_offset))
+
     def close_batch(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
-                    start_tol: float = START_TOL) -> RobotCloseBatch:
+                    start_tol: float = START_TOL, palm: np.ndarray | None = None,
+                    object_offset: np.ndarray | None = None) -> RobotCloseBatch:
         """Close the hand of every configuration q (n, dof) (the module's model), as
-        arrays."""
+        arrays; ``palm``, ``object_offset``: per-draw palm and object errors (n, 4, 4)
+        (:mod:`~kinegrasp_env.closing.hand_errors`; the contacts are in the true object's
+        frame)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n, fingers = q.shape[0], self.description.fingers
-        start = self.start_collision(q, start_tol)
+        maps = None
+        if palm is not None or object_offset is not None:
+            maps = self.error_maps(q, palm, object_offset)
+        start = self.start_collision(q, start_tol, maps)
         values0 = self.model.expand(q)
-        palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
+        to_object = self.obj.pose_inverse if maps is None else maps[1]
+        palm = to_object @ self.kinematics.pose(q, self.description.palm_link)
         gaps = np.full((n, len(fingers)), np.nan)
         travel = np.zeros((n, len(fingers)))
         final = {name: values0[name].copy() for name in values0}

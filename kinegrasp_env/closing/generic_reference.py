@@ -40,6 +40,7 @@ layer, with the robot's contact model).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,9 +51,11 @@ from kinegrasp_env.closing.contact_patch import (
     faces_of,
     link_hull_vertices,
 )
+from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, GraspWorld, pybullet
+from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
 
 #: Gaps beyond this are not measured (a step is then bounded by it), metres.
 QUERY_DISTANCE = 0.05
@@ -189,6 +192,7 @@ class RobotWorld(GraspWorld):
                                              bullet.getNumJoints(self.bodies["object"])))
                         for link in range(-1, count)}
         self._movable = [j.name for j in self.model.joints if j.movable]
+        self._flange, self._hand = flange_link(description), hand_links(description)
 
     # ------------------------------------------------------------------ state
     def set_configuration(self, q: np.ndarray) -> dict[str, float]:
@@ -280,18 +284,63 @@ class RobotWorld(GraspWorld):
         return finger_speed(kinds, rates, np.array(reach))
 
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
-                   start_tol: float = START_TOL) -> RobotCloseResult:
-        """Close the hand of configuration q (dof,) on the object (the module's model).
+                   start_tol: float = START_TOL, palm: np.ndarray | None = None,
+                   object_offset: np.ndarray | None = None) -> RobotCloseResult:
+        """Close the hand of configuration q (dof,) on the object (the module's model);
+        ``palm``, ``object_offset``: the draw's palm and object errors (4, 4)
+        (:mod:`~kinegrasp_env.closing.hand_errors`), the contacts then in the true object's
+        frame.
 
         The world is left at the final state (every finger where it stopped).
         """
         start = self.set_configuration(q)
-        queries = 1
-        if any(self.distance(row) < -start_tol for row in self.closest(0.0)):
-            return RobotCloseResult(True, queries=queries,
-                                    missed=(False,) * len(self.description.fingers),
-                                    gaps=np.full(len(self.description.fingers), np.nan),
-                                    travel=np.zeros(len(self.description.fingers)))
+        if palm is None and object_offset is None:
+            return self._close(start, contact_tol, start_tol)
+        believed = self.obj
+        true = believed.pose if object_offset is None else believed.pose @ object_offset
+        # the arm sees the object where it truly is; the hand, kept at its kinematic pose,
+        # sees it moved by the inverse of its own error (the same relative pose)
+        flange = self.link_pose(self._flange)
+        seen = true if palm is None else flange @ rigid_inverse(palm) @ rigid_inverse(
+            flange) @ true
+        try:
+            self._place_object(true)
+            arm = [link for link in self.link_index if link not in self._hand]
+            if any(self.distance(row) < -start_tol
+                   for link in arm for row in self.closest(0.0, link)):
+                return self._collided(len(arm))
+            self._place_object(seen)
+            self.obj = dataclasses.replace(believed, pose=seen)
+            return self._close(start, contact_tol, start_tol, links=sorted(self._hand),
+                               queries=len(arm))
+        finally:
+            self.obj = believed
+            self._place_object(believed.pose)
+
+    def _place_object(self, pose: np.ndarray) -> None:
+        position, orientation = matrix_to_pose(pose)
+        self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
+                                                    orientation)
+
+    def _collided(self, queries: int) -> RobotCloseResult:
+        """A closing that starts in collision."""
+        fingers = len(self.description.fingers)
+        return RobotCloseResult(True, queries=queries, missed=(False,) * fingers,
+                                gaps=np.full(fingers, np.nan), travel=np.zeros(fingers))
+
+    def _close(self, start: dict[str, float], contact_tol: float, start_tol: float,
+               links: list[str] | None = None, queries: int = 0) -> RobotCloseResult:
+        """:meth:`auto_close` from the configuration set (joint values ``start``), the object
+        where it stands: the start collision of ``links`` (default: the whole robot, one
+        query), then the fingers closed."""
+        if links is None:
+            queries += 1
+            rows = self.closest(0.0)
+        else:
+            queries += len(links)
+            rows = [row for link in links for row in self.closest(0.0, link)]
+        if any(self.distance(row) < -start_tol for row in rows):
+            return self._collided(queries)
         fingers = self.description.fingers
         missed, gaps, travel, final = [], [], [], {}
         contacts: list[RobotContact] = []

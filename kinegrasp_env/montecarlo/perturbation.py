@@ -21,10 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.closing.hand_errors import hand_in_object, world_to_object
+from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.sampling.noise_model import NoiseDraws, offset_transforms
 
 ARM = 7
+
+__all__ = ["EngineInputs", "arm_shift", "configurations", "engine_inputs", "hand_in_object",
+           "hand_limits", "placed_roots", "rigid_inverse", "world_to_object"]
 
 
 @dataclass
@@ -83,29 +88,6 @@ def engine_inputs(q0: np.ndarray, draws: NoiseDraws, center: np.ndarray) -> Engi
         None if draws.friction is None else np.asarray(draws.friction, dtype=float))
 
 
-def rigid_inverse(transform: np.ndarray) -> np.ndarray:
-    """Inverses (..., 4, 4) of rigid transforms (..., 4, 4): [R^T, -R^T t]."""
-    rot_t = np.swapaxes(transform[..., :3, :3], -1, -2)
-    out = np.zeros_like(transform)
-    out[..., :3, :3] = rot_t
-    out[..., :3, 3] = -(rot_t @ transform[..., :3, 3, None])[..., 0]
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def hand_in_object(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
-                   object_offset: np.ndarray | None) -> np.ndarray:
-    """X (n, 4, 4): the hand root in the true object's frame, D^-1 W_O^-1 W_F P, for flange
-    poses W_F (n, 4, 4), the believed object pose W_O (4, 4), palm errors P and object
-    errors D (n, 4, 4; None = identity)."""
-    rel = rigid_inverse(object_pose) @ flange
-    if palm is not None:
-        rel = rel @ palm
-    if object_offset is not None:
-        rel = rigid_inverse(object_offset) @ rel
-    return rel
-
-
 def placed_roots(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
                  object_offset: np.ndarray | None) -> np.ndarray:
     """World poses (n, 4, 4) of the hand root that put the hand where it truly is relative
@@ -121,10 +103,3 @@ def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.n
     if object_offset is None:
         return None
     return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
-
-
-def world_to_object(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
-                    object_offset: np.ndarray | None) -> np.ndarray:
-    """M (n, 4, 4) = X W_F^-1: maps a hand link's world pose from the arm's kinematics
-    (W_F times the link's pose in the hand) to its pose in the true object's frame."""
-    return hand_in_object(flange, object_pose, palm, object_offset) @ rigid_inverse(flange)

@@ -69,6 +69,9 @@ class RobotChunk:
         q0: the grasp's nominal configuration (dof,), radians (metres for prismatic joints).
         sigma, noise, seed: the run's joint noise and seed.
         friction: the contacts' mu; static_hold: run the static hold check too.
+        model: a noise model's spec JSON (:func:`~kinegrasp_env.sampling.noise_spec.
+            spec_of`), which replaces ``sigma`` and ``noise``
+            (:mod:`~kinegrasp_env.montecarlo.robot_noise`); None: joint noise alone.
     """
 
     robot: str
@@ -82,15 +85,26 @@ class RobotChunk:
     size: int
     friction: float = 0.5
     static_hold: bool = False
+    model: str | None = None
 
 
 def run_robot_chunk(task: RobotChunk) -> RobotDraws:
     """The draws of one chunk (in a worker, or inline)."""
     engine = robot_engine(task.engine, task.robot, task.object, task.friction,
                           task.static_hold)
-    q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
-                             task.sigma, task.noise, task.seed, task.offset, task.size)
-    return engine.run(q)
+    if task.model is None:
+        q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
+                                 task.sigma, task.noise, task.seed, task.offset, task.size)
+        return engine.run(q)
+    import json
+
+    from kinegrasp_env.montecarlo.robot_noise import model_rows
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    q, errors = model_rows(noise_model_from_spec(json.loads(task.model)), task.q0,
+                           engine.description.arm_dof, task.seed, task.offset, task.size,
+                           engine.obj.center_of_mass)
+    return engine.run(q, **errors)
 
 
 def concatenate(parts: list[RobotDraws]) -> RobotDraws:
@@ -117,5 +131,6 @@ def nominal_closing_quality(first: RobotChunk, executor: Executor) -> float:
 
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 
-    draw = next(executor.map(run_robot_chunk, [replace(first, sigma=0.0, offset=0, size=1)]))
+    exact = replace(first, sigma=0.0, offset=0, size=1, model=None)
+    draw = next(executor.map(run_robot_chunk, [exact]))
     return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0

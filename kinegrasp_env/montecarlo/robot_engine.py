@@ -19,6 +19,7 @@ from kinegrasp_env.closing.generic_reference import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,
+    check_errors,
     provisional_outcomes,
 )
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
@@ -76,12 +77,14 @@ def outcome_of(result: RobotCloseResult) -> int:
                                     np.array([len(result.contacts)]))[0])
 
 
-def score_batch(batch: RobotCloseBatch, max_contacts: int, quality) -> RobotDraws:
+def score_batch(batch: RobotCloseBatch, max_contacts: int, quality,
+                friction: np.ndarray | None = None) -> RobotDraws:
     """Per-draw results of closings: each one's outcome (:func:`provisional_outcomes`), its
     contacts (at most ``max_contacts``, in the batch's order) and, for a candidate, Q by
-    ``quality(points, normals)`` (force closure where Q > 0): points and normals (B, k, 3)
-    of every candidate with k contacts at once, Q (B,); ``quality`` None leaves the
-    candidates unscored (outcome ``no_force_closure``, Q 0) for the caller. Every engine of a
+    ``quality(points, normals, mu)`` (force closure where Q > 0): points and normals
+    (B, k, 3) of every candidate with k contacts at once, their draws' mu (B,) from
+    ``friction`` (n,) (None: the engine's), Q (B,); ``quality`` None leaves the candidates
+    unscored (outcome ``no_force_closure``, Q 0) for the caller. Every engine of a
     description robot scores its closings here."""
     n = len(batch)
     out = RobotDraws.empty(n, max_contacts)
@@ -98,7 +101,8 @@ def score_batch(batch: RobotCloseBatch, max_contacts: int, quality) -> RobotDraw
     candidate = out.outcome == NO_FORCE_CLOSURE
     for k in np.unique(out.n_contacts[candidate]):
         rows = np.flatnonzero(candidate & (out.n_contacts == k))
-        out.quality[rows] = quality(out.points[rows, :k], out.normals[rows, :k])
+        out.quality[rows] = quality(out.points[rows, :k], out.normals[rows, :k],
+                                    None if friction is None else friction[rows])
     out.outcome[candidate & (out.quality > 0)] = FORCE_CLOSURE
     return out
 
@@ -164,39 +168,76 @@ class RobotEngine:
             raise ValueError("configurations have NaN or infinite entries")
         return q
 
-    def quality(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    def quality(self, points: np.ndarray, normals: np.ndarray,
+                friction: np.ndarray | None = None) -> np.ndarray:
         """(B,) Q of B contact sets (B, k, 3) with the robot's contact model (the patch
-        model's sets: the patches' corners, each a point contact)."""
+        model's sets: the patches' corners, each a point contact), each set at its own mu
+        ``friction`` (B,) (None: the engine's)."""
         model = self.description.quality_model
-        return contact_quality_batch(
-            points, normals, contact_model=model,
-            friction=self.friction, num_edges=self.num_edges,
-            torque_scale=self.obj.torque_scale, center=self.obj.center_of_mass,
-            **({"finger_radius": self.finger_radius}
-               if model == "soft" else {}))
+        options = {"contact_model": model, "num_edges": self.num_edges,
+                   "torque_scale": self.obj.torque_scale, "center": self.obj.center_of_mass,
+                   **({"finger_radius": self.finger_radius} if model == "soft" else {})}
+        if friction is None:
+            return contact_quality_batch(points, normals, friction=self.friction, **options)
+        if model == "point":  # the point model takes one mu per set
+            return contact_quality_batch(points, normals, friction=friction, **options)
+        out = np.empty(len(friction))
+        for mu in np.unique(friction):  # the soft model: the sets of one mu at a time
+            rows = np.flatnonzero(friction == mu)
+            out[rows] = contact_quality_batch(points[rows], normals[rows], friction=float(mu),
+                                              **options)
+        return out
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
         """One closing per configuration of q (n, dof) (checked)."""
         raise NotImplementedError
 
-    def close_batch(self, q: np.ndarray) -> RobotCloseBatch:
-        """The closings of q (n, dof) (checked) as arrays (default: :meth:`close_all`'s)."""
-        return RobotCloseBatch.of_results(self.close_all(q))
+    def close_batch(self, q: np.ndarray, **errors: np.ndarray) -> RobotCloseBatch:
+        """The closings of q (n, dof) (checked) as arrays (default: :meth:`close_all`'s);
+        ``errors``: per-draw ``palm`` and ``object_offset`` (n, 4, 4), for an engine that
+        :attr:`takes_errors`."""
+        return RobotCloseBatch.of_results(self.close_all(q, **errors))
 
-    def run(self, q: np.ndarray) -> RobotDraws:
+    #: Whether :meth:`run` takes palm and object pose errors (the kinematic engines do).
+    takes_errors = False
+
+    def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
+            object_offset: np.ndarray | None = None,
+            friction: np.ndarray | None = None) -> RobotDraws:
         """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape), with
-        the static hold check where the engine was asked for it."""
-        q = self.check(q)
-        return self.scored(q, self.close_batch(q))
+        the static hold check where the engine was asked for it.
 
-    def scored(self, q: np.ndarray, batch: RobotCloseBatch) -> RobotDraws:
+        Per-draw errors (None: exact; :mod:`~kinegrasp_env.closing.hand_errors`):
+            palm: (n, 4, 4) the hand's error relative to the flange (flange frame).
+            object_offset: (n, 4, 4) the object's true pose in the frame it was believed
+                at; the contacts are in the true object's frame.
+            friction: (n,) each draw's mu (instead of the engine's).
+
+        Raises:
+            ValueError: bad configurations or errors; pose errors for an engine that does not
+                take them; a per-draw mu with the static hold check (it holds at one mu).
+        """
+        q = self.check(q)
+        errors = check_errors(q.shape[0], palm, object_offset, friction)
+        mu = errors.pop("friction", None)
+        if errors and not self.takes_errors:
+            raise ValueError(f"the {self.name} engine of a description robot takes joint "
+                             f"noise and friction only, not {', '.join(errors)} errors")
+        if mu is not None and self.hold_check is not None:
+            raise ValueError("the static hold check holds at the engine's friction; a "
+                             "per-draw friction is not checked (drop it or the check)")
+        return self.scored(q, self.close_batch(q, **errors), mu)
+
+    def scored(self, q: np.ndarray, batch: RobotCloseBatch,
+               friction: np.ndarray | None = None) -> RobotDraws:
         """:meth:`run`'s results of the closings ``batch`` of checked configurations q
-        (n, dof): for a caller that needs the closings too (their final joint values)."""
+        (n, dof), each draw at its mu ``friction`` (n,) (None: the engine's): for a caller
+        that needs the closings too (their final joint values)."""
         draws = score_batch(batch, self.max_contacts,
-                            None if self.patches is not None else self.quality)
+                            None if self.patches is not None else self.quality, friction)
         contacts = None
         if self.patches is not None:
-            contacts = self._score_patches(q, batch, draws)
+            contacts = self._score_patches(q, batch, draws, friction)
         if self.jaw_speeds is not None and len(batch):
             draws.push[:] = jaw_push(self.jaw_speeds, batch.travel, batch.missed,
                                      batch.start_collision)
@@ -212,8 +253,8 @@ class RobotEngine:
                     q[touched], values, *(a[touched] for a in given))
         return draws
 
-    def _score_patches(self, q: np.ndarray, batch: RobotCloseBatch, draws: RobotDraws
-                       ) -> tuple[np.ndarray, ...]:
+    def _score_patches(self, q: np.ndarray, batch: RobotCloseBatch, draws: RobotDraws,
+                       friction: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Q and force closure of the candidates of ``draws`` with the patch model; returns
         every draw's contacts expanded to their patches' corners ((n, k C, 3) points and
         normals, (n, k C) finger and link: :class:`~kinegrasp_env.montecarlo.
@@ -225,6 +266,7 @@ class RobotEngine:
         for k in np.unique(draws.n_contacts[candidate]):
             rows = np.flatnonzero(candidate & (draws.n_contacts == k))
             draws.quality[rows] = self.quality(expanded[0][rows, :k * per],
-                                               expanded[1][rows, :k * per])
+                                               expanded[1][rows, :k * per],
+                                               None if friction is None else friction[rows])
         draws.outcome[candidate & (draws.quality > 0)] = FORCE_CLOSURE
         return expanded

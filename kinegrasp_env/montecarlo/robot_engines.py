@@ -18,6 +18,7 @@ class RobotReferenceEngine(RobotEngine):
     (arguments: :class:`RobotEngine`)."""
 
     name = "pybullet"
+    takes_errors = True
 
     def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
@@ -30,8 +31,13 @@ class RobotReferenceEngine(RobotEngine):
         """One closing at configuration q (dof,) (the world is left at its final state)."""
         return self.world.auto_close(self.check(q)[0])
 
-    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
-        return [self.world.auto_close(row) for row in q]
+    def close_all(self, q: np.ndarray, palm: np.ndarray | None = None,
+                  object_offset: np.ndarray | None = None) -> list[RobotCloseResult]:
+        """One closing per row of q (n, dof), with its palm and object errors (n, 4, 4)."""
+        return [self.world.auto_close(row, palm=None if palm is None else palm[i],
+                                      object_offset=None if object_offset is None
+                                      else object_offset[i])
+                for i, row in enumerate(q)]
 
 
 #: The engines of a description robot, by name.

@@ -13,6 +13,7 @@ OUTCOMES`); P(FC) comes with its Wilson interval, Q's moments are over the force
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,8 +27,11 @@ from kinegrasp_env.montecarlo.robot_engine import (
     score,
 )
 from kinegrasp_env.montecarlo.robot_engines import ENGINES, RobotReferenceEngine, make_engine
+from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise, SeedLike, as_generator
+from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
 from kinegrasp_env.world.grasps import Grasp, check_robot
 
@@ -126,7 +130,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                          engine: RobotEngine | str = "pybullet",
                          robot: str | RobotDescription | None = None,
                          static_hold: bool = False, friction: float = 0.5,
-                         executor: Executor | None = None) -> RobotEvaluation:
+                         executor: Executor | None = None,
+                         noise_model: NoiseModel | None = None) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
     its nominal Q (:func:`nominal_robot_quality`).
 
@@ -148,6 +153,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
             robot_chunks`: the same draws, row for row, whatever the processes or backend;
             the seed an integer, the robot a catalog one). None, or a local executor of one
             process: in this process.
+        noise_model: every source of error (:mod:`~kinegrasp_env.montecarlo.robot_noise`:
+            joints, palm, object, friction; the seed an integer); replaces ``sigma`` and
+            ``noise``.
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
@@ -166,27 +174,52 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     else:
         name = grasp.robot if robot is None else getattr(robot, "name", robot)
     check_robot(grasp, name)
+    if noise_model is not None:
+        from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+
+        _integer_seed(seed, "a noise model's run")
+        arm = (load_robot(name) if isinstance(engine, str) else engine.description).arm_dof
+        check_robot_noise(noise_model, name, arm,
+                          engine if isinstance(engine, str) else engine.name,
+                          static_hold if isinstance(engine, str)
+                          else engine.hold_check is not None)
     if executor is not None and not (isinstance(executor, LocalExecutor)
                                      and executor.workers == 1):
         return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
-                        static_hold=static_hold, friction=friction, executor=executor)
+                        static_hold=static_hold, friction=friction, executor=executor,
+                        noise_model=noise_model)
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
                              static_hold=static_hold, friction=friction)
     try:
-        q = robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise)
+        errors = {}
+        if noise_model is None:
+            q = robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise)
+        else:
+            from kinegrasp_env.montecarlo.robot_noise import model_rows
+
+            q, errors = model_rows(noise_model, engine.check(grasp.q0)[0],
+                                   engine.description.arm_dof, int(seed), 0, n,
+                                   engine.obj.center_of_mass)
         check = engine.hold_check
-        stats = summarize(engine.run(q), None if check is None else check.mass)
+        stats = summarize(engine.run(q, **errors), None if check is None else check.mass)
         return replace(stats, q_nominal=nominal_robot_quality(grasp, engine))
     finally:
         if own:
             engine.close()
 
 
+def _integer_seed(seed: SeedLike, what: str) -> None:
+    """ValueError unless ``seed`` is an integer >= 0 (a run drawn by rows of its streams)."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"{what} takes an integer seed >= 0 (its draws are rows of the "
+                         f"seed's streams), got {seed!r}")
+
+
 def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
              seed: SeedLike, noise: str, static_hold: bool, friction: float,
-             executor: Executor) -> RobotEvaluation:
+             executor: Executor, noise_model: NoiseModel | None = None) -> RobotEvaluation:
     """:func:`evaluate_robot_grasp`'s run in chunks on ``executor`` (a given engine passes
     its name and settings to the workers, which build their own)."""
     from kinegrasp_env.montecarlo.robot_chunks import (
@@ -196,15 +229,14 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
     )
     from kinegrasp_env.world.objects import load_object
 
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"a run in chunks takes an integer seed >= 0 (each chunk draws its "
-                         f"rows of the seed's stream), got {seed!r}")
+    _integer_seed(seed, "a run in chunks")
     if not isinstance(engine, str):
         static_hold = engine.hold_check is not None
         engine, friction = engine.name, engine.friction
     first = RobotChunk(robot, grasp.object, engine, tuple(np.asarray(grasp.q0, float)),
                        sigma if np.ndim(sigma) == 0 else tuple(sigma), noise, int(seed), 0,
-                       n, friction, static_hold)
+                       n, friction, static_hold,
+                       None if noise_model is None else json.dumps(spec_of(noise_model)))
     draws = chunked_draws(first, n, executor)
     stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)
     return replace(stats, q_nominal=nominal_closing_quality(first, executor))

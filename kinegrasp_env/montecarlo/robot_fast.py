@@ -24,17 +24,19 @@ class RobotFastEngine(RobotEngine):
     cached."""
 
     name = "fast"
+    takes_errors = True
 
     def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
         self.hand = FastRobotHand(self.description, self.obj)
 
-    def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
-        return self.close_batch(q).results()
+    def close_all(self, q: np.ndarray, **errors: np.ndarray) -> list[RobotCloseResult]:
+        return self.close_batch(q, **errors).results()
 
-    def close_batch(self, q: np.ndarray) -> RobotCloseBatch:
+    def close_batch(self, q: np.ndarray, **errors: np.ndarray) -> RobotCloseBatch:
         if q.shape[0] == 0:
             return RobotCloseBatch.of_results([])
-        batches = [self.hand.close_batch(q[start:start + BATCH])
+        batches = [self.hand.close_batch(q[start:start + BATCH],
+                                         **{k: v[start:start + BATCH] for k, v in errors.items()})
                    for start in range(0, q.shape[0], BATCH)]
         return batches[0] if len(batches) == 1 else RobotCloseBatch.joined(batches)

@@ -23,6 +23,7 @@ closed by its own engines (:mod:`kinegrasp_env.montecarlo.sweep_robot`).
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -179,15 +180,21 @@ def _robot(value: Any, where: str) -> str:
 
 def _check_robot_cells(robot: str, models: tuple, engines: tuple[str, ...],
                        where: str) -> None:
-    """What a description robot's engines take: joint noise of a distribution on the arm
-    joints, the ``pybullet`` and ``fast`` engines; one line naming what is not."""
+    """What a description robot's engines take: its engines, and noise models of its sources
+    (:func:`~kinegrasp_env.montecarlo.robot_noise.check_robot_noise`, every engine of the
+    spec); one line naming what is not."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES as ROBOT_ENGINES
+    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
-    if models:
-        raise SpecError(f"{where}: noise: robot {robot!r} takes joint noise on its arm joints "
-                        "only (gaussian, uniform, triangular); noise models (hand, palm, "
-                        f"object, friction, joint bias or covariance) are for {DEFAULT_ROBOT} "
-                        f"alone, got {models[0][0]!r}")
+    arm = load_robot(robot).arm_dof
+    for label, spec in models:
+        for engine in engines:
+            try:
+                check_robot_noise(noise_model_from_spec(json.loads(spec)), robot, arm, engine)
+            except ValueError as exc:
+                raise SpecError(f"{where}: noise {label!r}: {exc}") from None
     bad = [e for e in engines if e not in ROBOT_ENGINES]
     if bad:
         raise SpecError(f"{where}: engines: {bad[0]!r} is not available for robot {robot!r} "

@@ -50,6 +50,16 @@ def rotation_log(rot: np.ndarray) -> np.ndarray:
     return out
 
 
+def rigid_inverse(transform: np.ndarray) -> np.ndarray:
+    """Inverses (..., 4, 4) of rigid transforms (..., 4, 4): [R^T, -R^T t]."""
+    rot_t = np.swapaxes(transform[..., :3, :3], -1, -2)
+    out = np.zeros_like(transform)
+    out[..., :3, :3] = rot_t
+    out[..., :3, 3] = -(rot_t @ transform[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
+
+
 def pose_error(current: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Twist-like error (..., 6) of poses current against target (..., 4, 4), broadcast:
     target position - current, then rotation vector of R_target R_current^T (world frame;

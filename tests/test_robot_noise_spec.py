@@ -1,0 +1,178 @@
+"""Every source of a noise spec for a description robot (the Panda): joints, palm, object,
+friction.
+
+What each test proves:
+
+* a palm error that turns the hand about the flange's z axis is what the arm's last joint
+  does (the Panda's joint 7 turns its link about that axis through its origin): the palm
+  error's draws equal those of the joint moved, contacts to 1e-9 m, in the fast engine and
+  in the reference (pybullet) engine. The kinematics is an independent computation of the
+  hand's pose, so a palm error composed on the wrong side, or in the wrong frame, fails
+  (the reference's contacts to 5e-8 m: pybullet's closest points on the body it turned);
+* an object error is the object placed elsewhere: the fast engine's draws with the error
+  equal the reference engine's on a world built with the object loaded at its true pose
+  (pybullet's own placement, no error path), contacts to 1e-6 m (the two closings' steps
+  differ once the object is turned: 5e-6 m measured at most, within the 2e-4 m contact
+  tolerance), outcomes equal;
+* the reference engine (which moves the object body in pybullet) and the fast engine (which
+  maps the links) agree on noisy draws of every source at once;
+* a joints-only spec draws what ``--sigma`` draws; a fixed friction source scores as
+  ``--friction`` does; a run on two worker processes draws the run's rows;
+* what a robot cannot take is one line each.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.closing.generic_fast import FastRobotHand
+from kinegrasp_env.closing.generic_reference import RobotWorld
+from kinegrasp_env.montecarlo import robot_chunks
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.sampling.noise_model import offset_transforms
+from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+from kinegrasp_env.world.grasps import shipped_grasps
+from kinegrasp_env.world.objects import load_object
+
+EVERY_SOURCE = {"joints": {"sigma": 0.005},
+                "palm": {"translation_sigma": 0.003, "rotation_sigma": 0.02},
+                "object": {"translation_sigma": 0.004, "rotation_sigma": 0.03},
+                "friction": {"distribution": "gaussian", "mean": 0.5, "sigma": 0.1}}
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return load_robot("panda"), load_object("cube"), shipped_grasps("cube", "panda")[0]
+
+
+def _contacts(batch, row):
+    return batch.points[batch.row == row]
+
+
+def test_a_palm_turn_about_the_flange_axis_is_the_last_joint_turned(panda):
+    description, obj, grasp = panda
+    angles = np.linspace(-0.06, 0.06, 7)
+    q = np.repeat(np.asarray(grasp.q0)[None], len(angles), axis=0)
+    turned = q.copy()
+    turned[:, description.arm_joints.index("panda_joint7")] += angles
+    palm = offset_transforms(np.column_stack([np.zeros((len(angles), 5)), angles]))
+    fast = FastRobotHand(description, obj)
+    by_palm, by_joint = fast.close_batch(q, palm=palm), fast.close_batch(turned)
+    np.testing.assert_array_equal(by_palm.start_collision, by_joint.start_collision)
+    np.testing.assert_array_equal(by_palm.missed, by_joint.missed)
+    np.testing.assert_allclose(by_palm.points, by_joint.points, atol=1e-9)
+    with RobotWorld(description, obj) as world:
+        for i in range(len(angles)):
+            a = world.auto_close(q[i], palm=palm[i])
+            b = world.auto_close(turned[i])
+            assert a.missed == b.missed and len(a.contacts) == len(b.contacts)
+            for ca, cb in zip(a.contacts, b.contacts, strict=True):
+                # pybullet's closest points on the object body it turned: 7e-9 m measured
+                np.testing.assert_allclose(ca.point, cb.point, atol=5e-8)
+    assert by_palm.contact_counts.min() == 2  # every draw closes on the cube
+
+
+def test_an_object_error_is_the_object_placed_at_its_true_pose(panda):
+    description, obj, grasp = panda
+    rng = np.random.default_rng(5)
+    offsets = offset_transforms(np.hstack([rng.normal(size=(6, 3)) * 0.004,
+                                           rng.normal(size=(6, 3)) * 0.03]),
+                                obj.center_of_mass)
+    q = np.repeat(np.asarray(grasp.q0)[None], len(offsets), axis=0)
+    batch = FastRobotHand(description, obj).close_batch(q, object_offset=offsets)
+    for i, offset in enumerate(offsets):
+        placed = dataclasses.replace(obj, pose=obj.pose @ offset)
+        with RobotWorld(description, placed) as world:
+            result = world.auto_close(q[i])
+        assert bool(batch.start_collision[i]) == result.start_collision
+        assert tuple(batch.missed[i]) == result.missed
+        points = np.array([c.point for c in result.contacts]).reshape(-1, 3)
+        np.testing.assert_allclose(_contacts(batch, i), points, atol=1e-6)
+
+
+def test_the_engines_agree_on_every_source(panda):
+    _, _, grasp = panda
+    model = noise_model_from_spec(EVERY_SOURCE)
+    fast = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+                                noise_model=model)
+    reference = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="pybullet",
+                                     noise_model=model)
+    same = fast.draws.outcome == reference.draws.outcome
+    assert same.mean() >= 0.99, same.mean()  # 200 of 200 measured
+    assert fast.counts["start_collision"] > 0 and fast.counts["force_closure"] > 0
+    # the source changes the draws: without palm and object errors P(FC) differs
+    joints = noise_model_from_spec({"joints": EVERY_SOURCE["joints"]})
+    alone = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+                                 noise_model=joints)
+    assert alone.counts != fast.counts
+
+
+def test_joints_and_friction_specs_draw_what_the_options_draw(panda):
+    _, _, grasp = panda
+    options = dict(n=150, seed=2, engine="fast")
+    plain = evaluate_robot_grasp(grasp, sigma=0.0133, friction=0.3, **options)
+    spec = noise_model_from_spec({"joints": {"sigma": 0.0133},
+                                  "friction": {"distribution": "fixed", "value": 0.3}})
+    specified = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=spec, **options)
+    assert plain.counts == specified.counts
+    np.testing.assert_array_equal(plain.draws.quality, specified.draws.quality)
+    model = noise_model_from_spec(EVERY_SOURCE)
+    inline = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=model, **options)
+    with LocalExecutor(2) as executor:
+        pooled = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=model, executor=executor,
+                                      **options)
+    robot_chunks.close_engines()
+    np.testing.assert_array_equal(inline.draws.quality, pooled.draws.quality)
+    np.testing.assert_array_equal(inline.draws.points, pooled.draws.points)
+
+
+def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
+    spec = tmp_path / "every.json"
+    spec.write_text(json.dumps(EVERY_SOURCE))
+    args = ["evaluate", "--robot", "panda", "--object", "cube", "--samples", "60",
+            "--engine", "fast", "--seed", "4"]
+    assert main([*args, "--noise-spec", str(spec), "--json"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    assert shown["noise_spec"] == str(spec) and sum(shown["outcomes"].values()) == 60
+    assert main([*args, "--noise-spec", str(spec)]) == 0
+    text = capsys.readouterr().out
+    assert f"noise spec {spec}, 60 draws" in text and "mu per draw" in text
+    hand = tmp_path / "hand.yaml"
+    hand.write_text("hand: {spread_sigma: 0.01}\n")
+    cases = [([*args, "--noise-spec", str(hand)], "the hand source"),
+             ([*args, "--noise-spec", str(spec), "--static-hold"], "holds at one mu"),
+             ([*args, "--noise-spec", str(spec), "--hold-test"], "--hold-test draws joint"),
+             ([*args[:-4], "--engine", "physics", "--noise-spec", str(spec)],
+              "physics engine")]
+    for command, words in cases:
+        assert main(command) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], (command, err)
+
+
+def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys):
+    """A sweep cell of a noise model is ``evaluate_robot_grasp`` with that model and the
+    cell's sigma as its joints' (the sweep's chunks are rows of the same streams)."""
+    import csv
+
+    spec = tmp_path / "sweep.yaml"
+    model = {k: v for k, v in EVERY_SOURCE.items() if k != "joints"}
+    spec.write_text(json.dumps({"objects": ["cube"], "grasps": [0], "sigmas": [0.01],
+                                "engines": ["fast"], "samples": 120, "chunk": 50,
+                                "seed": 3, "robot": "panda", "noise": [model]}))
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 0
+    capsys.readouterr()
+    robot_chunks.close_engines()
+    row = next(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
+    expected = evaluate_robot_grasp(
+        shipped_grasps("cube", "panda")[0], sigma=0.0, n=120, seed=3, engine="fast",
+        noise_model=noise_model_from_spec({**model, "joints": {"sigma": 0.01}}))
+    assert int(row["force_closure"]) == expected.counts["force_closure"]
+    assert int(row["start_collision"]) == expected.counts["start_collision"]
