@@ -130,8 +130,8 @@ def finish(code: int) -> NoReturn:
     run (``atexit``: the kernel notice's summary, multiprocessing's clean-up), stdout and
     stderr are flushed, then the process ends without Python's finalization, which with the
     compiled kernels loaded tears down numba's LLVM objects, a noticeable delay after every
-    command (timed by ``benchmarks/bench_coldstart.py``). Every file a command writes is closed by the
-    command itself. While a thread other than the main one and daemons still runs, the
+    command (timed by ``benchmarks/bench_coldstart.py``). Every file a command writes is
+    closed by the command itself. While a thread other than the main one and daemons still runs, the
     ordinary exit waits for it instead."""
     if any(t is not threading.main_thread() and not t.daemon and t.is_alive()
            for t in threading.enumerate()):
