@@ -227,9 +227,13 @@ def test_elbow_cli_for_the_panda(capsys):
                    "--samples", "4", "--json")
     assert out["robot"] == "panda" and out["engine"] == "pybullet" and out["samples"] == 4
     assert out["certificate"]["fresh_draws"] == 4 and len(out["curve"]) >= 3
-    for args, message in [(["--engine", "fast"], "--engine fast: robot 'panda'"),
-                          (["--processes", "2"], "--processes is not available"),
-                          (["--report", "x.html"], "--report is not available"),
+    # the fast engine on two worker processes: the same draws as in this process
+    fast = [run_json(capsys, "elbow", "--robot", "panda", "--object", "cube", "--grasp", "1",
+                     "--samples", "20", "--engine", "fast", "--json", *extra)
+            for extra in ([], ["--processes", "2"])]
+    assert fast[0]["engine"] == "fast" and fast[0]["curve"] == fast[1]["curve"]
+    assert fast[0]["certificate"] == fast[1]["certificate"]
+    for args, message in [(["--report", "x.html"], "--report is not available"),
                           (["--grasp", "99"], "--grasp: grasp index 99 out of range"),
                           (["--object", "mug"], "no shipped grasps of 'mug'")]:
         assert main(["elbow", "--robot", "panda", "--object", "cube", *args]) == 2

@@ -43,8 +43,7 @@ DEFAULT_OBJECT = "spray_flask"
 #: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
 DEFAULT_IK_STARTS = 200
 #: Options a description robot's elbow does not take: flag -> its value when not given.
-ROBOT_REFUSED = {"--backend": "local", "--address": None, "--processes": None,
-                 "--report": None, "--method": "direct", "--batch": None}
+ROBOT_REFUSED = {"--report": None, "--method": "direct", "--batch": None}
 
 
 def certificate_levels(args) -> tuple[float, float]:
@@ -182,7 +181,7 @@ def reweight_lines(evidence: dict, samples: int) -> str:
 
 def cmd_elbow_robot(args, chosen=None) -> int:
     """``kinegrasp elbow --robot NAME``: a description robot's grasp along its self-motion
-    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, the reference engine),
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, any of its engines),
     or for a 6-joint arm across its IK branches (:func:`cmd_elbow_branches`). ``chosen``:
     ``(index, grasp)`` of ``--grasps FILE``, else grasp ``--grasp`` of the robot's shipped set
     of ``--object``."""
@@ -196,9 +195,7 @@ def cmd_elbow_robot(args, chosen=None) -> int:
         if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
             raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
                            f"{DEFAULT_ROBOT})")
-    if args.engine not in (None, "pybullet"):
-        raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the pybullet "
-                       "engine only")
+    args.engine = args.engine or "pybullet"
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     epsilon, delta = certificate_levels(args)
@@ -223,9 +220,12 @@ def cmd_elbow_robot(args, chosen=None) -> int:
 
     bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} (selection, "
                "then fresh draws)", unit="angle", file=sys.stderr, disable=None)
-    result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
-                                  delta=delta, progress=lambda done: bar.update(done - bar.n),
-                                  friction=friction)
+    with executor_from(args) as executor:
+        result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
+                                      delta=delta,
+                                      progress=lambda done: bar.update(done - bar.n),
+                                      friction=friction, evaluate_with=args.engine,
+                                      executor=executor)
     bar.close()
     payload = {"robot": robot, **result.to_json()}
     if args.plot:
@@ -264,9 +264,11 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
 
     bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
                "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
-    result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
-                                     epsilon=epsilon, delta=delta, friction=friction,
-                                     progress=lambda done: bar.update(done - bar.n))
+    with executor_from(args) as executor:
+        result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
+                                         epsilon=epsilon, delta=delta, friction=friction,
+                                         progress=lambda done: bar.update(done - bar.n),
+                                         evaluate_with=args.engine, executor=executor)
     bar.close()
     payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
     if args.json:
@@ -363,7 +365,8 @@ def add_commands(sub) -> None:
     add_execution_args(p, 1)
     p.add_argument("--engine", default=None, choices=("fast", "pybullet"),
                    help="fast (the default robot's default: many angles x draws) or pybullet "
-                   "(the reference; a robot given with --robot: the only one)")
+                   "(the reference; the default of a robot given with --robot, whose "
+                   "self-motion is checked for clearance by pybullet either way)")
     add_friction_arg(p)
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "

@@ -67,7 +67,8 @@ class RobotChunk:
     Attributes:
         robot, object: catalog names; engine: ``pybullet``, ``fast`` or ``physics``.
         q0: the grasp's nominal configuration (dof,), radians (metres for prismatic joints).
-        sigma, noise, seed: the run's joint noise and seed.
+        sigma, noise, seed: the run's joint noise and seed (an integer, or a
+            :class:`numpy.random.SeedSequence` for joint noise alone).
         friction: the contacts' mu; static_hold: run the static hold check too.
         model: a noise model's spec JSON (:func:`~kinegrasp_env.sampling.noise_spec.
             spec_of`), which replaces ``sigma`` and ``noise``
@@ -80,7 +81,7 @@ class RobotChunk:
     q0: tuple[float, ...]
     sigma: float | tuple[float, ...]
     noise: str
-    seed: int
+    seed: int | np.random.SeedSequence
     offset: int
     size: int
     friction: float = 0.5

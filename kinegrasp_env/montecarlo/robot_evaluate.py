@@ -229,12 +229,14 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
     )
     from kinegrasp_env.world.objects import load_object
 
-    _integer_seed(seed, "a run in chunks")
+    if noise_model is not None or not isinstance(seed, np.random.SeedSequence):
+        _integer_seed(seed, "a run in chunks")
     if not isinstance(engine, str):
         static_hold = engine.hold_check is not None
         engine, friction = engine.name, engine.friction
     first = RobotChunk(robot, grasp.object, engine, tuple(np.asarray(grasp.q0, float)),
-                       sigma if np.ndim(sigma) == 0 else tuple(sigma), noise, int(seed), 0,
+                       sigma if np.ndim(sigma) == 0 else tuple(sigma), noise,
+                       seed if isinstance(seed, np.random.SeedSequence) else int(seed), 0,
                        n, friction, static_hold,
                        None if noise_model is None else json.dumps(spec_of(noise_model)))
     draws = chunked_draws(first, n, executor)

@@ -35,7 +35,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.montecarlo.robot_evaluate import (
+    ENGINES,
+    RobotReferenceEngine,
+    evaluate_robot_grasp,
+    make_engine,
+)
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import (
@@ -104,17 +111,52 @@ def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
     return sorted(found, key=lambda item: item[0])
 
 
+@dataclass
+class _Scorer:
+    """What evaluates an angle's draws: an engine of this process, or an engine's name and
+    friction with an executor whose workers build their own
+    (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`)."""
+
+    engine: RobotEngine | str
+    executor: Executor | None = None
+    friction: float = 0.5
+    own: bool = False
+
+    @classmethod
+    def of(cls, reference: RobotReferenceEngine, name: str, executor: Executor | None
+           ) -> _Scorer:
+        """The scorer of engine ``name`` (the reference one reused where it can be)."""
+        if name not in ENGINES:
+            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
+        if executor is not None and not (isinstance(executor, LocalExecutor)
+                                         and executor.workers == 1):
+            return cls(name, executor, reference.friction)
+        if name == "pybullet":
+            return cls(reference)
+        return cls(make_engine(name, reference.description, reference.obj.name,
+                               friction=reference.friction), own=True)
+
+    @property
+    def name(self) -> str:
+        return self.engine if isinstance(self.engine, str) else self.engine.name
+
+    def close(self) -> None:
+        if self.own:
+            self.engine.close()
+
+
 def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-           seed, engine: RobotReferenceEngine) -> tuple[np.ndarray, float, tuple]:
+           seed, scorer: _Scorer) -> tuple[np.ndarray, float, tuple]:
     """(force closure per draw (samples,), P(FC), its Wilson interval) at configuration q."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
     stats = evaluate_robot_grasp(moved, sigma=noise.sigma, n=samples, seed=seed,
-                                 noise=noise.kind, engine=engine)
+                                 noise=noise.kind, engine=scorer.engine,
+                                 executor=scorer.executor, friction=scorer.friction)
     return stats.draws.outcome == FORCE_CLOSURE, stats.p_fc, stats.ci
 
 
-def _curve(grasp, reach, nominal: int, noise, samples, seed, engine, report
+def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: _Scorer, report
            ) -> list[ElbowPoint]:
     """The coarse grid, then the fine grid around the REFINE_TOP best coarse angles (the
     default robot's grid rules), on the selection draws."""
@@ -122,7 +164,7 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, engine, report
 
     def evaluate(i: int) -> None:
         psi, q = reach[i]
-        fc, p_fc, ci = _point(grasp, psi, q, noise, samples, seed, engine)
+        fc, p_fc, ci = _point(grasp, psi, q, noise, samples, seed, scorer)
         done[i] = ElbowPoint(psi, q, p_fc, ci, fc)
         report(len(done))
 
@@ -137,11 +179,11 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, engine, report
 
 
 def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, samples: int,
-                 seed: int, engine: RobotReferenceEngine, report) -> None:
+                 seed: int, scorer: _Scorer, report) -> None:
     """Every point of the curve again on the fresh draws (its ``fresh_fc``)."""
     fresh = fresh_seed(seed)
     for k, point in enumerate(curve):
-        point.fresh_fc = _point(grasp, point.psi, point.q, noise, samples, fresh, engine)[0]
+        point.fresh_fc = _point(grasp, point.psi, point.q, noise, samples, fresh, scorer)[0]
         report(len(curve) + k + 1)
 
 
@@ -155,7 +197,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
                          epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                          reach: list[tuple[float, np.ndarray]] | None = None,
                          progress: Callable[[int], None] | None = None,
-                         friction: float = 0.5) -> ElbowResult:
+                         friction: float = 0.5, evaluate_with: str = "pybullet",
+                         executor: Executor | None = None) -> ElbowResult:
     """The most robust elbow angle of a description robot's ``grasp`` under ``noise``.
 
     Args:
@@ -170,6 +213,9 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         reach: :func:`robot_reachable_configurations`, when already computed.
         progress: optional ``progress(evaluations)`` callback.
         friction: the contacts' mu (of the engine built when none is given).
+        evaluate_with: the engine of the draws (``pybullet``, ``fast`` or ``physics``); the
+            self-motion's clearance is the reference engine's (pybullet distances).
+        executor: run each angle's draws in chunks on it (the same draws).
 
     Raises:
         ValueError: epsilon or delta out of range, bad samples (before any draw); a robot
@@ -180,21 +226,25 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
     report = progress or (lambda done: None)
     own = engine is None
     engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
+    scorer = None
     try:
+        scorer = _Scorer.of(engine, evaluate_with, executor)
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
                                                                                step)
         q0 = np.asarray(grasp.q0, dtype=float)
         nominal_index = min(range(len(reach)),
                             key=lambda i: float(np.abs(reach[i][1] - q0).max()))
-        curve = _curve(grasp, reach, nominal_index, noise, samples, seed, engine, report)
-        _score_fresh(grasp, curve, noise, samples, seed, engine, report)
+        curve = _curve(grasp, reach, nominal_index, noise, samples, seed, scorer, report)
+        _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
     finally:
+        if scorer is not None:
+            scorer.close()
         if own:
             engine.close()
     best = max(curve, key=lambda p: p.p_fc)
     nominal = next(p for p in curve if p.q is reach[nominal_index][1])
     return elbow_result(grasp, curve, best, nominal, nominal.psi, noise, samples, seed,
-                        "pybullet", step, epsilon, delta)
+                        scorer.name, step, epsilon, delta)
 
 
 def _branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int, seed: int
@@ -270,7 +320,8 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
                             starts: int = DEFAULT_STARTS, epsilon: float = DEFAULT_EPSILON,
                             delta: float = DEFAULT_DELTA,
                             progress: Callable[[int], None] | None = None,
-                            friction: float = 0.5) -> BranchResult:
+                            friction: float = 0.5, evaluate_with: str = "pybullet",
+                            executor: Executor | None = None) -> BranchResult:
     """The most robust IK branch of a 6-joint arm's ``grasp`` under ``noise``: the protocol
     of :func:`optimize_robot_elbow` with the IK branches of the grasp's palm pose for the
     elbow angles. Every branch is evaluated on the selection draws (``seed``; a branch whose
@@ -288,6 +339,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
         starts: random IK starts (:func:`~kinegrasp_env.toolkit.ik_branches.ik_branches`).
         epsilon, delta: the certificate's margin and error level.
         progress: optional ``progress(evaluations)`` callback (2 per branch).
+        friction, evaluate_with, executor: as :func:`optimize_robot_elbow`.
 
     Raises:
         ValueError: epsilon or delta out of range, bad samples or starts (before any draw).
@@ -299,20 +351,24 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
     report = progress or (lambda done: None)
     own = engine is None
     engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
+    scorer = None
     try:
+        scorer = _Scorer.of(engine, evaluate_with, executor)
         branches, nominal = _branch_variants(grasp, engine, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
         curve = []
         for i, branch in enumerate(branches):
             q = np.concatenate([branch.q, hand])
-            fc, p_fc, ci = _point(grasp, float(i), q, noise, samples, seed, engine)
+            fc, p_fc, ci = _point(grasp, float(i), q, noise, samples, seed, scorer)
             curve.append(ElbowPoint(float(i), q, p_fc, ci, fc))
             report(i + 1)
-        _score_fresh(grasp, curve, noise, samples, seed, engine, report)
+        _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
     finally:
+        if scorer is not None:
+            scorer.close()
         if own:
             engine.close()
     best = max(range(len(curve)), key=lambda i: curve[i].p_fc)
     result = elbow_result(grasp, curve, curve[best], curve[nominal], float(nominal), noise,
-                          samples, seed, "pybullet", 0.0, epsilon, delta)
+                          samples, seed, scorer.name, 0.0, epsilon, delta)
     return BranchResult(result, branches, nominal, best)
