@@ -206,7 +206,7 @@ def cmd_validate(args) -> int:
     processes = processes_from(args.processes)
     grasps = selected_grasps(args, robot)
     if robot != DEFAULT_ROBOT:
-        check_robot_run(robot, fields, positive_int(args.processes, "--processes"))
+        check_robot_run(robot, fields)
     out = output_folder(args.out)
     from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
     from kinegrasp_env.toolkit.validation_report import summarize, write_results
@@ -225,25 +225,23 @@ def cmd_validate(args) -> int:
     return 0
 
 
-def check_robot_run(robot: str, fields: dict, processes: int) -> None:
+def check_robot_run(robot: str, fields: dict) -> None:
     """CLIError (one line) for what a description robot's run cannot honour (before any
-    output is written): ``processes`` is the worker count asked for."""
+    output is written)."""
     from kinegrasp_env.toolkit.robot_validation import check_robot_settings
     from kinegrasp_env.toolkit.validation import ValidationSettings
 
-    if processes != 1:
-        raise CLIError(f"--processes: robot {robot!r} is validated in this process only")
     with reported(ValueError):
         check_robot_settings(robot, ValidationSettings(**fields))
 
 
 def validate_robot(robot: str, grasps, settings, out, processes: int):
-    """(summary, results) of a description robot's grasps (in this process)."""
+    """(summary, results) of a description robot's grasps (on ``processes`` workers)."""
     from kinegrasp_env.toolkit.robot_validation import motors_summary, run_robot_validation
     from kinegrasp_env.toolkit.validation_report import summarize
 
     motors = motors_summary(robot, settings.torque_scale)
-    results = run_robot_validation(grasps, settings, out, progress=True)
+    results = run_robot_validation(grasps, settings, out, progress=True, processes=processes)
     return summarize(results, settings, bootstrap_seed=settings.seed,
                      robot={"name": robot, "motors": motors}), results
 

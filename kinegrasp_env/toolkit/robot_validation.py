@@ -130,12 +130,14 @@ def robot_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
 
 
 def run_robot_validation(grasps: list[tuple[int, Grasp]], settings: ValidationSettings,
-                         out_dir: str | Path, progress: bool = False) -> list[GraspDraws]:
+                         out_dir: str | Path, progress: bool = False,
+                         processes: int = 1) -> list[GraspDraws]:
     """:func:`~kinegrasp_env.toolkit.validation.run_validation` of one description robot's
-    grasps (every grasp of that robot), in this process."""
+    grasps (every grasp of that robot), one grasp per task on ``processes`` worker
+    processes (each grasp's draws the same whichever process runs it)."""
     robots = {g.robot for _, g in grasps}
     if len(robots) != 1:
         raise ValueError(f"the grasps are of several robots: {', '.join(sorted(robots))}")
     check_robot_settings(robots.pop(), settings)
-    return run_validation(grasps, settings, out_dir, 1, progress,
+    return run_validation(grasps, settings, out_dir, processes, progress,
                           task=robot_draws, key=robot_key)
