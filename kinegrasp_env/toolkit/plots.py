@@ -133,6 +133,8 @@ def plot_contacts(mesh, draws, path: str | Path, title: str = "", max_normals: i
     rng = np.random.default_rng(0)
     for finger, colour in enumerate(FINGER_COLOURS):
         sel = valid & (draws.finger == finger)
+        if not sel.any():  # a hand with fewer fingers: no empty legend entry
+            continue
         pts, nrm = draws.points[sel], draws.normals[sel]
         ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=3, color=colour, alpha=0.5,
                    label=f"finger {finger + 1}")
@@ -203,6 +205,8 @@ def plot_contacts_pair(mesh, draws_list, labels, path: str | Path, title: str = 
                         alpha=0.2, linewidth=0)
         for finger, colour in enumerate(FINGER_COLOURS):
             sel = draws.finger == finger
+            if not sel.any():  # a hand with fewer fingers: no empty legend entry
+                continue
             pts, nrm = draws.points[sel], draws.normals[sel]
             ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=3, color=colour, alpha=0.5,
                        label=f"finger {finger + 1}")

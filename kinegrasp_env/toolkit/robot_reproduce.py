@@ -61,6 +61,40 @@ def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> li
     return out
 
 
+def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, samples: int,
+                  sigma: float, count: int, seed: int, engine: str, friction: float
+                  ) -> tuple[list[dict], list]:
+    """(rows (:data:`COLUMNS`), the fresh evaluations of the robust and the fragile variant,
+    empty with fewer than two variants) of ``count`` variants of ``grasp`` on object
+    ``name`` (the module docstring's protocol)."""
+    with RobotReferenceEngine(description, name) as reference:
+        variants = robot_variants(grasp, reference, count)
+    fresh = []
+    with make_engine(engine, description, name, friction=friction) as runner:
+        stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, engine=runner)
+                 for v in variants]
+        block = [{"robot": description.name, "object": name, "id": v.id,
+                  "elbow_angle": v.meta["elbow_angle"], "p_fc": s.p_fc,
+                  "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
+                  "error": s.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
+                  **dict.fromkeys(PAIR_COLUMNS, "")}
+                 for v, s in zip(variants, stats, strict=True)]
+        if len(variants) >= 2:
+            best, worst = extremes([s.p_fc for s in stats])
+            fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples,
+                                          seed=fresh_seed(seed), engine=runner)
+                     for i in (best, worst)]
+            fc = [f.draws.outcome == FORCE_CLOSURE for f in fresh]
+            gap, lo, hi = paired_interval(fc[0].astype(float) - fc[1].astype(float))
+            for label, i, f in (("robust", best, fresh[0]), ("fragile", worst, fresh[1])):
+                block[i].update({"config": label, "fresh_p_fc": f.p_fc,
+                                 "fresh_p_fc_lo": f.ci[0], "fresh_p_fc_hi": f.ci[1],
+                                 "fresh_samples": samples,
+                                 "selection_p_fc": stats[i].p_fc, "gap": gap,
+                                 "gap_lo": lo, "gap_hi": hi})
+    return block, fresh
+
+
 def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                 grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                 sigma: float = 0.0033, count: int = 10, seed: int = 0,
@@ -84,31 +118,8 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                          "fig10's variants move a 7-joint arm along its self-motion")
     rows = []
     for name, grasps in grasp_sets.items():
-        with RobotReferenceEngine(description, name) as reference:
-            variants = robot_variants(grasps[0], reference, count)
-        with make_engine(engine, description, name, friction=friction) as runner:
-            stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed,
-                                          engine=runner) for v in variants]
-            block = [{"robot": description.name, "object": name, "id": v.id,
-                      "elbow_angle": v.meta["elbow_angle"], "p_fc": s.p_fc,
-                      "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
-                      "error": s.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
-                      **dict.fromkeys(PAIR_COLUMNS, "")}
-                     for v, s in zip(variants, stats, strict=True)]
-            if len(variants) >= 2:
-                best, worst = extremes([s.p_fc for s in stats])
-                fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples,
-                                              seed=fresh_seed(seed), engine=runner)
-                         for i in (best, worst)]
-                fc = [f.draws.outcome == FORCE_CLOSURE for f in fresh]
-                gap, lo, hi = paired_interval(fc[0].astype(float) - fc[1].astype(float))
-                for label, i, f in (("robust", best, fresh[0]), ("fragile", worst, fresh[1])):
-                    block[i].update({"config": label, "fresh_p_fc": f.p_fc,
-                                     "fresh_p_fc_lo": f.ci[0], "fresh_p_fc_hi": f.ci[1],
-                                     "fresh_samples": samples,
-                                     "selection_p_fc": stats[i].p_fc, "gap": gap,
-                                     "gap_lo": lo, "gap_hi": hi})
-        rows += block
+        rows += variant_block(description, name, grasps[0], samples=samples, sigma=sigma,
+                              count=count, seed=seed, engine=engine, friction=friction)[0]
     out = Path(out_dir)
     if not rows:
         raise ValueError(f"no variant of robot {description.name!r}'s first grasp closes in "
