@@ -17,6 +17,7 @@ from kinegrasp_env.cli.common import (
     friction_from,
     output_file,
     parse_seed,
+    positive_float,
     positive_int,
     reported,
 )
@@ -78,26 +79,46 @@ def _check_engine(engine: str, robot: str) -> None:
 def cmd_plan_robot(args) -> int:
     """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps, each in force closure
     at its nominal closing, written with their robot."""
+    from dataclasses import replace
+
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, plan_robot_grasps
     from kinegrasp_env.world.grasps import save_grasps
 
-    _refuse(args, {"--variants": "0", "--time-budget": None, "--max-attempts": None},
-            args.robot)
     count = positive_int(args.count, "--count")
+    variants = positive_int(args.variants, "--variants", low=0)
+    budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
+    settings = RobotPlannerSettings()
+    if args.max_attempts:
+        settings = replace(settings, attempts=positive_int(args.max_attempts, "--max-attempts"))
     seed = parse_seed(args.seed)
+    friction = friction_from(args)
     output_file(args.out, "--out")
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
+    if variants and (description.arm_dof != 7 or description.arm_angle_links is None):
+        raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
+                       "joints; variants move a 7-joint arm with arm_angle_links along its "
+                       "self-motion (a 6-joint arm's IK branches: `kinegrasp elbow`)")
     with reported(ValueError):
         grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
-                                   friction=friction_from(args))
+                                   friction=friction, settings=settings, time_budget=budget)
     if not grasps:
         raise CLIError(f"no force-closure grasp of {args.object} found for robot "
                        f"{args.robot}; nothing written")
-    save_grasps(grasps, args.out, planner_seed=seed)
-    print(f"{len(grasps)} grasps of {args.object} for robot {args.robot} written to {args.out}")
+    out = list(grasps)
+    if variants:
+        from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+        from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+
+        with RobotReferenceEngine(description, args.object, friction=friction) as engine:
+            for grasp in grasps:
+                out += robot_variants(grasp, engine, variants)
+    save_grasps(out, args.out, planner_seed=seed)
+    extra = f" ({len(out) - len(grasps)} null-space variants)" if variants else ""
+    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
+          f"{args.out}")
     return 0
 
 

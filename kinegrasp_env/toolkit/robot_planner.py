@@ -236,13 +236,18 @@ def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
 
 def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
                       seed: SeedLike = 0, settings: RobotPlannerSettings | None = None,
-                      friction: float = 0.5) -> list[Grasp]:
+                      friction: float = 0.5, time_budget: float | None = None
+                      ) -> list[Grasp]:
     """Up to ``count`` grasps of a parallel-jaw robot on an object (the module's steps),
-    each in force closure at its nominal closing.
+    each in force closure at its nominal closing; ``time_budget`` (seconds): no candidate is
+    closed once it is spent (the grasps found so far are returned).
 
     Raises:
         ValueError: bad count, a hand that is not two-fingered.
     """
+    import time
+
+    deadline = None if time_budget is None else time.monotonic() + float(time_budget)
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive number of grasps, got {count!r}")
     settings = settings or RobotPlannerSettings()
@@ -268,7 +273,7 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
                                       restarts=settings.ik_restarts,
                                       iterations=settings.ik_iterations)
         for c, arm in zip(np.flatnonzero(downward)[reached], arms[reached], strict=True):
-            if len(found) >= count:
+            if len(found) >= count or (deadline is not None and time.monotonic() > deadline):
                 break
             pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
             q0 = description.open_configuration()

@@ -1,0 +1,44 @@
+"""``plan --robot`` with ``--variants``, ``--max-attempts`` and ``--time-budget``.
+
+What each test proves: every variant is the planned grasp's palm pose reached with another
+arm configuration (forward kinematics of its q0, an independent computation, to 1e-8 m/rad)
+at another elbow angle, in force closure at its nominal closing; a spent time budget closes
+no candidate (a one-line error, nothing written).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.cli import main
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.world.grasps import load_grasps
+
+
+def test_variants_keep_the_palm_and_move_the_elbow(tmp_path, capsys):
+    out = tmp_path / "g.json"
+    assert main(["plan", "--robot", "panda", "--object", "cube", "--count", "2", "--variants",
+                 "3", "--max-attempts", "80", "--out", str(out)]) == 0
+    assert "null-space variants) of cube for robot panda" in capsys.readouterr().out
+    grasps = {g.id: g for g in load_grasps(out)}
+    planned = [g for g in grasps.values() if "variant_of" not in g.meta]
+    variants = [g for g in grasps.values() if "variant_of" in g.meta]
+    assert len(planned) == 2 and len(variants) >= 2
+    description = load_robot("panda")
+    kinematics = Kinematics(description.model)
+    for v in variants:
+        source = grasps[v.meta["variant_of"]]
+        palm = kinematics.pose(np.asarray(v.q0)[None], description.palm_link)[0]
+        np.testing.assert_allclose(palm, source.palm_pose, atol=1e-8)
+        assert v.q_nominal > 0 and v.robot == "panda"
+    angles = [v.meta["elbow_angle"] for v in variants if v.meta["variant_of"] == "0"]
+    assert len(set(np.round(angles, 6))) == len(angles)
+
+
+def test_a_spent_time_budget_plans_nothing(tmp_path, capsys):
+    out = tmp_path / "g.json"
+    assert main(["plan", "--robot", "panda", "--object", "cube", "--time-budget", "1e-9",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no force-closure grasp of cube" in err[0] and not out.exists()
