@@ -43,7 +43,7 @@ DEFAULT_OBJECT = "spray_flask"
 #: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
 DEFAULT_IK_STARTS = 200
 #: Options a description robot's elbow does not take: flag -> its value when not given.
-ROBOT_REFUSED = {"--report": None, "--method": "direct", "--batch": None}
+ROBOT_REFUSED = {"--report": None}
 
 
 def certificate_levels(args) -> tuple[float, float]:
@@ -210,6 +210,12 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     if branches and args.plot:
         raise CLIError(f"--plot draws P(FC) against the elbow angle; robot {robot!r}'s "
                        "6-joint arm has IK branches instead (no self-motion)")
+    if args.method == "direct" and args.batch is not None:
+        raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
+                       "takes none")
+    if branches and args.method == "reweight":
+        raise CLIError(f"--method reweight moves a 7-joint arm along its self-motion; robot "
+                       f"{robot!r}'s 6-joint arm has IK branches: use --method direct")
     index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
     if args.plot:
         output_file(args.plot, "--plot")
@@ -218,29 +224,73 @@ def cmd_elbow_robot(args, chosen=None) -> int:
                                   starts, friction)
     from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 
-    bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} (selection, "
-               "then fresh draws)", unit="angle", file=sys.stderr, disable=None)
-    with executor_from(args) as executor:
-        result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
-                                      delta=delta,
-                                      progress=lambda done: bar.update(done - bar.n),
-                                      friction=friction, evaluate_with=args.engine,
-                                      executor=executor)
-    bar.close()
+    evidence = None
+    if args.method == "reweight":
+        result, evidence = robot_reweighted(args, grasp, index, noise, samples, seed, epsilon,
+                                            delta, friction)
+    else:
+        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
+                   "(selection, then fresh draws)", unit="angle", file=sys.stderr,
+                   disable=None)
+        with executor_from(args) as executor:
+            result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
+                                          delta=delta,
+                                          progress=lambda done: bar.update(done - bar.n),
+                                          friction=friction, evaluate_with=args.engine,
+                                          executor=executor)
+        bar.close()
     payload = {"robot": robot, **result.to_json()}
+    if evidence is not None:
+        payload["reweight"] = evidence.to_json()
     if args.plot:
-        from kinegrasp_env.toolkit.plots import plot_elbow_curve
-
-        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, args.plot,
-                         title=f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad: "
-                               "P(FC) along the self-motion")
+        elbow_plot(payload, result, evidence, args.plot,
+                   f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) along "
+                   "the self-motion")
     if args.json:
         print(json.dumps(payload))
     else:
         print(f"robot {robot}, " + text_summary(payload, index))
+        if evidence is not None:
+            print(reweight_lines(payload["reweight"], samples))
         if args.plot:
             print(f"  plot written to {args.plot}")
     return 0
+
+
+def robot_reweighted(args, grasp, index, noise, samples, seed, epsilon, delta, friction):
+    """``elbow --robot NAME --method reweight``: (ElbowResult, ReweightEvidence) from one
+    batch of closings (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.
+    optimize_robot_elbow_reweighted`)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
+
+    batch = None if args.batch is None else positive_int(args.batch, "--batch")
+    bar = tqdm(desc=f"elbow of {args.object} grasp {index} of {args.robot} (batch, fresh "
+               "draws, certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
+    with executor_from(args) as executor, reported(ValueError):  # refused before closing
+        out = optimize_robot_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
+                                              epsilon=epsilon, delta=delta, batch=batch,
+                                              friction=friction, executor=executor,
+                                              progress=lambda stage: bar.update(1))
+    bar.close()
+    return out
+
+
+def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
+    """``--plot``: P(FC) along the self-motion, with the fragile directions and both elbows'
+    ellipses where a re-weighted run's batch has failing draws."""
+    picture = None if evidence is None else evidence.picture()
+    if picture is not None:
+        from kinegrasp_env.toolkit.plots import plot_elbow_fragility
+
+        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi, picture,
+                             path, title=f"{title}, and why")
+    else:
+        from kinegrasp_env.toolkit.plots import plot_elbow_curve
+
+        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
+                         title=title)
 
 
 def ik_starts(args, branches: bool, robot: str) -> int | None:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, OUTCOMES, make_engine
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.sampling.noise import as_generator
@@ -136,17 +137,27 @@ def _nonzero(cov: np.ndarray) -> np.ndarray:
 
 
 class PalmJacobian:
-    """The flange's body Jacobian of the default robot's arm (one kinematics, reused)."""
+    """The flange's body Jacobian of a 7-joint arm (one kinematics, reused): the default
+    robot's, or ``description``'s (its flange: :func:`~kinegrasp_env.closing.hand_errors.
+    flange_link`)."""
 
-    def __init__(self) -> None:
-        self.kin = Kinematics(kuka_sdh())
+    def __init__(self, description: RobotDescription | None = None) -> None:
+        if description is None:
+            self.kin, self.flange = Kinematics(kuka_sdh()), FLANGE_LINK
+        else:
+            from kinegrasp_env.closing.hand_errors import flange_link
+
+            if description.arm_dof != ARM:
+                raise ValueError(f"re-weighting needs a 7-joint arm; robot "
+                                 f"{description.name!r} has {description.arm_dof}")
+            self.kin, self.flange = Kinematics(description.model), flange_link(description)
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6, 7) d delta / d q_arm at configurations q (n, 14) or (14,): rows 0-2 the
+        """(n, 6, 7) d delta / d q_arm at configurations q (n, dof) or (dof,): rows 0-2 the
         flange origin's velocity, rows 3-5 its angular velocity, both in the flange frame."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        rot = self.kin.pose(q, FLANGE_LINK)[:, :3, :3]
-        jac = self.kin.jacobian(q, FLANGE_LINK)[:, :, :ARM]
+        rot = self.kin.pose(q, self.flange)[:, :3, :3]
+        jac = self.kin.jacobian(q, self.flange)[:, :, :ARM]
         rt = np.swapaxes(rot, 1, 2)
         return np.concatenate([rt @ jac[:, :3], rt @ jac[:, 3:]], axis=1)
 
@@ -233,14 +244,22 @@ class PalmBatch:
 
 
 def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine: str = "fast",
-                 friction: float = 0.5, progress=None) -> tuple[np.ndarray, np.ndarray]:
-    """((n,) outcome, (n,) Q) of closing the hand at configuration q (14,) with the hand
+                 friction: float = 0.5, progress=None,
+                 robot: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """((n,) outcome, (n,) Q) of closing the hand at configuration q (dof,) with the hand
     root moved by each delta (n, 6) in the flange frame, in chunks of
-    :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
+    :data:`BATCH_CHUNK` (``progress(done, total)`` after each); ``robot``: a description
+    robot's engines (its palm error: :mod:`~kinegrasp_env.closing.hand_errors`) instead of
+    the default robot's."""
     check_batch_object(object_name)
     n = len(deltas)
     outcome, quality = np.empty(n, np.int8), np.empty(n)
-    eng = make_engine(engine, object_name, friction)
+    if robot is None:
+        eng = make_engine(engine, object_name, friction)
+    else:
+        from kinegrasp_env.montecarlo.robot_engines import make_engine as robot_engine
+
+        eng = robot_engine(engine, robot, object_name, friction=friction)
     try:
         for start in range(0, n, BATCH_CHUNK):
             stop = min(n, start + BATCH_CHUNK)
@@ -255,13 +274,15 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
 
 
 def close_batch(q: np.ndarray, object_name: str, covariances: np.ndarray, n: int, seed, *,
-                engine: str = "fast", friction: float = 0.5, progress=None) -> PalmBatch:
+                engine: str = "fast", friction: float = 0.5, progress=None,
+                robot: str | None = None) -> PalmBatch:
     """A :class:`PalmBatch` of n closings at configuration q (14,), deltas drawn from the
     stratified mixture over ``covariances`` (K, 6, 6) (:class:`MixtureProposal`); ``seed``
     an integer or a ``numpy.random.Generator`` (:func:`batch_stream`)."""
     proposal = MixtureProposal.covering(covariances, n)
     deltas = proposal.sample(as_generator(seed))
     outcome, quality = close_deltas(q, deltas, object_name, engine=engine, friction=friction,
+                                    robot=robot,
                                     progress=progress)
     return PalmBatch(np.asarray(q, dtype=float).copy(), deltas, proposal.logpdf(deltas),
                      outcome, quality)

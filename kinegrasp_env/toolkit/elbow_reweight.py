@@ -49,6 +49,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
     fragile_directions,
     gaussian_terms,
 )
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.sampling.reweight import (
     WeightedEstimate,
@@ -92,11 +93,18 @@ class SelfMotionCovariance:
         joints: the arm joints' noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
             joint_covariance`: sigma, 7 sigmas or a (7, 7) covariance, radians).
         palm: (6, 6) covariance of a palm error added to the deviation (metres, radians).
+        description: a description robot with a 7-joint arm (default: the default robot).
     """
 
-    def __init__(self, joints, palm: np.ndarray | None = None) -> None:
-        self.jac = PalmJacobian()
-        self.ik = ArmIK(self.jac.kin)  # the palm held: the flange is rigid with it
+    def __init__(self, joints, palm: np.ndarray | None = None,
+                 description: RobotDescription | None = None) -> None:
+        self.jac = PalmJacobian(description)
+        if description is None:
+            self.ik = ArmIK(self.jac.kin)  # the palm held: the flange is rigid with it
+        else:
+            from kinegrasp_env.robot.null_motion import ArmSelfMotion
+
+            self.ik = ArmSelfMotion(description)
         self.joints = joints
         self.palm = np.zeros((6, 6)) if palm is None else np.asarray(palm, dtype=float)
 
@@ -105,9 +113,9 @@ class SelfMotionCovariance:
         return self.jac.covariance(q, self.joints) + self.palm
 
     def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
-        """(14,) q moved to elbow angle psi (radians), None where the path fails."""
+        """(dof,) q moved to elbow angle psi (radians), None where the path fails."""
         moved, ok = self.ik.set_elbow_angle(q, psi)
-        return moved[0] if ok[0] else None
+        return np.reshape(moved, -1) if np.all(ok) else None
 
     def derivative(self, q: np.ndarray, psi: float) -> np.ndarray | None:
         """(6, 6) d covariance / d psi at configuration q (14,) of angle psi, by central
@@ -144,15 +152,16 @@ def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> f
     return batch.estimate(motion.at(q[None])[0]).p_fc.se
 
 
-def batch_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
-                motion: SelfMotionCovariance, noise: Noise, samples: int, seed: int,
-                kwargs: dict) -> list[CurvePoint]:
-    """Every reachable angle re-weighted; direct draws where the ESS is below ``samples``."""
+def batch_curve(reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
+                motion: SelfMotionCovariance, samples: int, direct) -> list[CurvePoint]:
+    """Every reachable angle re-weighted; where the ESS is below ``samples``, the angle's
+    direct draws instead (``direct(psi, q)``: its :class:`ElbowPoint` on the selection
+    draws)."""
     out = []
     for psi, q in reach:
         est = _estimate_point(batch, motion, psi, q)
         if not est.ess >= samples:  # a NaN effective sample size falls back too
-            point = evaluated_point(grasp, psi, q, noise, samples, seed, kwargs)
+            point = direct(psi, q)
             out.append(CurvePoint(point, est.se, est.ess, est.derivative, est.derivative_se,
                                   True))
             continue
@@ -291,6 +300,49 @@ def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: flo
                          f"draws per angle: give --batch >= --samples")
 
 
+@dataclass(frozen=True)
+class ReweightRobot:
+    """What the re-weighted search needs of a robot (the default one, or a description
+    robot with a 7-joint arm): the self-motion's covariance, the reachable angles, one batch
+    of closings, and direct draws at an angle.
+
+    Attributes:
+        reach: (psi, q) along the grasp's self-motion, sorted by psi (the grasp's own q0
+            included).
+        nominal: the index of the grasp's own configuration in ``reach``.
+        motion: the deviation's covariance along the self-motion.
+        close: ``close(covariances (K, 6, 6), n, stream) ->`` :class:`PalmBatch` at the
+            grasp's palm pose.
+        direct: ``direct(psi, q) ->`` :class:`ElbowPoint` on the selection draws.
+        fresh: ``fresh(q) ->`` (samples,) force closure on draws the selection never saw.
+        engine: the engine's name.
+    """
+
+    reach: list
+    nominal: int
+    motion: SelfMotionCovariance
+    close: object
+    direct: object
+    fresh: object
+    engine: str
+
+
+def default_robot(grasp: Grasp, noise: Noise, samples: int, seed: int, *, engine: str,
+                  step: float, reach, friction: float, evaluate_kwargs: dict
+                  ) -> ReweightRobot:
+    """:class:`ReweightRobot` of the default robot (its elbow's direct draws are
+    :func:`~kinegrasp_env.toolkit.elbow.optimize_elbow`'s)."""
+    joint_cov, palm_cov = gaussian_terms(noise)
+    kwargs = {"engine": engine, "friction": friction, **evaluate_kwargs}
+    reach = reach if reach is not None else reachable_configurations(grasp, step)
+    return ReweightRobot(
+        reach, nominal_index(grasp, reach), SelfMotionCovariance(joint_cov, palm_cov),
+        lambda covs, n, stream: close_batch(reach[0][1], grasp.object, covs, n, stream,
+                                            engine=engine, friction=friction),
+        lambda psi, q: evaluated_point(grasp, psi, q, noise, samples, seed, kwargs),
+        lambda q: scoring_draws(grasp, q, noise, samples, seed, kwargs), engine)
+
+
 def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: int = 0, *,
                               engine: str = "fast", step: float = FINE_STEP,
                               epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
@@ -315,20 +367,27 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
             support table (before any closing).
     """
     check_reweight(grasp, noise, samples, epsilon, delta, batch)
-    joint_cov, palm_cov = gaussian_terms(noise)
+    robot = default_robot(grasp, noise, samples, seed, engine=engine, step=step, reach=reach,
+                          friction=friction, evaluate_kwargs=evaluate_kwargs)
+    return reweighted_search(grasp, noise, samples, seed, robot, step=step, epsilon=epsilon,
+                             delta=delta, batch=batch, progress=progress)
+
+
+def reweighted_search(grasp: Grasp, noise: Noise, samples: int, seed: int,
+                      robot: ReweightRobot, *, step: float, epsilon: float, delta: float,
+                      batch: int | None, progress=None
+                      ) -> tuple[ElbowResult, ReweightEvidence]:
+    """The module's four steps for ``robot`` (:class:`ReweightRobot`; the inputs checked)."""
     report = progress or (lambda stage: None)
-    kwargs = {"engine": engine, "friction": friction, **evaluate_kwargs}
     n = int(batch or BATCH_FACTOR * samples)
-    reach = reach if reach is not None else reachable_configurations(grasp, step)
-    motion = SelfMotionCovariance(joint_cov, palm_cov)
+    reach, motion = robot.reach, robot.motion
     covs = motion.at(np.stack([q for _, q in reach]))
     report("batch")
-    selection = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 0),
-                            engine=engine, friction=friction)
-    curve = batch_curve(grasp, reach, selection, motion, noise, samples, seed, kwargs)
+    selection = robot.close(covs, n, batch_stream(seed, 0))
+    curve = batch_curve(reach, selection, motion, samples, robot.direct)
     psi, q, estimate = continuous_optimum(curve, selection, motion, step)
     report("fresh draws")
-    nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
+    nominal_psi, nominal_q = reach[robot.nominal]
     points = [c.point for c in curve]
     best = next((p for p in points if abs(p.psi - psi) < 1e-12), None)
     if best is None:  # between grid points: the continuous optimum joins the curve
@@ -338,16 +397,14 @@ def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: in
                                              min(1.0, estimate + z * se)), np.zeros(0, bool))
         points = sorted([*points, best], key=lambda p: p.psi)
     nominal = next(p for p in points if p.q is nominal_q)
-    best.fresh_fc = scoring_draws(grasp, q, noise, samples, seed, kwargs)
-    nominal.fresh_fc = (best.fresh_fc if nominal is best
-                        else scoring_draws(grasp, nominal_q, noise, samples, seed, kwargs))
+    best.fresh_fc = robot.fresh(q)
+    nominal.fresh_fc = best.fresh_fc if nominal is best else robot.fresh(nominal_q)
     report("certificate")
-    fresh = close_batch(reach[0][1], grasp.object, covs, n, batch_stream(seed, 1),
-                        engine=engine, friction=friction)
+    fresh = robot.close(covs, n, batch_stream(seed, 1))
     rivals = [(c.point.psi, c.point.q) for c in curve if abs(c.point.psi - psi) > 1e-9]
     certificate = batch_certificate((psi, q), rivals, fresh, motion, epsilon, delta)
     result = elbow_result(grasp, points, best, nominal, nominal_psi, noise,
-                          samples, seed, engine, step, epsilon, delta,
+                          samples, seed, robot.engine, step, epsilon, delta,
                           certificate=certificate)
     # the chosen angle's estimate against its fresh draws: both errors (the re-weighted
     # one's at that angle; the choice of the largest of many estimates biases it up, so a

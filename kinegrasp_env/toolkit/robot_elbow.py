@@ -112,7 +112,7 @@ def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
 
 
 @dataclass
-class _Scorer:
+class AngleScorer:
     """What evaluates an angle's draws: an engine of this process, or an engine's name and
     friction with an executor whose workers build their own
     (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`)."""
@@ -124,7 +124,7 @@ class _Scorer:
 
     @classmethod
     def of(cls, reference: RobotReferenceEngine, name: str, executor: Executor | None
-           ) -> _Scorer:
+           ) -> AngleScorer:
         """The scorer of engine ``name`` (the reference one reused where it can be)."""
         if name not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
@@ -145,8 +145,8 @@ class _Scorer:
             self.engine.close()
 
 
-def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-           seed, scorer: _Scorer) -> tuple[np.ndarray, float, tuple]:
+def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
+           seed, scorer: AngleScorer) -> tuple[np.ndarray, float, tuple]:
     """(force closure per draw (samples,), P(FC), its Wilson interval) at configuration q."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
@@ -156,7 +156,7 @@ def _point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: 
     return stats.draws.outcome == FORCE_CLOSURE, stats.p_fc, stats.ci
 
 
-def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: _Scorer, report
+def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: AngleScorer, report
            ) -> list[ElbowPoint]:
     """The coarse grid, then the fine grid around the REFINE_TOP best coarse angles (the
     default robot's grid rules), on the selection draws."""
@@ -164,7 +164,7 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: _Scorer, re
 
     def evaluate(i: int) -> None:
         psi, q = reach[i]
-        fc, p_fc, ci = _point(grasp, psi, q, noise, samples, seed, scorer)
+        fc, p_fc, ci = angle_point(grasp, psi, q, noise, samples, seed, scorer)
         done[i] = ElbowPoint(psi, q, p_fc, ci, fc)
         report(len(done))
 
@@ -179,11 +179,11 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: _Scorer, re
 
 
 def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, samples: int,
-                 seed: int, scorer: _Scorer, report) -> None:
+                 seed: int, scorer: AngleScorer, report) -> None:
     """Every point of the curve again on the fresh draws (its ``fresh_fc``)."""
     fresh = fresh_seed(seed)
     for k, point in enumerate(curve):
-        point.fresh_fc = _point(grasp, point.psi, point.q, noise, samples, fresh, scorer)[0]
+        point.fresh_fc = angle_point(grasp, point.psi, point.q, noise, samples, fresh, scorer)[0]
         report(len(curve) + k + 1)
 
 
@@ -228,7 +228,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
     engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
     scorer = None
     try:
-        scorer = _Scorer.of(engine, evaluate_with, executor)
+        scorer = AngleScorer.of(engine, evaluate_with, executor)
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
                                                                                step)
         q0 = np.asarray(grasp.q0, dtype=float)
@@ -353,13 +353,13 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
     engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
     scorer = None
     try:
-        scorer = _Scorer.of(engine, evaluate_with, executor)
+        scorer = AngleScorer.of(engine, evaluate_with, executor)
         branches, nominal = _branch_variants(grasp, engine, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
         curve = []
         for i, branch in enumerate(branches):
             q = np.concatenate([branch.q, hand])
-            fc, p_fc, ci = _point(grasp, float(i), q, noise, samples, seed, scorer)
+            fc, p_fc, ci = angle_point(grasp, float(i), q, noise, samples, seed, scorer)
             curve.append(ElbowPoint(float(i), q, p_fc, ci, fc))
             report(i + 1)
         _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
