@@ -126,6 +126,37 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
     assert result["robot"] == "panda"
 
 
+def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path, capsys):
+    """A palm error alone (the joints exact): as for one noisy joint, the palm factor's
+    indices equal the Saltelli and Jansen estimators computed directly from one evaluation
+    of 2N draws of the same spec (A its first N rows, B the next), every joint's are 0."""
+    n = 40
+    spec = tmp_path / "palm.yaml"
+    spec.write_text("palm: {translation_sigma: 0.004, rotation_sigma: 0.03}\n")
+    result = json.loads(run(capsys, "sensitivity", "--robot", "panda", "--object", "cube",
+                            "--grasp", str(GRASP), "--noise-spec", str(spec), "--samples",
+                            str(n), "--bootstrap", "0", "--seed", str(SEED), "--engine",
+                            "fast", "--json"))
+    from kinegrasp_env.sampling.noise_spec import load_noise_model
+
+    grasp = shipped_grasps("cube", "panda")[GRASP]
+    both = evaluate_robot_grasp(grasp, sigma=0.0, n=2 * n, seed=SEED, engine="fast",
+                                noise_model=load_noise_model(spec))
+    y = (both.draws.outcome == FORCE_CLOSURE).astype(float)
+    y_a, y_b = y[:n], y[n:]
+    variance = np.var(y, ddof=1)
+    assert variance > 0
+    sources = {s["source"]: s for s in result["sources"]}
+    assert list(sources)[-1] == "palm" and len(sources) == 8
+    palm = sources["palm"]
+    assert math.isclose(palm["first"], float(np.mean(y_b * (y_b - y_a)) / variance),
+                        rel_tol=1e-12)
+    assert math.isclose(palm["total"], float(0.5 * np.mean((y_a - y_b) ** 2) / variance),
+                        rel_tol=1e-12)
+    assert all(s["total"] == 0.0 for name, s in sources.items() if name != "palm")
+    assert result["p_all"] == float(y_a.mean())
+
+
 @pytest.mark.parametrize(("change", "message"), [
     ({"robot": "pandaa"}, "unknown robot 'pandaa' (did you mean 'panda'?)"),
     ({"robot": "panda", "noise": ["gaussian", {"hand": {"spread_sigma": 0.01}}]},
@@ -163,11 +194,11 @@ def test_robot_spec_key_and_override():
 
 def test_bad_robot_sensitivity_input(tmp_path, capsys):
     joint = single_joint_spec(tmp_path, 0, 0.01)
-    every = tmp_path / "every.yaml"
-    every.write_text("preset: dexnet\njoints: {sigma: 0.01}\n")
+    hand = tmp_path / "hand.yaml"
+    hand.write_text("joints: {sigma: 0.01}\nhand: {spread_sigma: 0.01}\n")
     base = ("sensitivity", "--robot", "panda", "--object", "cube", "--samples", "8")
-    assert "the spec has palm, object, friction noise" in fails(
-        capsys, *base, "--noise-spec", str(every))
+    assert "the hand source (the SDH pre-shape's spread" in fails(
+        capsys, *base, "--noise-spec", str(hand))
     assert "grasp index 9 out of range: cube has 4 grasps of robot panda" in fails(
         capsys, *base, "--noise-spec", joint, "--grasp", "9")
     assert "unknown robot 'pand'" in fails(

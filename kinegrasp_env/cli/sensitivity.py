@@ -94,39 +94,35 @@ def cmd_sensitivity(args) -> int:
 
 
 def _robot_request(args, model, robot: str, index: int | None, grasp):
-    """``(index, grasp, JointNoise)`` of a description robot: ``grasp`` (from ``--grasps``)
-    or the robot's shipped grasp ``--grasp`` of ``--object``, the spec's joint noise; one line
-    for what the robot's engines cannot take (checked before any work)."""
+    """``(index, grasp, model)`` of a description robot: ``grasp`` (from ``--grasps``) or the
+    robot's shipped grasp ``--grasp`` of ``--object``, and the spec's model (its arm joints,
+    palm, object and friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); one line for
+    what the robot's engines cannot take (checked before any work)."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
+    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.world.grasps import check_robot
 
     with reported(RobotDescriptionError):
         arm = load_robot(robot).arm_dof
-    other = [s for s in model.sources if s != "joints"]
-    if other or model.joints is None:
-        raise CLIError(f"--noise-spec {args.noise_spec}: robot {robot!r} takes joint noise on "
-                       f"its arm joints only; the spec has "
-                       f"{', '.join(other) if other else 'no joints'} noise (hand, palm, object "
-                       f"and friction noise are for {DEFAULT_ROBOT} alone)")
-    joints = model.joints
-    if joints.covariance is not None or joints.bias is not None:
-        raise CLIError(f"--noise-spec {args.noise_spec}: robot {robot!r} takes independent "
-                       "joint noise (sigma and distribution); a joints covariance or bias is "
-                       f"for {DEFAULT_ROBOT} alone")
     if args.engine not in ENGINES:
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the "
                        f"{' or '.join(ENGINES)} engine only")
+    with reported(ValueError):
+        check_robot_noise(model, robot, arm, args.engine)
+    if model.joints is not None and (model.joints.covariance is not None
+                                     or model.joints.bias is not None):
+        raise CLIError(f"--noise-spec {args.noise_spec}: one factor per arm joint needs "
+                       "independent, zero-mean joint errors (sigma and distribution), not a "
+                       "joints covariance or bias")
     if grasp is None:
         args.object = args.object or DEFAULT_OBJECT
         index, grasp = shipped_grasp(args.object, args.grasp, robot)
     with reported(ValueError):
         check_robot(grasp, robot)
-        noise = JointNoise(joints.sigma, joints.distribution)
-        noise.sigma_vector(arm)
-    return index, grasp, noise
+        model.sigma_vector(arm)
+    return index, grasp, model
 
 
 def _progress_bar():
@@ -200,6 +196,6 @@ def add_commands(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a PNG bar chart of the indices and P(FC)s")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}); another robot: "
-                   "one factor per arm joint, the spec's joints section its noise, the grasp "
-                   "from the robot's shipped set")
+                   "one factor per arm joint and one per palm, object and friction source of "
+                   "the spec, the grasp from the robot's shipped set")
     p.set_defaults(func=cmd_sensitivity)

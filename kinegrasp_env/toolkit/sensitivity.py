@@ -19,11 +19,12 @@ once and only re-scored. Cost: N (2 + 3 g) draws for g geometric sources (fricti
 none), plus one.
 
 A description robot (any catalog robot but ``kuka_sdh``): :func:`analyze_joints`, the same
-analysis with one factor per arm joint (:mod:`kinegrasp_env.montecarlo.robot_evaluate`'s
-joint noise, the robot's engine). A is ``evaluate_robot_grasp``'s draws with the same seed
-(rows 0 .. N-1 of the stream ``JointNoise.sample(2 N, arm_dof, default_rng(seed))``), B the
-rows N .. 2N-1; a setting is closed once per distinct geometry (a joint of sigma 0 draws 0 in
-A and in B), so with g noisy joints it costs N (2 + 3 g) draws at most, plus one.
+analysis with one factor per arm joint and one per other source of its noise model (palm,
+object, friction: :mod:`kinegrasp_env.montecarlo.robot_noise`), the robot's engine. A is
+``evaluate_robot_grasp``'s draws with the same seed (rows 0 .. N-1 of each source's stream),
+B the rows N .. 2N-1; a setting is closed once per distinct choice of rows (a joint of sigma
+0 draws 0 in A and in B), so with g noisy factors it costs N (2 + 3 g) draws at most, plus
+one.
 """
 
 from __future__ import annotations
@@ -244,16 +245,17 @@ def _result(grasp: Grasp, y: dict[str, np.ndarray], factors: tuple[str, ...], n:
                        float(both.var(ddof=1)), effects, noise_model, robot)
 
 
-def analyze_joints(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
-                   engine: RobotEngine, bootstrap: int = 1000,
+def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: int = 0,
+                   *, engine: RobotEngine, bootstrap: int = 1000,
                    progress: Callable[[int, int], None] | None = None) -> Sensitivity:
-    """P(FC) per arm joint and Sobol indices of force closure of a description robot's
-    grasp, one factor per arm joint (module docstring; the factors are named by the
-    description's ``arm_joints``).
+    """P(FC) per factor and Sobol indices of force closure of a description robot's grasp,
+    one factor per arm joint (named by the description's ``arm_joints``) and, for a noise
+    model, one per palm, object and friction source (module docstring).
 
     Args:
         grasp: a grasp of ``engine``'s robot and object (q0: its actuated vector).
-        noise: joint noise on the arm joints (sigma scalar or one per arm joint, radians).
+        noise: joint noise on the arm joints (sigma scalar or one per arm joint, radians),
+            or a noise model of the robot's sources.
         samples: N, draws per setting (>= 2).
         seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
         engine: the robot's engine (``robot_evaluate.make_engine``).
@@ -261,8 +263,11 @@ def analyze_joints(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
         progress: called with (settings done, settings) after every setting.
 
     Raises:
-        ValueError: a grasp of another robot or object, bad samples or sigma.
+        ValueError: a grasp of another robot or object, bad samples or sigma, a noise model
+            the robot cannot take.
     """
+    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, error_rows, joint_rows
+    from kinegrasp_env.sampling.noise_model import as_noise_model
     from kinegrasp_env.world.grasps import check_robot
 
     if int(samples) != samples or samples < 2:
@@ -272,26 +277,36 @@ def analyze_joints(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0,
     if grasp.object != engine.obj.name:
         raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
                          f"holds {engine.obj.name!r}")
+    model = as_noise_model(noise)
     n, arm = int(samples), description.arm_dof
+    check_robot_noise(model, description.name, arm, engine.name, engine.hold_check is not None)
+    if model.joints is not None and model.joints.covariance is not None:
+        raise ValueError("one factor per arm joint needs independent joint errors; the "
+                         "spec's joints covariance correlates them (give sigmas)")
     q0 = engine.check(grasp.q0)[0]
-    stream = noise.sample(2 * n, arm, np.random.default_rng(seed))
-    noisy = noise.sigma_vector(arm) > 0
-    joints = tuple(description.arm_joints)
-    blocks = {"A": stream[:n], "B": stream[n:]}
-    settings = _joint_settings(joints)
+    stream = joint_rows(model, arm, int(seed), 0, 2 * n)
+    noisy = model.sigma_vector(arm) > 0
+    errors = error_rows(model, int(seed), 0, 2 * n, engine.obj.center_of_mass)
+    sources = tuple(k for k in ("palm", "object_offset", "friction") if k in errors)
+    factors = (*description.arm_joints, *(SOURCE_NAMES[k] for k in sources))
+    blocks = {"A": (stream[:n], {k: v[:n] for k, v in errors.items()}),
+              "B": (stream[n:], {k: v[n:] for k, v in errors.items()})}
+    settings = _joint_settings(factors)
     closed: dict[tuple, np.ndarray] = {}
     y: dict[str, np.ndarray] = {}
     for done, (name, rows) in enumerate(settings, 1):
-        key = tuple(r if noisy[j] else "0" for j, r in enumerate(rows))
+        key = tuple(r if j >= arm or noisy[j] else "0" for j, r in enumerate(rows))
         if key not in closed:
-            closed[key] = _joint_fc(engine, q0, n, key, blocks)
+            closed[key] = _joint_fc(engine, q0, n, key, blocks, sources)
         y[name] = closed[key]
         if progress is not None:
             progress(done, len(settings))
-    return _result(grasp, y, joints, n, int(seed), engine.name, bootstrap,
-                   {"joints": {"sigma": noise.sigma if isinstance(noise.sigma, float)
-                               else list(noise.sigma), "distribution": noise.kind}},
+    return _result(grasp, y, factors, n, int(seed), engine.name, bootstrap, spec_of(model),
                    description.name)
+
+
+#: A description robot's source factors, by their key in the engine's errors.
+SOURCE_NAMES = {"palm": "palm", "object_offset": "object", "friction": "friction"}
 
 
 def _joint_settings(joints: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]]:
@@ -307,15 +322,20 @@ def _joint_settings(joints: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]
 
 
 def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...],
-              blocks: dict[str, np.ndarray]) -> np.ndarray:
-    """(n,) 0/1 force closure with joint j at ``blocks[rows[j]][:, j]`` (0: exact)."""
+              blocks: dict[str, tuple], sources: tuple[str, ...] = ()) -> np.ndarray:
+    """(n,) 0/1 force closure with arm joint j at column j of ``blocks[rows[j]]``'s joint
+    rows and source ``sources[k]`` (an engine error) at ``blocks[rows[arm + k]]``'s (0:
+    exact)."""
     if all(r == "0" for r in rows):  # the nominal grasp: closed once
         return np.repeat(float(engine.run(q0[None]).outcome[0] == FORCE_CLOSURE), n)
+    arm = len(rows) - len(sources)
     q = np.repeat(q0[None], n, axis=0)
-    for j, r in enumerate(rows):
+    for j, r in enumerate(rows[:arm]):
         if r != "0":
-            q[:, j] += blocks[r][:, j]
-    return (engine.run(q).outcome == FORCE_CLOSURE).astype(float)
+            q[:, j] += blocks[r][0][:, j]
+    errors = {key: blocks[r][1][key] for key, r in zip(sources, rows[arm:], strict=True)
+              if r != "0"}
+    return (engine.run(q, **errors).outcome == FORCE_CLOSURE).astype(float)
 
 
 def _settings(sources: tuple[str, ...], a: NoiseDraws, b: NoiseDraws
