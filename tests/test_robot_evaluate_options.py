@@ -66,3 +66,20 @@ def test_rank_json_for_any_robot(capsys, tmp_path):
         for js, row in zip(shown["ranking"], rows, strict=True):
             assert abs(js["p_fc"] - float(row["p_fc"])) < 1e-4
         assert "p_hold" not in shown["ranking"][0] and shown["written"] == str(out)
+
+
+def test_evaluate_report_for_a_robot(capsys, tmp_path):
+    """``evaluate --robot panda --report FILE``: one page of this grasp and run, whose table
+    holds the run's P(FC) (the JSON's, to its 4 printed digits) and whose command line
+    reproduces it; a report path in a missing folder is one line, before any draw."""
+    page = tmp_path / "page.html"
+    args = ["evaluate", "--robot", "panda", "--object", "cube", "--grasp", "0", "--samples",
+            "50", "--engine", "fast", "--json"]
+    assert main([*args, "--report", str(page)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    text = page.read_text()
+    assert f"{shown['p_fc']:.4f}" in text
+    assert "kinegrasp evaluate --robot panda --object cube --grasp 0" in text
+    assert main([*args, "--report", str(tmp_path / "no" / "page.html")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--report" in err[0]

@@ -364,6 +364,18 @@ def friction_words(args) -> list[str]:
     return [] if float(text) == DEFAULT_FRICTION else ["--friction", str(text)]
 
 
+def sigma_words(sigma) -> str:
+    """A run's joint sigma as text (one number, or 7 separated by spaces)."""
+    return f"{sigma:g}" if isinstance(sigma, float) else " ".join(f"{s:g}" for s in sigma)
+
+
+def noise_words(args, sigma_text: str) -> list[str]:
+    """A page command's noise options: ``--noise-spec F``, or ``--sigma S --noise K``."""
+    if getattr(args, "noise_spec", None):
+        return ["--noise-spec", str(args.noise_spec)]
+    return ["--sigma", sigma_text, "--noise", args.noise]
+
+
 def add_engine_arg(parser: argparse.ArgumentParser, default: str = "pybullet") -> None:
     """``--engine``: pybullet, fast or physics (``default`` unless given)."""
     parser.add_argument("--engine", default=default, choices=ENGINE_NAMES,

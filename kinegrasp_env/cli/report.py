@@ -31,10 +31,12 @@ from kinegrasp_env.cli.common import (
     friction_words,
     grasp_index_help,
     noise_spec_from,
+    noise_words,
     nonnegative,
     output_file,
     parse_seed,
     positive_int,
+    sigma_words,
 )
 
 #: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
@@ -62,11 +64,6 @@ def noise_settings(args, noises: list) -> dict:
                 "noise sources": ", ".join(noises[0].sources) or "none (every source exact)"}
     return {"sigma [rad]": ", ".join(sigma_words(n.sigma) for n in noises),
             "noise": noises[0].kind}
-
-
-def sigma_words(sigma) -> str:
-    """A run's joint sigma as text (one number, or 7 separated by spaces)."""
-    return f"{sigma:g}" if isinstance(sigma, float) else " ".join(f"{s:g}" for s in sigma)
 
 
 def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int) -> dict:
@@ -101,13 +98,6 @@ def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
                            arm_draws=arm_draws)
     write_page(path, text)
     return len(text.encode())
-
-
-def noise_words(args, sigma_text: str) -> list[str]:
-    """A page command's noise options: ``--noise-spec F``, or ``--sigma S --noise K``."""
-    if getattr(args, "noise_spec", None):
-        return ["--noise-spec", str(args.noise_spec)]
-    return ["--sigma", sigma_text, "--noise", args.noise]
 
 
 def evaluation_command(args, name: str, index: int, sigma_text: str, samples: int, seed: int,

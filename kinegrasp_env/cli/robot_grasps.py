@@ -133,8 +133,9 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     from kinegrasp_env.sampling.noise_model import NoiseModel
     from kinegrasp_env.sampling.stats import wilson_interval
 
-    _refuse(args, {"--report": None}, robot)
     _check_engine(args.engine, robot)
+    if args.report:
+        output_file(args.report, "--report")
     model = noise if isinstance(noise, NoiseModel) else None
     if model is not None and args.hold_test:
         raise CLIError("--hold-test draws joint noise alone (--sigma, --noise); drop it or "
@@ -152,6 +153,8 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                                      noise=args.noise, robot=robot, engine=args.engine,
                                      static_hold=args.static_hold, friction=friction,
                                      executor=executor, noise_model=model)
+    if args.report:
+        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label)
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object
@@ -210,6 +213,40 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if args.plot:
         print(f"  plot written to {args.plot}")
     return 0
+
+
+def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float,
+                                label: str) -> None:
+    """``evaluate --robot NAME --report FILE``: ``report --robot``'s page of this one grasp
+    and run (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`)."""
+    import dataclasses
+    import shlex
+    import sys
+
+    from kinegrasp_env.cli.common import NUM_EDGES, friction_words, noise_words, sigma_words
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.report.page import write_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
+    from kinegrasp_env.world.objects import load_object
+
+    description = load_robot(robot)
+    chosen = (["--grasps", str(args.grasps), "--grasp", str(args.grasp)] if args.grasps
+              else ["--object", grasp.object, "--grasp", str(args.grasp)])
+    command = ["kinegrasp", "evaluate", "--robot", robot, *chosen,
+               *noise_words(args, sigma_words(sigma)), "--samples", str(stats.n), "--seed",
+               str(args.seed), "--engine", args.engine, *friction_words(args), "--report",
+               str(args.report)]
+    shown = dataclasses.replace(grasp, q_nominal=stats.q_nominal)
+    settings = {"robot": robot, "object": grasp.object, "grasp": grasp.id, "noise": label,
+                "draws": stats.n, "seed": args.seed, "engine": args.engine,
+                "contact model": description.contact_model, "friction mu": friction,
+                "friction cone edges": NUM_EDGES}
+    text = robot_page(description, load_object(grasp.object), [shown],
+                      [RobotRun(0, sigma, stats)], command=shlex.join(command),
+                      settings=settings, friction=friction, num_edges=NUM_EDGES)
+    write_page(args.report, text)
+    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
+          file=sys.stderr if args.json else sys.stdout)
 
 
 def robot_grasp_at_elbow(grasp, robot: str, text: str):
