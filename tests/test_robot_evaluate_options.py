@@ -83,3 +83,25 @@ def test_evaluate_report_for_a_robot(capsys, tmp_path):
     assert main([*args, "--report", str(tmp_path / "no" / "page.html")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--report" in err[0]
+
+
+def test_rank_report_for_a_robot(capsys, tmp_path):
+    """``rank --report FILE`` of the Panda's candidates: one page, its rows in the CSV's
+    rank order with the CSV's P(FC)s."""
+    import csv
+    import re
+
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasps = tmp_path / "g.json"
+    save_grasps(shipped_grasps("cube", "panda")[:3], grasps)
+    out, page = tmp_path / "r.csv", tmp_path / "r.html"
+    assert main(["rank", str(grasps), "--samples", "40", "--engine", "fast", "--out",
+                 str(out), "--report", str(page)]) == 0
+    capsys.readouterr()
+    rows = list(csv.DictReader(out.open()))
+    shown = re.findall(r'class="kg-pfc" data-grasp="([^"]+)" data-value="([^"]+)"',
+                       page.read_text())
+    assert [g for g, _ in shown] == [r["id"] for r in rows]
+    for (_, value), row in zip(shown, rows, strict=True):
+        assert abs(float(value) - float(row["p_fc"])) < 1e-6

@@ -193,7 +193,12 @@ def cmd_rank(args) -> int:
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
     _write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json)
     _write_rejected(rejected, out, args.json)
-    if args.report:
+    if args.report and described:
+        from kinegrasp_env.cli.robot_ranking import write_robot_rank_page
+
+        write_robot_rank_page(args, grasps, results, robot, noise, samples=samples, seed=seed,
+                              friction=friction)
+    elif args.report:
         write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
                           engine=engine, friction=friction)
     return 0

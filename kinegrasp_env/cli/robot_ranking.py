@@ -11,7 +11,7 @@ import dataclasses
 import sys
 
 from kinegrasp_env.cli.common import CLIError, reported
-from kinegrasp_env.cli.robot_grasps import _check_engine, _refuse, quick_hold_engine
+from kinegrasp_env.cli.robot_grasps import _check_engine, quick_hold_engine
 
 
 def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
@@ -23,7 +23,6 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 
-    _refuse(args, {"--report": None}, robot)
     if args.noise_spec and args.criterion == "hold":
         raise CLIError("--criterion hold runs the holding test on joint noise alone (--sigma, "
                        "--noise); drop it or --noise-spec")
@@ -136,6 +135,45 @@ class RobotRanking:
         if self.tester is not None:
             self.tester.close()
         close_engines()
+
+
+def write_robot_rank_page(args, grasps: list, results: list, robot: str, noise, *,
+                          samples: int, seed: int, friction: float) -> None:
+    """``rank --report FILE`` of a description robot: ``report --robot``'s page
+    (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`) of the candidates in rank order,
+    each one's row from its ranking draws."""
+    import shlex
+    from types import SimpleNamespace
+
+    from kinegrasp_env.cli.common import NUM_EDGES, friction_words, noise_words, sigma_words
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.report.page import write_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
+    from kinegrasp_env.world.objects import load_object
+
+    ordered = [grasps[r.index] for r in results]
+    runs = []
+    for k, r in enumerate(results):
+        mean, std, skew = r.q_stats()
+        runs.append(RobotRun(k, noise.sigma, SimpleNamespace(
+            p_fc=r.p_fc, ci=r.interval(), q_mean=mean, q_std=std, q_skew=skew,
+            counts=dict(r.outcomes), n=r.trials)))
+    description = load_robot(robot)
+    command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
+               *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
+               "--seed", str(seed), "--criterion", args.criterion, "--engine", args.engine,
+               *friction_words(args), "--out", str(args.out), "--report", str(args.report)]
+    settings = {"robot": robot, "candidates": args.candidates, "object": ordered[0].object,
+                "order": f"by {args.criterion}, best first", "draws per candidate": samples,
+                "seed (every candidate)": seed, "engine": args.engine,
+                "contact model": description.contact_model, "friction mu": friction,
+                "friction cone edges": NUM_EDGES}
+    text = robot_page(description, load_object(ordered[0].object), ordered, runs,
+                      command=shlex.join(command), settings=settings, friction=friction,
+                      num_edges=NUM_EDGES)
+    write_page(args.report, text)
+    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
+          file=sys.stderr if args.json else sys.stdout)
 
 
 def robot_best_elbows(grasps: list, robot: str, noise, samples: int, seed: int,
