@@ -176,3 +176,21 @@ def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys)
         noise_model=noise_model_from_spec({**model, "joints": {"sigma": 0.01}}))
     assert int(row["force_closure"]) == expected.counts["force_closure"]
     assert int(row["start_collision"]) == expected.counts["start_collision"]
+
+
+def test_report_of_a_robot_takes_a_spec_and_processes(tmp_path, capsys):
+    """``report --robot --noise-spec FILE --processes 2``: each grasp's run is evaluate's
+    with the same spec and seed (the chunks on two workers draw the run's rows)."""
+    spec = tmp_path / "every.json"
+    spec.write_text(json.dumps(EVERY_SOURCE))
+    assert main(["report", "--robot", "panda", "--object", "cube", "--grasp", "0,1",
+                 "--noise-spec", str(spec), "--samples", "60", "--engine", "fast",
+                 "--processes", "2", "--out", str(tmp_path / "r.html"), "--json"]) == 0
+    runs = json.loads(capsys.readouterr().out)["runs"]
+    robot_chunks.close_engines()
+    for index, run in enumerate(runs):
+        assert main(["evaluate", "--robot", "panda", "--object", "cube", "--grasp", str(index),
+                     "--noise-spec", str(spec), "--samples", "60", "--engine", "fast",
+                     "--json"]) == 0
+        shown = json.loads(capsys.readouterr().out)
+        assert run["p_fc"] == shown["p_fc"] and run["outcomes"] == shown["outcomes"]

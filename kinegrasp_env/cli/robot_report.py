@@ -17,15 +17,18 @@ from pathlib import Path
 from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
+    executor_from,
     friction_from,
     friction_words,
+    noise_spec_from,
+    noise_words,
     output_file,
     parse_index,
     parse_seed,
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, IN_PROCESS, _check_engine, _refuse
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, _check_engine, _refuse
 
 
 def grasp_file_robot(args) -> str | None:
@@ -126,8 +129,8 @@ def report_command(args, robot: str, sigmas: list[float], samples: int, seed: in
     chosen = ["--grasps", str(args.grasps)] if args.grasps else ["--object", args.object]
     if args.grasp is not None:
         chosen += ["--grasp", args.grasp]
-    return ["kinegrasp", "report", "--robot", robot, *chosen, "--sigma",
-            ",".join(f"{s:g}" for s in sigmas), "--noise", args.noise, "--samples",
+    return ["kinegrasp", "report", "--robot", robot, *chosen,
+            *noise_words(args, ",".join(f"{s:g}" for s in sigmas)), "--samples",
             str(samples), "--seed", str(seed), "--engine", args.engine, *friction_words(args),
             "--out", str(out)]
 
@@ -139,8 +142,9 @@ def _finite(value):
 def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
                      arm_draws_default: str) -> int:
     """``kinegrasp report --robot NAME``: the page of a description robot's grasps
-    (``sigmas``: the validated ``--sigma`` values; the defaults of the default robot's
-    ``--max-points`` and ``--arm-draws``, refused when given otherwise)."""
+    (``sigmas``: the validated ``--sigma`` values, or with ``--noise-spec`` one run of its
+    model per grasp; the defaults of the default robot's ``--max-points`` and
+    ``--arm-draws``, refused when given otherwise)."""
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
@@ -149,30 +153,39 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
     from kinegrasp_env.world.objects import load_object
 
     robot = args.robot or grasp_file_robot(args)
-    _refuse(args, {"--noise-spec": None, "--max-points": max_points_default,
-                   "--arm-draws": arm_draws_default, **IN_PROCESS}, robot)
+    _refuse(args, {"--max-points": max_points_default, "--arm-draws": arm_draws_default},
+            robot)
     _check_engine(args.engine, robot)
-    friction = friction_from(args)
+    model = noise_spec_from(args)
+    friction = friction_from(args, model)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
     out = output_file(args.out, "--out")
     with reported(RobotDescriptionError):
         description = load_robot(robot)
+    if model is not None:
+        from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+
+        with reported(ValueError):
+            check_robot_noise(model, robot, description.arm_dof, args.engine)
+        sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
     runs = []
-    with make_engine(args.engine, description, name, friction=friction) as engine:
+    with make_engine(args.engine, description, name, friction=friction) as engine, \
+            executor_from(args) as executor:
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
                     grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
-                    engine=engine)))
+                    engine=engine, executor=executor, noise_model=model)))
     # each grasp's nominal Q as this engine computes it at this friction
     nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
     grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]
     command = report_command(args, robot, sigmas, samples, seed, out)
     settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
                 "grasp source": args.grasps or f"shipped set of {name} for {robot}",
-                "sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": args.noise,
+                **({"noise spec": args.noise_spec} if model is not None else
+                   {"sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": args.noise}),
                 "noisy joints": ", ".join(description.arm_joints),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
@@ -185,7 +198,9 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
     if args.json:
         print(json.dumps({"report": str(out), "bytes": size, "robot": robot, "object": name,
                           "runs": [{"grasp": grasps[r.grasp].id, "sigma": r.sigma,
-                                    "noise": args.noise, "samples": samples, "seed": seed,
+                                    "noise": args.noise if model is None
+                                    else str(args.noise_spec),
+                                    "samples": samples, "seed": seed,
                                     "p_fc": r.evaluation.p_fc,
                                     "p_fc_ci": list(r.evaluation.ci),
                                     "q_nominal": r.evaluation.q_nominal,
@@ -196,8 +211,9 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
         return 0
     for r in runs:
         lo, hi = r.evaluation.ci
-        print(f"{name} grasp {grasps[r.grasp].id} of robot {robot}, sigma = {r.sigma:g} "
-              f"({args.noise}), {samples} draws: P(FC) = {r.evaluation.p_fc:.4f} (95% CI "
-              f"{lo:.4f} .. {hi:.4f})")
+        label = (f"noise spec {args.noise_spec}" if model is not None
+                 else f"sigma = {r.sigma:g} ({args.noise})")
+        print(f"{name} grasp {grasps[r.grasp].id} of robot {robot}, {label}, {samples} "
+              f"draws: P(FC) = {r.evaluation.p_fc:.4f} (95% CI {lo:.4f} .. {hi:.4f})")
     print(f"report written to {out} ({size / 1e6:.1f} MB)")
     return 0
