@@ -113,20 +113,10 @@ def cmd_elbow(args) -> int:
     payload = result.to_json()
     if evidence is not None:
         payload["reweight"] = evidence.to_json()
-    picture = None if evidence is None or not args.plot else evidence.picture()
-    if picture is not None:
-        from kinegrasp_env.toolkit.plots import plot_elbow_fragility
-
-        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi, picture,
-                             args.plot,
-                             title=f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) "
-                                   "along the self-motion, and why")
-    elif args.plot:
-        from kinegrasp_env.toolkit.plots import plot_elbow_curve
-
-        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, args.plot,
-                         title=f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) "
-                               f"along the self-motion")
+    if args.plot:
+        elbow_plot(payload, result, evidence, args.plot,
+                   f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) along the "
+                   "self-motion")
     if args.json:
         print(json.dumps(payload))
     else:
@@ -143,21 +133,32 @@ def cmd_elbow(args) -> int:
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                      friction: float = 0.5):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
-    closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`)."""
+    closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`; a
+    robot given with ``--robot``: :func:`kinegrasp_env.toolkit.robot_elbow_reweight.
+    optimize_robot_elbow_reweighted`)."""
     from tqdm import tqdm
 
-    from kinegrasp_env.toolkit.elbow_reweight import check_reweight, optimize_elbow_reweighted
-
     batch = None if args.batch is None else positive_int(args.batch, "--batch")
-    with reported(ValueError):  # noise, object, batch: refused before any closing
-        check_reweight(grasp, noise, samples, epsilon, delta, batch)
-    bar = tqdm(desc=f"elbow of {args.object} grasp {index} (batch, fresh draws, "
+    robot = getattr(args, "robot", None) not in (None, DEFAULT_ROBOT)
+    if robot:
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            check_robot_reweight as check,
+        )
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            optimize_robot_elbow_reweighted as optimize,
+        )
+    else:
+        from kinegrasp_env.toolkit.elbow_reweight import check_reweight as check
+        from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted as optimize
+    with reported(ValueError):  # noise, robot, object, batch: refused before any closing
+        check(grasp, noise, samples, epsilon, delta, batch)
+    who = f" of {args.robot}" if robot else ""
+    bar = tqdm(desc=f"elbow of {args.object} grasp {index}{who} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
     with executor_from(args) as executor:
-        out = optimize_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
-                                        epsilon=epsilon, delta=delta, batch=batch,
-                                        executor=executor, friction=friction,
-                                        progress=lambda stage: bar.update(1))
+        out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
+                       delta=delta, batch=batch, executor=executor, friction=friction,
+                       progress=lambda stage: bar.update(1))
     bar.close()
     return out
 
@@ -226,7 +227,7 @@ def cmd_elbow_robot(args, chosen=None) -> int:
 
     evidence = None
     if args.method == "reweight":
-        result, evidence = robot_reweighted(args, grasp, index, noise, samples, seed, epsilon,
+        result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
                                             delta, friction)
     else:
         bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
@@ -255,26 +256,6 @@ def cmd_elbow_robot(args, chosen=None) -> int:
         if args.plot:
             print(f"  plot written to {args.plot}")
     return 0
-
-
-def robot_reweighted(args, grasp, index, noise, samples, seed, epsilon, delta, friction):
-    """``elbow --robot NAME --method reweight``: (ElbowResult, ReweightEvidence) from one
-    batch of closings (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.
-    optimize_robot_elbow_reweighted`)."""
-    from tqdm import tqdm
-
-    from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
-
-    batch = None if args.batch is None else positive_int(args.batch, "--batch")
-    bar = tqdm(desc=f"elbow of {args.object} grasp {index} of {args.robot} (batch, fresh "
-               "draws, certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
-    with executor_from(args) as executor, reported(ValueError):  # refused before closing
-        out = optimize_robot_elbow_reweighted(grasp, noise, samples, seed, engine=args.engine,
-                                              epsilon=epsilon, delta=delta, batch=batch,
-                                              friction=friction, executor=executor,
-                                              progress=lambda stage: bar.update(1))
-    bar.close()
-    return out
 
 
 def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:

@@ -22,6 +22,7 @@ from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.palm_batch import close_batch, gaussian_terms
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import FINE_STEP, ElbowPoint, ElbowResult, nominal_index
 from kinegrasp_env.toolkit.elbow_certificate import DEFAULT_DELTA, DEFAULT_EPSILON
@@ -39,6 +40,24 @@ from kinegrasp_env.toolkit.robot_elbow import (
     robot_reachable_configurations,
 )
 from kinegrasp_env.world.grasps import Grasp
+
+
+def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
+                         batch: int | None) -> RobotDescription:
+    """The grasp's robot, or ValueError (one line) for what
+    :func:`optimize_robot_elbow_reweighted` refuses before any closing: noise other than
+    Gaussian joint noise, an arm without a 7-joint self-motion, and :func:`~kinegrasp_env.
+    toolkit.elbow_reweight.check_reweight`'s refusals."""
+    if not isinstance(noise, JointNoise):
+        raise ValueError("a description robot's re-weighted elbow takes joint noise "
+                         "(--sigma, --noise gaussian)")
+    check_reweight(grasp, noise, samples, epsilon, delta, batch)
+    description = load_robot(grasp.robot)
+    if description.arm_dof != 7 or description.arm_angle_links is None:
+        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
+                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
+                         "the re-weighted search moves a 7-joint arm along its self-motion")
+    return description
 
 
 def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: int,
@@ -59,15 +78,7 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
             joints, the checks of :func:`~kinegrasp_env.toolkit.elbow_reweight.
             check_reweight` (before any closing).
     """
-    if not isinstance(noise, JointNoise):
-        raise ValueError("a description robot's re-weighted elbow takes joint noise "
-                         "(--sigma, --noise gaussian)")
-    check_reweight(grasp, noise, samples, epsilon, delta, batch)
-    description = load_robot(grasp.robot)
-    if description.arm_dof != 7 or description.arm_angle_links is None:
-        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
-                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "the re-weighted search moves a 7-joint arm along its self-motion")
+    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
     joint_cov, palm_cov = gaussian_terms(noise)
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
         reach = robot_reachable_configurations(grasp, reference, step)
