@@ -111,7 +111,8 @@ _HI = r"(?P<hi>[01]\.\d+)"
 #: proportion with its interval ``lo``..``hi`` when shown, ``n`` the draws, ``counts``
 #: ``name count`` pairs of outcomes; anything else on the line is only masked.
 STAT_LINES = {
-    "evaluate header": re.compile(r"^(?P<k_what>\S+ grasp .+), (?P<n>\d+) draws$"),
+    "evaluate header": re.compile(r"^(?P<k_what>\S+ grasp .+), (?P<n>\d+) draws"
+                                  r"(?P<k_friction>, friction mu .+)?$"),
     "evaluate P(FC)": re.compile(rf"^\s+P\(FC\)\s+= {_P}\s+\(95% CI {_CI} \.\. {_HI}\)$"),
     "evaluate Q": re.compile(r"^\s+Q \(Ferrari-Canny, dimensionless; mean, std, skewness over "
                              r"the force-closure draws\): nominal (?P<k_nominal>\S+), mean \S+, "
