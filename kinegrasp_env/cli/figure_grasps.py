@@ -11,6 +11,8 @@ from kinegrasp_env.cli.common import CLIError, positive_int, reported
 
 #: ``reproduce fig9|fig10``: grasps (fig9) or null-space variants (fig10) per object.
 FIGURE_GRASPS = 10
+#: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
+TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
 
 
 def is_count(text: str) -> bool:
@@ -58,3 +60,10 @@ def grasp_file(path: str) -> list:
         raise CLIError(f"--grasps {path}: grasps of {grasps[0].object} and {other.object}; "
                        "give a file of one object's grasps")
     return grasps
+
+
+def written(out: str, names: list[str]) -> str:
+    """``written: <out>/a, b`` for the files that exist (a figure that failed is left out;
+    its warning was printed)."""
+    present = [name for name in names if (Path(out) / name).exists()]
+    return f"written: {out}/" + ", ".join(present)

@@ -1,0 +1,142 @@
+"""What both of ``kinegrasp elbow``'s paths share (the default robot's,
+:mod:`kinegrasp_env.cli.elbow`, and a description robot's,
+:mod:`kinegrasp_env.cli.robot_elbow`): the certificate's levels, the re-weighted run, the
+plot and the printed summary."""
+
+from __future__ import annotations
+
+import sys
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    executor_from,
+    finite_float,
+    plural,
+    positive_int,
+    reported,
+)
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
+
+#: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s
+#: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
+#: imports no NumPy.
+DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
+#: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
+DEFAULT_IK_STARTS = 200
+
+
+def certificate_levels(args) -> tuple[float, float]:
+    """``--epsilon`` in [0, 1) and ``--delta`` in (0, 1), or a one-line CLIError."""
+    epsilon = finite_float(args.epsilon, "--epsilon")
+    delta = finite_float(args.delta, "--delta")
+    if not 0 <= epsilon < 1:
+        raise CLIError(f"--epsilon must be a P(FC) margin in [0, 1), got {args.epsilon}")
+    if not 0 < delta < 1:
+        raise CLIError(f"--delta must be an error level in (0, 1), got {args.delta}")
+    return epsilon, delta
+
+
+def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
+                     friction: float = 0.5):
+    """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
+    closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`; a
+    robot given with ``--robot``: :func:`kinegrasp_env.toolkit.robot_elbow_reweight.
+    optimize_robot_elbow_reweighted`)."""
+    from tqdm import tqdm
+
+    batch = None if args.batch is None else positive_int(args.batch, "--batch")
+    robot = getattr(args, "robot", None) not in (None, DEFAULT_ROBOT)
+    if robot:
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            check_robot_reweight as check,
+        )
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            optimize_robot_elbow_reweighted as optimize,
+        )
+    else:
+        from kinegrasp_env.toolkit.elbow_reweight import check_reweight as check
+        from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted as optimize
+    with reported(ValueError):  # noise, robot, object, batch: refused before any closing
+        check(grasp, noise, samples, epsilon, delta, batch)
+    who = f" of {args.robot}" if robot else ""
+    bar = tqdm(desc=f"elbow of {args.object} grasp {index}{who} (batch, fresh draws, "
+               "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
+    with executor_from(args) as executor:
+        out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
+                       delta=delta, batch=batch, executor=executor, friction=friction,
+                       progress=lambda stage: bar.update(1))
+    bar.close()
+    return out
+
+
+def reweight_lines(evidence: dict, samples: int) -> str:
+    """What the batch method adds to the summary (``ReweightEvidence.to_json()``)."""
+    points = evidence["points"]
+    ess = [p["ess"] for p in points]
+    fallback = evidence["fallback_angles"]
+    lines = [f"  one batch of {evidence['batch']} closings re-weighted to every angle "
+             f"(effective sample size {min(ess):.0f} .. {max(ess):.0f}; "
+             + (f"{plural(len(fallback), 'angle')} below {samples} evaluated directly: "
+                + ", ".join(f"{p:+.3f}" for p in fallback) if fallback
+                else "no angle needed direct draws") + ")",
+             f"  re-weighted P(FC) at the best elbow {evidence['chosen_reweighted_p_fc']:.3f}: "
+             + ("agrees with the fresh draws" if evidence["chosen_agrees_with_fresh_draws"]
+                else "DISAGREES with the fresh draws beyond both sampling errors (the "
+                     "linearisation may not hold here: rerun with --method direct)")]
+    return "\n".join(lines)
+
+
+def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
+    """``--plot``: P(FC) along the self-motion, with the fragile directions and both elbows'
+    ellipses where a re-weighted run's batch has failing draws."""
+    picture = None if evidence is None else evidence.picture()
+    if picture is not None:
+        from kinegrasp_env.toolkit.plots import plot_elbow_fragility
+
+        plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi, picture,
+                             path, title=f"{title}, and why")
+    else:
+        from kinegrasp_env.toolkit.plots import plot_elbow_curve
+
+        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
+                         title=title)
+
+
+def text_summary(result: dict, index: int) -> str:
+    """The console summary of an elbow optimization (``ElbowResult.to_json()``)."""
+    lo, hi = result["best_p_fc_ci"]
+    nlo, nhi = result["nominal_p_fc_ci"]
+    glo, ghi = result["gain_ci"]
+    if "reweight" in result:
+        how = (f"{len(result['curve'])} elbow angles from one batch of "
+               f"{result['reweight']['batch']} closings, the best and the nominal again on "
+               f"{result['samples']} fresh draws")
+    else:
+        how = (f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again "
+               f"on {result['samples']} fresh draws")
+    return "\n".join([
+        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, {how} "
+        f"({result['engine']} engine)",
+        f"  nominal elbow {result['nominal_psi']:+.3f} rad: P(FC) "
+        f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
+        f"  best elbow    {result['best_psi']:+.3f} rad: P(FC) "
+        f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
+        f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
+        *certificate_lines(result["certificate"], result["grid_step"])])
+
+
+def certificate_lines(cert: dict, grid_step: float) -> list[str]:
+    """The certificate (``Certificate.to_json()``) in words: the claim, then the verdict."""
+    if cert["bound"] is None:
+        return [f"  {cert['statement']}"]
+    verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
+               f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
+               "rad is the rival it cannot rule out)")
+    from kinegrasp_env.toolkit.elbow_certificate import METHOD
+
+    how = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
+           if cert["method"] == METHOD
+           else f"{cert['method']} ({cert['fresh_draws']} closings)")
+    return [f"  {cert['statement']}",
+            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {how}; angles "
+            f"between the {grid_step:.3f} rad grid points not covered"]

@@ -1,0 +1,179 @@
+"""``kinegrasp elbow --robot NAME``: a description robot's most robust elbow angle along
+the self-motion of its 7-joint arm (direct or re-weighted), or its most robust IK branch of a
+6-joint arm."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    executor_from,
+    friction_from,
+    noise_from,
+    output_file,
+    plural,
+    positive_int,
+    reported,
+    shipped_grasp,
+)
+from kinegrasp_env.cli.elbow_output import (
+    DEFAULT_IK_STARTS,
+    certificate_levels,
+    elbow_plot,
+    reweight_lines,
+    reweighted_elbow,
+    text_summary,
+)
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
+
+#: Options a description robot's elbow does not take: flag -> its value when not given.
+ROBOT_REFUSED = {"--report": None}
+
+
+def cmd_elbow_robot(args, chosen=None) -> int:
+    """``kinegrasp elbow --robot NAME``: a description robot's grasp along its self-motion
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, any of its engines),
+    or for a 6-joint arm across its IK branches (:func:`cmd_elbow_branches`). ``chosen``:
+    ``(index, grasp)`` of ``--grasps FILE``, else grasp ``--grasp`` of the robot's shipped set
+    of ``--object``."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    robot = args.robot
+    for flag, unset in ROBOT_REFUSED.items():
+        if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
+            raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
+                           f"{DEFAULT_ROBOT})")
+    args.engine = args.engine or "pybullet"
+    noise, sigma, samples, seed = noise_from(args)
+    friction = friction_from(args, noise)
+    epsilon, delta = certificate_levels(args)
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    branches = description.arm_dof == 6
+    if not branches and (description.arm_dof != 7 or description.arm_angle_links is None):
+        raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
+                       "variants are the self-motion of 7 with arm_angle_links or the IK "
+                       "branches of 6")
+    starts = ik_starts(args, branches, robot)
+    if branches and args.plot:
+        raise CLIError(f"--plot draws P(FC) against the elbow angle; robot {robot!r}'s "
+                       "6-joint arm has IK branches instead (no self-motion)")
+    if args.method == "direct" and args.batch is not None:
+        raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
+                       "takes none")
+    if branches and args.method == "reweight":
+        raise CLIError(f"--method reweight moves a 7-joint arm along its self-motion; robot "
+                       f"{robot!r}'s 6-joint arm has IK branches: use --method direct")
+    index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
+    if args.plot:
+        output_file(args.plot, "--plot")
+    if branches:
+        return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                                  starts, friction)
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+
+    evidence = None
+    if args.method == "reweight":
+        result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
+                                            delta, friction)
+    else:
+        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
+                   "(selection, then fresh draws)", unit="angle", file=sys.stderr,
+                   disable=None)
+        with executor_from(args) as executor:
+            result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
+                                          delta=delta,
+                                          progress=lambda done: bar.update(done - bar.n),
+                                          friction=friction, evaluate_with=args.engine,
+                                          executor=executor)
+        bar.close()
+    payload = {"robot": robot, **result.to_json()}
+    if evidence is not None:
+        payload["reweight"] = evidence.to_json()
+    if args.plot:
+        elbow_plot(payload, result, evidence, args.plot,
+                   f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) along "
+                   "the self-motion")
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(f"robot {robot}, " + text_summary(payload, index))
+        if evidence is not None:
+            print(reweight_lines(payload["reweight"], samples))
+        if args.plot:
+            print(f"  plot written to {args.plot}")
+    return 0
+
+
+def ik_starts(args, branches: bool, robot: str) -> int | None:
+    """``--ik-starts``: a positive count for a 6-joint arm (default: ``ik_branches``'), None
+    otherwise (where giving it is one line)."""
+    if getattr(args, "ik_starts", None) is None:
+        return DEFAULT_IK_STARTS if branches else None
+    if not branches:
+        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; robot {robot!r}'s "
+                       "variants are its self-motion")
+    return positive_int(args.ik_starts, "--ik-starts")
+
+
+def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                       starts, friction: float = 0.5) -> int:
+    """A 6-joint arm's grasp across its IK branches
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`)."""
+    from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
+
+    bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
+               "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
+    with executor_from(args) as executor:
+        result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
+                                         epsilon=epsilon, delta=delta, friction=friction,
+                                         progress=lambda done: bar.update(done - bar.n),
+                                         evaluate_with=args.engine, executor=executor)
+    bar.close()
+    payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
+    if args.json:
+        print(json.dumps(payload))
+    else:
+        print(branch_summary(payload, index))
+    return 0
+
+
+def branch_summary(result: dict, index: int) -> str:
+    """The console summary of a 6-joint arm's IK-branch search (``BranchResult.to_json()``
+    with ``robot`` and ``ik_starts``)."""
+    lo, hi = result["best_p_fc_ci"]
+    nlo, nhi = result["nominal_p_fc_ci"]
+    glo, ghi = result["gain_ci"]
+    n, cert = len(result["branches"]), result["certificate"]
+    lines = [
+        f"robot {result['robot']}: a 6-joint arm has no self-motion; the variants of "
+        f"{result['object']} grasp {index} are its {plural(n, 'IK branch', 'IK branches')} "
+        f"({result['ik_starts']} IK starts)",
+        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, "
+        f"{plural(n, 'IK branch', 'IK branches')} x {result['samples']} draws, then again on "
+        f"{result['samples']} fresh draws ({result['engine']} engine)",
+        f"  nominal branch {result['nominal_branch']} ({result['nominal_label']}): P(FC) "
+        f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
+        f"  best branch    {result['best_branch']} ({result['best_label']}): P(FC) "
+        f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
+        f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
+        f"  {cert['statement']}"]
+    if cert["bound"] is not None:
+        verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
+                   f"not certified at epsilon {cert['epsilon']:g} (branch "
+                   f"{cert['worst_branch']} is the rival it cannot rule out)")
+        rivals = plural(len(cert["rivals"]), "other branch", "other branches")
+        lines.append(f"    {verdict}; {rivals}, exact one-sided binomial bounds on "
+                     f"{cert['fresh_draws']} fresh draws; branches the IK starts did not find "
+                     "not covered")
+    for point in result["curve"]:
+        lines.append(f"  branch {point['branch']} ({point['label']}): P(FC) {point['p_fc']:.3f} "
+                     f"selection, {point['fresh_p_fc']:.3f} fresh")
+    return "\n".join(lines)

@@ -1,0 +1,170 @@
+"""``reproduce EXPERIMENT --robot NAME``: the paper's protocols on a description robot's
+grasps (Table I, Figs. 7, 9 and 10: :mod:`kinegrasp_env.toolkit.robot_tables`,
+:mod:`kinegrasp_env.toolkit.robot_reproduce`), each evaluation ``evaluate --robot``'s."""
+
+from __future__ import annotations
+
+from kinegrasp_env.cli.common import (
+    CLIError,
+    output_folder,
+    parse_seed,
+    positive_int,
+    reported,
+)
+from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
+from kinegrasp_env.cli.robot_grasps import IN_PROCESS, _check_engine, _refuse
+
+#: The experiments that move a 7-joint arm along its self-motion.
+SELF_MOTION_EXPERIMENTS = ("fig7", "fig10")
+
+
+def robot_grasp_sets(args, robot: str, only: str | None = None
+                     ) -> tuple[dict[str, list], int]:
+    """``reproduce EXPERIMENT --robot NAME``'s (grasp sets by object, grasps or variants per
+    object): the robot's shipped sets (of ``only``, else ``--object``, else of every object
+    it has one for) and a count, or a grasp file of the robot."""
+    from kinegrasp_env.cli.figure_grasps import grasp_file
+    from kinegrasp_env.world.grasps import (
+        NoGraspSetError,
+        check_robot,
+        shipped_grasps,
+        shipped_objects,
+    )
+
+    if args.grasps is None or is_count(args.grasps):
+        count = positive_int(args.grasps or str(FIGURE_GRASPS), "--grasps")
+        objects = (only or args.object,) if only or args.object else shipped_objects(robot)
+        if not objects:
+            raise CLIError(f"robot {robot!r} has no shipped grasps; give them with --grasps "
+                           f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
+                           "--out grasps.json`)")
+        with reported(NoGraspSetError):
+            return {name: shipped_grasps(name, robot) for name in objects}, count
+    grasps = grasp_file(args.grasps)
+    if args.object is not None and args.object != grasps[0].object:
+        raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of "
+                       f"{grasps[0].object}")
+    with reported(ValueError):
+        for g in grasps:
+            check_robot(g, robot)
+    return {grasps[0].object: grasps}, FIGURE_GRASPS
+
+
+def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
+    """``reproduce EXPERIMENT --robot NAME`` of a description robot's grasps: Table I, Fig. 7
+    and Fig. 9 (:mod:`kinegrasp_env.toolkit.robot_tables`), Fig. 10
+    (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); Figs. 7 and 10 move a
+    7-joint arm along its self-motion (another arm is one line)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    robot = args.robot
+    _refuse(args, IN_PROCESS, robot)
+    _check_engine(args.engine, robot)
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    if args.figure in SELF_MOTION_EXPERIMENTS and (
+            description.arm_dof != 7 or description.arm_angle_links is None):
+        raise CLIError(f"reproduce {args.figure} --robot {robot}: the robot has "
+                       f"{description.arm_dof} arm joints"
+                       f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
+                       f"{args.figure} moves a 7-joint arm along its self-motion")
+    if args.figure == "table1":
+        return robot_table1_command(args, description, samples, friction)
+    sets, count = robot_grasp_sets(args, robot)
+    out = str(output_folder(args.out or f"out/{args.figure}"))
+    seed = parse_seed(args.seed)
+    if args.figure in ("fig7", "fig9"):
+        return robot_figure_command(args, description, sets, count, out, samples, seed,
+                                    friction)
+    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
+
+    with reported(ValueError):
+        rows = robot_fig10(description, out, grasp_sets=sets, samples=samples, count=count,
+                           seed=seed, engine=args.engine, friction=friction)
+    for r in rows:
+        print(f"{r['object']:<12} id {r['id']:<5} elbow {r['elbow_angle']:+.3f} rad P(FC) "
+              f"{r['p_fc']:.3f} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+    pairs = [r for r in rows if r["config"]]
+    if pairs:
+        print(f"robust and fragile variants chosen on {samples} draws per variant (seed "
+              f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
+    for r in pairs:
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) "
+              f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
+              f"{r['fresh_p_fc_hi']:.3f}), chosen at {r['selection_p_fc']:.3f}")
+        if r["config"] == "fragile":
+            print(f"{r['object']:<12} robust - fragile {r['gap']:+.3f} (95% CI "
+                  f"{r['gap_lo']:+.3f} .. {r['gap_hi']:+.3f}), paired")
+    print(written(out, ["fig10.csv", "fig10.png"]))
+    return 0
+
+
+def robot_figure_command(args, description, sets: dict, count: int, out: str, samples: int,
+                         seed: int, friction: float) -> int:
+    """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`)."""
+    from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
+
+    with reported(ValueError):
+        if args.figure == "fig9":
+            rows = robot_fig9(description, out, grasp_sets=sets, samples=samples, count=count,
+                              seed=seed, engine=args.engine, friction=friction)
+        else:
+            rows = robot_fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
+                              engine=args.engine, friction=friction)
+    if args.figure == "fig7":
+        print(f"robust and fragile configurations chosen on {samples} draws each (seed "
+              f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
+    for r in rows:
+        if args.figure == "fig9":
+            print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
+                  f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+            continue
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} elbow "
+              f"{r['elbow_angle']:+.3f} rad P(FC) {r['fresh_p_fc']:.3f} (95% CI "
+              f"{r['fresh_p_fc_lo']:.3f} .. {r['fresh_p_fc_hi']:.3f}), chosen at "
+              f"{r['selection_p_fc']:.3f}")
+        if r["config"] == "fragile":
+            print(f"{r['object']:<12} robust - fragile {r['gap']:+.3f} (95% CI "
+                  f"{r['gap_lo']:+.3f} .. {r['gap_hi']:+.3f}), paired")
+    pngs = ([f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
+            if args.figure == "fig7" else ["fig9.png"])
+    print(written(out, [f"{args.figure}.csv", *pngs]))
+    return 0
+
+
+def robot_table1_command(args, description, samples: int, friction: float) -> int:
+    """``reproduce table1 --robot NAME``: Table I of the robot's first ``--grasps`` (default
+    5) grasps of ``--object`` (default: the first object it has shipped grasps of), or of a
+    grasp file's."""
+    from kinegrasp_env.toolkit.robot_tables import robot_table1
+
+    robot = description.name
+    if args.grasps is not None and not is_count(args.grasps):
+        from kinegrasp_env.cli.figure_grasps import grasp_file
+        from kinegrasp_env.world.grasps import check_robot
+
+        grasps = grasp_file(args.grasps)
+        with reported(ValueError):
+            for g in grasps:
+                check_robot(g, robot)
+        name = grasps[0].object
+    else:
+        from kinegrasp_env.world.grasps import shipped_objects
+
+        args.grasps = args.grasps or TABLE1_GRASPS
+        objects = (args.object,) if args.object else shipped_objects(robot)
+        if not objects:
+            raise CLIError(f"robot {robot!r} has no shipped grasps; give them with --grasps "
+                           f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
+                           "--out grasps.json`)")
+        sets, _ = robot_grasp_sets(args, robot, objects[0])
+        name, grasps = objects[0], sets[objects[0]][:positive_int(args.grasps, "--grasps")]
+    out = str(output_folder(args.out or "out/table1"))
+    rows = robot_table1(description, name, grasps, samples, out, seed=parse_seed(args.seed),
+                        engine=args.engine, friction=friction)
+    from kinegrasp_env.toolkit.experiments import markdown_table1
+
+    print(markdown_table1(rows, f"{name} (robot {robot})", samples))
+    print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
+    return 0
