@@ -280,7 +280,7 @@ def test_help_shows_the_choices_from_their_sources():
 
     assert ENGINE_NAMES == evaluate.ENGINES and MAX_SIGMA == evaluate.MAX_SIGMA
     from kinegrasp_env.cli.common import DEFAULT_FRICTION, NUM_EDGES
-    from kinegrasp_env.cli.ranking import OUTCOME_COLUMNS
+    from kinegrasp_env.cli.ranking_table import OUTCOME_COLUMNS
     from kinegrasp_env.quality import wrenches
 
     assert (DEFAULT_FRICTION, NUM_EDGES) == (wrenches.DEFAULT_FRICTION,

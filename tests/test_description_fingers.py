@@ -17,7 +17,8 @@ import pytest
 import yaml
 
 from kinegrasp_env.robot.catalog import BUILTIN, load_robot
-from kinegrasp_env.robot.description import linkage_bars, load_description
+from kinegrasp_env.robot.description import load_description
+from kinegrasp_env.robot.linkage import linkage_bars
 
 BOX = '<collision><geometry><box size="0.01 0.02 {length}"/></geometry></collision>'
 

@@ -16,7 +16,8 @@ import pytest
 from cli_helpers import COMMAND
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.cli.common import CLIError, available_cores, output_file, output_folder
+from kinegrasp_env.cli.common import CLIError, output_file, output_folder
+from kinegrasp_env.cli.execution_options import available_cores
 from kinegrasp_env.cli.main import main
 from kinegrasp_env.toolkit.progress import MIN_WINDOW, Progress
 
@@ -145,7 +146,7 @@ def test_processes_above_the_cores_are_capped_with_a_warning(capsys):
     stated in --help."""
     import os
 
-    from kinegrasp_env.cli.common import executor_from
+    from kinegrasp_env.cli.execution_options import executor_from
     from kinegrasp_env.cli.main import build_parser
 
     cores = len(os.sched_getaffinity(0))

@@ -16,11 +16,9 @@ import sys
 
 from kinegrasp_env.cli.common import (
     CLIError,
-    add_execution_args,
     add_friction_arg,
     add_noise_args,
     add_object_arg,
-    executor_from,
     friction_from,
     grasp_index_help,
     noise_from,
@@ -38,6 +36,7 @@ from kinegrasp_env.cli.elbow_output import (
     reweighted_elbow,
     text_summary,
 )
+from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.robot_elbow import cmd_elbow_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 

@@ -7,14 +7,8 @@ from __future__ import annotations
 
 import sys
 
-from kinegrasp_env.cli.common import (
-    CLIError,
-    executor_from,
-    finite_float,
-    plural,
-    positive_int,
-    reported,
-)
+from kinegrasp_env.cli.common import CLIError, finite_float, plural, positive_int, reported
+from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s

@@ -10,14 +10,12 @@ import json
 from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
-    add_execution_args,
     add_friction_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
     add_static_hold_arg,
     engine_name,
-    executor_from,
     finite_float,
     friction_from,
     grasp_index_help,
@@ -28,6 +26,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
     TABLE1_GRASPS,

@@ -15,29 +15,26 @@ import shlex
 import sys
 from pathlib import Path
 
+from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
     MAX_SIGMA,
     NUM_EDGES,
     CLIError,
     add_engine_arg,
-    add_execution_args,
     add_friction_arg,
     add_noise_spec_arg,
     add_object_arg,
     engine_name,
-    executor_from,
     float_list,
     friction_from,
-    friction_words,
     grasp_index_help,
     noise_spec_from,
-    noise_words,
     nonnegative,
     output_file,
     parse_seed,
     positive_int,
-    sigma_words,
 )
+from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 
 #: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
 #: ``report.page.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.

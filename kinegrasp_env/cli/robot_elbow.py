@@ -9,7 +9,6 @@ import sys
 
 from kinegrasp_env.cli.common import (
     CLIError,
-    executor_from,
     friction_from,
     noise_from,
     output_file,
@@ -26,6 +25,7 @@ from kinegrasp_env.cli.elbow_output import (
     reweighted_elbow,
     text_summary,
 )
+from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: Options a description robot's elbow does not take: flag -> its value when not given.

@@ -13,7 +13,6 @@ import math
 
 from kinegrasp_env.cli.common import (
     CLIError,
-    executor_from,
     friction_from,
     output_file,
     parse_seed,
@@ -21,6 +20,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The executor options (a description robot's draws run in this process), unset.
@@ -223,7 +223,8 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
     import shlex
     import sys
 
-    from kinegrasp_env.cli.common import NUM_EDGES, friction_words, noise_words, sigma_words
+    from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
+    from kinegrasp_env.cli.common import NUM_EDGES
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.report.page import write_page
     from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page

@@ -145,7 +145,8 @@ def write_robot_rank_page(args, grasps: list, results: list, robot: str, noise, 
     import shlex
     from types import SimpleNamespace
 
-    from kinegrasp_env.cli.common import NUM_EDGES, friction_words, noise_words, sigma_words
+    from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
+    from kinegrasp_env.cli.common import NUM_EDGES
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.report.page import write_page
     from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page

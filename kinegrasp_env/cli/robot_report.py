@@ -14,20 +14,19 @@ import math
 import shlex
 from pathlib import Path
 
+from kinegrasp_env.cli.command_words import friction_words, noise_words
 from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
-    executor_from,
     friction_from,
-    friction_words,
     noise_spec_from,
-    noise_words,
     output_file,
     parse_index,
     parse_seed,
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, _check_engine, _refuse
 
 

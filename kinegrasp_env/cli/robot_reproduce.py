@@ -4,13 +4,7 @@ grasps (Table I, Figs. 7, 9 and 10: :mod:`kinegrasp_env.toolkit.robot_tables`,
 
 from __future__ import annotations
 
-from kinegrasp_env.cli.common import (
-    CLIError,
-    output_folder,
-    parse_seed,
-    positive_int,
-    reported,
-)
+from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
 from kinegrasp_env.cli.robot_grasps import IN_PROCESS, _check_engine, _refuse
 

@@ -10,13 +10,11 @@ import sys
 from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
-    add_execution_args,
     add_friction_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
     add_static_hold_arg,
-    executor_from,
     friction_from,
     output_file,
     output_folder,
@@ -25,6 +23,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.ranking import cmd_rank
 from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
 

@@ -23,10 +23,10 @@ from kinegrasp_env.cli.common import (
     parse_seed,
     positive_int,
     print_json,
-    processes_from,
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.cli.execution_options import processes_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 

@@ -9,7 +9,8 @@ near-contact geometry of ``hand_geometry`` and ``segment_distance`` (its packed 
 catalog (a description beside a URDF): ``generic_reference`` (pybullet closest points) and
 ``generic_fast`` (batched; the links' geometry from ``link_geometry``, object edges against
 link hulls in ``hull_edges``), pads pressed on faces at their patch centres
-(``contact_patch``). Uses ``world`` and ``robot``.
+(``contact_patch``), a closing's contacts and result (``robot_contacts``), where palm and
+object pose errors put the links (``hand_errors``). Uses ``world`` and ``robot``.
 """
 
 from __future__ import annotations

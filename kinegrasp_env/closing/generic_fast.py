@@ -37,7 +37,7 @@ only where that bound is within reach of a contact or says the two overlap.
    perpendicular to both edges for two edges; else the points' difference), which is what
    pybullet's normal is there.
 
-Results are the reference's :class:`~kinegrasp_env.closing.generic_reference.RobotCloseResult`
+Results are the reference's :class:`~kinegrasp_env.closing.robot_contacts.RobotCloseResult`
 (``queries`` counts exact link-object distances, per draw).
 """
 
@@ -56,11 +56,7 @@ from kinegrasp_env.closing.convex_distance import (
     stacked_vertices,
 )
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths, link_poses
-from kinegrasp_env.closing.generic_reference import (
-    EDGE_TOL,
-    MAX_STEPS,
-    RobotCloseResult,
-)
+from kinegrasp_env.closing.generic_reference import EDGE_TOL, MAX_STEPS
 from kinegrasp_env.closing.hand_errors import (
     arm_to_object,
     flange_link,
@@ -74,6 +70,7 @@ from kinegrasp_env.closing.link_geometry import (
     link_geometry,
 )
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject

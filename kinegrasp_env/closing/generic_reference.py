@@ -41,7 +41,6 @@ layer, with the robot's contact model).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,6 +51,7 @@ from kinegrasp_env.closing.contact_patch import (
     link_hull_vertices,
 )
 from kinegrasp_env.closing.hand_errors import flange_link, hand_links
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
@@ -70,48 +70,6 @@ EDGE_TOL = 5e-5
 __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
            "RobotCloseResult", "RobotContact", "RobotWorld", "face_of", "finger_speed",
            "hull_margin"]
-
-
-@dataclass(frozen=True)
-class RobotContact:
-    """One finger-object contact (object frame).
-
-    Attributes:
-        finger: index into the description's ``fingers``.
-        link: index into that finger's ``links``.
-        point: (3,) on the object's surface, metres.
-        normal: (3,) unit normal into the object.
-        distance: pybullet's gap of the pair, metres (<= CONTACT_TOL).
-    """
-
-    finger: int
-    link: int
-    point: np.ndarray
-    normal: np.ndarray
-    distance: float
-
-
-@dataclass
-class RobotCloseResult:
-    """One closing.
-
-    Attributes:
-        start_collision: a robot link penetrated the object at q.
-        contacts: the contacts (at most one per finger link).
-        missed: per finger, True when it closed to its limits without touching.
-        gaps: (fingers,) final gap of each finger, metres (NaN after a start collision).
-        travel: (fingers,) final closing parameter t of each finger.
-        joints: final value of every closing joint (name -> value).
-        queries: closest-point queries used.
-    """
-
-    start_collision: bool
-    contacts: list[RobotContact] = field(default_factory=list)
-    missed: tuple[bool, ...] = ()
-    gaps: np.ndarray = field(default_factory=lambda: np.empty(0))
-    travel: np.ndarray = field(default_factory=lambda: np.empty(0))
-    joints: dict[str, float] = field(default_factory=dict)
-    queries: int = 0
 
 
 def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | None:

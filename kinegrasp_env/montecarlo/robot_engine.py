@@ -15,7 +15,7 @@ import numpy as np
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
-from kinegrasp_env.closing.generic_reference import RobotCloseResult
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,

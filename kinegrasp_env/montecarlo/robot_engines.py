@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotWorld
+from kinegrasp_env.closing.generic_reference import RobotWorld
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 

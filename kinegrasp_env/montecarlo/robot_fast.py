@@ -10,7 +10,7 @@ import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.generic_fast import FastRobotHand
-from kinegrasp_env.closing.generic_reference import RobotCloseResult
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.generic_reference import RobotCloseResult
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings

@@ -51,7 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.generic_reference import RobotCloseResult, RobotContact
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame

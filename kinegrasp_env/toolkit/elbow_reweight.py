@@ -34,7 +34,7 @@ gaussian_terms`); objects on a support table are refused (their arm links matter
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,7 +46,6 @@ from kinegrasp_env.montecarlo.palm_batch import (
     batch_stream,
     check_batch_object,
     close_batch,
-    fragile_directions,
     gaussian_terms,
 )
 from kinegrasp_env.robot.description import RobotDescription
@@ -74,6 +73,7 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     Rival,
     check_levels,
 )
+from kinegrasp_env.toolkit.reweight_evidence import CurvePoint, ReweightEvidence
 from kinegrasp_env.world.grasps import Grasp
 
 #: Half-step of the central difference of the covariance along psi (radians).
@@ -126,18 +126,6 @@ class SelfMotionCovariance:
             return None
         cov = self.at(np.stack([plus, minus]))
         return (cov[0] - cov[1]) / (2 * SLOPE_STEP)
-
-
-@dataclass
-class CurvePoint:
-    """One angle's re-weighted estimate (:class:`ElbowPoint` plus the weights' evidence)."""
-
-    point: ElbowPoint
-    se: float
-    ess: float
-    slope: float
-    slope_se: float
-    fallback: bool
 
 
 def _estimate_point(batch: PalmBatch, motion: SelfMotionCovariance, psi: float, q: np.ndarray
@@ -242,48 +230,6 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
     worst = max(out, key=lambda r: r.upper)
     return Certificate(float(chosen[0]), epsilon, delta, len(fresh), out, worst.upper,
                        worst.psi, worst.upper <= epsilon, method=BATCH_METHOD)
-
-
-@dataclass
-class ReweightEvidence:
-    """What the batch method adds to an :class:`ElbowResult` (the selection batch and the
-    nominal and chosen angles' covariances of delta (6, 6) kept for the picture)."""
-
-    batch: int
-    curve: list[CurvePoint]
-    chosen_estimate: float
-    chosen_agrees: bool
-    selection: PalmBatch | None = field(default=None, repr=False)
-    nominal_cov: np.ndarray | None = field(default=None, repr=False)
-    best_cov: np.ndarray | None = field(default=None, repr=False)
-
-    def picture(self, points: int = 3000) -> dict | None:
-        """What :func:`~kinegrasp_env.toolkit.plots.plot_elbow_fragility` draws: ``points``
-        of the batch's deviations in the two most fragile directions under the nominal
-        elbow's distribution, their outcomes, and both elbows' covariances seen there (None
-        where no draw of the batch loses force closure)."""
-        if self.selection.fc.all():
-            return None  # no draw loses force closure: nothing is fragile
-        frag = fragile_directions(self.selection, self.nominal_cov)
-        rows = np.unique(np.linspace(0, len(self.selection) - 1, points).astype(int))
-        return {"points": frag.coordinates(self.selection.deltas[rows]),
-                "fc": self.selection.fc[rows],
-                "ellipses": {"nominal": frag.projected(self.nominal_cov),
-                             "best": frag.projected(self.best_cov)},
-                "labels": [frag.label(0), frag.label(1)], "spread": frag.spread.tolist()}
-
-    def to_json(self) -> dict:
-        return {"batch": self.batch, "chosen_reweighted_p_fc": self.chosen_estimate,
-                "chosen_agrees_with_fresh_draws": self.chosen_agrees,
-                "fallback_angles": [c.point.psi for c in self.curve if c.fallback],
-                "points": [{"psi": c.point.psi, "se": _finite(c.se), "ess": _finite(c.ess),
-                            "slope": _finite(c.slope), "slope_se": _finite(c.slope_se),
-                            "direct": c.fallback} for c in self.curve]}
-
-
-def _finite(value: float) -> float | None:
-    """A JSON number, or None for NaN (strict JSON has no NaN)."""
-    return None if not math.isfinite(value) else float(value)
 
 
 def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
