@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 import pybullet
 import pytest
@@ -19,6 +21,18 @@ def private_catalog(tmp_path_factory):
     mp.setenv("KINEGRASP_HOME", str(tmp_path_factory.mktemp("kinegrasp_home")))
     yield
     mp.undo()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def quiet_kernel_notice():
+    """On a machine whose kernel cache is empty, the first command compiles the kernels and
+    says so on stderr while it lasts; a test that runs a command in this process and checks
+    its stderr line by line would find those lines there, in whichever test the compile
+    falls. The notice of in-process commands goes to a sink (its own tests give it a stream
+    of their own; commands run as subprocesses keep theirs)."""
+    from kinegrasp_env import kernel_notice
+
+    kernel_notice.install(io.StringIO())
 
 
 @pytest.fixture(scope="session")
