@@ -11,7 +11,6 @@ the IK branches of a 6-joint one); what both share: :mod:`kinegrasp_env.cli.elbo
 
 from __future__ import annotations
 
-import json
 import sys
 
 from kinegrasp_env.cli.common import (
@@ -31,10 +30,8 @@ from kinegrasp_env.cli.elbow_output import (
     DEFAULT_EPSILON,
     DEFAULT_IK_STARTS,
     certificate_levels,
-    elbow_plot,
-    reweight_lines,
     reweighted_elbow,
-    text_summary,
+    show_elbow,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.robot_elbow import cmd_elbow_robot
@@ -97,21 +94,8 @@ def cmd_elbow(args) -> int:
                                     friction=friction,
                                     progress=lambda done: bar.update(done - bar.n))
         bar.close()
-    payload = result.to_json()
-    if evidence is not None:
-        payload["reweight"] = evidence.to_json()
-    if args.plot:
-        elbow_plot(payload, result, evidence, args.plot,
-                   f"{args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) along the "
-                   "self-motion")
-    if args.json:
-        print(json.dumps(payload))
-    else:
-        print(text_summary(payload, index))
-        if evidence is not None:
-            print(reweight_lines(payload["reweight"], samples))
-        if args.plot:
-            print(f"  plot written to {args.plot}")
+    show_elbow(args, result.to_json(), result, evidence, index, samples,
+               f"{args.object} grasp {index}, sigma = {sigma:g} rad")
     if args.report:
         write_elbow_report(args, grasp, index, result, noise, evidence, friction)
     return 0

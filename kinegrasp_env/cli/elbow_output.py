@@ -96,6 +96,27 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
                          title=title)
 
 
+def show_elbow(args, payload: dict, result, evidence, index: int, samples: int, title: str,
+               prefix: str = "") -> None:
+    """An elbow run's output: ``--plot`` (titled ``title``), then one JSON object
+    (``payload``, with the re-weighted run's ``evidence`` where there is one) or the text
+    summary (after ``prefix``)."""
+    import json
+
+    if evidence is not None:
+        payload["reweight"] = evidence.to_json()
+    if args.plot:
+        elbow_plot(payload, result, evidence, args.plot, f"{title}: P(FC) along the self-motion")
+    if args.json:
+        print(json.dumps(payload))
+        return
+    print(prefix + text_summary(payload, index))
+    if evidence is not None:
+        print(reweight_lines(payload["reweight"], samples))
+    if args.plot:
+        print(f"  plot written to {args.plot}")
+
+
 def text_summary(result: dict, index: int) -> str:
     """The console summary of an elbow optimization (``ElbowResult.to_json()``)."""
     lo, hi = result["best_p_fc_ci"]

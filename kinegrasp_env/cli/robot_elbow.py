@@ -20,10 +20,8 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.elbow_output import (
     DEFAULT_IK_STARTS,
     certificate_levels,
-    elbow_plot,
-    reweight_lines,
     reweighted_elbow,
-    text_summary,
+    show_elbow,
 )
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -92,21 +90,9 @@ def cmd_elbow_robot(args, chosen=None) -> int:
                                           friction=friction, evaluate_with=args.engine,
                                           executor=executor)
         bar.close()
-    payload = {"robot": robot, **result.to_json()}
-    if evidence is not None:
-        payload["reweight"] = evidence.to_json()
-    if args.plot:
-        elbow_plot(payload, result, evidence, args.plot,
-                   f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad: P(FC) along "
-                   "the self-motion")
-    if args.json:
-        print(json.dumps(payload))
-    else:
-        print(f"robot {robot}, " + text_summary(payload, index))
-        if evidence is not None:
-            print(reweight_lines(payload["reweight"], samples))
-        if args.plot:
-            print(f"  plot written to {args.plot}")
+    show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, index, samples,
+               f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad",
+               prefix=f"robot {robot}, ")
     return 0
 
 
