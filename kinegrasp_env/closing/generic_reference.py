@@ -40,8 +40,6 @@ layer, with the robot's contact model).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
@@ -54,7 +52,7 @@ from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
-from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
 
 #: Gaps beyond this are not measured (a step is then bounded by it), metres.
@@ -150,7 +148,13 @@ class RobotWorld(GraspWorld):
                                              bullet.getNumJoints(self.bodies["object"])))
                         for link in range(-1, count)}
         self._movable = [j.name for j in self.model.joints if j.movable]
-        self._flange, self._hand = flange_link(description), hand_links(description)
+        hand = hand_links(description)
+        self._flange = flange_link(description)
+        self._arm_links = tuple(link for link in self.link_index if link not in hand)
+        self._hand_links = tuple(sorted(hand))
+        #: the object's pose in this world: ``obj.pose``, but where a palm or object error
+        #: places it for a closing
+        self.placed = obj.pose
 
     # ------------------------------------------------------------------ state
     def set_configuration(self, q: np.ndarray) -> dict[str, float]:
@@ -254,8 +258,8 @@ class RobotWorld(GraspWorld):
         start = self.set_configuration(q)
         if palm is None and object_offset is None:
             return self._close(start, contact_tol, start_tol)
-        believed = self.obj
-        true = believed.pose if object_offset is None else believed.pose @ object_offset
+        believed = self.obj.pose
+        true = believed if object_offset is None else believed @ object_offset
         # the arm sees the object where it truly is; the hand, kept at its kinematic pose,
         # sees it moved by the inverse of its own error (the same relative pose)
         flange = self.link_pose(self._flange)
@@ -263,19 +267,19 @@ class RobotWorld(GraspWorld):
             flange) @ true
         try:
             self._place_object(true)
-            arm = [link for link in self.link_index if link not in self._hand]
+            arm = self._arm_links
             if any(self.distance(row) < -start_tol
                    for link in arm for row in self.closest(0.0, link)):
                 return self._collided(len(arm))
             self._place_object(seen)
-            self.obj = dataclasses.replace(believed, pose=seen)
-            return self._close(start, contact_tol, start_tol, links=sorted(self._hand),
+            return self._close(start, contact_tol, start_tol, links=self._hand_links,
                                queries=len(arm))
         finally:
-            self.obj = believed
-            self._place_object(believed.pose)
+            self._place_object(believed)
 
     def _place_object(self, pose: np.ndarray) -> None:
+        """The object body at ``pose`` (4, 4), where the contacts' frame follows it."""
+        self.placed = pose
         position, orientation = matrix_to_pose(pose)
         self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
                                                     orientation)
@@ -348,12 +352,13 @@ class RobotWorld(GraspWorld):
         vertices = link_hull_vertices(self.bullet, self.bodies["robot"], self.link_index[link])
         if vertices is None:
             return point
-        return face_patch_point(self.obj.parts, self.obj.to_object(vertices), face, point)
+        return face_patch_point(self.obj.parts, frame_coordinates(self.placed, vertices), face,
+                                point)
 
     def _contacts(self, f: int, contact_tol: float) -> list[RobotContact]:
         """The touching links of finger f at the current state, one contact each."""
         out = []
-        rot = self.obj.pose[:3, :3]
+        rot = self.placed[:3, :3]
         for k, link in enumerate(self.description.fingers[f].links):
             rows = [r for r in self.closest(contact_tol, link)
                     if self.distance(r) <= contact_tol]
@@ -362,7 +367,8 @@ class RobotWorld(GraspWorld):
             row = min(rows, key=self.distance)
             # pybullet's object point lies up to the object's collision margin off its
             # surface (mesh shapes): the exact surface point decides the face
-            point = self.obj.closest_points(self.obj.to_object(np.array(row[6]))[None])[0][0]
+            point = self.obj.closest_points(
+                frame_coordinates(self.placed, np.array(row[6]))[None])[0][0]
             face = face_of(self.obj, point)
             if face is None:
                 normal = -np.array(row[7]) @ rot

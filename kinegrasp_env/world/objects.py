@@ -125,8 +125,7 @@ class GraspObject:
 
     def to_object(self, points_world: np.ndarray) -> np.ndarray:
         """World points (..., 3) to the object frame."""
-        rot, trans = self.pose[:3, :3], self.pose[:3, 3]
-        return (np.asarray(points_world) - trans) @ rot
+        return frame_coordinates(self.pose, points_world)
 
     def to_world(self, points: np.ndarray) -> np.ndarray:
         """Object-frame points (..., 3) to the world frame."""
@@ -275,6 +274,11 @@ def source_to_object(name: str) -> np.ndarray | None:
         return source_to_object(entry["base"])
     value = entry.get("source_to_object")
     return None if value is None else np.asarray(value, dtype=float)
+
+
+def frame_coordinates(pose: np.ndarray, points_world: np.ndarray) -> np.ndarray:
+    """World points (..., 3) in the frame whose world pose is ``pose`` (4, 4, rigid)."""
+    return (np.asarray(points_world) - pose[:3, 3]) @ pose[:3, :3]
 
 
 #: :func:`object_version` of every built-in object (they never change in a process).
