@@ -19,6 +19,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
 
 #: Draws per chunk.
 CHUNK = 250
@@ -91,20 +92,28 @@ class RobotChunk:
 
 def run_robot_chunk(task: RobotChunk) -> RobotDraws:
     """The draws of one chunk (in a worker, or inline)."""
+    if task.model is None:
+        return close_chunk(task)
+    import json
+
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    return close_chunk(task, noise_model_from_spec(json.loads(task.model)))
+
+
+def close_chunk(task: RobotChunk, model: NoiseModel | None = None) -> RobotDraws:
+    """The draws of one chunk, with the noise model ``model`` in place of the task's joint
+    noise (its ``model`` field is not read)."""
     engine = robot_engine(task.engine, task.robot, task.object, task.friction,
                           task.static_hold)
-    if task.model is None:
+    if model is None:
         q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
                                  task.sigma, task.noise, task.seed, task.offset, task.size)
         return engine.run(q)
-    import json
-
     from kinegrasp_env.montecarlo.robot_noise import model_rows
-    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
-    q, errors = model_rows(noise_model_from_spec(json.loads(task.model)), task.q0,
-                           engine.description.arm_dof, task.seed, task.offset, task.size,
-                           engine.obj.center_of_mass)
+    q, errors = model_rows(model, task.q0, engine.description.arm_dof, task.seed, task.offset,
+                           task.size, engine.obj.center_of_mass)
     return engine.run(q, **errors)
 
 

@@ -11,15 +11,13 @@ numbers, as for the default robot). Each process keeps its engines for its later
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.robot_chunks import RobotChunk, run_robot_chunk
+from kinegrasp_env.montecarlo.robot_chunks import RobotChunk, close_chunk
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
-from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments
 
 
@@ -27,12 +25,11 @@ def run_robot_task(task) -> dict:
     """Evaluate one :class:`~kinegrasp_env.montecarlo.sweep_spec.SweepTask` of a description
     robot: outcome counts and Q moments of its chunk (the fields of ``sweep.run_task``)."""
     start = time.perf_counter()
-    model = None
-    if task.model is not None:  # the cell's model: its joint sigma the cell's
-        model = json.dumps(spec_of(cell_noise(task.sigma, task.noise, task.model)))
-    draws = run_robot_chunk(RobotChunk(task.robot, task.object, task.engine, task.q0,
-                                       task.sigma, task.noise, task.seed, task.offset,
-                                       task.size, task.friction, model=model))
+    # a model cell's model has the cell's sigma as its joints'
+    model = None if task.model is None else cell_noise(task.sigma, task.noise, task.model)
+    draws = close_chunk(RobotChunk(task.robot, task.object, task.engine, task.q0, task.sigma,
+                                   task.noise, task.seed, task.offset, task.size,
+                                   task.friction), model)
     fc = draws.outcome == FORCE_CLOSURE
     moments = StreamingMoments(1).update(draws.quality[fc])
     counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
