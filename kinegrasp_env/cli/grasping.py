@@ -91,7 +91,7 @@ def cmd_evaluate(args) -> int:
         if written is not None and not args.json:
             print(f"  plot written to {args.plot}")
     if args.report:
-        evaluate_report(args, grasp, index, stats)
+        evaluate_report(args, grasp, index, stats, friction)
     return 0
 
 

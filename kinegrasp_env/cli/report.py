@@ -63,7 +63,8 @@ def noise_settings(args, noises: list) -> dict:
             "noise": noises[0].kind}
 
 
-def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int) -> dict:
+def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int,
+              friction: float) -> dict:
     from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
     from kinegrasp_env.toolkit.report.page import run_noise
 
@@ -78,20 +79,21 @@ def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: i
             **noise_settings(args, [run_noise(r) for r in runs]),
             "draws per run": first.samples, "seed": first.seed, "engine": first.engine,
             "friction mu": "per draw (the noise spec's friction source)" if per_draw
-            else friction_from(args), "friction cone edges": NUM_EDGES,
+            else friction, "friction cone edges": NUM_EDGES,
             "draws per chunk (random streams)": DEFAULT_CHUNK,
             "contact points drawn at most": max_points, "noisy arms drawn": arm_draws}
 
 
 def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
-                            command: list[str], max_points: int, arm_draws: int) -> int:
-    """Write the page of ``runs`` (GraspStats, the first with draws); returns its bytes."""
+                            command: list[str], max_points: int, arm_draws: int,
+                            friction: float) -> int:
+    """Write the page of ``runs`` (GraspStats, the first with draws; friction mu
+    ``friction``); returns its bytes."""
     from kinegrasp_env.toolkit.report.page import evaluation_page, write_page
 
-    settings = _settings(args, grasp, index, runs, max_points, arm_draws)
+    settings = _settings(args, grasp, index, runs, max_points, arm_draws, friction)
     text = evaluation_page(grasp, runs, command=shlex.join(command), settings=settings,
-                           friction=friction_from(args), num_edges=NUM_EDGES,
-                           max_points=max_points,
+                           friction=friction, num_edges=NUM_EDGES, max_points=max_points,
                            arm_draws=arm_draws)
     write_page(path, text)
     return len(text.encode())
@@ -150,7 +152,8 @@ def cmd_report(args) -> int:
                                  out)
     command += ["--max-points", str(max_points), "--arm-draws", str(arm_draws)]
     size = write_evaluation_report(out, args, grasp, index, runs, command=command,
-                                   max_points=max_points, arm_draws=arm_draws)
+                                   max_points=max_points, arm_draws=arm_draws,
+                                   friction=friction)
     if args.json:
         print(json.dumps({"report": str(out), "bytes": size,
                           "runs": [r.to_json() for r in runs]}))
@@ -170,13 +173,15 @@ def report_path(text: str | None, name: str = "--report") -> Path | None:
     return None if text is None else output_file(text, name)
 
 
-def evaluate_report(args, grasp, index: int, stats) -> None:
-    """``evaluate --report FILE``: the page of one evaluation (``stats`` with its draws)."""
+def evaluate_report(args, grasp, index: int, stats, friction: float) -> None:
+    """``evaluate --report FILE``: the page of one evaluation (``stats`` with its draws, at
+    friction mu ``friction``)."""
     out = Path(args.report)
     command = evaluation_command(args, "evaluate", index, sigma_words(stats.sigma),
                                  stats.samples, stats.seed, stats.engine, "--report", out)
     size = write_evaluation_report(out, args, grasp, index, [stats], command=command,
-                                   max_points=MAX_POINTS_DEFAULT, arm_draws=ARM_DRAWS_DEFAULT)
+                                   max_points=MAX_POINTS_DEFAULT, arm_draws=ARM_DRAWS_DEFAULT,
+                                   friction=friction)
     print(f"report written to {out} ({size / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)
 
