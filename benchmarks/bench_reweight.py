@@ -98,21 +98,33 @@ def calibration(grasp, args, seed: int) -> list[dict]:
     qs = np.stack([q for _, q in angles])
     covs = np.concatenate([jac.covariance(qs, s) for s in args.sigmas])
     batch = close_batch(angles[0][1], grasp.object, covs, args.batch, seed)
+
+    def direct(psi, q, sigma) -> float:
+        return evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma),
+                              args.direct, seed + 1, engine="fast").p_fc
+
+    def linear(q, cov) -> np.ndarray:
+        return close_deltas(q, linear_draws(cov, args.direct, seed + 2), grasp.object)[0]
+
+    return judged_cases({"object": grasp.object, "grasp": int(grasp.id)}, angles, covs, batch,
+                        direct, linear, args)
+
+
+def judged_cases(record: dict, angles: list, covs: np.ndarray, batch, direct, linear,
+                 args) -> list[dict]:
+    """One judged record per (sigma, angle) case of one grasp (``record``: its fields): the
+    batch re-weighted to each case's covariance (``covs``, sigma-major), ``direct(psi, q,
+    sigma)`` its direct P(FC), ``linear(q, cov)`` the outcomes of linear-Gaussian deltas."""
     cases, k = [], 0
     for sigma in args.sigmas:
         for psi, q in angles:
             est = batch.estimate(covs[k]).p_fc
-            k += 1
-            direct = evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma),
-                                    args.direct, seed + 1, engine="fast")
-            outcome, _ = close_deltas(q, linear_draws(covs[k - 1], args.direct, seed + 2),
-                                      grasp.object)
-            linear = float(np.mean(outcome == FORCE_CLOSURE))
             cases.append(judged({
-                "object": grasp.object, "grasp": int(grasp.id), "psi": psi, "sigma": sigma,
-                "reweighted": est.value, "reweighted_se": est.se, "ess": est.ess,
-                "direct": direct.p_fc, "linear": linear}, args.direct))
-        print(f"  {grasp.object} grasp {grasp.id} sigma {sigma:g}: "
+                **record, "psi": psi, "sigma": sigma, "reweighted": est.value,
+                "reweighted_se": est.se, "ess": est.ess, "direct": direct(psi, q, sigma),
+                "linear": float(np.mean(linear(q, covs[k]) == FORCE_CLOSURE))}, args.direct))
+            k += 1
+        print(f"  {record['object']} grasp {record['grasp']} sigma {sigma:g}: "
               f"{sum(c['agrees'] for c in cases[-len(angles):])}/{len(angles)} agree",
               file=sys.stderr)
     return cases

@@ -18,15 +18,13 @@ docs/guides/elbow.md.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
-from bench_reweight import judged, spread_angles, summary
+from bench_reweight import judged_cases, spread_angles, summary
 from marked_section import write_between
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
     close_batch,
@@ -61,26 +59,18 @@ def calibration(grasp, args, seed: int) -> list[dict]:
     qs = np.stack([q for _, q in angles])
     covs = np.concatenate([jac.covariance(qs, s) for s in args.sigmas])
     batch = close_batch(q0, grasp.object, covs, args.batch, seed, robot=grasp.robot)
-    cases, k = [], 0
     with make_engine("fast", description, grasp.object) as engine:
-        for sigma in args.sigmas:
-            for psi, q in angles:
-                est = batch.estimate(covs[k]).p_fc
-                moved = dataclasses.replace(grasp, q0=q)
-                direct = evaluate_robot_grasp(moved, sigma=sigma, n=args.direct, seed=seed + 1,
-                                              engine=engine)
-                outcome, _ = close_deltas(q0, linear_draws(covs[k], args.direct, seed + 2),
-                                          grasp.object, robot=grasp.robot)
-                k += 1
-                cases.append(judged({
-                    "robot": grasp.robot, "object": grasp.object, "grasp": grasp.id,
-                    "psi": psi, "sigma": sigma, "reweighted": est.value,
-                    "reweighted_se": est.se, "ess": est.ess, "direct": direct.p_fc,
-                    "linear": float(np.mean(outcome == FORCE_CLOSURE))}, args.direct))
-            print(f"  {grasp.object} grasp {grasp.id} sigma {sigma:g}: "
-                  f"{sum(c['agrees'] for c in cases[-len(angles):])}/{len(angles)} agree",
-                  file=sys.stderr)
-    return cases
+
+        def direct(psi, q, sigma) -> float:
+            return evaluate_robot_grasp(dataclasses.replace(grasp, q0=q), sigma=sigma,
+                                        n=args.direct, seed=seed + 1, engine=engine).p_fc
+
+        def linear(q, cov) -> np.ndarray:  # closed where the batch is: the grasp's own q
+            return close_deltas(q0, linear_draws(cov, args.direct, seed + 2), grasp.object,
+                                robot=grasp.robot)[0]
+
+        return judged_cases({"robot": grasp.robot, "object": grasp.object, "grasp": grasp.id},
+                            angles, covs, batch, direct, linear, args)
 
 
 def markdown(result: dict) -> str:
