@@ -236,6 +236,15 @@ def default_pose() -> np.ndarray:
     return pose
 
 
+def _imported_folder_of(name: str) -> Path:
+    """The catalog folder of imported object ``name``; ValueError (the message lists the
+    known names) where there is none."""
+    folder = imported_folder(name)
+    if folder is None:
+        raise unknown_object(name)
+    return folder
+
+
 def load_object(name: str) -> GraspObject:
     """Load a built-in or imported object by name.
 
@@ -245,9 +254,7 @@ def load_object(name: str) -> GraspObject:
     """
     if name in OBJECT_NAMES:
         return builtin_object(name)
-    folder = imported_folder(name)
-    if folder is None:
-        raise unknown_object(name)
+    folder = _imported_folder_of(name)
     entry = read_entry(folder)  # an unreadable or newer entry: its one-line error
     if entry.get("base") is not None:
         return placed_object(str(folder), entry_digest(folder))
@@ -266,9 +273,7 @@ def source_to_object(name: str) -> np.ndarray | None:
     """
     if name in OBJECT_NAMES:
         return None
-    folder = imported_folder(name)
-    if folder is None:
-        raise unknown_object(name)
+    folder = _imported_folder_of(name)
     entry = read_entry(folder)
     if entry.get("base") is not None:
         return source_to_object(entry["base"])
@@ -296,9 +301,7 @@ def object_version(name: str) -> str:
     """
     if name in OBJECT_NAMES:
         return BUILTIN_VERSION
-    folder = imported_folder(name)
-    if folder is None:
-        raise unknown_object(name)
+    folder = _imported_folder_of(name)
     return entry_digest(folder)
 
 
