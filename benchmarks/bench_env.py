@@ -79,6 +79,17 @@ def timed_steps(env, steps: int, options: dict | None = None) -> tuple[float, fl
     return time.perf_counter() - start, time.process_time() - cpu
 
 
+def steps_row(prefix: str, engine: str, n_draws: int, steps: int, wall: float, cpu: float,
+              target_draws: int) -> dict:
+    """Print one timed run (after ``prefix``) and return its row: steps/s of wall and CPU
+    time, seconds a step."""
+    print(f"{prefix}{engine:8s} n_draws = {n_draws:3d}: {steps / wall:6.1f} steps/s "
+          f"({wall / steps * 1e3:6.1f} ms/step; {steps / cpu:6.1f} steps/s of CPU time; "
+          f"target >= 100 steps/s at {target_draws}, fast)")
+    return {"engine": engine, "n_draws": n_draws, "steps": steps, "steps_per_s": steps / wall,
+            "s_per_step": wall / steps, "steps_per_cpu_s": steps / cpu}
+
+
 def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
     """Steps/s of KineGrasp-v0 with ``robot`` (not the default robot): both engines at 16
     and 64 draws over the env's drawn tasks, then the fast engine at 16 draws per object."""
@@ -101,12 +112,8 @@ def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
         env = warmed(engine, n_draws)
         wall, cpu = timed_steps(env, steps)
         env.close()
-        print(f"{robot:8s} {engine:8s} n_draws = {n_draws:3d}: {steps / wall:6.1f} steps/s "
-              f"({wall / steps * 1e3:6.1f} ms/step; {steps / cpu:6.1f} steps/s of CPU time; "
-              f"target >= 100 steps/s at 16, fast)")
-        steps_rows.append({"robot": robot, "engine": engine, "n_draws": n_draws,
-                           "steps": steps, "steps_per_s": steps / wall,
-                           "s_per_step": wall / steps, "steps_per_cpu_s": steps / cpu})
+        steps_rows.append({"robot": robot, **steps_row(f"{robot:8s} ", engine, n_draws, steps,
+                                                       wall, cpu, target_draws=16)})
     env = warmed("fast", 16)
     for name in objects:
         options = {"object": name}
@@ -136,12 +143,7 @@ def default_robot(steps: int) -> dict:
         env.step(env.action_space.sample())  # warm-up (engine construction)
         wall, cpu = timed_steps(env, steps)
         env.close()
-        print(f"{engine:8s} n_draws = {n_draws:3d}: {steps / wall:6.1f} steps/s "
-              f"({wall / steps * 1e3:6.1f} ms/step; {steps / cpu:6.1f} steps/s of CPU "
-              f"time; target >= 100 steps/s at 64, fast)")
-        steps_rows.append({"engine": engine, "n_draws": n_draws, "steps": steps,
-                           "steps_per_s": steps / wall, "s_per_step": wall / steps,
-                           "steps_per_cpu_s": steps / cpu})
+        steps_rows.append(steps_row("", engine, n_draws, steps, wall, cpu, target_draws=64))
 
     object_rows = per_object(OBJECT_NAMES, steps)
 
