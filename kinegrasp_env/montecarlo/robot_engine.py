@@ -8,7 +8,7 @@ quality measure, input check); the engines close
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -63,6 +63,10 @@ class RobotDraws:
                    np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
                    np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8),
                    np.zeros((n, len(GRAVITY_PHASES)), bool), np.full(n, np.nan))
+
+    def take(self, rows) -> RobotDraws:
+        """The draws of ``rows`` (an index array or a slice), in that order."""
+        return RobotDraws(*(getattr(self, f.name)[rows] for f in fields(self)))
 
     @property
     def holds(self) -> np.ndarray:

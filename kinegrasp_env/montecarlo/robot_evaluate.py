@@ -112,6 +112,17 @@ def nominal_robot_quality(grasp: Grasp, engine: RobotEngine) -> float:
     return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0
 
 
+def with_nominal_row(q: np.ndarray, q0: np.ndarray, errors: dict[str, np.ndarray],
+                     friction: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Configurations q (n, dof) and their per-draw errors (an engine's ``run`` keywords) with
+    the nominal configuration q0 (dof,) appended as row n, its errors exact (identity palm
+    and object errors, the engine's ``friction``)."""
+    exact = {"palm": np.eye(4), "object_offset": np.eye(4), "friction": float(friction)}
+    return (np.vstack([q, q0[None]]),
+            {key: np.concatenate([value, np.asarray(exact[key])[None]])
+             for key, value in errors.items()})
+
+
 def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
                          n: int, seed: SeedLike = 0, noise: str = "gaussian") -> np.ndarray:
     """(n, dof) the draws :func:`evaluate_robot_grasp` evaluates: the grasp's q0 with joint
@@ -203,8 +214,13 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                                    engine.description.arm_dof, int(seed), 0, n,
                                    engine.obj.center_of_mass)
         check = engine.hold_check
-        stats = summarize(engine.run(q, **errors), None if check is None else check.mass)
-        return replace(stats, q_nominal=nominal_robot_quality(grasp, engine))
+        # the nominal closing rides with the draws, as row n, in the same engine call
+        rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
+        draws = engine.run(rows, **errors)
+        nominal = draws.take(slice(n, n + 1))
+        stats = summarize(draws.take(slice(0, n)), None if check is None else check.mass)
+        return replace(stats, q_nominal=float(nominal.quality[0])
+                       if nominal.outcome[0] == FORCE_CLOSURE else 0.0)
     finally:
         if own:
             engine.close()
