@@ -67,6 +67,7 @@ from thin_objects import THIN_OBJECTS, import_thin_objects
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
@@ -74,7 +75,6 @@ from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, 
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
-from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import OBJECT_NAMES
 

@@ -27,12 +27,12 @@ import time
 import numpy as np
 from results_file import add_options, settings, write_result
 
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
-from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 
 FULL = HoldProtocol()

@@ -48,10 +48,16 @@ def test_default_draws_and_engine_for_the_panda(extra, engine):
     env.close()
 
 
-def test_a_noise_model_is_refused_for_the_panda():
-    with pytest.raises(ValueError, match="robot 'panda' takes joint noise") as err:
-        gym.make("KineGrasp-v0", robot="panda", noise_model={"joints": {"sigma": 0.01}})
-    assert "\n" not in str(err.value) and "noise_model={'joints'" in str(err.value)
+def test_a_noise_model_the_robot_cannot_take_is_refused_in_one_line():
+    """The SDH's hand source, and palm errors beside the holding test's score."""
+    for kwargs, message in (
+            ({"noise_model": {"joints": {"sigma": 0.01}, "hand": {"spread_sigma": 0.01}}},
+             "the hand source"),
+            ({"noise_model": {"palm": {"translation_sigma": 0.001}}, "score": "hold"},
+             "takes joint noise only")):
+        with pytest.raises(ValueError, match=message) as err:
+            gym.make("KineGrasp-v0", robot="panda", **kwargs)
+        assert "\n" not in str(err.value)
 
 
 #: constructor arguments of the Panda's env that are wrong, and what the error says
@@ -96,7 +102,9 @@ BAD_OPTIONS = [
     ({"sigma": -1}, "sigma must be finite .*, got -1"),
     ({"noise": "gauss"}, "unknown noise type 'gauss'"),
     ({"psi": "a"}, "psi must be a finite elbow angle in radians, got 'a'"),
-    ({"noise_model": {"joints": {"sigma": 0.01}}}, "robot 'panda' takes joint noise"),
+    ({"noise_model": {"joints": {"sigma": 0.01}}, "sigma": 0.01},
+     "give the reset option noise_model or sigma/noise, not both"),
+    ({"noise_model": {"hand": {"spread_sigma": 0.01}}}, "the hand source"),
     ({"bogus": 1}, r"unknown reset options \['bogus'\]"),
     ([1], r"reset options must be a dict or None, got \[1\]"),
 ]
@@ -287,6 +295,111 @@ def test_reward_equals_the_robot_evaluation(engine):
     assert reward == evaluation.p_fc == info["p_fc"]
     assert info["outcomes"] == evaluation.counts
     env.close()
+
+
+def _stepped(env, options: dict) -> dict:
+    """The info of one step of ``env`` from ``options``' task."""
+    env.reset(seed=1, options=options)
+    return env.step(np.array([0.5, -1.0], dtype=np.float32))[4]
+
+
+def test_a_noise_model_reward_equals_the_robot_evaluation_of_the_model():
+    """Plumbing: a noise model's reward is evaluate_robot_grasp of the same model at the
+    env's configuration and draw seed (a palm source whose rows were dropped, or drawn from
+    another stream, fails it); a joints-only model draws what its sigma draws."""
+    model = {"joints": {"sigma": 0.02}, "palm": {"translation_sigma": 0.003}}
+    env = gym.make("KineGrasp-v0", robot="panda", n_draws=12, noise_model=model).unwrapped
+    info = _stepped(env, {"object": "spray_flask", "grasp": 1})
+    here = dataclasses.replace(env.grasp, q0=env.q.copy())
+    evaluation = evaluate_robot_grasp(here, sigma=0.0, n=12, seed=info["draw_seed"],
+                                      engine=env.engine, noise_model=env.noise)
+    joints_only = evaluate_robot_grasp(here, sigma=0.02, n=12, seed=info["draw_seed"],
+                                       engine=env.engine)
+    assert info["noise_model"]["palm"]["translation_sigma"] == 0.003
+    assert info["p_fc"] == evaluation.p_fc and info["outcomes"] == evaluation.counts
+    assert info["outcomes"] != joints_only.counts  # the palm's errors changed some draws
+    env.close()
+    plain = gym.make("KineGrasp-v0", robot="panda", n_draws=12,
+                     noise_model={"joints": {"sigma": 0.02}}).unwrapped
+    assert _stepped(plain, {"object": "spray_flask", "grasp": 1})["outcomes"] == \
+        joints_only.counts
+    plain.close()
+
+
+@pytest.mark.parametrize("obj", ["cube", "drill"])
+def test_the_static_hold_score_is_the_evaluations_p_hold(obj):
+    """Plumbing: with ``score="hold_static"`` the reward is the static hold check's P(hold)
+    of evaluate_robot_grasp at the env's configuration and draw seed, and says so: on the
+    cube (0.11 kg) a fraction strictly between 0 and 1, on the drill (0.74 kg, more than
+    the Panda's fingers carry) 0 where P(FC) is not (a reward of P(FC) fails one, of 0
+    the other)."""
+    env = gym.make("KineGrasp-v0", robot="panda", n_draws=12, score="hold_static").unwrapped
+    env.reset(seed=1, options={"object": obj, "grasp": 1, "sigma": 0.01})
+    _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
+    here = dataclasses.replace(env.grasp, q0=env.q.copy())
+    evaluation = evaluate_robot_grasp(here, sigma=0.01, n=12, seed=info["draw_seed"],
+                                      engine=env.engine, static_hold=True)
+    assert reward == info["reward_score"] == info["p_hold"] == evaluation.p_hold_static
+    assert info["score"] == "hold_static" and info["p_fc"] == evaluation.p_fc
+    if obj == "cube":
+        assert 0 < reward < 1
+    else:
+        assert reward == 0 < info["p_fc"]
+    env.close()
+
+
+def test_the_hold_score_runs_the_quick_holding_test_on_the_draws():
+    """Plumbing: with ``score="hold"`` the reward is the fraction of the step's draws (the
+    configurations evaluate_robot_grasp draws for its seed) that the quick holding test
+    holds, run here on those configurations: strictly between 0 and P(FC) on this cube
+    grasp (a reward of P(FC), or of 0, fails it)."""
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
+    from kinegrasp_env.physics.protocol import HELD
+
+    env = gym.make("KineGrasp-v0", robot="panda", n_draws=6, score="hold").unwrapped
+    env.reset(seed=1, options={"object": "cube", "grasp": 0, "sigma": 0.003})
+    _, reward, _, _, info = env.step(np.array([0.0, -1.0], dtype=np.float32))
+    here = dataclasses.replace(env.grasp, q0=env.q.copy())
+    with quick_hold_engine("panda", "cube") as engine:
+        q = robot_configurations(here, engine, sigma=0.003, n=6, seed=info["draw_seed"])
+        held = float(np.mean(engine.run_hold(q)[1].outcome == HELD))
+    assert reward == info["p_hold"] == held and info["score"] == "hold"
+    assert 0 < reward < info["p_fc"]
+    env.close()
+
+
+def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
+    """A 7-joint description robot's batch reward: at the states of a rollout, within four
+    combined standard errors plus the linearisation's bias of 2,000 direct draws of the
+    same configuration and noise (the re-weighted elbow's calibration on the Panda,
+    ``benchmarks/bench_reweight_robot.py``: bias at most 0.012)."""
+    env = gym.make("KineGrasp-v0", robot="panda", reward="batch", batch_size=1024).unwrapped
+    env.reset(seed=3, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
+    checked = 0
+    for action in (0.7, -0.4, 1.0):
+        _, _, _, _, info = env.step(np.array([action, -1.0], dtype=np.float32))
+        if info["reward_method"] != "batch":
+            continue
+        here = dataclasses.replace(env.grasp, q0=env.q.copy())
+        direct = evaluate_robot_grasp(here, sigma=0.02, n=2000, seed=9, engine="fast").p_fc
+        lo, hi = info["p_fc_ci"]
+        se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct * (1 - direct) / 2000))
+        assert abs(info["p_fc"] - direct) <= 4 * se + 0.012, (info, direct)
+        checked += 1
+    assert checked >= 2
+    env.close()
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"score": "held"}, "score must be one of pfc, hold_static, hold, got 'held'"),
+    ({"score": "hold", "robot": "kuka_sdh"}, "score 'hold' is for robots other than"),
+    ({"score": "hold_static", "reward": "batch"}, "reward 'batch' re-weights P"),
+])
+def test_a_bad_score_is_a_one_line_error_naming_it(kwargs, message):
+    with pytest.raises(ValueError, match=message) as err:
+        gym.make("KineGrasp-v0", **{"robot": "panda", **kwargs})
+    assert "\n" not in str(err.value)
 
 
 def test_select_env_takes_the_robot_too():

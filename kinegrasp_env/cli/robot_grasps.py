@@ -45,20 +45,10 @@ def refuse_hold_scores(args, robot: str) -> None:
                        f"{robot}")
 
 
-def quick_hold_engine(robot: str, object_name: str, friction: float = 0.5):
-    """The quick holding test of ``robot`` on a catalog object, in pybullet
-    (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), friction mu ``friction``."""
-    from kinegrasp_env.physics.protocol import QUICK_PROTOCOL
-    from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
-    from kinegrasp_env.toolkit.robot_validation import RobotHoldEngine
-
-    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
-                           friction=friction)
-
-
 def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
                        friction: float = 0.5) -> int:
     """How many of ``evaluate``'s draws of a grasp the quick holding test holds."""
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
     from kinegrasp_env.physics.protocol import HELD
 

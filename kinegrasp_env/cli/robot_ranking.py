@@ -11,7 +11,8 @@ import dataclasses
 import sys
 
 from kinegrasp_env.cli.common import CLIError, reported
-from kinegrasp_env.cli.robot_grasps import _check_engine, quick_hold_engine
+from kinegrasp_env.cli.robot_grasps import _check_engine
+from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
 
 
 def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:

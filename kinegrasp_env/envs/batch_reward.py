@@ -1,8 +1,10 @@
 """The environment's reward from one batch of closings per grasp (``reward="batch"``).
 
-Every step keeps the palm pose of the episode's grasp and moves only the elbow; for the
-default robot a draw's outcome then depends only on the palm's deviation
-(:mod:`kinegrasp_env.montecarlo.palm_batch`), and the noise level only changes its spread.
+Every step keeps the palm pose of the episode's grasp and moves only the elbow; a draw's
+outcome then depends only on the palm's deviation (:mod:`kinegrasp_env.montecarlo.
+palm_batch`; the batch moves the hand alone, the arm links staying where the grasp's own
+configuration puts them), and the noise level only changes its spread. Every robot of the
+env: the default one, or a description robot (its 7-joint self-motion, its engines).
 The first episode of a grasp draws one batch of closings from a mixture of the deviation's
 first-order Gaussians at the grasp's elbow and at angles around it (every
 :data:`SPAN_STEP` radians within :data:`SPAN`, where reachable), each at
@@ -49,17 +51,18 @@ class BatchReward:
     @classmethod
     def build(cls, engine: str, object_name: str, q0: np.ndarray, moved: list[np.ndarray],
               sigmas: list[float], size: int, seed: int,
-              jacobian: PalmJacobian) -> BatchReward:
-        """The batch of ``size`` closings of a grasp reached at q0 (14,): its mixture over
-        q0 and the configurations ``moved`` (each (14,): the same palm pose), each at every
-        noise level of ``sigmas`` (radians)."""
+              jacobian: PalmJacobian, robot: str | None = None) -> BatchReward:
+        """The batch of ``size`` closings of a grasp reached at q0 (dof,): its mixture over
+        q0 and the configurations ``moved`` (each (dof,): the same palm pose), each at every
+        noise level of ``sigmas`` (radians); ``robot``: a description robot's engines (None:
+        the default robot's)."""
         qs = np.stack([q0, *moved])
         covs = np.concatenate([jacobian.covariance(qs, s) for s in sigmas])
-        batch = close_batch(q0, object_name, covs, size, seed, engine=engine)
+        batch = close_batch(q0, object_name, covs, size, seed, engine=engine, robot=robot)
         return cls(batch, jacobian)
 
     def estimate(self, q: np.ndarray, sigma: float, minimum: int) -> dict | None:
-        """The reward's estimate at configuration q (14,) and Gaussian joint noise ``sigma``
+        """The reward's estimate at configuration q (dof,) and Gaussian joint noise ``sigma``
         (radians) (the keys of the draws' estimate), or None where the effective sample size
         is below ``minimum``."""
         est = self.batch.estimate(self.jacobian.covariance(q, sigma)[0])
@@ -70,7 +73,7 @@ class BatchReward:
                 "draws": len(self.batch), "effective_draws": est.ess,
                 "outcome_shares": {name: float(v) for name, v in
                                    zip(OUTCOMES, est.outcome_shares, strict=True)},
-                "reward_method": "batch"}
+                "score_value": est.p_fc.value, "reward_method": "batch"}
 
 
 def covered_angles(psi0: float) -> list[float]:

@@ -59,8 +59,11 @@ Robots: ``robot`` (default ``kuka_sdh``, the paper's robot and everything above)
 robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion, its
 engine's draws (``engine``, fast by default; 16 draws by default), an observation sized by
 its arm and hand, and pictures of its whole URDF with the object
-(:mod:`kinegrasp_env.envs.robot_task`). For such a robot the tasks are the env's grasps (no
-``q0``/``palm_pose`` reset options) and the noise is joint noise (no ``noise_model``).
+(:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
+default robot's hand; ``reward="batch"``; and a reward that scores
+holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
+P(FC)). For such a robot the tasks are the env's grasps (no ``q0``/``palm_pose`` reset
+options).
 
 Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
@@ -83,6 +86,7 @@ from kinegrasp_env.envs.batch_reward import (
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.robot_task import (
     ROBOT_N_DRAWS,
+    SCORES,
     RobotTask,
     check_grasps_robot,
     robot_tasks,
@@ -250,11 +254,11 @@ class KineGraspEnv(gym.Env):
             batches the reference closing); on the Panda's env rewards of 16 draws, the
             engines' P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
             ``tests/test_env_robot.py``).
-        reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (the
-            default robot with Gaussian joint noise: one batch of ``batch_size`` closings
-            per grasp, kept across episodes, re-weighted to each step's configuration and
-            sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise, or a step whose
-            effective sample size is below ``n_draws``, takes draws;
+        reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (any
+            robot, with Gaussian joint noise: one batch of ``batch_size``
+            closings per grasp, kept across episodes, re-weighted to each step's
+            configuration and sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise,
+            or a step whose effective sample size is below ``n_draws``, takes draws;
             ``info["reward_method"]`` says which).
         batch_size: the closings of a ``batch`` reward's grasp batch (an integer >= 1).
         noise_model: every task's noise instead of the drawn joint noise: a
@@ -262,6 +266,11 @@ class KineGraspEnv(gym.Env):
             file (YAML/JSON); the observation shows its joint sigma and distribution.
         robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
             listing the known ones. Another robot: see the module docstring.
+        score: what the reward scores: ``pfc`` (P(force closure)); for a robot other than
+            the default also ``hold_static`` (the static hold check's P(hold)) or ``hold``
+            (the quick holding test's, in pybullet: slow, joint noise only)
+            (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
+            ``info["p_hold"]`` holds a hold score's estimate.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -274,7 +283,7 @@ class KineGraspEnv(gym.Env):
                  split: str | None = None, engine: str | None = None,
                  noise_model: NoiseModel | dict | str | None = None,
                  robot: str = DEFAULT_ROBOT, reward: str = "draws",
-                 batch_size: int = 4096) -> None:
+                 batch_size: int = 4096, score: str = "pfc") -> None:
         super().__init__()
         self.robot = check_robot_name(robot)
         own = robot == DEFAULT_ROBOT
@@ -282,17 +291,20 @@ class KineGraspEnv(gym.Env):
             n_draws = 64 if own else ROBOT_N_DRAWS
         if engine is None:
             engine = "fast"
-        if not own and noise_model is not None:
-            raise ValueError(f"robot {robot!r} takes joint noise (sigma_range, noise_types), "
-                             f"not a noise_model; got noise_model={noise_model!r}")
+        if score not in SCORES:
+            raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
+        if own and score != "pfc":
+            raise ValueError(f"score {score!r} is for robots other than {DEFAULT_ROBOT!r} "
+                             f"(e.g. robot='panda'), whose engines check holding; "
+                             f"{DEFAULT_ROBOT!r} scores 'pfc'")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of "
                              f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
         if reward not in ("draws", "batch"):
             raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
-        if reward == "batch" and not own:
-            raise ValueError(f"reward 'batch' is for robot {DEFAULT_ROBOT!r}; robot {robot!r} "
-                             f"takes 'draws'")
+        if reward == "batch" and score != "pfc":
+            raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
+                             "reward 'draws'")
         batch_size = positive_count("batch_size", batch_size)
         n_draws = positive_count("n_draws", n_draws)
         max_steps = positive_count("max_steps", max_steps)
@@ -334,7 +346,8 @@ class KineGraspEnv(gym.Env):
         self.step_size = float(step_size)
         self.render_mode = render_mode
         self._window = render_mode == "human" and human_window_available()
-        self._robot = None if own else RobotTask(robot, engine)
+        self._robot = None if own else RobotTask(robot, engine, score)
+        self.score = score
         size = OBS_SIZE if own else self._robot.obs_size
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
         self.action_space = self._action_space()
@@ -342,8 +355,11 @@ class KineGraspEnv(gym.Env):
         self.reward_method, self.batch_size = reward, int(batch_size)
         self._batch: BatchReward | None = None
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
-        self._jacobian = PalmJacobian() if reward == "batch" else None
+        self._jacobian = (None if reward != "batch" else PalmJacobian() if own
+                          else PalmJacobian(self._robot.description))
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
+        if self._robot is not None and self.noise_model is not None:
+            self._robot.check_noise(self.noise_model)
         self._engines: dict[tuple, Engine] = {}
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
         self._ik: ArmIK | None = None
@@ -437,13 +453,13 @@ class KineGraspEnv(gym.Env):
         ``sigma`` and ``noise`` options (drawn from the env's ranges where not given)."""
         rng = self.np_random
         model = options.get("noise_model", self.noise_model)
-        if model is not None and self._robot is not None:
-            raise ValueError(f"robot {self.robot!r} takes joint noise (sigma, noise), not a "
-                             "noise_model")
         if model is not None:
             if options.get("sigma") is not None or options.get("noise") is not None:
                 raise ValueError("give the reset option noise_model or sigma/noise, not both")
-            return noise_model_from(model)
+            model = noise_model_from(model)
+            if self._robot is not None:
+                self._robot.check_noise(model)
+            return model
         sigma = options.get("sigma")
         if sigma is None:
             sigma = float(rng.uniform(*self.sigma_range))
@@ -488,7 +504,8 @@ class KineGraspEnv(gym.Env):
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
         if self._robot is not None:
-            return self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws)
+            return {**self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
+                    "reward_method": "draws"}
         draws = draw_chunk(self._engine(self.grasp.object), self.q, self.noise, seed, 0,
                            self.n_draws)
         fc = draws.outcome == FORCE_CLOSURE
@@ -497,7 +514,7 @@ class KineGraspEnv(gym.Env):
         return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
                 "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-                "reward_method": "draws"}
+                "score_value": float(fc.mean()), "reward_method": "draws"}
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
@@ -509,13 +526,24 @@ class KineGraspEnv(gym.Env):
         key = (grasp.object, str(grasp.id), tuple(np.round(grasp.palm_pose, 9).ravel()))
         if key not in self._batches:
             q0 = np.asarray(grasp.q0, dtype=float)
-            psis = np.array(covered_angles(float(self.ik.elbow_angle(q0[None])[0])))
-            moved, reached = self.ik.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
             self._batches[key] = BatchReward.build(
-                self.engine, grasp.object, q0, list(moved[reached]),
+                self.engine, grasp.object, q0, self._covered_configurations(q0),
                 sigma_levels(*self.sigma_range), self.batch_size, grasp_seed(key),
-                self._jacobian)
+                self._jacobian, robot=None if self._robot is None else self.robot)
         return self._batches[key]
+
+    def _covered_configurations(self, q0: np.ndarray) -> list[np.ndarray]:
+        """The configurations (each (dof,): q0's palm pose) at the elbow angles a grasp's
+        batch covers besides q0's (:func:`~kinegrasp_env.envs.batch_reward.covered_angles`),
+        where reachable."""
+        if self._robot is not None:
+            motion = self._robot.motion
+            psis = covered_angles(float(motion.elbow_angle(q0[None])[0]))
+            moved = [motion.set_elbow_angle(q0, psi) for psi in psis]
+            return [q for q, reached in moved if reached]
+        psis = np.array(covered_angles(float(self.ik.elbow_angle(q0[None])[0])))
+        moved, reached = self.ik.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
+        return list(moved[reached])
 
     def _move_to(self, psi: float) -> bool:
         self.q, reached = self.configuration_at(psi)
@@ -524,8 +552,9 @@ class KineGraspEnv(gym.Env):
     def _reward(self, within_limits: bool) -> tuple[float, dict]:
         info = self._estimate()
         penalty = 0.0 if within_limits else self.limit_penalty
-        reward = info["p_fc"] + self.q_weight * info["q_mean"] - penalty
-        info.update({"reward_p_fc": info["p_fc"], "reward_q": self.q_weight * info["q_mean"],
+        reward = info["score_value"] + self.q_weight * info["q_mean"] - penalty
+        info.update({"score": self.score, "reward_score": info.pop("score_value"),
+                     "reward_q": self.q_weight * info["q_mean"],
                      "reward_limit_penalty": -penalty, "within_limits": within_limits,
                      "elbow_angle": self._psi,
                      "object": self.grasp.object, "grasp": self.grasp.id,

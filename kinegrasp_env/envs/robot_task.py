@@ -14,7 +14,15 @@ Everything robot-specific is derived from the robot's description
   batched over the draws), ``pybullet``
   (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`: pybullet closest
   points on the URDF's collision geometry) or ``physics``; the robot's contact model, joint
-  noise on the arm joints, the hand at its pre-shape;
+  noise on the arm joints (or a noise model's draws of every source it has:
+  :mod:`~kinegrasp_env.montecarlo.robot_noise`, the rows ``kinegrasp evaluate --robot
+  --noise-spec`` draws with the same seed), the hand at its pre-shape;
+- **score** (:data:`SCORES`, the names of ``kinegrasp rank --criterion``): ``pfc`` (the
+  draws' P(force closure)), ``hold_static`` (the fraction the static hold check holds:
+  :mod:`~kinegrasp_env.montecarlo.hold_check`) or ``hold`` (the fraction the quick holding
+  test holds in pybullet: :func:`~kinegrasp_env.montecarlo.hold_engine.quick_hold_engine`,
+  whose physics closings also give the step's P(FC); joint noise only, and about a tenth of
+  a second a draw, where the kinematic engines take microseconds to milliseconds);
 - **observation**: the default robot's layout (:mod:`kinegrasp_env.envs.kinegrasp`) with
   the arm's and the hand's sizes: ``2 * arm_dof + hand_dof + 23`` entries (44 for the
   default robot, 38 for the Panda);
@@ -28,11 +36,13 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
+from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import elbow_angle
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
@@ -40,6 +50,9 @@ from kinegrasp_env.world.objects import load_object
 #: Reward draws per step for a description robot (what they cost per step with each
 #: engine: see :class:`RobotTask`).
 ROBOT_N_DRAWS = 16
+#: What a description robot's reward scores (module docstring): the criteria of
+#: ``kinegrasp rank`` that a step's draws give.
+SCORES = ("pfc", "hold_static", "hold")
 #: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
 #: orientation, psi's sin and cos, palm spread, nominal Q, episode fraction.
 OBS_EXTRA = 23
@@ -86,17 +99,20 @@ class RobotTask:
         robot: a catalog robot other than the default.
         engine: the reward draws' engine by name: ``fast``, ``pybullet`` or ``physics``
             (:data:`~kinegrasp_env.montecarlo.robot_evaluate.ENGINES`).
+        score: what the reward scores (:data:`SCORES`).
 
     Raises:
-        ValueError: an unknown engine (one line naming it and the known ones).
+        ValueError: an unknown engine or score (one line naming it and the known ones).
     """
 
-    def __init__(self, robot: str, engine: str = "fast") -> None:
+    def __init__(self, robot: str, engine: str = "fast", score: str = "pfc") -> None:
         if robot == DEFAULT_ROBOT:
             raise ValueError("the default robot is the env's own path")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-        self.engine_name = engine
+        if score not in SCORES:
+            raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
+        self.engine_name, self.score = engine, score
         self.description: RobotDescription = load_robot(robot)
         self.motion = ArmSelfMotion(self.description)
         self.kin = self.motion.kin
@@ -108,10 +124,17 @@ class RobotTask:
 
     def engine(self, object_name: str) -> RobotEngine:
         """The engine of ``object_name`` (built on first use and kept: a pybullet world, or
-        the fast engine's distance grid and compiled kernels)."""
+        the fast engine's distance grid and compiled kernels); for the ``hold`` score the
+        quick holding test's."""
         if object_name not in self._engines:
-            self._engines[object_name] = make_engine(self.engine_name, self.description,
-                                                     object_name)
+            if self.score == "hold":
+                from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+
+                engine = quick_hold_engine(self.description, object_name)
+            else:
+                engine = make_engine(self.engine_name, self.description, object_name,
+                                     static_hold=self.score == "hold_static")
+            self._engines[object_name] = engine
         return self._engines[object_name]
 
     def close(self) -> None:
@@ -119,7 +142,21 @@ class RobotTask:
             engine.close()
         self._engines.clear()
 
-    def sigma(self, noise: JointNoise) -> float:
+    def check_noise(self, noise: JointNoise | NoiseModel) -> None:
+        """ValueError (one line) for a noise model this robot's draws or score cannot take
+        (:func:`~kinegrasp_env.montecarlo.robot_noise.check_robot_noise`; the ``hold`` score
+        draws joint noise alone)."""
+        if not isinstance(noise, NoiseModel):
+            return
+        check_robot_noise(noise, self.description.name, self.arm, self.engine_name,
+                          static_hold=self.score == "hold_static")
+        other = [s for s in ("palm", "object", "friction") if getattr(noise, s) is not None]
+        if other and self.score == "hold":
+            raise ValueError(f"score 'hold' (the quick holding test) takes joint noise only, "
+                             f"not {', '.join(other)} errors (score 'pfc' or 'hold_static' "
+                             "takes them)")
+
+    def sigma(self, noise: JointNoise | NoiseModel) -> float:
         """The joint sigma an observation shows (radians): the largest over the arm joints."""
         return float(noise.sigma_vector(self.arm).max())
 
@@ -152,19 +189,46 @@ class RobotTask:
             [10.0 * grasp.q_nominal], [fraction]])
         return obs, psi
 
-    def estimate(self, grasp: Grasp, q: np.ndarray, noise: JointNoise, seed: int,
-                 n_draws: int) -> dict:
-        """``n_draws`` draws of the task's engine at q (dof,): arm joints q + eps (eps from
-        ``noise`` seeded by ``seed``: the same eps for every engine), hand at q's pre-shape;
-        the reward's statistics (P(FC), its Wilson interval, mean Q over the force-closure
-        draws, outcome counts)."""
+    def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
+                  seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """(configurations (n_draws, dof), per-draw errors as an engine's ``run`` takes
+        them): q (dof,) with the arm joints' errors of ``noise`` seeded by ``seed`` (the same
+        rows for every engine), the hand at q's pre-shape; a noise model's other sources
+        (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`)."""
+        if isinstance(noise, NoiseModel):
+            return model_rows(noise, q, self.arm, seed, 0, n_draws,
+                              load_object(grasp.object).center_of_mass)
         eps = noise.sample(n_draws, self.arm, np.random.default_rng(seed))
         batch = np.repeat(np.asarray(q, float)[None], n_draws, axis=0)
         batch[:, :self.arm] += eps
-        draws = self.engine(grasp.object).run(batch)
+        return batch, {}
+
+    def estimate(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
+                 seed: int, n_draws: int) -> dict:
+        """``n_draws`` draws of the task's engine at q (dof,) (:meth:`draw_rows`); the
+        reward's statistics: P(FC), its Wilson interval, mean Q over the force-closure
+        draws, outcome counts, and for a hold score ``p_hold`` and its interval;
+        ``score_value``: the score's estimate."""
+        rows, errors = self.draw_rows(grasp, q, noise, seed, n_draws)
+        engine = self.engine(grasp.object)
+        held = None
+        if self.score == "hold":
+            from kinegrasp_env.physics.protocol import HELD
+
+            draws, hold = engine.run_hold(rows)
+            held = hold.outcome == HELD
+        else:
+            draws = engine.run(rows, **errors)
+            if self.score == "hold_static":
+                held = draws.holds
         fc = draws.outcome == FORCE_CLOSURE
         counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
         q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
-        return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
-                "q_mean": q_mean, "draws": n_draws, "draw_seed": seed,
-                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+                 "q_mean": q_mean, "draws": n_draws, "draw_seed": seed,
+                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+        if held is not None:
+            stats.update(p_hold=float(held.mean()),
+                         p_hold_ci=wilson_interval(int(held.sum()), held.size))
+        stats["score_value"] = stats["p_fc" if held is None else "p_hold"]
+        return stats

@@ -18,56 +18,17 @@ import hashlib
 from dataclasses import fields
 from pathlib import Path
 
-import numpy as np
-
-from kinegrasp_env.closing.close_batch import RobotCloseBatch
-from kinegrasp_env.montecarlo.physics_engine import HoldBatch
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
-from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
+from kinegrasp_env.physics.robot_hold import RobotMotorSettings
 from kinegrasp_env.physics.robot_world import motor_efforts
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
 from kinegrasp_env.world.grasps import Grasp
-
-
-class RobotHoldEngine(RobotEngine):
-    """The holding test of a description robot as an engine: the physics closing's outcomes
-    and Q scored as every engine of the robot scores (:meth:`~kinegrasp_env.montecarlo.
-    robot_engine.RobotEngine.scored`: its contact model, the patch model's corners
-    included), and the holding results (arguments: :class:`RobotEngine`;
-    ``protocol``: the holding test's settings; ``motors``: the closing's end)."""
-
-    name = "physics"
-
-    def __init__(self, robot, object_name: str, *, protocol: HoldProtocol,
-                 motors: RobotMotorSettings | None = None, **kwargs) -> None:
-        super().__init__(robot, object_name, **kwargs)
-        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol,
-                                   settings=motors)
-
-    def close(self) -> None:
-        self.simulator.close()
-
-    def run_hold(self, q: np.ndarray) -> tuple[RobotDraws, HoldBatch]:
-        """Configurations q (n, dof): (the physics closings scored, their holding tests; the
-        fingers' forces (n, fingers))."""
-        q = self.check(q)
-        n, fingers = q.shape[0], len(self.description.fingers)
-        hold = HoldBatch.empty(n)
-        hold.forces_gripped = np.full((n, fingers), np.nan)
-        hold.forces_released = np.full((n, fingers), np.nan)
-        closings = []
-        for i, row in enumerate(q):
-            closing, result = self.simulator.run_draw(row)
-            closings.append(closing)
-            if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
-                result.forces_gripped = result.forces_released = np.full(fingers, np.nan)
-            hold.record(i, result)
-        return self.scored(q, RobotCloseBatch.of_results(closings)), hold
 
 
 def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict]:

@@ -1,0 +1,59 @@
+"""The holding test of a description robot as an engine (:class:`RobotHoldEngine`): its
+physics closings scored as every engine of the robot scores them, and the holding test's
+results; :func:`quick_hold_engine` runs the quick protocol
+(:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), the one ranking and rewards use."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
+from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotHold, RobotMotorSettings
+
+__all__ = ["RobotHoldEngine", "quick_hold_engine"]
+
+
+class RobotHoldEngine(RobotEngine):
+    """The holding test of a description robot as an engine: the physics closing's outcomes
+    and Q scored as every engine of the robot scores (:meth:`~kinegrasp_env.montecarlo.
+    robot_engine.RobotEngine.scored`: its contact model, the patch model's corners
+    included), and the holding results (arguments: :class:`RobotEngine`;
+    ``protocol``: the holding test's settings; ``motors``: the closing's end)."""
+
+    name = "physics"
+
+    def __init__(self, robot, object_name: str, *, protocol: HoldProtocol,
+                 motors: RobotMotorSettings | None = None, **kwargs) -> None:
+        super().__init__(robot, object_name, **kwargs)
+        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol,
+                                   settings=motors)
+
+    def close(self) -> None:
+        self.simulator.close()
+
+    def run_hold(self, q: np.ndarray) -> tuple[RobotDraws, HoldBatch]:
+        """Configurations q (n, dof): (the physics closings scored, their holding tests; the
+        fingers' forces (n, fingers))."""
+        q = self.check(q)
+        n, fingers = q.shape[0], len(self.description.fingers)
+        hold = HoldBatch.empty(n)
+        hold.forces_gripped = np.full((n, fingers), np.nan)
+        hold.forces_released = np.full((n, fingers), np.nan)
+        closings = []
+        for i, row in enumerate(q):
+            closing, result = self.simulator.run_draw(row)
+            closings.append(closing)
+            if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
+                result.forces_gripped = result.forces_released = np.full(fingers, np.nan)
+            hold.record(i, result)
+        return self.scored(q, RobotCloseBatch.of_results(closings)), hold
+
+
+def quick_hold_engine(robot, object_name: str, friction: float = 0.5) -> RobotHoldEngine:
+    """The quick holding test of ``robot`` (a catalog name or a description) on a catalog
+    object, in pybullet, friction mu ``friction``."""
+    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
+                           friction=friction)
