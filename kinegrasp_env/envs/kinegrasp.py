@@ -13,10 +13,11 @@ point).
 
 Reset options (all optional): ``object``; the grasp as ONE of ``grasp`` (an index into the
 env's grasps of the object: the shipped set, or ``grasp_file``), ``q0`` (a nominal
-configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md) or
-``palm_pose`` (one palm-pose entry in the object frame, the schema of palm-pose candidate
-files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4 ``pose``, with ``spread`` or a
-7-value ``hand``, optional ``elbow``; solved by the planner's IK, see
+configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md; another
+robot's actuated vector) or ``palm_pose`` (one palm-pose entry in the object frame, the
+schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
+``pose``, with ``spread`` or a 7-value ``hand`` (another robot: its pre-shape as its
+description names it), optional ``elbow``; solved by the planner's IK, see
 :mod:`kinegrasp_env.robot.palm_pose`); ``sigma`` and ``noise`` (or ``noise_model``); ``psi``
 (an elbow angle to start at). ``q0`` and ``palm_pose`` need ``object``, which may then be any
 built-in or imported object (not only the env's ``objects``); the nominal contacts and Q are
@@ -62,8 +63,7 @@ its arm and hand, and pictures of its whole URDF with the object
 (:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
 default robot's hand; ``reward="batch"``; and a reward that scores
 holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
-P(FC)). For such a robot the tasks are the env's grasps (no ``q0``/``palm_pose`` reset
-options).
+P(FC)).
 
 Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
@@ -91,7 +91,12 @@ from kinegrasp_env.envs.robot_task import (
     check_grasps_robot,
     robot_tasks,
 )
-from kinegrasp_env.envs.tasks import GRASP_OPTIONS, given_grasp, grasp_option
+from kinegrasp_env.envs.tasks import (
+    GRASP_OPTIONS,
+    given_grasp,
+    given_robot_grasp,
+    grasp_option,
+)
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, draw_chunk
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
@@ -419,9 +424,8 @@ class KineGraspEnv(gym.Env):
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
         key = grasp_option(options)
         if key in ("q0", "palm_pose") and self._robot is not None:
-            raise ValueError(f"the reset option {key} is for the default robot; robot "
-                             f"{self.robot!r} takes the env's grasps (a grasp_file)")
-        if key in ("q0", "palm_pose"):
+            grasp = given_robot_grasp(options, key, self._robot)
+        elif key in ("q0", "palm_pose"):
             grasp = given_grasp(options, key, self._engine, self.ik)
         else:
             grasp = self._shipped_task(options)

@@ -118,15 +118,16 @@ class RobotTask:
         self.kin = self.motion.kin
         self.arm = self.description.arm_dof
         self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
-        self._engines: dict[str, RobotEngine] = {}
+        self._engines: dict[tuple[str, bool], RobotEngine] = {}  # (object, holding test)
         links = [*self.kin.jacobian_links(self.description.palm_link), *self.motion.angle_links]
         self.links = list(dict.fromkeys(links))
 
     def engine(self, object_name: str) -> RobotEngine:
-        """The engine of ``object_name`` (built on first use and kept: a pybullet world, or
-        the fast engine's distance grid and compiled kernels); for the ``hold`` score the
-        quick holding test's."""
-        if object_name not in self._engines:
+        """The reward's engine of ``object_name`` (built on first use and kept: a pybullet
+        world, or the fast engine's distance grid and compiled kernels); for the ``hold``
+        score the quick holding test's."""
+        key = (object_name, self.score == "hold")
+        if key not in self._engines:
             if self.score == "hold":
                 from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
 
@@ -134,8 +135,18 @@ class RobotTask:
             else:
                 engine = make_engine(self.engine_name, self.description, object_name,
                                      static_hold=self.score == "hold_static")
-            self._engines[object_name] = engine
-        return self._engines[object_name]
+            self._engines[key] = engine
+        return self._engines[key]
+
+    def closing_engine(self, object_name: str) -> RobotEngine:
+        """The kinematic engine ``engine`` names, of ``object_name`` (a task's nominal
+        closing): the reward's, unless the score is ``hold``."""
+        if self.score != "hold":
+            return self.engine(object_name)
+        key = (object_name, False)
+        if key not in self._engines:
+            self._engines[key] = make_engine(self.engine_name, self.description, object_name)
+        return self._engines[key]
 
     def close(self) -> None:
         for engine in self._engines.values():

@@ -9,6 +9,11 @@ Q = 0, whose reward may still rise with the elbow or the noise). ``start_collisi
 open hand already in the object) and ``missed`` (fewer than 2 contacts, or a finger closing
 on nothing) leave no nominal contacts and are ValueErrors naming the outcome. The arm links
 are not checked against the object (the draws do not check them either).
+
+Any robot of the env: the default one (:func:`given_grasp`: 14 entries, the SDH's palm-pose
+fields, its IK) or a description robot (:func:`given_robot_grasp`: its actuated vector, its
+pre-shape as the description names it, its IK with the planner's restarts,
+:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`, and its engine's closing).
 """
 
 from __future__ import annotations
@@ -17,12 +22,15 @@ from collections.abc import Callable
 
 import numpy as np
 
+from kinegrasp_env.envs.robot_task import RobotTask
 from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION, Engine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.model import PALM_LINK
-from kinegrasp_env.robot.palm_pose import parse_palm_pose, reach_palm_pose
-from kinegrasp_env.world.grasps import Grasp, check_configuration
+from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
+from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
+from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_configuration, robot_model
 from kinegrasp_env.world.objects import is_object, load_object, unknown_object
 
 #: The reset options that name a task's grasp; at most one of them is given.
@@ -51,34 +59,60 @@ def task_object(options: dict, key: str) -> str:
     return name
 
 
-def reset_q0(value) -> np.ndarray:
-    """(14,) a ``q0`` reset option, validated: 7 arm joints then 7 hand DOF (radians), finite,
-    within the joint limits (docs/conventions.md); ValueError names the bad entry."""
+def reset_q0(value, robot: str = DEFAULT_ROBOT) -> np.ndarray:
+    """(dof,) a ``q0`` reset option, validated: the default robot's 7 arm joints then 7 hand
+    DOF (radians, docs/conventions.md), another robot's actuated vector; finite, within the
+    joint limits; ValueError names the bad entry."""
+    dof = robot_model(robot).dof
     try:
         q0 = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"reset option q0 must be 14 numbers (radians), got {value!r}") from None
+        raise ValueError(f"reset option q0 must be {dof} numbers, got {value!r}") from None
     if q0.ndim != 1:
-        raise ValueError(f"reset option q0 must be a flat list of 14 numbers (7 arm + 7 hand), "
-                         f"got shape {list(q0.shape)}")
-    return check_configuration(q0, "reset option q0").copy()
+        raise ValueError(f"reset option q0 must be a flat list of {dof} numbers, got shape "
+                         f"{list(q0.shape)}")
+    return check_configuration(q0, "reset option q0", robot).copy()
+
+
+def palm_pose_candidate(entry, robot: RobotDescription | None = None) -> PalmCandidate:
+    """A ``palm_pose`` reset option (one palm-pose entry in the object frame:
+    :mod:`kinegrasp_env.robot.palm_pose`) of the default robot or ``robot``; ValueError for a
+    malformed entry."""
+    if not isinstance(entry, dict):
+        raise ValueError(f"reset option palm_pose must be a dict: 'position' + 'quaternion' or "
+                         f"'pose' (4x4), with the hand's pre-shape (optional 'elbow', 'id'); "
+                         f"got {type(entry).__name__}")
+    return parse_palm_pose(entry, "reset option palm_pose", default_id="palm_pose",
+                           robot=robot)
 
 
 def palm_pose_configuration(ik: ArmIK, object_name: str, entry) -> tuple[np.ndarray, dict]:
-    """(q0 (14,), meta) reaching a ``palm_pose`` reset option (one palm-pose entry in the
-    object frame: :mod:`kinegrasp_env.robot.palm_pose`) with the object at its pose, by the
-    planner's IK; ValueError for a malformed entry or an unreachable pose."""
-    where = "reset option palm_pose"
-    if not isinstance(entry, dict):
-        raise ValueError(f"{where} must be a dict: 'position' + 'quaternion' or 'pose' (4x4), "
-                         f"with 'spread' or 'hand' (optional 'elbow', 'id'); got "
-                         f"{type(entry).__name__}")
-    candidate = parse_palm_pose(entry, where, default_id="palm_pose")
+    """(q0 (14,), meta) reaching a ``palm_pose`` reset option of the default robot with the
+    object at its pose, by the planner's IK; ValueError for a malformed entry or an
+    unreachable pose."""
+    candidate = palm_pose_candidate(entry)
     target = load_object(object_name).pose @ candidate.pose
     q0, why = reach_palm_pose(ik, target, candidate.hand, candidate.elbow)
+    return reached(q0, why, object_name), {"id": candidate.id,
+                                           "palm_pose_object": candidate.pose.tolist()}
+
+
+def reached(q0: np.ndarray | None, why: str, object_name: str) -> np.ndarray:
+    """q0, or the ValueError (one line) of a palm pose the IK did not reach, saying ``why``."""
     if q0 is None:
-        raise ValueError(f"{where} is unreachable on {object_name}: {why}")
-    return q0, {"id": candidate.id, "palm_pose_object": candidate.pose.tolist()}
+        raise ValueError(f"reset option palm_pose is unreachable on {object_name}: {why}")
+    return q0
+
+
+def check_closes(draw, object_name: str, source: str) -> None:
+    """ValueError (one line naming ``source``, the option, and the outcome) unless the
+    nominal closing ``draw`` (one row) touches the object: ``start_collision`` or ``missed``
+    leave no nominal contacts."""
+    outcome = int(draw.outcome[0])
+    if outcome in (START_COLLISION, MISSED):
+        raise ValueError(f"reset option {source}: the hand does not close on {object_name} "
+                         f"({outcome_detail(outcome)}; {int(draw.n_contacts[0])} contacts); "
+                         "a task needs >= 2 contacts with every finger on the object")
 
 
 def nominal_grasp(engine: Engine, ik: ArmIK, object_name: str, q0: np.ndarray,
@@ -90,11 +124,7 @@ def nominal_grasp(engine: Engine, ik: ArmIK, object_name: str, q0: np.ndarray,
             the message names ``source`` (the option) and the outcome.
     """
     draw = engine.run(q0[None])
-    outcome = int(draw.outcome[0])
-    if outcome in (START_COLLISION, MISSED):
-        raise ValueError(f"reset option {source}: the hand does not close on {object_name} "
-                         f"({outcome_detail(outcome)}; {int(draw.n_contacts[0])} contacts); "
-                         "a task needs >= 2 contacts with every finger on the object")
+    check_closes(draw, object_name, source)
     palm = ik.kin.pose(q0, PALM_LINK)[0]
     meta = {"source": source, "elbow_angle": float(ik.elbow_angle(q0[None])[0]),
             **(meta or {})}
@@ -111,3 +141,25 @@ def given_grasp(options: dict, key: str, engine_of: Callable[[str], Engine],
     else:
         q0, meta = palm_pose_configuration(ik, name, options["palm_pose"])
     return nominal_grasp(engine_of(name), ik, name, q0, meta.pop("id"), key, meta)
+
+
+def given_robot_grasp(options: dict, key: str, task: RobotTask) -> Grasp:
+    """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) of a description robot
+    (``task``) on the ``object`` option: closed once at q0 by the task's kinematic engine."""
+    name = task_object(options, key)
+    description = task.description
+    if key == "q0":
+        q0, meta = reset_q0(options["q0"], description.name), {"id": "q0"}
+    else:
+        candidate = palm_pose_candidate(options["palm_pose"], description)
+        q0, why = reach_robot_palm_pose(task.kin, description,
+                                        load_object(name).pose @ candidate.pose,
+                                        candidate.hand, candidate.elbow, motion=task.motion)
+        q0 = reached(q0, why, name)
+        meta = {"id": candidate.id, "palm_pose_object": candidate.pose.tolist()}
+    draw = task.closing_engine(name).run(q0[None])
+    check_closes(draw, name, key)
+    grasp_id = meta.pop("id")
+    meta = {"source": key, "elbow_angle": float(task.motion.elbow_angle(q0[None])[0]), **meta}
+    return grasp_from_draw(draw, name, q0, task.kin.pose(q0[None], description.palm_link)[0],
+                           grasp_id=grasp_id, meta=meta, robot=description.name)

@@ -8,7 +8,7 @@ contacts, fixed), as the self-motion is for a 7-joint arm.
 
 :func:`ik_branches` finds them numerically for any description arm, nothing in it naming a
 joint or a link: the planner's batched damped-least-squares IK
-(:func:`~kinegrasp_env.toolkit.robot_planner.solve_palm_ik`) from ``starts`` uniform random
+(:func:`~kinegrasp_env.robot.palm_ik.solve_palm_ik`) from ``starts`` uniform random
 starts within the joint limits (a seeded Generator; a joint without limits starts in
 [-pi, pi]); the converged solutions within the limits are merged when they agree to
 :data:`MERGE_TOL` radians on every joint (the largest difference; a revolute joint whose
@@ -37,8 +37,8 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
-from kinegrasp_env.toolkit.robot_planner import solve_palm_ik
 
 #: Two solutions are one branch when no joint differs by more than this (radians or metres).
 #: Converged solutions of one branch agree to ~1e-6 (the IK's tolerance is 1e-7 m and rad).

@@ -2,13 +2,12 @@
 as that robot's planner solves its own palm poses
 (:mod:`kinegrasp_env.toolkit.robot_planner`):
 
-1. **IK**: :func:`~kinegrasp_env.toolkit.robot_planner.solve_palm_ik` on the arm joints for
-   the palm pose in the world frame (the object at its catalog pose), with the planner's
-   restarts and iterations (:class:`~kinegrasp_env.toolkit.robot_planner.
-   RobotPlannerSettings`), its random restarts seeded by :data:`IK_RNG_SEED` for each
-   candidate (a candidate's configuration does not depend on the others); then, when the
-   candidate gives ``elbow``, the self-motion to that arm angle
-   (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
+1. **IK**: :func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose` for the palm pose in
+   the world frame (the object at its catalog pose), with the planner's restarts and
+   iterations (:class:`~kinegrasp_env.toolkit.robot_planner.RobotPlannerSettings`), its
+   random restarts seeded for each candidate (a candidate's configuration does not depend
+   on the others); then, when the candidate gives ``elbow``, the self-motion to that arm
+   angle (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
 2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
    from the object (:func:`~kinegrasp_env.toolkit.robot_planner.clearance`).
 3. **Closing**: the robot's reference engine
@@ -26,14 +25,15 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
-from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS
+from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
-from kinegrasp_env.robot.palm_pose import IK_RNG_SEED, PalmCandidate, has_elbow
-from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, clearance, solve_palm_ik
+from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
+from kinegrasp_env.robot.palm_pose import PalmCandidate, has_elbow
+from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, clearance
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -68,24 +68,11 @@ class RobotCandidateSolver:
     def configuration(self, candidate: PalmCandidate) -> tuple[np.ndarray | None, str]:
         """(q (dof,): arm joints then the candidate's pre-shape, "") whose palm is at the
         candidate's pose (object frame, the object at its catalog pose), or (None, why)."""
-        d = self.description
-        target = self.engine.obj.pose @ candidate.pose
-        arm, ok = solve_palm_ik(self.kin, d, target[None],
-                                np.random.default_rng(IK_RNG_SEED),
-                                restarts=self.settings.ik_restarts,
-                                iterations=self.settings.ik_iterations)
-        q = np.concatenate([arm[0], candidate.hand])
-        if not ok[0]:
-            err = pose_error(self.kin.pose(q[None], d.palm_link), target[None])[0]
-            return None, (f"no IK solution within the joint limits (closest: "
-                          f"{np.linalg.norm(err[:3]):.3g} m, {np.linalg.norm(err[3:]):.3g} "
-                          f"rad off)")
-        if candidate.elbow is not None:
-            moved, reached = self.motion.set_elbow_angle(q, candidate.elbow)
-            if not reached:
-                return None, f"elbow angle {candidate.elbow:g} rad leaves the joint limits"
-            q = moved
-        return q, ""
+        return reach_robot_palm_pose(self.kin, self.description,
+                                     self.engine.obj.pose @ candidate.pose, candidate.hand,
+                                     candidate.elbow, motion=self.motion,
+                                     restarts=self.settings.ik_restarts,
+                                     iterations=self.settings.ik_iterations)
 
     def solve(self, candidate: PalmCandidate, object_name: str) -> Grasp | tuple[str, str]:
         """The candidate's grasp, or (reason, detail) of its rejection: ``unreachable``,
@@ -105,12 +92,10 @@ class RobotCandidateSolver:
         if outcome in (START_COLLISION, MISSED):
             name = OUTCOMES[outcome]
             return name, OUTCOME_DETAILS.get(name, name)
-        k = int(draws.n_contacts[0])
         meta = {"source": "palm_pose", "nominal_force_closure": outcome == FORCE_CLOSURE,
                 "contact_model": self.description.contact_model}
         if self.motion is not None:
             meta["elbow_angle"] = float(self.motion.elbow_angle(q0[None])[0])
-        return Grasp(object_name, q0, self.kin.pose(q0[None], self.description.palm_link)[0],
-                     draws.points[0, :k].copy(), draws.normals[0, :k].copy(),
-                     draws.finger[0, :k].astype(int), draws.link[0, :k].astype(int),
-                     float(draws.quality[0]), candidate.id, meta, self.description.name)
+        return grasp_from_draw(draws, object_name, q0,
+                               self.kin.pose(q0[None], self.description.palm_link)[0],
+                               grasp_id=candidate.id, meta=meta, robot=self.description.name)

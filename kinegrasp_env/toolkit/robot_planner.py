@@ -15,8 +15,9 @@
    (approach . -z >= ``min_downward``);
    the first ``attempts`` pairs are tried.
 3. **IK**: damped least squares on the arm joints for that palm pose
-   (:func:`solve_palm_ik`: :class:`~kinegrasp_env.robot.kinematics.Kinematics`' pose and
-   Jacobian, random restarts within the joint limits, joints within their limits).
+   (:func:`~kinegrasp_env.robot.palm_ik.solve_palm_ik`: :class:`~kinegrasp_env.robot.
+   kinematics.Kinematics`' pose and Jacobian, random restarts within the joint limits,
+   joints within their limits).
 4. **Checks**: at q0 every robot link but the fingers clears the object by
    ``min_clearance`` (pybullet's distance: the palm is not grazing the object); the nominal
    closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
@@ -35,7 +36,8 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS, solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
 from kinegrasp_env.world.grasps import Grasp
 
@@ -51,8 +53,8 @@ class RobotPlannerSettings:
     min_downward: float = 0.5
     min_clearance: float = 0.005
     attempts: int = 200
-    ik_restarts: int = 6
-    ik_iterations: int = 200
+    ik_restarts: int = IK_RESTARTS
+    ik_iterations: int = IK_ITERATIONS
 
 
 @dataclass(frozen=True)
@@ -177,51 +179,6 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
     target = pair_world.mean(axis=0) - depth * approach
     pose[:3, 3] = target - pose[:3, :3] @ jaw.center
     return pose
-
-
-def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.ndarray,
-                  rng: np.random.Generator, *, restarts: int = 6, iterations: int = 200,
-                  damping: float = 1e-2, tol: float = 1e-7, starts: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Arm joints putting the palm at each of ``targets`` (n, 4, 4), batched.
-
-    Damped least squares from ``starts`` (n, arm_dof) radians or metres, default the middle
-    of the joint ranges, then from ``restarts`` uniform random starts within the limits for
-    the targets not reached yet; a step is clipped into the limits; success when the
-    position error (metres) and the rotation error (radians) are below ``tol``.
-
-    Returns:
-        (arm joints (n, arm_dof), success (n,) bool).
-    """
-    model = description.model
-    arm = np.arange(description.arm_dof)
-    lo, hi = model.lower[arm], model.upper[arm]
-    n = len(targets)
-    q = np.repeat(description.open_configuration()[None], n, axis=0)
-    q[:, arm] = 0.5 * (lo + hi) if starts is None else np.clip(starts, lo, hi)
-    done = np.zeros(n, bool)
-    eye = np.eye(6)
-    for attempt in range(restarts + 1):
-        rows = np.flatnonzero(~done)
-        if rows.size == 0:
-            break
-        if attempt > 0:
-            q[np.ix_(rows, arm)] = rng.uniform(lo, hi, size=(rows.size, arm.size))
-        for _ in range(iterations):
-            err = pose_error(kin.pose(q[rows], description.palm_link), targets[rows])
-            ok = (np.linalg.norm(err[:, :3], axis=1) < tol) & (
-                np.linalg.norm(err[:, 3:], axis=1) < tol)
-            done[rows[ok]] = True
-            rows, err = rows[~ok], err[~ok]
-            if rows.size == 0:
-                break
-            jac = kin.jacobian(q[rows], description.palm_link)[:, :, arm]
-            lam = (damping * np.minimum(np.linalg.norm(err, axis=1), 1.0))[:, None, None] ** 2
-            jt = np.swapaxes(jac, 1, 2)
-            step = (jt @ np.linalg.solve(jac @ jt + lam * eye, err[..., None]))[..., 0]
-            step *= np.minimum(1.0, 0.5 / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
-            q[np.ix_(rows, arm)] = np.clip(q[np.ix_(rows, arm)] + step, lo, hi)
-    return q[:, arm], done
 
 
 def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:

@@ -1,0 +1,88 @@
+"""A description robot's palm put at a pose: damped least-squares IK on its arm joints
+(:func:`solve_palm_ik`, batched over poses), and one palm-pose entry reached as the
+robot's planner reaches its own (:func:`reach_robot_palm_pose`: IK with random restarts
+seeded per pose, then the self-motion to the entry's elbow angle where it gives one)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.robot.palm_pose import IK_RNG_SEED
+
+#: Random restarts of the IK after its start from the middle of the joint ranges.
+IK_RESTARTS = 6
+#: Damped least-squares iterations per start.
+IK_ITERATIONS = 200
+
+
+def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.ndarray,
+                  rng: np.random.Generator, *, restarts: int = IK_RESTARTS,
+                  iterations: int = IK_ITERATIONS,
+                  damping: float = 1e-2, tol: float = 1e-7, starts: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Arm joints putting the palm at each of ``targets`` (n, 4, 4), batched.
+
+    Damped least squares from ``starts`` (n, arm_dof) radians or metres, default the middle
+    of the joint ranges, then from ``restarts`` uniform random starts within the limits for
+    the targets not reached yet; a step is clipped into the limits; success when the
+    position error (metres) and the rotation error (radians) are below ``tol``.
+
+    Returns:
+        (arm joints (n, arm_dof), success (n,) bool).
+    """
+    model = description.model
+    arm = np.arange(description.arm_dof)
+    lo, hi = model.lower[arm], model.upper[arm]
+    n = len(targets)
+    q = np.repeat(description.open_configuration()[None], n, axis=0)
+    q[:, arm] = 0.5 * (lo + hi) if starts is None else np.clip(starts, lo, hi)
+    done = np.zeros(n, bool)
+    eye = np.eye(6)
+    for attempt in range(restarts + 1):
+        rows = np.flatnonzero(~done)
+        if rows.size == 0:
+            break
+        if attempt > 0:
+            q[np.ix_(rows, arm)] = rng.uniform(lo, hi, size=(rows.size, arm.size))
+        for _ in range(iterations):
+            err = pose_error(kin.pose(q[rows], description.palm_link), targets[rows])
+            ok = (np.linalg.norm(err[:, :3], axis=1) < tol) & (
+                np.linalg.norm(err[:, 3:], axis=1) < tol)
+            done[rows[ok]] = True
+            rows, err = rows[~ok], err[~ok]
+            if rows.size == 0:
+                break
+            jac = kin.jacobian(q[rows], description.palm_link)[:, :, arm]
+            lam = (damping * np.minimum(np.linalg.norm(err, axis=1), 1.0))[:, None, None] ** 2
+            jt = np.swapaxes(jac, 1, 2)
+            step = (jt @ np.linalg.solve(jac @ jt + lam * eye, err[..., None]))[..., 0]
+            step *= np.minimum(1.0, 0.5 / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
+            q[np.ix_(rows, arm)] = np.clip(q[np.ix_(rows, arm)] + step, lo, hi)
+    return q[:, arm], done
+
+
+def reach_robot_palm_pose(kin: Kinematics, description: RobotDescription, target: np.ndarray,
+                          hand: np.ndarray, elbow: float | None = None, *, motion=None,
+                          restarts: int = IK_RESTARTS, iterations: int = IK_ITERATIONS
+                          ) -> tuple[np.ndarray | None, str]:
+    """(q (dof,): arm joints then the pre-shape ``hand``, "") whose palm is at ``target``
+    (4, 4) in the robot's base frame, or (None, why).
+
+    IK by :func:`solve_palm_ik`, its restarts seeded by :data:`~kinegrasp_env.robot.
+    palm_pose.IK_RNG_SEED`; then, for an ``elbow`` angle (radians), the self-motion
+    ``motion`` (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`) to it."""
+    arm, ok = solve_palm_ik(kin, description, target[None], np.random.default_rng(IK_RNG_SEED),
+                            restarts=restarts, iterations=iterations)
+    q = np.concatenate([arm[0], hand])
+    if not ok[0]:
+        err = pose_error(kin.pose(q[None], description.palm_link), target[None])[0]
+        return None, (f"no IK solution within the joint limits (closest: "
+                      f"{np.linalg.norm(err[:3]):.3g} m, {np.linalg.norm(err[3:]):.3g} rad off)")
+    if elbow is not None:
+        moved, reached = motion.set_elbow_angle(q, elbow)
+        if not reached:
+            return None, f"elbow angle {elbow:g} rad leaves the joint limits"
+        q = moved
+    return q, ""
