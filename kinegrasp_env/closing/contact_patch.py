@@ -39,7 +39,8 @@ PATCH_CORNERS = 4
 
 
 @lru_cache(maxsize=32)
-def _mesh_hull(filename: str) -> np.ndarray:
+def mesh_hull(filename: str) -> np.ndarray:
+    """(V, 3) the convex hull vertices of a mesh file (its own units, unscaled)."""
     import trimesh
 
     mesh = trimesh.load(filename, force="mesh", process=False)
@@ -68,7 +69,7 @@ def link_hull_vertices(bullet, body: int, link: int, *, skip_meshed: bool = Fals
         if kind == 5:  # GEOM_MESH
             if skip_meshed and filename.decode() == PYBULLET_MESHED:
                 return None
-            local = _mesh_hull(filename.decode()) * np.asarray(dims, dtype=float)
+            local = mesh_hull(filename.decode()) * np.asarray(dims, dtype=float)
         elif kind == 3:  # GEOM_BOX: full extents
             half = 0.5 * np.asarray(dims, dtype=float)
             local = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)

@@ -68,7 +68,7 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
             for link in links:
                 names = [j.name for j in chains[link]]
                 if name in names:
-                    vertices = geometry[link].vertices
+                    vertices = geometry[link].extent_points
                     far = max(far, float(np.linalg.norm(vertices, axis=1).max())
                               + sum(float(np.linalg.norm(j.origin[:3, 3]))
                                     for j in chains[link][names.index(name) + 1:]))

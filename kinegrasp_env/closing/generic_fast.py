@@ -71,6 +71,7 @@ from kinegrasp_env.closing.link_geometry import (
 )
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
+from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
@@ -116,10 +117,12 @@ class FastRobotHand:
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
         self._link_hulls = {link: stacked_vertices(geom.parts)
-                            for link, geom in self.geometry.items()}
+                            for link, geom in self.geometry.items() if geom.parts}
         self._simplex = new_simplex()
         self._link_faces = {link: stacked_faces(geom.parts)
-                            for link, geom in self.geometry.items()}
+                            for link, geom in self.geometry.items() if geom.parts}
+        self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex)
+                         for link, geom in self.geometry.items() if geom.rounded}
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)
         self._parts = (planes, plane_starts, self.edges, edge_starts,
@@ -127,17 +130,36 @@ class FastRobotHand:
 
     # ------------------------------------------------------------------ distances
     def _exact(self, poses: np.ndarray, link: str, below: float = np.inf,
-               decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(signed distance (n,), link point (n, 3), object point (n, 3), rounded (n,) bool)
+        of the closest pair of ``link`` placed by object-frame poses (n, 4, 4) and the
+        object, exact: the least of its polytopes' (:meth:`_exact_polytopes`) and of its
+        rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.RoundedCores`: then
+        ``rounded`` is set and the link point is the core's)."""
+        n = poses.shape[0]
+        if self.geometry[link].parts:
+            dist, fp, op = self._exact_polytopes(poses, link, below, decide)
+        else:
+            dist, fp, op = np.full(n, np.inf), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+        rounded = np.zeros(n, dtype=bool)
+        if link in self._rounded:
+            d, core, on_obj = self._rounded[link].exact(self.obj, poses)
+            rounded = d < dist
+            dist[rounded], fp[rounded], op[rounded] = d[rounded], core[rounded], on_obj[rounded]
+        return dist, fp, op, rounded
+
+    def _exact_polytopes(self, poses: np.ndarray, link: str, below: float = np.inf,
+                         decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
-        pair of ``link`` placed by object-frame poses (n, 4, 4) and the object, exact: the
-        least of the link's hull vertices against the object and of the object's edges
-        against each link hull (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`:
-        :data:`SEARCH` golden steps along an edge). Every closest pair of two convex
-        polytopes has a vertex of one or a point on an edge of each. With ``below``, edges
-        that cannot bring a distance under it are skipped (a distance left at or above
-        ``below`` is then only an upper bound); with ``decide`` too, a draw whose vertices
-        already bring it below ``below`` is not searched further (its distance then only an
-        upper bound below ``below``: the answer to "is it below?")."""
+        pair of ``link``'s polytopes placed by object-frame poses (n, 4, 4) and the object,
+        exact: the least of the link's hull vertices against the object and of the object's
+        edges against each link hull (:func:`~kinegrasp_env.closing.hull_edges.
+        edges_against_hull`: :data:`SEARCH` golden steps along an edge). Every closest pair
+        of two convex polytopes has a vertex of one or a point on an edge of each. With
+        ``below``, edges that cannot bring a distance under it are skipped (a distance left
+        at or above ``below`` is then only an upper bound); with ``decide`` too, a draw whose
+        vertices already bring it below ``below`` is not searched further (its distance then
+        only an upper bound below ``below``: the answer to "is it below?")."""
         geom = self.geometry[link]
         n = poses.shape[0]
         rot, trans = poses[:, :3, :3], poses[:, :3, 3]
@@ -179,7 +201,7 @@ class FastRobotHand:
                 continue
             rows = rows[self.distance_bound(pose[rows], link)[0] < -start_tol]
             if rows.size:
-                dist, _, _ = self._exact(pose[rows], link, -start_tol, decide=True)
+                dist = self._exact(pose[rows], link, -start_tol, decide=True)[0]
                 hit[rows[dist < -start_tol]] = True
         return hit
 
@@ -190,13 +212,19 @@ class FastRobotHand:
         or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
         before a separating plane lets it come within ``short`` (metres), 0 without a
         motion)
-        (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`)."""
+        (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`; a rounded
+        part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`)."""
         n = poses.shape[0]
-        out, travel = np.empty(n), np.empty(n)
-        motion = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
-        hull_distance_bounds(*self._link_hulls[link], np.ascontiguousarray(poses[:, :3, :3]),
-                             np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
-                             motion, float(short), self._simplex, out, travel)
+        out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
+        if link in self._link_hulls:
+            move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
+            hull_distance_bounds(*self._link_hulls[link],
+                                 np.ascontiguousarray(poses[:, :3, :3]),
+                                 np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
+                                 move, float(short), self._simplex, out, travel)
+        if link in self._rounded:
+            bound, far = self._rounded[link].bounds(poses, motion, short)
+            out, travel = np.minimum(out, bound), np.minimum(travel, far)
         return out, travel
 
     # ------------------------------------------------------------------ closing
@@ -254,10 +282,11 @@ class FastRobotHand:
                 for k, link in enumerate(fingers[f].links):
                     if link not in self.geometry:
                         continue
-                    pose, d, fp, op = (a[held] for a in last[link])
+                    pose, d, fp, op, rounded = (a[held] for a in last[link])
                     on = d <= contact_tol
                     if on.any():
-                        points, normals = self._contacts(link, pose[on], d[on], fp[on], op[on])
+                        points, normals = self._contacts(link, pose[on], d[on], fp[on], op[on],
+                                                         rounded[on])
                         for key, value in (("row", free[held][on]), ("finger", f), ("link", k),
                                            ("points", points), ("normals", normals),
                                            ("distances", d[on])):
@@ -280,8 +309,8 @@ class FastRobotHand:
         travel its links' separating planes allow, up to the first joint's limit (the
         translation's direction is fixed until then)."""
         m = palm.shape[0]
-        last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)))
-                for link in path.links}
+        last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)),
+                       np.zeros(m, dtype=bool)) for link in path.links}
         v0 = np.stack([values0[name] for name in path.joints], axis=1)
         rates, lo, hi, speed = path.rates, path.lower, path.upper, path.speed
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -321,11 +350,12 @@ class FastRobotHand:
                 exact = np.full(near.size, np.inf)
                 for link in path.links:
                     pose = poses[link][near]
-                    d, fp, op = self._exact(pose, link, NEAR * contact_tol)
+                    d, fp, op, rounded = self._exact(pose, link, NEAR * contact_tol)
                     queries[rows[active[near]]] += 1
                     exact = np.minimum(exact, d)
                     lower[link][near] = np.where(d < NEAR * contact_tol, d, lower[link][near])
-                    for store, value in zip(last[link], (pose, d, fp, op), strict=True):
+                    for store, value in zip(last[link], (pose, d, fp, op, rounded),
+                                            strict=True):
                         store[active[near]] = value
                 gap[near] = np.where(exact < NEAR * contact_tol, exact, gap[near])
             g[active] = gap
@@ -345,13 +375,17 @@ class FastRobotHand:
         return t, g, values, last
 
     def _contacts(self, link: str, poses: np.ndarray, distance: np.ndarray,
-                  finger_point: np.ndarray, point: np.ndarray
+                  finger_point: np.ndarray, point: np.ndarray, rounded: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
         """(points (m, 3), unit normals (m, 3)) of the contacts of ``link`` at its
         object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
-        points (m, 3)): on a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`)
-        its inward normal and the patch centre, or at an edge the direction of the pair."""
+        points (m, 3); ``rounded`` (m,): the pair is a rounded part's, whose link point is
+        its core's): a rounded part's at the object point, its normal from the core
+        (:func:`~kinegrasp_env.closing.rounded_links.contact_normals`); else on a face
+        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`) its inward normal and the
+        patch centre, or at an edge the direction of the pair."""
         part, plane = faces_of(self.obj, point, EDGE_TOL)
+        part[rounded] = -1
         on_face = part >= 0
         normals = -plane[:, :3]
         points = point.copy()
@@ -359,7 +393,8 @@ class FastRobotHand:
             placed, _ = self._patch.place(self.geometry[link].vertices, poses[on_face],
                                           part[on_face], plane[on_face], point[on_face])
             points[on_face] = placed
-        edge = np.flatnonzero(~on_face)
+        edge = np.flatnonzero(~on_face & ~rounded)
+        normals[rounded] = contact_normals(finger_point[rounded], point[rounded])
         if edge.size:
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))

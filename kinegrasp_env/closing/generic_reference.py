@@ -131,7 +131,9 @@ class RobotWorld(GraspWorld):
         self.patch = patch
         self.model = description.model
         bullet = self.bullet
-        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+        # cylinders as written (pybullet otherwise meshes them coarsely)
+        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
+                                flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
         self.bodies["robot"] = robot
         self.joint_index: dict[str, int] = {}
         self.link_index: dict[str, int] = {self.model.base_link: -1}

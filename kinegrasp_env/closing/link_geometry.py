@@ -1,6 +1,15 @@
-"""A robot link's collision geometry for the fast generic closing: its hull vertices and
-convex parts in the link's frame (read once from pybullet), and the distance grid's error
-bound."""
+"""A robot link's collision geometry for the fast generic closing, read once from pybullet
+(the URDF loaded with its cylinders implicit, as written), in the link's URDF frame:
+
+* **polytopes** (:class:`~kinegrasp_env.world.polytope.ConvexPart`): a mesh's convex hull
+  (scaled, as pybullet collides it), a box's corners, and a cylinder as the prism of
+  :data:`CYLINDER_SIDES` sides inscribed in it (within r (1 - cos(pi / sides)) of it: 1.4e-5
+  m for a 48 mm radius);
+* **rounded parts** (:class:`RoundedPart`): a capsule (its axis segment and radius) or a
+  sphere (a segment of one point): a ball swept along a segment, whose distance to the
+  object is the segment's less the radius (exact).
+
+And the distance grid's error bound."""
 
 from __future__ import annotations
 
@@ -8,10 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.contact_patch import link_hull_vertices
+from kinegrasp_env.closing.contact_patch import mesh_hull
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.polytope import ConvexPart, face_planes
 from kinegrasp_env.world.sdf import DistanceGrid
+
+#: Sides of the prism a cylinder is read as.
+CYLINDER_SIDES = 128
+#: pybullet's collision shape kinds (``getCollisionShapeData``'s third entry).
+GEOM_SPHERE, GEOM_BOX, GEOM_CYLINDER, GEOM_MESH, GEOM_CAPSULE = 2, 3, 4, 5, 7
 
 
 def grid_error(grid: DistanceGrid) -> float:
@@ -21,41 +35,118 @@ def grid_error(grid: DistanceGrid) -> float:
 
 
 @dataclass(frozen=True)
+class RoundedPart:
+    """A ball of ``radius`` (metres) swept along the segment [a, b] ((3,) each, link frame):
+    a capsule, or a sphere where a == b."""
+
+    a: np.ndarray
+    b: np.ndarray
+    radius: float
+
+    def box_corners(self) -> np.ndarray:
+        """(8, 3) corners of an axis-aligned box holding the part (link frame)."""
+        lo = np.minimum(self.a, self.b) - self.radius
+        hi = np.maximum(self.a, self.b) + self.radius
+        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                         for z in (lo[2], hi[2])])
+
+
+@dataclass(frozen=True)
 class LinkGeometry:
     """One link's collision geometry in its URDF frame.
 
     Attributes:
-        vertices: (V, 3) hull vertices of every collision shape, metres.
-        parts: each collision shape's hull as a :class:`~kinegrasp_env.world.polytope.
+        vertices: (V, 3) hull vertices of every polytope shape, metres (V = 0 for a link
+            of rounded parts alone).
+        parts: each polytope shape's hull as a :class:`~kinegrasp_env.world.polytope.
             ConvexPart` (exact closest points on it).
+        rounded: the capsules and spheres (:class:`RoundedPart`).
+        curved: some shape is a cylinder, capsule or sphere (its contacts are points: no
+            flat pad to place a patch on).
     """
 
     vertices: np.ndarray
     parts: tuple[ConvexPart, ...]
+    rounded: tuple[RoundedPart, ...] = ()
+    curved: bool = False
+
+    @property
+    def extent_points(self) -> np.ndarray:
+        """(K, 3) points whose convex hull holds the whole link (the polytopes' vertices and
+        a box around each rounded part): what bounds its reach and its bounding ball."""
+        return np.vstack([self.vertices, *(r.box_corners() for r in self.rounded)])
 
     @property
     def sphere(self) -> tuple[np.ndarray, float]:
-        """((1, 3) centre, radius): a ball (metres) holding every hull."""
-        centre = 0.5 * (self.vertices.min(axis=0) + self.vertices.max(axis=0))
-        return centre[None], float(np.linalg.norm(self.vertices - centre, axis=1).max())
+        """((1, 3) centre, radius): a ball (metres) holding every shape."""
+        points = self.extent_points
+        centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+        return centre[None], float(np.linalg.norm(points - centre, axis=1).max())
 
 
-def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None, *,
-                  skip_meshed: bool = False) -> dict[str, LinkGeometry]:
+def cylinder_prism(length: float, radius: float, sides: int = CYLINDER_SIDES) -> np.ndarray:
+    """(2 sides, 3) vertices of the prism inscribed in a cylinder about z (its frame)."""
+    theta = 2.0 * np.pi * np.arange(sides) / sides
+    ring = np.stack([radius * np.cos(theta), radius * np.sin(theta)], axis=1)
+    return np.vstack([np.column_stack([ring, np.full(sides, z)])
+                      for z in (-0.5 * length, 0.5 * length)])
+
+
+def _shapes(bullet, robot: int, index: int
+            ) -> tuple[list[np.ndarray], list[RoundedPart], bool]:
+    """(polytope vertices (V_k, 3) per shape, rounded parts, some shape is curved) of link
+    ``index``, in its URDF frame; ValueError for a mesh that cannot be loaded."""
+    if index < 0:  # the base: its inertial frame and its URDF frame are the world's here
+        inertial = link = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    else:
+        state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
+        inertial, link = (state[0], state[1]), (state[4], state[5])
+    to_link = bullet.invertTransform(*link)
+    polytopes, rounded, curved = [], [], False
+    for shape in bullet.getCollisionShapeData(robot, index):
+        kind, dims, filename = shape[2], np.asarray(shape[3], dtype=float), shape[4].decode()
+        pos, orn = bullet.multiplyTransforms(*to_link, *bullet.multiplyTransforms(
+            *inertial, shape[5], shape[6]))
+        rot, origin = np.reshape(bullet.getMatrixFromQuaternion(orn), (3, 3)), np.array(pos)
+        if kind in (GEOM_CAPSULE, GEOM_SPHERE):
+            half = 0.5 * dims[0] * rot[:, 2] if kind == GEOM_CAPSULE else np.zeros(3)
+            radius = dims[1] if kind == GEOM_CAPSULE else dims[0]
+            rounded.append(RoundedPart(origin - half, origin + half, float(radius)))
+            continue
+        if kind == GEOM_MESH:
+            try:
+                local = mesh_hull(filename) * dims
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"collision mesh {filename!r} cannot be loaded: {exc}") from None
+        elif kind == GEOM_BOX:  # full extents
+            local = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1)
+                              for z in (-1, 1)]) * (0.5 * dims)
+        elif kind == GEOM_CYLINDER:
+            local, curved = cylinder_prism(dims[0], dims[1]), True
+        else:
+            raise ValueError(f"collision shape kind {kind} is not read (boxes, meshes, "
+                             "cylinders, capsules and spheres are)")
+        polytopes.append(local @ rot.T + origin)
+    return polytopes, rounded, curved or bool(rounded)
+
+
+def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None
+                  ) -> dict[str, LinkGeometry]:
     """Every link with collision geometry (or those of ``links`` that have it) -> its
-    :class:`LinkGeometry` (read from pybullet once, the robot at its open configuration);
-    ``skip_meshed``: leave out a link with a shape pybullet meshed itself (a cylinder, whose
-    vertices it does not give) instead of failing on it.
+    :class:`LinkGeometry` (read from pybullet once, the robot at its open configuration).
 
     Raises:
         ValueError: a collision mesh of a link read cannot be loaded."""
+    import pybullet
+
     from kinegrasp_env.quiet import quiet_c_output
     from kinegrasp_env.world.sim import BulletWorld
 
     with BulletWorld() as sim:  # a DIRECT client of its own, its banner kept off stdout
         bullet = sim.bullet
         with quiet_c_output():  # mesh-loader notes
-            robot = bullet.loadURDF(str(description.urdf), useFixedBase=True)
+            robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
+                                    flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
         names = {-1: description.model.base_link}
         for j in range(bullet.getNumJoints(robot)):
             names[j] = bullet.getJointInfo(robot, j)[12].decode()
@@ -63,29 +154,10 @@ def link_geometry(description: RobotDescription, links: tuple[str, ...] | None =
         for index, name in names.items():
             if links is not None and name not in links:
                 continue
-            world = link_hull_vertices(bullet, robot, index, skip_meshed=skip_meshed)
-            if world is None:
+            polytopes, rounded, curved = _shapes(bullet, robot, index)
+            if not polytopes and not rounded:
                 continue
-            if index < 0:  # the base's URDF frame: the world origin (its fixed base)
-                position, quaternion = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
-            else:
-                state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
-                position, quaternion = state[4], state[5]
-            rot = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
-            local = (world - np.asarray(position)) @ rot
-            counts = [_shape_vertex_count(bullet, robot, index, s)
-                      for s in bullet.getCollisionShapeData(robot, index)]
-            parts, start = [], 0
-            for count in counts:
-                shape = local[start:start + count]
-                parts.append(ConvexPart(shape, face_planes(shape)))
-                start += count
-            out[name] = LinkGeometry(local, tuple(parts))
+            parts = tuple(ConvexPart(v, face_planes(v)) for v in polytopes)
+            vertices = np.vstack(polytopes) if polytopes else np.empty((0, 3))
+            out[name] = LinkGeometry(vertices, parts, tuple(rounded), curved)
         return out
-
-
-def _shape_vertex_count(bullet, body: int, link: int, shape) -> int:
-    """Vertices :func:`link_hull_vertices` gives one collision shape (its rows, in order)."""
-    from kinegrasp_env.closing.contact_patch import _mesh_hull
-
-    return 8 if shape[2] == 3 else len(_mesh_hull(shape[4].decode()))

@@ -41,10 +41,10 @@ class PatchContacts:
     def __init__(self, description: RobotDescription, obj: GraspObject) -> None:
         self.description, self.obj = description, obj
         self.kinematics = Kinematics(description.model)
-        # a finger link without a readable hull (a capsule or cylinder tip) keeps its
-        # contacts as points
-        self.geometry = link_geometry(description, tuple(description.finger_links),
-                                      skip_meshed=True)
+        # a curved finger link (a capsule or cylinder tip) keeps its contacts as points
+        self.geometry = {name: geometry for name, geometry in
+                         link_geometry(description, tuple(description.finger_links)).items()
+                         if not geometry.curved}
         self.patch = PatchGeometry(obj.parts)
         palm = len(self.kinematics.chain(description.palm_link))
         #: (finger, link index) -> (link name, joint chain from the palm)

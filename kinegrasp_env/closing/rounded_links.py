@@ -1,0 +1,107 @@
+"""Distances of a link's rounded parts (capsules, spheres: :class:`~kinegrasp_env.closing.
+link_geometry.RoundedPart`) to the object, for the fast generic closing.
+
+A rounded part is a ball of radius r swept along a segment (its *core*, one point for a
+sphere), so its distance to the object is the core's less r:
+
+* **bound**: GJK on the core (a hull of one or two vertices) against the object's convex
+  parts (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`), less r: a
+  certified lower bound, -inf where the core meets a part;
+* **exact**: the exact closest pair of the core segment and the object
+  (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`), less r, where the
+  bound says the core is apart from the object; where the core meets it, the part is at
+  least r deep (its distance is given as -r: a start collision for any tolerance below r).
+
+A contact of a rounded part is the point model of the paper's fingertips: the closest point
+on the object, its normal the direction from the core's closest point to it (inward).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.convex_distance import hull_distance_bounds
+from kinegrasp_env.closing.link_geometry import RoundedPart
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.world.objects import GraspObject
+
+__all__ = ["RoundedCores", "contact_normals"]
+
+
+class RoundedCores:
+    """One link's rounded parts, their cores laid out for GJK.
+
+    Args:
+        parts: the link's rounded parts (link frame).
+        object_hulls: the object's convex parts as (stacked vertices, starts)
+            (:func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`).
+        simplex: GJK's scratch (:func:`~kinegrasp_env.closing.convex_distance.new_simplex`).
+    """
+
+    def __init__(self, parts: tuple[RoundedPart, ...], object_hulls: tuple, simplex) -> None:
+        self.parts = parts
+        self._cores = [(np.ascontiguousarray(np.stack([p.a, p.b]) if np.any(p.a != p.b)
+                                             else p.a[None]),
+                        np.array([0, 2 if np.any(p.a != p.b) else 1], dtype=np.int64))
+                       for p in parts]
+        self._object_hulls, self._simplex = object_hulls, simplex
+
+    def _core_bound(self, k: int, rot: np.ndarray, trans: np.ndarray, motion: np.ndarray,
+                    short: float) -> tuple[np.ndarray, np.ndarray]:
+        """(GJK's lower bound (n,) of part k's core's distance to the object, -inf where
+        they meet; travel (n,) along ``motion`` before a plane lets it within ``short``)."""
+        core, starts = self._cores[k]
+        out, travel = np.empty(rot.shape[0]), np.empty(rot.shape[0])
+        hull_distance_bounds(core, starts, rot, trans, *self._object_hulls, motion,
+                             float(short), self._simplex, out, travel)
+        return out, travel
+
+    def bounds(self, poses: np.ndarray, motion: np.ndarray | None = None, short: float = 0.0
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """((n,) certified lower bound of the parts' least distance to the object, placed by
+        object-frame poses (n, 4, 4), -inf where a core meets it; (n,) how far the link can
+        be translated by ``motion`` (n, 3) per unit before a separating plane lets a part
+        come within ``short``; inf without parts, 0 without a motion)."""
+        n = poses.shape[0]
+        best, far = np.full(n, np.inf), np.full(n, np.inf if motion is not None else 0.0)
+        rot = np.ascontiguousarray(poses[:, :3, :3])
+        trans = np.ascontiguousarray(poses[:, :3, 3])
+        move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
+        for k, part in enumerate(self.parts):
+            out, travel = self._core_bound(k, rot, trans, move, short + part.radius)
+            best = np.minimum(best, out - part.radius)
+            if motion is not None:
+                far = np.minimum(far, travel)
+        return best, far
+
+    def exact(self, obj: GraspObject, poses: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(distance (n,), core point (n, 3), object point (n, 3)) of the parts' closest
+        pair with the object at object-frame poses (n, 4, 4) (module docstring; where a
+        core meets the object: -r and NaN points)."""
+        n = poses.shape[0]
+        dist = np.full(n, np.inf)
+        core_point, obj_point = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+        rot = np.ascontiguousarray(poses[:, :3, :3])
+        trans = np.ascontiguousarray(poses[:, :3, 3])
+        for k, part in enumerate(self.parts):
+            apart, _ = self._core_bound(k, rot, trans, np.zeros((n, 3)), 0.0)
+            d = np.full(n, -part.radius)
+            seg, on_obj = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+            rows = np.flatnonzero(apart > 0.0)  # the core is apart from the object
+            if rows.size:
+                a = np.einsum("nij,j->ni", rot[rows], part.a) + trans[rows]
+                b = np.einsum("nij,j->ni", rot[rows], part.b) + trans[rows]
+                on_obj[rows], seg[rows], core_d, _ = closest_to_segments(obj, a, b)
+                d[rows] = core_d - part.radius
+            better = d < dist
+            dist[better], core_point[better], obj_point[better] = (
+                d[better], seg[better], on_obj[better])
+        return dist, core_point, obj_point
+
+
+def contact_normals(core_point: np.ndarray, obj_point: np.ndarray) -> np.ndarray:
+    """(m, 3) unit inward normals of rounded parts' contacts: from the core's closest
+    points (m, 3) to the object's (m, 3)."""
+    direction = obj_point - core_point
+    return direction / np.linalg.norm(direction, axis=1, keepdims=True)
