@@ -85,7 +85,7 @@ def test_panda_links_against_the_exact_pair(panda_hands, object_name, link):
     trans = hand.obj.center_of_mass + np.random.default_rng(6).normal(size=(n, 3)) * 0.06
     poses = np.tile(np.eye(4), (n, 1, 1))
     poses[:, :3, :3], poses[:, :3, 3] = rot, trans
-    exact = hand._exact(poses, link)[0]
+    exact = hand.exact(poses, link)[0]
     bound = hand.distance_bound(poses, link)[0]
     apart = exact > 1e-9
     assert apart.sum() > 300 and (exact < 0).sum() > 100
@@ -175,6 +175,6 @@ def test_travel_never_lets_a_link_through_the_object(panda_hands, link):
                   * (1 - 1e-12))
     moved = poses[finite].copy()
     moved[:, :3, 3] += 0.999 * far[finite, None] * motion[finite]
-    exact = hand._exact(moved, link)[0]
+    exact = hand.exact(moved, link)[0]
     assert np.all(exact > 0), exact.min()
 

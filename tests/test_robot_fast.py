@@ -107,7 +107,7 @@ def test_exact_distance_against_pybullet(draws, engines):
                 for path in hand.paths:
                     for link in path.links:
                         pose = link_poses(palm, values, path.chains[link])
-                        d = hand._exact(pose, link)[0]
+                        d = hand.exact(pose, link)[0]
                         expected, _ = world.gap((link,))
                         assert abs(d[0] - expected) <= GAP_TOL, (link, d[0], expected)
                         checked += 1
@@ -268,5 +268,5 @@ def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
             under = d < below
             np.testing.assert_allclose(dist[under], d[under], atol=1e-12)
             assert np.all(dist[~under] >= below), link
-        exact = hand._exact(pose, link)[0]
+        exact = hand.exact(pose, link)[0]
         assert np.all(hand.distance_bound(pose, link)[0] <= exact + 1e-14), link

@@ -8,12 +8,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.generic_reference import finger_speed
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
+from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
-__all__ = ["FingerPath", "finger_paths", "link_poses"]
+__all__ = ["FingerPath", "finger_paths", "finger_speed", "link_poses"]
 
 
 @dataclass(frozen=True)
@@ -28,8 +28,11 @@ class FingerPath:
         links: the finger's links with collision geometry.
         chains: link -> the joints from the palm to it, palm first.
         speed: bound on the speed (metres per unit t) of any point of its links
-            (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`).
+            (:func:`finger_speed`).
         translating: every closing joint is prismatic (the links translate).
+        moves: (K, J) bool, link k (of ``links``) moves with closing joint j.
+        stops: (K, J) bool, joint j stops when link k touches
+            (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`).
     """
 
     joints: tuple[str, ...]
@@ -40,6 +43,28 @@ class FingerPath:
     chains: dict[str, list]
     speed: float
     translating: bool
+    moves: np.ndarray
+    stops: np.ndarray
+
+
+def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
+    """Bound v (metres per unit t) on the speed of any point of a finger's links.
+
+    Args:
+        kinds: per closing joint, its URDF type.
+        rates: (j,) d(joint value)/dt of each closing joint (the mimic multiplier times the
+            close direction).
+        reach: (j,) metres: the largest distance from each joint's origin to a corner of the
+            bounding box of the links it moves (pybullet's AABBs at the pre-shape).
+
+    A prismatic joint moves its links at |rate|; a revolute one at |rate| times the distance
+    from its axis (at most ``reach``, doubled as margin: the distal joints of a finger also
+    move the links it carries). The sum bounds the speed of a point moved by all of them.
+    """
+    speed = 0.0
+    for kind, rate, r in zip(kinds, rates, reach, strict=True):
+        speed += abs(rate) * (1.0 if kind == "prismatic" else 2.0 * r)
+    return max(speed, 1e-9)
 
 
 def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry],
@@ -73,10 +98,12 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
                               + sum(float(np.linalg.norm(j.origin[:3, 3]))
                                     for j in chains[link][names.index(name) + 1:]))
             reach.append(far)
+        rows = [finger.links.index(link) for link in links]
         out.append(FingerPath(tuple(finger.joints), np.array(rates), np.array(lower),
                               np.array(upper), links, chains,
                               finger_speed(kinds, np.array(rates), np.array(reach)),
-                              all(kind == "prismatic" for kind in kinds)))
+                              all(kind == "prismatic" for kind in kinds),
+                              moved_by(finger)[rows], touch_stops(model, finger)[rows]))
     return out
 
 

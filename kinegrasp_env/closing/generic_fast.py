@@ -1,10 +1,9 @@
 """Auto-close of any description robot, batched over draws: the closing model of
 :mod:`~kinegrasp_env.closing.generic_reference` on the links' exact convex hulls.
 
-**Geometry.** Each robot link's collision geometry is read once from pybullet (a DIRECT
-client: the convex hull of every collision mesh, scaled, or a box's corners, as pybullet
-collides them: :func:`~kinegrasp_env.closing.contact_patch.link_hull_vertices`), expressed
-in the link's URDF frame, each shape a :class:`~kinegrasp_env.world.polytope.ConvexPart`.
+**Geometry.** Each robot link's collision geometry is read once from pybullet
+(:mod:`~kinegrasp_env.closing.link_geometry`: polytopes, and capsules and spheres as rounded
+parts, :mod:`~kinegrasp_env.closing.rounded_links`), expressed in the link's URDF frame.
 The distance of a link to the object is exact: the closest pair of two convex polytopes has
 a vertex of one or a point on an edge of each, so it is the least of the link's hull vertices
 against the object (:meth:`GraspObject.closest_points`) and of the object's edges against the
@@ -20,14 +19,14 @@ only where that bound is within reach of a contact or says the two overlap.
    closest pair with the object, exact; links whose bounding ball the distance grid puts
    clear of the object, or whose hulls GJK finds apart from it, are not examined).
 2. *Closing*: each finger by its parameter t (its closing joints at the pre-shape value plus
-   ``rate * t``, clipped at their limits), by conservative advancement: t grows by the gap's
-   lower bound over the finger's speed bound
-   (:func:`~kinegrasp_env.closing.generic_reference.finger_speed`). The lower bound is GJK's;
+   ``rate * t``, clipped at their limits, until a link that stops them touches), by
+   conservative advancement (:mod:`~kinegrasp_env.closing.finger_closing`): t grows by the
+   moving links' gap lower bound over the finger's speed bound
+   (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`). The lower bound is GJK's;
    where it is within ``contact_tol`` (or the hulls overlap) the exact distance replaces it.
    A finger whose closing joints are all prismatic translates its links: it steps at least
-   as far as their separating planes allow (:data:`SHORT` contact tolerances short of
-   them), up to its first joint's limit. A finger touches when the gap is within
-   ``contact_tol``, and misses at its limits.
+   as far as their separating planes allow, up to its first joint's limit; a revolute one at
+   least the reference's smallest step, its touches polished to a zero gap.
 3. *Contacts*: per touching finger link, its exact closest pair with the object (the
    closing's last one: a touching draw took it at its final joint values). On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
@@ -55,8 +54,9 @@ from kinegrasp_env.closing.convex_distance import (
     stacked_faces,
     stacked_vertices,
 )
-from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths, link_poses
-from kinegrasp_env.closing.generic_reference import EDGE_TOL, MAX_STEPS
+from kinegrasp_env.closing.finger_closing import close_finger
+from kinegrasp_env.closing.finger_paths import finger_paths
+from kinegrasp_env.closing.generic_reference import EDGE_TOL
 from kinegrasp_env.closing.hand_errors import (
     arm_to_object,
     flange_link,
@@ -78,12 +78,6 @@ from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.polytope import INSIDE_TOL
 from kinegrasp_env.world.sdf import DistanceGrid, grid_of
 
-#: Exact distances are taken below NEAR x the contact tolerance (above it the certified
-#: bound, within 1e-8 of them relative, stands).
-NEAR = 2.0
-#: A separating plane's step ends this many contact tolerances short of the plane (a pair
-#: left a little apart, whose direction is defined, as the reference's steps leave it).
-SHORT = 0.5
 #: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
 SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
@@ -129,7 +123,7 @@ class FastRobotHand:
                        np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
     # ------------------------------------------------------------------ distances
-    def _exact(self, poses: np.ndarray, link: str, below: float = np.inf,
+    def exact(self, poses: np.ndarray, link: str, below: float = np.inf,
                decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(signed distance (n,), link point (n, 3), object point (n, 3), rounded (n,) bool)
         of the closest pair of ``link`` placed by object-frame poses (n, 4, 4) and the
@@ -201,7 +195,7 @@ class FastRobotHand:
                 continue
             rows = rows[self.distance_bound(pose[rows], link)[0] < -start_tol]
             if rows.size:
-                dist = self._exact(pose[rows], link, -start_tol, decide=True)[0]
+                dist = self.exact(pose[rows], link, -start_tol, decide=True)[0]
                 hit[rows[dist < -start_tol]] = True
         return hit
 
@@ -271,7 +265,7 @@ class FastRobotHand:
         free = np.flatnonzero(~start)
         for f in range(len(fingers)):
             path = self.paths[f]
-            t, g, values, last = self._close_finger(path, palm[free],
+            t, g, values, last = close_finger(self, path, palm[free],
                                                     {k: v[free] for k, v in values0.items()},
                                                     contact_tol, queries, free)
             gaps[free, f], travel[free, f] = g, t
@@ -297,82 +291,6 @@ class FastRobotHand:
         return RobotCloseBatch(start, np.where(start[:, None], False, gaps > contact_tol),
                                gaps, travel, final, queries,
                                **{key: value[order] for key, value in columns.items()})
-
-    def _close_finger(self, path: FingerPath, palm: np.ndarray, values0: dict, contact_tol: float,
-                      queries: np.ndarray, rows: np.ndarray):
-        """Conservative advancement of one finger over draws: (t (m,), gap (m,), values,
-        last): ``last`` maps each finger link to its (pose (m, 4, 4), distance (m,), link
-        point (m, 3), object point (m, 3)) of the draw's last exact distance (a draw whose
-        gap is within ``contact_tol`` took it at its final joint values; other rows are
-        unset). A step is the gap's lower bound over the finger's speed bound; for a finger
-        whose closing joints are all prismatic (its links translate) it is at least the
-        travel its links' separating planes allow, up to the first joint's limit (the
-        translation's direction is fixed until then)."""
-        m = palm.shape[0]
-        last = {link: (np.empty((m, 4, 4)), np.empty(m), np.empty((m, 3)), np.empty((m, 3)),
-                       np.zeros(m, dtype=bool)) for link in path.links}
-        v0 = np.stack([values0[name] for name in path.joints], axis=1)
-        rates, lo, hi, speed = path.rates, path.lower, path.upper, path.speed
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ends = np.where(rates > 0, (hi - v0) / rates,
-                            np.where(rates < 0, (lo - v0) / rates, 0.0))
-        t_end = np.maximum(ends.max(axis=1), 0.0)
-        t_turn = np.maximum(np.where(rates != 0, ends, np.inf).min(axis=1), 0.0)
-        chains = {link: path.chains[link] for link in path.links}
-        names = {j.name for chain in chains.values() for j in chain}
-        fixed = {k: v for k, v in values0.items() if k in names}
-        motion = {link: None for link in path.links}
-        if path.translating:  # each link's displacement per unit t, object frame
-            moved = dict(fixed)
-            for j, name in enumerate(path.joints):
-                moved[name] = v0[:, j] + rates[j]
-            for link in path.links:
-                motion[link] = (link_poses(palm, moved, chains[link])[:, :3, 3]
-                                - link_poses(palm, fixed, chains[link])[:, :3, 3])
-        t, g = np.zeros(m), np.full(m, np.inf)
-        active = np.arange(m)
-        for _ in range(MAX_STEPS):
-            if active.size == 0:
-                break
-            vals = {k: v[active] for k, v in fixed.items()}
-            setting = np.clip(v0[active] + rates * t[active, None], lo, hi)
-            for j, name in enumerate(path.joints):
-                vals[name] = setting[:, j]
-            poses, lower, travel = {}, {}, {}
-            for link in path.links:
-                poses[link] = link_poses(palm[active], vals, chains[link])
-                lower[link], travel[link] = self.distance_bound(
-                    poses[link], link, None if motion[link] is None else motion[link][active],
-                    SHORT * contact_tol)
-            gap = np.min([lower[link] for link in path.links], axis=0)
-            near = np.flatnonzero(gap <= contact_tol)
-            if near.size:  # the exact distance replaces the bound where it is below NEAR
-                exact = np.full(near.size, np.inf)
-                for link in path.links:
-                    pose = poses[link][near]
-                    d, fp, op, rounded = self._exact(pose, link, NEAR * contact_tol)
-                    queries[rows[active[near]]] += 1
-                    exact = np.minimum(exact, d)
-                    lower[link][near] = np.where(d < NEAR * contact_tol, d, lower[link][near])
-                    for store, value in zip(last[link], (pose, d, fp, op, rounded),
-                                            strict=True):
-                        store[active[near]] = value
-                gap[near] = np.where(exact < NEAR * contact_tol, exact, gap[near])
-            g[active] = gap
-            stop = (gap <= contact_tol) | (t[active] >= t_end[active])
-            go = ~stop
-            now = active[go]
-            turn = np.maximum(t_turn[now] - t[now], 0.0)
-            step = np.min([np.maximum(np.maximum(lower[link][go], 0.0) / speed,
-                                      np.minimum(travel[link][go], turn))
-                           for link in path.links], axis=0)
-            t[now] += np.minimum(step, t_end[now] - t[now])
-            active = now
-        values = dict(values0)
-        setting = np.clip(v0 + rates * t[:, None], lo, hi)
-        for j, name in enumerate(path.joints):
-            values[name] = setting[:, j]
-        return t, g, values, last
 
     def _contacts(self, link: str, poses: np.ndarray, distance: np.ndarray,
                   finger_point: np.ndarray, point: np.ndarray, rounded: np.ndarray

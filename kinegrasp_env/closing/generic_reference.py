@@ -11,18 +11,21 @@ where forward kinematics of the URDF puts it. Then:
 1. *Start collision*: some robot link (arm or hand) penetrates the object by more than
    :data:`START_TOL` at q (the hand at its pre-shape).
 2. *Closing*: each finger (:attr:`RobotDescription.fingers`: the chain palm -> fingertip)
-   closes on its own, by a parameter t >= 0 (driver units: metres or radians): each of its
-   closing joints takes the value it has when its driver moves from the pre-shape by
-   ``close * t`` (a mimic follower through its multiplier), clipped at the joint's limit. So
-   the coupled jaws of a parallel gripper close together at one rate, but each finger stops
-   where it touches: the jaws of a self-centring gripper. t advances by conservative
-   advancement: the finger's gap g (pybullet's closest-point distance between its links and
-   the object, plus the collision margins pybullet subtracts: :func:`hull_margin`)
-   over a bound v on how fast any point of those links moves per unit t
-   (:func:`finger_speed`), so that a step never closes more than the gap;
-   should pybullet's distances disagree (penetration beyond :data:`CONTACT_TOL` after a step)
-   the step is halved until it does not. The finger *touches* when g <= :data:`CONTACT_TOL`
-   and has *missed* when every closing joint is at its limit with g > :data:`CONTACT_TOL`.
+   closes on its own, by a parameter t >= 0 (driver units: metres or radians): each closing
+   joint takes the value it has when its driver moves from the pre-shape by ``close * t`` (a
+   mimic follower through its multiplier), clipped at its limit, until a link that stops it
+   touches (GraspIt's rule, :mod:`~kinegrasp_env.robot.touch_rule`: a touching proximal
+   phalanx stops its own joint, the distal one goes on; a parallel gripper's coupled jaws
+   close together, each stopping where it touches). t advances by conservative advancement:
+   the moving links' gap g (pybullet's closest-point distance, plus the collision margins
+   pybullet subtracts: :func:`hull_margin`) over a bound v on how fast any point of them
+   moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`), at least
+   :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger with a revolute closing
+   joint; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it does
+   not. A link *touches* when its gap is within :data:`CONTACT_TOL` (a revolute finger's
+   touch then polished to a zero gap by secant steps:
+   :func:`~kinegrasp_env.closing.close_rules.secant_root`); a finger has *missed* when its
+   joints have all stopped or reached their limits and no link touches.
 3. *Contacts*: one per touching finger link: pybullet's closest pair of that link and the
    object (distance within :data:`CONTACT_TOL`), the point on the object, both in the object
    frame. The normal into the object: where the point lies on one face of the object's exact
@@ -42,16 +45,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.close_rules import (
+    CONTACT_TOL,
+    POLISH_RANGE,
+    START_TOL,
+    STEP,
+    secant_root,
+)
 from kinegrasp_env.closing.contact_patch import (
     face_patch_point,
     faces_of,
     link_hull_vertices,
 )
+from kinegrasp_env.closing.finger_paths import finger_speed
 from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
+from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
 
@@ -66,7 +77,7 @@ GEOM_MESH = pybullet.GEOM_MESH
 EDGE_TOL = 5e-5
 
 __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
-           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of", "finger_speed",
+           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of",
            "hull_margin"]
 
 
@@ -90,26 +101,6 @@ def hull_margin(bullet, body: int, link: int) -> float:
     if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
         return float(bullet.getDynamicsInfo(body, link)[11])
     return 0.0
-
-
-def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
-    """Bound v (metres per unit t) on the speed of any point of a finger's links.
-
-    Args:
-        kinds: per closing joint, its URDF type.
-        rates: (j,) d(joint value)/dt of each closing joint (the mimic multiplier times the
-            close direction).
-        reach: (j,) metres: the largest distance from each joint's origin to a corner of the
-            bounding box of the links it moves (pybullet's AABBs at the pre-shape).
-
-    A prismatic joint moves its links at |rate|; a revolute one at |rate| times the distance
-    from its axis (at most ``reach``, doubled as margin: the distal joints of a finger also
-    move the links it carries). The sum bounds the speed of a point moved by all of them.
-    """
-    speed = 0.0
-    for kind, rate, r in zip(kinds, rates, reach, strict=True):
-        speed += abs(rate) * (1.0 if kind == "prismatic" else 2.0 * r)
-    return max(speed, 1e-9)
 
 
 class RobotWorld(GraspWorld):
@@ -305,39 +296,11 @@ class RobotWorld(GraspWorld):
             rows = [row for link in links for row in self.closest(0.0, link)]
         if any(self.distance(row) < -start_tol for row in rows):
             return self._collided(queries)
-        fingers = self.description.fingers
         missed, gaps, travel, final = [], [], [], {}
         contacts: list[RobotContact] = []
-        for f, finger in enumerate(fingers):
-            joints, kinds, v0, rates, lo, hi = self._finger_path(f, start)
-            speed = self._speed(f, joints, kinds, rates)
-            with np.errstate(divide="ignore"):
-                t_end = float(np.max(np.where(rates > 0, (hi - v0) / rates,
-                                              np.where(rates < 0, (lo - v0) / rates, 0.0))))
-            t_end = max(t_end, 0.0)
-
-            def put(t: float, joints=joints, v0=v0, rates=rates, lo=lo, hi=hi) -> dict:
-                values = dict(zip(joints, np.clip(v0 + rates * t, lo, hi).tolist(),
-                                  strict=True))
-                self.set_joint_values(values)
-                return values
-
-            t = 0.0
-            values = put(t)
-            g, n = self.gap(finger.links)
+        for f in range(len(self.description.fingers)):
+            t, g, values, n = self._close_finger(f, start, contact_tol)
             queries += n
-            for _ in range(MAX_STEPS):
-                if g <= contact_tol or t >= t_end:
-                    break
-                step = min(g / speed, t_end - t)
-                for _ in range(MAX_HALVINGS):
-                    values = put(t + step)
-                    g_new, n = self.gap(finger.links)
-                    queries += n
-                    if g_new >= -contact_tol:
-                        break
-                    step *= 0.5
-                t, g = t + step, g_new
             missed.append(bool(g > contact_tol))
             gaps.append(g)
             travel.append(t)
@@ -346,6 +309,74 @@ class RobotWorld(GraspWorld):
                 contacts += self._contacts(f, contact_tol)
         return RobotCloseResult(False, contacts, tuple(missed), np.array(gaps),
                                 np.array(travel), final, queries)
+
+    def _close_finger(self, f: int, start: dict[str, float], contact_tol: float
+                      ) -> tuple[float, float, dict[str, float], int]:
+        """Close finger f from the joint values ``start`` (step 2 of the module): (t, the
+        finger's gap (its links' least; within the contact tolerance where one touched),
+        its closing joints' final values, pybullet queries). Joint j moves with t until a
+        link that stops it touches (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`)."""
+        finger = self.description.fingers[f]
+        joints, kinds, v0, rates, lo, hi = self._finger_path(f, start)
+        speed = self._speed(f, joints, kinds, rates)
+        least = 0.0 if all(kind == "prismatic" for kind in kinds) else STEP
+        stops, moves = touch_stops(self.model, finger), moved_by(finger)
+        with np.errstate(divide="ignore"):
+            ends = np.maximum(np.where(rates > 0, (hi - v0) / rates,
+                                       np.where(rates < 0, (lo - v0) / rates, 0.0)), 0.0)
+        held = np.full(len(joints), np.inf)  # the t at which each joint stopped
+        touched = np.zeros(len(finger.links), dtype=bool)
+
+        def put(t: float) -> dict:
+            values = dict(zip(joints, np.clip(v0 + rates * np.minimum(t, held), lo, hi)
+                              .tolist(), strict=True))
+            self.set_joint_values(values)
+            return values
+
+        def moving() -> tuple[str, ...]:
+            return tuple(link for k, link in enumerate(finger.links)
+                         if not touched[k] and np.isinf(held[moves[k]]).any())
+
+        t, queries, g, clear = 0.0, 0, None, 0.0
+        values = put(t)
+        for _ in range(MAX_STEPS):
+            links = moving()
+            t_end = float(np.max(ends, initial=0.0, where=np.isinf(held)))
+            if not links or t >= t_end:
+                break
+            if g is None:  # the moving links' gap, unless the last step measured it
+                g, n = self.gap(links)
+                queries += n
+            if g <= contact_tol:  # the links that touch stop their joints
+                touching = tuple(link for link in links if self.gap((link,))[0] <= contact_tol)
+                queries += len(links)
+                if least > 0:  # polished to a zero gap of the touching links
+                    def gap_at(s: float, links=touching) -> float:
+                        put(s)
+                        return self.gap(links)[0]
+
+                    t = secant_root(gap_at, t, g, clear, min(t + POLISH_RANGE, max(t_end, t)))
+                    values = put(t)
+                    touching = tuple(link for link in touching
+                                     if self.gap((link,))[0] <= contact_tol)
+                for k, link in enumerate(finger.links):
+                    if link in touching:
+                        touched[k] = True
+                        held[stops[k]] = np.minimum(held[stops[k]], t)
+                g = None
+                continue
+            step = min(max(g / speed, least), t_end - t)
+            for _ in range(MAX_HALVINGS):
+                values = put(t + step)
+                g, n = self.gap(links)
+                queries += n
+                if g >= -contact_tol:
+                    break
+                step *= 0.5
+            clear, t = t, t + step
+        values = put(t)
+        g, n = self.gap(finger.links)
+        return t, g, values, queries + n
 
     def _patch_point(self, link: str, face: tuple[int, np.ndarray],
                      point: np.ndarray) -> np.ndarray:

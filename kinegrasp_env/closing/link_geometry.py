@@ -96,18 +96,23 @@ def _shapes(bullet, robot: int, index: int
             ) -> tuple[list[np.ndarray], list[RoundedPart], bool]:
     """(polytope vertices (V_k, 3) per shape, rounded parts, some shape is curved) of link
     ``index``, in its URDF frame; ValueError for a mesh that cannot be loaded."""
+    def matrix(position, quaternion) -> np.ndarray:
+        out = np.eye(4)
+        out[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
+        out[:3, 3] = position
+        return out
+
     if index < 0:  # the base: its inertial frame and its URDF frame are the world's here
-        inertial = link = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        inertial = link = np.eye(4)
     else:
         state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
-        inertial, link = (state[0], state[1]), (state[4], state[5])
-    to_link = bullet.invertTransform(*link)
+        inertial, link = matrix(state[0], state[1]), matrix(state[4], state[5])
+    to_link = np.linalg.inv(link) @ inertial  # in double precision, as the kinematics
     polytopes, rounded, curved = [], [], False
     for shape in bullet.getCollisionShapeData(robot, index):
         kind, dims, filename = shape[2], np.asarray(shape[3], dtype=float), shape[4].decode()
-        pos, orn = bullet.multiplyTransforms(*to_link, *bullet.multiplyTransforms(
-            *inertial, shape[5], shape[6]))
-        rot, origin = np.reshape(bullet.getMatrixFromQuaternion(orn), (3, 3)), np.array(pos)
+        frame = to_link @ matrix(shape[5], shape[6])
+        rot, origin = frame[:3, :3], frame[:3, 3]
         if kind in (GEOM_CAPSULE, GEOM_SPHERE):
             half = 0.5 * dims[0] * rot[:, 2] if kind == GEOM_CAPSULE else np.zeros(3)
             radius = dims[1] if kind == GEOM_CAPSULE else dims[0]

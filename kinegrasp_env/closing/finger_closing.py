@@ -1,0 +1,228 @@
+"""One finger of a description robot closed over a batch of draws: the loop of the fast
+generic closing (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), the model of
+:mod:`~kinegrasp_env.closing.generic_reference` step for step.
+
+The finger's closing joints move with its parameter t; a link that touches stops the
+joints it holds (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`), the others go on,
+and a link whose joints have all stopped is not measured again. A step is the moving
+links' least gap lower bound over the finger's speed bound; a finger with a revolute
+closing joint steps at least :data:`~kinegrasp_env.closing.close_rules.STEP` (a step that
+leaves a link deeper than the contact tolerance is halved and tried again), and its touch is
+polished to where the touching links' exact gap is zero
+(:data:`~kinegrasp_env.closing.close_rules.POLISH_TOL`: secant steps, as the default
+robot's closing does), so that where it stops does not depend on the steps that led
+there. A finger whose closing joints are all prismatic (its links translate) steps at least
+the travel its links' separating planes allow, up to the first joint's limit, while none
+has stopped (the translation's direction is fixed until then), and stops where it first
+comes within the tolerance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.close_rules import (
+    POLISH_ITERATIONS,
+    POLISH_PROBE,
+    POLISH_RANGE,
+    POLISH_TOL,
+    STEP,
+)
+from kinegrasp_env.closing.finger_paths import FingerPath, link_poses
+from kinegrasp_env.closing.generic_reference import MAX_STEPS
+
+#: Exact distances are taken below NEAR x the contact tolerance (above it the certified
+#: bound, within 1e-8 of them relative, stands).
+NEAR = 2.0
+#: A separating plane's step ends this many contact tolerances short of the plane (a pair
+#: left a little apart, whose direction is defined, as the reference's steps leave it).
+SHORT = 0.5
+
+__all__ = ["NEAR", "SHORT", "close_finger"]
+
+
+class _Finger:
+    """One finger's closing over m draws: its joint values at any t, its links' poses and
+    exact gaps (the hand's)."""
+
+    def __init__(self, hand, path: FingerPath, palm: np.ndarray, values0: dict) -> None:
+        self.hand, self.path, self.palm = hand, path, palm
+        self.v0 = np.stack([values0[name] for name in path.joints], axis=1)
+        self.chains = {link: path.chains[link] for link in path.links}
+        names = {j.name for chain in self.chains.values() for j in chain}
+        self.fixed = {k: v for k, v in values0.items() if k in names}
+        self.held = np.full(self.v0.shape, np.inf)  # the t at which each joint stopped
+
+    def values(self, rows: np.ndarray, t: np.ndarray) -> dict:
+        """Joint values of draws ``rows`` at their t (len(rows),)."""
+        vals = {k: v[rows] for k, v in self.fixed.items()}
+        setting = np.clip(self.v0[rows] + self.path.rates * np.minimum(t[:, None],
+                                                                       self.held[rows]),
+                          self.path.lower, self.path.upper)
+        for j, name in enumerate(self.path.joints):
+            vals[name] = setting[:, j]
+        return vals
+
+    def poses(self, rows: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
+        vals = self.values(rows, t)
+        return {link: link_poses(self.palm[rows], vals, self.chains[link])
+                for link in self.path.links}
+
+    def gap(self, rows: np.ndarray, t: np.ndarray, links: np.ndarray) -> np.ndarray:
+        """(len(rows),) the least exact distance of each draw's ``links`` (len(rows), K)
+        bool at its t."""
+        poses = self.poses(rows, t)
+        out = np.full(rows.size, np.inf)
+        for k, link in enumerate(self.path.links):
+            if links[:, k].any():
+                d = self.hand.exact(poses[link], link)[0]
+                out = np.minimum(out, np.where(links[:, k], d, np.inf))
+        return out
+
+    def polish(self, rows: np.ndarray, t: np.ndarray, g: np.ndarray, links: np.ndarray,
+               low: np.ndarray, high: np.ndarray) -> np.ndarray:
+        """The t (len(rows),) in [low, high] where the exact gap of each draw's touching
+        ``links`` crosses zero: secant steps from (t - POLISH_PROBE, t) until within
+        POLISH_TOL (at most POLISH_ITERATIONS); the best t seen (the given one where
+        nothing improves it: a grazing touch)."""
+        t0 = np.maximum(t - POLISH_PROBE, low)
+        todo = (t0 < t) & (np.abs(g) > POLISH_TOL)
+        best_t, best_g = t.copy(), np.abs(g)
+        if not todo.any():
+            return best_t
+        g0 = np.full(rows.size, np.nan)
+        g0[todo] = self.gap(rows[todo], t0[todo], links[todo])
+        t1, g1 = t.copy(), g.copy()
+        for _ in range(POLISH_ITERATIONS):
+            todo &= (g1 != g0) & (best_g > POLISH_TOL)
+            if not todo.any():
+                break
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t2 = np.clip(t1 - g1 * (t1 - t0) / (g1 - g0), low, high)
+            g2 = np.full(rows.size, np.nan)
+            g2[todo] = self.gap(rows[todo], t2[todo], links[todo])
+            t0, g0 = np.where(todo, t1, t0), np.where(todo, g1, g0)
+            t1, g1 = np.where(todo, t2, t1), np.where(todo, g2, g1)
+            better = todo & (np.abs(g2) < best_g)
+            best_t[better], best_g[better] = t2[better], np.abs(g2[better])
+        return best_t
+
+
+def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contact_tol: float,
+                 queries: np.ndarray, rows: np.ndarray):
+    """Close one finger of ``hand`` (a :class:`~kinegrasp_env.closing.generic_fast.
+    FastRobotHand`) over draws (module docstring), the palm at object-frame poses (m, 4, 4)
+    and the joints at ``values0`` (name -> (m,)); ``queries`` (counts of exact distances,
+    by draw) is added to at ``rows`` (m,).
+
+    Returns:
+        (t (m,), gap (m,), values, last): the final parameter, the finger's gap (its links'
+        least), every joint's final values, and per finger link its (pose (m, 4, 4),
+        distance (m,), link point (m, 3), object point (m, 3), rounded (m,)) where it
+        touched or was last measured exactly (distance inf where never).
+    """
+    m = palm.shape[0]
+    finger = _Finger(hand, path, palm, values0)
+    v0, held = finger.v0, finger.held
+    last = {link: (np.empty((m, 4, 4)), np.full(m, np.inf), np.empty((m, 3)),
+                   np.empty((m, 3)), np.zeros(m, dtype=bool)) for link in path.links}
+    rates, speed = path.rates, path.speed
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ends = np.where(rates > 0, (path.upper - v0) / rates,
+                        np.where(rates < 0, (path.lower - v0) / rates, 0.0))
+    ends = np.maximum(ends, 0.0)
+    t_turn = np.where(rates != 0, ends, np.inf).min(axis=1)
+    motion = {link: None for link in path.links}
+    if path.translating:  # each link's displacement per unit t, object frame
+        moved = dict(finger.fixed)
+        for j, name in enumerate(path.joints):
+            moved[name] = v0[:, j] + rates[j]
+        for link in path.links:
+            motion[link] = (link_poses(palm, moved, finger.chains[link])[:, :3, 3]
+                            - link_poses(palm, finger.fixed, finger.chains[link])[:, :3, 3])
+    least = 0.0 if path.translating else STEP
+    t, gaps = np.zeros(m), np.full((m, len(path.links)), np.inf)
+    clear, tried = np.zeros(m), np.zeros(m)  # the last t without penetration, its step
+    touched = np.zeros((m, len(path.links)), dtype=bool)
+    active = np.arange(m)
+    for _ in range(MAX_STEPS):
+        stopped = np.isfinite(held[active])
+        live = ~touched[active] & np.stack(  # (a, K): the links that still move
+            [(~stopped[:, path.moves[k]]).any(axis=1) for k in range(len(path.links))],
+            axis=1)
+        keep = live.any(axis=1)
+        active, live, stopped = active[keep], live[keep], stopped[keep]
+        if active.size == 0:
+            break
+        poses = finger.poses(active, t[active])
+        lower, travel = np.full(live.shape, np.inf), np.zeros(live.shape)
+        for k, link in enumerate(path.links):
+            bound, far = hand.distance_bound(
+                poses[link], link, None if motion[link] is None else motion[link][active],
+                SHORT * contact_tol)
+            lower[:, k] = np.where(live[:, k], bound, np.inf)
+            travel[:, k] = np.where(live[:, k] & ~stopped.any(axis=1), far, 0.0)
+        near = np.flatnonzero(lower.min(axis=1) <= contact_tol)
+        exact = {}
+        for k, link in enumerate(path.links):  # the exact distance where the bound is near
+            if near.size:
+                took = live[near, k]
+                exact[k] = (took, *hand.exact(poses[link][near], link, NEAR * contact_tol))
+                queries[rows[active[near[took]]]] += 1
+        deep = np.zeros(active.size, dtype=bool)  # a step too far: halved, tried again
+        hits = np.zeros(live.shape, dtype=bool)
+        for k, (took, d, *_) in exact.items():
+            deep[near[took & (d < -contact_tol)]] = True
+            hits[near[took & (d <= contact_tol)], k] = True
+            lower[near, k] = np.where(took & (d < NEAR * contact_tol), d, lower[near, k])
+        deep &= tried[active] > 0
+        hits &= ~deep[:, None]
+        new_touch = hits.any(axis=1)
+        if least > 0 and new_touch.any():  # the touch polished to a zero gap
+            idx = np.flatnonzero(new_touch)
+            who = active[idx]
+            t_end = np.max(np.where(np.isfinite(held[who]), 0.0, ends[who]), axis=1)
+            g = np.min(np.where(hits[idx], lower[idx], np.inf), axis=1)
+            t[who] = finger.polish(who, t[who], g, hits[idx], clear[who],
+                                   np.minimum(t[who] + POLISH_RANGE, np.maximum(t_end, t[who])))
+            polished = finger.poses(who, t[who])
+            for k, link in enumerate(path.links):
+                if not hits[idx, k].any():
+                    continue
+                sel = np.flatnonzero(hits[idx, k])
+                d, fp, op, rounded = hand.exact(polished[link][sel], link)
+                queries[rows[who[sel]]] += 1
+                took, *rest = exact[k]
+                pos = np.searchsorted(near, idx[sel])
+                rest[0][pos], rest[1][pos], rest[2][pos], rest[3][pos] = d, fp, op, rounded
+                poses[link][idx[sel]] = polished[link][sel]
+                lower[idx[sel], k] = d
+        for k, link in enumerate(path.links):
+            if k not in exact:
+                continue
+            took, d, fp, op, rounded = exact[k]
+            took = took & ~deep[near]
+            for store, value in zip(last[link], (poses[link][near], d, fp, op, rounded),
+                                    strict=True):
+                store[active[near[took]]] = value[took]
+            hit = active[hits[:, k]]  # this link stops its joints
+            touched[hit, k] = True
+            held[hit] = np.where(path.stops[k], np.minimum(held[hit], t[hit, None]), held[hit])
+        gaps[active] = np.where(live & ~deep[:, None], lower, gaps[active])
+        back = active[deep]
+        tried[back] *= 0.5
+        t[back] = clear[back] + tried[back]
+        t_end = np.max(np.where(np.isfinite(held[active]), 0.0, ends[active]), axis=1)
+        go = ~new_touch & ~deep & (t[active] < t_end)
+        lower[touched[active]] = np.inf  # a link that touched no longer bounds the step
+        turn = np.maximum(t_turn[active] - t[active], 0.0)
+        step = np.min(np.maximum(np.maximum(lower, 0.0) / speed,
+                                 np.minimum(travel, turn[:, None])), axis=1)
+        now = active[go]
+        clear[now] = t[now]
+        tried[now] = np.minimum(np.maximum(step[go], least), t_end[go] - t[now])
+        t[now] += tried[now]
+        active = active[go | new_touch | deep]  # a touch: the rest next; a deep step: again
+    values = dict(values0)
+    values.update(finger.values(np.arange(m), t))
+    return t, gaps.min(axis=1), values, last
