@@ -1,0 +1,154 @@
+"""The default robot run as a description (``kuka_sdh.yaml`` through the description robots'
+fast engine: :class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`) against its own
+fast engine (:class:`~kinegrasp_env.montecarlo.engines.FastEngine`, the SDH's compiled
+closing), on the same draws: the shipped grasps of the four objects, joint noise of sigma
+0.0133 rad, ``--draws`` each.
+
+For each grasp: the share of draws with the same outcome, the outcome pairs where they
+differ, P(FC) of both and their paired difference (a 95% t-interval on the per-draw
+differences, Bonferroni-corrected over the grasps), and the time per draw of each engine.
+Every differing draw is put in one class:
+
+* ``verdict``: both closings touch with the same fingers and links; only the force-closure
+  verdict differs (the contacts lie within the closings' tolerances of each other and the
+  grasp is at the edge of force closure);
+* ``links``: both touch, with other links (a link that grazes the object within the contact
+  tolerance in one closing and not in the other);
+* ``reach``: one closing misses (a finger reaches its limits or the object is grazed) where
+  the other touches;
+* ``start``: the start-collision verdict differs (the palm's cylinder against the grid or
+  the exact prism).
+
+    python benchmarks/description_agreement.py [--draws 2000] [--objects cube drill ...]
+
+The figures go to ``benchmarks/results/description_agreement.json`` and the table to
+``docs/guides/robot.md`` (``--no-json``: neither).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from marked_section import write_between
+from results_file import add_options, settings, write_result
+from scipy import stats
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.engines import make_engine as own_engine
+from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.world.grasps import shipped_grasps
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "robot.md"
+START, END = "<!-- description-agreement:start -->", "<!-- description-agreement:end -->"
+SIGMA = 0.0133
+#: The classes of a differing draw (module docstring).
+CLASSES = ("verdict", "links", "reach", "start")
+
+
+def pattern(draws, i: int) -> tuple:
+    """The (finger, link) pairs that touch in draw i."""
+    k = int(draws.n_contacts[i])
+    return tuple(sorted(zip(draws.finger[i, :k].tolist(), draws.link[i, :k].tolist(),
+                            strict=True)))
+
+
+def kind(generic, own, i: int) -> str:
+    """The class of a differing draw (module docstring)."""
+    a, b = int(generic.outcome[i]), int(own.outcome[i])
+    if START_COLLISION in (a, b):
+        return "start"
+    if MISSED in (a, b):
+        return "reach"
+    return "verdict" if pattern(generic, i) == pattern(own, i) else "links"
+
+
+def grasp_row(obj: str, index: int, q0: np.ndarray, generic, own, draws: int,
+              corrected: float) -> dict:
+    rng = np.random.default_rng(index)
+    q = np.repeat(q0[None], draws, axis=0)
+    q[:, :7] += rng.normal(0.0, SIGMA, (draws, 7))
+    start = time.perf_counter()
+    a = generic.run(q)
+    t_generic = time.perf_counter() - start
+    start = time.perf_counter()
+    b = own.run(q)
+    t_own = time.perf_counter() - start
+    differ = np.flatnonzero(a.outcome != b.outcome)
+    diff = (a.outcome == FORCE_CLOSURE).astype(float) - (b.outcome == FORCE_CLOSURE)
+    half = stats.t.ppf(1 - corrected / 2, draws - 1) * diff.std(ddof=1) / np.sqrt(draws)
+    classes = {name: 0 for name in CLASSES}
+    for i in differ:
+        classes[kind(a, b, i)] += 1
+    pairs: dict[str, int] = {}
+    for i in differ:
+        key = f"{OUTCOMES[b.outcome[i]]}->{OUTCOMES[a.outcome[i]]}"
+        pairs[key] = pairs.get(key, 0) + 1
+    return {"object": obj, "grasp": index, "draws": draws, "same": 1 - differ.size / draws,
+            "p_fc_description": float((a.outcome == FORCE_CLOSURE).mean()),
+            "p_fc_own": float((b.outcome == FORCE_CLOSURE).mean()),
+            "difference": float(diff.mean()), "interval": [float(diff.mean() - half),
+                                                         float(diff.mean() + half)],
+            "classes": classes, "pairs": pairs,
+            "us_per_draw_description": 1e6 * t_generic / draws,
+            "us_per_draw_own": 1e6 * t_own / draws}
+
+
+def markdown(result: dict) -> str:
+    rows = result["grasps"]
+    lines = ["| object | draws | same outcome | worst grasp | P(FC) intervals holding 0 "
+             "| verdict / links / reach / start | us a draw: description, own |",
+             "|---|---|---|---|---|---|---|"]
+    for obj in dict.fromkeys(r["object"] for r in rows):
+        mine = [r for r in rows if r["object"] == obj]
+        n = sum(r["draws"] for r in mine)
+        same = sum(r["same"] * r["draws"] for r in mine) / n
+        held = sum(r["interval"][0] <= 0 <= r["interval"][1] for r in mine)
+        classes = [sum(r["classes"][c] for r in mine) for c in CLASSES]
+        lines.append(f"| {obj} | {n} | {100 * same:.2f}% | "
+                     f"{100 * min(r['same'] for r in mine):.1f}% | {held} of {len(mine)} | "
+                     f"{' / '.join(map(str, classes))} | "
+                     f"{np.mean([r['us_per_draw_description'] for r in mine]):.0f}, "
+                     f"{np.mean([r['us_per_draw_own'] for r in mine]):.0f} |")
+    total = result["summary"]
+    classes = " / ".join(str(total["classes"][c]) for c in CLASSES)
+    lines.append(f"| all | {total['draws']} | {100 * total['same']:.2f}% | "
+                 f"{100 * total['worst']:.1f}% | {total['held']} of {total['grasps']} | "
+                 f"{classes} | {total['us_description']:.0f}, {total['us_own']:.0f} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--objects", nargs="+", default=["cube", "drill", "mug", "spray_flask"])
+    parser.add_argument("--draws", type=int, default=2000)
+    add_options(parser, __file__)
+    args = parser.parse_args()
+    grasps = {obj: shipped_grasps(obj) for obj in args.objects}
+    corrected = 0.05 / sum(len(g) for g in grasps.values())
+    rows = []
+    for obj, kept in grasps.items():
+        generic, own = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
+        generic.run(kept[0].q0[None]), own.run(kept[0].q0[None])  # compiled, warmed
+        for index, grasp in enumerate(kept):
+            rows.append(grasp_row(obj, index, grasp.q0, generic, own, args.draws, corrected))
+            print(f"{obj} {index}: same {rows[-1]['same']:.4f}", flush=True)
+    n = sum(r["draws"] for r in rows)
+    summary = {"draws": n, "grasps": len(rows),
+               "same": sum(r["same"] * r["draws"] for r in rows) / n,
+               "worst": min(r["same"] for r in rows),
+               "held": sum(r["interval"][0] <= 0 <= r["interval"][1] for r in rows),
+               "classes": {c: sum(r["classes"][c] for r in rows) for c in CLASSES},
+               "us_description": float(np.mean([r["us_per_draw_description"] for r in rows])),
+               "us_own": float(np.mean([r["us_per_draw_own"] for r in rows]))}
+    result = {"sigma": SIGMA, "grasps": rows, "summary": summary, "settings": settings(args)}
+    print(markdown(result))
+    if not args.no_json:
+        write_result(__file__, result, args.json_out)
+        write_between(DOC, START, END, markdown(result))
+
+
+if __name__ == "__main__":
+    main()
