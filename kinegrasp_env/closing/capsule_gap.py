@@ -211,3 +211,16 @@ def capsule_gaps(grid: DistanceGrid, a: np.ndarray, b: np.ndarray, radius: np.nd
          np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(radius, dtype=float),
          SAMPLES, NEAR, REFINE, GOLD, gap, s)
     return gap, s
+
+
+def sampled_bounds(grid: DistanceGrid, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(m,) the smallest grid distance over :data:`SAMPLES` points of each segment [a, b]
+    ((m, 3) each, object frame) less half their spacing, unrefined: a lower bound of the
+    grid's distance along the whole segment (the exact distance's, less the grid's own
+    error: :func:`~kinegrasp_env.closing.link_geometry.grid_error`)."""
+    m = a.shape[0]
+    gap, s = np.empty(m), np.empty(m)
+    gaps(*grid_arrays(grid), np.ascontiguousarray(a, dtype=float),
+         np.ascontiguousarray(b, dtype=float), np.zeros(m), SAMPLES, -np.inf, REFINE, GOLD,
+         gap, s)
+    return gap

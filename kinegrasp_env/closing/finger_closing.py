@@ -165,9 +165,14 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         near = np.flatnonzero(lower.min(axis=1) <= contact_tol)
         exact = {}
         for k, link in enumerate(path.links):  # the exact distance where the bound is near
-            if near.size:
-                took = live[near, k]
-                exact[k] = (took, *hand.exact(poses[link][near], link, NEAR * contact_tol))
+            took = live[near, k]
+            if took.any():
+                d, fp, op = np.full(near.size, np.inf), np.empty((near.size, 3)), \
+                    np.empty((near.size, 3))
+                rounded = np.zeros(near.size, dtype=bool)
+                d[took], fp[took], op[took], rounded[took] = hand.exact(
+                    poses[link][near[took]], link, NEAR * contact_tol)
+                exact[k] = (took, d, fp, op, rounded)
                 queries[rows[active[near[took]]]] += 1
         deep = np.zeros(active.size, dtype=bool)  # a step too far: halved, tried again
         hits = np.zeros(live.shape, dtype=bool)

@@ -115,7 +115,8 @@ class FastRobotHand:
         self._simplex = new_simplex()
         self._link_faces = {link: stacked_faces(geom.parts)
                             for link, geom in self.geometry.items() if geom.parts}
-        self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex)
+        self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex,
+                                            self.grid)
                          for link, geom in self.geometry.items() if geom.rounded}
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)

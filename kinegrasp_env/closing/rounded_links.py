@@ -4,9 +4,11 @@ link_geometry.RoundedPart`) to the object, for the fast generic closing.
 A rounded part is a ball of radius r swept along a segment (its *core*, one point for a
 sphere), so its distance to the object is the core's less r:
 
-* **bound**: GJK on the core (a hull of one or two vertices) against the object's convex
-  parts (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`), less r: a
-  certified lower bound, -inf where the core meets a part;
+* **bound**: the distance grid's along the core (:func:`~kinegrasp_env.closing.capsule_gap.
+  sampled_bounds`, less the grid's error) where it is above :data:`GRID_CLEAR`, else GJK on
+  the core (a hull of one or two vertices) against the object's convex parts
+  (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`), less r: a
+  certified lower bound either way, -inf where the core meets a part;
 * **exact**: the exact closest pair of the core segment and the object
   (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`), less r, where the
   bound says the core is apart from the object; where the core meets it, the part is at
@@ -20,10 +22,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.closing.capsule_gap import sampled_bounds
 from kinegrasp_env.closing.convex_distance import hull_distance_bounds
-from kinegrasp_env.closing.link_geometry import RoundedPart
+from kinegrasp_env.closing.link_geometry import RoundedPart, grid_error
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sdf import DistanceGrid
+
+#: A core whose grid bound is above this (metres) takes it (GJK below).
+GRID_CLEAR = 5e-3
 
 __all__ = ["RoundedCores", "contact_normals"]
 
@@ -36,24 +43,41 @@ class RoundedCores:
         object_hulls: the object's convex parts as (stacked vertices, starts)
             (:func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`).
         simplex: GJK's scratch (:func:`~kinegrasp_env.closing.convex_distance.new_simplex`).
+        grid: the object's distance grid.
     """
 
-    def __init__(self, parts: tuple[RoundedPart, ...], object_hulls: tuple, simplex) -> None:
-        self.parts = parts
+    def __init__(self, parts: tuple[RoundedPart, ...], object_hulls: tuple, simplex,
+                 grid: DistanceGrid) -> None:
+        self.parts, self.grid, self._grid_err = parts, grid, grid_error(grid)
         self._cores = [(np.ascontiguousarray(np.stack([p.a, p.b]) if np.any(p.a != p.b)
                                              else p.a[None]),
                         np.array([0, 2 if np.any(p.a != p.b) else 1], dtype=np.int64))
                        for p in parts]
         self._object_hulls, self._simplex = object_hulls, simplex
 
-    def _core_bound(self, k: int, rot: np.ndarray, trans: np.ndarray, motion: np.ndarray,
+    def _core_bound(self, k: int, rot: np.ndarray, trans: np.ndarray, motion: np.ndarray | None,
                     short: float) -> tuple[np.ndarray, np.ndarray]:
-        """(GJK's lower bound (n,) of part k's core's distance to the object, -inf where
-        they meet; travel (n,) along ``motion`` before a plane lets it within ``short``)."""
-        core, starts = self._cores[k]
-        out, travel = np.empty(rot.shape[0]), np.empty(rot.shape[0])
-        hull_distance_bounds(core, starts, rot, trans, *self._object_hulls, motion,
-                             float(short), self._simplex, out, travel)
+        """(a certified lower bound (n,) of part k's core's distance to the object, -inf
+        where they meet; travel (n,) along ``motion`` before a plane lets it within
+        ``short``, 0 without a motion): the grid's where it is clear (and no motion), GJK's
+        elsewhere."""
+        n = rot.shape[0]
+        out, travel = np.full(n, -np.inf), np.zeros(n)
+        todo = np.arange(n)
+        if motion is None:
+            part = self.parts[k]
+            a, b = rot @ part.a + trans, rot @ part.b + trans
+            out = sampled_bounds(self.grid, a, b) - self._grid_err
+            todo = np.flatnonzero(~(out > GRID_CLEAR))
+            motion = np.zeros((n, 3))
+        if todo.size:
+            core, starts = self._cores[k]
+            found, far = np.empty(todo.size), np.empty(todo.size)
+            hull_distance_bounds(core, starts, np.ascontiguousarray(rot[todo]),
+                                 np.ascontiguousarray(trans[todo]), *self._object_hulls,
+                                 np.ascontiguousarray(motion[todo]), float(short),
+                                 self._simplex, found, far)
+            out[todo], travel[todo] = found, far
         return out, travel
 
     def bounds(self, poses: np.ndarray, motion: np.ndarray | None = None, short: float = 0.0
@@ -66,9 +90,8 @@ class RoundedCores:
         best, far = np.full(n, np.inf), np.full(n, np.inf if motion is not None else 0.0)
         rot = np.ascontiguousarray(poses[:, :3, :3])
         trans = np.ascontiguousarray(poses[:, :3, 3])
-        move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
         for k, part in enumerate(self.parts):
-            out, travel = self._core_bound(k, rot, trans, move, short + part.radius)
+            out, travel = self._core_bound(k, rot, trans, motion, short + part.radius)
             best = np.minimum(best, out - part.radius)
             if motion is not None:
                 far = np.minimum(far, travel)
@@ -85,7 +108,7 @@ class RoundedCores:
         rot = np.ascontiguousarray(poses[:, :3, :3])
         trans = np.ascontiguousarray(poses[:, :3, 3])
         for k, part in enumerate(self.parts):
-            apart, _ = self._core_bound(k, rot, trans, np.zeros((n, 3)), 0.0)
+            apart, _ = self._core_bound(k, rot, trans, None, 0.0)
             d = np.full(n, -part.radius)
             seg, on_obj = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
             rows = np.flatnonzero(apart > 0.0)  # the core is apart from the object
