@@ -5,16 +5,16 @@ generic closing (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), th
 The finger's closing joints move with its parameter t; a link that touches stops the
 joints it holds (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`), the others go on,
 and a link whose joints have all stopped is not measured again. A step is the moving
-links' least gap lower bound over the finger's speed bound; a finger with a revolute
-closing joint steps at least :data:`~kinegrasp_env.closing.close_rules.STEP` (a step that
-leaves a link deeper than the contact tolerance is halved and tried again), and its touch is
-polished to where the touching links' exact gap is zero
-(:data:`~kinegrasp_env.closing.close_rules.POLISH_TOL`: secant steps, as the default
-robot's closing does), so that where it stops does not depend on the steps that led
-there. A finger whose closing joints are all prismatic (its links translate) steps at least
-the travel its links' separating planes allow, up to the first joint's limit, while none
-has stopped (the translation's direction is fixed until then), and stops where it first
-comes within the tolerance.
+links' least gap lower bound over the finger's speed bound. A finger of several revolute
+degrees of freedom, whose touches can leave joints closing, steps at least
+:data:`~kinegrasp_env.closing.close_rules.STEP` (a step that leaves a link deeper than the
+contact tolerance is halved and tried again) and its touches are polished to where the
+touching links' exact gap is zero (:data:`~kinegrasp_env.closing.close_rules.POLISH_TOL`:
+secant steps, as the default robot's closing does), so that where a phalanx stops, which
+moves where the next one touches, does not depend on the steps that led there. Any other
+finger stops where it first comes within the tolerance; one whose closing joints are all
+prismatic (its links translate) steps at least the travel its links' separating planes
+allow, up to the first joint's limit (the translation's direction is fixed until then).
 """
 
 from __future__ import annotations
@@ -140,7 +140,10 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         for link in path.links:
             motion[link] = (link_poses(palm, moved, finger.chains[link])[:, :3, 3]
                             - link_poses(palm, finger.fixed, finger.chains[link])[:, :3, 3])
-    least = 0.0 if path.translating else STEP
+    # a finger whose touches can leave joints closing (where it stops then matters): at least
+    # STEP a step, its touches polished; another stops where it first comes within tolerance
+    staged = not path.translating and not path.stops.all()
+    least = STEP if staged else 0.0
     t, gaps = np.zeros(m), np.full((m, len(path.links)), np.inf)
     clear, tried = np.zeros(m), np.zeros(m)  # the last t without penetration, its step
     touched = np.zeros((m, len(path.links)), dtype=bool)
@@ -183,7 +186,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         deep &= tried[active] > 0
         hits &= ~deep[:, None]
         new_touch = hits.any(axis=1)
-        if least > 0 and new_touch.any():  # the touch polished to a zero gap
+        if staged and new_touch.any():  # the touch polished to a zero gap
             idx = np.flatnonzero(new_touch)
             who = active[idx]
             t_end = np.max(np.where(np.isfinite(held[who]), 0.0, ends[who]), axis=1)

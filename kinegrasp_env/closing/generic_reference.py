@@ -20,12 +20,13 @@ where forward kinematics of the URDF puts it. Then:
    the moving links' gap g (pybullet's closest-point distance, plus the collision margins
    pybullet subtracts: :func:`hull_margin`) over a bound v on how fast any point of them
    moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`), at least
-   :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger with a revolute closing
-   joint; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it does
-   not. A link *touches* when its gap is within :data:`CONTACT_TOL` (a revolute finger's
+   :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
+   of freedom; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it
+   does not. A link *touches* when its gap is within :data:`CONTACT_TOL` (such a finger's
    touch then polished to a zero gap by secant steps:
-   :func:`~kinegrasp_env.closing.close_rules.secant_root`); a finger has *missed* when its
-   joints have all stopped or reached their limits and no link touches.
+   :func:`~kinegrasp_env.closing.close_rules.secant_root`: where a phalanx stops moves where
+   the next one touches); a finger has *missed* when its joints have all stopped or reached
+   their limits and no link touches.
 3. *Contacts*: one per touching finger link: pybullet's closest pair of that link and the
    object (distance within :data:`CONTACT_TOL`), the point on the object, both in the object
    frame. The normal into the object: where the point lies on one face of the object's exact
@@ -141,6 +142,8 @@ class RobotWorld(GraspWorld):
                                              bullet.getNumJoints(self.bodies["object"])))
                         for link in range(-1, count)}
         self._movable = [j.name for j in self.model.joints if j.movable]
+        self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
+                             for finger in description.fingers]
         hand = hand_links(description)
         self._flange = flange_link(description)
         self._arm_links = tuple(link for link in self.link_index if link not in hand)
@@ -319,8 +322,9 @@ class RobotWorld(GraspWorld):
         finger = self.description.fingers[f]
         joints, kinds, v0, rates, lo, hi = self._finger_path(f, start)
         speed = self._speed(f, joints, kinds, rates)
-        least = 0.0 if all(kind == "prismatic" for kind in kinds) else STEP
-        stops, moves = touch_stops(self.model, finger), moved_by(finger)
+        stops, moves = self._touch_rules[f]
+        staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
+        least = STEP if staged else 0.0  # as in closing.finger_closing
         with np.errstate(divide="ignore"):
             ends = np.maximum(np.where(rates > 0, (hi - v0) / rates,
                                        np.where(rates < 0, (lo - v0) / rates, 0.0)), 0.0)
@@ -347,20 +351,22 @@ class RobotWorld(GraspWorld):
             if g is None:  # the moving links' gap, unless the last step measured it
                 g, n = self.gap(links)
                 queries += n
+            if g <= contact_tol and not staged:  # one degree of freedom: the finger stops
+                break
             if g <= contact_tol:  # the links that touch stop their joints
                 touching = tuple(link for link in links if self.gap((link,))[0] <= contact_tol)
                 queries += len(links)
-                if least > 0:  # polished to a zero gap of the touching links
-                    def gap_at(s: float, links=touching) -> float:
-                        put(s)
-                        return self.gap(links)[0]
 
-                    t = secant_root(gap_at, t, g, clear, min(t + POLISH_RANGE, max(t_end, t)))
-                    values = put(t)
-                    touching = tuple(link for link in touching
-                                     if self.gap((link,))[0] <= contact_tol)
+                def gap_at(s: float, links=touching) -> float:
+                    put(s)
+                    return self.gap(links)[0]
+
+                # polished to a zero gap of the touching links
+                t = secant_root(gap_at, t, g, clear, min(t + POLISH_RANGE, max(t_end, t)))
+                values = put(t)
+                queries += len(touching)
                 for k, link in enumerate(finger.links):
-                    if link in touching:
+                    if link in touching and self.gap((link,))[0] <= contact_tol:
                         touched[k] = True
                         held[stops[k]] = np.minimum(held[stops[k]], t)
                 g = None
@@ -374,9 +380,11 @@ class RobotWorld(GraspWorld):
                     break
                 step *= 0.5
             clear, t = t, t + step
-        values = put(t)
-        g, n = self.gap(finger.links)
-        return t, g, values, queries + n
+        if staged or g is None:  # the whole finger's gap where it stopped
+            values = put(t)
+            g, n = self.gap(finger.links)
+            queries += n
+        return t, g, values, queries
 
     def _patch_point(self, link: str, face: tuple[int, np.ndarray],
                      point: np.ndarray) -> np.ndarray:
