@@ -85,16 +85,18 @@ def test_pfc_equals_evaluate(page, capsys):
     assert len(set(on_page.values())) > 1  # the grasps differ: a mix-up would show
 
 
-def drawn_link(html: str, scene: int, link: str) -> np.ndarray:
-    """The world vertices (V, 3) of ``link`` as scene ``scene`` draws the closed robot (the
-    page's script: the library mesh placed by its instance pose)."""
+def drawn_link(html: str, scene: int | str, link: str) -> np.ndarray:
+    """The world vertices (V, 3) of ``link`` as scene ``scene`` (an index, or the figure's
+    key) draws the closed robot (the page's script: the library mesh placed by its instance
+    pose)."""
     from kinegrasp_env.robot.picture import robot_geometry
 
     shapes = robot_geometry(load_robot("panda"), []).shapes  # which piece is which link
     keys = {f"robot:panda:{k}" for k, s in enumerate(shapes) if s.link == link}
     library = figure(html, "kg-meshes")
     points = []
-    for trace in figure(html, f"fig-scene-{scene}")["data"]:
+    key = f"fig-scene-{scene}" if isinstance(scene, int) else f"fig-{scene}"
+    for trace in figure(html, key)["data"]:
         if trace.get("name") != "robot (closed, nominal)":
             continue
         for key, pose in trace["kgInstances"]:
@@ -182,3 +184,49 @@ def test_reproduce_fig10_of_panda(capsys, tmp_path):
     angles = [float(r["elbow_angle"]) for r in rows]
     assert min(np.diff(sorted(angles))) > 0.1
     assert sorted(r["config"] for r in rows if r["config"]) == ["fragile", "robust"]
+
+
+@pytest.fixture()
+def elbow_page(tmp_path, capsys) -> tuple[dict, str]:
+    """(the printed optimization, the page) of ``elbow --robot panda --report``."""
+    out = tmp_path / "elbow.html"
+    assert main(["elbow", "--robot", "panda", "--object", OBJECT, "--grasp", "0", "--sigma",
+                 SIGMA, "--samples", "30", "--seed", SEED, "--json", "--report",
+                 str(out)]) == 0
+    return json.loads(capsys.readouterr().out), out
+
+
+def test_elbow_report_of_the_panda(elbow_page):
+    """``elbow --robot panda --report``: the printed optimization's curve on the page, the
+    command that reproduces it, and the arm at the best elbow drawn where the project's
+    forward kinematics puts its elbow link at the printed best configuration."""
+    from kinegrasp_env.robot.kinematics import Kinematics
+
+    printed, out = elbow_page
+    html = out.read_text()
+    curve = figure(html, "fig-elbow")["data"][0]
+    assert curve["y"] == [c["p_fc"] for c in sorted(printed["curve"], key=lambda c: c["psi"])]
+    assert (f"kinegrasp elbow --robot panda --object {OBJECT} --grasp 0 --sigma {SIGMA} "
+            f"--noise gaussian --samples 30 --seed {SEED} --engine pybullet") in html
+    description = load_robot("panda")
+    pose = Kinematics(description.model).pose(np.array(printed["best_q"]), "panda_link4")[0]
+    expected = pose[:3, :3] @ obj_centroid("panda_link4") + pose[:3, 3]
+    drawn = drawn_link(html, "arm-best", "panda_link4").mean(axis=0)
+    assert np.linalg.norm(drawn - expected) < CENTROID_TOL
+    assert printed["best_psi"] != printed["nominal_psi"]  # the two views differ
+
+
+@pytest.mark.expensive
+def test_elbow_report_of_the_panda_in_chromium(elbow_page):
+    """The page loads in headless Chromium: every figure drawn, both 3-D scenes' WebGL
+    canvases not blank, no console error (:meth:`~kinegrasp_env.toolkit.report.browser.
+    PageCheck.problems`)."""
+    import importlib.util
+
+    from kinegrasp_env.toolkit import report
+
+    if report.find_chromium() is None or importlib.util.find_spec("playwright") is None:
+        pytest.skip("the browser tests need Chromium on PATH and Playwright")
+    check = report.check_page(elbow_page[1])
+    assert check.problems(scenes=2) == []
+

@@ -219,17 +219,14 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
-def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
-                       friction: float = 0.5) -> None:
-    """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
-    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``; or
-    the re-weighted search's, with its ``evidence``: then the batch, and the fragile
-    directions drawn)."""
-    from kinegrasp_env.toolkit.report.elbow import elbow_page
-    from kinegrasp_env.toolkit.report.page import write_page
-
+def elbow_command_settings(args, grasp, index: int, result, noise, evidence=None,
+                           friction: float = 0.5, robot: str | None = None
+                           ) -> tuple[str, dict]:
+    """(the command line that reproduces an elbow page, its settings table) of ``elbow
+    --report`` (``robot``: ``--robot NAME``'s)."""
     out = Path(args.report)
-    command = ["kinegrasp", "elbow", "--object", args.object, "--grasp", str(index),
+    command = ["kinegrasp", "elbow", *(["--robot", robot] if robot else []),
+               "--object", args.object, "--grasp", str(index),
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
                "--seed", str(result.seed), "--engine", result.engine,
                "--epsilon", f"{result.certificate.epsilon:g}",
@@ -237,7 +234,8 @@ def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
                str(out)]
     if evidence is not None:
         command[-2:-2] = ["--method", "reweight", "--batch", str(evidence.batch)]
-    settings = {"object": grasp.object, "grasp": f"index {index} (id {grasp.id})",
+    settings = {**({"robot": robot} if robot else {}), "object": grasp.object,
+                "grasp": f"index {index} (id {grasp.id})",
                 **noise_settings(args, [noise]),
                 "draws per elbow angle (selection; fresh again)": result.samples,
                 "seed (selection: chunks 0..K-1, fresh: K..2K-1)": result.seed,
@@ -245,15 +243,51 @@ def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
                 "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
                                               f"{result.certificate.delta:g}",
-                "friction mu": friction, "friction cone edges": NUM_EDGES,
-                "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
+                "friction mu": friction, "friction cone edges": NUM_EDGES}
+    if robot is None:
+        settings["noisy arms drawn per view"] = ARM_DRAWS_DEFAULT
     if evidence is not None:
         settings["method"] = (f"reweight: one batch of {evidence.batch} closings over the "
                               "palm's deviation, the chosen and nominal elbow on fresh "
                               "direct draws")
-    text = elbow_page(grasp, result, noise, command=shlex.join(command), settings=settings,
+    return shlex.join(command), settings
+
+
+def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
+                       friction: float = 0.5) -> None:
+    """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
+    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``; or
+    the re-weighted search's, with its ``evidence``: then the batch, and the fragile
+    directions drawn)."""
+    from kinegrasp_env.toolkit.report.elbow import elbow_page
+
+    command, settings = elbow_command_settings(args, grasp, index, result, noise, evidence,
+                                               friction)
+    text = elbow_page(grasp, result, noise, command=command, settings=settings,
                       arm_draws=ARM_DRAWS_DEFAULT,
                       fragility=None if evidence is None else evidence.picture())
+    _written(args, text)
+
+
+def write_robot_elbow_report(args, description, grasp, index: int, result, noise,
+                             evidence=None, friction: float = 0.5) -> None:
+    """``elbow --robot NAME --report FILE``: a description robot's elbow page
+    (:func:`~kinegrasp_env.toolkit.report.robot_elbow.robot_elbow_page`)."""
+    from kinegrasp_env.toolkit.report.robot_elbow import robot_elbow_page
+
+    command, settings = elbow_command_settings(args, grasp, index, result, noise, evidence,
+                                               friction, robot=description.name)
+    text = robot_elbow_page(description, grasp, result, command=command, settings=settings,
+                            friction=friction, num_edges=NUM_EDGES,
+                            fragility=None if evidence is None else evidence.picture())
+    _written(args, text)
+
+
+def _written(args, text: str) -> None:
+    """Write ``--report``'s page and say so (on stderr beside ``--json``)."""
+    from kinegrasp_env.toolkit.report.page import write_page
+
+    out = Path(args.report)
     write_page(out, text)
     print(f"report written to {out} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)

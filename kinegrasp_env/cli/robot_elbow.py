@@ -24,10 +24,6 @@ from kinegrasp_env.cli.elbow_output import (
     show_elbow,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
-
-#: Options a description robot's elbow does not take: flag -> its value when not given.
-ROBOT_REFUSED = {"--report": None}
 
 
 def cmd_elbow_robot(args, chosen=None) -> int:
@@ -38,14 +34,11 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     of ``--object``."""
     from tqdm import tqdm
 
+    from kinegrasp_env.cli.report import report_path, write_robot_elbow_report
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     robot = args.robot
-    for flag, unset in ROBOT_REFUSED.items():
-        if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
-            raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
-                           f"{DEFAULT_ROBOT})")
     args.engine = args.engine or "pybullet"
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
@@ -58,9 +51,11 @@ def cmd_elbow_robot(args, chosen=None) -> int:
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")
     starts = ik_starts(args, branches, robot)
-    if branches and args.plot:
-        raise CLIError(f"--plot draws P(FC) against the elbow angle; robot {robot!r}'s "
-                       "6-joint arm has IK branches instead (no self-motion)")
+    for flag in ("--plot", "--report"):
+        if branches and getattr(args, flag[2:]):
+            raise CLIError(f"{flag} draws P(FC) against the elbow angle; robot {robot!r}'s "
+                           "6-joint arm has IK branches instead (no self-motion)")
+    report_path(args.report)
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
                        "takes none")
@@ -93,6 +88,9 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, index, samples,
                f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad",
                prefix=f"robot {robot}, ")
+    if args.report:
+        write_robot_elbow_report(args, description, grasp, index, result, noise, evidence,
+                                 friction)
     return 0
 
 

@@ -114,8 +114,9 @@ def contact_traces(grasp: Grasp, obj: GraspObject, description: RobotDescription
              "marker": {"size": 6, "color": "black", "symbol": "diamond"}}]
 
 
-def view_buttons(obj: GraspObject) -> dict:
-    """Buttons switching a scene between a close-up of the object and the whole robot."""
+def view_buttons(obj: GraspObject, whole_first: bool = False) -> dict:
+    """Buttons switching a scene between a close-up of the object and the whole robot (the
+    active one: the whole robot with ``whole_first``)."""
     low, high = (transform(c, obj.pose) for c in close_up(obj))
     low, high = np.minimum(low, high), np.maximum(low, high)
     extent = high - low
@@ -126,18 +127,20 @@ def view_buttons(obj: GraspObject) -> dict:
     whole = {f"scene.{a}axis.autorange": True for a in "xyz"}
     whole["scene.aspectmode"] = "data"
     return {"type": "buttons", "direction": "right", "x": 0.0, "y": 1.0, "xanchor": "left",
-            "yanchor": "top", "showactive": True, "active": 0,
+            "yanchor": "top", "showactive": True, "active": int(whole_first),
             "buttons": [{"label": "close-up", "method": "relayout", "args": [near]},
                         {"label": "whole robot", "method": "relayout", "args": [whole]}]}
 
 
 def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
                 geometry: RobotGeometry, closed: int, shaped: int, library: MeshLibrary, *,
-                did_close: bool, friction: float, num_edges: int, title: str) -> dict:
+                did_close: bool, friction: float, num_edges: int, title: str,
+                whole_first: bool = False) -> dict:
     """One grasp's scene in the world frame: the object, the robot at
     ``geometry.frames[closed]`` (its nominal closing) and, hidden until toggled, at
     ``geometry.frames[shaped]`` (its pre-shape q0), the nominal contacts and cones. Opens on
-    the close-up of the object (a button shows the whole robot)."""
+    the close-up of the object (a button shows the whole robot), or with ``whole_first`` on
+    the whole robot (a button shows the close-up)."""
     label = "robot (closed, nominal)" if did_close else "robot (q0: starts in collision)"
     data = object_traces(obj, library, obj.pose, parts=False)
     data[0]["showlegend"] = True  # a mesh trace has no legend entry unless asked
@@ -147,9 +150,12 @@ def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
                          robot=description.name, opacity=0.3, visible="legendonly")
     data += contact_traces(grasp, obj, description, friction, num_edges)
     box = tuple(transform(c, obj.pose) for c in close_up(obj))
-    scene = scene_axes((np.minimum(*box), np.maximum(*box)))
+    scene = scene_axes(None if whole_first else (np.minimum(*box), np.maximum(*box)))
+    if whole_first:  # the camera back far enough to see the whole arm
+        scene["camera"] = {"eye": {"x": 1.5, "y": 1.5, "z": 0.9}}
     return {"data": data, "layout": layout(
-        scene=scene, updatemenus=[view_buttons(obj)], legend=LEGEND, uirevision="grasp",
+        scene=scene, updatemenus=[view_buttons(obj, whole_first)], legend=LEGEND,
+        uirevision="grasp",
         title={"text": title, "x": 0.01, "font": {"size": 14}})}
 
 
