@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, antipodal_pairs, ray_partners
+from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
+from kinegrasp_env.toolkit.robot_planner import antipodal_pairs, ray_partners
 
 
 def tube() -> trimesh.Trimesh:

@@ -73,7 +73,8 @@ def cmd_plan_robot(args) -> int:
 
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, plan_robot_grasps
+    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
     from kinegrasp_env.world.grasps import save_grasps
 
     count = positive_int(args.count, "--count")

@@ -4,12 +4,12 @@ as that robot's planner solves its own palm poses
 
 1. **IK**: :func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose` for the palm pose in
    the world frame (the object at its catalog pose), with the planner's restarts and
-   iterations (:class:`~kinegrasp_env.toolkit.robot_planner.RobotPlannerSettings`), its
+   iterations (:class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`), its
    random restarts seeded for each candidate (a candidate's configuration does not depend
    on the others); then, when the candidate gives ``elbow``, the self-motion to that arm
    angle (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
 2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
-   from the object (:func:`~kinegrasp_env.toolkit.robot_planner.clearance`).
+   from the object (:func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`).
 3. **Closing**: the robot's reference engine
    (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`, no noise) with
    its contact model. ``start_collision`` and ``missed`` reject the candidate; a closing
@@ -33,7 +33,7 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate, has_elbow
-from kinegrasp_env.toolkit.robot_planner import RobotPlannerSettings, clearance
+from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
 from kinegrasp_env.world.grasps import Grasp
 
 

@@ -11,7 +11,7 @@ two: the self-motion and the engine.
   walks from the grasp's own configuration every ``step`` radians of psi in both directions,
   each configuration from the previous one, until the path leaves the joint limits, meets a
   singularity or an arm link other than the fingers would touch the object (pybullet's
-  distance, :func:`~kinegrasp_env.toolkit.robot_planner.clearance`), or half a turn is
+  distance, :func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`), or half a turn is
   walked each way. Every configuration keeps the grasp's palm pose (residual below
   :data:`~kinegrasp_env.robot.null_motion.RESIDUAL_TOL`), hence its nominal contacts.
 - **Engine**: :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` (the
@@ -68,7 +68,7 @@ from kinegrasp_env.toolkit.ik_branches import (
     ik_branches,
     joint_difference,
 )
-from kinegrasp_env.toolkit.robot_planner import clearance
+from kinegrasp_env.toolkit.robot_plan_checks import clearance
 from kinegrasp_env.world.grasps import Grasp
 
 #: The fresh draws' stream: ``SeedSequence([seed, FRESH_STREAM])``.

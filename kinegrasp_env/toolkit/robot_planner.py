@@ -1,4 +1,6 @@
-"""Grasp planning for a parallel-jaw description robot: antipodal pairs, palm poses, IK.
+"""Grasp planning for a description robot: a parallel-jaw hand's antipodal pairs, palm poses,
+IK (below); any other hand's sampled approaches (:mod:`~kinegrasp_env.toolkit.
+approach_planner`).
 
 1. **Antipodal pairs** (Dex-Net's antipodal sampler): points and outward normals sampled on
    the object's surface (``trimesh.sample.sample_surface``, seeded); a pair (p1, p2) is kept
@@ -31,30 +33,16 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS, solve_palm_ik
+from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
+from kinegrasp_env.toolkit.approach_planner import plan_approach_grasps
+from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
 from kinegrasp_env.world.grasps import Grasp
-
-
-@dataclass(frozen=True)
-class RobotPlannerSettings:
-    """Planner settings (angles in radians, lengths in metres)."""
-
-    surface_samples: int = 400
-    max_normal_angle: float = 0.25
-    width_margin: float = 0.005
-    max_depth: float = 0.025
-    min_downward: float = 0.5
-    min_clearance: float = 0.005
-    attempts: int = 200
-    ik_restarts: int = IK_RESTARTS
-    ik_iterations: int = IK_ITERATIONS
 
 
 @dataclass(frozen=True)
@@ -181,26 +169,18 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
     return pose
 
 
-def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
-    """Smallest distance (metres) from the object of the robot's links other than the
-    fingers at configuration q (dof,) (pybullet; capped at the query distance)."""
-    world = engine.world
-    world.set_configuration(q)
-    fingers = {world.link_index[link] for link in engine.description.finger_links}
-    rows = [r for r in world.closest(QUERY_DISTANCE) if r[3] not in fingers]
-    return min((world.distance(r) for r in rows), default=QUERY_DISTANCE)
-
-
 def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
                       seed: SeedLike = 0, settings: RobotPlannerSettings | None = None,
                       friction: float = 0.5, time_budget: float | None = None
                       ) -> list[Grasp]:
-    """Up to ``count`` grasps of a parallel-jaw robot on an object (the module's steps),
-    each in force closure at its nominal closing; ``time_budget`` (seconds): no candidate is
-    closed once it is spent (the grasps found so far are returned).
+    """Up to ``count`` grasps of a robot on an object, each in force closure at its nominal
+    closing: a two-finger hand's by the module's antipodal steps, any other hand's by
+    sampled approaches (:func:`~kinegrasp_env.toolkit.approach_planner.
+    plan_approach_grasps`); ``time_budget`` (seconds): no candidate is closed once it is
+    spent (the grasps found so far are returned).
 
     Raises:
-        ValueError: bad count, a hand that is not two-fingered.
+        ValueError: bad count.
     """
     import time
 
@@ -210,6 +190,10 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
     settings = settings or RobotPlannerSettings()
     rng = as_generator(seed)
     description = load_robot(robot) if isinstance(robot, str) else robot
+    if len(description.fingers) != 2:
+        return plan_approach_grasps(description, object_name, count=count, rng=rng,
+                                    settings=settings, friction=friction,
+                                    time_budget=time_budget)
     found: list[Grasp] = []
     with RobotReferenceEngine(description, object_name, friction=friction) as engine:
         jaw = jaw_frame(engine)

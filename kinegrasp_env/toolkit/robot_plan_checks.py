@@ -1,0 +1,40 @@
+"""What every planner of a description robot shares: its settings
+(:class:`RobotPlannerSettings`) and the arm's clearance from the object (:func:`clearance`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
+
+__all__ = ["RobotPlannerSettings", "clearance"]
+
+
+@dataclass(frozen=True)
+class RobotPlannerSettings:
+    """Planner settings (angles in radians, lengths in metres)."""
+
+    surface_samples: int = 400
+    max_normal_angle: float = 0.25
+    width_margin: float = 0.005
+    max_depth: float = 0.025
+    min_downward: float = 0.5
+    min_clearance: float = 0.005
+    attempts: int = 200
+    ik_restarts: int = IK_RESTARTS
+    ik_iterations: int = IK_ITERATIONS
+
+
+
+def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
+    """Smallest distance (metres) from the object of the robot's links other than the
+    fingers at configuration q (dof,) (pybullet; capped at the query distance)."""
+    world = engine.world
+    world.set_configuration(q)
+    fingers = {world.link_index[link] for link in engine.description.finger_links}
+    rows = [r for r in world.closest(QUERY_DISTANCE) if r[3] not in fingers]
+    return min((world.distance(r) for r in rows), default=QUERY_DISTANCE)
