@@ -12,7 +12,6 @@ import sys
 
 from kinegrasp_env.cli.common import CLIError, reported
 from kinegrasp_env.cli.robot_grasps import _check_engine
-from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
 
 
 def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
@@ -67,6 +66,7 @@ class RobotRanking:
                  layout: list[int], executor, side: dict, model=None) -> None:
         import json
 
+        from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.sampling.noise_spec import spec_of
 
         self.model = None if model is None else json.dumps(spec_of(model))
