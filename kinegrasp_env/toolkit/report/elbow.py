@@ -140,6 +140,16 @@ def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
     if nominal is best:
         notes.append("The best elbow is the nominal one: both views show the same arm.")
     title = f"kinegrasp elbow report: {grasp.object} grasp {grasp.id}"
+    return elbow_layout(title, result, curve, views, notes, library, command=command,
+                        settings=settings, fragility=fragility)
+
+
+def elbow_layout(title: str, result: ElbowResult, curve: Figure, views: list[Figure],
+                 notes: list[str], library: MeshLibrary, *, command: str, settings: dict,
+                 fragility: dict | None = None) -> str:
+    """An elbow page from its parts: the headline, the curve, the fragile directions (where a
+    re-weighted batch gives them), the two arm views side by side, the notes, the curve's
+    table, the settings and the command."""
     extra = []
     if fragility is not None:
         extra = [Figure("fragility", fragility_chart(fragility), "99%", "520px")]

@@ -14,17 +14,9 @@ from dataclasses import replace
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.toolkit.elbow import ElbowResult
-from kinegrasp_env.toolkit.report.charts import elbow_curve, fragility_chart
-from kinegrasp_env.toolkit.report.elbow import curve_point, curve_table, headline
-from kinegrasp_env.toolkit.report.html import (
-    Figure,
-    command_block,
-    esc,
-    note,
-    page,
-    settings_table,
-)
-from kinegrasp_env.toolkit.report.page import versions
+from kinegrasp_env.toolkit.report.charts import elbow_curve
+from kinegrasp_env.toolkit.report.elbow import curve_point, elbow_layout
+from kinegrasp_env.toolkit.report.html import Figure
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary
 from kinegrasp_env.toolkit.report.robot import geometry_note, grasp_scene, nominal_closings
 from kinegrasp_env.world.grasps import Grasp
@@ -65,8 +57,6 @@ def robot_elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowR
         [p.to_json() for p in result.curve], result.nominal_psi, result.best_psi,
         "selection draws, 95% Wilson intervals" if fragility is None else
         "one re-weighted batch, 95% intervals"), "99%", "340px")
-    extra = [] if fragility is None else [Figure("fragility", fragility_chart(fragility), "99%",
-                                                 "520px")]
     notes = ["The curve: P(FC) of each evaluated elbow angle (on the same selection draws, or "
              "from one re-weighted batch); the headline scores the chosen and the nominal "
              "elbow again on fresh draws.",
@@ -76,12 +66,5 @@ def robot_elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowR
     if nominal is best:
         notes.append("The best elbow is the nominal one: both views show the same arm.")
     title = f"kinegrasp elbow report: robot {description.name}, {grasp.object} grasp {grasp.id}"
-    body = (f"<h1>{esc(title)}</h1>{headline(result)}"
-            f"<div class='kg-row'>{curve.div()}</div>"
-            + "".join(f"<div class='kg-row'>{f.div()}</div>" for f in extra) +
-            f"<div class='kg-row'>{views[0].div()}{views[1].div()}</div>"
-            f"{''.join(note(n) for n in notes)}"
-            f"<h2>P(FC) of every evaluated elbow angle</h2>{curve_table(result)}"
-            f"<h2>Settings</h2>{settings_table(settings)}"
-            f"<h2>Command that reproduces this page</h2>{command_block(command)}")
-    return page(title, body, [curve, *extra, *views], library, versions())
+    return elbow_layout(title, result, curve, views, notes, library, command=command,
+                        settings=settings, fragility=fragility)
