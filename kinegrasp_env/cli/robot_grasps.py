@@ -1,7 +1,8 @@
 """``plan --robot`` and ``evaluate`` of a description robot's grasps (a robot other than the
 default ``kuka_sdh``), and what its ``rank`` shares (the option checks, the quick holding
-test: :mod:`kinegrasp_env.cli.robot_ranking`): the antipodal planner
-(:mod:`kinegrasp_env.toolkit.robot_planner`) and the robot's engines
+test: :mod:`kinegrasp_env.cli.robot_ranking`): the planners (antipodal for parallel jaws,
+sampled approaches for any other hand: :mod:`kinegrasp_env.toolkit.robot_planner`) and the
+robot's engines
 (:mod:`kinegrasp_env.montecarlo.robot_evaluate`), their draws in chunks on the command's
 executor (:mod:`kinegrasp_env.montecarlo.robot_chunks`).
 """
@@ -67,8 +68,9 @@ def _check_engine(engine: str, robot: str) -> None:
 
 
 def cmd_plan_robot(args) -> int:
-    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps, each in force closure
-    at its nominal closing, written with their robot."""
+    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps (sampled approaches for
+    any other hand), each in force closure at its nominal closing, written with their
+    robot."""
     from dataclasses import replace
 
     from kinegrasp_env.robot.catalog import load_robot

@@ -104,7 +104,8 @@ def add_commands(sub) -> None:
     p.add_argument("--time-budget", help="seconds at most (default: no limit)")
     p.add_argument("--max-attempts", help="palm poses to try at most (default: no limit)")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
-                   "antipodal parallel-jaw grasps, recorded in the file)")
+                   "antipodal grasps of parallel jaws, sampled approaches of any other hand, "
+                   "recorded in the file)")
     add_friction_arg(p)
     p.set_defaults(func=cmd_plan)
 
