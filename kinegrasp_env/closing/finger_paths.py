@@ -9,11 +9,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.link_geometry import LinkGeometry
-from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.description import Finger, RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
-__all__ = ["FingerPath", "finger_paths", "finger_speed", "link_poses"]
+__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "link_poses"]
 
 
 @dataclass(frozen=True)
@@ -67,24 +67,34 @@ def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> floa
     return max(speed, 1e-9)
 
 
+def closing_joints(description: RobotDescription, finger: Finger
+                   ) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """(kinds, rates (J,), lower (J,), upper (J,)) of a finger's closing joints: each one's
+    URDF type, d(value)/dt (the mimic multiplier times its driver's close direction) and
+    limits (metres or radians)."""
+    model = description.model
+    drivers = model.drivers()
+    kinds, rates, lower, upper = [], [], [], []
+    for name in finger.joints:
+        joint = model.joint(name)
+        driver, mult, _ = drivers[name]
+        kinds.append(joint.kind)
+        rates.append(mult * description.close[model.actuated[driver]])
+        lower.append(joint.lower)
+        upper.append(joint.upper)
+    return kinds, np.array(rates), np.array(lower), np.array(upper)
+
+
 def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry],
                  kinematics: Kinematics) -> list[FingerPath]:
     """Every finger's :class:`FingerPath` (its links: those of ``geometry``, link name ->
     collision geometry; ``kinematics``: the robot's, whose chains from the base give those
     from the palm)."""
     model = description.model
-    drivers = model.drivers()
     palm = len(kinematics.chain(description.palm_link))
     out = []
     for finger in description.fingers:
-        rates, lower, upper, kinds = [], [], [], []
-        for name in finger.joints:
-            joint = model.joint(name)
-            driver, mult, _ = drivers[name]
-            rates.append(mult * description.close[model.actuated[driver]])
-            lower.append(joint.lower)
-            upper.append(joint.upper)
-            kinds.append(joint.kind)
+        kinds, rates, lower, upper = closing_joints(description, finger)
         links = tuple(link for link in finger.links if link in geometry)
         chains = {link: kinematics.chain(link)[palm:] for link in links}
         reach = []
@@ -99,9 +109,8 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
                                     for j in chains[link][names.index(name) + 1:]))
             reach.append(far)
         rows = [finger.links.index(link) for link in links]
-        out.append(FingerPath(tuple(finger.joints), np.array(rates), np.array(lower),
-                              np.array(upper), links, chains,
-                              finger_speed(kinds, np.array(rates), np.array(reach)),
+        out.append(FingerPath(tuple(finger.joints), rates, lower, upper, links, chains,
+                              finger_speed(kinds, rates, np.array(reach)),
                               all(kind == "prismatic" for kind in kinds),
                               moved_by(finger)[rows], touch_stops(model, finger)[rows]))
     return out

@@ -58,7 +58,7 @@ from kinegrasp_env.closing.contact_patch import (
     faces_of,
     link_hull_vertices,
 )
-from kinegrasp_env.closing.finger_paths import finger_speed
+from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
 from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.robot.description import RobotDescription
@@ -204,23 +204,6 @@ class RobotWorld(GraspWorld):
         return best, len(links)
 
     # ------------------------------------------------------------------ closing
-    def _finger_path(self, index: int, start: dict[str, float]):
-        """(joints, kinds, start values, rates, lower, upper) of finger ``index``'s closing."""
-        finger = self.description.fingers[index]
-        drivers = self.model.drivers()
-        kinds, rates, lo, hi, v0 = [], [], [], [], []
-        for name in finger.joints:
-            joint = self.model.joint(name)
-            _, mult, _ = drivers[name]
-            driver = self.model.actuated[drivers[name][0]]
-            kinds.append(joint.kind)
-            rates.append(mult * self.description.close[driver])
-            lo.append(joint.lower)
-            hi.append(joint.upper)
-            v0.append(start[name])
-        return (finger.joints, kinds, np.array(v0), np.array(rates), np.array(lo),
-                np.array(hi))
-
     def _speed(self, index: int, joints, kinds, rates) -> float:
         """:func:`finger_speed` of finger ``index`` at the current state (its pre-shape).
 
@@ -320,7 +303,9 @@ class RobotWorld(GraspWorld):
         its closing joints' final values, pybullet queries). Joint j moves with t until a
         link that stops it touches (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`)."""
         finger = self.description.fingers[f]
-        joints, kinds, v0, rates, lo, hi = self._finger_path(f, start)
+        joints = finger.joints
+        kinds, rates, lo, hi = closing_joints(self.description, finger)
+        v0 = np.array([start[name] for name in joints])
         speed = self._speed(f, joints, kinds, rates)
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
