@@ -47,16 +47,9 @@ def mesh_hull(filename: str) -> np.ndarray:
     return np.asarray(mesh.convex_hull.vertices, dtype=float)
 
 
-#: The file name pybullet gives a collision shape it meshed itself (a URDF cylinder).
-PYBULLET_MESHED = "unknown_file"
-
-
-def link_hull_vertices(bullet, body: int, link: int, *, skip_meshed: bool = False
-                       ) -> np.ndarray | None:
+def link_hull_vertices(bullet, body: int, link: int) -> np.ndarray | None:
     """(V, 3) world-frame vertices of a link's collision geometry (meshes: their convex
-    hulls, as pybullet collides them; boxes: their corners), or None for other shapes (and,
-    with ``skip_meshed``, for a link with a shape pybullet meshed itself, whose vertices it
-    does not give: :data:`PYBULLET_MESHED`)."""
+    hulls, as pybullet collides them; boxes: their corners), or None for other shapes."""
     if link < 0:
         position, orientation = bullet.getBasePositionAndOrientation(body)
     else:
@@ -67,8 +60,6 @@ def link_hull_vertices(bullet, body: int, link: int, *, skip_meshed: bool = Fals
         kind, dims, filename, local_pos, local_orn = shape[2], shape[3], shape[4], shape[5], \
             shape[6]
         if kind == 5:  # GEOM_MESH
-            if skip_meshed and filename.decode() == PYBULLET_MESHED:
-                return None
             local = mesh_hull(filename.decode()) * np.asarray(dims, dtype=float)
         elif kind == 3:  # GEOM_BOX: full extents
             half = 0.5 * np.asarray(dims, dtype=float)
