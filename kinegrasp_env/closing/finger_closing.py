@@ -108,6 +108,12 @@ class _Finger:
         return best_t
 
 
+def moving_end(ends: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """(n,) the t at which every closing joint that has not stopped (``held`` (n, J): inf)
+    reaches its limit (``ends`` (n, J)); 0 where all have stopped."""
+    return np.max(np.where(np.isfinite(held), 0.0, ends), axis=1)
+
+
 def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contact_tol: float,
                  queries: np.ndarray, rows: np.ndarray):
     """Close one finger of ``hand`` (a :class:`~kinegrasp_env.closing.generic_fast.
@@ -189,7 +195,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         if staged and new_touch.any():  # the touch polished to a zero gap
             idx = np.flatnonzero(new_touch)
             who = active[idx]
-            t_end = np.max(np.where(np.isfinite(held[who]), 0.0, ends[who]), axis=1)
+            t_end = moving_end(ends[who], held[who])
             g = np.min(np.where(hits[idx], lower[idx], np.inf), axis=1)
             t[who] = finger.polish(who, t[who], g, hits[idx], clear[who],
                                    np.minimum(t[who] + POLISH_RANGE, np.maximum(t_end, t[who])))
@@ -220,7 +226,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         back = active[deep]
         tried[back] *= 0.5
         t[back] = clear[back] + tried[back]
-        t_end = np.max(np.where(np.isfinite(held[active]), 0.0, ends[active]), axis=1)
+        t_end = moving_end(ends[active], held[active])
         go = ~new_touch & ~deep & (t[active] < t_end)
         lower[touched[active]] = np.inf  # a link that touched no longer bounds the step
         turn = np.maximum(t_turn[active] - t[active], 0.0)
