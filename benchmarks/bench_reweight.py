@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from marked_section import write_between
-from results_file import add_options, plain, settings, write_result
+from results_file import add_options, plain, publish, settings
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
@@ -433,10 +433,7 @@ def main() -> None:
     result = {"summary": summary(cases, elbows, levels, variants), "elbow": elbows,
               "levels": levels, "variants": variants, "certificate": coverage, "env": env,
               "cases": cases, "settings": kept}
-    print(markdown(result))
-    if not args.no_json:
-        write_result(__file__, result, args.json_out)
-        write_between(DOC, START, END, markdown(result))
+    publish(__file__, result, args, markdown(result), DOC, (START, END))
 
 
 if __name__ == "__main__":

@@ -22,8 +22,7 @@ from pathlib import Path
 
 import numpy as np
 from bench_reweight import judged_cases, spread_angles, summary
-from marked_section import write_between
-from results_file import add_options, settings, write_result
+from results_file import add_options, publish, settings
 
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
@@ -124,10 +123,7 @@ def main() -> None:
     result = {"summary": summary(cases, [{"ratio": float("nan")}], [{"ratio": float("nan")}]),
               "grasps": [f"{g.object} {g.id}" for g in grasps], "cases": cases,
               "settings": settings(args)}
-    print(markdown(result))
-    if not args.no_json:
-        write_result(__file__, result, args.json_out)
-        write_between(DOC, START, END, markdown(result))
+    publish(__file__, result, args, markdown(result), DOC, (START, END))
 
 
 if __name__ == "__main__":

@@ -32,8 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from marked_section import write_between
-from results_file import add_options, settings, write_result
+from results_file import add_options, publish, settings
 from scipy import stats
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
@@ -144,10 +143,7 @@ def main() -> None:
                "us_description": float(np.mean([r["us_per_draw_description"] for r in rows])),
                "us_own": float(np.mean([r["us_per_draw_own"] for r in rows]))}
     result = {"sigma": SIGMA, "grasps": rows, "summary": summary, "settings": settings(args)}
-    print(markdown(result))
-    if not args.no_json:
-        write_result(__file__, result, args.json_out)
-        write_between(DOC, START, END, markdown(result))
+    publish(__file__, result, args, markdown(result), DOC, (START, END))
 
 
 if __name__ == "__main__":

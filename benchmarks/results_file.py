@@ -129,3 +129,16 @@ def write_result(script_file: str | Path, record: dict, path: str | Path | None 
     out.write_text(json.dumps(plain(result), indent=1) + "\n")
     print(f"wrote {out}", file=sys.stderr)
     return out
+
+
+def publish(script_file: str | Path, record: dict, args: argparse.Namespace, table: str,
+            page: Path, markers: tuple[str, str]) -> None:
+    """Print ``table`` (the script's Markdown figures); unless ``--no-json``, write ``record``
+    to ``--json-out`` (:func:`write_result`) and ``table`` between ``markers`` (start, end)
+    of the docs ``page`` (:func:`marked_section.write_between`)."""
+    print(table)
+    if not args.no_json:
+        from marked_section import write_between
+
+        write_result(script_file, record, args.json_out)
+        write_between(page, *markers, table)
