@@ -197,8 +197,8 @@ def test_capacity_is_the_edge_of_the_held_loads(panda_cube) -> None:
 def test_kuka_sdh_efforts_are_the_holding_tests_torques() -> None:
     """The SDH's description states its finger motors' limits as the holding test assumes
     them (the static check and the holding test must use the same hand)."""
+    from kinegrasp_env.physics.hand_motors import motor_efforts
     from kinegrasp_env.physics.protocol import ASSUMED_TORQUES
-    from kinegrasp_env.physics.robot_world import motor_efforts
     from kinegrasp_env.robot.catalog import load_robot
 
     efforts = {m.joint: m.effort for m in motor_efforts(load_robot("kuka_sdh"))}

@@ -8,7 +8,7 @@ motors?
   the protocol's gravity along +-x, +-y, +-z of the world; the -z one adds the peak
   acceleration of the protocol's lift (:func:`~kinegrasp_env.physics.motion.
   peak_lift_acceleration`).
-* **Limits** (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's efforts
+* **Limits** (:func:`~kinegrasp_env.physics.hand_motors.motor_efforts`: the URDF's efforts
   unless the description overrides them): each finger's first closing joint is the holding
   test's closing motor, which presses towards closing with at most its effort (0 <= tau <=
   effort, tau in the closing direction); the finger's other closing joints are position
@@ -26,9 +26,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.finger_paths import link_poses
+from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.motion import peak_lift_acceleration
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES, HoldProtocol
-from kinegrasp_env.physics.robot_world import motor_efforts
 from kinegrasp_env.quality.soft_contacts import TORSION_PRIMITIVES, contact_wrenches
 from kinegrasp_env.quality.static_hold import gravity_loads, static_hold
 from kinegrasp_env.robot.description import RobotDescription

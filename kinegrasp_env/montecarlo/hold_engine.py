@@ -11,7 +11,8 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
 from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
-from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotHold, RobotMotorSettings
+from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
+from kinegrasp_env.physics.simulators import robot_simulator_class
 
 __all__ = ["RobotHoldEngine", "quick_hold_engine"]
 
@@ -21,15 +22,18 @@ class RobotHoldEngine(RobotEngine):
     and Q scored as every engine of the robot scores (:meth:`~kinegrasp_env.montecarlo.
     robot_engine.RobotEngine.scored`: its contact model, the patch model's corners
     included), and the holding results (arguments: :class:`RobotEngine`;
-    ``protocol``: the holding test's settings; ``motors``: the closing's end)."""
+    ``protocol``: the holding test's settings; ``motors``: the closing's end;
+    ``simulator``: a name of :data:`~kinegrasp_env.physics.simulators.
+    DESCRIPTION_ROBOT_SIMULATORS`)."""
 
     name = "physics"
 
     def __init__(self, robot, object_name: str, *, protocol: HoldProtocol,
-                 motors: RobotMotorSettings | None = None, **kwargs) -> None:
+                 motors: RobotMotorSettings | None = None, simulator: str = "pybullet",
+                 **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
-        self.simulator = RobotHold(self.description, self.obj, self.friction, protocol,
-                                   settings=motors)
+        self.simulator = robot_simulator_class(simulator)(
+            self.description, self.obj, self.friction, protocol, settings=motors)
 
     def close(self) -> None:
         self.simulator.close()
@@ -52,8 +56,9 @@ class RobotHoldEngine(RobotEngine):
         return self.scored(q, RobotCloseBatch.of_results(closings)), hold
 
 
-def quick_hold_engine(robot, object_name: str, friction: float = 0.5) -> RobotHoldEngine:
+def quick_hold_engine(robot, object_name: str, friction: float = 0.5,
+                      simulator: str = "pybullet") -> RobotHoldEngine:
     """The quick holding test of ``robot`` (a catalog name or a description) on a catalog
-    object, in pybullet, friction mu ``friction``."""
+    object, in ``simulator`` (pybullet or MuJoCo), friction mu ``friction``."""
     return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
-                           friction=friction)
+                           friction=friction, simulator=simulator)

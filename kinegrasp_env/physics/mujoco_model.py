@@ -4,16 +4,20 @@ MuJoCo is an optional dependency (``pip install kinegrasp-env[mujoco]``), import
 use (:func:`import_mujoco`). The model (:func:`build_model`) is compiled from an
 :class:`mujoco.MjSpec`:
 
-* the hand: ``sdh_hand.urdf`` parsed by MuJoCo's own URDF reader (the same file pybullet
-  loads: the same links, inertials, capsules, joint axes and limits, the coupled spread as
-  MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies, visuals dropped).
-  Its root ``hand_root`` is a free body as heavy as pybullet's (``ROOT_MASS``, standing in
-  for the arm) welded to a *mocap* body ``anchor``: where the arm's flange is, moved only by
-  the protocol (the lift and shake), as pybullet's anchor constraint moves its hand (a mocap
-  hand root itself would move without a velocity, and friction, which MuJoCo resolves on
-  velocities, held the object back: it slipped out in the lift). Every hand
-  joint gets one ``general`` actuator (its motor) and one joint equality, off until the
-  controller holds the joint there (:mod:`~kinegrasp_env.physics.mujoco_world`);
+* the hand (:class:`MujocoHand`): a URDF parsed by MuJoCo's own URDF reader, the same file
+  pybullet loads (the same links, inertials, capsules, meshes, joint axes and limits, a
+  coupling as MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies,
+  visuals dropped): the default robot's ``sdh_hand.urdf`` (:func:`sdh_hand`), or a
+  description robot's hand cut from its URDF
+  (:func:`~kinegrasp_env.physics.mujoco_robot_hold.description_hand`).
+  Its root (``hand_root`` of the SDH) is a free body as heavy as pybullet's (``ROOT_MASS``,
+  standing in for the arm) welded to a *mocap* body ``anchor``: where the arm's flange is
+  (a description robot's palm frame), moved only by the protocol (the lift and shake), as
+  pybullet's anchor constraint moves its hand (a mocap hand root itself would move without
+  a velocity, and friction, which MuJoCo resolves on velocities, held the object back: it
+  slipped out in the lift). Every hand joint gets one ``general`` actuator (its motor) and
+  one joint equality, off until the controller holds the joint there
+  (:mod:`~kinegrasp_env.physics.mujoco_world`);
 * the object: a free body at ``obj.pose`` whose collision shape is its exact convex parts (one
   mesh geom per part: MuJoCo collides with each mesh's convex hull), mass and inertia those
   of the uniform-density mesh (:func:`~kinegrasp_env.physics.pybullet_world.mass_properties`,
@@ -85,16 +89,50 @@ def matrix_quat(rotation: np.ndarray) -> np.ndarray:
     return quat
 
 
-def hand_urdf() -> str:
-    """The hand's URDF text with MuJoCo's compiler options (visuals dropped, static links
-    kept as bodies so that ``palm`` and the tips have frames)."""
-    text = asset_path("robots", "sdh_hand.urdf").read_text()
-    head = '<robot name="sdh_hand">'
-    if head not in text:
-        raise ValueError("sdh_hand.urdf: no <robot name=\"sdh_hand\"> element")
-    options = ('<mujoco><compiler discardvisual="true" fusestatic="false" '
+@dataclass(frozen=True)
+class MujocoHand:
+    """A hand for :func:`build_model`.
+
+    Attributes:
+        urdf: the hand's URDF text with MuJoCo's compiler options (:func:`with_compiler`).
+        root: the name of its root link (the frame the anchor holds).
+        palm: the name of its palm link.
+        finger_links: finger link name -> (finger, index of the link in the finger, palm
+            to tip).
+    """
+
+    urdf: str
+    root: str
+    palm: str
+    finger_links: dict[str, tuple[int, int]]
+
+    @property
+    def fingers(self) -> int:
+        return 1 + max(f for f, _ in self.finger_links.values())
+
+
+def with_compiler(text: str, source: str) -> str:
+    """URDF text with MuJoCo's compiler options after its ``<robot ...>`` tag: visuals
+    dropped, static links kept as bodies (so that the palm and the tips have frames), mesh
+    paths kept as written (absolute, or relative to the working directory). ValueError
+    (one line, naming ``source``) without a ``<robot>`` element."""
+    start = text.find("<robot")
+    end = text.find(">", start)
+    if start < 0 or end < 0:
+        raise ValueError(f"{source}: no <robot> element")
+    options = ('<mujoco><compiler discardvisual="true" fusestatic="false" strippath="false" '
                'balanceinertia="true"/></mujoco>')
-    return text.replace(head, head + options, 1)
+    return text[:end + 1] + options + text[end + 1:]
+
+
+def sdh_hand() -> MujocoHand:
+    """The default robot's hand: ``sdh_hand.urdf``, root ``hand_root``, palm ``palm``, each
+    finger's proximal and distal links."""
+    from kinegrasp_env.robot.model import FINGERS
+
+    path = asset_path("robots", "sdh_hand.urdf")
+    links = {FINGERS[f][2 + k]: (f, k) for f in range(len(FINGERS)) for k in range(2)}
+    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", "palm", links)
 
 
 def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactSettings) -> None:
@@ -111,7 +149,7 @@ def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactS
 
 
 def build_model(obj: GraspObject, friction: float, density: float, time_step: float,
-                settings: ContactSettings = CONTACT):
+                settings: ContactSettings = CONTACT, hand: MujocoHand | None = None):
     """The compiled :class:`mujoco.MjModel` of hand, object and table (module docstring).
 
     Args:
@@ -120,11 +158,14 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
         density: the object's, kg/m^3.
         time_step: seconds.
         settings: :class:`ContactSettings`.
+        hand: the hand (default: :func:`sdh_hand`); its root's frame is held by the free
+            joint ``hand_free`` and the anchor.
     """
     from kinegrasp_env.physics.pybullet_world import ROOT_INERTIA, ROOT_MASS, mass_properties
 
     mujoco = import_mujoco()
-    spec = mujoco.MjSpec.from_string(hand_urdf())
+    hand = hand or sdh_hand()
+    spec = mujoco.MjSpec.from_string(hand.urdf)
     spec.option.timestep = time_step
     spec.option.gravity = [0.0, 0.0, 0.0]
     spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
@@ -145,7 +186,7 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
         actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         actuator.forcerange = [-1.0, 1.0]  # set by the controller
-    root = spec.body("hand_root")
+    root = spec.body(hand.root)
     root.add_freejoint(name="hand_free")
     root.explicitinertial = True
     root.mass, root.inertia = ROOT_MASS, [ROOT_INERTIA] * 3
@@ -153,7 +194,7 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
     root.ipos, root.iquat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]
     spec.worldbody.add_body(name="anchor", mocap=True)
     anchor = spec.add_equality(name="anchor", type=mujoco.mjtEq.mjEQ_WELD,
-                               objtype=mujoco.mjtObj.mjOBJ_BODY, name1="hand_root",
+                               objtype=mujoco.mjtObj.mjOBJ_BODY, name1=hand.root,
                                name2="anchor")
     anchor.data = [0.0] * 6 + [1.0, 0.0, 0.0, 0.0] + [1.0, 0.0]  # coincident frames
     anchor.solref = list(settings.pin_solref)

@@ -34,12 +34,13 @@ import numpy as np
 from kinegrasp_env.physics.mujoco_model import (
     CONTACT,
     ContactSettings,
+    MujocoHand,
     build_model,
     import_mujoco,
     matrix_quat,
+    sdh_hand,
 )
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.robot.model import FINGERS
 from kinegrasp_env.world.objects import GraspObject
 
 #: MuJoCo steps per time step of the protocol (1 ms): at 1 ms MuJoCo's stiff contacts and the
@@ -66,21 +67,25 @@ class MujocoWorld:
         obj: the catalog object (placed at ``obj.pose``).
         settings: density, friction and time step (its pybullet-only fields are unused).
         contact: MuJoCo's contact parameters.
+        hand: the hand (default: the SDH, :func:`~kinegrasp_env.physics.mujoco_model.
+            sdh_hand`).
 
     Attributes:
         model, data: MuJoCo's.
         mass: the object's mass, kg.
+        finger_geom: hand geom id -> (finger, link index) of the finger links' geoms.
     """
 
     def __init__(self, obj: GraspObject, settings: WorldSettings | None = None,
-                 contact: ContactSettings = CONTACT) -> None:
+                 contact: ContactSettings = CONTACT, hand: MujocoHand | None = None) -> None:
         self.mujoco = import_mujoco()
         self.obj = obj
         self.settings = settings or WorldSettings()
         if not self.settings.object_free:
             raise ValueError("the MuJoCo world's object is always free (object_free=True)")
+        self.hand = hand = hand or sdh_hand()
         self.model = build_model(obj, self.settings.friction, self.settings.object_density(obj),
-                                 self.settings.time_step / SUBSTEPS, contact)
+                                 self.settings.time_step / SUBSTEPS, contact, hand)
         self.data = self.mujoco.MjData(self.model)
         model = self.model
         self.mass = float(model.body("object").mass[0])
@@ -101,10 +106,10 @@ class MujocoWorld:
                           and model.eq_type[e] == self.mujoco.mjtEq.mjEQ_JOINT]
         object_geoms = np.flatnonzero(model.geom_bodyid == self.object_body)
         self.object_geoms = frozenset(int(g) for g in object_geoms)
-        links = {model.body(FINGERS[f][2 + k]).id: (f, k) for f in range(3) for k in range(2)}
+        links = {model.body(name).id: place for name, place in hand.finger_links.items()}
         self.finger_geom = {g: links[int(model.geom_bodyid[g])] for g in range(model.ngeom)
                             if int(model.geom_bodyid[g]) in links}
-        hand_root = model.body("hand_root").id
+        hand_root = model.body(hand.root).id
         self.hand_geoms = frozenset(g for g in range(model.ngeom)
                                     if self._under(int(model.geom_bodyid[g]), hand_root))
         self.table_geom = model.geom("table").id if obj.table is not None else None
@@ -215,8 +220,18 @@ class MujocoWorld:
             self.model.actuator_biasprm[a, :3] = 0.0
             self.data.ctrl[a] = 0.0
             self.model.dof_damping[self.dof_adr[name]] = 0.0
-            self.model.eq_data[hold, 0] = float(target)
+            self.model.eq_obj2id[hold] = -1
+            self.model.eq_data[hold, :2] = (float(target), 0.0)
             self.data.eq_active[hold] = 1
+
+    def couple(self, name: str, source: str, offset: float, ratio: float) -> None:
+        """Hold joint ``name`` at ``offset + ratio * value of joint source`` (radians or
+        metres): its equality constraint on, now between the two joints (no effort cap, as
+        :meth:`position`), its motor off."""
+        self.position([name], [0.0])
+        hold = self.hold[name]
+        self.model.eq_obj2id[hold] = self.model.joint(source).id
+        self.model.eq_data[hold, :2] = (float(offset), float(ratio))
 
     def spring(self, names: list[str], targets, stiffness, limits) -> None:
         """Springs on joints (:class:`~kinegrasp_env.physics.grip_forces.SpringGrip`):
@@ -300,8 +315,8 @@ class MujocoWorld:
         return float(np.linalg.norm(force)), float(np.linalg.norm(torque))
 
     def finger_forces(self) -> np.ndarray:
-        """(3,) each finger's total normal force on the object now, newtons."""
-        forces = np.zeros(3)
+        """(fingers,) each finger's total normal force on the object now, newtons."""
+        forces = np.zeros(self.hand.fingers)
         for geom, _, _, _, force in self.contact_records():
             if geom in self.finger_geom:
                 forces[self.finger_geom[geom][0]] += force

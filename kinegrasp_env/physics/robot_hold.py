@@ -11,7 +11,7 @@ One draw (:meth:`RobotHold.run_draw`):
    joints that follow them) closes as the kinematic closing closes it, on its own: its
    first closing joint (from the palm) by a velocity motor of its own towards closing at
    its URDF velocity limit, with its effort limit
-   (:func:`~kinegrasp_env.physics.robot_world.motor_efforts`: the URDF's
+   (:func:`~kinegrasp_env.physics.hand_motors.motor_efforts`: the URDF's
    ``<limit effort>`` unless the description's ``efforts`` overrides it); the finger's other
    closing joints follow it by position motors (their effort limits) at the values the
    kinematic closing's one parameter gives them (each moving at its rate: the mimic
@@ -54,17 +54,18 @@ from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.hand_motors import (
+    JointMotor,
+    closing_followers,
+    finger_leaders,
+    motor_efforts,
+)
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import merge_records
 from kinegrasp_env.physics.pybullet_hold import PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.physics.robot_world import (
-    ROOT_LINK,
-    JointMotor,
-    RobotPhysicsWorld,
-    motor_efforts,
-)
+from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
@@ -72,7 +73,7 @@ from kinegrasp_env.world.objects import GraspObject
 
 @dataclass(frozen=True)
 class RobotMotorSettings:
-    """The closing's end (the motors themselves: :func:`~kinegrasp_env.physics.robot_world.
+    """The closing's end (the motors themselves: :func:`~kinegrasp_env.physics.hand_motors.
     motor_efforts`).
 
     Attributes:
@@ -106,46 +107,18 @@ class JawMotors:
 
     Args:
         world: the world, hand at its pre-shape.
-        motors: :func:`~kinegrasp_env.physics.robot_world.motor_efforts`.
+        motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor]) -> None:
         self.world = world
-        description, model = world.description, world.description.model
-        drivers = model.drivers()
-
-        def rate(joint: str) -> float:  # d(value)/dt of the kinematic closing's parameter t
-            index, multiplier, _ = drivers[joint]
-            return multiplier * description.close[model.actuated[index]]
-
-        leaders = {finger.joints[0] for finger in description.fingers if finger.joints}
+        leaders = finger_leaders(world.description)
         self.motors = [m for m in motors if m.joint in leaders]
         self.indices = [world.joint_index[m.joint] for m in self.motors]
         self.speeds = np.array([m.speed for m in self.motors])
-        efforts = {m.joint: m.effort for m in motors}
         start = {name: world.bullet.getJointState(world.hand, index)[0]
                  for name, index in world.joint_index.items()}
-        #: (joint index, source joint index, ratio, source start, target start, effort):
-        #: target = target start + ratio (source - source start)
-        self.followers: list[tuple[int, int, float, float, float, float]] = []
-        followed = set(leaders)
-        for finger in description.fingers:
-            for joint in finger.joints[1:]:
-                if joint not in followed:
-                    followed.add(joint)
-                    leader = finger.joints[0]
-                    self.followers.append((world.joint_index[joint], world.joint_index[leader],
-                                           rate(joint) / rate(leader), start[leader],
-                                           start[joint], efforts[joint]))
-        for joint in model.joints:
-            if (joint.mimic is None or joint.name in followed
-                    or joint.name not in world.joint_index
-                    or joint.mimic[0] not in world.joint_index):
-                continue
-            self.followers.append((world.joint_index[joint.name],
-                                   world.joint_index[joint.mimic[0]], joint.mimic[1], 0.0,
-                                   joint.mimic[2],
-                                   efforts.get(joint.mimic[0], max(efforts.values()))))
+        self.followers = closing_followers(world.description, motors, start)
         self.restart()
 
     def restart(self) -> None:
@@ -159,12 +132,14 @@ class JawMotors:
 
     def follow(self) -> None:
         """The followers' position motors at their values now."""
-        bullet, hand = self.world.bullet, self.world.hand
-        for index, source, ratio, source_start, target_start, effort in self.followers:
-            value = bullet.getJointState(hand, source)[0]
+        world = self.world
+        bullet, hand = world.bullet, world.hand
+        for f in self.followers:
+            value = bullet.getJointState(hand, world.joint_index[f.source])[0]
             bullet.setJointMotorControl2(
-                hand, index, bullet.POSITION_CONTROL,
-                targetPosition=target_start + ratio * (value - source_start), force=effort)
+                hand, world.joint_index[f.joint], bullet.POSITION_CONTROL,
+                targetPosition=f.target_start + f.ratio * (value - f.source_start),
+                force=f.effort)
 
     def step(self, steps: int = 1) -> None:
         for _ in range(steps):

@@ -23,18 +23,13 @@ constraint that holds the hand root at the palm pose the arm's forward kinematic
 the object as a rigid body of its exact convex parts (pinned while the hand closes), the
 support table, the saved start state and the collision pass that drops contact caches.
 
-Motor efforts (:func:`motor_efforts`): a joint's ``<limit effort>`` in the URDF (N for a
-prismatic joint, N m for a revolute one), unless the description's ``efforts`` overrides it
-(for a mimic joint not named there, its driver's override: the two jaws of a gripper
-overridden by naming the actuated one push alike); its closing speed is the URDF's
-``<limit velocity>``.
+The hand's motors and their limits: :mod:`~kinegrasp_env.physics.hand_motors`.
 """
 
 from __future__ import annotations
 
 import tempfile
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -56,77 +51,6 @@ from kinegrasp_env.world.table_probe import table_body
 
 #: The root link of the cut-out hand (the palm frame).
 ROOT_LINK = "kinegrasp_root"
-
-
-@dataclass(frozen=True)
-class JointMotor:
-    """One hand joint's motor.
-
-    Attributes:
-        joint: the joint's name; kind: ``prismatic`` or ``revolute``.
-        effort: its force (N) or torque (N m) limit; source: ``urdf`` (the URDF's
-            ``<limit effort>``) or ``description`` (the description's ``efforts``).
-        speed: its closing speed, m/s or rad/s (the URDF's ``<limit velocity>``).
-        direction: +1 or -1, the sign of its motion when the hand closes.
-    """
-
-    joint: str
-    kind: str
-    effort: float
-    source: str
-    speed: float
-    direction: int
-
-    def to_json(self) -> dict:
-        unit = "N" if self.kind == "prismatic" else "N m"
-        return {"joint": self.joint, "effort": self.effort, "unit": unit,
-                "source": self.source, "speed": self.speed}
-
-
-def urdf_limits(urdf: Path) -> dict[str, tuple[float, float]]:
-    """joint name -> (effort, velocity) of the URDF's ``<limit>`` (0 where not given)."""
-    out = {}
-    for joint in ET.parse(urdf).getroot().findall("joint"):
-        limit = joint.find("limit")
-        attributes = {} if limit is None else limit.attrib
-        out[joint.get("name")] = (float(attributes.get("effort", 0.0)),
-                                  float(attributes.get("velocity", 0.0)))
-    return out
-
-
-def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[JointMotor]:
-    """The motors of every closing joint of the description's fingers (finger-major, palm to
-    tip; a joint shared by two fingers once), efforts times ``scale``.
-
-    Raises:
-        ValueError: a closing joint with no effort (none in the URDF, no override) or no
-            velocity limit (one line, naming the joint and the key to add).
-    """
-    limits = urdf_limits(description.urdf)
-    motors, seen = [], set()
-    for finger in description.fingers:
-        for joint, direction in zip(finger.joints, finger.directions, strict=True):
-            if joint in seen:
-                continue
-            seen.add(joint)
-            effort, velocity = limits.get(joint, (0.0, 0.0))
-            source = "urdf"
-            mimic = description.model.joint(joint).mimic
-            for name in (joint, *(() if mimic is None else (mimic[0],))):
-                if name in description.efforts:
-                    effort, source = description.efforts[name], "description"
-                    break
-            if not effort > 0:
-                raise ValueError(f"robot {description.name!r}: joint {joint!r} has no effort "
-                                 f"limit in {description.urdf.name}; give one in the "
-                                 f"description's efforts: {{{joint}: ...}}")
-            if not velocity > 0:
-                raise ValueError(f"robot {description.name!r}: joint {joint!r} has no "
-                                 f"velocity limit in {description.urdf.name}")
-            motors.append(JointMotor(joint, description.model.joint(joint).kind,
-                                     float(effort) * scale, source, float(velocity),
-                                     int(direction)))
-    return motors
 
 
 def hand_urdf(description: RobotDescription, path: Path) -> None:

@@ -23,9 +23,12 @@ entry here and implements :class:`HoldSimulator`:
 * ``close()``: frees the simulator (idempotent).
 
 These simulators hold the default robot's hand. A description robot (any other catalog
-robot) is held in pybullet alone, by :class:`~kinegrasp_env.physics.robot_hold.RobotHold`
-(``run_draw(q)``: the robot's actuated configuration; the palm pose from its forward
-kinematics): :data:`DESCRIPTION_ROBOT_SIMULATORS`.
+robot) is held by the classes of :data:`DESCRIPTION_ROBOT_SIMULATORS`
+(:func:`robot_simulator_class`): :class:`~kinegrasp_env.physics.robot_hold.RobotHold` in
+pybullet and :class:`~kinegrasp_env.physics.mujoco_robot_hold.MujocoRobotHold` in MuJoCo,
+each ``__init__(description, obj, friction, protocol, world=None, settings=None)`` and
+``run_draw(q)`` (the robot's actuated configuration; the palm pose from its forward
+kinematics), ``close_hand(q, pin)`` (the closing alone), ``motors`` and ``close()``.
 """
 
 from __future__ import annotations
@@ -48,8 +51,11 @@ SIMULATORS: dict[str, tuple[str, str, str]] = {
 }
 
 
-#: The simulators that hold a description robot's hand.
-DESCRIPTION_ROBOT_SIMULATORS: tuple[str, ...] = ("pybullet",)
+#: The simulators that hold a description robot's hand: name -> (module, class name).
+DESCRIPTION_ROBOT_SIMULATORS: dict[str, tuple[str, str]] = {
+    "pybullet": ("kinegrasp_env.physics.robot_hold", "RobotHold"),
+    "mujoco": ("kinegrasp_env.physics.mujoco_robot_hold", "MujocoRobotHold"),
+}
 
 
 class HoldSimulator(Protocol):
@@ -84,4 +90,12 @@ def simulator_class(name: str) -> type[HoldSimulator]:
     """The class of simulator ``name`` (checked: :func:`check_simulator`)."""
     check_simulator(name)
     module, cls, _ = SIMULATORS[name]
+    return getattr(importlib.import_module(module), cls)
+
+
+def robot_simulator_class(name: str) -> type:
+    """The class that holds a description robot's hand in simulator ``name`` (checked as
+    :func:`check_simulator` checks it)."""
+    check_simulator(name)
+    module, cls = DESCRIPTION_ROBOT_SIMULATORS[name]
     return getattr(importlib.import_module(module), cls)

@@ -2,7 +2,8 @@
 ``kuka_sdh``): the same noisy draws through a kinematic engine of the robot
 (:mod:`~kinegrasp_env.montecarlo.robot_evaluate`: ``pybullet``, the reference, or ``fast``)
 and the holding test of its own hand in pybullet
-(:class:`~kinegrasp_env.physics.robot_hold.RobotHold`); results in the default robot's
+(:class:`~kinegrasp_env.physics.robot_hold.RobotHold`) or MuJoCo
+(:class:`~kinegrasp_env.physics.mujoco_robot_hold.MujocoRobotHold`); results in the default robot's
 per-draw form (:class:`~kinegrasp_env.toolkit.validation.GraspDraws`), summarized and
 written by the same code.
 
@@ -21,11 +22,11 @@ from pathlib import Path
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
+from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotMotorSettings
-from kinegrasp_env.physics.robot_world import motor_efforts
-from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS
+from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.toolkit.validation import GraspDraws, ValidationSettings, run_validation
 from kinegrasp_env.world.grasps import Grasp
@@ -42,9 +43,15 @@ def check_robot_settings(robot: str, settings: ValidationSettings) -> None:
     honour, or a robot whose motors lack an effort limit."""
     if settings.simulator not in DESCRIPTION_ROBOT_SIMULATORS:
         raise ValueError(f"--simulator {settings.simulator}: only "
-                         f"{' and '.join(DESCRIPTION_ROBOT_SIMULATORS)} holds description "
+                         f"{' and '.join(DESCRIPTION_ROBOT_SIMULATORS)} hold description "
                          f"robots (robot {robot!r})")
-    motor_efforts(load_robot(robot))
+    check_simulator(settings.simulator)
+    description = load_robot(robot)
+    motor_efforts(description)
+    if settings.simulator == "mujoco":
+        from kinegrasp_env.physics.mujoco_robot_hold import description_hand
+
+        description_hand(description)  # its meshes are ones MuJoCo reads
 
 
 def robot_key(grasp: Grasp, settings: ValidationSettings) -> str:
@@ -68,12 +75,12 @@ _ENGINES: dict[tuple, tuple[RobotEngine, RobotHoldEngine]] = {}
 def robot_engines(grasp: Grasp, settings: ValidationSettings
                   ) -> tuple[RobotEngine, RobotHoldEngine]:
     key = (grasp.robot, grasp.object, settings.kinematic, settings.friction,
-           settings.num_edges, settings.protocol)
+           settings.num_edges, settings.protocol, settings.simulator)
     if key not in _ENGINES:
         options = {"friction": settings.friction, "num_edges": settings.num_edges}
         _ENGINES[key] = (make_engine(settings.kinematic, grasp.robot, grasp.object, **options),
-                         RobotHoldEngine(grasp.robot, grasp.object,
-                                         protocol=settings.protocol, **options))
+                         RobotHoldEngine(grasp.robot, grasp.object, protocol=settings.protocol,
+                                         simulator=settings.simulator, **options))
     return _ENGINES[key]
 
 

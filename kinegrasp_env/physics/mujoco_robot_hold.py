@@ -1,0 +1,222 @@
+"""The holding test (:mod:`~kinegrasp_env.physics.protocol`) of any description robot, in
+MuJoCo: the second opinion on :class:`~kinegrasp_env.physics.robot_hold.RobotHold`, with the
+same draw interface, rules and numbers.
+
+The world is :class:`~kinegrasp_env.physics.mujoco_world.MujocoWorld` with the robot's hand
+(:func:`description_hand`): the URDF subtree below the description's ``palm_link``, cut as
+pybullet's holding test cuts it (:func:`~kinegrasp_env.physics.robot_world.hand_urdf`: the
+same links, meshes, joints and limits), its root held at the palm pose that the draw's arm
+joints give (forward kinematics of the URDF). MuJoCo collides a mesh as its convex hull, as
+pybullet and the kinematic engines do, and gives a flat pad on a face several contacts
+(MuJoCo's multi-point convex collision, on by default): the patch's corners, as pybullet's
+polyhedral contact features do.
+
+One draw (:meth:`MujocoRobotHold.run_draw`):
+
+1. **closing**, gravity off, the object pinned: a hand link penetrating the object by more
+   than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
+   collision. Otherwise each finger's first closing joint closes under a motor of its own
+   (:meth:`~kinegrasp_env.physics.mujoco_world.MujocoWorld.velocity`: the URDF's velocity
+   limit, its effort limit, :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`), the
+   finger's other closing joints and the mimic joints follow it by the rule of
+   :func:`~kinegrasp_env.physics.hand_motors.closing_followers` (here an equality of
+   MuJoCo's solver between the two joints, without pybullet's effort cap on the follower);
+   the URDF's own mimic couplings are off, so the fingers close on their own, as in
+   pybullet. The closing ends by the same stall rule
+   (:class:`~kinegrasp_env.physics.robot_hold.RobotMotorSettings`); then one contact per
+   touching finger link (MuJoCo's records merged by pybullet's rule,
+   :func:`~kinegrasp_env.physics.mujoco_hold.world_contacts`), in the object frame.
+2. **grip**: the rule for jaws of :mod:`~kinegrasp_env.physics.robot_hold`: every closing
+   motor keeps pushing with its full effort; fewer than two touching fingers: ``no_grip``.
+3. the release and the phases: :func:`~kinegrasp_env.physics.hold_runner.hold_test`, the
+   same sequence and rules, from MuJoCo's saved integration state, the hand moved by its
+   mocap anchor.
+"""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.hand_motors import (
+    JointMotor,
+    closing_followers,
+    finger_leaders,
+    motor_efforts,
+)
+from kinegrasp_env.physics.hold_runner import WorldSteps, close_until_stall, in_object_frame
+from kinegrasp_env.physics.mujoco_hold import world_contacts
+from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
+from kinegrasp_env.physics.mujoco_world import MujocoWorld
+from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
+from kinegrasp_env.physics.pybullet_world import WorldSettings
+from kinegrasp_env.physics.robot_hold import RobotMotorSettings
+from kinegrasp_env.physics.robot_world import ROOT_LINK, hand_urdf
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.world.objects import GraspObject
+
+#: The mesh files MuJoCo reads (file suffixes, lower case).
+MUJOCO_MESHES = (".stl", ".obj")
+
+
+def description_hand(description: RobotDescription) -> MujocoHand:
+    """The robot's hand for MuJoCo (module docstring): its URDF text, root, palm and finger
+    links.
+
+    Raises:
+        ValueError: a hand mesh MuJoCo cannot read (one line, naming the file).
+    """
+    with tempfile.TemporaryDirectory(prefix="kinegrasp_hand_") as folder:
+        path = Path(folder) / "hand.urdf"
+        hand_urdf(description, path)
+        text = path.read_text()
+    for name in re.findall(r'<mesh[^>]*filename="([^"]+)"', text):
+        if Path(name).suffix.lower() not in MUJOCO_MESHES:
+            raise ValueError(f"robot {description.name!r}: MuJoCo reads STL and OBJ meshes, "
+                             f"not {Path(name).name}; convert it (trimesh) and name the "
+                             f"new file in {description.urdf.name}")
+    links: dict[str, tuple[int, int]] = {}
+    for f, finger in enumerate(description.fingers):
+        for k, link in enumerate(finger.links):
+            links.setdefault(link, (f, k))
+    return MujocoHand(with_compiler(text, description.urdf.name), ROOT_LINK,
+                      description.palm_link, links)
+
+
+class JawServos:
+    """The closing motors (module docstring, steps 1 and 2) of a :class:`MujocoWorld`, the
+    hand at its pre-shape.
+
+    Args:
+        world: the world.
+        description: the robot.
+        motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
+    """
+
+    def __init__(self, world: MujocoWorld, description: RobotDescription,
+                 motors: list[JointMotor]) -> None:
+        self.world = world
+        leaders = finger_leaders(description)
+        self.motors = [m for m in motors if m.joint in leaders]
+        self.names = [m.joint for m in self.motors]
+        self.speeds = np.array([m.speed for m in self.motors])
+        start = dict(zip(world.joint_names, world.joint_states(world.joint_names)[0],
+                         strict=True))
+        world.uncouple()
+        for f in closing_followers(description, motors, start):
+            world.couple(f.joint, f.source, f.target_start - f.ratio * f.source_start,
+                         f.ratio)
+        world.velocity(self.names, [m.direction * m.speed for m in self.motors],
+                       [m.effort for m in self.motors])
+
+    def travel(self) -> np.ndarray:
+        """(m,) the motors' joint positions in seconds of travel (value / closing speed)."""
+        return self.world.joint_states(self.names)[0] / self.speeds
+
+
+class MujocoRobotSteps(WorldSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
+    in a :class:`MujocoWorld` holding a description robot's hand: the grip is the closing
+    motors left on, a saved state MuJoCo's integration state, the hand moved by its mocap
+    anchor."""
+
+    def __init__(self, world: MujocoWorld, protocol: HoldProtocol) -> None:
+        super().__init__(world, None, protocol)
+        self.state = self.start = None
+
+    def grip(self) -> bool:
+        touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
+        return len(touched) >= 2
+
+    def advance(self, steps: int = 1) -> None:
+        self.world.step(steps)
+
+    def finger_forces(self) -> np.ndarray:
+        return self.world.finger_forces()
+
+    def object_in_palm(self) -> np.ndarray:
+        world = self.world
+        return np.linalg.inv(world.link_pose(world.hand.palm)) @ world.object_pose()
+
+    def save(self) -> None:
+        world = self.world
+        self.state = world.save_state()
+        self.start = world.link_pose(world.hand.root), world.link_pose(world.hand.palm)[:3, 3]
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        self.world.restore_state(self.state)
+        self.world.set_gravity(gravity)
+
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.start
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        self.world.root_at(position, orientation)
+
+    def discard(self) -> None:
+        self.state = self.start = None
+
+
+class MujocoRobotHold:
+    """The holding test of a description robot in MuJoCo, one draw at a time (arguments and
+    attributes: :class:`~kinegrasp_env.physics.robot_hold.RobotHold`'s)."""
+
+    name = "mujoco"
+
+    def __init__(self, description: RobotDescription, obj: GraspObject, friction: float,
+                 protocol: HoldProtocol, world: WorldSettings | None = None,
+                 settings: RobotMotorSettings | None = None) -> None:
+        world_settings = replace(world or WorldSettings(), friction=friction)
+        self.description, self.protocol = description, protocol
+        self.settings = settings or RobotMotorSettings()
+        self.motors = motor_efforts(description, protocol.torque_scale)
+        self.kinematics = Kinematics(description.model)
+        self.world = MujocoWorld(obj, world_settings, hand=description_hand(description))
+
+    def palm_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
+        return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
+                                    self.description.palm_link)
+
+    def close_hand(self, q: np.ndarray, pin: bool = True
+                   ) -> tuple[RobotCloseResult, JawServos | None]:
+        """The closing of configuration q (dof,) on the object, pinned or (``pin=False``)
+        free without gravity: its contacts in the object frame where the object ended, and
+        the motors (None: start collision)."""
+        world, fingers = self.world, self.description.fingers
+        values = {name: value for name, value in self.description.model.expand(
+            np.asarray(q, dtype=float)).items() if name in world.qpos_adr}
+        world.reset(self.palm_poses(q)[0], values, pin=pin)
+        if world.penetration() > START_TOL:
+            return RobotCloseResult(True, missed=(False,) * len(fingers)), None
+        servos = JawServos(world, self.description, self.motors)
+        close_until_stall(world.step, servos.travel, self.settings, world.settings.time_step)
+        found = in_object_frame(world_contacts(world, self.settings.touch_distance),
+                                world.object_pose())
+        contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
+        touched = {c.finger for c in contacts}
+        positions = world.joint_states(servos.names)[0]
+        return RobotCloseResult(False, contacts,
+                                tuple(f not in touched for f in range(len(fingers))),
+                                joints=dict(zip(servos.names, map(float, positions),
+                                                strict=True))), servos
+
+    def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
+        """One draw at configuration q (dof,): the closing on the pinned object and the
+        holding test."""
+        closing, servos = self.close_hand(q)
+        if servos is None:
+            return closing, HoldResult(START_COLLISION)
+        return closing, hold_runner.hold_test(MujocoRobotSteps(self.world, self.protocol),
+                                              self.protocol)
+
+    def close(self) -> None:
+        """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""
