@@ -15,7 +15,7 @@ Draws and labels:
   ``--out`` unless ``KINEGRASP_HOME`` is set), ``--samples`` draws each at every joint noise of
   ``--panda-sigmas`` (palm poses a little and further off the planned one: at 0.0133 rad most
   of its draws drop, near 0 most hold, so both occur), labelled by the holding test in
-  pybullet (MuJoCo holds only the default robot).
+  pybullet and in MuJoCo (the Panda's hand cut from its URDF in each).
 
 Scores of each draw (the kinematic engines of a description robot, on the same
 configuration; higher: predicted to hold):
@@ -74,6 +74,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -183,8 +184,8 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
         keys = [(i, d) for i in range(len(grasps)) for d in range(args.samples)]
         for simulator in SIMULATORS:
             labels[simulator] += [held[simulator][k] for k in keys]
-        composition[obj] = {"draws": len(keys),
-                            "held_pybullet": sum(held["pybullet"][k] for k in keys)}
+        composition[obj] = {"draws": len(keys)} | {
+            f"held_{s}": sum(held[s][k] for k in keys) for s in SIMULATORS}
         for name, value in draw_scores("kuka_sdh", obj, q, args.sigma, args.pfc_samples,
                                        args.seed).items():
             scores[name].append(value)
@@ -194,9 +195,9 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
 
 
 def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
-    """The panda draws' scores, their pybullet labels, and per object the draws and those
-    held."""
-    labels: list[bool] = []
+    """The panda draws' scores, their labels per simulator, and per object the draws and
+    those held in each simulator."""
+    labels: dict[str, list[bool]] = {s: [] for s in SIMULATORS}
     composition = {}
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     protocol = HoldProtocol()
@@ -208,22 +209,24 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
             continue
         q = configurations(grasps, args.panda_sigmas, args.samples, args.seed)
         start = time.perf_counter()
-        with RobotHoldEngine("panda", obj, protocol=protocol) as physics:
-            _, hold = physics.run_hold(q)
-        labels += list(hold.outcome == HELD)
-        composition[obj] = {"grasps": len(grasps), "draws": int(q.shape[0]),
-                            "held_pybullet": int((hold.outcome == HELD).sum())}
-        counts = np.bincount(hold.outcome, minlength=len(HOLD_OUTCOMES))
-        print(f"  panda {obj}: " + ", ".join(f"{name} {count}" for name, count
-                                           in zip(HOLD_OUTCOMES, counts, strict=True)),
-              file=sys.stderr)
+        composition[obj] = {"grasps": len(grasps), "draws": int(q.shape[0])}
+        for simulator in SIMULATORS:
+            with RobotHoldEngine("panda", obj, protocol=protocol,
+                                 simulator=simulator) as physics:
+                _, hold = physics.run_hold(q)
+            labels[simulator] += list(hold.outcome == HELD)
+            composition[obj][f"held_{simulator}"] = int((hold.outcome == HELD).sum())
+            counts = np.bincount(hold.outcome, minlength=len(HOLD_OUTCOMES))
+            print(f"  panda {obj} {simulator}: " + ", ".join(
+                f"{name} {count}" for name, count in zip(HOLD_OUTCOMES, counts, strict=True)),
+                file=sys.stderr)
         for name, value in draw_scores("panda", obj, q, args.sigma, args.pfc_samples,
                                        args.seed).items():
             scores[name].append(value)
         print(f"  panda {obj}: {q.shape[0]} draws, holding tests "
               f"{time.perf_counter() - start:.0f} s", file=sys.stderr)
     return ({k: np.concatenate(v) for k, v in scores.items()},
-            {"pybullet": np.array(labels)}, composition)
+            {k: np.array(v) for k, v in labels.items()}, composition)
 
 
 def table(scores: dict, labels: dict) -> dict:
@@ -238,6 +241,17 @@ def table(scores: dict, labels: dict) -> dict:
     return out
 
 
+def label_agreement(labels: dict) -> dict:
+    """The two simulators' verdicts on the same draws: how many agree, the Wilson 95%
+    interval of the rate, and Cohen's kappa (agreement beyond what the held rates alone
+    give)."""
+    first, second = (labels[s] for s in SIMULATORS)
+    same, n = int((first == second).sum()), int(first.size)
+    chance = first.mean() * second.mean() + (1 - first.mean()) * (1 - second.mean())
+    kappa = float((same / n - chance) / (1 - chance)) if chance < 1 else float("nan")
+    return {"same": same, "draws": n, "ci95": list(wilson_interval(same, n)), "kappa": kappa}
+
+
 def markdown(result: dict) -> str:
     """The AUC table, then the draws per object."""
     lines = ["| robot | simulator | draws | held | " + " | ".join(SCORES) + " |",
@@ -248,10 +262,18 @@ def markdown(result: dict) -> str:
                      f"{record[s]['ci95'][1]:.2f}]" for s in SCORES]
             lines.append(f"| {robot} | {simulator} | {record['draws']} | {record['held']} | "
                          + " | ".join(cells) + " |")
-    lines += ["", "| robot | object | draws | held (pybullet) |", "|---|---|---|---|"]
+    lines += ["", "| robot | verdicts the same in both simulators | 95% interval | "
+                  "Cohen's kappa |", "|---|---|---|---|"]
+    for robot, record in result["simulators_agree"].items():
+        lines.append(f"| {robot} | {record['same']} of {record['draws']} | "
+                     f"{record['ci95'][0]:.2f}-{record['ci95'][1]:.2f} | "
+                     f"{record['kappa']:.2f} |")
+    lines += ["", "| robot | object | draws | " + " | ".join(
+        f"held ({s})" for s in SIMULATORS) + " |", "|---" * (3 + len(SIMULATORS)) + "|"]
     for robot, per in result["composition"].items():
         for obj, record in per.items():
-            lines.append(f"| {robot} | {obj} | {record['draws']} | {record['held_pybullet']} |")
+            lines.append(f"| {robot} | {obj} | {record['draws']} | " + " | ".join(
+                str(record[f"held_{s}"]) for s in SIMULATORS) + " |")
     return "\n".join(lines)
 
 
@@ -276,12 +298,13 @@ def main() -> None:
     args = parser.parse_args()
     os.environ.setdefault("KINEGRASP_HOME", str(args.out / "catalog"))
     imported = import_thin_objects(args.out / "meshes", args.imported)
-    result = {"robots": {}, "composition": {}}
+    result = {"robots": {}, "simulators_agree": {}, "composition": {}}
     for robot in args.robots:
         runner = kuka_draws if robot == "kuka_sdh" else panda_draws
         scores, labels, composition = runner(
             args.objects + (imported if robot == "panda" else []), args)
         result["robots"][robot] = table(scores, labels)
+        result["simulators_agree"][robot] = label_agreement(labels)
         result["composition"][robot] = composition
     text = markdown(result)
     print(text)

@@ -172,3 +172,16 @@ def test_evaluate_reports_both_hold_scores(capsys) -> None:
         lo, hi = record[f"{key}_ci"]
         assert 0.0 <= lo <= record[key] <= hi <= 1.0
         assert record[key] * 3 == pytest.approx(round(record[key] * 3))
+
+
+def test_the_holding_test_runs_in_mujoco_when_asked(capsys) -> None:
+    """``evaluate --hold-test --hold-simulator mujoco`` names MuJoCo, and holds the Panda's
+    nominal cube grasp 0, as pybullet's holding test does (two simulators, one verdict)."""
+    pytest.importorskip("mujoco")
+    from cli_helpers import run_in_process
+
+    text = run_in_process(capsys, "evaluate", "--robot", "panda", "--object", "cube",
+                          "--grasp", "0", "--sigma", "0", "--samples", "2", "--engine", "fast",
+                          "--hold-test", "--hold-simulator", "mujoco")
+    assert "the quick holding test in mujoco on the same draws" in text
+    assert "P(hold) = 1.0000" in text

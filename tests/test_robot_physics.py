@@ -114,7 +114,6 @@ def test_validate_robot_refusals(capsys, tmp_path):
     save_grasps(shipped_grasps("cube", "panda")[:1], grasps)
     base = ["validate", "--sigma", "0", "--samples", "1", "--out", str(tmp_path / "o")]
     cases = [
-        (["--robot", "panda", "--simulator", "mujoco"], "only pybullet holds description"),
         (["--robot", "no_such_robot"], "unknown robot 'no_such_robot'"),
         (["--robot", "panda", "--object", "mug"], "no shipped grasps of 'mug'"),
         (["--robot", "kuka_sdh", "--grasps", str(grasps)], "grasps of robot 'panda'"),

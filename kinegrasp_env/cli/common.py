@@ -317,6 +317,13 @@ def add_static_hold_arg(parser: argparse.ArgumentParser, shows: str) -> None:
                         f"limits; {shows} (robots other than the default)")
 
 
+def add_hold_simulator_arg(parser: argparse.ArgumentParser) -> None:
+    """``--hold-simulator``: where the quick holding test runs (pybullet or MuJoCo)."""
+    parser.add_argument("--hold-simulator", default="pybullet", choices=("pybullet", "mujoco"),
+                        help="the simulator of the quick holding test (default pybullet; "
+                        "mujoco: pip install mujoco)")
+
+
 def engine_name(value: str) -> str:
     """Validated ``--engine`` value."""
     from kinegrasp_env.montecarlo.evaluate import ENGINES

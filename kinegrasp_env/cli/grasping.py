@@ -11,6 +11,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
     add_friction_arg,
+    add_hold_simulator_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
@@ -227,9 +228,10 @@ def add_commands(sub) -> None:
                    f"{DEFAULT_ROBOT}); a grasp of another robot is refused")
     add_static_hold_arg(p, "prints P(hold, static)")
     p.add_argument("--hold-test", action="store_true",
-                   help="also run the quick holding test in pybullet on the same draws and "
-                   "print P(hold) (robots other than the default; it runs pybullet dynamics "
-                   "per draw, far slower than the kinematic draws: benchmarks/quick_hold.py)")
+                   help="also run the quick holding test on the same draws and print P(hold) "
+                   "(robots other than the default; it runs dynamics per draw, far slower "
+                   "than the kinematic draws: benchmarks/quick_hold.py)")
+    add_hold_simulator_arg(p)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "

@@ -115,6 +115,8 @@ def cmd_rank(args) -> int:
                 "samples": samples, "chunk": chunk, "seed": seed}
     if described:  # another robot's draws: one stream's rows, with its hold scores
         settings.update(robot=robot, criterion_scores=list(_hold_scores(args)))
+        if _hold_scores(args)[1]:
+            settings["hold_simulator"] = args.hold_simulator
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 
@@ -144,7 +146,7 @@ def cmd_rank(args) -> int:
                 grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
                 friction=friction, static_hold=static, hold_test=test, layout=layout,
                 executor=executor, side=side,
-                model=noise if args.noise_spec else None)
+                model=noise if args.noise_spec else None, hold_simulator=args.hold_simulator)
         done = {}
         if not args.adaptive:
             existed = partial.exists()
@@ -164,7 +166,8 @@ def cmd_rank(args) -> int:
     for r in results:  # resumed candidates carry theirs from the log
         _merge_side(r, side)
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
-    write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json)
+    write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json,
+                  hold_simulator=args.hold_simulator)
     write_rejected(rejected, out, args.json)
     if args.report and described:
         from kinegrasp_env.cli.robot_ranking import write_robot_rank_page

@@ -26,7 +26,7 @@ HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(ho
 HOLD_NOTES = {
     "static": "P(stat): the static hold check (the contacts carry the object's weight in six "
               "gravity directions and the lift within the hand's effort limits)",
-    "test": "P(hold): the quick holding test in pybullet (the hand closed on the object under "
+    "test": "P(hold): the quick holding test in {simulator} (the hand closed on the object under "
             "dynamics, six gravity directions and the lift; it agrees with the full test on "
             "most draws: benchmarks/quick_hold.py)"}
 
@@ -84,7 +84,8 @@ def certified_line(report, samples: int) -> str:
 
 
 def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
-                   engine: str, adaptive=None, as_json: bool = False) -> None:
+                   engine: str, adaptive=None, as_json: bool = False,
+                   hold_simulator: str = "pybullet") -> None:
     """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
     JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
@@ -143,7 +144,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held
               + (f" {label:>10}" if extra else ""))
     for score in scores:
-        print(HOLD_NOTES[score])
+        print(HOLD_NOTES[score].format(simulator=hold_simulator))
     if adaptive is not None:
         print(certified_line(adaptive, max(r.trials for r in results)))
     print(f"written to {out}")

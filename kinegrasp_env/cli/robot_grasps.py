@@ -28,7 +28,7 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 IN_PROCESS = {"--backend": "local", "--address": None, "--processes": None}
 
 
-def _refuse(args, options: dict[str, object], robot: str) -> None:
+def refuse_options(args, options: dict[str, object], robot: str) -> None:
     """CLIError naming the first of ``options`` (flag -> its value when not given) given."""
     for flag, unset in options.items():
         if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
@@ -46,19 +46,29 @@ def refuse_hold_scores(args, robot: str) -> None:
                        f"{robot}")
 
 
+def check_hold_simulator(args) -> None:
+    """CLIError (one line) where ``--hold-simulator`` names a simulator that is not
+    installed."""
+    from kinegrasp_env.physics.simulators import check_simulator
+
+    with reported(ValueError):
+        check_simulator(args.hold_simulator)
+
+
 def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
-                       friction: float = 0.5) -> int:
-    """How many of ``evaluate``'s draws of a grasp the quick holding test holds."""
+                       friction: float = 0.5, simulator: str = "pybullet") -> tuple[int, str]:
+    """How many of ``evaluate``'s draws of a grasp the quick holding test in ``simulator``
+    holds, and the name of the simulator that ran it."""
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
     from kinegrasp_env.physics.protocol import HELD
 
-    with quick_hold_engine(robot, grasp.object, friction) as engine:
+    with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
         q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise)
-        return int((engine.run_hold(q)[1].outcome == HELD).sum())
+        return int((engine.run_hold(q)[1].outcome == HELD).sum()), engine.simulator.name
 
 
-def _check_engine(engine: str, robot: str) -> None:
+def check_robot_engine(engine: str, robot: str) -> None:
     """CLIError unless ``engine`` is one of a description robot's engines."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
 
@@ -126,13 +136,15 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     from kinegrasp_env.sampling.noise_model import NoiseModel
     from kinegrasp_env.sampling.stats import wilson_interval
 
-    _check_engine(args.engine, robot)
+    check_robot_engine(args.engine, robot)
     if args.report:
         output_file(args.report, "--report")
     model = noise if isinstance(noise, NoiseModel) else None
     if model is not None and args.hold_test:
         raise CLIError("--hold-test draws joint noise alone (--sigma, --noise); drop it or "
                        "--noise-spec")
+    if args.hold_test:
+        check_hold_simulator(args)
     label = (f"noise spec {args.noise_spec}" if model is not None
              else f"sigma = {sigma:g} rad ({args.noise})")
     if args.plot:
@@ -163,9 +175,10 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if math.isfinite(stats.push_median):
         hold["jaw_push_mm"] = {"median": 1e3 * stats.push_median, "p95": 1e3 * stats.push_p95}
     if args.hold_test:
-        held = holding_test_count(grasp, robot, sigma, samples, seed, args.noise, friction)
-        hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held,
-                                                                                 samples))})
+        held, simulator = holding_test_count(grasp, robot, sigma, samples, seed, args.noise,
+                                             friction, args.hold_simulator)
+        hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held, samples)),
+                     "hold_simulator": simulator})
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
@@ -191,7 +204,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if args.hold_test:
         lo, hi = hold["p_hold_ci"]
         print(f"  P(hold) = {hold['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the quick "
-              f"holding test in pybullet on the same draws)")
+              f"holding test in {hold['hold_simulator']} on the same draws)")
     if args.static_hold:
         lo, hi = stats.hold_ci
         print(f"  P(hold, static) = {stats.p_hold_static:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "

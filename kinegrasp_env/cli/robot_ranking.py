@@ -11,7 +11,7 @@ import dataclasses
 import sys
 
 from kinegrasp_env.cli.common import CLIError, reported
-from kinegrasp_env.cli.robot_grasps import _check_engine
+from kinegrasp_env.cli.robot_grasps import check_hold_simulator, check_robot_engine
 
 
 def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
@@ -26,7 +26,9 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
     if args.noise_spec and args.criterion == "hold":
         raise CLIError("--criterion hold runs the holding test on joint noise alone (--sigma, "
                        "--noise); drop it or --noise-spec")
-    _check_engine(args.engine, robot)
+    if args.criterion == "hold":
+        check_hold_simulator(args)
+    check_robot_engine(args.engine, robot)
     objects = {g.object for g in grasps}
     if len(objects) != 1:
         raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
@@ -56,14 +58,15 @@ class RobotRanking:
         grasps: the candidates; robot: the catalog robot; sigma, noise, seed: the joint noise.
         engine, friction: the engine's name and the contacts' mu.
         static_hold: run the static hold check on every draw; hold_test: the quick holding
-            test in pybullet on every draw (in this process).
+            test in ``hold_simulator`` on every draw (in this process).
         layout: the chunk sizes of one candidate's draws.
         model: the ``--noise-spec`` model (every source; replaces sigma and noise), or None.
     """
 
     def __init__(self, grasps: list, robot: str, *, sigma, noise: str, seed: int,
                  engine: str, friction: float, static_hold: bool, hold_test: bool,
-                 layout: list[int], executor, side: dict, model=None) -> None:
+                 layout: list[int], executor, side: dict, model=None,
+                 hold_simulator: str = "pybullet") -> None:
         import json
 
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
@@ -74,8 +77,8 @@ class RobotRanking:
         self.sigma, self.noise, self.seed = sigma, noise, seed
         self.engine, self.friction, self.static_hold = engine, friction, static_hold
         self.executor, self.side = executor, side
-        self.tester = quick_hold_engine(robot, grasps[0].object, friction) if hold_test \
-            else None
+        self.tester = (quick_hold_engine(robot, grasps[0].object, friction, hold_simulator)
+                       if hold_test else None)
 
     def chunk(self, index: int):
         """Candidate ``index``'s run as a :class:`~kinegrasp_env.montecarlo.robot_chunks.

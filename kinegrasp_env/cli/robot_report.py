@@ -27,7 +27,7 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, _check_engine, _refuse
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, check_robot_engine, refuse_options
 
 
 def grasp_file_robot(args) -> str | None:
@@ -152,9 +152,9 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
     from kinegrasp_env.world.objects import load_object
 
     robot = args.robot or grasp_file_robot(args)
-    _refuse(args, {"--max-points": max_points_default, "--arm-draws": arm_draws_default},
+    refuse_options(args, {"--max-points": max_points_default, "--arm-draws": arm_draws_default},
             robot)
-    _check_engine(args.engine, robot)
+    check_robot_engine(args.engine, robot)
     model = noise_spec_from(args)
     friction = friction_from(args, model)
     samples = positive_int(args.samples, "--samples")

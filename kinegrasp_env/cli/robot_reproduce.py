@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
-from kinegrasp_env.cli.robot_grasps import IN_PROCESS, _check_engine, _refuse
+from kinegrasp_env.cli.robot_grasps import IN_PROCESS, check_robot_engine, refuse_options
 
 #: The experiments that move a 7-joint arm along its self-motion.
 SELF_MOTION_EXPERIMENTS = ("fig7", "fig10")
@@ -53,8 +53,8 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     robot = args.robot
-    _refuse(args, IN_PROCESS, robot)
-    _check_engine(args.engine, robot)
+    refuse_options(args, IN_PROCESS, robot)
+    check_robot_engine(args.engine, robot)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if args.figure in SELF_MOTION_EXPERIMENTS and (

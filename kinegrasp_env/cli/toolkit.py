@@ -11,6 +11,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
     add_friction_arg,
+    add_hold_simulator_arg,
     add_noise_args,
     add_noise_spec_arg,
     add_object_arg,
@@ -119,10 +120,11 @@ def add_commands(sub) -> None:
                    help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
                    "interval, P(FC) x (1 + mean Q), P(hold, static): the fraction of draws "
                    "whose contacts can carry the object's weight in six directions with the "
-                   "hand's effort limits, or P(hold): the fraction the quick holding test in "
-                   "pybullet holds (both: robots other than the default; the holding test "
-                   "runs pybullet dynamics per draw, far slower than the kinematic criteria: "
-                   "benchmarks/quick_hold.py)")
+                   "hand's effort limits, or P(hold): the fraction the quick holding test "
+                   "holds (in --hold-simulator; both: robots other than the default; the "
+                   "holding test runs dynamics per draw, far slower than the kinematic "
+                   "criteria: benchmarks/quick_hold.py)")
+    add_hold_simulator_arg(p)
     add_static_hold_arg(p, "adds the column P(hold, static)")
     p.add_argument("--adaptive", action="store_true",
                    help="stop drawing once a top k is certified: exact tests on the paired "

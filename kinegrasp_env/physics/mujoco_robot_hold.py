@@ -22,7 +22,8 @@ One draw (:meth:`MujocoRobotHold.run_draw`):
    :func:`~kinegrasp_env.physics.hand_motors.closing_followers` (here an equality of
    MuJoCo's solver between the two joints, without pybullet's effort cap on the follower);
    the URDF's own mimic couplings are off, so the fingers close on their own, as in
-   pybullet. The closing ends by the same stall rule
+   pybullet; a joint's limits are as stiff as MuJoCo keeps stable (:data:`LIMIT_STEPS`).
+   The closing ends by the same stall rule
    (:class:`~kinegrasp_env.physics.robot_hold.RobotMotorSettings`); then one contact per
    touching finger link (MuJoCo's records merged by pybullet's rule,
    :func:`~kinegrasp_env.physics.mujoco_hold.world_contacts`), in the object frame.
@@ -65,6 +66,11 @@ from kinegrasp_env.world.objects import GraspObject
 
 #: The mesh files MuJoCo reads (file suffixes, lower case).
 MUJOCO_MESHES = (".stl", ".obj")
+#: The time constant of the hand joints' limits, in MuJoCo steps (the smallest MuJoCo keeps
+#: stable is two). pybullet's limits are hard; with MuJoCo's default limit softness (20 ms)
+#: the xArm's drive joint, closing in free space with its URDF effort (50 N m on light
+#: links), ran 2.1 rad past its upper limit (0.85 rad); at 10 steps 0.05 rad; at two, 0.004.
+LIMIT_STEPS = 2
 
 
 def description_hand(description: RobotDescription) -> MujocoHand:
@@ -179,7 +185,11 @@ class MujocoRobotHold:
         self.settings = settings or RobotMotorSettings()
         self.motors = motor_efforts(description, protocol.torque_scale)
         self.kinematics = Kinematics(description.model)
-        self.world = MujocoWorld(obj, world_settings, hand=description_hand(description))
+        self.world = world = MujocoWorld(obj, world_settings,
+                                         hand=description_hand(description))
+        model = world.model
+        for name in world.joint_names:
+            model.jnt_solref[model.joint(name).id] = (LIMIT_STEPS * model.opt.timestep, 1.0)
 
     def palm_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
