@@ -161,6 +161,75 @@ def test_jaws_where_pybullet_puts_them(page):
         world.close()
 
 
+def scene_traces(html: str, scene: int, prefix: str) -> list[dict]:
+    return [t for t in figure(html, f"fig-scene-{scene}")["data"]
+            if t.get("name", "").startswith(prefix)]
+
+
+def test_noisy_arms_where_pybullet_puts_them(page):
+    """Each grasp's scene draws the arm's skeleton at its first draws (all 12: fewer than
+    the default 20), coloured by the draws' outcomes as evaluate counts them; the skeleton's
+    last point at each draw is the palm's origin where pybullet's own forward kinematics
+    (``getLinkState`` of the URDF) puts it at that draw's configuration."""
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
+
+    description = load_robot("panda")
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    body = client.loadURDF(str(description.urdf), useFixedBase=True)
+    index = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
+    palm = next(j for j in range(client.getNumJoints(body))
+                if client.getJointInfo(body, j)[12].decode() == description.palm_link)
+    counts = {r["grasp"]: r["outcomes"] for r in page["json"]["runs"]}
+    with make_engine("pybullet", "panda", OBJECT) as engine:
+        for k, grasp in enumerate(shipped_grasps(OBJECT, "panda")):
+            traces = scene_traces(page["html"], k, "noisy arms: ")
+            drawn = {t["name"].split(": ")[1].split(" (")[0]: t for t in traces}
+            assert sum(int(t["name"].split("(")[-1][:-1]) for t in traces) == int(SAMPLES)
+            for name, trace in drawn.items():
+                assert int(trace["name"].split("(")[-1][:-1]) == counts[grasp.id][
+                    name.replace(" ", "_")]
+            q = robot_configurations(grasp, engine, sigma=float(SIGMA), n=int(SAMPLES),
+                                     seed=int(SEED))
+            palms = []
+            for row in q:
+                for joint, value in zip(description.arm_joints, row, strict=False):
+                    client.resetJointState(body, index[joint], float(value))
+                palms.append(client.getLinkState(body, palm, computeForwardKinematics=True)[4])
+            ends = [np.column_stack([decode_typed_array(t[a]) for a in "xyz"])
+                    for t in traces]
+            ends = np.concatenate([e[np.flatnonzero(np.isnan(e[:, 0])) - 1] for e in ends])
+            for end in ends:  # each drawn skeleton ends at one of the draws' palms
+                assert np.min(np.linalg.norm(np.asarray(palms) - end, axis=1)) < CENTROID_TOL
+    client.disconnect()
+
+
+def test_contact_points_on_the_cube_and_capped(tmp_path, capsys):
+    """``--max-points 10``: ten of the draws' contact points drawn per grasp (the page says
+    of how many), each on the cube's surface (within 0.1 mm of trimesh's closest point on
+    its mesh, in the cube's frame: a point drawn in the wrong frame lies centimetres off)."""
+    from kinegrasp_env.world.objects import load_object
+
+    out = tmp_path / "capped.html"
+    assert main(["report", "--robot", "panda", "--object", OBJECT, "--grasp", "0", "--sigma",
+                 SIGMA, "--samples", "20", "--seed", SEED, "--max-points", "10",
+                 "--arm-draws", "0", "--out", str(out)]) == 0
+    html = out.read_text()
+    assert "first run&#x27;s draws: 10 of" in html
+    assert not scene_traces(html, 0, "noisy arms")
+    cube = load_object(OBJECT)
+    shown = [t for t in figure(html, "fig-scene-0")["data"] if t.get("mode") == "markers"
+             and t.get("visible") is True]
+    points = np.concatenate([np.column_stack([decode_typed_array(t[a]) for a in "xyz"])
+                             for t in shown])
+    assert len(points) == 10
+    local = points @ cube.pose_inverse[:3, :3].T + cube.pose_inverse[:3, 3]
+    _, distance, _ = cube.mesh.nearest.on_surface(local)  # trimesh's closest points
+    assert distance.max() < 1e-4
+
+
 @pytest.mark.parametrize("figure_name", ["table1", "fig7", "fig9"])
 def test_reproduce_refuses_in_one_line(figure_name, capsys, tmp_path):
     """An object the robot has no grasps of is one line, and nothing is written."""

@@ -131,8 +131,7 @@ def cmd_report(args) -> int:
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     if is_robot_report(args):
-        return cmd_report_robot(args, sigmas_from(args.sigma), str(MAX_POINTS_DEFAULT),
-                                str(ARM_DRAWS_DEFAULT))
+        return cmd_report_robot(args, sigmas_from(args.sigma))
     args.grasp = "0" if args.grasp is None else args.grasp
     noises = report_noises(args)
     friction = friction_from(args, noises[0])

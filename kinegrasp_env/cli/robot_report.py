@@ -27,7 +27,7 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, check_robot_engine, refuse_options
+from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, check_robot_engine
 
 
 def grasp_file_robot(args) -> str | None:
@@ -138,22 +138,24 @@ def _finite(value):
     return None if isinstance(value, float) and math.isnan(value) else value
 
 
-def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
-                     arm_draws_default: str) -> int:
+def cmd_report_robot(args, sigmas: list[float]) -> int:
     """``kinegrasp report --robot NAME``: the page of a description robot's grasps
     (``sigmas``: the validated ``--sigma`` values, or with ``--noise-spec`` one run of its
-    model per grasp; the defaults of the default robot's ``--max-points`` and
-    ``--arm-draws``, refused when given otherwise)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
+    model per grasp)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import (
+        evaluate_robot_grasp,
+        make_engine,
+        robot_configurations,
+    )
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.report.page import write_page
-    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
+    from kinegrasp_env.toolkit.report.robot import NoisyArms, RobotRun, robot_page
     from kinegrasp_env.world.objects import load_object
 
     robot = args.robot or grasp_file_robot(args)
-    refuse_options(args, {"--max-points": max_points_default, "--arm-draws": arm_draws_default},
-            robot)
+    max_points = positive_int(args.max_points, "--max-points")
+    arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
     check_robot_engine(args.engine, robot)
     model = noise_spec_from(args)
     friction = friction_from(args, model)
@@ -169,7 +171,7 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
             check_robot_noise(model, robot, description.arm_dof, args.engine)
         sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
-    runs = []
+    runs, arms = [], []
     with make_engine(args.engine, description, name, friction=friction) as engine, \
             executor_from(args) as executor:
         for index, grasp in enumerate(grasps):
@@ -177,10 +179,16 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
                 runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
                     grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
                     engine=engine, executor=executor, noise_model=model)))
+            shown = 0 if model is not None else min(arm_draws, samples)
+            arms.append(NoisyArms(
+                robot_configurations(grasp, engine, sigma=sigmas[0], n=samples, seed=seed,
+                                     noise=args.noise)[:shown],
+                runs[-len(sigmas)].evaluation.draws.outcome[:shown]))
     # each grasp's nominal Q as this engine computes it at this friction
     nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
     grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]
-    command = report_command(args, robot, sigmas, samples, seed, out)
+    command = [*report_command(args, robot, sigmas, samples, seed, out),
+               "--max-points", str(max_points), "--arm-draws", str(arm_draws)]
     settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
                 "grasp source": args.grasps or f"shipped set of {name} for {robot}",
                 **({"noise spec": args.noise_spec} if model is not None else
@@ -188,10 +196,13 @@ def cmd_report_robot(args, sigmas: list[float], max_points_default: str,
                 "noisy joints": ", ".join(description.arm_joints),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
-                "friction mu": friction, "friction cone edges": NUM_EDGES}
+                "friction mu": friction, "friction cone edges": NUM_EDGES,
+                "contact points drawn at most": max_points,
+                "noisy arms drawn": (arm_draws if model is None else
+                                     "none (a noise spec's draws move more than the arm)")}
     text = robot_page(description, load_object(name), grasps, runs,
                       command=shlex.join(command), settings=settings, friction=friction,
-                      num_edges=NUM_EDGES)
+                      num_edges=NUM_EDGES, max_points=max_points, arms=arms)
     write_page(out, text)
     size = len(text.encode())
     if args.json:

@@ -5,7 +5,10 @@ over the force-closure draws for each grasp and sigma, and one rotatable 3-D sce
 in the world (robot base) frame: the object at its pose, the whole robot at the grasp's
 nominal closing (the reference closing from q0, :meth:`~kinegrasp_env.closing.
 generic_reference.RobotWorld.auto_close`), hidden until toggled at its pre-shape q0, and the
-nominal contacts with their friction cones. The robot is drawn as
+nominal contacts with their friction cones; the contact points of the grasp's first run
+(at most ``max_points``, coloured by outcome or by finger) and the skeletons of the arm at
+its first ``arm_draws`` noisy configurations (the run's first draws: joint noise alone),
+coloured by outcome. The robot is drawn as
 :func:`~kinegrasp_env.robot.picture.robot_geometry` reads it (the picture of ``kinegrasp
 robots show``: pybullet's reading of the URDF; links with mesh visuals are drawn from their
 collision geometry, and the page says which). Metres throughout; pages are deterministic.
@@ -13,12 +16,14 @@ collision geometry, and the page says which). Metres throughout; pages are deter
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import RobotGeometry, robot_geometry
 from kinegrasp_env.toolkit.report.geometry import cone_meshes, transform
@@ -35,16 +40,25 @@ from kinegrasp_env.toolkit.report.plotly import MeshLibrary, instanced_mesh, lay
 from kinegrasp_env.toolkit.report.scene import (
     CONE_SCALE,
     LEGEND,
+    MAX_POINTS,
+    OUTCOME_COLOURS,
+    ContactCloud,
     close_up,
+    cloud_traces,
+    colour_buttons,
+    contact_cloud,
     mesh_trace,
     object_traces,
     scene_axes,
+    skeleton_trace,
 )
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
 #: Outcome counts shown in the table, in this order.
 OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
+#: Height of the colour buttons (below the view buttons), as a fraction of the figure.
+COLOUR_MENU_Y = 0.93
 
 
 @dataclass(frozen=True)
@@ -114,6 +128,46 @@ def contact_traces(grasp: Grasp, obj: GraspObject, description: RobotDescription
              "marker": {"size": 6, "color": "black", "symbol": "diamond"}}]
 
 
+@dataclass(frozen=True)
+class NoisyArms:
+    """The arm at a few noisy draws of a grasp.
+
+    Attributes:
+        q: (k, dof) the draws' configurations; outcome: (k,) their outcomes (indices into
+            :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`).
+    """
+
+    q: np.ndarray
+    outcome: np.ndarray
+
+
+def arm_skeletons(description: RobotDescription, q: np.ndarray) -> np.ndarray:
+    """(n, L, 3) the origins of the links from the base to the palm (the base, the child of
+    each arm joint, the palm) at configurations q (n, dof), world frame, metres."""
+    from kinegrasp_env.robot.kinematics import Kinematics
+
+    kinematics = Kinematics(description.model)
+    chain = kinematics.chain(description.palm_link)
+    links = list(dict.fromkeys([chain[0].parent, *(j.child for j in chain)]))
+    poses = kinematics.forward(np.atleast_2d(q), links)
+    return np.stack([poses[link][:, :3, 3] for link in links], axis=1)
+
+
+def noisy_traces(description: RobotDescription, arms: NoisyArms) -> list[dict]:
+    """The skeletons of the noisy draws, one trace per outcome present (hidden until
+    toggled)."""
+    lines = arm_skeletons(description, arms.q)
+    return [skeleton_trace(lines[rows], f"noisy arms: {name.replace('_', ' ')} "
+                           f"({len(rows)})", OUTCOME_COLOURS[name], 2, visible="legendonly")
+            for k, name in enumerate(OUTCOMES)
+            if len(rows := np.flatnonzero(arms.outcome == k))]
+
+
+def world_cloud(cloud: ContactCloud, obj: GraspObject) -> ContactCloud:
+    """``cloud`` (object frame) in the world frame of the object at its pose."""
+    return dataclasses.replace(cloud, points=transform(cloud.points, obj.pose))
+
+
 def view_buttons(obj: GraspObject, whole_first: bool = False) -> dict:
     """Buttons switching a scene between a close-up of the object and the whole robot (the
     active one: the whole robot with ``whole_first``)."""
@@ -135,12 +189,15 @@ def view_buttons(obj: GraspObject, whole_first: bool = False) -> dict:
 def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
                 geometry: RobotGeometry, closed: int, shaped: int, library: MeshLibrary, *,
                 did_close: bool, friction: float, num_edges: int, title: str,
-                whole_first: bool = False) -> dict:
+                whole_first: bool = False, cloud: ContactCloud | None = None,
+                arms: NoisyArms | None = None) -> dict:
     """One grasp's scene in the world frame: the object, the robot at
     ``geometry.frames[closed]`` (its nominal closing) and, hidden until toggled, at
-    ``geometry.frames[shaped]`` (its pre-shape q0), the nominal contacts and cones. Opens on
-    the close-up of the object (a button shows the whole robot), or with ``whole_first`` on
-    the whole robot (a button shows the close-up)."""
+    ``geometry.frames[shaped]`` (its pre-shape q0), the nominal contacts and cones, the
+    draws' contact points ``cloud`` (world frame; buttons colour them by outcome or by
+    finger) and the skeletons of ``arms``. Opens on the close-up of the object (a button
+    shows the whole robot), or with ``whole_first`` on the whole robot (a button shows the
+    close-up)."""
     label = "robot (closed, nominal)" if did_close else "robot (q0: starts in collision)"
     data = object_traces(obj, library, obj.pose, parts=False)
     data[0]["showlegend"] = True  # a mesh trace has no legend entry unless asked
@@ -149,12 +206,20 @@ def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
     data += robot_traces(geometry, shaped, "robot (pre-shape q0)", library,
                          robot=description.name, opacity=0.3, visible="legendonly")
     data += contact_traces(grasp, obj, description, friction, num_edges)
+    menus = [view_buttons(obj, whole_first)]
+    if cloud is not None and cloud.shown:
+        by_outcome, by_finger = cloud_traces(cloud)
+        menus.append({**colour_buttons(len(data), len(by_outcome), len(by_finger)),
+                      "y": COLOUR_MENU_Y})
+        data += by_outcome + by_finger
+    if arms is not None and len(arms.q):
+        data += noisy_traces(description, arms)
     box = tuple(transform(c, obj.pose) for c in close_up(obj))
     scene = scene_axes(None if whole_first else (np.minimum(*box), np.maximum(*box)))
     if whole_first:  # the camera back far enough to see the whole arm
         scene["camera"] = {"eye": {"x": 1.5, "y": 1.5, "z": 0.9}}
     return {"data": data, "layout": layout(
-        scene=scene, updatemenus=[view_buttons(obj, whole_first)], legend=LEGEND,
+        scene=scene, updatemenus=menus, legend=LEGEND,
         uirevision="grasp",
         title={"text": title, "x": 0.01, "font": {"size": 14}})}
 
@@ -199,14 +264,17 @@ def geometry_note(geometry: RobotGeometry) -> str:
 
 def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence[Grasp],
                runs: Sequence[RobotRun], *, command: str, settings: dict,
-               friction: float = 0.5, num_edges: int = 8) -> str:
+               friction: float = 0.5, num_edges: int = 8, max_points: int = MAX_POINTS,
+               arms: Sequence[NoisyArms] | None = None) -> str:
     """The HTML page of a description robot's grasps of one object.
 
     Args:
         description: the robot; obj: the object (every grasp's).
         grasps: the grasps, in the order of the page.
-        runs: the evaluations (:class:`RobotRun`), in the order of the table.
+        runs: the evaluations (:class:`RobotRun`), in the order of the table; each grasp's
+            first run's draws give its contact points (at most ``max_points``).
         command: the command line that reproduces the page; settings: name -> value.
+        arms: per grasp, the noisy arms its scene draws (None: none).
     """
     closings = nominal_closings(description, obj, grasps)
     configurations = []
@@ -215,17 +283,29 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
                                     description.model.expand(grasp.q0).items()}]
     geometry = robot_geometry(description, configurations)
     library, figures, sections = MeshLibrary(), [], []
+    first = {}
+    for run in runs:
+        first.setdefault(run.grasp, run)
     for k, (grasp, (_, did_close)) in enumerate(zip(grasps, closings, strict=True)):
         title = f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame"
+        cloud = (world_cloud(contact_cloud(first[k].evaluation.draws, max_points), obj)
+                 if k in first else None)
         figure = Figure(f"scene-{k}", grasp_scene(
             description, obj, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
-            friction=friction, num_edges=num_edges, title=title), "100%", "560px")
+            friction=friction, num_edges=num_edges, title=title, cloud=cloud,
+            arms=None if arms is None else arms[k]), "100%", "560px")
         figures.append(figure)
         state = ("drawn closed on the object from the pre-shape of q0 (the reference "
                  "closing, as in every draw)" if did_close else
                  "starts in collision at q0 and does not close: drawn at q0")
+        drawn = "" if cloud is None else (
+            f" The contact points of its first run's draws: {cloud.shown} of {cloud.total}"
+            f"{' (a uniform random subset)' if cloud.decimated else ''}.")
+        if arms is not None and len(arms[k].q):
+            drawn += (f" The arm's skeleton at its first {len(arms[k].q)} draws (toggled in "
+                      "the legend).")
         sections.append(f"<h2>Grasp {esc(grasp.id)}</h2><p>Q nominal "
-                        f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.</p>"
+                        f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.{esc(drawn)}</p>"
                         f"{figure.div()}")
     model = description.contact_model
     count = f"{len(grasps)} grasp{'' if len(grasps) == 1 else 's'}"
