@@ -6,6 +6,9 @@ Example (the committed policy):
 The open-world policy (built-in + imported training objects, ``agents/prepare.py`` first):
     python agents/train.py --grasp-file agents/grasps/train.json --name openworld
 
+The policy trained on the batch reward (one batch of closings per grasp, re-weighted):
+    python agents/train.py --env-kwarg reward=batch --name batch
+
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` keyed by environment ID
 (rl-baselines3-zoo format, ``env_kwargs`` included). Training uses the ``train`` split of the
 shipped grasp sets (``agents/evaluate.py`` uses the held-out ``test`` split), or with
@@ -75,15 +78,30 @@ def make_env(env_id: str, env_kwargs: dict, split: str | None, seed: int,
     return env
 
 
+def env_overrides(pairs: list[str]) -> dict:
+    """``KEY=VALUE`` strings as env keyword arguments (each value read as YAML: numbers,
+    lists and strings)."""
+    import yaml
+
+    out = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key.isidentifier():
+            raise UsageError(f"--env-kwarg takes KEY=VALUE, got {pair!r}")
+        out[key] = yaml.safe_load(value)
+    return out
+
+
 def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | None = None,
           checkpoint_every: int = 1000, progress: bool = True, grasp_file: str | None = None,
-          name: str | None = None) -> dict:
+          name: str | None = None, overrides: dict | None = None) -> dict:
     """Train and save; returns the summary written to ``<out>/<env>_<algo>[_<name>].json``
-    (tasks: see :func:`make_env`)."""
+    (tasks: see :func:`make_env`; ``overrides``: env keyword arguments replacing the
+    hyperparameter file's)."""
     if algo not in ALGOS:
         raise UsageError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
     params = load_hyperparams(env_id, algo)
-    env_kwargs = params.pop("env_kwargs", {})
+    env_kwargs = {**params.pop("env_kwargs", {}), **(overrides or {})}
     steps = int(total_timesteps or params.pop("n_timesteps"))
     params.pop("n_timesteps", None)
     policy = params.pop("policy", "MlpPolicy")
@@ -144,12 +162,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grasp-file", help="train on every grasp of this file (e.g. "
                         "agents/grasps/train.json) instead of the shipped sets' train split")
     parser.add_argument("--name", help="suffix of the output files: <env>_<algo>_<name>")
+    parser.add_argument("--env-kwarg", action="append", default=[], metavar="KEY=VALUE",
+                        help="an env keyword argument replacing the hyperparameter file's "
+                        "(repeatable; e.g. reward=batch)")
     args = parser.parse_args(argv)
     try:
         if args.name is not None and not args.name.replace("-", "").replace("_", "").isalnum():
             raise UsageError(f"--name must be letters, digits, '-' or '_', got {args.name!r}")
         summary = train(args.env, args.algo, args.seed, Path(args.out), args.total_timesteps,
-                        grasp_file=args.grasp_file, name=args.name)
+                        grasp_file=args.grasp_file, name=args.name,
+                        overrides=env_overrides(args.env_kwarg))
     except UsageError as exc:
         print(f"train: error: {exc}", file=sys.stderr)
         return 2

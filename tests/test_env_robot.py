@@ -383,24 +383,30 @@ def test_the_static_hold_score_is_the_evaluations_p_hold(obj):
     env.close()
 
 
-def test_the_hold_score_runs_the_quick_holding_test_on_the_draws():
+@pytest.mark.parametrize("simulator", ["pybullet", "mujoco"])
+def test_the_hold_score_runs_the_quick_holding_test_on_the_draws(simulator):
     """Plumbing: with ``score="hold"`` the reward is the fraction of the step's draws (the
-    configurations evaluate_robot_grasp draws for its seed) that the quick holding test
-    holds, run here on those configurations: strictly between 0 and P(FC) on this cube
-    grasp (a reward of P(FC), or of 0, fails it)."""
+    configurations evaluate_robot_grasp draws for its seed) that the quick holding test in
+    ``hold_simulator`` holds, run here on those configurations: in pybullet strictly between
+    0 and P(FC) on this cube grasp (a reward of P(FC), or of 0, fails it)."""
+    if simulator == "mujoco":
+        pytest.importorskip("mujoco")
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
     from kinegrasp_env.physics.protocol import HELD
 
-    env = gym.make("KineGrasp-v0", robot="panda", n_draws=6, score="hold").unwrapped
+    env = gym.make("KineGrasp-v0", robot="panda", n_draws=6, score="hold",
+                   hold_simulator=simulator).unwrapped
     env.reset(seed=1, options={"object": "cube", "grasp": 0, "sigma": 0.003})
     _, reward, _, _, info = env.step(np.array([0.0, -1.0], dtype=np.float32))
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
-    with quick_hold_engine("panda", "cube") as engine:
+    with quick_hold_engine("panda", "cube", simulator=simulator) as engine:
+        assert engine.simulator.name == simulator
         q = robot_configurations(here, engine, sigma=0.003, n=6, seed=info["draw_seed"])
         held = float(np.mean(engine.run_hold(q)[1].outcome == HELD))
     assert reward == info["p_hold"] == held and info["score"] == "hold"
-    assert 0 < reward < info["p_fc"]
+    if simulator == "pybullet":
+        assert 0 < reward < info["p_fc"]
     env.close()
 
 
@@ -428,6 +434,8 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"score": "held"}, "score must be one of pfc, hold_static, hold, got 'held'"),
+    ({"score": "hold", "hold_simulator": "bullet"},
+     "hold_simulator must be one of pybullet, mujoco, got 'bullet'"),
     ({"score": "hold", "robot": "kuka_sdh"}, "score 'hold' is for robots other than"),
     ({"score": "hold_static", "reward": "batch"}, "reward 'batch' re-weights P"),
 ])

@@ -273,9 +273,11 @@ class KineGraspEnv(gym.Env):
             listing the known ones. Another robot: see the module docstring.
         score: what the reward scores: ``pfc`` (P(force closure)); for a robot other than
             the default also ``hold_static`` (the static hold check's P(hold)) or ``hold``
-            (the quick holding test's, in pybullet: slow, joint noise only)
+            (the quick holding test's, in ``hold_simulator``: slow, joint noise only)
             (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
+        hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or
+            ``mujoco``.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array", "human"], "render_fps": 4}
@@ -288,7 +290,8 @@ class KineGraspEnv(gym.Env):
                  split: str | None = None, engine: str | None = None,
                  noise_model: NoiseModel | dict | str | None = None,
                  robot: str = DEFAULT_ROBOT, reward: str = "draws",
-                 batch_size: int = 4096, score: str = "pfc") -> None:
+                 batch_size: int = 4096, score: str = "pfc",
+                 hold_simulator: str = "pybullet") -> None:
         super().__init__()
         self.robot = check_robot_name(robot)
         own = robot == DEFAULT_ROBOT
@@ -351,7 +354,7 @@ class KineGraspEnv(gym.Env):
         self.step_size = float(step_size)
         self.render_mode = render_mode
         self._window = render_mode == "human" and human_window_available()
-        self._robot = None if own else RobotTask(robot, engine, score)
+        self._robot = None if own else RobotTask(robot, engine, score, hold_simulator)
         self.score = score
         size = OBS_SIZE if own else self._robot.obs_size
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)

@@ -20,7 +20,8 @@ Everything robot-specific is derived from the robot's description
 - **score** (:data:`SCORES`, the names of ``kinegrasp rank --criterion``): ``pfc`` (the
   draws' P(force closure)), ``hold_static`` (the fraction the static hold check holds:
   :mod:`~kinegrasp_env.montecarlo.hold_check`) or ``hold`` (the fraction the quick holding
-  test holds in pybullet: :func:`~kinegrasp_env.montecarlo.hold_engine.quick_hold_engine`,
+  test holds in pybullet or MuJoCo: :func:`~kinegrasp_env.montecarlo.hold_engine.
+  quick_hold_engine`,
   whose physics closings also give the step's P(FC); joint noise only, and about a tenth of
   a second a draw, where the kinematic engines take microseconds to milliseconds);
 - **observation**: the default robot's layout (:mod:`kinegrasp_env.envs.kinegrasp`) with
@@ -37,6 +38,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
+from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import elbow_angle
@@ -100,19 +102,28 @@ class RobotTask:
         engine: the reward draws' engine by name: ``fast``, ``pybullet`` or ``physics``
             (:data:`~kinegrasp_env.montecarlo.robot_evaluate.ENGINES`).
         score: what the reward scores (:data:`SCORES`).
+        hold_simulator: where the ``hold`` score's holding test runs (``pybullet`` or
+            ``mujoco``).
 
     Raises:
-        ValueError: an unknown engine or score (one line naming it and the known ones).
+        ValueError: an unknown engine, score or simulator (one line naming it and the known
+            ones), or a simulator whose package is not installed.
     """
 
-    def __init__(self, robot: str, engine: str = "fast", score: str = "pfc") -> None:
+    def __init__(self, robot: str, engine: str = "fast", score: str = "pfc",
+                 hold_simulator: str = "pybullet") -> None:
         if robot == DEFAULT_ROBOT:
             raise ValueError("the default robot is the env's own path")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
         if score not in SCORES:
             raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-        self.engine_name, self.score = engine, score
+        if hold_simulator not in DESCRIPTION_ROBOT_SIMULATORS:
+            raise ValueError(f"hold_simulator must be one of "
+                             f"{', '.join(DESCRIPTION_ROBOT_SIMULATORS)}, got {hold_simulator!r}")
+        if score == "hold":
+            check_simulator(hold_simulator)
+        self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator
         self.description: RobotDescription = load_robot(robot)
         self.motion = ArmSelfMotion(self.description)
         self.kin = self.motion.kin
@@ -131,7 +142,8 @@ class RobotTask:
             if self.score == "hold":
                 from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
 
-                engine = quick_hold_engine(self.description, object_name)
+                engine = quick_hold_engine(self.description, object_name,
+                                           simulator=self.hold_simulator)
             else:
                 engine = make_engine(self.engine_name, self.description, object_name,
                                      static_hold=self.score == "hold_static")
