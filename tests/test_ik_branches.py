@@ -153,11 +153,34 @@ def test_elbow_cli_across_the_ik_branches(home, capsys):
     assert np.linalg.norm(pose[:3, 3] - np.array(grasps[0]["palm_pose"])[:3, 3]) < 1e-4
 
 
+def test_elbow_plot_draws_each_branch(home, capsys, monkeypatch, tmp_path):
+    """``elbow --plot`` of the 6-joint arm: the PNG written, its bars the printed curve's
+    selection and fresh P(FC) per branch (the figure read back before it is saved)."""
+    from kinegrasp_env.toolkit import plots
+
+    drawn = {}
+    save = plots.save_figure
+
+    def keep(fig, path, dpi=120):
+        drawn["bars"] = [[b.get_height() for b in c] for c in fig.axes[0].containers
+                         if hasattr(c, "patches")]
+        return save(fig, path, dpi)
+
+    monkeypatch.setattr(plots, "save_figure", keep)
+    png = tmp_path / "branches.png"
+    out = json.loads(run(capsys, "elbow", "--grasps", str(home[0]), "--grasp", "0",
+                         "--samples", str(SAMPLES), "--seed", "3", "--plot", str(png),
+                         "--json"))
+    assert out["plot"] == str(png) and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert drawn["bars"] == [[p["p_fc"] for p in out["curve"]],
+                             [p["fresh_p_fc"] for p in out["curve"]]]
+
+
 def test_elbow_cli_bad_input_is_one_line(home, capsys):
     path = str(home[0])
     for args, message in [
             (["--grasps", path, "--ik-starts", "0"], "--ik-starts must be"),
-            (["--grasps", path, "--plot", "x.png"], "has IK branches instead"),
+            (["--grasps", path, "--report", "x.html"], "has IK branches instead"),
             (["--grasps", path, "--robot", "panda"], "xarm6"),
             (["--grasps", path, "--object", "mug"], "--object mug"),
             (["--object", "cube", "--ik-starts", "50"], "--ik-starts is for a 6-joint arm"),

@@ -51,10 +51,9 @@ def cmd_elbow_robot(args, chosen=None) -> int:
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")
     starts = ik_starts(args, branches, robot)
-    for flag in ("--plot", "--report"):
-        if branches and getattr(args, flag[2:]):
-            raise CLIError(f"{flag} draws P(FC) against the elbow angle; robot {robot!r}'s "
-                           "6-joint arm has IK branches instead (no self-motion)")
+    if branches and args.report:
+        raise CLIError(f"--report draws the arm along its self-motion; robot {robot!r}'s "
+                       "6-joint arm has IK branches instead (--plot draws them)")
     report_path(args.report)
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
@@ -122,10 +121,19 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
                                          evaluate_with=args.engine, executor=executor)
     bar.close()
     payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
+    if args.plot:  # before the results are printed: a failing figure is a warning
+        from kinegrasp_env.toolkit.plots import plot_branches, safe_figure
+
+        title = (f"{args.robot}: {args.object} grasp {index}, sigma = "
+                 f"{payload['sigma']:g} rad, {samples} draws per branch")
+        if safe_figure(lambda: plot_branches(payload, args.plot, title), args.plot):
+            payload["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(payload))
     else:
         print(branch_summary(payload, index))
+        if "plot" in payload:
+            print(f"plot written to {payload['plot']}")
     return 0
 
 

@@ -268,6 +268,36 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     return save_figure(fig, path)
 
 
+def plot_branches(result: dict, path: str | Path, title: str = "") -> Path:
+    """P(FC) of each IK branch of a 6-joint arm's grasp (``result``: ``BranchResult.
+    to_json()``): the selection draws' estimate with its 95% interval per branch, the fresh
+    draws' beside it, the nominal and the chosen branch marked."""
+    plt = _pyplot()
+    curve = result["curve"]
+    fig, ax = plt.subplots(figsize=(max(4.5, 1.2 * len(curve) + 2.5), 4))
+    x = np.arange(len(curve))
+    p = np.array([c["p_fc"] for c in curve])
+    lo = np.array([c["p_fc_ci"][0] for c in curve])
+    hi = np.array([c["p_fc_ci"][1] for c in curve])
+    ax.bar(x - 0.18, p, 0.36, color="C0", label="P(FC), selection draws",
+           yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], ecolor="0.4", capsize=3)
+    ax.bar(x + 0.18, [c["fresh_p_fc"] for c in curve], 0.36, color="C1",
+           label="P(FC), fresh draws")
+    labels = [f"{c['branch']}\n{c['label'].replace(' ', chr(10))}" for c in curve]
+    ax.set_xticks(x, labels, fontsize=7)
+    for branch, name, colour in ((result["nominal_branch"], "nominal", "C3"),
+                                 (result["best_branch"], "chosen", "C2")):
+        ax.get_xticklabels()[branch].set_color(colour)
+        ax.annotate(name, (branch, 1.02), ha="center", color=colour, fontsize=8,
+                    xycoords=("data", "axes fraction"))
+    ax.set_ylim(0, 1)
+    ax.set_xlabel("IK branch (sign of det J and of the joints that tell the branches apart)")
+    ax.set_ylabel("P(force closure)")
+    ax.set_title(title, pad=16)
+    ax.legend(fontsize=8, loc="lower right")
+    return save_figure(fig, path)
+
+
 def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
                          picture: dict, path: str | Path, title: str = "") -> Path:
     """Two panels. Left: P(FC) with its 95% band along the self-motion (``curve`` as
