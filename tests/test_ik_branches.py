@@ -190,3 +190,40 @@ def test_elbow_cli_bad_input_is_one_line(home, capsys):
         assert main(["elbow", "--samples", "2", *args]) == 2, args
         err = capsys.readouterr().err.strip()
         assert message in err and "\n" not in err, (args, err)
+
+
+def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys, tmp_path):
+    """``reproduce fig10|fig7 --robot xarm6``: the variants are the palm pose's IK branches
+    (labelled, no elbow angle), each putting the palm where the grasp has it by pybullet's
+    own kinematics; fig10 has one row per branch in force closure at its nominal closing,
+    fig7 the robust and the fragile one of them."""
+    import csv
+
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+    from kinegrasp_env.world.grasps import load_grasps
+
+    path, grasps = home
+    out = tmp_path / "f10"
+    run(capsys, "reproduce", "fig10", "--robot", "xarm6", "--grasps", str(path), "--samples",
+        str(SAMPLES), "--out", str(out))
+    rows = list(csv.DictReader((out / "fig10.csv").open()))
+    labels = [r["ik_branch"] for r in rows]
+    assert len(rows) >= 2 and all(labels) and len(set(labels)) == len(labels)
+    assert {r["elbow_angle"] for r in rows} == {""}
+    assert sorted(r["config"] for r in rows if r["config"]) == ["fragile", "robust"]
+    grasp = load_grasps(str(path))[0]
+    with RobotReferenceEngine("xarm6", "cube") as engine:
+        variants = robot_variants(grasp, engine, 10, seed=0)
+    assert [v.meta["ik_branch"] for v in variants] == labels
+    palm = np.asarray(grasps[0]["palm_pose"])
+    for v in variants:
+        pose = bullet_palm_pose(v.q0[:6])
+        assert np.linalg.norm(pose[:3, 3] - palm[:3, 3]) < 1e-4
+        assert rotation_angle(pose[:3, :3], palm[:3, :3]) < 1e-4
+    text = run(capsys, "reproduce", "fig7", "--robot", "xarm6", "--grasps", str(path),
+               "--samples", str(SAMPLES), "--out", str(tmp_path / "f7"))
+    assert "robust   id 0v" in text and "IK branch det(J)" in text
+    rows = list(csv.DictReader((tmp_path / "f7" / "fig7.csv").open()))
+    assert [r["config"] for r in rows] == ["robust", "fragile"]
+    assert all(r["ik_branch"] in labels for r in rows)

@@ -8,8 +8,9 @@ from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positi
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
 from kinegrasp_env.cli.robot_grasps import IN_PROCESS, check_robot_engine, refuse_options
 
-#: The experiments that move a 7-joint arm along its self-motion.
-SELF_MOTION_EXPERIMENTS = ("fig7", "fig10")
+#: The experiments that compare configurations of one palm pose (a 7-joint arm's
+#: self-motion, a 6-joint arm's IK branches).
+VARIANT_EXPERIMENTS = ("fig7", "fig10")
 
 
 def robot_grasp_sets(args, robot: str, only: str | None = None
@@ -48,21 +49,23 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     """``reproduce EXPERIMENT --robot NAME`` of a description robot's grasps: Table I, Fig. 7
     and Fig. 9 (:mod:`kinegrasp_env.toolkit.robot_tables`), Fig. 10
     (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); Figs. 7 and 10 move a
-    7-joint arm along its self-motion (another arm is one line)."""
+    7-joint arm along its self-motion or compare a 6-joint arm's IK branches (another arm
+    is one line)."""
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.robot_reproduce import has_variants
 
     robot = args.robot
     refuse_options(args, IN_PROCESS, robot)
     check_robot_engine(args.engine, robot)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
-    if args.figure in SELF_MOTION_EXPERIMENTS and (
-            description.arm_dof != 7 or description.arm_angle_links is None):
+    if args.figure in VARIANT_EXPERIMENTS and not has_variants(description):
         raise CLIError(f"reproduce {args.figure} --robot {robot}: the robot has "
                        f"{description.arm_dof} arm joints"
                        f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                       f"{args.figure} moves a 7-joint arm along its self-motion")
+                       f"{args.figure} compares a 7-joint arm's self-motion or a 6-joint "
+                       "arm's IK branches")
     if args.figure == "table1":
         return robot_table1_command(args, description, samples, friction)
     sets, count = robot_grasp_sets(args, robot)
@@ -71,13 +74,13 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     if args.figure in ("fig7", "fig9"):
         return robot_figure_command(args, description, sets, count, out, samples, seed,
                                     friction)
-    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
+    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10, variant_label
 
     with reported(ValueError):
         rows = robot_fig10(description, out, grasp_sets=sets, samples=samples, count=count,
                            seed=seed, engine=args.engine, friction=friction)
     for r in rows:
-        print(f"{r['object']:<12} id {r['id']:<5} elbow {r['elbow_angle']:+.3f} rad P(FC) "
+        print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['p_fc']:.3f} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
     pairs = [r for r in rows if r["config"]]
     if pairs:
@@ -97,6 +100,7 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
 def robot_figure_command(args, description, sets: dict, count: int, out: str, samples: int,
                          seed: int, friction: float) -> int:
     """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`)."""
+    from kinegrasp_env.toolkit.robot_reproduce import variant_label
     from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
 
     with reported(ValueError):
@@ -114,8 +118,8 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
             print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                   f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
             continue
-        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} elbow "
-              f"{r['elbow_angle']:+.3f} rad P(FC) {r['fresh_p_fc']:.3f} (95% CI "
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} {variant_label(r)} "
+              f"P(FC) {r['fresh_p_fc']:.3f} (95% CI "
               f"{r['fresh_p_fc_lo']:.3f} .. {r['fresh_p_fc_hi']:.3f}), chosen at "
               f"{r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":

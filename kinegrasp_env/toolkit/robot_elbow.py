@@ -247,7 +247,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
                         scorer.name, step, epsilon, delta)
 
 
-def _branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int, seed: int
+def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int, seed: int
                      ) -> tuple[list[IKBranch], int]:
     """The IK branches of the grasp's palm pose (:func:`ik_branches`, starts seeded by
     ``SeedSequence([seed, IK_STREAM])``) and the index of the grasp's own one: the branch
@@ -354,7 +354,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
     scorer = None
     try:
         scorer = AngleScorer.of(engine, evaluate_with, executor)
-        branches, nominal = _branch_variants(grasp, engine, int(starts), seed)
+        branches, nominal = branch_variants(grasp, engine, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
         curve = []
         for i, branch in enumerate(branches):

@@ -1,13 +1,16 @@
-"""Fig. 10 of the paper for a description robot with a 7-joint arm: the same contacts reached
-with different arm configurations.
+"""Fig. 10 of the paper for a description robot: the same contacts reached with different
+arm configurations.
 
 The paper's Fig. 10 evaluates null-space variants of a grasp: configurations with the grasp's
 palm pose (hence its nominal contacts) and elbow angles spread over the self-motion. For a
-description robot the variants are ``count`` configurations picked evenly (by index) from
-:func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations` (the self-motion
-walked every :data:`~kinegrasp_env.toolkit.elbow.FINE_STEP` radians of psi, within the joint
-limits and clear of the object), kept where their nominal closing is in force closure (as the
-default robot's variants are). Each is evaluated on ``samples`` draws of joint noise on the
+description robot with a 7-joint arm the variants are ``count`` configurations picked evenly
+(by index) from :func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations`
+(the self-motion walked every :data:`~kinegrasp_env.toolkit.elbow.FINE_STEP` radians of psi,
+within the joint limits and clear of the object); for a 6-joint arm, which has no
+self-motion, they are the palm pose's IK branches
+(:func:`~kinegrasp_env.toolkit.robot_elbow.branch_variants`, at most ``count``). Either kind
+is kept where its nominal closing is in force closure (as the default robot's variants
+are). Each is evaluated on ``samples`` draws of joint noise on the
 arm joints (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed
 ``seed``: the draws of ``kinegrasp evaluate --robot NAME --seed SEED``); with two variants or
 more, the most and the least robust (chosen on those draws) are reported again on fresh draws
@@ -32,32 +35,59 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
-from kinegrasp_env.toolkit.robot_elbow import fresh_seed, robot_reachable_configurations
+from kinegrasp_env.toolkit.ik_branches import DEFAULT_STARTS as DEFAULT_IK_STARTS
+from kinegrasp_env.toolkit.robot_elbow import (
+    branch_variants,
+    fresh_seed,
+    robot_reachable_configurations,
+)
 from kinegrasp_env.toolkit.selection import extremes
 from kinegrasp_env.world.grasps import Grasp
 
 #: fig10.csv's columns for a description robot (the default robot's, the robot and the
-#: variant's elbow angle first).
-COLUMNS = ("robot", "object", "id", "elbow_angle", "p_fc", "q_mean", "q_std", "q_nominal",
-           "error", "samples", "sigma", *PAIR_COLUMNS)
+#: variant's elbow angle (7-joint arms) or IK branch label (6-joint arms) first).
+COLUMNS = ("robot", "object", "id", "elbow_angle", "ik_branch", "p_fc", "q_mean", "q_std",
+           "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS)
 
 
-def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[Grasp]:
-    """Up to ``count`` configurations of the grasp's self-motion (see the module docstring),
-    as grasps with the grasp's palm pose and contacts, ids ``<id>v<k>``, their nominal Q and
-    ``meta["elbow_angle"]`` (radians)."""
-    reach = robot_reachable_configurations(grasp, engine)
-    pick = np.unique(np.round(np.linspace(0, len(reach) - 1, count)).astype(int))
+def has_variants(description: RobotDescription) -> bool:
+    """Whether the robot's arm has configuration variants of one palm pose: a 7-joint arm
+    with an elbow angle (its self-motion) or a 6-joint arm (its IK branches)."""
+    return description.arm_dof == 6 or (description.arm_dof == 7
+                                        and description.arm_angle_links is not None)
+
+
+def variant_label(row: Mapping, digits: int = 3) -> str:
+    """A variant row's configuration in words: its elbow angle (``digits`` decimals) or its
+    IK branch."""
+    if row.get("ik_branch"):
+        return f"IK branch {row['ik_branch']}"
+    return f"elbow {row['elbow_angle']:+.{digits}f} rad"
+
+
+def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int,
+                   seed: int = 0) -> list[Grasp]:
+    """Up to ``count`` configurations of the grasp's palm pose (see the module docstring;
+    ``seed``: the IK starts' of a 6-joint arm), as grasps with the grasp's palm pose and
+    contacts, ids ``<id>v<k>``, their nominal Q and ``meta["elbow_angle"]`` (radians) or
+    ``meta["ik_branch"]`` (the branch's label)."""
+    if engine.description.arm_dof == 6:
+        branches, _ = branch_variants(grasp, engine, DEFAULT_IK_STARTS, seed)
+        hand = engine.check(grasp.q0)[0][engine.description.arm_dof:]
+        found = [({"ik_branch": b.label}, np.concatenate([b.q, hand]))
+                 for b in branches[:count]]
+    else:
+        reach = robot_reachable_configurations(grasp, engine)
+        pick = np.unique(np.round(np.linspace(0, len(reach) - 1, count)).astype(int))
+        found = [({"elbow_angle": float(reach[i][0])}, reach[i][1]) for i in pick]
     out = []
-    for j, index in enumerate(pick):
-        psi, q = reach[index]
-        draw = engine.run(q[None])
+    for j, (where, q) in enumerate(found):
+        draw = engine.run(np.asarray(q, dtype=float)[None])
         if draw.outcome[0] != FORCE_CLOSURE:
             continue
         out.append(replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}v{j + 1}",
                            q_nominal=float(draw.quality[0]),
-                           meta={**grasp.meta, "elbow_angle": float(psi),
-                                 "variant_of": grasp.id}))
+                           meta={**grasp.meta, **where, "variant_of": grasp.id}))
     return out
 
 
@@ -68,13 +98,14 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
     empty with fewer than two variants) of ``count`` variants of ``grasp`` on object
     ``name`` (the module docstring's protocol)."""
     with RobotReferenceEngine(description, name) as reference:
-        variants = robot_variants(grasp, reference, count)
+        variants = robot_variants(grasp, reference, count, seed)
     fresh = []
     with make_engine(engine, description, name, friction=friction) as runner:
         stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, engine=runner)
                  for v in variants]
         block = [{"robot": description.name, "object": name, "id": v.id,
-                  "elbow_angle": v.meta["elbow_angle"], "p_fc": s.p_fc,
+                  "elbow_angle": v.meta.get("elbow_angle", ""),
+                  "ik_branch": v.meta.get("ik_branch", ""), "p_fc": s.p_fc,
                   "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
                   "error": s.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
                   **dict.fromkeys(PAIR_COLUMNS, "")}
@@ -99,23 +130,24 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                 grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                 sigma: float = 0.0033, count: int = 10, seed: int = 0,
                 engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
-    """Fig. 10 of ``description`` (7 arm joints with an elbow angle): per object of
-    ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
+    """Fig. 10 of ``description`` (a 7-joint arm with an elbow angle, or a 6-joint arm): per
+    object of ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
     (:data:`COLUMNS`), then ``fig10.png`` (a figure that fails is a warning: the CSV stays).
 
     Args:
         engine: the Monte Carlo engine (``pybullet``, ``fast`` or ``physics``); the
-            self-motion and the variants' nominal closings use the reference engine.
+            variants and their nominal closings use the reference engine.
 
     Raises:
-        ValueError: an arm without self-motion (not 7 joints with ``arm_angle_links``).
+        ValueError: an arm without variants (:func:`has_variants`).
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
-    if description.arm_dof != 7 or description.arm_angle_links is None:
+    if not has_variants(description):
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
                          f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "fig10's variants move a 7-joint arm along its self-motion")
+                         "fig10's variants are a 7-joint arm's self-motion or a 6-joint "
+                         "arm's IK branches")
     rows = []
     for name, grasps in grasp_sets.items():
         rows += variant_block(description, name, grasps[0], samples=samples, sigma=sigma,

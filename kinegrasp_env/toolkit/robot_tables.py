@@ -12,7 +12,8 @@ arm joints, seed ``seed``: the draws of ``kinegrasp evaluate --robot NAME --seed
   of the first ``count`` grasps of each object at one sigma (``fig9.csv``, ``fig9.png``);
 * **Fig. 7**: the same contacts reached with two arm configurations, the most and the least
   robust of ``variants`` configurations of each object's first grasp along a 7-joint arm's
-  self-motion (:func:`~kinegrasp_env.toolkit.robot_reproduce.variant_block`: chosen on the
+  self-motion or among a 6-joint arm's IK branches
+  (:func:`~kinegrasp_env.toolkit.robot_reproduce.variant_block`: chosen on the
   selection draws, reported on fresh ones with their paired gap), ``fig7.csv`` and the
   contact scatter of each pair, ``fig7_<object>.png``.
 
@@ -28,7 +29,12 @@ from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_e
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.toolkit.experiments import TABLE1_COLUMNS, markdown_table1, write_rows
-from kinegrasp_env.toolkit.robot_reproduce import COLUMNS, variant_block
+from kinegrasp_env.toolkit.robot_reproduce import (
+    COLUMNS,
+    has_variants,
+    variant_block,
+    variant_label,
+)
 from kinegrasp_env.world.grasps import Grasp, write_atomic
 
 #: fig9.csv's columns for a description robot.
@@ -96,7 +102,8 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
                grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 2000,
                sigma: float = 0.0133, variants: int = 8, seed: int = 0,
                engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
-    """Fig. 7 of each object's first grasp (a 7-joint arm with an elbow angle): the robust
+    """Fig. 7 of each object's first grasp (a 7-joint arm with an elbow angle, or a 6-joint
+    arm's IK branches): the robust
     and the fragile rows (:data:`COLUMNS`, on fresh draws) in ``fig7.csv``, and each pair's
     contact scatter in ``fig7_<object>.png``.
 
@@ -107,10 +114,11 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
     from kinegrasp_env.toolkit.plots import plot_contacts_pair, safe_figure
     from kinegrasp_env.world.objects import load_object
 
-    if description.arm_dof != 7 or description.arm_angle_links is None:
+    if not has_variants(description):
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
                          f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "fig7's configurations move a 7-joint arm along its self-motion")
+                         "fig7's configurations are a 7-joint arm's self-motion or a 6-joint "
+                         "arm's IK branches")
     rows, pairs = [], []
     for name, grasps in grasp_sets.items():
         block, fresh = variant_block(description, name, grasps[0], samples=samples,
@@ -129,7 +137,7 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
         path = out / f"fig7_{name}.png"
         safe_figure(lambda name=name, chosen=chosen, fresh=fresh, path=path: plot_contacts_pair(
             load_object(name).mesh, [f.draws for f in fresh],
-            [f"elbow {row['elbow_angle']:.2f} rad: P(FC) = {f.p_fc:.3f}"
+            [f"{variant_label(row, 2)}: P(FC) = {f.p_fc:.3f}"
              for row, f in zip(chosen, fresh, strict=True)], path,
             title=f"{name}, robot {description.name}: same contacts, two arm "
                   f"configurations, sigma = {sigma:g} (fresh draws)"), path)
