@@ -122,6 +122,10 @@ def cmd_reproduce(args) -> int:
     if method != "direct" and args.figure != "fig10":
         raise CLIError(f"--method {method} is for fig10 (variants of one palm pose); "
                        f"{args.figure} runs direct")
+    if args.robot is None and args.grasps and not is_count(args.grasps):
+        from kinegrasp_env.cli.robot_report import grasp_file_robot
+
+        args.robot = grasp_file_robot(args)  # a grasp file names its robot
     if args.robot not in (None, DEFAULT_ROBOT):
         if method != "direct":
             raise CLIError(f"--method {method} is not available for robot {args.robot!r} "

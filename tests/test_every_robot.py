@@ -1,0 +1,91 @@
+"""Every command for every robot: the paper's KUKA + SDH, the Panda, and a robot a user adds
+(the xArm 6 of pybullet_data, its description written here at run time), each planning its
+own cube grasps and running the same command lines on them.
+
+What it proves: a command that runs for one robot runs for each, from a grasp file alone
+(the file names its robot; no ``--robot`` given), and says which robot it ran where its
+output has the field. The numbers themselves are checked against independent references in
+each command's own tests; here the draws are few.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+from cli_helpers import run_in_process
+
+from kinegrasp_env.cli.main import main
+from tests.test_user_robot import DESCRIPTION
+
+ROBOTS = ("kuka_sdh", "panda", "xarm6")
+#: A noise model of every source a robot's engines take (joints, palm, object, friction).
+SPEC = {"joints": {"sigma": 0.01}, "palm": {"translation_sigma": 0.001},
+        "object": {"translation_sigma": 0.001}, "friction": {"sigma": 0.05}}
+#: The command lines ({g}: the robot's grasp file, {o}: an output path of its own); the
+#: last item names a file the command must write (or None).
+COMMANDS = {
+    "evaluate": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--sigma", "0.01",
+                  "--samples", "6", "--json"], None),
+    "evaluate --noise-spec": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--noise-spec",
+                               "spec.yaml", "--samples", "6", "--json"], None),
+    "rank": (["rank", "{g}", "--sigma", "0.01", "--samples", "6", "--json", "--out",
+              "{o}.csv"], "{o}.csv"),
+    "rank --adaptive": (["rank", "{g}", "--samples", "30", "--adaptive", "--top-k", "1",
+                         "--out", "{o}.csv"], "{o}.csv"),
+    "elbow": (["elbow", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--json"], None),
+    "report": (["report", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--out",
+                "{o}.html"], "{o}.html"),
+    "reproduce fig9": (["reproduce", "fig9", "--grasps", "{g}", "--samples", "4", "--out",
+                        "{o}"], "{o}/fig9.csv"),
+    "validate": (["validate", "--grasps", "{g}", "--grasp", "0", "--samples", "1",
+                  "--sigma", "0", "--json", "--out", "{o}"], "{o}/summary.json"),
+    "validate --simulator mujoco": (["validate", "--grasps", "{g}", "--grasp", "0",
+                                     "--samples", "1", "--sigma", "0", "--simulator",
+                                     "mujoco", "--json", "--out", "{o}"], "{o}/summary.json"),
+    "sensitivity": (["sensitivity", "--grasps", "{g}", "--grasp", "0", "--noise-spec",
+                     "spec.yaml", "--samples", "6"], None),
+}
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    """A data folder of this module's own with the xArm 6 added, and three cube grasps
+    planned for each robot (``plan --robot R --seed 0``): the folder."""
+    root = tmp_path_factory.mktemp("every_robot")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("KINEGRASP_HOME", str(root / "home"))
+        patch.chdir(root)
+        (root / "xarm6.yaml").write_text(yaml.safe_dump(DESCRIPTION))
+        (root / "spec.yaml").write_text(yaml.safe_dump(SPEC))
+        assert main(["robots", "add", str(root / "xarm6.yaml")]) == 0
+        for robot in ROBOTS:
+            assert main(["plan", "--robot", robot, "--object", "cube", "--count", "3",
+                         "--seed", "0", "--out", f"{robot}.json"]) == 0
+        yield root
+
+
+@pytest.mark.parametrize("command", list(COMMANDS))
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, command):
+    if "mujoco" in command:
+        pytest.importorskip("mujoco")
+    monkeypatch.setenv("KINEGRASP_HOME", str(workspace / "home"))
+    monkeypatch.chdir(workspace)
+    grasps = f"{robot}.json"
+    assert json.loads(Path(grasps).read_text()).get("robot", "kuka_sdh") == robot
+    words, written = COMMANDS[command]
+    out = f"out_{robot}_{command.replace(' ', '_').replace('-', '')}"
+    argv = [w.format(g=grasps, o=out) for w in words]
+    text = run_in_process(capsys, *argv)
+    if written is not None:
+        assert Path(written.format(o=out)).is_file(), (argv, text)
+    if "--json" in argv and command.split()[0] in ("evaluate", "elbow"):
+        assert json.loads(text).get("robot", "kuka_sdh") == robot
+    if command.startswith("validate"):
+        summary = json.loads(Path(written.format(o=out)).read_text())
+        assert summary["settings"].get("robot", "kuka_sdh") == robot
+        assert summary["settings"]["simulator"] == command.split()[-1].replace(
+            "validate", "pybullet")
