@@ -89,3 +89,27 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
         assert summary["settings"].get("robot", "kuka_sdh") == robot
         assert summary["settings"]["simulator"] == command.split()[-1].replace(
             "validate", "pybullet")
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_the_env_takes_the_robots_grasp_file(workspace, monkeypatch, robot):
+    """``KineGraspSelect-v0`` on the robot's planned grasps: a step's reward is a P(FC) in
+    [0, 1]; a 6-joint arm (no self-motion to choose along) is refused in one line."""
+    import gymnasium as gym
+    import numpy as np
+
+    import kinegrasp_env  # noqa: F401  (registers the envs)
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(workspace / "home"))
+    monkeypatch.chdir(workspace)
+    kwargs = {"robot": robot, "grasp_file": f"{robot}.json", "n_draws": 4}
+    if robot == "xarm6":
+        with pytest.raises(ValueError, match="7") as error:
+            gym.make("KineGraspSelect-v0", **kwargs)
+        assert "\n" not in str(error.value)
+        return
+    env = gym.make("KineGraspSelect-v0", **kwargs)
+    env.reset(seed=0)
+    _, reward, terminated, _, _ = env.step(np.array([0.2], dtype=np.float32))
+    assert terminated and 0.0 <= reward <= 1.0
+    env.close()
