@@ -148,21 +148,54 @@ class MujocoHold:
         """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""
 
 
-class MujocoSteps(WorldSteps):
+class MujocoWorldSteps(WorldSteps):
     """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
-    in a :class:`MujocoWorld`: the grip's joint rule as MuJoCo servos (the loaded joints
-    ``general`` springs, the others held), a saved state MuJoCo's integration state
-    (``mj_getState`` / ``mj_setState``), the hand's root moved by its mocap body.
+    that any hand in a :class:`MujocoWorld` shares: time steps, the fingers' forces, the
+    object in the palm frame (the hand's ``palm``), a saved state MuJoCo's integration state
+    (``mj_getState`` / ``mj_setState``), the hand's root moved by its mocap anchor. A hand's
+    steps add its grip.
 
     Args:
-        world: the world right after :func:`mujoco_close`.
+        world: the world right after the closing.
         motors, protocol: the closing controller's settings and the holding test's.
     """
 
-    def __init__(self, world: MujocoWorld, motors: MotorSettings,
-                 protocol: HoldProtocol) -> None:
+    def __init__(self, world: MujocoWorld, motors, protocol: HoldProtocol) -> None:
         super().__init__(world, motors, protocol)
         self.state = self.start = None
+
+    def advance(self, steps: int = 1) -> None:
+        self.world.step(steps)
+
+    def finger_forces(self) -> np.ndarray:
+        return self.world.finger_forces()
+
+    def object_in_palm(self) -> np.ndarray:
+        world = self.world
+        return np.linalg.inv(world.link_pose(world.hand.palm)) @ world.object_pose()
+
+    def save(self) -> None:
+        world = self.world
+        self.state = world.save_state()
+        self.start = world.link_pose(world.hand.root), world.link_pose(world.hand.palm)[:3, 3]
+
+    def start_phase(self, gravity: np.ndarray) -> None:
+        self.world.restore_state(self.state)
+        self.world.set_gravity(gravity)
+
+    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.start
+
+    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
+        self.world.root_at(position, orientation)
+
+    def discard(self) -> None:
+        self.state = self.start = None
+
+
+class MujocoSteps(MujocoWorldSteps):
+    """The SDH's holding test primitives in a :class:`MujocoWorld`: the grip's joint rule
+    as MuJoCo servos (the loaded joints ``general`` springs, the others held)."""
 
     def grip(self) -> bool:
         """The grip's joint rule (pybullet's :func:`~kinegrasp_env.physics.pybullet_hold.
@@ -186,27 +219,3 @@ class MujocoSteps(WorldSteps):
             world.spring(list(names[loaded]), spring.targets[loaded],
                          spring.stiffness[loaded], spring.limits[loaded])
         return True
-
-    def advance(self, steps: int = 1) -> None:
-        self.world.step(steps)
-
-    def finger_forces(self) -> np.ndarray:
-        return self.world.finger_forces()
-
-    def save(self) -> None:
-        world = self.world
-        self.state = world.save_state()
-        self.start = world.link_pose("hand_root"), world.link_pose("palm")[:3, 3]
-
-    def start_phase(self, gravity: np.ndarray) -> None:
-        self.world.restore_state(self.state)
-        self.world.set_gravity(gravity)
-
-    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.start
-
-    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
-        self.world.root_at(position, orientation)
-
-    def discard(self) -> None:
-        self.state = self.start = None

@@ -52,8 +52,8 @@ from kinegrasp_env.physics.hand_motors import (
     finger_leaders,
     motor_efforts,
 )
-from kinegrasp_env.physics.hold_runner import WorldSteps, close_until_stall, in_object_frame
-from kinegrasp_env.physics.mujoco_hold import world_contacts
+from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
+from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, world_contacts
 from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
@@ -128,47 +128,17 @@ class JawServos:
         return self.world.joint_states(self.names)[0] / self.speeds
 
 
-class MujocoRobotSteps(WorldSteps):
-    """The holding test's primitives (:class:`~kinegrasp_env.physics.hold_runner.HoldSteps`)
-    in a :class:`MujocoWorld` holding a description robot's hand: the grip is the closing
-    motors left on, a saved state MuJoCo's integration state, the hand moved by its mocap
-    anchor."""
+class MujocoRobotSteps(MujocoWorldSteps):
+    """The holding test's primitives (:class:`~kinegrasp_env.physics.mujoco_hold.
+    MujocoWorldSteps`) of a description robot's hand: the grip is the closing motors left
+    on."""
 
     def __init__(self, world: MujocoWorld, protocol: HoldProtocol) -> None:
         super().__init__(world, None, protocol)
-        self.state = self.start = None
 
     def grip(self) -> bool:
         touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
         return len(touched) >= 2
-
-    def advance(self, steps: int = 1) -> None:
-        self.world.step(steps)
-
-    def finger_forces(self) -> np.ndarray:
-        return self.world.finger_forces()
-
-    def object_in_palm(self) -> np.ndarray:
-        world = self.world
-        return np.linalg.inv(world.link_pose(world.hand.palm)) @ world.object_pose()
-
-    def save(self) -> None:
-        world = self.world
-        self.state = world.save_state()
-        self.start = world.link_pose(world.hand.root), world.link_pose(world.hand.palm)[:3, 3]
-
-    def start_phase(self, gravity: np.ndarray) -> None:
-        self.world.restore_state(self.state)
-        self.world.set_gravity(gravity)
-
-    def hand_start(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.start
-
-    def move_hand(self, position: np.ndarray, orientation: np.ndarray) -> None:
-        self.world.root_at(position, orientation)
-
-    def discard(self) -> None:
-        self.state = self.start = None
 
 
 class MujocoRobotHold:
