@@ -91,6 +91,18 @@ def test_hyperparams_missing_file(tmp_path):
         train.load_hyperparams("KineGraspSelect-v0", "ppo", folder=tmp_path)
 
 
+@pytest.mark.parametrize("pair", ["reward", "=batch", "re-ward=batch"])
+def test_train_env_kwarg_needs_key_and_value(capsys, pair):
+    assert train.main(["--env-kwarg", pair]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--env-kwarg takes KEY=VALUE" in err
+
+
+def test_train_env_kwarg_values_are_yaml():
+    assert train.env_overrides(["reward=batch", "n_draws=8", "sigma_range=[0.01, 0.02]"]) == {
+        "reward": "batch", "n_draws": 8, "sigma_range": [0.01, 0.02]}
+
+
 def test_train_cli_one_line_error(capsys):
     assert train.main(["--env", "KineGraspSelect-v0", "--algo", "a2c"]) == 2
     err = capsys.readouterr().err.strip()
@@ -124,6 +136,10 @@ COMMITTED = ROOT / "agents" / "models" / "evaluation.json"
 OPENWORLD = ROOT / "agents" / "models" / "evaluation_openworld.json"
 #: the built-in-only policy scored on the open-world held-out grasps, same draws as OPENWORLD
 OPENWORLD_BUILTIN = ROOT / "agents" / "models" / "evaluation_openworld_builtin_policy.json"
+#: the policy trained on the batch reward, and the committed policy scored by the same code on
+#: the same draws
+BATCH = ROOT / "agents" / "models" / "evaluation_batch.json"
+BATCH_REFERENCE = ROOT / "agents" / "models" / "evaluation_batch_reference.json"
 
 
 def _holm_by_hand(p: list[float]) -> list[float]:
@@ -138,8 +154,10 @@ def _holm_by_hand(p: list[float]) -> list[float]:
 
 
 @pytest.mark.parametrize(("path", "grasps"), [(COMMITTED, 12), (OPENWORLD, 16),
-                                             (OPENWORLD_BUILTIN, 16)],
-                         ids=["in-distribution", "open-world", "open-world-builtin-policy"])
+                                             (OPENWORLD_BUILTIN, 16), (BATCH, 12),
+                                             (BATCH_REFERENCE, 12)],
+                         ids=["in-distribution", "open-world", "open-world-builtin-policy",
+                              "batch-reward-policy", "batch-reference"])
 def test_committed_evaluation_summary_recomputed_from_rows(path, grasps):
     """The committed summary equals an independent recomputation from its per-grasp rows:
     scipy's t.interval for the means, ttest_rel and its confidence_interval for the paired
@@ -270,13 +288,16 @@ def test_oracle_selection_draws_are_not_scoring_draws():
     assert not (selection[:, None, :] == scoring[None, :, :]).all(-1).any()
 
 
-def test_openworld_vs_builtin_policy_paired_comparison(tmp_path, capsys):
-    """The two open-world results share grasps and draws (every column that does not depend on
-    the model is identical, row by row), and --compare's paired comparison of their policy
-    columns equals scipy's ttest_rel and its confidence interval on those rows."""
+@pytest.mark.parametrize(("first", "second", "grasps"),
+                         [(OPENWORLD, OPENWORLD_BUILTIN, 16), (BATCH, BATCH_REFERENCE, 12)],
+                         ids=["open-world-vs-builtin", "batch-vs-draws-reward"])
+def test_paired_policy_comparison(tmp_path, capsys, first, second, grasps):
+    """Two results of different policies share grasps and draws (every column that does not
+    depend on the model is identical, row by row), and --compare's paired comparison of their
+    policy columns equals scipy's ttest_rel and its confidence interval on those rows."""
     from scipy import stats
 
-    a, b = (json.loads(p.read_text()) for p in (OPENWORLD, OPENWORLD_BUILTIN))
+    a, b = (json.loads(p.read_text()) for p in (first, second))
     assert [(r["object"], r["grasp"]) for r in a["rows"]] == [
         (r["object"], r["grasp"]) for r in b["rows"]]
     for column in ("nominal", "random", "spread", "elbow_nominal", "elbow_spread"):
@@ -286,11 +307,11 @@ def test_openworld_vs_builtin_policy_paired_comparison(tmp_path, capsys):
     ci = test.confidence_interval(0.95)
     d = policy_a - policy_b
     out = tmp_path / "compare.json"
-    assert evaluate_module.main(["--compare", str(OPENWORLD), str(OPENWORLD_BUILTIN),
+    assert evaluate_module.main(["--compare", str(first), str(second),
                                  "--out", str(out)]) == 0
     assert "| policy: A - B |" in capsys.readouterr().out
     result = json.loads(out.read_text())
-    assert result["grasps"] == len(d) == 16 and result["df"] == 15
+    assert result["grasps"] == len(d) == grasps and result["df"] == grasps - 1
     assert result["mean"] == pytest.approx(d.mean(), rel=1e-12)
     assert result["ci"] == pytest.approx([ci.low, ci.high], rel=1e-9)
     assert result["t"] == pytest.approx(test.statistic, rel=1e-12)
