@@ -8,7 +8,8 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from kinegrasp_env.envs.kinegrasp import KineGraspEnv, box_action
+from kinegrasp_env.envs.arguments import box_action
+from kinegrasp_env.envs.kinegrasp import KineGraspEnv
 
 
 class KineGraspSelectEnv(KineGraspEnv):
