@@ -180,7 +180,7 @@ def test_elbow_cli_bad_input_is_one_line(home, capsys):
     path = str(home[0])
     for args, message in [
             (["--grasps", path, "--ik-starts", "0"], "--ik-starts must be"),
-            (["--grasps", path, "--report", "x.html"], "has IK branches instead"),
+            (["--grasps", path, "--method", "reweight"], "IK branches: use --method direct"),
             (["--grasps", path, "--robot", "panda"], "xarm6"),
             (["--grasps", path, "--object", "mug"], "--object mug"),
             (["--object", "cube", "--ik-starts", "50"], "--ik-starts is for a 6-joint arm"),
@@ -227,3 +227,56 @@ def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys,
     rows = list(csv.DictReader((tmp_path / "f7" / "fig7.csv").open()))
     assert [r["config"] for r in rows] == ["robust", "fragile"]
     assert all(r["ik_branch"] in labels for r in rows)
+
+
+def bullet_link_pose(q: np.ndarray, link: str) -> np.ndarray:
+    """(4, 4) world pose of ``link``'s URDF frame at arm joints q (6,): pybullet's own
+    kinematics."""
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        body = client.loadURDF(str(XARM_URDF), useFixedBase=True)
+        index = {}
+        for j in range(client.getNumJoints(body)):
+            info = client.getJointInfo(body, j)
+            index[info[1].decode()] = index[info[12].decode()] = j
+        for name, value in zip(ARM, q, strict=True):
+            client.resetJointState(body, index[name], float(value))
+        state = client.getLinkState(body, index[link], computeForwardKinematics=True)
+        pose = np.eye(4)
+        pose[:3, :3] = np.reshape(client.getMatrixFromQuaternion(state[5]), (3, 3))
+        pose[:3, 3] = state[4]
+    finally:
+        client.disconnect()
+    return pose
+
+
+def test_elbow_report_of_the_ik_branches(home, capsys, tmp_path):
+    """``elbow --report`` of the 6-joint arm: the page's bars are the printed curve's
+    selection and fresh P(FC) per branch, and each view draws the arm's ``link3`` where
+    pybullet's own kinematics puts it at that view's branch (the nominal and the chosen
+    one: the same palm, another arm)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.picture import robot_geometry
+    from tests.test_robot_report import figure
+
+    page = tmp_path / "branches.html"
+    out = json.loads(run(capsys, "elbow", "--grasps", str(home[0]), "--grasp", "0",
+                         "--samples", str(SAMPLES), "--seed", "0", "--report", str(page),
+                         "--json"))
+    assert out["best_branch"] != out["nominal_branch"]  # two arms: a swap would show
+    html = page.read_text()
+    bars = figure(html, "fig-branches")["data"]
+    assert bars[0]["y"] == [p["p_fc"] for p in out["curve"]]
+    assert bars[1]["y"] == [p["fresh_p_fc"] for p in out["curve"]]
+    shapes = robot_geometry(load_robot("xarm6"), []).shapes
+    keys = {f"robot:xarm6:{k}" for k, s in enumerate(shapes) if s.link == "link3"}
+    for view, branch in (("nominal", out["nominal_branch"]), ("chosen", out["best_branch"])):
+        q = np.array(out["branches"][branch]["q"])
+        expected = bullet_link_pose(q, "link3")
+        poses = [np.asarray(pose).reshape(3, 4)
+                 for trace in figure(html, f"fig-arm-{view}")["data"]
+                 if trace.get("name") == "robot (closed, nominal)"
+                 for key, pose in trace["kgInstances"] if key in keys]
+        assert poses
+        for pose in poses:  # the link's pieces sit in its frame (visual origin: identity)
+            np.testing.assert_allclose(pose[:, 3], expected[:3, 3], atol=1e-5)

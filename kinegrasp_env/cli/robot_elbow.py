@@ -51,9 +51,6 @@ def cmd_elbow_robot(args, chosen=None) -> int:
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")
     starts = ik_starts(args, branches, robot)
-    if branches and args.report:
-        raise CLIError(f"--report draws the arm along its self-motion; robot {robot!r}'s "
-                       "6-joint arm has IK branches instead (--plot draws them)")
     report_path(args.report)
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
@@ -134,7 +131,45 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
         print(branch_summary(payload, index))
         if "plot" in payload:
             print(f"plot written to {payload['plot']}")
+    if args.report:
+        write_branch_report(args, index, grasp, result, noise, starts, friction)
     return 0
+
+
+def write_branch_report(args, index: int, grasp, result, noise, starts: int,
+                        friction: float) -> None:
+    """``elbow --report FILE`` of a 6-joint arm: the IK branches' page
+    (:func:`~kinegrasp_env.toolkit.report.robot_branches.robot_branch_page`)."""
+    import shlex
+
+    from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
+    from kinegrasp_env.cli.common import NUM_EDGES
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.report.page import write_page
+    from kinegrasp_env.toolkit.report.robot_branches import robot_branch_page
+
+    chosen = (["--grasps", str(args.grasps)] if getattr(args, "grasps", None)
+              else ["--object", args.object])
+    summary, cert = result.result, result.result.certificate
+    command = ["kinegrasp", "elbow", "--robot", args.robot, *chosen, "--grasp", str(index),
+               *noise_words(args, sigma_words(noise.sigma)), "--samples",
+               str(summary.samples), "--seed", str(summary.seed), "--engine", summary.engine,
+               "--ik-starts", str(starts), "--epsilon", f"{cert.epsilon:g}", "--delta",
+               f"{cert.delta:g}", *friction_words(args), "--report", str(args.report)]
+    settings = {"robot": args.robot, "object": grasp.object,
+                "grasp": f"index {index} (id {grasp.id})", "sigma [rad]": noise.sigma,
+                "noise": noise.kind, "draws per branch (selection; fresh again)":
+                summary.samples, "seed (selection; fresh)": summary.seed,
+                "engine": summary.engine, "IK starts": starts,
+                "IK branches found": len(result.branches),
+                "certificate epsilon, delta": f"{cert.epsilon:g}, {cert.delta:g}",
+                "friction mu": friction, "friction cone edges": NUM_EDGES}
+    text = robot_branch_page(load_robot(args.robot), grasp, result,
+                             command=shlex.join(command), settings=settings,
+                             friction=friction, num_edges=NUM_EDGES)
+    write_page(args.report, text)
+    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
+          file=sys.stderr if args.json else sys.stdout)
 
 
 def branch_summary(result: dict, index: int) -> str:
