@@ -8,8 +8,11 @@ simulator executes it in modules of its own: pybullet's world (``pybullet_world`
 hand held by a constraint, the object as a rigid body that can be pinned), its closing
 controller (``pybullet_closing``) and its holding test (``pybullet_hold``); any other
 catalog robot's hand cut from its URDF (``robot_world``), its holding test (``robot_hold``)
-and its closing against the kinematic one (``robot_agreement``). ``simulators`` names them
-and states the interface a simulator implements. Uses ``closing`` (the kinematic closing's
+and its closing against the kinematic one (``robot_agreement``); MuJoCo's world
+(``mujoco_model``, ``mujoco_world``) and holding tests of the default robot's hand
+(``mujoco_hold``) and of any other robot's (``mujoco_robot_hold``); the motors of a robot's
+hand in either simulator (``hand_motors``). ``simulators`` names them and states the
+interface a simulator implements. Uses ``closing`` (the kinematic closing's
 contact rules and result type), ``world`` and ``robot``.
 """
 
@@ -22,6 +25,9 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "pybullet_closing": ("MotorSettings", "physics_close"),
     "protocol": ("HoldProtocol", "HoldResult", "ASSUMED_TORQUES", "PHASES", "HOLD_OUTCOMES"),
     "pybullet_hold": ("PybulletHold",),
-    "simulators": ("SIMULATORS", "simulator_class"),
+    "simulators": ("SIMULATORS", "simulator_class", "DESCRIPTION_ROBOT_SIMULATORS",
+                   "robot_simulator_class"),
     "robot_hold": ("RobotHold",),
+    "mujoco_robot_hold": ("MujocoRobotHold",),
+    "hand_motors": ("JointMotor", "motor_efforts"),
 })
