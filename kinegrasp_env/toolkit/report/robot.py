@@ -272,7 +272,8 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
         description: the robot; obj: the object (every grasp's).
         grasps: the grasps, in the order of the page.
         runs: the evaluations (:class:`RobotRun`), in the order of the table; each grasp's
-            first run's draws give its contact points (at most ``max_points``).
+            first run's draws, where it keeps them, give its contact points (at most
+            ``max_points``; a ranking's runs keep counts only).
         command: the command line that reproduces the page; settings: name -> value.
         arms: per grasp, the noisy arms its scene draws (None: none).
     """
@@ -288,8 +289,8 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
         first.setdefault(run.grasp, run)
     for k, (grasp, (_, did_close)) in enumerate(zip(grasps, closings, strict=True)):
         title = f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame"
-        cloud = (world_cloud(contact_cloud(first[k].evaluation.draws, max_points), obj)
-                 if k in first else None)
+        draws = getattr(first[k].evaluation, "draws", None) if k in first else None
+        cloud = None if draws is None else world_cloud(contact_cloud(draws, max_points), obj)
         figure = Figure(f"scene-{k}", grasp_scene(
             description, obj, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
             friction=friction, num_edges=num_edges, title=title, cloud=cloud,
