@@ -72,15 +72,23 @@ def make_env(env_id: str, env_kwargs: dict, split: str | None, seed: int,
             raise UsageError(f"--grasp-file: {error}; for agents/grasps/*.json, run "
                              "agents/prepare.py first") from None
     else:
-        env = gym.make(env_id, split=split, **env_kwargs)
+        try:
+            env = gym.make(env_id, split=split, **env_kwargs)
+        except (TypeError, ValueError) as error:
+            raise UsageError(f"{env_id}: {error}") from None
     env.reset(seed=seed)
     env.action_space.seed(seed)
     return env
 
 
+#: Env arguments the script sets itself (``--grasp-file``, the train split).
+OWN_ARGUMENTS = ("split", "grasp_file")
+
+
 def env_overrides(pairs: list[str]) -> dict:
-    """``KEY=VALUE`` strings as env keyword arguments (each value read as YAML: numbers,
-    lists and strings)."""
+    """``KEY=VALUE`` strings as env keyword arguments, each value read as YAML (numbers,
+    lists, strings; YAML 1.1: ``yes``, ``no``, ``on`` and ``off`` are booleans, quote them
+    to keep a string)."""
     import yaml
 
     out = {}
@@ -88,6 +96,9 @@ def env_overrides(pairs: list[str]) -> dict:
         key, sep, value = pair.partition("=")
         if not sep or not key.isidentifier():
             raise UsageError(f"--env-kwarg takes KEY=VALUE, got {pair!r}")
+        if key in OWN_ARGUMENTS:
+            raise UsageError(f"--env-kwarg {key}: set by the script (--grasp-file, the train "
+                             "split)")
         out[key] = yaml.safe_load(value)
     return out
 

@@ -91,11 +91,16 @@ def test_hyperparams_missing_file(tmp_path):
         train.load_hyperparams("KineGraspSelect-v0", "ppo", folder=tmp_path)
 
 
-@pytest.mark.parametrize("pair", ["reward", "=batch", "re-ward=batch"])
-def test_train_env_kwarg_needs_key_and_value(capsys, pair):
-    assert train.main(["--env-kwarg", pair]) == 2
+@pytest.mark.parametrize(("pair", "needle"), [
+    ("reward", "--env-kwarg takes KEY=VALUE"), ("=batch", "--env-kwarg takes KEY=VALUE"),
+    ("re-ward=batch", "--env-kwarg takes KEY=VALUE"),
+    ("split=test", "--env-kwarg split: set by the script"),
+    ("reward=bogus", "reward must be 'draws' or 'batch', got 'bogus'"),
+    ("rewards=batch", "unexpected keyword argument 'rewards'")])
+def test_train_env_kwarg_errors_are_one_line(capsys, pair, needle):
+    assert train.main(["--env-kwarg", pair, "--total-timesteps", "1"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "--env-kwarg takes KEY=VALUE" in err
+    assert err.count("\n") == 0 and needle in err, err
 
 
 def test_train_env_kwarg_values_are_yaml():

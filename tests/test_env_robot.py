@@ -405,8 +405,9 @@ def test_the_hold_score_runs_the_quick_holding_test_on_the_draws(simulator):
         q = robot_configurations(here, engine, sigma=0.003, n=6, seed=info["draw_seed"])
         held = float(np.mean(engine.run_hold(q)[1].outcome == HELD))
     assert reward == info["p_hold"] == held and info["score"] == "hold"
+    assert 0 < reward  # MuJoCo holds this grasp at sigma 0 (tests/test_robot_mujoco.py)
     if simulator == "pybullet":
-        assert 0 < reward < info["p_fc"]
+        assert reward < info["p_fc"]
     env.close()
 
 
@@ -436,6 +437,7 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
     ({"score": "held"}, "score must be one of pfc, hold_static, hold, got 'held'"),
     ({"score": "hold", "hold_simulator": "bullet"},
      "hold_simulator must be one of pybullet, mujoco, got 'bullet'"),
+    ({"hold_simulator": "mujoco"}, "it runs with score='hold'"),
     ({"score": "hold", "robot": "kuka_sdh"}, "score 'hold' is for robots other than"),
     ({"score": "hold_static", "reward": "batch"}, "reward 'batch' re-weights P"),
 ])

@@ -104,7 +104,7 @@ def test_the_env_takes_the_robots_grasp_file(workspace, monkeypatch, robot):
     monkeypatch.chdir(workspace)
     kwargs = {"robot": robot, "grasp_file": f"{robot}.json", "n_draws": 4}
     if robot == "xarm6":
-        with pytest.raises(ValueError, match="7") as error:
+        with pytest.raises(ValueError, match="6 arm joints; the self-motion needs 7") as error:
             gym.make("KineGraspSelect-v0", **kwargs)
         assert "\n" not in str(error.value)
         return

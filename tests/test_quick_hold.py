@@ -185,3 +185,17 @@ def test_the_holding_test_runs_in_mujoco_when_asked(capsys) -> None:
                           "--hold-test", "--hold-simulator", "mujoco")
     assert "the quick holding test in mujoco on the same draws" in text
     assert "P(hold) = 1.0000" in text
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["evaluate", "--robot", "panda", "--object", "cube", "--samples", "2", "--hold-simulator",
+      "mujoco"], "--hold-simulator mujoco is the holding test's simulator; it runs with "
+                 "--hold-test"),
+    (["evaluate", "--object", "cube", "--samples", "2", "--hold-simulator", "mujoco"],
+     "--hold-simulator) run for description robots")])
+def test_a_hold_simulator_without_a_holding_test_is_one_line(capsys, argv, needle) -> None:
+    from kinegrasp_env.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1

@@ -34,7 +34,11 @@ from kinegrasp_env.physics.protocol import HELD, HoldProtocol
 from kinegrasp_env.physics.robot_agreement import closing_agreement
 from kinegrasp_env.physics.robot_hold import RobotHold
 from kinegrasp_env.robot.catalog import load_robot
-from kinegrasp_env.robot.description import load_description, parse_description
+from kinegrasp_env.robot.description import (
+    RobotDescription,
+    load_description,
+    parse_description,
+)
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import load_object
@@ -120,13 +124,16 @@ def test_jaws_press_with_their_urdf_efforts(panda_cube):
     np.testing.assert_allclose(result.forces_gripped, efforts, rtol=0.02)
 
 
-def test_description_efforts_reach_mujoco_too():
+@pytest.mark.parametrize("effort", [8.0, 35.0])
+def test_description_efforts_reach_mujoco_too(effort):
+    """The description's efforts, below and above the URDF's 20 N (MuJoCo's URDF reader
+    caps a joint's force at its <limit effort> unless told otherwise), press the cube."""
     data = yaml.safe_load(PANDA_YAML.read_text())
-    data["efforts"] = {"panda_finger_joint1": 8.0}
+    data["efforts"] = {"panda_finger_joint1": effort}
     description = parse_description(data, PANDA_YAML)
     simulator = MujocoRobotHold(description, load_object("cube"), 0.5, HoldProtocol())
     _, result = simulator.run_draw(shipped_grasps("cube", "panda")[0].q0)
-    np.testing.assert_allclose(result.forces_gripped, [8.0, 8.0], rtol=0.02)
+    np.testing.assert_allclose(result.forces_gripped, [effort, effort], rtol=0.02)
 
 
 @pytest.mark.parametrize(("obj", "grasp", "held"), [("cube", 0, True), ("cube", 1, True),
@@ -183,6 +190,7 @@ def test_a_linkage_gripper_closes_its_followers_on_the_urdf_mimics(tmp_path):
         assert abs(value[name] - expected) <= 1e-3, (name, value[name], expected)
     closing, _ = simulator.close_hand(q)
     assert not closing.contacts
+    assert sorted(closing.joints) == sorted(m.joint for m in simulator.motors)  # every one
     for name, v in values().items():
         limit = joints[name].find("limit")
         assert float(limit.get("lower")) - 5e-3 <= v <= float(limit.get("upper")) + 5e-3, name
@@ -199,15 +207,34 @@ def test_validate_panda_in_mujoco(tmp_path, capsys):
     assert [g["p_hold"] for g in summary["grasps"]][:3] == [1.0, 1.0, 1.0]
 
 
-def test_a_mesh_mujoco_cannot_read_is_refused_in_one_line(tmp_path):
-    text = PANDA_URDF.read_text().replace("collision/finger.obj", "collision/finger.dae")
+def panda_with_dae(tmp_path: Path, collision: bool) -> RobotDescription:
+    """The Panda with its finger mesh named ``finger.dae`` (the OBJ's bytes) in the two
+    fingers' visuals and, with ``collision``, in their collisions too."""
+    import re
+
+    text = PANDA_URDF.read_text()
+    pattern = (r"(<{tag}>\s*(?:<origin[^>]*>\s*)?<geometry>\s*"
+               r"<mesh filename=\"package://meshes/collision/)finger\.obj")
+    for tag in ("visual", "collision") if collision else ("visual",):
+        text, count = re.subn(pattern.format(tag=tag), r"\1finger.dae", text)
+        assert count == 2, tag
     meshes = tmp_path / "meshes" / "collision"
     meshes.mkdir(parents=True)
     for mesh in (PANDA_URDF.parent / "meshes" / "collision").iterdir():
         (meshes / mesh.name).write_bytes(mesh.read_bytes())
     (meshes / "finger.dae").write_bytes((meshes / "finger.obj").read_bytes())
     (tmp_path / "panda.urdf").write_text(text)
-    data = yaml.safe_load(PANDA_YAML.read_text())
-    description = parse_description(data, tmp_path / "panda.yaml")
+    return parse_description(yaml.safe_load(PANDA_YAML.read_text()), tmp_path / "panda.yaml")
+
+
+def test_a_collision_mesh_mujoco_cannot_read_is_refused_in_one_line(tmp_path):
     with pytest.raises(ValueError, match=r"MuJoCo reads STL and OBJ meshes, not finger\.dae"):
-        description_hand(description)
+        description_hand(panda_with_dae(tmp_path, collision=True))
+
+
+def test_a_visual_mesh_mujoco_cannot_read_is_dropped(tmp_path):
+    """MuJoCo drops visuals: a DAE visual beside an OBJ collision mesh holds like the
+    Panda."""
+    simulator = MujocoRobotHold(panda_with_dae(tmp_path, collision=False), load_object("cube"),
+                                0.5, HoldProtocol())
+    assert simulator.run_draw(shipped_grasps("cube", "panda")[0].q0)[1].outcome == HELD

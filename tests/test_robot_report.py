@@ -168,13 +168,19 @@ def scene_traces(html: str, scene: int, prefix: str) -> list[dict]:
 
 def test_noisy_arms_where_pybullet_puts_them(page):
     """Each grasp's scene draws the arm's skeleton at its first draws (all 12: fewer than
-    the default 20), coloured by the draws' outcomes as evaluate counts them; the skeleton's
-    last point at each draw is the palm's origin where pybullet's own forward kinematics
-    (``getLinkState`` of the URDF) puts it at that draw's configuration."""
+    the default 20), one trace per outcome with evaluate's counts; the skeletons of an
+    outcome's trace end, in draw order, at the palm origins that pybullet's own forward
+    kinematics (``getLinkState`` of the URDF) gives at the configurations of the draws with
+    that outcome (evaluate's draws of the same seed)."""
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
+    from kinegrasp_env.montecarlo.engines import OUTCOMES
+    from kinegrasp_env.montecarlo.robot_evaluate import (
+        evaluate_robot_grasp,
+        make_engine,
+        robot_configurations,
+    )
 
     description = load_robot("panda")
     client = BulletClient(connection_mode=pybullet.DIRECT)
@@ -185,24 +191,30 @@ def test_noisy_arms_where_pybullet_puts_them(page):
     counts = {r["grasp"]: r["outcomes"] for r in page["json"]["runs"]}
     with make_engine("pybullet", "panda", OBJECT) as engine:
         for k, grasp in enumerate(shipped_grasps(OBJECT, "panda")):
-            traces = scene_traces(page["html"], k, "noisy arms: ")
-            drawn = {t["name"].split(": ")[1].split(" (")[0]: t for t in traces}
-            assert sum(int(t["name"].split("(")[-1][:-1]) for t in traces) == int(SAMPLES)
-            for name, trace in drawn.items():
-                assert int(trace["name"].split("(")[-1][:-1]) == counts[grasp.id][
-                    name.replace(" ", "_")]
             q = robot_configurations(grasp, engine, sigma=float(SIGMA), n=int(SAMPLES),
                                      seed=int(SEED))
+            outcome = evaluate_robot_grasp(grasp, sigma=float(SIGMA), n=int(SAMPLES),
+                                           seed=int(SEED), engine=engine).draws.outcome
             palms = []
             for row in q:
                 for joint, value in zip(description.arm_joints, row, strict=False):
                     client.resetJointState(body, index[joint], float(value))
                 palms.append(client.getLinkState(body, palm, computeForwardKinematics=True)[4])
-            ends = [np.column_stack([decode_typed_array(t[a]) for a in "xyz"])
-                    for t in traces]
-            ends = np.concatenate([e[np.flatnonzero(np.isnan(e[:, 0])) - 1] for e in ends])
-            for end in ends:  # each drawn skeleton ends at one of the draws' palms
-                assert np.min(np.linalg.norm(np.asarray(palms) - end, axis=1)) < CENTROID_TOL
+            palms = np.asarray(palms)
+            traces = {t["name"].split(": ")[1].split(" (")[0]: t
+                      for t in scene_traces(page["html"], k, "noisy arms: ")}
+            assert sum(int(t["name"].split("(")[-1][:-1]) for t in traces.values()) == int(
+                SAMPLES)
+            for o, name in enumerate(OUTCOMES):
+                rows = np.flatnonzero(outcome == o)
+                trace = traces.get(name.replace("_", " "))
+                assert len(rows) == (0 if trace is None else int(
+                    trace["name"].split("(")[-1][:-1])) == counts[grasp.id][name]
+                if trace is None:
+                    continue
+                line = np.column_stack([decode_typed_array(trace[a]) for a in "xyz"])
+                ends = line[np.flatnonzero(np.isnan(line[:, 0])) - 1]
+                np.testing.assert_allclose(ends, palms[rows], atol=CENTROID_TOL)
     client.disconnect()
 
 

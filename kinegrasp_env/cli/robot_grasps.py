@@ -38,19 +38,27 @@ def refuse_options(args, options: dict[str, object], robot: str) -> None:
 
 def refuse_hold_scores(args, robot: str) -> None:
     """CLIError for a hold score (``--static-hold``, ``--hold-test``, ``--criterion
-    hold_static`` or ``hold``) of the default robot, whose engines run neither."""
+    hold_static`` or ``hold``, ``--hold-simulator``) of the default robot, whose engines run
+    neither."""
     if getattr(args, "static_hold", False) or getattr(args, "hold_test", False) or getattr(
-            args, "criterion", None) in ("hold_static", "hold"):
+            args, "criterion", None) in ("hold_static", "hold") or getattr(
+            args, "hold_simulator", "pybullet") != "pybullet":
         raise CLIError(f"the hold scores (--static-hold, --hold-test, --criterion hold_static "
-                       f"or hold) run for description robots such as --robot panda, not for "
-                       f"{robot}")
+                       f"or hold, --hold-simulator) run for description robots such as --robot "
+                       f"panda, not for {robot}")
 
 
-def check_hold_simulator(args) -> None:
+def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
     """CLIError (one line) where ``--hold-simulator`` names a simulator that is not
-    installed."""
+    installed, or names one for a run without the holding test (``runs``: whether it runs;
+    ``asked_by``: the option that runs it)."""
     from kinegrasp_env.physics.simulators import check_simulator
 
+    if not runs:
+        if args.hold_simulator != "pybullet":
+            raise CLIError(f"--hold-simulator {args.hold_simulator} is the holding test's "
+                           f"simulator; it runs with {asked_by}")
+        return
     with reported(ValueError):
         check_simulator(args.hold_simulator)
 
@@ -143,8 +151,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if model is not None and args.hold_test:
         raise CLIError("--hold-test draws joint noise alone (--sigma, --noise); drop it or "
                        "--noise-spec")
-    if args.hold_test:
-        check_hold_simulator(args)
+    check_hold_simulator(args, args.hold_test, "--hold-test")
     label = (f"noise spec {args.noise_spec}" if model is not None
              else f"sigma = {sigma:g} rad ({args.noise})")
     if args.plot:

@@ -26,8 +26,7 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
     if args.noise_spec and args.criterion == "hold":
         raise CLIError("--criterion hold runs the holding test on joint noise alone (--sigma, "
                        "--noise); drop it or --noise-spec")
-    if args.criterion == "hold":
-        check_hold_simulator(args)
+    check_hold_simulator(args, args.criterion == "hold", "--criterion hold")
     check_robot_engine(args.engine, robot)
     objects = {g.object for g in grasps}
     if len(objects) != 1:

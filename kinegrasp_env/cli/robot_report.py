@@ -180,10 +180,10 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
                     grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
                     engine=engine, executor=executor, noise_model=model)))
             shown = 0 if model is not None else min(arm_draws, samples)
-            arms.append(NoisyArms(
-                robot_configurations(grasp, engine, sigma=sigmas[0], n=samples, seed=seed,
-                                     noise=args.noise)[:shown],
-                runs[-len(sigmas)].evaluation.draws.outcome[:shown]))
+            q = (robot_configurations(grasp, engine, sigma=sigmas[0], n=samples, seed=seed,
+                                      noise=args.noise)[:shown] if shown else
+                 engine.check(grasp.q0)[:0])
+            arms.append(NoisyArms(q, runs[-len(sigmas)].evaluation.draws.outcome[:shown]))
     # each grasp's nominal Q as this engine computes it at this friction
     nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
     grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]

@@ -233,6 +233,9 @@ class KineGraspEnv(gym.Env):
                              f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
         if reward not in ("draws", "batch"):
             raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
+        if hold_simulator != "pybullet" and score != "hold":
+            raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
+                             "simulator; it runs with score='hold'")
         if reward == "batch" and score != "pfc":
             raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
                              "reward 'draws'")

@@ -163,7 +163,7 @@ class HoldSteps(Protocol):
         """``steps`` time steps under the grip's joint rule."""
 
     def finger_forces(self) -> np.ndarray:
-        """(3,) each finger's total normal force on the object, newtons."""
+        """(fingers,) each finger's total normal force on the object, newtons."""
 
     def object_in_palm(self) -> np.ndarray:
         """(4, 4) the object's pose in the palm frame."""

@@ -81,14 +81,16 @@ def touching(world: MujocoWorld, distance: float) -> set[tuple[int, int]]:
             if rec[0] in world.finger_geom and rec[3] <= distance}
 
 
-def world_contacts(world: MujocoWorld, distance: float) -> list[GripContact]:
+def world_contacts(world: MujocoWorld, distance: float, weighted: bool = True
+                   ) -> list[GripContact]:
     """One contact per touching finger link, world frame (pybullet's merge rule on records
     laid out as pybullet's: [6] point on the object, [7] normal object -> finger, [8]
-    distance, [9] normal force)."""
+    distance, [9] normal force; ``weighted=False``: the records averaged without their
+    forces, as :func:`~kinegrasp_env.physics.robot_hold.world_contacts` averages a pad's)."""
     records: dict[tuple[int, int], list[tuple]] = {}
     for geom, point, normal, dist, force in world.contact_records():
         if geom in world.finger_geom and dist <= distance:
-            rec = (None,) * 6 + (point, -normal, dist, force)
+            rec = (None,) * 6 + (point, -normal, dist, force if weighted else 0.0)
             records.setdefault(world.finger_geom[geom], []).append(rec)
     return [GripContact(finger, link, *merge_records(records[(finger, link)]))
             for finger, link in sorted(records)]

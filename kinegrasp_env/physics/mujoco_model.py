@@ -99,16 +99,14 @@ class MujocoHand:
         palm: the name of its palm link.
         finger_links: finger link name -> (finger, index of the link in the finger, palm
             to tip).
+        fingers: the number of fingers.
     """
 
     urdf: str
     root: str
     palm: str
     finger_links: dict[str, tuple[int, int]]
-
-    @property
-    def fingers(self) -> int:
-        return 1 + max(f for f, _ in self.finger_links.values())
+    fingers: int
 
 
 def with_compiler(text: str, source: str) -> str:
@@ -132,7 +130,8 @@ def sdh_hand() -> MujocoHand:
 
     path = asset_path("robots", "sdh_hand.urdf")
     links = {FINGERS[f][2 + k]: (f, k) for f in range(len(FINGERS)) for k in range(2)}
-    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", "palm", links)
+    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", "palm", links,
+                      len(FINGERS))
 
 
 def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactSettings) -> None:
@@ -177,7 +176,8 @@ def build_model(obj: GraspObject, friction: float, density: float, time_step: fl
     for joint in spec.joints:
         hold = spec.add_equality(name=f"hold_{joint.name}", type=mujoco.mjtEq.mjEQ_JOINT,
                                  objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=joint.name)
-        hold.data = [0.0] * 11 + [0.0]  # joint = data[0] (set by the controller)
+        hold.data = [0.0] * 11 + [0.0]  # joint = data[0] (+ data[1] x another joint: set
+        #                                    by the controller, MujocoWorld.position/couple)
         hold.active = False
         hold.solref = list(settings.pin_solref)
         actuator = spec.add_actuator(name=f"motor_{joint.name}", target=joint.name)

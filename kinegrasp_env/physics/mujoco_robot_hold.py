@@ -1,21 +1,24 @@
 """The holding test (:mod:`~kinegrasp_env.physics.protocol`) of any description robot, in
 MuJoCo: the second opinion on :class:`~kinegrasp_env.physics.robot_hold.RobotHold`, with the
-same draw interface, rules and numbers.
+same draw interface, protocol and motors; where MuJoCo differs, the steps below say so.
 
 The world is :class:`~kinegrasp_env.physics.mujoco_world.MujocoWorld` with the robot's hand
 (:func:`description_hand`): the URDF subtree below the description's ``palm_link``, cut as
 pybullet's holding test cuts it (:func:`~kinegrasp_env.physics.robot_world.hand_urdf`: the
 same links, meshes, joints and limits), its root held at the palm pose that the draw's arm
 joints give (forward kinematics of the URDF). MuJoCo collides a mesh as its convex hull, as
-pybullet and the kinematic engines do, and gives a flat pad on a face several contacts
-(MuJoCo's multi-point convex collision, on by default): the patch's corners, as pybullet's
-polyhedral contact features do.
+pybullet and the kinematic engines do; two flat faces pressed together touch at several
+points (MuJoCo's multi-point convex collision, on by default), but a pad whose hull is
+slightly curved touches at one corner: the Panda's finger, whose pad is two faces 2 degrees
+apart, touches a cube face at one hull vertex, 11 mm from the kinematic closing's patch
+centre (pybullet's polyhedral contact features give the overlap's corners).
 
 One draw (:meth:`MujocoRobotHold.run_draw`):
 
 1. **closing**, gravity off, the object pinned: a hand link penetrating the object by more
    than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
-   collision. Otherwise each finger's first closing joint closes under a motor of its own
+   collision. Otherwise each finger's first closing joint (radians or metres) closes under a
+   motor of its own
    (:meth:`~kinegrasp_env.physics.mujoco_world.MujocoWorld.velocity`: the URDF's velocity
    limit, its effort limit, :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`), the
    finger's other closing joints and the mimic joints follow it by the rule of
@@ -25,8 +28,11 @@ One draw (:meth:`MujocoRobotHold.run_draw`):
    pybullet; a joint's limits are as stiff as MuJoCo keeps stable (:data:`LIMIT_STEPS`).
    The closing ends by the same stall rule
    (:class:`~kinegrasp_env.physics.robot_hold.RobotMotorSettings`); then one contact per
-   touching finger link (MuJoCo's records merged by pybullet's rule,
-   :func:`~kinegrasp_env.physics.mujoco_hold.world_contacts`), in the object frame.
+   touching finger link (MuJoCo's records merged by pybullet's rule and averaged without
+   force weights, as :func:`~kinegrasp_env.physics.robot_hold.world_contacts` averages a
+   pad's: :func:`~kinegrasp_env.physics.mujoco_hold.world_contacts`), in the object frame,
+   and every closing joint's value. Closing with the object free (``pin=False``), the
+   object has no support damping, where pybullet's has.
 2. **grip**: the rule for jaws of :mod:`~kinegrasp_env.physics.robot_hold`: every closing
    motor keeps pushing with its full effort; fewer than two touching fingers: ``no_grip``.
 3. the release and the phases: :func:`~kinegrasp_env.physics.hold_runner.hold_test`, the
@@ -36,8 +42,8 @@ One draw (:meth:`MujocoRobotHold.run_draw`):
 
 from __future__ import annotations
 
-import re
 import tempfile
+import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
 
@@ -78,13 +84,15 @@ def description_hand(description: RobotDescription) -> MujocoHand:
     links.
 
     Raises:
-        ValueError: a hand mesh MuJoCo cannot read (one line, naming the file).
+        ValueError: a collision mesh MuJoCo cannot read (one line, naming the file; visual
+            meshes are dropped, whatever their format).
     """
     with tempfile.TemporaryDirectory(prefix="kinegrasp_hand_") as folder:
         path = Path(folder) / "hand.urdf"
         hand_urdf(description, path)
         text = path.read_text()
-    for name in re.findall(r'<mesh[^>]*filename="([^"]+)"', text):
+    for mesh in ET.fromstring(text).iterfind("link/collision/geometry/mesh"):
+        name = mesh.get("filename", "")
         if Path(name).suffix.lower() not in MUJOCO_MESHES:
             raise ValueError(f"robot {description.name!r}: MuJoCo reads STL and OBJ meshes, "
                              f"not {Path(name).name}; convert it (trimesh) and name the "
@@ -94,7 +102,7 @@ def description_hand(description: RobotDescription) -> MujocoHand:
         for k, link in enumerate(finger.links):
             links.setdefault(link, (f, k))
     return MujocoHand(with_compiler(text, description.urdf.name), ROOT_LINK,
-                      description.palm_link, links)
+                      description.palm_link, links, len(description.fingers))
 
 
 class JawServos:
@@ -159,7 +167,11 @@ class MujocoRobotHold:
                                          hand=description_hand(description))
         model = world.model
         for name in world.joint_names:
-            model.jnt_solref[model.joint(name).id] = (LIMIT_STEPS * model.opt.timestep, 1.0)
+            joint = model.joint(name).id
+            model.jnt_solref[joint] = (LIMIT_STEPS * model.opt.timestep, 1.0)
+            # MuJoCo's URDF reader caps a joint's actuator force at its <limit effort>; the
+            # motors' efforts (the description's, times the protocol's scale) rule instead
+            model.jnt_actfrclimited[joint] = 0
 
     def palm_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
@@ -179,15 +191,16 @@ class MujocoRobotHold:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         servos = JawServos(world, self.description, self.motors)
         close_until_stall(world.step, servos.travel, self.settings, world.settings.time_step)
-        found = in_object_frame(world_contacts(world, self.settings.touch_distance),
-                                world.object_pose())
+        found = in_object_frame(world_contacts(world, self.settings.touch_distance,
+                                               weighted=False), world.object_pose())
         contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
         touched = {c.finger for c in contacts}
-        positions = world.joint_states(servos.names)[0]
+        names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
+        positions = world.joint_states(names)[0]
         return RobotCloseResult(False, contacts,
                                 tuple(f not in touched for f in range(len(fingers))),
-                                joints=dict(zip(servos.names, map(float, positions),
-                                                strict=True))), servos
+                                joints=dict(zip(names, map(float, positions), strict=True))
+                                ), servos
 
     def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
         """One draw at configuration q (dof,): the closing on the pinned object and the

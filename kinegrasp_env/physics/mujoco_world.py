@@ -127,8 +127,11 @@ class MujocoWorld:
     # ------------------------------------------------------------------ draw state
     def reset(self, root_pose: np.ndarray, joints: dict[str, float], pin: bool = True) -> None:
         """Start a draw: MuJoCo's reset state, gravity off, the table back, the hand root
-        (flange frame) at ``root_pose`` (4, 4), hand joints at ``joints`` (radians; those not
-        named at 0), the object at its catalog pose, pinned there when ``pin``."""
+        (flange frame) at ``root_pose`` (4, 4), hand joints at ``joints`` (radians or metres;
+        those not named at 0), the object at its catalog pose, pinned there when ``pin``. The
+        joints' controller settings (:meth:`velocity`, :meth:`position`, :meth:`couple`,
+        :meth:`spring`: model fields) stay as the last draw left them: each closing sets
+        those of every joint it drives before it steps."""
         mj, model, data = self.mujoco, self.model, self.data
         mj.mj_resetData(model, data)
         model.opt.gravity[:] = 0.0
@@ -212,8 +215,8 @@ class MujocoWorld:
             self.data.ctrl[a] = np.copysign(limit, speed)
 
     def position(self, names: list[str], targets) -> None:
-        """Hold joints at target angles (radians): each joint's equality constraint on, its
-        motor off (module docstring)."""
+        """Hold joints at targets (radians or metres): each joint's equality constraint on,
+        its motor off (module docstring)."""
         for name, target in zip(names, np.broadcast_to(targets, len(names)), strict=True):
             a, hold = self.actuator[name], self.hold[name]
             self.model.actuator_gainprm[a, 0] = 0.0
@@ -256,7 +259,8 @@ class MujocoWorld:
 
     # ------------------------------------------------------------------ queries
     def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-        """(positions (k,), velocities (k,)) of hand joints, radians and rad/s."""
+        """(positions (k,), velocities (k,)) of hand joints, radians and rad/s (metres and
+        m/s for a prismatic joint)."""
         return (np.array([self.data.qpos[self.qpos_adr[n]] for n in names]),
                 np.array([self.data.qvel[self.dof_adr[n]] for n in names]))
 

@@ -285,8 +285,10 @@ def plot_branches(result: dict, path: str | Path, title: str = "") -> Path:
            label="P(FC), fresh draws")
     labels = [f"{c['branch']}\n{c['label'].replace(' ', chr(10))}" for c in curve]
     ax.set_xticks(x, labels, fontsize=7)
-    for branch, name, colour in ((result["nominal_branch"], "nominal", "C3"),
-                                 (result["best_branch"], "chosen", "C2")):
+    marks = [(result["nominal_branch"], "nominal", "C3"), (result["best_branch"], "chosen", "C2")]
+    if marks[0][0] == marks[1][0]:
+        marks = [(marks[0][0], "nominal = chosen", "C2")]
+    for branch, name, colour in marks:
         ax.get_xticklabels()[branch].set_color(colour)
         ax.annotate(name, (branch, 1.02), ha="center", color=colour, fontsize=8,
                     xycoords=("data", "axes fraction"))
