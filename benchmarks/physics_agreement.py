@@ -247,6 +247,8 @@ def label_agreement(labels: dict) -> dict:
     give)."""
     first, second = (labels[s] for s in SIMULATORS)
     same, n = int((first == second).sum()), int(first.size)
+    if n == 0:
+        return {"same": 0, "draws": 0, "ci95": [float("nan")] * 2, "kappa": float("nan")}
     chance = first.mean() * second.mean() + (1 - first.mean()) * (1 - second.mean())
     kappa = float((same / n - chance) / (1 - chance)) if chance < 1 else float("nan")
     return {"same": same, "draws": n, "ci95": list(wilson_interval(same, n)), "kappa": kappa}

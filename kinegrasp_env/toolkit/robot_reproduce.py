@@ -68,14 +68,18 @@ def variant_label(row: Mapping, digits: int = 3) -> str:
 def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int,
                    seed: int = 0) -> list[Grasp]:
     """Up to ``count`` configurations of the grasp's palm pose (see the module docstring;
-    ``seed``: the IK starts' of a 6-joint arm), as grasps with the grasp's palm pose and
+    ``seed``: the IK starts' of a 6-joint arm, whose first ``count`` branches are kept, the
+    grasp's own always among them), as grasps with the grasp's palm pose and
     contacts, ids ``<id>v<k>``, their nominal Q and ``meta["elbow_angle"]`` (radians) or
     ``meta["ik_branch"]`` (the branch's label)."""
     if engine.description.arm_dof == 6:
-        branches, _ = branch_variants(grasp, engine, DEFAULT_IK_STARTS, seed)
+        branches, nominal = branch_variants(grasp, engine, DEFAULT_IK_STARTS, seed)
+        kept = list(range(min(count, len(branches))))
+        if nominal not in kept:  # the grasp's own branch always among them
+            kept[-1] = nominal
         hand = engine.check(grasp.q0)[0][engine.description.arm_dof:]
-        found = [({"ik_branch": b.label}, np.concatenate([b.q, hand]))
-                 for b in branches[:count]]
+        found = [({"ik_branch": branches[i].label}, np.concatenate([branches[i].q, hand]))
+                 for i in kept]
     else:
         reach = robot_reachable_configurations(grasp, engine)
         pick = np.unique(np.round(np.linspace(0, len(reach) - 1, count)).astype(int))
