@@ -21,7 +21,14 @@ import yaml
 from pybullet_utils.bullet_client import BulletClient
 
 from kinegrasp_env.cli.main import main
-from tests.test_user_robot import ARM, DESCRIPTION, XARM_URDF, bullet_palm_pose, run
+from tests.test_user_robot import (
+    ARM,
+    DESCRIPTION,
+    XARM_URDF,
+    bullet_link_pose,
+    bullet_palm_pose,
+    run,
+)
 
 #: Draws per branch of the CLI runs (small: the protocol, not the numbers, is checked).
 SAMPLES = 12
@@ -227,27 +234,6 @@ def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys,
     rows = list(csv.DictReader((tmp_path / "f7" / "fig7.csv").open()))
     assert [r["config"] for r in rows] == ["robust", "fragile"]
     assert all(r["ik_branch"] in labels for r in rows)
-
-
-def bullet_link_pose(q: np.ndarray, link: str) -> np.ndarray:
-    """(4, 4) world pose of ``link``'s URDF frame at arm joints q (6,): pybullet's own
-    kinematics."""
-    client = BulletClient(connection_mode=pybullet.DIRECT)
-    try:
-        body = client.loadURDF(str(XARM_URDF), useFixedBase=True)
-        index = {}
-        for j in range(client.getNumJoints(body)):
-            info = client.getJointInfo(body, j)
-            index[info[1].decode()] = index[info[12].decode()] = j
-        for name, value in zip(ARM, q, strict=True):
-            client.resetJointState(body, index[name], float(value))
-        state = client.getLinkState(body, index[link], computeForwardKinematics=True)
-        pose = np.eye(4)
-        pose[:3, :3] = np.reshape(client.getMatrixFromQuaternion(state[5]), (3, 3))
-        pose[:3, 3] = state[4]
-    finally:
-        client.disconnect()
-    return pose
 
 
 def test_elbow_report_of_the_ik_branches(home, capsys, tmp_path):

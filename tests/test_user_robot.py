@@ -60,6 +60,12 @@ def workspace(tmp_path, monkeypatch):
 
 def bullet_palm_pose(arm: np.ndarray) -> np.ndarray:
     """(4, 4) world pose of the palm link at arm joints (6,): pybullet's own kinematics."""
+    return bullet_link_pose(arm, PALM)
+
+
+def bullet_link_pose(arm: np.ndarray, link: str) -> np.ndarray:
+    """(4, 4) world pose of ``link``'s URDF frame at arm joints (6,): pybullet's own
+    kinematics."""
     client = BulletClient(connection_mode=pybullet.DIRECT)
     try:
         body = client.loadURDF(str(XARM_URDF), useFixedBase=True)
@@ -70,7 +76,7 @@ def bullet_palm_pose(arm: np.ndarray) -> np.ndarray:
             index[info[12].decode()] = j
         for name, value in zip(ARM, arm, strict=True):
             client.resetJointState(body, index[name], float(value))
-        state = client.getLinkState(body, index[PALM], computeForwardKinematics=True)
+        state = client.getLinkState(body, index[link], computeForwardKinematics=True)
         pose = np.eye(4)
         pose[:3, :3] = np.reshape(client.getMatrixFromQuaternion(state[5]), (3, 3))
         pose[:3, 3] = state[4]

@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.hand_motors import (
     JointMotor,
@@ -58,13 +58,13 @@ from kinegrasp_env.physics.hand_motors import (
     finger_leaders,
     motor_efforts,
 )
-from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
+from kinegrasp_env.physics.hold_runner import close_until_stall
 from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, world_contacts
 from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.physics.robot_hold import RobotMotorSettings
+from kinegrasp_env.physics.robot_hold import RobotMotorSettings, closing_result
 from kinegrasp_env.physics.robot_world import ROOT_LINK, hand_urdf
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -191,16 +191,12 @@ class MujocoRobotHold:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         servos = JawServos(world, self.description, self.motors)
         close_until_stall(world.step, servos.travel, self.settings, world.settings.time_step)
-        found = in_object_frame(world_contacts(world, self.settings.touch_distance,
-                                               weighted=False), world.object_pose())
-        contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
-        touched = {c.finger for c in contacts}
         names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
         positions = world.joint_states(names)[0]
-        return RobotCloseResult(False, contacts,
-                                tuple(f not in touched for f in range(len(fingers))),
-                                joints=dict(zip(names, map(float, positions), strict=True))
-                                ), servos
+        return closing_result(world_contacts(world, self.settings.touch_distance,
+                                             weighted=False), world.object_pose(),
+                              len(fingers), dict(zip(names, map(float, positions),
+                                                     strict=True))), servos
 
     def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
         """One draw at configuration q (dof,): the closing on the pinned object and the

@@ -211,6 +211,19 @@ class RobotSteps(PybulletSteps):
         return np.linalg.inv(world.link_pose(self.palm_link)) @ world.object_pose()
 
 
+def closing_result(found: list[GripContact], object_pose: np.ndarray, fingers: int,
+                   joints: dict[str, float]) -> RobotCloseResult:
+    """A finished physics closing as the engines score it: the contacts ``found`` (world
+    frame, one per touching finger link) in the frame of the object at ``object_pose``
+    (4, 4), each finger that touches none ``missed`` (``fingers`` in all), and every closing
+    joint's value (name -> radians or metres)."""
+    contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0)
+                for c in in_object_frame(found, object_pose)]
+    touched = {c.finger for c in contacts}
+    return RobotCloseResult(False, contacts, tuple(f not in touched for f in range(fingers)),
+                            joints=joints)
+
+
 class RobotHold:
     """The holding test of a description robot in pybullet, one draw at a time.
 
@@ -262,15 +275,10 @@ class RobotHold:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         jaws = JawMotors(world, self.motors)
         close_until_stall(jaws.step, jaws.travel, self.settings, world.settings.time_step)
-        found = in_object_frame(world_contacts(world, self.settings.touch_distance),
-                                world.object_pose())
-        contacts = [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in found]
-        touched = {c.finger for c in contacts}
         joints = {m.joint: world.bullet.getJointState(world.hand, world.joint_index[m.joint])[0]
                   for m in self.motors}
-        return RobotCloseResult(False, contacts,
-                                tuple(f not in touched for f in range(len(fingers))),
-                                joints=joints), jaws
+        return closing_result(world_contacts(world, self.settings.touch_distance),
+                              world.object_pose(), len(fingers), joints), jaws
 
     def run_draw(self, q: np.ndarray) -> tuple[RobotCloseResult, HoldResult]:
         """One draw at configuration q (dof,): the closing on the pinned object and the
