@@ -138,10 +138,10 @@ def close_fingers(world, update: Callable[[], None],
     return steps, found, tuple(f not in touched for f in range(3)), positions
 
 
-def object_in_palm(world) -> np.ndarray:
-    """(4, 4) the object's pose in the palm frame now (a simulator's world: ``link_pose``,
-    ``object_pose``)."""
-    return np.linalg.inv(world.link_pose("palm")) @ world.object_pose()
+def object_in_palm(world, palm: str = "palm") -> np.ndarray:
+    """(4, 4) the object's pose in the frame of the hand's link ``palm`` now (a simulator's
+    world: ``link_pose``, ``object_pose``)."""
+    return np.linalg.inv(world.link_pose(palm)) @ world.object_pose()
 
 
 class HoldSteps(Protocol):
@@ -199,7 +199,13 @@ class WorldSteps:
     Args:
         world: the world right after the closing.
         motors, protocol: the closing controller's settings and the holding test's.
+
+    Attributes:
+        palm_link: the hand's link whose frame the object's pose is measured in (the SDH's
+            ``palm``; a hand's steps set their own).
     """
+
+    palm_link = "palm"
 
     def __init__(self, world, motors, protocol: HoldProtocol) -> None:
         self.world, self.motors, self.protocol = world, motors, protocol
@@ -207,7 +213,7 @@ class WorldSteps:
         self.center_of_mass = world.obj.center_of_mass
 
     def object_in_palm(self) -> np.ndarray:
-        return object_in_palm(self.world)
+        return object_in_palm(self.world, self.palm_link)
 
     def pin_load(self) -> tuple[float, float]:
         return self.world.pin_load()

@@ -164,6 +164,7 @@ class MujocoWorldSteps(WorldSteps):
 
     def __init__(self, world: MujocoWorld, motors, protocol: HoldProtocol) -> None:
         super().__init__(world, motors, protocol)
+        self.palm_link = world.hand.palm
         self.state = self.start = None
 
     def advance(self, steps: int = 1) -> None:
@@ -172,14 +173,10 @@ class MujocoWorldSteps(WorldSteps):
     def finger_forces(self) -> np.ndarray:
         return self.world.finger_forces()
 
-    def object_in_palm(self) -> np.ndarray:
-        world = self.world
-        return np.linalg.inv(world.link_pose(world.hand.palm)) @ world.object_pose()
-
     def save(self) -> None:
         world = self.world
         self.state = world.save_state()
-        self.start = world.link_pose(world.hand.root), world.link_pose(world.hand.palm)[:3, 3]
+        self.start = world.link_pose(world.hand.root), world.link_pose(self.palm_link)[:3, 3]
 
     def start_phase(self, gravity: np.ndarray) -> None:
         self.world.restore_state(self.state)

@@ -56,7 +56,6 @@ from kinegrasp_env.physics.hand_motors import (
     JointMotor,
     closing_followers,
     finger_leaders,
-    motor_efforts,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall
 from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, world_contacts
@@ -64,10 +63,13 @@ from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.physics.robot_hold import RobotMotorSettings, closing_result
+from kinegrasp_env.physics.robot_hold import (
+    DescriptionHold,
+    RobotMotorSettings,
+    closing_result,
+)
 from kinegrasp_env.physics.robot_world import ROOT_LINK, hand_urdf
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
 
 #: The mesh files MuJoCo reads (file suffixes, lower case).
@@ -149,7 +151,7 @@ class MujocoRobotSteps(MujocoWorldSteps):
         return len(touched) >= 2
 
 
-class MujocoRobotHold:
+class MujocoRobotHold(DescriptionHold):
     """The holding test of a description robot in MuJoCo, one draw at a time (arguments and
     attributes: :class:`~kinegrasp_env.physics.robot_hold.RobotHold`'s)."""
 
@@ -159,10 +161,7 @@ class MujocoRobotHold:
                  protocol: HoldProtocol, world: WorldSettings | None = None,
                  settings: RobotMotorSettings | None = None) -> None:
         world_settings = replace(world or WorldSettings(), friction=friction)
-        self.description, self.protocol = description, protocol
-        self.settings = settings or RobotMotorSettings()
-        self.motors = motor_efforts(description, protocol.torque_scale)
-        self.kinematics = Kinematics(description.model)
+        super().__init__(description, protocol, settings)
         self.world = world = MujocoWorld(obj, world_settings,
                                          hand=description_hand(description))
         model = world.model
@@ -173,20 +172,13 @@ class MujocoRobotHold:
             # motors' efforts (the description's, times the protocol's scale) rule instead
             model.jnt_actfrclimited[joint] = 0
 
-    def palm_poses(self, q: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
-        return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
-                                    self.description.palm_link)
-
     def close_hand(self, q: np.ndarray, pin: bool = True
                    ) -> tuple[RobotCloseResult, JawServos | None]:
         """The closing of configuration q (dof,) on the object, pinned or (``pin=False``)
         free without gravity: its contacts in the object frame where the object ended, and
         the motors (None: start collision)."""
         world, fingers = self.world, self.description.fingers
-        values = {name: value for name, value in self.description.model.expand(
-            np.asarray(q, dtype=float)).items() if name in world.qpos_adr}
-        world.reset(self.palm_poses(q)[0], values, pin=pin)
+        world.reset(self.palm_poses(q)[0], self.hand_values(q, world.qpos_adr), pin=pin)
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         servos = JawServos(world, self.description, self.motors)

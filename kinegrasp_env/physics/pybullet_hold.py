@@ -128,8 +128,8 @@ class PybulletSteps(WorldSteps):
         state: a saved state, when there is one.
     """
 
-    #: the hand's root link (the anchor constraint holds it) and its palm link
-    root_link, palm_link = "hand_root", "palm"
+    #: the hand's root link (the anchor constraint holds it)
+    root_link = "hand_root"
 
     def __init__(self, world: PhysicsWorld, motors: MotorSettings, protocol: HoldProtocol,
                  control: GripControl | None = None, state: int | None = None) -> None:

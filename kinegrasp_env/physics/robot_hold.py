@@ -118,7 +118,10 @@ class JawMotors:
         self.speeds = np.array([m.speed for m in self.motors])
         start = {name: world.bullet.getJointState(world.hand, index)[0]
                  for name, index in world.joint_index.items()}
-        self.followers = closing_followers(world.description, motors, start)
+        #: (follower's index, followed joint's index, its rule), pybullet's joint indices
+        #: looked up once (the followers are set at every step)
+        self.followers = [(world.joint_index[f.joint], world.joint_index[f.source], f)
+                          for f in closing_followers(world.description, motors, start)]
         self.restart()
 
     def restart(self) -> None:
@@ -132,12 +135,11 @@ class JawMotors:
 
     def follow(self) -> None:
         """The followers' position motors at their values now."""
-        world = self.world
-        bullet, hand = world.bullet, world.hand
-        for f in self.followers:
-            value = bullet.getJointState(hand, world.joint_index[f.source])[0]
+        bullet, hand = self.world.bullet, self.world.hand
+        for index, source, f in self.followers:
+            value = bullet.getJointState(hand, source)[0]
             bullet.setJointMotorControl2(
-                hand, world.joint_index[f.joint], bullet.POSITION_CONTROL,
+                hand, index, bullet.POSITION_CONTROL,
                 targetPosition=f.target_start + f.ratio * (value - f.source_start),
                 force=f.effort)
 
@@ -206,10 +208,6 @@ class RobotSteps(PybulletSteps):
     def finger_forces(self) -> np.ndarray:
         return finger_forces(self.world)
 
-    def object_in_palm(self) -> np.ndarray:
-        world = self.world
-        return np.linalg.inv(world.link_pose(self.palm_link)) @ world.object_pose()
-
 
 def closing_result(found: list[GripContact], object_pose: np.ndarray, fingers: int,
                    joints: dict[str, float]) -> RobotCloseResult:
@@ -224,7 +222,35 @@ def closing_result(found: list[GripContact], object_pose: np.ndarray, fingers: i
                             joints=joints)
 
 
-class RobotHold:
+class DescriptionHold:
+    """What the holding test of a description robot's hand keeps in any simulator: the
+    robot, the protocol, the closing's end, the motors, and the palm pose and hand joint
+    values of a configuration (arguments: :class:`RobotHold`'s).
+
+    Attributes:
+        motors: the closing motors (their efforts and where they came from).
+    """
+
+    def __init__(self, description: RobotDescription, protocol: HoldProtocol,
+                 settings: RobotMotorSettings | None = None) -> None:
+        self.description, self.protocol = description, protocol
+        self.settings = settings or RobotMotorSettings()
+        self.motors = motor_efforts(description, protocol.torque_scale)
+        self.kinematics = Kinematics(description.model)
+
+    def palm_poses(self, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
+        return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
+                                    self.description.palm_link)
+
+    def hand_values(self, q: np.ndarray, joints) -> dict[str, float]:
+        """The values (radians or metres) of configuration q (dof,) of the joints among
+        ``joints`` (the names a simulator's hand has)."""
+        return {name: value for name, value in self.description.model.expand(
+            np.asarray(q, dtype=float)).items() if name in joints}
+
+
+class RobotHold(DescriptionHold):
     """The holding test of a description robot in pybullet, one draw at a time.
 
     Args:
@@ -248,16 +274,8 @@ class RobotHold:
         world_settings = replace(world or WorldSettings(), friction=friction)
         if not world_settings.object_free:
             raise ValueError("the holding test needs a free object (object_free=True)")
-        self.description, self.protocol = description, protocol
-        self.settings = settings or RobotMotorSettings()
-        self.motors = motor_efforts(description, protocol.torque_scale)
-        self.kinematics = Kinematics(description.model)
+        super().__init__(description, protocol, settings)
         self.world = RobotPhysicsWorld(description, obj, world_settings)
-
-    def palm_poses(self, q: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) the palm poses of configurations q (n, dof) (forward kinematics)."""
-        return self.kinematics.pose(np.atleast_2d(np.asarray(q, dtype=float)),
-                                    self.description.palm_link)
 
     def close_hand(self, q: np.ndarray, pin: bool = True
                    ) -> tuple[RobotCloseResult, JawMotors | None]:
@@ -266,9 +284,7 @@ class RobotHold:
         robot's physics engine closes): its contacts in the object frame where the object
         ended, and the motors (None: start collision)."""
         world, fingers = self.world, self.description.fingers
-        values = {name: value for name, value in self.description.model.expand(
-            np.asarray(q, dtype=float)).items() if name in world.joint_index}
-        world.reset(self.palm_poses(q)[0], values)
+        world.reset(self.palm_poses(q)[0], self.hand_values(q, world.joint_index))
         if pin:
             world.pin_object()
         if world.penetration() > START_TOL:
