@@ -114,8 +114,9 @@ def cmd_rank(args) -> int:
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed}
     if described:  # another robot's draws: one stream's rows, with its hold scores
-        settings.update(robot=robot, criterion_scores=list(_hold_scores(args)))
-        if _hold_scores(args)[1]:
+        scores = _hold_scores(args)
+        settings.update(robot=robot, criterion_scores=list(scores))
+        if scores[1]:  # the holding test runs: its simulator is a setting too
             settings["hold_simulator"] = args.hold_simulator
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
