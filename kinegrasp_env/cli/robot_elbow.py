@@ -46,7 +46,7 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     branches = description.arm_dof == 6
-    if not branches and (description.arm_dof != 7 or description.arm_angle_links is None):
+    if not branches and not description.has_self_motion:
         raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")

@@ -108,7 +108,7 @@ def cmd_plan_robot(args) -> int:
     output_file(args.out, "--out")
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
-    if variants and (description.arm_dof != 7 or description.arm_angle_links is None):
+    if variants and not description.has_self_motion:
         raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
                        "joints; variants move a 7-joint arm with arm_angle_links along its "
                        "self-motion (a 6-joint arm's IK branches: `kinegrasp elbow`)")

@@ -53,19 +53,16 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     is one line)."""
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_reproduce import has_variants
+    from kinegrasp_env.toolkit.robot_reproduce import check_variants
 
     robot = args.robot
     refuse_options(args, IN_PROCESS, robot)
     check_robot_engine(args.engine, robot)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
-    if args.figure in VARIANT_EXPERIMENTS and not has_variants(description):
-        raise CLIError(f"reproduce {args.figure} --robot {robot}: the robot has "
-                       f"{description.arm_dof} arm joints"
-                       f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                       f"{args.figure} compares a 7-joint arm's self-motion or a 6-joint "
-                       "arm's IK branches")
+    if args.figure in VARIANT_EXPERIMENTS:
+        with reported(ValueError):  # before any work
+            check_variants(description, args.figure)
     if args.figure == "table1":
         return robot_table1_command(args, description, samples, friction)
     sets, count = robot_grasp_sets(args, robot)

@@ -122,6 +122,12 @@ class RobotDescription:
     def arm_dof(self) -> int:
         return len(self.arm_joints)
 
+    @property
+    def has_self_motion(self) -> bool:
+        """Whether the arm moves along a self-motion with the palm held: 7 arm joints and
+        ``arm_angle_links`` (its elbow angle)."""
+        return self.arm_dof == 7 and self.arm_angle_links is not None
+
     def open_configuration(self):
         """(dof,) actuated vector: arm at zero, hand at its ``open`` pre-shape."""
         import numpy as np

@@ -44,7 +44,7 @@ class ArmSelfMotion:
     """
 
     def __init__(self, description: RobotDescription, kin: Kinematics | None = None) -> None:
-        if description.arm_dof != 7 or description.arm_angle_links is None:
+        if not description.has_self_motion:
             raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints;"
                              " the self-motion needs 7 and arm_angle_links")
         self.description = description

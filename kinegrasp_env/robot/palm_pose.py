@@ -205,12 +205,6 @@ def parse_robot_hand(entry: dict, where: str, description: RobotDescription) -> 
                           where, names)
 
 
-def has_elbow(description: RobotDescription) -> bool:
-    """Whether robot ``description`` has an elbow angle to move along (7 arm joints and
-    ``arm_angle_links``)."""
-    return description.arm_dof == 7 and description.arm_angle_links is not None
-
-
 def parse_palm_pose(entry, where: str, default_id: str = "0",
                     robot: RobotDescription | None = None) -> PalmCandidate:
     """Validate one palm-pose entry (a dict of the schema above); ValueError starts with
@@ -226,7 +220,7 @@ def parse_palm_pose(entry, where: str, default_id: str = "0",
         hand = parse_hand(entry, where)
     else:
         hand = parse_robot_hand(entry, where, robot)
-        if elbow is not None and not has_elbow(robot):
+        if elbow is not None and not robot.has_self_motion:
             raise ValueError(f"{where}: elbow: robot {robot.name!r} has no elbow angle (its "
                              f"arm has {robot.arm_dof} joints); leave elbow out")
     return PalmCandidate(str(entry.get("id", default_id)), pose, hand, elbow)

@@ -32,7 +32,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
-from kinegrasp_env.robot.palm_pose import PalmCandidate, has_elbow
+from kinegrasp_env.robot.palm_pose import PalmCandidate
 from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
 from kinegrasp_env.world.grasps import Grasp
 
@@ -54,7 +54,7 @@ class RobotCandidateSolver:
         self.engine = RobotReferenceEngine(self.description, object_name, friction=friction)
         self.kin = Kinematics(self.description.model)
         self.motion = (ArmSelfMotion(self.description, self.kin)
-                       if has_elbow(self.description) else None)
+                       if self.description.has_self_motion else None)
 
     def close(self) -> None:
         self.engine.close()

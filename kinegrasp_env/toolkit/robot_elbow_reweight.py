@@ -53,7 +53,7 @@ def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delt
                          "(--sigma, --noise gaussian)")
     check_reweight(grasp, noise, samples, epsilon, delta, batch)
     description = load_robot(grasp.robot)
-    if description.arm_dof != 7 or description.arm_angle_links is None:
+    if not description.has_self_motion:
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
                          f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
                          "the re-weighted search moves a 7-joint arm along its self-motion")

@@ -50,11 +50,14 @@ COLUMNS = ("robot", "object", "id", "elbow_angle", "ik_branch", "p_fc", "q_mean"
            "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS)
 
 
-def has_variants(description: RobotDescription) -> bool:
-    """Whether the robot's arm has configuration variants of one palm pose: a 7-joint arm
-    with an elbow angle (its self-motion) or a 6-joint arm (its IK branches)."""
-    return description.arm_dof == 6 or (description.arm_dof == 7
-                                        and description.arm_angle_links is not None)
+def check_variants(description: RobotDescription, experiment: str) -> None:
+    """ValueError (one line, naming ``experiment``) unless the robot's arm has configuration
+    variants of one palm pose: a 7-joint arm's self-motion or a 6-joint arm's IK branches."""
+    if not (description.arm_dof == 6 or description.has_self_motion):
+        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
+                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
+                         f"{experiment}'s variants are a 7-joint arm's self-motion or a "
+                         "6-joint arm's IK branches")
 
 
 def variant_label(row: Mapping, digits: int = 3) -> str:
@@ -143,15 +146,11 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
             variants and their nominal closings use the reference engine.
 
     Raises:
-        ValueError: an arm without variants (:func:`has_variants`).
+        ValueError: an arm without variants (:func:`check_variants`).
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
-    if not has_variants(description):
-        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
-                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "fig10's variants are a 7-joint arm's self-motion or a 6-joint "
-                         "arm's IK branches")
+    check_variants(description, "fig10")
     rows = []
     for name, grasps in grasp_sets.items():
         rows += variant_block(description, name, grasps[0], samples=samples, sigma=sigma,

@@ -31,7 +31,7 @@ from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.toolkit.experiments import TABLE1_COLUMNS, markdown_table1, write_rows
 from kinegrasp_env.toolkit.robot_reproduce import (
     COLUMNS,
-    has_variants,
+    check_variants,
     variant_block,
     variant_label,
 )
@@ -108,17 +108,14 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
     contact scatter in ``fig7_<object>.png``.
 
     Raises:
-        ValueError: an arm without self-motion, or no object with two variants in force
+        ValueError: an arm without variants (:func:`~kinegrasp_env.toolkit.robot_reproduce.
+            check_variants`), or no object with two variants in force
             closure.
     """
     from kinegrasp_env.toolkit.plots import plot_contacts_pair, safe_figure
     from kinegrasp_env.world.objects import load_object
 
-    if not has_variants(description):
-        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
-                         f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "fig7's configurations are a 7-joint arm's self-motion or a 6-joint "
-                         "arm's IK branches")
+    check_variants(description, "fig7")
     rows, pairs = [], []
     for name, grasps in grasp_sets.items():
         block, fresh = variant_block(description, name, grasps[0], samples=samples,
