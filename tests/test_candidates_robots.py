@@ -174,7 +174,16 @@ def test_a_closing_out_of_force_closure_is_ranked_and_flagged(home, tmp_path):
     with out.open() as handle:
         rows = {r["id"]: r for r in csv.DictReader(handle)}
     assert set(rows) == set(flags) and float(rows["off_edge"]["q_nominal"]) == 0.0
+    # the flag is a column, recomputed by the ranking's own nominal closing
+    assert {i: r["nominal_fc"] == "1" for i, r in rows.items()} == flags
     assert "candidate off_edge: its nominal closing is not in force closure" in proc.stderr
+    proc = run_cli("rank", str(tmp_path / "p.json"), "--samples", "20", "--engine", "fast",
+                   "--out", str(out), "--json")
+    assert proc.returncode == 0, proc.stderr
+    shown = json.loads(proc.stdout)
+    assert {r["id"]: r["nominal_fc"] == 1 for r in shown["ranking"]} == flags
+    assert {r["id"]: r["reason"] for r in shown["rejected"]} == {"too_far": "unreachable",
+                                                                 "too_low": "arm_collision"}
 
 
 def test_the_default_robot_keeps_a_closing_out_of_force_closure_too():

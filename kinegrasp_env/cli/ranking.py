@@ -168,7 +168,7 @@ def cmd_rank(args) -> int:
         _merge_side(r, side)
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
     write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json,
-                  hold_simulator=args.hold_simulator)
+                  hold_simulator=args.hold_simulator, rejected=rejected)
     write_rejected(rejected, out, args.json)
     if args.report and described:
         from kinegrasp_env.cli.robot_ranking import write_robot_rank_page

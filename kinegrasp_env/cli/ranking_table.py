@@ -19,6 +19,9 @@ CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", 
 #: The draws per outcome, after :data:`CSV_COLUMNS`; equal to ``montecarlo.engines.OUTCOMES``
 #: (tested), copied so that building the parser stays cheap.
 OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
+#: After the outcome counts: 1 where the candidate's nominal closing is in force closure
+#: (its nominal Q above 0), 0 where it is not (ranked all the same, flagged).
+NOMINAL_COLUMN = "nominal_fc"
 #: The hold scores' columns (``toolkit.ranking.HOLD_SCORES`` -> (CSV column, table header));
 #: each CSV column comes with its ``_lo`` and ``_hi`` interval ends.
 HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(hold)")}
@@ -85,9 +88,10 @@ def certified_line(report, samples: int) -> str:
 
 def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
                    engine: str, adaptive=None, as_json: bool = False,
-                   hold_simulator: str = "pybullet") -> None:
+                   hold_simulator: str = "pybullet", rejected: list = ()) -> None:
     """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
-    JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV);
+    JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV;
+    ``rejected``: each rejected palm-pose candidate's id, reason and detail);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
     saying what it certified."""
     from kinegrasp_env.world.grasps import write_atomic
@@ -101,7 +105,8 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
                "q_std": std, "q_skew": skew, "q_nominal": g.q_nominal,
                "error": g.q_nominal - mean if not math.isnan(mean) else math.nan,
                "samples": r.trials, "engine": engine,
-               **{name: r.outcomes.get(name, 0) for name in OUTCOME_COLUMNS}}
+               **{name: r.outcomes.get(name, 0) for name in OUTCOME_COLUMNS},
+               NOMINAL_COLUMN: int(g.q_nominal > 0)}
         for score, (column, _) in HOLD_COLUMNS.items():
             row[column] = r.p_hold(score)
             row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
@@ -113,10 +118,10 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
     scores = [score for score in HOLD_COLUMNS if any(score in r.holds for r in results)]
     hold = tuple(f"{HOLD_COLUMNS[score][0]}{end}" for score in scores
                  for end in ("", "_lo", "_hi"))
-    writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + hold + extra)
+    writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + (NOMINAL_COLUMN,) + hold + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
-                         row["engine"], *(row[c] for c in OUTCOME_COLUMNS),
+                         row["engine"], *(row[c] for c in OUTCOME_COLUMNS), row[NOMINAL_COLUMN],
                          *(_fmt(row[c]) for c in hold),
                          *([label] if extra else [])])
     write_atomic(out, buffer.getvalue())
@@ -131,7 +136,9 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         shown = [{"rank": i, **{k: plain(v) for k, v in row.items() if k not in absent},
                   **({"certified": label} if extra else {})}
                  for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1)]
-        print(json.dumps({"ranking": shown, "written": str(out)}))
+        print(json.dumps({"ranking": shown, "written": str(out),
+                          "rejected": [{"id": r.id, "reason": r.reason, "detail": r.detail}
+                                       for r in rejected]}))
         return
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)

@@ -4,8 +4,9 @@ A grasp from a data set or another planner is a pose of *its* gripper frame; to 
 catalog robot that pose must be mapped to the robot's palm frame (the description's
 ``palm_link``). What the mapping needs, at the open pre-shape (:func:`hand_frame`):
 
-* the **fingertip centre**: the mean of the fingertip links' geometry centres (their collision
-  shapes' vertices, else their visual ones), in the palm frame, metres;
+* the **fingertip centre**: the mean of the fingertip links' centres, each the centre of the
+  bounding box, in the palm frame, of its collision shapes' vertices (else its visual ones),
+  metres (the antipodal planner puts this centre between a pair of contact points);
 * the **approach axis**: the unit vector from the palm frame's origin to that centre, and the
   centre's **depth** along it;
 * each finger's **closing direction**: the unit displacement of its tip centre as the hand's
@@ -34,7 +35,7 @@ class HandFrame:
         palm_link: the frame's link.
         centre: (3,) the fingertip centre, metres.
         approach: (3,) unit vector from the origin to the centre; depth: its distance, metres.
-        tips: the fingertip links; tip_centres: (F, 3) each one's geometry centre, metres;
+        tips: the fingertip links; tip_centres: (F, 3) each one's bounding-box centre, metres;
             closing: (F, 3) each one's unit closing direction.
         opening: the two tip centres' distance (None unless two fingers), metres.
     """
@@ -63,13 +64,15 @@ class HandFrame:
         return out
 
 
-def _centre(shapes, link: str) -> np.ndarray:
-    """(3,) the mean vertex of a link's collision shapes (else its visual ones), link frame."""
+def _centre(shapes, link: str, to_palm: np.ndarray) -> np.ndarray:
+    """(3,) the centre of the bounding box, in the palm frame, of a link's collision shapes'
+    vertices (else its visual ones); ``to_palm`` (4, 4) the link's pose in the palm frame."""
     mine = [s for s in shapes if s.link == link]
     chosen = [s for s in mine if s.source == "collision"] or mine
     if not chosen:
-        return np.zeros(3)
-    return np.vstack([s.vertices for s in chosen]).mean(axis=0)
+        return to_palm[:3, 3].copy()
+    vertices = np.vstack([s.vertices for s in chosen]) @ to_palm[:3, :3].T + to_palm[:3, 3]
+    return 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
 
 
 def hand_frame(description: RobotDescription) -> HandFrame:
@@ -87,8 +90,8 @@ def hand_frame(description: RobotDescription) -> HandFrame:
     tips = tuple(description.fingertip_links)
     centres, moves = [], []
     for tip in tips:
-        local = np.append(_centre(geometry.shapes, tip), 1.0)
-        at = [(palm_inverse @ frames[tip] @ local)[:3] for frames in geometry.frames]
+        at = [_centre(geometry.shapes, tip, palm_inverse @ frames[tip])
+              for frames in geometry.frames]
         centres.append(at[0])
         move = at[1] - at[0]
         norm = np.linalg.norm(move)

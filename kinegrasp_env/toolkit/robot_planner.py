@@ -37,6 +37,7 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
@@ -50,7 +51,8 @@ class JawFrame:
     """The jaws of a two-finger hand in its palm frame at the open pre-shape.
 
     Attributes:
-        center: (3,) midpoint of the fingertip links' bounding-box centres.
+        center: (3,) midpoint of the fingertip links' centres (:func:`~kinegrasp_env.robot.
+            hand_frame.hand_frame`'s: the centres of their bounding boxes in the palm frame).
         closing: (3,) unit axis from the first fingertip link to the second.
         approach: (3,) unit axis from the palm origin towards ``center``, normal to closing.
         opening: the fingers' clearance at the open pre-shape (pybullet's distance between
@@ -78,13 +80,9 @@ def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
     q[:description.arm_dof] = np.clip(0.0, description.model.lower[:description.arm_dof],
                                       description.model.upper[:description.arm_dof])
     world.set_configuration(q)
-    palm_inv = np.linalg.inv(world.link_pose(description.palm_link))
     robot = world.bodies["robot"]
     tips = [world.link_index[f.tip] for f in description.fingers]
-    centres = []
-    for tip in tips:
-        lo, hi = world.bullet.getAABB(robot, tip)
-        centres.append((palm_inv @ np.r_[0.5 * (np.array(lo) + np.array(hi)), 1.0])[:3])
+    centres = hand_frame(description).tip_centres
     closing = centres[1] - centres[0]
     closing /= np.linalg.norm(closing)
     center = 0.5 * (centres[0] + centres[1])

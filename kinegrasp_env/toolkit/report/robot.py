@@ -56,7 +56,7 @@ from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
 #: Outcome counts shown in the table, in this order.
-OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
+OUTCOME_COLUMNS = OUTCOMES
 #: Height of the colour buttons (below the view buttons), as a fraction of the figure.
 COLOUR_MENU_Y = 0.93
 
