@@ -10,8 +10,10 @@ its picture is written.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from kinegrasp_env.cli import main
@@ -64,3 +66,85 @@ def test_fig7_of_a_robot_reports_its_pair_on_fresh_draws(tmp_path, capsys):
     assert float(robust["gap"]) == pytest.approx(gap, abs=1e-9)
     assert float(robust["gap_lo"]) <= gap <= float(robust["gap_hi"])
     assert (out / "fig7_cube.png").read_bytes()[:4] == b"\x89PNG"
+
+
+#: The first-order density's bias on P(FC) for the Panda, as
+#: benchmarks/bench_reweight_robot.py measures it (at most 0.012 per case, sampling included).
+LINEAR_BIAS = 0.012
+
+
+def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
+    """The Panda's variants of a cube grasp at sigma 0.0233 (P(FC) 0.43-0.56 measured): one
+    batch re-weighted to each variant against 4,000 direct joint-noise draws of the same
+    variant (exact kinematics, another seed): within 4 standard errors of both and the
+    first-order bias. Wrong weights (every variant given the first one's covariance) are off
+    by 0.1 on two variants and fail it."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_reproduce import variant_block
+
+    panda = load_robot("panda")
+    grasp = shipped_grasps("cube", "panda")[0]
+    rows, _ = variant_block(panda, "cube", grasp, samples=1500, sigma=0.0233, count=4,
+                            seed=3, engine="fast", friction=0.5, method="reweight")
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+
+    with RobotReferenceEngine(panda, "cube") as reference:
+        variants = {v.id: v for v in robot_variants(grasp, reference, 4, 3)}
+    assert len(rows) == 4
+    for row in rows:
+        assert int(row["samples"]) >= 1500  # re-weighted, not the direct fall-back
+        direct = evaluate_robot_grasp(variants[row["id"]], sigma=0.0233, n=4000, seed=11,
+                                      engine="fast")
+        se = np.hypot(np.sqrt(row["p_fc"] * (1 - row["p_fc"]) / row["samples"]),
+                      np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))
+        assert abs(row["p_fc"] - direct.p_fc) <= 4 * se + LINEAR_BIAS, (row, direct.p_fc)
+
+
+def test_fig10_reweight_is_refused_for_an_arm_without_self_motion():
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_reproduce import check_method
+
+    with pytest.raises(ValueError, match="needs a 7-joint arm"):
+        check_method(dataclasses.replace(load_robot("panda"), arm_angle_links=None),
+                     "reweight")
+    with pytest.raises(ValueError, match="unknown method"):
+        check_method(load_robot("panda"), "guess")
+
+
+def test_fig10_of_a_robot_from_one_batch_on_the_command_line(tmp_path, capsys):
+    out = tmp_path / "f10"
+    assert main(["reproduce", "fig10", "--robot", "panda", "--method", "reweight", "--object",
+                 "cube", "--grasps", "3", "--samples", "200", "--engine", "fast", "--out",
+                 str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.count("(effective sample ") == 3 and "robust - fragile" in text
+    assert "chosen on one batch of 400 closings re-weighted to every variant" in text
+    rows = list(csv.DictReader((out / "fig10.csv").open()))
+    assert len(rows) == 3 and all(int(r["samples"]) >= 200 for r in rows)
+
+
+def test_table1_of_a_robot_in_two_processes_has_the_same_draws(tmp_path, capsys,
+                                                                monkeypatch):
+    """``--processes 2`` runs each evaluation's draws in chunks on two workers (counted: the
+    chunked path taken for each of the 4 cells): the same draws, row for row, so the same
+    table to the last digit."""
+    from kinegrasp_env.montecarlo import robot_evaluate
+
+    chunked = []
+    original = robot_evaluate._chunked
+
+    def counted(*args, **kwargs):
+        chunked.append(kwargs["executor"])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(robot_evaluate, "_chunked", counted)
+    tables = []
+    for extra, folder in (([], "one"), (["--processes", "2"], "two")):
+        assert main(["reproduce", "table1", "--robot", "panda", "--object", "cube",
+                     "--grasps", "1", "--samples", SAMPLES, "--engine", "fast", "--out",
+                     str(tmp_path / folder), *extra]) == 0
+        tables.append((tmp_path / folder / "table1.csv").read_text())
+    capsys.readouterr()
+    assert tables[0] == tables[1] and len(chunked) == 4

@@ -37,11 +37,8 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import (
-    DEFAULT_ROBOT,
-    evaluate_robot,
-    refuse_hold_scores,
-)
+from kinegrasp_env.cli.robot_grasps import evaluate_robot, refuse_hold_scores
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def cmd_evaluate(args) -> int:
@@ -127,9 +124,6 @@ def cmd_reproduce(args) -> int:
 
         args.robot = grasp_file_robot(args)  # a grasp file names its robot
     if args.robot not in (None, DEFAULT_ROBOT):
-        if method != "direct":
-            raise CLIError(f"--method {method} is not available for robot {args.robot!r} "
-                           f"(only for {DEFAULT_ROBOT})")
         from kinegrasp_env.cli.robot_reproduce import reproduce_robot
 
         return reproduce_robot(args, samples, friction)

@@ -25,8 +25,9 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, refuse_hold_scores
+from kinegrasp_env.cli.robot_grasps import refuse_hold_scores
 from kinegrasp_env.cli.robot_ranking import check_robot_candidates, robot_best_elbows
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult

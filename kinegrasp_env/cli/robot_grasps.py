@@ -22,18 +22,6 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
-
-#: The executor options (a description robot's draws run in this process), unset.
-IN_PROCESS = {"--backend": "local", "--address": None, "--processes": None}
-
-
-def refuse_options(args, options: dict[str, object], robot: str) -> None:
-    """CLIError naming the first of ``options`` (flag -> its value when not given) given."""
-    for flag, unset in options.items():
-        if getattr(args, flag.lstrip("-").replace("-", "_"), unset) != unset:
-            raise CLIError(f"{flag} is not available for robot {robot!r} (only for "
-                           f"{DEFAULT_ROBOT})")
 
 
 def refuse_hold_scores(args, robot: str) -> None:

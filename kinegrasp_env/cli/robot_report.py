@@ -27,7 +27,8 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, check_robot_engine
+from kinegrasp_env.cli.robot_grasps import check_robot_engine
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def grasp_file_robot(args) -> str | None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
-from kinegrasp_env.cli.robot_grasps import IN_PROCESS, check_robot_engine, refuse_options
+from kinegrasp_env.cli.robot_grasps import check_robot_engine
 
 #: The experiments that compare configurations of one palm pose (a 7-joint arm's
 #: self-motion, a 6-joint arm's IK branches).
@@ -45,6 +45,19 @@ def robot_grasp_sets(args, robot: str, only: str | None = None
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
+def asked_executor(args):
+    """The executor that ``--processes``, ``--backend`` or ``--address`` ask for (each
+    evaluation's draws in chunks on it: the same draws, row for row), or a context of None
+    where none is given (the draws in this process)."""
+    from contextlib import nullcontext
+
+    from kinegrasp_env.cli.execution_options import executor_from
+
+    given = (args.processes is not None or args.backend != "local"
+             or args.address is not None)
+    return executor_from(args) if given else nullcontext()
+
+
 def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     """``reproduce EXPERIMENT --robot NAME`` of a description robot's grasps: Table I, Fig. 7
     and Fig. 9 (:mod:`kinegrasp_env.toolkit.robot_tables`), Fig. 10
@@ -56,33 +69,46 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     from kinegrasp_env.toolkit.robot_reproduce import check_variants
 
     robot = args.robot
-    refuse_options(args, IN_PROCESS, robot)
     check_robot_engine(args.engine, robot)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
+    method = getattr(args, "method", "direct")
     if args.figure in VARIANT_EXPERIMENTS:
+        from kinegrasp_env.toolkit.robot_reproduce import check_method
+
         with reported(ValueError):  # before any work
             check_variants(description, args.figure)
-    if args.figure == "table1":
-        return robot_table1_command(args, description, samples, friction)
-    sets, count = robot_grasp_sets(args, robot)
-    out = str(output_folder(args.out or f"out/{args.figure}"))
-    seed = parse_seed(args.seed)
-    if args.figure in ("fig7", "fig9"):
-        return robot_figure_command(args, description, sets, count, out, samples, seed,
-                                    friction)
-    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10, variant_label
+            check_method(description, method)
+    with asked_executor(args) as executor:
+        if args.figure == "table1":
+            return robot_table1_command(args, description, samples, friction, executor)
+        sets, count = robot_grasp_sets(args, robot)
+        out = str(output_folder(args.out or f"out/{args.figure}"))
+        seed = parse_seed(args.seed)
+        if args.figure in ("fig7", "fig9"):
+            return robot_figure_command(args, description, sets, count, out, samples, seed,
+                                        friction, executor)
+        from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
 
-    with reported(ValueError):
-        rows = robot_fig10(description, out, grasp_sets=sets, samples=samples, count=count,
-                           seed=seed, engine=args.engine, friction=friction)
+        with reported(ValueError):
+            rows = robot_fig10(description, out, grasp_sets=sets, samples=samples,
+                               count=count, seed=seed, engine=args.engine, friction=friction,
+                               method=method, executor=executor)
+    from kinegrasp_env.toolkit.robot_reproduce import variant_label
+
     for r in rows:
+        shown = "" if method == "direct" else f" (effective sample {r['samples']})"
         print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
-              f"{r['p_fc']:.3f} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+              f"{r['p_fc']:.3f}{shown} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
     pairs = [r for r in rows if r["config"]]
     if pairs:
-        print(f"robust and fragile variants chosen on {samples} draws per variant (seed "
-              f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
+        from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
+
+        chosen = (f"{samples} draws per variant" if method == "direct" else
+                  f"one batch of {BATCH_FACTOR * samples} closings re-weighted to every "
+                  "variant")
+        print(f"robust and fragile variants chosen on {chosen} (seed {seed}), reported on "
+              f"{samples} fresh draws (SeedSequence [{seed}, 1])")
     for r in pairs:
         print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) "
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
@@ -95,7 +121,7 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
 
 
 def robot_figure_command(args, description, sets: dict, count: int, out: str, samples: int,
-                         seed: int, friction: float) -> int:
+                         seed: int, friction: float, executor=None) -> int:
     """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`)."""
     from kinegrasp_env.toolkit.robot_reproduce import variant_label
     from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
@@ -103,10 +129,11 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
     with reported(ValueError):
         if args.figure == "fig9":
             rows = robot_fig9(description, out, grasp_sets=sets, samples=samples, count=count,
-                              seed=seed, engine=args.engine, friction=friction)
+                              seed=seed, engine=args.engine, friction=friction,
+                              executor=executor)
         else:
             rows = robot_fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
-                              engine=args.engine, friction=friction)
+                              engine=args.engine, friction=friction, executor=executor)
     if args.figure == "fig7":
         print(f"robust and fragile configurations chosen on {samples} draws each (seed "
               f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
@@ -128,7 +155,8 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
     return 0
 
 
-def robot_table1_command(args, description, samples: int, friction: float) -> int:
+def robot_table1_command(args, description, samples: int, friction: float,
+                         executor=None) -> int:
     """``reproduce table1 --robot NAME``: Table I of the robot's first ``--grasps`` (default
     5) grasps of ``--object`` (default: the first object it has shipped grasps of), or of a
     grasp file's."""
@@ -157,7 +185,7 @@ def robot_table1_command(args, description, samples: int, friction: float) -> in
         name, grasps = objects[0], sets[objects[0]][:positive_int(args.grasps, "--grasps")]
     out = str(output_folder(args.out or "out/table1"))
     rows = robot_table1(description, name, grasps, samples, out, seed=parse_seed(args.seed),
-                        engine=args.engine, friction=friction)
+                        engine=args.engine, friction=friction, executor=executor)
     from kinegrasp_env.toolkit.experiments import markdown_table1
 
     print(markdown_table1(rows, f"{name} (robot {robot})", samples))

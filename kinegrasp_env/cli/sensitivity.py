@@ -31,7 +31,7 @@ from kinegrasp_env.cli.common import (
     reported,
     shipped_grasp,
 )
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The object without --object or --grasps.
 DEFAULT_OBJECT = "spray_flask"

@@ -26,7 +26,8 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.ranking import cmd_rank
-from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT, cmd_plan_robot
+from kinegrasp_env.cli.robot_grasps import cmd_plan_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
 #: building the parser imports no NumPy or SciPy.

@@ -121,7 +121,7 @@ def robot_grasps(args, robot: str) -> list[tuple[int, object]]:
 def selected_robot(args) -> str:
     """The robot: ``--robot``, else the grasp file's, else the default; a grasp file of
     another robot than ``--robot`` refused (checked before any grasp is read in full)."""
-    from kinegrasp_env.cli.robot_grasps import DEFAULT_ROBOT
+    from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
     if args.robot is not None:
         from kinegrasp_env.robot.catalog import robot_names

@@ -18,6 +18,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
     close_batch,
     close_deltas,
 )
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import Grasp
 
@@ -27,16 +28,20 @@ SAME_POSE_TOL = 1e-6
 
 def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                   engine: str = "pybullet", friction: float = 0.5,
+                  robot: RobotDescription | None = None, direct=None,
                   **evaluate_kwargs) -> list[GraspStats]:
     """One :class:`GraspStats` per variant (same object, same palm pose) at Gaussian joint
     noise ``sigma`` (radians): re-weighted from one batch of ``BATCH_FACTOR * samples``
     closings (``samples`` then reads as the estimate's effective sample size, rounded; its
     interval is the normal one of the weights' standard error; ``outcomes`` is empty), or
-    :func:`evaluate_grasp` on ``samples`` draws where the effective sample size is below
-    ``samples``.
+    evaluated directly on ``samples`` draws where the effective sample size is below
+    ``samples``: :func:`evaluate_grasp` for the default robot, ``direct(grasp)`` for a
+    description ``robot`` (a 7-joint arm: its palm error and engines close the batch).
 
     Raises:
-        ValueError: the grasps are not variants of one palm pose of one object.
+        ValueError: the grasps are not variants of one palm pose of one object, or the
+            robot's arm has no self-motion (:class:`~kinegrasp_env.montecarlo.palm_batch.
+            PalmJacobian`).
     """
     first = grasps[0]
     for g in grasps[1:]:
@@ -44,18 +49,20 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                                                        atol=SAME_POSE_TOL):
             raise ValueError(f"grasp {g.id} is not a variant of grasp {first.id}'s palm pose "
                              f"(one batch answers variants of one palm pose only)")
+    name = None if robot is None else robot.name
     q0 = np.stack([np.asarray(g.q0, dtype=float) for g in grasps])
-    covs = PalmJacobian().covariance(q0, sigma)
+    covs = PalmJacobian(robot).covariance(q0, sigma)
     batch = close_batch(q0[0], first.object, covs, BATCH_FACTOR * samples, seed, engine=engine,
-                        friction=friction)
+                        friction=friction, robot=name)
     _, quality = close_deltas(q0[0], np.zeros((1, 6)), first.object, engine=engine,
-                              friction=friction)
+                              friction=friction, robot=name)
     nominal = float(quality[0])
     out = []
     for grasp, cov in zip(grasps, covs, strict=True):
         est = batch.estimate(cov)
         if est.ess < samples:
-            out.append(evaluate_grasp(grasp, JointNoise(sigma), samples, seed, engine=engine,
+            out.append(direct(grasp) if robot is not None else
+                       evaluate_grasp(grasp, JointNoise(sigma), samples, seed, engine=engine,
                                       friction=friction, **evaluate_kwargs))
             continue
         p = est.p_fc

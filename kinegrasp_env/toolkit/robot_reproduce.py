@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_evaluate import (
     RobotReferenceEngine,
     evaluate_robot_grasp,
@@ -99,28 +100,44 @@ def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int,
 
 
 def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, samples: int,
-                  sigma: float, count: int, seed: int, engine: str, friction: float
+                  sigma: float, count: int, seed: int, engine: str, friction: float,
+                  method: str = "direct", executor: Executor | None = None
                   ) -> tuple[list[dict], list]:
     """(rows (:data:`COLUMNS`), the fresh evaluations of the robust and the fragile variant,
     empty with fewer than two variants) of ``count`` variants of ``grasp`` on object
-    ``name`` (the module docstring's protocol)."""
+    ``name`` (the module docstring's protocol); ``method`` ``reweight``: the variants' P(FC)
+    from one batch of closings (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`,
+    a 7-joint arm), the fresh draws direct; ``executor``: the direct evaluations' draws in
+    chunks on it (the same draws, row for row)."""
     with RobotReferenceEngine(description, name) as reference:
         variants = robot_variants(grasp, reference, count, seed)
     fresh = []
     with make_engine(engine, description, name, friction=friction) as runner:
-        stats = [evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, engine=runner)
-                 for v in variants]
+        def direct(v: Grasp):
+            return evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, engine=runner,
+                                        executor=executor)
+
+        if method == "reweight":
+            from kinegrasp_env.toolkit.batch_stats import variant_stats
+
+            stats = variant_stats(variants, sigma, samples, seed, engine=engine,
+                                  friction=friction, robot=description, direct=direct)
+        else:
+            stats = [direct(v) for v in variants]
         block = [{"robot": description.name, "object": name, "id": v.id,
                   "elbow_angle": v.meta.get("elbow_angle", ""),
                   "ik_branch": v.meta.get("ik_branch", ""), "p_fc": s.p_fc,
                   "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
-                  "error": s.q_nominal - s.q_mean, "samples": samples, "sigma": sigma,
+                  "error": s.q_nominal - s.q_mean,
+                  # a re-weighted variant's: its effective sample size
+                  "samples": getattr(s, "samples", samples), "sigma": sigma,
                   **dict.fromkeys(PAIR_COLUMNS, "")}
                  for v, s in zip(variants, stats, strict=True)]
         if len(variants) >= 2:
             best, worst = extremes([s.p_fc for s in stats])
             fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples,
-                                          seed=fresh_seed(seed), engine=runner)
+                                          seed=fresh_seed(seed), engine=runner,
+                                          executor=executor)
                      for i in (best, worst)]
             fc = [f.draws.outcome == FORCE_CLOSURE for f in fresh]
             gap, lo, hi = paired_interval(fc[0].astype(float) - fc[1].astype(float))
@@ -133,10 +150,21 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
     return block, fresh
 
 
+def check_method(description: RobotDescription, method: str) -> None:
+    """ValueError for an unknown fig10 method, or ``reweight`` for an arm whose variants are
+    not self-motion (the batch's Gaussians are a 7-joint arm's)."""
+    if method not in ("direct", "reweight"):
+        raise ValueError(f"unknown method {method!r}: direct or reweight")
+    if method == "reweight" and not description.has_self_motion:
+        raise ValueError(f"--method reweight needs a 7-joint arm; robot {description.name!r} "
+                         f"has {description.arm_dof} joints: leave --method out (direct)")
+
+
 def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                 grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                 sigma: float = 0.0033, count: int = 10, seed: int = 0,
-                engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
+                engine: str = "pybullet", friction: float = 0.5,
+                method: str = "direct", executor: Executor | None = None) -> list[dict]:
     """Fig. 10 of ``description`` (a 7-joint arm with an elbow angle, or a 6-joint arm): per
     object of ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
     (:data:`COLUMNS`), then ``fig10.png`` (a figure that fails is a warning: the CSV stays).
@@ -144,17 +172,23 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
     Args:
         engine: the Monte Carlo engine (``pybullet``, ``fast`` or ``physics``); the
             variants and their nominal closings use the reference engine.
+        method: ``direct`` (draws per variant) or ``reweight`` (one batch per object, a
+            7-joint arm: :func:`variant_block`).
+        executor: the direct evaluations' draws in chunks on it.
 
     Raises:
-        ValueError: an arm without variants (:func:`check_variants`).
+        ValueError: an arm without variants (:func:`check_variants`), an unknown method,
+            ``reweight`` for an arm that is not a 7-joint one.
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
     check_variants(description, "fig10")
+    check_method(description, method)
     rows = []
     for name, grasps in grasp_sets.items():
         rows += variant_block(description, name, grasps[0], samples=samples, sigma=sigma,
-                              count=count, seed=seed, engine=engine, friction=friction)[0]
+                              count=count, seed=seed, engine=engine, friction=friction,
+                              method=method, executor=executor)[0]
     out = Path(out_dir)
     if not rows:
         raise ValueError(f"no variant of robot {description.name!r}'s first grasp closes in "

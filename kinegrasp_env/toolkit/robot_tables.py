@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
@@ -45,9 +46,11 @@ FIG9_COLUMNS = ("robot", "object", "id", "p_fc", "q_mean", "q_std", "q_nominal",
 def robot_table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],
                  samples: int, out_dir: str | Path, *,
                  sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0,
-                 engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
+                 engine: str = "pybullet", friction: float = 0.5,
+                 executor: Executor | None = None) -> list[dict]:
     """Table I of ``grasps`` (grasps of ``description`` on ``object_name``; a row's ``grasp``
-    is its index among them) at each sigma (radians); writes the module's files."""
+    is its index among them) at each sigma (radians); writes the module's files.
+    ``executor``: each evaluation's draws in chunks on it (the same draws, row for row)."""
     from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
 
     rows = []
@@ -55,7 +58,7 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                             engine=runner)
+                                             engine=runner, executor=executor)
                 rows.append({"grasp": index, "sigma": sigma, "q_nominal": stats.q_nominal,
                              "q_mean": stats.q_mean, "q_var": stats.q_std ** 2,
                              "p_fc": stats.p_fc, "p_fc_lo": stats.ci[0],
@@ -75,9 +78,11 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
 def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
                grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                sigma: float = 0.0033, count: int = 10, seed: int = 0,
-               engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
+               engine: str = "pybullet", friction: float = 0.5,
+               executor: Executor | None = None) -> list[dict]:
     """Fig. 9 of the first ``count`` grasps of each object of ``grasp_sets``; writes
-    ``fig9.csv`` (:data:`FIG9_COLUMNS`) and ``fig9.png``."""
+    ``fig9.csv`` (:data:`FIG9_COLUMNS`) and ``fig9.png``; ``executor`` as
+    :func:`robot_table1`'s."""
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
     rows = []
@@ -85,7 +90,7 @@ def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
         with make_engine(engine, description, name, friction=friction) as runner:
             for grasp in list(grasps)[:count]:
                 s = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                         engine=runner)
+                                         engine=runner, executor=executor)
                 rows.append({"robot": description.name, "object": name, "id": grasp.id,
                              "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
                              "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
@@ -101,7 +106,8 @@ def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
 def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
                grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 2000,
                sigma: float = 0.0133, variants: int = 8, seed: int = 0,
-               engine: str = "pybullet", friction: float = 0.5) -> list[dict]:
+               engine: str = "pybullet", friction: float = 0.5,
+               executor: Executor | None = None) -> list[dict]:
     """Fig. 7 of each object's first grasp (a 7-joint arm with an elbow angle, or a 6-joint
     arm's IK branches): the robust
     and the fragile rows (:data:`COLUMNS`, on fresh draws) in ``fig7.csv``, and each pair's
@@ -120,7 +126,7 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
     for name, grasps in grasp_sets.items():
         block, fresh = variant_block(description, name, grasps[0], samples=samples,
                                      sigma=sigma, count=variants, seed=seed, engine=engine,
-                                     friction=friction)
+                                     friction=friction, executor=executor)
         chosen = sorted((r for r in block if r["config"]), key=lambda r: r["config"] != "robust")
         if chosen:
             rows += chosen
