@@ -115,3 +115,31 @@ def test_cli_reweight_and_its_refusals(capsys, tmp_path):
     assert main([*args, "--noise", "uniform"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Gaussian joint noise" in err[0]
+
+
+def test_an_angle_short_of_its_draws_is_topped_up_and_pooled():
+    """Worked by hand: weights worth 400 draws at P 0.8 (se 0.02) and the 600 direct draws
+    that make up 1,000 at P 0.6 pool to (400 x 0.8 + 600 x 0.6) / 1000 = 0.68 with standard
+    error hypot(400 x 0.02, sqrt(600 x 0.68 x 0.32)) / 1000; the direct draws asked for are
+    exactly the shortfall; an undefined ESS asks for all 1,000 and keeps them alone."""
+    from kinegrasp_env.sampling.reweight import WeightedEstimate
+    from kinegrasp_env.toolkit.elbow import ElbowPoint
+    from kinegrasp_env.toolkit.elbow_reweight import topped_up
+
+    asked = []
+
+    def direct(psi, q, n):
+        asked.append(n)
+        fc = np.arange(n) < round(0.6 * n)
+        return ElbowPoint(psi, q, float(fc.mean()), (0.0, 1.0), fc)
+
+    q = np.zeros(14)
+    point = topped_up(WeightedEstimate(0.8, 0.02, 400.0, 0.1, 0.05), direct, 0.3, q, 1000)
+    se = np.hypot(400 * 0.02, np.sqrt(600 * 0.68 * 0.32)) / 1000
+    assert asked == [600] and point.fallback and point.ess == 400.0
+    assert point.point.p_fc == pytest.approx(0.68, abs=1e-12)
+    assert point.se == pytest.approx(se, rel=1e-12) and point.slope == 0.1
+    assert point.point.p_fc_ci == pytest.approx((0.68 - 1.959964 * se, 0.68 + 1.959964 * se))
+    alone = topped_up(WeightedEstimate(float("nan"), float("nan"), float("nan")), direct, 0.3,
+                      q, 1000)
+    assert asked[-1] == 1000 and alone.point.p_fc == pytest.approx(0.6, abs=1e-12)

@@ -70,7 +70,8 @@ def reweight_lines(evidence: dict, samples: int) -> str:
     fallback = evidence["fallback_angles"]
     lines = [f"  one batch of {evidence['batch']} closings re-weighted to every angle "
              f"(effective sample size {min(ess):.0f} .. {max(ess):.0f}; "
-             + (f"{plural(len(fallback), 'angle')} below {samples} evaluated directly: "
+             + (f"{plural(len(fallback), 'angle')} below {samples} topped up with direct "
+                "draws: "
                 + ", ".join(f"{p:+.3f}" for p in fallback) if fallback
                 else "no angle needed direct draws") + ")",
              f"  re-weighted P(FC) at the best elbow {evidence['chosen_reweighted_p_fc']:.3f}: "

@@ -9,7 +9,8 @@ N(0, J(psi) S_q J(psi)^T) to first order:
    its standard error, effective sample size (ESS) and the slope dP/dpsi (the weights'
    derivative: the covariance's derivative along the self-motion, by central differences of
    the Jacobian at psi +- :data:`SLOPE_STEP`). An angle whose ESS falls below the draws asked
-   for is evaluated directly instead, and marked so.
+   for is topped up with direct draws for the shortfall, pooled with its weights' estimate,
+   and marked so.
 2. **Continuous optimum**: from the best grid angle, the zero of the slope between its
    neighbours (bisection on the slope's sign), so the choice is not tied to grid points.
 3. **Scoring** (fresh direct draws): the chosen and the nominal angle on joint-noise draws the
@@ -142,21 +143,37 @@ def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> f
 
 def batch_curve(reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
                 motion: SelfMotionCovariance, samples: int, direct) -> list[CurvePoint]:
-    """Every reachable angle re-weighted; where the ESS is below ``samples``, the angle's
-    direct draws instead (``direct(psi, q)``: its :class:`ElbowPoint` on the selection
-    draws)."""
+    """Every reachable angle re-weighted; where the ESS falls short of ``samples``, topped up
+    with direct draws (:func:`topped_up`; ``direct(psi, q, n)``: the angle's
+    :class:`ElbowPoint` on n selection draws)."""
     out = []
     for psi, q in reach:
         est = _estimate_point(batch, motion, psi, q)
-        if not est.ess >= samples:  # a NaN effective sample size falls back too
-            point = direct(psi, q)
-            out.append(CurvePoint(point, est.se, est.ess, est.derivative, est.derivative_se,
-                                  True))
+        if not est.ess >= samples:  # a NaN effective sample size is topped up too
+            out.append(topped_up(est, direct, psi, q, samples))
             continue
         point = ElbowPoint(psi, q, est.value, est.interval, np.zeros(0, bool))
         out.append(CurvePoint(point, est.se, est.ess, est.derivative, est.derivative_se,
                               False))
     return out
+
+
+def topped_up(est: WeightedEstimate, direct, psi: float, q: np.ndarray, samples: int
+              ) -> CurvePoint:
+    """An angle whose weights are worth ``est.ess`` < ``samples`` draws: n = ``samples`` -
+    floor(ESS) direct draws (``direct(psi, q, n)``), pooled with the weights' estimate in
+    proportion to the ESS and n (two independent estimates of P(FC): the pool's standard
+    error is theirs combined, its interval normal, clipped to [0, 1])."""
+    ess = est.ess if math.isfinite(est.ess) and est.ess > 0 else 0.0
+    n = samples - math.floor(ess)
+    point = direct(psi, q, n)
+    value = (ess * (est.value if ess else 0.0) + n * point.p_fc) / (ess + n)
+    se = math.hypot(ess * (est.se if ess else 0.0),
+                    math.sqrt(n * max(value * (1.0 - value), 0.0))) / (ess + n)
+    z = normal_quantile(0.95)
+    pooled = ElbowPoint(psi, q, value, (max(0.0, value - z * se), min(1.0, value + z * se)),
+                        point.fc, point.outcome)
+    return CurvePoint(pooled, se, ess, est.derivative, est.derivative_se, True)
 
 
 def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
@@ -259,7 +276,7 @@ class ReweightRobot:
         motion: the deviation's covariance along the self-motion.
         close: ``close(covariances (K, 6, 6), n, stream) ->`` :class:`PalmBatch` at the
             grasp's palm pose.
-        direct: ``direct(psi, q) ->`` :class:`ElbowPoint` on the selection draws.
+        direct: ``direct(psi, q, n) ->`` :class:`ElbowPoint` on n selection draws.
         fresh: ``fresh(q) ->`` (samples,) force closure on draws the selection never saw.
         engine: the engine's name.
     """
@@ -285,7 +302,7 @@ def default_robot(grasp: Grasp, noise: Noise, samples: int, seed: int, *, engine
         reach, nominal_index(grasp, reach), SelfMotionCovariance(joint_cov, palm_cov),
         lambda covs, n, stream: close_batch(reach[0][1], grasp.object, covs, n, stream,
                                             engine=engine, friction=friction),
-        lambda psi, q: evaluated_point(grasp, psi, q, noise, samples, seed, kwargs),
+        lambda psi, q, n: evaluated_point(grasp, psi, q, noise, n, seed, kwargs),
         lambda q: scoring_draws(grasp, q, noise, samples, seed, kwargs), engine)
 
 

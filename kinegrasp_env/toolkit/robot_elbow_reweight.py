@@ -87,8 +87,8 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
             nominal = nominal_index(grasp, reach)
             q0 = reach[nominal][1]
 
-            def direct(psi: float, q: np.ndarray) -> ElbowPoint:
-                fc, p_fc, ci = angle_point(grasp, psi, q, noise, samples, seed, scorer)
+            def direct(psi: float, q: np.ndarray, n: int) -> ElbowPoint:
+                fc, p_fc, ci = angle_point(grasp, psi, q, noise, n, seed, scorer)
                 return ElbowPoint(psi, q, p_fc, ci, fc)
 
             robot = ReweightRobot(
