@@ -89,6 +89,22 @@ def test_convergence_figure(tmp_path, capsys):
     assert out.exists()
 
 
+def test_convergence_of_another_robots_arm(tmp_path, capsys):
+    """The Panda's arm in the figure (its curves named after it): the mean's error falls as
+    the draws grow, about as 1/sqrt(n) (10 to 200 draws: 4.5 times smaller; more than twice
+    smaller asked, over 6 trials), and an unknown robot is one line."""
+    out = tmp_path / "conv.png"
+    assert main(["convergence", "--robot", "panda", "--out", str(out), "--trials", "6",
+                 "--truth-samples", "4000", "--max-samples", "200", "--json"]) == 0
+    curves = json.loads(capsys.readouterr().out)
+    assert set(curves) == {"2-link planar arm", "panda arm"}
+    for curve in curves["panda arm"].values():
+        assert curve["mean_error"][-1] < 0.5 * curve["mean_error"][0]
+    assert main(["convergence", "--robot", "nosuch", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nosuch" in err[0]
+
+
 # ------------------------------------------------------------------ errors, --help, --version
 def _run(capsys, *argv: str) -> tuple[int, list[str]]:
     """Exit status and stderr lines of ``kinegrasp argv`` run in this process."""

@@ -121,20 +121,31 @@ def cmd_ee(args) -> int:
 
 
 def cmd_convergence(args) -> int:
+    """``kinegrasp convergence``: the estimators' convergence (the paper's Fig. 3) for the
+    2-link planar arm and a catalog robot's arm (``--robot``, its end-effector study's
+    configuration: :func:`~kinegrasp_env.robot.endeffector.default_q0`)."""
     import numpy as np
     from tqdm import tqdm
 
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.robot.endeffector import (
-        DEFAULT_KUKA_Q0,
         DEFAULT_PLANAR_LINKS,
         DEFAULT_PLANAR_Q0,
         PAPER_SIGMAS,
-        kuka_convergence,
+        ArmEndEffector,
+        arm_convergence,
+        arm_label,
+        default_q0,
         planar_convergence,
     )
     from kinegrasp_env.robot.planar import PlanarArm
     from kinegrasp_env.toolkit.plots import plot_convergence
 
+    with reported(RobotDescriptionError):
+        description = load_robot(args.robot)
+    effector = ArmEndEffector.of(description)
+    robot_label = arm_label(args.robot)
     trials = positive_int(args.trials, "--trials")
     truth = positive_int(args.truth_samples, "--truth-samples")
     max_n = positive_int(args.max_samples, "--max-samples")
@@ -144,7 +155,7 @@ def cmd_convergence(args) -> int:
     output_file(args.out, "--out", figure=True)
     sizes = np.unique(np.round(np.logspace(1, np.log10(max_n), 10)).astype(int))
     arm = PlanarArm(DEFAULT_PLANAR_LINKS)
-    jobs = [(label, s) for label in ("2-link planar arm", "KUKA iiwa") for s in PAPER_SIGMAS]
+    jobs = [(label, s) for label in ("2-link planar arm", robot_label) for s in PAPER_SIGMAS]
     curves: dict[str, dict[float, object]] = {}
     for i, (label, sigma) in enumerate(tqdm(jobs, desc="convergence", file=sys.stderr,
                                             disable=None)):
@@ -153,8 +164,9 @@ def cmd_convergence(args) -> int:
             curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,
                                        truth_samples=truth, seed=stream)
         else:
-            curve = kuka_convergence(DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=trials,
-                                     truth_samples=truth, seed=stream)
+            curve = arm_convergence(effector, default_q0(effector, args.robot), sigma,
+                                    sizes=sizes, trials=trials, truth_samples=truth,
+                                    seed=stream)
         curves.setdefault(label, {})[sigma] = curve
     path = plot_convergence(curves, args.out)
     summary = {label: {f"{s:g}": {"samples": c.sizes.tolist(), "mean_error": c.mean_error.tolist(),
@@ -192,7 +204,11 @@ def add_commands(sub) -> None:
     add_noise_args(p, 0.0133)
     p.set_defaults(func=cmd_kuka_ee)
 
-    p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, planar arm and KUKA")
+    p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, a planar arm and a "
+                       "catalog robot's arm (the KUKA by default)")
+    p.add_argument("--robot", default=DEFAULT_ROBOT, help="catalog robot whose arm is studied "
+                   f"(default {DEFAULT_ROBOT}; another starts at the middle of each joint's "
+                   "range)")
     p.add_argument("--out", default="convergence.png", help="output PNG")
     p.add_argument("--trials", default="10", help="independent estimates per sample size")
     p.add_argument("--truth-samples", default="100000",

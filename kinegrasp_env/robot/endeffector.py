@@ -138,6 +138,12 @@ def default_q0(effector: ArmEndEffector, robot: str) -> np.ndarray:
     return np.array(DEFAULT_KUKA_Q0) if robot == DEFAULT_ROBOT else effector.middle()
 
 
+def arm_label(robot: str) -> str:
+    """How figures name a robot's arm: ``KUKA iiwa`` for the default robot (the paper's
+    name), ``<robot> arm`` for another."""
+    return "KUKA iiwa" if robot == DEFAULT_ROBOT else f"{robot} arm"
+
+
 def check_kuka_q0(q0: Sequence[float]) -> np.ndarray:
     """Validate a 7-vector of arm joint angles (finite, within limits) and return it."""
     return kuka_end_effector_model().check_q0(q0)
@@ -166,11 +172,12 @@ def planar_convergence(arm: PlanarArm, q0: Sequence[float], sigma: float, *,
                              truth_samples=truth_samples, seed=seed)
 
 
-def kuka_convergence(q0: Sequence[float], sigma: float, *, kind: str = "gaussian",
-                     sizes: Sequence[int] = CONVERGENCE_SIZES, trials: int = 10,
-                     truth_samples: int = 100_000,
-                     seed: int | np.random.Generator = 0) -> ConvergenceCurve:
-    """Convergence of the KUKA palm-position estimators."""
+def arm_convergence(effector: ArmEndEffector, q0: Sequence[float], sigma: float, *,
+                    kind: str = "gaussian", sizes: Sequence[int] = CONVERGENCE_SIZES,
+                    trials: int = 10, truth_samples: int = 100_000,
+                    seed: int | np.random.Generator = 0) -> ConvergenceCurve:
+    """Convergence of a robot arm's palm-position estimators at arm configuration q0."""
     noise = JointNoise(sigma, kind)
-    return convergence_curve(lambda n, rng: sample_kuka_end_effector(q0, noise, n, rng), sizes,
+    q0 = effector.check_q0(q0)
+    return convergence_curve(lambda n, rng: effector.sample(q0, noise, n, rng), sizes,
                              trials=trials, truth_samples=truth_samples, seed=seed)
