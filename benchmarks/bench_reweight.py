@@ -1,17 +1,22 @@
-"""Re-weighted P(FC) against direct draws: calibration, the linearisation's bias, timings.
+"""Re-weighted P(FC) against direct draws: calibration, the Gaussian model's bias, timings.
 
 For grasps of the default robot (``--grasps`` per object, the first ones of each shipped
 set, fixed before any run), at ``--angles`` elbow angles spread over each grasp's reachable
 self-motion and the paper's four noise levels:
 
-* **calibration**: one batch of ``--batch`` closings over the palm's deviation (a mixture over
-  all angle x sigma targets) re-weighted to each case, against a direct evaluation of
-  ``--direct`` joint-noise draws: the case agrees when the difference lies within the 95%
-  interval of both sampling errors (the re-weighted one's from its weights' delta-method
-  standard error, the direct one's binomial);
-* **the linearisation's bias**: ``--direct`` deltas drawn from the linear-Gaussian model
-  N(0, J S_q J^T), closed directly, against the direct joint-noise draws (what the first-order
-  density gets wrong, sampling error aside: its interval is printed with it);
+* **calibration**: ``--replicates`` independent batches of ``--batch`` closings over the
+  palm's deviation (each a mixture over all angle x sigma targets), each re-weighted to every
+  case, against a direct evaluation of ``--direct`` joint-noise draws per case (each case its
+  own draws): a judgement agrees when the difference lies within the 95% interval of both
+  sampling errors (the re-weighted one's from its weights' effective sample size, the direct
+  one's binomial). One batch serves all of a grasp's cases, so its error is shared by them
+  all: the replicates turn a grasp's 72 correlated judgements into five independent sets, and
+  their spread checks the weights' standard error directly;
+* **the Gaussian model's bias**: ``--direct`` deltas drawn from the model N(m, J S_q J^T)
+  (first-order covariance, second-order mean: what the weights target; the JSON's
+  ``linear``) per case, closed directly, against the direct joint-noise draws (what the
+  model gets wrong, sampling error aside: its interval is printed with it, and
+  the mean over a grasp's angles with a t-interval, the cases' draws being independent);
 * **timings** (warm, alone on the machine): ``elbow`` by both methods at ``--samples`` draws per
   angle; Table I's four noise levels at the nominal configuration from one batch against
   four direct runs of ``--levels-samples`` draws, with each method's standard errors beside;
@@ -56,6 +61,11 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "elbow.md"
 START, END = "<!-- reweight-calibration:start -->", "<!-- reweight-calibration:end -->"
 
 
+#: The options that the calibration's figures depend on.
+CALIBRATION_SETTINGS = ("objects", "grasps", "angles", "sigmas", "batch", "direct",
+                        "replicates")
+
+
 def binomial_se(p: float, n: int) -> float:
     return math.sqrt(max(p * (1 - p), 0.0) / n)
 
@@ -72,7 +82,7 @@ def judged(case: dict, n: int) -> dict:
     pooled proportion's variance (the two-proportion test's: it stays honest where one
     estimate is 0 or 1). ``agrees_delta``: within the interval of the weights' delta-method
     standard error and the binomial one (which understates the error of a rare outcome
-    seen in few draws). The linear-Gaussian bias: its 95% interval from both binomial
+    seen in few draws). The Gaussian model's bias: its 95% interval from both binomial
     errors."""
     p_rw, p_d, ess = case["reweighted"], case["direct"], case["ess"]
     pooled = (p_rw * ess + p_d * n) / (ess + n)
@@ -82,7 +92,13 @@ def judged(case: dict, n: int) -> dict:
     p_l = case["linear"]
     pooled_l = (p_rw * ess + p_l * n) / (ess + n)
     half_l = Z95 * math.sqrt(max(pooled_l * (1 - pooled_l), 0.0) * (1 / ess + 1 / n))
-    return {**case, "weights_difference": p_rw - p_l,
+    first = {}
+    if "first_order" in case:  # the first-order model's estimate, judged alike
+        p_f, ess_f = case["first_order"], case["first_order_ess"]
+        pooled_f = (p_f * ess_f + p_d * n) / (ess_f + n)
+        half_f = Z95 * math.sqrt(max(pooled_f * (1 - pooled_f), 0.0) * (1 / ess_f + 1 / n))
+        first = {"first_order_agrees": abs(p_f - p_d) <= half_f}
+    return {**case, **first, "weights_difference": p_rw - p_l,
             "agrees_with_linear": abs(p_rw - p_l) <= half_l, "difference": diff,
             "half_width": half, "agrees": abs(diff) <= half,
             "half_width_delta": half_delta, "agrees_delta": abs(diff) <= half_delta,
@@ -91,41 +107,64 @@ def judged(case: dict, n: int) -> dict:
                                                        binomial_se(p_d, n))}
 
 
+def case_seeds(seed: int) -> dict:
+    """The random streams of one grasp's calibration run with ``seed``: ``direct(k)`` and
+    ``linear(k)`` the seeds of case k's direct and model draws (each case its own,
+    so that the cases' sampling errors are independent), ``batch(r)`` replicate r's batch."""
+    base = 1000 * seed
+    return {"direct": lambda k: base + 1 + k, "linear": lambda k: base + 500 + k,
+            "batch": lambda r: base + 900 + r}
+
+
 def calibration(grasp, args, seed: int) -> list[dict]:
-    """One record per (angle, sigma) case of one grasp."""
+    """One record per (angle, sigma) case and batch replicate of one grasp."""
     angles = spread_angles(reachable_configurations(grasp), args.angles)
     jac = PalmJacobian()
     qs = np.stack([q for _, q in angles])
     covs = np.concatenate([jac.covariance(qs, s) for s in args.sigmas])
-    batch = close_batch(angles[0][1], grasp.object, covs, args.batch, seed)
+    means = np.concatenate([jac.mean(qs, s) for s in args.sigmas])
+    seeds = case_seeds(seed)
+    batches = [close_batch(angles[0][1], grasp.object, covs, args.batch, seeds["batch"](r))
+               for r in range(args.replicates)]
 
-    def direct(psi, q, sigma) -> float:
+    def direct(psi, q, sigma, k) -> float:
         return evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma),
-                              args.direct, seed + 1, engine="fast").p_fc
+                              args.direct, seeds["direct"](k), engine="fast").p_fc
 
-    def linear(q, cov) -> np.ndarray:
-        return close_deltas(q, linear_draws(cov, args.direct, seed + 2), grasp.object)[0]
+    def linear(q, cov, mean, k) -> np.ndarray:
+        return close_deltas(q, linear_draws(cov, args.direct, seeds["linear"](k), mean),
+                            grasp.object)[0]
 
-    return judged_cases({"object": grasp.object, "grasp": int(grasp.id)}, angles, covs, batch,
-                        direct, linear, args)
+    return judged_cases({"object": grasp.object, "grasp": int(grasp.id)}, angles, covs,
+                        means, batches, direct, linear, args)
 
 
-def judged_cases(record: dict, angles: list, covs: np.ndarray, batch, direct, linear,
-                 args) -> list[dict]:
-    """One judged record per (sigma, angle) case of one grasp (``record``: its fields): the
-    batch re-weighted to each case's covariance (``covs``, sigma-major), ``direct(psi, q,
-    sigma)`` its direct P(FC), ``linear(q, cov)`` the outcomes of linear-Gaussian deltas."""
+def judged_cases(record: dict, angles: list, covs: np.ndarray, means: np.ndarray,
+                 batches: list, direct, linear, args) -> list[dict]:
+    """One judged record per (sigma, angle) case of one grasp and batch replicate
+    (``record``: its fields): each batch of ``batches`` re-weighted to each case's Gaussian
+    (``covs`` and ``means``, sigma-major; beside it, the first-order model's: the same
+    covariance, mean 0), ``direct(psi, q, sigma, k)`` case k's direct P(FC),
+    ``linear(q, cov, mean, k)`` the outcomes of its model deltas (both drawn once per case,
+    shared by the replicates)."""
     cases, k = [], 0
     for sigma in args.sigmas:
         for psi, q in angles:
-            est = batch.estimate(covs[k]).p_fc
-            cases.append(judged({
-                **record, "psi": psi, "sigma": sigma, "reweighted": est.value,
-                "reweighted_se": est.se, "ess": est.ess, "direct": direct(psi, q, sigma),
-                "linear": float(np.mean(linear(q, covs[k]) == FORCE_CLOSURE))}, args.direct))
+            common = {**record, "psi": psi, "sigma": sigma, "direct": direct(psi, q, sigma, k),
+                      "linear": float(np.mean(linear(q, covs[k], means[k], k)
+                                              == FORCE_CLOSURE))}
+            for r, batch in enumerate(batches):
+                est = batch.estimate(covs[k], mean=means[k]).p_fc
+                first = batch.estimate(covs[k]).p_fc
+                cases.append(judged({**common, "replicate": r, "reweighted": est.value,
+                                     "reweighted_se": est.se, "ess": est.ess,
+                                     "first_order": first.value,
+                                     "first_order_ess": first.ess}, args.direct))
             k += 1
+        recent = cases[-len(angles) * len(batches):]
         print(f"  {record['object']} grasp {record['grasp']} sigma {sigma:g}: "
-              f"{sum(c['agrees'] for c in cases[-len(angles):])}/{len(angles)} agree",
+              f"{sum(c['agrees'] for c in recent)}/{len(recent)} agree "
+              f"({sum(c['first_order_agrees'] for c in recent)} at first order)",
               file=sys.stderr)
     return cases
 
@@ -228,8 +267,9 @@ def certificate_coverage(args) -> list[dict]:
     """How often the batch certificate's statement is false on a field with a known truth:
     force closure where u . delta < c (u the deviation's component whose spread changes most
     along spray flask grasp 4's self-motion, c 0.6 of its median spread), whose P(FC) at
-    every angle is Phi(c / sqrt(u^T S(psi) u)); the angle chosen on one batch, the
-    certificate from another, ``--coverage-runs`` runs per batch size. The statement is false
+    every angle is Phi((c - u . m(psi)) / sqrt(u^T S(psi) u)) under the model N(m, S); the
+    angle chosen on one batch, the certificate from another, ``--coverage-runs`` runs per
+    batch size. The statement is false
     when a rival's true P(FC) beats the chosen one's by more than the bound. The same bounds
     at level delta each (batch_certificate at 2 delta) are counted beside, judged at delta."""
     from scipy import stats as sps
@@ -237,17 +277,19 @@ def certificate_coverage(args) -> list[dict]:
     from kinegrasp_env.montecarlo.engines import NO_FORCE_CLOSURE
     from kinegrasp_env.montecarlo.palm_batch import PalmBatch
     from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
-    from kinegrasp_env.toolkit.elbow_reweight import SelfMotionCovariance, batch_certificate
+    from kinegrasp_env.toolkit.elbow_reweight import SelfMotionDeviation, batch_certificate
 
     grasp = shipped_grasps("spray_flask")[4]
     reach = reachable_configurations(grasp)[::3]
-    motion = SelfMotionCovariance(0.0233)
+    motion = SelfMotionDeviation(0.0233)
     covs = motion.at(np.stack([q for _, q in reach]))
     spread = np.array([np.diag(c) for c in covs])
     u = np.zeros(6)
     u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
     c = 0.6 * float(np.sqrt(np.median(spread @ u)))
-    truth = np.array([sps.norm.cdf(c / np.sqrt(u @ s @ u)) for s in covs])
+    means = motion.mean_at(np.stack([q for _, q in reach]))
+    truth = np.array([sps.norm.cdf((c - u @ m) / np.sqrt(u @ s @ u))
+                      for s, m in zip(covs, means, strict=True)])
 
     def batch(n: int, seed: int) -> PalmBatch:
         proposal = MixtureProposal.covering(covs, n)
@@ -260,8 +302,9 @@ def certificate_coverage(args) -> list[dict]:
         false = {0.05: 0, 0.1: 0}
         for run in range(args.coverage_runs):
             selection = batch(n, 10**6 + 2 * run)
-            values = [float(np.exp(gaussian_logpdf(selection.deltas, s) - selection.log_proposal)
-                            @ selection.fc) for s in covs]
+            values = [float(np.exp(gaussian_logpdf(selection.deltas, s, m)
+                                   - selection.log_proposal) @ selection.fc)
+                      for s, m in zip(covs, means, strict=True)]
             b = int(np.argmax(values))
             rivals = [reach[j] for j in range(len(reach)) if j != b]
             gap = max(truth[j] - truth[b] for j in range(len(reach)) if j != b)
@@ -278,53 +321,147 @@ def certificate_coverage(args) -> list[dict]:
     return out
 
 
+def case_key(case: dict) -> tuple:
+    return (case.get("robot"), case["object"], case["grasp"], case["sigma"], case["psi"])
+
+
+def bias_groups(cases: list[dict]) -> list[dict]:
+    """Per (object, grasp, sigma): the Gaussian model's mean bias over the angles with its
+    95% t-interval (the cases' draws independent, so their errors are too)."""
+    from scipy import stats as sps
+
+    groups: dict = {}
+    for c in cases:
+        groups.setdefault(case_key(c)[:4], []).append(c["linear_bias"])
+    out = []
+    for (robot, obj, grasp, sigma), bias in groups.items():
+        b = np.asarray(bias)
+        half = (float(sps.t.ppf(0.975, len(b) - 1) * b.std(ddof=1) / math.sqrt(len(b)))
+                if len(b) > 1 else math.inf)
+        out.append({"robot": robot, "object": obj, "grasp": grasp, "sigma": sigma,
+                    "mean": float(b.mean()), "half_width": half})
+    return out
+
+
+def batch_spread(cases: list[dict]) -> float:
+    """sqrt(mean over cases of the replicates' variance / mean squared standard error): 1
+    where the weights' standard error is right, NaN with one replicate."""
+    groups: dict = {}
+    for c in cases:
+        groups.setdefault(case_key(c), []).append((c["reweighted"], c["reweighted_se"]))
+    groups = {k: np.asarray(v) for k, v in groups.items() if len(v) > 1}
+    if not groups:
+        return math.nan
+    var = np.mean([v[:, 0].var(ddof=1) for v in groups.values()])
+    return float(math.sqrt(var / np.mean([np.mean(v[:, 1] ** 2) for v in groups.values()])))
+
+
 def summary(cases: list[dict], elbows: list[dict], levels: list[dict],
             variants: list[dict] | None = None) -> dict:
+    """The figures of the calibration (every replicate's judgements; the Gaussian model's
+    bias once per case) and the timings."""
+    replicates = sorted({c.get("replicate", 0) for c in cases})
+    first = [c for c in cases if c.get("replicate", 0) == replicates[0]]
     agree = sum(c["agrees"] for c in cases)
     # each difference in units of its standard error (N(0, 1) if both errors are right)
     z = np.array([c["difference"] / (c["half_width"] / Z95) for c in cases
                   if c["half_width"] > 0])
-    bias = np.array([c["linear_bias"] for c in cases])
-    beyond = [c for c in cases if abs(c["linear_bias"]) > 0.01
+    bias = np.array([c["linear_bias"] for c in first])
+    beyond = [c for c in first if abs(c["linear_bias"]) > 0.01
               and abs(c["linear_bias"]) - c["linear_bias_half_width"] > 0.01]
-    return {"cases": len(cases), "agree": agree, "agree_share": agree / len(cases),
+    groups = bias_groups(first)
+    worst = max(groups, key=lambda g: abs(g["mean"]))
+    return {"cases": len(first), "replicates": len(replicates), "judgements": len(cases),
+            "agree": agree, "agree_share": agree / len(cases),
+            "agree_by_replicate": [float(np.mean([c["agrees"] for c in cases
+                                                  if c.get("replicate", 0) == r]))
+                                   for r in replicates],
             "agree_delta": sum(c["agrees_delta"] for c in cases),
+            "agree_first_order": sum(c.get("first_order_agrees", False) for c in cases),
             "agree_with_linear": sum(c["agrees_with_linear"] for c in cases),
             "z_mean": float(np.mean(z)), "z_sd": float(np.std(z, ddof=1)),
+            "batch_spread_over_se": batch_spread(cases),
             "max_abs_linear_bias": float(np.abs(bias).max()),
             "mean_abs_linear_bias": float(np.abs(bias).mean()),
             "linear_bias_surely_above_0.01": len(beyond),
+            "bias_groups": groups,
+            "largest_group_bias": worst["mean"],
+            "largest_group_bias_half_width": worst["half_width"],
+            "groups_bias_surely_above_0.01": sum(abs(g["mean"]) - g["half_width"] > 0.01
+                                                 for g in groups),
             "min_ess": float(min(c["ess"] for c in cases)),
-            "elbow_ratio_mean": float(np.mean([e["ratio"] for e in elbows])),
-            "levels_ratio_mean": float(np.mean([v["ratio"] for v in levels])),
+            "elbow_ratio_mean": (float(np.mean([e["ratio"] for e in elbows]))
+                                 if elbows else None),
+            "levels_ratio_mean": (float(np.mean([v["ratio"] for v in levels]))
+                                  if levels else None),
             "variants_ratio_mean": (float(np.mean([v["ratio"] for v in variants]))
                                     if variants else None)}
 
 
-def markdown(result: dict) -> str:
-    s = result["summary"]
-    lines = [
-        f"Re-weighted P(FC) against {result['settings']['direct']:,} direct draws per case "
-        f"({s['cases']} cases: {result['settings']['angles']} elbow angles x "
-        f"{len(result['settings']['sigmas'])} noise levels x "
-        f"{len(result['settings']['objects'])} grasps; one batch of "
-        f"{result['settings']['batch']:,} closings per grasp). Written by "
-        "`python benchmarks/bench_reweight.py`.", "",
-        "| figure | value |", "|---|---|",
-        f"| cases within the 95% interval of their difference (ESS and draws, pooled) | "
-        f"{s['agree']} / {s['cases']} ({100 * s['agree_share']:.1f}%) |",
+def calibration_rows(result: dict) -> list[str]:
+    """The Markdown rows of the calibration figures (both calibration scripts)."""
+    s, run = result["summary"], result["settings"]
+    n = run["direct"]
+    shares = ", ".join(f"{100 * a:.1f}%" for a in s.get("agree_by_replicate", []))
+    return [
+        f"| judgements within the 95% interval of their difference (ESS and draws, pooled) | "
+        f"{s['agree']} / {s['judgements']} ({100 * s['agree_share']:.1f}%) |",
+        f"| the same, each batch replicate's share | {shares} |",
+        f"| the same with the first-order model (mean 0, the same batches) | "
+        f"{s['agree_first_order']} / {s['judgements']} "
+        f"({100 * s['agree_first_order'] / s['judgements']:.1f}%) |",
         f"| the same with the weights' delta-method standard error | {s['agree_delta']} / "
-        f"{s['cases']} |",
-        f"| the weights alone: re-weighted against {result['settings']['direct']:,} direct "
-        f"linear-Gaussian deviations, within the same interval | {s['agree_with_linear']} / "
-        f"{s['cases']} |",
+        f"{s['judgements']} |",
+        f"| the weights alone: re-weighted against {n:,} deviations drawn from the model, "
+        f"within the same interval | {s['agree_with_linear']} / {s['judgements']} |",
         f"| differences in standard errors: mean, s.d. (0 and 1 if the errors are right) | "
         f"{s['z_mean']:+.2f}, {s['z_sd']:.2f} |",
+        f"| the replicates' spread over the weights' standard error (1 if it is right) | "
+        f"{s['batch_spread_over_se']:.2f} |",
         f"| smallest effective sample size | {s['min_ess']:.0f} |",
-        f"| linearisation bias, largest / mean absolute | {s['max_abs_linear_bias']:.4f} / "
-        f"{s['mean_abs_linear_bias']:.4f} |",
-        f"| cases whose bias is above 0.01 beyond its interval | "
-        f"{s['linear_bias_surely_above_0.01']} |",
+        f"| the Gaussian model's bias per case, largest / mean absolute (each +- "
+        f"{Z95 * math.sqrt(0.5 / n):.4f} of sampling error at most) | "
+        f"{s['max_abs_linear_bias']:.4f} / {s['mean_abs_linear_bias']:.4f} |",
+        f"| the model's bias, the largest mean over a grasp's angles at one noise level "
+        f"[95% t-interval] | {s['largest_group_bias']:+.4f} "
+        f"[{s['largest_group_bias'] - s['largest_group_bias_half_width']:+.4f}, "
+        f"{s['largest_group_bias'] + s['largest_group_bias_half_width']:+.4f}] |",
+        f"| grasp and noise levels whose mean bias is above 0.01 beyond its interval | "
+        f"{s['groups_bias_surely_above_0.01']} |"]
+
+
+def calibration_table(result: dict) -> list[str]:
+    """Per object and noise level: judgements agreeing, the weights alone, the largest
+    difference, the Gaussian model's mean bias over the angles [95% t-interval]."""
+    lines = ["| object | sigma | judgements agreeing | weights alone agreeing | largest abs. "
+             "difference | the model's mean bias [95%] | largest abs. bias |",
+             "|---|---|---|---|---|---|---|"]
+    groups = {(g["object"], g["sigma"]): g for g in result["summary"]["bias_groups"]}
+    for obj in dict.fromkeys(c["object"] for c in result["cases"]):
+        for sigma in result["settings"]["sigmas"]:
+            rows = [c for c in result["cases"] if c["object"] == obj and c["sigma"] == sigma]
+            g = groups[(obj, sigma)]
+            lines.append(
+                f"| {obj} | {sigma:g} | {sum(c['agrees'] for c in rows)} / {len(rows)} | "
+                f"{sum(c['agrees_with_linear'] for c in rows)} / {len(rows)} | "
+                f"{max(abs(c['difference']) for c in rows):.4f} | "
+                f"{g['mean']:+.4f} [{g['mean'] - g['half_width']:+.4f}, "
+                f"{g['mean'] + g['half_width']:+.4f}] | "
+                f"{max(abs(c['linear_bias']) for c in rows):.4f} |")
+    return lines
+
+
+def markdown(result: dict) -> str:
+    s = result["summary"]
+    run = result["settings"]
+    lines = [
+        f"Re-weighted P(FC) against {run['direct']:,} direct draws per case "
+        f"({s['cases']} cases: {run['angles']} elbow angles x {len(run['sigmas'])} noise "
+        f"levels x {len(run['objects'])} grasps, each case's draws its own; "
+        f"{s['replicates']} independent batches of {run['batch']:,} closings per grasp, each "
+        "judged on every case). Written by `python benchmarks/bench_reweight.py`.", "",
+        "| figure | value |", "|---|---|",
+        *calibration_rows(result),
         f"| elbow time, re-weighted / direct (mean) | {s['elbow_ratio_mean']:.2f} |",
         f"| four noise levels, one batch / four direct runs (mean) | "
         f"{s['levels_ratio_mean']:.2f} |",
@@ -339,18 +476,7 @@ def markdown(result: dict) -> str:
           f"{c['batch']}) | {c['false_at_half_delta_bounds']} / {c['runs']} (its bounds at "
           f"delta/2); {c['false_at_delta_bounds']} / {c['runs']} with bounds at delta |"
           for c in result.get("certificate", [])], "",
-        "| object | sigma | cases agreeing | weights alone agreeing | largest abs. "
-        "difference | mean bias of the linearisation | largest abs. bias |",
-        "|---|---|---|---|---|---|---|"]
-    for obj in result["settings"]["objects"]:
-        for sigma in result["settings"]["sigmas"]:
-            rows = [c for c in result["cases"] if c["object"] == obj and c["sigma"] == sigma]
-            lines.append(
-                f"| {obj} | {sigma:g} | {sum(c['agrees'] for c in rows)} / {len(rows)} | "
-                f"{sum(c['agrees_with_linear'] for c in rows)} / {len(rows)} | "
-                f"{max(abs(c['difference']) for c in rows):.4f} | "
-                f"{np.mean([c['linear_bias'] for c in rows]):+.4f} | "
-                f"{max(abs(c['linear_bias']) for c in rows):.4f} |")
+        *calibration_table(result)]
     return "\n".join(lines)
 
 
@@ -377,6 +503,8 @@ def main() -> None:
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(PAPER_SIGMAS))
     parser.add_argument("--batch", type=int, default=40000)
     parser.add_argument("--direct", type=int, default=20000)
+    parser.add_argument("--replicates", type=int, default=5,
+                        help="independent batches per grasp, each judged on every case")
     parser.add_argument("--samples", type=int, default=1000, help="elbow draws per angle")
     parser.add_argument("--levels-samples", type=int, default=10000)
     parser.add_argument("--levels-batch", type=int, default=20000)
@@ -387,6 +515,8 @@ def main() -> None:
     parser.add_argument("--no-calibration", action="store_true",
                         help="time only; with a written result, replace its timings and keep "
                         "its calibration cases")
+    parser.add_argument("--no-timing", action="store_true",
+                        help="calibrate only; keep the written result's timings")
     parser.add_argument("--render-only", action="store_true",
                         help="judge the cases of the JSON result again and rewrite it and "
                         "the docs table (no closing)")
@@ -396,6 +526,37 @@ def main() -> None:
         render_again(args)
         return
     grasps = [g for obj in args.objects for g in shipped_grasps(obj)[:args.grasps]]
+    if args.no_timing:
+        import json
+
+        old = json.loads(Path(args.json_out).read_text())
+        timings = {k: old.get(k) for k in ("elbow", "levels", "variants", "certificate",
+                                           "env")}
+        kept = {**old["settings"], **{k: v for k, v in settings(args).items()
+                                      if k in CALIBRATION_SETTINGS}}
+    else:
+        timings = timing_figures(grasps, args)
+    if args.no_calibration:
+        import json
+
+        if args.no_json or not Path(args.json_out).exists():
+            return
+        old = json.loads(Path(args.json_out).read_text())
+        cases, kept = old["cases"], old["settings"]
+        kept.update({k: v for k, v in settings(args).items()
+                     if k not in CALIBRATION_SETTINGS})
+    else:
+        cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
+        if not args.no_timing:
+            kept = settings(args)
+    result = {"summary": summary(cases, timings["elbow"], timings["levels"],
+                                 timings["variants"]),
+              **timings, "cases": cases, "settings": kept}
+    publish(__file__, result, args, markdown(result), DOC, (START, END))
+
+
+def timing_figures(grasps: list, args) -> dict:
+    """The elbow, noise-level, fig10, certificate and env figures (warm, printed)."""
     # warm the compiled kernels once, outside every timing
     optimize_elbow_reweighted(grasps[0], JointNoise(0.0133), 200, 0)
     optimize_elbow(grasps[0], JointNoise(0.0133), 200, 0)
@@ -414,26 +575,8 @@ def main() -> None:
     for v in variants:
         print(f"fig10 {v['object']}: {v['variants']} variants, direct {v['direct_s']:.2f} s, "
               f"one batch {v['reweight_s']:.2f} s ({v['ratio']:.2f})")
-    coverage = certificate_coverage(args)
-    env = env_timing(args)
-    if args.no_calibration:
-        import json
-
-        if args.no_json or not Path(args.json_out).exists():
-            return
-        old = json.loads(Path(args.json_out).read_text())
-        cases, kept = old["cases"], old["settings"]
-        run = settings(args)
-        kept.update({k: run[k] for k in ("samples", "levels_samples", "levels_batch",
-                                         "variants", "coverage_runs", "coverage_batches",
-                                         "env_episodes")})
-    else:
-        cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
-        kept = settings(args)
-    result = {"summary": summary(cases, elbows, levels, variants), "elbow": elbows,
-              "levels": levels, "variants": variants, "certificate": coverage, "env": env,
-              "cases": cases, "settings": kept}
-    publish(__file__, result, args, markdown(result), DOC, (START, END))
+    return {"elbow": elbows, "levels": levels, "variants": variants,
+            "certificate": certificate_coverage(args), "env": env_timing(args)}
 
 
 if __name__ == "__main__":

@@ -5,9 +5,10 @@ The calibration of ``bench_reweight.py`` on another robot's grasps: for the firs
 angles spread over each grasp's reachable self-motion (``elbow --robot``'s) and the paper's
 four noise levels, one batch of ``--batch`` closings over the palm's deviation (the robot's
 palm error, closed by its fast engine at the grasp's own configuration) is re-weighted to
-each case and compared with ``--direct`` joint-noise draws at that angle (``evaluate
---robot``'s, fast engine), and with ``--direct`` deltas drawn from the linear-Gaussian model,
-closed at the grasp's own configuration as the batch is (the method's first-order bias,
+each case (``--replicates`` independent batches, each judged on every case) and compared
+with ``--direct`` joint-noise draws at that angle (each case its own draws) (``evaluate
+--robot``'s, fast engine), and with ``--direct`` deltas drawn from the Gaussian model,
+closed at the grasp's own configuration as the batch is (the model's own bias,
 sampling error aside, the arm's links included: they stay where that configuration puts
 them). The verdicts are ``bench_reweight.py``'s.
 
@@ -21,7 +22,14 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from bench_reweight import judged_cases, spread_angles, summary
+from bench_reweight import (
+    calibration_rows,
+    calibration_table,
+    case_seeds,
+    judged_cases,
+    spread_angles,
+    summary,
+)
 from results_file import add_options, publish, settings
 
 from kinegrasp_env.montecarlo.palm_batch import (
@@ -57,54 +65,35 @@ def calibration(grasp, args, seed: int) -> list[dict]:
     jac = PalmJacobian(description)
     qs = np.stack([q for _, q in angles])
     covs = np.concatenate([jac.covariance(qs, s) for s in args.sigmas])
-    batch = close_batch(q0, grasp.object, covs, args.batch, seed, robot=grasp.robot)
+    means = np.concatenate([jac.mean(qs, s) for s in args.sigmas])
+    seeds = case_seeds(seed)
+    batches = [close_batch(q0, grasp.object, covs, args.batch, seeds["batch"](r),
+                           robot=grasp.robot) for r in range(args.replicates)]
     with make_engine("fast", description, grasp.object) as engine:
 
-        def direct(psi, q, sigma) -> float:
+        def direct(psi, q, sigma, k) -> float:
             return evaluate_robot_grasp(dataclasses.replace(grasp, q0=q), sigma=sigma,
-                                        n=args.direct, seed=seed + 1, engine=engine).p_fc
+                                        n=args.direct, seed=seeds["direct"](k),
+                                        engine=engine).p_fc
 
-        def linear(q, cov) -> np.ndarray:  # closed where the batch is: the grasp's own q
-            return close_deltas(q0, linear_draws(cov, args.direct, seed + 2), grasp.object,
-                                robot=grasp.robot)[0]
+        def linear(q, cov, mean, k) -> np.ndarray:  # closed where the batch is: the grasp's q
+            return close_deltas(q0, linear_draws(cov, args.direct, seeds["linear"](k), mean),
+                                grasp.object, robot=grasp.robot)[0]
 
         return judged_cases({"robot": grasp.robot, "object": grasp.object, "grasp": grasp.id},
-                            angles, covs, batch, direct, linear, args)
+                            angles, covs, means, batches, direct, linear, args)
 
 
 def markdown(result: dict) -> str:
     s, run = result["summary"], result["settings"]
-    lines = [
+    return "\n".join([
         f"Robot {run['robot']}: re-weighted P(FC) against {run['direct']:,} direct draws per "
         f"case ({s['cases']} cases: {run['angles']} elbow angles x {len(run['sigmas'])} "
-        f"noise levels x {len(result['grasps'])} grasps; one batch of {run['batch']:,} "
-        "closings per grasp, the fast engine). Written by "
-        "`python benchmarks/bench_reweight_robot.py`.", "",
-        "| figure | value |", "|---|---|",
-        f"| cases within the 95% interval of their difference (ESS and draws, pooled) | "
-        f"{s['agree']} / {s['cases']} ({100 * s['agree_share']:.1f}%) |",
-        f"| the weights alone: against {run['direct']:,} direct linear-Gaussian deviations "
-        f"| {s['agree_with_linear']} / {s['cases']} |",
-        f"| differences in standard errors: mean, s.d. | {s['z_mean']:+.2f}, "
-        f"{s['z_sd']:.2f} |",
-        f"| smallest effective sample size | {s['min_ess']:.0f} |",
-        f"| linearisation bias, largest / mean absolute | {s['max_abs_linear_bias']:.4f} / "
-        f"{s['mean_abs_linear_bias']:.4f} |",
-        f"| cases whose bias is above 0.01 beyond its interval | "
-        f"{s['linear_bias_surely_above_0.01']} |", "",
-        "| object | sigma | cases agreeing | weights alone agreeing | largest abs. "
-        "difference | mean bias of the linearisation | largest abs. bias |",
-        "|---|---|---|---|---|---|---|"]
-    for obj in dict.fromkeys(c["object"] for c in result["cases"]):
-        for sigma in run["sigmas"]:
-            rows = [c for c in result["cases"] if c["object"] == obj and c["sigma"] == sigma]
-            lines.append(
-                f"| {obj} | {sigma:g} | {sum(c['agrees'] for c in rows)} / {len(rows)} | "
-                f"{sum(c['agrees_with_linear'] for c in rows)} / {len(rows)} | "
-                f"{max(abs(c['difference']) for c in rows):.4f} | "
-                f"{np.mean([c['linear_bias'] for c in rows]):+.4f} | "
-                f"{max(abs(c['linear_bias']) for c in rows):.4f} |")
-    return "\n".join(lines)
+        f"noise levels x {len(result['grasps'])} grasps, each case's draws its own; "
+        f"{s['replicates']} independent batches of {run['batch']:,} closings per grasp, the "
+        "fast engine). Written by `python benchmarks/bench_reweight_robot.py`.", "",
+        "| figure | value |", "|---|---|", *calibration_rows(result), "",
+        *calibration_table(result)])
 
 
 def main() -> None:
@@ -115,12 +104,14 @@ def main() -> None:
     parser.add_argument("--sigmas", type=float, nargs="+", default=list(PAPER_SIGMAS))
     parser.add_argument("--batch", type=int, default=40000)
     parser.add_argument("--direct", type=int, default=20000)
+    parser.add_argument("--replicates", type=int, default=5,
+                        help="independent batches per grasp, each judged on every case")
     add_options(parser, __file__)
     args = parser.parse_args()
     grasps = [g for obj in shipped_objects(args.robot)
               for g in shipped_grasps(obj, args.robot)[:args.grasps]]
     cases = [c for i, g in enumerate(grasps) for c in calibration(g, args, seed=10 * i)]
-    result = {"summary": summary(cases, [{"ratio": float("nan")}], [{"ratio": float("nan")}]),
+    result = {"summary": summary(cases, [], []),
               "grasps": [f"{g.object} {g.id}" for g in grasps], "cases": cases,
               "settings": settings(args)}
     publish(__file__, result, args, markdown(result), DOC, (START, END))

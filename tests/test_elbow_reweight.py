@@ -2,8 +2,8 @@
 on outcome fields with a known truth, and its command-line refusals.
 
 The certificate test replaces the closing by a half-space field over the palm's deviation,
-f(delta) = [u . delta < c], whose P(FC) at each elbow is Phi(c / sqrt(u^T S(psi) u)) exactly,
-S(psi) the real self-motion's covariances of a shipped grasp: the claim "no evaluated angle
+f(delta) = [u . delta < c], whose P(FC) at each elbow is Phi((c - u . m(psi)) / sqrt(u^T
+S(psi) u)) exactly, N(m(psi), S(psi)) the model of the real self-motion of a shipped grasp: the claim "no evaluated angle
 beats the chosen one by more than B" is then checked against the closed form, run after run.
 """
 
@@ -21,7 +21,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
 from kinegrasp_env.toolkit.elbow_reweight import (
-    SelfMotionCovariance,
+    SelfMotionDeviation,
     batch_certificate,
     optimize_elbow_reweighted,
 )
@@ -37,17 +37,21 @@ def grasp():
 
 @pytest.fixture(scope="module")
 def field(grasp):
-    """(reach, covariances, u, c, truth per angle) of a half-space field over delta."""
+    """(reach, motion, covariances, means, u, c, truth per angle) of a half-space field over
+    delta."""
     reach = reachable_configurations(grasp)[::3]
-    motion = SelfMotionCovariance(SIGMA)
+    motion = SelfMotionDeviation(SIGMA)
     covs = motion.at(np.stack([q for _, q in reach]))
     # the direction whose spread changes most along the self-motion
     spread = np.array([np.diag(c) for c in covs])
     u = np.zeros(6)
     u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
     c = 0.6 * float(np.sqrt(np.median(spread @ u)))
-    truth = np.array([stats.norm.cdf(c / np.sqrt(u @ s @ u)) for s in covs])
-    return reach, motion, covs, u, c, truth
+    means = motion.mean_at(np.stack([q for _, q in reach]))
+    # the model's deviation N(m, S): P(u . delta < c) = Phi((c - u . m) / sqrt(u^T S u))
+    truth = np.array([stats.norm.cdf((c - u @ m) / np.sqrt(u @ s @ u))
+                      for s, m in zip(covs, means, strict=True)])
+    return reach, motion, covs, means, u, c, truth
 
 
 def synthetic_batch(covs, u, c, n, seed) -> PalmBatch:
@@ -62,13 +66,14 @@ def test_certificate_is_false_at_most_at_its_level(field):
     The statement is false when a rival's true P(FC) exceeds the chosen one's by more than
     B; at delta 0.05, 200 runs with a true false rate <= 0.05 give more than 18 false ones
     with probability < 0.01."""
-    reach, motion, covs, u, c, truth = field
+    reach, motion, covs, means, u, c, truth = field
     assert truth.max() - truth.min() > 0.02  # the angles differ: a real choice
     false = 0
     for run in range(200):
         selection = synthetic_batch(covs, u, c, 600, 2 * run)
-        values = [float(np.exp(gaussian_logpdf(selection.deltas, s) - selection.log_proposal)
-                        @ selection.fc) for s in covs]
+        values = [float(np.exp(gaussian_logpdf(selection.deltas, s, m)
+                               - selection.log_proposal) @ selection.fc)
+                  for s, m in zip(covs, means, strict=True)]
         b = int(np.argmax(values))
         rivals = [reach[j] for j in range(len(reach)) if j != b]
         fresh = synthetic_batch(covs, u, c, 600, 2 * run + 1)

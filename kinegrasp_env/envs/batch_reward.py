@@ -65,7 +65,8 @@ class BatchReward:
         """The reward's estimate at configuration q (dof,) and Gaussian joint noise ``sigma``
         (radians) (the keys of the draws' estimate), or None where the effective sample size
         is below ``minimum``."""
-        est = self.batch.estimate(self.jacobian.covariance(q, sigma)[0])
+        est = self.batch.estimate(self.jacobian.covariance(q, sigma)[0],
+                                  mean=self.jacobian.mean(q, sigma)[0])
         if not est.ess >= minimum:
             return None
         return {"p_fc": est.p_fc.value, "p_fc_ci": est.p_fc.interval,

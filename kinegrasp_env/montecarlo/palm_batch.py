@@ -7,14 +7,17 @@ truly is: the hand root's deviation delta (6,) from its nominal pose, in the fla
 or score (the engines close the hand alone; an object with a support table is the exception,
 refused here). The elbow angle psi and the joint noise change only the distribution of delta:
 to first order, joint errors e ~ N(0, S_q) give delta = J_b(q) e ~ N(0, J_b S_q J_b^T), J_b
-the flange's body Jacobian (6, 7) (:func:`palm_covariance`). So one batch of closings over
-delta drawn from a mixture that covers the targets (:class:`~kinegrasp_env.sampling.reweight.
-MixtureProposal`) answers P(FC) and Q's moments at every psi and sigma by importance weights
-(:meth:`PalmBatch.estimate`), and, the weights being smooth in psi, their derivative too.
+the flange's body Jacobian (6, 7) (:meth:`PalmJacobian.covariance`); to second order its mean
+moves off 0 (:meth:`PalmJacobian.mean`), and the targets are N(m(q), J_b S_q J_b^T). So one
+batch of closings over delta drawn from a mixture that covers the targets
+(:class:`~kinegrasp_env.sampling.reweight.MixtureProposal`) answers P(FC) and Q's moments at
+every psi and sigma by importance weights (:meth:`PalmBatch.estimate`), and, the weights
+being smooth in psi, their derivative too.
 
-What the linearisation costs (the first-order density against joint noise through the exact
-kinematics) is measured by ``benchmarks/bench_reweight.py``; :func:`linear_draws` gives the
-linear-Gaussian deltas that comparison needs.
+What the Gaussian model costs (its density against joint noise through the exact
+kinematics, with and without the second-order mean) is measured by
+``benchmarks/bench_reweight.py``; :func:`linear_draws` gives the model's deltas that
+comparison needs.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, OUTCOMES, make_engine
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse, rotation_log
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.sampling.noise import as_generator
 from kinegrasp_env.sampling.noise_model import offset_transforms
@@ -46,6 +49,9 @@ BATCH_CHUNK = 2000
 BATCH_STREAM = 0xBA7C4
 #: Closings per batch, as a multiple of the direct draws per target it stands for.
 BATCH_FACTOR = 2
+#: The joint step of the second differences of the deviation's mean (radians): the
+#: truncation error is O(step^2) of the mean, the round-off ~1e-16 / step^2 of the reach.
+MEAN_STEP = 1e-3
 
 
 def joint_covariance(sigma) -> np.ndarray:
@@ -167,10 +173,37 @@ class PalmJacobian:
         jac = self(q)
         return jac @ joint_covariance(sigma) @ np.swapaxes(jac, 1, 2)
 
+    def deviation(self, q0: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """(n, 6) the exact deviation of the flange at configurations q (n, dof) from its
+        pose at q0 (n, dof) or (dof,): F(q0)^-1 F(q) as (translation, metres; rotation
+        vector, radians), the convention of the engines' palm error."""
+        q0 = np.atleast_2d(np.asarray(q0, dtype=float))
+        rel = rigid_inverse(self.kin.pose(q0, self.flange)) @ self.kin.pose(q, self.flange)
+        return np.concatenate([rel[:, :3, 3], rotation_log(rel[:, :3, :3])], axis=1)
 
-def linear_draws(covariance: np.ndarray, n: int, seed) -> np.ndarray:
-    """(n, 6) deltas drawn from N(0, covariance (6, 6)) (the linear-Gaussian model)."""
-    return as_generator(seed).multivariate_normal(np.zeros(6), covariance, size=n,
+    def mean(self, q: np.ndarray, sigma, step: float = MEAN_STEP) -> np.ndarray:
+        """(n, 6) the deviation's mean to second order at configurations q (n, dof) for
+        joint noise ``sigma`` (:func:`joint_covariance`, S_q = sum_m l_m v_m v_m^T): with
+        delta(e) the exact deviation of joint errors e, E[delta] = 1/2 sum_m l_m v_m^T H v_m
+        + O(|S_q|^2), each v^T H v by the central second difference
+        (delta(h v) + delta(-h v)) / h^2 (h = ``step``, radians). The first-order model's mean
+        is 0; this shift is what most of its bias on P(FC) comes from
+        (``benchmarks/bench_reweight.py``)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        lam, vec = np.linalg.eigh(joint_covariance(sigma))
+        steps = np.concatenate([step * vec.T, -step * vec.T])  # (14, 7): +h v_m, then -h v_m
+        moved = np.repeat(q, len(steps), axis=0)
+        moved[:, :ARM] += np.tile(steps, (len(q), 1))
+        dev = self.deviation(np.repeat(q, len(steps), axis=0), moved)
+        dev = dev.reshape(len(q), 2, ARM, 6)
+        return 0.5 * np.einsum("m,nmk->nk", lam, dev[:, 0] + dev[:, 1]) / step**2
+
+
+def linear_draws(covariance: np.ndarray, n: int, seed, mean: np.ndarray | None = None
+                 ) -> np.ndarray:
+    """(n, 6) deltas drawn from N(mean (default 0), covariance (6, 6)) (the Gaussian model)."""
+    centre = np.zeros(6) if mean is None else np.asarray(mean, dtype=float)
+    return as_generator(seed).multivariate_normal(centre, covariance, size=n,
                                                   method="cholesky")
 
 
@@ -223,13 +256,15 @@ class PalmBatch:
         """(n,) bool: force closure per draw."""
         return self.outcome == FORCE_CLOSURE
 
-    def estimate(self, covariance: np.ndarray, derivative: np.ndarray | None = None
+    def estimate(self, covariance: np.ndarray, derivative: np.ndarray | None = None, *,
+                 mean: np.ndarray | None = None, mean_derivative: np.ndarray | None = None
                  ) -> PalmEstimate:
-        """P(FC) and Q's moments for deltas ~ N(0, covariance (6, 6)); with ``derivative``
-        (6, 6) = d covariance / d psi, P(FC)'s derivative along psi too."""
-        log_target = gaussian_logpdf(self.deltas, covariance)
-        score = None if derivative is None else gaussian_score(self.deltas, covariance,
-                                                               derivative)
+        """P(FC) and Q's moments for deltas ~ N(mean (6,) (default 0), covariance (6, 6));
+        with ``derivative`` (6, 6) = d covariance / d psi (and ``mean_derivative`` (6,) =
+        d mean / d psi), P(FC)'s derivative along psi too."""
+        log_target = gaussian_logpdf(self.deltas, covariance, mean)
+        score = None if derivative is None else gaussian_score(
+            self.deltas, covariance, derivative, mean, mean_derivative)
         p = weighted_estimate(self.fc, log_target, self.log_proposal, score)
         weights = normalised_weights(log_target, self.log_proposal)
         shares = np.bincount(self.outcome, weights=weights, minlength=len(OUTCOMES))

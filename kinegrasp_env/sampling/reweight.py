@@ -1,4 +1,4 @@
-"""Self-normalised importance weights for zero-mean Gaussian targets.
+"""Self-normalised importance weights for Gaussian targets.
 
 One batch of draws x_1..x_n (n, d) from a proposal g answers the expectation of any f under
 any target density p whose support g covers:
@@ -13,8 +13,9 @@ zero-mean components N(0, S_k), weighted with the mixture's density (the balance
 so that a target equal to one component has weights below about K / (1 - the defensive
 share), and a *defensive* component
 (the components' mean covariance, widened) keeps the weights bounded for targets between
-them. The score d log p / dt of a target N(0, S(t)) along a parameter t gives the estimate's
-derivative, dE/dt ~ sum_i w_i (f_i - E) s_i / sum_i w_i.
+them. A target may have a mean of its own, N(m, S) (a mean small against S's spread keeps
+the weights as tame). The score d log p / dt of a target N(m(t), S(t)) along a parameter t
+gives the estimate's derivative, dE/dt ~ sum_i w_i (f_i - E) s_i / sum_i w_i.
 """
 
 from __future__ import annotations
@@ -43,13 +44,16 @@ def _checked_covariances(covariances: np.ndarray) -> np.ndarray:
     return 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
-def gaussian_logpdf(x: np.ndarray, covariance: np.ndarray) -> np.ndarray:
-    """(n,) log density of N(0, covariance (d, d)) at points x (n, d).
+def gaussian_logpdf(x: np.ndarray, covariance: np.ndarray, mean: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """(n,) log density of N(mean (d,) (default 0), covariance (d, d)) at points x (n, d).
 
     Raises:
         ValueError: the covariance is not positive definite.
     """
     x = np.atleast_2d(np.asarray(x, dtype=float))
+    if mean is not None:
+        x = x - np.asarray(mean, dtype=float)
     cov = _checked_covariances(covariance)[0]
     try:
         chol = np.linalg.cholesky(cov)
@@ -62,14 +66,21 @@ def gaussian_logpdf(x: np.ndarray, covariance: np.ndarray) -> np.ndarray:
             - 0.5 * d * math.log(2.0 * math.pi))
 
 
-def gaussian_score(x: np.ndarray, covariance: np.ndarray, derivative: np.ndarray
+def gaussian_score(x: np.ndarray, covariance: np.ndarray, derivative: np.ndarray,
+                   mean: np.ndarray | None = None, mean_derivative: np.ndarray | None = None
                    ) -> np.ndarray:
-    """(n,) d/dt log N(x; 0, S(t)) at points x (n, d), given S (d, d) and dS/dt (d, d):
-    -tr(S^-1 S') / 2 + x^T S^-1 S' S^-1 x / 2."""
+    """(n,) d/dt log N(x; m(t), S(t)) at points x (n, d), given S (d, d), dS/dt (d, d) and,
+    where the mean moves, m (d,) and dm/dt (d,): with r = x - m,
+    -tr(S^-1 S') / 2 + r^T S^-1 S' S^-1 r / 2 + r^T S^-1 m'."""
     x = np.atleast_2d(np.asarray(x, dtype=float))
+    if mean is not None:
+        x = x - np.asarray(mean, dtype=float)
     inv = np.linalg.inv(_checked_covariances(covariance)[0])
     a = inv @ np.asarray(derivative, dtype=float) @ inv
-    return -0.5 * np.trace(inv @ derivative) + 0.5 * np.einsum("ni,ij,nj->n", x, a, x)
+    out = -0.5 * np.trace(inv @ derivative) + 0.5 * np.einsum("ni,ij,nj->n", x, a, x)
+    if mean_derivative is not None:
+        out = out + x @ (inv @ np.asarray(mean_derivative, dtype=float))
+    return out
 
 
 @dataclass(frozen=True)

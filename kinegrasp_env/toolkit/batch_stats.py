@@ -3,8 +3,9 @@
 Variants that reach the same palm pose with other arm configurations (the paper's Fig. 10)
 differ only in how joint noise moves the palm (:mod:`kinegrasp_env.montecarlo.palm_batch`):
 one batch of closings over the palm's deviation, drawn from a mixture of the variants'
-first-order Gaussians, gives each variant's P(FC) and Q's moments by importance weights. A
-variant whose effective sample size falls below the draws asked for is evaluated directly.
+Gaussians (first-order covariance, second-order mean), gives each variant's P(FC) and Q's
+moments by importance weights. A variant whose effective sample size falls below the draws
+asked for is evaluated directly.
 """
 
 from __future__ import annotations
@@ -51,15 +52,16 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                              f"(one batch answers variants of one palm pose only)")
     name = None if robot is None else robot.name
     q0 = np.stack([np.asarray(g.q0, dtype=float) for g in grasps])
-    covs = PalmJacobian(robot).covariance(q0, sigma)
+    jacobian = PalmJacobian(robot)
+    covs, means = jacobian.covariance(q0, sigma), jacobian.mean(q0, sigma)
     batch = close_batch(q0[0], first.object, covs, BATCH_FACTOR * samples, seed, engine=engine,
                         friction=friction, robot=name)
     _, quality = close_deltas(q0[0], np.zeros((1, 6)), first.object, engine=engine,
                               friction=friction, robot=name)
     nominal = float(quality[0])
     out = []
-    for grasp, cov in zip(grasps, covs, strict=True):
-        est = batch.estimate(cov)
+    for grasp, cov, mean in zip(grasps, covs, means, strict=True):
+        est = batch.estimate(cov, mean=mean)
         if est.ess < samples:
             out.append(direct(grasp) if robot is not None else
                        evaluate_grasp(grasp, JointNoise(sigma), samples, seed, engine=engine,

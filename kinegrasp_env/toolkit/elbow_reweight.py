@@ -3,7 +3,7 @@
 :func:`~kinegrasp_env.toolkit.elbow.optimize_elbow` closes fresh draws at every angle. Here
 (:mod:`kinegrasp_env.montecarlo.palm_batch`) one batch of closings over the palm's deviation
 answers every angle, because the elbow angle psi changes only the deviation's distribution,
-N(0, J(psi) S_q J(psi)^T) to first order:
+N(m(psi), J(psi) S_q J(psi)^T) (its covariance to first order, its mean m to second):
 
 1. **Curve** (the selection batch): every reachable angle of the fine grid re-weighted, with
    its standard error, effective sample size (ESS) and the slope dP/dpsi (the weights'
@@ -24,7 +24,7 @@ N(0, J(psi) S_q J(psi)^T) to first order:
    chosen one by more than B" fails only if the bound of the best true rival fails (the
    intersection-union argument of :mod:`~kinegrasp_env.toolkit.elbow_certificate`). Unlike
    the direct certificate's exact binomial bounds this one is asymptotic, and it bounds the
-   first-order model's P(FC) (whose own bias is measured beside it): its coverage is measured
+   Gaussian model's P(FC) (whose own bias is measured beside it): its coverage is measured
    in ``benchmarks/bench_reweight.py``.
 
 The noise must be zero-mean Gaussian on the arm joints (a scalar or per-joint sigma, or a
@@ -83,12 +83,14 @@ SLOPE_STEP = 1e-4
 BISECTION_STEPS = 10
 #: The certificate's method, in words.
 BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-weighted "
-                "advantage under the first-order model of the palm's deviation, on a fresh "
+                "advantage under the Gaussian model of the palm's deviation, on a fresh "
                 "batch")
 
 
-class SelfMotionCovariance:
-    """The palm deviation's covariance and its derivative along one grasp's self-motion.
+class SelfMotionDeviation:
+    """The palm deviation's Gaussian along one grasp's self-motion: its covariance (first
+    order) and mean (second order: :meth:`~kinegrasp_env.montecarlo.palm_batch.PalmJacobian.
+    mean`), and their derivatives along the elbow angle.
 
     Args:
         joints: the arm joints' noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
@@ -113,36 +115,51 @@ class SelfMotionCovariance:
         """(n, 6, 6) covariance at configurations q (n, 14)."""
         return self.jac.covariance(q, self.joints) + self.palm
 
+    def mean_at(self, q: np.ndarray) -> np.ndarray:
+        """(n, 6) mean at configurations q (n, 14) (a palm error is zero-mean)."""
+        return self.jac.mean(q, self.joints)
+
+    def estimate(self, batch: PalmBatch, q: np.ndarray, psi: float | None = None
+                 ) -> WeightedEstimate:
+        """P(FC) of the batch at configuration q (14,); with ``psi`` (its elbow angle), its
+        slope along psi too (NaN at a limit of the self-motion)."""
+        moved = None if psi is None else self.derivative(q, psi)
+        return batch.estimate(self.at(q[None])[0], None if moved is None else moved[0],
+                              mean=self.mean_at(q[None])[0],
+                              mean_derivative=None if moved is None else moved[1]).p_fc
+
     def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
         """(dof,) q moved to elbow angle psi (radians), None where the path fails."""
         moved, ok = self.ik.set_elbow_angle(q, psi)
         return np.reshape(moved, -1) if np.all(ok) else None
 
-    def derivative(self, q: np.ndarray, psi: float) -> np.ndarray | None:
-        """(6, 6) d covariance / d psi at configuration q (14,) of angle psi, by central
-        differences; None at a limit of the self-motion."""
+    def derivative(self, q: np.ndarray, psi: float
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+        """((6, 6) d covariance / d psi, (6,) d mean / d psi) at configuration q (14,) of
+        angle psi, by central differences; None at a limit of the self-motion."""
         plus = self.configuration(q, psi + SLOPE_STEP)
         minus = self.configuration(q, psi - SLOPE_STEP)
         if plus is None or minus is None:
             return None
-        cov = self.at(np.stack([plus, minus]))
-        return (cov[0] - cov[1]) / (2 * SLOPE_STEP)
+        both = np.stack([plus, minus])
+        cov, mean = self.at(both), self.mean_at(both)
+        return (cov[0] - cov[1]) / (2 * SLOPE_STEP), (mean[0] - mean[1]) / (2 * SLOPE_STEP)
 
 
-def _estimate_point(batch: PalmBatch, motion: SelfMotionCovariance, psi: float, q: np.ndarray
+def _estimate_point(batch: PalmBatch, motion: SelfMotionDeviation, psi: float, q: np.ndarray
                     ) -> WeightedEstimate:
     """P(FC) at one angle from the batch, with its slope along psi (NaN at a limit of the
     self-motion)."""
-    return batch.estimate(motion.at(q[None])[0], motion.derivative(q, psi)).p_fc
+    return motion.estimate(batch, q, psi)
 
 
-def batch_se(batch: PalmBatch, motion: SelfMotionCovariance, q: np.ndarray) -> float:
+def batch_se(batch: PalmBatch, motion: SelfMotionDeviation, q: np.ndarray) -> float:
     """The weights' standard error of P(FC) at configuration q (14,)."""
-    return batch.estimate(motion.at(q[None])[0]).p_fc.se
+    return motion.estimate(batch, q).se
 
 
 def batch_curve(reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
-                motion: SelfMotionCovariance, samples: int, direct) -> list[CurvePoint]:
+                motion: SelfMotionDeviation, samples: int, direct) -> list[CurvePoint]:
     """Every reachable angle re-weighted; where the ESS falls short of ``samples``, topped up
     with direct draws (:func:`topped_up`; ``direct(psi, q, n)``: the angle's
     :class:`ElbowPoint` on n selection draws)."""
@@ -177,7 +194,7 @@ def topped_up(est: WeightedEstimate, direct, psi: float, q: np.ndarray, samples:
 
 
 def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
-                       motion: SelfMotionCovariance, step: float = FINE_STEP
+                       motion: SelfMotionDeviation, step: float = FINE_STEP
                        ) -> tuple[float, np.ndarray, float]:
     """(psi, q (14,), P) of the batch's best angle: the best grid angle, moved to the zero
     of the slope between it and a neighbour one grid ``step`` (radians) away where the slope
@@ -216,12 +233,12 @@ def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
     qm = motion.configuration(qa, mid)
     if qm is None:
         return psi, q, value
-    found = batch.estimate(motion.at(qm[None])[0]).p_fc.value
+    found = motion.estimate(batch, qm).value
     return (mid, qm, found) if found >= value else (psi, q, value)
 
 
 def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float, np.ndarray]],
-                      fresh: PalmBatch, motion: SelfMotionCovariance, epsilon: float,
+                      fresh: PalmBatch, motion: SelfMotionDeviation, epsilon: float,
                       delta: float) -> Certificate:
     """The certificate of the chosen angle from a fresh batch (module docstring, step 4)."""
     # one-sided at level delta / 2: at delta itself the normal bound of two near angles
@@ -229,9 +246,9 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
     # often than delta (the ratio estimators' finite-sample bias and skew); how often each
     # is false on a field with a known truth: benchmarks/bench_reweight.py's "certificate"
     z = normal_quantile(1.0 - delta)
-    covs = motion.at(np.stack([chosen[1]] + [q for _, q in rivals]))
-    weights = [normalised_weights(gaussian_logpdf(fresh.deltas, c), fresh.log_proposal)
-               for c in covs]
+    qs = np.stack([chosen[1]] + [q for _, q in rivals])
+    weights = [normalised_weights(gaussian_logpdf(fresh.deltas, c, m), fresh.log_proposal)
+               for c, m in zip(motion.at(qs), motion.mean_at(qs), strict=True)]
     f = fresh.fc.astype(float)
     p_best = float(weights[0] @ f)
     out = []
@@ -283,7 +300,7 @@ class ReweightRobot:
 
     reach: list
     nominal: int
-    motion: SelfMotionCovariance
+    motion: SelfMotionDeviation
     close: object
     direct: object
     fresh: object
@@ -299,7 +316,7 @@ def default_robot(grasp: Grasp, noise: Noise, samples: int, seed: int, *, engine
     kwargs = {"engine": engine, "friction": friction, **evaluate_kwargs}
     reach = reach if reach is not None else reachable_configurations(grasp, step)
     return ReweightRobot(
-        reach, nominal_index(grasp, reach), SelfMotionCovariance(joint_cov, palm_cov),
+        reach, nominal_index(grasp, reach), SelfMotionDeviation(joint_cov, palm_cov),
         lambda covs, n, stream: close_batch(reach[0][1], grasp.object, covs, n, stream,
                                             engine=engine, friction=friction),
         lambda psi, q, n: evaluated_point(grasp, psi, q, noise, n, seed, kwargs),

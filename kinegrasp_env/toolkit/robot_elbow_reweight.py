@@ -29,7 +29,7 @@ from kinegrasp_env.toolkit.elbow_certificate import DEFAULT_DELTA, DEFAULT_EPSIL
 from kinegrasp_env.toolkit.elbow_reweight import (
     ReweightEvidence,
     ReweightRobot,
-    SelfMotionCovariance,
+    SelfMotionDeviation,
     check_reweight,
     reweighted_search,
 )
@@ -92,7 +92,7 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
                 return ElbowPoint(psi, q, p_fc, ci, fc)
 
             robot = ReweightRobot(
-                reach, nominal, SelfMotionCovariance(joint_cov, palm_cov, description),
+                reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),
                 lambda covs, n, stream: close_batch(q0, grasp.object, covs, n, stream,
                                                     engine=engine, friction=friction,
                                                     robot=description.name),
