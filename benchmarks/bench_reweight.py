@@ -356,6 +356,20 @@ def batch_spread(cases: list[dict]) -> float:
     return float(math.sqrt(var / np.mean([np.mean(v[:, 1] ** 2) for v in groups.values()])))
 
 
+def replicate_interval(cases: list[dict], replicates: list[int]) -> list[float] | None:
+    """The 95% t-interval of the share of agreeing judgements over the batch replicates
+    (each replicate's share one observation: its judgements share a batch), None with one."""
+    from scipy import stats as sps
+
+    if len(replicates) < 2:
+        return None
+    shares = np.array([np.mean([c["agrees"] for c in cases if c.get("replicate", 0) == r])
+                       for r in replicates])
+    half = float(sps.t.ppf(0.975, len(shares) - 1) * shares.std(ddof=1)
+                 / math.sqrt(len(shares)))
+    return [float(shares.mean() - half), float(shares.mean() + half)]
+
+
 def summary(cases: list[dict], elbows: list[dict], levels: list[dict],
             variants: list[dict] | None = None) -> dict:
     """The figures of the calibration (every replicate's judgements; the Gaussian model's
@@ -376,6 +390,7 @@ def summary(cases: list[dict], elbows: list[dict], levels: list[dict],
             "agree_by_replicate": [float(np.mean([c["agrees"] for c in cases
                                                   if c.get("replicate", 0) == r]))
                                    for r in replicates],
+            "agree_share_interval": replicate_interval(cases, replicates),
             "agree_delta": sum(c["agrees_delta"] for c in cases),
             "agree_first_order": sum(c.get("first_order_agrees", False) for c in cases),
             "agree_with_linear": sum(c["agrees_with_linear"] for c in cases),
@@ -406,7 +421,10 @@ def calibration_rows(result: dict) -> list[str]:
     return [
         f"| judgements within the 95% interval of their difference (ESS and draws, pooled) | "
         f"{s['agree']} / {s['judgements']} ({100 * s['agree_share']:.1f}%) |",
-        f"| the same, each batch replicate's share | {shares} |",
+        f"| the same, each batch replicate's share | {shares}"
+        + (" (95% t-interval of the share {:.1f}%-{:.1f}%)".format(
+            *(100 * x for x in s["agree_share_interval"]))
+           if s.get("agree_share_interval") else "") + " |",
         f"| the same with the first-order model (mean 0, the same batches) | "
         f"{s['agree_first_order']} / {s['judgements']} "
         f"({100 * s['agree_first_order'] / s['judgements']:.1f}%) |",
