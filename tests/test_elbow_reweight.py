@@ -3,8 +3,9 @@ on outcome fields with a known truth, and its command-line refusals.
 
 The certificate test replaces the closing by a half-space field over the palm's deviation,
 f(delta) = [u . delta < c], whose P(FC) at each elbow is Phi((c - u . m(psi)) / sqrt(u^T
-S(psi) u)) exactly, N(m(psi), S(psi)) the model of the real self-motion of a shipped grasp: the claim "no evaluated angle
-beats the chosen one by more than B" is then checked against the closed form, run after run.
+S(psi) u)) exactly, N(m(psi), S(psi)) the model of the real self-motion of a shipped grasp:
+the claim "no evaluated angle beats the chosen one by more than B" is then checked against
+the closed form, run after run.
 """
 
 from __future__ import annotations
