@@ -413,9 +413,10 @@ def test_the_hold_score_runs_the_quick_holding_test_on_the_draws(simulator):
 
 def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
     """A 7-joint description robot's batch reward: at the states of a rollout, within four
-    combined standard errors plus the linearisation's bias of 2,000 direct draws of the
+    combined standard errors plus the Gaussian model's bias of 2,000 direct draws of the
     same configuration and noise (the re-weighted elbow's calibration on the Panda,
-    ``benchmarks/bench_reweight_robot.py``: bias at most 0.012)."""
+    ``benchmarks/bench_reweight_robot.py``: bias at most 0.0145 in a case, sampling
+    included)."""
     env = gym.make("KineGrasp-v0", robot="panda", reward="batch", batch_size=1024).unwrapped
     env.reset(seed=3, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
     checked = 0
@@ -427,7 +428,7 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
         direct = evaluate_robot_grasp(here, sigma=0.02, n=2000, seed=9, engine="fast").p_fc
         lo, hi = info["p_fc_ci"]
         se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct * (1 - direct) / 2000))
-        assert abs(info["p_fc"] - direct) <= 4 * se + 0.012, (info, direct)
+        assert abs(info["p_fc"] - direct) <= 4 * se + 0.015, (info, direct)
         checked += 1
     assert checked >= 2
     env.close()

@@ -68,9 +68,10 @@ def test_fig7_of_a_robot_reports_its_pair_on_fresh_draws(tmp_path, capsys):
     assert (out / "fig7_cube.png").read_bytes()[:4] == b"\x89PNG"
 
 
-#: The first-order density's bias on P(FC) for the Panda, as
-#: benchmarks/bench_reweight_robot.py measures it (at most 0.012 per case, sampling included).
-LINEAR_BIAS = 0.012
+#: The Gaussian model's bias on P(FC) for the Panda, as benchmarks/bench_reweight_robot.py
+#: measures it: at most 0.0145 in a case (its own sampling error of +-0.0085 included; the
+#: largest mean over a grasp's angles 0.0028), rounded up.
+LINEAR_BIAS = 0.015
 
 
 def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
