@@ -172,6 +172,7 @@ def test_bad_values_are_one_line(capsys, argv, needle):
 #: Every command that takes ``--robot``, with the arguments it requires besides.
 ROBOT_COMMANDS = {
     "ee": [],
+    "convergence": ["--out", "c.png"],
     "evaluate": ["--object", "cube", "--grasp", "0", "--sigma", "0.01", "--samples", "10"],
     "reproduce": ["fig10"],
     "plan": ["--object", "cube"],

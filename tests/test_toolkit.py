@@ -79,7 +79,8 @@ def test_plan_then_rank(tmp_path, obj):
     assert proc.returncode == 0, proc.stderr
     rows = _read(ranked)
     assert list(rows[0]) == ["id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew",
-                             "q_nominal", "error", "samples", "engine", *OUTCOMES]
+                             "q_nominal", "error", "samples", "engine", *OUTCOMES,
+                             "nominal_fc"]
     assert {r["engine"] for r in rows} == {"pybullet"}
     for r in rows:  # every draw has one outcome; P(FC) is the force-closure share
         counts = [int(r[name]) for name in OUTCOMES]
@@ -139,7 +140,8 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
     assert out.read_text() == (tmp_path / "full.csv").read_text()
     assert not partial.exists()
     rows = _read(out)
-    assert list(rows[0])[-5:] == ["engine", *OUTCOMES] and {r["engine"] for r in rows} == {
+    assert list(rows[0])[-6:] == ["engine", *OUTCOMES, "nominal_fc"] and {
+        r["engine"] for r in rows} == {
         "fast"}
     # the resumed candidates' outcome counts came back from the log
     assert all(sum(int(r[name]) for name in OUTCOMES) == 40 for r in rows)
