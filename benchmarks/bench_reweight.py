@@ -76,31 +76,33 @@ def spread_angles(reach: list, count: int) -> list:
     return [reach[i] for i in idx]
 
 
+def pooled_half_width(p: float, ess: float, q: float, n: int) -> float:
+    """The 95% half-width of the difference of two proportions, p worth ``ess`` draws and q
+    of n, with the pooled proportion's variance (the two-proportion test's: it stays honest
+    where one estimate is 0 or 1)."""
+    pooled = (p * ess + q * n) / (ess + n)
+    return Z95 * math.sqrt(max(pooled * (1 - pooled), 0.0) * (1 / ess + 1 / n))
+
+
 def judged(case: dict, n: int) -> dict:
-    """The case with its verdicts. ``agrees``: the difference within the 95% interval of two
-    proportions, one from the effective sample size and one from the n direct draws, with the
-    pooled proportion's variance (the two-proportion test's: it stays honest where one
-    estimate is 0 or 1). ``agrees_delta``: within the interval of the weights' delta-method
-    standard error and the binomial one (which understates the error of a rare outcome
-    seen in few draws). The Gaussian model's bias: its 95% interval from both binomial
-    errors."""
+    """The case with its verdicts. ``agrees``: the difference within
+    :func:`pooled_half_width` of the effective sample size and the n direct draws.
+    ``agrees_delta``: within the interval of the weights' delta-method standard error and
+    the binomial one (which understates the error of a rare outcome seen in few draws). The
+    Gaussian model's bias: its 95% interval from both binomial errors."""
     p_rw, p_d, ess = case["reweighted"], case["direct"], case["ess"]
-    pooled = (p_rw * ess + p_d * n) / (ess + n)
-    half = Z95 * math.sqrt(max(pooled * (1 - pooled), 0.0) * (1 / ess + 1 / n))
+    half = pooled_half_width(p_rw, ess, p_d, n)
     half_delta = Z95 * math.hypot(case["reweighted_se"], binomial_se(p_d, n))
     diff = p_rw - p_d
     p_l = case["linear"]
-    pooled_l = (p_rw * ess + p_l * n) / (ess + n)
-    half_l = Z95 * math.sqrt(max(pooled_l * (1 - pooled_l), 0.0) * (1 / ess + 1 / n))
     first = {}
     if "first_order" in case:  # the first-order model's estimate, judged alike
-        p_f, ess_f = case["first_order"], case["first_order_ess"]
-        pooled_f = (p_f * ess_f + p_d * n) / (ess_f + n)
-        half_f = Z95 * math.sqrt(max(pooled_f * (1 - pooled_f), 0.0) * (1 / ess_f + 1 / n))
-        first = {"first_order_agrees": abs(p_f - p_d) <= half_f}
+        p_f = case["first_order"]
+        first = {"first_order_agrees": abs(p_f - p_d)
+                 <= pooled_half_width(p_f, case["first_order_ess"], p_d, n)}
     return {**case, **first, "weights_difference": p_rw - p_l,
-            "agrees_with_linear": abs(p_rw - p_l) <= half_l, "difference": diff,
-            "half_width": half, "agrees": abs(diff) <= half,
+            "agrees_with_linear": abs(p_rw - p_l) <= pooled_half_width(p_rw, ess, p_l, n),
+            "difference": diff, "half_width": half, "agrees": abs(diff) <= half,
             "half_width_delta": half_delta, "agrees_delta": abs(diff) <= half_delta,
             "linear_bias": case["linear"] - p_d,
             "linear_bias_half_width": Z95 * math.hypot(binomial_se(case["linear"], n),

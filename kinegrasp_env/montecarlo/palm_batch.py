@@ -187,8 +187,7 @@ class PalmJacobian:
         delta(e) the exact deviation of joint errors e, E[delta] = 1/2 sum_m l_m v_m^T H v_m
         + O(|S_q|^2), each v^T H v by the central second difference
         (delta(h v) + delta(-h v)) / h^2 (h = ``step``, radians). The first-order model's mean
-        is 0; this shift is what most of its bias on P(FC) comes from
-        (``benchmarks/bench_reweight.py``)."""
+        is 0; what the shift does to P(FC) is measured by ``benchmarks/bench_reweight.py``."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         lam, vec = np.linalg.eigh(joint_covariance(sigma))
         steps = np.concatenate([step * vec.T, -step * vec.T])  # (14, 7): +h v_m, then -h v_m

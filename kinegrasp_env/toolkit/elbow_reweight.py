@@ -146,18 +146,6 @@ class SelfMotionDeviation:
         return (cov[0] - cov[1]) / (2 * SLOPE_STEP), (mean[0] - mean[1]) / (2 * SLOPE_STEP)
 
 
-def _estimate_point(batch: PalmBatch, motion: SelfMotionDeviation, psi: float, q: np.ndarray
-                    ) -> WeightedEstimate:
-    """P(FC) at one angle from the batch, with its slope along psi (NaN at a limit of the
-    self-motion)."""
-    return motion.estimate(batch, q, psi)
-
-
-def batch_se(batch: PalmBatch, motion: SelfMotionDeviation, q: np.ndarray) -> float:
-    """The weights' standard error of P(FC) at configuration q (14,)."""
-    return motion.estimate(batch, q).se
-
-
 def batch_curve(reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
                 motion: SelfMotionDeviation, samples: int, direct) -> list[CurvePoint]:
     """Every reachable angle re-weighted; where the ESS falls short of ``samples``, topped up
@@ -165,7 +153,7 @@ def batch_curve(reach: list[tuple[float, np.ndarray]], batch: PalmBatch,
     :class:`ElbowPoint` on n selection draws)."""
     out = []
     for psi, q in reach:
-        est = _estimate_point(batch, motion, psi, q)
+        est = motion.estimate(batch, q, psi)
         if not est.ess >= samples:  # a NaN effective sample size is topped up too
             out.append(topped_up(est, direct, psi, q, samples))
             continue
@@ -225,7 +213,7 @@ def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
         qm = motion.configuration(qa, mid)
         if qm is None:
             break
-        if _estimate_point(batch, motion, mid, qm).derivative > 0:
+        if motion.estimate(batch, qm, mid).derivative > 0:
             pa, qa = mid, qm
         else:
             pb = mid
@@ -290,7 +278,7 @@ class ReweightRobot:
         reach: (psi, q) along the grasp's self-motion, sorted by psi (the grasp's own q0
             included).
         nominal: the index of the grasp's own configuration in ``reach``.
-        motion: the deviation's covariance along the self-motion.
+        motion: the deviation's Gaussian along the self-motion.
         close: ``close(covariances (K, 6, 6), n, stream) ->`` :class:`PalmBatch` at the
             grasp's palm pose.
         direct: ``direct(psi, q, n) ->`` :class:`ElbowPoint` on n selection draws.
@@ -372,7 +360,7 @@ def reweighted_search(grasp: Grasp, noise: Noise, samples: int, seed: int,
     best = next((p for p in points if abs(p.psi - psi) < 1e-12), None)
     if best is None:  # between grid points: the continuous optimum joins the curve
         z = normal_quantile(0.95)
-        se = batch_se(selection, motion, q)
+        se = motion.estimate(selection, q).se
         best = ElbowPoint(psi, q, estimate, (max(0.0, estimate - z * se),
                                              min(1.0, estimate + z * se)), np.zeros(0, bool))
         points = sorted([*points, best], key=lambda p: p.psi)
@@ -391,7 +379,7 @@ def reweighted_search(grasp: Grasp, noise: Noise, samples: int, seed: int,
     # disagreement is a hint, not a proof, that the linearisation fails there)
     p_fresh = float(best.fresh_fc.mean())
     se = math.hypot(math.sqrt(max(p_fresh * (1 - p_fresh), 1e-12) / samples),
-                    batch_se(selection, motion, q))
+                    motion.estimate(selection, q).se)
     agrees = abs(estimate - p_fresh) <= normal_quantile(0.95) * se
     return result, ReweightEvidence(n, curve, estimate, agrees, selection,
                                     motion.at(nominal_q[None])[0], motion.at(q[None])[0])
