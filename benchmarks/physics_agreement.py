@@ -31,6 +31,9 @@ configuration; higher: predicted to hold):
 * ``hold_capacity``: the largest multiple of that load they carry (continuous);
 * ``quick_hold``: the quick holding test in pybullet (``QUICK_PROTOCOL``; 0/1): against
   MuJoCo's labels it is a dynamic score judged by the other simulator;
+* ``quick_hold_mujoco``: the same quick test in MuJoCo: against pybullet's labels, the other
+  simulator's dynamic score the other way round (a yes/no score's AUC is its balanced
+  accuracy, which is not symmetric in score and label);
 * baselines from geometry alone: ``-centre_distance`` (the fingertips' centre at the
   pre-shape to the centre of mass, negated).
 
@@ -67,12 +70,11 @@ from thin_objects import THIN_OBJECTS, import_thin_objects
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
-from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine, quick_hold_engine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
-from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
@@ -83,7 +85,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
 SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "static_hold", "hold_capacity",
-          "quick_hold", "-centre_distance")
+          "quick_hold", "quick_hold_mujoco", "-centre_distance")
 BOOTSTRAP = 2000
 
 
@@ -147,15 +149,17 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
             "fc_patch": (patch_draws.outcome == FORCE_CLOSURE).astype(float),
             "q_patch": patch_draws.quality, "p_fc": p_fc,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
-            "quick_hold": quick_hold(robot, obj, q), "-centre_distance": -distance}
+            "quick_hold": quick_hold(robot, obj, q, "pybullet"),
+            "quick_hold_mujoco": quick_hold(robot, obj, q, "mujoco"),
+            "-centre_distance": -distance}
 
 
-def quick_hold(robot: str, obj: str, q: np.ndarray) -> np.ndarray:
-    """(n,) 1.0 where the quick holding test in pybullet holds configuration q (n, dof)."""
+def quick_hold(robot: str, obj: str, q: np.ndarray, simulator: str) -> np.ndarray:
+    """(n,) 1.0 where the quick holding test in ``simulator`` holds configuration q (n, dof)."""
     if robot == "kuka_sdh":
-        engine = PhysicsEngine(obj, protocol=QUICK_PROTOCOL, simulator="pybullet")
+        engine = PhysicsEngine(obj, protocol=QUICK_PROTOCOL, simulator=simulator)
     else:
-        engine = RobotHoldEngine(robot, obj, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS)
+        engine = quick_hold_engine(robot, obj, simulator=simulator)
     try:
         return (engine.run_hold(q)[1].outcome == HELD).astype(float)
     finally:

@@ -37,7 +37,7 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import evaluate_robot, refuse_hold_scores
+from kinegrasp_env.cli.robot_grasps import evaluate_robot, refuse_holding_test
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
@@ -52,7 +52,12 @@ def cmd_evaluate(args) -> int:
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
         return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction,
                               noise)
-    refuse_hold_scores(args, robot)
+    refuse_holding_test(args, robot)
+    if args.static_hold:
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+        with reported(ValueError):
+            check_hold_noise(noise)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)
@@ -61,12 +66,14 @@ def cmd_evaluate(args) -> int:
     report_path(args.report)
     with executor_from(args) as executor:
         stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
-                               return_draws=bool(args.plot or args.report), progress=True,
-                               executor=executor)
+                               return_draws=bool(args.plot or args.report or args.static_hold),
+                               progress=True, executor=executor)
+    hold = static_hold_record(grasp, noise, seed, stats, friction) if args.static_hold else {}
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
     if args.json:
-        print(json.dumps({**stats.to_json(), **({} if per_draw else {"friction": friction})}))
+        print(json.dumps({**stats.to_json(), **({} if per_draw else {"friction": friction}),
+                          **hold}))
     else:
         lo, hi = stats.p_fc_ci
         full = label if args.noise_spec else f"{label} ({args.noise})"
@@ -77,6 +84,8 @@ def cmd_evaluate(args) -> int:
               f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
               f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error (nominal - mean) "
               f"{stats.error:.5f}")
+        if hold:
+            print_static_hold(hold)
         print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
@@ -91,6 +100,30 @@ def cmd_evaluate(args) -> int:
     if args.report:
         evaluate_report(args, grasp, index, stats, friction)
     return 0
+
+
+def static_hold_record(grasp, noise, seed: int, stats, friction: float) -> dict:
+    """``--static-hold`` of the default robot's evaluation: P(hold, static) of its draws
+    (:func:`~kinegrasp_env.montecarlo.draw_holds.grasp_holds`), its Wilson 95% interval and
+    the object's mass, as ``evaluate --json`` names them."""
+    from kinegrasp_env.cli.common import NUM_EDGES
+    from kinegrasp_env.montecarlo.draw_holds import grasp_holds
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+    from kinegrasp_env.sampling.stats import wilson_interval
+
+    held, mass = grasp_holds(grasp, noise, seed, stats.draws, chunk=DEFAULT_CHUNK,
+                             friction=friction, num_edges=NUM_EDGES)
+    n = int(held.size)
+    return {"p_hold_static": float(held.mean()),
+            "p_hold_static_ci": list(wilson_interval(int(held.sum()), n)), "mass_kg": mass}
+
+
+def print_static_hold(hold: dict) -> None:
+    """The line ``evaluate`` prints for P(hold, static) (``hold``: :func:`static_hold_record`)."""
+    lo, hi = hold["p_hold_static_ci"]
+    print(f"  P(hold, static) = {hold['p_hold_static']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
+          f"object mass {hold['mass_kg']:.3f} kg, six gravity directions and the lift, the "
+          f"hand's effort limits)")
 
 
 def grasp_at_elbow(grasp, text: str):

@@ -25,7 +25,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
-from kinegrasp_env.cli.robot_grasps import refuse_hold_scores
+from kinegrasp_env.cli.robot_grasps import refuse_holding_test
 from kinegrasp_env.cli.robot_ranking import check_robot_candidates, robot_best_elbows
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -67,7 +67,7 @@ def _merge_side(result: CandidateResult, side: dict[int, CandidateResult]) -> No
 
 
 def _hold_scores(args) -> tuple[bool, bool]:
-    """(static hold check, quick holding test) a description robot's ranking runs."""
+    """(static hold check, quick holding test) a ranking runs."""
     static = bool(args.static_hold) or args.criterion == "hold_static"
     return static, args.criterion == "hold"
 
@@ -85,10 +85,16 @@ def cmd_rank(args) -> int:
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     described = robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps)
+    static, _ = _hold_scores(args)
     if described:
         check_robot_candidates(args, grasps, robot, noise)
     else:
-        refuse_hold_scores(args, robot)
+        refuse_holding_test(args, robot)
+        if static:
+            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+            with reported(ValueError):
+                check_hold_noise(noise)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
@@ -104,9 +110,15 @@ def cmd_rank(args) -> int:
         counts, moments, draws = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
             friction=friction, num_edges=NUM_EDGES, engine=engine, method=METHOD,
-            executor=executor, return_draws=outcomes)
-        side.setdefault(index, CandidateResult(index)).add_outcomes(
-            dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
+            executor=executor, return_draws=outcomes or static)
+        record = side.setdefault(index, CandidateResult(index))
+        record.add_outcomes(dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
+        if static:  # the static hold check of the same draws
+            from kinegrasp_env.montecarlo.draw_holds import grasp_holds
+
+            held, _ = grasp_holds(grasps[index], noise, seed, draws, chunk=chunk,
+                                  first_chunk=first, friction=friction, num_edges=NUM_EDGES)
+            record.add_holds("static", int(held.sum()), int(held.size))
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
         return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
 
@@ -119,6 +131,8 @@ def cmd_rank(args) -> int:
         settings.update(robot=robot, criterion_scores=list(scores))
         if scores[1]:  # the holding test runs: its simulator is a setting too
             settings["hold_simulator"] = args.hold_simulator
+    elif static:  # the default robot's static hold check: a setting of the log
+        settings["criterion_scores"] = [True, False]
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 

@@ -24,16 +24,16 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.execution_options import executor_from
 
 
-def refuse_hold_scores(args, robot: str) -> None:
-    """CLIError for a hold score (``--static-hold``, ``--hold-test``, ``--criterion
-    hold_static`` or ``hold``, ``--hold-simulator``) of the default robot, whose engines run
-    neither."""
-    if getattr(args, "static_hold", False) or getattr(args, "hold_test", False) or getattr(
-            args, "criterion", None) in ("hold_static", "hold") or getattr(
+def refuse_holding_test(args, robot: str) -> None:
+    """CLIError for the quick holding test as a score (``--hold-test``, ``--criterion hold``,
+    ``--hold-simulator``) of the default robot: its grip presses with every closing motor at
+    full effort, the rule for jaws, which leaves a three-finger grip unbalanced (the SDH's
+    own holding test, ``validate``, solves the grip's balance)."""
+    if getattr(args, "hold_test", False) or getattr(args, "criterion", None) == "hold" or getattr(
             args, "hold_simulator", "pybullet") != "pybullet":
-        raise CLIError(f"the hold scores (--static-hold, --hold-test, --criterion hold_static "
-                       f"or hold, --hold-simulator) run for description robots such as --robot "
-                       f"panda, not for {robot}")
+        raise CLIError(f"the quick holding test as a score (--hold-test, --criterion hold, "
+                       f"--hold-simulator) grips as parallel jaws do, not as {robot}'s three "
+                       f"fingers; run {robot}'s holding test with kinegrasp validate")
 
 
 def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
