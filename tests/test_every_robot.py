@@ -31,8 +31,13 @@ COMMANDS = {
                   "--samples", "6", "--json"], None),
     "evaluate --noise-spec": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--noise-spec",
                                "spec.yaml", "--samples", "6", "--json"], None),
+    "evaluate --static-hold": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--sigma",
+                                "0.01", "--samples", "6", "--static-hold", "--json"], None),
     "rank": (["rank", "{g}", "--sigma", "0.01", "--samples", "6", "--json", "--out",
               "{o}.csv"], "{o}.csv"),
+    "rank --criterion hold_static": (["rank", "{g}", "--sigma", "0.01", "--samples", "6",
+                                      "--criterion", "hold_static", "--out", "{o}.csv"],
+                                     "{o}.csv"),
     "rank --adaptive": (["rank", "{g}", "--samples", "30", "--adaptive", "--top-k", "1",
                          "--out", "{o}.csv"], "{o}.csv"),
     "elbow": (["elbow", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--json"], None),
@@ -84,6 +89,10 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
         assert Path(written.format(o=out)).is_file(), (argv, text)
     if "--json" in argv and command.split()[0] in ("evaluate", "elbow"):
         assert json.loads(text).get("robot", "kuka_sdh") == robot
+    if "--static-hold" in argv:
+        assert 0.0 <= json.loads(text)["p_hold_static"] <= 1.0
+    if "hold_static" in argv:
+        assert "p_hold_static" in Path(written.format(o=out)).read_text().splitlines()[0]
     if command.startswith("validate"):
         summary = json.loads(Path(written.format(o=out)).read_text())
         assert summary["settings"].get("robot", "kuka_sdh") == robot

@@ -144,7 +144,10 @@ def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
                                                                                      strict=True))
 
 
-def test_hold_scores_are_refused_for_the_default_robot(capsys) -> None:
+def test_the_holding_test_as_a_score_is_refused_for_the_default_robot(capsys) -> None:
+    """Its grip (every closing motor at full effort) is the jaws' rule; the SDH's three
+    fingers have their own holding test (``validate``). The static check runs: its tests
+    are in test_draw_holds.py."""
     from kinegrasp_env.cli import main
     from kinegrasp_env.world.grasps import shipped_grasp_file
 
@@ -152,7 +155,8 @@ def test_hold_scores_are_refused_for_the_default_robot(capsys) -> None:
                    "--samples", "10"])
     assert status != 0
     err = capsys.readouterr().err
-    assert "description robots" in err and err.count("\n") == 1
+    assert "grips as parallel jaws do, not as kuka_sdh's three fingers" in err
+    assert err.count("\n") == 1
 
 
 def test_evaluate_reports_both_hold_scores(capsys) -> None:
@@ -192,7 +196,7 @@ def test_the_holding_test_runs_in_mujoco_when_asked(capsys) -> None:
       "mujoco"], "--hold-simulator mujoco is the holding test's simulator; it runs with "
                  "--hold-test"),
     (["evaluate", "--object", "cube", "--samples", "2", "--hold-simulator", "mujoco"],
-     "--hold-simulator) run for description robots")])
+     "grips as parallel jaws do, not as kuka_sdh")])
 def test_a_hold_simulator_without_a_holding_test_is_one_line(capsys, argv, needle) -> None:
     from kinegrasp_env.cli import main
 

@@ -314,7 +314,7 @@ def add_static_hold_arg(parser: argparse.ArgumentParser, shows: str) -> None:
                         help="also check each draw's static hold: can its contacts carry the "
                         "object's weight (catalog mass) in six gravity directions and the "
                         "lift with forces in the friction cones and the hand's effort "
-                        f"limits; {shows} (robots other than the default)")
+                        f"limits; {shows}")
 
 
 def add_hold_simulator_arg(parser: argparse.ArgumentParser) -> None:

@@ -63,7 +63,7 @@ its arm and hand, and pictures of its whole URDF with the object
 (:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
 default robot's hand; ``reward="batch"``; and a reward that scores
 holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
-P(FC)).
+P(FC)). The default robot's reward scores the static hold check too (``score="hold_static"``).
 
 Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
@@ -194,9 +194,10 @@ class KineGraspEnv(gym.Env):
             file (YAML/JSON); the observation shows its joint sigma and distribution.
         robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
             listing the known ones. Another robot: see the module docstring.
-        score: what the reward scores: ``pfc`` (P(force closure)); for a robot other than
-            the default also ``hold_static`` (the static hold check's P(hold)) or ``hold``
-            (the quick holding test's, in ``hold_simulator``: slow, joint noise only)
+        score: what the reward scores: ``pfc`` (P(force closure)), ``hold_static`` (the
+            static hold check's P(hold) on the same draws; the default robot's: joint and hand
+            noise only) or, for a robot other than the default, ``hold`` (the quick holding
+            test's, in ``hold_simulator``: slow, joint noise only)
             (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
         hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or
@@ -224,10 +225,10 @@ class KineGraspEnv(gym.Env):
             engine = "fast"
         if score not in SCORES:
             raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-        if own and score != "pfc":
-            raise ValueError(f"score {score!r} is for robots other than {DEFAULT_ROBOT!r} "
-                             f"(e.g. robot='panda'), whose engines check holding; "
-                             f"{DEFAULT_ROBOT!r} scores 'pfc'")
+        if own and score == "hold":
+            raise ValueError(f"score 'hold' (the quick holding test) grips as parallel jaws "
+                             f"do, not as {DEFAULT_ROBOT}'s three fingers; {DEFAULT_ROBOT} "
+                             f"scores 'pfc' or 'hold_static'")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of "
                              f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
@@ -295,6 +296,7 @@ class KineGraspEnv(gym.Env):
         if self._robot is not None and self.noise_model is not None:
             self._robot.check_noise(self.noise_model)
         self._engines: dict[tuple, Engine] = {}
+        self._hold_checks: dict[str, object] = {}
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
         self._ik: ArmIK | None = None
         self._viewer = None
@@ -444,10 +446,25 @@ class KineGraspEnv(gym.Env):
         fc = draws.outcome == FORCE_CLOSURE
         counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
         q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
-        return {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
-                "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
-                "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-                "score_value": float(fc.mean()), "reward_method": "draws"}
+        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+                 "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
+                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
+                 "score_value": float(fc.mean()), "reward_method": "draws"}
+        if self.score == "hold_static":  # the static hold check of the same draws
+            held = self._hold_check(self.grasp.object).chunk_held(
+                self.q, self.noise, seed, draws, chunk=self.n_draws)
+            stats.update(p_hold=float(held.mean()),
+                         p_hold_ci=wilson_interval(int(held.sum()), held.size),
+                         score_value=float(held.mean()))
+        return stats
+
+    def _hold_check(self, object_name: str):
+        """The default robot's static hold check on ``object_name``, built once."""
+        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck
+
+        if object_name not in self._hold_checks:
+            self._hold_checks[object_name] = DrawHoldCheck(object_name)
+        return self._hold_checks[object_name]
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
@@ -505,6 +522,10 @@ class KineGraspEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}")
         self.grasp, self.noise = self._pick_task(options)
+        if self._robot is None and self.score == "hold_static":
+            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+            check_hold_noise(self.noise)
         self.q = self.grasp.q0.copy()
         self.steps = 0
         if options.get("psi") is not None:

@@ -20,6 +20,7 @@ from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS
 from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 from kinegrasp_env.world.objects import load_object
@@ -45,11 +46,14 @@ class DrawHoldCheck:
         object_name: the catalog object (its pose and mass).
         friction, num_edges: the friction cones (the quality measure's).
         protocol: the holding test whose loads are checked (default: the full protocol).
+        description: the default robot's description (default: the catalog's; another with
+            the same joints, fingers and links, e.g. other ``efforts``).
     """
 
     def __init__(self, object_name: str, *, friction: float = 0.5, num_edges: int = 8,
-                 protocol: HoldProtocol | None = None) -> None:
-        description = load_robot(DEFAULT_ROBOT)
+                 protocol: HoldProtocol | None = None,
+                 description: RobotDescription | None = None) -> None:
+        description = description or load_robot(DEFAULT_ROBOT)
         self.arm_dof = description.arm_dof
         self.dof = description.model.dof
         self.check = StaticHoldCheck(description, load_object(object_name), friction=friction,
@@ -61,13 +65,10 @@ class DrawHoldCheck:
         """The object's mass, kg (the catalog's)."""
         return self.check.mass
 
-    def held(self, arm: np.ndarray, draws: DrawBatch) -> np.ndarray:
-        """(n,) whether each draw's closing holds all six loads.
-
-        Args:
-            arm: (n, 7) the draws' arm joints, radians.
-            draws: the engine's n draws (contacts in the object frame, the closed hand).
-        """
+    def configurations(self, arm: np.ndarray, draws: DrawBatch) -> np.ndarray:
+        """(n, dof) each draw's final configuration in the description's joint order: its arm
+        joints ``arm`` (n, 7), radians, then the closed hand the engine recorded (NaN where
+        the hand did not close)."""
         arm = np.asarray(arm, dtype=float)
         if arm.shape != (len(draws), self.arm_dof):
             raise ValueError(f"arm joints of shape {arm.shape} for {len(draws)} draws of a "
@@ -75,26 +76,43 @@ class DrawHoldCheck:
         if self.arm_dof + draws.hand.shape[1] != self.dof:
             raise ValueError(f"{draws.hand.shape[1]} hand joints per draw; {DEFAULT_ROBOT}'s "
                              f"description has {self.dof - self.arm_dof}")
-        rows = np.flatnonzero((draws.n_contacts > 0) & np.isfinite(draws.hand).all(axis=1))
+        return np.concatenate([arm, draws.hand], axis=1)
+
+    def held(self, arm: np.ndarray, draws: DrawBatch) -> np.ndarray:
+        """(n,) whether each draw's closing holds all six loads.
+
+        Args:
+            arm: (n, 7) the draws' arm joints, radians.
+            draws: the engine's n draws (contacts in the object frame, the closed hand).
+        """
+        q = self.configurations(arm, draws)
+        rows = np.flatnonzero((draws.n_contacts > 0) & np.isfinite(q).all(axis=1))
         out = np.zeros(len(draws), dtype=bool)
         if rows.size:
-            q = np.concatenate([arm[rows], draws.hand[rows]], axis=1)
-            out[rows] = self.check.held(q, {}, draws.points[rows], draws.normals[rows],
+            out[rows] = self.check.held(q[rows], {}, draws.points[rows], draws.normals[rows],
                                         draws.finger[rows].astype(int),
                                         draws.link[rows].astype(int)).all(axis=1)
         return out
+
+
+    def chunk_held(self, q0: np.ndarray, noise, seed: int, draws: DrawBatch, *, chunk: int,
+                   first_chunk: int = 0) -> np.ndarray:
+        """(n,) the verdicts of the n draws a run from configuration q0 (14,) made with
+        ``noise`` and ``seed`` in chunks of ``chunk`` from chunk ``first_chunk`` on (the draws'
+        arm joints are those chunks' noise:
+        :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`)."""
+        check_hold_noise(noise)
+        sizes = chunk_sizes(len(draws), chunk)
+        chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]
+        arm = chunk_configurations(q0, noise, seed, chunks)[:, :self.arm_dof]
+        return self.held(arm, draws)
 
 
 def grasp_holds(grasp: Grasp, noise, seed: int, draws: DrawBatch, *, chunk: int,
                 first_chunk: int = 0, friction: float = 0.5, num_edges: int = 8
                 ) -> tuple[np.ndarray, float]:
     """(held (n,), the object's mass in kg) of the n draws an evaluation of ``grasp`` made
-    with ``noise`` and ``seed`` in chunks of ``chunk`` from chunk ``first_chunk`` on (the
-    draws' arm joints are those chunks' noise:
-    :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`)."""
-    check_hold_noise(noise)
-    sizes = chunk_sizes(len(draws), chunk)
-    chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]
-    arm = chunk_configurations(grasp.q0, noise, seed, chunks)[:, :7]
+    (:meth:`DrawHoldCheck.chunk_held` from the grasp's q0)."""
     hold = DrawHoldCheck(grasp.object, friction=friction, num_edges=num_edges)
-    return hold.held(arm, draws), hold.mass
+    return hold.chunk_held(grasp.q0, noise, seed, draws, chunk=chunk,
+                           first_chunk=first_chunk), hold.mass
