@@ -129,11 +129,26 @@ def test_the_envs_hold_score_is_the_check_of_its_step_draws():
     env.close()
 
 
-def test_the_env_refuses_the_holding_test_score_for_the_default_robot():
+def test_the_envs_holding_test_score_runs_on_its_step_draws():
+    """``score="hold"`` on the default robot: P(hold) is the SDH's quick holding test on the
+    step's draws (the env's draw seed, chunk 0 of the stream layout, built here)."""
     import gymnasium as gym
 
     import kinegrasp_env  # noqa: F401
+    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
-    with pytest.raises(ValueError, match="grips as parallel jaws do, not as kuka_sdh") as error:
-        gym.make("KineGrasp-v0", score="hold")
-    assert "\n" not in str(error.value)
+    env = gym.make("KineGrasp-v0", score="hold", n_draws=6).unwrapped
+    env.reset(seed=0, options={"object": "cube", "sigma": SIGMA, "noise": "gaussian"})
+    info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[-1]
+    assert info["score"] == "hold" and info["reward_score"] == info["p_hold"]
+    rng = np.random.default_rng(np.random.SeedSequence(info["draw_seed"], spawn_key=(0,)))
+    q = np.repeat(env.q[None], 6, axis=0)
+    q[:, :7] += rng.normal(0.0, SIGMA, (6, 7))
+    engine = PhysicsEngine("cube", protocol=QUICK_PROTOCOL)
+    try:
+        held = engine.run_hold(q)[1].outcome == HELD
+    finally:
+        engine.close()
+    assert info["p_hold"] == held.mean()
+    env.close()

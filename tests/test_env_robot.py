@@ -439,7 +439,6 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
     ({"score": "hold", "hold_simulator": "bullet"},
      "hold_simulator must be one of pybullet, mujoco, got 'bullet'"),
     ({"hold_simulator": "mujoco"}, "it runs with score='hold'"),
-    ({"score": "hold", "robot": "kuka_sdh"}, "grips as parallel jaws do, not as kuka_sdh"),
     ({"score": "hold_static", "reward": "batch"}, "reward 'batch' re-weights P"),
 ])
 def test_a_bad_score_is_a_one_line_error_naming_it(kwargs, message):

@@ -31,13 +31,16 @@ COMMANDS = {
                   "--samples", "6", "--json"], None),
     "evaluate --noise-spec": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--noise-spec",
                                "spec.yaml", "--samples", "6", "--json"], None),
-    "evaluate --static-hold": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--sigma",
-                                "0.01", "--samples", "6", "--static-hold", "--json"], None),
+    "evaluate --static-hold --hold-test": (["evaluate", "--grasps", "{g}", "--grasp", "0",
+                                            "--sigma", "0.01", "--samples", "3",
+                                            "--static-hold", "--hold-test", "--json"], None),
     "rank": (["rank", "{g}", "--sigma", "0.01", "--samples", "6", "--json", "--out",
               "{o}.csv"], "{o}.csv"),
     "rank --criterion hold_static": (["rank", "{g}", "--sigma", "0.01", "--samples", "6",
                                       "--criterion", "hold_static", "--out", "{o}.csv"],
                                      "{o}.csv"),
+    "rank --criterion hold": (["rank", "{g}", "--sigma", "0.01", "--samples", "2",
+                               "--criterion", "hold", "--out", "{o}.csv"], "{o}.csv"),
     "rank --adaptive": (["rank", "{g}", "--samples", "30", "--adaptive", "--top-k", "1",
                          "--out", "{o}.csv"], "{o}.csv"),
     "elbow": (["elbow", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--json"], None),
@@ -91,8 +94,10 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
         assert json.loads(text).get("robot", "kuka_sdh") == robot
     if "--static-hold" in argv:
         assert 0.0 <= json.loads(text)["p_hold_static"] <= 1.0
-    if "hold_static" in argv:
-        assert "p_hold_static" in Path(written.format(o=out)).read_text().splitlines()[0]
+        assert 0.0 <= json.loads(text)["p_hold"] <= 1.0
+    if "--criterion" in argv:
+        column = "p_hold" if "hold" in argv else "p_hold_static"
+        assert column in Path(written.format(o=out)).read_text().splitlines()[0].split(",")
     if command.startswith("validate"):
         summary = json.loads(Path(written.format(o=out)).read_text())
         assert summary["settings"].get("robot", "kuka_sdh") == robot

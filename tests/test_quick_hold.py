@@ -144,19 +144,34 @@ def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
                                                                                      strict=True))
 
 
-def test_the_holding_test_as_a_score_is_refused_for_the_default_robot(capsys) -> None:
-    """Its grip (every closing motor at full effort) is the jaws' rule; the SDH's three
-    fingers have their own holding test (``validate``). The static check runs: its tests
-    are in test_draw_holds.py."""
-    from kinegrasp_env.cli import main
-    from kinegrasp_env.world.grasps import shipped_grasp_file
+def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path) -> None:
+    """``rank --criterion hold`` of the default robot's cube grasps: the CSV's P(hold) is the
+    quick holding test's share of each candidate's draws (the SDH's own test, on the draws'
+    configurations), in descending order, each inside its interval; the output names it."""
+    import csv
 
-    status = main(["rank", str(shipped_grasp_file("cube")), "--criterion", "hold",
-                   "--samples", "10"])
-    assert status != 0
-    err = capsys.readouterr().err
-    assert "grips as parallel jaws do, not as kuka_sdh's three fingers" in err
-    assert err.count("\n") == 1
+    from cli_helpers import run_in_process
+
+    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
+    from kinegrasp_env.physics.protocol import HELD
+    from kinegrasp_env.world.grasps import shipped_grasp_file, shipped_grasps
+
+    out = tmp_path / "ranked.csv"
+    text = run_in_process(capsys, "rank", str(shipped_grasp_file("cube")), "--sigma", "0.0033",
+                          "--samples", "2", "--engine", "fast", "--criterion", "hold",
+                          "--out", str(out))
+    assert "P(hold): the quick holding test in pybullet" in text
+    rows = list(csv.DictReader(out.open()))
+    held = [float(r["p_hold"]) for r in rows]
+    assert held == sorted(held, reverse=True) and 0.0 < np.mean(held) < 1.0
+    grasps = {g.id: g for g in shipped_grasps("cube")}
+    first = grasps[rows[0]["id"]]
+    rng = np.random.default_rng(np.random.SeedSequence(0, spawn_key=(0,)))
+    q = np.repeat(np.asarray(first.q0)[None], 2, axis=0)  # its draws: chunk 0 of seed 0
+    q[:, :7] += rng.normal(0.0, 0.0033, (2, 7))
+    with QuickHoldTest("cube") as test:
+        again = test.engine.run_hold(q)[1].outcome == HELD
+    assert held[0] == again.mean()
 
 
 def test_evaluate_reports_both_hold_scores(capsys) -> None:
@@ -196,7 +211,7 @@ def test_the_holding_test_runs_in_mujoco_when_asked(capsys) -> None:
       "mujoco"], "--hold-simulator mujoco is the holding test's simulator; it runs with "
                  "--hold-test"),
     (["evaluate", "--object", "cube", "--samples", "2", "--hold-simulator", "mujoco"],
-     "grips as parallel jaws do, not as kuka_sdh")])
+     "--hold-simulator mujoco is the holding test's simulator; it runs with --hold-test")])
 def test_a_hold_simulator_without_a_holding_test_is_one_line(capsys, argv, needle) -> None:
     from kinegrasp_env.cli import main
 

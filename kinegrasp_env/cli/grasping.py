@@ -37,7 +37,11 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import evaluate_robot, refuse_holding_test
+from kinegrasp_env.cli.robot_grasps import (
+    check_hold_simulator,
+    evaluate_robot,
+    print_hold_scores,
+)
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
@@ -52,8 +56,8 @@ def cmd_evaluate(args) -> int:
     if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
         return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction,
                               noise)
-    refuse_holding_test(args, robot)
-    if args.static_hold:
+    check_hold_simulator(args, args.hold_test, "--hold-test")
+    if args.static_hold or args.hold_test:
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
         with reported(ValueError):
@@ -68,7 +72,12 @@ def cmd_evaluate(args) -> int:
         stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
                                return_draws=bool(args.plot or args.report or args.static_hold),
                                progress=True, executor=executor)
-    hold = static_hold_record(grasp, noise, seed, stats, friction) if args.static_hold else {}
+    hold = {}
+    if args.hold_test:
+        hold.update(quick_hold_record(grasp, noise, seed, samples, friction,
+                                      args.hold_simulator))
+    if args.static_hold:
+        hold.update(static_hold_record(grasp, noise, seed, stats, friction))
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
     if args.json:
@@ -84,8 +93,7 @@ def cmd_evaluate(args) -> int:
               f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
               f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error (nominal - mean) "
               f"{stats.error:.5f}")
-        if hold:
-            print_static_hold(hold)
+        print_hold_scores(hold)
         print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
@@ -118,12 +126,20 @@ def static_hold_record(grasp, noise, seed: int, stats, friction: float) -> dict:
             "p_hold_static_ci": list(wilson_interval(int(held.sum()), n)), "mass_kg": mass}
 
 
-def print_static_hold(hold: dict) -> None:
-    """The line ``evaluate`` prints for P(hold, static) (``hold``: :func:`static_hold_record`)."""
-    lo, hi = hold["p_hold_static_ci"]
-    print(f"  P(hold, static) = {hold['p_hold_static']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
-          f"object mass {hold['mass_kg']:.3f} kg, six gravity directions and the lift, the "
-          f"hand's effort limits)")
+def quick_hold_record(grasp, noise, seed: int, samples: int, friction: float,
+                      simulator: str) -> dict:
+    """``--hold-test`` of the default robot's evaluation: P(hold) of the quick holding test
+    (:class:`~kinegrasp_env.montecarlo.draw_holds.QuickHoldTest`) on the evaluation's draws,
+    its Wilson 95% interval and the simulator, as ``evaluate --json`` names them."""
+    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+    from kinegrasp_env.sampling.stats import wilson_interval
+
+    with QuickHoldTest(grasp.object, friction=friction, simulator=simulator) as test:
+        held = test.chunk_held(grasp.q0, noise, seed, samples, chunk=DEFAULT_CHUNK)
+    return {"p_hold": float(held.mean()),
+            "p_hold_ci": list(wilson_interval(int(held.sum()), int(held.size))),
+            "hold_simulator": simulator}
 
 
 def grasp_at_elbow(grasp, text: str):
@@ -260,8 +276,8 @@ def add_commands(sub) -> None:
     add_static_hold_arg(p, "prints P(hold, static)")
     p.add_argument("--hold-test", action="store_true",
                    help="also run the quick holding test on the same draws and print P(hold) "
-                   "(robots other than the default; it runs dynamics per draw, far slower "
-                   "than the kinematic draws: benchmarks/quick_hold.py)")
+                   "(it runs dynamics per draw, far slower than the kinematic draws: "
+                   "benchmarks/quick_hold.py)")
     add_hold_simulator_arg(p)
     p.set_defaults(func=cmd_evaluate)
 

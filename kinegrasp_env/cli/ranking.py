@@ -25,7 +25,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
-from kinegrasp_env.cli.robot_grasps import refuse_holding_test
+from kinegrasp_env.cli.robot_grasps import check_hold_simulator
 from kinegrasp_env.cli.robot_ranking import check_robot_candidates, robot_best_elbows
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -85,14 +85,16 @@ def cmd_rank(args) -> int:
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     described = robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps)
-    static, _ = _hold_scores(args)
+    static, test = _hold_scores(args)
     if described:
         check_robot_candidates(args, grasps, robot, noise)
     else:
-        refuse_holding_test(args, robot)
-        if static:
-            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+        from kinegrasp_env.cli.robot_ranking import refuse_adaptive_hold
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
+        check_hold_simulator(args, test, "--criterion hold")
+        refuse_adaptive_hold(args)
+        if static or test:
             with reported(ValueError):
                 check_hold_noise(noise)
     report_path(args.report)
@@ -100,6 +102,15 @@ def cmd_rank(args) -> int:
     layout = evaluate.chunk_sizes(samples, chunk)
     # each candidate's draws per outcome and hold scores, beside what the ranking keeps
     side: dict[int, CandidateResult] = {}
+    quick_tests: dict[str, object] = {}  # the default robot's quick holding test per object
+
+    def quick_test(object_name: str):
+        from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
+
+        if object_name not in quick_tests:
+            quick_tests[object_name] = QuickHoldTest(object_name, friction=friction,
+                                                     simulator=args.hold_simulator)
+        return quick_tests[object_name]
 
     def evaluator(index: int, first: int, count: int, outcomes: bool = False):
         """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
@@ -119,6 +130,11 @@ def cmd_rank(args) -> int:
             held, _ = grasp_holds(grasps[index], noise, seed, draws, chunk=chunk,
                                   first_chunk=first, friction=friction, num_edges=NUM_EDGES)
             record.add_holds("static", int(held.sum()), int(held.size))
+        if test:  # the quick holding test of the same draws' configurations
+            held = quick_test(grasps[index].object).chunk_held(
+                grasps[index].q0, noise, seed, int(counts.sum()), chunk=chunk,
+                first_chunk=first)
+            record.add_holds("test", int(held.sum()), int(held.size))
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
         return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
 
@@ -131,8 +147,10 @@ def cmd_rank(args) -> int:
         settings.update(robot=robot, criterion_scores=list(scores))
         if scores[1]:  # the holding test runs: its simulator is a setting too
             settings["hold_simulator"] = args.hold_simulator
-    elif static:  # the default robot's static hold check: a setting of the log
-        settings["criterion_scores"] = [True, False]
+    elif static or test:  # the default robot's hold scores: settings of the log
+        settings["criterion_scores"] = [static, test]
+        if test:
+            settings["hold_simulator"] = args.hold_simulator
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 
@@ -179,6 +197,8 @@ def cmd_rank(args) -> int:
         finally:
             if ranking is not None:
                 ranking.close()
+            for opened in quick_tests.values():
+                opened.close()
     for r in results:  # resumed candidates carry theirs from the log
         _merge_side(r, side)
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]

@@ -24,16 +24,19 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.execution_options import executor_from
 
 
-def refuse_holding_test(args, robot: str) -> None:
-    """CLIError for the quick holding test as a score (``--hold-test``, ``--criterion hold``,
-    ``--hold-simulator``) of the default robot: its grip presses with every closing motor at
-    full effort, the rule for jaws, which leaves a three-finger grip unbalanced (the SDH's
-    own holding test, ``validate``, solves the grip's balance)."""
-    if getattr(args, "hold_test", False) or getattr(args, "criterion", None) == "hold" or getattr(
-            args, "hold_simulator", "pybullet") != "pybullet":
-        raise CLIError(f"the quick holding test as a score (--hold-test, --criterion hold, "
-                       f"--hold-simulator) grips as parallel jaws do, not as {robot}'s three "
-                       f"fingers; run {robot}'s holding test with kinegrasp validate")
+def print_hold_scores(record: dict) -> None:
+    """The lines ``evaluate`` prints for the hold scores in ``record`` (its ``--json`` keys:
+    ``p_hold``, ``p_hold_ci``, ``hold_simulator``; ``p_hold_static``, ``p_hold_static_ci``,
+    ``mass_kg``)."""
+    if "p_hold" in record:
+        lo, hi = record["p_hold_ci"]
+        print(f"  P(hold) = {record['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the quick "
+              f"holding test in {record['hold_simulator']} on the same draws)")
+    if "p_hold_static" in record:
+        lo, hi = record["p_hold_static_ci"]
+        print(f"  P(hold, static) = {record['p_hold_static']:.4f}  (95% CI {lo:.4f} .. "
+              f"{hi:.4f}; object mass {record['mass_kg']:.3f} kg, six gravity directions and "
+              f"the lift, the hand's effort limits)")
 
 
 def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
@@ -196,15 +199,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
           f"): nominal "
           f"{stats.q_nominal:.5f}, mean "
           f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
-    if args.hold_test:
-        lo, hi = hold["p_hold_ci"]
-        print(f"  P(hold) = {hold['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the quick "
-              f"holding test in {hold['hold_simulator']} on the same draws)")
-    if args.static_hold:
-        lo, hi = stats.hold_ci
-        print(f"  P(hold, static) = {stats.p_hold_static:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; "
-              f"object mass {stats.mass:.3f} kg, six gravity directions and the lift, the "
-              f"hand's effort limits)")
+    print_hold_scores(hold)
     if math.isfinite(stats.push_median):
         print(f"  coupled jaws: one jaw touches first and would push the object "
               f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "

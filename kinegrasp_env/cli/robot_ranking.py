@@ -39,11 +39,16 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
         with reported(ValueError, RobotDescriptionError):
             check_robot_noise(noise, robot, load_robot(robot).arm_dof, args.engine,
                               bool(args.static_hold) or args.criterion == "hold_static")
+    refuse_adaptive_hold(args)
+    return objects.pop()
+
+
+def refuse_adaptive_hold(args) -> None:
+    """CLIError for ``--adaptive`` with a hold criterion (it certifies P(FC) alone)."""
     if args.adaptive and args.criterion in ("hold", "hold_static"):
         raise CLIError(f"--adaptive certifies P(FC) on paired draws; --criterion "
                        f"{args.criterion} ranks by a hold score, which it does not certify: "
                        "rank without --adaptive")
-    return objects.pop()
 
 
 class RobotRanking:

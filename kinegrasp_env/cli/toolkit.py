@@ -122,7 +122,7 @@ def add_commands(sub) -> None:
                    "interval, P(FC) x (1 + mean Q), P(hold, static): the fraction of draws "
                    "whose contacts can carry the object's weight in six directions with the "
                    "hand's effort limits, or P(hold): the fraction the quick holding test "
-                   "holds (in --hold-simulator; both: robots other than the default; the "
+                   "holds (in --hold-simulator; the "
                    "holding test runs dynamics per draw, far slower than the kinematic "
                    "criteria: benchmarks/quick_hold.py)")
     add_hold_simulator_arg(p)

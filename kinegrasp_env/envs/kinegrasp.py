@@ -63,7 +63,7 @@ its arm and hand, and pictures of its whole URDF with the object
 (:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
 default robot's hand; ``reward="batch"``; and a reward that scores
 holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
-P(FC)). The default robot's reward scores the static hold check too (``score="hold_static"``).
+P(FC)); the default robot's too, on joint and hand noise.
 
 Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
@@ -195,9 +195,9 @@ class KineGraspEnv(gym.Env):
         robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
             listing the known ones. Another robot: see the module docstring.
         score: what the reward scores: ``pfc`` (P(force closure)), ``hold_static`` (the
-            static hold check's P(hold) on the same draws; the default robot's: joint and hand
-            noise only) or, for a robot other than the default, ``hold`` (the quick holding
-            test's, in ``hold_simulator``: slow, joint noise only)
+            static hold check's P(hold) on the same draws) or ``hold`` (the quick holding
+            test's, in ``hold_simulator``: slow; joint noise only, and for the default
+            robot its hand noise)
             (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
         hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or
@@ -225,10 +225,6 @@ class KineGraspEnv(gym.Env):
             engine = "fast"
         if score not in SCORES:
             raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-        if own and score == "hold":
-            raise ValueError(f"score 'hold' (the quick holding test) grips as parallel jaws "
-                             f"do, not as {DEFAULT_ROBOT}'s three fingers; {DEFAULT_ROBOT} "
-                             f"scores 'pfc' or 'hold_static'")
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be None or one of "
                              f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
@@ -296,7 +292,8 @@ class KineGraspEnv(gym.Env):
         if self._robot is not None and self.noise_model is not None:
             self._robot.check_noise(self.noise_model)
         self._engines: dict[tuple, Engine] = {}
-        self._hold_checks: dict[str, object] = {}
+        self._hold_scores: dict[str, object] = {}
+        self.hold_simulator = hold_simulator
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
         self._ik: ArmIK | None = None
         self._viewer = None
@@ -450,21 +447,25 @@ class KineGraspEnv(gym.Env):
                  "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
                  "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
                  "score_value": float(fc.mean()), "reward_method": "draws"}
-        if self.score == "hold_static":  # the static hold check of the same draws
-            held = self._hold_check(self.grasp.object).chunk_held(
-                self.q, self.noise, seed, draws, chunk=self.n_draws)
+        if self.score != "pfc":  # a hold score of the same draws
+            held = self._hold_score(self.grasp.object).chunk_held(
+                self.q, self.noise, seed, draws if self.score == "hold_static"
+                else self.n_draws, chunk=self.n_draws)
             stats.update(p_hold=float(held.mean()),
                          p_hold_ci=wilson_interval(int(held.sum()), held.size),
                          score_value=float(held.mean()))
         return stats
 
-    def _hold_check(self, object_name: str):
-        """The default robot's static hold check on ``object_name``, built once."""
-        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck
+    def _hold_score(self, object_name: str):
+        """The default robot's hold score on ``object_name`` (the static hold check or the
+        quick holding test), built once."""
+        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck, QuickHoldTest
 
-        if object_name not in self._hold_checks:
-            self._hold_checks[object_name] = DrawHoldCheck(object_name)
-        return self._hold_checks[object_name]
+        if object_name not in self._hold_scores:
+            self._hold_scores[object_name] = (
+                DrawHoldCheck(object_name) if self.score == "hold_static"
+                else QuickHoldTest(object_name, simulator=self.hold_simulator))
+        return self._hold_scores[object_name]
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
@@ -522,7 +523,7 @@ class KineGraspEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}")
         self.grasp, self.noise = self._pick_task(options)
-        if self._robot is None and self.score == "hold_static":
+        if self._robot is None and self.score != "pfc":
             from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
             check_hold_noise(self.noise)
@@ -572,6 +573,9 @@ class KineGraspEnv(gym.Env):
         for engine in self._engines.values():
             engine.close()
         self._engines.clear()
+        for score in self._hold_scores.values():
+            score.close()
+        self._hold_scores.clear()
         if self._robot is not None:
             self._robot.close()
         if self._viewer is not None:

@@ -1,6 +1,9 @@
-"""The static hold check (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`) of
-the default robot's own engines' draws: can each closing carry the object's weight in the
-holding test's six gravity directions and the lift, within the hand's effort limits?
+"""The hold scores of the default robot's own engines' draws.
+
+**The static hold check** (:class:`DrawHoldCheck`; the check itself:
+:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`): can each closing carry the
+object's weight in the holding test's six gravity directions and the lift, within the hand's
+effort limits?
 
 The check runs on the robot's description (``kuka_sdh.yaml``: the same joints, fingers and
 links as the engines' :data:`~kinegrasp_env.robot.model.HAND_JOINTS` and contact records), on
@@ -8,6 +11,12 @@ the draw's final configuration: its arm joints (the draw's noise) and the closed
 engine recorded (:attr:`~kinegrasp_env.montecarlo.engines.DrawBatch.hand`). Joint noise
 only: a palm or object error moves the palm against the object, which the configuration does
 not say, and a friction error changes the cones the check holds at one mu.
+
+**The quick holding test** (:class:`QuickHoldTest`): the default robot's own holding test
+(:class:`~kinegrasp_env.montecarlo.physics_engine.PhysicsEngine`, its grip balanced over the
+three fingers) with the quick protocol (:data:`~kinegrasp_env.physics.protocol.
+QUICK_PROTOCOL`), in pybullet or MuJoCo, on the same draws' configurations (the noise
+limits of the static check).
 """
 
 from __future__ import annotations
@@ -17,7 +26,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import DrawBatch
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
-from kinegrasp_env.physics.protocol import HoldProtocol
+from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
@@ -25,18 +34,18 @@ from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 from kinegrasp_env.world.objects import load_object
 
-__all__ = ["DrawHoldCheck", "check_hold_noise", "grasp_holds"]
+__all__ = ["DrawHoldCheck", "QuickHoldTest", "check_hold_noise", "grasp_holds"]
 
 
 def check_hold_noise(noise) -> None:
     """ValueError (one line) for a noise model with a palm, object or friction source: the
-    static hold check of the default robot's draws takes joint (and hand) noise only."""
+    hold scores of the default robot's draws take joint (and hand) noise only."""
     if not isinstance(noise, NoiseModel):
         return
     other = [name for name in ("palm", "object", "friction") if getattr(noise, name) is not None]
     if other:
-        raise ValueError(f"the static hold check of {DEFAULT_ROBOT}'s draws takes joint and "
-                         f"hand noise only; the noise spec has {', '.join(other)}")
+        raise ValueError(f"the hold scores of {DEFAULT_ROBOT}'s draws take joint and hand "
+                         f"noise only; the noise spec has {', '.join(other)}")
 
 
 class DrawHoldCheck:
@@ -59,6 +68,9 @@ class DrawHoldCheck:
         self.check = StaticHoldCheck(description, load_object(object_name), friction=friction,
                                      num_edges=num_edges, finger_radius=FINGER_RADIUS,
                                      protocol=protocol)
+
+    def close(self) -> None:
+        """Nothing to release (the check holds no simulator)."""
 
     @property
     def mass(self) -> float:
@@ -102,10 +114,8 @@ class DrawHoldCheck:
         arm joints are those chunks' noise:
         :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`)."""
         check_hold_noise(noise)
-        sizes = chunk_sizes(len(draws), chunk)
-        chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]
-        arm = chunk_configurations(q0, noise, seed, chunks)[:, :self.arm_dof]
-        return self.held(arm, draws)
+        arm = run_configurations(q0, noise, seed, len(draws), chunk, first_chunk)
+        return self.held(arm[:, :self.arm_dof], draws)
 
 
 def grasp_holds(grasp: Grasp, noise, seed: int, draws: DrawBatch, *, chunk: int,
@@ -116,3 +126,45 @@ def grasp_holds(grasp: Grasp, noise, seed: int, draws: DrawBatch, *, chunk: int,
     hold = DrawHoldCheck(grasp.object, friction=friction, num_edges=num_edges)
     return hold.chunk_held(grasp.q0, noise, seed, draws, chunk=chunk,
                            first_chunk=first_chunk), hold.mass
+
+
+def run_configurations(q0: np.ndarray, noise, seed: int, n: int, chunk: int,
+                       first_chunk: int = 0) -> np.ndarray:
+    """(n, 14) the configurations of the n draws a run from q0 (14,) makes with ``noise`` and
+    ``seed`` in chunks of ``chunk`` from chunk ``first_chunk`` on."""
+    chunks = [(first_chunk + i, size) for i, size in enumerate(chunk_sizes(n, chunk))]
+    return chunk_configurations(q0, noise, seed, chunks)
+
+
+class QuickHoldTest:
+    """The default robot's quick holding test on one catalog object (module docstring).
+
+    Args:
+        object_name: the catalog object; friction: Coulomb mu, finger-object.
+        simulator: ``pybullet`` or ``mujoco``.
+    """
+
+    def __init__(self, object_name: str, *, friction: float = 0.5,
+                 simulator: str = "pybullet") -> None:
+        from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+
+        self.engine = PhysicsEngine(object_name, friction, protocol=QUICK_PROTOCOL,
+                                    simulator=simulator)
+        self.simulator = simulator
+
+    def chunk_held(self, q0: np.ndarray, noise, seed: int, n: int, *, chunk: int,
+                   first_chunk: int = 0) -> np.ndarray:
+        """(n,) whether the test holds each of the n draws a run from q0 (14,) makes with
+        ``noise`` and ``seed`` in chunks of ``chunk`` from chunk ``first_chunk`` on."""
+        check_hold_noise(noise)
+        q = run_configurations(q0, noise, seed, n, chunk, first_chunk)
+        return self.engine.run_hold(q)[1].outcome == HELD
+
+    def close(self) -> None:
+        self.engine.close()
+
+    def __enter__(self) -> QuickHoldTest:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -52,6 +52,7 @@ import numpy as np
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.balanced_grip import GripLayout
 from kinegrasp_env.physics.hand_motors import (
     JointMotor,
     closing_followers,
@@ -141,14 +142,39 @@ class JawServos:
 class MujocoRobotSteps(MujocoWorldSteps):
     """The holding test's primitives (:class:`~kinegrasp_env.physics.mujoco_hold.
     MujocoWorldSteps`) of a description robot's hand: the grip is the closing motors left
-    on."""
+    on (jaws), or with ``layout`` the balanced grip
+    (:mod:`~kinegrasp_env.physics.balanced_grip`: the loaded joints MuJoCo springs, the
+    others held)."""
 
-    def __init__(self, world: MujocoWorld, protocol: HoldProtocol) -> None:
+    def __init__(self, world: MujocoWorld, protocol: HoldProtocol,
+                 layout: GripLayout | None = None) -> None:
         super().__init__(world, None, protocol)
+        self.layout = layout
 
     def grip(self) -> bool:
-        touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
-        return len(touched) >= 2
+        world, layout = self.world, self.layout
+        contacts = world_contacts(world, CONTACT_TOL, weighted=False)
+        if len({c.finger for c in contacts}) < 2:
+            return False
+        if layout is None:
+            return True
+        names = list(layout.names)
+        axes, origins = world.joint_frames(names)
+        spring = layout.spring(contacts, axes, origins,
+                               np.array([world.link_pose(t)[:3, 3] for t in layout.tips]),
+                               world.joint_states(names)[0], world.object_pose(),
+                               world.obj.center_of_mass, world.settings.friction,
+                               self.protocol.grip_advance)
+        if spring is None:
+            return False
+        loaded, held = np.array(names)[spring.loaded], np.array(names)[~spring.loaded]
+        world.uncouple()  # each joint on its own, as in pybullet
+        if held.size:
+            world.position(list(held), spring.stall[~spring.loaded])
+        if loaded.size:
+            world.spring(list(loaded), spring.targets[spring.loaded],
+                         spring.stiffness[spring.loaded], spring.limits[spring.loaded])
+        return True
 
 
 class MujocoRobotHold(DescriptionHold):
@@ -196,8 +222,8 @@ class MujocoRobotHold(DescriptionHold):
         closing, servos = self.close_hand(q)
         if servos is None:
             return closing, HoldResult(START_COLLISION)
-        return closing, hold_runner.hold_test(MujocoRobotSteps(self.world, self.protocol),
-                                              self.protocol)
+        return closing, hold_runner.hold_test(
+            MujocoRobotSteps(self.world, self.protocol, self.layout), self.protocol)
 
     def close(self) -> None:
         """Nothing to disconnect (MuJoCo's model and data are freed with this object)."""

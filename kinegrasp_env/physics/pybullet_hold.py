@@ -59,11 +59,17 @@ class GripControl:
         world: the physics world right after the closing.
         motors: the finger motors (``hold_torque``).
         spring: the grip's joint rule.
+        joints: the grip joints' names (default the SDH's); hold_torques: (J,) each one's
+            holding torque where it is held, N m (default the motors' ``hold_torque``).
     """
 
-    def __init__(self, world: PhysicsWorld, motors: MotorSettings, spring: SpringGrip) -> None:
+    def __init__(self, world: PhysicsWorld, motors: MotorSettings | None, spring: SpringGrip,
+                 joints: tuple[str, ...] = GRIP_JOINTS,
+                 hold_torques: np.ndarray | None = None) -> None:
         self.world, self.motors, self.spring = world, motors, spring
-        self.indices = [world.joint_index[j] for j in GRIP_JOINTS]
+        self.indices = [world.joint_index[j] for j in joints]
+        self.hold_torques = (np.full(len(joints), motors.hold_torque) if hold_torques is None
+                             else np.asarray(hold_torques, dtype=float))
         self.loaded = [i for i, on in zip(self.indices, spring.loaded, strict=True) if on]
         self.restart()
 
@@ -74,7 +80,7 @@ class GripControl:
             bullet.setJointMotorControlArray(
                 hand, held, bullet.POSITION_CONTROL,
                 targetPositions=spring.stall[~spring.loaded].tolist(),
-                forces=[self.motors.hold_torque] * len(held))
+                forces=self.hold_torques[~spring.loaded].tolist())
         if self.loaded:
             bullet.setJointMotorControlArray(hand, self.loaded, bullet.VELOCITY_CONTROL,
                                              targetVelocities=[0.0] * len(self.loaded),

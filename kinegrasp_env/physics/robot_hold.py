@@ -53,6 +53,7 @@ import numpy as np
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.physics import hold_runner
+from kinegrasp_env.physics.balanced_grip import GripLayout, balances, grip_layout
 from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hand_motors import (
     JointMotor,
@@ -62,8 +63,8 @@ from kinegrasp_env.physics.hand_motors import (
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
-from kinegrasp_env.physics.pybullet_closing import merge_records
-from kinegrasp_env.physics.pybullet_hold import PybulletSteps
+from kinegrasp_env.physics.pybullet_closing import joint_frame, merge_records
+from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
 from kinegrasp_env.robot.description import RobotDescription
@@ -197,13 +198,30 @@ class RobotSteps(PybulletSteps):
 
     root_link = ROOT_LINK
 
-    def __init__(self, world: RobotPhysicsWorld, jaws: JawMotors, protocol: HoldProtocol) -> None:
+    def __init__(self, world: RobotPhysicsWorld, jaws: JawMotors, protocol: HoldProtocol,
+                 layout: GripLayout | None = None) -> None:
         super().__init__(world, jaws.motors, protocol, control=jaws)
         self.palm_link = world.description.palm_link
+        self.layout = layout
 
     def grip(self) -> bool:
-        touched = {c.finger for c in world_contacts(self.world, CONTACT_TOL)}
-        return len(touched) >= 2
+        contacts = world_contacts(self.world, CONTACT_TOL)
+        if len({c.finger for c in contacts}) < 2:
+            return False
+        if self.layout is None:  # jaws: the closing motors stay on
+            return True
+        world, layout = self.world, self.layout
+        frames = [joint_frame(world, name) for name in layout.names]
+        spring = layout.spring(contacts, np.array([a for a, _ in frames]),
+                               np.array([o for _, o in frames]),
+                               np.array([world.link_pose(t)[:3, 3] for t in layout.tips]),
+                               world.joint_states(list(layout.names))[0],
+                               world.object_pose(), world.obj.center_of_mass,
+                               world.settings.friction, self.protocol.grip_advance)
+        if spring is None:
+            return False
+        self.control = GripControl(world, None, spring, layout.names, layout.upper)
+        return True
 
     def finger_forces(self) -> np.ndarray:
         return finger_forces(self.world)
@@ -236,6 +254,9 @@ class DescriptionHold:
         self.description, self.protocol = description, protocol
         self.settings = settings or RobotMotorSettings()
         self.motors = motor_efforts(description, protocol.torque_scale)
+        #: the balanced grip's joints for a hand of revolute fingers, else None (jaws)
+        self.layout = (grip_layout(description, protocol.torque_scale)
+                       if balances(description) else None)
         self.kinematics = Kinematics(description.model)
 
     def palm_poses(self, q: np.ndarray) -> np.ndarray:
@@ -303,8 +324,8 @@ class RobotHold(DescriptionHold):
         if jaws is None:
             return closing, HoldResult(START_COLLISION)
         self.world.damp_object(False)
-        return closing, hold_runner.hold_test(RobotSteps(self.world, jaws, self.protocol),
-                                              self.protocol)
+        return closing, hold_runner.hold_test(
+            RobotSteps(self.world, jaws, self.protocol, self.layout), self.protocol)
 
     def close(self) -> None:
         self.world.close()

@@ -1,0 +1,127 @@
+"""The balanced grip of a description robot whose fingers are chains of revolute joints, each
+driven on its own (no mimic coupling: the SDH's kind of hand), in any simulator.
+
+Pressing every closing motor at its full effort is the rule for parallel jaws: two opposed
+jaws with equal efforts squeeze the object with equal and opposite forces. Three or more
+fingers of revolute joints at full effort push the object with an unbalanced net force, and
+the release slides it away. Such a hand grips as the default robot's holding test grips
+(:mod:`~kinegrasp_env.physics.grip_forces`): the contacts of the closing give joint torques
+whose contact forces are in equilibrium, inside the friction cones, each joint between 0 and
+its motor's effort (:func:`~kinegrasp_env.physics.hand_motors.motor_efforts`; a spread
+joint either way within its effort), applied as
+joint springs that press with those torques at the stall angle
+(:class:`~kinegrasp_env.physics.grip_forces.SpringGrip`); a joint that carries no contact is
+held where it stalled.
+
+A joint carries a contact when it lies on the chain from the palm to the contact's link
+(:attr:`GripLayout.first_links`: the first of its finger's links it moves).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, SpringGrip, spring_grip
+from kinegrasp_env.physics.hand_motors import motor_efforts, urdf_limits
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics
+
+__all__ = ["GripLayout", "balances", "grip_layout"]
+
+
+def balances(description: RobotDescription) -> bool:
+    """Whether the hand grips by balanced torques (module docstring): every finger's
+    closing joints revolute, none a mimic joint, none shared by two fingers."""
+    names = [joint for finger in description.fingers for joint in finger.joints]
+    return bool(names) and len(set(names)) == len(names) and all(
+        description.model.joint(name).kind in ("revolute", "continuous")
+        and description.model.joint(name).mimic is None for name in names)
+
+
+@dataclass(frozen=True)
+class GripLayout:
+    """The grip joints of a hand that :func:`balances` (J): each finger's closing joints,
+    palm to tip, then each finger's other joints below the palm (a spread joint: it turns
+    either way within its effort, and carries every contact of its finger).
+
+    Attributes:
+        names: the joints; directions: (J,) +1 or -1, each closing joint's closing sign (+1
+            for the others).
+        fingers: (J,) each joint's finger; first_links: (J,) the index (in its finger's
+            ``links``) of the first link the joint moves.
+        lower, upper: (J,) torque bounds, N m: [0, effort] for a closing joint, [-effort,
+            effort] for another.
+        tips: (J,) each joint's fingertip link.
+    """
+
+    names: tuple[str, ...]
+    directions: np.ndarray
+    fingers: np.ndarray
+    first_links: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    tips: tuple[str, ...]
+
+    def joints(self, axes: np.ndarray, origins: np.ndarray,
+               tips: np.ndarray) -> GripJoints:
+        """The grip joints now: their axes (J, 3) as the simulator reports them (the URDF's
+        sense), points on them (J, 3) and their fingertips (J, 3), world frame, metres."""
+        axes = np.asarray(axes, dtype=float) * self.directions[:, None]  # closing positive
+        return GripJoints(axes, np.asarray(origins, dtype=float), self.fingers,
+                          self.first_links, self.lower, self.upper,
+                          np.asarray(tips, dtype=float))
+
+    def spring(self, contacts: list[GripContact], axes: np.ndarray, origins: np.ndarray,
+               tips: np.ndarray, stall: np.ndarray, object_pose: np.ndarray,
+               center_of_mass: np.ndarray, friction: float, advance: float
+               ) -> SpringGrip | None:
+        """The grip of the hand just closed (:func:`~kinegrasp_env.physics.grip_forces.
+        spring_grip`): contacts (finger, link index in its finger's ``links``) and joint
+        frames in the world frame, ``stall`` (J,) the joints' angles now, radians; None when
+        no contact forces in equilibrium exist."""
+        return spring_grip(contacts, self.joints(axes, origins, tips), object_pose,
+                           center_of_mass, np.asarray(stall, dtype=float), friction,
+                           advance)
+
+
+def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> GripLayout:
+    """The grip joints of a hand that :func:`balances` (ValueError for another): closing
+    efforts times ``torque_scale``; another joint's effort the description's ``efforts`` or
+    the URDF's ``<limit effort>``. A joint below the palm on two fingers' chains is left
+    out (held where it is)."""
+    if not balances(description):
+        raise ValueError(f"robot {description.name!r}: its fingers are not chains of revolute "
+                         "joints driven on their own; it grips as jaws do")
+    efforts = {m.joint: m.effort for m in motor_efforts(description, torque_scale)}
+    limits = urdf_limits(description.urdf)
+    kinematics = Kinematics(description.model)
+    palm = len(kinematics.chain(description.palm_link))
+    below = [[j.name for j in kinematics.chain(finger.tip)[palm:] if j.kind != "fixed"]
+             for finger in description.fingers]
+    counts: dict[str, int] = {}
+    for names in below:
+        for name in names:
+            counts[name] = counts.get(name, 0) + 1
+    rows = []  # (name, direction, finger, first link, lower, upper, tip)
+    for f, finger in enumerate(description.fingers):
+        chains = [{joint.name for joint in kinematics.chain(link)} for link in finger.links]
+        first = {name: next((k for k, chain in enumerate(chains) if name in chain), 0)
+                 for name in below[f]}
+        for joint, direction in zip(finger.joints, finger.directions, strict=True):
+            rows.append((joint, float(direction), f, first[joint], 0.0, efforts[joint],
+                         finger.tip))
+        for name in below[f]:
+            if name in finger.joints or counts[name] > 1:
+                continue
+            effort = description.efforts.get(name, limits.get(name, (0.0, 0.0))[0])
+            if not effort > 0:
+                raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
+                                 f"limit in {description.urdf.name}; give one in the "
+                                 f"description's efforts: {{{name}: ...}}")
+            rows.append((name, 1.0, f, first[name], -effort, effort, finger.tip))
+    names, directions, fingers, first_links, lower, upper, tips = zip(*rows, strict=True)
+    return GripLayout(tuple(names), np.array(directions), np.array(fingers, dtype=int),
+                      np.array(first_links, dtype=int), np.array(lower), np.array(upper),
+                      tuple(tips))
