@@ -91,12 +91,13 @@ from kinegrasp_env.envs.batch_reward import (
     grasp_seed,
     sigma_levels,
 )
+from kinegrasp_env.envs.draw_reward import DrawReward
+from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.robot_task import (
     ROBOT_N_DRAWS,
     SCORES,
     RobotTask,
-    check_grasps_robot,
     robot_tasks,
 )
 from kinegrasp_env.envs.tasks import (
@@ -105,31 +106,24 @@ from kinegrasp_env.envs.tasks import (
     given_robot_grasp,
     grasp_option,
 )
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
-from kinegrasp_env.montecarlo.evaluate import ENGINES, draw_chunk
+from kinegrasp_env.montecarlo.engines import Engine
+from kinegrasp_env.montecarlo.evaluate import ENGINES
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics, arm_angle_at
+from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from, spec_of
-from kinegrasp_env.sampling.stats import wilson_interval
-from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps
-from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
+from kinegrasp_env.world.grasps import Grasp
 
-OBS_SIZE = 44
+OBS_SIZE = 3 * 7 + OBS_EXTRA  # the default robot: 7 arm joints (twice), 7 hand joints
 OBS_LIMIT = 10.0
 
 
-def observed_links(kin: Kinematics) -> list[str]:
-    """The links whose poses the observation needs: the palm's Jacobian chain, the arm angle's."""
-    return list(dict.fromkeys(kin.jacobian_links(PALM_LINK) + list(ARM_ANGLE_LINKS)))
-
-
 def joint_sigma(noise: JointNoise | NoiseModel) -> float:
-    """The joint sigma an observation shows (radians): the largest over the arm joints."""
+    """The joint sigma ``info`` shows (radians): the largest over the arm joints."""
     return float(noise.sigma_vector(7).max())
 
 
@@ -250,19 +244,7 @@ class KineGraspEnv(gym.Env):
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
         if objects is not None:
             objects = names_of("objects", objects)
-        if not own:
-            self.tasks = robot_tasks(robot, objects, grasp_file)
-        elif grasp_file is not None:
-            grasps = load_grasps(grasp_file)
-            check_grasps_robot(grasps, DEFAULT_ROBOT, grasp_file)
-            names = tuple(objects) if objects else tuple({g.object for g in grasps})
-            self.tasks = {name: [g for g in grasps if g.object == name] for name in names}
-            empty = [name for name, gs in self.tasks.items() if not gs]
-            if empty:
-                raise ValueError(f"{grasp_file} has no grasp of {empty[0]!r}")
-        else:
-            names = objects or OBJECT_NAMES
-            self.tasks = {name: shipped_grasps(name) for name in names}
+        self.tasks = robot_tasks(robot, objects, grasp_file)
         if split is not None:
             keep = (lambda i: i % 4 == 3) if split == "test" else (lambda i: i % 4 != 3)
             self.tasks = {name: [g for i, g in enumerate(gs) if keep(i)]
@@ -291,10 +273,9 @@ class KineGraspEnv(gym.Env):
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         if self._robot is not None and self.noise_model is not None:
             self._robot.check_noise(self.noise_model)
-        self._engines: dict[tuple, Engine] = {}
-        self._hold_scores: dict[str, object] = {}
-        self.hold_simulator = hold_simulator
+        self._draws = DrawReward(engine, score, hold_simulator)  # the default robot's
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
+        self._observer = ArmObserver(self._kin, PALM_LINK, 7, ARM_ANGLE_LINKS)
         self._ik: ArmIK | None = None
         self._viewer = None
         self.grasp: Grasp | None = None
@@ -307,7 +288,7 @@ class KineGraspEnv(gym.Env):
 
     # ------------------------------------------------------------------ helpers
     def _engine(self, name: str) -> Engine:
-        return cached_engine(self._engines, self.engine, name)  # fresh after a re-import
+        return self._draws.engine(name)
 
     @property
     def kinematics(self) -> Kinematics:
@@ -403,28 +384,9 @@ class KineGraspEnv(gym.Env):
         return JointNoise(float(sigma), kind)
 
     def _observation(self) -> np.ndarray:
-        if self._robot is not None:
-            obs, self._psi = self._robot.observation(self.grasp, self.q, self.noise,
-                                                     self.steps / self.max_steps)
-            return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
-        obj = load_object(self.grasp.object)
-        # one forward-kinematics call for the palm pose, its Jacobian and the elbow angle
-        poses = self._kin.forward(self.q, observed_links(self._kin))
-        palm = poses[PALM_LINK][0]
-        rot_obj = obj.pose[:3, :3]
-        rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
-        rel_rot = rot_obj.T @ palm[:3, :3]
-        jac = self._kin.jacobian_at(poses, PALM_LINK)[0][:, :7]
-        jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
-        spread = np.sqrt(np.diag(jac @ jac.T))
-        psi = self._psi = float(arm_angle_at(poses)[0])
-        onehot = np.array([self.noise.kind == k for k in DISTRIBUTIONS], dtype=float)
-        obs = np.concatenate([
-            self.grasp.q0[:7] / np.pi, self.grasp.q0[7:] / np.pi, [joint_sigma(self.noise)
-                                                                   / 0.05],
-            onehot, rel_pos / 0.3, rel_rot[:, :2].T.ravel(), [np.sin(psi), np.cos(psi)],
-            self.q[:7] / np.pi, spread, [10.0 * self.grasp.q_nominal],
-            [self.steps / self.max_steps]])
+        task = self._observer if self._robot is None else self._robot.observer
+        obs, self._psi = task.observe(self.grasp, self.q, self.noise,
+                                      self.steps / self.max_steps)
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
     def _estimate(self) -> dict:
@@ -435,37 +397,9 @@ class KineGraspEnv(gym.Env):
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
-        if self._robot is not None:
-            return {**self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
-                    "reward_method": "draws"}
-        draws = draw_chunk(self._engine(self.grasp.object), self.q, self.noise, seed, 0,
-                           self.n_draws)
-        fc = draws.outcome == FORCE_CLOSURE
-        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
-        q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
-        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
-                 "q_mean": q_mean, "draws": self.n_draws, "draw_seed": seed,
-                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-                 "score_value": float(fc.mean()), "reward_method": "draws"}
-        if self.score != "pfc":  # a hold score of the same draws
-            held = self._hold_score(self.grasp.object).chunk_held(
-                self.q, self.noise, seed, draws if self.score == "hold_static"
-                else self.n_draws, chunk=self.n_draws)
-            stats.update(p_hold=float(held.mean()),
-                         p_hold_ci=wilson_interval(int(held.sum()), held.size),
-                         score_value=float(held.mean()))
-        return stats
-
-    def _hold_score(self, object_name: str):
-        """The default robot's hold score on ``object_name`` (the static hold check or the
-        quick holding test), built once."""
-        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck, QuickHoldTest
-
-        if object_name not in self._hold_scores:
-            self._hold_scores[object_name] = (
-                DrawHoldCheck(object_name) if self.score == "hold_static"
-                else QuickHoldTest(object_name, simulator=self.hold_simulator))
-        return self._hold_scores[object_name]
+        task = self._draws if self._robot is None else self._robot
+        return {**task.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
+                "reward_method": "draws"}
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
@@ -570,12 +504,7 @@ class KineGraspEnv(gym.Env):
         return image if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:
-        for engine in self._engines.values():
-            engine.close()
-        self._engines.clear()
-        for score in self._hold_scores.values():
-            score.close()
-        self._hold_scores.clear()
+        self._draws.close()
         if self._robot is not None:
             self._robot.close()
         if self._viewer is not None:

@@ -35,15 +35,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import elbow_angle
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
@@ -55,9 +55,6 @@ ROBOT_N_DRAWS = 16
 #: What a description robot's reward scores (module docstring): the criteria of
 #: ``kinegrasp rank`` that a step's draws give.
 SCORES = ("pfc", "hold_static", "hold")
-#: Observation entries besides the joint vectors: sigma, noise one-hot, palm position and
-#: orientation, psi's sin and cos, palm spread, nominal Q, episode fraction.
-OBS_EXTRA = 23
 
 
 def check_grasps_robot(grasps: list[Grasp], robot: str, source) -> None:
@@ -130,8 +127,8 @@ class RobotTask:
         self.arm = self.description.arm_dof
         self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
         self._engines: dict[tuple[str, bool], RobotEngine] = {}  # (object, holding test)
-        links = [*self.kin.jacobian_links(self.description.palm_link), *self.motion.angle_links]
-        self.links = list(dict.fromkeys(links))
+        self.observer = ArmObserver(self.kin, self.description.palm_link, self.arm,
+                                    self.motion.angle_links)
 
     def engine(self, object_name: str) -> RobotEngine:
         """The reward's engine of ``object_name`` (built on first use and kept: a pybullet
@@ -179,38 +176,11 @@ class RobotTask:
                              f"not {', '.join(other)} errors (score 'pfc' or 'hold_static' "
                              "takes them)")
 
-    def sigma(self, noise: JointNoise | NoiseModel) -> float:
-        """The joint sigma an observation shows (radians): the largest over the arm joints."""
-        return float(noise.sigma_vector(self.arm).max())
-
-    def observation(self, grasp: Grasp, q: np.ndarray, noise: JointNoise, fraction: float
+    def observation(self, grasp: Grasp, q: np.ndarray, noise, fraction: float
                     ) -> tuple[np.ndarray, float]:
-        """(observation (obs_size,) float64 unclipped, elbow angle psi of q (radians)).
-
-        Layout: q0's arm joints / pi, q0's hand joints / pi, sigma / 0.05 rad, noise one-hot
-        (3), palm position in the object frame / 0.3 m (3), palm orientation in the object
-        frame (the first two columns of R: 6), sin and cos psi, current arm joints / pi,
-        palm-pose std per unit joint noise (6), 10 x nominal Q, ``fraction``.
-        """
-        obj = load_object(grasp.object)
-        palm_link = self.description.palm_link
-        poses = self.kin.forward(q[None], self.links)
-        palm = poses[palm_link][0]
-        rot_obj = obj.pose[:3, :3]
-        rel_pos = rot_obj.T @ (palm[:3, 3] - obj.pose[:3, 3])
-        rel_rot = rot_obj.T @ palm[:3, :3]
-        jac = self.kin.jacobian_at(poses, palm_link)[0][:, :self.arm]
-        jac = np.vstack([rot_obj.T @ jac[:3], rot_obj.T @ jac[3:]])
-        spread = np.sqrt(np.diag(jac @ jac.T))
-        s, e, w = (poses[link][0, :3, 3] for link in self.motion.angle_links)
-        psi = float(elbow_angle(s, e, w))
-        onehot = np.array([noise.kind == k for k in DISTRIBUTIONS], dtype=float)
-        obs = np.concatenate([
-            grasp.q0[:self.arm] / np.pi, grasp.q0[self.arm:] / np.pi,
-            [self.sigma(noise) / 0.05], onehot, rel_pos / 0.3, rel_rot[:, :2].T.ravel(),
-            [np.sin(psi), np.cos(psi)], q[:self.arm] / np.pi, spread,
-            [10.0 * grasp.q_nominal], [fraction]])
-        return obs, psi
+        """(observation (obs_size,) float64 unclipped, elbow angle psi of q (radians)):
+        :class:`~kinegrasp_env.envs.observation.ArmObserver`'s layout."""
+        return self.observer.observe(grasp, q, noise, fraction)
 
     def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                   seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:

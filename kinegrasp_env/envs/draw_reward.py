@@ -1,0 +1,80 @@
+"""The default robot's reward from Monte Carlo draws at the env's configuration: P(FC), the
+mean Q of the force-closure draws and the outcome counts of a step's draws, and with a hold
+score (``score``) that score's P(hold) on the same draws
+(:mod:`~kinegrasp_env.montecarlo.draw_holds`: the static hold check, or the quick holding
+test on the draws' configurations).
+
+A step's draws are chunk 0 of a seed the env draws from its generator
+(:func:`~kinegrasp_env.montecarlo.evaluate.draw_chunk`), so the same seed gives the same
+reward.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
+from kinegrasp_env.montecarlo.evaluate import draw_chunk
+from kinegrasp_env.sampling.stats import wilson_interval
+from kinegrasp_env.world.grasps import Grasp
+
+__all__ = ["DrawReward"]
+
+
+class DrawReward:
+    """The draws' reward terms of the default robot (module docstring).
+
+    Args:
+        engine: the engine's name (``fast``, ``pybullet``, ``physics``).
+        score: ``pfc``, ``hold_static`` or ``hold``.
+        hold_simulator: where the ``hold`` score's holding test runs.
+    """
+
+    def __init__(self, engine: str, score: str, hold_simulator: str = "pybullet") -> None:
+        self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator
+        self._engines: dict[tuple, Engine] = {}
+        self._hold_scores: dict[str, object] = {}
+
+    def engine(self, object_name: str) -> Engine:
+        """The engine on ``object_name``, built once (a fresh one after a re-import)."""
+        return cached_engine(self._engines, self.engine_name, object_name)
+
+    def hold_score(self, object_name: str):
+        """The hold score on ``object_name`` (the static hold check or the quick holding
+        test), built once."""
+        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck, QuickHoldTest
+
+        if object_name not in self._hold_scores:
+            self._hold_scores[object_name] = (
+                DrawHoldCheck(object_name) if self.score == "hold_static"
+                else QuickHoldTest(object_name, simulator=self.hold_simulator))
+        return self._hold_scores[object_name]
+
+    def estimate(self, grasp: Grasp, q: np.ndarray, noise, seed: int, n: int) -> dict:
+        """The reward terms of n draws of ``noise`` at configuration q (14,), seed ``seed``:
+        ``p_fc`` and its Wilson interval, ``q_mean``, ``outcomes``, ``draws``, ``draw_seed``,
+        ``score_value`` (the score's estimate), and for a hold score ``p_hold`` and its
+        interval."""
+        draws = draw_chunk(self.engine(grasp.object), q, noise, seed, 0, n)
+        fc = draws.outcome == FORCE_CLOSURE
+        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+                 "q_mean": float(draws.quality[fc].mean()) if fc.any() else 0.0,
+                 "draws": n, "draw_seed": seed,
+                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
+                 "score_value": float(fc.mean())}
+        if self.score != "pfc":  # a hold score of the same draws
+            held = self.hold_score(grasp.object).chunk_held(
+                q, noise, seed, draws if self.score == "hold_static" else n, chunk=n)
+            stats.update(p_hold=float(held.mean()),
+                         p_hold_ci=wilson_interval(int(held.sum()), held.size),
+                         score_value=float(held.mean()))
+        return stats
+
+    def close(self) -> None:
+        for engine in self._engines.values():
+            engine.close()
+        self._engines.clear()
+        for score in self._hold_scores.values():
+            score.close()
+        self._hold_scores.clear()
