@@ -85,7 +85,7 @@ def test_every_branch_reaches_the_palm_pose_and_they_differ(home):
     apart on some joint (measured: 1.99 rad at the least; the solutions merged into one
     branch agree to ~1e-6); the planner's own configuration is one of them (within 1e-3)."""
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.ik_branches import ik_branches
+    from kinegrasp_env.robot.ik_branches import ik_branches
 
     grasp = home[1][0]
     target = np.array(grasp["palm_pose"])
@@ -115,7 +115,7 @@ def test_every_branch_reaches_the_palm_pose_and_they_differ(home):
 
 def test_bad_input_to_ik_branches(home):
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.ik_branches import ik_branches
+    from kinegrasp_env.robot.ik_branches import ik_branches
 
     robot = load_robot("xarm6")
     for pose, starts, message in [(np.eye(3), 10, "palm_pose must be a finite (4, 4)"),
@@ -266,3 +266,65 @@ def test_elbow_report_of_the_ik_branches(home, capsys, tmp_path):
         assert poses
         for pose in poses:  # the link's pieces sit in its frame (visual origin: identity)
             np.testing.assert_allclose(pose[:, 3], expected[:3, 3], atol=1e-5)
+
+
+def test_the_branches_as_an_elbow_coordinate(home):
+    """:class:`~kinegrasp_env.robot.branch_motion.BranchMotion` on the grasp's palm pose: B
+    branches, each bin's coordinate puts the arm on branch k of
+    :func:`~kinegrasp_env.robot.ik_branches.ik_branches` (same starts and seed), with the
+    palm where pybullet's forward kinematics says the grasp has it (1e-4 m); psi and psi + 2 pi
+    are one branch; the coordinate of a branch's configuration is its bin's centre."""
+    from kinegrasp_env.robot.branch_motion import BranchMotion
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.ik_branches import ik_branches
+
+    grasp = home[1][0]
+    q0 = np.asarray(grasp["q0"], dtype=float)
+    description = load_robot("xarm6")
+    motion = BranchMotion(description)
+    palm = bullet_palm_pose(q0[:6])
+    found = ik_branches(description, palm, seed=0)
+    count = len(found)
+    assert count >= 2 and motion.branches(q0).shape == (count, 6)
+    for k in range(count):
+        centre = -np.pi + 2.0 * np.pi * (k + 0.5) / count
+        for psi in (centre, centre + 2.0 * np.pi, centre - 0.49 * 2.0 * np.pi / count):
+            q, reached = motion.set_elbow_angle(q0, psi)
+            assert reached
+            # the same branch (branches lie > 0.1 rad apart; the IK converges to 1e-7, and
+            # pybullet's palm pose is single precision: measured 1.7e-7)
+            np.testing.assert_allclose(q[:6], found[k].q, atol=1e-5)
+            np.testing.assert_allclose(q[6:], q0[6:])
+        assert motion.elbow_angle(q[None])[0] == pytest.approx(centre, abs=1e-12)
+        reached = bullet_palm_pose(q[:6])
+        assert np.abs(reached[:3, 3] - palm[:3, 3]).max() < 1e-4
+
+
+def test_the_env_moves_a_six_joint_arm_across_its_branches(home):
+    """``KineGrasp-v0`` of the xArm 6: the elbow coordinate the agent moves crosses a bin's
+    edge and the arm changes branch (the palm pose kept); the observation shows the
+    coordinate moved to; Gymnasium's ``check_env`` passes both envs with their renderings."""
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    import kinegrasp_env  # noqa: F401  (registers the envs)
+
+    kwargs = {"robot": "xarm6", "grasp_file": str(home[0]), "n_draws": 4}
+    env = gym.make("KineGrasp-v0", step_size=0.3, **kwargs).unwrapped
+    env.reset(seed=0, options={"grasp": 0})
+    motion = env.self_motion
+    start, count = motion.branch_of(env.q)
+    palm = bullet_palm_pose(env.q[:6])
+    sine = 6 + (env.q.size - 6) + 13  # q0's arm and hand, sigma, one-hot, palm pose
+    seen, psi = {start}, env._psi
+    for _ in range(int(np.ceil(2.0 * np.pi / 0.3)) + 1):
+        obs = env.step(np.array([1.0, -1.0], dtype=np.float32))[0]
+        psi = (psi + 0.3 + np.pi) % (2.0 * np.pi) - np.pi
+        assert env._psi == pytest.approx(psi, abs=1e-9)
+        assert np.arctan2(*obs[sine:sine + 2]) == pytest.approx(psi, abs=1e-6)
+        seen.add(motion.branch_of(env.q)[0])
+        assert np.abs(bullet_palm_pose(env.q[:6])[:3, 3] - palm[:3, 3]).max() < 1e-4
+    assert seen == set(range(count))
+    env.close()
+    check_env(gym.make("KineGrasp-v0", render_mode="rgb_array", **kwargs).unwrapped)
+    check_env(gym.make("KineGraspSelect-v0", render_mode="rgb_array", **kwargs).unwrapped)

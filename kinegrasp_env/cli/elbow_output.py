@@ -15,7 +15,7 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 #: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
 #: imports no NumPy.
 DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
-#: ``--ik-starts`` default (equal to ``toolkit.ik_branches.DEFAULT_STARTS``; copied, as above).
+#: ``--ik-starts`` default (equal to ``robot.ik_branches.DEFAULT_STARTS``; copied, as above).
 DEFAULT_IK_STARTS = 200
 
 

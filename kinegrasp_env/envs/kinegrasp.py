@@ -57,7 +57,8 @@ k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the re
 range at once, which a Gaussian one centred between them cannot).
 
 Robots: ``robot`` (default ``kuka_sdh``, the paper's robot and everything above) or another
-robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion, its
+robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion (a
+6-joint arm: its IK branches as the elbow coordinate), its
 engine's draws (``engine``, fast by default; 16 draws by default), an observation sized by
 its arm and hand, and pictures of its whole URDF with the object
 (:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
@@ -281,6 +282,9 @@ class KineGraspEnv(gym.Env):
         self.grasp: Grasp | None = None
         self.q = None
         self._psi = 0.0  # elbow angle of self.q (radians), set by every observation
+        #: an arm without self-motion: the IK-branch coordinate moved to (radians, wrapped),
+        #: which the observation shows (the branch's bin holds it); else None
+        self._branch_psi: float | None = None
         self.steps = 0
 
     def _action_space(self) -> spaces.Box:
@@ -386,7 +390,7 @@ class KineGraspEnv(gym.Env):
     def _observation(self) -> np.ndarray:
         task = self._observer if self._robot is None else self._robot.observer
         obs, self._psi = task.observe(self.grasp, self.q, self.noise,
-                                      self.steps / self.max_steps)
+                                      self.steps / self.max_steps, self._branch_psi)
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
     def _estimate(self) -> dict:
@@ -432,7 +436,14 @@ class KineGraspEnv(gym.Env):
 
     def _move_to(self, psi: float) -> bool:
         self.q, reached = self.configuration_at(psi)
+        if self._branches:
+            self._branch_psi = (psi + math.pi) % (2.0 * math.pi) - math.pi
         return reached
+
+    @property
+    def _branches(self) -> bool:
+        """Whether the arm's elbow coordinate is its IK branches (no self-motion)."""
+        return self._robot is not None and self._robot.motion.angle_links is None
 
     def _reward(self, within_limits: bool) -> tuple[float, dict]:
         info = self._estimate()
@@ -463,6 +474,7 @@ class KineGraspEnv(gym.Env):
             check_hold_noise(self.noise)
         self.q = self.grasp.q0.copy()
         self.steps = 0
+        self._branch_psi = None
         if options.get("psi") is not None:
             psi = options["psi"]
             if not isinstance(psi, (int, float, np.number)) or not math.isfinite(psi):

@@ -7,7 +7,10 @@ Everything robot-specific is derived from the robot's description
   antipodal planner's output: ``kinegrasp plan --robot panda --count 4``; for the Panda:
   cube, drill and spray_flask, 4 grasps each) or a ``grasp_file`` of grasps of the robot;
 - **self-motion**: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (7 arm joints:
-  the palm held, the elbow angle of the description's ``arm_angle_links`` moved);
+  the palm held, the elbow angle of the description's ``arm_angle_links`` moved); for an arm
+  of 6 joints (or fewer) its IK branches as the elbow coordinate
+  (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`: with B branches, branch k
+  covers psi in [-pi + 2 pi k / B, -pi + 2 pi (k + 1) / B));
 - **reward draws**: an engine of the robot by name
   (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast``
   (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`, the reference closing
@@ -40,6 +43,7 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
+from kinegrasp_env.robot.branch_motion import BranchMotion
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
@@ -122,13 +126,14 @@ class RobotTask:
             check_simulator(hold_simulator)
         self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator
         self.description: RobotDescription = load_robot(robot)
-        self.motion = ArmSelfMotion(self.description)
-        self.kin = self.motion.kin
         self.arm = self.description.arm_dof
+        self.motion = (ArmSelfMotion(self.description) if self.arm == 7
+                       else BranchMotion(self.description))
+        self.kin = self.motion.kin
         self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
         self._engines: dict[tuple[str, bool], RobotEngine] = {}  # (object, holding test)
         self.observer = ArmObserver(self.kin, self.description.palm_link, self.arm,
-                                    self.motion.angle_links)
+                                    self.motion.angle_links, self.motion.elbow_angle)
 
     def engine(self, object_name: str) -> RobotEngine:
         """The reward's engine of ``object_name`` (built on first use and kept: a pybullet

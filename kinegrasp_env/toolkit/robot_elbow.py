@@ -43,6 +43,13 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
     evaluate_robot_grasp,
     make_engine,
 )
+from kinegrasp_env.robot.ik_branches import (
+    DEFAULT_STARTS,
+    MERGE_TOL,
+    IKBranch,
+    ik_branches,
+    joint_difference,
+)
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import (
@@ -60,13 +67,6 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     Certificate,
     check_levels,
     rounded_up,
-)
-from kinegrasp_env.toolkit.ik_branches import (
-    DEFAULT_STARTS,
-    MERGE_TOL,
-    IKBranch,
-    ik_branches,
-    joint_difference,
 )
 from kinegrasp_env.toolkit.robot_plan_checks import clearance
 from kinegrasp_env.world.grasps import Grasp
@@ -336,7 +336,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
         samples: draws per branch, for the selection and again (fresh) for the scoring.
         seed: run seed (also of the IK starts: ``SeedSequence([seed, IK_STREAM])``).
         engine: a reference engine of the grasp's robot and object to reuse.
-        starts: random IK starts (:func:`~kinegrasp_env.toolkit.ik_branches.ik_branches`).
+        starts: random IK starts (:func:`~kinegrasp_env.robot.ik_branches.ik_branches`).
         epsilon, delta: the certificate's margin and error level.
         progress: optional ``progress(evaluations)`` callback (2 per branch).
         friction, evaluate_with, executor: as :func:`optimize_robot_elbow`.

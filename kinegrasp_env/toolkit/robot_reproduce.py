@@ -34,9 +34,9 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
     make_engine,
 )
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS as DEFAULT_IK_STARTS
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
-from kinegrasp_env.toolkit.ik_branches import DEFAULT_STARTS as DEFAULT_IK_STARTS
 from kinegrasp_env.toolkit.robot_elbow import (
     branch_variants,
     fresh_seed,
