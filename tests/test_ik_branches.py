@@ -328,3 +328,24 @@ def test_the_env_moves_a_six_joint_arm_across_its_branches(home):
     env.close()
     check_env(gym.make("KineGrasp-v0", render_mode="rgb_array", **kwargs).unwrapped)
     check_env(gym.make("KineGraspSelect-v0", render_mode="rgb_array", **kwargs).unwrapped)
+
+
+def test_plan_variants_of_a_six_joint_arm_are_its_branches(home, capsys):
+    """``plan --robot xarm6 --variants 3``: each grasp's variants put pybullet's palm at the
+    grasp's palm pose (1e-4 m), differ pairwise by > 0.1 rad on some joint, name their branch,
+    and one of them is the grasp's own configuration."""
+    assert main(["plan", "--robot", "xarm6", "--object", "cube", "--count", "1", "--seed",
+                 "0", "--variants", "3", "--out", "variants.json"]) == 0
+    assert "IK-branch variants" in capsys.readouterr().out
+    grasps = json.loads(open("variants.json").read())["grasps"]
+    nominal, variants = grasps[0], [g for g in grasps if g["id"].startswith("0v")]
+    assert len(variants) >= 2 and all(g["meta"]["ik_branch"] for g in variants)
+    palm = bullet_palm_pose(np.asarray(nominal["q0"])[:6])
+    arms = np.array([g["q0"][:6] for g in variants])
+    for arm in arms:
+        assert np.abs(bullet_palm_pose(arm)[:3, 3] - palm[:3, 3]).max() < 1e-4
+    gaps = [np.abs(np.angle(np.exp(1j * (a - b)))).max()
+            for i, a in enumerate(arms) for b in arms[i + 1:]]
+    assert min(gaps) > 0.1
+    assert np.abs(np.angle(np.exp(1j * (arms - np.asarray(nominal["q0"])[:6])))).max(
+        axis=1).min() < 1e-3

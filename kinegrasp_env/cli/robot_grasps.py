@@ -99,10 +99,11 @@ def cmd_plan_robot(args) -> int:
     output_file(args.out, "--out")
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
-    if variants and not description.has_self_motion:
+    branches = description.arm_dof == 6  # its variants: the IK branches of the palm pose
+    if variants and not (description.has_self_motion or branches):
         raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
                        "joints; variants move a 7-joint arm with arm_angle_links along its "
-                       "self-motion (a 6-joint arm's IK branches: `kinegrasp elbow`)")
+                       "self-motion, or take a 6-joint arm's IK branches")
     with reported(ValueError):
         grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
                                    friction=friction, settings=settings, time_budget=budget)
@@ -118,7 +119,8 @@ def cmd_plan_robot(args) -> int:
             for grasp in grasps:
                 out += robot_variants(grasp, engine, variants)
     save_grasps(out, args.out, planner_seed=seed)
-    extra = f" ({len(out) - len(grasps)} null-space variants)" if variants else ""
+    kind = "IK-branch" if branches else "null-space"
+    extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""
     print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
           f"{args.out}")
     return 0
