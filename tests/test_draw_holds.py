@@ -106,22 +106,30 @@ def test_evaluate_prints_the_default_robots_static_hold(capsys):
     assert record["p_hold_static"] <= record["p_fc"]
 
 
+def env_step(score: str, obj: str, *, seed: int, n_draws: int):
+    """(env, info, the step's configurations (n_draws, 14)) of one ``KineGrasp-v0`` step of
+    the default robot scoring ``score`` on ``obj`` (psi kept), the draws rebuilt here from
+    the env's draw seed (chunk 0 of the stream layout); the info names the score."""
+    import gymnasium as gym
+
+    import kinegrasp_env  # noqa: F401  (registers the envs)
+
+    env = gym.make("KineGrasp-v0", score=score, n_draws=n_draws).unwrapped
+    env.reset(seed=seed, options={"object": obj, "sigma": SIGMA, "noise": "gaussian"})
+    info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[-1]
+    assert info["score"] == score and info["reward_score"] == info["p_hold"]
+    rng = np.random.default_rng(np.random.SeedSequence(info["draw_seed"], spawn_key=(0,)))
+    q = np.repeat(env.q[None], n_draws, axis=0)
+    q[:, :7] += rng.normal(0.0, SIGMA, (n_draws, 7))
+    return env, info, q
+
+
 def test_the_envs_hold_score_is_the_check_of_its_step_draws():
     """``KineGrasp-v0`` with ``score="hold_static"`` on the default robot: the reward's
     score is P(hold, static) of the step's draws; the same draws (the env's draw seed, chunk
     0 of the stream layout) closed by the description engine give the same share, up to the
     draws whose closings differ."""
-    import gymnasium as gym
-
-    import kinegrasp_env  # noqa: F401  (registers the envs)
-
-    env = gym.make("KineGrasp-v0", score="hold_static", n_draws=64).unwrapped
-    env.reset(seed=1, options={"object": "mug", "sigma": SIGMA, "noise": "gaussian"})
-    info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[-1]
-    assert info["score"] == "hold_static" and info["reward_score"] == info["p_hold"]
-    rng = np.random.default_rng(np.random.SeedSequence(info["draw_seed"], spawn_key=(0,)))
-    q = np.repeat(env.q[None], 64, axis=0)
-    q[:, :7] += rng.normal(0.0, SIGMA, (64, 7))
+    env, info, q = env_step("hold_static", "mug", seed=1, n_draws=64)
     other, _, _ = description_closing("mug", q)
     differing = int((other.outcome != env._engine("mug").run(q).outcome).sum())
     assert abs(info["p_hold"] - other.holds.mean()) <= differing / 64
@@ -132,19 +140,10 @@ def test_the_envs_hold_score_is_the_check_of_its_step_draws():
 def test_the_envs_holding_test_score_runs_on_its_step_draws():
     """``score="hold"`` on the default robot: P(hold) is the SDH's quick holding test on the
     step's draws (the env's draw seed, chunk 0 of the stream layout, built here)."""
-    import gymnasium as gym
-
-    import kinegrasp_env  # noqa: F401
     from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
     from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
-    env = gym.make("KineGrasp-v0", score="hold", n_draws=6).unwrapped
-    env.reset(seed=0, options={"object": "cube", "sigma": SIGMA, "noise": "gaussian"})
-    info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[-1]
-    assert info["score"] == "hold" and info["reward_score"] == info["p_hold"]
-    rng = np.random.default_rng(np.random.SeedSequence(info["draw_seed"], spawn_key=(0,)))
-    q = np.repeat(env.q[None], 6, axis=0)
-    q[:, :7] += rng.normal(0.0, SIGMA, (6, 7))
+    env, info, q = env_step("hold", "cube", seed=0, n_draws=6)
     engine = PhysicsEngine("cube", protocol=QUICK_PROTOCOL)
     try:
         held = engine.run_hold(q)[1].outcome == HELD
