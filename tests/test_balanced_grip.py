@@ -73,3 +73,39 @@ def test_the_sdh_as_a_description_holds_its_nominal_grasps(simulator):
         with quick_hold_engine("kuka_sdh", obj, simulator=simulator) as engine:
             held += int((engine.run_hold(q)[1].outcome == HELD).sum())
     assert held >= 10
+
+
+def test_a_joint_that_closes_negative_gets_the_mirrored_spring():
+    """The same hand state written with one joint's URDF axis flipped (its closing direction
+    -1, its angle and axis negated) is the same physical grip: that joint's spring target and
+    torque at every angle are the mirror of the original's, the others' unchanged."""
+    import dataclasses
+
+    from kinegrasp_env.physics.grip_forces import GripContact
+
+    layout = grip_layout(load_robot("kuka_sdh"))
+    j = layout.names.index("f2_proximal")
+    rng = np.random.default_rng(0)
+    # a tripod: three distal contacts on a ball of radius 0.04 m about the origin
+    points = 0.04 * np.array([[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.0]])
+    contacts = [GripContact(f, 1, points[f], -points[f] / 0.04) for f in range(3)]
+    count = len(layout.names)
+    # every joint 5 cm above its finger's contact, its axis horizontal: closing turns the
+    # tip towards the centre
+    origins = np.array([points[f] + [0.0, 0.0, 0.05] for f in layout.fingers])
+    tips = np.array([points[f] for f in layout.fingers])
+    axes = np.cross([0.0, 0.0, 1.0], tips / 0.04)
+    stall = rng.uniform(-0.5, 0.5, count)
+    pose = np.eye(4)
+    args = (pose, np.zeros(3), 0.8, 0.0015)
+    plain = layout.spring(contacts, axes, origins, tips, stall, *args)
+    flip = np.ones(count)
+    flip[j] = -1.0
+    mirrored = dataclasses.replace(layout, directions=layout.directions * flip)
+    other = mirrored.spring(contacts, axes * flip[:, None], origins, tips, stall * flip, *args)
+    assert plain is not None and other is not None and plain.loaded[j]
+    np.testing.assert_allclose(other.targets, plain.targets * flip, atol=1e-12)
+    np.testing.assert_allclose(other.stall, stall * flip)
+    angles = stall + rng.uniform(-0.01, 0.01, count)
+    np.testing.assert_allclose(other.torques(angles * flip), plain.torques(angles) * flip,
+                               atol=1e-12)

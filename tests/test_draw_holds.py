@@ -151,3 +151,41 @@ def test_the_envs_holding_test_score_runs_on_its_step_draws():
         engine.close()
     assert info["p_hold"] == held.mean()
     env.close()
+
+
+def test_a_draw_that_misses_does_not_hold():
+    """Cube grasp 7 at 0.033 rad: some draws miss with a finger while two others touch; the
+    check scores none of them (nor any other draw out of force closure) held. Measured: 12
+    missed draws were scored held when every touching draw was checked."""
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED
+
+    grasp = next(g for g in shipped_grasps("cube") if g.id == "7")
+    noise = JointNoise(0.033)
+    stats = evaluate_grasp(grasp, noise, 200, 2, engine="fast", chunk=100, return_draws=True)
+    held, _ = grasp_holds(grasp, noise, 2, stats.draws, chunk=100)
+    outcome = stats.draws.outcome
+    assert (outcome == MISSED).sum() >= 5  # the case the rule is about occurs
+    assert not held[outcome != FORCE_CLOSURE].any()
+    assert held.sum() > 0
+
+
+def test_a_changed_hold_simulator_does_not_resume(tmp_path):
+    """A ranking log written with the holding test in pybullet is refused by a run asking for
+    MuJoCo (the two simulators' P(hold) would be mixed)."""
+    from kinegrasp_env.cli.common import CLIError
+    from kinegrasp_env.cli.resume import check_settings
+
+    stored = {"hold_simulator": "pybullet", "criterion_scores": [False, True]}
+    with pytest.raises(CLIError, match="--hold-simulator"):
+        check_settings(tmp_path / "r.partial.jsonl", stored,
+                       {**stored, "hold_simulator": "mujoco"})
+
+
+def test_an_unknown_hold_simulator_is_refused_when_the_env_is_made():
+    import gymnasium as gym
+
+    import kinegrasp_env  # noqa: F401
+
+    with pytest.raises(ValueError, match="unknown simulator 'bogus'") as error:
+        gym.make("KineGrasp-v0", score="hold", hold_simulator="bogus")
+    assert "\n" not in str(error.value)

@@ -313,6 +313,8 @@ def test_the_env_moves_a_six_joint_arm_across_its_branches(home, monkeypatch):
 
     kwargs = {"robot": "xarm6", "grasp_file": str(home[0]), "n_draws": 4}
     env = gym.make("KineGrasp-v0", step_size=0.3, **kwargs).unwrapped
+    info = env.reset(seed=0, options={"grasp": 0, "psi": 3.5})[1]
+    assert info["elbow_angle"] == pytest.approx(3.5 - 2.0 * np.pi)  # the coordinate asked
     env.reset(seed=0, options={"grasp": 0})
     motion = env.self_motion
     start, count = motion.branch_of(env.q)
@@ -356,3 +358,24 @@ def test_plan_variants_of_a_six_joint_arm_are_its_branches(home, capsys):
     assert min(gaps) > 0.1
     assert np.abs(np.angle(np.exp(1j * (arms - np.asarray(nominal["q0"])[:6])))).max(
         axis=1).min() < 1e-3
+
+
+@pytest.mark.parametrize("count", range(1, 17))
+def test_every_bins_lower_edge_is_its_own_branch(count):
+    """With B branches, the coordinate -pi + 2 pi k / B (what ``KineGraspSelect-v0`` with
+    ``action_bins=B`` asks for bin k) is on branch k for every k, as is the bin's centre;
+    B = 6, k = 1 rounded down to branch 0 when the edge was not its bin's own."""
+    from kinegrasp_env.robot.branch_motion import BranchMotion
+
+    class Stub(BranchMotion):
+        def __init__(self):
+            self.arm = 1
+
+        def branches(self, q):
+            return np.arange(count, dtype=float)[:, None]
+
+    motion = Stub()
+    for k in range(count):
+        for psi in (-np.pi + 2.0 * np.pi * k / count, -np.pi + 2.0 * np.pi * (k + 0.5) / count):
+            q, reached = motion.set_elbow_angle(np.array([99.0, 5.0]), psi)
+            assert reached and q[0] == k and q[1] == 5.0

@@ -40,6 +40,7 @@ SETTING_LABELS = {
     "best_elbow_samples": "--best-elbow",
     "robot": "--robot",
     "criterion_scores": "hold scores (static check, holding test)",
+    "hold_simulator": "--hold-simulator",
 }
 
 

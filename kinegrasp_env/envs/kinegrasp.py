@@ -110,6 +110,7 @@ from kinegrasp_env.envs.tasks import (
 from kinegrasp_env.montecarlo.engines import Engine
 from kinegrasp_env.montecarlo.evaluate import ENGINES
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
+from kinegrasp_env.physics.simulators import check_simulator
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics
@@ -228,6 +229,8 @@ class KineGraspEnv(gym.Env):
         if hold_simulator != "pybullet" and score != "hold":
             raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
                              "simulator; it runs with score='hold'")
+        if own and score == "hold":
+            check_simulator(hold_simulator)
         if reward == "batch" and score != "pfc":
             raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
                              "reward 'draws'")
@@ -481,7 +484,8 @@ class KineGraspEnv(gym.Env):
                 raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
             self._move_to(float(psi))
         elbow = self.ik if self._robot is None else self._robot.motion
-        psi0 = float(elbow.elbow_angle(self.q[None])[0])
+        psi0 = (self._branch_psi if self._branch_psi is not None
+                else float(elbow.elbow_angle(self.q[None])[0]))
         self._batch = self._episode_batch()
         info = {"object": self.grasp.object, "grasp": self.grasp.id, **noise_info(self.noise),
                 "elbow_angle": psi0}

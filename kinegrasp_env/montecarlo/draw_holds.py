@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, DrawBatch
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
 from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL, HoldProtocol
@@ -91,14 +91,16 @@ class DrawHoldCheck:
         return np.concatenate([arm, draws.hand], axis=1)
 
     def held(self, arm: np.ndarray, draws: DrawBatch) -> np.ndarray:
-        """(n,) whether each draw's closing holds all six loads.
+        """(n,) whether each draw's closing holds all six loads (a draw that starts in
+        collision or misses with a finger does not).
 
         Args:
             arm: (n, 7) the draws' arm joints, radians.
             draws: the engine's n draws (contacts in the object frame, the closed hand).
         """
         q = self.configurations(arm, draws)
-        rows = np.flatnonzero((draws.n_contacts > 0) & np.isfinite(q).all(axis=1))
+        touched = (draws.outcome == NO_FORCE_CLOSURE) | (draws.outcome == FORCE_CLOSURE)
+        rows = np.flatnonzero(touched & np.isfinite(q).all(axis=1))
         out = np.zeros(len(draws), dtype=bool)
         if rows.size:
             out[rows] = self.check.held(q[rows], {}, draws.points[rows], draws.normals[rows],
@@ -132,6 +134,8 @@ def run_configurations(q0: np.ndarray, noise, seed: int, n: int, chunk: int,
                        first_chunk: int = 0) -> np.ndarray:
     """(n, 14) the configurations of the n draws a run from q0 (14,) makes with ``noise`` and
     ``seed`` in chunks of ``chunk`` from chunk ``first_chunk`` on."""
+    if n == 0:
+        return np.empty((0, np.asarray(q0).size))
     chunks = [(first_chunk + i, size) for i, size in enumerate(chunk_sizes(n, chunk))]
     return chunk_configurations(q0, noise, seed, chunks)
 

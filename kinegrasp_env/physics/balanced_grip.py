@@ -19,7 +19,7 @@ A joint carries a contact when it lies on the chain from the palm to the contact
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -80,10 +80,16 @@ class GripLayout:
         """The grip of the hand just closed (:func:`~kinegrasp_env.physics.grip_forces.
         spring_grip`): contacts (finger, link index in its finger's ``links``) and joint
         frames in the world frame, ``stall`` (J,) the joints' angles now, radians; None when
-        no contact forces in equilibrium exist."""
-        return spring_grip(contacts, self.joints(axes, origins, tips), object_pose,
-                           center_of_mass, np.asarray(stall, dtype=float), friction,
-                           advance)
+        no contact forces in equilibrium exist. The springs are in the URDF's sense of each
+        joint (as the simulators set them): the programme solves with every closing joint
+        closing positive, and a joint that closes negative has its angles, target and
+        torque mirrored."""
+        stall = np.asarray(stall, dtype=float)
+        spring = spring_grip(contacts, self.joints(axes, origins, tips), object_pose,
+                             center_of_mass, self.directions * stall, friction, advance)
+        if spring is None:
+            return None
+        return replace(spring, stall=stall, targets=self.directions * spring.targets)
 
 
 def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> GripLayout:

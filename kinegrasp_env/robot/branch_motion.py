@@ -31,6 +31,8 @@ __all__ = ["SAME_POSE", "BranchMotion"]
 #: Two palm poses are one (their branches shared) when no entry of the (4, 4) poses differs
 #: by more than this (metres, or rotation entries): the branches' IK converges to ~1e-7.
 SAME_POSE = 1e-5
+#: A coordinate within this fraction of a bin below its lower edge is on the edge.
+EDGE_TOL = 1e-9
 
 
 class BranchMotion:
@@ -96,7 +98,10 @@ class BranchMotion:
         q = np.asarray(q, dtype=float)
         branches = self.branches(q)
         wrapped = (float(psi) + math.pi) % (2.0 * math.pi)
-        k = min(int(wrapped / (2.0 * math.pi) * branches.shape[0]), branches.shape[0] - 1)
+        # a bin's lower edge is its own (an edge computed as -pi + 2 pi k / B may round
+        # below it)
+        k = min(int(wrapped / (2.0 * math.pi) * branches.shape[0] + EDGE_TOL),
+                branches.shape[0] - 1)
         moved = q.copy()
         moved[:self.arm] = branches[k]
         return moved, True
