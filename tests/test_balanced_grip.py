@@ -59,8 +59,9 @@ def test_the_layout_is_the_sdh_holding_tests_own_grip_joints():
 def test_the_sdh_as_a_description_holds_its_nominal_grasps(simulator):
     """The quick holding test of ``kuka_sdh`` through the description robots' holding test
     on the 24 nominal cube and mug grasps: measured 15 held in pybullet and 12 in MuJoCo
-    with the balanced grip (the SDH's own test: 17 and 15; the jaws' rule: 1 and 3). At
-    least 10 must hold."""
+    with the balanced grip (the SDH's own test: 17 and 15; the jaws' rule: 1 and 3;
+    ``python benchmarks/description_hold.py --sigmas 0 --samples 1``). At least 10 must
+    hold."""
     if simulator == "mujoco":
         pytest.importorskip("mujoco")
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
