@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pybullet
@@ -379,3 +380,27 @@ def test_every_bins_lower_edge_is_its_own_branch(count):
         for psi in (-np.pi + 2.0 * np.pi * k / count, -np.pi + 2.0 * np.pi * (k + 0.5) / count):
             q, reached = motion.set_elbow_angle(np.array([99.0, 5.0]), psi)
             assert reached and q[0] == k and q[1] == 5.0
+
+
+def test_evaluate_elbow_of_a_six_joint_arm_takes_the_branch_of_its_bin(home, capsys):
+    """``evaluate --elbow PSI`` of the xArm 6 evaluates the grasp on the IK branch whose bin
+    holds PSI: the same P(FC), on the same draws, as the grasp written with that branch's arm
+    joints (branch k of :func:`~kinegrasp_env.robot.ik_branches.ik_branches`, found here)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.ik_branches import ik_branches
+
+    grasp = home[1][0]
+    q0 = np.asarray(grasp["q0"], dtype=float)
+    found = ik_branches(load_robot("xarm6"), bullet_palm_pose(q0[:6]), seed=0)
+    k = len(found) - 1
+    psi = -np.pi + 2.0 * np.pi * (k + 0.5) / len(found)
+    common = ["--grasp", "0", "--samples", str(SAMPLES), "--engine", "fast", "--json"]
+    assert main(["evaluate", "--grasps", str(home[0]), "--elbow", f"{psi:.6f}", *common]) == 0
+    moved = json.loads(capsys.readouterr().out)
+    data = json.loads(home[0].read_text())
+    data["grasps"] = [{**grasp, "q0": [*found[k].q.tolist(), *grasp["q0"][6:]]}]
+    Path("branch.json").write_text(json.dumps(data))
+    assert main(["evaluate", "--grasps", "branch.json", *common]) == 0
+    direct = json.loads(capsys.readouterr().out)
+    assert moved["grasp"] == f"0@{psi:.3f}"
+    assert moved["p_fc"] == direct["p_fc"] and moved["outcomes"] == direct["outcomes"]

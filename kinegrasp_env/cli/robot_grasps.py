@@ -249,20 +249,23 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
 
 
 def robot_grasp_at_elbow(grasp, robot: str, text: str):
-    """``evaluate --elbow PSI`` of a description robot with a 7-joint arm: the grasp with its
-    arm moved along the self-motion to elbow angle PSI (radians; the palm pose kept). A bad
-    or unreachable angle, or an arm without a self-motion, is a ValueError line."""
+    """``evaluate --elbow PSI`` of a description robot: the grasp with its arm moved along a
+    7-joint arm's self-motion to elbow angle PSI (radians), or onto the IK branch of a
+    6-joint arm whose coordinate bin holds PSI
+    (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`, as the envs have it); the palm
+    pose kept. A bad or unreachable angle, or a 7-joint arm without ``arm_angle_links``, is
+    a ValueError line."""
     import dataclasses
 
     import numpy as np
 
     from kinegrasp_env.cli.common import finite_float
+    from kinegrasp_env.robot.branch_motion import elbow_motion
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.null_motion import ArmSelfMotion
     from kinegrasp_env.toolkit.elbow import wrap_angle
 
     psi = finite_float(text, "--elbow")
-    motion = ArmSelfMotion(load_robot(robot))
+    motion = elbow_motion(load_robot(robot))
     q0 = np.asarray(grasp.q0, dtype=float)
     moved, ok = motion.set_elbow_angle(q0, psi)
     if not ok:

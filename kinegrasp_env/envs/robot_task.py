@@ -43,10 +43,9 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
-from kinegrasp_env.robot.branch_motion import BranchMotion
+from kinegrasp_env.robot.branch_motion import elbow_motion
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.stats import wilson_interval
@@ -127,8 +126,7 @@ class RobotTask:
         self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator
         self.description: RobotDescription = load_robot(robot)
         self.arm = self.description.arm_dof
-        self.motion = (ArmSelfMotion(self.description) if self.arm == 7
-                       else BranchMotion(self.description))
+        self.motion = elbow_motion(self.description)
         self.kin = self.motion.kin
         self.obs_size = 2 * self.arm + len(self.description.hand_joints) + OBS_EXTRA
         self._engines: dict[tuple[str, bool], RobotEngine] = {}  # (object, holding test)

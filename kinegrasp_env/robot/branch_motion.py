@@ -26,7 +26,7 @@ from kinegrasp_env.robot.ik_branches import (
 )
 from kinegrasp_env.robot.kinematics import Kinematics
 
-__all__ = ["SAME_POSE", "BranchMotion"]
+__all__ = ["SAME_POSE", "BranchMotion", "elbow_motion"]
 
 #: Two palm poses are one (their branches shared) when no entry of the (4, 4) poses differs
 #: by more than this (metres, or rotation entries): the branches' IK converges to ~1e-7.
@@ -105,3 +105,14 @@ class BranchMotion:
         moved = q.copy()
         moved[:self.arm] = branches[k]
         return moved, True
+
+
+def elbow_motion(description: RobotDescription, kin: Kinematics | None = None):
+    """The elbow coordinate of a robot's arm: a 7-joint arm's self-motion
+    (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`; ValueError without
+    ``arm_angle_links``), any other arm's IK branches (:class:`BranchMotion`)."""
+    from kinegrasp_env.robot.null_motion import ArmSelfMotion
+
+    if description.arm_dof == 7:
+        return ArmSelfMotion(description, kin)
+    return BranchMotion(description, kin)
