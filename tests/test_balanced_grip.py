@@ -31,7 +31,7 @@ def test_the_layout_is_the_sdh_holding_tests_own_grip_joints():
     the SDH's holding test (its joint list and torques written by hand)."""
     from kinegrasp_env.closing.reference import hand_joint_values
     from kinegrasp_env.physics.hold_runner import GRIP_JOINTS
-    from kinegrasp_env.physics.pybullet_closing import MotorSettings, joint_frame
+    from kinegrasp_env.physics.pybullet_closing import MotorSettings
     from kinegrasp_env.physics.pybullet_hold import grip_joints_now
     from kinegrasp_env.physics.pybullet_world import PhysicsWorld
     from kinegrasp_env.world.objects import load_object
@@ -41,9 +41,7 @@ def test_the_layout_is_the_sdh_holding_tests_own_grip_joints():
         world.reset(np.eye(4), hand_joint_values(np.array([0.6, 0.2, 0.5, 0.3, 0.6, 0.1, 0.4])))
         own = grip_joints_now(world, MotorSettings())
         layout = grip_layout(load_robot("kuka_sdh"))
-        frames = [joint_frame(world, name) for name in layout.names]
-        derived = layout.joints(np.array([a for a, _ in frames]),
-                                np.array([o for _, o in frames]),
+        derived = layout.joints(*world.joint_frames(list(layout.names)),
                                 np.array([world.link_pose(t)[:3, 3] for t in layout.tips]))
     finally:
         world.close()

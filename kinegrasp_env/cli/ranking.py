@@ -142,14 +142,11 @@ def cmd_rank(args) -> int:
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed}
-    if described:  # another robot's draws: one stream's rows, with its hold scores
-        scores = _hold_scores(args)
-        settings.update(robot=robot, criterion_scores=list(scores))
-        if scores[1]:  # the holding test runs: its simulator is a setting too
-            settings["hold_simulator"] = args.hold_simulator
-    elif static or test:  # the default robot's hold scores: settings of the log
+    if described:  # another robot's draws: one stream's rows
+        settings["robot"] = robot
+    if described or static or test:  # the hold scores a log carries
         settings["criterion_scores"] = [static, test]
-        if test:
+        if test:  # the holding test runs: its simulator is a setting too
             settings["hold_simulator"] = args.hold_simulator
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
@@ -175,7 +172,6 @@ def cmd_rank(args) -> int:
         if described:
             from kinegrasp_env.cli.robot_ranking import RobotRanking
 
-            static, test = _hold_scores(args)
             ranking = evaluator = RobotRanking(
                 grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
                 friction=friction, static_hold=static, hold_test=test, layout=layout,

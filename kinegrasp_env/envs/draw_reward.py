@@ -18,7 +18,31 @@ from kinegrasp_env.montecarlo.evaluate import draw_chunk
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp
 
-__all__ = ["DrawReward"]
+__all__ = ["DrawReward", "step_stats"]
+
+
+def step_stats(outcome: np.ndarray, quality: np.ndarray, held: np.ndarray | None,
+               seed: int) -> dict:
+    """A step's reward terms from its n draws (any robot): ``p_fc`` and its Wilson interval,
+    ``q_mean`` (over the force-closure draws; 0 without one), ``outcomes`` (counts by name),
+    ``draws``, ``draw_seed``, for a hold score (``held`` (n,), else None) ``p_hold`` and its
+    interval, and ``score_value``: the score's estimate.
+
+    Args:
+        outcome: (n,) indices into :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`;
+        quality: (n,) Q; seed: the draws' seed.
+    """
+    fc = outcome == FORCE_CLOSURE
+    counts = np.bincount(outcome, minlength=len(OUTCOMES))
+    stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+             "q_mean": float(quality[fc].mean()) if fc.any() else 0.0,
+             "draws": int(outcome.size), "draw_seed": seed,
+             "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+    if held is not None:
+        stats.update(p_hold=float(held.mean()),
+                     p_hold_ci=wilson_interval(int(held.sum()), held.size))
+    stats["score_value"] = stats["p_fc" if held is None else "p_hold"]
+    return stats
 
 
 class DrawReward:
@@ -56,20 +80,19 @@ class DrawReward:
         ``score_value`` (the score's estimate), and for a hold score ``p_hold`` and its
         interval."""
         draws = draw_chunk(self.engine(grasp.object), q, noise, seed, 0, n)
-        fc = draws.outcome == FORCE_CLOSURE
-        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
-        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
-                 "q_mean": float(draws.quality[fc].mean()) if fc.any() else 0.0,
-                 "draws": n, "draw_seed": seed,
-                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-                 "score_value": float(fc.mean())}
+        held = None
         if self.score != "pfc":  # a hold score of the same draws
             held = self.hold_score(grasp.object).chunk_held(
                 q, noise, seed, draws if self.score == "hold_static" else n, chunk=n)
-            stats.update(p_hold=float(held.mean()),
-                         p_hold_ci=wilson_interval(int(held.sum()), held.size),
-                         score_value=float(held.mean()))
-        return stats
+        return step_stats(draws.outcome, draws.quality, held, seed)
+
+    def check_noise(self, noise) -> None:
+        """ValueError (one line) for a noise model a hold score of the default robot's draws
+        cannot take (:func:`~kinegrasp_env.montecarlo.draw_holds.check_hold_noise`)."""
+        if self.score != "pfc":
+            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+            check_hold_noise(noise)
 
     def close(self) -> None:
         for engine in self._engines.values():

@@ -275,9 +275,9 @@ class KineGraspEnv(gym.Env):
         self._jacobian = (None if reward != "batch" else PalmJacobian() if own
                           else PalmJacobian(self._robot.description))
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
-        if self._robot is not None and self.noise_model is not None:
-            self._robot.check_noise(self.noise_model)
         self._draws = DrawReward(engine, score, hold_simulator)  # the default robot's
+        if self.noise_model is not None:
+            self._task.check_noise(self.noise_model)
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
         self._observer = ArmObserver(self._kin, PALM_LINK, 7, ARM_ANGLE_LINKS)
         self._ik: ArmIK | None = None
@@ -377,8 +377,7 @@ class KineGraspEnv(gym.Env):
             if options.get("sigma") is not None or options.get("noise") is not None:
                 raise ValueError("give the reset option noise_model or sigma/noise, not both")
             model = noise_model_from(model)
-            if self._robot is not None:
-                self._robot.check_noise(model)
+            self._task.check_noise(model)
             return model
         sigma = options.get("sigma")
         if sigma is None:
@@ -404,8 +403,7 @@ class KineGraspEnv(gym.Env):
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
-        task = self._draws if self._robot is None else self._robot
-        return {**task.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
+        return {**self._task.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
                 "reward_method": "draws"}
 
     def _episode_batch(self) -> BatchReward | None:
@@ -444,6 +442,13 @@ class KineGraspEnv(gym.Env):
         return reached
 
     @property
+    def _task(self) -> DrawReward | RobotTask:
+        """What draws the reward: the default robot's :class:`~kinegrasp_env.envs.
+        draw_reward.DrawReward`, another robot's :class:`~kinegrasp_env.envs.robot_task.
+        RobotTask`."""
+        return self._draws if self._robot is None else self._robot
+
+    @property
     def _branches(self) -> bool:
         """Whether the arm's elbow coordinate is its IK branches (no self-motion)."""
         return self._robot is not None and self._robot.motion.angle_links is None
@@ -471,10 +476,6 @@ class KineGraspEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset options {sorted(unknown)}")
         self.grasp, self.noise = self._pick_task(options)
-        if self._robot is None and self.score != "pfc":
-            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
-
-            check_hold_noise(self.noise)
         self.q = self.grasp.q0.copy()
         self.steps = 0
         self._branch_psi = None

@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.envs.draw_reward import step_stats
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
@@ -48,7 +48,6 @@ from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
 
@@ -179,12 +178,6 @@ class RobotTask:
                              f"not {', '.join(other)} errors (score 'pfc' or 'hold_static' "
                              "takes them)")
 
-    def observation(self, grasp: Grasp, q: np.ndarray, noise, fraction: float
-                    ) -> tuple[np.ndarray, float]:
-        """(observation (obs_size,) float64 unclipped, elbow angle psi of q (radians)):
-        :class:`~kinegrasp_env.envs.observation.ArmObserver`'s layout."""
-        return self.observer.observe(grasp, q, noise, fraction)
-
     def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                   seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """(configurations (n_draws, dof), per-draw errors as an engine's ``run`` takes
@@ -217,14 +210,4 @@ class RobotTask:
             draws = engine.run(rows, **errors)
             if self.score == "hold_static":
                 held = draws.holds
-        fc = draws.outcome == FORCE_CLOSURE
-        counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
-        q_mean = float(draws.quality[fc].mean()) if fc.any() else 0.0
-        stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
-                 "q_mean": q_mean, "draws": n_draws, "draw_seed": seed,
-                 "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
-        if held is not None:
-            stats.update(p_hold=float(held.mean()),
-                         p_hold_ci=wilson_interval(int(held.sum()), held.size))
-        stats["score_value"] = stats["p_fc" if held is None else "p_hold"]
-        return stats
+        return step_stats(draws.outcome, draws.quality, held, seed)

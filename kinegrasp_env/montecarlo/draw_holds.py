@@ -108,7 +108,6 @@ class DrawHoldCheck:
                                         draws.link[rows].astype(int)).all(axis=1)
         return out
 
-
     def chunk_held(self, q0: np.ndarray, noise, seed: int, draws: DrawBatch, *, chunk: int,
                    first_chunk: int = 0) -> np.ndarray:
         """(n,) the verdicts of the n draws a run from configuration q0 (14,) made with

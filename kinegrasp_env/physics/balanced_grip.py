@@ -91,6 +91,18 @@ class GripLayout:
             return None
         return replace(spring, stall=stall, targets=self.directions * spring.targets)
 
+    def world_spring(self, world, contacts: list[GripContact], advance: float
+                     ) -> SpringGrip | None:
+        """:meth:`spring` of the hand in a simulator's ``world`` now (pybullet's or MuJoCo's:
+        ``joint_frames``, ``link_pose``, ``joint_states``, ``object_pose``, the object and its
+        friction), the tips advanced ``advance`` metres past the stall."""
+        names = list(self.names)
+        axes, origins = world.joint_frames(names)
+        return self.spring(contacts, axes, origins,
+                           np.array([world.link_pose(t)[:3, 3] for t in self.tips]),
+                           world.joint_states(names)[0], world.object_pose(),
+                           world.obj.center_of_mass, world.settings.friction, advance)
+
 
 def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> GripLayout:
     """The grip joints of a hand that :func:`balances` (ValueError for another): closing

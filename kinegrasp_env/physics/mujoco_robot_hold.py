@@ -158,16 +158,11 @@ class MujocoRobotSteps(MujocoWorldSteps):
             return False
         if layout is None:
             return True
-        names = list(layout.names)
-        axes, origins = world.joint_frames(names)
-        spring = layout.spring(contacts, axes, origins,
-                               np.array([world.link_pose(t)[:3, 3] for t in layout.tips]),
-                               world.joint_states(names)[0], world.object_pose(),
-                               world.obj.center_of_mass, world.settings.friction,
-                               self.protocol.grip_advance)
+        spring = layout.world_spring(world, contacts, self.protocol.grip_advance)
         if spring is None:
             return False
-        loaded, held = np.array(names)[spring.loaded], np.array(names)[~spring.loaded]
+        names = np.array(layout.names)
+        loaded, held = names[spring.loaded], names[~spring.loaded]
         world.uncouple()  # each joint on its own, as in pybullet
         if held.size:
             world.position(list(held), spring.stall[~spring.loaded])

@@ -230,14 +230,6 @@ def world_contacts(world: PhysicsWorld, distance: float) -> list[GripContact]:
             for finger, link in sorted(records)]
 
 
-def joint_frame(world: PhysicsWorld, joint: str) -> tuple[np.ndarray, np.ndarray]:
-    """(unit axis (3,), a point on it (3,)) of a hand joint now, world frame: the joint's
-    child link's frame (a URDF joint's frame is its child link's) and its axis there."""
-    info = world.bullet.getJointInfo(world.hand, world.joint_index[joint])
-    pose = world.link_pose(info[12].decode())
-    return pose[:3, :3] @ np.asarray(info[13]), pose[:3, 3]
-
-
 def physics_close(world: PhysicsWorld, root_pose: np.ndarray, preshape: np.ndarray,
                   settings: MotorSettings | None = None, pin: bool = False) -> PhysicsClose:
     """Close the hand at ``root_pose`` from ``preshape`` under dynamics (module docstring).

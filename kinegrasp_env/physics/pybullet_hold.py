@@ -40,7 +40,6 @@ from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldRe
 from kinegrasp_env.physics.pybullet_closing import (
     MotorSettings,
     finger_forces,
-    joint_frame,
     physics_close,
     world_contacts,
 )
@@ -100,10 +99,9 @@ class GripControl:
 def grip_joints_now(world: PhysicsWorld, motors: MotorSettings) -> GripJoints:
     """The hand's grip joints in ``world`` now (:func:`~kinegrasp_env.physics.hold_runner.
     grip_joints`)."""
-    frames = [joint_frame(world, joint) for joint in GRIP_JOINTS]
+    axes, origins = world.joint_frames(GRIP_JOINTS)
     tips = np.array([world.link_pose(tip)[:3, 3] for tip in FINGERTIP_LINKS])
-    return grip_joints(np.array([a for a, _ in frames]), np.array([o for _, o in frames]),
-                       tips, motors)
+    return grip_joints(axes, origins, tips, motors)
 
 
 def grip_control(world: PhysicsWorld, motors: MotorSettings,

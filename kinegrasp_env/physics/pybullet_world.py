@@ -350,6 +350,18 @@ class PhysicsWorld(BulletWorld):
         state = bullet.getLinkState(self.hand, index, computeForwardKinematics=True)
         return pose_matrix(state[4], state[5])
 
+    def joint_frames(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """(unit axes (k, 3), points on them (k, 3)) of hand joints now, world frame: each
+        joint's child link's frame (a URDF joint's frame is its child link's) and its axis
+        there."""
+        axes, points = [], []
+        for joint in names:
+            info = self.bullet.getJointInfo(self.hand, self.joint_index[joint])
+            pose = self.link_pose(info[12].decode())
+            axes.append(pose[:3, :3] @ np.asarray(info[13]))
+            points.append(pose[:3, 3])
+        return np.array(axes).reshape(-1, 3), np.array(points).reshape(-1, 3)
+
     def joint_states(self, names: list[str]) -> tuple[np.ndarray, np.ndarray]:
         """(positions (k,), velocities (k,)) of hand joints, radians and rad/s."""
         states = self.bullet.getJointStates(self.hand, [self.joint_index[n] for n in names])

@@ -63,7 +63,7 @@ from kinegrasp_env.physics.hand_motors import (
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
-from kinegrasp_env.physics.pybullet_closing import joint_frame, merge_records
+from kinegrasp_env.physics.pybullet_closing import merge_records
 from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
@@ -210,17 +210,11 @@ class RobotSteps(PybulletSteps):
             return False
         if self.layout is None:  # jaws: the closing motors stay on
             return True
-        world, layout = self.world, self.layout
-        frames = [joint_frame(world, name) for name in layout.names]
-        spring = layout.spring(contacts, np.array([a for a, _ in frames]),
-                               np.array([o for _, o in frames]),
-                               np.array([world.link_pose(t)[:3, 3] for t in layout.tips]),
-                               world.joint_states(list(layout.names))[0],
-                               world.object_pose(), world.obj.center_of_mass,
-                               world.settings.friction, self.protocol.grip_advance)
+        spring = self.layout.world_spring(self.world, contacts, self.protocol.grip_advance)
         if spring is None:
             return False
-        self.control = GripControl(world, None, spring, layout.names, layout.upper)
+        self.control = GripControl(self.world, None, spring, self.layout.names,
+                                   self.layout.upper)
         return True
 
     def finger_forces(self) -> np.ndarray:
