@@ -189,7 +189,8 @@ def test_elbow_cli_bad_input_is_one_line(home, capsys):
     path = str(home[0])
     for args, message in [
             (["--grasps", path, "--ik-starts", "0"], "--ik-starts must be"),
-            (["--grasps", path, "--method", "reweight"], "IK branches: use --method direct"),
+            (["--grasps", path, "--method", "reweight", "--noise", "uniform"], "Gaussian"),
+            (["--grasps", path, "--method", "reweight", "--batch", "1"], "--batch >= --samples"),
             (["--grasps", path, "--robot", "panda"], "xarm6"),
             (["--grasps", path, "--object", "mug"], "--object mug"),
             (["--object", "cube", "--ik-starts", "50"], "--ik-starts is for a 6-joint arm"),
@@ -404,3 +405,132 @@ def test_evaluate_elbow_of_a_six_joint_arm_takes_the_branch_of_its_bin(home, cap
     direct = json.loads(capsys.readouterr().out)
     assert moved["grasp"] == f"0@{psi:.3f}"
     assert moved["p_fc"] == direct["p_fc"] and moved["outcomes"] == direct["outcomes"]
+
+
+def test_the_six_joint_flange_jacobian_is_its_kinematics_derivative(home):
+    """The re-weighting's body Jacobian of the xArm 6's flange (6 x 6) is the derivative of
+    the flange pose: central differences of the forward kinematics (h = 1e-6 rad), each
+    column to 1e-6."""
+    from kinegrasp_env.closing.hand_errors import flange_link
+    from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.kinematics import Kinematics, rotation_log
+
+    description = load_robot("xarm6")
+    kin, flange = Kinematics(description.model), flange_link(description)
+    q = np.asarray(home[1][0]["q0"], dtype=float)
+    jac = PalmJacobian(description)(q)[0]
+    assert jac.shape == (6, 6)
+    base, h = kin.pose(q[None], flange)[0], 1e-6
+    for j in range(6):
+        step = np.zeros_like(q)
+        step[j] = h
+        rel = [np.linalg.inv(base) @ kin.pose((q + sign * step)[None], flange)[0]
+               for sign in (1, -1)]
+        twist = np.concatenate([(rel[0][:3, 3] - rel[1][:3, 3]) / (2 * h),
+                                (rotation_log(rel[0][:3, :3]) - rotation_log(rel[1][:3, :3]))
+                                / (2 * h)])
+        np.testing.assert_allclose(jac[:, j], twist, atol=1e-6)
+
+
+def test_reweighted_branches_agree_with_direct_draws(home, capsys):
+    """``elbow --method reweight`` of the 6-joint arm: every IK branch's P(FC) from one batch
+    agrees with 2,000 direct draws at that branch within 3 combined standard errors (the
+    weights' delta-method error and the binomial one; an independent estimate: the branch's
+    own joint noise closed by the engine); the best branch is the batch's best; the command
+    prints the batch's evidence per branch and the chosen and nominal ones' fresh draws."""
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
+    from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_branches_reweighted
+    from kinegrasp_env.world.grasps import load_grasps
+
+    grasp = load_grasps(str(home[0]))[0]
+    noise, direct_draws = JointNoise(0.0133), 2000
+    branches, evidence = optimize_robot_branches_reweighted(grasp, noise, 300, 0,
+                                                            engine="fast", batch=3000)
+    direct = optimize_robot_branches(grasp, noise, direct_draws, 0, evaluate_with="fast")
+    assert [b.label for b in branches.branches] == [b.label for b in direct.branches]
+    for c, p in zip(evidence.curve, direct.result.curve, strict=True):
+        assert not c.fallback
+        se = np.hypot(c.se, np.sqrt(p.p_fc * (1 - p.p_fc) / direct_draws))
+        assert abs(c.point.p_fc - p.p_fc) <= 3 * se, (c.point.psi, c.point.p_fc, p.p_fc)
+    assert branches.best == int(np.argmax([c.point.p_fc for c in evidence.curve]))
+    args = ["elbow", "--grasps", str(home[0]), "--grasp", "0", "--samples", "100",
+            "--method", "reweight", "--engine", "fast"]
+    text = run(capsys, *args)
+    assert "IK branches from one batch of 200 closings" in text
+    assert "re-weighted to every branch" in text and "at the best branch" in text
+    out = json.loads(run(capsys, *args, "--json"))
+    assert out["variants"] == "ik_branches" and out["reweight"]["batch"] == 200
+    fresh = {p["branch"] for p in out["curve"] if "fresh_p_fc" in p}
+    assert fresh == {out["best_branch"], out["nominal_branch"]}
+    assert "re-weighted advantage" in out["certificate"]["method"]
+
+
+def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):
+    """``reward="batch"`` of the xArm 6: one batch over every IK branch; at the states of a
+    rollout that crosses branches, the reward is within four combined standard errors plus
+    0.015 (the Gaussian model's bias allowed, as for the Panda) of 2,000 direct draws of the
+    same configuration and noise."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    import kinegrasp_env  # noqa: F401  (registers the envs)
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    env = gym.make("KineGrasp-v0", robot="xarm6", grasp_file=str(home[0]), reward="batch",
+                   batch_size=2000, step_size=0.5).unwrapped
+    env.reset(seed=0, options={"grasp": 0, "sigma": 0.0133})
+    motion = env.self_motion
+    q0 = np.asarray(env.grasp.q0, dtype=float)
+    own, count = motion.branch_of(q0)
+    covered = env._covered_configurations(q0)  # the batch's mixture: every other branch
+    assert sorted(motion.branch_of(q)[0] for q in covered) == sorted(set(range(count)) - {own})
+    palm = bullet_palm_pose(q0[:6])
+    for q in covered:
+        assert np.abs(bullet_palm_pose(q[:6])[:3, 3] - palm[:3, 3]).max() < 1e-4
+    seen = set()
+    for _ in range(6):
+        _, _, _, _, info = env.step(np.array([1.0, -1.0], dtype=np.float32))
+        branch = motion.branch_of(env.q)[0]
+        if info["reward_method"] != "batch" or branch in seen:
+            continue
+        seen.add(branch)
+        here = dataclasses.replace(env.grasp, q0=env.q.copy())
+        direct = evaluate_robot_grasp(here, sigma=0.0133, n=2000, seed=9, engine="fast").p_fc
+        lo, hi = info["p_fc_ci"]
+        se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct * (1 - direct) / 2000))
+        assert abs(info["p_fc"] - direct) <= 4 * se + 0.015, (info, direct)
+    assert len(seen) >= 2
+    env.close()
+
+
+def test_fig10_of_a_six_joint_arm_from_one_batch(home, capsys, tmp_path):
+    """fig10 of the xArm 6 with ``method="reweight"`` (at sigma 0.0233 rad, where the cube
+    grasp's branches fail often enough for the weights to matter): one row per IK branch
+    (the direct run's branches), each branch's P(FC) re-weighted from one batch within 3
+    combined standard errors of that branch's 1,500 direct draws (independent closings of
+    its own joint noise); the command line takes the method too."""
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10, robot_variants
+    from kinegrasp_env.world.grasps import load_grasps
+
+    grasp = load_grasps(str(home[0]))[0]
+    rows = robot_fig10(load_robot("xarm6"), tmp_path / "f10", grasp_sets={"cube": [grasp]},
+                       samples=400, sigma=0.0233, engine="fast", method="reweight")
+    with RobotReferenceEngine("xarm6", "cube") as engine:
+        variants = {v.id: v for v in robot_variants(grasp, engine, 10, seed=0)}
+    assert sorted(r["id"] for r in rows) == sorted(variants)
+    for row in rows:
+        p, ess = row["p_fc"], row["samples"]
+        assert ess >= 400 and p < 0.95  # re-weighted (not the fall-back), and informative
+        direct = evaluate_robot_grasp(variants[row["id"]], sigma=0.0233, n=1500, seed=11,
+                                      engine="fast").p_fc
+        se = np.hypot(np.sqrt(p * (1 - p) / ess), np.sqrt(direct * (1 - direct) / 1500))
+        assert abs(p - direct) <= 3 * se, (row, direct)
+    text = run(capsys, "reproduce", "fig10", "--robot", "xarm6", "--grasps", str(home[0]),
+               "--samples", "100", "--engine", "fast", "--method", "reweight", "--out",
+               str(tmp_path / "cli"))
+    assert "chosen on one batch of 200 closings re-weighted to every variant" in text

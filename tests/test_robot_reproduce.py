@@ -105,13 +105,13 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
 
 def test_fig10_reweight_is_refused_for_an_arm_without_self_motion():
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_reproduce import check_method
+    from kinegrasp_env.toolkit.robot_reproduce import check_method, robot_fig10
 
-    with pytest.raises(ValueError, match="needs a 7-joint arm"):
-        check_method(dataclasses.replace(load_robot("panda"), arm_angle_links=None),
-                     "reweight")
+    with pytest.raises(ValueError, match="fig10's variants are a 7-joint arm's self-motion"):
+        robot_fig10(dataclasses.replace(load_robot("panda"), arm_angle_links=None), "unused",
+                    grasp_sets={"cube": []}, method="reweight")
     with pytest.raises(ValueError, match="unknown method"):
-        check_method(load_robot("panda"), "guess")
+        check_method("guess")
 
 
 def test_fig10_of_a_robot_from_one_batch_on_the_command_line(tmp_path, capsys):

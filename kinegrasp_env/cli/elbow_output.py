@@ -63,18 +63,21 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
     return out
 
 
-def reweight_lines(evidence: dict, samples: int) -> str:
-    """What the batch method adds to the summary (``ReweightEvidence.to_json()``)."""
+def reweight_lines(evidence: dict, samples: int, unit: str = "angle") -> str:
+    """What the batch method adds to the summary (``ReweightEvidence.to_json()``); ``unit``:
+    what its points are (``angle``: elbow angles; ``branch``: IK branches, by index)."""
     points = evidence["points"]
     ess = [p["ess"] for p in points]
     fallback = evidence["fallback_angles"]
-    lines = [f"  one batch of {evidence['batch']} closings re-weighted to every angle "
+    many = "branches" if unit == "branch" else "angles"
+    named = (lambda p: f"{p:.0f}") if unit == "branch" else (lambda p: f"{p:+.3f}")
+    lines = [f"  one batch of {evidence['batch']} closings re-weighted to every {unit} "
              f"(effective sample size {min(ess):.0f} .. {max(ess):.0f}; "
-             + (f"{plural(len(fallback), 'angle')} below {samples} topped up with direct "
-                "draws: "
-                + ", ".join(f"{p:+.3f}" for p in fallback) if fallback
-                else "no angle needed direct draws") + ")",
-             f"  re-weighted P(FC) at the best elbow {evidence['chosen_reweighted_p_fc']:.3f}: "
+             + (f"{plural(len(fallback), unit, many)} below {samples} topped up with direct "
+                "draws: " + ", ".join(named(p) for p in fallback) if fallback
+                else f"no {unit} needed direct draws") + ")",
+             f"  re-weighted P(FC) at the best {'branch' if unit == 'branch' else 'elbow'} "
+             f"{evidence['chosen_reweighted_p_fc']:.3f}: "
              + ("agrees with the fresh draws" if evidence["chosen_agrees_with_fresh_draws"]
                 else "DISAGREES with the fresh draws beyond both sampling errors (the "
                      "linearisation may not hold here: rerun with --method direct)")]

@@ -20,6 +20,7 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.elbow_output import (
     DEFAULT_IK_STARTS,
     certificate_levels,
+    reweight_lines,
     reweighted_elbow,
     show_elbow,
 )
@@ -55,9 +56,6 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
                        "takes none")
-    if branches and args.method == "reweight":
-        raise CLIError(f"--method reweight moves a 7-joint arm along its self-motion; robot "
-                       f"{robot!r}'s 6-joint arm has IK branches: use --method direct")
     index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
     if args.plot:
         output_file(args.plot, "--plot")
@@ -101,12 +99,33 @@ def ik_starts(args, branches: bool, robot: str) -> int | None:
     return positive_int(args.ik_starts, "--ik-starts")
 
 
-def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
-                       starts, friction: float = 0.5) -> int:
-    """A 6-joint arm's grasp across its IK branches
-    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`)."""
+def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, starts,
+                      friction: float):
+    """(BranchResult, ReweightEvidence or None) of ``--method direct``
+    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`) or ``reweight``
+    (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.optimize_robot_branches_reweighted`,
+    its inputs checked before any closing)."""
     from tqdm import tqdm
 
+    if args.method == "reweight":
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            check_robot_reweight,
+            optimize_robot_branches_reweighted,
+        )
+
+        batch = None if args.batch is None else positive_int(args.batch, "--batch")
+        with reported(ValueError):  # noise, object, batch: refused before any closing
+            check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
+        bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (batch, "
+                   "fresh draws, certificate)", total=3, unit="stage", file=sys.stderr,
+                   disable=None)
+        with executor_from(args) as executor:
+            out = optimize_robot_branches_reweighted(
+                grasp, noise, samples, seed, engine=args.engine, starts=starts,
+                epsilon=epsilon, delta=delta, batch=batch, friction=friction,
+                executor=executor, progress=lambda stage: bar.update(1))
+        bar.close()
+        return out
     from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
 
     bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
@@ -117,18 +136,32 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
                                          progress=lambda done: bar.update(done - bar.n),
                                          evaluate_with=args.engine, executor=executor)
     bar.close()
+    return result, None
+
+
+def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                       starts, friction: float = 0.5) -> int:
+    """A 6-joint arm's grasp across its IK branches (:func:`branches_searched`)."""
+    result, evidence = branches_searched(args, index, grasp, noise, samples, seed, epsilon,
+                                         delta, starts, friction)
     payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
+    if evidence is not None:
+        payload["reweight"] = evidence.to_json()
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_branches, safe_figure
 
+        draws = (f"one batch of {payload['reweight']['batch']} closings" if evidence
+                 else f"{samples} draws per branch")
         title = (f"{args.robot}: {args.object} grasp {index}, sigma = "
-                 f"{payload['sigma']:g} rad, {samples} draws per branch")
+                 f"{payload['sigma']:g} rad, {draws}")
         if safe_figure(lambda: plot_branches(payload, args.plot, title), args.plot):
             payload["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(payload))
     else:
         print(branch_summary(payload, index))
+        if evidence is not None:
+            print(reweight_lines(payload["reweight"], samples, unit="branch"))
         if "plot" in payload:
             print(f"plot written to {payload['plot']}")
     if args.report:
@@ -154,13 +187,15 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
     command = ["kinegrasp", "elbow", "--robot", args.robot, *chosen, "--grasp", str(index),
                *noise_words(args, sigma_words(noise.sigma)), "--samples",
                str(summary.samples), "--seed", str(summary.seed), "--engine", summary.engine,
-               "--ik-starts", str(starts), "--epsilon", f"{cert.epsilon:g}", "--delta",
-               f"{cert.delta:g}", *friction_words(args), "--report", str(args.report)]
+               "--ik-starts", str(starts), "--method", args.method,
+               *(["--batch", str(args.batch)] if args.batch is not None else []),
+               "--epsilon", f"{cert.epsilon:g}", "--delta", f"{cert.delta:g}",
+               *friction_words(args), "--report", str(args.report)]
     settings = {"robot": args.robot, "object": grasp.object,
                 "grasp": f"index {index} (id {grasp.id})", "sigma [rad]": noise.sigma,
                 "noise": noise.kind, "draws per branch (selection; fresh again)":
                 summary.samples, "seed (selection; fresh)": summary.seed,
-                "engine": summary.engine, "IK starts": starts,
+                "engine": summary.engine, "method": args.method, "IK starts": starts,
                 "IK branches found": len(result.branches),
                 "certificate epsilon, delta": f"{cert.epsilon:g}, {cert.delta:g}",
                 "friction mu": friction, "friction cone edges": NUM_EDGES}
@@ -174,18 +209,23 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
 
 def branch_summary(result: dict, index: int) -> str:
     """The console summary of a 6-joint arm's IK-branch search (``BranchResult.to_json()``
-    with ``robot`` and ``ik_starts``)."""
+    with ``robot`` and ``ik_starts``; a re-weighted run's with ``reweight``)."""
     lo, hi = result["best_p_fc_ci"]
     nlo, nhi = result["nominal_p_fc_ci"]
     glo, ghi = result["gain_ci"]
     n, cert = len(result["branches"]), result["certificate"]
+    branches = plural(n, "IK branch", "IK branches")
+    how = (f"{branches} from one batch of {result['reweight']['batch']} closings, the best "
+           f"and the nominal again on {result['samples']} fresh draws"
+           if "reweight" in result else
+           f"{branches} x {result['samples']} draws, then again on {result['samples']} "
+           "fresh draws")
     lines = [
         f"robot {result['robot']}: a 6-joint arm has no self-motion; the variants of "
-        f"{result['object']} grasp {index} are its {plural(n, 'IK branch', 'IK branches')} "
-        f"({result['ik_starts']} IK starts)",
-        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, "
-        f"{plural(n, 'IK branch', 'IK branches')} x {result['samples']} draws, then again on "
-        f"{result['samples']} fresh draws ({result['engine']} engine)",
+        f"{result['object']} grasp {index} are its {branches} ({result['ik_starts']} IK "
+        "starts)",
+        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, {how} "
+        f"({result['engine']} engine)",
         f"  nominal branch {result['nominal_branch']} ({result['nominal_label']}): P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best branch    {result['best_branch']} ({result['best_label']}): P(FC) "
@@ -193,14 +233,19 @@ def branch_summary(result: dict, index: int) -> str:
         f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
         f"  {cert['statement']}"]
     if cert["bound"] is not None:
+        from kinegrasp_env.toolkit.elbow_certificate import METHOD
+
         verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
                    f"not certified at epsilon {cert['epsilon']:g} (branch "
                    f"{cert['worst_branch']} is the rival it cannot rule out)")
         rivals = plural(len(cert["rivals"]), "other branch", "other branches")
-        lines.append(f"    {verdict}; {rivals}, exact one-sided binomial bounds on "
-                     f"{cert['fresh_draws']} fresh draws; branches the IK starts did not find "
-                     "not covered")
+        bounds = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
+                  if cert["method"] == METHOD
+                  else f"{cert['method']} ({cert['fresh_draws']} closings)")
+        lines.append(f"    {verdict}; {rivals}, {bounds}; branches the IK starts did not "
+                     "find not covered")
     for point in result["curve"]:
+        fresh = (f", {point['fresh_p_fc']:.3f} fresh" if "fresh_p_fc" in point else "")
         lines.append(f"  branch {point['branch']} ({point['label']}): P(FC) {point['p_fc']:.3f} "
-                     f"selection, {point['fresh_p_fc']:.3f} fresh")
+                     f"{'re-weighted' if 'reweight' in result else 'selection'}{fresh}")
     return "\n".join(lines)

@@ -78,7 +78,7 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
 
         with reported(ValueError):  # before any work
             check_variants(description, args.figure)
-            check_method(description, method)
+            check_method(method)
     with asked_executor(args) as executor:
         if args.figure == "table1":
             return robot_table1_command(args, description, samples, friction, executor)

@@ -4,10 +4,12 @@ Every step keeps the palm pose of the episode's grasp and moves only the elbow; 
 outcome then depends only on the palm's deviation (:mod:`kinegrasp_env.montecarlo.
 palm_batch`; the batch moves the hand alone, the arm links staying where the grasp's own
 configuration puts them), and the noise level only changes its spread. Every robot of the
-env: the default one, or a description robot (its 7-joint self-motion, its engines).
+env: the default one, or a description robot (its engines; a 7-joint arm's self-motion, a
+6-joint arm's IK branches).
 The first episode of a grasp draws one batch of closings from a mixture of the deviation's
 first-order Gaussians at the grasp's elbow and at angles around it (every
-:data:`SPAN_STEP` radians within :data:`SPAN`, where reachable), each at
+:data:`SPAN_STEP` radians within :data:`SPAN`, where reachable; a 6-joint arm: at every IK
+branch of the grasp's palm pose), each at
 :data:`SIGMA_LEVELS` noise levels spread over the env's ``sigma_range``; the batch is kept
 for every later episode of that grasp, and each step's reward is it re-weighted to the
 current configuration and noise: no closing per step. The batch's seed comes from the grasp

@@ -423,9 +423,18 @@ class KineGraspEnv(gym.Env):
         return self._batches[key]
 
     def _covered_configurations(self, q0: np.ndarray) -> list[np.ndarray]:
-        """The configurations (each (dof,): q0's palm pose) at the elbow angles a grasp's
-        batch covers besides q0's (:func:`~kinegrasp_env.envs.batch_reward.covered_angles`),
-        where reachable."""
+        """The configurations (each (dof,): q0's palm pose) a grasp's batch covers besides
+        q0: the elbow angles of :func:`~kinegrasp_env.envs.batch_reward.covered_angles`,
+        where reachable; a 6-joint arm's other IK branches."""
+        if self._branches:
+            motion = self._robot.motion
+            own, _ = motion.branch_of(q0)
+            moved = []
+            for k, arm in enumerate(motion.branches(q0)):
+                if k != own:
+                    moved.append(q0.copy())
+                    moved[-1][:motion.arm] = arm
+            return moved
         if self._robot is not None:
             motion = self._robot.motion
             psis = covered_angles(float(motion.elbow_angle(q0[None])[0]))

@@ -54,9 +54,9 @@ BATCH_FACTOR = 2
 MEAN_STEP = 1e-3
 
 
-def joint_covariance(sigma) -> np.ndarray:
-    """(7, 7) covariance of Gaussian arm joint errors: sigma (radians) a scalar, 7 per-joint
-    values, or a (7, 7) covariance itself.
+def joint_covariance(sigma, dof: int = ARM) -> np.ndarray:
+    """(dof, dof) covariance of Gaussian errors on an arm of ``dof`` joints (default 7):
+    sigma (radians) a scalar, ``dof`` per-joint values, or a (dof, dof) covariance itself.
 
     Raises:
         ValueError: another shape, a negative or non-finite entry.
@@ -64,14 +64,14 @@ def joint_covariance(sigma) -> np.ndarray:
     s = np.asarray(sigma, dtype=float)
     if not np.all(np.isfinite(s)):
         raise ValueError(f"sigma must be finite, got {sigma!r}")
-    if s.shape == (ARM, ARM):
+    if s.shape == (dof, dof):
         return 0.5 * (s + s.T)
-    if s.ndim == 0 or s.shape == (ARM,):
+    if s.ndim == 0 or s.shape == (dof,):
         if np.any(s < 0):
             raise ValueError(f"sigma must be >= 0, got {sigma!r}")
-        return np.diag(np.broadcast_to(s, (ARM,)) ** 2)
-    raise ValueError(f"sigma must be a scalar, 7 values or a 7x7 covariance, got shape "
-                     f"{s.shape}")
+        return np.diag(np.broadcast_to(s, (dof,)) ** 2)
+    raise ValueError(f"sigma must be a scalar, {dof} values or a {dof}x{dof} covariance, got "
+                     f"shape {s.shape}")
 
 
 def batch_stream(seed: int, index: int) -> np.random.Generator:
@@ -92,8 +92,9 @@ def check_batch_object(object_name: str) -> None:
                          f"every elbow; use --method direct")
 
 
-def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
-    """((7, 7) joint covariance, (6, 6) palm covariance) of a noise whose every source is a
+def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
+    """((dof, dof) joint covariance of an arm of ``dof`` joints, (6, 6) palm covariance) of a
+    noise whose every source is a
     zero-mean Gaussian on the arm joints or on the palm: Gaussian ``JointNoise`` (scalar or
     per-joint sigma), or a noise model of ``joints`` (Gaussian, independent or with a
     covariance, no bias) and ``palm`` sources. To first order the palm's deviation is then
@@ -110,7 +111,7 @@ def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
         if noise.kind != "gaussian":
             raise ValueError(f"re-weighting needs Gaussian joint noise, got {noise.kind} "
                              f"noise; use --method direct")
-        return _nonzero(joint_covariance(noise.sigma)), np.zeros((6, 6))
+        return _nonzero(joint_covariance(noise.sigma, dof)), np.zeros((6, 6))
     if not isinstance(noise, NoiseModel):
         raise ValueError(f"re-weighting needs joint noise or a noise model, got "
                          f"{type(noise).__name__}")
@@ -120,13 +121,13 @@ def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
                          f"{', '.join(extra)}; use --method direct")
     joints, palm = noise.joints, noise.palm
     if joints is None:
-        cov = np.zeros((ARM, ARM))
+        cov = np.zeros((dof, dof))
     elif joints.distribution != "gaussian" or joints.bias is not None:
         raise ValueError("re-weighting needs zero-mean Gaussian joint noise (no bias); use "
                          "--method direct")
     else:
-        cov = (np.array(joints.covariance) if joints.covariance is not None
-               else np.diag(joints.sigma_vector() ** 2))
+        cov = joint_covariance(joints.covariance if joints.covariance is not None
+                               else joints.sigma, dof)
     palm_cov = np.zeros((6, 6)) if palm is None else np.diag(palm.variances())
     if not np.any(palm_cov):
         cov = _nonzero(cov)
@@ -134,7 +135,7 @@ def gaussian_terms(noise) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _nonzero(cov: np.ndarray) -> np.ndarray:
-    """``cov`` (7, 7), or ValueError where it leaves the palm's deviation degenerate (a
+    """``cov`` (dof, dof), or ValueError where it leaves the palm's deviation degenerate (a
     joint noise of rank below 6: every weight would be undefined)."""
     if np.linalg.matrix_rank(cov) < 6:
         raise ValueError("re-weighting needs joint noise on at least six joints (the palm's "
@@ -143,35 +144,41 @@ def _nonzero(cov: np.ndarray) -> np.ndarray:
 
 
 class PalmJacobian:
-    """The flange's body Jacobian of a 7-joint arm (one kinematics, reused): the default
-    robot's, or ``description``'s (its flange: :func:`~kinegrasp_env.closing.hand_errors.
-    flange_link`)."""
+    """The flange's body Jacobian of an arm of six or more joints (one kinematics, reused):
+    the default robot's, or ``description``'s (its flange: :func:`~kinegrasp_env.closing.
+    hand_errors.flange_link`).
+
+    Attributes:
+        arm: the arm's joints (7 for the default robot).
+    """
 
     def __init__(self, description: RobotDescription | None = None) -> None:
         if description is None:
-            self.kin, self.flange = Kinematics(kuka_sdh()), FLANGE_LINK
+            self.kin, self.flange, self.arm = Kinematics(kuka_sdh()), FLANGE_LINK, ARM
         else:
             from kinegrasp_env.closing.hand_errors import flange_link
 
-            if description.arm_dof != ARM:
-                raise ValueError(f"re-weighting needs a 7-joint arm; robot "
+            if description.arm_dof < 6:
+                raise ValueError(f"re-weighting needs an arm of at least six joints (the "
+                                 f"palm's deviation has six dimensions); robot "
                                  f"{description.name!r} has {description.arm_dof}")
             self.kin, self.flange = Kinematics(description.model), flange_link(description)
+            self.arm = description.arm_dof
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6, 7) d delta / d q_arm at configurations q (n, dof) or (dof,): rows 0-2 the
+        """(n, 6, arm) d delta / d q_arm at configurations q (n, dof) or (dof,): rows 0-2 the
         flange origin's velocity, rows 3-5 its angular velocity, both in the flange frame."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         rot = self.kin.pose(q, self.flange)[:, :3, :3]
-        jac = self.kin.jacobian(q, self.flange)[:, :, :ARM]
+        jac = self.kin.jacobian(q, self.flange)[:, :, :self.arm]
         rt = np.swapaxes(rot, 1, 2)
         return np.concatenate([rt @ jac[:, :3], rt @ jac[:, 3:]], axis=1)
 
     def covariance(self, q: np.ndarray, sigma) -> np.ndarray:
-        """(n, 6, 6) J_b S_q J_b^T at configurations q (n, 14) for joint noise ``sigma``
-        (:func:`joint_covariance`)."""
+        """(n, 6, 6) J_b S_q J_b^T at configurations q (n, dof) for joint noise ``sigma``
+        (:func:`joint_covariance` of the arm's joints)."""
         jac = self(q)
-        return jac @ joint_covariance(sigma) @ np.swapaxes(jac, 1, 2)
+        return jac @ joint_covariance(sigma, self.arm) @ np.swapaxes(jac, 1, 2)
 
     def deviation(self, q0: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(n, 6) the exact deviation of the flange at configurations q (n, dof) from its
@@ -189,12 +196,13 @@ class PalmJacobian:
         (delta(h v) + delta(-h v)) / h^2 (h = ``step``, radians). The first-order model's mean
         is 0; what the shift does to P(FC) is measured by ``benchmarks/bench_reweight.py``."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
-        lam, vec = np.linalg.eigh(joint_covariance(sigma))
-        steps = np.concatenate([step * vec.T, -step * vec.T])  # (14, 7): +h v_m, then -h v_m
+        arm = self.arm
+        lam, vec = np.linalg.eigh(joint_covariance(sigma, arm))
+        steps = np.concatenate([step * vec.T, -step * vec.T])  # (2 arm, arm): +h v_m, -h v_m
         moved = np.repeat(q, len(steps), axis=0)
-        moved[:, :ARM] += np.tile(steps, (len(q), 1))
+        moved[:, :arm] += np.tile(steps, (len(q), 1))
         dev = self.deviation(np.repeat(q, len(steps), axis=0), moved)
-        dev = dev.reshape(len(q), 2, ARM, 6)
+        dev = dev.reshape(len(q), 2, arm, 6)
         return 0.5 * np.einsum("m,nmk->nk", lam, dev[:, 0] + dev[:, 1]) / step**2
 
 

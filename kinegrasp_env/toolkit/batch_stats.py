@@ -37,12 +37,13 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
     interval is the normal one of the weights' standard error; ``outcomes`` is empty), or
     evaluated directly on ``samples`` draws where the effective sample size is below
     ``samples``: :func:`evaluate_grasp` for the default robot, ``direct(grasp)`` for a
-    description ``robot`` (a 7-joint arm: its palm error and engines close the batch).
+    description ``robot`` (an arm of six or more joints: its palm error and engines close
+    the batch).
 
     Raises:
         ValueError: the grasps are not variants of one palm pose of one object, or the
-            robot's arm has no self-motion (:class:`~kinegrasp_env.montecarlo.palm_batch.
-            PalmJacobian`).
+            robot's arm has fewer than six joints (:class:`~kinegrasp_env.montecarlo.
+            palm_batch.PalmJacobian`).
     """
     first = grasps[0]
     for g in grasps[1:]:

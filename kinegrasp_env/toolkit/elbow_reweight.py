@@ -90,13 +90,15 @@ BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-wei
 class SelfMotionDeviation:
     """The palm deviation's Gaussian along one grasp's self-motion: its covariance (first
     order) and mean (second order: :meth:`~kinegrasp_env.montecarlo.palm_batch.PalmJacobian.
-    mean`), and their derivatives along the elbow angle.
+    mean`), and their derivatives along the elbow angle. A 6-joint arm has no self-motion:
+    its configurations (IK branches) have their Gaussians, and no derivative joins them.
 
     Args:
         joints: the arm joints' noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
-            joint_covariance`: sigma, 7 sigmas or a (7, 7) covariance, radians).
+            joint_covariance`: sigma, one sigma per arm joint or a covariance, radians).
         palm: (6, 6) covariance of a palm error added to the deviation (metres, radians).
-        description: a description robot with a 7-joint arm (default: the default robot).
+        description: a description robot with a 7-joint arm with a self-motion, or a
+            6-joint arm (default: the default robot).
     """
 
     def __init__(self, joints, palm: np.ndarray | None = None,
@@ -104,19 +106,21 @@ class SelfMotionDeviation:
         self.jac = PalmJacobian(description)
         if description is None:
             self.ik = ArmIK(self.jac.kin)  # the palm held: the flange is rigid with it
-        else:
+        elif description.has_self_motion:
             from kinegrasp_env.robot.null_motion import ArmSelfMotion
 
             self.ik = ArmSelfMotion(description)
+        else:
+            self.ik = None  # IK branches: no motion between them
         self.joints = joints
         self.palm = np.zeros((6, 6)) if palm is None else np.asarray(palm, dtype=float)
 
     def at(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6, 6) covariance at configurations q (n, 14)."""
+        """(n, 6, 6) covariance at configurations q (n, dof)."""
         return self.jac.covariance(q, self.joints) + self.palm
 
     def mean_at(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6) mean at configurations q (n, 14) (a palm error is zero-mean)."""
+        """(n, 6) mean at configurations q (n, dof) (a palm error is zero-mean)."""
         return self.jac.mean(q, self.joints)
 
     def estimate(self, batch: PalmBatch, q: np.ndarray, psi: float | None = None
@@ -129,7 +133,10 @@ class SelfMotionDeviation:
                               mean_derivative=None if moved is None else moved[1]).p_fc
 
     def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
-        """(dof,) q moved to elbow angle psi (radians), None where the path fails."""
+        """(dof,) q moved to elbow angle psi (radians), None where the path fails or the
+        arm has no self-motion."""
+        if self.ik is None:
+            return None
         moved, ok = self.ik.set_elbow_angle(q, psi)
         return np.reshape(moved, -1) if np.all(ok) else None
 

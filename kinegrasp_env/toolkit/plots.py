@@ -270,8 +270,9 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
 
 def plot_branches(result: dict, path: str | Path, title: str = "") -> Path:
     """P(FC) of each IK branch of a 6-joint arm's grasp (``result``: ``BranchResult.
-    to_json()``): the selection draws' estimate with its 95% interval per branch, the fresh
-    draws' beside it, the nominal and the chosen branch marked."""
+    to_json()``): the selection draws' (or, with ``reweight``, the batch's re-weighted)
+    estimate with its 95% interval per branch, the fresh draws' beside it where a branch
+    has them, the nominal and the chosen branch marked."""
     plt = _pyplot()
     curve = result["curve"]
     fig, ax = plt.subplots(figsize=(max(4.5, 1.2 * len(curve) + 2.5), 4))
@@ -279,9 +280,12 @@ def plot_branches(result: dict, path: str | Path, title: str = "") -> Path:
     p = np.array([c["p_fc"] for c in curve])
     lo = np.array([c["p_fc_ci"][0] for c in curve])
     hi = np.array([c["p_fc_ci"][1] for c in curve])
-    ax.bar(x - 0.18, p, 0.36, color="C0", label="P(FC), selection draws",
+    ax.bar(x - 0.18, p, 0.36, color="C0",
+           label=("P(FC), re-weighted batch" if "reweight" in result
+                  else "P(FC), selection draws"),
            yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], ecolor="0.4", capsize=3)
-    ax.bar(x + 0.18, [c["fresh_p_fc"] for c in curve], 0.36, color="C1",
+    fresh = [i for i, c in enumerate(curve) if "fresh_p_fc" in c]
+    ax.bar(x[fresh] + 0.18, [curve[i]["fresh_p_fc"] for i in fresh], 0.36, color="C1",
            label="P(FC), fresh draws")
     labels = [f"{c['branch']}\n{c['label'].replace(' ', chr(10))}" for c in curve]
     ax.set_xticks(x, labels, fontsize=7)

@@ -1,7 +1,11 @@
 """The re-weighted elbow search (:mod:`kinegrasp_env.toolkit.elbow_reweight`) for a
-description robot with a 7-joint arm: one batch of closings over the palm's deviation
-(the robot's palm error: the palm link and every link below it moved in the flange frame,
-:mod:`~kinegrasp_env.closing.hand_errors`) answers every elbow angle of its self-motion.
+description robot: one batch of closings over the palm's deviation (the robot's palm error:
+the palm link and every link below it moved in the flange frame,
+:mod:`~kinegrasp_env.closing.hand_errors`) answers every elbow angle of a 7-joint arm's
+self-motion (:func:`optimize_robot_elbow_reweighted`), or every IK branch of a 6-joint arm
+(:func:`optimize_robot_branches_reweighted`: each branch's Jacobian gives the deviation its
+own Gaussian; no motion joins the branches, so the curve has no slope and the best branch is
+the best of the batch's estimates).
 
 The robot's pieces (:class:`~kinegrasp_env.toolkit.elbow_reweight.ReweightRobot`): the
 flange's body Jacobian and the self-motion of its description
@@ -23,6 +27,7 @@ from kinegrasp_env.montecarlo.palm_batch import close_batch, gaussian_terms
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import FINE_STEP, ElbowPoint, ElbowResult, nominal_index
 from kinegrasp_env.toolkit.elbow_certificate import DEFAULT_DELTA, DEFAULT_EPSILON
@@ -35,7 +40,9 @@ from kinegrasp_env.toolkit.elbow_reweight import (
 )
 from kinegrasp_env.toolkit.robot_elbow import (
     AngleScorer,
+    BranchResult,
     angle_point,
+    branch_variants,
     fresh_seed,
     robot_reachable_configurations,
 )
@@ -45,18 +52,21 @@ from kinegrasp_env.world.grasps import Grasp
 def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
                          batch: int | None) -> RobotDescription:
     """The grasp's robot, or ValueError (one line) for what
-    :func:`optimize_robot_elbow_reweighted` refuses before any closing: noise other than
-    Gaussian joint noise, an arm without a 7-joint self-motion, and :func:`~kinegrasp_env.
-    toolkit.elbow_reweight.check_reweight`'s refusals."""
+    :func:`optimize_robot_elbow_reweighted` and :func:`optimize_robot_branches_reweighted`
+    refuse before any closing: noise other than Gaussian joint noise (of the arm's joints),
+    an arm that is neither a 7-joint one with a self-motion nor a 6-joint one, and
+    :func:`~kinegrasp_env.toolkit.elbow_reweight.check_reweight`'s refusals."""
     if not isinstance(noise, JointNoise):
         raise ValueError("a description robot's re-weighted elbow takes joint noise "
                          "(--sigma, --noise gaussian)")
     check_reweight(grasp, noise, samples, epsilon, delta, batch)
     description = load_robot(grasp.robot)
-    if not description.has_self_motion:
+    if not (description.has_self_motion or description.arm_dof == 6):
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
                          f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
-                         "the re-weighted search moves a 7-joint arm along its self-motion")
+                         "the re-weighted search moves a 7-joint arm along its self-motion "
+                         "or compares a 6-joint arm's IK branches")
+    gaussian_terms(noise, description.arm_dof)
     return description
 
 
@@ -79,7 +89,10 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
             check_reweight` (before any closing).
     """
     description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
-    joint_cov, palm_cov = gaussian_terms(noise)
+    if not description.has_self_motion:
+        raise ValueError(f"robot {description.name!r} has no self-motion: its IK branches "
+                         "are optimize_robot_branches_reweighted's")
+    joint_cov, palm_cov = gaussian_terms(noise, description.arm_dof)
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
         reach = robot_reachable_configurations(grasp, reference, step)
         scorer = AngleScorer.of(reference, engine, executor)
@@ -105,3 +118,59 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
                                      progress=progress)
         finally:
             scorer.close()
+
+
+def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples: int,
+                                       seed: int = 0, *, engine: str = "fast",
+                                       starts: int = DEFAULT_STARTS,
+                                       epsilon: float = DEFAULT_EPSILON,
+                                       delta: float = DEFAULT_DELTA, batch: int | None = None,
+                                       progress=None, friction: float = 0.5,
+                                       executor: Executor | None = None
+                                       ) -> tuple[BranchResult, ReweightEvidence]:
+    """The most robust IK branch of a 6-joint arm's ``grasp`` from one batch of closings:
+    the branches of :func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`
+    (``starts`` IK starts seeded from ``seed``), each re-weighted from one batch drawn from
+    the mixture of their Gaussians and closed at the grasp's own configuration (a branch
+    whose effective sample size falls below ``samples`` topped up with direct draws); the
+    best and the grasp's own branch scored on fresh direct draws; the certificate from a
+    second batch (the steps of :func:`~kinegrasp_env.toolkit.elbow_reweight.
+    reweighted_search`; the other arguments as :func:`optimize_robot_elbow_reweighted`).
+
+    Raises:
+        ValueError: :func:`check_robot_reweight`'s refusals, an arm that is not a 6-joint
+            one (before any closing).
+    """
+    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
+    if description.arm_dof != 6:
+        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
+                         "IK branches are a 6-joint arm's")
+    joint_cov, palm_cov = gaussian_terms(noise, description.arm_dof)
+    with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
+        branches, nominal = branch_variants(grasp, reference, int(starts), seed)
+        hand = np.asarray(grasp.q0, dtype=float)[description.arm_dof:]
+        reach = [(float(i), np.concatenate([b.q, hand])) for i, b in enumerate(branches)]
+        scorer = AngleScorer.of(reference, engine, executor)
+        try:
+            q0 = reach[nominal][1]
+
+            def direct(index: float, q: np.ndarray, n: int) -> ElbowPoint:
+                fc, p_fc, ci = angle_point(grasp, index, q, noise, n, seed, scorer)
+                return ElbowPoint(index, q, p_fc, ci, fc)
+
+            robot = ReweightRobot(
+                reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),
+                lambda covs, n, stream: close_batch(q0, grasp.object, covs, n, stream,
+                                                    engine=engine, friction=friction,
+                                                    robot=description.name),
+                direct,
+                lambda q: angle_point(grasp, 0.0, q, noise, samples, fresh_seed(seed),
+                                      scorer)[0],
+                engine)
+            result, evidence = reweighted_search(grasp, noise, samples, seed, robot, step=0.0,
+                                                 epsilon=epsilon, delta=delta, batch=batch,
+                                                 progress=progress)
+        finally:
+            scorer.close()
+    best = round(result.best_psi)
+    return BranchResult(result, branches, nominal, best), evidence

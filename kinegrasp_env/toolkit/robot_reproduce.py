@@ -106,8 +106,9 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
     """(rows (:data:`COLUMNS`), the fresh evaluations of the robust and the fragile variant,
     empty with fewer than two variants) of ``count`` variants of ``grasp`` on object
     ``name`` (the module docstring's protocol); ``method`` ``reweight``: the variants' P(FC)
-    from one batch of closings (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`,
-    a 7-joint arm), the fresh draws direct; ``executor``: the direct evaluations' draws in
+    from one batch of closings (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`:
+    the self-motion's variants of a 7-joint arm, the IK branches of a 6-joint one), the fresh
+    draws direct; ``executor``: the direct evaluations' draws in
     chunks on it (the same draws, row for row)."""
     with RobotReferenceEngine(description, name) as reference:
         variants = robot_variants(grasp, reference, count, seed)
@@ -150,14 +151,11 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
     return block, fresh
 
 
-def check_method(description: RobotDescription, method: str) -> None:
-    """ValueError for an unknown fig10 method, or ``reweight`` for an arm whose variants are
-    not self-motion (the batch's Gaussians are a 7-joint arm's)."""
+def check_method(method: str) -> None:
+    """ValueError for an unknown fig10 method (``direct`` or ``reweight``: any arm with
+    variants, :func:`check_variants`, has the six joints a palm deviation's Gaussian needs)."""
     if method not in ("direct", "reweight"):
         raise ValueError(f"unknown method {method!r}: direct or reweight")
-    if method == "reweight" and not description.has_self_motion:
-        raise ValueError(f"--method reweight needs a 7-joint arm; robot {description.name!r} "
-                         f"has {description.arm_dof} joints: leave --method out (direct)")
 
 
 def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
@@ -172,18 +170,17 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
     Args:
         engine: the Monte Carlo engine (``pybullet``, ``fast`` or ``physics``); the
             variants and their nominal closings use the reference engine.
-        method: ``direct`` (draws per variant) or ``reweight`` (one batch per object, a
-            7-joint arm: :func:`variant_block`).
+        method: ``direct`` (draws per variant) or ``reweight`` (one batch per object:
+            :func:`variant_block`).
         executor: the direct evaluations' draws in chunks on it.
 
     Raises:
-        ValueError: an arm without variants (:func:`check_variants`), an unknown method,
-            ``reweight`` for an arm that is not a 7-joint one.
+        ValueError: an arm without variants (:func:`check_variants`), an unknown method.
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
     check_variants(description, "fig10")
-    check_method(description, method)
+    check_method(method)
     rows = []
     for name, grasps in grasp_sets.items():
         rows += variant_block(description, name, grasps[0], samples=samples, sigma=sigma,

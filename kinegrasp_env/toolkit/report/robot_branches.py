@@ -1,7 +1,8 @@
 """The HTML page of a 6-joint arm's IK-branch search (``kinegrasp elbow --robot NAME --report
 FILE`` of a 6-joint arm, which has no self-motion): the headline (the chosen and the nominal
 branch scored on fresh draws, the paired gain, the certificate), P(FC) per branch (selection
-draws with their 95% intervals beside the fresh draws), the whole robot closed on the object
+draws, or with ``--method reweight`` one batch re-weighted, with their 95% intervals beside
+the fresh draws where a branch has them), the whole robot closed on the object
 at the nominal and at the chosen branch (:func:`~kinegrasp_env.toolkit.report.robot.
 grasp_scene`; the same palm pose, so the same nominal contacts; another arm), the table per
 branch, the settings and the command that reproduces the page. Numbers come from
@@ -38,7 +39,9 @@ def branch_chart(result: dict) -> dict:
         names.append(f"{point['branch']}: {point['label']}"
                      + (f" ({', '.join(tags)})" if tags else ""))
     p = [point["p_fc"] for point in curve]
-    bars = [{"type": "bar", "name": "selection draws (95% Wilson interval)", "x": names, "y": p,
+    estimate = ("re-weighted batch (95% interval)" if reweighted(result)
+                else "selection draws (95% Wilson interval)")
+    bars = [{"type": "bar", "name": estimate, "x": names, "y": p,
              "marker": {"color": "#1f77b4"},
              "error_y": {"type": "data", "symmetric": False,
                          "array": [c["p_fc_ci"][1] - v for c, v in zip(curve, p, strict=True)],
@@ -46,7 +49,7 @@ def branch_chart(result: dict) -> dict:
                                         for c, v in zip(curve, p, strict=True)]},
              "hovertemplate": "%{x}: P(FC) %{y:.4f}<extra>selection</extra>"},
             {"type": "bar", "name": "fresh draws", "x": names,
-             "y": [point["fresh_p_fc"] for point in curve], "marker": {"color": "#ff7f0e"},
+             "y": [point.get("fresh_p_fc") for point in curve], "marker": {"color": "#ff7f0e"},
              "hovertemplate": "%{x}: P(FC) %{y:.4f}<extra>fresh</extra>"}]
     return {"data": bars, "layout": layout(
         title={"text": "P(force closure) per IK branch", "x": 0.01, "font": {"size": 14}},
@@ -55,6 +58,13 @@ def branch_chart(result: dict) -> dict:
                                  "branches apart)"}},
         legend={"x": 1.0, "xanchor": "right", "y": 1.0},
         margin={"l": 60, "r": 20, "t": 40, "b": 90})}
+
+
+def reweighted(result: dict) -> bool:
+    """Whether the search re-weighted one batch (its certificate is the batch's)."""
+    from kinegrasp_env.toolkit.elbow_certificate import METHOD
+
+    return result["certificate"]["method"] != METHOD
 
 
 def branch_headline(result: dict) -> str:
@@ -79,9 +89,9 @@ def branch_headline(result: dict) -> str:
 
 def branch_table(result: dict) -> str:
     """Every branch: its label, arm joints, P(FC) on the selection and on the fresh draws."""
+    estimate = "P(FC), re-weighted" if reweighted(result) else "P(FC), selection draws"
     head = "".join(f"<th>{h}</th>" for h in ("branch", "label", "arm joints [rad]",
-                                              "P(FC), selection draws", "95% CI",
-                                              "P(FC), fresh draws", ""))
+                                              estimate, "95% CI", "P(FC), fresh draws", ""))
     rows = []
     for point, branch in zip(result["curve"], result["branches"], strict=True):
         tag = " / ".join(name for name, key in (("nominal", "nominal_branch"),
@@ -91,9 +101,15 @@ def branch_table(result: dict) -> str:
         rows.append(f"<tr><td>{point['branch']}</td><td class='kg-text'>"
                     f"{esc(point['label'])}</td><td class='kg-text'>{joints}</td>"
                     f"<td>{point['p_fc']:.4f}</td><td>{point['p_fc_ci'][0]:.4f} .. "
-                    f"{point['p_fc_ci'][1]:.4f}</td><td>{point['fresh_p_fc']:.4f}</td>"
+                    f"{point['p_fc_ci'][1]:.4f}</td><td>{fresh_text(point)}</td>"
                     f"<td class='kg-text'>{tag}</td></tr>")
     return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
+
+
+def fresh_text(point: dict) -> str:
+    """A curve point's fresh P(FC), or a dash where it has none (a re-weighted search scores
+    only the chosen and the nominal branch on fresh draws)."""
+    return f"{point['fresh_p_fc']:.4f}" if "fresh_p_fc" in point else "-"
 
 
 def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: BranchResult,
@@ -127,10 +143,14 @@ def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: Bra
             friction=friction, num_edges=num_edges, title=title, whole_first=True), "49%",
             "520px"))
     chart = Figure("branches", branch_chart(result), "99%", "380px")
-    notes = ["The chart: P(FC) of each IK branch on the same selection draws (the blue bars, "
-             "with their 95% intervals) and again on fresh draws (orange); the branch is "
-             "chosen on the selection draws, and the headline scores it and the nominal "
-             "branch on the fresh ones.",
+    chosen_on = ("one batch of closings re-weighted to each branch (the blue bars, with "
+                 "their 95% intervals; the chosen and the nominal branch again on fresh "
+                 "draws, orange); the branch is chosen on the batch"
+                 if reweighted(result) else
+                 "the same selection draws (the blue bars, with their 95% intervals) and "
+                 "again on fresh draws (orange); the branch is chosen on the selection draws")
+    notes = [f"The chart: P(FC) of each IK branch on {chosen_on}, and the headline scores it "
+             "and the nominal branch on the fresh ones.",
              "Each view shows the whole robot closed on the object at its branch (toggle its "
              "pre-shape in the legend, or the close-up of the hand): the palm pose and the "
              "nominal contacts are the same, the arm is not.", geometry_note(geometry)]
