@@ -49,10 +49,11 @@ def test_default_draws_and_engine_for_the_panda(extra, engine):
 
 
 def test_a_noise_model_the_robot_cannot_take_is_refused_in_one_line():
-    """The SDH's hand source, and palm errors beside the holding test's score."""
+    """A spread offset for a hand without a spread joint, and palm errors beside the
+    holding test's score."""
     for kwargs, message in (
             ({"noise_model": {"joints": {"sigma": 0.01}, "hand": {"spread_sigma": 0.01}}},
-             "the hand source"),
+             "drop hand.spread_sigma"),
             ({"noise_model": {"palm": {"translation_sigma": 0.001}}, "score": "hold"},
              "takes joint noise only")):
         with pytest.raises(ValueError, match=message) as err:
@@ -104,7 +105,7 @@ BAD_OPTIONS = [
     ({"psi": "a"}, "psi must be a finite elbow angle in radians, got 'a'"),
     ({"noise_model": {"joints": {"sigma": 0.01}}, "sigma": 0.01},
      "give the reset option noise_model or sigma/noise, not both"),
-    ({"noise_model": {"hand": {"spread_sigma": 0.01}}}, "the hand source"),
+    ({"noise_model": {"hand": {"spread_sigma": 0.01}}}, "drop hand.spread_sigma"),
     ({"bogus": 1}, r"unknown reset options \['bogus'\]"),
     ([1], r"reset options must be a dict or None, got \[1\]"),
 ]

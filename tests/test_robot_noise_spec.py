@@ -1,5 +1,5 @@
-"""Every source of a noise spec for a description robot (the Panda): joints, palm, object,
-friction.
+"""Every source of a noise spec for a description robot (the Panda): joints, hand, palm,
+object, friction.
 
 What each test proves:
 
@@ -18,6 +18,13 @@ What each test proves:
   maps the links) agree on noisy draws of every source at once;
 * a joints-only spec draws what ``--sigma`` draws; a fixed friction source scores as
   ``--friction`` does; a run on two worker processes draws the run's rows;
+* the hand source offsets the pre-shape as the SDH's own code does: the default robot run
+  as a description (``kuka_sdh.yaml``), fed the SDH engine's own standard normals, gets the
+  configurations of the SDH's hand-noise code (joint names hard-coded there, derived from
+  the description here) to 1e-15 rad, clipping included; its P(FC) under a hand source
+  agrees with the SDH engine's on draws of their own within 3 combined standard errors; the
+  Panda's one finger motor takes one offset, within its limits, and adding the source leaves
+  the arm's draws as they were;
 * what a robot cannot take is one line each.
 """
 
@@ -146,7 +153,10 @@ def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
     assert f"noise spec {spec}, 60 draws" in text and "mu per draw" in text
     hand = tmp_path / "hand.yaml"
     hand.write_text("hand: {spread_sigma: 0.01}\n")
-    cases = [([*args, "--noise-spec", str(hand)], "the hand source"),
+    three = tmp_path / "three.yaml"
+    three.write_text("hand: {closing_sigma: [0.001, 0.002, 0.003]}\n")
+    cases = [([*args, "--noise-spec", str(hand)], "drop hand.spread_sigma"),
+             ([*args, "--noise-spec", str(three)], "robot 'panda' has 2 fingers"),
              ([*args, "--noise-spec", str(spec), "--static-hold"], "holds at one mu"),
              ([*args, "--noise-spec", str(spec), "--hold-test"], "--hold-test draws joint"),
              ([*args[:-4], "--engine", "physics", "--noise-spec", str(spec)],
@@ -194,3 +204,52 @@ def test_report_of_a_robot_takes_a_spec_and_processes(tmp_path, capsys):
                      "--json"]) == 0
         shown = json.loads(capsys.readouterr().out)
         assert run["p_fc"] == shown["p_fc"] and run["outcomes"] == shown["outcomes"]
+
+
+HAND = {"hand": {"spread_sigma": 0.3, "closing_sigma": [0.05, 0.1, 0.15]}}
+
+
+def test_the_sdh_description_offsets_its_pre_shape_as_the_sdh_does():
+    from kinegrasp_env.montecarlo.evaluate import chunk_draws
+    from kinegrasp_env.montecarlo.perturbation import configurations
+    from kinegrasp_env.montecarlo.robot_noise import hand_offsets, with_hand
+
+    description = load_robot("kuka_sdh")
+    model = noise_model_from_spec(HAND)
+    q0 = np.asarray(shipped_grasps("cube")[0].q0, dtype=float)
+    draws = chunk_draws(model, 3, [(0, 400)])  # the SDH engine's own draws
+    own = configurations(q0, draws)
+    z = draws.hand / np.array([0.3, 0.05, 0.1, 0.15])
+    mine = with_hand(np.repeat(q0[None], 400, axis=0), hand_offsets(z, model.hand, description),
+                     description)
+    np.testing.assert_allclose(mine, own, rtol=0, atol=1e-15)
+    at_limit = (np.isclose(mine[:, 7:], description.model.upper[7:])
+                | np.isclose(mine[:, 7:], description.model.lower[7:]))
+    assert at_limit.any()  # the clipping is compared too
+
+
+@pytest.mark.parametrize(("obj", "index"), [("cube", 0), ("spray_flask", 4)])
+def test_hand_noise_of_the_sdh_description_agrees_with_its_own_engine(obj, index):
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+
+    grasp, model, n = shipped_grasps(obj)[index], noise_model_from_spec(HAND), 2000
+    own = evaluate_grasp(grasp, model, n, 0, engine="fast").p_fc
+    mine = evaluate_robot_grasp(grasp, sigma=0.0, n=n, seed=0, engine="fast",
+                                noise_model=model).p_fc
+    se = np.hypot(np.sqrt(own * (1 - own) / n), np.sqrt(mine * (1 - mine) / n))
+    assert own < 0.97 and abs(own - mine) <= 3 * se, (own, mine)  # 1.0 without the source
+
+
+def test_the_pandas_one_finger_motor_takes_one_offset_within_its_limits(panda):
+    from kinegrasp_env.montecarlo.robot_noise import hand_layout, model_rows
+
+    description, obj, grasp = panda
+    assert hand_layout(description).tolist() == [0]  # one motor, finger 0's offset
+    joints = noise_model_from_spec({"joints": {"sigma": 0.01}})
+    both = noise_model_from_spec({"joints": {"sigma": 0.01}, "hand": {"closing_sigma": 0.004}})
+    q, _ = model_rows(both, grasp.q0, description, 5, 0, 500, obj.center_of_mass)
+    alone, _ = model_rows(joints, grasp.q0, description, 5, 0, 500, obj.center_of_mass)
+    np.testing.assert_array_equal(q[:, :7], alone[:, :7])
+    hand = q[:, 7]
+    assert np.all(hand <= description.model.upper[7]) and np.all(hand >= 0)
+    assert (hand < grasp.q0[7] - 1e-4).mean() > 0.4  # about half start narrower

@@ -126,13 +126,18 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
     assert result["robot"] == "panda"
 
 
-def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path, capsys):
-    """A palm error alone (the joints exact): as for one noisy joint, the palm factor's
-    indices equal the Saltelli and Jansen estimators computed directly from one evaluation
-    of 2N draws of the same spec (A its first N rows, B the next), every joint's are 0."""
+@pytest.mark.parametrize(("source", "text"), [
+    ("palm", "palm: {translation_sigma: 0.004, rotation_sigma: 0.03}\n"),
+    ("hand", "hand: {closing_sigma: 0.015}\n")])  # a narrower start meets the cube at times
+def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path, capsys,
+                                                                         source, text):
+    """A palm error or a hand offset alone (the joints exact): as for one noisy joint, the
+    source's indices equal the Saltelli and Jansen estimators computed directly from one
+    evaluation of 2N draws of the same spec (A its first N rows, B the next), every joint's
+    are 0."""
     n = 40
-    spec = tmp_path / "palm.yaml"
-    spec.write_text("palm: {translation_sigma: 0.004, rotation_sigma: 0.03}\n")
+    spec = tmp_path / f"{source}.yaml"
+    spec.write_text(text)
     result = json.loads(run(capsys, "sensitivity", "--robot", "panda", "--object", "cube",
                             "--grasp", str(GRASP), "--noise-spec", str(spec), "--samples",
                             str(n), "--bootstrap", "0", "--seed", str(SEED), "--engine",
@@ -147,20 +152,20 @@ def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path
     variance = np.var(y, ddof=1)
     assert variance > 0
     sources = {s["source"]: s for s in result["sources"]}
-    assert list(sources)[-1] == "palm" and len(sources) == 8
-    palm = sources["palm"]
-    assert math.isclose(palm["first"], float(np.mean(y_b * (y_b - y_a)) / variance),
+    assert list(sources)[-1] == source and len(sources) == 8
+    mine = sources[source]
+    assert math.isclose(mine["first"], float(np.mean(y_b * (y_b - y_a)) / variance),
                         rel_tol=1e-12)
-    assert math.isclose(palm["total"], float(0.5 * np.mean((y_a - y_b) ** 2) / variance),
+    assert math.isclose(mine["total"], float(0.5 * np.mean((y_a - y_b) ** 2) / variance),
                         rel_tol=1e-12)
-    assert all(s["total"] == 0.0 for name, s in sources.items() if name != "palm")
+    assert all(s["total"] == 0.0 for name, s in sources.items() if name != source)
     assert result["p_all"] == float(y_a.mean())
 
 
 @pytest.mark.parametrize(("change", "message"), [
     ({"robot": "pandaa"}, "unknown robot 'pandaa' (did you mean 'panda'?)"),
     ({"robot": "panda", "noise": ["gaussian", {"hand": {"spread_sigma": 0.01}}]},
-     "the hand source (the SDH pre-shape's spread"),
+     "drop hand.spread_sigma"),
     ({"robot": "panda", "engines": ["physics"],
       "noise": [{"palm": {"translation_sigma": 0.001}}]}, "not palm errors"),
     ({"robot": "panda", "objects": ["mug"]}, "robot 'panda' has no shipped grasps of 'mug'"),
@@ -197,7 +202,7 @@ def test_bad_robot_sensitivity_input(tmp_path, capsys):
     hand = tmp_path / "hand.yaml"
     hand.write_text("joints: {sigma: 0.01}\nhand: {spread_sigma: 0.01}\n")
     base = ("sensitivity", "--robot", "panda", "--object", "cube", "--samples", "8")
-    assert "the hand source (the SDH pre-shape's spread" in fails(
+    assert "drop hand.spread_sigma" in fails(
         capsys, *base, "--noise-spec", str(hand))
     assert "grasp index 9 out of range: cube has 4 grasps of robot panda" in fails(
         capsys, *base, "--noise-spec", joint, "--grasp", "9")

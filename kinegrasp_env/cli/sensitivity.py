@@ -96,7 +96,7 @@ def cmd_sensitivity(args) -> int:
 def _robot_request(args, model, robot: str, index: int | None, grasp):
     """``(index, grasp, model)`` of a description robot: ``grasp`` (from ``--grasps``) or the
     robot's shipped grasp ``--grasp`` of ``--object``, and the spec's model (its arm joints,
-    palm, object and friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); one line for
+    hand, palm, object and friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); one line for
     what the robot's engines cannot take (checked before any work)."""
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
@@ -196,6 +196,7 @@ def add_commands(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a PNG bar chart of the indices and P(FC)s")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}); another robot: "
-                   "one factor per arm joint and one per palm, object and friction source of "
+                   "one factor per arm joint and one per hand, palm, object and friction "
+                   "source of "
                    "the spec, the grasp from the robot's shipped set")
     p.set_defaults(func=cmd_sensitivity)

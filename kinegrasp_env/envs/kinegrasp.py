@@ -61,8 +61,8 @@ robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-
 6-joint arm: its IK branches as the elbow coordinate), its
 engine's draws (``engine``, fast by default; 16 draws by default), an observation sized by
 its arm and hand, and pictures of its whole URDF with the object
-(:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source but the
-default robot's hand; ``reward="batch"``; and a reward that scores
+(:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source;
+``reward="batch"``; and a reward that scores
 holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
 P(FC)); the default robot's too, on joint and hand noise.
 

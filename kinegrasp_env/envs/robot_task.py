@@ -185,7 +185,7 @@ class RobotTask:
         rows for every engine), the hand at q's pre-shape; a noise model's other sources
         (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`)."""
         if isinstance(noise, NoiseModel):
-            return model_rows(noise, q, self.arm, seed, 0, n_draws,
+            return model_rows(noise, q, self.description, seed, 0, n_draws,
                               load_object(grasp.object).center_of_mass)
         eps = noise.sample(n_draws, self.arm, np.random.default_rng(seed))
         batch = np.repeat(np.asarray(q, float)[None], n_draws, axis=0)

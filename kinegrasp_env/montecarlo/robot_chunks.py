@@ -112,7 +112,7 @@ def close_chunk(task: RobotChunk, model: NoiseModel | None = None) -> RobotDraws
         return engine.run(q)
     from kinegrasp_env.montecarlo.robot_noise import model_rows
 
-    q, errors = model_rows(model, task.q0, engine.description.arm_dof, task.seed, task.offset,
+    q, errors = model_rows(model, task.q0, engine.description, task.seed, task.offset,
                            task.size, engine.obj.center_of_mass)
     return engine.run(q, **errors)
 

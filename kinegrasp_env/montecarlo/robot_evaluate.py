@@ -165,7 +165,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
             the seed an integer, the robot a catalog one). None, or a local executor of one
             process: in this process.
         noise_model: every source of error (:mod:`~kinegrasp_env.montecarlo.robot_noise`:
-            joints, palm, object, friction; the seed an integer); replaces ``sigma`` and
+            joints, hand, palm, object, friction; the seed an integer); replaces ``sigma`` and
             ``noise``.
 
     Raises:
@@ -211,7 +211,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
             from kinegrasp_env.montecarlo.robot_noise import model_rows
 
             q, errors = model_rows(noise_model, engine.check(grasp.q0)[0],
-                                   engine.description.arm_dof, int(seed), 0, n,
+                                   engine.description, int(seed), 0, n,
                                    engine.obj.center_of_mass)
         check = engine.hold_check
         # the nominal closing rides with the draws, as row n, in the same engine call

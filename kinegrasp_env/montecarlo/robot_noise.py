@@ -1,4 +1,4 @@
-"""A noise model's draws for a description robot: joints, palm, object and friction.
+"""A noise model's draws for a description robot: joints, hand, palm, object and friction.
 
 Draw i of a run with seed s is row i of each source's own stream: the arm joints' of
 ``default_rng(s)`` (so a joints-only model draws exactly what ``--sigma``/``--noise`` draw),
@@ -7,30 +7,29 @@ fixed k (:data:`~kinegrasp_env.sampling.noise_model.STREAM_KEYS`): adding or rem
 never changes another's draws, and a chunk of rows is the same whichever process draws it.
 
 What each source does (:mod:`~kinegrasp_env.sampling.noise_model`): joint errors on the arm
-joints; a palm error moves the palm link and every link below it relative to the flange; an
-object error moves the object about its centre of mass; friction sets each draw's mu. The
-hand source (the SDH pre-shape's spread and per-finger offsets) is the default robot's.
+joints; a hand error offsets the hand's pre-shape (:func:`hand_rows`); a palm error moves
+the palm link and every link below it relative to the flange; an object error moves the
+object about its centre of mass; friction sets each draw's mu.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import STREAM_KEYS, NoiseModel, offset_transforms
-from kinegrasp_env.sampling.noise_sources import ARM_JOINTS
+from kinegrasp_env.sampling.noise_sources import ARM_JOINTS, HandSource, broadcast
 
 
 def check_robot_noise(model: NoiseModel, robot: str, arm_dof: int, engine: str,
                       static_hold: bool = False) -> None:
-    """ValueError (one line) for what a description robot's run cannot take: the hand
-    source, a joints covariance, bias or per-joint sigma of another length than its arm's,
-    palm, object or friction errors in the physics engine, a per-draw mu beside the static
-    hold check."""
+    """ValueError (one line) for what a description robot's run cannot take: a hand source
+    its hand cannot take (:func:`check_hand`), a joints covariance, bias or per-joint sigma
+    of another length than its arm's, palm, object or friction errors in the physics
+    engine, a per-draw mu beside the static hold check."""
     if model.hand is not None:
-        raise ValueError(f"the hand source (the SDH pre-shape's spread and per-finger offsets) "
-                         f"is kuka_sdh's; robot {robot!r} closes from its pre-shape exactly: "
-                         "drop the spec's hand section")
+        check_hand(model.hand, robot)
     joints = model.joints
     if joints is not None and arm_dof != ARM_JOINTS:
         given = [name for name, value in (("covariance", joints.covariance),
@@ -49,6 +48,72 @@ def check_robot_noise(model: NoiseModel, robot: str, arm_dof: int, engine: str,
     if model.friction is not None and static_hold:
         raise ValueError("the static hold check holds at one mu; the spec's friction source "
                          "draws one per draw: drop one of them")
+
+
+def hand_layout(description: RobotDescription) -> np.ndarray:
+    """(H,) for each actuated hand joint (the entries of q after the arm's): the finger whose
+    closing joints it drives (the first such finger, where one motor drives several), or -1
+    where it drives no finger's closing joint (a pre-shape joint such as a spread)."""
+    drivers = description.model.drivers()
+    arm = description.arm_dof
+    out = np.full(description.model.dof - arm, -1)
+    for f in reversed(range(len(description.fingers))):  # the first finger's wins
+        for name in description.fingers[f].joints:
+            out[drivers[name][0] - arm] = f
+    return out
+
+
+def check_hand(hand: HandSource, robot: str) -> None:
+    """ValueError (one line) for a hand source that ``robot``'s hand cannot take: a spread
+    sigma where every hand joint closes a finger, per-finger closing sigmas of a hand with
+    another number of fingers."""
+    from kinegrasp_env.robot.catalog import load_robot
+
+    description = load_robot(robot)
+    layout = hand_layout(description)
+    fingers = len(description.fingers)
+    if hand.spread_sigma > 0 and not np.any(layout < 0):
+        raise ValueError(f"robot {robot!r}'s hand has no pre-shape joint besides its fingers' "
+                         "closing joints: drop hand.spread_sigma")
+    if np.ndim(hand.closing_sigma) == 1 and len(hand.closing_sigma) != fingers:
+        raise ValueError(f"hand.closing_sigma has {len(hand.closing_sigma)} values; robot "
+                         f"{robot!r} has {fingers} fingers (give one sigma, or one per "
+                         "finger)")
+
+
+def hand_offsets(z: np.ndarray, hand: HandSource, description: RobotDescription
+                 ) -> np.ndarray:
+    """(n, H) offsets of the actuated hand joints' pre-shape (radians or metres, each joint's
+    unit) from standard normals z (n, 1 + fingers): column 0 the spread's, column 1 + f
+    finger f's. A joint that drives finger f's closing joints takes ``closing_sigma`` (f's)
+    times column 1 + f, every other hand joint ``spread_sigma`` times column 0
+    (:func:`hand_layout`)."""
+    layout = hand_layout(description)
+    scale = np.concatenate([[hand.spread_sigma],
+                            broadcast(hand.closing_sigma, len(description.fingers))])
+    return z[:, layout + 1] * scale[layout + 1]
+
+
+def hand_rows(model: NoiseModel, description: RobotDescription, seed: int, offset: int,
+              size: int) -> np.ndarray:
+    """(size, H) :func:`hand_offsets` of rows ``offset .. offset + size`` of the hand's
+    stream (each row 1 + fingers standard normals); zeros without a hand source."""
+    hand = model.hand
+    if hand is None or hand.exact:
+        return np.zeros((size, description.model.dof - description.arm_dof))
+    fingers = len(description.fingers)
+    z = source_stream(seed, "hand").standard_normal((offset + size, 1 + fingers))[offset:]
+    return hand_offsets(z, hand, description)
+
+
+def with_hand(q: np.ndarray, offsets: np.ndarray, description: RobotDescription
+              ) -> np.ndarray:
+    """Configurations q (n, dof) with the hand's pre-shape offset by ``offsets`` (n, H),
+    clipped to the hand joints' limits (a new array)."""
+    arm, model = description.arm_dof, description.model
+    out = np.array(q, dtype=float)
+    out[:, arm:] = np.clip(out[:, arm:] + offsets, model.lower[arm:], model.upper[arm:])
+    return out
 
 
 def source_stream(seed: int, source: str) -> np.random.Generator:
@@ -72,12 +137,17 @@ def joint_rows(model: NoiseModel, arm_dof: int, seed: int, offset: int,
                                                                 rng)[offset:]
 
 
-def model_rows(model: NoiseModel, q0: np.ndarray, arm_dof: int, seed: int, offset: int,
-               size: int, center: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """(configurations (size, dof): q0 (dof,) with :func:`joint_rows` on its arm joints,
+def model_rows(model: NoiseModel, q0: np.ndarray, description: RobotDescription, seed: int,
+               offset: int, size: int, center: np.ndarray
+               ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """(configurations (size, dof): q0 (dof,) with :func:`joint_rows` on its arm joints and
+    :func:`hand_rows` on its hand's pre-shape (clipped to the joints' limits),
     :func:`error_rows`) of rows ``offset .. offset + size``."""
+    arm = description.arm_dof
     q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
-    q[:, :arm_dof] += joint_rows(model, arm_dof, seed, offset, size)
+    q[:, :arm] += joint_rows(model, arm, seed, offset, size)
+    if model.hand is not None:
+        q = with_hand(q, hand_rows(model, description, seed, offset, size), description)
     return q, error_rows(model, seed, offset, size, center)
 
 

@@ -44,6 +44,7 @@ from kinegrasp_env.montecarlo.evaluate import (
 )
 from kinegrasp_env.montecarlo.perturbation import engine_inputs
 from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.montecarlo.robot_noise import with_hand
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
@@ -250,7 +251,7 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
                    progress: Callable[[int, int], None] | None = None) -> Sensitivity:
     """P(FC) per factor and Sobol indices of force closure of a description robot's grasp,
     one factor per arm joint (named by the description's ``arm_joints``) and, for a noise
-    model, one per palm, object and friction source (module docstring).
+    model, one per hand, palm, object and friction source (module docstring).
 
     Args:
         grasp: a grasp of ``engine``'s robot and object (q0: its actuated vector).
@@ -266,7 +267,12 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
         ValueError: a grasp of another robot or object, bad samples or sigma, a noise model
             the robot cannot take.
     """
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, error_rows, joint_rows
+    from kinegrasp_env.montecarlo.robot_noise import (
+        check_robot_noise,
+        error_rows,
+        hand_rows,
+        joint_rows,
+    )
     from kinegrasp_env.sampling.noise_model import as_noise_model
     from kinegrasp_env.world.grasps import check_robot
 
@@ -287,7 +293,9 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
     stream = joint_rows(model, arm, int(seed), 0, 2 * n)
     noisy = model.sigma_vector(arm) > 0
     errors = error_rows(model, int(seed), 0, 2 * n, engine.obj.center_of_mass)
-    sources = tuple(k for k in ("palm", "object_offset", "friction") if k in errors)
+    if model.hand is not None and not model.hand.exact:  # the pre-shape's offsets
+        errors["hand"] = hand_rows(model, description, int(seed), 0, 2 * n)
+    sources = tuple(k for k in ("hand", "palm", "object_offset", "friction") if k in errors)
     factors = (*description.arm_joints, *(SOURCE_NAMES[k] for k in sources))
     blocks = {"A": (stream[:n], {k: v[:n] for k, v in errors.items()}),
               "B": (stream[n:], {k: v[n:] for k, v in errors.items()})}
@@ -306,7 +314,8 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
 
 
 #: A description robot's source factors, by their key in the engine's errors.
-SOURCE_NAMES = {"palm": "palm", "object_offset": "object", "friction": "friction"}
+SOURCE_NAMES = {"hand": "hand", "palm": "palm", "object_offset": "object",
+                "friction": "friction"}
 
 
 def _joint_settings(joints: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]]:
@@ -335,6 +344,9 @@ def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...]
             q[:, j] += blocks[r][0][:, j]
     errors = {key: blocks[r][1][key] for key, r in zip(sources, rows[arm:], strict=True)
               if r != "0"}
+    hand = errors.pop("hand", None)
+    if hand is not None:  # the pre-shape's offsets, within the hand joints' limits
+        q = with_hand(q, hand, engine.description)
     return (engine.run(q, **errors).outcome == FORCE_CLOSURE).astype(float)
 
 
