@@ -121,6 +121,15 @@ def test_cli_reweight_and_its_refusals(capsys, tmp_path):
     assert main([*args, "--noise", "uniform"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Gaussian joint noise" in err[0]
+    # a batch smaller than its targets (one per reachable angle, and the defensive share)
+    assert main([*args[:-3], "6", "--method", "reweight"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot cover" in err[0] and "give --batch" in err[0]
+    assert main(["reproduce", "fig10", "--object", "cube", "--grasps", "10", "--samples",
+                 "2", "--method", "reweight", "--engine", "fast", "--out",
+                 str(tmp_path / "f10")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "give --samples" in err[0]
 
 
 def test_an_angle_short_of_its_draws_is_topped_up_and_pooled():

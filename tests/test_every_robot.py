@@ -24,6 +24,8 @@ ROBOTS = ("kuka_sdh", "panda", "xarm6")
 #: A noise model of every source a robot's engines take (joints, palm, object, friction).
 SPEC = {"joints": {"sigma": 0.01}, "palm": {"translation_sigma": 0.001},
         "object": {"translation_sigma": 0.001}, "friction": {"sigma": 0.05}}
+#: A hand source every robot's hand takes (one closing sigma: radians or metres).
+HAND = {"hand": {"closing_sigma": 0.01}}
 #: The command lines ({g}: the robot's grasp file, {o}: an output path of its own); the
 #: last item names a file the command must write (or None).
 COMMANDS = {
@@ -43,6 +45,16 @@ COMMANDS = {
                                "--criterion", "hold", "--out", "{o}.csv"], "{o}.csv"),
     "rank --adaptive": (["rank", "{g}", "--samples", "30", "--adaptive", "--top-k", "1",
                          "--out", "{o}.csv"], "{o}.csv"),
+    "rank --adaptive --criterion hold_static": (["rank", "{g}", "--samples", "30",
+                                                 "--adaptive", "--top-k", "1", "--criterion",
+                                                 "hold_static", "--out", "{o}.csv"],
+                                                "{o}.csv"),
+    "evaluate --noise-spec hand": (["evaluate", "--grasps", "{g}", "--grasp", "0",
+                                    "--noise-spec", "hand.yaml", "--samples", "6", "--json"],
+                                   None),
+    "elbow --method reweight": (["elbow", "--grasps", "{g}", "--grasp", "0", "--samples", "6",
+                                 "--batch", "100", "--method", "reweight", "--engine", "fast",
+                                 "--json"], None),
     "elbow": (["elbow", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--json"], None),
     "report": (["report", "--grasps", "{g}", "--grasp", "0", "--samples", "6", "--out",
                 "{o}.html"], "{o}.html"),
@@ -68,6 +80,7 @@ def workspace(tmp_path_factory):
         patch.chdir(root)
         (root / "xarm6.yaml").write_text(yaml.safe_dump(DESCRIPTION))
         (root / "spec.yaml").write_text(yaml.safe_dump(SPEC))
+        (root / "hand.yaml").write_text(yaml.safe_dump(HAND))
         assert main(["robots", "add", str(root / "xarm6.yaml")]) == 0
         for robot in ROBOTS:
             assert main(["plan", "--robot", robot, "--object", "cube", "--count", "3",

@@ -17,6 +17,7 @@ What each test proves:
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from dataclasses import fields
 
@@ -112,9 +113,35 @@ def test_adaptive_and_best_elbow_for_a_robot(tmp_path, capsys):
                      "1000")
     top = next(r for r in adaptive if r["certified"] == "top-k")
     assert top["id"] == fixed[0]["id"]  # the fixed-n run's best, by a wide margin
-    assert main(["rank", str(_candidates(tmp_path)), "--adaptive", "--criterion", "hold",
-                 "--out", str(tmp_path / "x.csv")]) == 2
-    assert "--adaptive certifies P(FC)" in capsys.readouterr().err
+    capsys.readouterr()
+    # certified by the static hold: cube grasps and a drill grasp (in force closure about as
+    # often as they are, never held: the drill is too heavy for the jaws), so P(FC) and
+    # P(hold) order them differently
+    mixed = tmp_path / "mixed.json"
+    picked = [*shipped_grasps("cube", "panda")[1:3],
+              dataclasses.replace(shipped_grasps("drill", "panda")[3], id="d3")]
+    save_grasps(picked, mixed)
+    out = tmp_path / "held.csv"
+    assert main(["rank", str(mixed), "--sigma", "0.0133", "--samples", "1000", "--seed", "2",
+                 "--engine", "fast", "--out", str(out), "--adaptive", "--top-k", "1",
+                 "--criterion", "hold_static"]) == 0
+    held = list(csv.DictReader(out.open()))
+    assert "within 0.01 of the best P(hold, static)" in capsys.readouterr().out
+    # each row's P(FC) and P(hold, static) are evaluate's on the draws it made (same rows)
+    for grasp in picked:
+        row = next(r for r in held if r["id"] == grasp.id)
+        assert main(["evaluate", "--grasps", str(mixed), "--grasp", grasp.id, "--sigma",
+                     "0.0133", "--samples", row["samples"], "--seed", "2", "--engine",
+                     "fast", "--static-hold", "--json"]) == 0
+        shown = json.loads(capsys.readouterr().out)
+        assert int(row["force_closure"]) == shown["outcomes"]["force_closure"]
+        assert float(row["p_fc"]) == pytest.approx(shown["p_fc"], abs=1e-6)
+        assert float(row["p_hold_static"]) == pytest.approx(shown["p_hold_static"], abs=1e-6)
+    drill = next(r for r in held if r["id"] == "d3")
+    assert float(drill["p_hold_static"]) == 0 < float(drill["p_fc"])
+    assert held[-1]["id"] == "d3" and held[-1]["certified"] == "rest"  # by its hold score
+    by_hold = sorted(held, key=lambda r: -float(r["p_hold_static"]))
+    assert next(r for r in held if r["certified"] != "rest")["id"] == by_hold[0]["id"]
     grasps = tmp_path / "moved.json"
     rows = _rank(tmp_path, "elbow.csv", "--best-elbow", "20", "--samples", "40")
     assert {r["id"] for r in rows} == {f"{g.id}e" for g in shipped_grasps("cube", "panda")[:3]}

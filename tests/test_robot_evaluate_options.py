@@ -105,3 +105,32 @@ def test_rank_report_for_a_robot(capsys, tmp_path):
     assert [g for g, _ in shown] == [r["id"] for r in rows]
     for (_, value), row in zip(shown, rows, strict=True):
         assert abs(float(value) - float(row["p_fc"])) < 1e-6
+
+
+def test_rank_of_a_robots_grasps_of_several_objects(capsys, tmp_path):
+    """``rank`` of the Panda's cube and drill grasps in one file: each candidate's P(FC) is
+    ``evaluate``'s of that grasp on its own object (the same seed: the same rows of the
+    stream), so no candidate is closed on another's object; the report draws each on its
+    own object."""
+    import csv
+
+    from kinegrasp_env.world.grasps import save_grasps
+
+    picked = [("cube", 0), ("drill", 1), ("cube", 2), ("drill", 3)]
+    grasps = tmp_path / "g.json"
+    save_grasps([shipped_grasps(obj, "panda")[i] for obj, i in picked], grasps)
+    out, page = tmp_path / "r.csv", tmp_path / "r.html"
+    assert main(["rank", str(grasps), "--samples", "60", "--sigma", "0.0233", "--seed", "2",
+                 "--engine", "fast", "--out", str(out), "--report", str(page)]) == 0
+    capsys.readouterr()
+    rows = {r["id"]: r for r in csv.DictReader(out.open())}
+    assert len(rows) == 4  # the ids of these four are distinct
+    for k, (obj, i) in enumerate(picked):
+        assert main(["evaluate", "--robot", "panda", "--object", obj, "--grasp", str(i),
+                     "--samples", "60", "--sigma", "0.0233", "--seed", "2", "--engine",
+                     "fast", "--json"]) == 0
+        alone = json.loads(capsys.readouterr().out)
+        grasp_id = shipped_grasps(obj, "panda")[i].id
+        assert abs(float(rows[grasp_id]["p_fc"]) - alone["p_fc"]) < 1e-4, (obj, i)
+    text = page.read_text()
+    assert "4 grasps of cube, drill" in text and "panda: drill grasp" in text

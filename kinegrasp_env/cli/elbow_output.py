@@ -6,6 +6,7 @@ plot and the printed summary."""
 from __future__ import annotations
 
 import sys
+from contextlib import contextmanager
 
 from kinegrasp_env.cli.common import CLIError, finite_float, plural, positive_int, reported
 from kinegrasp_env.cli.execution_options import executor_from
@@ -55,12 +56,31 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
     who = f" of {args.robot}" if robot else ""
     bar = tqdm(desc=f"elbow of {args.object} grasp {index}{who} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
-    with executor_from(args) as executor:
+    with executor_from(args) as executor, batch_sized():
         out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
                        delta=delta, batch=batch, executor=executor, friction=friction,
                        progress=lambda stage: bar.update(1))
     bar.close()
     return out
+
+
+def twice_samples(need: int) -> str:
+    """:func:`batch_sized`'s hint where the batch is twice ``--samples`` (``reproduce fig10
+    --method reweight``)."""
+    return f"give --samples {-(-need // 2)} or more (the batch is twice --samples)"
+
+
+@contextmanager
+def batch_sized(hint=lambda need: f"give --batch {need} or more (default: twice --samples)"):
+    """A batch too small for its targets (:class:`~kinegrasp_env.sampling.reweight.
+    BatchTooSmall`, found once the reachable targets are known, before any closing) as one
+    CLIError line, ended by ``hint(need)`` (the option that makes it large enough)."""
+    from kinegrasp_env.sampling.reweight import BatchTooSmall
+
+    try:
+        yield
+    except BatchTooSmall as err:
+        raise CLIError(f"{err}: {hint(err.need)}") from None
 
 
 def reweight_lines(evidence: dict, samples: int, unit: str = "angle") -> str:

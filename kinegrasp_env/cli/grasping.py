@@ -27,6 +27,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
@@ -192,7 +193,7 @@ def cmd_reproduce(args) -> int:
             figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             print(written(out, ["fig7.csv", *figures]))
         elif args.figure in ("fig9", "fig10"):
-            with reported(ValueError):  # variants that do not share a palm pose
+            with reported(ValueError), batch_sized(twice_samples):  # other palm poses
                 rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
                                            count=count, engine=engine, executor=executor,
                                            progress=True, objects=objects, grasp_sets=sets,

@@ -89,11 +89,9 @@ def cmd_rank(args) -> int:
     if described:
         check_robot_candidates(args, grasps, robot, noise)
     else:
-        from kinegrasp_env.cli.robot_ranking import refuse_adaptive_hold
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
         check_hold_simulator(args, test, "--criterion hold")
-        refuse_adaptive_hold(args)
         if static or test:
             with reported(ValueError):
                 check_hold_noise(noise)
@@ -114,8 +112,10 @@ def cmd_rank(args) -> int:
 
     def evaluator(index: int, first: int, count: int, outcomes: bool = False):
         """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
-        each draw's force-closure outcome (what adaptive ranking pairs across candidates);
-        the draws per outcome are added to ``side``."""
+        each draw's success (what adaptive ranking pairs across candidates): force closure,
+        or with a hold criterion the draw held by its score (:func:`~kinegrasp_env.toolkit.
+        ranking.certified_successes`);
+        the draws per outcome and the hold scores are added to ``side``."""
         from kinegrasp_env.toolkit.ranking import CandidateResult
 
         counts, moments, draws = evaluate.run_chunks(
@@ -124,19 +124,26 @@ def cmd_rank(args) -> int:
             executor=executor, return_draws=outcomes or static)
         record = side.setdefault(index, CandidateResult(index))
         record.add_outcomes(dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
+        held = {}
         if static:  # the static hold check of the same draws
             from kinegrasp_env.montecarlo.draw_holds import grasp_holds
 
-            held, _ = grasp_holds(grasps[index], noise, seed, draws, chunk=chunk,
-                                  first_chunk=first, friction=friction, num_edges=NUM_EDGES)
-            record.add_holds("static", int(held.sum()), int(held.size))
+            held["static"], _ = grasp_holds(grasps[index], noise, seed, draws, chunk=chunk,
+                                            first_chunk=first, friction=friction,
+                                            num_edges=NUM_EDGES)
         if test:  # the quick holding test of the same draws' configurations
-            held = quick_test(grasps[index].object).chunk_held(
+            held["test"] = quick_test(grasps[index].object).chunk_held(
                 grasps[index].q0, noise, seed, int(counts.sum()), chunk=chunk,
                 first_chunk=first)
-            record.add_holds("test", int(held.sum()), int(held.size))
+        for score, verdicts in held.items():
+            record.add_holds(score, int(verdicts.sum()), int(verdicts.size))
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
-        return (*value, draws.outcome == evaluate.FORCE_CLOSURE) if outcomes else value
+        if not outcomes:
+            return value
+        from kinegrasp_env.toolkit.ranking import certified_successes
+
+        return certified_successes(args.criterion, draws.outcome == evaluate.FORCE_CLOSURE,
+                                   held, moments)
 
     partial = out.with_name(out.name + ".partial.jsonl")
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
@@ -176,7 +183,8 @@ def cmd_rank(args) -> int:
                 grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
                 friction=friction, static_hold=static, hold_test=test, layout=layout,
                 executor=executor, side=side,
-                model=noise if args.noise_spec else None, hold_simulator=args.hold_simulator)
+                model=noise if args.noise_spec else None, hold_simulator=args.hold_simulator,
+                criterion=args.criterion)
         done = {}
         if not args.adaptive:
             existed = partial.exists()
@@ -288,7 +296,7 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
 
     if args.adaptive:
         report = _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion,
-                                **certify)
+                                side=side, **certify)
         return report.results, report
     bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
     with partial.open("a") as log:
@@ -321,11 +329,13 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
 
 
 def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
-                   delta: float, epsilon: float):
+                   delta: float, epsilon: float, side: dict):
     """Adaptive ranking under one overall progress report (a bar that advances with every
-    chunk drawn, or a line per round off a terminal); the summary comes after the bar."""
+    chunk drawn, or a line per round off a terminal); the summary comes after the bar. A
+    hold criterion certifies the hold score (the draws' successes are their holds); each
+    result's P(FC) and hold scores come back from ``side``'s tallies."""
     from kinegrasp_env.toolkit.progress import Progress
-    from kinegrasp_env.toolkit.ranking import AdaptiveProgress, rank_adaptive
+    from kinegrasp_env.toolkit.ranking import CERTIFIED_HOLDS, AdaptiveProgress, rank_adaptive
 
     with Progress("rank", len(grasps) * sum(layout), len(layout), word="round") as bar:
         def update(state: AdaptiveProgress) -> None:
@@ -334,11 +344,17 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
                 bar.cell_done(f"{state.undecided} of {len(grasps)} candidates undecided")
 
         paired = functools.partial(evaluator, outcomes=True)
+        held = criterion in CERTIFIED_HOLDS  # the draws' successes are holds: order by them
         report = rank_adaptive(len(grasps), paired, len(layout), chunk, top_k=top_k,
-                               delta=delta, epsilon=epsilon, criterion=criterion,
-                               progress=update)
+                               delta=delta, epsilon=epsilon,
+                               criterion="pfc" if held else criterion, progress=update,
+                               measure=CERTIFIED_HOLDS.get(criterion, "P(FC)"))
+    if held:  # each result's P(FC) and hold scores from the draws' tallies
+        for r in report.results:
+            r.successes = side[r.index].outcomes.get("force_closure", 0)
+            r.holds = dict(side[r.index].holds)
     print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
-          f"({report.draws / report.fixed_draws:.0%}); top {top_k} "
+          f"({report.draws / report.fixed_draws:.0%}); top {top_k} by {report.measure} "
           f"{'certified' if report.separated else 'NOT certified'} (delta {delta:g}, epsilon "
           f"{epsilon:g}) after {report.rounds} rounds", file=sys.stderr)
     return report

@@ -73,10 +73,12 @@ def certified_line(report, samples: int) -> str:
     k, delta, eps = len(report.top), f"{report.delta:g}", f"{report.epsilon:g}"
     count = {label: report.certified.count(label) for label in ("top-k", "rest", "unresolved")}
     best = "best" if k == 1 else f"{_ordinal(k)} best"
+    measure = getattr(report, "measure", "P(FC)")
     if eps == "0":
-        claim = "the most robust" if k == 1 else f"in the top {k} by P(FC)"
+        claim = ("the most robust" if k == 1 and measure == "P(FC)"
+                 else f"the best by {measure}" if k == 1 else f"in the top {k} by {measure}")
     else:
-        claim = f"within {eps} of the {best} P(FC)"
+        claim = f"within {eps} of the {best} {measure}"
     rows = "the row marked top-k is" if k == 1 else f"each of the {k} rows marked top-k is"
     if report.separated:
         return (f"certified at delta {delta}, epsilon {eps}: {rows} {claim} (false with "

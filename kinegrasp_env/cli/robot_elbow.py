@@ -19,6 +19,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.elbow_output import (
     DEFAULT_IK_STARTS,
+    batch_sized,
     certificate_levels,
     reweight_lines,
     reweighted_elbow,
@@ -119,7 +120,7 @@ def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, 
         bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (batch, "
                    "fresh draws, certificate)", total=3, unit="stage", file=sys.stderr,
                    disable=None)
-        with executor_from(args) as executor:
+        with executor_from(args) as executor, batch_sized():
             out = optimize_robot_branches_reweighted(
                 grasp, noise, samples, seed, engine=args.engine, starts=starts,
                 epsilon=epsilon, delta=delta, batch=batch, friction=friction,

@@ -14,10 +14,10 @@ from kinegrasp_env.cli.common import CLIError, reported
 from kinegrasp_env.cli.robot_grasps import check_hold_simulator, check_robot_engine
 
 
-def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
-    """The object of a description robot's candidates (one object, each a grasp of
-    ``robot``), and the options and the noise (``--noise-spec``'s model, or joint noise) its
-    ranking takes; CLIError lines otherwise."""
+def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
+    """A description robot's candidates (each a grasp of ``robot``, of any catalog objects),
+    and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
+    takes; CLIError lines otherwise."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
@@ -28,10 +28,6 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
                        "--noise); drop it or --noise-spec")
     check_hold_simulator(args, args.criterion == "hold", "--criterion hold")
     check_robot_engine(args.engine, robot)
-    objects = {g.object for g in grasps}
-    if len(objects) != 1:
-        raise CLIError(f"{args.candidates}: ranking a robot's grasps takes one object, got "
-                       f"{', '.join(sorted(objects))}")
     with reported(ValueError):
         for g in grasps:
             check_robot(g, robot)
@@ -39,16 +35,7 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> str:
         with reported(ValueError, RobotDescriptionError):
             check_robot_noise(noise, robot, load_robot(robot).arm_dof, args.engine,
                               bool(args.static_hold) or args.criterion == "hold_static")
-    refuse_adaptive_hold(args)
-    return objects.pop()
 
-
-def refuse_adaptive_hold(args) -> None:
-    """CLIError for ``--adaptive`` with a hold criterion (it certifies P(FC) alone)."""
-    if args.adaptive and args.criterion in ("hold", "hold_static"):
-        raise CLIError(f"--adaptive certifies P(FC) on paired draws; --criterion "
-                       f"{args.criterion} ranks by a hold score, which it does not certify: "
-                       "rank without --adaptive")
 
 
 class RobotRanking:
@@ -65,15 +52,16 @@ class RobotRanking:
             test in ``hold_simulator`` on every draw (in this process).
         layout: the chunk sizes of one candidate's draws.
         model: the ``--noise-spec`` model (every source; replaces sigma and noise), or None.
+        criterion: the ranking's criterion (a hold criterion: an adaptive run's paired
+            successes are its score's holds).
     """
 
     def __init__(self, grasps: list, robot: str, *, sigma, noise: str, seed: int,
                  engine: str, friction: float, static_hold: bool, hold_test: bool,
                  layout: list[int], executor, side: dict, model=None,
-                 hold_simulator: str = "pybullet") -> None:
+                 hold_simulator: str = "pybullet", criterion: str = "pfc") -> None:
         import json
 
-        from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.sampling.noise_spec import spec_of
 
         self.model = None if model is None else json.dumps(spec_of(model))
@@ -81,8 +69,9 @@ class RobotRanking:
         self.sigma, self.noise, self.seed = sigma, noise, seed
         self.engine, self.friction, self.static_hold = engine, friction, static_hold
         self.executor, self.side = executor, side
-        self.tester = (quick_hold_engine(robot, grasps[0].object, friction, hold_simulator)
-                       if hold_test else None)
+        self.hold_test, self.hold_simulator = hold_test, hold_simulator
+        self.criterion = criterion
+        self.testers: dict[str, object] = {}  # the quick holding test's engine per object
 
     def chunk(self, index: int):
         """Candidate ``index``'s run as a :class:`~kinegrasp_env.montecarlo.robot_chunks.
@@ -97,10 +86,14 @@ class RobotRanking:
                           self.seed, 0, 0, self.friction, self.static_hold, self.model)
 
     def __call__(self, index: int, first: int, count: int, outcomes: bool = False):
+        """(successes, trials, moments) of chunks ``first .. first + count`` of candidate
+        ``index``; with ``outcomes`` each draw's success too (force closure, or the draws the
+        hold criterion's score held: :func:`~kinegrasp_env.toolkit.ranking.
+        certified_successes`)."""
         from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
         from kinegrasp_env.montecarlo.robot_chunks import chunked_draws
         from kinegrasp_env.sampling.stats import StreamingMoments
-        from kinegrasp_env.toolkit.ranking import CandidateResult
+        from kinegrasp_env.toolkit.ranking import CandidateResult, certified_successes
 
         offset, n = sum(self.layout[:first]), sum(self.layout[first:first + count])
         start = dataclasses.replace(self.chunk(index), offset=offset)
@@ -109,26 +102,37 @@ class RobotRanking:
         tally = self.side.setdefault(index, CandidateResult(index))
         tally.add_outcomes({name: int((draws.outcome == i).sum())
                             for i, name in enumerate(OUTCOMES)})
+        held = {}
         if self.static_hold:
-            tally.add_holds("static", int(draws.holds.sum()), n)
-        if self.tester is not None:
-            tally.add_holds("test", self._held(index, start, n), n)
-        value = int(fc.sum()), n, StreamingMoments(1).update(draws.quality[fc])
-        return (*value, fc) if outcomes else value
+            held["static"] = draws.holds
+        if self.hold_test:
+            held["test"] = self._held(index, start, n)
+        for score, verdicts in held.items():
+            tally.add_holds(score, int(verdicts.sum()), n)
+        moments = StreamingMoments(1).update(draws.quality[fc])
+        if outcomes:
+            return certified_successes(self.criterion, fc, held, moments)
+        return int(fc.sum()), n, moments
 
-    def _held(self, index: int, start, n: int) -> int:
-        """Draws of rows ``start.offset .. + n`` of candidate ``index`` the quick holding
-        test holds."""
+    def _held(self, index: int, start, n: int):
+        """(n,) bool: the draws of rows ``start.offset .. + n`` of candidate ``index`` the
+        quick holding test holds."""
         import numpy as np
 
+        from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
         from kinegrasp_env.physics.protocol import HELD
 
-        q = chunk_configurations(np.asarray(start.q0), self.tester.description.arm_dof,
+        name = self.grasps[index].object
+        if name not in self.testers:
+            self.testers[name] = quick_hold_engine(self.robot, name, self.friction,
+                                                   self.hold_simulator)
+        tester = self.testers[name]
+        q = chunk_configurations(np.asarray(start.q0), tester.description.arm_dof,
                                  start.sigma, start.noise, start.seed, start.offset, n)
-        held = int((self.tester.run_hold(q)[1].outcome == HELD).sum())
-        print(f"rank: candidate {self.grasps[index].id}: holding test {held}/{n} held",
-              file=sys.stderr)
+        held = tester.run_hold(q)[1].outcome == HELD
+        print(f"rank: candidate {self.grasps[index].id}: holding test {int(held.sum())}/{n} "
+              "held", file=sys.stderr)
         return held
 
     def nominal(self, index: int) -> float:
@@ -140,8 +144,8 @@ class RobotRanking:
     def close(self) -> None:
         from kinegrasp_env.montecarlo.robot_chunks import close_engines
 
-        if self.tester is not None:
-            self.tester.close()
+        for tester in self.testers.values():
+            tester.close()
         close_engines()
 
 
@@ -172,12 +176,13 @@ def write_robot_rank_page(args, grasps: list, results: list, robot: str, noise, 
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
                "--seed", str(seed), "--criterion", args.criterion, "--engine", args.engine,
                *friction_words(args), "--out", str(args.out), "--report", str(args.report)]
-    settings = {"robot": robot, "candidates": args.candidates, "object": ordered[0].object,
+    names = list(dict.fromkeys(g.object for g in ordered))
+    settings = {"robot": robot, "candidates": args.candidates, "object": ", ".join(names),
                 "order": f"by {args.criterion}, best first", "draws per candidate": samples,
                 "seed (every candidate)": seed, "engine": args.engine,
                 "contact model": description.contact_model, "friction mu": friction,
                 "friction cone edges": NUM_EDGES}
-    text = robot_page(description, load_object(ordered[0].object), ordered, runs,
+    text = robot_page(description, {name: load_object(name) for name in names}, ordered, runs,
                       command=shlex.join(command), settings=settings, friction=friction,
                       num_edges=NUM_EDGES)
     write_page(args.report, text)

@@ -5,6 +5,7 @@ grasps (Table I, Figs. 7, 9 and 10: :mod:`kinegrasp_env.toolkit.robot_tables`,
 from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
+from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
 from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
 from kinegrasp_env.cli.robot_grasps import check_robot_engine
 
@@ -90,7 +91,7 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
                                         friction, executor)
         from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
 
-        with reported(ValueError):
+        with reported(ValueError), batch_sized(twice_samples):
             rows = robot_fig10(description, out, grasp_sets=sets, samples=samples,
                                count=count, seed=seed, engine=args.engine, friction=friction,
                                method=method, executor=executor)

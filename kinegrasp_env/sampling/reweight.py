@@ -83,6 +83,20 @@ def gaussian_score(x: np.ndarray, covariance: np.ndarray, derivative: np.ndarray
     return out
 
 
+class BatchTooSmall(ValueError):
+    """A batch of closings too small for its mixture: fewer draws than targets plus the
+    defensive component's share.
+
+    Attributes:
+        need: the smallest batch that covers them.
+    """
+
+    def __init__(self, n: int, targets: int, need: int) -> None:
+        super().__init__(f"a batch of {n} closings cannot cover {targets} targets and a "
+                         f"defensive component: it needs at least {need}")
+        self.need = need
+
+
 @dataclass(frozen=True)
 class MixtureProposal:
     """A stratified mixture of zero-mean Gaussians and a defensive one.
@@ -114,8 +128,7 @@ class MixtureProposal:
             need = len(cov) + 1
             while need - defensive(need) < len(cov):
                 need += 1
-            raise ValueError(f"a batch of {n} draws cannot cover {len(cov)} targets and a "
-                             f"defensive component: ask for at least {need} (--batch)")
+            raise BatchTooSmall(n, len(cov), need)
         for c in cov:
             try:
                 np.linalg.cholesky(c)

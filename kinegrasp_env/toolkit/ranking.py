@@ -236,6 +236,8 @@ class AdaptiveReport:
         delta, epsilon: the run's error probability and indifference zone.
         strict: (n, n) bool by candidate index, [i, j]: certified P(FC)_i > P(FC)_j
             (closed under transitivity); ``results`` lists no such j before its i.
+        measure: what was certified, in words: ``P(FC)``, or a hold score's probability
+            (:data:`CERTIFIED_HOLDS`; then read P(FC) above as it).
     """
 
     results: list[CandidateResult]
@@ -250,6 +252,7 @@ class AdaptiveReport:
     delta: float = math.nan
     epsilon: float = 0.0
     strict: np.ndarray | None = None
+    measure: str = "P(FC)"
 
 
 def boundary(relation: np.ndarray, inside: np.ndarray, outside: np.ndarray,
@@ -396,11 +399,29 @@ class AdaptiveRun:
         return [self.results[i] for i in shown], [str(label[i]) for i in shown]
 
 
+#: The hold criteria an adaptive ranking certifies, and what it certifies, in words.
+CERTIFIED_HOLDS = {"hold_static": "P(hold, static)", "hold": "P(hold)"}
+
+
+def certified_successes(criterion: str, fc: np.ndarray, held: dict[str, np.ndarray],
+                        moments: StreamingMoments
+                        ) -> tuple[int, int, StreamingMoments, np.ndarray]:
+    """A paired evaluator's (successes, trials, moments, per-draw successes (n,) bool) of a
+    candidate's chunks: force closure ``fc`` (n,) bool, or with a hold criterion
+    (:data:`CERTIFIED_HOLDS`) the draws its score held (``held``: ``static`` and ``test``
+    -> (n,) bool)."""
+    success = fc
+    if criterion in CERTIFIED_HOLDS:
+        success = held["static" if criterion == "hold_static" else "test"]
+    success = np.asarray(success, dtype=bool)
+    return int(success.sum()), int(success.size), moments, success
+
+
 def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max_chunks: int,
                   chunk_size: int, *, top_k: int = 1, delta: float = 0.05,
                   epsilon: float = DEFAULT_EPSILON, criterion: str = "pfc",
-                  progress: Callable[[AdaptiveProgress], None] | None = None
-                  ) -> AdaptiveReport:
+                  progress: Callable[[AdaptiveProgress], None] | None = None,
+                  measure: str = "P(FC)") -> AdaptiveReport:
     """A top ``top_k`` of the candidates by P(FC), each member within ``epsilon`` of the true
     k-th best, certified at confidence 1 - ``delta`` on paired draws (module docstring:
     method and proof).
@@ -423,9 +444,12 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
         delta: allowed probability of a certified label being wrong.
         epsilon: indifference zone in P(FC), >= 0 (0: exactly the top k, which a near tie
             at the boundary may keep from being certified within any budget).
-        criterion: the order within each certified group (certificates are on P(FC)).
+        criterion: the order within each certified group (certificates are on the
+            evaluator's successes).
         progress: called with an :class:`AdaptiveProgress` after every chunk drawn and after
             every round.
+        measure: what the evaluator's successes estimate, in words (``P(FC)``; a hold
+            score's, :data:`CERTIFIED_HOLDS`), for the report.
     """
     if not 1 <= top_k < n_candidates:
         raise ValueError(f"top_k must be between 1 and {n_candidates - 1}, got {top_k}")
@@ -464,4 +488,5 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
     results, labels = run.table(criterion)
     return AdaptiveReport(results, [r.index for r in results[:top_k]], separated, rounds,
                           draws, n_candidates * max_chunks * chunk_size, bool(run.paired),
-                          run.alpha, labels, delta, float(epsilon), run.closed.copy())
+                          run.alpha, labels, delta, float(epsilon), run.closed.copy(),
+                          measure)

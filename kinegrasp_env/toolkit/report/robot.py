@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,14 +262,28 @@ def geometry_note(geometry: RobotGeometry) -> str:
     return "Links drawn " + "; ".join(parts) + "." if parts else "The robot has no geometry."
 
 
-def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence[Grasp],
-               runs: Sequence[RobotRun], *, command: str, settings: dict,
-               friction: float = 0.5, num_edges: int = 8, max_points: int = MAX_POINTS,
-               arms: Sequence[NoisyArms] | None = None) -> str:
-    """The HTML page of a description robot's grasps of one object.
+def objects_closings(description: RobotDescription, objects: Sequence[GraspObject],
+                     grasps: Sequence[Grasp]) -> list[tuple[dict[str, float], bool]]:
+    """:func:`nominal_closings` of grasps on objects of their own (``objects[k]`` grasp
+    k's), one world per object, in the grasps' order."""
+    out: list = [None] * len(grasps)
+    for name in dict.fromkeys(o.name for o in objects):
+        rows = [k for k, o in enumerate(objects) if o.name == name]
+        found = nominal_closings(description, objects[rows[0]], [grasps[k] for k in rows])
+        for k, closing in zip(rows, found, strict=True):
+            out[k] = closing
+    return out
+
+
+def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, GraspObject],
+               grasps: Sequence[Grasp], runs: Sequence[RobotRun], *, command: str,
+               settings: dict, friction: float = 0.5, num_edges: int = 8,
+               max_points: int = MAX_POINTS, arms: Sequence[NoisyArms] | None = None) -> str:
+    """The HTML page of a description robot's grasps.
 
     Args:
-        description: the robot; obj: the object (every grasp's).
+        description: the robot; obj: the object of every grasp, or object name -> object
+            (grasps of several objects).
         grasps: the grasps, in the order of the page.
         runs: the evaluations (:class:`RobotRun`), in the order of the table; each grasp's
             first run's draws, where it keeps them, give its contact points (at most
@@ -277,7 +291,8 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
         command: the command line that reproduces the page; settings: name -> value.
         arms: per grasp, the noisy arms its scene draws (None: none).
     """
-    closings = nominal_closings(description, obj, grasps)
+    objects = [obj if isinstance(obj, GraspObject) else obj[g.object] for g in grasps]
+    closings = objects_closings(description, objects, grasps)
     configurations = []
     for grasp, (values, _) in zip(grasps, closings, strict=True):
         configurations += [values, {k: float(v) for k, v in
@@ -287,12 +302,13 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
     first = {}
     for run in runs:
         first.setdefault(run.grasp, run)
-    for k, (grasp, (_, did_close)) in enumerate(zip(grasps, closings, strict=True)):
-        title = f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame"
+    for k, (grasp, (_, did_close), here) in enumerate(zip(grasps, closings, objects,
+                                                          strict=True)):
+        title = f"{description.name}: {here.name} grasp {grasp.id}, world (robot base) frame"
         draws = getattr(first[k].evaluation, "draws", None) if k in first else None
-        cloud = None if draws is None else world_cloud(contact_cloud(draws, max_points), obj)
+        cloud = None if draws is None else world_cloud(contact_cloud(draws, max_points), here)
         figure = Figure(f"scene-{k}", grasp_scene(
-            description, obj, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
+            description, here, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
             friction=friction, num_edges=num_edges, title=title, cloud=cloud,
             arms=None if arms is None else arms[k]), "100%", "560px")
         figures.append(figure)
@@ -310,7 +326,8 @@ def robot_page(description: RobotDescription, obj: GraspObject, grasps: Sequence
                         f"{figure.div()}")
     model = description.contact_model
     count = f"{len(grasps)} grasp{'' if len(grasps) == 1 else 's'}"
-    title = f"kinegrasp report: robot {description.name}, {count} of {obj.name}"
+    names = ", ".join(dict.fromkeys(o.name for o in objects))
+    title = f"kinegrasp report: robot {description.name}, {count} of {names}"
     finite = [r for r in runs if math.isfinite(r.evaluation.p_fc)]
     best = max(finite, key=lambda r: r.evaluation.p_fc) if finite else None
     lead = ("" if best is None else f" Highest P(FC): grasp {grasps[best.grasp].id} "
