@@ -125,7 +125,7 @@ def test_rank_of_a_robots_grasps_of_several_objects(capsys, tmp_path):
     capsys.readouterr()
     rows = {r["id"]: r for r in csv.DictReader(out.open())}
     assert len(rows) == 4  # the ids of these four are distinct
-    for k, (obj, i) in enumerate(picked):
+    for obj, i in picked:
         assert main(["evaluate", "--robot", "panda", "--object", obj, "--grasp", str(i),
                      "--samples", "60", "--sigma", "0.0233", "--seed", "2", "--engine",
                      "fast", "--json"]) == 0
