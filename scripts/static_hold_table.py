@@ -4,7 +4,14 @@ the hand's effort limits (six gravity directions and the lift), and the directio
 the object's own weight. Written into docs/guides/physics.md between
 ``<!-- static-hold:start -->`` and ``<!-- static-hold:end -->``.
 
-    python scripts/static_hold_table.py [--objects cube drill]
+With ``--planned N``, a second table: for each robot and each object of ``--planned-objects``,
+N grasps planned afresh (seed ``--plan-seed``; the Panda's antipodal planner with side
+approaches allowed, ``min_downward`` -0.3, and 4,000 pairs tried; the default robot's own
+planner) and the largest multiple of the weight any of them carries: whether a hand can
+hold an object at all, not only on its shipped grasps. Written between
+``<!-- static-hold-planned:start -->`` and ``<!-- static-hold-planned:end -->``.
+
+    python scripts/static_hold_table.py [--objects cube drill] [--planned 40]
 """
 
 from __future__ import annotations
@@ -23,41 +30,90 @@ from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "guides" / "physics.md"
 START, END = "<!-- static-hold:start -->", "<!-- static-hold:end -->"
+PLANNED = "<!-- static-hold-planned:start -->", "<!-- static-hold-planned:end -->"
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
+ROBOTS = ("kuka_sdh", "panda")
 
 
-def rows(robot: str, obj: str) -> list[str]:
-    grasps = shipped_grasps(obj) if robot == "kuka_sdh" else shipped_grasps(obj, robot=robot)
+def capacities(robot: str, obj: str, grasps: list) -> tuple[np.ndarray, np.ndarray,
+                                                             np.ndarray, float]:
+    """(Q (n,), carried multiple of the weight (n,), loads held at the weight (n, 6), mass
+    in kg) of grasps at their nominal closing (the default robot through its description,
+    by the reference engine; another robot by its fast engine)."""
     engine_name = "pybullet" if robot == "kuka_sdh" else "fast"
     with make_engine(engine_name, robot, obj, static_hold=True) as engine:
         q = np.array([g.q0 for g in grasps], dtype=float)
         batch = engine.close_batch(q)
         draws = engine.scored(q, batch)
         check = engine.hold_check
-        capacity = check.capacity(q, batch.joints, draws.points, draws.normals, draws.finger,
-                                  draws.link)
-        out = []
-        for i, g in enumerate(grasps):
-            held = "".join(d if ok else "." for d, ok in zip(DIRECTIONS, draws.held[i],
-                                                             strict=True))
-            out.append(f"| {robot} | {obj} {g.id} | {draws.quality[i]:.4f} | {check.mass:.3f} | "
-                       f"{capacity[i]:.2f} | `{held}` |")
-    return out
+        carried = check.capacity(q, batch.joints, draws.points, draws.normals, draws.finger,
+                                 draws.link)
+        return draws.quality, carried, draws.held, check.mass
+
+
+def held_text(held: np.ndarray) -> str:
+    return "".join(d if ok else "." for d, ok in zip(DIRECTIONS, held, strict=True))
+
+
+def rows(robot: str, obj: str) -> list[str]:
+    grasps = shipped_grasps(obj) if robot == "kuka_sdh" else shipped_grasps(obj, robot=robot)
+    quality, carried, held, mass = capacities(robot, obj, grasps)
+    return [f"| {robot} | {obj} {g.id} | {quality[i]:.4f} | {mass:.3f} | {carried[i]:.2f} | "
+            f"`{held_text(held[i])}` |" for i, g in enumerate(grasps)]
+
+
+def planned(robot: str, obj: str, count: int, seed: int) -> list:
+    """Up to ``count`` force-closure grasps of ``robot`` on ``obj`` planned afresh."""
+    if robot == "kuka_sdh":
+        from kinegrasp_env.toolkit.planner import GraspPlanner
+
+        planner = GraspPlanner(obj)
+        try:
+            return planner.plan(count, seed)
+        finally:
+            planner.close()
+    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+
+    settings = RobotPlannerSettings(attempts=4000, surface_samples=800, min_downward=-0.3)
+    return plan_robot_grasps(robot, obj, count=count, seed=seed, settings=settings)
+
+
+def planned_row(robot: str, obj: str, count: int, seed: int) -> str:
+    grasps = planned(robot, obj, count, seed)
+    if not grasps:
+        return f"| {robot} | {obj} | | 0 | | | |"
+    _, carried, held, mass = capacities(robot, obj, grasps)
+    best = int(np.argmax(carried))
+    return (f"| {robot} | {obj} | {mass:.3f} | {len(grasps)} | {np.median(carried):.2f} | "
+            f"{carried[best]:.2f} | `{held_text(held[best])}` |")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--objects", nargs="+", default=["cube", "drill"])
+    parser.add_argument("--planned", type=int, default=0,
+                        help="grasps to plan per robot and object (0: no second table)")
+    parser.add_argument("--planned-objects", nargs="+", default=["drill", "spray_flask"])
+    parser.add_argument("--plan-seed", type=int, default=1)
     args = parser.parse_args()
     lines = ["| robot | grasp | Q | mass kg | carries x weight | loads held (.: not held) |",
              "|---|---|---|---|---|---|"]
-    for robot in ("kuka_sdh", "panda"):
+    for robot in ROBOTS:
         for obj in args.objects:
             if robot == "kuka_sdh" or obj in shipped_objects(robot):
                 lines += rows(robot, obj)
     text = "\n".join(lines)
     print(text)
     write_between(PAGE, START, END, text)
+    if args.planned:
+        lines = ["| robot | object | mass kg | grasps planned | carries x weight: median | "
+                 "best | its loads held |", "|---|---|---|---|---|---|---|"]
+        for robot in ROBOTS:
+            for obj in args.planned_objects:
+                lines.append(planned_row(robot, obj, args.planned, args.plan_seed))
+                print(lines[-1], flush=True)
+        write_between(PAGE, *PLANNED, "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -92,32 +92,45 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
     if not description.has_self_motion:
         raise ValueError(f"robot {description.name!r} has no self-motion: its IK branches "
                          "are optimize_robot_branches_reweighted's")
-    joint_cov, palm_cov = gaussian_terms(noise, description.arm_dof)
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
         reach = robot_reachable_configurations(grasp, reference, step)
-        scorer = AngleScorer.of(reference, engine, executor)
-        try:
-            nominal = nominal_index(grasp, reach)
-            q0 = reach[nominal][1]
+        return _search(grasp, noise, samples, seed, reference, reach,
+                       nominal_index(grasp, reach), engine=engine, step=step, epsilon=epsilon,
+                       delta=delta, batch=batch, progress=progress, friction=friction,
+                       executor=executor)
 
-            def direct(psi: float, q: np.ndarray, n: int) -> ElbowPoint:
-                fc, p_fc, ci = angle_point(grasp, psi, q, noise, n, seed, scorer)
-                return ElbowPoint(psi, q, p_fc, ci, fc)
 
-            robot = ReweightRobot(
-                reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),
-                lambda covs, n, stream: close_batch(q0, grasp.object, covs, n, stream,
-                                                    engine=engine, friction=friction,
-                                                    robot=description.name),
-                direct,
-                lambda q: angle_point(grasp, 0.0, q, noise, samples, fresh_seed(seed),
-                                      scorer)[0],
-                engine)
-            return reweighted_search(grasp, noise, samples, seed, robot, step=step,
-                                     epsilon=epsilon, delta=delta, batch=batch,
-                                     progress=progress)
-        finally:
-            scorer.close()
+def _search(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
+            reference: RobotReferenceEngine, reach: list, nominal: int, *, engine: str,
+            step: float, epsilon: float, delta: float, batch: int | None, progress,
+            friction: float, executor: Executor | None
+            ) -> tuple[ElbowResult, ReweightEvidence]:
+    """:func:`~kinegrasp_env.toolkit.elbow_reweight.reweighted_search` of a description
+    robot's configurations ``reach`` ((psi, q) pairs; ``nominal``: the grasp's own): the
+    batch closed at the grasp's own configuration by ``engine``, the direct and fresh draws
+    by the angle scorer of ``reference``."""
+    description = reference.description
+    joint_cov, palm_cov = gaussian_terms(noise, description.arm_dof)
+    scorer = AngleScorer.of(reference, engine, executor)
+    try:
+        q0 = reach[nominal][1]
+
+        def direct(psi: float, q: np.ndarray, n: int) -> ElbowPoint:
+            fc, p_fc, ci = angle_point(grasp, psi, q, noise, n, seed, scorer)
+            return ElbowPoint(psi, q, p_fc, ci, fc)
+
+        robot = ReweightRobot(
+            reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),
+            lambda covs, n, stream: close_batch(q0, grasp.object, covs, n, stream,
+                                                engine=engine, friction=friction,
+                                                robot=description.name),
+            direct,
+            lambda q: angle_point(grasp, 0.0, q, noise, samples, fresh_seed(seed), scorer)[0],
+            engine)
+        return reweighted_search(grasp, noise, samples, seed, robot, step=step,
+                                 epsilon=epsilon, delta=delta, batch=batch, progress=progress)
+    finally:
+        scorer.close()
 
 
 def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples: int,
@@ -145,32 +158,13 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
     if description.arm_dof != 6:
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
                          "IK branches are a 6-joint arm's")
-    joint_cov, palm_cov = gaussian_terms(noise, description.arm_dof)
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
         branches, nominal = branch_variants(grasp, reference, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[description.arm_dof:]
         reach = [(float(i), np.concatenate([b.q, hand])) for i, b in enumerate(branches)]
-        scorer = AngleScorer.of(reference, engine, executor)
-        try:
-            q0 = reach[nominal][1]
-
-            def direct(index: float, q: np.ndarray, n: int) -> ElbowPoint:
-                fc, p_fc, ci = angle_point(grasp, index, q, noise, n, seed, scorer)
-                return ElbowPoint(index, q, p_fc, ci, fc)
-
-            robot = ReweightRobot(
-                reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),
-                lambda covs, n, stream: close_batch(q0, grasp.object, covs, n, stream,
-                                                    engine=engine, friction=friction,
-                                                    robot=description.name),
-                direct,
-                lambda q: angle_point(grasp, 0.0, q, noise, samples, fresh_seed(seed),
-                                      scorer)[0],
-                engine)
-            result, evidence = reweighted_search(grasp, noise, samples, seed, robot, step=0.0,
-                                                 epsilon=epsilon, delta=delta, batch=batch,
-                                                 progress=progress)
-        finally:
-            scorer.close()
+        result, evidence = _search(grasp, noise, samples, seed, reference, reach, nominal,
+                                   engine=engine, step=0.0, epsilon=epsilon, delta=delta,
+                                   batch=batch, progress=progress, friction=friction,
+                                   executor=executor)
     best = round(result.best_psi)
     return BranchResult(result, branches, nominal, best), evidence
