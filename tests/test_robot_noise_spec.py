@@ -158,7 +158,8 @@ def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
     cases = [([*args, "--noise-spec", str(hand)], "drop hand.spread_sigma"),
              ([*args, "--noise-spec", str(three)], "robot 'panda' has 2 fingers"),
              ([*args, "--noise-spec", str(spec), "--static-hold"], "holds at one mu"),
-             ([*args, "--noise-spec", str(spec), "--hold-test"], "--hold-test draws joint"),
+             ([*args, "--noise-spec", str(spec), "--hold-test"],
+              "take joint and hand noise only"),
              ([*args[:-4], "--engine", "physics", "--noise-spec", str(spec)],
               "physics engine")]
     for command, words in cases:
@@ -253,3 +254,35 @@ def test_the_pandas_one_finger_motor_takes_one_offset_within_its_limits(panda):
     hand = q[:, 7]
     assert np.all(hand <= description.model.upper[7]) and np.all(hand >= 0)
     assert (hand < grasp.q0[7] - 1e-4).mean() > 0.4  # about half start narrower
+
+
+def test_the_holding_test_takes_a_joints_and_hand_spec(tmp_path, capsys):
+    """``evaluate --hold-test`` of the Panda with a noise spec: a joints-only spec holds the
+    draws ``--sigma`` holds (the same rows, through the model's path); a hand source is taken
+    too (its draws' pre-shapes)."""
+    joints, hand = tmp_path / "joints.yaml", tmp_path / "hand.yaml"
+    joints.write_text("joints: {sigma: 0.02}\n")
+    hand.write_text("joints: {sigma: 0.02}\nhand: {closing_sigma: 0.01}\n")
+    args = ["evaluate", "--robot", "panda", "--object", "cube", "--grasp", "1", "--samples",
+            "6", "--seed", "3", "--engine", "fast", "--hold-test", "--json"]
+    shown = []
+    for extra in (["--sigma", "0.02"], ["--noise-spec", str(joints)],
+                  ["--noise-spec", str(hand)]):
+        assert main([*args, *extra]) == 0
+        shown.append(json.loads(capsys.readouterr().out))
+    assert shown[0]["p_hold"] == shown[1]["p_hold"]
+    assert shown[0]["outcomes"] == shown[1]["outcomes"]
+    assert 0.0 <= shown[2]["p_hold"] <= 1.0
+
+
+def test_a_hand_source_is_checked_against_the_description_given(panda):
+    """A description outside the catalog (the Panda renamed) is checked as given, not looked
+    up by its name: a closing sigma passes, a spread sigma is refused naming it."""
+    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+
+    description = dataclasses.replace(panda[0], name="mypanda")
+    check_robot_noise(noise_model_from_spec({"hand": {"closing_sigma": 0.002}}), description,
+                      7, "fast")
+    with pytest.raises(ValueError, match="robot 'mypanda''s hand has no pre-shape joint"):
+        check_robot_noise(noise_model_from_spec({"hand": {"spread_sigma": 0.01}}),
+                          description, 7, "fast")

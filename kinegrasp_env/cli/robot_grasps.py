@@ -55,15 +55,23 @@ def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
 
 
 def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
-                       friction: float = 0.5, simulator: str = "pybullet") -> tuple[int, str]:
+                       friction: float = 0.5, simulator: str = "pybullet",
+                       model=None) -> tuple[int, str]:
     """How many of ``evaluate``'s draws of a grasp the quick holding test in ``simulator``
-    holds, and the name of the simulator that ran it."""
+    holds, and the name of the simulator that ran it; ``model``: the ``--noise-spec``
+    model's draws (its joints and hand) instead of the joint noise."""
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
+    from kinegrasp_env.montecarlo.robot_noise import model_rows
     from kinegrasp_env.physics.protocol import HELD
 
     with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
-        q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise)
+        if model is None:
+            q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed,
+                                     noise=noise)
+        else:
+            q = model_rows(model, engine.check(grasp.q0)[0], engine.description, seed, 0,
+                           samples, engine.obj.center_of_mass)[0]
         return int((engine.run_hold(q)[1].outcome == HELD).sum()), engine.simulator.name
 
 
@@ -141,9 +149,11 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
     if args.report:
         output_file(args.report, "--report")
     model = noise if isinstance(noise, NoiseModel) else None
-    if model is not None and args.hold_test:
-        raise CLIError("--hold-test draws joint noise alone (--sigma, --noise); drop it or "
-                       "--noise-spec")
+    if args.hold_test:
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+        with reported(ValueError):
+            check_hold_noise(model, robot, "--hold-test (the holding test)")
     check_hold_simulator(args, args.hold_test, "--hold-test")
     label = (f"noise spec {args.noise_spec}" if model is not None
              else f"sigma = {sigma:g} rad ({args.noise})")
@@ -176,7 +186,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         hold["jaw_push_mm"] = {"median": 1e3 * stats.push_median, "p95": 1e3 * stats.push_p95}
     if args.hold_test:
         held, simulator = holding_test_count(grasp, robot, sigma, samples, seed, args.noise,
-                                             friction, args.hold_simulator)
+                                             friction, args.hold_simulator, model)
         hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held, samples)),
                      "hold_simulator": simulator})
     if args.json:

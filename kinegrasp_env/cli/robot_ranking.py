@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 
-from kinegrasp_env.cli.common import CLIError, reported
+from kinegrasp_env.cli.common import reported
 from kinegrasp_env.cli.robot_grasps import check_hold_simulator, check_robot_engine
 
 
@@ -23,9 +23,11 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 
-    if args.noise_spec and args.criterion == "hold":
-        raise CLIError("--criterion hold runs the holding test on joint noise alone (--sigma, "
-                       "--noise); drop it or --noise-spec")
+    if args.criterion == "hold":
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+        with reported(ValueError):
+            check_hold_noise(noise, robot, "--criterion hold (the holding test)")
     check_hold_simulator(args, args.criterion == "hold", "--criterion hold")
     check_robot_engine(args.engine, robot)
     with reported(ValueError):
@@ -65,6 +67,7 @@ class RobotRanking:
         from kinegrasp_env.sampling.noise_spec import spec_of
 
         self.model = None if model is None else json.dumps(spec_of(model))
+        self.noise_model = model
         self.grasps, self.robot, self.layout = grasps, robot, layout
         self.sigma, self.noise, self.seed = sigma, noise, seed
         self.engine, self.friction, self.static_hold = engine, friction, static_hold
@@ -121,6 +124,7 @@ class RobotRanking:
 
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+        from kinegrasp_env.montecarlo.robot_noise import model_rows
         from kinegrasp_env.physics.protocol import HELD
 
         name = self.grasps[index].object
@@ -128,8 +132,12 @@ class RobotRanking:
             self.testers[name] = quick_hold_engine(self.robot, name, self.friction,
                                                    self.hold_simulator)
         tester = self.testers[name]
-        q = chunk_configurations(np.asarray(start.q0), tester.description.arm_dof,
-                                 start.sigma, start.noise, start.seed, start.offset, n)
+        if self.noise_model is None:
+            q = chunk_configurations(np.asarray(start.q0), tester.description.arm_dof,
+                                     start.sigma, start.noise, start.seed, start.offset, n)
+        else:  # the model's rows (its joints and hand), as the chunks closed them
+            q = model_rows(self.noise_model, np.asarray(start.q0), tester.description,
+                           start.seed, start.offset, n, tester.obj.center_of_mass)[0]
         held = tester.run_hold(q)[1].outcome == HELD
         print(f"rank: candidate {self.grasps[index].id}: holding test {int(held.sum())}/{n} "
               "held", file=sys.stderr)

@@ -169,7 +169,7 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
         from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
 
         with reported(ValueError):
-            check_robot_noise(model, robot, description.arm_dof, args.engine)
+            check_robot_noise(model, description, description.arm_dof, args.engine)
         sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
     runs, arms = [], []

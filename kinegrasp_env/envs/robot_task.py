@@ -167,16 +167,16 @@ class RobotTask:
     def check_noise(self, noise: JointNoise | NoiseModel) -> None:
         """ValueError (one line) for a noise model this robot's draws or score cannot take
         (:func:`~kinegrasp_env.montecarlo.robot_noise.check_robot_noise`; the ``hold`` score
-        draws joint noise alone)."""
+        takes joint and hand noise: :func:`~kinegrasp_env.montecarlo.draw_holds.
+        check_hold_noise`)."""
         if not isinstance(noise, NoiseModel):
             return
-        check_robot_noise(noise, self.description.name, self.arm, self.engine_name,
+        check_robot_noise(noise, self.description, self.arm, self.engine_name,
                           static_hold=self.score == "hold_static")
-        other = [s for s in ("palm", "object", "friction") if getattr(noise, s) is not None]
-        if other and self.score == "hold":
-            raise ValueError(f"score 'hold' (the quick holding test) takes joint noise only, "
-                             f"not {', '.join(other)} errors (score 'pfc' or 'hold_static' "
-                             "takes them)")
+        if self.score == "hold":
+            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+
+            check_hold_noise(noise, self.description.name, "score 'hold' (the holding test)")
 
     def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                   seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:

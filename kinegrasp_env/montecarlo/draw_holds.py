@@ -37,15 +37,17 @@ from kinegrasp_env.world.objects import load_object
 __all__ = ["DrawHoldCheck", "QuickHoldTest", "check_hold_noise", "grasp_holds"]
 
 
-def check_hold_noise(noise) -> None:
-    """ValueError (one line) for a noise model with a palm, object or friction source: the
-    hold scores of the default robot's draws take joint (and hand) noise only."""
+def check_hold_noise(noise, robot: str = DEFAULT_ROBOT, score: str = "the hold scores"
+                     ) -> None:
+    """ValueError (one line) for a noise model with a palm, object or friction source:
+    ``score`` of ``robot``'s draws (the default robot's hold scores; any robot's holding
+    test) takes joint and hand noise only (the holding test places the hand by its joints)."""
     if not isinstance(noise, NoiseModel):
         return
     other = [name for name in ("palm", "object", "friction") if getattr(noise, name) is not None]
     if other:
-        raise ValueError(f"the hold scores of {DEFAULT_ROBOT}'s draws take joint and hand "
-                         f"noise only; the noise spec has {', '.join(other)}")
+        raise ValueError(f"{score} of {robot}'s draws take joint and hand noise only; the "
+                         f"noise spec has {', '.join(other)}")
 
 
 class DrawHoldCheck:

@@ -1,7 +1,9 @@
 """A description robot's draws in chunks, on any executor (a local process pool or Ray).
 
 Draw i of a run is row i of one stream: ``JointNoise(sigma, noise).sample(n, arm_dof,
-default_rng(seed))`` added to the arm joints of q0 (the hand at its pre-shape exactly). The
+default_rng(seed))`` added to the arm joints of q0 (the hand at its pre-shape exactly; a
+noise model's rows, every source's, from :func:`~kinegrasp_env.montecarlo.robot_noise.
+model_rows`). The
 rows of a stream do not depend on how many are drawn, so a chunk of rows ``offset .. offset
 + size`` closes the same configurations whichever process runs it: a run split into chunks
 over any number of processes gives the draws of the run in one process, row for row.

@@ -189,8 +189,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
 
         _integer_seed(seed, "a noise model's run")
-        arm = (load_robot(name) if isinstance(engine, str) else engine.description).arm_dof
-        check_robot_noise(noise_model, name, arm,
+        description = (robot if isinstance(robot, RobotDescription) else load_robot(name)
+                       ) if isinstance(engine, str) else engine.description
+        check_robot_noise(noise_model, description, description.arm_dof,
                           engine if isinstance(engine, str) else engine.name,
                           static_hold if isinstance(engine, str)
                           else engine.hold_check is not None)

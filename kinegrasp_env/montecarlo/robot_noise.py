@@ -22,14 +22,16 @@ from kinegrasp_env.sampling.noise_model import STREAM_KEYS, NoiseModel, offset_t
 from kinegrasp_env.sampling.noise_sources import ARM_JOINTS, HandSource, broadcast
 
 
-def check_robot_noise(model: NoiseModel, robot: str, arm_dof: int, engine: str,
-                      static_hold: bool = False) -> None:
+def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof: int,
+                      engine: str, static_hold: bool = False) -> None:
     """ValueError (one line) for what a description robot's run cannot take: a hand source
     its hand cannot take (:func:`check_hand`), a joints covariance, bias or per-joint sigma
     of another length than its arm's, palm, object or friction errors in the physics
-    engine, a per-draw mu beside the static hold check."""
+    engine, a per-draw mu beside the static hold check. ``robot``: the robot, or its catalog
+    name."""
     if model.hand is not None:
         check_hand(model.hand, robot)
+    robot = robot if isinstance(robot, str) else robot.name
     joints = model.joints
     if joints is not None and arm_dof != ARM_JOINTS:
         given = [name for name, value in (("covariance", joints.covariance),
@@ -42,8 +44,8 @@ def check_robot_noise(model: NoiseModel, robot: str, arm_dof: int, engine: str,
                              "or one per arm joint)")
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]
     if other and engine == "physics":
-        raise ValueError(f"the physics engine of robot {robot!r} takes joint noise only "
-                         f"(it simulates at one mu), not {', '.join(other)} errors (use "
+        raise ValueError(f"the physics engine of robot {robot!r} takes joint and hand noise "
+                         f"only (it simulates at one mu), not {', '.join(other)} errors (use "
                          "pybullet or fast)")
     if model.friction is not None and static_hold:
         raise ValueError("the static hold check holds at one mu; the spec's friction source "
@@ -63,22 +65,26 @@ def hand_layout(description: RobotDescription) -> np.ndarray:
     return out
 
 
-def check_hand(hand: HandSource, robot: str) -> None:
-    """ValueError (one line) for a hand source that ``robot``'s hand cannot take: a spread
-    sigma where every hand joint closes a finger, per-finger closing sigmas of a hand with
-    another number of fingers."""
-    from kinegrasp_env.robot.catalog import load_robot
+def check_hand(hand: HandSource, robot: str | RobotDescription) -> None:
+    """ValueError (one line) for a hand source that ``robot``'s hand (the robot, or its
+    catalog name) cannot take: a spread sigma where every hand joint closes a finger,
+    per-finger closing sigmas (a spec takes one sigma or three) for a hand with another
+    number of fingers."""
+    if isinstance(robot, str):
+        from kinegrasp_env.robot.catalog import load_robot
 
-    description = load_robot(robot)
+        description = load_robot(robot)
+    else:
+        description = robot
+    robot = description.name
     layout = hand_layout(description)
     fingers = len(description.fingers)
     if hand.spread_sigma > 0 and not np.any(layout < 0):
         raise ValueError(f"robot {robot!r}'s hand has no pre-shape joint besides its fingers' "
                          "closing joints: drop hand.spread_sigma")
-    if np.ndim(hand.closing_sigma) == 1 and len(hand.closing_sigma) != fingers:
+    if np.ndim(hand.closing_sigma) == 1 and len(hand.closing_sigma) not in (1, fingers):
         raise ValueError(f"hand.closing_sigma has {len(hand.closing_sigma)} values; robot "
-                         f"{robot!r} has {fingers} fingers (give one sigma, or one per "
-                         "finger)")
+                         f"{robot!r} has {fingers} fingers (give one sigma for them all)")
 
 
 def hand_offsets(z: np.ndarray, hand: HandSource, description: RobotDescription

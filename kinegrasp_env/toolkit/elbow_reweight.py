@@ -41,6 +41,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.evaluate import Noise
 from kinegrasp_env.montecarlo.palm_batch import (
+    ARM,
     BATCH_FACTOR,
     PalmBatch,
     PalmJacobian,
@@ -262,13 +263,14 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
 
 
 def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
-                   batch: int | None) -> None:
+                   batch: int | None, dof: int = ARM) -> None:
     """Every input of :func:`optimize_elbow_reweighted` that can be refused before any
     closing: the levels, the noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
-    gaussian_terms`), the object (no support table) and the batch (at least ``samples``:
-    a smaller one sends every angle to direct draws). ValueError naming the bad one."""
+    gaussian_terms`, for an arm of ``dof`` joints), the object (no support table) and the
+    batch (at least ``samples``: a smaller one sends every angle to direct draws).
+    ValueError naming the bad one."""
     check_levels(epsilon, delta)
-    gaussian_terms(noise)
+    gaussian_terms(noise, dof)
     check_batch_object(grasp.object)
     if batch is not None and batch < samples:
         raise ValueError(f"a batch of {batch} closings cannot stand for {samples} direct "
@@ -278,8 +280,9 @@ def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: flo
 @dataclass(frozen=True)
 class ReweightRobot:
     """What the re-weighted search needs of a robot (the default one, or a description
-    robot with a 7-joint arm): the self-motion's covariance, the reachable angles, one batch
-    of closings, and direct draws at an angle.
+    robot: a 7-joint arm's self-motion, a 6-joint arm's IK branches): the deviation's
+    covariance at each configuration, the reachable ones, one batch of closings, and direct
+    draws at one.
 
     Attributes:
         reach: (psi, q) along the grasp's self-motion, sorted by psi (the grasp's own q0

@@ -422,9 +422,9 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
                   epsilon: float = DEFAULT_EPSILON, criterion: str = "pfc",
                   progress: Callable[[AdaptiveProgress], None] | None = None,
                   measure: str = "P(FC)") -> AdaptiveReport:
-    """A top ``top_k`` of the candidates by P(FC), each member within ``epsilon`` of the true
-    k-th best, certified at confidence 1 - ``delta`` on paired draws (module docstring:
-    method and proof).
+    """A top ``top_k`` of the candidates by P(FC) (or by what the evaluator's successes
+    estimate: ``measure``), each member within ``epsilon`` of the true k-th best, certified
+    at confidence 1 - ``delta`` on paired draws (module docstring: method and proof).
 
     Round r draws every candidate of an uncertified pair across the current top-k boundary
     up to r chunks (all candidates in round 1), then certifies; the run stops when the top k

@@ -59,14 +59,13 @@ def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delt
     if not isinstance(noise, JointNoise):
         raise ValueError("a description robot's re-weighted elbow takes joint noise "
                          "(--sigma, --noise gaussian)")
-    check_reweight(grasp, noise, samples, epsilon, delta, batch)
     description = load_robot(grasp.robot)
+    check_reweight(grasp, noise, samples, epsilon, delta, batch, description.arm_dof)
     if not (description.has_self_motion or description.arm_dof == 6):
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
                          f"{'' if description.arm_angle_links else ' and no elbow angle'}; "
                          "the re-weighted search moves a 7-joint arm along its self-motion "
                          "or compares a 6-joint arm's IK branches")
-    gaussian_terms(noise, description.arm_dof)
     return description
 
 

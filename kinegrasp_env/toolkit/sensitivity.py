@@ -285,7 +285,7 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
                          f"holds {engine.obj.name!r}")
     model = as_noise_model(noise)
     n, arm = int(samples), description.arm_dof
-    check_robot_noise(model, description.name, arm, engine.name, engine.hold_check is not None)
+    check_robot_noise(model, description, arm, engine.name, engine.hold_check is not None)
     if model.joints is not None and model.joints.covariance is not None:
         raise ValueError("one factor per arm joint needs independent joint errors; the "
                          "spec's joints covariance correlates them (give sigmas)")
