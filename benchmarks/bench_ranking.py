@@ -142,7 +142,7 @@ def run_seed(task: tuple) -> dict:
     """One repetition: ``rank_adaptive`` on seed ``seed`` with cached per-draw outcomes."""
     grasps, folder, seed, samples, top_k, delta, epsilon, fixed = task
     from kinegrasp_env.sampling.stats import StreamingMoments
-    from kinegrasp_env.toolkit import ranking
+    from kinegrasp_env.toolkit import adaptive_ranking as ranking
 
     paired = hasattr(ranking, "PairedEvaluator")  # this version pairs per-draw outcomes
     path = Path(folder) / f"seed{seed}.npz"
@@ -257,7 +257,7 @@ def bench_set(name: str, args, pool) -> dict:
     """Print one set's lines; return its figures (the ground truth's order as well)."""
     from kinegrasp_env.jit import source_key
     from kinegrasp_env.paths import cache_root
-    from kinegrasp_env.toolkit import ranking
+    from kinegrasp_env.toolkit import adaptive_ranking as ranking
 
     spec = SETS[name]
     samples = args.samples or spec["samples"]

@@ -50,7 +50,8 @@ __getattr__, __dir__, _LAZY = lazy_exports(__name__, {
     "world.objects": ("load_object",),
     "world.grasps": ("shipped_grasps",),
     "toolkit.planner": ("GraspPlanner",),
-    "toolkit.ranking": ("rank_fixed", "rank_adaptive"),
+    "toolkit.ranking": ("rank_fixed",),
+    "toolkit.adaptive_ranking": ("rank_adaptive",),
 })
 
 __all__ = ["ENV_IDS", "__version__", *_LAZY]

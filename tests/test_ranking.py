@@ -18,6 +18,13 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.sampling.stats import StreamingMoments
+from kinegrasp_env.toolkit.adaptive_ranking import (
+    REST,
+    TOP,
+    UNRESOLVED,
+    AdaptiveProgress,
+    rank_adaptive,
+)
 from kinegrasp_env.toolkit.certificates import (
     PairedDraws,
     close_certificates,
@@ -27,16 +34,7 @@ from kinegrasp_env.toolkit.certificates import (
     sign_test_level,
     win_rate_bounds,
 )
-from kinegrasp_env.toolkit.ranking import (
-    REST,
-    TOP,
-    UNRESOLVED,
-    AdaptiveProgress,
-    CandidateResult,
-    order,
-    rank_adaptive,
-    rank_fixed,
-)
+from kinegrasp_env.toolkit.ranking import CandidateResult, order, rank_fixed
 
 CHUNK = 50
 
@@ -197,9 +195,9 @@ def test_adaptive_certified_top_k_wrong_at_most_delta_of_the_time(p_true, epsilo
                                           chunk)
     assert certified >= 80
     assert false <= PROMISE_BOUND
-    from kinegrasp_env.toolkit import ranking
+    from kinegrasp_env.toolkit import adaptive_ranking
 
-    monkeypatch.setattr(ranking, "sign_test_level", lambda n, chunks, delta: 0.3)
+    monkeypatch.setattr(adaptive_ranking, "sign_test_level", lambda n, chunks, delta: 0.3)
     _, broken = false_certificates(p, 1, epsilon, PROMISE_DELTA, PROMISE_RUNS, chunks, chunk)
     assert broken > PROMISE_BOUND
 
@@ -473,7 +471,7 @@ def test_cli_adaptive_rank_csv_shows_the_certified_rows_first(tmp_path):
     import csv
 
     from kinegrasp_env.cli.main import build_parser
-    from kinegrasp_env.toolkit.ranking import DEFAULT_EPSILON
+    from kinegrasp_env.toolkit.adaptive_ranking import DEFAULT_EPSILON
 
     proc = _rank_cli(tmp_path, subprocess.PIPE)
     out, err = proc.communicate()

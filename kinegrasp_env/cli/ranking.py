@@ -114,7 +114,7 @@ def cmd_rank(args) -> int:
         """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
         each draw's success (what adaptive ranking pairs across candidates): force closure,
         or with a hold criterion the draw held by its score (:func:`~kinegrasp_env.toolkit.
-        ranking.certified_successes`);
+        adaptive_ranking.certified_successes`);
         the draws per outcome and the hold scores are added to ``side``."""
         from kinegrasp_env.toolkit.ranking import CandidateResult
 
@@ -140,7 +140,7 @@ def cmd_rank(args) -> int:
         value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
         if not outcomes:
             return value
-        from kinegrasp_env.toolkit.ranking import certified_successes
+        from kinegrasp_env.toolkit.adaptive_ranking import certified_successes
 
         return certified_successes(args.criterion, draws.outcome == evaluate.FORCE_CLOSURE,
                                    held, moments)
@@ -334,8 +334,12 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
     chunk drawn, or a line per round off a terminal); the summary comes after the bar. A
     hold criterion certifies the hold score (the draws' successes are their holds); each
     result's P(FC) and hold scores come back from ``side``'s tallies."""
+    from kinegrasp_env.toolkit.adaptive_ranking import (
+        CERTIFIED_HOLDS,
+        AdaptiveProgress,
+        rank_adaptive,
+    )
     from kinegrasp_env.toolkit.progress import Progress
-    from kinegrasp_env.toolkit.ranking import CERTIFIED_HOLDS, AdaptiveProgress, rank_adaptive
 
     with Progress("rank", len(grasps) * sum(layout), len(layout), word="round") as bar:
         def update(state: AdaptiveProgress) -> None:

@@ -91,12 +91,13 @@ class RobotRanking:
     def __call__(self, index: int, first: int, count: int, outcomes: bool = False):
         """(successes, trials, moments) of chunks ``first .. first + count`` of candidate
         ``index``; with ``outcomes`` each draw's success too (force closure, or the draws the
-        hold criterion's score held: :func:`~kinegrasp_env.toolkit.ranking.
+        hold criterion's score held: :func:`~kinegrasp_env.toolkit.adaptive_ranking.
         certified_successes`)."""
         from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
         from kinegrasp_env.montecarlo.robot_chunks import chunked_draws
         from kinegrasp_env.sampling.stats import StreamingMoments
-        from kinegrasp_env.toolkit.ranking import CandidateResult, certified_successes
+        from kinegrasp_env.toolkit.adaptive_ranking import certified_successes
+        from kinegrasp_env.toolkit.ranking import CandidateResult
 
         offset, n = sum(self.layout[:first]), sum(self.layout[first:first + count])
         start = dataclasses.replace(self.chunk(index), offset=offset)

@@ -134,7 +134,8 @@ def add_commands(sub) -> None:
                    "each label wrong with probability <= --delta; not certified within the "
                    "--samples budget, the run says so")
     p.add_argument("--top-k", default="3", help="size of the top set --adaptive separates")
-    # the default is toolkit.ranking.DEFAULT_EPSILON (tested; copied: no NumPy to build this)
+    # the default is toolkit.adaptive_ranking.DEFAULT_EPSILON (tested; copied: no NumPy to
+    # build this)
     p.add_argument("--epsilon", default="0.01", help="--adaptive's indifference zone: certify "
                    "a top k each of whose members has P(FC) within EPSILON of the true k-th "
                    "best (0: exactly the top k, which a near tie can keep from being "

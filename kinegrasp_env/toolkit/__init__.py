@@ -1,9 +1,10 @@
 """The toolkit: the grasp planner (``planner``), candidates given as palm poses
 (``candidates``; a description robot's solved by ``robot_candidates``), ranking by
-robustness (``ranking``), the most robust elbow (``elbow``), the paper's experiments
-(``experiments``), the sensitivity analysis per source of error (``sensitivity``), the
-physics validation (``validation``), HTML reports (the ``report`` room), progress
-(``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
+robustness (``ranking``; certified, ``adaptive_ranking``), the most robust elbow
+(``elbow``), the paper's experiments (``experiments``), the sensitivity analysis per source
+of error (``sensitivity``), the physics validation (``validation``), HTML reports (the
+``report`` room), progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and
+below.
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "planner": ("GraspPlanner", "PlannerSettings"),
-    "ranking": ("rank_fixed", "rank_adaptive", "CandidateResult"),
+    "ranking": ("rank_fixed", "CandidateResult"),
+    "adaptive_ranking": ("rank_adaptive",),
     "experiments": ("table1", "fig7", "fig9_10"),
     "sensitivity": ("Sensitivity",),
     "elbow": ("optimize_elbow", "ElbowResult"),
