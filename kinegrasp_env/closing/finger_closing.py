@@ -28,7 +28,7 @@ from kinegrasp_env.closing.close_rules import (
     POLISH_TOL,
     STEP,
 )
-from kinegrasp_env.closing.finger_paths import FingerPath, link_poses
+from kinegrasp_env.closing.finger_paths import FingerPath, link_poses, tree_poses
 from kinegrasp_env.closing.generic_reference import MAX_STEPS
 
 #: Exact distances are taken below NEAR x the contact tolerance (above it the certified
@@ -64,9 +64,10 @@ class _Finger:
         return vals
 
     def poses(self, rows: np.ndarray, t: np.ndarray) -> dict[str, np.ndarray]:
-        vals = self.values(rows, t)
-        return {link: link_poses(self.palm[rows], vals, self.chains[link])
-                for link in self.path.links}
+        """Object-frame poses (len(rows), 4, 4) of the finger's links at the draws' t
+        (:func:`~kinegrasp_env.closing.finger_paths.tree_poses`)."""
+        return tree_poses(self.path.tree, self.palm[rows], self.values(rows, t),
+                          self.path.links)
 
     def gap(self, rows: np.ndarray, t: np.ndarray, links: np.ndarray) -> np.ndarray:
         """(len(rows),) the least exact distance of each draw's ``links`` (len(rows), K)

@@ -1,9 +1,12 @@
 """How each finger of a description robot closes, for the batched closing: its closing joints
 and their rates and limits, the joint chain from the palm to each of its links, its speed
-bound (:class:`FingerPath`), and the links' poses along the way (:func:`link_poses`)."""
+bound (:class:`FingerPath`), and the links' poses along the way (:func:`link_poses`, one
+chain at a time; :func:`tree_poses`, every link of a finger in one compiled pass from the
+palm: the same poses to a few ulps)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +16,8 @@ from kinegrasp_env.robot.description import Finger, RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
-__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "link_poses"]
+__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "link_poses",
+           "palm_tree", "tree_poses"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +37,8 @@ class FingerPath:
         moves: (K, J) bool, link k (of ``links``) moves with closing joint j.
         stops: (K, J) bool, joint j stops when link k touches
             (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`).
+        tree: the finger's links' kinematics from the palm frame: every joint of their
+            chains, each movable one an independent coordinate (:func:`palm_tree`).
     """
 
     joints: tuple[str, ...]
@@ -45,6 +51,7 @@ class FingerPath:
     translating: bool
     moves: np.ndarray
     stops: np.ndarray
+    tree: Kinematics
 
 
 def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
@@ -112,8 +119,36 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
         out.append(FingerPath(tuple(finger.joints), rates, lower, upper, links, chains,
                               finger_speed(kinds, rates, np.array(reach)),
                               all(kind == "prismatic" for kind in kinds),
-                              moved_by(finger)[rows], touch_stops(model, finger)[rows]))
+                              moved_by(finger)[rows], touch_stops(model, finger)[rows],
+                              palm_tree(description, chains)))
     return out
+
+
+def palm_tree(description: RobotDescription, chains: dict[str, list]) -> Kinematics:
+    """The kinematics of the links of ``chains`` (link -> its joints from the palm) rooted
+    at the palm link: a model of their joints (topological order kept) whose every movable
+    joint is an independent coordinate (mimic couplings dropped: the closing sets each
+    joint's value itself), so that :meth:`~kinegrasp_env.robot.kinematics.Kinematics.
+    forward` of the joint values gives each link's pose in the palm frame in one compiled
+    pass."""
+    from kinegrasp_env.robot.model import RobotModel
+
+    model = description.model
+    used = {j.name for chain in chains.values() for j in chain}
+    joints = tuple(dataclasses.replace(j, mimic=None) for j in model.joints if j.name in used)
+    return Kinematics(RobotModel(f"{model.name}:{description.palm_link}",
+                                 description.palm_link, joints,
+                                 tuple(j.name for j in joints if j.movable), model.urdf_path))
+
+
+def tree_poses(tree: Kinematics, palm: np.ndarray, values: dict[str, np.ndarray],
+               links: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Object-frame poses (n, 4, 4) of ``links`` from the palm's object-frame poses
+    (n, 4, 4) and the joint values (name -> (n,)) of the tree's coordinates
+    (:func:`palm_tree`): :func:`link_poses` of each link, from one compiled pass."""
+    coordinates = np.stack([values[name] for name in tree.model.actuated], axis=1)
+    relative = tree.forward(coordinates, links)
+    return {link: palm @ relative[link] for link in links}
 
 
 def link_poses(palm: np.ndarray, values: dict[str, np.ndarray], chain: list) -> np.ndarray:
