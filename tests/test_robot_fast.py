@@ -270,3 +270,38 @@ def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
             assert np.all(dist[~under] >= below), link
         exact = hand.exact(pose, link)[0]
         assert np.all(hand.distance_bound(pose, link)[0] <= exact + 1e-14), link
+
+
+@pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])
+def test_a_fingers_compiled_poses_are_its_chain_products(robot):
+    """The fast closing's poses of a finger's links (one compiled forward pass over the
+    finger's joints from the palm, ``tree_poses``) equal the product of each link's chain
+    joint by joint (``link_poses``, numpy; itself checked against pybullet's distances
+    above) to 1e-12 m and rotation entries, at random joint values within the limits and
+    random palm poses."""
+    from kinegrasp_env.closing.finger_paths import tree_poses
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.kinematics import axis_angle_matrix
+
+    engine = make_engine("fast", robot, "cube")
+    rng = np.random.default_rng(4)
+    palm = np.tile(np.eye(4), (50, 1, 1))
+    axes = rng.normal(size=(50, 3))
+    palm[:, :3, :3] = np.stack([axis_angle_matrix(a / np.linalg.norm(a), np.array([t]))[0]
+                                for a, t in zip(axes, rng.uniform(-3, 3, 50), strict=True)])
+    palm[:, :3, 3] = rng.uniform(-0.3, 0.3, (50, 3))
+    model = load_robot(robot).model
+    checked = 0
+    for path in engine.hand.paths:
+        values = {}
+        for name in path.tree.model.actuated:
+            joint = model.joint(name)
+            lo, hi = max(joint.lower, -3.0), min(joint.upper, 3.0)
+            values[name] = rng.uniform(lo, hi, 50)
+        found = tree_poses(path.tree, palm, values, path.links)
+        for link in path.links:
+            np.testing.assert_allclose(found[link], link_poses(palm, values,
+                                                               path.chains[link]),
+                                       rtol=0, atol=1e-12)
+            checked += 1
+    assert checked >= 2
