@@ -467,6 +467,31 @@ def test_reweighted_branches_agree_with_direct_draws(home, capsys):
     assert "re-weighted advantage" in out["certificate"]["method"]
 
 
+def test_the_reweighted_branch_plot_shows_why(home, capsys, monkeypatch, tmp_path):
+    """``elbow --method reweight --plot`` of the 6-joint arm: beside the bars, the batch's
+    deviations in the fragile directions (whitened by the nominal branch's covariance, so
+    the nominal branch's 2-s.d. ellipse is the circle of radius 2, to 1e-9) and the chosen
+    branch's ellipse."""
+    from kinegrasp_env.toolkit import plots
+
+    drawn = {}
+    save = plots.save_figure
+
+    def keep(fig, path, dpi=120):
+        right = fig.axes[1]
+        drawn["lines"] = {line.get_label(): line.get_xydata() for line in right.get_lines()}
+        return save(fig, path, dpi)
+
+    monkeypatch.setattr(plots, "save_figure", keep)
+    png = tmp_path / "why.png"
+    run(capsys, "elbow", "--grasps", str(home[0]), "--grasp", "0", "--samples", "300",
+        "--method", "reweight", "--engine", "fast", "--plot", str(png))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    nominal = drawn["lines"]["nominal branch, 2 s.d."]
+    np.testing.assert_allclose(np.linalg.norm(nominal, axis=1), 2.0, atol=1e-9)
+    assert "best branch, 2 s.d." in drawn["lines"]
+
+
 def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):
     """``reward="batch"`` of the xArm 6: one batch over every IK branch; at the states of a
     rollout that crosses branches, the reward is within four combined standard errors plus

@@ -155,7 +155,8 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
                  else f"{samples} draws per branch")
         title = (f"{args.robot}: {args.object} grasp {index}, sigma = "
                  f"{payload['sigma']:g} rad, {draws}")
-        if safe_figure(lambda: plot_branches(payload, args.plot, title), args.plot):
+        picture = None if evidence is None else evidence.picture()  # why this branch
+        if safe_figure(lambda: plot_branches(payload, args.plot, title, picture), args.plot):
             payload["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(payload))

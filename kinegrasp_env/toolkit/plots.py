@@ -268,14 +268,22 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     return save_figure(fig, path)
 
 
-def plot_branches(result: dict, path: str | Path, title: str = "") -> Path:
+def plot_branches(result: dict, path: str | Path, title: str = "",
+                  picture: dict | None = None) -> Path:
     """P(FC) of each IK branch of a 6-joint arm's grasp (``result``: ``BranchResult.
     to_json()``): the selection draws' (or, with ``reweight``, the batch's re-weighted)
     estimate with its 95% interval per branch, the fresh draws' beside it where a branch
-    has them, the nominal and the chosen branch marked."""
+    has them, the nominal and the chosen branch marked; with a re-weighted run's
+    ``picture``, a second panel: the batch's fragile directions and both branches' error
+    ellipses (:func:`draw_fragility`)."""
     plt = _pyplot()
     curve = result["curve"]
-    fig, ax = plt.subplots(figsize=(max(4.5, 1.2 * len(curve) + 2.5), 4))
+    width = max(4.5, 1.2 * len(curve) + 2.5)
+    if picture is None:
+        fig, ax = plt.subplots(figsize=(width, 4))
+    else:
+        fig, (ax, right) = plt.subplots(1, 2, figsize=(width + 5.5, 4.4))
+        draw_fragility(right, picture, "branch")
     x = np.arange(len(curve))
     p = np.array([c["p_fc"] for c in curve])
     lo = np.array([c["p_fc_ci"][0] for c in curve])
@@ -325,20 +333,29 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     left.set_xlabel("elbow angle psi [rad]")
     left.set_ylabel("P(force closure)")
     left.legend(fontsize=8)
-    pts, fc = np.asarray(picture["points"]), np.asarray(picture["fc"], dtype=bool)
-    right.scatter(pts[fc, 0], pts[fc, 1], s=3, color="0.75", label="force closure")
-    right.scatter(pts[~fc, 0], pts[~fc, 1], s=4, color="C3", alpha=0.6, label="lost")
-    for (label, cov), color in zip(picture["ellipses"].items(), ("C3", "C2"), strict=False):
-        ring = covariance_ellipse(np.zeros(2), np.asarray(cov))
-        right.plot(ring[:, 0], ring[:, 1], color=color, lw=2, label=f"{label} elbow, 2 s.d.")
-    xl, yl = picture["labels"]
-    s1, s2 = picture["spread"]
-    right.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")
-    right.set_ylabel(f"fragile direction 2 ({yl}; x{s2:.1f}) [s.d.]")
-    right.set_aspect("equal", adjustable="datalim")
-    right.legend(fontsize=8, loc="upper right")
+    draw_fragility(right, picture, "elbow")
     fig.suptitle(title)
     return save_figure(fig, path)
+
+
+def draw_fragility(ax, picture: dict, noun: str) -> None:
+    """On ``ax``: a batch's palm deviations in the two most fragile directions (``picture``:
+    ``points`` (m, 2), ``fc`` (m,), ``ellipses`` {label: (2, 2) covariance}, ``labels``
+    (2,), ``spread`` (2,); :meth:`~kinegrasp_env.toolkit.reweight_evidence.
+    ReweightEvidence.picture`), force closure grey, failures red, and each configuration's
+    2-s.d. error ellipse, labelled "<label> ``noun``" (``elbow``, ``branch``)."""
+    pts, fc = np.asarray(picture["points"]), np.asarray(picture["fc"], dtype=bool)
+    ax.scatter(pts[fc, 0], pts[fc, 1], s=3, color="0.75", label="force closure")
+    ax.scatter(pts[~fc, 0], pts[~fc, 1], s=4, color="C3", alpha=0.6, label="lost")
+    for (label, cov), color in zip(picture["ellipses"].items(), ("C3", "C2"), strict=False):
+        ring = covariance_ellipse(np.zeros(2), np.asarray(cov))
+        ax.plot(ring[:, 0], ring[:, 1], color=color, lw=2, label=f"{label} {noun}, 2 s.d.")
+    xl, yl = picture["labels"]
+    s1, s2 = picture["spread"]
+    ax.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")
+    ax.set_ylabel(f"fragile direction 2 ({yl}; x{s2:.1f}) [s.d.]")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=8, loc="upper right")
 
 
 def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
