@@ -490,6 +490,18 @@ def test_the_reweighted_branch_plot_shows_why(home, capsys, monkeypatch, tmp_pat
     nominal = drawn["lines"]["nominal branch, 2 s.d."]
     np.testing.assert_allclose(np.linalg.norm(nominal, axis=1), 2.0, atol=1e-9)
     assert "best branch, 2 s.d." in drawn["lines"]
+    # the page draws the same: its chart of why, the nominal ellipse the radius-2 circle
+    # (to the 4 digits the page stores)
+    from tests.test_robot_report import figure
+
+    page = tmp_path / "why.html"
+    run(capsys, "elbow", "--grasps", str(home[0]), "--grasp", "0", "--samples", "300",
+        "--method", "reweight", "--engine", "fast", "--report", str(page))
+    traces = {t["name"]: t for t in figure(page.read_text(), "fig-fragility")["data"]}
+    ring = np.column_stack([traces["nominal branch, 2 s.d."]["x"],
+                            traces["nominal branch, 2 s.d."]["y"]])
+    np.testing.assert_allclose(np.linalg.norm(ring, axis=1), 2.0, atol=2e-4)
+    assert "best branch, 2 s.d." in traces and "Why this branch" in page.read_text()
 
 
 def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):

@@ -167,14 +167,16 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
         if "plot" in payload:
             print(f"plot written to {payload['plot']}")
     if args.report:
-        write_branch_report(args, index, grasp, result, noise, starts, friction)
+        write_branch_report(args, index, grasp, result, noise, starts, friction,
+                            None if evidence is None else evidence.picture())
     return 0
 
 
 def write_branch_report(args, index: int, grasp, result, noise, starts: int,
-                        friction: float) -> None:
+                        friction: float, fragility: dict | None = None) -> None:
     """``elbow --report FILE`` of a 6-joint arm: the IK branches' page
-    (:func:`~kinegrasp_env.toolkit.report.robot_branches.robot_branch_page`)."""
+    (:func:`~kinegrasp_env.toolkit.report.robot_branches.robot_branch_page`; ``fragility``:
+    a re-weighted search's picture, drawn on it)."""
     import shlex
 
     from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
@@ -203,7 +205,7 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
                 "friction mu": friction, "friction cone edges": NUM_EDGES}
     text = robot_branch_page(load_robot(args.robot), grasp, result,
                              command=shlex.join(command), settings=settings,
-                             friction=friction, num_edges=NUM_EDGES)
+                             friction=friction, num_edges=NUM_EDGES, fragility=fragility)
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)

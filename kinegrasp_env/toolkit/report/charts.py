@@ -122,11 +122,13 @@ def elbow_curve(curve: Sequence[dict], nominal_psi: float, best_psi: float,
                              margin={"l": 60, "r": 20, "t": 40, "b": 50})}
 
 
-def fragility_chart(picture: dict) -> dict:
+def fragility_chart(picture: dict, noun: str = "elbow") -> dict:
     """The batch's palm deviations in the two most fragile directions, force closure grey,
-    lost red, with the nominal and the best elbow's 2-s.d. error ellipses (``picture``: as
-    ``ReweightEvidence.picture()`` gives it: ``points`` (m, 2), ``fc`` (m,), ``ellipses``
-    {label: (2, 2) covariance}, ``labels`` (2,), ``spread`` (2,))."""
+    lost red, with the nominal and the best configuration's 2-s.d. error ellipses
+    (``picture``: as ``ReweightEvidence.picture()`` gives it: ``points`` (m, 2), ``fc``
+    (m,), ``ellipses`` {label: (2, 2) covariance}, ``labels`` (2,), ``spread`` (2,));
+    ``noun``: what the configurations are (``elbow``, ``branch``: a 6-joint arm's IK
+    branches)."""
     pts = np.asarray(picture["points"], dtype=float)
     fc = np.asarray(picture["fc"], dtype=bool)
     data = [{"type": "scattergl", "mode": "markers", "name": name,
@@ -137,13 +139,13 @@ def fragility_chart(picture: dict) -> dict:
     for (label, cov), colour in zip(picture["ellipses"].items(), ("#d62728", "#2ca02c"),
                                     strict=False):
         ring = covariance_ellipse(np.zeros(2), np.asarray(cov, dtype=float))
-        data.append({"type": "scatter", "mode": "lines", "name": f"{label} elbow, 2 s.d.",
+        data.append({"type": "scatter", "mode": "lines", "name": f"{label} {noun}, 2 s.d.",
                      "x": ring[:, 0].round(4).tolist(), "y": ring[:, 1].round(4).tolist(),
                      "line": {"color": colour, "width": 3}})
     (xl, yl), (s1, s2) = picture["labels"], picture["spread"]
     return {"data": data,
-            "layout": layout(title={"text": "Why this elbow: the directions in which force "
-                                            "closure is lost soonest", "x": 0.01,
+            "layout": layout(title={"text": f"Why this {noun}: the directions in which "
+                                            "force closure is lost soonest", "x": 0.01,
                                     "font": {"size": 14}},
                              xaxis={"title": {"text": f"fragile direction 1 ({xl}; failures "
                                                       f"x{s1:.1f} spread) [s.d.]"}},

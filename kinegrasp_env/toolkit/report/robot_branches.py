@@ -15,6 +15,7 @@ from dataclasses import replace
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
+from kinegrasp_env.toolkit.report.charts import fragility_chart
 from kinegrasp_env.toolkit.report.html import Figure, command_block, esc, note, page, settings_table
 from kinegrasp_env.toolkit.report.page import sigma_text, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, layout
@@ -114,7 +115,7 @@ def fresh_text(point: dict) -> str:
 
 def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: BranchResult,
                       *, command: str, settings: dict, friction: float = 0.5,
-                      num_edges: int = 8) -> str:
+                      num_edges: int = 8, fragility: dict | None = None) -> str:
     """The page of ``branches`` (``optimize_robot_branches`` of ``grasp``).
 
     Args:
@@ -123,6 +124,9 @@ def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: Bra
         branches: the search.
         command: the command line that reproduces the page; settings: name -> value.
         friction, num_edges: the contacts' friction cones, as drawn.
+        fragility: a re-weighted search's picture (``ReweightEvidence.picture()``): drawn
+            as a chart of why the chosen branch fails less
+            (:func:`~kinegrasp_env.toolkit.report.charts.fragility_chart`).
     """
     result = branches.to_json()
     obj = load_object(grasp.object)
@@ -143,6 +147,8 @@ def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: Bra
             friction=friction, num_edges=num_edges, title=title, whole_first=True), "49%",
             "520px"))
     chart = Figure("branches", branch_chart(result), "99%", "380px")
+    why = (None if fragility is None else
+           Figure("fragility", fragility_chart(fragility, "branch"), "99%", "520px"))
     chosen_on = ("one batch of closings re-weighted to each branch (the blue bars, with "
                  "their 95% intervals; the chosen and the nominal branch again on fresh "
                  "draws, orange); the branch is chosen on the batch"
@@ -154,15 +160,22 @@ def robot_branch_page(description: RobotDescription, grasp: Grasp, branches: Bra
              "Each view shows the whole robot closed on the object at its branch (toggle its "
              "pre-shape in the legend, or the close-up of the hand): the palm pose and the "
              "nominal contacts are the same, the arm is not.", geometry_note(geometry)]
+    if why is not None:
+        notes.append("Why this branch: the batch's palm deviations in the two directions in "
+                     "which force closure is lost soonest (failures red), with the nominal "
+                     "and the chosen branch's error ellipses: the branch whose ellipse is "
+                     "shorter along a fragile direction fails less.")
     if branches.best == branches.nominal:
         notes.append("The chosen branch is the nominal one: both views show the same arm.")
     title = (f"kinegrasp elbow report: robot {description.name}, {grasp.object} grasp "
              f"{grasp.id}, IK branches")
     body = (f"<h1>{esc(title)}</h1>{branch_headline(result)}"
             f"<div class='kg-row'>{chart.div()}</div>"
+            + ("" if why is None else f"<div class='kg-row'>{why.div()}</div>") +
             f"<div class='kg-row'>{views[0].div()}{views[1].div()}</div>"
             f"{''.join(note(n) for n in notes)}"
             f"<h2>P(FC) of every IK branch</h2>{branch_table(result)}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
-    return page(title, body, [chart, *views], library, versions())
+    figures = [chart, *([] if why is None else [why]), *views]
+    return page(title, body, figures, library, versions())
