@@ -32,16 +32,30 @@ def certificate_levels(args) -> tuple[float, float]:
 
 
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
-                     friction: float = 0.5):
+                     friction: float = 0.5, starts: int | None = None):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
     closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`; a
     robot given with ``--robot``: :func:`kinegrasp_env.toolkit.robot_elbow_reweight.
-    optimize_robot_elbow_reweighted`)."""
+    optimize_robot_elbow_reweighted`); with ``starts`` (a 6-joint arm's IK starts),
+    (BranchResult, ReweightEvidence) of its IK branches
+    (:func:`~kinegrasp_env.toolkit.robot_elbow_reweight.
+    optimize_robot_branches_reweighted`)."""
+    import functools
+
     from tqdm import tqdm
 
     batch = None if args.batch is None else positive_int(args.batch, "--batch")
     robot = getattr(args, "robot", None) not in (None, DEFAULT_ROBOT)
-    if robot:
+    if starts is not None:
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            check_robot_reweight as check,
+        )
+        from kinegrasp_env.toolkit.robot_elbow_reweight import (
+            optimize_robot_branches_reweighted,
+        )
+
+        optimize = functools.partial(optimize_robot_branches_reweighted, starts=starts)
+    elif robot:
         from kinegrasp_env.toolkit.robot_elbow_reweight import (
             check_robot_reweight as check,
         )
@@ -53,8 +67,9 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
         from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted as optimize
     with reported(ValueError):  # noise, robot, object, batch: refused before any closing
         check(grasp, noise, samples, epsilon, delta, batch)
+    what = "IK branches" if starts is not None else "elbow"
     who = f" of {args.robot}" if robot else ""
-    bar = tqdm(desc=f"elbow of {args.object} grasp {index}{who} (batch, fresh draws, "
+    bar = tqdm(desc=f"{what} of {args.object} grasp {index}{who} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
     with executor_from(args) as executor, batch_sized():
         out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
@@ -171,11 +186,17 @@ def certificate_lines(cert: dict, grid_step: float) -> list[str]:
     verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
                f"not certified at epsilon {cert['epsilon']:g} (psi = {cert['worst_psi']:+.3f} "
                "rad is the rival it cannot rule out)")
+    return [f"  {cert['statement']}",
+            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, "
+            f"{bounds_words(cert)}; angles between the {grid_step:.3f} rad grid points not "
+            "covered"]
+
+
+def bounds_words(cert: dict) -> str:
+    """How a certificate (``Certificate.to_json()``) bounds its rivals, in words: exact
+    binomial bounds on fresh draws, or a re-weighted batch's method and closings."""
     from kinegrasp_env.toolkit.elbow_certificate import METHOD
 
-    how = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
-           if cert["method"] == METHOD
-           else f"{cert['method']} ({cert['fresh_draws']} closings)")
-    return [f"  {cert['statement']}",
-            f"    {verdict}; {plural(len(cert['rivals']), 'other angle')}, {how}; angles "
-            f"between the {grid_step:.3f} rad grid points not covered"]
+    if cert["method"] == METHOD:
+        return f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
+    return f"{cert['method']} ({cert['fresh_draws']} closings)"

@@ -19,7 +19,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.elbow_output import (
     DEFAULT_IK_STARTS,
-    batch_sized,
+    bounds_words,
     certificate_levels,
     reweight_lines,
     reweighted_elbow,
@@ -104,29 +104,13 @@ def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, 
                       friction: float):
     """(BranchResult, ReweightEvidence or None) of ``--method direct``
     (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`) or ``reweight``
-    (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.optimize_robot_branches_reweighted`,
-    its inputs checked before any closing)."""
+    (:func:`~kinegrasp_env.cli.elbow_output.reweighted_elbow` of the branches, its inputs
+    checked before any closing)."""
     from tqdm import tqdm
 
     if args.method == "reweight":
-        from kinegrasp_env.toolkit.robot_elbow_reweight import (
-            check_robot_reweight,
-            optimize_robot_branches_reweighted,
-        )
-
-        batch = None if args.batch is None else positive_int(args.batch, "--batch")
-        with reported(ValueError):  # noise, object, batch: refused before any closing
-            check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
-        bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (batch, "
-                   "fresh draws, certificate)", total=3, unit="stage", file=sys.stderr,
-                   disable=None)
-        with executor_from(args) as executor, batch_sized():
-            out = optimize_robot_branches_reweighted(
-                grasp, noise, samples, seed, engine=args.engine, starts=starts,
-                epsilon=epsilon, delta=delta, batch=batch, friction=friction,
-                executor=executor, progress=lambda stage: bar.update(1))
-        bar.close()
-        return out
+        return reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
+                                friction, starts=starts)
     from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
 
     bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
@@ -146,8 +130,10 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
     result, evidence = branches_searched(args, index, grasp, noise, samples, seed, epsilon,
                                          delta, starts, friction)
     payload = {"robot": args.robot, "ik_starts": starts, **result.to_json()}
+    picture = None  # a re-weighted search's why (the plot's and the page's)
     if evidence is not None:
         payload["reweight"] = evidence.to_json()
+        picture = evidence.picture()
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_branches, safe_figure
 
@@ -155,7 +141,6 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
                  else f"{samples} draws per branch")
         title = (f"{args.robot}: {args.object} grasp {index}, sigma = "
                  f"{payload['sigma']:g} rad, {draws}")
-        picture = None if evidence is None else evidence.picture()  # why this branch
         if safe_figure(lambda: plot_branches(payload, args.plot, title, picture), args.plot):
             payload["plot"] = str(args.plot)
     if args.json:
@@ -167,8 +152,7 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
         if "plot" in payload:
             print(f"plot written to {payload['plot']}")
     if args.report:
-        write_branch_report(args, index, grasp, result, noise, starts, friction,
-                            None if evidence is None else evidence.picture())
+        write_branch_report(args, index, grasp, result, noise, starts, friction, picture)
     return 0
 
 
@@ -237,17 +221,12 @@ def branch_summary(result: dict, index: int) -> str:
         f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
         f"  {cert['statement']}"]
     if cert["bound"] is not None:
-        from kinegrasp_env.toolkit.elbow_certificate import METHOD
-
         verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else
                    f"not certified at epsilon {cert['epsilon']:g} (branch "
                    f"{cert['worst_branch']} is the rival it cannot rule out)")
         rivals = plural(len(cert["rivals"]), "other branch", "other branches")
-        bounds = (f"exact one-sided binomial bounds on {cert['fresh_draws']} fresh draws"
-                  if cert["method"] == METHOD
-                  else f"{cert['method']} ({cert['fresh_draws']} closings)")
-        lines.append(f"    {verdict}; {rivals}, {bounds}; branches the IK starts did not "
-                     "find not covered")
+        lines.append(f"    {verdict}; {rivals}, {bounds_words(cert)}; branches the IK starts "
+                     "did not find not covered")
     for point in result["curve"]:
         fresh = (f", {point['fresh_p_fc']:.3f} fresh" if "fresh_p_fc" in point else "")
         lines.append(f"  branch {point['branch']} ({point['label']}): P(FC) {point['p_fc']:.3f} "

@@ -61,17 +61,12 @@ def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise:
     holds, and the name of the simulator that ran it; ``model``: the ``--noise-spec``
     model's draws (its joints and hand) instead of the joint noise."""
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
-    from kinegrasp_env.montecarlo.robot_noise import model_rows
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
     from kinegrasp_env.physics.protocol import HELD
 
     with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
-        if model is None:
-            q = robot_configurations(grasp, engine, sigma=sigma, n=samples, seed=seed,
-                                     noise=noise)
-        else:
-            q = model_rows(model, engine.check(grasp.q0)[0], engine.description, seed, 0,
-                           samples, engine.obj.center_of_mass)[0]
+        q = evaluation_rows(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise,
+                            noise_model=model)[0]
         return int((engine.run_hold(q)[1].outcome == HELD).sum()), engine.simulator.name
 
 

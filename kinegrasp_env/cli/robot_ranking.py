@@ -121,11 +121,9 @@ class RobotRanking:
     def _held(self, index: int, start, n: int):
         """(n,) bool: the draws of rows ``start.offset .. + n`` of candidate ``index`` the
         quick holding test holds."""
-        import numpy as np
 
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-        from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
-        from kinegrasp_env.montecarlo.robot_noise import model_rows
+        from kinegrasp_env.montecarlo.robot_chunks import chunk_rows
         from kinegrasp_env.physics.protocol import HELD
 
         name = self.grasps[index].object
@@ -133,12 +131,8 @@ class RobotRanking:
             self.testers[name] = quick_hold_engine(self.robot, name, self.friction,
                                                    self.hold_simulator)
         tester = self.testers[name]
-        if self.noise_model is None:
-            q = chunk_configurations(np.asarray(start.q0), tester.description.arm_dof,
-                                     start.sigma, start.noise, start.seed, start.offset, n)
-        else:  # the model's rows (its joints and hand), as the chunks closed them
-            q = model_rows(self.noise_model, np.asarray(start.q0), tester.description,
-                           start.seed, start.offset, n, tester.obj.center_of_mass)[0]
+        q = chunk_rows(dataclasses.replace(start, size=n), tester.description,  # as closed
+                       tester.obj.center_of_mass, self.noise_model)[0]
         held = tester.run_hold(q)[1].outcome == HELD
         print(f"rank: candidate {self.grasps[index].id}: holding test {int(held.sum())}/{n} "
               "held", file=sys.stderr)

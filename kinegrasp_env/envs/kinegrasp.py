@@ -429,12 +429,8 @@ class KineGraspEnv(gym.Env):
         if self._branches:
             motion = self._robot.motion
             own, _ = motion.branch_of(q0)
-            moved = []
-            for k, arm in enumerate(motion.branches(q0)):
-                if k != own:
-                    moved.append(q0.copy())
-                    moved[-1][:motion.arm] = arm
-            return moved
+            return [np.concatenate([arm, q0[motion.arm:]])
+                    for k, arm in enumerate(motion.branches(q0)) if k != own]
         if self._robot is not None:
             motion = self._robot.motion
             psis = covered_angles(float(motion.elbow_angle(q0[None])[0]))

@@ -20,6 +20,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 
@@ -108,15 +109,24 @@ def close_chunk(task: RobotChunk, model: NoiseModel | None = None) -> RobotDraws
     noise (its ``model`` field is not read)."""
     engine = robot_engine(task.engine, task.robot, task.object, task.friction,
                           task.static_hold)
+    q, errors = chunk_rows(task, engine.description, engine.obj.center_of_mass, model)
+    return engine.run(q, **errors)
+
+
+def chunk_rows(task: RobotChunk, description: RobotDescription, center: np.ndarray,
+               model: NoiseModel | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """(configurations (size, dof), per-draw errors as an engine's ``run`` takes them) of
+    the chunk's rows for ``description`` (the object's centre of mass ``center`` (3,)):
+    joint noise (:func:`chunk_configurations`, no errors), or with ``model`` its every
+    source's rows (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`)."""
     if model is None:
-        q = chunk_configurations(np.asarray(task.q0, dtype=float), engine.description.arm_dof,
-                                 task.sigma, task.noise, task.seed, task.offset, task.size)
-        return engine.run(q)
+        return chunk_configurations(np.asarray(task.q0, dtype=float), description.arm_dof,
+                                    task.sigma, task.noise, task.seed, task.offset,
+                                    task.size), {}
     from kinegrasp_env.montecarlo.robot_noise import model_rows
 
-    q, errors = model_rows(model, task.q0, engine.description, task.seed, task.offset,
-                           task.size, engine.obj.center_of_mass)
-    return engine.run(q, **errors)
+    return model_rows(model, task.q0, description, task.seed, task.offset, task.size,
+                      center)
 
 
 def concatenate(parts: list[RobotDraws]) -> RobotDraws:

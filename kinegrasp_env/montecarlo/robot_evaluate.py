@@ -136,6 +136,24 @@ def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tu
     return q
 
 
+def evaluation_rows(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
+                    n: int, seed: SeedLike = 0, noise: str = "gaussian",
+                    noise_model: NoiseModel | None = None
+                    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """(configurations (n, dof), per-draw errors as the engine's ``run`` takes them) of the
+    draws :func:`evaluate_robot_grasp` evaluates in one process: joint noise
+    (:func:`robot_configurations`, no errors), or the rows of ``noise_model``'s every
+    source (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`; ``seed`` an
+    integer)."""
+    if noise_model is None:
+        return robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed,
+                                    noise=noise), {}
+    from kinegrasp_env.montecarlo.robot_noise import model_rows
+
+    return model_rows(noise_model, engine.check(grasp.q0)[0], engine.description, int(seed),
+                      0, n, engine.obj.center_of_mass)
+
+
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
                          seed: SeedLike = 0, noise: str = "gaussian",
                          engine: RobotEngine | str = "pybullet",
@@ -205,15 +223,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
                              static_hold=static_hold, friction=friction)
     try:
-        errors = {}
-        if noise_model is None:
-            q = robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise)
-        else:
-            from kinegrasp_env.montecarlo.robot_noise import model_rows
-
-            q, errors = model_rows(noise_model, engine.check(grasp.q0)[0],
-                                   engine.description, int(seed), 0, n,
-                                   engine.obj.center_of_mass)
+        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                                    noise_model=noise_model)
         check = engine.hold_check
         # the nominal closing rides with the draws, as row n, in the same engine call
         rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
