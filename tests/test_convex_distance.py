@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from kinegrasp_env.closing.convex_distance import (
     hull_distance_bounds,
+    hull_spheres,
     new_simplex,
     stacked_vertices,
 )
@@ -32,12 +33,14 @@ def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, mo
     b_starts = np.array([0, len(b_vertices)]) if b_starts is None else b_starts
     out, far = np.empty(n), np.empty(n)
     motion = np.zeros((n, 3)) if motion is None else motion
-    hull_distance_bounds(np.ascontiguousarray(a_vertices, dtype=float),
-                         np.asarray(a_starts, dtype=np.int64), np.ascontiguousarray(rot),
-                         np.ascontiguousarray(trans), np.ascontiguousarray(b_vertices,
-                                                                           dtype=float),
-                         np.asarray(b_starts, dtype=np.int64), np.ascontiguousarray(motion),
-                         short, new_simplex(), out, far)
+    a_vertices = np.ascontiguousarray(a_vertices, dtype=float)
+    b_vertices = np.ascontiguousarray(b_vertices, dtype=float)
+    a_starts = np.asarray(a_starts, dtype=np.int64)
+    b_starts = np.asarray(b_starts, dtype=np.int64)
+    hull_distance_bounds(a_vertices, a_starts, hull_spheres(a_vertices, a_starts),
+                         np.ascontiguousarray(rot), np.ascontiguousarray(trans), b_vertices,
+                         b_starts, hull_spheres(b_vertices, b_starts),
+                         np.ascontiguousarray(motion), short, new_simplex(), out, far)
     return (out, far) if travel else out
 
 
@@ -106,8 +109,9 @@ from kinegrasp_env.closing.convex_distance import (
 )
 d = np.load(sys.argv[1])
 out, far = np.empty(len(d["rot"])), np.empty(len(d["rot"]))
-hull_distance_bounds(d["a"], d["a_starts"], d["rot"], d["trans"], d["b"], d["b_starts"],
-                     np.zeros((len(out), 3)), 0.0, new_simplex(), out, far)
+hull_distance_bounds(d["a"], d["a_starts"], d["a_spheres"], d["rot"], d["trans"], d["b"],
+                     d["b_starts"], d["b_spheres"], np.zeros((len(out), 3)), 0.0,
+                     new_simplex(), out, far)
 np.save(sys.argv[2], out)
 """
 
@@ -115,13 +119,13 @@ np.save(sys.argv[2], out)
 def test_the_kernel_interpreted_gives_the_same_bounds(panda_hands, tmp_path):
     # the compiled kernel against its own source run by Python: equal to a few ulps
     hand = panda_hands["drill"]
-    a, a_starts = stacked_vertices(hand.geometry["panda_rightfinger"].parts)
-    b, b_starts = stacked_vertices(hand.obj.convex_parts)
+    a, a_starts, a_spheres = stacked_vertices(hand.geometry["panda_rightfinger"].parts)
+    b, b_starts, b_spheres = stacked_vertices(hand.obj.convex_parts)
     n = 150
     rot = Rotation.random(n, random_state=7).as_matrix()
     trans = hand.obj.center_of_mass + np.random.default_rng(8).normal(size=(n, 3)) * 0.06
-    np.savez(tmp_path / "in.npz", a=a, a_starts=a_starts, rot=rot, trans=trans, b=b,
-             b_starts=b_starts)
+    np.savez(tmp_path / "in.npz", a=a, a_starts=a_starts, a_spheres=a_spheres, rot=rot,
+             trans=trans, b=b, b_starts=b_starts, b_spheres=b_spheres)
     subprocess.run([sys.executable, "-c", INTERPRETED, str(tmp_path / "in.npz"),
                     str(tmp_path / "out.npy")], check=True, timeout=600)
     plain = np.load(tmp_path / "out.npy")

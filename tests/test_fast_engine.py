@@ -478,6 +478,29 @@ def test_screened_cylinder_check_equals_the_full_fine_check(name):
 
 
 @pytest.mark.parametrize("name", ["cube", "spray_flask", "mug"])
+def test_search_below_a_limit_is_the_plain_search_there(name):
+    """closest_to_segments with a limit (the closings' near-field queries, which need a
+    distance only where it is below the contact band) against the plain search on
+    segments clear of the object: the same pair bit for bit where the plain distance is
+    below the limit, and the limit with NaN points (the distance is at least the limit)
+    elsewhere; limits at a capsule radius from contact, and one below every distance."""
+    obj = load_object(name)
+    a, b = _random_segments(obj, 3000, seed=11)
+    clear = _clear(obj, a, b)
+    a, b = a[clear], b[clear]
+    on_obj, on_seg, dist, part = closest_to_segments(obj, a, b)
+    for limit in (0.01, 0.02, float(dist.min()) - 1e-6):
+        found = closest_to_segments(obj, a, b, limit)
+        below = dist < limit
+        assert 0 < below.sum() < len(a) or limit < dist.min()
+        for got, plain in zip(found, (on_obj, on_seg, dist, part), strict=True):
+            np.testing.assert_array_equal(got[below], plain[below])
+        np.testing.assert_array_equal(found[2][~below], limit)
+        assert np.isnan(found[0][~below]).all() and np.isnan(found[1][~below]).all()
+        np.testing.assert_array_equal(found[3][~below], -1)
+
+
+@pytest.mark.parametrize("name", ["cube", "spray_flask", "mug"])
 def test_search_started_near_a_known_point_changes_no_bit(name):
     """The exact search started from an object point found by an earlier query (the closing
     loop's: segment_search_near) against the plain search, bit for bit, on segments at

@@ -23,16 +23,28 @@ GAP_REL = 1e-10
 #: Iterations at most (a polytope pair of a few hundred vertices needs a dozen).
 MAX_ITER = 64
 
-__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "new_simplex", "stacked_faces",
-           "stacked_vertices"]
+__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "hull_spheres", "new_simplex",
+           "stacked_faces", "stacked_vertices"]
 
 
-def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray]:
+def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Convex parts' (:class:`~kinegrasp_env.world.polytope.ConvexPart`) vertices stacked
-    (V, 3) and each part's first row (P + 1,) int64: the layout
-    :func:`hull_distance_bounds` reads."""
-    return (np.ascontiguousarray(np.vstack([p.vertices for p in parts]), dtype=float),
-            np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64))
+    (V, 3), each part's first row (P + 1,) int64 and its bounding sphere (P, 4)
+    (:func:`hull_spheres`): the layout :func:`hull_distance_bounds` reads."""
+    vertices = np.ascontiguousarray(np.vstack([p.vertices for p in parts]), dtype=float)
+    starts = np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64)
+    return vertices, starts, hull_spheres(vertices, starts)
+
+
+def hull_spheres(vertices: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(P, 4) a bounding sphere (centre (3,), radius; metres) of each part of stacked
+    vertices (V, 3) split by starts (P + 1,): the centre of the part's bounding box."""
+    spheres = np.empty((len(starts) - 1, 4))
+    for p in range(len(starts) - 1):
+        part = vertices[starts[p]:starts[p + 1]]
+        spheres[p, :3] = 0.5 * (part.min(axis=0) + part.max(axis=0))
+        spheres[p, 3] = np.linalg.norm(part - spheres[p, :3], axis=1).max()
+    return spheres
 
 
 def stacked_faces(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -218,9 +230,21 @@ def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start,
     return -np.inf, 0.0, 0.0, 0.0
 
 
+@jit.kernel(_nrt=False, inline="always")
+def _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q):
+    """A lower bound (metres) of the distance between part p of A, posed by (rot[i],
+    trans[i]), and part q of B: their bounding spheres' gap."""
+    r = rot[i]
+    cx, cy, cz = a_spheres[p, 0], a_spheres[p, 1], a_spheres[p, 2]
+    dx = r[0, 0] * cx + r[0, 1] * cy + r[0, 2] * cz + trans[i, 0] - b_spheres[q, 0]
+    dy = r[1, 0] * cx + r[1, 1] * cy + r[1, 2] * cz + trans[i, 1] - b_spheres[q, 1]
+    dz = r[2, 0] * cx + r[2, 1] * cy + r[2, 2] * cz + trans[i, 2] - b_spheres[q, 2]
+    return np.sqrt(dx * dx + dy * dy + dz * dz) - a_spheres[p, 3] - b_spheres[q, 3]
+
+
 @jit.kernel(_nrt=False)
-def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts, motion, short,
-                         w, out, travel):
+def hull_distance_bounds(a_vertices, a_starts, a_spheres, rot, trans, b_vertices, b_starts,
+                         b_spheres, motion, short, w, out, travel):
     """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
     overlaps) of the least distance between the convex parts of A (part p: the hull of
     a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
@@ -229,13 +253,28 @@ def hull_distance_bounds(a_vertices, a_starts, rot, trans, b_vertices, b_starts,
     zero rows: none given), travel[i] is how far in that parameter A can be translated along
     motion[i] before any pair's separating plane lets it come within ``short`` (metres) of B
     (inf where no plane stands in its way; 0 where a pair is that near already), else 0
-    (nothing certified). ``w`` (4, 3) is scratch (:func:`new_simplex`)."""
+    (nothing certified). ``w`` (4, 3) is scratch (:func:`new_simplex`).
+
+    Without a motion, a pair whose bounding spheres (``a_spheres`` (P, 4), ``b_spheres``
+    (Q, 4): :func:`hull_spheres`) are farther apart than the least bound found is not
+    examined (it cannot lower it), and each part of A meets its sphere-nearest part of B
+    first."""
     for i in range(rot.shape[0]):
         mx, my, mz = motion[i, 0], motion[i, 1], motion[i, 2]
         moving = mx != 0.0 or my != 0.0 or mz != 0.0
         best, far = np.inf, (np.inf if moving else 0.0)
         for p in range(a_starts.shape[0] - 1):
-            for q in range(b_starts.shape[0] - 1):
+            first, nearest = 0, np.inf
+            if not moving:
+                for q in range(b_starts.shape[0] - 1):
+                    gap = _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q)
+                    if gap < nearest:
+                        first, nearest = q, gap
+            for rank in range(b_starts.shape[0] - 1):
+                q = first if rank == 0 else (rank - 1 if rank <= first else rank)
+                if not moving and rank > 0 and not (
+                        _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q) < best):
+                    continue
                 bound, nx, ny, nz = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1], rot,
                                                 trans, i, b_vertices, b_starts[q],
                                                 b_starts[q + 1], w)

@@ -138,7 +138,7 @@ class FastRobotHand:
             dist, fp, op = np.full(n, np.inf), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
         rounded = np.zeros(n, dtype=bool)
         if link in self._rounded:
-            d, core, on_obj = self._rounded[link].exact(self.obj, poses)
+            d, core, on_obj = self._rounded[link].exact(self.obj, poses, below)
             rounded = d < dist
             dist[rounded], fp[rounded], op[rounded] = d[rounded], core[rounded], on_obj[rounded]
         return dist, fp, op, rounded

@@ -49,6 +49,7 @@ import numpy as np
 from kinegrasp_env.closing.close_rules import (
     CONTACT_TOL,
     POLISH_RANGE,
+    QUERY_DISTANCE,
     START_TOL,
     STEP,
     secant_root,
@@ -67,8 +68,6 @@ from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
 
-#: Gaps beyond this are not measured (a step is then bounded by it), metres.
-QUERY_DISTANCE = 0.05
 #: Closing steps per finger at most (conservative advancement converges in a few for jaws).
 MAX_STEPS = 200
 #: Halvings of a step that pybullet reports as penetrating, at most.

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.capsule_gap import sampled_bounds
-from kinegrasp_env.closing.convex_distance import hull_distance_bounds
+from kinegrasp_env.closing.convex_distance import hull_distance_bounds, hull_spheres
 from kinegrasp_env.closing.link_geometry import RoundedPart, grid_error
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
@@ -49,18 +49,15 @@ class RoundedCores:
     def __init__(self, parts: tuple[RoundedPart, ...], object_hulls: tuple, simplex,
                  grid: DistanceGrid) -> None:
         self.parts, self.grid, self._grid_err = parts, grid, grid_error(grid)
-        self._cores = [(np.ascontiguousarray(np.stack([p.a, p.b]) if np.any(p.a != p.b)
-                                             else p.a[None]),
-                        np.array([0, 2 if np.any(p.a != p.b) else 1], dtype=np.int64))
-                       for p in parts]
+        self._cores = [_core_layout(p) for p in parts]
         self._object_hulls, self._simplex = object_hulls, simplex
 
     def _core_bound(self, k: int, rot: np.ndarray, trans: np.ndarray, motion: np.ndarray | None,
-                    short: float) -> tuple[np.ndarray, np.ndarray]:
+                    short: float, clear: float = GRID_CLEAR) -> tuple[np.ndarray, np.ndarray]:
         """(a certified lower bound (n,) of part k's core's distance to the object, -inf
         where they meet; travel (n,) along ``motion`` before a plane lets it within
-        ``short``, 0 without a motion): the grid's where it is clear (and no motion), GJK's
-        elsewhere."""
+        ``short``, 0 without a motion): the grid's where it is above ``clear`` (metres; and
+        no motion), GJK's elsewhere."""
         n = rot.shape[0]
         out, travel = np.full(n, -np.inf), np.zeros(n)
         todo = np.arange(n)
@@ -68,12 +65,11 @@ class RoundedCores:
             part = self.parts[k]
             a, b = rot @ part.a + trans, rot @ part.b + trans
             out = sampled_bounds(self.grid, a, b) - self._grid_err
-            todo = np.flatnonzero(~(out > GRID_CLEAR))
+            todo = np.flatnonzero(~(out > clear))
             motion = np.zeros((n, 3))
         if todo.size:
-            core, starts = self._cores[k]
             found, far = np.empty(todo.size), np.empty(todo.size)
-            hull_distance_bounds(core, starts, np.ascontiguousarray(rot[todo]),
+            hull_distance_bounds(*self._cores[k], np.ascontiguousarray(rot[todo]),
                                  np.ascontiguousarray(trans[todo]), *self._object_hulls,
                                  np.ascontiguousarray(motion[todo]), float(short),
                                  self._simplex, found, far)
@@ -97,30 +93,42 @@ class RoundedCores:
                 far = np.minimum(far, travel)
         return best, far
 
-    def exact(self, obj: GraspObject, poses: np.ndarray
+    def exact(self, obj: GraspObject, poses: np.ndarray, below: float = np.inf
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(distance (n,), core point (n, 3), object point (n, 3)) of the parts' closest
         pair with the object at object-frame poses (n, 4, 4) (module docstring; where a
-        core meets the object: -r and NaN points)."""
+        core meets the object: -r and NaN points). With ``below`` (metres), exact where the
+        distance is below it, and ``below`` with NaN points elsewhere (the distance is at
+        least that)."""
         n = poses.shape[0]
         dist = np.full(n, np.inf)
         core_point, obj_point = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
         rot = np.ascontiguousarray(poses[:, :3, :3])
         trans = np.ascontiguousarray(poses[:, :3, 3])
         for k, part in enumerate(self.parts):
-            apart, _ = self._core_bound(k, rot, trans, None, 0.0)
+            apart, _ = self._core_bound(k, rot, trans, None, 0.0, clear=0.0)
             d = np.full(n, -part.radius)
             seg, on_obj = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
             rows = np.flatnonzero(apart > 0.0)  # the core is apart from the object
             if rows.size:
                 a = np.einsum("nij,j->ni", rot[rows], part.a) + trans[rows]
                 b = np.einsum("nij,j->ni", rot[rows], part.b) + trans[rows]
-                on_obj[rows], seg[rows], core_d, _ = closest_to_segments(obj, a, b)
-                d[rows] = core_d - part.radius
+                limit = below + part.radius
+                on_obj[rows], seg[rows], core_d, _ = closest_to_segments(obj, a, b, limit)
+                d[rows] = np.where(core_d < limit, core_d - part.radius, below)
             better = d < dist
             dist[better], core_point[better], obj_point[better] = (
                 d[better], seg[better], on_obj[better])
         return dist, core_point, obj_point
+
+
+def _core_layout(part: RoundedPart) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A rounded part's core as a hull of one or two vertices, in the layout of
+    :func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`."""
+    core = np.stack([part.a, part.b]) if np.any(part.a != part.b) else part.a[None]
+    core = np.ascontiguousarray(core, dtype=float)
+    starts = np.array([0, len(core)], dtype=np.int64)
+    return core, starts, hull_spheres(core, starts)
 
 
 def contact_normals(core_point: np.ndarray, obj_point: np.ndarray) -> np.ndarray:

@@ -329,10 +329,34 @@ def segments_closest(geo, a, b, out_d, out_obj, out_seg, out_part):
             geo, a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2], work)
 
 
-def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray
+@jit.kernel
+def segments_within(geo, a, b, limit, out_d, out_obj, out_seg, out_part):
+    """:func:`segments_closest` where the distance is below ``limit`` (metres), the same
+    pair bit for bit; elsewhere ``limit`` (the distance is at least that), NaN points and
+    part -1. Only the parts that can come closer than ``limit`` are searched
+    (:func:`near_candidates`, :func:`visit_parts`)."""
+    work = segment_buffers(geo[0], geo[1])
+    for i in range(a.shape[0]):
+        ax, ay, az, ex, ey, ez = a[i, 0], a[i, 1], a[i, 2], b[i, 0], b[i, 1], b[i, 2]
+        k = near_candidates(geo, ax, ay, az, ex, ey, ez, work, limit, False)
+        found = visit_parts(geo, ax, ay, az, ex, ey, ez, work, limit, k)
+        if found[0] < limit:
+            (out_d[i], out_obj[i, 0], out_obj[i, 1], out_obj[i, 2], out_seg[i, 0],
+             out_seg[i, 1], out_seg[i, 2], out_part[i]) = found
+        else:
+            out_d[i] = limit
+            out_obj[i, :] = np.nan
+            out_seg[i, :] = np.nan
+            out_part[i] = -1
+
+
+def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray,
+                        limit: float = np.inf
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Exact closest pairs between segments [a, b] (n, 3) (object frame, metres) that do
-    not cross the object, and the object.
+    not cross the object, and the object; with a finite ``limit`` (metres), only where the
+    distance is below it (elsewhere: ``limit``, NaN points, part -1:
+    :func:`segments_within`).
 
     Returns (on the object (n, 3), on the segment (n, 3), distance (n,), part (n,)).
     """
@@ -342,5 +366,9 @@ def closest_to_segments(obj: GraspObject, a: np.ndarray, b: np.ndarray
     out_d = np.empty(n)
     out_obj, out_seg = np.empty((n, 3)), np.empty((n, 3))
     out_part = np.zeros(n, dtype=np.int64)
-    segments_closest(geometry_tuple(obj), a, b, out_d, out_obj, out_seg, out_part)
+    if np.isfinite(limit):
+        segments_within(geometry_tuple(obj), a, b, float(limit), out_d, out_obj, out_seg,
+                        out_part)
+    else:
+        segments_closest(geometry_tuple(obj), a, b, out_d, out_obj, out_seg, out_part)
     return out_obj, out_seg, out_d, out_part
