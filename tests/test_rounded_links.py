@@ -174,3 +174,30 @@ def test_the_description_closes_the_sdh_as_its_own_compiled_closing():
         generic.close()
         own.close()
     assert same >= 0.98 * total, f"{same} of {total}"
+
+
+def test_a_draws_closing_does_not_depend_on_its_batch(engines):
+    """The fast closing's staged fingers polish their touches in groups (the draws that touch
+    over several steps wait for one polish): a draw's closing must be the one it has alone.
+    120 noisy draws of a drill grasp closed in one batch, in three shuffled batches and the
+    first 12 one by one: every array of the result equal bit for bit."""
+    hand = engines["drill"][0].hand
+    rng = np.random.default_rng(21)
+    q = np.repeat(shipped_grasps("drill")[1].q0[None], 120, axis=0)
+    q[:, :7] += rng.normal(0.0, 0.02, (120, 7))
+    whole = hand.close_batch(q)
+    order = rng.permutation(len(q))
+    parts = [order[:70], order[70:100], order[100:]] + [np.array([i]) for i in range(12)]
+    for rows in parts:
+        part = hand.close_batch(q[rows])
+        np.testing.assert_array_equal(part.start_collision, whole.start_collision[rows])
+        np.testing.assert_array_equal(part.gaps, whole.gaps[rows])
+        np.testing.assert_array_equal(part.travel, whole.travel[rows])
+        np.testing.assert_array_equal(part.queries, whole.queries[rows])
+        for name, values in part.joints.items():
+            np.testing.assert_array_equal(values, whole.joints[name][rows])
+        for i, row in enumerate(rows):
+            mine, theirs = part.row == i, whole.row == row
+            np.testing.assert_array_equal(part.points[mine], whole.points[theirs])
+            np.testing.assert_array_equal(part.normals[mine], whole.normals[theirs])
+    assert len(whole.row) > 200  # the draws touch: the polish ran

@@ -15,6 +15,10 @@ moves where the next one touches, does not depend on the steps that led there. A
 finger stops where it first comes within the tolerance; one whose closing joints are all
 prismatic (its links translate) steps at least the travel its links' separating planes
 allow, up to the first joint's limit (the translation's direction is fixed until then).
+
+Every draw of the batch closes on its own: the loop steps the draws still closing together,
+and the touches found over several steps wait to be polished together (a polish's cost is
+mostly per call); no draw's result depends on the others'.
 """
 
 from __future__ import annotations
@@ -109,6 +113,63 @@ class _Finger:
         return best_t
 
 
+class _Touches:
+    """A staged finger's touches waiting to be polished (:meth:`_Finger.polish`), polished
+    together: a draw's polish does not depend on the others', so the draws that touch in
+    several steps share one polish, whose cost is mostly per call. A waiting draw takes no
+    step until its touch is polished, so every draw's closing is the one it would have
+    alone."""
+
+    def __init__(self, hand, finger: _Finger, t: np.ndarray, gaps: np.ndarray,
+                 touched: np.ndarray, last: dict, queries: np.ndarray, rows: np.ndarray) -> None:
+        self.hand, self.finger, self.t, self.gaps = hand, finger, t, gaps
+        self.touched, self.last, self.queries, self.rows = touched, last, queries, rows
+        self._waiting: list[tuple] = []
+        self.waiting = 0
+
+    def wait(self, who: np.ndarray, hits: np.ndarray, gap: np.ndarray, low: np.ndarray,
+             high: np.ndarray) -> None:
+        """Draws ``who`` (n,) touch with links ``hits`` (n, K) bool at their t, their least
+        exact gap ``gap`` (n,); each one's polish stays in [low, high] (n,)."""
+        self._waiting.append((who, hits, gap, low, high))
+        self.waiting += who.size
+
+    def due(self, closing: int) -> bool:
+        """Whether the waiting touches are polished now, ``closing`` draws still stepping:
+        when at least as many wait."""
+        return self.waiting > 0 and self.waiting >= closing
+
+    def stop(self, who: np.ndarray, k: int) -> None:
+        """Link k of draws ``who`` touched at their t: it stops the joints it holds
+        (:attr:`FingerPath.stops`)."""
+        held, path = self.finger.held, self.finger.path
+        self.touched[who, k] = True
+        held[who] = np.where(path.stops[k], np.minimum(held[who], self.t[who, None]),
+                             held[who])
+
+    def polish_all(self) -> np.ndarray:
+        """Polish every waiting touch; the touching links' exact pairs there become their
+        last ones, and they stop their joints. Returns the draws (n,)."""
+        who, hits, gap, low, high = (np.concatenate(a) for a in zip(*self._waiting,
+                                                                      strict=True))
+        self._waiting, self.waiting = [], 0
+        finger, t = self.finger, self.t
+        t[who] = finger.polish(who, t[who], gap, hits, low, high)
+        polished = finger.poses(who, t[who])
+        for k, link in enumerate(finger.path.links):
+            sel = np.flatnonzero(hits[:, k])
+            if not sel.size:
+                continue
+            d, fp, op, rounded = self.hand.exact(polished[link][sel], link)
+            self.queries[self.rows[who[sel]]] += 1
+            for store, value in zip(self.last[link], (polished[link][sel], d, fp, op, rounded),
+                                    strict=True):
+                store[who[sel]] = value
+            self.gaps[who[sel], k] = d
+            self.stop(who[sel], k)
+        return who
+
+
 def moving_end(ends: np.ndarray, held: np.ndarray) -> np.ndarray:
     """(n,) the t at which every closing joint that has not stopped (``held`` (n, J): inf)
     reaches its limit (``ends`` (n, J)); 0 where all have stopped."""
@@ -154,8 +215,13 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
     t, gaps = np.zeros(m), np.full((m, len(path.links)), np.inf)
     clear, tried = np.zeros(m), np.zeros(m)  # the last t without penetration, its step
     touched = np.zeros((m, len(path.links)), dtype=bool)
+    taken = np.zeros(m, dtype=np.int64)  # the steps each draw has taken
+    touches = _Touches(hand, finger, t, gaps, touched, last, queries, rows)
     active = np.arange(m)
-    for _ in range(MAX_STEPS):
+    while active.size or touches.waiting:
+        if touches.due(active.size):  # polished, they go on with the others
+            active = np.sort(np.concatenate([active, touches.polish_all()]))
+        active = active[taken[active] < MAX_STEPS]
         stopped = np.isfinite(held[active])
         live = ~touched[active] & np.stack(  # (a, K): the links that still move
             [(~stopped[:, path.moves[k]]).any(axis=1) for k in range(len(path.links))],
@@ -163,7 +229,8 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         keep = live.any(axis=1)
         active, live, stopped = active[keep], live[keep], stopped[keep]
         if active.size == 0:
-            break
+            continue
+        taken[active] += 1
         poses = finger.poses(active, t[active])
         lower, travel = np.full(live.shape, np.inf), np.zeros(live.shape)
         for k, link in enumerate(path.links):
@@ -193,36 +260,23 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         deep &= tried[active] > 0
         hits &= ~deep[:, None]
         new_touch = hits.any(axis=1)
-        if staged and new_touch.any():  # the touch polished to a zero gap
+        deferred = hits if staged else np.zeros_like(hits)  # stored once polished
+        if staged and new_touch.any():  # the touch waits to be polished to a zero gap
             idx = np.flatnonzero(new_touch)
             who = active[idx]
             t_end = moving_end(ends[who], held[who])
-            g = np.min(np.where(hits[idx], lower[idx], np.inf), axis=1)
-            t[who] = finger.polish(who, t[who], g, hits[idx], clear[who],
-                                   np.minimum(t[who] + POLISH_RANGE, np.maximum(t_end, t[who])))
-            polished = finger.poses(who, t[who])
-            for k, link in enumerate(path.links):
-                if not hits[idx, k].any():
-                    continue
-                sel = np.flatnonzero(hits[idx, k])
-                d, fp, op, rounded = hand.exact(polished[link][sel], link)
-                queries[rows[who[sel]]] += 1
-                took, *rest = exact[k]
-                pos = np.searchsorted(near, idx[sel])
-                rest[0][pos], rest[1][pos], rest[2][pos], rest[3][pos] = d, fp, op, rounded
-                poses[link][idx[sel]] = polished[link][sel]
-                lower[idx[sel], k] = d
+            touches.wait(who, hits[idx],
+                         np.min(np.where(hits[idx], lower[idx], np.inf), axis=1), clear[who],
+                         np.minimum(t[who] + POLISH_RANGE, np.maximum(t_end, t[who])))
         for k, link in enumerate(path.links):
             if k not in exact:
                 continue
             took, d, fp, op, rounded = exact[k]
-            took = took & ~deep[near]
+            took = took & ~deep[near] & ~deferred[near, k]
             for store, value in zip(last[link], (poses[link][near], d, fp, op, rounded),
                                     strict=True):
                 store[active[near[took]]] = value[took]
-            hit = active[hits[:, k]]  # this link stops its joints
-            touched[hit, k] = True
-            held[hit] = np.where(path.stops[k], np.minimum(held[hit], t[hit, None]), held[hit])
+            touches.stop(active[hits[:, k] & ~deferred[:, k]], k)
         gaps[active] = np.where(live & ~deep[:, None], lower, gaps[active])
         back = active[deep]
         tried[back] *= 0.5
@@ -237,7 +291,8 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         clear[now] = t[now]
         tried[now] = np.minimum(np.maximum(step[go], least), t_end[go] - t[now])
         t[now] += tried[now]
-        active = active[go | new_touch | deep]  # a touch: the rest next; a deep step: again
+        # a touch: the rest next (a staged one once polished); a deep step: again
+        active = active[go | deep | (new_touch & (not staged))]
     values = dict(values0)
     values.update(finger.values(np.arange(m), t))
     return t, gaps.min(axis=1), values, last
