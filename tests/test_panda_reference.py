@@ -153,7 +153,8 @@ def test_grasp_file_records_its_robot(grasps, tmp_path):
 
 def test_patch_geometry_against_rectangles():
     """Clipping and centroids against overlaps of axis-aligned rectangles worked by hand."""
-    from kinegrasp_env.closing.contact_patch import centroid_2d, clip_convex, patch_centre
+    from kinegrasp_env.closing.contact_patch import patch_centre
+    from kinegrasp_env.closing.polygon_2d import centroid_2d, clip_convex
 
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     moved = square * [2.0, 0.5] + [0.5, 0.25]  # [0.5, 2.5] x [0.25, 0.75]

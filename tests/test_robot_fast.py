@@ -191,7 +191,7 @@ def test_hull_2d_against_scipy():
     clockwise; collinear points give the segment of the extremes, one point itself."""
     from scipy.spatial import ConvexHull
 
-    from kinegrasp_env.closing.contact_patch import hull_2d
+    from kinegrasp_env.closing.polygon_2d import hull_2d
 
     rng = np.random.default_rng(1)
     for k in (3, 5, 12, 40):
@@ -218,7 +218,7 @@ def test_patch_clip_and_centroid_against_halfspaces():
     fan of its triangles; a disjoint pair clips to nothing."""
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
-    from kinegrasp_env.closing.contact_patch import centroid_2d, clip_convex
+    from kinegrasp_env.closing.polygon_2d import centroid_2d, clip_convex
 
     rng = np.random.default_rng(2)
     checked = 0
