@@ -100,8 +100,9 @@ def test_best_angle_scored_on_fresh_direct_draws(grasp):
     assert psis[0] <= result.best_psi <= psis[-1]
 
 
-def test_cli_reweight_and_its_refusals(capsys, tmp_path):
+def test_cli_reweight_and_its_refusals(capsys, tmp_path, monkeypatch):
     from kinegrasp_env.cli import main
+    from kinegrasp_env.toolkit import reweight_evidence
 
     args = ["elbow", "--object", "spray_flask", "--grasp", "4", "--sigma", str(SIGMA),
             "--samples", "200", "--method", "reweight"]
@@ -114,10 +115,15 @@ def test_cli_reweight_and_its_refusals(capsys, tmp_path):
     out = capsys.readouterr().out
     assert "from one batch of 400 closings" in out and "effective sample size" in out
     page = tmp_path / "elbow.html"
-    assert main([*args, "--report", str(page)]) == 0
+    pictures = []  # the fragility picture is computed once for the plot and the page
+    real = reweight_evidence.fragile_directions
+    monkeypatch.setattr(reweight_evidence, "fragile_directions",
+                        lambda *a: pictures.append(1) or real(*a))
+    assert main([*args, "--report", str(page), "--plot", str(tmp_path / "elbow.png")]) == 0
     capsys.readouterr()
     text = page.read_text()
     assert "Why this elbow" in text and "--method reweight --batch 400" in text
+    assert (tmp_path / "elbow.png").stat().st_size > 0 and len(pictures) == 1
     assert main([*args, "--noise", "uniform"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Gaussian joint noise" in err[0]

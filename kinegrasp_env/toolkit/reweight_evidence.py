@@ -37,12 +37,19 @@ class ReweightEvidence:
     selection: PalmBatch | None = field(default=None, repr=False)
     nominal_cov: np.ndarray | None = field(default=None, repr=False)
     best_cov: np.ndarray | None = field(default=None, repr=False)
+    _pictures: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def picture(self, points: int = 3000) -> dict | None:
         """What :func:`~kinegrasp_env.toolkit.plots.plot_elbow_fragility` draws: ``points``
         of the batch's deviations in the two most fragile directions under the nominal
         elbow's distribution, their outcomes, and both elbows' covariances seen there (None
-        where no draw of the batch loses force closure)."""
+        where no draw of the batch loses force closure). Computed once per ``points``: the
+        plot and the report draw the same picture."""
+        if points not in self._pictures:
+            self._pictures[points] = self._picture(points)
+        return self._pictures[points]
+
+    def _picture(self, points: int) -> dict | None:
         if self.selection.fc.all():
             return None  # no draw loses force closure: nothing is fragile
         frag = fragile_directions(self.selection, self.nominal_cov)
