@@ -315,10 +315,11 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
               ends_p, ends_d, radius, upper, speed, found, pairs, missed, flexion):
     """Close every finger of every draw (:func:`close_finger` for each).
 
-    rules: :func:`closing_rules`; joint_frames (m, 3, 4, 4), prox0 / dist0 (m, 3): per
-    draw and finger; the finger constants are stacked over fingers. Writes found (m, 3,
-    2), pairs (m, 3, 2, PAIR_SIZE), missed (m, 3) and the closed flexions (m, 3, 2)
-    (proximal, distal; radians); returns the most iterations any problem took.
+    rules: :func:`closing_rules`; joint_frames (m, F, 4, 4), prox0 / dist0 (m, F): per
+    draw and finger; the finger constants are stacked over the F fingers (``speed``
+    (F, 3): each finger's :class:`~kinegrasp_env.closing.close_rules.LinkSpeeds`). Writes
+    found (m, F, 2), pairs (m, F, 2, PAIR_SIZE), missed (m, F) and the closed flexions
+    (m, F, 2) (proximal, distal; radians); returns the most iterations any problem took.
     """
     # work buffers: rotation, proximal and distal frames, product, axis ends, those of
     # segment_one, the closest pairs of both links, and those of polish's best evaluation
@@ -328,14 +329,14 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
     buffers = (np.empty(grid[4]), work, np.empty(PAIR_SIZE))
     # per finger and link, the object point its last exact query found: the draws are
     # nearby configurations, so the previous draw's points start the next one's queries
-    near = np.full((3, 2, 3), np.nan)
+    near = np.full((prox0.shape[1], 2, 3), np.nan)
     most = 0
     for i in range(prox0.shape[0]):
-        for f in range(3):
+        for f in range(prox0.shape[1]):
             finger = (joint_frames[i, f], axis_p[f], distal_origin[f], axis_d[f],
                       ends_p[f], ends_d[f], radius[f, 0], radius[f, 1], upper[f, 0],
                       upper[f, 1], near[f])
-            it, missed[i, f] = close_finger(grid, geo, rules, finger, speed, prox0[i, f],
+            it, missed[i, f] = close_finger(grid, geo, rules, finger, speed[f], prox0[i, f],
                                             dist0[i, f], buffers, found[i, f], pairs[i, f],
                                             flexion[i, f])
             most = max(most, it)

@@ -151,7 +151,7 @@ class FastHand:
                 np.array([ends[0] for ends in self.axis_ends], dtype=float),
                 np.array([ends[1] for ends in self.axis_ends], dtype=float),
                 np.array([[c.radius for c in pair] for pair in self.capsules]), self.upper,
-                np.array(self.speed, dtype=float))
+                np.tile(np.array(self.speed, dtype=float), (len(FINGERS), 1)))
 
     def with_refine_steps(self, steps: int) -> FastHand:
         """This hand (a shallow copy) with its compiled closing refining each grid gap by

@@ -36,14 +36,21 @@ only where that bound is within reach of a contact or says the two overlap.
    perpendicular to both edges for two edges; else the points' difference), which is what
    pybullet's normal is there.
 
+Fingers of two capsule phalanxes are closed by one compiled loop instead
+(:mod:`~kinegrasp_env.closing.capsule_fingers`: the distance grid far from the object, the
+exact pair near it, bisection, the touch polished to a zero gap), at the default contact
+tolerance; steps 1 and 3 stay as above.
+
 Results are the reference's :class:`~kinegrasp_env.closing.robot_contacts.RobotCloseResult`
-(``queries`` counts exact link-object distances, per draw).
+(``queries`` counts the exact link-object distances of steps 1 and 2, per draw; the
+compiled loop's are not counted).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.closing.capsule_fingers import CapsuleFingers, capsule_finger
 from kinegrasp_env.closing.capsule_gap import posed_min_distance
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
@@ -55,7 +62,7 @@ from kinegrasp_env.closing.convex_distance import (
     stacked_vertices,
 )
 from kinegrasp_env.closing.finger_closing import close_finger
-from kinegrasp_env.closing.finger_paths import finger_paths
+from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths
 from kinegrasp_env.closing.generic_reference import EDGE_TOL
 from kinegrasp_env.closing.hand_errors import (
     arm_to_object,
@@ -94,11 +101,15 @@ class FastRobotHand:
         grid: the object's distance grid (default: :func:`~kinegrasp_env.world.sdf.grid_of`).
         geometry: link name -> :class:`LinkGeometry` (default: :func:`link_geometry`).
         patch: place a contact on a face at its patch's centre (as ``RobotWorld(patch=)``).
+        compiled: close the fingers of two capsule phalanxes in one compiled loop
+            (:mod:`~kinegrasp_env.closing.capsule_fingers`; at the default contact
+            tolerance); False: every finger by the batched loop.
     """
 
     def __init__(self, description: RobotDescription, obj: GraspObject, *,
                  grid: DistanceGrid | None = None,
-                 geometry: dict[str, LinkGeometry] | None = None, patch: bool = True) -> None:
+                 geometry: dict[str, LinkGeometry] | None = None, patch: bool = True,
+                 compiled: bool = True) -> None:
         self.description, self.obj, self.patch = description, obj, patch
         self.model = description.model
         self.grid = grid_of(obj) if grid is None else grid
@@ -120,6 +131,10 @@ class FastRobotHand:
                          for link, geom in self.geometry.items() if geom.rounded}
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)
+        capsules = [found for f, path in enumerate(self.paths)
+                    if (found := capsule_finger(f, path, self.geometry)) is not None]
+        self._capsules = (CapsuleFingers(capsules, obj, self.grid, description.palm_link)
+                          if capsules and compiled else None)
         self._parts = (planes, plane_starts, self.edges, edge_starts,
                        np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
@@ -264,11 +279,16 @@ class FastRobotHand:
             "normals": [np.empty((0, 3))], "distances": [np.empty(0)]}
         queries = np.zeros(n, dtype=np.int64)
         free = np.flatnonzero(~start)
+        values_free = {k: v[free] for k, v in values0.items()}
+        compiled = ({} if self._capsules is None or contact_tol != CONTACT_TOL
+                    else self._capsules.close(palm[free], values_free))
         for f in range(len(fingers)):
             path = self.paths[f]
-            t, g, values, last = close_finger(self, path, palm[free],
-                                                    {k: v[free] for k, v in values0.items()},
-                                                    contact_tol, queries, free)
+            if f in compiled:
+                t, g, values, last = _compiled_finger(path, compiled[f])
+            else:
+                t, g, values, last = close_finger(self, path, palm[free], values_free,
+                                                  contact_tol, queries, free)
             gaps[free, f], travel[free, f] = g, t
             for name in path.joints:
                 final[name][free] = values[name]
@@ -327,3 +347,16 @@ class FastRobotHand:
             normals[edge] = found
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return points, normals
+
+
+def _compiled_finger(path: FingerPath, closed: tuple) -> tuple:
+    """A compiled capsule finger's closing (:meth:`~kinegrasp_env.closing.capsule_fingers.
+    CapsuleFingers.close`'s) as :func:`~kinegrasp_env.closing.finger_closing.close_finger`
+    gives one: (t, gap, its joints' values, per link (pose: unused for a rounded part,
+    distance, core point, object point, rounded))."""
+    final, gap, travel, links = closed
+    m = gap.shape[0]
+    values = {name: final[:, j] for j, name in enumerate(path.joints)}
+    last = {link: (np.full((m, 4, 4), np.nan), d, core, point, np.ones(m, dtype=bool))
+            for link, (d, core, point) in links.items()}
+    return travel, gap, values, last
