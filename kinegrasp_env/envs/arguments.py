@@ -1,13 +1,20 @@
 """The checks of the environments' arguments, reset options and actions: each returns the
-value in the form the env keeps, or raises a ValueError of one line naming the bad value."""
+value in the form the env keeps, or raises a ValueError of one line naming the bad value
+(:func:`env_arguments`: every constructor argument of the KineGrasp env at once)."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA
+from kinegrasp_env.envs.robot_task import ROBOT_N_DRAWS, SCORES
+from kinegrasp_env.envs.tasks import GRASP_OPTIONS
+from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA
+from kinegrasp_env.physics.simulators import check_simulator
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS
 
 
 def box_action(action, shape: tuple[int, ...], meaning: str) -> np.ndarray:
@@ -93,3 +100,110 @@ def reset_sigma(value) -> float:
         raise ValueError(f"sigma must be finite and >= 0 and at most pi ({MAX_SIGMA:.4f}) "
                          f"radians, got {value!r}")
     return sigma
+
+
+#: The reset options the envs take (:mod:`kinegrasp_env.envs.task_choice` documents them).
+RESET_OPTIONS = ("object", *GRASP_OPTIONS, "sigma", "noise", "psi", "noise_model")
+
+
+def reset_options(options) -> dict:
+    """The reset ``options`` as a fresh dict (None: empty), checked: a dict of
+    :data:`RESET_OPTIONS` only; ValueError (one line) otherwise."""
+    if options is not None and not isinstance(options, dict):
+        raise ValueError(f"reset options must be a dict or None, got {options!r}")
+    options = dict(options or {})
+    unknown = set(options) - set(RESET_OPTIONS)
+    if unknown:
+        raise ValueError(f"unknown reset options {sorted(unknown)}")
+    return options
+
+
+def reset_psi(value) -> float:
+    """A ``psi`` reset option (the elbow angle to start at), validated: a finite number of
+    radians; ValueError (one line, naming the value) otherwise."""
+    if not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
+        raise ValueError(f"psi must be a finite elbow angle in radians, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class EnvArguments:
+    """The KineGrasp env's constructor arguments, checked, with their defaults filled in
+    (:class:`~kinegrasp_env.envs.kinegrasp.KineGraspEnv` documents each one)."""
+
+    robot: str
+    n_draws: int
+    engine: str
+    score: str
+    render_mode: str | None
+    reward: str
+    hold_simulator: str
+    batch_size: int
+    max_steps: int
+    sigma_range: tuple[float, float]  # radians
+    noise_types: tuple[str, ...]
+    q_weight: float
+    limit_penalty: float
+    step_size: float  # radians of psi per unit action
+    split: str | None
+    objects: tuple[str, ...] | None
+
+    @property
+    def default_robot(self) -> bool:
+        """Whether the robot is the default one (``kuka_sdh``)."""
+        return self.robot == DEFAULT_ROBOT
+
+
+def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score: str,
+                  render_mode: str | None, render_modes: list[str], reward: str,
+                  hold_simulator: str, batch_size: int, max_steps: int,
+                  sigma_range: tuple[float, float], noise_types: tuple[str, ...],
+                  q_weight: float, limit_penalty: float, step_size: float, split: str | None,
+                  objects: tuple[str, ...] | None) -> EnvArguments:
+    """The KineGrasp env's constructor arguments, checked in the order the constructor
+    takes them: ``n_draws`` None is 64 for the default robot, :data:`~kinegrasp_env.envs.
+    robot_task.ROBOT_N_DRAWS` for another; ``engine`` None is ``fast``; ``render_modes`` are
+    the env's (its ``metadata``).
+
+    Raises:
+        ValueError: one line naming the first bad argument and its value (an unknown robot:
+            :func:`~kinegrasp_env.robot.catalog.check_robot_name`'s error).
+    """
+    robot = check_robot_name(robot)
+    own = robot == DEFAULT_ROBOT
+    if n_draws is None:
+        n_draws = 64 if own else ROBOT_N_DRAWS
+    if engine is None:
+        engine = "fast"
+    if score not in SCORES:
+        raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
+    if render_mode not in (None, *render_modes):
+        raise ValueError(f"render_mode must be None or one of "
+                         f"{', '.join(render_modes)}, got {render_mode!r}")
+    if reward not in ("draws", "batch"):
+        raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
+    if hold_simulator != "pybullet" and score != "hold":
+        raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
+                         "simulator; it runs with score='hold'")
+    if own and score == "hold":
+        check_simulator(hold_simulator)
+    if reward == "batch" and score != "pfc":
+        raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
+                         "reward 'draws'")
+    batch_size = positive_count("batch_size", batch_size)
+    n_draws = positive_count("n_draws", n_draws)
+    max_steps = positive_count("max_steps", max_steps)
+    sigma_range = sigma_bounds(sigma_range)
+    noise_types = names_of("noise_types", noise_types, DISTRIBUTIONS)
+    q_weight = finite_number("q_weight", q_weight)
+    limit_penalty = finite_number("limit_penalty", limit_penalty)
+    step_size = finite_number("step_size", step_size, positive=True)
+    if split not in (None, "train", "test"):
+        raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if objects is not None:
+        objects = names_of("objects", objects)
+    return EnvArguments(robot, n_draws, engine, score, render_mode, reward, hold_simulator,
+                        batch_size, max_steps, sigma_range, noise_types, q_weight,
+                        limit_penalty, step_size, split, objects)

@@ -30,6 +30,9 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
+from kinegrasp_env.robot.branch_motion import BranchMotion
+from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.null_motion import ArmSelfMotion
 
 #: Elbow angles (radians) either side of the episode's start the batch covers.
 SPAN = 1.2
@@ -83,6 +86,31 @@ def covered_angles(psi0: float) -> list[float]:
     """The elbow angles (radians) besides ``psi0`` the batch covers."""
     steps = round(SPAN / SPAN_STEP)
     return [psi0 + sign * k * SPAN_STEP for k in range(1, steps + 1) for sign in (-1.0, 1.0)]
+
+
+def covered_configurations(q0: np.ndarray,
+                           elbow: ArmIK | ArmSelfMotion | BranchMotion) -> list[np.ndarray]:
+    """The configurations (each (dof,): q0's palm pose) a grasp's batch covers besides
+    q0: the elbow angles of :func:`covered_angles`, where reachable; a 6-joint arm's other
+    IK branches.
+
+    Args:
+        q0: (dof,) the grasp's configuration, radians.
+        elbow: the arm's elbow coordinate: the default robot's IK, a description robot's
+            self-motion, or its IK branches (``angle_links`` None: an arm without
+            self-motion).
+    """
+    if not isinstance(elbow, ArmIK) and elbow.angle_links is None:
+        own, _ = elbow.branch_of(q0)
+        return [np.concatenate([arm, q0[elbow.arm:]])
+                for k, arm in enumerate(elbow.branches(q0)) if k != own]
+    if not isinstance(elbow, ArmIK):
+        psis = covered_angles(float(elbow.elbow_angle(q0[None])[0]))
+        moved = [elbow.set_elbow_angle(q0, psi) for psi in psis]
+        return [q for q, reached in moved if reached]
+    psis = np.array(covered_angles(float(elbow.elbow_angle(q0[None])[0])))
+    moved, reached = elbow.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
+    return list(moved[reached])
 
 
 def sigma_levels(low: float, high: float) -> list[float]:

@@ -11,23 +11,9 @@ configuration, plus ``q_weight`` times the mean Ferrari-Canny Q, minus ``limit_p
 the requested motion would leave the joint limits (the arm then stays at the last reachable
 point).
 
-Reset options (all optional): ``object``; the grasp as ONE of ``grasp`` (an index into the
-env's grasps of the object: the shipped set, or ``grasp_file``), ``q0`` (a nominal
-configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md; another
-robot's actuated vector) or ``palm_pose`` (one palm-pose entry in the object frame, the
-schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
-``pose``, with ``spread`` or a 7-value ``hand`` (another robot: its pre-shape as its
-description names it), optional ``elbow``; solved by the planner's IK, see
-:mod:`kinegrasp_env.robot.palm_pose`); ``sigma`` and ``noise`` (or ``noise_model``); ``psi``
-(an elbow angle to start at). ``q0`` and ``palm_pose`` need ``object``, which may then be any
-built-in or imported object (not only the env's ``objects``); the nominal contacts and Q are
-computed at reset by closing the hand once at q0 with the env's engine, and a hand that does
-not close on the object (``start_collision`` or ``missed``: a task needs >= 2 contacts with
-every finger on the object; ``no_force_closure`` is a task with nominal Q = 0), an
-unreachable palm pose, a q0 of the wrong length, not finite or outside the joint limits are
-ValueErrors (:mod:`kinegrasp_env.envs.tasks`). Such a task's ``info["grasp"]`` is ``"q0"``
-or the palm pose's ``id`` (default ``"palm_pose"``); the observation is as for a shipped
-grasp.
+Reset options (all optional): the task's object, grasp (an index into the env's grasps, a
+``q0`` or a ``palm_pose``, closed once at reset) and noise, and the elbow angle ``psi`` to
+start at; :mod:`kinegrasp_env.envs.task_choice` documents each one.
 
 Observation (float32, 44 entries, every one scaled to roughly [-1, 1]):
 
@@ -78,63 +64,31 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from kinegrasp_env.envs.arguments import (
-    box_action,
-    finite_number,
-    names_of,
-    positive_count,
-    reset_sigma,
-    sigma_bounds,
-)
+from kinegrasp_env.envs.arguments import box_action, env_arguments, reset_options, reset_psi
 from kinegrasp_env.envs.batch_reward import (
     BatchReward,
-    covered_angles,
+    covered_configurations,
     grasp_seed,
     sigma_levels,
 )
 from kinegrasp_env.envs.draw_reward import DrawReward
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
 from kinegrasp_env.envs.render import human_window_available
-from kinegrasp_env.envs.robot_task import (
-    ROBOT_N_DRAWS,
-    SCORES,
-    RobotTask,
-    robot_tasks,
-)
-from kinegrasp_env.envs.tasks import (
-    GRASP_OPTIONS,
-    given_grasp,
-    given_robot_grasp,
-    grasp_option,
-)
+from kinegrasp_env.envs.robot_task import RobotTask, robot_tasks
+from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
 from kinegrasp_env.montecarlo.engines import Engine
-from kinegrasp_env.montecarlo.evaluate import ENGINES
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
-from kinegrasp_env.physics.simulators import check_simulator
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics
 from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.noise_spec import noise_model_from, spec_of
+from kinegrasp_env.sampling.noise_spec import noise_model_from
 from kinegrasp_env.world.grasps import Grasp
 
 OBS_SIZE = 3 * 7 + OBS_EXTRA  # the default robot: 7 arm joints (twice), 7 hand joints
 OBS_LIMIT = 10.0
-
-
-def joint_sigma(noise: JointNoise | NoiseModel) -> float:
-    """The joint sigma ``info`` shows (radians): the largest over the arm joints."""
-    return float(noise.sigma_vector(7).max())
-
-
-def noise_info(noise: JointNoise | NoiseModel) -> dict:
-    """The noise entries of ``info``: sigma and noise type of the joints, and a model's spec."""
-    info = {"sigma": joint_sigma(noise), "noise": noise.kind}
-    if isinstance(noise, NoiseModel):
-        info["noise_model"] = spec_of(noise)
-    return info
 
 
 class KineGraspEnv(gym.Env):
@@ -213,69 +167,44 @@ class KineGraspEnv(gym.Env):
                  batch_size: int = 4096, score: str = "pfc",
                  hold_simulator: str = "pybullet") -> None:
         super().__init__()
-        self.robot = check_robot_name(robot)
-        own = robot == DEFAULT_ROBOT
-        if n_draws is None:
-            n_draws = 64 if own else ROBOT_N_DRAWS
-        if engine is None:
-            engine = "fast"
-        if score not in SCORES:
-            raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"render_mode must be None or one of "
-                             f"{', '.join(self.metadata['render_modes'])}, got {render_mode!r}")
-        if reward not in ("draws", "batch"):
-            raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
-        if hold_simulator != "pybullet" and score != "hold":
-            raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
-                             "simulator; it runs with score='hold'")
-        if own and score == "hold":
-            check_simulator(hold_simulator)
-        if reward == "batch" and score != "pfc":
-            raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
-                             "reward 'draws'")
-        batch_size = positive_count("batch_size", batch_size)
-        n_draws = positive_count("n_draws", n_draws)
-        max_steps = positive_count("max_steps", max_steps)
-        sigma_range = sigma_bounds(sigma_range)
-        noise_types = names_of("noise_types", noise_types, DISTRIBUTIONS)
-        q_weight = finite_number("q_weight", q_weight)
-        limit_penalty = finite_number("limit_penalty", limit_penalty)
-        step_size = finite_number("step_size", step_size, positive=True)
-        if split not in (None, "train", "test"):
-            raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
-        if engine not in ENGINES:
-            raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-        if objects is not None:
-            objects = names_of("objects", objects)
-        self.tasks = robot_tasks(robot, objects, grasp_file)
-        if split is not None:
-            keep = (lambda i: i % 4 == 3) if split == "test" else (lambda i: i % 4 != 3)
+        args = env_arguments(
+            robot=robot, n_draws=n_draws, engine=engine, score=score, render_mode=render_mode,
+            render_modes=self.metadata["render_modes"], reward=reward,
+            hold_simulator=hold_simulator, batch_size=batch_size, max_steps=max_steps,
+            sigma_range=sigma_range, noise_types=noise_types, q_weight=q_weight,
+            limit_penalty=limit_penalty, step_size=step_size, split=split, objects=objects)
+        self.robot = args.robot
+        own = args.default_robot
+        self.tasks = robot_tasks(args.robot, args.objects, grasp_file)
+        if args.split is not None:
+            keep = (lambda i: i % 4 == 3) if args.split == "test" else (lambda i: i % 4 != 3)
             self.tasks = {name: [g for i, g in enumerate(gs) if keep(i)]
                           for name, gs in self.tasks.items()}
         self.object_names = tuple(sorted(self.tasks))
-        self.sigma_range = tuple(float(s) for s in sigma_range)
-        self.noise_types = tuple(noise_types)
-        self.n_draws = int(n_draws)
-        self.q_weight = float(q_weight)
-        self.limit_penalty = float(limit_penalty)
-        self.max_steps = int(max_steps)
-        self.step_size = float(step_size)
-        self.render_mode = render_mode
-        self._window = render_mode == "human" and human_window_available()
-        self._robot = None if own else RobotTask(robot, engine, score, hold_simulator)
-        self.score = score
+        self.sigma_range = args.sigma_range
+        self.noise_types = args.noise_types
+        self.n_draws = args.n_draws
+        self.q_weight = args.q_weight
+        self.limit_penalty = args.limit_penalty
+        self.max_steps = args.max_steps
+        self.step_size = args.step_size
+        self.render_mode = args.render_mode
+        self._window = self.render_mode == "human" and human_window_available()
+        self._robot = (None if own else
+                       RobotTask(args.robot, args.engine, args.score, args.hold_simulator))
+        self.score = args.score
         size = OBS_SIZE if own else self._robot.obs_size
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
         self.action_space = self._action_space()
-        self.engine = engine
-        self.reward_method, self.batch_size = reward, int(batch_size)
+        self.engine = args.engine
+        self.reward_method, self.batch_size = args.reward, args.batch_size
         self._batch: BatchReward | None = None
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
-        self._jacobian = (None if reward != "batch" else PalmJacobian() if own
+        self._jacobian = (None if args.reward != "batch" else PalmJacobian() if own
                           else PalmJacobian(self._robot.description))
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
-        self._draws = DrawReward(engine, score, hold_simulator)  # the default robot's
+        # the default robot's reward draws (another robot's: self._robot)
+        self._draws = DrawReward(args.engine, args.score, args.hold_simulator)
         if self.noise_model is not None:
             self._task.check_noise(self.noise_model)
         self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
@@ -338,56 +267,12 @@ class KineGraspEnv(gym.Env):
         return moved[0].copy(), bool(ok[0])
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
-        key = grasp_option(options)
-        if key in ("q0", "palm_pose") and self._robot is not None:
-            grasp = given_robot_grasp(options, key, self._robot)
-        elif key in ("q0", "palm_pose"):
-            grasp = given_grasp(options, key, self._engine, self.ik)
-        else:
-            grasp = self._shipped_task(options)
-        return grasp, self._pick_noise(options)
-
-    def _shipped_task(self, options: dict) -> Grasp:
-        """A grasp of the env's tasks: the ``object`` and ``grasp`` options, or drawn."""
-        rng = self.np_random
-        name = options.get("object")
-        if name is None:
-            name = self.object_names[rng.integers(len(self.object_names))]
-        elif name not in self.tasks:
-            raise ValueError(f"unknown object {name!r}; this env has "
-                             f"{', '.join(self.object_names)}")
-        grasps = self.tasks[name]
-        index = options.get("grasp")
-        if index is None:
-            index = int(rng.integers(len(grasps)))
-        elif isinstance(index, bool) or not isinstance(index, (int, np.integer)):
-            raise ValueError(f"reset option grasp must be an integer index into {name}'s "
-                             f"{len(grasps)} grasps, got {index!r}")
-        elif not 0 <= index < len(grasps):
-            raise ValueError(f"grasp index {index} out of range: {name} has {len(grasps)} "
-                             f"(0..{len(grasps) - 1})")
-        return grasps[int(index)]
-
-    def _pick_noise(self, options: dict) -> JointNoise | NoiseModel:
-        """The task's noise: the ``noise_model`` option or the env's, else joint noise of the
-        ``sigma`` and ``noise`` options (drawn from the env's ranges where not given)."""
-        rng = self.np_random
-        model = options.get("noise_model", self.noise_model)
-        if model is not None:
-            if options.get("sigma") is not None or options.get("noise") is not None:
-                raise ValueError("give the reset option noise_model or sigma/noise, not both")
-            model = noise_model_from(model)
-            self._task.check_noise(model)
-            return model
-        sigma = options.get("sigma")
-        if sigma is None:
-            sigma = float(rng.uniform(*self.sigma_range))
-        else:
-            sigma = reset_sigma(sigma)
-        kind = options.get("noise")
-        if kind is None:
-            kind = self.noise_types[rng.integers(len(self.noise_types))]
-        return JointNoise(float(sigma), kind)
+        """The episode's grasp and noise, drawn with the env's RNG where the options leave
+        them open (:mod:`kinegrasp_env.envs.task_choice`)."""
+        grasp = pick_grasp(options, self.np_random, self.tasks, self.object_names, self._robot,
+                           self._engine, lambda: self.ik)
+        return grasp, pick_noise(options, self.np_random, self.sigma_range, self.noise_types,
+                                 self.noise_model, self._task.check_noise)
 
     def _observation(self) -> np.ndarray:
         task = self._observer if self._robot is None else self._robot.observer
@@ -424,21 +309,8 @@ class KineGraspEnv(gym.Env):
 
     def _covered_configurations(self, q0: np.ndarray) -> list[np.ndarray]:
         """The configurations (each (dof,): q0's palm pose) a grasp's batch covers besides
-        q0: the elbow angles of :func:`~kinegrasp_env.envs.batch_reward.covered_angles`,
-        where reachable; a 6-joint arm's other IK branches."""
-        if self._branches:
-            motion = self._robot.motion
-            own, _ = motion.branch_of(q0)
-            return [np.concatenate([arm, q0[motion.arm:]])
-                    for k, arm in enumerate(motion.branches(q0)) if k != own]
-        if self._robot is not None:
-            motion = self._robot.motion
-            psis = covered_angles(float(motion.elbow_angle(q0[None])[0]))
-            moved = [motion.set_elbow_angle(q0, psi) for psi in psis]
-            return [q for q, reached in moved if reached]
-        psis = np.array(covered_angles(float(self.ik.elbow_angle(q0[None])[0])))
-        moved, reached = self.ik.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
-        return list(moved[reached])
+        q0 (dof,): :func:`~kinegrasp_env.envs.batch_reward.covered_configurations`."""
+        return covered_configurations(q0, self.ik if self._robot is None else self._robot.motion)
 
     def _move_to(self, psi: float) -> bool:
         self.q, reached = self.configuration_at(psi)
@@ -473,22 +345,13 @@ class KineGraspEnv(gym.Env):
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(f"reset options must be a dict or None, got {options!r}")
-        options = dict(options or {})
-        unknown = set(options) - {"object", *GRASP_OPTIONS, "sigma", "noise", "psi",
-                                  "noise_model"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        options = reset_options(options)
         self.grasp, self.noise = self._pick_task(options)
         self.q = self.grasp.q0.copy()
         self.steps = 0
         self._branch_psi = None
         if options.get("psi") is not None:
-            psi = options["psi"]
-            if not isinstance(psi, (int, float, np.number)) or not math.isfinite(psi):
-                raise ValueError(f"psi must be a finite elbow angle in radians, got {psi!r}")
-            self._move_to(float(psi))
+            self._move_to(reset_psi(options["psi"]))
         elbow = self.ik if self._robot is None else self._robot.motion
         psi0 = (self._branch_psi if self._branch_psi is not None
                 else float(elbow.elbow_angle(self.q[None])[0]))
