@@ -323,8 +323,9 @@ class FastRobotHand:
         (:func:`~kinegrasp_env.closing.rounded_links.contact_normals`); else on a face
         (:func:`~kinegrasp_env.closing.contact_patch.faces_of`) its inward normal and the
         patch centre, or at an edge the direction of the pair."""
-        part, plane = faces_of(self.obj, point, EDGE_TOL)
-        part[rounded] = -1
+        part, plane = np.full(point.shape[0], -1), np.zeros((point.shape[0], 4))
+        if not rounded.all():  # a rounded part's contact is the point model's
+            part[~rounded], plane[~rounded] = faces_of(self.obj, point[~rounded], EDGE_TOL)
         on_face = part >= 0
         normals = -plane[:, :3]
         points = point.copy()
