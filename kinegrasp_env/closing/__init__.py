@@ -5,7 +5,8 @@ its hand in pybullet: ``hand_probe``) and ``fast.FastHand`` (a batch of draws: d
 and compiled kernels). Both follow the rules of ``close_rules`` and share the exact
 near-contact geometry of ``hand_geometry`` and ``segment_distance`` (its packed parts:
 ``packed_geometry``, its small kernels: ``segment_primitives``); the compiled closing loop is
-``close_kernel``, its per-row helpers ``finger_axes`` and ``capsule_gap``. Any robot of the
+``close_kernel``, its per-row helpers ``finger_axes`` and ``capsule_gap``, the same loop as
+array operations ``close_vectorized``. Any robot of the
 catalog (a description beside a URDF): ``generic_reference`` (pybullet closest points) and
 ``generic_fast`` (batched; the links' geometry from ``link_geometry``, object edges against
 link hulls in ``hull_edges``), pads pressed on faces at their patch centres

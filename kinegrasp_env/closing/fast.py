@@ -5,9 +5,10 @@ per finger: conservative steps of at least ``STEP``, bisection to ``CONTACT_TOL`
 contact freezes the proximal joint, a distal contact ends the finger), run for all fingers of all
 draws at once: the three fingers of a draw never interact, so every (draw, finger) pair is
 an independent closing problem and one iteration advances all of them with array operations
-(``closing="vectorized"``). By default (``closing="compiled"``) each problem's whole loop runs
-in one numba call instead (:mod:`kinegrasp_env.closing.close_kernel`, bit-identical; the array form
-pays a fixed cost per iteration that dominates small batches).
+(``closing="vectorized"``, :mod:`kinegrasp_env.closing.close_vectorized`). By default
+(``closing="compiled"``) each problem's whole loop runs in one numba call instead
+(:mod:`kinegrasp_env.closing.close_kernel`, bit-identical; the array form pays a fixed cost per
+iteration that dominates small batches).
 Distances come from the object's :class:`~kinegrasp_env.world.sdf.DistanceGrid` instead of
 pybullet, and within ``GRID_EXACT_BAND`` of contact from the exact capsule-object distance, as in
 the reference engine; the finger links are the URDF's capsules, the palm and knuckles its
@@ -32,20 +33,10 @@ from kinegrasp_env.closing.close_kernel import (
     geometry_args,
     grid_args,
 )
+from kinegrasp_env.closing.close_vectorized import close_problems
 from kinegrasp_env.closing.finger_axes import finger_axes
 from kinegrasp_env.closing.hand_geometry import Shape, hand_shapes, pair_contacts
-from kinegrasp_env.closing.reference import (
-    CONTACT_TOL,
-    MAX_ITERATIONS,
-    POLISH_ITERATIONS,
-    POLISH_PROBE,
-    POLISH_RANGE,
-    POLISH_TOL,
-    QUERY_DISTANCE,
-    START_TOL,
-    STEP,
-    closing_speeds,
-)
+from kinegrasp_env.closing.reference import START_TOL, closing_speeds
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
@@ -178,8 +169,8 @@ class FastHand:
         left = self.obj.pose_inverse if to_object is None else to_object
         return {name: left @ pose for name, pose in world.items()}
 
-    def _capsule_gaps(self, a: np.ndarray, b: np.ndarray, radius: float | np.ndarray
-                      ) -> np.ndarray:
+    def grid_or_exact_gaps(self, a: np.ndarray, b: np.ndarray, radius: float | np.ndarray
+                           ) -> np.ndarray:
         """Gaps (m,) of capsules with axis ends a, b (m, 3) and radius (a float, or (m,)
         metres): exact within ``GRID_EXACT_BAND`` of contact, from the grid elsewhere."""
         radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(a),))
@@ -196,8 +187,8 @@ class FastHand:
         ends = [capsule_axis(frames[shape.link], shape) for shape in shapes]
         n = len(ends[0][0])
         radius = np.repeat([shape.radius for shape in shapes], n)
-        gap = self._capsule_gaps(np.concatenate([e[0] for e in ends]),
-                                 np.concatenate([e[1] for e in ends]), radius)
+        gap = self.grid_or_exact_gaps(np.concatenate([e[0] for e in ends]),
+                                      np.concatenate([e[1] for e in ends]), radius)
         return (gap.reshape(len(shapes), n) < -START_TOL).any(axis=0)
 
     def cylinder_collision(self, frames: dict[str, np.ndarray]) -> np.ndarray:
@@ -215,8 +206,8 @@ class FastHand:
                       np.ascontiguousarray(poses[..., :3, 3]), *self._screen, hit)
         return hit
 
-    def _link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
-                   dist: np.ndarray) -> np.ndarray:
+    def link_axes(self, joint_frames: np.ndarray, finger: int, prox: np.ndarray,
+                  dist: np.ndarray) -> np.ndarray:
         """Axis ends (m, 4, 3) [proximal a, b, distal a, b] for flexions prox, dist (m,)."""
         ends_p, ends_d = self.axis_ends[finger]
         return finger_axes(joint_frames, self.axis_p[finger], prox, self.distal_origin[finger],
@@ -245,33 +236,21 @@ class FastHand:
         zero = self.frames(q_zero, [f[2] for f in FINGERS],
                             None if to_object is None else to_object[draws])
         hand = q[draws, 7:]
-        if self.closing == "compiled":
-            self._close_compiled(draws, zero, hand, out)
-            return out
-        problems = []
-        for f in range(3):
-            problems.append(_Problems(draws, zero[FINGERS[f][2]],
-                                      hand[:, HAND_JOINTS.index(FINGERS[f][0])],
-                                      hand[:, HAND_JOINTS.index(FINGERS[f][1])],
-                                      self.upper[f]))
-        iterations = 0
-        while iterations < MAX_ITERATIONS and any(p.active.any() for p in problems):
-            iterations += 1
-            for f, prob in enumerate(problems):
-                self._advance(f, prob, out)
-        for f, prob in enumerate(problems):
-            out.missed[prob.draws, f] = prob.missed
-            out.flexion[prob.draws, f] = np.stack(prob.values(np.arange(prob.draws.size)), 1)
-        out.iterations = iterations
-        return out
-
-    def _close_compiled(self, draws: np.ndarray, zero: dict[str, np.ndarray], hand: np.ndarray,
-                        out: BatchClose) -> None:
-        """The closing loop in one compiled call, then the contacts of the closest pairs."""
-        m = draws.size
         joint_frames = np.ascontiguousarray(np.stack([zero[f[2]] for f in FINGERS], axis=1))
         prox0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[0]) for f in FINGERS]])
         dist0 = np.ascontiguousarray(hand[:, [HAND_JOINTS.index(f[1]) for f in FINGERS]])
+        if self.closing == "compiled":
+            self._close_compiled(draws, joint_frames, prox0, dist0, out)
+        else:
+            self._close_vectorized(draws, joint_frames, prox0, dist0, out)
+        return out
+
+    def _close_compiled(self, draws: np.ndarray, joint_frames: np.ndarray, prox0: np.ndarray,
+                        dist0: np.ndarray, out: BatchClose) -> None:
+        """The closing loop in one compiled call, then the contacts of the closest pairs:
+        draws (m,) the rows of ``out`` closed, joint_frames (m, 3, 4, 4), prox0 / dist0
+        (m, 3) as :func:`~kinegrasp_env.closing.close_vectorized.close_problems` takes."""
+        m = draws.size
         found = np.zeros((m, 3, 2), dtype=bool)
         pairs = np.zeros((m, 3, 2, PAIR_SIZE))
         missed = np.zeros((m, 3), dtype=bool)
@@ -289,168 +268,18 @@ class FastHand:
             out.points[draws[rows], fingers, links] = point
             out.normals[draws[rows], fingers, links] = normal
 
-    def _advance(self, f: int, prob: _Problems, out: BatchClose) -> None:
-        """One closing iteration of finger f for its active problems."""
-        rows = np.flatnonzero(prob.active)
-        if rows.size == 0:
-            return
-        gap_p, gap_d = self._gaps_now(f, prob, rows)
-        gap = np.minimum(gap_p, gap_d)
-        t, t_lo, t_hi = prob.t[rows], prob.t_lo[rows], prob.t_hi[rows]
-        bracket_closed = ~np.isnan(t_hi) & (t_hi - t_lo < 1e-9)
-        touch = ((gap >= -CONTACT_TOL) & (gap <= CONTACT_TOL)) | (bracket_closed
-                                                                 & (gap <= CONTACT_TOL))
-        if touch.any():
-            self._touch_down(f, prob, rows[touch], t[touch], gap[touch], out)
-        apart = ~touch
-        self._step_or_bisect(prob, rows[apart], t[apart], t_lo[apart], t_hi[apart], gap[apart],
-                             self._travel(prob.phase[rows[apart]], gap_p[apart], gap_d[apart]))
-
-    def _travel(self, phase: np.ndarray, gap_p: np.ndarray, gap_d: np.ndarray) -> np.ndarray:
-        """:func:`~kinegrasp_env.closing.reference.closing_travel` of m problems (phase,
-        gaps (m,)), the same arithmetic: radians (m,)."""
-        phase1 = phase == 1
-        travel = gap_d / np.where(phase1, self.speed.distal, self.speed.distal_alone)
-        return np.where(phase1, np.minimum(travel, gap_p / self.speed.proximal), travel)
-
-    def _gaps_now(self, f: int, prob: _Problems, rows: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
-        """Gaps (m,) of finger f's proximal and distal links for problem rows at their
-        current t (the grid's, exact within ``GRID_EXACT_BAND``; at most ``QUERY_DISTANCE``;
-        the proximal one inf outside phase 1, where it does not move)."""
-        phase1 = prob.phase[rows] == 1
-        prox, dist = prob.values(rows)
-        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
-        gap_d = self._capsule_gaps(ends[:, 2], ends[:, 3], self.capsules[f][1].radius)
-        gap_p = np.full(rows.size, np.inf)
-        if phase1.any():
-            sub = np.flatnonzero(phase1)
-            gap_p[sub] = self._capsule_gaps(ends[sub, 0], ends[sub, 1],
-                                             self.capsules[f][0].radius)
-        gap_p = np.minimum(gap_p, QUERY_DISTANCE)
-        gap_d = np.minimum(gap_d, QUERY_DISTANCE)
-        gap_p[~phase1] = np.inf
-        return gap_p, gap_d
-
-    def _touch_down(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
-                    gap: np.ndarray, out: BatchClose) -> None:
-        """Touching problem rows (m,) at t, gap (m,): polish t to the root of the exact gap,
-        record the contacts of the links touching there (exact closest pairs of their axes
-        and the object). A distal contact ends the problem; a proximal one alone freezes
-        the proximal joint and the distal one goes on (phase 2)."""
-        t_root = self._polish(f, prob, rows, t, gap)
-        prob.t[rows] = t_root
-        prox_t, dist_t = prob.values(rows)
-        link_gaps, pairs = self._exact_at(f, prob, rows, t_root)
-        self._record_contacts(f, prob, rows, link_gaps, pairs, out)
-        distal = link_gaps[:, 1] <= CONTACT_TOL
-        prob.active[rows[distal]] = False
-        switch = ~distal
-        if switch.any():
-            r = rows[switch]
-            prob.start_p[r], prob.start_d[r] = prox_t[switch], dist_t[switch]
-            prob.phase[r] = 2
-            prob.t_lo[r], prob.t_hi[r] = 0.0, np.nan
-            t_max = prob.t_max(r)
-            prob.active[r[t_max <= 0.0]] = False
-            prob.t[r] = np.where(t_max <= 0.0, 0.0, np.minimum(STEP, t_max))
-
-    def _record_contacts(self, f: int, prob: _Problems, rows: np.ndarray,
-                         link_gaps: np.ndarray, pairs: tuple, out: BatchClose) -> None:
-        """Contacts of finger f's links whose exact gap (``link_gaps`` (m, 2), ``pairs`` as
-        returned by :meth:`_exact_at` for problem rows (m,)) is within ``CONTACT_TOL``."""
-        where, on_obj, on_seg, distance, part = pairs
-        for link in (0, 1):
-            sel = np.flatnonzero(link_gaps[:, link] <= CONTACT_TOL)
-            if sel.size == 0:
-                continue
-            q = where[sel, link]
-            point, normal = pair_contacts(self.obj, on_obj[q], on_seg[q], distance[q], part[q])
-            draw = prob.draws[rows[sel]]
-            out.found[draw, f, link] = True
-            out.points[draw, f, link] = point
-            out.normals[draw, f, link] = normal
-            prob.has_contact[rows[sel]] = True
-
-    def _step_or_bisect(self, prob: _Problems, rows: np.ndarray, t: np.ndarray,
-                        t_lo: np.ndarray, t_hi: np.ndarray, gap: np.ndarray,
-                        travel: np.ndarray) -> None:
-        """Problem rows (m,) not touching at t (gap (m,), bracket [t_lo, t_hi], t_hi NaN
-        until a penetration is seen): a conservative step towards contact (``travel`` (m,),
-        see :meth:`_travel`) while unbracketed (missed at the joint limits without a
-        contact), else bisection of the bracket."""
-        free = gap > CONTACT_TOL
-        unbracketed = free & np.isnan(t_hi)
-        if unbracketed.any():
-            r = rows[unbracketed]
-            t_max = prob.t_max(r)
-            at_limit = t[unbracketed] >= t_max
-            prob.t_lo[r] = t[unbracketed]
-            prob.active[r[at_limit]] = False
-            prob.missed[r[at_limit]] = ~prob.has_contact[r[at_limit]]
-            step = np.maximum(travel[unbracketed], STEP)
-            go = ~at_limit
-            prob.t[r[go]] = np.minimum(t[unbracketed] + step, t_max)[go]
-        bracketed = free & ~np.isnan(t_hi)
-        if bracketed.any():
-            r = rows[bracketed]
-            prob.t_lo[r] = t[bracketed]
-            prob.t[r] = 0.5 * (t[bracketed] + t_hi[bracketed])
-        inside = ~free
-        if inside.any():
-            r = rows[inside]
-            prob.t_hi[r] = t[inside]
-            prob.t[r] = 0.5 * (t_lo[inside] + t[inside])
-
-    def _exact_at(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray):
-        """Exact gaps (m, 2) of finger f's links at parameters t (inf for a link that does
-        not move), for problem rows, and the exact closest pairs behind them: (where (m, 2),
-        on_obj, on_seg, distance, part), ``where[row, link]`` indexing the pair arrays (-1
-        where the link was not queried)."""
-        saved = prob.t[rows].copy()
-        prob.t[rows] = t
-        prox, dist = prob.values(rows)
-        prob.t[rows] = saved
-        ends = self._link_axes(prob.joint_frames[rows], f, prox, dist)
-        gaps = np.full((rows.size, 2), np.inf)
-        # one exact query for both links: the moving proximal links, then every distal one
-        moving = np.flatnonzero(prob.phase[rows] == 1)
-        starts = np.concatenate([ends[moving, 0], ends[:, 2]])
-        stops = np.concatenate([ends[moving, 1], ends[:, 3]])
-        on_obj, on_seg, distance, part = closest_to_segments(self.obj, starts, stops)
-        gaps[moving, 0] = distance[:moving.size] - self.capsules[f][0].radius
-        gaps[:, 1] = distance[moving.size:] - self.capsules[f][1].radius
-        # the closest pairs, by link: rows of the query for (row, link), -1 if not computed
-        where = np.full((rows.size, 2), -1)
-        where[moving, 0] = np.arange(moving.size)
-        where[:, 1] = moving.size + np.arange(rows.size)
-        return gaps, (where, on_obj, on_seg, distance, part)
-
-    def _polish(self, f: int, prob: _Problems, rows: np.ndarray, t: np.ndarray,
-                gap: np.ndarray) -> np.ndarray:
-        """Vectorized :func:`kinegrasp_env.closing.reference.secant_root` for problem rows."""
-        t_min = np.maximum(t - POLISH_RANGE, 0.0)
-        t_max = prob.t_max(rows)
-        t0 = np.maximum(t - POLISH_PROBE, t_min)
-        active = (t0 < t) & (np.abs(gap) > POLISH_TOL)
-        g0 = np.zeros(rows.size)
-        if active.any():
-            g0[active] = self._exact_at(f, prob, rows[active], t0[active])[0].min(axis=1)
-        t1, g1 = t.copy(), gap.copy()
-        best_t, best_g = t1.copy(), np.abs(g1)
-        for _ in range(POLISH_ITERATIONS):
-            active &= g1 != g0
-            if not active.any():
-                break
-            idx = np.flatnonzero(active)
-            t2 = np.minimum(np.maximum(t1[idx] - g1[idx] * (t1[idx] - t0[idx])
-                                       / (g1[idx] - g0[idx]), t_min[idx]), t_max[idx])
-            g2 = self._exact_at(f, prob, rows[idx], t2)[0].min(axis=1)
-            t0[idx], g0[idx], t1[idx], g1[idx] = t1[idx], g1[idx], t2, g2
-            better = np.abs(g2) < best_g[idx]
-            best_t[idx[better]], best_g[idx[better]] = t2[better], np.abs(g2[better])
-            active &= best_g > POLISH_TOL
-        return best_t
+    def _close_vectorized(self, draws: np.ndarray, joint_frames: np.ndarray,
+                          prox0: np.ndarray, dist0: np.ndarray, out: BatchClose) -> None:
+        """The closing loop one array-operation iteration at a time
+        (:func:`~kinegrasp_env.closing.close_vectorized.close_problems`), its results
+        written to the rows draws (m,) of ``out``."""
+        closed = close_problems(self, joint_frames, prox0, dist0)
+        out.missed[draws] = closed.missed
+        out.flexion[draws] = closed.flexion
+        out.found[draws] = closed.found
+        out.points[draws] = closed.points
+        out.normals[draws] = closed.normals
+        out.iterations = closed.iterations
 
 
 def capsule_axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarray]:
@@ -459,36 +288,3 @@ def capsule_axis(frames: np.ndarray, shape: Shape) -> tuple[np.ndarray, np.ndarr
     a_local, b_local = shape.axis_points()
     rot, trans = frames[:, :3, :3], frames[:, :3, 3]
     return rot @ a_local + trans, rot @ b_local + trans
-
-
-class _Problems:
-    """Closing state of one finger over the draws (the per-finger state of hand._Finger)."""
-
-    def __init__(self, draws: np.ndarray, joint_frames: np.ndarray,
-                 prox: np.ndarray, dist: np.ndarray, upper: np.ndarray) -> None:
-        m = draws.size
-        self.draws = draws
-        self.joint_frames = np.ascontiguousarray(joint_frames)
-        self.upper_p, self.upper_d = float(upper[0]), float(upper[1])
-        self.start_p = np.minimum(prox, self.upper_p)
-        self.start_d = np.minimum(dist, self.upper_d)
-        self.phase = np.ones(m, np.int8)
-        self.t = np.zeros(m)
-        self.t_lo = np.zeros(m)
-        self.t_hi = np.full(m, np.nan)
-        self.active = np.ones(m, bool)
-        self.missed = np.zeros(m, bool)
-        self.has_contact = np.zeros(m, bool)
-
-    def values(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        phase1 = self.phase[rows] == 1
-        t = self.t[rows]
-        prox = np.minimum(self.start_p[rows] + np.where(phase1, t, 0.0), self.upper_p)
-        dist = np.minimum(self.start_d[rows] + t, self.upper_d)
-        return prox, dist
-
-    def t_max(self, rows: np.ndarray) -> np.ndarray:
-        both = np.maximum(np.maximum(self.upper_p - self.start_p[rows],
-                                     self.upper_d - self.start_d[rows]), 0.0)
-        distal = np.maximum(self.upper_d - self.start_d[rows], 0.0)
-        return np.where(self.phase[rows] == 1, both, distal)
