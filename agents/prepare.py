@@ -79,7 +79,8 @@ def source_file(index: int) -> Path:
 
 def import_index(index: int, scale: float) -> bool:
     """Import (or reuse) object ``blobNNN``; False when the importer refuses the file."""
-    from kinegrasp_env.world.importer import ImportSettings, import_object
+    from kinegrasp_env.world.import_settings import ImportSettings
+    from kinegrasp_env.world.importer import import_object
     from kinegrasp_env.world.meshfile import MeshError
 
     try:

@@ -63,7 +63,8 @@ AGREE_SIGMAS = (0.0133, 0.0266)
 
 def import_all(names: list[str], rows: list[dict]) -> list[str]:
     """Import the meshes of ``names``; print a line and append a row to ``rows`` each."""
-    from kinegrasp_env.world.importer import ImportSettings, import_object
+    from kinegrasp_env.world.import_settings import ImportSettings
+    from kinegrasp_env.world.importer import import_object
 
     done = []
     print(f"{'object':<8} {'import [s]':>10} {'parts':>5} {'size x, y, z [m]':<22} "

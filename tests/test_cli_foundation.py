@@ -382,10 +382,10 @@ def test_gymnasium_ids_registered_when_gymnasium_loads():
 def test_the_listing_is_recomputed_whenever_the_catalog_changes(tmp_path, monkeypatch, capsys):
     """``kinegrasp objects`` serves its rows from a disk copy (no geometry loaded), so the
     copy must never be stale: after a placement and after a removal the listing equals the
-    catalog computed from scratch (``world.objects.catalog``, no copy involved); an unchanged
-    catalog is served without importing the geometry modules."""
+    catalog computed from scratch (``world.catalog_listing.catalog``, no copy involved); an
+    unchanged catalog is served without importing the geometry modules."""
     from kinegrasp_env.world.catalog_cache import cached_catalog
-    from kinegrasp_env.world.objects import catalog
+    from kinegrasp_env.world.catalog_listing import catalog
 
     monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
     monkeypatch.setenv("KINEGRASP_CACHE", str(tmp_path / "cache"))

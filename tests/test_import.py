@@ -28,7 +28,8 @@ from kinegrasp_env.cli.main import main
 from kinegrasp_env.world import importer
 from kinegrasp_env.world.decompose import mass_properties
 from kinegrasp_env.world.deviation import deviation, surface_distance, winding_number
-from kinegrasp_env.world.importer import ImportSettings, import_object
+from kinegrasp_env.world.import_settings import ImportSettings
+from kinegrasp_env.world.importer import import_object
 from kinegrasp_env.world.meshfile import MeshError
 from kinegrasp_env.world.meshprep import HAND_SPAN, check_size, clean_mesh
 from kinegrasp_env.world.objects import (

@@ -24,7 +24,8 @@ from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world import importer
 from kinegrasp_env.world.grasps import grasp_by_index
-from kinegrasp_env.world.importer import ImportSettings, import_object
+from kinegrasp_env.world.import_settings import ImportSettings, entry_key
+from kinegrasp_env.world.importer import import_object
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.store import CatalogError
 
@@ -210,10 +211,8 @@ def test_up_axis_becomes_z(tmp_path, monkeypatch, capsys, up):
 def test_up_z_keeps_the_keys_of_earlier_entries():
     """``--up z`` (the default) adds nothing to an entry's key: entries imported before the
     option existed are still reused."""
-    assert importer.entry_key("d", ImportSettings()) == importer.entry_key(
-        "d", ImportSettings(up="z"))
-    assert importer.entry_key("d", ImportSettings()) != importer.entry_key(
-        "d", ImportSettings(up="y"))
+    assert entry_key("d", ImportSettings()) == entry_key("d", ImportSettings(up="z"))
+    assert entry_key("d", ImportSettings()) != entry_key("d", ImportSettings(up="y"))
     with pytest.raises(CatalogError, match="up must be one of x, y, z, got 'w'"):
         ImportSettings(up="w").check()
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from kinegrasp_env.world.objects import OBJECT_NAMES, catalog, load_object
+from kinegrasp_env.world.catalog_listing import catalog
+from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld
 
 

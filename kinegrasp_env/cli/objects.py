@@ -48,8 +48,8 @@ def deviation_text(dev: dict | None) -> str:
 
 
 def import_settings(args):
-    """The :class:`~kinegrasp_env.world.importer.ImportSettings` of ``objects add``."""
-    from kinegrasp_env.world.importer import UNITS, ImportSettings
+    """The :class:`~kinegrasp_env.world.import_settings.ImportSettings` of ``objects add``."""
+    from kinegrasp_env.world.import_settings import UNITS, ImportSettings
 
     if args.scale is not None and args.units is not None:
         raise CLIError("give --scale or --units, not both")

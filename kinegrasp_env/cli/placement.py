@@ -48,7 +48,8 @@ def cmd_place(args) -> int:
     with reported(CatalogError, ValueError):  # unknown or built-in name, taken --as name
         name = place_object(args.name, as_name=args.as_name, position=position, yaw=yaw,
                             table=table, force=args.force, orientation=orientation)
-    from kinegrasp_env.world.objects import load_object, placement_fields
+    from kinegrasp_env.world.catalog_listing import placement_fields
+    from kinegrasp_env.world.objects import load_object
 
     fields = placement_fields(load_object(name))
     print(f"{name}: {placement_note(fields).lstrip('; ') or 'default placement, no table'}")

@@ -1,12 +1,13 @@
-"""The catalog listing without loading any geometry: :func:`kinegrasp_env.world.objects.catalog`
-remembered on disk.
+"""The catalog listing without loading any geometry:
+:func:`kinegrasp_env.world.catalog_listing.catalog` remembered on disk.
 
 A listing depends only on files: the built-in objects' assets, every imported entry's
 ``entry.json`` and the code that computes the rows. :func:`cached_catalog` keys a copy of the
 rows by a digest of all of them (``cache_root()/catalog/rows-<key>.json``) and serves it when
 nothing changed, so ``kinegrasp objects`` needs neither NumPy nor trimesh; anything changed
 (an import, a removal, a new placement, an edited asset or an upgrade) gives a new key and the
-rows are computed afresh by :func:`~kinegrasp_env.world.objects.catalog`, the one definition.
+rows are computed afresh by :func:`~kinegrasp_env.world.catalog_listing.catalog`, the one
+definition.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from kinegrasp_env.world.store import ENTRY_FILE, catalog_dir, imported_names
 
 _HERE = Path(__file__).resolve().parent
 #: The modules whose code computes a row (a change of any gives a new key).
-ROW_SOURCES = ("objects.py", "names.py", "store.py", "support.py", "catalog_cache.py")
+ROW_SOURCES = ("catalog_listing.py", "objects.py", "names.py", "store.py", "support.py",
+               "catalog_cache.py")
 
 
 def catalog_key() -> str:
@@ -50,7 +52,7 @@ def catalog_key() -> str:
 
 
 def cached_catalog() -> list[dict]:
-    """The rows of :func:`~kinegrasp_env.world.objects.catalog`, from the disk copy when
+    """The rows of :func:`~kinegrasp_env.world.catalog_listing.catalog`, from the disk copy when
     nothing they depend on changed.
 
     Raises:
@@ -66,7 +68,7 @@ def cached_catalog() -> list[dict]:
             return json.loads(path.read_text())
         except (OSError, ValueError):
             pass
-    from kinegrasp_env.world.objects import catalog
+    from kinegrasp_env.world.catalog_listing import catalog
 
     rows = catalog()
     if key is not None:
