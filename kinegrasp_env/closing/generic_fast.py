@@ -319,22 +319,23 @@ class FastRobotHand:
         """(points (m, 3), unit normals (m, 3)) of the contacts of ``link`` at its
         object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
         points (m, 3); ``rounded`` (m,): the pair is a rounded part's, whose link point is
-        its core's): a rounded part's at the object point, its normal from the core
-        (:func:`~kinegrasp_env.closing.rounded_links.contact_normals`); else on a face
-        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`) its inward normal and the
-        patch centre, or at an edge the direction of the pair."""
-        part, plane = np.full(point.shape[0], -1), np.zeros((point.shape[0], 4))
-        if not rounded.all():  # a rounded part's contact is the point model's
-            part[~rounded], plane[~rounded] = faces_of(self.obj, point[~rounded], EDGE_TOL)
+        its core's). On a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): its
+        inward normal, and a flat part's point moved to its patch centre (a rounded part's
+        stays: the point model); at an edge, the direction of the pair (a rounded part's
+        from its core: :func:`~kinegrasp_env.closing.rounded_links.contact_normals`), as
+        the reference's rule."""
+        part, plane = faces_of(self.obj, point, EDGE_TOL)
         on_face = part >= 0
         normals = -plane[:, :3]
         points = point.copy()
-        if self.patch and on_face.any():
-            placed, _ = self._patch.place(self.geometry[link].vertices, poses[on_face],
-                                          part[on_face], plane[on_face], point[on_face])
-            points[on_face] = placed
+        pad = on_face & ~rounded
+        if self.patch and pad.any():
+            placed, _ = self._patch.place(self.geometry[link].vertices, poses[pad],
+                                          part[pad], plane[pad], point[pad])
+            points[pad] = placed
         edge = np.flatnonzero(~on_face & ~rounded)
-        normals[rounded] = contact_normals(finger_point[rounded], point[rounded])
+        core = ~on_face & rounded
+        normals[core] = contact_normals(finger_point[core], point[core])
         if edge.size:
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))
