@@ -132,11 +132,10 @@ class CapsuleFingers:
                  palm_link: str) -> None:
         self.fingers, self.palm_link = fingers, palm_link
         self._head = (grid_args(grid, GRID_EXACT_BAND), geometry_args(obj), closing_rules())
-        stack = lambda name: np.ascontiguousarray(  # noqa: E731
-            np.array([getattr(f, name) for f in fingers], dtype=float))
-        self._constants = (stack("axis_p"), stack("axis_d"), stack("distal_origin"),
-                           stack("ends_p"), stack("ends_d"), stack("radius"), stack("upper"),
-                           stack("speeds"))
+        self._constants = tuple(
+            np.ascontiguousarray(np.array([getattr(f, name) for f in fingers], dtype=float))
+            for name in ("axis_p", "axis_d", "distal_origin", "ends_p", "ends_d", "radius",
+                         "upper", "speeds"))
 
     def close(self, palm: np.ndarray, values0: dict[str, np.ndarray]) -> dict:
         """Close every qualifying finger of m draws: the palm at object-frame poses
