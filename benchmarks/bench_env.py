@@ -6,9 +6,7 @@ beforehand). Steps/s of wall time, and of the process's CPU time (what a machine
 other work still shows).
 
 The default robot (``kuka_sdh``): n_draws = 64 and 256; target >= 100 steps/s at 64 draws
-with the fast engine. Then the fast engine at 64 draws one object at a time, and the fast
-engine's auto-close of one step's draws, the compiled closing loop against the vectorized one
-it replaced (same results, tested).
+with the fast engine. Then the fast engine at 64 draws one object at a time.
 
 Another robot of the catalog (``--robot panda``, timed by default): n_draws = 16 (its env's
 default) and 64, every object's engine built in the env before the clock starts; target >= 100
@@ -17,7 +15,7 @@ time.
 
 The figures (steps/s, seconds) also go to ``benchmarks/results/bench_env.json``
 (``--json-out PATH``, ``--no-json``): the default robot's in ``steps``,
-``fast_64_draws_per_object`` and ``autoclose``, another robot's in ``robot_steps`` and
+``fast_64_draws_per_object``, another robot's in ``robot_steps`` and
 ``robot_fast_per_object`` (a ``robot`` column each); a run without a robot has no rows of it.
 """
 
@@ -128,8 +126,8 @@ def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
 
 
 def default_robot(steps: int) -> dict:
-    """The default robot's figures: ``steps``, ``fast_64_draws_per_object``, ``autoclose``."""
-    steps_rows, closing_rows = [], []
+    """The default robot's figures: ``steps``, ``fast_64_draws_per_object``."""
+    steps_rows = []
     from kinegrasp_env.montecarlo.engines import FastEngine
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -146,37 +144,7 @@ def default_robot(steps: int) -> dict:
         steps_rows.append(steps_row("", engine, n_draws, steps, wall, cpu, target_draws=64))
 
     object_rows = per_object(OBJECT_NAMES, steps)
-
-    import numpy as np
-
-    from kinegrasp_env.closing.fast import FastHand
-    from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.world.objects import load_object
-    from kinegrasp_env.world.sdf import object_grid
-
-    rng = np.random.default_rng(0)
-    for n_draws in (64, 256):
-        timings = {"compiled": 0.0, "vectorized": 0.0}
-        for name in OBJECT_NAMES:
-            hands = {c: FastHand(load_object(name), object_grid(name), closing=c)
-                     for c in timings}
-            for grasp in shipped_grasps(name)[:4]:
-                q = np.tile(grasp.q0, (n_draws, 1))
-                q[:, :7] += JointNoise(0.0133, "gaussian").sample(n_draws, 7, rng)
-                for closing, hand in hands.items():
-                    start = time.perf_counter()
-                    for _ in range(5):
-                        hand.close(q)
-                    timings[closing] += (time.perf_counter() - start) / 5
-        calls = 4 * len(OBJECT_NAMES)
-        compiled, vectorized = (timings[c] / calls * 1e3 for c in ("compiled", "vectorized"))
-        print(f"auto-close of {n_draws:3d} draws: compiled loop {compiled:5.1f} ms, "
-              f"vectorized {vectorized:5.1f} ms ({vectorized / compiled:.1f}x)")
-        closing_rows.append({"n_draws": n_draws, "compiled_s": compiled / 1e3,
-                             "vectorized_s": vectorized / 1e3,
-                             "vectorized_over_compiled": vectorized / compiled})
-    return {"steps": steps_rows, "fast_64_draws_per_object": object_rows,
-            "autoclose": closing_rows}
+    return {"steps": steps_rows, "fast_64_draws_per_object": object_rows}
 
 
 def per_object(names, steps: int) -> list[dict]:

@@ -1,8 +1,10 @@
-"""The default robot run as a description (``kuka_sdh.yaml`` through the description robots'
-fast engine: :class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`) against its own
-fast engine (:class:`~kinegrasp_env.montecarlo.engines.FastEngine`, the SDH's compiled
-closing), on the same draws: the shipped grasps of the four objects, joint noise of sigma
-0.0133 rad, ``--draws`` each.
+"""The two implementations of the fast closing on the default robot's fingers: the batched
+loop every finger can take (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand` with
+``compiled=False``: GJK bounds, exact pairs, halving) against the compiled capsule loop the
+fast engine closes the SDH's fingers with (:class:`~kinegrasp_env.montecarlo.engines.
+FastEngine`: :mod:`~kinegrasp_env.closing.capsule_fingers`, grid gaps, exact pairs within a
+band, bisection), on the same draws: the shipped grasps of the four objects, joint noise of
+sigma 0.0133 rad, ``--draws`` each.
 
 For each grasp: the share of draws with the same outcome, the outcome pairs where they
 differ, P(FC) of both and their paired difference (a 95% t-interval on the per-draw
@@ -16,8 +18,7 @@ Every differing draw is put in one class:
   tolerance in one closing and not in the other);
 * ``reach``: one closing misses (a finger reaches its limits or the object is grazed) where
   the other touches;
-* ``start``: the start-collision verdict differs (the palm's cylinder against the grid or
-  the exact prism).
+* ``start``: the start-collision verdict differs (both check it alike: never expected).
 
     python benchmarks/description_agreement.py [--draws 2000] [--objects cube drill ...]
 
@@ -35,6 +36,7 @@ import numpy as np
 from results_file import add_options, publish, settings
 from scipy import stats
 
+from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
 from kinegrasp_env.montecarlo.engines import make_engine as own_engine
 from kinegrasp_env.montecarlo.robot_engines import make_engine
@@ -54,27 +56,27 @@ def pattern(draws, i: int) -> tuple:
                             strict=True)))
 
 
-def kind(generic, own, i: int) -> str:
+def kind(loop, kernel, i: int) -> str:
     """The class of a differing draw (module docstring)."""
-    a, b = int(generic.outcome[i]), int(own.outcome[i])
+    a, b = int(loop.outcome[i]), int(kernel.outcome[i])
     if START_COLLISION in (a, b):
         return "start"
     if MISSED in (a, b):
         return "reach"
-    return "verdict" if pattern(generic, i) == pattern(own, i) else "links"
+    return "verdict" if pattern(loop, i) == pattern(kernel, i) else "links"
 
 
-def grasp_row(obj: str, index: int, q0: np.ndarray, generic, own, draws: int,
+def grasp_row(obj: str, index: int, q0: np.ndarray, loop, kernel, draws: int,
               corrected: float) -> dict:
     rng = np.random.default_rng(index)
     q = np.repeat(q0[None], draws, axis=0)
     q[:, :7] += rng.normal(0.0, SIGMA, (draws, 7))
     start = time.perf_counter()
-    a = generic.run(q)
-    t_generic = time.perf_counter() - start
+    a = loop.run(q)
+    t_loop = time.perf_counter() - start
     start = time.perf_counter()
-    b = own.run(q)
-    t_own = time.perf_counter() - start
+    b = kernel.run(q)
+    t_kernel = time.perf_counter() - start
     differ = np.flatnonzero(a.outcome != b.outcome)
     diff = (a.outcome == FORCE_CLOSURE).astype(float) - (b.outcome == FORCE_CLOSURE)
     half = stats.t.ppf(1 - corrected / 2, draws - 1) * diff.std(ddof=1) / np.sqrt(draws)
@@ -86,19 +88,19 @@ def grasp_row(obj: str, index: int, q0: np.ndarray, generic, own, draws: int,
         key = f"{OUTCOMES[b.outcome[i]]}->{OUTCOMES[a.outcome[i]]}"
         pairs[key] = pairs.get(key, 0) + 1
     return {"object": obj, "grasp": index, "draws": draws, "same": 1 - differ.size / draws,
-            "p_fc_description": float((a.outcome == FORCE_CLOSURE).mean()),
-            "p_fc_own": float((b.outcome == FORCE_CLOSURE).mean()),
+            "p_fc_loop": float((a.outcome == FORCE_CLOSURE).mean()),
+            "p_fc_kernel": float((b.outcome == FORCE_CLOSURE).mean()),
             "difference": float(diff.mean()), "interval": [float(diff.mean() - half),
                                                          float(diff.mean() + half)],
             "classes": classes, "pairs": pairs,
-            "us_per_draw_description": 1e6 * t_generic / draws,
-            "us_per_draw_own": 1e6 * t_own / draws}
+            "us_per_draw_loop": 1e6 * t_loop / draws,
+            "us_per_draw_kernel": 1e6 * t_kernel / draws}
 
 
 def markdown(result: dict) -> str:
     rows = result["grasps"]
     lines = ["| object | draws | same outcome | worst grasp | P(FC) intervals holding 0 "
-             "| verdict / links / reach / start | us a draw: description, own |",
+             "| verdict / links / reach / start | us a draw: loop, kernel |",
              "|---|---|---|---|---|---|---|"]
     for obj in dict.fromkeys(r["object"] for r in rows):
         mine = [r for r in rows if r["object"] == obj]
@@ -109,13 +111,13 @@ def markdown(result: dict) -> str:
         lines.append(f"| {obj} | {n} | {100 * same:.2f}% | "
                      f"{100 * min(r['same'] for r in mine):.1f}% | {held} of {len(mine)} | "
                      f"{' / '.join(map(str, classes))} | "
-                     f"{np.mean([r['us_per_draw_description'] for r in mine]):.0f}, "
-                     f"{np.mean([r['us_per_draw_own'] for r in mine]):.0f} |")
+                     f"{np.mean([r['us_per_draw_loop'] for r in mine]):.0f}, "
+                     f"{np.mean([r['us_per_draw_kernel'] for r in mine]):.0f} |")
     total = result["summary"]
     classes = " / ".join(str(total["classes"][c]) for c in CLASSES)
     lines.append(f"| all | {total['draws']} | {100 * total['same']:.2f}% | "
                  f"{100 * total['worst']:.1f}% | {total['held']} of {total['grasps']} | "
-                 f"{classes} | {total['us_description']:.0f}, {total['us_own']:.0f} |")
+                 f"{classes} | {total['us_loop']:.0f}, {total['us_kernel']:.0f} |")
     return "\n".join(lines)
 
 
@@ -129,10 +131,11 @@ def main() -> None:
     corrected = 0.05 / sum(len(g) for g in grasps.values())
     rows = []
     for obj, kept in grasps.items():
-        generic, own = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
-        generic.run(kept[0].q0[None]), own.run(kept[0].q0[None])  # compiled, warmed
+        loop, kernel = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
+        loop.hand = FastRobotHand(loop.description, loop.obj, compiled=False)
+        loop.run(kept[0].q0[None]), kernel.run(kept[0].q0[None])  # compiled, warmed
         for index, grasp in enumerate(kept):
-            rows.append(grasp_row(obj, index, grasp.q0, generic, own, args.draws, corrected))
+            rows.append(grasp_row(obj, index, grasp.q0, loop, kernel, args.draws, corrected))
             print(f"{obj} {index}: same {rows[-1]['same']:.4f}", flush=True)
     n = sum(r["draws"] for r in rows)
     summary = {"draws": n, "grasps": len(rows),
@@ -140,8 +143,8 @@ def main() -> None:
                "worst": min(r["same"] for r in rows),
                "held": sum(r["interval"][0] <= 0 <= r["interval"][1] for r in rows),
                "classes": {c: sum(r["classes"][c] for r in rows) for c in CLASSES},
-               "us_description": float(np.mean([r["us_per_draw_description"] for r in rows])),
-               "us_own": float(np.mean([r["us_per_draw_own"] for r in rows]))}
+               "us_loop": float(np.mean([r["us_per_draw_loop"] for r in rows])),
+               "us_kernel": float(np.mean([r["us_per_draw_kernel"] for r in rows]))}
     result = {"sigma": SIGMA, "grasps": rows, "summary": summary, "settings": settings(args)}
     publish(__file__, result, args, markdown(result), DOC, (START, END))
 

@@ -306,93 +306,41 @@ def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
 
 
 def test_finger_axes_equal_the_capsule_axes_of_forward_kinematics():
-    """finger_axes (Rodrigues rotations of the proximal joint frame, compiled) against the
-    capsule axes placed by the robot's forward kinematics at the full configuration (the
-    URDF chain, tested against pybullet in tests/test_kinematics.py), for random arm
-    configurations, spreads and flexions over and past the joint ranges: to 4e-16 m
-    (measured 1.1e-16: coordinates ~0.5 m, two code paths)."""
-    from kinegrasp_env.closing.fast import FastHand, capsule_axis
+    """finger_axes (Rodrigues rotations of the proximal joint frame, compiled), fed the
+    default robot's capsule fingers as the compiled closing reads them from its description
+    (:func:`~kinegrasp_env.closing.capsule_fingers.capsule_finger`), against the capsule
+    ends placed by the robot's forward kinematics at the full configuration (the URDF chain,
+    tested against pybullet in tests/test_kinematics.py), for random arm configurations,
+    spreads and flexions over and past the joint ranges: to 4e-16 m (coordinates ~0.5 m,
+    two code paths)."""
+    from kinegrasp_env.closing.capsule_fingers import capsule_finger
     from kinegrasp_env.closing.finger_axes import finger_axes
-    from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
+    from kinegrasp_env.closing.generic_fast import FastRobotHand
+    from kinegrasp_env.robot.catalog import load_robot
 
-    hand = FastHand(load_object("cube"), object_grid("cube"))
+    hand = FastRobotHand(load_robot("kuka_sdh"), load_object("cube"), grid=object_grid("cube"))
+    model = hand.description.model
     rng = np.random.default_rng(4)
     q = np.tile(shipped_grasps("cube")[0].q0, (50, 1))
     q[:, :7] += rng.normal(scale=0.3, size=(50, 7))
     q[:, 7:] = rng.uniform(-0.2, 1.6, size=(50, 7))
-    q_zero = q.copy()
-    q_zero[:, hand.flexion_columns] = 0.0
-    links = [link for f in FINGERS for link in f[2:]]
-    frames, zero = hand.frames(q, links), hand.frames(q_zero, [f[2] for f in FINGERS])
-    for f, finger in enumerate(FINGERS):
-        prox = q[:, 7 + HAND_JOINTS.index(finger[0])]
-        dist = q[:, 7 + HAND_JOINTS.index(finger[1])]
-        ends = finger_axes(zero[finger[2]], hand.axis_p[f], prox, hand.distal_origin[f],
-                           hand.axis_d[f], dist, *hand.axis_ends[f])
-        expected = np.stack([*capsule_axis(frames[finger[2]], hand.capsules[f][0]),
-                             *capsule_axis(frames[finger[3]], hand.capsules[f][1])], axis=1)
+    values = model.expand(q)
+    checked = 0
+    for f, path in enumerate(hand.paths):
+        finger = capsule_finger(f, path, hand.geometry)
+        links = hand.kinematics.forward(q, [finger.parent, *path.links])
+        flex = [finger.sign[j] * values[path.joints[j]] for j in range(2)]
+        ends = finger_axes(links[finger.parent] @ finger.origin, finger.axis_p, flex[0],
+                           finger.distal_origin, finger.axis_d, flex[1], finger.ends_p,
+                           finger.ends_d)
+        placed = [links[link][:, None, :3, :3] @ e[None, :, :, None]
+                  for link, e in zip(path.links, (finger.ends_p, finger.ends_d), strict=True)]
+        expected = np.concatenate(
+            [p[..., 0] + links[link][:, None, :3, 3]
+             for p, link in zip(placed, path.links, strict=True)], axis=1)
         np.testing.assert_allclose(ends, expected, rtol=0, atol=4e-16)
-
-
-@pytest.mark.parametrize("name", OBJECT_NAMES)
-def test_compiled_closing_loop_equals_the_vectorized_one(name):
-    from kinegrasp_env.closing.fast import FastHand
-
-    obj, grid = load_object(name), object_grid(name)
-    compiled = FastHand(obj, grid, closing="compiled")
-    vectorized = FastHand(obj, grid, closing="vectorized")
-    rng = np.random.default_rng(11)
-    outcomes = np.zeros(4, int)  # proximal contacts, distal contacts, missed fingers, starts
-    for grasp in shipped_grasps(name)[:3]:
-        q = np.tile(grasp.q0, (120, 1))
-        q[:, :7] += JointNoise(0.03, "gaussian").sample(120, 7, rng)
-        a, b = compiled.close(q), vectorized.close(q)
-        # the decisions exactly; points and normals to a few ulps (metres ~0.1, unit
-        # normals): two code paths (compiled loop, numpy), which a compiler may order
-        # differently
-        for field in ("start_collision", "missed", "found"):
-            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
-        for field in ("points", "normals"):
-            np.testing.assert_allclose(getattr(a, field), getattr(b, field), rtol=0,
-                                       atol=4 * np.finfo(float).eps)
-        assert a.iterations == b.iterations
-        outcomes += [a.found[..., 0].sum(), a.found[..., 1].sum(), a.missed.sum(),
-                     a.start_collision.sum()]
-    # every branch of the state machine was exercised
-    assert (outcomes[:3] > 0).all(), outcomes
-
-
-def test_fast_hand_rejects_an_unknown_closing():
-    from kinegrasp_env.closing.fast import FastHand
-
-    obj, grid = load_object("cube"), object_grid("cube")
-    with pytest.raises(ValueError, match="closing 'fastest'"):
-        FastHand(obj, grid, closing="fastest")
-
-
-def test_refine_steps_reach_the_compiled_closing():
-    """``with_refine_steps``: the default number of golden-section steps closes bit for bit
-    as the hand itself; one step moves some contact points (the setting reaches the kernel);
-    the hand it was made from keeps its own; bad input is refused."""
-    from kinegrasp_env.closing.capsule_gap import REFINE
-    from kinegrasp_env.closing.fast import FastHand
-
-    obj, grid = load_object("spray_flask"), object_grid("spray_flask")
-    hand = FastHand(obj, grid)
-    rng = np.random.default_rng(5)
-    q = np.tile(shipped_grasps("spray_flask")[0].q0, (60, 1))
-    q[:, :7] += rng.normal(scale=0.0133, size=(60, 7))
-    base = hand.close(q)
-    same = hand.with_refine_steps(REFINE).close(q)
-    coarse = hand.with_refine_steps(1).close(q)
-    np.testing.assert_array_equal(same.points, base.points)
-    np.testing.assert_array_equal(same.found, base.found)
-    assert not np.array_equal(coarse.points, base.points, equal_nan=True)
-    np.testing.assert_array_equal(hand.close(q).points, base.points)
-    with pytest.raises(ValueError, match="integer >= 1"):
-        hand.with_refine_steps(0)
-    with pytest.raises(ValueError, match="compiled closing"):
-        FastHand(obj, grid, closing="vectorized").with_refine_steps(REFINE)
+        checked += 1
+    assert checked == 3
 
 
 PRUNING_FREE_SEARCH = """
@@ -447,34 +395,6 @@ def test_part_order_is_a_stable_argsort():
         order = np.empty(n, np.int64)
         part_order(values, order)
         np.testing.assert_array_equal(order, np.argsort(values, kind="stable"))
-
-
-@pytest.mark.parametrize("name", ["cube", "mug"])
-def test_screened_cylinder_check_equals_the_full_fine_check(name):
-    """The start check of the palm and knuckle cylinders (compiled: screen, coarse, fine per
-    draw) against the unscreened rule computed directly: some cylinder's smallest grid
-    distance over all its fine samples below -START_TOL (scipy's interpolation of the grid,
-    :func:`interpolated`). Equal draw by draw: the screens drop no hit."""
-    from kinegrasp_env.closing.fast import FastHand
-    from kinegrasp_env.closing.reference import START_TOL
-
-    obj, grid = load_object(name), object_grid(name)
-    compiled = FastHand(obj, grid)
-    rng = np.random.default_rng(4)
-    q = np.tile(shipped_grasps(name)[0].q0, (400, 1))
-    q[:, :7] += rng.normal(scale=0.03, size=(400, 7))
-    frames = compiled.frames(q, [s.link for s in compiled.cylinders])
-    shift = rng.uniform(-0.12, 0.12, size=(400, 3))  # the hand moved: many palms inside
-    for pose in frames.values():
-        pose[:, :3, 3] += shift
-    hit = compiled.cylinder_collision(frames)
-    direct = np.zeros(len(q), dtype=bool)
-    for shape, (_, _, fine) in zip(compiled.cylinders, compiled.samples, strict=True):
-        pose = frames[shape.link]
-        points = np.einsum("nij,pj->npi", pose[:, :3, :3], fine) + pose[:, None, :3, 3]
-        direct |= interpolated(grid, points).min(axis=1) < -START_TOL
-    assert 20 < direct.sum() < 380, direct.sum()
-    np.testing.assert_array_equal(hit, direct)
 
 
 @pytest.mark.parametrize("name", ["cube", "spray_flask", "mug"])

@@ -158,29 +158,6 @@ def test_a_capsule_links_exact_distance_is_pybullets(draws, engines):
     assert checked >= 60
 
 
-def test_the_description_closes_the_sdh_as_its_own_compiled_closing():
-    """The default robot through the description pipeline against its own fast engine (the
-    SDH's compiled closing: capsule gaps from the distance grid, its GraspIt closing and
-    polish, an implementation independent of the generic one): the same outcome on the same
-    draws of two shipped grasps of each object (99.95% measured on 96,000 draws,
-    ``benchmarks/description_agreement.py``; at least 98% held here)."""
-    from kinegrasp_env.montecarlo.engines import make_engine as own_engine
-
-    same = total = 0
-    for obj in ("cube", "drill", "mug", "spray_flask"):
-        generic, own = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
-        for index in (0, 1):
-            rng = np.random.default_rng(index)
-            q = np.repeat(shipped_grasps(obj)[index].q0[None], 150, axis=0)
-            q[:, :7] += rng.normal(0.0, SIGMA, (150, 7))
-            a, b = generic.run(q), own.run(q)
-            same += int((a.outcome == b.outcome).sum())
-            total += q.shape[0]
-        generic.close()
-        own.close()
-    assert same >= 0.98 * total, f"{same} of {total}"
-
-
 def test_a_draws_closing_does_not_depend_on_its_batch(engines):
     """The batched loop's staged fingers polish their touches in groups (the draws that touch
     over several steps wait for one polish): a draw's closing must be the one it has alone.

@@ -1,17 +1,17 @@
 """Auto-close: the fingers closed until they touch the object, GraspIt-style.
 
-Entry points: ``reference.auto_close`` (one draw, pybullet distance queries: the reference;
-its hand in pybullet: ``hand_probe``) and ``fast.FastHand`` (a batch of draws: distance grids
-and compiled kernels). Both follow the rules of ``close_rules`` and share the exact
-near-contact geometry of ``hand_geometry`` and ``segment_distance`` (its packed parts:
-``packed_geometry``, its small kernels: ``segment_primitives``); the compiled closing loop is
-``close_kernel``, its per-row helpers ``finger_axes`` and ``capsule_gap``, the same loop as
-array operations ``close_vectorized``. Any robot of the
-catalog (a description beside a URDF): ``generic_reference`` (pybullet closest points) and
-``generic_fast`` (batched; the links' geometry from ``link_geometry``, object edges against
-link hulls in ``hull_edges``), pads pressed on faces at their patch centres
-(``contact_patch``), a closing's contacts and result (``robot_contacts``), where palm and
-object pose errors put the links (``hand_errors``). Uses ``world`` and ``robot``.
+Entry points: every robot of the catalog (a description beside a URDF), the default one
+included: ``generic_reference`` (one draw at a time, pybullet closest points) and
+``generic_fast`` (a batch of draws; the links' geometry from ``link_geometry``, object edges
+against link hulls in ``hull_edges``, the batched loop ``finger_closing``, fingers of two
+capsule phalanxes by the compiled loop of ``capsule_fingers``: ``close_kernel``, its per-row
+helpers ``finger_axes`` and ``capsule_gap``, the exact capsule-object pairs of
+``segment_distance`` (its packed parts: ``packed_geometry``, its small kernels:
+``segment_primitives``)); pads pressed on faces at their patch centres (``contact_patch``), a
+closing's contacts and result (``robot_contacts``), where palm and object pose errors put
+the links (``hand_errors``). The default robot's own pybullet reference:
+``reference.auto_close`` (its hand in pybullet: ``hand_probe``; its capsules' contacts:
+``hand_geometry``). All follow the rules of ``close_rules``. Uses ``world`` and ``robot``.
 """
 
 from __future__ import annotations
@@ -20,5 +20,4 @@ from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "reference": ("auto_close", "CloseResult", "Contact"),
-    "fast": ("FastHand", "BatchClose"),
 })

@@ -1,15 +1,16 @@
-"""The fast engine's auto-close as one compiled loop (the twin of FastHand's vectorized one).
+"""The closing of fingers of two capsule phalanxes as one compiled loop
+(:mod:`~kinegrasp_env.closing.capsule_fingers` hands it any description's fingers of that
+kind, the default robot's among them).
 
-:meth:`kinegrasp_env.closing.fast.FastHand.close` advances every (draw, finger) closing problem
-with array operations, one iteration at a time: ~35 iterations x 3 fingers of a few dozen
-numpy calls each, a fixed cost that dominates small batches (the environment's 64 draws).
-Here each problem runs its whole state machine in one compiled loop (:func:`close_finger`;
-its two branches, :func:`touch_down` and :func:`step_or_bisect`), calling the same
-per-row kernels (:func:`kinegrasp_env.closing.capsule_gap` ``gap_one``,
-:mod:`kinegrasp_env.closing.segment_distance` ``segment_one``,
-:func:`kinegrasp_env.closing.finger_axes.axes_one`) with the same arithmetic in the same order, so
-the closing state, the contacts found and their closest pairs are bit-identical to the
-vectorized loop with numba kernels (tested). ``benchmarks/bench_env.py`` times both.
+Each (draw, finger) closing problem runs its whole state machine in one compiled loop
+(:func:`close_finger`; its two branches, :func:`touch_down` and :func:`step_or_bisect`):
+conservative steps on the distance grid's capsule gaps
+(:func:`kinegrasp_env.closing.capsule_gap` ``gap_one``), the exact capsule-object pair
+within the band of contact (:mod:`kinegrasp_env.closing.segment_distance`
+``segment_one``), the capsule axes posed by :func:`kinegrasp_env.closing.finger_axes.axes_one`,
+bisection once a step penetrates, the touch polished to a zero gap. Array operations over a
+batch pay a fixed cost per iteration (~35 iterations x 3 fingers of a few dozen numpy calls)
+that dominates small batches (the environment's 64 draws); here there is none.
 
 Three savings that change no result: an exact gap the state machine cannot use is not
 computed (a link that can be neither the smaller gap nor in contact, by a lower bound:

@@ -114,7 +114,7 @@ def closing_travel(gap_p: float, gap_d: float, phase: int, speeds: np.ndarray) -
     """Largest closing step (radians) before a moving link could touch: each link's gap
     (metres) over its speed bound, the smaller; the proximal link counts in phase 1 only.
     speeds: (3,) the :class:`LinkSpeeds` as an array. Compiled: the fast engine's closing
-    loop calls it too (its vectorized twin, ``FastHand._travel``, repeats the arithmetic).
+    loop calls it too.
     (One bound for the whole finger, the sum of the three reaches, took smaller steps, hence
     more closing iterations in the fast engine.)"""
     if phase != 1:

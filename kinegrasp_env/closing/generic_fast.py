@@ -70,6 +70,7 @@ from kinegrasp_env.closing.hand_errors import (
     hand_links,
     world_to_object,
 )
+from kinegrasp_env.closing.hand_geometry import surface_contact
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import (
     LinkGeometry,
@@ -334,8 +335,10 @@ class FastRobotHand:
                                           part[pad], plane[pad], point[pad])
             points[pad] = placed
         edge = np.flatnonzero(~on_face & ~rounded)
-        core = ~on_face & rounded
-        normals[core] = contact_normals(finger_point[core], point[core])
+        if rounded.any():  # the point model: the face's normal where the pair's agrees
+            outward = -contact_normals(finger_point[rounded], point[rounded])
+            points[rounded], normals[rounded] = surface_contact(self.obj, point[rounded],
+                                                                outward)
         if edge.size:
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))

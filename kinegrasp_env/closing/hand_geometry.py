@@ -1,4 +1,5 @@
-"""The hand's collision primitives and exact finger-object contacts (both engines).
+"""The default robot's hand primitives (for its pybullet reference) and the point model's
+contact of a rounded finger part (every engine's).
 
 A finger link is a capsule: the points within ``radius`` of its axis segment. When a link
 touches the object (its gap within the contact tolerance), the contact is the exact closest
@@ -6,7 +7,8 @@ pair between the axis segment and the object's convex parts
 (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`): the point on the object,
 and as normal the direction from it to the axis (inward: towards the object), which on a
 face interior is the face normal and at an edge or corner lies in the cone of the adjacent
-faces. Both engines use this, so they differ only in where the fingers stop.
+faces (:func:`surface_contact`: the reference's :func:`pair_contacts` and the fast closing's
+rounded parts use it, so they differ only in where the fingers stop).
 """
 
 from __future__ import annotations
@@ -108,15 +110,6 @@ def surface_contact(obj: GraspObject, points: np.ndarray, outward: np.ndarray,
                + face_normal[:, 2] * outward[:, 2])
     agree = cosine > 1 - 1e-6
     return projected, np.where(agree[:, None], face_normal, -outward)
-
-
-def capsule_contacts(obj: GraspObject, a: np.ndarray, b: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Contacts (points, inward normals (m, 3)) of capsules with axes [a, b] (m, 3) touching
-    the object (object frame)."""
-    from kinegrasp_env.closing.segment_distance import closest_to_segments
-
-    return pair_contacts(obj, *closest_to_segments(obj, a, b))
 
 
 def pair_contacts(obj: GraspObject, on_obj: np.ndarray, on_seg: np.ndarray, dist: np.ndarray,

@@ -19,10 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
-from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots, world_to_object
+from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots, rigid_inverse
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robot.model import HAND_JOINTS, kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld
@@ -314,8 +315,11 @@ class PybulletEngine(Engine):
 
 
 class FastEngine(Engine):
-    """The batched engine: auto-close of all draws at once against the object's distance
-    grid (:mod:`kinegrasp_env.closing.fast`), then the same scoring as the reference.
+    """The batched engine: the default robot's description (``kuka_sdh.yaml``) closed by
+    the description robots' batched closing (:class:`~kinegrasp_env.closing.generic_fast.
+    FastRobotHand`: its start collision by exact distances, its capsule fingers by the
+    compiled capsule loop against the object's distance grid), then the same scoring as the
+    reference.
 
     Args:
         object_name: catalog object.
@@ -326,13 +330,19 @@ class FastEngine(Engine):
     takes_errors = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
-        from kinegrasp_env.closing.fast import FastHand
+        from kinegrasp_env.closing.generic_fast import FastRobotHand
+        from kinegrasp_env.closing.hand_errors import flange_link
+        from kinegrasp_env.robot.catalog import load_robot
         from kinegrasp_env.world.sdf import grid_of
 
         super().__init__(object_name, friction, num_edges)
-        self.hand = FastHand(self.obj, grid_of(self.obj))
-        #: columns of the hand DOF (7,) holding (proximal, distal) of fingers 1, 2, 3
-        self.flexion_columns = [HAND_JOINTS.index(j) for f in FINGERS for j in f[:2]]
+        description = load_robot(DEFAULT_ROBOT)
+        self.hand = FastRobotHand(description, self.obj, grid=grid_of(self.obj))
+        # a palm error is given in FLANGE_LINK's frame (the hand's mount); the description's
+        # closing takes it in its flange's (the last arm link), fixed joints apart
+        zero = np.zeros((1, description.model.dof))
+        self._mount = (rigid_inverse(self.hand.kinematics.pose(zero, flange_link(description)))
+                       @ self.hand.kinematics.pose(zero, FLANGE_LINK))[0]
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
@@ -340,29 +350,21 @@ class FastEngine(Engine):
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
-        to_object = None
-        if palm is not None or object_offset is not None:
-            to_object = world_to_object(self.hand.kin.pose(q, FLANGE_LINK), self.obj.pose,
-                                        palm, object_offset)
-        result = self.hand.close(q, to_object)
+        if palm is not None:
+            palm = self._mount @ palm @ rigid_inverse(self._mount)
+        batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
         t1 = time.perf_counter()
-        found = result.found.reshape(n, 6)  # finger-major, proximal before distal
-        order = np.argsort(~found, axis=1, kind="stable")  # found contacts first, in order
-        k = found.sum(axis=1)
-        rows = np.arange(n)[:, None]
-        take = np.arange(MAX_CONTACTS)[None, :] < k[:, None]
-        links = np.tile(np.array([0, 1], np.int8), 3)[order]
-        fingers = np.repeat(np.arange(3, dtype=np.int8), 2)[order]
-        out.points[take] = result.points.reshape(n, 6, 3)[rows, order][take]
-        out.normals[take] = result.normals.reshape(n, 6, 3)[rows, order][take]
-        out.finger[take] = fingers[take]
-        out.link[take] = links[take]
-        out.n_contacts[:] = k
-        out.outcome[:] = provisional_outcomes(result.start_collision, result.missed, k)
-        out.n_contacts[result.start_collision] = 0
-        out.hand[:] = q[:, 7:]
-        out.hand[:, self.flexion_columns] = result.flexion.reshape(n, 6)
-        out.hand[result.start_collision] = np.nan
+        counts = batch.contact_counts  # the contacts by finger, proximal before distal
+        slot = batch.slot
+        keep = slot < MAX_CONTACTS
+        row, slot = batch.row[keep], slot[keep]
+        out.points[row, slot], out.normals[row, slot] = batch.points[keep], batch.normals[keep]
+        out.finger[row, slot], out.link[row, slot] = batch.finger[keep], batch.link[keep]
+        out.n_contacts[:] = np.minimum(counts, MAX_CONTACTS)
+        out.outcome[:] = provisional_outcomes(batch.start_collision, batch.missed, counts)
+        out.n_contacts[batch.start_collision] = 0
+        out.hand[:] = np.stack([batch.joints[name] for name in HAND_JOINTS], axis=1)
+        out.hand[batch.start_collision] = np.nan
         t2 = time.perf_counter()
         self.score(out, friction)
         # the fingers' kinematics is part of the batched auto-close; packing counts as kinematics
