@@ -297,3 +297,20 @@ def test_a_bad_frame_is_a_one_line_error(home, tmp_path, top, words):
     line = _one_line_error(tmp_path, path, "--robot", "panda")
     for word in words:
         assert word in line, line
+
+
+@pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])
+def test_a_nominal_miss_is_scored_and_flagged_not_rejected(robot):
+    """A candidate that reaches and clears but whose nominal closing misses (the palm of a
+    shipped cube grasp raised 6 cm: a finger closes on nothing) is a grasp with Q = 0,
+    flagged ``nominal_outcome`` "missed", not a rejection: only unreachable or colliding
+    candidates are dropped (dropping misses would bias a comparison with outside labels)."""
+    obj = load_object("cube")
+    grasp = shipped_grasps("cube", robot)[0]
+    palm = np.linalg.solve(obj.pose, grasp.palm_pose)
+    palm[:3, 3] += 0.06 * np.array([0.0, 0.0, 1.0])  # straight up, away from the cube
+    hand = np.asarray(grasp.hand, dtype=float)
+    solved, rejected = solve_all("cube", [PalmCandidate("up", palm, hand)], robot)
+    assert rejected == [], rejected
+    assert solved[0].meta["nominal_outcome"] == "missed"
+    assert solved[0].meta["nominal_force_closure"] is False and solved[0].q_nominal == 0.0

@@ -283,6 +283,6 @@ def test_a_hand_source_is_checked_against_the_description_given(panda):
     description = dataclasses.replace(panda[0], name="mypanda")
     check_robot_noise(noise_model_from_spec({"hand": {"closing_sigma": 0.002}}), description,
                       7, "fast")
-    with pytest.raises(ValueError, match="robot 'mypanda''s hand has no pre-shape joint"):
+    with pytest.raises(ValueError, match="the hand of robot 'mypanda' has no pre-shape joint"):
         check_robot_noise(noise_model_from_spec({"hand": {"spread_sigma": 0.01}}),
                           description, 7, "fast")

@@ -263,8 +263,9 @@ def _palm_pose_candidates(path: str, robot: str | None = None,
         print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
     for g in grasps:
         if g.meta.get("nominal_force_closure") is False:
-            print(f"candidate {g.id}: its nominal closing is not in force closure (Q = 0); "
-                  "ranked all the same", file=sys.stderr)
+            how = g.meta.get("nominal_outcome", "no_force_closure").replace("_", " ")
+            print(f"candidate {g.id}: its nominal closing is not in force closure ({how}, "
+                  "Q = 0); ranked all the same", file=sys.stderr)
     if not grasps:
         raise CLIError(f"{path}: none of the {len(read.candidates)} candidates is reachable, "
                        "clear and closing; nothing ranked")

@@ -95,8 +95,8 @@ def ik_starts(args, branches: bool, robot: str) -> int | None:
     if getattr(args, "ik_starts", None) is None:
         return DEFAULT_IK_STARTS if branches else None
     if not branches:
-        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; robot {robot!r}'s "
-                       "variants are its self-motion")
+        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; the variants of robot "
+                       f"{robot!r} are its self-motion")
     return positive_int(args.ik_starts, "--ik-starts")
 
 

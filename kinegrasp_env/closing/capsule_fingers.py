@@ -148,7 +148,8 @@ class CapsuleFingers:
             per finger index: (final values of its two joints (m, 2), gap (m,): its
             touching links' least, inf where none touches, travel (m,): the closing
             parameter where it stopped, per link (distance (m,), core point (m, 3), object
-            point (m, 3)) of its touching links, distance inf elsewhere).
+            point (m, 3), the object's convex part (m,)) of its touching links, distance inf
+            and part -1 elsewhere).
         """
         m, count = palm.shape[0], len(self.fingers)
         frames = np.empty((m, count, 4, 4))
@@ -172,7 +173,9 @@ class CapsuleFingers:
         out = {}
         for k, finger in enumerate(self.fingers):
             distance = np.where(found[:, k], pairs[:, k, :, 0] - finger.radius, np.inf)
-            links = {link: (distance[:, j], pairs[:, k, j, 4:7], pairs[:, k, j, 1:4])
+            part = np.where(found[:, k], pairs[:, k, :, 7], -1).astype(np.int64)
+            links = {link: (distance[:, j], pairs[:, k, j, 4:7], pairs[:, k, j, 1:4],
+                            part[:, j])
                      for j, link in enumerate(finger.path.links)}
             moved = np.abs(flexion[:, k] - np.minimum(start[:, k], finger.upper))
             out[finger.index] = (flexion[:, k] * finger.sign, distance.min(axis=1),

@@ -80,6 +80,7 @@ from kinegrasp_env.closing.link_geometry import (
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
+from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
@@ -136,6 +137,9 @@ class FastRobotHand:
                     if (found := capsule_finger(f, path, self.geometry)) is not None]
         self._capsules = (CapsuleFingers(capsules, obj, self.grid, description.palm_link)
                           if capsules and compiled else None)
+        if self._rounded:  # the bounded search of a rounded part's start check, loaded now
+            far = np.full((1, 3), 10.0)  # (a held engine pays no compile or load mid-run)
+            closest_to_segments(obj, far, far, 1e-3)
         self._parts = (planes, plane_starts, self.edges, edge_starts,
                        np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
@@ -298,11 +302,11 @@ class FastRobotHand:
                 for k, link in enumerate(fingers[f].links):
                     if link not in self.geometry:
                         continue
-                    pose, d, fp, op, rounded = (a[held] for a in last[link])
+                    pose, d, fp, op, rounded, *part = (a[held] for a in last[link])
                     on = d <= contact_tol
                     if on.any():
                         points, normals = self._contacts(link, pose[on], d[on], fp[on], op[on],
-                                                         rounded[on])
+                                                         rounded[on], *(p[on] for p in part))
                         for key, value in (("row", free[held][on]), ("finger", f), ("link", k),
                                            ("points", points), ("normals", normals),
                                            ("distances", d[on])):
@@ -315,30 +319,39 @@ class FastRobotHand:
                                **{key: value[order] for key, value in columns.items()})
 
     def _contacts(self, link: str, poses: np.ndarray, distance: np.ndarray,
-                  finger_point: np.ndarray, point: np.ndarray, rounded: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  finger_point: np.ndarray, point: np.ndarray, rounded: np.ndarray,
+                  part: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(points (m, 3), unit normals (m, 3)) of the contacts of ``link`` at its
         object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
         points (m, 3); ``rounded`` (m,): the pair is a rounded part's, whose link point is
-        its core's). On a face (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): its
-        inward normal, and a flat part's point moved to its patch centre (a rounded part's
-        stays: the point model); at an edge, the direction of the pair (a rounded part's
-        from its core: :func:`~kinegrasp_env.closing.rounded_links.contact_normals`), as
-        the reference's rule."""
-        part, plane = faces_of(self.obj, point, EDGE_TOL)
-        on_face = part >= 0
+        its core's). A flat part's on a face
+        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that face's inward normal,
+        the point moved to its patch centre; at an edge, the direction of the pair, as the
+        reference's rule. A rounded part's, the point model's
+        (:func:`~kinegrasp_env.closing.hand_geometry.surface_contact`): the face's inward
+        normal where the direction from its core agrees with it, else that direction, on the
+        object's convex part ``part`` (m,) of the pair where given (-1: the nearest one)."""
+        parts = np.full(point.shape[0], -1) if part is None else part
+        face, plane = np.full(point.shape[0], -1), np.zeros((point.shape[0], 4))
+        if not rounded.all():  # a rounded part's contact: the point model's rule below
+            face[~rounded], plane[~rounded] = faces_of(self.obj, point[~rounded], EDGE_TOL)
+        on_face = face >= 0
         normals = -plane[:, :3]
         points = point.copy()
         pad = on_face & ~rounded
         if self.patch and pad.any():
             placed, _ = self._patch.place(self.geometry[link].vertices, poses[pad],
-                                          part[pad], plane[pad], point[pad])
+                                          face[pad], plane[pad], point[pad])
             points[pad] = placed
         edge = np.flatnonzero(~on_face & ~rounded)
         if rounded.any():  # the point model: the face's normal where the pair's agrees
             outward = -contact_normals(finger_point[rounded], point[rounded])
+            on_part = parts[rounded]
+            unknown = on_part < 0
+            if unknown.any():
+                on_part[unknown] = self.obj.nearest_part(point[rounded][unknown])
             points[rounded], normals[rounded] = surface_contact(self.obj, point[rounded],
-                                                                outward)
+                                                                outward, on_part)
         if edge.size:
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))
@@ -358,10 +371,10 @@ def _compiled_finger(path: FingerPath, closed: tuple) -> tuple:
     """A compiled capsule finger's closing (:meth:`~kinegrasp_env.closing.capsule_fingers.
     CapsuleFingers.close`'s) as :func:`~kinegrasp_env.closing.finger_closing.close_finger`
     gives one: (t, gap, its joints' values, per link (pose: unused for a rounded part,
-    distance, core point, object point, rounded))."""
+    distance, core point, object point, rounded, the object's part of the pair)))."""
     final, gap, travel, links = closed
     m = gap.shape[0]
     values = {name: final[:, j] for j, name in enumerate(path.joints)}
-    last = {link: (np.full((m, 4, 4), np.nan), d, core, point, np.ones(m, dtype=bool))
-            for link, (d, core, point) in links.items()}
+    last = {link: (np.full((m, 4, 4), np.nan), d, core, point, np.ones(m, dtype=bool), part)
+            for link, (d, core, point, part) in links.items()}
     return travel, gap, values, last

@@ -80,7 +80,7 @@ def check_hand(hand: HandSource, robot: str | RobotDescription) -> None:
     layout = hand_layout(description)
     fingers = len(description.fingers)
     if hand.spread_sigma > 0 and not np.any(layout < 0):
-        raise ValueError(f"robot {robot!r}'s hand has no pre-shape joint besides its fingers' "
+        raise ValueError(f"the hand of robot {robot!r} has no pre-shape joint besides its fingers' "
                          "closing joints: drop hand.spread_sigma")
     if np.ndim(hand.closing_sigma) == 1 and len(hand.closing_sigma) not in (1, fingers):
         raise ValueError(f"hand.closing_sigma has {len(hand.closing_sigma)} values; robot "

@@ -27,9 +27,12 @@ The default robot's candidates are solved like a planner candidate
 world frame (the object at its catalog pose), or moved along the self-motion to ``elbow``
 (radians) when given; the arm links must keep the planner's clearance; the hand closes with
 the reference engine. Another robot's are solved by its own planner's IK, clearance and
-reference engine (:mod:`kinegrasp_env.toolkit.robot_candidates`). A candidate whose hand closes
-on the object but not in force closure is still a grasp (Q = 0, ``meta
-["nominal_force_closure"]`` False); one that fails is returned with its reason
+reference engine (:mod:`kinegrasp_env.toolkit.robot_candidates`). A candidate that reaches
+and clears but whose nominal closing is not in force closure (the hand touches without it,
+or a finger closes on nothing) is still a grasp (Q = 0, ``meta["nominal_force_closure"]``
+False, ``meta["nominal_outcome"]`` the closing's outcome): dropping it would bias every
+comparison with outside labels, and noise may still put some draws in force closure. One
+that cannot be reached, or whose links collide, is returned with its reason
 (:data:`REASONS`) instead of a grasp.
 """
 
@@ -49,7 +52,7 @@ from kinegrasp_env.world.grasps import Grasp, read_json_file
 log = logging.getLogger(__name__)
 
 #: Why a candidate was rejected (the first word of its reason).
-REASONS = ("unreachable", "arm_collision", "start_collision", "missed")
+REASONS = ("unreachable", "arm_collision", "start_collision")
 #: The frames a file's poses may be given in (``frame`` at its top level; the first is the
 #: default).
 FRAMES = ("object", "source")
@@ -252,9 +255,9 @@ def configuration(planner, candidate: PalmCandidate) -> tuple[np.ndarray | None,
 def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Rejected:
     """The default robot's candidate's grasp (IK, arm clearance, closing with the planner's
     reference engine), or why it is rejected. ``planner``: a :class:`GraspPlanner` of the
-    object. A closing that touches but is not in force closure is a grasp (Q = 0) whose
+    object. A closing not in force closure is a grasp (Q = 0) whose
     ``meta["nominal_force_closure"]`` is False."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, START_COLLISION
     from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
     from kinegrasp_env.robot.model import PALM_LINK
 
@@ -266,14 +269,15 @@ def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Reject
                         "the planner's clearance of the object")
     draw = planner.engine.run(q0[None])
     outcome = int(draw.outcome[0])
-    if outcome in (START_COLLISION, MISSED):
+    if outcome == START_COLLISION:
         name = OUTCOMES[outcome]
         return Rejected(candidate.id, name, OUTCOME_DETAILS.get(name, name))
     palm = planner.engine.kin.pose(q0, PALM_LINK)[0]
     psi = float(planner.ik.elbow_angle(q0[None])[0])
     return grasp_from_draw(draw, object_name, q0, palm, grasp_id=candidate.id,
                            meta={"elbow_angle": psi, "source": "palm_pose",
-                                 "nominal_force_closure": outcome == FORCE_CLOSURE})
+                                 "nominal_force_closure": outcome == FORCE_CLOSURE,
+                                 "nominal_outcome": OUTCOMES[outcome]})
 
 
 def solve_all(object_name: str, candidates: list[PalmCandidate], robot: str = DEFAULT_ROBOT,

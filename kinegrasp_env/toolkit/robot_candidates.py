@@ -12,8 +12,8 @@ as that robot's planner solves its own palm poses
    from the object (:func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`).
 3. **Closing**: the robot's reference engine
    (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`, no noise) with
-   its contact model. ``start_collision`` and ``missed`` reject the candidate; a closing
-   that touches but is not in force closure gives a grasp (Q = 0) whose
+   its contact model. ``start_collision`` rejects the candidate; a closing not in force
+   closure (``no_force_closure`` or ``missed``) gives a grasp (Q = 0) whose
    ``meta["nominal_force_closure"]`` is False.
 
 The planner's own sampling filters (antipodal pairs, a downward approach) are not applied: a
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, START_COLLISION
 from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
@@ -89,10 +89,11 @@ class RobotCandidateSolver:
                                      f"{1e3 * self.settings.min_clearance:g} mm clear)")
         draws = self.engine.run(q0[None])
         outcome = int(draws.outcome[0])
-        if outcome in (START_COLLISION, MISSED):
+        if outcome == START_COLLISION:
             name = OUTCOMES[outcome]
             return name, OUTCOME_DETAILS.get(name, name)
         meta = {"source": "palm_pose", "nominal_force_closure": outcome == FORCE_CLOSURE,
+                "nominal_outcome": OUTCOMES[outcome],
                 "contact_model": self.description.contact_model}
         if self.motion is not None:
             meta["elbow_angle"] = float(self.motion.elbow_angle(q0[None])[0])

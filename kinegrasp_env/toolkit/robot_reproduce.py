@@ -188,8 +188,8 @@ def robot_fig10(description: RobotDescription, out_dir: str | Path, *,
                               method=method, executor=executor)[0]
     out = Path(out_dir)
     if not rows:
-        raise ValueError(f"no variant of robot {description.name!r}'s first grasp closes in "
-                         "force closure; nothing written")
+        raise ValueError(f"no variant of the first grasp of robot {description.name!r} closes "
+                         "in force closure; nothing written")
     write_rows(out, "fig10.csv", rows, COLUMNS)
     safe_figure(lambda: plot_success_quality(
         rows, out / "fig10.png", title=f"fig10, robot {description.name}: sigma = {sigma:g}, "

@@ -132,8 +132,8 @@ def robot_fig7(description: RobotDescription, out_dir: str | Path, *,
             rows += chosen
             pairs.append((name, chosen, fresh))
     if not rows:
-        raise ValueError(f"no object has two configurations of robot {description.name!r}'s "
-                         "first grasp in force closure; nothing written")
+        raise ValueError(f"no object has two configurations of the first grasp of robot "
+                         f"{description.name!r} in force closure; nothing written")
     out = Path(out_dir)
     write_rows(out, "fig7.csv", rows, COLUMNS)
     for name, chosen, fresh in pairs:
