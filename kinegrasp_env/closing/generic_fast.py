@@ -116,18 +116,16 @@ class FastRobotHand:
         self.model = description.model
         self.grid = grid_of(obj) if grid is None else grid
         self.grid_err = grid_error(self.grid)
-        self.geometry = link_geometry(description) if geometry is None else geometry
+        self.geometry = robot_geometry(description) if geometry is None else geometry
         self.kinematics = Kinematics(self.model)
         self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
         self.paths = finger_paths(description, self.geometry, self.kinematics)
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
-        self._link_hulls = {link: stacked_vertices(geom.parts)
-                            for link, geom in self.geometry.items() if geom.parts}
+
         self._simplex = new_simplex()
-        self._link_faces = {link: stacked_faces(geom.parts)
-                            for link, geom in self.geometry.items() if geom.parts}
+        self._link_hulls, self._link_faces = _stacked_links(self.geometry)
         self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex,
                                             self.grid)
                          for link, geom in self.geometry.items() if geom.rounded}
@@ -365,6 +363,31 @@ class FastRobotHand:
             normals[edge] = found
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return points, normals
+
+
+_GEOMETRY: dict[tuple, dict[str, LinkGeometry]] = {}
+_STACKED: dict[int, tuple[dict, dict, dict]] = {}
+
+
+def robot_geometry(description: RobotDescription) -> dict[str, LinkGeometry]:
+    """:func:`~kinegrasp_env.closing.link_geometry.link_geometry` of the robot, read once
+    per URDF file and process (the closing of every object shares it)."""
+    key = (description.name, str(description.urdf))
+    if key not in _GEOMETRY:
+        _GEOMETRY[key] = link_geometry(description)
+    return _GEOMETRY[key]
+
+
+def _stacked_links(geometry: dict[str, LinkGeometry]) -> tuple[dict, dict]:
+    """(link -> its hulls' stacked vertices, link -> their stacked faces) of the links with
+    polytopes (:func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`,
+    :func:`~kinegrasp_env.closing.convex_distance.stacked_faces`), kept with a shared
+    geometry."""
+    if id(geometry) not in _STACKED or _STACKED[id(geometry)][0] is not geometry:
+        hulls = {link: stacked_vertices(g.parts) for link, g in geometry.items() if g.parts}
+        faces = {link: stacked_faces(g.parts) for link, g in geometry.items() if g.parts}
+        _STACKED[id(geometry)] = (geometry, hulls, faces)
+    return _STACKED[id(geometry)][1:]
 
 
 def _compiled_finger(path: FingerPath, closed: tuple) -> tuple:

@@ -20,7 +20,7 @@ import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
 from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots, rigid_inverse
-from kinegrasp_env.quality.epsilon import ferrari_canny_batch
+from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import HAND_JOINTS, kuka_sdh
@@ -164,6 +164,7 @@ class Engine:
         self.num_edges = num_edges
         self.timing = EngineTiming()
         self._table_probe = None  # built on the first draw when the object has a table
+        prepare_exact_paths(num_edges)  # Q's rarer paths ready before the first draw
 
     def close(self) -> None:
         """Release what the engine holds (its table probe, if any)."""

@@ -241,6 +241,20 @@ def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: 
     return out
 
 
+@lru_cache(maxsize=8)
+def prepare_exact_paths(num_edges: int) -> None:
+    """Build the three-contact tables of ``num_edges``-edge cones and load the compiled
+    kernels of :func:`exact_quality`'s rarer paths, once per process: what a scorer that is
+    kept (an engine a worker holds) would otherwise pay on the first grasp that needs them
+    (~30 ms), in the middle of a run."""
+    from kinegrasp_env.quality.expansion import outside_batch
+    from kinegrasp_env.quality.three_contacts import epsilon_three_contacts
+
+    w = np.random.default_rng(0).standard_normal((1, 3 * num_edges, 6))
+    outside_batch(w)
+    epsilon_three_contacts(w, num_edges)
+
+
 def thresholded(q: float, w: np.ndarray) -> float:
     """An exact path's Q of wrenches w (N, 6) under the force-closure rule
     (:func:`~kinegrasp_env.quality.wrenches.closure_class` on the wrench scale max |w|): 0
