@@ -10,9 +10,9 @@ pytest.importorskip("mujoco")
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.reference import hand_joint_values
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh, load_urdf
 from kinegrasp_env.world.grasps import grasp_by_index
@@ -61,7 +61,7 @@ def test_mujoco_kinematics_match_pybullet(cube_world):
     try:
         for index in (0, 3, 6):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            root = kin.pose(q[None], FLANGE_LINK)[0]
+            root = kin.pose(q[None], default_hand_mount())[0]
             values = hand_joint_values(q[7:])
             cube_world.reset(root, values)
             bullet.reset(root, values)
@@ -113,7 +113,7 @@ def test_closing_on_the_pinned_cube_touches_what_pybullet_touches():
     try:
         for index in range(6):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            root = kin.pose(q[None], FLANGE_LINK)[0]
+            root = kin.pose(q[None], default_hand_mount())[0]
             a = mujoco_close(ours, root, q[7:], settings)
             b = physics_close(bullet, root, q[7:], settings, pin=True)
             assert [(c.finger, c.link) for c in a.contacts] == \
@@ -144,7 +144,7 @@ def test_the_release_hardly_moves_the_cube_in_mujoco_too():
     try:
         for index in (0, 3, 9):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            _, result = sim.run_draw(kin.pose(q[None], FLANGE_LINK)[0], q[7:])
+            _, result = sim.run_draw(kin.pose(q[None], default_hand_mount())[0], q[7:])
             assert HOLD_OUTCOMES[result.outcome] not in ("no_grip", "grip_lost"), index
             assert result.grip_shift <= GRIP_SHIFT_MAX, (index, result.grip_shift)
     finally:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, make_engine
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
@@ -21,6 +21,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
     close_deltas,
     joint_covariance,
 )
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.kinematics import rotation_log
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
@@ -40,8 +41,8 @@ def grasp():
 
 def exact_deltas(jac: PalmJacobian, q0: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(n, 6) the flange's deviation F(q0)^-1 F(q) as (translation, rotation vector)."""
-    f0 = jac.kin.pose(q0[None], FLANGE_LINK)[0]
-    f = jac.kin.pose(q, FLANGE_LINK)
+    f0 = jac.kin.pose(q0[None], default_hand_mount())[0]
+    f = jac.kin.pose(q, default_hand_mount())
     rel = np.linalg.inv(f0) @ f
     return np.concatenate([rel[:, :3, 3], rotation_log(rel[:, :3, :3])], axis=1)
 

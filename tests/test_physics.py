@@ -51,6 +51,7 @@ from kinegrasp_env.physics.pybullet_hold import (
     run_phases,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings, pose_matrix
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.model import FINGERS, kuka_sdh
@@ -60,6 +61,7 @@ from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.sim import GraspWorld
 
 KIN = Kinematics(kuka_sdh())
+MOUNT = default_hand_mount()  # the link whose pose places the hand
 
 
 def palm_down(x: float, z: float, preshape) -> np.ndarray:
@@ -242,7 +244,7 @@ def test_hand_frames_match_the_robot_kinematics():
     grasp = shipped_grasps("spray_flask")[3]
     world = PhysicsWorld(load_object("spray_flask"))
     try:
-        world.reset(KIN.pose(grasp.q0[None], "sdh_base")[0], hand_joint_values(grasp.q0[7:]))
+        world.reset(KIN.pose(grasp.q0[None], MOUNT)[0], hand_joint_values(grasp.q0[7:]))
         for link in ("palm", "f1_tip", "f2_tip", "f3_tip", "f2_distal"):
             np.testing.assert_allclose(world.link_pose(link), KIN.pose(grasp.q0[None], link)[0],
                                        atol=1e-6)
@@ -263,7 +265,7 @@ def _compare_with_kinematic(name: str, indices) -> list[tuple[float, float]]:
     try:
         for i in indices:
             q0 = shipped_grasps(name)[i].q0
-            root = KIN.pose(q0[None], "sdh_base")[0]
+            root = KIN.pose(q0[None], MOUNT)[0]
             ref = auto_close(reference, root, q0[7:])
             phys = physics_close(world, root, q0[7:])
             assert not phys.start_collision and not any(phys.missed)
@@ -418,7 +420,7 @@ def test_hold_is_deterministic_in_any_order(cube_engine):
 def _closed_on_pinned(name: str, q0: np.ndarray):
     """A world with the hand closed on the pinned object at q0 (14,), and its motors."""
     sim = PybulletHold(load_object(name), 0.5, HoldProtocol())
-    closing = physics_close(sim.world, KIN.pose(q0[None], "sdh_base")[0], q0[7:], sim.motors,
+    closing = physics_close(sim.world, KIN.pose(q0[None], MOUNT)[0], q0[7:], sim.motors,
                             pin=True)
     return sim, closing
 
@@ -568,7 +570,7 @@ def test_torque_scale_scales_the_grip_forces():
         protocol = HoldProtocol(torque_scale=scale)
         sim = PybulletHold(load_object("cube"), 0.5, protocol)
         try:
-            physics_close(sim.world, KIN.pose(q0[None], "sdh_base")[0], q0[7:], sim.motors,
+            physics_close(sim.world, KIN.pose(q0[None], MOUNT)[0], q0[7:], sim.motors,
                           pin=True)
             control = grip_control(sim.world, sim.motors, protocol)
             forces, _ = grip_until_steady(sim.world, control, protocol)
@@ -605,7 +607,7 @@ def test_a_phase_verdict_does_not_depend_on_the_phases_before():
     sim = PybulletHold(load_object("cube"), 0.5, protocol)
     try:
         world = sim.world
-        physics_close(world, KIN.pose(q0[None], "sdh_base")[0], q0[7:], sim.motors, pin=True)
+        physics_close(world, KIN.pose(q0[None], MOUNT)[0], q0[7:], sim.motors, pin=True)
         control = grip_control(world, sim.motors, protocol)
         grip_until_steady(world, control, protocol)
         world.release_object()

@@ -15,8 +15,9 @@ from kinegrasp_env.closing.reference import (
     closing_speeds,
     finger_capsules,
 )
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK, PybulletEngine
+from kinegrasp_env.montecarlo.engines import PybulletEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_noise
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import FINGERS, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
@@ -78,7 +79,7 @@ def test_a_link_query_gives_the_whole_hand_querys_distances():
     """The closing asks pybullet about one moving link at a time: the same records' minimum
     as the whole-hand query restricted to that link, bit for bit."""
     grasp = grasp_by_index("drill", 0)
-    root = Kinematics(kuka_sdh()).pose(grasp.q0, FLANGE_LINK)[0]
+    root = Kinematics(kuka_sdh()).pose(grasp.q0, default_hand_mount())[0]
     rng = np.random.default_rng(3)
     with GraspWorld(load_object("drill")) as world:
         probe = HandProbe(world)
@@ -104,7 +105,7 @@ def closed():
     grasp = grasp_by_index("spray_flask", 2)
     q = np.repeat(grasp.q0[None], 100, axis=0)
     q[:, :7] += chunk_noise(JointNoise(0.0133), 102, 0, 100)
-    roots = Kinematics(kuka_sdh()).pose(q, FLANGE_LINK)
+    roots = Kinematics(kuka_sdh()).pose(q, default_hand_mount())
     world = GraspWorld(load_object("spray_flask"))
     results = []
     for i in range(len(q)):

@@ -38,10 +38,10 @@ from kinegrasp_env.toolkit.elbow import optimize_elbow
 from kinegrasp_env.toolkit.report.charts import quality_histogram
 from kinegrasp_env.toolkit.report.elbow import curve_point
 from kinegrasp_env.toolkit.report.geometry import (
-    SKELETON_LINKS,
     closed_configuration,
     cone_meshes,
     noisy_configurations,
+    skeleton_links,
     skeletons,
     transform,
     visual_poses,
@@ -153,18 +153,18 @@ def test_skeleton_follows_pybullets_link_frames(bullet_robot, model):
     client, body, joints, links = bullet_robot
     q = np.random.default_rng(2).uniform(model.lower, model.upper, size=(3, model.dof))
     points = skeletons(q)
-    assert points.shape == (3, len(SKELETON_LINKS), 3)
+    assert points.shape == (3, len(skeleton_links()), 3)
     for i in range(3):
         for name, value in model.expand(q[i]).items():
             client.resetJointState(body, joints[name], float(value))
-        for k, link in enumerate(SKELETON_LINKS):
-            if link == "lbr_iiwa_link_0":  # the fixed base, loaded at the origin (pybullet
+        for k, link in enumerate(skeleton_links()):
+            if k == 0:  # the fixed base, loaded at the origin (pybullet
                 position = (0.0, 0.0, 0.0)  # reports its inertial frame instead)
             else:
                 position = client.getLinkState(body, links[link],
                                                computeForwardKinematics=1)[4]
             np.testing.assert_allclose(points[i, k], position, atol=1e-6)
-    assert SKELETON_LINKS[-1] == PALM_LINK
+    assert skeleton_links()[-1] == PALM_LINK
 
 
 def test_noisy_arms_are_the_runs_first_draws(run):
@@ -558,7 +558,7 @@ def _skeletons(figure: dict, name: str) -> np.ndarray:
     """A skeleton trace's polylines (n, L, 3) (NaN rows separate them)."""
     trace = next(t for t in figure["data"] if t["name"] == name)
     flat = np.stack([decode_typed_array(trace[a]) for a in "xyz"], axis=1)
-    return flat.reshape(-1, len(SKELETON_LINKS) + 1, 3)[:, :-1]
+    return flat.reshape(-1, len(skeleton_links()) + 1, 3)[:, :-1]
 
 
 def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):

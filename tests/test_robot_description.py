@@ -331,6 +331,8 @@ BAD = {
     "effort not positive": (lambda t: {"efforts": {"drive_joint": -1}}, "efforts",
                             "-1 is not > 0"),
     "no urdf": (lambda t: {"urdf": "nowhere.urdf"}, "urdf", "'nowhere.urdf': no such file"),
+    "hand mount on the arm": (lambda t: {"hand_mount": "link5"}, "hand_mount",
+                              "'link5' is not a link from the last arm joint's child"),
 }
 
 
@@ -369,6 +371,16 @@ def test_unreadable_files_are_one_line(home, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and needle in err, err
     assert not robots_dir().exists()
+
+
+def test_a_palm_error_is_given_in_the_hand_mounts_frame():
+    """The default robot's palm errors are relative to its hand mount (``hand_mount``); a
+    description without one takes the last arm joint's child, and the key is checked."""
+    kuka = load_robot("kuka_sdh")
+    assert kuka.flange_link == kuka.hand_mount == "sdh_base"
+    panda = load_robot("panda")
+    assert panda.hand_mount == ""
+    assert panda.flange_link == panda.model.joint(panda.arm_joints[-1]).child
 
 
 def test_builtin_names_are_their_descriptions_names():

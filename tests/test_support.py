@@ -30,6 +30,7 @@ import trimesh
 
 from kinegrasp_env.montecarlo.engines import START_COLLISION, make_engine
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.model import rpy_to_matrix, urdf_path
 from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 from kinegrasp_env.world.objects import load_object
@@ -160,7 +161,7 @@ def test_screen_never_drops_a_draw_in_the_table(tabled):
         offsets = np.repeat(np.eye(4)[None], len(q), axis=0)
         offsets[:, :3, 3] = rng.normal(0.0, 0.01, (len(q), 3))
         shifts = arm_shift(obj.pose, offsets)
-        roots = shifts @ probe.kin.pose(q, "sdh_base")
+        roots = shifts @ probe.kin.pose(q, default_hand_mount())
         roots[:, :3, 3] += rng.normal(0.0, 0.005, (len(q), 3))  # a palm-mount error
         screened = probe.hits(q, roots, shifts)
         values = probe.model.expand(q)

@@ -155,6 +155,13 @@ def posed_min(values, shape, origin, spacing, rot, trans, local, out):
         out[i] = posed_min_one(values, shape, origin, spacing, rot[i], trans[i], local, 0,
                                local.shape[0])
 
+@jit.kernel(_nrt=False)
+def posed_centres(values, shape, origin, spacing, rot, trans, centres, out):
+    for k in range(rot.shape[0]):
+        for i in range(rot.shape[1]):
+            out[k, i] = posed_min_one(values, shape, origin, spacing, rot[k, i], trans[k, i],
+                                      centres, k, k + 1)
+
 def grid_arrays(grid: DistanceGrid) -> tuple:
     """The grid as the kernels take it: flat values, shape, origin, spacing."""
     return (grid.values.reshape(-1), np.array(grid.shape, dtype=np.int64), grid.origin,
@@ -169,6 +176,19 @@ def posed_min_distance(grid: DistanceGrid, poses: np.ndarray, local: np.ndarray)
     posed_min(*grid_arrays(grid), np.ascontiguousarray(poses[:, :3, :3]),
               np.ascontiguousarray(poses[:, :3, 3]), np.ascontiguousarray(local, dtype=float),
               out)
+    return out
+
+
+def centre_distances(grid: DistanceGrid, poses: np.ndarray, centres: np.ndarray
+                     ) -> np.ndarray:
+    """(L, n) grid distance of each of L links' points ``centres`` (L, 3) (link frames)
+    placed by that link's poses (L, n, 4, 4) (metres, object frame): the distance of every
+    draw's bounding-ball centre of every link in one call."""
+    poses = np.asarray(poses, dtype=float)
+    out = np.empty(poses.shape[:2])
+    posed_centres(*grid_arrays(grid), np.ascontiguousarray(poses[..., :3, :3]),
+                  np.ascontiguousarray(poses[..., :3, 3]),
+                  np.ascontiguousarray(centres, dtype=float), out)
     return out
 
 

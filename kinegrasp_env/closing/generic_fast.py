@@ -51,7 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.capsule_fingers import CapsuleFingers, capsule_finger
-from kinegrasp_env.closing.capsule_gap import posed_min_distance
+from kinegrasp_env.closing.capsule_gap import centre_distances
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
@@ -118,7 +118,10 @@ class FastRobotHand:
         self.grid_err = grid_error(self.grid)
         self.geometry = robot_geometry(description) if geometry is None else geometry
         self.kinematics = Kinematics(self.model)
-        self._spheres = {link: geom.sphere for link, geom in self.geometry.items()}
+        self._links = list(self.geometry)
+        spheres = [self.geometry[link].sphere for link in self._links]
+        self._centres = np.array([centre[0] for centre, _ in spheres])  # (L, 3)
+        self._radii = np.array([radius for _, radius in spheres])  # (L,)
         self.paths = finger_paths(description, self.geometry, self.kinematics)
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
@@ -131,6 +134,7 @@ class FastRobotHand:
                          for link, geom in self.geometry.items() if geom.rounded}
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)
+        self._in_hand = np.array([link in self._hand for link in self._links])  # (L,)
         capsules = [found for f, path in enumerate(self.paths)
                     if (found := capsule_finger(f, path, self.geometry)) is not None]
         self._capsules = (CapsuleFingers(capsules, obj, self.grid, description.palm_link)
@@ -201,15 +205,21 @@ class FastRobotHand:
         from the object's (:meth:`distance_bound`), is not examined exactly); ``maps``: the
         (n, 4, 4) maps of an arm link's and of a hand link's world pose to the true object's
         frame (:meth:`error_maps`; default: the believed object pose's inverse)."""
-        poses = self.kinematics.forward(q, list(self.geometry))
-        inv = self.obj.pose_inverse
+        links = self._links
+        world = self.kinematics.forward(q, links)
+        stacked = np.stack([world[link] for link in links])  # (L, n, 4, 4)
+        if maps is None:
+            poses = self.obj.pose_inverse @ stacked
+        else:
+            hand = self._in_hand
+            poses = np.empty_like(stacked)
+            poses[~hand], poses[hand] = maps[0] @ stacked[~hand], maps[1] @ stacked[hand]
+        near = (centre_distances(self.grid, poses, self._centres) - self.grid_err
+                < self._radii[:, None])
         hit = np.zeros(q.shape[0], dtype=bool)
-        for link in self.geometry:
-            to_object = inv if maps is None else maps[link in self._hand]
-            pose = to_object @ poses[link]
-            centre, radius = self._spheres[link]
-            rows = np.flatnonzero(~hit & (posed_min_distance(self.grid, pose, centre)
-                                          - self.grid_err < radius))
+        for k in np.flatnonzero(near.any(axis=1)):
+            link, pose = links[k], poses[k]
+            rows = np.flatnonzero(~hit & near[k])
             if rows.size == 0:
                 continue
             rows = rows[self.distance_bound(pose[rows], link)[0] < -start_tol]

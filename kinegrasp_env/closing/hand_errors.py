@@ -52,8 +52,9 @@ def arm_to_object(object_pose: np.ndarray, object_offset: np.ndarray | None,
 
 
 def flange_link(description: RobotDescription) -> str:
-    """The link a palm error is relative to: the child of the last arm joint."""
-    return description.model.joint(description.arm_joints[-1]).child
+    """The link a palm error is relative to (:attr:`RobotDescription.flange_link`: the
+    description's ``hand_mount``, by default the child of the last arm joint)."""
+    return description.flange_link
 
 
 def hand_links(description: RobotDescription) -> frozenset[str]:

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
-from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots, rigid_inverse
+from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
+from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import HAND_JOINTS, kuka_sdh
@@ -33,7 +34,6 @@ START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
 MAX_CONTACTS = 6
 #: entries of a configuration: 7 arm joints, then 7 hand DOF
 CONFIGURATION_SIZE = 14
-FLANGE_LINK = "sdh_base"
 
 
 def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
@@ -210,7 +210,7 @@ class Engine:
         probe = self._table_probe
         roots = None
         if palm is not None or object_offset is not None:
-            roots = placed_roots(probe.kin.pose(q, FLANGE_LINK), self.obj.pose, palm,
+            roots = placed_roots(probe.kin.pose(q, default_hand_mount()), self.obj.pose, palm,
                                  object_offset)
         return probe.hits(q, roots, arm_shift(self.obj.pose, object_offset))
 
@@ -295,7 +295,7 @@ class PybulletEngine(Engine):
 
     def flange_poses(self, q: np.ndarray) -> np.ndarray:
         """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
-        return self.kin.pose(q, FLANGE_LINK)
+        return self.kin.pose(q, default_hand_mount())
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
@@ -332,18 +332,10 @@ class FastEngine(Engine):
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         from kinegrasp_env.closing.generic_fast import FastRobotHand
-        from kinegrasp_env.closing.hand_errors import flange_link
-        from kinegrasp_env.robot.catalog import load_robot
         from kinegrasp_env.world.sdf import grid_of
 
         super().__init__(object_name, friction, num_edges)
-        description = load_robot(DEFAULT_ROBOT)
-        self.hand = FastRobotHand(description, self.obj, grid=grid_of(self.obj))
-        # a palm error is given in FLANGE_LINK's frame (the hand's mount); the description's
-        # closing takes it in its flange's (the last arm link), fixed joints apart
-        zero = np.zeros((1, description.model.dof))
-        self._mount = (rigid_inverse(self.hand.kinematics.pose(zero, flange_link(description)))
-                       @ self.hand.kinematics.pose(zero, FLANGE_LINK))[0]
+        self.hand = FastRobotHand(load_robot(DEFAULT_ROBOT), self.obj, grid=grid_of(self.obj))
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
@@ -351,8 +343,6 @@ class FastEngine(Engine):
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
-        if palm is not None:
-            palm = self._mount @ palm @ rigid_inverse(self._mount)
         batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
         t1 = time.perf_counter()
         counts = batch.contact_counts  # the contacts by finger, proximal before distal

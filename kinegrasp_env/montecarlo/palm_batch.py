@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK, FORCE_CLOSURE, OUTCOMES, make_engine
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, make_engine
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse, rotation_log
 from kinegrasp_env.robot.model import kuka_sdh
@@ -154,7 +155,7 @@ class PalmJacobian:
 
     def __init__(self, description: RobotDescription | None = None) -> None:
         if description is None:
-            self.kin, self.flange, self.arm = Kinematics(kuka_sdh()), FLANGE_LINK, ARM
+            self.kin, self.flange, self.arm = Kinematics(kuka_sdh()), default_hand_mount(), ARM
         else:
             from kinegrasp_env.closing.hand_errors import flange_link
 

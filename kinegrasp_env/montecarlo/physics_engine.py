@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import (
-    FLANGE_LINK,
     DrawBatch,
     Engine,
     check_configurations,
@@ -33,6 +32,7 @@ from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldPr
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
@@ -146,7 +146,7 @@ class PhysicsEngine(Engine):
         n = q.shape[0]
         out = DrawBatch.empty(n)
         t0 = time.perf_counter()
-        roots = self.kin.pose(q, FLANGE_LINK)
+        roots = self.kin.pose(q, default_hand_mount())
         t1 = time.perf_counter()
         for i in range(n):
             if hold is None:

@@ -24,6 +24,9 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     arm_angle_links: [s, e, w]       # optional: shoulder, elbow, wrist links of the arm
                                      # angle (default for 7 arm joints: the links moved by
                                      # arm joints 2, 4 and 6)
+    hand_mount: sdh_base             # optional: the link the hand is mounted on, whose frame
+                                     # a palm error is given in (a link from the last arm
+                                     # joint's child to palm_link; default: that child)
 
 Mesh paths are resolved as URDF readers do: relative to the URDF's folder, absolute (or
 ``file://``), or ``package://NAME/rest``: through ``packages`` when it names NAME, else a
@@ -48,7 +51,7 @@ from kinegrasp_env.robot.model import RobotModel, load_urdf
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "close")
 OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
-                 "arm_angle_links")
+                 "arm_angle_links", "hand_mount")
 CONTACT_MODELS = ("point", "soft", "patch")
 
 
@@ -110,6 +113,13 @@ class RobotDescription:
     packages: dict[str, Path] = field(default_factory=dict)
     arm_angle_links: tuple[str, str, str] | None = None
     meshes: tuple[MeshFile, ...] = ()
+    hand_mount: str = ""
+
+    @property
+    def flange_link(self) -> str:
+        """The link a palm error is relative to: ``hand_mount``, by default the child of the
+        last arm joint."""
+        return self.hand_mount or self.model.joint(self.arm_joints[-1]).child
 
     @property
     def quality_model(self) -> str:
@@ -338,10 +348,24 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
             raise _fail(where, "packages", f"{pkg}: {folder!r} is not a folder ({resolved})")
         packages[pkg] = resolved
     angle_links = _arm_angle_links(data, where, arm, movable, path_links)
+    mount = _hand_mount(data, where, path_links, movable[arm[-1]].child)
     meshes = urdf_meshes(urdf, packages, where)
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
-                            efforts, contact_model, packages, angle_links, meshes)
+                            efforts, contact_model, packages, angle_links, meshes, mount)
+
+
+def _hand_mount(data, where, path_links, flange: str) -> str:
+    """The ``hand_mount`` link ("" when not given): one of the links from the last arm
+    joint's child ``flange`` to the palm, which fixed joints join to both."""
+    if "hand_mount" not in data:
+        return ""
+    link = data["hand_mount"]
+    allowed = path_links[path_links.index(flange):]
+    if not isinstance(link, str) or link not in allowed:
+        raise _fail(where, "hand_mount", f"{link!r} is not a link from the last arm joint's "
+                    f"child to palm_link (one of {', '.join(allowed)})")
+    return link
 
 
 def default_contact_model(fingers: int) -> str:

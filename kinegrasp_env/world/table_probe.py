@@ -28,13 +28,11 @@ with quiet_c_output():
     import pybullet
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.robot.catalog import default_hand_mount
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, rpy_to_matrix, urdf_path
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
-
-#: The link whose pose is the hand root (the arm's flange).
-FLANGE_LINK = "sdh_base"
 
 
 @lru_cache(maxsize=2)
@@ -140,7 +138,7 @@ class TableProbe(BulletWorld):
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
         if roots is None:
-            roots = self.kin.pose(q, FLANGE_LINK)
+            roots = self.kin.pose(q, default_hand_mount())
             if shifts is not None:
                 roots = shifts @ roots
         values = self.model.expand(q)
@@ -156,12 +154,12 @@ class TableProbe(BulletWorld):
         """(n,) bool, False only where no link can reach the table: every link's bounding
         ball (:func:`link_radii`, about the link frame's origin from forward kinematics) is
         clear of the box; pybullet is asked about the others only."""
-        poses = self.kin.forward(q, [FLANGE_LINK, *self.arm_names, *self.hand_names])
+        poses = self.kin.forward(q, [default_hand_mount(), *self.arm_names, *self.hand_names])
         arm = np.stack([poses[name][:, :3, 3] for name in self.arm_names], axis=1)
         if shifts is not None:
             arm = arm @ np.swapaxes(shifts[:, :3, :3], 1, 2) + shifts[:, None, :3, 3]
         # the hand body's links where the engine puts it: root . flange^-1 . link
-        to_root = roots @ np.linalg.inv(poses[FLANGE_LINK])
+        to_root = roots @ np.linalg.inv(poses[default_hand_mount()])
         hand = np.stack([(to_root @ poses[name])[:, :3, 3] for name in self.hand_names], axis=1)
         points = np.concatenate([arm, hand], axis=1)  # (n, L, 3) link origins, world
         local = points @ self.box_inverse[:3, :3].T + self.box_inverse[:3, 3]

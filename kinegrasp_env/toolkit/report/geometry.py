@@ -15,7 +15,6 @@ from functools import lru_cache
 import numpy as np
 import trimesh
 
-from kinegrasp_env.montecarlo.engines import FLANGE_LINK
 from kinegrasp_env.montecarlo.evaluate import (
     DEFAULT_CHUNK,
     Noise,
@@ -23,14 +22,12 @@ from kinegrasp_env.montecarlo.evaluate import (
     chunk_sizes,
 )
 from kinegrasp_env.quality.wrenches import friction_cone_edges
+from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, rpy_to_matrix, urdf_path
 from kinegrasp_env.world.objects import GraspObject
 
-#: Links whose frame origins make the arm's skeleton, base to palm.
-SKELETON_LINKS: tuple[str, ...] = (*(f"lbr_iiwa_link_{i}" for i in range(8)), "sdh_base",
-                                   "palm")
-ARM_LINKS = frozenset(f"lbr_iiwa_link_{i}" for i in range(len(ARM_JOINTS) + 1))
 CAPSULE_COUNT = (12, 12)
 CYLINDER_SECTIONS = 16
 
@@ -117,6 +114,23 @@ def transform(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return np.asarray(points) @ pose[:3, :3].T + pose[:3, 3]
 
 
+@lru_cache(maxsize=1)
+def skeleton_links() -> tuple[str, ...]:
+    """Links whose frame origins make the default robot's skeleton: its chain from the base
+    to the palm (its description's)."""
+    description = load_robot(DEFAULT_ROBOT)
+    chain = Kinematics(description.model).chain(description.palm_link)
+    return (description.model.base_link, *(joint.child for joint in chain))
+
+
+@lru_cache(maxsize=1)
+def arm_links() -> frozenset[str]:
+    """The default robot's arm links: its base and each arm joint's child."""
+    description = load_robot(DEFAULT_ROBOT)
+    return frozenset((description.model.base_link,
+                      *(description.model.joint(j).child for j in description.arm_joints)))
+
+
 def visual_poses(q: np.ndarray, frame: np.ndarray | None = None, *, arm: bool = True,
                  hand: bool = True) -> list[tuple[int, Visual, np.ndarray]]:
     """Where each link visual is at configuration q (14,).
@@ -124,22 +138,23 @@ def visual_poses(q: np.ndarray, frame: np.ndarray | None = None, *, arm: bool = 
     Args:
         q: arm+hand configuration, radians.
         frame: (4, 4) world -> target frame (default: the world frame itself).
-        arm, hand: include the arm's links (``lbr_iiwa_link_*``), the hand's.
+        arm, hand: include the arm's links (:func:`arm_links`), the hand's.
 
     Returns:
         (index in :func:`robot_visuals`, visual, (4, 4) pose of its link frame in ``frame``).
     """
     chosen = [(i, v) for i, v in enumerate(robot_visuals())
-              if (v.link in ARM_LINKS and arm) or (v.link not in ARM_LINKS and hand)]
+              if (v.link in arm_links() and arm) or (v.link not in arm_links() and hand)]
     poses = kinematics().forward(np.asarray(q, dtype=float), [v.link for _, v in chosen])
     to_frame = np.eye(4) if frame is None else frame
     return [(i, v, to_frame @ poses[v.link][0]) for i, v in chosen]
 
 
 def skeletons(q: np.ndarray, frame: np.ndarray | None = None) -> np.ndarray:
-    """(n, L, 3) origins of :data:`SKELETON_LINKS` for configurations q (n, 14)."""
-    poses = kinematics().forward(np.atleast_2d(q), SKELETON_LINKS)
-    points = np.stack([poses[link][:, :3, 3] for link in SKELETON_LINKS], axis=1)
+    """(n, L, 3) origins of :func:`skeleton_links` for configurations q (n, 14)."""
+    links = skeleton_links()
+    poses = kinematics().forward(np.atleast_2d(q), links)
+    points = np.stack([poses[link][:, :3, 3] for link in links], axis=1)
     return points if frame is None else transform(points, frame)
 
 
@@ -157,7 +172,8 @@ def closed_configuration(q0: np.ndarray, obj: GraspObject) -> tuple[np.ndarray, 
     q0 = np.asarray(q0, dtype=float)
     world = GraspWorld(obj)
     try:
-        result = auto_close(world, kinematics().pose(q0, FLANGE_LINK)[0], q0[len(ARM_JOINTS):])
+        root = kinematics().pose(q0, default_hand_mount())[0]
+        result = auto_close(world, root, q0[len(ARM_JOINTS):])
     finally:
         world.close()
     if result.start_collision or result.joints is None:
