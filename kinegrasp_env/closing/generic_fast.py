@@ -81,6 +81,7 @@ from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
 from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.closing.table_check import TableCheck
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
@@ -135,6 +136,7 @@ class FastRobotHand:
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)
         self._in_hand = np.array([link in self._hand for link in self._links])  # (L,)
+        self._table = None if obj.table is None else TableCheck(self.geometry, obj)
         capsules = [found for f, path in enumerate(self.paths)
                     if (found := capsule_finger(f, path, self.geometry)) is not None]
         self._capsules = (CapsuleFingers(capsules, obj, self.grid, description.palm_link)
@@ -198,27 +200,49 @@ class FastRobotHand:
             dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
 
+    def _object_poses(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None
+                      ) -> np.ndarray:
+        """(L, n, 4, 4) every link's pose at q (n, dof) in the true object's frame (``maps``:
+        as in :meth:`start_collision`), links in the geometry's order."""
+        world = self.kinematics.forward(q, self._links)
+        stacked = np.stack([world[link] for link in self._links])
+        if maps is None:
+            return self.obj.pose_inverse @ stacked
+        hand = self._in_hand
+        poses = np.empty_like(stacked)
+        poses[~hand], poses[hand] = maps[0] @ stacked[~hand], maps[1] @ stacked[hand]
+        return poses
+
+    def _in_table(self, poses: np.ndarray) -> np.ndarray:
+        """(n,) bool: some link placed by ``poses`` (:meth:`_object_poses`) touches or enters
+        the object's support table (all False without one)."""
+        hit = np.zeros(poses.shape[1], dtype=bool)
+        if self._table is not None:
+            for k, link in enumerate(self._links):
+                hit |= self._table.hits(link, poses[k])
+        return hit
+
+    def table_hits(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> np.ndarray:
+        """(n,) bool: at q (n, dof) some link touches or enters the object's support table
+        (:class:`~kinegrasp_env.closing.table_check.TableCheck`; all False without one);
+        ``maps`` as in :meth:`start_collision`."""
+        return self._in_table(self._object_poses(q, maps))
+
     def start_collision(self, q: np.ndarray, start_tol: float = START_TOL,
                         maps: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(n,) bool: some link at q (n, dof) deeper than ``start_tol`` in the object (a
         link whose bounding ball the grid puts clear of the object, or whose hulls are apart
-        from the object's (:meth:`distance_bound`), is not examined exactly); ``maps``: the
+        from the object's (:meth:`distance_bound`), is not examined exactly), or touching
+        its support table (:meth:`table_hits`); ``maps``: the
         (n, 4, 4) maps of an arm link's and of a hand link's world pose to the true object's
         frame (:meth:`error_maps`; default: the believed object pose's inverse)."""
-        links = self._links
-        world = self.kinematics.forward(q, links)
-        stacked = np.stack([world[link] for link in links])  # (L, n, 4, 4)
-        if maps is None:
-            poses = self.obj.pose_inverse @ stacked
-        else:
-            hand = self._in_hand
-            poses = np.empty_like(stacked)
-            poses[~hand], poses[hand] = maps[0] @ stacked[~hand], maps[1] @ stacked[hand]
+        poses = self._object_poses(q, maps)
+        hit = self._in_table(poses)
         near = (centre_distances(self.grid, poses, self._centres) - self.grid_err
                 < self._radii[:, None])
-        hit = np.zeros(q.shape[0], dtype=bool)
         for k in np.flatnonzero(near.any(axis=1)):
-            link, pose = links[k], poses[k]
+            link, pose = self._links[k], poses[k]
             rows = np.flatnonzero(~hit & near[k])
             if rows.size == 0:
                 continue

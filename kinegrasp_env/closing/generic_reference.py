@@ -62,11 +62,13 @@ from kinegrasp_env.closing.contact_patch import (
 from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
 from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.closing.table_check import table_in_object
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
+from kinegrasp_env.world.table_probe import table_body
 
 #: Closing steps per finger at most (conservative advancement converges in a few for jaws).
 MAX_STEPS = 200
@@ -135,11 +137,17 @@ class RobotWorld(GraspWorld):
         for link in self.link_index.values():
             bullet.changeDynamics(robot, link, collisionMargin=0.0)
         self.bodies["object"] = self._load_object(obj)
+        self._table = None  # the support table: (body, its pose in the object frame)
+        if obj.table is not None:
+            self._table = (table_body(bullet, obj), table_in_object(obj)[0])
+            self.bodies["table"] = self._table[0]
         self.margins = {(body, link): hull_margin(bullet, body, link)
                         for body, count in ((robot, bullet.getNumJoints(robot)),
                                             (self.bodies["object"],
                                              bullet.getNumJoints(self.bodies["object"])))
                         for link in range(-1, count)}
+        if self._table is not None:
+            self.margins[(self._table[0], -1)] = 0.0
         self._movable = [j.name for j in self.model.joints if j.movable]
         self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
                              for finger in description.fingers]
@@ -247,7 +255,7 @@ class RobotWorld(GraspWorld):
             self._place_object(true)
             arm = self._arm_links
             if any(self.distance(row) < -start_tol
-                   for link in arm for row in self.closest(0.0, link)):
+                   for link in arm for row in self.closest(0.0, link)) or self.in_table(arm):
                 return self._collided(len(arm))
             self._place_object(seen)
             return self._close(start, contact_tol, start_tol, links=self._hand_links,
@@ -256,17 +264,30 @@ class RobotWorld(GraspWorld):
             self._place_object(believed)
 
     def _place_object(self, pose: np.ndarray) -> None:
-        """The object body at ``pose`` (4, 4), where the contacts' frame follows it."""
+        """The object body at ``pose`` (4, 4), where the contacts' frame follows it, and its
+        support table with it."""
         self.placed = pose
         position, orientation = matrix_to_pose(pose)
         self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
                                                     orientation)
+        if self._table is not None:
+            self.bullet.resetBasePositionAndOrientation(
+                self._table[0], *matrix_to_pose(pose @ self._table[1]))
+
+    def in_table(self, links: tuple[str, ...] | None = None) -> bool:
+        """Whether ``links`` (default: the whole robot) touch or enter the object's support
+        table (pybullet's closest points at 0 m; never without a table)."""
+        if self._table is None:
+            return False
+        robot, table = self.bodies["robot"], self._table[0]
+        rows = (self.bullet.getClosestPoints(robot, table, 0.0) if links is None else
+                [row for link in links for row in self.bullet.getClosestPoints(
+                    robot, table, 0.0, linkIndexA=self.link_index[link])])
+        return any(self.distance(row) <= 0.0 for row in rows)
 
     def _collided(self, queries: int) -> RobotCloseResult:
         """A closing that starts in collision."""
-        fingers = len(self.description.fingers)
-        return RobotCloseResult(True, queries=queries, missed=(False,) * fingers,
-                                gaps=np.full(fingers, np.nan), travel=np.zeros(fingers))
+        return RobotCloseResult.collided(len(self.description.fingers), queries)
 
     def _close(self, start: dict[str, float], contact_tol: float, start_tol: float,
                links: list[str] | None = None, queries: int = 0) -> RobotCloseResult:
@@ -279,7 +300,7 @@ class RobotWorld(GraspWorld):
         else:
             queries += len(links)
             rows = [row for link in links for row in self.closest(0.0, link)]
-        if any(self.distance(row) < -start_tol for row in rows):
+        if any(self.distance(row) < -start_tol for row in rows) or self.in_table(links):
             return self._collided(queries)
         missed, gaps, travel, final = [], [], [], {}
         contacts: list[RobotContact] = []

@@ -49,3 +49,9 @@ class RobotCloseResult:
     travel: np.ndarray = field(default_factory=lambda: np.empty(0))
     joints: dict[str, float] = field(default_factory=dict)
     queries: int = 0
+
+    @classmethod
+    def collided(cls, fingers: int, queries: int = 0) -> RobotCloseResult:
+        """A closing of a hand of ``fingers`` fingers that starts in collision."""
+        return cls(True, queries=queries, missed=(False,) * fingers,
+                   gaps=np.full(fingers, np.nan), travel=np.zeros(fingers))

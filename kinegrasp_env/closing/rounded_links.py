@@ -32,7 +32,7 @@ from kinegrasp_env.world.sdf import DistanceGrid
 #: A core whose grid bound is above this (metres) takes it (GJK below).
 GRID_CLEAR = 5e-3
 
-__all__ = ["RoundedCores", "contact_normals"]
+__all__ = ["RoundedCores", "contact_normals", "core_layout"]
 
 
 class RoundedCores:
@@ -49,7 +49,7 @@ class RoundedCores:
     def __init__(self, parts: tuple[RoundedPart, ...], object_hulls: tuple, simplex,
                  grid: DistanceGrid) -> None:
         self.parts, self.grid, self._grid_err = parts, grid, grid_error(grid)
-        self._cores = [_core_layout(p) for p in parts]
+        self._cores = [core_layout(p) for p in parts]
         self._object_hulls, self._simplex = object_hulls, simplex
 
     def _core_bound(self, k: int, rot: np.ndarray, trans: np.ndarray, motion: np.ndarray | None,
@@ -122,7 +122,7 @@ class RoundedCores:
         return dist, core_point, obj_point
 
 
-def _core_layout(part: RoundedPart) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def core_layout(part: RoundedPart) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A rounded part's core as a hull of one or two vertices, in the layout of
     :func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`."""
     core = np.stack([part.a, part.b]) if np.any(part.a != part.b) else part.a[None]

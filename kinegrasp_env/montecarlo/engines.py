@@ -157,6 +157,9 @@ class Engine:
     name = ""
     #: whether :meth:`run` takes per-draw palm, object and friction errors
     takes_errors = False
+    #: whether the closing's own start check covers the object's support table (else
+    #: :meth:`clear_of_table` runs first)
+    checks_table = False
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         self.obj = load_object(object_name)
@@ -193,7 +196,7 @@ class Engine:
             raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
                              f"{', '.join(errors)} errors")
         with single_blas_thread():
-            if self.obj.table is None:
+            if self.obj.table is None or self.checks_table:
                 return self._run(q, **errors)
             return self.clear_of_table(q, errors, self._run)[0]
 
@@ -318,9 +321,9 @@ class PybulletEngine(Engine):
 class FastEngine(Engine):
     """The batched engine: the default robot's description (``kuka_sdh.yaml``) closed by
     the description robots' batched closing (:class:`~kinegrasp_env.closing.generic_fast.
-    FastRobotHand`: its start collision by exact distances, its capsule fingers by the
-    compiled capsule loop against the object's distance grid), then the same scoring as the
-    reference.
+    FastRobotHand`: its start collision by exact distances, the support table's included,
+    its capsule fingers by the compiled capsule loop against the object's distance grid),
+    then the same scoring as the reference.
 
     Args:
         object_name: catalog object.
@@ -329,6 +332,7 @@ class FastEngine(Engine):
 
     name = "fast"
     takes_errors = True
+    checks_table = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
         from kinegrasp_env.closing.generic_fast import FastRobotHand
@@ -336,6 +340,16 @@ class FastEngine(Engine):
 
         super().__init__(object_name, friction, num_edges)
         self.hand = FastRobotHand(load_robot(DEFAULT_ROBOT), self.obj, grid=grid_of(self.obj))
+
+    def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
+                   object_offset: np.ndarray | None = None, **_) -> np.ndarray:
+        """(n,) bool: draw i (q (n, 14), radians; per-draw errors as in :meth:`run`) puts a
+        link in the object's support table (the description's test:
+        :meth:`~kinegrasp_env.closing.generic_fast.FastRobotHand.table_hits`)."""
+        maps = None
+        if palm is not None or object_offset is not None:
+            maps = self.hand.error_maps(q, palm, object_offset)
+        return self.hand.table_hits(q, maps)
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,

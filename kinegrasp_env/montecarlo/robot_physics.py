@@ -24,6 +24,7 @@ from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import Kinematics
 
 
 class RobotPhysicsEngine(RobotEngine):
@@ -46,6 +47,13 @@ class RobotPhysicsEngine(RobotEngine):
         super().__init__(robot, object_name, **kwargs)
         self.hold = RobotHold(self.description, self.obj, self.friction, HoldProtocol(),
                               world, motors)
+        self._table = None  # the arm is not simulated: its table test is the geometric one
+        if self.obj.table is not None:
+            from kinegrasp_env.closing.generic_fast import robot_geometry
+            from kinegrasp_env.closing.table_check import TableCheck
+
+            self._table = (TableCheck(robot_geometry(self.description), self.obj),
+                           Kinematics(self.description.model))
 
     def close(self) -> None:
         self.hold.close()
@@ -55,4 +63,13 @@ class RobotPhysicsEngine(RobotEngine):
         return self.hold.close_hand(self.check(q)[0], pin=False)[0]
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
-        return [self.hold.close_hand(row, pin=False)[0] for row in q]
+        """One closing per configuration of q (n, dof); a draw whose robot starts in the
+        object's support table (:class:`~kinegrasp_env.closing.table_check.TableCheck`) is
+        a start collision, not simulated."""
+        in_table = np.zeros(len(q), dtype=bool)
+        if self._table is not None:
+            in_table = self._table[0].robot_hits(self._table[1], q)
+        fingers = len(self.description.fingers)
+        return [RobotCloseResult.collided(fingers) if hit
+                else self.hold.close_hand(row, pin=False)[0]
+                for row, hit in zip(q, in_table, strict=True)]

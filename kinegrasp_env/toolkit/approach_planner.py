@@ -116,8 +116,8 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
             q0[:description.arm_dof] = arms[c]
             if clearance(engine, q0) < settings.min_clearance:
                 continue
-            draws = engine.run(q0[None])
-            if draws.outcome[0] != FORCE_CLOSURE:
+            draws = engine.run(q0[None])  # the world left with the hand closed
+            if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
                 continue
             found.append(grasp_from_draw(
                 draws, object_name, q0, kin.pose(q0, description.palm_link)[0],

@@ -219,8 +219,8 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
             q0[:description.arm_dof] = arm
             if clearance(engine, q0) < settings.min_clearance:
                 continue
-            draws = engine.run(q0[None])
-            if draws.outcome[0] != FORCE_CLOSURE:
+            draws = engine.run(q0[None])  # the world left with the hand closed
+            if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
                 continue
             k = int(draws.n_contacts[0])
             found.append(Grasp(
