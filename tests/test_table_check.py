@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.closing.generic_fast import robot_geometry
+from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.table_check import TableCheck
 from kinegrasp_env.montecarlo.engines import START_COLLISION
 from kinegrasp_env.montecarlo.engines import make_engine as make_default_engine
@@ -63,7 +63,7 @@ def _draws(robot: str, n: int, sigma: float, seed: int) -> np.ndarray:
 def test_table_check_matches_pybullet(robot):
     description = load_robot(robot)
     obj = load_object("cube_on_table")
-    geometry = robot_geometry(description)
+    geometry = robot_link_geometry(description)
     check = TableCheck(geometry, obj)
     q = _draws(robot, 40, 0.08, 1)
     poses = Kinematics(description.model).forward(q, list(geometry))

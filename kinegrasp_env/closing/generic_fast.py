@@ -72,11 +72,7 @@ from kinegrasp_env.closing.hand_errors import (
 )
 from kinegrasp_env.closing.hand_geometry import surface_contact
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
-from kinegrasp_env.closing.link_geometry import (
-    LinkGeometry,
-    grid_error,
-    link_geometry,
-)
+from kinegrasp_env.closing.link_geometry import LinkGeometry, grid_error, robot_link_geometry
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
@@ -102,7 +98,8 @@ class FastRobotHand:
         description: the robot.
         obj: the catalog object (at ``obj.pose`` in the robot's base frame).
         grid: the object's distance grid (default: :func:`~kinegrasp_env.world.sdf.grid_of`).
-        geometry: link name -> :class:`LinkGeometry` (default: :func:`link_geometry`).
+        geometry: link name -> :class:`LinkGeometry` (default: the robot's,
+            :func:`~kinegrasp_env.closing.link_geometry.robot_link_geometry`).
         patch: place a contact on a face at its patch's centre (as ``RobotWorld(patch=)``).
         compiled: close the fingers of two capsule phalanxes in one compiled loop
             (:mod:`~kinegrasp_env.closing.capsule_fingers`; at the default contact
@@ -117,7 +114,7 @@ class FastRobotHand:
         self.model = description.model
         self.grid = grid_of(obj) if grid is None else grid
         self.grid_err = grid_error(self.grid)
-        self.geometry = robot_geometry(description) if geometry is None else geometry
+        self.geometry = robot_link_geometry(description) if geometry is None else geometry
         self.kinematics = Kinematics(self.model)
         self._links = list(self.geometry)
         spheres = [self.geometry[link].sphere for link in self._links]
@@ -129,7 +126,8 @@ class FastRobotHand:
         self._object_hulls = stacked_vertices(obj.convex_parts)
 
         self._simplex = new_simplex()
-        self._link_hulls, self._link_faces = _stacked_links(self.geometry)
+        self._link_hulls = {link: g.hulls for link, g in self.geometry.items() if g.parts}
+        self._link_faces = {link: g.faces for link, g in self.geometry.items() if g.parts}
         self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex,
                                             self.grid)
                          for link, geom in self.geometry.items() if geom.rounded}
@@ -397,31 +395,6 @@ class FastRobotHand:
             normals[edge] = found
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return points, normals
-
-
-_GEOMETRY: dict[tuple, dict[str, LinkGeometry]] = {}
-_STACKED: dict[int, tuple[dict, dict, dict]] = {}
-
-
-def robot_geometry(description: RobotDescription) -> dict[str, LinkGeometry]:
-    """:func:`~kinegrasp_env.closing.link_geometry.link_geometry` of the robot, read once
-    per URDF file and process (the closing of every object shares it)."""
-    key = (description.name, str(description.urdf))
-    if key not in _GEOMETRY:
-        _GEOMETRY[key] = link_geometry(description)
-    return _GEOMETRY[key]
-
-
-def _stacked_links(geometry: dict[str, LinkGeometry]) -> tuple[dict, dict]:
-    """(link -> its hulls' stacked vertices, link -> their stacked faces) of the links with
-    polytopes (:func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`,
-    :func:`~kinegrasp_env.closing.convex_distance.stacked_faces`), kept with a shared
-    geometry."""
-    if id(geometry) not in _STACKED or _STACKED[id(geometry)][0] is not geometry:
-        hulls = {link: stacked_vertices(g.parts) for link, g in geometry.items() if g.parts}
-        faces = {link: stacked_faces(g.parts) for link, g in geometry.items() if g.parts}
-        _STACKED[id(geometry)] = (geometry, hulls, faces)
-    return _STACKED[id(geometry)][1:]
 
 
 def _compiled_finger(path: FingerPath, closed: tuple) -> tuple:

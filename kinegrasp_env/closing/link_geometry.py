@@ -15,11 +15,12 @@ And the distance grid's error bound."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from kinegrasp_env.closing.contact_patch import mesh_hull
+from kinegrasp_env.closing.convex_distance import stacked_faces, stacked_vertices
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.polytope import ConvexPart, face_planes
 from kinegrasp_env.world.sdf import DistanceGrid
@@ -65,12 +66,23 @@ class LinkGeometry:
         rounded: the capsules and spheres (:class:`RoundedPart`).
         curved: some shape is a cylinder, capsule or sphere (its contacts are points: no
             flat pad to place a patch on).
+        hulls: the polytopes' vertices as GJK reads them (:func:`~kinegrasp_env.closing.
+            convex_distance.stacked_vertices`), None without polytopes.
+        faces: their face planes and edges as the exact distances read them
+            (:func:`~kinegrasp_env.closing.convex_distance.stacked_faces`), None without.
     """
 
     vertices: np.ndarray
     parts: tuple[ConvexPart, ...]
     rounded: tuple[RoundedPart, ...] = ()
     curved: bool = False
+    hulls: tuple | None = field(init=False, default=None, repr=False)
+    faces: tuple | None = field(init=False, default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.parts:
+            object.__setattr__(self, "hulls", stacked_vertices(self.parts))
+            object.__setattr__(self, "faces", stacked_faces(self.parts))
 
     @property
     def extent_points(self) -> np.ndarray:
@@ -165,6 +177,18 @@ def urdf_rounded_parts(urdf: str) -> dict[str, list[RoundedPart]]:
         if parts:
             out[link.get("name")] = parts
     return out
+
+
+_ROBOT_GEOMETRY: dict[tuple[str, str], dict[str, LinkGeometry]] = {}
+
+
+def robot_link_geometry(description: RobotDescription) -> dict[str, LinkGeometry]:
+    """:func:`link_geometry` of every link of the robot, read once per URDF file and
+    process (the closings of every object share it)."""
+    key = (description.name, str(description.urdf))
+    if key not in _ROBOT_GEOMETRY:
+        _ROBOT_GEOMETRY[key] = link_geometry(description)
+    return _ROBOT_GEOMETRY[key]
 
 
 def link_geometry(description: RobotDescription, links: tuple[str, ...] | None = None

@@ -20,7 +20,6 @@ from kinegrasp_env.closing.convex_distance import (
     hull_distance_bounds,
     hull_spheres,
     new_simplex,
-    stacked_vertices,
 )
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.closing.rounded_links import core_layout
@@ -57,8 +56,7 @@ class TableCheck:
         self._box = (corners, np.array([0, 8], dtype=np.int64),
                      hull_spheres(corners, np.array([0, 8], dtype=np.int64)))
         self._simplex = new_simplex()
-        self._hulls = {link: stacked_vertices(g.parts) for link, g in geometry.items()
-                       if g.parts}
+        self._hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
         self._cores = {link: [(core_layout(p), p.radius) for p in g.rounded]
                        for link, g in geometry.items() if g.rounded}
         self._balls = {link: g.sphere for link, g in geometry.items()}

@@ -49,10 +49,10 @@ class RobotPhysicsEngine(RobotEngine):
                               world, motors)
         self._table = None  # the arm is not simulated: its table test is the geometric one
         if self.obj.table is not None:
-            from kinegrasp_env.closing.generic_fast import robot_geometry
+            from kinegrasp_env.closing.link_geometry import robot_link_geometry
             from kinegrasp_env.closing.table_check import TableCheck
 
-            self._table = (TableCheck(robot_geometry(self.description), self.obj),
+            self._table = (TableCheck(robot_link_geometry(self.description), self.obj),
                            Kinematics(self.description.model))
 
     def close(self) -> None:
