@@ -16,8 +16,8 @@ import pybullet
 from pybullet_utils.bullet_client import BulletClient
 from results_file import add_options, settings, write_result
 
+from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 
 
 def pybullet_loop(q: np.ndarray, batched_calls: bool = True

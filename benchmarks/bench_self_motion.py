@@ -18,9 +18,9 @@ import time
 import numpy as np
 from results_file import add_options, settings, write_result
 
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics, pose_error
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 

@@ -201,7 +201,7 @@ from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.planner import GraspPlanner
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 
 sigma = 0.0133
 kin = Kinematics(kuka_sdh())

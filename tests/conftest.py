@@ -9,8 +9,8 @@ import pybullet
 import pytest
 from pybullet_utils.bullet_client import BulletClient
 
+from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 
 
 @pytest.fixture(scope="session", autouse=True)

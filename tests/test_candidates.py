@@ -13,7 +13,7 @@ import pytest
 from cli_helpers import run_cli
 from scipy.spatial.transform import Rotation
 
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh, urdf_path
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh, urdf_path
 from kinegrasp_env.robot.palm_pose import PalmCandidate, quaternion_matrix
 from kinegrasp_env.toolkit.candidates import solve_all
 from kinegrasp_env.world.grasps import shipped_grasps

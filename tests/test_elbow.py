@@ -13,8 +13,8 @@ from scipy import stats as sps
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.elbow import (

@@ -475,9 +475,9 @@ def test_generic_self_motion_matches_the_default_robots_compiled_one():
     default robot's chain (another implementation): 24 moves of 12 shipped grasps agree to
     1.0e-9 rad measured (tolerance 1e-8: a 10x margin) and reach the same moves."""
     from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.default_robot import kuka_sdh
     from kinegrasp_env.robot.ik import ArmIK
     from kinegrasp_env.robot.kinematics import Kinematics
-    from kinegrasp_env.robot.model import kuka_sdh
     from kinegrasp_env.robot.null_motion import ArmSelfMotion
     from kinegrasp_env.world.grasps import shipped_grasps
 

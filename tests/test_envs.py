@@ -14,8 +14,8 @@ from env_helpers import check_reward_is_the_evaluation
 
 import kinegrasp_env
 from kinegrasp_env import ENV_IDS
+from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.kinematics import pose_error
-from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 
 # the reference engine: these tests hold the env to it exactly (the default is "fast")
 SMALL = {"n_draws": 8, "engine": "pybullet"}

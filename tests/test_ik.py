@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, pose_error
-from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 
 
 def _reachable_targets(kin, model, rng, n):
@@ -56,7 +56,7 @@ def test_self_motion_keeps_palm_and_moves_elbow(kin, model, rng):
 def test_elbow_angle_is_a_rotation_about_shoulder_wrist(kin, model):
     """The elbow travels on a circle about the shoulder-wrist line: its distance to the line
     and its projection on it are constant along the self-motion."""
-    from kinegrasp_env.robot.model import SHOULDER_LINK, WRIST_LINK
+    from kinegrasp_env.robot.default_robot import SHOULDER_LINK, WRIST_LINK
 
     q = np.zeros(model.dof)
     q[[1, 3, 5]] = [0.6, -1.2, 0.8]

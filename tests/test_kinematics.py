@@ -5,20 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, FINGERTIP_LINKS, HAND_JOINTS, PALM_LINK
 from kinegrasp_env.robot.kinematics import (
     axis_angle_matrix,
     pose_error,
     rotation_log,
     snap_rotation,
 )
-from kinegrasp_env.robot.model import (
-    ARM_JOINTS,
-    FINGERTIP_LINKS,
-    HAND_JOINTS,
-    PALM_LINK,
-    load_urdf,
-    rpy_to_matrix,
-)
+from kinegrasp_env.robot.model import load_urdf, rpy_to_matrix
 
 
 def test_model_read_from_urdf(model):

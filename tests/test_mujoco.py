@@ -13,8 +13,9 @@ from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
 from kinegrasp_env.robot.catalog import default_hand_mount
+from kinegrasp_env.robot.default_robot import kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import kuka_sdh, load_urdf
+from kinegrasp_env.robot.model import load_urdf
 from kinegrasp_env.world.grasps import grasp_by_index
 from kinegrasp_env.world.objects import load_object
 

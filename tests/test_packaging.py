@@ -26,7 +26,7 @@ def test_wheel_ships_assets_and_loads_urdf(tmp_path):
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
                     str(target), str(wheel)], check=True)
     script = (
-        "import pybullet, kinegrasp_env.assets as a, kinegrasp_env.robot.model as r\n"
+        "import pybullet, kinegrasp_env.assets as a, kinegrasp_env.robot.default_robot as r\n"
         "from pybullet_utils.bullet_client import BulletClient\n"
         "assert str(a.assets_dir()).startswith(%r), a.assets_dir()\n"
         "c = BulletClient(pybullet.DIRECT)\n"

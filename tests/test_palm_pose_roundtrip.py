@@ -13,7 +13,7 @@ from cli_helpers import run_cli
 from scipy.spatial.transform import Rotation
 
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
 from kinegrasp_env.toolkit.elbow import with_configuration

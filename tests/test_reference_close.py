@@ -18,8 +18,8 @@ from kinegrasp_env.closing.reference import (
 from kinegrasp_env.montecarlo.engines import PybulletEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_noise
 from kinegrasp_env.robot.catalog import default_hand_mount
+from kinegrasp_env.robot.default_robot import FINGERS, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import FINGERS, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import grasp_by_index
 from kinegrasp_env.world.objects import load_object

@@ -30,7 +30,7 @@ from kinegrasp_env.cli import report as cli_report
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MAX_CONTACTS, OUTCOMES, DrawBatch
 from kinegrasp_env.montecarlo.evaluate import GraspStats, evaluate_grasp
 from kinegrasp_env.quality.wrenches import tangent_basis
-from kinegrasp_env.robot.model import PALM_LINK
+from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model
 from kinegrasp_env.toolkit import report

@@ -23,7 +23,7 @@ import yaml
 from pybullet_utils.bullet_client import BulletClient
 
 from kinegrasp_env.cli.main import main
-from kinegrasp_env.robot import model as kuka
+from kinegrasp_env.robot import default_robot as kuka
 from kinegrasp_env.robot.catalog import (
     BUILTIN,
     DEFAULT_ROBOT,
@@ -98,25 +98,23 @@ def leaves_moved_by(tree: dict, urdf: Path, hand: tuple[str, ...]) -> set[str]:
 
 
 # ------------------------------------------------------------------------ built-in robots
-def test_kuka_sdh_description_is_the_model_constants():
-    """The built-in description says exactly what robot/model.py's constants say (so moving
-    the engines onto descriptions keeps every output), and builds the same model."""
+def test_kuka_sdh_description_gives_the_paper_robots_layout():
+    """The built-in description gives the layout the paper's robot has (7 arm joints, the
+    spread and two flexions per finger of three fingers, the iiwa's S-R-S elbow links) and
+    the planner's default flexion as its pre-shape; the default robot's names are read
+    from it."""
     from kinegrasp_env.robot.palm_pose import DEFAULT_DISTAL, DEFAULT_PROXIMAL
 
     d = load_robot("kuka_sdh")
     assert DEFAULT_ROBOT == "kuka_sdh"
-    assert d.arm_joints == kuka.ARM_JOINTS
-    assert d.hand_joints == kuka.HAND_JOINTS
-    assert d.palm_link == kuka.PALM_LINK
-    assert d.fingertip_links == kuka.FINGERTIP_LINKS
-    assert tuple((*f.joints, *f.links) for f in d.fingers) == kuka.FINGERS
-    assert d.arm_angle_links == (kuka.SHOULDER_LINK, kuka.ELBOW_LINK, kuka.WRIST_LINK)
-    assert d.urdf == kuka.urdf_path().resolve()
-    model = kuka.kuka_sdh()
-    assert d.model.actuated == model.actuated
-    assert np.array_equal(d.model.lower, model.lower)
-    assert np.array_equal(d.model.upper, model.upper)
-    assert [d.open[j] for j in kuka.HAND_JOINTS[1:]] == [DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3
+    assert len(d.arm_joints) == 7 and len(d.hand_joints) == 7 and len(d.fingers) == 3
+    assert all(len(f.joints) == 2 for f in d.fingers)
+    assert d.hand_joints[1:] == tuple(j for f in d.fingers for j in f.joints)
+    assert d.arm_angle_links == tuple(d.model.joint(d.arm_joints[i]).child for i in (1, 3, 5))
+    assert (kuka.ARM_JOINTS, kuka.HAND_JOINTS, kuka.PALM_LINK) == (d.arm_joints,
+                                                                   d.hand_joints, d.palm_link)
+    assert kuka.kuka_sdh().actuated == d.model.actuated
+    assert [d.open[j] for j in d.hand_joints[1:]] == [DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3
     assert d.contact_model == "point"
 
 

@@ -14,8 +14,8 @@ from cli_helpers import run_cli, start_cli
 from kinegrasp_env import cli
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.quality import ferrari_canny
+from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.kinematics import pose_error
-from kinegrasp_env.robot.model import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.toolkit.planner import GraspPlanner
 from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
 

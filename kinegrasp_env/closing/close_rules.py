@@ -2,9 +2,8 @@
 and steps, the speed bound that sizes each conservative step (:func:`closing_travel`), the
 secant polish (:func:`secant_root`), and what a closing returns (:class:`Contact`,
 :class:`CloseResult`). The algorithm: :mod:`kinegrasp_env.closing.reference`, which applies them
-with pybullet's distances one draw at a time; :mod:`kinegrasp_env.closing.fast` and
-:mod:`kinegrasp_env.closing.close_kernel` apply them to a batch of draws against the distance
-grid.
+with pybullet's distances one draw at a time; :mod:`kinegrasp_env.closing.close_kernel`
+applies them to a batch of draws against the distance grid.
 """
 
 from __future__ import annotations
@@ -16,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.robot.model import kuka_sdh
+from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, kuka_sdh
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
 CONTACT_TOL = 2e-4
@@ -80,10 +79,11 @@ class CloseResult:
 def finger_geometry() -> tuple[float, float, float, float]:
     """(proximal length, distal length, upper limit proximal, upper limit distal)."""
     model = kuka_sdh()
-    distal = model.joint("f1_distal").origin[:3, 3]
-    tip = model.joint("f1_distal_to_tip").origin[:3, 3]
-    return (float(np.linalg.norm(distal)), float(np.linalg.norm(tip)),
-            model.joint("f1_proximal").upper, model.joint("f1_distal").upper)
+    proximal, distal = FINGERS[0][:2]
+    tip = next(j for j in model.joints if j.child == FINGERTIP_LINKS[0])
+    return (float(np.linalg.norm(model.joint(distal).origin[:3, 3])),
+            float(np.linalg.norm(tip.origin[:3, 3])),
+            model.joint(proximal).upper, model.joint(distal).upper)
 
 
 class LinkSpeeds(NamedTuple):

@@ -21,8 +21,9 @@ from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.finger_axes import finger_axes
 from kinegrasp_env.closing.hand_geometry import Shape, hand_shapes
 from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.robot.default_robot import FINGERS, HAND_JOINTS, SPREAD_JOINTS, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh, load_urdf
+from kinegrasp_env.robot.model import load_urdf
 from kinegrasp_env.world.sim import GraspWorld
 
 
@@ -79,7 +80,7 @@ def zero_flexion_frames(spread: float) -> np.ndarray:
     """(3, 4, 4) frames of the fingers' proximal links at zero flexion, in the hand root
     frame, for a spread (radians); cached: a Monte Carlo run repeats one pre-shape."""
     q = np.zeros(len(HAND_JOINTS))
-    q[HAND_JOINTS.index("f1_spread")] = spread
+    q[HAND_JOINTS.index(SPREAD_JOINTS[0])] = spread
     frames = hand_kinematics().forward(q, [f[2] for f in FINGERS])
     out = np.stack([frames[f[2]][0] for f in FINGERS])
     out.setflags(write=False)  # shared by the cache

@@ -51,7 +51,7 @@ from kinegrasp_env.closing.close_rules import (
 )
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.hand_probe import HandProbe, finger_capsules, hand_joint_values
-from kinegrasp_env.robot.model import FINGERS
+from kinegrasp_env.robot.default_robot import FINGERS
 from kinegrasp_env.world.sim import GraspWorld
 
 #: Importable from here too (the reference closing's constants, result types and helpers).

@@ -79,9 +79,9 @@ from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
 from kinegrasp_env.montecarlo.engines import Engine
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics
-from kinegrasp_env.robot.model import PALM_LINK, kuka_sdh
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from

@@ -15,8 +15,8 @@ import numpy as np
 
 from kinegrasp_env.closing.generic_reference import RobotWorld
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.model import kuka_sdh, urdf_path
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.sim import BulletClient, GraspWorld, display_available, pybullet
 

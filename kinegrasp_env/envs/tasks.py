@@ -25,9 +25,9 @@ import numpy as np
 from kinegrasp_env.envs.robot_task import RobotTask
 from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION, Engine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
+from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.model import PALM_LINK
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_configuration, robot_model

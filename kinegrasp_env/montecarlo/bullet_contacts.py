@@ -43,7 +43,7 @@ from kinegrasp_env.montecarlo.engines import (
 )
 from kinegrasp_env.quality.epsilon import ferrari_canny
 from kinegrasp_env.quiet import quiet_c_output
-from kinegrasp_env.robot.model import ARM_JOINTS, FINGERS, kuka_sdh, urdf_path
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, FINGERS, kuka_sdh, urdf_path
 from kinegrasp_env.world.objects import GraspObject, load_object
 from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
 

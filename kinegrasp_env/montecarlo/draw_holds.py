@@ -5,8 +5,8 @@
 object's weight in the holding test's six gravity directions and the lift, within the hand's
 effort limits?
 
-The check runs on the robot's description (``kuka_sdh.yaml``: the same joints, fingers and
-links as the engines' :data:`~kinegrasp_env.robot.model.HAND_JOINTS` and contact records), on
+The check runs on the robot's description (``kuka_sdh.yaml``: the engines' joints, fingers
+and links, :mod:`~kinegrasp_env.robot.default_robot`, and contact records), on
 the draw's final configuration: its arm joints (the draw's noise) and the closed hand the
 engine recorded (:attr:`~kinegrasp_env.montecarlo.engines.DrawBatch.hand`). Joint noise
 only: a palm or object error moves the palm against the object, which the configuration does

@@ -23,8 +23,8 @@ from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
 from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import HAND_JOINTS, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import HAND_JOINTS, kuka_sdh
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld

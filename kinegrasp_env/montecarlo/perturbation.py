@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.hand_errors import hand_in_object, world_to_object
+from kinegrasp_env.robot.default_robot import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.robot.kinematics import rigid_inverse
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.sampling.noise_model import NoiseDraws, offset_transforms
 
 ARM = 7

@@ -32,10 +32,8 @@ from kinegrasp_env.physics.protocol import (
     steady,
     within,
 )
-from kinegrasp_env.robot.model import FINGERS, HAND_JOINTS
+from kinegrasp_env.robot.default_robot import FINGERS, HAND_JOINTS, PALM_LINK, SPREAD_JOINTS
 
-#: The spread joints of the hand (finger 2's mimics finger 1's; each simulator holds both).
-SPREAD_JOINTS = ("f1_spread", "f2_spread")
 #: The finger each spread joint turns.
 SPREAD_FINGERS = (0, 1)
 #: Flexion joints, finger-major: f1 proximal, f1 distal, f2 ..., f3 ...
@@ -138,7 +136,7 @@ def close_fingers(world, update: Callable[[], None],
     return steps, found, tuple(f not in touched for f in range(3)), positions
 
 
-def object_in_palm(world, palm: str = "palm") -> np.ndarray:
+def object_in_palm(world, palm: str = PALM_LINK) -> np.ndarray:
     """(4, 4) the object's pose in the frame of the hand's link ``palm`` now (a simulator's
     world: ``link_pose``, ``object_pose``)."""
     return np.linalg.inv(world.link_pose(palm)) @ world.object_pose()
@@ -201,11 +199,11 @@ class WorldSteps:
         motors, protocol: the closing controller's settings and the holding test's.
 
     Attributes:
-        palm_link: the hand's link whose frame the object's pose is measured in (the SDH's
-            ``palm``; a hand's steps set their own).
+        palm_link: the hand's link whose frame the object's pose is measured in (the
+            default robot's palm; a hand's steps set their own).
     """
 
-    palm_link = "palm"
+    palm_link = PALM_LINK
 
     def __init__(self, world, motors, protocol: HoldProtocol) -> None:
         self.world, self.motors, self.protocol = world, motors, protocol

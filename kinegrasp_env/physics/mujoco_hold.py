@@ -42,7 +42,7 @@ from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, merge_records
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.robot.model import FINGERS, FINGERTIP_LINKS
+from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS
 from kinegrasp_env.world.objects import GraspObject
 
 

@@ -126,11 +126,11 @@ def with_compiler(text: str, source: str) -> str:
 def sdh_hand() -> MujocoHand:
     """The default robot's hand: ``sdh_hand.urdf``, root ``hand_root``, palm ``palm``, each
     finger's proximal and distal links."""
-    from kinegrasp_env.robot.model import FINGERS
+    from kinegrasp_env.robot.default_robot import FINGERS, PALM_LINK
 
     path = asset_path("robots", "sdh_hand.urdf")
     links = {FINGERS[f][2 + k]: (f, k) for f in range(len(FINGERS)) for k in range(2)}
-    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", "palm", links,
+    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", PALM_LINK, links,
                       len(FINGERS))
 
 

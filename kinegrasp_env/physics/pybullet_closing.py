@@ -52,7 +52,7 @@ from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hold_runner import FLEXION_JOINTS, SPREAD_JOINTS, close_fingers
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-from kinegrasp_env.robot.model import FINGERS
+from kinegrasp_env.robot.default_robot import FINGERS
 
 #: Contact records of one link whose normals are within this angle of the deepest record's
 #: are merged into one contact (the same face), radians.

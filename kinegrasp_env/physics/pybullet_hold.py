@@ -44,7 +44,7 @@ from kinegrasp_env.physics.pybullet_closing import (
     world_contacts,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
-from kinegrasp_env.robot.model import FINGERTIP_LINKS
+from kinegrasp_env.robot.default_robot import FINGERTIP_LINKS
 from kinegrasp_env.world.objects import GraspObject
 
 

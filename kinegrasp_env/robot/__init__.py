@@ -1,4 +1,5 @@
-"""The robot: the KUKA + SDH-like hand URDF model (``model``), batched forward kinematics
+"""The robot: URDF models (``model``), the default robot's names and model read from its
+description (``default_robot``), batched forward kinematics
 and Jacobians (``kinematics``), IK and the elbow's self-motion (``ik``), a grasp given as a
 palm pose and its IK (``palm_pose``), planar arms (``planar``) and end-effector noise
 statistics (``endeffector``); robots as data: a YAML description beside a URDF
@@ -11,7 +12,8 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "model": ("RobotModel", "kuka_sdh", "load_urdf", "urdf_path"),
+    "model": ("RobotModel", "load_urdf"),
+    "default_robot": ("kuka_sdh", "urdf_path"),
     "kinematics": ("Kinematics", "elbow_angle"),
     "ik": ("ArmIK", "IKResult"),
     "palm_pose": ("PalmCandidate", "parse_palm_pose", "reach_palm_pose"),

@@ -15,9 +15,9 @@ from functools import lru_cache
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.planar import PlanarArm
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import ConvergenceCurve, convergence_curve

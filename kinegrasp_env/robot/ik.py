@@ -14,13 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK
 from kinegrasp_env.robot.kinematics import (
     ARM_ANGLE_LINKS,
     Kinematics,
     arm_angle_at,
     pose_error,
 )
-from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK
 from kinegrasp_env.robot.self_motion import arm_chain, self_motion_newton
 
 POSITION_TOL = 1e-7  # metres

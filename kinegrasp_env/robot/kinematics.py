@@ -12,8 +12,9 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from kinegrasp_env.robot.default_robot import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK
 from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass
-from kinegrasp_env.robot.model import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK, RobotModel
+from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.pose_rules import (
     add_joint_columns,
     elbow_angles,

@@ -2,8 +2,8 @@
 
 Nothing here is a hand-typed copy of the robot's numbers: :func:`load_urdf` parses the
 shipped ``kuka_sdh.urdf`` (or any serial/tree URDF with revolute, prismatic and fixed joints)
-into a :class:`RobotModel`. Only the *names* of the joints that make up the arm and the hand
-vector are fixed here.
+into a :class:`RobotModel` (the default robot's names and model:
+:mod:`kinegrasp_env.robot.default_robot`).
 
 Configuration vectors: an *actuated* vector ``q`` (``RobotModel.dof`` entries, in
 ``RobotModel.actuated`` order) holds one value per independent joint; mimic joints (the SDH
@@ -15,36 +15,9 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-
-from kinegrasp_env.assets import asset_path
-
-#: The 7 arm joints of the KUKA LBR iiwa, base to flange.
-ARM_JOINTS: tuple[str, ...] = tuple(f"lbr_iiwa_joint_{i}" for i in range(1, 8))
-#: The 7 hand DOF: coupled spread, then proximal/distal flexion of fingers 1, 2, 3.
-HAND_JOINTS: tuple[str, ...] = (
-    "f1_spread",
-    "f1_proximal",
-    "f1_distal",
-    "f2_proximal",
-    "f2_distal",
-    "f3_proximal",
-    "f3_distal",
-)
-#: Named frames.
-PALM_LINK = "palm"
-FINGERTIP_LINKS: tuple[str, ...] = ("f1_tip", "f2_tip", "f3_tip")
-#: Finger chains: (proximal joint, distal joint, proximal link, distal link) per finger.
-FINGERS: tuple[tuple[str, str, str, str], ...] = tuple(
-    (f"f{i}_proximal", f"f{i}_distal", f"f{i}_proximal", f"f{i}_distal") for i in (1, 2, 3)
-)
-#: Points of the S-R-S arm used for the elbow (arm) angle: shoulder, elbow, wrist centres.
-SHOULDER_LINK = "lbr_iiwa_link_2"
-ELBOW_LINK = "lbr_iiwa_link_4"
-WRIST_LINK = "lbr_iiwa_link_6"
 
 
 def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -234,14 +207,3 @@ def load_urdf(path: str | Path, actuated: tuple[str, ...] | None = None) -> Robo
         raise ValueError(f"{path.name}: actuated joints not found: {missing}")
     return RobotModel(root.get("name", path.stem), roots[0], tuple(ordered), tuple(actuated),
                       path)
-
-
-@lru_cache(maxsize=4)
-def kuka_sdh() -> RobotModel:
-    """The shipped KUKA iiwa + SDH-like hand; configuration = 7 arm joints + 7 hand DOF."""
-    return load_urdf(asset_path("robots", "kuka_sdh.urdf"), actuated=ARM_JOINTS + HAND_JOINTS)
-
-
-def urdf_path() -> Path:
-    """Path of the composed arm+hand URDF (for ``pybullet.loadURDF``)."""
-    return asset_path("robots", "kuka_sdh.urdf")

@@ -40,8 +40,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, HAND_JOINTS, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.model import ARM_JOINTS, HAND_JOINTS, kuka_sdh
 
 if TYPE_CHECKING:
     from kinegrasp_env.robot.description import RobotDescription

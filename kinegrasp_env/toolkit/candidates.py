@@ -259,7 +259,7 @@ def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Reject
     ``meta["nominal_force_closure"]`` is False."""
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, START_COLLISION
     from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
-    from kinegrasp_env.robot.model import PALM_LINK
+    from kinegrasp_env.robot.default_robot import PALM_LINK
 
     q0, why = configuration(planner, candidate)
     if q0 is None:

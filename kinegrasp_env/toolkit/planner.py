@@ -26,8 +26,8 @@ import numpy as np
 from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.model import ARM_JOINTS, PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.palm_pose import IK_SEED  # the planner's IK seed (one copy)
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import load_object
@@ -89,7 +89,7 @@ class GraspPlanner:
     def _arm_body(self) -> int:
         bullet = self.engine.world.bullet
         if self._arm is None:
-            from kinegrasp_env.robot.model import urdf_path
+            from kinegrasp_env.robot.default_robot import urdf_path
 
             self._arm = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
             self._arm_joints = {bullet.getJointInfo(self._arm, j)[1].decode(): j
@@ -159,7 +159,8 @@ class GraspPlanner:
         in collision."""
         world = self.engine.world
         joints = hand_joint_values(preshape)
-        palm_offset = np.linalg.inv(self.model.joint("sdh_base_to_palm").origin)
+        mount = next(j for j in self.model.joints if j.child == PALM_LINK)  # flange to palm
+        palm_offset = np.linalg.inv(mount.origin)
 
         def collides(advance: float) -> bool:
             pose = np.eye(4)

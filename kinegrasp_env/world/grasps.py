@@ -24,7 +24,8 @@ import numpy as np
 
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
-from kinegrasp_env.robot.model import RobotModel, kuka_sdh
+from kinegrasp_env.robot.default_robot import kuka_sdh
+from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
 
@@ -187,8 +188,8 @@ def palm_at(q0: np.ndarray, robot: str = DEFAULT_ROBOT) -> np.ndarray:
     """(4, 4) the palm frame at configuration ``q0`` (14,) (another ``robot``: its actuated
     vector), world frame (forward kinematics of the robot's URDF): a grasp entry's
     ``palm_pose`` when the file leaves it out."""
+    from kinegrasp_env.robot.default_robot import PALM_LINK
     from kinegrasp_env.robot.kinematics import Kinematics
-    from kinegrasp_env.robot.model import PALM_LINK
 
     if robot == DEFAULT_ROBOT:
         return Kinematics(kuka_sdh()).pose(np.asarray(q0, dtype=float)[None], PALM_LINK)[0]

@@ -29,8 +29,9 @@ with quiet_c_output():
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.robot.catalog import default_hand_mount
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, rpy_to_matrix, urdf_path
+from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
 
@@ -117,7 +118,7 @@ class TableProbe(BulletWorld):
         # composed robot, whose hand links the hand body shares) and their balls' radii
         arm_radii = link_radii(urdf_path())
         hand_radii = link_radii(asset_path("robots", "sdh_hand.urdf"))
-        self.arm_names = [name for name in ("lbr_iiwa_link_0", *(
+        self.arm_names = [name for name in (self.model.base_link, *(
             bullet.getJointInfo(arm, j)[12].decode() for j in self.arm_links[1:]))
             if name in arm_radii]
         self.hand_names = list(hand_radii)

@@ -24,8 +24,9 @@ from kinegrasp_env.montecarlo.evaluate import (
 from kinegrasp_env.quality.wrenches import friction_cone_edges
 from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.model import ARM_JOINTS, kuka_sdh, rpy_to_matrix, urdf_path
+from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.objects import GraspObject
 
 CAPSULE_COUNT = (12, 12)

@@ -1,0 +1,60 @@
+"""The default robot's names and model, read from its description
+(``assets/robots/kuka_sdh.yaml``, :data:`~kinegrasp_env.robot.default.DEFAULT_ROBOT`) on first
+use: what the default robot's own modules (its reference closing, physics and planner) read.
+
+``ARM_JOINTS`` (base to flange), ``HAND_JOINTS`` (the hand's actuated vector), ``PALM_LINK``,
+``FINGERTIP_LINKS``, ``FINGERS`` (per finger: proximal joint, distal joint, proximal link,
+distal link), ``SPREAD_JOINTS`` (the pre-shape-only hand joint, then the joints that mimic
+it), ``SHOULDER_LINK``, ``ELBOW_LINK``, ``WRIST_LINK`` (the elbow angle's links): module
+attributes (:func:`default_names`).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.model import RobotModel, load_urdf
+
+#: The names this module gives (:func:`default_names`).
+DEFAULT_NAMES = ("ARM_JOINTS", "HAND_JOINTS", "PALM_LINK", "FINGERTIP_LINKS", "FINGERS",
+                 "SPREAD_JOINTS", "SHOULDER_LINK", "ELBOW_LINK", "WRIST_LINK")
+
+
+@lru_cache(maxsize=1)
+def default_names() -> dict[str, object]:
+    """The default robot's names of :data:`DEFAULT_NAMES`, from its description."""
+    description = load_robot(DEFAULT_ROBOT)
+    shoulder, elbow, wrist = description.arm_angle_links
+    model = description.model
+    spread = tuple(j for j in description.hand_joints if j not in description.close)
+    spread += tuple(j.name for j in model.joints if j.mimic is not None and j.mimic[0] in spread)
+    return {"ARM_JOINTS": description.arm_joints, "HAND_JOINTS": description.hand_joints,
+            "PALM_LINK": description.palm_link,
+            "FINGERTIP_LINKS": description.fingertip_links,
+            "FINGERS": tuple((*finger.joints, *finger.links)
+                             for finger in description.fingers),
+            "SPREAD_JOINTS": spread, "SHOULDER_LINK": shoulder, "ELBOW_LINK": elbow,
+            "WRIST_LINK": wrist}
+
+
+def __getattr__(name: str):
+    if name in DEFAULT_NAMES:
+        return default_names()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+@lru_cache(maxsize=1)
+def urdf_path() -> Path:
+    """Path of the default robot's URDF (for ``pybullet.loadURDF``)."""
+    return load_robot(DEFAULT_ROBOT).urdf
+
+
+@lru_cache(maxsize=1)
+def kuka_sdh() -> RobotModel:
+    """The default robot's model (the KUKA iiwa + SDH-like hand): its URDF, configuration =
+    its arm joints + its hand's actuated vector (7 + 7)."""
+    names = default_names()
+    return load_urdf(urdf_path(), actuated=names["ARM_JOINTS"] + names["HAND_JOINTS"])
