@@ -295,7 +295,7 @@ def read_result(path: str, option: str = "--summarize") -> dict:
 def palm_spread(env, q: np.ndarray) -> float:
     """Palm-position spread per unit joint noise at arm+hand configuration q (14,): the
     root of the trace of J_p J_p^T over the 7 arm joints (metres per radian)."""
-    from kinegrasp_env.robot.model import PALM_LINK
+    from kinegrasp_env.robot.default_robot import PALM_LINK
 
     jac = env.kinematics.jacobian(q, PALM_LINK)[0][:3, :7]
     return float(np.sqrt(np.trace(jac @ jac.T)))
