@@ -12,8 +12,7 @@ from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import kuka_sdh
+from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import load_urdf
 from kinegrasp_env.world.grasps import grasp_by_index

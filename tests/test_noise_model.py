@@ -22,8 +22,7 @@ from kinegrasp_env.montecarlo.evaluate import (
 )
 from kinegrasp_env.montecarlo.perturbation import configurations, hand_limits, rigid_inverse
 from kinegrasp_env.quality.epsilon import ferrari_canny, ferrari_canny_batch
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import kuka_sdh
+from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, METHODS, JointNoise
 from kinegrasp_env.sampling.noise_model import (

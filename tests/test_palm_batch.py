@@ -21,7 +21,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
     close_deltas,
     joint_covariance,
 )
-from kinegrasp_env.robot.catalog import default_hand_mount
+from kinegrasp_env.robot.default_robot import default_hand_mount
 from kinegrasp_env.robot.kinematics import rotation_log
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration

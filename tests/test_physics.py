@@ -51,8 +51,7 @@ from kinegrasp_env.physics.pybullet_hold import (
     run_phases,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings, pose_matrix
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import FINGERS, kuka_sdh
+from kinegrasp_env.robot.default_robot import FINGERS, default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.sampling.noise import JointNoise

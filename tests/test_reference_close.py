@@ -17,8 +17,7 @@ from kinegrasp_env.closing.reference import (
 )
 from kinegrasp_env.montecarlo.engines import PybulletEngine
 from kinegrasp_env.montecarlo.evaluate import chunk_noise
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import FINGERS, kuka_sdh
+from kinegrasp_env.robot.default_robot import FINGERS, default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import grasp_by_index

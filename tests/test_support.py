@@ -30,8 +30,7 @@ import trimesh
 
 from kinegrasp_env.montecarlo.engines import START_COLLISION, make_engine
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import urdf_path
+from kinegrasp_env.robot.default_robot import default_hand_mount, urdf_path
 from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 from kinegrasp_env.world.objects import load_object

@@ -124,7 +124,6 @@ class FastRobotHand:
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
         self._object_hulls = stacked_vertices(obj.convex_parts)
-
         self._simplex = new_simplex()
         self._link_hulls = {link: g.hulls for link, g in self.geometry.items() if g.parts}
         self._link_faces = {link: g.faces for link, g in self.geometry.items() if g.parts}
@@ -214,11 +213,9 @@ class FastRobotHand:
     def _in_table(self, poses: np.ndarray) -> np.ndarray:
         """(n,) bool: some link placed by ``poses`` (:meth:`_object_poses`) touches or enters
         the object's support table (all False without one)."""
-        hit = np.zeros(poses.shape[1], dtype=bool)
-        if self._table is not None:
-            for k, link in enumerate(self._links):
-                hit |= self._table.hits(link, poses[k])
-        return hit
+        if self._table is None:
+            return np.zeros(poses.shape[1], dtype=bool)
+        return self._table.any_hits(self._links, poses)
 
     def table_hits(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None = None
                    ) -> np.ndarray:

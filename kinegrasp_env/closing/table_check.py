@@ -64,10 +64,16 @@ class TableCheck:
     def robot_hits(self, kinematics: Kinematics, q: np.ndarray) -> np.ndarray:
         """(n,) bool: at configurations q (n, dof) some link (placed by ``kinematics``, the
         robot's, with the object where it stands) touches or enters the table."""
-        poses = kinematics.forward(q, list(self._balls))
-        hit = np.zeros(len(q), dtype=bool)
-        for link, pose in poses.items():
-            hit |= self.hits(link, self._object_inverse @ pose)
+        links = list(self._balls)
+        world = kinematics.forward(q, links)
+        return self.any_hits(links, self._object_inverse @ np.stack([world[k] for k in links]))
+
+    def any_hits(self, links: list[str], poses: np.ndarray) -> np.ndarray:
+        """(n,) bool: some link of ``links`` (L) placed by object-frame poses (L, n, 4, 4)
+        touches or enters the table."""
+        hit = np.zeros(poses.shape[1], dtype=bool)
+        for link, pose in zip(links, poses, strict=True):
+            hit |= self.hits(link, pose)
         return hit
 
     def hits(self, link: str, poses: np.ndarray) -> np.ndarray:

@@ -21,9 +21,12 @@ import numpy as np
 from kinegrasp_env.closing.reference import CloseResult, auto_close
 from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
-from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robot.default_robot import (
+    HAND_JOINTS,
+    default_description,
+    default_hand_mount,
+    kuka_sdh,
+)
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
@@ -339,7 +342,7 @@ class FastEngine(Engine):
         from kinegrasp_env.world.sdf import grid_of
 
         super().__init__(object_name, friction, num_edges)
-        self.hand = FastRobotHand(load_robot(DEFAULT_ROBOT), self.obj, grid=grid_of(self.obj))
+        self.hand = FastRobotHand(default_description(), self.obj, grid=grid_of(self.obj))
 
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None, **_) -> np.ndarray:

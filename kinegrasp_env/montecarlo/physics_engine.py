@@ -32,8 +32,7 @@ from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldPr
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import kuka_sdh
+from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.threads import single_blas_thread
 

@@ -22,7 +22,6 @@ renamed into place after the copy is read back and checked.
 from __future__ import annotations
 
 import difflib
-import functools
 import json
 import posixpath
 import shutil
@@ -106,13 +105,6 @@ def load_robot(name: str = DEFAULT_ROBOT) -> RobotDescription:
         RobotDescriptionError: unknown name, or an entry that no longer checks out.
     """
     return load_description(description_path(name))
-
-
-@functools.cache
-def default_hand_mount() -> str:
-    """The default robot's hand mount (its description's ``hand_mount``): the link whose
-    pose places its hand, and the frame its palm errors are given in."""
-    return load_robot(DEFAULT_ROBOT).flange_link
 
 
 def catalog_rows() -> list[dict]:

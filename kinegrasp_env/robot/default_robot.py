@@ -16,6 +16,7 @@ from pathlib import Path
 
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.model import RobotModel, load_urdf
 
 #: The names this module gives (:func:`default_names`).
@@ -24,9 +25,15 @@ DEFAULT_NAMES = ("ARM_JOINTS", "HAND_JOINTS", "PALM_LINK", "FINGERTIP_LINKS", "F
 
 
 @lru_cache(maxsize=1)
+def default_description() -> RobotDescription:
+    """The default robot's description, read once per process."""
+    return load_robot(DEFAULT_ROBOT)
+
+
+@lru_cache(maxsize=1)
 def default_names() -> dict[str, object]:
     """The default robot's names of :data:`DEFAULT_NAMES`, from its description."""
-    description = load_robot(DEFAULT_ROBOT)
+    description = default_description()
     shoulder, elbow, wrist = description.arm_angle_links
     model = description.model
     spread = tuple(j for j in description.hand_joints if j not in description.close)
@@ -46,10 +53,15 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-@lru_cache(maxsize=1)
 def urdf_path() -> Path:
     """Path of the default robot's URDF (for ``pybullet.loadURDF``)."""
-    return load_robot(DEFAULT_ROBOT).urdf
+    return default_description().urdf
+
+
+def default_hand_mount() -> str:
+    """The default robot's hand mount (its description's ``hand_mount``): the link whose
+    pose places its hand, and the frame its palm errors are given in."""
+    return default_description().flange_link
 
 
 @lru_cache(maxsize=1)

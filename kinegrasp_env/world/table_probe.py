@@ -28,8 +28,7 @@ with quiet_c_output():
     import pybullet
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.robot.catalog import default_hand_mount
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh, urdf_path
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, default_hand_mount, kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.objects import GraspObject

@@ -22,9 +22,13 @@ from kinegrasp_env.montecarlo.evaluate import (
     chunk_sizes,
 )
 from kinegrasp_env.quality.wrenches import friction_cone_edges
-from kinegrasp_env.robot.catalog import default_hand_mount, load_robot
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh, urdf_path
+from kinegrasp_env.robot.default_robot import (
+    ARM_JOINTS,
+    default_description,
+    default_hand_mount,
+    kuka_sdh,
+    urdf_path,
+)
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.objects import GraspObject
@@ -119,7 +123,7 @@ def transform(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
 def skeleton_links() -> tuple[str, ...]:
     """Links whose frame origins make the default robot's skeleton: its chain from the base
     to the palm (its description's)."""
-    description = load_robot(DEFAULT_ROBOT)
+    description = default_description()
     chain = Kinematics(description.model).chain(description.palm_link)
     return (description.model.base_link, *(joint.child for joint in chain))
 
@@ -127,7 +131,7 @@ def skeleton_links() -> tuple[str, ...]:
 @lru_cache(maxsize=1)
 def arm_links() -> frozenset[str]:
     """The default robot's arm links: its base and each arm joint's child."""
-    description = load_robot(DEFAULT_ROBOT)
+    description = default_description()
     return frozenset((description.model.base_link,
                       *(description.model.joint(j).child for j in description.arm_joints)))
 
