@@ -40,6 +40,7 @@ import numpy as np
 
 from kinegrasp_env.envs.draw_reward import step_stats
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
+from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
@@ -181,16 +182,15 @@ class RobotTask:
     def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                   seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """(configurations (n_draws, dof), per-draw errors as an engine's ``run`` takes
-        them): q (dof,) with the arm joints' errors of ``noise`` seeded by ``seed`` (the same
-        rows for every engine), the hand at q's pre-shape; a noise model's other sources
+        them): q (dof,) with the arm joints' errors of ``noise``: rows 0 .. n_draws of a run of
+        ``seed`` (the same rows for every engine, and an evaluation's), the hand at q's
+        pre-shape; a noise model's other sources
         (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`)."""
         if isinstance(noise, NoiseModel):
             return model_rows(noise, q, self.description, seed, 0, n_draws,
                               load_object(grasp.object).center_of_mass)
-        eps = noise.sample(n_draws, self.arm, np.random.default_rng(seed))
-        batch = np.repeat(np.asarray(q, float)[None], n_draws, axis=0)
-        batch[:, :self.arm] += eps
-        return batch, {}
+        return chunk_configurations(np.asarray(q, float), self.arm, noise.sigma, noise.kind,
+                                    seed, 0, n_draws), {}
 
     def estimate(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                  seed: int, n_draws: int) -> dict:

@@ -32,12 +32,12 @@ from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
+from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseDraws, NoiseModel, chunk_stream
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_robot
 
-DEFAULT_CHUNK = 250
+DEFAULT_CHUNK = STREAM_CHUNK
 #: Most chunks the fast engine runs in one call: its auto-close iterations have a fixed
 #: cost, so bigger batches are cheaper per draw (10 chunks per call beat 4 on 10,000 draws
 #: on 2 processes); results are identical.
@@ -107,8 +107,7 @@ def chunk_noise(noise: Noise, seed: int, index: int, size: int,
     if isinstance(noise, NoiseModel):
         joints = noise.only("joints").draw(seed, index, size, method).joints
         return np.zeros((size, 7)) if joints is None else joints
-    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
-    return noise.sample(size, 7, rng, method=method)
+    return noise.sample(size, 7, chunk_stream(seed, index), method=method)
 
 
 def chunk_draws(noise: NoiseModel, seed: int, chunks: list[tuple[int, int]],

@@ -1,12 +1,13 @@
 """A description robot's draws in chunks, on any executor (a local process pool or Ray).
 
-Draw i of a run is row i of one stream: ``JointNoise(sigma, noise).sample(n, arm_dof,
-default_rng(seed))`` added to the arm joints of q0 (the hand at its pre-shape exactly; a
+Draw i of a run is row i of the run's joint noise (``JointNoise(sigma, noise)`` on the arm
+joints, drawn in the chunked streams every run has: :func:`~kinegrasp_env.sampling.
+noise_model.stream_rows`) added to the arm joints of q0 (the hand at its pre-shape exactly; a
 noise model's rows, every source's, from :func:`~kinegrasp_env.montecarlo.robot_noise.
-model_rows`). The
-rows of a stream do not depend on how many are drawn, so a chunk of rows ``offset .. offset
-+ size`` closes the same configurations whichever process runs it: a run split into chunks
-over any number of processes gives the draws of the run in one process, row for row.
+model_rows`). The rows do not depend on how many are drawn, so a chunk of rows ``offset ..
+offset + size`` closes the same configurations whichever process runs it: a run split into
+chunks over any number of processes gives the draws of the run in one process, row for row,
+and the default robot's evaluation draws the same rows for the same seed.
 
 Engines are built once per process and kept (:func:`robot_engine`), so a worker's later
 chunks of the same robot, object and settings reuse them.
@@ -22,10 +23,10 @@ from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseModel, stream_rows
 
 #: Draws per chunk.
-CHUNK = 250
+CHUNK = STREAM_CHUNK
 #: Engines a process keeps (the oldest is closed when one more is needed).
 MAX_ENGINES = 4
 _ENGINES: dict[tuple, RobotEngine] = {}
@@ -57,8 +58,9 @@ def chunk_configurations(q0: np.ndarray, arm_dof: int, sigma: float | tuple[floa
     """(size, dof) configurations: q0 (dof,) with rows ``offset .. offset + size`` of the
     run's stream (sigma: radians, scalar or one per arm joint) added to its first ``arm_dof``
     entries."""
-    eps = JointNoise(sigma, noise).sample(offset + size, arm_dof,
-                                          np.random.default_rng(seed))[offset:]
+    joints = JointNoise(sigma, noise)
+    eps = stream_rows(seed, "joints", offset, size,
+                      lambda generator, rows: joints.sample(rows, arm_dof, generator))
     q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
     q[:, :arm_dof] += eps
     return q

@@ -20,6 +20,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_engine import (
     RobotDraws,
     RobotEngine,
@@ -127,9 +128,13 @@ def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tu
                          n: int, seed: SeedLike = 0, noise: str = "gaussian") -> np.ndarray:
     """(n, dof) the draws :func:`evaluate_robot_grasp` evaluates: the grasp's q0 with joint
     noise of ``sigma`` (radians) on the engine's robot's arm joints, the hand at its
-    pre-shape."""
+    pre-shape. An integer or SeedSequence seed draws the run's chunked streams
+    (:func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`: the rows a run in
+    chunks draws); a Generator (or None) is drawn from directly."""
     q0 = engine.check(grasp.q0)[0]
     arm = engine.description.arm_dof
+    if isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+        return chunk_configurations(q0, arm, sigma, noise, seed, 0, int(n))
     eps = JointNoise(sigma, noise).sample(int(n), arm, as_generator(seed))
     q = np.repeat(q0[None], int(n), axis=0)
     q[:, :arm] += eps

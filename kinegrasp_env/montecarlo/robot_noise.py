@@ -1,10 +1,10 @@
 """A noise model's draws for a description robot: joints, hand, palm, object and friction.
 
-Draw i of a run with seed s is row i of each source's own stream: the arm joints' of
-``default_rng(s)`` (so a joints-only model draws exactly what ``--sigma``/``--noise`` draw),
-every other source's of ``default_rng(SeedSequence(s, spawn_key=(k,)))`` with the source's
-fixed k (:data:`~kinegrasp_env.sampling.noise_model.STREAM_KEYS`): adding or removing a source
-never changes another's draws, and a chunk of rows is the same whichever process draws it.
+Draw i of a run with seed s is row i of each source's own rows in the run's chunked streams
+(:func:`~kinegrasp_env.sampling.noise_model.stream_rows`; docs/conventions.md): a
+joints-only model draws exactly what ``--sigma``/``--noise`` draw, adding or removing a
+source never changes another's draws, a chunk of rows is the same whichever process draws
+it, and the default robot's noise model draws the same rows for the same seed.
 
 What each source does (:mod:`~kinegrasp_env.sampling.noise_model`): joint errors on the arm
 joints; a hand error offsets the hand's pre-shape (:func:`hand_rows`); a palm error moves
@@ -18,7 +18,7 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.noise_model import STREAM_KEYS, NoiseModel, offset_transforms
+from kinegrasp_env.sampling.noise_model import NoiseModel, offset_transforms, stream_rows
 from kinegrasp_env.sampling.noise_sources import ARM_JOINTS, HandSource, broadcast
 
 
@@ -108,7 +108,8 @@ def hand_rows(model: NoiseModel, description: RobotDescription, seed: int, offse
     if hand is None or hand.exact:
         return np.zeros((size, description.model.dof - description.arm_dof))
     fingers = len(description.fingers)
-    z = source_stream(seed, "hand").standard_normal((offset + size, 1 + fingers))[offset:]
+    z = stream_rows(seed, "hand", offset, size,
+                    lambda generator, rows: generator.standard_normal((rows, 1 + fingers)))
     return hand_offsets(z, hand, description)
 
 
@@ -122,13 +123,6 @@ def with_hand(q: np.ndarray, offsets: np.ndarray, description: RobotDescription
     return out
 
 
-def source_stream(seed: int, source: str) -> np.random.Generator:
-    """The stream of ``source``'s rows in a run of ``seed`` (module docstring)."""
-    if source == "joints":
-        return np.random.default_rng(seed)
-    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM_KEYS[source],)))
-
-
 def joint_rows(model: NoiseModel, arm_dof: int, seed: int, offset: int,
                size: int) -> np.ndarray:
     """(size, arm_dof) joint errors (radians): rows ``offset .. offset + size`` of the run's
@@ -136,11 +130,11 @@ def joint_rows(model: NoiseModel, arm_dof: int, seed: int, offset: int,
     joints = model.joints
     if joints is None or joints.exact:
         return np.zeros((size, arm_dof))
-    rng = source_stream(seed, "joints")
     if arm_dof == ARM_JOINTS:
-        return joints.sample(rng, offset + size)[offset:]
-    return JointNoise(joints.sigma, joints.distribution).sample(offset + size, arm_dof,
-                                                                rng)[offset:]
+        return stream_rows(seed, "joints", offset, size, joints.sample)
+    independent = JointNoise(joints.sigma, joints.distribution)
+    return stream_rows(seed, "joints", offset, size,
+                       lambda generator, rows: independent.sample(rows, arm_dof, generator))
 
 
 def model_rows(model: NoiseModel, q0: np.ndarray, description: RobotDescription, seed: int,
@@ -166,9 +160,8 @@ def error_rows(model: NoiseModel, seed: int, offset: int, size: int,
     for source, key in (("palm", "palm"), ("object", "object_offset")):
         pose = getattr(model, source)
         if pose is not None and not pose.exact:
-            rows = pose.sample(source_stream(seed, source), offset + size)[offset:]
+            rows = stream_rows(seed, source, offset, size, pose.sample)
             out[key] = offset_transforms(rows, center if source == "object" else (0, 0, 0))
     if model.friction is not None:
-        out["friction"] = model.friction.sample(source_stream(seed, "friction"),
-                                                offset + size)[offset:]
+        out["friction"] = stream_rows(seed, "friction", offset, size, model.friction.sample)
     return out

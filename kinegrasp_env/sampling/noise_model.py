@@ -30,6 +30,7 @@ of :data:`STREAM_KEYS`, so adding or removing a source never changes the others'
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,10 +49,13 @@ from kinegrasp_env.sampling.noise_sources import (
 SOURCES = ("joints", "hand", "palm", "object", "friction")
 #: The spawn-key suffix k of each non-joint source's stream: ``SeedSequence(s, spawn_key=(c, k))``.
 STREAM_KEYS = {"hand": 1, "palm": 2, "object": 3, "friction": 4}
+#: Rows per chunk of a run's streams (docs/conventions.md, "Random streams").
+STREAM_CHUNK = 250
 
-__all__ = ["FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_KEYS", "FrictionSource", "HandSource",
-           "JointsSource", "NoiseDraws", "NoiseModel", "NoiseSpecError", "PoseSource",
-           "as_noise_model", "chunk_stream", "offset_transforms", "skew"]
+__all__ = ["FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_CHUNK", "STREAM_KEYS", "FrictionSource",
+           "HandSource", "JointsSource", "NoiseDraws", "NoiseModel", "NoiseSpecError",
+           "PoseSource", "as_noise_model", "chunk_stream", "offset_transforms", "skew",
+           "stream_rows"]
 
 
 # ----------------------------------------------------------------------------- draws
@@ -101,10 +105,33 @@ class NoiseDraws:
         return cls(sum(p.size for p in parts), **out)
 
 
-def chunk_stream(seed: int, index: int, source: str = "joints") -> np.random.Generator:
-    """The generator ``source`` draws from in chunk ``index`` of a run with ``seed``."""
+def chunk_stream(seed: int | np.random.SeedSequence, index: int,
+                 source: str = "joints") -> np.random.Generator:
+    """The generator ``source`` draws from in chunk ``index`` of a run with ``seed`` (an
+    integer, or a SeedSequence whose spawn key the chunk's key extends)."""
     key = (index,) if source == "joints" else (index, STREAM_KEYS[source])
+    if isinstance(seed, np.random.SeedSequence):
+        return np.random.default_rng(np.random.SeedSequence(
+            seed.entropy, spawn_key=(*seed.spawn_key, *key), pool_size=seed.pool_size))
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
+
+
+def stream_rows(seed: int | np.random.SeedSequence, source: str, offset: int, size: int,
+                draw: Callable[[np.random.Generator, int], np.ndarray],
+                chunk: int = STREAM_CHUNK) -> np.ndarray:
+    """Rows ``offset .. offset + size`` of ``source``'s draws in a run of ``seed`` whose
+    chunks hold ``chunk`` rows each: row r is row ``r % chunk`` of chunk ``r // chunk``'s
+    stream (:func:`chunk_stream`), so any span of rows is what the run's chunks draw, in
+    whichever pieces it is asked for. ``draw(generator, m)`` gives a chunk's first m rows
+    (a sampler that fills rows in order, as every Monte Carlo sampler here does)."""
+    if size == 0:
+        return draw(chunk_stream(seed, 0, source), 0)
+    parts = []
+    for index in range(offset // chunk, (offset + size - 1) // chunk + 1):
+        start = index * chunk
+        stop = min(offset + size, start + chunk) - start
+        parts.append(draw(chunk_stream(seed, index, source), stop)[max(offset - start, 0):])
+    return np.concatenate(parts)
 
 
 def skew(v: np.ndarray) -> np.ndarray:
