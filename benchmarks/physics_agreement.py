@@ -68,11 +68,11 @@ from scipy.stats import rankdata
 from simulator_agreement import SIMULATORS, run_validate
 from thin_objects import THIN_OBJECTS, import_thin_objects
 
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine, quick_hold_engine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.sampling.noise import JointNoise
@@ -118,7 +118,7 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
     engine_name = "pybullet" if robot == "kuka_sdh" else "fast"  # the SDH's capsule tips
     with make_engine(engine_name, robot, obj, static_hold=True) as engine:
         batch = engine.close_batch(engine.check(q))
-        draws: RobotDraws = engine.scored(q, batch)
+        draws: DrawBatch = engine.scored(q, batch)
         touched = draws.n_contacts > 0
         capacity = np.zeros(q.shape[0])
         if touched.any():

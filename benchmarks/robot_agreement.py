@@ -41,7 +41,7 @@ def bullet_contacts(world, result):
 
 
 def compare(a, b, grasps: int, draws: int) -> dict:
-    """Figures of two per-draw results of the same draws (``RobotDraws``): outcomes, paired
+    """Figures of two per-draw results of the same draws (``DrawBatch``): outcomes, paired
     contacts (same count, matched by finger and link), force-closure counts per grasp."""
     same = int((a.outcome == b.outcome).sum())
     points, angles = [], []

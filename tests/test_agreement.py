@@ -42,10 +42,11 @@ from kinegrasp_env.montecarlo.agreement import (
     same_stops,
 )
 from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     START_COLLISION,
-    DrawBatch,
+    Engine,
     FastEngine,
     PybulletEngine,
 )
@@ -247,7 +248,7 @@ def test_pybullet_contacts_on_the_cube_are_on_its_faces_with_inward_normals():
 
 def _batch(points: np.ndarray, fingers: list[int], hand: float = 0.3) -> DrawBatch:
     """One draw in force closure with contacts at points (k, 3), normals towards the origin."""
-    out = DrawBatch.empty(1)
+    out = Engine.empty_draws(1)
     k = len(points)
     out.outcome[:], out.quality[:], out.n_contacts[:] = FORCE_CLOSURE, 0.1, k
     out.points[0, :k] = points

@@ -11,8 +11,8 @@ What each test proves:
   evaluation, in one process and in chunks on two processes) closes the same draws as its
   own evaluation, draw for draw (outcome and Q), with joint noise and with a noise model of
   every source; the two share the fast closing, so this proves they draw the same rows and
-  score them alike. Two layouts of the noise, or a source drawn from another stream, make
-  the outcomes differ in hundreds of draws.
+  score them alike, and both report the closed hand alike. Two layouts of the noise, or a
+  source drawn from another stream, make the outcomes differ in hundreds of draws.
 """
 
 from __future__ import annotations
@@ -62,6 +62,8 @@ def _same_draws(default, described) -> None:
     # the same closing and scoring: equal Q (a few ulps allowed between code paths)
     np.testing.assert_allclose(described.draws.quality, default.draws.quality,
                                rtol=1e-12, atol=1e-15)
+    # one draw format: the closed hand where each engine's closing left it (NaN: none)
+    np.testing.assert_array_equal(described.draws.hand, default.draws.hand)
 
 
 @pytest.mark.parametrize("object_name", ["cube", "mug"])

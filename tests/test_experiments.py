@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from cli_helpers import run_cli
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine
 from kinegrasp_env.montecarlo.evaluate import GraspStats
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit import experiments, plots
@@ -230,7 +230,7 @@ def _bernoulli_stats(p: float, n: int, key: tuple) -> GraspStats:
     """A candidate's statistics on n Bernoulli(p) draws from the stream ``key`` (what an
     engine would do for a configuration whose true P(FC) is p)."""
     fc = np.random.default_rng(np.random.SeedSequence(list(key))).random(n) < p
-    draws = DrawBatch.empty(n)
+    draws = Engine.empty_draws(n)
     draws.outcome[:] = np.where(fc, FORCE_CLOSURE, 0)
     k = int(fc.sum())
     return GraspStats(p_fc=k / n, p_fc_ci=wilson_interval(k, n), q_mean=math.nan,

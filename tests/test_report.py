@@ -27,7 +27,8 @@ import trimesh
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
 from kinegrasp_env.cli import report as cli_report
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MAX_CONTACTS, OUTCOMES, DrawBatch
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MAX_CONTACTS, OUTCOMES, Engine
 from kinegrasp_env.montecarlo.evaluate import GraspStats, evaluate_grasp
 from kinegrasp_env.quality.wrenches import tangent_basis
 from kinegrasp_env.robot.default_robot import PALM_LINK
@@ -185,7 +186,7 @@ def test_noisy_arms_are_the_runs_first_draws(run):
 def _synthetic_draws(n: int, seed: int = 0) -> DrawBatch:
     """n draws, every one with MAX_CONTACTS contacts (the worst case for the page size)."""
     rng = np.random.default_rng(seed)
-    draws = DrawBatch.empty(n)
+    draws = Engine.empty_draws(n)
     draws.outcome[:] = rng.integers(1, len(OUTCOMES), n)
     draws.quality[draws.outcome == FORCE_CLOSURE] = rng.gamma(2.0, 0.002, n)[
         draws.outcome == FORCE_CLOSURE]

@@ -26,8 +26,8 @@ import pytest
 
 from kinegrasp_env.cli import main
 from kinegrasp_env.montecarlo import robot_chunks
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.execution import LocalExecutor
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -46,7 +46,7 @@ def test_chunks_on_two_processes_are_the_run_row_for_row():
     inline = evaluate_robot_grasp(grasp, **options)
     with LocalExecutor(2) as executor:
         pooled = evaluate_robot_grasp(grasp, **options, executor=executor)
-    for f in fields(RobotDraws):
+    for f in fields(DrawBatch):
         np.testing.assert_array_equal(getattr(inline.draws, f.name),
                                       getattr(pooled.draws, f.name), err_msg=f.name)
     assert (inline.p_fc, inline.counts, inline.p_hold_static, inline.mass) == (

@@ -9,7 +9,8 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "engines": ("make_engine", "Engine", "DrawBatch"),
+    "draws": ("DrawBatch",),
+    "engines": ("make_engine", "Engine"),
     "evaluate": ("evaluate_grasp", "GraspStats", "ENGINES"),
     "execution": ("make_executor", "Executor", "LocalExecutor", "RayExecutor"),
     "sweep": ("SweepSpec", "run_sweep"),

@@ -4,7 +4,7 @@ Used by ``benchmarks/agreement.py`` and ``tests/test_agreement.py`` to compare t
 with the reference engine, and either engine with the pybullet-only contacts of
 :mod:`kinegrasp_env.montecarlo.bullet_contacts`. Both sides are duck-typed: anything with the
 ``outcome``, ``quality``, ``n_contacts``, ``points``, ``normals``, ``finger`` and ``link``
-arrays of :class:`~kinegrasp_env.montecarlo.engines.DrawBatch` (and ``hand``, where both have
+arrays of :class:`~kinegrasp_env.montecarlo.draws.DrawBatch` (and ``hand``, where both have
 it, for the closed configurations).
 
 Disagreements are counted, never dropped: draws with another outcome, draws whose touching

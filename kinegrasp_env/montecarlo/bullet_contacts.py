@@ -6,7 +6,7 @@ geometry (:mod:`kinegrasp_env.closing.segment_distance`,
 :meth:`~kinegrasp_env.montecarlo.engines.Engine.score`, so their agreement says that the
 batched closing finds the contacts of the per-draw one, not that the contacts are right. Here
 a draw's final configuration (the arm joints and the closed hand,
-:attr:`~kinegrasp_env.montecarlo.engines.DrawBatch.hand`) is placed in a pybullet world of its
+:attr:`~kinegrasp_env.montecarlo.draws.DrawBatch.hand`) is placed in a pybullet world of its
 own (the full arm+hand URDF, pybullet doing the forward kinematics) and every finger link's
 collision capsule is queried against the object's convex parts with ``getClosestPoints``: a
 link within :data:`TOUCH_DISTANCE` touches; its contact is pybullet's closest point on the

@@ -8,7 +8,7 @@ effort limits?
 The check runs on the robot's description (``kuka_sdh.yaml``: the engines' joints, fingers
 and links, :mod:`~kinegrasp_env.robot.default_robot`, and contact records), on
 the draw's final configuration: its arm joints (the draw's noise) and the closed hand the
-engine recorded (:attr:`~kinegrasp_env.montecarlo.engines.DrawBatch.hand`). Joint noise
+engine recorded (:attr:`~kinegrasp_env.montecarlo.draws.DrawBatch.hand`). Joint noise
 only: a palm or object error moves the palm against the object, which the configuration does
 not say, and a friction error changes the cones the check holds at one mu.
 
@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, DrawBatch
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_check import StaticHoldCheck
 from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL, HoldProtocol

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
 from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
 from kinegrasp_env.robot.default_robot import (
@@ -48,59 +49,6 @@ def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
     out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
     out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
     return out
-
-
-@dataclass
-class DrawBatch:
-    """Per-draw results of n draws.
-
-    Attributes:
-        outcome: (n,) int8 index into OUTCOMES.
-        quality: (n,) Q (0 unless force closure).
-        n_contacts: (n,) number of contacts.
-        points, normals: (n, 6, 3) contacts in the object frame, NaN-padded.
-        finger, link: (n, 6) int8, -1 padded.
-        hand: (n, 7) the closed hand DOF (``HAND_JOINTS`` order, radians: the pre-shape's
-            spread, every finger's flexion where it stopped); NaN where the hand did not
-            close (start collision). With the draw's arm joints it is the final configuration.
-    """
-
-    outcome: np.ndarray
-    quality: np.ndarray
-    n_contacts: np.ndarray
-    points: np.ndarray
-    normals: np.ndarray
-    finger: np.ndarray
-    link: np.ndarray
-    hand: np.ndarray
-
-    @classmethod
-    def empty(cls, n: int) -> DrawBatch:
-        return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
-                   np.full((n, MAX_CONTACTS, 3), np.nan), np.full((n, MAX_CONTACTS, 3), np.nan),
-                   np.full((n, MAX_CONTACTS), -1, np.int8), np.full((n, MAX_CONTACTS), -1, np.int8),
-                   np.full((n, 7), np.nan))
-
-    @classmethod
-    def concatenate(cls, batches: list[DrawBatch]) -> DrawBatch:
-        return cls(*(np.concatenate([getattr(b, f) for b in batches])
-                     for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger",
-                               "link", "hand")))
-
-    def __len__(self) -> int:
-        return self.outcome.size
-
-    def put(self, rows: np.ndarray, other: DrawBatch) -> None:
-        """Write ``other``'s draws into rows ``rows`` (len(other),) of this batch."""
-        for f in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link",
-                  "hand"):
-            getattr(self, f)[rows] = getattr(other, f)
-
-    def part(self, start: int, stop: int) -> DrawBatch:
-        """Draws start..stop-1 (views)."""
-        return DrawBatch(*(getattr(self, f)[start:stop] for f in (
-            "outcome", "quality", "n_contacts", "points", "normals", "finger", "link",
-            "hand")))
 
 
 def check_configurations(q: np.ndarray) -> np.ndarray:
@@ -177,6 +125,12 @@ class Engine:
         if self._table_probe is not None:
             self._table_probe.close()
 
+    @staticmethod
+    def empty_draws(n: int) -> DrawBatch:
+        """n draws of the default robot, none closed yet (:data:`MAX_CONTACTS` contact slots,
+        its hand joints)."""
+        return DrawBatch.empty(n, MAX_CONTACTS, len(HAND_JOINTS))
+
     def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
             object_offset: np.ndarray | None = None,
             friction: np.ndarray | None = None) -> DrawBatch:
@@ -229,7 +183,7 @@ class Engine:
         t0 = time.perf_counter()
         hits = self.table_hits(q, **errors)
         self.timing.autoclose += time.perf_counter() - t0
-        out = DrawBatch.empty(len(q))
+        out = self.empty_draws(len(q))
         out.outcome[hits] = START_COLLISION
         keep = np.flatnonzero(~hits)
         if keep.size:
@@ -307,7 +261,7 @@ class PybulletEngine(Engine):
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
         n = q.shape[0]
-        out = DrawBatch.empty(n)
+        out = self.empty_draws(n)
         t0 = time.perf_counter()
         roots = self.flange_poses(q)
         if palm is not None or object_offset is not None:  # the object stays, the hand moves
@@ -358,7 +312,7 @@ class FastEngine(Engine):
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
         n = q.shape[0]
-        out = DrawBatch.empty(n)
+        out = self.empty_draws(n)
         t0 = time.perf_counter()
         batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
         t1 = time.perf_counter()

@@ -21,10 +21,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     OUTCOMES,
-    DrawBatch,
     Engine,
     cached_engine,
 )

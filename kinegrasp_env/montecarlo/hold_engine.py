@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
 from kinegrasp_env.physics.simulators import robot_simulator_class
@@ -38,7 +39,7 @@ class RobotHoldEngine(RobotEngine):
     def close(self) -> None:
         self.simulator.close()
 
-    def run_hold(self, q: np.ndarray) -> tuple[RobotDraws, HoldBatch]:
+    def run_hold(self, q: np.ndarray) -> tuple[DrawBatch, HoldBatch]:
         """Configurations q (n, dof): (the physics closings scored, their holding tests; the
         fingers' forces (n, fingers))."""
         q = self.check(q)

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES, DrawBatch
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 
 #: What a nominal closing that does not reach force closure means, by outcome name.
@@ -23,7 +23,7 @@ def outcome_detail(outcome: int) -> str:
     return f"{name}: {OUTCOME_DETAILS.get(name, name)}"
 
 
-def grasp_from_draw(draw: DrawBatch | RobotDraws, object_name: str, q0: np.ndarray,
+def grasp_from_draw(draw: DrawBatch, object_name: str, q0: np.ndarray,
                     palm_pose: np.ndarray, *, grasp_id: str = "0", meta: dict | None = None,
                     row: int = 0, robot: str = DEFAULT_ROBOT) -> Grasp:
     """The grasp whose nominal contacts and Q are draw ``row`` of ``draw``.

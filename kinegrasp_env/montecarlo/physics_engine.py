@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
-    DrawBatch,
     Engine,
     check_configurations,
     record_close,
@@ -143,7 +143,7 @@ class PhysicsEngine(Engine):
 
     def _close_all(self, q: np.ndarray, hold: HoldBatch | None) -> DrawBatch:
         n = q.shape[0]
-        out = DrawBatch.empty(n)
+        out = self.empty_draws(n)
         t0 = time.perf_counter()
         roots = self.kin.pose(q, default_hand_mount())
         t1 = time.perf_counter()

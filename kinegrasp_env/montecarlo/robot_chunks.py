@@ -15,12 +15,13 @@ chunks of the same robot, object and settings reuse them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.robot_engine import RobotDraws, RobotEngine
+from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseModel, stream_rows
@@ -95,7 +96,7 @@ class RobotChunk:
     model: str | None = None
 
 
-def run_robot_chunk(task: RobotChunk) -> RobotDraws:
+def run_robot_chunk(task: RobotChunk) -> DrawBatch:
     """The draws of one chunk (in a worker, or inline)."""
     if task.model is None:
         return close_chunk(task)
@@ -106,7 +107,7 @@ def run_robot_chunk(task: RobotChunk) -> RobotDraws:
     return close_chunk(task, noise_model_from_spec(json.loads(task.model)))
 
 
-def close_chunk(task: RobotChunk, model: NoiseModel | None = None) -> RobotDraws:
+def close_chunk(task: RobotChunk, model: NoiseModel | None = None) -> DrawBatch:
     """The draws of one chunk, with the noise model ``model`` in place of the task's joint
     noise (its ``model`` field is not read)."""
     engine = robot_engine(task.engine, task.robot, task.object, task.friction,
@@ -131,21 +132,15 @@ def chunk_rows(task: RobotChunk, description: RobotDescription, center: np.ndarr
                       center)
 
 
-def concatenate(parts: list[RobotDraws]) -> RobotDraws:
-    """The draws of ``parts`` (at least one) one after the other."""
-    return RobotDraws(*(np.concatenate([getattr(p, f.name) for p in parts])
-                        for f in fields(RobotDraws)))
-
-
 def chunked_draws(first: RobotChunk, n: int, executor: Executor,
-                  chunk: int = CHUNK) -> RobotDraws:
+                  chunk: int = CHUNK) -> DrawBatch:
     """Rows ``first.offset .. first.offset + n`` of ``first``'s run (its ``size`` is
     ignored), split into chunks of ``chunk`` draws run on ``executor``, in row order."""
     from dataclasses import replace
 
     tasks = [replace(first, offset=first.offset + start, size=min(chunk, n - start))
              for start in range(0, n, chunk)]
-    return concatenate(list(executor.map(run_robot_chunk, tasks)))
+    return DrawBatch.concatenate(list(executor.map(run_robot_chunk, tasks)))
 
 
 def nominal_closing_quality(first: RobotChunk, executor: Executor) -> float:

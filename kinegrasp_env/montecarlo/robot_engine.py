@@ -1,14 +1,12 @@
-"""What every engine of a description robot shares: per-draw results (:class:`RobotDraws`),
-the outcome of a closing (:func:`outcome_of`), the scoring of closings with the robot's
-contact model (:func:`score`) and the engine's base (:class:`RobotEngine`: robot, object,
-quality measure, input check); the engines close
+"""What every engine of a description robot shares: the outcome of a closing
+(:func:`outcome_of`), the scoring of closings with the robot's contact model (:func:`score`:
+per-draw results as a :class:`~kinegrasp_env.montecarlo.draws.DrawBatch`) and the engine's
+base (:class:`RobotEngine`: robot, object, quality measure, input check); the engines close
 (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`,
 :class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -16,62 +14,17 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,
     check_errors,
     provisional_outcomes,
 )
-from kinegrasp_env.physics.protocol import GRAVITY_PHASES
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
-
-
-@dataclass
-class RobotDraws:
-    """Per-draw results of n draws with k contacts at most (k = the finger links).
-
-    Attributes:
-        outcome: (n,) int8 index into OUTCOMES.
-        quality: (n,) Q (0 unless force closure).
-        n_contacts: (n,) contacts found.
-        points, normals: (n, k, 3) contacts (object frame, normals inward), NaN-padded.
-        finger, link: (n, k) int8 finger index and link index within it, -1 padded.
-        push: (n,) metres a coupled pair of jaws would push the object before both touch
-            (:func:`~kinegrasp_env.closing.coupled_jaws.jaw_push`; NaN for other hands, and
-            where a jaw missed).
-        held: (n, 6) bool, the static hold check's verdict per load
-            (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`; all False where
-            the engine does not check it).
-    """
-
-    outcome: np.ndarray
-    quality: np.ndarray
-    n_contacts: np.ndarray
-    points: np.ndarray
-    normals: np.ndarray
-    finger: np.ndarray
-    link: np.ndarray
-    held: np.ndarray
-    push: np.ndarray
-
-    @classmethod
-    def empty(cls, n: int, k: int) -> RobotDraws:
-        return cls(np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int16),
-                   np.full((n, k, 3), np.nan), np.full((n, k, 3), np.nan),
-                   np.full((n, k), -1, np.int8), np.full((n, k), -1, np.int8),
-                   np.zeros((n, len(GRAVITY_PHASES)), bool), np.full(n, np.nan))
-
-    def take(self, rows) -> RobotDraws:
-        """The draws of ``rows`` (an index array or a slice), in that order."""
-        return RobotDraws(*(getattr(self, f.name)[rows] for f in fields(self)))
-
-    @property
-    def holds(self) -> np.ndarray:
-        """(n,) bool: the static hold check held every load."""
-        return self.held.all(axis=1)
 
 
 def outcome_of(result: RobotCloseResult) -> int:
@@ -82,16 +35,17 @@ def outcome_of(result: RobotCloseResult) -> int:
 
 
 def score_batch(batch: RobotCloseBatch, max_contacts: int, quality,
-                friction: np.ndarray | None = None) -> RobotDraws:
+                friction: np.ndarray | None = None, hand_joints: int = 0) -> DrawBatch:
     """Per-draw results of closings: each one's outcome (:func:`provisional_outcomes`), its
     contacts (at most ``max_contacts``, in the batch's order) and, for a candidate, Q by
     ``quality(points, normals, mu)`` (force closure where Q > 0): points and normals
     (B, k, 3) of every candidate with k contacts at once, their draws' mu (B,) from
     ``friction`` (n,) (None: the engine's), Q (B,); ``quality`` None leaves the candidates
-    unscored (outcome ``no_force_closure``, Q 0) for the caller. Every engine of a
-    description robot scores its closings here."""
+    unscored (outcome ``no_force_closure``, Q 0) for the caller; ``hand_joints`` columns of
+    the closed hand, left for the caller (NaN). Every engine of a description robot scores
+    its closings here."""
     n = len(batch)
-    out = RobotDraws.empty(n, max_contacts)
+    out = DrawBatch.empty(n, max_contacts, hand_joints)
     counts = batch.contact_counts
     out.outcome[:] = provisional_outcomes(batch.start_collision, batch.missed, counts)
     out.n_contacts[:] = np.minimum(counts, max_contacts)
@@ -111,7 +65,7 @@ def score_batch(batch: RobotCloseBatch, max_contacts: int, quality,
     return out
 
 
-def score(results: list[RobotCloseResult], max_contacts: int, quality) -> RobotDraws:
+def score(results: list[RobotCloseResult], max_contacts: int, quality) -> DrawBatch:
     """:func:`score_batch` of closings given one by one."""
     return score_batch(RobotCloseBatch.of_results(results), max_contacts, quality)
 
@@ -207,7 +161,7 @@ class RobotEngine:
 
     def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
             object_offset: np.ndarray | None = None,
-            friction: np.ndarray | None = None) -> RobotDraws:
+            friction: np.ndarray | None = None) -> DrawBatch:
         """Outcomes of configurations q (n, dof) (arm noisy, hand at its pre-shape), with
         the static hold check where the engine was asked for it.
 
@@ -233,12 +187,14 @@ class RobotEngine:
         return self.scored(q, self.close_batch(q, **errors), mu)
 
     def scored(self, q: np.ndarray, batch: RobotCloseBatch,
-               friction: np.ndarray | None = None) -> RobotDraws:
+               friction: np.ndarray | None = None) -> DrawBatch:
         """:meth:`run`'s results of the closings ``batch`` of checked configurations q
         (n, dof), each draw at its mu ``friction`` (n,) (None: the engine's): for a caller
         that needs the closings too (their final joint values)."""
         draws = score_batch(batch, self.max_contacts,
-                            None if self.patches is not None else self.quality, friction)
+                            None if self.patches is not None else self.quality, friction,
+                            len(self.description.hand_joints))
+        self._closed_hand(q, batch, draws)
         contacts = None
         if self.patches is not None:
             contacts = self._score_patches(q, batch, draws, friction)
@@ -257,7 +213,18 @@ class RobotEngine:
                     q[touched], values, *(a[touched] for a in given))
         return draws
 
-    def _score_patches(self, q: np.ndarray, batch: RobotCloseBatch, draws: RobotDraws,
+    def _closed_hand(self, q: np.ndarray, batch: RobotCloseBatch, draws: DrawBatch) -> None:
+        """Fill ``draws.hand``: each actuated hand joint of q (n, dof) where the closing
+        left it (its final value), a pre-shape joint the closing does not move as it was,
+        NaN after a start collision."""
+        arm = self.description.arm_dof
+        draws.hand[:] = q[:, arm:]
+        for j, name in enumerate(self.description.hand_joints):
+            if name in batch.joints:
+                draws.hand[:, j] = batch.joints[name]
+        draws.hand[np.asarray(batch.start_collision, dtype=bool)] = np.nan
+
+    def _score_patches(self, q: np.ndarray, batch: RobotCloseBatch, draws: DrawBatch,
                        friction: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Q and force closure of the candidates of ``draws`` with the patch model; returns
         every draw's contacts expanded to their patches' corners ((n, k C, 3) points and

@@ -18,11 +18,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_engine import (
-    RobotDraws,
     RobotEngine,
     outcome_of,
     score,
@@ -36,7 +36,7 @@ from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
 from kinegrasp_env.world.grasps import Grasp, check_robot
 
-__all__ = ["ENGINES", "RobotDraws", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
+__all__ = ["ENGINES", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
            "check_robot", "evaluate_robot_grasp", "make_engine", "nominal_robot_quality",
            "outcome_of",
            "robot_configurations", "score",
@@ -72,7 +72,7 @@ class RobotEvaluation:
     q_mean: float
     q_std: float
     q_skew: float
-    draws: RobotDraws
+    draws: DrawBatch
     p_hold_static: float = float("nan")
     hold_ci: tuple[float, float] = (float("nan"), float("nan"))
     mass: float = float("nan")
@@ -81,7 +81,7 @@ class RobotEvaluation:
     push_p95: float = float("nan")
 
 
-def summarize(draws: RobotDraws, mass: float | None = None) -> RobotEvaluation:
+def summarize(draws: DrawBatch, mass: float | None = None) -> RobotEvaluation:
     """The statistics of per-draw results (see :class:`RobotEvaluation`); ``mass`` (kg): the
     draws carry the static hold check's verdicts, for an object of this mass."""
     n = int(draws.outcome.size)

@@ -31,11 +31,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, DrawBatch, Engine
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, Engine
 from kinegrasp_env.montecarlo.evaluate import (
     DEFAULT_CHUNK,
     check_noise_engine,
@@ -174,8 +175,7 @@ class _FCOracle:
         if draws.friction is None:
             return batch.outcome == FORCE_CLOSURE
         outcome = np.where(batch.outcome == FORCE_CLOSURE, NO_FORCE_CLOSURE, batch.outcome)
-        rescored = DrawBatch(outcome.astype(np.int8), np.zeros(self.size), batch.n_contacts,
-                             batch.points, batch.normals, batch.finger, batch.link, batch.hand)
+        rescored = replace(batch, outcome=outcome.astype(np.int8), quality=np.zeros(self.size))
         self.engine.score(rescored, draws.friction)
         return rescored.outcome == FORCE_CLOSURE
 

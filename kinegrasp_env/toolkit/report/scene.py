@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES, DrawBatch
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.toolkit.report.geometry import cone_meshes, skeletons, visual_poses
 from kinegrasp_env.toolkit.report.plotly import (
     MESH_STYLE,
