@@ -276,11 +276,12 @@ class PybulletEngine(Engine):
 
 
 class FastEngine(Engine):
-    """The batched engine: the default robot's description (``kuka_sdh.yaml``) closed by
-    the description robots' batched closing (:class:`~kinegrasp_env.closing.generic_fast.
-    FastRobotHand`: its start collision by exact distances, the support table's included,
-    its capsule fingers by the compiled capsule loop against the object's distance grid),
-    then the same scoring as the reference.
+    """The batched engine: the default robot's description (``kuka_sdh.yaml``) run by the
+    description robots' fast engine (:class:`~kinegrasp_env.montecarlo.robot_fast.
+    RobotFastEngine`: its batched closing, :class:`~kinegrasp_env.closing.generic_fast.
+    FastRobotHand`, with the start collision by exact distances, the support table's
+    included, and the capsule fingers by the compiled capsule loop against the object's
+    distance grid; its scoring, the point contact model's Q).
 
     Args:
         object_name: catalog object.
@@ -292,11 +293,12 @@ class FastEngine(Engine):
     checks_table = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
-        from kinegrasp_env.closing.generic_fast import FastRobotHand
-        from kinegrasp_env.world.sdf import grid_of
+        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
 
         super().__init__(object_name, friction, num_edges)
-        self.hand = FastRobotHand(default_description(), self.obj, grid=grid_of(self.obj))
+        self.robot = RobotFastEngine(default_description(), object_name, friction=friction,
+                                     num_edges=num_edges, max_contacts=MAX_CONTACTS)
+        self.hand = self.robot.hand
 
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None, **_) -> np.ndarray:
@@ -311,26 +313,15 @@ class FastEngine(Engine):
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
-        n = q.shape[0]
-        out = self.empty_draws(n)
+        errors = {key: value for key, value in (("palm", palm), ("object_offset", object_offset))
+                  if value is not None}
         t0 = time.perf_counter()
-        batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
+        batch = self.robot.close_batch(q, **errors)
         t1 = time.perf_counter()
-        counts = batch.contact_counts  # the contacts by finger, proximal before distal
-        slot = batch.slot
-        keep = slot < MAX_CONTACTS
-        row, slot = batch.row[keep], slot[keep]
-        out.points[row, slot], out.normals[row, slot] = batch.points[keep], batch.normals[keep]
-        out.finger[row, slot], out.link[row, slot] = batch.finger[keep], batch.link[keep]
-        out.n_contacts[:] = np.minimum(counts, MAX_CONTACTS)
-        out.outcome[:] = provisional_outcomes(batch.start_collision, batch.missed, counts)
-        out.n_contacts[batch.start_collision] = 0
-        out.hand[:] = np.stack([batch.joints[name] for name in HAND_JOINTS], axis=1)
-        out.hand[batch.start_collision] = np.nan
-        t2 = time.perf_counter()
-        self.score(out, friction)
-        # the fingers' kinematics is part of the batched auto-close; packing counts as kinematics
-        self._account(n, kinematics=t2 - t1, autoclose=t1 - t0, quality=time.perf_counter() - t2)
+        out = self.robot.scored(q, batch, friction)
+        # the fingers' kinematics is part of the batched auto-close
+        self._account(len(q), kinematics=0.0, autoclose=t1 - t0,
+                      quality=time.perf_counter() - t1)
         return out
 
 

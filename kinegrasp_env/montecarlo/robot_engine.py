@@ -81,17 +81,21 @@ class RobotEngine:
         finger_radius: soft contacts' patch radius (metres).
         static_hold: also run the static hold check on every closing that touches
             (:class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`).
+        max_contacts: contacts kept and scored per draw, in the closing's order (default:
+            one per finger link, every contact a closing can make).
     """
 
     name = ""
 
     def __init__(self, robot: str | RobotDescription, object_name: str, *,
                  friction: float = 0.5, num_edges: int = 8,
-                 finger_radius: float = FINGER_RADIUS, static_hold: bool = False) -> None:
+                 finger_radius: float = FINGER_RADIUS, static_hold: bool = False,
+                 max_contacts: int | None = None) -> None:
         self.description = load_robot(robot) if isinstance(robot, str) else robot
         self.obj = load_object(object_name)
         self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
-        self.max_contacts = len(self.description.finger_links)
+        self.max_contacts = (len(self.description.finger_links) if max_contacts is None
+                             else max_contacts)
         self.jaw_speeds = jaw_speeds(self.description)
         self.patches = None
         if self.description.contact_model == "patch":
