@@ -15,7 +15,8 @@ from typing import NamedTuple
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, kuka_sdh
+from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, HAND_JOINTS, kuka_sdh
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
 CONTACT_TOL = 2e-4
@@ -73,6 +74,20 @@ class CloseResult:
     missed: tuple[bool, bool, bool] = (False, False, False)
     joints: np.ndarray | None = None
     iterations: int = 0
+
+    def robot_result(self) -> RobotCloseResult:
+        """The same closing as a closing of the default robot's description (what every
+        robot's engine scores: :func:`~kinegrasp_env.montecarlo.robot_engine.score_batch`):
+        the contacts in their order (each finger's links as the description lists them,
+        proximal then distal), the final hand joints by name."""
+        fingers = len(self.missed)
+        joints = {} if self.joints is None else dict(zip(HAND_JOINTS, self.joints.tolist(),
+                                                         strict=True))
+        return RobotCloseResult(
+            self.start_collision,
+            [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in self.contacts],
+            tuple(self.missed), np.full(fingers, np.nan), np.zeros(fingers), joints,
+            self.iterations)
 
 
 @lru_cache(maxsize=1)

@@ -15,13 +15,14 @@ from __future__ import annotations
 import importlib
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
-from kinegrasp_env.quality.epsilon import ferrari_canny_batch, prepare_exact_paths
+from kinegrasp_env.quality.epsilon import prepare_exact_paths
 from kinegrasp_env.robot.default_robot import (
     HAND_JOINTS,
     default_description,
@@ -32,6 +33,9 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld
+
+if TYPE_CHECKING:  # the description robots' engine module imports this one
+    from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 
 OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
 START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
@@ -118,6 +122,7 @@ class Engine:
         self.num_edges = num_edges
         self.timing = EngineTiming()
         self._table_probe = None  # built on the first draw when the object has a table
+        self._scoring = None  # built on first use
         prepare_exact_paths(num_edges)  # Q's rarer paths ready before the first draw
 
     def close(self) -> None:
@@ -200,37 +205,37 @@ class Engine:
         self.timing.quality += quality
         self.timing.draws += draws
 
+    @property
+    def scoring(self) -> RobotEngine:
+        """The default robot's description engine whose scoring this engine's closings take,
+        as every robot's engine scores its closings (:meth:`~kinegrasp_env.montecarlo.
+        robot_engine.RobotEngine.scored`: the contact model's Q at this engine's friction
+        cone, :data:`MAX_CONTACTS` contacts a draw, the closed hand); built on first use."""
+        if self._scoring is None:
+            from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+
+            self._scoring = RobotEngine(default_description(), self.obj.name,
+                                        friction=self.friction, num_edges=self.num_edges,
+                                        max_contacts=MAX_CONTACTS)
+        return self._scoring
+
+    def scored(self, q: np.ndarray, results: list[CloseResult],
+               friction: np.ndarray | None = None) -> DrawBatch:
+        """The draws of closings given one by one (``results`` of configurations q (n, 14),
+        each draw at its mu ``friction`` (n,); None: the engine's), scored by
+        :attr:`scoring`."""
+        from kinegrasp_env.closing.close_batch import RobotCloseBatch
+
+        batch = RobotCloseBatch.of_results([result.robot_result() for result in results])
+        return self.scoring.scored(q, batch, friction)
+
     def score(self, out: DrawBatch, friction: np.ndarray | None = None) -> None:
-        """Fill quality and the force-closure outcome of the candidate draws, by contact
-        count; ``friction`` (n,) is each draw's mu (default: the engine's)."""
-        candidates = out.outcome == NO_FORCE_CLOSURE
-        for k in np.unique(out.n_contacts[candidates]):
-            rows = np.flatnonzero(candidates & (out.n_contacts == k))
-            mu = self.friction if friction is None else friction[rows]
-            q = ferrari_canny_batch(out.points[rows, :k], out.normals[rows, :k],
-                                    friction=mu, num_edges=self.num_edges,
-                                    torque_scale=self.obj.torque_scale,
-                                    center=self.obj.center_of_mass)
-            out.quality[rows] = q
-            out.outcome[rows[q > 0]] = FORCE_CLOSURE
+        """Fill quality and the force-closure outcome of the candidate draws of ``out`` (by
+        :attr:`scoring`'s quality); ``friction`` (n,) is each draw's mu (default: the
+        engine's)."""
+        from kinegrasp_env.montecarlo.robot_engine import score_candidates
 
-
-def record_close(out: DrawBatch, i: int, result: CloseResult) -> None:
-    """Draw i's contacts, closed hand and provisional outcome (before scoring) in ``out``,
-    from one closing of the hand (``result``: the reference's or the physics closing's)."""
-    if result.start_collision:
-        out.outcome[i] = START_COLLISION
-        return
-    k = min(len(result.contacts), MAX_CONTACTS)
-    out.n_contacts[i] = k
-    for j, contact in enumerate(result.contacts[:k]):
-        out.points[i, j] = contact.point
-        out.normals[i, j] = contact.normal
-        out.finger[i, j] = contact.finger
-        out.link[i, j] = contact.link
-    out.hand[i] = result.joints
-    out.outcome[i] = provisional_outcomes(np.zeros(1, bool), np.array([result.missed]),
-                                          np.array([k]))[0]
+        score_candidates(out, self.scoring.quality, friction)
 
 
 class PybulletEngine(Engine):
@@ -261,16 +266,14 @@ class PybulletEngine(Engine):
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
         n = q.shape[0]
-        out = self.empty_draws(n)
         t0 = time.perf_counter()
         roots = self.flange_poses(q)
         if palm is not None or object_offset is not None:  # the object stays, the hand moves
             roots = placed_roots(roots, self.obj.pose, palm, object_offset)
         t1 = time.perf_counter()
-        for i in range(n):
-            record_close(out, i, auto_close(self.world, roots[i], q[i, 7:]))
+        results = [auto_close(self.world, roots[i], q[i, 7:]) for i in range(n)]
         t2 = time.perf_counter()
-        self.score(out, friction)
+        out = self.scored(q, results, friction)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
         return out
 
@@ -298,6 +301,7 @@ class FastEngine(Engine):
         super().__init__(object_name, friction, num_edges)
         self.robot = RobotFastEngine(default_description(), object_name, friction=friction,
                                      num_edges=num_edges, max_contacts=MAX_CONTACTS)
+        self._scoring = self.robot
         self.hand = self.robot.hand
 
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,

@@ -26,7 +26,6 @@ from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
     Engine,
     check_configurations,
-    record_close,
 )
 from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
@@ -143,19 +142,19 @@ class PhysicsEngine(Engine):
 
     def _close_all(self, q: np.ndarray, hold: HoldBatch | None) -> DrawBatch:
         n = q.shape[0]
-        out = self.empty_draws(n)
         t0 = time.perf_counter()
         roots = self.kin.pose(q, default_hand_mount())
         t1 = time.perf_counter()
+        results = []
         for i in range(n):
             if hold is None:
-                result = physics_close(self.world, roots[i], q[i, 7:], self.motors)
+                results.append(physics_close(self.world, roots[i], q[i, 7:], self.motors))
             else:
                 result, test = self.holder.run_draw(roots[i], q[i, 7:])
                 hold.record(i, test)
-            record_close(out, i, result)
+                results.append(result)
         t2 = time.perf_counter()
-        self.score(out)
+        out = self.scored(q, results)
         self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
         return out
 

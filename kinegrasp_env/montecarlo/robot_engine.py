@@ -54,15 +54,22 @@ def score_batch(batch: RobotCloseBatch, max_contacts: int, quality,
     row, slot = batch.row[keep], slot[keep]
     out.points[row, slot], out.normals[row, slot] = batch.points[keep], batch.normals[keep]
     out.finger[row, slot], out.link[row, slot] = batch.finger[keep], batch.link[keep]
-    if quality is None:  # the caller scores the candidates
-        return out
-    candidate = out.outcome == NO_FORCE_CLOSURE
-    for k in np.unique(out.n_contacts[candidate]):
-        rows = np.flatnonzero(candidate & (out.n_contacts == k))
-        out.quality[rows] = quality(out.points[rows, :k], out.normals[rows, :k],
-                                    None if friction is None else friction[rows])
-    out.outcome[candidate & (out.quality > 0)] = FORCE_CLOSURE
+    if quality is not None:  # else the caller scores the candidates
+        score_candidates(out, quality, friction)
     return out
+
+
+def score_candidates(draws: DrawBatch, quality, friction: np.ndarray | None = None) -> None:
+    """Q of every candidate of ``draws`` (outcome ``no_force_closure``) by ``quality(points,
+    normals, mu)`` (the candidates with k contacts at once: points and normals (B, k, 3),
+    their mu (B,) from ``friction`` (n,), None: the engine's) and force closure where Q > 0,
+    in place."""
+    candidate = draws.outcome == NO_FORCE_CLOSURE
+    for k in np.unique(draws.n_contacts[candidate]):
+        rows = np.flatnonzero(candidate & (draws.n_contacts == k))
+        draws.quality[rows] = quality(draws.points[rows, :k], draws.normals[rows, :k],
+                                      None if friction is None else friction[rows])
+    draws.outcome[candidate & (draws.quality > 0)] = FORCE_CLOSURE
 
 
 def score(results: list[RobotCloseResult], max_contacts: int, quality) -> DrawBatch:
