@@ -13,13 +13,28 @@ import numpy as np
 
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
 
+#: What a draw ends in (:attr:`DrawBatch.outcome` indexes it).
+OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
+START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
+
+
+def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
+                         contact_counts: np.ndarray) -> np.ndarray:
+    """(n,) int8 outcomes of n closings before scoring (start_collision (n,) bool, missed
+    (n, F) bool, contact_counts (n,)): start collision, missed (a finger missed, or fewer than
+    two contacts) or no force closure (a candidate)."""
+    out = np.full(len(start_collision), NO_FORCE_CLOSURE, dtype=np.int8)
+    out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
+    out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
+    return out
+
 
 @dataclass
 class DrawBatch:
     """Per-draw results of n draws with k contact slots and H hand joints.
 
     Attributes:
-        outcome: (n,) int8 index into :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`.
+        outcome: (n,) int8 index into :data:`OUTCOMES`.
         quality: (n,) Q (0 unless force closure).
         n_contacts: (n,) contacts found (at most k are kept).
         points, normals: (n, k, 3) contacts in the object frame (normals inward), NaN-padded.

@@ -20,8 +20,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegrasp_env.closing.reference import CloseResult, auto_close
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.perturbation import arm_shift, placed_roots
+from kinegrasp_env.montecarlo.draws import (  # noqa: F401  (importable from here too)
+    FORCE_CLOSURE,
+    MISSED,
+    NO_FORCE_CLOSURE,
+    OUTCOMES,
+    START_COLLISION,
+    DrawBatch,
+    provisional_outcomes,
+)
+from kinegrasp_env.montecarlo.perturbation import (
+    arm_shift,
+    check_errors,
+    placed_roots,
+)
 from kinegrasp_env.quality.epsilon import prepare_exact_paths
 from kinegrasp_env.robot.default_robot import (
     HAND_JOINTS,
@@ -37,22 +49,9 @@ from kinegrasp_env.world.sim import GraspWorld
 if TYPE_CHECKING:  # the description robots' engine module imports this one
     from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 
-OUTCOMES: tuple[str, ...] = ("start_collision", "missed", "no_force_closure", "force_closure")
-START_COLLISION, MISSED, NO_FORCE_CLOSURE, FORCE_CLOSURE = range(4)
 MAX_CONTACTS = 6
 #: entries of a configuration: 7 arm joints, then 7 hand DOF
 CONFIGURATION_SIZE = 14
-
-
-def provisional_outcomes(start_collision: np.ndarray, missed: np.ndarray,
-                         contact_counts: np.ndarray) -> np.ndarray:
-    """(n,) int8 outcomes of n closings before scoring (start_collision (n,) bool, missed
-    (n, F) bool, contact_counts (n,)): start collision, missed (a finger missed, or fewer than
-    two contacts) or no force closure (a candidate)."""
-    out = np.full(len(start_collision), NO_FORCE_CLOSURE, dtype=np.int8)
-    out[np.any(missed, axis=1) | (np.asarray(contact_counts) < 2)] = MISSED
-    out[np.asarray(start_collision, dtype=bool)] = START_COLLISION
-    return out
 
 
 def check_configurations(q: np.ndarray) -> np.ndarray:
@@ -79,26 +78,6 @@ class EngineTiming:
     autoclose: float = 0.0
     quality: float = 0.0
     draws: int = 0
-
-
-def check_errors(n: int, palm, object_offset, friction) -> dict[str, np.ndarray]:
-    """The per-draw errors of :meth:`Engine.run` that are given, as float arrays of the
-    right shapes (ValueError otherwise: a bad shape, a non-finite entry, a negative mu)."""
-    out = {}
-    for name, value, shape in (("palm", palm, (n, 4, 4)),
-                               ("object_offset", object_offset, (n, 4, 4)),
-                               ("friction", friction, (n,))):
-        if value is None:
-            continue
-        arr = np.asarray(value, dtype=float)
-        if arr.shape != shape:
-            raise ValueError(f"{name} must have shape {shape} (one per draw), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} has NaN or infinite entries")
-        out[name] = arr
-    if "friction" in out and np.any(out["friction"] < 0):
-        raise ValueError(f"friction must be >= 0, got {float(out['friction'].min()):g}")
-    return out
 
 
 class Engine:

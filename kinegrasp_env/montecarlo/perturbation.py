@@ -103,3 +103,24 @@ def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.n
     if object_offset is None:
         return None
     return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
+
+
+def check_errors(n: int, palm, object_offset, friction) -> dict[str, np.ndarray]:
+    """The per-draw errors an engine's ``run`` is given (:meth:`~kinegrasp_env.montecarlo.
+    engines.Engine.run`; n draws), as float arrays of the right shapes (ValueError otherwise:
+    a bad shape, a non-finite entry, a negative mu)."""
+    out = {}
+    for name, value, shape in (("palm", palm, (n, 4, 4)),
+                               ("object_offset", object_offset, (n, 4, 4)),
+                               ("friction", friction, (n,))):
+        if value is None:
+            continue
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != shape:
+            raise ValueError(f"{name} must have shape {shape} (one per draw), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} has NaN or infinite entries")
+        out[name] = arr
+    if "friction" in out and np.any(out["friction"] < 0):
+        raise ValueError(f"friction must be >= 0, got {float(out['friction'].min()):g}")
+    return out

@@ -14,13 +14,13 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
 from kinegrasp_env.closing.robot_contacts import RobotCloseResult
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import (
+from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,
-    check_errors,
+    DrawBatch,
     provisional_outcomes,
 )
+from kinegrasp_env.montecarlo.perturbation import check_errors
 from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
