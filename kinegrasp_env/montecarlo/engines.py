@@ -296,10 +296,9 @@ class FastEngine(Engine):
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
-        errors = {key: value for key, value in (("palm", palm), ("object_offset", object_offset))
-                  if value is not None}
         t0 = time.perf_counter()
-        batch = self.robot.close_batch(q, **errors)
+        # one closing of the whole group of chunks (its iterations' cost is per call)
+        batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
         t1 = time.perf_counter()
         out = self.robot.scored(q, batch, friction)
         # the fingers' kinematics is part of the batched auto-close
