@@ -11,8 +11,8 @@ What each test proves:
   evaluation, in one process and in chunks on two processes) closes the same draws as its
   own evaluation, draw for draw (outcome and Q), with joint noise and with a noise model of
   every source; the two share the fast closing, so this proves they draw the same rows and
-  score them alike, and both report the closed hand alike. Two layouts of the noise, or a
-  source drawn from another stream, make the outcomes differ in hundreds of draws.
+  score them alike, and both report the closed hand alike (joint noise in one process; a
+  noise model of every source in chunks on two processes).
 """
 
 from __future__ import annotations

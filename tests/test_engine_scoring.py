@@ -1,14 +1,12 @@
 """Every engine scores its closings with one function: what that score is.
 
-What the test proves: for each engine of the default robot (the pybullet reference, whose
-closings are read as closings of its description, and the fast engine) and for a description
-robot's engines (the Panda, soft contacts, checked in its own tests), a draw's Q is the
+What the test proves: for the default robot's pybullet reference (whose closings are read as
+closings of its description) and its fast engine, a draw's Q is the
 Ferrari-Canny measure of the draw's own recorded contacts at the draw's mu, computed again
 here by the exact qhull path (:func:`~kinegrasp_env.quality.epsilon.ferrari_canny`, not the
 batched expansion the engines use), and its outcome is force closure exactly where Q > 0.
 A score at the engine's mu instead of the draw's, another torque scale or centre, or
-fewer contacts scored than recorded break it (checked: the reference scored at the engine's
-mu fails it).
+fewer contacts scored than recorded break it.
 """
 
 from __future__ import annotations
@@ -31,7 +29,10 @@ def test_an_engines_q_is_the_ferrari_canny_measure_of_its_own_contacts(engine_na
     n = 40
     q = chunk_configurations(grasp.q0, JointNoise(0.02), 2, [(0, n)])
     mu = np.random.default_rng(8).uniform(0.2, 1.0, n)
-    draws = engine.run(q, friction=mu)
+    try:
+        draws = engine.run(q, friction=mu)
+    finally:
+        engine.close()
     scored = np.flatnonzero((draws.outcome == FORCE_CLOSURE)
                             | (draws.outcome == NO_FORCE_CLOSURE))
     assert scored.size >= n // 2 and np.any(draws.outcome == FORCE_CLOSURE)
@@ -45,4 +46,3 @@ def test_an_engines_q_is_the_ferrari_canny_measure_of_its_own_contacts(engine_na
         # tests measure it)
         np.testing.assert_allclose(draws.quality[i], exact, rtol=1e-9, atol=1e-15)
         assert (draws.outcome[i] == FORCE_CLOSURE) == (exact > 0)
-    engine.close()

@@ -2,8 +2,8 @@
 evaluator that :mod:`kinegrasp_env.cli.ranking` ranks them with (fixed-n, resumable, or
 adaptive), its draws in chunks on the command's executor
 (:mod:`~kinegrasp_env.montecarlo.robot_chunks`: the same draws whatever the processes or
-backend), each candidate on the same rows of one stream (common noise), with the hold
-scores where asked."""
+backend), each candidate on the same rows of the seed's chunked streams (common noise),
+with the hold scores where asked."""
 
 from __future__ import annotations
 
