@@ -149,7 +149,7 @@ def cmd_rank(args) -> int:
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed}
-    if described:  # another robot's draws: one stream's rows
+    if described:  # another robot's draws: rows addressed in the seed's streams
         settings["robot"] = robot
     if described or static or test:  # the hold scores a log carries
         settings["criterion_scores"] = [static, test]

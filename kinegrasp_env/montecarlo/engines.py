@@ -280,8 +280,12 @@ class FastEngine(Engine):
         super().__init__(object_name, friction, num_edges)
         self.robot = RobotFastEngine(default_description(), object_name, friction=friction,
                                      num_edges=num_edges, max_contacts=MAX_CONTACTS)
-        self._scoring = self.robot
         self.hand = self.robot.hand
+
+    @property
+    def scoring(self) -> RobotEngine:
+        """The description engine that closes these draws scores them too."""
+        return self.robot
 
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None, **_) -> np.ndarray:

@@ -2,9 +2,10 @@
 
 A cell of robot R, grasp g, sigma s, noise type k and seed is ``evaluate_robot_grasp(g,
 sigma=s, n=samples, seed=seed, noise=k)``'s run, split into chunks: its draws are the rows of
-one stream, and chunk c closes rows ``offset .. offset + size`` of it
-(:mod:`~kinegrasp_env.montecarlo.robot_chunks`). The rows of a stream do not depend on how
-many are drawn, so a cell's counts equal ``kinegrasp evaluate --robot R`` with the same seed
+the seed's chunked streams (:func:`~kinegrasp_env.sampling.noise_model.stream_rows`), and
+chunk c closes rows ``offset .. offset + size`` of them
+(:mod:`~kinegrasp_env.montecarlo.robot_chunks`). The rows do not depend on how many are
+drawn, so a cell's counts equal ``kinegrasp evaluate --robot R`` with the same seed
 whatever the chunk size, and cells of the same noise type share their draws (common random
 numbers, as for the default robot). Each process keeps its engines for its later tasks.
 """

@@ -389,7 +389,7 @@ class SweepTask:
     model: str | None = None  # the spec JSON of a noise-model cell
     q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
     robot: str = DEFAULT_ROBOT
-    #: the chunk's first draw within its cell (another robot's draws are rows of one stream)
+    #: the chunk's first draw within its cell (another robot's draws are addressed by row)
     offset: int = 0
     #: the contacts' friction coefficient mu
     friction: float = 0.5
