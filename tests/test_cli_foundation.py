@@ -65,10 +65,12 @@ def test_kuka_ee_json_and_errors(capsys):
     out = json.loads(capsys.readouterr().out)
     assert np.shape(out["cov"]) == (3, 3) and out["samples"] == 20000
     # propagated covariance J Sigma J^T is a first-order check of the sampled one
-    from kinegrasp_env.robot.endeffector import kuka_arm
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.kinematics import Kinematics
 
-    kin, arm = kuka_arm()
-    q = np.zeros(kin.model.dof)
+    model = load_robot("kuka_sdh").model
+    kin, arm = Kinematics(model), np.arange(7)
+    q = np.zeros(model.dof)
     q[arm] = [0, 0.6, 0, -1.2, 0, 0.8, 0]
     jac = kin.jacobian(q, "palm")[0, :3][:, arm]
     linear = 0.0133**2 * jac @ jac.T

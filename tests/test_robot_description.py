@@ -33,11 +33,8 @@ from kinegrasp_env.robot.catalog import (
     robot_names,
     robots_dir,
 )
-from kinegrasp_env.robot.description import (
-    RobotDescriptionError,
-    load_description,
-    resolve_mesh,
-)
+from kinegrasp_env.robot.description import RobotDescriptionError, load_description
+from kinegrasp_env.robot.urdf_meshes import resolve_mesh
 
 DATA = Path(pybullet_data.getDataPath())
 XARM = DATA / "xarm"
@@ -331,6 +328,11 @@ BAD = {
     "no urdf": (lambda t: {"urdf": "nowhere.urdf"}, "urdf", "'nowhere.urdf': no such file"),
     "hand mount on the arm": (lambda t: {"hand_mount": "link5"}, "hand_mount",
                               "'link5' is not a link from the last arm joint's child"),
+    "home beyond the limit": (lambda t: {"home": {"joint2": 9.0}}, "home",
+                              "joint2: 9 is outside the joint's limits"),
+    "home of a hand joint": (lambda t: {"home": {"drive_joint": 0.1}}, "home",
+                             "'drive_joint' is not one of arm_joints"),
+    "empty arm name": (lambda t: {"arm_name": " "}, "arm_name", "non-empty text"),
 }
 
 
@@ -423,6 +425,31 @@ def test_mesh_paths_resolve_as_urdf_readers_write_them(tmp_path):
     assert resolve_mesh("package://mapped/c.obj", urdf, packages) == mapped
     assert resolve_mesh("package://mapped/c.obj", urdf, {}) is None
     assert resolve_mesh("package://pkg/meshes/none.stl", urdf, {}) is None
+
+
+def test_home_defaults_to_the_middle_of_each_joints_range(tmp_path):
+    """``home``: a given joint keeps its value, every other arm joint sits at the middle of
+    its range as pybullet reads the URDF's limits; ``arm_name`` defaults to "<name> arm"; the
+    default robot's are the paper's configuration and name."""
+    path = user_files(tmp_path, "beside")
+    data = {**yaml.safe_load(path.read_text()), "home": {"joint2": 0.25}}
+    path.write_text(yaml.safe_dump(data))
+    d = load_description(path)
+    client = pybullet.connect(pybullet.DIRECT)
+    try:
+        body = pybullet.loadURDF(str(d.urdf), physicsClientId=client)
+        limits = {}
+        for i in range(pybullet.getNumJoints(body, physicsClientId=client)):
+            info = pybullet.getJointInfo(body, i, physicsClientId=client)
+            limits[info[1].decode()] = (info[8], info[9])
+    finally:
+        pybullet.disconnect(client)
+    expected = [0.25 if j == "joint2" else 0.5 * sum(limits[j]) for j in d.arm_joints]
+    np.testing.assert_allclose(d.home_arm(), expected, rtol=0, atol=1e-12)
+    assert d.arm_name == f"{d.name} arm"
+    kuka = load_robot("kuka_sdh")
+    assert kuka.home_arm().tolist() == [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0]
+    assert kuka.arm_name == "KUKA iiwa"
 
 
 def test_contact_model_defaults_by_finger_count(tmp_path):

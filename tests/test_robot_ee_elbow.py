@@ -129,7 +129,7 @@ def test_kuka_ee_output_unchanged_and_ee_agrees(capsys):
     assert capsys.readouterr().out == KUKA_EE_TEXT_PIN
     assert main(["kuka-ee", "--q0", "0,1,2"]) == 2
     assert capsys.readouterr().err.strip().endswith(
-        "--q0: the KUKA arm needs 7 joint angles, got 3")
+        "--q0: the arm of robot 'kuka_sdh' needs 7 joint angles, got 3")
     # `ee` on the default robot's description: the same draws, the same palm (the
     # description's model and the shipped one agree to float precision: measured 1e-16)
     out = run_json(capsys, "ee", "--robot", "kuka_sdh", "--json")

@@ -65,16 +65,17 @@ def cmd_planar(args) -> int:
 def cmd_kuka_ee(args) -> int:
     import numpy as np
 
-    from kinegrasp_env.robot.endeffector import check_kuka_q0, sample_kuka_end_effector
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.endeffector import ArmEndEffector
     from kinegrasp_env.sampling.stats import moments
 
-    q0 = float_list(args.q0, "--q0")
+    effector = ArmEndEffector.of(load_robot(DEFAULT_ROBOT))
     try:
-        q0 = check_kuka_q0(q0)
+        q0 = effector.check_q0(float_list(args.q0, "--q0"))
     except ValueError as exc:
         raise CLIError(f"--q0: {exc}") from None
     noise, sigma, samples, seed = noise_from(args)
-    ee = sample_kuka_end_effector(q0, noise, samples, np.random.default_rng(seed))
+    ee = effector.sample(q0, noise, samples, np.random.default_rng(seed))
     mom = moments(ee)
     if args.json:
         print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
@@ -92,13 +93,13 @@ def cmd_ee(args) -> int:
 
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.robot.endeffector import ArmEndEffector, default_q0
+    from kinegrasp_env.robot.endeffector import ArmEndEffector
     from kinegrasp_env.sampling.stats import moments
 
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
     effector = ArmEndEffector.of(description)
-    q0 = default_q0(effector, args.robot) if args.q0 is None else float_list(args.q0, "--q0")
+    q0 = description.home_arm() if args.q0 is None else float_list(args.q0, "--q0")
     try:
         q0 = effector.check_q0(q0)
     except ValueError as exc:
@@ -123,7 +124,7 @@ def cmd_ee(args) -> int:
 def cmd_convergence(args) -> int:
     """``kinegrasp convergence``: the estimators' convergence (the paper's Fig. 3) for the
     2-link planar arm and a catalog robot's arm (``--robot``, its end-effector study's
-    configuration: :func:`~kinegrasp_env.robot.endeffector.default_q0`)."""
+    description's ``home`` configuration)."""
     import numpy as np
     from tqdm import tqdm
 
@@ -135,8 +136,6 @@ def cmd_convergence(args) -> int:
         PAPER_SIGMAS,
         ArmEndEffector,
         arm_convergence,
-        arm_label,
-        default_q0,
         planar_convergence,
     )
     from kinegrasp_env.robot.planar import PlanarArm
@@ -145,7 +144,7 @@ def cmd_convergence(args) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(args.robot)
     effector = ArmEndEffector.of(description)
-    robot_label = arm_label(args.robot)
+    robot_label = description.arm_name
     trials = positive_int(args.trials, "--trials")
     truth = positive_int(args.truth_samples, "--truth-samples")
     max_n = positive_int(args.max_samples, "--max-samples")
@@ -164,7 +163,7 @@ def cmd_convergence(args) -> int:
             curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,
                                        truth_samples=truth, seed=stream)
         else:
-            curve = arm_convergence(effector, default_q0(effector, args.robot), sigma,
+            curve = arm_convergence(effector, description.home_arm(), sigma,
                                     sizes=sizes, trials=trials, truth_samples=truth,
                                     seed=stream)
         curves.setdefault(label, {})[sigma] = curve
@@ -193,8 +192,7 @@ def add_commands(sub) -> None:
                        "joint noise, sampled and first order (J Sigma J^T)")
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="catalog robot")
     p.add_argument("--q0", help="the arm's joint angles, comma-separated, radians (default: "
-                   f"0,0.6,0,-1.2,0,0.8,0 for {DEFAULT_ROBOT}, the middle of each joint's "
-                   "range for another robot)")
+                   "the description's home configuration)")
     add_noise_args(p, 0.0133)
     p.set_defaults(func=cmd_ee)
 
@@ -207,8 +205,7 @@ def add_commands(sub) -> None:
     p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, a planar arm and a "
                        "catalog robot's arm (the KUKA by default)")
     p.add_argument("--robot", default=DEFAULT_ROBOT, help="catalog robot whose arm is studied "
-                   f"(default {DEFAULT_ROBOT}; another starts at the middle of each joint's "
-                   "range)")
+                   f"(default {DEFAULT_ROBOT}), from its description's home configuration")
     p.add_argument("--out", default="convergence.png", help="output PNG")
     p.add_argument("--trials", default="10", help="independent estimates per sample size")
     p.add_argument("--truth-samples", default="100000",

@@ -18,6 +18,6 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "ik": ("ArmIK", "IKResult"),
     "palm_pose": ("PalmCandidate", "parse_palm_pose", "reach_palm_pose"),
     "planar": ("PlanarArm",),
-    "endeffector": ("sample_kuka_end_effector", "kuka_end_effector"),
+    "endeffector": ("ArmEndEffector",),
     "description": ("RobotDescription", "RobotDescriptionError", "load_description"),
 })

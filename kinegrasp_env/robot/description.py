@@ -27,6 +27,11 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     hand_mount: sdh_base             # optional: the link the hand is mounted on, whose frame
                                      # a palm error is given in (a link from the last arm
                                      # joint's child to palm_link; default: that child)
+    home: {panda_joint4: -1.6}       # optional: the arm configuration studies of the arm
+                                     # alone start from, radians or metres (a joint left
+                                     # out: the middle of its range)
+    arm_name: Franka arm             # optional: how figures name the arm (default:
+                                     # "<name> arm")
 
 Mesh paths are resolved as URDF readers do: relative to the URDF's folder, absolute (or
 ``file://``), or ``package://NAME/rest``: through ``packages`` when it names NAME, else a
@@ -46,12 +51,13 @@ from pathlib import Path
 
 from kinegrasp_env.robot.linkage import linkage_bars
 from kinegrasp_env.robot.model import RobotModel, load_urdf
+from kinegrasp_env.robot.urdf_meshes import MeshFile, MeshNotFound, urdf_meshes
 
 #: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "close")
 OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
-                 "arm_angle_links", "hand_mount")
+                 "arm_angle_links", "hand_mount", "home", "arm_name")
 CONTACT_MODELS = ("point", "soft", "patch")
 
 
@@ -80,15 +86,6 @@ class Finger:
 
 
 @dataclass(frozen=True)
-class MeshFile:
-    """A mesh the URDF references: ``link``'s ``filename`` (as written), found at ``path``."""
-
-    link: str
-    filename: str
-    path: Path
-
-
-@dataclass(frozen=True)
 class RobotDescription:
     """A checked robot description (see the module docstring for the keys).
 
@@ -114,6 +111,8 @@ class RobotDescription:
     arm_angle_links: tuple[str, str, str] | None = None
     meshes: tuple[MeshFile, ...] = ()
     hand_mount: str = ""
+    home: dict[str, float] = field(default_factory=dict)
+    arm_name: str = ""
 
     @property
     def flange_link(self) -> str:
@@ -137,6 +136,12 @@ class RobotDescription:
         """Whether the arm moves along a self-motion with the palm held: 7 arm joints and
         ``arm_angle_links`` (its elbow angle)."""
         return self.arm_dof == 7 and self.arm_angle_links is not None
+
+    def home_arm(self):
+        """(arm_dof,) the arm's ``home`` configuration, base to flange (radians or metres)."""
+        import numpy as np
+
+        return np.array([self.home[j] for j in self.arm_joints])
 
     def open_configuration(self):
         """(dof,) actuated vector: arm at zero, hand at its ``open`` pre-shape."""
@@ -274,21 +279,8 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         close[j] = int(d)
     if not close:
         raise _fail(where, "close", "give the closing direction of at least one hand joint")
-    given_open = _mapping(data.get("open", {}) or {}, where, "open")
-    opened = {}
-    for j in hand:
-        lo, hi = movable[j].lower, movable[j].upper
-        if j in given_open:
-            v = _number(given_open[j], where, f"open: {j}")
-            if not lo - 1e-12 <= v <= hi + 1e-12:
-                raise _fail(where, "open", f"{j}: {v:g} is outside the joint's limits "
-                            f"[{lo:g}, {hi:g}]")
-        else:
-            v = min(max(0.0, lo), hi)
-        opened[j] = v
-    extra = [j for j in given_open if j not in hand]
-    if extra:
-        raise _fail(where, "open", f"{extra[0]!r} is not one of hand_joints")
+    opened = _joint_values(data, where, "open", hand, movable,
+                           lambda lo, hi: 0.5 * (lo + hi))
 
     # links a hand joint moves (mimic followers included), and the finger links
     driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
@@ -349,10 +341,40 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         packages[pkg] = resolved
     angle_links = _arm_angle_links(data, where, arm, movable, path_links)
     mount = _hand_mount(data, where, path_links, movable[arm[-1]].child)
-    meshes = urdf_meshes(urdf, packages, where)
+    home = _joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
+    arm_name = data.get("arm_name", f"{name} arm")
+    if not isinstance(arm_name, str) or not arm_name.strip():
+        raise _fail(where, "arm_name", f"expected a non-empty text, got {arm_name!r}")
+    try:
+        meshes = urdf_meshes(urdf, packages)
+    except MeshNotFound as exc:
+        raise _fail(where, exc.key, str(exc)) from None
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
-                            efforts, contact_model, packages, angle_links, meshes, mount)
+                            efforts, contact_model, packages, angle_links, meshes, mount, home,
+                            arm_name)
+
+
+def _joint_values(data, where, key, joints, movable, default) -> dict[str, float]:
+    """Every joint of ``joints``'s value under ``key`` (a mapping, optional): the given one
+    (within the joint's limits), else ``default(lower, upper)``."""
+    given = _mapping(data.get(key, {}) or {}, where, key)
+    extra = [j for j in given if j not in joints]
+    if extra:
+        kind = "hand_joints" if key == "open" else "arm_joints"
+        raise _fail(where, key, f"{extra[0]!r} is not one of {kind}")
+    values = {}
+    for j in joints:
+        lo, hi = movable[j].lower, movable[j].upper
+        if j not in given:
+            values[j] = default(lo, hi)
+            continue
+        v = _number(given[j], where, f"{key}: {j}")
+        if not lo - 1e-12 <= v <= hi + 1e-12:
+            raise _fail(where, key, f"{j}: {v:g} is outside the joint's limits "
+                        f"[{lo:g}, {hi:g}]")
+        values[j] = v
+    return values
 
 
 def _hand_mount(data, where, path_links, flange: str) -> str:
@@ -389,39 +411,3 @@ def _arm_angle_links(data, where, arm, movable, path_links) -> tuple[str, str, s
         if link not in path_links:
             raise _fail(where, "arm_angle_links", f"{link!r} is not a link of the arm chain")
     return names
-
-
-def resolve_mesh(filename: str, urdf: Path, packages: dict[str, Path]) -> Path | None:
-    """Where a URDF's mesh ``filename`` lies, or None when no candidate file exists."""
-    if filename.startswith("file://"):
-        filename = filename[len("file://"):]
-    if filename.startswith("package://"):
-        pkg, _, rest = filename[len("package://"):].partition("/")
-        if pkg in packages:
-            candidates = [packages[pkg] / rest]
-        else:
-            folders = [urdf.parent, *urdf.parent.parents]
-            candidates = [c for d in folders
-                          for c in ((d / pkg / rest),) + (((d / rest),) if d.name == pkg else ())]
-    else:
-        candidates = [Path(filename) if Path(filename).is_absolute() else urdf.parent / filename]
-    return next((c.resolve() for c in candidates if c.is_file()), None)
-
-
-def urdf_meshes(urdf: Path, packages: dict[str, Path], where: str) -> tuple[MeshFile, ...]:
-    """Every mesh file the links of ``urdf`` reference, resolved.
-
-    Raises:
-        RobotDescriptionError: a mesh file that is not found (named).
-    """
-    out = []
-    for link in ET.parse(urdf).getroot().findall("link"):
-        for mesh in link.iter("mesh"):
-            filename = mesh.get("filename", "")
-            found = resolve_mesh(filename, urdf, packages)
-            if found is None:
-                key = "packages" if filename.startswith("package://") else "urdf"
-                raise _fail(where, key, f"mesh {filename!r} of link {link.get('name')!r} "
-                            f"in {urdf.name} not found")
-            out.append(MeshFile(link.get("name"), filename, found))
-    return tuple(out)

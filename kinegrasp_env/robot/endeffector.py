@@ -3,19 +3,16 @@ and convergence curves.
 
 A robot's end effector is the origin of its palm link; only the arm joints are noisy (the
 hand stays at its pre-shape, which does not move the palm). :class:`ArmEndEffector` does it
-for any catalog robot (a :class:`~kinegrasp_env.robot.description.RobotDescription`), the
-``kuka_*`` functions for the default robot's shipped model (the paper's KUKA).
+for any catalog robot (a :class:`~kinegrasp_env.robot.description.RobotDescription`), starting
+from its description's ``home`` configuration.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from functools import lru_cache
 
 import numpy as np
 
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.planar import PlanarArm
@@ -24,8 +21,6 @@ from kinegrasp_env.sampling.stats import ConvergenceCurve, convergence_curve
 
 #: Noise levels of the paper's Fig. 3 and Table I (radians).
 PAPER_SIGMAS: tuple[float, ...] = (0.0033, 0.0133, 0.0233, 0.0333)
-#: A comfortable KUKA configuration (elbow bent, palm pointing forward-down), radians.
-DEFAULT_KUKA_Q0: tuple[float, ...] = (0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0)
 #: Planar arm of Fig. 3 (two unit links) and its configuration.
 DEFAULT_PLANAR_LINKS: tuple[float, ...] = (1.0, 1.0)
 DEFAULT_PLANAR_Q0: tuple[float, ...] = (0.3, 1.2)
@@ -116,49 +111,6 @@ class ArmEndEffector:
         jac = self.kin.jacobian(q, self.palm)[0, :3][:, self.arm]
         sigma = noise.sigma_vector(self.arm.size)
         return self.positions(q0)[0], (jac * sigma**2) @ jac.T
-
-
-@lru_cache(maxsize=1)
-def kuka_arm() -> tuple[Kinematics, np.ndarray]:
-    """The default robot's kinematics and the indices of its arm joints in its q, shape (7,)."""
-    model = kuka_sdh()
-    return Kinematics(model), model.index(ARM_JOINTS)
-
-
-@lru_cache(maxsize=1)
-def kuka_end_effector_model() -> ArmEndEffector:
-    """:class:`ArmEndEffector` of the default robot's shipped model (hand joints at zero)."""
-    kin, arm = kuka_arm()
-    return ArmEndEffector(kin, arm, PALM_LINK, np.zeros(kin.model.dof), "the KUKA arm")
-
-
-def default_q0(effector: ArmEndEffector, robot: str) -> np.ndarray:
-    """The arm configuration the end-effector study starts from: :data:`DEFAULT_KUKA_Q0`
-    for the default robot ``kuka_sdh``, the middle of each joint's range for another."""
-    return np.array(DEFAULT_KUKA_Q0) if robot == DEFAULT_ROBOT else effector.middle()
-
-
-def arm_label(robot: str) -> str:
-    """How figures name a robot's arm: ``KUKA iiwa`` for the default robot (the paper's
-    name), ``<robot> arm`` for another."""
-    return "KUKA iiwa" if robot == DEFAULT_ROBOT else f"{robot} arm"
-
-
-def check_kuka_q0(q0: Sequence[float]) -> np.ndarray:
-    """Validate a 7-vector of arm joint angles (finite, within limits) and return it."""
-    return kuka_end_effector_model().check_q0(q0)
-
-
-def kuka_end_effector(q_arm: np.ndarray) -> np.ndarray:
-    """Palm positions (n, 3), metres, for arm configurations (n, 7)."""
-    return kuka_end_effector_model().positions(q_arm)
-
-
-def sample_kuka_end_effector(q0: Sequence[float], noise: JointNoise, n: int,
-                             rng: int | np.random.Generator | None = None,
-                             method: str = "mc", chunk: int = 50_000) -> np.ndarray:
-    """Palm positions (n, 3) of q0 + eps for the KUKA arm (eps ~ ``noise`` on 7 joints)."""
-    return kuka_end_effector_model().sample(q0, noise, n, rng, method=method, chunk=chunk)
 
 
 def planar_convergence(arm: PlanarArm, q0: Sequence[float], sigma: float, *,
