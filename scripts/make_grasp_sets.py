@@ -1,4 +1,4 @@
-"""Generate the shipped grasp sets ``assets/grasps/<object>.json`` (12 grasps per object).
+"""Generate the shipped grasp sets ``assets/grasps/kuka_sdh/<object>.json`` (12 grasps per object).
 
 Run: ``python scripts/make_grasp_sets.py [--count 12] [--seed 0]``. Uses the simple sampling
 planner of :mod:`kinegrasp_env.toolkit.planner` with its default settings (fingertip grasps: at most
@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import argparse
 
-from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.toolkit.planner import GraspPlanner
-from kinegrasp_env.world.grasps import save_grasps
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasp_file
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 
@@ -28,7 +27,7 @@ def main() -> None:
         planner.close()
         if len(grasps) < args.count:
             raise SystemExit(f"{name}: only {len(grasps)} grasps found")
-        path = save_grasps(grasps, assets_dir() / "grasps" / f"{name}.json",
+        path = save_grasps(grasps, shipped_grasp_file(name),
                            generator="scripts/make_grasp_sets.py", seed=seed)
         print(path, index)
 

@@ -1,10 +1,10 @@
 """Refresh the shipped grasp files' nominal contacts after a change of the auto-close.
 
 Run: ``python scripts/refresh_nominal_contacts.py [objects ...]``. For each built-in object,
-every grasp of ``assets/grasps/<object>.json`` is closed again by the reference engine at its
-q0 (no noise) and its stored contacts (points, normals) and nominal Q are replaced by what it
-finds there; q0, the palm pose, the ids and the metadata stay as they are. It refuses (and
-writes nothing) where the grasp is no longer in force closure or its touching links changed:
+every grasp of ``assets/grasps/kuka_sdh/<object>.json`` is closed again by the reference
+engine at its q0 (no noise) and its stored contacts (points, normals) and nominal Q are
+replaced by what it finds there; q0, the palm pose, the ids and the metadata stay as they
+are. It refuses (and writes nothing) where the grasp is no longer in force closure or its touching links changed:
 that would be a different grasp, for ``scripts/make_grasp_sets.py`` to plan again.
 
 The contacts are the root of the exact gap to 1e-9 m (the polish), reached from wherever the
@@ -20,9 +20,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.assets import asset_path
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
-from kinegrasp_env.world.grasps import Grasp, shipped_grasps, write_atomic
+from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps, write_atomic
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 
@@ -69,7 +68,7 @@ def main() -> None:
     args = parser.parse_args()
     for name in args.objects:
         grasps, moved, q_change = refreshed(name)
-        rewrite(asset_path("grasps", f"{name}.json"), grasps)
+        rewrite(shipped_grasp_file(name), grasps)
         print(f"{name}: {len(grasps)} grasps, points moved by at most {moved:.1e} m, "
               f"Q by at most {q_change:.1e} relative")
 

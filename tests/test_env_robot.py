@@ -461,7 +461,7 @@ def test_a_grasp_file_of_another_robot_is_refused(tmp_path):
     from kinegrasp_env.world.grasps import load_grasps, save_grasps
 
     kuka = tmp_path / "kuka.json"
-    save_grasps(load_grasps(asset_path("grasps", "drill.json"))[:1], kuka)
+    save_grasps(load_grasps(asset_path("grasps", "kuka_sdh", "drill.json"))[:1], kuka)
     with pytest.raises(ValueError, match="holds grasps of robot 'kuka_sdh'; make the env"):
         gym.make("KineGrasp-v0", robot="panda", grasp_file=str(kuka))
     panda = tmp_path / "panda.json"

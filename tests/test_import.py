@@ -417,7 +417,7 @@ def test_interrupted_import_leaves_the_catalog_as_it_was(home, tmp_path):
 
 def test_evaluate_a_grasp_of_a_file(home, capsys):
     """``evaluate --grasps FILE --grasp ID|INDEX`` gives what the shipped set gives."""
-    shipped = str(asset_path("grasps", "cube.json"))
+    shipped = str(asset_path("grasps", "kuka_sdh", "cube.json"))
     common = ("--samples", "8", "--engine", "fast", "--json")
     runs = [cli(capsys, "evaluate", "--object", "cube", "--grasp", "1", *common),
             cli(capsys, "evaluate", "--grasps", shipped, "--grasp", "1", *common)]

@@ -42,7 +42,7 @@ def catalog(tmp_path_factory):
         importer.forget()
         trimesh.creation.box(extents=(0.06, 0.06, 0.06)).export(folder / "box6.obj")
         import_object(folder / "box6.obj", BOX)
-        data = json.loads(asset_path("grasps", "cube.json").read_text())
+        data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
         data["object"] = BOX
         for grasp in data["grasps"]:
             grasp["object"] = BOX

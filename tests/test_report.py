@@ -321,7 +321,7 @@ def test_evaluate_and_rank_write_reports(tmp_path, capsys):
     assert f"report written to {page}" in capsys.readouterr().out
     assert "kinegrasp evaluate --object cube --grasp 1" in page.read_text()
     candidates = tmp_path / "grasps.json"
-    data = json.loads(asset_path("grasps", "cube.json").read_text())
+    data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
     data["grasps"] = data["grasps"][:3]
     candidates.write_text(json.dumps(data))
     ranking = tmp_path / "ranking.html"

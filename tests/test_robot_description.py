@@ -452,6 +452,20 @@ def test_home_defaults_to_the_middle_of_each_joints_range(tmp_path):
     assert kuka.arm_name == "KUKA iiwa"
 
 
+def test_a_description_is_read_again_when_its_file_changes(home, tmp_path):
+    """The catalog reads a description once per process, and again when its file changes
+    (here its size: the contact model named in it) or the robot is removed."""
+    add_robot(user_files(tmp_path, "beside"))
+    first = load_robot("xarm6")
+    assert load_robot("xarm6") is first and first.contact_model == "soft"
+    entry = robots_dir() / "xarm6" / "robot.yaml"
+    entry.write_text(entry.read_text().replace("contact_model: soft", "contact_model: patch"))
+    assert load_robot("xarm6").contact_model == "patch"
+    assert main(["robots", "remove", "xarm6"]) == 0
+    with pytest.raises(RobotDescriptionError, match="unknown robot 'xarm6'"):
+        load_robot("xarm6")
+
+
 def test_contact_model_defaults_by_finger_count(tmp_path):
     """A description naming no contact model: soft for the xArm's two fingers (two point
     contacts are never in force closure), point for the SDH's three; named, it is kept."""

@@ -24,7 +24,7 @@ from kinegrasp_env.montecarlo.sweep import SUMMARY_COLUMNS, SpecError, SweepSpec
 from kinegrasp_env.world.grasps import shipped_grasps
 
 PANDA_CUBE = asset_path("grasps", "panda", "cube.json")
-KUKA_CUBE = asset_path("grasps", "cube.json")
+KUKA_CUBE = asset_path("grasps", "kuka_sdh", "cube.json")
 #: cube grasp 1 of the Panda at 0.02 rad: P(FC) 0.375 over 24 draws (seed 3), so a wrong
 #: draw changes the counts
 GRASP, SIGMA, SEED = 1, 0.02, 3

@@ -44,7 +44,7 @@ def spec(tmp_path_factory) -> str:
 
 def _cases(bad: str, bad_folder: str) -> list[tuple[list[str], str]]:
     """Every command's output options, each given ``bad`` (a file) or ``bad_folder``."""
-    cube = str(asset_path("grasps", "cube.json"))
+    cube = str(asset_path("grasps", "kuka_sdh", "cube.json"))
     spec = ["--noise-spec", SPEC]
     many = ["--samples", HOURS_OF_DRAWS]
     return [
@@ -95,7 +95,7 @@ def test_a_missing_folder_is_an_error_and_nothing_is_created(tmp_path, monkeypat
         output_folder(str(tmp_path / "a" / "b"))
     assert output_folder(str(tmp_path / "a")) == tmp_path / "a"
     with pytest.raises(CLIError, match="is a file; give a folder"):
-        output_folder(str(asset_path("grasps", "cube.json")))
+        output_folder(str(asset_path("grasps", "kuka_sdh", "cube.json")))
     monkeypatch.chdir(tmp_path)
     assert output_file("out/tour/p.png", "--plot") == Path("out/tour/p.png")
     assert output_folder("out/a/b") == Path("out/a/b")
@@ -337,9 +337,9 @@ def test_a_grasp_file_written_from_the_readme_table_is_read(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("entry", "needle"), [
-    ({}, "grasp 0: field 'q0' missing (14 joint angles in radians: 7 arm, then 7 hand)"),
+    ({}, "grasp 0: field 'q0' missing (14 joint values, radians or metres: 7 arm, then 7 hand)"),
     ({"id": "a", "q0": [0.0] * 3}, "grasp 0 (id 'a'): field 'q0': q0 must have 14 entries"),
-    ({"q0": "zero"}, "grasp 0: field 'q0': expected 14 joint angles"),
+    ({"q0": "zero"}, "grasp 0: field 'q0': expected 14 joint values"),
     ({"object": "teapot", "q0": []}, "grasp 0: field 'object': unknown object 'teapot'"),
     ({"q0": None, "palm_pose": 1}, "grasp 0: field 'q0': q0 must have 14 entries"),
     ({"SHIPPED": True, "palm_pose": [[1, 0], [0, 1]]},

@@ -220,6 +220,16 @@ def test_placed_copies_and_their_grasps(tabled):
     moved = load_object("cube_moved")
     assert moved.table is None and moved.base == "cube"
     np.testing.assert_allclose(moved.pose[:3, 3], [0.5, 0.1, 0.1])
+    # the same rule for every robot with a shipped set: the Panda's cube grasps for the copy
+    # in place, none for the moved one, and none of an object it has no set of
+    panda = shipped_grasps(tabled["cube"], "panda")
+    assert [g.q0.tolist() for g in panda] == \
+        [g.q0.tolist() for g in shipped_grasps("cube", "panda")]
+    assert {g.object for g in panda} == {tabled["cube"]} and {g.robot for g in panda} == {"panda"}
+    with pytest.raises(NoGraspSetError, match="stands elsewhere .* --robot panda"):
+        shipped_grasps("cube_moved", "panda")
+    with pytest.raises(NoGraspSetError, match="robot 'panda' has no shipped grasps of 'mug_on"):
+        shipped_grasps(tabled["mug"], "panda")
 
 
 def test_full_orientation_as_a_data_set_gives_it(tabled, capsys):

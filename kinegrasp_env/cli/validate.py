@@ -60,7 +60,7 @@ def add_commands(sub) -> None:
     p.add_argument("--shake", action="store_true", help="add the shake phase after the lift "
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
-                   "kuka_sdh); another robot's shipped grasps (assets/grasps/NAME/) or "
+                   "kuka_sdh); the robot's shipped grasps (assets/grasps/NAME/) or "
                    "--grasps of it are held by its own hand in pybullet, its motors at the "
                    "URDF's effort limits (or the description's efforts)")
     add_friction_arg(p)

@@ -7,15 +7,16 @@ draws split into chunks of ``chunk``. A ``noise`` entry may also be a noise mode
 mapping or file: :mod:`kinegrasp_env.montecarlo.sweep_noise`), whose joint sigma is the cell's
 sigma.
 
-Grasps: a built-in object's come from its shipped set; ``grasp_files`` maps an object to a
-grasp file (``kinegrasp plan``'s output, relative to the spec file) whose grasps replace
-the shipped set, which is how an imported object (it has none) is swept. ``grasps`` indexes
+Grasps: an object's come from the robot's shipped set (``assets/grasps/<robot>/``);
+``grasp_files`` maps an object to a grasp file (``kinegrasp plan``'s output, relative to the
+spec file) whose grasps replace the shipped set, which is how an imported object (it has
+none) is swept. ``grasps`` indexes
 each object's set; each grasp file's SHA-256 is kept with the spec
 (:meth:`SweepSpec.sources`).
 
 Robot: ``robot`` (default ``kuka_sdh``; ``kinegrasp sweep --robot`` overrides it) names the
-catalog robot. Another robot's grasps come from its shipped sets (``assets/grasps/<robot>/``)
-or from ``grasp_files`` (every grasp of a file must be a grasp of that robot); its draws are
+catalog robot. Its grasps come from its shipped sets or from ``grasp_files`` (every grasp of
+a file must be a grasp of that robot). Another robot's draws are
 joint noise on its arm joints (a distribution entry of ``noise``; noise models are refused),
 closed by its own engines (:mod:`kinegrasp_env.montecarlo.sweep_robot`).
 """
@@ -35,7 +36,7 @@ from kinegrasp_env.montecarlo.sweep_noise import noise_entries
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_spec import spec_loader
 from kinegrasp_env.world.grasps import Grasp, check_robot
-from kinegrasp_env.world.objects import OBJECT_NAMES, object_names, object_version
+from kinegrasp_env.world.objects import object_names, object_version
 
 SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
              "chunk", "seed", "robot", "friction")
@@ -326,14 +327,12 @@ def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
     for object_name, path, digest in files:
         if object_name == name:
             return _file_grasps(path, digest)
-    from kinegrasp_env.world.grasps import shipped_grasps
-
-    return tuple(shipped_grasps(name)) if robot == DEFAULT_ROBOT else _shipped_set(name, robot)
+    return _shipped_set(name, robot)
 
 
 @lru_cache(maxsize=32)
 def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
-    """Another robot's shipped set of ``name`` (``assets/grasps/<robot>/``, read once)."""
+    """The robot's shipped set of ``name`` (``assets/grasps/<robot>/``, read once)."""
     from kinegrasp_env.world.grasps import shipped_grasps
 
     return tuple(shipped_grasps(name, robot))
@@ -341,25 +340,22 @@ def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
 
 def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
                       where: str, robot: str = DEFAULT_ROBOT) -> None:
-    """An imported object (no shipped set) needs a grasp file, and so does an object
-    another robot has no shipped set of: one line saying how."""
-    given = {name for name, _, _ in files}
-    if robot != DEFAULT_ROBOT:
-        from kinegrasp_env.world.grasps import NoGraspSetError
+    """An object the robot has no shipped set of (an imported one among them) needs a grasp
+    file: one line saying how."""
+    from kinegrasp_env.world.grasps import NoGraspSetError
 
-        for name in (n for n in objects if n not in given):
-            try:
-                _shipped_set(name, robot)
-            except NoGraspSetError as exc:
+    given = {name for name, _, _ in files}
+    for name in (n for n in objects if n not in given):
+        try:
+            _shipped_set(name, robot)
+        except NoGraspSetError as exc:
+            if not exc.imported:
                 raise SpecError(f"{where}: {exc}, and give the file in 'grasp_files'") from None
-        return
-    for name in objects:
-        if name not in OBJECT_NAMES and name not in given:
             raise SpecError(
                 f"{where}: {name!r} is an imported object and has no shipped grasp set; give "
                 f"its grasp file in 'grasp_files' (e.g. grasp_files: {{{name}: "
-                f"{name}_grasps.json}}, written by `kinegrasp plan --object {name} --out "
-                f"{name}_grasps.json`)")
+                f"{name}_grasps.json}}, written by `kinegrasp plan --robot {robot} --object "
+                f"{name} --out {name}_grasps.json`)") from None
 
 
 def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],

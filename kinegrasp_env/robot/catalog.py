@@ -98,13 +98,32 @@ def check_robot_name(robot) -> str:
     return robot
 
 
+#: Descriptions read in this process: path -> (the files' stamps, the description).
+_READ: dict[Path, tuple[tuple, RobotDescription]] = {}
+
+
+def _stamp(*paths: Path) -> tuple:
+    """What tells a file changed: each path's modification time (ns) and size."""
+    return tuple((s.st_mtime_ns, s.st_size) for s in (p.stat() for p in paths))
+
+
 def load_robot(name: str = DEFAULT_ROBOT) -> RobotDescription:
-    """The checked description of a built-in or user robot.
+    """The checked description of a built-in or user robot, read once per process while its
+    description and URDF files stay unchanged.
 
     Raises:
         RobotDescriptionError: unknown name, or an entry that no longer checks out.
     """
-    return load_description(description_path(name))
+    path = description_path(name)
+    held = _READ.get(path)
+    try:
+        if held is not None and held[0] == _stamp(path, held[1].urdf):
+            return held[1]
+    except OSError:
+        pass  # a file gone: read again, which names it
+    description = load_description(path)
+    _READ[path] = (_stamp(path, description.urdf), description)
+    return description
 
 
 def catalog_rows() -> list[dict]:

@@ -1,7 +1,8 @@
 """Grasps: nominal arm+hand configuration, palm pose, nominal contacts and quality; JSON I/O.
 
 A grasp file is JSON: ``{"object": name, "grasps": [grasp, ...]}`` with each grasp a dict of
-``id``, ``object``, ``q0`` (14 numbers: 7 arm joints then 7 hand DOF, radians), ``palm_pose``
+``id``, ``object``, ``robot`` (a catalog robot; default ``kuka_sdh``), ``q0`` (the robot's
+actuated joints: its arm joints, then its hand joints; radians or metres), ``palm_pose``
 (4x4, world frame), ``contacts`` (list of ``{"finger", "link", "point", "normal"}`` in the
 object frame) and ``q_nominal``. :func:`save_grasps` also writes each grasp as a palm-pose
 candidate (:func:`palm_pose_fields`: ``position``, ``quaternion`` of the palm in the object
@@ -24,13 +25,9 @@ import numpy as np
 
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
-from kinegrasp_env.robot.default_robot import kuka_sdh
 from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
-
-ARM_DOF = 7
-HAND_DOF = 7
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,8 +61,8 @@ class Grasp:
 
     @property
     def arm_dof(self) -> int:
-        """Arm joints at the head of ``q0``: 7 for the default robot, else its description's."""
-        return ARM_DOF if self.robot == DEFAULT_ROBOT else load_robot(self.robot).arm_dof
+        """Arm joints at the head of ``q0`` (the robot's description's)."""
+        return load_robot(self.robot).arm_dof
 
     @property
     def arm(self) -> np.ndarray:
@@ -115,8 +112,7 @@ class Grasp:
             raise ValueError(f"{label}: field 'object': {unknown_object(obj)}")
         robot = data.get("robot", robot_name or DEFAULT_ROBOT)
         robot_model(robot, f"{label}: field 'robot'")
-        q0 = _array_field(data, "q0", label, "14 joint angles in radians: 7 arm, then 7 hand"
-                          if robot == DEFAULT_ROBOT else f"the actuated joints of {robot}")
+        q0 = _array_field(data, "q0", label, joints_words(robot))
         check_configuration(q0, f"{label}: field 'q0'", robot=robot)
         if data.get("palm_pose") is None:
             pose = palm_at(q0, robot)
@@ -188,21 +184,26 @@ def palm_at(q0: np.ndarray, robot: str = DEFAULT_ROBOT) -> np.ndarray:
     """(4, 4) the palm frame at configuration ``q0`` (14,) (another ``robot``: its actuated
     vector), world frame (forward kinematics of the robot's URDF): a grasp entry's
     ``palm_pose`` when the file leaves it out."""
-    from kinegrasp_env.robot.default_robot import PALM_LINK
     from kinegrasp_env.robot.kinematics import Kinematics
 
-    if robot == DEFAULT_ROBOT:
-        return Kinematics(kuka_sdh()).pose(np.asarray(q0, dtype=float)[None], PALM_LINK)[0]
     description = load_robot(robot)
     return Kinematics(description.model).pose(np.asarray(q0, dtype=float)[None],
                                               description.palm_link)[0]
 
 
+def joints_words(robot: str, count: bool = True) -> str:
+    """What a configuration of ``robot`` holds, in words: e.g. "14 joint values: 7 arm, then 7
+    hand" (without ``count``: "7 arm + 7 hand")."""
+    description = load_robot(robot)
+    arm, hand = description.arm_dof, len(description.hand_joints)
+    if not count:
+        return f"{arm} arm + {hand} hand"
+    return f"{arm + hand} joint values, radians or metres: {arm} arm, then {hand} hand"
+
+
 def robot_model(robot, where: str = "robot") -> RobotModel:
     """The model of catalog robot ``robot``; ValueError (one line, naming ``where``) for an
     unknown one."""
-    if robot == DEFAULT_ROBOT:
-        return kuka_sdh()
     if not isinstance(robot, str):
         raise ValueError(f"{where}: expected a robot name, got {robot!r}")
     try:
@@ -242,10 +243,8 @@ def check_configuration(q0: np.ndarray, where: str = "q0",
     q0 = np.asarray(q0, dtype=float)
     model = robot_model(robot)
     if q0.shape != (model.dof,):
-        parts = ("7 arm + 7 hand" if robot == DEFAULT_ROBOT
-                 else f"the actuated joints of {robot}")
-        raise ValueError(f"{where}: q0 must have {model.dof} entries ({parts}), "
-                         f"got {q0.size}")
+        raise ValueError(f"{where}: q0 must have {model.dof} entries ("
+                         f"{joints_words(robot, count=False)}), got {q0.size}")
     if not np.all(np.isfinite(q0)):
         raise ValueError(f"{where}: q0 has non-finite entries")
     bad = np.flatnonzero((q0 < model.lower - 1e-9) | (q0 > model.upper + 1e-9))
@@ -339,33 +338,39 @@ def file_mode(path: str | Path) -> int:
 
 
 class NoGraspSetError(ValueError):
-    """An imported object has no shipped grasp set (the message suggests ``kinegrasp plan``)."""
+    """An object without a shipped grasp set for the robot asked (the message suggests
+    ``kinegrasp plan``); ``imported``: because it is an imported object."""
+
+    def __init__(self, message: str, imported: bool = False):
+        super().__init__(message)
+        self.imported = imported
 
 
-def no_grasp_set(object_name: str) -> NoGraspSetError:
-    """The error for an object without a shipped grasp set."""
+def no_grasp_set(object_name: str, robot: str = DEFAULT_ROBOT) -> NoGraspSetError:
+    """The error for an imported object, which has no shipped grasp set (of ``robot``)."""
     return NoGraspSetError(
         f"{object_name!r} is an imported object and has no shipped grasp set; make one with "
-        f"`kinegrasp plan --object {object_name} --out {object_name}_grasps.json` and give "
-        "that file (e.g. `kinegrasp evaluate --grasps FILE`, `kinegrasp rank FILE`)")
+        f"`kinegrasp plan --robot {robot} --object {object_name} --out "
+        f"{object_name}_grasps.json` and give that file (e.g. `kinegrasp evaluate --grasps "
+        "FILE`, `kinegrasp rank FILE`)", imported=True)
 
 
 def shipped_objects(robot: str = DEFAULT_ROBOT) -> tuple[str, ...]:
-    """The objects with a shipped grasp set for ``robot``: every built-in object for the
-    default robot, those of ``assets/grasps/<robot>/`` (sorted) for another."""
-    if robot == DEFAULT_ROBOT:
-        return OBJECT_NAMES
+    """The objects with a shipped grasp set for ``robot``: those of
+    ``assets/grasps/<robot>/`` (sorted in the catalog's order, built-in objects first)."""
     folder = assets_dir() / "grasps" / robot
-    return tuple(sorted(p.stem for p in folder.glob("*.json"))) if folder.is_dir() else ()
+    found = {p.stem for p in folder.glob("*.json")} if folder.is_dir() else set()
+    return (tuple(n for n in OBJECT_NAMES if n in found)
+            + tuple(sorted(found.difference(OBJECT_NAMES))))
 
 
 def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
-    """The standard grasp set of a built-in object (``assets/grasps/<object>.json``; for
-    another robot than the default, ``assets/grasps/<robot>/<object>.json``, the antipodal
-    planner's output, where one is shipped: :func:`shipped_objects`).
+    """The shipped grasp set of an object for catalog robot ``robot``
+    (``assets/grasps/<robot>/<object>.json``: the planners' output, where one is shipped:
+    :func:`shipped_objects`).
 
-    A placed copy of a built-in object (``kinegrasp objects place drill --as NAME``) that
-    stands where the built-in object stands has the built-in set (its grasps named after the
+    A placed copy of an object with a shipped set (``kinegrasp objects place drill --as
+    NAME``) that stands where that object stands has its set (its grasps named after the
     copy): its arm configurations reach the same contacts, and its table may make some of them
     start in collision.
 
@@ -374,27 +379,25 @@ def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
             grasps were planned, or an object with no shipped set for ``robot``; ValueError
             for an unknown name.
     """
-    if robot != DEFAULT_ROBOT:
-        shipped = shipped_objects(robot)
-        if object_name not in shipped:
-            raise NoGraspSetError(
-                f"robot {robot!r} has no shipped grasps of {object_name!r} (shipped: "
-                f"{', '.join(shipped) or 'none'}); plan them (`kinegrasp plan --robot {robot} "
-                f"--object {object_name}`)")
+    if not isinstance(object_name, str) or not is_object(object_name):
+        raise unknown_object(object_name)
+    shipped = shipped_objects(robot)
+    if object_name in shipped:
         return load_grasps(shipped_grasp_file(object_name, robot))
-    if object_name not in OBJECT_NAMES:
-        if not is_object(object_name):
-            raise unknown_object(object_name)
-        obj = load_object(object_name)
-        if obj.base not in OBJECT_NAMES:
-            raise no_grasp_set(object_name)
-        if not np.allclose(obj.pose, load_object(obj.base).pose):
-            raise NoGraspSetError(
-                f"{object_name!r} stands elsewhere than {obj.base!r}, so the shipped grasps' arm "
-                f"configurations miss it; plan for it (`kinegrasp plan --object {object_name}"
-                "`) or give palm poses (`kinegrasp rank CANDIDATES.json`)")
-        return [replace(g, object=object_name) for g in shipped_grasps(obj.base)]
-    return load_grasps(shipped_grasp_file(object_name))
+    base = object_name if object_name in OBJECT_NAMES else load_object(object_name).base
+    if base not in OBJECT_NAMES:
+        raise no_grasp_set(object_name, robot)
+    if base not in shipped:
+        raise NoGraspSetError(
+            f"robot {robot!r} has no shipped grasps of {object_name!r} (shipped: "
+            f"{', '.join(shipped) or 'none'}); plan them (`kinegrasp plan --robot {robot} "
+            f"--object {object_name}`)")
+    if not np.allclose(load_object(object_name).pose, load_object(base).pose):
+        raise NoGraspSetError(
+            f"{object_name!r} stands elsewhere than {base!r}, so the shipped grasps' arm "
+            f"configurations miss it; plan for it (`kinegrasp plan --robot {robot} --object "
+            f"{object_name}`) or give palm poses (`kinegrasp rank CANDIDATES.json`)")
+    return [replace(g, object=object_name) for g in shipped_grasps(base, robot)]
 
 
 def grasp_by_index(object_name: str, index: int) -> Grasp:

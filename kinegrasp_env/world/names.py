@@ -13,6 +13,7 @@ from functools import cache
 from pathlib import Path
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.world.store import imported_folder, imported_names
 
 #: The catalog, in the paper's order (cube, spray flask, power drill, a household object).
@@ -38,11 +39,10 @@ def unknown_object(name: str) -> ValueError:
                       "(import one with `kinegrasp objects add FILE`)")
 
 
-def shipped_grasp_file(name: str, robot: str | None = None) -> Path:
-    """The shipped grasp file of built-in object ``name``: ``assets/grasps/<name>.json`` for
-    the default robot (``robot`` None), ``assets/grasps/<robot>/<name>.json`` for another."""
-    return asset_path("grasps", f"{name}.json") if robot is None else asset_path(
-        "grasps", robot, f"{name}.json")
+def shipped_grasp_file(name: str, robot: str = DEFAULT_ROBOT) -> Path:
+    """The shipped grasp file of built-in object ``name`` for catalog robot ``robot``:
+    ``assets/grasps/<robot>/<name>.json`` (whether it exists is not checked here)."""
+    return asset_path("grasps", robot, f"{name}.json")
 
 
 @cache
