@@ -118,8 +118,8 @@ GOOD = {"id": "c", "position": [0.0, 0.0, 0.3], "quaternion": [1.0, 0.0, 0.0, 0.
     ({"position": None}, "candidate c: missing field 'position'"),
     ({"quaternion": [1.0, 0.1, 0.0, 0.0]}, "candidate c: quaternion must be unit"),
     ({"quaternion": [1.0, 0.0, 0.0]}, "candidate c: quaternion must have shape [4]"),
-    ({"spread": None}, "candidate c: missing field 'spread'"),
-    ({"hand": [0.0] * 6}, "candidate c: hand must have shape [7]"),
+    ({"spread": "wide"}, "candidate c: spread must be numbers"),
+    ({"hand": [0.0] * 6}, "candidate c: hand has 6 values; robot 'kuka_sdh' has 7 hand joints"),
     ({"position": None, "quaternion": None, "pose": [[1, 0, 0], [0, 1, 0]]},
      "candidate c: pose must have shape [4, 4]"),
     ({"position": None, "quaternion": None, "pose": np.diag([1, 1, 2, 1]).tolist()},
@@ -147,3 +147,27 @@ def test_repeated_ids_and_unknown_object_are_refused(tmp_path):
     proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
     assert proc.returncode == 2 and "no_such_thing" in proc.stderr
     assert list(tmp_path.iterdir()) == [path]
+
+
+def test_spread_sets_the_hands_one_pre_shape_only_joint():
+    """``spread`` sets the joint ``close`` leaves out (the SDH's f1_spread, read from the YAML
+    here, not through the description code), the other joints at their ``open`` values; no
+    ``hand`` and no ``spread``: the open pre-shape; a ``spread`` that contradicts ``hand`` is
+    refused."""
+    import yaml
+
+    from kinegrasp_env.assets import asset_path
+    from kinegrasp_env.robot.palm_pose import parse_palm_pose
+
+    raw = yaml.safe_load(asset_path("robots", "kuka_sdh.yaml").read_text())
+    opened = [raw["open"][j] for j in raw["hand_joints"]]
+    pre_shape_only = [j for j in raw["hand_joints"] if j not in raw["close"]]
+    assert pre_shape_only == ["f1_spread"]
+    pose = {"position": [0.0, 0.0, 0.3], "quaternion": [1.0, 0.0, 0.0, 0.0]}
+    alone = parse_palm_pose({**pose, "spread": 0.25}, "c").hand
+    assert alone.tolist() == [0.25, *opened[1:]]
+    assert parse_palm_pose(pose, "c").hand.tolist() == opened
+    both = parse_palm_pose({**pose, "spread": 0.25, "hand": [0.25, *opened[1:]]}, "c")
+    assert both.hand.tolist() == alone.tolist()
+    with pytest.raises(ValueError, match="c: spread 0.3 differs from hand's f1_spread 0.25"):
+        parse_palm_pose({**pose, "spread": 0.3, "hand": [0.25, *opened[1:]]}, "c")

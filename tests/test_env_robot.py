@@ -150,7 +150,7 @@ def test_q0_and_palm_pose_options_reproduce_the_shipped_cube_grasps(index):
 @pytest.mark.parametrize(("options", "message"), [
     ({"q0": [0.0] * 14}, r"reset option q0: q0 must have 8 entries"),
     ({"palm_pose": {"position": [0, 0, 0.1], "quaternion": [0, 0, 0, 1], "spread": 0.5}},
-     "'spread' is the SDH's field"),
+     "'spread' sets a hand's one pre-shape-only joint"),
     ({"palm_pose": {"position": [3.0, 0, 0.1], "quaternion": [0, 0, 0, 1]}},
      "reset option palm_pose is unreachable on cube: no IK solution"),
 ])

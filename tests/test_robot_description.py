@@ -100,8 +100,6 @@ def test_kuka_sdh_description_gives_the_paper_robots_layout():
     spread and two flexions per finger of three fingers, the iiwa's S-R-S elbow links) and
     the planner's default flexion as its pre-shape; the default robot's names are read
     from it."""
-    from kinegrasp_env.robot.palm_pose import DEFAULT_DISTAL, DEFAULT_PROXIMAL
-
     d = load_robot("kuka_sdh")
     assert DEFAULT_ROBOT == "kuka_sdh"
     assert len(d.arm_joints) == 7 and len(d.hand_joints) == 7 and len(d.fingers) == 3
@@ -111,7 +109,7 @@ def test_kuka_sdh_description_gives_the_paper_robots_layout():
     assert (kuka.ARM_JOINTS, kuka.HAND_JOINTS, kuka.PALM_LINK) == (d.arm_joints,
                                                                    d.hand_joints, d.palm_link)
     assert kuka.kuka_sdh().actuated == d.model.actuated
-    assert [d.open[j] for j in d.hand_joints[1:]] == [DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3
+    assert [d.open[j] for j in d.hand_joints[1:]] == [-0.55, 0.05] * 3
     assert d.contact_model == "point"
 
 

@@ -225,8 +225,9 @@ def test_placed_copies_and_their_grasps(tabled):
     panda = shipped_grasps(tabled["cube"], "panda")
     assert [g.q0.tolist() for g in panda] == \
         [g.q0.tolist() for g in shipped_grasps("cube", "panda")]
-    assert {g.object for g in panda} == {tabled["cube"]} and {g.robot for g in panda} == {"panda"}
-    with pytest.raises(NoGraspSetError, match="stands elsewhere .* --robot panda"):
+    assert {g.object for g in panda} == {tabled["cube"]}
+    assert {g.robot for g in panda} == {"panda"}
+    with pytest.raises(NoGraspSetError, match=r"stands elsewhere .* --robot panda"):
         shipped_grasps("cube_moved", "panda")
     with pytest.raises(NoGraspSetError, match="robot 'panda' has no shipped grasps of 'mug_on"):
         shipped_grasps(tabled["mug"], "panda")

@@ -13,13 +13,11 @@ the default robot's SDH) in the OBJECT frame (metres; quaternion scalar last, un
 :data:`UNIT_TOL`), or a 4x4 homogeneous matrix (rotation orthonormal to :data:`UNIT_TOL`,
 last row 0 0 0 1). The pre-shape, radians or metres per hand joint:
 
-- any robot: ``hand`` as ``{joint name: value}`` of the description's ``hand_joints`` (a
-  joint left out takes its ``open`` value) or as a list in the ``hand_joints`` order;
-- the default robot (``kuka_sdh``) also takes the SDH's ``spread`` (radians) alone, with the
-  planner's mid-range proximal/distal values (:data:`DEFAULT_PROXIMAL`,
-  :data:`DEFAULT_DISTAL`), and needs one of ``hand`` and ``spread``;
-- another robot without ``hand`` takes its description's ``open`` pre-shape; ``spread`` is
-  the SDH's only and refused for it.
+- ``hand`` as ``{joint name: value}`` of the description's ``hand_joints`` (a joint left out
+  takes its ``open`` value) or as a list in the ``hand_joints`` order; without ``hand``, the
+  description's ``open`` pre-shape;
+- ``spread`` (radians) sets the hand's one pre-shape-only joint (:func:`spread_joint`: the
+  SDH's ``f1_spread``), the other joints as above; a hand without one refuses it.
 
 ``elbow`` (radians, optional) is the elbow angle to move to along the self-motion (a 7-joint
 arm with an arm angle).
@@ -40,7 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 
 if TYPE_CHECKING:
@@ -52,8 +50,6 @@ IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
 IK_RNG_SEED = 0
 #: Random IK restarts after the seed, as the planner's.
 IK_RESTARTS = 4
-#: Finger joint values used with ``spread`` alone: mid-range of the planner's sampling.
-DEFAULT_PROXIMAL, DEFAULT_DISTAL = -0.55, 0.05
 #: Tolerance of a unit quaternion's norm and of a rotation matrix's orthonormality.
 UNIT_TOL = 1e-6
 
@@ -121,28 +117,6 @@ def parse_pose(entry: dict, where: str) -> np.ndarray:
     return pose
 
 
-def parse_hand(entry: dict, where: str) -> np.ndarray:
-    """(7,) the default robot's pre-shape: ``hand`` (7 values, or by joint name), or
-    ``spread`` with the default finger values."""
-    if isinstance(entry.get("hand"), dict):
-        from kinegrasp_env.robot.catalog import load_robot
-
-        hand = named_hand(entry["hand"], where, load_robot(DEFAULT_ROBOT))
-        if "spread" in entry and not np.isclose(float(_numbers(entry, "spread", (), where)),
-                                                hand[0]):
-            raise ValueError(f"{where}: spread {entry['spread']} differs from hand's "
-                             f"{HAND_JOINTS[0]} {hand[0]}")
-    elif "hand" in entry:
-        hand = _numbers(entry, "hand", (7,), where)
-        if "spread" in entry and not np.isclose(float(entry["spread"]), hand[0]):
-            raise ValueError(f"{where}: spread {entry['spread']} differs from hand[0] {hand[0]}")
-    else:
-        spread = _numbers(entry, "spread", (), where)
-        hand = np.array([float(spread), *[DEFAULT_PROXIMAL, DEFAULT_DISTAL] * 3])
-    model = kuka_sdh()
-    return _within_limits(hand, model.lower[7:], model.upper[7:], where)
-
-
 def _within_limits(hand: np.ndarray, lo: np.ndarray, hi: np.ndarray, where: str,
                    names: tuple[str, ...] = ()) -> np.ndarray:
     """``hand`` (h,) when every value is within [lo, hi] (h,) (1e-9 slack), else ValueError
@@ -181,14 +155,19 @@ def named_hand(value: dict, where: str, description: RobotDescription) -> np.nda
     return hand
 
 
-def parse_robot_hand(entry: dict, where: str, description: RobotDescription) -> np.ndarray:
-    """(h,) pre-shape of robot ``description`` (not the default robot): ``hand`` by joint
-    name or as a list in ``hand_joints`` order, else the description's ``open`` pre-shape;
-    within the joint limits. The SDH's ``spread`` is refused, naming what to give instead."""
+def spread_joint(description: RobotDescription) -> str | None:
+    """The hand's one pre-shape-only joint (a hand joint ``close`` leaves out: a spread), or
+    None when the hand has none or several."""
+    pre = [j for j in description.hand_joints if j not in description.close]
+    return pre[0] if len(pre) == 1 else None
+
+
+def parse_hand(entry: dict, where: str, description: RobotDescription) -> np.ndarray:
+    """(h,) pre-shape of robot ``description``: ``hand`` by joint name or as a list in
+    ``hand_joints`` order, else the description's ``open`` pre-shape; ``spread`` sets the
+    hand's one pre-shape-only joint (:func:`spread_joint`), alone or equal to ``hand``'s
+    value; within the joint limits."""
     names = description.hand_joints
-    if "spread" in entry:
-        raise ValueError(f"{where}: 'spread' is the SDH's field (robot {DEFAULT_ROBOT}); robot "
-                         f"{description.name!r} takes {hand_hint(description)}")
     value = entry.get("hand")
     if value is None:
         hand = np.array([description.open[j] for j in names], dtype=float)
@@ -200,6 +179,17 @@ def parse_robot_hand(entry: dict, where: str, description: RobotDescription) -> 
                              f"{description.name!r} has {len(names)} hand joints: give "
                              f"{hand_hint(description)}")
         hand = _numbers(entry, "hand", (len(names),), where)
+    if "spread" in entry:
+        joint = spread_joint(description)
+        if joint is None:
+            raise ValueError(f"{where}: 'spread' sets a hand's one pre-shape-only joint; robot "
+                             f"{description.name!r} has none: give {hand_hint(description)}")
+        spread, i = float(_numbers(entry, "spread", (), where)), names.index(joint)
+        if value is None:
+            hand[i] = spread
+        elif not np.isclose(spread, hand[i]):
+            raise ValueError(f"{where}: spread {spread:g} differs from hand's {joint} "
+                             f"{hand[i]:g}")
     arm = description.arm_dof
     return _within_limits(hand, description.model.lower[arm:], description.model.upper[arm:],
                           where, names)
@@ -216,13 +206,14 @@ def parse_palm_pose(entry, where: str, default_id: str = "0",
     if entry.get("elbow") is not None:
         elbow = float(_numbers(entry, "elbow", (), where))
     pose = parse_pose(entry, where)
-    if robot is None or robot.name == DEFAULT_ROBOT:
-        hand = parse_hand(entry, where)
-    else:
-        hand = parse_robot_hand(entry, where, robot)
-        if elbow is not None and not robot.has_self_motion:
-            raise ValueError(f"{where}: elbow: robot {robot.name!r} has no elbow angle (its "
-                             f"arm has {robot.arm_dof} joints); leave elbow out")
+    if robot is None:
+        from kinegrasp_env.robot.catalog import load_robot
+
+        robot = load_robot(DEFAULT_ROBOT)
+    hand = parse_hand(entry, where, robot)
+    if elbow is not None and not robot.has_self_motion:
+        raise ValueError(f"{where}: elbow: robot {robot.name!r} has no elbow angle (its "
+                         f"arm has {robot.arm_dof} joints); leave elbow out")
     return PalmCandidate(str(entry.get("id", default_id)), pose, hand, elbow)
 
 

@@ -192,7 +192,7 @@ def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile
     if key == "grasps":
         pose = load_object(name).pose
         entries = [grasp_entry_as_candidate(e, pose, robot_name) for e in entries]
-    description = None if robot_name == DEFAULT_ROBOT else load_robot(robot_name)
+    description = load_robot(robot_name)
     found = [parse_candidate(e, i, str(path), description) for i, e in enumerate(entries)]
     if not found:
         raise ValueError(f"{path}: the file holds no candidates")
@@ -219,12 +219,17 @@ def grasp_entry_as_candidate(entry, object_pose: np.ndarray, robot: str = DEFAUL
     (``world.grasps.palm_pose_fields``: every file ``save_grasps`` writes); an older entry
     gets ``pose`` = its world-frame ``palm_pose`` in the object frame (``object_pose``, (4, 4):
     the object's catalog pose) and its ``hand`` from ``q0`` past the arm joints. ``q0`` is not
-    used. For a robot other than the default one the ``spread`` such a file may repeat
-    (``hand[0]``) is dropped: ``hand`` holds the pre-shape."""
+    used. A ``spread`` such a file may repeat for a hand without a pre-shape-only joint
+    (:func:`~kinegrasp_env.robot.palm_pose.spread_joint`) is dropped: ``hand`` holds the
+    pre-shape."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.palm_pose import spread_joint
+
     if not isinstance(entry, dict):
         return entry
     out = dict(entry)
-    if robot != DEFAULT_ROBOT:
+    description = load_robot(robot)
+    if spread_joint(description) is None:
         out.pop("spread", None)
     if "pose" in out or "position" in out:
         return out
@@ -233,15 +238,9 @@ def grasp_entry_as_candidate(entry, object_pose: np.ndarray, robot: str = DEFAUL
                                                               dtype=float)).tolist()
     except (KeyError, TypeError, ValueError, np.linalg.LinAlgError):
         return out  # parsing then names the missing palm pose
-    if robot == DEFAULT_ROBOT:
-        if "hand" not in out and "spread" not in out and np.size(entry.get("q0", [])) == 14:
-            out["hand"] = list(entry["q0"][7:])
-    elif "hand" not in out and isinstance(entry.get("q0"), list):
-        from kinegrasp_env.robot.catalog import load_robot
-
-        description = load_robot(robot)
-        if len(entry["q0"]) == description.model.dof:
-            out["hand"] = list(entry["q0"][description.arm_dof:])
+    q0 = entry.get("q0")
+    if "hand" not in out and isinstance(q0, list) and len(q0) == description.model.dof:
+        out["hand"] = list(q0[description.arm_dof:])
     return out
 
 

@@ -216,21 +216,24 @@ def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
     """The grasp as a palm-pose candidate (``kinegrasp_env.toolkit.candidates``):
     ``position`` (3,) metres and ``quaternion`` (4,) [x, y, z, w] of the palm frame in the
     object frame, ``hand`` (h,) the pre-shape (radians or metres, in the robot's hand joint
-    order; h = 7 for the default robot), for the default robot ``spread`` (= hand[0],
-    radians: the SDH's field) and ``elbow`` (the elbow angle psi, radians; only when
-    ``meta`` records ``elbow_angle``).
+    order), ``spread`` (radians: the value of the hand's one pre-shape-only joint, where it
+    has one: :func:`~kinegrasp_env.robot.palm_pose.spread_joint`) and ``elbow`` (the elbow
+    angle psi, radians; only when ``meta`` records ``elbow_angle``).
 
     Args:
         grasp: the grasp (its ``palm_pose`` is in the world frame).
         object_pose: (4, 4) the object frame in the world frame.
     """
+    from kinegrasp_env.robot.palm_pose import spread_joint
     from kinegrasp_env.world.sim import matrix_to_pose
 
     position, quaternion = matrix_to_pose(np.linalg.solve(object_pose, grasp.palm_pose))
     fields = {"position": [float(v) for v in position], "quaternion": quaternion,
               "hand": grasp.hand.tolist()}
-    if grasp.robot == DEFAULT_ROBOT:
-        fields["spread"] = float(grasp.hand[0])
+    description = load_robot(grasp.robot)
+    joint = spread_joint(description)
+    if joint is not None:
+        fields["spread"] = float(grasp.hand[description.hand_joints.index(joint)])
     if grasp.meta.get("elbow_angle") is not None:
         fields["elbow"] = float(grasp.meta["elbow_angle"])
     return fields
