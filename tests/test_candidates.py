@@ -169,5 +169,5 @@ def test_spread_sets_the_hands_one_pre_shape_only_joint():
     assert parse_palm_pose(pose, "c").hand.tolist() == opened
     both = parse_palm_pose({**pose, "spread": 0.25, "hand": [0.25, *opened[1:]]}, "c")
     assert both.hand.tolist() == alone.tolist()
-    with pytest.raises(ValueError, match="c: spread 0.3 differs from hand's f1_spread 0.25"):
+    with pytest.raises(ValueError, match=r"c: spread 0\.3 differs from hand's f1_spread 0\.25"):
         parse_palm_pose({**pose, "spread": 0.3, "hand": [0.25, *opened[1:]]}, "c")

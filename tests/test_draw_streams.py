@@ -60,6 +60,13 @@ def test_rows_of_a_run_are_rows_of_its_chunks_streams(source, k, offset, size):
     np.testing.assert_array_equal(rows, chunks[offset:offset + size])
 
 
+@pytest.mark.parametrize(("offset", "size", "chunk", "name"),
+                         [(-1, 3, 250, "offset"), (0, -2, 250, "size"), (0, 3, 0, "chunk")])
+def test_a_bad_span_of_rows_is_one_line_naming_it(offset, size, chunk, name):
+    with pytest.raises(ValueError, match=f"^stream rows: {name} must be >= "):
+        stream_rows(9, "joints", offset, size, lambda g, m: g.standard_normal((m, 3)), chunk)
+
+
 def _same_draws(default, described) -> None:
     # the same closing and scoring: equal Q (a few ulps allowed between code paths), and
     # every other per-draw field equal (one draw format: the closed hand where each

@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import re
+import sqlite3
 
 import numpy as np
 import pytest
@@ -78,6 +79,17 @@ def test_panda_sweep_cell_equals_evaluate(tmp_path, capsys):
     # the store is the Panda's: the same folder is not extended by the default robot
     assert "holds a sweep of robot 'panda', the spec's robot is 'kuka_sdh'" in fails(
         capsys, "sweep", str(spec), "--out", str(out), lines=2)
+    # nor a store of the Panda that records no layout of its draws (made before its rows
+    # came in chunks); the default robot's store without one (its rows always did) is
+    with sqlite3.connect(out / "results.sqlite") as db:
+        db.execute("DELETE FROM meta WHERE key = 'draw_layout'")
+    assert "random draws are laid out otherwise (not recorded, now 'rows of chunks of 250'" \
+        in fails(capsys, "sweep", str(spec), "--out", str(out), "--robot", "panda", lines=2)
+    kuka = tmp_path / "kuka"
+    run(capsys, "sweep", str(spec), "--out", str(kuka))
+    with sqlite3.connect(kuka / "results.sqlite") as db:
+        db.execute("DELETE FROM meta WHERE key = 'draw_layout'")
+    run(capsys, "sweep", str(spec), "--out", str(kuka))
 
 
 def single_joint_spec(tmp_path, joint: int, sigma: float) -> str:

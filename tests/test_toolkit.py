@@ -168,6 +168,8 @@ def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:
     (["--seed", "4"], "(--seed: 3 there, 4 now)"),
     (["other candidates"], "(candidates file content (SHA-256): "),
     (["--adaptive", "--top-k", "1"], "which --adaptive cannot resume"),
+    (["older log"], '(layout of the random draws (a log of an older kinegrasp): "not recorded" '
+                    'there, "rows of chunks of 250" now)'),
 ])
 def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsys, change,
                                                      needle):
@@ -183,7 +185,11 @@ def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsy
     assert indices == []
     assert set(settings["settings"]) == {"candidates_sha256", "engine", "friction",
                                          "num_edges", "noise", "sigma", "method", "samples",
-                                         "chunk", "seed"}
+                                         "chunk", "seed", "draw_layout"}
+    if change == ["older log"]:  # a log written before the layout was recorded
+        del settings["settings"]["draw_layout"]
+        partial.write_text(json.dumps(settings) + "\n")
+        change = []
     log = partial.read_text()
     if change == ["other candidates"]:
         _cube_candidates(tmp_path, count=5)  # the same file name, one grasp more

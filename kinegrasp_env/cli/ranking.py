@@ -77,6 +77,7 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli.report import report_path, write_rank_report
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.montecarlo.nominal import nominal_quality
+    from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
@@ -148,7 +149,7 @@ def cmd_rank(args) -> int:
     partial = out.with_name(out.name + ".partial.jsonl")
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
-                "samples": samples, "chunk": chunk, "seed": seed}
+                "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT}
     if described:  # another robot's draws: rows addressed in the seed's streams
         settings["robot"] = robot
     if described or static or test:  # the hold scores a log carries

@@ -41,6 +41,7 @@ SETTING_LABELS = {
     "robot": "--robot",
     "criterion_scores": "hold scores (static check, holding test)",
     "hold_simulator": "--hold-simulator",
+    "draw_layout": "layout of the random draws (a log of an older kinegrasp)",
 }
 
 

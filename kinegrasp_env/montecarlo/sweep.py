@@ -51,6 +51,7 @@ from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
 from kinegrasp_env.quality.wrenches import DEFAULT_NUM_EDGES
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
 
@@ -111,6 +112,8 @@ class SweepStore:
                 raise SpecError(f"{self.directory} holds a sweep run with {key} = "
                                 f"{stored[key]}, the spec says {value}: its random streams "
                                 "differ; use another --out")
+        self._check_layout(stored)
+        wanted["draw_layout"] = json.dumps(DRAW_LAYOUT)
         robot = json.loads(stored.get("robot", json.dumps(DEFAULT_ROBOT)))
         if stored and robot != spec.robot:
             self.close()
@@ -132,6 +135,18 @@ class SweepStore:
             self._db.executemany("INSERT OR IGNORE INTO meta VALUES (?, ?)", wanted.items())
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_spec', ?)",
                              (json.dumps(asdict(spec)),))
+
+    def _check_layout(self, stored: dict[str, str]) -> None:
+        """Refuse a store whose draws were laid out otherwise: one that records another
+        layout, or a description robot's store (it records its robot) from before its rows
+        came in chunks (it records none; the default robot's rows always did)."""
+        layout = stored.get("draw_layout")
+        if layout == json.dumps(DRAW_LAYOUT) or (layout is None and "robot" not in stored):
+            return
+        self.close()
+        raise SpecError(f"{self.directory} holds a sweep whose random draws are laid out "
+                        f"otherwise ({'not recorded' if layout is None else layout}, now "
+                        f"{DRAW_LAYOUT!r}: made by an older kinegrasp); use another --out")
 
     def _check_sources(self, stored: dict[str, str], sources: dict[str, str]) -> None:
         """Refuse a store made with another grasp file or object version (see

@@ -51,11 +51,14 @@ SOURCES = ("joints", "hand", "palm", "object", "friction")
 STREAM_KEYS = {"hand": 1, "palm": 2, "object": 3, "friction": 4}
 #: Rows per chunk of a run's streams (docs/conventions.md, "Random streams").
 STREAM_CHUNK = 250
+#: The layout of a run's random rows, as the resumable records (``rank``'s log, a sweep's
+#: store) keep it: a record of another layout is not extended.
+DRAW_LAYOUT = f"rows of chunks of {STREAM_CHUNK}"
 
-__all__ = ["FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_CHUNK", "STREAM_KEYS", "FrictionSource",
-           "HandSource", "JointsSource", "NoiseDraws", "NoiseModel", "NoiseSpecError",
-           "PoseSource", "as_noise_model", "chunk_stream", "offset_transforms", "skew",
-           "stream_rows"]
+__all__ = ["DRAW_LAYOUT", "FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_CHUNK", "STREAM_KEYS",
+           "FrictionSource", "HandSource", "JointsSource", "NoiseDraws", "NoiseModel",
+           "NoiseSpecError", "PoseSource", "as_noise_model", "chunk_stream",
+           "offset_transforms", "skew", "stream_rows"]
 
 
 # ----------------------------------------------------------------------------- draws
@@ -123,7 +126,14 @@ def stream_rows(seed: int | np.random.SeedSequence, source: str, offset: int, si
     chunks hold ``chunk`` rows each: row r is row ``r % chunk`` of chunk ``r // chunk``'s
     stream (:func:`chunk_stream`), so any span of rows is what the run's chunks draw, in
     whichever pieces it is asked for. ``draw(generator, m)`` gives a chunk's first m rows
-    (a sampler that fills rows in order, as every Monte Carlo sampler here does)."""
+    (a sampler that fills rows in order, as every Monte Carlo sampler here does).
+
+    Raises:
+        ValueError: a negative ``offset`` or ``size``, or a ``chunk`` < 1 (named).
+    """
+    for name, value, low in (("offset", offset, 0), ("size", size, 0), ("chunk", chunk, 1)):
+        if value < low:
+            raise ValueError(f"stream rows: {name} must be >= {low}, got {value}")
     if size == 0:
         return draw(chunk_stream(seed, 0, source), 0)
     parts = []
