@@ -315,3 +315,53 @@ def test_a_nominal_miss_is_scored_and_flagged_not_rejected(robot):
     assert rejected == [], rejected
     assert solved[0].meta["nominal_outcome"] == "missed"
     assert solved[0].meta["nominal_force_closure"] is False and solved[0].q_nominal == 0.0
+
+
+@pytest.mark.parametrize("object_name", ["cube", "mug"])
+def test_an_elbow_is_reached_on_whichever_ik_branch_reaches_it(object_name):
+    """The default robot's shipped grasps as palm-pose candidates with their elbow angles,
+    solved by the description robots' solver on kuka_sdh: every one is reached (from the IK
+    solution of the middle of the joint ranges alone, the self-motion leaves the limits on 9
+    of these 24: the other IK branches must be tried), with the palm at the candidate's pose
+    by pybullet's own forward kinematics and the elbow angle the default robot's IK
+    (robot/ik.py, written apart from the description's self-motion) measures equal to the
+    one asked."""
+    import pybullet
+
+    from kinegrasp_env.robot.default_robot import urdf_path
+    from kinegrasp_env.robot.ik import ArmIK
+    from kinegrasp_env.toolkit.robot_candidates import RobotCandidateSolver
+    from kinegrasp_env.world.grasps import palm_pose_fields
+
+    obj = load_object(object_name)
+    description = load_robot("kuka_sdh")
+    ik = ArmIK(Kinematics(description.model))
+    client = pybullet.connect(pybullet.DIRECT)
+    body = pybullet.loadURDF(str(urdf_path()), useFixedBase=True, physicsClientId=client)
+    joints = {pybullet.getJointInfo(body, i, physicsClientId=client)[1].decode(): i
+              for i in range(pybullet.getNumJoints(body, physicsClientId=client))}
+    palm_index = next(i for i in range(pybullet.getNumJoints(body, physicsClientId=client))
+                      if pybullet.getJointInfo(body, i, physicsClientId=client)[12].decode()
+                      == description.palm_link)
+    actuated = description.arm_joints + description.hand_joints
+    try:
+        with RobotCandidateSolver("kuka_sdh", object_name) as solver:
+            for grasp in shipped_grasps(object_name):
+                fields = palm_pose_fields(grasp, obj.pose)
+                candidate = PalmCandidate(grasp.id, np.linalg.solve(obj.pose, grasp.palm_pose),
+                                          grasp.hand, fields["elbow"])
+                q, why = solver.configuration(candidate)
+                assert q is not None, (grasp.id, why)
+                for name, value in zip(actuated, q, strict=True):
+                    pybullet.resetJointState(body, joints[name], value,
+                                             physicsClientId=client)
+                state = pybullet.getLinkState(body, palm_index, computeForwardKinematics=True,
+                                              physicsClientId=client)
+                palm = np.eye(4)
+                palm[:3, :3] = np.reshape(pybullet.getMatrixFromQuaternion(state[5]), (3, 3))
+                palm[:3, 3] = state[4]
+                np.testing.assert_allclose(palm, grasp.palm_pose, atol=IK_TOL)
+                psi = float(ik.elbow_angle(q[None])[0])
+                assert abs(np.angle(np.exp(1j * (psi - fields["elbow"])))) < IK_TOL
+    finally:
+        pybullet.disconnect(client)

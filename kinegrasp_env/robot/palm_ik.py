@@ -24,8 +24,9 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Arm joints putting the palm at each of ``targets`` (n, 4, 4), batched.
 
-    Damped least squares from ``starts`` (n, arm_dof) radians or metres, default the middle
-    of the joint ranges, then from ``restarts`` uniform random starts within the limits for
+    Damped least squares from ``starts`` (n, arm_dof) radians or metres, default the
+    description's ``home`` (by default the middle of the joint ranges), then from
+    ``restarts`` uniform random starts within the limits for
     the targets not reached yet; a step is clipped into the limits; success when the
     position error (metres) and the rotation error (radians) are below ``tol``.
 
@@ -37,7 +38,7 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
     lo, hi = model.lower[arm], model.upper[arm]
     n = len(targets)
     q = np.repeat(description.open_configuration()[None], n, axis=0)
-    q[:, arm] = 0.5 * (lo + hi) if starts is None else np.clip(starts, lo, hi)
+    q[:, arm] = description.home_arm() if starts is None else np.clip(starts, lo, hi)
     done = np.zeros(n, bool)
     eye = np.eye(6)
     for attempt in range(restarts + 1):
@@ -72,17 +73,29 @@ def reach_robot_palm_pose(kin: Kinematics, description: RobotDescription, target
 
     IK by :func:`solve_palm_ik`, its restarts seeded by :data:`~kinegrasp_env.robot.
     palm_pose.IK_RNG_SEED`; then, for an ``elbow`` angle (radians), the self-motion
-    ``motion`` (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`) to it."""
-    arm, ok = solve_palm_ik(kin, description, target[None], np.random.default_rng(IK_RNG_SEED),
-                            restarts=restarts, iterations=iterations)
+    ``motion`` (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`) to it. The
+    self-motion of one IK solution may leave the joint limits before the angle where another
+    branch of the arm (its shoulder, elbow or wrist flipped) reaches it: the solutions from
+    further random starts (``restarts`` more, from the same seeded stream) are tried in turn."""
+    rng = np.random.default_rng(IK_RNG_SEED)
+    arm, ok = solve_palm_ik(kin, description, target[None], rng, restarts=restarts,
+                            iterations=iterations)
     q = np.concatenate([arm[0], hand])
     if not ok[0]:
         err = pose_error(kin.pose(q[None], description.palm_link), target[None])[0]
         return None, (f"no IK solution within the joint limits (closest: "
                       f"{np.linalg.norm(err[:3]):.3g} m, {np.linalg.norm(err[3:]):.3g} rad off)")
-    if elbow is not None:
-        moved, reached = motion.set_elbow_angle(q, elbow)
-        if not reached:
-            return None, f"elbow angle {elbow:g} rad leaves the joint limits"
-        q = moved
-    return q, ""
+    if elbow is None:
+        return q, ""
+    moved, reached = motion.set_elbow_angle(q, elbow)
+    if reached:
+        return moved, ""
+    lo, hi = kin.model.lower[:description.arm_dof], kin.model.upper[:description.arm_dof]
+    starts = rng.uniform(lo, hi, size=(restarts, description.arm_dof))
+    arms, found = solve_palm_ik(kin, description, np.repeat(target[None], restarts, axis=0),
+                                rng, restarts=0, iterations=iterations, starts=starts)
+    for other in arms[found]:
+        moved, reached = motion.set_elbow_angle(np.concatenate([other, hand]), elbow)
+        if reached:
+            return moved, ""
+    return None, f"elbow angle {elbow:g} rad leaves the joint limits on every IK branch found"
