@@ -1,7 +1,7 @@
 """Every engine scores its closings with one function: what that score is.
 
-What the test proves: for the default robot's pybullet reference (whose closings are read as
-closings of its description) and its fast engine, a draw's Q is the
+What the test proves: for the default robot's pybullet reference and physics closing (whose
+closings are read as closings of its description) and its fast engine, a draw's Q is the
 Ferrari-Canny measure of the draw's own recorded contacts at the draw's mu, computed again
 here by the exact qhull path (:func:`~kinegrasp_env.quality.epsilon.ferrari_canny`, not the
 batched expansion the engines use), and its outcome is force closure exactly where Q > 0.
@@ -22,7 +22,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
 
 
-@pytest.mark.parametrize("engine_name", ["pybullet", "fast"])
+@pytest.mark.parametrize("engine_name", ["pybullet", "fast", "physics"])
 def test_an_engines_q_is_the_ferrari_canny_measure_of_its_own_contacts(engine_name):
     grasp = shipped_grasps("drill")[0]
     engine = make_engine(engine_name, "drill")
@@ -30,7 +30,11 @@ def test_an_engines_q_is_the_ferrari_canny_measure_of_its_own_contacts(engine_na
     q = chunk_configurations(grasp.q0, JointNoise(0.02), 2, [(0, n)])
     mu = np.random.default_rng(8).uniform(0.2, 1.0, n)
     try:
-        draws = engine.run(q, friction=mu)
+        if engine_name == "physics":  # it simulates at one mu: no per-draw friction
+            mu[:] = engine.friction
+            draws = engine.run(q)
+        else:
+            draws = engine.run(q, friction=mu)
     finally:
         engine.close()
     scored = np.flatnonzero((draws.outcome == FORCE_CLOSURE)
