@@ -142,14 +142,16 @@ def test_action_keeps_the_palm_and_moves_the_elbow():
     env.close()
 
 
-def test_reward_equals_the_evaluation_engine():
+@pytest.mark.parametrize("n_draws", [32, 300])
+def test_reward_equals_the_evaluation_engine(n_draws):
     """Plumbing, not the estimate: the reward is the evaluation of the env's current
     configuration with the draw seed it reports (a wrong configuration, seed or draw count in
-    the env fails it); the estimate itself is checked by the engines' tests."""
-    env = gym.make("KineGrasp-v0", n_draws=32).unwrapped
+    the env fails it; 300 draws span two of the evaluation's chunks); the estimate itself is
+    checked by the engines' tests."""
+    env = gym.make("KineGrasp-v0", n_draws=n_draws).unwrapped
     env.reset(seed=5, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
     _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
-    assert 0 < info["outcomes"]["force_closure"] < 32  # not a trivial 0 or 1
+    assert 0 < info["outcomes"]["force_closure"] < n_draws  # not a trivial 0 or 1
     check_reward_is_the_evaluation(env, reward, info)
     assert info["reward_limit_penalty"] == 0.0
     env.close()

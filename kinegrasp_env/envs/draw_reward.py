@@ -4,9 +4,9 @@ score (``score``) that score's P(hold) on the same draws
 (:mod:`~kinegrasp_env.montecarlo.draw_holds`: the static hold check, or the quick holding
 test on the draws' configurations).
 
-A step's draws are chunk 0 of a seed the env draws from its generator
-(:func:`~kinegrasp_env.montecarlo.evaluate.draw_chunk`), so the same seed gives the same
-reward.
+A step's n draws are the first n rows of a run of a seed the env draws from its generator
+(:func:`~kinegrasp_env.montecarlo.evaluate.draw_rows`: an evaluation's draws of that seed),
+so the same seed gives the same reward.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, Engine, cached_engine
-from kinegrasp_env.montecarlo.evaluate import draw_chunk
+from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, draw_rows
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp
 
@@ -79,11 +79,12 @@ class DrawReward:
         ``p_fc`` and its Wilson interval, ``q_mean``, ``outcomes``, ``draws``, ``draw_seed``,
         ``score_value`` (the score's estimate), and for a hold score ``p_hold`` and its
         interval."""
-        draws = draw_chunk(self.engine(grasp.object), q, noise, seed, 0, n)
+        draws = draw_rows(self.engine(grasp.object), q, noise, seed, n)
         held = None
         if self.score != "pfc":  # a hold score of the same draws
             held = self.hold_score(grasp.object).chunk_held(
-                q, noise, seed, draws if self.score == "hold_static" else n, chunk=n)
+                q, noise, seed, draws if self.score == "hold_static" else n,
+                chunk=DEFAULT_CHUNK)
         return step_stats(draws.outcome, draws.quality, held, seed)
 
     def check_noise(self, noise) -> None:

@@ -161,6 +161,15 @@ def draw_chunk(engine: Engine, q0: np.ndarray, noise: Noise, seed: int,
                                            engine.obj.center_of_mass))
 
 
+def draw_rows(engine: Engine, q0: np.ndarray, noise: Noise, seed: int, n: int,
+              method: str = "mc") -> DrawBatch:
+    """The first n draws of a run of ``seed`` at q0 (14,) through ``engine``, in one call:
+    the draws an evaluation of that seed makes (its chunks of :data:`DEFAULT_CHUNK` rows)."""
+    chunks = list(enumerate(chunk_sizes(n, DEFAULT_CHUNK)))
+    return run_inputs(engine, chunk_inputs(q0, noise, seed, chunks, method,
+                                           engine.obj.center_of_mass))
+
+
 ChunkResult = tuple[np.ndarray, StreamingMoments, DrawBatch | None]
 
 
