@@ -380,7 +380,7 @@ def test_the_documented_table_lists_every_field_the_reader_takes():
     documented = set(re.findall(r"`([a-z_0-9]+)`", "\n".join(
         line.split("|")[1] for line in table.splitlines()[2:])))
     source = Path(grasps.__file__).read_text()
-    reader = source[source.index("    def from_dict"):source.index("def palm_at")]
+    reader = source[source.index("    def from_dict"):source.index("def palm_pose_fields")]
     read = set(re.findall(r"data(?:\.get)?\(?\[?\"([a-z_0-9]+)\"", reader))
     read |= set(re.findall(r"_array_field\(data, \"([a-z_0-9]+)\"", reader))
     assert read <= documented, read - documented

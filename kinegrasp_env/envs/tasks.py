@@ -30,8 +30,9 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
-from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_configuration, robot_model
+from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 from kinegrasp_env.world.objects import is_object, load_object, unknown_object
+from kinegrasp_env.world.robot_configuration import check_configuration, robot_model
 
 #: The reset options that name a task's grasp; at most one of them is given.
 GRASP_OPTIONS = ("grasp", "q0", "palm_pose")

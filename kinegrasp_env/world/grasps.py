@@ -25,9 +25,14 @@ import numpy as np
 
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
-from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.robot_configuration import (
+    check_configuration,
+    joints_words,
+    palm_at,
+    robot_model,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,38 +185,6 @@ def _contact(entry, label: str) -> tuple[int, int, np.ndarray, np.ndarray]:
     return finger, link, out[0], out[1]
 
 
-def palm_at(q0: np.ndarray, robot: str = DEFAULT_ROBOT) -> np.ndarray:
-    """(4, 4) the palm frame at configuration ``q0`` (14,) (another ``robot``: its actuated
-    vector), world frame (forward kinematics of the robot's URDF): a grasp entry's
-    ``palm_pose`` when the file leaves it out."""
-    from kinegrasp_env.robot.kinematics import Kinematics
-
-    description = load_robot(robot)
-    return Kinematics(description.model).pose(np.asarray(q0, dtype=float)[None],
-                                              description.palm_link)[0]
-
-
-def joints_words(robot: str, count: bool = True) -> str:
-    """What a configuration of ``robot`` holds, in words: e.g. "14 joint values: 7 arm, then 7
-    hand" (without ``count``: "7 arm + 7 hand")."""
-    description = load_robot(robot)
-    arm, hand = description.arm_dof, len(description.hand_joints)
-    if not count:
-        return f"{arm} arm + {hand} hand"
-    return f"{arm + hand} joint values, radians or metres: {arm} arm, then {hand} hand"
-
-
-def robot_model(robot, where: str = "robot") -> RobotModel:
-    """The model of catalog robot ``robot``; ValueError (one line, naming ``where``) for an
-    unknown one."""
-    if not isinstance(robot, str):
-        raise ValueError(f"{where}: expected a robot name, got {robot!r}")
-    try:
-        return load_robot(robot).model
-    except ValueError as exc:
-        raise ValueError(f"{where}: {exc}") from None
-
-
 def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
     """The grasp as a palm-pose candidate (``kinegrasp_env.toolkit.candidates``):
     ``position`` (3,) metres and ``quaternion`` (4,) [x, y, z, w] of the palm frame in the
@@ -237,25 +210,6 @@ def palm_pose_fields(grasp: Grasp, object_pose: np.ndarray) -> dict:
     if grasp.meta.get("elbow_angle") is not None:
         fields["elbow"] = float(grasp.meta["elbow_angle"])
     return fields
-
-
-def check_configuration(q0: np.ndarray, where: str = "q0",
-                        robot: str = DEFAULT_ROBOT) -> np.ndarray:
-    """Validate a 14-entry arm+hand configuration (finite, within the joint limits); another
-    ``robot``: its actuated vector."""
-    q0 = np.asarray(q0, dtype=float)
-    model = robot_model(robot)
-    if q0.shape != (model.dof,):
-        raise ValueError(f"{where}: q0 must have {model.dof} entries ("
-                         f"{joints_words(robot, count=False)}), got {q0.size}")
-    if not np.all(np.isfinite(q0)):
-        raise ValueError(f"{where}: q0 has non-finite entries")
-    bad = np.flatnonzero((q0 < model.lower - 1e-9) | (q0 > model.upper + 1e-9))
-    if bad.size:
-        j = int(bad[0])
-        raise ValueError(f"{where}: q0[{j}] ({model.actuated[j]}) = {q0[j]:.4f} is outside "
-                         f"its limits [{model.lower[j]:.4f}, {model.upper[j]:.4f}]")
-    return q0
 
 
 def read_json_file(path: str | Path) -> object:
