@@ -105,9 +105,9 @@ Errors of the sample mean, covariance and skewness against a large-sample ground
 function of the number of draws, at the paper's four noise levels, for the 2-link arm and the
 KUKA's palm position (`kinegrasp convergence` makes the same figure from the command line)."""),
         ("code", '''from kinegrasp_env.robot.catalog import load_robot
-from kinegrasp_env.robot.endeffector import (DEFAULT_KUKA_Q0, DEFAULT_PLANAR_LINKS,
-                                       DEFAULT_PLANAR_Q0, PAPER_SIGMAS, ArmEndEffector,
-                                       arm_convergence, planar_convergence)
+from kinegrasp_env.robot.endeffector import (DEFAULT_PLANAR_LINKS, DEFAULT_PLANAR_Q0,
+                                       PAPER_SIGMAS, ArmEndEffector, arm_convergence,
+                                       planar_convergence)
 from kinegrasp_env.toolkit.plots import plot_convergence
 
 sizes = np.unique(np.round(np.logspace(1, np.log10(n(5000, 50)), 8)).astype(int))
@@ -119,7 +119,7 @@ for i, sigma in enumerate(PAPER_SIGMAS):
         arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=n(10, 3), truth_samples=n(100000, 2000),
         seed=np.random.default_rng([0, i]))
     curves["KUKA iiwa"][sigma] = arm_convergence(
-        kuka, DEFAULT_KUKA_Q0, sigma, sizes=sizes, trials=n(10, 3), truth_samples=n(100000, 2000),
+        kuka, load_robot("kuka_sdh").home_arm(), sigma, sizes=sizes, trials=n(10, 3), truth_samples=n(100000, 2000),
         seed=np.random.default_rng([1, i]))
 path = plot_convergence(curves, "out/convergence.png")
 from IPython.display import Image

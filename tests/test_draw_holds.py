@@ -1,12 +1,13 @@
-"""The static hold check of the default robot's own engines' draws
-(:mod:`kinegrasp_env.montecarlo.draw_holds`).
+"""The static hold check of the default robot's own engines' draws (every engine runs it on
+its closings with ``static_hold=True``), and the hold scores' CLI record, env and noise.
 
-What it proves: the adapter hands the check the draws as the robot's description has them
-(the arm joints of each draw's chunk, the closed hand in the description's joint order, each
-contact's finger and link), because its verdicts equal those of an independent closing, the
-description robots' fast engine run on the same configurations; the draws' configurations
-follow the documented stream layout (chunk c draws from ``SeedSequence(seed,
-spawn_key=(c,))``); the CLI's record and the noise it refuses.
+What it proves: the default robot's reference engine (its own pybullet closing) hands the
+check the draws as the robot's description has them (the arm joints of each draw, the closed
+hand in the description's joint order, each contact's finger and link), because its verdicts
+and final joint values equal those of an independent closing, the description robots' fast
+engine run on the same configurations; the draws' configurations follow the documented
+stream layout (chunk c draws from ``SeedSequence(seed, spawn_key=(c,))``); the CLI's record
+and the noise it refuses.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 import pytest
 from cli_helpers import run_in_process
 
-from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck, check_hold_noise, grasp_holds
+from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.sampling.noise import JointNoise
@@ -46,43 +47,56 @@ def description_closing(obj: str, q: np.ndarray):
 
 
 @pytest.mark.parametrize("obj", ["cube", "mug"])
-def test_the_check_sees_the_configurations_and_verdicts_of_the_description_engine(obj):
-    """Each draw's final configuration as the adapter hands it to the check (arm joints of
-    its chunk, the closed hand in the description's order) equals the description engine's
-    own final joint values on the same draw, joint by joint (measured: 2.5e-7 rad at most on
-    these grasps; tolerance 1e-5), and so do the hold verdicts."""
+def test_the_reference_engines_verdicts_are_those_of_an_independent_closing(obj):
+    """Each draw's closed hand as the default robot's reference engine records it equals the
+    description engine's own final joint values on the same draw, joint by joint (measured:
+    2.5e-7 rad at most on these grasps; tolerance 1e-5), and so do the hold verdicts."""
     grasp = shipped_grasps(obj)[0]
     n = 100
-    stats = evaluate_grasp(grasp, JointNoise(SIGMA), n, SEED, engine="fast", chunk=CHUNK,
-                           return_draws=True)
-    held, mass = grasp_holds(grasp, JointNoise(SIGMA), SEED, stats.draws, chunk=CHUNK)
+    stats = evaluate_grasp(grasp, JointNoise(SIGMA), n, SEED, engine="pybullet", chunk=CHUNK,
+                           return_draws=True, static_hold=True)
+    held = stats.draws.holds
     q = stream_configurations(grasp.q0, n)
-    other, joints, other_mass = description_closing(obj, q)
+    other, joints, _ = description_closing(obj, q)
     same = (other.outcome == stats.draws.outcome) & np.isfinite(stats.draws.hand).all(axis=1)
     assert same.mean() >= 0.98  # the two closings agree on >= 99% of draws (robot.md)
-    check = DrawHoldCheck(obj)
-    mine = check.check.description.model.expand(check.configurations(q[:, :7], stats.draws))
+    from kinegrasp_env.robot.catalog import load_robot
+
+    description = load_robot("kuka_sdh")
+    mine = description.model.expand(np.concatenate([q[:, :7], stats.draws.hand], axis=1))
     for name, values in joints.items():
         np.testing.assert_allclose(mine[name][same], values[same], atol=1e-5, err_msg=name)
     np.testing.assert_array_equal(held[same], other.holds[same])
     assert 0 < held.sum() < n  # both verdicts occur: the comparison can fail
-    assert mass == pytest.approx(other_mass, rel=1e-12)
 
 
 def test_a_later_chunk_is_checked_with_its_own_draws():
-    """Ranking evaluates chunks 3 and 4 of a candidate: their arm joints are those chunks'
-    (the mug: the verdicts there depend on the arm joints)."""
+    """Ranking evaluates chunks 3 and 4 of a candidate: their verdicts are those of chunks
+    3 and 4's configurations (the mug: the verdicts there depend on the arm joints)."""
     from kinegrasp_env.montecarlo.evaluate import run_chunks
 
     grasp = shipped_grasps("mug")[0]
     _, _, draws = run_chunks(grasp, JointNoise(SIGMA), SEED, sizes=[CHUNK, CHUNK],
-                             first_chunk=3, engine="fast", return_draws=True)
-    held, _ = grasp_holds(grasp, JointNoise(SIGMA), SEED, draws, chunk=CHUNK, first_chunk=3)
+                             first_chunk=3, engine="pybullet", return_draws=True,
+                             static_hold=True)
+    held = draws.holds
     other, _, _ = description_closing("mug", stream_configurations(grasp.q0, 2 * CHUNK,
                                                                    first_chunk=3))
     same = other.outcome == draws.outcome
     np.testing.assert_array_equal(held[same], other.holds[same])
     assert 0 < held.sum() < held.size
+
+
+def test_a_per_draw_friction_is_refused_with_the_check():
+    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
+
+    grasp = shipped_grasps("cube")[0]
+    engine = default_engine("fast", "cube", static_hold=True)
+    try:
+        with pytest.raises(ValueError, match="holds at the engine's friction"):
+            engine.run(grasp.q0[None], friction=np.array([0.7]))
+    finally:
+        engine.close()
 
 
 def test_a_palm_or_object_error_is_refused_in_one_line(tmp_path):
@@ -161,8 +175,9 @@ def test_a_draw_that_misses_does_not_hold():
 
     grasp = next(g for g in shipped_grasps("cube") if g.id == "7")
     noise = JointNoise(0.033)
-    stats = evaluate_grasp(grasp, noise, 200, 2, engine="fast", chunk=100, return_draws=True)
-    held, _ = grasp_holds(grasp, noise, 2, stats.draws, chunk=100)
+    stats = evaluate_grasp(grasp, noise, 200, 2, engine="fast", chunk=100, return_draws=True,
+                           static_hold=True)
+    held = stats.draws.holds
     outcome = stats.draws.outcome
     assert (outcome == MISSED).sum() >= 5  # the case the rule is about occurs
     assert not held[outcome != FORCE_CLOSURE].any()

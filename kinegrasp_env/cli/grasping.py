@@ -72,13 +72,14 @@ def cmd_evaluate(args) -> int:
     with executor_from(args) as executor:
         stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
                                return_draws=bool(args.plot or args.report or args.static_hold),
-                               progress=True, executor=executor)
+                               progress=True, executor=executor,
+                               static_hold=bool(args.static_hold))
     hold = {}
     if args.hold_test:
         hold.update(quick_hold_record(grasp, noise, seed, samples, friction,
                                       args.hold_simulator))
     if args.static_hold:
-        hold.update(static_hold_record(grasp, noise, seed, stats, friction))
+        hold.update(static_hold_record(grasp, stats))
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
     if args.json:
@@ -111,20 +112,18 @@ def cmd_evaluate(args) -> int:
     return 0
 
 
-def static_hold_record(grasp, noise, seed: int, stats, friction: float) -> dict:
-    """``--static-hold`` of the default robot's evaluation: P(hold, static) of its draws
-    (:func:`~kinegrasp_env.montecarlo.draw_holds.grasp_holds`), its Wilson 95% interval and
-    the object's mass, as ``evaluate --json`` names them."""
-    from kinegrasp_env.cli.common import NUM_EDGES
-    from kinegrasp_env.montecarlo.draw_holds import grasp_holds
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+def static_hold_record(grasp, stats) -> dict:
+    """``--static-hold`` of the default robot's evaluation: P(hold, static) of its draws (the
+    verdicts its engine gave each draw: :class:`~kinegrasp_env.montecarlo.engines.Engine`),
+    its Wilson 95% interval and the object's mass, as ``evaluate --json`` names them."""
     from kinegrasp_env.sampling.stats import wilson_interval
+    from kinegrasp_env.world.objects import load_object
 
-    held, mass = grasp_holds(grasp, noise, seed, stats.draws, chunk=DEFAULT_CHUNK,
-                             friction=friction, num_edges=NUM_EDGES)
+    held = stats.draws.holds
     n = int(held.size)
     return {"p_hold_static": float(held.mean()),
-            "p_hold_static_ci": list(wilson_interval(int(held.sum()), n)), "mass_kg": mass}
+            "p_hold_static_ci": list(wilson_interval(int(held.sum()), n)),
+            "mass_kg": load_object(grasp.object).mass}
 
 
 def quick_hold_record(grasp, noise, seed: int, samples: int, friction: float,

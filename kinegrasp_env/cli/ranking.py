@@ -122,16 +122,12 @@ def cmd_rank(args) -> int:
         counts, moments, draws = evaluate.run_chunks(
             grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
             friction=friction, num_edges=NUM_EDGES, engine=engine, method=METHOD,
-            executor=executor, return_draws=outcomes or static)
+            executor=executor, return_draws=outcomes or static, static_hold=static)
         record = side.setdefault(index, CandidateResult(index))
         record.add_outcomes(dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
         held = {}
-        if static:  # the static hold check of the same draws
-            from kinegrasp_env.montecarlo.draw_holds import grasp_holds
-
-            held["static"], _ = grasp_holds(grasps[index], noise, seed, draws, chunk=chunk,
-                                            first_chunk=first, friction=friction,
-                                            num_edges=NUM_EDGES)
+        if static:  # the static hold check of the same draws, by their engine
+            held["static"] = draws.holds
         if test:  # the quick holding test of the same draws' configurations
             held["test"] = quick_test(grasps[index].object).chunk_held(
                 grasps[index].q0, noise, seed, int(counts.sum()), chunk=chunk,

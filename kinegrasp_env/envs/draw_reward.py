@@ -1,8 +1,8 @@
 """The default robot's reward from Monte Carlo draws at the env's configuration: P(FC), the
 mean Q of the force-closure draws and the outcome counts of a step's draws, and with a hold
-score (``score``) that score's P(hold) on the same draws
-(:mod:`~kinegrasp_env.montecarlo.draw_holds`: the static hold check, or the quick holding
-test on the draws' configurations).
+score (``score``) that score's P(hold) on the same draws (the static hold check their engine
+runs, or the quick holding test of :mod:`~kinegrasp_env.montecarlo.draw_holds` on the draws'
+configurations).
 
 A step's n draws are the first n rows of a run of a seed the env draws from its generator
 (:func:`~kinegrasp_env.montecarlo.evaluate.draw_rows`: an evaluation's draws of that seed),
@@ -61,17 +61,17 @@ class DrawReward:
 
     def engine(self, object_name: str) -> Engine:
         """The engine on ``object_name``, built once (a fresh one after a re-import)."""
-        return cached_engine(self._engines, self.engine_name, object_name)
+        return cached_engine(self._engines, self.engine_name, object_name,
+                             static_hold=self.score == "hold_static")
 
     def hold_score(self, object_name: str):
-        """The hold score on ``object_name`` (the static hold check or the quick holding
-        test), built once."""
-        from kinegrasp_env.montecarlo.draw_holds import DrawHoldCheck, QuickHoldTest
+        """The quick holding test on ``object_name``, built once (the static hold check comes
+        with the engine's draws)."""
+        from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
 
         if object_name not in self._hold_scores:
-            self._hold_scores[object_name] = (
-                DrawHoldCheck(object_name) if self.score == "hold_static"
-                else QuickHoldTest(object_name, simulator=self.hold_simulator))
+            self._hold_scores[object_name] = QuickHoldTest(object_name,
+                                                           simulator=self.hold_simulator)
         return self._hold_scores[object_name]
 
     def estimate(self, grasp: Grasp, q: np.ndarray, noise, seed: int, n: int) -> dict:
@@ -81,10 +81,11 @@ class DrawReward:
         interval."""
         draws = draw_rows(self.engine(grasp.object), q, noise, seed, n)
         held = None
-        if self.score != "pfc":  # a hold score of the same draws
-            held = self.hold_score(grasp.object).chunk_held(
-                q, noise, seed, draws if self.score == "hold_static" else n,
-                chunk=DEFAULT_CHUNK)
+        if self.score == "hold_static":  # the engine's verdicts on the same draws
+            held = draws.holds
+        elif self.score != "pfc":  # the quick holding test of the same draws
+            held = self.hold_score(grasp.object).chunk_held(q, noise, seed, n,
+                                                            chunk=DEFAULT_CHUNK)
         return step_stats(draws.outcome, draws.quality, held, seed)
 
     def check_noise(self, noise) -> None:

@@ -86,6 +86,9 @@ class Engine:
     Args:
         object_name: catalog object.
         friction, num_edges: friction cone of the quality measure.
+        static_hold: also run the static hold check on every closing that touches (the
+            draws' ``held``: :class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck`
+            on the default robot's description, as every robot's engine runs it).
     """
 
     name = ""
@@ -95,10 +98,12 @@ class Engine:
     #: :meth:`clear_of_table` runs first)
     checks_table = False
 
-    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
+                 static_hold: bool = False) -> None:
         self.obj = load_object(object_name)
         self.friction = friction
         self.num_edges = num_edges
+        self.static_hold = static_hold
         self.timing = EngineTiming()
         self._table_probe = None  # built on the first draw when the object has a table
         self._scoring = None  # built on first use
@@ -133,6 +138,9 @@ class Engine:
         """
         q = check_configurations(q)
         errors = check_errors(q.shape[0], palm, object_offset, friction)
+        if "friction" in errors and self.static_hold:
+            raise ValueError("the static hold check holds at the engine's friction; a "
+                             "per-draw friction is not checked (drop it or the check)")
         if errors and not self.takes_errors:
             raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
                              f"{', '.join(errors)} errors")
@@ -195,7 +203,7 @@ class Engine:
 
             self._scoring = RobotEngine(default_description(), self.obj.name,
                                         friction=self.friction, num_edges=self.num_edges,
-                                        max_contacts=MAX_CONTACTS)
+                                        max_contacts=MAX_CONTACTS, static_hold=self.static_hold)
         return self._scoring
 
     def scored(self, q: np.ndarray, results: list[CloseResult],
@@ -228,8 +236,9 @@ class PybulletEngine(Engine):
     name = "pybullet"
     takes_errors = True
 
-    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
-        super().__init__(object_name, friction, num_edges)
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
+                 static_hold: bool = False) -> None:
+        super().__init__(object_name, friction, num_edges, static_hold=static_hold)
         self.kin = Kinematics(kuka_sdh())
         self.world = GraspWorld(self.obj)
 
@@ -274,12 +283,14 @@ class FastEngine(Engine):
     takes_errors = True
     checks_table = True
 
-    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8) -> None:
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
+                 static_hold: bool = False) -> None:
         from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
 
-        super().__init__(object_name, friction, num_edges)
+        super().__init__(object_name, friction, num_edges, static_hold=static_hold)
         self.robot = RobotFastEngine(default_description(), object_name, friction=friction,
-                                     num_edges=num_edges, max_contacts=MAX_CONTACTS)
+                                     num_edges=num_edges, max_contacts=MAX_CONTACTS,
+                                     static_hold=static_hold)
         self.hand = self.robot.hand
 
     @property
@@ -319,27 +330,31 @@ LAZY_ENGINES = {"physics": ("kinegrasp_env.montecarlo.physics_engine", "PhysicsE
 
 
 def make_engine(name: str, object_name: str, friction: float = 0.5,
-                num_edges: int = 8) -> Engine:
-    """An engine by name (``pybullet``, ``fast`` or ``physics``)."""
+                num_edges: int = 8, static_hold: bool = False) -> Engine:
+    """An engine by name (``pybullet``, ``fast`` or ``physics``); ``static_hold``: its draws
+    carry the static hold check's verdicts (:class:`Engine`)."""
     if name in LAZY_ENGINES:
         module, cls = LAZY_ENGINES[name]
-        return getattr(importlib.import_module(module), cls)(object_name, friction, num_edges)
+        return getattr(importlib.import_module(module), cls)(object_name, friction, num_edges,
+                                                             static_hold=static_hold)
     if name not in ENGINE_CLASSES:
         raise ValueError(f"unknown engine {name!r}; choose from "
                          f"{', '.join([*ENGINE_CLASSES, *LAZY_ENGINES])}")
-    return ENGINE_CLASSES[name](object_name, friction, num_edges)
+    return ENGINE_CLASSES[name](object_name, friction, num_edges, static_hold=static_hold)
 
 
 def cached_engine(cache: dict[tuple, Engine], name: str, object_name: str,
-                  friction: float = 0.5, num_edges: int = 8) -> Engine:
+                  friction: float = 0.5, num_edges: int = 8,
+                  static_hold: bool = False) -> Engine:
     """:func:`make_engine`'s engine, kept in ``cache`` (e.g. one per worker process) under
     its settings and the object's :func:`~kinegrasp_env.world.objects.object_version`: an
     object re-imported under the same name gets a new engine (the stale one is closed)."""
-    key = (name, object_name, friction, num_edges)
+    key = (name, object_name, friction, num_edges, static_hold)
     versioned = (*key, object_version(object_name))
     engine = cache.get(versioned)
     if engine is None:
         for stale in [k for k in cache if k[:len(key)] == key]:
             cache.pop(stale).close()
-        engine = cache[versioned] = make_engine(name, object_name, friction, num_edges)
+        engine = cache[versioned] = make_engine(name, object_name, friction, num_edges,
+                                                static_hold)
     return engine

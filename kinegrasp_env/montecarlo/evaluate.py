@@ -122,8 +122,8 @@ _ENGINES: dict[tuple, Engine] = {}
 
 
 def _engine(key: tuple) -> Engine:
-    """The worker's engine of ``key`` = (engine, object, friction, num_edges) (a new one
-    when the object was re-imported since: :func:`cached_engine`)."""
+    """The worker's engine of ``key`` = (engine, object, friction, num_edges[, static_hold])
+    (a new one when the object was re-imported since: :func:`cached_engine`)."""
     return cached_engine(_ENGINES, *key)
 
 
@@ -258,7 +258,7 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
                    processes: int = 1, friction: float = 0.5, num_edges: int = 8,
                    engine: str = "pybullet", method: str = "mc", chunk: int = DEFAULT_CHUNK,
                    return_draws: bool = False, progress: bool | Callable = False,
-                   executor: Executor | None = None) -> GraspStats:
+                   executor: Executor | None = None, static_hold: bool = False) -> GraspStats:
     """Estimate P(FC) and the moments of Q for ``grasp`` under joint noise.
 
     Args:
@@ -279,6 +279,8 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
             reproduce numbers).
         return_draws: keep every draw's outcome, contacts and Q.
         progress: show a tqdm bar on stderr (True) or call ``progress(done, total)``.
+        static_hold: the draws carry the static hold check's verdicts (``held``; kept with
+            ``return_draws``: :class:`~kinegrasp_env.montecarlo.engines.Engine`).
 
     Raises:
         ValueError: a non-finite q0, a sigma above :data:`MAX_SIGMA` (pi radians), or draws
@@ -288,7 +290,8 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
     counts, moments, draws = run_chunks(
         grasp, noise, seed, sizes=chunk_sizes(n_samples, chunk), processes=processes,
         friction=friction, num_edges=num_edges, engine=engine, method=method,
-        return_draws=return_draws, progress=progress, executor=executor)
+        return_draws=return_draws, progress=progress, executor=executor,
+        static_hold=static_hold)
     return summarize(grasp, noise, seed, engine, counts, moments, draws,
                      q_nominal=nominal_quality(grasp, friction, num_edges))
 
@@ -297,13 +300,14 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
                first_chunk: int = 0, processes: int = 1, friction: float = 0.5,
                num_edges: int = 8, engine: str = "pybullet", method: str = "mc",
                return_draws: bool = False, progress: bool | Callable = False,
-               executor: Executor | None = None
+               executor: Executor | None = None, static_hold: bool = False
                ) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
     """Run chunks ``first_chunk, first_chunk + 1, ...`` of the given sizes and merge them.
 
     Returns outcome counts (4,), streaming moments of Q over force-closure draws, and the
-    draws if requested. Chunk c always draws the same noise for the same seed, so a run can
-    be extended later by asking for the next chunks (adaptive ranking does).
+    draws if requested (with ``static_hold``, their hold verdicts). Chunk c always draws the
+    same noise for the same seed, so a run can be extended later by asking for the next
+    chunks (adaptive ranking does).
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
@@ -311,7 +315,7 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
     validate_task(grasp.q0, noise)
     check_noise_engine(noise, engine)
     n_samples = int(sum(sizes))
-    key = (engine, grasp.object, float(friction), int(num_edges))
+    key = (engine, grasp.object, float(friction), int(num_edges), bool(static_hold))
     chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]
     group = group_size(engine, len(chunks), executor.workers if executor else processes)
     tasks = [(key, grasp.q0, noise, int(seed), chunks[i:i + group], method, return_draws)

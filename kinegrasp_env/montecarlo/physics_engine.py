@@ -111,14 +111,16 @@ class PhysicsEngine(Engine):
         protocol: :class:`~kinegrasp_env.physics.protocol.HoldProtocol` of :meth:`run_hold`.
         simulator: the registered simulator of :meth:`run_hold`
             (:data:`~kinegrasp_env.physics.simulators.SIMULATORS`).
+        static_hold: the static hold check on every closing that touches (:class:`Engine`).
     """
 
     name = "physics"
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
                  world: WorldSettings | None = None, motors: MotorSettings | None = None,
-                 protocol: HoldProtocol | None = None, simulator: str = "pybullet") -> None:
-        super().__init__(object_name, friction, num_edges)
+                 protocol: HoldProtocol | None = None, simulator: str = "pybullet", *,
+                 static_hold: bool = False) -> None:
+        super().__init__(object_name, friction, num_edges, static_hold=static_hold)
         self.settings = replace(world or WorldSettings(), friction=friction)
         self.motors = motors or MotorSettings()
         self.protocol = protocol or HoldProtocol()
