@@ -204,3 +204,26 @@ def test_an_unknown_hold_simulator_is_refused_when_the_env_is_made():
     with pytest.raises(ValueError, match="unknown simulator 'bogus'") as error:
         gym.make("KineGrasp-v0", score="hold", hold_simulator="bogus")
     assert "\n" not in str(error.value)
+
+
+def test_the_default_robots_static_hold_takes_what_every_robots_takes(tmp_path, capsys):
+    """The static hold check of the default robot's draws takes palm errors (every engine runs
+    it on its own closings, as a description robot's) and refuses a friction source in one
+    line; the holding test still refuses the palm error (it places the hand by its joints)."""
+    from kinegrasp_env.cli import main
+
+    palm = tmp_path / "palm.yaml"
+    palm.write_text("joints: {sigma: 0.01}\npalm: {translation_sigma: 0.002}\n")
+    friction = tmp_path / "friction.yaml"
+    friction.write_text("joints: {sigma: 0.01}\nfriction: {distribution: uniform, low: 0.4, "
+                        "high: 0.6}\n")
+    common = ["evaluate", "--object", "cube", "--grasp", "0", "--samples", "30", "--engine",
+              "fast"]
+    record = json.loads(run_in_process(capsys, *common, "--static-hold", "--noise-spec",
+                                       str(palm), "--json"))
+    assert 0.0 < record["p_hold_static"] <= record["p_fc"]
+    for option, spec, needle in [("--static-hold", friction, "holds at one mu"),
+                                 ("--hold-test", palm, "joint and hand noise only")]:
+        assert main([*common, option, "--noise-spec", str(spec)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and needle in err[0], err

@@ -59,10 +59,10 @@ def cmd_evaluate(args) -> int:
                               noise)
     check_hold_simulator(args, args.hold_test, "--hold-test")
     if args.static_hold or args.hold_test:
-        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_scores_noise
 
         with reported(ValueError):
-            check_hold_noise(noise)
+            check_hold_scores_noise(noise, static=args.static_hold, test=args.hold_test)
     if args.elbow is not None:
         grasp = grasp_at_elbow(grasp, args.elbow)
     engine = engine_name(args.engine)

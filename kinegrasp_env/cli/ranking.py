@@ -90,12 +90,11 @@ def cmd_rank(args) -> int:
     if described:
         check_robot_candidates(args, grasps, robot, noise)
     else:
-        from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_scores_noise
 
         check_hold_simulator(args, test, "--criterion hold")
-        if static or test:
-            with reported(ValueError):
-                check_hold_noise(noise)
+        with reported(ValueError):
+            check_hold_scores_noise(noise, static=static, test=test)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)

@@ -90,11 +90,11 @@ class DrawReward:
 
     def check_noise(self, noise) -> None:
         """ValueError (one line) for a noise model a hold score of the default robot's draws
-        cannot take (:func:`~kinegrasp_env.montecarlo.draw_holds.check_hold_noise`)."""
-        if self.score != "pfc":
-            from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+        cannot take (:func:`~kinegrasp_env.montecarlo.draw_holds.check_hold_scores_noise`)."""
+        from kinegrasp_env.montecarlo.draw_holds import check_hold_scores_noise
 
-            check_hold_noise(noise)
+        check_hold_scores_noise(noise, static=self.score == "hold_static",
+                                test=self.score == "hold")
 
     def close(self) -> None:
         for engine in self._engines.values():

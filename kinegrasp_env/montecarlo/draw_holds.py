@@ -8,9 +8,10 @@ QUICK_PROTOCOL`), in pybullet or MuJoCo, on the same draws' configurations.
 
 The static hold check is the engines' own (``static_hold=True``: every engine of every robot
 runs :class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck` on its closings, the
-draws' ``held``). Either score takes joint and hand noise only (:func:`check_hold_noise`): a
-palm or object error moves the palm against the object, which the configuration does not
-say, and a friction error changes the cones the check holds at one mu.
+draws' ``held``): it takes every source of error but a per-draw friction (it holds at one
+mu). The holding test takes joint and hand noise only (:func:`check_hold_noise`): it places
+the hand by its joints, so a palm or object error, which moves the palm against the object,
+is not one it can simulate.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT
 
-__all__ = ["QuickHoldTest", "check_hold_noise"]
+__all__ = ["QuickHoldTest", "check_hold_noise", "check_hold_scores_noise"]
 
 
 def check_hold_noise(noise, robot: str = DEFAULT_ROBOT, score: str = "the hold scores"
@@ -46,6 +47,19 @@ def run_configurations(q0: np.ndarray, noise, seed: int, n: int, chunk: int,
         return np.empty((0, np.asarray(q0).size))
     chunks = [(first_chunk + i, size) for i, size in enumerate(chunk_sizes(n, chunk))]
     return chunk_configurations(q0, noise, seed, chunks)
+
+
+def check_hold_scores_noise(noise, *, static: bool, test: bool) -> None:
+    """ValueError (one line) for a noise model the hold scores asked for cannot take: the
+    holding test (``test``) joint and hand noise only (:func:`check_hold_noise`), the static
+    hold check (``static``) every source but a friction source
+    (:func:`~kinegrasp_env.montecarlo.robot_noise.check_static_hold_noise`)."""
+    from kinegrasp_env.montecarlo.robot_noise import check_static_hold_noise
+
+    if test:
+        check_hold_noise(noise, score="the holding test")
+    if static:
+        check_static_hold_noise(noise)
 
 
 class QuickHoldTest:

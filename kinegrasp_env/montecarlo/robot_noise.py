@@ -47,7 +47,14 @@ def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof:
         raise ValueError(f"the physics engine of robot {robot!r} takes joint and hand noise "
                          f"only (it simulates at one mu), not {', '.join(other)} errors (use "
                          "pybullet or fast)")
-    if model.friction is not None and static_hold:
+    if static_hold:
+        check_static_hold_noise(model)
+
+
+def check_static_hold_noise(noise) -> None:
+    """ValueError (one line) for a noise model with a friction source beside the static hold
+    check (any robot's): the check holds at one mu. Every other source it takes."""
+    if isinstance(noise, NoiseModel) and noise.friction is not None:
         raise ValueError("the static hold check holds at one mu; the spec's friction source "
                          "draws one per draw: drop one of them")
 
