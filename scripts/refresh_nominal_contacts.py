@@ -4,8 +4,9 @@ Run: ``python scripts/refresh_nominal_contacts.py [objects ...]``. For each buil
 every grasp of ``assets/grasps/kuka_sdh/<object>.json`` is closed again by the reference
 engine at its q0 (no noise) and its stored contacts (points, normals) and nominal Q are
 replaced by what it finds there; q0, the palm pose, the ids and the metadata stay as they
-are. It refuses (and writes nothing) where the grasp is no longer in force closure or its touching links changed:
-that would be a different grasp, for ``scripts/make_grasp_sets.py`` to plan again.
+are. It refuses (and writes nothing) where the grasp is no longer in force closure or its
+touching links changed: that would be a different grasp, for ``scripts/make_grasp_sets.py``
+to plan again.
 
 The contacts are the root of the exact gap to 1e-9 m (the polish), reached from wherever the
 conservative steps left the finger: a change of those steps moves them by ~1e-10-1e-9 m (the

@@ -137,10 +137,8 @@ class Engine:
                 the wrong shape, or one the engine does not take.
         """
         q = check_configurations(q)
-        errors = check_errors(q.shape[0], palm, object_offset, friction)
-        if "friction" in errors and self.static_hold:
-            raise ValueError("the static hold check holds at the engine's friction; a "
-                             "per-draw friction is not checked (drop it or the check)")
+        errors = check_errors(q.shape[0], palm, object_offset, friction,
+                              static_hold=self.static_hold)
         if errors and not self.takes_errors:
             raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
                              f"{', '.join(errors)} errors")

@@ -105,10 +105,15 @@ def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.n
     return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
 
 
-def check_errors(n: int, palm, object_offset, friction) -> dict[str, np.ndarray]:
+def check_errors(n: int, palm, object_offset, friction, *,
+                 static_hold: bool = False) -> dict[str, np.ndarray]:
     """The per-draw errors an engine's ``run`` is given (:meth:`~kinegrasp_env.montecarlo.
     engines.Engine.run`; n draws), as float arrays of the right shapes (ValueError otherwise:
-    a bad shape, a non-finite entry, a negative mu)."""
+    a bad shape, a non-finite entry, a negative mu, or a per-draw mu for an engine running
+    the static hold check, ``static_hold``, which holds at the engine's one mu)."""
+    if static_hold and friction is not None:
+        raise ValueError("the static hold check holds at the engine's friction; a "
+                         "per-draw friction is not checked (drop it or the check)")
     out = {}
     for name, value, shape in (("palm", palm, (n, 4, 4)),
                                ("object_offset", object_offset, (n, 4, 4)),

@@ -187,14 +187,12 @@ class RobotEngine:
                 take them; a per-draw mu with the static hold check (it holds at one mu).
         """
         q = self.check(q)
-        errors = check_errors(q.shape[0], palm, object_offset, friction)
+        errors = check_errors(q.shape[0], palm, object_offset, friction,
+                              static_hold=self.hold_check is not None)
         mu = errors.pop("friction", None)
         if errors and not self.takes_errors:
             raise ValueError(f"the {self.name} engine of a description robot takes joint "
                              f"noise and friction only, not {', '.join(errors)} errors")
-        if mu is not None and self.hold_check is not None:
-            raise ValueError("the static hold check holds at the engine's friction; a "
-                             "per-draw friction is not checked (drop it or the check)")
         return self.scored(q, self.close_batch(q, **errors), mu)
 
     def scored(self, q: np.ndarray, batch: RobotCloseBatch,
