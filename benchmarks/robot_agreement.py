@@ -5,7 +5,7 @@ For each draw the reference engine (pybullet closest points, :class:`~kinegrasp_
 montecarlo.robot_evaluate.RobotReferenceEngine`) closes the hand; at its final state each
 touching link's pybullet closest pair gives *pybullet's own* contact: its point on the object
 and its normal (``-contactNormalOnB``), scored with the robot's contact model. The fast
-engine (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) closes the same draws.
+engine (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) closes the same draws.
 Three comparisons: fast vs reference (what the batched closing changes), reference vs bullet
 and fast vs bullet (what the contact rules change: the patch centre moves a point on a face,
 the face's normal replaces pybullet's).
@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL
+from kinegrasp_env.montecarlo.description_engine import score
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_engine import score
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import Grasp

@@ -8,7 +8,7 @@ capsule phalanxes by the compiled loop of ``capsule_fingers``: ``close_kernel``,
 helpers ``finger_axes`` and ``capsule_gap``, the exact capsule-object pairs of
 ``segment_distance`` (its packed parts: ``packed_geometry``, its small kernels:
 ``segment_primitives``)); pads pressed on faces at their patch centres (``contact_patch``), a
-closing's contacts and result (``robot_contacts``), where palm and object pose errors put
+closing's contacts and result (``close_result``), where palm and object pose errors put
 the links (``hand_errors``). The default robot's own pybullet reference:
 ``reference.auto_close`` (its hand in pybullet: ``hand_probe``; its capsules' contacts:
 ``hand_geometry``). All follow the rules of ``close_rules``. Uses ``world`` and ``robot``.

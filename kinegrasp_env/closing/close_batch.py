@@ -1,6 +1,6 @@
 """Closings of many draws as arrays (:class:`RobotCloseBatch`): what the batched closing of a
 description robot gives, one row per draw and one row per contact, and the per-draw
-:class:`~kinegrasp_env.closing.robot_contacts.RobotCloseResult` view of it."""
+:class:`~kinegrasp_env.closing.close_result.RobotCloseResult` view of it."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
 
 __all__ = ["RobotCloseBatch"]
 

@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
+from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
 from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, HAND_JOINTS, kuka_sdh
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
@@ -77,7 +77,7 @@ class CloseResult:
 
     def robot_result(self) -> RobotCloseResult:
         """The same closing as a closing of the default robot's description (what every
-        robot's engine scores: :func:`~kinegrasp_env.montecarlo.robot_engine.score_batch`):
+        robot's engine scores: :func:`~kinegrasp_env.montecarlo.description_engine.score_batch`):
         the contacts in their order (each finger's links as the description lists them,
         proximal then distal), the final hand joints by name."""
         fingers = len(self.missed)

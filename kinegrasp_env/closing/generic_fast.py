@@ -41,7 +41,7 @@ Fingers of two capsule phalanxes are closed by one compiled loop instead
 exact pair near it, bisection, the touch polished to a zero gap), at the default contact
 tolerance; steps 1 and 3 stay as above.
 
-Results are the reference's :class:`~kinegrasp_env.closing.robot_contacts.RobotCloseResult`
+Results are the reference's :class:`~kinegrasp_env.closing.close_result.RobotCloseResult`
 (``queries`` counts the exact link-object distances of steps 1 and 2, per draw; the
 compiled loop's are not counted).
 """
@@ -53,6 +53,7 @@ import numpy as np
 from kinegrasp_env.closing.capsule_fingers import CapsuleFingers, capsule_finger
 from kinegrasp_env.closing.capsule_gap import centre_distances
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
 from kinegrasp_env.closing.convex_distance import (
@@ -74,7 +75,6 @@ from kinegrasp_env.closing.hand_geometry import surface_contact
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import LinkGeometry, grid_error, robot_link_geometry
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.closing.table_check import TableCheck

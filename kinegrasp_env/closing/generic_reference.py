@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
 from kinegrasp_env.closing.close_rules import (
     CONTACT_TOL,
     POLISH_RANGE,
@@ -61,7 +62,6 @@ from kinegrasp_env.closing.contact_patch import (
 )
 from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
 from kinegrasp_env.closing.hand_errors import flange_link, hand_links
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.closing.table_check import table_in_object
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse

@@ -13,7 +13,7 @@ Everything robot-specific is derived from the robot's description
   covers psi in [-pi + 2 pi k / B, -pi + 2 pi (k + 1) / B));
 - **reward draws**: an engine of the robot by name
   (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast``
-  (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`, the reference closing
+  (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`, the reference closing
   batched over the draws), ``pybullet``
   (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`: pybullet closest
   points on the URDF's collision geometry) or ``physics``; the robot's contact model, joint

@@ -3,7 +3,7 @@
 Both engines stop the fingers and place the contacts with the same exact near-contact
 geometry (:mod:`kinegrasp_env.closing.segment_distance`,
 :mod:`kinegrasp_env.closing.hand_geometry`) and score them with the same
-:func:`~kinegrasp_env.montecarlo.robot_engine.score_batch`, so their agreement says that the
+:func:`~kinegrasp_env.montecarlo.description_engine.score_batch`, so their agreement says that the
 batched closing finds the contacts of the per-draw one, not that the contacts are right. Here
 a draw's final configuration (the arm joints and the closed hand,
 :attr:`~kinegrasp_env.montecarlo.draws.DrawBatch.hand`) is placed in a pybullet world of its

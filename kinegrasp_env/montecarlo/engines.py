@@ -47,7 +47,7 @@ from kinegrasp_env.world.objects import load_object, object_version
 from kinegrasp_env.world.sim import GraspWorld
 
 if TYPE_CHECKING:  # the description robots' engine module imports this one
-    from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+    from kinegrasp_env.montecarlo.description_engine import RobotEngine
 
 MAX_CONTACTS = 6
 #: entries of a configuration: 7 arm joints, then 7 hand DOF
@@ -194,10 +194,10 @@ class Engine:
     def scoring(self) -> RobotEngine:
         """The default robot's description engine whose scoring this engine's closings take,
         as every robot's engine scores its closings (:meth:`~kinegrasp_env.montecarlo.
-        robot_engine.RobotEngine.scored`: the contact model's Q at this engine's friction
+        description_engine.RobotEngine.scored`: the contact model's Q at this engine's friction
         cone, :data:`MAX_CONTACTS` contacts a draw, the closed hand); built on first use."""
         if self._scoring is None:
-            from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+            from kinegrasp_env.montecarlo.description_engine import RobotEngine
 
             self._scoring = RobotEngine(default_description(), self.obj.name,
                                         friction=self.friction, num_edges=self.num_edges,
@@ -218,7 +218,7 @@ class Engine:
         """Fill quality and the force-closure outcome of the candidate draws of ``out`` (by
         :attr:`scoring`'s quality); ``friction`` (n,) is each draw's mu (default: the
         engine's)."""
-        from kinegrasp_env.montecarlo.robot_engine import score_candidates
+        from kinegrasp_env.montecarlo.description_engine import score_candidates
 
         score_candidates(out, self.scoring.quality, friction)
 
@@ -266,7 +266,7 @@ class PybulletEngine(Engine):
 
 class FastEngine(Engine):
     """The batched engine: the default robot's description (``kuka_sdh.yaml``) run by the
-    description robots' fast engine (:class:`~kinegrasp_env.montecarlo.robot_fast.
+    description robots' fast engine (:class:`~kinegrasp_env.montecarlo.batched_engine.
     RobotFastEngine`: its batched closing, :class:`~kinegrasp_env.closing.generic_fast.
     FastRobotHand`, with the start collision by exact distances, the support table's
     included, and the capsule fingers by the compiled capsule loop against the object's
@@ -283,7 +283,7 @@ class FastEngine(Engine):
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
-        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
+        from kinegrasp_env.montecarlo.batched_engine import RobotFastEngine
 
         super().__init__(object_name, friction, num_edges, static_hold=static_hold)
         self.robot = RobotFastEngine(default_description(), object_name, friction=friction,

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
 from kinegrasp_env.physics.simulators import robot_simulator_class
@@ -21,7 +21,7 @@ __all__ = ["RobotHoldEngine", "quick_hold_engine"]
 class RobotHoldEngine(RobotEngine):
     """The holding test of a description robot as an engine: the physics closing's outcomes
     and Q scored as every engine of the robot scores (:meth:`~kinegrasp_env.montecarlo.
-    robot_engine.RobotEngine.scored`: its contact model, the patch model's corners
+    description_engine.RobotEngine.scored`: its contact model, the patch model's corners
     included), and the holding results (arguments: :class:`RobotEngine`;
     ``protocol``: the holding test's settings; ``motors``: the closing's end;
     ``simulator``: a name of :data:`~kinegrasp_env.physics.simulators.

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseModel, stream_rows

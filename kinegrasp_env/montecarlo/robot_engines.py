@@ -1,16 +1,16 @@
 """The engines of a description robot by name: the reference (pybullet closest points, draw
 by draw: :class:`RobotReferenceEngine`), the batched fast one
-(:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) and the physics closing
+(:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) and the physics closing
 (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`), all scoring as
-:class:`~kinegrasp_env.montecarlo.robot_engine.RobotEngine` does."""
+:class:`~kinegrasp_env.montecarlo.description_engine.RobotEngine` does."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 
 
@@ -49,7 +49,7 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
                 **kwargs) -> RobotEngine:
     """A new engine by name (:data:`ENGINES`) for ``robot`` and catalog ``object_name``."""
     if name == "fast":
-        from kinegrasp_env.montecarlo.robot_fast import RobotFastEngine
+        from kinegrasp_env.montecarlo.batched_engine import RobotFastEngine
 
         return RobotFastEngine(robot, object_name, **kwargs)
     if name == "pybullet":

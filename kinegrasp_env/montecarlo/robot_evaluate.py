@@ -4,7 +4,7 @@ Each draw: the arm joints at q0 + eps (eps from :class:`~kinegrasp_env.sampling.
 JointNoise` on the description's arm joints, the hand at its pre-shape exactly), the hand
 closed on the object by :meth:`~kinegrasp_env.closing.generic_reference.RobotWorld.auto_close`
 (pybullet closest points on the URDF's own collision geometry; or by the batched closing of
-the same model, :class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`), the contacts
+the same model, :class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`), the contacts
 scored with the robot's contact model (``soft`` for parallel jaws:
 :mod:`kinegrasp_env.quality.soft_contacts`) by one function for every engine (:func:`score`).
 Every draw ends in one of the engines' outcomes (:data:`~kinegrasp_env.montecarlo.engines.
@@ -18,15 +18,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
-from kinegrasp_env.montecarlo.robot_engine import (
+from kinegrasp_env.montecarlo.description_engine import (
     RobotEngine,
     outcome_of,
     score,
 )
+from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_engines import ENGINES, RobotReferenceEngine, make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
@@ -177,7 +177,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         noise: ``gaussian``, ``uniform`` or ``triangular``.
         engine: an engine to reuse (its robot and object must be the grasp's), or the name
             of one to build: ``pybullet`` (the reference), ``fast``
-            (:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`) or ``physics``
+            (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) or ``physics``
             (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`).
         robot: the robot to evaluate with (default: the grasp's).
         static_hold: run the static hold check too (an engine to build; a given engine

@@ -1,6 +1,6 @@
 """The physics engine of a description robot: its hand closed under pybullet dynamics, draw by
 draw, scored exactly as the kinematic engines score their closings
-(:func:`~kinegrasp_env.montecarlo.robot_engine.score`).
+(:func:`~kinegrasp_env.montecarlo.description_engine.score`).
 
 The closing is the holding test's (:meth:`~kinegrasp_env.physics.robot_hold.RobotHold.
 close_hand`: the hand cut from the URDF, free-floating and held at the palm pose the draw's
@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.closing.close_result import RobotCloseResult
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
@@ -31,7 +31,7 @@ class RobotPhysicsEngine(RobotEngine):
     """Closing under pybullet dynamics of a description robot (see the module docstring).
 
     Args:
-        robot, object_name, kwargs: :class:`~kinegrasp_env.montecarlo.robot_engine.
+        robot, object_name, kwargs: :class:`~kinegrasp_env.montecarlo.description_engine.
             RobotEngine` (``friction`` is also the simulated finger-object friction).
         world: :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings` (density, time
             step; the object must be free); its friction is replaced by ``friction``.

@@ -49,8 +49,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout
 from kinegrasp_env.physics.hand_motors import (

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.physics.robot_hold import RobotHold
 
 

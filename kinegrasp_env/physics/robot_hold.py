@@ -50,8 +50,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult, RobotContact
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout, balances, grip_layout
 from kinegrasp_env.physics.grip_forces import GripContact

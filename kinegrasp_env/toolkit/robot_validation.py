@@ -19,8 +19,8 @@ import hashlib
 from dataclasses import fields
 from pathlib import Path
 
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, Engine
 from kinegrasp_env.montecarlo.evaluate import (
@@ -44,7 +45,6 @@ from kinegrasp_env.montecarlo.evaluate import (
     chunk_sizes,
 )
 from kinegrasp_env.montecarlo.perturbation import engine_inputs
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
 from kinegrasp_env.montecarlo.robot_noise import with_hand
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel

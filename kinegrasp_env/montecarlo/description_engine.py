@@ -3,7 +3,7 @@
 per-draw results as a :class:`~kinegrasp_env.montecarlo.draws.DrawBatch`) and the engine's
 base (:class:`RobotEngine`: robot, object, quality measure, input check); the engines close
 (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`,
-:class:`~kinegrasp_env.montecarlo.robot_fast.RobotFastEngine`).
+:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`).
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
 from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,

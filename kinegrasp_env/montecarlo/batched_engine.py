@@ -1,7 +1,8 @@
-"""The fast engine of a description robot: the reference engine's closing model
-(:mod:`~kinegrasp_env.closing.generic_reference`) batched over draws
+"""The fast engine of every robot (the default robot's included): the reference engine's
+closing model (:mod:`~kinegrasp_env.closing.generic_reference`) batched over draws
 (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), scored exactly as the
-reference engine scores its closings (:func:`~kinegrasp_env.montecarlo.robot_engine.score`).
+reference engine scores its closings
+(:func:`~kinegrasp_env.montecarlo.description_engine.score_batch`).
 """
 
 from __future__ import annotations
@@ -9,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.generic_fast import FastRobotHand
-from kinegrasp_env.closing.robot_contacts import RobotCloseResult
-from kinegrasp_env.montecarlo.robot_engine import RobotEngine
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
 
 #: Draws closed in one batch (bounds the batch's temporaries).
@@ -20,7 +21,7 @@ BATCH = 1024
 
 class RobotFastEngine(RobotEngine):
     """Batched closing of a description robot (arguments: :class:`~kinegrasp_env.montecarlo.
-    robot_engine.RobotEngine`); the object's distance grid is built on first use and
+    description_engine.RobotEngine`); the object's distance grid is built on first use and
     cached."""
 
     name = "fast"
