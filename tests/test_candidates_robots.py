@@ -320,9 +320,10 @@ def test_a_nominal_miss_is_scored_and_flagged_not_rejected(robot):
 @pytest.mark.parametrize("object_name", ["cube", "mug"])
 def test_an_elbow_is_reached_on_whichever_ik_branch_reaches_it(object_name):
     """The default robot's shipped grasps as palm-pose candidates with their elbow angles,
-    solved by the description robots' solver on kuka_sdh: every one is reached (from the IK
-    solution of the middle of the joint ranges alone, the self-motion leaves the limits on 9
-    of these 24: the other IK branches must be tried), with the palm at the candidate's pose
+    solved by the description robots' solver on kuka_sdh: every one is reached (from the
+    middle of the joint ranges the first IK solution's self-motion left the limits on 9 of
+    these 24; from the description's home it leaves none here, so the branch retry itself is
+    not exercised by this test), with the palm at the candidate's pose
     by pybullet's own forward kinematics and the elbow angle the default robot's IK
     (robot/ik.py, written apart from the description's self-motion) measures equal to the
     one asked."""

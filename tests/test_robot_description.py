@@ -444,6 +444,11 @@ def test_home_defaults_to_the_middle_of_each_joints_range(tmp_path):
         pybullet.disconnect(client)
     expected = [0.25 if j == "joint2" else 0.5 * sum(limits[j]) for j in d.arm_joints]
     np.testing.assert_allclose(d.home_arm(), expected, rtol=0, atol=1e-12)
+    # a hand joint left out of ``open`` sits at 0 clipped into its limits, not mid-range
+    data.pop("open", None)
+    path.write_text(yaml.safe_dump(data))
+    bare = load_description(path)
+    assert bare.open == {j: min(max(0.0, limits[j][0]), limits[j][1]) for j in bare.hand_joints}
     assert d.arm_name == f"{d.name} arm"
     kuka = load_robot("kuka_sdh")
     assert kuka.home_arm().tolist() == [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0]

@@ -71,7 +71,8 @@ def cmd_kuka_ee(args) -> int:
 
     effector = ArmEndEffector.of(load_robot(DEFAULT_ROBOT))
     try:
-        q0 = effector.check_q0(float_list(args.q0, "--q0"))
+        q0 = effector.check_q0(load_robot(DEFAULT_ROBOT).home_arm() if args.q0 is None
+                               else float_list(args.q0, "--q0"))
     except ValueError as exc:
         raise CLIError(f"--q0: {exc}") from None
     noise, sigma, samples, seed = noise_from(args)
@@ -198,7 +199,8 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise "
                        "(sampled; `ee --robot kuka_sdh` adds the first order)")
-    p.add_argument("--q0", default="0,0.6,0,-1.2,0,0.8,0", help="7 arm joint angles, radians")
+    p.add_argument("--q0", help="7 arm joint angles, radians (default: the description's "
+                   "home configuration)")
     add_noise_args(p, 0.0133)
     p.set_defaults(func=cmd_kuka_ee)
 

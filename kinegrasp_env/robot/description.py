@@ -280,7 +280,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     if not close:
         raise _fail(where, "close", "give the closing direction of at least one hand joint")
     opened = _joint_values(data, where, "open", hand, movable,
-                           lambda lo, hi: 0.5 * (lo + hi))
+                           lambda lo, hi: min(max(0.0, lo), hi))
 
     # links a hand joint moves (mimic followers included), and the finger links
     driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)

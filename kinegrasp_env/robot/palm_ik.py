@@ -11,7 +11,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, pose_error
 from kinegrasp_env.robot.palm_pose import IK_RNG_SEED
 
-#: Random restarts of the IK after its start from the middle of the joint ranges.
+#: Random restarts of the IK after its start from the description's home.
 IK_RESTARTS = 6
 #: Damped least-squares iterations per start.
 IK_ITERATIONS = 200
