@@ -66,8 +66,21 @@ def kind(loop, kernel, i: int) -> str:
     return "verdict" if pattern(loop, i) == pattern(kernel, i) else "links"
 
 
+def contact_offsets(a, b, same: np.ndarray) -> np.ndarray:
+    """Distances (metres) between the contacts of the draws ``same`` where both closings
+    touch with the same finger links (each draw's contacts in (finger, link) order)."""
+    out = []
+    for i in np.flatnonzero(same):
+        if pattern(a, i) == pattern(b, i) and a.n_contacts[i]:
+            k = int(a.n_contacts[i])
+            oa = np.lexsort((a.link[i, :k], a.finger[i, :k]))
+            ob = np.lexsort((b.link[i, :k], b.finger[i, :k]))
+            out.extend(np.linalg.norm(a.points[i, oa] - b.points[i, ob], axis=1))
+    return np.array(out)
+
+
 def grasp_row(obj: str, index: int, q0: np.ndarray, loop, kernel, draws: int,
-              corrected: float) -> dict:
+              corrected: float, names: tuple[str, str] = ("loop", "kernel")) -> dict:
     rng = np.random.default_rng(index)
     q = np.repeat(q0[None], draws, axis=0)
     q[:, :7] += rng.normal(0.0, SIGMA, (draws, 7))
@@ -87,20 +100,26 @@ def grasp_row(obj: str, index: int, q0: np.ndarray, loop, kernel, draws: int,
     for i in differ:
         key = f"{OUTCOMES[b.outcome[i]]}->{OUTCOMES[a.outcome[i]]}"
         pairs[key] = pairs.get(key, 0) + 1
+    offsets = contact_offsets(a, b, a.outcome == b.outcome)
+    first, second = names
     return {"object": obj, "grasp": index, "draws": draws, "same": 1 - differ.size / draws,
-            "p_fc_loop": float((a.outcome == FORCE_CLOSURE).mean()),
-            "p_fc_kernel": float((b.outcome == FORCE_CLOSURE).mean()),
+            f"p_fc_{first}": float((a.outcome == FORCE_CLOSURE).mean()),
+            f"p_fc_{second}": float((b.outcome == FORCE_CLOSURE).mean()),
             "difference": float(diff.mean()), "interval": [float(diff.mean() - half),
                                                          float(diff.mean() + half)],
             "classes": classes, "pairs": pairs,
-            "us_per_draw_loop": 1e6 * t_loop / draws,
-            "us_per_draw_kernel": 1e6 * t_kernel / draws}
+            "contacts": int(offsets.size),
+            "contact_offset_median": float(np.median(offsets)) if offsets.size else None,
+            "contact_offset_max": float(offsets.max()) if offsets.size else None,
+            f"us_per_draw_{first}": 1e6 * t_loop / draws,
+            f"us_per_draw_{second}": 1e6 * t_kernel / draws}
 
 
-def markdown(result: dict) -> str:
+def markdown(result: dict, names: tuple[str, str] = ("loop", "kernel")) -> str:
     rows = result["grasps"]
+    first, second = names
     lines = ["| object | draws | same outcome | worst grasp | P(FC) intervals holding 0 "
-             "| verdict / links / reach / start | us a draw: loop, kernel |",
+             f"| verdict / links / reach / start | us a draw: {first}, {second} |",
              "|---|---|---|---|---|---|---|"]
     for obj in dict.fromkeys(r["object"] for r in rows):
         mine = [r for r in rows if r["object"] == obj]
@@ -111,14 +130,31 @@ def markdown(result: dict) -> str:
         lines.append(f"| {obj} | {n} | {100 * same:.2f}% | "
                      f"{100 * min(r['same'] for r in mine):.1f}% | {held} of {len(mine)} | "
                      f"{' / '.join(map(str, classes))} | "
-                     f"{np.mean([r['us_per_draw_loop'] for r in mine]):.0f}, "
-                     f"{np.mean([r['us_per_draw_kernel'] for r in mine]):.0f} |")
+                     f"{np.mean([r[f'us_per_draw_{first}'] for r in mine]):.0f}, "
+                     f"{np.mean([r[f'us_per_draw_{second}'] for r in mine]):.0f} |")
     total = result["summary"]
     classes = " / ".join(str(total["classes"][c]) for c in CLASSES)
     lines.append(f"| all | {total['draws']} | {100 * total['same']:.2f}% | "
                  f"{100 * total['worst']:.1f}% | {total['held']} of {total['grasps']} | "
-                 f"{classes} | {total['us_loop']:.0f}, {total['us_kernel']:.0f} |")
+                 f"{classes} | {total[f'us_{first}']:.0f}, {total[f'us_{second}']:.0f} |")
     return "\n".join(lines)
+
+
+def summarize(rows: list[dict], names: tuple[str, str] = ("loop", "kernel")) -> dict:
+    """The grasps' rows summed: draws, same outcome, the worst grasp, intervals holding 0,
+    the classes, the contacts' offsets and each closing's time a draw."""
+    n = sum(r["draws"] for r in rows)
+    medians = [r["contact_offset_median"] for r in rows if r["contacts"]]
+    return {"draws": n, "grasps": len(rows),
+            "same": sum(r["same"] * r["draws"] for r in rows) / n,
+            "worst": min(r["same"] for r in rows),
+            "held": sum(r["interval"][0] <= 0 <= r["interval"][1] for r in rows),
+            "classes": {c: sum(r["classes"][c] for r in rows) for c in CLASSES},
+            "contact_offset_median_worst": max(medians, default=None),
+            "contact_offset_max": max((r["contact_offset_max"] for r in rows
+                                       if r["contacts"]), default=None),
+            **{f"us_{name}": float(np.mean([r[f"us_per_draw_{name}"] for r in rows]))
+               for name in names}}
 
 
 def main() -> None:
@@ -137,14 +173,7 @@ def main() -> None:
         for index, grasp in enumerate(kept):
             rows.append(grasp_row(obj, index, grasp.q0, loop, kernel, args.draws, corrected))
             print(f"{obj} {index}: same {rows[-1]['same']:.4f}", flush=True)
-    n = sum(r["draws"] for r in rows)
-    summary = {"draws": n, "grasps": len(rows),
-               "same": sum(r["same"] * r["draws"] for r in rows) / n,
-               "worst": min(r["same"] for r in rows),
-               "held": sum(r["interval"][0] <= 0 <= r["interval"][1] for r in rows),
-               "classes": {c: sum(r["classes"][c] for r in rows) for c in CLASSES},
-               "us_loop": float(np.mean([r["us_per_draw_loop"] for r in rows])),
-               "us_kernel": float(np.mean([r["us_per_draw_kernel"] for r in rows]))}
+    summary = summarize(rows)
     result = {"sigma": SIGMA, "grasps": rows, "summary": summary, "settings": settings(args)}
     publish(__file__, result, args, markdown(result), DOC, (START, END))
 

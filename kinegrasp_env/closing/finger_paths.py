@@ -14,10 +14,11 @@ import numpy as np
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.robot.description import Finger, RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
+from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
-__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "link_poses",
-           "palm_tree", "tree_poses"]
+__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "joint_tree",
+           "link_poses", "palm_tree", "tree_poses"]
 
 
 @dataclass(frozen=True)
@@ -126,18 +127,21 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
 
 def palm_tree(description: RobotDescription, chains: dict[str, list]) -> Kinematics:
     """The kinematics of the links of ``chains`` (link -> its joints from the palm) rooted
-    at the palm link: a model of their joints (topological order kept) whose every movable
-    joint is an independent coordinate (mimic couplings dropped: the closing sets each
-    joint's value itself), so that :meth:`~kinegrasp_env.robot.kinematics.Kinematics.
-    forward` of the joint values gives each link's pose in the palm frame in one compiled
-    pass."""
-    from kinegrasp_env.robot.model import RobotModel
-
-    model = description.model
+    at the palm link (:func:`joint_tree`): :meth:`~kinegrasp_env.robot.kinematics.
+    Kinematics.forward` of the joint values gives each link's pose in the palm frame in one
+    compiled pass."""
     used = {j.name for chain in chains.values() for j in chain}
-    joints = tuple(dataclasses.replace(j, mimic=None) for j in model.joints if j.name in used)
-    return Kinematics(RobotModel(f"{model.name}:{description.palm_link}",
-                                 description.palm_link, joints,
+    return joint_tree(description.model, description.palm_link, used)
+
+
+def joint_tree(model: RobotModel, root: str, used: set[str] | None = None) -> Kinematics:
+    """The kinematics, rooted at link ``root``, of a model of the joints named in ``used``
+    (default: every joint; topological order kept) whose every movable joint is an
+    independent coordinate (mimic couplings dropped: a closing sets each joint's value
+    itself); its coordinates are ``tree.model.actuated``."""
+    joints = tuple(dataclasses.replace(j, mimic=None) for j in model.joints
+                   if used is None or j.name in used)
+    return Kinematics(RobotModel(f"{model.name}:{root}", root, joints,
                                  tuple(j.name for j in joints if j.movable), model.urdf_path))
 
 

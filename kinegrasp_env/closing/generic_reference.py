@@ -1,12 +1,12 @@
 """Auto-close of any description robot, the reference: pybullet closest points on the URDF's
 own collision geometry.
 
-**The closing model.** The whole robot (its URDF, fixed base at the world origin: the robot
-base frame) and the object stand in one pybullet world; the object is fixed (as in Dex-Net's
-jaw closing and this project's GraspIt-style closing). A configuration q (the description's
-actuated vector: arm joints, then hand joints) is set joint by joint, every mimic joint from
-its driver (:meth:`~kinegrasp_env.robot.model.RobotModel.expand`), so the arm places the palm
-where forward kinematics of the URDF puts it. Then:
+**The closing model.** The robot and the object stand in one pybullet world, the object
+fixed (as in Dex-Net's jaw closing and this project's GraspIt-style closing):
+:class:`~kinegrasp_env.closing.robot_scene.RobotScene`, whose link distances this closing
+reads (pybullet's, exact for a link of capsules and spheres near contact). A configuration q
+(the description's actuated vector: arm joints, then hand joints) places the palm where
+forward kinematics of the URDF puts it. Then:
 
 1. *Start collision*: some robot link (arm or hand) penetrates the object by more than
    :data:`START_TOL` at q (the hand at its pre-shape).
@@ -17,8 +17,8 @@ where forward kinematics of the URDF puts it. Then:
    touches (GraspIt's rule, :mod:`~kinegrasp_env.robot.touch_rule`: a touching proximal
    phalanx stops its own joint, the distal one goes on; a parallel gripper's coupled jaws
    close together, each stopping where it touches). t advances by conservative advancement:
-   the moving links' gap g (pybullet's closest-point distance, plus the collision margins
-   pybullet subtracts: :func:`hull_margin`) over a bound v on how fast any point of them
+   the moving links' gap g (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.gap`)
+   over a bound v on how fast any point of them
    moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`), at least
    :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
    of freedom; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it
@@ -27,9 +27,13 @@ where forward kinematics of the URDF puts it. Then:
    :func:`~kinegrasp_env.closing.close_rules.secant_root`: where a phalanx stops moves where
    the next one touches); a finger has *missed* when its joints have all stopped or reached
    their limits and no link touches.
-3. *Contacts*: one per touching finger link: pybullet's closest pair of that link and the
-   object (distance within :data:`CONTACT_TOL`), the point on the object, both in the object
-   frame. The normal into the object: where the point lies on one face of the object's exact
+3. *Contacts*: one per touching finger link (distance within :data:`CONTACT_TOL`), in the
+   object frame. A link of capsules and spheres: the point model of the paper's fingertips
+   (as every engine's rounded part,
+   :func:`~kinegrasp_env.closing.hand_geometry.pair_contacts`): the exact closest point on
+   the object, the normal its face's where the pair's direction agrees, else the pair's.
+   Any other link: pybullet's closest pair of that link and the object, the point on the
+   object. The normal into the object: where the point lies on one face of the object's exact
    convex parts (one face plane within :data:`EDGE_TOL`), that face's inward normal (the
    direction of a closest pair touching a face's interior; pybullet's own normal was measured
    4.6 degrees off there); at an edge or a corner, pybullet's ``-contactNormalOnB``. On a
@@ -61,26 +65,22 @@ from kinegrasp_env.closing.contact_patch import (
     link_hull_vertices,
 )
 from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
-from kinegrasp_env.closing.hand_errors import flange_link, hand_links
-from kinegrasp_env.closing.table_check import table_in_object
+from kinegrasp_env.closing.hand_geometry import pair_contacts
+from kinegrasp_env.closing.robot_scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
-from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
-from kinegrasp_env.world.table_probe import table_body
 
 #: Closing steps per finger at most (conservative advancement converges in a few for jaws).
 MAX_STEPS = 200
 #: Halvings of a step that pybullet reports as penetrating, at most.
 MAX_HALVINGS = 30
-GEOM_MESH = pybullet.GEOM_MESH
 #: A contact point within this of exactly one face plane lies on that face, metres.
 EDGE_TOL = 5e-5
 
 __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL",
-           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of",
-           "hull_margin"]
+           "RobotCloseResult", "RobotContact", "RobotWorld", "face_of"]
 
 
 def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | None:
@@ -92,123 +92,20 @@ def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | Non
     return None if part[0] < 0 else (int(part[0]), plane[0])
 
 
-def hull_margin(bullet, body: int, link: int) -> float:
-    """The collision margin (metres) pybullet's distances subtract from a link's geometry:
-    its reported margin when every collision shape of the link is a mesh (a convex hull,
-    which Bullet inflates by the margin; the children of a link's compound shape keep the URDF
-    importer's 1 mm whatever changeDynamics sets), else 0 (boxes and cylinders are shrunk by
-    their margin, a sphere's or capsule's margin is its radius: their distances are exact;
-    a link mixing meshes with those is left uncorrected)."""
-    shapes = bullet.getCollisionShapeData(body, link)
-    if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
-        return float(bullet.getDynamicsInfo(body, link)[11])
-    return 0.0
-
-
-class RobotWorld(GraspWorld):
-    """A description robot (the whole URDF, fixed at the world origin) and one object.
+class RobotWorld(RobotScene):
+    """The reference closing of a description robot in its pybullet scene
+    (:class:`~kinegrasp_env.closing.robot_scene.RobotScene`; the module's model).
 
     Attributes:
-        description: the robot.
-        obj: the catalog object (fixed at ``obj.pose``).
         patch: place a contact on a face at its patch's centre (step 3 of the module).
-        joint_index: movable joint name -> pybullet joint index.
-        link_index: link name -> pybullet link index (-1: the base link).
     """
 
     def __init__(self, description: RobotDescription, obj: GraspObject,
                  gui: bool = False, patch: bool = True) -> None:
-        BulletWorld.__init__(self, gui)  # not the SDH hand of GraspWorld: the robot itself
-        self.obj = obj
-        self.description = description
+        super().__init__(description, obj, gui)
         self.patch = patch
-        self.model = description.model
-        bullet = self.bullet
-        # cylinders as written (pybullet otherwise meshes them coarsely)
-        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
-                                flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
-        self.bodies["robot"] = robot
-        self.joint_index: dict[str, int] = {}
-        self.link_index: dict[str, int] = {self.model.base_link: -1}
-        for j in range(bullet.getNumJoints(robot)):
-            info = bullet.getJointInfo(robot, j)
-            self.joint_index[info[1].decode()] = j
-            self.link_index[info[12].decode()] = j
-        for link in self.link_index.values():
-            bullet.changeDynamics(robot, link, collisionMargin=0.0)
-        self.bodies["object"] = self._load_object(obj)
-        self._table = None  # the support table: (body, its pose in the object frame)
-        if obj.table is not None:
-            self._table = (table_body(bullet, obj), table_in_object(obj)[0])
-            self.bodies["table"] = self._table[0]
-        self.margins = {(body, link): hull_margin(bullet, body, link)
-                        for body, count in ((robot, bullet.getNumJoints(robot)),
-                                            (self.bodies["object"],
-                                             bullet.getNumJoints(self.bodies["object"])))
-                        for link in range(-1, count)}
-        if self._table is not None:
-            self.margins[(self._table[0], -1)] = 0.0
-        self._movable = [j.name for j in self.model.joints if j.movable]
         self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
                              for finger in description.fingers]
-        hand = hand_links(description)
-        self._flange = flange_link(description)
-        self._arm_links = tuple(link for link in self.link_index if link not in hand)
-        self._hand_links = tuple(sorted(hand))
-        #: the object's pose in this world: ``obj.pose``, but where a palm or object error
-        #: places it for a closing
-        self.placed = obj.pose
-
-    # ------------------------------------------------------------------ state
-    def set_configuration(self, q: np.ndarray) -> dict[str, float]:
-        """Set every movable joint from the actuated vector q (dof,); returns the values."""
-        values = {name: float(v) for name, v in self.model.expand(np.asarray(q, float)).items()}
-        self.set_joint_values(values)
-        return values
-
-    def set_joint_values(self, values: dict[str, float]) -> None:
-        bullet, robot = self.bullet, self.bodies["robot"]
-        for name, value in values.items():
-            bullet.resetJointState(robot, self.joint_index[name], float(value))
-
-    def link_pose(self, link: str) -> np.ndarray:
-        """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics; the base's
-        from its centre-of-mass frame, which is what pybullet gives for a base, and its
-        inertial offset)."""
-        bullet, robot = self.bullet, self.bodies["robot"]
-        index = self.link_index[link]
-        if index < 0:
-            position, quaternion = bullet.getBasePositionAndOrientation(robot)
-            offset = bullet.getDynamicsInfo(robot, -1)[3:5]  # inertial frame in the URDF's
-            position, quaternion = bullet.multiplyTransforms(
-                position, quaternion, *bullet.invertTransform(*offset))
-        else:
-            state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
-            position, quaternion = state[4], state[5]
-        pose = np.eye(4)
-        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
-        pose[:3, 3] = position
-        return pose
-
-    def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
-        """pybullet closest points between the robot (or one of its links) and the object
-        (rows as pybullet gives them; their distance: :meth:`distance`)."""
-        kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
-        return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
-                                            max_distance, **kwargs)
-
-    def distance(self, row: tuple) -> float:
-        """The distance (metres) of the geometry of a closest-point row: pybullet's, plus
-        the collision margins of the two shapes (which pybullet's distance subtracts)."""
-        return (row[8] + self.margins[(row[1], row[3])] + self.margins[(row[2], row[4])])
-
-    def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
-        """(smallest distance of ``links`` to the object, capped at QUERY_DISTANCE; queries)."""
-        best = QUERY_DISTANCE
-        for link in links:
-            for row in self.closest(QUERY_DISTANCE, link):
-                best = min(best, self.distance(row))
-        return best, len(links)
 
     # ------------------------------------------------------------------ closing
     def _speed(self, index: int, joints, kinds, rates) -> float:
@@ -252,38 +149,16 @@ class RobotWorld(GraspWorld):
         seen = true if palm is None else flange @ rigid_inverse(palm) @ rigid_inverse(
             flange) @ true
         try:
-            self._place_object(true)
+            self.place_object(true)
             arm = self._arm_links
-            if any(self.distance(row) < -start_tol
-                   for link in arm for row in self.closest(0.0, link)) or self.in_table(arm):
+            if self.penetrates([row for link in arm for row in self.closest(0.0, link)],
+                               start_tol) or self.in_table(arm):
                 return self._collided(len(arm))
-            self._place_object(seen)
+            self.place_object(seen)
             return self._close(start, contact_tol, start_tol, links=self._hand_links,
                                queries=len(arm))
         finally:
-            self._place_object(believed)
-
-    def _place_object(self, pose: np.ndarray) -> None:
-        """The object body at ``pose`` (4, 4), where the contacts' frame follows it, and its
-        support table with it."""
-        self.placed = pose
-        position, orientation = matrix_to_pose(pose)
-        self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
-                                                    orientation)
-        if self._table is not None:
-            self.bullet.resetBasePositionAndOrientation(
-                self._table[0], *matrix_to_pose(pose @ self._table[1]))
-
-    def in_table(self, links: tuple[str, ...] | None = None) -> bool:
-        """Whether ``links`` (default: the whole robot) touch or enter the object's support
-        table (pybullet's closest points at 0 m; never without a table)."""
-        if self._table is None:
-            return False
-        robot, table = self.bodies["robot"], self._table[0]
-        rows = (self.bullet.getClosestPoints(robot, table, 0.0) if links is None else
-                [row for link in links for row in self.bullet.getClosestPoints(
-                    robot, table, 0.0, linkIndexA=self.link_index[link])])
-        return any(self.distance(row) <= 0.0 for row in rows)
+            self.place_object(believed)
 
     def _collided(self, queries: int) -> RobotCloseResult:
         """A closing that starts in collision."""
@@ -300,7 +175,7 @@ class RobotWorld(GraspWorld):
         else:
             queries += len(links)
             rows = [row for link in links for row in self.closest(0.0, link)]
-        if any(self.distance(row) < -start_tol for row in rows) or self.in_table(links):
+        if self.penetrates(rows, start_tol) or self.in_table(links):
             return self._collided(queries)
         missed, gaps, travel, final = [], [], [], {}
         contacts: list[RobotContact] = []
@@ -406,6 +281,10 @@ class RobotWorld(GraspWorld):
         out = []
         rot = self.placed[:3, :3]
         for k, link in enumerate(self.description.fingers[f].links):
+            if link in self.rounded:
+                found = self._rounded_contact(f, k, link, contact_tol)
+                out += [] if found is None else [found]
+                continue
             rows = [r for r in self.closest(contact_tol, link)
                     if self.distance(r) <= contact_tol]
             if not rows:
@@ -426,3 +305,15 @@ class RobotWorld(GraspWorld):
                                     self.distance(row)))
         return out
 
+
+    def _rounded_contact(self, f: int, k: int, link: str, contact_tol: float
+                         ) -> RobotContact | None:
+        """The point model's contact of link k (of rounded parts) of finger f, where it
+        touches (step 3 of the module), else None."""
+        if self.link_gap(link) > contact_tol:
+            return None
+        gap, on_core, on_obj, part = self.rounded_pair(link)
+        points, normals = pair_contacts(self.obj, on_obj[None], on_core[None],
+                                        np.array([np.linalg.norm(on_core - on_obj)]),
+                                        np.array([part]))
+        return RobotContact(f, k, points[0], normals[0], gap)

@@ -1,0 +1,241 @@
+"""A description robot and one object in a pybullet world: the robot's joint state, its
+links' poses, and their distances to the object.
+
+The whole robot (its URDF, fixed base at the world origin: the robot base frame) and the
+object stand in one pybullet world, the object fixed (and its support table, where it has
+one). A configuration q (the description's actuated vector) is set joint by joint, every
+mimic joint from its driver (:meth:`~kinegrasp_env.robot.model.RobotModel.expand`).
+
+A link's distance to the object is pybullet's closest-point distance, plus the collision
+margins pybullet subtracts (:func:`hull_margin`); for a link made of capsules and spheres
+alone, within :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the object, the exact
+distance of its parts' core segments less their radii (:meth:`RobotScene.rounded_pair`, as
+the fast closing computes it: :mod:`~kinegrasp_env.closing.rounded_links`), so that where a
+rounded fingertip touches does not depend on pybullet's convex-hull tolerance.
+
+The closing that moves the fingers in this world: :mod:`~kinegrasp_env.closing.
+generic_reference`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.close_rules import EXACT_BAND, QUERY_DISTANCE
+from kinegrasp_env.closing.finger_paths import joint_tree
+from kinegrasp_env.closing.hand_errors import flange_link, hand_links
+from kinegrasp_env.closing.link_geometry import robot_link_geometry
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.closing.table_check import table_in_object
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.kinematics import rigid_inverse
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
+from kinegrasp_env.world.table_probe import table_body
+
+GEOM_MESH = pybullet.GEOM_MESH
+
+__all__ = ["RobotScene", "hull_margin"]
+
+
+def hull_margin(bullet, body: int, link: int) -> float:
+    """The collision margin (metres) pybullet's distances subtract from a link's geometry:
+    its reported margin when every collision shape of the link is a mesh (a convex hull,
+    which Bullet inflates by the margin; the children of a link's compound shape keep the URDF
+    importer's 1 mm whatever changeDynamics sets), else 0 (boxes and cylinders are shrunk by
+    their margin, a sphere's or capsule's margin is its radius: their distances are exact;
+    a link mixing meshes with those is left uncorrected)."""
+    shapes = bullet.getCollisionShapeData(body, link)
+    if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
+        return float(bullet.getDynamicsInfo(body, link)[11])
+    return 0.0
+
+
+
+class RobotScene(GraspWorld):
+    """A description robot (the whole URDF, fixed at the world origin) and one object.
+
+    Attributes:
+        description: the robot.
+        obj: the catalog object (fixed at ``obj.pose``).
+        joint_index: movable joint name -> pybullet joint index.
+        link_index: link name -> pybullet link index (-1: the base link).
+    """
+
+    def __init__(self, description: RobotDescription, obj: GraspObject,
+                 gui: bool = False) -> None:
+        BulletWorld.__init__(self, gui)  # not the SDH hand of GraspWorld: the robot itself
+        self.obj = obj
+        self.description = description
+        self.model = description.model
+        bullet = self.bullet
+        # cylinders as written (pybullet otherwise meshes them coarsely)
+        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
+                                flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
+        self.bodies["robot"] = robot
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {self.model.base_link: -1}
+        for j in range(bullet.getNumJoints(robot)):
+            info = bullet.getJointInfo(robot, j)
+            self.joint_index[info[1].decode()] = j
+            self.link_index[info[12].decode()] = j
+        for link in self.link_index.values():
+            bullet.changeDynamics(robot, link, collisionMargin=0.0)
+        self.bodies["object"] = self._load_object(obj)
+        self._table = None  # the support table: (body, its pose in the object frame)
+        if obj.table is not None:
+            self._table = (table_body(bullet, obj), table_in_object(obj)[0])
+            self.bodies["table"] = self._table[0]
+        self.margins = {(body, link): hull_margin(bullet, body, link)
+                        for body, count in ((robot, bullet.getNumJoints(robot)),
+                                            (self.bodies["object"],
+                                             bullet.getNumJoints(self.bodies["object"])))
+                        for link in range(-1, count)}
+        if self._table is not None:
+            self.margins[(self._table[0], -1)] = 0.0
+        self.link_name = {index: name for name, index in self.link_index.items()}
+        #: every movable joint's value as set (name -> radians or metres)
+        self.values = {joint.name: 0.0 for joint in self.model.joints if joint.movable}
+        self._tree = joint_tree(self.model, self.model.base_link)
+        #: the links made of capsules and spheres alone: their exact parts (link frame)
+        self.rounded = {link: geometry.rounded
+                        for link, geometry in robot_link_geometry(description).items()
+                        if geometry.rounded and not geometry.parts}
+        hand = hand_links(description)
+        self._flange = flange_link(description)
+        self._arm_links = tuple(link for link in self.link_index if link not in hand)
+        self._hand_links = tuple(sorted(hand))
+        #: the object's pose in this world: ``obj.pose``, but where a palm or object error
+        #: places it for a closing
+        self.placed = obj.pose
+
+    # ------------------------------------------------------------------ state
+    def set_configuration(self, q: np.ndarray) -> dict[str, float]:
+        """Set every movable joint from the actuated vector q (dof,); returns the values."""
+        values = {name: float(v) for name, v in self.model.expand(np.asarray(q, float)).items()}
+        self.set_joint_values(values)
+        return values
+
+    def set_joint_values(self, values: dict[str, float]) -> None:
+        """Set the named joints (name -> radians or metres); the others keep theirs."""
+        bullet, robot = self.bullet, self.bodies["robot"]
+        for name, value in values.items():
+            bullet.resetJointState(robot, self.joint_index[name], float(value))
+            self.values[name] = float(value)
+
+    def link_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics; the base's
+        from its centre-of-mass frame, which is what pybullet gives for a base, and its
+        inertial offset)."""
+        bullet, robot = self.bullet, self.bodies["robot"]
+        index = self.link_index[link]
+        if index < 0:
+            position, quaternion = bullet.getBasePositionAndOrientation(robot)
+            offset = bullet.getDynamicsInfo(robot, -1)[3:5]  # inertial frame in the URDF's
+            position, quaternion = bullet.multiplyTransforms(
+                position, quaternion, *bullet.invertTransform(*offset))
+        else:
+            state = bullet.getLinkState(robot, index, computeForwardKinematics=True)
+            position, quaternion = state[4], state[5]
+        pose = np.eye(4)
+        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(quaternion), (3, 3))
+        pose[:3, 3] = position
+        return pose
+
+    def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
+        """pybullet closest points between the robot (or one of its links) and the object
+        (rows as pybullet gives them; their distance: :meth:`distance`)."""
+        kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
+        return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
+                                            max_distance, **kwargs)
+
+    def distance(self, row: tuple) -> float:
+        """The distance (metres) of the geometry of a closest-point row: pybullet's, plus
+        the collision margins of the two shapes (which pybullet's distance subtracts)."""
+        return (row[8] + self.margins[(row[1], row[3])] + self.margins[(row[2], row[4])])
+
+    def bullet_gap(self, link: str) -> float:
+        """pybullet's distance (metres, :meth:`distance`) of ``link`` to the object, capped
+        at QUERY_DISTANCE."""
+        return min((self.distance(row) for row in self.closest(QUERY_DISTANCE, link)),
+                   default=QUERY_DISTANCE)
+
+    def link_gap(self, link: str) -> float:
+        """The distance (metres) of ``link`` to the object, capped at QUERY_DISTANCE:
+        :meth:`bullet_gap`, or, for a link of rounded parts within
+        :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the object, the exact one
+        (:meth:`rounded_pair`: pybullet's distances of a capsule to a convex hull were
+        measured up to 5e-5 m off)."""
+        gap = self.bullet_gap(link)
+        if link in self.rounded and -EXACT_BAND <= gap <= EXACT_BAND:
+            gap = min(self.rounded_pair(link)[0], QUERY_DISTANCE)
+        return gap
+
+    def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
+        """(smallest :meth:`link_gap` of ``links``, capped at QUERY_DISTANCE; queries)."""
+        return min((self.link_gap(link) for link in links), default=QUERY_DISTANCE), len(links)
+
+    def rounded_pair(self, link: str) -> tuple[float, np.ndarray, np.ndarray, int]:
+        """(distance (metres), core point (3,), object point (3,), the object's convex part)
+        of the closest pair of a rounded link (:attr:`rounded`) and the object, in the
+        object's frame as placed (:attr:`placed`): the exact pair of each part's core
+        segment (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`), less
+        its radius, the least over the parts. Exact where the cores are apart from the
+        object (a rounded link near contact: its gap is its core's less a radius)."""
+        pose = rigid_inverse(self.placed) @ self.model_pose(link)
+        parts = self.rounded[link]
+        a = np.array([p.a for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
+        b = np.array([p.b for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
+        radii = np.array([p.radius for p in parts])
+        # beyond the exact band the pair is not needed: its distance is then a lower bound
+        on_obj, on_core, distance, part = closest_to_segments(
+            self.obj, a, b, float(radii.max()) + 2.0 * EXACT_BAND)
+        gaps = distance - radii
+        k = int(np.argmin(gaps))
+        return float(gaps[k]), on_core[k], on_obj[k], int(part[k])
+
+    def model_pose(self, link: str) -> np.ndarray:
+        """(4, 4) world pose of ``link``'s URDF frame at the joint values set, by the
+        robot model's own kinematics in double precision (one compiled pass:
+        :func:`~kinegrasp_env.closing.finger_paths.joint_tree`; pybullet's link frames,
+        :meth:`link_pose`, were measured up to 1e-7 m off them)."""
+        values = np.array([[self.values[name] for name in self._tree.model.actuated]])
+        return self._tree.pose(values, link)[0]
+
+    def penetrates(self, rows: list[tuple], start_tol: float) -> bool:
+        """Whether some closest-point row (robot link and object) goes deeper than
+        ``start_tol`` (metres) into the object: by pybullet's distance, or for a rounded
+        link within the exact band, by :meth:`rounded_pair`'s."""
+        for row in rows:
+            depth = self.distance(row)
+            if depth >= -start_tol:
+                continue
+            link = self.link_name[row[3]]
+            if link not in self.rounded or depth < -EXACT_BAND:
+                return True
+            if self.rounded_pair(link)[0] < -start_tol:
+                return True
+        return False
+
+    def place_object(self, pose: np.ndarray) -> None:
+        """The object body at ``pose`` (4, 4), where the contacts' frame follows it, and its
+        support table with it."""
+        self.placed = pose
+        position, orientation = matrix_to_pose(pose)
+        self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
+                                                    orientation)
+        if self._table is not None:
+            self.bullet.resetBasePositionAndOrientation(
+                self._table[0], *matrix_to_pose(pose @ self._table[1]))
+
+    def in_table(self, links: tuple[str, ...] | None = None) -> bool:
+        """Whether ``links`` (default: the whole robot) touch or enter the object's support
+        table (pybullet's closest points at 0 m; never without a table)."""
+        if self._table is None:
+            return False
+        robot, table = self.bodies["robot"], self._table[0]
+        rows = (self.bullet.getClosestPoints(robot, table, 0.0) if links is None else
+                [row for link in links for row in self.bullet.getClosestPoints(
+                    robot, table, 0.0, linkIndexA=self.link_index[link])])
+        return any(self.distance(row) <= 0.0 for row in rows)
+
