@@ -25,7 +25,7 @@ the wall time and on a shared one is not inflated by the other processes.
    qhull allocates outside numpy), each m in a fresh process.
    ``quality.wrenches.MAX_EDGES`` is chosen from this table.
 3. The L-infinity hull (``norm="linf"``: qhull of the (m + 1)^k Minkowski-sum points) per
-   ``--linf`` pair k x m, likewise; ``epsilon.LINF_MAX_POINTS`` is chosen from this table.
+   ``--linf`` pair k x m, likewise; ``qhull_quality.LINF_MAX_POINTS`` is chosen from this table.
 
 The three tables (seconds, MB, certified shares) also go to
 ``benchmarks/results/bench_quality_edges.json`` (``--json-out PATH``, ``--no-json``).

@@ -38,13 +38,12 @@ from kinegrasp_env.quality import (
     wrench_matrix,
 )
 from kinegrasp_env.quality.epsilon import (
-    LINF_MAX_POINTS,
     TABLES_MAX_EDGES,
     TABLES_MIN_EDGES,
     grasp_wrench_space_volume,
-    merge_close,
     uses_tables,
 )
+from kinegrasp_env.quality.qhull_quality import LINF_MAX_POINTS, merge_close
 from kinegrasp_env.quality.wrenches import FC_TOL, MAX_EDGES
 
 # Tolerances, each with what ~6,000 random examples (8 seeds, outside CI) measured:

@@ -6,7 +6,8 @@ Cones and wrenches are built by :mod:`kinegrasp_env.quality.wrenches`.
   all edge wrenches if the origin is strictly inside it (force closure), else 0; a
   rank-deficient wrench set is not in force closure.
 
-Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``);
+Three exact paths compute Q: ``method="qhull"`` (the reference: ``scipy.spatial.ConvexHull``,
+:mod:`kinegrasp_env.quality.qhull_quality`);
 with the L1 norm and at most ``expansion.MAX_POINTS`` wrenches, first a certified
 nearest-facet-first expansion (:mod:`kinegrasp_env.quality.expansion`, the fastest exact
 path: far cheaper than qhull, as it builds only the facets needed to certify the nearest one;
@@ -30,14 +31,19 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 if TYPE_CHECKING:
-    from scipy.spatial import ConvexHull
+    pass
 
+from kinegrasp_env.quality.qhull_quality import (
+    linf_points,
+    qhull_epsilon,
+    qhull_hull,
+    rank_deficient,
+)
 from kinegrasp_env.quality.wrenches import (
     BARELY_CLOSED,
     FC_TOL,
     MAX_EDGES,
     NOT_CLOSED,
-    RANK_TOL,
     check_contacts,
     check_parameters,
     check_wrenches,
@@ -51,11 +57,6 @@ from kinegrasp_env.quality.wrenches import (
 
 Method = Literal["auto", "fast", "qhull"]
 Norm = Literal["l1", "linf"]
-#: Largest number (m + 1)^k of Minkowski-sum points the L-infinity hull is built from. The
-#: hull's qhull time and memory grow steeply with the points (one grasp: 50 MB for 729 points
-#: (3 contacts, m = 8), 77-98 MB for 1,296-1,331, 170-190 MB for 2,197-4,096, 400 MB for
-#: 4,913; timings in benchmarks/bench_quality_edges.py, section 3).
-LINF_MAX_POINTS = 1500
 #: Cone edges m the three-contact tables serve: where they were the cheapest batched path
 #: against the expansion with its qhull fallback and against qhull (at m = 3 the expansion
 #: was cheaper; at 4 and 16 the two tied; at 24, 3 m beyond the expansion, only the tables
@@ -67,63 +68,6 @@ LINF_MAX_POINTS = 1500
 #: sets past its size (m = 22-24).
 TABLES_MIN_EDGES = 4
 TABLES_MAX_EDGES = 24
-#: Qhull options tried in turn: scipy's default, then merging pinched vertices and allowing
-#: wide merges (qhull's own advice when nearly coincident wrenches make it stop with a
-#: "wide merge" topology error on a set in force closure).
-QHULL_OPTIONS = (None, "Qx Q12 Q14")
-#: Wrenches closer than this fraction of the wrench scale (max |w|; Euclidean distance in 6-D)
-#: are merged into one before qhull is tried again, where it declines a set under every
-#: option (found by Hypothesis: coincident or 1e-12-apart contacts, whose identical wrenches
-#: make qhull stop with a topology error on a set in force closure). Moving each point by at
-#: most d changes every support value, hence Q, by at most d: the merged hull's Q is within
-#: MERGE_TOL of the wrench scale of the unmerged one's.
-MERGE_TOL = 1e-11
-
-
-# ----------------------------------------------------------------------------- qhull path
-def _rank_deficient(w: np.ndarray) -> bool:
-    """True when the affine hull of the points (N >= 7, 6) has dimension below 6."""
-    sv = np.linalg.svd(w - w.mean(axis=0), compute_uv=False)
-    return bool(sv[-1] <= RANK_TOL * max(sv[0], 1e-300))
-
-
-def merge_close(points: np.ndarray, tol: float) -> np.ndarray:
-    """The points (N, d) with each one closer than ``tol`` (Euclidean) to an earlier kept
-    point dropped: (M, d), M <= N, every dropped point within tol of a kept one."""
-    kept = [0] if len(points) else []
-    for i in range(1, len(points)):
-        if np.min(np.linalg.norm(points[kept] - points[i], axis=1)) > tol:
-            kept.append(i)
-    return points[kept]
-
-
-def _qhull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull hull of (N, 6) points under the first option of :data:`QHULL_OPTIONS` qhull
-    accepts, or None when it declines them all."""
-    from scipy.spatial import ConvexHull, QhullError
-
-    for options in QHULL_OPTIONS:
-        try:
-            return ConvexHull(points, qhull_options=options)
-        except QhullError:
-            continue
-    return None
-
-
-def _hull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull hull of (N, 6) points, or None when they are (numerically) rank-deficient or
-    qhull declines them with every option of :data:`QHULL_OPTIONS`, also after merging the
-    points within :data:`MERGE_TOL` of the wrench scale of each other."""
-    if points.shape[0] < 7 or _rank_deficient(points):
-        return None
-    hull = _qhull(points)
-    if hull is None:
-        merged = merge_close(points, MERGE_TOL * float(np.abs(points).max()))
-        if 7 <= len(merged) < len(points):
-            hull = _qhull(merged)
-    return hull
-
-
 def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -> bool:
     """True when ``auto``/``fast`` give these grasps to the three-contact tables when the
     expansion does not certify them (every one, past the expansion's size).
@@ -133,34 +77,6 @@ def uses_tables(num_contacts: int, num_edges: int, friction: float, norm: str) -
     for a subnormal mu)."""
     return (norm == "l1" and num_contacts == 3 and friction > FC_TOL
             and TABLES_MIN_EDGES <= num_edges <= TABLES_MAX_EDGES)
-
-
-def _epsilon_from_hull(hull: ConvexHull | None, scale: float) -> float:
-    if hull is None:
-        return 0.0
-    offsets = hull.equations[:, -1]  # unit outward normals: n . x + offset <= 0 inside
-    q = float(-offsets.max())
-    return 0.0 if closure_class(q, scale) == NOT_CLOSED else q
-
-
-def linf_points(w: np.ndarray, num_contacts: int) -> np.ndarray:
-    """Minkowski-sum points (P, 6) of the per-contact sets {0} U {edge wrenches}."""
-    per_contact = w.reshape(num_contacts, -1, 6)
-    count = (per_contact.shape[1] + 1) ** num_contacts
-    if count > LINF_MAX_POINTS:
-        raise ValueError(f"the L-infinity hull would need {count} points (more than "
-                         f"{LINF_MAX_POINTS}); use fewer contacts or edges")
-    total = np.zeros((1, 6))
-    for block in per_contact:
-        options = np.vstack([np.zeros((1, 6)), block])
-        total = (total[:, None, :] + options[None, :, :]).reshape(-1, 6)
-    return total
-
-
-def _qhull_epsilon(w: np.ndarray, num_contacts: int, norm: Norm) -> float:
-    pts = linf_points(w, num_contacts) if norm == "linf" else w
-    scale = float(np.abs(pts).max()) if pts.size else 1.0
-    return _epsilon_from_hull(_hull(pts), scale)
 
 
 # ----------------------------------------------------------------------------- public API
@@ -237,7 +153,7 @@ def exact_quality(w: np.ndarray, k: int, num_edges: int, friction: float, norm: 
         out[todo[certified]] = q[certified]
         todo = todo[~certified]
     for b in todo:
-        out[b] = _qhull_epsilon(w[b], k, norm)
+        out[b] = qhull_epsilon(w[b], k, norm)
     return out
 
 
@@ -261,7 +177,7 @@ def thresholded(q: float, w: np.ndarray) -> float:
     below FC_TOL of the scale, and 0 for a barely positive Q of a (numerically)
     rank-deficient set."""
     closure = closure_class(q, float(np.abs(w).max()))
-    if closure == NOT_CLOSED or (closure == BARELY_CLOSED and _rank_deficient(w)):
+    if closure == NOT_CLOSED or (closure == BARELY_CLOSED and rank_deficient(w)):
         return 0.0
     return float(q)
 
@@ -273,7 +189,7 @@ def thresholded_batch(q: np.ndarray, w: np.ndarray) -> np.ndarray:
     closure = closure_classes(np.ascontiguousarray(q, dtype=float), scale)
     out = np.where(closure == NOT_CLOSED, 0.0, q)
     for i in np.flatnonzero(closure == BARELY_CLOSED):  # rare: barely positive
-        if _rank_deficient(w[i]):
+        if rank_deficient(w[i]):
             out[i] = 0.0
     return out
 
@@ -311,7 +227,7 @@ def single_l1(w: np.ndarray, num_contacts: int) -> float:
             q, certified = expand_from(w, start, poly, ridges)
         if certified:
             return thresholded(q, w)
-    return _qhull_epsilon(w, num_contacts, "l1")
+    return qhull_epsilon(w, num_contacts, "l1")
 
 
 #: Python number types the one-call path takes as they are (bool is not one of them).
@@ -369,9 +285,9 @@ def compiled_single(points, normals, friction, num_edges, torque_scale, center,
         return q
     rows = w[:points.shape[0] * (num_edges + torsion_rows)]
     if status == single.CHECK_RANK:
-        return 0.0 if _rank_deficient(rows) else q
+        return 0.0 if rank_deficient(rows) else q
     if status == single.NOT_CERTIFIED:
-        return _qhull_epsilon(rows.copy(), points.shape[0], "l1")
+        return qhull_epsilon(rows.copy(), points.shape[0], "l1")
     return None
 
 
@@ -434,5 +350,5 @@ def grasp_wrench_space_volume(points, normals, *, friction: float = 0.5, num_edg
     w = wrench_matrix(points, normals, friction=friction, num_edges=num_edges,
                       torque_scale=torque_scale, center=center)
     pts = linf_points(w, np.shape(points)[0]) if norm == "linf" else w
-    hull = _hull(pts)
+    hull = qhull_hull(pts)
     return 0.0 if hull is None else float(hull.volume)

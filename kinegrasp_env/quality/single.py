@@ -17,11 +17,11 @@ import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.quality.expansion import MAX_POINTS, expand_from, screen
+from kinegrasp_env.quality.torsion import torsion_into
 from kinegrasp_env.quality.wrenches import (
     BARELY_CLOSED,
     NOT_CLOSED,
     closure_class,
-    torsion_into,
     unit_normals_into,
     wrench_size_ok,
     wrenches_into,

@@ -59,13 +59,13 @@ from kinegrasp_env.quality.epsilon import (
     ferrari_canny_batch,
     uses_tables,
 )
+from kinegrasp_env.quality.torsion import torsion_wrenches
 from kinegrasp_env.quality.wrenches import (
     check_contacts,
     check_parameters,
     check_wrenches,
     edge_wrenches,
     scale_center,
-    torsion_wrenches,
     wrench_matrix,
 )
 

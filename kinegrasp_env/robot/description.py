@@ -49,6 +49,18 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from kinegrasp_env.robot.description_fields import (
+    RobotDescriptionError,
+    check_arm_angle_links,
+    check_efforts,
+    check_hand_mount,
+    check_mapping,
+    check_names,
+    check_packages,
+    check_text,
+    fail,
+    joint_values,
+)
 from kinegrasp_env.robot.linkage import linkage_bars
 from kinegrasp_env.robot.model import RobotModel, load_urdf
 from kinegrasp_env.robot.urdf_meshes import MeshFile, MeshNotFound, urdf_meshes
@@ -59,10 +71,6 @@ REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "clos
 OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
                  "arm_angle_links", "hand_mount", "home", "arm_name")
 CONTACT_MODELS = ("point", "soft", "patch")
-
-
-class RobotDescriptionError(ValueError):
-    """A robot description refused: one line naming the file, the key and the value."""
 
 
 @dataclass(frozen=True)
@@ -150,31 +158,6 @@ class RobotDescription:
         return np.array([0.0] * self.arm_dof + [self.open[j] for j in self.hand_joints])
 
 
-def _fail(where: str, key: str, problem: str) -> RobotDescriptionError:
-    return RobotDescriptionError(" ".join(f"{where}: {key}: {problem}".split()))
-
-
-def _names(value, where: str, key: str) -> tuple[str, ...]:
-    if (not isinstance(value, list) or not value
-            or not all(isinstance(v, str) and v for v in value)):
-        raise _fail(where, key, f"expected a non-empty list of names, got {value!r}")
-    if len(set(value)) != len(value):
-        raise _fail(where, key, f"names repeated in {value!r}")
-    return tuple(value)
-
-
-def _mapping(value, where: str, key: str) -> dict:
-    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
-        raise _fail(where, key, f"expected a mapping of names to values, got {value!r}")
-    return value
-
-
-def _number(value, where: str, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(where, key, f"{value!r} is not a finite number")
-    return float(value)
-
-
 def load_description(path: str | Path) -> RobotDescription:
     """Read and check a robot description YAML file.
 
@@ -203,24 +186,24 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     where = path.name
     unknown = [k for k in data if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
     if unknown:
-        raise _fail(where, str(unknown[0]), f"unknown key (known: "
-                    f"{', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)})")
+        raise fail(where, str(unknown[0]), f"unknown key (known: "
+                   f"{', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)})")
     missing = [k for k in REQUIRED_KEYS if k not in data]
     if missing:
-        raise _fail(where, missing[0], "missing (required)")
+        raise fail(where, missing[0], "missing (required)")
     name = data["name"]
     if not isinstance(name, str) or not NAME_PATTERN.match(name):
-        raise _fail(where, "name", f"{name!r} is not a valid name (a letter or digit, then "
-                    "letters, digits, _ - .; 64 at most)")
+        raise fail(where, "name", f"{name!r} is not a valid name (a letter or digit, then "
+                   "letters, digits, _ - .; 64 at most)")
     if not isinstance(data["urdf"], str) or not data["urdf"]:
-        raise _fail(where, "urdf", f"expected a file path, got {data['urdf']!r}")
+        raise fail(where, "urdf", f"expected a file path, got {data['urdf']!r}")
     urdf = (path.parent / data["urdf"]).resolve()
     if not urdf.is_file():
-        raise _fail(where, "urdf", f"{data['urdf']!r}: no such file ({urdf})")
+        raise fail(where, "urdf", f"{data['urdf']!r}: no such file ({urdf})")
     try:
         model = load_urdf(urdf)
     except (ValueError, ET.ParseError) as exc:
-        raise _fail(where, "urdf", f"{data['urdf']!r} is not a usable URDF ({exc})") from None
+        raise fail(where, "urdf", f"{data['urdf']!r} is not a usable URDF ({exc})") from None
     movable = {j.name: j for j in model.joints if j.movable}
     by_child = {j.child: j for j in model.joints}
     links = set(model.links)
@@ -229,15 +212,15 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         if joint not in movable:
             kind = "a fixed joint" if any(j.name == joint for j in model.joints) else \
                 "unknown joint"
-            raise _fail(where, key, f"{kind} {joint!r} (movable joints in {urdf.name}: "
-                        f"{', '.join(movable)})")
+            raise fail(where, key, f"{kind} {joint!r} (movable joints in {urdf.name}: "
+                       f"{', '.join(movable)})")
         if movable[joint].mimic is not None:
-            raise _fail(where, key, f"{joint!r} is a mimic joint (it follows "
-                        f"{movable[joint].mimic[0]!r}); name the joint it follows")
+            raise fail(where, key, f"{joint!r} is a mimic joint (it follows "
+                       f"{movable[joint].mimic[0]!r}); name the joint it follows")
 
     def known_link(key: str, link: str) -> None:
         if not isinstance(link, str) or link not in links:
-            raise _fail(where, key, f"unknown link {link!r} in {urdf.name}")
+            raise fail(where, key, f"unknown link {link!r} in {urdf.name}")
 
     def ancestors(link: str) -> list[str]:
         """The links from ``link`` up to the root, ``link`` first."""
@@ -246,17 +229,17 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
             chain.append(by_child[chain[-1]].parent)
         return chain
 
-    arm = _names(data["arm_joints"], where, "arm_joints")
+    arm = check_names(data["arm_joints"], where, "arm_joints")
     for j in arm:
         known_joint("arm_joints", j)
     palm = data["palm_link"]
     known_link("palm_link", palm)
-    hand = _names(data["hand_joints"], where, "hand_joints")
+    hand = check_names(data["hand_joints"], where, "hand_joints")
     for j in hand:
         known_joint("hand_joints", j)
         if palm not in ancestors(movable[j].parent):
-            raise _fail(where, "hand_joints", f"{j!r} moves link {movable[j].child!r}, which "
-                        f"is not beyond palm_link {palm!r}")
+            raise fail(where, "hand_joints", f"{j!r} moves link {movable[j].child!r}, which "
+                       f"is not beyond palm_link {palm!r}")
     # the arm: exactly the movable joints on the path from the base to the palm, in order
     path_links = ancestors(palm)[::-1]
     chain = [by_child[link].name for link in path_links[1:] if by_child[link].movable]
@@ -268,19 +251,19 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         else:
             problem = (f"{list(arm)} is not the chain from the base {model.base_link!r} to "
                        f"palm_link {palm!r}: its movable joints are {chain}")
-        raise _fail(where, "arm_joints", problem)
+        raise fail(where, "arm_joints", problem)
 
     close = {}
-    for j, d in _mapping(data["close"], where, "close").items():
+    for j, d in check_mapping(data["close"], where, "close").items():
         if j not in hand:
-            raise _fail(where, "close", f"{j!r} is not one of hand_joints")
+            raise fail(where, "close", f"{j!r} is not one of hand_joints")
         if isinstance(d, bool) or d not in (1, -1):
-            raise _fail(where, "close", f"{j}: {d!r} is not +1 or -1")
+            raise fail(where, "close", f"{j}: {d!r} is not +1 or -1")
         close[j] = int(d)
     if not close:
-        raise _fail(where, "close", "give the closing direction of at least one hand joint")
-    opened = _joint_values(data, where, "open", hand, movable,
-                           lambda lo, hi: min(max(0.0, lo), hi))
+        raise fail(where, "close", "give the closing direction of at least one hand joint")
+    opened = joint_values(data, where, "open", hand, movable,
+                          lambda lo, hi: min(max(0.0, lo), hi))
 
     # links a hand joint moves (mimic followers included), and the finger links
     driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
@@ -289,12 +272,12 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     hand_links = [link for link in model.links
                   if any(m in ancestors(link) for m in moved)]
     if "finger_links" in data:
-        finger_links = _names(data["finger_links"], where, "finger_links")
+        finger_links = check_names(data["finger_links"], where, "finger_links")
         for link in finger_links:
             known_link("finger_links", link)
             if link not in hand_links:
-                raise _fail(where, "finger_links", f"{link!r} is not moved by any of "
-                            "hand_joints")
+                raise fail(where, "finger_links", f"{link!r} is not moved by any of "
+                           "hand_joints")
     else:
         finger_links = tuple(hand_links)
     parents = {by_child[link].parent for link in finger_links}
@@ -319,75 +302,24 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
                                         * math.copysign(1.0, driver[j.name][1]))
                                     for j in closing)))
 
-    efforts = {}
-    for j, v in _mapping(data.get("efforts", {}) or {}, where, "efforts").items():
-        if j not in movable:
-            raise _fail(where, "efforts", f"unknown movable joint {j!r}")
-        value = _number(v, where, f"efforts: {j}")
-        if value <= 0:
-            raise _fail(where, "efforts", f"{j}: {value:g} is not > 0")
-        efforts[j] = value
+    efforts = check_efforts(data, where, movable)
     contact_model = data.get("contact_model", default_contact_model(len(fingers)))
     if contact_model not in CONTACT_MODELS:
-        raise _fail(where, "contact_model", f"{contact_model!r} is not one of "
-                    f"{', '.join(CONTACT_MODELS)}")
-    packages = {}
-    for pkg, folder in _mapping(data.get("packages", {}) or {}, where, "packages").items():
-        if not isinstance(folder, str):
-            raise _fail(where, "packages", f"{pkg}: expected a folder path, got {folder!r}")
-        resolved = (path.parent / folder).resolve()
-        if not resolved.is_dir():
-            raise _fail(where, "packages", f"{pkg}: {folder!r} is not a folder ({resolved})")
-        packages[pkg] = resolved
-    angle_links = _arm_angle_links(data, where, arm, movable, path_links)
-    mount = _hand_mount(data, where, path_links, movable[arm[-1]].child)
-    home = _joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
-    arm_name = data.get("arm_name", f"{name} arm")
-    if not isinstance(arm_name, str) or not arm_name.strip():
-        raise _fail(where, "arm_name", f"expected a non-empty text, got {arm_name!r}")
+        raise fail(where, "contact_model", f"{contact_model!r} is not one of "
+                   f"{', '.join(CONTACT_MODELS)}")
+    packages = check_packages(data, where, path.parent)
+    angle_links = check_arm_angle_links(data, where, arm, movable, path_links)
+    mount = check_hand_mount(data, where, path_links, movable[arm[-1]].child)
+    home = joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
+    arm_name = check_text(data, where, "arm_name", f"{name} arm")
     try:
         meshes = urdf_meshes(urdf, packages)
     except MeshNotFound as exc:
-        raise _fail(where, exc.key, str(exc)) from None
+        raise fail(where, exc.key, str(exc)) from None
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes, mount, home,
                             arm_name)
-
-
-def _joint_values(data, where, key, joints, movable, default) -> dict[str, float]:
-    """Every joint of ``joints``'s value under ``key`` (a mapping, optional): the given one
-    (within the joint's limits), else ``default(lower, upper)``."""
-    given = _mapping(data.get(key, {}) or {}, where, key)
-    extra = [j for j in given if j not in joints]
-    if extra:
-        kind = "hand_joints" if key == "open" else "arm_joints"
-        raise _fail(where, key, f"{extra[0]!r} is not one of {kind}")
-    values = {}
-    for j in joints:
-        lo, hi = movable[j].lower, movable[j].upper
-        if j not in given:
-            values[j] = default(lo, hi)
-            continue
-        v = _number(given[j], where, f"{key}: {j}")
-        if not lo - 1e-12 <= v <= hi + 1e-12:
-            raise _fail(where, key, f"{j}: {v:g} is outside the joint's limits "
-                        f"[{lo:g}, {hi:g}]")
-        values[j] = v
-    return values
-
-
-def _hand_mount(data, where, path_links, flange: str) -> str:
-    """The ``hand_mount`` link ("" when not given): one of the links from the last arm
-    joint's child ``flange`` to the palm, which fixed joints join to both."""
-    if "hand_mount" not in data:
-        return ""
-    link = data["hand_mount"]
-    allowed = path_links[path_links.index(flange):]
-    if not isinstance(link, str) or link not in allowed:
-        raise _fail(where, "hand_mount", f"{link!r} is not a link from the last arm joint's "
-                    f"child to palm_link (one of {', '.join(allowed)})")
-    return link
 
 
 def default_contact_model(fingers: int) -> str:
@@ -398,16 +330,3 @@ def default_contact_model(fingers: int) -> str:
     return "soft" if fingers == 2 else "point"
 
 
-def _arm_angle_links(data, where, arm, movable, path_links) -> tuple[str, str, str] | None:
-    if "arm_angle_links" not in data:
-        if len(arm) != 7:
-            return None
-        return tuple(movable[arm[i]].child for i in (1, 3, 5))
-    names = _names(data["arm_angle_links"], where, "arm_angle_links")
-    if len(names) != 3:
-        raise _fail(where, "arm_angle_links", f"expected 3 links (shoulder, elbow, wrist), "
-                    f"got {list(names)}")
-    for link in names:
-        if link not in path_links:
-            raise _fail(where, "arm_angle_links", f"{link!r} is not a link of the arm chain")
-    return names
