@@ -263,8 +263,8 @@ def test_compiled_distances_against_numpy_and_the_exact_pair(grasps, engines):
         d = d.reshape(40, -1).min(axis=1)
         for below in (np.inf, float(np.median(d))):
             dist, fp, op = np.empty(40), np.empty((40, 3)), np.empty((40, 3))
-            vertices_against_parts(*hand._parts, rot, trans, geom.vertices, below, dist, fp,
-                                   op)
+            vertices_against_parts(*hand.distances.parts, rot, trans, geom.vertices, below,
+                                   dist, fp, op)
             under = d < below
             np.testing.assert_allclose(dist[under], d[under], atol=1e-12)
             assert np.all(dist[~under] >= below), link

@@ -7,7 +7,8 @@ parts, :mod:`~kinegrasp_env.closing.rounded_links`), expressed in the link's URD
 The distance of a link to the object is exact: the closest pair of two convex polytopes has
 a vertex of one or a point on an edge of each, so it is the least of the link's hull vertices
 against the object (:meth:`GraspObject.closest_points`) and of the object's edges against the
-link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`). A certified
+link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`;
+:mod:`~kinegrasp_env.closing.link_distances`). A certified
 lower bound of the same distance, within 1e-8 of it (relative) where the link and the object
 are apart, comes far cheaper from GJK on the hulls' vertices
 (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`); the exact pair is taken
@@ -56,12 +57,6 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
-from kinegrasp_env.closing.convex_distance import (
-    hull_distance_bounds,
-    new_simplex,
-    stacked_faces,
-    stacked_vertices,
-)
 from kinegrasp_env.closing.finger_closing import close_finger
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths
 from kinegrasp_env.closing.generic_reference import EDGE_TOL
@@ -72,21 +67,15 @@ from kinegrasp_env.closing.hand_errors import (
     world_to_object,
 )
 from kinegrasp_env.closing.hand_geometry import surface_contact
-from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
+from kinegrasp_env.closing.link_distances import LinkDistances
 from kinegrasp_env.closing.link_geometry import LinkGeometry, grid_error, robot_link_geometry
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
-from kinegrasp_env.closing.rounded_links import RoundedCores, contact_normals
-from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.closing.rounded_links import contact_normals
 from kinegrasp_env.closing.table_check import TableCheck
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.polytope import INSIDE_TOL
 from kinegrasp_env.world.sdf import DistanceGrid, grid_of
-
-#: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
-SEARCH = 40
-GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
 
 __all__ = ["FastRobotHand"]
 
@@ -121,15 +110,8 @@ class FastRobotHand:
         self._centres = np.array([centre[0] for centre, _ in spheres])  # (L, 3)
         self._radii = np.array([radius for _, radius in spheres])  # (L,)
         self.paths = finger_paths(description, self.geometry, self.kinematics)
-        planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
-        self._local_edges = np.empty_like(self.edges)
-        self._object_hulls = stacked_vertices(obj.convex_parts)
-        self._simplex = new_simplex()
-        self._link_hulls = {link: g.hulls for link, g in self.geometry.items() if g.parts}
+        self.distances = LinkDistances(self.geometry, obj, self.grid)
         self._link_faces = {link: g.faces for link, g in self.geometry.items() if g.parts}
-        self._rounded = {link: RoundedCores(geom.rounded, self._object_hulls, self._simplex,
-                                            self.grid)
-                         for link, geom in self.geometry.items() if geom.rounded}
         self._patch = PatchGeometry(obj.parts)
         self._flange, self._hand = flange_link(description), hand_links(description)
         self._in_hand = np.array([link in self._hand for link in self._links])  # (L,)
@@ -138,64 +120,19 @@ class FastRobotHand:
                     if (found := capsule_finger(f, path, self.geometry)) is not None]
         self._capsules = (CapsuleFingers(capsules, obj, self.grid, description.palm_link)
                           if capsules and compiled else None)
-        if self._rounded:  # the bounded search of a rounded part's start check, loaded now
-            far = np.full((1, 3), 10.0)  # (a held engine pays no compile or load mid-run)
-            closest_to_segments(obj, far, far, 1e-3)
-        self._parts = (planes, plane_starts, self.edges, edge_starts,
-                       np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
 
     # ------------------------------------------------------------------ distances
     def exact(self, poses: np.ndarray, link: str, below: float = np.inf,
-               decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(signed distance (n,), link point (n, 3), object point (n, 3), rounded (n,) bool)
-        of the closest pair of ``link`` placed by object-frame poses (n, 4, 4) and the
-        object, exact: the least of its polytopes' (:meth:`_exact_polytopes`) and of its
-        rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.RoundedCores`: then
-        ``rounded`` is set and the link point is the core's)."""
-        n = poses.shape[0]
-        if self.geometry[link].parts:
-            dist, fp, op = self._exact_polytopes(poses, link, below, decide)
-        else:
-            dist, fp, op = np.full(n, np.inf), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-        rounded = np.zeros(n, dtype=bool)
-        if link in self._rounded:
-            d, core, on_obj = self._rounded[link].exact(self.obj, poses, below)
-            rounded = d < dist
-            dist[rounded], fp[rounded], op[rounded] = d[rounded], core[rounded], on_obj[rounded]
-        return dist, fp, op, rounded
+              decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`~kinegrasp_env.closing.link_distances.LinkDistances.exact` of the
+        robot's links."""
+        return self.distances.exact(poses, link, below, decide)
 
-    def _exact_polytopes(self, poses: np.ndarray, link: str, below: float = np.inf,
-                         decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
-        pair of ``link``'s polytopes placed by object-frame poses (n, 4, 4) and the object,
-        exact: the least of the link's hull vertices against the object and of the object's
-        edges against each link hull (:func:`~kinegrasp_env.closing.hull_edges.
-        edges_against_hull`: :data:`SEARCH` golden steps along an edge). Every closest pair
-        of two convex polytopes has a vertex of one or a point on an edge of each. With
-        ``below``, edges that cannot bring a distance under it are skipped (a distance left
-        at or above ``below`` is then only an upper bound); with ``decide`` too, a draw whose
-        vertices already bring it below ``below`` is not searched further (its distance then
-        only an upper bound below ``below``: the answer to "is it below?")."""
-        geom = self.geometry[link]
-        n = poses.shape[0]
-        rot, trans = poses[:, :3, :3], poses[:, :3, 3]
-        rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
-        dist, fp, op = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
-        vertices_against_parts(*self._parts, rot, trans, geom.vertices, float(below), dist, fp,
-                               op)
-        rows = np.flatnonzero(~(dist < below)) if decide else None
-        if rows is not None:  # the edges of the undecided draws only
-            rot, trans = rot[rows], trans[rows]
-            d, f, o = dist[rows], fp[rows], op[rows]
-        else:
-            d, f, o = dist, fp, op
-        for part in geom.parts:
-            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
-                               self.edges, float(below), SEARCH, GOLD, d, f, o,
-                               self._local_edges)
-        if rows is not None:
-            dist[rows], fp[rows], op[rows] = d, f, o
-        return dist, fp, op
+    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
+                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`~kinegrasp_env.closing.link_distances.LinkDistances.distance_bound` of
+        the robot's links."""
+        return self.distances.distance_bound(poses, link, motion, short)
 
     def _object_poses(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None
                       ) -> np.ndarray:
@@ -246,28 +183,6 @@ class FastRobotHand:
                 dist = self.exact(pose[rows], link, -start_tol, decide=True)[0]
                 hit[rows[dist < -start_tol]] = True
         return hit
-
-    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
-                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
-        by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
-        or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
-        before a separating plane lets it come within ``short`` (metres), 0 without a
-        motion)
-        (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`; a rounded
-        part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`)."""
-        n = poses.shape[0]
-        out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
-        if link in self._link_hulls:
-            move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
-            hull_distance_bounds(*self._link_hulls[link],
-                                 np.ascontiguousarray(poses[:, :3, :3]),
-                                 np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
-                                 move, float(short), self._simplex, out, travel)
-        if link in self._rounded:
-            bound, far = self._rounded[link].bounds(poses, motion, short)
-            out, travel = np.minimum(out, bound), np.minimum(travel, far)
-        return out, travel
 
     # ------------------------------------------------------------------ closing
     def close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -382,7 +297,7 @@ class FastRobotHand:
         if edge.size:
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))
-            pair_normals(planes, edges, starts, self.edges,
+            pair_normals(planes, edges, starts, self.distances.edges,
                          np.ascontiguousarray(poses[edge, :3, :3]),
                          np.ascontiguousarray(poses[edge, :3, 3]), finger_point[edge],
                          point[edge], distance[edge], EDGE_TOL, LINE_TOL, np.empty((2, 3)),

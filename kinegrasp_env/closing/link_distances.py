@@ -1,0 +1,138 @@
+"""Distances of a robot's links to one object, for the fast generic closing: exact closest
+pairs and certified lower bounds, batched over poses.
+
+A link's collision geometry (:mod:`~kinegrasp_env.closing.link_geometry`) is polytopes and
+rounded parts. Its exact closest pair with the object is the least of its polytopes' (the
+link's hull vertices against the object's convex parts and the object's edges against each
+link hull: every closest pair of two convex polytopes has a vertex of one or a point on an
+edge of each) and its rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.
+RoundedCores`). Its lower bound: GJK on the hulls' vertices
+(:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`), with how far the link
+can move along a direction before a separating plane lets it near.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kinegrasp_env.closing.convex_distance import (
+    hull_distance_bounds,
+    new_simplex,
+    stacked_faces,
+    stacked_vertices,
+)
+from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
+from kinegrasp_env.closing.link_geometry import LinkGeometry
+from kinegrasp_env.closing.rounded_links import RoundedCores
+from kinegrasp_env.closing.segment_distance import closest_to_segments
+from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.polytope import INSIDE_TOL
+from kinegrasp_env.world.sdf import DistanceGrid
+
+#: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
+SEARCH = 40
+GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
+
+__all__ = ["GOLD", "SEARCH", "LinkDistances"]
+
+
+class LinkDistances:
+    """The links of ``geometry`` (link name -> :class:`~kinegrasp_env.closing.link_geometry.
+    LinkGeometry`) against the object ``obj`` (its distance grid ``grid``).
+
+    Attributes:
+        edges: the object's edges as the exact distances read them
+            (:func:`~kinegrasp_env.closing.convex_distance.stacked_faces`).
+        parts: the object's face planes and edges as
+            :func:`~kinegrasp_env.closing.hull_edges.vertices_against_parts` reads them.
+    """
+
+    def __init__(self, geometry: dict[str, LinkGeometry], obj: GraspObject,
+                 grid: DistanceGrid) -> None:
+        self.geometry, self.obj = geometry, obj
+        planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
+        self._local_edges = np.empty_like(self.edges)
+        self._object_hulls = stacked_vertices(obj.convex_parts)
+        self._simplex = new_simplex()
+        self._link_hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
+        self._rounded = {link: RoundedCores(g.rounded, self._object_hulls, self._simplex, grid)
+                         for link, g in geometry.items() if g.rounded}
+        self.parts = (planes, plane_starts, self.edges, edge_starts,
+                      np.array([INSIDE_TOL * p.scale for p in obj.convex_parts]))
+        if self._rounded:  # the bounded search of a rounded part's start check, loaded now
+            far = np.full((1, 3), 10.0)  # (a held engine pays no compile or load mid-run)
+            closest_to_segments(obj, far, far, 1e-3)
+
+    def exact(self, poses: np.ndarray, link: str, below: float = np.inf,
+               decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(signed distance (n,), link point (n, 3), object point (n, 3), rounded (n,) bool)
+        of the closest pair of ``link`` placed by object-frame poses (n, 4, 4) and the
+        object, exact: the least of its polytopes' (:meth:`polytopes`) and of its
+        rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.RoundedCores`: then
+        ``rounded`` is set and the link point is the core's)."""
+        n = poses.shape[0]
+        if self.geometry[link].parts:
+            dist, fp, op = self.polytopes(poses, link, below, decide)
+        else:
+            dist, fp, op = np.full(n, np.inf), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+        rounded = np.zeros(n, dtype=bool)
+        if link in self._rounded:
+            d, core, on_obj = self._rounded[link].exact(self.obj, poses, below)
+            rounded = d < dist
+            dist[rounded], fp[rounded], op[rounded] = d[rounded], core[rounded], on_obj[rounded]
+        return dist, fp, op, rounded
+
+    def polytopes(self, poses: np.ndarray, link: str, below: float = np.inf,
+                         decide: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(signed distance (n,), link point (n, 3), object point (n, 3)) of the closest
+        pair of ``link``'s polytopes placed by object-frame poses (n, 4, 4) and the object,
+        exact: the least of the link's hull vertices against the object and of the object's
+        edges against each link hull (:func:`~kinegrasp_env.closing.hull_edges.
+        edges_against_hull`: :data:`SEARCH` golden steps along an edge). Every closest pair
+        of two convex polytopes has a vertex of one or a point on an edge of each. With
+        ``below``, edges that cannot bring a distance under it are skipped (a distance left
+        at or above ``below`` is then only an upper bound); with ``decide`` too, a draw whose
+        vertices already bring it below ``below`` is not searched further (its distance then
+        only an upper bound below ``below``: the answer to "is it below?")."""
+        geom = self.geometry[link]
+        n = poses.shape[0]
+        rot, trans = poses[:, :3, :3], poses[:, :3, 3]
+        rot, trans = np.ascontiguousarray(rot), np.ascontiguousarray(trans)
+        dist, fp, op = np.empty(n), np.empty((n, 3)), np.empty((n, 3))
+        vertices_against_parts(*self.parts, rot, trans, geom.vertices, float(below), dist, fp,
+                               op)
+        rows = np.flatnonzero(~(dist < below)) if decide else None
+        if rows is not None:  # the edges of the undecided draws only
+            rot, trans = rot[rows], trans[rows]
+            d, f, o = dist[rows], fp[rows], op[rows]
+        else:
+            d, f, o = dist, fp, op
+        for part in geom.parts:
+            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
+                               self.edges, float(below), SEARCH, GOLD, d, f, o,
+                               self._local_edges)
+        if rows is not None:
+            dist[rows], fp[rows], op[rows] = d, f, o
+        return dist, fp, op
+
+    def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
+                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
+        by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
+        or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
+        before a separating plane lets it come within ``short`` (metres), 0 without a
+        motion)
+        (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`; a rounded
+        part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`)."""
+        n = poses.shape[0]
+        out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
+        if link in self._link_hulls:
+            move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
+            hull_distance_bounds(*self._link_hulls[link],
+                                 np.ascontiguousarray(poses[:, :3, :3]),
+                                 np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
+                                 move, float(short), self._simplex, out, travel)
+        if link in self._rounded:
+            bound, far = self._rounded[link].bounds(poses, motion, short)
+            out, travel = np.minimum(out, bound), np.minimum(travel, far)
+        return out, travel
