@@ -97,6 +97,8 @@ class RobotScene(GraspWorld):
         #: every movable joint's value as set (name -> radians or metres)
         self.values = {joint.name: 0.0 for joint in self.model.joints if joint.movable}
         self._tree = joint_tree(self.model, self.model.base_link)
+        #: the rounded links' poses at the joint values set (:meth:`model_pose`)
+        self._rounded_poses: dict[str, np.ndarray] | None = None
         #: the links made of capsules and spheres alone: their exact parts (link frame)
         self.rounded = {link: geometry.rounded
                         for link, geometry in robot_link_geometry(description).items()
@@ -108,6 +110,7 @@ class RobotScene(GraspWorld):
         #: the object's pose in this world: ``obj.pose``, but where a palm or object error
         #: places it for a closing
         self.placed = obj.pose
+        self._placed_inverse = rigid_inverse(obj.pose)
 
     # ------------------------------------------------------------------ state
     def set_configuration(self, q: np.ndarray) -> dict[str, float]:
@@ -122,6 +125,7 @@ class RobotScene(GraspWorld):
         for name, value in values.items():
             bullet.resetJointState(robot, self.joint_index[name], float(value))
             self.values[name] = float(value)
+        self._rounded_poses = None
 
     def link_pose(self, link: str) -> np.ndarray:
         """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics; the base's
@@ -182,7 +186,7 @@ class RobotScene(GraspWorld):
         segment (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`), less
         its radius, the least over the parts. Exact where the cores are apart from the
         object (a rounded link near contact: its gap is its core's less a radius)."""
-        pose = rigid_inverse(self.placed) @ self.model_pose(link)
+        pose = self._placed_inverse @ self.model_pose(link)
         parts = self.rounded[link]
         a = np.array([p.a for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
         b = np.array([p.b for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
@@ -198,9 +202,16 @@ class RobotScene(GraspWorld):
         """(4, 4) world pose of ``link``'s URDF frame at the joint values set, by the
         robot model's own kinematics in double precision (one compiled pass:
         :func:`~kinegrasp_env.closing.finger_paths.joint_tree`; pybullet's link frames,
-        :meth:`link_pose`, were measured up to 1e-7 m off them)."""
-        values = np.array([[self.values[name] for name in self._tree.model.actuated]])
-        return self._tree.pose(values, link)[0]
+        :meth:`link_pose`, were measured up to 1e-7 m off them). The rounded links' poses
+        are computed together, once per joint state."""
+        if self._rounded_poses is None:
+            values = np.array([[self.values[name] for name in self._tree.model.actuated]])
+            self._rounded_poses = self._tree.forward(values, [*self.rounded, link])
+        pose = self._rounded_poses.get(link)
+        if pose is None:
+            values = np.array([[self.values[name] for name in self._tree.model.actuated]])
+            return self._tree.pose(values, link)[0]
+        return pose[0]
 
     def penetrates(self, rows: list[tuple], start_tol: float) -> bool:
         """Whether some closest-point row (robot link and object) goes deeper than
@@ -221,6 +232,7 @@ class RobotScene(GraspWorld):
         """The object body at ``pose`` (4, 4), where the contacts' frame follows it, and its
         support table with it."""
         self.placed = pose
+        self._placed_inverse = rigid_inverse(pose)
         position, orientation = matrix_to_pose(pose)
         self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
                                                     orientation)
