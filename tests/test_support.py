@@ -233,6 +233,20 @@ def test_placed_copies_and_their_grasps(tabled):
         shipped_grasps(tabled["mug"], "panda")
 
 
+
+def test_a_sweep_reads_a_placed_copys_grasps_as_the_copy_stands_now(tabled):
+    """A sweep spec takes a placed copy's shipped set while the copy stands where its base
+    object does, and refuses it in one line once the copy is placed elsewhere under the same
+    name in the same process (the set is read per version of the object, not once)."""
+    from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec
+
+    data = {"objects": ["cube_again"], "sigmas": [0.01], "samples": 10}
+    place_object("cube", as_name="cube_again", force=True)
+    assert len(SweepSpec.from_dict(data).grasp_set("cube_again")) == len(shipped_grasps("cube"))
+    place_object("cube", as_name="cube_again", position=[0.5, 0.1, 0.1], force=True)
+    with pytest.raises(SpecError, match="stands elsewhere"):
+        SweepSpec.from_dict(data)
+
 def test_full_orientation_as_a_data_set_gives_it(tabled, capsys):
     """``--orientation X Y Z W``: the object's rotation is scipy's matrix of that quaternion
     (an independent conversion); position and table as asked; a tilted object stands without

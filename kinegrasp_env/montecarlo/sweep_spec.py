@@ -330,9 +330,21 @@ def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
     return _shipped_set(name, robot)
 
 
-@lru_cache(maxsize=32)
 def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
-    """The robot's shipped set of ``name`` (``assets/grasps/<robot>/``, read once)."""
+    """The robot's shipped set of ``name`` (``assets/grasps/<robot>/``; a placed copy's,
+    the copy as it stands now), read once per version of the object."""
+    from kinegrasp_env.world.objects import object_version
+
+    try:
+        version = object_version(name)
+    except ValueError:  # not in the catalog: the grasp lookup says so
+        version = ""
+    return _versioned_shipped_set(name, robot, version)
+
+
+@lru_cache(maxsize=32)
+def _versioned_shipped_set(name: str, robot: str, version: str) -> tuple[Grasp, ...]:
+    """:func:`_shipped_set` of one version of the object (``version``: the cache's key)."""
     from kinegrasp_env.world.grasps import shipped_grasps
 
     return tuple(shipped_grasps(name, robot))
