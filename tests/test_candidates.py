@@ -152,8 +152,8 @@ def test_repeated_ids_and_unknown_object_are_refused(tmp_path):
 def test_spread_sets_the_hands_one_pre_shape_only_joint():
     """``spread`` sets the joint ``close`` leaves out (the SDH's f1_spread, read from the YAML
     here, not through the description code), the other joints at their ``open`` values; no
-    ``hand`` and no ``spread``: the open pre-shape; a ``spread`` that contradicts ``hand`` is
-    refused."""
+    ``hand`` and no ``spread``: the open pre-shape; beside a ``hand`` mapping that leaves the
+    spread joint out, ``spread`` sets it; a ``spread`` that contradicts ``hand`` is refused."""
     import yaml
 
     from kinegrasp_env.assets import asset_path
@@ -171,3 +171,9 @@ def test_spread_sets_the_hands_one_pre_shape_only_joint():
     assert both.hand.tolist() == alone.tolist()
     with pytest.raises(ValueError, match=r"c: spread 0\.3 differs from hand's f1_spread 0\.25"):
         parse_palm_pose({**pose, "spread": 0.3, "hand": [0.25, *opened[1:]]}, "c")
+    # beside a hand mapping that leaves the spread joint out, spread sets it
+    flexion = raw["hand_joints"][1]
+    mapped = parse_palm_pose({**pose, "spread": 0.25, "hand": {flexion: 0.5}}, "c").hand
+    assert mapped.tolist() == [0.25, 0.5, *opened[2:]]
+    with pytest.raises(ValueError, match=r"c: spread 0\.3 differs from hand's f1_spread 0\.25"):
+        parse_palm_pose({**pose, "spread": 0.3, "hand": {"f1_spread": 0.25}}, "c")

@@ -165,8 +165,8 @@ def spread_joint(description: RobotDescription) -> str | None:
 def parse_hand(entry: dict, where: str, description: RobotDescription) -> np.ndarray:
     """(h,) pre-shape of robot ``description``: ``hand`` by joint name or as a list in
     ``hand_joints`` order, else the description's ``open`` pre-shape; ``spread`` sets the
-    hand's one pre-shape-only joint (:func:`spread_joint`), alone or equal to ``hand``'s
-    value; within the joint limits."""
+    hand's one pre-shape-only joint (:func:`spread_joint`): alone, beside a ``hand`` mapping
+    that leaves that joint out, or equal to ``hand``'s value; within the joint limits."""
     names = description.hand_joints
     value = entry.get("hand")
     if value is None:
@@ -185,7 +185,7 @@ def parse_hand(entry: dict, where: str, description: RobotDescription) -> np.nda
             raise ValueError(f"{where}: 'spread' sets a hand's one pre-shape-only joint; robot "
                              f"{description.name!r} has none: give {hand_hint(description)}")
         spread, i = float(_numbers(entry, "spread", (), where)), names.index(joint)
-        if value is None:
+        if value is None or (isinstance(value, dict) and joint not in value):
             hand[i] = spread
         elif not np.isclose(spread, hand[i]):
             raise ValueError(f"{where}: spread {spread:g} differs from hand's {joint} "
