@@ -17,10 +17,10 @@ forward kinematics of the URDF puts it. Then:
    touches (GraspIt's rule, :mod:`~kinegrasp_env.robot.touch_rule`: a touching proximal
    phalanx stops its own joint, the distal one goes on; a parallel gripper's coupled jaws
    close together, each stopping where it touches). t advances by conservative advancement:
-   the least over the moving links of each one's gap
-   (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.link_gap`) over a bound on how fast
-   any point of it moves per unit t, by the joints still turning (:meth:`RobotWorld._speeds`),
-   at least :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
+   the moving links' gap g (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.gap`)
+   over a bound v on how fast any point of them
+   moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`), at least
+   :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
    of freedom; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it
    does not. A link *touches* when its gap is within :data:`CONTACT_TOL` (such a finger's
    touch then polished to a zero gap by secant steps:
@@ -64,7 +64,7 @@ from kinegrasp_env.closing.contact_patch import (
     faces_of,
     link_hull_vertices,
 )
-from kinegrasp_env.closing.finger_paths import closing_joints
+from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.robot_scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
@@ -108,35 +108,25 @@ class RobotWorld(RobotScene):
                              for finger in description.fingers]
 
     # ------------------------------------------------------------------ closing
-    def _speeds(self, index: int, kinds, rates) -> np.ndarray:
-        """(K, J) how fast (metres per unit t) closing joint j can move a point of link k of
-        finger ``index``, at most, while it turns (0 where it does not move the link): |rate|
-        for a prismatic joint; for a revolute one, |rate| times a bound on the distance
-        from its axis to the link's points: the distances between the joint origins from
-        joint j to link k's own (constant: each origin is fixed in the link before it), plus
-        the largest from link k's origin to a corner of its AABB (which holds the link; the
-        distance is the same in every orientation).
+    def _speed(self, index: int, joints, kinds, rates) -> float:
+        """:func:`finger_speed` of finger ``index`` at the current state (its pre-shape).
 
         Measured anew for every closing: the world-aligned AABBs depend on the arm's pose, so
         a bound kept from another configuration would make a closing depend on the draws
         closed before it (and an evaluation on the grasps evaluated before it)."""
+        if all(kind == "prismatic" for kind in kinds):
+            return finger_speed(kinds, rates, np.zeros(len(joints)))
+        reach = []
         finger = self.description.fingers[index]
-        moves = self._touch_rules[index][1]
-        out = np.where(moves, np.abs(rates)[None, :], 0.0)
-        revolute = np.array([kind != "prismatic" for kind in kinds])
-        if not revolute.any():
-            return out
-        origins = np.array([self.link_pose(link)[:3, 3] for link in finger.links])
-        hops = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(origins, axis=0),
-                                                              axis=1))])
-        for k, link in enumerate(finger.links):
-            lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                                for z in (lo[2], hi[2])])
-            own = float(np.linalg.norm(corners - origins[k], axis=1).max())
-            for j in np.flatnonzero(moves[k] & revolute):
-                out[k, j] *= hops[k] - hops[j] + own
-        return out
+        for k in range(len(joints)):
+            origin = self.link_pose(finger.links[k])[:3, 3]
+            corners = []
+            for link in finger.links[k:]:
+                lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
+                corners += [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
+                            for c in (lo[2], hi[2])]
+            reach.append(float(np.max(np.linalg.norm(np.array(corners) - origin, axis=1))))
+        return finger_speed(kinds, rates, np.array(reach))
 
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
                    start_tol: float = START_TOL, palm: np.ndarray | None = None,
@@ -211,8 +201,7 @@ class RobotWorld(RobotScene):
         joints = finger.joints
         kinds, rates, lo, hi = closing_joints(self.description, finger)
         v0 = np.array([start[name] for name in joints])
-        speeds = self._speeds(f, kinds, rates)  # (K, J)
-        index = {link: k for k, link in enumerate(finger.links)}
+        speed = self._speed(f, joints, kinds, rates)
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
@@ -232,22 +221,21 @@ class RobotWorld(RobotScene):
             return tuple(link for k, link in enumerate(finger.links)
                          if not touched[k] and np.isinf(held[moves[k]]).any())
 
-        # gaps: each moving link's (link -> metres) at t, None after a touch moved the state
-        t, queries, g, gaps, clear = 0.0, 0, None, None, 0.0
+        t, queries, g, clear = 0.0, 0, None, 0.0
         values = put(t)
         for _ in range(MAX_STEPS):
             links = moving()
             t_end = float(np.max(ends, initial=0.0, where=np.isinf(held)))
             if not links or t >= t_end:
                 break
-            if gaps is None:  # unless the last step measured them
-                gaps = {link: self.link_gap(link) for link in links}
-                queries += len(links)
-            g = min(gaps.values())
+            if g is None:  # the moving links' gap, unless the last step measured it
+                g, n = self.gap(links)
+                queries += n
             if g <= contact_tol and not staged:  # one degree of freedom: the finger stops
                 break
             if g <= contact_tol:  # the links that touch stop their joints
-                touching = tuple(link for link in links if gaps[link] <= contact_tol)
+                touching = tuple(link for link in links if self.gap((link,))[0] <= contact_tol)
+                queries += len(links)
 
                 def gap_at(s: float, links=touching) -> float:
                     put(s)
@@ -258,20 +246,16 @@ class RobotWorld(RobotScene):
                 values = put(t)
                 queries += len(touching)
                 for k, link in enumerate(finger.links):
-                    if link in touching and self.link_gap(link) <= contact_tol:
+                    if link in touching and self.gap((link,))[0] <= contact_tol:
                         touched[k] = True
                         held[stops[k]] = np.minimum(held[stops[k]], t)
-                g = gaps = None
+                g = None
                 continue
-            # each moving link's gap over its speed bound by the joints still turning
-            speed = np.maximum(speeds @ np.isinf(held), 1e-9)
-            travel = min(gaps[link] / speed[index[link]] for link in links)
-            step = min(max(travel, least), t_end - t)
+            step = min(max(g / speed, least), t_end - t)
             for _ in range(MAX_HALVINGS):
                 values = put(t + step)
-                gaps = {link: self.link_gap(link) for link in links}
-                queries += len(links)
-                g = min(gaps.values())
+                g, n = self.gap(links)
+                queries += n
                 if g >= -contact_tol:
                     break
                 step *= 0.5
