@@ -3,8 +3,8 @@ description (``default_robot``), batched forward kinematics
 and Jacobians (``kinematics``), IK and the elbow's self-motion (``ik``), a grasp given as a
 palm pose and its IK (``palm_pose``), planar arms (``planar``) and end-effector noise
 statistics (``endeffector``); robots as data: a YAML description beside a URDF
-(``description``), the robot catalog (``catalog``) and its pictures (``picture``). Uses
-``sampling``.
+(``description``; its fields' checks in ``description_fields``), the robot catalog
+(``catalog``) and its pictures (``picture``). Uses ``sampling``.
 """
 
 from __future__ import annotations
