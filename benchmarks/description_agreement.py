@@ -157,26 +157,42 @@ def summarize(rows: list[dict], names: tuple[str, str] = ("loop", "kernel")) -> 
                for name in names}}
 
 
+def compare(objects: list[str], pair_of, draws: int,
+            names: tuple[str, str] = ("loop", "kernel")) -> list[dict]:
+    """:func:`grasp_row` of every shipped grasp of ``objects``: ``pair_of(object)`` gives the
+    two engines compared on it (closed afterwards), each warmed on one draw first."""
+    grasps = {obj: shipped_grasps(obj) for obj in objects}
+    corrected = 0.05 / sum(len(g) for g in grasps.values())
+    rows = []
+    for obj, kept in grasps.items():
+        first, second = pair_of(obj)
+        first.run(kept[0].q0[None]), second.run(kept[0].q0[None])  # compiled, warmed
+        for index, grasp in enumerate(kept):
+            rows.append(grasp_row(obj, index, grasp.q0, first, second, draws, corrected,
+                                  names))
+            median = rows[-1]["contact_offset_median"] or 0.0
+            print(f"{obj} {index}: same {rows[-1]['same']:.4f}, contacts {median:.1e} m "
+                  "apart (median)", flush=True)
+        first.close(), second.close()
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--objects", nargs="+", default=["cube", "drill", "mug", "spray_flask"])
     parser.add_argument("--draws", type=int, default=2000)
     add_options(parser, __file__)
     args = parser.parse_args()
-    grasps = {obj: shipped_grasps(obj) for obj in args.objects}
-    corrected = 0.05 / sum(len(g) for g in grasps.values())
-    rows = []
-    for obj, kept in grasps.items():
+
+    def pair_of(obj: str) -> tuple:
         loop, kernel = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
         loop.hand = FastRobotHand(loop.description, loop.obj, compiled=False)
-        loop.run(kept[0].q0[None]), kernel.run(kept[0].q0[None])  # compiled, warmed
-        for index, grasp in enumerate(kept):
-            rows.append(grasp_row(obj, index, grasp.q0, loop, kernel, args.draws, corrected))
-            print(f"{obj} {index}: same {rows[-1]['same']:.4f}", flush=True)
-    summary = summarize(rows)
-    result = {"sigma": SIGMA, "grasps": rows, "summary": summary, "settings": settings(args)}
-    publish(__file__, result, args, markdown(result), DOC, (START, END))
+        return loop, kernel
 
+    rows = compare(args.objects, pair_of, args.draws)
+    result = {"sigma": SIGMA, "grasps": rows, "summary": summarize(rows),
+              "settings": settings(args)}
+    publish(__file__, result, args, markdown(result), DOC, (START, END))
 
 if __name__ == "__main__":
     main()

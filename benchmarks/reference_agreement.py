@@ -23,16 +23,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from description_agreement import grasp_row, markdown, summarize
+from description_agreement import SIGMA, compare, markdown, summarize
 from results_file import add_options, publish, settings
 
 from kinegrasp_env.montecarlo.engines import make_engine as own_engine
 from kinegrasp_env.montecarlo.robot_engines import make_engine
-from kinegrasp_env.world.grasps import shipped_grasps
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "robot.md"
 START, END = "<!-- reference-agreement:start -->", "<!-- reference-agreement:end -->"
-SIGMA = 0.0133
 #: The two closings' names in the figures: the description robots' reference, the default
 #: robot's own.
 NAMES = ("description", "own")
@@ -44,20 +42,8 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=500)
     add_options(parser, __file__)
     args = parser.parse_args()
-    grasps = {obj: shipped_grasps(obj) for obj in args.objects}
-    corrected = 0.05 / sum(len(g) for g in grasps.values())
-    rows = []
-    for obj, kept in grasps.items():
-        with make_engine("pybullet", "kuka_sdh", obj) as description:
-            own = own_engine("pybullet", obj)
-            description.run(kept[0].q0[None]), own.run(kept[0].q0[None])  # warmed
-            for index, grasp in enumerate(kept):
-                rows.append(grasp_row(obj, index, grasp.q0, description, own, args.draws,
-                                      corrected, NAMES))
-                print(f"{obj} {index}: same {rows[-1]['same']:.4f}, contacts "
-                      f"{rows[-1]['contact_offset_median'] or 0:.1e} m apart (median)",
-                      flush=True)
-            own.close()
+    rows = compare(args.objects, lambda obj: (make_engine("pybullet", "kuka_sdh", obj),
+                                               own_engine("pybullet", obj)), args.draws, NAMES)
     result = {"sigma": SIGMA, "grasps": rows, "summary": summarize(rows, NAMES),
               "settings": settings(args)}
     publish(__file__, result, args, markdown(result, NAMES), DOC, (START, END))

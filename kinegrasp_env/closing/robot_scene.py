@@ -30,7 +30,13 @@ from kinegrasp_env.closing.table_check import table_in_object
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, GraspWorld, matrix_to_pose, pybullet
+from kinegrasp_env.world.sim import (
+    BulletWorld,
+    GraspWorld,
+    body_indices,
+    matrix_to_pose,
+    pybullet,
+)
 from kinegrasp_env.world.table_probe import table_body
 
 GEOM_MESH = pybullet.GEOM_MESH
@@ -73,12 +79,7 @@ class RobotScene(GraspWorld):
         robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
                                 flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
         self.bodies["robot"] = robot
-        self.joint_index: dict[str, int] = {}
-        self.link_index: dict[str, int] = {self.model.base_link: -1}
-        for j in range(bullet.getNumJoints(robot)):
-            info = bullet.getJointInfo(robot, j)
-            self.joint_index[info[1].decode()] = j
-            self.link_index[info[12].decode()] = j
+        self.joint_index, self.link_index = body_indices(bullet, robot, self.model.base_link)
         for link in self.link_index.values():
             bullet.changeDynamics(robot, link, collisionMargin=0.0)
         self.bodies["object"] = self._load_object(obj)

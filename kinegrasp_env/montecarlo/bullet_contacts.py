@@ -45,7 +45,7 @@ from kinegrasp_env.quality.epsilon import ferrari_canny
 from kinegrasp_env.quiet import quiet_c_output
 from kinegrasp_env.robot.default_robot import ARM_JOINTS, FINGERS, kuka_sdh, urdf_path
 from kinegrasp_env.world.objects import GraspObject, load_object
-from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
+from kinegrasp_env.world.sim import BulletWorld, body_indices, matrix_to_pose
 
 with quiet_c_output():  # pybullet prints its build time on import
     import pybullet
@@ -114,12 +114,7 @@ class BulletContactReference:
         bullet = self.world.bullet
         self.robot = bullet.loadURDF(str(urdf_path()), useFixedBase=True,
                                      flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
-        self.joint_index: dict[str, int] = {}
-        link_index: dict[str, int] = {}
-        for j in range(bullet.getNumJoints(self.robot)):
-            info = bullet.getJointInfo(self.robot, j)
-            self.joint_index[info[1].decode()] = j
-            link_index[info[12].decode()] = j
+        self.joint_index, link_index = body_indices(bullet, self.robot, self.model.base_link)
         for link in link_index.values():
             bullet.changeDynamics(self.robot, link, collisionMargin=0.0)
         self.parts = object_part_bodies(self.world, self.obj)

@@ -46,7 +46,7 @@ from kinegrasp_env.physics.pybullet_world import (
 )
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
+from kinegrasp_env.world.sim import BulletWorld, body_indices, matrix_to_pose
 from kinegrasp_env.world.table_probe import table_body
 
 #: The root link of the cut-out hand (the palm frame).
@@ -159,11 +159,7 @@ class RobotPhysicsWorld(PhysicsWorld):
             hand_urdf(self.description, path)
             hand = bullet.loadURDF(str(path), useFixedBase=False,
                                    flags=pybullet.URDF_INITIALIZE_SAT_FEATURES)
-        self.joint_index, self.link_index = {}, {ROOT_LINK: -1}
-        for j in range(bullet.getNumJoints(hand)):
-            info = bullet.getJointInfo(hand, j)
-            self.joint_index[info[1].decode()] = j
-            self.link_index[info[12].decode()] = j
+        self.joint_index, self.link_index = body_indices(bullet, hand, ROOT_LINK)
         for link in self.link_index.values():
             bullet.changeDynamics(hand, link, collisionMargin=0.0)
             bullet.changeDynamics(hand, link, lateralFriction=1.0)

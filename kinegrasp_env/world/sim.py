@@ -148,18 +148,25 @@ class BulletWorld:
             pass
 
 
+def body_indices(bullet, body: int, base_link: str) -> tuple[dict[str, int], dict[str, int]]:
+    """(joint name -> pybullet joint index, link name -> link index) of a body loaded in
+    ``bullet`` (a BulletClient) from a URDF; its base link ``base_link`` is -1."""
+    joint_index: dict[str, int] = {}
+    link_index: dict[str, int] = {base_link: -1}
+    for j in range(bullet.getNumJoints(body)):
+        info = bullet.getJointInfo(body, j)
+        joint_index[info[1].decode()] = j
+        link_index[info[12].decode()] = j
+    return joint_index, link_index
+
+
 def load_hand(bullet, fixed_base: bool = True) -> tuple[int, dict[str, int], dict[str, int]]:
     """The SDH hand URDF in ``bullet`` (a BulletClient): (body, joint name -> pybullet joint
     index, link name -> link index (-1: the root ``hand_root``)), every link's collision
     margin zero; ``fixed_base`` False: a dynamic root (the physics engine)."""
     hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=fixed_base,
                            flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
-    joint_index: dict[str, int] = {}
-    link_index: dict[str, int] = {"hand_root": -1}
-    for j in range(bullet.getNumJoints(hand)):
-        info = bullet.getJointInfo(hand, j)
-        joint_index[info[1].decode()] = j
-        link_index[info[12].decode()] = j
+    joint_index, link_index = body_indices(bullet, hand, "hand_root")
     for link in link_index.values():
         bullet.changeDynamics(hand, link, collisionMargin=0.0)
     return hand, joint_index, link_index
