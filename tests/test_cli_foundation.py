@@ -148,7 +148,7 @@ def test_a_usage_error_from_the_shell_is_one_line():
 
 @pytest.mark.parametrize(("argv", "needle"), [
     (["evaluate", "--object", "cube", "--grasp", "12"],
-     "--grasp: grasp index 12 out of range: cube has 12 grasps (0..11)"),
+     "--grasp: grasp index 12 out of range: cube has 12 grasps of robot kuka_sdh (0..11)"),
     (["evaluate", "--object", "cube", "--grasp", "-1"], "grasp index -1 out of range"),
     (["evaluate", "--grasp", "one"], "--grasp: 'one' is not an integer"),
     (["evaluate", "--object", "cube", "--sigma", "1e308", "--samples", "10", "--engine",

@@ -377,11 +377,10 @@ def shipped_grasp(object_name: str, text: str, robot: str | None = None):
     from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 
     index = parse_index(text)
+    robot = robot or DEFAULT_ROBOT
     with reported(NoGraspSetError):
-        grasps = (shipped_grasps(object_name) if robot in (None, DEFAULT_ROBOT)
-                  else shipped_grasps(object_name, robot))
+        grasps = shipped_grasps(object_name, robot)
     if not 0 <= index < len(grasps):
-        whose = "" if robot in (None, DEFAULT_ROBOT) else f" of robot {robot}"
         raise CLIError(f"--grasp: grasp index {index} out of range: {object_name} has "
-                       f"{len(grasps)} grasps{whose} (0..{len(grasps) - 1})")
+                       f"{len(grasps)} grasps of robot {robot} (0..{len(grasps) - 1})")
     return index, grasps[index]
