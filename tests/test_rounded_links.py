@@ -258,8 +258,8 @@ def test_the_default_robots_two_reference_closings_agree():
     closing (its hand alone in pybullet, the capsules placed by its own finger kinematics,
     its own stepping and polish: no closing code shared but the exact segment distance), on
     the same noisy draws: the same outcome on 99% and more (99.97% measured on 96,000 draws
-    of the four objects' shipped grasps: ``benchmarks/reference_agreement.py``; 97% held
-    here), and where the same links touch, contact points 2.1e-10 m apart at the 90th
+    of the four objects' shipped grasps: ``benchmarks/reference_agreement.py``; 158 of
+    these 160 held), and where the same links touch, contact points 2.1e-10 m apart at the 90th
     percentile (481 contacts; 1e-8 held; with pybullet's own distances near contact:
     1.1e-6 on these draws)."""
     from kinegrasp_env.montecarlo.engines import make_engine as own_engine
@@ -286,5 +286,5 @@ def test_the_default_robots_two_reference_closings_agree():
                         offsets += list(np.linalg.norm(a.points[i, oa] - b.points[i, ob],
                                                        axis=1))
         own.close()
-    assert same >= 0.97 * total, f"{same} of {total}"
+    assert same >= total - 2, f"{same} of {total}"
     assert len(offsets) > 200 and np.percentile(offsets, 90) <= 1e-8

@@ -233,7 +233,6 @@ def test_placed_copies_and_their_grasps(tabled):
         shipped_grasps(tabled["mug"], "panda")
 
 
-
 def test_a_sweep_reads_a_placed_copys_grasps_as_the_copy_stands_now(tabled):
     """A sweep spec takes a placed copy's shipped set while the copy stands where its base
     object does, and refuses it in one line once the copy is placed elsewhere under the same

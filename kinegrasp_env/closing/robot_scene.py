@@ -57,7 +57,6 @@ def hull_margin(bullet, body: int, link: int) -> float:
     return 0.0
 
 
-
 class RobotScene(GraspWorld):
     """A description robot (the whole URDF, fixed at the world origin) and one object.
 
@@ -104,6 +103,8 @@ class RobotScene(GraspWorld):
         self.rounded = {link: geometry.rounded
                         for link, geometry in robot_link_geometry(description).items()
                         if geometry.rounded and not geometry.parts}
+        self._band = {link: min(EXACT_BAND, min(part.radius for part in parts))
+                      for link, parts in self.rounded.items()}
         hand = hand_links(description)
         self._flange = flange_link(description)
         self._arm_links = tuple(link for link in self.link_index if link not in hand)
@@ -167,18 +168,25 @@ class RobotScene(GraspWorld):
 
     def link_gap(self, link: str) -> float:
         """The distance (metres) of ``link`` to the object, capped at QUERY_DISTANCE:
-        :meth:`bullet_gap`, or, for a link of rounded parts within
-        :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the object, the exact one
-        (:meth:`rounded_pair`: pybullet's distances of a capsule to a convex hull were
-        measured up to 5e-5 m off)."""
+        :meth:`bullet_gap`, or, for a link of rounded parts within :meth:`in_band` of the
+        object, the exact one (:meth:`rounded_pair`: pybullet's distances of a capsule to a
+        convex hull carry GJK's tolerance, 8.3e-6 m off measured, and its link frames are
+        single precision)."""
         gap = self.bullet_gap(link)
-        if link in self.rounded and -EXACT_BAND <= gap <= EXACT_BAND:
+        if self.in_band(link, gap):
             gap = min(self.rounded_pair(link)[0], QUERY_DISTANCE)
         return gap
 
     def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
         """(smallest :meth:`link_gap` of ``links``, capped at QUERY_DISTANCE; queries)."""
         return min((self.link_gap(link) for link in links), default=QUERY_DISTANCE), len(links)
+
+    def in_band(self, link: str, gap: float) -> bool:
+        """Whether ``link`` is a rounded link whose pybullet ``gap`` (metres) puts it within
+        the exact band of the object: above -:data:`~kinegrasp_env.closing.close_rules.
+        EXACT_BAND` and below it, and less deep than its thinnest part's radius (deeper, its
+        core could cross the object, where the exact pair is not exact)."""
+        return link in self.rounded and -self._band[link] <= gap <= EXACT_BAND
 
     def rounded_pair(self, link: str) -> tuple[float, np.ndarray, np.ndarray, int]:
         """(distance (metres), core point (3,), object point (3,), the object's convex part)
@@ -205,27 +213,25 @@ class RobotScene(GraspWorld):
         :func:`~kinegrasp_env.closing.finger_paths.joint_tree`; pybullet's link frames,
         :meth:`link_pose`, were measured up to 1e-7 m off them). The rounded links' poses
         are computed together, once per joint state."""
-        if self._rounded_poses is None:
-            values = np.array([[self.values[name] for name in self._tree.model.actuated]])
-            self._rounded_poses = self._tree.forward(values, [*self.rounded, link])
-        pose = self._rounded_poses.get(link)
-        if pose is None:
+        if link not in self.rounded:
             values = np.array([[self.values[name] for name in self._tree.model.actuated]])
             return self._tree.pose(values, link)[0]
-        return pose[0]
+        if self._rounded_poses is None:
+            values = np.array([[self.values[name] for name in self._tree.model.actuated]])
+            self._rounded_poses = self._tree.forward(values, list(self.rounded))
+        return self._rounded_poses[link][0].copy()
 
     def penetrates(self, rows: list[tuple], start_tol: float) -> bool:
         """Whether some closest-point row (robot link and object) goes deeper than
-        ``start_tol`` (metres) into the object: by pybullet's distance, or for a rounded
-        link within the exact band, by :meth:`rounded_pair`'s."""
+        ``start_tol`` (metres) into the object: for a rounded link within the exact band,
+        by :meth:`rounded_pair`'s distance (whichever side of ``start_tol`` pybullet's puts
+        it), else by pybullet's."""
         for row in rows:
             depth = self.distance(row)
-            if depth >= -start_tol:
-                continue
             link = self.link_name[row[3]]
-            if link not in self.rounded or depth < -EXACT_BAND:
-                return True
-            if self.rounded_pair(link)[0] < -start_tol:
+            if self.in_band(link, depth):
+                depth = self.rounded_pair(link)[0]
+            if depth < -start_tol:
                 return True
         return False
 

@@ -333,8 +333,6 @@ def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
 def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
     """The robot's shipped set of ``name`` (``assets/grasps/<robot>/``; a placed copy's,
     the copy as it stands now), read once per version of the object."""
-    from kinegrasp_env.world.objects import object_version
-
     try:
         version = object_version(name)
     except ValueError:  # not in the catalog: the grasp lookup says so
