@@ -167,6 +167,40 @@ def test_a_capsule_links_exact_distance_is_pybullets(draws, engines):
     assert checked >= 60 and near >= 20
 
 
+def test_a_rounded_links_gap_is_the_same_with_or_without_the_exact_first_shortcut(draws,
+                                                                                 engines):
+    """``RobotScene.link_gap`` measures a rounded link that was near contact at its previous
+    measurement exactly, without pybullet, where the exact gap lies inside the band by
+    ``BULLET_TOLERANCE`` (10x the largest gap between pybullet's distance and the exact one,
+    ``GAP_TOL``, above). At states around the reference's closed hands, the gap so measured
+    equals the one measured pybullet-first (the hint cleared) bit for bit, and the shortcut is
+    taken (the exact band's states are many)."""
+    from kinegrasp_env.closing.robot_scene import BULLET_TOLERANCE
+
+    assert BULLET_TOLERANCE >= 10 * GAP_TOL
+    shortcut = 0
+    for obj, q_all, _, _ in draws:
+        world = engines[obj][1].world
+        for q in q_all[:4]:
+            result = world.auto_close(q)
+            if result.start_collision:
+                continue
+            # each state measured with the hint its predecessor left (near contact, then
+            # farther from and nearer to it, then clear of it), then pybullet first
+            for opening in (0.0, -0.002, 0.002, -0.05, 0.0):
+                world.stage_joint_values({k: v + opening for k, v in result.joints.items()})
+                for link in world.rounded:
+                    hinted = link in world._near  # the hint (private)
+                    gap = world.link_gap(link)
+                    shortcut += hinted and world.surely_in_band(link, gap)
+                    world.place_object(world.placed)  # forgets the state's distances
+                    near = set(world._near)
+                    world._near.clear()
+                    assert world.link_gap(link) == gap, (link, opening)
+                    world._near = near
+    assert shortcut >= 20
+
+
 def test_a_draws_closing_does_not_depend_on_its_batch(engines):
     """The batched loop's staged fingers polish their touches in groups (the draws that touch
     over several steps wait for one polish): a draw's closing must be the one it has alone.

@@ -39,7 +39,7 @@ class RobotCloseResult:
         gaps: (fingers,) final gap of each finger, metres (NaN after a start collision).
         travel: (fingers,) final closing parameter t of each finger.
         joints: final value of every closing joint (name -> value).
-        queries: closest-point queries used.
+        queries: link distances measured (pybullet's closest points or exact pairs).
     """
 
     start_collision: bool

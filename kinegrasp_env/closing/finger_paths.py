@@ -62,17 +62,29 @@ def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> floa
         kinds: per closing joint, its URDF type.
         rates: (j,) d(joint value)/dt of each closing joint (the mimic multiplier times the
             close direction).
-        reach: (j,) metres: the largest distance from each joint's origin to a corner of the
-            bounding box of the links it moves (pybullet's AABBs at the pre-shape).
+        reach: (j,) metres: a bound on the distance from each joint's origin to any point
+            of the links it moves (:func:`finger_paths`).
 
     A prismatic joint moves its links at |rate|; a revolute one at |rate| times the distance
-    from its axis (at most ``reach``, doubled as margin: the distal joints of a finger also
-    move the links it carries). The sum bounds the speed of a point moved by all of them.
+    from its axis, at most ``reach`` (a bound that holds at every joint value: a point's
+    distance from the joint's origin is at most the lengths of the joint origins after it
+    and the point's distance from its own link's origin). The sum bounds the speed of a
+    point moved by all of them (each joint adds its own velocity to the point's).
     """
     speed = 0.0
     for kind, rate, r in zip(kinds, rates, reach, strict=True):
-        speed += abs(rate) * (1.0 if kind == "prismatic" else 2.0 * r)
+        speed += abs(rate) * (1.0 if kind == "prismatic" else r)
     return max(speed, 1e-9)
+
+
+def _offset_bound(joint) -> float:
+    """A bound (metres) on how far a joint puts its child frame from its parent's: its
+    origin's offset, and a prismatic joint's travel (its limits', where finite) besides."""
+    offset = float(np.linalg.norm(joint.origin[:3, 3]))
+    travel = max(abs(joint.lower), abs(joint.upper))
+    if joint.kind == "prismatic" and np.isfinite(travel):
+        offset += travel
+    return offset
 
 
 def closing_joints(description: RobotDescription, finger: Finger
@@ -113,7 +125,7 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
                 if name in names:
                     vertices = geometry[link].extent_points
                     far = max(far, float(np.linalg.norm(vertices, axis=1).max())
-                              + sum(float(np.linalg.norm(j.origin[:3, 3]))
+                              + sum(_offset_bound(j)
                                     for j in chains[link][names.index(name) + 1:]))
             reach.append(far)
         rows = [finger.links.index(link) for link in links]

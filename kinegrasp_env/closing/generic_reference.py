@@ -19,7 +19,8 @@ forward kinematics of the URDF puts it. Then:
    close together, each stopping where it touches). t advances by conservative advancement:
    the moving links' gap g (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.gap`)
    over a bound v on how fast any point of them
-   moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`), at least
+   moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`, the fast
+   closing's, from the URDF's joint offsets and link extents), at least
    :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
    of freedom; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it
    does not. A link *touches* when its gap is within :data:`CONTACT_TOL` (such a finger's
@@ -64,11 +65,12 @@ from kinegrasp_env.closing.contact_patch import (
     faces_of,
     link_hull_vertices,
 )
-from kinegrasp_env.closing.finger_paths import closing_joints, finger_speed
+from kinegrasp_env.closing.finger_paths import closing_joints, finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
+from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.robot_scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import rigid_inverse
+from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 
@@ -106,28 +108,12 @@ class RobotWorld(RobotScene):
         self.patch = patch
         self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
                              for finger in description.fingers]
+        #: per finger, the bound on its links' speed (metres per unit t) the fast closing
+        #: steps by (:func:`~kinegrasp_env.closing.finger_paths.finger_paths`)
+        self._speeds = [path.speed for path in finger_paths(
+            description, robot_link_geometry(description), Kinematics(self.model))]
 
     # ------------------------------------------------------------------ closing
-    def _speed(self, index: int, joints, kinds, rates) -> float:
-        """:func:`finger_speed` of finger ``index`` at the current state (its pre-shape).
-
-        Measured anew for every closing: the world-aligned AABBs depend on the arm's pose, so
-        a bound kept from another configuration would make a closing depend on the draws
-        closed before it (and an evaluation on the grasps evaluated before it)."""
-        if all(kind == "prismatic" for kind in kinds):
-            return finger_speed(kinds, rates, np.zeros(len(joints)))
-        reach = []
-        finger = self.description.fingers[index]
-        for k in range(len(joints)):
-            origin = self.link_pose(finger.links[k])[:3, 3]
-            corners = []
-            for link in finger.links[k:]:
-                lo, hi = self.bullet.getAABB(self.bodies["robot"], self.link_index[link])
-                corners += [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
-                            for c in (lo[2], hi[2])]
-            reach.append(float(np.max(np.linalg.norm(np.array(corners) - origin, axis=1))))
-        return finger_speed(kinds, rates, np.array(reach))
-
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
                    start_tol: float = START_TOL, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None) -> RobotCloseResult:
@@ -139,6 +125,15 @@ class RobotWorld(RobotScene):
         The world is left at the final state (every finger where it stopped).
         """
         start = self.set_configuration(q)
+        try:
+            return self._close_placed(start, contact_tol, start_tol, palm, object_offset)
+        finally:
+            self.sync()  # the world shows the closed hand
+
+    def _close_placed(self, start: dict[str, float], contact_tol: float, start_tol: float,
+                      palm: np.ndarray | None, object_offset: np.ndarray | None
+                      ) -> RobotCloseResult:
+        """:meth:`auto_close` from the configuration set (joint values ``start``)."""
         if palm is None and object_offset is None:
             return self._close(start, contact_tol, start_tol)
         believed = self.obj.pose
@@ -201,7 +196,7 @@ class RobotWorld(RobotScene):
         joints = finger.joints
         kinds, rates, lo, hi = closing_joints(self.description, finger)
         v0 = np.array([start[name] for name in joints])
-        speed = self._speed(f, joints, kinds, rates)
+        speed = self._speeds[f]
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
@@ -214,7 +209,7 @@ class RobotWorld(RobotScene):
         def put(t: float) -> dict:
             values = dict(zip(joints, np.clip(v0 + rates * np.minimum(t, held), lo, hi)
                               .tolist(), strict=True))
-            self.set_joint_values(values)
+            self.stage_joint_values(values)
             return values
 
         def moving() -> tuple[str, ...]:
@@ -270,6 +265,7 @@ class RobotWorld(RobotScene):
                      point: np.ndarray) -> np.ndarray:
         """The centre of ``link``'s patch on the face (:mod:`~kinegrasp_env.closing.
         contact_patch`), or ``point`` where there is none."""
+        self.sync()
         vertices = link_hull_vertices(self.bullet, self.bodies["robot"], self.link_index[link])
         if vertices is None:
             return point

@@ -11,7 +11,11 @@ margins pybullet subtracts (:func:`hull_margin`); for a link made of capsules an
 alone, within :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the object, the exact
 distance of its parts' core segments less their radii (:meth:`RobotScene.rounded_pair`, as
 the fast closing computes it: :mod:`~kinegrasp_env.closing.rounded_links`), so that where a
-rounded fingertip touches does not depend on pybullet's convex-hull tolerance.
+rounded fingertip touches does not depend on pybullet's convex-hull tolerance. A closing
+stages joint values (:meth:`RobotScene.stage_joint_values`) that pybullet takes before its
+next query, and each link's distance is measured once per state: a rounded link near contact
+is measured exactly with no pybullet call at all where its exact distance settles the rule
+(:meth:`RobotScene.surely_in_band`).
 
 The closing that moves the fingers in this world: :mod:`~kinegrasp_env.closing.
 generic_reference`.
@@ -41,7 +45,12 @@ from kinegrasp_env.world.table_probe import table_body
 
 GEOM_MESH = pybullet.GEOM_MESH
 
-__all__ = ["RobotScene", "hull_margin"]
+__all__ = ["BULLET_TOLERANCE", "RobotScene", "hull_margin"]
+
+#: How far (metres) pybullet's distance of a rounded link to the object may be trusted to
+#: lie from the exact one: its GJK tolerance was measured 8.3e-6 m off on capsules and convex
+#: hulls; 2e-4 m leaves a margin of 24x.
+BULLET_TOLERANCE = 2e-4
 
 
 def hull_margin(bullet, body: int, link: int) -> float:
@@ -99,6 +108,13 @@ class RobotScene(GraspWorld):
         self._tree = joint_tree(self.model, self.model.base_link)
         #: the rounded links' poses at the joint values set (:meth:`model_pose`)
         self._rounded_poses: dict[str, np.ndarray] | None = None
+        #: joint values staged but not yet set in pybullet (pybullet joint index -> value)
+        self._pending: dict[int, float] = {}
+        #: per link, its gap and its exact pair at the current state (cleared on any change)
+        self._gaps: dict[str, float] = {}
+        self._pairs: dict[str, tuple] = {}
+        #: rounded links within the exact band at their last measurement
+        self._near: set[str] = set()
         #: the links made of capsules and spheres alone: their exact parts (link frame)
         self.rounded = {link: geometry.rounded
                         for link, geometry in robot_link_geometry(description).items()
@@ -123,16 +139,41 @@ class RobotScene(GraspWorld):
 
     def set_joint_values(self, values: dict[str, float]) -> None:
         """Set the named joints (name -> radians or metres); the others keep theirs."""
-        bullet, robot = self.bullet, self.bodies["robot"]
+        self.stage_joint_values(values)
+        self.sync()
+
+    def stage_joint_values(self, values: dict[str, float]) -> None:
+        """Set the named joints (name -> radians or metres) in the scene's state; pybullet
+        takes them before its next query (:meth:`sync`), so a closing that measures a rounded
+        link exactly costs no pybullet call."""
+        changed = False
         for name, value in values.items():
-            bullet.resetJointState(robot, self.joint_index[name], float(value))
-            self.values[name] = float(value)
+            value = float(value)
+            if self.values[name] != value:
+                self.values[name] = value
+                self._pending[self.joint_index[name]] = value
+                changed = True
+        if changed:
+            self._forget()
+
+    def sync(self) -> None:
+        """Set the staged joint values in pybullet (one call)."""
+        if self._pending:
+            self.bullet.resetJointStatesMultiDof(self.bodies["robot"], list(self._pending),
+                                                 [[v] for v in self._pending.values()])
+            self._pending = {}
+
+    def _forget(self) -> None:
+        """Drop what was measured at the previous state."""
         self._rounded_poses = None
+        self._gaps = {}
+        self._pairs = {}
 
     def link_pose(self, link: str) -> np.ndarray:
         """(4, 4) world pose of a robot link's URDF frame (pybullet's kinematics; the base's
         from its centre-of-mass frame, which is what pybullet gives for a base, and its
         inertial offset)."""
+        self.sync()
         bullet, robot = self.bullet, self.bodies["robot"]
         index = self.link_index[link]
         if index < 0:
@@ -151,6 +192,7 @@ class RobotScene(GraspWorld):
     def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
         """pybullet closest points between the robot (or one of its links) and the object
         (rows as pybullet gives them; their distance: :meth:`distance`)."""
+        self.sync()
         kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
         return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
                                             max_distance, **kwargs)
@@ -172,9 +214,21 @@ class RobotScene(GraspWorld):
         object, the exact one (:meth:`rounded_pair`: pybullet's distances of a capsule to a
         convex hull carry GJK's tolerance, 8.3e-6 m off measured, and its link frames are
         single precision)."""
+        gap = self._gaps.get(link)
+        if gap is not None:
+            return gap
+        if link in self._near:  # near contact before: the exact gap, where it settles it
+            exact = self.rounded_pair(link)[0]
+            if self.surely_in_band(link, exact):
+                self._gaps[link] = exact
+                return exact
         gap = self.bullet_gap(link)
         if self.in_band(link, gap):
             gap = min(self.rounded_pair(link)[0], QUERY_DISTANCE)
+            self._near.add(link)
+        else:
+            self._near.discard(link)
+        self._gaps[link] = gap
         return gap
 
     def gap(self, links: tuple[str, ...]) -> tuple[float, int]:
@@ -188,6 +242,13 @@ class RobotScene(GraspWorld):
         core could cross the object, where the exact pair is not exact)."""
         return link in self.rounded and -self._band[link] <= gap <= EXACT_BAND
 
+    def surely_in_band(self, link: str, exact: float) -> bool:
+        """Whether a rounded link's exact gap (metres) lies so far inside the exact band that
+        pybullet's distance, within :data:`BULLET_TOLERANCE` of it, is in the band too: the
+        exact gap is then the link's gap (:meth:`link_gap`) without asking pybullet."""
+        return (-self._band[link] + BULLET_TOLERANCE <= exact
+                <= EXACT_BAND - BULLET_TOLERANCE)
+
     def rounded_pair(self, link: str) -> tuple[float, np.ndarray, np.ndarray, int]:
         """(distance (metres), core point (3,), object point (3,), the object's convex part)
         of the closest pair of a rounded link (:attr:`rounded`) and the object, in the
@@ -195,6 +256,13 @@ class RobotScene(GraspWorld):
         segment (:func:`~kinegrasp_env.closing.segment_distance.closest_to_segments`), less
         its radius, the least over the parts. Exact where the cores are apart from the
         object (a rounded link near contact: its gap is its core's less a radius)."""
+        pair = self._pairs.get(link)
+        if pair is None:
+            pair = self._pairs[link] = self._exact_pair(link)
+        return pair
+
+    def _exact_pair(self, link: str) -> tuple[float, np.ndarray, np.ndarray, int]:
+        """:meth:`rounded_pair`, computed."""
         pose = self._placed_inverse @ self.model_pose(link)
         parts = self.rounded[link]
         a = np.array([p.a for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
@@ -240,6 +308,7 @@ class RobotScene(GraspWorld):
         support table with it."""
         self.placed = pose
         self._placed_inverse = rigid_inverse(pose)
+        self._forget()
         position, orientation = matrix_to_pose(pose)
         self.bullet.resetBasePositionAndOrientation(self.bodies["object"], position,
                                                     orientation)
@@ -252,6 +321,7 @@ class RobotScene(GraspWorld):
         table (pybullet's closest points at 0 m; never without a table)."""
         if self._table is None:
             return False
+        self.sync()
         robot, table = self.bodies["robot"], self._table[0]
         rows = (self.bullet.getClosestPoints(robot, table, 0.0) if links is None else
                 [row for link in links for row in self.bullet.getClosestPoints(
