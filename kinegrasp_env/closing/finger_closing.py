@@ -4,9 +4,10 @@ generic closing (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`), th
 
 The finger's closing joints move with its parameter t; a link that touches stops the
 joints it holds (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`), the others go on,
-and a link whose joints have all stopped is not measured again. A step is the moving
-links' least gap lower bound over the finger's speed bound. A finger of several revolute
-degrees of freedom, whose touches can leave joints closing, steps at least
+and a link whose joints have all stopped is not measured again. A step is the least over
+the moving links of each one's gap lower bound over its speed bound by the joints still
+turning (:attr:`~kinegrasp_env.closing.finger_paths.FingerPath.speeds`). A finger of
+several revolute degrees of freedom, whose touches can leave joints closing, steps at least
 :data:`~kinegrasp_env.closing.close_rules.STEP` (a step that leaves a link deeper than the
 contact tolerance is halved and tried again) and its touches are polished to where the
 touching links' exact gap is zero (:data:`~kinegrasp_env.closing.close_rules.POLISH_TOL`:
@@ -194,7 +195,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
     v0, held = finger.v0, finger.held
     last = {link: (np.empty((m, 4, 4)), np.full(m, np.inf), np.empty((m, 3)),
                    np.empty((m, 3)), np.zeros(m, dtype=bool)) for link in path.links}
-    rates, speed = path.rates, path.speed
+    rates = path.rates
     with np.errstate(divide="ignore", invalid="ignore"):
         ends = np.where(rates > 0, (path.upper - v0) / rates,
                         np.where(rates < 0, (path.lower - v0) / rates, 0.0))
@@ -285,6 +286,8 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         go = ~new_touch & ~deep & (t[active] < t_end)
         lower[touched[active]] = np.inf  # a link that touched no longer bounds the step
         turn = np.maximum(t_turn[active] - t[active], 0.0)
+        # each link's bound by the joints still turning (a, K)
+        speed = np.maximum(np.isinf(held[active]).astype(float) @ path.speeds.T, 1e-9)
         step = np.min(np.maximum(np.maximum(lower, 0.0) / speed,
                                  np.minimum(travel, turn[:, None])), axis=1)
         now = active[go]

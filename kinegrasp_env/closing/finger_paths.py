@@ -17,8 +17,8 @@ from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
-__all__ = ["FingerPath", "closing_joints", "finger_paths", "finger_speed", "joint_tree",
-           "link_poses", "palm_tree", "tree_poses"]
+__all__ = ["FingerPath", "closing_joints", "finger_paths", "joint_tree", "link_poses",
+           "link_speeds", "palm_tree", "tree_poses"]
 
 
 @dataclass(frozen=True)
@@ -32,8 +32,9 @@ class FingerPath:
         lower, upper: (J,) the joints' limits (metres or radians).
         links: the finger's links with collision geometry.
         chains: link -> the joints from the palm to it, palm first.
-        speed: bound on the speed (metres per unit t) of any point of its links
-            (:func:`finger_speed`).
+        speeds: (K, J) bound on the speed (metres per unit t) that closing joint j gives any
+            point of link k while it turns (:func:`link_speeds`): a link's bound while the
+            joints ``turning`` (J,) bool turn is ``speeds @ turning``.
         translating: every closing joint is prismatic (the links translate).
         moves: (K, J) bool, link k (of ``links``) moves with closing joint j.
         stops: (K, J) bool, joint j stops when link k touches
@@ -48,33 +49,34 @@ class FingerPath:
     upper: np.ndarray
     links: tuple[str, ...]
     chains: dict[str, list]
-    speed: float
+    speeds: np.ndarray
     translating: bool
     moves: np.ndarray
     stops: np.ndarray
     tree: Kinematics
 
 
-def finger_speed(kinds: list[str], rates: np.ndarray, reach: np.ndarray) -> float:
-    """Bound v (metres per unit t) on the speed of any point of a finger's links.
+def link_speeds(kinds: list[str], rates: np.ndarray, reach: np.ndarray,
+                carries: np.ndarray) -> np.ndarray:
+    """(K, J) bound (metres per unit t) on the speed closing joint j gives a point of link k.
 
     Args:
         kinds: per closing joint, its URDF type.
-        rates: (j,) d(joint value)/dt of each closing joint (the mimic multiplier times the
+        rates: (J,) d(joint value)/dt of each closing joint (the mimic multiplier times the
             close direction).
-        reach: (j,) metres: a bound on the distance from each joint's origin to any point
-            of the links it moves (:func:`finger_paths`).
+        reach: (K, J) metres: a bound on the distance from joint j's origin to any point of
+            link k (:func:`finger_paths`).
+        carries: (K, J) bool: joint j moves link k (0 speed elsewhere).
 
-    A prismatic joint moves its links at |rate|; a revolute one at |rate| times the distance
-    from its axis, at most ``reach`` (a bound that holds at every joint value: a point's
-    distance from the joint's origin is at most the lengths of the joint origins after it
-    and the point's distance from its own link's origin). The sum bounds the speed of a
-    point moved by all of them (each joint adds its own velocity to the point's).
+    A prismatic joint moves the links it carries at |rate|; a revolute one at |rate| times
+    the point's distance from its axis, at most ``reach`` (a bound that holds at every joint
+    value: a point's distance from the joint's origin is at most the lengths of the joint
+    origins after it and the point's distance from its own link's origin). Each joint adds
+    its own velocity to a point's, so the sum over the joints turning bounds its speed.
     """
-    speed = 0.0
-    for kind, rate, r in zip(kinds, rates, reach, strict=True):
-        speed += abs(rate) * (1.0 if kind == "prismatic" else r)
-    return max(speed, 1e-9)
+    prismatic = np.array([kind == "prismatic" for kind in kinds], dtype=bool)
+    return np.where(carries, np.abs(rates)[None, :] * np.where(prismatic[None, :], 1.0, reach),
+                    0.0)
 
 
 def _offset_bound(joint) -> float:
@@ -117,20 +119,19 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
         kinds, rates, lower, upper = closing_joints(description, finger)
         links = tuple(link for link in finger.links if link in geometry)
         chains = {link: kinematics.chain(link)[palm:] for link in links}
-        reach = []
-        for name in finger.joints:  # largest distance from the joint to points it moves
-            far = 0.0
-            for link in links:
-                names = [j.name for j in chains[link]]
+        reach = np.zeros((len(links), len(finger.joints)))
+        carries = np.zeros(reach.shape, dtype=bool)
+        for k, link in enumerate(links):  # the largest distance from joint j to link k
+            names = [j.name for j in chains[link]]
+            extent = float(np.linalg.norm(geometry[link].extent_points, axis=1).max())
+            for j, name in enumerate(finger.joints):
                 if name in names:
-                    vertices = geometry[link].extent_points
-                    far = max(far, float(np.linalg.norm(vertices, axis=1).max())
-                              + sum(_offset_bound(j)
-                                    for j in chains[link][names.index(name) + 1:]))
-            reach.append(far)
+                    carries[k, j] = True
+                    reach[k, j] = extent + sum(_offset_bound(joint)
+                                               for joint in chains[link][names.index(name) + 1:])
         rows = [finger.links.index(link) for link in links]
         out.append(FingerPath(tuple(finger.joints), rates, lower, upper, links, chains,
-                              finger_speed(kinds, rates, np.array(reach)),
+                              link_speeds(kinds, rates, reach, carries),
                               all(kind == "prismatic" for kind in kinds),
                               moved_by(finger)[rows], touch_stops(model, finger)[rows],
                               palm_tree(description, chains)))

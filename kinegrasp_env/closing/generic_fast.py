@@ -22,8 +22,9 @@ only where that bound is within reach of a contact or says the two overlap.
 2. *Closing*: each finger by its parameter t (its closing joints at the pre-shape value plus
    ``rate * t``, clipped at their limits, until a link that stops them touches), by
    conservative advancement (:mod:`~kinegrasp_env.closing.finger_closing`): t grows by the
-   moving links' gap lower bound over the finger's speed bound
-   (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`). The lower bound is GJK's;
+   least over the moving links of each one's gap lower bound over its speed bound by the
+   joints still turning (:func:`~kinegrasp_env.closing.finger_paths.link_speeds`). The
+   lower bound is GJK's;
    where it is within ``contact_tol`` (or the hulls overlap) the exact distance replaces it.
    A finger whose closing joints are all prismatic translates its links: it steps at least
    as far as their separating planes allow, up to its first joint's limit; a revolute one at

@@ -17,10 +17,11 @@ forward kinematics of the URDF puts it. Then:
    touches (GraspIt's rule, :mod:`~kinegrasp_env.robot.touch_rule`: a touching proximal
    phalanx stops its own joint, the distal one goes on; a parallel gripper's coupled jaws
    close together, each stopping where it touches). t advances by conservative advancement:
-   the moving links' gap g (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.gap`)
-   over a bound v on how fast any point of them
-   moves per unit t (:func:`~kinegrasp_env.closing.finger_paths.finger_speed`, the fast
-   closing's, from the URDF's joint offsets and link extents), at least
+   the least over the moving links of each one's gap
+   (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.link_gap`) over a bound on how fast
+   any point of it moves per unit t by the joints still turning
+   (:func:`~kinegrasp_env.closing.finger_paths.link_speeds`, the fast closing's, from the
+   URDF's joint offsets and link extents), at least
    :data:`~kinegrasp_env.closing.close_rules.STEP` for a finger of several revolute degrees
    of freedom; a step that leaves a link deeper than :data:`CONTACT_TOL` is halved until it
    does not. A link *touches* when its gap is within :data:`CONTACT_TOL` (such a finger's
@@ -108,10 +109,12 @@ class RobotWorld(RobotScene):
         self.patch = patch
         self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
                              for finger in description.fingers]
-        #: per finger, the bound on its links' speed (metres per unit t) the fast closing
-        #: steps by (:func:`~kinegrasp_env.closing.finger_paths.finger_paths`)
-        self._speeds = [path.speed for path in finger_paths(
-            description, robot_link_geometry(description), Kinematics(self.model))]
+        #: per finger, each link's speed bounds by closing joint (link -> (J,), metres per
+        #: unit t), those the fast closing steps by (:func:`~kinegrasp_env.closing.
+        #: finger_paths.link_speeds`)
+        self._speeds = [dict(zip(path.links, path.speeds, strict=True)) for path in
+                        finger_paths(description, robot_link_geometry(description),
+                                     Kinematics(self.model))]
 
     # ------------------------------------------------------------------ closing
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -196,7 +199,7 @@ class RobotWorld(RobotScene):
         joints = finger.joints
         kinds, rates, lo, hi = closing_joints(self.description, finger)
         v0 = np.array([start[name] for name in joints])
-        speed = self._speeds[f]
+        speeds = self._speeds[f]
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
@@ -246,7 +249,11 @@ class RobotWorld(RobotScene):
                         held[stops[k]] = np.minimum(held[stops[k]], t)
                 g = None
                 continue
-            step = min(max(g / speed, least), t_end - t)
+            # each moving link's gap over its speed bound by the joints still turning
+            turning = np.isinf(held)
+            travel = min((self.link_gap(link) / max(float(speeds[link] @ turning), 1e-9)
+                          for link in links if link in speeds), default=t_end - t)
+            step = min(max(travel, least), t_end - t)
             for _ in range(MAX_HALVINGS):
                 values = put(t + step)
                 g, n = self.gap(links)

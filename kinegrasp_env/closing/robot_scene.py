@@ -121,6 +121,11 @@ class RobotScene(GraspWorld):
                         if geometry.rounded and not geometry.parts}
         self._band = {link: min(EXACT_BAND, min(part.radius for part in parts))
                       for link, parts in self.rounded.items()}
+        #: per rounded link, its parts' core ends (m, 3) each and radii (m,), link frame
+        self._cores = {link: (np.array([p.a for p in parts]), np.array([p.b for p in parts]),
+                              np.array([p.radius for p in parts]))
+                       for link, parts in self.rounded.items()}
+        self._rounded_links = list(self.rounded)
         hand = hand_links(description)
         self._flange = flange_link(description)
         self._arm_links = tuple(link for link in self.link_index if link not in hand)
@@ -263,11 +268,10 @@ class RobotScene(GraspWorld):
 
     def _exact_pair(self, link: str) -> tuple[float, np.ndarray, np.ndarray, int]:
         """:meth:`rounded_pair`, computed."""
-        pose = self._placed_inverse @ self.model_pose(link)
-        parts = self.rounded[link]
-        a = np.array([p.a for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
-        b = np.array([p.b for p in parts]) @ pose[:3, :3].T + pose[:3, 3]
-        radii = np.array([p.radius for p in parts])
+        pose = self._placed_inverse @ self._rounded_pose(link)
+        a, b, radii = self._cores[link]
+        a = a @ pose[:3, :3].T + pose[:3, 3]
+        b = b @ pose[:3, :3].T + pose[:3, 3]
         # beyond the exact band the pair is not needed: its distance is then a lower bound
         on_obj, on_core, distance, part = closest_to_segments(
             self.obj, a, b, float(radii.max()) + 2.0 * EXACT_BAND)
@@ -284,10 +288,15 @@ class RobotScene(GraspWorld):
         if link not in self.rounded:
             values = np.array([[self.values[name] for name in self._tree.model.actuated]])
             return self._tree.pose(values, link)[0]
+        return self._rounded_pose(link).copy()
+
+    def _rounded_pose(self, link: str) -> np.ndarray:
+        """:meth:`model_pose` of a rounded link, the cached array itself (not to be
+        changed)."""
         if self._rounded_poses is None:
             values = np.array([[self.values[name] for name in self._tree.model.actuated]])
-            self._rounded_poses = self._tree.forward(values, list(self.rounded))
-        return self._rounded_poses[link][0].copy()
+            self._rounded_poses = self._tree.forward(values, self._rounded_links)
+        return self._rounded_poses[link][0]
 
     def penetrates(self, rows: list[tuple], start_tol: float) -> bool:
         """Whether some closest-point row (robot link and object) goes deeper than
