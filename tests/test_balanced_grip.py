@@ -29,11 +29,11 @@ def test_the_layout_is_the_sdh_holding_tests_own_grip_joints():
     """In one pybullet world of the SDH, at a closed pre-shape: axes (closing positive),
     points on them, fingers, first links carried, torque bounds and fingertips equal those of
     the SDH's holding test (its joint list and torques written by hand)."""
-    from kinegrasp_env.closing.reference import hand_joint_values
     from kinegrasp_env.physics.hold_runner import GRIP_JOINTS
     from kinegrasp_env.physics.pybullet_closing import MotorSettings
     from kinegrasp_env.physics.pybullet_hold import grip_joints_now
     from kinegrasp_env.physics.pybullet_world import PhysicsWorld
+    from kinegrasp_env.robot.default_robot import hand_joint_values
     from kinegrasp_env.world.objects import load_object
 
     world = PhysicsWorld(load_object("mug"))

@@ -9,7 +9,7 @@ import trimesh
 from scipy.interpolate import RegularGridInterpolator
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
-from kinegrasp_env.closing.reference import secant_root
+from kinegrasp_env.closing.close_rules import secant_root
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp

@@ -9,10 +9,9 @@ import pytest
 pytest.importorskip("mujoco")
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES
-from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
+from kinegrasp_env.robot.default_robot import default_hand_mount, hand_joint_values, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import load_urdf
 from kinegrasp_env.world.grasps import grasp_by_index

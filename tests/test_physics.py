@@ -14,7 +14,7 @@ import numpy as np
 import pybullet
 import pytest
 
-from kinegrasp_env.closing.reference import auto_close, hand_joint_values
+from kinegrasp_env.closing.generic_reference import RobotWorld
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     MISSED,
@@ -51,13 +51,18 @@ from kinegrasp_env.physics.pybullet_hold import (
     run_phases,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings, pose_matrix
-from kinegrasp_env.robot.default_robot import FINGERS, default_hand_mount, kuka_sdh
+from kinegrasp_env.robot.default_robot import (
+    FINGERS,
+    default_description,
+    default_hand_mount,
+    hand_joint_values,
+    kuka_sdh,
+)
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import load_object
-from kinegrasp_env.world.sim import GraspWorld
 
 KIN = Kinematics(kuka_sdh())
 MOUNT = default_hand_mount()  # the link whose pose places the hand
@@ -259,13 +264,14 @@ def _compare_with_kinematic(name: str, indices) -> list[tuple[float, float]]:
     """(point distance m, normal angle rad) of every contact pair: physics closing with the
     object fixed and no noise against the kinematic reference, per shipped grasp."""
     obj = load_object(name)
-    world, reference = PhysicsWorld(obj, WorldSettings(object_free=False)), GraspWorld(obj)
+    world = PhysicsWorld(obj, WorldSettings(object_free=False))
+    reference = RobotWorld(default_description(), obj)
     out = []
     try:
         for i in indices:
             q0 = shipped_grasps(name)[i].q0
             root = KIN.pose(q0[None], MOUNT)[0]
-            ref = auto_close(reference, root, q0[7:])
+            ref = reference.auto_close(q0)
             phys = physics_close(world, root, q0[7:])
             assert not phys.start_collision and not any(phys.missed)
             ref_contacts = {(c.finger, c.link): c for c in ref.contacts}

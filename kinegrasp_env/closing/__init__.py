@@ -11,9 +11,8 @@ helpers ``finger_axes`` and ``capsule_gap``, the exact capsule-object pairs of
 ``segment_distance`` (its packed parts: ``packed_geometry``, its small kernels:
 ``segment_primitives``)); pads pressed on faces at their patch centres (``contact_patch``), a
 closing's contacts and result (``close_result``), where palm and object pose errors put
-the links (``hand_errors``). The default robot's own pybullet reference:
-``reference.auto_close`` (its hand in pybullet: ``hand_probe``; its capsules' contacts:
-``hand_geometry``). All follow the rules of ``close_rules``. Uses ``world`` and ``robot``.
+the links (``hand_errors``), a rounded link's contact (the point model: ``hand_geometry``).
+All follow the rules of ``close_rules``. Uses ``world`` and ``robot``.
 """
 
 from __future__ import annotations
@@ -21,5 +20,5 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "reference": ("auto_close", "CloseResult", "Contact"),
+    "close_rules": ("CloseResult", "Contact"),
 })

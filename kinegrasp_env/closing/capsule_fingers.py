@@ -14,11 +14,10 @@ A finger qualifies (:func:`capsule_finger`) when it is what the kernel models:
 * the generic touch rule reduced to the kernel's: a touch of the proximal phalanx stops the
   proximal joint, a touch of the distal one both (:attr:`FingerPath.stops`).
 
-Its speed bounds (:class:`~kinegrasp_env.closing.close_rules.LinkSpeeds`) come from the
-capsules: a point of a phalanx is at most its capsule's farthest end plus the radius from
-the joint axis that turns it. The kernel's closing is the model of the default robot's own
-fast engine; the generic loop (:mod:`~kinegrasp_env.closing.finger_closing`) closes every
-other finger.
+Its speed bounds (:class:`~kinegrasp_env.closing.close_rules.LinkSpeeds`) are the finger
+path's (:func:`~kinegrasp_env.closing.finger_paths.link_speeds`): each phalanx's by both
+joints turning, and the distal one's by its own joint alone. The generic loop
+(:mod:`~kinegrasp_env.closing.finger_closing`) closes every other finger.
 """
 
 from __future__ import annotations
@@ -110,16 +109,14 @@ def capsule_finger(index: int, path: FingerPath, geometry: dict[str, LinkGeometr
     ends_p = np.array([parts[0].a, parts[0].b], dtype=float)
     ends_d = np.array([parts[1].a, parts[1].b], dtype=float)
     radius = np.array([parts[0].radius, parts[1].radius])
-    reach_p = float(np.linalg.norm(ends_p, axis=1).max()) + radius[0]
-    from_proximal = ends_d @ joint_d.origin[:3, :3].T + joint_d.origin[:3, 3]
-    reach_pd = float(np.linalg.norm(from_proximal, axis=1).max()) + radius[1]
-    reach_d = float(np.linalg.norm(ends_d, axis=1).max()) + radius[1]
+    # the path's bounds by the joints turning: both (phase 1), the distal one alone
+    (prox_p, _), (dist_p, dist_d) = path.speeds
     return CapsuleFinger(index, path, joint_p.parent, np.asarray(joint_p.origin, dtype=float),
                          sign[0] * np.asarray(joint_p.axis, dtype=float),
                          sign[1] * np.asarray(joint_d.axis, dtype=float), sign,
                          np.asarray(joint_d.origin, dtype=float), ends_p, ends_d, radius,
                          np.asarray(upper, dtype=float),
-                         np.array([reach_p, reach_pd + reach_d, reach_d]))
+                         np.array([prox_p, dist_p + dist_d, dist_d]))
 
 
 class CapsuleFingers:

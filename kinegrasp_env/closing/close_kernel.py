@@ -31,7 +31,7 @@ import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.closing import capsule_gap, segment_distance
-from kinegrasp_env.closing import reference as hand
+from kinegrasp_env.closing import close_rules as hand
 from kinegrasp_env.closing.capsule_gap import gap_one
 from kinegrasp_env.closing.finger_axes import axes_one
 from kinegrasp_env.closing.segment_distance import (
@@ -149,7 +149,7 @@ def exact_gap(geo, finger, phase, start_p, start_d, t, work, need):
 @jit.kernel(_nrt=False)
 def polish(geo, rules, finger, phase, start_p, start_d, t, gap, work):
     """The t where the exact gap crosses zero (see
-    :func:`kinegrasp_env.closing.reference.secant_root`), and whether it was evaluated
+    :func:`kinegrasp_env.closing.close_rules.secant_root`), and whether it was evaluated
     there (its closest pairs, as :func:`exact_gap` left them, are then in work[7])."""
     polish_tol, probe, reach, iterations = rules[3], rules[4], rules[5], rules[6]
     pair, best_pair = work[6], work[7]
@@ -238,7 +238,7 @@ def touch_down(geo, rules, finger, state, gap, work, found, pairs):
 @jit.kernel(_nrt=False)
 def step_or_bisect(rules, finger, state, gap, step_free):
     """A finger not touching: a conservative step towards contact (``step_free``: see
-    :func:`kinegrasp_env.closing.reference.closing_travel`) while no penetration is
+    :func:`kinegrasp_env.closing.close_rules.closing_travel`) while no penetration is
     bracketed, else bisection of the bracket [t_lo, t_hi]. Returns (new state, missed: the
     joints reached their limits without any contact)."""
     contact_tol, step_min = rules[0], rules[1]
@@ -344,7 +344,7 @@ def close_all(grid, geo, rules, joint_frames, prox0, dist0, axis_p, axis_d, dist
     return most
 
 def closing_rules() -> tuple:
-    """The auto-close constants of :mod:`kinegrasp_env.closing.reference` (CONTACT_TOL, STEP,
+    """The auto-close constants of :mod:`kinegrasp_env.closing.close_rules` (CONTACT_TOL, STEP,
     QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE, POLISH_ITERATIONS,
     MAX_ITERATIONS), passed to the kernel as an argument (numba's disk cache would keep the
     values of module globals of another file even after they change)."""

@@ -1,22 +1,22 @@
 """The rules of the auto-close, shared by the reference and the fast closing: the tolerances
-and steps, the speed bound that sizes each conservative step (:func:`closing_travel`), the
-secant polish (:func:`secant_root`), and what a closing returns (:class:`Contact`,
-:class:`CloseResult`). The algorithm: :mod:`kinegrasp_env.closing.reference`, which applies them
-with pybullet's distances one draw at a time; :mod:`kinegrasp_env.closing.close_kernel`
-applies them to a batch of draws against the distance grid.
+and steps, the step a two-phalanx finger's speed bounds allow (:func:`closing_travel`), the
+secant polish (:func:`secant_root`), and what the default robot's physics closing returns
+(:class:`Contact`, :class:`CloseResult`). The closings that apply them:
+:mod:`kinegrasp_env.closing.generic_reference` (pybullet's distances, one draw at a time) and
+:mod:`kinegrasp_env.closing.generic_fast` (a batch of draws; fingers of two capsule phalanxes
+by :mod:`kinegrasp_env.closing.close_kernel` against the distance grid).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
-from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, HAND_JOINTS, kuka_sdh
+from kinegrasp_env.robot.default_robot import HAND_JOINTS
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
 CONTACT_TOL = 2e-4
@@ -35,8 +35,7 @@ POLISH_RANGE = 0.05
 POLISH_ITERATIONS = 8
 #: Penetration below which the pre-grasp pose counts as a start collision, metres.
 START_TOL = CONTACT_TOL
-#: Radius of the finger capsules plus margin, for the speed bound (metres).
-_RADIUS_BOUND = 0.02
+#: Closing steps per finger at most (the compiled capsule loop's).
 MAX_ITERATIONS = 400
 
 
@@ -90,17 +89,6 @@ class CloseResult:
             self.iterations)
 
 
-@lru_cache(maxsize=1)
-def finger_geometry() -> tuple[float, float, float, float]:
-    """(proximal length, distal length, upper limit proximal, upper limit distal)."""
-    model = kuka_sdh()
-    proximal, distal = FINGERS[0][:2]
-    tip = next(j for j in model.joints if j.child == FINGERTIP_LINKS[0])
-    return (float(np.linalg.norm(model.joint(distal).origin[:3, 3])),
-            float(np.linalg.norm(tip.origin[:3, 3])),
-            model.joint(proximal).upper, model.joint(distal).upper)
-
-
 class LinkSpeeds(NamedTuple):
     """Bounds on how fast any surface point of a finger link moves per radian of closing
     (metres/rad): the proximal and the distal link while both joints close (phase 1), the
@@ -110,18 +98,6 @@ class LinkSpeeds(NamedTuple):
     proximal: float
     distal: float
     distal_alone: float
-
-
-def closing_speeds() -> LinkSpeeds:
-    """:class:`LinkSpeeds` of the hand's fingers: a point at distance r from a joint axis
-    turning at 1 rad per radian of t moves at most r per radian; the proximal link's points
-    lie within length_p + R of the proximal axis, the distal link's within
-    length_p + length_d + R of it and length_d + R of the distal axis (R: a bound on the
-    capsule radius)."""
-    length_p, length_d, _, _ = finger_geometry()
-    reach_p = length_p + length_d + _RADIUS_BOUND
-    reach_d = length_d + _RADIUS_BOUND
-    return LinkSpeeds(length_p + _RADIUS_BOUND, reach_p + reach_d, reach_d)
 
 
 @jit.kernel(_nrt=False)

@@ -1,10 +1,10 @@
 """Pictures of the arm, hand and object (pybullet's CPU renderer: works headless), and the
 check that a ``human`` (GUI window) render mode can show anything here.
 
-The default robot is drawn by :class:`SceneViewer`, a robot of the catalog described by its
-URDF (``robot="panda"``) by :class:`RobotSceneViewer`; each holds a pybullet client of its
-own (never pybullet's global state) and draws with the same camera: 320 x 240 pixels,
-looking at (0.35, 0, 0.35) m from 1.6 m, yaw 50 degrees, pitch -25 degrees.
+Every robot of the catalog, the default one included, is drawn by :class:`SceneViewer` from
+its description's URDF; it holds a pybullet client of its own (never pybullet's global state)
+and draws with one camera: 320 x 240 pixels, looking at (0.35, 0, 0.35) m from 1.6 m, yaw
+50 degrees, pitch -25 degrees.
 """
 
 from __future__ import annotations
@@ -14,11 +14,10 @@ import warnings
 import numpy as np
 
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
+from kinegrasp_env.robot.default_robot import default_description
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
-from kinegrasp_env.world.sim import BulletClient, GraspWorld, display_available, pybullet
+from kinegrasp_env.world.sim import BulletClient, display_available, pybullet
 
 
 class NoDisplayWarning(UserWarning):
@@ -48,44 +47,18 @@ def camera_image(bullet: BulletClient) -> np.ndarray:
 
 
 class SceneViewer:
-    """A world with the whole default robot and one object, for rendering."""
-
-    def __init__(self, object_name: str, gui: bool = False) -> None:
-        self.object_name = object_name
-        self.robot = DEFAULT_ROBOT
-        self.world = GraspWorld(load_object(object_name), gui=gui)
-        bullet = self.world.bullet
-        # the stand-alone hand of the grasp world is parked out of view
-        bullet.resetBasePositionAndOrientation(self.world.bodies["hand"], [0, 0, -10],
-                                               [0, 0, 0, 1])
-        robot = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
-        self.world.bodies["robot"] = robot
-        self.joints = {bullet.getJointInfo(robot, j)[1].decode(): j
-                       for j in range(bullet.getNumJoints(robot))}
-
-    def show(self, q: np.ndarray) -> np.ndarray:
-        """(HEIGHT, WIDTH, 3) uint8 picture of the robot at q (14,) (radians)."""
-        bullet = self.world.bullet
-        for name, value in kuka_sdh().expand(q).items():
-            bullet.resetJointState(self.world.bodies["robot"], self.joints[name], float(value))
-        return camera_image(bullet)
-
-    def close(self) -> None:
-        self.world.close()
-
-
-class RobotSceneViewer:
-    """A world with a description robot's whole URDF (arm and hand, fixed at the world
-    origin) and one object at its catalog pose, for rendering.
+    """A world with a catalog robot's whole URDF (arm and hand, fixed at the world origin)
+    and one object at its catalog pose, for rendering.
 
     Args:
-        description: the robot.
         object_name: a catalog object.
         gui: open pybullet's GUI window (see :func:`human_window_available`).
+        description: the robot (default: the default robot's).
     """
 
-    def __init__(self, description: RobotDescription, object_name: str,
-                 gui: bool = False) -> None:
+    def __init__(self, object_name: str, gui: bool = False,
+                 description: RobotDescription | None = None) -> None:
+        description = default_description() if description is None else description
         self.object_name = object_name
         self.robot = description.name
         self.world = RobotWorld(description, load_object(object_name), gui=gui)
@@ -100,11 +73,9 @@ class RobotSceneViewer:
         self.world.close()
 
 
-Viewer = SceneViewer | RobotSceneViewer
-
-
-def render_scene(object_name: str, q: np.ndarray, viewer: Viewer | None, gui: bool = False,
-                 robot: RobotDescription | None = None) -> tuple[np.ndarray, Viewer]:
+def render_scene(object_name: str, q: np.ndarray, viewer: SceneViewer | None,
+                 gui: bool = False, robot: RobotDescription | None = None
+                 ) -> tuple[np.ndarray, SceneViewer]:
     """(HEIGHT, WIDTH, 3) uint8 picture of the robot at q with the object; reuses ``viewer``
     when it shows the same robot and object.
 
@@ -116,14 +87,13 @@ def render_scene(object_name: str, q: np.ndarray, viewer: Viewer | None, gui: bo
         gui: open pybullet's GUI window for a new viewer.
         robot: a description robot (None: the default robot).
     """
-    name = DEFAULT_ROBOT if robot is None else robot.name
-    if viewer is None or viewer.object_name != object_name or viewer.robot != name:
+    robot = default_description() if robot is None else robot
+    if viewer is None or viewer.object_name != object_name or viewer.robot != robot.name:
         if viewer is not None:
             viewer.close()
-        viewer = (SceneViewer(object_name, gui=gui) if robot is None
-                  else RobotSceneViewer(robot, object_name, gui=gui))
+        viewer = SceneViewer(object_name, gui=gui, description=robot)
     return viewer.show(q), viewer
 
 
-__all__ = ["HEIGHT", "WIDTH", "NoDisplayWarning", "RobotSceneViewer", "SceneViewer",
+__all__ = ["HEIGHT", "WIDTH", "NoDisplayWarning", "SceneViewer",
            "camera_image", "human_window_available", "render_scene"]

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.closing.reference import CONTACT_TOL, START_TOL
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.montecarlo.engines import (
     FORCE_CLOSURE,
     MAX_CONTACTS,

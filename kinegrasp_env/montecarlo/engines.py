@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import CloseResult, auto_close
+from kinegrasp_env.closing.close_rules import CloseResult
 from kinegrasp_env.montecarlo.draws import (  # noqa: F401  (importable from here too)
     FORCE_CLOSURE,
     MISSED,
@@ -39,12 +39,9 @@ from kinegrasp_env.robot.default_robot import (
     HAND_JOINTS,
     default_description,
     default_hand_mount,
-    kuka_sdh,
 )
-from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
-from kinegrasp_env.world.sim import GraspWorld
 
 if TYPE_CHECKING:  # the description robots' engine module imports this one
     from kinegrasp_env.montecarlo.description_engine import RobotEngine
@@ -224,7 +221,12 @@ class Engine:
 
 
 class PybulletEngine(Engine):
-    """The reference engine: pybullet collision queries for auto-close, draw by draw.
+    """The reference engine: the default robot's description (``kuka_sdh.yaml``) closed by
+    the description robots' reference closing, draw by draw
+    (:class:`~kinegrasp_env.montecarlo.robot_engines.RobotReferenceEngine`: the whole URDF in
+    pybullet, its closest points far from the object and the exact pair of a capsule link
+    near it, the start collision with the support table included; its scoring, the point
+    contact model's Q).
 
     Args:
         object_name: catalog object.
@@ -233,34 +235,39 @@ class PybulletEngine(Engine):
 
     name = "pybullet"
     takes_errors = True
+    checks_table = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
+        from kinegrasp_env.montecarlo.robot_engines import RobotReferenceEngine
+
         super().__init__(object_name, friction, num_edges, static_hold=static_hold)
-        self.kin = Kinematics(kuka_sdh())
-        self.world = GraspWorld(self.obj)
+        self.robot = RobotReferenceEngine(default_description(), object_name,
+                                          friction=friction, num_edges=num_edges,
+                                          max_contacts=MAX_CONTACTS, static_hold=static_hold)
+        #: the robot and the object in pybullet, left at the last draw's closed hand
+        self.world = self.robot.world
 
     def close(self) -> None:
         super().close()
-        self.world.close()
+        self.robot.close()
 
-    def flange_poses(self, q: np.ndarray) -> np.ndarray:
-        """(n, 4, 4) world poses of the hand root for configurations (n, 14)."""
-        return self.kin.pose(q, default_hand_mount())
+    @property
+    def scoring(self) -> RobotEngine:
+        """The description engine that closes these draws scores them too."""
+        return self.robot
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
-        n = q.shape[0]
+        from kinegrasp_env.closing.close_batch import RobotCloseBatch
+
         t0 = time.perf_counter()
-        roots = self.flange_poses(q)
-        if palm is not None or object_offset is not None:  # the object stays, the hand moves
-            roots = placed_roots(roots, self.obj.pose, palm, object_offset)
+        batch = RobotCloseBatch.of_results(self.robot.close_all(q, palm, object_offset))
         t1 = time.perf_counter()
-        results = [auto_close(self.world, roots[i], q[i, 7:]) for i in range(n)]
-        t2 = time.perf_counter()
-        out = self.scored(q, results, friction)
-        self._account(n, kinematics=t1 - t0, autoclose=t2 - t1, quality=time.perf_counter() - t2)
+        out = self.robot.scored(q, batch, friction)
+        self._account(len(q), kinematics=0.0, autoclose=t1 - t0,
+                      quality=time.perf_counter() - t1)
         return out
 
 

@@ -27,7 +27,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import START_TOL, CloseResult, hand_joint_values
+from kinegrasp_env.closing.close_rules import START_TOL, CloseResult
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact, spring_grip
 from kinegrasp_env.physics.hold_runner import (
@@ -42,7 +42,7 @@ from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, merge_records
 from kinegrasp_env.physics.pybullet_world import WorldSettings
-from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS
+from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS, hand_joint_values
 from kinegrasp_env.world.objects import GraspObject
 
 

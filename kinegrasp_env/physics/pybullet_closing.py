@@ -42,17 +42,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import (
-    CONTACT_TOL,
-    START_TOL,
-    CloseResult,
-    hand_joint_values,
-)
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL, CloseResult
 from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hold_runner import FLEXION_JOINTS, SPREAD_JOINTS, close_fingers
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-from kinegrasp_env.robot.default_robot import FINGERS
+from kinegrasp_env.robot.default_robot import FINGERS, hand_joint_values
 
 #: Contact records of one link whose normals are within this angle of the deepest record's
 #: are merged into one contact (the same face), radians.
@@ -110,7 +105,7 @@ class MotorSettings:
 
 @dataclass
 class PhysicsClose(CloseResult):
-    """A :class:`~kinegrasp_env.closing.reference.CloseResult` (``iterations``: simulation
+    """A :class:`~kinegrasp_env.closing.close_rules.CloseResult` (``iterations``: simulation
     steps) and where the object ended.
 
     Attributes:

@@ -31,7 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import CloseResult
+from kinegrasp_env.closing.close_rules import CloseResult
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripJoints, SpringGrip, spring_grip
 from kinegrasp_env.physics.hold_runner import GRIP_JOINTS, WorldSteps, grip_joints

@@ -1,16 +1,16 @@
 """The pybullet *dynamics* world of the physics closing: a free-floating hand held by a
 constraint, and one catalog object as a rigid body.
 
-The kinematic closing (:mod:`kinegrasp_env.closing.reference`) never steps the simulation;
-here the hand's finger motors close under dynamics, the object may be pushed (or pinned where
-it is, :meth:`PhysicsWorld.pin_object`), and in the holding test
+The kinematic closing (:mod:`kinegrasp_env.closing.generic_reference`) never steps the
+simulation; here the hand's finger motors close under dynamics, the object may be pushed (or
+pinned where it is, :meth:`PhysicsWorld.pin_object`), and in the holding test
 (:mod:`kinegrasp_env.physics.pybullet_hold`) gravity turns and the hand moves. Therefore:
 
-* the hand (``sdh_hand.urdf``, the same URDF and collision capsules as the reference's
-  :class:`~kinegrasp_env.world.sim.GraspWorld`) is loaded with a *dynamic* base, and a fixed
-  constraint (the "arm") holds its root at the flange pose reached by the draw's arm joints.
-  The arm itself is not simulated: its joints would only set where the flange is, which is all
-  the constraint needs, and moving the constraint's target is how the holding test moves the hand
+* the hand (``sdh_hand.urdf``, the same collision capsules as the robot's URDF) is loaded
+  with a *dynamic* base, and a fixed constraint (the "arm") holds its root at the flange
+  pose reached by the draw's arm joints. The arm itself is not simulated: its joints would
+  only set where the flange is, which is all the constraint needs, and moving the
+  constraint's target is how the holding test moves the hand
   (no IK, no arm-object collisions, no joint-limit failures of the arm during the shake);
 * the object is one rigid body whose collision shape is a compound of its exact convex parts
   (written to a temporary ``.obj`` with one ``o`` group per part, which pybullet loads as one

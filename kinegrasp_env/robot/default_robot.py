@@ -1,6 +1,6 @@
 """The default robot's names and model, read from its description
 (``assets/robots/kuka_sdh.yaml``, :data:`~kinegrasp_env.robot.default.DEFAULT_ROBOT`) on first
-use: what the default robot's own modules (its reference closing, physics and planner) read.
+use: what the default robot's own modules (its physics and planner) read.
 
 ``ARM_JOINTS`` (base to flange), ``HAND_JOINTS`` (the hand's actuated vector), ``PALM_LINK``,
 ``FINGERTIP_LINKS``, ``FINGERS`` (per finger: proximal joint, distal joint, proximal link,
@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+
+import numpy as np
 
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -70,3 +72,13 @@ def kuka_sdh() -> RobotModel:
     its arm joints + its hand's actuated vector (7 + 7)."""
     names = default_names()
     return load_urdf(urdf_path(), actuated=names["ARM_JOINTS"] + names["HAND_JOINTS"])
+
+
+def hand_joint_values(preshape) -> dict[str, float]:
+    """Every movable hand joint's value (radians), the mimic followers of the spread
+    expanded, from the hand's actuated vector (7,) (``HAND_JOINTS``' order)."""
+    model, names = kuka_sdh(), default_names()
+    q = np.zeros(model.dof)
+    q[model.index(names["HAND_JOINTS"])] = np.asarray(preshape, dtype=float)
+    arm = set(names["ARM_JOINTS"])
+    return {name: float(value) for name, value in model.expand(q).items() if name not in arm}

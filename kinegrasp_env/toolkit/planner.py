@@ -23,10 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.closing.reference import hand_joint_values
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, kuka_sdh
+from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, hand_joint_values, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.palm_pose import IK_SEED  # the planner's IK seed (one copy)
 from kinegrasp_env.world.grasps import Grasp

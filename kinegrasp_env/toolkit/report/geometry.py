@@ -23,9 +23,7 @@ from kinegrasp_env.montecarlo.evaluate import (
 )
 from kinegrasp_env.quality.wrenches import friction_cone_edges
 from kinegrasp_env.robot.default_robot import (
-    ARM_JOINTS,
     default_description,
-    default_hand_mount,
     kuka_sdh,
     urdf_path,
 )
@@ -171,20 +169,21 @@ def closed_configuration(q0: np.ndarray, obj: GraspObject) -> tuple[np.ndarray, 
         (q (14,) with the closed hand DOF, True), or (q0, False) when the hand starts in
         collision and does not close.
     """
-    from kinegrasp_env.closing.reference import auto_close
-    from kinegrasp_env.world.sim import GraspWorld
+    from kinegrasp_env.closing.generic_reference import RobotWorld
 
     q0 = np.asarray(q0, dtype=float)
-    world = GraspWorld(obj)
+    description = default_description()
+    world = RobotWorld(description, obj)
     try:
-        root = kinematics().pose(q0, default_hand_mount())[0]
-        result = auto_close(world, root, q0[len(ARM_JOINTS):])
+        result = world.auto_close(q0)
     finally:
         world.close()
-    if result.start_collision or result.joints is None:
+    if result.start_collision:
         return q0.copy(), False
     q = q0.copy()
-    q[len(ARM_JOINTS):] = result.joints
+    for j, name in enumerate(description.hand_joints):
+        if name in result.joints:
+            q[description.arm_dof + j] = result.joints[name]
     return q, True
 
 
