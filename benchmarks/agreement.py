@@ -36,7 +36,7 @@ each row compares two computations of those same draws:
     The "~1 mm edge error" once measured for pybullet's convex hulls is not an edge error:
     it is pybullet's default 1 mm collision margin, which ``changeDynamics(collisionMargin=0)``
     does not remove from the links of a multi-link body (the reference engine's object is
-    one, :class:`kinegrasp_env.world.sim.GraspWorld`): every part but the first reports
+    one, :class:`kinegrasp_env.world.sim.ObjectWorld`): every part but the first reports
     distances 1e-3 m short. Here each part is a body of its own and the margin is gone.
 
 Columns: draws with the same outcome (the four outcomes; the pybullet-only reference decides

@@ -1,14 +1,14 @@
 """The approach planner: grasps of a hand that is not a parallel jaw (the SDH, planned as a
-description robot), checked against the default robot's own closing of the same
-configurations (an implementation of the SDH's closing independent of the generic one)."""
+description robot with its reference closing), checked with the fast engine's closing of the
+same configurations (its distances from the object's distance grid and GJK bounds, not
+pybullet's)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.engines import make_engine as own_engine
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -33,17 +33,17 @@ def test_aligned_is_a_rotation_taking_a_to_b():
 @pytest.mark.parametrize("obj", ["cube", "drill"])
 def test_the_sdh_is_planned_as_a_description(obj):
     """Grasps of the three-finger SDH through the description pipeline: each in force
-    closure by the default robot's own closing too, with the same Q (4.1e-5 relative
-    measured; 1e-3 held), its palm approaching along the drawn direction (the hand frame's
+    closure by the fast engine too, with the same Q (3.1e-8 relative measured; 1e-6 held),
+    its palm approaching along the drawn direction (the hand frame's
     approach axis in the world, to the IK's 1e-7)."""
     description = load_robot("kuka_sdh")
     grasps = plan_robot_grasps(description, obj, count=2, seed=0)
     assert len(grasps) == 2
-    own = own_engine("pybullet", obj)
-    draws = own.run(np.array([g.q0 for g in grasps]))
-    own.close()
+    fast = make_engine("fast", obj)
+    draws = fast.run(np.array([g.q0 for g in grasps]))
+    fast.close()
     assert list(draws.outcome) == [FORCE_CLOSURE] * 2
-    assert np.allclose(draws.quality, [g.q_nominal for g in grasps], rtol=1e-3)
+    assert np.allclose(draws.quality, [g.q_nominal for g in grasps], rtol=1e-6, atol=0.0)
     frame, kin = hand_frame(description), Kinematics(description.model)
     for grasp in grasps:
         assert grasp.robot == "kuka_sdh" and grasp.meta["planner"] == "approach"

@@ -476,13 +476,13 @@ def check_bullet_body_and_grid(obj) -> None:
     error (measured: at most 1.1e-3 of the distance, on the built-in objects as here; bound
     1e-6 m + 1.5e-3 x distance); the grid stored at import equals a fresh build."""
     from kinegrasp_env.world.sdf import build_grid, object_grid
-    from kinegrasp_env.world.sim import GraspWorld
+    from kinegrasp_env.world.sim import ObjectWorld
 
     rng = np.random.default_rng(1)
     lo, hi = obj.mesh.bounds
     probes = rng.uniform(lo - 0.02, hi + 0.02, size=(30, 3))
     exact = np.stack([part.closest(probes)[1] for part in obj.convex_parts], axis=1)
-    with GraspWorld(obj) as world:
+    with ObjectWorld(obj) as world:
         bullet = world.bullet
         body = world.bodies["object"]
         assert bullet.getNumJoints(body) == len(obj.parts) - 1

@@ -8,7 +8,7 @@ import trimesh
 
 from kinegrasp_env.world.catalog_listing import catalog
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
-from kinegrasp_env.world.sim import BulletWorld, GraspWorld
+from kinegrasp_env.world.sim import BulletWorld, ObjectWorld
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)
@@ -61,11 +61,11 @@ def test_ray_entry_matches_the_mesh():
 
 
 def test_world_owns_its_client_and_closes_twice():
-    world = GraspWorld(load_object("cube"))
+    world = ObjectWorld(load_object("cube"))
     other = BulletWorld()
     # one world's bodies are not in the other's client
-    assert world.client.getNumBodies() == 2 and other.client.getNumBodies() == 0
-    assert set(world.bodies) == {"hand", "object"}
+    assert world.client.getNumBodies() == 1 and other.client.getNumBodies() == 0
+    assert set(world.bodies) == {"object"}
     with pytest.raises(KeyError, match="no body named 'table'"):
         world.body("table")
     world.close()

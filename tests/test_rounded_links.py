@@ -272,15 +272,18 @@ def test_capsule_fingers_close_as_the_batched_loop():
 
 def test_only_capsule_phalanx_fingers_take_the_kernel():
     """The Panda's jaws (prismatic, box and mesh pads) and a three-link finger do not
-    qualify for the capsule kernel; the SDH's do, with its speed bounds from the capsules:
-    the proximal phalanx's farthest end (0.0865 m) plus its radius (0.011 m)."""
+    qualify for the capsule kernel; the SDH's do, with its finger path's speed bounds (both
+    joints turning, the distal one alone), the proximal one at least the phalanx's farthest
+    end (0.0865 m) plus its radius (0.011 m)."""
     from kinegrasp_env.closing.capsule_fingers import capsule_finger
 
     panda = make_engine("fast", "panda", "cube").hand
     assert all(capsule_finger(f, p, panda.geometry) is None for f, p in enumerate(panda.paths))
     sdh = make_engine("fast", "kuka_sdh", "cube").hand
     finger = capsule_finger(0, sdh.paths[0], sdh.geometry)
-    np.testing.assert_allclose(finger.speeds[0], 0.0865 + 0.011, atol=1e-6)
+    (prox_p, _), (dist_p, dist_d) = sdh.paths[0].speeds
+    np.testing.assert_array_equal(finger.speeds, [prox_p, dist_p + dist_d, dist_d])
+    assert 0.0865 + 0.011 - 1e-9 <= finger.speeds[0] <= 0.0865 + 0.011 + 2e-3
     np.testing.assert_array_equal(finger.sign, [1.0, 1.0])
     three = dataclasses.replace(sdh.paths[0], links=(*sdh.paths[0].links, "f1_distal"))
     assert capsule_finger(0, three, sdh.geometry) is None

@@ -267,8 +267,8 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
             who = active[idx]
             t_end = moving_end(ends[who], held[who])
             touches.wait(who, hits[idx],
-                         np.min(np.where(hits[idx], lower[idx], np.inf), axis=1), clear[who],
-                         np.minimum(t[who] + POLISH_RANGE, np.maximum(t_end, t[who])))
+                         np.min(np.where(hits[idx], lower[idx], np.inf), axis=1),
+                         np.maximum(t[who] - POLISH_RANGE, 0.0), np.maximum(t_end, t[who]))
         for k, link in enumerate(path.links):
             if k not in exact:
                 continue

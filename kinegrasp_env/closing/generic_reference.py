@@ -219,7 +219,7 @@ class RobotWorld(RobotScene):
             return tuple(link for k, link in enumerate(finger.links)
                          if not touched[k] and np.isinf(held[moves[k]]).any())
 
-        t, queries, g, clear = 0.0, 0, None, 0.0
+        t, queries, g = 0.0, 0, None
         values = put(t)
         for _ in range(MAX_STEPS):
             links = moving()
@@ -240,7 +240,7 @@ class RobotWorld(RobotScene):
                     return self.gap(links)[0]
 
                 # polished to a zero gap of the touching links
-                t = secant_root(gap_at, t, g, clear, min(t + POLISH_RANGE, max(t_end, t)))
+                t = secant_root(gap_at, t, g, max(t - POLISH_RANGE, 0.0), max(t_end, t))
                 values = put(t)
                 queries += len(touching)
                 for k, link in enumerate(finger.links):
@@ -261,7 +261,7 @@ class RobotWorld(RobotScene):
                 if g >= -contact_tol:
                     break
                 step *= 0.5
-            clear, t = t, t + step
+            t += step
         if staged or g is None:  # the whole finger's gap where it stopped
             values = put(t)
             g, n = self.gap(finger.links)

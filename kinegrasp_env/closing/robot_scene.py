@@ -34,13 +34,7 @@ from kinegrasp_env.closing.table_check import table_in_object
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import (
-    BulletWorld,
-    GraspWorld,
-    body_indices,
-    matrix_to_pose,
-    pybullet,
-)
+from kinegrasp_env.world.sim import ObjectWorld, body_indices, matrix_to_pose, pybullet
 from kinegrasp_env.world.table_probe import table_body
 
 GEOM_MESH = pybullet.GEOM_MESH
@@ -66,7 +60,7 @@ def hull_margin(bullet, body: int, link: int) -> float:
     return 0.0
 
 
-class RobotScene(GraspWorld):
+class RobotScene(ObjectWorld):
     """A description robot (the whole URDF, fixed at the world origin) and one object.
 
     Attributes:
@@ -78,8 +72,7 @@ class RobotScene(GraspWorld):
 
     def __init__(self, description: RobotDescription, obj: GraspObject,
                  gui: bool = False) -> None:
-        BulletWorld.__init__(self, gui)  # not the SDH hand of GraspWorld: the robot itself
-        self.obj = obj
+        super().__init__(obj, gui)
         self.description = description
         self.model = description.model
         bullet = self.bullet
@@ -90,7 +83,6 @@ class RobotScene(GraspWorld):
         self.joint_index, self.link_index = body_indices(bullet, robot, self.model.base_link)
         for link in self.link_index.values():
             bullet.changeDynamics(robot, link, collisionMargin=0.0)
-        self.bodies["object"] = self._load_object(obj)
         self._table = None  # the support table: (body, its pose in the object frame)
         if obj.table is not None:
             self._table = (table_body(bullet, obj), table_in_object(obj)[0])

@@ -265,7 +265,7 @@ def object_part_bodies(world: BulletWorld, obj: GraspObject) -> list[int]:
     """The object's convex parts as static bodies of their own (at ``obj.pose``), margins zero.
 
     One body per part, not one multi-link body as in
-    :class:`~kinegrasp_env.world.sim.GraspWorld`: pybullet keeps its default 1 mm collision
+    :class:`~kinegrasp_env.world.sim.ObjectWorld`: pybullet keeps its default 1 mm collision
     margin on the links of a multi-link body whatever ``changeDynamics`` sets (measured: the
     parts after the first report distances 1e-3 m short and closest points 1e-3 m outside the
     surface), while a base's margin does go to zero.

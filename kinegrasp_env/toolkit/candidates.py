@@ -271,7 +271,7 @@ def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Reject
     if outcome == START_COLLISION:
         name = OUTCOMES[outcome]
         return Rejected(candidate.id, name, OUTCOME_DETAILS.get(name, name))
-    palm = planner.engine.kin.pose(q0, PALM_LINK)[0]
+    palm = planner.kin.pose(q0, PALM_LINK)[0]
     psi = float(planner.ik.elbow_angle(q0[None])[0])
     return grasp_from_draw(draw, object_name, q0, palm, grasp_id=candidate.id,
                            meta={"elbow_angle": psi, "source": "palm_pose",

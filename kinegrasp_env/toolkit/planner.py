@@ -27,9 +27,11 @@ from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
 from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, hand_joint_values, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_pose import IK_SEED  # the planner's IK seed (one copy)
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import load_object
+from kinegrasp_env.world.sim import HandWorld
 
 log = logging.getLogger(__name__)
 
@@ -77,16 +79,21 @@ class GraspPlanner:
         self.obj = load_object(object_name)
         self.engine = PybulletEngine(object_name, friction, num_edges)
         self.model = kuka_sdh()
-        self.ik = ArmIK(self.engine.kin)
+        #: the batched kinematics of the arm and hand (14 joints)
+        self.kin = Kinematics(self.model)
+        self.ik = ArmIK(self.kin)
+        #: the open hand alone beside the object (the approach probe) and the arm's clearance
+        self.world = HandWorld(self.obj)
         self.settings = settings or PlannerSettings()
         self._arm: int | None = None
 
     def close(self) -> None:
         self.engine.close()
+        self.world.close()
 
     # ------------------------------------------------------------------ geometry checks
     def _arm_body(self) -> int:
-        bullet = self.engine.world.bullet
+        bullet = self.world.bullet
         if self._arm is None:
             from kinegrasp_env.robot.default_robot import urdf_path
 
@@ -99,10 +106,10 @@ class GraspPlanner:
         """True when the arm links (not the hand: auto-close judges it) at q (14,) keep
         CLEARANCE from the object (the support table, if any, is the engine's start check)."""
         arm = self._arm_body()
-        bullet = self.engine.world.bullet
+        bullet = self.world.bullet
         for name, value in self.model.expand(q).items():
             bullet.resetJointState(arm, self._arm_joints[name], float(value))
-        obj = self.engine.world.bodies["object"]
+        obj = self.world.bodies["object"]
         for link in range(7):  # lbr_iiwa_link_1..7 (joint indices 0..6)
             if bullet.getClosestPoints(arm, obj, CLEARANCE, linkIndexA=link):
                 return False
@@ -156,7 +163,7 @@ class GraspPlanner:
         """Largest advance (metres, <= limit) of the open hand from ``start`` along
         ``direction`` before it touches the object (bisection to 1 mm); None if it starts
         in collision."""
-        world = self.engine.world
+        world = self.world
         joints = hand_joint_values(preshape)
         mount = next(j for j in self.model.joints if j.child == PALM_LINK)  # flange to palm
         palm_offset = np.linalg.inv(mount.origin)
@@ -196,7 +203,7 @@ class GraspPlanner:
         k = int(draw.n_contacts[0])
         if k > self.settings.max_contacts:
             return None
-        palm = self.engine.kin.pose(q0, PALM_LINK)[0]
+        palm = self.kin.pose(q0, PALM_LINK)[0]
         return grasp_from_draw(draw, self.obj.name, q0, palm,
                                meta={"elbow_angle": float(self.ik.elbow_angle(q0[None])[0])})
 

@@ -1,9 +1,9 @@
 """The pybullet world: one ``BulletClient`` per world, bodies by name, idempotent close.
 
 Nothing here touches pybullet's global client state: every call goes through the world's own
-``BulletClient``. A :class:`GraspWorld` holds the hand (the SDH-like hand alone, its root at
-the arm's flange; the arm only sets where the flange is) and one catalog object built from its
-exact convex parts, with collision margins set to zero so that reported distances are exact.
+``BulletClient``. An :class:`ObjectWorld` holds one catalog object built from its exact
+convex parts, with collision margins set to zero so that reported distances are exact; a
+robot's scene (:mod:`kinegrasp_env.closing.robot_scene`) adds the robot beside it.
 """
 
 from __future__ import annotations
@@ -172,19 +172,17 @@ def load_hand(bullet, fixed_base: bool = True) -> tuple[int, dict[str, int], dic
     return hand, joint_index, link_index
 
 
-class GraspWorld(BulletWorld):
-    """The hand and one object.
+class ObjectWorld(BulletWorld):
+    """A world with one catalog object (body ``object``, fixed at ``obj.pose``, one convex
+    part a link, collision margins zero), for bodies added beside it.
 
     Attributes:
-        obj: the catalog object (placed at ``obj.pose``).
-        joint_index: hand joint name -> pybullet joint index.
-        link_index: hand link name -> pybullet link index (-1 for the root).
+        obj: the catalog object.
     """
 
     def __init__(self, obj: GraspObject, gui: bool = False) -> None:
         super().__init__(gui)
         self.obj = obj
-        self.bodies["hand"], self.joint_index, self.link_index = load_hand(self.bullet)
         self.bodies["object"] = self._load_object(obj)
 
     def _load_object(self, obj: GraspObject) -> int:
@@ -215,33 +213,29 @@ class GraspWorld(BulletWorld):
             bullet.changeDynamics(body, link, collisionMargin=0.0)
         return body
 
+
+class HandWorld(ObjectWorld):
+    """The default robot's hand alone (its root free to place) beside one catalog object:
+    the default planner's probe of how far an open hand can approach.
+
+    Attributes:
+        joint_index: hand joint name -> pybullet joint index.
+        link_index: hand link name -> pybullet link index (-1 for the root).
+    """
+
+    def __init__(self, obj: GraspObject, gui: bool = False) -> None:
+        super().__init__(obj, gui)
+        self.bodies["hand"], self.joint_index, self.link_index = load_hand(self.bullet)
+
     def set_hand(self, root_pose: np.ndarray, joints: dict[str, float]) -> None:
         """Place the hand root (flange frame, (4, 4) world) and set hand joint values."""
         bullet = self.bullet
         hand = self.bodies["hand"]
-        position, orientation = matrix_to_pose(root_pose)
-        bullet.resetBasePositionAndOrientation(hand, position, orientation)
+        bullet.resetBasePositionAndOrientation(hand, *matrix_to_pose(root_pose))
         for name, value in joints.items():
             bullet.resetJointState(hand, self.joint_index[name], float(value))
 
-    def set_joints(self, joints: dict[str, float]) -> None:
-        bullet = self.bullet
-        hand = self.bodies["hand"]
-        for name, value in joints.items():
-            bullet.resetJointState(hand, self.joint_index[name], float(value))
-
-    def link_pose(self, link: str) -> np.ndarray:
-        """(4, 4) world pose of a hand link's URDF frame."""
-        bullet = self.bullet
-        state = bullet.getLinkState(self.bodies["hand"], self.link_index[link],
-                                    computeForwardKinematics=True)
-        pose = np.eye(4)
-        pose[:3, :3] = np.reshape(bullet.getMatrixFromQuaternion(state[5]), (3, 3))
-        pose[:3, 3] = state[4]
-        return pose
-
-    def closest(self, max_distance: float, link: str | None = None) -> list[tuple]:
-        """pybullet closest points between the hand (or one hand link) and the object."""
-        kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
+    def closest(self, max_distance: float) -> list[tuple]:
+        """pybullet closest points between the hand and the object."""
         return self.bullet.getClosestPoints(self.bodies["hand"], self.bodies["object"],
-                                            max_distance, **kwargs)
+                                            max_distance)
