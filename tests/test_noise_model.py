@@ -247,10 +247,20 @@ def _flange(q):
     return Kinematics(kuka_sdh()).pose(q, default_hand_mount())
 
 
+#: (points m, normals, Q) tolerances of the two ways round. The fast engine computes the
+#: same relative poses either way: measured 5e-16 m, 3e-14, 8e-16 (Q ~ 1e-2), from the rounding
+#: of the two transform products. The reference places the object body in pybullet either
+#: way, at poses a rounding apart; pybullet's steps then differ and each touch is polished to
+#: within POLISH_TOL (1e-9 m) of the gap's zero: measured 2.3e-9 m, 1.4e-7 (an edge's normal)
+#: and 3.1e-9 on 48 draws.
+SAME_DRAW_TOL = {"fast": (1e-12, 1e-12, 1e-14), "pybullet": (1e-8, 1e-6, 1e-8)}
+
+
 @pytest.mark.parametrize("engine_class, n", [(FastEngine, 40), (PybulletEngine, 16)])
 def test_object_error_and_inverse_palm_error_give_the_same_draws(engine_class, n):
     """An object moved by T as seen from the flange is the hand moved by T^-1: contacts (in
-    the object frame) and Q agree draw by draw, for the same stream of T."""
+    the object frame) and Q agree draw by draw, for the same stream of T (to
+    :data:`SAME_DRAW_TOL`)."""
     grasp = shipped_grasps("spray_flask")[1]
     q = chunk_configurations(grasp.q0, JointNoise(0.01), 3, [(0, n)])
     offsets = chunk_stream(3, 0, "palm").standard_normal((n, 6)) * ([3e-3] * 3 + [0.02] * 3)
@@ -266,11 +276,10 @@ def test_object_error_and_inverse_palm_error_give_the_same_draws(engine_class, n
         engine.close()
     np.testing.assert_array_equal(by_palm.outcome, by_object.outcome)
     np.testing.assert_array_equal(by_palm.n_contacts, by_object.n_contacts)
-    # measured: points 5e-16 m, normals 3e-14, Q 8e-16 (absolute; Q ~ 1e-2) from the
-    # rounding of the two transform products: 1e-12 and 1e-14 leave a margin of 10x and more
-    np.testing.assert_allclose(by_palm.points, by_object.points, atol=1e-12)
-    np.testing.assert_allclose(by_palm.normals, by_object.normals, atol=1e-12)
-    np.testing.assert_allclose(by_palm.quality, by_object.quality, rtol=0, atol=1e-14)
+    points, normals, quality = SAME_DRAW_TOL[engine_class.name]
+    np.testing.assert_allclose(by_palm.points, by_object.points, atol=points)
+    np.testing.assert_allclose(by_palm.normals, by_object.normals, atol=normals)
+    np.testing.assert_allclose(by_palm.quality, by_object.quality, rtol=0, atol=quality)
     assert len(set(by_palm.outcome.tolist())) > 1  # mixed outcomes: the test has teeth
     assert not np.array_equal(by_palm.outcome, nominal.outcome)  # the errors matter
 

@@ -31,7 +31,7 @@ def drill_planner():
 def test_planned_grasps_are_valid(drill_planner):
     grasps = drill_planner.plan(2, seed=5)
     assert len(grasps) == 2
-    kin, model = drill_planner.engine.kin, drill_planner.model
+    kin, model = drill_planner.kin, drill_planner.model
     for g in grasps:
         assert model.within_limits(g.q0)
         err = pose_error(kin.pose(g.q0, PALM_LINK), g.palm_pose[None])
@@ -49,7 +49,7 @@ def test_variants_keep_palm_and_contacts(drill_planner):
     grasp = shipped_grasps("drill")[0]
     variants = drill_planner.variants(grasp, 3)
     assert len(variants) >= 2
-    kin = drill_planner.engine.kin
+    kin = drill_planner.kin
     elbow0 = kin.pose(grasp.q0, ELBOW_LINK)[0, :3, 3]
     for v in variants:
         err = pose_error(kin.pose(v.q0, PALM_LINK), grasp.palm_pose[None])
