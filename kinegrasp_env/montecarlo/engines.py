@@ -1,9 +1,10 @@
-"""Turning a batch of noisy configurations into draw outcomes: the pybullet engine.
+"""Turning a batch of the default robot's noisy configurations into draw outcomes, by name:
+``pybullet`` (the reference) and ``fast`` are its description's engines
+(:class:`DescriptionEngine`), ``physics`` its simulated closing.
 
 Each draw: the arm at q = q0 + eps (eps on the 7 arm joints, the hand pre-shape exact) puts
 the flange, hence the hand, somewhere; the hand auto-closes on the object; the contacts give
-Q. Every draw ends in exactly one outcome (:data:`OUTCOMES`). Kinematics is batched over
-the draws; auto-close loops over them (pybullet forces it); quality is batched again.
+Q. Every draw ends in exactly one outcome (:data:`OUTCOMES`).
 
 The kinematic engines also take per-draw errors beyond the configuration
 (:meth:`Engine.run`): the hand's pose on the flange, the object's true pose, and the friction
@@ -44,6 +45,7 @@ from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 
 if TYPE_CHECKING:  # the description robots' engine module imports this one
+    from kinegrasp_env.closing.close_batch import RobotCloseBatch
     from kinegrasp_env.montecarlo.description_engine import RobotEngine
 
 MAX_CONTACTS = 6
@@ -220,33 +222,28 @@ class Engine:
         score_candidates(out, self.scoring.quality, friction)
 
 
-class PybulletEngine(Engine):
-    """The reference engine: the default robot's description (``kuka_sdh.yaml``) closed by
-    the description robots' reference closing, draw by draw
-    (:class:`~kinegrasp_env.montecarlo.robot_engines.RobotReferenceEngine`: the whole URDF in
-    pybullet, its closest points far from the object and the exact pair of a capsule link
-    near it, the start collision with the support table included; its scoring, the point
-    contact model's Q).
+class DescriptionEngine(Engine):
+    """An engine of the default robot that is its description's (``kuka_sdh.yaml``) engine of
+    the same name (:func:`~kinegrasp_env.montecarlo.robot_engines.make_engine`): its closing,
+    the support table's start check included, and its scoring (the point contact model's Q,
+    :data:`MAX_CONTACTS` contacts a draw).
 
     Args:
         object_name: catalog object.
         friction, num_edges: friction cone of the quality measure.
     """
 
-    name = "pybullet"
     takes_errors = True
     checks_table = True
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
-        from kinegrasp_env.montecarlo.robot_engines import RobotReferenceEngine
+        from kinegrasp_env.montecarlo.robot_engines import make_engine as description_engine
 
         super().__init__(object_name, friction, num_edges, static_hold=static_hold)
-        self.robot = RobotReferenceEngine(default_description(), object_name,
-                                          friction=friction, num_edges=num_edges,
-                                          max_contacts=MAX_CONTACTS, static_hold=static_hold)
-        #: the robot and the object in pybullet, left at the last draw's closed hand
-        self.world = self.robot.world
+        self.robot = description_engine(self.name, default_description(), object_name,
+                                        friction=friction, num_edges=num_edges,
+                                        max_contacts=MAX_CONTACTS, static_hold=static_hold)
 
     def close(self) -> None:
         super().close()
@@ -257,51 +254,52 @@ class PybulletEngine(Engine):
         """The description engine that closes these draws scores them too."""
         return self.robot
 
+    def closings(self, q: np.ndarray, palm: np.ndarray | None,
+                 object_offset: np.ndarray | None) -> RobotCloseBatch:
+        """The closings of configurations q (n, 14) with their palm and object errors."""
+        return self.robot.close_batch(q, palm=palm, object_offset=object_offset)
+
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
              friction: np.ndarray | None = None) -> DrawBatch:
-        from kinegrasp_env.closing.close_batch import RobotCloseBatch
-
         t0 = time.perf_counter()
-        batch = RobotCloseBatch.of_results(self.robot.close_all(q, palm, object_offset))
+        batch = self.closings(q, palm, object_offset)
         t1 = time.perf_counter()
         out = self.robot.scored(q, batch, friction)
+        # the fingers' kinematics is part of the closing
         self._account(len(q), kinematics=0.0, autoclose=t1 - t0,
                       quality=time.perf_counter() - t1)
         return out
 
 
-class FastEngine(Engine):
-    """The batched engine: the default robot's description (``kuka_sdh.yaml``) run by the
-    description robots' fast engine (:class:`~kinegrasp_env.montecarlo.batched_engine.
-    RobotFastEngine`: its batched closing, :class:`~kinegrasp_env.closing.generic_fast.
-    FastRobotHand`, with the start collision by exact distances, the support table's
-    included, and the capsule fingers by the compiled capsule loop against the object's
-    distance grid; its scoring, the point contact model's Q).
+class PybulletEngine(DescriptionEngine):
+    """The reference engine: the description robots' reference closing, draw by draw
+    (:class:`~kinegrasp_env.montecarlo.robot_engines.RobotReferenceEngine`: the whole URDF in
+    pybullet, its closest points far from the object and the exact pair of a capsule link
+    near it)."""
 
-    Args:
-        object_name: catalog object.
-        friction, num_edges: friction cone of the quality measure.
-    """
-
-    name = "fast"
-    takes_errors = True
-    checks_table = True
+    name = "pybullet"
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
-        from kinegrasp_env.montecarlo.batched_engine import RobotFastEngine
-
         super().__init__(object_name, friction, num_edges, static_hold=static_hold)
-        self.robot = RobotFastEngine(default_description(), object_name, friction=friction,
-                                     num_edges=num_edges, max_contacts=MAX_CONTACTS,
-                                     static_hold=static_hold)
-        self.hand = self.robot.hand
+        #: the robot and the object in pybullet, left at the last draw's closed hand
+        self.world = self.robot.world
 
-    @property
-    def scoring(self) -> RobotEngine:
-        """The description engine that closes these draws scores them too."""
-        return self.robot
+
+class FastEngine(DescriptionEngine):
+    """The batched engine: the description robots' batched closing
+    (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`:
+    :class:`~kinegrasp_env.closing.generic_fast.FastRobotHand`, with the start collision by
+    exact distances, and the capsule fingers by the compiled capsule loop against the
+    object's distance grid)."""
+
+    name = "fast"
+
+    def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
+                 static_hold: bool = False) -> None:
+        super().__init__(object_name, friction, num_edges, static_hold=static_hold)
+        self.hand = self.robot.hand
 
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None, **_) -> np.ndarray:
@@ -313,18 +311,10 @@ class FastEngine(Engine):
             maps = self.hand.error_maps(q, palm, object_offset)
         return self.hand.table_hits(q, maps)
 
-    def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
-             object_offset: np.ndarray | None = None,
-             friction: np.ndarray | None = None) -> DrawBatch:
-        t0 = time.perf_counter()
-        # one closing of the whole group of chunks (its iterations' cost is per call)
-        batch = self.hand.close_batch(q, palm=palm, object_offset=object_offset)
-        t1 = time.perf_counter()
-        out = self.robot.scored(q, batch, friction)
-        # the fingers' kinematics is part of the batched auto-close
-        self._account(len(q), kinematics=0.0, autoclose=t1 - t0,
-                      quality=time.perf_counter() - t1)
-        return out
+    def closings(self, q: np.ndarray, palm: np.ndarray | None,
+                 object_offset: np.ndarray | None) -> RobotCloseBatch:
+        """One closing of the whole group of chunks (its iterations' cost is per call)."""
+        return self.hand.close_batch(q, palm=palm, object_offset=object_offset)
 
 
 ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine}
