@@ -20,5 +20,5 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "close_rules": ("CloseResult", "Contact"),
+    "generic_reference": ("RobotWorld",),
 })

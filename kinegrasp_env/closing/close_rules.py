@@ -1,7 +1,6 @@
 """The rules of the auto-close, shared by the reference and the fast closing: the tolerances
 and steps, the step a two-phalanx finger's speed bounds allow (:func:`closing_travel`), the
-secant polish (:func:`secant_root`), and what the default robot's physics closing returns
-(:class:`Contact`, :class:`CloseResult`). The closings that apply them:
+secant polish (:func:`secant_root`). The closings that apply them:
 :mod:`kinegrasp_env.closing.generic_reference` (pybullet's distances, one draw at a time) and
 :mod:`kinegrasp_env.closing.generic_fast` (a batch of draws; fingers of two capsule phalanxes
 by :mod:`kinegrasp_env.closing.close_kernel` against the distance grid).
@@ -9,14 +8,11 @@ by :mod:`kinegrasp_env.closing.close_kernel` against the distance grid).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
-from kinegrasp_env.robot.default_robot import HAND_JOINTS
 
 #: Largest gap (or penetration) at which a link counts as touching, metres.
 CONTACT_TOL = 2e-4
@@ -37,56 +33,6 @@ POLISH_ITERATIONS = 8
 START_TOL = CONTACT_TOL
 #: Closing steps per finger at most (the compiled capsule loop's).
 MAX_ITERATIONS = 400
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One finger-object contact (object frame).
-
-    Attributes:
-        finger: 0, 1, 2 (fingers f1, f2, f3).
-        link: 0 proximal, 1 distal.
-        point: (3,) on the object's surface, metres.
-        normal: (3,) inward unit surface normal.
-    """
-
-    finger: int
-    link: int
-    point: np.ndarray
-    normal: np.ndarray
-
-
-@dataclass
-class CloseResult:
-    """Outcome of one auto-close.
-
-    Attributes:
-        start_collision: the hand penetrated the object before closing.
-        contacts: contacts found (at most one per link).
-        missed: per finger, True if it closed to its limits without touching.
-        joints: final hand DOF (7,) in ``HAND_JOINTS`` order.
-        iterations: collision queries used.
-    """
-
-    start_collision: bool
-    contacts: list[Contact] = field(default_factory=list)
-    missed: tuple[bool, bool, bool] = (False, False, False)
-    joints: np.ndarray | None = None
-    iterations: int = 0
-
-    def robot_result(self) -> RobotCloseResult:
-        """The same closing as a closing of the default robot's description (what every
-        robot's engine scores: :func:`~kinegrasp_env.montecarlo.description_engine.score_batch`):
-        the contacts in their order (each finger's links as the description lists them,
-        proximal then distal), the final hand joints by name."""
-        fingers = len(self.missed)
-        joints = {} if self.joints is None else dict(zip(HAND_JOINTS, self.joints.tolist(),
-                                                         strict=True))
-        return RobotCloseResult(
-            self.start_collision,
-            [RobotContact(c.finger, c.link, c.point, c.normal, 0.0) for c in self.contacts],
-            tuple(self.missed), np.full(fingers, np.nan), np.zeros(fingers), joints,
-            self.iterations)
 
 
 class LinkSpeeds(NamedTuple):

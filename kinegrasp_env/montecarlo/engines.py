@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import CloseResult
 from kinegrasp_env.montecarlo.draws import (  # noqa: F401  (importable from here too)
     FORCE_CLOSURE,
     MISSED,
@@ -35,6 +34,7 @@ from kinegrasp_env.montecarlo.perturbation import (
     check_errors,
     placed_roots,
 )
+from kinegrasp_env.physics.hand_result import CloseResult
 from kinegrasp_env.quality.epsilon import prepare_exact_paths
 from kinegrasp_env.robot.default_robot import (
     HAND_JOINTS,

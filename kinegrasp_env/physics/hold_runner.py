@@ -16,8 +16,8 @@ from typing import Protocol
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import Contact
 from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, hand_joints
+from kinegrasp_env.physics.hand_result import Contact
 from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.protocol import (
     GRAVITY_PHASES,
@@ -105,7 +105,7 @@ def close_until_stall(step: Callable[[], None], flexion: Callable[[], np.ndarray
 
 
 def in_object_frame(contacts: list[GripContact], object_pose: np.ndarray) -> list[Contact]:
-    """World-frame contacts as :class:`~kinegrasp_env.closing.close_rules.Contact` in the frame
+    """World-frame contacts as :class:`~kinegrasp_env.physics.hand_result.Contact` in the frame
     of an object at ``object_pose`` (4, 4)."""
     inverse = np.linalg.inv(object_pose)
     return [Contact(c.finger, c.link, inverse[:3, :3] @ c.point + inverse[:3, 3],

@@ -27,9 +27,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import START_TOL, CloseResult
+from kinegrasp_env.closing.close_rules import START_TOL
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripContact, spring_grip
+from kinegrasp_env.physics.hand_result import CloseResult
 from kinegrasp_env.physics.hold_runner import (
     FLEXION_JOINTS,
     GRIP_JOINTS,

@@ -42,8 +42,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL, CloseResult
+from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.physics.grip_forces import GripContact
+from kinegrasp_env.physics.hand_result import CloseResult
 from kinegrasp_env.physics.hold_runner import FLEXION_JOINTS, SPREAD_JOINTS, close_fingers
 from kinegrasp_env.physics.protocol import ASSUMED_TORQUES, TorqueLimits
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld
@@ -105,7 +106,7 @@ class MotorSettings:
 
 @dataclass
 class PhysicsClose(CloseResult):
-    """A :class:`~kinegrasp_env.closing.close_rules.CloseResult` (``iterations``: simulation
+    """A :class:`~kinegrasp_env.physics.hand_result.CloseResult` (``iterations``: simulation
     steps) and where the object ended.
 
     Attributes:

@@ -31,9 +31,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.closing.close_rules import CloseResult
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.grip_forces import GripJoints, SpringGrip, spring_grip
+from kinegrasp_env.physics.hand_result import CloseResult
 from kinegrasp_env.physics.hold_runner import GRIP_JOINTS, WorldSteps, grip_joints
 from kinegrasp_env.physics.hold_runner import object_in_palm as object_in_palm  # re-exported
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult

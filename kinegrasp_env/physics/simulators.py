@@ -15,7 +15,7 @@ entry here and implements :class:`HoldSimulator`:
   world) at ``root_pose``, the hand DOF at ``preshape`` (``HAND_JOINTS`` order, radians);
   closes the hand on the pinned object and runs the protocol's phases in order
   (:mod:`~kinegrasp_env.physics.protocol`); returns the closing as a
-  :class:`~kinegrasp_env.closing.close_rules.CloseResult` (contacts in the object frame,
+  :class:`~kinegrasp_env.physics.hand_result.CloseResult` (contacts in the object frame,
   normals into the object, one per touching finger link) and a
   :class:`~kinegrasp_env.physics.protocol.HoldResult` built with the protocol's rules
   (:func:`~kinegrasp_env.physics.protocol.grip_verdict`, ``pose_change``, ``within``,
@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, ClassVar, Protocol
 if TYPE_CHECKING:  # the registry stays cheap to import (the CLI's parser reads it)
     import numpy as np
 
-    from kinegrasp_env.closing.close_rules import CloseResult
+    from kinegrasp_env.physics.hand_result import CloseResult
     from kinegrasp_env.physics.protocol import HoldProtocol, HoldResult
     from kinegrasp_env.world.objects import GraspObject
 
