@@ -33,6 +33,7 @@ from kinegrasp_env.closing.close_kernel import (
     geometry_args,
     grid_args,
 )
+from kinegrasp_env.closing.close_rules import LinkSpeeds
 from kinegrasp_env.closing.finger_paths import FingerPath, tree_poses
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.world.objects import GraspObject
@@ -116,7 +117,7 @@ def capsule_finger(index: int, path: FingerPath, geometry: dict[str, LinkGeometr
                          sign[1] * np.asarray(joint_d.axis, dtype=float), sign,
                          np.asarray(joint_d.origin, dtype=float), ends_p, ends_d, radius,
                          np.asarray(upper, dtype=float),
-                         np.array([prox_p, dist_p + dist_d, dist_d]))
+                         np.array(LinkSpeeds(prox_p, dist_p + dist_d, dist_d)))
 
 
 class CapsuleFingers:

@@ -30,8 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing import capsule_gap, segment_distance
-from kinegrasp_env.closing import close_rules as hand
+from kinegrasp_env.closing import capsule_gap, close_rules, segment_distance
 from kinegrasp_env.closing.capsule_gap import gap_one
 from kinegrasp_env.closing.finger_axes import axes_one
 from kinegrasp_env.closing.segment_distance import (
@@ -307,7 +306,7 @@ def close_finger(grid, geo, rules, finger, speed, prox0, dist0, buffers, found, 
             state = touch_down(geo, rules, finger, state, gap, work, found, pairs)
         else:
             state, missed = step_or_bisect(rules, finger, state, gap,
-                                           hand.closing_travel(gap_p, gap_d, phase, speed))
+                                           close_rules.closing_travel(gap_p, gap_d, phase, speed))
     flexion[0], flexion[1] = flexions(finger, state[0], state[1], state[2], state[3])
     return it, missed
 
@@ -348,9 +347,10 @@ def closing_rules() -> tuple:
     QUERY_DISTANCE, POLISH_TOL, POLISH_PROBE, POLISH_RANGE, POLISH_ITERATIONS,
     MAX_ITERATIONS), passed to the kernel as an argument (numba's disk cache would keep the
     values of module globals of another file even after they change)."""
-    return (float(hand.CONTACT_TOL), float(hand.STEP), float(hand.QUERY_DISTANCE),
-            float(hand.POLISH_TOL), float(hand.POLISH_PROBE), float(hand.POLISH_RANGE),
-            int(hand.POLISH_ITERATIONS), int(hand.MAX_ITERATIONS))
+    return (float(close_rules.CONTACT_TOL), float(close_rules.STEP),
+            float(close_rules.QUERY_DISTANCE), float(close_rules.POLISH_TOL),
+            float(close_rules.POLISH_PROBE), float(close_rules.POLISH_RANGE),
+            int(close_rules.POLISH_ITERATIONS), int(close_rules.MAX_ITERATIONS))
 
 
 def grid_args(grid, band: float, refine: int = capsule_gap.REFINE) -> tuple:

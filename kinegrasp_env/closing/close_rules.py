@@ -59,6 +59,13 @@ def closing_travel(gap_p: float, gap_d: float, phase: int, speeds: np.ndarray) -
     return min(gap_d / speeds[1], gap_p / speeds[0])
 
 
+def polish_window(t, t_end):
+    """(lowest, highest) parameter a touch found at t may be polished to: up to
+    ``POLISH_RANGE`` behind it (not below 0) and on to the end of the joints' travel
+    ``t_end`` (not below t); scalars, or arrays (n,) of draws alike."""
+    return np.maximum(t - POLISH_RANGE, 0.0), np.maximum(t_end, t)
+
+
 def secant_root(gap_at, t: float, gap: float, t_min: float, t_max: float) -> float:
     """Polish a contact: the t in [t_min, t_max] where the exact gap crosses zero.
 

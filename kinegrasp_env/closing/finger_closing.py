@@ -29,9 +29,9 @@ import numpy as np
 from kinegrasp_env.closing.close_rules import (
     POLISH_ITERATIONS,
     POLISH_PROBE,
-    POLISH_RANGE,
     POLISH_TOL,
     STEP,
+    polish_window,
 )
 from kinegrasp_env.closing.finger_paths import FingerPath, link_poses, tree_poses
 from kinegrasp_env.closing.generic_reference import MAX_STEPS
@@ -268,7 +268,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
             t_end = moving_end(ends[who], held[who])
             touches.wait(who, hits[idx],
                          np.min(np.where(hits[idx], lower[idx], np.inf), axis=1),
-                         np.maximum(t[who] - POLISH_RANGE, 0.0), np.maximum(t_end, t[who]))
+                         *polish_window(t[who], t_end))
         for k, link in enumerate(path.links):
             if k not in exact:
                 continue

@@ -55,10 +55,10 @@ import numpy as np
 from kinegrasp_env.closing.close_result import RobotCloseResult, RobotContact
 from kinegrasp_env.closing.close_rules import (
     CONTACT_TOL,
-    POLISH_RANGE,
     QUERY_DISTANCE,
     START_TOL,
     STEP,
+    polish_window,
     secant_root,
 )
 from kinegrasp_env.closing.contact_patch import (
@@ -71,7 +71,7 @@ from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.robot_scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse
+from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 from kinegrasp_env.world.objects import GraspObject, frame_coordinates
 
@@ -114,7 +114,7 @@ class RobotWorld(RobotScene):
         #: finger_paths.link_speeds`)
         self._speeds = [dict(zip(path.links, path.speeds, strict=True)) for path in
                         finger_paths(description, robot_link_geometry(description),
-                                     Kinematics(self.model))]
+                                     self._tree)]
 
     # ------------------------------------------------------------------ closing
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -240,7 +240,7 @@ class RobotWorld(RobotScene):
                     return self.gap(links)[0]
 
                 # polished to a zero gap of the touching links
-                t = secant_root(gap_at, t, g, max(t - POLISH_RANGE, 0.0), max(t_end, t))
+                t = float(secant_root(gap_at, t, g, *polish_window(t, t_end)))
                 values = put(t)
                 queries += len(touching)
                 for k, link in enumerate(finger.links):
