@@ -1,10 +1,13 @@
 """The certified distance bound between convex polytopes (GJK): against the exact distance of
 two boxes (a formula), against the fast engine's exact closest pair (vertices against the
 object's parts, the object's edges against the link's hulls: a different algorithm) on the
-Panda's links and the catalog objects, and against the same kernel interpreted."""
+Panda's links and the catalog objects, started cold and where the last bound ended, and
+against the same kernel interpreted; the support walked along a hull's edges against
+NumPy's furthest vertex."""
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 
@@ -13,11 +16,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from kinegrasp_env.closing.convex_distance import (
+    WALK_MIN,
     hull_distance_bounds,
-    hull_spheres,
+    new_hints,
     new_simplex,
+    stacked_points,
     stacked_vertices,
 )
+from kinegrasp_env.world.polytope import ConvexPart, face_planes
 
 #: The bound lies below the exact distance: measured at most 1.7e-16 m above the exact pair
 #: (which has rounding of its own); 1e-14 m allowed.
@@ -29,18 +35,15 @@ BELOW_TOL = 1e-10
 def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, motion=None,
             travel=False, short=0.0):
     n = rot.shape[0]
-    a_starts = np.array([0, len(a_vertices)]) if a_starts is None else a_starts
-    b_starts = np.array([0, len(b_vertices)]) if b_starts is None else b_starts
+    a_starts = [0, len(a_vertices)] if a_starts is None else a_starts
+    b_starts = [0, len(b_vertices)] if b_starts is None else b_starts
+    a = stacked_points([a_vertices[s:e] for s, e in itertools.pairwise(a_starts)])
+    b = stacked_points([b_vertices[s:e] for s, e in itertools.pairwise(b_starts)])
     out, far = np.empty(n), np.empty(n)
     motion = np.zeros((n, 3)) if motion is None else motion
-    a_vertices = np.ascontiguousarray(a_vertices, dtype=float)
-    b_vertices = np.ascontiguousarray(b_vertices, dtype=float)
-    a_starts = np.asarray(a_starts, dtype=np.int64)
-    b_starts = np.asarray(b_starts, dtype=np.int64)
-    hull_distance_bounds(a_vertices, a_starts, hull_spheres(a_vertices, a_starts),
-                         np.ascontiguousarray(rot), np.ascontiguousarray(trans), b_vertices,
-                         b_starts, hull_spheres(b_vertices, b_starts),
-                         np.ascontiguousarray(motion), short, new_simplex(), out, far)
+    hull_distance_bounds(*a, np.ascontiguousarray(rot), np.ascontiguousarray(trans), *b,
+                         np.ascontiguousarray(motion), short, new_hints(n, a, b),
+                         new_simplex(), out, far)
     return (out, far) if travel else out
 
 
@@ -89,29 +92,33 @@ def test_panda_links_against_the_exact_pair(panda_hands, object_name, link):
     poses = np.tile(np.eye(4), (n, 1, 1))
     poses[:, :3, :3], poses[:, :3, 3] = rot, trans
     exact = hand.exact(poses, link)[0]
-    bound = hand.distance_bound(poses, link)[0]
     apart = exact > 1e-9
     assert apart.sum() > 300 and (exact < 0).sum() > 100
-    assert np.all(np.isneginf(bound[exact < 0]))
-    assert np.all(np.isfinite(bound[apart]))
-    assert np.all(bound[apart] <= exact[apart] + ABOVE_TOL)
-    assert np.all(bound[apart] >= exact[apart] - BELOW_TOL)
+    # cold, then started where the last bounds ended at poses moved a little (as a closing's
+    # next step), then at the same poses again
+    hints = hand.distances.new_hints(link, n)
+    moved = poses.copy()
+    moved[:, :3, 3] += np.random.default_rng(11).normal(size=(n, 3)) * 1e-3
+    hand.distance_bound(moved, link, hints=hints)
+    for start in (None, hints, hints):
+        bound = hand.distance_bound(poses, link, hints=start)[0]
+        assert np.all(np.isneginf(bound[exact < 0]))
+        assert np.all(np.isfinite(bound[apart]))
+        assert np.all(bound[apart] <= exact[apart] + ABOVE_TOL)
+        assert np.all(bound[apart] >= exact[apart] - BELOW_TOL)
 
 
 INTERPRETED = """
 import os, sys
 os.environ["NUMBA_DISABLE_JIT"] = "1"
 import numpy as np
-from kinegrasp_env.closing.convex_distance import (
-    hull_distance_bounds,
-    new_simplex,
-    stacked_vertices,
-)
+from kinegrasp_env.closing.convex_distance import hull_distance_bounds, new_hints, new_simplex
 d = np.load(sys.argv[1])
+a = [d[f"a{k}"] for k in range(5)]
+b = [d[f"b{k}"] for k in range(5)]
 out, far = np.empty(len(d["rot"])), np.empty(len(d["rot"]))
-hull_distance_bounds(d["a"], d["a_starts"], d["a_spheres"], d["rot"], d["trans"], d["b"],
-                     d["b_starts"], d["b_spheres"], np.zeros((len(out), 3)), 0.0,
-                     new_simplex(), out, far)
+hull_distance_bounds(*a, d["rot"], d["trans"], *b, np.zeros((len(out), 3)), 0.0,
+                     new_hints(len(out), a, b), new_simplex(), out, far)
 np.save(sys.argv[2], out)
 """
 
@@ -119,17 +126,19 @@ np.save(sys.argv[2], out)
 def test_the_kernel_interpreted_gives_the_same_bounds(panda_hands, tmp_path):
     # the compiled kernel against its own source run by Python: equal to a few ulps
     hand = panda_hands["drill"]
-    a, a_starts, a_spheres = stacked_vertices(hand.geometry["panda_rightfinger"].parts)
-    b, b_starts, b_spheres = stacked_vertices(hand.obj.convex_parts)
+    a = stacked_vertices(hand.geometry["panda_rightfinger"].parts)
+    b = stacked_vertices(hand.obj.convex_parts)
     n = 150
     rot = Rotation.random(n, random_state=7).as_matrix()
     trans = hand.obj.center_of_mass + np.random.default_rng(8).normal(size=(n, 3)) * 0.06
-    np.savez(tmp_path / "in.npz", a=a, a_starts=a_starts, a_spheres=a_spheres, rot=rot,
-             trans=trans, b=b, b_starts=b_starts, b_spheres=b_spheres)
+    np.savez(tmp_path / "in.npz", rot=rot, trans=trans, **{f"a{k}": x for k, x in enumerate(a)},
+             **{f"b{k}": x for k, x in enumerate(b)})
     subprocess.run([sys.executable, "-c", INTERPRETED, str(tmp_path / "in.npz"),
                     str(tmp_path / "out.npy")], check=True, timeout=600)
     plain = np.load(tmp_path / "out.npy")
-    compiled = _bounds(a, rot, trans, b, a_starts, b_starts)
+    compiled = np.empty(n)
+    hull_distance_bounds(*a, rot, trans, *b, np.zeros((n, 3)), 0.0, new_hints(n, a, b),
+                         new_simplex(), compiled, np.empty(n))
     assert np.isfinite(compiled).sum() > 30 and np.isneginf(compiled).sum() > 10
     np.testing.assert_array_equal(np.isneginf(compiled), np.isneginf(plain))
     finite = np.isfinite(compiled)
@@ -182,3 +191,32 @@ def test_travel_never_lets_a_link_through_the_object(panda_hands, link):
     exact = hand.exact(moved, link)[0]
     assert np.all(exact > 0), exact.min()
 
+
+
+
+def test_bounds_walked_from_any_start_stay_below_the_exact_distance():
+    # random hulls of more than WALK_MIN points (some inside: dropped from the walk) against
+    # points around them, each bound's supports walked from a random vertex: a walk that
+    # stopped short of the furthest vertex would give a plane beyond the hull, a bound above
+    # the exact point-to-hull distance (ConvexPart.closest: face planes and edges, no GJK)
+    rng = np.random.default_rng(12)
+    n = 300
+    for _ in range(15):
+        count = int(rng.integers(WALK_MIN + 1, 400))
+        points = rng.normal(size=(count, 3)) * rng.uniform(0.01, 0.05, 3)
+        hull = stacked_points([points])
+        assert 0 < len(hull[0]) < count and len(hull[4]) > 0  # walked, interior dropped
+        part = ConvexPart(hull[0], face_planes(hull[0]))
+        target = rng.normal(size=(n, 3)) * 0.06
+        exact = part.closest(target)[1]
+        single = stacked_points([np.zeros((1, 3))])
+        hints = new_hints(n, hull, single)
+        hints[:, 0, 0] = rng.integers(0, len(hull[0]), n)
+        out = np.empty(n)
+        hull_distance_bounds(*hull, np.tile(np.eye(3), (n, 1, 1)), -target, *single,
+                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n))
+        apart = exact > 1e-9
+        assert apart.sum() > 100
+        assert np.all(np.isneginf(out[exact < 0]))
+        assert np.all(out[apart] <= exact[apart] + ABOVE_TOL)
+        assert np.all(out[apart] >= exact[apart] - BELOW_TOL)

@@ -22,18 +22,70 @@ from kinegrasp_env import jit
 GAP_REL = 1e-10
 #: Iterations at most (a polytope pair of a few hundred vertices needs a dozen).
 MAX_ITER = 64
+#: Parts of more points than this are searched by walking their hull's edges.
+WALK_MIN = 16
 
-__all__ = ["GAP_REL", "MAX_ITER", "hull_distance_bounds", "hull_spheres", "new_simplex",
-           "stacked_faces", "stacked_vertices"]
+__all__ = ["GAP_REL", "MAX_ITER", "WALK_MIN", "hull_distance_bounds", "hull_spheres",
+           "new_hints", "new_simplex", "stacked_faces", "stacked_points", "stacked_vertices"]
 
 
-def stacked_vertices(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Convex parts' (:class:`~kinegrasp_env.world.polytope.ConvexPart`) vertices stacked
-    (V, 3), each part's first row (P + 1,) int64 and its bounding sphere (P, 4)
-    (:func:`hull_spheres`): the layout :func:`hull_distance_bounds` reads."""
-    vertices = np.ascontiguousarray(np.vstack([p.vertices for p in parts]), dtype=float)
-    starts = np.cumsum([0] + [len(p.vertices) for p in parts]).astype(np.int64)
-    return vertices, starts, hull_spheres(vertices, starts)
+def stacked_vertices(parts) -> tuple[np.ndarray, ...]:
+    """Convex parts' (:class:`~kinegrasp_env.world.polytope.ConvexPart`) vertices in the
+    layout :func:`hull_distance_bounds` reads (:func:`stacked_points`)."""
+    return stacked_points([p.vertices for p in parts])
+
+
+def stacked_points(point_sets: list[np.ndarray]) -> tuple[np.ndarray, ...]:
+    """Point sets ((V_p, 3) each, metres), each standing for its convex hull, laid out for
+    :func:`hull_distance_bounds`: (vertices (V, 3), each part's first row (P + 1,) int64,
+    each part's bounding sphere (P, 4) (:func:`hull_spheres`), each vertex's first
+    neighbour row (V + 1,) int64 and the neighbours (K,) int64).
+
+    A part of more than :data:`WALK_MIN` points whose hull qhull can take keeps only its
+    hull's vertices, each with its neighbours along the hull's triangulated edges: the
+    support search walks them (a vertex no neighbour of which lies further along a
+    direction is the hull's furthest, as in the simplex method). A smaller or flat part
+    keeps every point and no neighbours: its support is searched over all of them."""
+    parts, links = [], []
+    for points in point_sets:
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        kept, neighbours = _hull_graph(points)
+        parts.append(kept)
+        links.append(neighbours)
+    vertices = np.ascontiguousarray(np.vstack(parts), dtype=float)
+    starts = np.cumsum([0] + [len(p) for p in parts]).astype(np.int64)
+    counts, flat = [], []
+    for first, neighbours in zip(starts[:-1], links, strict=True):
+        for row in neighbours:
+            counts.append(len(row))
+            flat.extend(int(first) + k for k in row)
+    first_neighbour = np.cumsum([0, *counts]).astype(np.int64)
+    return (vertices, starts, hull_spheres(vertices, starts), first_neighbour,
+            np.asarray(flat, dtype=np.int64))
+
+
+def _hull_graph(points: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
+    """(the points kept (V', 3), each kept point's neighbours (indices into the kept)):
+    the hull's vertices and edges, or every point without neighbours (see
+    :func:`stacked_points`)."""
+    none: list[list[int]] = [[] for _ in points]
+    if len(points) <= WALK_MIN:
+        return points, none
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        hull = ConvexHull(points)
+    except QhullError:  # flat or degenerate: searched whole
+        return points, none
+    order = np.sort(hull.vertices)
+    index = {int(v): k for k, v in enumerate(order)}
+    neighbours: list[set[int]] = [set() for _ in order]
+    for simplex in hull.simplices:
+        for a in simplex:
+            for b in simplex:
+                if a != b:
+                    neighbours[index[int(a)]].add(index[int(b)])
+    return points[order], [sorted(row) for row in neighbours]
 
 
 def hull_spheres(vertices: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -55,6 +107,12 @@ def stacked_faces(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
             np.cumsum([0] + [len(p.planes) for p in parts]).astype(np.int64),
             np.ascontiguousarray(np.concatenate([p.edges for p in parts]), dtype=float),
             np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64))
+
+
+def new_hints(n: int, a_stack: tuple, b_stack: tuple) -> np.ndarray:
+    """(n, P Q, 2) int64 of -1: no start known for any pair of A's P parts and B's Q
+    (stacked: :func:`stacked_points`) at n draws (:func:`hull_distance_bounds`)."""
+    return np.full((n, (len(a_stack[1]) - 1) * (len(b_stack[1]) - 1), 2), -1, dtype=np.int64)
 
 
 def new_simplex() -> np.ndarray:
@@ -177,17 +235,49 @@ def _reduce(w, m):
 
 
 @jit.kernel(_nrt=False, inline="always")
-def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start, b_stop, w):
+def _support(vertices, start, stop, first, neighbours, dx, dy, dz, at):
+    """The row of vertices[start:stop] furthest along (dx, dy, dz): walked from row ``at``
+    along the hull's edges (``first``, ``neighbours``: :func:`stacked_points`) where the
+    part has them, else the first of the furthest of all rows."""
+    if first[start] == first[stop]:
+        top, pick = -np.inf, start
+        for k in range(start, stop):
+            s = dx * vertices[k, 0] + dy * vertices[k, 1] + dz * vertices[k, 2]
+            if s > top:
+                top, pick = s, k
+        return pick
+    pick = at
+    top = dx * vertices[pick, 0] + dy * vertices[pick, 1] + dz * vertices[pick, 2]
+    moved = True
+    while moved:
+        moved = False
+        for j in range(first[pick], first[pick + 1]):
+            k = neighbours[j]
+            s = dx * vertices[k, 0] + dy * vertices[k, 1] + dz * vertices[k, 2]
+            if s > top:
+                top, pick, moved = s, k, True
+    return pick
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _pair_bound(a_vertices, a_start, a_stop, a_first, a_next, rot, trans, i, b_vertices,
+                b_start, b_stop, b_first, b_next, hint, w):
     """(certified lower bound of the distance between hull(a_vertices[a_start:a_stop]),
     posed by draw i's rot (3, 3) and trans (3,), and hull(b_vertices[b_start:b_stop]), and
     the unit normal (x, y, z) of the plane that gives it: every point x of A - B has
     n . x >= the bound); -inf (and a zero normal) where they touch or overlap (the module's
-    iteration)."""
+    iteration). ``a_first``, ``a_next``, ``b_first``, ``b_next``: the parts' hull edges
+    (:func:`stacked_points`), along which each support is walked from the last. ``hint``
+    (2,) int64: the rows of A and B whose difference starts the iteration (the last
+    supports of the pair's previous bound; outside the parts: their first rows), set to
+    this bound's last supports."""
     r = rot[i]
-    ax, ay, az = a_vertices[a_start, 0], a_vertices[a_start, 1], a_vertices[a_start, 2]
-    vx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[b_start, 0]
-    vy = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az + trans[i, 1] - b_vertices[b_start, 1]
-    vz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[b_start, 2]
+    pick = hint[0] if a_start <= hint[0] < a_stop else a_start
+    other = hint[1] if b_start <= hint[1] < b_stop else b_start
+    ax, ay, az = a_vertices[pick, 0], a_vertices[pick, 1], a_vertices[pick, 2]
+    vx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[other, 0]
+    vy = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az + trans[i, 1] - b_vertices[other, 1]
+    vz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[other, 2]
     w[0, 0], w[0, 1], w[0, 2] = vx, vy, vz
     m = 1
     lower, nx, ny, nz = -np.inf, 0.0, 0.0, 0.0
@@ -200,17 +290,10 @@ def _pair_bound(a_vertices, a_start, a_stop, rot, trans, i, b_vertices, b_start,
         dx = -(r[0, 0] * vx + r[1, 0] * vy + r[2, 0] * vz)
         dy = -(r[0, 1] * vx + r[1, 1] * vy + r[2, 1] * vz)
         dz = -(r[0, 2] * vx + r[1, 2] * vy + r[2, 2] * vz)
-        top, pick = -np.inf, a_start
-        for k in range(a_start, a_stop):
-            s = dx * a_vertices[k, 0] + dy * a_vertices[k, 1] + dz * a_vertices[k, 2]
-            if s > top:
-                top, pick = s, k
+        pick = _support(a_vertices, a_start, a_stop, a_first, a_next, dx, dy, dz, pick)
         ax, ay, az = a_vertices[pick, 0], a_vertices[pick, 1], a_vertices[pick, 2]
-        top, other = -np.inf, b_start
-        for k in range(b_start, b_stop):  # support of B along +v
-            s = vx * b_vertices[k, 0] + vy * b_vertices[k, 1] + vz * b_vertices[k, 2]
-            if s > top:
-                top, other = s, k
+        other = _support(b_vertices, b_start, b_stop, b_first, b_next, vx, vy, vz, other)
+        hint[0], hint[1] = pick, other
         wx = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az + trans[i, 0] - b_vertices[other, 0]
         wy = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az + trans[i, 1] - b_vertices[other, 1]
         wz = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az + trans[i, 2] - b_vertices[other, 2]
@@ -243,8 +326,9 @@ def _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q):
 
 
 @jit.kernel(_nrt=False)
-def hull_distance_bounds(a_vertices, a_starts, a_spheres, rot, trans, b_vertices, b_starts,
-                         b_spheres, motion, short, w, out, travel):
+def hull_distance_bounds(a_vertices, a_starts, a_spheres, a_first, a_next, rot, trans,
+                         b_vertices, b_starts, b_spheres, b_first, b_next, motion, short,
+                         hints, w, out, travel):
     """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
     overlaps) of the least distance between the convex parts of A (part p: the hull of
     a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
@@ -253,7 +337,11 @@ def hull_distance_bounds(a_vertices, a_starts, a_spheres, rot, trans, b_vertices
     zero rows: none given), travel[i] is how far in that parameter A can be translated along
     motion[i] before any pair's separating plane lets it come within ``short`` (metres) of B
     (inf where no plane stands in its way; 0 where a pair is that near already), else 0
-    (nothing certified). ``w`` (4, 3) is scratch (:func:`new_simplex`).
+    (nothing certified). ``a_first``, ``a_next`` and ``b_first``, ``b_next``: each part's
+    hull edges (:func:`stacked_points`, whose layout A and B both take). ``hints`` (n, P Q,
+    2) int64: where draw i's bound of parts p, q starts (row p Q + q: :func:`new_hints`),
+    left where it ended; a bound started at the last one's end (the draw a little moved)
+    needs few iterations. ``w`` (4, 3) is scratch (:func:`new_simplex`).
 
     Without a motion, a pair whose bounding spheres (``a_spheres`` (P, 4), ``b_spheres``
     (Q, 4): :func:`hull_spheres`) are farther apart than the least bound found is not
@@ -275,9 +363,11 @@ def hull_distance_bounds(a_vertices, a_starts, a_spheres, rot, trans, b_vertices
                 if not moving and rank > 0 and not (
                         _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q) < best):
                     continue
-                bound, nx, ny, nz = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1], rot,
-                                                trans, i, b_vertices, b_starts[q],
-                                                b_starts[q + 1], w)
+                bound, nx, ny, nz = _pair_bound(a_vertices, a_starts[p], a_starts[p + 1],
+                                                a_first, a_next, rot, trans, i, b_vertices,
+                                                b_starts[q], b_starts[q + 1], b_first,
+                                                b_next, hints[i, p * (b_starts.shape[0] - 1)
+                                                              + q], w)
                 best = min(best, bound)
                 if moving:  # the plane n . x >= bound moves by (n . motion) per unit
                     closing = -(nx * mx + ny * my + nz * mz)

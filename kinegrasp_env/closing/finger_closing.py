@@ -218,6 +218,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
     touched = np.zeros((m, len(path.links)), dtype=bool)
     taken = np.zeros(m, dtype=np.int64)  # the steps each draw has taken
     touches = _Touches(hand, finger, t, gaps, touched, last, queries, rows)
+    hints = {link: hand.distances.new_hints(link, m) for link in path.links}
     active = np.arange(m)
     while active.size or touches.waiting:
         if touches.due(active.size):  # polished, they go on with the others
@@ -235,9 +236,11 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         poses = finger.poses(active, t[active])
         lower, travel = np.full(live.shape, np.inf), np.zeros(live.shape)
         for k, link in enumerate(path.links):
+            hint = hints[link][active]
             bound, far = hand.distance_bound(
                 poses[link], link, None if motion[link] is None else motion[link][active],
-                SHORT * contact_tol)
+                SHORT * contact_tol, hint)
+            hints[link][active] = hint
             lower[:, k] = np.where(live[:, k], bound, np.inf)
             travel[:, k] = np.where(live[:, k] & ~stopped.any(axis=1), far, 0.0)
         near = np.flatnonzero(lower.min(axis=1) <= contact_tol)

@@ -130,10 +130,11 @@ class FastRobotHand:
         return self.distances.exact(poses, link, below, decide)
 
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
-                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                       short: float = 0.0, hints: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`~kinegrasp_env.closing.link_distances.LinkDistances.distance_bound` of
         the robot's links."""
-        return self.distances.distance_bound(poses, link, motion, short)
+        return self.distances.distance_bound(poses, link, motion, short, hints)
 
     def _object_poses(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None
                       ) -> np.ndarray:

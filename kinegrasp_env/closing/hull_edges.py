@@ -74,15 +74,31 @@ def edge_at(planes, edges, tol, rot, trans, ends, e, i, s):
     return point_hull(planes, edges, tol, x, y, z, np.inf)
 
 
+@jit.kernel(_nrt=False, inline="always")
+def _ball_gap(local, e, sphere):
+    """A lower bound (metres) of the distance of segment local[e] (2, 3) to what a ball
+    (``sphere`` (4,): centre, radius) holds: the segment's distance to its centre, less
+    its radius."""
+    ax, ay, az = local[e, 0, 0], local[e, 0, 1], local[e, 0, 2]
+    dx, dy, dz = local[e, 1, 0] - ax, local[e, 1, 1] - ay, local[e, 1, 2] - az
+    px, py, pz = sphere[0] - ax, sphere[1] - ay, sphere[2] - az
+    s = (px * dx + py * dy + pz * dz) / max(dx * dx + dy * dy + dz * dz, 1e-300)
+    s = min(max(s, 0.0), 1.0)
+    gx, gy, gz = px - s * dx, py - s * dy, pz - s * dz
+    return np.sqrt(gx * gx + gy * gy + gz * gz) - sphere[3]
+
+
 @jit.kernel(_nrt=False)
-def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold, best,
-                       link_point, object_point, local):
+def edges_against_hull(planes, edges, tol, sphere, rot, trans, ends, below, steps, gold,
+                       best, link_point, object_point, local):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
     best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull where
     that is smaller, with its link point and object point (object frame, (n, 3)); edges
-    whose plane bound is not below min(best[i], below) are skipped, and so is the rest of an
-    edge's search once its Lipschitz bound over the bracket is not below it either.
-    ``local`` (E, 2, 3) is scratch: the edges' ends in the link frame of the draw."""
+    whose distance to the hull's bounding ball (``sphere`` (4,): centre, radius; link
+    frame), and then whose plane bound, is not below min(best[i], below) are skipped, and so
+    is the rest of an edge's search once its Lipschitz bound over the bracket is not below
+    it either. ``local`` (E, 2, 3) is scratch: the edges' ends in the link frame of the
+    draw."""
     for i in range(rot.shape[0]):
         for e in range(ends.shape[0]):  # the edges' ends in the link frame of draw i
             for k in range(2):
@@ -93,6 +109,8 @@ def edges_against_hull(planes, edges, tol, rot, trans, ends, below, steps, gold,
                 local[e, k, 1] = rot[i, 0, 1] * wx + rot[i, 1, 1] * wy + rot[i, 2, 1] * wz
                 local[e, k, 2] = rot[i, 0, 2] * wx + rot[i, 1, 2] * wy + rot[i, 2, 2] * wz
         for e in range(ends.shape[0]):
+            if not _ball_gap(local, e, sphere) < min(best[i], below):
+                continue
             bound = -np.inf
             for f in range(planes.shape[0]):
                 v0 = (planes[f, 0] * local[e, 0, 0] + planes[f, 1] * local[e, 0, 1]

@@ -17,6 +17,7 @@ import numpy as np
 
 from kinegrasp_env.closing.convex_distance import (
     hull_distance_bounds,
+    new_hints,
     new_simplex,
     stacked_faces,
     stacked_vertices,
@@ -107,23 +108,35 @@ class LinkDistances:
             d, f, o = dist[rows], fp[rows], op[rows]
         else:
             d, f, o = dist, fp, op
-        for part in geom.parts:
-            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, rot, trans,
-                               self.edges, float(below), SEARCH, GOLD, d, f, o,
+        for part, sphere in zip(geom.parts, geom.hulls[2], strict=True):
+            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere, rot,
+                               trans, self.edges, float(below), SEARCH, GOLD, d, f, o,
                                self._local_edges)
         if rows is not None:
             dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
 
+    def new_hints(self, link: str, n: int) -> np.ndarray:
+        """Where :meth:`distance_bound` of ``link`` starts at n draws: nowhere known yet
+        (:func:`~kinegrasp_env.closing.convex_distance.new_hints`; (n, 0, 2) for a link
+        without polytopes)."""
+        if link not in self._link_hulls:
+            return np.full((n, 0, 2), -1, dtype=np.int64)
+        return new_hints(n, self._link_hulls[link], self._object_hulls)
+
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
-                       short: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                       short: float = 0.0, hints: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
         """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
         by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
         or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
         before a separating plane lets it come within ``short`` (metres), 0 without a
         motion)
         (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`; a rounded
-        part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`)."""
+        part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`). ``hints``
+        (:meth:`new_hints`, updated in place): where each draw's last bound of the link
+        ended, the link moved a little since (a bound that starts there takes fewer
+        iterations)."""
         n = poses.shape[0]
         out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
         if link in self._link_hulls:
@@ -131,7 +144,9 @@ class LinkDistances:
             hull_distance_bounds(*self._link_hulls[link],
                                  np.ascontiguousarray(poses[:, :3, :3]),
                                  np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
-                                 move, float(short), self._simplex, out, travel)
+                                 move, float(short),
+                                 self.new_hints(link, n) if hints is None else hints,
+                                 self._simplex, out, travel)
         if link in self._rounded:
             bound, far = self._rounded[link].bounds(poses, motion, short)
             out, travel = np.minimum(out, bound), np.minimum(travel, far)

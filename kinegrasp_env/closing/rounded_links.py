@@ -23,7 +23,11 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.capsule_gap import sampled_bounds
-from kinegrasp_env.closing.convex_distance import hull_distance_bounds, hull_spheres
+from kinegrasp_env.closing.convex_distance import (
+    hull_distance_bounds,
+    new_hints,
+    stacked_points,
+)
 from kinegrasp_env.closing.link_geometry import RoundedPart, grid_error
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
@@ -72,6 +76,7 @@ class RoundedCores:
             hull_distance_bounds(*self._cores[k], np.ascontiguousarray(rot[todo]),
                                  np.ascontiguousarray(trans[todo]), *self._object_hulls,
                                  np.ascontiguousarray(motion[todo]), float(short),
+                                 new_hints(todo.size, self._cores[k], self._object_hulls),
                                  self._simplex, found, far)
             out[todo], travel[todo] = found, far
         return out, travel
@@ -122,13 +127,11 @@ class RoundedCores:
         return dist, core_point, obj_point
 
 
-def core_layout(part: RoundedPart) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def core_layout(part: RoundedPart) -> tuple[np.ndarray, ...]:
     """A rounded part's core as a hull of one or two vertices, in the layout of
-    :func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`."""
-    core = np.stack([part.a, part.b]) if np.any(part.a != part.b) else part.a[None]
-    core = np.ascontiguousarray(core, dtype=float)
-    starts = np.array([0, len(core)], dtype=np.int64)
-    return core, starts, hull_spheres(core, starts)
+    :func:`~kinegrasp_env.closing.convex_distance.stacked_points`."""
+    return stacked_points([np.stack([part.a, part.b]) if np.any(part.a != part.b)
+                           else part.a[None]])
 
 
 def contact_normals(core_point: np.ndarray, obj_point: np.ndarray) -> np.ndarray:

@@ -18,8 +18,9 @@ import numpy as np
 
 from kinegrasp_env.closing.convex_distance import (
     hull_distance_bounds,
-    hull_spheres,
+    new_hints,
     new_simplex,
+    stacked_points,
 )
 from kinegrasp_env.closing.link_geometry import LinkGeometry
 from kinegrasp_env.closing.rounded_links import core_layout
@@ -52,9 +53,7 @@ class TableCheck:
         box, self.half = table_in_object(obj)
         self._object_inverse = obj.pose_inverse
         self._to_box = rigid_inverse(box)
-        corners = np.ascontiguousarray(_CORNERS * self.half)
-        self._box = (corners, np.array([0, 8], dtype=np.int64),
-                     hull_spheres(corners, np.array([0, 8], dtype=np.int64)))
+        self._box = stacked_points([_CORNERS * self.half])
         self._simplex = new_simplex()
         self._hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
         self._cores = {link: [(core_layout(p), p.radius) for p in g.rounded]
@@ -93,6 +92,7 @@ class TableCheck:
         for hull, reach in shapes + self._cores.get(link, []):
             bound, travel = np.empty(rows.size), np.empty(rows.size)
             hull_distance_bounds(*hull, rot, trans, *self._box, np.zeros((rows.size, 3)), 0.0,
-                                 self._simplex, bound, travel)
+                                 new_hints(rows.size, hull, self._box), self._simplex, bound,
+                                 travel)
             out[rows[bound <= reach]] = True
         return out
