@@ -146,3 +146,26 @@ def test_bad_urdf(tmp_path):
 def test_bad_configuration_shape(kin):
     with pytest.raises(ValueError, match=r"shape \(n, 14\)"):
         kin.forward(np.zeros(7))
+
+
+def test_joint_angles_against_the_closed_form():
+    # every driver kind (directly, negated, scaled with an offset, prismatic, fixed) against
+    # cos / sin of mult q + offset computed by NumPy: the half-angle formula agrees within a
+    # few ulps, a prismatic value is the same expression bit for bit, a fixed joint stays 0
+    from kinegrasp_env.robot.fk_kernel import FIXED, PRISMATIC, ROTATING, joint_angles
+
+    rng = np.random.default_rng(3)
+    kind = np.array([ROTATING, ROTATING, ROTATING, PRISMATIC, FIXED, ROTATING], dtype=np.int64)
+    index = np.array([0, 1, 2, 3, 0, 2], dtype=np.int64)
+    mult = np.array([1.0, -1.0, 0.7, 0.5, 1.0, 1.0])
+    offset = np.array([0.0, 0.0, 0.2, 0.01, 0.0, -0.3])
+    q = rng.uniform(-3.1, 3.1, (400, 4))
+    cos, sin, shift = (np.zeros((6, 400)) for _ in range(3))
+    joint_angles(q, kind, index, mult, offset, cos, sin, shift)
+    value = mult[:, None] * q[:, index].T + offset[:, None]
+    rotating = kind == ROTATING
+    np.testing.assert_allclose(cos[rotating], np.cos(value[rotating]), rtol=0, atol=2e-15)
+    np.testing.assert_allclose(sin[rotating], np.sin(value[rotating]), rtol=0, atol=2e-15)
+    np.testing.assert_array_equal(shift[kind == PRISMATIC], value[kind == PRISMATIC])
+    assert not cos[kind == FIXED].any() and not sin[kind == FIXED].any()
+    assert not shift[rotating].any() and not cos[kind == PRISMATIC].any()

@@ -15,6 +15,8 @@ interpreted.
 
 from __future__ import annotations
 
+import numpy as np
+
 from kinegrasp_env import jit
 
 #: Joint kinds of the kernel: fixed, rotating (revolute, continuous), prismatic.
@@ -58,6 +60,32 @@ def applied(rot, p, r, vec, j):
             acc = term if first else acc + term
             first = False
     return acc, not first
+
+
+@jit.kernel(_nrt=False)
+def joint_angles(q, kind, index, mult, offset, cos, sin, shift):
+    """Per joint and draw (J, n): cos and sin of the rotating joints' angles, values of the
+    prismatic ones (metres), written into ``cos``, ``sin``, ``shift`` (zero elsewhere, as
+    given), from configurations q (n, dof): joint j's value is mult[j] q[:, index[j]] +
+    offset[j] (``kind`` (J,) int64 as :func:`forward_pass`'s). A rotating joint driven
+    directly or negated (mult +-1, no offset) takes cos and sin from one transcendental,
+    t = tan(q / 2): cos = (1 - t^2) / (1 + t^2), sin = +-2 t / (1 + t^2)."""
+    for j in range(kind.shape[0]):
+        if kind[j] == FIXED:
+            continue
+        c, m, o = index[j], mult[j], offset[j]
+        for i in range(q.shape[0]):
+            if kind[j] == PRISMATIC:
+                shift[j, i] = m * q[i, c] + o
+            elif o == 0.0 and (m == 1.0 or m == -1.0):
+                t = np.tan(0.5 * q[i, c])
+                denom = 1.0 / (1.0 + t * t)
+                cos[j, i] = (1.0 - t * t) * denom
+                half = 2.0 * t * denom
+                sin[j, i] = half if m == 1.0 else -half
+            else:
+                value = m * q[i, c] + o
+                cos[j, i], sin[j, i] = np.cos(value), np.sin(value)
 
 
 @jit.kernel

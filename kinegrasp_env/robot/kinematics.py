@@ -13,7 +13,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK
-from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass
+from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass, joint_angles
 from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.pose_rules import (
     add_joint_columns,
@@ -130,7 +130,7 @@ class Kinematics:
         self._drivers = model.drivers()
         self._parent_joint = {j.child: j for j in model.joints}
         self._links = model.links
-        self._needed: dict[tuple[str, ...], np.ndarray] = {}
+        self._needed: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
         self._slot = {model.base_link: 0} | {j.child: i + 1 for i, j in enumerate(model.joints)}
         count = len(model.joints)
         kind = np.zeros(count, dtype=np.int64)
@@ -152,37 +152,25 @@ class Kinematics:
                     back[i], has_back[i] = q_frame.T, True
                 rot = rot @ q_frame
             const[i] = rot
-        self._driven = self._driver_groups()
+        self._driven = self._driver_table()
         self._pass = (np.array([self._slot[j.parent] for j in model.joints], dtype=np.int64),
                       kind, const, np.array([j.origin[:3, 3] for j in model.joints], dtype=float)
                       .reshape(count, 3), back, has_back, slide)
 
-    def _driver_groups(self) -> tuple:
-        """Joints by how their value follows from q: rotating and driven directly (rows,
-        actuated indices), negated (rows, indices), by another multiplier or an offset
-        (rows), prismatic (rows)."""
-        direct, direct_q, negated, negated_q, general, prismatic = [], [], [], [], [], []
+    def _driver_table(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per joint (J,): the actuated index that drives it, its multiplier and offset
+        (0, 1, 0 for a fixed joint): :func:`~kinegrasp_env.robot.fk_kernel.joint_angles`'
+        table."""
+        index = np.zeros(len(self.model.joints), dtype=np.int64)
+        mult, offset = np.ones(len(self.model.joints)), np.zeros(len(self.model.joints))
         for i, joint in enumerate(self.model.joints):
-            if not joint.movable:
-                continue
-            index, mult, off = self._drivers[joint.name]
-            if joint.kind == "prismatic":
-                prismatic.append(i)
-            elif mult == 1.0 and off == 0.0:
-                direct.append(i)
-                direct_q.append(index)
-            elif mult == -1.0 and off == 0.0:
-                negated.append(i)
-                negated_q.append(index)
-            else:
-                general.append(i)
-        rows = [np.array(r, dtype=np.int64) for r in (direct, direct_q, negated, negated_q,
-                                                       general, prismatic)]
-        return (rows[0], rows[1]), (rows[2], rows[3]), rows[4], rows[5]
+            if joint.movable:
+                index[i], mult[i], offset[i] = self._drivers[joint.name]
+        return index, mult, offset
 
-    def _chains(self, wanted: tuple[str, ...]) -> np.ndarray:
-        """(J,) bool mask of the joints whose child frames lead to the ``wanted`` links
-        (KeyError for unknown links)."""
+    def _chains(self, wanted: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """((J,) bool mask of the joints whose child frames lead to the ``wanted`` links,
+        (W,) int64 the wanted links' slots) (KeyError for unknown links)."""
         needed = self._needed.get(wanted)
         if needed is None:
             unknown = set(wanted) - set(self._links)
@@ -193,32 +181,18 @@ class Kinematics:
                 while link in self._parent_joint and link not in found:
                     found.add(link)
                     link = self._parent_joint[link].parent
-            needed = self._needed[wanted] = np.array(
-                [j.child in found for j in self.model.joints], dtype=bool)
+            needed = self._needed[wanted] = (
+                np.array([j.child in found for j in self.model.joints], dtype=bool),
+                np.array([self._slot[link] for link in wanted], dtype=np.int64))
         return needed
 
     def _angles(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per joint and draw (J, n): cos and sin of the rotating joints' angles, values of
-        the prismatic ones (zeros elsewhere), from configurations q (n, dof)."""
+        the prismatic ones (zeros elsewhere), from configurations q (n, dof)
+        (:func:`~kinegrasp_env.robot.fk_kernel.joint_angles`)."""
         count, n = len(self.model.joints), q.shape[0]
         cos, sin, shift = np.zeros((count, n)), np.zeros((count, n)), np.zeros((count, n))
-        # cos and sin of every actuated value from one transcendental: t = tan(q / 2)
-        half_tan = np.tan(0.5 * q.T)
-        denom = 1.0 / (1.0 + half_tan * half_tan)
-        cos_all, sin_all = (1.0 - half_tan * half_tan) * denom, 2.0 * half_tan * denom
-        (direct, direct_q), (negated, negated_q), general, prismatic = self._driven
-        cos[direct], sin[direct] = cos_all[direct_q], sin_all[direct_q]
-        cos[negated], sin[negated] = cos_all[negated_q], -sin_all[negated_q]
-        if general.size or prismatic.size:
-            qt = np.ascontiguousarray(q.T)
-            for rows, out in ((general, None), (prismatic, shift)):
-                for i in rows:
-                    index, mult, off = self._drivers[self.model.joints[i].name]
-                    value = mult * qt[index] + off
-                    if out is None:
-                        cos[i], sin[i] = np.cos(value), np.sin(value)
-                    else:
-                        out[i] = value
+        joint_angles(np.ascontiguousarray(q), self._pass[1], *self._driven, cos, sin, shift)
         return cos, sin, shift
 
     def forward(self, q: np.ndarray, links: Iterable[str] | None = None) -> dict[str, np.ndarray]:
@@ -234,11 +208,10 @@ class Kinematics:
         """
         q = _as_batch(q, self.model.dof)
         wanted = tuple(dict.fromkeys(self._links if links is None else links))
-        mask = self._chains(wanted)
+        mask, wanted_slots = self._chains(wanted)
         slots = len(self.model.joints) + 1
         out = np.empty((len(wanted), q.shape[0], 4, 4))
-        forward_pass(*self._pass, mask, *self._angles(q),
-                     np.array([self._slot[link] for link in wanted], dtype=np.int64),
+        forward_pass(*self._pass, mask, *self._angles(q), wanted_slots,
                      np.empty((slots, 3, 3)), np.empty((slots, 3)), np.empty((slots, 3, 3)), out)
         return {link: out[i] for i, link in enumerate(wanted)}
 
