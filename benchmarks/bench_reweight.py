@@ -19,7 +19,9 @@ self-motion and the paper's four noise levels:
   the mean over a grasp's angles with a t-interval, the cases' draws being independent);
 * **timings** (warm, alone on the machine): ``elbow`` by both methods at ``--samples`` draws per
   angle; Table I's four noise levels at the nominal configuration from one batch against
-  four direct runs of ``--levels-samples`` draws, with each method's standard errors beside;
+  four direct runs of ``--levels-samples`` draws, with each method's standard errors beside,
+  and the least closings one batch with direct top-ups needs for the direct runs' accuracy
+  (:func:`levels_floor`: known from the weights alone, before any closing);
   fig10's ``--variants`` null-space variants per object on the reference engine
   (``reproduce fig10 --method reweight``) against a run per variant.
 
@@ -48,6 +50,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
 )
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf, weighted_estimate
 from kinegrasp_env.sampling.stats import Z95
 from kinegrasp_env.toolkit.elbow import (
     optimize_elbow,
@@ -207,6 +210,29 @@ def levels_timing(grasp, args) -> dict:
             "direct_se": [binomial_se(d.p_fc, args.levels_samples) for d in direct],
             "reweight_se": [e.se for e in est], "ess": [e.ess for e in est],
             "direct_p_fc": [d.p_fc for d in direct], "reweight_p_fc": [e.value for e in est]}
+
+
+def levels_floor(sigmas: list[float], samples: int, n: int = 20000, seed: int = 0) -> dict:
+    """What one batch can give Table I's noise levels at the direct runs' accuracy, known
+    before any closing (the weights need no outcome): each level's effective sample size
+    as a share of a batch drawn from the stratified mixture of the levels' Gaussians, and
+    the least closings (the batch, plus direct draws topping each level up to ``samples``
+    effective ones) over four direct runs of ``samples``. The levels' covariances are
+    sigma^2 multiples of one matrix, so the shares are those of the sigma ladder in six
+    dimensions, the same for every grasp (the spray flask's grasp 0 stands for all)."""
+    q = np.asarray(shipped_grasps("spray_flask")[0].q0, dtype=float)
+    covs = np.concatenate([PalmJacobian().covariance(q, s) for s in sigmas])
+    proposal = MixtureProposal.covering(covs, n)
+    deltas = proposal.sample(np.random.default_rng(seed))
+    log_proposal = proposal.logpdf(deltas)
+    shares = np.array([weighted_estimate(np.zeros(n), gaussian_logpdf(deltas, c),
+                                         log_proposal).ess / n for c in covs])
+    sizes = np.arange(0, math.ceil(samples / shares.min()) + 1, max(samples // 200, 1))
+    cost = sizes + np.maximum(samples - np.outer(sizes, shares), 0.0).sum(axis=1)
+    best = int(np.argmin(cost))
+    return {"ess_shares": shares.tolist(), "least_batch": int(sizes[best]),
+            "least_closings": float(cost[best]),
+            "least_ratio": float(cost[best] / (len(sigmas) * samples))}
 
 
 def variants_timing(obj: str, args) -> dict:
@@ -471,6 +497,15 @@ def calibration_table(result: dict) -> list[str]:
     return lines
 
 
+def levels_floor_row(floor: dict, run: dict) -> str:
+    """The Markdown row of :func:`levels_floor`'s figures (``floor``)."""
+    shares = ", ".join(f"{x:.2f}" for x in floor["ess_shares"])
+    return (f"| four noise levels at the direct runs' accuracy, least closings / four direct "
+            f"runs (a batch of {floor['least_batch']:,}, each level topped up to "
+            f"{run['levels_samples']:,} effective draws; its effective sizes {shares} of the "
+            f"batch, for any grasp) | {floor['least_ratio']:.2f} |")
+
+
 def markdown(result: dict) -> str:
     s = result["summary"]
     run = result["settings"]
@@ -485,6 +520,8 @@ def markdown(result: dict) -> str:
         f"| elbow time, re-weighted / direct (mean) | {s['elbow_ratio_mean']:.2f} |",
         f"| four noise levels, one batch / four direct runs (mean) | "
         f"{s['levels_ratio_mean']:.2f} |",
+        *([levels_floor_row(result["levels_floor"], run)] if result.get("levels_floor")
+          else []),
         *([f"| fig10's variants (reference engine), one batch / a run per variant (mean) | "
            f"{s['variants_ratio_mean']:.2f} |"] if s.get("variants_ratio_mean") else []),
         *([f"| KineGrasp-v0 steps/s, batch reward / draws' reward (grasps' batches built) "
@@ -509,6 +546,8 @@ def render_again(args) -> None:
     result["cases"] = [judged(c, n) for c in result["cases"]]
     result["summary"] = summary(result["cases"], result["elbow"], result["levels"],
                                 result.get("variants"))
+    result["levels_floor"] = levels_floor(result["settings"]["sigmas"],
+                                          result["settings"]["levels_samples"])
     print(markdown(result))
     # the measuring run's date and machine stay: only the verdicts are recomputed
     Path(args.json_out).write_text(json.dumps(plain(result), indent=1) + "\n")
@@ -571,6 +610,7 @@ def main() -> None:
             kept = settings(args)
     result = {"summary": summary(cases, timings["elbow"], timings["levels"],
                                  timings["variants"]),
+              "levels_floor": levels_floor(kept["sigmas"], kept["levels_samples"]),
               **timings, "cases": cases, "settings": kept}
     publish(__file__, result, args, markdown(result), DOC, (START, END))
 
