@@ -218,7 +218,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
     touched = np.zeros((m, len(path.links)), dtype=bool)
     taken = np.zeros(m, dtype=np.int64)  # the steps each draw has taken
     touches = _Touches(hand, finger, t, gaps, touched, last, queries, rows)
-    hints = {link: hand.distances.new_hints(link, m) for link in path.links}
+    hints = {link: hand.new_hints(link, m) for link in path.links}
     active = np.arange(m)
     while active.size or touches.waiting:
         if touches.due(active.size):  # polished, they go on with the others

@@ -129,6 +129,11 @@ class FastRobotHand:
         robot's links."""
         return self.distances.exact(poses, link, below, decide)
 
+    def new_hints(self, link: str, n: int) -> np.ndarray:
+        """:meth:`~kinegrasp_env.closing.link_distances.LinkDistances.new_hints` of the
+        robot's links: where :meth:`distance_bound` of ``link`` starts at n draws."""
+        return self.distances.new_hints(link, n)
+
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
                        short: float = 0.0, hints: np.ndarray | None = None
                        ) -> tuple[np.ndarray, np.ndarray]:
