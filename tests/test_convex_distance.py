@@ -220,3 +220,47 @@ def test_bounds_walked_from_any_start_stay_below_the_exact_distance():
         assert np.all(np.isneginf(out[exact < 0]))
         assert np.all(out[apart] <= exact[apart] + ABOVE_TOL)
         assert np.all(out[apart] >= exact[apart] - BELOW_TOL)
+
+
+@pytest.mark.parametrize("seed", [91, 97, 109, 146, 186])
+def test_bounds_walked_on_a_hull_of_merged_faces(seed):
+    # a cube [-1, 1]^3 given by a 7 x 7 grid of points on each face, each moved by 1e-14:
+    # qhull merges each face's nearly coplanar facets and splits it into triangles that may
+    # overlap, so a walk along the triangles' edges alone can stop inside a face (these seeds
+    # did: bounds up to 1.5 m above the distance). Against the distance to the cube (a
+    # formula), from cold and from random starts
+    grid = np.linspace(-1.0, 1.0, 7)
+    cube = np.array(np.meshgrid(grid, grid, grid)).reshape(3, -1).T
+    points = cube[(np.abs(cube) == 1.0).any(axis=1)]
+    points = points + 1e-14 * np.random.default_rng(seed).normal(size=points.shape)
+    hull = stacked_points([points])
+    assert len(hull[4]) > 0  # walked
+    n = 4000
+    rng = np.random.default_rng(0)
+    target = rng.normal(size=(n, 3)) * 2.0
+    exact = np.linalg.norm(np.maximum(np.abs(target) - 1.0, 0.0), axis=1)
+    single = stacked_points([np.zeros((1, 3))])
+    for random_start in (False, True):
+        hints = new_hints(n, hull, single)
+        if random_start:
+            hints[:, 0, 0] = rng.integers(0, len(hull[0]), n)
+        out = np.empty(n)
+        hull_distance_bounds(*hull, np.tile(np.eye(3), (n, 1, 1)), -target, *single,
+                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n))
+        apart = exact > 1e-9
+        # the points lie off the cube by 1e-14 noise: measured at most 2.0e-14 above the
+        # cube's distance and 1.4e-13 below it; 1e-13 and 1e-12 allowed
+        assert np.all(out[apart] <= exact[apart] + 1e-13)
+        assert np.all(out[apart] >= exact[apart] - 1e-12)
+
+
+def test_hints_of_another_shape_are_refused(panda_hands):
+    # hints made for another link or draw count would send the compiled kernel outside its
+    # arrays: one ValueError naming the link and both shapes
+    hand = panda_hands["cube"]
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    poses[:, :3, 3] = hand.obj.center_of_mass + np.array([0.0, 0.0, 0.2])
+    good = hand.distances.new_hints("panda_leftfinger", 5)
+    hand.distance_bound(poses, "panda_leftfinger", hints=good)
+    with pytest.raises(ValueError, match=r"panda_leftfinger.*expected"):
+        hand.distance_bound(poses, "panda_leftfinger", hints=good[:4])

@@ -3,7 +3,9 @@ Gilbert-Johnson-Keerthi iteration (GJK) on the Minkowski difference A - B, with 
 point of each simplex to the origin found by its Voronoi regions.
 
 What it returns is a *certified lower bound* of the distance: every support point w of A - B
-in the direction -v gives the separating plane bound v . w / |v| <= distance, and the
+in the direction -v gives the separating plane bound v . w / |v| <= distance (each support
+exact: searched over all of a part's points, or walked along a superset of its hull's edges,
+:func:`stacked_points`), and the
 iteration stops once |v|^2 - v . w <= :data:`GAP_REL` |v|^2 (then the bound is within that
 relative amount of the distance, from below) or when it makes no progress. Where the origin
 lies inside the simplex (the polytopes touch or overlap) the bound is -inf: the caller
@@ -42,10 +44,11 @@ def stacked_points(point_sets: list[np.ndarray]) -> tuple[np.ndarray, ...]:
     neighbour row (V + 1,) int64 and the neighbours (K,) int64).
 
     A part of more than :data:`WALK_MIN` points whose hull qhull can take keeps only its
-    hull's vertices, each with its neighbours along the hull's triangulated edges: the
-    support search walks them (a vertex no neighbour of which lies further along a
-    direction is the hull's furthest, as in the simplex method). A smaller or flat part
-    keeps every point and no neighbours: its support is searched over all of them."""
+    hull's vertices, each with its neighbours: every other vertex of each face it lies on
+    (a superset of the polytope's edges): the support search walks them (a vertex no
+    neighbour of which lies further along a direction is the hull's furthest, as in the
+    simplex method). A smaller or flat part keeps every point and no neighbours: its
+    support is searched over all of them."""
     parts, links = [], []
     for points in point_sets:
         points = np.asarray(points, dtype=float).reshape(-1, 3)
@@ -80,11 +83,16 @@ def _hull_graph(points: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
     order = np.sort(hull.vertices)
     index = {int(v): k for k, v in enumerate(order)}
     neighbours: list[set[int]] = [set() for _ in order]
-    for simplex in hull.simplices:
-        for a in simplex:
-            for b in simplex:
-                if a != b:
-                    neighbours[index[int(a)]].add(index[int(b)])
+    # every vertex of a face joined to every other: qhull merges nearly coplanar facets and
+    # splits a merged one into triangles that may overlap, so its triangles' edges alone can
+    # leave a vertex inside the face with no higher neighbour (faces: triangles of one plane,
+    # as face_planes groups them)
+    _, face = np.unique(np.round(hull.equations, 9), axis=0, return_inverse=True)
+    for f in range(int(face.max()) + 1):
+        members = [index[int(v)] for v in np.unique(hull.simplices[face.ravel() == f])]
+        for a in members:
+            neighbours[a].update(members)
+            neighbours[a].discard(a)
     return points[order], [sorted(row) for row in neighbours]
 
 

@@ -6,8 +6,9 @@ the object are the other half, :meth:`~kinegrasp_env.world.objects.GraspObject.c
 The signed distance from a point on an edge to a convex hull is a convex function of the
 point's parameter along the edge, so its minimum is found by golden-section search
 (:data:`~kinegrasp_env.closing.link_distances.SEARCH` steps, then the two ends compared). An
-edge whose plane bound (the largest over the hull's face planes of the smaller plane value of
-its two ends: a lower bound of its distance) cannot beat the best distance so far is skipped;
+edge whose distance to the hull's bounding ball, or whose plane bound (the largest over the
+hull's face planes of the smaller plane value of its two ends), both lower bounds of its
+distance, cannot beat the best distance so far is skipped;
 a search stops as soon as the distance's Lipschitz bound over the bracket (the edge's length
 times the bracket's width below the smaller of its two values) cannot beat it either. The
 link's vertices against the object's parts are compiled here too

@@ -124,6 +124,12 @@ class LinkDistances:
             return np.full((n, 0, 2), -1, dtype=np.int64)
         return new_hints(n, self._link_hulls[link], self._object_hulls)
 
+    def _hint_shape(self, link: str, n: int) -> tuple[int, int, int]:
+        """The shape of :meth:`new_hints`' array, without making it."""
+        if link not in self._link_hulls:
+            return n, 0, 2
+        return n, (len(self._link_hulls[link][1]) - 1) * (len(self._object_hulls[1]) - 1), 2
+
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
                        short: float = 0.0, hints: np.ndarray | None = None
                        ) -> tuple[np.ndarray, np.ndarray]:
@@ -139,6 +145,9 @@ class LinkDistances:
         iterations)."""
         n = poses.shape[0]
         out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
+        if hints is not None and hints.shape != self._hint_shape(link, n):
+            raise ValueError(f"hints of shape {hints.shape} for link {link!r} at {n} draws: "
+                             f"expected {self._hint_shape(link, n)} (new_hints)")
         if link in self._link_hulls:
             move = np.zeros((n, 3)) if motion is None else np.ascontiguousarray(motion)
             hull_distance_bounds(*self._link_hulls[link],

@@ -44,7 +44,7 @@ class RoundedCores:
 
     Args:
         parts: the link's rounded parts (link frame).
-        object_hulls: the object's convex parts as (stacked vertices, starts)
+        object_hulls: the object's convex parts in GJK's layout
             (:func:`~kinegrasp_env.closing.convex_distance.stacked_vertices`).
         simplex: GJK's scratch (:func:`~kinegrasp_env.closing.convex_distance.new_simplex`).
         grid: the object's distance grid.
