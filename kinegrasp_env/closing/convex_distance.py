@@ -24,7 +24,7 @@ from kinegrasp_env import jit
 GAP_REL = 1e-10
 #: Iterations at most (a polytope pair of a few hundred vertices needs a dozen).
 MAX_ITER = 64
-#: Parts of more points than this are searched by walking their hull's edges.
+#: Parts of more points than this are searched by walking their hull's faces' vertices.
 WALK_MIN = 16
 
 __all__ = ["GAP_REL", "MAX_ITER", "WALK_MIN", "hull_distance_bounds", "hull_spheres",
@@ -245,8 +245,8 @@ def _reduce(w, m):
 @jit.kernel(_nrt=False, inline="always")
 def _support(vertices, start, stop, first, neighbours, dx, dy, dz, at):
     """The row of vertices[start:stop] furthest along (dx, dy, dz): walked from row ``at``
-    along the hull's edges (``first``, ``neighbours``: :func:`stacked_points`) where the
-    part has them, else the first of the furthest of all rows."""
+    along a superset of the hull's edges (``first``, ``neighbours``: :func:`stacked_points`)
+    where the part has them, else the first of the furthest of all rows."""
     if first[start] == first[stop]:
         top, pick = -np.inf, start
         for k in range(start, stop):
