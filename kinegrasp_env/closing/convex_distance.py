@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
+from kinegrasp_env.world.polytope import plane_keys
 
 #: Relative gap |v|^2 - v . w <= GAP_REL |v|^2 at which the iteration stops.
 GAP_REL = 1e-10
@@ -27,8 +28,9 @@ MAX_ITER = 64
 #: Parts of more points than this are searched by walking their hull's faces' vertices.
 WALK_MIN = 16
 
-__all__ = ["GAP_REL", "MAX_ITER", "WALK_MIN", "hull_distance_bounds", "hull_spheres",
-           "new_hints", "new_simplex", "stacked_faces", "stacked_points", "stacked_vertices"]
+__all__ = ["GAP_REL", "MAX_ITER", "WALK_MIN", "hint_shape", "hull_distance_bounds",
+           "hull_spheres", "new_hints", "new_simplex", "stacked_faces", "stacked_points",
+           "stacked_vertices"]
 
 
 def stacked_vertices(parts) -> tuple[np.ndarray, ...]:
@@ -85,9 +87,8 @@ def _hull_graph(points: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
     neighbours: list[set[int]] = [set() for _ in order]
     # every vertex of a face joined to every other: qhull merges nearly coplanar facets and
     # splits a merged one into triangles that may overlap, so its triangles' edges alone can
-    # leave a vertex inside the face with no higher neighbour (faces: triangles of one plane,
-    # as face_planes groups them)
-    _, face = np.unique(np.round(hull.equations, 9), axis=0, return_inverse=True)
+    # leave a vertex inside the face with no higher neighbour (faces: triangles of one plane)
+    _, face = np.unique(plane_keys(hull.equations), axis=0, return_inverse=True)
     for f in range(int(face.max()) + 1):
         members = [index[int(v)] for v in np.unique(hull.simplices[face.ravel() == f])]
         for a in members:
@@ -117,10 +118,16 @@ def stacked_faces(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
             np.cumsum([0] + [len(p.edges) for p in parts]).astype(np.int64))
 
 
+def hint_shape(n: int, a_stack: tuple, b_stack: tuple) -> tuple[int, int, int]:
+    """(n, P Q, 2): the shape of :func:`new_hints`' array for A's P parts and B's Q
+    (stacked: :func:`stacked_points`) at n draws."""
+    return n, (len(a_stack[1]) - 1) * (len(b_stack[1]) - 1), 2
+
+
 def new_hints(n: int, a_stack: tuple, b_stack: tuple) -> np.ndarray:
     """(n, P Q, 2) int64 of -1: no start known for any pair of A's P parts and B's Q
     (stacked: :func:`stacked_points`) at n draws (:func:`hull_distance_bounds`)."""
-    return np.full((n, (len(a_stack[1]) - 1) * (len(b_stack[1]) - 1), 2), -1, dtype=np.int64)
+    return np.full(hint_shape(n, a_stack, b_stack), -1, dtype=np.int64)
 
 
 def new_simplex() -> np.ndarray:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
+from kinegrasp_env.closing.segment_primitives import point_to_segment
 
 
 @jit.kernel(_nrt=False, inline="always")
@@ -81,12 +82,10 @@ def _ball_gap(local, e, sphere):
     (``sphere`` (4,): centre, radius) holds: the segment's distance to its centre, less
     its radius."""
     ax, ay, az = local[e, 0, 0], local[e, 0, 1], local[e, 0, 2]
-    dx, dy, dz = local[e, 1, 0] - ax, local[e, 1, 1] - ay, local[e, 1, 2] - az
-    px, py, pz = sphere[0] - ax, sphere[1] - ay, sphere[2] - az
-    s = (px * dx + py * dy + pz * dz) / max(dx * dx + dy * dy + dz * dz, 1e-300)
-    s = min(max(s, 0.0), 1.0)
-    gx, gy, gz = px - s * dx, py - s * dy, pz - s * dz
-    return np.sqrt(gx * gx + gy * gy + gz * gz) - sphere[3]
+    ux, uy, uz = local[e, 1, 0] - ax, local[e, 1, 1] - ay, local[e, 1, 2] - az
+    inv_uu = 1.0 / max(ux * ux + uy * uy + uz * uz, 1e-300)
+    return point_to_segment(sphere[0], sphere[1], sphere[2], ax, ay, az, ux, uy, uz,
+                            inv_uu) - sphere[3]
 
 
 @jit.kernel(_nrt=False)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.convex_distance import (
+    hint_shape,
     hull_distance_bounds,
     new_hints,
     new_simplex,
@@ -128,7 +129,7 @@ class LinkDistances:
         """The shape of :meth:`new_hints`' array, without making it."""
         if link not in self._link_hulls:
             return n, 0, 2
-        return n, (len(self._link_hulls[link][1]) - 1) * (len(self._object_hulls[1]) - 1), 2
+        return hint_shape(n, self._link_hulls[link], self._object_hulls)
 
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
                        short: float = 0.0, hints: np.ndarray | None = None

@@ -24,6 +24,12 @@ INSIDE_TOL = 1e-12
 BLOCK_BYTES = 64 * 2**20
 
 
+def plane_keys(equations: np.ndarray) -> np.ndarray:
+    """(T, 4) a key per hull triangle's plane [unit normal, offset] (T, 4): equal for the
+    triangles of one face (coplanar to 1e-9), which qhull may give several of."""
+    return np.round(equations, 9)
+
+
 def face_planes(vertices: np.ndarray) -> np.ndarray:
     """(F, 4) unique outward face planes [unit normal, offset] of the hull of (V, 3) points."""
     from scipy.spatial import ConvexHull
@@ -31,8 +37,7 @@ def face_planes(vertices: np.ndarray) -> np.ndarray:
     hull = ConvexHull(vertices)
     eq = hull.equations
     # merge coplanar triangles: unique planes
-    keys = np.round(eq, 9)
-    _, first = np.unique(keys, axis=0, return_index=True)
+    _, first = np.unique(plane_keys(eq), axis=0, return_index=True)
     return eq[np.sort(first)]
 
 
