@@ -18,7 +18,6 @@ import numpy as np
 from kinegrasp_env.closing.convex_distance import (
     hint_shape,
     hull_distance_bounds,
-    new_hints,
     new_simplex,
     stacked_faces,
     stacked_vertices,
@@ -121,12 +120,10 @@ class LinkDistances:
         """Where :meth:`distance_bound` of ``link`` starts at n draws: nowhere known yet
         (:func:`~kinegrasp_env.closing.convex_distance.new_hints`; (n, 0, 2) for a link
         without polytopes)."""
-        if link not in self._link_hulls:
-            return np.full((n, 0, 2), -1, dtype=np.int64)
-        return new_hints(n, self._link_hulls[link], self._object_hulls)
+        return np.full(self._hint_shape(link, n), -1, dtype=np.int64)
 
     def _hint_shape(self, link: str, n: int) -> tuple[int, int, int]:
-        """The shape of :meth:`new_hints`' array, without making it."""
+        """The shape of :meth:`new_hints`' array."""
         if link not in self._link_hulls:
             return n, 0, 2
         return hint_shape(n, self._link_hulls[link], self._object_hulls)
