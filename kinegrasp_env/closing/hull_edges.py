@@ -3,16 +3,19 @@ closest pair of two convex polytopes that the object's vertices cannot give (eve
 pair has a vertex of one polytope, or points on an edge of each; the link's vertices against
 the object are the other half, :meth:`~kinegrasp_env.world.objects.GraspObject.closest_points`).
 
-The signed distance from a point on an edge to a convex hull is a convex function of the
-point's parameter along the edge, so its minimum is found by golden-section search
-(:data:`~kinegrasp_env.closing.link_distances.SEARCH` steps, then the two ends compared). An
-edge whose distance to the hull's bounding ball, or whose plane bound (the largest over the
-hull's face planes of the smaller plane value of its two ends), both lower bounds of its
-distance, cannot beat the best distance so far is skipped;
-a search stops as soon as the distance's Lipschitz bound over the bracket (the edge's length
-times the bracket's width below the smaller of its two values) cannot beat it either. The
-link's vertices against the object's parts are compiled here too
-(:func:`vertices_against_parts`).
+An edge that passes beside the hull is measured exactly as a finger's capsule axis is
+against the object: the nearer of its ends' closest points or of its closest pairs with the
+hull's edges (:func:`~kinegrasp_env.closing.segment_distance.segment_part`, the hull packed
+as one part). An edge that meets the hull (clipped by the hull's face planes, a piece is
+left) has a signed distance at most 0 there, a convex function of the point's parameter
+along the edge, whose minimum is found by golden-section search
+(:data:`~kinegrasp_env.closing.link_distances.SEARCH` steps, then the two ends compared).
+An edge whose distance to the hull's bounding ball, or whose plane bound (the largest over
+the hull's face planes of the smaller plane value of its two ends), both lower bounds of its
+distance, cannot beat the best distance so far is skipped; a search stops as soon as the
+distance's Lipschitz bound over the bracket (the edge's length times the bracket's width
+below the smaller of its two values) cannot beat it either. The link's vertices against the
+object's parts are compiled here too (:func:`vertices_against_parts`).
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing.segment_primitives import point_to_segment
+from kinegrasp_env.closing.segment_distance import PRUNE_MARGIN, segment_part
+from kinegrasp_env.closing.segment_primitives import part_bound, point_to_segment
 
 
 @jit.kernel(_nrt=False, inline="always")
@@ -88,17 +92,43 @@ def _ball_gap(local, e, sphere):
                             inv_uu) - sphere[3]
 
 
+@jit.kernel(_nrt=False, inline="always")
+def meets_hull(values, margin):
+    """Whether a segment meets a convex hull grown by ``margin`` (metres), from its ends'
+    values on the hull's face planes (``values`` (2, F)): the segment clipped by every
+    plane (Cyrus-Beck) leaves a piece."""
+    lo, hi = 0.0, 1.0
+    for f in range(values.shape[1]):
+        a, b = values[0, f] - margin, values[1, f] - margin
+        if a > 0.0 and b > 0.0:
+            return False
+        if a > 0.0:
+            lo = max(lo, a / (a - b))
+        elif b > 0.0:
+            hi = min(hi, a / (a - b))
+        if lo > hi:
+            return False
+    return True
+
+
 @jit.kernel(_nrt=False)
-def edges_against_hull(planes, edges, tol, sphere, rot, trans, ends, below, steps, gold,
-                       best, link_point, object_point, local):
+def edges_against_hull(planes, edges, tol, sphere, geo, values, rot, trans, ends, below,
+                       steps, gold, best, link_point, object_point, local):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
-    best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull where
-    that is smaller, with its link point and object point (object frame, (n, 3)); edges
-    whose distance to the hull's bounding ball (``sphere`` (4,): centre, radius; link
-    frame), and then whose plane bound, is not below min(best[i], below) are skipped, and so
-    is the rest of an edge's search once its Lipschitz bound over the bracket is not below
-    it either. ``local`` (E, 2, 3) is scratch: the edges' ends in the link frame of the
-    draw."""
+    best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull
+    (face planes (F, 4), edges (H, 2, 3), on-face tolerance ``tol``; ``geo``: the same hull
+    packed, :func:`~kinegrasp_env.closing.packed_geometry.parts_tuple`) where that is
+    smaller, with its link point and object point (object frame, (n, 3)).
+
+    Edges whose distance to the hull's bounding ball (``sphere`` (4,): centre, radius;
+    link frame), and then whose plane bound, is not below min(best[i], below) are skipped.
+    An edge that does not meet the hull is measured exactly by the closest pair of a
+    segment and a convex part (:func:`~kinegrasp_env.closing.segment_distance.
+    segment_part`); one that meets it (a signed distance at most 0, a convex function of
+    the edge's parameter) by ``steps`` golden-section steps, the rest of whose search is
+    skipped once its Lipschitz bound over the bracket is not below min(best[i], below).
+    ``local`` (E, 2, 3) and ``values`` (2, F) are scratch: the edges' ends in the link
+    frame of the draw, an edge's ends' plane values."""
     for i in range(rot.shape[0]):
         for e in range(ends.shape[0]):  # the edges' ends in the link frame of draw i
             for k in range(2):
@@ -111,14 +141,21 @@ def edges_against_hull(planes, edges, tol, sphere, rot, trans, ends, below, step
         for e in range(ends.shape[0]):
             if not _ball_gap(local, e, sphere) < min(best[i], below):
                 continue
-            bound = -np.inf
-            for f in range(planes.shape[0]):
-                v0 = (planes[f, 0] * local[e, 0, 0] + planes[f, 1] * local[e, 0, 1]
-                      + planes[f, 2] * local[e, 0, 2] + planes[f, 3])
-                v1 = (planes[f, 0] * local[e, 1, 0] + planes[f, 1] * local[e, 1, 1]
-                      + planes[f, 2] * local[e, 1, 2] + planes[f, 3])
-                bound = max(bound, min(v0, v1))
-            if not bound < min(best[i], below):
+            ax, ay, az = local[e, 0, 0], local[e, 0, 1], local[e, 0, 2]
+            ex, ey, ez = local[e, 1, 0], local[e, 1, 1], local[e, 1, 2]
+            if not part_bound(planes, geo[1], 0, ax, ay, az, ex, ey, ez, values) < min(best[i],
+                                                                                   below):
+                continue
+            if not meets_hull(values, PRUNE_MARGIN):
+                d, hx, hy, hz, sx, sy, sz = segment_part(geo, 0, ax, ay, az, ex, ey, ez,
+                                                         values, min(best[i], below))
+                if d < best[i]:
+                    best[i] = d
+                    for k in range(3):
+                        link_point[i, k] = (rot[i, k, 0] * hx + rot[i, k, 1] * hy
+                                            + rot[i, k, 2] * hz + trans[i, k])
+                        object_point[i, k] = (rot[i, k, 0] * sx + rot[i, k, 1] * sy
+                                              + rot[i, k, 2] * sz + trans[i, k])
                 continue
             lo, hi = 0.0, 1.0
             x1, x2 = hi - gold * (hi - lo), lo + gold * (hi - lo)

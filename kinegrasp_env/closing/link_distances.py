@@ -24,13 +24,15 @@ from kinegrasp_env.closing.convex_distance import (
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import LinkGeometry
+from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
 from kinegrasp_env.closing.rounded_links import RoundedCores
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.polytope import INSIDE_TOL
 from kinegrasp_env.world.sdf import DistanceGrid
 
-#: Golden-section steps along an object edge (its parameter to 0.618**40 = 4e-9).
+#: Golden-section steps along an object edge that meets a link's hull (its parameter to
+#: 0.618**40 = 4e-9).
 SEARCH = 40
 GOLD = 0.5 * (np.sqrt(5.0) - 1.0)
 
@@ -56,6 +58,8 @@ class LinkDistances:
         self._object_hulls = stacked_vertices(obj.convex_parts)
         self._simplex = new_simplex()
         self._link_hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
+        self._packed = {link: [parts_tuple(pack_parts([part])) for part in g.parts]
+                        for link, g in geometry.items()}
         self._rounded = {link: RoundedCores(g.rounded, self._object_hulls, self._simplex, grid)
                          for link, g in geometry.items() if g.rounded}
         self.parts = (planes, plane_starts, self.edges, edge_starts,
@@ -89,8 +93,9 @@ class LinkDistances:
         pair of ``link``'s polytopes placed by object-frame poses (n, 4, 4) and the object,
         exact: the least of the link's hull vertices against the object and of the object's
         edges against each link hull (:func:`~kinegrasp_env.closing.hull_edges.
-        edges_against_hull`: :data:`SEARCH` golden steps along an edge). Every closest pair
-        of two convex polytopes has a vertex of one or a point on an edge of each. With
+        edges_against_hull`: exact beside the hull, :data:`SEARCH` golden steps along an
+        edge through it). Every closest pair of two convex polytopes has a vertex of one or
+        a point on an edge of each. With
         ``below``, edges that cannot bring a distance under it are skipped (a distance left
         at or above ``below`` is then only an upper bound); with ``decide`` too, a draw whose
         vertices already bring it below ``below`` is not searched further (its distance then
@@ -108,9 +113,11 @@ class LinkDistances:
             d, f, o = dist[rows], fp[rows], op[rows]
         else:
             d, f, o = dist, fp, op
-        for part, sphere in zip(geom.parts, geom.hulls[2], strict=True):
-            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere, rot,
-                               trans, self.edges, float(below), SEARCH, GOLD, d, f, o,
+        for part, sphere, packed in zip(geom.parts, geom.hulls[2], self._packed[link],
+                                        strict=True):
+            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere,
+                               packed, np.empty((2, len(part.planes))), rot, trans,
+                               self.edges, float(below), SEARCH, GOLD, d, f, o,
                                self._local_edges)
         if rows is not None:
             dist[rows], fp[rows], op[rows] = d, f, o

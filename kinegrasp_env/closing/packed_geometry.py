@@ -12,7 +12,7 @@ from itertools import pairwise
 import numpy as np
 
 from kinegrasp_env.world.objects import GraspObject, load_object
-from kinegrasp_env.world.polytope import INSIDE_TOL
+from kinegrasp_env.world.polytope import INSIDE_TOL, ConvexPart
 
 #: An edge bounds a face when both its ends lie within this of the face's plane (metres).
 FACE_RESIDUAL = 1e-12
@@ -82,8 +82,16 @@ def spatial_blocks(mid: np.ndarray, size: int = BLOCK_EDGES) -> list[np.ndarray]
 
 
 def pack(obj: GraspObject) -> PackedGeometry:
-    parts = obj.convex_parts
-    planes, plane_start = obj.packed_planes  # the parts' planes, stacked
+    """An object's convex parts packed (:func:`pack_parts`)."""
+    return pack_parts(obj.convex_parts)
+
+
+def pack_parts(parts: tuple[ConvexPart, ...] | list[ConvexPart]) -> PackedGeometry:
+    """Convex parts (an object's, or a link's hulls, in their own frame) packed for the
+    exact segment search."""
+    planes = np.ascontiguousarray(np.vstack([p.planes for p in parts]), dtype=float)
+    plane_start = np.concatenate([[0], np.cumsum([len(p.planes) for p in parts])]
+                                 ).astype(np.int64)
     part_edges, faces, blocks = [], [], []
     for part, first in zip(parts, plane_start[:-1], strict=True):
         leaves = spatial_blocks(part.edges.mean(axis=1)) if len(part.edges) else []
@@ -136,7 +144,11 @@ def geometry_tuple(obj: GraspObject) -> tuple:
     edge_start, scale, edge_mid, edge_half, edge_faces, part_center, part_radius, the
     relative on-face tolerance, block_start, block_edge, block_center, block_radius
     (:class:`PackedGeometry`)."""
-    geo = packed_object(obj)
+    return parts_tuple(packed_object(obj))
+
+
+def parts_tuple(geo: PackedGeometry) -> tuple:
+    """Packed parts as the kernels' ``geo`` tuple (:func:`geometry_tuple`)."""
     return (geo.planes, geo.plane_start, geo.edges, geo.edge_start, geo.scale, geo.edge_mid,
             geo.edge_half, geo.edge_faces, geo.part_center, geo.part_radius, INSIDE_TOL,
             geo.block_start, geo.block_edge, geo.block_center, geo.block_radius)
