@@ -3,7 +3,10 @@ signed distance over the edges, against an independent computation, SciPy's boun
 minimisation along each edge of the numpy point-to-hull distance
 (``ConvexPart.closest``, a convex function of the edge's parameter), on random hulls and
 edges that pass beside the hull (the exact segment-to-part pair) and through it (the
-golden-section search of a signed distance at most 0)."""
+golden-section search of a signed distance at most 0); a roof whose shallow ridge is an edge
+of the part (``ConvexPart.edges`` keeps every edge between two planes of ``face_planes``),
+against an exact formula; and segments of no length (a sphere's core) against the numpy
+point distances."""
 
 from __future__ import annotations
 
@@ -80,3 +83,53 @@ def test_least_edge_distance_against_brent(seed):
                    for a, b in ends]
         assert min(on_edge) <= 1e-12
     assert beside >= 5 and through >= 1, (beside, through)
+
+
+def _roof(half_angle: float) -> tuple[ConvexPart, float]:
+    """A 10 cm block whose top is a roof of two faces meeting at a ridge along x (z = top),
+    each tilted by ``half_angle`` (radians) off the horizontal; and the ridge's height."""
+    x, y, eaves = 0.05, 0.05, 0.04
+    top = eaves + y * np.tan(half_angle)
+    vertices = np.array([[sx * x, sy * y, 0.0] for sx in (-1, 1) for sy in (-1, 1)]
+                        + [[sx * x, sy * y, eaves] for sx in (-1, 1) for sy in (-1, 1)]
+                        + [[sx * x, 0.0, top] for sx in (-1, 1)])
+    return ConvexPart(vertices, face_planes(vertices)), top
+
+
+@pytest.mark.parametrize("half_angle", [5e-7, 1e-5, 1e-2])
+def test_a_shallow_ridge_is_an_edge(half_angle):
+    """A ridge between two faces that are not one face of ``face_planes`` (their planes
+    differ) is an edge, however shallow: a point above it, and an edge crossing above it,
+    are h from the roof (the ridge is the nearest point: an exact formula); a ridge left out
+    puts them nearer one face's plane and further by about the segment's length times the
+    angle."""
+    part, top = _roof(half_angle)
+    assert len(part.planes) == 7  # both roof faces kept
+    h = 1e-3
+    closest, distance = part.closest(np.array([[0.01, 0.0, top + h]]))
+    assert abs(distance[0] - h) <= 1e-15 and abs(closest[0, 2] - top) <= 1e-15
+    ends = np.array([[[0.01, -0.04, top + h], [0.01, 0.04, top + h]]])
+    best, link_point, _ = _kernel(part, ends, np.eye(3)[None], np.zeros((1, 3)))
+    assert abs(best[0] - h) <= 1e-15, best[0] - h
+    assert abs(link_point[0, 1]) <= 1e-15 and abs(link_point[0, 2] - top) <= 1e-15
+
+
+def test_a_segment_that_is_a_point():
+    """A zero-length segment (a URDF sphere's core, an edge of no length) is a point: its
+    distance to a part or to the object is the numpy point distance
+    (``ConvexPart.closest``, ``GraspObject.closest_points``), beside a corner, a face and an
+    edge, where the closest pair of segments divides by the segment's length."""
+    from kinegrasp_env.closing.segment_distance import closest_to_segments
+    from kinegrasp_env.world.objects import load_object
+
+    cube = np.array([[x, y, z] for x in (-.02, .02) for y in (-.02, .02) for z in (-.02, .02)])
+    part = ConvexPart(cube, face_planes(cube))
+    points = np.array([[0.05, 0.0, 0.0], [0.03, 0.03, 0.03], [0.0, 0.03, 0.021]])
+    for p in points:
+        best = _kernel(part, np.array([[p, p]]), np.eye(3)[None], np.zeros((1, 3)))[0]
+        assert abs(best[0] - part.closest(p[None])[1][0]) <= 1e-15
+    obj = load_object("cube")
+    corner = np.vstack([q.vertices for q in obj.convex_parts]).max(axis=0)
+    points = corner + np.array([[0.01, 0.01, 0.01], [0.01, 0.0, 0.0], [0.0, -0.01, 0.004]])
+    distance = closest_to_segments(obj, points, points)[2]
+    np.testing.assert_allclose(distance, obj.closest_points(points)[1], rtol=0, atol=1e-15)

@@ -38,8 +38,9 @@ def part_bound(planes, plane_start, part, ax, ay, az, ex, ey, ez, values):
 
 @jit.kernel(inline="always")  # inlined: a call per edge made the search ~3% slower
 def segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0, vx, vy, vz):
-    """Closest pair of segment a + s u and edge c0 + t v (s, t in [0, 1]; uu = u . u):
-    (distance, point on the edge (3 floats), point on the segment (3 floats))."""
+    """Closest pair of segment a + s u and edge c0 + t v (s, t in [0, 1]; uu = u . u, 0
+    for a segment that is a point): (distance, point on the edge (3 floats), point on the
+    segment (3 floats))."""
     ee = vx * vx + vy * vy + vz * vz
     rx, ry, rz = ax - cx0, ay - cy0, az - cz0
     bb = ux * vx + uy * vy + uz * vz
@@ -50,10 +51,10 @@ def segment_edge(ax, ay, az, ux, uy, uz, uu, cx0, cy0, cz0, vx, vy, vz):
     if denom > 1e-14 * uu * ee:
         s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
     t = (bb * s + ff) / ee
-    if t < 0.0:
-        s = min(max(-cc / uu, 0.0), 1.0)
+    if t < 0.0:  # uu may be 0: a segment that is a point (a sphere's core)
+        s = min(max(-cc / max(uu, 1e-300), 0.0), 1.0)
     elif t > 1.0:
-        s = min(max((bb - cc) / uu, 0.0), 1.0)
+        s = min(max((bb - cc) / max(uu, 1e-300), 0.0), 1.0)
     t = min(max(t, 0.0), 1.0)
     px, py, pz = ax + s * ux, ay + s * uy, az + s * uz
     qx, qy, qz = cx0 + t * vx, cy0 + t * vy, cz0 + t * vz

@@ -58,13 +58,15 @@ class ConvexPart:
 
     @cached_property
     def edges(self) -> np.ndarray:
-        """(E, 2, 3) end points of the true edges (between non-coplanar faces), from the
+        """(E, 2, 3) end points of the true edges (between faces that are not one face of
+        :func:`face_planes`: their triangles' :func:`plane_keys` differ), from the
         vertices' convex hull (qhull)."""
         if self.known_edges is not None:
             return self.known_edges
         from scipy.spatial import ConvexHull
 
         hull = ConvexHull(self.vertices)
+        keys = plane_keys(hull.equations)
         seen: set[tuple[int, int]] = set()
         edges = []
         for t, simplex in enumerate(hull.simplices):
@@ -74,7 +76,7 @@ class ConvexPart:
                 if (a, b) in seen:
                     continue
                 seen.add((a, b))
-                if hull.equations[t, :3] @ hull.equations[other, :3] < 1.0 - 1e-9:
+                if not np.array_equal(keys[t], keys[other]):
                     edges.append((hull.points[a], hull.points[b]))
         return np.asarray(edges, dtype=float)
 
