@@ -25,7 +25,10 @@ configuration; higher: predicted to hold):
 * ``fc_patch``, ``q_patch``: the same with the patch contact model (a flat pad on a face
   scored as its patch's corners: :mod:`kinegrasp_env.montecarlo.patch_contacts`; rounded
   fingertips stay points);
-* ``p_fc``: P(FC) of ``--pfc-samples`` further draws at ``--sigma`` around it (fast engine);
+* ``p_fc``: P(FC) of ``--pfc-samples`` further draws at ``--sigma`` around it (fast engine;
+  kuka_sdh: a tenth of them, at least 10, by its reference engine);
+* ``p_hold_static``: the static hold check's P(hold) on those same draws (what ``rank
+  --criterion hold_static`` ranks by);
 * ``static_hold``: the static hold check's verdict (0/1: the contacts carry the catalog mass
   in six gravity directions and the lift within the hand's effort limits);
 * ``hold_capacity``: the largest multiple of that load they carry (continuous);
@@ -40,6 +43,10 @@ configuration; higher: predicted to hold):
 AUC: the Mann-Whitney probability that a held draw scores above a dropped one (ties count
 half); its interval: the 2.5 and 97.5 percentiles of 2,000 bootstrap resamples of the draws
 (seed 0). A score predicts better than chance where the interval's lower end is above 0.5.
+Each score against the geometry baseline: the difference of their AUCs on the same
+resamples (paired), its interval simultaneous at 95% over the scores compared (Bonferroni:
+percentiles at 2.5 / k and 100 - 2.5 / k for k scores); a score beats the baseline where the
+lower end is above 0.
 Written as JSON (``benchmarks/results/physics_agreement.json``) and as a table in the physics
 guide between ``<!-- physics-agreement:start -->`` and ``<!-- physics-agreement:end -->``.
 
@@ -84,9 +91,11 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
-SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "static_hold", "hold_capacity",
-          "quick_hold", "quick_hold_mujoco", "-centre_distance")
+SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "p_hold_static", "static_hold",
+          "hold_capacity", "quick_hold", "quick_hold_mujoco", "-centre_distance")
 BOOTSTRAP = 2000
+#: The geometry-only score every other score is compared with.
+BASELINE = "-centre_distance"
 
 
 def auc(score: np.ndarray, label: np.ndarray) -> float:
@@ -110,6 +119,27 @@ def auc_interval(score: np.ndarray, label: np.ndarray, seed: int = 0) -> list[fl
         if not np.isnan(value):
             values.append(value)
     return [float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))]
+
+
+def paired_differences(scores: dict, label: np.ndarray, seed: int = 0) -> dict:
+    """Per score but :data:`BASELINE`: its AUC less the baseline's, and the interval of that
+    difference over paired bootstrap resamples, simultaneous at 95% over the scores."""
+    others = [name for name in SCORES if name != BASELINE]
+    rng = np.random.default_rng(seed)
+    n, values = label.size, {name: [] for name in others}
+    for _ in range(BOOTSTRAP):
+        pick = rng.integers(0, n, n)
+        base = auc(scores[BASELINE][pick], label[pick])
+        if np.isnan(base):
+            continue
+        for name in others:
+            values[name].append(auc(scores[name][pick], label[pick]) - base)
+    tail = 2.5 / len(others)
+    base = auc(scores[BASELINE], label)
+    return {name: {"difference": auc(scores[name], label) - base,
+                   "ci95_simultaneous": [float(np.percentile(v, tail)),
+                                         float(np.percentile(v, 100 - tail))]}
+            for name, v in values.items()}
 
 
 def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: int,
@@ -136,18 +166,21 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
     patched = dataclasses.replace(description, contact_model="patch")
     with make_engine(engine_name, patched, obj) as engine:
         patch_draws = engine.run(q)
-    with make_engine("fast" if robot != "kuka_sdh" else "pybullet", robot, obj) as engine:
+    with make_engine("fast" if robot != "kuka_sdh" else "pybullet", robot, obj,
+                     static_hold=True) as engine:
         arm = engine.description.arm_dof
         rng = np.random.default_rng(seed)
-        p_fc = np.zeros(q.shape[0])
+        p_fc, p_hold_static = np.zeros(q.shape[0]), np.zeros(q.shape[0])
         count = pfc_samples if robot != "kuka_sdh" else max(pfc_samples // 10, 10)
         for i, row in enumerate(q):
             around = np.repeat(row[None], count, axis=0)
             around[:, :arm] += JointNoise(sigma).sample(count, arm, rng)
-            p_fc[i] = float((engine.run(around).outcome == FORCE_CLOSURE).mean())
+            nearby = engine.run(around)
+            p_fc[i] = float((nearby.outcome == FORCE_CLOSURE).mean())
+            p_hold_static[i] = float(nearby.holds.mean())
     return {"fc": fc, "q": draws.quality,
             "fc_patch": (patch_draws.outcome == FORCE_CLOSURE).astype(float),
-            "q_patch": patch_draws.quality, "p_fc": p_fc,
+            "q_patch": patch_draws.quality, "p_fc": p_fc, "p_hold_static": p_hold_static,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
             "quick_hold": quick_hold(robot, obj, q, "pybullet"),
             "quick_hold_mujoco": quick_hold(robot, obj, q, "mujoco"),
@@ -241,6 +274,7 @@ def table(scores: dict, labels: dict) -> dict:
         for name in SCORES:
             record[name] = {"auc": auc(scores[name], label),
                             "ci95": auc_interval(scores[name], label)}
+        record["above_baseline"] = paired_differences(scores, label)
         out[simulator] = record
     return out
 
@@ -268,6 +302,17 @@ def markdown(result: dict) -> str:
                      f"{record[s]['ci95'][1]:.2f}]" for s in SCORES]
             lines.append(f"| {robot} | {simulator} | {record['draws']} | {record['held']} | "
                          + " | ".join(cells) + " |")
+    others = [name for name in SCORES if name != BASELINE]
+    lines += ["", f"AUC less {BASELINE}'s on the same draws (paired bootstrap; intervals "
+              f"simultaneous at 95% over the {len(others)} scores):", "",
+              "| robot | simulator | " + " | ".join(others) + " |",
+              "|---" * (len(others) + 2) + "|"]
+    for robot, per in result["robots"].items():
+        for simulator, record in per.items():
+            cells = [f"{d['difference']:+.2f} [{d['ci95_simultaneous'][0]:+.2f}, "
+                     f"{d['ci95_simultaneous'][1]:+.2f}]"
+                     for d in (record["above_baseline"][s] for s in others)]
+            lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
     lines += ["", "| robot | verdicts the same in both simulators | 95% interval | "
                   "Cohen's kappa |", "|---|---|---|---|"]
     for robot, record in result["simulators_agree"].items():
