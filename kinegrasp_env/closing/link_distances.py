@@ -24,7 +24,6 @@ from kinegrasp_env.closing.convex_distance import (
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import LinkGeometry
-from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
 from kinegrasp_env.closing.rounded_links import RoundedCores
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
@@ -58,8 +57,6 @@ class LinkDistances:
         self._object_hulls = stacked_vertices(obj.convex_parts)
         self._simplex = new_simplex()
         self._link_hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
-        self._packed = {link: [parts_tuple(pack_parts([part])) for part in g.parts]
-                        for link, g in geometry.items()}
         self._rounded = {link: RoundedCores(g.rounded, self._object_hulls, self._simplex, grid)
                          for link, g in geometry.items() if g.rounded}
         self.parts = (planes, plane_starts, self.edges, edge_starts,
@@ -113,7 +110,7 @@ class LinkDistances:
             d, f, o = dist[rows], fp[rows], op[rows]
         else:
             d, f, o = dist, fp, op
-        for part, sphere, packed in zip(geom.parts, geom.hulls[2], self._packed[link],
+        for part, sphere, packed in zip(geom.parts, geom.hulls[2], geom.packed,
                                         strict=True):
             edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere,
                                packed, np.empty((2, len(part.planes))), rot, trans,

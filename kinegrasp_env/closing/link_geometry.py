@@ -16,11 +16,13 @@ And the distance grid's error bound."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from kinegrasp_env.closing.contact_patch import mesh_hull
 from kinegrasp_env.closing.convex_distance import stacked_faces, stacked_vertices
+from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.polytope import ConvexPart, face_planes
 from kinegrasp_env.world.sdf import DistanceGrid
@@ -83,6 +85,13 @@ class LinkGeometry:
         if self.parts:
             object.__setattr__(self, "hulls", stacked_vertices(self.parts))
             object.__setattr__(self, "faces", stacked_faces(self.parts))
+
+    @cached_property
+    def packed(self) -> tuple[tuple, ...]:
+        """Each polytope packed as one part for the exact segment search (its
+        :func:`~kinegrasp_env.closing.packed_geometry.parts_tuple`), built on first use and
+        kept (the geometry is read once per robot and process)."""
+        return tuple(parts_tuple(pack_parts([part])) for part in self.parts)
 
     @property
     def extent_points(self) -> np.ndarray:

@@ -20,6 +20,8 @@ FACE_RESIDUAL = 1e-12
 #: nearby edges are consecutive, and a block whose bounding sphere cannot beat the best
 #: distance is skipped whole (the spray flask's 48-gon prisms have 144 edges a part).
 BLOCK_EDGES = 4
+#: Edges whose plane residuals are computed at once (a (rows, P) array each time).
+EDGE_ROWS = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,13 +59,33 @@ class PackedGeometry:
     block_radius: np.ndarray
 
 
+def _two_smallest(values: np.ndarray) -> np.ndarray:
+    """(E, 2) int64: per row of values (E, P) the columns of its two smallest, as
+    ``np.argsort(values, axis=1, kind="stable")[:, :2]`` gives them (ties by column), in
+    O(P) a row where no third value ties the second."""
+    if values.shape[1] <= 2:
+        return np.argsort(values, axis=1, kind="stable")[:, :2]
+    pair = np.argpartition(values, 1, axis=1)[:, :2]
+    low = np.take_along_axis(values, pair, axis=1)
+    swap = (low[:, 1] < low[:, 0]) | ((low[:, 1] == low[:, 0]) & (pair[:, 1] < pair[:, 0]))
+    pair[swap] = pair[swap][:, ::-1]
+    crowded = (values <= np.take_along_axis(values, pair[:, 1:], axis=1)).sum(axis=1) > 2
+    if crowded.any():  # ties for second place: the stable sort's choice
+        pair[crowded] = np.argsort(values[crowded], axis=1, kind="stable")[:, :2]
+    return pair
+
+
 def edge_faces(planes: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """(E, 2) int64: for each edge (E, 2, 3) the two planes (P, 4) nearest to both its ends,
     -1 where that is above ``FACE_RESIDUAL`` (metres)."""
-    residual = np.abs(edges @ planes[:, :3].T + planes[:, 3]).max(axis=1)  # (E, P)
-    nearest = np.argsort(residual, axis=1, kind="stable")[:, :2]
-    close = np.take_along_axis(residual, nearest, axis=1) < FACE_RESIDUAL
-    return np.where(close, nearest, -1).astype(np.int64)
+    out = np.empty((len(edges), 2), dtype=np.int64)
+    for first in range(0, len(edges), EDGE_ROWS):  # (rows, P) at a time: bounded memory
+        rows = edges[first:first + EDGE_ROWS]
+        residual = np.abs(rows @ planes[:, :3].T + planes[:, 3]).max(axis=1)
+        nearest = _two_smallest(residual)
+        close = np.take_along_axis(residual, nearest, axis=1) < FACE_RESIDUAL
+        out[first:first + EDGE_ROWS] = np.where(close, nearest, -1)
+    return out
 
 
 def spatial_blocks(mid: np.ndarray, size: int = BLOCK_EDGES) -> list[np.ndarray]:
