@@ -137,11 +137,14 @@ def test_a_segment_that_is_a_point():
 
 def test_two_smallest_is_the_stable_sorts_first_two():
     """The packing's choice of each edge's two nearest planes (O(P) a row) is the first two
-    of a stable sort, ties included (values drawn from a few integers: many ties)."""
+    of a stable sort, ties, infinities and NaN included (values drawn from a few integers:
+    many ties)."""
     from kinegrasp_env.closing.packed_geometry import _two_smallest
 
     rng = np.random.default_rng(2)
     for width in (1, 2, 3, 7, 40):
         values = rng.integers(0, 4, (300, width)).astype(float)
+        values[rng.random(values.shape) < 0.6] = np.nan  # NaN sorts last
+        values[rng.random(values.shape) < 0.1] = np.inf
         want = np.argsort(values, axis=1, kind="stable")[:, :2]
         np.testing.assert_array_equal(_two_smallest(values), want)

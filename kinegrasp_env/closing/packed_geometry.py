@@ -60,16 +60,17 @@ class PackedGeometry:
 
 
 def _two_smallest(values: np.ndarray) -> np.ndarray:
-    """(E, 2) int64: per row of values (E, P) the columns of its two smallest, as
-    ``np.argsort(values, axis=1, kind="stable")[:, :2]`` gives them (ties by column), in
-    O(P) a row where no third value ties the second."""
+    """(E, min(P, 2)) int64: per row of values (E, P) the columns of its two smallest, as
+    ``np.argsort(values, axis=1, kind="stable")[:, :2]`` gives them (ties by column, NaN
+    last), in O(P) a row where no third value ties the second and the second is a number."""
     if values.shape[1] <= 2:
         return np.argsort(values, axis=1, kind="stable")[:, :2]
     pair = np.argpartition(values, 1, axis=1)[:, :2]
     low = np.take_along_axis(values, pair, axis=1)
     swap = (low[:, 1] < low[:, 0]) | ((low[:, 1] == low[:, 0]) & (pair[:, 1] < pair[:, 0]))
     pair[swap] = pair[swap][:, ::-1]
-    crowded = (values <= np.take_along_axis(values, pair[:, 1:], axis=1)).sum(axis=1) > 2
+    second = np.take_along_axis(values, pair[:, 1:], axis=1)
+    crowded = ((values <= second).sum(axis=1) > 2) | np.isnan(second[:, 0])
     if crowded.any():  # ties for second place: the stable sort's choice
         pair[crowded] = np.argsort(values[crowded], axis=1, kind="stable")[:, :2]
     return pair
