@@ -41,12 +41,13 @@ configuration; higher: predicted to hold):
   pre-shape to the centre of mass, negated).
 
 AUC: the Mann-Whitney probability that a held draw scores above a dropped one (ties count
-half); its interval: the 2.5 and 97.5 percentiles of 2,000 bootstrap resamples of the draws
-(seed 0). A score predicts better than chance where the interval's lower end is above 0.5.
-Each score against the geometry baseline: the difference of their AUCs on the same
-resamples (paired), its interval simultaneous at 95% over the scores compared (Bonferroni:
-percentiles at 2.5 / k and 100 - 2.5 / k for k scores); a score beats the baseline where the
-lower end is above 0.
+half); its interval: the 2.5 and 97.5 percentiles of 10,000 bootstrap resamples of the
+grasps (seed 0), each resampled grasp with all its draws (the draws of one grasp are not
+independent of each other: resampling them one by one would give intervals too narrow). A
+score predicts better than chance where the interval's lower end is above 0.5. Each score
+against the geometry baseline: the difference of their AUCs on the same resamples (paired),
+its interval simultaneous at 95% over the scores compared (Bonferroni: percentiles at 2.5 / k
+and 100 - 2.5 / k for k scores); a score beats the baseline where the lower end is above 0.
 Written as JSON (``benchmarks/results/physics_agreement.json``) and as a table in the physics
 guide between ``<!-- physics-agreement:start -->`` and ``<!-- physics-agreement:end -->``.
 
@@ -93,7 +94,7 @@ PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
 SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "p_hold_static", "static_hold",
           "hold_capacity", "quick_hold", "quick_hold_mujoco", "-centre_distance")
-BOOTSTRAP = 2000
+BOOTSTRAP = 10_000
 #: The geometry-only score every other score is compared with.
 BASELINE = "-centre_distance"
 
@@ -108,27 +109,35 @@ def auc(score: np.ndarray, label: np.ndarray) -> float:
                  / (positives * negatives))
 
 
-def auc_interval(score: np.ndarray, label: np.ndarray, seed: int = 0) -> list[float]:
-    """The 95% percentile bootstrap interval of :func:`auc` (resampling draws)."""
+def grasp_resamples(groups: np.ndarray, seed: int = 0):
+    """:data:`BOOTSTRAP` resamples of the draws by grasp: each one's rows (the draws of as
+    many grasps as there are, drawn with replacement; ``groups`` (n,): each draw's grasp)."""
+    members = [np.flatnonzero(groups == g) for g in dict.fromkeys(groups.tolist())]
     rng = np.random.default_rng(seed)
-    n = label.size
-    values = []
     for _ in range(BOOTSTRAP):
-        pick = rng.integers(0, n, n)
+        yield np.concatenate([members[k] for k in rng.integers(0, len(members),
+                                                                len(members))])
+
+
+def auc_interval(score: np.ndarray, label: np.ndarray, groups: np.ndarray,
+                 seed: int = 0) -> list[float]:
+    """The 95% percentile bootstrap interval of :func:`auc` (resampling grasps)."""
+    values = []
+    for pick in grasp_resamples(groups, seed):
         value = auc(score[pick], label[pick])
         if not np.isnan(value):
             values.append(value)
     return [float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))]
 
 
-def paired_differences(scores: dict, label: np.ndarray, seed: int = 0) -> dict:
+def paired_differences(scores: dict, label: np.ndarray, groups: np.ndarray,
+                       seed: int = 0) -> dict:
     """Per score but :data:`BASELINE`: its AUC less the baseline's, and the interval of that
-    difference over paired bootstrap resamples, simultaneous at 95% over the scores."""
+    difference over paired bootstrap resamples of the grasps (``groups`` (n,): each draw's),
+    simultaneous at 95% over the scores."""
     others = [name for name in SCORES if name != BASELINE]
-    rng = np.random.default_rng(seed)
-    n, values = label.size, {name: [] for name in others}
-    for _ in range(BOOTSTRAP):
-        pick = rng.integers(0, n, n)
+    values = {name: [] for name in others}
+    for pick in grasp_resamples(groups, seed):
         base = auc(scores[BASELINE][pick], label[pick])
         if np.isnan(base):
             continue
@@ -203,7 +212,7 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
     """The kuka_sdh draws' scores, their labels per simulator, and per object the draws and
     those held in pybullet."""
     labels: dict[str, list[bool]] = {s: [] for s in SIMULATORS}
-    composition = {}
+    composition, groups = {}, []
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     validate = argparse.Namespace(grasp=list(range(12)), sigma=args.sigma,
                                   samples=args.samples, seed=args.seed)
@@ -219,6 +228,7 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
         q = np.concatenate([chunk_configurations(g.q0, JointNoise(args.sigma), args.seed,
                                                  chunks) for g in grasps])
         keys = [(i, d) for i in range(len(grasps)) for d in range(args.samples)]
+        groups += [f"{obj}/{i}" for i, _ in keys]
         for simulator in SIMULATORS:
             labels[simulator] += [held[simulator][k] for k in keys]
         composition[obj] = {"draws": len(keys)} | {
@@ -228,14 +238,14 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
             scores[name].append(value)
         print(f"  kuka_sdh {obj}: {len(keys)} draws scored", file=sys.stderr)
     return ({k: np.concatenate(v) for k, v in scores.items()},
-            {k: np.array(v) for k, v in labels.items()}, composition)
+            {k: np.array(v) for k, v in labels.items()}, composition, np.array(groups))
 
 
 def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
     """The panda draws' scores, their labels per simulator, and per object the draws and
     those held in each simulator."""
     labels: dict[str, list[bool]] = {s: [] for s in SIMULATORS}
-    composition = {}
+    composition, groups = {}, []
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     protocol = HoldProtocol()
     for obj in objects:
@@ -247,6 +257,8 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
         q = configurations(grasps, args.panda_sigmas, args.samples, args.seed)
         start = time.perf_counter()
         composition[obj] = {"grasps": len(grasps), "draws": int(q.shape[0])}
+        groups += [f"{obj}/{i}" for i in range(len(grasps))
+                   for _ in range(q.shape[0] // len(grasps))]  # each grasp's rows in turn
         for simulator in SIMULATORS:
             with RobotHoldEngine("panda", obj, protocol=protocol,
                                  simulator=simulator) as physics:
@@ -263,18 +275,18 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
         print(f"  panda {obj}: {q.shape[0]} draws, holding tests "
               f"{time.perf_counter() - start:.0f} s", file=sys.stderr)
     return ({k: np.concatenate(v) for k, v in scores.items()},
-            {k: np.array(v) for k, v in labels.items()}, composition)
+            {k: np.array(v) for k, v in labels.items()}, composition, np.array(groups))
 
 
-def table(scores: dict, labels: dict) -> dict:
+def table(scores: dict, labels: dict, groups: np.ndarray) -> dict:
     """Per simulator: draws, held, and per score its AUC and interval."""
     out = {}
     for simulator, label in labels.items():
         record = {"draws": int(label.size), "held": int(label.sum())}
         for name in SCORES:
             record[name] = {"auc": auc(scores[name], label),
-                            "ci95": auc_interval(scores[name], label)}
-        record["above_baseline"] = paired_differences(scores, label)
+                            "ci95": auc_interval(scores[name], label, groups)}
+        record["above_baseline"] = paired_differences(scores, label, groups)
         out[simulator] = record
     return out
 
@@ -303,8 +315,8 @@ def markdown(result: dict) -> str:
             lines.append(f"| {robot} | {simulator} | {record['draws']} | {record['held']} | "
                          + " | ".join(cells) + " |")
     others = [name for name in SCORES if name != BASELINE]
-    lines += ["", f"AUC less {BASELINE}'s on the same draws (paired bootstrap; intervals "
-              f"simultaneous at 95% over the {len(others)} scores):", "",
+    lines += ["", f"AUC less {BASELINE}'s on the same draws (paired bootstrap over the "
+              f"grasps; intervals simultaneous at 95% over the {len(others)} scores):", "",
               "| robot | simulator | " + " | ".join(others) + " |",
               "|---" * (len(others) + 2) + "|"]
     for robot, per in result["robots"].items():
@@ -352,9 +364,9 @@ def main() -> None:
     result = {"robots": {}, "simulators_agree": {}, "composition": {}}
     for robot in args.robots:
         runner = kuka_draws if robot == "kuka_sdh" else panda_draws
-        scores, labels, composition = runner(
+        scores, labels, composition, groups = runner(
             args.objects + (imported if robot == "panda" else []), args)
-        result["robots"][robot] = table(scores, labels)
+        result["robots"][robot] = table(scores, labels, groups)
         result["simulators_agree"][robot] = label_agreement(labels)
         result["composition"][robot] = composition
     text = markdown(result)

@@ -1,7 +1,9 @@
 """The statistics of ``benchmarks/physics_agreement.py``: its AUC against the definition
-counted pair by pair (a held draw above a dropped one, ties half), and its paired comparison
+counted pair by pair (a held draw above a dropped one, ties half), its paired comparison
 with the geometry baseline on cases with a known answer (a score equal to the baseline
-differs by exactly 0; a score that separates the classes beats a baseline that does not)."""
+differs by exactly 0; a score that separates the classes beats a baseline that does not),
+and its resampling by grasp (a grasp whose draws are copies of one draw counts as that one
+draw: the interval is that of the draws without copies)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from physics_agreement import BASELINE, SCORES, auc, paired_differences
+from physics_agreement import BASELINE, SCORES, auc, auc_interval, paired_differences
 
 
 def _pairwise(score: np.ndarray, label: np.ndarray) -> float:
@@ -37,7 +39,7 @@ def test_paired_differences_known_answers():
     baseline = rng.random(80)
     scores = {name: baseline.copy() for name in SCORES}
     scores["p_hold_static"] = label + 0.1 * rng.random(80)  # separates the classes
-    result = paired_differences(scores, label)
+    result = paired_differences(scores, label, np.arange(80))
     assert set(result) == set(SCORES) - {BASELINE}
     same = result["q"]
     assert same["difference"] == 0.0 and same["ci95_simultaneous"] == [0.0, 0.0]
@@ -45,3 +47,17 @@ def test_paired_differences_known_answers():
     assert abs(better["difference"] - (1.0 - auc(baseline, label))) <= 1e-12
     low, high = better["ci95_simultaneous"]
     assert 0.0 < low <= better["difference"] <= high
+
+
+def test_a_grasps_draws_resampled_together():
+    rng = np.random.default_rng(3)
+    label = rng.random(30) < 0.5
+    score = label + rng.normal(0.0, 0.8, 30)
+    alone = auc_interval(score, label, np.arange(30))
+    copies = 5  # each grasp: five copies of one draw
+    grouped = auc_interval(np.repeat(score, copies), np.repeat(label, copies),
+                           np.repeat(np.arange(30), copies))
+    np.testing.assert_allclose(grouped, alone, rtol=0, atol=1e-12)
+    by_draw = auc_interval(np.repeat(score, copies), np.repeat(label, copies),
+                           np.arange(30 * copies))
+    assert by_draw[1] - by_draw[0] < 0.6 * (alone[1] - alone[0])  # too narrow
