@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 from kinegrasp_env.closing.hull_edges import edges_against_hull
 from kinegrasp_env.closing.link_distances import GOLD, SEARCH
 from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
-from kinegrasp_env.world.polytope import INSIDE_TOL, ConvexPart, face_planes
+from kinegrasp_env.world.polytope import ConvexPart, face_planes
 
 #: Measured: at most 2e-17 m from the reference on 81 draws of edges beside the hull (the
 #: reference's parameter tolerance, 1e-12, times an edge's length, bounds it); 1e-12 m allowed.
@@ -55,10 +55,9 @@ def _kernel(part, ends, rot, trans):
     best, link_point, object_point = np.full(n, np.inf), np.empty((n, 3)), np.empty((n, 3))
     centre = part.vertices.mean(axis=0)
     sphere = np.append(centre, np.linalg.norm(part.vertices - centre, axis=1).max())
-    edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere,
-                       parts_tuple(pack_parts([part])), np.empty((2, len(part.planes))),
-                       rot, trans, ends, np.inf, SEARCH, GOLD, best, link_point,
-                       object_point, np.empty_like(ends))
+    edges_against_hull(parts_tuple(pack_parts([part])), sphere,
+                       np.empty((2, len(part.planes))), rot, trans, ends, np.inf, SEARCH, GOLD,
+                       best, link_point, object_point, np.empty_like(ends))
     return best, link_point, object_point
 
 

@@ -112,12 +112,12 @@ def meets_hull(values, margin):
 
 
 @jit.kernel(_nrt=False)
-def edges_against_hull(planes, edges, tol, sphere, geo, values, rot, trans, ends, below,
-                       steps, gold, best, link_point, object_point, local):
+def edges_against_hull(geo, sphere, values, rot, trans, ends, below, steps, gold, best,
+                       link_point, object_point, local):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
     best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull
-    (face planes (F, 4), edges (H, 2, 3), on-face tolerance ``tol``; ``geo``: the same hull
-    packed, :func:`~kinegrasp_env.closing.packed_geometry.parts_tuple`) where that is
+    (``geo``: packed as one part, :func:`~kinegrasp_env.closing.packed_geometry.
+    parts_tuple`: its face planes (F, 4), edges and on-face tolerance) where that is
     smaller, with its link point and object point (object frame, (n, 3)).
 
     Edges whose distance to the hull's bounding ball (``sphere`` (4,): centre, radius;
@@ -129,6 +129,7 @@ def edges_against_hull(planes, edges, tol, sphere, geo, values, rot, trans, ends
     skipped once its Lipschitz bound over the bracket is not below min(best[i], below).
     ``local`` (E, 2, 3) and ``values`` (2, F) are scratch: the edges' ends in the link
     frame of the draw, an edge's ends' plane values."""
+    planes, edges, tol = geo[0], geo[2], geo[10] * geo[4][0]
     for i in range(rot.shape[0]):
         for e in range(ends.shape[0]):  # the edges' ends in the link frame of draw i
             for k in range(2):

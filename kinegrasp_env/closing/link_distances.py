@@ -110,10 +110,8 @@ class LinkDistances:
             d, f, o = dist[rows], fp[rows], op[rows]
         else:
             d, f, o = dist, fp, op
-        for part, sphere, packed in zip(geom.parts, geom.hulls[2], geom.packed,
-                                        strict=True):
-            edges_against_hull(part.planes, part.edges, INSIDE_TOL * part.scale, sphere,
-                               packed, np.empty((2, len(part.planes))), rot, trans,
+        for sphere, packed in zip(geom.hulls[2], geom.packed, strict=True):
+            edges_against_hull(packed, sphere, np.empty((2, len(packed[0]))), rot, trans,
                                self.edges, float(below), SEARCH, GOLD, d, f, o,
                                self._local_edges)
         if rows is not None:
