@@ -109,35 +109,36 @@ def auc(score: np.ndarray, label: np.ndarray) -> float:
                  / (positives * negatives))
 
 
-def grasp_resamples(groups: np.ndarray, seed: int = 0):
+def grasp_resamples(groups: np.ndarray, seed: int = 0) -> list[np.ndarray]:
     """:data:`BOOTSTRAP` resamples of the draws by grasp: each one's rows (the draws of as
-    many grasps as there are, drawn with replacement; ``groups`` (n,): each draw's grasp)."""
+    many grasps as there are, drawn with replacement; ``groups`` (n,): each draw's grasp).
+    Every score's interval is taken over the same resamples."""
     members = [np.flatnonzero(groups == g) for g in dict.fromkeys(groups.tolist())]
     rng = np.random.default_rng(seed)
-    for _ in range(BOOTSTRAP):
-        yield np.concatenate([members[k] for k in rng.integers(0, len(members),
-                                                                len(members))])
+    return [np.concatenate([members[k] for k in rng.integers(0, len(members), len(members))])
+            for _ in range(BOOTSTRAP)]
 
 
-def auc_interval(score: np.ndarray, label: np.ndarray, groups: np.ndarray,
-                 seed: int = 0) -> list[float]:
-    """The 95% percentile bootstrap interval of :func:`auc` (resampling grasps)."""
+def auc_interval(score: np.ndarray, label: np.ndarray,
+                 resamples: list[np.ndarray]) -> list[float]:
+    """The 95% percentile bootstrap interval of :func:`auc` over ``resamples``
+    (:func:`grasp_resamples`)."""
     values = []
-    for pick in grasp_resamples(groups, seed):
+    for pick in resamples:
         value = auc(score[pick], label[pick])
         if not np.isnan(value):
             values.append(value)
     return [float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))]
 
 
-def paired_differences(scores: dict, label: np.ndarray, groups: np.ndarray,
-                       seed: int = 0) -> dict:
+def paired_differences(scores: dict, label: np.ndarray,
+                       resamples: list[np.ndarray]) -> dict:
     """Per score but :data:`BASELINE`: its AUC less the baseline's, and the interval of that
-    difference over paired bootstrap resamples of the grasps (``groups`` (n,): each draw's),
+    difference over the same ``resamples`` of the grasps (:func:`grasp_resamples`: paired),
     simultaneous at 95% over the scores."""
     others = [name for name in SCORES if name != BASELINE]
     values = {name: [] for name in others}
-    for pick in grasp_resamples(groups, seed):
+    for pick in resamples:
         base = auc(scores[BASELINE][pick], label[pick])
         if np.isnan(base):
             continue
@@ -280,13 +281,13 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
 
 def table(scores: dict, labels: dict, groups: np.ndarray) -> dict:
     """Per simulator: draws, held, and per score its AUC and interval."""
-    out = {}
+    out, resamples = {}, grasp_resamples(groups)
     for simulator, label in labels.items():
         record = {"draws": int(label.size), "held": int(label.sum())}
         for name in SCORES:
             record[name] = {"auc": auc(scores[name], label),
-                            "ci95": auc_interval(scores[name], label, groups)}
-        record["above_baseline"] = paired_differences(scores, label, groups)
+                            "ci95": auc_interval(scores[name], label, resamples)}
+        record["above_baseline"] = paired_differences(scores, label, resamples)
         out[simulator] = record
     return out
 

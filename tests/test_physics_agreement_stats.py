@@ -14,7 +14,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
-from physics_agreement import BASELINE, SCORES, auc, auc_interval, paired_differences
+from physics_agreement import (
+    BASELINE,
+    SCORES,
+    auc,
+    auc_interval,
+    grasp_resamples,
+    paired_differences,
+)
 
 
 def _pairwise(score: np.ndarray, label: np.ndarray) -> float:
@@ -39,7 +46,7 @@ def test_paired_differences_known_answers():
     baseline = rng.random(80)
     scores = {name: baseline.copy() for name in SCORES}
     scores["p_hold_static"] = label + 0.1 * rng.random(80)  # separates the classes
-    result = paired_differences(scores, label, np.arange(80))
+    result = paired_differences(scores, label, grasp_resamples(np.arange(80)))
     assert set(result) == set(SCORES) - {BASELINE}
     same = result["q"]
     assert same["difference"] == 0.0 and same["ci95_simultaneous"] == [0.0, 0.0]
@@ -53,11 +60,11 @@ def test_a_grasps_draws_resampled_together():
     rng = np.random.default_rng(3)
     label = rng.random(30) < 0.5
     score = label + rng.normal(0.0, 0.8, 30)
-    alone = auc_interval(score, label, np.arange(30))
+    alone = auc_interval(score, label, grasp_resamples(np.arange(30)))
     copies = 5  # each grasp: five copies of one draw
     grouped = auc_interval(np.repeat(score, copies), np.repeat(label, copies),
-                           np.repeat(np.arange(30), copies))
+                           grasp_resamples(np.repeat(np.arange(30), copies)))
     np.testing.assert_allclose(grouped, alone, rtol=0, atol=1e-12)
     by_draw = auc_interval(np.repeat(score, copies), np.repeat(label, copies),
-                           np.arange(30 * copies))
+                           grasp_resamples(np.arange(30 * copies)))
     assert by_draw[1] - by_draw[0] < 0.6 * (alone[1] - alone[0])  # too narrow
