@@ -289,10 +289,11 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         go = ~new_touch & ~deep & (t[active] < t_end)
         lower[touched[active]] = np.inf  # a link that touched no longer bounds the step
         turn = np.maximum(t_turn[active] - t[active], 0.0)
-        # each link's bound by the joints still turning (a, K)
-        speed = np.maximum(np.isinf(held[active]).astype(float) @ path.speeds.T, 1e-9)
-        step = np.min(np.maximum(np.maximum(lower, 0.0) / speed,
-                                 np.minimum(travel, turn[:, None])), axis=1)
+        # each link's bound by the joints still turning (a, K), up to a joint's limit
+        turning, room = path.turning(held[active], t[active], ends[active])
+        speed = np.maximum(path.speed_bounds(turning), 1e-9)
+        step = np.minimum(np.min(np.maximum(np.maximum(lower, 0.0) / speed,
+                                            np.minimum(travel, turn[:, None])), axis=1), room)
         now = active[go]
         clear[now] = t[now]
         tried[now] = np.minimum(np.maximum(step[go], least), t_end[go] - t[now])

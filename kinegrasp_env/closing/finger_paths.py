@@ -18,7 +18,8 @@ from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
 
 __all__ = ["FingerPath", "closing_joints", "finger_paths", "joint_tree", "link_poses",
-           "link_speeds", "palm_tree", "tree_poses"]
+           "link_speeds", "net_levers", "net_speeds", "palm_tree", "parallel_signs",
+           "tree_poses"]
 
 
 @dataclass(frozen=True)
@@ -34,13 +35,21 @@ class FingerPath:
         chains: link -> the joints from the palm to it, palm first.
         speeds: (K, J) bound on the speed (metres per unit t) that closing joint j gives any
             point of link k while it turns (:func:`link_speeds`): a link's bound while the
-            joints ``turning`` (J,) bool turn is ``speeds @ turning``.
+            joints ``turning`` (J,) bool turn is ``speeds @ turning``, unless ``net`` gives
+            one (:meth:`speed_bounds`).
         translating: every closing joint is prismatic (the links translate).
         moves: (K, J) bool, link k (of ``links``) moves with closing joint j.
         stops: (K, J) bool, joint j stops when link k touches
             (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`).
         tree: the finger's links' kinematics from the palm frame: every joint of their
             chains, each movable one an independent coordinate (:func:`palm_tree`).
+        net: (J,) or None: for a finger whose closing joints turn about parallel axes, some
+            one way and some the other (a linkage whose bar keeps its orientation), each
+            joint's rate signed along the first joint's axis; the links' speeds then come
+            from the net turning (:func:`net_speeds`), which depends on which joints turn,
+            so a step must not pass a joint's limit (:meth:`speed_bounds`). None: the
+            sum of ``speeds`` (their bound whatever subset of the joints turns).
+        levers: (K, J) with ``net``: the weights of :func:`net_speeds` (metres).
     """
 
     joints: tuple[str, ...]
@@ -54,6 +63,29 @@ class FingerPath:
     moves: np.ndarray
     stops: np.ndarray
     tree: Kinematics
+    net: np.ndarray | None = None
+    levers: np.ndarray | None = None
+
+    def turning(self, held: np.ndarray, t, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Which closing joints turn now and for how long the links' speed bound holds, of
+        one draw or n: ``held`` (..., J) the t at which each joint stopped (inf: not
+        stopped), ``t`` (...) the draws' parameter, ``ends`` (..., J) the t at which each
+        joint reaches its limit. Returns (turning (..., J) bool, room (...): how far t may
+        go before a turning joint reaches its limit; inf where that does not change the
+        bound)."""
+        turning = np.isinf(held)
+        if self.net is None:  # the sum of the joints' bounds holds for any subset
+            return turning, np.full(turning.shape[:-1], np.inf)
+        turning &= np.asarray(t)[..., None] < ends
+        return turning, np.min(np.where(turning, ends - np.asarray(t)[..., None], np.inf),
+                               axis=-1)
+
+    def speed_bounds(self, turning: np.ndarray) -> np.ndarray:
+        """(..., K) bound on the speed (metres per unit t) of any point of each link while
+        the joints ``turning`` (..., J) bool turn (and the others stand still)."""
+        if self.net is None:
+            return turning.astype(float) @ self.speeds.T
+        return net_speeds(self.net, self.levers, turning)
 
 
 def link_speeds(kinds: list[str], rates: np.ndarray, reach: np.ndarray,
@@ -77,6 +109,64 @@ def link_speeds(kinds: list[str], rates: np.ndarray, reach: np.ndarray,
     prismatic = np.array([kind == "prismatic" for kind in kinds], dtype=bool)
     return np.where(carries, np.abs(rates)[None, :] * np.where(prismatic[None, :], 1.0, reach),
                     0.0)
+
+
+def net_speeds(net: np.ndarray, levers: np.ndarray, turning: np.ndarray) -> np.ndarray:
+    """(..., K) bound (metres per unit t) on the speed of any point of link k of a finger
+    whose closing joints turn about parallel axes, the joints ``turning`` (..., J) bool at
+    signed rates ``net`` (J,) (each joint's rate times the sign of its axis along the first
+    one's), the others still.
+
+    A point p of link k moves at a x sum_j w_j (p - o_j), o_j a point on joint j's axis a
+    (the joint's frame origin) and w_j its signed rate: the links turn at the net rate of the
+    joints before them. Along the chain o_0, o_1, ..., o_last, c (link k's origin), p,
+    sum_j w_j (p - o_j) = sum_i C_i (o_{i+1} - o_i) + C_last (p - o_last), C_i the sum of
+    the w_j of the joints up to i; so the speed is at most sum_i |C_i| times the segment's
+    length bound, which ``levers`` (K, J) holds (:func:`net_levers`). Where every w_j has
+    one sign this is the sum of the joints' own bounds (:func:`link_speeds`); for a
+    four-bar linkage whose bar keeps its orientation (w = 1, -1) it is the bar's own
+    speed, the crank's length.
+    """
+    return np.abs(np.cumsum(turning * net, axis=-1)) @ levers.T
+
+
+def net_levers(reach: np.ndarray, carries: np.ndarray) -> np.ndarray:
+    """(K, J) the weights of :func:`net_speeds`: for link k and its carrying joints i (the
+    first ones of the finger: its chain is the finger's, palm to tip), the length bound of
+    the segment from joint i's axis to the next one's (``reach[k, i] - reach[k, i + 1]``),
+    and for the last, the reach from its axis to any point of the link; 0 elsewhere."""
+    levers = np.zeros(reach.shape)
+    for k, row in enumerate(carries):
+        count = int(row.sum())
+        levers[k, :count - 1] = reach[k, :count - 1] - reach[k, 1:count]
+        levers[k, count - 1] = reach[k, count - 1]
+    return levers
+
+
+def parallel_signs(chain: list, joints: tuple[str, ...]) -> np.ndarray | None:
+    """(J,) +1 or -1: each closing joint's axis along the first one's, where every closing
+    joint (``joints``) on ``chain`` (the joints from the palm to the finger's last link) is
+    revolute about an axis parallel to the first one's and only fixed joints lie between
+    them; else None. A closing joint turning about its own axis keeps a parallel axis
+    after it parallel, so the check at the zero configuration holds at every one."""
+    names = [joint.name for joint in chain]
+    if any(name not in names for name in joints):
+        return None
+    first = names.index(joints[0])
+    rotation, axis0, signs = np.eye(3), None, []
+    for joint in chain[first:]:
+        rotation = rotation @ joint.origin[:3, :3]
+        if joint.name in joints:
+            if joint.kind not in ("revolute", "continuous"):
+                return None
+            axis = rotation @ joint.axis
+            axis0 = axis if axis0 is None else axis0
+            if np.linalg.norm(np.cross(axis, axis0)) > 1e-9:
+                return None
+            signs.append(1.0 if axis @ axis0 > 0 else -1.0)
+        elif joint.movable:
+            return None
+    return np.array(signs)
 
 
 def _offset_bound(joint) -> float:
@@ -130,11 +220,17 @@ def finger_paths(description: RobotDescription, geometry: dict[str, LinkGeometry
                     reach[k, j] = extent + sum(_offset_bound(joint)
                                                for joint in chains[link][names.index(name) + 1:])
         rows = [finger.links.index(link) for link in links]
+        signs = parallel_signs(chains[links[-1]], finger.joints) if links else None
+        net = None if signs is None else rates * signs
+        mixed = (net is not None and (net > 0).any() and (net < 0).any()
+                 and all(row[:row.sum()].all() for row in carries))  # palm to tip
         out.append(FingerPath(tuple(finger.joints), rates, lower, upper, links, chains,
                               link_speeds(kinds, rates, reach, carries),
                               all(kind == "prismatic" for kind in kinds),
                               moved_by(finger)[rows], touch_stops(model, finger)[rows],
-                              palm_tree(description, chains)))
+                              palm_tree(description, chains),
+                              net if mixed else None,
+                              net_levers(reach, carries) if mixed else None))
     return out
 
 

@@ -109,12 +109,9 @@ class RobotWorld(RobotScene):
         self.patch = patch
         self._touch_rules = [(touch_stops(self.model, finger), moved_by(finger))
                              for finger in description.fingers]
-        #: per finger, each link's speed bounds by closing joint (link -> (J,), metres per
-        #: unit t), those the fast closing steps by (:func:`~kinegrasp_env.closing.
-        #: finger_paths.link_speeds`)
-        self._speeds = [dict(zip(path.links, path.speeds, strict=True)) for path in
-                        finger_paths(description, robot_link_geometry(description),
-                                     self._tree)]
+        #: per finger, its links' speed bounds, those the fast closing steps by
+        #: (:meth:`~kinegrasp_env.closing.finger_paths.FingerPath.speed_bounds`)
+        self._paths = finger_paths(description, robot_link_geometry(description), self._tree)
 
     # ------------------------------------------------------------------ closing
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -199,7 +196,7 @@ class RobotWorld(RobotScene):
         joints = finger.joints
         kinds, rates, lo, hi = closing_joints(self.description, finger)
         v0 = np.array([start[name] for name in joints])
-        speeds = self._speeds[f]
+        path = self._paths[f]
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
@@ -249,10 +246,13 @@ class RobotWorld(RobotScene):
                         held[stops[k]] = np.minimum(held[stops[k]], t)
                 g = None
                 continue
-            # each moving link's gap over its speed bound by the joints still turning
-            turning = np.isinf(held)
-            travel = min((self.link_gap(link) / max(float(speeds[link] @ turning), 1e-9)
-                          for link in links if link in speeds), default=t_end - t)
+            # each moving link's gap over its speed bound by the joints still turning, up
+            # to a joint's limit
+            turning, room = path.turning(held, t, ends)
+            speeds = path.speed_bounds(turning)
+            travel = min(min((self.link_gap(link) / max(float(speeds[k]), 1e-9)
+                              for k, link in enumerate(path.links) if link in links),
+                             default=t_end - t), float(room))
             step = min(max(travel, least), t_end - t)
             for _ in range(MAX_HALVINGS):
                 values = put(t + step)
