@@ -33,7 +33,7 @@ BELOW_TOL = 1e-10
 
 
 def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, motion=None,
-            travel=False, short=0.0):
+            travel=False, short=0.0, enough=np.inf):
     n = rot.shape[0]
     a_starts = [0, len(a_vertices)] if a_starts is None else a_starts
     b_starts = [0, len(b_vertices)] if b_starts is None else b_starts
@@ -43,7 +43,7 @@ def _bounds(a_vertices, rot, trans, b_vertices, a_starts=None, b_starts=None, mo
     motion = np.zeros((n, 3)) if motion is None else motion
     hull_distance_bounds(*a, np.ascontiguousarray(rot), np.ascontiguousarray(trans), *b,
                          np.ascontiguousarray(motion), short, new_hints(n, a, b),
-                         new_simplex(), out, far)
+                         new_simplex(), out, far, enough)
     return (out, far) if travel else out
 
 
@@ -118,7 +118,7 @@ a = [d[f"a{k}"] for k in range(5)]
 b = [d[f"b{k}"] for k in range(5)]
 out, far = np.empty(len(d["rot"])), np.empty(len(d["rot"]))
 hull_distance_bounds(*a, d["rot"], d["trans"], *b, np.zeros((len(out), 3)), 0.0,
-                     new_hints(len(out), a, b), new_simplex(), out, far)
+                     new_hints(len(out), a, b), new_simplex(), out, far, np.inf)
 np.save(sys.argv[2], out)
 """
 
@@ -138,11 +138,31 @@ def test_the_kernel_interpreted_gives_the_same_bounds(panda_hands, tmp_path):
     plain = np.load(tmp_path / "out.npy")
     compiled = np.empty(n)
     hull_distance_bounds(*a, rot, trans, *b, np.zeros((n, 3)), 0.0, new_hints(n, a, b),
-                         new_simplex(), compiled, np.empty(n))
+                         new_simplex(), compiled, np.empty(n), np.inf)
     assert np.isfinite(compiled).sum() > 30 and np.isneginf(compiled).sum() > 10
     np.testing.assert_array_equal(np.isneginf(compiled), np.isneginf(plain))
     finite = np.isfinite(compiled)
     np.testing.assert_allclose(compiled[finite], plain[finite], rtol=0, atol=1e-15)
+
+
+def test_a_bound_sought_no_higher_than_enough_answers_the_same_question():
+    # two random hulls of 30 points at random poses, near and far: a bound stopped once it
+    # passes ``enough`` is still a lower bound of the full one (the iteration's bound only
+    # grows), and it says "above enough" exactly where the full one does, so a caller that
+    # asks only that (the start check: overlap or not, enough 0; the table check: within a
+    # core's radius) gets the same answer; the early stop is taken (some bounds are lower)
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=(30, 3)) * 0.02, rng.normal(size=(30, 3)) * 0.03
+    n = 2000
+    rot = Rotation.random(n, random_state=12).as_matrix()
+    trans = rng.normal(size=(n, 3)) * 0.05
+    full = _bounds(a, rot, trans, b)
+    assert np.isneginf(full).sum() > 100 and (full > 0.01).sum() > 100
+    for enough in (0.0, 0.002, 0.01):
+        early = _bounds(a, rot, trans, b, enough=enough)
+        assert np.all(early <= full)
+        np.testing.assert_array_equal(early > enough, full > enough)
+        assert (early < full).sum() > 100
 
 
 def test_travel_of_boxes_moving_along_an_axis():
@@ -214,7 +234,7 @@ def test_bounds_walked_from_any_start_stay_below_the_exact_distance():
         hints[:, 0, 0] = rng.integers(0, len(hull[0]), n)
         out = np.empty(n)
         hull_distance_bounds(*hull, np.tile(np.eye(3), (n, 1, 1)), -target, *single,
-                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n))
+                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n), np.inf)
         apart = exact > 1e-9
         assert apart.sum() > 100
         assert np.all(np.isneginf(out[exact < 0]))
@@ -246,7 +266,7 @@ def test_bounds_walked_on_a_hull_of_merged_faces(seed):
             hints[:, 0, 0] = rng.integers(0, len(hull[0]), n)
         out = np.empty(n)
         hull_distance_bounds(*hull, np.tile(np.eye(3), (n, 1, 1)), -target, *single,
-                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n))
+                             np.zeros((n, 3)), 0.0, hints, new_simplex(), out, np.empty(n), np.inf)
         apart = exact > 1e-9
         # the points lie off the cube by 1e-14 noise: measured at most 2.0e-14 above the
         # cube's distance and 1.4e-13 below it; 1e-13 and 1e-12 allowed

@@ -276,7 +276,7 @@ def _support(vertices, start, stop, first, neighbours, dx, dy, dz, at):
 
 @jit.kernel(_nrt=False, inline="always")
 def _pair_bound(a_vertices, a_start, a_stop, a_first, a_next, rot, trans, i, b_vertices,
-                b_start, b_stop, b_first, b_next, hint, w):
+                b_start, b_stop, b_first, b_next, hint, w, enough):
     """(certified lower bound of the distance between hull(a_vertices[a_start:a_stop]),
     posed by draw i's rot (3, 3) and trans (3,), and hull(b_vertices[b_start:b_stop]), and
     the unit normal (x, y, z) of the plane that gives it: every point x of A - B has
@@ -285,7 +285,8 @@ def _pair_bound(a_vertices, a_start, a_stop, a_first, a_next, rot, trans, i, b_v
     (:func:`stacked_points`), along which each support is walked from the last. ``hint``
     (2,) int64: the rows of A and B whose difference starts the iteration (the last
     supports of the pair's previous bound; outside the parts: their first rows), set to
-    this bound's last supports."""
+    this bound's last supports. The iteration stops as soon as its bound exceeds ``enough``
+    (metres; inf: to full precision), the bound then only certifying that much."""
     r = rot[i]
     pick = hint[0] if a_start <= hint[0] < a_stop else a_start
     other = hint[1] if b_start <= hint[1] < b_stop else b_start
@@ -316,7 +317,7 @@ def _pair_bound(a_vertices, a_start, a_stop, a_first, a_next, rot, trans, i, b_v
         norm = np.sqrt(vv)
         if vw / norm > lower:  # the plane through w normal to v separates
             lower, nx, ny, nz = vw / norm, vx / norm, vy / norm, vz / norm
-        if vv - vw <= GAP_REL * vv or not vv < previous:
+        if vv - vw <= GAP_REL * vv or not vv < previous or lower > enough:
             break
         previous = vv
         w[m, 0], w[m, 1], w[m, 2] = wx, wy, wz
@@ -343,7 +344,7 @@ def _sphere_gap(a_spheres, p, rot, trans, i, b_spheres, q):
 @jit.kernel(_nrt=False)
 def hull_distance_bounds(a_vertices, a_starts, a_spheres, a_first, a_next, rot, trans,
                          b_vertices, b_starts, b_spheres, b_first, b_next, motion, short,
-                         hints, w, out, travel):
+                         hints, w, out, travel, enough):
     """Per draw i: a certified lower bound out[i] (metres; -inf where some pair touches or
     overlaps) of the least distance between the convex parts of A (part p: the hull of
     a_vertices[a_starts[p]:a_starts[p + 1]] (V, 3), its frame posed by rot[i] (n, 3, 3),
@@ -356,7 +357,11 @@ def hull_distance_bounds(a_vertices, a_starts, a_spheres, a_first, a_next, rot, 
     hull edges (:func:`stacked_points`, whose layout A and B both take). ``hints`` (n, P Q,
     2) int64: where draw i's bound of parts p, q starts (row p Q + q: :func:`new_hints`),
     left where it ended; a bound started at the last one's end (the draw a little moved)
-    needs few iterations. ``w`` (4, 3) is scratch (:func:`new_simplex`).
+    needs few iterations. ``w`` (4, 3) is scratch (:func:`new_simplex`). ``enough``
+    (metres): a pair's iteration stops once its bound exceeds it (inf: every bound to full
+    precision; a finite one for a question whose answer is settled above it, such as "do
+    the parts overlap?", whose answer no earlier stop changes: a pair's bound only grows as
+    its iteration goes on).
 
     Without a motion, a pair whose bounding spheres (``a_spheres`` (P, 4), ``b_spheres``
     (Q, 4): :func:`hull_spheres`) are farther apart than the least bound found is not
@@ -382,7 +387,7 @@ def hull_distance_bounds(a_vertices, a_starts, a_spheres, a_first, a_next, rot, 
                                                 a_first, a_next, rot, trans, i, b_vertices,
                                                 b_starts[q], b_starts[q + 1], b_first,
                                                 b_next, hints[i, p * (b_starts.shape[0] - 1)
-                                                              + q], w)
+                                                              + q], w, enough)
                 best = min(best, bound)
                 if moving:  # the plane n . x >= bound moves by (n . motion) per unit
                     closing = -(nx * mx + ny * my + nz * mz)

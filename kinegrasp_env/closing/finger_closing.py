@@ -246,7 +246,8 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         near = np.flatnonzero(lower.min(axis=1) <= contact_tol)
         exact = {}
         for k, link in enumerate(path.links):  # the exact distance where the bound is near
-            took = live[near, k]
+            # (a link whose own bound is farther cannot come under NEAR x the tolerance)
+            took = live[near, k] & (lower[near, k] <= NEAR * contact_tol)
             if took.any():
                 d, fp, op = np.full(near.size, np.inf), np.empty((near.size, 3)), \
                     np.empty((near.size, 3))

@@ -135,11 +135,11 @@ class FastRobotHand:
         return self.distances.new_hints(link, n)
 
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
-                       short: float = 0.0, hints: np.ndarray | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+                       short: float = 0.0, hints: np.ndarray | None = None,
+                       enough: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`~kinegrasp_env.closing.link_distances.LinkDistances.distance_bound` of
         the robot's links."""
-        return self.distances.distance_bound(poses, link, motion, short, hints)
+        return self.distances.distance_bound(poses, link, motion, short, hints, enough)
 
     def _object_poses(self, q: np.ndarray, maps: tuple[np.ndarray, np.ndarray] | None
                       ) -> np.ndarray:
@@ -185,7 +185,9 @@ class FastRobotHand:
             rows = np.flatnonzero(~hit & near[k])
             if rows.size == 0:
                 continue
-            rows = rows[self.distance_bound(pose[rows], link)[0] < -start_tol]
+            # only "deeper than start_tol?" is asked: no bound is sought above its answer
+            bound = self.distance_bound(pose[rows], link, enough=max(0.0, -start_tol))[0]
+            rows = rows[bound < -start_tol]
             if rows.size:
                 dist = self.exact(pose[rows], link, -start_tol, decide=True)[0]
                 hit[rows[dist < -start_tol]] = True

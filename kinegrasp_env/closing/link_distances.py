@@ -131,8 +131,8 @@ class LinkDistances:
         return hint_shape(n, self._link_hulls[link], self._object_hulls)
 
     def distance_bound(self, poses: np.ndarray, link: str, motion: np.ndarray | None = None,
-                       short: float = 0.0, hints: np.ndarray | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+                       short: float = 0.0, hints: np.ndarray | None = None,
+                       enough: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
         """((n,) certified lower bound (metres) of the distance of ``link``'s hulls, placed
         by object-frame poses (n, 4, 4), to the object's convex parts, -inf where they touch
         or overlap; (n,) how far the link can be translated by ``motion`` (n, 3) per unit
@@ -142,7 +142,9 @@ class LinkDistances:
         part's: :class:`~kinegrasp_env.closing.rounded_links.RoundedCores`). ``hints``
         (:meth:`new_hints`, updated in place): where each draw's last bound of the link
         ended, the link moved a little since (a bound that starts there takes fewer
-        iterations)."""
+        iterations). ``enough``: a hull pair's bound is sought no higher than this (metres;
+        inf: to full precision), for a caller that asks only whether the distance is below
+        it."""
         n = poses.shape[0]
         out, travel = np.full(n, np.inf), np.full(n, 0.0 if motion is None else np.inf)
         if hints is not None and hints.shape != self._hint_shape(link, n):
@@ -155,7 +157,7 @@ class LinkDistances:
                                  np.ascontiguousarray(poses[:, :3, 3]), *self._object_hulls,
                                  move, float(short),
                                  self.new_hints(link, n) if hints is None else hints,
-                                 self._simplex, out, travel)
+                                 self._simplex, out, travel, float(enough))
         if link in self._rounded:
             bound, far = self._rounded[link].bounds(poses, motion, short)
             out, travel = np.minimum(out, bound), np.minimum(travel, far)

@@ -77,7 +77,7 @@ class RoundedCores:
                                  np.ascontiguousarray(trans[todo]), *self._object_hulls,
                                  np.ascontiguousarray(motion[todo]), float(short),
                                  new_hints(todo.size, self._cores[k], self._object_hulls),
-                                 self._simplex, found, far)
+                                 self._simplex, found, far, np.inf)
             out[todo], travel[todo] = found, far
         return out, travel
 

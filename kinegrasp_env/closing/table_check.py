@@ -93,6 +93,6 @@ class TableCheck:
             bound, travel = np.empty(rows.size), np.empty(rows.size)
             hull_distance_bounds(*hull, rot, trans, *self._box, np.zeros((rows.size, 3)), 0.0,
                                  new_hints(rows.size, hull, self._box), self._simplex, bound,
-                                 travel)
+                                 travel, reach)  # only "within reach?" is asked
             out[rows[bound <= reach]] = True
         return out
