@@ -110,11 +110,82 @@ def test_a_step_under_the_net_bound_stops_at_the_next_joint_limit(tmp_path):
     path = paths_of(xarm6(tmp_path))[0]
     ends = np.array([[0.5, 0.3], [0.5, 0.3], [0.5, 0.3]])
     held = np.array([[np.inf, np.inf], [np.inf, np.inf], [np.inf, 0.1]])
-    turning, room = path.turning(held, np.array([0.1, 0.4, 0.2]), ends)
+    turning, room = path.turning(held, np.array([0.1, 0.4, 0.2]), np.zeros_like(ends), ends)
     np.testing.assert_array_equal(turning, [[True, True], [True, False], [True, False]])
     np.testing.assert_allclose(room, [0.2, 0.1, 0.3])
     crank_only = path.speed_bounds(turning[1])[-1]
     assert crank_only == pytest.approx(float(path.speeds[-1][0]))  # the whole finger turns
     sdh = paths_of(load_robot("kuka_sdh"))[0]
-    turning, room = sdh.turning(np.full((1, 2), np.inf), np.array([0.4]), ends[:1])
+    turning, room = sdh.turning(np.full((1, 2), np.inf), np.array([0.4]), np.zeros((1, 2)),
+                                ends[:1])
     assert turning.all() and np.isinf(room).all()
+
+
+def _two_bar_finger(folder: Path):
+    """A one-joint arm and a palm carrying a finger of two links turning about parallel x
+    axes, the second following the first with multiplier -1 (a linkage's bar) but limited to
+    [-3, -0.3]: at the pre-shape (0) it lies outside its limits, clipped to -0.3, and stands
+    still until the first joint has turned 0.3 rad."""
+    def box(name, y):
+        return (f'<link name="{name}"><collision><origin xyz="0 {y} 0"/><geometry>'
+                f'<box size="0.01 0.01 0.01"/></geometry></collision></link>')
+
+    def revolute(name, parent, child, y, limits, mimic=""):
+        return (f'<joint name="{name}" type="revolute"><origin xyz="0 {y} 0"/><parent '
+                f'link="{parent}"/><child link="{child}"/><axis xyz="1 0 0"/><limit '
+                f'lower="{limits[0]}" upper="{limits[1]}" effort="1" velocity="1"/>{mimic}'
+                '</joint>')
+
+    urdf = folder / "bars.urdf"
+    urdf.write_text(
+        '<robot name="bars"><link name="base"/><link name="arm"/>'
+        '<link name="palm"><collision><geometry><box size="0.05 0.05 0.02"/></geometry>'
+        '</collision></link>' + box("l0", 0.05) + box("l1", 0.2)
+        + revolute("a1", "base", "arm", 0, (-3, 3)).replace('axis xyz="1 0 0"', 'axis xyz="0 0 1"')
+        + '<joint name="palm_fix" type="fixed"><origin xyz="0 0 0.1"/><parent link="arm"/>'
+        '<child link="palm"/></joint>' + revolute("l0j", "palm", "l0", 0, (-3, 3))
+        + revolute("l1j", "l0", "l1", 0.05, (-3, -0.3),
+                   '<mimic joint="l0j" multiplier="-1" offset="0"/>') + '</robot>')
+    path = folder / "bars.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "bars", "urdf": str(urdf), "arm_joints": ["a1"], "palm_link": "palm",
+        "hand_joints": ["l0j"], "close": {"l0j": 1}, "open": {"l0j": 0.0},
+        "contact_model": "point"}))
+    return load_description(path)
+
+
+def test_a_joint_outside_its_limits_turns_only_once_within_them(tmp_path):
+    """The net bound counts a joint as turning only between :meth:`FingerPath.limit_times`'
+    start and end: the bar's joint, clipped at its limit for t < 0.3, does not turn against
+    the crank then, and the bar turns with it at up to 0.2535 m/rad (finite differences
+    along the closing's own clipped joint values), 5 times the net bound of both joints
+    turning; a step may not pass t = 0.3 either. Counted as turning from t = 0 (the start
+    ignored), the bound was 0.05 there and a closing stepped its link through a 1 mm
+    slab."""
+    description = _two_bar_finger(tmp_path)
+    geometry = robot_link_geometry(description)
+    path = paths_of(description)[0]
+    assert path.net is not None
+    v0 = np.zeros(2)
+    starts, ends = path.limit_times(v0)
+    np.testing.assert_allclose(starts, [0.0, 0.3])
+    names, dt, worst = path.tree.model.actuated, 1e-7, 0.0
+    for t in np.linspace(0.0, 0.6, 25):
+        turning, room = path.turning(np.full(2, np.inf), t, starts, ends)
+        if t < 0.3:
+            assert turning.tolist() == [True, False] and room == pytest.approx(0.3 - t)
+        bounds = path.speed_bounds(turning)
+        poses = []
+        for s in (t, t + dt):
+            values = np.clip(v0 + path.rates * s, path.lower, path.upper)
+            coordinates = {name: np.zeros(1) for name in names}
+            coordinates.update({name: np.array([v]) for name, v in zip(path.joints, values,
+                                                                      strict=True)})
+            poses.append(tree_poses(path.tree, np.eye(4)[None], coordinates, path.links))
+        for k, link in enumerate(path.links):
+            points = geometry[link].extent_points
+            a, b = (points @ p[link][0, :3, :3].T + p[link][0, :3, 3] for p in poses)
+            speed = float(np.linalg.norm(b - a, axis=1).max()) / dt
+            assert speed <= bounds[k] * (1 + 1e-6) + 1e-9, (t, link, speed, bounds[k])
+            worst = max(worst, speed)
+    assert worst > 0.25  # the bar turning with the crank was sampled

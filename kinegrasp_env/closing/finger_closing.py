@@ -196,10 +196,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
     last = {link: (np.empty((m, 4, 4)), np.full(m, np.inf), np.empty((m, 3)),
                    np.empty((m, 3)), np.zeros(m, dtype=bool)) for link in path.links}
     rates = path.rates
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ends = np.where(rates > 0, (path.upper - v0) / rates,
-                        np.where(rates < 0, (path.lower - v0) / rates, 0.0))
-    ends = np.maximum(ends, 0.0)
+    starts, ends = path.limit_times(v0)
     t_turn = np.where(rates != 0, ends, np.inf).min(axis=1)
     motion = {link: None for link in path.links}
     if path.translating:  # each link's displacement per unit t, object frame
@@ -291,7 +288,7 @@ def close_finger(hand, path: FingerPath, palm: np.ndarray, values0: dict, contac
         lower[touched[active]] = np.inf  # a link that touched no longer bounds the step
         turn = np.maximum(t_turn[active] - t[active], 0.0)
         # each link's bound by the joints still turning (a, K), up to a joint's limit
-        turning, room = path.turning(held[active], t[active], ends[active])
+        turning, room = path.turning(held[active], t[active], starts[active], ends[active])
         speed = np.maximum(path.speed_bounds(turning), 1e-9)
         step = np.minimum(np.min(np.maximum(np.maximum(lower, 0.0) / speed,
                                             np.minimum(travel, turn[:, None])), axis=1), room)

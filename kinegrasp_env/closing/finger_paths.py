@@ -47,8 +47,8 @@ class FingerPath:
             one way and some the other (a linkage whose bar keeps its orientation), each
             joint's rate signed along the first joint's axis; the links' speeds then come
             from the net turning (:func:`net_speeds`), which depends on which joints turn,
-            so a step must not pass a joint's limit (:meth:`speed_bounds`). None: the
-            sum of ``speeds`` (their bound whatever subset of the joints turns).
+            so a step must not pass a joint's limit (:meth:`turning`). None: the sum of
+            ``speeds`` (their bound whatever subset of the joints turns).
         levers: (K, J) with ``net``: the weights of :func:`net_speeds` (metres).
     """
 
@@ -66,19 +66,37 @@ class FingerPath:
     net: np.ndarray | None = None
     levers: np.ndarray | None = None
 
-    def turning(self, held: np.ndarray, t, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def limit_times(self, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(starts, ends), each (..., J): the t at which each closing joint, from its
+        pre-shape values ``v0`` (..., J), comes within its limits and the t at which it
+        reaches the limit it closes towards (0 where it is there already). A joint moves
+        only between the two: its value is clipped to its limits, and a mimic joint may
+        start outside its own."""
+        rates = self.rates
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ends = np.where(rates > 0, (self.upper - v0) / rates,
+                            np.where(rates < 0, (self.lower - v0) / rates, 0.0))
+            starts = np.where(rates > 0, (self.lower - v0) / rates,
+                              np.where(rates < 0, (self.upper - v0) / rates, 0.0))
+        return np.maximum(starts, 0.0), np.maximum(ends, 0.0)
+
+    def turning(self, held: np.ndarray, t, starts: np.ndarray, ends: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
         """Which closing joints turn now and for how long the links' speed bound holds, of
         one draw or n: ``held`` (..., J) the t at which each joint stopped (inf: not
-        stopped), ``t`` (...) the draws' parameter, ``ends`` (..., J) the t at which each
-        joint reaches its limit. Returns (turning (..., J) bool, room (...): how far t may
-        go before a turning joint reaches its limit; inf where that does not change the
-        bound)."""
+        stopped), ``t`` (...) the draws' parameter, ``starts``, ``ends`` (..., J):
+        :meth:`limit_times`. Returns (turning (..., J) bool, room (...): how far t may go
+        before a joint starts or stops turning; inf where that does not change the bound).
+        A staged finger's least step (:data:`~kinegrasp_env.closing.close_rules.STEP`) may
+        pass it, as it may pass any bound: a step that leaves a link too deep is halved."""
         turning = np.isinf(held)
         if self.net is None:  # the sum of the joints' bounds holds for any subset
             return turning, np.full(turning.shape[:-1], np.inf)
-        turning &= np.asarray(t)[..., None] < ends
-        return turning, np.min(np.where(turning, ends - np.asarray(t)[..., None], np.inf),
-                               axis=-1)
+        t = np.asarray(t)[..., None]
+        waiting = turning & (t < starts)
+        turning &= (starts <= t) & (t < ends)
+        events = np.where(turning, ends - t, np.where(waiting, starts - t, np.inf))
+        return turning, np.min(events, axis=-1)
 
     def speed_bounds(self, turning: np.ndarray) -> np.ndarray:
         """(..., K) bound on the speed (metres per unit t) of any point of each link while

@@ -200,9 +200,7 @@ class RobotWorld(RobotScene):
         stops, moves = self._touch_rules[f]
         staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
-        with np.errstate(divide="ignore"):
-            ends = np.maximum(np.where(rates > 0, (hi - v0) / rates,
-                                       np.where(rates < 0, (lo - v0) / rates, 0.0)), 0.0)
+        starts, ends = path.limit_times(v0)
         held = np.full(len(joints), np.inf)  # the t at which each joint stopped
         touched = np.zeros(len(finger.links), dtype=bool)
 
@@ -248,7 +246,7 @@ class RobotWorld(RobotScene):
                 continue
             # each moving link's gap over its speed bound by the joints still turning, up
             # to a joint's limit
-            turning, room = path.turning(held, t, ends)
+            turning, room = path.turning(held, t, starts, ends)
             speeds = path.speed_bounds(turning)
             travel = min(min((self.link_gap(link) / max(float(speeds[k]), 1e-9)
                               for k, link in enumerate(path.links) if link in links),
