@@ -106,7 +106,9 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
     text = run_in_process(capsys, *argv)
     if written is not None:
         assert Path(written.format(o=out)).is_file(), (argv, text)
-    if "--json" in argv and command.split()[0] in ("evaluate", "elbow"):
+    if "--json" in argv and command.split()[0] == "evaluate":
+        assert json.loads(text)["robot"] == robot
+    if "--json" in argv and command.split()[0] == "elbow":
         assert json.loads(text).get("robot", "kuka_sdh") == robot
     if "--static-hold" in argv:
         assert 0.0 <= json.loads(text)["p_hold_static"] <= 1.0
@@ -119,6 +121,23 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
         assert summary["settings"].get("robot", "kuka_sdh") == robot
         assert summary["settings"]["simulator"] == command.split()[-1].replace(
             "validate", "pybullet")
+
+
+def test_evaluate_prints_one_record_for_every_robot(workspace, monkeypatch, capsys):
+    """``evaluate --json`` prints the same keys whichever robot ran (the robot, object and
+    grasp, the engine, Q's moments and the nominal-minus-mean error among them), and a hand
+    whose one motor moves both jaws (the Panda's) the jaws' push besides: a script that
+    reads one robot's record reads another's."""
+    monkeypatch.setenv("KINEGRASP_HOME", str(workspace / "home"))
+    monkeypatch.chdir(workspace)
+    keys = {}
+    for robot in ROBOTS:
+        text = run_in_process(capsys, "evaluate", "--grasps", f"{robot}.json", "--grasp", "0",
+                              "--sigma", "0.01", "--samples", "4", "--json")
+        keys[robot] = set(json.loads(text))
+    assert {"robot", "object", "grasp", "engine", "q_var", "error"} <= keys["kuka_sdh"]
+    assert "jaw_push_mm" in keys["panda"]
+    assert keys["panda"] - {"jaw_push_mm"} == keys["kuka_sdh"] == keys["xarm6"], keys
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

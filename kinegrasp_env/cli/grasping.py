@@ -82,8 +82,9 @@ def cmd_evaluate(args) -> int:
         hold.update(static_hold_record(grasp, stats))
     label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
     per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
-    if args.json:
-        print(json.dumps({**stats.to_json(), **({} if per_draw else {"friction": friction}),
+    if args.json:  # the keys every robot's evaluation prints (cli.robot_grasps)
+        print(json.dumps({"robot": grasp.robot, "object": grasp.object, "grasp": grasp.id,
+                          **stats.to_json(), **({} if per_draw else {"friction": friction}),
                           **hold}))
     else:
         lo, hi = stats.p_fc_ci

@@ -189,11 +189,12 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
                           "sigma": sigma, "noise": args.noise,
                           **({"noise_spec": str(args.noise_spec)} if model else {}),
-                          "samples": samples,
-                          "seed": seed, "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
+                          "samples": samples, "seed": seed, "engine": args.engine,
+                          "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
                           "friction": friction, "q_nominal": stats.q_nominal,
-                          "q_mean": finite(stats.q_mean), "q_std": finite(stats.q_std),
-                          "q_skew": finite(stats.q_skew),
+                          "q_mean": finite(stats.q_mean), "q_var": finite(stats.q_std ** 2),
+                          "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
+                          "error": finite(stats.q_nominal - stats.q_mean),
                           "outcomes": stats.counts, **hold}))
         return 0
     lo, hi = stats.ci
