@@ -114,7 +114,8 @@ STAT_LINES = {
     "evaluate header": re.compile(r"^(?P<k_what>\S+ grasp .+), (?P<n>\d+) draws"
                                   r"(?P<k_friction>, friction mu .+)?$"),
     "evaluate P(FC)": re.compile(rf"^\s+P\(FC\)\s+= {_P}\s+\(95% CI {_CI} \.\. {_HI}\)$"),
-    "evaluate Q": re.compile(r"^\s+Q \(Ferrari-Canny, dimensionless; mean, std, skewness over "
+    "evaluate Q": re.compile(r"^\s+Q \(Ferrari-Canny, dimensionless, \w+ contacts; mean, std, "
+                             r"skewness over "
                              r"the force-closure draws\): nominal (?P<k_nominal>\S+), mean \S+, "
                              r"std \S+, skewness \S+, error \(nominal - mean\) \S+$"),
     "outcomes": re.compile(r"^\s+outcomes: (?P<counts>\w+ \d+(?:, \w+ \d+)*)$"),

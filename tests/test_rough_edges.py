@@ -519,10 +519,11 @@ def test_evaluate_says_what_each_number_is(capsys):
             "fast"]
     assert main(argv) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == "cube grasp 0, sigma = 0.0133 rad (gaussian), 40 draws, friction mu 0.5"
+    assert lines[0] == ("cube grasp 0 of robot kuka_sdh, sigma = 0.0133 rad (gaussian), 40 "
+                        "draws, friction mu 0.5")
     q_line = lines[2]
-    assert q_line.startswith("  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the "
-                             "force-closure draws): nominal ")
+    assert q_line.startswith("  Q (Ferrari-Canny, dimensionless, point contacts; mean, std, "
+                             "skewness over the force-closure draws): nominal ")
     assert main([*argv, "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
     error = float(q_line.rsplit("error (nominal - mean) ", 1)[1])

@@ -28,6 +28,7 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
+from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
@@ -38,11 +39,7 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import (
-    check_hold_simulator,
-    evaluate_robot,
-    print_hold_scores,
-)
+from kinegrasp_env.cli.robot_grasps import check_hold_simulator, evaluate_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
@@ -87,17 +84,14 @@ def cmd_evaluate(args) -> int:
                           **stats.to_json(), **({} if per_draw else {"friction": friction}),
                           **hold}))
     else:
-        lo, hi = stats.p_fc_ci
+        from kinegrasp_env.robot.catalog import load_robot
+
         full = label if args.noise_spec else f"{label} ({args.noise})"
-        mu = "friction mu per draw" if per_draw else f"friction mu {friction:g}"
-        print(f"{args.object} grasp {index}, {full}, {samples} draws, {mu}")
-        print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
-        print(f"  Q (Ferrari-Canny, dimensionless; mean, std, skewness over the force-closure "
-              f"draws): nominal {stats.q_nominal:.5f}, mean {stats.q_mean:.5f}, std "
-              f"{stats.q_std:.5f}, skewness {stats.q_skew:.3f}, error (nominal - mean) "
-              f"{stats.error:.5f}")
-        print_hold_scores(hold)
-        print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.outcomes.items()))
+        print_evaluation(Evaluation(
+            f"{args.object} grasp {index} of robot {grasp.robot}", full, samples,
+            None if per_draw else friction, load_robot(grasp.robot).contact_model, stats.p_fc,
+            stats.p_fc_ci, stats.q_nominal, stats.q_mean, stats.q_std, stats.q_skew,
+            stats.outcomes), hold_lines(hold))
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object

@@ -21,22 +21,8 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
 from kinegrasp_env.cli.execution_options import executor_from
-
-
-def print_hold_scores(record: dict) -> None:
-    """The lines ``evaluate`` prints for the hold scores in ``record`` (its ``--json`` keys:
-    ``p_hold``, ``p_hold_ci``, ``hold_simulator``; ``p_hold_static``, ``p_hold_static_ci``,
-    ``mass_kg``)."""
-    if "p_hold" in record:
-        lo, hi = record["p_hold_ci"]
-        print(f"  P(hold) = {record['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the quick "
-              f"holding test in {record['hold_simulator']} on the same draws)")
-    if "p_hold_static" in record:
-        lo, hi = record["p_hold_static_ci"]
-        print(f"  P(hold, static) = {record['p_hold_static']:.4f}  (95% CI {lo:.4f} .. "
-              f"{hi:.4f}; object mass {record['mass_kg']:.3f} kg, six gravity directions and "
-              f"the lift, the hand's effort limits)")
 
 
 def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
@@ -197,23 +183,17 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                           "error": finite(stats.q_nominal - stats.q_mean),
                           "outcomes": stats.counts, **hold}))
         return 0
-    lo, hi = stats.ci
-    print(f"{grasp.object} grasp {index} of robot {robot}, {label}, {samples} draws")
-    print(f"  P(FC)   = {stats.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
-    contacts = load_robot(robot).contact_model
-    print(f"  Q (Ferrari-Canny, {contacts} contacts; mean, "
-          f"std, skewness over the force-closure draws; "
-          f"{'mu per draw' if model is not None and model.friction else f'mu {friction:g}'}"
-          f"): nominal "
-          f"{stats.q_nominal:.5f}, mean "
-          f"{stats.q_mean:.5f}, std {stats.q_std:.5f}, skewness {stats.q_skew:.3f}")
-    print_hold_scores(hold)
+    extra = hold_lines(hold)
     if math.isfinite(stats.push_median):
-        print(f"  coupled jaws: one jaw touches first and would push the object "
-              f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "
-              f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the closing scores "
-              f"the object where it stands")
-    print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in stats.counts.items()))
+        extra.append(f"  coupled jaws: one jaw touches first and would push the object "
+                     f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "
+                     f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the closing "
+                     f"scores the object where it stands")
+    print_evaluation(Evaluation(
+        f"{grasp.object} grasp {index} of robot {robot}", label, samples,
+        None if model is not None and model.friction else friction,
+        load_robot(robot).contact_model, stats.p_fc, stats.ci, stats.q_nominal, stats.q_mean,
+        stats.q_std, stats.q_skew, stats.counts), extra)
     if args.plot:
         print(f"  plot written to {args.plot}")
     return 0

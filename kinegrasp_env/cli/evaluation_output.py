@@ -1,0 +1,70 @@
+"""What ``kinegrasp evaluate`` prints, whichever robot ran: one header, P(FC), Q's moments
+and the outcome counts (the hold scores and the coupled jaws' push where asked for)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Evaluation", "hold_lines", "print_evaluation"]
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One evaluation's figures as ``evaluate`` prints them.
+
+    Attributes:
+        what: the grasp, e.g. ``cube grasp 0 of robot panda``.
+        noise: the noise, e.g. ``sigma = 0.0133 rad (gaussian)`` or ``noise spec FILE``.
+        samples: draws.
+        friction: the contacts' mu, or None where each draw takes its own.
+        contacts: the robot's contact model (``point``, ``soft``, ...).
+        p_fc, p_fc_ci: P(FC) and its 95% interval.
+        q_nominal, q_mean, q_std, q_skew: Q at the nominal closing and its moments over the
+            force-closure draws (dimensionless).
+        outcomes: outcome name -> draws.
+    """
+
+    what: str
+    noise: str
+    samples: int
+    friction: float | None
+    contacts: str
+    p_fc: float
+    p_fc_ci: tuple[float, float]
+    q_nominal: float
+    q_mean: float
+    q_std: float
+    q_skew: float
+    outcomes: dict[str, int]
+
+
+def print_evaluation(run: Evaluation, extra: list[str] | None = None) -> None:
+    """Print ``run``; ``extra``: lines printed after Q's (hold scores, the jaws' push)."""
+    mu = "friction mu per draw" if run.friction is None else f"friction mu {run.friction:g}"
+    lo, hi = run.p_fc_ci
+    print(f"{run.what}, {run.noise}, {run.samples} draws, {mu}")
+    print(f"  P(FC)   = {run.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
+    print(f"  Q (Ferrari-Canny, dimensionless, {run.contacts} contacts; mean, std, skewness "
+          f"over the force-closure draws): nominal {run.q_nominal:.5f}, mean {run.q_mean:.5f}, std "
+          f"{run.q_std:.5f}, skewness {run.q_skew:.3f}, error (nominal - mean) "
+          f"{run.q_nominal - run.q_mean:.5f}")
+    for line in extra or []:
+        print(line)
+    print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in run.outcomes.items()))
+
+
+def hold_lines(record: dict) -> list[str]:
+    """The lines ``evaluate`` prints for the hold scores in ``record`` (its ``--json`` keys:
+    ``p_hold``, ``p_hold_ci``, ``hold_simulator``; ``p_hold_static``, ``p_hold_static_ci``,
+    ``mass_kg``)."""
+    lines = []
+    if "p_hold" in record:
+        lo, hi = record["p_hold_ci"]
+        lines.append(f"  P(hold) = {record['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the "
+                     f"quick holding test in {record['hold_simulator']} on the same draws)")
+    if "p_hold_static" in record:
+        lo, hi = record["p_hold_static_ci"]
+        lines.append(f"  P(hold, static) = {record['p_hold_static']:.4f}  (95% CI {lo:.4f} .. "
+                     f"{hi:.4f}; object mass {record['mass_kg']:.3f} kg, six gravity directions "
+                     f"and the lift, the hand's effort limits)")
+    return lines
