@@ -130,14 +130,18 @@ def test_evaluate_prints_one_record_for_every_robot(workspace, monkeypatch, caps
     reads one robot's record reads another's."""
     monkeypatch.setenv("KINEGRASP_HOME", str(workspace / "home"))
     monkeypatch.chdir(workspace)
-    keys = {}
-    for robot in ROBOTS:
-        text = run_in_process(capsys, "evaluate", "--grasps", f"{robot}.json", "--grasp", "0",
-                              "--sigma", "0.01", "--samples", "4", "--json")
-        keys[robot] = set(json.loads(text))
-    assert {"robot", "object", "grasp", "engine", "q_var", "error"} <= keys["kuka_sdh"]
-    assert "jaw_push_mm" in keys["panda"]
-    assert keys["panda"] - {"jaw_push_mm"} == keys["kuka_sdh"] == keys["xarm6"], keys
+    for noise in (["--sigma", "0.01"], ["--noise-spec", "spec.yaml"]):
+        keys = {}
+        for robot in ROBOTS:
+            text = run_in_process(capsys, "evaluate", "--grasps", f"{robot}.json", "--grasp",
+                                  "0", *noise, "--samples", "4", "--json")
+            keys[robot] = set(json.loads(text))
+        assert {"robot", "object", "grasp", "engine", "q_var", "error"} <= keys["kuka_sdh"]
+        assert "jaw_push_mm" in keys["panda"]
+        assert keys["panda"] - {"jaw_push_mm"} == keys["kuka_sdh"] == keys["xarm6"], keys
+        # a spec's friction source draws mu per draw: no one friction then
+        assert ("friction" in keys["kuka_sdh"]) == (noise[0] == "--sigma")
+        assert ("noise_model" in keys["kuka_sdh"]) == (noise[0] == "--noise-spec")
 
 
 @pytest.mark.parametrize("robot", ROBOTS)

@@ -82,6 +82,7 @@ def cmd_evaluate(args) -> int:
     if args.json:  # the keys every robot's evaluation prints (cli.robot_grasps)
         print(json.dumps({"robot": grasp.robot, "object": grasp.object, "grasp": grasp.id,
                           **stats.to_json(), **({} if per_draw else {"friction": friction}),
+                          **({"noise_spec": str(args.noise_spec)} if args.noise_spec else {}),
                           **hold}))
     else:
         from kinegrasp_env.robot.catalog import load_robot

@@ -172,12 +172,17 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                      "hold_simulator": simulator})
     if args.json:
         finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
+        from kinegrasp_env.sampling.noise_spec import spec_of
+
+        per_draw = model is not None and model.friction is not None  # the spec's source
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
                           "sigma": sigma, "noise": args.noise,
-                          **({"noise_spec": str(args.noise_spec)} if model else {}),
+                          **({"noise_spec": str(args.noise_spec),
+                              "noise_model": spec_of(model)} if model else {}),
                           "samples": samples, "seed": seed, "engine": args.engine,
                           "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
-                          "friction": friction, "q_nominal": stats.q_nominal,
+                          **({} if per_draw else {"friction": friction}),
+                          "q_nominal": finite(stats.q_nominal),
                           "q_mean": finite(stats.q_mean), "q_var": finite(stats.q_std ** 2),
                           "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
                           "error": finite(stats.q_nominal - stats.q_mean),
