@@ -134,3 +134,27 @@ def test_rank_of_a_robots_grasps_of_several_objects(capsys, tmp_path):
         assert abs(float(rows[grasp_id]["p_fc"]) - alone["p_fc"]) < 1e-4, (obj, i)
     text = page.read_text()
     assert "4 grasps of cube, drill" in text and "panda: drill grasp" in text
+
+
+def test_draws_from_an_offset_are_those_rows_of_the_run():
+    """``offset``: the draws are rows offset .. offset + n of the seed's run, in one process
+    or in chunks on two (the stream layout: a longer run's rows 250 .. 279, closed by the
+    same engine); a Generator, which has no rows, is refused with an offset."""
+    import pytest
+
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    whole = evaluate_robot_grasp(grasp, sigma=0.02, n=280, seed=5, engine="fast")
+    tail = whole.draws.quality[250:280]
+    part = evaluate_robot_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250, engine="fast")
+    np.testing.assert_array_equal(part.draws.quality, tail)
+    with LocalExecutor(2) as executor:
+        chunked = evaluate_robot_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250,
+                                       engine="fast", executor=executor)
+    np.testing.assert_array_equal(chunked.draws.quality, tail)
+    assert (part.draws.quality != whole.draws.quality[:30]).any()  # other draws
+    with pytest.raises(ValueError, match="offset > 0 take an integer or SeedSequence"):
+        evaluate_robot_grasp(grasp, sigma=0.02, n=3, seed=np.random.default_rng(0),
+                             offset=250, engine="fast")

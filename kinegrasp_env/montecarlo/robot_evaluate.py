@@ -125,16 +125,18 @@ def with_nominal_row(q: np.ndarray, q0: np.ndarray, errors: dict[str, np.ndarray
 
 
 def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
-                         n: int, seed: SeedLike = 0, noise: str = "gaussian") -> np.ndarray:
+                         n: int, seed: SeedLike = 0, noise: str = "gaussian",
+                         offset: int = 0) -> np.ndarray:
     """(n, dof) the draws :func:`evaluate_robot_grasp` evaluates: the grasp's q0 with joint
     noise of ``sigma`` (radians) on the engine's robot's arm joints, the hand at its
-    pre-shape. An integer or SeedSequence seed draws the run's chunked streams
-    (:func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`: the rows a run in
-    chunks draws); a Generator (or None) is drawn from directly."""
+    pre-shape. An integer or SeedSequence seed draws rows ``offset .. offset + n`` of the
+    run's chunked streams (:func:`~kinegrasp_env.montecarlo.robot_chunks.
+    chunk_configurations`: the rows a run in chunks draws); a Generator (or None) is drawn
+    from directly (``offset`` 0 only)."""
     q0 = engine.check(grasp.q0)[0]
     arm = engine.description.arm_dof
     if isinstance(seed, (int, np.integer, np.random.SeedSequence)):
-        return chunk_configurations(q0, arm, sigma, noise, seed, 0, int(n))
+        return chunk_configurations(q0, arm, sigma, noise, seed, int(offset), int(n))
     eps = JointNoise(sigma, noise).sample(int(n), arm, as_generator(seed))
     q = np.repeat(q0[None], int(n), axis=0)
     q[:, :arm] += eps
@@ -143,20 +145,20 @@ def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tu
 
 def evaluation_rows(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
                     n: int, seed: SeedLike = 0, noise: str = "gaussian",
-                    noise_model: NoiseModel | None = None
+                    noise_model: NoiseModel | None = None, offset: int = 0
                     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """(configurations (n, dof), per-draw errors as the engine's ``run`` takes them) of the
     draws :func:`evaluate_robot_grasp` evaluates in one process: joint noise
     (:func:`robot_configurations`, no errors), or the rows of ``noise_model``'s every
     source (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`; ``seed`` an
-    integer)."""
+    integer); rows ``offset .. offset + n`` of the run's."""
     if noise_model is None:
         return robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed,
-                                    noise=noise), {}
+                                    noise=noise, offset=offset), {}
     from kinegrasp_env.montecarlo.robot_noise import model_rows
 
     return model_rows(noise_model, engine.check(grasp.q0)[0], engine.description, int(seed),
-                      0, n, engine.obj.center_of_mass)
+                      int(offset), n, engine.obj.center_of_mass)
 
 
 def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: int,
@@ -165,7 +167,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                          robot: str | RobotDescription | None = None,
                          static_hold: bool = False, friction: float = 0.5,
                          executor: Executor | None = None,
-                         noise_model: NoiseModel | None = None) -> RobotEvaluation:
+                         noise_model: NoiseModel | None = None,
+                         offset: int = 0) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
     its nominal Q (:func:`nominal_robot_quality`).
 
@@ -190,6 +193,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         noise_model: every source of error (:mod:`~kinegrasp_env.montecarlo.robot_noise`:
             joints, hand, palm, object, friction; the seed an integer); replaces ``sigma`` and
             ``noise``.
+        offset: the draws are rows ``offset .. offset + n`` of the seed's run (an integer or
+            SeedSequence seed; e.g. the fresh draws after a selection's:
+            :func:`~kinegrasp_env.toolkit.selection.report_rows`).
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
@@ -197,6 +203,12 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
+    if offset:
+        if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
+            raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
+        if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+            raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
+                             f"seed, got {type(seed).__name__}")
     JointNoise(sigma, noise)  # sigma and noise checked before any work
     if isinstance(engine, str) and engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
@@ -222,14 +234,14 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                                      and executor.workers == 1):
         return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
                         static_hold=static_hold, friction=friction, executor=executor,
-                        noise_model=noise_model)
+                        noise_model=noise_model, offset=int(offset))
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
                              static_hold=static_hold, friction=friction)
     try:
         q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
-                                    noise_model=noise_model)
+                                    noise_model=noise_model, offset=int(offset))
         check = engine.hold_check
         # the nominal closing rides with the draws, as row n, in the same engine call
         rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
@@ -252,7 +264,8 @@ def _integer_seed(seed: SeedLike, what: str) -> None:
 
 def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
              seed: SeedLike, noise: str, static_hold: bool, friction: float,
-             executor: Executor, noise_model: NoiseModel | None = None) -> RobotEvaluation:
+             executor: Executor, noise_model: NoiseModel | None = None,
+             offset: int = 0) -> RobotEvaluation:
     """:func:`evaluate_robot_grasp`'s run in chunks on ``executor`` (a given engine passes
     its name and settings to the workers, which build their own)."""
     from kinegrasp_env.montecarlo.robot_chunks import (
@@ -269,8 +282,8 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
         engine, friction = engine.name, engine.friction
     first = RobotChunk(robot, grasp.object, engine, tuple(np.asarray(grasp.q0, float)),
                        sigma if np.ndim(sigma) == 0 else tuple(sigma), noise,
-                       seed if isinstance(seed, np.random.SeedSequence) else int(seed), 0,
-                       n, friction, static_hold,
+                       seed if isinstance(seed, np.random.SeedSequence) else int(seed),
+                       offset, n, friction, static_hold,
                        None if noise_model is None else json.dumps(spec_of(noise_model)))
     draws = chunked_draws(first, n, executor)
     stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)

@@ -17,9 +17,10 @@ two: the self-motion and the engine.
 - **Engine**: :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` (the
   reference closing on the URDF's own geometry, the robot's contact model), one pybullet
   world for every angle. The selection draws are those of ``seed`` (the draws of
-  ``kinegrasp evaluate --robot NAME --seed SEED``), the fresh draws those of the
-  :class:`numpy.random.SeedSequence` ``[seed, 1]``: an independent stream; both are common
-  to every angle (draw i is the same joint noise at every angle).
+  ``kinegrasp evaluate --robot NAME --seed SEED``), the fresh draws the rows after them in
+  the same run (:func:`~kinegrasp_env.toolkit.selection.report_rows`: the chunks the default
+  robot's elbow reports on, the same draws); both are common to every angle (draw i is the
+  same joint noise at every angle).
 
 The grids (:data:`~kinegrasp_env.toolkit.elbow.FINE_STEP`, ``COARSE_EVERY``,
 ``REFINE_TOP``), the selection, the scoring on fresh draws, the paired gain and the
@@ -69,17 +70,11 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     rounded_up,
 )
 from kinegrasp_env.toolkit.robot_plan_checks import clearance
+from kinegrasp_env.toolkit.selection import report_rows
 from kinegrasp_env.world.grasps import Grasp
 
-#: The fresh draws' stream: ``SeedSequence([seed, FRESH_STREAM])``.
-FRESH_STREAM = 1
 #: The IK starts' stream of a 6-joint arm's branches: ``SeedSequence([seed, IK_STREAM])``.
 IK_STREAM = 2
-
-
-def fresh_seed(seed: int) -> np.random.SeedSequence:
-    """The seed of the fresh (scoring) draws of run seed ``seed``."""
-    return np.random.SeedSequence([int(seed), FRESH_STREAM])
 
 
 def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
@@ -146,14 +141,23 @@ class AngleScorer:
 
 
 def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-           seed, scorer: AngleScorer) -> tuple[np.ndarray, float, tuple]:
-    """(force closure per draw (samples,), P(FC), its Wilson interval) at configuration q."""
+           seed, scorer: AngleScorer, offset: int = 0) -> tuple[np.ndarray, float, tuple]:
+    """(force closure per draw (samples,), P(FC), its Wilson interval) at configuration q,
+    on rows ``offset ..`` of the seed's run (:func:`fresh_point`: the fresh ones)."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
     stats = evaluate_robot_grasp(moved, sigma=noise.sigma, n=samples, seed=seed,
                                  noise=noise.kind, engine=scorer.engine,
-                                 executor=scorer.executor, friction=scorer.friction)
+                                 executor=scorer.executor, friction=scorer.friction,
+                                 offset=offset)
     return stats.draws.outcome == FORCE_CLOSURE, stats.p_fc, stats.ci
+
+
+def fresh_point(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed,
+                scorer: AngleScorer) -> np.ndarray:
+    """(samples,) force closure at configuration q on the fresh draws of run ``seed``: the
+    rows after its selection's (:func:`~kinegrasp_env.toolkit.selection.report_rows`)."""
+    return angle_point(grasp, 0.0, q, noise, samples, seed, scorer, report_rows(samples))[0]
 
 
 def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: AngleScorer, report
@@ -181,9 +185,8 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: AngleScorer
 def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, samples: int,
                  seed: int, scorer: AngleScorer, report) -> None:
     """Every point of the curve again on the fresh draws (its ``fresh_fc``)."""
-    fresh = fresh_seed(seed)
     for k, point in enumerate(curve):
-        point.fresh_fc = angle_point(grasp, point.psi, point.q, noise, samples, fresh, scorer)[0]
+        point.fresh_fc = fresh_point(grasp, point.q, noise, samples, seed, scorer)
         report(len(curve) + k + 1)
 
 
@@ -206,7 +209,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         noise: joint noise on the arm joints.
         samples: draws per evaluated angle, for the selection and again (fresh) for the
             scoring and the certificate.
-        seed: run seed (selection: ``seed``; fresh draws: :func:`fresh_seed`).
+        seed: run seed (selection: its first ``samples`` rows; fresh draws: the rows
+            after them, :func:`fresh_point`).
         engine: a reference engine of the grasp's robot and object to reuse.
         step: fine-grid spacing of psi, radians.
         epsilon, delta: the certificate's margin and error level.
@@ -326,7 +330,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
     of :func:`optimize_robot_elbow` with the IK branches of the grasp's palm pose for the
     elbow angles. Every branch is evaluated on the selection draws (``seed``; a branch whose
     arm or hand meets the object scores as the engine scores it), the best is chosen, every
-    branch is scored again on the fresh draws (:func:`fresh_seed`), with the paired gain
+    branch is scored again on the fresh draws (:func:`fresh_point`), with the paired gain
     over the grasp's own branch and the certificate
     (:func:`~kinegrasp_env.toolkit.elbow_certificate.certify`) over the other branches.
 

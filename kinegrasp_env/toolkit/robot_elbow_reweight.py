@@ -13,7 +13,7 @@ flange's body Jacobian and the self-motion of its description
 ``kinegrasp elbow --robot`` (:func:`~kinegrasp_env.toolkit.robot_elbow.
 robot_reachable_configurations`), the batch closed at the grasp's own configuration, and
 direct draws as ``elbow --robot --method direct`` draws them (selection: ``seed``; fresh:
-:func:`~kinegrasp_env.toolkit.robot_elbow.fresh_seed`). The batch moves the hand alone: the
+:func:`~kinegrasp_env.toolkit.robot_elbow.fresh_point`). The batch moves the hand alone: the
 arm's links are where the grasp's own configuration puts them, which is what joint noise
 changes besides the palm (an assumption the fresh direct draws at the chosen angle check).
 """
@@ -43,7 +43,7 @@ from kinegrasp_env.toolkit.robot_elbow import (
     BranchResult,
     angle_point,
     branch_variants,
-    fresh_seed,
+    fresh_point,
     robot_reachable_configurations,
 )
 from kinegrasp_env.world.grasps import Grasp
@@ -124,7 +124,7 @@ def _search(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
                                                 engine=engine, friction=friction,
                                                 robot=description.name),
             direct,
-            lambda q: angle_point(grasp, 0.0, q, noise, samples, fresh_seed(seed), scorer)[0],
+            lambda q: fresh_point(grasp, q, noise, samples, seed, scorer),
             engine)
         return reweighted_search(grasp, noise, samples, seed, robot, step=step,
                                  epsilon=epsilon, delta=delta, batch=batch, progress=progress)

@@ -14,7 +14,8 @@ are). Each is evaluated on ``samples`` draws of joint noise on the
 arm joints (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed
 ``seed``: the draws of ``kinegrasp evaluate --robot NAME --seed SEED``); with two variants or
 more, the most and the least robust (chosen on those draws) are reported again on fresh draws
-(:func:`~kinegrasp_env.toolkit.robot_elbow.fresh_seed`, common to both) with the paired
+(the rows after the selection's in the same run: :func:`~kinegrasp_env.toolkit.selection.
+report_rows`, common to both) with the paired
 difference of their force-closure indicators and its Student-t 95% interval.
 """
 
@@ -39,10 +40,9 @@ from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
 from kinegrasp_env.toolkit.robot_elbow import (
     branch_variants,
-    fresh_seed,
     robot_reachable_configurations,
 )
-from kinegrasp_env.toolkit.selection import extremes
+from kinegrasp_env.toolkit.selection import extremes, report_rows
 from kinegrasp_env.world.grasps import Grasp
 
 #: fig10.csv's columns for a description robot (the default robot's, the robot and the
@@ -136,8 +136,8 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
                  for v, s in zip(variants, stats, strict=True)]
         if len(variants) >= 2:
             best, worst = extremes([s.p_fc for s in stats])
-            fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples,
-                                          seed=fresh_seed(seed), engine=runner,
+            fresh = [evaluate_robot_grasp(variants[i], sigma=sigma, n=samples, seed=seed,
+                                          offset=report_rows(samples), engine=runner,
                                           executor=executor)
                      for i in (best, worst)]
             fc = [f.draws.outcome == FORCE_CLOSURE for f in fresh]

@@ -10,7 +10,8 @@ from **fresh draws** the choice never saw.
 Seed streams: with ``samples`` draws in K chunks of ``chunk`` draws, the selection uses chunks
 ``0..K-1`` of the run seed (chunk c draws from ``SeedSequence(seed, spawn_key=(c,))``, as
 every evaluation does) and the report chunks ``K..2K-1`` of the same seed, the rule
-``kinegrasp elbow`` follows for its best angle too. The two sets of draws never overlap, the
+``kinegrasp elbow`` follows for its best angle too, for every robot (a description robot's
+run by rows: :func:`report_rows`). The two sets of draws never overlap, the
 same seed gives the same numbers, and the chosen pair shares its fresh draws (common random
 numbers), so their difference is a paired one.
 """
@@ -34,6 +35,7 @@ from kinegrasp_env.montecarlo.evaluate import (
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import STREAM_CHUNK
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.world.grasps import Grasp
 
@@ -48,6 +50,16 @@ def report_chunks(samples: int, chunk: int = DEFAULT_CHUNK) -> tuple[int, int]:
     with ``first = count``."""
     count = len(chunk_sizes(samples, chunk))
     return count, count
+
+
+def report_rows(samples: int) -> int:
+    """The first row of the fresh draws of a ``samples``-draw selection in a run's rows (row
+    r: row r % STREAM_CHUNK of chunk r // STREAM_CHUNK's stream, as a description robot's
+    runs draw them: :func:`~kinegrasp_env.sampling.noise_model.stream_rows`): the first
+    row of :func:`report_chunks`' first chunk, so that rows ``report_rows(samples) ..`` +
+    samples are the report chunks' draws."""
+    first, _ = report_chunks(samples, STREAM_CHUNK)
+    return first * STREAM_CHUNK
 
 
 def stats_from_chunk(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
