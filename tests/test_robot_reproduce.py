@@ -58,6 +58,8 @@ def test_fig7_of_a_robot_reports_its_pair_on_fresh_draws(tmp_path, capsys):
                  SAMPLES, "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "robust - fragile" in text and "fig7_cube.png" in text
+    # the fresh draws are the run's next chunk, as the default robot's (selection.provenance)
+    assert f"reported on {SAMPLES} fresh draws (chunk 1)" in text
     rows = list(csv.DictReader((out / "fig7.csv").open()))
     assert [r["config"] for r in rows] == ["robust", "fragile"]
     robust, fragile = rows
@@ -121,7 +123,8 @@ def test_fig10_of_a_robot_from_one_batch_on_the_command_line(tmp_path, capsys):
                  str(out)]) == 0
     text = capsys.readouterr().out
     assert text.count("(effective sample ") == 3 and "robust - fragile" in text
-    assert "chosen on one batch of 400 closings re-weighted to every variant" in text
+    assert ("chosen on one batch of 400 closings re-weighted to every candidate (seed 0), "
+            "reported on 200 fresh draws (chunk 1)") in text
     rows = list(csv.DictReader((out / "fig10.csv").open()))
     assert len(rows) == 3 and all(int(r["samples"]) >= 200 for r in rows)
 

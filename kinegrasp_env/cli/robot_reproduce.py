@@ -104,12 +104,10 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     pairs = [r for r in rows if r["config"]]
     if pairs:
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
+        from kinegrasp_env.toolkit.selection import provenance
 
-        chosen = (f"{samples} draws per variant" if method == "direct" else
-                  f"one batch of {BATCH_FACTOR * samples} closings re-weighted to every "
-                  "variant")
-        print(f"robust and fragile variants chosen on {chosen} (seed {seed}), reported on "
-              f"{samples} fresh draws (SeedSequence [{seed}, 1])")
+        print("robust and fragile variants " + provenance(
+            samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples))
     for r in pairs:
         print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) "
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
@@ -126,6 +124,7 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
     """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`)."""
     from kinegrasp_env.toolkit.robot_reproduce import variant_label
     from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
+    from kinegrasp_env.toolkit.selection import provenance
 
     with reported(ValueError):
         if args.figure == "fig9":
@@ -136,8 +135,7 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
             rows = robot_fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
                               engine=args.engine, friction=friction, executor=executor)
     if args.figure == "fig7":
-        print(f"robust and fragile configurations chosen on {samples} draws each (seed "
-              f"{seed}), reported on {samples} fresh draws (SeedSequence [{seed}, 1])")
+        print(f"robust and fragile configurations {provenance(samples, seed)}")
     for r in rows:
         if args.figure == "fig9":
             print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "

@@ -203,9 +203,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
+    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
+        raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
     if offset:
-        if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
-            raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
         if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
             raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
                              f"seed, got {type(seed).__name__}")
