@@ -34,7 +34,10 @@ def test_evaluate_with_a_noise_spec_is_the_library_evaluation(spec_file, capsys)
     out = json.loads(capsys.readouterr().out)
     stats = evaluate_grasp(shipped_grasps("cube")[1], load_noise_model(spec_file), 120, seed=3,
                            engine="fast")
-    assert out == json.loads(json.dumps(stats.to_json()))  # no "friction": mu is per draw
+    # the library's record, and what every robot's record names (no "friction": mu is per
+    # draw)
+    assert out == {"robot": "kuka_sdh", "object": "cube", "grasp": "1",
+                   "noise_spec": str(spec_file), **json.loads(json.dumps(stats.to_json()))}
     assert out["noise_model"]["friction"] == {"distribution": "uniform", "low": 0.3,
                                               "high": 0.7}
 
