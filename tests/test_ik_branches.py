@@ -137,7 +137,7 @@ def test_elbow_cli_across_the_ik_branches(home, capsys):
     nominal branch's selection P(FC) is ``evaluate``'s of the grasp on the same seed."""
     path, grasps = home
     args = ["elbow", "--grasps", str(path), "--grasp", "0", "--samples", str(SAMPLES),
-            "--seed", "3"]
+            "--seed", "3", "--engine", "pybullet"]
     text = run(capsys, *args)
     assert "a 6-joint arm has no self-motion; the variants of cube grasp 0 are its" in text
     assert "IK branches (200 IK starts)" in text

@@ -223,7 +223,8 @@ def test_panda_best_angle_is_reported_on_fresh_draws(panda_elbow):
 def test_elbow_cli_for_the_panda(capsys):
     out = run_json(capsys, "elbow", "--robot", "panda", "--object", "cube", "--grasp", "1",
                    "--samples", "4", "--json")
-    assert out["robot"] == "panda" and out["engine"] == "pybullet" and out["samples"] == 4
+    # the fast engine by default, as for the default robot
+    assert out["robot"] == "panda" and out["engine"] == "fast" and out["samples"] == 4
     assert out["certificate"]["fresh_draws"] == 4 and len(out["curve"]) >= 3
     # the fast engine on two worker processes: the same draws as in this process
     fast = [run_json(capsys, "elbow", "--robot", "panda", "--object", "cube", "--grasp", "1",

@@ -288,7 +288,7 @@ def test_elbow_report_of_the_panda(elbow_page):
     curve = figure(html, "fig-elbow")["data"][0]
     assert curve["y"] == [c["p_fc"] for c in sorted(printed["curve"], key=lambda c: c["psi"])]
     assert (f"kinegrasp elbow --robot panda --object {OBJECT} --grasp 0 --sigma {SIGMA} "
-            f"--noise gaussian --samples 30 --seed {SEED} --engine pybullet") in html
+            f"--noise gaussian --samples 30 --seed {SEED} --engine fast") in html
     description = load_robot("panda")
     pose = Kinematics(description.model).pose(np.array(printed["best_q"]), "panda_link4")[0]
     expected = pose[:3, :3] @ obj_centroid("panda_link4") + pose[:3, 3]

@@ -65,7 +65,6 @@ def cmd_elbow(args) -> int:
     if getattr(args, "ik_starts", None) is not None:
         raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; {DEFAULT_ROBOT}'s arm "
                        "has 7 joints (its variants: the self-motion)")
-    args.engine = getattr(args, "engine", None) or "fast"
     from tqdm import tqdm
 
     from kinegrasp_env.cli.report import report_path, write_elbow_report
@@ -112,10 +111,10 @@ def add_commands(sub) -> None:
     add_noise_args(p, 0.0133)
     p.set_defaults(samples="1000")
     add_execution_args(p, 1)
-    p.add_argument("--engine", default=None, choices=("fast", "pybullet"),
-                   help="fast (the default robot's default: many angles x draws) or pybullet "
-                   "(the reference; the default of a robot given with --robot, whose "
-                   "self-motion is checked for clearance by pybullet either way)")
+    p.add_argument("--engine", default="fast", choices=("fast", "pybullet"),
+                   help="fast (batched: many angles x draws) or pybullet (the reference; an "
+                   "added robot's self-motion is checked for clearance by pybullet either "
+                   "way)")
     add_friction_arg(p)
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "
@@ -133,7 +132,7 @@ def add_commands(sub) -> None:
                    "along the self-motion, the arm at the nominal and at the best elbow in 3-D")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
                    "robot; another one: its shipped grasps, its arm's self-motion (7 joints) "
-                   "or IK branches (6 joints), the pybullet engine)")
+                   "or IK branches (6 joints))")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output): its grasp "
                    "--grasp (an id, else an index) instead of a shipped one")
     p.add_argument("--ik-starts", help="random IK starts that find a 6-joint arm's IK "

@@ -41,7 +41,6 @@ def cmd_elbow_robot(args, chosen=None) -> int:
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     robot = args.robot
-    args.engine = args.engine or "pybullet"
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     epsilon, delta = certificate_levels(args)
