@@ -66,7 +66,7 @@ from kinegrasp_env.closing.contact_patch import (
     faces_of,
     link_hull_vertices,
 )
-from kinegrasp_env.closing.finger_paths import closing_joints, finger_paths
+from kinegrasp_env.closing.finger_paths import finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.robot_scene import RobotScene
@@ -194,11 +194,11 @@ class RobotWorld(RobotScene):
         link that stops it touches (:func:`~kinegrasp_env.robot.touch_rule.touch_stops`)."""
         finger = self.description.fingers[f]
         joints = finger.joints
-        kinds, rates, lo, hi = closing_joints(self.description, finger)
+        path = self._paths[f]  # its closing joints' rates and limits (closing_joints)
+        rates, lo, hi = path.rates, path.lower, path.upper
         v0 = np.array([start[name] for name in joints])
-        path = self._paths[f]
         stops, moves = self._touch_rules[f]
-        staged = not all(kind == "prismatic" for kind in kinds) and not stops.all()
+        staged = not path.translating and not stops.all()
         least = STEP if staged else 0.0  # as in closing.finger_closing
         starts, ends = path.limit_times(v0)
         held = np.full(len(joints), np.inf)  # the t at which each joint stopped
