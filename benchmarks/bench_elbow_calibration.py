@@ -26,7 +26,7 @@ epsilon; it is implied by the first, so it is false at most as often.
   missed) <= x"): ``old_formula`` counts, among the runs where it printed x <= delta, those
   where a better evaluated angle had in truth been missed: what the benchmark shows of a
   certificate that does not hold.
-* **Real** (``--grasps``): ``optimize_elbow`` itself (fast engine, its coarse grid and
+* **Real** (``--grasps``): ``optimize_robot_elbow`` itself (fast engine, its coarse grid and
   refinement) with ``--runs`` fresh seeds per grasp at ``--real-samples`` draws per angle;
   the truth of every angle a run evaluated: ``--truth`` draws (20,000 by default) on a seed no
   run uses, the same draws for every angle (their differences are then far more precise than
@@ -164,11 +164,8 @@ def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, eps
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.elbow import (
-        optimize_elbow,
-        reachable_configurations,
-        with_configuration,
-    )
+    from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
     from kinegrasp_env.world.grasps import shipped_grasps
 
     noise = JointNoise(SIGMA)
@@ -193,9 +190,9 @@ def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, eps
         index_of = {id(q): i for i, (_, q) in enumerate(reach)}
         rows = []
         for r in range(runs):
-            result = optimize_elbow(grasp, noise, samples, RUN_SEED0 + r, engine="fast",
-                                    epsilon=epsilon, delta=delta, reach=reach,
-                                    executor=executor)
+            result = optimize_robot_elbow(grasp, noise, samples, RUN_SEED0 + r,
+                                          evaluate_with="fast", epsilon=epsilon, delta=delta,
+                                          reach=reach, executor=executor)
             evaluated = [index_of[id(p.q)] for p in result.curve]
             chosen = index_of[id(result.best_q)]
             best = truth_fc(chosen)

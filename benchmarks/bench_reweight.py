@@ -52,12 +52,9 @@ from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf, weighted_estimate
 from kinegrasp_env.sampling.stats import Z95
-from kinegrasp_env.toolkit.elbow import (
-    optimize_elbow,
-    reachable_configurations,
-    with_configuration,
-)
-from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted
+from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
+from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
 from kinegrasp_env.world.grasps import shipped_grasps
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "elbow.md"
@@ -179,9 +176,10 @@ def elbow_timing(grasp, args) -> dict:
     noise = JointNoise(0.0133)
     reach = reachable_configurations(grasp)
     t0 = time.perf_counter()
-    direct = optimize_elbow(grasp, noise, args.samples, 0, reach=reach)
+    direct = optimize_robot_elbow(grasp, noise, args.samples, 0, reach=reach)
     t1 = time.perf_counter()
-    batch, evidence = optimize_elbow_reweighted(grasp, noise, args.samples, 0, reach=reach)
+    batch, evidence = optimize_robot_elbow_reweighted(grasp, noise, args.samples, 0,
+                                                      reach=reach)
     t2 = time.perf_counter()
     return {"object": grasp.object, "grasp": int(grasp.id), "direct_s": t1 - t0,
             "reweight_s": t2 - t1, "ratio": (t2 - t1) / (t1 - t0),
@@ -618,8 +616,8 @@ def main() -> None:
 def timing_figures(grasps: list, args) -> dict:
     """The elbow, noise-level, fig10, certificate and env figures (warm, printed)."""
     # warm the compiled kernels once, outside every timing
-    optimize_elbow_reweighted(grasps[0], JointNoise(0.0133), 200, 0)
-    optimize_elbow(grasps[0], JointNoise(0.0133), 200, 0)
+    optimize_robot_elbow_reweighted(grasps[0], JointNoise(0.0133), 200, 0)
+    optimize_robot_elbow(grasps[0], JointNoise(0.0133), 200, 0)
     elbows = [elbow_timing(g, args) for g in grasps]
     levels = [levels_timing(g, args) for g in grasps]
     variants = [variants_timing(obj, args) for obj in args.objects]

@@ -391,13 +391,13 @@ for index, grasp in enumerate(shipped_grasps("spray_flask")[:5]):
 
 The same contacts reached with another elbow angle: P(FC) along the self-motion of each grasp
 on common draws, the best angle re-scored on independent draws, its paired gain over the
-nominal elbow (`kinegrasp_env.toolkit.elbow.optimize_elbow`, as `kinegrasp elbow`)."""),
+nominal elbow (`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, as `kinegrasp elbow`)."""),
         ("code", """from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.elbow import optimize_elbow
+from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 
 for index, grasp in enumerate(shipped_grasps("spray_flask")[:5]):
-    r = optimize_elbow(grasp, JointNoise(0.0233), n(1000, 40), seed=0, engine="fast",
-                       processes=2)
+    r = optimize_robot_elbow(grasp, JointNoise(0.0233), n(1000, 40), seed=0,
+                             evaluate_with="fast")
     print(f"grasp {index}: nominal psi {r.nominal_psi:+.3f} P(FC) {r.nominal_p_fc:.3f}, "
           f"best psi {r.best_psi:+.3f} P(FC) {r.best_p_fc:.3f}, gain {r.gain:+.3f} "
           f"({r.gain_ci[0]:+.3f} .. {r.gain_ci[1]:+.3f})")"""),

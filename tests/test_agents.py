@@ -359,7 +359,7 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.elbow import optimize_elbow
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 
     out = tmp_path / "evaluation.json"
     argv = ["--limit", "1", "--draws", "10", "--oracle-draws", "5", "--grid", "3",
@@ -380,7 +380,7 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     assert row["oracle_grid_p_fc"] == selection
     best = grid[int(np.argmax(selection))]
     assert row["elbow_oracle"] == pytest.approx(float(env.ik.elbow_angle(best[None])[0]))
-    found = optimize_elbow(env.grasp, noise, 20, 1, engine="fast")
+    found = optimize_robot_elbow(env.grasp, noise, 20, 1, evaluate_with="fast")
     assert row["elbow_optimizer"] == pytest.approx(
         float(env.ik.elbow_angle(found.best_q[None])[0]), abs=1e-12)
     scored = draw_chunk(engine, found.best_q, noise, 0, 0, 10).outcome == FORCE_CLOSURE

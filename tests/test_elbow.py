@@ -17,12 +17,9 @@ from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import paired_interval
-from kinegrasp_env.toolkit.elbow import (
-    configuration_at,
-    optimize_elbow,
-    reachable_configurations,
-)
+from kinegrasp_env.toolkit.elbow import configuration_at, reachable_configurations
 from kinegrasp_env.toolkit.elbow_certificate import certify, difference_upper_bound
+from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 from kinegrasp_env.world.grasps import shipped_grasps
 
 
@@ -175,38 +172,37 @@ def test_self_motion_keeps_the_palm_pose_and_out_of_reach_is_an_error():
 
 @pytest.mark.expensive
 def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
-    """The best angle's P(FC) comes from draws the selection never saw (chunks K..2K-1), equal
-    to evaluating that configuration on those chunks directly; the gain interval is the paired
-    t-interval of those draws; the curve holds the nominal angle; the certificate counts each
-    rival's wins and losses on those same fresh chunks (counted here from the engine)."""
+    """The best angle's P(FC) comes from draws the selection never saw (the rows after the
+    selection's: chunk 1 of the default engine's chunked evaluation), equal to evaluating that
+    configuration on that chunk directly; the gain interval is the paired t-interval of those
+    draws; the curve holds the nominal angle; the certificate counts each rival's wins and
+    losses on those same fresh draws (counted here from the engine)."""
     grasp = shipped_grasps("spray_flask")[1]
     noise = JointNoise(0.0266)
-    result = optimize_elbow(grasp, noise, 200, seed=4, engine="fast", chunk=100)
+    result = optimize_robot_elbow(grasp, noise, 200, seed=4, evaluate_with="fast")
     assert any(abs(p.psi - result.nominal_psi) < 1e-12 for p in result.curve)
     best = max(result.curve, key=lambda p: p.p_fc)
     assert result.best_psi == best.psi
-    # independent scoring draws: chunks 2, 3 of seed 4 (selection used chunks 0, 1)
+    # independent scoring draws: chunk 1 of seed 4 (the selection used chunk 0)
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
 
     engine = make_engine("fast", grasp.object)
-    fc_best = np.concatenate([draw_chunk(engine, result.best_q, noise, 4, c, 100).outcome
-                              for c in (2, 3)]) == FORCE_CLOSURE
-    fc_nominal = np.concatenate([draw_chunk(engine, grasp.q0, noise, 4, c, 100).outcome
-                                 for c in (2, 3)]) == FORCE_CLOSURE
+    fc_best = draw_chunk(engine, result.best_q, noise, 4, 1, 200).outcome == FORCE_CLOSURE
+    fc_nominal = draw_chunk(engine, grasp.q0, noise, 4, 1, 200).outcome == FORCE_CLOSURE
     assert result.best_p_fc == fc_best.mean()
     assert result.nominal_p_fc == fc_nominal.mean()
     d = fc_best.astype(float) - fc_nominal.astype(float)
     ref = sps.t.interval(0.95, d.size - 1, loc=d.mean(), scale=sps.sem(d))
     assert result.gain_ci == pytest.approx(ref, rel=1e-9)
-    # the selection draws are chunks 0, 1: the curve's nominal P(FC) equals evaluate_grasp
+    # the selection draws are chunk 0: the curve's nominal P(FC) equals evaluate_grasp's
     nominal_point = next(p for p in result.curve if abs(p.psi - result.nominal_psi) < 1e-12)
-    direct = evaluate_grasp(grasp, noise, 200, seed=4, engine="fast", chunk=100)
+    direct = evaluate_grasp(grasp, noise, 200, seed=4, engine="fast")
     assert nominal_point.p_fc == direct.p_fc
     # the certificate: every other curve angle on the same fresh chunks, wins and losses
     # against the chosen one counted here from the engine's own draws
-    fresh = {p.psi: np.concatenate([draw_chunk(engine, p.q, noise, 4, c, 100).outcome
-                                    for c in (2, 3)]) == FORCE_CLOSURE for p in result.curve}
+    fresh = {p.psi: draw_chunk(engine, p.q, noise, 4, 1, 200).outcome == FORCE_CLOSURE
+             for p in result.curve}
     cert = result.certificate
     assert len(cert.rivals) == len(result.curve) - 1 and cert.draws == 200
     for rival in cert.rivals:
@@ -259,7 +255,7 @@ def test_rank_best_elbow_ranks_the_optimizers_choice(tmp_path):
     assert main(["rank", str(tmp_path / "one.json"), "--sigma", "0.02", "--samples", "80",
                  "--engine", "fast", "--best-elbow", "60", "--out", str(out)]) == 0
     row = out.read_text().splitlines()[1].split(",")
-    best = optimize_elbow(grasp, JointNoise(0.02), 60, seed=1, engine="fast")
+    best = optimize_robot_elbow(grasp, JointNoise(0.02), 60, seed=1, evaluate_with="fast")
     direct = evaluate_grasp(with_configuration(grasp, best.best_q, best.best_psi),
                             JointNoise(0.02), 80, seed=0, engine="fast", chunk=80)
     assert row[0] == f"{grasp.id}e"

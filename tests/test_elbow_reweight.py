@@ -21,11 +21,8 @@ from kinegrasp_env.montecarlo.palm_batch import PalmBatch
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
-from kinegrasp_env.toolkit.elbow_reweight import (
-    SelfMotionDeviation,
-    batch_certificate,
-    optimize_elbow_reweighted,
-)
+from kinegrasp_env.toolkit.elbow_reweight import SelfMotionDeviation, batch_certificate
+from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
 from kinegrasp_env.world.grasps import shipped_grasps
 
 SIGMA = 0.0233
@@ -86,13 +83,17 @@ def test_certificate_is_false_at_most_at_its_level(field):
 
 def test_best_angle_scored_on_fresh_direct_draws(grasp):
     """The chosen angle's P(FC) is that of the configuration on the direct method's fresh
-    chunks (chunks K..2K-1 of the seed), computed here by evaluate_grasp on those chunks."""
+    draws (the 300 rows after the selection's: chunks 2 and 3 of the seed's 250-draw chunks),
+    computed here by the default engine's chunked evaluation (``run_chunks``) on those
+    chunks."""
     noise = JointNoise(SIGMA)
-    result, evidence = optimize_elbow_reweighted(grasp, noise, 300, seed=3, chunk=300)
+    result, evidence = optimize_robot_elbow_reweighted(grasp, noise, 300, seed=3,
+                                                       engine="fast")
     moved = with_configuration(grasp, result.best_q, result.best_psi)
     from kinegrasp_env.montecarlo.evaluate import run_chunks
 
-    counts, _ = run_chunks(moved, noise, 3, sizes=[300], first_chunk=1, engine="fast")[:2]
+    counts, _ = run_chunks(moved, noise, 3, sizes=[250, 50], first_chunk=2,
+                           engine="fast")[:2]
     assert result.best_p_fc == pytest.approx(counts[FORCE_CLOSURE] / 300, abs=1e-12)
     assert evidence.batch == 600 and len(evidence.curve) == len(result.curve)
     # the best angle is the curve's best or between its neighbours

@@ -19,6 +19,7 @@ import re
 import subprocess
 import sys
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -31,11 +32,12 @@ from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MAX_CONTACTS, OUTCOMES, Engine
 from kinegrasp_env.montecarlo.evaluate import GraspStats, evaluate_grasp
 from kinegrasp_env.quality.wrenches import tangent_basis
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model
 from kinegrasp_env.toolkit import report
-from kinegrasp_env.toolkit.elbow import optimize_elbow
 from kinegrasp_env.toolkit.report.charts import quality_histogram
 from kinegrasp_env.toolkit.report.elbow import curve_point
 from kinegrasp_env.toolkit.report.geometry import (
@@ -50,6 +52,7 @@ from kinegrasp_env.toolkit.report.geometry import (
 from kinegrasp_env.toolkit.report.page import run_noise
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, decode_typed_array, plotly_js
 from kinegrasp_env.toolkit.report.scene import contact_cloud, robot_traces
+from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
@@ -84,9 +87,11 @@ def spec_file(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def elbow_run():
-    """A small elbow optimization of cube grasp 0 (fast engine, 40 draws per angle)."""
+    """A small elbow optimization of cube grasp 0 of the default robot (fast engine, 40 draws
+    per angle)."""
     grasp = grasp_by_index("cube", 0)
-    return grasp, optimize_elbow(grasp, JointNoise(0.02), 40, seed=3, engine="fast")
+    return grasp, optimize_robot_elbow(grasp, JointNoise(0.02), 40, seed=3,
+                                       evaluate_with="fast")
 
 
 # ------------------------------------------------------------------------------- geometry
@@ -362,7 +367,8 @@ def pages(tmp_path_factory, run, elbow_run, spec_file):
         seed=0, samples=20))
     elbow_grasp, result = elbow_run
     report.write_page(out["elbow"], report.elbow_page(
-        elbow_grasp, result, JointNoise(0.02), command="kinegrasp elbow ...", settings={}))
+        load_robot(DEFAULT_ROBOT), elbow_grasp, result, JointNoise(0.02),
+        command="kinegrasp elbow ...", settings={}))
     model = load_noise_model(spec_file)
     report.write_page(out["spec"], report.evaluation_page(
         grasp, [evaluate_grasp(grasp, model, SAMPLES, seed=3, engine="fast",
@@ -562,16 +568,21 @@ def _skeletons(figure: dict, name: str) -> np.ndarray:
     return flat.reshape(-1, len(skeleton_links()) + 1, 3)[:, :-1]
 
 
-def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):
+def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run, bullet_robot):
     """The curve is the optimizer's (psi ascending, Wilson intervals as error bars, nominal
-    and best marked). The two arm views reach the same palm position with elbows apart (the
-    null space); each shows the first draws of its own angle, coloured by the outcomes the
-    optimizer recorded (the fast engine fed those configurations gives them again), and the
-    other elbow's skeleton."""
-    from kinegrasp_env.montecarlo.engines import make_engine
+    and best marked). Each arm view draws its own elbow's first ARM_DRAWS selection draws,
+    grouped by the outcome the optimizer recorded: the fast engine fed rows 0.. of the run's
+    draws at that configuration gives those outcomes again, and each skeleton ends where
+    pybullet's own forward kinematics puts the palm at that draw (independent FK); the two
+    elbows' draws place the elbow link centimetres apart (the null space)."""
+    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
 
+    client, body, joints, links = bullet_robot
     grasp, result = elbow_run
-    page = report.elbow_page(grasp, result, JointNoise(0.02), command="c", settings={})
+    description = load_robot(DEFAULT_ROBOT)
+    page = report.elbow_page(description, grasp, result, JointNoise(0.02), command="c",
+                             settings={})
     figures = _figures(page)
     assert set(figures) == {"elbow", "arm-nominal", "arm-best"}
     curve = sorted(result.curve, key=lambda p: p.psi)
@@ -583,27 +594,36 @@ def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run):
     assert [s["x0"] for s in figures["elbow"]["layout"]["shapes"]] == [result.nominal_psi,
                                                                       result.best_psi]
     assert f"best elbow {result.best_psi:+.3f} rad: P(FC) {result.best_p_fc:.4f}" in page
-    own = {label: _skeletons(figures[f"arm-{label}"], f"skeleton ({label} elbow, no noise)")[0]
-           for label in ("nominal", "best")}
-    np.testing.assert_allclose(own["nominal"][-1], own["best"][-1], atol=1e-5)  # the palm
-    assert np.linalg.norm(own["nominal"][4] - own["best"][4]) > 0.05  # the elbow (link 4)
-    np.testing.assert_allclose(_skeletons(figures["arm-nominal"], "skeleton at the best elbow")[0],
-                               own["best"], atol=1e-6)
-    engine = make_engine("fast", "cube")
-    for label, psi in (("nominal", result.nominal_psi), ("best", result.best_psi)):
-        point = curve_point(result, psi)
-        q = noisy_configurations(point.q, JointNoise(0.02), 3, 40, report.ARM_DRAWS)
-        outcome = engine.run(q).outcome
-        np.testing.assert_array_equal(outcome, point.outcome[:len(q)])
-        shown = {t["name"] for t in figures[f"arm-{label}"]["data"]
-                 if t["name"].startswith("draws: ")}
-        counts = Counter(OUTCOMES[k] for k in outcome)
-        assert shown == {f"draws: {n.replace('_', ' ')} ({c})" for n, c in counts.items()}
-        for name, count in counts.items():  # each trace: the skeletons of those draws
-            drawn = _skeletons(figures[f"arm-{label}"],
-                               f"draws: {name.replace('_', ' ')} ({count})")
-            np.testing.assert_allclose(drawn, skeletons(q[outcome == OUTCOMES.index(name)]),
-                                       atol=1e-6)
+    assert result.best_psi != result.nominal_psi
+    elbows = {}
+    with make_engine("fast", description, "cube") as engine:
+        for label, psi in (("nominal", result.nominal_psi), ("best", result.best_psi)):
+            point = curve_point(result, psi)
+            q = robot_configurations(replace(grasp, q0=point.q), engine, sigma=0.02,
+                                     n=report.ARM_DRAWS, seed=3)
+            outcome = engine.run(q).outcome
+            np.testing.assert_array_equal(outcome, point.outcome[:len(q)])
+            traces = {t["name"]: t for t in figures[f"arm-{label}"]["data"]
+                      if t["name"].startswith("noisy arms: ")}
+            counts = Counter(OUTCOMES[k] for k in outcome)
+            assert set(traces) == {f"noisy arms: {n.replace('_', ' ')} ({c})"
+                                   for n, c in counts.items()}
+            for name, count in counts.items():
+                rows = q[outcome == OUTCOMES.index(name)]
+                line = np.column_stack([decode_typed_array(traces[
+                    f"noisy arms: {name.replace('_', ' ')} ({count})"][a]) for a in "xyz"])
+                starts = np.r_[0, np.flatnonzero(np.isnan(line[:, 0]))[:-1] + 1]
+                ends = line[np.flatnonzero(np.isnan(line[:, 0])) - 1]
+                palms, elbow = [], []
+                for row in rows:
+                    for joint, value in description.model.expand(row).items():
+                        client.resetJointState(body, joints[joint], float(value))
+                    palms.append(client.getLinkState(body, links[PALM_LINK],
+                                                     computeForwardKinematics=True)[4])
+                np.testing.assert_allclose(ends, palms, atol=1e-6)
+                elbow += [line[s + 4] for s in starts]
+            elbows[label] = np.mean(elbow, axis=0)
+    assert np.linalg.norm(elbows["nominal"] - elbows["best"]) > 0.05
 
 
 def test_elbow_command_writes_its_page(elbow_run, tmp_path, capsys):
@@ -619,12 +639,13 @@ def test_elbow_command_writes_its_page(elbow_run, tmp_path, capsys):
     out, err = capsys.readouterr()
     printed = json.loads(out)
     _, result = elbow_run
-    assert printed == json.loads(json.dumps(result.to_json()))
+    assert printed == {"robot": DEFAULT_ROBOT, **json.loads(json.dumps(result.to_json()))}
     assert f"report written to {page}" in err
     text = page.read_text()
     curve = _figures(text)["elbow"]["data"][0]
     assert curve["y"] == [c["p_fc"] for c in sorted(printed["curve"], key=lambda c: c["psi"])]
-    assert ("kinegrasp elbow --object cube --grasp 0 --sigma 0.02 --noise gaussian --samples 40 "
+    assert ("kinegrasp elbow --robot kuka_sdh --object cube --grasp 0 --sigma 0.02 --noise "
+            "gaussian --samples 40 "
             f"--seed 3 --engine fast --epsilon 0.05 --delta 0.05 --report {page}") in text
 
 

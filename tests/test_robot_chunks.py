@@ -148,10 +148,10 @@ def test_adaptive_and_best_elbow_for_a_robot(tmp_path, capsys):
     description = load_robot("panda")
     kinematics = Kinematics(description.model)
     save_grasps(shipped_grasps("cube", "panda")[:3], grasps)
-    from kinegrasp_env.cli.robot_ranking import robot_best_elbows
+    from kinegrasp_env.cli.ranking import best_elbows
     from kinegrasp_env.sampling.noise import JointNoise
 
-    moved = robot_best_elbows(load_grasps(grasps), "panda", JointNoise(0.0133), 20, 2, 0.5)
+    moved = best_elbows(load_grasps(grasps), "panda", JointNoise(0.0133), 20, 2, "fast", None)
     for before, after in zip(load_grasps(grasps), moved, strict=True):
         np.testing.assert_allclose(
             kinematics.pose(np.asarray(after.q0)[None], description.palm_link),

@@ -1,13 +1,13 @@
-"""``kinegrasp elbow``: the most robust elbow angle of a grasp, with its certificate (and,
-with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.write_elbow_report`).
+"""``kinegrasp elbow``: the most robust elbow of a grasp of any robot, with its certificate
+(and, with ``--report FILE``, its HTML page: :func:`kinegrasp_env.cli.report.
+write_elbow_report`).
 
-The certificate (:mod:`kinegrasp_env.toolkit.elbow_certificate`) is printed as the claim it
-makes: "with 95% confidence no evaluated elbow angle beats psi = ... by more than B in P(FC)",
-then whether B is within ``--epsilon`` (certified) or not.
-
-A description robot (``--robot NAME``, or ``--grasps FILE`` of one):
-:mod:`kinegrasp_env.cli.robot_elbow` (its variants are the self-motion of a 7-joint arm, or
-the IK branches of a 6-joint one); what both share: :mod:`kinegrasp_env.cli.elbow_output`."""
+The variants are the self-motion of a 7-joint arm (:func:`~kinegrasp_env.toolkit.
+robot_elbow.optimize_robot_elbow`, direct or re-weighted) or the IK branches of a 6-joint one
+(:mod:`kinegrasp_env.cli.elbow_branches`). The certificate (:mod:`kinegrasp_env.toolkit.
+elbow_certificate`) is printed as the claim it makes: "with 95% confidence no evaluated elbow
+angle beats psi = ... by more than B in P(FC)", then whether B is within ``--epsilon``
+(certified) or not; the printed summary and the plot: :mod:`kinegrasp_env.cli.elbow_output`."""
 
 from __future__ import annotations
 
@@ -22,6 +22,7 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     noise_from,
     output_file,
+    positive_int,
     reported,
     shipped_grasp,
 )
@@ -34,7 +35,6 @@ from kinegrasp_env.cli.elbow_output import (
     show_elbow,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
-from kinegrasp_env.cli.robot_elbow import cmd_elbow_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The object without --object or --grasps.
@@ -59,45 +59,73 @@ def file_choice(args):
 
 
 def cmd_elbow(args) -> int:
-    chosen = file_choice(args)
-    if getattr(args, "robot", None) not in (None, DEFAULT_ROBOT):
-        return cmd_elbow_robot(args, chosen)
-    if getattr(args, "ik_starts", None) is not None:
-        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; {DEFAULT_ROBOT}'s arm "
-                       "has 7 joints (its variants: the self-motion)")
+    """``kinegrasp elbow``: a grasp (of ``--grasps FILE``, else grasp ``--grasp`` of the
+    robot's shipped set of ``--object``) along its robot's self-motion, or for a 6-joint arm
+    across its IK branches (:func:`~kinegrasp_env.cli.elbow_branches.cmd_elbow_branches`)."""
     from tqdm import tqdm
 
     from kinegrasp_env.cli.report import report_path, write_elbow_report
-    from kinegrasp_env.toolkit.elbow import optimize_elbow
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
 
+    chosen = file_choice(args)
+    robot = args.robot = getattr(args, "robot", None) or DEFAULT_ROBOT
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     epsilon, delta = certificate_levels(args)
-    index, grasp = chosen or shipped_grasp(args.object, args.grasp)
-    if args.plot:
-        output_file(args.plot, "--plot")
+    with reported(RobotDescriptionError):
+        description = load_robot(robot)
+    branches = description.arm_dof == 6
+    if not branches and not description.has_self_motion:
+        raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
+                       "variants are the self-motion of 7 with arm_angle_links or the IK "
+                       "branches of 6")
+    starts = ik_starts(args, branches, robot)
     report_path(args.report)
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
                        "takes none")
+    index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
+    if args.plot:
+        output_file(args.plot, "--plot")
+    if branches:
+        from kinegrasp_env.cli.elbow_branches import cmd_elbow_branches
+
+        return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
+                                  starts, friction)
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+
+    evidence = None
     if args.method == "reweight":
         result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
                                             delta, friction)
     else:
-        evidence = None
-        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} (selection, then fresh "
-                   "draws)", unit="angle", file=sys.stderr, disable=None)
+        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
+                   "(selection, then fresh draws)", unit="angle", file=sys.stderr,
+                   disable=None)
         with executor_from(args) as executor:
-            result = optimize_elbow(grasp, noise, samples, seed, engine=args.engine,
-                                    epsilon=epsilon, delta=delta, executor=executor,
-                                    friction=friction,
-                                    progress=lambda done: bar.update(done - bar.n))
+            result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
+                                          delta=delta,
+                                          progress=lambda done: bar.update(done - bar.n),
+                                          friction=friction, evaluate_with=args.engine,
+                                          executor=executor)
         bar.close()
-    show_elbow(args, result.to_json(), result, evidence, index, samples,
-               f"{args.object} grasp {index}, sigma = {sigma:g} rad")
+    show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, index, samples,
+               f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad")
     if args.report:
-        write_elbow_report(args, grasp, index, result, noise, evidence, friction)
+        write_elbow_report(args, description, grasp, index, result, noise, evidence, friction)
     return 0
+
+
+def ik_starts(args, branches: bool, robot: str) -> int | None:
+    """``--ik-starts``: a positive count for a 6-joint arm (default: ``ik_branches``'), None
+    otherwise (where giving it is one line)."""
+    if getattr(args, "ik_starts", None) is None:
+        return DEFAULT_IK_STARTS if branches else None
+    if not branches:
+        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; the variants of robot "
+                       f"{robot!r} are its self-motion")
+    return positive_int(args.ik_starts, "--ik-starts")
 
 
 def add_commands(sub) -> None:
@@ -112,9 +140,8 @@ def add_commands(sub) -> None:
     p.set_defaults(samples="1000")
     add_execution_args(p, 1)
     p.add_argument("--engine", default="fast", choices=("fast", "pybullet"),
-                   help="fast (batched: many angles x draws) or pybullet (the reference; an "
-                   "added robot's self-motion is checked for clearance by pybullet either "
-                   "way)")
+                   help="fast (batched) or pybullet (the reference); the self-motion is "
+                   "checked for clearance by pybullet either way")
     add_friction_arg(p)
     p.add_argument("--epsilon", default=str(DEFAULT_EPSILON),
                    help="margin in P(FC) of the certificate: certified when, with confidence "
@@ -129,10 +156,10 @@ def add_commands(sub) -> None:
                    "--samples)")
     p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
-                   "along the self-motion, the arm at the nominal and at the best elbow in 3-D")
+                   "along the self-motion, the robot at the nominal and at the best elbow in 3-D")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
-                   "robot; another one: its shipped grasps, its arm's self-motion (7 joints) "
-                   "or IK branches (6 joints))")
+                   "robot): its shipped grasps, its arm's self-motion (7 joints) or IK "
+                   "branches (6 joints)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output): its grasp "
                    "--grasp (an id, else an index) instead of a shipped one")
     p.add_argument("--ik-starts", help="random IK starts that find a 6-joint arm's IK "

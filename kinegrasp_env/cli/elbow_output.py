@@ -1,6 +1,6 @@
-"""What both of ``kinegrasp elbow``'s paths share (the default robot's,
-:mod:`kinegrasp_env.cli.elbow`, and a description robot's,
-:mod:`kinegrasp_env.cli.robot_elbow`): the certificate's levels, the re-weighted run, the
+"""What ``kinegrasp elbow``'s searches share (a 7-joint arm's self-motion,
+:mod:`kinegrasp_env.cli.elbow`, and a 6-joint arm's IK branches,
+:mod:`kinegrasp_env.cli.elbow_branches`): the certificate's levels, the re-weighted run, the
 plot and the printed summary."""
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ from contextlib import contextmanager
 
 from kinegrasp_env.cli.common import CLIError, finite_float, plural, positive_int, reported
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s
 #: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
@@ -34,8 +33,7 @@ def certificate_levels(args) -> tuple[float, float]:
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                      friction: float = 0.5, starts: int | None = None):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
-    closings (:func:`kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`; a
-    robot given with ``--robot``: :func:`kinegrasp_env.toolkit.robot_elbow_reweight.
+    closings (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.
     optimize_robot_elbow_reweighted`); with ``starts`` (a 6-joint arm's IK starts),
     (BranchResult, ReweightEvidence) of its IK branches
     (:func:`~kinegrasp_env.toolkit.robot_elbow_reweight.
@@ -44,32 +42,19 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
 
     from tqdm import tqdm
 
-    batch = None if args.batch is None else positive_int(args.batch, "--batch")
-    robot = getattr(args, "robot", None) not in (None, DEFAULT_ROBOT)
-    if starts is not None:
-        from kinegrasp_env.toolkit.robot_elbow_reweight import (
-            check_robot_reweight as check,
-        )
-        from kinegrasp_env.toolkit.robot_elbow_reweight import (
-            optimize_robot_branches_reweighted,
-        )
+    from kinegrasp_env.toolkit.robot_elbow_reweight import (
+        check_robot_reweight,
+        optimize_robot_branches_reweighted,
+        optimize_robot_elbow_reweighted,
+    )
 
-        optimize = functools.partial(optimize_robot_branches_reweighted, starts=starts)
-    elif robot:
-        from kinegrasp_env.toolkit.robot_elbow_reweight import (
-            check_robot_reweight as check,
-        )
-        from kinegrasp_env.toolkit.robot_elbow_reweight import (
-            optimize_robot_elbow_reweighted as optimize,
-        )
-    else:
-        from kinegrasp_env.toolkit.elbow_reweight import check_reweight as check
-        from kinegrasp_env.toolkit.elbow_reweight import optimize_elbow_reweighted as optimize
+    batch = None if args.batch is None else positive_int(args.batch, "--batch")
+    optimize = (optimize_robot_elbow_reweighted if starts is None else
+                functools.partial(optimize_robot_branches_reweighted, starts=starts))
     with reported(ValueError):  # noise, robot, object, batch: refused before any closing
-        check(grasp, noise, samples, epsilon, delta, batch)
+        check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
     what = "IK branches" if starts is not None else "elbow"
-    who = f" of {args.robot}" if robot else ""
-    bar = tqdm(desc=f"{what} of {args.object} grasp {index}{who} (batch, fresh draws, "
+    bar = tqdm(desc=f"{what} of {args.object} grasp {index} of {args.robot} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
     with executor_from(args) as executor, batch_sized():
         out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
@@ -135,11 +120,11 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
                          title=title)
 
 
-def show_elbow(args, payload: dict, result, evidence, index: int, samples: int, title: str,
-               prefix: str = "") -> None:
+def show_elbow(args, payload: dict, result, evidence, index: int, samples: int,
+               title: str) -> None:
     """An elbow run's output: ``--plot`` (titled ``title``), then one JSON object
     (``payload``, with the re-weighted run's ``evidence`` where there is one) or the text
-    summary (after ``prefix``)."""
+    summary."""
     import json
 
     if evidence is not None:
@@ -149,7 +134,7 @@ def show_elbow(args, payload: dict, result, evidence, index: int, samples: int, 
     if args.json:
         print(json.dumps(payload))
         return
-    print(prefix + text_summary(payload, index))
+    print(text_summary(payload, index))
     if evidence is not None:
         print(reweight_lines(payload["reweight"], samples))
     if args.plot:
@@ -157,7 +142,8 @@ def show_elbow(args, payload: dict, result, evidence, index: int, samples: int, 
 
 
 def text_summary(result: dict, index: int) -> str:
-    """The console summary of an elbow optimization (``ElbowResult.to_json()``)."""
+    """The console summary of an elbow optimization (``ElbowResult.to_json()`` with the
+    ``robot``)."""
     lo, hi = result["best_p_fc_ci"]
     nlo, nhi = result["nominal_p_fc_ci"]
     glo, ghi = result["gain_ci"]
@@ -169,8 +155,8 @@ def text_summary(result: dict, index: int) -> str:
         how = (f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again "
                f"on {result['samples']} fresh draws")
     return "\n".join([
-        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, {how} "
-        f"({result['engine']} engine)",
+        f"{result['object']} grasp {index} of robot {result['robot']}, sigma = "
+        f"{result['sigma']} rad, {how} ({result['engine']} engine)",
         f"  nominal elbow {result['nominal_psi']:+.3f} rad: P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best elbow    {result['best_psi']:+.3f} rad: P(FC) "

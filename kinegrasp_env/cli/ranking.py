@@ -26,7 +26,7 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
 from kinegrasp_env.cli.robot_grasps import check_hold_simulator
-from kinegrasp_env.cli.robot_ranking import check_robot_candidates, robot_best_elbows
+from kinegrasp_env.cli.robot_ranking import check_robot_candidates
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 if TYPE_CHECKING:
@@ -38,23 +38,29 @@ CHUNK = 250
 METHOD = "mc"
 
 
-def best_elbows(grasps: list, noise, samples: int, seed: int, engine: str, executor,
-                friction: float = 0.5) -> list:
-    """Each candidate moved to its most robust elbow angle (``kinegrasp elbow``'s optimizer),
-    chosen on draws of seed + 1, so the ranking's own draws (seed) stay independent of the
-    choice."""
+def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine: str,
+                executor, friction: float = 0.5) -> list:
+    """Each candidate moved to its most robust elbow angle (7 joints: the self-motion) or IK
+    branch (6 joints) (``kinegrasp elbow``'s optimizer, by ``engine``; the fast one for the
+    physics engine), chosen on draws of seed + 1, so the ranking's own draws (seed) stay
+    independent of the choice."""
     from tqdm import tqdm
 
-    from kinegrasp_env.toolkit.elbow import optimize_elbow, with_configuration
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches, optimize_robot_elbow
 
+    branches = load_robot(robot).arm_dof == 6
+    search = optimize_robot_branches if branches else optimize_robot_elbow
+    kinematic = "fast" if engine == "physics" else engine
     moved = []
     for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
                       file=sys.stderr, disable=None):
-        best = optimize_elbow(grasp, noise, samples, seed + 1,
-                              engine="fast" if engine == "physics" else engine,
-                              executor=executor, friction=friction)
-        chosen = with_configuration(grasp, best.best_q, best.best_psi)
-        moved.append(dataclasses.replace(chosen, id=f"{grasp.id}e"))
+        with reported(ValueError):  # an arm without self-motion or branches
+            best = search(grasp, noise, samples, seed + 1, friction=friction,
+                          evaluate_with=kinematic, executor=executor)
+        best = best.result if branches else best
+        meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
+        moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
     return moved
 
 
@@ -165,12 +171,9 @@ def cmd_rank(args) -> int:
     if args.best_elbow:  # a different candidate set: part of the resume settings
         settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
     with executor_from(args) as executor:
-        if args.best_elbow and described:
-            grasps = robot_best_elbows(grasps, robot, noise, settings["best_elbow_samples"],
-                                       seed, friction)
-        elif args.best_elbow:
-            grasps = best_elbows(grasps, noise, settings["best_elbow_samples"], seed, engine,
-                                 executor, friction)
+        if args.best_elbow:
+            grasps = best_elbows(grasps, robot, noise, settings["best_elbow_samples"], seed,
+                                 engine, executor, friction)
         ranking = None
         if described:
             from kinegrasp_env.cli.robot_ranking import RobotRanking

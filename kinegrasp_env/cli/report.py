@@ -218,14 +218,14 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
-def elbow_command_settings(args, grasp, index: int, result, noise, evidence=None,
-                           friction: float = 0.5, robot: str | None = None
-                           ) -> tuple[str, dict]:
+def elbow_command_settings(args, grasp, index: int, result, noise, robot: str,
+                           evidence=None, friction: float = 0.5) -> tuple[str, dict]:
     """(the command line that reproduces an elbow page, its settings table) of ``elbow
-    --report`` (``robot``: ``--robot NAME``'s)."""
+    --report`` of robot ``robot`` (the grasp chosen from ``--grasps FILE`` or a shipped set)."""
     out = Path(args.report)
-    command = ["kinegrasp", "elbow", *(["--robot", robot] if robot else []),
-               "--object", args.object, "--grasp", str(index),
+    chosen = (["--grasps", str(args.grasps)] if getattr(args, "grasps", None)
+              else ["--object", args.object])
+    command = ["kinegrasp", "elbow", "--robot", robot, *chosen, "--grasp", str(index),
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
                "--seed", str(result.seed), "--engine", result.engine,
                "--epsilon", f"{result.certificate.epsilon:g}",
@@ -233,7 +233,7 @@ def elbow_command_settings(args, grasp, index: int, result, noise, evidence=None
                str(out)]
     if evidence is not None:
         command[-2:-2] = ["--method", "reweight", "--batch", str(evidence.batch)]
-    settings = {**({"robot": robot} if robot else {}), "object": grasp.object,
+    settings = {"robot": robot, "object": grasp.object,
                 "grasp": f"index {index} (id {grasp.id})",
                 **noise_settings(args, [noise]),
                 "draws per elbow angle (selection; fresh again)": result.samples,
@@ -242,9 +242,8 @@ def elbow_command_settings(args, grasp, index: int, result, noise, evidence=None
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
                 "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
                                               f"{result.certificate.delta:g}",
-                "friction mu": friction, "friction cone edges": NUM_EDGES}
-    if robot is None:
-        settings["noisy arms drawn per view"] = ARM_DRAWS_DEFAULT
+                "friction mu": friction, "friction cone edges": NUM_EDGES,
+                "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
     if evidence is not None:
         settings["method"] = (f"reweight: one batch of {evidence.batch} closings over the "
                               "palm's deviation, the chosen and nominal elbow on fresh "
@@ -252,33 +251,19 @@ def elbow_command_settings(args, grasp, index: int, result, noise, evidence=None
     return shlex.join(command), settings
 
 
-def write_elbow_report(args, grasp, index: int, result, noise, evidence=None,
+def write_elbow_report(args, description, grasp, index: int, result, noise, evidence=None,
                        friction: float = 0.5) -> None:
     """``elbow --report FILE``: P(FC) along the self-motion with the nominal and the best
-    elbow marked, and the arm at both (``result``: ``optimize_elbow(grasp, noise, ...)``; or
-    the re-weighted search's, with its ``evidence``: then the batch, and the fragile
-    directions drawn)."""
+    elbow marked, and the robot at both (:func:`~kinegrasp_env.toolkit.report.elbow.
+    elbow_page`; ``result``: ``optimize_robot_elbow(grasp, noise, ...)``, or the re-weighted
+    search's with its ``evidence``: then the batch, and the fragile directions drawn)."""
     from kinegrasp_env.toolkit.report.elbow import elbow_page
 
-    command, settings = elbow_command_settings(args, grasp, index, result, noise, evidence,
-                                               friction)
-    text = elbow_page(grasp, result, noise, command=command, settings=settings,
-                      arm_draws=ARM_DRAWS_DEFAULT,
+    command, settings = elbow_command_settings(args, grasp, index, result, noise,
+                                               description.name, evidence, friction)
+    text = elbow_page(description, grasp, result, noise, command=command, settings=settings,
+                      friction=friction, num_edges=NUM_EDGES, arm_draws=ARM_DRAWS_DEFAULT,
                       fragility=None if evidence is None else evidence.picture())
-    _written(args, text)
-
-
-def write_robot_elbow_report(args, description, grasp, index: int, result, noise,
-                             evidence=None, friction: float = 0.5) -> None:
-    """``elbow --robot NAME --report FILE``: a description robot's elbow page
-    (:func:`~kinegrasp_env.toolkit.report.robot_elbow.robot_elbow_page`)."""
-    from kinegrasp_env.toolkit.report.robot_elbow import robot_elbow_page
-
-    command, settings = elbow_command_settings(args, grasp, index, result, noise, evidence,
-                                               friction, robot=description.name)
-    text = robot_elbow_page(description, grasp, result, command=command, settings=settings,
-                            friction=friction, num_edges=NUM_EDGES,
-                            fragility=None if evidence is None else evidence.picture())
     _written(args, text)
 
 

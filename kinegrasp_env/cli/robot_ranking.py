@@ -191,29 +191,3 @@ def write_robot_rank_page(args, grasps: list, results: list, robot: str, noise, 
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)
-
-
-def robot_best_elbows(grasps: list, robot: str, noise, samples: int, seed: int,
-                      friction: float) -> list:
-    """Each candidate moved to its most robust elbow angle (7 joints: the self-motion) or IK
-    branch (6 joints) (``kinegrasp elbow --robot``'s optimizer), chosen on draws of seed + 1,
-    so the ranking's own draws (seed) stay independent of the choice."""
-    from tqdm import tqdm
-
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches, optimize_robot_elbow
-
-    branches = load_robot(robot).arm_dof == 6
-    moved = []
-    for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
-                      file=sys.stderr, disable=None):
-        with reported(ValueError):  # an arm without self-motion or branches
-            if branches:
-                best = optimize_robot_branches(grasp, noise, samples, seed + 1,
-                                               friction=friction).result
-            else:
-                best = optimize_robot_elbow(grasp, noise, samples, seed + 1,
-                                            friction=friction)
-        meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
-        moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
-    return moved

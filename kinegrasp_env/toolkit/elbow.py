@@ -1,26 +1,29 @@
-"""The most robust elbow: P(FC) along a grasp's self-motion, with a certificate.
+"""The most robust elbow's results and grids, and the default robot's self-motion.
 
 A 7-DOF arm reaches the same palm pose (hence the same nominal contacts) with a one-parameter
 family of configurations, the self-motion, parametrized by the elbow angle psi (radians; see
-docs/conventions.md). :func:`optimize_elbow` estimates P(FC) along the whole reachable
-self-motion and picks the most robust elbow:
+docs/conventions.md). The search along it, for any robot, is
+:func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow` (direct draws) or
+:func:`~kinegrasp_env.toolkit.robot_elbow_reweight.optimize_robot_elbow_reweighted` (one
+re-weighted batch); what both share lives here:
 
-1. **Curve** (selection draws): every reachable configuration on a coarse grid of psi is
-   evaluated with the same seed, so all of them see the same joint-noise draws (common random
-   numbers: differences between angles are far less noisy than each estimate).
-2. **Refinement**: around the best coarse angles, every configuration of the fine grid is
-   evaluated with the same draws.
-3. **Selection**: the best angle of the curve by P(FC).
-4. **Scoring** (fresh draws): every evaluated angle is evaluated again on chunks the
-   selection never used (chunks ``K..2K-1`` of the same seed, common random numbers across
-   the angles), so the reported P(FC) of the best angle is not biased upwards by the selection
-   (winner's curse), and the gain over the nominal is a paired difference on common draws
-   with a t-interval.
-5. **Certificate** (the same fresh draws, :mod:`~kinegrasp_env.toolkit.elbow_certificate`):
-   with confidence 1 - delta, no evaluated angle beats the chosen one by more than a bound B
-   in P(FC) (exact one-sided binomial bounds on each rival's wins and losses); certified at
-   epsilon when B <= epsilon. Angles between fine-grid points are not covered: the grid step
-   is reported with it.
+1. **Grids**: a coarse grid of psi (every :data:`COARSE_EVERY` fine steps of
+   :data:`FINE_STEP`), then the fine grid around the :data:`REFINE_TOP` best coarse angles,
+   all on the same selection draws (common random numbers: differences between angles are
+   far less noisy than each estimate).
+2. **Result** (:func:`elbow_result`): the best angle of the curve by P(FC), scored with the
+   nominal one on fresh draws the selection never used, so the reported P(FC) of the best
+   angle is not biased upwards by the selection (winner's curse); the gain over the nominal
+   as a paired difference with a t-interval; and the **certificate**
+   (:mod:`~kinegrasp_env.toolkit.elbow_certificate`): with confidence 1 - delta, no
+   evaluated angle beats the chosen one by more than a bound B in P(FC) (exact one-sided
+   binomial bounds on each rival's wins and losses on the fresh draws); certified at epsilon
+   when B <= epsilon. Angles between fine-grid points are not covered: the grid step is
+   reported with it.
+
+:func:`reachable_configurations`, :func:`configuration_at` and :func:`with_configuration`
+move a grasp of the default robot along its self-motion with its planner's IK (the
+environments and ``evaluate --elbow`` use them).
 """
 
 from __future__ import annotations
@@ -29,21 +32,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.evaluate import (
-    DEFAULT_CHUNK,
-    chunk_sizes,
-    evaluate_grasp,
-    run_chunks,
-)
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import paired_interval, wilson_interval
 from kinegrasp_env.toolkit.elbow_certificate import (
-    DEFAULT_DELTA,
-    DEFAULT_EPSILON,
     Certificate,
     certify,
-    check_levels,
 )
 from kinegrasp_env.toolkit.planner import GraspPlanner
 from kinegrasp_env.world.grasps import Grasp
@@ -164,90 +157,10 @@ def with_configuration(grasp: Grasp, q: np.ndarray, psi: float) -> Grasp:
                  id=f"{grasp.id}@{psi:.3f}", meta={**grasp.meta, "elbow_angle": psi})
 
 
-def evaluated_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-           seed: int, kwargs: dict) -> ElbowPoint:
-    """One angle evaluated on ``samples`` direct draws of ``seed`` (the selection's)."""
-    stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, samples, seed,
-                           return_draws=True, **kwargs)
-    fc = stats.draws.outcome == FORCE_CLOSURE
-    return ElbowPoint(psi, q, stats.p_fc, stats.p_fc_ci, fc, stats.draws.outcome)
-
-
-def scoring_draws(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed: int,
-                   kwargs: dict) -> np.ndarray:
-    """(samples,) force-closure indicators on chunks the selection never used."""
-    chunk = kwargs.get("chunk", DEFAULT_CHUNK)
-    sizes = chunk_sizes(samples, chunk)
-    run = {k: v for k, v in kwargs.items() if k != "chunk"}
-    _, _, draws = run_chunks(with_configuration(grasp, q, 0.0), noise, seed, sizes=sizes,
-                             first_chunk=len(sizes), return_draws=True, **run)
-    return draws.outcome == FORCE_CLOSURE
-
-
-def _evaluate_curve(grasp: Grasp, reach: list[tuple[float, np.ndarray]], noise: JointNoise,
-                    samples: int, seed: int, kwargs: dict, progress) -> list[ElbowPoint]:
-    """Coarse grid, then the fine grid around the REFINE_TOP best coarse angles."""
-    nominal = nominal_index(grasp, reach)
-    coarse = sorted(set(range(0, len(reach), COARSE_EVERY)) | {len(reach) - 1, nominal})
-    done: dict[int, ElbowPoint] = {}
-    for i in coarse:
-        done[i] = evaluated_point(grasp, *reach[i], noise, samples, seed, kwargs)
-        progress(len(done))
-    top = sorted(coarse, key=lambda i: -done[i].p_fc)[:REFINE_TOP]
-    for centre in top:
-        for i in range(max(centre - COARSE_EVERY, 0), min(centre + COARSE_EVERY + 1, len(reach))):
-            if i not in done:
-                done[i] = evaluated_point(grasp, *reach[i], noise, samples, seed, kwargs)
-                progress(len(done))
-    return [done[i] for i in sorted(done)]
-
-
 def nominal_index(grasp: Grasp, reach: list[tuple[float, np.ndarray]]) -> int:
     """Index in ``reach`` of the grasp's own configuration q0."""
     q0 = np.asarray(grasp.q0, dtype=float)
     return min(range(len(reach)), key=lambda i: float(np.abs(reach[i][1] - q0).max()))
-
-
-def optimize_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
-                   engine: str = "fast", step: float = FINE_STEP,
-                   epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
-                   reach: list[tuple[float, np.ndarray]] | None = None, progress=None,
-                   **evaluate_kwargs) -> ElbowResult:
-    """The most robust elbow angle of ``grasp`` under ``noise`` (see the module docstring).
-
-    Args:
-        grasp: the grasp; its palm pose and nominal contacts stay fixed.
-        noise: joint noise.
-        samples: draws per evaluated angle, for the selection and again (fresh) for the
-            scoring and the certificate.
-        seed: run seed (selection: chunks 0..K-1, fresh draws: chunks K..2K-1).
-        engine: ``fast`` (default) or ``pybullet``.
-        step: fine-grid spacing of psi, radians.
-        epsilon: margin in P(FC) at which the certificate is certified.
-        delta: error level of the certificate (confidence 1 - delta).
-        reach: ``reachable_configurations(grasp, step)``, when already computed (the
-            curve's points then hold its configuration arrays themselves).
-        progress: optional ``progress(evaluations)`` callback: the angles evaluated so far,
-            on the selection draws and then again on the fresh draws.
-        evaluate_kwargs: passed to :func:`evaluate_grasp` (``executor``, ``processes``,
-            ``friction``, ``num_edges``, ``chunk``).
-
-    Raises:
-        ValueError: epsilon outside [0, 1) or delta outside (0, 1) (before any draw).
-    """
-    check_levels(epsilon, delta)
-    kwargs = {"engine": engine, **evaluate_kwargs}
-    report = progress or (lambda done: None)
-    reach = reach if reach is not None else reachable_configurations(grasp, step)
-    nominal_psi, nominal_q = reach[nominal_index(grasp, reach)]
-    curve = _evaluate_curve(grasp, reach, noise, samples, seed, kwargs, report)
-    best = max(curve, key=lambda p: p.p_fc)
-    for k, point in enumerate(curve):
-        point.fresh_fc = scoring_draws(grasp, point.q, noise, samples, seed, kwargs)
-        report(len(curve) + k + 1)
-    nominal = next(p for p in curve if p.q is nominal_q)
-    return elbow_result(grasp, curve, best, nominal, nominal_psi, noise, samples, seed, engine,
-                        step, epsilon, delta)
 
 
 def elbow_result(grasp: Grasp, curve: list[ElbowPoint], best: ElbowPoint, nominal: ElbowPoint,

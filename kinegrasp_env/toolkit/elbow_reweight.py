@@ -1,9 +1,11 @@
 """The most robust elbow from one batch of closings: P(FC) along the self-motion by weights.
 
-:func:`~kinegrasp_env.toolkit.elbow.optimize_elbow` closes fresh draws at every angle. Here
-(:mod:`kinegrasp_env.montecarlo.palm_batch`) one batch of closings over the palm's deviation
-answers every angle, because the elbow angle psi changes only the deviation's distribution,
-N(m(psi), J(psi) S_q J(psi)^T) (its covariance to first order, its mean m to second):
+:func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow` closes fresh draws at every
+angle. Here (:mod:`kinegrasp_env.montecarlo.palm_batch`) one batch of closings over the palm's
+deviation answers every angle (any robot's:
+:mod:`~kinegrasp_env.toolkit.robot_elbow_reweight`), because the elbow angle psi changes only
+the deviation's distribution, N(m(psi), J(psi) S_q J(psi)^T) (its covariance to first order,
+its mean m to second):
 
 1. **Curve** (the selection batch): every reachable angle of the fine grid re-weighted, with
    its standard error, effective sample size (ESS) and the slope dP/dpsi (the weights'
@@ -47,7 +49,6 @@ from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
     batch_stream,
     check_batch_object,
-    close_batch,
     gaussian_terms,
 )
 from kinegrasp_env.robot.description import RobotDescription
@@ -63,14 +64,8 @@ from kinegrasp_env.toolkit.elbow import (
     ElbowPoint,
     ElbowResult,
     elbow_result,
-    evaluated_point,
-    nominal_index,
-    reachable_configurations,
-    scoring_draws,
 )
 from kinegrasp_env.toolkit.elbow_certificate import (
-    DEFAULT_DELTA,
-    DEFAULT_EPSILON,
     Certificate,
     Rival,
     check_levels,
@@ -264,7 +259,8 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
 
 def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
                    batch: int | None, dof: int = ARM) -> None:
-    """Every input of :func:`optimize_elbow_reweighted` that can be refused before any
+    """Every input of a re-weighted search (:func:`~kinegrasp_env.toolkit.
+    robot_elbow_reweight.optimize_robot_elbow_reweighted`) that can be refused before any
     closing: the levels, the noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
     gaussian_terms`, for an arm of ``dof`` joints), the object (no support table) and the
     batch (at least ``samples``: a smaller one sends every angle to direct draws).
@@ -279,8 +275,8 @@ def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: flo
 
 @dataclass(frozen=True)
 class ReweightRobot:
-    """What the re-weighted search needs of a robot (the default one, or a description
-    robot: a 7-joint arm's self-motion, a 6-joint arm's IK branches): the deviation's
+    """What the re-weighted search needs of a robot (a 7-joint arm's self-motion, a 6-joint
+    arm's IK branches): the deviation's
     covariance at each configuration, the reachable ones, one batch of closings, and direct
     draws at one.
 
@@ -303,52 +299,6 @@ class ReweightRobot:
     direct: object
     fresh: object
     engine: str
-
-
-def default_robot(grasp: Grasp, noise: Noise, samples: int, seed: int, *, engine: str,
-                  step: float, reach, friction: float, evaluate_kwargs: dict
-                  ) -> ReweightRobot:
-    """:class:`ReweightRobot` of the default robot (its elbow's direct draws are
-    :func:`~kinegrasp_env.toolkit.elbow.optimize_elbow`'s)."""
-    joint_cov, palm_cov = gaussian_terms(noise)
-    kwargs = {"engine": engine, "friction": friction, **evaluate_kwargs}
-    reach = reach if reach is not None else reachable_configurations(grasp, step)
-    return ReweightRobot(
-        reach, nominal_index(grasp, reach), SelfMotionDeviation(joint_cov, palm_cov),
-        lambda covs, n, stream: close_batch(reach[0][1], grasp.object, covs, n, stream,
-                                            engine=engine, friction=friction),
-        lambda psi, q, n: evaluated_point(grasp, psi, q, noise, n, seed, kwargs),
-        lambda q: scoring_draws(grasp, q, noise, samples, seed, kwargs), engine)
-
-
-def optimize_elbow_reweighted(grasp: Grasp, noise: Noise, samples: int, seed: int = 0, *,
-                              engine: str = "fast", step: float = FINE_STEP,
-                              epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
-                              batch: int | None = None,
-                              reach: list[tuple[float, np.ndarray]] | None = None,
-                              progress=None, friction: float = 0.5, **evaluate_kwargs
-                              ) -> tuple[ElbowResult, ReweightEvidence]:
-    """The most robust elbow from one batch of closings (module docstring).
-
-    Args:
-        grasp, noise (Gaussian joint noise, or a noise model of Gaussian joints and palm
-            sources), samples (the accuracy asked for: each angle's
-            ESS at least this, else direct draws; fresh direct draws per scored angle),
-            seed, engine, step, epsilon, delta: as :func:`~kinegrasp_env.toolkit.elbow.
-            optimize_elbow`.
-        batch: closings per batch (default :data:`BATCH_FACTOR` x samples).
-        progress: optional ``progress(stage)`` callback with a stage name.
-        friction: the contacts' mu (the batches' and the direct draws').
-
-    Raises:
-        ValueError: noise not Gaussian, epsilon or delta out of range, an object on a
-            support table (before any closing).
-    """
-    check_reweight(grasp, noise, samples, epsilon, delta, batch)
-    robot = default_robot(grasp, noise, samples, seed, engine=engine, step=step, reach=reach,
-                          friction=friction, evaluate_kwargs=evaluate_kwargs)
-    return reweighted_search(grasp, noise, samples, seed, robot, step=step, epsilon=epsilon,
-                             delta=delta, batch=batch, progress=progress)
 
 
 def reweighted_search(grasp: Grasp, noise: Noise, samples: int, seed: int,

@@ -1,10 +1,5 @@
-"""The most robust elbow of a description robot's grasp (a 7-joint arm other than the
-default robot's), through the reference engine, with the same protocol and certificate; for
-a 6-joint arm (no self-motion) the most robust of its IK branches
-(:func:`optimize_robot_branches`).
-
-The protocol is :mod:`kinegrasp_env.toolkit.elbow`'s, robot-independent in every rule but
-two: the self-motion and the engine.
+"""The most robust elbow of any robot's grasp, with its certificate; for a 6-joint arm (no
+self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`).
 
 - **Self-motion**: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (Newton
   continuation on the palm pose and the arm angle of the description's ``arm_angle_links``)
@@ -14,18 +9,18 @@ two: the self-motion and the engine.
   distance, :func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`), or half a turn is
   walked each way. Every configuration keeps the grasp's palm pose (residual below
   :data:`~kinegrasp_env.robot.null_motion.RESIDUAL_TOL`), hence its nominal contacts.
-- **Engine**: :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` (the
-  reference closing on the URDF's own geometry, the robot's contact model), one pybullet
-  world for every angle. The selection draws are those of ``seed`` (the draws of
-  ``kinegrasp evaluate --robot NAME --seed SEED``), the fresh draws the rows after them in
-  the same run (:func:`~kinegrasp_env.toolkit.selection.report_rows`: the chunks the default
-  robot's elbow reports on, the same draws); both are common to every angle (draw i is the
-  same joint noise at every angle).
-
-The grids (:data:`~kinegrasp_env.toolkit.elbow.FINE_STEP`, ``COARSE_EVERY``,
-``REFINE_TOP``), the selection, the scoring on fresh draws, the paired gain and the
-certificate (:func:`~kinegrasp_env.toolkit.elbow_certificate.certify`) are the default
-robot's; the result is an :class:`~kinegrasp_env.toolkit.elbow.ElbowResult`.
+- **Curve** (selection draws): the coarse grid of psi, then the fine grid around the best
+  coarse angles (:mod:`kinegrasp_env.toolkit.elbow`'s grids), each angle on the draws of
+  ``seed`` (those of ``kinegrasp evaluate --seed SEED``) through any engine
+  (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`): common to every
+  angle (draw i is the same joint noise at every angle), so differences between angles are
+  far less noisy than each estimate.
+- **Scoring** (fresh draws): every evaluated angle again on the rows after the selection's
+  in the same run (:func:`~kinegrasp_env.toolkit.selection.report_rows`), common to every
+  angle; the best angle of the curve is reported on them (no winner's curse), with the
+  paired gain over the nominal angle and the certificate
+  (:func:`~kinegrasp_env.toolkit.elbow.elbow_result`): an
+  :class:`~kinegrasp_env.toolkit.elbow.ElbowResult`.
 """
 
 from __future__ import annotations
@@ -60,6 +55,7 @@ from kinegrasp_env.toolkit.elbow import (
     ElbowPoint,
     ElbowResult,
     elbow_result,
+    nominal_index,
     wrap_angle,
 )
 from kinegrasp_env.toolkit.elbow_certificate import (
@@ -141,35 +137,36 @@ class AngleScorer:
 
 
 def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-           seed, scorer: AngleScorer, offset: int = 0) -> tuple[np.ndarray, float, tuple]:
-    """(force closure per draw (samples,), P(FC), its Wilson interval) at configuration q,
-    on rows ``offset ..`` of the seed's run (:func:`fresh_point`: the fresh ones)."""
+                seed, scorer: AngleScorer, offset: int = 0) -> ElbowPoint:
+    """The point of elbow angle ``psi`` at configuration q: P(FC), its Wilson interval, force
+    closure and the outcome per draw, on rows ``offset ..`` of the seed's run
+    (:func:`fresh_point`: the fresh ones)."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
     stats = evaluate_robot_grasp(moved, sigma=noise.sigma, n=samples, seed=seed,
                                  noise=noise.kind, engine=scorer.engine,
                                  executor=scorer.executor, friction=scorer.friction,
                                  offset=offset)
-    return stats.draws.outcome == FORCE_CLOSURE, stats.p_fc, stats.ci
+    outcome = stats.draws.outcome
+    return ElbowPoint(psi, q, stats.p_fc, stats.ci, outcome == FORCE_CLOSURE, outcome)
 
 
 def fresh_point(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed,
                 scorer: AngleScorer) -> np.ndarray:
     """(samples,) force closure at configuration q on the fresh draws of run ``seed``: the
     rows after its selection's (:func:`~kinegrasp_env.toolkit.selection.report_rows`)."""
-    return angle_point(grasp, 0.0, q, noise, samples, seed, scorer, report_rows(samples))[0]
+    return angle_point(grasp, 0.0, q, noise, samples, seed, scorer, report_rows(samples)).fc
 
 
 def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: AngleScorer, report
            ) -> list[ElbowPoint]:
-    """The coarse grid, then the fine grid around the REFINE_TOP best coarse angles (the
-    default robot's grid rules), on the selection draws."""
+    """The coarse grid, then the fine grid around the REFINE_TOP best coarse angles, on the
+    selection draws."""
     done: dict[int, ElbowPoint] = {}
 
     def evaluate(i: int) -> None:
         psi, q = reach[i]
-        fc, p_fc, ci = angle_point(grasp, psi, q, noise, samples, seed, scorer)
-        done[i] = ElbowPoint(psi, q, p_fc, ci, fc)
+        done[i] = angle_point(grasp, psi, q, noise, samples, seed, scorer)
         report(len(done))
 
     coarse = sorted(set(range(0, len(reach), COARSE_EVERY)) | {len(reach) - 1, nominal})
@@ -200,9 +197,9 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
                          epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                          reach: list[tuple[float, np.ndarray]] | None = None,
                          progress: Callable[[int], None] | None = None,
-                         friction: float = 0.5, evaluate_with: str = "pybullet",
+                         friction: float = 0.5, evaluate_with: str = "fast",
                          executor: Executor | None = None) -> ElbowResult:
-    """The most robust elbow angle of a description robot's ``grasp`` under ``noise``.
+    """The most robust elbow angle of ``grasp`` under ``noise`` (the module docstring).
 
     Args:
         grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
@@ -235,10 +232,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         scorer = AngleScorer.of(engine, evaluate_with, executor)
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
                                                                                step)
-        q0 = np.asarray(grasp.q0, dtype=float)
-        nominal_index = min(range(len(reach)),
-                            key=lambda i: float(np.abs(reach[i][1] - q0).max()))
-        curve = _curve(grasp, reach, nominal_index, noise, samples, seed, scorer, report)
+        nominal = nominal_index(grasp, reach)
+        curve = _curve(grasp, reach, nominal, noise, samples, seed, scorer, report)
         _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
     finally:
         if scorer is not None:
@@ -246,7 +241,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
         if own:
             engine.close()
     best = max(curve, key=lambda p: p.p_fc)
-    nominal = next(p for p in curve if p.q is reach[nominal_index][1])
+    nominal = next(p for p in curve if p.q is reach[nominal][1])
     return elbow_result(grasp, curve, best, nominal, nominal.psi, noise, samples, seed,
                         scorer.name, step, epsilon, delta)
 
@@ -324,7 +319,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
                             starts: int = DEFAULT_STARTS, epsilon: float = DEFAULT_EPSILON,
                             delta: float = DEFAULT_DELTA,
                             progress: Callable[[int], None] | None = None,
-                            friction: float = 0.5, evaluate_with: str = "pybullet",
+                            friction: float = 0.5, evaluate_with: str = "fast",
                             executor: Executor | None = None) -> BranchResult:
     """The most robust IK branch of a 6-joint arm's ``grasp`` under ``noise``: the protocol
     of :func:`optimize_robot_elbow` with the IK branches of the grasp's palm pose for the
@@ -363,8 +358,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
         curve = []
         for i, branch in enumerate(branches):
             q = np.concatenate([branch.q, hand])
-            fc, p_fc, ci = angle_point(grasp, float(i), q, noise, samples, seed, scorer)
-            curve.append(ElbowPoint(float(i), q, p_fc, ci, fc))
+            curve.append(angle_point(grasp, float(i), q, noise, samples, seed, scorer))
             report(i + 1)
         _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
     finally:

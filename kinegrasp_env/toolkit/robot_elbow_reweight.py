@@ -1,5 +1,5 @@
-"""The re-weighted elbow search (:mod:`kinegrasp_env.toolkit.elbow_reweight`) for a
-description robot: one batch of closings over the palm's deviation (the robot's palm error:
+"""The re-weighted elbow search (:mod:`kinegrasp_env.toolkit.elbow_reweight`) of any robot:
+one batch of closings over the palm's deviation (the robot's palm error:
 the palm link and every link below it moved in the flange frame,
 :mod:`~kinegrasp_env.closing.hand_errors`) answers every elbow angle of a 7-joint arm's
 self-motion (:func:`optimize_robot_elbow_reweighted`), or every IK branch of a 6-joint arm
@@ -10,9 +10,9 @@ the best of the batch's estimates).
 The robot's pieces (:class:`~kinegrasp_env.toolkit.elbow_reweight.ReweightRobot`): the
 flange's body Jacobian and the self-motion of its description
 (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`), the reachable angles of
-``kinegrasp elbow --robot`` (:func:`~kinegrasp_env.toolkit.robot_elbow.
+``kinegrasp elbow`` (:func:`~kinegrasp_env.toolkit.robot_elbow.
 robot_reachable_configurations`), the batch closed at the grasp's own configuration, and
-direct draws as ``elbow --robot --method direct`` draws them (selection: ``seed``; fresh:
+direct draws as ``elbow --method direct`` draws them (selection: ``seed``; fresh:
 :func:`~kinegrasp_env.toolkit.robot_elbow.fresh_point`). The batch moves the hand alone: the
 arm's links are where the grasp's own configuration puts them, which is what joint noise
 changes besides the palm (an assumption the fresh direct draws at the chosen angle check).
@@ -57,7 +57,7 @@ def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delt
     an arm that is neither a 7-joint one with a self-motion nor a 6-joint one, and
     :func:`~kinegrasp_env.toolkit.elbow_reweight.check_reweight`'s refusals."""
     if not isinstance(noise, JointNoise):
-        raise ValueError("a description robot's re-weighted elbow takes joint noise "
+        raise ValueError("the re-weighted elbow search takes joint noise "
                          "(--sigma, --noise gaussian)")
     description = load_robot(grasp.robot)
     check_reweight(grasp, noise, samples, epsilon, delta, batch, description.arm_dof)
@@ -75,12 +75,27 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
                                     epsilon: float = DEFAULT_EPSILON,
                                     delta: float = DEFAULT_DELTA, batch: int | None = None,
                                     progress=None, friction: float = 0.5,
-                                    executor: Executor | None = None
+                                    executor: Executor | None = None,
+                                    reach: list[tuple[float, np.ndarray]] | None = None
                                     ) -> tuple[ElbowResult, ReweightEvidence]:
-    """The most robust elbow of a description robot's ``grasp`` from one batch of closings
-    (arguments: :func:`~kinegrasp_env.toolkit.elbow_reweight.optimize_elbow_reweighted`;
-    ``engine`` closes the batches and the direct draws, ``executor`` runs the direct draws
-    in chunks).
+    """The most robust elbow of ``grasp`` (its ``robot`` names the robot) from one batch of
+    closings (the steps: :mod:`~kinegrasp_env.toolkit.elbow_reweight`).
+
+    Args:
+        grasp: the grasp; its palm pose and nominal contacts stay fixed.
+        noise: Gaussian joint noise on the arm joints.
+        samples: the accuracy asked for: each angle's effective sample size at least this,
+            else direct draws for the shortfall; fresh direct draws per scored angle.
+        seed: run seed (the batches' streams; the direct draws' selection and fresh rows).
+        engine: closes the batches and the direct draws (``fast``, ``pybullet``).
+        step: fine-grid spacing of psi, radians.
+        epsilon, delta: the certificate's margin and error level.
+        batch: closings per batch (default ``BATCH_FACTOR`` x samples).
+        progress: optional ``progress(stage)`` callback with a stage name.
+        friction: the contacts' mu (the batches' and the direct draws').
+        executor: runs the direct draws in chunks (the same draws).
+        reach: :func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations`,
+            when already computed.
 
     Raises:
         ValueError: joint noise that is not Gaussian, an arm without a self-motion of 7
@@ -92,7 +107,8 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
         raise ValueError(f"robot {description.name!r} has no self-motion: its IK branches "
                          "are optimize_robot_branches_reweighted's")
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
-        reach = robot_reachable_configurations(grasp, reference, step)
+        if reach is None:
+            reach = robot_reachable_configurations(grasp, reference, step)
         return _search(grasp, noise, samples, seed, reference, reach,
                        nominal_index(grasp, reach), engine=engine, step=step, epsilon=epsilon,
                        delta=delta, batch=batch, progress=progress, friction=friction,
@@ -115,8 +131,7 @@ def _search(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
         q0 = reach[nominal][1]
 
         def direct(psi: float, q: np.ndarray, n: int) -> ElbowPoint:
-            fc, p_fc, ci = angle_point(grasp, psi, q, noise, n, seed, scorer)
-            return ElbowPoint(psi, q, p_fc, ci, fc)
+            return angle_point(grasp, psi, q, noise, n, seed, scorer)
 
         robot = ReweightRobot(
             reach, nominal, SelfMotionDeviation(joint_cov, palm_cov, description),

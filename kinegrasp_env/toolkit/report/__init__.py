@@ -1,8 +1,8 @@
 """Self-contained interactive HTML reports and the browser that checks them.
 
-The pages: one per evaluation and one per ranking (``page``), one per elbow optimization
-(``elbow``); a description robot's grasps (``robot``), its elbow optimization
-(``robot_elbow``) and a 6-joint arm's IK branches (``robot_branches``); what they are built
+The pages: one per evaluation and one per ranking (``page``), one per elbow optimization of
+any robot (``elbow``); a description robot's grasps (``robot``) and a 6-joint arm's IK
+branches (``robot_branches``); what they are built
 from: the 3-D scenes (``scene``) and their geometry
 (``geometry``), the 2-D charts (``charts``), plotly.js figures and shared meshes
 (``plotly``) and the HTML around them (``html``). Pages open offline (plotly.js is inline)
@@ -20,7 +20,6 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "page": ("evaluation_page", "rank_page", "write_page", "PAGE_LIMIT_BYTES", "ARM_DRAWS"),
     "elbow": ("elbow_page",),
     "robot": ("robot_page",),
-    "robot_elbow": ("robot_elbow_page",),
     "robot_branches": ("robot_branch_page",),
     "scene": ("MAX_POINTS",),
     "browser": ("OfflineChromium", "PageCheck", "BrowserError", "check_page", "find_chromium",

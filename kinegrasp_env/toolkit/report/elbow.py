@@ -1,36 +1,38 @@
-"""The HTML page of an elbow optimization (``kinegrasp elbow --report FILE``).
+"""The HTML page of an elbow optimization (``kinegrasp elbow --report FILE``) of any robot.
 
 It holds P(FC) along the grasp's self-motion with Wilson intervals (the nominal and the best
-elbow angle marked), the arm at the nominal and at the best elbow in 3-D (each with the
-skeletons of its first noisy selection draws coloured by outcome, and the other elbow's
-skeleton for comparison: same palm pose, another arm), the headline numbers (the best and
-the nominal elbow scored on fresh draws, the paired gain, the certificate: how much better
-than the chosen elbow any evaluated one can be), a table of the curve, the settings and the
-command that reproduces the page. The page machinery (shell, figures, shared meshes) is the
-evaluation page's (:mod:`~kinegrasp_env.toolkit.report.page`).
+elbow angle marked), the whole robot closed on the object at the nominal and at the best
+elbow in 3-D (the same palm pose, so the same nominal contacts; another arm), each with the
+skeletons of its first noisy selection draws coloured by their outcome (hidden until
+toggled), the re-weighted batch's fragile directions where it ran, the headline numbers (the
+best and the nominal elbow scored on fresh draws, the paired gain, the certificate: how much
+better than the chosen elbow any evaluated one can be), a table of the curve, the settings
+and the command that reproduces the page. The page machinery (shell, figures, shared meshes)
+is the evaluation page's (:mod:`~kinegrasp_env.toolkit.report.page`); the scenes are the
+robot pages' (:func:`~kinegrasp_env.toolkit.report.robot.grasp_scene`).
 """
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import replace
 
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, Noise
+from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.picture import robot_geometry
+from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import ElbowPoint, ElbowResult
 from kinegrasp_env.toolkit.report.charts import elbow_curve, fragility_chart
-from kinegrasp_env.toolkit.report.geometry import (
-    closed_configuration,
-    noisy_configurations,
-    skeletons,
-)
 from kinegrasp_env.toolkit.report.html import Figure, command_block, esc, note, page, settings_table
 from kinegrasp_env.toolkit.report.page import ARM_DRAWS, sigma_text, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary
-from kinegrasp_env.toolkit.report.scene import arm_scene, skeleton_trace
+from kinegrasp_env.toolkit.report.robot import (
+    NoisyArms,
+    geometry_note,
+    grasp_scene,
+    nominal_closings,
+)
 from kinegrasp_env.world.grasps import Grasp
-from kinegrasp_env.world.objects import GraspObject, load_object
-
-#: The other elbow's skeleton in an arm view.
-OTHER_COLOUR = "#505050"
+from kinegrasp_env.world.objects import load_object
 
 
 def curve_point(result: ElbowResult, psi: float) -> ElbowPoint:
@@ -38,24 +40,16 @@ def curve_point(result: ElbowResult, psi: float) -> ElbowPoint:
     return min(result.curve, key=lambda p: abs(p.psi - psi))
 
 
-def elbow_arm_figure(obj: GraspObject, point: ElbowPoint, other: np.ndarray, label: str,
-                     other_label: str, library: MeshLibrary, noise: Noise, seed: int,
-                     samples: int, arm_draws: int, chunk: int) -> tuple[dict, int]:
-    """The arm at ``point``'s configuration, closed on the object, with the skeletons of its
-    first ``arm_draws`` selection draws by outcome and the skeleton of the configuration
-    ``other`` (14,) dashed; returns the figure and the number of noisy draws drawn."""
-    closed, _ = closed_configuration(point.q, obj)
-    noisy = noisy_configurations(point.q, noise, seed, samples, arm_draws, chunk)
-    outcomes = None if point.outcome is None else point.outcome[:len(noisy)]
-    if outcomes is None:
-        noisy = noisy[:0]
-    figure = arm_scene(obj, closed, library, noisy, outcomes,
-                       f"{label} elbow, psi = {point.psi:+.3f} rad: world frame",
-                       label=f"{label} elbow, no noise")
-    figure["data"].append(skeleton_trace(
-        skeletons(other), f"skeleton at the {other_label} elbow", OTHER_COLOUR, 5,
-        line={"color": OTHER_COLOUR, "width": 5, "dash": "dash"}))
-    return figure, len(noisy)
+def noisy_arms(description: RobotDescription, point: ElbowPoint, noise: JointNoise, seed: int,
+               arm_draws: int) -> NoisyArms:
+    """The first ``arm_draws`` selection draws of ``point`` (rows 0 .. of run ``seed``'s
+    joint noise, :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`, the
+    rows the optimization closed there) with the outcomes it recorded; none where it kept
+    no outcomes (a re-weighted angle)."""
+    shown = 0 if point.outcome is None else min(int(arm_draws), len(point.outcome))
+    q = chunk_configurations(point.q, description.arm_dof, noise.sigma, noise.kind, seed, 0,
+                             shown)
+    return NoisyArms(q, point.outcome[:shown] if shown else point.q[:0].astype(int))
 
 
 def headline(result: ElbowResult) -> str:
@@ -89,34 +83,42 @@ def curve_table(result: ElbowResult) -> str:
     return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
 
 
-def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
-               settings: dict, arm_draws: int = ARM_DRAWS,
-               chunk: int = DEFAULT_CHUNK, fragility: dict | None = None) -> str:
-    """The HTML page of ``result`` (``optimize_elbow(grasp, noise, ...)``; its curve points
-    keep their outcomes, as ``optimize_elbow`` gives them).
+def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
+               noise: JointNoise, *, command: str, settings: dict, friction: float = 0.5,
+               num_edges: int = 8, arm_draws: int = ARM_DRAWS,
+               fragility: dict | None = None) -> str:
+    """The HTML page of ``result`` (``optimize_robot_elbow`` of ``grasp``, whose curve points
+    keep their outcomes, or the re-weighted search's).
 
     Args:
+        description: the grasp's robot.
         grasp: the grasp (its q0 is the nominal elbow).
         result: the optimization.
-        noise: the noise it ran with (the arm views redraw its first draws).
-        command: the command line that reproduces the page.
-        settings: name -> value, shown as a table.
-        arm_draws: noisy draws whose skeletons each arm view shows.
-        chunk: the draws per chunk the optimization used.
+        noise: the joint noise it ran with (the arm views redraw its first draws).
+        command: the command line that reproduces the page; settings: name -> value.
+        friction, num_edges: the contacts' friction cones, as drawn.
+        arm_draws: noisy selection draws whose skeletons each arm view shows.
         fragility: for a curve from one re-weighted batch, its picture
             (``ReweightEvidence.picture()``): drawn as the page's third chart.
     """
     obj = load_object(grasp.object)
-    library = MeshLibrary()
     nominal, best = curve_point(result, result.nominal_psi), curve_point(result, result.best_psi)
-    views = []
-    for key, point, other, label, other_label in (("arm-nominal", nominal, best.q, "nominal",
-                                                   "best"),
-                                                  ("arm-best", best, nominal.q, "best",
-                                                   "nominal")):
-        figure, shown = elbow_arm_figure(obj, point, other, label, other_label, library, noise,
-                                         result.seed, result.samples, arm_draws, chunk)
-        views.append(Figure(key, figure, "49%", "520px"))
+    elbows = [(label, point, replace(grasp, q0=point.q.copy()))
+              for label, point in (("nominal", nominal), ("best", best))]
+    closings = nominal_closings(description, obj, [g for _, _, g in elbows])
+    frames = []
+    for (_, _, g), (values, _) in zip(elbows, closings, strict=True):
+        frames += [values, {k: float(v) for k, v in description.model.expand(g.q0).items()}]
+    geometry = robot_geometry(description, frames)
+    library, views, shown = MeshLibrary(), [], 0
+    for k, ((label, point, g), (_, did_close)) in enumerate(zip(elbows, closings, strict=True)):
+        arms = noisy_arms(description, point, noise, result.seed, arm_draws)
+        shown = max(shown, len(arms.q))
+        title = f"{label} elbow, psi = {point.psi:+.3f} rad: world (robot base) frame"
+        views.append(Figure(f"arm-{label}", grasp_scene(
+            description, obj, g, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
+            friction=friction, num_edges=num_edges, title=title, whole_first=True,
+            arms=arms), "49%", "520px"))
     curve = Figure("elbow", elbow_curve(
         [p.to_json() for p in result.curve], result.nominal_psi, result.best_psi,
         "selection draws, 95% Wilson intervals" if fragility is None else
@@ -131,15 +133,16 @@ def elbow_page(grasp: Grasp, result: ElbowResult, noise: Noise, *, command: str,
                   "elbow on fresh direct draws. The third chart says why: the batch's palm "
                   "deviations in the two directions in which force closure is lost soonest, "
                   "and each elbow's error ellipse there.")
-    skeletons = (f", the skeletons of its first {shown} selection draws coloured by their "
-                 "outcome," if shown else "")
+    drawn = (f" and, toggled in the legend, the arm's skeleton at its first {shown} selection "
+             "draws coloured by their outcome" if shown else "")
     notes = [curve_note,
-             f"Each arm view shows the arm and the closed hand at its elbow{skeletons} and the "
-             "other elbow's skeleton dashed: the palm pose and the contacts are the same, the "
-             "arm is not. Toggle any of them in the legend."]
+             f"Each view shows the whole robot closed on the object at its elbow{drawn} "
+             "(toggle its pre-shape in the legend, or the close-up of the hand): the palm pose "
+             "and the nominal contacts are the same, the arm is not.",
+             geometry_note(geometry)]
     if nominal is best:
         notes.append("The best elbow is the nominal one: both views show the same arm.")
-    title = f"kinegrasp elbow report: {grasp.object} grasp {grasp.id}"
+    title = f"kinegrasp elbow report: robot {description.name}, {grasp.object} grasp {grasp.id}"
     return elbow_layout(title, result, curve, views, notes, library, command=command,
                         settings=settings, fragility=fragility)
 

@@ -1,102 +1,15 @@
-"""``kinegrasp elbow --robot NAME``: a description robot's most robust elbow angle along
-the self-motion of its 7-joint arm (direct or re-weighted), or its most robust IK branch of a
-6-joint arm."""
+"""``kinegrasp elbow`` of a 6-joint arm: the grasp's variants are the IK branches of its palm
+pose (no self-motion); the search over them (direct or re-weighted), its summary and its
+page."""
 
 from __future__ import annotations
 
 import json
 import sys
 
-from kinegrasp_env.cli.common import (
-    CLIError,
-    friction_from,
-    noise_from,
-    output_file,
-    plural,
-    positive_int,
-    reported,
-    shipped_grasp,
-)
-from kinegrasp_env.cli.elbow_output import (
-    DEFAULT_IK_STARTS,
-    bounds_words,
-    certificate_levels,
-    reweight_lines,
-    reweighted_elbow,
-    show_elbow,
-)
+from kinegrasp_env.cli.common import plural
+from kinegrasp_env.cli.elbow_output import bounds_words, reweight_lines, reweighted_elbow
 from kinegrasp_env.cli.execution_options import executor_from
-
-
-def cmd_elbow_robot(args, chosen=None) -> int:
-    """``kinegrasp elbow --robot NAME``: a description robot's grasp along its self-motion
-    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow`, any of its engines),
-    or for a 6-joint arm across its IK branches (:func:`cmd_elbow_branches`). ``chosen``:
-    ``(index, grasp)`` of ``--grasps FILE``, else grasp ``--grasp`` of the robot's shipped set
-    of ``--object``."""
-    from tqdm import tqdm
-
-    from kinegrasp_env.cli.report import report_path, write_robot_elbow_report
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.description import RobotDescriptionError
-
-    robot = args.robot
-    noise, sigma, samples, seed = noise_from(args)
-    friction = friction_from(args, noise)
-    epsilon, delta = certificate_levels(args)
-    with reported(RobotDescriptionError):
-        description = load_robot(robot)
-    branches = description.arm_dof == 6
-    if not branches and not description.has_self_motion:
-        raise CLIError(f"robot {robot!r} has {description.arm_dof} arm joints; the elbow's "
-                       "variants are the self-motion of 7 with arm_angle_links or the IK "
-                       "branches of 6")
-    starts = ik_starts(args, branches, robot)
-    report_path(args.report)
-    if args.method == "direct" and args.batch is not None:
-        raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
-                       "takes none")
-    index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
-    if args.plot:
-        output_file(args.plot, "--plot")
-    if branches:
-        return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
-                                  starts, friction)
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
-
-    evidence = None
-    if args.method == "reweight":
-        result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
-                                            delta, friction)
-    else:
-        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
-                   "(selection, then fresh draws)", unit="angle", file=sys.stderr,
-                   disable=None)
-        with executor_from(args) as executor:
-            result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
-                                          delta=delta,
-                                          progress=lambda done: bar.update(done - bar.n),
-                                          friction=friction, evaluate_with=args.engine,
-                                          executor=executor)
-        bar.close()
-    show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, index, samples,
-               f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad",
-               prefix=f"robot {robot}, ")
-    if args.report:
-        write_robot_elbow_report(args, description, grasp, index, result, noise, evidence,
-                                 friction)
-    return 0
-
-
-def ik_starts(args, branches: bool, robot: str) -> int | None:
-    """``--ik-starts``: a positive count for a 6-joint arm (default: ``ik_branches``'), None
-    otherwise (where giving it is one line)."""
-    if getattr(args, "ik_starts", None) is None:
-        return DEFAULT_IK_STARTS if branches else None
-    if not branches:
-        raise CLIError(f"--ik-starts is for a 6-joint arm's IK branches; the variants of robot "
-                       f"{robot!r} are its self-motion")
-    return positive_int(args.ik_starts, "--ik-starts")
 
 
 def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, starts,
@@ -211,8 +124,8 @@ def branch_summary(result: dict, index: int) -> str:
         f"robot {result['robot']}: a 6-joint arm has no self-motion; the variants of "
         f"{result['object']} grasp {index} are its {branches} ({result['ik_starts']} IK "
         "starts)",
-        f"{result['object']} grasp {index}, sigma = {result['sigma']} rad, {how} "
-        f"({result['engine']} engine)",
+        f"{result['object']} grasp {index} of robot {result['robot']}, sigma = "
+        f"{result['sigma']} rad, {how} ({result['engine']} engine)",
         f"  nominal branch {result['nominal_branch']} ({result['nominal_label']}): P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best branch    {result['best_branch']} ({result['best_label']}): P(FC) "
