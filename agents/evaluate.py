@@ -28,7 +28,7 @@ smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))); ``p
 trained model, deterministic); ``oracle`` (the best of a grid of ``--grid`` elbow angles by
 ``--oracle-draws`` draws each, drawn on chunks ``K, K+1, ...`` of the seed: selection draws
 independent of the scoring draws; ``--oracle-draws 0`` leaves it out); ``optimizer`` (the reference,
-:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow` with ``--optimizer-samples``
+:func:`kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow` with ``--optimizer-samples``
 fast-engine draws per angle and seed ``--optimizer-seed``, default seed + 1: its selection draws are
 independent of the scoring draws too; ``--optimizer-samples 0`` leaves it out). Each row also
 records the decision time of the methods that decide (``seconds_<method>``, wall clock).
@@ -355,7 +355,7 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
         extra["seconds_oracle"] = time.perf_counter() - start
         extra["oracle_grid_p_fc"] = quick
     if settings["optimizer_samples"] > 0:
-        from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+        from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
         start = time.perf_counter()
         found = optimize_robot_elbow(grasp, score.noise, settings["optimizer_samples"],

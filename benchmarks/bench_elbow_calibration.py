@@ -165,7 +165,7 @@ def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, eps
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
     from kinegrasp_env.world.grasps import shipped_grasps
 
     noise = JointNoise(SIGMA)

@@ -53,8 +53,8 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf, weighted_estimate
 from kinegrasp_env.sampling.stats import Z95
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
-from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
-from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
+from kinegrasp_env.toolkit.elbow_reweight_search import optimize_robot_elbow_reweighted
+from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 from kinegrasp_env.world.grasps import shipped_grasps
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "elbow.md"

@@ -46,7 +46,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.toolkit.elbow import nominal_index
-from kinegrasp_env.toolkit.robot_elbow import robot_reachable_configurations
+from kinegrasp_env.toolkit.elbow_search import robot_reachable_configurations
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "elbow.md"

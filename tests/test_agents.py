@@ -359,7 +359,7 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
     out = tmp_path / "evaluation.json"
     argv = ["--limit", "1", "--draws", "10", "--oracle-draws", "5", "--grid", "3",

@@ -19,7 +19,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import paired_interval
 from kinegrasp_env.toolkit.elbow import configuration_at, reachable_configurations
 from kinegrasp_env.toolkit.elbow_certificate import certify, difference_upper_bound
-from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 from kinegrasp_env.world.grasps import shipped_grasps
 
 

@@ -22,7 +22,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
 from kinegrasp_env.toolkit.elbow_reweight import SelfMotionDeviation, batch_certificate
-from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
+from kinegrasp_env.toolkit.elbow_reweight_search import optimize_robot_elbow_reweighted
 from kinegrasp_env.world.grasps import shipped_grasps
 
 SIGMA = 0.0233

@@ -440,8 +440,8 @@ def test_reweighted_branches_agree_with_direct_draws(home, capsys):
     own joint noise closed by the engine); the best branch is the batch's best; the command
     prints the batch's evidence per branch and the chosen and nominal ones' fresh draws."""
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
-    from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_branches_reweighted
+    from kinegrasp_env.toolkit.elbow_reweight_search import optimize_robot_branches_reweighted
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches
     from kinegrasp_env.world.grasps import load_grasps
 
     grasp = load_grasps(str(home[0]))[0]

@@ -38,6 +38,7 @@ from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model
 from kinegrasp_env.toolkit import report
+from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 from kinegrasp_env.toolkit.report.charts import quality_histogram
 from kinegrasp_env.toolkit.report.elbow import curve_point
 from kinegrasp_env.toolkit.report.geometry import (
@@ -52,7 +53,6 @@ from kinegrasp_env.toolkit.report.geometry import (
 from kinegrasp_env.toolkit.report.page import run_noise
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, decode_typed_array, plotly_js
 from kinegrasp_env.toolkit.report.scene import contact_cloud, robot_traces
-from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
 from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 

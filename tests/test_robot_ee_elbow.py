@@ -154,7 +154,7 @@ def test_ee_refuses_bad_input_in_one_line(capsys, args, message):
 @pytest.fixture(scope="module")
 def panda_elbow():
     """A small elbow run of the Panda's first cube grasp (0.25 rad grid, 30 draws)."""
-    from kinegrasp_env.toolkit.robot_elbow import (
+    from kinegrasp_env.toolkit.elbow_search import (
         optimize_robot_elbow,
         robot_reachable_configurations,
     )
@@ -251,7 +251,7 @@ def test_the_default_robots_elbow_search_against_its_analytic_ik_and_own_draws()
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.toolkit.elbow import reachable_configurations
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
     grasp = shipped_grasps("cube")[2]
     noise = JointNoise(SIGMA)

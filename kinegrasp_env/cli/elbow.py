@@ -93,7 +93,7 @@ def cmd_elbow(args) -> int:
 
         return cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
                                   starts, friction)
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
     evidence = None
     if args.method == "reweight":

@@ -15,7 +15,7 @@ from kinegrasp_env.cli.execution_options import executor_from
 def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, starts,
                       friction: float):
     """(BranchResult, ReweightEvidence or None) of ``--method direct``
-    (:func:`kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`) or ``reweight``
+    (:func:`kinegrasp_env.toolkit.elbow_search.optimize_robot_branches`) or ``reweight``
     (:func:`~kinegrasp_env.cli.elbow_output.reweighted_elbow` of the branches, its inputs
     checked before any closing)."""
     from tqdm import tqdm
@@ -23,7 +23,7 @@ def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, 
     if args.method == "reweight":
         return reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                                 friction, starts=starts)
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches
 
     bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
                "then fresh draws)", unit="branch", file=sys.stderr, disable=None)

@@ -33,16 +33,16 @@ def certificate_levels(args) -> tuple[float, float]:
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                      friction: float = 0.5, starts: int | None = None):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
-    closings (:func:`kinegrasp_env.toolkit.robot_elbow_reweight.
+    closings (:func:`kinegrasp_env.toolkit.elbow_reweight_search.
     optimize_robot_elbow_reweighted`); with ``starts`` (a 6-joint arm's IK starts),
     (BranchResult, ReweightEvidence) of its IK branches
-    (:func:`~kinegrasp_env.toolkit.robot_elbow_reweight.
+    (:func:`~kinegrasp_env.toolkit.elbow_reweight_search.
     optimize_robot_branches_reweighted`)."""
     import functools
 
     from tqdm import tqdm
 
-    from kinegrasp_env.toolkit.robot_elbow_reweight import (
+    from kinegrasp_env.toolkit.elbow_reweight_search import (
         check_robot_reweight,
         optimize_robot_branches_reweighted,
         optimize_robot_elbow_reweighted,

@@ -47,7 +47,7 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
     from tqdm import tqdm
 
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_elbow import optimize_robot_branches, optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches, optimize_robot_elbow
 
     branches = load_robot(robot).arm_dof == 6
     search = optimize_robot_branches if branches else optimize_robot_elbow

@@ -1,6 +1,6 @@
 """The toolkit: the grasp planner (``planner``), candidates given as palm poses (``candidates``; a
 description robot's solved by ``robot_candidates``), ranking by robustness (``ranking``;
-certified, ``adaptive_ranking``), the most robust elbow of any robot (``robot_elbow``; its
+certified, ``adaptive_ranking``), the most robust elbow of any robot (``elbow_search``; its
 results: ``elbow``), the paper's experiments (``experiments``), the sensitivity analysis per
 source of error (``sensitivity``), the physics validation (``validation``), HTML reports (the
 ``report`` room), progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
@@ -17,6 +17,6 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "experiments": ("table1", "fig7", "fig9_10"),
     "sensitivity": ("Sensitivity",),
     "elbow": ("ElbowResult",),
-    "robot_elbow": ("optimize_robot_elbow", "optimize_robot_branches"),
+    "elbow_search": ("optimize_robot_elbow", "optimize_robot_branches"),
     "validation": ("run_validation",),
 })

@@ -3,8 +3,8 @@
 A 7-DOF arm reaches the same palm pose (hence the same nominal contacts) with a one-parameter
 family of configurations, the self-motion, parametrized by the elbow angle psi (radians; see
 docs/conventions.md). The search along it, for any robot, is
-:func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow` (direct draws) or
-:func:`~kinegrasp_env.toolkit.robot_elbow_reweight.optimize_robot_elbow_reweighted` (one
+:func:`~kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow` (direct draws) or
+:func:`~kinegrasp_env.toolkit.elbow_reweight_search.optimize_robot_elbow_reweighted` (one
 re-weighted batch); what both share lives here:
 
 1. **Grids**: a coarse grid of psi (every :data:`COARSE_EVERY` fine steps of

@@ -1,9 +1,9 @@
 """The most robust elbow from one batch of closings: P(FC) along the self-motion by weights.
 
-:func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_elbow` closes fresh draws at every
+:func:`~kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow` closes fresh draws at every
 angle. Here (:mod:`kinegrasp_env.montecarlo.palm_batch`) one batch of closings over the palm's
 deviation answers every angle (any robot's:
-:mod:`~kinegrasp_env.toolkit.robot_elbow_reweight`), because the elbow angle psi changes only
+:mod:`~kinegrasp_env.toolkit.elbow_reweight_search`), because the elbow angle psi changes only
 the deviation's distribution, N(m(psi), J(psi) S_q J(psi)^T) (its covariance to first order,
 its mean m to second):
 

@@ -4,11 +4,11 @@ arm configurations.
 The paper's Fig. 10 evaluates null-space variants of a grasp: configurations with the grasp's
 palm pose (hence its nominal contacts) and elbow angles spread over the self-motion. For a
 description robot with a 7-joint arm the variants are ``count`` configurations picked evenly
-(by index) from :func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations`
+(by index) from :func:`~kinegrasp_env.toolkit.elbow_search.robot_reachable_configurations`
 (the self-motion walked every :data:`~kinegrasp_env.toolkit.elbow.FINE_STEP` radians of psi,
 within the joint limits and clear of the object); for a 6-joint arm, which has no
 self-motion, they are the palm pose's IK branches
-(:func:`~kinegrasp_env.toolkit.robot_elbow.branch_variants`, at most ``count``). Either kind
+(:func:`~kinegrasp_env.toolkit.elbow_search.branch_variants`, at most ``count``). Either kind
 is kept where its nominal closing is in force closure (as the default robot's variants
 are). Each is evaluated on ``samples`` draws of joint noise on the
 arm joints (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed
@@ -37,11 +37,11 @@ from kinegrasp_env.montecarlo.robot_evaluate import (
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS as DEFAULT_IK_STARTS
 from kinegrasp_env.sampling.stats import paired_interval
-from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
-from kinegrasp_env.toolkit.robot_elbow import (
+from kinegrasp_env.toolkit.elbow_search import (
     branch_variants,
     robot_reachable_configurations,
 )
+from kinegrasp_env.toolkit.experiments import PAIR_COLUMNS, write_rows
 from kinegrasp_env.toolkit.selection import extremes, report_rows
 from kinegrasp_env.world.grasps import Grasp
 

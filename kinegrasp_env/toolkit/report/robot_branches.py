@@ -15,12 +15,12 @@ from dataclasses import replace
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
+from kinegrasp_env.toolkit.elbow_search import BranchResult
 from kinegrasp_env.toolkit.report.charts import fragility_chart
 from kinegrasp_env.toolkit.report.html import Figure, command_block, esc, note, page, settings_table
 from kinegrasp_env.toolkit.report.page import sigma_text, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, layout
 from kinegrasp_env.toolkit.report.robot import geometry_note, grasp_scene, nominal_closings
-from kinegrasp_env.toolkit.robot_elbow import BranchResult
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import load_object
 

@@ -26,8 +26,8 @@ from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics, rotation_log
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.robot_elbow import optimize_robot_elbow
-from kinegrasp_env.toolkit.robot_elbow_reweight import optimize_robot_elbow_reweighted
+from kinegrasp_env.toolkit.elbow_reweight_search import optimize_robot_elbow_reweighted
+from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 from kinegrasp_env.world.grasps import shipped_grasps
 
 

@@ -10,10 +10,10 @@ the best of the batch's estimates).
 The robot's pieces (:class:`~kinegrasp_env.toolkit.elbow_reweight.ReweightRobot`): the
 flange's body Jacobian and the self-motion of its description
 (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`), the reachable angles of
-``kinegrasp elbow`` (:func:`~kinegrasp_env.toolkit.robot_elbow.
+``kinegrasp elbow`` (:func:`~kinegrasp_env.toolkit.elbow_search.
 robot_reachable_configurations`), the batch closed at the grasp's own configuration, and
 direct draws as ``elbow --method direct`` draws them (selection: ``seed``; fresh:
-:func:`~kinegrasp_env.toolkit.robot_elbow.fresh_point`). The batch moves the hand alone: the
+:func:`~kinegrasp_env.toolkit.elbow_search.fresh_point`). The batch moves the hand alone: the
 arm's links are where the grasp's own configuration puts them, which is what joint noise
 changes besides the palm (an assumption the fresh direct draws at the chosen angle check).
 """
@@ -38,7 +38,7 @@ from kinegrasp_env.toolkit.elbow_reweight import (
     check_reweight,
     reweighted_search,
 )
-from kinegrasp_env.toolkit.robot_elbow import (
+from kinegrasp_env.toolkit.elbow_search import (
     AngleScorer,
     BranchResult,
     angle_point,
@@ -94,7 +94,7 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
         progress: optional ``progress(stage)`` callback with a stage name.
         friction: the contacts' mu (the batches' and the direct draws').
         executor: runs the direct draws in chunks (the same draws).
-        reach: :func:`~kinegrasp_env.toolkit.robot_elbow.robot_reachable_configurations`,
+        reach: :func:`~kinegrasp_env.toolkit.elbow_search.robot_reachable_configurations`,
             when already computed.
 
     Raises:
@@ -156,7 +156,7 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
                                        executor: Executor | None = None
                                        ) -> tuple[BranchResult, ReweightEvidence]:
     """The most robust IK branch of a 6-joint arm's ``grasp`` from one batch of closings:
-    the branches of :func:`~kinegrasp_env.toolkit.robot_elbow.optimize_robot_branches`
+    the branches of :func:`~kinegrasp_env.toolkit.elbow_search.optimize_robot_branches`
     (``starts`` IK starts seeded from ``seed``), each re-weighted from one batch drawn from
     the mixture of their Gaussians and closed at the grasp's own configuration (a branch
     whose effective sample size falls below ``samples`` topped up with direct draws); the
