@@ -339,6 +339,17 @@ def _block_cases():
     return cases
 
 
+@pytest.fixture(scope="module", autouse=True)
+def readme_catalog(tmp_path_factory):
+    """The README's and the guides' commands import objects (``docs/palm_box.obj``, ...) into
+    a catalog of this module's own, shared by its blocks (a block may use what an earlier one
+    imported) and never seen by other modules' tests, which list the built-in objects alone
+    whatever order the modules run in."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("KINEGRASP_HOME", str(tmp_path_factory.mktemp("readme_home")))
+        yield
+
+
 def test_every_console_block_has_a_marker():
     """A new console block says how it is tested (or why it is not)."""
     assert CONSOLE
