@@ -25,7 +25,8 @@ self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -187,6 +188,26 @@ def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, sampl
         report(len(curve) + k + 1)
 
 
+@contextmanager
+def _scoring(grasp: Grasp, engine: RobotReferenceEngine | None, friction: float,
+             evaluate_with: str, executor: Executor | None
+             ) -> Iterator[tuple[RobotReferenceEngine, AngleScorer]]:
+    """(the reference engine, the angle scorer) of a search: ``engine`` when given, else one
+    of the grasp's robot and object built here; both closed at the end (a given engine is
+    the caller's)."""
+    own = engine is None
+    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
+    scorer = None
+    try:
+        scorer = AngleScorer.of(engine, evaluate_with, executor)
+        yield engine, scorer
+    finally:
+        if scorer is not None:
+            scorer.close()
+        if own:
+            engine.close()
+
+
 def _check_samples(samples) -> None:
     if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
         raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
@@ -225,21 +246,12 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
     check_levels(epsilon, delta)
     _check_samples(samples)
     report = progress or (lambda done: None)
-    own = engine is None
-    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
-    scorer = None
-    try:
-        scorer = AngleScorer.of(engine, evaluate_with, executor)
+    with _scoring(grasp, engine, friction, evaluate_with, executor) as (engine, scorer):
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
                                                                                step)
         nominal = nominal_index(grasp, reach)
         curve = _curve(grasp, reach, nominal, noise, samples, seed, scorer, report)
         _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
-    finally:
-        if scorer is not None:
-            scorer.close()
-        if own:
-            engine.close()
     best = max(curve, key=lambda p: p.p_fc)
     nominal = next(p for p in curve if p.q is reach[nominal][1])
     return elbow_result(grasp, curve, best, nominal, nominal.psi, noise, samples, seed,
@@ -348,11 +360,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
     if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
         raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
     report = progress or (lambda done: None)
-    own = engine is None
-    engine = engine or RobotReferenceEngine(grasp.robot, grasp.object, friction=friction)
-    scorer = None
-    try:
-        scorer = AngleScorer.of(engine, evaluate_with, executor)
+    with _scoring(grasp, engine, friction, evaluate_with, executor) as (engine, scorer):
         branches, nominal = branch_variants(grasp, engine, int(starts), seed)
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
         curve = []
@@ -361,11 +369,6 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
             curve.append(angle_point(grasp, float(i), q, noise, samples, seed, scorer))
             report(i + 1)
         _score_fresh(grasp, curve, noise, samples, seed, scorer, report)
-    finally:
-        if scorer is not None:
-            scorer.close()
-        if own:
-            engine.close()
     best = max(range(len(curve)), key=lambda i: curve[i].p_fc)
     result = elbow_result(grasp, curve, curve[best], curve[nominal], float(nominal), noise,
                           samples, seed, scorer.name, 0.0, epsilon, delta)
