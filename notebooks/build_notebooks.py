@@ -391,7 +391,8 @@ for index, grasp in enumerate(shipped_grasps("spray_flask")[:5]):
 
 The same contacts reached with another elbow angle: P(FC) along the self-motion of each grasp
 on common draws, the best angle re-scored on independent draws, its paired gain over the
-nominal elbow (`kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow`, as `kinegrasp elbow`)."""),
+nominal elbow (`kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow`, as
+`kinegrasp elbow`)."""),
         ("code", """from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 

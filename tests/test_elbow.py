@@ -260,3 +260,23 @@ def test_rank_best_elbow_ranks_the_optimizers_choice(tmp_path):
                             JointNoise(0.02), 80, seed=0, engine="fast", chunk=80)
     assert row[0] == f"{grasp.id}e"
     assert float(row[1]) == pytest.approx(direct.p_fc, abs=1e-12)
+
+
+def test_a_noise_model_is_searched_under_every_source():
+    """With a noise model (joints, palm, object, friction: the Dex-Net preset), every angle's
+    draws are the model's: at the nominal angle the selection draws' outcomes are those of
+    the default robot's own evaluation under the model (``evaluate_grasp``, another path to
+    the same rows; at most one draw may differ where the two engines' contacts straddle a
+    boundary), and not those of the joints alone."""
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    grasp = shipped_grasps("cube")[0]
+    model = noise_model_from_spec({"preset": "dexnet", "joints": {"sigma": 0.0133}})
+    result = optimize_robot_elbow(grasp, model, 60, seed=0, evaluate_with="fast")
+    nominal = next(p for p in result.curve if p.psi == result.nominal_psi)
+    full = evaluate_grasp(grasp, model, 60, seed=0, engine="fast", return_draws=True)
+    alone = evaluate_grasp(grasp, JointNoise(0.0133), 60, seed=0, engine="fast",
+                           return_draws=True)
+    assert (nominal.fc != (full.draws.outcome == FORCE_CLOSURE)).sum() <= 1
+    assert (nominal.fc != (alone.draws.outcome == FORCE_CLOSURE)).sum() >= 3

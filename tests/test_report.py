@@ -12,6 +12,7 @@ chromium``; `.ci/run` installs it) or Playwright is missing (the ``screenshot`` 
 
 from __future__ import annotations
 
+import html
 import importlib.util
 import json
 import os
@@ -647,6 +648,30 @@ def test_elbow_command_writes_its_page(elbow_run, tmp_path, capsys):
     assert ("kinegrasp elbow --robot kuka_sdh --object cube --grasp 0 --sigma 0.02 --noise "
             "gaussian --samples 40 "
             f"--seed 3 --engine fast --epsilon 0.05 --delta 0.05 --report {page}") in text
+
+
+def test_elbow_page_command_reruns_a_file_grasp_by_its_id(tmp_path, capsys):
+    """A grasp file's grasps are chosen by id first: the page of `elbow --grasps F --grasp 2`
+    on a file holding cube grasps 1 and 2 (ids "1", "2") names grasp 2 by its id, and its
+    command, run again, prints the same search (an index 1 would rerun grasp "1")."""
+    import shlex
+
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasps = tmp_path / "sub.json"
+    save_grasps(shipped_grasps("cube")[1:3], grasps)
+    page = tmp_path / "sub.html"
+    args = ["--sigma", "0.02", "--samples", "20", "--json"]
+    assert main(["elbow", "--grasps", str(grasps), "--grasp", "2", *args, "--report",
+                 str(page)]) == 0
+    first = json.loads(capsys.readouterr().out)
+    assert first["grasp"] == "2"
+    command = re.search(r"kinegrasp elbow --[^<]*", page.read_text()).group(0)
+    words = shlex.split(html.unescape(command))[1:]
+    assert words[words.index("--grasp") + 1] == "2"
+    assert main([*words[:words.index("--report")], "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again == first
 
 
 def _section(page: str, title: str) -> dict:

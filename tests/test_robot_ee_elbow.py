@@ -242,25 +242,35 @@ def test_elbow_cli_for_the_panda(capsys):
 
 def test_the_default_robots_elbow_search_against_its_analytic_ik_and_own_draws():
     """The elbow search on kuka_sdh (Newton continuation on its description, draws by rows
-    of the run's streams) walks the angles that the default robot's planner reaches with its
-    analytic IK (an independent solver: configurations within 1.1e-8 rad measured, 1e-7
-    allowed), and scores each on the draws of the default engine's own chunked evaluation
-    (``draw_chunk``, another path to the same run): selection chunk 0, fresh chunk 1 of the
-    seed. A draw within 1e-7 rad of a force-closure boundary may differ: at most one per
-    angle allowed, none measured."""
+    of the run's streams) walks every angle, and only those, that the default robot's planner
+    reaches with its analytic IK (an independent solver: configurations within 1.1e-8 rad
+    measured, 1e-7 allowed), and scores each on the draws of the default engine's own
+    chunked evaluation (``draw_chunk``, another path to the same run): selection chunk 0,
+    fresh chunk 1 of the seed. A draw within 1e-7 rad of a force-closure boundary may
+    differ: at most one per angle allowed, none measured."""
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.toolkit.elbow import reachable_configurations
-    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import (
+        optimize_robot_elbow,
+        robot_reachable_configurations,
+    )
 
     grasp = shipped_grasps("cube")[2]
     noise = JointNoise(SIGMA)
-    result = optimize_robot_elbow(grasp, noise, 60, seed=3, evaluate_with="fast")
-    analytic = dict(reachable_configurations(grasp))
-    assert len(result.curve) >= 10
+    analytic = reachable_configurations(grasp)
+    with RobotReferenceEngine("kuka_sdh", "cube") as engine:
+        walked = robot_reachable_configurations(grasp, engine)
+    assert len(walked) == len(analytic) >= 10
+    for (psi, q), (psi_analytic, q_analytic) in zip(walked, analytic, strict=True):
+        assert psi == pytest.approx(psi_analytic, abs=1e-9)
+        assert np.abs(q - q_analytic).max() < 1e-7
+    result = optimize_robot_elbow(grasp, noise, 60, seed=3, evaluate_with="fast",
+                                  reach=walked)
+    analytic = dict(analytic)
     engine = make_engine("fast", "cube")
     for point in result.curve:
-        q = analytic[point.psi]
+        q = analytic[min(analytic, key=lambda psi: abs(psi - point.psi))]
         assert np.abs(point.q - q).max() < 1e-7
         fc = [draw_chunk(engine, q, noise, 3, chunk, 60).outcome == FORCE_CLOSURE
               for chunk in (0, 1)]

@@ -3,7 +3,7 @@
 write_elbow_report`).
 
 The variants are the self-motion of a 7-joint arm (:func:`~kinegrasp_env.toolkit.
-robot_elbow.optimize_robot_elbow`, direct or re-weighted) or the IK branches of a 6-joint one
+elbow_search.optimize_robot_elbow`, direct or re-weighted) or the IK branches of a 6-joint one
 (:mod:`kinegrasp_env.cli.elbow_branches`). The certificate (:mod:`kinegrasp_env.toolkit.
 elbow_certificate`) is printed as the claim it makes: "with 95% confidence no evaluated elbow
 angle beats psi = ... by more than B in P(FC)", then whether B is within ``--epsilon``

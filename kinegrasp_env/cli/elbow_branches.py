@@ -77,14 +77,13 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
 
     from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
     from kinegrasp_env.cli.common import NUM_EDGES
+    from kinegrasp_env.cli.report import chosen_words
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.report.page import write_page
     from kinegrasp_env.toolkit.report.robot_branches import robot_branch_page
 
-    chosen = (["--grasps", str(args.grasps)] if getattr(args, "grasps", None)
-              else ["--object", args.object])
     summary, cert = result.result, result.result.certificate
-    command = ["kinegrasp", "elbow", "--robot", args.robot, *chosen, "--grasp", str(index),
+    command = ["kinegrasp", "elbow", "--robot", args.robot, *chosen_words(args, grasp, index),
                *noise_words(args, sigma_words(noise.sigma)), "--samples",
                str(summary.samples), "--seed", str(summary.seed), "--engine", summary.engine,
                "--ik-starts", str(starts), "--method", args.method,

@@ -218,14 +218,22 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
 
 
+def chosen_words(args, grasp, index: int) -> list[str]:
+    """The words that choose an elbow page's grasp again: ``--grasps FILE --grasp ID`` (the
+    file's grasps are found by id first), else ``--object NAME --grasp INDEX`` of the shipped
+    set."""
+    if getattr(args, "grasps", None):
+        return ["--grasps", str(args.grasps), "--grasp", str(grasp.id)]
+    return ["--object", args.object, "--grasp", str(index)]
+
+
 def elbow_command_settings(args, grasp, index: int, result, noise, robot: str,
                            evidence=None, friction: float = 0.5) -> tuple[str, dict]:
     """(the command line that reproduces an elbow page, its settings table) of ``elbow
     --report`` of robot ``robot`` (the grasp chosen from ``--grasps FILE`` or a shipped set)."""
     out = Path(args.report)
-    chosen = (["--grasps", str(args.grasps)] if getattr(args, "grasps", None)
-              else ["--object", args.object])
-    command = ["kinegrasp", "elbow", "--robot", robot, *chosen, "--grasp", str(index),
+    chosen = chosen_words(args, grasp, index)
+    command = ["kinegrasp", "elbow", "--robot", robot, *chosen,
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(result.samples),
                "--seed", str(result.seed), "--engine", result.engine,
                "--epsilon", f"{result.certificate.epsilon:g}",
@@ -242,9 +250,10 @@ def elbow_command_settings(args, grasp, index: int, result, noise, robot: str,
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
                 "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
                                               f"{result.certificate.delta:g}",
-                "friction mu": friction, "friction cone edges": NUM_EDGES,
-                "noisy arms drawn per view": ARM_DRAWS_DEFAULT}
-    if evidence is not None:
+                "friction mu": friction, "friction cone edges": NUM_EDGES}
+    if evidence is None:  # a re-weighted angle has direct draws only where topped up
+        settings["noisy arms drawn per view"] = ARM_DRAWS_DEFAULT
+    else:
         settings["method"] = (f"reweight: one batch of {evidence.batch} closings over the "
                               "palm's deviation, the chosen and nominal elbow on fresh "
                               "direct draws")

@@ -260,7 +260,7 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
 def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
                    batch: int | None, dof: int = ARM) -> None:
     """Every input of a re-weighted search (:func:`~kinegrasp_env.toolkit.
-    robot_elbow_reweight.optimize_robot_elbow_reweighted`) that can be refused before any
+    elbow_reweight_search.optimize_robot_elbow_reweighted`) that can be refused before any
     closing: the levels, the noise (:func:`~kinegrasp_env.montecarlo.palm_batch.
     gaussian_terms`, for an arm of ``dof`` joints), the object (no support table) and the
     batch (at least ``samples``: a smaller one sends every angle to direct draws).

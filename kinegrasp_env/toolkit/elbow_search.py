@@ -49,6 +49,7 @@ from kinegrasp_env.robot.ik_branches import (
 )
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.toolkit.elbow import (
     COARSE_EVERY,
     FINE_STEP,
@@ -137,23 +138,24 @@ class AngleScorer:
             self.engine.close()
 
 
-def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise, samples: int,
-                seed, scorer: AngleScorer, offset: int = 0) -> ElbowPoint:
+def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise | NoiseModel,
+                samples: int, seed, scorer: AngleScorer, offset: int = 0) -> ElbowPoint:
     """The point of elbow angle ``psi`` at configuration q: P(FC), its Wilson interval, force
     closure and the outcome per draw, on rows ``offset ..`` of the seed's run
     (:func:`fresh_point`: the fresh ones)."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
-    stats = evaluate_robot_grasp(moved, sigma=noise.sigma, n=samples, seed=seed,
-                                 noise=noise.kind, engine=scorer.engine,
-                                 executor=scorer.executor, friction=scorer.friction,
-                                 offset=offset)
+    model = noise if isinstance(noise, NoiseModel) else None
+    stats = evaluate_robot_grasp(moved, sigma=noise.sigma,
+                                 n=samples, seed=seed, noise=getattr(noise, "kind", "gaussian"),
+                                 engine=scorer.engine, executor=scorer.executor,
+                                 friction=scorer.friction, noise_model=model, offset=offset)
     outcome = stats.draws.outcome
     return ElbowPoint(psi, q, stats.p_fc, stats.ci, outcome == FORCE_CLOSURE, outcome)
 
 
-def fresh_point(grasp: Grasp, q: np.ndarray, noise: JointNoise, samples: int, seed,
-                scorer: AngleScorer) -> np.ndarray:
+def fresh_point(grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel, samples: int,
+                seed, scorer: AngleScorer) -> np.ndarray:
     """(samples,) force closure at configuration q on the fresh draws of run ``seed``: the
     rows after its selection's (:func:`~kinegrasp_env.toolkit.selection.report_rows`)."""
     return angle_point(grasp, 0.0, q, noise, samples, seed, scorer, report_rows(samples)).fc
@@ -180,8 +182,8 @@ def _curve(grasp, reach, nominal: int, noise, samples, seed, scorer: AngleScorer
     return [done[i] for i in sorted(done)]
 
 
-def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise, samples: int,
-                 seed: int, scorer: AngleScorer, report) -> None:
+def _score_fresh(grasp: Grasp, curve: list[ElbowPoint], noise: JointNoise | NoiseModel,
+                 samples: int, seed: int, scorer: AngleScorer, report) -> None:
     """Every point of the curve again on the fresh draws (its ``fresh_fc``)."""
     for k, point in enumerate(curve):
         point.fresh_fc = fresh_point(grasp, point.q, noise, samples, seed, scorer)
@@ -213,7 +215,8 @@ def _check_samples(samples) -> None:
         raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
 
 
-def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int,
+                         seed: int = 0, *,
                          engine: RobotReferenceEngine | None = None, step: float = FINE_STEP,
                          epsilon: float = DEFAULT_EPSILON, delta: float = DEFAULT_DELTA,
                          reach: list[tuple[float, np.ndarray]] | None = None,
@@ -224,7 +227,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise, samples: int, seed: in
 
     Args:
         grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
-        noise: joint noise on the arm joints.
+        noise: joint noise on the arm joints, or a noise model of the robot's sources
+            (:mod:`~kinegrasp_env.montecarlo.robot_noise`: every draw of it).
         samples: draws per evaluated angle, for the selection and again (fresh) for the
             scoring and the certificate.
         seed: run seed (selection: its first ``samples`` rows; fresh draws: the rows
@@ -326,7 +330,8 @@ def branch_statement(cert: Certificate, branches: list[IKBranch]) -> str:
             f"more than {shown:.3f} in P(FC)")
 
 
-def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed: int = 0, *,
+def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int,
+                            seed: int = 0, *,
                             engine: RobotReferenceEngine | None = None,
                             starts: int = DEFAULT_STARTS, epsilon: float = DEFAULT_EPSILON,
                             delta: float = DEFAULT_DELTA,
@@ -343,7 +348,8 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise, samples: int, seed:
 
     Args:
         grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
-        noise: joint noise on the arm joints.
+        noise: joint noise on the arm joints, or a noise model of the robot's sources
+            (:mod:`~kinegrasp_env.montecarlo.robot_noise`: every draw of it).
         samples: draws per branch, for the selection and again (fresh) for the scoring.
         seed: run seed (also of the IK starts: ``SeedSequence([seed, IK_STREAM])``).
         engine: a reference engine of the grasp's robot and object to reuse.

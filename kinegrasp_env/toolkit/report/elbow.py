@@ -110,10 +110,10 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
     for (_, _, g), (values, _) in zip(elbows, closings, strict=True):
         frames += [values, {k: float(v) for k, v in description.model.expand(g.q0).items()}]
     geometry = robot_geometry(description, frames)
-    library, views, shown = MeshLibrary(), [], 0
+    library, views, shown = MeshLibrary(), [], {}
     for k, ((label, point, g), (_, did_close)) in enumerate(zip(elbows, closings, strict=True)):
         arms = noisy_arms(description, point, noise, result.seed, arm_draws)
-        shown = max(shown, len(arms.q))
+        shown[label] = len(arms.q)
         title = f"{label} elbow, psi = {point.psi:+.3f} rad: world (robot base) frame"
         views.append(Figure(f"arm-{label}", grasp_scene(
             description, obj, g, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
@@ -133,8 +133,15 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
                   "elbow on fresh direct draws. The third chart says why: the batch's palm "
                   "deviations in the two directions in which force closure is lost soonest, "
                   "and each elbow's error ellipse there.")
-    drawn = (f" and, toggled in the legend, the arm's skeleton at its first {shown} selection "
-             "draws coloured by their outcome" if shown else "")
+    drawn = ""
+    if len(set(shown.values())) == 1 and shown["nominal"]:
+        drawn = (f" and, toggled in the legend, the arm's skeleton at its first "
+                 f"{shown['nominal']} selection draws coloured by their outcome")
+    elif any(shown.values()):
+        drawn = (" and, toggled in the legend, the arm's skeleton at the direct draws the "
+                 f"search closed there (nominal {shown['nominal']}, best {shown['best']}: a "
+                 "re-weighted angle has them only where its batch fell short) coloured by "
+                 "their outcome")
     notes = [curve_note,
              f"Each view shows the whole robot closed on the object at its elbow{drawn} "
              "(toggle its pre-shape in the legend, or the close-up of the hand): the palm pose "
