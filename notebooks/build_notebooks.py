@@ -370,12 +370,12 @@ source to fix: the *gain if exact* (P(FC) without the source minus P(FC) with al
 draws) and the total Sobol index of the force-closure indicator
 (`kinegrasp_env.toolkit.sensitivity.analyze`, as `kinegrasp sensitivity`)."""),
         ("code", SETUP),
-        ("code", """from kinegrasp_env.montecarlo.engines import make_engine
+        ("code", """from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.toolkit.sensitivity import analyze
 from kinegrasp_env.world.grasps import shipped_grasps
 
-engine = make_engine("fast", "spray_flask")
+engine = make_engine("fast", "kuka_sdh", "spray_flask")
 samples = n(1000, 40)
 print(f"{'grasp':>5} {'sigma':>6} {'P(FC)':>6}  gain if exact: joints   palm  object friction"
       f"  dominant")

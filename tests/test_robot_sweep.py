@@ -112,7 +112,7 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
     result = json.loads(run(capsys, "sensitivity", "--robot", "panda", "--object", "cube",
                             "--grasp", str(GRASP), "--noise-spec", spec, "--samples", str(n),
                             "--bootstrap", "0", "--seed", str(SEED), "--engine", "pybullet",
-                            "--json"))
+                            "--factors", "joints", "--json"))
     grasp = shipped_grasps("cube", "panda")[GRASP]
     sigmas = [0.0] * 7
     sigmas[joint] = sigma
@@ -153,7 +153,7 @@ def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path
     result = json.loads(run(capsys, "sensitivity", "--robot", "panda", "--object", "cube",
                             "--grasp", str(GRASP), "--noise-spec", str(spec), "--samples",
                             str(n), "--bootstrap", "0", "--seed", str(SEED), "--engine",
-                            "fast", "--json"))
+                            "fast", "--factors", "joints", "--json"))
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     grasp = shipped_grasps("cube", "panda")[GRASP]

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from cli_helpers import run_cli
 
-from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.sampling.sobol import sobol_indices
 from kinegrasp_env.toolkit.sensitivity import analyze
@@ -114,15 +114,16 @@ def test_constant_output_and_bad_lengths():
 
 @pytest.fixture(scope="module")
 def flask_engine():
-    engine = make_engine("fast", "spray_flask")
-    yield engine
-    engine.close()
+    """The default robot's fast engine on the spray flask (its description's)."""
+    with make_engine("fast", "kuka_sdh", "spray_flask") as engine:
+        yield engine
 
 
 def test_the_analysis_is_the_evaluations_on_the_same_draws(flask_engine):
-    """P(FC) with all sources, with one alone and without it are what evaluate_grasp gives
-    for the model, model.only(s) and model.without(s) with the same seed: every source keeps
-    its own draws (common random numbers)."""
+    """P(FC) with all sources, with one alone and without it are what evaluate_grasp (the
+    default robot's own evaluation: another engine and another path to the draws) gives for
+    the model, model.only(s) and model.without(s) with the same seed: every source keeps its
+    own draws (common random numbers)."""
     grasp = shipped_grasps("spray_flask")[0]
     model = noise_model_from_spec({"joints": {"sigma": 0.0233},
                                    "friction": {"distribution": "gaussian", "mean": 0.5,

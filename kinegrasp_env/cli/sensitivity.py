@@ -2,14 +2,12 @@
 
 P(FC) with every source of a noise spec, with each source alone and with all but one, and the
 first-order and total Sobol indices of force closure per source, with bootstrap intervals
-(:mod:`kinegrasp_env.toolkit.sensitivity`); optionally a bar chart.
+(:func:`kinegrasp_env.toolkit.sensitivity.analyze`, by the robot's engine); optionally a bar
+chart. ``--factors joints`` splits the joints into one factor per arm joint.
 
-``--robot NAME`` (a catalog robot other than ``kuka_sdh``): the factors are the robot's arm
-joints, the noise the spec's joints section (a distribution and a sigma, scalar or one per
-joint; other sources refused in one line), the grasp one of the robot's shipped set, closed
-by the robot's engine (:func:`kinegrasp_env.toolkit.sensitivity.analyze_joints`).
-``--grasps FILE`` takes grasp ``--grasp`` (an id, else an index) of a grasp file instead; the
-robot is then the file's unless ``--robot`` names it (a grasp of another robot is refused).
+The robot is ``--robot NAME``, else the grasp file's, else the default one; the grasp is
+``--grasp`` of the robot's shipped set of ``--object``, or of ``--grasps FILE`` (an id, else an
+index; a grasp of another robot is refused).
 """
 
 from __future__ import annotations
@@ -22,7 +20,6 @@ from kinegrasp_env.cli.common import (
     add_engine_arg,
     add_friction_arg,
     add_object_arg,
-    engine_name,
     friction_from,
     grasp_index_help,
     output_file,
@@ -35,46 +32,25 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The object without --object or --grasps.
 DEFAULT_OBJECT = "spray_flask"
+#: ``--factors`` choices: the model's sources, or one factor per arm joint beside the others.
+FACTORS = ("sources", "joints")
 
 
 def cmd_sensitivity(args) -> int:
-    from kinegrasp_env.montecarlo.evaluate import check_noise_engine
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     with reported(NoiseSpecError):
         model = load_noise_model(args.noise_spec)
-    if not model.sources:
-        raise CLIError(f"--noise-spec {args.noise_spec}: the model has no source of error; "
-                       "nothing to analyze")
     samples = positive_int(args.samples, "--samples", low=2)
     friction = friction_from(args, model)
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
-    from kinegrasp_env.cli.grasp_choice import file_grasp
-
-    index, grasp = file_grasp(args) if args.grasps is not None else (None, None)
-    robot = args.robot or (DEFAULT_ROBOT if grasp is None else grasp.robot)
-    if robot != DEFAULT_ROBOT:
-        index, grasp, noise = _robot_request(args, model, robot, index, grasp)
-        if args.plot:
-            output_file(args.plot, "--plot")
-        result = _analyze_robot(grasp, noise, samples, seed, args.engine, bootstrap, friction)
-    else:
-        if grasp is None:
-            args.object = args.object or DEFAULT_OBJECT
-            index, grasp = shipped_grasp(args.object, args.grasp)
-        else:
-            from kinegrasp_env.world.grasps import check_robot
-
-            with reported(ValueError):
-                check_robot(grasp, robot)
-        engine = engine_name(args.engine)
-        with reported(ValueError):
-            check_noise_engine(model, engine)
-        if args.plot:
-            output_file(args.plot, "--plot")
-        result = _analyze(grasp, model, samples, seed, engine, bootstrap, friction)
+    index, grasp = _request(args, model)
+    if args.plot:
+        output_file(args.plot, "--plot")
+    result = _analyze(grasp, model, samples, seed, args.engine, bootstrap, friction,
+                      per_joint=args.factors == "joints")
     payload = result.to_json()
     if args.json:
         print(json.dumps(payload))
@@ -83,9 +59,8 @@ def cmd_sensitivity(args) -> int:
     if args.plot:  # after the results: a failing figure is a warning, the results stand
         from kinegrasp_env.toolkit.plots import plot_sensitivity, safe_figure
 
-        robot = "" if result.robot is None else f"robot {result.robot}, "
-        title = (f"{robot}{args.object} grasp {index}: P(FC) {result.p_all:.3f} with every source, "
-                 f"{samples} draws per setting")
+        title = (f"robot {result.robot}, {grasp.object} grasp {index}: P(FC) "
+                 f"{result.p_all:.3f} with every source, {samples} draws per setting")
         written = safe_figure(lambda: plot_sensitivity(payload, args.plot, title=title),
                               args.plot)
         if written is not None and not args.json:
@@ -93,26 +68,31 @@ def cmd_sensitivity(args) -> int:
     return 0
 
 
-def _robot_request(args, model, robot: str, index: int | None, grasp):
-    """``(index, grasp, model)`` of a description robot: ``grasp`` (from ``--grasps``) or the
-    robot's shipped grasp ``--grasp`` of ``--object``, and the spec's model (its arm joints,
-    hand, palm, object and friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); one line for
-    what the robot's engines cannot take (checked before any work)."""
+def _request(args, model) -> tuple[int, object]:
+    """``(index, grasp)``: grasp ``--grasp`` of ``--grasps FILE`` or of the robot's shipped set
+    of ``--object``; one line for what the robot's engines cannot take (checked before any
+    work)."""
+    from kinegrasp_env.cli.grasp_choice import file_grasp
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.world.grasps import check_robot
 
+    index, grasp = file_grasp(args) if args.grasps is not None else (None, None)
+    robot = args.robot or (DEFAULT_ROBOT if grasp is None else grasp.robot)
     with reported(RobotDescriptionError):
         arm = load_robot(robot).arm_dof
     if args.engine not in ENGINES:
         raise CLIError(f"--engine {args.engine}: robot {robot!r} is evaluated by the "
                        f"{' or '.join(ENGINES)} engine only")
+    if not model.sources:
+        raise CLIError(f"--noise-spec {args.noise_spec}: the model has no source of error; "
+                       "nothing to analyze")
     with reported(ValueError):
         check_robot_noise(model, robot, arm, args.engine)
-    if model.joints is not None and (model.joints.covariance is not None
-                                     or model.joints.bias is not None):
+    if args.factors == "joints" and model.joints is not None and (
+            model.joints.covariance is not None or model.joints.bias is not None):
         raise CLIError(f"--noise-spec {args.noise_spec}: one factor per arm joint needs "
                        "independent, zero-mean joint errors (sigma and distribution), not a "
                        "joints covariance or bias")
@@ -122,12 +102,16 @@ def _robot_request(args, model, robot: str, index: int | None, grasp):
     with reported(ValueError):
         check_robot(grasp, robot)
         model.sigma_vector(arm)
-    return index, grasp, model
+    return index, grasp
 
 
-def _progress_bar():
-    """(tqdm bar on stderr, progress callback(done, total)) of one step per setting."""
+def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
+             friction: float, per_joint: bool):
+    """The analysis by the robot's engine ``engine``, with a progress bar on stderr (one step
+    per setting)."""
     from tqdm import tqdm
+
+    from kinegrasp_env.toolkit.sensitivity import analyze
 
     bar = tqdm(total=None, desc="sensitivity", unit="setting", file=sys.stderr, disable=None)
 
@@ -135,37 +119,9 @@ def _progress_bar():
         bar.total = total
         bar.update(done - bar.n)
 
-    return bar, progress
-
-
-def _analyze(grasp, model, samples: int, seed: int, engine: str, bootstrap: int,
-             friction: float):
-    """The analysis with a progress bar on stderr (one step per setting), friction mu
-    ``friction`` (where the model has no friction source)."""
-    from kinegrasp_env.montecarlo.engines import make_engine
-    from kinegrasp_env.toolkit.sensitivity import analyze
-
-    runner = make_engine(engine, grasp.object, friction)
-    bar, progress = _progress_bar()
     try:
-        return analyze(grasp, model, samples, seed, engine=runner, bootstrap=bootstrap,
-                       progress=progress)
-    finally:
-        bar.close()
-        runner.close()
-
-
-def _analyze_robot(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
-                   friction: float):
-    """A description robot's analysis over its arm joints, with the progress bar."""
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
-    from kinegrasp_env.toolkit.sensitivity import analyze_joints
-
-    bar, progress = _progress_bar()
-    try:
-        with make_engine(engine, grasp.robot, grasp.object, friction=friction) as runner:
-            return analyze_joints(grasp, noise, samples, seed, engine=runner,
-                                  bootstrap=bootstrap, progress=progress)
+        return analyze(grasp, noise, samples, seed, engine=engine, bootstrap=bootstrap,
+                       progress=progress, per_joint=per_joint, friction=friction)
     finally:
         bar.close()
 
@@ -195,8 +151,10 @@ def add_commands(sub) -> None:
     add_friction_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a PNG bar chart of the indices and P(FC)s")
-    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}); another robot: "
-                   "one factor per arm joint and one per hand, palm, object and friction "
-                   "source of "
-                   "the spec, the grasp from the robot's shipped set")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
+                   "robot): the grasp from its shipped set, closed by its engine")
+    p.add_argument("--factors", default="sources", choices=FACTORS,
+                   help="sources: one factor per source of the spec (the arm joints one); "
+                   "joints: one per arm joint, beside the hand, palm, object and friction "
+                   "sources")
     p.set_defaults(func=cmd_sensitivity)

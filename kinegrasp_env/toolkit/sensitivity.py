@@ -1,60 +1,44 @@
 """Which source of error limits a grasp: P(FC) per source and Sobol indices of force closure.
 
-For a grasp and a :class:`~kinegrasp_env.sampling.noise_model.NoiseModel` with sources
-(joints, hand, palm, object, friction), :func:`analyze` reports
+For a grasp of any robot and a :class:`~kinegrasp_env.sampling.noise_model.NoiseModel` with
+sources (joints, hand, palm, object, friction: :mod:`kinegrasp_env.montecarlo.robot_noise`),
+:func:`analyze` reports
 
-* P(FC) with all sources, with each source alone, and with all but one, each with its
+* P(FC) with all sources, with each factor alone, and with all but one, each with its
   Wilson 95% interval; all on the same draws (every source draws from its own stream, so
   "alone" and "all but one" reuse the draws of "all": their differences are paired). The
-  gain of a source is P(FC) without it minus P(FC) with all: what making it exact would
+  gain of a factor is P(FC) without it minus P(FC) with all: what making it exact would
   bring, with a paired 95% interval (normal, over the per-draw differences);
-* the first-order and total Sobol indices of the force-closure indicator per source, the
-  factors being the sources' blocks of random inputs (:mod:`kinegrasp_env.sampling.sobol`:
-  Saltelli 2010 and Jansen 1999, percentile bootstrap intervals).
+* the first-order and total Sobol indices of the force-closure indicator per factor, the
+  factors being blocks of random inputs (:mod:`kinegrasp_env.sampling.sobol`: Saltelli 2010
+  and Jansen 1999, percentile bootstrap intervals).
 
-The sample A is the run's draws (chunks 0, 1, ... of the seed: its "all sources" P(FC) is
-``evaluate_grasp`` with the same seed); B is the next chunks of the same seed, independent of
-A. Friction only enters the scoring, so draws that share their geometric blocks are closed
-once and only re-scored. Cost: N (2 + 3 g) draws for g geometric sources (friction adds
-none), plus one.
-
-A description robot (any catalog robot but ``kuka_sdh``): :func:`analyze_joints`, the same
-analysis with one factor per arm joint and one per other source of its noise model (palm,
-object, friction: :mod:`kinegrasp_env.montecarlo.robot_noise`), the robot's engine. A is
-``evaluate_robot_grasp``'s draws with the same seed (rows 0 .. N-1 of each source's stream),
-B the rows N .. 2N-1; a setting is closed once per distinct choice of rows (a joint of sigma
-0 draws 0 in A and in B), so with g noisy factors it costs N (2 + 3 g) draws at most, plus
-one.
+The factors are the model's sources, the arm joints one of them (``joints``), or with
+``per_joint`` one factor per arm joint (named by the description's ``arm_joints``) beside the
+hand, palm, object and friction sources. The sample A is ``evaluate_robot_grasp``'s draws
+with the same seed (rows 0 .. N-1 of each source's stream, the rows ``evaluate`` draws for
+every robot), B the rows N .. 2N-1; a setting is closed once per distinct choice of rows (a
+joint of sigma 0 draws 0 in A and in B), so with g noisy factors it costs N (2 + 3 g) draws
+at most, plus one.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE, Engine
-from kinegrasp_env.montecarlo.evaluate import (
-    DEFAULT_CHUNK,
-    check_noise_engine,
-    chunk_draws,
-    chunk_sizes,
-)
-from kinegrasp_env.montecarlo.perturbation import engine_inputs
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_noise import with_hand
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.sampling.noise_model import NoiseDraws, NoiseModel
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.sobol import sobol_indices
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp
-
-#: Sources that move the hand relative to the object (closing); friction only scores.
-GEOMETRIC = ("joints", "hand", "palm", "object")
 
 
 @dataclass
@@ -77,7 +61,7 @@ class SourceEffect:
 
 @dataclass
 class Sensitivity:
-    """The result of :func:`analyze` (P(FC) with every source, and per source)."""
+    """The result of :func:`analyze` (P(FC) with every source, and per factor)."""
 
     object: str
     grasp: str
@@ -89,7 +73,7 @@ class Sensitivity:
     variance: float
     effects: list[SourceEffect] = field(default_factory=list)
     noise_model: dict = field(default_factory=dict)
-    #: a description robot's name (its factors are its arm joints); None: ``kuka_sdh``
+    #: the robot's name
     robot: str | None = None
 
     @property
@@ -126,9 +110,9 @@ class Sensitivity:
     def table(self) -> str:
         """A console table, one row per source."""
         lo, hi = self.p_all_ci
-        robot = "" if self.robot is None else f"robot {self.robot}, "
+        robot = "" if self.robot is None else f" of robot {self.robot}"
         w = max([9, *(len(e.source) + 1 for e in self.effects)])
-        lines = [f"{robot}{self.object} grasp {self.grasp}, {self.samples} draws per setting, "
+        lines = [f"{self.object} grasp {self.grasp}{robot}, {self.samples} draws per setting, "
                  f"{self.engine} engine: P(FC) with all sources {self.p_all:.3f} "
                  f"({lo:.3f} .. {hi:.3f})",
                  f"{'source':<{w}} {'P(FC) alone':>11} {'all but it':>10} "
@@ -158,73 +142,6 @@ def _index(value: float, ci: tuple[float, float]) -> str:
     return f"{value:6.3f} [{ci[0]:6.3f}, {ci[1]:6.3f}]"
 
 
-class _FCOracle:
-    """The force-closure indicator of draw variants, closing each geometry once."""
-
-    def __init__(self, engine: Engine, q0: np.ndarray, size: int) -> None:
-        self.engine, self.q0, self.size = engine, np.asarray(q0, dtype=float), size
-        self.closed: dict[tuple, DrawBatch] = {}
-        self.draws = 0
-
-    def force_closure(self, draws: NoiseDraws, key: tuple) -> np.ndarray:
-        """(N,) bool for ``draws``; ``key`` names its geometric blocks (equal key, equal
-        geometry)."""
-        batch = self.closed.get(key)
-        if batch is None:
-            batch = self.closed[key] = self._close(draws)
-        if draws.friction is None:
-            return batch.outcome == FORCE_CLOSURE
-        outcome = np.where(batch.outcome == FORCE_CLOSURE, NO_FORCE_CLOSURE, batch.outcome)
-        rescored = replace(batch, outcome=outcome.astype(np.int8), quality=np.zeros(self.size))
-        self.engine.score(rescored, draws.friction)
-        return rescored.outcome == FORCE_CLOSURE
-
-    def _close(self, draws: NoiseDraws) -> DrawBatch:
-        geometry = draws.with_block("friction", None)
-        if not any(geometry.block(s) is not None for s in GEOMETRIC):  # the nominal grasp
-            one = self.engine.run(self.q0[None])
-            self.draws += 1
-            return DrawBatch.concatenate([one] * self.size)
-        inputs = engine_inputs(self.q0, geometry, self.engine.obj.center_of_mass)
-        self.draws += self.size
-        return self.engine.run(inputs.q, **inputs.errors())
-
-
-def analyze(grasp: Grasp, model: NoiseModel, samples: int, seed: int = 0, *,
-            engine: Engine, bootstrap: int = 1000, chunk: int = DEFAULT_CHUNK,
-            progress: Callable[[int, int], None] | None = None) -> Sensitivity:
-    """P(FC) per source and Sobol indices of force closure (module docstring).
-
-    Args:
-        grasp: the grasp (q0 (14,), radians).
-        model: the noise model; its sources are the factors.
-        samples: N, draws per setting (>= 2).
-        seed: run seed (A: chunks 0.. of it, as ``evaluate_grasp``; B: the chunks after).
-        engine: a kinematic engine for ``grasp.object`` (``make_engine``).
-        bootstrap: resamples for the Sobol intervals.
-        chunk: draws per chunk (the stream layout; keep the default to match evaluate).
-        progress: called with (settings done, settings) after every setting.
-    """
-    if int(samples) != samples or samples < 2:
-        raise ValueError(f"samples must be an integer >= 2, got {samples}")
-    sources = model.sources
-    if not sources:
-        raise ValueError("the noise model has no source of error: nothing to analyze")
-    check_noise_engine(model, engine.name)
-    sizes = chunk_sizes(int(samples), chunk)
-    draws_a = chunk_draws(model, seed, list(enumerate(sizes)))
-    draws_b = chunk_draws(model, seed, [(len(sizes) + c, s) for c, s in enumerate(sizes)])
-    oracle = _FCOracle(engine, grasp.q0, int(samples))
-    settings = _settings(sources, draws_a, draws_b)
-    y: dict[str, np.ndarray] = {}
-    for done, (name, variant, key) in enumerate(settings, 1):
-        y[name] = oracle.force_closure(variant, key).astype(float)
-        if progress is not None:
-            progress(done, len(settings))
-    return _result(grasp, y, sources, int(samples), int(seed), engine.name, bootstrap,
-                   spec_of(model))
-
-
 def _result(grasp: Grasp, y: dict[str, np.ndarray], factors: tuple[str, ...], n: int,
             seed: int, engine: str, bootstrap: int, noise_model: dict,
             robot: str | None = None) -> Sensitivity:
@@ -246,27 +163,34 @@ def _result(grasp: Grasp, y: dict[str, np.ndarray], factors: tuple[str, ...], n:
                        float(both.var(ddof=1)), effects, noise_model, robot)
 
 
-def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: int = 0,
-                   *, engine: RobotEngine, bootstrap: int = 1000,
-                   progress: Callable[[int, int], None] | None = None) -> Sensitivity:
-    """P(FC) per factor and Sobol indices of force closure of a description robot's grasp,
-    one factor per arm joint (named by the description's ``arm_joints``) and, for a noise
-    model, one per hand, palm, object and friction source (module docstring).
+def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: int = 0, *,
+            engine: RobotEngine | str = "fast", bootstrap: int = 1000,
+            progress: Callable[[int, int], None] | None = None, per_joint: bool = False,
+            friction: float = 0.5) -> Sensitivity:
+    """P(FC) per factor and Sobol indices of force closure of ``grasp`` (module docstring).
 
     Args:
-        grasp: a grasp of ``engine``'s robot and object (q0: its actuated vector).
+        grasp: a grasp of any robot (its ``robot``; q0: its actuated vector).
         noise: joint noise on the arm joints (sigma scalar or one per arm joint, radians),
             or a noise model of the robot's sources.
         samples: N, draws per setting (>= 2).
         seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
-        engine: the robot's engine (``robot_evaluate.make_engine``).
+        engine: the robot's engine for the grasp's object (``robot_engines.make_engine``),
+            or the name of one to build (and close) here at friction mu ``friction``.
         bootstrap: resamples for the Sobol intervals.
         progress: called with (settings done, settings) after every setting.
+        per_joint: one factor per arm joint instead of one for the joints.
 
     Raises:
         ValueError: a grasp of another robot or object, bad samples or sigma, a noise model
-            the robot cannot take.
+            the robot cannot take or with no source of error.
     """
+    if isinstance(engine, str):
+        from kinegrasp_env.montecarlo.robot_engines import make_engine
+
+        with make_engine(engine, grasp.robot, grasp.object, friction=friction) as built:
+            return analyze(grasp, noise, samples, seed, engine=built, bootstrap=bootstrap,
+                           progress=progress, per_joint=per_joint)
     from kinegrasp_env.montecarlo.robot_noise import (
         check_robot_noise,
         error_rows,
@@ -296,13 +220,21 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
     if model.hand is not None and not model.hand.exact:  # the pre-shape's offsets
         errors["hand"] = hand_rows(model, description, int(seed), 0, 2 * n)
     sources = tuple(k for k in ("hand", "palm", "object_offset", "friction") if k in errors)
-    factors = (*description.arm_joints, *(SOURCE_NAMES[k] for k in sources))
+    groups = ([(name, (j,)) for j, name in enumerate(description.arm_joints)] if per_joint
+              else [("joints", tuple(range(arm)))] if noisy.any() else [])
+    factors = (*(name for name, _ in groups), *(SOURCE_NAMES[k] for k in sources))
+    if not factors:
+        raise ValueError("the noise model has no source of error: nothing to analyze")
     blocks = {"A": (stream[:n], {k: v[:n] for k, v in errors.items()}),
               "B": (stream[n:], {k: v[n:] for k, v in errors.items()})}
     settings = _joint_settings(factors)
     closed: dict[tuple, np.ndarray] = {}
     y: dict[str, np.ndarray] = {}
-    for done, (name, rows) in enumerate(settings, 1):
+    for done, (name, factor_rows) in enumerate(settings, 1):
+        rows = ["0"] * arm + list(factor_rows[len(groups):])
+        for (_, joints), r in zip(groups, factor_rows, strict=False):
+            for j in joints:
+                rows[j] = r
         key = tuple(r if j >= arm or noisy[j] else "0" for j, r in enumerate(rows))
         if key not in closed:
             closed[key] = _joint_fc(engine, q0, n, key, blocks, sources)
@@ -313,7 +245,7 @@ def analyze_joints(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, s
                    description.name)
 
 
-#: A description robot's source factors, by their key in the engine's errors.
+#: The source factors, by their key in the engine's errors.
 SOURCE_NAMES = {"hand": "hand", "palm": "palm", "object_offset": "object",
                 "friction": "friction"}
 
@@ -348,20 +280,3 @@ def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...]
     if hand is not None:  # the pre-shape's offsets, within the hand joints' limits
         q = with_hand(q, hand, engine.description)
     return (engine.run(q, **errors).outcome == FORCE_CLOSURE).astype(float)
-
-
-def _settings(sources: tuple[str, ...], a: NoiseDraws, b: NoiseDraws
-              ) -> list[tuple[str, NoiseDraws, tuple]]:
-    """(name, draws, geometry key) of every setting: A, B, and per source AB (A with its
-    block from B), alone (only its block of A) and without (A without it)."""
-    def key(draws_from: dict[str, str]) -> tuple:
-        return tuple((s, draws_from[s]) for s in GEOMETRIC if s in draws_from)
-
-    every = dict.fromkeys(sources, "A")
-    out = [("A", a, key(every)), ("B", b, key(dict.fromkeys(sources, "B")))]
-    for s in sources:
-        out.append((f"AB:{s}", a.with_block(s, b.block(s)), key({**every, s: "B"})))
-        out.append((f"alone:{s}", a.only((s,)), key({s: "A"})))
-        out.append((f"without:{s}", a.with_block(s, None),
-                    key({k: v for k, v in every.items() if k != s})))
-    return out
