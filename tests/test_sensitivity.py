@@ -166,3 +166,46 @@ def test_sensitivity_command_json_plot_and_bad_specs(tmp_path):
     spec.write_text("{}\n")
     empty = run_cli("sensitivity", "--noise-spec", str(spec))
     assert empty.returncode == 2 and "no source of error" in empty.stderr
+
+
+def test_grouped_joints_take_a_covariance_and_a_bias(flask_engine):
+    """The joints as one factor take what ``evaluate`` takes: correlated joint errors (a
+    covariance) and a bias on joints of sigma 0 (a calibration offset). P(FC) with every
+    source, the joints alone and without them equal ``evaluate_grasp`` (the default robot's
+    own evaluation) of the model, model.only("joints") and model.without("joints")."""
+    grasp = shipped_grasps("spray_flask")[0]
+    cov = np.full((7, 7), 1e-4) + np.eye(7) * 3e-4
+    for spec in ({"joints": {"covariance": cov.tolist()},
+                  "friction": {"distribution": "uniform", "low": 0.3, "high": 0.7}},
+                 {"joints": {"sigma": [0.02, 0, 0, 0, 0, 0, 0], "bias": 0.004},
+                  "object": {"translation_sigma": 0.005}}):
+        model = noise_model_from_spec(spec)
+        result = analyze(grasp, model, 60, seed=2, engine=flask_engine, bootstrap=0)
+
+        def p_fc(noise):
+            return evaluate_grasp(grasp, noise, 60, seed=2, engine="fast").p_fc
+
+        assert result.p_all == p_fc(model)
+        joints = next(e for e in result.effects if e.source == "joints")
+        assert joints.p_alone == p_fc(model.only("joints"))
+        assert joints.p_without == p_fc(model.without("joints"))
+    with pytest.raises(ValueError, match="one factor per arm joint"):
+        analyze(grasp, model, 10, engine=flask_engine, per_joint=True)
+
+
+@pytest.mark.expensive
+def test_the_default_robots_physics_engine_is_its_own(tmp_path, capsys):
+    """``sensitivity --engine physics`` of the default robot closes its hand as ``evaluate
+    --engine physics`` does (its own physics engine, not its description's): the same P(FC)
+    with every source on the same seed, draw for draw."""
+    from kinegrasp_env.cli import main
+
+    spec = tmp_path / "joints.yaml"
+    spec.write_text("joints: {sigma: 0.0133}\n")
+    args = ["--object", "spray_flask", "--grasp", "0", "--noise-spec", str(spec), "--samples", "12",
+            "--engine", "physics", "--json"]
+    assert main(["sensitivity", *args, "--bootstrap", "0"]) == 0
+    analysed = json.loads(capsys.readouterr().out)
+    assert main(["evaluate", *args]) == 0
+    evaluated = json.loads(capsys.readouterr().out)
+    assert analysed["p_all"] == evaluated["p_fc"]

@@ -77,6 +77,7 @@ def _request(args, model) -> tuple[int, object]:
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.sensitivity import check_factors
     from kinegrasp_env.world.grasps import check_robot
 
     index, grasp = file_grasp(args) if args.grasps is not None else (None, None)
@@ -91,11 +92,10 @@ def _request(args, model) -> tuple[int, object]:
                        "nothing to analyze")
     with reported(ValueError):
         check_robot_noise(model, robot, arm, args.engine)
-    if args.factors == "joints" and model.joints is not None and (
-            model.joints.covariance is not None or model.joints.bias is not None):
-        raise CLIError(f"--noise-spec {args.noise_spec}: one factor per arm joint needs "
-                       "independent, zero-mean joint errors (sigma and distribution), not a "
-                       "joints covariance or bias")
+    try:
+        check_factors(model, args.factors == "joints")
+    except ValueError as exc:
+        raise CLIError(f"--noise-spec {args.noise_spec}: {exc} (--factors joints)") from None
     if grasp is None:
         args.object = args.object or DEFAULT_OBJECT
         index, grasp = shipped_grasp(args.object, args.grasp, robot)
@@ -119,11 +119,20 @@ def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
         bar.total = total
         bar.update(done - bar.n)
 
+    own = None
+    if grasp.robot == DEFAULT_ROBOT and engine == "physics":
+        # its physics engine is its hand's own closing under pybullet, as `evaluate` runs
+        # it: the description's physics closing does not reproduce it
+        from kinegrasp_env.montecarlo.engines import make_engine
+
+        engine = own = make_engine("physics", grasp.object, friction)
     try:
         return analyze(grasp, noise, samples, seed, engine=engine, bootstrap=bootstrap,
                        progress=progress, per_joint=per_joint, friction=friction)
     finally:
         bar.close()
+        if own is not None:
+            own.close()
 
 
 def add_commands(sub) -> None:
@@ -140,9 +149,10 @@ def add_commands(sub) -> None:
                    "refused)")
     p.add_argument("--noise-spec", required=True,
                    help="YAML or JSON noise model: joints, hand, palm, object, friction "
-                   "(or preset: dexnet); every source present is a factor")
+                   "(or preset: dexnet); every source present is a factor (the arm joints one, "
+                   "or one each with --factors joints)")
     p.add_argument("--samples", default="1000",
-                   help="draws per setting (the analysis runs about 2 + 3 x sources settings)")
+                   help="draws per setting (the analysis runs about 2 + 3 x factors settings)")
     p.add_argument("--bootstrap", default="1000",
                    help="bootstrap resamples of the Sobol intervals (0: none)")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")

@@ -33,6 +33,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_noise import with_hand
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
@@ -146,7 +147,7 @@ def _result(grasp: Grasp, y: dict[str, np.ndarray], factors: tuple[str, ...], n:
             seed: int, engine: str, bootstrap: int, noise_model: dict,
             robot: str | None = None) -> Sensitivity:
     """The :class:`Sensitivity` of the force-closure indicators ``y`` (setting name -> (n,)
-    0/1; the settings of :func:`_settings`) of every factor."""
+    0/1; the settings of :func:`_factor_settings`) of every factor."""
     indices = sobol_indices(y["A"], y["B"], {s: y[f"AB:{s}"] for s in factors},
                             bootstrap=bootstrap, seed=seed)
     effects = []
@@ -175,11 +176,13 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
             or a noise model of the robot's sources.
         samples: N, draws per setting (>= 2).
         seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
-        engine: the robot's engine for the grasp's object (``robot_engines.make_engine``),
+        engine: an engine of the grasp's robot and object (``run(q, palm=, object_offset=,
+            friction=)`` on the robot's actuated vectors: ``robot_engines.make_engine``'s),
             or the name of one to build (and close) here at friction mu ``friction``.
         bootstrap: resamples for the Sobol intervals.
         progress: called with (settings done, settings) after every setting.
-        per_joint: one factor per arm joint instead of one for the joints.
+        per_joint: one factor per arm joint instead of one for the joints (independent,
+            zero-mean joint errors only).
 
     Raises:
         ValueError: a grasp of another robot or object, bad samples or sigma, a noise model
@@ -197,37 +200,44 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
         hand_rows,
         joint_rows,
     )
+    from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.noise_model import as_noise_model
     from kinegrasp_env.world.grasps import check_robot
 
     if int(samples) != samples or samples < 2:
         raise ValueError(f"samples must be an integer >= 2, got {samples}")
-    description = engine.description
-    check_robot(grasp, description.name)
+    description = load_robot(grasp.robot)
+    engine_robot = getattr(engine, "description", description)
+    check_robot(grasp, engine_robot.name)
     if grasp.object != engine.obj.name:
         raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
                          f"holds {engine.obj.name!r}")
     model = as_noise_model(noise)
     n, arm = int(samples), description.arm_dof
-    check_robot_noise(model, description, arm, engine.name, engine.hold_check is not None)
-    if model.joints is not None and model.joints.covariance is not None:
-        raise ValueError("one factor per arm joint needs independent joint errors; the "
-                         "spec's joints covariance correlates them (give sigmas)")
-    q0 = engine.check(grasp.q0)[0]
+    check_robot_noise(model, description, arm, engine.name,
+                      getattr(engine, "hold_check", None) is not None)
+    check_factors(model, per_joint)
+    joints = model.joints
+    q0 = np.asarray(grasp.q0, dtype=float)
+    if q0.shape != (description.model.dof,) or not np.all(np.isfinite(q0)):
+        raise ValueError(f"grasp {grasp.id!r}: q0 must be {description.model.dof} finite "
+                         f"values of robot {description.name!r}, got shape {q0.shape}")
     stream = joint_rows(model, arm, int(seed), 0, 2 * n)
-    noisy = model.sigma_vector(arm) > 0
+    # a joint draws its rows where it has noise or a bias; else it is exact (rows "0")
+    noisy = np.any(stream != 0, axis=0)
     errors = error_rows(model, int(seed), 0, 2 * n, engine.obj.center_of_mass)
     if model.hand is not None and not model.hand.exact:  # the pre-shape's offsets
         errors["hand"] = hand_rows(model, description, int(seed), 0, 2 * n)
     sources = tuple(k for k in ("hand", "palm", "object_offset", "friction") if k in errors)
-    groups = ([(name, (j,)) for j, name in enumerate(description.arm_joints)] if per_joint
-              else [("joints", tuple(range(arm)))] if noisy.any() else [])
+    groups = ([] if joints is None else
+              [(name, (j,)) for j, name in enumerate(description.arm_joints)] if per_joint
+              else [("joints", tuple(range(arm)))])
     factors = (*(name for name, _ in groups), *(SOURCE_NAMES[k] for k in sources))
     if not factors:
         raise ValueError("the noise model has no source of error: nothing to analyze")
     blocks = {"A": (stream[:n], {k: v[:n] for k, v in errors.items()}),
               "B": (stream[n:], {k: v[n:] for k, v in errors.items()})}
-    settings = _joint_settings(factors)
+    settings = _factor_settings(factors)
     closed: dict[tuple, np.ndarray] = {}
     y: dict[str, np.ndarray] = {}
     for done, (name, factor_rows) in enumerate(settings, 1):
@@ -237,7 +247,7 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
                 rows[j] = r
         key = tuple(r if j >= arm or noisy[j] else "0" for j, r in enumerate(rows))
         if key not in closed:
-            closed[key] = _joint_fc(engine, q0, n, key, blocks, sources)
+            closed[key] = _joint_fc(engine, description, q0, n, key, blocks, sources)
         y[name] = closed[key]
         if progress is not None:
             progress(done, len(settings))
@@ -245,25 +255,37 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
                    description.name)
 
 
+def check_factors(model: NoiseModel, per_joint: bool) -> None:
+    """ValueError (one line) where ``model`` cannot be split into :func:`analyze`'s factors:
+    one factor per arm joint needs independent, zero-mean joint errors."""
+    joints = model.joints
+    if per_joint and joints is not None and (joints.covariance is not None
+                                             or joints.bias is not None):
+        raise ValueError("one factor per arm joint needs independent, zero-mean joint "
+                         "errors (a distribution and sigmas), not a joints covariance or bias")
+
+
 #: The source factors, by their key in the engine's errors.
 SOURCE_NAMES = {"hand": "hand", "palm": "palm", "object_offset": "object",
                 "friction": "friction"}
 
 
-def _joint_settings(joints: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]]:
-    """(name, per joint the rows it draws: ``A``, ``B`` or ``0`` exact) of every setting:
-    A, B, and per joint AB, alone and without (as :func:`_settings`)."""
-    k = len(joints)
+def _factor_settings(factors: tuple[str, ...]) -> list[tuple[str, tuple[str, ...]]]:
+    """(name, per factor the rows it draws: ``A``, ``B`` or ``0`` exact) of every setting:
+    A, B, and per factor AB (A with that factor's rows from B), alone (only its rows of A)
+    and without (A without it)."""
+    k = len(factors)
     out = [("A", ("A",) * k), ("B", ("B",) * k)]
-    for j, name in enumerate(joints):
+    for j, name in enumerate(factors):
         out.append((f"AB:{name}", tuple("B" if i == j else "A" for i in range(k))))
         out.append((f"alone:{name}", tuple("A" if i == j else "0" for i in range(k))))
         out.append((f"without:{name}", tuple("0" if i == j else "A" for i in range(k))))
     return out
 
 
-def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...],
-              blocks: dict[str, tuple], sources: tuple[str, ...] = ()) -> np.ndarray:
+def _joint_fc(engine: RobotEngine, description: RobotDescription, q0: np.ndarray, n: int,
+              rows: tuple[str, ...], blocks: dict[str, tuple], sources: tuple[str, ...] = ()
+              ) -> np.ndarray:
     """(n,) 0/1 force closure with arm joint j at column j of ``blocks[rows[j]]``'s joint
     rows and source ``sources[k]`` (an engine error) at ``blocks[rows[arm + k]]``'s (0:
     exact)."""
@@ -278,5 +300,5 @@ def _joint_fc(engine: RobotEngine, q0: np.ndarray, n: int, rows: tuple[str, ...]
               if r != "0"}
     hand = errors.pop("hand", None)
     if hand is not None:  # the pre-shape's offsets, within the hand joints' limits
-        q = with_hand(q, hand, engine.description)
+        q = with_hand(q, hand, description)
     return (engine.run(q, **errors).outcome == FORCE_CLOSURE).astype(float)
