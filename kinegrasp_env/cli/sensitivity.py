@@ -107,8 +107,9 @@ def _request(args, model) -> tuple[int, object]:
 
 def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
              friction: float, per_joint: bool):
-    """The analysis by the robot's engine ``engine``, with a progress bar on stderr (one step
-    per setting)."""
+    """The analysis by ``engine``, the one ``evaluate`` closes the robot's draws with
+    (:func:`~kinegrasp_env.montecarlo.engines.evaluation_engine`), with a progress bar
+    on stderr (one step per setting)."""
     from tqdm import tqdm
 
     from kinegrasp_env.toolkit.sensitivity import analyze
@@ -119,20 +120,11 @@ def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
         bar.total = total
         bar.update(done - bar.n)
 
-    own = None
-    if grasp.robot == DEFAULT_ROBOT and engine == "physics":
-        # its physics engine is its hand's own closing under pybullet, as `evaluate` runs
-        # it: the description's physics closing does not reproduce it
-        from kinegrasp_env.montecarlo.engines import make_engine
-
-        engine = own = make_engine("physics", grasp.object, friction)
     try:
         return analyze(grasp, noise, samples, seed, engine=engine, bootstrap=bootstrap,
                        progress=progress, per_joint=per_joint, friction=friction)
     finally:
         bar.close()
-        if own is not None:
-            own.close()
 
 
 def add_commands(sub) -> None:

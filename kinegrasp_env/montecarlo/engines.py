@@ -338,6 +338,21 @@ def make_engine(name: str, object_name: str, friction: float = 0.5,
     return ENGINE_CLASSES[name](object_name, friction, num_edges, static_hold=static_hold)
 
 
+def evaluation_engine(name: str, robot: str, object_name: str, friction: float = 0.5):
+    """The engine ``kinegrasp evaluate`` closes ``robot``'s draws with, by name: the
+    default robot's own engines (:func:`make_engine`; its physics engine is its hand's own
+    closing under pybullet, which its description's physics closing does not reproduce),
+    every other robot's description engines (:func:`~kinegrasp_env.montecarlo.
+    robot_engines.make_engine`). Both run ``run(q, palm=, object_offset=, friction=)`` on the
+    robot's actuated vectors; close it after use."""
+    from kinegrasp_env.montecarlo import robot_engines
+    from kinegrasp_env.robot.default import DEFAULT_ROBOT
+
+    if robot == DEFAULT_ROBOT:
+        return make_engine(name, object_name, friction)
+    return robot_engines.make_engine(name, robot, object_name, friction=friction)
+
+
 def cached_engine(cache: dict[tuple, Engine], name: str, object_name: str,
                   friction: float = 0.5, num_edges: int = 8,
                   static_hold: bool = False) -> Engine:

@@ -177,8 +177,9 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
         samples: N, draws per setting (>= 2).
         seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
         engine: an engine of the grasp's robot and object (``run(q, palm=, object_offset=,
-            friction=)`` on the robot's actuated vectors: ``robot_engines.make_engine``'s),
-            or the name of one to build (and close) here at friction mu ``friction``.
+            friction=)`` on the robot's actuated vectors), or the name of the one
+            ``evaluate`` closes the robot's draws with (``engines.evaluation_engine``),
+            built (and closed) here at friction mu ``friction``.
         bootstrap: resamples for the Sobol intervals.
         progress: called with (settings done, settings) after every setting.
         per_joint: one factor per arm joint instead of one for the joints (independent,
@@ -189,11 +190,14 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
             the robot cannot take or with no source of error.
     """
     if isinstance(engine, str):
-        from kinegrasp_env.montecarlo.robot_engines import make_engine
+        from kinegrasp_env.montecarlo.engines import evaluation_engine
 
-        with make_engine(engine, grasp.robot, grasp.object, friction=friction) as built:
+        built = evaluation_engine(engine, grasp.robot, grasp.object, friction)
+        try:
             return analyze(grasp, noise, samples, seed, engine=built, bootstrap=bootstrap,
                            progress=progress, per_joint=per_joint)
+        finally:
+            built.close()
     from kinegrasp_env.montecarlo.robot_noise import (
         check_robot_noise,
         error_rows,
