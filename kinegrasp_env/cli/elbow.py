@@ -3,11 +3,13 @@
 write_elbow_report`).
 
 The variants are the self-motion of a 7-joint arm (:func:`~kinegrasp_env.toolkit.
-elbow_search.optimize_robot_elbow`, direct or re-weighted) or the IK branches of a 6-joint one
-(:mod:`kinegrasp_env.cli.elbow_branches`). The certificate (:mod:`kinegrasp_env.toolkit.
-elbow_certificate`) is printed as the claim it makes: "with 95% confidence no evaluated elbow
-angle beats psi = ... by more than B in P(FC)", then whether B is within ``--epsilon``
-(certified) or not; the printed summary and the plot: :mod:`kinegrasp_env.cli.elbow_output`."""
+elbow_search.optimize_robot_elbow`, or re-weighted :func:`~kinegrasp_env.toolkit.
+elbow_reweight_search.optimize_robot_elbow_reweighted`) or the IK branches of a 6-joint one
+(:mod:`kinegrasp_env.cli.elbow_branches`, with their own plot and page). The certificate
+(:mod:`kinegrasp_env.toolkit.elbow_certificate`) is printed as the claim it makes: "with 95%
+confidence no evaluated elbow angle beats psi = ... by more than B in P(FC)", then whether B is
+within ``--epsilon`` (certified) or not; the printed summary and the plot:
+:mod:`kinegrasp_env.cli.elbow_output`."""
 
 from __future__ import annotations
 
@@ -154,9 +156,11 @@ def add_commands(sub) -> None:
                    "joint noise; the best angle still scored on fresh direct draws)")
     p.add_argument("--batch", help="closings per batch with --method reweight (default twice "
                    "--samples)")
-    p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle")
+    p.add_argument("--plot", help="write a PNG of P(FC) against the elbow angle (a 6-joint "
+                   "arm: per IK branch)")
     p.add_argument("--report", help="write a self-contained interactive HTML page: P(FC) "
-                   "along the self-motion, the robot at the nominal and at the best elbow in 3-D")
+                   "along the self-motion (or per IK branch), the robot at the nominal and at "
+                   "the best elbow in 3-D")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
                    "robot): its shipped grasps, its arm's self-motion (7 joints) or IK "
                    "branches (6 joints)")

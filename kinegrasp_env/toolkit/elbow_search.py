@@ -13,8 +13,8 @@ self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`
   coarse angles (:mod:`kinegrasp_env.toolkit.elbow`'s grids), each angle on the draws of
   ``seed`` (those of ``kinegrasp evaluate --seed SEED``) through any engine
   (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`): common to every
-  angle (draw i is the same joint noise at every angle), so differences between angles are
-  far less noisy than each estimate.
+  angle (draw i is the same error of every source at every angle), so differences between
+  angles are far less noisy than each estimate.
 - **Scoring** (fresh draws): every evaluated angle again on the rows after the selection's
   in the same run (:func:`~kinegrasp_env.toolkit.selection.report_rows`), common to every
   angle; the best angle of the curve is reported on them (no winner's curse), with the
