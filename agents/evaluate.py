@@ -56,6 +56,7 @@ records the decision time of the methods that decide (``seconds_<method>``, wall
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -293,11 +294,12 @@ def read_result(path: str, option: str = "--summarize") -> dict:
 
 # ---------------------------------------------------------------------------- evaluation
 def palm_spread(env, q: np.ndarray) -> float:
-    """Palm-position spread per unit joint noise at arm+hand configuration q (14,): the
-    root of the trace of J_p J_p^T over the 7 arm joints (metres per radian)."""
-    from kinegrasp_env.robot.default_robot import PALM_LINK
+    """Palm-position spread per unit joint noise at configuration q (dof,) of the env's
+    robot: the root of the trace of J_p J_p^T over its arm joints (metres per radian)."""
+    from kinegrasp_env.robot.catalog import load_robot
 
-    jac = env.kinematics.jacobian(q, PALM_LINK)[0][:3, :7]
+    description = load_robot(env.robot)
+    jac = env.kinematics.jacobian(q, description.palm_link)[0][:3, :description.arm_dof]
     return float(np.sqrt(np.trace(jac @ jac.T)))
 
 
@@ -310,23 +312,24 @@ def scoring_chunks(draws: int) -> int:
 
 
 class Scorer:
-    """P(FC) of a grasp moved to configuration q, by ``engine`` (default the reference,
-    pybullet) on chunks ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common random
-    numbers)."""
+    """P(FC) of a grasp (of any robot) moved to configuration q, by ``engine`` (default the
+    reference, pybullet) on chunks ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common
+    random numbers): ``kinegrasp evaluate``'s draws of that seed from row ``first_chunk``
+    x 250 on (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`)."""
 
     def __init__(self, noise, seed: int, executor, engine: str = "pybullet") -> None:
         self.noise, self.seed, self.executor = noise, int(seed), executor
         self.engine = engine
 
     def __call__(self, grasp, q: np.ndarray, n: int, first_chunk: int = 0) -> float:
-        from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-        from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_sizes, run_chunks
-        from kinegrasp_env.toolkit.elbow import with_configuration
+        from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
+        from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 
-        counts, _, _ = run_chunks(with_configuration(grasp, q, 0.0), self.noise, self.seed,
-                                  sizes=chunk_sizes(n, DEFAULT_CHUNK), first_chunk=first_chunk,
-                                  executor=self.executor, engine=self.engine)
-        return float(counts[FORCE_CLOSURE] / counts.sum())
+        moved = dataclasses.replace(grasp, q0=np.asarray(q, dtype=float))
+        return evaluate_robot_grasp(moved, sigma=self.noise.sigma, n=n, seed=self.seed,
+                                    noise=self.noise.kind, engine=self.engine,
+                                    executor=self.executor,
+                                    offset=first_chunk * DEFAULT_CHUNK).p_fc
 
 
 def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict,
@@ -355,12 +358,19 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
         extra["seconds_oracle"] = time.perf_counter() - start
         extra["oracle_grid_p_fc"] = quick
     if settings["optimizer_samples"] > 0:
-        from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
+        from kinegrasp_env.toolkit.elbow_search import (
+            optimize_robot_branches,
+            optimize_robot_elbow,
+        )
 
         start = time.perf_counter()
-        found = optimize_robot_elbow(grasp, score.noise, settings["optimizer_samples"],
-                                     settings["optimizer_seed"], evaluate_with="fast",
-                                     executor=executor)
+        from kinegrasp_env.robot.catalog import load_robot
+
+        branches = load_robot(env.robot).arm_dof == 6  # a 6-joint arm: its IK branches
+        search = optimize_robot_branches if branches else optimize_robot_elbow
+        found = search(grasp, score.noise, settings["optimizer_samples"],
+                       settings["optimizer_seed"], evaluate_with="fast", executor=executor)
+        found = getattr(found, "result", found)
         configs["optimizer"] = np.asarray(found.best_q, dtype=float)
         extra["seconds_optimizer"] = time.perf_counter() - start
         extra["optimizer_own_p_fc"] = found.best_p_fc
@@ -375,7 +385,7 @@ def evaluate_task(env, model, obs, score: Scorer, settings: dict, rng: np.random
     grasp, q0 = env.grasp, env.q.copy()
     configs, extra = choose(env, model, obs, grasp, q0, score, settings, executor)
     row = {"object": grasp.object, "grasp": grasp.id,
-           "elbow_nominal": float(env.ik.elbow_angle(q0[None])[0])}
+           "elbow_nominal": env.elbow_angle(q0)}
     for method in [*METHODS, *(m for m in OPTIONAL_METHODS if m in configs)]:
         if method == "random":
             angles = rng.uniform(-math.pi, math.pi, settings["random_angles"])
@@ -384,8 +394,8 @@ def evaluate_task(env, model, obs, score: Scorer, settings: dict, rng: np.random
                                          for p in angles]))
         else:
             row[method] = score(grasp, configs[method], settings["draws"])
-        row[f"elbow_{method}"] = (float(env.ik.elbow_angle(configs[method][None])[0])
-                                  if method in configs else None)
+        row[f"elbow_{method}"] = (env.elbow_angle(configs[method]) if method in configs
+                                  else None)
     row.update(extra)
     return row
 
@@ -404,7 +414,7 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
              seed: int, processes: int = 1, limit: int | None = None,
              random_angles: int = 4, optimizer_samples: int = 0,
              optimizer_seed: int | None = None, grasp_file: str | None = None,
-             engine: str = "pybullet") -> dict:
+             engine: str = "pybullet", robot: str = "kuka_sdh") -> dict:
     """Evaluate every method on the held-out grasps, or on every grasp of ``grasp_file``
     (see the module docstring); the result holds the settings, one row per grasp and
     :func:`summarize`'s fields.
@@ -424,11 +434,15 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     tasks_from = ({"grasp_file": grasp_file} if grasp_file is not None
                   else {"split": "test"})
     try:
-        env = gym.make("KineGraspSelect-v0", n_draws=1, **tasks_from,
+        env = gym.make("KineGraspSelect-v0", n_draws=1, robot=robot, **tasks_from,
                        action_bins=None if bins is None else int(bins)).unwrapped
     except ValueError as error:  # a grasp file naming an object not in the catalog, ...
         raise UsageError(f"--grasp-file: {error}; for agents/grasps/*.json, run "
                          "agents/prepare.py first") from None
+    if model.observation_space.shape != env.observation_space.shape:
+        raise UsageError(f"{model_path} observes {model.observation_space.shape[0]} values; "
+                         f"the env of robot {robot!r} gives {env.observation_space.shape[0]} (a "
+                         "model of another robot? --robot names the one it was trained on)")
     settings = {"draws": draws, "oracle_draws": oracle_draws, "grid": grid,
                 "random_angles": random_angles, "optimizer_samples": optimizer_samples,
                 "optimizer_seed": seed + 1 if optimizer_seed is None else optimizer_seed}
@@ -443,7 +457,8 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
             obs, _ = env.reset(seed=seed, options={"object": name, "grasp": index, "sigma": sigma})
             rows.append(evaluate_task(env, model, obs, score, settings, rng, executor))
     env.close()
-    result = {"model": str(model_path), "grasp_file": grasp_file, "engine": engine,
+    result = {"model": str(model_path), "robot": robot, "grasp_file": grasp_file,
+              "engine": engine,
               "sigma": sigma, "draws": draws,
               "oracle_draws": oracle_draws, "grid": grid, "seed": seed,
               "random_angles": random_angles,
@@ -510,6 +525,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "shipped sets' held-out split")
     parser.add_argument("--engine", default="pybullet", choices=("pybullet", "fast"),
                         help="engine of the scoring draws")
+    parser.add_argument("--robot", default="kuka_sdh",
+                        help="catalog robot the model was trained on (train.py --env-kwarg "
+                             "robot=NAME): its held-out grasps, its env, its engines")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--limit", type=int, default=None,
@@ -542,6 +560,13 @@ def check_args(args) -> None:
         raise UsageError(f"--optimizer-samples must be >= 0, got {args.optimizer_samples}")
     if args.limit is not None and args.limit < 1:
         raise UsageError(f"--limit must be >= 1, got {args.limit}")
+    from kinegrasp_env.robot.catalog import check_robot_name
+    from kinegrasp_env.robot.description import RobotDescriptionError
+
+    try:
+        check_robot_name(args.robot)
+    except RobotDescriptionError as error:
+        raise UsageError(f"--robot: {error}") from None
 
 
 def run_summarize(path: str) -> int:
@@ -596,7 +621,7 @@ def main(argv: list[str] | None = None) -> int:
                           random_angles=args.random_angles,
                           optimizer_samples=args.optimizer_samples,
                           optimizer_seed=args.optimizer_seed, grasp_file=args.grasp_file,
-                          engine=args.engine)
+                          engine=args.engine, robot=args.robot)
     except UsageError as error:
         print(f"evaluate: error: {error}", file=sys.stderr)
         return 2

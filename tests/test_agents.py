@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import sys
@@ -272,6 +273,8 @@ def test_summarize_bad_file_one_line_error(tmp_path, capsys, content, needle):
     # the tests' empty catalog: the held-out blobs are not imported (agents/prepare.py is not
     # run), and the file is refused in one line naming the object
     (["--grasp-file", str(ROOT / "agents" / "grasps" / "test.json")], "'blob200'"),
+    (["--robot", "pandaa"], "--robot: unknown robot 'pandaa'"),
+    (["--robot", "panda"], "observes 44 values; the env of robot 'panda' gives"),
 ])
 def test_evaluate_bad_arguments_one_line_error(capsys, argv, needle):
     assert evaluate_module.main(argv) == 2
@@ -389,6 +392,45 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     env.close()
     for method, (mean, _, _) in evaluate_module.summarize(result["rows"])["mean_p_fc"].items():
         assert result["mean_p_fc"][method][0] == mean == row[method]
+
+
+@pytest.mark.expensive
+def test_a_policy_of_another_robot_trains_and_is_evaluated(tmp_path):
+    """A policy trained on the Panda's env (``train.py --env-kwarg robot=panda``) is evaluated
+    on the Panda's held-out grasps: each method's P(FC) is ``evaluate --robot panda``'s draws
+    at its configuration (``evaluate_robot_grasp``, recomputed here for the nominal and the
+    optimizer's), the optimizer's elbow angle that of its configuration along the Panda's own
+    self-motion, and the configurations keep the grasp's palm pose (the Panda's forward
+    kinematics)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.kinematics import Kinematics
+    from kinegrasp_env.robot.null_motion import ArmSelfMotion
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    train.train("KineGraspSelect-v0", "ppo", seed=0, out=tmp_path, total_timesteps=64,
+                progress=False, overrides={"robot": "panda"})
+    model = tmp_path / "KineGraspSelect-v0_ppo.zip"
+    result = evaluate_module.evaluate(str(model), 0.0233, draws=20, oracle_draws=5, grid=3,
+                                      seed=0, limit=1, optimizer_samples=20, robot="panda")
+    assert result["robot"] == "panda"
+    row = result["rows"][0]
+    grasp = next(g for g in shipped_grasps(row["object"], "panda") if g.id == row["grasp"])
+    nominal = evaluate_robot_grasp(grasp, sigma=0.0233, n=20, seed=0, engine="pybullet")
+    assert row["nominal"] == nominal.p_fc
+    found = optimize_robot_elbow(grasp, JointNoise(0.0233), 20, 1, evaluate_with="fast")
+    moved = dataclasses.replace(grasp, q0=found.best_q)
+    assert row["optimizer"] == evaluate_robot_grasp(moved, sigma=0.0233, n=20, seed=0,
+                                                    engine="pybullet").p_fc
+    description = load_robot("panda")
+    assert row["elbow_optimizer"] == pytest.approx(float(
+        ArmSelfMotion(description).elbow_angle(found.best_q[None])[0]), abs=1e-12)
+    kinematics = Kinematics(description.model)
+    np.testing.assert_allclose(kinematics.pose(found.best_q[None], description.palm_link),
+                               kinematics.pose(np.asarray(grasp.q0)[None],
+                                               description.palm_link), atol=1e-8)
 
 
 # ------------------------------------------------------------- open-world data

@@ -248,6 +248,14 @@ class KineGraspEnv(gym.Env):
         the default robot: see ``ik``)."""
         return None if self._robot is None else self._robot.motion
 
+    def elbow_angle(self, q: np.ndarray) -> float:
+        """The elbow angle psi (radians) of configuration q (dof,) of the env's robot: along
+        a 7-joint arm's self-motion, or a 6-joint arm's branch coordinate (the centre of its
+        IK branch's bin), as :meth:`configuration_at` takes it."""
+        q = np.asarray(q, dtype=float)[None]
+        motion = self.ik if self._robot is None else self._robot.motion
+        return float(motion.elbow_angle(q)[0])
+
     def configuration_at(self, psi: float,
                          start: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
         """The arm moved along its self-motion to elbow angle ``psi`` (radians).
