@@ -14,12 +14,12 @@ t-test, one comparison; :func:`compare_results`):
     python agents/evaluate.py --compare agents/models/evaluation_openworld.json \
         agents/models/evaluation_openworld_builtin_policy.json
 
-**Scoring.** For every grasp of the held-out ``test`` split (grasp index i % 4 == 3 of each
-object's shipped set), or with ``--grasp-file`` every grasp of that file, at noise
-``--sigma``, the arm configuration chosen by each method is evaluated with ``--draws`` Monte
-Carlo draws of ``--engine`` (default the reference, pybullet) on chunks ``0..K-1`` of
-``--seed`` (K = ceil(draws / 250)), the same draws for every method (common random
-numbers).
+**Scoring.** For every grasp of the held-out ``test`` split of the robot's shipped sets
+(``--robot``, default the one the model was trained on) (grasp index i % 4 == 3 of each
+object's set), or with ``--grasp-file`` every grasp of that file, at noise ``--sigma``, the arm
+configuration chosen by each method is evaluated with ``--draws`` Monte Carlo draws of
+``--engine`` (default the reference, pybullet) on chunks ``0..K-1`` of ``--seed`` (K =
+ceil(draws / 250)), the same draws for every method (common random numbers).
 
 **Methods.** ``nominal`` (the grasp's IK configuration); ``random`` (the mean over
 ``--random-angles`` uniformly drawn elbow angles, ``--draws`` in all: the expected P(FC) of
@@ -27,11 +27,12 @@ picking the elbow at random); ``spread`` (no learning: of the oracle's grid, the
 smallest palm-position spread per unit joint noise, sqrt(trace(J_p J_p^T))); ``policy`` (the
 trained model, deterministic); ``oracle`` (the best of a grid of ``--grid`` elbow angles by
 ``--oracle-draws`` draws each, drawn on chunks ``K, K+1, ...`` of the seed: selection draws
-independent of the scoring draws; ``--oracle-draws 0`` leaves it out); ``optimizer`` (the reference,
-:func:`kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow` with ``--optimizer-samples``
-fast-engine draws per angle and seed ``--optimizer-seed``, default seed + 1: its selection draws are
-independent of the scoring draws too; ``--optimizer-samples 0`` leaves it out). Each row also
-records the decision time of the methods that decide (``seconds_<method>``, wall clock).
+independent of the scoring draws; ``--oracle-draws 0`` leaves it out); ``optimizer`` (the
+reference, :func:`kinegrasp_env.toolkit.elbow_search.optimize_robot_elbow` (a 6-joint arm:
+``optimize_robot_branches``) with ``--optimizer-samples`` fast-engine draws per angle and seed
+``--optimizer-seed``, default seed + 1: its selection draws are independent of the scoring
+draws too; ``--optimizer-samples 0`` leaves it out). Each row also records the decision time of
+the methods that decide (``seconds_<method>``, wall clock).
 
 **Statistics** (:func:`summarize`, from the per-grasp rows alone; n = number of grasps):
 
@@ -197,7 +198,9 @@ def resummarize(result: dict) -> dict:
 
 #: Settings that fix the scoring draws: two results that agree on them (and on the grasps)
 #: scored every configuration on the same draws, so their rows can be paired.
-SCORING_SETTINGS = ("sigma", "draws", "seed", "engine")
+SCORING_SETTINGS = ("sigma", "draws", "seed", "engine", "robot")
+#: A result's setting where it has none (results from before it was recorded).
+SETTING_DEFAULTS = {"engine": "pybullet", "robot": "kuka_sdh"}
 
 
 def compare_results(a: dict, b: dict, method: str = "policy") -> dict:
@@ -249,8 +252,9 @@ def _first_difference(a: list, b: list) -> int:
 
 
 def _setting(result: dict, key: str):
-    """A scoring setting of a result (results from before ``engine`` was recorded: pybullet)."""
-    return result.get(key, "pybullet" if key == "engine" else None)
+    """A scoring setting of a result (results from before it was recorded:
+    :data:`SETTING_DEFAULTS`)."""
+    return result.get(key, SETTING_DEFAULTS.get(key))
 
 
 def write_json_atomic(path: Path, payload: dict) -> None:
@@ -334,7 +338,7 @@ class Scorer:
 
 def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict,
            executor) -> tuple[dict, dict]:
-    """Each deciding method's configuration (14,) for the current task, and a dict of
+    """Each deciding method's configuration (dof,) for the current task, and a dict of
     extra row entries (decision times in seconds, the oracle's selection estimates)."""
     def reach(psi: float) -> np.ndarray:
         return env.configuration_at(psi, q0)[0]
@@ -375,7 +379,9 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
         extra["seconds_optimizer"] = time.perf_counter() - start
         extra["optimizer_own_p_fc"] = found.best_p_fc
         # its selection curve, [psi (rad), P(FC)] per evaluated angle (fast engine)
-        extra["optimizer_curve"] = [[round(p.psi, 4), p.p_fc] for p in found.curve]
+        # a 6-joint arm's curve is over its IK branches: each at the env's coordinate
+        extra["optimizer_curve"] = [[round(env.elbow_angle(p.q) if branches else p.psi, 4),
+                                     p.p_fc] for p in found.curve]
     return configs, extra
 
 
@@ -410,11 +416,29 @@ def load_model(model_path: str):
     return (SAC if "_sac" in path.stem else PPO).load(path, device="cpu")
 
 
+def model_robot(model_path: str, robot: str | None) -> str:
+    """The robot a model is evaluated on: ``robot``, else the one its training summary
+    (``<model>.json`` beside it, ``train.py``'s) names, else the default robot; a ``robot``
+    other than the summary's is a UsageError."""
+    summary = Path(model_path).with_suffix(".json")
+    trained = None
+    if summary.is_file():
+        try:
+            kwargs = json.loads(summary.read_text()).get("env_kwargs") or {}
+        except (json.JSONDecodeError, AttributeError):
+            kwargs = {}
+        trained = kwargs.get("robot", SETTING_DEFAULTS["robot"])
+    if robot is not None and trained is not None and robot != trained:
+        raise UsageError(f"--robot {robot}: {model_path} was trained on robot {trained!r} "
+                         f"({summary})")
+    return robot or trained or SETTING_DEFAULTS["robot"]
+
+
 def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid: int,
              seed: int, processes: int = 1, limit: int | None = None,
              random_angles: int = 4, optimizer_samples: int = 0,
              optimizer_seed: int | None = None, grasp_file: str | None = None,
-             engine: str = "pybullet", robot: str = "kuka_sdh") -> dict:
+             engine: str = "pybullet", robot: str | None = None) -> dict:
     """Evaluate every method on the held-out grasps, or on every grasp of ``grasp_file``
     (see the module docstring); the result holds the settings, one row per grasp and
     :func:`summarize`'s fields.
@@ -430,6 +454,7 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
     from kinegrasp_env.sampling.noise import JointNoise
 
     model = load_model(model_path)
+    robot = model_robot(model_path, robot)
     bins = getattr(model.action_space, "n", None)  # a policy over Discrete(bins) elbow angles
     tasks_from = ({"grasp_file": grasp_file} if grasp_file is not None
                   else {"split": "test"})
@@ -437,9 +462,12 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
         env = gym.make("KineGraspSelect-v0", n_draws=1, robot=robot, **tasks_from,
                        action_bins=None if bins is None else int(bins)).unwrapped
     except ValueError as error:  # a grasp file naming an object not in the catalog, ...
+        if grasp_file is None:
+            raise UsageError(f"--robot {robot}: {error}") from None
         raise UsageError(f"--grasp-file: {error}; for agents/grasps/*.json, run "
                          "agents/prepare.py first") from None
     if model.observation_space.shape != env.observation_space.shape:
+        env.close()
         raise UsageError(f"{model_path} observes {model.observation_space.shape[0]} values; "
                          f"the env of robot {robot!r} gives {env.observation_space.shape[0]} (a "
                          "model of another robot? --robot names the one it was trained on)")
@@ -525,9 +553,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "shipped sets' held-out split")
     parser.add_argument("--engine", default="pybullet", choices=("pybullet", "fast"),
                         help="engine of the scoring draws")
-    parser.add_argument("--robot", default="kuka_sdh",
+    parser.add_argument("--robot",
                         help="catalog robot the model was trained on (train.py --env-kwarg "
-                             "robot=NAME): its held-out grasps, its env, its engines")
+                             "robot=NAME; default: the one its training summary names, else "
+                             "kuka_sdh): its held-out grasps, its env, its engines")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--processes", type=int, default=2)
     parser.add_argument("--limit", type=int, default=None,
@@ -564,7 +593,8 @@ def check_args(args) -> None:
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     try:
-        check_robot_name(args.robot)
+        if args.robot is not None:
+            check_robot_name(args.robot)
     except RobotDescriptionError as error:
         raise UsageError(f"--robot: {error}") from None
 

@@ -274,7 +274,8 @@ def test_summarize_bad_file_one_line_error(tmp_path, capsys, content, needle):
     # run), and the file is refused in one line naming the object
     (["--grasp-file", str(ROOT / "agents" / "grasps" / "test.json")], "'blob200'"),
     (["--robot", "pandaa"], "--robot: unknown robot 'pandaa'"),
-    (["--robot", "panda"], "observes 44 values; the env of robot 'panda' gives"),
+    (["--robot", "panda"], "--robot panda: agents/models/KineGraspSelect-v0_ppo.zip was "
+                           "trained on robot 'kuka_sdh'"),
 ])
 def test_evaluate_bad_arguments_one_line_error(capsys, argv, needle):
     assert evaluate_module.main(argv) == 2
@@ -413,8 +414,9 @@ def test_a_policy_of_another_robot_trains_and_is_evaluated(tmp_path):
     train.train("KineGraspSelect-v0", "ppo", seed=0, out=tmp_path, total_timesteps=64,
                 progress=False, overrides={"robot": "panda"})
     model = tmp_path / "KineGraspSelect-v0_ppo.zip"
+    assert evaluate_module.model_robot(str(model), None) == "panda"  # its training summary
     result = evaluate_module.evaluate(str(model), 0.0233, draws=20, oracle_draws=5, grid=3,
-                                      seed=0, limit=1, optimizer_samples=20, robot="panda")
+                                      seed=0, limit=1, optimizer_samples=20)
     assert result["robot"] == "panda"
     row = result["rows"][0]
     grasp = next(g for g in shipped_grasps(row["object"], "panda") if g.id == row["grasp"])
