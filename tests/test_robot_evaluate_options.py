@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from kinegrasp_env.cli import main
 from kinegrasp_env.robot.catalog import load_robot
@@ -42,6 +43,16 @@ def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
     assert main([*args, "--elbow", "3.0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "out of reach" in err[0]
+    # the range it names: its ends are reached (the palm kept), 0.2 rad past them is not
+    lo, hi = (float(v) for v in err[0].split("reachable ")[1].split(" rad")[0].split(" .. "))
+    for psi in (lo, hi):
+        end = robot_grasp_at_elbow(grasp, "panda", repr(psi))
+        np.testing.assert_allclose(
+            kin.pose(end.q0[None], description.palm_link),
+            kin.pose(np.asarray(grasp.q0)[None], description.palm_link), atol=1e-9)
+    for psi in (lo - 0.2, hi + 0.2):
+        with pytest.raises(ValueError, match="out of reach"):
+            robot_grasp_at_elbow(grasp, "panda", repr(psi))
 
 
 def test_rank_json_for_any_robot(capsys, tmp_path):

@@ -17,7 +17,6 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     add_static_hold_arg,
     engine_name,
-    finite_float,
     friction_from,
     grasp_index_help,
     noise_from,
@@ -61,7 +60,10 @@ def cmd_evaluate(args) -> int:
         with reported(ValueError):
             check_hold_scores_noise(noise, static=args.static_hold, test=args.hold_test)
     if args.elbow is not None:
-        grasp = grasp_at_elbow(grasp, args.elbow)
+        from kinegrasp_env.cli.robot_grasps import robot_grasp_at_elbow
+
+        with reported(ValueError):  # out of reach: the message names the reachable range
+            grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
     engine = engine_name(args.engine)
     if args.plot:
         output_file(args.plot, "--plot")
@@ -136,17 +138,6 @@ def quick_hold_record(grasp, noise, seed: int, samples: int, friction: float,
     return {"p_hold": float(held.mean()),
             "p_hold_ci": list(wilson_interval(int(held.sum()), int(held.size))),
             "hold_simulator": simulator}
-
-
-def grasp_at_elbow(grasp, text: str):
-    """``--elbow PSI``: the grasp reached with the arm moved along its self-motion to elbow
-    angle PSI (radians; same palm pose, same nominal contacts)."""
-    from kinegrasp_env.toolkit.elbow import configuration_at, with_configuration
-
-    psi = finite_float(text, "--elbow")
-    with reported(ValueError):  # out of reach: the message names the reachable range
-        q = configuration_at(grasp, psi)
-    return with_configuration(grasp, q, psi)
 
 
 def cmd_reproduce(args) -> int:

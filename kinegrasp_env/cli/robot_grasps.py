@@ -240,12 +240,12 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
 
 
 def robot_grasp_at_elbow(grasp, robot: str, text: str):
-    """``evaluate --elbow PSI`` of a description robot: the grasp with its arm moved along a
-    7-joint arm's self-motion to elbow angle PSI (radians), or onto the IK branch of a
-    6-joint arm whose coordinate bin holds PSI
-    (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`, as the envs have it); the palm
-    pose kept. A bad or unreachable angle, or a 7-joint arm without ``arm_angle_links``, is
-    a ValueError line."""
+    """``evaluate --elbow PSI`` of any robot: the grasp with its arm moved along a 7-joint
+    arm's self-motion to elbow angle PSI (radians), or onto the IK branch of a 6-joint arm
+    whose coordinate bin holds PSI (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`,
+    as the envs have it); the palm pose kept. A bad or unreachable angle (the line names the
+    reachable range: :func:`reachable_range`), or a 7-joint arm without ``arm_angle_links``,
+    is a ValueError line."""
     import dataclasses
 
     import numpy as np
@@ -261,8 +261,21 @@ def robot_grasp_at_elbow(grasp, robot: str, text: str):
     moved, ok = motion.set_elbow_angle(q0, psi)
     if not ok:
         psi0 = float(motion.elbow_angle(q0[None])[0])
+        lo, hi = reachable_range(grasp)
         raise ValueError(f"elbow angle {psi:g} rad is out of reach for grasp {grasp.id} of "
-                         f"{grasp.object} (nominal {psi0:.3f} rad: the self-motion leaves the "
-                         f"joint limits on the way)")
+                         f"{grasp.object} (nominal {psi0:.3f}; reachable {lo:.3f} .. "
+                         f"{hi:.3f} rad)")
     return dataclasses.replace(grasp, q0=moved, id=f"{grasp.id}@{wrap_angle(psi):.3f}",
                                meta={**grasp.meta, "elbow_angle": psi})
+
+
+def reachable_range(grasp) -> tuple[float, float]:
+    """(lowest, highest) elbow angle (radians) of the grasp's reachable self-motion: the
+    angles ``kinegrasp elbow`` walks (:func:`~kinegrasp_env.toolkit.elbow_search.
+    robot_reachable_configurations`: within the joint limits, the arm clear of the object)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.toolkit.elbow_search import robot_reachable_configurations
+
+    with RobotReferenceEngine(grasp.robot, grasp.object) as engine:
+        reach = robot_reachable_configurations(grasp, engine)
+    return reach[0][0], reach[-1][0]
