@@ -22,8 +22,9 @@ re-weighted batch); what both share lives here:
    reported with it.
 
 :func:`reachable_configurations`, :func:`configuration_at` and :func:`with_configuration`
-move a grasp of the default robot along its self-motion with its planner's IK
-(``evaluate --elbow`` and the agents' evaluation use them).
+move a grasp of the default robot along its self-motion with its planner's IK (the
+benchmarks' calibration cases use them, and the tests as an independent IK to check the
+shared walk against).
 """
 
 from __future__ import annotations
