@@ -245,10 +245,7 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
     closed: dict[tuple, np.ndarray] = {}
     y: dict[str, np.ndarray] = {}
     for done, (name, factor_rows) in enumerate(settings, 1):
-        rows = ["0"] * arm + list(factor_rows[len(groups):])
-        for (_, joints), r in zip(groups, factor_rows, strict=False):
-            for j in joints:
-                rows[j] = r
+        rows = _column_rows(factor_rows, groups, arm)
         key = tuple(r if j >= arm or noisy[j] else "0" for j, r in enumerate(rows))
         if key not in closed:
             closed[key] = _joint_fc(engine, description, q0, n, key, blocks, sources)
@@ -285,6 +282,18 @@ def _factor_settings(factors: tuple[str, ...]) -> list[tuple[str, tuple[str, ...
         out.append((f"alone:{name}", tuple("A" if i == j else "0" for i in range(k))))
         out.append((f"without:{name}", tuple("0" if i == j else "A" for i in range(k))))
     return out
+
+
+def _column_rows(factor_rows: tuple[str, ...], groups: list[tuple[str, tuple[int, ...]]],
+                 arm: int) -> list[str]:
+    """A setting's rows per column (each arm joint, then each source) from its rows per
+    factor: a joint factor's rows for each of its ``groups`` columns (joints in no group:
+    ``0``, exact), then the sources' rows as they are."""
+    rows = ["0"] * arm + list(factor_rows[len(groups):])
+    for (_, columns), r in zip(groups, factor_rows, strict=False):
+        for j in columns:
+            rows[j] = r
+    return rows
 
 
 def _joint_fc(engine: RobotEngine, description: RobotDescription, q0: np.ndarray, n: int,

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
@@ -49,7 +51,8 @@ def noisy_arms(description: RobotDescription, point: ElbowPoint, noise: JointNoi
     shown = 0 if point.outcome is None else min(int(arm_draws), len(point.outcome))
     q = chunk_configurations(point.q, description.arm_dof, noise.sigma, noise.kind, seed, 0,
                              shown)
-    return NoisyArms(q, point.outcome[:shown] if shown else point.q[:0].astype(int))
+    return NoisyArms(q, np.zeros(0, dtype=np.int8) if point.outcome is None
+                     else point.outcome[:shown])
 
 
 def headline(result: ElbowResult) -> str:
