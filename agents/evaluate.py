@@ -362,19 +362,12 @@ def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict
         extra["seconds_oracle"] = time.perf_counter() - start
         extra["oracle_grid_p_fc"] = quick
     if settings["optimizer_samples"] > 0:
-        from kinegrasp_env.toolkit.elbow_search import (
-            optimize_robot_branches,
-            optimize_robot_elbow,
-        )
+        from kinegrasp_env.toolkit.elbow_search import optimize_variants
 
         start = time.perf_counter()
-        from kinegrasp_env.robot.catalog import load_robot
-
-        branches = load_robot(env.robot).arm_dof == 6  # a 6-joint arm: its IK branches
-        search = optimize_robot_branches if branches else optimize_robot_elbow
-        found = search(grasp, score.noise, settings["optimizer_samples"],
-                       settings["optimizer_seed"], evaluate_with="fast", executor=executor)
-        found = getattr(found, "result", found)
+        found, branches = optimize_variants(grasp, score.noise, settings["optimizer_samples"],
+                                            settings["optimizer_seed"], evaluate_with="fast",
+                                            executor=executor)
         configs["optimizer"] = np.asarray(found.best_q, dtype=float)
         extra["seconds_optimizer"] = time.perf_counter() - start
         extra["optimizer_own_p_fc"] = found.best_p_fc

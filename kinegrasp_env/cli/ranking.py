@@ -46,19 +46,16 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
     independent of the choice."""
     from tqdm import tqdm
 
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches, optimize_robot_elbow
+    from kinegrasp_env.toolkit.elbow_search import optimize_variants
 
-    branches = load_robot(robot).arm_dof == 6
-    search = optimize_robot_branches if branches else optimize_robot_elbow
     kinematic = "fast" if engine == "physics" else engine
     moved = []
     for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
                       file=sys.stderr, disable=None):
         with reported(ValueError):  # an arm without self-motion or branches
-            best = search(grasp, noise, samples, seed + 1, friction=friction,
-                          evaluate_with=kinematic, executor=executor)
-        best = best.result if branches else best
+            best, branches = optimize_variants(grasp, noise, samples, seed + 1,
+                                               friction=friction, evaluate_with=kinematic,
+                                               executor=executor)
         meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
         moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
     return moved

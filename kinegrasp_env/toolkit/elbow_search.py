@@ -379,3 +379,16 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
     result = elbow_result(grasp, curve, curve[best], curve[nominal], float(nominal), noise,
                           samples, seed, scorer.name, 0.0, epsilon, delta)
     return BranchResult(result, branches, nominal, best)
+
+
+def optimize_variants(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int,
+                      seed: int = 0, **kwargs) -> tuple[ElbowResult, bool]:
+    """(the most robust variant of the grasp's arm configuration, whether the variants were
+    IK branches): along a 7-joint arm's self-motion (:func:`optimize_robot_elbow`), or across a
+    6-joint arm's IK branches (:func:`optimize_robot_branches`' result, its points' ``psi``
+    the branch indices); ``kwargs``: their options."""
+    from kinegrasp_env.robot.catalog import load_robot
+
+    if load_robot(grasp.robot).arm_dof == 6:
+        return optimize_robot_branches(grasp, noise, samples, seed, **kwargs).result, True
+    return optimize_robot_elbow(grasp, noise, samples, seed, **kwargs), False
