@@ -77,6 +77,38 @@ def test_shipped_palm_poses_round_trip():
         assert abs(got.q_nominal - want.q_nominal) < CONTACT_TOL
 
 
+def test_an_elbow_the_first_ik_branch_cannot_reach_is_a_default_robot_grasp():
+    """The mug's shipped grasps 2, 5 and 10 as palm poses at elbow 0.4 rad: the self-motion
+    of the IK's first solution leaves the joint limits before 0.4 rad (checked with the
+    default robot's own IK, robot/ik.py, written apart from the description's self-motion);
+    the default robot's candidates are solved as every robot's, on further IK branches, so
+    each is a grasp: its palm at the pose by pybullet's own forward kinematics (1e-6 m,
+    rad), its elbow angle 0.4 rad as robot/ik.py measures it."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.ik import ArmIK
+    from kinegrasp_env.robot.kinematics import Kinematics
+
+    obj = load_object("mug")
+    ik = ArmIK(Kinematics(kuka_sdh()))
+    chosen = [shipped_grasps("mug")[i] for i in (2, 5, 10)]
+    candidates = [PalmCandidate(g.id, np.linalg.inv(obj.pose) @ g.palm_pose, g.hand.copy(),
+                                0.4) for g in chosen]
+    home = np.concatenate([load_robot("kuka_sdh").home_arm(), np.zeros(7)])
+    for g in chosen:
+        seed = home.copy()
+        seed[7:] = g.hand
+        first = ik.solve(g.palm_pose, seed, rng=np.random.default_rng(0))
+        assert first.success[0]
+        assert not ik.set_elbow_angle(first.q[0], 0.4)[1][0]
+    grasps, rejected = solve_all("mug", candidates)
+    assert rejected == []
+    for want, got in zip(chosen, grasps, strict=True):
+        reached = pybullet_palm(got.q0)
+        assert np.abs(reached[:3, 3] - want.palm_pose[:3, 3]).max() < 1e-6
+        assert Rotation.from_matrix(reached[:3, :3].T @ want.palm_pose[:3, :3]).magnitude() < 1e-6
+        assert abs(float(ik.elbow_angle(got.q0[None])[0]) - 0.4) < 1e-6
+
+
 def test_rank_example_file_ranks_reachable_and_lists_rejected(tmp_path):
     out = tmp_path / "r.csv"
     proc = run_cli("rank", str(EXAMPLE), "--samples", "40", "--seed", "0", "--engine", "fast",

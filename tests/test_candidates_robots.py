@@ -330,7 +330,7 @@ def test_an_elbow_is_reached_on_whichever_ik_branch_reaches_it(object_name):
 
     from kinegrasp_env.robot.default_robot import urdf_path
     from kinegrasp_env.robot.ik import ArmIK
-    from kinegrasp_env.toolkit.robot_candidates import RobotCandidateSolver
+    from kinegrasp_env.toolkit.candidate_solver import CandidateSolver
     from kinegrasp_env.world.grasps import palm_pose_fields
 
     obj = load_object(object_name)
@@ -345,7 +345,7 @@ def test_an_elbow_is_reached_on_whichever_ik_branch_reaches_it(object_name):
                       == description.palm_link)
     actuated = description.arm_joints + description.hand_joints
     try:
-        with RobotCandidateSolver("kuka_sdh", object_name) as solver:
+        with CandidateSolver("kuka_sdh", object_name) as solver:
             for grasp in shipped_grasps(object_name):
                 fields = palm_pose_fields(grasp, obj.pose)
                 candidate = PalmCandidate(grasp.id, np.linalg.solve(obj.pose, grasp.palm_pose),

@@ -451,7 +451,7 @@ def test_home_defaults_to_the_middle_of_each_joints_range(tmp_path):
     assert bare.open == {j: min(max(0.0, limits[j][0]), limits[j][1]) for j in bare.hand_joints}
     assert d.arm_name == f"{d.name} arm"
     kuka = load_robot("kuka_sdh")
-    assert kuka.home_arm().tolist() == [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0]
+    assert kuka.home_arm().tolist() == [0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0]  # the yaml's
     assert kuka.arm_name == "KUKA iiwa"
 
 

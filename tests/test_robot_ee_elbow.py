@@ -96,9 +96,11 @@ def test_ee_of_the_panda_against_pybullet(capsys, panda_arm):
     assert np.all(np.abs(np.asarray(out["cov"]) - first) < 5 * se + 0.03 * np.abs(first))
 
 
-#: Regression pin: `kinegrasp kuka-ee --json` (defaults) as the command printed it before
-#: `ee` existed (commit c443c2e); its numbers compare to a few ulps (another numpy or BLAS
-#: build sums the moments in another order).
+#: The arm configuration the pins below were made at (radians): elbow bent, wrist turned back.
+PIN_Q0 = "0,0.6,0,-1.2,0,0.8,0"
+#: Regression pin: `kinegrasp kuka-ee --q0 PIN_Q0 --json` as the command printed it before
+#: `ee` existed (commit c443c2e, then its default configuration); its numbers compare to a few
+#: ulps (another numpy or BLAS build sums the moments in another order).
 KUKA_EE_PIN = {
     "mean": [0.7353164099714355, -0.00011131720917207549, 0.4351308797387478],
     "cov": [[1.947563870547703e-05, -6.917912568485009e-07, 1.7429969451658404e-05],
@@ -106,7 +108,8 @@ KUKA_EE_PIN = {
             [1.7429969451658404e-05, 9.509528426743483e-08, 0.00014276355440916781]],
     "skew": [-0.016250005925463842, -0.008629794906081885, 0.010284923626902339],
     "samples": 10000, "sigma": 0.0133, "noise": "gaussian", "seed": 0}
-#: Regression pin: `kinegrasp kuka-ee --samples 500 --seed 3 --noise uniform` (commit c443c2e).
+#: Regression pin: `kinegrasp kuka-ee --q0 PIN_Q0 --samples 500 --seed 3 --noise uniform`
+#: (commit c443c2e).
 KUKA_EE_TEXT_PIN = """KUKA palm position (500 draws)
   mean: [ 7.353625e-01 -5.543865e-04  4.352423e-01]
   cov:
@@ -118,24 +121,31 @@ KUKA_EE_TEXT_PIN = """KUKA palm position (500 draws)
 
 
 def test_kuka_ee_output_unchanged_and_ee_agrees(capsys):
-    out = run_json(capsys, "kuka-ee", "--json")
+    out = run_json(capsys, "kuka-ee", "--q0", PIN_Q0, "--json")
     assert out.keys() == KUKA_EE_PIN.keys()
     for key, value in KUKA_EE_PIN.items():
         if key in ("mean", "cov", "skew"):
             np.testing.assert_allclose(out[key], value, rtol=1e-12, atol=1e-18)
         else:
             assert out[key] == value
-    assert main(["kuka-ee", "--samples", "500", "--seed", "3", "--noise", "uniform"]) == 0
+    assert main(["kuka-ee", "--q0", PIN_Q0, "--samples", "500", "--seed", "3", "--noise",
+                 "uniform"]) == 0
     assert capsys.readouterr().out == KUKA_EE_TEXT_PIN
     assert main(["kuka-ee", "--q0", "0,1,2"]) == 2
     assert capsys.readouterr().err.strip().endswith(
         "--q0: the arm of robot 'kuka_sdh' needs 7 joint angles, got 3")
     # `ee` on the default robot's description: the same draws, the same palm (the
     # description's model and the shipped one agree to float precision: measured 1e-16)
-    out = run_json(capsys, "ee", "--robot", "kuka_sdh", "--json")
+    out = run_json(capsys, "ee", "--robot", "kuka_sdh", "--q0", PIN_Q0, "--json")
     assert out["q0"] == [0.0, 0.6, 0.0, -1.2, 0.0, 0.8, 0.0]
     for key in ("mean", "cov", "skew"):
         assert np.allclose(out[key], KUKA_EE_PIN[key], rtol=1e-9, atol=1e-15), key
+    # without --q0 both start at the description's home, the IK's start (the same draws)
+    home = run_json(capsys, "ee", "--robot", "kuka_sdh", "--json")
+    assert home["q0"] == load_robot("kuka_sdh").home_arm().tolist()
+    default = run_json(capsys, "kuka-ee", "--json")
+    for key in ("mean", "cov", "skew"):
+        assert np.allclose(default[key], home[key], rtol=1e-9, atol=1e-15), key
 
 
 @pytest.mark.parametrize("args, message", [

@@ -10,10 +10,10 @@ open hand already in the object) and ``missed`` (fewer than 2 contacts, or a fin
 on nothing) leave no nominal contacts and are ValueErrors naming the outcome. The arm links
 are not checked against the object (the draws do not check them either).
 
-Any robot of the env: the default one (:func:`given_grasp`: 14 entries, the SDH's palm-pose
-fields, its IK) or a description robot (:func:`given_robot_grasp`: its actuated vector, its
-pre-shape as the description names it, its IK with the planner's restarts,
-:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`, and its engine's closing).
+Any robot of the env: the default one (:func:`given_grasp`: its engine's closing) or a
+description robot (:func:`given_robot_grasp`: its kinematic engine's closing); both take the
+robot's actuated vector and its pre-shape as the description names it, and reach a palm pose
+by every robot's one IK (:func:`palm_pose_configuration`).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
-from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
+from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 from kinegrasp_env.world.objects import is_object, load_object, unknown_object
 from kinegrasp_env.world.robot_configuration import check_configuration, robot_model
@@ -87,13 +87,17 @@ def palm_pose_candidate(entry, robot: RobotDescription | None = None) -> PalmCan
                            robot=robot)
 
 
-def palm_pose_configuration(ik: ArmIK, object_name: str, entry) -> tuple[np.ndarray, dict]:
-    """(q0 (14,), meta) reaching a ``palm_pose`` reset option of the default robot with the
-    object at its pose, by the planner's IK; ValueError for a malformed entry or an
-    unreachable pose."""
-    candidate = palm_pose_candidate(entry)
-    target = load_object(object_name).pose @ candidate.pose
-    q0, why = reach_palm_pose(ik, target, candidate.hand, candidate.elbow)
+def palm_pose_configuration(description: RobotDescription, kin, motion, object_name: str,
+                            entry) -> tuple[np.ndarray, dict]:
+    """(q0 (dof,), meta) reaching a ``palm_pose`` reset option of ``description``'s robot with
+    the object at its pose, by every robot's palm-pose IK
+    (:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`; ``kin`` the robot's
+    :class:`~kinegrasp_env.robot.kinematics.Kinematics`, ``motion`` its self-motion, used for
+    an ``elbow``); ValueError for a malformed entry or an unreachable pose."""
+    candidate = palm_pose_candidate(entry, description)
+    q0, why = reach_robot_palm_pose(kin, description,
+                                    load_object(object_name).pose @ candidate.pose,
+                                    candidate.hand, candidate.elbow, motion=motion)
     return reached(q0, why, object_name), {"id": candidate.id,
                                            "palm_pose_object": candidate.pose.tolist()}
 
@@ -140,7 +144,13 @@ def given_grasp(options: dict, key: str, engine_of: Callable[[str], Engine],
     if key == "q0":
         q0, meta = reset_q0(options["q0"]), {"id": "q0"}
     else:
-        q0, meta = palm_pose_configuration(ik, name, options["palm_pose"])
+        from kinegrasp_env.robot.catalog import load_robot
+        from kinegrasp_env.robot.null_motion import ArmSelfMotion
+
+        description = load_robot(DEFAULT_ROBOT)
+        q0, meta = palm_pose_configuration(description, ik.kin,
+                                           ArmSelfMotion(description, ik.kin), name,
+                                           options["palm_pose"])
     return nominal_grasp(engine_of(name), ik, name, q0, meta.pop("id"), key, meta)
 
 
@@ -152,12 +162,8 @@ def given_robot_grasp(options: dict, key: str, task: RobotTask) -> Grasp:
     if key == "q0":
         q0, meta = reset_q0(options["q0"], description.name), {"id": "q0"}
     else:
-        candidate = palm_pose_candidate(options["palm_pose"], description)
-        q0, why = reach_robot_palm_pose(task.kin, description,
-                                        load_object(name).pose @ candidate.pose,
-                                        candidate.hand, candidate.elbow, motion=task.motion)
-        q0 = reached(q0, why, name)
-        meta = {"id": candidate.id, "palm_pose_object": candidate.pose.tolist()}
+        q0, meta = palm_pose_configuration(description, task.kin, task.motion, name,
+                                           options["palm_pose"])
     draw = task.closing_engine(name).run(q0[None])
     check_closes(draw, name, key)
     grasp_id = meta.pop("id")

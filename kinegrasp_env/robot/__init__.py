@@ -16,7 +16,7 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "default_robot": ("kuka_sdh", "urdf_path"),
     "kinematics": ("Kinematics", "elbow_angle"),
     "ik": ("ArmIK", "IKResult"),
-    "palm_pose": ("PalmCandidate", "parse_palm_pose", "reach_palm_pose"),
+    "palm_pose": ("PalmCandidate", "parse_palm_pose"),
     "planar": ("PlanarArm",),
     "endeffector": ("ArmEndEffector",),
     "description": ("RobotDescription", "RobotDescriptionError", "load_description"),

@@ -22,11 +22,10 @@ last row 0 0 0 1). The pre-shape, radians or metres per hand joint:
 ``elbow`` (radians, optional) is the elbow angle to move to along the self-motion (a 7-joint
 arm with an arm angle).
 
-:func:`reach_palm_pose` solves an entry of the default robot as the planner does: IK from
-:data:`IK_SEED` with 4 random restarts seeded by :data:`IK_RNG_SEED` (the result does not
-depend on other candidates), then the self-motion to ``elbow`` when given. Used by
-``toolkit.candidates`` (which solves another robot's entries with that robot's planner IK)
-and the envs.
+The arm configuration that reaches an entry is found by every robot's one IK
+(:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`: from the description's ``home``,
+then random restarts seeded by :data:`IK_RNG_SEED`, so that the result does not depend on
+other entries; then the self-motion to ``elbow`` when given).
 """
 
 from __future__ import annotations
@@ -38,18 +37,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, kuka_sdh
-from kinegrasp_env.robot.ik import ArmIK
 
 if TYPE_CHECKING:
     from kinegrasp_env.robot.description import RobotDescription
 
-#: A comfortable seed for IK (the planner's): elbow up, palm forward; 7 arm joints, radians.
-IK_SEED = np.array([0.0, 0.7, 0.0, -1.3, 0.0, 0.9, 0.0])
 #: Seed of each palm pose's IK restarts (per pose: the result does not depend on order).
 IK_RNG_SEED = 0
-#: Random IK restarts after the seed, as the planner's.
-IK_RESTARTS = 4
 #: Tolerance of a unit quaternion's norm and of a rotation matrix's orthonormality.
 UNIT_TOL = 1e-6
 
@@ -215,42 +208,3 @@ def parse_palm_pose(entry, where: str, default_id: str = "0",
         raise ValueError(f"{where}: elbow: robot {robot.name!r} has no elbow angle (its "
                          f"arm has {robot.arm_dof} joints); leave elbow out")
     return PalmCandidate(str(entry.get("id", default_id)), pose, hand, elbow)
-
-
-def ik_seed(hand: np.ndarray) -> np.ndarray:
-    """(14,) IK start: the arm at :data:`IK_SEED`, the hand at ``hand`` (7,), radians."""
-    model = kuka_sdh()
-    seed = np.zeros(model.dof)
-    seed[model.index(ARM_JOINTS)] = IK_SEED
-    seed[7:] = hand
-    return seed
-
-
-def reach_palm_pose(ik: ArmIK, target: np.ndarray, hand: np.ndarray,
-                    elbow: float | None = None) -> tuple[np.ndarray | None, str]:
-    """(q (14,), "") whose palm is at ``target`` with pre-shape ``hand``, or (None, why).
-
-    Args:
-        ik: the arm's IK (palm link).
-        target: (4, 4) palm pose in the WORLD frame (the object's pose times the pose in the
-            object frame).
-        hand: (7,) pre-shape, radians.
-        elbow: elbow angle to move to along the self-motion (radians), or None for the IK's.
-
-    Returns:
-        The configuration, or None with why: no IK solution within the joint limits (the
-        closest miss in metres and radians), or an elbow angle the self-motion cannot reach.
-    """
-    result = ik.solve(target, ik_seed(hand), rng=np.random.default_rng(IK_RNG_SEED),
-                      restarts=IK_RESTARTS)
-    if not result.success[0]:
-        pos, rot = float(result.position_error[0]), float(result.orientation_error[0])
-        return None, (f"no IK solution within the joint limits (closest: {pos:.3g} m, "
-                      f"{rot:.3g} rad off)")
-    q = result.q[0]
-    if elbow is not None:
-        moved, ok = ik.set_elbow_angle(q, elbow)
-        if not ok[0]:
-            return None, f"elbow angle {elbow:g} rad leaves the joint limits"
-        q = moved[0]
-    return q, ""

@@ -1,5 +1,5 @@
-"""The toolkit: the grasp planner (``planner``), candidates given as palm poses (``candidates``; a
-description robot's solved by ``robot_candidates``), ranking by robustness (``ranking``;
+"""The toolkit: the grasp planner (``planner``), candidates given as palm poses (``candidates``;
+every robot's solved by ``candidate_solver``), ranking by robustness (``ranking``;
 certified, ``adaptive_ranking``), the most robust elbow of any robot (``elbow_search``; its
 results: ``elbow``), the paper's experiments (``experiments``), the sensitivity analysis per
 source of error (``sensitivity``), the physics validation (``validation``), HTML reports (the

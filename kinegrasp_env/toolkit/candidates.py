@@ -19,15 +19,14 @@ matrix) in the frame ``frame`` names (:data:`FRAMES`): ``object`` (the default) 
 the imported mesh's own frame, mapped to the object frame through the catalog entry's
 ``source_to_object`` (:func:`source_pose_to_object`). The pre-shape is ``hand`` by the
 robot's hand joint names or as a list in its description's order (one entry's schema, its
-parsing and the default robot's IK: :mod:`kinegrasp_env.robot.palm_pose`, which the envs'
+parsing: :mod:`kinegrasp_env.robot.palm_pose`, which the envs'
 ``palm_pose`` reset option shares).
 
-The default robot's candidates are solved like a planner candidate
-(:meth:`GraspPlanner.try_candidate`): IK from the planner's seed for the palm pose in the
-world frame (the object at its catalog pose), or moved along the self-motion to ``elbow``
-(radians) when given; the arm links must keep the planner's clearance; the hand closes with
-the reference engine. Another robot's are solved by its own planner's IK, clearance and
-reference engine (:mod:`kinegrasp_env.toolkit.robot_candidates`). A candidate that reaches
+Every robot's candidates are solved one way
+(:class:`~kinegrasp_env.toolkit.candidate_solver.CandidateSolver`): IK from the description's
+``home`` for the palm pose in the world frame (the object at its catalog pose), or moved
+along the self-motion to ``elbow`` (radians) when given; every link but the fingers must keep
+the planner's clearance; the hand closes with the robot's reference engine. A candidate that reaches
 and clears but whose nominal closing is not in force closure (the hand touches without it,
 or a finger closes on nothing) is still a grasp (Q = 0, ``meta["nominal_force_closure"]``
 False, ``meta["nominal_outcome"]`` the closing's outcome): dropping it would bias every
@@ -46,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
-from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose, reach_palm_pose
+from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose
 from kinegrasp_env.world.grasps import Grasp, read_json_file
 
 log = logging.getLogger(__name__)
@@ -244,68 +243,23 @@ def grasp_entry_as_candidate(entry, object_pose: np.ndarray, robot: str = DEFAUL
     return out
 
 
-def configuration(planner, candidate: PalmCandidate) -> tuple[np.ndarray | None, str]:
-    """(q (14,), "") reaching the candidate's palm pose, or (None, why) when unreachable:
-    :func:`~kinegrasp_env.robot.palm_pose.reach_palm_pose` with the object at its pose."""
-    return reach_palm_pose(planner.ik, planner.obj.pose @ candidate.pose, candidate.hand,
-                           candidate.elbow)
-
-
-def solve(planner, candidate: PalmCandidate, object_name: str) -> Grasp | Rejected:
-    """The default robot's candidate's grasp (IK, arm clearance, closing with the planner's
-    reference engine), or why it is rejected. ``planner``: a :class:`GraspPlanner` of the
-    object. A closing not in force closure is a grasp (Q = 0) whose
-    ``meta["nominal_force_closure"]`` is False."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, START_COLLISION
-    from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
-    from kinegrasp_env.robot.default_robot import PALM_LINK
-
-    q0, why = configuration(planner, candidate)
-    if q0 is None:
-        return Rejected(candidate.id, "unreachable", why)
-    if not planner.arm_clear(q0):
-        return Rejected(candidate.id, "arm_collision", "an arm link is within "
-                        "the planner's clearance of the object")
-    draw = planner.engine.run(q0[None])
-    outcome = int(draw.outcome[0])
-    if outcome == START_COLLISION:
-        name = OUTCOMES[outcome]
-        return Rejected(candidate.id, name, OUTCOME_DETAILS.get(name, name))
-    palm = planner.kin.pose(q0, PALM_LINK)[0]
-    psi = float(planner.ik.elbow_angle(q0[None])[0])
-    return grasp_from_draw(draw, object_name, q0, palm, grasp_id=candidate.id,
-                           meta={"elbow_angle": psi, "source": "palm_pose",
-                                 "nominal_force_closure": outcome == FORCE_CLOSURE,
-                                 "nominal_outcome": OUTCOMES[outcome]})
-
-
 def solve_all(object_name: str, candidates: list[PalmCandidate], robot: str = DEFAULT_ROBOT,
               friction: float = 0.5) -> tuple[list[Grasp], list[Rejected]]:
     """(grasps of the accepted candidates, rejected candidates), both in file order;
     ``robot``: the catalog robot the candidates are of (their poses in the object frame);
     ``friction``: the mu their nominal closings are scored with."""
+    from kinegrasp_env.toolkit.candidate_solver import CandidateSolver
+
     grasps, rejected = [], []
-    if robot == DEFAULT_ROBOT:
-        from kinegrasp_env.toolkit.planner import GraspPlanner
-
-        planner = GraspPlanner(object_name, friction=friction)
-
-        def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
-            return solve(planner, candidate, object_name)
-    else:
-        from kinegrasp_env.toolkit.robot_candidates import RobotCandidateSolver
-
-        planner = RobotCandidateSolver(robot, object_name, friction=friction)
-
-        def solve_one(candidate: PalmCandidate) -> Grasp | Rejected:
-            result = planner.solve(candidate, object_name)
-            return result if isinstance(result, Grasp) else Rejected(candidate.id, *result)
+    solver = CandidateSolver(robot, object_name, friction=friction)
     try:
         for candidate in candidates:
-            result = solve_one(candidate)
+            result = solver.solve(candidate, object_name)
+            if not isinstance(result, Grasp):
+                result = Rejected(candidate.id, *result)
             (grasps if isinstance(result, Grasp) else rejected).append(result)
     finally:
-        planner.close()
+        solver.close()
     log.info("%s: %d of %d palm-pose candidates of robot %s accepted", object_name,
              len(grasps), len(candidates), robot)
     return grasps, rejected

@@ -25,10 +25,11 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, hand_joint_values, kuka_sdh
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.palm_pose import IK_SEED  # the planner's IK seed (one copy)
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.sim import HandWorld
@@ -82,6 +83,8 @@ class GraspPlanner:
         #: the batched kinematics of the arm and hand (14 joints)
         self.kin = Kinematics(self.model)
         self.ik = ArmIK(self.kin)
+        #: (7,) where the IK starts: the arm's ``home`` in the robot's description, radians
+        self.ik_start = load_robot(DEFAULT_ROBOT).home_arm()
         #: the open hand alone beside the object (the approach probe) and the arm's clearance
         self.world = HandWorld(self.obj)
         self.settings = settings or PlannerSettings()
@@ -189,7 +192,7 @@ class GraspPlanner:
                       rng: np.random.Generator) -> Grasp | None:
         """IK, clearance, auto-close and quality for one palm pose; None if rejected."""
         seed = np.zeros(self.model.dof)
-        seed[self.model.index(ARM_JOINTS)] = IK_SEED
+        seed[self.model.index(ARM_JOINTS)] = self.ik_start
         seed[7:] = preshape
         result = self.ik.solve(pose, seed, rng=rng, restarts=4)
         if not result.success[0]:

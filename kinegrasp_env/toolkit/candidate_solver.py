@@ -1,13 +1,14 @@
-"""Palm-pose candidates of a description robot (any catalog robot but the default one), solved
-as that robot's planner solves its own palm poses
-(:mod:`kinegrasp_env.toolkit.robot_planner`):
+"""Palm-pose candidates of any catalog robot, solved as the description robots' planner
+solves its own palm poses (:mod:`kinegrasp_env.toolkit.robot_planner`):
 
 1. **IK**: :func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose` for the palm pose in
-   the world frame (the object at its catalog pose), with the planner's restarts and
-   iterations (:class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`), its
-   random restarts seeded for each candidate (a candidate's configuration does not depend
-   on the others); then, when the candidate gives ``elbow``, the self-motion to that arm
-   angle (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
+   the world frame (the object at its catalog pose), from the description's ``home`` with the
+   planner's restarts and iterations
+   (:class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`), its random
+   restarts seeded for each candidate (a candidate's configuration does not depend on the
+   others); then, when the candidate gives ``elbow``, the self-motion to that arm angle
+   (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`), on a further IK branch where
+   the first one's self-motion leaves the joint limits before it.
 2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
    from the object (:func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`).
 3. **Closing**: the robot's reference engine
@@ -37,8 +38,8 @@ from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, cleara
 from kinegrasp_env.world.grasps import Grasp
 
 
-class RobotCandidateSolver:
-    """Solve palm-pose candidates of one description robot on one catalog object.
+class CandidateSolver:
+    """Solve palm-pose candidates of one catalog robot on one catalog object.
 
     Args:
         robot: a catalog robot's name or its description.
@@ -59,7 +60,7 @@ class RobotCandidateSolver:
     def close(self) -> None:
         self.engine.close()
 
-    def __enter__(self) -> RobotCandidateSolver:
+    def __enter__(self) -> CandidateSolver:
         return self
 
     def __exit__(self, *exc) -> None:
