@@ -203,6 +203,36 @@ def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsy
     assert not out.exists()
 
 
+def test_rank_best_elbow_log_of_an_older_kinegrasp_is_refused_before_the_search(
+        tmp_path, monkeypatch, capsys):
+    """A ``--best-elbow`` log records the engine the elbows were chosen with; a log without it
+    (an older kinegrasp, whose added robots chose with another engine) is refused in one line
+    naming that setting, before any elbow is searched, and the log is left as it was."""
+    from kinegrasp_env.cli import ranking
+
+    candidates = _cube_candidates(tmp_path, count=2)
+    out = tmp_path / "r.csv"
+    partial = tmp_path / "r.csv.partial.jsonl"
+    args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast",
+            "--best-elbow", "20", "--out", str(out)]
+    searched = []
+    with monkeypatch.context() as patch:  # the elbows as they are: only the log matters here
+        patch.setattr(ranking, "best_elbows", lambda grasps, *a, **k: searched.append(1)
+                      or grasps)
+        _stopped_run(tmp_path, monkeypatch, args)
+        (settings,), _ = _log(partial)
+        assert settings["settings"]["best_elbow_engine"] == "fast"
+        del settings["settings"]["best_elbow_engine"]
+        partial.write_text(json.dumps(settings) + "\n")
+        log, searched[:] = partial.read_text(), []
+        capsys.readouterr()
+        assert cli.main(args) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and ('(the engine --best-elbow chose with (a log of an older '
+                                'kinegrasp): "not recorded" there, "fast" now)') in lines[0]
+    assert searched == [] and partial.read_text() == log and not out.exists()
+
+
 def test_rank_criterion_is_not_a_resume_setting(tmp_path, monkeypatch, capsys):
     """--criterion only orders finished candidates: a run stopped under one criterion
     resumes under another, to the CSV an uninterrupted run with that criterion writes."""

@@ -48,7 +48,7 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
 
     from kinegrasp_env.toolkit.elbow_search import optimize_variants
 
-    kinematic = "fast" if engine == "physics" else engine
+    kinematic = elbow_engine(engine)
     moved = []
     for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
                       file=sys.stderr, disable=None):
@@ -59,6 +59,12 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
         meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
         moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
     return moved
+
+
+def elbow_engine(engine: str) -> str:
+    """The engine ``--best-elbow`` chooses with under the ranking's ``engine``: that one, or
+    the fast one for the physics engine."""
+    return "fast" if engine == "physics" else engine
 
 
 def _merge_side(result: CandidateResult, side: dict[int, CandidateResult]) -> None:
@@ -167,7 +173,15 @@ def cmd_rank(args) -> int:
                        "cannot resume; delete it, or resume without --adaptive")
     if args.best_elbow:  # a different candidate set: part of the resume settings
         settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
+        settings["best_elbow_engine"] = elbow_engine(engine)
     with executor_from(args) as executor:
+        done = {}
+        if not args.adaptive:  # a log of other settings is refused before any draw
+            existed = partial.exists()
+            done = resume.resume(partial, settings, len(grasps))
+            if existed:
+                print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
+                      f"{partial}", file=sys.stderr)
         if args.best_elbow:
             grasps = best_elbows(grasps, robot, noise, settings["best_elbow_samples"], seed,
                                  engine, executor, friction)
@@ -181,13 +195,6 @@ def cmd_rank(args) -> int:
                 executor=executor, side=side,
                 model=noise if args.noise_spec else None, hold_simulator=args.hold_simulator,
                 criterion=args.criterion)
-        done = {}
-        if not args.adaptive:
-            existed = partial.exists()
-            done = resume.resume(partial, settings, len(grasps))
-            if existed:
-                print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
-                      f"{partial}", file=sys.stderr)
         try:
             results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
                                       done, certify, side)

@@ -38,6 +38,7 @@ SETTING_LABELS = {
     "seed": "--seed",
     "noise_model": "--noise-spec",
     "best_elbow_samples": "--best-elbow",
+    "best_elbow_engine": "the engine --best-elbow chose with (a log of an older kinegrasp)",
     "robot": "--robot",
     "criterion_scores": "hold scores (static check, holding test)",
     "hold_simulator": "--hold-simulator",
