@@ -83,7 +83,8 @@ def test_an_elbow_the_first_ik_branch_cannot_reach_is_a_default_robot_grasp():
     default robot's own IK, robot/ik.py, written apart from the description's self-motion);
     the default robot's candidates are solved as every robot's, on further IK branches, so
     each is a grasp: its palm at the pose by pybullet's own forward kinematics (1e-6 m,
-    rad), its elbow angle 0.4 rad as robot/ik.py measures it."""
+    rad), its elbow angle 0.4 rad as robot/ik.py measures it, its joints within the model's
+    limits and its hand at the candidate's pre-shape."""
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.ik import ArmIK
     from kinegrasp_env.robot.kinematics import Kinematics
@@ -107,6 +108,8 @@ def test_an_elbow_the_first_ik_branch_cannot_reach_is_a_default_robot_grasp():
         assert np.abs(reached[:3, 3] - want.palm_pose[:3, 3]).max() < 1e-6
         assert Rotation.from_matrix(reached[:3, :3].T @ want.palm_pose[:3, :3]).magnitude() < 1e-6
         assert abs(float(ik.elbow_angle(got.q0[None])[0]) - 0.4) < 1e-6
+        assert kuka_sdh().within_limits(got.q0[None])[0]  # the branch within the limits
+        np.testing.assert_array_equal(got.q0[7:], want.hand)
 
 
 def test_rank_example_file_ranks_reachable_and_lists_rejected(tmp_path):

@@ -414,3 +414,37 @@ def test_an_elbow_the_first_ik_branch_cannot_reach_is_found_on_another():
             psi = float(ik.elbow_angle(q[None])[0])
             assert abs(np.angle(np.exp(1j * (psi - elbow)))) < 1e-6
     assert retried >= 3
+
+
+@pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])
+def test_an_unreachable_pose_reports_its_closest_attempt(robot):
+    """A palm pose 3 m away (out of reach): the arm the IK returns for it is its closest
+    attempt, so its miss (position plus rotation error, by the robot model's forward
+    kinematics) is no larger with 6 random restarts than from the description's home alone,
+    and the refusal's "closest" numbers are that arm's."""
+    import re
+
+    from kinegrasp_env.robot.kinematics import pose_error
+    from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose, solve_palm_ik
+    from kinegrasp_env.robot.palm_pose import IK_RNG_SEED
+
+    description = load_robot(robot)
+    kin = Kinematics(description.model)
+    target = np.eye(4)
+    target[:3, 3] = [3.0, 0.0, 0.2]
+    hand = description.open_configuration()[description.arm_dof:]
+
+    def miss(restarts: int) -> tuple[float, float]:
+        arm, ok = solve_palm_ik(kin, description, target[None],
+                                np.random.default_rng(IK_RNG_SEED), restarts=restarts)
+        assert not ok[0]
+        err = pose_error(kin.pose(np.concatenate([arm[0], hand])[None],
+                                  description.palm_link), target[None])[0]
+        return float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
+
+    home, restarted = miss(0), miss(6)
+    assert sum(restarted) <= sum(home) + 1e-12
+    q, why = reach_robot_palm_pose(kin, description, target, hand)
+    assert q is None
+    said = [float(v) for v in re.findall(r"closest: ([0-9.e+-]+) m, ([0-9.e+-]+) rad", why)[0]]
+    np.testing.assert_allclose(said, restarted, rtol=5e-3)  # 3 digits: half a unit, <= 5e-3

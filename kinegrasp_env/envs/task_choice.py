@@ -8,17 +8,17 @@ configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md; an
 robot's actuated vector) or ``palm_pose`` (one palm-pose entry in the object frame, the
 schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
 ``pose``, with ``spread`` or a 7-value ``hand`` (another robot: its pre-shape as its
-description names it), optional ``elbow``; solved by the planner's IK, see
-:mod:`kinegrasp_env.robot.palm_pose`); ``sigma`` and ``noise`` (or ``noise_model``); ``psi``
-(an elbow angle to start at). ``q0`` and ``palm_pose`` need ``object``, which may then be any
-built-in or imported object (not only the env's ``objects``); the nominal contacts and Q are
-computed at reset by closing the hand once at q0 with the env's engine, and a hand that does
-not close on the object (``start_collision`` or ``missed``: a task needs >= 2 contacts with
-every finger on the object; ``no_force_closure`` is a task with nominal Q = 0), an
-unreachable palm pose, a q0 of the wrong length, not finite or outside the joint limits are
-ValueErrors (:mod:`kinegrasp_env.envs.tasks`). Such a task's ``info["grasp"]`` is ``"q0"``
-or the palm pose's ``id`` (default ``"palm_pose"``); the observation is as for a shipped
-grasp.
+description names it), optional ``elbow``; solved by every robot's palm-pose IK,
+:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`); ``sigma`` and ``noise`` (or
+``noise_model``); ``psi`` (an elbow angle to start at). ``q0`` and ``palm_pose`` need
+``object``, which may then be any built-in or imported object (not only the env's
+``objects``); the nominal contacts and Q are computed at reset by closing the hand once at
+q0 with the env's engine, and a hand that does not close on the object (``start_collision``
+or ``missed``: a task needs >= 2 contacts with every finger on the object;
+``no_force_closure`` is a task with nominal Q = 0), an unreachable palm pose, a q0 of the
+wrong length, not finite or outside the joint limits are ValueErrors
+(:mod:`kinegrasp_env.envs.tasks`). Such a task's ``info["grasp"]`` is ``"q0"`` or the palm
+pose's ``id`` (default ``"palm_pose"``); the observation is as for a shipped grasp.
 
 The env's RNG draws, in this order and only where the options leave them open: the object,
 the grasp index, the sigma, the noise distribution.

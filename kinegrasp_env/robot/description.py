@@ -27,9 +27,9 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
     hand_mount: sdh_base             # optional: the link the hand is mounted on, whose frame
                                      # a palm error is given in (a link from the last arm
                                      # joint's child to palm_link; default: that child)
-    home: {panda_joint4: -1.6}       # optional: the arm configuration studies of the arm
-                                     # alone start from, radians or metres (a joint left
-                                     # out: the middle of its range)
+    home: {panda_joint4: -1.6}       # optional: the arm configuration a palm pose's IK and
+                                     # studies of the arm alone start from, radians or
+                                     # metres (a joint left out: the middle of its range)
     arm_name: Franka arm             # optional: how figures name the arm (default:
                                      # "<name> arm")
 

@@ -1,7 +1,8 @@
-"""A description robot's palm put at a pose: damped least-squares IK on its arm joints
-(:func:`solve_palm_ik`, batched over poses), and one palm-pose entry reached as the
-robot's planner reaches its own (:func:`reach_robot_palm_pose`: IK with random restarts
-seeded per pose, then the self-motion to the entry's elbow angle where it gives one)."""
+"""A robot's palm put at a pose: damped least-squares IK on its arm joints
+(:func:`solve_palm_ik`, batched over poses), and one palm-pose entry reached, every robot's
+the same way (:func:`reach_robot_palm_pose`: IK from the description's ``home``, then random
+restarts seeded per pose, then the self-motion to the entry's elbow angle where it gives
+one)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,8 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
     position error (metres) and the rotation error (radians) are below ``tol``.
 
     Returns:
-        (arm joints (n, arm_dof), success (n,) bool).
+        (arm joints (n, arm_dof), success (n,) bool): a target not reached gets the arm of
+        its closest attempt (the smallest position plus rotation error).
     """
     model = description.model
     arm = np.arange(description.arm_dof)
@@ -40,9 +42,12 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
     q = np.repeat(description.open_configuration()[None], n, axis=0)
     q[:, arm] = description.home_arm() if starts is None else np.clip(starts, lo, hi)
     done = np.zeros(n, bool)
+    closest, miss = q[:, arm].copy(), np.full(n, np.inf)
     eye = np.eye(6)
     for attempt in range(restarts + 1):
         rows = np.flatnonzero(~done)
+        if attempt > 0:
+            _keep_closest(kin, description, q, targets, rows, closest, miss)
         if rows.size == 0:
             break
         if attempt > 0:
@@ -61,7 +66,24 @@ def solve_palm_ik(kin: Kinematics, description: RobotDescription, targets: np.nd
             step = (jt @ np.linalg.solve(jac @ jt + lam * eye, err[..., None]))[..., 0]
             step *= np.minimum(1.0, 0.5 / np.maximum(np.abs(step).max(axis=1), 1e-12))[:, None]
             q[np.ix_(rows, arm)] = np.clip(q[np.ix_(rows, arm)] + step, lo, hi)
-    return q[:, arm], done
+    _keep_closest(kin, description, q, targets, np.flatnonzero(~done), closest, miss)
+    out = q[:, arm].copy()
+    out[~done] = closest[~done]
+    return out, done
+
+
+def _keep_closest(kin: Kinematics, description: RobotDescription, q: np.ndarray,
+                  targets: np.ndarray, rows: np.ndarray, closest: np.ndarray,
+                  miss: np.ndarray) -> None:
+    """Where the attempt just ended (``q``'s ``rows``, not reached) came closer to its target
+    than any before (``miss``: position plus rotation error), keep its arm in ``closest``."""
+    if rows.size == 0:
+        return
+    err = pose_error(kin.pose(q[rows], description.palm_link), targets[rows])
+    size = np.linalg.norm(err[:, :3], axis=1) + np.linalg.norm(err[:, 3:], axis=1)
+    better = size < miss[rows]
+    miss[rows[better]] = size[better]
+    closest[rows[better]] = q[np.ix_(rows[better], np.arange(description.arm_dof))]
 
 
 def reach_robot_palm_pose(kin: Kinematics, description: RobotDescription, target: np.ndarray,

@@ -56,7 +56,7 @@ class PalmCandidate:
         pose: (4, 4) palm frame in the object frame (metres).
         hand: (h,) hand pre-shape in the robot's ``hand_joints`` order (radians or metres;
             h = 7 for the default robot).
-        elbow: elbow angle to move to (radians), or None for the planner's IK choice.
+        elbow: elbow angle to move to (radians), or None for the IK's choice.
     """
 
     id: str

@@ -77,7 +77,7 @@ class CandidateSolver:
 
     def solve(self, candidate: PalmCandidate, object_name: str) -> Grasp | tuple[str, str]:
         """The candidate's grasp, or (reason, detail) of its rejection: ``unreachable``,
-        ``arm_collision``, ``start_collision`` or ``missed``."""
+        ``arm_collision`` or ``start_collision`` (a closing that misses is a grasp, Q = 0)."""
         q0, why = self.configuration(candidate)
         if q0 is None:
             return "unreachable", why
