@@ -94,7 +94,7 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
     from kinegrasp_env.toolkit.robot_reproduce import robot_variants
 
     with RobotReferenceEngine(panda, "cube") as reference:
-        variants = {v.id: v for v in robot_variants(grasp, reference, 4, 3)}
+        variants = {v.id: v for v in robot_variants(grasp, reference, 4)}
     assert len(rows) == 4
     for row in rows:
         assert int(row["samples"]) >= 1500  # re-weighted, not the direct fall-back

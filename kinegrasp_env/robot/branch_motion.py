@@ -19,6 +19,7 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import (
+    BRANCH_SEED,
     DEFAULT_STARTS,
     MERGE_TOL,
     ik_branches,
@@ -50,7 +51,7 @@ class BranchMotion:
     angle_links = None
 
     def __init__(self, description: RobotDescription, kin: Kinematics | None = None, *,
-                 starts: int = DEFAULT_STARTS, seed: int = 0) -> None:
+                 starts: int = DEFAULT_STARTS, seed: int = BRANCH_SEED) -> None:
         self.description = description
         self.kin = kin or Kinematics(description.model)
         self.starts, self.seed = int(starts), int(seed)

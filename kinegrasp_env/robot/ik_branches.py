@@ -45,6 +45,10 @@ from kinegrasp_env.sampling.noise import SeedLike, as_generator
 MERGE_TOL = 1e-3
 #: Default number of random IK starts.
 DEFAULT_STARTS = 200
+#: Seed of the random IK starts wherever a palm pose's branches are searched (the elbow
+#: search, the envs' branch coordinates, the figures' variants): a palm pose's branches are
+#: the same in every run, whatever its noise seed.
+BRANCH_SEED = 0
 #: DLS iterations per start.
 IK_ITERATIONS = 200
 #: A joint's sign counts in a label where |angle| exceeds this (radians).
@@ -131,7 +135,7 @@ def _full(description: RobotDescription, arms: np.ndarray) -> np.ndarray:
 
 
 def ik_branches(description: RobotDescription, palm_pose: np.ndarray, *,
-                starts: int = DEFAULT_STARTS, seed: SeedLike = 0,
+                starts: int = DEFAULT_STARTS, seed: SeedLike = BRANCH_SEED,
                 merge_tol: float = MERGE_TOL, kin: Kinematics | None = None
                 ) -> list[IKBranch]:
     """The distinct IK branches of ``palm_pose`` (module docstring), sorted by their joints.

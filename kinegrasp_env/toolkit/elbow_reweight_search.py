@@ -173,7 +173,7 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
                          "IK branches are a 6-joint arm's")
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
-        branches, nominal = branch_variants(grasp, reference, int(starts), seed)
+        branches, nominal = branch_variants(grasp, reference, int(starts))
         hand = np.asarray(grasp.q0, dtype=float)[description.arm_dof:]
         reach = [(float(i), np.concatenate([b.q, hand])) for i, b in enumerate(branches)]
         result, evidence = _search(grasp, noise, samples, seed, reference, reach, nominal,

@@ -71,9 +71,6 @@ from kinegrasp_env.toolkit.robot_plan_checks import clearance
 from kinegrasp_env.toolkit.selection import report_rows
 from kinegrasp_env.world.grasps import Grasp
 
-#: The IK starts' stream of a 6-joint arm's branches: ``SeedSequence([seed, IK_STREAM])``.
-IK_STREAM = 2
-
 
 def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
                                    step: float = FINE_STEP,
@@ -262,17 +259,17 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: 
                         scorer.name, step, epsilon, delta)
 
 
-def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int, seed: int
-                     ) -> tuple[list[IKBranch], int]:
-    """The IK branches of the grasp's palm pose (:func:`ik_branches`, starts seeded by
-    ``SeedSequence([seed, IK_STREAM])``) and the index of the grasp's own one: the branch
+def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int
+                    ) -> tuple[list[IKBranch], int]:
+    """The IK branches of the grasp's palm pose (:func:`ik_branches`, its starts seeded by
+    :data:`~kinegrasp_env.robot.ik_branches.BRANCH_SEED`, as the envs' branch coordinates
+    are) and the index of the grasp's own one: the branch
     within ``MERGE_TOL`` of its arm joints takes them exactly, or they are added as a
     branch of their own (labelled ``nominal``)."""
     description = engine.description
     dof = description.arm_dof
     q0 = engine.check(grasp.q0)[0]
-    branches = ik_branches(description, grasp.palm_pose, starts=starts,
-                           seed=np.random.SeedSequence([int(seed), IK_STREAM]))
+    branches = ik_branches(description, grasp.palm_pose, starts=starts)
     gaps = [float(joint_difference(description, b.q, q0[:dof])) for b in branches]
     if gaps and min(gaps) <= MERGE_TOL:
         k = int(np.argmin(gaps))
@@ -351,7 +348,8 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
         noise: joint noise on the arm joints, or a noise model of the robot's sources
             (:mod:`~kinegrasp_env.montecarlo.robot_noise`: every draw of it).
         samples: draws per branch, for the selection and again (fresh) for the scoring.
-        seed: run seed (also of the IK starts: ``SeedSequence([seed, IK_STREAM])``).
+        seed: run seed (the IK starts have their own, fixed:
+            :data:`~kinegrasp_env.robot.ik_branches.BRANCH_SEED`).
         engine: a reference engine of the grasp's robot and object to reuse.
         starts: random IK starts (:func:`~kinegrasp_env.robot.ik_branches.ik_branches`).
         epsilon, delta: the certificate's margin and error level.
@@ -367,7 +365,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
         raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
     report = progress or (lambda done: None)
     with _scoring(grasp, engine, friction, evaluate_with, executor) as (engine, scorer):
-        branches, nominal = branch_variants(grasp, engine, int(starts), seed)
+        branches, nominal = branch_variants(grasp, engine, int(starts))
         hand = np.asarray(grasp.q0, dtype=float)[engine.description.arm_dof:]
         curve = []
         for i, branch in enumerate(branches):

@@ -69,15 +69,13 @@ def variant_label(row: Mapping, digits: int = 3) -> str:
     return f"elbow {row['elbow_angle']:+.{digits}f} rad"
 
 
-def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int,
-                   seed: int = 0) -> list[Grasp]:
-    """Up to ``count`` configurations of the grasp's palm pose (see the module docstring;
-    ``seed``: the IK starts' of a 6-joint arm, whose first ``count`` branches are kept, the
-    grasp's own always among them), as grasps with the grasp's palm pose and
-    contacts, ids ``<id>v<k>``, their nominal Q and ``meta["elbow_angle"]`` (radians) or
-    ``meta["ik_branch"]`` (the branch's label)."""
+def robot_variants(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[Grasp]:
+    """Up to ``count`` configurations of the grasp's palm pose (see the module docstring; a
+    6-joint arm's first ``count`` IK branches, the grasp's own always among them), as grasps
+    with the grasp's palm pose and contacts, ids ``<id>v<k>``, their nominal Q and
+    ``meta["elbow_angle"]`` (radians) or ``meta["ik_branch"]`` (the branch's label)."""
     if engine.description.arm_dof == 6:
-        branches, nominal = branch_variants(grasp, engine, DEFAULT_IK_STARTS, seed)
+        branches, nominal = branch_variants(grasp, engine, DEFAULT_IK_STARTS)
         kept = list(range(min(count, len(branches))))
         if nominal not in kept:  # the grasp's own branch always among them
             kept[-1] = nominal
@@ -111,7 +109,7 @@ def variant_block(description: RobotDescription, name: str, grasp: Grasp, *, sam
     draws direct; ``executor``: the direct evaluations' draws in
     chunks on it (the same draws, row for row)."""
     with RobotReferenceEngine(description, name) as reference:
-        variants = robot_variants(grasp, reference, count, seed)
+        variants = robot_variants(grasp, reference, count)
     fresh = []
     with make_engine(engine, description, name, friction=friction) as runner:
         def direct(v: Grasp):
