@@ -20,7 +20,7 @@ import time
 
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.engines import evaluation_engine
+from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.toolkit.sensitivity import analyze
 from kinegrasp_env.world.grasps import shipped_grasps
@@ -37,7 +37,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     add_options(parser, __file__)
     args = parser.parse_args()
-    engine = evaluation_engine("fast", "kuka_sdh", "spray_flask")
+    engine = make_engine("fast", "kuka_sdh", "spray_flask")
     rows = []
     start = time.perf_counter()
     header = (f"{'grasp':>5} {'sigma':>6} {'P(FC)':>6} | gain if exact: {'joints':>6} "

@@ -73,3 +73,46 @@ def test_cli_evaluate_takes_the_physics_engine(capsys):
     expected = evaluate_robot_grasp(g, sigma=SIGMA, n=10, seed=0, engine="physics")
     assert result["robot"] == "panda" and result["samples"] == 10
     assert result["p_fc"] == expected.p_fc and result["outcomes"] == expected.counts
+
+
+def test_the_default_robots_physics_is_its_hands_own_controller():
+    """Every robot's engine by name (``make_engine("physics", robot, ...)``, which the robot
+    path of evaluate, rank and the tables calls) closes the default robot's hand under its own
+    finger controller (``PaperPhysicsEngine``): its draws are the default robot's
+    ``PhysicsEngine``'s, row for row, and ``evaluate_robot_grasp(engine="physics")`` gives
+    ``evaluate_grasp``'s P(FC) and Q moments on the same seed; the quick holding test by name
+    (``quick_hold_engine``) holds the draws the default robot's ``QuickHoldTest`` holds. A
+    wiring test: what it rules out is the description robots' motors closing the SDH (on
+    spray-flask grasp 4, 40 draws at 0.0133 rad: 19 draws in force closure against 35)."""
+    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
+    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, evaluate_grasp
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
+    from kinegrasp_env.physics.protocol import HELD
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    grasp = shipped_grasps("spray_flask")[4]
+    with make_engine("physics", "kuka_sdh", "spray_flask") as engine:
+        assert not isinstance(engine, RobotPhysicsEngine)
+        q = evaluation_rows(grasp, engine, sigma=SIGMA, n=12, seed=SEED)[0]
+        ours = engine.run(q)
+    own = PhysicsEngine("spray_flask")
+    try:
+        theirs = own.run(q)
+    finally:
+        own.close()
+    np.testing.assert_array_equal(ours.outcome, theirs.outcome)
+    np.testing.assert_array_equal(ours.quality, theirs.quality)
+    robot = evaluate_robot_grasp(grasp, sigma=SIGMA, n=12, seed=SEED, engine="physics")
+    default = evaluate_grasp(grasp, JointNoise(SIGMA), 12, SEED, engine="physics")
+    assert robot.p_fc == default.p_fc and robot.counts == default.outcomes
+    np.testing.assert_allclose([robot.q_mean, robot.q_std], [default.q_mean, default.q_std],
+                               rtol=1e-12)
+    cube = shipped_grasps("cube")[1]
+    with quick_hold_engine("kuka_sdh", "cube") as test:
+        q = evaluation_rows(cube, test, sigma=SIGMA, n=6, seed=SEED)[0]
+        held = test.run_hold(q)[1].outcome == HELD
+    with QuickHoldTest("cube") as quick:
+        np.testing.assert_array_equal(
+            held, quick.chunk_held(cube.q0, JointNoise(SIGMA), SEED, 6, chunk=DEFAULT_CHUNK))

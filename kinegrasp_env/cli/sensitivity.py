@@ -108,7 +108,7 @@ def _request(args, model) -> tuple[int, object]:
 def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
              friction: float, per_joint: bool):
     """The analysis by ``engine``, the one ``evaluate`` closes the robot's draws with
-    (:func:`~kinegrasp_env.montecarlo.engines.evaluation_engine`), with a progress bar
+    (:func:`~kinegrasp_env.montecarlo.robot_engines.make_engine`), with a progress bar
     on stderr (one step per setting)."""
     from tqdm import tqdm
 

@@ -224,7 +224,8 @@ class Engine:
 
 class DescriptionEngine(Engine):
     """An engine of the default robot that is its description's (``kuka_sdh.yaml``) engine of
-    the same name (:func:`~kinegrasp_env.montecarlo.robot_engines.make_engine`): its closing,
+    the same name (:meth:`engine_class`, as :func:`~kinegrasp_env.montecarlo.robot_engines.
+    make_engine` gives it): its closing,
     the support table's start check included, and its scoring (the point contact model's Q,
     :data:`MAX_CONTACTS` contacts a draw).
 
@@ -236,14 +237,17 @@ class DescriptionEngine(Engine):
     takes_errors = True
     checks_table = True
 
+    @staticmethod
+    def engine_class() -> type[RobotEngine]:  # pragma: no cover - each engine names its own
+        """The description robots' engine class this engine is."""
+        raise NotImplementedError
+
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
-        from kinegrasp_env.montecarlo.robot_engines import make_engine as description_engine
-
         super().__init__(object_name, friction, num_edges, static_hold=static_hold)
-        self.robot = description_engine(self.name, default_description(), object_name,
-                                        friction=friction, num_edges=num_edges,
-                                        max_contacts=MAX_CONTACTS, static_hold=static_hold)
+        self.robot = self.engine_class()(default_description(), object_name,
+                                         friction=friction, num_edges=num_edges,
+                                         max_contacts=MAX_CONTACTS, static_hold=static_hold)
 
     def close(self) -> None:
         super().close()
@@ -274,11 +278,17 @@ class DescriptionEngine(Engine):
 
 class PybulletEngine(DescriptionEngine):
     """The reference engine: the description robots' reference closing, draw by draw
-    (:class:`~kinegrasp_env.montecarlo.robot_engines.RobotReferenceEngine`: the whole URDF in
+    (:class:`~kinegrasp_env.montecarlo.reference_engine.RobotReferenceEngine`: the whole URDF in
     pybullet, its closest points far from the object and the exact pair of a capsule link
     near it)."""
 
     name = "pybullet"
+
+    @staticmethod
+    def engine_class() -> type[RobotEngine]:
+        from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
+
+        return RobotReferenceEngine
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
@@ -295,6 +305,12 @@ class FastEngine(DescriptionEngine):
     object's distance grid)."""
 
     name = "fast"
+
+    @staticmethod
+    def engine_class() -> type[RobotEngine]:
+        from kinegrasp_env.montecarlo.batched_engine import RobotFastEngine
+
+        return RobotFastEngine
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
@@ -336,21 +352,6 @@ def make_engine(name: str, object_name: str, friction: float = 0.5,
         raise ValueError(f"unknown engine {name!r}; choose from "
                          f"{', '.join([*ENGINE_CLASSES, *LAZY_ENGINES])}")
     return ENGINE_CLASSES[name](object_name, friction, num_edges, static_hold=static_hold)
-
-
-def evaluation_engine(name: str, robot: str, object_name: str, friction: float = 0.5):
-    """The engine ``kinegrasp evaluate`` closes ``robot``'s draws with, by name: the
-    default robot's own engines (:func:`make_engine`; its physics engine is its hand's own
-    closing under pybullet, which its description's physics closing does not reproduce),
-    every other robot's description engines (:func:`~kinegrasp_env.montecarlo.
-    robot_engines.make_engine`). Both run ``run(q, palm=, object_offset=, friction=)`` on the
-    robot's actuated vectors; close it after use."""
-    from kinegrasp_env.montecarlo import robot_engines
-    from kinegrasp_env.robot.default import DEFAULT_ROBOT
-
-    if robot == DEFAULT_ROBOT:
-        return make_engine(name, object_name, friction)
-    return robot_engines.make_engine(name, robot, object_name, friction=friction)
 
 
 def cached_engine(cache: dict[tuple, Engine], name: str, object_name: str,

@@ -58,8 +58,18 @@ class RobotHoldEngine(RobotEngine):
 
 
 def quick_hold_engine(robot, object_name: str, friction: float = 0.5,
-                      simulator: str = "pybullet") -> RobotHoldEngine:
+                      simulator: str = "pybullet") -> RobotEngine:
     """The quick holding test of ``robot`` (a catalog name or a description) on a catalog
-    object, in ``simulator`` (pybullet or MuJoCo), friction mu ``friction``."""
+    object, in ``simulator`` (pybullet or MuJoCo), friction mu ``friction``: its
+    ``run_hold(q)``; the default robot's hand closes under its own controller
+    (:class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`:
+    :func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`)."""
+    from kinegrasp_env.montecarlo.robot_engines import own_physics
+
+    if own_physics(robot):
+        from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
+
+        return PaperPhysicsEngine(robot, object_name, friction=friction,
+                                  protocol=QUICK_PROTOCOL, simulator=simulator)
     return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
                            friction=friction, simulator=simulator)

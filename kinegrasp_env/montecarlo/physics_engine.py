@@ -22,8 +22,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import (
+    MAX_CONTACTS,
     Engine,
     check_configurations,
 )
@@ -32,6 +34,7 @@ from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
 from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.threads import single_blas_thread
 
@@ -188,3 +191,52 @@ class PhysicsEngine(Engine):
             out, keep = self.clear_of_table(q, {}, close_rows)
             hold.put(keep, clear)
             return out, hold
+
+
+class PaperPhysicsEngine(RobotEngine):
+    """:class:`PhysicsEngine` (the paper's closing under pybullet dynamics: its hand's own
+    finger controller, :func:`~kinegrasp_env.physics.pybullet_closing.physics_close`) with
+    every robot's engine interface (:class:`~kinegrasp_env.montecarlo.description_engine.
+    RobotEngine`: ``description``, ``check``, ``run``, ``hold_check``): the ``physics`` engine
+    :func:`~kinegrasp_env.montecarlo.robot_engines.make_engine` gives the robot whose hand
+    that controller closes, so that every robot's evaluation, ranking and tables close its
+    draws with its own physics. Its draws are :class:`PhysicsEngine`'s, row for row;
+    :meth:`run_hold` is its holding test.
+
+    Args:
+        robot: the default robot (its name or description).
+        object_name: catalog object.
+        friction, num_edges, static_hold: as :class:`PhysicsEngine`.
+        settings: :class:`PhysicsEngine`'s ``world``, ``motors``, ``protocol``, ``simulator``.
+    """
+
+    name = "physics"
+
+    def __init__(self, robot: str | RobotDescription, object_name: str, *,
+                 friction: float = 0.5, num_edges: int = 8, static_hold: bool = False,
+                 **settings) -> None:
+        super().__init__(robot, object_name, friction=friction, num_edges=num_edges,
+                         max_contacts=MAX_CONTACTS)
+        self.engine = PhysicsEngine(object_name, friction, num_edges, static_hold=static_hold,
+                                    **settings)
+        self.hold_check = self.engine.scoring.hold_check
+
+    def close(self) -> None:
+        self.engine.close()
+
+    @property
+    def simulator(self):
+        """The simulator of :meth:`run_hold` (its ``name``)."""
+        return self.engine.simulator_class
+
+    def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
+            object_offset: np.ndarray | None = None,
+            friction: np.ndarray | None = None) -> DrawBatch:
+        """:meth:`PhysicsEngine.run` of configurations q (n, dof) (checked against the
+        robot's description first)."""
+        return self.engine.run(self.check(q), palm=palm, object_offset=object_offset,
+                               friction=friction)
+
+    def run_hold(self, q: np.ndarray) -> tuple[DrawBatch, HoldBatch]:
+        """:meth:`PhysicsEngine.run_hold` of configurations q (n, dof)."""
+        return self.engine.run_hold(self.check(q))

@@ -1,48 +1,32 @@
-"""The engines of a description robot by name: the reference (pybullet closest points, draw
+"""The engines of every catalog robot by name: the reference (pybullet closest points, draw
 by draw: :class:`RobotReferenceEngine`), the batched fast one
 (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) and the physics closing
-(:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`), all scoring as
-:class:`~kinegrasp_env.montecarlo.description_engine.RobotEngine` does."""
+(:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`; the default robot's
+hand closes under its own controller: :class:`~kinegrasp_env.montecarlo.physics_engine.
+PaperPhysicsEngine`), all scoring as :class:`~kinegrasp_env.montecarlo.description_engine.
+RobotEngine` does."""
 
 from __future__ import annotations
 
-import numpy as np
-
-from kinegrasp_env.closing.close_result import RobotCloseResult
-from kinegrasp_env.closing.generic_reference import RobotWorld
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
+from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 
-
-class RobotReferenceEngine(RobotEngine):
-    """The reference engine for a description robot: one pybullet world, draw by draw
-    (arguments: :class:`RobotEngine`)."""
-
-    name = "pybullet"
-    takes_errors = True
-
-    def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
-        super().__init__(robot, object_name, **kwargs)
-        self.world = RobotWorld(self.description, self.obj)
-
-    def close(self) -> None:
-        self.world.close()
-
-    def close_one(self, q: np.ndarray) -> RobotCloseResult:
-        """One closing at configuration q (dof,) (the world is left at its final state)."""
-        return self.world.auto_close(self.check(q)[0])
-
-    def close_all(self, q: np.ndarray, palm: np.ndarray | None = None,
-                  object_offset: np.ndarray | None = None) -> list[RobotCloseResult]:
-        """One closing per row of q (n, dof), with its palm and object errors (n, 4, 4)."""
-        return [self.world.auto_close(row, palm=None if palm is None else palm[i],
-                                      object_offset=None if object_offset is None
-                                      else object_offset[i])
-                for i, row in enumerate(q)]
+__all__ = ["ENGINES", "RobotReferenceEngine", "make_engine", "own_physics"]
 
 
 #: The engines of a description robot, by name.
 ENGINES = ("pybullet", "fast", "physics")
+
+
+def own_physics(robot: str | RobotDescription) -> bool:
+    """Whether ``robot``'s physics closing is its hand's own controller (the default
+    robot's: :class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`; the
+    description physics closing does not reproduce it), not the description robots' motors
+    (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`)."""
+    from kinegrasp_env.robot.default import DEFAULT_ROBOT
+
+    return getattr(robot, "name", robot) == DEFAULT_ROBOT
 
 
 def make_engine(name: str, robot: str | RobotDescription, object_name: str,
@@ -55,6 +39,10 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
     if name == "pybullet":
         return RobotReferenceEngine(robot, object_name, **kwargs)
     if name == "physics":
+        if own_physics(robot):
+            from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
+
+            return PaperPhysicsEngine(robot, object_name, **kwargs)
         from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
 
         return RobotPhysicsEngine(robot, object_name, **kwargs)

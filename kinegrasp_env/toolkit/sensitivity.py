@@ -178,7 +178,7 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
         seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
         engine: an engine of the grasp's robot and object (``run(q, palm=, object_offset=,
             friction=)`` on the robot's actuated vectors), or the name of the one
-            ``evaluate`` closes the robot's draws with (``engines.evaluation_engine``),
+            ``evaluate`` closes the robot's draws with (``robot_engines.make_engine``),
             built (and closed) here at friction mu ``friction``.
         bootstrap: resamples for the Sobol intervals.
         progress: called with (settings done, settings) after every setting.
@@ -190,9 +190,9 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
             the robot cannot take or with no source of error.
     """
     if isinstance(engine, str):
-        from kinegrasp_env.montecarlo.engines import evaluation_engine
+        from kinegrasp_env.montecarlo.robot_engines import make_engine
 
-        built = evaluation_engine(engine, grasp.robot, grasp.object, friction)
+        built = make_engine(engine, grasp.robot, grasp.object, friction=friction)
         try:
             return analyze(grasp, noise, samples, seed, engine=built, bootstrap=bootstrap,
                            progress=progress, per_joint=per_joint)
