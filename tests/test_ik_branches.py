@@ -34,6 +34,10 @@ from tests.test_user_robot import (
 
 #: Draws per branch of the CLI runs (small: the protocol, not the numbers, is checked).
 SAMPLES = 12
+#: Arm joints (radians) of an xArm 6 configuration whose own IK branch the 200 seeded starts
+#: do not find (drawn uniformly within the limits, seed 1: the first of 40 draws).
+MISSED_BRANCH = [0.07427745862364432, 1.8886559163201393, -2.6610261108755267,
+                 2.8189476143269747, -0.1854013078954293, -0.4817541292647971]
 
 
 @pytest.fixture(scope="module")
@@ -309,7 +313,8 @@ def test_the_elbow_search_and_the_env_see_the_same_branches(home, capsys):
     the same order: the branch search's starts do not follow the run's noise seed, so the
     branch an optimizer chooses is the env's bin of the same index. The nominal branch is the
     grasp's own joints in the search and the IK's solution in the env (within the branches'
-    merge tolerance, 1e-3 rad); every other branch is the same solution to the bit."""
+    merge tolerance, 1e-3 rad); every other branch is the same solution to the bit. A
+    configuration whose own branch the starts miss is added last by both."""
     from kinegrasp_env.robot.branch_motion import BranchMotion
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.ik_branches import MERGE_TOL
@@ -328,6 +333,25 @@ def test_the_elbow_search_and_the_env_see_the_same_branches(home, capsys):
             assert np.abs(env[k] - q).max() < MERGE_TOL
         else:
             np.testing.assert_array_equal(env[k], q)
+    # an arm configuration whose own branch the seeded starts miss (one of 40 uniform draws
+    # within the limits): both add it last, as a branch of its own
+    import dataclasses
+
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.robot.kinematics import Kinematics
+    from kinegrasp_env.toolkit.elbow_search import branch_variants
+    from kinegrasp_env.world.grasps import load_grasps
+
+    description = load_robot("xarm6")
+    q = np.asarray(grasps[0]["q0"], dtype=float)
+    q[:6] = MISSED_BRANCH
+    pose = Kinematics(description.model).pose(q[None], description.palm_link)[0]
+    grasp = dataclasses.replace(load_grasps(path)[0], q0=q, palm_pose=pose)
+    with RobotReferenceEngine(description, "cube") as engine:
+        search, own = branch_variants(grasp, engine, 200)
+    assert search[own].label == "nominal" and own == len(search) - 1
+    np.testing.assert_array_equal(np.array([b.q for b in search]),
+                                  BranchMotion(description).branches(q))
 
 
 def test_the_env_moves_a_six_joint_arm_across_its_branches(home, monkeypatch):

@@ -207,7 +207,8 @@ def test_rank_best_elbow_log_of_an_older_kinegrasp_is_refused_before_the_search(
         tmp_path, monkeypatch, capsys):
     """A ``--best-elbow`` log records the engine the elbows were chosen with; a log without it
     (an older kinegrasp, whose added robots chose with another engine) is refused in one line
-    naming that setting, before any elbow is searched, and the log is left as it was."""
+    naming that setting, before any elbow is searched, and the log is left as it was; a
+    search that fails writes no log."""
     from kinegrasp_env.cli import ranking
 
     candidates = _cube_candidates(tmp_path, count=2)
@@ -231,6 +232,18 @@ def test_rank_best_elbow_log_of_an_older_kinegrasp_is_refused_before_the_search(
     assert len(lines) == 1 and ('(the engine --best-elbow chose with (a log of an older '
                                 'kinegrasp): "not recorded" there, "fast" now)') in lines[0]
     assert searched == [] and partial.read_text() == log and not out.exists()
+    # a search that fails (one line) leaves no log behind to block the next run
+    partial.unlink()
+
+    def refused(*a, **k):
+        from kinegrasp_env.cli.common import CLIError
+
+        raise CLIError("no elbow here")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(ranking, "best_elbows", refused)
+        assert cli.main(args) == 2
+    assert not partial.exists() and not out.exists()
 
 
 def test_rank_criterion_is_not_a_resume_setting(tmp_path, monkeypatch, capsys):

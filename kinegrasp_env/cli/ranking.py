@@ -175,16 +175,18 @@ def cmd_rank(args) -> int:
         settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
         settings["best_elbow_engine"] = elbow_engine(engine)
     with executor_from(args) as executor:
+        if args.best_elbow:
+            if not args.adaptive:  # an old log of other settings refused before the search
+                resume.read_log(partial, settings, len(grasps))
+            grasps = best_elbows(grasps, robot, noise, settings["best_elbow_samples"], seed,
+                                 engine, executor, friction)
         done = {}
-        if not args.adaptive:  # a log of other settings is refused before any draw
+        if not args.adaptive:
             existed = partial.exists()
             done = resume.resume(partial, settings, len(grasps))
             if existed:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
-        if args.best_elbow:
-            grasps = best_elbows(grasps, robot, noise, settings["best_elbow_samples"], seed,
-                                 engine, executor, friction)
         ranking = None
         if described:
             from kinegrasp_env.cli.robot_ranking import RobotRanking

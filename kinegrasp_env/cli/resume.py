@@ -75,6 +75,19 @@ def resume(path: Path, settings: dict, n_candidates: int) -> dict[int, Candidate
     if not path.exists():
         write_atomic(path, json.dumps({"settings": settings}) + "\n")
         return {}
+    done = read_log(path, settings, n_candidates)
+    write_atomic(path, "".join(json.dumps(item) + "\n" for item in
+                               [{"settings": settings},
+                                *(result_to_json(done[i]) for i in sorted(done))]))
+    return done
+
+
+def read_log(path: Path, settings: dict, n_candidates: int) -> dict[int, CandidateResult]:
+    """The finished candidates of the log at ``path`` (none where there is no log), by index;
+    refuses (:class:`CLIError`) other settings or a damaged log. Writes nothing: a run checks
+    an old log with it before work that comes ahead of the ranking."""
+    if not path.exists():
+        return {}
     lines = path.read_text().splitlines()
     try:
         first = json.loads(lines[0]) if lines else None
@@ -94,9 +107,6 @@ def resume(path: Path, settings: dict, n_candidates: int) -> dict[int, Candidate
             raise CLIError(f"{path} line {number}: candidate {result.index} is out of range "
                            "or repeated; delete the file to start over")
         done[result.index] = result
-    write_atomic(path, "".join(json.dumps(item) + "\n" for item in
-                               [{"settings": settings},
-                                *(result_to_json(done[i]) for i in sorted(done))]))
     return done
 
 

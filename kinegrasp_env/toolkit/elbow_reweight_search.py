@@ -157,7 +157,7 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
                                        ) -> tuple[BranchResult, ReweightEvidence]:
     """The most robust IK branch of a 6-joint arm's ``grasp`` from one batch of closings:
     the branches of :func:`~kinegrasp_env.toolkit.elbow_search.optimize_robot_branches`
-    (``starts`` IK starts seeded from ``seed``), each re-weighted from one batch drawn from
+    (``starts`` IK starts from one fixed seed), each re-weighted from one batch drawn from
     the mixture of their Gaussians and closed at the grasp's own configuration (a branch
     whose effective sample size falls below ``samples`` topped up with direct draws); the
     best and the grasp's own branch scored on fresh direct draws; the certificate from a

@@ -263,9 +263,9 @@ def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int
                     ) -> tuple[list[IKBranch], int]:
     """The IK branches of the grasp's palm pose (:func:`ik_branches`, its starts seeded by
     :data:`~kinegrasp_env.robot.ik_branches.BRANCH_SEED`, as the envs' branch coordinates
-    are) and the index of the grasp's own one: the branch
-    within ``MERGE_TOL`` of its arm joints takes them exactly, or they are added as a
-    branch of their own (labelled ``nominal``)."""
+    are) and the index of the grasp's own one: the branch within ``MERGE_TOL`` of its arm
+    joints takes them exactly, or they are added last, a branch of their own (labelled
+    ``nominal``), where the envs' coordinate adds them too."""
     description = engine.description
     dof = description.arm_dof
     q0 = engine.check(grasp.q0)[0]
@@ -275,7 +275,7 @@ def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int
         k = int(np.argmin(gaps))
         branches[k] = replace(branches[k], q=q0[:dof].copy())
         return branches, k
-    return [IKBranch(q0[:dof].copy(), "nominal", 0), *branches], 0
+    return [*branches, IKBranch(q0[:dof].copy(), "nominal", 0)], len(branches)
 
 
 @dataclass
