@@ -31,9 +31,10 @@ from marked_section import write_between
 from quick_hold import configurations
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.world.grasps import shipped_grasps
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,7 +51,9 @@ def held(test: str, obj: str, q: np.ndarray, simulator: str) -> np.ndarray:
             return engine.run_hold(q)[1].outcome == HELD
         finally:
             engine.close()
-    with quick_hold_engine("kuka_sdh", obj, simulator=simulator) as engine:
+    # the description robots' holding test on the SDH (quick_hold_engine gives its own)
+    with RobotHoldEngine("kuka_sdh", obj, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
+                         simulator=simulator) as engine:
         if test == "jaws":
             engine.simulator.layout = None  # every closing motor at full effort
         return engine.run_hold(q)[1].outcome == HELD

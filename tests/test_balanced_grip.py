@@ -62,14 +62,17 @@ def test_the_sdh_as_a_description_holds_its_nominal_grasps(simulator):
     hold."""
     if simulator == "mujoco":
         pytest.importorskip("mujoco")
-    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-    from kinegrasp_env.physics.protocol import HELD
+    from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
+    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+    from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
     from kinegrasp_env.world.grasps import shipped_grasps
 
     held = 0
     for obj in ("cube", "mug"):
         q = np.array([g.q0 for g in shipped_grasps(obj)])
-        with quick_hold_engine("kuka_sdh", obj, simulator=simulator) as engine:
+        # the description robots' holding test (quick_hold_engine gives the SDH its own)
+        with RobotHoldEngine("kuka_sdh", obj, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
+                             simulator=simulator) as engine:
             held += int((engine.run_hold(q)[1].outcome == HELD).sum())
     assert held >= 10
 

@@ -1,8 +1,9 @@
 """Monte Carlo: engines that turn a batch of draws into outcomes, in one format for every
 engine and robot (``draws``: the outcomes, contacts, closed hand and hold verdicts; scored by
 one function, ``description_engine.score_batch``): any catalog robot's engines over its
-description (``description_engine``; ``robot_engines``: the pybullet reference;
-``batched_engine``: the fast one; ``robot_physics``) and the default robot's (``engines``: its
+description (``description_engine``; ``reference_engine``: the pybullet reference;
+``batched_engine``: the fast one; ``robot_physics``; every robot's by name:
+``robot_engines``) and the default robot's (``engines``: its
 capsule-finger reference, and its fast engine, which is the batched engine of
 ``kuka_sdh.yaml``; ``physics_engine``), ``evaluate_grasp`` and its chunked random streams
 (``evaluate``; a description robot's runs: ``robot_evaluate``, ``robot_chunks``,

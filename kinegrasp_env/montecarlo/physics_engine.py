@@ -33,6 +33,7 @@ from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldPr
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
+from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS
 from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -204,30 +205,42 @@ class PaperPhysicsEngine(RobotEngine):
     :meth:`run_hold` is its holding test.
 
     Args:
-        robot: the default robot (its name or description).
+        robot: the default robot (its name or description; chosen by name:
+            :func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`).
         object_name: catalog object.
-        friction, num_edges, static_hold: as :class:`PhysicsEngine`.
-        settings: :class:`PhysicsEngine`'s ``world``, ``motors``, ``protocol``, ``simulator``.
+        friction, num_edges, static_hold: as :class:`PhysicsEngine` (it simulates at one mu:
+            :meth:`run` refuses a per-draw friction).
+        max_contacts: None or :data:`~kinegrasp_env.montecarlo.engines.MAX_CONTACTS`, the
+            contacts its closing scores a draw (another number is a ValueError).
+        finger_radius: as every robot's engine takes it (its contacts are points).
+        protocol, simulator: :class:`PhysicsEngine`'s, of :meth:`run_hold`.
+
+    (Its settings of the world and the motors are :class:`PhysicsEngine`'s own defaults;
+    build a :class:`PhysicsEngine` for others.)
     """
 
     name = "physics"
 
     def __init__(self, robot: str | RobotDescription, object_name: str, *,
                  friction: float = 0.5, num_edges: int = 8, static_hold: bool = False,
-                 **settings) -> None:
+                 max_contacts: int | None = None, finger_radius: float = FINGER_RADIUS,
+                 protocol: HoldProtocol | None = None, simulator: str = "pybullet") -> None:
+        if max_contacts not in (None, MAX_CONTACTS):
+            raise ValueError(f"the default robot's physics engine scores {MAX_CONTACTS} "
+                             f"contacts a draw, got max_contacts={max_contacts!r}")
         super().__init__(robot, object_name, friction=friction, num_edges=num_edges,
-                         max_contacts=MAX_CONTACTS)
-        self.engine = PhysicsEngine(object_name, friction, num_edges, static_hold=static_hold,
-                                    **settings)
+                         finger_radius=finger_radius, max_contacts=MAX_CONTACTS)
+        self.engine = PhysicsEngine(object_name, friction, num_edges, protocol=protocol,
+                                    simulator=simulator, static_hold=static_hold)
         self.hold_check = self.engine.scoring.hold_check
 
     def close(self) -> None:
         self.engine.close()
 
     @property
-    def simulator(self):
-        """The simulator of :meth:`run_hold` (its ``name``)."""
-        return self.engine.simulator_class
+    def simulator(self) -> HoldSimulator:
+        """The simulator of :meth:`run_hold` (built on first use; its ``name``)."""
+        return self.engine.holder
 
     def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
             object_offset: np.ndarray | None = None,
