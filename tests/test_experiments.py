@@ -133,8 +133,8 @@ def test_reproduce_refuses_more_grasps_than_the_set_has():
     proc = run_cli("reproduce", "table1", "--grasps", "99", "--samples", "10")
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0, proc.stderr
-    assert "--grasps must be between 1 and 12 (spray_flask has 12 shipped grasps), got 99" \
-        in proc.stderr
+    assert ("--grasps must be between 1 and 12 (spray_flask has 12 shipped grasps of robot "
+            "kuka_sdh), got 99") in proc.stderr
     assert len(shipped_grasps("spray_flask")) == 12
 
 

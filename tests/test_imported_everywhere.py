@@ -158,7 +158,8 @@ def test_reproduce_errors_for_imported_objects(catalog, capsys):
                                          "set; give its grasps with --grasps FILE"),
              (("fig10", "--object", "cube", "--grasps", grasps), "holds grasps of box6"),
              (("fig9", "--grasps", catalog / "nope.json"), "no such file"),
-             (("table1", "--grasps", grasps), "table1 takes a count")]
+             (("table1", "--object", BOX), "box6 is an imported object and has no shipped "
+                                           "grasp set; give its grasps with --grasps FILE")]
     for args, message in cases:
         code, _, err = cli(capsys, "reproduce", *args, "--samples", "4",
                            "--out", catalog / "never")

@@ -29,6 +29,35 @@ def _evaluate(capsys, grasp: int, sigma: float, obj: str = "cube") -> dict:
     return json.loads(capsys.readouterr().out)
 
 
+def test_the_default_robots_table1_and_fig9_are_its_own_evaluations(tmp_path, capsys):
+    """The default robot's ``reproduce table1`` and ``fig9`` run the path every robot runs;
+    each cell is the default robot's own ``evaluate`` of that grasp, sigma and seed
+    (``montecarlo.evaluate.evaluate_grasp``, a code path apart from the robot path's
+    ``evaluate_robot_grasp``): the same outcome counts, hence P(FC), and Q's moments to a
+    few ulps (the chunks' moments merged in another order); one progress line per cell."""
+    assert main(["reproduce", "table1", "--object", "cube", "--grasps", "2", "--samples",
+                 SAMPLES, "--engine", "fast", "--processes", "1", "--out",
+                 str(tmp_path / "t")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("table1: cell ") == 8 and "table1: cell 8/8 cube grasp 1 sigma 0.0333" in err
+    rows = list(csv.DictReader((tmp_path / "t" / "table1.csv").open()))
+    assert len(rows) == 8 and {r["robot"] for r in rows} == {"kuka_sdh"}
+    for row in rows:
+        assert main(["evaluate", "--object", "cube", "--grasp", row["grasp"], "--sigma",
+                     row["sigma"], "--samples", SAMPLES, "--engine", "fast", "--json"]) == 0
+        own = json.loads(capsys.readouterr().out)
+        assert float(row["p_fc"]) == own["p_fc"]
+        assert float(row["q_mean"]) == pytest.approx(own["q_mean"], rel=1e-12)
+        assert float(row["q_var"]) == pytest.approx(own["q_var"], rel=1e-12)
+    assert main(["reproduce", "fig9", "--object", "cube", "--grasps", "2", "--samples",
+                 SAMPLES, "--engine", "fast", "--out", str(tmp_path / "f")]) == 0
+    capsys.readouterr()
+    for row in csv.DictReader((tmp_path / "f" / "fig9.csv").open()):
+        assert main(["evaluate", "--object", "cube", "--grasp", row["id"], "--sigma",
+                     row["sigma"], "--samples", SAMPLES, "--engine", "fast", "--json"]) == 0
+        assert float(row["p_fc"]) == json.loads(capsys.readouterr().out)["p_fc"]
+
+
 def test_table1_and_fig9_of_a_robot_are_its_evaluations(tmp_path, capsys):
     assert main(["reproduce", "table1", "--robot", "panda", "--object", "cube", "--grasps",
                  "2", "--samples", SAMPLES, "--out", str(tmp_path / "t")]) == 0
@@ -145,7 +174,7 @@ def test_table1_of_a_robot_in_two_processes_has_the_same_draws(tmp_path, capsys,
 
     monkeypatch.setattr(robot_evaluate, "_chunked", counted)
     tables = []
-    for extra, folder in (([], "one"), (["--processes", "2"], "two")):
+    for extra, folder in ((["--processes", "1"], "one"), (["--processes", "2"], "two")):
         assert main(["reproduce", "table1", "--robot", "panda", "--object", "cube",
                      "--grasps", "1", "--samples", SAMPLES, "--engine", "fast", "--out",
                      str(tmp_path / folder), *extra]) == 0

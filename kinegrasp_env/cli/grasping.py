@@ -142,7 +142,6 @@ def quick_hold_record(grasp, noise, seed: int, samples: int, friction: float,
 
 def cmd_reproduce(args) -> int:
     from kinegrasp_env.toolkit import experiments
-    from kinegrasp_env.toolkit.experiments import markdown_table1, table1
     from kinegrasp_env.toolkit.selection import provenance
 
     samples = positive_int(args.samples, "--samples")
@@ -159,16 +158,15 @@ def cmd_reproduce(args) -> int:
         from kinegrasp_env.cli.robot_report import grasp_file_robot
 
         args.robot = grasp_file_robot(args)  # a grasp file names its robot
-    if args.robot not in (None, DEFAULT_ROBOT):
-        from kinegrasp_env.cli.robot_reproduce import reproduce_robot
+    from kinegrasp_env.cli.robot_reproduce import EVERY_ROBOT, reproduce_robot
 
+    args.robot = args.robot or DEFAULT_ROBOT
+    if args.robot != DEFAULT_ROBOT or args.figure in EVERY_ROBOT:
         return reproduce_robot(args, samples, friction)
+    # the default robot's fig7 and fig10: its own planner's variants of each palm pose
     out = str(output_folder(args.out or f"out/{args.figure}"))  # before any work
     seed = parse_seed(args.seed)
-    if args.figure == "table1":
-        args.object = args.object or TABLE1_OBJECT
-        grasps = table1_grasps(args.grasps or TABLE1_GRASPS, args.object)
-    elif args.figure in ("fig9", "fig10"):
+    if args.figure == "fig10":
         objects, sets, count = figure_grasps(args.object, args.grasps)
     with executor_from(args) as executor:
         if args.figure == "fig7":
@@ -178,30 +176,25 @@ def cmd_reproduce(args) -> int:
             print_pairs(rows)
             figures = [f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             print(written(out, ["fig7.csv", *figures]))
-        elif args.figure in ("fig9", "fig10"):
-            with reported(ValueError), batch_sized(twice_samples):  # other palm poses
-                rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
-                                           count=count, engine=engine, executor=executor,
-                                           progress=True, objects=objects, grasp_sets=sets,
-                                           method=method, friction=friction)
-            for r in rows:
-                shown = "" if method == "direct" else f" (effective sample {r['samples']})"
-                print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
-                      f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}{shown}")
-            pairs = [{**r, "p_fc": r["fresh_p_fc"], "p_fc_lo": r["fresh_p_fc_lo"],
-                      "p_fc_hi": r["fresh_p_fc_hi"]} for r in rows if r.get("config")]
-            if pairs:
-                from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
+            return 0
+        with reported(ValueError), batch_sized(twice_samples):  # other palm poses
+            rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
+                                       count=count, engine=engine, executor=executor,
+                                       progress=True, objects=objects, grasp_sets=sets,
+                                       method=method, friction=friction)
+    for r in rows:
+        shown = "" if method == "direct" else f" (effective sample {r['samples']})"
+        print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
+              f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}{shown}")
+    pairs = [{**r, "p_fc": r["fresh_p_fc"], "p_fc_lo": r["fresh_p_fc_lo"],
+              "p_fc_hi": r["fresh_p_fc_hi"]} for r in rows if r.get("config")]
+    if pairs:
+        from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
 
-                batch = None if method == "direct" else BATCH_FACTOR * samples
-                print(f"robust and fragile variants {provenance(samples, seed, batch=batch)}")
-                print_pairs(pairs)
-            print(written(out, [f"{args.figure}.csv", f"{args.figure}.png"]))
-        else:
-            rows = table1(args.object, samples, out, grasps=grasps, seed=seed, progress=True,
-                          engine=engine, executor=executor, friction=friction)
-            print(markdown_table1(rows, args.object, samples))
-            print(written(out, ["table1.csv", "table1.md", "pfc_vs_sigma.png"]))
+        batch = None if method == "direct" else BATCH_FACTOR * samples
+        print(f"robust and fragile variants {provenance(samples, seed, batch=batch)}")
+        print_pairs(pairs)
+    print(written(out, ["fig10.csv", "fig10.png"]))
     return 0
 
 
@@ -218,22 +211,6 @@ def print_pairs(rows: list[dict]) -> None:
               f"{r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":
             print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
-
-
-def table1_grasps(text: str, object_name: str) -> int:
-    """``--grasps``: how many of the object's shipped grasps Table I uses (1..set size)."""
-    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
-
-    if not is_count(text):
-        raise CLIError(f"--grasps: table1 takes a count of the object's shipped grasps, got "
-                       f"{text!r} (a grasp file is for fig9 and fig10)")
-    count = positive_int(text, "--grasps")
-    with reported(NoGraspSetError):  # an imported object: suggests `kinegrasp plan`
-        available = len(shipped_grasps(object_name))
-    if count > available:
-        raise CLIError(f"--grasps must be between 1 and {available} ({object_name} has "
-                       f"{available} shipped grasps), got {count}")
-    return count
 
 
 def add_commands(sub) -> None:
@@ -295,7 +272,6 @@ def add_commands(sub) -> None:
                    "fresh direct draws); the other experiments run direct")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's). "
                    "Another robot: the same protocols on its shipped grasps or --grasps FILE "
-                   "(engine pybullet, fast or physics, in this process; no paper values "
-                   "beside them); fig7 and fig10 move a 7-joint arm with an elbow angle along "
-                   "its self-motion")
+                   "(no paper values beside them); fig7 and fig10 move a 7-joint arm along "
+                   "its self-motion, or compare a 6-joint arm's IK branches")
     p.set_defaults(func=cmd_reproduce)

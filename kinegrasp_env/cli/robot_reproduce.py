@@ -1,17 +1,27 @@
-"""``reproduce EXPERIMENT --robot NAME``: the paper's protocols on a description robot's
-grasps (Table I, Figs. 7, 9 and 10: :mod:`kinegrasp_env.toolkit.robot_tables`,
-:mod:`kinegrasp_env.toolkit.robot_reproduce`), each evaluation ``evaluate --robot``'s."""
+"""``reproduce EXPERIMENT``: the paper's protocols on a robot's grasps (Table I, Figs. 7, 9 and
+10: :mod:`kinegrasp_env.toolkit.robot_tables`, :mod:`kinegrasp_env.toolkit.robot_reproduce`),
+each evaluation ``evaluate --robot``'s: Table I and Fig. 9 of every robot, the default one's
+included (:data:`EVERY_ROBOT`); Figs. 7 and 10 of any robot but the default one, whose
+variants its own planner chooses (``cli.grasping``)."""
 
 from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
-from kinegrasp_env.cli.figure_grasps import FIGURE_GRASPS, TABLE1_GRASPS, is_count, written
+from kinegrasp_env.cli.figure_grasps import (
+    FIGURE_GRASPS,
+    TABLE1_GRASPS,
+    TABLE1_OBJECT,
+    is_count,
+    written,
+)
 from kinegrasp_env.cli.robot_grasps import check_robot_engine
 
 #: The experiments that compare configurations of one palm pose (a 7-joint arm's
 #: self-motion, a 6-joint arm's IK branches).
 VARIANT_EXPERIMENTS = ("fig7", "fig10")
+#: The experiments every robot runs here, the default one included.
+EVERY_ROBOT = ("table1", "fig9")
 
 
 def robot_grasp_sets(args, robot: str, only: str | None = None
@@ -34,8 +44,18 @@ def robot_grasp_sets(args, robot: str, only: str | None = None
             raise CLIError(f"robot {robot!r} has no shipped grasps; give them with --grasps "
                            f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
                            "--out grasps.json`)")
-        with reported(NoGraspSetError):
-            return {name: shipped_grasps(name, robot) for name in objects}, count
+        sets = {}
+        for name in objects:
+            try:
+                sets[name] = shipped_grasps(name, robot)
+            except NoGraspSetError as exc:
+                if not exc.imported:
+                    raise CLIError(str(exc)) from None
+                raise CLIError(f"{name} is an imported object and has no shipped grasp set; "
+                               "give its grasps with --grasps FILE (e.g. from `kinegrasp "
+                               f"plan --robot {robot} --object {name} --out "
+                               f"{name}_grasps.json`)") from None
+        return sets, count
     grasps = grasp_file(args.grasps)
     if args.object is not None and args.object != grasps[0].object:
         raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of "
@@ -46,21 +66,8 @@ def robot_grasp_sets(args, robot: str, only: str | None = None
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
-def asked_executor(args):
-    """The executor that ``--processes``, ``--backend`` or ``--address`` ask for (each
-    evaluation's draws in chunks on it: the same draws, row for row), or a context of None
-    where none is given (the draws in this process)."""
-    from contextlib import nullcontext
-
-    from kinegrasp_env.cli.execution_options import executor_from
-
-    given = (args.processes is not None or args.backend != "local"
-             or args.address is not None)
-    return executor_from(args) if given else nullcontext()
-
-
 def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
-    """``reproduce EXPERIMENT --robot NAME`` of a description robot's grasps: Table I, Fig. 7
+    """``reproduce EXPERIMENT --robot NAME`` of a robot's grasps: Table I, Fig. 7
     and Fig. 9 (:mod:`kinegrasp_env.toolkit.robot_tables`), Fig. 10
     (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); Figs. 7 and 10 move a
     7-joint arm along its self-motion or compare a 6-joint arm's IK branches (another arm
@@ -80,7 +87,9 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
         with reported(ValueError):  # before any work
             check_variants(description, args.figure)
             check_method(method)
-    with asked_executor(args) as executor:
+    from kinegrasp_env.cli.execution_options import executor_from
+
+    with executor_from(args) as executor:
         if args.figure == "table1":
             return robot_table1_command(args, description, samples, friction, executor)
         sets, count = robot_grasp_sets(args, robot)
@@ -156,9 +165,11 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
 
 def robot_table1_command(args, description, samples: int, friction: float,
                          executor=None) -> int:
-    """``reproduce table1 --robot NAME``: Table I of the robot's first ``--grasps`` (default
-    5) grasps of ``--object`` (default: the first object it has shipped grasps of), or of a
-    grasp file's."""
+    """``reproduce table1 [--robot NAME]``: Table I of the robot's first ``--grasps``
+    (default 5, or the whole set where it has fewer) grasps of ``--object`` (default: the
+    paper's object, the spray flask, where the robot has shipped grasps of it, else the first
+    object it has them of; a count above the set's size is refused), or of a grasp
+    file's."""
     from kinegrasp_env.toolkit.robot_tables import robot_table1
 
     robot = description.name
@@ -174,17 +185,26 @@ def robot_table1_command(args, description, samples: int, friction: float,
     else:
         from kinegrasp_env.world.grasps import shipped_objects
 
+        asked = args.grasps is not None
         args.grasps = args.grasps or TABLE1_GRASPS
         objects = (args.object,) if args.object else shipped_objects(robot)
         if not objects:
             raise CLIError(f"robot {robot!r} has no shipped grasps; give them with --grasps "
                            f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
                            "--out grasps.json`)")
-        sets, _ = robot_grasp_sets(args, robot, objects[0])
-        name, grasps = objects[0], sets[objects[0]][:positive_int(args.grasps, "--grasps")]
+        name = TABLE1_OBJECT if TABLE1_OBJECT in objects else objects[0]
+        sets, _ = robot_grasp_sets(args, robot, name)
+        count = positive_int(args.grasps, "--grasps")
+        if not asked:  # the default count: as many as the set has, up to it
+            count = min(count, len(sets[name]))
+        if count > len(sets[name]):
+            raise CLIError(f"--grasps must be between 1 and {len(sets[name])} ({name} has "
+                           f"{len(sets[name])} shipped grasps of robot {robot}), got {count}")
+        grasps = sets[name][:count]
     out = str(output_folder(args.out or "out/table1"))
     rows = robot_table1(description, name, grasps, samples, out, seed=parse_seed(args.seed),
-                        engine=args.engine, friction=friction, executor=executor)
+                        engine=args.engine, friction=friction, executor=executor,
+                        progress=True)
     from kinegrasp_env.toolkit.experiments import markdown_table1
 
     print(markdown_table1(rows, f"{name} (robot {robot})", samples))

@@ -13,7 +13,7 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.progress import Progress
+from kinegrasp_env.toolkit.progress import Progress, cell_progress
 from kinegrasp_env.toolkit.selection import robust_fragile, stats_from_chunk
 from kinegrasp_env.world.grasps import Grasp, shipped_grasps, write_atomic
 from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -36,7 +36,7 @@ def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int =
     cells = [(grasp, sigma) for grasp in chosen for sigma in sigmas]
     all_stats = []
     with _executor(executor, processes) as run_on, \
-            _progress(progress, "table1", len(cells), samples) as report:
+            cell_progress(progress, "table1", len(cells), samples) as report:
         for grasp, sigma in cells:
             stats = evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
                                    progress=_cell_callback(report), engine=engine,
@@ -88,12 +88,6 @@ def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
         lines.append(f"| {grasp} | {_fmt(first['q_nominal'])} | "
                      + " | ".join(_cell_text(cells[s]) for s in sigmas) + " |")
     return "\n".join(lines) + "\n"
-
-
-def _progress(enabled: bool, name: str, cells: int,
-              samples: int) -> AbstractContextManager[Progress | None]:
-    """A :class:`Progress` over ``cells`` cells of ``samples`` draws, or nothing."""
-    return Progress(name, cells * samples, cells) if enabled else nullcontext(None)
 
 
 def _cell_callback(report: Progress | None):
@@ -173,7 +167,7 @@ def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_fla
     cells = sum(len(c) + 2 for c in candidates.values())
     rows, pairs = [], []
     with _executor(executor, processes) as run_on, \
-            _progress(progress, "fig7", cells, samples) as report:
+            cell_progress(progress, "fig7", cells, samples) as report:
         for name in objects:
             stats = _evaluate_set(candidates[name], sigma, samples, seed, processes, engine,
                                   executor=run_on, report=report, friction=friction)
@@ -276,7 +270,7 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
     chooses = {name: which == "fig10" and len(g) >= 2 for name, g in sets.items()}
     cells = sum(len(g) + 2 * chooses[name] for name, g in sets.items())
     with _executor(executor, processes) as run_on, \
-            _progress(progress, which, cells, samples) as report:
+            cell_progress(progress, which, cells, samples) as report:
         for name, grasps in sets.items():
             if method == "reweight":
                 from kinegrasp_env.toolkit.batch_stats import variant_stats

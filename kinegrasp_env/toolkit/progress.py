@@ -21,6 +21,7 @@ import math
 import sys
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import TextIO
 
 #: Shortest span of reports (seconds) a rate is measured over.
@@ -158,6 +159,12 @@ class Progress:
                           f"{self.status()}\n")
         self.stream.flush()
 
+    def finish_cell(self, draws: int, text: str) -> None:
+        """A cell of ``draws`` draws finished at once (an evaluation that reports no draws on
+        the way): its draws counted, then :meth:`cell_done`."""
+        self.advance(self.cell_start + int(draws))
+        self.cell_done(text)
+
     def close(self) -> None:
         """End the bar (the next line printed starts on a fresh line)."""
         if self.bar is not None:
@@ -171,3 +178,10 @@ class Progress:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def cell_progress(enabled: bool, name: str, cells: int,
+                  samples: int) -> AbstractContextManager[Progress | None]:
+    """A :class:`Progress` of command ``name`` over ``cells`` cells of ``samples`` draws, or
+    nothing (``enabled`` False)."""
+    return Progress(name, cells * samples, cells) if enabled else nullcontext(None)

@@ -30,6 +30,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_e
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.toolkit.experiments import TABLE1_COLUMNS, markdown_table1, write_rows
+from kinegrasp_env.toolkit.progress import cell_progress
 from kinegrasp_env.toolkit.robot_reproduce import (
     COLUMNS,
     check_variants,
@@ -47,18 +48,25 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
                  samples: int, out_dir: str | Path, *,
                  sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0,
                  engine: str = "pybullet", friction: float = 0.5,
-                 executor: Executor | None = None) -> list[dict]:
+                 executor: Executor | None = None, progress: bool = False) -> list[dict]:
     """Table I of ``grasps`` (grasps of ``description`` on ``object_name``; a row's ``grasp``
     is its index among them) at each sigma (radians); writes the module's files.
-    ``executor``: each evaluation's draws in chunks on it (the same draws, row for row)."""
+    ``executor``: each evaluation's draws in chunks on it (the same draws, row for row);
+    ``progress``: a line per cell on stderr (:class:`~kinegrasp_env.toolkit.progress.
+    Progress`)."""
     from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
 
     rows = []
-    with make_engine(engine, description, object_name, friction=friction) as runner:
+    cells = len(grasps) * len(sigmas)
+    with make_engine(engine, description, object_name, friction=friction) as runner, \
+            cell_progress(progress, "table1", cells, samples) as report:
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                              engine=runner, executor=executor)
+                if report is not None:
+                    report.finish_cell(samples, f"{object_name} grasp {grasp.id} sigma "
+                                                f"{sigma:g}: P(FC) {stats.p_fc:.3f}")
                 rows.append({"grasp": index, "sigma": sigma, "q_nominal": stats.q_nominal,
                              "q_mean": stats.q_mean, "q_var": stats.q_std ** 2,
                              "p_fc": stats.p_fc, "p_fc_lo": stats.ci[0],
@@ -79,22 +87,27 @@ def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
                grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
                sigma: float = 0.0033, count: int = 10, seed: int = 0,
                engine: str = "pybullet", friction: float = 0.5,
-               executor: Executor | None = None) -> list[dict]:
+               executor: Executor | None = None, progress: bool = False) -> list[dict]:
     """Fig. 9 of the first ``count`` grasps of each object of ``grasp_sets``; writes
-    ``fig9.csv`` (:data:`FIG9_COLUMNS`) and ``fig9.png``; ``executor`` as
+    ``fig9.csv`` (:data:`FIG9_COLUMNS`) and ``fig9.png``; ``executor`` and ``progress`` as
     :func:`robot_table1`'s."""
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
     rows = []
-    for name, grasps in grasp_sets.items():
-        with make_engine(engine, description, name, friction=friction) as runner:
-            for grasp in list(grasps)[:count]:
-                s = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                         engine=runner, executor=executor)
-                rows.append({"robot": description.name, "object": name, "id": grasp.id,
-                             "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
-                             "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
-                             "samples": samples, "sigma": sigma})
+    cells = sum(len(list(grasps)[:count]) for grasps in grasp_sets.values())
+    with cell_progress(progress, "fig9", cells, samples) as report:
+        for name, grasps in grasp_sets.items():
+            with make_engine(engine, description, name, friction=friction) as runner:
+                for grasp in list(grasps)[:count]:
+                    s = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
+                                             engine=runner, executor=executor)
+                    if report is not None:
+                        report.finish_cell(samples, f"{name} grasp {grasp.id}: P(FC) "
+                                                    f"{s.p_fc:.3f}")
+                    rows.append({"robot": description.name, "object": name, "id": grasp.id,
+                                 "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
+                                 "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
+                                 "samples": samples, "sigma": sigma})
     out = Path(out_dir)
     write_rows(out, "fig9.csv", rows, FIG9_COLUMNS)
     safe_figure(lambda: plot_success_quality(
