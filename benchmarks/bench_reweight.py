@@ -237,9 +237,9 @@ def variants_timing(obj: str, args) -> dict:
     """fig10's null-space variants of one object: one batch against one run per variant, on
     the reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
     from kinegrasp_env.toolkit.batch_stats import variant_stats
-    from kinegrasp_env.toolkit.experiments import figure_sets
+    from kinegrasp_env.toolkit.experiments import variant_sets
 
-    grasps = list(figure_sets("fig10", (obj,), args.variants, {})[obj])
+    grasps = list(variant_sets((obj,), args.variants, {})[obj])
     noise = JointNoise(0.0033)
     t0 = time.perf_counter()
     direct = [evaluate_grasp(g, noise, args.samples, 0, engine="pybullet") for g in grasps]

@@ -254,8 +254,7 @@ for r in rows7:
 for name in ("drill", "spray_flask"):
     display(Image(filename=f"out/fig7/fig7_{name}.png"))
 samples10 = n(1000, 40)
-rows10 = experiments.fig9_10("fig10", "out/fig10", samples=samples10, engine="fast",
-                             processes=2)
+rows10 = experiments.fig10("out/fig10", samples=samples10, engine="fast", processes=2)
 print(provenance(samples10, 0))
 for r in rows10:
     if r["config"]:
@@ -292,13 +291,23 @@ here: different grasps, paired by position) and names what differs: hand model, 
 meshes, grasp set, torque scale, closing."""),
         ("code", SETUP),
         ("code", """from IPython.display import Image, Markdown, display
-from kinegrasp_env.toolkit.experiments import fig9_10, markdown_table1, table1
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.toolkit.experiments import markdown_table1
+from kinegrasp_env.toolkit.robot_tables import robot_fig9, robot_table1
+from kinegrasp_env.world.grasps import shipped_grasps
 
+robot = load_robot("kuka_sdh")  # the paper's robot; any catalog robot runs the same tables
 samples = n(10000, 60)
-rows = table1("spray_flask", samples, "out/table1", grasps=5, engine="fast", processes=2)
+with LocalExecutor(2) as pool:  # each cell's draws in chunks on 2 processes: the same draws
+    rows = robot_table1(robot, "spray_flask", shipped_grasps("spray_flask")[:5], samples,
+                        "out/table1", engine="fast", executor=pool)
 display(Markdown(markdown_table1(rows, "spray_flask", samples)))
 display(Image(filename="out/table1/pfc_vs_sigma.png"))"""),
-        ("code", """rows9 = fig9_10("fig9", "out/fig9", samples=n(1000, 40), engine="fast", processes=2)
+        ("code", """sets = {name: shipped_grasps(name) for name in ("cube", "spray_flask", "drill", "mug")}
+with LocalExecutor(2) as pool:
+    rows9 = robot_fig9(robot, "out/fig9", grasp_sets=sets, samples=n(1000, 40),
+                       engine="fast", executor=pool)
 display(Image(filename="out/fig9/fig9.png"))"""),
         ("md", """## Table I beside the paper's
 
@@ -411,11 +420,17 @@ its place in the palm). Small here (Table I at 20 draws per cell, the cube's 12 
 draws each); the README reports the 48-grasp run (`kinegrasp validate --object all`)."""),
         ("code", """import json, subprocess, sys
 from IPython.display import Image, Markdown, display
-from kinegrasp_env.toolkit.experiments import markdown_table1, table1
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.toolkit.experiments import markdown_table1
+from kinegrasp_env.toolkit.robot_tables import robot_table1
+from kinegrasp_env.world.grasps import shipped_grasps
 
 for engine in ("fast", "physics"):
-    rows = table1("spray_flask", n(20, 3), f"out/table1_{engine}", grasps=5, engine=engine,
-                  processes=2)
+    with LocalExecutor(2) as pool:
+        rows = robot_table1(load_robot("kuka_sdh"), "spray_flask",
+                            shipped_grasps("spray_flask")[:5], n(20, 3),
+                            f"out/table1_{engine}", engine=engine, executor=pool)
     display(Markdown(f"**{engine} engine**\\n\\n" + markdown_table1(rows, "spray_flask",
                                                                    n(20, 3))))
 out = "out/validate_cube"

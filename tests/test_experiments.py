@@ -45,12 +45,21 @@ def _mode(path) -> int:
 
 
 # ----------------------------------------------------------------------------- Table I
+def _table1(samples: int, out, sigmas: tuple[float, ...]) -> list[dict]:
+    """Table I of the default robot's first cube grasp (every robot's Table I)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.robot_tables import robot_table1
+
+    return robot_table1(load_robot("kuka_sdh"), "cube", shipped_grasps("cube")[:1], samples,
+                        out, sigmas=sigmas, seed=0)
+
+
 def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umask_027):
     """sigma = 0: every draw is the nominal grasp, 10 of 10 in force closure. The Wilson
     upper bound used to compute to 0.9999999999999999 < 1.0 there and matplotlib refused the
     error bars; now the table, its interval and the figure are all written, with the
     user's umask."""
-    rows = experiments.table1("cube", 10, tmp_path, grasps=1, sigmas=(0.0, 0.02), seed=0)
+    rows = _table1(10, tmp_path, sigmas=(0.0, 0.02))
     assert [r["sigma"] for r in rows] == [0.0, 0.02]
     certain = rows[0]
     assert certain["p_fc"] == 1.0 and certain["p_fc_hi"] == 1.0
@@ -58,7 +67,7 @@ def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umas
     csv_rows = _read(tmp_path / "table1.csv")
     # backward compatible: the old columns first, in their old order; new ones appended
     assert list(csv_rows[0]) == ["grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc",
-                                 "p_fc_lo", "p_fc_hi", "samples", "q_skew"]
+                                 "p_fc_lo", "p_fc_hi", "samples", "q_skew", "robot"]
     assert float(csv_rows[1]["q_skew"]) == pytest.approx(rows[1]["q_skew"], rel=1e-12)
     for name in ("table1.csv", "table1.md", "pfc_vs_sigma.png"):
         assert _mode(tmp_path / name) == 0o666 & ~0o027, name
@@ -94,7 +103,7 @@ def test_a_failing_figure_is_one_warning_and_the_results_stay(tmp_path, monkeypa
 
     monkeypatch.setattr(plots, "plot_pfc_vs_sigma", broken)
     with caplog.at_level(logging.WARNING):
-        rows = experiments.table1("cube", 4, tmp_path, grasps=1, sigmas=(0.0,))
+        rows = _table1(4, tmp_path, sigmas=(0.0,))
     assert rows[0]["p_fc"] == 1.0
     assert len(_read(tmp_path / "table1.csv")) == 1 and (tmp_path / "table1.md").exists()
     assert not stale.exists()
@@ -310,15 +319,15 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
     draws are neither the selection draws nor a recount of them)."""
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.experiments import figure_sets
+    from kinegrasp_env.toolkit.experiments import variant_sets
 
-    rows = experiments.fig9_10("fig10", tmp_path, samples=250, sigma=0.02, count=3, seed=5,
-                               engine="fast", objects=("cube",))
+    rows = experiments.fig10(tmp_path, samples=250, sigma=0.02, count=3, seed=5,
+                             engine="fast", objects=("cube",))
     marked = {r["config"]: r for r in rows if r["config"]}
     assert set(marked) == {"robust", "fragile"} and marked["robust"] is not marked["fragile"]
     assert marked["robust"]["p_fc"] == max(r["p_fc"] for r in rows)
     assert marked["fragile"]["p_fc"] == min(r["p_fc"] for r in rows)
-    variants = {g.id: g for g in figure_sets("fig10", ("cube",), 3, {})["cube"]}
+    variants = {g.id: g for g in variant_sets(("cube",), 3, {})["cube"]}
     for row in marked.values():
         both = evaluate_grasp(variants[row["id"]], JointNoise(0.02), 500, 5, engine="fast")
         assert row["p_fc"] * 250 + row["fresh_p_fc"] * 250 == pytest.approx(both.p_fc * 500)

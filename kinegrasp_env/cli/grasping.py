@@ -178,10 +178,10 @@ def cmd_reproduce(args) -> int:
             print(written(out, ["fig7.csv", *figures]))
             return 0
         with reported(ValueError), batch_sized(twice_samples):  # other palm poses
-            rows = experiments.fig9_10(args.figure, out, samples=samples, seed=seed,
-                                       count=count, engine=engine, executor=executor,
-                                       progress=True, objects=objects, grasp_sets=sets,
-                                       method=method, friction=friction)
+            rows = experiments.fig10(out, samples=samples, seed=seed, count=count,
+                                     engine=engine, executor=executor, progress=True,
+                                     objects=objects, grasp_sets=sets, method=method,
+                                     friction=friction)
     for r in rows:
         shown = "" if method == "direct" else f" (effective sample {r['samples']})"
         print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "

@@ -14,7 +14,7 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "planner": ("GraspPlanner", "PlannerSettings"),
     "ranking": ("rank_fixed", "CandidateResult"),
     "adaptive_ranking": ("rank_adaptive",),
-    "experiments": ("table1", "fig7", "fig9_10"),
+    "experiments": ("fig7", "fig10"),
     "sensitivity": ("Sensitivity",),
     "elbow": ("ElbowResult",),
     "elbow_search": ("optimize_robot_elbow", "optimize_robot_branches"),

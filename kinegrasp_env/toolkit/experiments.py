@@ -11,7 +11,6 @@ from pathlib import Path
 
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.progress import Progress, cell_progress
 from kinegrasp_env.toolkit.selection import robust_fragile, stats_from_chunk
@@ -21,42 +20,6 @@ from kinegrasp_env.world.objects import OBJECT_NAMES
 #: Table I's CSV columns; new columns go at the end (readers by position keep working).
 TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_fc_lo", "p_fc_hi",
                   "samples", "q_skew")
-
-
-def table1(object_name: str, samples: int, out_dir: str | Path, *, grasps: int = 5,
-           sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0, processes: int = 1,
-           noise: str = "gaussian", progress: bool = False,
-           engine: str = "pybullet", executor: Executor | None = None,
-           friction: float = 0.5) -> list[dict]:
-    """Table I: mean, variance, skewness of Q and P(FC) with its Wilson 95% interval for the
-    first ``grasps`` shipped grasps at each sigma (radians). Writes ``table1.csv`` and
-    ``table1.md``, then the figure ``pfc_vs_sigma.png`` (a figure that fails is a warning:
-    the tables stay). ``progress``: one overall report on stderr (:mod:`.progress`)."""
-    chosen = shipped_grasps(object_name)[:grasps]
-    cells = [(grasp, sigma) for grasp in chosen for sigma in sigmas]
-    all_stats = []
-    with _executor(executor, processes) as run_on, \
-            cell_progress(progress, "table1", len(cells), samples) as report:
-        for grasp, sigma in cells:
-            stats = evaluate_grasp(grasp, JointNoise(sigma, noise), samples, seed,
-                                   progress=_cell_callback(report), engine=engine,
-                                   executor=run_on, friction=friction)
-            all_stats.append(stats)
-            _cell_done(report, f"{object_name} grasp {grasp.id} sigma {sigma:g}", stats)
-    rows = [{"grasp": int(grasp.id), "sigma": sigma, "q_nominal": stats.q_nominal,
-             "q_mean": stats.q_mean, "q_var": stats.q_var, "p_fc": stats.p_fc,
-             "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
-             "samples": stats.samples, "q_skew": stats.q_skew}
-            for (grasp, sigma), stats in zip(cells, all_stats, strict=True)]
-    out = Path(out_dir)
-    write_rows(out, "table1.csv", rows, TABLE1_COLUMNS)
-    write_atomic(out / "table1.md", markdown_table1(rows, object_name, samples))
-    from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
-
-    safe_figure(lambda: plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png",
-                                          title=f"{object_name}: P(FC) vs noise"),
-                out / "pfc_vs_sigma.png")
-    return rows
 
 
 def _fmt(value: float, digits: int = 4) -> str:
@@ -202,10 +165,10 @@ def _fresh_evaluator(sigma: float, samples: int, seed: int, engine: str, executo
     return evaluate
 
 
-def figure_sets(which: str, objects: Sequence[str], count: int,
-                grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
-    """Per object, the grasps fig9 (the first ``count`` of its set) or fig10 (``count``
-    null-space variants of its first grasp) evaluates."""
+def variant_sets(objects: Sequence[str], count: int,
+                 grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
+    """Per object, the grasps fig10 evaluates: ``count`` null-space variants of the first
+    grasp of its set (``grasp_sets[name]``, else its shipped set), by the default planner."""
     from kinegrasp_env.toolkit.planner import GraspPlanner
 
     sets = {}
@@ -213,9 +176,6 @@ def figure_sets(which: str, objects: Sequence[str], count: int,
         base = list(grasp_sets[name]) if name in grasp_sets else shipped_grasps(name)
         if not base:
             raise ValueError(f"the grasp set of {name} is empty")
-        if which == "fig9":
-            sets[name] = base[:count]
-            continue
         planner = GraspPlanner(name)
         try:
             sets[name] = planner.variants(base[0], count)
@@ -224,53 +184,47 @@ def figure_sets(which: str, objects: Sequence[str], count: int,
     return sets
 
 
-def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
-            count: int = 10, seed: int = 0, processes: int = 1,
-            engine: str = "pybullet", executor: Executor | None = None,
-            progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
-            grasp_sets: Mapping[str, Sequence[Grasp]] | None = None,
-            method: str = "direct", friction: float = 0.5) -> list[dict]:
-    """Figs. 9 and 10: success rate, mean quality (with its std) and the error
-    (nominal - mean) of ``count`` grasps per object of ``objects`` at ``sigma``. fig9: the
-    first ``count`` grasps of the object's set (different contacts and arms); fig10:
-    ``count`` null-space variants of its first grasp (same contacts, different arms). An
-    object's set is ``grasp_sets[name]`` if given (how an imported object, which has no
-    shipped set, is drawn), else its shipped set. Writes ``<which>.csv``, then
-    ``<which>.png`` (a figure that fails is a warning: the CSV stays). ``progress``: one
-    overall report.
+def fig10(out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
+          count: int = 10, seed: int = 0, processes: int = 1,
+          engine: str = "pybullet", executor: Executor | None = None,
+          progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
+          grasp_sets: Mapping[str, Sequence[Grasp]] | None = None,
+          method: str = "direct", friction: float = 0.5) -> list[dict]:
+    """Fig. 10 of the default robot: success rate, mean quality (with its std) and the error
+    (nominal - mean) of ``count`` null-space variants of each object's first grasp (same
+    contacts, different arms: :func:`variant_sets`) at ``sigma``. An object's set is
+    ``grasp_sets[name]`` if given (how an imported object, which has no shipped set, is
+    drawn), else its shipped set. Writes ``fig10.csv``, then ``fig10.png`` (a figure that
+    fails is a warning: the CSV stays). ``progress``: one overall report. (Fig. 9, and every
+    other robot's Fig. 10: :mod:`~kinegrasp_env.toolkit.robot_tables`,
+    :mod:`~kinegrasp_env.toolkit.robot_reproduce`.)
 
-    Each grasp's row is its estimate on ``samples`` draws (chunks ``0..K-1`` of ``seed``).
-    fig10 also names, per object of two variants or more, the most and the least robust
-    variant (``config`` robust / fragile, empty for the others), chosen on those draws and
-    reported on fresh ones (:mod:`.selection`): their rows carry ``fresh_p_fc`` with its
-    interval, ``fresh_samples`` and the paired ``gap`` (robust - fragile) on the fresh draws.
+    Each variant's row is its estimate on ``samples`` draws (chunks ``0..K-1`` of ``seed``);
+    per object of two variants or more, the most and the least robust variant (``config``
+    robust / fragile, empty for the others) are chosen on those draws and reported on fresh
+    ones (:mod:`.selection`): their rows carry ``fresh_p_fc`` with its interval,
+    ``fresh_samples`` and the paired ``gap`` (robust - fragile) on the fresh draws.
 
-    ``method`` ``reweight`` (fig10 only): each object's variants from one batch of closings
+    ``method`` ``reweight``: each object's variants from one batch of closings
     (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`; ``samples`` then reads as
     each row's effective sample size); the robust and fragile pair is still reported on
     fresh direct draws.
 
     Raises:
         NoGraspSetError: an imported object without a grasp set.
-        ValueError: an unknown figure or method, or ``reweight`` for fig9 (its grasps have
-            different palm poses).
+        ValueError: an unknown method.
     """
     from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
-    if which not in ("fig9", "fig10"):
-        raise ValueError(f"unknown figure {which!r}")
     if method not in ("direct", "reweight"):
         raise ValueError(f"unknown method {method!r}: direct or reweight")
-    if method == "reweight" and which != "fig10":
-        raise ValueError("--method reweight is for fig10 (variants of one palm pose); fig9's "
-                         "grasps have different palm poses")
     out = Path(out_dir)
-    sets = figure_sets(which, objects, count, grasp_sets or {})
+    sets = variant_sets(objects, count, grasp_sets or {})
     rows = []
-    chooses = {name: which == "fig10" and len(g) >= 2 for name, g in sets.items()}
+    chooses = {name: len(g) >= 2 for name, g in sets.items()}
     cells = sum(len(g) + 2 * chooses[name] for name, g in sets.items())
     with _executor(executor, processes) as run_on, \
-            cell_progress(progress, which, cells, samples) as report:
+            cell_progress(progress, "fig10", cells, samples) as report:
         for name, grasps in sets.items():
             if method == "reweight":
                 from kinegrasp_env.toolkit.batch_stats import variant_stats
@@ -286,15 +240,14 @@ def fig9_10(which: str, out_dir: str | Path, *, samples: int = 1000, sigma: floa
                       "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
                       "samples": s.samples, "sigma": sigma}
                      for g, s in zip(grasps, stats, strict=True)]
-            if which == "fig10":
-                _mark_pair(block, name, grasps, stats, chooses[name],
-                           _fresh_evaluator(sigma, samples, seed, engine, run_on, report,
-                                            friction), samples, seed)
+            _mark_pair(block, name, grasps, stats, chooses[name],
+                       _fresh_evaluator(sigma, samples, seed, engine, run_on, report,
+                                        friction), samples, seed)
             rows += block
-    write_rows(out, f"{which}.csv", rows)
+    write_rows(out, "fig10.csv", rows)
     safe_figure(lambda: plot_success_quality(
-        rows, out / f"{which}.png",
-        title=f"{which}: sigma = {sigma:g}, {samples} draws per grasp"), out / f"{which}.png")
+        rows, out / "fig10.png",
+        title=f"fig10: sigma = {sigma:g}, {samples} draws per grasp"), out / "fig10.png")
     return rows
 
 

@@ -39,9 +39,9 @@ from kinegrasp_env.toolkit.robot_reproduce import (
 )
 from kinegrasp_env.world.grasps import Grasp, write_atomic
 
-#: fig9.csv's columns for a description robot.
-FIG9_COLUMNS = ("robot", "object", "id", "p_fc", "q_mean", "q_std", "q_nominal", "error",
-                "samples", "sigma")
+#: fig9.csv's columns (the robot last: readers of the older columns by position keep working).
+FIG9_COLUMNS = ("object", "id", "p_fc", "q_mean", "q_std", "q_nominal", "error", "samples",
+                "sigma", "robot")
 
 
 def robot_table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],
@@ -74,8 +74,8 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
                              "q_skew": stats.q_skew})
     out = Path(out_dir)
     title = f"{object_name} (robot {description.name})"
-    write_rows(out, "table1.csv", [{"robot": description.name, **r} for r in rows],
-               ("robot", *TABLE1_COLUMNS))
+    write_rows(out, "table1.csv", [{**r, "robot": description.name} for r in rows],
+               (*TABLE1_COLUMNS, "robot"))
     write_atomic(out / "table1.md", markdown_table1(rows, title, samples))
     safe_figure(lambda: plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png",
                                           title=f"{title}: P(FC) vs noise"),
