@@ -159,7 +159,8 @@ def test_reproduce_errors_for_imported_objects(catalog, capsys):
              (("fig10", "--object", "cube", "--grasps", grasps), "holds grasps of box6"),
              (("fig9", "--grasps", catalog / "nope.json"), "no such file"),
              (("table1", "--object", BOX), "box6 is an imported object and has no shipped "
-                                           "grasp set; give its grasps with --grasps FILE")]
+                                           "grasp set; give its grasps with --grasps FILE"),
+             (("table1", "--object", "cube", "--grasps", grasps), "holds grasps of box6")]
     for args, message in cases:
         code, _, err = cli(capsys, "reproduce", *args, "--samples", "4",
                            "--out", catalog / "never")

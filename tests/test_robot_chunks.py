@@ -44,8 +44,12 @@ def test_chunks_on_two_processes_are_the_run_row_for_row():
     grasp = shipped_grasps("cube", "panda")[0]
     options = dict(sigma=0.0133, n=530, seed=7, engine="fast", static_hold=True, friction=0.4)
     inline = evaluate_robot_grasp(grasp, **options)
+    reports = []
     with LocalExecutor(2) as executor:
-        pooled = evaluate_robot_grasp(grasp, **options, executor=executor)
+        pooled = evaluate_robot_grasp(grasp, **options, executor=executor,
+                                      progress=lambda done, n: reports.append((done, n)))
+    # one report per chunk as it comes back (chunks of 250: 250, 500, 530 of 530)
+    assert reports == [(250, 530), (500, 530), (530, 530)]
     for f in fields(DrawBatch):
         np.testing.assert_array_equal(getattr(inline.draws, f.name),
                                       getattr(pooled.draws, f.name), err_msg=f.name)

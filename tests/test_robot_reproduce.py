@@ -51,7 +51,7 @@ def test_the_default_robots_table1_and_fig9_are_its_own_evaluations(tmp_path, ca
         assert float(row["q_var"]) == pytest.approx(own["q_var"], rel=1e-12)
     assert main(["reproduce", "fig9", "--object", "cube", "--grasps", "2", "--samples",
                  SAMPLES, "--engine", "fast", "--out", str(tmp_path / "f")]) == 0
-    capsys.readouterr()
+    assert capsys.readouterr().err.count("fig9: cell ") == 2
     for row in csv.DictReader((tmp_path / "f" / "fig9.csv").open()):
         assert main(["evaluate", "--object", "cube", "--grasp", row["id"], "--sigma",
                      row["sigma"], "--samples", SAMPLES, "--engine", "fast", "--json"]) == 0

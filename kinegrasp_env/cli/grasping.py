@@ -246,18 +246,19 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("reproduce", help="run the protocol of a table or figure of the "
-                       "paper on this project's stand-in models (hand, objects, grasps); "
-                       "with --robot NAME: fig10 of another 7-joint arm")
+                       "paper on this project's stand-in models (hand, objects, grasps), or "
+                       "on any catalog robot's grasps (--robot NAME)")
     p.add_argument("figure", choices=("table1", "fig7", "fig9", "fig10"),
                    help="the table or figure")
     add_object_arg(p, None, f"catalog object: table1's (default {TABLE1_OBJECT}); fig9, "
                    "fig10: only this one (default: the four built-in objects)")
     p.add_argument("--samples", default="10000", help="Monte Carlo draws per cell")
     p.add_argument("--grasps", help=f"a count: the first N shipped grasps (table1, default "
-                   f"{TABLE1_GRASPS}; fig9, default {FIGURE_GRASPS}) or N null-space variants "
-                   f"of grasp 0 (fig10, default {FIGURE_GRASPS}); or for fig9, fig10 a grasp "
-                   "file (`kinegrasp plan`'s output; needed for an imported object): its "
-                   f"first {FIGURE_GRASPS} grasps, or variants of its first")
+                   f"{TABLE1_GRASPS} or the whole set where it has fewer, at most the set; "
+                   f"fig9, default {FIGURE_GRASPS}) or N variants of grasp 0 (fig10, default "
+                   f"{FIGURE_GRASPS}); or a grasp file (`kinegrasp plan`'s output; needed for "
+                   f"an imported object): table1 all its grasps, fig9 its first "
+                   f"{FIGURE_GRASPS}, fig10 variants of its first")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 2)
     # fast by default: the same draws as the reference, and the same outcome for all but a few

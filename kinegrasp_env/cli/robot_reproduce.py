@@ -89,17 +89,17 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
             check_method(method)
     from kinegrasp_env.cli.execution_options import executor_from
 
-    with executor_from(args) as executor:
-        if args.figure == "table1":
-            return robot_table1_command(args, description, samples, friction, executor)
-        sets, count = robot_grasp_sets(args, robot)
-        out = str(output_folder(args.out or f"out/{args.figure}"))
-        seed = parse_seed(args.seed)
-        if args.figure in ("fig7", "fig9"):
-            return robot_figure_command(args, description, sets, count, out, samples, seed,
-                                        friction, executor)
-        from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
+    if args.figure == "table1":
+        return robot_table1_command(args, description, samples, friction)
+    sets, count = robot_grasp_sets(args, robot)
+    out = str(output_folder(args.out or f"out/{args.figure}"))
+    seed = parse_seed(args.seed)
+    if args.figure in ("fig7", "fig9"):
+        return robot_figure_command(args, description, sets, count, out, samples, seed,
+                                    friction)
+    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
 
+    with executor_from(args) as executor:  # after every check: Ray takes seconds to start
         with reported(ValueError), batch_sized(twice_samples):
             rows = robot_fig10(description, out, grasp_sets=sets, samples=samples,
                                count=count, seed=seed, engine=args.engine, friction=friction,
@@ -129,17 +129,19 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
 
 
 def robot_figure_command(args, description, sets: dict, count: int, out: str, samples: int,
-                         seed: int, friction: float, executor=None) -> int:
-    """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`)."""
+                         seed: int, friction: float) -> int:
+    """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`), on
+    the executor ``--processes`` asks for."""
+    from kinegrasp_env.cli.execution_options import executor_from
     from kinegrasp_env.toolkit.robot_reproduce import variant_label
     from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
     from kinegrasp_env.toolkit.selection import provenance
 
-    with reported(ValueError):
+    with executor_from(args) as executor, reported(ValueError):
         if args.figure == "fig9":
             rows = robot_fig9(description, out, grasp_sets=sets, samples=samples, count=count,
                               seed=seed, engine=args.engine, friction=friction,
-                              executor=executor)
+                              executor=executor, progress=True)
         else:
             rows = robot_fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
                               engine=args.engine, friction=friction, executor=executor)
@@ -163,13 +165,12 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
     return 0
 
 
-def robot_table1_command(args, description, samples: int, friction: float,
-                         executor=None) -> int:
+def robot_table1_command(args, description, samples: int, friction: float) -> int:
     """``reproduce table1 [--robot NAME]``: Table I of the robot's first ``--grasps``
     (default 5, or the whole set where it has fewer) grasps of ``--object`` (default: the
     paper's object, the spray flask, where the robot has shipped grasps of it, else the first
-    object it has them of; a count above the set's size is refused), or of a grasp
-    file's."""
+    object it has them of; a count above the set's size is refused), or of every grasp of a
+    grasp file (of ``--object`` where it is given)."""
     from kinegrasp_env.toolkit.robot_tables import robot_table1
 
     robot = description.name
@@ -178,10 +179,12 @@ def robot_table1_command(args, description, samples: int, friction: float,
         from kinegrasp_env.world.grasps import check_robot
 
         grasps = grasp_file(args.grasps)
+        name = grasps[0].object
+        if args.object is not None and args.object != name:
+            raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of {name}")
         with reported(ValueError):
             for g in grasps:
                 check_robot(g, robot)
-        name = grasps[0].object
     else:
         from kinegrasp_env.world.grasps import shipped_objects
 
@@ -202,9 +205,13 @@ def robot_table1_command(args, description, samples: int, friction: float,
                            f"{len(sets[name])} shipped grasps of robot {robot}), got {count}")
         grasps = sets[name][:count]
     out = str(output_folder(args.out or "out/table1"))
-    rows = robot_table1(description, name, grasps, samples, out, seed=parse_seed(args.seed),
-                        engine=args.engine, friction=friction, executor=executor,
-                        progress=True)
+    seed = parse_seed(args.seed)
+    from kinegrasp_env.cli.execution_options import executor_from
+
+    with executor_from(args) as executor:  # after every check: Ray takes seconds to start
+        rows = robot_table1(description, name, grasps, samples, out, seed=seed,
+                            engine=args.engine, friction=friction, executor=executor,
+                            progress=True)
     from kinegrasp_env.toolkit.experiments import markdown_table1
 
     print(markdown_table1(rows, f"{name} (robot {robot})", samples))

@@ -15,6 +15,7 @@ chunks of the same robot, object and settings reuse them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -132,15 +133,22 @@ def chunk_rows(task: RobotChunk, description: RobotDescription, center: np.ndarr
                       center)
 
 
-def chunked_draws(first: RobotChunk, n: int, executor: Executor,
-                  chunk: int = CHUNK) -> DrawBatch:
+def chunked_draws(first: RobotChunk, n: int, executor: Executor, chunk: int = CHUNK,
+                  progress: Callable[[int, int], None] | None = None) -> DrawBatch:
     """Rows ``first.offset .. first.offset + n`` of ``first``'s run (its ``size`` is
-    ignored), split into chunks of ``chunk`` draws run on ``executor``, in row order."""
+    ignored), split into chunks of ``chunk`` draws run on ``executor``, in row order;
+    ``progress(done, n)`` after each chunk comes back."""
     from dataclasses import replace
 
     tasks = [replace(first, offset=first.offset + start, size=min(chunk, n - start))
              for start in range(0, n, chunk)]
-    return DrawBatch.concatenate(list(executor.map(run_robot_chunk, tasks)))
+    parts, done = [], 0
+    for part in executor.map(run_robot_chunk, tasks):
+        parts.append(part)
+        done += len(part.outcome)
+        if progress is not None:
+            progress(done, n)
+    return DrawBatch.concatenate(parts)
 
 
 def nominal_closing_quality(first: RobotChunk, executor: Executor) -> float:

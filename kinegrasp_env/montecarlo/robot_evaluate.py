@@ -14,6 +14,7 @@ OUTCOMES`); P(FC) comes with its Wilson interval, Q's moments are over the force
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -168,7 +169,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                          static_hold: bool = False, friction: float = 0.5,
                          executor: Executor | None = None,
                          noise_model: NoiseModel | None = None,
-                         offset: int = 0) -> RobotEvaluation:
+                         offset: int = 0,
+                         progress: Callable[[int, int], None] | None = None
+                         ) -> RobotEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
     its nominal Q (:func:`nominal_robot_quality`).
 
@@ -196,6 +199,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         offset: the draws are rows ``offset .. offset + n`` of the seed's run (an integer or
             SeedSequence seed; e.g. the fresh draws after a selection's:
             :func:`~kinegrasp_env.toolkit.selection.report_rows`).
+        progress: ``progress(done, n)`` as the chunks of a run on ``executor`` come back
+            (not called in this process).
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
@@ -234,7 +239,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                                      and executor.workers == 1):
         return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
                         static_hold=static_hold, friction=friction, executor=executor,
-                        noise_model=noise_model, offset=int(offset))
+                        noise_model=noise_model, offset=int(offset), progress=progress)
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
@@ -265,9 +270,9 @@ def _integer_seed(seed: SeedLike, what: str) -> None:
 def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
              seed: SeedLike, noise: str, static_hold: bool, friction: float,
              executor: Executor, noise_model: NoiseModel | None = None,
-             offset: int = 0) -> RobotEvaluation:
+             offset: int = 0, progress=None) -> RobotEvaluation:
     """:func:`evaluate_robot_grasp`'s run in chunks on ``executor`` (a given engine passes
-    its name and settings to the workers, which build their own)."""
+    its name and settings to the workers, which build their own); ``progress`` as there."""
     from kinegrasp_env.montecarlo.robot_chunks import (
         RobotChunk,
         chunked_draws,
@@ -285,6 +290,6 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
                        seed if isinstance(seed, np.random.SeedSequence) else int(seed),
                        offset, n, friction, static_hold,
                        None if noise_model is None else json.dumps(spec_of(noise_model)))
-    draws = chunked_draws(first, n, executor)
+    draws = chunked_draws(first, n, executor, progress=progress)
     stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)
     return replace(stats, q_nominal=nominal_closing_quality(first, executor))

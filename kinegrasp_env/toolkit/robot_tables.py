@@ -52,7 +52,8 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
     """Table I of ``grasps`` (grasps of ``description`` on ``object_name``; a row's ``grasp``
     is its index among them) at each sigma (radians); writes the module's files.
     ``executor``: each evaluation's draws in chunks on it (the same draws, row for row);
-    ``progress``: a line per cell on stderr (:class:`~kinegrasp_env.toolkit.progress.
+    ``progress``: a line per cell on stderr, or a bar on a terminal that moves as the
+    chunks of a run on ``executor`` come back (:class:`~kinegrasp_env.toolkit.progress.
     Progress`)."""
     from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
 
@@ -63,7 +64,9 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                             engine=runner, executor=executor)
+                                             engine=runner, executor=executor,
+                                             progress=None if report is None
+                                             else report.evaluation())
                 if report is not None:
                     report.finish_cell(samples, f"{object_name} grasp {grasp.id} sigma "
                                                 f"{sigma:g}: P(FC) {stats.p_fc:.3f}")
@@ -100,7 +103,9 @@ def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
             with make_engine(engine, description, name, friction=friction) as runner:
                 for grasp in list(grasps)[:count]:
                     s = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                             engine=runner, executor=executor)
+                                             engine=runner, executor=executor,
+                                             progress=None if report is None
+                                             else report.evaluation())
                     if report is not None:
                         report.finish_cell(samples, f"{name} grasp {grasp.id}: P(FC) "
                                                     f"{s.p_fc:.3f}")
