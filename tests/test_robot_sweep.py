@@ -80,16 +80,20 @@ def test_panda_sweep_cell_equals_evaluate(tmp_path, capsys):
     assert "holds a sweep of robot 'panda', the spec's robot is 'kuka_sdh'" in fails(
         capsys, "sweep", str(spec), "--out", str(out), lines=2)
     # nor a store of the Panda that records no layout of its draws (made before its rows
-    # came in chunks); the default robot's store without one (its rows always did) is
+    # came in chunks)
     with sqlite3.connect(out / "results.sqlite") as db:
         db.execute("DELETE FROM meta WHERE key = 'draw_layout'")
     assert "random draws are laid out otherwise (not recorded, now 'rows of chunks of 250'" \
         in fails(capsys, "sweep", str(spec), "--out", str(out), "--robot", "panda", lines=2)
+    # nor a default robot's store that records no robot (an older kinegrasp's: its draws
+    # came in the spec's chunks); its store now records its robot and is extended
     kuka = tmp_path / "kuka"
     run(capsys, "sweep", str(spec), "--out", str(kuka))
-    with sqlite3.connect(kuka / "results.sqlite") as db:
-        db.execute("DELETE FROM meta WHERE key = 'draw_layout'")
     run(capsys, "sweep", str(spec), "--out", str(kuka))
+    with sqlite3.connect(kuka / "results.sqlite") as db:
+        db.execute("DELETE FROM meta WHERE key = 'robot'")
+    assert "holds a sweep of the default robot whose random draws came in the spec's chunks" \
+        in fails(capsys, "sweep", str(spec), "--out", str(kuka), lines=2)
 
 
 def single_joint_spec(tmp_path, joint: int, sigma: float) -> str:

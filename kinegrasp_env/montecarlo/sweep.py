@@ -1,11 +1,11 @@
 """``kinegrasp sweep``: a grid of grasp evaluations, resumable, on any executor.
 
 The grid is objects x grasps x sigmas x noise types x engines; each cell is ``samples``
-draws split into chunks of ``chunk``. A *task* is one chunk of one cell. Chunk c of every
-cell draws its noise from ``SeedSequence(seed, spawn_key=(c,))`` (the stream
-:func:`kinegrasp_env.montecarlo.evaluate.evaluate_grasp` uses), so a cell's numbers equal
-``evaluate_grasp`` with the same seed, whatever ran the task, and cells of the same noise
-type share their draws (common random numbers make grasps comparable). A ``noise`` entry may
+draws split into chunks of ``chunk``. A *task* is one chunk of one cell: rows ``c * chunk
+..`` of the cell's run, the rows ``kinegrasp evaluate`` draws with the same seed
+(:data:`~kinegrasp_env.sampling.noise_model.DRAW_LAYOUT`: the same draws whatever the chunk
+and whatever ran the task), so a cell's numbers equal ``evaluate``'s, and cells of the same
+noise type share their draws (common random numbers make grasps comparable). A ``noise`` entry may
 also be a noise model (a spec mapping or file: :mod:`kinegrasp_env.montecarlo.sweep_noise`),
 whose joint sigma is the cell's sigma. The spec, its checks and its tasks:
 :mod:`kinegrasp_env.montecarlo.sweep_spec`.
@@ -16,10 +16,10 @@ the shipped set, which is how an imported object (it has none) is swept. ``grasp
 each object's set. The store records every grasp file's SHA-256 and every imported object's
 catalog version: a store made with other grasps or a re-imported object is not extended.
 
-Robot: the spec's ``robot`` (default ``kuka_sdh``). Another robot's cells are joint noise on
-its arm joints closed by its own engines, a cell equal to ``kinegrasp evaluate --robot`` with
-the same seed (:mod:`kinegrasp_env.montecarlo.sweep_robot`); its summary has a first column
-``robot``, and a store made for another robot is not extended.
+Robot: the spec's ``robot`` (default ``kuka_sdh``): its cells are joint noise on its arm
+joints closed by its own engines, a cell equal to ``kinegrasp evaluate --robot`` with the
+same seed (:func:`run_task`, every robot's); another robot's
+summary has a first column ``robot``, and a store made for another robot is not extended.
 
 Results go to an SQLite file, ``DIR/results.sqlite``, one row per finished task, committed
 as soon as the task finishes. SQLite because it ships with Python (nothing to install on a
@@ -44,12 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
-from kinegrasp_env.montecarlo.evaluate import chunk_sizes, run_chunk
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.evaluate import chunk_sizes
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
-from kinegrasp_env.quality.wrenches import DEFAULT_NUM_EDGES
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 from kinegrasp_env.sampling.stats import StreamingMoments
@@ -58,26 +57,30 @@ from kinegrasp_env.world.grasps import write_atomic
 #: ``plot(rows, path, title=...) -> path``: draws one P(FC)-vs-sigma figure of summary rows.
 SweepPlot = Callable[..., Path]
 
-#: Settings that fix the random streams: a store made with others cannot be extended.
+#: Settings that fix the draws (the seed) and the tasks (the chunk): a store made with others
+#: cannot be extended.
 STREAM_KEYS = ("seed", "chunk")
 SUMMARY_COLUMNS = ("object", "grasp", "sigma", "noise", "engine", "p_fc", "p_fc_lo", "p_fc_hi",
                    "q_mean", "q_std", "q_skew", "q_nominal", "samples", *OUTCOMES)
 
 
 def run_task(task: SweepTask) -> dict:
-    """Evaluate one task (in a worker): outcome counts and Q moments of its chunk."""
-    from kinegrasp_env.world.grasps import grasp_by_index
+    """Evaluate one task (in a worker): outcome counts and Q moments of its chunk, rows
+    ``task.offset .. task.offset + task.size`` of its cell's run
+    (:func:`~kinegrasp_env.montecarlo.robot_chunks.close_chunk`: the rows of the seed's
+    chunked streams, so a cell's counts equal ``kinegrasp evaluate --robot R`` with the same
+    seed whatever the chunk size). Each process keeps its engines for its later tasks."""
+    from kinegrasp_env.montecarlo.robot_chunks import RobotChunk, close_chunk
 
-    if task.robot != DEFAULT_ROBOT:
-        from kinegrasp_env.montecarlo.sweep_robot import run_robot_task
-
-        return run_robot_task(task)
     start = time.perf_counter()
-    q0 = (grasp_by_index(task.object, task.grasp).q0 if task.q0 is None
-          else np.asarray(task.q0, dtype=float))
-    key = (task.engine, task.object, float(task.friction), DEFAULT_NUM_EDGES)
-    counts, moments, _ = run_chunk((key, q0, cell_noise(task.sigma, task.noise, task.model),
-                                    task.seed, task.chunk, task.size, "mc", False))
+    # a model cell's model has the cell's sigma as its joints'
+    model = None if task.model is None else cell_noise(task.sigma, task.noise, task.model)
+    draws = close_chunk(RobotChunk(task.robot, task.object, task.engine, task.q0, task.sigma,
+                                   task.noise, task.seed, task.offset, task.size,
+                                   task.friction), model)
+    fc = draws.outcome == FORCE_CLOSURE
+    moments = StreamingMoments(1).update(draws.quality[fc])
+    counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
     return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
             "q_mean": float(moments.mean[0]), "q_m2": float(moments.m2[0, 0]),
             "q_m3": float(moments.m3[0]), "seconds": time.perf_counter() - start}
@@ -109,18 +112,18 @@ class SweepStore:
         for key, value in wanted.items():
             if key in stored and stored[key] != value:
                 self.close()
+                what = "random draws" if key == "seed" else "tasks"
                 raise SpecError(f"{self.directory} holds a sweep run with {key} = "
-                                f"{stored[key]}, the spec says {value}: its random streams "
-                                "differ; use another --out")
+                                f"{stored[key]}, the spec says {value}: its {what} differ; "
+                                "use another --out")
         self._check_layout(stored)
         wanted["draw_layout"] = json.dumps(DRAW_LAYOUT)
-        robot = json.loads(stored.get("robot", json.dumps(DEFAULT_ROBOT)))
-        if stored and robot != spec.robot:
+        robot = json.loads(stored["robot"]) if stored else spec.robot
+        if robot != spec.robot:
             self.close()
             raise SpecError(f"{self.directory} holds a sweep of robot {robot!r}, the spec's "
                             f"robot is {spec.robot!r}; use another --out")
-        if spec.robot != DEFAULT_ROBOT:
-            wanted["robot"] = json.dumps(spec.robot)
+        wanted["robot"] = json.dumps(spec.robot)
         friction = json.loads(stored.get("friction", "0.5"))
         if stored and friction != spec.friction:
             self.close()
@@ -137,11 +140,18 @@ class SweepStore:
                              (json.dumps(asdict(spec)),))
 
     def _check_layout(self, stored: dict[str, str]) -> None:
-        """Refuse a store whose draws were laid out otherwise: one that records another
-        layout, or a description robot's store (it records its robot) from before its rows
-        came in chunks (it records none; the default robot's rows always did)."""
+        """Refuse a store whose draws were laid out otherwise: one that records no robot (the
+        default robot's of an older kinegrasp, whose draws came in the spec's chunks), or
+        another layout (a description robot's from before its rows came in chunks records
+        none)."""
+        if stored and "robot" not in stored:
+            self.close()
+            raise SpecError(f"{self.directory} holds a sweep of the default robot whose "
+                            "random draws came in the spec's chunks (made by an older "
+                            "kinegrasp; every robot's draws are now rows of one run); use "
+                            "another --out")
         layout = stored.get("draw_layout")
-        if layout == json.dumps(DRAW_LAYOUT) or (layout is None and "robot" not in stored):
+        if not stored or layout == json.dumps(DRAW_LAYOUT):
             return
         self.close()
         raise SpecError(f"{self.directory} holds a sweep whose random draws are laid out "
@@ -217,13 +227,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
 
 def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int], float]:
     """(object, grasp index) -> the grasp's nominal Q at the spec's friction: its nominal
-    contacts re-scored (the default robot: :func:`~kinegrasp_env.montecarlo.nominal.
-    nominal_quality`), or its nominal closing by the robot's reference engine."""
-    from kinegrasp_env.montecarlo.nominal import nominal_quality
-
-    if spec.robot == DEFAULT_ROBOT:
-        return {(o, g): nominal_quality(spec.grasp(o, g), spec.friction)
-                for o in spec.objects for g in spec.grasp_indices(o)}
+    closing by the robot's reference engine."""
     from kinegrasp_env.montecarlo.robot_evaluate import make_engine, nominal_robot_quality
 
     out = {}

@@ -16,9 +16,9 @@ each object's set; each grasp file's SHA-256 is kept with the spec
 
 Robot: ``robot`` (default ``kuka_sdh``; ``kinegrasp sweep --robot`` overrides it) names the
 catalog robot. Its grasps come from its shipped sets or from ``grasp_files`` (every grasp of
-a file must be a grasp of that robot). Another robot's draws are
-joint noise on its arm joints (a distribution entry of ``noise``; noise models are refused),
-closed by its own engines (:mod:`kinegrasp_env.montecarlo.sweep_robot`).
+a file must be a grasp of that robot). Its draws are joint noise on its arm joints (a
+distribution entry of ``noise``) or a noise model of the sources its engines take, closed by
+its own engines (:func:`kinegrasp_env.montecarlo.sweep.run_task`).
 """
 
 from __future__ import annotations
@@ -89,8 +89,7 @@ class SweepSpec:
         _check_grasp_sets(objects, files, where, robot)
         noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
         engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
-        if robot != DEFAULT_ROBOT:
-            _check_robot_cells(robot, models, engines, where)
+        _check_robot_cells(robot, models, engines, where)
         sigmas = _unique(tuple(_sigma(s, where) for s in _list(data["sigmas"], "sigmas", where)),
                          "sigmas", where)
         grasps = data.get("grasps", "all")
