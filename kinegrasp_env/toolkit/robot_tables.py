@@ -44,6 +44,19 @@ FIG9_COLUMNS = ("object", "id", "p_fc", "q_mean", "q_std", "q_nominal", "error",
                 "sigma", "robot")
 
 
+def _cell(grasp: Grasp, sigma: float, samples: int, seed: int, runner, executor,
+          report, label: str):
+    """One cell's :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` on
+    ``runner``'s engine, reported to ``report`` (a :class:`~kinegrasp_env.toolkit.progress.
+    Progress`, or None) as its chunks come back and, ``label`` first, when it is done."""
+    stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed, engine=runner,
+                                 executor=executor,
+                                 progress=None if report is None else report.evaluation())
+    if report is not None:
+        report.finish_cell(samples, f"{label}: P(FC) {stats.p_fc:.3f}")
+    return stats
+
+
 def robot_table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],
                  samples: int, out_dir: str | Path, *,
                  sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0,
@@ -63,13 +76,8 @@ def robot_table1(description: RobotDescription, object_name: str, grasps: Sequen
             cell_progress(progress, "table1", cells, samples) as report:
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
-                stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                             engine=runner, executor=executor,
-                                             progress=None if report is None
-                                             else report.evaluation())
-                if report is not None:
-                    report.finish_cell(samples, f"{object_name} grasp {grasp.id} sigma "
-                                                f"{sigma:g}: P(FC) {stats.p_fc:.3f}")
+                stats = _cell(grasp, sigma, samples, seed, runner, executor, report,
+                              f"{object_name} grasp {grasp.id} sigma {sigma:g}")
                 rows.append({"grasp": index, "sigma": sigma, "q_nominal": stats.q_nominal,
                              "q_mean": stats.q_mean, "q_var": stats.q_std ** 2,
                              "p_fc": stats.p_fc, "p_fc_lo": stats.ci[0],
@@ -102,13 +110,8 @@ def robot_fig9(description: RobotDescription, out_dir: str | Path, *,
         for name, grasps in grasp_sets.items():
             with make_engine(engine, description, name, friction=friction) as runner:
                 for grasp in list(grasps)[:count]:
-                    s = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                             engine=runner, executor=executor,
-                                             progress=None if report is None
-                                             else report.evaluation())
-                    if report is not None:
-                        report.finish_cell(samples, f"{name} grasp {grasp.id}: P(FC) "
-                                                    f"{s.p_fc:.3f}")
+                    s = _cell(grasp, sigma, samples, seed, runner, executor, report,
+                              f"{name} grasp {grasp.id}")
                     rows.append({"robot": description.name, "object": name, "id": grasp.id,
                                  "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
                                  "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
