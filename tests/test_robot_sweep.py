@@ -83,7 +83,7 @@ def test_panda_sweep_cell_equals_evaluate(tmp_path, capsys):
     # came in chunks)
     with sqlite3.connect(out / "results.sqlite") as db:
         db.execute("DELETE FROM meta WHERE key = 'draw_layout'")
-    assert "random draws are laid out otherwise (not recorded, now 'rows of chunks of 250'" \
+    assert "random draws are laid out otherwise (not recorded, now 'rows of chunks of 250, " \
         in fails(capsys, "sweep", str(spec), "--out", str(out), "--robot", "panda", lines=2)
     # nor a default robot's store that records no robot (an older kinegrasp's: its draws
     # came in the spec's chunks); its store now records its robot and is extended

@@ -137,6 +137,48 @@ def test_cells_equal_evaluate_grasp_and_a_rerun_computes_nothing(tmp_path):
     assert (tmp_path / "pfc_vs_sigma_triangular_fast.png").stat().st_size > 0
 
 
+def test_an_older_default_robot_store_in_chunks_of_250_is_extended(tmp_path):
+    """A store of the default robot by an older kinegrasp records no robot and the plain
+    layout; its draws came in the spec's chunks, which at the default chunk of 250 are the
+    rows every robot's cells now are: it is extended (nothing recomputed, the same summary),
+    and marked with the layout an older kinegrasp refuses; at another chunk it is refused."""
+    import json
+
+    from kinegrasp_env.montecarlo.sweep import SWEEP_LAYOUT
+    from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
+
+    spec = SweepSpec.from_dict({"objects": ["cube"], "grasps": [0], "sigmas": [0.02],
+                                "engines": ["fast"], "samples": 20})
+    assert spec.chunk == 250
+    with LocalExecutor(1) as ex:
+        run_sweep(spec, tmp_path, ex, progress=False)
+        first = (tmp_path / "summary.csv").read_bytes()
+        with sqlite3.connect(tmp_path / "results.sqlite") as db:
+            db.execute("DELETE FROM meta WHERE key = 'robot'")
+            db.execute("UPDATE meta SET value = ? WHERE key = 'draw_layout'",
+                       (json.dumps(DRAW_LAYOUT),))
+        _, ran, skipped = run_sweep(spec, tmp_path, ex, progress=False)
+        assert (ran, skipped) == (0, 1) and (tmp_path / "summary.csv").read_bytes() == first
+        with sqlite3.connect(tmp_path / "results.sqlite") as db:
+            meta = dict(db.execute("SELECT key, value FROM meta").fetchall())
+        assert json.loads(meta["draw_layout"]) == SWEEP_LAYOUT
+        assert json.loads(meta["robot"]) == "kuka_sdh"
+        other = tmp_path / "other"
+        run_sweep(SweepSpec.from_dict({**asdict_spec(spec), "chunk": 10}), other, ex,
+                  progress=False)
+        with sqlite3.connect(other / "results.sqlite") as db:
+            db.execute("DELETE FROM meta WHERE key = 'robot'")
+        with pytest.raises(SpecError, match="random draws came in the spec's chunks"):
+            run_sweep(SweepSpec.from_dict({**asdict_spec(spec), "chunk": 10}), other, ex,
+                      progress=False)
+
+
+def asdict_spec(spec: SweepSpec) -> dict:
+    """The spec's settings as a spec mapping (the keys this module's tests set)."""
+    return {"objects": list(spec.objects), "grasps": [0], "sigmas": list(spec.sigmas),
+            "engines": list(spec.engines), "samples": spec.samples}
+
+
 def test_other_seed_in_the_same_folder_is_refused(tmp_path):
     spec = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01], "engines": ["fast"],
             "samples": 20, "chunk": 20}

@@ -85,7 +85,7 @@ def cmd_sweep(args) -> int:
     with executor_from(args) as executor:
         print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws{robot} on "
               f"{executor.description}", file=sys.stderr)
-        with reported(SpecError):  # the store in --out was made with other random streams
+        with reported(SpecError):  # the store in --out was made with other settings or draws
             rows, ran, skipped = run_sweep(spec, out, executor, plot=plot_sweep)
     print(summary_table(rows), end="")
     figures = ", ".join(name for _, _, name in figure_names(spec))

@@ -177,7 +177,7 @@ def _run_chunk_group(task: tuple) -> list[ChunkResult]:
     """Chunks ``[(index, size), ...]`` through one engine call (draws are independent of
     their batch, so the results equal one call per chunk); one result per chunk."""
     key, q0, noise, seed, chunks, method, keep = task
-    validate_task(q0, noise)  # also on paths that skip run_chunks (sweeps)
+    validate_task(q0, noise)
     engine = _engine(key)
     draws = run_inputs(engine, chunk_inputs(q0, noise, seed, chunks, method,
                                             engine.obj.center_of_mass))
@@ -189,12 +189,6 @@ def _run_chunk_group(task: tuple) -> list[ChunkResult]:
         moments = StreamingMoments(1).update(part.quality[part.outcome == FORCE_CLOSURE])
         results.append((counts, moments, part if keep else None))
     return results
-
-
-def run_chunk(task: tuple) -> ChunkResult:
-    """One chunk: ``(key, q0, noise, seed, index, size, method, keep)``."""
-    key, q0, noise, seed, index, size, method, keep = task
-    return _run_chunk_group((key, q0, noise, seed, [(index, size)], method, keep))[0]
 
 
 def group_size(engine: str, n_chunks: int, workers: int) -> int:

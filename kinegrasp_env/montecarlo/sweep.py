@@ -50,7 +50,7 @@ from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
-from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
+from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT, STREAM_CHUNK
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.world.grasps import write_atomic
 
@@ -60,6 +60,9 @@ SweepPlot = Callable[..., Path]
 #: Settings that fix the draws (the seed) and the tasks (the chunk): a store made with others
 #: cannot be extended.
 STREAM_KEYS = ("seed", "chunk")
+#: The layout a store records: every robot's cells rows of one run. A value of its own, so
+#: that an older kinegrasp, which drew the default robot's cells otherwise, refuses the store.
+SWEEP_LAYOUT = f"{DRAW_LAYOUT}, every robot"
 SUMMARY_COLUMNS = ("object", "grasp", "sigma", "noise", "engine", "p_fc", "p_fc_lo", "p_fc_hi",
                    "q_mean", "q_std", "q_skew", "q_nominal", "samples", *OUTCOMES)
 
@@ -73,9 +76,14 @@ def run_task(task: SweepTask) -> dict:
     from kinegrasp_env.montecarlo.robot_chunks import RobotChunk, close_chunk
 
     start = time.perf_counter()
+    q0 = task.q0
+    if q0 is None:  # the robot's shipped grasp
+        from kinegrasp_env.world.grasps import shipped_grasps
+
+        q0 = tuple(shipped_grasps(task.object, task.robot)[task.grasp].q0.tolist())
     # a model cell's model has the cell's sigma as its joints'
     model = None if task.model is None else cell_noise(task.sigma, task.noise, task.model)
-    draws = close_chunk(RobotChunk(task.robot, task.object, task.engine, task.q0, task.sigma,
+    draws = close_chunk(RobotChunk(task.robot, task.object, task.engine, q0, task.sigma,
                                    task.noise, task.seed, task.offset, task.size,
                                    task.friction), model)
     fc = draws.outcome == FORCE_CLOSURE
@@ -117,9 +125,9 @@ class SweepStore:
                                 f"{stored[key]}, the spec says {value}: its {what} differ; "
                                 "use another --out")
         self._check_layout(stored)
-        wanted["draw_layout"] = json.dumps(DRAW_LAYOUT)
-        robot = json.loads(stored["robot"]) if stored else spec.robot
-        if robot != spec.robot:
+        # an older store without a robot (accepted above) is the default robot's
+        robot = json.loads(stored.get("robot", json.dumps(DEFAULT_ROBOT)))
+        if stored and robot != spec.robot:
             self.close()
             raise SpecError(f"{self.directory} holds a sweep of robot {robot!r}, the spec's "
                             f"robot is {spec.robot!r}; use another --out")
@@ -136,27 +144,35 @@ class SweepStore:
         wanted.update(sources)
         with self._db:
             self._db.executemany("INSERT OR IGNORE INTO meta VALUES (?, ?)", wanted.items())
+            self._db.execute("INSERT OR REPLACE INTO meta VALUES ('draw_layout', ?)",
+                             (json.dumps(SWEEP_LAYOUT),))
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_spec', ?)",
                              (json.dumps(asdict(spec)),))
 
     def _check_layout(self, stored: dict[str, str]) -> None:
-        """Refuse a store whose draws were laid out otherwise: one that records no robot (the
-        default robot's of an older kinegrasp, whose draws came in the spec's chunks), or
-        another layout (a description robot's from before its rows came in chunks records
-        none)."""
-        if stored and "robot" not in stored:
+        """Refuse a store whose draws were laid out otherwise (it is then marked
+        :data:`SWEEP_LAYOUT`): a store of the default robot by an older kinegrasp (it records
+        no robot) whose draws came in the spec's chunks (its chunk is not
+        :data:`~kinegrasp_env.sampling.noise_model.STREAM_CHUNK`, whose chunks are the rows),
+        or one that records another layout (a description robot's from before its rows came
+        in chunks records none)."""
+        if not stored:
+            return
+        if "robot" not in stored:
+            if json.loads(stored.get("chunk", "null")) == STREAM_CHUNK:
+                return  # its chunks of 250 are the rows of the run: the same draws
             self.close()
             raise SpecError(f"{self.directory} holds a sweep of the default robot whose "
                             "random draws came in the spec's chunks (made by an older "
                             "kinegrasp; every robot's draws are now rows of one run); use "
                             "another --out")
         layout = stored.get("draw_layout")
-        if not stored or layout == json.dumps(DRAW_LAYOUT):
+        if layout in (json.dumps(SWEEP_LAYOUT), json.dumps(DRAW_LAYOUT)):
             return
         self.close()
         raise SpecError(f"{self.directory} holds a sweep whose random draws are laid out "
                         f"otherwise ({'not recorded' if layout is None else layout}, now "
-                        f"{DRAW_LAYOUT!r}: made by an older kinegrasp); use another --out")
+                        f"{SWEEP_LAYOUT!r}: made by an older kinegrasp); use another --out")
 
     def _check_sources(self, stored: dict[str, str], sources: dict[str, str]) -> None:
         """Refuse a store made with another grasp file or object version (see

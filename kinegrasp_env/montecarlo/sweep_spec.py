@@ -394,7 +394,8 @@ class SweepTask:
     model: str | None = None  # the spec JSON of a noise-model cell
     q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
     robot: str = DEFAULT_ROBOT
-    #: the chunk's first draw within its cell (another robot's draws are addressed by row)
+    #: the chunk's first row within its cell's run (:meth:`SweepSpec.tasks` sets it: the
+    #: chunk's index times the spec's chunk)
     offset: int = 0
     #: the contacts' friction coefficient mu
     friction: float = 0.5
