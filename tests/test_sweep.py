@@ -179,6 +179,22 @@ def asdict_spec(spec: SweepSpec) -> dict:
             "engines": list(spec.engines), "samples": spec.samples}
 
 
+def test_more_samples_regrow_a_cells_short_last_chunk(tmp_path):
+    """20 draws in chunks of 7 (7, 7, 6), then 30 (7, 7, 7, 7, 2): the short chunk is run
+    again at its new size and the two new ones added (3 tasks), so the cell has 30 draws
+    and equals evaluate_grasp's 30 (it kept the 6-draw chunk: 29 draws)."""
+    base = {"objects": ["cube"], "grasps": [0], "sigmas": [0.02], "engines": ["fast"],
+            "chunk": 7, "seed": 3}
+    with LocalExecutor(1) as ex:
+        run_sweep(SweepSpec.from_dict({**base, "samples": 20}), tmp_path, ex, progress=False)
+        (row,), ran, skipped = run_sweep(SweepSpec.from_dict({**base, "samples": 30}),
+                                         tmp_path, ex, progress=False)
+    assert (ran, skipped) == (3, 2) and row["samples"] == 30
+    stats = evaluate_grasp(grasp_by_index("cube", 0), JointNoise(0.02), 30, seed=3,
+                           engine="fast")
+    assert row["p_fc"] == stats.p_fc
+
+
 def test_other_seed_in_the_same_folder_is_refused(tmp_path):
     spec = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01], "engines": ["fast"],
             "samples": 20, "chunk": 20}

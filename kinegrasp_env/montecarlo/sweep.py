@@ -26,7 +26,8 @@ as soon as the task finishes. SQLite because it ships with Python (nothing to in
 cluster's head node), a committed transaction survives the process being killed, and the
 task key is the table's primary key, so the store holds each task at most once by
 construction; only the driver writes, so there is no write contention. Re-running the
-same command reads the finished keys and submits only the others. The summary merges
+same command reads the finished tasks and submits only the others (and a cell's last chunk
+again where a larger ``samples`` grew it). The summary merges
 each cell's chunks in chunk order, so it is bit-identical however the tasks were run.
 """
 
@@ -186,14 +187,17 @@ class SweepStore:
                 raise SpecError(f"{self.directory} holds a sweep of {name} with {why[what]}; "
                                 "use another --out")
 
-    def finished(self) -> set[str]:
-        return {row[0] for row in self._db.execute("SELECT key FROM tasks")}
+    def finished(self) -> dict[str, int]:
+        """The stored tasks' draws, by key."""
+        return dict(self._db.execute("SELECT key, size FROM tasks").fetchall())
 
     def add(self, task: SweepTask, result: dict) -> None:
-        """Record a finished task (committed at once; a second copy is ignored)."""
+        """Record a finished task (committed at once), in place of a stored one of the same
+        key (a cell's last chunk grown with its ``samples``)."""
         with self._db:
             self._db.execute(
-                f"INSERT OR IGNORE INTO tasks VALUES ({', '.join('?' * (13 + len(OUTCOMES)))})",
+                f"INSERT OR REPLACE INTO tasks VALUES "
+                f"({', '.join('?' * (13 + len(OUTCOMES)))})",
                 (task.key, task.object, task.grasp, task.sigma, task.noise, task.engine,
                  task.chunk, task.size, *result["counts"], result["q_n"], result["q_mean"],
                  result["q_m2"], result["q_m3"], result["seconds"]))
@@ -316,7 +320,8 @@ def run_sweep(spec: SweepSpec, directory: str | Path, executor, *, progress: boo
     try:
         tasks = spec.tasks()
         finished = store.finished()
-        todo = [t for t in tasks if t.key not in finished]
+        # a stored chunk of another size is a cell's last chunk before samples grew: again
+        todo = [t for t in tasks if finished.get(t.key) != t.size]
         from tqdm import tqdm
 
         bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="sweep", unit="task",
