@@ -272,3 +272,26 @@ def test_every_re_import_is_a_new_version(catalog):
         import_object(catalog / "box6.obj", BOX, force=True)
         versions.add(object_version(BOX))
     assert len(versions) == 4
+
+
+def test_a_workers_engine_follows_a_re_import(tmp_path, monkeypatch):
+    """The engines a worker process keeps for its chunks (``robot_chunks.robot_engine``,
+    every robot's sweep and chunked runs) are keyed by the object's version: an object
+    re-imported at another size under the same name gets a new engine, which holds the new
+    geometry (its height, as the import made it), and the stale one is dropped."""
+    from kinegrasp_env.montecarlo import robot_chunks
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    importer.forget()
+    trimesh.creation.box(extents=(0.06, 0.06, 0.06)).export(tmp_path / "blk.obj")
+    try:
+        import_object(tmp_path / "blk.obj", "blk", ImportSettings(scale=0.5))
+        small = robot_chunks.robot_engine("fast", "kuka_sdh", "blk")
+        assert small.obj.size[2] == pytest.approx(0.03, abs=1e-9)
+        assert robot_chunks.robot_engine("fast", "kuka_sdh", "blk") is small
+        import_object(tmp_path / "blk.obj", "blk", ImportSettings(scale=1.0), force=True)
+        big = robot_chunks.robot_engine("fast", "kuka_sdh", "blk")
+        assert big is not small and big.obj.size[2] == pytest.approx(0.06, abs=1e-9)
+        assert small not in robot_chunks._ENGINES.values()
+    finally:
+        robot_chunks.close_engines()

@@ -37,11 +37,18 @@ _ENGINES: dict[tuple, RobotEngine] = {}
 def robot_engine(engine: str, robot: str, object_name: str, friction: float = 0.5,
                  static_hold: bool = False) -> RobotEngine:
     """This process's engine ``engine`` of catalog robot ``robot`` and ``object_name`` at
-    friction mu ``friction`` (with the static hold check when asked), built on first use."""
-    key = (engine, robot, object_name, float(friction), bool(static_hold))
+    friction mu ``friction`` (with the static hold check when asked), built on first use and
+    kept under the object's :func:`~kinegrasp_env.world.objects.object_version`: an object
+    re-imported under the same name gets a new engine (the stale one is closed)."""
+    from kinegrasp_env.world.objects import object_version
+
+    settings = (engine, robot, object_name, float(friction), bool(static_hold))
+    key = (*settings, object_version(object_name))
     if key not in _ENGINES:
         from kinegrasp_env.montecarlo.robot_engines import make_engine
 
+        for stale in [k for k in _ENGINES if k[:len(settings)] == settings]:
+            _ENGINES.pop(stale).close()
         while len(_ENGINES) >= MAX_ENGINES:
             _ENGINES.pop(next(iter(_ENGINES))).close()
         _ENGINES[key] = make_engine(engine, robot, object_name, friction=friction,
