@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from kinegrasp_env.cli.common import CLIError, positive_int, reported
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``reproduce fig9|fig10``: grasps (fig9) or null-space variants (fig10) per object.
 FIGURE_GRASPS = 10
@@ -33,15 +34,21 @@ def figure_grasps(object_name: str | None, grasps: str | None
         objects = (object_name,) if object_name else OBJECT_NAMES
         for name in objects:
             if name not in OBJECT_NAMES:
-                raise CLIError(f"--object {name} is an imported object and has no shipped "
-                               "grasp set; give its grasps with --grasps FILE (e.g. from "
-                               f"`kinegrasp plan --object {name} --out {name}_grasps.json`)")
+                raise imported_without_grasps(name, DEFAULT_ROBOT)
         return objects, {}, count
     chosen = grasp_file(grasps)
     name = chosen[0].object
     if object_name is not None and object_name != name:
         raise CLIError(f"--object {object_name}: {grasps} holds grasps of {name}")
     return (name,), {name: chosen}, FIGURE_GRASPS
+
+
+def imported_without_grasps(name: str, robot: str) -> CLIError:
+    """The one-line error of ``reproduce`` on an imported object without a grasp file (it
+    has no shipped set of ``robot``): how to make one and give it."""
+    return CLIError(f"{name} is an imported object and has no shipped grasp set; give its "
+                    f"grasps with --grasps FILE (e.g. from `kinegrasp plan --robot {robot} "
+                    f"--object {name} --out {name}_grasps.json`)")
 
 
 def grasp_file(path: str) -> list:

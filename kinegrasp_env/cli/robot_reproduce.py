@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
+from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
     TABLE1_GRASPS,
     TABLE1_OBJECT,
+    imported_without_grasps,
     is_count,
     written,
 )
@@ -51,10 +53,7 @@ def robot_grasp_sets(args, robot: str, only: str | None = None
             except NoGraspSetError as exc:
                 if not exc.imported:
                     raise CLIError(str(exc)) from None
-                raise CLIError(f"{name} is an imported object and has no shipped grasp set; "
-                               "give its grasps with --grasps FILE (e.g. from `kinegrasp "
-                               f"plan --robot {robot} --object {name} --out "
-                               f"{name}_grasps.json`)") from None
+                raise imported_without_grasps(name, robot) from None
         return sets, count
     grasps = grasp_file(args.grasps)
     if args.object is not None and args.object != grasps[0].object:
@@ -87,8 +86,6 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
         with reported(ValueError):  # before any work
             check_variants(description, args.figure)
             check_method(method)
-    from kinegrasp_env.cli.execution_options import executor_from
-
     if args.figure == "table1":
         return robot_table1_command(args, description, samples, friction)
     sets, count = robot_grasp_sets(args, robot)
@@ -132,7 +129,6 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
                          seed: int, friction: float) -> int:
     """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`), on
     the executor ``--processes`` asks for."""
-    from kinegrasp_env.cli.execution_options import executor_from
     from kinegrasp_env.toolkit.robot_reproduce import variant_label
     from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
     from kinegrasp_env.toolkit.selection import provenance
@@ -206,8 +202,6 @@ def robot_table1_command(args, description, samples: int, friction: float) -> in
         grasps = sets[name][:count]
     out = str(output_folder(args.out or "out/table1"))
     seed = parse_seed(args.seed)
-    from kinegrasp_env.cli.execution_options import executor_from
-
     with executor_from(args) as executor:  # after every check: Ray takes seconds to start
         rows = robot_table1(description, name, grasps, samples, out, seed=seed,
                             engine=args.engine, friction=friction, executor=executor,

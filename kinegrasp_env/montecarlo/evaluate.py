@@ -173,6 +173,13 @@ def draw_rows(engine: Engine, q0: np.ndarray, noise: Noise, seed: int, n: int,
 ChunkResult = tuple[np.ndarray, StreamingMoments, DrawBatch | None]
 
 
+def tally(draws: DrawBatch) -> tuple[np.ndarray, StreamingMoments]:
+    """(outcome counts (4,), streaming moments of Q over the force-closure draws) of
+    ``draws``: what a chunk contributes to a run's statistics."""
+    counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+    return counts, StreamingMoments(1).update(draws.quality[draws.outcome == FORCE_CLOSURE])
+
+
 def _run_chunk_group(task: tuple) -> list[ChunkResult]:
     """Chunks ``[(index, size), ...]`` through one engine call (draws are independent of
     their batch, so the results equal one call per chunk); one result per chunk."""
@@ -185,8 +192,7 @@ def _run_chunk_group(task: tuple) -> list[ChunkResult]:
     for _, size in chunks:
         part = draws.part(start, start + size)
         start += size
-        counts = np.bincount(part.outcome, minlength=len(OUTCOMES))
-        moments = StreamingMoments(1).update(part.quality[part.outcome == FORCE_CLOSURE])
+        counts, moments = tally(part)
         results.append((counts, moments, part if keep else None))
     return results
 

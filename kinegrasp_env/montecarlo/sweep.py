@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.evaluate import chunk_sizes
+from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.evaluate import chunk_sizes, tally
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
@@ -87,9 +87,7 @@ def run_task(task: SweepTask) -> dict:
     draws = close_chunk(RobotChunk(task.robot, task.object, task.engine, q0, task.sigma,
                                    task.noise, task.seed, task.offset, task.size,
                                    task.friction), model)
-    fc = draws.outcome == FORCE_CLOSURE
-    moments = StreamingMoments(1).update(draws.quality[fc])
-    counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
+    counts, moments = tally(draws)
     return {"counts": [int(c) for c in counts], "q_n": int(moments.n),
             "q_mean": float(moments.mean[0]), "q_m2": float(moments.m2[0, 0]),
             "q_m3": float(moments.m3[0]), "seconds": time.perf_counter() - start}
