@@ -8,9 +8,10 @@ What each test proves:
   only grow draw by draw, and the start-collision and missed counts stay the same. A
   command that ignored ``--friction`` would print the same numbers at every mu; one that
   changed the draws with it would break the equal geometry counts;
-* the nominal Q printed is the grasp's nominal contacts re-scored at that mu (an exact
-  formula for point contacts: the hull of the edge wrenches, here by the public
-  ``ferrari_canny``), and it equals the recorded value at the default mu;
+* the nominal Q printed is the grasp's nominal contacts (the engine's closing of q0, within
+  the engines' agreement of the recorded ones) scored at that mu (an exact formula for point
+  contacts: the hull of the edge wrenches, here by the public ``ferrari_canny``), and it
+  equals the recorded value at the default mu;
 * ``rank``, ``sweep`` and ``reproduce`` run the same draws as ``evaluate`` at the same mu
   (common seeds), so their P(FC) equals evaluate's: the option reaches every command;
 * bad values and a friction noise source beside ``--friction`` are one line each.
@@ -57,8 +58,10 @@ def test_nominal_q_is_the_contacts_rescored(capsys):
         shown = _evaluate(capsys, "--friction", str(mu))
         exact = ferrari_canny(grasp.points, grasp.normals, friction=mu,
                               torque_scale=obj.torque_scale, center=obj.center_of_mass)
-        assert shown["q_nominal"] == pytest.approx(exact, rel=1e-12, abs=1e-15)
-    assert _evaluate(capsys)["q_nominal"] == pytest.approx(grasp.q_nominal, rel=1e-12)
+        # the fast engine closes q0 once: its contacts are the recorded ones to the engines'
+        # agreement (1e-8 m), so Q matches to 1e-7 relative (measured 9e-9)
+        assert shown["q_nominal"] == pytest.approx(exact, rel=1e-7, abs=1e-15)
+    assert _evaluate(capsys)["q_nominal"] == pytest.approx(grasp.q_nominal, rel=1e-7)
 
 
 @pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])

@@ -41,7 +41,8 @@ def page(tmp_path_factory) -> dict:
 
     buffer = io.StringIO()
     with contextlib.redirect_stdout(buffer):
-        code = main(["report", "--robot", "panda", "--object", OBJECT, "--sigma", SIGMA,
+        code = main(["report", "--robot", "panda", "--object", OBJECT, "--grasp",
+                     ",".join(g.id for g in shipped_grasps(OBJECT, "panda")), "--sigma", SIGMA,
                      "--samples", SAMPLES, "--seed", SEED, "--out", str(out), "--json"])
     assert code == 0
     return {"html": out.read_text(), "json": json.loads(buffer.getvalue())}

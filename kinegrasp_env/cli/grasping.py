@@ -5,8 +5,6 @@ hand, objects and grasps; with ``--robot NAME`` on another robot's grasps).
 
 from __future__ import annotations
 
-import json
-
 from kinegrasp_env.cli.common import (
     CLIError,
     add_engine_arg,
@@ -20,14 +18,12 @@ from kinegrasp_env.cli.common import (
     friction_from,
     grasp_index_help,
     noise_from,
-    output_file,
     output_folder,
     parse_seed,
     positive_int,
     reported,
 )
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
-from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
@@ -38,106 +34,16 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import check_hold_simulator, evaluate_robot
+from kinegrasp_env.cli.robot_grasps import evaluate_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def cmd_evaluate(args) -> int:
-    from kinegrasp_env.cli.report import evaluate_report, report_path
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     index, grasp = chosen_grasp(args)
-    robot = args.robot or grasp.robot
-    if robot != DEFAULT_ROBOT or grasp.robot != DEFAULT_ROBOT:
-        return evaluate_robot(args, index, grasp, robot, sigma, samples, seed, friction,
-                              noise)
-    check_hold_simulator(args, args.hold_test, "--hold-test")
-    if args.static_hold or args.hold_test:
-        from kinegrasp_env.montecarlo.draw_holds import check_hold_scores_noise
-
-        with reported(ValueError):
-            check_hold_scores_noise(noise, static=args.static_hold, test=args.hold_test)
-    if args.elbow is not None:
-        from kinegrasp_env.cli.robot_grasps import robot_grasp_at_elbow
-
-        with reported(ValueError):  # out of reach: the message names the reachable range
-            grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
-    engine = engine_name(args.engine)
-    if args.plot:
-        output_file(args.plot, "--plot")
-    report_path(args.report)
-    with executor_from(args) as executor:
-        stats = evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
-                               return_draws=bool(args.plot or args.report or args.static_hold),
-                               progress=True, executor=executor,
-                               static_hold=bool(args.static_hold))
-    hold = {}
-    if args.hold_test:
-        hold.update(quick_hold_record(grasp, noise, seed, samples, friction,
-                                      args.hold_simulator))
-    if args.static_hold:
-        hold.update(static_hold_record(grasp, stats))
-    label = f"noise spec {args.noise_spec}" if args.noise_spec else f"sigma = {sigma:g} rad"
-    per_draw = getattr(noise, "friction", None) is not None  # the spec's source sets mu
-    if args.json:  # the keys every robot's evaluation prints (cli.robot_grasps)
-        print(json.dumps({"robot": grasp.robot, "object": grasp.object, "grasp": grasp.id,
-                          **stats.to_json(), **({} if per_draw else {"friction": friction}),
-                          **({"noise_spec": str(args.noise_spec)} if args.noise_spec else {}),
-                          **hold}))
-    else:
-        from kinegrasp_env.robot.catalog import load_robot
-
-        full = label if args.noise_spec else f"{label} ({args.noise})"
-        print_evaluation(Evaluation(
-            f"{args.object} grasp {index} of robot {grasp.robot}", full, samples,
-            None if per_draw else friction, load_robot(grasp.robot).contact_model, stats.p_fc,
-            stats.p_fc_ci, stats.q_nominal, stats.q_mean, stats.q_std, stats.q_skew,
-            stats.outcomes), hold_lines(hold))
-    if args.plot:  # after the results: a failing figure is a warning, the results stand
-        from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
-        from kinegrasp_env.world.objects import load_object
-
-        written = safe_figure(lambda: plot_contacts(
-            load_object(args.object).mesh, stats.draws, args.plot,
-            title=f"{args.object} grasp {index}, {label}: P(FC) = {stats.p_fc:.3f}"),
-            args.plot)
-        if written is not None and not args.json:
-            print(f"  plot written to {args.plot}")
-    if args.report:
-        evaluate_report(args, grasp, index, stats, friction)
-    return 0
-
-
-def static_hold_record(grasp, stats) -> dict:
-    """``--static-hold`` of the default robot's evaluation: P(hold, static) of its draws (the
-    verdicts its engine gave each draw: :class:`~kinegrasp_env.montecarlo.engines.Engine`),
-    its Wilson 95% interval and the object's mass, as ``evaluate --json`` names them."""
-    from kinegrasp_env.sampling.stats import wilson_interval
-    from kinegrasp_env.world.objects import load_object
-
-    held = stats.draws.holds
-    n = int(held.size)
-    return {"p_hold_static": float(held.mean()),
-            "p_hold_static_ci": list(wilson_interval(int(held.sum()), n)),
-            "mass_kg": load_object(grasp.object).mass}
-
-
-def quick_hold_record(grasp, noise, seed: int, samples: int, friction: float,
-                      simulator: str) -> dict:
-    """``--hold-test`` of the default robot's evaluation: P(hold) of the quick holding test
-    (:class:`~kinegrasp_env.montecarlo.draw_holds.QuickHoldTest`) on the evaluation's draws,
-    its Wilson 95% interval and the simulator, as ``evaluate --json`` names them."""
-    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
-    from kinegrasp_env.sampling.stats import wilson_interval
-
-    with QuickHoldTest(grasp.object, friction=friction, simulator=simulator) as test:
-        held = test.chunk_held(grasp.q0, noise, seed, samples, chunk=DEFAULT_CHUNK)
-    return {"p_hold": float(held.mean()),
-            "p_hold_ci": list(wilson_interval(int(held.sum()), int(held.size))),
-            "hold_simulator": simulator}
+    return evaluate_robot(args, index, grasp, args.robot or grasp.robot, sigma, samples, seed,
+                          friction, noise)
 
 
 def cmd_reproduce(args) -> int:

@@ -1,9 +1,9 @@
 """Report commands: ``report`` (one grasp's evaluation, at one or several noise levels or
 under a noise model, as a self-contained interactive HTML page) and ``screenshot`` (a page
 rendered to PNG by the system's headless Chromium through Playwright, the ``screenshot``
-extra; network off). ``evaluate --report``, ``rank --report`` and ``elbow --report`` write
-their pages through :func:`write_evaluation_report`, :func:`write_rank_report` and
-:func:`write_elbow_report`.
+extra; network off). ``report`` and ``evaluate --report`` write every robot's page
+through :mod:`kinegrasp_env.cli.robot_report`; ``rank --report`` and ``elbow --report``
+write theirs through :func:`write_rank_report` and :func:`write_elbow_report`.
 """
 
 from __future__ import annotations
@@ -24,17 +24,12 @@ from kinegrasp_env.cli.common import (
     add_friction_arg,
     add_noise_spec_arg,
     add_object_arg,
-    engine_name,
     float_list,
-    friction_from,
-    grasp_index_help,
-    noise_spec_from,
     nonnegative,
     output_file,
-    parse_seed,
     positive_int,
 )
-from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
+from kinegrasp_env.cli.execution_options import add_execution_args
 
 #: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
 #: ``report.page.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.
@@ -63,126 +58,15 @@ def noise_settings(args, noises: list) -> dict:
             "noise": noises[0].kind}
 
 
-def _settings(args, grasp, index: int, runs: list, max_points: int, arm_draws: int,
-              friction: float) -> dict:
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
-    from kinegrasp_env.toolkit.report.page import run_noise
-
-    first = runs[0]
-    chosen = {"grasp": f"index {index} (id {grasp.id})"}
-    if getattr(args, "grasps", None):
-        chosen = {"grasp file": args.grasps, **chosen}
-    if getattr(args, "elbow", None) is not None:
-        chosen["elbow angle [rad]"] = args.elbow
-    per_draw = first.noise_model is not None and "friction" in first.noise_model
-    return {"object": grasp.object, **chosen,
-            **noise_settings(args, [run_noise(r) for r in runs]),
-            "draws per run": first.samples, "seed": first.seed, "engine": first.engine,
-            "friction mu": "per draw (the noise spec's friction source)" if per_draw
-            else friction, "friction cone edges": NUM_EDGES,
-            "draws per chunk (random streams)": DEFAULT_CHUNK,
-            "contact points drawn at most": max_points, "noisy arms drawn": arm_draws}
-
-
-def write_evaluation_report(path: Path, args, grasp, index: int, runs: list, *,
-                            command: list[str], max_points: int, arm_draws: int,
-                            friction: float) -> int:
-    """Write the page of ``runs`` (GraspStats, the first with draws; friction mu
-    ``friction``); returns its bytes."""
-    from kinegrasp_env.toolkit.report.page import evaluation_page, write_page
-
-    settings = _settings(args, grasp, index, runs, max_points, arm_draws, friction)
-    text = evaluation_page(grasp, runs, command=shlex.join(command), settings=settings,
-                           friction=friction, num_edges=NUM_EDGES, max_points=max_points,
-                           arm_draws=arm_draws)
-    write_page(path, text)
-    return len(text.encode())
-
-
-def evaluation_command(args, name: str, index: int, sigma_text: str, samples: int, seed: int,
-                       engine: str, out_option: str, out: Path) -> list[str]:
-    """The canonical command line of an evaluation page (every setting spelled out; a grasp
-    from ``--grasps FILE`` keeps the file and the ``--grasp`` given; ``--noise-spec`` and
-    ``evaluate --elbow`` are kept)."""
-    chosen = ["--grasp", str(index)]
-    if getattr(args, "grasps", None):
-        chosen = ["--grasps", str(args.grasps), "--grasp", str(args.grasp)]
-    if getattr(args, "elbow", None) is not None:
-        chosen += ["--elbow", str(args.elbow)]
-    return ["kinegrasp", name, "--object", args.object, *chosen, *noise_words(args, sigma_text),
-            "--samples", str(samples), "--seed", str(seed), "--engine", engine,
-            *friction_words(args), out_option, str(out)]
-
-
-def report_noises(args) -> list:
-    """The noises ``report`` runs: the ``--noise-spec`` model, or one ``JointNoise`` per
-    ``--sigma`` value."""
-    model = noise_spec_from(args)
-    if model is not None:
-        return [model]
-    from kinegrasp_env.sampling.noise import JointNoise
-
-    return [JointNoise(sigma, args.noise) for sigma in sigmas_from(args.sigma)]
-
-
 def cmd_report(args) -> int:
-    from kinegrasp_env.cli.grasp_choice import chosen_grasp
-    from kinegrasp_env.cli.robot_report import cmd_report_robot, is_robot_report
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.cli.robot_report import cmd_report_robot
 
-    if is_robot_report(args):
-        return cmd_report_robot(args, sigmas_from(args.sigma))
-    args.grasp = "0" if args.grasp is None else args.grasp
-    noises = report_noises(args)
-    friction = friction_from(args, noises[0])
-    samples = positive_int(args.samples, "--samples")
-    seed = parse_seed(args.seed)
-    index, grasp = chosen_grasp(args)
-    engine = engine_name(args.engine)
-    max_points = positive_int(args.max_points, "--max-points")
-    arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
-    out = output_file(args.out, "--out")
-    with executor_from(args) as executor:
-        runs = [evaluate_grasp(grasp, noise, samples, seed, engine=engine, friction=friction,
-                               return_draws=i == 0, progress=True, executor=executor)
-                for i, noise in enumerate(noises)]
-    sigmas = "" if args.noise_spec else ",".join(f"{n.sigma:g}" for n in noises)
-    command = evaluation_command(args, "report", index, sigmas, samples, seed, engine, "--out",
-                                 out)
-    command += ["--max-points", str(max_points), "--arm-draws", str(arm_draws)]
-    size = write_evaluation_report(out, args, grasp, index, runs, command=command,
-                                   max_points=max_points, arm_draws=arm_draws,
-                                   friction=friction)
-    if args.json:
-        print(json.dumps({"report": str(out), "bytes": size,
-                          "runs": [r.to_json() for r in runs]}))
-        return 0
-    for run in runs:
-        lo, hi = run.p_fc_ci
-        noise = (f"noise spec {args.noise_spec}" if args.noise_spec else
-                 f"sigma = {run.sigma:g} ({args.noise})")
-        print(f"{args.object} grasp {index}, {noise}, {samples} draws: P(FC) = "
-              f"{run.p_fc:.4f} (95% CI {lo:.4f} .. {hi:.4f})")
-    print(f"report written to {out} ({size / 1e6:.1f} MB)")
-    return 0
+    return cmd_report_robot(args, sigmas_from(args.sigma))
 
 
 def report_path(text: str | None, name: str = "--report") -> Path | None:
     """A validated ``--report`` file, or None when not asked for."""
     return None if text is None else output_file(text, name)
-
-
-def evaluate_report(args, grasp, index: int, stats, friction: float) -> None:
-    """``evaluate --report FILE``: the page of one evaluation (``stats`` with its draws, at
-    friction mu ``friction``)."""
-    out = Path(args.report)
-    command = evaluation_command(args, "evaluate", index, sigma_words(stats.sigma),
-                                 stats.samples, stats.seed, stats.engine, "--report", out)
-    size = write_evaluation_report(out, args, grasp, index, [stats], command=command,
-                                   max_points=MAX_POINTS_DEFAULT, arm_draws=ARM_DRAWS_DEFAULT,
-                                   friction=friction)
-    print(f"report written to {out} ({size / 1e6:.1f} MB)",
-          file=sys.stderr if args.json else sys.stdout)
 
 
 def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
@@ -342,19 +226,19 @@ def add_commands(sub) -> None:
     """Register ``report`` and ``screenshot``."""
     from kinegrasp_env.cli.common import DISTRIBUTION_NAMES as DISTRIBUTIONS
     from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
+    from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
-    p = sub.add_parser("report", help="evaluate one grasp and write a self-contained "
-                       "interactive HTML page (3-D views, histogram, P(FC) vs sigma)")
+    p = sub.add_parser("report", help="evaluate one grasp or several and write a "
+                       "self-contained interactive HTML page (P(FC) and Q table, 3-D scenes, "
+                       "histogram, outcomes, P(FC) vs sigma)")
     add_object_arg(p, None, f"catalog object, built-in or imported (default {EVALUATE_OBJECT}; "
                    "with --grasps: the grasp's own)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) or a "
                    "palm-pose file; --grasp is then an id in it, or an index")
-    p.add_argument("--grasp", help=grasp_index_help() + " (default 0); or with --grasps, an "
-                   "id or index in that file; for another robot than kuka_sdh: ids or indices, "
-                   "comma-separated (default: every grasp)")
-    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else kuka_sdh); "
-                   "another robot's page: a P(FC) and Q table of its grasps and each grasp's "
-                   "3-D scene (joint noise on its arm joints; engines pybullet, fast or physics)")
+    p.add_argument("--grasp", help="ids or indices of the shipped set's grasps (or with "
+                   "--grasps, of that file's), comma-separated (default 0: the first)")
+    p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
+                   f"{DEFAULT_ROBOT})")
     p.add_argument("--sigma", default="0.0133", help="joint noise standard deviation, "
                    "radians; several, comma-separated, give the P(FC)-vs-sigma curve (the "
                    "3-D views are of the first)")

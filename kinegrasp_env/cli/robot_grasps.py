@@ -1,5 +1,5 @@
-"""``plan --robot`` and ``evaluate`` of a description robot's grasps (a robot other than the
-default ``kuka_sdh``), and what its ``rank`` shares (the option checks, the quick holding
+"""``plan --robot`` of a description robot (a robot other than the default ``kuka_sdh``),
+``evaluate`` of any robot's grasps, and what ``rank`` shares (the option checks, the quick holding
 test: :mod:`kinegrasp_env.cli.robot_ranking`): the planners (antipodal for parallel jaws,
 sampled approaches for any other hand: :mod:`kinegrasp_env.toolkit.robot_planner`) and the
 robot's engines
@@ -117,7 +117,7 @@ def cmd_plan_robot(args) -> int:
 
 def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: int,
                    seed: int, friction: float, noise=None) -> int:
-    """``kinegrasp evaluate`` of a description robot's grasp: joint noise on its arm joints
+    """``kinegrasp evaluate`` of any robot's grasp: joint noise on its arm joints
     (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,
     object, friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); friction mu
     ``friction``."""
@@ -150,7 +150,8 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                                      static_hold=args.static_hold, friction=friction,
                                      executor=executor, noise_model=model)
     if args.report:
-        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label)
+        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
+                                    model)
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
         from kinegrasp_env.world.objects import load_object
@@ -176,7 +177,7 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
 
         per_draw = model is not None and model.friction is not None  # the spec's source
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
-                          "sigma": sigma, "noise": args.noise,
+                          "sigma": sigma, "noise": args.noise if model is None else model.kind,
                           **({"noise_spec": str(args.noise_spec),
                               "noise_model": spec_of(model)} if model else {}),
                           "samples": samples, "seed": seed, "engine": args.engine,
@@ -205,9 +206,12 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
 
 
 def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float,
-                                label: str) -> None:
-    """``evaluate --robot NAME --report FILE``: ``report --robot``'s page of this one grasp
-    and run (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`)."""
+                                label: str, model=None) -> None:
+    """``evaluate --report FILE``: ``report``'s page of this one grasp and run
+    (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`): its table, its 3-D scene with
+    the draws' contact points and the arm at its first draws (joint noise), Q's histogram
+    and the outcome counts; ``model``: the ``--noise-spec`` model (its sources listed, no
+    arms drawn)."""
     import dataclasses
     import shlex
     import sys
@@ -215,25 +219,38 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
     from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
     from kinegrasp_env.cli.common import NUM_EDGES
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.report.page import write_page
-    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
+    from kinegrasp_env.sampling.noise_spec import spec_of
+    from kinegrasp_env.toolkit.report.page import ARM_DRAWS, write_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, first_arms, robot_page
+    from kinegrasp_env.toolkit.report.scene import MAX_POINTS
     from kinegrasp_env.world.objects import load_object
 
     description = load_robot(robot)
     chosen = (["--grasps", str(args.grasps), "--grasp", str(args.grasp)] if args.grasps
               else ["--object", grasp.object, "--grasp", str(args.grasp)])
+    if args.elbow is not None:
+        chosen += ["--elbow", str(args.elbow)]
     command = ["kinegrasp", "evaluate", "--robot", robot, *chosen,
                *noise_words(args, sigma_words(sigma)), "--samples", str(stats.n), "--seed",
                str(args.seed), "--engine", args.engine, *friction_words(args), "--report",
                str(args.report)]
     shown = dataclasses.replace(grasp, q_nominal=stats.q_nominal)
+    arms = first_arms(description, grasp, stats, sigma, int(args.seed), args.noise,
+                      0 if model is not None else min(ARM_DRAWS, stats.n))
     settings = {"robot": robot, "object": grasp.object, "grasp": grasp.id, "noise": label,
                 "draws": stats.n, "seed": args.seed, "engine": args.engine,
-                "contact model": description.contact_model, "friction mu": friction,
-                "friction cone edges": NUM_EDGES}
+                "contact model": description.contact_model,
+                "friction mu": "per draw (the noise spec's friction source)"
+                if model is not None and model.friction is not None else friction,
+                "friction cone edges": NUM_EDGES,
+                "contact points drawn at most": MAX_POINTS,
+                "noisy arms drawn": len(arms.q) if model is None else
+                "none (a noise spec's draws move more than the arm)"}
     text = robot_page(description, load_object(grasp.object), [shown],
                       [RobotRun(0, sigma, stats)], command=shlex.join(command),
-                      settings=settings, friction=friction, num_edges=NUM_EDGES)
+                      settings=settings, friction=friction, num_edges=NUM_EDGES,
+                      max_points=MAX_POINTS, arms=[arms],
+                      noise_spec=None if model is None else spec_of(model))
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)

@@ -1,9 +1,8 @@
-"""``kinegrasp report`` of a description robot's grasps (``--robot NAME``, or a grasp file of
-a robot other than the default ``kuka_sdh``): every chosen grasp evaluated at each sigma by
-the robot's engine (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`,
-the draws of ``kinegrasp evaluate`` with the same options), written as one page
-(:func:`~kinegrasp_env.toolkit.report.robot.robot_page`). The default robot's page is
-:mod:`kinegrasp_env.cli.report`'s.
+"""``kinegrasp report`` of any robot's grasps (``--robot NAME``, the grasp file's robot, else
+the default one): every chosen grasp evaluated at each sigma by the robot's engine
+(:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, the draws of
+``kinegrasp evaluate`` with the same options), written as one page
+(:func:`~kinegrasp_env.toolkit.report.robot.robot_page`).
 """
 
 from __future__ import annotations
@@ -49,14 +48,8 @@ def grasp_file_robot(args) -> str | None:
     return grasps[0].robot if grasps else None
 
 
-def is_robot_report(args) -> bool:
-    """Whether ``report`` draws a description robot's grasps."""
-    return (args.robot not in (None, DEFAULT_ROBOT)
-            or grasp_file_robot(args) not in (None, DEFAULT_ROBOT))
-
-
 def chosen_grasps(args, robot: str) -> tuple[str, list]:
-    """(object, grasps): ``--grasp`` (comma-separated ids or indices; default: all) of
+    """(object, grasps): ``--grasp`` (comma-separated ids or indices; None: all) of
     ``--grasps FILE`` or of the robot's shipped set of ``--object``; every grasp must be of
     ``robot`` and of one object."""
     from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
@@ -140,21 +133,19 @@ def _finite(value):
 
 
 def cmd_report_robot(args, sigmas: list[float]) -> int:
-    """``kinegrasp report --robot NAME``: the page of a description robot's grasps
-    (``sigmas``: the validated ``--sigma`` values, or with ``--noise-spec`` one run of its
-    model per grasp)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import (
-        evaluate_robot_grasp,
-        make_engine,
-        robot_configurations,
-    )
+    """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
+    or indices, default the first; ``sigmas``: the validated ``--sigma`` values, or with
+    ``--noise-spec`` one run of its model per grasp)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.sampling.noise_spec import spec_of
     from kinegrasp_env.toolkit.report.page import write_page
-    from kinegrasp_env.toolkit.report.robot import NoisyArms, RobotRun, robot_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, first_arms, robot_page
     from kinegrasp_env.world.objects import load_object
 
-    robot = args.robot or grasp_file_robot(args)
+    robot = args.robot or grasp_file_robot(args) or DEFAULT_ROBOT
+    args.grasp = "0" if args.grasp is None else args.grasp
     max_points = positive_int(args.max_points, "--max-points")
     arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
     check_robot_engine(args.engine, robot)
@@ -173,6 +164,7 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
         sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
     runs, arms = [], []
+    shown = 0 if model is not None else min(arm_draws, samples)
     with make_engine(args.engine, description, name, friction=friction) as engine, \
             executor_from(args) as executor:
         for index, grasp in enumerate(grasps):
@@ -180,11 +172,8 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
                 runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
                     grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
                     engine=engine, executor=executor, noise_model=model)))
-            shown = 0 if model is not None else min(arm_draws, samples)
-            q = (robot_configurations(grasp, engine, sigma=sigmas[0], n=samples, seed=seed,
-                                      noise=args.noise)[:shown] if shown else
-                 engine.check(grasp.q0)[:0])
-            arms.append(NoisyArms(q, runs[-len(sigmas)].evaluation.draws.outcome[:shown]))
+            arms.append(first_arms(description, grasp, runs[-len(sigmas)].evaluation,
+                                   sigmas[0], seed, args.noise, shown))
     # each grasp's nominal Q as this engine computes it at this friction
     nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
     grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]
@@ -197,13 +186,15 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
                 "noisy joints": ", ".join(description.arm_joints),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
-                "friction mu": friction, "friction cone edges": NUM_EDGES,
-                "contact points drawn at most": max_points,
+                "friction mu": "per draw (the noise spec's friction source)"
+                if model is not None and model.friction is not None else friction,
+                "friction cone edges": NUM_EDGES, "contact points drawn at most": max_points,
                 "noisy arms drawn": (arm_draws if model is None else
                                      "none (a noise spec's draws move more than the arm)")}
     text = robot_page(description, load_object(name), grasps, runs,
                       command=shlex.join(command), settings=settings, friction=friction,
-                      num_edges=NUM_EDGES, max_points=max_points, arms=arms)
+                      num_edges=NUM_EDGES, max_points=max_points, arms=arms,
+                      noise_spec=None if model is None else spec_of(model))
     write_page(out, text)
     size = len(text.encode())
     if args.json:
@@ -212,12 +203,15 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
                                     "noise": args.noise if model is None
                                     else str(args.noise_spec),
                                     "samples": samples, "seed": seed,
-                                    "p_fc": r.evaluation.p_fc,
+                                    "engine": args.engine, "p_fc": r.evaluation.p_fc,
                                     "p_fc_ci": list(r.evaluation.ci),
                                     "q_nominal": r.evaluation.q_nominal,
                                     "q_mean": _finite(r.evaluation.q_mean),
+                                    "q_var": _finite(r.evaluation.q_std ** 2),
                                     "q_std": _finite(r.evaluation.q_std),
                                     "q_skew": _finite(r.evaluation.q_skew),
+                                    "error": _finite(r.evaluation.q_nominal
+                                                     - r.evaluation.q_mean),
                                     "outcomes": r.evaluation.counts} for r in runs]}))
         return 0
     for r in runs:

@@ -1,7 +1,7 @@
 """Self-contained interactive HTML reports and the browser that checks them.
 
-The pages: one per evaluation and one per ranking (``page``), one per elbow optimization of
-any robot (``elbow``); a description robot's grasps (``robot``) and a 6-joint arm's IK
+The pages: one per evaluation or report of any robot's grasps (``robot``), one per ranking
+(``page``), one per elbow optimization of any robot (``elbow``) and a 6-joint arm's IK
 branches (``robot_branches``); what they are built
 from: the 3-D scenes (``scene``) and their geometry
 (``geometry``), the 2-D charts (``charts``), plotly.js figures and shared meshes
@@ -17,7 +17,7 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "page": ("evaluation_page", "rank_page", "write_page", "PAGE_LIMIT_BYTES", "ARM_DRAWS"),
+    "page": ("rank_page", "write_page", "PAGE_LIMIT_BYTES", "ARM_DRAWS"),
     "elbow": ("elbow_page",),
     "robot": ("robot_page",),
     "robot_branches": ("robot_branch_page",),

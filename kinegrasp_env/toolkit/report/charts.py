@@ -10,7 +10,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
-from kinegrasp_env.montecarlo.evaluate import GraspStats
 from kinegrasp_env.toolkit.plots import covariance_ellipse
 from kinegrasp_env.toolkit.report.plotly import layout
 from kinegrasp_env.toolkit.report.scene import OUTCOME_COLOURS
@@ -71,16 +70,17 @@ def outcome_bars(outcomes: dict[str, int]) -> dict:
                              showlegend=False, margin={"l": 120, "r": 20, "t": 40, "b": 50})}
 
 
-def pfc_curve(runs: Sequence[GraspStats], label: str) -> dict:
-    """P(FC) against sigma (radians), with the Wilson 95% intervals as error bars."""
-    runs = sorted(runs, key=lambda s: float(np.max(s.sigma)))
-    sigma = [float(np.max(s.sigma)) for s in runs]
-    p = [s.p_fc for s in runs]
+def pfc_curve(points: Sequence[tuple[float, float, tuple[float, float]]], label: str) -> dict:
+    """P(FC) against sigma (radians), with the Wilson 95% intervals as error bars;
+    ``points``: (sigma, P(FC), its interval) per run, sigma the largest of a run's per-joint
+    values."""
+    points = sorted(points, key=lambda point: point[0])
     return {"data": [{"type": "scatter", "mode": "lines+markers", "name": label,
-                      "x": sigma, "y": p,
+                      "x": [point[0] for point in points],
+                      "y": [point[1] for point in points],
                       "error_y": {"type": "data", "symmetric": False,
-                                  "array": [s.p_fc_ci[1] - s.p_fc for s in runs],
-                                  "arrayminus": [s.p_fc - s.p_fc_ci[0] for s in runs]},
+                                  "array": [hi - v for _, v, (_, hi) in points],
+                                  "arrayminus": [v - lo for _, v, (lo, _) in points]},
                       "hovertemplate": "sigma %{x:.4g} rad: P(FC) %{y:.4f}<extra></extra>"}],
             "layout": layout(title={"text": "P(force closure) against joint noise (95% "
                                             "Wilson intervals)", "x": 0.01,

@@ -1,14 +1,11 @@
-"""Self-contained interactive HTML reports: one page per evaluation, one per ranking.
+"""Self-contained interactive HTML reports: what every page shares (the noise sources
+table, the versions line, atomic writing) and the ranking page.
 
-An evaluation page holds the grasp's 3-D view (object, hand, nominal contacts with friction
-cones, every draw's contact points by outcome or finger), the arm's 3-D view (nominal links,
-a few noisy draws' skeletons), Q's histogram over the force-closure draws, the outcome
-counts, P(FC) with its Wilson interval, P(FC) against sigma when several sigmas were run, the
-settings and the command that reproduces the page; under a noise model of several sources
-(``--noise-spec``) it also lists the sources and their settings. A ranking page holds the
-sortable table and each candidate's 3-D views on demand. The elbow page is
-:mod:`~kinegrasp_env.toolkit.report.elbow`. Pages open offline (plotly.js is inline) and are
-deterministic: the same runs give the same bytes.
+A ranking page holds the sortable table and each candidate's 3-D views on demand. The page
+of an evaluation or a report (one or several grasps, one or several noise levels or a noise
+model) is :mod:`~kinegrasp_env.toolkit.report.robot`'s; the elbow page is
+:mod:`~kinegrasp_env.toolkit.report.elbow`'s. Pages open offline (plotly.js is inline) and
+are deterministic: the same runs give the same bytes.
 
 Size: plotly.js is about 4.8 MB; a 10,000-draw evaluation page stays under
 :data:`PAGE_LIMIT_BYTES` because at most ``max_points`` contact points are drawn (a uniform
@@ -24,12 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, GraspStats, Noise
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.montecarlo.evaluate import Noise
 from kinegrasp_env.sampling.noise_model import SOURCES
-from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-from kinegrasp_env.toolkit.report.charts import outcome_bars, pfc_curve, quality_histogram
 from kinegrasp_env.toolkit.report.geometry import (
     closed_configuration,
     kinematics,
@@ -39,12 +32,11 @@ from kinegrasp_env.toolkit.report.html import (
     Figure,
     command_block,
     esc,
-    note,
     page,
     settings_table,
 )
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, plotly_version
-from kinegrasp_env.toolkit.report.scene import MAX_POINTS, arm_scene, contact_cloud, grasp_scene
+from kinegrasp_env.toolkit.report.scene import arm_scene, grasp_scene
 from kinegrasp_env.world.grasps import Grasp, write_atomic
 from kinegrasp_env.world.objects import load_object
 
@@ -66,26 +58,20 @@ def sigma_text(sigma) -> str:
     return f"{sigma:g}" if isinstance(sigma, float) else ",".join(f"{s:g}" for s in sigma)
 
 
-def run_noise(stats: GraspStats) -> Noise:
-    """The noise a run drew: its noise model (``stats.noise_model``) or its joint noise."""
-    if stats.noise_model is not None:
-        return noise_model_from_spec(stats.noise_model)
-    return JointNoise(stats.sigma if isinstance(stats.sigma, float) else tuple(stats.sigma),
-                      stats.noise)
-
-
 #: Units of a noise spec's settings (docs/noise_example.yaml); friction's are plain numbers.
 SPEC_UNITS = {"sigma": "rad", "bias": "rad", "covariance": "rad^2", "spread_sigma": "rad",
               "closing_sigma": "rad", "translation_sigma": "m", "rotation_sigma": "rad"}
 
 
-def spec_settings(section: dict) -> str:
-    """One source's settings as text: ``key value unit`` pairs."""
+def spec_settings(section: dict, source: str = "") -> str:
+    """One source's settings as text: ``key value unit`` pairs (friction's without units:
+    its values are coefficients)."""
     def value(v):
         return ", ".join(value(x) for x in v) if isinstance(v, list) else (
             f"{v:g}" if isinstance(v, float) else str(v))
 
-    return "; ".join(f"{k} {value(v)}" + (f" {SPEC_UNITS[k]}" if k in SPEC_UNITS else "")
+    units = {} if source == "friction" else SPEC_UNITS
+    return "; ".join(f"{k} {value(v)}" + (f" {units[k]}" if k in units else "")
                      for k, v in section.items())
 
 
@@ -94,125 +80,14 @@ def noise_sources_table(spec: dict) -> str:
     sources it leaves out are exact."""
     rows = "".join(
         f'<tr><td class="kg-text">{esc(name)}</td><td class="kg-text">'
-        f"{esc(spec_settings(spec[name]) if name in spec else 'exact (not in the spec)')}"
+        f"{esc(spec_settings(spec[name], name) if name in spec else 'exact (not in the spec)')}"
         "</td></tr>" for name in SOURCES)
     return (f"<table><tr><th class='kg-text'>source</th><th class='kg-text'>settings</th>"
             f"</tr>{rows}</table>")
 
 
-def noise_label(stats: GraspStats) -> str:
-    """What the run's noise was, in words."""
-    if stats.noise_model == {}:
-        return "a noise model with every source exact"
-    if stats.noise_model is not None:
-        return f"a noise model of {len(stats.noise_model)} sources ({', '.join(stats.noise_model)})"
-    return f"sigma = {sigma_text(stats.sigma)} rad ({stats.noise})"
-
-
-def headline(stats: GraspStats) -> str:
-    lo, hi = stats.p_fc_ci
-    q = (f"Q: nominal {stats.q_nominal:.5f}, mean {fmt(stats.q_mean)}, std {fmt(stats.q_std)},"
-         f" skewness {fmt(stats.q_skew, 3)}")
-    return (f"<p class='kg-headline'><b>P(FC) = {stats.p_fc:.4f}</b> (95% CI {lo:.4f} .. "
-            f"{hi:.4f}) over {stats.samples} draws under {esc(noise_label(stats))}; {q}</p>")
-
-
 def fmt(value: float, digits: int = 5) -> str:
     return "-" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
-
-
-def runs_table(runs: Sequence[GraspStats]) -> str:
-    head = "".join(f"<th>{h}</th>" for h in ("sigma [rad]", "P(FC)", "95% CI", "Q mean",
-                                              "Q std", "draws"))
-    rows = "".join(
-        f"<tr><td>{esc(sigma_text(s.sigma))}</td><td>{s.p_fc:.4f}</td>"
-        f"<td>{s.p_fc_ci[0]:.4f} .. {s.p_fc_ci[1]:.4f}</td><td>{fmt(s.q_mean)}</td>"
-        f"<td>{fmt(s.q_std)}</td><td>{s.samples}</td></tr>" for s in runs)
-    return f"<table><tr>{head}</tr>{rows}</table>"
-
-
-def evaluation_figures(grasp: Grasp, stats: GraspStats, library: MeshLibrary, *,
-                       friction: float, num_edges: int, max_points: int, arm_draws: int,
-                       chunk: int) -> tuple[list, list[str]]:
-    """The 3-D views, histogram and outcome bars of one run with draws, and the notes."""
-    obj = load_object(grasp.object)
-    draws = stats.draws
-    cloud = contact_cloud(draws, max_points)
-    noisy = noisy_configurations(grasp.q0, run_noise(stats), stats.seed, stats.samples,
-                                 arm_draws, chunk)
-    closed, did_close = closed_configuration(grasp.q0, obj)
-    title = f"{grasp.object} grasp {grasp.id}: object frame"
-    figures = [
-        Figure("grasp", grasp_scene(obj, grasp, library, closed, friction=friction,
-                                    num_edges=num_edges, cloud=cloud, title=title),
-               "58%", "600px"),
-        Figure("arm", arm_scene(obj, closed, library, noisy, draws.outcome[:len(noisy)],
-                                "arm: world (robot base) frame"), "40%", "600px"),
-        Figure("quality", quality_histogram(draws.quality[draws.outcome == FORCE_CLOSURE],
-                                            stats.q_mean, stats.q_nominal), "49%", "340px"),
-        Figure("outcomes", outcome_bars(stats.outcomes), "49%", "340px")]
-    notes = ["The hand is drawn closed on the object from the pre-shape of q0 (the reference "
-             "auto-close, as in every draw); its pre-shape can be shown from the legend."
-             if did_close else "The hand starts in collision at q0 and does not close: it "
-             "is drawn at its pre-shape.",
-             f"The arm view shows the skeletons of the first {len(noisy)} draws (the first "
-             "draws of the run, same noise), coloured by their outcome; toggle them, the arm "
-             "or the object in its legend."]
-    model = stats.noise_model or {}
-    unseen = [s for s in ("palm", "object", "friction") if s in model]
-    if unseen:
-        notes.append(f"The arm view draws each draw's joint{' and hand' if 'hand' in model else ''}"
-                     f" errors; its {', '.join(unseen)} errors act on the grasp but are not "
-                     "drawn there (the object stays where it was believed to be). The contact "
-                     "points of the grasp view, the counts and Q include every source.")
-    if cloud.decimated:
-        notes.append(f"The grasp view shows {cloud.shown:,} of the {cloud.total:,} contact "
-                     "points of the draws (a uniform random subset, seed 0) to keep the page "
-                     f"small; every count and statistic on this page uses all {len(draws):,} "
-                     "draws.")
-    return figures, notes
-
-
-def evaluation_page(grasp: Grasp, runs: Sequence[GraspStats], *, command: str,
-                    settings: dict, friction: float = 0.5, num_edges: int = 8,
-                    max_points: int = MAX_POINTS, arm_draws: int = ARM_DRAWS,
-                    chunk: int = DEFAULT_CHUNK) -> str:
-    """The HTML page of one grasp evaluated at one or several noise levels.
-
-    Args:
-        grasp: the grasp.
-        runs: one GraspStats per sigma; the first must carry its draws
-            (``evaluate_grasp(..., return_draws=True)``): the 3-D views, the histogram and
-            the outcome counts are of that run.
-        command: the command line that reproduces the page.
-        settings: name -> value, shown as a table.
-    """
-    detail = runs[0]
-    if detail.draws is None:
-        raise ValueError("the first run must keep its draws (return_draws=True)")
-    library = MeshLibrary()
-    figures, notes = evaluation_figures(grasp, detail, library, friction=friction,
-                                        num_edges=num_edges, max_points=max_points,
-                                        arm_draws=arm_draws, chunk=chunk)
-    curve = ""
-    if len(runs) > 1:
-        figures.append(Figure("pfc", pfc_curve(runs, f"{grasp.object} grasp {grasp.id}"),
-                              "60%", "380px"))
-        notes.append(f"The 3-D views, the histogram and the outcome counts are for sigma = "
-                     f"{sigma_text(detail.sigma)} rad (the first value given); the curve and "
-                     "the table use every sigma.")
-        curve = (f"<h2>P(FC) against sigma</h2><div class='kg-row'>{figures[-1].div()}"
-                 f"<div>{runs_table(runs)}</div></div>")
-    sources = ("" if detail.noise_model is None else
-               f"<h2>Noise sources</h2>{noise_sources_table(detail.noise_model)}")
-    title = f"kinegrasp report: {grasp.object} grasp {grasp.id}"
-    body = (f"<h1>{esc(title)}</h1>{headline(detail)}"
-            f"<div class='kg-row'>{figures[0].div()}{figures[1].div()}</div>"
-            f"{''.join(note(n) for n in notes)}"
-            f"<div class='kg-row'>{figures[2].div()}{figures[3].div()}</div>{curve}"
-            f"{sources}<h2>Settings</h2>{settings_table(settings)}"
-            f"<h2>Command that reproduces this page</h2>{command_block(command)}")
-    return page(title, body, figures, library, versions())
 
 
 def candidate_figures(grasp: Grasp, key: str, noisy: np.ndarray, library: MeshLibrary, *,

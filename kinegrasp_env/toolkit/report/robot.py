@@ -1,4 +1,5 @@
-"""The report page of a description robot's grasps (a robot other than the default one).
+"""The report page of any robot's grasps (``kinegrasp report``, ``evaluate --report``, a
+ranking of a description robot's candidates).
 
 One page per grasp set: the table of P(FC) (with its Wilson 95% interval) and Q's moments
 over the force-closure draws for each grasp and sigma, and one rotatable 3-D scene per grasp
@@ -8,7 +9,10 @@ generic_reference.RobotWorld.auto_close`), hidden until toggled at its pre-shape
 nominal contacts with their friction cones; the contact points of the grasp's first run
 (at most ``max_points``, coloured by outcome or by finger) and the skeletons of the arm at
 its first ``arm_draws`` noisy configurations (the run's first draws: joint noise alone),
-coloured by outcome. The robot is drawn as
+coloured by outcome; under the scene, where the grasp's first run kept its draws, Q's
+histogram over its force-closure draws and its outcome counts, and where the grasp was run
+at several sigmas, P(FC) against sigma; under a noise model, its sources and their
+settings. The robot is drawn as
 :func:`~kinegrasp_env.robot.picture.robot_geometry` reads it (the picture of ``kinegrasp
 robots show``: pybullet's reading of the URDF; links with mesh visuals are drawn from their
 collision geometry, and the page says which). Metres throughout; pages are deterministic.
@@ -23,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import RobotGeometry, robot_geometry
+from kinegrasp_env.toolkit.report.charts import outcome_bars, pfc_curve, quality_histogram
 from kinegrasp_env.toolkit.report.geometry import cone_meshes, transform
 from kinegrasp_env.toolkit.report.html import (
     Figure,
@@ -35,7 +40,7 @@ from kinegrasp_env.toolkit.report.html import (
     page,
     settings_table,
 )
-from kinegrasp_env.toolkit.report.page import fmt, versions
+from kinegrasp_env.toolkit.report.page import fmt, noise_sources_table, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, instanced_mesh, layout
 from kinegrasp_env.toolkit.report.scene import (
     CONE_SCALE,
@@ -139,6 +144,20 @@ class NoisyArms:
 
     q: np.ndarray
     outcome: np.ndarray
+
+
+def first_arms(description: RobotDescription, grasp: Grasp, evaluation, sigma, seed: int,
+               noise: str, shown: int) -> NoisyArms:
+    """The arm at a run's first ``shown`` draws of joint noise (``sigma``, radians; the rows
+    its integer seed's chunked streams draw first, whatever the processes:
+    :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`) with their
+    outcomes in ``evaluation`` (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
+    RobotEvaluation` with its draws)."""
+    from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+
+    q = chunk_configurations(np.asarray(grasp.q0, dtype=float), description.arm_dof, sigma,
+                             noise, seed, 0, shown)
+    return NoisyArms(q, evaluation.draws.outcome[:shown])
 
 
 def arm_skeletons(description: RobotDescription, q: np.ndarray) -> np.ndarray:
@@ -275,10 +294,32 @@ def objects_closings(description: RobotDescription, objects: Sequence[GraspObjec
     return out
 
 
+def grasp_charts(key: int, grasp: Grasp, runs: Sequence[RobotRun]) -> list[Figure]:
+    """A grasp's 2-D charts: Q's histogram over the force-closure draws and the outcome
+    counts of its first run (where it keeps its draws), and P(FC) against sigma where it was
+    run at several sigmas."""
+    figures = []
+    first = runs[0].evaluation
+    draws = getattr(first, "draws", None)
+    if draws is not None:
+        quality = draws.quality[draws.outcome == FORCE_CLOSURE]
+        figures += [Figure(f"quality-{key}", quality_histogram(quality, first.q_mean,
+                                                                grasp.q_nominal),
+                           "49%", "340px"),
+                    Figure(f"outcomes-{key}", outcome_bars(first.counts), "49%", "340px")]
+    if len(runs) > 1:
+        points = [(float(np.max(r.sigma)), r.evaluation.p_fc, tuple(r.evaluation.ci))
+                  for r in runs]
+        figures.append(Figure(f"pfc-{key}", pfc_curve(points, f"{grasp.object} grasp "
+                                                      f"{grasp.id}"), "60%", "380px"))
+    return figures
+
+
 def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, GraspObject],
                grasps: Sequence[Grasp], runs: Sequence[RobotRun], *, command: str,
                settings: dict, friction: float = 0.5, num_edges: int = 8,
-               max_points: int = MAX_POINTS, arms: Sequence[NoisyArms] | None = None) -> str:
+               max_points: int = MAX_POINTS, arms: Sequence[NoisyArms] | None = None,
+               noise_spec: dict | None = None) -> str:
     """The HTML page of a description robot's grasps.
 
     Args:
@@ -290,6 +331,9 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
             ``max_points``; a ranking's runs keep counts only).
         command: the command line that reproduces the page; settings: name -> value.
         arms: per grasp, the noisy arms its scene draws (None: none).
+        noise_spec: the runs' noise model as its spec (:func:`~kinegrasp_env.sampling.
+            noise_spec.spec_of`; None: joint noise of each run's sigma): its sources are
+            listed.
     """
     objects = [obj if isinstance(obj, GraspObject) else obj[g.object] for g in grasps]
     closings = objects_closings(description, objects, grasps)
@@ -299,9 +343,10 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
                                     description.model.expand(grasp.q0).items()}]
     geometry = robot_geometry(description, configurations)
     library, figures, sections = MeshLibrary(), [], []
-    first = {}
+    by_grasp: dict[int, list[RobotRun]] = {}
     for run in runs:
-        first.setdefault(run.grasp, run)
+        by_grasp.setdefault(run.grasp, []).append(run)
+    first = {k: grasp_runs[0] for k, grasp_runs in by_grasp.items()}
     for k, (grasp, (_, did_close), here) in enumerate(zip(grasps, closings, objects,
                                                           strict=True)):
         title = f"{description.name}: {here.name} grasp {grasp.id}, world (robot base) frame"
@@ -321,9 +366,12 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
         if arms is not None and len(arms[k].q):
             drawn += (f" The arm's skeleton at its first {len(arms[k].q)} draws (toggled in "
                       "the legend).")
+        charts = grasp_charts(k, grasp, by_grasp[k]) if k in by_grasp else []
+        figures += charts
         sections.append(f"<h2>Grasp {esc(grasp.id)}</h2><p>Q nominal "
                         f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.{esc(drawn)}</p>"
-                        f"{figure.div()}")
+                        f"{figure.div()}<div class='kg-row'>"
+                        f"{''.join(c.div() for c in charts)}</div>")
     model = description.contact_model
     count = f"{len(grasps)} grasp{'' if len(grasps) == 1 else 's'}"
     names = ", ".join(dict.fromkeys(o.name for o in objects))
@@ -332,11 +380,16 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
     best = max(finite, key=lambda r: r.evaluation.p_fc) if finite else None
     lead = ("" if best is None else f" Highest P(FC): grasp {grasps[best.grasp].id} "
             f"({best.evaluation.p_fc:.4f} at sigma {sigma_words(best.sigma)} rad).")
+    noise = (f"joint noise on the {description.arm_dof} arm joints" if noise_spec is None
+             else f"a noise model of {len(noise_spec)} sources ({', '.join(noise_spec)})"
+             if noise_spec else "a noise model with every source exact")
+    sources = ("" if noise_spec is None else
+               f"<h2>Noise sources</h2>{noise_sources_table(noise_spec)}")
     body = (f"<h1>{esc(title)}</h1><p class='kg-headline'>P(FC) and Q (Ferrari-Canny, "
-            f"{esc(model)} contacts) under joint noise on the {description.arm_dof} arm "
-            f"joints; Q's moments over the force-closure draws.{esc(lead)}</p>"
+            f"{esc(model)} contacts) under {esc(noise)}; Q's moments over the force-closure "
+            f"draws.{esc(lead)}</p>"
             f"<h2>Results</h2>{results_table(grasps, runs)}"
-            f"{note(geometry_note(geometry))}{''.join(sections)}"
+            f"{note(geometry_note(geometry))}{''.join(sections)}{sources}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
     return page(title, body, figures, library, versions())
