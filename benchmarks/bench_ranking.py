@@ -17,10 +17,12 @@ edges; chunks of 250 draws, as ``kinegrasp rank --engine fast`` runs them):
 Ground truth: 20,000 draws per candidate (seed :data:`GT_SEED`, not a repetition seed), its
 P(FC) per candidate. Repetition s runs ``rank_adaptive`` exactly as ``kinegrasp rank FILE
 --sigma 0.0133 --samples N --seed s --adaptive --top-k K --epsilon E --engine fast`` does
-(same evaluator calls, same chunks), and scores what its table shows: the rows it marks
-``top-k`` are false when one of them has a ground-truth P(FC) at or below the truth's k-th
-best minus epsilon (epsilon 0: below it), the rows it marks ``rest`` in a run that did not
-separate when one of them is above the k-th best (they claim to be out of the top k).
+(the same evaluator calls on the same draws: ``rank``'s rows of the seed's streams in chunks
+of 250 are these chunks' draws, compared count for count), and scores what its table
+shows: the rows it marks ``top-k`` are false when one of them has a ground-truth P(FC) at
+or below the truth's k-th best minus epsilon (epsilon 0: below it), the rows it marks
+``rest`` in a run that did not separate when one of them is above the k-th best (they
+claim to be out of the top k).
 "label errors" counts the runs with a false label (the promise: at most delta); "first-k
 errors" the runs whose first k rows, read as a top k whatever their labels, are false by the
 same rule (what a reader who ignores the labels would take away). The ground truth's own

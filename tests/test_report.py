@@ -37,6 +37,7 @@ from kinegrasp_env.quality.wrenches import tangent_basis
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import PALM_LINK
+from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model, spec_of
 from kinegrasp_env.toolkit import report
@@ -44,17 +45,18 @@ from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 from kinegrasp_env.toolkit.report.charts import quality_histogram
 from kinegrasp_env.toolkit.report.elbow import curve_point
 from kinegrasp_env.toolkit.report.geometry import (
-    closed_configuration,
     cone_meshes,
-    noisy_configurations,
-    skeleton_links,
-    skeletons,
     transform,
-    visual_poses,
 )
-from kinegrasp_env.toolkit.report.plotly import MeshLibrary, decode_typed_array, plotly_js
-from kinegrasp_env.toolkit.report.robot import RobotRun, first_arms, robot_page
-from kinegrasp_env.toolkit.report.scene import contact_cloud, robot_traces
+from kinegrasp_env.toolkit.report.plotly import decode_typed_array, plotly_js
+from kinegrasp_env.toolkit.report.robot import (
+    RobotRun,
+    arm_skeletons,
+    first_arms,
+    nominal_closings,
+    robot_page,
+)
+from kinegrasp_env.toolkit.report.scene import contact_cloud
 from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
@@ -159,55 +161,47 @@ def test_friction_cones_have_the_half_angle_of_mu():
 
 @pytest.mark.parametrize("name", ["cube", "spray_flask", "drill", "mug"])
 def test_closed_hand_touches_the_nominal_contacts(name):
-    """The hand drawn closed on the object touches every nominal contact of the shipped
-    grasps with the link the grasp file names (URDF visuals + kinematics + the world-to-
-    object transform, against the planner's contacts). Measured: at most 0.45 mm; the
-    12-sided capsule mesh is up to r (1 - cos(pi/12)) = 0.37 mm inside the capsule."""
+    """The robot a page draws closed on the object (pybullet's reading of the URDF placed by
+    pybullet's kinematics at the reference closing) touches every nominal contact of the
+    shipped grasps with the link the grasp file names (against the planner's contacts,
+    object frame -> world by the object's pose). Measured: at most 0.45 mm; a capsule's
+    mesh is a polygon inside the capsule (its sides r (1 - cos(pi / sections)) in)."""
+    description = load_robot(DEFAULT_ROBOT)
     obj = load_object(name)
-    for grasp in shipped_grasps(name)[:3]:
-        closed, did_close = closed_configuration(grasp.q0, obj)
+    grasps = shipped_grasps(name)[:3]
+    closings = nominal_closings(description, obj, grasps)
+    geometry = robot_geometry(description, [values for values, _ in closings])
+    for k, (grasp, (_, did_close)) in enumerate(zip(grasps, closings, strict=True)):
         assert did_close
-        links = {v.link: (v, pose) for _, v, pose in visual_poses(closed, obj.pose_inverse,
-                                                                   arm=False)}
-        for point, finger, link in zip(grasp.points, grasp.fingers, grasp.links, strict=True):
-            visual, pose = links[f"f{finger + 1}_{'distal' if link else 'proximal'}"]
-            mesh = trimesh.Trimesh(transform(visual.vertices, pose), visual.faces)
-            distance = trimesh.proximity.closest_point(mesh, [point])[1][0]
+        points = transform(grasp.points, obj.pose)
+        for point, finger, link in zip(points, grasp.fingers, grasp.links, strict=True):
+            name = f"f{finger + 1}_{'distal' if link else 'proximal'}"
+            meshes = [trimesh.Trimesh(transform(shape.vertices, geometry.frames[k][name]),
+                                      shape.faces)
+                      for shape in geometry.shapes if shape.link == name]
+            distance = min(trimesh.proximity.closest_point(m, [point])[1][0] for m in meshes)
             assert distance < 6e-4, (grasp.id, finger, link, distance)
 
 
 def test_skeleton_follows_pybullets_link_frames(bullet_robot, model):
-    """The arm skeleton's points are pybullet's world link frames (independent FK)."""
+    """The arm skeleton a page draws (:func:`arm_skeletons`, the project's kinematics) is
+    pybullet's world link frames (independent FK), from the base to the palm."""
     client, body, joints, links = bullet_robot
+    description = load_robot(DEFAULT_ROBOT)
     q = np.random.default_rng(2).uniform(model.lower, model.upper, size=(3, model.dof))
-    points = skeletons(q)
-    assert points.shape == (3, len(skeleton_links()), 3)
+    points = arm_skeletons(description, q)
+    chain = [*(f"lbr_iiwa_link_{k}" for k in range(8)), "sdh_base", PALM_LINK]
+    assert points.shape == (3, len(chain), 3)
     for i in range(3):
         for name, value in model.expand(q[i]).items():
             client.resetJointState(body, joints[name], float(value))
-        for k, link in enumerate(skeleton_links()):
+        for k, link in enumerate(chain):
             if k == 0:  # the fixed base, loaded at the origin (pybullet
                 position = (0.0, 0.0, 0.0)  # reports its inertial frame instead)
             else:
                 position = client.getLinkState(body, links[link],
                                                computeForwardKinematics=1)[4]
             np.testing.assert_allclose(points[i, k], position, atol=1e-6)
-    assert skeleton_links()[-1] == PALM_LINK
-
-
-def test_noisy_arms_are_the_runs_first_draws(run):
-    """The arm view's noisy configurations are the run's first draws: the engine fed them
-    gives the outcomes the run recorded for its first draws."""
-    from kinegrasp_env.montecarlo.engines import make_engine
-
-    grasp, stats = run
-    q = noisy_configurations(grasp.q0, JointNoise(0.02), 3, SAMPLES, 12)
-    assert q.shape == (12, 14)
-    np.testing.assert_array_equal(q[:, 7:], np.broadcast_to(grasp.q0[7:], (12, 7)))
-    engine = make_engine("fast", "cube")
-    again = engine.run(q)
-    np.testing.assert_array_equal(again.outcome, stats.draws.outcome[:12])
-    np.testing.assert_array_equal(again.quality, stats.draws.quality[:12])
 
 
 def test_the_pages_arms_are_the_runs_first_draws(robot_run):
@@ -281,22 +275,6 @@ def test_page_is_self_contained_and_deterministic(robot_run):
     assert outcomes == [evaluation.counts[name] for name in OUTCOMES]
     bars = json.loads(figures["fig-quality-0"])["data"][0]["y"]
     assert sum(bars) == evaluation.counts["force_closure"]
-
-
-def test_mesh_instances_place_the_library_meshes(run):
-    """A trace's instances, placed in Python, are the robot's visuals moved by the
-    kinematics (the browser test checks the page's script computes the same)."""
-    grasp, _ = run
-    obj = load_object("cube")
-    library = MeshLibrary()
-    traces = robot_traces(grasp.q0, "hand", library, obj.pose_inverse, arm=False)
-    placed = [library.placed(key, np.vstack([np.reshape(rows, (3, 4)), [0, 0, 0, 1]]))[0]
-              for trace in traces for key, rows in trace["kgInstances"]]
-    expected = [transform(v.vertices, pose)
-                for _, v, pose in visual_poses(grasp.q0, obj.pose_inverse, arm=False)]
-    by_size = sorted(expected, key=len)
-    np.testing.assert_allclose(np.concatenate(sorted(placed, key=len)),
-                               np.concatenate(by_size), atol=1e-12)
 
 
 def test_ten_thousand_draw_page_stays_under_its_limit(robot_run):
@@ -382,7 +360,7 @@ def test_evaluate_and_rank_write_reports(tmp_path, capsys):
                (tmp_path / "ranked.csv").read_text().splitlines()[1:]]
     assert [data["grasps"][int(i)]["id"] for i, _ in rows] == [j for _, j in rows] == csv_ids
     lazy = re.findall(r'<div class="kg-plot"[^>]* data-lazy ', text)
-    assert len(lazy) == 6  # two 3-D views per candidate, drawn on demand
+    assert len(lazy) == 3  # one 3-D scene per candidate, drawn on demand
 
 
 # ------------------------------------------------------------------------------- browser
@@ -404,9 +382,11 @@ def pages(tmp_path_factory, robot_run, elbow_run, spec_file):
              "q_mean": 0.01 * i, "q_std": 0.001, "q_nominal": g.q_nominal, "samples": 20}
             for i, (g, p) in enumerate(zip(grasps, (0.5, 0.9, 0.7, 0.2), strict=True))]
     rows.sort(key=lambda r: -r["p_fc"])
+    description = load_robot(DEFAULT_ROBOT)
     report.write_page(out["rank"], report.rank_page(
-        grasps, rows, command="kinegrasp rank ...", settings={}, noise=JointNoise(0.02),
-        seed=0, samples=20))
+        description, {"cube": load_object("cube")}, grasps, rows,
+        command="kinegrasp rank ...", settings={},
+        arms=[first_arms(description, g, None, 0.02, 0, "gaussian", 10) for g in grasps]))
     elbow_grasp, result = elbow_run
     report.write_page(out["elbow"], report.elbow_page(
         load_robot(DEFAULT_ROBOT), elbow_grasp, result, JointNoise(0.02),
@@ -484,14 +464,14 @@ def test_a_run_without_chromium_says_so_in_its_last_lines(tmp_path):
 @pytest.mark.expensive
 def test_rank_page_in_chromium_sorts_and_draws_views_on_demand(pages):
     """Nothing 3-D is drawn until asked; a header click sorts (detail rows follow their
-    candidate); 'show 3-D' draws the candidate's two scenes."""
+    candidate); 'show 3-D' draws the candidate's scene."""
     opened = ("document.querySelectorAll('table.kg-sortable th')[2].click();"
               "document.querySelector('button.kg-show').click()")
     check = report.check_page(pages["rank"], before_screenshot=opened,
                                       probe=RANK_ORDER)
     _report_load("ranking", check)
-    assert check.expected == 0 and check.rendered == 2
-    assert check.problems(scenes=2) == []
+    assert check.expected == 0 and check.rendered == 1
+    assert check.problems(scenes=1) == []
     # ascending P(FC): 0.2 (id 3), 0.5 (id 0), 0.7 (id 2), 0.9 (id 1)
     assert check.probe == [x for i in ("3", "0", "2", "1")
                            for x in (i, f"detail-of-detail-c{i}")]
@@ -601,13 +581,6 @@ def _figures(page: str) -> dict:
     """The page's figures by key (``fig-KEY``)."""
     return {key: json.loads(text) for key, text in re.findall(
         r'<script type="application/json" id="fig-([^"]+)">(.*?)</script>', page, re.S)}
-
-
-def _skeletons(figure: dict, name: str) -> np.ndarray:
-    """A skeleton trace's polylines (n, L, 3) (NaN rows separate them)."""
-    trace = next(t for t in figure["data"] if t["name"] == name)
-    flat = np.stack([decode_typed_array(trace[a]) for a in "xyz"], axis=1)
-    return flat.reshape(-1, len(skeleton_links()) + 1, 3)[:, :-1]
 
 
 def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run, bullet_robot):

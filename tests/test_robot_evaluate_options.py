@@ -111,8 +111,9 @@ def test_rank_report_for_a_robot(capsys, tmp_path):
                  str(out), "--report", str(page)]) == 0
     capsys.readouterr()
     rows = list(csv.DictReader(out.open()))
-    shown = re.findall(r'class="kg-pfc" data-grasp="([^"]+)" data-value="([^"]+)"',
-                       page.read_text())
+    shown = re.findall(r'<tr class="kg-item" data-detail="[^"]+" data-id="([^"]+)">'
+                       r'<td data-value="[^"]*">[^<]*</td><td class="kg-text">[^<]*</td>'
+                       r'<td data-value="([^"]+)">', page.read_text())
     assert [g for g, _ in shown] == [r["id"] for r in rows]
     for (_, value), row in zip(shown, rows, strict=True):
         assert abs(float(value) - float(row["p_fc"])) < 1e-6
@@ -144,7 +145,7 @@ def test_rank_of_a_robots_grasps_of_several_objects(capsys, tmp_path):
         grasp_id = shipped_grasps(obj, "panda")[i].id
         assert abs(float(rows[grasp_id]["p_fc"]) - alone["p_fc"]) < 1e-4, (obj, i)
     text = page.read_text()
-    assert "4 grasps of cube, drill" in text and "panda: drill grasp" in text
+    assert "4 candidates of cube, drill" in text and "panda: drill grasp" in text
 
 
 def test_draws_from_an_offset_are_those_rows_of_the_run():

@@ -110,13 +110,13 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
     settings line and every later run failed with `error: index`), then after two: the
     log keeps one settings line and each candidate once, and the resumed CSV equals an
     uninterrupted run's byte for byte."""
-    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo import robot_chunks
 
     candidates = _cube_candidates(tmp_path)
     args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
     assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
 
-    real = evaluate.run_chunks
+    real = robot_chunks.chunked_draws
     out = tmp_path / "resumed.csv"
     partial = tmp_path / "resumed.csv.partial.jsonl"
     for stop_at, finished in ((1, []), (1, []), (3, [0, 1])):
@@ -128,12 +128,12 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
                 raise KeyboardInterrupt
             return real(*a, **k)
 
-        monkeypatch.setattr(evaluate, "run_chunks", interrupted)
+        monkeypatch.setattr(robot_chunks, "chunked_draws", interrupted)
         assert cli.main([*args, "--out", str(out)]) == 130
         assert not out.exists()  # nothing half-written
         settings, indices = _log(partial)
         assert len(settings) == 1 and indices == finished
-    monkeypatch.setattr(evaluate, "run_chunks", real)
+    monkeypatch.setattr(robot_chunks, "chunked_draws", real)
     capsys.readouterr()
     assert cli.main([*args, "--out", str(out)]) == 0
     assert "resuming: 2 of 4 candidates already ranked" in capsys.readouterr().err
@@ -149,13 +149,13 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
 
 def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:
     """``rank args`` stopped (Ctrl-C) before its first candidate finished."""
-    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo import robot_chunks
 
     def interrupt(*a, **k):
         raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
-        patch.setattr(evaluate, "run_chunks", interrupt)
+        patch.setattr(robot_chunks, "chunked_draws", interrupt)
         assert cli.main(args) == 130
 
 
@@ -170,6 +170,9 @@ def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:
     (["--adaptive", "--top-k", "1"], "which --adaptive cannot resume"),
     (["older log"], '(layout of the random draws (a log of an older kinegrasp): "not recorded" '
                     'there, "rows of chunks of 250" now)'),
+    (["older default-robot log"], "(robot (--robot, or the candidates'; a log of an older "
+                                  'kinegrasp records none): "not recorded" there, "kuka_sdh" '
+                                  "now)"),
 ])
 def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsys, change,
                                                      needle):
@@ -185,9 +188,15 @@ def test_rank_resume_with_other_settings_is_refused(tmp_path, monkeypatch, capsy
     assert indices == []
     assert set(settings["settings"]) == {"candidates_sha256", "engine", "friction",
                                          "num_edges", "noise", "sigma", "method", "samples",
-                                         "chunk", "seed", "draw_layout"}
+                                         "chunk", "seed", "draw_layout", "robot",
+                                         "criterion_scores"}
     if change == ["older log"]:  # a log written before the layout was recorded
         del settings["settings"]["draw_layout"]
+        partial.write_text(json.dumps(settings) + "\n")
+        change = []
+    if change == ["older default-robot log"]:  # the default robot's former own path's log
+        for key in ("robot", "criterion_scores"):
+            del settings["settings"][key]
         partial.write_text(json.dumps(settings) + "\n")
         change = []
     log = partial.read_text()
@@ -261,14 +270,14 @@ def test_rank_log_cut_off_by_a_kill_is_repaired_and_a_damaged_one_refused(
         tmp_path, monkeypatch, capsys):
     """A last line cut off mid-write (a kill) is dropped and its candidate computed again;
     a damaged line before the end is refused in one line (never `error: index`)."""
-    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo import robot_chunks
 
     candidates = _cube_candidates(tmp_path)
     args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
     assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
     out = tmp_path / "r.csv"
     partial = tmp_path / "r.csv.partial.jsonl"
-    real, calls = evaluate.run_chunks, {"n": 0}
+    real, calls = robot_chunks.chunked_draws, {"n": 0}
 
     def third_call_interrupted(*a, **k):
         calls["n"] += 1
@@ -277,7 +286,7 @@ def test_rank_log_cut_off_by_a_kill_is_repaired_and_a_damaged_one_refused(
         return real(*a, **k)
 
     with monkeypatch.context() as patch:
-        patch.setattr(evaluate, "run_chunks", third_call_interrupted)
+        patch.setattr(robot_chunks, "chunked_draws", third_call_interrupted)
         assert cli.main([*args, "--out", str(out)]) == 130
     log = partial.read_text()
     assert _log(partial)[1] == [0, 1]

@@ -25,7 +25,6 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
-from kinegrasp_env.cli.robot_grasps import check_hold_simulator
 from kinegrasp_env.cli.robot_ranking import check_robot_candidates
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -84,8 +83,8 @@ def _hold_scores(args) -> tuple[bool, bool]:
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.report import report_path, write_rank_report
+    from kinegrasp_env.cli.robot_ranking import RobotRanking
     from kinegrasp_env.montecarlo import evaluate
-    from kinegrasp_env.montecarlo.nominal import nominal_quality
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 
     noise, sigma, samples, seed = noise_from(args)
@@ -94,72 +93,21 @@ def cmd_rank(args) -> int:
     engine = engine_name(args.engine)
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
-    described = robot != DEFAULT_ROBOT or any(g.robot != DEFAULT_ROBOT for g in grasps)
     static, test = _hold_scores(args)
-    if described:
-        check_robot_candidates(args, grasps, robot, noise)
-    else:
-        from kinegrasp_env.montecarlo.draw_holds import check_hold_scores_noise
-
-        check_hold_simulator(args, test, "--criterion hold")
-        with reported(ValueError):
-            check_hold_scores_noise(noise, static=static, test=test)
+    check_robot_candidates(args, grasps, robot, noise)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
     # each candidate's draws per outcome and hold scores, beside what the ranking keeps
     side: dict[int, CandidateResult] = {}
-    quick_tests: dict[str, object] = {}  # the default robot's quick holding test per object
-
-    def quick_test(object_name: str):
-        from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
-
-        if object_name not in quick_tests:
-            quick_tests[object_name] = QuickHoldTest(object_name, friction=friction,
-                                                     simulator=args.hold_simulator)
-        return quick_tests[object_name]
-
-    def evaluator(index: int, first: int, count: int, outcomes: bool = False):
-        """Chunks of candidate ``index``: (successes, trials, moments), and with ``outcomes``
-        each draw's success (what adaptive ranking pairs across candidates): force closure,
-        or with a hold criterion the draw held by its score (:func:`~kinegrasp_env.toolkit.
-        adaptive_ranking.certified_successes`);
-        the draws per outcome and the hold scores are added to ``side``."""
-        from kinegrasp_env.toolkit.ranking import CandidateResult
-
-        counts, moments, draws = evaluate.run_chunks(
-            grasps[index], noise, seed, sizes=layout[first:first + count], first_chunk=first,
-            friction=friction, num_edges=NUM_EDGES, engine=engine, method=METHOD,
-            executor=executor, return_draws=outcomes or static, static_hold=static)
-        record = side.setdefault(index, CandidateResult(index))
-        record.add_outcomes(dict(zip(evaluate.OUTCOMES, counts.tolist(), strict=True)))
-        held = {}
-        if static:  # the static hold check of the same draws, by their engine
-            held["static"] = draws.holds
-        if test:  # the quick holding test of the same draws' configurations
-            held["test"] = quick_test(grasps[index].object).chunk_held(
-                grasps[index].q0, noise, seed, int(counts.sum()), chunk=chunk,
-                first_chunk=first)
-        for score, verdicts in held.items():
-            record.add_holds(score, int(verdicts.sum()), int(verdicts.size))
-        value = int(counts[evaluate.FORCE_CLOSURE]), int(counts.sum()), moments
-        if not outcomes:
-            return value
-        from kinegrasp_env.toolkit.adaptive_ranking import certified_successes
-
-        return certified_successes(args.criterion, draws.outcome == evaluate.FORCE_CLOSURE,
-                                   held, moments)
-
     partial = out.with_name(out.name + ".partial.jsonl")
     settings = {"candidates_sha256": digest, "engine": engine, "friction": friction,
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
-                "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT}
-    if described:  # another robot's draws: rows addressed in the seed's streams
-        settings["robot"] = robot
-    if described or static or test:  # the hold scores a log carries
-        settings["criterion_scores"] = [static, test]
-        if test:  # the holding test runs: its simulator is a setting too
-            settings["hold_simulator"] = args.hold_simulator
+                "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT,
+                "robot": robot,  # the draws: rows addressed in the seed's streams
+                "criterion_scores": [static, test]}  # the hold scores a log carries
+    if test:  # the holding test runs: its simulator is a setting too
+        settings["hold_simulator"] = args.hold_simulator
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 
@@ -187,41 +135,26 @@ def cmd_rank(args) -> int:
             if existed:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
-        ranking = None
-        if described:
-            from kinegrasp_env.cli.robot_ranking import RobotRanking
-
-            ranking = evaluator = RobotRanking(
-                grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
-                friction=friction, static_hold=static, hold_test=test, layout=layout,
-                executor=executor, side=side,
-                model=noise if args.noise_spec else None, hold_simulator=args.hold_simulator,
-                criterion=args.criterion)
+        ranking = RobotRanking(
+            grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
+            friction=friction, static_hold=static, hold_test=test, layout=layout,
+            executor=executor, side=side, model=noise if args.noise_spec else None,
+            hold_simulator=args.hold_simulator, criterion=args.criterion)
         try:
-            results, adaptive = _rank(args, grasps, evaluator, layout, chunk, top_k, partial,
+            results, adaptive = _rank(args, grasps, ranking, layout, chunk, top_k, partial,
                                       done, certify, side)
-            nominal = [ranking.nominal(i) if ranking is not None
-                       else nominal_quality(g, friction, NUM_EDGES)
-                       for i, g in enumerate(grasps)]
+            nominal = [ranking.nominal(i) for i in range(len(grasps))]
         finally:
-            if ranking is not None:
-                ranking.close()
-            for opened in quick_tests.values():
-                opened.close()
+            ranking.close()
     for r in results:  # resumed candidates carry theirs from the log
         _merge_side(r, side)
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
     write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json,
                   hold_simulator=args.hold_simulator, rejected=rejected)
     write_rejected(rejected, out, args.json)
-    if args.report and described:
-        from kinegrasp_env.cli.robot_ranking import write_robot_rank_page
-
-        write_robot_rank_page(args, grasps, results, robot, noise, samples=samples, seed=seed,
-                              friction=friction)
-    elif args.report:
-        write_rank_report(args, grasps, results, noise=noise, samples=samples, seed=seed,
-                          engine=engine, friction=friction)
+    if args.report:
+        write_rank_report(args, grasps, results, robot, noise=noise, samples=samples,
+                          seed=seed, engine=engine, friction=friction)
     return 0
 
 

@@ -69,11 +69,22 @@ def report_path(text: str | None, name: str = "--report") -> Path | None:
     return None if text is None else output_file(text, name)
 
 
-def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
-                      engine: str, friction: float = 0.5) -> None:
-    """``rank --report FILE``: the sortable table and each candidate's 3-D views."""
-    from kinegrasp_env.toolkit.report.page import rank_page, write_page
+#: Draws whose arm skeletons a ranking page draws per candidate (the same rows for every one).
+RANK_ARM_DRAWS = 10
 
+
+def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int, seed: int,
+                      engine: str, friction: float = 0.5) -> None:
+    """``rank --report FILE`` of any robot's candidates: the sortable table and each
+    candidate's 3-D scene on demand (:func:`~kinegrasp_env.toolkit.report.ranking.
+    rank_page`), with the arm at the ranking's first draws under joint noise."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.report.page import write_page
+    from kinegrasp_env.toolkit.report.ranking import rank_page
+    from kinegrasp_env.toolkit.report.robot import first_arms
+    from kinegrasp_env.world.objects import load_object
+
+    description = load_robot(robot)
     rows = []
     for r in results:
         lo, hi = r.interval()
@@ -82,24 +93,36 @@ def write_rank_report(args, grasps, results, *, noise, samples: int, seed: int,
                      "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std,
                      "q_nominal": grasps[r.index].q_nominal, "samples": r.trials})
-    command = ["kinegrasp", "rank", args.candidates, *noise_words(args, sigma_words(
-               noise.sigma)), "--samples", str(samples), "--seed", str(seed), "--criterion",
-               args.criterion, *(["--adaptive", "--top-k", str(args.top_k), "--epsilon",
-                                  str(args.epsilon), "--delta", str(args.delta)]
-                                 if args.adaptive else []),
+    command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
+               *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
+               "--seed", str(seed), "--criterion", args.criterion,
+               *(["--adaptive", "--top-k", str(args.top_k), "--epsilon", str(args.epsilon),
+                  "--delta", str(args.delta)] if args.adaptive else []),
                *(["--best-elbow", str(args.best_elbow)] if args.best_elbow else []),
                "--engine", engine, *friction_words(args), "--out", str(args.out), "--report",
                str(args.report)]
-    settings = {"candidates": args.candidates, "object": grasps[0].object,
+    names = list(dict.fromkeys(g.object for g in grasps))
+    joint_noise = not getattr(args, "noise_spec", None)
+    per_draw = not joint_noise and noise.friction is not None
+    settings = {"robot": robot, "candidates": args.candidates, "object": ", ".join(names),
                 **noise_settings(args, [noise]),
-                "draws per candidate": samples, "seed": seed, "criterion": args.criterion,
+                "draws per candidate": samples, "seed (every candidate)": seed,
+                "criterion": args.criterion,
                 "adaptive": f"top {args.top_k}, epsilon {args.epsilon}, delta {args.delta}"
                 if args.adaptive else "no",
-                "engine": engine, "friction mu": friction, "friction cone edges": NUM_EDGES}
-    text = rank_page(grasps, rows, command=shlex.join(command), settings=settings, noise=noise,
-                     seed=seed, samples=samples, friction=friction, num_edges=NUM_EDGES)
+                "engine": engine, "contact model": description.contact_model,
+                "friction mu": "per draw (the noise spec's friction source)" if per_draw
+                else friction, "friction cone edges": NUM_EDGES,
+                "noisy arms drawn": RANK_ARM_DRAWS if joint_noise else
+                "none (a noise spec's draws move more than the arm)"}
+    arms = ([first_arms(description, g, None, noise.sigma, seed, noise.kind,
+                        min(RANK_ARM_DRAWS, samples)) for g in grasps] if joint_noise else None)
+    text = rank_page(description, {name: load_object(name) for name in names}, grasps, rows,
+                     command=shlex.join(command), settings=settings, arms=arms,
+                     friction=friction, num_edges=NUM_EDGES)
     write_page(args.report, text)
-    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)")
+    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
+          file=sys.stderr if args.json else sys.stdout)
 
 
 def chosen_words(args, grasp, index: int) -> list[str]:

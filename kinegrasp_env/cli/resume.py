@@ -39,7 +39,7 @@ SETTING_LABELS = {
     "noise_model": "--noise-spec",
     "best_elbow_samples": "--best-elbow",
     "best_elbow_engine": "the engine --best-elbow chose with (a log of an older kinegrasp)",
-    "robot": "--robot",
+    "robot": "robot (--robot, or the candidates'; a log of an older kinegrasp records none)",
     "criterion_scores": "hold scores (static check, holding test)",
     "hold_simulator": "--hold-simulator",
     "draw_layout": "layout of the random draws (a log of an older kinegrasp)",

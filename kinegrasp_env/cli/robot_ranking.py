@@ -1,4 +1,4 @@
-"""``kinegrasp rank`` of a description robot's grasps: the candidates checked, and the
+"""``kinegrasp rank`` of any robot's grasps: the candidates checked, and the
 evaluator that :mod:`kinegrasp_env.cli.ranking` ranks them with (fixed-n, resumable, or
 adaptive), its draws in chunks on the command's executor
 (:mod:`~kinegrasp_env.montecarlo.robot_chunks`: the same draws whatever the processes or
@@ -15,7 +15,7 @@ from kinegrasp_env.cli.robot_grasps import check_hold_simulator, check_robot_eng
 
 
 def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
-    """A description robot's candidates (each a grasp of ``robot``, of any catalog objects),
+    """A robot's candidates (each a grasp of ``robot``, of any catalog objects),
     and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
     takes; CLIError lines otherwise."""
     from kinegrasp_env.montecarlo.robot_evaluate import check_robot
@@ -41,7 +41,7 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
 
 
 class RobotRanking:
-    """``rank``'s evaluator of a description robot's candidates (see
+    """``rank``'s evaluator of any robot's candidates (see
     :data:`kinegrasp_env.toolkit.ranking.Evaluator`): chunks ``first .. first + count`` of
     ``layout`` of candidate ``index`` closed on ``executor``; each draw's outcome and the
     hold scores are added to ``side[index]`` (a
@@ -150,44 +150,3 @@ class RobotRanking:
         for tester in self.testers.values():
             tester.close()
         close_engines()
-
-
-def write_robot_rank_page(args, grasps: list, results: list, robot: str, noise, *,
-                          samples: int, seed: int, friction: float) -> None:
-    """``rank --report FILE`` of a description robot: ``report --robot``'s page
-    (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`) of the candidates in rank order,
-    each one's row from its ranking draws."""
-    import shlex
-    from types import SimpleNamespace
-
-    from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
-    from kinegrasp_env.cli.common import NUM_EDGES
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.report.page import write_page
-    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
-    from kinegrasp_env.world.objects import load_object
-
-    ordered = [grasps[r.index] for r in results]
-    runs = []
-    for k, r in enumerate(results):
-        mean, std, skew = r.q_stats()
-        runs.append(RobotRun(k, noise.sigma, SimpleNamespace(
-            p_fc=r.p_fc, ci=r.interval(), q_mean=mean, q_std=std, q_skew=skew,
-            counts=dict(r.outcomes), n=r.trials)))
-    description = load_robot(robot)
-    command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
-               *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
-               "--seed", str(seed), "--criterion", args.criterion, "--engine", args.engine,
-               *friction_words(args), "--out", str(args.out), "--report", str(args.report)]
-    names = list(dict.fromkeys(g.object for g in ordered))
-    settings = {"robot": robot, "candidates": args.candidates, "object": ", ".join(names),
-                "order": f"by {args.criterion}, best first", "draws per candidate": samples,
-                "seed (every candidate)": seed, "engine": args.engine,
-                "contact model": description.contact_model, "friction mu": friction,
-                "friction cone edges": NUM_EDGES}
-    text = robot_page(description, {name: load_object(name) for name in names}, ordered, runs,
-                      command=shlex.join(command), settings=settings, friction=friction,
-                      num_edges=NUM_EDGES)
-    write_page(args.report, text)
-    print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
-          file=sys.stderr if args.json else sys.stdout)

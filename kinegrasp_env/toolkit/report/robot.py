@@ -139,11 +139,12 @@ class NoisyArms:
 
     Attributes:
         q: (k, dof) the draws' configurations; outcome: (k,) their outcomes (indices into
-            :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`).
+            :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`), or None where they were
+            not kept (a ranking's draws).
     """
 
     q: np.ndarray
-    outcome: np.ndarray
+    outcome: np.ndarray | None
 
 
 def first_arms(description: RobotDescription, grasp: Grasp, evaluation, sigma, seed: int,
@@ -152,12 +153,12 @@ def first_arms(description: RobotDescription, grasp: Grasp, evaluation, sigma, s
     its integer seed's chunked streams draw first, whatever the processes:
     :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`) with their
     outcomes in ``evaluation`` (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
-    RobotEvaluation` with its draws)."""
+    RobotEvaluation` with its draws; None: outcomes not known)."""
     from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 
     q = chunk_configurations(np.asarray(grasp.q0, dtype=float), description.arm_dof, sigma,
                              noise, seed, 0, shown)
-    return NoisyArms(q, evaluation.draws.outcome[:shown])
+    return NoisyArms(q, None if evaluation is None else evaluation.draws.outcome[:shown])
 
 
 def arm_skeletons(description: RobotDescription, q: np.ndarray) -> np.ndarray:
@@ -173,9 +174,12 @@ def arm_skeletons(description: RobotDescription, q: np.ndarray) -> np.ndarray:
 
 
 def noisy_traces(description: RobotDescription, arms: NoisyArms) -> list[dict]:
-    """The skeletons of the noisy draws, one trace per outcome present (hidden until
-    toggled)."""
+    """The skeletons of the noisy draws, one trace per outcome present, or one grey trace
+    where the outcomes are not known (hidden until toggled)."""
     lines = arm_skeletons(description, arms.q)
+    if arms.outcome is None:
+        return [skeleton_trace(lines, f"noisy arms ({len(lines)})", "#7f7f7f", 2,
+                               visible="legendonly")]
     return [skeleton_trace(lines[rows], f"noisy arms: {name.replace('_', ' ')} "
                            f"({len(rows)})", OUTCOME_COLOURS[name], 2, visible="legendonly")
             for k, name in enumerate(OUTCOMES)

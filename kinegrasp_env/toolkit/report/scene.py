@@ -1,10 +1,8 @@
-"""The report's rotatable 3-D views as plotly figures (plain dicts).
-
-Two scenes: the grasp in the object frame (the object mesh and, toggled, its convex parts;
-the hand's links at the nominal configuration; the nominal contacts with their friction
-cones; every draw's contact points coloured by outcome or, by a button, by finger) and the
-whole arm in the world (robot base) frame (its links at the nominal configuration, the
-skeletons of a few noisy draws coloured by outcome, the object). Metres throughout.
+"""The pieces of the report's rotatable 3-D scenes as plotly traces (plain dicts): the
+object mesh and, toggled, its convex parts; every draw's contact points coloured by outcome
+or, by a button, by finger; skeleton polylines; the axes, the close-up box and the colours.
+The scenes themselves (the whole robot closed on the object) are
+:func:`~kinegrasp_env.toolkit.report.robot.grasp_scene`'s. Metres throughout.
 """
 
 from __future__ import annotations
@@ -15,15 +13,12 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.engines import OUTCOMES
-from kinegrasp_env.toolkit.report.geometry import cone_meshes, skeletons, visual_poses
 from kinegrasp_env.toolkit.report.plotly import (
     MESH_STYLE,
     MeshLibrary,
     instanced_mesh,
-    layout,
     typed_array,
 )
-from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
 OUTCOME_COLOURS = {"start_collision": "#7f7f7f", "missed": "#d62728",
@@ -71,37 +66,6 @@ def object_traces(obj: GraspObject, library: MeshLibrary, frame: np.ndarray | No
                                          legendgroup="parts", showlegend=index == 0,
                                          visible="legendonly"))
     return traces
-
-
-def robot_traces(q: np.ndarray, name: str, library: MeshLibrary,
-                 frame: np.ndarray | None = None, *, arm: bool = True, hand: bool = True,
-                 opacity: float = 1.0, **extra) -> list[dict]:
-    """The robot's links at q (14,), one Mesh3d per colour, one legend entry."""
-    by_colour: dict[str, list] = {}
-    for index, visual, pose in visual_poses(q, frame, arm=arm, hand=hand):
-        key = library.add(f"robot:{index}", visual.vertices, visual.faces)
-        by_colour.setdefault(visual.color, []).append((key, pose))
-    return [instanced_mesh(pieces, name, colour, opacity=opacity, legendgroup=name,
-                           showlegend=index == 0, **extra)
-            for index, (colour, pieces) in enumerate(by_colour.items())]
-
-
-def nominal_contact_traces(grasp: Grasp, obj: GraspObject, friction: float,
-                           num_edges: int) -> list[dict]:
-    """The nominal contacts (markers) and their friction cones (one mesh)."""
-    if len(grasp.points) == 0:
-        return []
-    height = CONE_SCALE * float(np.max(obj.size))
-    vertices, faces = cone_meshes(grasp.points, grasp.normals, friction, num_edges, height)
-    cones = mesh_trace(vertices, faces, f"friction cones (mu {friction:g}, {num_edges} edges, "
-                       "drawn outside)", "#9467bd", opacity=0.6)
-    labels = [f"finger {f + 1}, {'distal' if k == 1 else 'proximal'}"
-              for f, k in zip(grasp.fingers, grasp.links, strict=True)]
-    points = {"type": "scatter3d", "mode": "markers", "name": "nominal contacts",
-              "x": grasp.points[:, 0].tolist(), "y": grasp.points[:, 1].tolist(),
-              "z": grasp.points[:, 2].tolist(), "text": labels, "hoverinfo": "text+name",
-              "marker": {"size": 6, "color": "black", "symbol": "diamond"}}
-    return [cones, points]
 
 
 @dataclass
@@ -204,29 +168,6 @@ def close_up(obj: GraspObject) -> tuple[np.ndarray, np.ndarray]:
     return lower - pad, upper + pad
 
 
-def grasp_scene(obj: GraspObject, grasp: Grasp, library: MeshLibrary, closed: np.ndarray, *,
-                friction: float, num_edges: int, cloud: ContactCloud | None = None,
-                title: str = "") -> dict:
-    """The grasp in the object frame: the object, the hand closed on it (``closed`` (14,),
-    see :func:`~kinegrasp_env.toolkit.report.geometry.closed_configuration`) and, hidden
-    until toggled, at its pre-shape (q0), the nominal contacts and cones, and the draws'
-    contact points (with outcome/finger buttons) when ``cloud`` is given."""
-    data = object_traces(obj, library)
-    data += robot_traces(closed, "hand (closed, nominal)", library, obj.pose_inverse,
-                         arm=False, opacity=0.55)
-    data += robot_traces(grasp.q0, "hand (pre-shape q0)", library, obj.pose_inverse,
-                         arm=False, opacity=0.3, visible="legendonly")
-    data += nominal_contact_traces(grasp, obj, friction, num_edges)
-    menus = []
-    if cloud is not None and cloud.shown:
-        by_outcome, by_finger = cloud_traces(cloud)
-        menus.append(colour_buttons(len(data), len(by_outcome), len(by_finger)))
-        data += by_outcome + by_finger
-    return {"data": data, "layout": layout(
-        scene=scene_axes(close_up(obj)), updatemenus=menus, legend=LEGEND, uirevision="grasp",
-        title={"text": title, "x": 0.01, "font": {"size": 14}})}
-
-
 def skeleton_trace(points: np.ndarray, name: str, colour: str, width: float, **extra) -> dict:
     """Polylines (n, L, 3) as one Scatter3d line trace (NaN rows separate them)."""
     points = np.asarray(points, dtype=float)
@@ -236,29 +177,3 @@ def skeleton_trace(points: np.ndarray, name: str, colour: str, width: float, **e
             "x": typed_array(flat[:, 0]), "y": typed_array(flat[:, 1]),
             "z": typed_array(flat[:, 2]), "hoverinfo": "name",
             "line": {"color": colour, "width": width}, **extra}
-
-
-def arm_scene(obj: GraspObject, closed: np.ndarray, library: MeshLibrary, noisy_q: np.ndarray,
-              noisy_outcomes: np.ndarray | None = None, title: str = "",
-              label: str = "nominal") -> dict:
-    """The arm in the world frame: its links at the noise-free configuration with the hand
-    closed (``closed`` (14,)), the object, the skeleton of it and of the noisy configurations
-    ``noisy_q`` (k, 14), coloured by their outcomes (k,) if given; ``label`` names the
-    noise-free configuration in the legend."""
-    data = robot_traces(closed, f"arm and hand ({label})", library, opacity=0.35)
-    data += object_traces(obj, library, obj.pose, parts=False)
-    data.append(skeleton_trace(skeletons(closed), f"skeleton ({label})", "black", 6))
-    if len(noisy_q):
-        lines = skeletons(noisy_q)
-        if noisy_outcomes is None:
-            data.append(skeleton_trace(lines, f"{len(lines)} noisy draws", "#1f77b4", 2))
-        for k, name in enumerate(OUTCOMES):
-            rows = np.flatnonzero(noisy_outcomes == k) if noisy_outcomes is not None else []
-            if len(rows):
-                data.append(skeleton_trace(lines[rows], f"draws: {name.replace('_', ' ')} "
-                                           f"({len(rows)})", OUTCOME_COLOURS[name], 2))
-    scene = scene_axes()
-    scene["camera"] = {"eye": {"x": 0.2, "y": -2.0, "z": 0.7}}
-    return {"data": data, "layout": layout(
-        scene=scene, legend=LEGEND, uirevision="arm",
-        title={"text": title, "x": 0.01, "font": {"size": 14}})}

@@ -1,0 +1,129 @@
+"""The page of a ranking (``kinegrasp rank --report``), the same for every robot.
+
+A sortable table of the candidates, best first (P(FC) with its Wilson 95% interval, Q's mean
+and standard deviation over the force-closure draws, Q nominal, the arm's elbow coordinate,
+the draws), and per candidate one 3-D scene drawn on demand (its *show 3-D* button): the
+whole robot closed on the object in the world (robot base) frame, as the report page draws
+it (:func:`~kinegrasp_env.toolkit.report.robot.grasp_scene`), with the arm's skeleton at the
+ranking's first draws (the same rows for every candidate: common noise), toggled in the
+legend; it opens on the whole robot (candidates that differ by their elbow show it), a
+button switches to a close-up of the object. Pages open offline and are deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.picture import robot_geometry
+from kinegrasp_env.toolkit.report.html import (
+    Figure,
+    command_block,
+    esc,
+    note,
+    page,
+    settings_table,
+)
+from kinegrasp_env.toolkit.report.page import fmt, versions
+from kinegrasp_env.toolkit.report.plotly import MeshLibrary
+from kinegrasp_env.toolkit.report.robot import (
+    NoisyArms,
+    geometry_note,
+    grasp_scene,
+    objects_closings,
+)
+from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.objects import GraspObject
+
+RANK_COLUMNS = ("rank", "id", "P(FC)", "95% CI", "Q mean", "Q std", "Q nominal",
+                "elbow [rad]", "draws", "3-D")
+
+
+def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) -> list[float]:
+    """Each grasp's elbow coordinate, radians: a 7-joint arm's elbow angle on its
+    self-motion, another arm's IK-branch coordinate (:func:`~kinegrasp_env.robot.
+    branch_motion.elbow_motion`); NaN where the arm has none (a 7-joint arm without
+    ``arm_angle_links``)."""
+    from kinegrasp_env.robot.branch_motion import elbow_motion
+
+    try:
+        motion = elbow_motion(description)
+    except ValueError:
+        return [math.nan] * len(grasps)
+    q = np.stack([np.asarray(g.q0, dtype=float) for g in grasps])
+    return [float(v) for v in motion.elbow_angle(q)]
+
+
+def rank_row(position: int, row: dict, elbow: float, key: str) -> str:
+    """One sortable table row (numbers in ``data-value``)."""
+    def num(value, text):
+        finite = value is not None and math.isfinite(value)
+        return f'<td data-value="{value if finite else "NaN"}">{text if finite else "-"}</td>'
+
+    cells = [num(position, str(position)), f'<td class="kg-text">{esc(row["id"])}</td>',
+             num(row["p_fc"], f'{row["p_fc"]:.4f}'),
+             num(row["p_fc_lo"], f'{row["p_fc_lo"]:.4f} .. {row["p_fc_hi"]:.4f}'),
+             num(row["q_mean"], fmt(row["q_mean"])), num(row["q_std"], fmt(row["q_std"])),
+             num(row["q_nominal"], fmt(row["q_nominal"])), num(elbow, f"{elbow:.3f}"),
+             num(row["samples"], str(row["samples"])),
+             f'<td><button class="kg-show" data-detail="detail-{key}" '
+             f'onclick="kgToggle(this)">show 3-D</button></td>']
+    return (f'<tr class="kg-item" data-detail="detail-{key}" data-id="{esc(row["id"])}">'
+            f'{"".join(cells)}</tr>')
+
+
+def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
+              grasps: Sequence[Grasp], rows: Sequence[dict], *, command: str,
+              settings: dict, arms: Sequence[NoisyArms] | None = None, friction: float = 0.5,
+              num_edges: int = 8) -> str:
+    """The HTML page of a ranking.
+
+    Args:
+        description: the robot; objects: object name -> object, for every candidate's.
+        grasps: the candidates, in file order.
+        rows: best first; each with ``index`` (into grasps), ``id``, ``p_fc``, ``p_fc_lo``,
+            ``p_fc_hi``, ``q_mean``, ``q_std``, ``q_nominal``, ``samples``.
+        command: the command line that reproduces the page; settings: name -> value.
+        arms: per candidate (file order), the arm at the ranking's first draws (None: none).
+    """
+    chosen = [grasps[row["index"]] for row in rows]
+    placed = [objects[g.object] for g in chosen]
+    closings = objects_closings(description, placed, chosen)
+    configurations = []
+    for grasp, (values, _) in zip(chosen, closings, strict=True):
+        configurations += [values, {k: float(v) for k, v in
+                                    description.model.expand(grasp.q0).items()}]
+    geometry = robot_geometry(description, configurations)
+    elbows = elbow_coordinates(description, chosen)
+    library, figures, body_rows = MeshLibrary(), [], []
+    for position, (row, grasp, obj, (_, did_close)) in enumerate(
+            zip(rows, chosen, placed, closings, strict=True), 1):
+        key = f"c{row['index']}"
+        k = position - 1
+        figure = Figure(f"{key}-scene", grasp_scene(
+            description, obj, grasp, geometry, 2 * k, 2 * k + 1, library, did_close=did_close,
+            friction=friction, num_edges=num_edges, whole_first=True,
+            title=f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame",
+            arms=None if arms is None else arms[row["index"]]), "100%", "520px", lazy=True)
+        figures.append(figure)
+        body_rows.append(rank_row(position, row, elbows[k], key))
+        body_rows.append(f'<tr id="detail-{key}" style="display: none;"><td colspan='
+                         f'"{len(RANK_COLUMNS)}">{figure.div()}</td></tr>')
+    head = "".join(f'<th{" class=kg-text" if c == "id" else ""}>{esc(c)}</th>'
+                   for c in RANK_COLUMNS)
+    names = ", ".join(dict.fromkeys(o.name for o in placed))
+    shown = "" if arms is None else (
+        f", with the arm's skeleton at the ranking's first {len(arms[0].q)} draws (the same "
+        "rows for every candidate), toggled in the legend")
+    title = f"kinegrasp ranking: robot {description.name}, {len(rows)} candidates of {names}"
+    body = (f"<h1>{esc(title)}</h1><p class='kg-headline'>Click a column header to sort; "
+            "<i>show 3-D</i> draws a candidate's scene: the whole robot closed on the object "
+            f"(world frame){esc(shown)}.</p>"
+            f'<table class="kg-sortable"><thead><tr>{head}</tr></thead>'
+            f"<tbody>{''.join(body_rows)}</tbody></table>{note(geometry_note(geometry))}"
+            f"<h2>Settings</h2>{settings_table(settings)}"
+            f"<h2>Command that reproduces this page</h2>{command_block(command)}")
+    return page(title, body, figures, library, versions())
