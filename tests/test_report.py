@@ -709,7 +709,9 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
     (run,) = printed["runs"]
     assert run["outcomes"] == stats.outcomes and run["p_fc"] == stats.p_fc
     assert run["q_mean"] == pytest.approx(stats.q_mean, rel=1e-9)
-    assert run["noise"] == str(spec_file)
+    assert (run["noise"], run["noise_spec"]) == ("gaussian", str(spec_file))
+    assert run["noise_model"]["friction"] == {"distribution": "uniform", "low": 0.3,
+                                              "high": 0.7}
     page = out.read_text()
     assert _section(page, "Noise sources") == {
         "joints": "distribution gaussian; sigma 0.01 rad",
@@ -726,6 +728,44 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
                               f"--noise-spec {spec_file} --samples 50 --seed 2 --engine fast "
                               f"--out {out}")
     assert "--sigma" not in command
+
+
+def test_report_with_a_per_joint_noise_spec(tmp_path, capsys):
+    """A spec with one sigma per arm joint: the page is written and its P(FC) is the
+    library's under that model (its command names the spec, no sigma)."""
+    spec = tmp_path / "per_joint.yaml"
+    spec.write_text("joints: {sigma: [0.01, 0.02, 0.01, 0.02, 0.01, 0.02, 0.03]}\n")
+    out = tmp_path / "per_joint.html"
+    assert main(["report", "--object", "cube", "--noise-spec", str(spec), "--samples", "30",
+                 "--engine", "fast", "--out", str(out), "--json"]) == 0
+    (run,) = json.loads(capsys.readouterr().out)["runs"]
+    stats = evaluate_grasp(grasp_by_index("cube", 0), load_noise_model(spec), 30, seed=0,
+                           engine="fast")
+    assert run["p_fc"] == stats.p_fc and run["outcomes"] == stats.outcomes
+    assert f"--noise-spec {spec} --samples 30" in out.read_text()
+
+
+def test_report_of_a_palm_pose_file_picks_what_evaluate_picks(tmp_path, capsys):
+    """``--grasp N`` of a palm-pose file is candidate N of the file, as for ``evaluate``,
+    whatever candidates before it are rejected; a rejected one named is one line with its
+    reason."""
+    data = json.loads(open("docs/palm_pose_candidates.json").read())
+    rejected = next(c for c in data["candidates"] if c["id"] == "far_away")
+    data["candidates"] = [rejected] + [c for c in data["candidates"] if c is not rejected]
+    path = tmp_path / "palm.json"
+    path.write_text(json.dumps(data))
+    args = ["--grasps", str(path), "--grasp", "1", "--samples", "20", "--engine", "fast"]
+    assert main(["evaluate", *args, "--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert main(["report", *args, "--out", str(tmp_path / "p.html"), "--json"]) == 0
+    (run,) = json.loads(capsys.readouterr().out)["runs"]
+    assert run["grasp"] == alone["grasp"] == data["candidates"][1]["id"]
+    assert run["p_fc"] == alone["p_fc"]
+    assert main(["report", "--grasps", str(path), "--grasp", "far_away", "--samples", "5",
+                 "--out", str(tmp_path / "q.html")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "candidate far_away of" in err[0] and "is rejected" in err[0]
+    assert not (tmp_path / "q.html").exists()
 
 
 def test_evaluate_report_with_a_noise_spec(spec_file, tmp_path, capsys):

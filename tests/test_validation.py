@@ -158,7 +158,8 @@ def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch
     """The cache: a grasp whose file is there is read, not run (run would fail here)."""
     settings = ValidationSettings(sigma=0.01, samples=4)
     grasp = shipped_grasps("cube")[0]
-    path = tmp_path / "cache" / f"cube_0_{validation.settings_key(grasp, settings)}.npz"
+    path = (tmp_path / "cache"
+            / f"kuka_sdh_cube_0_{validation.settings_key(grasp, settings)}.npz")
     path.parent.mkdir()
     path.write_bytes(FAKE[0].to_bytes())
 
@@ -180,7 +181,8 @@ def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch
 def test_a_cached_grasp_with_fewer_draws_runs_only_the_missing_ones(tmp_path, monkeypatch):
     settings = ValidationSettings(sigma=0.01, samples=6)
     grasp = shipped_grasps("cube")[0]
-    path = tmp_path / "cache" / f"cube_0_{validation.settings_key(grasp, settings)}.npz"
+    path = (tmp_path / "cache"
+            / f"kuka_sdh_cube_0_{validation.settings_key(grasp, settings)}.npz")
     path.parent.mkdir()
     path.write_bytes(FAKE[0].to_bytes())  # 4 draws cached
     starts = []

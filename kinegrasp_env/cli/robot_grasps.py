@@ -149,19 +149,6 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                                      noise=args.noise, robot=robot, engine=args.engine,
                                      static_hold=args.static_hold, friction=friction,
                                      executor=executor, noise_model=model)
-    if args.report:
-        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
-                                    model)
-    if args.plot:  # before the results are printed: a failing figure is a warning
-        from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
-        from kinegrasp_env.world.objects import load_object
-
-        wrote = safe_figure(lambda: plot_contacts(
-            load_object(grasp.object).mesh, stats.draws, args.plot,
-            title=f"{grasp.object} grasp {index} of {robot}, {label}: "
-                  f"P(FC) = {stats.p_fc:.3f}"), args.plot)
-        if wrote is None:
-            args.plot = None
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
     if math.isfinite(stats.push_median):
@@ -188,20 +175,32 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
                           "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
                           "error": finite(stats.q_nominal - stats.q_mean),
                           "outcomes": stats.counts, **hold}))
-        return 0
-    extra = hold_lines(hold)
-    if math.isfinite(stats.push_median):
-        extra.append(f"  coupled jaws: one jaw touches first and would push the object "
-                     f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "
-                     f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the closing "
-                     f"scores the object where it stands")
-    print_evaluation(Evaluation(
-        f"{grasp.object} grasp {index} of robot {robot}", label, samples,
-        None if model is not None and model.friction else friction,
-        load_robot(robot).contact_model, stats.p_fc, stats.ci, stats.q_nominal, stats.q_mean,
-        stats.q_std, stats.q_skew, stats.counts), extra)
+    else:
+        extra = hold_lines(hold)
+        if math.isfinite(stats.push_median):
+            extra.append(f"  coupled jaws: one jaw touches first and would push the object "
+                         f"{1e3 * stats.push_median:.1f} mm (median; 95th percentile "
+                         f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the "
+                         "closing scores the object where it stands")
+        print_evaluation(Evaluation(
+            f"{grasp.object} grasp {index} of robot {robot}", label, samples,
+            None if model is not None and model.friction else friction,
+            load_robot(robot).contact_model, stats.p_fc, stats.ci, stats.q_nominal,
+            stats.q_mean, stats.q_std, stats.q_skew, stats.counts), extra)
+    # after the results: a failing figure or page is a warning or an error, the results stand
     if args.plot:
-        print(f"  plot written to {args.plot}")
+        from kinegrasp_env.toolkit.plots import plot_contacts, safe_figure
+        from kinegrasp_env.world.objects import load_object
+
+        wrote = safe_figure(lambda: plot_contacts(
+            load_object(grasp.object).mesh, stats.draws, args.plot,
+            title=f"{grasp.object} grasp {index} of {robot}, {label}: "
+                  f"P(FC) = {stats.p_fc:.3f}"), args.plot)
+        if wrote is not None and not args.json:
+            print(f"  plot written to {args.plot}")
+    if args.report:
+        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
+                                    model)
     return 0
 
 
@@ -237,7 +236,9 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
     shown = dataclasses.replace(grasp, q_nominal=stats.q_nominal)
     arms = first_arms(description, grasp, stats, sigma, int(args.seed), args.noise,
                       0 if model is not None else min(ARM_DRAWS, stats.n))
-    settings = {"robot": robot, "object": grasp.object, "grasp": grasp.id, "noise": label,
+    settings = {"robot": robot, "object": grasp.object, "grasp": grasp.id,
+                "grasp source": args.grasps or f"shipped set of {grasp.object} for {robot}",
+                "noise": label,
                 "draws": stats.n, "seed": args.seed, "engine": args.engine,
                 "contact model": description.contact_model,
                 "friction mu": "per draw (the noise spec's friction source)"
@@ -245,7 +246,7 @@ def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction:
                 "friction cone edges": NUM_EDGES,
                 "contact points drawn at most": MAX_POINTS,
                 "noisy arms drawn": len(arms.q) if model is None else
-                "none (a noise spec's draws move more than the arm)"}
+                "none under a noise spec"}
     text = robot_page(description, load_object(grasp.object), [shown],
                       [RobotRun(0, sigma, stats)], command=shlex.join(command),
                       settings=settings, friction=friction, num_edges=NUM_EDGES,

@@ -13,7 +13,7 @@ import math
 import shlex
 from pathlib import Path
 
-from kinegrasp_env.cli.command_words import friction_words, noise_words
+from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
@@ -49,9 +49,10 @@ def grasp_file_robot(args) -> str | None:
 
 
 def chosen_grasps(args, robot: str) -> tuple[str, list]:
-    """(object, grasps): ``--grasp`` (comma-separated ids or indices; None: all) of
-    ``--grasps FILE`` or of the robot's shipped set of ``--object``; every grasp must be of
-    ``robot`` and of one object."""
+    """(object, grasps): ``--grasp`` (comma-separated ids or indices; None: the first) of
+    ``--grasps FILE`` (a palm-pose file's chosen candidates solved for ``robot``, a rejected
+    one a line with its reason) or of the robot's shipped set of ``--object``; every grasp
+    must be of ``robot`` and of one object."""
     from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
     from kinegrasp_env.toolkit.candidates import is_candidate_file
     from kinegrasp_env.world.grasps import (
@@ -61,11 +62,16 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         shipped_grasps,
     )
 
+    candidates = None
     if args.grasps is not None:
         if Path(args.grasps).is_dir():
             raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
         if is_candidate_file(args.grasps):
-            grasps = solved_candidates(args.grasps, robot)
+            from kinegrasp_env.toolkit.candidates import read_candidates
+
+            with reported(ValueError):  # bad entries, a robot conflict: one line
+                candidates = read_candidates(args.grasps, robot)
+            grasps = candidates.candidates
         else:
             with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
                 grasps = load_grasps(args.grasps)
@@ -77,18 +83,9 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         source = f"the shipped grasps of {args.object} for robot {robot}"
     if not grasps:
         raise CLIError(f"--grasps {args.grasps}: the file holds no grasps")
-    if args.grasp is not None:
-        ids = [g.id for g in grasps]
-        picked = []
-        for text in (t.strip() for t in args.grasp.split(",")):
-            index = ids.index(text) if text in ids else parse_index(text)
-            if not 0 <= index < len(grasps):
-                raise CLIError(f"--grasp {text}: no grasp with this id in {source}, and not "
-                               f"an index 0..{len(grasps) - 1}")
-            if index in picked:
-                raise CLIError(f"--grasp: {args.grasp!r} names grasp {ids[index]} twice")
-            picked.append(index)
-        grasps = [grasps[i] for i in picked]
+    grasps = [grasps[i] for i in picked_indices(args.grasp, [g.id for g in grasps], source)]
+    if candidates is not None:
+        grasps = solved(args.grasps, candidates, grasps)
     objects = sorted({g.object for g in grasps})
     if len(objects) != 1:
         raise CLIError(f"--grasps {args.grasps}: grasps of {', '.join(objects)}; a report "
@@ -101,18 +98,33 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
     return objects[0], grasps
 
 
-def solved_candidates(path: str, robot: str) -> list:
-    """The grasps of a palm-pose file's candidates solved for ``robot``; each rejected one is
-    a line on stderr (and left out)."""
-    import sys
+def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
+    """The indices ``--grasp`` names in a list of ``ids`` (comma-separated ids, else
+    indices; None: the first); one line for an unknown one or one named twice."""
+    if text is None:
+        return [0]
+    picked: list[int] = []
+    for word in (t.strip() for t in text.split(",")):
+        index = ids.index(word) if word in ids else parse_index(word)
+        if not 0 <= index < len(ids):
+            raise CLIError(f"--grasp {word}: no grasp with this id in {source}, and not "
+                           f"an index 0..{len(ids) - 1}")
+        if index in picked:
+            raise CLIError(f"--grasp: {text!r} names grasp {ids[index]} twice")
+        picked.append(index)
+    return picked
 
-    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
 
-    with reported(ValueError):  # bad entries, a robot conflict: one line
-        read = read_candidates(path, robot)
-    grasps, rejected = solve_all(read.object, read.candidates, read.robot)
-    for r in rejected:
-        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+def solved(path: str, read, chosen: list) -> list:
+    """The chosen candidates of a palm-pose file (``read``: its
+    :func:`~kinegrasp_env.toolkit.candidates.read_candidates`) solved to grasps; a rejected
+    one is a one-line error with its reason."""
+    from kinegrasp_env.toolkit.candidates import solve_all
+
+    grasps, rejected = solve_all(read.object, chosen, read.robot)
+    if rejected:
+        raise CLIError(f"candidate {rejected[0].id} of {path} is rejected: "
+                       f"{rejected[0].reason} ({rejected[0].detail})")
     return grasps
 
 
@@ -123,7 +135,7 @@ def report_command(args, robot: str, sigmas: list[float], samples: int, seed: in
     if args.grasp is not None:
         chosen += ["--grasp", args.grasp]
     return ["kinegrasp", "report", "--robot", robot, *chosen,
-            *noise_words(args, ",".join(f"{s:g}" for s in sigmas)), "--samples",
+            *noise_words(args, ",".join(sigma_words(s) for s in sigmas)), "--samples",
             str(samples), "--seed", str(seed), "--engine", args.engine, *friction_words(args),
             "--out", str(out)]
 
@@ -145,7 +157,6 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
     from kinegrasp_env.world.objects import load_object
 
     robot = args.robot or grasp_file_robot(args) or DEFAULT_ROBOT
-    args.grasp = "0" if args.grasp is None else args.grasp
     max_points = positive_int(args.max_points, "--max-points")
     arm_draws = positive_int(args.arm_draws, "--arm-draws", low=0)
     check_robot_engine(args.engine, robot)
@@ -182,15 +193,15 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
     settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
                 "grasp source": args.grasps or f"shipped set of {name} for {robot}",
                 **({"noise spec": args.noise_spec} if model is not None else
-                   {"sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": args.noise}),
-                "noisy joints": ", ".join(description.arm_joints),
+                   {"sigma [rad]": ", ".join(f"{s:g}" for s in sigmas), "noise": args.noise,
+                    "noisy joints": ", ".join(description.arm_joints)}),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
                 "friction mu": "per draw (the noise spec's friction source)"
                 if model is not None and model.friction is not None else friction,
                 "friction cone edges": NUM_EDGES, "contact points drawn at most": max_points,
-                "noisy arms drawn": (arm_draws if model is None else
-                                     "none (a noise spec's draws move more than the arm)")}
+                "noisy arms drawn": (min(arm_draws, samples) if model is None else
+                                     "none under a noise spec")}
     text = robot_page(description, load_object(name), grasps, runs,
                       command=shlex.join(command), settings=settings, friction=friction,
                       num_edges=NUM_EDGES, max_points=max_points, arms=arms,
@@ -200,8 +211,10 @@ def cmd_report_robot(args, sigmas: list[float]) -> int:
     if args.json:
         print(json.dumps({"report": str(out), "bytes": size, "robot": robot, "object": name,
                           "runs": [{"grasp": grasps[r.grasp].id, "sigma": r.sigma,
-                                    "noise": args.noise if model is None
-                                    else str(args.noise_spec),
+                                    "noise": args.noise if model is None else model.kind,
+                                    **({} if model is None else
+                                       {"noise_spec": str(args.noise_spec),
+                                        "noise_model": spec_of(model)}),
                                     "samples": samples, "seed": seed,
                                     "engine": args.engine, "p_fc": r.evaluation.p_fc,
                                     "p_fc_ci": list(r.evaluation.ci),

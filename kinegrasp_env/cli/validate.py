@@ -91,9 +91,10 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
 
 
 def robot_grasps(args, robot: str) -> list[tuple[int, object]]:
-    """A description robot's shipped grasps (``--object``: one of its shipped objects, or
-    ``all``), as ``(index, grasp)``."""
+    """A robot's shipped grasps (``--object``: one of its shipped objects, or ``all``; with
+    ``--grasp``, those indices of the object's set), as ``(index, grasp)``."""
     from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
+    from kinegrasp_env.world.objects import is_object
 
     objects = shipped_objects(robot)
     if args.object == "all":
@@ -102,27 +103,21 @@ def robot_grasps(args, robot: str) -> list[tuple[int, object]]:
         names = objects
     elif args.object in objects:
         names = (args.object,)
+    elif not is_object(args.object):
+        raise CLIError(f"--object: unknown object {args.object!r}; choose from "
+                       f"{', '.join(objects)}, all (or an imported object with --grasps)")
     else:
         raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r} "
-                       f"(shipped: {', '.join(objects) or 'none'}); give --grasps")
-    chosen = [pair for name in names for pair in enumerate(shipped_grasps(name, robot))]
-    if args.grasp is None:
-        return chosen
-    out = []
-    for text in args.grasp:
-        index = parse_index(text)
-        if not 0 <= index < len(chosen):
-            raise CLIError(f"--grasp: grasp index {index} out of range: {args.object} has "
-                           f"{len(chosen)} grasps of robot {robot} (0..{len(chosen) - 1})")
-        out.append(chosen[index])
-    return out
+                       f"(shipped: {', '.join(objects) or 'none'}); give --grasps (e.g. "
+                       "`kinegrasp plan`'s output)")
+    if args.grasp is not None:
+        return [shipped_grasp(names[0], text, robot) for text in args.grasp]
+    return [pair for name in names for pair in enumerate(shipped_grasps(name, robot))]
 
 
 def selected_robot(args) -> str:
     """The robot: ``--robot``, else the grasp file's, else the default; a grasp file of
     another robot than ``--robot`` refused (checked before any grasp is read in full)."""
-    from kinegrasp_env.robot.default import DEFAULT_ROBOT
-
     if args.robot is not None:
         from kinegrasp_env.robot.catalog import robot_names
 
@@ -141,43 +136,16 @@ def selected_robot(args) -> str:
     return found
 
 
-def selected_grasps(args, robot: str = DEFAULT_ROBOT) -> list[tuple[int, object]]:
+def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
-    from kinegrasp_env.world.grasps import shipped_grasps
-    from kinegrasp_env.world.objects import OBJECT_NAMES, is_object
-
-    if args.grasps is not None:
-        chosen = file_grasps(args.grasps, args.grasp)
-    elif robot != DEFAULT_ROBOT:
-        chosen = robot_grasps(args, robot)
-    else:
-        if args.object == "all":
-            if args.grasp is not None:
-                raise CLIError("--grasp needs one --object, not `all`")
-            objects = OBJECT_NAMES
-        elif args.object in OBJECT_NAMES or is_object(args.object):
-            objects = (args.object,)
-        else:
-            raise CLIError(f"--object: unknown object {args.object!r}; choose from "
-                           f"{', '.join(OBJECT_NAMES)}, all (or an imported object)")
-        if args.grasp is None:
-            chosen = [pair for name in objects
-                      for pair in enumerate(shipped_grasp_set(name, shipped_grasps))]
-        else:
-            chosen = [shipped_grasp(objects[0], text) for text in args.grasp]
+    chosen = (file_grasps(args.grasps, args.grasp) if args.grasps is not None
+              else robot_grasps(args, robot))
     seen = set()
     for index, grasp in chosen:
         if (grasp.object, index) in seen:
             raise CLIError(f"--grasp: {grasp.object} grasp {index} is given twice")
         seen.add((grasp.object, index))
     return chosen
-
-
-def shipped_grasp_set(name: str, shipped_grasps) -> list:
-    from kinegrasp_env.world.grasps import NoGraspSetError
-
-    with reported(NoGraspSetError):
-        return shipped_grasps(name)
 
 
 def settings_from(args) -> dict:
@@ -205,18 +173,13 @@ def cmd_validate(args) -> int:
     fields = settings_from(args)
     processes = processes_from(args.processes)
     grasps = selected_grasps(args, robot)
-    if robot != DEFAULT_ROBOT:
-        check_robot_run(robot, fields)
+    check_robot_run(robot, fields)
     out = output_folder(args.out)
-    from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
-    from kinegrasp_env.toolkit.validation_report import summarize, write_results
+    from kinegrasp_env.toolkit.validation import ValidationSettings
+    from kinegrasp_env.toolkit.validation_report import write_results
 
-    settings = ValidationSettings(**fields)
-    if robot == DEFAULT_ROBOT:
-        results = run_validation(grasps, settings, out, processes, progress=True)
-        summary = summarize(results, settings, bootstrap_seed=settings.seed)
-    else:
-        summary, results = validate_robot(robot, grasps, settings, out, processes)
+    summary, results = validate_robot(robot, grasps, ValidationSettings(**fields), out,
+                                      processes)
     paths = write_results(out, results, summary)
     if args.json:
         print_json({**summary, "files": {k: str(v) for k, v in paths.items()}})
@@ -226,22 +189,23 @@ def cmd_validate(args) -> int:
 
 
 def check_robot_run(robot: str, fields: dict) -> None:
-    """CLIError (one line) for what a description robot's run cannot honour (before any
-    output is written)."""
-    from kinegrasp_env.toolkit.robot_validation import check_robot_settings
+    """CLIError (one line) for what a robot's run cannot honour (before any output is
+    written)."""
     from kinegrasp_env.toolkit.validation import ValidationSettings
+    from kinegrasp_env.toolkit.validation_draws import check_settings
 
     with reported(ValueError):
-        check_robot_settings(robot, ValidationSettings(**fields))
+        check_settings(robot, ValidationSettings(**fields))
 
 
 def validate_robot(robot: str, grasps, settings, out, processes: int):
-    """(summary, results) of a description robot's grasps (on ``processes`` workers)."""
-    from kinegrasp_env.toolkit.robot_validation import motors_summary, run_robot_validation
+    """(summary, results) of a robot's grasps (on ``processes`` workers)."""
+    from kinegrasp_env.toolkit.validation import run_validation
+    from kinegrasp_env.toolkit.validation_draws import motors_summary
     from kinegrasp_env.toolkit.validation_report import summarize
 
     motors = motors_summary(robot, settings.torque_scale)
-    results = run_robot_validation(grasps, settings, out, progress=True, processes=processes)
+    results = run_validation(grasps, settings, out, processes, progress=True)
     return summarize(results, settings, bootstrap_seed=settings.seed,
                      robot={"name": robot, "motors": motors}), results
 

@@ -50,9 +50,10 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
     False/True, columns: actual False/True) and, across grasps, Spearman's rho of P(FC)
     (each engine) with P(hold), with percentile bootstrap intervals over the grasps.
 
-    ``robot``: a description robot's ``{"name", "motors"}`` (:func:`~kinegrasp_env.toolkit.
-    robot_validation.motors_summary`); its name goes into ``settings`` as ``robot`` and its
-    motors replace the SDH's ``torques_nm`` in ``protocol`` as ``motors``."""
+    ``robot``: the robot's ``{"name", "motors"}`` (:func:`~kinegrasp_env.toolkit.
+    validation_draws.motors_summary`); its name goes into ``settings`` as ``robot`` and its
+    motors, where its hand has them (None: the SDH's own controller), replace the SDH's
+    ``torques_nm`` in ``protocol`` as ``motors``."""
     protocol = settings.protocol
     rows = [GraspRow.of(r, protocol.phases) for r in results]
     p_hold = np.array([r.p_hold for r in rows])
@@ -66,8 +67,8 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
     outcomes = {name: sum(r.outcomes[name] for r in rows) for name in HOLD_OUTCOMES}
     phases = {name: {key: sum(r.phases[name][key] for r in rows) for key in ("run", "held")}
               for name in protocol.phases}
-    limits = ({"torques_nm": asdict(protocol.torques)} if robot is None
-              else {"motors": robot["motors"]})
+    limits = ({"torques_nm": asdict(protocol.torques)}
+              if robot is None or robot.get("motors") is None else {"motors": robot["motors"]})
     return {"settings": asdict(settings) if robot is None
             else {"robot": robot["name"], **asdict(settings)},
             "protocol": {**asdict(protocol), "phases": list(protocol.phases), **limits},

@@ -251,16 +251,18 @@ def sigma_words(sigma) -> str:
     return f"{sigma:g}" if isinstance(sigma, float) else ",".join(f"{s:g}" for s in sigma)
 
 
-def results_table(grasps: Sequence[Grasp], runs: Sequence[RobotRun]) -> str:
-    """The table of every run: P(FC) (``class="kg-pfc"``, its full value in ``data-value``),
-    its interval, Q nominal, Q's moments over the force-closure draws, the outcomes."""
+def results_table(grasps: Sequence[Grasp], runs: Sequence[RobotRun],
+                  spec: bool = False) -> str:
+    """The table of every run: its sigma (``spec``: the runs drew a noise model, named in
+    the column instead), P(FC) (``class="kg-pfc"``, its full value in ``data-value``), its
+    interval, Q nominal, Q's moments over the force-closure draws, the outcomes."""
     head = ("grasp", "sigma [rad]", "P(FC)", "95% CI", "Q nominal", "Q mean", "Q std",
             "Q skewness", *(c.replace("_", " ") for c in OUTCOME_COLUMNS), "draws")
     rows = []
     for run in runs:
         e, grasp = run.evaluation, grasps[run.grasp]
         cells = [f'<td class="kg-text">{esc(grasp.id)}</td>',
-                 f"<td>{esc(sigma_words(run.sigma))}</td>",
+                 f"<td>{'noise spec' if spec else esc(sigma_words(run.sigma))}</td>",
                  f'<td class="kg-pfc" data-grasp="{esc(grasp.id)}" '
                  f'data-value="{e.p_fc!r}">{e.p_fc:.4f}</td>',
                  f"<td>{e.ci[0]:.4f} .. {e.ci[1]:.4f}</td>", f"<td>{fmt(grasp.q_nominal)}</td>",
@@ -371,6 +373,10 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
             drawn += (f" The arm's skeleton at its first {len(arms[k].q)} draws (toggled in "
                       "the legend).")
         charts = grasp_charts(k, grasp, by_grasp[k]) if k in by_grasp else []
+        if draws is not None and len(by_grasp[k]) > 1:
+            drawn += (f" Its contact points, Q's histogram and the outcome counts are of its "
+                      f"first run (sigma = {sigma_words(first[k].sigma)} rad); the curve and "
+                      "the table use every sigma.")
         figures += charts
         sections.append(f"<h2>Grasp {esc(grasp.id)}</h2><p>Q nominal "
                         f"{fmt(grasp.q_nominal)}; the hand is {esc(state)}.{esc(drawn)}</p>"
@@ -382,8 +388,10 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
     title = f"kinegrasp report: robot {description.name}, {count} of {names}"
     finite = [r for r in runs if math.isfinite(r.evaluation.p_fc)]
     best = max(finite, key=lambda r: r.evaluation.p_fc) if finite else None
+    at = "" if noise_spec is not None or best is None else (
+        f" at sigma {sigma_words(best.sigma)} rad")
     lead = ("" if best is None else f" Highest P(FC): grasp {grasps[best.grasp].id} "
-            f"({best.evaluation.p_fc:.4f} at sigma {sigma_words(best.sigma)} rad).")
+            f"({best.evaluation.p_fc:.4f}{at}).")
     noise = (f"joint noise on the {description.arm_dof} arm joints" if noise_spec is None
              else f"a noise model of {len(noise_spec)} sources ({', '.join(noise_spec)})"
              if noise_spec else "a noise model with every source exact")
@@ -392,7 +400,7 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
     body = (f"<h1>{esc(title)}</h1><p class='kg-headline'>P(FC) and Q (Ferrari-Canny, "
             f"{esc(model)} contacts) under {esc(noise)}; Q's moments over the force-closure "
             f"draws.{esc(lead)}</p>"
-            f"<h2>Results</h2>{results_table(grasps, runs)}"
+            f"<h2>Results</h2>{results_table(grasps, runs, noise_spec is not None)}"
             f"{note(geometry_note(geometry))}{''.join(sections)}{sources}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
