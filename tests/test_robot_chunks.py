@@ -80,9 +80,9 @@ def test_rank_of_a_robot_on_processes_resumed_and_as_evaluate(tmp_path, capsys, 
     two = _rank(tmp_path, "two.csv", "--processes", "2")
     assert one == two
     # interrupted after the first candidate: the log keeps it, the rerun adds the others
-    from kinegrasp_env.cli import robot_ranking
+    from kinegrasp_env.cli import ranking_draws
 
-    real, calls = robot_ranking.RobotRanking.__call__, {"n": 0}
+    real, calls = ranking_draws.RankingDraws.__call__, {"n": 0}
 
     def interrupted(self, *a, **k):
         calls["n"] += 1
@@ -90,12 +90,12 @@ def test_rank_of_a_robot_on_processes_resumed_and_as_evaluate(tmp_path, capsys, 
             raise KeyboardInterrupt
         return real(self, *a, **k)
 
-    monkeypatch.setattr(robot_ranking.RobotRanking, "__call__", interrupted)
+    monkeypatch.setattr(ranking_draws.RankingDraws, "__call__", interrupted)
     out = tmp_path / "resumed.csv"
     args = ["rank", str(_candidates(tmp_path)), "--sigma", "0.0133", "--samples", "300",
             "--seed", "2", "--engine", "fast", "--out", str(out)]
     assert main(args) == 130 and not out.exists()
-    monkeypatch.setattr(robot_ranking.RobotRanking, "__call__", real)
+    monkeypatch.setattr(ranking_draws.RankingDraws, "__call__", real)
     assert main(args) == 0
     assert "resuming: 1 of 3" in capsys.readouterr().err
     assert list(csv.DictReader(out.open())) == one

@@ -20,7 +20,7 @@ def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
     pose by forward kinematics equal to 1e-9, the elbow angle PSI; its draws are those of
     evaluate_robot_grasp at that configuration (the same numbers); an unreachable angle is
     one line; --plot writes a PNG."""
-    from kinegrasp_env.cli.robot_grasps import robot_grasp_at_elbow
+    from kinegrasp_env.cli.evaluation import robot_grasp_at_elbow
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 
     grasp = shipped_grasps("cube", "panda")[0]

@@ -24,6 +24,7 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
+from kinegrasp_env.cli.evaluation import run_evaluate
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
@@ -34,7 +35,6 @@ from kinegrasp_env.cli.figure_grasps import (
     written,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.robot_grasps import evaluate_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
@@ -42,7 +42,7 @@ def cmd_evaluate(args) -> int:
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     index, grasp = chosen_grasp(args)
-    return evaluate_robot(args, index, grasp, args.robot or grasp.robot, sigma, samples, seed,
+    return run_evaluate(args, index, grasp, args.robot or grasp.robot, sigma, samples, seed,
                           friction, noise)
 
 
@@ -61,7 +61,7 @@ def cmd_reproduce(args) -> int:
         raise CLIError(f"--method {method} is for fig10 (variants of one palm pose); "
                        f"{args.figure} runs direct")
     if args.robot is None and args.grasps and not is_count(args.grasps):
-        from kinegrasp_env.cli.robot_report import grasp_file_robot
+        from kinegrasp_env.cli.grasp_report import grasp_file_robot
 
         args.robot = grasp_file_robot(args)  # a grasp file names its robot
     from kinegrasp_env.cli.robot_reproduce import EVERY_ROBOT, reproduce_robot

@@ -24,8 +24,8 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.ranking_draws import check_candidates
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
-from kinegrasp_env.cli.robot_ranking import check_robot_candidates
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 if TYPE_CHECKING:
@@ -82,8 +82,8 @@ def _hold_scores(args) -> tuple[bool, bool]:
 
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
+    from kinegrasp_env.cli.ranking_draws import RankingDraws
     from kinegrasp_env.cli.report import report_path, write_rank_report
-    from kinegrasp_env.cli.robot_ranking import RobotRanking
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 
@@ -94,7 +94,7 @@ def cmd_rank(args) -> int:
     out = output_file(args.out, "--out")
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     static, test = _hold_scores(args)
-    check_robot_candidates(args, grasps, robot, noise)
+    check_candidates(args, grasps, robot, noise)
     report_path(args.report)
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
@@ -135,7 +135,7 @@ def cmd_rank(args) -> int:
             if existed:
                 print(f"resuming: {len(done)} of {len(grasps)} candidates already ranked in "
                       f"{partial}", file=sys.stderr)
-        ranking = RobotRanking(
+        ranking = RankingDraws(
             grasps, robot, sigma=sigma, noise=noise.kind, seed=seed, engine=engine,
             friction=friction, static_hold=static, hold_test=test, layout=layout,
             executor=executor, side=side, model=noise if args.noise_spec else None,

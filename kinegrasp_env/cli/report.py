@@ -2,7 +2,7 @@
 under a noise model, as a self-contained interactive HTML page) and ``screenshot`` (a page
 rendered to PNG by the system's headless Chromium through Playwright, the ``screenshot``
 extra; network off). ``report`` and ``evaluate --report`` write every robot's page
-through :mod:`kinegrasp_env.cli.robot_report`; ``rank --report`` and ``elbow --report``
+through :mod:`kinegrasp_env.cli.grasp_report`; ``rank --report`` and ``elbow --report``
 write theirs through :func:`write_rank_report` and :func:`write_elbow_report`.
 """
 
@@ -59,9 +59,9 @@ def noise_settings(args, noises: list) -> dict:
 
 
 def cmd_report(args) -> int:
-    from kinegrasp_env.cli.robot_report import cmd_report_robot
+    from kinegrasp_env.cli.grasp_report import run_report
 
-    return cmd_report_robot(args, sigmas_from(args.sigma))
+    return run_report(args, sigmas_from(args.sigma))
 
 
 def report_path(text: str | None, name: str = "--report") -> Path | None:

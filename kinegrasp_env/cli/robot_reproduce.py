@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
+from kinegrasp_env.cli.evaluation import check_robot_engine
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.figure_grasps import (
     FIGURE_GRASPS,
@@ -17,7 +18,6 @@ from kinegrasp_env.cli.figure_grasps import (
     is_count,
     written,
 )
-from kinegrasp_env.cli.robot_grasps import check_robot_engine
 
 #: The experiments that compare configurations of one palm pose (a 7-joint arm's
 #: self-motion, a 6-joint arm's IK branches).

@@ -26,7 +26,6 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.ranking import cmd_rank
-from kinegrasp_env.cli.robot_grasps import cmd_plan_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
@@ -63,6 +62,56 @@ def cmd_plan(args) -> int:
           f" written to {args.out}")
     return 0
 
+
+
+def cmd_plan_robot(args) -> int:
+    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps (sampled approaches for
+    any other hand), each in force closure at its nominal closing, written with their
+    robot."""
+    from dataclasses import replace
+
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.world.grasps import save_grasps
+
+    count = positive_int(args.count, "--count")
+    variants = positive_int(args.variants, "--variants", low=0)
+    budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
+    settings = RobotPlannerSettings()
+    if args.max_attempts:
+        settings = replace(settings, attempts=positive_int(args.max_attempts, "--max-attempts"))
+    seed = parse_seed(args.seed)
+    friction = friction_from(args)
+    output_file(args.out, "--out")
+    with reported(RobotDescriptionError):
+        description = load_robot(args.robot)
+    branches = description.arm_dof == 6  # its variants: the IK branches of the palm pose
+    if variants and not (description.has_self_motion or branches):
+        raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
+                       "joints; variants move a 7-joint arm with arm_angle_links along its "
+                       "self-motion, or take a 6-joint arm's IK branches")
+    with reported(ValueError):
+        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
+                                   friction=friction, settings=settings, time_budget=budget)
+    if not grasps:
+        raise CLIError(f"no force-closure grasp of {args.object} found for robot "
+                       f"{args.robot}; nothing written")
+    out = list(grasps)
+    if variants:
+        from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+        from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+
+        with RobotReferenceEngine(description, args.object, friction=friction) as engine:
+            for grasp in grasps:
+                out += robot_variants(grasp, engine, variants)
+    save_grasps(out, args.out, planner_seed=seed)
+    kind = "IK-branch" if branches else "null-space"
+    extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""
+    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
+          f"{args.out}")
+    return 0
 
 def cmd_sweep(args) -> int:
     from kinegrasp_env.montecarlo.sweep import (

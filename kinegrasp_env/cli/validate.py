@@ -90,7 +90,7 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
     return out
 
 
-def robot_grasps(args, robot: str) -> list[tuple[int, object]]:
+def shipped_choice(args, robot: str) -> list[tuple[int, object]]:
     """A robot's shipped grasps (``--object``: one of its shipped objects, or ``all``; with
     ``--grasp``, those indices of the object's set), as ``(index, grasp)``."""
     from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
@@ -139,7 +139,7 @@ def selected_robot(args) -> str:
 def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
     chosen = (file_grasps(args.grasps, args.grasp) if args.grasps is not None
-              else robot_grasps(args, robot))
+              else shipped_choice(args, robot))
     seen = set()
     for index, grasp in chosen:
         if (grasp.object, index) in seen:

@@ -25,8 +25,8 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
+from kinegrasp_env.cli.evaluation import check_robot_engine
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.cli.robot_grasps import check_robot_engine
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
@@ -144,7 +144,7 @@ def _finite(value):
     return None if isinstance(value, float) and math.isnan(value) else value
 
 
-def cmd_report_robot(args, sigmas: list[float]) -> int:
+def run_report(args, sigmas: list[float]) -> int:
     """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
     or indices, default the first; ``sigmas``: the validated ``--sigma`` values, or with
     ``--noise-spec`` one run of its model per grasp)."""

@@ -11,10 +11,10 @@ import dataclasses
 import sys
 
 from kinegrasp_env.cli.common import reported
-from kinegrasp_env.cli.robot_grasps import check_hold_simulator, check_robot_engine
+from kinegrasp_env.cli.evaluation import check_hold_simulator, check_robot_engine
 
 
-def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
+def check_candidates(args, grasps: list, robot: str, noise) -> None:
     """A robot's candidates (each a grasp of ``robot``, of any catalog objects),
     and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
     takes; CLIError lines otherwise."""
@@ -40,7 +40,7 @@ def check_robot_candidates(args, grasps: list, robot: str, noise) -> None:
 
 
 
-class RobotRanking:
+class RankingDraws:
     """``rank``'s evaluator of any robot's candidates (see
     :data:`kinegrasp_env.toolkit.ranking.Evaluator`): chunks ``first .. first + count`` of
     ``layout`` of candidate ``index`` closed on ``executor``; each draw's outcome and the

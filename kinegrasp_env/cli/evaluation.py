@@ -1,10 +1,9 @@
-"""``plan --robot`` of a description robot (a robot other than the default ``kuka_sdh``),
-``evaluate`` of any robot's grasps, and what ``rank`` shares (the option checks, the quick holding
-test: :mod:`kinegrasp_env.cli.robot_ranking`): the planners (antipodal for parallel jaws,
-sampled approaches for any other hand: :mod:`kinegrasp_env.toolkit.robot_planner`) and the
-robot's engines
+"""``kinegrasp evaluate`` of any robot's grasp, and what ``rank``, ``report`` and
+``reproduce`` share with it (the engine and holding-test option checks, the quick holding
+test's count, a grasp moved to an elbow angle): the robot's engines
 (:mod:`kinegrasp_env.montecarlo.robot_evaluate`), their draws in chunks on the command's
-executor (:mod:`kinegrasp_env.montecarlo.robot_chunks`).
+executor (:mod:`kinegrasp_env.montecarlo.robot_chunks`), the page of ``--report``
+(:func:`~kinegrasp_env.toolkit.report.robot.robot_page`).
 """
 
 from __future__ import annotations
@@ -14,11 +13,7 @@ import math
 
 from kinegrasp_env.cli.common import (
     CLIError,
-    friction_from,
     output_file,
-    parse_seed,
-    positive_float,
-    positive_int,
     reported,
 )
 from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
@@ -65,57 +60,7 @@ def check_robot_engine(engine: str, robot: str) -> None:
                        f"{', '.join(ENGINES[:-1])} or {ENGINES[-1]} engine only")
 
 
-def cmd_plan_robot(args) -> int:
-    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps (sampled approaches for
-    any other hand), each in force closure at its nominal closing, written with their
-    robot."""
-    from dataclasses import replace
-
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
-    from kinegrasp_env.world.grasps import save_grasps
-
-    count = positive_int(args.count, "--count")
-    variants = positive_int(args.variants, "--variants", low=0)
-    budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
-    settings = RobotPlannerSettings()
-    if args.max_attempts:
-        settings = replace(settings, attempts=positive_int(args.max_attempts, "--max-attempts"))
-    seed = parse_seed(args.seed)
-    friction = friction_from(args)
-    output_file(args.out, "--out")
-    with reported(RobotDescriptionError):
-        description = load_robot(args.robot)
-    branches = description.arm_dof == 6  # its variants: the IK branches of the palm pose
-    if variants and not (description.has_self_motion or branches):
-        raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
-                       "joints; variants move a 7-joint arm with arm_angle_links along its "
-                       "self-motion, or take a 6-joint arm's IK branches")
-    with reported(ValueError):
-        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
-                                   friction=friction, settings=settings, time_budget=budget)
-    if not grasps:
-        raise CLIError(f"no force-closure grasp of {args.object} found for robot "
-                       f"{args.robot}; nothing written")
-    out = list(grasps)
-    if variants:
-        from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-        from kinegrasp_env.toolkit.robot_reproduce import robot_variants
-
-        with RobotReferenceEngine(description, args.object, friction=friction) as engine:
-            for grasp in grasps:
-                out += robot_variants(grasp, engine, variants)
-    save_grasps(out, args.out, planner_seed=seed)
-    kind = "IK-branch" if branches else "null-space"
-    extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""
-    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
-          f"{args.out}")
-    return 0
-
-
-def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: int,
+def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int,
                    seed: int, friction: float, noise=None) -> int:
     """``kinegrasp evaluate`` of any robot's grasp: joint noise on its arm joints
     (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,
@@ -199,12 +144,12 @@ def evaluate_robot(args, index: int, grasp, robot: str, sigma: float, samples: i
         if wrote is not None and not args.json:
             print(f"  plot written to {args.plot}")
     if args.report:
-        write_robot_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
+        write_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
                                     model)
     return 0
 
 
-def write_robot_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float,
+def write_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float,
                                 label: str, model=None) -> None:
     """``evaluate --report FILE``: ``report``'s page of this one grasp and run
     (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`): its table, its 3-D scene with
