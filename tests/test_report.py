@@ -363,6 +363,34 @@ def test_evaluate_and_rank_write_reports(tmp_path, capsys):
     assert len(lazy) == 3  # one 3-D scene per candidate, drawn on demand
 
 
+def test_rank_page_rows_are_the_csvs_and_its_arms_the_first_draws(tmp_path, capsys):
+    """``rank --report``: each row's outcome counts and P(FC) are the CSV's (written by its
+    own code), and with fewer draws than the page's 10 arms it draws and says that many."""
+    import csv
+
+    candidates = tmp_path / "grasps.json"
+    data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
+    data["grasps"] = data["grasps"][:2]
+    candidates.write_text(json.dumps(data))
+    page = tmp_path / "ranking.html"
+    assert main(["rank", str(candidates), "--samples", "4", "--engine", "fast", "--out",
+                 str(tmp_path / "ranked.csv"), "--report", str(page)]) == 0
+    capsys.readouterr()
+    text = page.read_text()
+    rows = list(csv.DictReader((tmp_path / "ranked.csv").open()))
+    shown = re.findall(r'<tr class="kg-item" data-detail="[^"]+" data-id="([^"]+)">(.*?)</tr>',
+                       text)
+    assert [grasp_id for grasp_id, _ in shown] == [r["id"] for r in rows]
+    for (_, cells), row in zip(shown, rows, strict=True):
+        values = re.findall(r'<td[^>]*data-value="([^"]*)"', cells)
+        assert float(values[1]) == pytest.approx(float(row["p_fc"]), abs=1e-6)
+        assert [int(float(v)) for v in values[8:12]] == [int(row[o]) for o in OUTCOMES]
+    assert _section(text, "Settings")["noisy arms drawn"] == "4"
+    scene = _figures(text)["c0-scene"]
+    assert [t["name"] for t in scene["data"] if t["name"].startswith("noisy")] == [
+        "noisy arms (4)"]
+
+
 # ------------------------------------------------------------------------------- browser
 @pytest.fixture(scope="module")
 def pages(tmp_path_factory, robot_run, elbow_run, spec_file):

@@ -92,7 +92,8 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
         rows.append({"index": r.index, "id": grasps[r.index].id, "p_fc": r.p_fc,
                      "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std,
-                     "q_nominal": grasps[r.index].q_nominal, "samples": r.trials})
+                     "q_nominal": grasps[r.index].q_nominal, "samples": r.trials,
+                     "q_skew": r.q_stats()[2], "outcomes": dict(r.outcomes)})
     command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
                "--seed", str(seed), "--criterion", args.criterion,
@@ -113,7 +114,7 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                 "engine": engine, "contact model": description.contact_model,
                 "friction mu": "per draw (the noise spec's friction source)" if per_draw
                 else friction, "friction cone edges": NUM_EDGES,
-                "noisy arms drawn": RANK_ARM_DRAWS if joint_noise else
+                "noisy arms drawn": min(RANK_ARM_DRAWS, samples) if joint_noise else
                 "none (a noise spec's draws move more than the arm)"}
     arms = ([first_arms(description, g, None, noise.sigma, seed, noise.kind,
                         min(RANK_ARM_DRAWS, samples)) for g in grasps] if joint_noise else None)

@@ -1,10 +1,11 @@
 """The page of a ranking (``kinegrasp rank --report``), the same for every robot.
 
-A sortable table of the candidates, best first (P(FC) with its Wilson 95% interval, Q's mean
-and standard deviation over the force-closure draws, Q nominal, the arm's elbow coordinate,
-the draws), and per candidate one 3-D scene drawn on demand (its *show 3-D* button): the
-whole robot closed on the object in the world (robot base) frame, as the report page draws
-it (:func:`~kinegrasp_env.toolkit.report.robot.grasp_scene`), with the arm's skeleton at the
+A sortable table of the candidates, best first (P(FC) with its Wilson 95% interval, Q's
+mean, standard deviation and skewness over the force-closure draws, Q nominal, the arm's
+elbow coordinate, the draws per outcome and in all), and per candidate one 3-D scene drawn
+on demand (its *show 3-D* button): the whole robot closed on the object in the world (robot
+base) frame, as the report page draws it
+(:func:`~kinegrasp_env.toolkit.report.robot.grasp_scene`), with the arm's skeleton at the
 ranking's first draws (the same rows for every candidate: common noise), toggled in the
 legend; it opens on the whole robot (candidates that differ by their elbow show it), a
 button switches to a close-up of the object. Pages open offline and are deterministic.
@@ -17,6 +18,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.toolkit.report.html import (
@@ -38,8 +40,9 @@ from kinegrasp_env.toolkit.report.robot import (
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
-RANK_COLUMNS = ("rank", "id", "P(FC)", "95% CI", "Q mean", "Q std", "Q nominal",
-                "elbow [rad]", "draws", "3-D")
+RANK_COLUMNS = ("rank", "id", "P(FC)", "95% CI", "Q mean", "Q std", "Q skewness",
+                "Q nominal", "elbow [rad]", *(o.replace("_", " ") for o in OUTCOMES), "draws",
+                "3-D")
 
 
 def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) -> list[float]:
@@ -67,7 +70,10 @@ def rank_row(position: int, row: dict, elbow: float, key: str) -> str:
              num(row["p_fc"], f'{row["p_fc"]:.4f}'),
              num(row["p_fc_lo"], f'{row["p_fc_lo"]:.4f} .. {row["p_fc_hi"]:.4f}'),
              num(row["q_mean"], fmt(row["q_mean"])), num(row["q_std"], fmt(row["q_std"])),
+             num(row.get("q_skew"), fmt(row.get("q_skew"), 3)),
              num(row["q_nominal"], fmt(row["q_nominal"])), num(elbow, f"{elbow:.3f}"),
+             *(num(count, str(count)) for count in
+               (row.get("outcomes", {}).get(name) for name in OUTCOMES)),
              num(row["samples"], str(row["samples"])),
              f'<td><button class="kg-show" data-detail="detail-{key}" '
              f'onclick="kgToggle(this)">show 3-D</button></td>']
@@ -85,7 +91,8 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
         description: the robot; objects: object name -> object, for every candidate's.
         grasps: the candidates, in file order.
         rows: best first; each with ``index`` (into grasps), ``id``, ``p_fc``, ``p_fc_lo``,
-            ``p_fc_hi``, ``q_mean``, ``q_std``, ``q_nominal``, ``samples``.
+            ``p_fc_hi``, ``q_mean``, ``q_std``, ``q_nominal``, ``samples``, and where known
+            ``q_skew`` and ``outcomes`` (outcome name -> draws).
         command: the command line that reproduces the page; settings: name -> value.
         arms: per candidate (file order), the arm at the ranking's first draws (None: none).
     """
