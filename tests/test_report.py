@@ -796,6 +796,22 @@ def test_report_of_a_palm_pose_file_picks_what_evaluate_picks(tmp_path, capsys):
     assert not (tmp_path / "q.html").exists()
 
 
+def test_report_picks_the_grasp_evaluate_picks_by_default(tmp_path, capsys):
+    """Without ``--grasp`` both read ``0``: the grasp with id ``0`` where a file has one,
+    wherever it stands (here second), else the first."""
+    from kinegrasp_env.world.grasps import save_grasps
+
+    first, second = shipped_grasps("cube")[:2]
+    path = tmp_path / "ids.json"
+    save_grasps([replace(first, id="5"), replace(second, id="0")], path)
+    args = ["--grasps", str(path), "--samples", "10", "--engine", "fast"]
+    assert main(["evaluate", *args, "--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert main(["report", *args, "--out", str(tmp_path / "p.html"), "--json"]) == 0
+    (run,) = json.loads(capsys.readouterr().out)["runs"]
+    assert run["grasp"] == alone["grasp"] == "0" and run["p_fc"] == alone["p_fc"]
+
+
 def test_evaluate_report_with_a_noise_spec(spec_file, tmp_path, capsys):
     page = tmp_path / "evaluate.html"
     assert main(["evaluate", "--object", "cube", "--grasp", "1", "--noise-spec",

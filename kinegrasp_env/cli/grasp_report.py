@@ -49,7 +49,7 @@ def grasp_file_robot(args) -> str | None:
 
 
 def chosen_grasps(args, robot: str) -> tuple[str, list]:
-    """(object, grasps): ``--grasp`` (comma-separated ids or indices; None: the first) of
+    """(object, grasps): ``--grasp`` (comma-separated ids or indices; None: ``0``) of
     ``--grasps FILE`` (a palm-pose file's chosen candidates solved for ``robot``, a rejected
     one a line with its reason) or of the robot's shipped set of ``--object``; every grasp
     must be of ``robot`` and of one object."""
@@ -100,9 +100,9 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
 
 def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
     """The indices ``--grasp`` names in a list of ``ids`` (comma-separated ids, else
-    indices; None: the first); one line for an unknown one or one named twice."""
-    if text is None:
-        return [0]
+    indices; None: ``0``, as ``evaluate``'s default: the id ``0``, else the first); one line
+    for an unknown one or one named twice."""
+    text = "0" if text is None else text
     picked: list[int] = []
     for word in (t.strip() for t in text.split(",")):
         index = ids.index(word) if word in ids else parse_index(word)
@@ -146,8 +146,8 @@ def _finite(value):
 
 def run_report(args, sigmas: list[float]) -> int:
     """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
-    or indices, default the first; ``sigmas``: the validated ``--sigma`` values, or with
-    ``--noise-spec`` one run of its model per grasp)."""
+    or indices, default ``0``, as ``evaluate``'s; ``sigmas``: the validated ``--sigma``
+    values, or with ``--noise-spec`` one run of its model per grasp)."""
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError

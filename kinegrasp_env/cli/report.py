@@ -260,7 +260,8 @@ def add_commands(sub) -> None:
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) or a "
                    "palm-pose file; --grasp is then an id in it, or an index")
     p.add_argument("--grasp", help="ids or indices of the shipped set's grasps (or with "
-                   "--grasps, of that file's), comma-separated (default 0: the first)")
+                   "--grasps, of that file's), comma-separated (default 0: the grasp with id "
+                   "0, else the first; as evaluate's)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
                    f"{DEFAULT_ROBOT})")
     p.add_argument("--sigma", default="0.0133", help="joint noise standard deviation, "

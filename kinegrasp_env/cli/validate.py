@@ -61,8 +61,9 @@ def add_commands(sub) -> None:
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
                    "kuka_sdh); the robot's shipped grasps (assets/grasps/NAME/) or "
-                   "--grasps of it are held by its own hand in pybullet, its motors at the "
-                   "URDF's effort limits (or the description's efforts)")
+                   "--grasps of it are held by its own hand (the SDH by its own finger "
+                   "controller; another hand's motors at the URDF's effort limits or the "
+                   "description's efforts)")
     add_friction_arg(p)
     p.add_argument("--out", required=True, help="output folder (results are cached there: "
                    "a rerun with the same settings resumes)")
@@ -93,8 +94,8 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
 def shipped_choice(args, robot: str) -> list[tuple[int, object]]:
     """A robot's shipped grasps (``--object``: one of its shipped objects, or ``all``; with
     ``--grasp``, those indices of the object's set), as ``(index, grasp)``."""
-    from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
-    from kinegrasp_env.world.objects import is_object
+    from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps, shipped_objects
+    from kinegrasp_env.world.objects import OBJECT_NAMES, is_object
 
     objects = shipped_objects(robot)
     if args.object == "all":
@@ -106,6 +107,11 @@ def shipped_choice(args, robot: str) -> list[tuple[int, object]]:
     elif not is_object(args.object):
         raise CLIError(f"--object: unknown object {args.object!r}; choose from "
                        f"{', '.join(objects)}, all (or an imported object with --grasps)")
+    elif args.object not in OBJECT_NAMES:  # an imported object: how to make its grasps
+        with reported(NoGraspSetError):
+            shipped_grasps(args.object, robot)
+        raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r}; "
+                       "give --grasps")
     else:
         raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r} "
                        f"(shipped: {', '.join(objects) or 'none'}); give --grasps (e.g. "

@@ -34,6 +34,7 @@ from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotMotorSettings
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 from kinegrasp_env.toolkit.validation_records import GraspDraws, ValidationSettings
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import object_version
@@ -70,7 +71,8 @@ def check_settings(robot: str, settings: ValidationSettings) -> None:
 def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     """A hash of everything a robot's grasp draws depend on: the settings (less the number
     of draws), the robot's description and URDF, the object's version, the grasp, the
-    physics, motor and lift settings and the protocol: the name of its cache file (a cached
+    physics, motor and lift settings, the protocol and the draws' layout in the seed's
+    streams: the name of its cache file (a cached
     run of more draws serves a smaller one: the draws of n samples are the first n of any
     larger number)."""
     description = load_robot(grasp.robot)
@@ -80,7 +82,7 @@ def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     text = repr((grasp.robot, files, grasp.object, object_version(grasp.object),
                  grasp.q0.tobytes().hex(), kept,
                  WorldSettings(), RobotMotorSettings(), MotorSettings(), settings.protocol,
-                 PHASES, HOLD_OUTCOMES))
+                 PHASES, HOLD_OUTCOMES, DRAW_LAYOUT))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

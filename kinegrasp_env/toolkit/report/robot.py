@@ -256,8 +256,9 @@ def results_table(grasps: Sequence[Grasp], runs: Sequence[RobotRun],
     """The table of every run: its sigma (``spec``: the runs drew a noise model, named in
     the column instead), P(FC) (``class="kg-pfc"``, its full value in ``data-value``), its
     interval, Q nominal, Q's moments over the force-closure draws, the outcomes."""
-    head = ("grasp", "sigma [rad]", "P(FC)", "95% CI", "Q nominal", "Q mean", "Q std",
-            "Q skewness", *(c.replace("_", " ") for c in OUTCOME_COLUMNS), "draws")
+    head = ("grasp", "noise" if spec else "sigma [rad]", "P(FC)", "95% CI", "Q nominal",
+            "Q mean", "Q std", "Q skewness", *(c.replace("_", " ") for c in OUTCOME_COLUMNS),
+            "draws")
     rows = []
     for run in runs:
         e, grasp = run.evaluation, grasps[run.grasp]
