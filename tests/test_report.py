@@ -337,6 +337,15 @@ def test_report_command_with_several_sigmas(tmp_path, capsys):
             f"--noise gaussian --samples 40 --seed 5 --engine fast --out {out}") in page
 
 
+def _cube_candidates(tmp_path, count: int) -> tuple:
+    """(a file of the first ``count`` shipped cube grasps, its JSON)."""
+    path = tmp_path / "grasps.json"
+    data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
+    data["grasps"] = data["grasps"][:count]
+    path.write_text(json.dumps(data))
+    return path, data
+
+
 def test_evaluate_and_rank_write_reports(tmp_path, capsys):
     page = tmp_path / "evaluate.html"
     assert main(["evaluate", "--object", "cube", "--grasp", "1", "--samples", "30",
@@ -346,10 +355,7 @@ def test_evaluate_and_rank_write_reports(tmp_path, capsys):
     assert "kinegrasp evaluate --robot kuka_sdh --object cube --grasp 1" in text
     assert {"fig-scene-0", "fig-quality-0", "fig-outcomes-0"} <= set(re.findall(
         r'<script type="application/json" id="([^"]+)">', text))
-    candidates = tmp_path / "grasps.json"
-    data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
-    data["grasps"] = data["grasps"][:3]
-    candidates.write_text(json.dumps(data))
+    candidates, data = _cube_candidates(tmp_path, 3)
     ranking = tmp_path / "ranking.html"
     assert main(["rank", str(candidates), "--samples", "20", "--engine", "fast", "--out",
                  str(tmp_path / "ranked.csv"), "--report", str(ranking)]) == 0
@@ -368,10 +374,7 @@ def test_rank_page_rows_are_the_csvs_and_its_arms_the_first_draws(tmp_path, caps
     own code), and with fewer draws than the page's 10 arms it draws and says that many."""
     import csv
 
-    candidates = tmp_path / "grasps.json"
-    data = json.loads(asset_path("grasps", "kuka_sdh", "cube.json").read_text())
-    data["grasps"] = data["grasps"][:2]
-    candidates.write_text(json.dumps(data))
+    candidates, _ = _cube_candidates(tmp_path, 2)
     page = tmp_path / "ranking.html"
     assert main(["rank", str(candidates), "--samples", "4", "--engine", "fast", "--out",
                  str(tmp_path / "ranked.csv"), "--report", str(page)]) == 0
