@@ -42,6 +42,7 @@ from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model, spec_of
 from kinegrasp_env.toolkit import report
 from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
+from kinegrasp_env.toolkit.report.arms import arm_skeletons, first_arms
 from kinegrasp_env.toolkit.report.charts import quality_histogram
 from kinegrasp_env.toolkit.report.elbow import curve_point
 from kinegrasp_env.toolkit.report.geometry import (
@@ -49,13 +50,7 @@ from kinegrasp_env.toolkit.report.geometry import (
     transform,
 )
 from kinegrasp_env.toolkit.report.plotly import decode_typed_array, plotly_js
-from kinegrasp_env.toolkit.report.robot import (
-    RobotRun,
-    arm_skeletons,
-    first_arms,
-    nominal_closings,
-    robot_page,
-)
+from kinegrasp_env.toolkit.report.robot import RobotRun, nominal_closings, robot_page
 from kinegrasp_env.toolkit.report.scene import contact_cloud
 from kinegrasp_env.world.grasps import grasp_by_index, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object

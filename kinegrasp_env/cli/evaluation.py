@@ -164,8 +164,9 @@ def write_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float
     from kinegrasp_env.cli.common import NUM_EDGES
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.noise_spec import spec_of
+    from kinegrasp_env.toolkit.report.arms import first_arms
     from kinegrasp_env.toolkit.report.page import ARM_DRAWS, write_page
-    from kinegrasp_env.toolkit.report.robot import RobotRun, first_arms, robot_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
     from kinegrasp_env.toolkit.report.scene import MAX_POINTS
     from kinegrasp_env.world.objects import load_object
 

@@ -152,8 +152,9 @@ def run_report(args, sigmas: list[float]) -> int:
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise_spec import spec_of
+    from kinegrasp_env.toolkit.report.arms import first_arms
     from kinegrasp_env.toolkit.report.page import write_page
-    from kinegrasp_env.toolkit.report.robot import RobotRun, first_arms, robot_page
+    from kinegrasp_env.toolkit.report.robot import RobotRun, robot_page
     from kinegrasp_env.world.objects import load_object
 
     robot = args.robot or grasp_file_robot(args) or DEFAULT_ROBOT

@@ -79,9 +79,9 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
     candidate's 3-D scene on demand (:func:`~kinegrasp_env.toolkit.report.ranking.
     rank_page`), with the arm at the ranking's first draws under joint noise."""
     from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.report.arms import first_arms
     from kinegrasp_env.toolkit.report.page import write_page
     from kinegrasp_env.toolkit.report.ranking import rank_page
-    from kinegrasp_env.toolkit.report.robot import first_arms
     from kinegrasp_env.world.objects import load_object
 
     description = load_robot(robot)

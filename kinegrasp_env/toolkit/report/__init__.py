@@ -3,7 +3,7 @@
 The pages, the same for every robot: one per evaluation or report of a robot's grasps
 (``robot``), one per ranking (``ranking``), one per elbow optimization (``elbow``) and a
 6-joint arm's IK branches (``robot_branches``); what they share (``page``); what they are
-built from: the 3-D scenes (``scene``) and their geometry
+built from: the 3-D scenes (``scene``), the arm at noisy draws (``arms``) and their geometry
 (``geometry``), the 2-D charts (``charts``), plotly.js figures and shared meshes
 (``plotly``) and the HTML around them (``html``). Pages open offline (plotly.js is inline)
 and are deterministic. ``browser`` opens a page in the system's headless Chromium through

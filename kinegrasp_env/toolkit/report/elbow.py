@@ -23,12 +23,12 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import ElbowPoint, ElbowResult
+from kinegrasp_env.toolkit.report.arms import NoisyArms
 from kinegrasp_env.toolkit.report.charts import elbow_curve, fragility_chart
 from kinegrasp_env.toolkit.report.html import Figure, command_block, esc, note, page, settings_table
 from kinegrasp_env.toolkit.report.page import ARM_DRAWS, sigma_text, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary
 from kinegrasp_env.toolkit.report.robot import (
-    NoisyArms,
     geometry_note,
     grasp_scene,
     nominal_closings,

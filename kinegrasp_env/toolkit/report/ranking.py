@@ -21,6 +21,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
+from kinegrasp_env.toolkit.report.arms import NoisyArms
 from kinegrasp_env.toolkit.report.html import (
     Figure,
     command_block,
@@ -32,7 +33,6 @@ from kinegrasp_env.toolkit.report.html import (
 from kinegrasp_env.toolkit.report.page import fmt, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary
 from kinegrasp_env.toolkit.report.robot import (
-    NoisyArms,
     geometry_note,
     grasp_scene,
     objects_closings,

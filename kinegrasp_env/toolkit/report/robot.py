@@ -30,6 +30,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import RobotGeometry, robot_geometry
+from kinegrasp_env.toolkit.report.arms import NoisyArms, noisy_traces
 from kinegrasp_env.toolkit.report.charts import outcome_bars, pfc_curve, quality_histogram
 from kinegrasp_env.toolkit.report.geometry import cone_meshes, transform
 from kinegrasp_env.toolkit.report.html import (
@@ -46,7 +47,6 @@ from kinegrasp_env.toolkit.report.scene import (
     CONE_SCALE,
     LEGEND,
     MAX_POINTS,
-    OUTCOME_COLOURS,
     ContactCloud,
     close_up,
     cloud_traces,
@@ -55,7 +55,6 @@ from kinegrasp_env.toolkit.report.scene import (
     mesh_trace,
     object_traces,
     scene_axes,
-    skeleton_trace,
 )
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
@@ -131,59 +130,6 @@ def contact_traces(grasp: Grasp, obj: GraspObject, description: RobotDescription
              "x": points[:, 0].tolist(), "y": points[:, 1].tolist(),
              "z": points[:, 2].tolist(), "text": labels, "hoverinfo": "text+name",
              "marker": {"size": 6, "color": "black", "symbol": "diamond"}}]
-
-
-@dataclass(frozen=True)
-class NoisyArms:
-    """The arm at a few noisy draws of a grasp.
-
-    Attributes:
-        q: (k, dof) the draws' configurations; outcome: (k,) their outcomes (indices into
-            :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`), or None where they were
-            not kept (a ranking's draws).
-    """
-
-    q: np.ndarray
-    outcome: np.ndarray | None
-
-
-def first_arms(description: RobotDescription, grasp: Grasp, evaluation, sigma, seed: int,
-               noise: str, shown: int) -> NoisyArms:
-    """The arm at a run's first ``shown`` draws of joint noise (``sigma``, radians; the rows
-    its integer seed's chunked streams draw first, whatever the processes:
-    :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`) with their
-    outcomes in ``evaluation`` (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
-    RobotEvaluation` with its draws; None: outcomes not known)."""
-    from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
-
-    q = chunk_configurations(np.asarray(grasp.q0, dtype=float), description.arm_dof, sigma,
-                             noise, seed, 0, shown)
-    return NoisyArms(q, None if evaluation is None else evaluation.draws.outcome[:shown])
-
-
-def arm_skeletons(description: RobotDescription, q: np.ndarray) -> np.ndarray:
-    """(n, L, 3) the origins of the links from the base to the palm (the base, the child of
-    each arm joint, the palm) at configurations q (n, dof), world frame, metres."""
-    from kinegrasp_env.robot.kinematics import Kinematics
-
-    kinematics = Kinematics(description.model)
-    chain = kinematics.chain(description.palm_link)
-    links = list(dict.fromkeys([chain[0].parent, *(j.child for j in chain)]))
-    poses = kinematics.forward(np.atleast_2d(q), links)
-    return np.stack([poses[link][:, :3, 3] for link in links], axis=1)
-
-
-def noisy_traces(description: RobotDescription, arms: NoisyArms) -> list[dict]:
-    """The skeletons of the noisy draws, one trace per outcome present, or one grey trace
-    where the outcomes are not known (hidden until toggled)."""
-    lines = arm_skeletons(description, arms.q)
-    if arms.outcome is None:
-        return [skeleton_trace(lines, f"noisy arms ({len(lines)})", "#7f7f7f", 2,
-                               visible="legendonly")]
-    return [skeleton_trace(lines[rows], f"noisy arms: {name.replace('_', ' ')} "
-                           f"({len(rows)})", OUTCOME_COLOURS[name], 2, visible="legendonly")
-            for k, name in enumerate(OUTCOMES)
-            if len(rows := np.flatnonzero(arms.outcome == k))]
 
 
 def world_cloud(cloud: ContactCloud, obj: GraspObject) -> ContactCloud:
