@@ -74,6 +74,24 @@ def _rank(tmp_path, name: str, *extra: str) -> list[dict]:
     return list(csv.DictReader(out.open()))
 
 
+def test_a_run_with_progress_on_one_process_is_the_run_in_one_call():
+    """With a progress callback, a run on an executor of one local process goes in chunks
+    (what moves ``evaluate``'s bar): the callback sees every draw, and the counts, Q's
+    moments and nominal Q are bit for bit those of the same run closed in one engine call
+    (another code path: the nominal row rides with the draws there)."""
+    grasp = shipped_grasps("cube")[1]
+    whole = evaluate_robot_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast")
+    seen = []
+    with LocalExecutor(1) as executor:
+        chunked = evaluate_robot_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast",
+                                       executor=executor,
+                                       progress=lambda done, n: seen.append((done, n)))
+    assert seen == [(250, 600), (500, 600), (600, 600)]
+    assert chunked.counts == whole.counts
+    for name in ("q_mean", "q_std", "q_skew", "q_nominal"):
+        assert getattr(chunked, name) == getattr(whole, name), name
+
+
 def test_rank_of_a_robot_on_processes_resumed_and_as_evaluate(tmp_path, capsys, monkeypatch):
     one = _rank(tmp_path, "one.csv")
     assert (tmp_path / "two.csv").exists() is False

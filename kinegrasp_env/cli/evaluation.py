@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 from kinegrasp_env.cli.common import (
     CLIError,
@@ -18,6 +20,21 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
 from kinegrasp_env.cli.execution_options import executor_from
+
+
+@contextmanager
+def draw_bar(total: int, label: str) -> Iterator[Callable[[int, int], None]]:
+    """A ``progress(done, total)`` callback that moves a bar of ``total`` draws on stderr
+    when it is a terminal (nothing otherwise), closed on exit."""
+    import sys
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, desc=label, unit="draw", file=sys.stderr, disable=None)
+    try:
+        yield lambda done, _total: bar.update(done - bar.n)
+    finally:
+        bar.close()
 
 
 def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
@@ -89,11 +106,12 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
         check_robot(grasp, robot)
         if args.elbow is not None:
             grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
-    with executor_from(args) as executor, reported(ValueError):
+    with executor_from(args) as executor, reported(ValueError), \
+            draw_bar(samples, f"{grasp.object} grasp {grasp.id}") as progress:
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
                                      noise=args.noise, robot=robot, engine=args.engine,
                                      static_hold=args.static_hold, friction=friction,
-                                     executor=executor, noise_model=model)
+                                     executor=executor, noise_model=model, progress=progress)
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
     if math.isfinite(stats.push_median):

@@ -200,7 +200,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
             SeedSequence seed; e.g. the fresh draws after a selection's:
             :func:`~kinegrasp_env.toolkit.selection.report_rows`).
         progress: ``progress(done, n)`` as the chunks of a run on ``executor`` come back
-            (not called in this process).
+            (with it, a run on an executor of one local process runs in chunks too: the
+            same draws and numbers; without an executor it is not called).
 
     Raises:
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
@@ -235,8 +236,8 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
                           engine if isinstance(engine, str) else engine.name,
                           static_hold if isinstance(engine, str)
                           else engine.hold_check is not None)
-    if executor is not None and not (isinstance(executor, LocalExecutor)
-                                     and executor.workers == 1):
+    if executor is not None and (progress is not None or not (
+            isinstance(executor, LocalExecutor) and executor.workers == 1)):
         return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
                         static_hold=static_hold, friction=friction, executor=executor,
                         noise_model=noise_model, offset=int(offset), progress=progress)
