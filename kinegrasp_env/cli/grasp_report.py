@@ -25,7 +25,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.evaluation import check_robot_engine
+from kinegrasp_env.cli.evaluation import check_robot_engine, draw_bar
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -181,9 +181,13 @@ def run_report(args, sigmas: list[float]) -> int:
             executor_from(args) as executor:
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
-                runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
-                    grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
-                    engine=engine, executor=executor, noise_model=model)))
+                label = (f"{name} grasp {grasp.id}" if model is not None
+                         else f"{name} grasp {grasp.id} sigma {sigma_words(sigma)}")
+                with draw_bar(samples, label) as progress:
+                    runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
+                        grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
+                        engine=engine, executor=executor, noise_model=model,
+                        progress=progress)))
             arms.append(first_arms(description, grasp, runs[-len(sigmas)].evaluation,
                                    sigmas[0], seed, args.noise, shown))
     # each grasp's nominal Q as this engine computes it at this friction
