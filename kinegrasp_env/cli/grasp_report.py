@@ -11,6 +11,8 @@ import dataclasses
 import json
 import math
 import shlex
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
@@ -128,6 +130,18 @@ def solved(path: str, read, chosen: list) -> list:
     return grasps
 
 
+@contextmanager
+def closing_engines() -> Iterator[None]:
+    """Close the engines this process built for its chunks (:func:`~kinegrasp_env.
+    montecarlo.robot_chunks.robot_engine`) on exit."""
+    from kinegrasp_env.montecarlo.robot_chunks import close_engines
+
+    try:
+        yield
+    finally:
+        close_engines()
+
+
 def report_command(args, robot: str, sigmas: list[float], samples: int, seed: int,
                    out: Path) -> list[str]:
     """The canonical command line of the page (every setting spelled out)."""
@@ -148,7 +162,7 @@ def run_report(args, sigmas: list[float]) -> int:
     """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
     or indices, default ``0``, as ``evaluate``'s; ``sigmas``: the validated ``--sigma``
     values, or with ``--noise-spec`` one run of its model per grasp)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise_spec import spec_of
@@ -177,8 +191,7 @@ def run_report(args, sigmas: list[float]) -> int:
     name, grasps = chosen_grasps(args, robot)
     runs, arms = [], []
     shown = 0 if model is not None else min(arm_draws, samples)
-    with make_engine(args.engine, description, name, friction=friction) as engine, \
-            executor_from(args) as executor:
+    with executor_from(args) as executor, closing_engines():
         for index, grasp in enumerate(grasps):
             for sigma in sigmas:
                 label = (f"{name} grasp {grasp.id}" if model is not None
@@ -186,8 +199,8 @@ def run_report(args, sigmas: list[float]) -> int:
                 with draw_bar(samples, label) as progress:
                     runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
                         grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
-                        engine=engine, executor=executor, noise_model=model,
-                        progress=progress)))
+                        engine=args.engine, robot=robot, friction=friction,
+                        executor=executor, noise_model=model, progress=progress)))
             arms.append(first_arms(description, grasp, runs[-len(sigmas)].evaluation,
                                    sigmas[0], seed, args.noise, shown))
     # each grasp's nominal Q as this engine computes it at this friction

@@ -63,7 +63,6 @@ def cmd_plan(args) -> int:
     return 0
 
 
-
 def cmd_plan_robot(args) -> int:
     """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps (sampled approaches for
     any other hand), each in force closure at its nominal closing, written with their
@@ -112,6 +111,7 @@ def cmd_plan_robot(args) -> int:
     print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
           f"{args.out}")
     return 0
+
 
 def cmd_sweep(args) -> int:
     from kinegrasp_env.montecarlo.sweep import (

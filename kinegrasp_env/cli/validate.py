@@ -107,11 +107,10 @@ def shipped_choice(args, robot: str) -> list[tuple[int, object]]:
     elif not is_object(args.object):
         raise CLIError(f"--object: unknown object {args.object!r}; choose from "
                        f"{', '.join(objects)}, all (or an imported object with --grasps)")
-    elif args.object not in OBJECT_NAMES:  # an imported object: how to make its grasps
-        with reported(NoGraspSetError):
+    elif args.object not in OBJECT_NAMES:  # a placed copy has its base's grasps; an
+        with reported(NoGraspSetError):  # imported object none: how to make them
             shipped_grasps(args.object, robot)
-        raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r}; "
-                       "give --grasps")
+        names = (args.object,)
     else:
         raise CLIError(f"--object: robot {robot!r} has no shipped grasps of {args.object!r} "
                        f"(shipped: {', '.join(objects) or 'none'}); give --grasps (e.g. "
