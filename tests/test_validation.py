@@ -224,6 +224,8 @@ def test_same_seed_same_table_twice(tmp_path):
     (["--object", "cube", "--grasp", "99"], "grasp index 99 out of range"),
     (["--object", "cube", "--grasp", "1", "1"], "cube grasp 1 is given twice"),
     (["--grasps", "/nonexistent/g.json"], "no such file"),
+    (["--grasps", "assets/grasps/kuka_sdh/drill.json", "--object", "cube"],
+     "--object cube: assets/grasps/kuka_sdh/drill.json holds grasps of drill"),
     (["--processes", "0"], "--processes must be >= 1"),
     (["--torque-scale", "0"], "--torque-scale must be > 0"),
     (["--torque-scale", "nan"], "--torque-scale"),

@@ -38,7 +38,8 @@ def add_commands(sub) -> None:
                        "the object? (grip shift, six gravity directions, lift; same draws as "
                        "the kinematic closing)")
     p.add_argument("--object", default="all", help="a built-in object, or `all` for the four "
-                   "(with --grasps: the file's objects)")
+                   "(with --grasps: the file's objects; an object named there must be the "
+                   "file's)")
     p.add_argument("--grasp", nargs="+", help=grasp_index_help() + " (several allowed; default "
                    "all of the object's shipped grasps; with --grasps: indices in the file)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) instead of "
@@ -142,9 +143,15 @@ def selected_robot(args) -> str:
 
 
 def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
-    """The grasps to validate, as ``(index, grasp)``; duplicates refused."""
+    """The grasps to validate, as ``(index, grasp)``; duplicates refused, and a grasp file
+    whose grasps are not of ``--object`` (when one is named, not ``all``)."""
     chosen = (file_grasps(args.grasps, args.grasp) if args.grasps is not None
               else shipped_choice(args, robot))
+    if args.grasps is not None and args.object != "all":
+        others = sorted({g.object for _, g in chosen} - {args.object})
+        if others:
+            raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of "
+                           f"{', '.join(others)}")
     seen = set()
     for index, grasp in chosen:
         if (grasp.object, index) in seen:
