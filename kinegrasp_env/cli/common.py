@@ -282,6 +282,19 @@ def add_friction_arg(parser: argparse.ArgumentParser) -> None:
                         "physics (a number >= 0)")
 
 
+def friction_per_draw(noise) -> bool:
+    """Whether ``noise`` (a noise model, joint noise or None) draws mu per draw: a noise
+    spec's friction source."""
+    return getattr(noise, "friction", None) is not None
+
+
+def friction_setting(noise, friction: float) -> float | str:
+    """What a page's settings say of mu: ``friction``, or that ``noise`` draws it per
+    draw (:func:`friction_per_draw`)."""
+    return "per draw (the noise spec's friction source)" if friction_per_draw(noise) \
+        else friction
+
+
 def friction_from(args, noise=None) -> float:
     """``--friction``: a finite mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
     check_parameters`' rule); given beside a noise model (``noise``) with a friction source,
@@ -294,7 +307,7 @@ def friction_from(args, noise=None) -> float:
         check_parameters(value, NUM_EDGES)
     except ValueError:
         raise CLIError(f"--friction must be >= 0, got {text}") from None
-    if getattr(noise, "friction", None) is not None and value != DEFAULT_FRICTION:
+    if friction_per_draw(noise) and value != DEFAULT_FRICTION:
         raise CLIError("--friction and the noise spec's friction source both set mu: the "
                        "source draws mu per draw; give one of them")
     return value

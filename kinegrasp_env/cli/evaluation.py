@@ -15,10 +15,17 @@ from contextlib import contextmanager
 
 from kinegrasp_env.cli.common import (
     CLIError,
+    friction_per_draw,
+    friction_setting,
     output_file,
     reported,
 )
-from kinegrasp_env.cli.evaluation_output import Evaluation, hold_lines, print_evaluation
+from kinegrasp_env.cli.evaluation_output import (
+    Evaluation,
+    evaluation_record,
+    hold_lines,
+    print_evaluation,
+)
 from kinegrasp_env.cli.execution_options import executor_from
 
 
@@ -78,7 +85,7 @@ def check_robot_engine(engine: str, robot: str) -> None:
 
 
 def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int,
-                   seed: int, friction: float, noise=None) -> int:
+                 seed: int, friction: float, noise=None) -> int:
     """``kinegrasp evaluate`` of any robot's grasp: joint noise on its arm joints
     (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,
     object, friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); friction mu
@@ -122,22 +129,13 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
         hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held, samples)),
                      "hold_simulator": simulator})
     if args.json:
-        finite = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
-        from kinegrasp_env.sampling.noise_spec import spec_of
-
-        per_draw = model is not None and model.friction is not None  # the spec's source
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
-                          "sigma": sigma, "noise": args.noise if model is None else model.kind,
-                          **({"noise_spec": str(args.noise_spec),
-                              "noise_model": spec_of(model)} if model else {}),
-                          "samples": samples, "seed": seed, "engine": args.engine,
-                          "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
-                          **({} if per_draw else {"friction": friction}),
-                          "q_nominal": finite(stats.q_nominal),
-                          "q_mean": finite(stats.q_mean), "q_var": finite(stats.q_std ** 2),
-                          "q_std": finite(stats.q_std), "q_skew": finite(stats.q_skew),
-                          "error": finite(stats.q_nominal - stats.q_mean),
-                          "outcomes": stats.counts, **hold}))
+                          **evaluation_record(
+                              stats, sigma=sigma, noise=args.noise, model=model,
+                              spec_file=args.noise_spec, samples=samples, seed=seed,
+                              engine=args.engine,
+                              friction=None if friction_per_draw(model) else friction),
+                          **hold}))
     else:
         extra = hold_lines(hold)
         if math.isfinite(stats.push_median):
@@ -147,7 +145,7 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
                          "closing scores the object where it stands")
         print_evaluation(Evaluation(
             f"{grasp.object} grasp {index} of robot {robot}", label, samples,
-            None if model is not None and model.friction else friction,
+            None if friction_per_draw(model) else friction,
             load_robot(robot).contact_model, stats.p_fc, stats.ci, stats.q_nominal,
             stats.q_mean, stats.q_std, stats.q_skew, stats.counts), extra)
     # after the results: a failing figure or page is a warning or an error, the results stand
@@ -162,13 +160,12 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
         if wrote is not None and not args.json:
             print(f"  plot written to {args.plot}")
     if args.report:
-        write_evaluation_page(args, grasp, robot, sigma, stats, friction, label,
-                                    model)
+        write_evaluation_page(args, grasp, robot, sigma, stats, friction, label, model)
     return 0
 
 
 def write_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float,
-                                label: str, model=None) -> None:
+                          label: str, model=None) -> None:
     """``evaluate --report FILE``: ``report``'s page of this one grasp and run
     (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`): its table, its 3-D scene with
     the draws' contact points and the arm at its first draws (joint noise), Q's histogram
@@ -205,8 +202,7 @@ def write_evaluation_page(args, grasp, robot: str, sigma, stats, friction: float
                 "noise": label,
                 "draws": stats.n, "seed": args.seed, "engine": args.engine,
                 "contact model": description.contact_model,
-                "friction mu": "per draw (the noise spec's friction source)"
-                if model is not None and model.friction is not None else friction,
+                "friction mu": friction_setting(model, friction),
                 "friction cone edges": NUM_EDGES,
                 "contact points drawn at most": MAX_POINTS,
                 "noisy arms drawn": len(arms.q) if model is None else

@@ -3,9 +3,10 @@ and the outcome counts (the hold scores and the coupled jaws' push where asked f
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-__all__ = ["Evaluation", "hold_lines", "print_evaluation"]
+__all__ = ["Evaluation", "evaluation_record", "hold_lines", "print_evaluation"]
 
 
 @dataclass(frozen=True)
@@ -68,3 +69,29 @@ def hold_lines(record: dict) -> list[str]:
                      f"{hi:.4f}; object mass {record['mass_kg']:.3f} kg, six gravity directions "
                      f"and the lift, the hand's effort limits)")
     return lines
+
+
+def evaluation_record(evaluation, *, sigma, noise: str, model, spec_file, samples: int,
+                      seed: int, engine: str, friction: float | None = None) -> dict:
+    """One evaluation's keys in ``evaluate --json`` and ``report --json``, whichever robot
+    ran: its noise (``sigma`` and the distribution ``noise``, or the ``--noise-spec`` file
+    ``spec_file`` and its ``model``: the model's joint distribution, file and settings),
+    draws, seed and engine, P(FC) and its interval, ``friction`` where given, Q nominal and
+    Q's moments (NaN as null), the error (nominal - mean) and the outcome counts
+    (``evaluation``: a :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotEvaluation`)."""
+    from kinegrasp_env.sampling.noise_spec import spec_of
+
+    def finite(value):
+        return None if isinstance(value, float) and math.isnan(value) else value
+
+    e = evaluation
+    return {"sigma": sigma, "noise": noise if model is None else model.kind,
+            **({} if model is None else {"noise_spec": str(spec_file),
+                                         "noise_model": spec_of(model)}),
+            "samples": samples, "seed": seed, "engine": engine,
+            "p_fc": e.p_fc, "p_fc_ci": list(e.ci),
+            **({} if friction is None else {"friction": friction}),
+            "q_nominal": finite(e.q_nominal), "q_mean": finite(e.q_mean),
+            "q_var": finite(e.q_std ** 2), "q_std": finite(e.q_std),
+            "q_skew": finite(e.q_skew), "error": finite(e.q_nominal - e.q_mean),
+            "outcomes": e.counts}

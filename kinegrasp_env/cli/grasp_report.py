@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import shlex
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -20,6 +19,7 @@ from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
     friction_from,
+    friction_setting,
     noise_spec_from,
     output_file,
     parse_index,
@@ -28,6 +28,7 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.evaluation import check_robot_engine, draw_bar
+from kinegrasp_env.cli.evaluation_output import evaluation_record
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -154,10 +155,6 @@ def report_command(args, robot: str, sigmas: list[float], samples: int, seed: in
             "--out", str(out)]
 
 
-def _finite(value):
-    return None if isinstance(value, float) and math.isnan(value) else value
-
-
 def run_report(args, sigmas: list[float]) -> int:
     """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
     or indices, default ``0``, as ``evaluate``'s; ``sigmas``: the validated ``--sigma``
@@ -215,8 +212,7 @@ def run_report(args, sigmas: list[float]) -> int:
                     "noisy joints": ", ".join(description.arm_joints)}),
                 "draws per grasp and sigma": samples, "seed (every grasp and sigma)": seed,
                 "engine": args.engine, "contact model": description.contact_model,
-                "friction mu": "per draw (the noise spec's friction source)"
-                if model is not None and model.friction is not None else friction,
+                "friction mu": friction_setting(model, friction),
                 "friction cone edges": NUM_EDGES, "contact points drawn at most": max_points,
                 "noisy arms drawn": (min(arm_draws, samples) if model is None else
                                      "none under a noise spec")}
@@ -228,22 +224,10 @@ def run_report(args, sigmas: list[float]) -> int:
     size = len(text.encode())
     if args.json:
         print(json.dumps({"report": str(out), "bytes": size, "robot": robot, "object": name,
-                          "runs": [{"grasp": grasps[r.grasp].id, "sigma": r.sigma,
-                                    "noise": args.noise if model is None else model.kind,
-                                    **({} if model is None else
-                                       {"noise_spec": str(args.noise_spec),
-                                        "noise_model": spec_of(model)}),
-                                    "samples": samples, "seed": seed,
-                                    "engine": args.engine, "p_fc": r.evaluation.p_fc,
-                                    "p_fc_ci": list(r.evaluation.ci),
-                                    "q_nominal": r.evaluation.q_nominal,
-                                    "q_mean": _finite(r.evaluation.q_mean),
-                                    "q_var": _finite(r.evaluation.q_std ** 2),
-                                    "q_std": _finite(r.evaluation.q_std),
-                                    "q_skew": _finite(r.evaluation.q_skew),
-                                    "error": _finite(r.evaluation.q_nominal
-                                                     - r.evaluation.q_mean),
-                                    "outcomes": r.evaluation.counts} for r in runs]}))
+                          "runs": [{"grasp": grasps[r.grasp].id, **evaluation_record(
+                              r.evaluation, sigma=r.sigma, noise=args.noise, model=model,
+                              spec_file=args.noise_spec, samples=samples, seed=seed,
+                              engine=args.engine)} for r in runs]}))
         return 0
     for r in runs:
         lo, hi = r.evaluation.ci

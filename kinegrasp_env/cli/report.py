@@ -25,6 +25,7 @@ from kinegrasp_env.cli.common import (
     add_noise_spec_arg,
     add_object_arg,
     float_list,
+    friction_setting,
     nonnegative,
     output_file,
     positive_int,
@@ -104,7 +105,6 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                str(args.report)]
     names = list(dict.fromkeys(g.object for g in grasps))
     joint_noise = not getattr(args, "noise_spec", None)
-    per_draw = not joint_noise and noise.friction is not None
     settings = {"robot": robot, "candidates": args.candidates, "object": ", ".join(names),
                 **noise_settings(args, [noise]),
                 "draws per candidate": samples, "seed (every candidate)": seed,
@@ -112,8 +112,8 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                 "adaptive": f"top {args.top_k}, epsilon {args.epsilon}, delta {args.delta}"
                 if args.adaptive else "no",
                 "engine": engine, "contact model": description.contact_model,
-                "friction mu": "per draw (the noise spec's friction source)" if per_draw
-                else friction, "friction cone edges": NUM_EDGES,
+                "friction mu": friction_setting(noise, friction),
+                "friction cone edges": NUM_EDGES,
                 "noisy arms drawn": min(RANK_ARM_DRAWS, samples) if joint_noise else
                 "none (a noise spec's draws move more than the arm)"}
     arms = ([first_arms(description, g, None, noise.sigma, seed, noise.kind,
