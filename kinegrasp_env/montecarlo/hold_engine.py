@@ -1,6 +1,7 @@
 """The holding test of a description robot as an engine (:class:`RobotHoldEngine`): its
 physics closings scored as every engine of the robot scores them, and the holding test's
-results; :func:`quick_hold_engine` runs the quick protocol
+results; :func:`hold_engine` gives every robot's holding test (the default robot's hand
+under its own controller), :func:`quick_hold_engine` under the quick protocol
 (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), the one ranking and rewards use."""
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
 from kinegrasp_env.physics.simulators import robot_simulator_class
 
-__all__ = ["RobotHoldEngine", "quick_hold_engine"]
+__all__ = ["RobotHoldEngine", "hold_engine", "quick_hold_engine"]
 
 
 class RobotHoldEngine(RobotEngine):
@@ -57,19 +58,32 @@ class RobotHoldEngine(RobotEngine):
         return self.scored(q, RobotCloseBatch.of_results(closings)), hold
 
 
-def quick_hold_engine(robot, object_name: str, friction: float = 0.5,
-                      simulator: str = "pybullet") -> RobotEngine:
-    """The quick holding test of ``robot`` (a catalog name or a description) on a catalog
-    object, in ``simulator`` (pybullet or MuJoCo), friction mu ``friction``: its
-    ``run_hold(q)``; the default robot's hand closes under its own controller
+def hold_engine(robot, object_name: str, *, protocol: HoldProtocol,
+                motors: RobotMotorSettings | None = None, simulator: str = "pybullet",
+                **kwargs) -> RobotEngine:
+    """The holding test of ``robot`` (a catalog name or a description) on a catalog object
+    under ``protocol`` in ``simulator`` (pybullet or MuJoCo): its ``run_hold(q)``; the
+    default robot's hand closes under its own controller
     (:class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`:
-    :func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`)."""
+    :func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`; ``motors`` are another
+    hand's), every other hand by its motors (:class:`RobotHoldEngine`); ``kwargs``: the
+    engine's (``friction``, ``num_edges``, ...)."""
     from kinegrasp_env.montecarlo.robot_engines import own_physics
 
     if own_physics(robot):
         from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
 
-        return PaperPhysicsEngine(robot, object_name, friction=friction,
-                                  protocol=QUICK_PROTOCOL, simulator=simulator)
-    return RobotHoldEngine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
-                           friction=friction, simulator=simulator)
+        return PaperPhysicsEngine(robot, object_name, protocol=protocol, simulator=simulator,
+                                  **kwargs)
+    return RobotHoldEngine(robot, object_name, protocol=protocol, motors=motors,
+                           simulator=simulator, **kwargs)
+
+
+def quick_hold_engine(robot, object_name: str, friction: float = 0.5,
+                      simulator: str = "pybullet") -> RobotEngine:
+    """The quick holding test of ``robot`` (a catalog name or a description) on a catalog
+    object, in ``simulator`` (pybullet or MuJoCo), friction mu ``friction``
+    (:func:`hold_engine` under :data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`, a
+    description hand's motors at :data:`~kinegrasp_env.physics.robot_hold.QUICK_MOTORS`)."""
+    return hold_engine(robot, object_name, protocol=QUICK_PROTOCOL, motors=QUICK_MOTORS,
+                       friction=friction, simulator=simulator)

@@ -23,8 +23,7 @@ from dataclasses import fields
 from pathlib import Path
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
-from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
-from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
+from kinegrasp_env.montecarlo.hold_engine import hold_engine
 from kinegrasp_env.montecarlo.robot_engines import own_physics
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.hand_motors import motor_efforts
@@ -72,9 +71,8 @@ def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     """A hash of everything a robot's grasp draws depend on: the settings (less the number
     of draws), the robot's description and URDF, the object's version, the grasp, the
     physics, motor and lift settings, the protocol and the draws' layout in the seed's
-    streams: the name of its cache file (a cached
-    run of more draws serves a smaller one: the draws of n samples are the first n of any
-    larger number)."""
+    streams: the name of its cache file (a cached run of more draws serves a smaller one:
+    the draws of n samples are the first n of any larger number)."""
     description = load_robot(grasp.robot)
     kept = [(f.name, getattr(settings, f.name)) for f in fields(settings) if f.name != "samples"]
     files = [hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in
@@ -99,10 +97,9 @@ def worker_engines(grasp: Grasp, settings: ValidationSettings
            object_version(grasp.object))
     if key not in _ENGINES:
         options = {"friction": settings.friction, "num_edges": settings.num_edges}
-        holding = PaperPhysicsEngine if own_physics(grasp.robot) else RobotHoldEngine
         _ENGINES[key] = (make_engine(settings.kinematic, grasp.robot, grasp.object, **options),
-                         holding(grasp.robot, grasp.object, protocol=settings.protocol,
-                                 simulator=settings.simulator, **options))
+                         hold_engine(grasp.robot, grasp.object, protocol=settings.protocol,
+                                     simulator=settings.simulator, **options))
     return _ENGINES[key]
 
 
@@ -111,8 +108,8 @@ def grasp_draws(task: tuple[int, Grasp, ValidationSettings, int]) -> GraspDraws:
     start..samples-1 through the kinematic engine and the holding test."""
     index, grasp, settings, start = task
     kinematic, physics = worker_engines(grasp, settings)
-    q = robot_configurations(grasp, kinematic, sigma=settings.sigma, n=settings.samples,
-                             seed=settings.seed)[start:]
+    q = robot_configurations(grasp, kinematic, sigma=settings.sigma,
+                             n=settings.samples - start, seed=settings.seed, offset=start)
     kin = kinematic.run(q)
     phys, hold = physics.run_hold(q)
     return GraspDraws(grasp.object, index, grasp.id, kin.outcome, kin.quality, phys.outcome,
