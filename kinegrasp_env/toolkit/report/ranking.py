@@ -20,7 +20,6 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.toolkit.report.arms import NoisyArms
 from kinegrasp_env.toolkit.report.html import (
     Figure,
@@ -35,7 +34,7 @@ from kinegrasp_env.toolkit.report.plotly import MeshLibrary
 from kinegrasp_env.toolkit.report.robot import (
     geometry_note,
     grasp_scene,
-    objects_closings,
+    grasps_geometry,
 )
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
@@ -98,12 +97,7 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
     """
     chosen = [grasps[row["index"]] for row in rows]
     placed = [objects[g.object] for g in chosen]
-    closings = objects_closings(description, placed, chosen)
-    configurations = []
-    for grasp, (values, _) in zip(chosen, closings, strict=True):
-        configurations += [values, {k: float(v) for k, v in
-                                    description.model.expand(grasp.q0).items()}]
-    geometry = robot_geometry(description, configurations)
+    closings, geometry = grasps_geometry(description, placed, chosen)
     elbows = elbow_coordinates(description, chosen)
     library, figures, body_rows = MeshLibrary(), [], []
     for position, (row, grasp, obj, (_, did_close)) in enumerate(

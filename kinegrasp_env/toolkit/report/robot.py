@@ -247,6 +247,19 @@ def objects_closings(description: RobotDescription, objects: Sequence[GraspObjec
     return out
 
 
+def grasps_geometry(description: RobotDescription, objects: Sequence[GraspObject],
+                    grasps: Sequence[Grasp]) -> tuple[list, RobotGeometry]:
+    """(:func:`objects_closings` of the grasps on their objects, the robot's geometry with
+    grasp k's nominal closing as frames ``2k`` and its pre-shape q0 as ``2k + 1``): what
+    a page's scenes draw."""
+    closings = objects_closings(description, objects, grasps)
+    configurations = []
+    for grasp, (values, _) in zip(grasps, closings, strict=True):
+        configurations += [values, {k: float(v) for k, v in
+                                    description.model.expand(grasp.q0).items()}]
+    return closings, robot_geometry(description, configurations)
+
+
 def grasp_charts(key: int, grasp: Grasp, runs: Sequence[RobotRun]) -> list[Figure]:
     """A grasp's 2-D charts: Q's histogram over the force-closure draws and the outcome
     counts of its first run (where it keeps its draws), and P(FC) against sigma where it was
@@ -289,12 +302,7 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
             listed.
     """
     objects = [obj if isinstance(obj, GraspObject) else obj[g.object] for g in grasps]
-    closings = objects_closings(description, objects, grasps)
-    configurations = []
-    for grasp, (values, _) in zip(grasps, closings, strict=True):
-        configurations += [values, {k: float(v) for k, v in
-                                    description.model.expand(grasp.q0).items()}]
-    geometry = robot_geometry(description, configurations)
+    closings, geometry = grasps_geometry(description, objects, grasps)
     library, figures, sections = MeshLibrary(), [], []
     by_grasp: dict[int, list[RobotRun]] = {}
     for run in runs:
