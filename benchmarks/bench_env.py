@@ -1,22 +1,17 @@
-"""Environment steps per second (KineGrasp-v0, one process), the default robot and others.
+"""Environment steps per second (KineGrasp-v0, one process), every robot alike.
 
 Run: ``python benchmarks/bench_env.py [--steps 40] [--robot kuka_sdh --robot panda]``.
-Both engines, side by side in one run (the fast engine's grids built and kernels compiled
-beforehand). Steps/s of wall time, and of the process's CPU time (what a machine shared with
-other work still shows).
+Both engines, side by side in one run, every object's engine built in the env (the fast
+engine's grids built and kernels compiled) before the clock starts. Steps/s of wall time,
+and of the process's CPU time (what a machine shared with other work still shows).
 
-The default robot (``kuka_sdh``): n_draws = 64 and 256; target >= 100 steps/s at 64 draws
-with the fast engine. Then the fast engine at 64 draws one object at a time.
-
-Another robot of the catalog (``--robot panda``, timed by default): n_draws = 16 (its env's
-default) and 64, every object's engine built in the env before the clock starts; target >= 100
-steps/s at 16 draws with the fast engine. Then the fast engine at 16 draws one object at a
-time.
+Per robot: n_draws = 64 (the env's default) and 256 over the env's drawn tasks; target >= 100
+steps/s at 64 draws with the fast engine. Then the fast engine at 64 draws one object at a
+time (the mixed figure moves with the env's draw of tasks: its objects cost 2x apart).
 
 The figures (steps/s, seconds) also go to ``benchmarks/results/bench_env.json``
-(``--json-out PATH``, ``--no-json``): the default robot's in ``steps``,
-``fast_64_draws_per_object``, another robot's in ``robot_steps`` and
-``robot_fast_per_object`` (a ``robot`` column each); a run without a robot has no rows of it.
+(``--json-out PATH``, ``--no-json``): ``steps`` and ``fast_64_draws_per_object``, a ``robot``
+column each.
 """
 
 from __future__ import annotations
@@ -44,22 +39,17 @@ def main() -> None:
     args = parser.parse_args()
     if args.steps < 1:
         parser.error(f"--steps must be >= 1, got {args.steps}")
-    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, robot_names
+    from kinegrasp_env.robot.catalog import robot_names
 
     args.robot = list(dict.fromkeys(args.robot or ROBOTS))
     for robot in args.robot:
         if robot not in robot_names():
             parser.error(f"unknown robot {robot!r}; known robots: {', '.join(robot_names())}")
-    result = {}
-    if DEFAULT_ROBOT in args.robot:
-        result.update(default_robot(args.steps))
-    others = [robot for robot in args.robot if robot != DEFAULT_ROBOT]
-    if others:
-        result["robot_steps"], result["robot_fast_per_object"] = [], []
-    for robot in others:
-        steps_rows, object_rows = description_robot(robot, args.steps)
-        result["robot_steps"] += steps_rows
-        result["robot_fast_per_object"] += object_rows
+    result = {"steps": [], "fast_64_draws_per_object": []}
+    for robot in args.robot:
+        steps_rows, object_rows = robot_steps(robot, args.steps)
+        result["steps"] += steps_rows
+        result["fast_64_draws_per_object"] += object_rows
     if not args.no_json:
         write_result(__file__, {**result, "settings": settings(args)}, args.json_out)
 
@@ -88,9 +78,9 @@ def steps_row(prefix: str, engine: str, n_draws: int, steps: int, wall: float, c
             "s_per_step": wall / steps, "steps_per_cpu_s": steps / cpu}
 
 
-def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
-    """Steps/s of KineGrasp-v0 with ``robot`` (not the default robot): both engines at 16
-    and 64 draws over the env's drawn tasks, then the fast engine at 16 draws per object."""
+def robot_steps(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
+    """Steps/s of KineGrasp-v0 with ``robot``: both engines at 64 and 256 draws over the
+    env's drawn tasks, then the fast engine at 64 draws per object."""
     from kinegrasp_env.world.grasps import shipped_objects
 
     objects = shipped_objects(robot)
@@ -106,62 +96,23 @@ def description_robot(robot: str, steps: int) -> tuple[list[dict], list[dict]]:
         env.reset(seed=0)
         return env
 
-    for engine, n_draws in (("pybullet", 16), ("fast", 16), ("pybullet", 64), ("fast", 64)):
+    for engine, n_draws in (("pybullet", 64), ("fast", 64), ("pybullet", 256), ("fast", 256)):
         env = warmed(engine, n_draws)
         wall, cpu = timed_steps(env, steps)
         env.close()
         steps_rows.append({"robot": robot, **steps_row(f"{robot:8s} ", engine, n_draws, steps,
-                                                       wall, cpu, target_draws=16)})
-    env = warmed("fast", 16)
+                                                       wall, cpu, target_draws=64)})
+    env = warmed("fast", 64)
     for name in objects:
         options = {"object": name}
         env.reset(seed=0, options=options)
         wall, _ = timed_steps(env, steps, options)
-        print(f"{robot:8s} fast     n_draws =  16, {name:12s}: {steps / wall:6.1f} steps/s "
+        print(f"{robot:8s} fast     n_draws =  64, {name:12s}: {steps / wall:6.1f} steps/s "
               f"({wall / steps * 1e3:6.1f} ms/step)")
-        object_rows.append({"robot": robot, "object": name, "n_draws": 16,
+        object_rows.append({"robot": robot, "object": name, "n_draws": 64,
                             "steps_per_s": steps / wall, "s_per_step": wall / steps})
     env.close()
     return steps_rows, object_rows
-
-
-def default_robot(steps: int) -> dict:
-    """The default robot's figures: ``steps``, ``fast_64_draws_per_object``."""
-    steps_rows = []
-    from kinegrasp_env.montecarlo.engines import FastEngine
-    from kinegrasp_env.world.grasps import shipped_grasps
-    from kinegrasp_env.world.objects import OBJECT_NAMES
-
-    for name in OBJECT_NAMES:  # warm-up: grids built or loaded, numba compiled
-        FastEngine(name).run(shipped_grasps(name)[0].q0[None])
-    for engine, n_draws in (("pybullet", 64), ("fast", 64), ("pybullet", 256), ("fast", 256)):
-        env = gym.make("KineGrasp-v0", n_draws=n_draws, engine=engine)
-        env.reset(seed=0)
-        env.action_space.seed(0)
-        env.step(env.action_space.sample())  # warm-up (engine construction)
-        wall, cpu = timed_steps(env, steps)
-        env.close()
-        steps_rows.append(steps_row("", engine, n_draws, steps, wall, cpu, target_draws=64))
-
-    object_rows = per_object(OBJECT_NAMES, steps)
-    return {"steps": steps_rows, "fast_64_draws_per_object": object_rows}
-
-
-def per_object(names, steps: int) -> list[dict]:
-    """Fast-engine steps/s at 64 draws with every episode on one object (the mixed figure
-    above moves with the env's draw of tasks: its objects cost 2x apart)."""
-    env = gym.make("KineGrasp-v0", n_draws=64, engine="fast")
-    env.action_space.seed(0)
-    rows = []
-    for name in names:
-        env.reset(seed=0, options={"object": name})
-        env.step(env.action_space.sample())  # warm-up
-        wall, _ = timed_steps(env, steps, {"object": name})
-        print(f"fast     n_draws =  64, {name:12s}: {steps / wall:6.1f} steps/s "
-              f"({wall / steps * 1e3:6.1f} ms/step)")
-        rows.append({"object": name, "steps_per_s": steps / wall, "s_per_step": wall / steps})
-    env.close()
-    return rows
 
 
 if __name__ == "__main__":

@@ -72,7 +72,7 @@ def test_sac_on_the_continuous_action_trains_reloads_and_evaluates(tmp_path):
     obs, _ = env.reset(seed=0, options={"object": row["object"], "grasp": 0, "sigma": 0.0283})
     action, _ = model.predict(obs, deterministic=True)
     q, _ = env.configuration_at(np.pi * float(action[0]))
-    assert row["elbow_policy"] == pytest.approx(float(env.ik.elbow_angle(q[None])[0]),
+    assert row["elbow_policy"] == pytest.approx(env.elbow_angle(q),
                                                 abs=1e-9)
     assert 0.0 <= row["policy"] <= 1.0
     env.close()
@@ -383,10 +383,10 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
                  for q in grid]
     assert row["oracle_grid_p_fc"] == selection
     best = grid[int(np.argmax(selection))]
-    assert row["elbow_oracle"] == pytest.approx(float(env.ik.elbow_angle(best[None])[0]))
+    assert row["elbow_oracle"] == pytest.approx(env.elbow_angle(best))
     found = optimize_robot_elbow(env.grasp, noise, 20, 1, evaluate_with="fast")
     assert row["elbow_optimizer"] == pytest.approx(
-        float(env.ik.elbow_angle(found.best_q[None])[0]), abs=1e-12)
+        env.elbow_angle(found.best_q), abs=1e-12)
     scored = draw_chunk(engine, found.best_q, noise, 0, 0, 10).outcome == FORCE_CLOSURE
     assert row["optimizer"] == float(scored.mean())
     engine.close()

@@ -103,8 +103,8 @@ def test_a_palm_or_object_error_is_refused_in_one_line(tmp_path):
     path = tmp_path / "spec.yaml"
     path.write_text("joints: {sigma: 0.01}\npalm: {translation_sigma: 0.001}\n")
     with pytest.raises(ValueError, match="joint and hand noise only; the noise spec has palm"):
-        check_hold_noise(load_noise_model(path))
-    check_hold_noise(JointNoise(SIGMA))  # joint noise: no error
+        check_hold_noise(load_noise_model(path), "kuka_sdh", "the holding test")
+    check_hold_noise(JointNoise(SIGMA), "kuka_sdh", "the holding test")  # joint noise: no error
 
 
 def test_evaluate_prints_the_default_robots_static_hold(capsys):
@@ -140,13 +140,22 @@ def env_step(score: str, obj: str, *, seed: int, n_draws: int):
 
 def test_the_envs_hold_score_is_the_check_of_its_step_draws():
     """``KineGrasp-v0`` with ``score="hold_static"`` on the default robot: the reward's
-    score is P(hold, static) of the step's draws; the same draws (the env's draw seed, chunk
-    0 of the stream layout) closed by the description engine give the same share, up to the
-    draws whose closings differ."""
+    score is P(hold, static) of the step's draws (the env's draw seed, chunk 0 of the stream
+    layout, rebuilt here) as the robot's fast engine checks them, and the default robot's own
+    engine, an independent closing, gives the same share up to the draws whose closings
+    differ."""
+    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
+
     env, info, q = env_step("hold_static", "mug", seed=1, n_draws=64)
     other, _, _ = description_closing("mug", q)
-    differing = int((other.outcome != env._engine("mug").run(q).outcome).sum())
-    assert abs(info["p_hold"] - other.holds.mean()) <= differing / 64
+    assert info["p_hold"] == other.holds.mean()
+    own = default_engine("fast", "mug", static_hold=True)
+    try:
+        draws = own.run(q)
+    finally:
+        own.close()
+    differing = int((other.outcome != draws.outcome).sum())
+    assert abs(info["p_hold"] - draws.holds.mean()) <= differing / 64
     assert 0.0 < info["p_hold"] < info["p_fc"]  # measured 0.50 against 0.66: P(FC) is not it
     env.close()
 
@@ -201,7 +210,8 @@ def test_an_unknown_hold_simulator_is_refused_when_the_env_is_made():
 
     import kinegrasp_env  # noqa: F401
 
-    with pytest.raises(ValueError, match="unknown simulator 'bogus'") as error:
+    with pytest.raises(ValueError, match="hold_simulator must be one of pybullet, mujoco, "
+                                         "got 'bogus'") as error:
         gym.make("KineGrasp-v0", score="hold", hold_simulator="bogus")
     assert "\n" not in str(error.value)
 

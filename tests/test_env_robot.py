@@ -39,10 +39,10 @@ def test_spaces_come_from_the_description():
 @pytest.mark.parametrize(("extra", "engine"), [({}, "fast"), ({"engine": "fast"}, "fast"),
                                                ({"engine": "pybullet"}, "pybullet")])
 def test_default_draws_and_engine_for_the_panda(extra, engine):
-    """The engine option chooses the engine the draws run on (the default robot's default,
-    fast, where none is given)."""
+    """The engine option chooses the engine the draws run on (fast where none is given), and
+    the draws per step default to the default robot's 64."""
     env = gym.make("KineGrasp-v0", robot="panda", **extra).unwrapped
-    assert (env.n_draws, env.engine) == (16, engine)
+    assert (env.n_draws, env.engine) == (64, engine)
     env.reset(seed=0, options=TASK)
     assert env._robot.engine("drill").name == engine
     env.close()

@@ -279,7 +279,7 @@ def test_palm_pose_of_a_shipped_grasp_gives_its_contacts(name, index, form):
         "position": palm[:3, 3].tolist(),
         "quaternion": Rotation.from_matrix(palm[:3, :3]).as_quat().tolist()}
     entry["hand"] = shipped.hand.tolist()
-    psi0 = float(env.ik.elbow_angle(shipped.q0[None])[0])
+    psi0 = env.elbow_angle(shipped.q0)
     for elbow in (None, psi0 + 0.1):
         obs, info = env.reset(seed=0, options={"object": name, "palm_pose": {
             **entry, "elbow": elbow}, "sigma": 0.01})

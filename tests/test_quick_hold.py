@@ -152,7 +152,7 @@ def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path)
 
     from cli_helpers import run_in_process
 
-    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
+    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
     from kinegrasp_env.physics.protocol import HELD
     from kinegrasp_env.world.grasps import shipped_grasp_file, shipped_grasps
 
@@ -169,8 +169,11 @@ def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path)
     rng = np.random.default_rng(np.random.SeedSequence(0, spawn_key=(0,)))
     q = np.repeat(np.asarray(first.q0)[None], 2, axis=0)  # its draws: chunk 0 of seed 0
     q[:, :7] += rng.normal(0.0, 0.0033, (2, 7))
-    with QuickHoldTest("cube") as test:
-        again = test.engine.run_hold(q)[1].outcome == HELD
+    test = PhysicsEngine("cube", 0.5, protocol=QUICK_PROTOCOL)  # the SDH's own quick test
+    try:
+        again = test.run_hold(q)[1].outcome == HELD
+    finally:
+        test.close()
     assert held[0] == again.mean()
 
 

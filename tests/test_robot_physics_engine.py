@@ -81,15 +81,19 @@ def test_the_default_robots_physics_is_its_hands_own_controller():
     finger controller (``PaperPhysicsEngine``): its draws are the default robot's
     ``PhysicsEngine``'s, row for row, and ``evaluate_robot_grasp(engine="physics")`` gives
     ``evaluate_grasp``'s P(FC) and Q moments on the same seed; the quick holding test by name
-    (``quick_hold_engine``) holds the draws the default robot's ``QuickHoldTest`` holds. A
+    (``quick_hold_engine``) holds the draws the default robot's own quick test holds. A
     wiring test: what it rules out is the description robots' motors closing the SDH (on
     spray-flask grasp 4, 40 draws at 0.0133 rad: 19 draws in force closure against 35)."""
-    from kinegrasp_env.montecarlo.draw_holds import QuickHoldTest
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, evaluate_grasp
+    from kinegrasp_env.montecarlo.evaluate import (
+        DEFAULT_CHUNK,
+        chunk_configurations,
+        chunk_sizes,
+        evaluate_grasp,
+    )
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
     from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
-    from kinegrasp_env.physics.protocol import HELD
+    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
     from kinegrasp_env.sampling.noise import JointNoise
 
     grasp = shipped_grasps("spray_flask")[4]
@@ -113,6 +117,10 @@ def test_the_default_robots_physics_is_its_hands_own_controller():
     with quick_hold_engine("kuka_sdh", "cube") as test:
         q = evaluation_rows(cube, test, sigma=SIGMA, n=6, seed=SEED)[0]
         held = test.run_hold(q)[1].outcome == HELD
-    with QuickHoldTest("cube") as quick:
-        np.testing.assert_array_equal(
-            held, quick.chunk_held(cube.q0, JointNoise(SIGMA), SEED, 6, chunk=DEFAULT_CHUNK))
+    rows = chunk_configurations(cube.q0, JointNoise(SIGMA), SEED,  # the default robot's rows
+                                [(0, size) for size in chunk_sizes(6, DEFAULT_CHUNK)])
+    quick = PhysicsEngine("cube", 0.5, protocol=QUICK_PROTOCOL)  # the SDH's own quick test
+    try:
+        np.testing.assert_array_equal(held, quick.run_hold(rows)[1].outcome == HELD)
+    finally:
+        quick.close()

@@ -9,11 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.envs.robot_task import ROBOT_N_DRAWS, SCORES
+from kinegrasp_env.envs.robot_task import N_DRAWS, SCORES
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA
-from kinegrasp_env.physics.simulators import check_simulator
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name
+from kinegrasp_env.robot.catalog import check_robot_name
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS
 
 
@@ -148,11 +147,6 @@ class EnvArguments:
     split: str | None
     objects: tuple[str, ...] | None
 
-    @property
-    def default_robot(self) -> bool:
-        """Whether the robot is the default one (``kuka_sdh``)."""
-        return self.robot == DEFAULT_ROBOT
-
 
 def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score: str,
                   render_mode: str | None, render_modes: list[str], reward: str,
@@ -161,18 +155,16 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
                   q_weight: float, limit_penalty: float, step_size: float, split: str | None,
                   objects: tuple[str, ...] | None) -> EnvArguments:
     """The KineGrasp env's constructor arguments, checked in the order the constructor
-    takes them: ``n_draws`` None is 64 for the default robot, :data:`~kinegrasp_env.envs.
-    robot_task.ROBOT_N_DRAWS` for another; ``engine`` None is ``fast``; ``render_modes`` are
-    the env's (its ``metadata``).
+    takes them: ``n_draws`` None is :data:`~kinegrasp_env.envs.robot_task.N_DRAWS`;
+    ``engine`` None is ``fast``; ``render_modes`` are the env's (its ``metadata``).
 
     Raises:
         ValueError: one line naming the first bad argument and its value (an unknown robot:
             :func:`~kinegrasp_env.robot.catalog.check_robot_name`'s error).
     """
     robot = check_robot_name(robot)
-    own = robot == DEFAULT_ROBOT
     if n_draws is None:
-        n_draws = 64 if own else ROBOT_N_DRAWS
+        n_draws = N_DRAWS
     if engine is None:
         engine = "fast"
     if score not in SCORES:
@@ -185,8 +177,6 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
     if hold_simulator != "pybullet" and score != "hold":
         raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
                          "simulator; it runs with score='hold'")
-    if own and score == "hold":
-        check_simulator(hold_simulator)
     if reward == "batch" and score != "pfc":
         raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
                          "reward 'draws'")

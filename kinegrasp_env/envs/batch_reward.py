@@ -4,8 +4,7 @@ Every step keeps the palm pose of the episode's grasp and moves only the elbow; 
 outcome then depends only on the palm's deviation (:mod:`kinegrasp_env.montecarlo.
 palm_batch`; the batch moves the hand alone, the arm links staying where the grasp's own
 configuration puts them), and the noise level only changes its spread. Every robot of the
-env: the default one, or a description robot (its engines; a 7-joint arm's self-motion, a
-6-joint arm's IK branches).
+env: its engines, a 7-joint arm's self-motion, a 6-joint arm's IK branches.
 The first episode of a grasp draws one batch of closings from a mixture of the deviation's
 first-order Gaussians at the grasp's elbow and at angles around it (every
 :data:`SPAN_STEP` radians within :data:`SPAN`, where reachable; a 6-joint arm: at every IK
@@ -31,7 +30,6 @@ import numpy as np
 from kinegrasp_env.montecarlo.engines import OUTCOMES
 from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
 from kinegrasp_env.robot.branch_motion import BranchMotion
-from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 
 #: Elbow angles (radians) either side of the episode's start the batch covers.
@@ -56,11 +54,10 @@ class BatchReward:
     @classmethod
     def build(cls, engine: str, object_name: str, q0: np.ndarray, moved: list[np.ndarray],
               sigmas: list[float], size: int, seed: int,
-              jacobian: PalmJacobian, robot: str | None = None) -> BatchReward:
-        """The batch of ``size`` closings of a grasp reached at q0 (dof,): its mixture over
-        q0 and the configurations ``moved`` (each (dof,): the same palm pose), each at every
-        noise level of ``sigmas`` (radians); ``robot``: a description robot's engines (None:
-        the default robot's)."""
+              jacobian: PalmJacobian, robot: str) -> BatchReward:
+        """The batch of ``size`` closings of a grasp of ``robot`` reached at q0 (dof,): its
+        mixture over q0 and the configurations ``moved`` (each (dof,): the same palm pose),
+        each at every noise level of ``sigmas`` (radians)."""
         qs = np.stack([q0, *moved])
         covs = np.concatenate([jacobian.covariance(qs, s) for s in sigmas])
         batch = close_batch(q0, object_name, covs, size, seed, engine=engine, robot=robot)
@@ -89,28 +86,23 @@ def covered_angles(psi0: float) -> list[float]:
 
 
 def covered_configurations(q0: np.ndarray,
-                           elbow: ArmIK | ArmSelfMotion | BranchMotion) -> list[np.ndarray]:
+                           elbow: ArmSelfMotion | BranchMotion) -> list[np.ndarray]:
     """The configurations (each (dof,): q0's palm pose) a grasp's batch covers besides
     q0: the elbow angles of :func:`covered_angles`, where reachable; a 6-joint arm's other
     IK branches.
 
     Args:
         q0: (dof,) the grasp's configuration, radians.
-        elbow: the arm's elbow coordinate: the default robot's IK, a description robot's
-            self-motion, or its IK branches (``angle_links`` None: an arm without
-            self-motion).
+        elbow: the arm's elbow coordinate: its self-motion, or its IK branches
+            (``angle_links`` None: an arm without self-motion).
     """
-    if not isinstance(elbow, ArmIK) and elbow.angle_links is None:
+    if elbow.angle_links is None:
         own, _ = elbow.branch_of(q0)
         return [np.concatenate([arm, q0[elbow.arm:]])
                 for k, arm in enumerate(elbow.branches(q0)) if k != own]
-    if not isinstance(elbow, ArmIK):
-        psis = covered_angles(float(elbow.elbow_angle(q0[None])[0]))
-        moved = [elbow.set_elbow_angle(q0, psi) for psi in psis]
-        return [q for q, reached in moved if reached]
-    psis = np.array(covered_angles(float(elbow.elbow_angle(q0[None])[0])))
-    moved, reached = elbow.set_elbow_angle(np.tile(q0, (len(psis), 1)), psis)
-    return list(moved[reached])
+    psis = covered_angles(float(elbow.elbow_angle(q0[None])[0]))
+    moved = [elbow.set_elbow_angle(q0, psi) for psi in psis]
+    return [q for q, reached in moved if reached]
 
 
 def sigma_levels(low: float, high: float) -> list[float]:

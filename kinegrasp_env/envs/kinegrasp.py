@@ -42,15 +42,13 @@ elbow angle psi itself, a in [-1, 1] -> psi = pi a; or, with ``action_bins=K``, 
 k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the reachable
 range at once, which a Gaussian one centred between them cannot).
 
-Robots: ``robot`` (default ``kuka_sdh``, the paper's robot and everything above) or another
-robot of the catalog (``robot="panda"``): its shipped or given grasps, its self-motion (a
-6-joint arm: its IK branches as the elbow coordinate), its
-engine's draws (``engine``, fast by default; 16 draws by default), an observation sized by
-its arm and hand, and pictures of its whole URDF with the object
-(:mod:`kinegrasp_env.envs.robot_task`); its noise model's draws of every source;
-``reward="batch"``; and a reward that scores
-holding (``score``: the static hold check's or the quick holding test's P(hold) instead of
-P(FC)); the default robot's too, on joint and hand noise.
+Robots: ``robot``, any robot of the catalog (default ``kuka_sdh``, the paper's robot, whose
+44-entry observation is tabled above; ``robot="panda"``, a user's robot): its shipped or
+given grasps, its self-motion (a 6-joint arm: its IK branches as the elbow coordinate), its
+engine's draws (``engine``, fast by default), an observation sized by its arm and hand, and
+pictures of its whole URDF with the object (:mod:`kinegrasp_env.envs.robot_task`); a noise
+model's draws of every source; ``reward="batch"``; and a reward that scores holding
+(``score``: the static hold check's or the quick holding test's P(hold) instead of P(FC)).
 
 Every bad argument, reset option or action is a ValueError of one line naming the value.
 """
@@ -71,23 +69,17 @@ from kinegrasp_env.envs.batch_reward import (
     grasp_seed,
     sigma_levels,
 )
-from kinegrasp_env.envs.draw_reward import DrawReward
-from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.robot_task import RobotTask, robot_tasks
 from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
-from kinegrasp_env.montecarlo.engines import Engine
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
-from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
-from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, Kinematics
+from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from
 from kinegrasp_env.world.grasps import Grasp
 
-OBS_SIZE = 3 * 7 + OBS_EXTRA  # the default robot: 7 arm joints (twice), 7 hand joints
 OBS_LIMIT = 10.0
 
 
@@ -103,8 +95,7 @@ class KineGraspEnv(gym.Env):
         grasp_file: a grasp file to draw tasks from instead of the shipped sets.
         sigma_range: (low, high) of the noise sigma drawn at reset (radians).
         noise_types: noise distributions drawn at reset.
-        n_draws: Monte Carlo draws per reward (an integer >= 1; default 64, 16 for a robot
-            other than the default).
+        n_draws: Monte Carlo draws per reward (an integer >= 1; default 64).
         q_weight: weight of the mean Q in the reward.
         limit_penalty: subtracted when an action would leave the joint limits.
         max_steps: steps before truncation.
@@ -119,18 +110,13 @@ class KineGraspEnv(gym.Env):
             pybullet end the process.
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
-        engine: the engine of the reward's draws: ``fast`` (the default: batched, many
-            times the steps per second: ``benchmarks/bench_env.py``), ``pybullet`` (the
-            reference) or ``physics`` (pybullet dynamics; see
-            :class:`kinegrasp_env.montecarlo.engines.FastEngine`). Both take the same draws
-            for the same seed, and they agree draw by draw: ``benchmarks/agreement.py`` on
-            all 12 shipped grasps of the four objects, sigma 0.0133 and 0.0266 rad, 100
-            draws each (9,600 draws): the same outcome for 9,599, contact points within
-            6.1e-6 m, Q within 1.9e-5 (``tests/test_agreement.py`` holds these bounds).
-            Another robot takes the same names, fast by default
-            (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`: its fast engine
-            batches the reference closing); on the Panda's env rewards of 16 draws, the
-            engines' P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
+        engine: the engine of the reward's draws, by name
+            (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast`` (the
+            default: the reference closing batched over the draws, many times the steps per
+            second: ``benchmarks/bench_env.py``), ``pybullet`` (the reference: pybullet
+            closest points, draw by draw) or ``physics`` (pybullet dynamics). Both kinematic
+            engines take the same draws for the same seed; on the Panda's env rewards of 16
+            draws their P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
             ``tests/test_env_robot.py``).
         reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (any
             robot, with Gaussian joint noise: one batch of ``batch_size``
@@ -174,7 +160,6 @@ class KineGraspEnv(gym.Env):
             sigma_range=sigma_range, noise_types=noise_types, q_weight=q_weight,
             limit_penalty=limit_penalty, step_size=step_size, split=split, objects=objects)
         self.robot = args.robot
-        own = args.default_robot
         self.tasks = robot_tasks(args.robot, args.objects, grasp_file)
         if args.split is not None:
             keep = (lambda i: i % 4 == 3) if args.split == "test" else (lambda i: i % 4 != 3)
@@ -190,26 +175,20 @@ class KineGraspEnv(gym.Env):
         self.step_size = args.step_size
         self.render_mode = args.render_mode
         self._window = self.render_mode == "human" and human_window_available()
-        self._robot = (None if own else
-                       RobotTask(args.robot, args.engine, args.score, args.hold_simulator))
+        self._robot = RobotTask(args.robot, args.engine, args.score, args.hold_simulator)
         self.score = args.score
-        size = OBS_SIZE if own else self._robot.obs_size
-        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (size,), np.float32)
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (self._robot.obs_size,),
+                                            np.float32)
         self.action_space = self._action_space()
         self.engine = args.engine
         self.reward_method, self.batch_size = args.reward, args.batch_size
         self._batch: BatchReward | None = None
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
-        self._jacobian = (None if args.reward != "batch" else PalmJacobian() if own
+        self._jacobian = (None if args.reward != "batch"
                           else PalmJacobian(self._robot.description))
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
-        # the default robot's reward draws (another robot's: self._robot)
-        self._draws = DrawReward(args.engine, args.score, args.hold_simulator)
         if self.noise_model is not None:
-            self._task.check_noise(self.noise_model)
-        self._kin = Kinematics(kuka_sdh()) if own else self._robot.kin
-        self._observer = ArmObserver(self._kin, PALM_LINK, 7, ARM_ANGLE_LINKS)
-        self._ik: ArmIK | None = None
+            self._robot.check_noise(self.noise_model)
         self._viewer = None
         self.grasp: Grasp | None = None
         self.q = None
@@ -223,38 +202,24 @@ class KineGraspEnv(gym.Env):
         return spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     # ------------------------------------------------------------------ helpers
-    def _engine(self, name: str) -> Engine:
-        return self._draws.engine(name)
-
     @property
     def kinematics(self) -> Kinematics:
         """The batched kinematics of the arm and hand (FK, Jacobians)."""
-        return self._kin
-
-    @property
-    def ik(self) -> ArmIK:
-        """IK and self-motion of the arm (elbow angles, in radians); the default robot's
-        (another robot's self-motion: ``env.self_motion``)."""
-        if self._robot is not None:
-            raise AttributeError(f"ik is the default robot's; robot {self.robot!r} has "
-                                 "self_motion")
-        if self._ik is None:
-            self._ik = ArmIK(self._kin)
-        return self._ik
+        return self._robot.kin
 
     @property
     def self_motion(self):
-        """Another robot's :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (None for
-        the default robot: see ``ik``)."""
-        return None if self._robot is None else self._robot.motion
+        """The arm's elbow coordinate: a 7-joint arm's
+        :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`, a 6-joint arm's IK branches
+        (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`); elbow angles in
+        radians."""
+        return self._robot.motion
 
     def elbow_angle(self, q: np.ndarray) -> float:
         """The elbow angle psi (radians) of configuration q (dof,) of the env's robot: along
         a 7-joint arm's self-motion, or a 6-joint arm's branch coordinate (the centre of its
         IK branch's bin), as :meth:`configuration_at` takes it."""
-        q = np.asarray(q, dtype=float)[None]
-        motion = self.ik if self._robot is None else self._robot.motion
-        return float(motion.elbow_angle(q)[0])
+        return float(self._robot.motion.elbow_angle(np.asarray(q, dtype=float)[None])[0])
 
     def configuration_at(self, psi: float,
                          start: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
@@ -262,29 +227,24 @@ class KineGraspEnv(gym.Env):
 
         Args:
             psi: target elbow angle, radians.
-            start: (14,) configuration whose palm pose is kept (default: the current one).
+            start: (dof,) configuration whose palm pose is kept (default: the current one).
 
         Returns:
-            (q (14,), reached): the configuration, and whether it reached ``psi`` within the
+            (q (dof,), reached): the configuration, and whether it reached ``psi`` within the
             joint limits (when not, the arm stops at its limit). The env's state is unchanged.
         """
         q = self.q if start is None else np.asarray(start, dtype=float)
-        if self._robot is not None:
-            return self._robot.motion.set_elbow_angle(q, psi)
-        moved, ok = self.ik.set_elbow_angle(q, psi)
-        return moved[0].copy(), bool(ok[0])
+        return self._robot.motion.set_elbow_angle(q, psi)
 
     def _pick_task(self, options: dict) -> tuple[Grasp, JointNoise | NoiseModel]:
         """The episode's grasp and noise, drawn with the env's RNG where the options leave
         them open (:mod:`kinegrasp_env.envs.task_choice`)."""
-        grasp = pick_grasp(options, self.np_random, self.tasks, self.object_names, self._robot,
-                           self._engine, lambda: self.ik)
+        grasp = pick_grasp(options, self.np_random, self.tasks, self.object_names, self._robot)
         return grasp, pick_noise(options, self.np_random, self.sigma_range, self.noise_types,
-                                 self.noise_model, self._task.check_noise)
+                                 self.noise_model, self._robot.check_noise)
 
     def _observation(self) -> np.ndarray:
-        task = self._observer if self._robot is None else self._robot.observer
-        obs, self._psi = task.observe(self.grasp, self.q, self.noise,
+        obs, self._psi = self._robot.observer.observe(self.grasp, self.q, self.noise,
                                       self.steps / self.max_steps, self._branch_psi)
         return np.clip(obs, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
 
@@ -296,7 +256,7 @@ class KineGraspEnv(gym.Env):
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
-        return {**self._task.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
+        return {**self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
                 "reward_method": "draws"}
 
     def _episode_batch(self) -> BatchReward | None:
@@ -312,13 +272,13 @@ class KineGraspEnv(gym.Env):
             self._batches[key] = BatchReward.build(
                 self.engine, grasp.object, q0, self._covered_configurations(q0),
                 sigma_levels(*self.sigma_range), self.batch_size, grasp_seed(key),
-                self._jacobian, robot=None if self._robot is None else self.robot)
+                self._jacobian, robot=self.robot)
         return self._batches[key]
 
     def _covered_configurations(self, q0: np.ndarray) -> list[np.ndarray]:
         """The configurations (each (dof,): q0's palm pose) a grasp's batch covers besides
         q0 (dof,): :func:`~kinegrasp_env.envs.batch_reward.covered_configurations`."""
-        return covered_configurations(q0, self.ik if self._robot is None else self._robot.motion)
+        return covered_configurations(q0, self._robot.motion)
 
     def _move_to(self, psi: float) -> bool:
         self.q, reached = self.configuration_at(psi)
@@ -327,16 +287,9 @@ class KineGraspEnv(gym.Env):
         return reached
 
     @property
-    def _task(self) -> DrawReward | RobotTask:
-        """What draws the reward: the default robot's :class:`~kinegrasp_env.envs.
-        draw_reward.DrawReward`, another robot's :class:`~kinegrasp_env.envs.robot_task.
-        RobotTask`."""
-        return self._draws if self._robot is None else self._robot
-
-    @property
     def _branches(self) -> bool:
         """Whether the arm's elbow coordinate is its IK branches (no self-motion)."""
-        return self._robot is not None and self._robot.motion.angle_links is None
+        return self._robot.motion.angle_links is None
 
     def _reward(self, within_limits: bool) -> tuple[float, dict]:
         info = self._estimate()
@@ -347,7 +300,7 @@ class KineGraspEnv(gym.Env):
                      "reward_limit_penalty": -penalty, "within_limits": within_limits,
                      "elbow_angle": self._psi,
                      "object": self.grasp.object, "grasp": self.grasp.id,
-                     **noise_info(self.noise)})
+                     **noise_info(self.noise, self._robot.arm)})
         return float(reward), info
 
     # ------------------------------------------------------------------ gymnasium API
@@ -360,14 +313,11 @@ class KineGraspEnv(gym.Env):
         self._branch_psi = None
         if options.get("psi") is not None:
             self._move_to(reset_psi(options["psi"]))
-        elbow = self.ik if self._robot is None else self._robot.motion
         psi0 = (self._branch_psi if self._branch_psi is not None
-                else float(elbow.elbow_angle(self.q[None])[0]))
+                else self.elbow_angle(self.q))
         self._batch = self._episode_batch()
-        info = {"object": self.grasp.object, "grasp": self.grasp.id, **noise_info(self.noise),
-                "elbow_angle": psi0}
-        if self._robot is not None:
-            info["robot"] = self.robot
+        info = {"object": self.grasp.object, "grasp": self.grasp.id, "robot": self.robot,
+                **noise_info(self.noise, self._robot.arm), "elbow_angle": psi0}
         return self._observation(), info
 
     def step(self, action):
@@ -393,13 +343,11 @@ class KineGraspEnv(gym.Env):
 
         image, self._viewer = render_scene(
             self.grasp.object, self.q, self._viewer, gui=self.render_mode == "human",
-            robot=None if self._robot is None else self._robot.description)
+            robot=self._robot.description)
         return image if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:
-        self._draws.close()
-        if self._robot is not None:
-            self._robot.close()
+        self._robot.close()
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None

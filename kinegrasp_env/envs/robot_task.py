@@ -1,10 +1,11 @@
-"""KineGrasp-v0 with a robot of the catalog other than the default (``robot="panda"``).
+"""The robot's side of KineGrasp-v0, for every robot of the catalog (``robot="kuka_sdh"``,
+the default, ``robot="panda"``, a user's robot).
 
 Everything robot-specific is derived from the robot's description
 (:mod:`kinegrasp_env.robot.description`):
 
-- **grasps**: the robot's shipped grasp sets (``assets/grasps/<robot>/<object>.json``, the
-  antipodal planner's output: ``kinegrasp plan --robot panda --count 4``; for the Panda:
+- **grasps**: the robot's shipped grasp sets (``assets/grasps/<robot>/<object>.json``; for
+  the Panda the antipodal planner's output, ``kinegrasp plan --robot panda --count 4``:
   cube, drill and spray_flask, 4 grasps each) or a ``grasp_file`` of grasps of the robot;
 - **self-motion**: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (7 arm joints:
   the palm held, the elbow angle of the description's ``arm_angle_links`` moved); for an arm
@@ -25,39 +26,68 @@ Everything robot-specific is derived from the robot's description
   :mod:`~kinegrasp_env.montecarlo.hold_check`) or ``hold`` (the fraction the quick holding
   test holds in pybullet or MuJoCo: :func:`~kinegrasp_env.montecarlo.hold_engine.
   quick_hold_engine`,
-  whose physics closings also give the step's P(FC); joint noise only, and about a tenth of
-  a second a draw, where the kinematic engines take microseconds to milliseconds);
-- **observation**: the default robot's layout (:mod:`kinegrasp_env.envs.kinegrasp`) with
-  the arm's and the hand's sizes: ``2 * arm_dof + hand_dof + 23`` entries (44 for the
-  default robot, 38 for the Panda);
+  whose physics closings also give the step's P(FC); joint and hand noise, and about a
+  tenth of a second a draw, where the kinematic engines take microseconds to milliseconds;
+  the default robot's holding test is its hand's own controller);
+- **observation** (:mod:`~kinegrasp_env.envs.observation`): ``2 * arm_dof + hand_dof + 23``
+  entries (44 for the default robot, 38 for the Panda);
 - **pictures**: the whole URDF (arm and hand, its visual geometry) and the object in a
-  pybullet world of their own (:class:`~kinegrasp_env.envs.render.RobotSceneViewer`).
+  pybullet world of their own (:class:`~kinegrasp_env.envs.render.SceneViewer`).
+
+A step's n draws are the first n rows of a run of a seed the env draws from its generator
+(the rows ``kinegrasp evaluate --robot NAME`` draws with that seed), so the same seed gives
+the same reward.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.envs.draw_reward import step_stats
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
+from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
 from kinegrasp_env.robot.branch_motion import elbow_motion
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
+from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import load_object
 
-#: Reward draws per step for a description robot (what they cost per step with each
-#: engine: see :class:`RobotTask`).
-ROBOT_N_DRAWS = 16
-#: What a description robot's reward scores (module docstring): the criteria of
-#: ``kinegrasp rank`` that a step's draws give.
+#: Reward draws per step by default, every robot (what they cost per step with each engine:
+#: ``python benchmarks/bench_env.py``).
+N_DRAWS = 64
+#: What the reward scores (module docstring): the criteria of ``kinegrasp rank`` that a
+#: step's draws give.
 SCORES = ("pfc", "hold_static", "hold")
+
+
+def step_stats(outcome: np.ndarray, quality: np.ndarray, held: np.ndarray | None,
+               seed: int) -> dict:
+    """A step's reward terms from its n draws: ``p_fc`` and its Wilson interval, ``q_mean``
+    (over the force-closure draws; 0 without one), ``outcomes`` (counts by name), ``draws``,
+    ``draw_seed``, for a hold score (``held`` (n,), else None) ``p_hold`` and its interval,
+    and ``score_value``: the score's estimate.
+
+    Args:
+        outcome: (n,) indices into :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`;
+        quality: (n,) Q; seed: the draws' seed.
+    """
+    fc = outcome == FORCE_CLOSURE
+    counts = np.bincount(outcome, minlength=len(OUTCOMES))
+    stats = {"p_fc": float(fc.mean()), "p_fc_ci": wilson_interval(int(fc.sum()), fc.size),
+             "q_mean": float(quality[fc].mean()) if fc.any() else 0.0,
+             "draws": int(outcome.size), "draw_seed": seed,
+             "outcomes": {name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)}}
+    if held is not None:
+        stats.update(p_hold=float(held.mean()),
+                     p_hold_ci=wilson_interval(int(held.sum()), held.size))
+    stats["score_value"] = stats["p_fc" if held is None else "p_hold"]
+    return stats
 
 
 def check_grasps_robot(grasps: list[Grasp], robot: str, source) -> None:
@@ -91,14 +121,14 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
 
 
 class RobotTask:
-    """The robot-specific pieces of the env for a description robot.
+    """The robot-specific pieces of the env (module docstring).
 
-    Speed (the Panda, 16 draws, one core; ``python benchmarks/bench_env.py --robot panda``):
-    see the benchmarks page; per step, the self-motion's cost grows with the elbow angle
-    moved, and the draws are much cheaper with the fast engine than with the reference.
+    Speed (``python benchmarks/bench_env.py``): see the benchmarks page; per step, the
+    self-motion's cost grows with the elbow angle moved, and the draws are much cheaper with
+    the fast engine than with the reference.
 
     Args:
-        robot: a catalog robot other than the default.
+        robot: a catalog robot.
         engine: the reward draws' engine by name: ``fast``, ``pybullet`` or ``physics``
             (:data:`~kinegrasp_env.montecarlo.robot_evaluate.ENGINES`).
         score: what the reward scores (:data:`SCORES`).
@@ -112,8 +142,6 @@ class RobotTask:
 
     def __init__(self, robot: str, engine: str = "fast", score: str = "pfc",
                  hold_simulator: str = "pybullet") -> None:
-        if robot == DEFAULT_ROBOT:
-            raise ValueError("the default robot is the env's own path")
         if engine not in ENGINES:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
         if score not in SCORES:

@@ -4,9 +4,9 @@ distribution drawn from the env's ranges), and the noise entries of the env's ``
 
 Reset options (all optional): ``object``; the grasp as ONE of ``grasp`` (an index into the
 env's grasps of the object: the shipped set, or ``grasp_file``), ``q0`` (a nominal
-configuration: 14 radians, 7 arm joints then 7 hand DOF, docs/conventions.md; another
-robot's actuated vector) or ``palm_pose`` (one palm-pose entry in the object frame, the
-schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
+configuration: the robot's actuated vector; the default robot's 14 radians, 7 arm joints
+then 7 hand DOF, docs/conventions.md) or ``palm_pose`` (one palm-pose entry in the object
+frame, the schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
 ``pose``, with ``spread`` or a 7-value ``hand`` (another robot: its pre-shape as its
 description names it), optional ``elbow``; solved by every robot's palm-pose IK,
 :func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`); ``sigma`` and ``noise`` (or
@@ -32,9 +32,7 @@ import numpy as np
 
 from kinegrasp_env.envs.arguments import reset_sigma
 from kinegrasp_env.envs.robot_task import RobotTask
-from kinegrasp_env.envs.tasks import given_grasp, given_robot_grasp, grasp_option
-from kinegrasp_env.montecarlo.engines import Engine
-from kinegrasp_env.robot.ik import ArmIK
+from kinegrasp_env.envs.tasks import given_robot_grasp, grasp_option
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from, spec_of
@@ -43,39 +41,34 @@ from kinegrasp_env.world.grasps import Grasp
 __all__ = ["joint_sigma", "noise_info", "pick_grasp", "pick_noise", "shipped_grasp"]
 
 
-def joint_sigma(noise: JointNoise | NoiseModel) -> float:
-    """The joint sigma ``info`` shows (radians): the largest over the arm joints."""
-    return float(noise.sigma_vector(7).max())
+def joint_sigma(noise: JointNoise | NoiseModel, arm: int) -> float:
+    """The joint sigma ``info`` shows (radians): the largest over the ``arm`` arm joints."""
+    return float(noise.sigma_vector(arm).max())
 
 
-def noise_info(noise: JointNoise | NoiseModel) -> dict:
-    """The noise entries of ``info``: sigma and noise type of the joints, and a model's spec."""
-    info = {"sigma": joint_sigma(noise), "noise": noise.kind}
+def noise_info(noise: JointNoise | NoiseModel, arm: int) -> dict:
+    """The noise entries of ``info`` for an arm of ``arm`` joints: sigma and noise type of
+    the joints, and a model's spec."""
+    info = {"sigma": joint_sigma(noise, arm), "noise": noise.kind}
     if isinstance(noise, NoiseModel):
         info["noise_model"] = spec_of(noise)
     return info
 
 
 def pick_grasp(options: dict, rng: np.random.Generator, tasks: dict[str, list[Grasp]],
-               object_names: tuple[str, ...], robot_task: RobotTask | None,
-               engine_of: Callable[[str], Engine], arm_ik: Callable[[], ArmIK]) -> Grasp:
-    """The episode's grasp: a ``q0`` or ``palm_pose`` option's (closed once at reset), else
-    one of ``tasks`` (:func:`shipped_grasp`).
+               object_names: tuple[str, ...], robot_task: RobotTask) -> Grasp:
+    """The episode's grasp: a ``q0`` or ``palm_pose`` option's (closed once at reset by the
+    robot's task), else one of ``tasks`` (:func:`shipped_grasp`).
 
     Args:
         options: the reset options.
         rng: the env's ``np_random``.
         tasks: the env's grasps per object name; ``object_names`` their sorted names.
-        robot_task: a description robot's task (None: the default robot).
-        engine_of: the env's engine of an object name (the default robot's given grasps).
-        arm_ik: the default robot's IK (:class:`~kinegrasp_env.robot.ik.ArmIK`), called only
-            for its given grasps.
+        robot_task: the env's robot's task.
     """
     key = grasp_option(options)
-    if key in ("q0", "palm_pose") and robot_task is not None:
-        return given_robot_grasp(options, key, robot_task)
     if key in ("q0", "palm_pose"):
-        return given_grasp(options, key, engine_of, arm_ik())
+        return given_robot_grasp(options, key, robot_task)
     return shipped_grasp(options, rng, tasks, object_names)
 
 

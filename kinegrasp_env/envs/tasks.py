@@ -10,27 +10,22 @@ open hand already in the object) and ``missed`` (fewer than 2 contacts, or a fin
 on nothing) leave no nominal contacts and are ValueErrors naming the outcome. The arm links
 are not checked against the object (the draws do not check them either).
 
-Any robot of the env: the default one (:func:`given_grasp`: its engine's closing) or a
-description robot (:func:`given_robot_grasp`: its kinematic engine's closing); both take the
-robot's actuated vector and its pre-shape as the description names it, and reach a palm pose
-by every robot's one IK (:func:`palm_pose_configuration`).
+Any robot of the env (:func:`given_robot_grasp`: its kinematic engine's closing): the robot's
+actuated vector, or a palm pose with its pre-shape as the description names it, reached by
+every robot's one IK (:func:`palm_pose_configuration`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from kinegrasp_env.envs.robot_task import RobotTask
-from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION, Engine
+from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
-from kinegrasp_env.robot.default_robot import PALM_LINK
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose
-from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
+from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import is_object, load_object, unknown_object
 from kinegrasp_env.world.robot_configuration import check_configuration, robot_model
 
@@ -60,9 +55,9 @@ def task_object(options: dict, key: str) -> str:
     return name
 
 
-def reset_q0(value, robot: str = DEFAULT_ROBOT) -> np.ndarray:
-    """(dof,) a ``q0`` reset option, validated: the default robot's 7 arm joints then 7 hand
-    DOF (radians, docs/conventions.md), another robot's actuated vector; finite, within the
+def reset_q0(value, robot: str) -> np.ndarray:
+    """(dof,) a ``q0`` reset option of ``robot``, validated: its actuated vector (the default
+    robot's 7 arm joints then 7 hand DOF, radians, docs/conventions.md); finite, within the
     joint limits; ValueError names the bad entry."""
     dof = robot_model(robot).dof
     try:
@@ -77,8 +72,8 @@ def reset_q0(value, robot: str = DEFAULT_ROBOT) -> np.ndarray:
 
 def palm_pose_candidate(entry, robot: RobotDescription | None = None) -> PalmCandidate:
     """A ``palm_pose`` reset option (one palm-pose entry in the object frame:
-    :mod:`kinegrasp_env.robot.palm_pose`) of the default robot or ``robot``; ValueError for a
-    malformed entry."""
+    :mod:`kinegrasp_env.robot.palm_pose`) of ``robot`` (None: the default robot); ValueError
+    for a malformed entry."""
     if not isinstance(entry, dict):
         raise ValueError(f"reset option palm_pose must be a dict: 'position' + 'quaternion' or "
                          f"'pose' (4x4), with the hand's pre-shape (optional 'elbow', 'id'); "
@@ -120,42 +115,8 @@ def check_closes(draw, object_name: str, source: str) -> None:
                          "a task needs >= 2 contacts with every finger on the object")
 
 
-def nominal_grasp(engine: Engine, ik: ArmIK, object_name: str, q0: np.ndarray,
-                  grasp_id: str, source: str, meta: dict | None = None) -> Grasp:
-    """The task's grasp: the hand closed once at q0 (14,) with ``engine`` (the object's).
-
-    Raises:
-        ValueError: the closing is ``start_collision`` or ``missed`` (no nominal contacts);
-            the message names ``source`` (the option) and the outcome.
-    """
-    draw = engine.run(q0[None])
-    check_closes(draw, object_name, source)
-    palm = ik.kin.pose(q0, PALM_LINK)[0]
-    meta = {"source": source, "elbow_angle": float(ik.elbow_angle(q0[None])[0]),
-            **(meta or {})}
-    return grasp_from_draw(draw, object_name, q0, palm, grasp_id=grasp_id, meta=meta)
-
-
-def given_grasp(options: dict, key: str, engine_of: Callable[[str], Engine],
-                ik: ArmIK) -> Grasp:
-    """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) on the ``object``
-    option; ``engine_of(name)`` gives the env's engine of an object."""
-    name = task_object(options, key)
-    if key == "q0":
-        q0, meta = reset_q0(options["q0"]), {"id": "q0"}
-    else:
-        from kinegrasp_env.robot.catalog import load_robot
-        from kinegrasp_env.robot.null_motion import ArmSelfMotion
-
-        description = load_robot(DEFAULT_ROBOT)
-        q0, meta = palm_pose_configuration(description, ik.kin,
-                                           ArmSelfMotion(description, ik.kin), name,
-                                           options["palm_pose"])
-    return nominal_grasp(engine_of(name), ik, name, q0, meta.pop("id"), key, meta)
-
-
 def given_robot_grasp(options: dict, key: str, task: RobotTask) -> Grasp:
-    """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) of a description robot
+    """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) of the env's robot
     (``task``) on the ``object`` option: closed once at q0 by the task's kinematic engine."""
     name = task_object(options, key)
     description = task.description

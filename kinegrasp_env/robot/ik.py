@@ -18,10 +18,9 @@ from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK
 from kinegrasp_env.robot.kinematics import (
     ARM_ANGLE_LINKS,
     Kinematics,
-    arm_angle_at,
     pose_error,
 )
-from kinegrasp_env.robot.self_motion import arm_chain, self_motion_newton
+from kinegrasp_env.robot.self_motion import arm_chain, continue_elbow
 
 POSITION_TOL = 1e-7  # metres
 ORIENTATION_TOL = 1e-7  # radians
@@ -140,39 +139,10 @@ class ArmIK:
 
     def set_elbow_angle(self, q: np.ndarray, psi: np.ndarray | float, *, max_step: float = 0.3,
                         newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
-        """Move along the self-motion manifold to elbow angle ``psi``, palm pose fixed.
-
-        Args:
-            q: (n, dof) or (dof,) start configurations; their palm poses are kept.
-            psi: (n,) or scalar target elbow angles (radians).
-            max_step: largest change of psi per continuation step (radians). Where the path
-                stays within the limits the result does not depend on it (the same branch
-                to 1e-6 rad on all 48 shipped grasps from 0.05 to 0.4; 0.3 takes fewer
-                steps than 0.05, and one step for the env's 0.3 rad moves); a path that leaves
-                them stops within one step of the limit.
-            newton_iterations: Newton iterations per step.
-
-        Returns:
-            (q_new (n, dof), ok (n,)): ok is False where the path left the joint limits,
-            crossed a singularity, or did not converge; q_new is then the last valid point.
-        """
-        q = np.array(np.atleast_2d(q), dtype=float)
-        n = q.shape[0]
-        poses = self.kin.forward(q, [self.link, *ARM_ANGLE_LINKS])
-        target, psi0 = poses[self.link], arm_angle_at(poses)
-        delta = np.angle(np.exp(1j * (np.broadcast_to(np.asarray(psi, float), (n,)) - psi0)))
-        steps = max(1, int(np.ceil(np.abs(delta).max() / max_step))) if n else 1
-        ok = np.ones(n, bool)
-        limits_ok = self.kin.model.within_limits
-        for s in range(1, steps + 1):
-            goal = psi0 + delta * s / steps
-            trial = q[ok].copy()
-            trial[:, self.arm_index], err = self_motion_newton(
-                self._chain, trial[:, self.arm_index], target[ok], goal[ok], newton_iterations)
-            good = (np.linalg.norm(err, axis=1) < 1e-9) & limits_ok(trial)
-            idx = np.flatnonzero(ok)
-            q[idx[good]] = trial[good]
-            ok[idx[~good]] = False
-            if not np.any(ok):
-                break
-        return q, ok
+        """Move along the self-motion manifold to elbow angle ``psi``, palm pose fixed
+        (:func:`~kinegrasp_env.robot.self_motion.continue_elbow`: its arguments and
+        returns, (q_new (n, dof), ok (n,)); 0.3 rad steps take one step for the env's
+        0.3 rad moves)."""
+        return continue_elbow(self._chain, self.kin, self.link, self.arm_index,
+                              ARM_ANGLE_LINKS, q, psi, max_step=max_step,
+                              newton_iterations=newton_iterations)

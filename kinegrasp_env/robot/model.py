@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -94,15 +95,21 @@ class RobotModel:
                 return j
         raise KeyError(f"unknown joint {name!r} in robot {self.name!r}")
 
+    @cached_property
+    def _limits(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(lower, upper) limits of the actuated joints, looked up once."""
+        joints = [self.joint(n) for n in self.actuated]
+        return tuple(j.lower for j in joints), tuple(j.upper for j in joints)
+
     @property
     def lower(self) -> np.ndarray:
-        """(dof,) lower limits of the actuated joints."""
-        return np.array([self.joint(n).lower for n in self.actuated])
+        """(dof,) lower limits of the actuated joints (a new array each call)."""
+        return np.array(self._limits[0])
 
     @property
     def upper(self) -> np.ndarray:
-        """(dof,) upper limits of the actuated joints."""
-        return np.array([self.joint(n).upper for n in self.actuated])
+        """(dof,) upper limits of the actuated joints (a new array each call)."""
+        return np.array(self._limits[1])
 
     def index(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Positions of ``names`` in the actuated vector."""

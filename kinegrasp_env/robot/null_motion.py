@@ -11,10 +11,13 @@ moves along it by continuation: each step solves the square 7x7 Newton system
 with the palm's geometric Jacobian (:meth:`~kinegrasp_env.robot.kinematics.Kinematics.
 jacobian`, arm columns) and psi's gradient by central differences; the first 6 rows keep
 dq in the Jacobian's null space to first order, the last one moves the elbow. Nothing in it
-names a joint or link: :mod:`kinegrasp_env.robot.ik` is the compiled twin for the default
-robot's fixed chain, and on the default robot's description the two agree to 1e-9 rad
-(``tests/test_env_robot.py``). A move of 0.3 rad takes 3 steps; its cost for the Panda is
-timed by ``python benchmarks/bench_env.py --robot panda``.
+names a joint or link. Where the chain base -> palm is driven by the arm joints directly
+(every catalog robot's), the continuation and its Newton run compiled
+(:func:`~kinegrasp_env.robot.self_motion.continue_elbow`, which :mod:`kinegrasp_env.robot.ik`
+runs for the default robot's fixed chain: on the default robot's description the two give
+the same configurations); another chain takes the batched numpy kinematics, a step accepted
+where the residual is below :data:`RESIDUAL_TOL`. A move of 0.3 rad takes one step; its cost
+is timed by ``python benchmarks/bench_env.py``.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, elbow_angle, pose_error
+from kinegrasp_env.robot.self_motion import ArmChain, arm_chain, continue_elbow
 
 #: Newton converged where the residual's norm (metres, radians) is below this.
 RESIDUAL_TOL = 1e-9
@@ -52,6 +56,7 @@ class ArmSelfMotion:
         self.arm = np.arange(description.arm_dof)
         self.palm = description.palm_link
         self.angle_links = tuple(description.arm_angle_links)
+        self._chain = compiled_chain(self.kin, self.palm, self.arm, self.angle_links)
 
     def elbow_angle(self, q: np.ndarray) -> np.ndarray:
         """Arm angle psi (n,) radians of configurations q (n, dof)."""
@@ -72,7 +77,7 @@ class ArmSelfMotion:
 
     def _newton(self, q: np.ndarray, target: np.ndarray, goal: np.ndarray,
                 iterations: int) -> tuple[np.ndarray, np.ndarray]:
-        """Newton on the square system from q (n, dof): (q, residual norms (n,))."""
+        """Newton on the square system from q (n, dof) in numpy: (q, residual norms (n,))."""
         q = q.copy()
         for _ in range(iterations):
             err = pose_error(self.kin.pose(q, self.palm), target)
@@ -94,17 +99,22 @@ class ArmSelfMotion:
         d_psi = np.angle(np.exp(1j * (goal - self.elbow_angle(q))))
         return q, np.linalg.norm(np.concatenate([err, d_psi[:, None]], axis=1), axis=1)
 
-    def set_elbow_angle(self, q: np.ndarray, psi: float, *, max_step: float = 0.1,
-                        newton_iterations: int = 20) -> tuple[np.ndarray, bool]:
+    def set_elbow_angle(self, q: np.ndarray, psi: float, *, max_step: float = 0.3,
+                        newton_iterations: int = 30) -> tuple[np.ndarray, bool]:
         """Move configuration q (dof,) along its self-motion to elbow angle ``psi`` (radians).
 
         Continuation steps of at most ``max_step`` radians of psi, each solved by Newton;
-        the palm pose of q is kept (residual below :data:`RESIDUAL_TOL`).
+        the palm pose of q is kept (module docstring: compiled where the chain allows).
 
         Returns:
             (q_new (dof,), reached): reached is False where the path left the joint limits,
             met a singularity or did not converge; q_new is then the last valid point.
         """
+        if self._chain is not None:
+            moved, ok = continue_elbow(self._chain, self.kin, self.palm, self.arm,
+                                       self.angle_links, q, psi, max_step=max_step,
+                                       newton_iterations=newton_iterations)
+            return moved[0], bool(ok[0])
         q = np.array(q, dtype=float).reshape(1, -1)
         target = self.kin.pose(q, self.palm)
         psi0 = float(self.elbow_angle(q)[0])
@@ -117,3 +127,14 @@ class ArmSelfMotion:
                 return q[0], False
             q = trial
         return q[0], True
+
+
+def compiled_chain(kin: Kinematics, palm: str, arm: np.ndarray,
+                   angle_links: tuple[str, str, str]) -> ArmChain | None:
+    """The chain to ``palm`` for the compiled Newton, or None where a joint on it is not an
+    arm joint driven directly (the numpy Newton then runs)."""
+    try:
+        return arm_chain(kin, palm, arm, angle_links)
+    except ValueError:
+        return None
+
