@@ -471,9 +471,12 @@ def test_a_grasp_file_of_another_robot_is_refused(tmp_path):
 
 
 def test_generic_self_motion_matches_the_default_robots_compiled_one():
-    """The description-driven self-motion on the KUKA against the compiled kernel of the
-    default robot's chain (another implementation): 24 moves of 12 shipped grasps agree to
-    1.0e-9 rad measured (tolerance 1e-8: a 10x margin) and reach the same moves."""
+    """The description-driven self-motion in numpy (its path for a chain the compiled loop
+    does not take) on the KUKA against the compiled continuation of the default robot's
+    chain (another implementation: compiled FK, Jacobian and Newton): 24 moves of 12
+    shipped grasps agree to 1.0e-9 rad measured (tolerance 1e-8: a 10x margin) and reach
+    the same moves; with the compiled loop (every catalog robot's) the description's moves
+    are the default robot's, bit for bit."""
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.default_robot import kuka_sdh
     from kinegrasp_env.robot.ik import ArmIK
@@ -481,16 +484,50 @@ def test_generic_self_motion_matches_the_default_robots_compiled_one():
     from kinegrasp_env.robot.null_motion import ArmSelfMotion
     from kinegrasp_env.world.grasps import shipped_grasps
 
-    generic, compiled = ArmSelfMotion(load_robot("kuka_sdh")), ArmIK(Kinematics(kuka_sdh()))
+    generic = ArmSelfMotion(load_robot("kuka_sdh"))
+    numpy_path = ArmSelfMotion(load_robot("kuka_sdh"))
+    numpy_path._chain = None  # the numpy Newton, as for a chain the compiled loop refuses
+    compiled = ArmIK(Kinematics(kuka_sdh()))
     reached = 0
     for obj in ("drill", "mug"):
         for grasp in shipped_grasps(obj)[:6]:
             psi0 = compiled.elbow_angle(grasp.q0[None])[0]
             for change in (0.3, -0.6):
-                q, ok = generic.set_elbow_angle(grasp.q0, psi0 + change)
+                q, ok = numpy_path.set_elbow_angle(grasp.q0, psi0 + change, max_step=0.1)
                 q_ref, ok_ref = compiled.set_elbow_angle(grasp.q0, psi0 + change)
                 assert ok == ok_ref[0]
+                same, ok_same = generic.set_elbow_angle(grasp.q0, psi0 + change)
+                assert ok_same == ok and np.array_equal(same, q_ref[0])
                 if ok:
                     reached += 1
                     assert np.abs(q - q_ref[0]).max() < 1e-8
     assert reached >= 20
+
+
+def test_the_self_motion_stays_on_its_path():
+    """Random walks of the Panda's elbow in steps of up to 0.3 rad (the env's) from every
+    shipped grasp: where a move and the same move in 0.01 rad steps both reach, they end in
+    the same configuration (to 1e-6 rad), and no move reaches where the fine one leaves the
+    limits. Without the continuity check 7 of these 1,440 moves ended in another arm
+    configuration with the same palm pose (the shoulder turned over) and 5 stepped over the
+    limits."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.null_motion import ArmSelfMotion
+    from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
+
+    motion = ArmSelfMotion(load_robot("panda"))
+    rng = np.random.default_rng(2)
+    moves = jumped = over = 0
+    for obj in shipped_objects("panda"):
+        for grasp in shipped_grasps(obj, "panda"):
+            for _ in range(6):
+                q = np.asarray(grasp.q0, dtype=float)
+                for _ in range(20):
+                    psi = motion.elbow_angle(q[None])[0] + rng.uniform(-1.0, 1.0) * 0.3
+                    moved, ok = motion.set_elbow_angle(q, psi)
+                    fine, ok_fine = motion.set_elbow_angle(q, psi, max_step=0.01)
+                    moves += 1
+                    over += ok and not ok_fine
+                    jumped += ok and ok_fine and np.abs(moved - fine).max() > 1e-6
+                    q = moved
+    assert moves == 1440 and (jumped, over) == (0, 0)

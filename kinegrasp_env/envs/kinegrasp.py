@@ -132,8 +132,7 @@ class KineGraspEnv(gym.Env):
             listing the known ones. Another robot: see the module docstring.
         score: what the reward scores: ``pfc`` (P(force closure)), ``hold_static`` (the
             static hold check's P(hold) on the same draws) or ``hold`` (the quick holding
-            test's, in ``hold_simulator``: slow; joint noise only, and for the default
-            robot its hand noise)
+            test's, in ``hold_simulator``: slow; joint and hand noise only)
             (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
         hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or

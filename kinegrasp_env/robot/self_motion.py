@@ -38,6 +38,11 @@ RESIDUAL_TOL = 1e-11
 MAX_JOINT_STEP = 0.2
 #: Central-difference step of the elbow angle's gradient (radians).
 GRADIENT_STEP = 1e-6
+#: A continuation step and the same step in two halves end within this (radians, any
+#: joint): else the step left the path (:func:`continue_elbow`).
+CONTINUITY_TOL = 1e-6
+#: The smallest continuation step (radians of the elbow angle) checked for continuity.
+MIN_CHECKED_STEP = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,6 +233,12 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
     """Move configurations along the self-motion to elbow angles ``psi``, the pose of
     ``link`` held, by continuation over the compiled Newton (:func:`self_motion_newton`).
 
+    Each continuation step is checked for continuity: the same step taken as two half steps
+    must end within :data:`CONTINUITY_TOL` of it (a Newton step of up to ``max_step`` can
+    settle on another arm configuration with the same pose, e.g. the shoulder turned over,
+    or step over a stretch of the path outside the joint limits). A step that fails the
+    check is taken again in halves, down to :data:`MIN_CHECKED_STEP`.
+
     Args:
         chain: the chain to ``link`` (:func:`arm_chain`); kin: the robot's kinematics;
         arm_index: (7,) the arm joints' actuated indices; angle_links: the shoulder, elbow
@@ -253,16 +264,31 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
     delta = np.angle(np.exp(1j * (np.broadcast_to(np.asarray(psi, float), (n,)) - psi0)))
     steps = max(1, int(np.ceil(np.abs(delta).max() / max_step))) if n else 1
     ok = np.ones(n, bool)
-    for s in range(1, steps + 1):
-        goal = psi0 + delta * s / steps
-        trial = q[ok].copy()
+
+    def newton_step(rows: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(configurations, converged within the limits) of Newton from rows (m, dof)."""
+        trial = rows.copy()
         trial[:, arm_index], err = self_motion_newton(
-            chain, trial[:, arm_index], target[ok], goal[ok], newton_iterations)
-        good = (np.linalg.norm(err, axis=1) < 1e-9) & kin.model.within_limits(trial)
+            chain, trial[:, arm_index], target[idx], goal, newton_iterations)
+        return trial, (np.linalg.norm(err, axis=1) < 1e-9) & kin.model.within_limits(trial)
+
+    for s in range(1, steps + 1):
         idx = np.flatnonzero(ok)
-        q[idx[good]] = trial[good]
+        start, goal = psi0[idx] + delta[idx] * (s - 1) / steps, psi0[idx] + delta[idx] * s / steps
+        trial, good = newton_step(q[idx], goal)
+        broken = np.zeros(idx.size, bool)
+        if max_step / 2.0 >= MIN_CHECKED_STEP and np.any(good):
+            middle, good_middle = newton_step(q[idx], 0.5 * (start + goal))
+            end, good_end = newton_step(middle, goal)
+            broken = good & ~(good_middle & good_end
+                              & (np.abs(end - trial).max(axis=1) <= CONTINUITY_TOL))
+        for k in np.flatnonzero(broken):  # taken again in halves (rare), to where it stops
+            moved, reached = continue_elbow(
+                chain, kin, link, arm_index, angle_links, q[idx[k]], goal[k],
+                max_step=max_step / 2.0, newton_iterations=newton_iterations)
+            trial[k], good[k] = moved[0], reached[0]
+        q[idx[good | broken]] = trial[good | broken]
         ok[idx[~good]] = False
         if not np.any(ok):
             break
     return q, ok
-
