@@ -392,6 +392,24 @@ def test_the_env_moves_a_six_joint_arm_across_its_branches(home, monkeypatch):
         assert not others, others  # only the human mode's note that there is no display
 
 
+def test_the_env_of_a_six_joint_arm_takes_a_per_joint_noise(home):
+    """A noise model with one sigma per arm joint (6 for the xArm 6): the env's info shows the
+    largest, as the observation does."""
+    import gymnasium as gym
+
+    import kinegrasp_env  # noqa: F401  (registers the envs)
+
+    sigmas = [0.004, 0.006, 0.002, 0.009, 0.001, 0.003]
+    env = gym.make("KineGrasp-v0", robot="xarm6", grasp_file=str(home[0]), n_draws=4,
+                   noise_model={"joints": {"sigma": sigmas}}).unwrapped
+    obs, info = env.reset(seed=0, options={"grasp": 0})
+    assert info["sigma"] == max(sigmas)
+    sigma_entry = 6 + (env.q.size - 6)  # after q0's arm and hand joints, scaled by 0.05 rad
+    assert obs[sigma_entry] == pytest.approx(max(sigmas) / 0.05)
+    assert env.step(np.zeros(2, dtype=np.float32))[-1]["sigma"] == max(sigmas)
+    env.close()
+
+
 def test_plan_variants_of_a_six_joint_arm_are_its_branches(home, capsys):
     """``plan --robot xarm6 --variants 3``: each grasp's variants put pybullet's palm at the
     grasp's palm pose (1e-4 m), differ pairwise by > 0.1 rad on some joint, name their branch,

@@ -146,7 +146,9 @@ BAD_SPECS = [
     ({"jionts": {"sigma": 0.1}}, "unknown source 'jionts'"),
     ({"joints": {"sigma": 0.1, "kind": "gaussian"}}, "unknown key joints.kind"),
     ({"joints": {"sigma": -0.01}}, "joints.sigma must be >= 0, got -0.01"),
-    ({"joints": {"sigma": [0.1, 0.2]}}, "joints.sigma must be a scalar or 7 values"),
+    ({"joints": {"sigma": []}}, "joints.sigma must be a scalar or one value per arm joint"),
+    ({"joints": {"sigma": [0.1, 0.2], "bias": [0.1] * 3}},
+     "joints: sigma describes 2 joints and bias describes 3 joints"),
     ({"joints": {"sigma": 4.0}}, "joints.sigma must be <= 3.14159"),
     ({"joints": {"sigma": "small"}}, "joints.sigma must be a number"),
     ({"joints": {"distribution": "cauchy"}}, "joints.distribution 'cauchy' is unknown"),
@@ -154,10 +156,13 @@ BAD_SPECS = [
      "joints.covariance is not symmetric: entry [0][1] = 0.001"),
     ({"joints": {"covariance": np.diag([1e-4] * 6 + [-1e-4]).tolist()}},
      "not positive semi-definite: smallest eigenvalue -0.0001"),
-    ({"joints": {"covariance": np.eye(6).tolist()}}, "7 rows of 7 numbers, got 6 rows"),
+    ({"joints": {"covariance": np.zeros((6, 7)).tolist()}},
+     "joints.covariance[0] must be 6 values"),
+    ({"joints": {"covariance": []}}, "d rows of d numbers, got no rows"),
     ({"joints": {"covariance": np.eye(7).tolist(), "distribution": "uniform"}},
      "covariance needs distribution gaussian"),
-    ({"joints": {"sigma": 0.1, "bias": [0.1] * 6}}, "joints.bias must be a scalar or 7 values"),
+    ({"joints": {"covariance": np.eye(7).tolist(), "bias": [0.1] * 6}},
+     "joints: covariance describes 7 joints and bias describes 6 joints"),
     ({"hand": {"closing_sigma": [0.1, 0.1]}}, "hand.closing_sigma must be a scalar or 3"),
     ({"palm": {"translation_sigma": -0.005}}, "palm.translation_sigma must be >= 0"),
     ({"object": {"rotation_sigma": [0.01, 0.01, -0.01]}}, "object.rotation_sigma must be >= 0"),
@@ -192,7 +197,8 @@ def test_spec_files_presets_and_round_trip(tmp_path):
     path.write_text("preset: dexnet\njoints: {sigma: 1.33e-2, distribution: triangular, "
                     "bias: 1e-3}\nhand: {spread_sigma: 0.01, closing_sigma: [0.01, 0.02, 0.03]}\n")
     model = load_noise_model(path)
-    assert model.joints == JointsSource(0.0133, "triangular", bias=(0.001,) * 7)
+    assert model.joints == JointsSource(0.0133, "triangular", bias=0.001)
+    assert model.joints.count is None  # scalars: any arm
     assert model.palm == PoseSource(0.005, 0.001)  # Dex-Net's gripper pose: 5 mm, 0.001 rad
     assert model.object == PoseSource(0.01, 0.01)  # object pose: 1 cm, 0.01 rad
     assert model.friction == FrictionSource("gaussian", mean=0.5, sigma=0.1)

@@ -17,31 +17,23 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel, offset_transforms, stream_rows
-from kinegrasp_env.sampling.noise_sources import ARM_JOINTS, HandSource, broadcast
+from kinegrasp_env.sampling.noise_sources import HandSource, broadcast
 
 
 def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof: int,
                       engine: str, static_hold: bool = False) -> None:
-    """ValueError (one line) for what a description robot's run cannot take: a hand source
-    its hand cannot take (:func:`check_hand`), a joints covariance, bias or per-joint sigma
-    of another length than its arm's, palm, object or friction errors in the physics
-    engine, a per-draw mu beside the static hold check. ``robot``: the robot, or its catalog
-    name."""
+    """ValueError (one line) for what a robot's run cannot take: a hand source its hand
+    cannot take (:func:`check_hand`), a joints source whose per-joint values describe
+    another arm than its, palm, object or friction errors in the physics engine, a per-draw
+    mu beside the static hold check. ``robot``: the robot, or its catalog name."""
     if model.hand is not None:
         check_hand(model.hand, robot)
     robot = robot if isinstance(robot, str) else robot.name
     joints = model.joints
-    if joints is not None and arm_dof != ARM_JOINTS:
-        given = [name for name, value in (("covariance", joints.covariance),
-                                          ("bias", joints.bias)) if value is not None]
-        if np.ndim(joints.sigma) == 1 and len(joints.sigma) != arm_dof:
-            given.append(f"{len(joints.sigma)} sigmas")
-        if given:
-            raise ValueError(f"robot {robot!r} has {arm_dof} arm joints; the spec's joints "
-                             f"{' and '.join(given)} describe {ARM_JOINTS} (give one sigma, "
-                             "or one per arm joint)")
+    if joints is not None and joints.count not in (None, arm_dof):
+        raise ValueError(f"robot {robot!r} has {arm_dof} arm joints; the spec's joints "
+                         f"describe {joints.count} (give one sigma, or one per arm joint)")
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]
     if other and engine == "physics":
         raise ValueError(f"the physics engine of robot {robot!r} takes joint and hand noise "
@@ -137,11 +129,8 @@ def joint_rows(model: NoiseModel, arm_dof: int, seed: int, offset: int,
     joints = model.joints
     if joints is None or joints.exact:
         return np.zeros((size, arm_dof))
-    if arm_dof == ARM_JOINTS:
-        return stream_rows(seed, "joints", offset, size, joints.sample)
-    independent = JointNoise(joints.sigma, joints.distribution)
     return stream_rows(seed, "joints", offset, size,
-                       lambda generator, rows: independent.sample(rows, arm_dof, generator))
+                       lambda generator, rows: joints.sample(generator, rows, arm_dof))
 
 
 def model_rows(model: NoiseModel, q0: np.ndarray, description: RobotDescription, seed: int,

@@ -4,10 +4,10 @@ friction.
 A :class:`NoiseModel` holds up to five sources; a missing source is exact, and a model with
 every sigma zero is the nominal grasp. Per draw (units: radians, metres):
 
-* ``joints`` (:class:`JointsSource`): eps (7,) added to the arm joints: independent, with one
-  sigma per joint and any distribution of :class:`~kinegrasp_env.sampling.noise.JointNoise`
-  (the same numbers for the same stream), or Gaussian with a full 7x7 covariance; plus an
-  optional constant bias (a calibration offset).
+* ``joints`` (:class:`JointsSource`): eps added to the arm joints (7 for the default robot;
+  a robot's arm_dof): independent, with one sigma per joint and any distribution of
+  :class:`~kinegrasp_env.sampling.noise.JointNoise` (the same numbers for the same stream),
+  or Gaussian with a full covariance; plus an optional constant bias (a calibration offset).
 * ``hand`` (:class:`HandSource`): Gaussian offsets (4,): the pre-shape spread, then one per
   finger added to both of its flexion joints (the angles at which closing starts).
 * ``palm`` (:class:`PoseSource`): a Gaussian rigid error of the hand relative to the flange,
@@ -217,11 +217,12 @@ class NoiseModel:
 
     @property
     def sigma(self) -> float | tuple[float, ...]:
-        """Joint sigma as ``JointNoise.sigma`` (scalar or 7; 0 without joint noise)."""
+        """Joint sigma as ``JointNoise.sigma`` (scalar or one per arm joint; 0 without joint
+        noise)."""
         if self.joints is None:
             return 0.0
         if self.joints.covariance is not None:
-            return tuple(self.joints.sigma_vector().tolist())
+            return tuple(self.joints.sigma_vector(self.joints.count).tolist())
         return self.joints.sigma
 
     @property
@@ -230,14 +231,11 @@ class NoiseModel:
         return "gaussian" if self.joints is None else self.joints.distribution
 
     def sigma_vector(self, dim: int) -> np.ndarray:
-        """(dim,) joint standard deviations, as :meth:`JointNoise.sigma_vector`."""
+        """(dim,) joint standard deviations, as :meth:`JointNoise.sigma_vector` (ValueError
+        where the joints source describes another arm)."""
         if self.joints is None:
             return np.zeros(dim)
-        if self.joints.covariance is None:
-            return JointNoise(self.joints.sigma).sigma_vector(dim)
-        if dim != ARM_JOINTS:
-            raise ValueError(f"the covariance has 7 joints but the noise acts on {dim} joints")
-        return self.joints.sigma_vector()
+        return self.joints.sigma_vector(dim)
 
     def draw(self, seed: int, index: int, size: int, method: str = "mc") -> NoiseDraws:
         """Draws of chunk ``index`` of a run with ``seed`` (streams in the module
@@ -246,7 +244,8 @@ class NoiseModel:
         bias) draws nothing: it is exact, and the draw is the nominal one bit for bit."""
         out = {}
         if self.joints is not None and not self.joints.exact:
-            out["joints"] = self.joints.sample(chunk_stream(seed, index), size, method)
+            out["joints"] = self.joints.sample(chunk_stream(seed, index), size, ARM_JOINTS,
+                                               method)
         for name in SOURCES[1:]:
             source = getattr(self, name)
             if source is not None and not source.exact:

@@ -1,8 +1,8 @@
 """The sources of error of a noise model, one class each, with their checks and samplers.
 
-:class:`JointsSource` (arm joints: independent per-joint sigma in any of the three
-distributions of :class:`~kinegrasp_env.sampling.noise.JointNoise`, or a 7x7 covariance; a
-bias), :class:`HandSource` (pre-shape spread and per-finger closing offsets),
+:class:`JointsSource` (arm joints, any number of them: independent per-joint sigma in
+any of the three distributions of :class:`~kinegrasp_env.sampling.noise.JointNoise`, or a
+covariance; a bias), :class:`HandSource` (pre-shape spread and per-finger closing offsets),
 :class:`PoseSource` (a Gaussian rigid error: palm or object) and :class:`FrictionSource` (mu
 per draw). Each validates its values on construction (:class:`NoiseSpecError`, one line
 naming the bad value) and samples from a given generator. Units: radians, metres.
@@ -20,6 +20,7 @@ from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 FRICTION_DISTRIBUTIONS = ("gaussian", "uniform", "fixed")
 #: Largest joint sigma or bias (radians): the bound of ``montecarlo.evaluate.MAX_SIGMA``.
 MAX_ANGLE = math.pi
+#: The default robot's arm joints (the joint stream of its runs draws this many columns).
 ARM_JOINTS = 7
 
 
@@ -28,8 +29,9 @@ class NoiseSpecError(ValueError):
 
 
 # ----------------------------------------------------------------------------- value checks
-def values(value, name: str, lengths: tuple[int, ...] = (1,)) -> np.ndarray:
-    """``value`` as a float vector of one of ``lengths`` (a scalar has length 1), finite."""
+def values(value, name: str, lengths: tuple[int, ...] | None = (1,)) -> np.ndarray:
+    """``value`` as a float vector of one of ``lengths`` (a scalar has length 1; None: any
+    length from 1), finite."""
     if isinstance(value, bool) or isinstance(value, str):
         raise NoiseSpecError(f"{name} must be a number or a list of numbers, got {value!r}")
     try:
@@ -37,7 +39,10 @@ def values(value, name: str, lengths: tuple[int, ...] = (1,)) -> np.ndarray:
     except (TypeError, ValueError):
         raise NoiseSpecError(f"{name} must be a number or a list of numbers, "
                              f"got {value!r}") from None
-    if arr.ndim != 1 or arr.size not in lengths:
+    if lengths is None and (arr.ndim != 1 or arr.size == 0):
+        raise NoiseSpecError(f"{name} must be a scalar or one value per arm joint, "
+                             f"got {value!r}")
+    if lengths is not None and (arr.ndim != 1 or arr.size not in lengths):
         wanted = " or ".join("a scalar" if n == 1 else f"{n} values" for n in lengths)
         raise NoiseSpecError(f"{name} must be {wanted}, got {value!r}")
     if not np.all(np.isfinite(arr)):
@@ -45,8 +50,8 @@ def values(value, name: str, lengths: tuple[int, ...] = (1,)) -> np.ndarray:
     return arr
 
 
-def sigmas(value, name: str, lengths: tuple[int, ...] = (1, 3), bound: float = math.inf
-           ) -> float | tuple[float, ...]:
+def sigmas(value, name: str, lengths: tuple[int, ...] | None = (1, 3),
+           bound: float = math.inf) -> float | tuple[float, ...]:
     """Standard deviations: finite, >= 0 and <= ``bound``; a float or a tuple."""
     arr = values(value, name, lengths)
     if np.any(arr < 0):
@@ -90,75 +95,107 @@ def covariance_factor(cov: np.ndarray, name: str = "joints.covariance") -> np.nd
 # ----------------------------------------------------------------------------- sources
 @dataclass(frozen=True)
 class JointsSource:
-    """Arm-joint error eps (7,) radians: independent (``sigma``, ``distribution``) or Gaussian
-    with ``covariance`` (7x7, symmetric PSD); plus ``bias`` (7,) added to every draw.
+    """Arm-joint error eps (d,) radians on an arm of d joints: independent (``sigma``,
+    ``distribution``) or Gaussian with ``covariance`` (d x d, symmetric PSD); plus ``bias``
+    added to every draw. Scalars fit an arm of any number of joints; per-joint values fix
+    d (:attr:`count`), checked against a robot's arm where the source is used.
 
     Attributes:
-        sigma: scalar or 7 standard deviations (ignored when ``covariance`` is given).
+        sigma: scalar or one standard deviation per arm joint (ignored when ``covariance``
+            is given).
         distribution: ``gaussian``, ``uniform`` or ``triangular`` (independent case only).
-        covariance: 7x7 (rad^2) as nested tuples, or None.
-        bias: 7 constant offsets (rad), or None.
+        covariance: d x d (rad^2) as nested tuples, or None.
+        bias: scalar or one constant offset per arm joint (rad), or None.
     """
 
     sigma: float | tuple[float, ...] = 0.0
     distribution: str = "gaussian"
     covariance: tuple[tuple[float, ...], ...] | None = None
-    bias: tuple[float, ...] | None = None
+    bias: float | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.distribution not in DISTRIBUTIONS:
             raise NoiseSpecError(f"joints.distribution {self.distribution!r} is unknown; "
                                  f"choose from {', '.join(DISTRIBUTIONS)}")
         set_ = object.__setattr__
-        set_(self, "sigma", sigmas(self.sigma, "joints.sigma", (1, ARM_JOINTS), MAX_ANGLE))
+        set_(self, "sigma", sigmas(self.sigma, "joints.sigma", None, MAX_ANGLE))
         if self.covariance is not None:
             if self.distribution != "gaussian":
                 raise NoiseSpecError("joints.covariance needs distribution gaussian, got "
                                      f"{self.distribution!r}")
-            rows = [values(r, f"joints.covariance[{i}]", (ARM_JOINTS,))
-                    for i, r in enumerate(self._rows(self.covariance))]
-            cov = np.array(rows)
+            rows = self._rows(self.covariance)
+            cov = np.array([values(r, f"joints.covariance[{i}]", (len(rows),))
+                            for i, r in enumerate(rows)])
             covariance_factor(cov)
             if np.any(np.sqrt(np.diag(cov)) > MAX_ANGLE):
                 raise NoiseSpecError("joints.covariance has a standard deviation above pi")
             set_(self, "covariance", tuple(tuple(r.tolist()) for r in cov))
         if self.bias is not None:
-            bias = values(self.bias, "joints.bias", (1, ARM_JOINTS))
+            bias = values(self.bias, "joints.bias", None)
             if np.any(np.abs(bias) > MAX_ANGLE):
                 raise NoiseSpecError(f"joints.bias must be within +-pi, got {self.bias!r}")
-            set_(self, "bias", tuple(broadcast(tuple(bias.tolist()), ARM_JOINTS).tolist()))
+            set_(self, "bias", float(bias[0]) if np.ndim(self.bias) == 0
+                 else tuple(bias.tolist()))
+        counts = {name: len(value) for name, value in (
+            ("covariance" if self.covariance is not None else "sigma",
+             self.covariance if self.covariance is not None else self.sigma),
+            ("bias", self.bias)) if isinstance(value, tuple)}
+        if len(set(counts.values())) > 1:
+            raise NoiseSpecError("joints: " + " and ".join(
+                f"{name} describes {n} joints" for name, n in counts.items()))
 
     @staticmethod
     def _rows(covariance) -> list:
         if isinstance(covariance, (str, bytes)) or np.ndim(covariance) == 0:
-            raise NoiseSpecError(f"joints.covariance must be 7 rows of 7 numbers, got "
-                                 f"{covariance!r}")
+            raise NoiseSpecError(f"joints.covariance must be rows of numbers (d rows of d, one "
+                                 f"per arm joint), got {covariance!r}")
         rows = list(covariance)
-        if len(rows) != ARM_JOINTS:
-            raise NoiseSpecError(f"joints.covariance must be 7 rows of 7 numbers, got "
-                                 f"{len(rows)} rows")
+        if not rows:
+            raise NoiseSpecError("joints.covariance must be d rows of d numbers, got no rows")
         return rows
 
-    def sigma_vector(self) -> np.ndarray:
-        """(7,) standard deviations (the square roots of the covariance's diagonal)."""
+    @property
+    def count(self) -> int | None:
+        """The number of arm joints its per-joint values describe (None: scalars only, any
+        arm)."""
+        if self.covariance is not None:
+            return len(self.covariance)
+        for value in (self.sigma, self.bias):
+            if isinstance(value, tuple):
+                return len(value)
+        return None
+
+    def check_count(self, dim: int) -> None:
+        """ValueError (one line) unless the source fits an arm of ``dim`` joints."""
+        if self.count is not None and self.count != dim:
+            raise ValueError(f"the noise spec's joints describe {self.count} arm joints but "
+                             f"the noise acts on {dim} (give one sigma, or one per arm joint)")
+
+    def sigma_vector(self, dim: int) -> np.ndarray:
+        """(dim,) standard deviations of an arm of ``dim`` joints (the square roots of the
+        covariance's diagonal); ValueError where the source describes another arm."""
+        self.check_count(dim)
         if self.covariance is not None:
             return np.sqrt(np.diag(np.array(self.covariance)))
-        return broadcast(self.sigma, ARM_JOINTS)
+        return broadcast(self.sigma, dim)
 
-    def sample(self, rng: np.random.Generator, size: int, method: str = "mc") -> np.ndarray:
-        """eps (size, 7), radians. The independent case is ``JointNoise(sigma, distribution)
-        .sample(size, 7, rng, method)`` itself."""
+    def sample(self, rng: np.random.Generator, size: int, dim: int = ARM_JOINTS,
+               method: str = "mc") -> np.ndarray:
+        """eps (size, dim), radians, of an arm of ``dim`` joints (default: the default
+        robot's). The independent case is ``JointNoise(sigma, distribution).sample(size,
+        dim, rng, method)`` itself."""
+        self.check_count(dim)
         if self.covariance is None:
-            eps = JointNoise(self.sigma, self.distribution).sample(size, ARM_JOINTS, rng,
+            eps = JointNoise(self.sigma, self.distribution).sample(size, dim, rng,
                                                                    method=method)
         else:
-            z = JointNoise(1.0).sample(size, ARM_JOINTS, rng, method=method)
+            z = JointNoise(1.0).sample(size, dim, rng, method=method)
             eps = z @ covariance_factor(np.array(self.covariance)).T
-        return eps if self.bias is None else eps + np.array(self.bias)
+        return eps if self.bias is None else eps + np.asarray(self.bias)
 
     @property
     def exact(self) -> bool:
-        return not np.any(self.sigma_vector()) and not np.any(self.bias or 0.0)
+        return not np.any(self.sigma_vector(self.count or 1)) and not np.any(self.bias or 0.0)
 
 
 @dataclass(frozen=True)

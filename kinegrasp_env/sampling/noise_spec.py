@@ -3,8 +3,9 @@
 The shape (every section optional; a missing one is an exact source)::
 
     preset: dexnet                                # optional: start from a preset
-    joints:   {sigma: 0.0133, distribution: gaussian}   # sigma: scalar or 7 (radians);
-              # or covariance: 7x7 (rad^2, symmetric PSD); optional bias: 7 values (radians)
+    joints:   {sigma: 0.0133, distribution: gaussian}   # sigma: scalar or one per arm joint
+              # (radians); or covariance: d x d for d arm joints (rad^2, symmetric PSD);
+              # optional bias: scalar or one per arm joint (radians)
     hand:     {spread_sigma: 0.0, closing_sigma: 0.0}   # radians; closing: scalar or 3
     palm:     {translation_sigma: 0.0, rotation_sigma: 0.0}    # metres, radians; scalar or 3
     object:   {translation_sigma: 0.01, rotation_sigma: 0.01}  # metres, radians; scalar or 3
@@ -127,7 +128,7 @@ def spec_of(model: NoiseModel) -> dict:
         else:
             section["sigma"] = _plain(joints.sigma)
         if joints.bias is not None:
-            section["bias"] = list(joints.bias)
+            section["bias"] = _plain(joints.bias)
         out["joints"] = section
     if model.hand is not None:
         out["hand"] = {"spread_sigma": model.hand.spread_sigma,
