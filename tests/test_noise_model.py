@@ -159,6 +159,7 @@ BAD_SPECS = [
     ({"joints": {"covariance": np.zeros((6, 7)).tolist()}},
      "joints.covariance[0] must be 6 values"),
     ({"joints": {"covariance": []}}, "d rows of d numbers, got no rows"),
+    ({"joints": {"covariance": [[1e-4, 0.0], [0.0]]}}, "joints.covariance[1] must be 2 values"),
     ({"joints": {"covariance": np.eye(7).tolist(), "distribution": "uniform"}},
      "covariance needs distribution gaussian"),
     ({"joints": {"covariance": np.eye(7).tolist(), "bias": [0.1] * 6}},
@@ -199,6 +200,11 @@ def test_spec_files_presets_and_round_trip(tmp_path):
     model = load_noise_model(path)
     assert model.joints == JointsSource(0.0133, "triangular", bias=0.001)
     assert model.joints.count is None  # scalars: any arm
+    one = JointsSource([0.0133], bias=[0.001])  # lists of one value: scalars, any arm
+    assert one.count is None and one.sigma_vector(6).tolist() == [0.0133] * 6
+    with pytest.raises(NoiseSpecError, match="covariance describes 7 joints and sigma "
+                                             "describes 6 joints"):
+        JointsSource([0.01] * 6, covariance=np.eye(7).tolist())
     assert model.palm == PoseSource(0.005, 0.001)  # Dex-Net's gripper pose: 5 mm, 0.001 rad
     assert model.object == PoseSource(0.01, 0.01)  # object pose: 1 cm, 0.01 rad
     assert model.friction == FrictionSource("gaussian", mean=0.5, sigma=0.1)

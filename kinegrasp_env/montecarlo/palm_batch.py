@@ -126,6 +126,7 @@ def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError("re-weighting needs zero-mean Gaussian joint noise (no bias); use "
                          "--method direct")
     else:
+        joints.check_count(dof)
         cov = joint_covariance(joints.covariance if joints.covariance is not None
                                else joints.sigma, dof)
     palm_cov = np.zeros((6, 6)) if palm is None else np.diag(palm.variances())

@@ -61,6 +61,11 @@ def sigmas(value, name: str, lengths: tuple[int, ...] | None = (1, 3),
     return float(arr[0]) if arr.size == 1 and np.ndim(value) == 0 else tuple(arr.tolist())
 
 
+def joints(n: int) -> str:
+    """``n`` joints, in words ("1 joint", "7 joints")."""
+    return f"{n} joint{'' if n == 1 else 's'}"
+
+
 def broadcast(value: float | tuple[float, ...], size: int) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(value, dtype=float))
     return np.full(size, arr[0]) if arr.size == 1 else arr
@@ -134,19 +139,19 @@ class JointsSource:
             bias = values(self.bias, "joints.bias", None)
             if np.any(np.abs(bias) > MAX_ANGLE):
                 raise NoiseSpecError(f"joints.bias must be within +-pi, got {self.bias!r}")
-            set_(self, "bias", float(bias[0]) if np.ndim(self.bias) == 0
-                 else tuple(bias.tolist()))
+            set_(self, "bias", float(bias[0]) if bias.size == 1 else tuple(bias.tolist()))
         counts = {name: len(value) for name, value in (
-            ("covariance" if self.covariance is not None else "sigma",
-             self.covariance if self.covariance is not None else self.sigma),
-            ("bias", self.bias)) if isinstance(value, tuple)}
+            ("covariance", self.covariance), ("sigma", self.sigma), ("bias", self.bias))
+            if isinstance(value, tuple) and len(value) > 1}
         if len(set(counts.values())) > 1:
             raise NoiseSpecError("joints: " + " and ".join(
-                f"{name} describes {n} joints" for name, n in counts.items()))
+                f"{name} describes {joints(n)}" for name, n in counts.items()))
 
     @staticmethod
     def _rows(covariance) -> list:
-        if isinstance(covariance, (str, bytes)) or np.ndim(covariance) == 0:
+        if isinstance(covariance, np.ndarray):
+            covariance = covariance.tolist()
+        if not isinstance(covariance, (list, tuple)):
             raise NoiseSpecError(f"joints.covariance must be rows of numbers (d rows of d, one "
                                  f"per arm joint), got {covariance!r}")
         rows = list(covariance)
@@ -156,20 +161,20 @@ class JointsSource:
 
     @property
     def count(self) -> int | None:
-        """The number of arm joints its per-joint values describe (None: scalars only, any
-        arm)."""
+        """The number of arm joints its per-joint values describe (None: scalars, or lists
+        of one value, only: any arm)."""
         if self.covariance is not None:
             return len(self.covariance)
         for value in (self.sigma, self.bias):
-            if isinstance(value, tuple):
+            if isinstance(value, tuple) and len(value) > 1:
                 return len(value)
         return None
 
     def check_count(self, dim: int) -> None:
         """ValueError (one line) unless the source fits an arm of ``dim`` joints."""
         if self.count is not None and self.count != dim:
-            raise ValueError(f"the noise spec's joints describe {self.count} arm joints but "
-                             f"the noise acts on {dim} (give one sigma, or one per arm joint)")
+            raise ValueError(f"the noise spec's joints describe {joints(self.count)} but the "
+                             f"noise acts on {dim} (give one sigma, or one per arm joint)")
 
     def sigma_vector(self, dim: int) -> np.ndarray:
         """(dim,) standard deviations of an arm of ``dim`` joints (the square roots of the
