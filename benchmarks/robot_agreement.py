@@ -9,6 +9,14 @@ engine (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) close
 Three comparisons: fast vs reference (what the batched closing changes), reference vs bullet
 and fast vs bullet (what the contact rules change: the patch centre moves a point on a face,
 the face's normal replaces pybullet's).
+
+Run on its own for any catalog robot (the engines its evaluate, rank and env run; for the
+default robot the env's two engines):
+``python benchmarks/robot_agreement.py [--robot kuka_sdh] [--objects cube mug] [--grasps 3]
+[--draws 100] [--sigmas 0.0133 0.0266] [--seed 1]``: one row per object, sigma and
+comparison, then the share of draws with the same outcome over all fast-vs-reference rows.
+The figures also go to ``benchmarks/results/robot_agreement.json`` (``--json-out PATH``,
+``--no-json``).
 """
 
 from __future__ import annotations
@@ -92,3 +100,54 @@ def robot_agreement(robot: str, object_name: str, grasps: list[Grasp], sigma: fl
                 "fast vs bullet": compare(a, c, n, draws)}
     finally:
         reference.close()
+
+
+def main() -> None:
+    import argparse
+
+    from results_file import add_options, settings, write_result
+
+    from kinegrasp_env.robot.catalog import robot_names
+    from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
+
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--robot", default="kuka_sdh", help="a catalog robot")
+    parser.add_argument("--objects", nargs="+", help="objects with shipped grasps of the robot "
+                        "(default: all of them)")
+    parser.add_argument("--grasps", type=int, default=3, help="the first grasps of each set")
+    parser.add_argument("--draws", type=int, default=100, help="draws per grasp")
+    parser.add_argument("--sigmas", nargs="+", type=float, default=[0.0133, 0.0266])
+    parser.add_argument("--seed", type=int, default=1)
+    add_options(parser, __file__)
+    args = parser.parse_args()
+    if args.robot not in robot_names():
+        parser.error(f"unknown robot {args.robot!r}; known robots: {', '.join(robot_names())}")
+    objects = args.objects or list(shipped_objects(args.robot))
+    missing = [name for name in objects if name not in shipped_objects(args.robot)]
+    if missing:
+        parser.error(f"robot {args.robot!r} has no shipped grasps of {missing[0]!r}")
+    for name, value in (("--grasps", args.grasps), ("--draws", args.draws)):
+        if value < 1:
+            parser.error(f"{name} must be >= 1, got {value}")
+    rows = []
+    for name in objects:
+        grasps = shipped_grasps(name, args.robot)[:args.grasps]
+        for sigma in args.sigmas:
+            for label, r in robot_agreement(args.robot, name, grasps, sigma, args.draws,
+                                            args.seed).items():
+                print(f"{name:12s} {sigma:6.4f} {label:20s} {r['same_outcome']:5d}/"
+                      f"{r['draws']:<5d} point max {r['point_max']:9.2e} m, normal max "
+                      f"{r['normal_max_deg']:7.3f} deg", flush=True)
+                rows.append({"object": name, "sigma": sigma, "comparison": label,
+                             "grasps": len(grasps), **r})
+    paired = [r for r in rows if r["comparison"] == "fast vs reference"]
+    same, total = sum(r["same_outcome"] for r in paired), sum(r["draws"] for r in paired)
+    print(f"fast vs reference: the same outcome on {same} of {total} draws")
+    if not args.no_json:
+        write_result(__file__, {"robot": args.robot, "same_outcome": same, "draws": total,
+                                "rows": rows, "settings": settings(args)}, args.json_out)
+
+
+if __name__ == "__main__":
+    main()

@@ -220,8 +220,8 @@ def test_the_env_default_engine_is_fast_and_agrees_with_the_reference():
     task, seed and draws the reference engine (pybullet) gives the same outcome draw for
     draw (``info["outcomes"]`` counts of 64 draws at two elbow steps; the env's two engines
     of the default robot took the same outcome on 2,400 of 2,400 draws of its shipped grasps,
-    3 per object, sigma 0.0133 and 0.0266 rad, 100 draws each, seed 1, measured with
-    ``benchmarks/robot_agreement.py``'s ``robot_agreement``; one draw in 64 may differ)."""
+    3 per object, sigma 0.0133 and 0.0266 rad, 100 draws each: ``python
+    benchmarks/robot_agreement.py``; one draw in 64 may differ)."""
     import gymnasium as gym
     import numpy as np
 
