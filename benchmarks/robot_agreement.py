@@ -1,5 +1,5 @@
-"""Agreement of a description robot's two engines (the Panda's by default) on the same draws,
-and of both with pybullet's own closest points; used by ``agreement.py``.
+"""Agreement of a catalog robot's two engines (``kuka_sdh`` by default; ``agreement.py`` runs
+the Panda's) on the same draws, and of both with pybullet's own closest points.
 
 For each draw the reference engine (pybullet closest points, :class:`~kinegrasp_env.
 montecarlo.robot_evaluate.RobotReferenceEngine`) closes the hand; at its final state each

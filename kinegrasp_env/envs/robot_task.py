@@ -26,8 +26,8 @@ Everything robot-specific is derived from the robot's description
   :mod:`~kinegrasp_env.montecarlo.hold_check`) or ``hold`` (the fraction the quick holding
   test holds in pybullet or MuJoCo: :func:`~kinegrasp_env.montecarlo.hold_engine.
   quick_hold_engine`,
-  whose physics closings also give the step's P(FC); joint and hand noise, and about a
-  tenth of a second a draw, where the kinematic engines take microseconds to milliseconds;
+  whose physics closings also give the step's P(FC); joint and hand noise, and tens of
+  milliseconds a draw, where the kinematic engines take microseconds to milliseconds;
   the default robot's holding test is its hand's own controller);
 - **observation** (:mod:`~kinegrasp_env.envs.observation`): ``2 * arm_dof + hand_dof + 23``
   entries (44 for the default robot, 38 for the Panda);
@@ -179,7 +179,7 @@ class RobotTask:
         return self._engines[key]
 
     def closing_engine(self, object_name: str) -> RobotEngine:
-        """The kinematic engine ``engine`` names, of ``object_name`` (a task's nominal
+        """The engine ``engine`` names, of ``object_name`` (a task's nominal
         closing): the reward's, unless the score is ``hold``."""
         if self.score != "hold":
             return self.engine(object_name)

@@ -10,9 +10,9 @@ open hand already in the object) and ``missed`` (fewer than 2 contacts, or a fin
 on nothing) leave no nominal contacts and are ValueErrors naming the outcome. The arm links
 are not checked against the object (the draws do not check them either).
 
-Any robot of the env (:func:`given_robot_grasp`: its kinematic engine's closing): the robot's
-actuated vector, or a palm pose with its pre-shape as the description names it, reached by
-every robot's one IK (:func:`palm_pose_configuration`).
+Any robot of the env (:func:`given_robot_grasp`: the closing of the engine ``engine``
+names): the robot's actuated vector, or a palm pose with its pre-shape as the description
+names it, reached by every robot's one IK (:func:`palm_pose_configuration`).
 """
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ def check_closes(draw, object_name: str, source: str) -> None:
 
 def given_robot_grasp(options: dict, key: str, task: RobotTask) -> Grasp:
     """The grasp of a ``q0`` or ``palm_pose`` reset option (``key``) of the env's robot
-    (``task``) on the ``object`` option: closed once at q0 by the task's kinematic engine."""
+    (``task``) on the ``object`` option: closed once at q0 by the engine ``engine`` names."""
     name = task_object(options, key)
     description = task.description
     if key == "q0":

@@ -141,8 +141,8 @@ class ArmIK:
                         newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
         """Move along the self-motion manifold to elbow angle ``psi``, palm pose fixed
         (:func:`~kinegrasp_env.robot.self_motion.continue_elbow`: its arguments and
-        returns, (q_new (n, dof), ok (n,)); 0.3 rad steps take one step for the env's
-        0.3 rad moves)."""
+        returns, (q_new (n, dof), ok (n,)); a move of up to 0.3 rad is one continuation
+        step, three Newton solves with the continuity check)."""
         return continue_elbow(self._chain, self.kin, self.link, self.arm_index,
                               ARM_ANGLE_LINKS, q, psi, max_step=max_step,
                               newton_iterations=newton_iterations)

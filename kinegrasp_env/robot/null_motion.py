@@ -16,8 +16,9 @@ names a joint or link. Where the chain base -> palm is driven by the arm joints 
 (:func:`~kinegrasp_env.robot.self_motion.continue_elbow`, which :mod:`kinegrasp_env.robot.ik`
 runs for the default robot's fixed chain: on the default robot's description the two give
 the same configurations); another chain takes the batched numpy kinematics, a step accepted
-where the residual is below :data:`RESIDUAL_TOL`. A move of 0.3 rad takes one step; its cost
-is timed by ``python benchmarks/bench_env.py``.
+where the residual is below :data:`RESIDUAL_TOL`. A move of 0.3 rad is one continuation step
+(three Newton solves on the compiled path: ``python benchmarks/bench_self_motion.py``; within
+env steps: ``python benchmarks/bench_env.py``).
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
 """Newton on the arm's self-motion as one compiled loop: the palm held, the elbow angle moved.
 
-:meth:`kinegrasp_env.robot.ik.ArmIK.set_elbow_angle` solves, at each continuation step, the
-square system "palm pose error = 0 (6 rows), elbow angle - goal = 0 (1 row)" in the 7 arm
-joints. For one configuration (what the environment asks for at every step) the batched
+:func:`continue_elbow` (run by :meth:`kinegrasp_env.robot.ik.ArmIK.set_elbow_angle` and by
+every robot's :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`) solves, at each
+continuation step, the square system "palm pose error = 0 (6 rows), elbow angle - goal = 0
+(1 row)" in the 7 arm joints, three times: the step, and the same step in two halves as its
+continuity check. For one configuration (what the environment asks for at every step) the batched
 numpy kinematics spend almost all their time in per-call overhead (paid at every step, and
 a curve of elbow angles takes ~30 of them); here each row runs its whole Newton loop
 compiled (timings: ``benchmarks/bench_self_motion.py``): the
@@ -41,7 +43,8 @@ GRADIENT_STEP = 1e-6
 #: A continuation step and the same step in two halves end within this (radians, any
 #: joint): else the step left the path (:func:`continue_elbow`).
 CONTINUITY_TOL = 1e-6
-#: The smallest continuation step (radians of the elbow angle) checked for continuity.
+#: A continuation step is checked where its halves are at least this (radians of the elbow
+#: angle); a step that fails is taken again in halves until they would fall below it.
 MIN_CHECKED_STEP = 0.01
 
 
@@ -237,7 +240,7 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
     must end within :data:`CONTINUITY_TOL` of it (a Newton step of up to ``max_step`` can
     settle on another arm configuration with the same pose, e.g. the shoulder turned over,
     or step over a stretch of the path outside the joint limits). A step that fails the
-    check is taken again in halves, down to :data:`MIN_CHECKED_STEP`.
+    check is taken again in halves (:data:`MIN_CHECKED_STEP`).
 
     Args:
         chain: the chain to ``link`` (:func:`arm_chain`); kin: the robot's kinematics;
@@ -246,9 +249,11 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
         q: (n, dof) or (dof,) start configurations; their poses of ``link`` are kept.
         psi: (n,) or scalar target elbow angles (radians).
         max_step: largest change of psi per continuation step (radians). Where the path
-            stays within the limits the result does not depend on it (the same branch to
-            1e-6 rad on all 48 shipped grasps of the default robot from 0.05 to 0.4); a path
-            that leaves them stops within one step of the limit.
+            stays within the limits and away from the shoulder's singularity (a2 = 0) the
+            result does not depend on it (the same branch to 1e-6 rad on all 48 shipped
+            grasps of the default robot from 0.05 to 0.4); near it a coarse and a fine
+            continuation may pass it on different branches; a path that leaves the limits
+            stops within one step of the limit.
         newton_iterations: Newton iterations per step.
 
     Returns:
