@@ -20,7 +20,7 @@ from kinegrasp_env.robot.kinematics import (
     Kinematics,
     pose_error,
 )
-from kinegrasp_env.robot.self_motion import arm_chain, continue_elbow
+from kinegrasp_env.robot.self_motion import arm_chain, compiled_step, continue_elbow
 
 POSITION_TOL = 1e-7  # metres
 ORIENTATION_TOL = 1e-7  # radians
@@ -143,6 +143,6 @@ class ArmIK:
         (:func:`~kinegrasp_env.robot.self_motion.continue_elbow`: its arguments and
         returns, (q_new (n, dof), ok (n,)); a move of up to 0.3 rad is one continuation
         step, three Newton solves with the continuity check)."""
-        return continue_elbow(self._chain, self.kin, self.link, self.arm_index,
-                              ARM_ANGLE_LINKS, q, psi, max_step=max_step,
-                              newton_iterations=newton_iterations)
+        return continue_elbow(compiled_step(self._chain, self.kin, self.arm_index,
+                                            newton_iterations),
+                              self.kin, self.link, ARM_ANGLE_LINKS, q, psi, max_step=max_step)

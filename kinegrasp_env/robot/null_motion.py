@@ -11,14 +11,15 @@ moves along it by continuation: each step solves the square 7x7 Newton system
 with the palm's geometric Jacobian (:meth:`~kinegrasp_env.robot.kinematics.Kinematics.
 jacobian`, arm columns) and psi's gradient by central differences; the first 6 rows keep
 dq in the Jacobian's null space to first order, the last one moves the elbow. Nothing in it
-names a joint or link. Where the chain base -> palm is driven by the arm joints directly
-(every catalog robot's), the continuation and its Newton run compiled
-(:func:`~kinegrasp_env.robot.self_motion.continue_elbow`, which :mod:`kinegrasp_env.robot.ik`
-runs for the default robot's fixed chain: on the default robot's description the two give
-the same configurations); another chain takes the batched numpy kinematics, a step accepted
-where the residual is below :data:`RESIDUAL_TOL`. A move of 0.3 rad is one continuation step
-(three Newton solves on the compiled path: ``python benchmarks/bench_self_motion.py``; within
-env steps: ``python benchmarks/bench_env.py``).
+names a joint or link. The continuation, with its continuity check, is the one
+:mod:`kinegrasp_env.robot.ik` runs for the default robot's fixed chain
+(:func:`~kinegrasp_env.robot.self_motion.continue_elbow`: on the default robot's description
+the two give the same configurations); its Newton runs compiled where the chain base -> palm
+is driven by the arm joints directly (every catalog robot's:
+:func:`~kinegrasp_env.robot.self_motion.compiled_step`), else in the batched numpy
+kinematics, a step converged where the residual is below :data:`RESIDUAL_TOL`. A move of
+0.3 rad is one continuation step (three Newton solves: ``python
+benchmarks/bench_self_motion.py``; within env steps: ``python benchmarks/bench_env.py``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, elbow_angle, pose_error
-from kinegrasp_env.robot.self_motion import ArmChain, arm_chain, continue_elbow
+from kinegrasp_env.robot.self_motion import ArmChain, arm_chain, compiled_step, continue_elbow
 
 #: Newton converged where the residual's norm (metres, radians) is below this.
 RESIDUAL_TOL = 1e-9
@@ -112,22 +113,14 @@ class ArmSelfMotion:
             met a singularity or did not converge; q_new is then the last valid point.
         """
         if self._chain is not None:
-            moved, ok = continue_elbow(self._chain, self.kin, self.palm, self.arm,
-                                       self.angle_links, q, psi, max_step=max_step,
-                                       newton_iterations=newton_iterations)
-            return moved[0], bool(ok[0])
-        q = np.array(q, dtype=float).reshape(1, -1)
-        target = self.kin.pose(q, self.palm)
-        psi0 = float(self.elbow_angle(q)[0])
-        delta = float(np.angle(np.exp(1j * (psi - psi0))))
-        steps = max(1, int(np.ceil(abs(delta) / max_step)))
-        for s in range(1, steps + 1):
-            goal = np.array([psi0 + delta * s / steps])
-            trial, norm = self._newton(q, target, goal, newton_iterations)
-            if not (norm[0] < RESIDUAL_TOL and self.kin.model.within_limits(trial)[0]):
-                return q[0], False
-            q = trial
-        return q[0], True
+            newton = compiled_step(self._chain, self.kin, self.arm, newton_iterations)
+        else:
+            def newton(rows, targets, goals):
+                trial, norm = self._newton(rows, targets, goals, newton_iterations)
+                return trial, (norm < RESIDUAL_TOL) & self.kin.model.within_limits(trial)
+        moved, ok = continue_elbow(newton, self.kin, self.palm, self.angle_links, q, psi,
+                                   max_step=max_step)
+        return moved[0], bool(ok[0])
 
 
 def compiled_chain(kin: Kinematics, palm: str, arm: np.ndarray,

@@ -20,6 +20,7 @@ kernel run interpreted.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -229,12 +230,32 @@ def self_motion_newton(chain: ArmChain, q_arm: np.ndarray, target: np.ndarray,
     return q, err
 
 
-def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.ndarray,
+#: One Newton solve of a continuation step: (rows (m, dof), targets (m, 4, 4), goals (m,)) ->
+#: (configurations (m, dof), converged within the joint limits (m,)).
+NewtonStep = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def compiled_step(chain: ArmChain, kin: Kinematics, arm_index: np.ndarray,
+                  newton_iterations: int = 30) -> NewtonStep:
+    """The compiled Newton (:func:`self_motion_newton`) as a continuation step: converged
+    where the pose error is below 1e-9, the result within the joint limits."""
+    def step(rows: np.ndarray, targets: np.ndarray, goals: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        trial = rows.copy()
+        trial[:, arm_index], err = self_motion_newton(chain, trial[:, arm_index], targets,
+                                                      goals, newton_iterations)
+        return trial, (np.linalg.norm(err, axis=1) < 1e-9) & kin.model.within_limits(trial)
+
+    return step
+
+
+def continue_elbow(newton: NewtonStep, kin: Kinematics, link: str,
                    angle_links: tuple[str, str, str], q: np.ndarray,
-                   psi: np.ndarray | float, *, max_step: float = 0.3,
-                   newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+                   psi: np.ndarray | float, *, max_step: float = 0.3
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Move configurations along the self-motion to elbow angles ``psi``, the pose of
-    ``link`` held, by continuation over the compiled Newton (:func:`self_motion_newton`).
+    ``link`` held, by continuation: each step one solve of ``newton`` (the compiled one,
+    :func:`compiled_step`, or another implementation of the same square system).
 
     Each continuation step is checked for continuity: the same step taken as two half steps
     must end within :data:`CONTINUITY_TOL` of it (a Newton step of up to ``max_step`` can
@@ -243,9 +264,9 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
     check is taken again in halves (:data:`MIN_CHECKED_STEP`).
 
     Args:
-        chain: the chain to ``link`` (:func:`arm_chain`); kin: the robot's kinematics;
-        arm_index: (7,) the arm joints' actuated indices; angle_links: the shoulder, elbow
-            and wrist links whose centres give the elbow angle.
+        newton: the Newton solve of one step (:data:`NewtonStep`); kin: the robot's
+            kinematics; angle_links: the shoulder, elbow and wrist links whose centres give
+            the elbow angle.
         q: (n, dof) or (dof,) start configurations; their poses of ``link`` are kept.
         psi: (n,) or scalar target elbow angles (radians).
         max_step: largest change of psi per continuation step (radians). Where the path
@@ -254,12 +275,10 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
             grasps of the default robot from 0.05 to 0.4); near it a coarse and a fine
             continuation may pass it on different branches; a path that leaves the limits
             stops within one step of the limit.
-        newton_iterations: Newton iterations per step.
 
     Returns:
         (q_new (n, dof), ok (n,)): ok is False where the path left the joint limits,
-        crossed a singularity, or did not converge (a pose error of 1e-9 or more); q_new is
-        then the last valid point.
+        crossed a singularity, or did not converge; q_new is then the last valid point.
     """
     q = np.array(np.atleast_2d(q), dtype=float)
     n = q.shape[0]
@@ -269,28 +288,19 @@ def continue_elbow(chain: ArmChain, kin: Kinematics, link: str, arm_index: np.nd
     delta = np.angle(np.exp(1j * (np.broadcast_to(np.asarray(psi, float), (n,)) - psi0)))
     steps = max(1, int(np.ceil(np.abs(delta).max() / max_step))) if n else 1
     ok = np.ones(n, bool)
-
-    def newton_step(rows: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(configurations, converged within the limits) of Newton from rows (m, dof)."""
-        trial = rows.copy()
-        trial[:, arm_index], err = self_motion_newton(
-            chain, trial[:, arm_index], target[idx], goal, newton_iterations)
-        return trial, (np.linalg.norm(err, axis=1) < 1e-9) & kin.model.within_limits(trial)
-
     for s in range(1, steps + 1):
         idx = np.flatnonzero(ok)
         start, goal = psi0[idx] + delta[idx] * (s - 1) / steps, psi0[idx] + delta[idx] * s / steps
-        trial, good = newton_step(q[idx], goal)
+        trial, good = newton(q[idx], target[idx], goal)
         broken = np.zeros(idx.size, bool)
         if max_step / 2.0 >= MIN_CHECKED_STEP and np.any(good):
-            middle, good_middle = newton_step(q[idx], 0.5 * (start + goal))
-            end, good_end = newton_step(middle, goal)
+            middle, good_middle = newton(q[idx], target[idx], 0.5 * (start + goal))
+            end, good_end = newton(middle, target[idx], goal)
             broken = good & ~(good_middle & good_end
                               & (np.abs(end - trial).max(axis=1) <= CONTINUITY_TOL))
         for k in np.flatnonzero(broken):  # taken again in halves (rare), to where it stops
-            moved, reached = continue_elbow(
-                chain, kin, link, arm_index, angle_links, q[idx[k]], goal[k],
-                max_step=max_step / 2.0, newton_iterations=newton_iterations)
+            moved, reached = continue_elbow(newton, kin, link, angle_links, q[idx[k]],
+                                            goal[k], max_step=max_step / 2.0)
             trial[k], good[k] = moved[0], reached[0]
         q[idx[good | broken]] = trial[good | broken]
         ok[idx[~good]] = False
