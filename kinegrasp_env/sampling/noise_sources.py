@@ -61,7 +61,7 @@ def sigmas(value, name: str, lengths: tuple[int, ...] | None = (1, 3),
     return float(arr[0]) if arr.size == 1 and np.ndim(value) == 0 else tuple(arr.tolist())
 
 
-def joints(n: int) -> str:
+def joints_text(n: int) -> str:
     """``n`` joints, in words ("1 joint", "7 joints")."""
     return f"{n} joint{'' if n == 1 else 's'}"
 
@@ -145,7 +145,7 @@ class JointsSource:
             if isinstance(value, tuple) and len(value) > 1}
         if len(set(counts.values())) > 1:
             raise NoiseSpecError("joints: " + " and ".join(
-                f"{name} describes {joints(n)}" for name, n in counts.items()))
+                f"{name} describes {joints_text(n)}" for name, n in counts.items()))
 
     @staticmethod
     def _rows(covariance) -> list:
@@ -173,7 +173,7 @@ class JointsSource:
     def check_count(self, dim: int) -> None:
         """ValueError (one line) unless the source fits an arm of ``dim`` joints."""
         if self.count is not None and self.count != dim:
-            raise ValueError(f"the noise spec's joints describe {joints(self.count)} but the "
+            raise ValueError(f"the noise spec's joints describe {joints_text(self.count)} but the "
                              f"noise acts on {dim} (give one sigma, or one per arm joint)")
 
     def sigma_vector(self, dim: int) -> np.ndarray:
