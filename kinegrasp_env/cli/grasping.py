@@ -168,7 +168,8 @@ def add_commands(sub) -> None:
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 2)
     # fast by default: the same draws as the reference, and the same outcome for all but a few
-    # in 10,000 of them (benchmarks/agreement.py); --engine pybullet runs the reference
+    # in 10,000 of them (benchmarks/robot_agreement.py; the default robot's own engines of
+    # fig7 and fig10: benchmarks/agreement.py); --engine pybullet runs the reference
     add_engine_arg(p, "fast")
     add_friction_arg(p)
     p.add_argument("--out", help="output folder (default out/<figure>)")

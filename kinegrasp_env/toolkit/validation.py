@@ -9,7 +9,7 @@ The draws are those of ``kinegrasp evaluate`` with that seed and sigma (any engi
 noise on the robot's arm joints, the hand at its pre-shape
 (:func:`~kinegrasp_env.toolkit.validation_draws.grasp_draws`). The kinematic outcome comes
 from the ``fast`` engine by default (it agrees with the ``pybullet`` reference draw by draw,
-see ``benchmarks/agreement.py``); ``kinematic="pybullet"`` uses the reference. The settings
+see ``benchmarks/robot_agreement.py``); ``kinematic="pybullet"`` uses the reference. The settings
 and the per-draw records are :mod:`~kinegrasp_env.toolkit.validation_records`'.
 
 Each grasp's per-draw results are cached in ``<out>/cache`` under a key of every setting (and

@@ -51,14 +51,14 @@ def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict] | None:
 def check_settings(robot: str, settings: ValidationSettings) -> None:
     """ValueError (one line) for settings a robot's holding test cannot honour, or a robot
     whose motors lack an effort limit."""
-    if own_physics(robot):  # every registered simulator holds its hand
-        check_simulator(settings.simulator)
-        return
-    if settings.simulator not in DESCRIPTION_ROBOT_SIMULATORS:
+    own = own_physics(robot)  # every registered simulator holds its hand
+    if not own and settings.simulator not in DESCRIPTION_ROBOT_SIMULATORS:
         raise ValueError(f"--simulator {settings.simulator}: only "
                          f"{' and '.join(DESCRIPTION_ROBOT_SIMULATORS)} hold description "
                          f"robots (robot {robot!r})")
     check_simulator(settings.simulator)
+    if own:
+        return
     description = load_robot(robot)
     motor_efforts(description)
     if settings.simulator == "mujoco":
