@@ -236,20 +236,27 @@ def levels_floor(sigmas: list[float], samples: int, n: int = 20000, seed: int = 
 def variants_timing(obj: str, args) -> dict:
     """fig10's null-space variants of one object: one batch against one run per variant, on
     the reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.arm_variants import find_variants
     from kinegrasp_env.toolkit.batch_stats import variant_stats
-    from kinegrasp_env.toolkit.experiments import variant_sets
 
-    grasps = list(variant_sets((obj,), args.variants, {})[obj])
-    noise = JointNoise(0.0033)
+    robot = load_robot("kuka_sdh")
+    grasps = find_variants(robot, obj, shipped_grasps(obj)[0], args.variants)
+
+    def run(g):
+        return evaluate_robot_grasp(g, sigma=0.0033, n=args.samples, seed=0, engine="pybullet")
+
     t0 = time.perf_counter()
-    direct = [evaluate_grasp(g, noise, args.samples, 0, engine="pybullet") for g in grasps]
+    direct = [run(g) for g in grasps]
     t1 = time.perf_counter()
-    batch = variant_stats(grasps, 0.0033, args.samples, 0, engine="pybullet")
+    batch = variant_stats(grasps, 0.0033, args.samples, 0, engine="pybullet", robot=robot,
+                          direct=run)
     t2 = time.perf_counter()
     return {"object": obj, "variants": len(grasps), "direct_s": t1 - t0,
             "reweight_s": t2 - t1, "ratio": (t2 - t1) / (t1 - t0),
             "direct_p_fc": [d.p_fc for d in direct], "reweight_p_fc": [b.p_fc for b in batch],
-            "effective_samples": [b.samples for b in batch]}
+            "effective_samples": [getattr(b, "samples", args.samples) for b in batch]}
 
 
 def env_timing(args) -> dict:

@@ -239,22 +239,32 @@ The most and the least robust configurations are chosen by their P(FC) on one se
 and reported on as many fresh draws of the same seed (the next chunks), so the printed pair
 is not the winner's curse of the choice; the gap is paired on the shared fresh draws."""),
         ("code", """from IPython.display import Image, Markdown, display
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.toolkit import experiments
+from kinegrasp_env.toolkit.arm_variants import variant_label
 from kinegrasp_env.toolkit.selection import format_gap, provenance
+from kinegrasp_env.world.grasps import shipped_grasps
 
+robot = load_robot("kuka_sdh")  # the paper's robot; any 7-joint arm moves along its self-motion
+pair_objects = {name: shipped_grasps(name) for name in ("drill", "spray_flask")}
 samples7 = n(2000, 60)
-rows7 = experiments.fig7("out/fig7", samples=samples7, variants=8, engine="fast",
-                         processes=2)
+with LocalExecutor(2) as pool:
+    rows7 = experiments.fig7(robot, "out/fig7", grasp_sets=pair_objects, samples=samples7,
+                             variants=8, engine="fast", executor=pool)
 print(provenance(samples7, 0))
 for r in rows7:
-    print(f"{r['object']:12s} {r['config']:8s} elbow {r['elbow_angle'] or 0:.2f}  P(FC) "
-          f"{r['p_fc']:.3f} [{r['p_fc_lo']:.3f}, {r['p_fc_hi']:.3f}], chosen at "
-          f"{r['selection_p_fc']:.3f}" + (f"; gap {format_gap(r)}" if r['config'] == 'fragile'
-                                           else ""))
-for name in ("drill", "spray_flask"):
+    print(f"{r['object']:12s} {r['config']:8s} {variant_label(r, 2)}  P(FC) "
+          f"{r['fresh_p_fc']:.3f} [{r['fresh_p_fc_lo']:.3f}, {r['fresh_p_fc_hi']:.3f}], "
+          f"chosen at {r['selection_p_fc']:.3f}"
+          + (f"; gap {format_gap(r)}" if r['config'] == 'fragile' else ""))
+for name in pair_objects:
     display(Image(filename=f"out/fig7/fig7_{name}.png"))
 samples10 = n(1000, 40)
-rows10 = experiments.fig10("out/fig10", samples=samples10, engine="fast", processes=2)
+every_object = {name: shipped_grasps(name) for name in ("cube", "spray_flask", "drill", "mug")}
+with LocalExecutor(2) as pool:
+    rows10 = experiments.fig10(robot, "out/fig10", grasp_sets=every_object,
+                               samples=samples10, engine="fast", executor=pool)
 print(provenance(samples10, 0))
 for r in rows10:
     if r["config"]:
@@ -293,21 +303,20 @@ meshes, grasp set, torque scale, closing."""),
         ("code", """from IPython.display import Image, Markdown, display
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.robot.catalog import load_robot
-from kinegrasp_env.toolkit.experiments import markdown_table1
-from kinegrasp_env.toolkit.robot_tables import robot_fig9, robot_table1
+from kinegrasp_env.toolkit.experiments import fig9, markdown_table1, table1
 from kinegrasp_env.world.grasps import shipped_grasps
 
 robot = load_robot("kuka_sdh")  # the paper's robot; any catalog robot runs the same tables
 samples = n(10000, 60)
 with LocalExecutor(2) as pool:  # each cell's draws in chunks on 2 processes: the same draws
-    rows = robot_table1(robot, "spray_flask", shipped_grasps("spray_flask")[:5], samples,
-                        "out/table1", engine="fast", executor=pool)
+    rows = table1(robot, "spray_flask", shipped_grasps("spray_flask")[:5], samples,
+                  "out/table1", engine="fast", executor=pool)
 display(Markdown(markdown_table1(rows, "spray_flask", samples)))
 display(Image(filename="out/table1/pfc_vs_sigma.png"))"""),
         ("code", """sets = {name: shipped_grasps(name) for name in ("cube", "spray_flask", "drill", "mug")}
 with LocalExecutor(2) as pool:
-    rows9 = robot_fig9(robot, "out/fig9", grasp_sets=sets, samples=n(1000, 40),
-                       engine="fast", executor=pool)
+    rows9 = fig9(robot, "out/fig9", grasp_sets=sets, samples=n(1000, 40), engine="fast",
+                 executor=pool)
 display(Image(filename="out/fig9/fig9.png"))"""),
         ("md", """## Table I beside the paper's
 
@@ -422,15 +431,14 @@ draws each); the README reports the 48-grasp run (`kinegrasp validate --object a
 from IPython.display import Image, Markdown, display
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.robot.catalog import load_robot
-from kinegrasp_env.toolkit.experiments import markdown_table1
-from kinegrasp_env.toolkit.robot_tables import robot_table1
+from kinegrasp_env.toolkit.experiments import markdown_table1, table1
 from kinegrasp_env.world.grasps import shipped_grasps
 
 for engine in ("fast", "physics"):
     with LocalExecutor(2) as pool:
-        rows = robot_table1(load_robot("kuka_sdh"), "spray_flask",
-                            shipped_grasps("spray_flask")[:5], n(20, 3),
-                            f"out/table1_{engine}", engine=engine, executor=pool)
+        rows = table1(load_robot("kuka_sdh"), "spray_flask",
+                      shipped_grasps("spray_flask")[:5], n(20, 3),
+                      f"out/table1_{engine}", engine=engine, executor=pool)
     display(Markdown(f"**{engine} engine**\\n\\n" + markdown_table1(rows, "spray_flask",
                                                                    n(20, 3))))
 out = "out/validate_cube"

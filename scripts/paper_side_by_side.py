@@ -145,12 +145,14 @@ def summary_section(rows: list[dict], spec: dict, physics: list[dict] | None = N
     return lines
 
 
-def _pair(rows: list[dict], name: str, p_fc: str, lo: str, hi: str) -> dict:
-    """robust / fragile P(FC) text and the paired gap of one object's chosen pair."""
+def _pair(rows: list[dict], name: str) -> dict:
+    """robust / fragile P(FC) text (fresh draws), the paired gap and the Q moments of one
+    object's chosen pair."""
     chosen = {r["config"]: r for r in rows if r["object"] == name and r.get("config")}
     if set(chosen) != {"robust", "fragile"}:
         return {}
-    out = {k: f"{num(r[p_fc])} [{num(r[lo])}, {num(r[hi])}] (id {r['id']})"
+    out = {k: f"{num(r['fresh_p_fc'])} [{num(r['fresh_p_fc_lo'])}, "
+              f"{num(r['fresh_p_fc_hi'])}] (id {r['id']}, {variant_words(r)})"
            for k, r in chosen.items()}
     r = chosen["fragile"]
     out["gap"] = (f"{float(r['gap']):+.3f} (no discordant draw)" if r["gap_lo"] == r["gap_hi"]
@@ -159,10 +161,17 @@ def _pair(rows: list[dict], name: str, p_fc: str, lo: str, hi: str) -> dict:
     out["samples"] = r.get("fresh_samples") or r["samples"]
     out["sigma"] = r.get("sigma") or "?"
     for key, digits in (("q_mean", 4), ("q_var", 3), ("q_skew", 3)):
-        if all("q_var" in c for c in chosen.values()):  # fig7's moments (fresh draws)
-            out[key] = " / ".join(num(chosen[c][key], digits, "g")
+        if all(c.get(f"fresh_{key}") not in (None, "") for c in chosen.values()):
+            out[key] = " / ".join(num(chosen[c][f"fresh_{key}"], digits, "g")
                                   for c in ("robust", "fragile"))
     return out
+
+
+def variant_words(row: dict) -> str:
+    """A variant row's configuration: its elbow angle (radians) or its IK branch."""
+    if row.get("ik_branch"):
+        return f"IK branch {row['ik_branch']}"
+    return f"elbow {float(row['elbow_angle']):+.2f} rad"
 
 
 def _listed(values: list | None, digits: int, absent: str = NOT_GIVEN) -> str:
@@ -193,11 +202,9 @@ def pairs_section(fig7: list[dict] | None, fig10: list[dict] | None, values: dic
              "95% Wilson intervals, the gap paired on the same draws; Q moments robust / "
              "fragile here, over the force-closure draws)", "", head, rule]
     for name in names:
-        runs = [_pair(fig7 or [], name, "p_fc", "p_fc_lo", "p_fc_hi"),
-                _pair(fig10 or [], name, "fresh_p_fc", "fresh_p_fc_lo", "fresh_p_fc_hi")]
+        runs = [_pair(fig7 or [], name), _pair(fig10 or [], name)]
         if physics:
-            runs += [_pair(physics, name, "p_fc", "p_fc_lo", "p_fc_hi"),
-                     _pair(kinematic or [], name, "p_fc", "p_fc_lo", "p_fc_hi")]
+            runs += [_pair(physics, name), _pair(kinematic or [], name)]
         if name not in pairs and paper_rows_only:
             continue
         absent = NOT_GIVEN if name in pairs else "not in its Fig. 7"

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.toolkit import batch_stats
+from kinegrasp_env.toolkit.arm_variants import find_variants
 from kinegrasp_env.toolkit.batch_stats import variant_stats
-from kinegrasp_env.toolkit.experiments import variant_sets
 from kinegrasp_env.world.grasps import shipped_grasps
 
 #: The Gaussian model's bias on P(FC) at the paper's noise levels, as
@@ -19,17 +19,26 @@ from kinegrasp_env.world.grasps import shipped_grasps
 LINEAR_BIAS = 0.013
 
 
+ROBOT = load_robot("kuka_sdh")
+
+
 @pytest.fixture(scope="module")
 def variants():
-    return list(variant_sets(("spray_flask",), 4, {})["spray_flask"])
+    return find_variants(ROBOT, "spray_flask", shipped_grasps("spray_flask")[0], 4)
+
+
+def _direct(grasp):
+    return "unused: every variant is re-weighted"
 
 
 def test_variants_agree_with_direct_draws(variants):
     """Each variant's re-weighted P(FC) against 4,000 direct draws of its own: within four
     combined standard errors plus the linearisation's bias; Q's mean within 10%."""
-    stats = variant_stats(variants, 0.0233, 1500, 3, engine="fast")
+    stats = variant_stats(variants, 0.0233, 1500, 3, engine="fast", robot=ROBOT,
+                          direct=_direct)
+    assert len(variants) >= 3
     for grasp, s in zip(variants, stats, strict=True):
-        direct = evaluate_grasp(grasp, JointNoise(0.0233), 4000, 8, engine="fast")
+        direct = evaluate_robot_grasp(grasp, sigma=0.0233, n=4000, seed=8, engine="fast")
         se = np.hypot((s.p_fc_ci[1] - s.p_fc_ci[0]) / (2 * 1.96),
                       np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))
         assert abs(s.p_fc - direct.p_fc) <= 4 * se + LINEAR_BIAS, (grasp.id, s.p_fc, direct.p_fc)
@@ -41,17 +50,17 @@ def test_variants_agree_with_direct_draws(variants):
 
 def test_a_small_effective_sample_falls_back_to_direct_draws(variants, monkeypatch):
     """A batch of as many closings as the draws asked for cannot give an effective sample
-    that large: every variant is then evaluate_grasp's own result."""
+    that large: every variant is then the caller's direct evaluation."""
     monkeypatch.setattr(batch_stats, "BATCH_FACTOR", 1)
-    stats = variant_stats(variants[:2], 0.0233, 300, 3, engine="fast")
-    for grasp, s in zip(variants[:2], stats, strict=True):
-        assert s == evaluate_grasp(grasp, JointNoise(0.0233), 300, 3, engine="fast")
+    stats = variant_stats(variants[:2], 0.0233, 300, 3, engine="fast", robot=ROBOT,
+                          direct=lambda g: ("direct", g.id))
+    assert stats == [("direct", g.id) for g in variants[:2]]
 
 
 def test_refusals(tmp_path, variants):
     other = shipped_grasps("spray_flask")[1]
     with pytest.raises(ValueError, match="not a variant"):
-        variant_stats([variants[0], other], 0.0233, 100, 0)
+        variant_stats([variants[0], other], 0.0233, 100, 0, robot=ROBOT, direct=_direct)
     from kinegrasp_env.cli import main
 
     assert main(["reproduce", "fig9", "--method", "reweight", "--samples", "4", "--out",

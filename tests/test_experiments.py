@@ -12,7 +12,6 @@ import os
 import stat
 import subprocess
 import sys
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -48,10 +47,9 @@ def _mode(path) -> int:
 def _table1(samples: int, out, sigmas: tuple[float, ...]) -> list[dict]:
     """Table I of the default robot's first cube grasp (every robot's Table I)."""
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_tables import robot_table1
 
-    return robot_table1(load_robot("kuka_sdh"), "cube", shipped_grasps("cube")[:1], samples,
-                        out, sigmas=sigmas, seed=0)
+    return experiments.table1(load_robot("kuka_sdh"), "cube", shipped_grasps("cube")[:1],
+                              samples, out, sigmas=sigmas, seed=0)
 
 
 def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umask_027):
@@ -250,49 +248,47 @@ def _bernoulli_stats(p: float, n: int, key: tuple) -> GraspStats:
 
 def test_reported_gap_of_equal_candidates_is_centred_at_zero():
     """Eight candidates with the same true P(FC) = 0.5, 200 draws each, 300 seeds; each
-    candidate's draws of chunk stream c are independent Bernoulli draws keyed (seed, c, id).
-    Chosen on the selection draws (stream 0), the robust - fragile gap there is the range of
-    eight binomial estimates: ~0.10 on average (selection bias). Reported on the fresh
-    stream, the gap's true value is 0: its mean over 300 seeds has standard error
+    candidate's draws of stream c (0: selection, 1: fresh) are independent Bernoulli draws
+    keyed (seed, c, candidate). Chosen on the selection draws, the robust - fragile gap there
+    is the range of eight binomial estimates: ~0.10 on average (selection bias). Reported on
+    the fresh stream, the gap's true value is 0: its mean over 300 seeds has standard error
     sqrt(2 * 0.25 / 200 / 300) = 0.0029, so |mean| < 0.012 (4 standard errors); and the
     printed paired 95% interval must contain 0 in at least 90% of the seeds (binomial
     standard error 1.3% around 95%: 90% is 3.8 of them below). Reporting the selection draws
     instead gives a mean gap of ~0.10 and an interval that misses 0 in most seeds."""
-    grasp = shipped_grasps("cube")[0]
-    candidates = [replace(grasp, id=f"c{i}") for i in range(8)]
     n, seeds = 200, range(300)
     reported, chosen, covered = [], [], 0
     for seed in seeds:
-        def evaluate(g, first_chunk, seed=seed):
-            return _bernoulli_stats(0.5, n, (seed, first_chunk, int(g.id[1:])))
-        selection = [evaluate(g, 0) for g in candidates]
-        rows, fresh = selection_mod.robust_fragile("cube", candidates, selection, evaluate, n,
-                                                   seed, chunk=n)
-        robust, fragile = rows
-        assert (robust["p_fc"], fragile["p_fc"]) == (fresh[0].p_fc, fresh[1].p_fc)
-        assert robust["selection_p_fc"] == max(s.p_fc for s in selection)
-        assert fragile["selection_p_fc"] == min(s.p_fc for s in selection)
-        assert robust["gap"] == pytest.approx(robust["p_fc"] - fragile["p_fc"], abs=1e-12)
-        reported.append(robust["gap"])
-        chosen.append(robust["selection_gap"])
-        covered += robust["gap_lo"] <= 0.0 <= robust["gap_hi"]
+        selection = [_bernoulli_stats(0.5, n, (seed, 0, i)) for i in range(8)]
+        pair = selection_mod.robust_fragile(
+            [s.p_fc for s in selection], lambda i, seed=seed: _bernoulli_stats(0.5, n,
+                                                                               (seed, 1, i)))
+        assert selection[pair.robust].p_fc == max(s.p_fc for s in selection)
+        assert selection[pair.fragile].p_fc == min(s.p_fc for s in selection)
+        assert [f.p_fc for f in pair.fresh] == [
+            _bernoulli_stats(0.5, n, (seed, 1, i)).p_fc for i in (pair.robust, pair.fragile)]
+        assert pair.gap == pytest.approx(pair.fresh[0].p_fc - pair.fresh[1].p_fc, abs=1e-12)
+        reported.append(pair.gap)
+        chosen.append(selection[pair.robust].p_fc - selection[pair.fragile].p_fc)
+        covered += pair.gap_lo <= 0.0 <= pair.gap_hi
     assert np.mean(chosen) > 0.07  # the bias the separation removes
     assert abs(np.mean(reported)) < 0.012, np.mean(reported)
     assert covered >= 0.90 * len(seeds), covered
 
 
 def test_fresh_draws_are_the_next_chunks_of_the_seed():
-    """The report stream as documented, checked through the public evaluate_grasp: the
-    fresh draws of a 500-draw selection (chunks 2-3 of the seed) are draws 500..999 of a
-    1,000-draw evaluation with the same seed, outcome for outcome, and differ from the
-    selection draws (draws 0..499)."""
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
+    """The report stream as documented, checked through the public evaluate_robot_grasp:
+    the fresh draws of a 500-draw selection (chunks 2-3 of the seed, rows 500..999) are
+    draws 500..999 of a 1,000-draw evaluation with the same seed, outcome for outcome, and
+    differ from the selection draws (draws 0..499)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 
-    grasp, noise = shipped_grasps("cube")[0], JointNoise(0.03)
+    grasp = shipped_grasps("cube")[0]
     assert selection_mod.report_chunks(500) == (2, 2)
-    fresh = selection_mod.stats_from_chunk(grasp, noise, 500, 3, 2, engine="fast")
-    both = evaluate_grasp(grasp, noise, 1000, 3, engine="fast", return_draws=True)
+    assert selection_mod.report_rows(500) == 500
+    fresh = evaluate_robot_grasp(grasp, sigma=0.03, n=500, seed=3, engine="fast",
+                                 offset=selection_mod.report_rows(500))
+    both = evaluate_robot_grasp(grasp, sigma=0.03, n=1000, seed=3, engine="fast")
     assert np.array_equal(fresh.draws.outcome, both.draws.outcome[500:])
     assert np.array_equal(fresh.draws.quality, both.draws.quality[500:])
     assert not np.array_equal(both.draws.quality[:500], both.draws.quality[500:])
@@ -312,24 +308,27 @@ def test_a_pair_is_two_candidates():
 
 
 def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
-    """fig10 on three cube variants at sigma 0.02 (250 draws): the rows marked robust and
-    fragile are the largest and the smallest P(FC) of the rows (the selection draws), and
-    each one's fresh P(FC) is exactly its share of force closure in draws 250..499 of the
-    same seed, computed here through the public evaluate_grasp on 500 draws (so the fresh
-    draws are neither the selection draws nor a recount of them)."""
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.experiments import variant_sets
+    """fig10 of the default robot on three cube variants at sigma 0.02 (250 draws): the rows
+    marked robust and fragile are the largest and the smallest P(FC) of the rows (the
+    selection draws), and each one's fresh P(FC) is exactly its share of force closure in
+    draws 250..499 of the same seed, computed here through the public evaluate_robot_grasp
+    on 500 draws (so the fresh draws are neither the selection draws nor a recount of
+    them)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.arm_variants import find_variants
 
-    rows = experiments.fig10(tmp_path, samples=250, sigma=0.02, count=3, seed=5,
-                             engine="fast", objects=("cube",))
+    robot, grasp = load_robot("kuka_sdh"), shipped_grasps("cube")[0]
+    rows = experiments.fig10(robot, tmp_path, grasp_sets={"cube": [grasp]}, samples=250,
+                             sigma=0.02, count=3, seed=5, engine="fast")
     marked = {r["config"]: r for r in rows if r["config"]}
     assert set(marked) == {"robust", "fragile"} and marked["robust"] is not marked["fragile"]
     assert marked["robust"]["p_fc"] == max(r["p_fc"] for r in rows)
     assert marked["fragile"]["p_fc"] == min(r["p_fc"] for r in rows)
-    variants = {g.id: g for g in variant_sets(("cube",), 3, {})["cube"]}
+    variants = {g.id: g for g in find_variants(robot, "cube", grasp, 3)}
     for row in marked.values():
-        both = evaluate_grasp(variants[row["id"]], JointNoise(0.02), 500, 5, engine="fast")
+        both = evaluate_robot_grasp(variants[row["id"]], sigma=0.02, n=500, seed=5,
+                                    engine="fast")
         assert row["p_fc"] * 250 + row["fresh_p_fc"] * 250 == pytest.approx(both.p_fc * 500)
         assert row["fresh_samples"] == 250
         assert row["fresh_p_fc_lo"] <= row["fresh_p_fc"] <= row["fresh_p_fc_hi"]

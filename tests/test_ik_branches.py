@@ -214,7 +214,7 @@ def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys,
     import csv
 
     from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-    from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+    from kinegrasp_env.toolkit.arm_variants import variants_of
     from kinegrasp_env.world.grasps import load_grasps
 
     path, grasps = home
@@ -228,7 +228,7 @@ def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys,
     assert sorted(r["config"] for r in rows if r["config"]) == ["fragile", "robust"]
     grasp = load_grasps(str(path))[0]
     with RobotReferenceEngine("xarm6", "cube") as engine:
-        variants = robot_variants(grasp, engine, 10)
+        variants = variants_of(grasp, engine, 10)
     assert [v.meta["ik_branch"] for v in variants] == labels
     palm = np.asarray(grasps[0]["palm_pose"])
     for v in variants:
@@ -620,14 +620,15 @@ def test_fig10_of_a_six_joint_arm_from_one_batch(home, capsys, tmp_path):
     its own joint noise); the command line takes the method too."""
     from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10, robot_variants
+    from kinegrasp_env.toolkit.arm_variants import variants_of
+    from kinegrasp_env.toolkit.experiments import fig10
     from kinegrasp_env.world.grasps import load_grasps
 
     grasp = load_grasps(str(home[0]))[0]
-    rows = robot_fig10(load_robot("xarm6"), tmp_path / "f10", grasp_sets={"cube": [grasp]},
-                       samples=400, sigma=0.0233, engine="fast", method="reweight")
+    rows = fig10(load_robot("xarm6"), tmp_path / "f10", grasp_sets={"cube": [grasp]},
+                 samples=400, sigma=0.0233, engine="fast", method="reweight")
     with RobotReferenceEngine("xarm6", "cube") as engine:
-        variants = {v.id: v for v in robot_variants(grasp, engine, 10)}
+        variants = {v.id: v for v in variants_of(grasp, engine, 10)}
     assert sorted(r["id"] for r in rows) == sorted(variants)
     for row in rows:
         p, ess = row["p_fc"], row["samples"]

@@ -74,16 +74,20 @@ def test_table1_sets_the_papers_cells_beside_the_runs(tmp_path):
 
 def test_pairs_show_fig7s_values_and_what_it_does_not_give(tmp_path):
     side = _script()
-    base = {"object": "drill", "elbow_angle": "0", "p_fc_lo": "0.8", "p_fc_hi": "0.9",
-            "q_mean": "0.016", "q_var": "5e-05", "q_skew": "0.2", "q_nominal": "0.014",
-            "samples": "2000", "selection_p_fc": "0.9", "selection_samples": "2000",
-            "gap": "0.05", "gap_lo": "0.04", "gap_hi": "0.07", "selection_gap": "0.05",
-            "sigma": "0.0133"}
-    rows = [{**base, "config": "robust", "id": "0v8", "p_fc": "0.9"},
-            {**base, "config": "fragile", "id": "0", "p_fc": "0.85"}]
+    base = {"robot": "kuka_sdh", "object": "drill", "ik_branch": "", "p_fc": "0.9",
+            "q_mean": "0.015", "q_std": "0.007", "q_nominal": "0.014", "error": "0.001",
+            "samples": "2000", "sigma": "0.0133", "fresh_p_fc_lo": "0.8",
+            "fresh_p_fc_hi": "0.9", "fresh_samples": "2000", "selection_p_fc": "0.9",
+            "gap": "0.05", "gap_lo": "0.04", "gap_hi": "0.07", "fresh_q_mean": "0.016",
+            "fresh_q_var": "5e-05", "fresh_q_skew": "0.2"}
+    rows = [{**base, "config": "robust", "id": "0v8", "elbow_angle": "1.5", "fresh_p_fc": "0.9"},
+            {**base, "config": "fragile", "id": "0v1", "elbow_angle": "-0.25",
+             "fresh_p_fc": "0.85"}]
     fig7 = _csv(tmp_path / "fig7", "fig7.csv", rows)
     text = side.side_by_side(None, fig7, None, only=("pairs",), paper_rows_only=True)
-    assert "| drill | robust P(FC) | 0.50 | 0.900 [0.800, 0.900] (id 0v8) |" in text
+    assert ("| drill | robust P(FC) | 0.50 | 0.900 [0.800, 0.900] (id 0v8, elbow +1.50 rad) |"
+            in text)
+    assert "(id 0v1, elbow -0.25 rad)" in text
     assert "| drill | robust - fragile | +0.19 | +0.050 [+0.040, +0.070] |" in text
     assert "| drill | Q mean | 0.0982 / 0.0910 (as listed) | 0.016 / 0.016 |" in text
     assert "| drill | sigma (rad), fresh draws per configuration | not given, 10000 |" in text

@@ -127,6 +127,7 @@ STAT_LINES = {
     "screenshot": re.compile(r"^(?P<k_page>\S+): drawn in \d+ ms, (?P<k_errors>\d+) console "
                              r"errors; screenshot written to (?P<k_png>\S+)$"),
     "fig7 row": re.compile(rf"^(?P<k_object>\S+)\s+(?P<k_role>robust|fragile)\s+id \S+\s+"
+                           r"(?:elbow \S+ rad |IK branch \S+ )?"
                            rf"P\(FC\) {_P} \(95% CI {_CI} \.\. {_HI}\), chosen at \S+$"),
     "fig7 gap": re.compile(r"^(?P<k_object>\S+)\s+robust - fragile \S+ \(95% CI \S+ \.\. \S+\), "
                            r"paired$"),

@@ -1,4 +1,4 @@
-"""``reproduce table1|fig7|fig9 --robot NAME``: the paper's protocols on another robot's grasps.
+"""``reproduce table1|fig7|fig9|fig10 --robot NAME``: the paper's protocols on any robot's grasps.
 
 What each test proves: every cell of Table I and every row of Fig. 9 is ``evaluate --robot``
 of that grasp, sigma and seed (the same draws, so equal to the last printed digit): the
@@ -85,8 +85,17 @@ def test_fig7_of_a_robot_reports_its_pair_on_fresh_draws(tmp_path, capsys):
     out = tmp_path / "f7"
     assert main(["reproduce", "fig7", "--robot", "panda", "--object", "cube", "--samples",
                  SAMPLES, "--out", str(out)]) == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
     assert "robust - fragile" in text and "fig7_cube.png" in text
+    # a progress line per evaluation: each variant's, then the pair's fresh draws, the
+    # draws counted once each (the last line: every draw of every cell)
+    lines = [line for line in captured.err.splitlines() if line.startswith("fig7: cell ")]
+    cells = len(lines)
+    total = cells * int(SAMPLES)
+    assert cells >= 4 and lines[-1].startswith(f"fig7: cell {cells}/{cells} ")
+    assert [f"cell {k}/{cells} " in line for k, line in enumerate(lines, 1)] == [True] * cells
+    assert f" {total}/{total} draws" in lines[-1] and "(fresh draws)" in lines[-1]
     # the fresh draws are the run's next chunk, as the default robot's (selection.provenance)
     assert f"reported on {SAMPLES} fresh draws (chunk 1)" in text
     rows = list(csv.DictReader((out / "fig7.csv").open()))
@@ -113,17 +122,14 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
     by 0.1 on two variants and fail it."""
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_reproduce import variant_block
+    from kinegrasp_env.toolkit.arm_variants import find_variants, variant_block
 
     panda = load_robot("panda")
     grasp = shipped_grasps("cube", "panda")[0]
-    rows, _ = variant_block(panda, "cube", grasp, samples=1500, sigma=0.0233, count=4,
-                            seed=3, engine="fast", friction=0.5, method="reweight")
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-    from kinegrasp_env.toolkit.robot_reproduce import robot_variants
-
-    with RobotReferenceEngine(panda, "cube") as reference:
-        variants = {v.id: v for v in robot_variants(grasp, reference, 4)}
+    found = find_variants(panda, "cube", grasp, 4)
+    rows, _ = variant_block(panda, "cube", found, samples=1500, sigma=0.0233, seed=3,
+                            engine="fast", friction=0.5, method="reweight")
+    variants = {v.id: v for v in found}
     assert len(rows) == 4
     for row in rows:
         assert int(row["samples"]) >= 1500  # re-weighted, not the direct fall-back
@@ -136,11 +142,11 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
 
 def test_fig10_reweight_is_refused_for_an_arm_without_self_motion():
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.toolkit.robot_reproduce import check_method, robot_fig10
+    from kinegrasp_env.toolkit.experiments import check_method, fig10
 
     with pytest.raises(ValueError, match="fig10's variants are a 7-joint arm's self-motion"):
-        robot_fig10(dataclasses.replace(load_robot("panda"), arm_angle_links=None), "unused",
-                    grasp_sets={"cube": []}, method="reweight")
+        fig10(dataclasses.replace(load_robot("panda"), arm_angle_links=None), "unused",
+              grasp_sets={"cube": []}, method="reweight")
     with pytest.raises(ValueError, match="unknown method"):
         check_method("guess")
 

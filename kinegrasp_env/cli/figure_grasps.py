@@ -1,14 +1,14 @@
-"""Which grasps ``reproduce fig9|fig10`` evaluates: ``--object`` (default: the built-in
-objects) and ``--grasps``, a count of the shipped grasps or a grasp file (``kinegrasp plan``'s
-output), which is how an imported object (it has no shipped set) is drawn.
+"""Which grasps ``reproduce`` evaluates: ``--object`` (default: every object the robot has
+shipped grasps of) and ``--grasps``, a count of the shipped grasps or a grasp file
+(``kinegrasp plan``'s output), which is how an imported object (it has no shipped set) is
+drawn.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from kinegrasp_env.cli.common import CLIError, positive_int, reported
-from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.cli.common import CLIError, reported
 
 #: ``reproduce fig9|fig10``: grasps (fig9) or null-space variants (fig10) per object.
 FIGURE_GRASPS = 10
@@ -19,28 +19,6 @@ TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
 def is_count(text: str) -> bool:
     """Whether a ``reproduce --grasps`` value is a number (else it names a grasp file)."""
     return text.strip().lstrip("+-").isdigit()
-
-
-def figure_grasps(object_name: str | None, grasps: str | None
-                  ) -> tuple[tuple[str, ...], dict[str, list], int]:
-    """fig9/fig10's (objects, grasp sets by object, count) from ``--object`` and
-    ``--grasps``: a count of the shipped grasps (default :data:`FIGURE_GRASPS`) of the
-    object, else of every built-in object; or a grasp file: its object and its grasps. An
-    imported object without a file is a one-line error saying how to make one."""
-    from kinegrasp_env.world.objects import OBJECT_NAMES
-
-    if grasps is None or is_count(grasps):
-        count = positive_int(grasps or str(FIGURE_GRASPS), "--grasps")
-        objects = (object_name,) if object_name else OBJECT_NAMES
-        for name in objects:
-            if name not in OBJECT_NAMES:
-                raise imported_without_grasps(name, DEFAULT_ROBOT)
-        return objects, {}, count
-    chosen = grasp_file(grasps)
-    name = chosen[0].object
-    if object_name is not None and object_name != name:
-        raise CLIError(f"--object {object_name}: {grasps} holds grasps of {name}")
-    return (name,), {name: chosen}, FIGURE_GRASPS
 
 
 def imported_without_grasps(name: str, robot: str) -> CLIError:

@@ -100,11 +100,11 @@ def cmd_plan_robot(args) -> int:
     out = list(grasps)
     if variants:
         from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-        from kinegrasp_env.toolkit.robot_reproduce import robot_variants
+        from kinegrasp_env.toolkit.arm_variants import variants_of
 
         with RobotReferenceEngine(description, args.object, friction=friction) as engine:
             for grasp in grasps:
-                out += robot_variants(grasp, engine, variants)
+                out += variants_of(grasp, engine, variants)
     save_grasps(out, args.out, planner_seed=seed)
     kind = "IK-branch" if branches else "null-space"
     extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""

@@ -10,9 +10,12 @@ asked for is evaluated directly.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
-from kinegrasp_env.montecarlo.evaluate import GraspStats, evaluate_grasp
+from kinegrasp_env.montecarlo.evaluate import GraspStats
 from kinegrasp_env.montecarlo.palm_batch import (
     BATCH_FACTOR,
     PalmJacobian,
@@ -20,7 +23,6 @@ from kinegrasp_env.montecarlo.palm_batch import (
     close_deltas,
 )
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import Grasp
 
 #: Palm poses of variants agree to this (metres and rotation-matrix entries).
@@ -28,17 +30,15 @@ SAME_POSE_TOL = 1e-6
 
 
 def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
-                  engine: str = "pybullet", friction: float = 0.5,
-                  robot: RobotDescription | None = None, direct=None,
-                  **evaluate_kwargs) -> list[GraspStats]:
-    """One :class:`GraspStats` per variant (same object, same palm pose) at Gaussian joint
-    noise ``sigma`` (radians): re-weighted from one batch of ``BATCH_FACTOR * samples``
-    closings (``samples`` then reads as the estimate's effective sample size, rounded; its
-    interval is the normal one of the weights' standard error; ``outcomes`` is empty), or
-    evaluated directly on ``samples`` draws where the effective sample size is below
-    ``samples``: :func:`evaluate_grasp` for the default robot, ``direct(grasp)`` for a
-    description ``robot`` (an arm of six or more joints: its palm error and engines close
-    the batch).
+                  robot: RobotDescription, direct: Callable[[Grasp], Any],
+                  engine: str = "pybullet", friction: float = 0.5) -> list:
+    """Per variant (same object, same palm pose) of ``robot`` (an arm of six or more joints:
+    its palm error and engines close the batch) at Gaussian joint noise ``sigma`` (radians):
+    a :class:`GraspStats` re-weighted from one batch of ``BATCH_FACTOR * samples`` closings
+    (``samples`` then reads as the estimate's effective sample size, rounded; its interval
+    is the normal one of the weights' standard error; ``outcomes`` is empty), or
+    ``direct(grasp)`` (its evaluation on ``samples`` draws) where the effective sample size
+    is below ``samples``.
 
     Raises:
         ValueError: the grasps are not variants of one palm pose of one object, or the
@@ -51,7 +51,7 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                                                        atol=SAME_POSE_TOL):
             raise ValueError(f"grasp {g.id} is not a variant of grasp {first.id}'s palm pose "
                              f"(one batch answers variants of one palm pose only)")
-    name = None if robot is None else robot.name
+    name = robot.name
     q0 = np.stack([np.asarray(g.q0, dtype=float) for g in grasps])
     jacobian = PalmJacobian(robot)
     covs, means = jacobian.covariance(q0, sigma), jacobian.mean(q0, sigma)
@@ -64,9 +64,7 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
     for grasp, cov, mean in zip(grasps, covs, means, strict=True):
         est = batch.estimate(cov, mean=mean)
         if est.ess < samples:
-            out.append(direct(grasp) if robot is not None else
-                       evaluate_grasp(grasp, JointNoise(sigma), samples, seed, engine=engine,
-                                      friction=friction, **evaluate_kwargs))
+            out.append(direct(grasp))
             continue
         p = est.p_fc
         out.append(GraspStats(p.value, p.interval, est.q_mean, est.q_std**2, est.q_std,

@@ -1,4 +1,24 @@
-"""The paper's experiments as functions that write tables and figures (Table I, ...)."""
+"""The paper's experiments for any robot's grasps, as functions that write tables and figures.
+
+Every evaluation is :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`
+(joint noise on the arm joints, seed ``seed``: the draws of ``kinegrasp evaluate --robot NAME
+--seed SEED``):
+
+* **Table I**: the moments of Q over the force-closure draws and P(FC) with its Wilson 95%
+  interval of the first ``grasps`` grasps of one object at each sigma (``table1.csv``,
+  ``table1.md``, ``pfc_vs_sigma.png``);
+* **Fig. 9**: success rate, mean Q with its standard deviation and the error (nominal - mean)
+  of the first ``count`` grasps of each object at one sigma (``fig9.csv``, ``fig9.png``);
+* **Fig. 7**: the same contacts reached with two arm configurations, the most and the least
+  robust of ``variants`` configurations of each object's first grasp along a 7-joint arm's
+  self-motion or among a 6-joint arm's IK branches (:mod:`~kinegrasp_env.toolkit.
+  arm_variants`: chosen on the selection draws, reported on fresh ones with their paired
+  gap), ``fig7.csv`` and the contact scatter of each pair, ``fig7_<object>.png``;
+* **Fig. 10**: every one of ``count`` such configurations of each object's first grasp, and
+  the robust and fragile pair among them (``fig10.csv``, ``fig10.png``).
+
+The paper's own values (its robot's) are set beside these by ``scripts/paper_side_by_side.py``.
+"""
 
 from __future__ import annotations
 
@@ -6,16 +26,22 @@ import csv
 import io
 import math
 from collections.abc import Mapping, Sequence
-from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
 
-from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.progress import Progress, cell_progress
-from kinegrasp_env.toolkit.selection import robust_fragile, stats_from_chunk
-from kinegrasp_env.world.grasps import Grasp, shipped_grasps, write_atomic
-from kinegrasp_env.world.objects import OBJECT_NAMES
+from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
+from kinegrasp_env.toolkit.arm_variants import (
+    COLUMNS,
+    check_variants,
+    find_variants,
+    variant_block,
+    variant_cells,
+    variant_label,
+)
+from kinegrasp_env.toolkit.progress import cell_progress
+from kinegrasp_env.world.grasps import Grasp, write_atomic
 
 #: Table I's CSV columns; new columns go at the end (readers by position keep working).
 TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_fc_lo", "p_fc_hi",
@@ -53,35 +79,6 @@ def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _cell_callback(report: Progress | None):
-    return False if report is None else report.evaluation()
-
-
-def _cell_done(report: Progress | None, label: str, stats) -> None:
-    if report is not None:
-        report.cell_done(f"{label}: P(FC) {stats.p_fc:.3f}")
-
-
-def _executor(executor: Executor | None, processes: int) -> AbstractContextManager[Executor]:
-    """The caller's executor (left open), else a local pool for the experiment's duration."""
-    return nullcontext(executor) if executor is not None else LocalExecutor(processes)
-
-
-def _evaluate_set(grasps, sigma: float, samples: int, seed: int, processes: int,
-                  engine: str = "pybullet", return_draws: bool = False,
-                  executor: Executor | None = None, report: Progress | None = None,
-                  friction: float = 0.5) -> list:
-    """Evaluate ``grasps`` at ``sigma`` (friction mu ``friction``); one progress cell each."""
-    stats = []
-    with _executor(executor, processes) as run_on:
-        for g in grasps:
-            stats.append(evaluate_grasp(g, JointNoise(sigma), samples, seed, engine=engine,
-                                        return_draws=return_draws, executor=run_on,
-                                        progress=_cell_callback(report), friction=friction))
-            _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", stats[-1])
-    return stats
-
-
 def write_rows(out: Path, name: str, rows: list[dict],
                 columns: tuple[str, ...] | None = None) -> None:
     """``rows`` as CSV ``out/name`` (atomically); columns default to the first row's keys."""
@@ -93,183 +90,199 @@ def write_rows(out: Path, name: str, rows: list[dict],
     write_atomic(out / name, buffer.getvalue())
 
 
-def _fig7_candidates(objects: tuple[str, ...], variants: int) -> dict[str, list]:
-    """Per object: shipped grasp 0 and up to ``variants`` null-space variants of it."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
-
-    candidates = {}
-    for name in objects:
-        grasp = shipped_grasps(name)[0]
-        planner = GraspPlanner(name)
-        try:
-            candidates[name] = [grasp, *planner.variants(grasp, variants)]
-        finally:
-            planner.close()
-    return candidates
+#: fig9.csv's columns (the robot last: readers of the older columns by position keep working).
+FIG9_COLUMNS = ("object", "id", "p_fc", "q_mean", "q_std", "q_nominal", "error", "samples",
+                "sigma", "robot")
 
 
-def fig7(out_dir: str | Path, *, objects: tuple[str, ...] = ("drill", "spray_flask"),
-         samples: int = 2000, sigma: float = 0.0133, variants: int = 8, seed: int = 0,
-         processes: int = 1, engine: str = "pybullet", executor: Executor | None = None,
-         progress: bool = False, friction: float = 0.5) -> list[dict]:
-    """Fig. 7: the same contacts reached with two arm configurations, the most and the least
-    robust of shipped grasp 0 and ``variants`` null-space variants of it: P(FC), the moments
-    of Q and the scatter of contact points and normals for each.
+def _write_success_quality(out_dir: str | Path, name: str, rows: list[dict],
+                           columns: tuple[str, ...], title: str) -> None:
+    """``<name>.csv`` of ``rows`` and the success-rate and quality plot ``<name>.png`` (a
+    figure that fails is a warning: the CSV stays)."""
+    from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
 
-    The two are chosen by P(FC) on ``samples`` selection draws per configuration and
-    reported on ``samples`` fresh draws (:mod:`.selection`: chunks ``0..K-1`` and ``K..2K-1``
-    of ``seed``), so the reported gap is not inflated by the choice. Writes ``fig7.csv``
-    (:func:`~.selection.robust_fragile`'s rows), then ``fig7_<object>.png`` of the fresh
-    draws (a figure that fails is a warning: the CSV stays). ``progress``: one overall
-    report."""
+    out = Path(out_dir)
+    write_rows(out, f"{name}.csv", rows, columns)
+    safe_figure(lambda: plot_success_quality(rows, out / f"{name}.png",
+                                             title=f"{name}, {title}"), out / f"{name}.png")
+
+
+def _cell(grasp: Grasp, sigma: float, samples: int, seed: int, runner, executor,
+          report, label: str):
+    """One cell's :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` on
+    ``runner``'s engine, reported to ``report`` (a :class:`~kinegrasp_env.toolkit.progress.
+    Progress`, or None) as its chunks come back and, ``label`` first, when it is done."""
+    stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed, engine=runner,
+                                 executor=executor,
+                                 progress=None if report is None else report.evaluation())
+    if report is not None:
+        report.finish_cell(samples, f"{label}: P(FC) {stats.p_fc:.3f}")
+    return stats
+
+
+def table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],
+                 samples: int, out_dir: str | Path, *,
+                 sigmas: tuple[float, ...] = PAPER_SIGMAS, seed: int = 0,
+                 engine: str = "pybullet", friction: float = 0.5,
+                 executor: Executor | None = None, progress: bool = False) -> list[dict]:
+    """Table I of ``grasps`` (grasps of ``description`` on ``object_name``; a row's ``grasp``
+    is its index among them) at each sigma (radians); writes the module's files.
+    ``executor``: each evaluation's draws in chunks on it (the same draws, row for row);
+    ``progress``: a line per cell on stderr, or a bar on a terminal that moves as the
+    chunks of a run on ``executor`` come back (:class:`~kinegrasp_env.toolkit.progress.
+    Progress`)."""
+    from kinegrasp_env.toolkit.plots import plot_pfc_vs_sigma, safe_figure
+
+    rows = []
+    cells = len(grasps) * len(sigmas)
+    with make_engine(engine, description, object_name, friction=friction) as runner, \
+            cell_progress(progress, "table1", cells, samples) as report:
+        for index, grasp in enumerate(grasps):
+            for sigma in sigmas:
+                stats = _cell(grasp, sigma, samples, seed, runner, executor, report,
+                              f"{object_name} grasp {grasp.id} sigma {sigma:g}")
+                rows.append({"grasp": index, "sigma": sigma, "q_nominal": stats.q_nominal,
+                             "q_mean": stats.q_mean, "q_var": stats.q_std ** 2,
+                             "p_fc": stats.p_fc, "p_fc_lo": stats.ci[0],
+                             "p_fc_hi": stats.ci[1], "samples": samples,
+                             "q_skew": stats.q_skew})
+    out = Path(out_dir)
+    title = f"{object_name} (robot {description.name})"
+    write_rows(out, "table1.csv", [{**r, "robot": description.name} for r in rows],
+               (*TABLE1_COLUMNS, "robot"))
+    write_atomic(out / "table1.md", markdown_table1(rows, title, samples))
+    safe_figure(lambda: plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png",
+                                          title=f"{title}: P(FC) vs noise"),
+                out / "pfc_vs_sigma.png")
+    return rows
+
+
+def fig9(description: RobotDescription, out_dir: str | Path, *,
+               grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
+               sigma: float = 0.0033, count: int = 10, seed: int = 0,
+               engine: str = "pybullet", friction: float = 0.5,
+               executor: Executor | None = None, progress: bool = False) -> list[dict]:
+    """Fig. 9 of the first ``count`` grasps of each object of ``grasp_sets``; writes
+    ``fig9.csv`` (:data:`FIG9_COLUMNS`) and ``fig9.png``; ``executor`` and ``progress`` as
+    :func:`table1`'s."""
+
+    rows = []
+    cells = sum(len(list(grasps)[:count]) for grasps in grasp_sets.values())
+    with cell_progress(progress, "fig9", cells, samples) as report:
+        for name, grasps in grasp_sets.items():
+            with make_engine(engine, description, name, friction=friction) as runner:
+                for grasp in list(grasps)[:count]:
+                    s = _cell(grasp, sigma, samples, seed, runner, executor, report,
+                              f"{name} grasp {grasp.id}")
+                    rows.append({"robot": description.name, "object": name, "id": grasp.id,
+                                 "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
+                                 "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
+                                 "samples": samples, "sigma": sigma})
+    _write_success_quality(out_dir, "fig9", rows, FIG9_COLUMNS,
+                           f"robot {description.name}: sigma = {sigma:g}, {samples} draws "
+                           "per grasp")
+    return rows
+
+
+def _variant_sets(description: RobotDescription, grasp_sets: Mapping[str, Sequence[Grasp]],
+                  count: int) -> dict[str, list[Grasp]]:
+    """Per object of ``grasp_sets``: up to ``count`` configuration variants of its first grasp
+    (:func:`~kinegrasp_env.toolkit.arm_variants.find_variants`)."""
+    return {name: find_variants(description, name, grasps[0], count)
+            for name, grasps in grasp_sets.items()}
+
+
+def fig7(description: RobotDescription, out_dir: str | Path, *,
+         grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 2000,
+         sigma: float = 0.0133, variants: int = 8, seed: int = 0,
+         engine: str = "pybullet", friction: float = 0.5,
+         executor: Executor | None = None, progress: bool = False) -> list[dict]:
+    """Fig. 7 of each object's first grasp (a 7-joint arm with an elbow angle, or a 6-joint
+    arm's IK branches): the robust and the fragile rows (:data:`~kinegrasp_env.toolkit.
+    arm_variants.COLUMNS`, on fresh draws) in ``fig7.csv``, and each pair's contact scatter
+    in ``fig7_<object>.png``; ``executor`` and ``progress`` as :func:`table1`'s.
+
+    Raises:
+        ValueError: an arm without variants (:func:`~kinegrasp_env.toolkit.arm_variants.
+            check_variants`), or no object with two variants in force closure.
+    """
     from kinegrasp_env.toolkit.plots import plot_contacts_pair, safe_figure
     from kinegrasp_env.world.objects import load_object
 
-    out = Path(out_dir)
-    candidates = _fig7_candidates(objects, variants)
-    cells = sum(len(c) + 2 for c in candidates.values())
+    check_variants(description, "fig7")
+    sets = _variant_sets(description, grasp_sets, variants)
     rows, pairs = [], []
-    with _executor(executor, processes) as run_on, \
-            cell_progress(progress, "fig7", cells, samples) as report:
-        for name in objects:
-            stats = _evaluate_set(candidates[name], sigma, samples, seed, processes, engine,
-                                  executor=run_on, report=report, friction=friction)
-            chosen, fresh = robust_fragile(
-                name, candidates[name], stats,
-                _fresh_evaluator(sigma, samples, seed, engine, run_on, report, friction),
-                samples, seed)
-            rows += [{**row, "sigma": sigma} for row in chosen]
-            pairs.append((name, [(row, s) for row, s in zip(chosen, fresh, strict=True)]))
-    write_rows(out, "fig7.csv", rows)
-    for name, pair in pairs:
+    cells = sum(variant_cells(v) for v in sets.values())
+    with cell_progress(progress, "fig7", cells, samples) as report:
+        for name, found in sets.items():
+            block, fresh = variant_block(description, name, found, samples=samples,
+                                         sigma=sigma, seed=seed, engine=engine,
+                                         friction=friction, executor=executor, report=report)
+            chosen = sorted((r for r in block if r["config"]),
+                            key=lambda r: r["config"] != "robust")
+            if chosen:
+                rows += chosen
+                pairs.append((name, chosen, fresh))
+    if not rows:
+        raise ValueError(f"no object has two configurations of the first grasp of robot "
+                         f"{description.name!r} in force closure; nothing written")
+    out = Path(out_dir)
+    write_rows(out, "fig7.csv", rows, COLUMNS)
+    for name, chosen, fresh in pairs:
         path = out / f"fig7_{name}.png"
-        safe_figure(lambda name=name, pair=pair, path=path: plot_contacts_pair(
-            load_object(name).mesh, [s.draws for _, s in pair],
-            [f"elbow {row['elbow_angle'] or 0:.2f} rad: P(FC) = {s.p_fc:.3f}"
-             for row, s in pair], path,
-            title=f"{name}: same contacts, two arm configurations, sigma = {sigma:g} "
-                  f"(fresh draws)"), path)
+        safe_figure(lambda name=name, chosen=chosen, fresh=fresh, path=path: plot_contacts_pair(
+            load_object(name).mesh, [f.draws for f in fresh],
+            [f"{variant_label(row, 2)}: P(FC) = {f.p_fc:.3f}"
+             for row, f in zip(chosen, fresh, strict=True)], path,
+            title=f"{name}, robot {description.name}: same contacts, two arm "
+                  f"configurations, sigma = {sigma:g} (fresh draws)"), path)
     return rows
 
 
-def _fresh_evaluator(sigma: float, samples: int, seed: int, engine: str, executor: Executor,
-                     report: Progress | None, friction: float = 0.5):
-    """:data:`~.selection.Evaluator` of the fresh draws, one progress cell each."""
-    def evaluate(grasp: Grasp, first_chunk: int):
-        stats = stats_from_chunk(grasp, JointNoise(sigma), samples, seed, first_chunk,
-                                 engine=engine, executor=executor, friction=friction,
-                                 progress=_cell_callback(report))
-        _cell_done(report, f"{grasp.object} grasp {grasp.id} sigma {sigma:g} (fresh draws)",
-                   stats)
-        return stats
-    return evaluate
-
-
-def variant_sets(objects: Sequence[str], count: int,
-                 grasp_sets: Mapping[str, Sequence[Grasp]]) -> dict[str, list[Grasp]]:
-    """Per object, the grasps fig10 evaluates: ``count`` null-space variants of the first
-    grasp of its set (``grasp_sets[name]``, else its shipped set), by the default planner."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
-
-    sets = {}
-    for name in objects:
-        base = list(grasp_sets[name]) if name in grasp_sets else shipped_grasps(name)
-        if not base:
-            raise ValueError(f"the grasp set of {name} is empty")
-        planner = GraspPlanner(name)
-        try:
-            sets[name] = planner.variants(base[0], count)
-        finally:
-            planner.close()
-    return sets
-
-
-def fig10(out_dir: str | Path, *, samples: int = 1000, sigma: float = 0.0033,
-          count: int = 10, seed: int = 0, processes: int = 1,
-          engine: str = "pybullet", executor: Executor | None = None,
-          progress: bool = False, objects: Sequence[str] = OBJECT_NAMES,
-          grasp_sets: Mapping[str, Sequence[Grasp]] | None = None,
-          method: str = "direct", friction: float = 0.5) -> list[dict]:
-    """Fig. 10 of the default robot: success rate, mean quality (with its std) and the error
-    (nominal - mean) of ``count`` null-space variants of each object's first grasp (same
-    contacts, different arms: :func:`variant_sets`) at ``sigma``. An object's set is
-    ``grasp_sets[name]`` if given (how an imported object, which has no shipped set, is
-    drawn), else its shipped set. Writes ``fig10.csv``, then ``fig10.png`` (a figure that
-    fails is a warning: the CSV stays). ``progress``: one overall report. (Fig. 9, and every
-    other robot's Fig. 10: :mod:`~kinegrasp_env.toolkit.robot_tables`,
-    :mod:`~kinegrasp_env.toolkit.robot_reproduce`.)
-
-    Each variant's row is its estimate on ``samples`` draws (chunks ``0..K-1`` of ``seed``);
-    per object of two variants or more, the most and the least robust variant (``config``
-    robust / fragile, empty for the others) are chosen on those draws and reported on fresh
-    ones (:mod:`.selection`): their rows carry ``fresh_p_fc`` with its interval,
-    ``fresh_samples`` and the paired ``gap`` (robust - fragile) on the fresh draws.
-
-    ``method`` ``reweight``: each object's variants from one batch of closings
-    (:func:`~kinegrasp_env.toolkit.batch_stats.variant_stats`; ``samples`` then reads as
-    each row's effective sample size); the robust and fragile pair is still reported on
-    fresh direct draws.
-
-    Raises:
-        NoGraspSetError: an imported object without a grasp set.
-        ValueError: an unknown method.
-    """
-    from kinegrasp_env.toolkit.plots import plot_success_quality, safe_figure
-
+def check_method(method: str) -> None:
+    """ValueError for an unknown fig10 method (``direct`` or ``reweight``: any arm with
+    variants, :func:`~kinegrasp_env.toolkit.arm_variants.check_variants`, has the six joints
+    a palm deviation's Gaussian needs)."""
     if method not in ("direct", "reweight"):
         raise ValueError(f"unknown method {method!r}: direct or reweight")
-    out = Path(out_dir)
-    sets = variant_sets(objects, count, grasp_sets or {})
+
+
+def fig10(description: RobotDescription, out_dir: str | Path, *,
+          grasp_sets: Mapping[str, Sequence[Grasp]], samples: int = 1000,
+          sigma: float = 0.0033, count: int = 10, seed: int = 0,
+          engine: str = "pybullet", friction: float = 0.5, method: str = "direct",
+          executor: Executor | None = None, progress: bool = False) -> list[dict]:
+    """Fig. 10 of ``description`` (a 7-joint arm with an elbow angle, or a 6-joint arm): per
+    object of ``grasp_sets``, ``count`` variants of its first grasp. Writes ``fig10.csv``
+    (:data:`~kinegrasp_env.toolkit.arm_variants.COLUMNS`), then ``fig10.png`` (a figure that
+    fails is a warning: the CSV stays).
+
+    Args:
+        engine: the Monte Carlo engine (``pybullet``, ``fast`` or ``physics``); the
+            variants and their nominal closings use the reference engine.
+        method: ``direct`` (draws per variant) or ``reweight`` (one batch per object:
+            :func:`~kinegrasp_env.toolkit.arm_variants.variant_block`).
+        executor, progress: as :func:`table1`'s.
+
+    Raises:
+        ValueError: an arm without variants, an unknown method, or no variant in force
+            closure.
+    """
+
+    check_variants(description, "fig10")
+    check_method(method)
+    sets = _variant_sets(description, grasp_sets, count)
     rows = []
-    chooses = {name: len(g) >= 2 for name, g in sets.items()}
-    cells = sum(len(g) + 2 * chooses[name] for name, g in sets.items())
-    with _executor(executor, processes) as run_on, \
-            cell_progress(progress, "fig10", cells, samples) as report:
-        for name, grasps in sets.items():
-            if method == "reweight":
-                from kinegrasp_env.toolkit.batch_stats import variant_stats
-
-                stats = variant_stats(list(grasps), sigma, samples, seed, engine=engine,
-                                      executor=run_on, friction=friction)
-                for g, s in zip(grasps, stats, strict=True):
-                    _cell_done(report, f"{g.object} grasp {g.id} sigma {sigma:g}", s)
-            else:
-                stats = _evaluate_set(grasps, sigma, samples, seed, processes, engine,
-                                      executor=run_on, report=report, friction=friction)
-            block = [{"object": name, "id": g.id, "p_fc": s.p_fc, "q_mean": s.q_mean,
-                      "q_std": s.q_std, "q_nominal": s.q_nominal, "error": s.error,
-                      "samples": s.samples, "sigma": sigma}
-                     for g, s in zip(grasps, stats, strict=True)]
-            _mark_pair(block, name, grasps, stats, chooses[name],
-                       _fresh_evaluator(sigma, samples, seed, engine, run_on, report,
-                                        friction), samples, seed)
-            rows += block
-    write_rows(out, "fig10.csv", rows)
-    safe_figure(lambda: plot_success_quality(
-        rows, out / "fig10.png",
-        title=f"fig10: sigma = {sigma:g}, {samples} draws per grasp"), out / "fig10.png")
+    cells = sum(variant_cells(v) for v in sets.values())
+    with cell_progress(progress, "fig10", cells, samples) as report:
+        for name, found in sets.items():
+            rows += variant_block(description, name, found, samples=samples, sigma=sigma,
+                                  seed=seed, engine=engine, friction=friction, method=method,
+                                  executor=executor, report=report)[0]
+    if not rows:
+        raise ValueError(f"no variant of the first grasp of robot {description.name!r} closes "
+                         "in force closure; nothing written")
+    _write_success_quality(out_dir, "fig10", rows, COLUMNS,
+                           f"robot {description.name}: sigma = {sigma:g}, {samples} draws "
+                           "per variant")
     return rows
-
-
-#: fig10's columns of the chosen pair (empty for the other variants).
-PAIR_COLUMNS = ("config", "fresh_p_fc", "fresh_p_fc_lo", "fresh_p_fc_hi", "fresh_samples",
-                "selection_p_fc", "gap", "gap_lo", "gap_hi")
-
-
-def _mark_pair(block: list[dict], name: str, grasps: list[Grasp], stats: list, chooses: bool,
-               evaluate, samples: int, seed: int) -> None:
-    """Add :data:`PAIR_COLUMNS` to one object's fig10 rows: the robust and fragile variants
-    (chosen on the rows' draws) with their fresh-draw numbers, empty elsewhere."""
-    for row in block:
-        row.update(dict.fromkeys(PAIR_COLUMNS, ""))
-    if not chooses:
-        return
-    chosen, _ = robust_fragile(name, grasps, stats, evaluate, samples, seed)
-    by_id = {g.id: row for g, row in zip(grasps, block, strict=True)}
-    for pair_row in chosen:
-        by_id[pair_row["id"]].update({
-            "config": pair_row["config"], "fresh_p_fc": pair_row["p_fc"],
-            "fresh_p_fc_lo": pair_row["p_fc_lo"], "fresh_p_fc_hi": pair_row["p_fc_hi"],
-            "fresh_samples": pair_row["samples"], "selection_p_fc": pair_row["selection_p_fc"],
-            "gap": pair_row["gap"],
-            "gap_lo": pair_row["gap_lo"], "gap_hi": pair_row["gap_hi"]})

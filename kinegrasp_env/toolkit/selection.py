@@ -10,8 +10,8 @@ from **fresh draws** the choice never saw.
 Seed streams: with ``samples`` draws in K chunks of ``chunk`` draws, the selection uses chunks
 ``0..K-1`` of the run seed (chunk c draws from ``SeedSequence(seed, spawn_key=(c,))``, as
 every evaluation does) and the report chunks ``K..2K-1`` of the same seed, the rule
-``kinegrasp elbow`` follows for its best angle too, for every robot (a description robot's
-run by rows: :func:`report_rows`). The two sets of draws never overlap, the
+``kinegrasp elbow`` follows for its best angle too (a run by rows: :func:`report_rows`). The
+two sets of draws never overlap, the
 same seed gives the same numbers, and the chosen pair shares its fresh draws (common random
 numbers), so their difference is a paired one.
 """
@@ -20,35 +20,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
 
-import numpy as np
-
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.evaluate import (
-    DEFAULT_CHUNK,
-    GraspStats,
-    chunk_sizes,
-    run_chunks,
-    summarize,
-    validate_request,
-)
-from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.nominal import nominal_quality
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.sampling.noise_model import STREAM_CHUNK
 from kinegrasp_env.sampling.stats import paired_interval
-from kinegrasp_env.world.grasps import Grasp
-
-#: ``evaluate(candidate, first_chunk) -> GraspStats`` (with its draws): the candidate's
-#: statistics on ``samples`` draws starting at chunk ``first_chunk`` of the run seed.
-Evaluator = Callable[[Grasp, int], GraspStats]
 
 
-def report_chunks(samples: int, chunk: int = DEFAULT_CHUNK) -> tuple[int, int]:
+def report_chunks(samples: int, chunk: int = STREAM_CHUNK) -> tuple[int, int]:
     """(first, count) of the chunks that hold the fresh draws of a ``samples``-draw
     selection: the selection uses chunks ``0..count-1``, the report ``first..first+count-1``
     with ``first = count``."""
-    count = len(chunk_sizes(samples, chunk))
+    count = math.ceil(samples / chunk)
     return count, count
 
 
@@ -60,23 +44,6 @@ def report_rows(samples: int) -> int:
     samples are the report chunks' draws."""
     first, _ = report_chunks(samples, STREAM_CHUNK)
     return first * STREAM_CHUNK
-
-
-def stats_from_chunk(grasp: Grasp, noise: JointNoise, samples: int, seed: int,
-                     first_chunk: int, *, engine: str = "fast",
-                     executor: Executor | None = None, chunk: int = DEFAULT_CHUNK,
-                     return_draws: bool = True, progress=False,
-                     friction: float = 0.5) -> GraspStats:
-    """:func:`evaluate_grasp`'s statistics of ``grasp`` on ``samples`` draws that start at
-    chunk ``first_chunk`` of ``seed`` (``first_chunk = 0``: exactly ``evaluate_grasp``'s
-    draws; :func:`report_chunks`' first: the fresh draws)."""
-    validate_request(samples, 1, chunk)
-    counts, moments, draws = run_chunks(
-        grasp, noise, seed, sizes=chunk_sizes(samples, chunk), first_chunk=first_chunk,
-        engine=engine, return_draws=return_draws, executor=executor, progress=progress,
-        friction=friction)
-    return summarize(grasp, noise, seed, engine, counts, moments, draws,
-                     q_nominal=nominal_quality(grasp, friction))
 
 
 def extremes(estimates: Sequence[float]) -> tuple[int, int]:
@@ -91,48 +58,40 @@ def extremes(estimates: Sequence[float]) -> tuple[int, int]:
     return best, worst
 
 
-def _fc(stats: GraspStats) -> np.ndarray:
-    return (stats.draws.outcome == FORCE_CLOSURE).astype(float)
+@dataclass(frozen=True)
+class ChosenPair:
+    """The robust and the fragile candidate of a selection, with their fresh evaluations.
 
-
-def robust_fragile(name: str, candidates: Sequence[Grasp], selection: Sequence[GraspStats],
-                   evaluate: Evaluator, samples: int, seed: int,
-                   chunk: int = DEFAULT_CHUNK) -> tuple[list[dict], list[GraspStats]]:
-    """The most and the least robust of ``candidates`` by their P(FC) on the selection
-    draws (``selection[i]`` of ``candidates[i]``, chunks ``0..K-1``), reported on fresh
-    draws (``evaluate(candidate, K)``).
-
-    Returns:
-        Two rows (``config`` robust, then fragile): ``p_fc``, its Wilson 95% interval
-        ``p_fc_lo``/``p_fc_hi``, the moments of Q (``q_mean``, ``q_var``, ``q_skew``, over the
-        force-closure draws) and ``samples``, all on the fresh draws; ``selection_p_fc`` and
-        ``selection_samples`` (the estimate the choice used); ``gap``, ``gap_lo``, ``gap_hi``:
-        robust minus fragile P(FC) on the shared fresh draws with its paired Student-t 95%
-        interval; ``selection_gap`` the same difference on the selection draws (biased up).
-        And the two fresh :class:`GraspStats` (with their draws).
+    Attributes:
+        robust, fragile: the candidates' indices (the largest and the smallest selection
+            estimate: :func:`extremes`).
+        fresh: the two fresh evaluations, robust first (each with ``draws.outcome``, shape
+            (samples,)).
+        gap, gap_lo, gap_hi: robust minus fragile P(FC) on the shared fresh draws and its
+            paired Student-t 95% interval.
     """
-    if len(candidates) != len(selection):
-        raise ValueError(f"{len(candidates)} candidates but {len(selection)} evaluations")
-    best, worst = extremes([s.p_fc for s in selection])
-    first, _ = report_chunks(samples, chunk)
-    fresh = [evaluate(candidates[i], first) for i in (best, worst)]
-    gap, lo, hi = paired_interval(_fc(fresh[0]) - _fc(fresh[1]))
-    rows = []
-    for label, i, stats in (("robust", best, fresh[0]), ("fragile", worst, fresh[1])):
-        grasp = candidates[i]
-        rows.append({
-            "object": name, "config": label, "id": grasp.id,
-            "elbow_angle": grasp.meta.get("elbow_angle"), "p_fc": stats.p_fc,
-            "p_fc_lo": stats.p_fc_ci[0], "p_fc_hi": stats.p_fc_ci[1],
-            "q_mean": stats.q_mean, "q_var": stats.q_var, "q_skew": stats.q_skew,
-            "q_nominal": stats.q_nominal, "samples": stats.samples,
-            "selection_p_fc": selection[i].p_fc, "selection_samples": selection[i].samples,
-            "gap": gap, "gap_lo": lo, "gap_hi": hi,
-            "selection_gap": selection[best].p_fc - selection[worst].p_fc})
-    return rows, fresh
+
+    robust: int
+    fragile: int
+    fresh: tuple[Any, Any]
+    gap: float
+    gap_lo: float
+    gap_hi: float
 
 
-def provenance(samples: int, seed: int, chunk: int = DEFAULT_CHUNK,
+def robust_fragile(selection: Sequence[float], report: Callable[[int], Any]) -> ChosenPair:
+    """The most and the least robust candidate by their P(FC) on the selection draws
+    (``selection[i]``: candidate i's estimate), reported on fresh draws: ``report(i)`` is
+    candidate i evaluated on the draws after the selection's (the same draws for both, so
+    their difference is a paired one)."""
+    best, worst = extremes(selection)
+    fresh = (report(best), report(worst))
+    fc = [(f.draws.outcome == FORCE_CLOSURE).astype(float) for f in fresh]
+    gap, lo, hi = paired_interval(fc[0] - fc[1])
+    return ChosenPair(best, worst, fresh, gap, lo, hi)
+
+
+def provenance(samples: int, seed: int, chunk: int = STREAM_CHUNK,
                batch: int | None = None) -> str:
     """The one-line statement of where a chosen pair's numbers come from (``batch``: the
     closings of one re-weighted batch the choice was made on, instead of draws per

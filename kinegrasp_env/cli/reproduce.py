@@ -1,8 +1,6 @@
 """``reproduce EXPERIMENT``: the paper's protocols on a robot's grasps (Table I, Figs. 7, 9 and
-10: :mod:`kinegrasp_env.toolkit.robot_tables`, :mod:`kinegrasp_env.toolkit.robot_reproduce`),
-each evaluation ``evaluate --robot``'s: Table I and Fig. 9 of every robot, the default one's
-included (:data:`EVERY_ROBOT`); Figs. 7 and 10 of any robot but the default one, whose
-variants its own planner chooses (``cli.grasping``)."""
+10: :mod:`kinegrasp_env.toolkit.experiments`), every evaluation ``evaluate --robot``'s; the
+default robot is the paper's, any catalog robot runs them alike."""
 
 from __future__ import annotations
 
@@ -22,12 +20,9 @@ from kinegrasp_env.cli.figure_grasps import (
 #: The experiments that compare configurations of one palm pose (a 7-joint arm's
 #: self-motion, a 6-joint arm's IK branches).
 VARIANT_EXPERIMENTS = ("fig7", "fig10")
-#: The experiments every robot runs here, the default one included.
-EVERY_ROBOT = ("table1", "fig9")
 
 
-def robot_grasp_sets(args, robot: str, only: str | None = None
-                     ) -> tuple[dict[str, list], int]:
+def grasp_sets(args, robot: str, only: str | None = None) -> tuple[dict[str, list], int]:
     """``reproduce EXPERIMENT --robot NAME``'s (grasp sets by object, grasps or variants per
     object): the robot's shipped sets (of ``only``, else ``--object``, else of every object
     it has one for) and a count, or a grasp file of the robot."""
@@ -65,15 +60,13 @@ def robot_grasp_sets(args, robot: str, only: str | None = None
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
-def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
-    """``reproduce EXPERIMENT --robot NAME`` of a robot's grasps: Table I, Fig. 7
-    and Fig. 9 (:mod:`kinegrasp_env.toolkit.robot_tables`), Fig. 10
-    (:func:`kinegrasp_env.toolkit.robot_reproduce.robot_fig10`); Figs. 7 and 10 move a
-    7-joint arm along its self-motion or compare a 6-joint arm's IK branches (another arm
-    is one line)."""
+def reproduce(args, samples: int, friction: float = 0.5) -> int:
+    """``reproduce EXPERIMENT --robot NAME`` of a robot's grasps
+    (:mod:`kinegrasp_env.toolkit.experiments`); Figs. 7 and 10 move a 7-joint arm along its
+    self-motion or compare a 6-joint arm's IK branches (another arm is one line)."""
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_reproduce import check_variants
+    from kinegrasp_env.toolkit.arm_variants import check_variants
 
     robot = args.robot
     check_robot_engine(args.engine, robot)
@@ -81,27 +74,27 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
         description = load_robot(robot)
     method = getattr(args, "method", "direct")
     if args.figure in VARIANT_EXPERIMENTS:
-        from kinegrasp_env.toolkit.robot_reproduce import check_method
+        from kinegrasp_env.toolkit.experiments import check_method
 
         with reported(ValueError):  # before any work
             check_variants(description, args.figure)
             check_method(method)
     if args.figure == "table1":
-        return robot_table1_command(args, description, samples, friction)
-    sets, count = robot_grasp_sets(args, robot)
+        return table1_command(args, description, samples, friction)
+    sets, count = grasp_sets(args, robot)
     out = str(output_folder(args.out or f"out/{args.figure}"))
     seed = parse_seed(args.seed)
     if args.figure in ("fig7", "fig9"):
-        return robot_figure_command(args, description, sets, count, out, samples, seed,
+        return figure_command(args, description, sets, count, out, samples, seed,
                                     friction)
-    from kinegrasp_env.toolkit.robot_reproduce import robot_fig10
+    from kinegrasp_env.toolkit.experiments import fig10
 
     with executor_from(args) as executor:  # after every check: Ray takes seconds to start
         with reported(ValueError), batch_sized(twice_samples):
-            rows = robot_fig10(description, out, grasp_sets=sets, samples=samples,
-                               count=count, seed=seed, engine=args.engine, friction=friction,
-                               method=method, executor=executor)
-    from kinegrasp_env.toolkit.robot_reproduce import variant_label
+            rows = fig10(description, out, grasp_sets=sets, samples=samples, count=count,
+                         seed=seed, engine=args.engine, friction=friction, method=method,
+                         executor=executor, progress=True)
+    from kinegrasp_env.toolkit.arm_variants import variant_label
 
     for r in rows:
         shown = "" if method == "direct" else f" (effective sample {r['samples']})"
@@ -110,7 +103,7 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
     pairs = [r for r in rows if r["config"]]
     if pairs:
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
-        from kinegrasp_env.toolkit.selection import provenance
+        from kinegrasp_env.toolkit.selection import format_gap, provenance
 
         print("robust and fragile variants " + provenance(
             samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples))
@@ -119,28 +112,28 @@ def reproduce_robot(args, samples: int, friction: float = 0.5) -> int:
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
               f"{r['fresh_p_fc_hi']:.3f}), chosen at {r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":
-            print(f"{r['object']:<12} robust - fragile {r['gap']:+.3f} (95% CI "
-                  f"{r['gap_lo']:+.3f} .. {r['gap_hi']:+.3f}), paired")
+            print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
     print(written(out, ["fig10.csv", "fig10.png"]))
     return 0
 
 
-def robot_figure_command(args, description, sets: dict, count: int, out: str, samples: int,
-                         seed: int, friction: float) -> int:
-    """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.robot_tables`), on
+def figure_command(args, description, sets: dict, count: int, out: str, samples: int,
+                   seed: int, friction: float) -> int:
+    """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.experiments`), on
     the executor ``--processes`` asks for."""
-    from kinegrasp_env.toolkit.robot_reproduce import variant_label
-    from kinegrasp_env.toolkit.robot_tables import robot_fig7, robot_fig9
-    from kinegrasp_env.toolkit.selection import provenance
+    from kinegrasp_env.toolkit.arm_variants import variant_label
+    from kinegrasp_env.toolkit.experiments import fig7, fig9
+    from kinegrasp_env.toolkit.selection import format_gap, provenance
 
     with executor_from(args) as executor, reported(ValueError):
         if args.figure == "fig9":
-            rows = robot_fig9(description, out, grasp_sets=sets, samples=samples, count=count,
-                              seed=seed, engine=args.engine, friction=friction,
-                              executor=executor, progress=True)
+            rows = fig9(description, out, grasp_sets=sets, samples=samples, count=count,
+                        seed=seed, engine=args.engine, friction=friction, executor=executor,
+                        progress=True)
         else:
-            rows = robot_fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
-                              engine=args.engine, friction=friction, executor=executor)
+            rows = fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
+                        engine=args.engine, friction=friction, executor=executor,
+                        progress=True)
     if args.figure == "fig7":
         print(f"robust and fragile configurations {provenance(samples, seed)}")
     for r in rows:
@@ -153,21 +146,20 @@ def robot_figure_command(args, description, sets: dict, count: int, out: str, sa
               f"{r['fresh_p_fc_lo']:.3f} .. {r['fresh_p_fc_hi']:.3f}), chosen at "
               f"{r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":
-            print(f"{r['object']:<12} robust - fragile {r['gap']:+.3f} (95% CI "
-                  f"{r['gap_lo']:+.3f} .. {r['gap_hi']:+.3f}), paired")
+            print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
     pngs = ([f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             if args.figure == "fig7" else ["fig9.png"])
     print(written(out, [f"{args.figure}.csv", *pngs]))
     return 0
 
 
-def robot_table1_command(args, description, samples: int, friction: float) -> int:
+def table1_command(args, description, samples: int, friction: float) -> int:
     """``reproduce table1 [--robot NAME]``: Table I of the robot's first ``--grasps``
     (default 5, or the whole set where it has fewer) grasps of ``--object`` (default: the
     paper's object, the spray flask, where the robot has shipped grasps of it, else the first
     object it has them of; a count above the set's size is refused), or of every grasp of a
     grasp file (of ``--object`` where it is given)."""
-    from kinegrasp_env.toolkit.robot_tables import robot_table1
+    from kinegrasp_env.toolkit.experiments import table1
 
     robot = description.name
     if args.grasps is not None and not is_count(args.grasps):
@@ -192,7 +184,7 @@ def robot_table1_command(args, description, samples: int, friction: float) -> in
                            f"FILE (e.g. from `kinegrasp plan --robot {robot} --object cube "
                            "--out grasps.json`)")
         name = TABLE1_OBJECT if TABLE1_OBJECT in objects else objects[0]
-        sets, _ = robot_grasp_sets(args, robot, name)
+        sets, _ = grasp_sets(args, robot, name)
         count = positive_int(args.grasps, "--grasps")
         if not asked:  # the default count: as many as the set has, up to it
             count = min(count, len(sets[name]))
@@ -203,9 +195,9 @@ def robot_table1_command(args, description, samples: int, friction: float) -> in
     out = str(output_folder(args.out or "out/table1"))
     seed = parse_seed(args.seed)
     with executor_from(args) as executor:  # after every check: Ray takes seconds to start
-        rows = robot_table1(description, name, grasps, samples, out, seed=seed,
-                            engine=args.engine, friction=friction, executor=executor,
-                            progress=True)
+        rows = table1(description, name, grasps, samples, out, seed=seed,
+                      engine=args.engine, friction=friction, executor=executor,
+                      progress=True)
     from kinegrasp_env.toolkit.experiments import markdown_table1
 
     print(markdown_table1(rows, f"{name} (robot {robot})", samples))
