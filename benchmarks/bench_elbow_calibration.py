@@ -161,7 +161,7 @@ def real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsi
 
 def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, epsilon: float,
           delta: float, executor) -> dict:
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration

@@ -8,8 +8,9 @@ edges; chunks of 250 draws, as ``kinegrasp rank --engine fast`` runs them):
   --seed 0 --variants 2`` (the file ``notebooks/candidates.json``): 12 candidates, 4 grasps
   in 3 arm configurations each. Budget 2000 draws per candidate (the README's ``rank``),
   top 6; ``a3``: the same set cut at top 3 (one outcome cache for both).
-* ``b``: a ``reproduce fig10``-style set: 10 null-space variants of the drill's shipped grasp
-  0 (the same contacts, 10 arm configurations). Budget 1000 draws (``reproduce fig10``'s).
+* ``b``: 10 null-space variants of the drill's shipped grasp 0 by the default robot's planner
+  (the same contacts, 10 arm configurations, as ``reproduce fig10`` compares). Budget 1000
+  draws (``reproduce fig10``'s).
 * ``c``, ``d``, ``e`` (``--sets c,d,e``): the same on the cube, the spray flask and the mug
   (the rest of ``reproduce fig10``'s default objects): the cost of a certified top k is set by
   the boundary's gap and its discordant draws, so one set alone says little of it.

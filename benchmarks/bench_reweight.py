@@ -22,8 +22,8 @@ self-motion and the paper's four noise levels:
   four direct runs of ``--levels-samples`` draws, with each method's standard errors beside,
   and the least closings one batch with direct top-ups needs for the direct runs' accuracy
   (:func:`levels_floor`: known from the weights alone, before any closing);
-  fig10's ``--variants`` null-space variants per object on the reference engine
-  (``reproduce fig10 --method reweight``) against a run per variant.
+  fig10's ``--variants`` arm configurations of each object's first grasp on the reference
+  engine (``reproduce fig10 --method reweight``) against a run per configuration.
 
 Writes ``benchmarks/results/bench_reweight.json`` and the table in docs/guides/elbow.md.
 """
@@ -40,7 +40,7 @@ import numpy as np
 from marked_section import write_between
 from results_file import add_options, plain, publish, settings
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
@@ -234,8 +234,9 @@ def levels_floor(sigmas: list[float], samples: int, n: int = 20000, seed: int = 
 
 
 def variants_timing(obj: str, args) -> dict:
-    """fig10's null-space variants of one object: one batch against one run per variant, on
-    the reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
+    """fig10's arm configurations of one object's first grasp (:func:`~kinegrasp_env.toolkit.
+    arm_variants.find_variants`): one batch against one run per configuration, on the
+    reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import find_variants
@@ -307,7 +308,7 @@ def certificate_coverage(args) -> list[dict]:
     at level delta each (batch_certificate at 2 delta) are counted beside, judged at delta."""
     from scipy import stats as sps
 
-    from kinegrasp_env.montecarlo.engines import NO_FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.draws import NO_FORCE_CLOSURE
     from kinegrasp_env.montecarlo.palm_batch import PalmBatch
     from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf
     from kinegrasp_env.toolkit.elbow_reweight import SelfMotionDeviation, batch_certificate

@@ -54,7 +54,7 @@ def main() -> None:
         parser.error(f"--repeat must be >= 1, got {args.repeat}")
     with tempfile.TemporaryDirectory() as home:
         os.environ["KINEGRASP_HOME"] = home
-        from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+        from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
         from kinegrasp_env.montecarlo.robot_evaluate import make_engine
         from kinegrasp_env.robot.catalog import add_robot
         from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps

@@ -22,7 +22,7 @@ import time
 import numpy as np
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.world.grasps import shipped_grasps

@@ -37,7 +37,7 @@ from results_file import add_options, publish, settings
 from scipy import stats
 
 from kinegrasp_env.closing.generic_fast import FastRobotHand
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
 from kinegrasp_env.montecarlo.engines import make_engine as own_engine
 from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.world.grasps import shipped_grasps

@@ -76,8 +76,7 @@ from scipy.stats import rankdata
 from simulator_agreement import SIMULATORS, run_validate
 from thin_objects import THIN_OBJECTS, import_thin_objects
 
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine, quick_hold_engine
 from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine

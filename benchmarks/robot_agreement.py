@@ -25,7 +25,7 @@ import numpy as np
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL
 from kinegrasp_env.montecarlo.description_engine import score
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import Grasp

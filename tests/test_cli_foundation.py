@@ -298,6 +298,12 @@ def test_help_shows_the_choices_from_their_sources():
     from kinegrasp_env.world.objects import OBJECT_NAMES
 
     assert ENGINE_NAMES == evaluate.ENGINES and MAX_SIGMA == evaluate.MAX_SIGMA
+    import inspect
+
+    from kinegrasp_env.cli.figure_grasps import FIG7_VARIANTS
+    from kinegrasp_env.toolkit.experiments import fig7
+
+    assert FIG7_VARIANTS == inspect.signature(fig7).parameters["variants"].default
     from kinegrasp_env.cli.common import DEFAULT_FRICTION, NUM_EDGES
     from kinegrasp_env.cli.ranking_table import OUTCOME_COLUMNS
     from kinegrasp_env.quality import wrenches

@@ -180,7 +180,7 @@ def test_a_draw_that_misses_does_not_hold():
     """Cube grasp 7 at 0.033 rad: some draws miss with a finger while two others touch; the
     check scores none of them (nor any other draw out of force closure) held. Measured: 12
     missed draws were scored held when every touching draw was checked."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED
 
     grasp = next(g for g in shipped_grasps("cube") if g.id == "7")
     noise = JointNoise(0.033)

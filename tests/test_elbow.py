@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -268,7 +268,7 @@ def test_a_noise_model_is_searched_under_every_source():
     the default robot's own evaluation under the model (``evaluate_grasp``, another path to
     the same rows; at most one draw may differ where the two engines' contacts straddle a
     boundary), and not those of the joints alone."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
     from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
     grasp = shipped_grasps("cube")[0]

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, NO_FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, NO_FORCE_CLOSURE
 from kinegrasp_env.montecarlo.palm_batch import PalmBatch
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf

@@ -334,3 +334,77 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
         assert row["fresh_p_fc_lo"] <= row["fresh_p_fc"] <= row["fresh_p_fc_hi"]
     csv_rows = _read(tmp_path / "fig10.csv")
     assert [r["config"] for r in csv_rows] == [r["config"] for r in rows]
+
+
+def test_fresh_rows_start_after_the_selections_chunks_and_carry_their_own_q_moments():
+    """A 100-draw selection fills chunk 0 (rows 0..99) only: the pair's fresh draws are rows
+    250..349 of the seed's run (chunk 1), not rows 100..199. Each chosen row's fresh P(FC)
+    and Q mean, variance and skewness equal those of evaluate_robot_grasp on exactly those
+    rows (offset 250), and differ from its selection estimate's (rows 0..99)."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.arm_variants import find_variants, variant_block
+
+    robot, grasp = load_robot("kuka_sdh"), shipped_grasps("drill")[0]
+    variants = find_variants(robot, "drill", grasp, 3)
+    rows, fresh = variant_block(robot, "drill", variants, samples=100, sigma=0.03, seed=4,
+                                engine="fast", friction=0.5)
+    by_id = {v.id: v for v in variants}
+    chosen = [r for r in rows if r["config"]]
+    assert len(chosen) == 2 and len(fresh) == 2
+    for row in chosen:
+        rows_250 = evaluate_robot_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
+                                        offset=250, engine="fast")
+        rows_100 = evaluate_robot_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
+                                        offset=100, engine="fast")
+        assert row["fresh_p_fc"] == rows_250.p_fc
+        assert (row["fresh_q_mean"], row["fresh_q_var"], row["fresh_q_skew"]) == pytest.approx(
+            (rows_250.q_mean, rows_250.q_std ** 2, rows_250.q_skew), rel=1e-12)
+        assert (rows_100.p_fc, rows_100.q_mean) != (rows_250.p_fc, rows_250.q_mean)
+        assert (row["q_mean"], row["q_std"]) != pytest.approx(
+            (row["fresh_q_mean"], row["fresh_q_var"] ** 0.5))
+
+
+def _last_progress_line(text: str, name: str) -> tuple[int, int, str]:
+    """(cells, total draws, the last line) of a command's plain progress lines: line k says
+    cell k, the last one cell k/k and done/total draws."""
+    import re
+
+    lines = [line for line in text.splitlines() if line.startswith(f"{name}: cell ")]
+    cells = len(lines)
+    assert [line.startswith(f"{name}: cell {k}/") for k, line in enumerate(lines, 1)] == [
+        True] * cells
+    assert lines[-1].startswith(f"{name}: cell {cells}/{cells} ")
+    done, total = map(int, re.search(r"(\d+)/(\d+) draws,", lines[-1]).groups())
+    assert done == total
+    return cells, total, lines[-1]
+
+
+@pytest.mark.parametrize("factor", [None, 1], ids=["batch", "direct-fallback"])
+def test_fig10_reweight_progress_counts_the_batch_and_every_fallback(factor, capsys,
+                                                                     monkeypatch, tmp_path):
+    """fig10 --method reweight's progress: one cell for the batch (BATCH_FACTOR x samples
+    closings) and the pair's two fresh cells, the last line at k/k cells and every draw
+    counted once. With a batch too small for any variant (BATCH_FACTOR 1: each variant falls
+    back to its own direct draws), a cell per fallback is added as it runs, and the totals
+    follow."""
+    from kinegrasp_env.montecarlo import palm_batch
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit import arm_variants
+
+    if factor is not None:
+        for module in (palm_batch, arm_variants):
+            monkeypatch.setattr(module, "BATCH_FACTOR", factor)
+        from kinegrasp_env.toolkit import batch_stats
+        monkeypatch.setattr(batch_stats, "BATCH_FACTOR", factor)
+    samples = 100
+    rows = experiments.fig10(load_robot("kuka_sdh"), tmp_path, samples=samples, count=4,
+                             grasp_sets={"spray_flask": shipped_grasps("spray_flask")},
+                             sigma=0.0233, engine="fast", method="reweight", progress=True)
+    cells, total, last = _last_progress_line(capsys.readouterr().err, "fig10")
+    fallbacks = sum(r["samples"] == samples and factor is not None for r in rows)
+    batch = (factor or palm_batch.BATCH_FACTOR) * samples
+    assert len(rows) == 4
+    assert cells == 1 + 2 + fallbacks and total == batch + (2 + fallbacks) * samples, last
+    assert f" {total}/{total} draws" in last and "down from" not in last
+    assert fallbacks == (4 if factor is not None else 0)

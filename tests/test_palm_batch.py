@@ -109,7 +109,7 @@ def test_fragile_direction_of_a_band_field():
     """A band field, force closure where |u . delta| < c: failures lie out along u, which in
     the whitened space z = L^-1 delta is the direction L^T u (u . delta = (L^T u) . z). The
     most fragile direction is that one, the second no more spread than the draws."""
-    from kinegrasp_env.montecarlo.engines import NO_FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.draws import NO_FORCE_CLOSURE
     from kinegrasp_env.montecarlo.palm_batch import PalmBatch, fragile_directions
     from kinegrasp_env.sampling.reweight import MixtureProposal
 

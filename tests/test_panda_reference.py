@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.closing.generic_reference import CONTACT_TOL
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps

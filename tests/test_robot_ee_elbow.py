@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.cli import main
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise import JointNoise

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.closing.finger_paths import link_poses
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps

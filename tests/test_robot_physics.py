@@ -129,7 +129,7 @@ def test_validate_robot_refusals(capsys, tmp_path):
 def test_validate_draws_are_evaluates_draws(capsys, tmp_path):
     """Validate's kinematic outcomes and Q per draw equal ``evaluate_robot_grasp``'s with the
     same seed and sigma (the draws of ``kinegrasp evaluate --robot``)."""
-    from kinegrasp_env.montecarlo.engines import OUTCOMES
+    from kinegrasp_env.montecarlo.draws import OUTCOMES
     from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 
     grasp = shipped_grasps("drill", "panda")[0]

@@ -176,7 +176,7 @@ def test_noisy_arms_where_pybullet_puts_them(page):
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
-    from kinegrasp_env.montecarlo.engines import OUTCOMES
+    from kinegrasp_env.montecarlo.draws import OUTCOMES
     from kinegrasp_env.montecarlo.robot_evaluate import (
         evaluate_robot_grasp,
         make_engine,

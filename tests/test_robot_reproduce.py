@@ -158,6 +158,12 @@ def test_fig10_of_a_robot_from_one_batch_on_the_command_line(tmp_path, capsys):
                  str(out)]) == 0
     text = capsys.readouterr().out
     assert text.count("(effective sample ") == 3 and "robust - fragile" in text
+    # the pair as fig7 prints it: robust, fragile, then their gap, each with its elbow angle
+    pair = [line.split()[1] for line in text.splitlines()
+            if line.startswith("cube ") and line.split()[1] in ("robust", "fragile")]
+    assert pair == ["robust", "fragile", "robust"], text  # the last: "robust - fragile"
+    assert all(" elbow " in line for line in text.splitlines()
+               if line.split()[1:2] in (["robust"], ["fragile"]) and " id " in line)
     assert ("chosen on one batch of 400 closings re-weighted to every candidate (seed 0), "
             "reported on 200 fresh draws (chunk 1)") in text
     rows = list(csv.DictReader((out / "fig10.csv").open()))
@@ -189,3 +195,32 @@ def test_table1_of_a_robot_in_two_processes_has_the_same_draws(tmp_path, capsys,
     capsys.readouterr()
     assert tables[0] == tables[1]
     assert sum(executor.workers == 2 for executor in chunked) == 4
+
+
+def test_variants_are_kept_by_their_nominal_closing_at_the_runs_friction(tmp_path):
+    """The configurations are kept where their nominal closing is in force closure at the
+    run's friction: at mu 0.1 none of the default robot's mug variants is (at mu 0.5 all
+    four are), so fig10 says so in one line instead of rows of P(FC) 0 (with one batch for
+    the variants too: no batch of no variant)."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.experiments import fig10
+
+    robot, mug = load_robot("kuka_sdh"), {"mug": shipped_grasps("mug")}
+    rows = fig10(robot, tmp_path / "a", grasp_sets=mug, samples=20, count=4, engine="fast")
+    assert len(rows) == 4 and all(r["q_nominal"] > 0 for r in rows)
+    with pytest.raises(ValueError, match=r"no variant of the first grasp .* closes in force "
+                                         r"closure"):
+        fig10(robot, tmp_path / "b", grasp_sets=mug, samples=20, count=4, engine="fast",
+              friction=0.1)
+    with pytest.raises(ValueError, match="closes in force closure"):  # one batch for none
+        fig10(robot, tmp_path / "c", grasp_sets=mug, samples=20, count=4, engine="fast",
+              friction=0.1, method="reweight")
+
+
+def test_fig7_takes_a_count_of_configurations(tmp_path, capsys):
+    """``reproduce fig7 --grasps N``: N configurations of each object's first grasp (the
+    progress lines: N selection cells and the pair's two fresh ones)."""
+    assert main(["reproduce", "fig7", "--robot", "panda", "--object", "cube", "--grasps", "3",
+                 "--samples", SAMPLES, "--engine", "fast", "--out", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "fig7: cell 5/5 " in err and "cell 6/" not in err

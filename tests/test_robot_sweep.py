@@ -18,7 +18,7 @@ from cli_helpers import run_in_process as run
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_chunks import close_engines
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 from kinegrasp_env.montecarlo.sweep import SUMMARY_COLUMNS, SpecError, SweepSpec

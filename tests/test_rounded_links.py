@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 from kinegrasp_env.closing.close_rules import EXACT_BAND
 from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.closing.link_geometry import CYLINDER_SIDES, link_geometry
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.world.grasps import shipped_grasps

@@ -22,7 +22,7 @@ import pytest
 
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.table_check import TableCheck
-from kinegrasp_env.montecarlo.engines import START_COLLISION
+from kinegrasp_env.montecarlo.draws import START_COLLISION
 from kinegrasp_env.montecarlo.engines import make_engine as make_default_engine
 from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.robot.catalog import load_robot

@@ -12,7 +12,7 @@ import pytest
 from cli_helpers import run_cli, start_cli
 
 from kinegrasp_env import cli
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.quality import ferrari_canny
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.kinematics import pose_error

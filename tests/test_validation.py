@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MISSED, NO_FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED, NO_FORCE_CLOSURE
 from kinegrasp_env.physics import simulators
 from kinegrasp_env.physics.protocol import DROPPED, GRIP_LOST, HELD, NO_GRIP, PHASES
 from kinegrasp_env.toolkit import validation

@@ -10,8 +10,12 @@ from pathlib import Path
 
 from kinegrasp_env.cli.common import CLIError, reported
 
-#: ``reproduce fig9|fig10``: grasps (fig9) or null-space variants (fig10) per object.
+#: ``reproduce fig9|fig10``: grasps (fig9) or arm configurations of one grasp (fig10) per
+#: object.
 FIGURE_GRASPS = 10
+#: ``reproduce fig7``: arm configurations of one grasp per object (equal to
+#: ``toolkit.experiments.fig7``'s default, tested).
+FIG7_VARIANTS = 8
 #: ``reproduce table1``'s object without --object, and its number of grasps without --grasps.
 TABLE1_OBJECT, TABLE1_GRASPS = "spray_flask", "5"
 

@@ -23,6 +23,7 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.evaluation import run_evaluate
 from kinegrasp_env.cli.execution_options import add_execution_args
 from kinegrasp_env.cli.figure_grasps import (
+    FIG7_VARIANTS,
     FIGURE_GRASPS,
     TABLE1_GRASPS,
     TABLE1_OBJECT,
@@ -104,10 +105,11 @@ def add_commands(sub) -> None:
     p.add_argument("--samples", default="10000", help="Monte Carlo draws per cell")
     p.add_argument("--grasps", help=f"a count: the first N shipped grasps (table1, default "
                    f"{TABLE1_GRASPS} or the whole set where it has fewer, at most the set; "
-                   f"fig9, default {FIGURE_GRASPS}) or N variants of grasp 0 (fig10, default "
-                   f"{FIGURE_GRASPS}); or a grasp file (`kinegrasp plan`'s output; needed for "
-                   f"an imported object): table1 all its grasps, fig9 its first "
-                   f"{FIGURE_GRASPS}, fig10 variants of its first")
+                   f"fig9, default {FIGURE_GRASPS}) or N arm configurations of grasp 0 (fig7, "
+                   f"default {FIG7_VARIANTS}; fig10, default {FIGURE_GRASPS}); or a grasp file "
+                   f"(`kinegrasp plan`'s output; needed for an imported object): table1 all "
+                   f"its grasps, fig9 its first {FIGURE_GRASPS}, fig7 and fig10 arm "
+                   f"configurations of its first")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     add_execution_args(p, 2)
     # fast by default: the same draws as the reference, and the same outcome for all but a few

@@ -93,7 +93,7 @@ class RankingDraws:
         ``index``; with ``outcomes`` each draw's success too (force closure, or the draws the
         hold criterion's score held: :func:`~kinegrasp_env.toolkit.adaptive_ranking.
         certified_successes`)."""
-        from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+        from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
         from kinegrasp_env.montecarlo.robot_chunks import chunked_draws
         from kinegrasp_env.sampling.stats import StreamingMoments
         from kinegrasp_env.toolkit.adaptive_ranking import certified_successes

@@ -9,6 +9,7 @@ from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
 from kinegrasp_env.cli.evaluation import check_robot_engine
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.figure_grasps import (
+    FIG7_VARIANTS,
     FIGURE_GRASPS,
     TABLE1_GRASPS,
     TABLE1_OBJECT,
@@ -82,11 +83,12 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     if args.figure == "table1":
         return table1_command(args, description, samples, friction)
     sets, count = grasp_sets(args, robot)
+    if args.figure == "fig7":  # a count is its configurations; a file's first grasp is moved
+        count = count if args.grasps and is_count(args.grasps) else FIG7_VARIANTS
     out = str(output_folder(args.out or f"out/{args.figure}"))
     seed = parse_seed(args.seed)
     if args.figure in ("fig7", "fig9"):
-        return figure_command(args, description, sets, count, out, samples, seed,
-                                    friction)
+        return figure_command(args, description, sets, count, out, samples, seed, friction)
     from kinegrasp_env.toolkit.experiments import fig10
 
     with executor_from(args) as executor:  # after every check: Ray takes seconds to start
@@ -100,7 +102,9 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
         shown = "" if method == "direct" else f" (effective sample {r['samples']})"
         print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['p_fc']:.3f}{shown} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
-    pairs = [r for r in rows if r["config"]]
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    pairs = sorted((r for r in rows if r["config"]),  # per object, robust first
+                   key=lambda r: (objects.index(r["object"]), r["config"] != "robust"))
     if pairs:
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
         from kinegrasp_env.toolkit.selection import format_gap, provenance
@@ -108,7 +112,7 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
         print("robust and fragile variants " + provenance(
             samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples))
     for r in pairs:
-        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} P(FC) "
+        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
               f"{r['fresh_p_fc_hi']:.3f}), chosen at {r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":
@@ -131,8 +135,8 @@ def figure_command(args, description, sets: dict, count: int, out: str, samples:
                         seed=seed, engine=args.engine, friction=friction, executor=executor,
                         progress=True)
         else:
-            rows = fig7(description, out, grasp_sets=sets, samples=samples, seed=seed,
-                        engine=args.engine, friction=friction, executor=executor,
+            rows = fig7(description, out, grasp_sets=sets, samples=samples, variants=count,
+                        seed=seed, engine=args.engine, friction=friction, executor=executor,
                         progress=True)
     if args.figure == "fig7":
         print(f"robust and fragile configurations {provenance(samples, seed)}")

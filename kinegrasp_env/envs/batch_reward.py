@@ -27,7 +27,7 @@ import zlib
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
 from kinegrasp_env.robot.branch_motion import BranchMotion
 from kinegrasp_env.robot.null_motion import ArmSelfMotion

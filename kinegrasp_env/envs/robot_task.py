@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows

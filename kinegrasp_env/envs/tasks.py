@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.envs.robot_task import RobotTask
-from kinegrasp_env.montecarlo.engines import MISSED, START_COLLISION
+from kinegrasp_env.montecarlo.draws import MISSED, START_COLLISION
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose

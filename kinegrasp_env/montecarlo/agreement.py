@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION
 
 #: Closed hands further apart than this (radians, any joint) stopped at different places.
 #: Most draws stop within 1e-5 rad of each other, some within 1e-4 (the flexion at a polished

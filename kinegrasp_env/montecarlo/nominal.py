@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES, DrawBatch
 from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 
 #: What a nominal closing that does not reach force closure means, by outcome name.

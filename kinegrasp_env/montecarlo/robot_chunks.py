@@ -163,7 +163,7 @@ def nominal_closing_quality(first: RobotChunk, executor: Executor) -> float:
     ``executor``); 0 where it is not in force closure."""
     from dataclasses import replace
 
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 
     exact = replace(first, sigma=0.0, offset=0, size=1, model=None)
     draw = next(executor.map(run_robot_chunk, [exact]))

@@ -24,8 +24,7 @@ from kinegrasp_env.montecarlo.description_engine import (
     outcome_of,
     score,
 )
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, DrawBatch
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_engines import ENGINES, RobotReferenceEngine, make_engine

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.montecarlo.evaluate import chunk_sizes, tally
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise

@@ -22,8 +22,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
 from kinegrasp_env.montecarlo.robot_evaluate import (
     RobotReferenceEngine,
     evaluate_robot_grasp,
@@ -98,18 +99,27 @@ def variants_of(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[
     return out
 
 
-def find_variants(description: RobotDescription, name: str, grasp: Grasp,
-                  count: int) -> list[Grasp]:
+def find_variants(description: RobotDescription, name: str, grasp: Grasp, count: int,
+                  friction: float = 0.5) -> list[Grasp]:
     """:func:`variants_of` ``grasp`` (a grasp of ``description`` on object ``name``), on the
-    reference engine."""
-    with RobotReferenceEngine(description, name) as reference:
+    reference engine with the contacts' friction coefficient ``friction``."""
+    with RobotReferenceEngine(description, name, friction=friction) as reference:
         return variants_of(grasp, reference, count)
 
 
-def variant_cells(variants: list[Grasp]) -> int:
-    """The evaluations :func:`variant_block` runs on ``variants``: one each, and the chosen
-    pair's two fresh ones where there are two variants or more."""
-    return len(variants) + (2 if len(variants) >= 2 else 0)
+def variant_work(variants: list[Grasp], samples: int, method: str = "direct"
+                 ) -> tuple[int, int]:
+    """(cells, draws) of :func:`variant_block` on ``variants``: a direct evaluation of
+    ``samples`` draws per variant (``method`` direct) or one batch of ``BATCH_FACTOR *
+    samples`` closings for them all (reweight; a variant the batch cannot answer adds a
+    direct cell when it runs), and the chosen pair's two fresh evaluations where there are
+    two variants or more."""
+    fresh = 2 if len(variants) >= 2 else 0
+    if not variants:
+        return 0, 0
+    if method == "reweight":
+        return 1 + fresh, BATCH_FACTOR * samples + fresh * samples
+    return len(variants) + fresh, (len(variants) + fresh) * samples
 
 
 def variant_block(description: RobotDescription, name: str, variants: list[Grasp], *,
@@ -126,8 +136,11 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
             fresh draws direct).
         executor: the direct evaluations' draws in chunks on it (the same draws, row for
             row).
-        report: a progress report, one cell per evaluation (:func:`variant_cells`).
+        report: a progress report, one cell per evaluation or batch (:func:`variant_work`).
     """
+    if not variants:
+        return [], []
+
     def done(label: str, stats) -> None:
         if report is not None:
             report.finish_cell(samples, f"{label} sigma {sigma:g}: P(FC) {stats.p_fc:.3f}")
@@ -145,10 +158,19 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
         if method == "reweight":
             from kinegrasp_env.toolkit.batch_stats import variant_stats
 
+            def fallback(v: Grasp):
+                if report is not None:
+                    report.add_cell(samples)
+                return evaluated(v, 0, f"{name} grasp {v.id} (direct: the batch's effective "
+                                       "sample is too small)")
+
             stats = variant_stats(variants, sigma, samples, seed, engine=engine,
-                                  friction=friction, robot=description, direct=direct)
-            for v, s in zip(variants, stats, strict=True):
-                done(f"{name} grasp {v.id}", s)
+                                  friction=friction, robot=description, direct=fallback)
+            if report is not None:
+                report.finish_cell(BATCH_FACTOR * samples,
+                                   f"{name} grasp {variants[0].id}'s {len(variants)} variants "
+                                   f"from one batch of {BATCH_FACTOR * samples} closings, "
+                                   f"sigma {sigma:g}")
         else:
             stats = [evaluated(v, 0, f"{name} grasp {v.id}") for v in variants]
         block = [{"robot": description.name, "object": name, "id": v.id,

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, START_COLLISION
 from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot

@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.robot_evaluate import (
     ENGINES,

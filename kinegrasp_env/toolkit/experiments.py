@@ -37,8 +37,8 @@ from kinegrasp_env.toolkit.arm_variants import (
     check_variants,
     find_variants,
     variant_block,
-    variant_cells,
     variant_label,
+    variant_work,
 )
 from kinegrasp_env.toolkit.progress import cell_progress
 from kinegrasp_env.world.grasps import Grasp, write_atomic
@@ -185,11 +185,21 @@ def fig9(description: RobotDescription, out_dir: str | Path, *,
 
 
 def _variant_sets(description: RobotDescription, grasp_sets: Mapping[str, Sequence[Grasp]],
-                  count: int) -> dict[str, list[Grasp]]:
+                  count: int, friction: float) -> dict[str, list[Grasp]]:
     """Per object of ``grasp_sets``: up to ``count`` configuration variants of its first grasp
-    (:func:`~kinegrasp_env.toolkit.arm_variants.find_variants`)."""
-    return {name: find_variants(description, name, grasps[0], count)
+    (:func:`~kinegrasp_env.toolkit.arm_variants.find_variants`, at friction mu
+    ``friction``)."""
+    return {name: find_variants(description, name, grasps[0], count, friction)
             for name, grasps in grasp_sets.items()}
+
+
+def _variant_progress(enabled: bool, name: str, sets: Mapping[str, list[Grasp]],
+                      samples: int, method: str = "direct"):
+    """The progress report of fig7 or fig10 over ``sets``' variants
+    (:func:`~kinegrasp_env.toolkit.arm_variants.variant_work`)."""
+    work = [variant_work(v, samples, method) for v in sets.values()]
+    return cell_progress(enabled, name, sum(c for c, _ in work), samples,
+                         total=sum(d for _, d in work))
 
 
 def fig7(description: RobotDescription, out_dir: str | Path, *,
@@ -210,10 +220,9 @@ def fig7(description: RobotDescription, out_dir: str | Path, *,
     from kinegrasp_env.world.objects import load_object
 
     check_variants(description, "fig7")
-    sets = _variant_sets(description, grasp_sets, variants)
+    sets = _variant_sets(description, grasp_sets, variants, friction)
     rows, pairs = [], []
-    cells = sum(variant_cells(v) for v in sets.values())
-    with cell_progress(progress, "fig7", cells, samples) as report:
+    with _variant_progress(progress, "fig7", sets, samples) as report:
         for name, found in sets.items():
             block, fresh = variant_block(description, name, found, samples=samples,
                                          sigma=sigma, seed=seed, engine=engine,
@@ -271,10 +280,9 @@ def fig10(description: RobotDescription, out_dir: str | Path, *,
 
     check_variants(description, "fig10")
     check_method(method)
-    sets = _variant_sets(description, grasp_sets, count)
+    sets = _variant_sets(description, grasp_sets, count, friction)
     rows = []
-    cells = sum(variant_cells(v) for v in sets.values())
-    with cell_progress(progress, "fig10", cells, samples) as report:
+    with _variant_progress(progress, "fig10", sets, samples, method) as report:
         for name, found in sets.items():
             rows += variant_block(description, name, found, samples=samples, sigma=sigma,
                                   seed=seed, engine=engine, friction=friction, method=method,

@@ -159,6 +159,15 @@ class Progress:
                           f"{self.status()}\n")
         self.stream.flush()
 
+    def add_cell(self, draws: int) -> None:
+        """A cell not counted at the start (e.g. a direct evaluation a re-weighted batch falls
+        back to): one more cell of ``draws`` draws in the totals."""
+        self.cells += 1
+        self.total += int(draws)
+        self.most += int(draws)
+        if self.bar is not None:
+            self.bar.total = self.total
+
     def finish_cell(self, draws: int, text: str) -> None:
         """A cell of ``draws`` draws finished at once (an evaluation that reports no draws on
         the way): its draws counted, then :meth:`cell_done`."""
@@ -180,8 +189,11 @@ class Progress:
         self.close()
 
 
-def cell_progress(enabled: bool, name: str, cells: int,
-                  samples: int) -> AbstractContextManager[Progress | None]:
-    """A :class:`Progress` of command ``name`` over ``cells`` cells of ``samples`` draws, or
-    nothing (``enabled`` False)."""
-    return Progress(name, cells * samples, cells) if enabled else nullcontext(None)
+def cell_progress(enabled: bool, name: str, cells: int, samples: int,
+                  total: int | None = None) -> AbstractContextManager[Progress | None]:
+    """A :class:`Progress` of command ``name`` over ``cells`` cells of ``samples`` draws
+    (``total`` draws in all where the cells differ in size), or nothing (``enabled``
+    False)."""
+    if not enabled:
+        return nullcontext(None)
+    return Progress(name, cells * samples if total is None else total, cells)

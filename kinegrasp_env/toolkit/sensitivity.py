@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_noise import with_hand
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise

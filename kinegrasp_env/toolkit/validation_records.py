@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.physics_engine import HoldBatch
 from kinegrasp_env.physics.protocol import HELD, HoldProtocol
 from kinegrasp_env.physics.simulators import check_simulator

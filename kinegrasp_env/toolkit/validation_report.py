@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.toolkit.plots import safe_figure, save_figure
 from kinegrasp_env.toolkit.validation import GraspDraws, GraspRow, ValidationSettings

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.toolkit.report.scene import OUTCOME_COLOURS, skeleton_trace
 from kinegrasp_env.world.grasps import Grasp

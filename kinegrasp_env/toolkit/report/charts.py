@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.toolkit.plots import covariance_ellipse
 from kinegrasp_env.toolkit.report.plotly import layout
 from kinegrasp_env.toolkit.report.scene import OUTCOME_COLOURS

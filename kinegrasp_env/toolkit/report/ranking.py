@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.toolkit.report.arms import NoisyArms
 from kinegrasp_env.toolkit.report.html import (

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import RobotGeometry, robot_geometry
 from kinegrasp_env.toolkit.report.arms import NoisyArms, noisy_traces

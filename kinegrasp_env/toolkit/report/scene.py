@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import OUTCOMES
+from kinegrasp_env.montecarlo.draws import OUTCOMES, DrawBatch
 from kinegrasp_env.toolkit.report.plotly import (
     MESH_STYLE,
     MeshLibrary,
