@@ -1,4 +1,4 @@
-"""`kinegrasp planar`, `kuka-ee` and `convergence` from the command line."""
+"""`kinegrasp planar`, `ee` and `convergence` from the command line."""
 
 from __future__ import annotations
 
@@ -59,8 +59,8 @@ def test_negative_angles_need_no_equals_sign(capsys):
     assert json.loads(capsys.readouterr().out)["samples"] == 100
 
 
-def test_kuka_ee_json_and_errors(capsys):
-    assert main(["kuka-ee", "--q0", "0,0.6,0,-1.2,0,0.8,0", "--sigma", "0.0133",
+def test_ee_of_the_default_robot_json_and_errors(capsys):
+    assert main(["ee", "--q0", "0,0.6,0,-1.2,0,0.8,0", "--sigma", "0.0133",
                  "--samples", "20000", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert np.shape(out["cov"]) == (3, 3) and out["samples"] == 20000
@@ -77,7 +77,7 @@ def test_kuka_ee_json_and_errors(capsys):
     # sampling error of a covariance entry ~ sqrt(var_i var_j / n); linearization error small
     se = np.sqrt(np.outer(linear.diagonal(), linear.diagonal()) / 20000)
     assert np.all(np.abs(np.asarray(out["cov"]) - linear) < 5 * se + 0.02 * np.abs(linear))
-    assert main(["kuka-ee", "--q0", "0,1,2"]) == 2
+    assert main(["ee", "--q0", "0,1,2"]) == 2
     assert "needs 7 joint angles, got 3" in capsys.readouterr().err
 
 
@@ -322,7 +322,7 @@ def test_help_shows_the_choices_from_their_sources():
         text = subs[name].format_help()
         assert f"--engine {braces(evaluate.ENGINES)}" in text
         assert f"--backend {braces(BACKENDS)}" in text
-    for name in ("evaluate", "rank", "planar", "kuka-ee"):
+    for name in ("evaluate", "rank", "planar", "ee"):
         assert f"--noise {braces(DISTRIBUTIONS)}" in subs[name].format_help()
     assert f"--criterion {braces(CRITERIA)}" in subs["rank"].format_help()
     counts = {len(shipped_grasps(name)) for name in OBJECT_NAMES}

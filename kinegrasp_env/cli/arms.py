@@ -1,6 +1,6 @@
 """Arm commands: ``planar`` (end-effector noise of a planar arm), ``ee`` (palm-position noise
-of any catalog robot's arm, sampled and first order), ``kuka-ee`` (the KUKA's, sampled) and
-``convergence`` (the estimators' convergence, the paper's Fig. 3).
+of any catalog robot's arm, sampled and first order) and ``convergence`` (the estimators'
+convergence, the paper's Fig. 3).
 """
 
 from __future__ import annotations
@@ -59,31 +59,6 @@ def cmd_planar(args) -> int:
         print(format_moments("closed form", exact_mean, exact_cov))
         if args.plot:
             print(f"plot written to {args.plot}")
-    return 0
-
-
-def cmd_kuka_ee(args) -> int:
-    import numpy as np
-
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.endeffector import ArmEndEffector
-    from kinegrasp_env.sampling.stats import moments
-
-    effector = ArmEndEffector.of(load_robot(DEFAULT_ROBOT))
-    try:
-        q0 = effector.check_q0(load_robot(DEFAULT_ROBOT).home_arm() if args.q0 is None
-                               else float_list(args.q0, "--q0"))
-    except ValueError as exc:
-        raise CLIError(f"--q0: {exc}") from None
-    noise, sigma, samples, seed = noise_from(args)
-    ee = effector.sample(q0, noise, samples, np.random.default_rng(seed))
-    mom = moments(ee)
-    if args.json:
-        print_json({"mean": mom.mean, "cov": mom.cov, "skew": mom.skew, "samples": samples,
-                    "sigma": sigma, "noise": args.noise, "seed": seed})
-    else:
-        print(format_moments(f"KUKA palm position ({samples} draws)", mom.mean, mom.cov,
-                              mom.skew))
     return 0
 
 
@@ -181,7 +156,7 @@ def cmd_convergence(args) -> int:
 
 
 def add_commands(sub) -> None:
-    """Register ``planar``, ``ee``, ``kuka-ee`` and ``convergence``."""
+    """Register ``planar``, ``ee`` and ``convergence``."""
     p = sub.add_parser("planar", help="end-effector statistics of a planar arm under joint noise")
     p.add_argument("--links", default="2,2", help="comma-separated link lengths, metres")
     p.add_argument("--q0", default="0.0,1.5708", help="comma-separated joint angles, radians")
@@ -196,13 +171,6 @@ def add_commands(sub) -> None:
                    "the description's home configuration)")
     add_noise_args(p, 0.0133)
     p.set_defaults(func=cmd_ee)
-
-    p = sub.add_parser("kuka-ee", help="palm-position statistics of the KUKA under joint noise "
-                       "(sampled; `ee --robot kuka_sdh` adds the first order)")
-    p.add_argument("--q0", help="7 arm joint angles, radians (default: the description's "
-                   "home configuration)")
-    add_noise_args(p, 0.0133)
-    p.set_defaults(func=cmd_kuka_ee)
 
     p = sub.add_parser("convergence", help="Fig. 3: estimator convergence, a planar arm and a "
                        "catalog robot's arm (the KUKA by default)")
