@@ -26,8 +26,9 @@ SPEC = {"joints": {"sigma": 0.01}, "palm": {"translation_sigma": 0.001},
         "object": {"translation_sigma": 0.001}, "friction": {"sigma": 0.05}}
 #: A hand source every robot's hand takes (one closing sigma: radians or metres).
 HAND = {"hand": {"closing_sigma": 0.01}}
-#: The command lines ({g}: the robot's grasp file, {o}: an output path of its own); the
-#: last item names a file the command must write (or None).
+#: The command lines ({g}: the robot's grasp file, {o}: an output path of its own, {r}: the
+#: robot, for a command that reads no grasp file); the last item names a file the command
+#: must write (or None).
 COMMANDS = {
     "evaluate": (["evaluate", "--grasps", "{g}", "--grasp", "0", "--sigma", "0.01",
                   "--samples", "6", "--json"], None),
@@ -63,6 +64,16 @@ COMMANDS = {
                 "{o}.html"], "{o}.html"),
     "reproduce fig9": (["reproduce", "fig9", "--grasps", "{g}", "--samples", "4", "--out",
                         "{o}"], "{o}/fig9.csv"),
+    "reproduce table1": (["reproduce", "table1", "--grasps", "{g}", "--samples", "4", "--out",
+                          "{o}"], "{o}/table1.csv"),
+    "reproduce fig7": (["reproduce", "fig7", "--grasps", "{g}", "--samples", "4", "--out",
+                        "{o}"], "{o}/fig7.csv"),
+    "reproduce fig10": (["reproduce", "fig10", "--grasps", "{g}", "--samples", "4", "--out",
+                         "{o}"], "{o}/fig10.csv"),
+    "reproduce fig10 --method reweight": (["reproduce", "fig10", "--grasps", "{g}",
+                                           "--samples", "8", "--method", "reweight", "--out",
+                                           "{o}"], "{o}/fig10.csv"),
+    "ee": (["ee", "--robot", "{r}", "--samples", "50", "--json"], None),
     "validate": (["validate", "--grasps", "{g}", "--grasp", "0", "--samples", "1",
                   "--sigma", "0", "--json", "--out", "{o}"], "{o}/summary.json"),
     "validate --simulator mujoco": (["validate", "--grasps", "{g}", "--grasp", "0",
@@ -102,12 +113,18 @@ def test_the_command_runs_for_the_robot(workspace, monkeypatch, capsys, robot, c
     assert json.loads(Path(grasps).read_text()).get("robot", "kuka_sdh") == robot
     words, written = COMMANDS[command]
     out = f"out_{robot}_{command.replace(' ', '_').replace('-', '')}"
-    argv = [w.format(g=grasps, o=out) for w in words]
+    argv = [w.format(g=grasps, o=out, r=robot) for w in words]
     text = run_in_process(capsys, *argv)
     if written is not None:
         assert Path(written.format(o=out)).is_file(), (argv, text)
     if "--json" in argv and command.split()[0] == "evaluate":
         assert json.loads(text)["robot"] == robot
+    if command == "ee":
+        assert json.loads(text)["robot"] == robot
+    if command.startswith("reproduce"):
+        rows = Path(written.format(o=out)).read_text().splitlines()
+        assert len(rows) >= 2 and all(row.split(",")[0] == robot for row in rows[1:]
+                                      if rows[0].startswith("robot,"))
     if "--json" in argv and command.split()[0] == "elbow":
         assert json.loads(text).get("robot", "kuka_sdh") == robot
     if "--static-hold" in argv:
