@@ -6,8 +6,8 @@ The variants of a 7-joint arm are ``count`` configurations picked evenly (by ind
 walked every :data:`~kinegrasp_env.toolkit.elbow.FINE_STEP` radians of psi, within the joint
 limits and clear of the object); for a 6-joint arm, which has no self-motion, they are the
 palm pose's IK branches (:func:`~kinegrasp_env.toolkit.elbow_search.branch_variants`, at most
-``count``). Either kind is kept where its nominal closing is in force closure. Each is
-evaluated on ``samples`` draws of joint noise on the arm joints
+``count``). Either kind is kept where its nominal closing is in force closure (at the engine's
+friction: the run's). Each is evaluated on ``samples`` draws of joint noise on the arm joints
 (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed ``seed``: the
 draws of ``kinegrasp evaluate --robot NAME --seed SEED``); with two variants or more, the most
 and the least robust (chosen on those draws) are reported again on fresh draws (the rows after
