@@ -154,12 +154,21 @@ def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | N
                "mean_reward_first_100": (sum(rewards[:100]) / len(rewards[:100])
                                          if rewards else None),
                "hyperparams": {k: str(v) for k, v in params.items()},
-               "env_kwargs": env_kwargs, "model": str(out / f"{name}.zip"),
+               "env_kwargs": env_kwargs, "model": recorded_path(out / f"{name}.zip"),
                "grasp_file": grasp_file,
                "tasks": {obj: len(tasks[obj]) for obj in sorted(tasks)}}
     (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
     env.close()
     return summary
+
+
+def recorded_path(path: Path) -> str:
+    """A file's path as a summary records it: relative to the repository root where it lies
+    inside it (the same on every machine), else as given."""
+    try:
+        return str(path.resolve().relative_to(HERE.parent))
+    except ValueError:
+        return str(path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -488,3 +488,13 @@ def test_multistep_reach_loss_by_hand():
     assert out["grasps_best_beyond_reach"] == 1
     with pytest.raises(ValueError, match="no optimizer_curve"):
         multistep.reach_loss([{"object": "cube", "grasp": "0", "elbow_nominal": 0.0}], 1.5)
+
+
+def test_a_training_summary_records_the_models_path_the_same_on_every_machine(tmp_path):
+    """Inside the repository the model's path is recorded relative to its root (so a
+    committed summary names no machine's folders); outside it, as given."""
+    inside = ROOT / "agents" / "models" / "KineGraspSelect-v0_ppo.zip"
+    assert train.recorded_path(inside) == "agents/models/KineGraspSelect-v0_ppo.zip"
+    assert train.recorded_path(tmp_path / "m.zip") == str(tmp_path / "m.zip")
+    for summary in (ROOT / "agents" / "models").glob("*_ppo*.json"):
+        assert json.loads(summary.read_text())["model"].startswith("agents/models/"), summary

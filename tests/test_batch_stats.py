@@ -84,3 +84,22 @@ def test_reproduce_fig10_reweight_and_its_refusals(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
     assert not (tmp_path / "x").exists()
+
+
+def test_reproduce_names_the_candidates_the_batch_could_not_answer(tmp_path, capsys,
+                                                                   monkeypatch):
+    """With a batch too small for any configuration (BATCH_FACTOR 1), every row is its own
+    direct run and says so, and so does the provenance line; none claims an effective
+    sample."""
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.montecarlo import palm_batch
+    from kinegrasp_env.toolkit import arm_variants
+
+    for module in (palm_batch, arm_variants, batch_stats):
+        monkeypatch.setattr(module, "BATCH_FACTOR", 1)
+    assert main(["reproduce", "fig10", "--object", "spray_flask", "--grasps", "3",
+                 "--samples", "100", "--method", "reweight", "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert text.count("(its own draws: the batch's effective sample was too small)") == 3
+    assert "(effective sample " not in text
+    assert "; 3 of the candidates on their own 100 draws" in text

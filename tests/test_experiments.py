@@ -401,10 +401,31 @@ def test_fig10_reweight_progress_counts_the_batch_and_every_fallback(factor, cap
     rows = experiments.fig10(load_robot("kuka_sdh"), tmp_path, samples=samples, count=4,
                              grasp_sets={"spray_flask": shipped_grasps("spray_flask")},
                              sigma=0.0233, engine="fast", method="reweight", progress=True)
-    cells, total, last = _last_progress_line(capsys.readouterr().err, "fig10")
-    fallbacks = sum(r["samples"] == samples and factor is not None for r in rows)
+    err = capsys.readouterr().err
+    cells, total, last = _last_progress_line(err, "fig10")
+    fallbacks = sum(r["estimate"] == "direct" for r in rows)
     batch = (factor or palm_batch.BATCH_FACTOR) * samples
-    assert len(rows) == 4
+    assert len(rows) == 4 and {r["estimate"] for r in rows} <= {"direct", "reweighted"}
     assert cells == 1 + 2 + fallbacks and total == batch + (2 + fallbacks) * samples, last
     assert f" {total}/{total} draws" in last and "down from" not in last
     assert fallbacks == (4 if factor is not None else 0)
+    # the batch is counted when it is closed, before the evaluations it falls back to
+    first = next(line for line in err.splitlines() if line.startswith("fig10: cell 1/"))
+    assert "one batch of" in first and f" {batch}/" in first, first
+    assert all(r["samples"] == samples for r in rows if r["estimate"] == "direct")
+
+
+def test_a_cell_added_on_the_way_grows_the_totals_on_a_bar_too():
+    """Progress.add_cell: one more cell and its draws in the totals, the bar's own total and
+    description with them; the last report is every cell and every draw, none "down"."""
+    stream = io.StringIO()
+    report = Progress("fig10", 300, 3, stream=stream, interactive=True)
+    report.finish_cell(100, "a")
+    report.add_cell(100)
+    assert (report.cells, report.total, report.bar.total) == (4, 400, 400)
+    assert "cell 2/4" in stream.getvalue().rsplit("\r", 1)[-1]
+    for text in "bcd":
+        report.finish_cell(100, text)
+    report.close()
+    assert (report.done, report.cells_done) == (400, 4)
+    assert "cell 4/4 100%" in stream.getvalue() and "down from" not in stream.getvalue()

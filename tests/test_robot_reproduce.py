@@ -224,3 +224,8 @@ def test_fig7_takes_a_count_of_configurations(tmp_path, capsys):
                  "--samples", SAMPLES, "--engine", "fast", "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     assert "fig7: cell 5/5 " in err and "cell 6/" not in err
+    assert main(["reproduce", "fig7", "--robot", "panda", "--object", "cube", "--grasps", "1",
+                 "--samples", SAMPLES, "--out", str(tmp_path / "one")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--grasps 1: fig7 compares" in err[0], err
+    assert not (tmp_path / "one").exists()

@@ -85,6 +85,9 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     sets, count = grasp_sets(args, robot)
     if args.figure == "fig7":  # a count is its configurations; a file's first grasp is moved
         count = count if args.grasps and is_count(args.grasps) else FIG7_VARIANTS
+        if count < 2:
+            raise CLIError(f"--grasps {count}: fig7 compares the most and the least robust of "
+                           "N configurations, N >= 2")
     out = str(output_folder(args.out or f"out/{args.figure}"))
     seed = parse_seed(args.seed)
     if args.figure in ("fig7", "fig9"):
@@ -99,7 +102,9 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     from kinegrasp_env.toolkit.arm_variants import variant_label
 
     for r in rows:
-        shown = "" if method == "direct" else f" (effective sample {r['samples']})"
+        shown = {"direct": "" if method == "direct" else " (its own draws: the batch's "
+                 "effective sample was too small)",
+                 "reweighted": f" (effective sample {r['samples']})"}[r["estimate"]]
         print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['p_fc']:.3f}{shown} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
     objects = list(dict.fromkeys(r["object"] for r in rows))
@@ -109,8 +114,11 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
         from kinegrasp_env.toolkit.selection import format_gap, provenance
 
+        own = sum(r["estimate"] == "direct" for r in rows)
         print("robust and fragile variants " + provenance(
-            samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples))
+            samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples)
+            + (f"; {own} of the candidates on their own {samples} draws (the batch's "
+               "effective sample too small)" if method != "direct" and own else ""))
     for r in pairs:
         print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, make_engine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse, rotation_log

@@ -48,9 +48,11 @@ PAIR_COLUMNS = ("config", "fresh_p_fc", "fresh_p_fc_lo", "fresh_p_fc_hi", "fresh
                 "selection_p_fc", "gap", "gap_lo", "gap_hi", "fresh_q_mean", "fresh_q_var",
                 "fresh_q_skew")
 #: A variant row's columns (fig7.csv, fig10.csv): the robot and the variant's elbow angle
-#: (7-joint arms) or IK branch label (6-joint arms) first.
+#: (7-joint arms) or IK branch label (6-joint arms) first; ``estimate`` last: ``direct``
+#: (its own draws) or ``reweighted`` (from one batch: ``samples`` is then its effective
+#: sample size).
 COLUMNS = ("robot", "object", "id", "elbow_angle", "ik_branch", "p_fc", "q_mean", "q_std",
-           "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS)
+           "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS, "estimate")
 
 
 def check_variants(description: RobotDescription, experiment: str) -> None:
@@ -145,6 +147,7 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
         if report is not None:
             report.finish_cell(samples, f"{label} sigma {sigma:g}: P(FC) {stats.p_fc:.3f}")
 
+    direct_ids = set() if method == "reweight" else {v.id for v in variants}
     with make_engine(engine, description, name, friction=friction) as runner:
         def direct(v: Grasp, offset: int = 0, progress=None):
             return evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, offset=offset,
@@ -158,19 +161,23 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
         if method == "reweight":
             from kinegrasp_env.toolkit.batch_stats import variant_stats
 
+            def batch_done() -> None:
+                if report is not None:
+                    report.finish_cell(BATCH_FACTOR * samples,
+                                       f"{name} grasp {variants[0].id}'s {len(variants)} "
+                                       f"variants: one batch of {BATCH_FACTOR * samples} "
+                                       f"closings, sigma {sigma:g}")
+
             def fallback(v: Grasp):
+                direct_ids.add(v.id)
                 if report is not None:
                     report.add_cell(samples)
                 return evaluated(v, 0, f"{name} grasp {v.id} (direct: the batch's effective "
                                        "sample is too small)")
 
             stats = variant_stats(variants, sigma, samples, seed, engine=engine,
-                                  friction=friction, robot=description, direct=fallback)
-            if report is not None:
-                report.finish_cell(BATCH_FACTOR * samples,
-                                   f"{name} grasp {variants[0].id}'s {len(variants)} variants "
-                                   f"from one batch of {BATCH_FACTOR * samples} closings, "
-                                   f"sigma {sigma:g}")
+                                  friction=friction, robot=description, direct=fallback,
+                                  on_batch=batch_done)
         else:
             stats = [evaluated(v, 0, f"{name} grasp {v.id}") for v in variants]
         block = [{"robot": description.name, "object": name, "id": v.id,
@@ -179,7 +186,8 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
                   "q_mean": s.q_mean, "q_std": s.q_std, "q_nominal": s.q_nominal,
                   "error": s.q_nominal - s.q_mean,
                   # a re-weighted variant's: its effective sample size
-                  "samples": getattr(s, "samples", samples), "sigma": sigma,
+                  "samples": samples if v.id in direct_ids else s.samples, "sigma": sigma,
+                  "estimate": "direct" if v.id in direct_ids else "reweighted",
                   **dict.fromkeys(PAIR_COLUMNS, "")}
                  for v, s in zip(variants, stats, strict=True)]
         if len(variants) < 2:

@@ -31,14 +31,16 @@ SAME_POSE_TOL = 1e-6
 
 def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
                   robot: RobotDescription, direct: Callable[[Grasp], Any],
-                  engine: str = "pybullet", friction: float = 0.5) -> list:
+                  engine: str = "pybullet", friction: float = 0.5,
+                  on_batch: Callable[[], None] | None = None) -> list:
     """Per variant (same object, same palm pose) of ``robot`` (an arm of six or more joints:
     its palm error and engines close the batch) at Gaussian joint noise ``sigma`` (radians):
     a :class:`GraspStats` re-weighted from one batch of ``BATCH_FACTOR * samples`` closings
     (``samples`` then reads as the estimate's effective sample size, rounded; its interval
     is the normal one of the weights' standard error; ``outcomes`` is empty), or
     ``direct(grasp)`` (its evaluation on ``samples`` draws) where the effective sample size
-    is below ``samples``.
+    is below ``samples``. ``on_batch()`` is called once the batch is closed, before any
+    direct evaluation.
 
     Raises:
         ValueError: the grasps are not variants of one palm pose of one object, or the
@@ -60,6 +62,8 @@ def variant_stats(grasps: list[Grasp], sigma: float, samples: int, seed: int, *,
     _, quality = close_deltas(q0[0], np.zeros((1, 6)), first.object, engine=engine,
                               friction=friction, robot=name)
     nominal = float(quality[0])
+    if on_batch is not None:
+        on_batch()
     out = []
     for grasp, cov, mean in zip(grasps, covs, means, strict=True):
         est = batch.estimate(cov, mean=mean)

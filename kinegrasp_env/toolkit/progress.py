@@ -167,6 +167,7 @@ class Progress:
         self.most += int(draws)
         if self.bar is not None:
             self.bar.total = self.total
+            self.bar.set_description_str(self._desc(), refresh=True)
 
     def finish_cell(self, draws: int, text: str) -> None:
         """A cell of ``draws`` draws finished at once (an evaluation that reports no draws on
