@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 CSV_COLUMNS = ("id", "p_fc", "p_fc_lo", "p_fc_hi", "q_mean", "q_std", "q_skew", "q_nominal",
                "error", "samples", "engine")
-#: The draws per outcome, after :data:`CSV_COLUMNS`; equal to ``montecarlo.engines.OUTCOMES``
+#: The draws per outcome, after :data:`CSV_COLUMNS`; equal to ``montecarlo.draws.OUTCOMES``
 #: (tested), copied so that building the parser stays cheap.
 OUTCOME_COLUMNS = ("start_collision", "missed", "no_force_closure", "force_closure")
 #: After the outcome counts: 1 where the candidate's nominal closing is in force closure

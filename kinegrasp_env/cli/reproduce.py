@@ -107,35 +107,42 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
                  "reweighted": f" (effective sample {r['samples']})"}[r["estimate"]]
         print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['p_fc']:.3f}{shown} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
-    objects = list(dict.fromkeys(r["object"] for r in rows))
-    pairs = sorted((r for r in rows if r["config"]),  # per object, robust first
-                   key=lambda r: (objects.index(r["object"]), r["config"] != "robust"))
-    if pairs:
+    if any(r["config"] for r in rows):
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
-        from kinegrasp_env.toolkit.selection import format_gap, provenance
+        from kinegrasp_env.toolkit.selection import provenance
 
         own = sum(r["estimate"] == "direct" for r in rows)
         print("robust and fragile variants " + provenance(
             samples, seed, batch=None if method == "direct" else BATCH_FACTOR * samples)
             + (f"; {own} of the candidates on their own {samples} draws (the batch's "
                "effective sample too small)" if method != "direct" and own else ""))
-    for r in pairs:
+    print_pairs(rows)
+    print(written(out, ["fig10.csv", "fig10.png"]))
+    return 0
+
+
+def print_pairs(rows: list[dict]) -> None:
+    """The robust and fragile rows among ``rows`` (fig7, fig10), per object robust first, on
+    their fresh draws, and each object's paired gap."""
+    from kinegrasp_env.toolkit.arm_variants import variant_label
+    from kinegrasp_env.toolkit.selection import format_gap
+
+    objects = list(dict.fromkeys(r["object"] for r in rows))
+    for r in sorted((r for r in rows if r["config"]),
+                    key=lambda r: (objects.index(r["object"]), r["config"] != "robust")):
         print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} {variant_label(r)} P(FC) "
               f"{r['fresh_p_fc']:.3f} (95% CI {r['fresh_p_fc_lo']:.3f} .. "
               f"{r['fresh_p_fc_hi']:.3f}), chosen at {r['selection_p_fc']:.3f}")
         if r["config"] == "fragile":
             print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
-    print(written(out, ["fig10.csv", "fig10.png"]))
-    return 0
 
 
 def figure_command(args, description, sets: dict, count: int, out: str, samples: int,
                    seed: int, friction: float) -> int:
     """``reproduce fig7|fig9 --robot NAME`` (:mod:`kinegrasp_env.toolkit.experiments`), on
     the executor ``--processes`` asks for."""
-    from kinegrasp_env.toolkit.arm_variants import variant_label
     from kinegrasp_env.toolkit.experiments import fig7, fig9
-    from kinegrasp_env.toolkit.selection import format_gap, provenance
+    from kinegrasp_env.toolkit.selection import provenance
 
     with executor_from(args) as executor, reported(ValueError):
         if args.figure == "fig9":
@@ -148,17 +155,11 @@ def figure_command(args, description, sets: dict, count: int, out: str, samples:
                         progress=True)
     if args.figure == "fig7":
         print(f"robust and fragile configurations {provenance(samples, seed)}")
-    for r in rows:
-        if args.figure == "fig9":
+        print_pairs(rows)
+    else:
+        for r in rows:
             print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
                   f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
-            continue
-        print(f"{r['object']:<12} {r['config']:<8} id {r['id']:<5} {variant_label(r)} "
-              f"P(FC) {r['fresh_p_fc']:.3f} (95% CI "
-              f"{r['fresh_p_fc_lo']:.3f} .. {r['fresh_p_fc_hi']:.3f}), chosen at "
-              f"{r['selection_p_fc']:.3f}")
-        if r["config"] == "fragile":
-            print(f"{r['object']:<12} robust - fragile {format_gap(r)}, paired")
     pngs = ([f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             if args.figure == "fig7" else ["fig9.png"])
     print(written(out, [f"{args.figure}.csv", *pngs]))

@@ -74,7 +74,7 @@ def step_stats(outcome: np.ndarray, quality: np.ndarray, held: np.ndarray | None
     and ``score_value``: the score's estimate.
 
     Args:
-        outcome: (n,) indices into :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`;
+        outcome: (n,) indices into :data:`~kinegrasp_env.montecarlo.draws.OUTCOMES`;
         quality: (n,) Q; seed: the draws' seed.
     """
     fc = outcome == FORCE_CLOSURE

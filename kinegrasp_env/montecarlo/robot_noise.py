@@ -31,7 +31,7 @@ def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof:
         check_hand(model.hand, robot)
     robot = robot if isinstance(robot, str) else robot.name
     joints = model.joints
-    if joints is not None and joints.count not in (None, arm_dof):
+    if joints is not None and not joints.fits(arm_dof):
         raise ValueError(f"robot {robot!r} has {arm_dof} arm joints; the spec's joints "
                          f"describe {joints.count} (give one sigma, or one per arm joint)")
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]

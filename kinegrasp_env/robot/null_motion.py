@@ -28,10 +28,17 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, elbow_angle, pose_error
-from kinegrasp_env.robot.self_motion import ArmChain, arm_chain, compiled_step, continue_elbow
+from kinegrasp_env.robot.self_motion import (
+    CONVERGED_TOL,
+    ArmChain,
+    arm_chain,
+    compiled_step,
+    continue_elbow,
+)
 
-#: Newton converged where the residual's norm (metres, radians) is below this.
-RESIDUAL_TOL = 1e-9
+#: Newton converged where the residual's norm (metres, radians) is below this (every
+#: continuation's rule).
+RESIDUAL_TOL = CONVERGED_TOL
 #: Central-difference step of psi's gradient (radians).
 GRADIENT_STEP = 1e-6
 #: Largest change of one joint per Newton iteration (radians).

@@ -41,6 +41,10 @@ RESIDUAL_TOL = 1e-11
 MAX_JOINT_STEP = 0.2
 #: Central-difference step of the elbow angle's gradient (radians).
 GRADIENT_STEP = 1e-6
+#: A continuation step's Newton converged where its residual's norm (metres, radians) is
+#: below this, whichever Newton solved it (:func:`compiled_step`, the numpy one of
+#: :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`).
+CONVERGED_TOL = 1e-9
 #: A continuation step and the same step in two halves end within this (radians, any
 #: joint): else the step left the path (:func:`continue_elbow`).
 CONTINUITY_TOL = 1e-6
@@ -238,13 +242,14 @@ NewtonStep = Callable[[np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np
 def compiled_step(chain: ArmChain, kin: Kinematics, arm_index: np.ndarray,
                   newton_iterations: int = 30) -> NewtonStep:
     """The compiled Newton (:func:`self_motion_newton`) as a continuation step: converged
-    where the pose error is below 1e-9, the result within the joint limits."""
+    where the residual is below :data:`CONVERGED_TOL`, the result within the joint limits."""
     def step(rows: np.ndarray, targets: np.ndarray, goals: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
         trial = rows.copy()
         trial[:, arm_index], err = self_motion_newton(chain, trial[:, arm_index], targets,
                                                       goals, newton_iterations)
-        return trial, (np.linalg.norm(err, axis=1) < 1e-9) & kin.model.within_limits(trial)
+        return trial, ((np.linalg.norm(err, axis=1) < CONVERGED_TOL)
+                       & kin.model.within_limits(trial))
 
     return step
 

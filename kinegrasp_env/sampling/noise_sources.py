@@ -170,9 +170,14 @@ class JointsSource:
                 return len(value)
         return None
 
+    def fits(self, dim: int) -> bool:
+        """Whether the source fits an arm of ``dim`` joints (its per-joint values, if any,
+        describe ``dim``)."""
+        return self.count in (None, dim)
+
     def check_count(self, dim: int) -> None:
         """ValueError (one line) unless the source fits an arm of ``dim`` joints."""
-        if self.count is not None and self.count != dim:
+        if not self.fits(dim):
             raise ValueError(f"the noise spec's joints describe {joints_text(self.count)} but the "
                              f"noise acts on {dim} (give one sigma, or one per arm joint)")
 

@@ -36,7 +36,7 @@ from kinegrasp_env.toolkit.elbow_search import (
     branch_variants,
     robot_reachable_configurations,
 )
-from kinegrasp_env.toolkit.progress import Progress
+from kinegrasp_env.toolkit.progress import Progress, reported_cell
 from kinegrasp_env.toolkit.selection import report_rows, robust_fragile
 from kinegrasp_env.world.grasps import Grasp
 
@@ -143,10 +143,6 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
     if not variants:
         return [], []
 
-    def done(label: str, stats) -> None:
-        if report is not None:
-            report.finish_cell(samples, f"{label} sigma {sigma:g}: P(FC) {stats.p_fc:.3f}")
-
     direct_ids = set() if method == "reweight" else {v.id for v in variants}
     with make_engine(engine, description, name, friction=friction) as runner:
         def direct(v: Grasp, offset: int = 0, progress=None):
@@ -154,9 +150,8 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
                                         engine=runner, executor=executor, progress=progress)
 
         def evaluated(v: Grasp, offset: int, label: str):
-            stats = direct(v, offset, None if report is None else report.evaluation())
-            done(label, stats)
-            return stats
+            return reported_cell(report, samples, f"{label} sigma {sigma:g}",
+                                 lambda progress: direct(v, offset, progress))
 
         if method == "reweight":
             from kinegrasp_env.toolkit.batch_stats import variant_stats

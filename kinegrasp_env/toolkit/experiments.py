@@ -40,7 +40,7 @@ from kinegrasp_env.toolkit.arm_variants import (
     variant_label,
     variant_work,
 )
-from kinegrasp_env.toolkit.progress import cell_progress
+from kinegrasp_env.toolkit.progress import cell_progress, reported_cell
 from kinegrasp_env.world.grasps import Grasp, write_atomic
 
 #: Table I's CSV columns; new columns go at the end (readers by position keep working).
@@ -111,13 +111,10 @@ def _cell(grasp: Grasp, sigma: float, samples: int, seed: int, runner, executor,
           report, label: str):
     """One cell's :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` on
     ``runner``'s engine, reported to ``report`` (a :class:`~kinegrasp_env.toolkit.progress.
-    Progress`, or None) as its chunks come back and, ``label`` first, when it is done."""
-    stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed, engine=runner,
-                                 executor=executor,
-                                 progress=None if report is None else report.evaluation())
-    if report is not None:
-        report.finish_cell(samples, f"{label}: P(FC) {stats.p_fc:.3f}")
-    return stats
+    Progress`, or None: :func:`~kinegrasp_env.toolkit.progress.reported_cell`)."""
+    return reported_cell(report, samples, label, lambda progress: evaluate_robot_grasp(
+        grasp, sigma=sigma, n=samples, seed=seed, engine=runner, executor=executor,
+        progress=progress))
 
 
 def table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],

@@ -190,6 +190,17 @@ class Progress:
         self.close()
 
 
+def reported_cell(report: Progress | None, draws: int, label: str, run: Callable):
+    """One cell of ``draws`` draws on ``report`` (or on none): ``run(progress)``, called with
+    the report's callback for the cell's chunks as they come back (None without a report),
+    then the cell done, said as ``label: P(FC) p`` (the result's ``p_fc``). Returns what
+    ``run`` returns."""
+    result = run(None if report is None else report.evaluation())
+    if report is not None:
+        report.finish_cell(draws, f"{label}: P(FC) {result.p_fc:.3f}")
+    return result
+
+
 def cell_progress(enabled: bool, name: str, cells: int, samples: int,
                   total: int | None = None) -> AbstractContextManager[Progress | None]:
     """A :class:`Progress` of command ``name`` over ``cells`` cells of ``samples`` draws

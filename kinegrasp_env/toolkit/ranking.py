@@ -44,7 +44,7 @@ class CandidateResult:
     outcomes: dict[str, int] = field(default_factory=dict)
 
     def add_outcomes(self, counts: dict[str, int]) -> None:
-        """Count draws per outcome name (``montecarlo.engines.OUTCOMES``)."""
+        """Count draws per outcome name (``montecarlo.draws.OUTCOMES``)."""
         for name, count in counts.items():
             self.outcomes[name] = self.outcomes.get(name, 0) + int(count)
 

@@ -21,7 +21,7 @@ class NoisyArms:
 
     Attributes:
         q: (k, dof) the draws' configurations; outcome: (k,) their outcomes (indices into
-            :data:`~kinegrasp_env.montecarlo.engines.OUTCOMES`), or None where they were
+            :data:`~kinegrasp_env.montecarlo.draws.OUTCOMES`), or None where they were
             not kept (a ranking's draws).
     """
 
