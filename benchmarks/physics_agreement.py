@@ -37,6 +37,10 @@ configuration; higher: predicted to hold):
 * ``quick_hold_mujoco``: the same quick test in MuJoCo: against pybullet's labels, the other
   simulator's dynamic score the other way round (a yes/no score's AUC is its balanced
   accuracy, which is not symmetric in score and label);
+* ``hold_margin``, ``hold_margin_mujoco``: how far the draw got through the quick test in
+  each simulator (:func:`~kinegrasp_env.physics.protocol.hold_margin`: the phases held in a
+  row, then how little the object moved; continuous, every held draw above every other), the
+  dynamic scores as rankings rather than yes/no;
 * baselines from geometry alone: ``-centre_distance`` (the fingertips' centre at the
   pre-shape to the centre of mass, negated).
 
@@ -92,7 +96,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "guides" / "physics.md"
 START, END = "<!-- physics-agreement:start -->", "<!-- physics-agreement:end -->"
 SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "p_hold_static", "static_hold",
-          "hold_capacity", "quick_hold", "quick_hold_mujoco", "-centre_distance")
+          "hold_capacity", "quick_hold", "quick_hold_mujoco", "hold_margin",
+          "hold_margin_mujoco", "-centre_distance")
 BOOTSTRAP = 10_000
 #: The geometry-only score every other score is compared with.
 BASELINE = "-centre_distance"
@@ -191,21 +196,26 @@ def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: 
             "fc_patch": (patch_draws.outcome == FORCE_CLOSURE).astype(float),
             "q_patch": patch_draws.quality, "p_fc": p_fc, "p_hold_static": p_hold_static,
             "static_hold": draws.holds.astype(float), "hold_capacity": capacity,
-            "quick_hold": quick_hold(robot, obj, q, "pybullet"),
-            "quick_hold_mujoco": quick_hold(robot, obj, q, "mujoco"),
+            **quick_hold(robot, obj, q, "pybullet", ""),
+            **quick_hold(robot, obj, q, "mujoco", "_mujoco"),
             "-centre_distance": -distance}
 
 
-def quick_hold(robot: str, obj: str, q: np.ndarray, simulator: str) -> np.ndarray:
-    """(n,) 1.0 where the quick holding test in ``simulator`` holds configuration q (n, dof)."""
+def quick_hold(robot: str, obj: str, q: np.ndarray, simulator: str,
+               suffix: str) -> dict[str, np.ndarray]:
+    """The quick holding test in ``simulator`` of configurations q (n, dof): ``quick_hold``
+    (n,) 1.0 where it holds, ``hold_margin`` (n,) how far each draw got through it, each
+    name with ``suffix``."""
     if robot == "kuka_sdh":
         engine = PhysicsEngine(obj, protocol=QUICK_PROTOCOL, simulator=simulator)
     else:
         engine = quick_hold_engine(robot, obj, simulator=simulator)
     try:
-        return (engine.run_hold(q)[1].outcome == HELD).astype(float)
+        hold = engine.run_hold(q)[1]
     finally:
         engine.close()
+    return {f"quick_hold{suffix}": (hold.outcome == HELD).astype(float),
+            f"hold_margin{suffix}": hold.margin(QUICK_PROTOCOL)}
 
 
 def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:

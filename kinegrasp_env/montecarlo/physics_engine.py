@@ -29,7 +29,14 @@ from kinegrasp_env.montecarlo.engines import (
     Engine,
     check_configurations,
 )
-from kinegrasp_env.physics.protocol import HELD, PHASES, START_COLLISION, HoldProtocol, HoldResult
+from kinegrasp_env.physics.protocol import (
+    HELD,
+    PHASES,
+    START_COLLISION,
+    HoldProtocol,
+    HoldResult,
+    hold_margin,
+)
 from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
 from kinegrasp_env.physics.simulators import HoldSimulator, simulator_class
@@ -100,6 +107,11 @@ class HoldBatch:
     def held(self) -> np.ndarray:
         """(n,) bool: outcome ``held``."""
         return self.outcome == HELD
+
+    def margin(self, protocol: HoldProtocol) -> np.ndarray:
+        """(n,) how far each draw got through ``protocol`` (the one it ran), in [0, 1]
+        (:func:`~kinegrasp_env.physics.protocol.hold_margin`)."""
+        return hold_margin(self.phase_held, self.phase_shift, self.phase_turn, protocol)
 
 
 class PhysicsEngine(Engine):

@@ -281,3 +281,38 @@ def final_outcome(grip: int, phase_held: dict[str, bool]) -> int:
     if not phase_held.get(REST_PHASE, True):
         return GRIP_UNSTEADY
     return HELD if all(phase_held.values()) else DROPPED
+
+
+def hold_margin(phase_held: np.ndarray, phase_shift: np.ndarray, phase_turn: np.ndarray,
+                protocol: HoldProtocol) -> np.ndarray:
+    """How far each draw got through the holding test, in [0, 1]: a graded holding score.
+
+    ``(k + s) / (P + 1)`` for the P phases the protocol runs (:attr:`HoldProtocol.phases`,
+    in :data:`PHASES` order), where k is how many of them the draw held in a row from the
+    first, and s = 1 - the largest movement seen in the phases run as a share of its limit
+    (displacement over ``max_shift``, rotation over ``max_turn``, whichever is larger),
+    clipped to [0, 1]. A draw whose grip never stood (no phase ran) scores 0. So every draw
+    that held scores at least P / (P + 1) and every other draw at most that: the margin ranks
+    as the verdict does and orders the draws within a verdict (held: by how little the object
+    moved; not held: by how late it failed, then how little it moved).
+
+    Args:
+        phase_held: (n, len(PHASES)) int: 1 held, 0 failed, -1 not run
+            (:class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch`'s).
+        phase_shift, phase_turn: (n, len(PHASES)) the largest displacement (metres) and
+            rotation (radians) in each phase, NaN where not run.
+        protocol: the protocol the draws ran (its phases and limits).
+
+    Returns:
+        (n,) the margins.
+    """
+    count = len(protocol.phases)
+    held = np.asarray(phase_held)[:, :count]
+    ran = held >= 0
+    in_a_row = np.cumprod(held == 1, axis=1).sum(axis=1)
+    shift = np.where(ran, np.nan_to_num(np.asarray(phase_shift)[:, :count]), 0.0)
+    turn = np.where(ran, np.nan_to_num(np.asarray(phase_turn)[:, :count]), 0.0)
+    worst = np.maximum(shift.max(axis=1, initial=0.0) / protocol.max_shift,
+                       turn.max(axis=1, initial=0.0) / protocol.max_turn)
+    margin = (in_a_row + np.clip(1.0 - worst, 0.0, 1.0)) / (count + 1)
+    return np.where(ran.any(axis=1), margin, 0.0)
