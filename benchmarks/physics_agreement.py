@@ -101,6 +101,8 @@ SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "p_hold_static", "static_hol
 BOOTSTRAP = 10_000
 #: The geometry-only score every other score is compared with.
 BASELINE = "-centre_distance"
+#: Each quick test's margin -> its yes/no verdict: the second family of paired comparisons.
+MARGINS = {"hold_margin": "quick_hold", "hold_margin_mujoco": "quick_hold_mujoco"}
 
 
 def auc(score: np.ndarray, label: np.ndarray) -> float:
@@ -135,25 +137,25 @@ def auc_interval(score: np.ndarray, label: np.ndarray,
     return [float(np.percentile(values, 2.5)), float(np.percentile(values, 97.5))]
 
 
-def paired_differences(scores: dict, label: np.ndarray,
-                       resamples: list[np.ndarray]) -> dict:
-    """Per score but :data:`BASELINE`: its AUC less the baseline's, and the interval of that
-    difference over the same ``resamples`` of the grasps (:func:`grasp_resamples`: paired),
-    simultaneous at 95% over the scores."""
-    others = [name for name in SCORES if name != BASELINE]
-    values = {name: [] for name in others}
+def paired_differences(scores: dict, label: np.ndarray, resamples: list[np.ndarray],
+                       pairs: list[tuple[str, str]]) -> dict:
+    """Per (score, reference) of ``pairs``: the score's AUC less the reference's, and the
+    interval of that difference over the same ``resamples`` of the grasps
+    (:func:`grasp_resamples`: paired), simultaneous at 95% over the pairs (keyed by the
+    score)."""
+    values = {name: [] for name, _ in pairs}
     for pick in resamples:
-        base = auc(scores[BASELINE][pick], label[pick])
-        if np.isnan(base):
-            continue
-        for name in others:
-            values[name].append(auc(scores[name][pick], label[pick]) - base)
-    tail = 2.5 / len(others)
-    base = auc(scores[BASELINE], label)
-    return {name: {"difference": auc(scores[name], label) - base,
-                   "ci95_simultaneous": [float(np.percentile(v, tail)),
-                                         float(np.percentile(v, 100 - tail))]}
-            for name, v in values.items()}
+        for name, reference in pairs:
+            value = auc(scores[name][pick], label[pick]) - auc(scores[reference][pick],
+                                                                  label[pick])
+            if not np.isnan(value):
+                values[name].append(value)
+    tail = 2.5 / len(pairs)
+    return {name: {"reference": reference,
+                   "difference": auc(scores[name], label) - auc(scores[reference], label),
+                   "ci95_simultaneous": [float(np.percentile(values[name], tail)),
+                                         float(np.percentile(values[name], 100 - tail))]}
+            for name, reference in pairs}
 
 
 def draw_scores(robot: str, obj: str, q: np.ndarray, sigma: float, pfc_samples: int,
@@ -296,7 +298,10 @@ def table(scores: dict, labels: dict, groups: np.ndarray) -> dict:
         for name in SCORES:
             record[name] = {"auc": auc(scores[name], label),
                             "ci95": auc_interval(scores[name], label, resamples)}
-        record["above_baseline"] = paired_differences(scores, label, resamples)
+        record["above_baseline"] = paired_differences(
+            scores, label, resamples, [(name, BASELINE) for name in SCORES if name != BASELINE])
+        record["margin_over_verdict"] = paired_differences(scores, label, resamples,
+                                                           list(MARGINS.items()))
         out[simulator] = record
     return out
 
@@ -334,6 +339,17 @@ def markdown(result: dict) -> str:
             cells = [f"{d['difference']:+.2f} [{d['ci95_simultaneous'][0]:+.2f}, "
                      f"{d['ci95_simultaneous'][1]:+.2f}]"
                      for d in (record["above_baseline"][s] for s in others)]
+            lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
+    lines += ["", "Each quick test's margin less its yes/no verdict on the same draws (paired "
+              "bootstrap over the grasps; intervals simultaneous at 95% over the two):", "",
+              "| robot | simulator | " + " | ".join(
+                  f"{name} - {reference}" for name, reference in MARGINS.items()) + " |",
+              "|---" * (len(MARGINS) + 2) + "|"]
+    for robot, per in result["robots"].items():
+        for simulator, record in per.items():
+            cells = [f"{d['difference']:+.2f} [{d['ci95_simultaneous'][0]:+.2f}, "
+                     f"{d['ci95_simultaneous'][1]:+.2f}]"
+                     for d in (record["margin_over_verdict"][name] for name in MARGINS)]
             lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
     lines += ["", "| robot | verdicts the same in both simulators | 95% interval | "
                   "Cohen's kappa |", "|---|---|---|---|"]

@@ -46,8 +46,10 @@ def test_paired_differences_known_answers():
     baseline = rng.random(80)
     scores = {name: baseline.copy() for name in SCORES}
     scores["p_hold_static"] = label + 0.1 * rng.random(80)  # separates the classes
-    result = paired_differences(scores, label, grasp_resamples(np.arange(80)))
+    pairs = [(name, BASELINE) for name in SCORES if name != BASELINE]
+    result = paired_differences(scores, label, grasp_resamples(np.arange(80)), pairs)
     assert set(result) == set(SCORES) - {BASELINE}
+    assert {r["reference"] for r in result.values()} == {BASELINE}
     same = result["q"]
     assert same["difference"] == 0.0 and same["ci95_simultaneous"] == [0.0, 0.0]
     better = result["p_hold_static"]
