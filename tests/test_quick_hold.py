@@ -144,6 +144,49 @@ def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
                                                                                      strict=True))
 
 
+def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
+    """``rank --criterion hold_margin`` of the panda's cube grasps: candidates in descending
+    mean margin; each mean inside what its P(hold) allows (held draws score in [8/9, 1],
+    the others in [0, 8/9]); the first's mean that of the quick test run again on its draws
+    (chunk 0 of seed 0); the output names the score. ``--adaptive`` refuses it in one line."""
+    import csv
+
+    from cli_helpers import run_in_process
+
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+    from kinegrasp_env.world.grasps import shipped_grasp_file, shipped_grasps
+
+    out = tmp_path / "ranked.csv"
+    text = run_in_process(capsys, "rank", str(shipped_grasp_file("cube", robot="panda")),
+                          "--sigma", "0.0033", "--samples", "3", "--engine", "fast",
+                          "--criterion", "hold_margin", "--out", str(out))
+    assert "margin: the mean over the draws of how far each got through it" in text
+    rows = list(csv.DictReader(out.open()))
+    margin = [float(r["hold_margin"]) for r in rows]
+    assert margin == sorted(margin, reverse=True) and len(set(margin)) > 1
+    floor = len(QUICK_PROTOCOL.phases) / (len(QUICK_PROTOCOL.phases) + 1)
+    for r, m in zip(rows, margin, strict=True):
+        held = float(r["p_hold"])
+        assert floor * held - 1e-9 <= m <= floor * (1 - held) + held + 1e-9
+    first = {g.id: g for g in shipped_grasps("cube", robot="panda")}[rows[0]["id"]]
+    rng = np.random.default_rng(np.random.SeedSequence(0, spawn_key=(0,)))
+    q = np.repeat(np.asarray(first.q0)[None], 3, axis=0)
+    q[:, :7] += rng.normal(0.0, 0.0033, (3, 7))
+    with quick_hold_engine("panda", "cube") as test:
+        again = test.run_hold(q)[1].margin(QUICK_PROTOCOL).mean()
+    assert margin[0] == pytest.approx(again, rel=1e-5)
+    from kinegrasp_env.cli import main
+
+    capsys.readouterr()
+    assert main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--criterion",
+                 "hold_margin", "--adaptive", "--out", str(tmp_path / "adaptive.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["kinegrasp rank: error: --criterion hold_margin ranks by a mean margin, "
+                   "which --adaptive cannot certify (its tests count the draws that succeed); "
+                   "use --criterion hold with --adaptive, or hold_margin without it"]
+    assert not (tmp_path / "adaptive.csv").exists()
+
+
 def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path) -> None:
     """``rank --criterion hold`` of the default robot's cube grasps: the CSV's P(hold) is the
     quick holding test's share of each candidate's draws (the SDH's own test, on the draws'
@@ -221,3 +264,21 @@ def test_a_hold_simulator_without_a_holding_test_is_one_line(capsys, argv, needl
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1
+
+
+def test_a_ranking_log_keeps_each_candidates_margins() -> None:
+    """A resumed ranking reads each finished candidate's margins back from its log line (sum
+    and count: the mean of 0.95, 0.2 and 0.5 by hand); a line without them reads as none."""
+    import json
+
+    from kinegrasp_env.cli.resume import result_from_json, result_to_json
+    from kinegrasp_env.toolkit.ranking import CandidateResult
+
+    result = CandidateResult(2, 3, 4, 1)
+    result.add_margins(np.array([0.95, 0.2, 0.5]))
+    line = json.loads(json.dumps(result_to_json(result)))
+    back = result_from_json(line)
+    assert back.margins == result.margins
+    assert back.hold_margin() == pytest.approx(1.65 / 3, rel=1e-12)
+    del line["margins"]
+    assert math.isnan(result_from_json(line).hold_margin())

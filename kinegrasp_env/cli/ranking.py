@@ -72,12 +72,15 @@ def _merge_side(result: CandidateResult, side: dict[int, CandidateResult]) -> No
     if result.index in side:
         result.outcomes = result.outcomes or dict(side[result.index].outcomes)
         result.holds = result.holds or dict(side[result.index].holds)
+        result.margins = result.margins if result.margins[1] else side[result.index].margins
 
 
 def _hold_scores(args) -> tuple[bool, bool]:
     """(static hold check, quick holding test) a ranking runs."""
+    from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
+
     static = bool(args.static_hold) or args.criterion == "hold_static"
-    return static, args.criterion == "hold"
+    return static, args.criterion in HOLD_TEST_CRITERIA
 
 
 def cmd_rank(args) -> int:
@@ -87,6 +90,10 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 
+    if args.adaptive and args.criterion == "hold_margin":
+        raise CLIError("--criterion hold_margin ranks by a mean margin, which --adaptive cannot "
+                       "certify (its tests count the draws that succeed); use --criterion "
+                       "hold with --adaptive, or hold_margin without it")
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     grasps, digest, rejected = _candidates(args.candidates, args.robot, friction)
@@ -106,8 +113,9 @@ def cmd_rank(args) -> int:
                 "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT,
                 "robot": robot,  # the draws: rows addressed in the seed's streams
                 "criterion_scores": [static, test]}  # the hold scores a log carries
-    if test:  # the holding test runs: its simulator is a setting too
-        settings["hold_simulator"] = args.hold_simulator
+    if test:  # the holding test runs: its simulator is a setting too, and the log carries
+        settings["hold_simulator"] = args.hold_simulator  # each candidate's margins
+        settings["hold_margins"] = True
     if args.noise_spec:  # the whole model is a setting: another model does not resume
         from kinegrasp_env.sampling.noise_spec import spec_of
 
@@ -253,9 +261,7 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
             value = evaluator(index, first, count)
             result = CandidateResult(index)
             result.add(*value, count)
-            if index in side:
-                result.outcomes = dict(side[index].outcomes)
-                result.holds = dict(side[index].holds)
+            _merge_side(result, side)
             results_so_far[index] = result
             return value
 
@@ -296,6 +302,7 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
         for r in report.results:
             r.successes = side[r.index].outcomes.get("force_closure", 0)
             r.holds = dict(side[r.index].holds)
+            r.margins = side[r.index].margins
     print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
           f"({report.draws / report.fixed_draws:.0%}); top {top_k} by {report.measure} "
           f"{'certified' if report.separated else 'NOT certified'} (delta {delta:g}, epsilon "

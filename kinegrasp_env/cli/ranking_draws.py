@@ -22,13 +22,15 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
+    from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
 
-    if args.criterion == "hold":
+    test = args.criterion in HOLD_TEST_CRITERIA
+    if test:
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
         with reported(ValueError):
-            check_hold_noise(noise, robot, "--criterion hold (the holding test)")
-    check_hold_simulator(args, args.criterion == "hold", "--criterion hold")
+            check_hold_noise(noise, robot, f"--criterion {args.criterion} (the holding test)")
+    check_hold_simulator(args, test, "--criterion hold or hold_margin")
     check_robot_engine(args.engine, robot)
     with reported(ValueError):
         for g in grasps:
@@ -110,7 +112,8 @@ class RankingDraws:
         if self.static_hold:
             held["static"] = draws.holds
         if self.hold_test:
-            held["test"] = self._held(index, start, n)
+            held["test"], margins = self._held(index, start, n)
+            tally.add_margins(margins)
         for score, verdicts in held.items():
             tally.add_holds(score, int(verdicts.sum()), n)
         moments = StreamingMoments(1).update(draws.quality[fc])
@@ -119,12 +122,13 @@ class RankingDraws:
         return int(fc.sum()), n, moments
 
     def _held(self, index: int, start, n: int):
-        """(n,) bool: the draws of rows ``start.offset .. + n`` of candidate ``index`` the
-        quick holding test holds."""
+        """((n,) bool, (n,) float): of the draws of rows ``start.offset .. + n`` of candidate
+        ``index``, those the quick holding test holds, and how far each got through it
+        (:func:`~kinegrasp_env.physics.protocol.hold_margin`)."""
 
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.montecarlo.robot_chunks import chunk_rows
-        from kinegrasp_env.physics.protocol import HELD
+        from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
         name = self.grasps[index].object
         if name not in self.testers:
@@ -133,10 +137,11 @@ class RankingDraws:
         tester = self.testers[name]
         q = chunk_rows(dataclasses.replace(start, size=n), tester.description,  # as closed
                        tester.obj.center_of_mass, self.noise_model)[0]
-        held = tester.run_hold(q)[1].outcome == HELD
+        hold = tester.run_hold(q)[1]
+        held = hold.outcome == HELD
         print(f"rank: candidate {self.grasps[index].id}: holding test {int(held.sum())}/{n} "
               "held", file=sys.stderr)
-        return held
+        return held, hold.margin(QUICK_PROTOCOL)
 
     def nominal(self, index: int) -> float:
         """Candidate ``index``'s nominal Q: its closing at q0 (no noise) by the engine."""

@@ -25,13 +25,18 @@ NOMINAL_COLUMN = "nominal_fc"
 #: The hold scores' columns (``toolkit.ranking.HOLD_SCORES`` -> (CSV column, table header));
 #: each CSV column comes with its ``_lo`` and ``_hi`` interval ends.
 HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(hold)")}
+#: With the quick holding test: the mean of its margins (CSV column, table header), after
+#: the hold columns.
+MARGIN_COLUMN = ("hold_margin", "margin")
 #: What each hold score is, printed under the table.
 HOLD_NOTES = {
     "static": "P(stat): the static hold check (the contacts carry the object's weight in six "
               "gravity directions and the lift within the hand's effort limits)",
     "test": "P(hold): the quick holding test in {simulator} (the hand closed on the object under "
             "dynamics, six gravity directions and the lift; it agrees with the full test on "
-            "most draws: benchmarks/quick_hold.py)"}
+            "most draws: benchmarks/quick_hold.py); margin: the mean over the draws of how far "
+            "each got through it, in [0, 1] (the phases held in a row, then how little the "
+            "object moved; every draw that held above every other)"}
 
 def _fmt(value: float) -> str:
     return "" if value is None or (isinstance(value, float) and math.isnan(value)) else \
@@ -112,6 +117,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         for score, (column, _) in HOLD_COLUMNS.items():
             row[column] = r.p_hold(score)
             row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
+        row[MARGIN_COLUMN[0]] = r.hold_margin()
         rows.append(row)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -120,6 +126,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
     scores = [score for score in HOLD_COLUMNS if any(score in r.holds for r in results)]
     hold = tuple(f"{HOLD_COLUMNS[score][0]}{end}" for score in scores
                  for end in ("", "_lo", "_hi"))
+    hold += (MARGIN_COLUMN[0],) if "test" in scores else ()
     writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + (NOMINAL_COLUMN,) + hold + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
@@ -135,6 +142,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
 
         absent = {f"{column}{end}" for score, (column, _) in HOLD_COLUMNS.items()
                   if score not in scores for end in ("", "_lo", "_hi")}
+        absent |= set() if "test" in scores else {MARGIN_COLUMN[0]}
         shown = [{"rank": i, **{k: plain(v) for k, v in row.items() if k not in absent},
                   **({"certified": label} if extra else {})}
                  for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1)]
@@ -144,10 +152,12 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         return
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)
+          + (f" {MARGIN_COLUMN[1]:>6}" if "test" in scores else "")
           + (f" {'certified':>10}" if extra else ""))
     for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
         held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
                        for c in (HOLD_COLUMNS[s][0] for s in scores))
+        held += f" {row[MARGIN_COLUMN[0]]:>6.3f}" if "test" in scores else ""
         print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held

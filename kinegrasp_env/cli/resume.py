@@ -117,7 +117,8 @@ def result_to_json(result: CandidateResult) -> dict:
                                       "m3": m.m3.tolist()}
     return {"index": result.index, "successes": result.successes, "trials": result.trials,
             "chunks": result.chunks, "moments": moments, "outcomes": result.outcomes,
-            "holds": {score: list(pair) for score, pair in result.holds.items()}}
+            "holds": {score: list(pair) for score, pair in result.holds.items()},
+            "margins": list(result.margins)}
 
 
 def result_from_json(item: dict) -> CandidateResult:
@@ -128,5 +129,7 @@ def result_from_json(item: dict) -> CandidateResult:
     outcomes = {str(name): int(count) for name, count in dict(item.get("outcomes") or {}).items()}
     holds = {str(score): (int(pair[0]), int(pair[1]))
              for score, pair in dict(item.get("holds") or {}).items()}
+    total, count = item.get("margins") or (0.0, 0)
     return CandidateResult(int(item["index"]), int(item["successes"]), int(item["trials"]),
-                           int(item["chunks"]), moments, holds=holds, outcomes=outcomes)
+                           int(item["chunks"]), moments, holds=holds, outcomes=outcomes,
+                           margins=(float(total), int(count)))

@@ -30,7 +30,7 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
 #: building the parser imports no NumPy or SciPy.
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold", "hold_margin")
 
 
 def cmd_plan(args) -> int:
@@ -170,10 +170,11 @@ def add_commands(sub) -> None:
                    help="order of the ranking: P(FC), mean Q, the lower end of P(FC)'s 95%% "
                    "interval, P(FC) x (1 + mean Q), P(hold, static): the fraction of draws "
                    "whose contacts can carry the object's weight in six directions with the "
-                   "hand's effort limits, or P(hold): the fraction the quick holding test "
+                   "hand's effort limits, P(hold): the fraction the quick holding test "
                    "holds (in --hold-simulator; the "
                    "holding test runs dynamics per draw, far slower than the kinematic "
-                   "criteria: benchmarks/quick_hold.py)")
+                   "criteria: benchmarks/quick_hold.py), or the mean margin of that test "
+                   "(hold_margin: how far each draw got through it, in [0, 1]; fixed-n only)")
     add_hold_simulator_arg(p)
     add_static_hold_arg(p, "adds the column P(hold, static)")
     p.add_argument("--adaptive", action="store_true",

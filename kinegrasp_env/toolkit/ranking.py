@@ -4,7 +4,9 @@ draws (:class:`CandidateResult`) and the fixed-n run (:func:`rank_fixed`).
 Criteria: ``pfc`` (P(FC)), ``q_mean`` (mean Q over force-closure draws), ``pfc_lcb`` (the
 lower end of the Wilson 95% interval of P(FC)), ``weighted`` (P(FC) x (1 + w mean Q),
 w = :data:`WEIGHT`: P(FC) with a bonus for quality; Q is dimensionless), ``hold_static``
-and ``hold`` (a hold score's P(hold), :data:`HOLD_SCORES`).
+and ``hold`` (a hold score's P(hold), :data:`HOLD_SCORES`) and ``hold_margin`` (the mean over
+the draws of how far each got through the quick holding test:
+:func:`~kinegrasp_env.physics.protocol.hold_margin`).
 
 Adaptive ranking with its certificate: :mod:`~kinegrasp_env.toolkit.adaptive_ranking`.
 """
@@ -19,7 +21,9 @@ import numpy as np
 
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
 
-CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold")
+CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold", "hold_margin")
+#: The criteria that run the quick holding test on every draw.
+HOLD_TEST_CRITERIA = ("hold", "hold_margin")
 #: The hold scores a candidate may carry: the static hold check, the (quick) holding test.
 HOLD_SCORES = ("static", "test")
 #: Weight of mean Q in the ``weighted`` criterion.
@@ -42,6 +46,8 @@ class CandidateResult:
     moments: StreamingMoments | None = None
     holds: dict[str, tuple[int, int]] = field(default_factory=dict)
     outcomes: dict[str, int] = field(default_factory=dict)
+    #: (sum, count) of the quick holding test's margins over the draws it ran
+    margins: tuple[float, int] = (0.0, 0)
 
     def add_outcomes(self, counts: dict[str, int]) -> None:
         """Count draws per outcome name (``montecarlo.draws.OUTCOMES``)."""
@@ -57,6 +63,16 @@ class CandidateResult:
         """The fraction of draws a hold score held (NaN where not run)."""
         held, tried = self.holds.get(score, (0, 0))
         return held / tried if tried else math.nan
+
+    def add_margins(self, margins: np.ndarray) -> None:
+        """Add the quick holding test's margins (k,) of k more draws."""
+        total, count = self.margins
+        self.margins = (total + float(np.sum(margins)), count + int(np.size(margins)))
+
+    def hold_margin(self) -> float:
+        """The mean margin of the draws the quick holding test ran (NaN where none)."""
+        total, count = self.margins
+        return total / count if count else math.nan
 
     def hold_interval(self, score: str, confidence: float = 0.95) -> tuple[float, float]:
         held, tried = self.holds.get(score, (0, 0))
@@ -102,6 +118,8 @@ def score(result: CandidateResult, criterion: str) -> float:
         return result.p_hold("static")
     if criterion == "hold":
         return result.p_hold("test")
+    if criterion == "hold_margin":
+        return result.hold_margin()
     raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
 
 
