@@ -222,8 +222,9 @@ def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path)
 
 def test_evaluate_reports_both_hold_scores(capsys) -> None:
     """``evaluate --static-hold --hold-test --json`` of a panda grasp: P(hold) of the quick
-    test with its Wilson interval, P(hold, static), and the mass it used: the cube's
-    500 kg/m^3 times its volume (a 6 cm cube: 0.108 kg, by hand)."""
+    test with its Wilson interval and its mean margin (within what P(hold) allows: held draws
+    score in [8/9, 1], the others in [0, 8/9]), P(hold, static), and the mass it used: the
+    cube's 500 kg/m^3 times its volume (a 6 cm cube: 0.108 kg, by hand)."""
     import json
 
     from cli_helpers import run_in_process
@@ -233,6 +234,9 @@ def test_evaluate_reports_both_hold_scores(capsys) -> None:
                          "--static-hold", "--hold-test", "--json")
     record = json.loads(out)
     assert record["mass_kg"] == pytest.approx(500 * 0.06 ** 3, rel=1e-9)
+    floor = len(QUICK_PROTOCOL.phases) / (len(QUICK_PROTOCOL.phases) + 1)  # held draws: above
+    held = record["p_hold"]
+    assert floor * held - 1e-9 <= record["hold_margin"] <= floor * (1 - held) + held + 1e-9
     for key in ("p_hold", "p_hold_static"):
         lo, hi = record[f"{key}_ci"]
         assert 0.0 <= lo <= record[key] <= hi <= 1.0

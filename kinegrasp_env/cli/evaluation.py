@@ -59,20 +59,23 @@ def check_hold_simulator(args, runs: bool, asked_by: str) -> None:
         check_simulator(args.hold_simulator)
 
 
-def holding_test_count(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
-                       friction: float = 0.5, simulator: str = "pybullet",
-                       model=None) -> tuple[int, str]:
+def holding_test(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
+                 friction: float = 0.5, simulator: str = "pybullet",
+                 model=None) -> tuple[int, float, str]:
     """How many of ``evaluate``'s draws of a grasp the quick holding test in ``simulator``
-    holds, and the name of the simulator that ran it; ``model``: the ``--noise-spec``
-    model's draws (its joints and hand) instead of the joint noise."""
+    holds, the mean of their margins (:func:`~kinegrasp_env.physics.protocol.hold_margin`),
+    and the name of the simulator that ran it; ``model``: the ``--noise-spec`` model's draws
+    (its joints and hand) instead of the joint noise."""
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
-    from kinegrasp_env.physics.protocol import HELD
+    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
     with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
         q = evaluation_rows(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise,
                             noise_model=model)[0]
-        return int((engine.run_hold(q)[1].outcome == HELD).sum()), engine.simulator.name
+        hold = engine.run_hold(q)[1]
+        return (int((hold.outcome == HELD).sum()), float(hold.margin(QUICK_PROTOCOL).mean()),
+                engine.simulator.name)
 
 
 def check_robot_engine(engine: str, robot: str) -> None:
@@ -124,10 +127,10 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
     if math.isfinite(stats.push_median):
         hold["jaw_push_mm"] = {"median": 1e3 * stats.push_median, "p95": 1e3 * stats.push_p95}
     if args.hold_test:
-        held, simulator = holding_test_count(grasp, robot, sigma, samples, seed, args.noise,
-                                             friction, args.hold_simulator, model)
+        held, margin, simulator = holding_test(grasp, robot, sigma, samples, seed, args.noise,
+                                               friction, args.hold_simulator, model)
         hold.update({"p_hold": held / samples, "p_hold_ci": list(wilson_interval(held, samples)),
-                     "hold_simulator": simulator})
+                     "hold_margin": margin, "hold_simulator": simulator})
     if args.json:
         print(json.dumps({"robot": robot, "object": grasp.object, "grasp": grasp.id,
                           **evaluation_record(

@@ -56,13 +56,15 @@ def print_evaluation(run: Evaluation, extra: list[str] | None = None) -> None:
 
 def hold_lines(record: dict) -> list[str]:
     """The lines ``evaluate`` prints for the hold scores in ``record`` (its ``--json`` keys:
-    ``p_hold``, ``p_hold_ci``, ``hold_simulator``; ``p_hold_static``, ``p_hold_static_ci``,
-    ``mass_kg``)."""
+    ``p_hold``, ``p_hold_ci``, ``hold_margin``, ``hold_simulator``; ``p_hold_static``,
+    ``p_hold_static_ci``, ``mass_kg``)."""
     lines = []
     if "p_hold" in record:
         lo, hi = record["p_hold_ci"]
         lines.append(f"  P(hold) = {record['p_hold']:.4f}  (95% CI {lo:.4f} .. {hi:.4f}; the "
-                     f"quick holding test in {record['hold_simulator']} on the same draws)")
+                     f"quick holding test in {record['hold_simulator']} on the same draws; "
+                     f"mean margin {record['hold_margin']:.3f}: how far the draws got "
+                     "through it, 0 to 1)")
     if "p_hold_static" in record:
         lo, hi = record["p_hold_static_ci"]
         lines.append(f"  P(hold, static) = {record['p_hold_static']:.4f}  (95% CI {lo:.4f} .. "
