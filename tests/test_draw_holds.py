@@ -131,7 +131,8 @@ def env_step(score: str, obj: str, *, seed: int, n_draws: int):
     env = gym.make("KineGrasp-v0", score=score, n_draws=n_draws).unwrapped
     env.reset(seed=seed, options={"object": obj, "sigma": SIGMA, "noise": "gaussian"})
     info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[-1]
-    assert info["score"] == score and info["reward_score"] == info["p_hold"]
+    key = "hold_margin" if score == "hold_margin" else "p_hold"
+    assert info["score"] == score and info["reward_score"] == info[key]
     rng = np.random.default_rng(np.random.SeedSequence(info["draw_seed"], spawn_key=(0,)))
     q = np.repeat(env.q[None], n_draws, axis=0)
     q[:, :7] += rng.normal(0.0, SIGMA, (n_draws, 7))
@@ -173,6 +174,28 @@ def test_the_envs_holding_test_score_runs_on_its_step_draws():
     finally:
         engine.close()
     assert info["p_hold"] == held.mean()
+    env.close()
+
+
+def test_the_envs_margin_score_is_the_mean_margin_of_its_step_draws():
+    """``score="hold_margin"`` on the default robot: the reward's score is the mean margin
+    of the SDH's quick holding test run again on the step's draws, and P(hold) rides beside
+    it; ``score="hold"`` reports the same mean margin beside its P(hold) reward."""
+    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+
+    env, info, q = env_step("hold_margin", "cube", seed=0, n_draws=6)
+    engine = PhysicsEngine("cube", protocol=QUICK_PROTOCOL)
+    try:
+        hold = engine.run_hold(q)[1]
+    finally:
+        engine.close()
+    assert info["hold_margin"] == pytest.approx(hold.margin(QUICK_PROTOCOL).mean(), rel=1e-12)
+    assert info["p_hold"] == (hold.outcome == HELD).mean()
+    env.close()
+    env, held_info, _ = env_step("hold", "cube", seed=0, n_draws=6)
+    assert held_info["hold_margin"] == info["hold_margin"]
+    assert held_info["reward_score"] == info["p_hold"]
     env.close()
 
 

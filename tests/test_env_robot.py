@@ -436,10 +436,10 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"score": "held"}, "score must be one of pfc, hold_static, hold, got 'held'"),
+    ({"score": "held"}, "score must be one of pfc, hold_static, hold, hold_margin, got 'held'"),
     ({"score": "hold", "hold_simulator": "bullet"},
      "hold_simulator must be one of pybullet, mujoco, got 'bullet'"),
-    ({"hold_simulator": "mujoco"}, "it runs with score='hold'"),
+    ({"hold_simulator": "mujoco"}, "it runs with score='hold' or 'hold_margin'"),
     ({"score": "hold_static", "reward": "batch"}, "reward 'batch' re-weights P"),
 ])
 def test_a_bad_score_is_a_one_line_error_naming_it(kwargs, message):

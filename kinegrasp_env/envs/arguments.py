@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.envs.robot_task import N_DRAWS, SCORES
+from kinegrasp_env.envs.robot_task import HOLD_TEST_SCORES, N_DRAWS, SCORES
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA
 from kinegrasp_env.robot.catalog import check_robot_name
@@ -174,9 +174,9 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
                          f"{', '.join(render_modes)}, got {render_mode!r}")
     if reward not in ("draws", "batch"):
         raise ValueError(f"reward must be 'draws' or 'batch', got {reward!r}")
-    if hold_simulator != "pybullet" and score != "hold":
+    if hold_simulator != "pybullet" and score not in HOLD_TEST_SCORES:
         raise ValueError(f"hold_simulator {hold_simulator!r} is the holding test's "
-                         "simulator; it runs with score='hold'")
+                         "simulator; it runs with score='hold' or 'hold_margin'")
     if reward == "batch" and score != "pfc":
         raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
                          "reward 'draws'")

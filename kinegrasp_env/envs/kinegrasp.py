@@ -131,8 +131,10 @@ class KineGraspEnv(gym.Env):
         robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
             listing the known ones. Another robot: see the module docstring.
         score: what the reward scores: ``pfc`` (P(force closure)), ``hold_static`` (the
-            static hold check's P(hold) on the same draws) or ``hold`` (the quick holding
-            test's, in ``hold_simulator``: slow; joint and hand noise only)
+            static hold check's P(hold) on the same draws), ``hold`` (the quick holding
+            test's, in ``hold_simulator``: slow; joint and hand noise only) or
+            ``hold_margin`` (the mean of that test's margins: how far each draw got through
+            it, in [0, 1]; ``info["hold_margin"]`` with either)
             (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
         hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or

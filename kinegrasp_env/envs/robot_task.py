@@ -23,9 +23,10 @@ Everything robot-specific is derived from the robot's description
   --noise-spec`` draws with the same seed), the hand at its pre-shape;
 - **score** (:data:`SCORES`, the names of ``kinegrasp rank --criterion``): ``pfc`` (the
   draws' P(force closure)), ``hold_static`` (the fraction the static hold check holds:
-  :mod:`~kinegrasp_env.montecarlo.hold_check`) or ``hold`` (the fraction the quick holding
+  :mod:`~kinegrasp_env.montecarlo.hold_check`), ``hold`` (the fraction the quick holding
   test holds in pybullet or MuJoCo: :func:`~kinegrasp_env.montecarlo.hold_engine.
-  quick_hold_engine`,
+  quick_hold_engine`) or ``hold_margin`` (the mean of that test's margins, how far each draw
+  got through it: :func:`~kinegrasp_env.physics.protocol.hold_margin`; a graded reward,
   whose physics closings also give the step's P(FC); joint and hand noise, and tens of
   milliseconds a draw, where the kinematic engines take microseconds to milliseconds;
   the default robot's holding test is its hand's own controller);
@@ -63,15 +64,21 @@ from kinegrasp_env.world.objects import load_object
 N_DRAWS = 64
 #: What the reward scores (module docstring): the criteria of ``kinegrasp rank`` that a
 #: step's draws give.
-SCORES = ("pfc", "hold_static", "hold")
+SCORES = ("pfc", "hold_static", "hold", "hold_margin")
+#: The scores that run the quick holding test on every draw.
+HOLD_TEST_SCORES = ("hold", "hold_margin")
+#: Each score's estimate among a step's statistics (:func:`step_stats`).
+SCORE_KEYS = {"pfc": "p_fc", "hold_static": "p_hold", "hold": "p_hold",
+              "hold_margin": "hold_margin"}
 
 
 def step_stats(outcome: np.ndarray, quality: np.ndarray, held: np.ndarray | None,
-               seed: int) -> dict:
+               seed: int, margin: np.ndarray | None = None, score: str = "pfc") -> dict:
     """A step's reward terms from its n draws: ``p_fc`` and its Wilson interval, ``q_mean``
     (over the force-closure draws; 0 without one), ``outcomes`` (counts by name), ``draws``,
     ``draw_seed``, for a hold score (``held`` (n,), else None) ``p_hold`` and its interval,
-    and ``score_value``: the score's estimate.
+    with the holding test's margins (``margin`` (n,), else None) their mean ``hold_margin``,
+    and ``score_value``: the estimate of ``score`` (:data:`SCORE_KEYS`).
 
     Args:
         outcome: (n,) indices into :data:`~kinegrasp_env.montecarlo.draws.OUTCOMES`;
@@ -86,7 +93,9 @@ def step_stats(outcome: np.ndarray, quality: np.ndarray, held: np.ndarray | None
     if held is not None:
         stats.update(p_hold=float(held.mean()),
                      p_hold_ci=wilson_interval(int(held.sum()), held.size))
-    stats["score_value"] = stats["p_fc" if held is None else "p_hold"]
+    if margin is not None:
+        stats["hold_margin"] = float(np.mean(margin))
+    stats["score_value"] = stats[SCORE_KEYS[score]]
     return stats
 
 
@@ -149,7 +158,7 @@ class RobotTask:
         if hold_simulator not in DESCRIPTION_ROBOT_SIMULATORS:
             raise ValueError(f"hold_simulator must be one of "
                              f"{', '.join(DESCRIPTION_ROBOT_SIMULATORS)}, got {hold_simulator!r}")
-        if score == "hold":
+        if score in HOLD_TEST_SCORES:
             check_simulator(hold_simulator)
         self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator
         self.description: RobotDescription = load_robot(robot)
@@ -165,9 +174,10 @@ class RobotTask:
         """The reward's engine of ``object_name`` (built on first use and kept: a pybullet
         world, or the fast engine's distance grid and compiled kernels); for the ``hold``
         score the quick holding test's."""
-        key = (object_name, self.score == "hold")
+        test = self.score in HOLD_TEST_SCORES
+        key = (object_name, test)
         if key not in self._engines:
-            if self.score == "hold":
+            if test:
                 from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
 
                 engine = quick_hold_engine(self.description, object_name,
@@ -180,8 +190,8 @@ class RobotTask:
 
     def closing_engine(self, object_name: str) -> RobotEngine:
         """The engine ``engine`` names, of ``object_name`` (a task's nominal
-        closing): the reward's, unless the score is ``hold``."""
-        if self.score != "hold":
+        closing): the reward's, unless the score runs the holding test."""
+        if self.score not in HOLD_TEST_SCORES:
             return self.engine(object_name)
         key = (object_name, False)
         if key not in self._engines:
@@ -202,10 +212,11 @@ class RobotTask:
             return
         check_robot_noise(noise, self.description, self.arm, self.engine_name,
                           static_hold=self.score == "hold_static")
-        if self.score == "hold":
+        if self.score in HOLD_TEST_SCORES:
             from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 
-            check_hold_noise(noise, self.description.name, "score 'hold' (the holding test)")
+            check_hold_noise(noise, self.description.name,
+                             f"score {self.score!r} (the holding test)")
 
     def draw_rows(self, grasp: Grasp, q: np.ndarray, noise: JointNoise | NoiseModel,
                   seed: int, n_draws: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -224,18 +235,18 @@ class RobotTask:
                  seed: int, n_draws: int) -> dict:
         """``n_draws`` draws of the task's engine at q (dof,) (:meth:`draw_rows`); the
         reward's statistics: P(FC), its Wilson interval, mean Q over the force-closure
-        draws, outcome counts, and for a hold score ``p_hold`` and its interval;
-        ``score_value``: the score's estimate."""
+        draws, outcome counts, for a hold score ``p_hold`` and its interval, with the holding
+        test the mean margin ``hold_margin``; ``score_value``: the score's estimate."""
         rows, errors = self.draw_rows(grasp, q, noise, seed, n_draws)
         engine = self.engine(grasp.object)
-        held = None
-        if self.score == "hold":
-            from kinegrasp_env.physics.protocol import HELD
+        held = margin = None
+        if self.score in HOLD_TEST_SCORES:
+            from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
             draws, hold = engine.run_hold(rows)
-            held = hold.outcome == HELD
+            held, margin = hold.outcome == HELD, hold.margin(QUICK_PROTOCOL)
         else:
             draws = engine.run(rows, **errors)
             if self.score == "hold_static":
                 held = draws.holds
-        return step_stats(draws.outcome, draws.quality, held, seed)
+        return step_stats(draws.outcome, draws.quality, held, seed, margin, self.score)
