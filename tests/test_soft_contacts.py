@@ -340,6 +340,52 @@ def test_soft_without_torsion_is_point_quality():
     assert closed > 20
 
 
+def test_per_contact_torsion_matches_qhull_of_hand_built_primitives():
+    """Each contact its own gamma (some 0: the patch model's corners), 120 random sets of 2-4
+    contacts: Q against scipy's ConvexHull of primitives built here by hand (the point
+    model's cone edges, then per contact (n, s (p - c) x n +- s gamma_i n)); the same gammas
+    all equal give the scalar path's Q (the compiled kernel), to 1e-12 relative."""
+    rng = np.random.default_rng(11)
+    worst, closed = 0.0, 0
+    for k in (2, 3, 4):
+        for points, normals, kwargs in random_soft_cases(rng, 40, k):
+            gamma = rng.choice([0.0, 0.004, 0.01], size=k)
+            kwargs.pop("finger_radius")
+            q = contact_quality_batch(points[None], normals[None], torsion=gamma[None],
+                                      **kwargs)[0]
+            unit = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+            s = kwargs["torque_scale"]
+            edges = wrench_matrix(points, unit, friction=kwargs["friction"],
+                                  num_edges=kwargs["num_edges"], torque_scale=s)
+            twists = [np.concatenate([n, s * np.cross(p, n) + sign * s * g * n])
+                      for p, n, g in zip(points, unit, gamma, strict=True) for sign in (1, -1)]
+            w = np.vstack([edges, twists])
+            offsets = ConvexHull(w).equations[:, -1] if np.linalg.matrix_rank(w) == 6 else [0]
+            reference = -max(offsets) if max(offsets) < 0 else 0.0
+            if reference == 0.0:
+                assert q == 0.0
+            else:
+                closed += 1
+                worst = max(worst, abs(q - reference) / reference)
+            same = contact_quality_batch(points[None], normals[None],
+                                         torsion=np.full((1, k), 0.004), **kwargs)[0]
+            scalar = contact_quality_batch(points[None], normals[None], torsion=0.004,
+                                           **kwargs)[0]
+            assert same == pytest.approx(scalar, rel=1e-12, abs=0.0)
+    assert closed > 20 and worst < QHULL_REL, (closed, worst)
+
+
+@pytest.mark.parametrize(("torsion", "message"), [
+    (np.array([0.01, -0.01]), "torsion must be finite and >= 0 .metres. for every contact"),
+    (np.array([0.01, np.nan]), "torsion must be finite and >= 0 .metres. for every contact"),
+    (np.zeros(3), r"torsion must be one number or one per contact \(1, 2\)"),
+])
+def test_bad_per_contact_torsion_is_refused(torsion, message):
+    p, n = pinch()
+    with pytest.raises(ValueError, match=message):
+        contact_quality_batch(p[None], n[None], contact_model="soft", torsion=torsion)
+
+
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"contact_model": "hard"}, "unknown contact_model"),
     ({"contact_model": "soft", "finger_radius": -0.01}, "finger_radius must be finite"),

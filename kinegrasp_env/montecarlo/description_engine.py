@@ -21,7 +21,11 @@ from kinegrasp_env.montecarlo.draws import (
     provisional_outcomes,
 )
 from kinegrasp_env.montecarlo.perturbation import check_errors
-from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, contact_quality_batch
+from kinegrasp_env.quality.soft_contacts import (
+    FINGER_RADIUS,
+    contact_quality_batch,
+    torsion_coefficient,
+)
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import load_object
@@ -138,23 +142,33 @@ class RobotEngine:
         return q
 
     def quality(self, points: np.ndarray, normals: np.ndarray,
-                friction: np.ndarray | None = None) -> np.ndarray:
-        """(B,) Q of B contact sets (B, k, 3) with the robot's contact model (the patch
-        model's sets: the patches' corners, each a point contact), each set at its own mu
-        ``friction`` (B,) (None: the engine's)."""
+                friction: np.ndarray | None = None, flat: np.ndarray | None = None
+                ) -> np.ndarray:
+        """(B,) Q of B contact sets (B, k, 3) with the robot's contact model, each set at its
+        own mu ``friction`` (B,) (None: the engine's); the patch model's sets: ``flat`` (B, k)
+        marks the patches' corners, each a point contact, the others soft contacts
+        (:meth:`~kinegrasp_env.montecarlo.patch_contacts.PatchContacts.expand`)."""
         model = self.description.quality_model
         options = {"contact_model": model, "num_edges": self.num_edges,
                    "torque_scale": self.obj.torque_scale, "center": self.obj.center_of_mass,
                    **({"finger_radius": self.finger_radius} if model == "soft" else {})}
+
+        def torsion(mu: float) -> dict:
+            if flat is None:
+                return {}
+            return {"torsion": np.where(flat, 0.0, torsion_coefficient(mu, self.finger_radius))}
+
         if friction is None:
-            return contact_quality_batch(points, normals, friction=self.friction, **options)
+            return contact_quality_batch(points, normals, friction=self.friction,
+                                         **options, **torsion(self.friction))
         if model == "point":  # the point model takes one mu per set
             return contact_quality_batch(points, normals, friction=friction, **options)
         out = np.empty(len(friction))
         for mu in np.unique(friction):  # the soft model: the sets of one mu at a time
             rows = np.flatnonzero(friction == mu)
+            chosen = {k: v[rows] for k, v in torsion(float(mu)).items()}
             out[rows] = contact_quality_batch(points[rows], normals[rows], friction=float(mu),
-                                              **options)
+                                              **options, **chosen)
         return out
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
@@ -215,11 +229,12 @@ class RobotEngine:
                                      | (draws.outcome == FORCE_CLOSURE))
             if touched.size:
                 values = {name: v[touched] for name, v in batch.joints.items()}
-                given = (draws.points, draws.normals, draws.finger, draws.link)
+                given = (draws.points, draws.normals, draws.finger, draws.link, None)
                 if contacts is not None:
                     given = contacts
                 draws.held[touched] = self.hold_check.held(
-                    q[touched], values, *(a[touched] for a in given))
+                    q[touched], values, *(a[touched] for a in given[:4]),
+                    flat=None if given[4] is None else given[4][touched])
         return draws
 
     def _closed_hand(self, q: np.ndarray, batch: RobotCloseBatch, draws: DrawBatch) -> None:
@@ -237,8 +252,8 @@ class RobotEngine:
                        friction: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Q and force closure of the candidates of ``draws`` with the patch model; returns
         every draw's contacts expanded to their patches' corners ((n, k C, 3) points and
-        normals, (n, k C) finger and link: :class:`~kinegrasp_env.montecarlo.
-        patch_contacts.PatchContacts`)."""
+        normals, (n, k C) finger, link and flat: :meth:`~kinegrasp_env.montecarlo.
+        patch_contacts.PatchContacts.expand`)."""
         expanded = self.patches.expand(q, batch.joints, draws.points, draws.normals,
                                        draws.finger, draws.link)
         candidate = draws.outcome == NO_FORCE_CLOSURE
@@ -247,6 +262,7 @@ class RobotEngine:
             rows = np.flatnonzero(candidate & (draws.n_contacts == k))
             draws.quality[rows] = self.quality(expanded[0][rows, :k * per],
                                                expanded[1][rows, :k * per],
-                                               None if friction is None else friction[rows])
+                                               None if friction is None else friction[rows],
+                                               expanded[4][rows, :k * per])
         draws.outcome[candidate & (draws.quality > 0)] = FORCE_CLOSURE
         return expanded

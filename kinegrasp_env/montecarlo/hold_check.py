@@ -29,7 +29,11 @@ from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.motion import peak_lift_acceleration
 from kinegrasp_env.physics.protocol import GRAVITY_PHASES, HoldProtocol
-from kinegrasp_env.quality.soft_contacts import TORSION_PRIMITIVES, contact_wrenches
+from kinegrasp_env.quality.soft_contacts import (
+    TORSION_PRIMITIVES,
+    contact_wrenches,
+    torsion_coefficient,
+)
 from kinegrasp_env.quality.static_hold import gravity_loads, static_hold
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -88,18 +92,20 @@ class StaticHoldCheck:
         self.per_contact = num_edges + (TORSION_PRIMITIVES
                                         if self.contact_model == "soft" else 0)
 
-    def primitives(self, points: np.ndarray, normals: np.ndarray,
-                   present: np.ndarray) -> np.ndarray:
+    def primitives(self, points: np.ndarray, normals: np.ndarray, present: np.ndarray,
+                   flat: np.ndarray | None = None) -> np.ndarray:
         """(B, k P, 6) the contact model's primitive wrenches (newtons, newton metres about
         the centre of mass) of contacts (B, k, 3), zero rows where ``present`` (B, k) is
-        False."""
+        False; ``flat`` (B, k): the patch model's corners, point contacts (no torsion)."""
         filled = np.where(present[..., None], points, self.obj.center_of_mass)
         unit = np.where(present[..., None], normals, np.array([0.0, 0.0, 1.0]))
+        torsion = None if flat is None else np.where(
+            flat, 0.0, torsion_coefficient(self.friction, self.finger_radius))
         w = contact_wrenches(filled, unit, contact_model=self.contact_model,
                              friction=self.friction, num_edges=self.num_edges,
                              torque_scale=1.0, center=tuple(map(float,
                                                                 self.obj.center_of_mass)),
-                             finger_radius=self.finger_radius)
+                             finger_radius=self.finger_radius, torsion=torsion)
         return w * np.repeat(present, self.per_contact, axis=1)[..., None]
 
     def torque_rows(self, palm: np.ndarray, values: dict[str, np.ndarray], finger: np.ndarray,
@@ -141,8 +147,8 @@ class StaticHoldCheck:
         return rows
 
     def contact_terms(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
-                      normals: np.ndarray, finger: np.ndarray, link: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
+                      normals: np.ndarray, finger: np.ndarray, link: np.ndarray,
+                      flat: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(primitives (B, k P, 6), torque rows (B, J, k P)) of B closings.
 
         Args:
@@ -150,21 +156,23 @@ class StaticHoldCheck:
                 (B,) the closing's final joint values (others: from q).
             points, normals: (B, k, 3) the contacts (object frame; NaN where absent);
             finger, link: (B, k) their finger and link index (-1 where absent).
+            flat: (B, k) the patch model's corners (:meth:`~kinegrasp_env.montecarlo.
+                patch_contacts.PatchContacts.expand`), or None.
         """
         palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
         full = self.description.model.expand(q)
         full.update({name: np.asarray(v, dtype=float) for name, v in values.items()})
-        w = self.primitives(points, normals, finger >= 0)
+        w = self.primitives(points, normals, finger >= 0, flat)
         return w, self.torque_rows(palm, full, finger, link, w)
 
     def held(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
              normals: np.ndarray, finger: np.ndarray, link: np.ndarray,
-             scale: np.ndarray | float = 1.0) -> np.ndarray:
+             scale: np.ndarray | float = 1.0, flat: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) which of the six loads, times ``scale`` (a number or (B,)), each closing
         holds (arguments: :meth:`contact_terms`)."""
         if q.shape[0] == 0:
             return np.zeros((0, self.loads.shape[0]), dtype=bool)
-        w, rows = self.contact_terms(q, values, points, normals, finger, link)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link, flat)
         return self._verdicts(w, rows, np.broadcast_to(scale, q.shape[:1]))
 
     def _verdicts(self, w: np.ndarray, rows: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -175,7 +183,8 @@ class StaticHoldCheck:
 
     def capacity(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
                  normals: np.ndarray, finger: np.ndarray, link: np.ndarray, *,
-                 top: float = 64.0, steps: int = 12) -> np.ndarray:
+                 top: float = 64.0, steps: int = 12,
+                 flat: np.ndarray | None = None) -> np.ndarray:
         """(B,) the largest multiple of the object's weight (and lift) each closing holds in
         all six directions, in [0, ``top``], by bisection on a log scale to a factor
         ``top ** (2 ** -steps)`` (arguments: :meth:`contact_terms`); 0 where even
@@ -183,7 +192,7 @@ class StaticHoldCheck:
         batch = q.shape[0]
         if batch == 0:
             return np.zeros(0)
-        w, rows = self.contact_terms(q, values, points, normals, finger, link)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link, flat)
         low, high = np.full(batch, -np.log(top)), np.full(batch, np.log(top))
         at_top = self._verdicts(w, rows, np.exp(high)).all(axis=1)
         above = self._verdicts(w, rows, np.exp(low)).all(axis=1)

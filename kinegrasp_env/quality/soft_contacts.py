@@ -111,7 +111,7 @@ def torsion_coefficient(friction: float = 0.5, finger_radius: float = FINGER_RAD
 def contact_wrenches(points, normals, *, contact_model: ContactModel = "point",
                      friction: float = 0.5, num_edges: int = 8, torque_scale=1.0,
                      center=(0.0, 0.0, 0.0), finger_radius: float = FINGER_RADIUS,
-                     torsion: float | None = None) -> np.ndarray:
+                     torsion: float | np.ndarray | None = None) -> np.ndarray:
     """Primitive wrenches of a contact set under a contact model.
 
     Args:
@@ -121,7 +121,9 @@ def contact_wrenches(points, normals, *, contact_model: ContactModel = "point",
             output, unchanged) or ``soft``.
         friction, num_edges, torque_scale, center: as for ``wrench_matrix`` (mu a scalar).
         finger_radius: patch radius r (metres, > 0) giving gamma = (2 / 3) mu r (soft only).
-        torsion: gamma itself (metres, >= 0), instead of the one of ``finger_radius``.
+        torsion: gamma itself (metres, >= 0), instead of the one of ``finger_radius``: one
+            number, or one per contact ((k,) or (B, k): a contact of gamma 0 carries no
+            torsion, its torsional primitives a unit normal force inside its cone).
 
     Returns:
         point: (k m, 6) or (B, k m, 6). soft: (k (m + 2), 6) or (B, k (m + 2), 6), contact i's
@@ -138,27 +140,50 @@ def contact_wrenches(points, normals, *, contact_model: ContactModel = "point",
         raise ValueError("soft contacts take one friction coefficient (a scalar), got shape "
                          f"{np.shape(friction)}")
     mu, m = check_parameters(friction, num_edges)
-    gamma = (torsion_coefficient(mu, finger_radius) if torsion is None
-             else _nonnegative(torsion, "torsion", positive=False))
     p, n = (points, unit) if batched else (points[None], unit[None])
+    gamma = (torsion_coefficient(mu, finger_radius) if torsion is None
+             else _torsions(torsion, p.shape[:2]))
     scale, ctr = scale_center(torque_scale, center, p.shape[0])
     w = check_wrenches(soft_primitives(p, n, mu, m, scale, ctr, gamma))
     return w if batched else w[0]
 
 
+def _torsions(torsion, shape: tuple[int, int]) -> float | np.ndarray:
+    """``torsion`` checked: one gamma (a float), or one per contact as a (B, k) array
+    (metres, finite, >= 0); ValueError naming it otherwise."""
+    if np.ndim(torsion) == 0:
+        return _nonnegative(torsion, "torsion", positive=False)
+    try:
+        values = np.broadcast_to(np.asarray(torsion, dtype=float), shape)
+    except ValueError:
+        raise ValueError(f"torsion must be one number or one per contact {shape}, got shape "
+                         f"{np.shape(torsion)}") from None
+    if not (np.all(np.isfinite(values)) and np.all(values >= 0)):
+        raise ValueError("torsion must be finite and >= 0 (metres) for every contact")
+    return values
+
+
 def soft_primitives(points: np.ndarray, normals: np.ndarray, friction: float, num_edges: int,
-                    torque_scale: np.ndarray, center: np.ndarray, gamma: float) -> np.ndarray:
+                    torque_scale: np.ndarray, center: np.ndarray,
+                    gamma: float | np.ndarray) -> np.ndarray:
     """(B, k (m + 2), 6) soft-contact primitives of checked input (points, unit normals
-    (B, k, 3), torque_scale (B,), center (B, 3); gamma in metres), laid out as
-    :func:`contact_wrenches` says: the cone edges are ``edge_wrenches``', the torsional
-    primitives ``torsion_wrenches``' (the one compiled rule the single-grasp call uses too)."""
+    (B, k, 3), torque_scale (B,), center (B, 3); gamma in metres, one or (B, k) per
+    contact), laid out as :func:`contact_wrenches` says: the cone edges are
+    ``edge_wrenches``', the torsional primitives ``torsion_wrenches``' (the one compiled rule
+    the single-grasp call uses too; per contact, its torsion term scaled by each gamma)."""
     batch, k = points.shape[:2]
     m = num_edges
     out = np.empty((batch, k, m + TORSION_PRIMITIVES, 6))
     out[:, :, :m] = edge_wrenches(points, normals, friction, m, torque_scale,
                                   center).reshape(batch, k, m, 6)
-    out[:, :, m:] = torsion_wrenches(points, normals, torque_scale, center,
-                                     gamma).reshape(batch, k, TORSION_PRIMITIVES, 6)
+    if np.ndim(gamma) == 0:
+        torsions = torsion_wrenches(points, normals, torque_scale, center, gamma)
+    else:  # the primitives are affine in gamma: none, plus gamma times a unit one's twist
+        none = torsion_wrenches(points, normals, torque_scale, center, 0.0)
+        unit = torsion_wrenches(points, normals, torque_scale, center, 1.0)
+        torsions = none + np.repeat(gamma, TORSION_PRIMITIVES, axis=1)[..., None] * (
+            unit - none)
+    out[:, :, m:] = torsions.reshape(batch, k, TORSION_PRIMITIVES, 6)
     return out.reshape(batch, k * (m + TORSION_PRIMITIVES), 6)
 
 
@@ -166,7 +191,7 @@ def soft_primitives(points: np.ndarray, normals: np.ndarray, friction: float, nu
 def contact_quality_batch(points, normals, *, contact_model: ContactModel = "point",
                           friction: float = 0.5, num_edges: int = 8, torque_scale=1.0,
                           center=(0.0, 0.0, 0.0), finger_radius: float = FINGER_RADIUS,
-                          torsion: float | None = None, method: Method = "auto",
+                          torsion: float | np.ndarray | None = None, method: Method = "auto",
                           norm: Norm = "l1") -> np.ndarray:
     """(B,) Ferrari-Canny Q of B grasps (B, k, 3) under a contact model; 0 where not in force
     closure. ``point``: :func:`~kinegrasp_env.quality.epsilon.ferrari_canny_batch`'s value
@@ -210,7 +235,7 @@ def _soft_quality(w: np.ndarray, k: int, num_edges, friction, norm: Norm,
 def contact_quality(points, normals, *, contact_model: ContactModel = "point",
                     friction: float = 0.5, num_edges: int = 8, torque_scale=1.0,
                     center=(0.0, 0.0, 0.0), finger_radius: float = FINGER_RADIUS,
-                    torsion: float | None = None, method: Method = "auto",
+                    torsion: float | np.ndarray | None = None, method: Method = "auto",
                     norm: Norm = "l1") -> float:
     """Q of one grasp (k, 3) under a contact model (:func:`contact_quality_batch`'s
     arguments); ``point``: :func:`~kinegrasp_env.quality.epsilon.ferrari_canny`'s value.
