@@ -33,15 +33,20 @@ def records(rows: list[tuple[list[int], float, float]]):
 
 def test_margins_derived_by_hand() -> None:
     """Eight phases, limits 20 mm and 10 degrees: (phases held in a row + 1 - worst share of a
-    limit) / 9, and 0 without a phase."""
+    limit) / 9, 0 without a phase; a NaN movement in a phase that ran counts as past its
+    limit."""
     turn_limit = np.radians(10.0)
     rows = [([1] * 8, 0.005, 0.0),               # held, moved 5 mm: (8 + 0.75) / 9
             ([1, 1, 0], 0.025, 0.0),             # failed third phase past the limit: 2 / 9
             ([], np.nan, np.nan),                # no grip: 0
-            ([0] + [1] * 7, 0.003, turn_limit / 2),  # rest failed, the rest held: 0.5 / 9
+            ([0] + [1] * 7, 0.003, turn_limit * 1.5),  # rest failed (turned), the rest
+            #                                      held: none in a row, past a limit: 0
             ([1] * 8, 0.0, turn_limit / 4)]      # held, turned 2.5 degrees: (8 + 0.75) / 9
     margin = hold_margin(*records(rows), FULL)
-    np.testing.assert_allclose(margin, [8.75 / 9, 2 / 9, 0.0, 0.5 / 9, 8.75 / 9], atol=1e-12)
+    np.testing.assert_allclose(margin, [8.75 / 9, 2 / 9, 0.0, 0.0, 8.75 / 9], atol=1e-12)
+    held, shift, turn = records([([1] * 8, 0.004, 0.0)])
+    shift[0, 5] = np.nan  # a movement not recorded in a phase that ran: past the limit
+    np.testing.assert_allclose(hold_margin(held, shift, turn, FULL), [8 / 9], atol=1e-12)
 
 
 def test_the_shake_phase_counts_when_the_protocol_runs_it() -> None:

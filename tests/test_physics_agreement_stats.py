@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
@@ -56,6 +57,29 @@ def test_paired_differences_known_answers():
     assert abs(better["difference"] - (1.0 - auc(baseline, label))) <= 1e-12
     low, high = better["ci95_simultaneous"]
     assert 0.0 < low <= better["difference"] <= high
+
+
+def test_paired_differences_of_any_pairs_are_simultaneous_over_them():
+    """Pairs with their own references (the margin-against-verdict family): each difference
+    is its score's AUC less its own reference's, and the interval's ends are the
+    2.5 / k and 100 - 2.5 / k percentiles of the resampled differences for k pairs
+    (Bonferroni), computed here from the same resamples."""
+    rng = np.random.default_rng(4)
+    label = rng.random(120) < 0.4
+    scores = {"a": label + rng.normal(0, 0.8, 120), "b": rng.random(120),
+              "c": label + rng.normal(0, 1.5, 120), "d": rng.random(120)}
+    resamples = grasp_resamples(np.arange(120))
+    pairs = [("a", "b"), ("c", "d")]
+    result = paired_differences(scores, label, resamples, pairs)
+    for name, reference in pairs:
+        record = result[name]
+        assert record["reference"] == reference
+        assert record["difference"] == pytest.approx(
+            auc(scores[name], label) - auc(scores[reference], label), abs=1e-12)
+        values = [auc(scores[name][p], label[p]) - auc(scores[reference][p], label[p])
+                  for p in resamples]
+        expected = np.percentile(values, [2.5 / len(pairs), 100 - 2.5 / len(pairs)])
+        np.testing.assert_allclose(record["ci95_simultaneous"], expected, atol=1e-12)
 
 
 def test_a_grasps_draws_resampled_together():

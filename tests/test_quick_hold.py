@@ -92,6 +92,36 @@ def test_early_exit_stops_at_the_first_failed_phase() -> None:
     assert final_outcome(5, quick.phase_held) == final_outcome(5, full.phase_held) == 4
 
 
+class BlownUp(ScriptedObject):
+    """A scripted object whose pose turns to NaN in one phase (a simulation that blew up)."""
+
+    def __init__(self, phase: str) -> None:
+        super().__init__({})
+        self.broken = phase
+
+    def object_in_palm(self) -> np.ndarray:
+        pose = super().object_in_palm()
+        return np.full((4, 4), np.nan) if self.phase == self.broken else pose
+
+
+def test_a_blown_up_phase_fails_and_its_margin_is_past_the_limit() -> None:
+    """A NaN pose in gravity_+y fails that phase with its movement unknown (NaN), not the
+    small movement seen before it; the draw's margin is the phases held before it, 3 of 8 in
+    a row (rest, gravity_+x, gravity_-x), over 9: nothing for the movement."""
+    from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+    from kinegrasp_env.physics.protocol import hold_margin
+
+    result = HoldResult(5)
+    run_phases(BlownUp("gravity_+y"), QUICK_PROTOCOL, np.eye(4), result)
+    assert not result.phase_held["gravity_+y"]
+    assert math.isnan(result.phase_shift["gravity_+y"])
+    batch = HoldBatch.empty(1)
+    batch.record(0, result)
+    margin = hold_margin(batch.phase_held, batch.phase_shift, batch.phase_turn,
+                         QUICK_PROTOCOL)
+    assert margin[0] == pytest.approx(3 / 9, abs=1e-12)
+
+
 def test_a_creeping_object_is_watched_to_the_end() -> None:
     """Hand derivation: an object creeping at v with 0.5 s to go is projected to
     v x EXIT_RATE_FACTOR x 0.5 further; at 30 mm/s that leaves the 20 mm criterion, so the
@@ -175,11 +205,20 @@ def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
     with quick_hold_engine("panda", "cube") as test:
         again = test.run_hold(q)[1].margin(QUICK_PROTOCOL).mean()
     assert margin[0] == pytest.approx(again, rel=1e-5)
+    import kinegrasp_env.cli.ranking as ranking
     from kinegrasp_env.cli import main
 
+    def no_work(*args, **kwargs):
+        raise AssertionError("the candidates were read before the refusal")
+
     capsys.readouterr()
-    assert main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--criterion",
-                 "hold_margin", "--adaptive", "--out", str(tmp_path / "adaptive.csv")]) == 2
+    real, ranking._candidates = ranking._candidates, no_work
+    try:
+        status = main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--criterion",
+                       "hold_margin", "--adaptive", "--out", str(tmp_path / "adaptive.csv")])
+    finally:
+        ranking._candidates = real
+    assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["kinegrasp rank: error: --criterion hold_margin ranks by a mean margin, "
                    "which --adaptive cannot certify (its tests count the draws that succeed); "
@@ -286,3 +325,23 @@ def test_a_ranking_log_keeps_each_candidates_margins() -> None:
     assert back.hold_margin() == pytest.approx(1.65 / 3, rel=1e-12)
     del line["margins"]
     assert math.isnan(result_from_json(line).hold_margin())
+
+
+def test_the_adaptive_ranking_refuses_a_mean_criterion() -> None:
+    """The library's adaptive run refuses ``hold_margin`` (a mean, not a count) in one line."""
+    from kinegrasp_env.toolkit.adaptive_ranking import rank_adaptive
+
+    with pytest.raises(ValueError, match="criterion 'hold_margin' ranks by a mean margin"):
+        rank_adaptive(3, lambda *args: None, 2, 10, top_k=1, criterion="hold_margin")
+
+
+def test_a_ranking_log_without_margins_is_not_resumed_under_the_holding_test(tmp_path) -> None:
+    """A log of the holding test written without each candidate's margins (an older
+    kinegrasp) is refused, naming them, rather than resumed with the margins missing."""
+    from kinegrasp_env.cli.common import CLIError
+    from kinegrasp_env.cli.resume import check_settings
+
+    stored = {"hold_simulator": "pybullet", "criterion_scores": [False, True]}
+    with pytest.raises(CLIError, match="the holding test's margins"):
+        check_settings(tmp_path / "r.partial.jsonl", stored,
+                       {**stored, "hold_margins": True})

@@ -42,6 +42,7 @@ SETTING_LABELS = {
     "robot": "robot (--robot, or the candidates'; a log of an older kinegrasp records none)",
     "criterion_scores": "hold scores (static check, holding test)",
     "hold_simulator": "--hold-simulator",
+    "hold_margins": "the holding test's margins (a log of an older kinegrasp records none)",
     "draw_layout": "layout of the random draws (a log of an older kinegrasp)",
 }
 

@@ -11,6 +11,7 @@ their contacts in the object's frame with :func:`in_object_frame`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Protocol
 
@@ -243,7 +244,8 @@ def watch(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray, steps: 
     """Step ``steps`` times (the hand's root along ``path``, positions (steps, 3) and
     orientations (steps, 4), if given), checking the object against ``reference`` (its pose in
     the palm frame) every ``check_interval`` and at the end; stop at the first failed check:
-    (held, largest distance m, largest angle rad). With ``protocol.early_exit`` a phase
+    (held, largest distance m, largest angle rad; NaN where the object's pose is not a
+    number: the simulation blew up). With ``protocol.early_exit`` a phase
     without a path also ends early by :func:`projected_verdict`."""
     every = steps_of(protocol.check_interval, sim.time_step)
     worst_distance = worst_angle = 0.0
@@ -255,6 +257,8 @@ def watch(sim: HoldSteps, protocol: HoldProtocol, reference: np.ndarray, steps: 
         if (k + 1) % every and k + 1 < steps:
             continue
         distance, angle = pose_change(reference, sim.object_in_palm(), sim.center_of_mass)
+        if math.isnan(distance) or math.isnan(angle):  # the simulation blew up: no movement
+            return False, math.nan, math.nan
         worst_distance, worst_angle = max(worst_distance, distance), max(worst_angle, angle)
         if not within(protocol, distance, angle):
             return False, worst_distance, worst_angle

@@ -291,10 +291,12 @@ def hold_margin(phase_held: np.ndarray, phase_shift: np.ndarray, phase_turn: np.
     in :data:`PHASES` order), where k is how many of them the draw held in a row from the
     first, and s = 1 - the largest movement seen in the phases run as a share of its limit
     (displacement over ``max_shift``, rotation over ``max_turn``, whichever is larger),
-    clipped to [0, 1]. A draw whose grip never stood (no phase ran) scores 0. So every draw
-    that held scores at least P / (P + 1) and every other draw at most that: the margin ranks
-    as the verdict does and orders the draws within a verdict (held: by how little the object
-    moved; not held: by how late it failed, then how little it moved).
+    clipped to [0, 1]; a movement not recorded (NaN) in a phase that ran counts as past its
+    limit. A draw whose grip never stood (no phase ran) scores 0. So every draw that held
+    scores at least P / (P + 1) and every other draw at most that: the margin ranks as the
+    verdict does and orders the draws within a verdict (held: by how little the object moved;
+    not held: by how late it failed, k / (P + 1), as a failed phase's movement passed its
+    limit).
 
     Args:
         phase_held: (n, len(PHASES)) int: 1 held, 0 failed, -1 not run
@@ -310,8 +312,8 @@ def hold_margin(phase_held: np.ndarray, phase_shift: np.ndarray, phase_turn: np.
     held = np.asarray(phase_held)[:, :count]
     ran = held >= 0
     in_a_row = np.cumprod(held == 1, axis=1).sum(axis=1)
-    shift = np.where(ran, np.nan_to_num(np.asarray(phase_shift)[:, :count]), 0.0)
-    turn = np.where(ran, np.nan_to_num(np.asarray(phase_turn)[:, :count]), 0.0)
+    shift = np.where(ran, np.nan_to_num(np.asarray(phase_shift)[:, :count], nan=np.inf), 0.0)
+    turn = np.where(ran, np.nan_to_num(np.asarray(phase_turn)[:, :count], nan=np.inf), 0.0)
     worst = np.maximum(shift.max(axis=1, initial=0.0) / protocol.max_shift,
                        turn.max(axis=1, initial=0.0) / protocol.max_turn)
     margin = (in_a_row + np.clip(1.0 - worst, 0.0, 1.0)) / (count + 1)
