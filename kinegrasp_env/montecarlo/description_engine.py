@@ -142,21 +142,21 @@ class RobotEngine:
         return q
 
     def quality(self, points: np.ndarray, normals: np.ndarray,
-                friction: np.ndarray | None = None, flat: np.ndarray | None = None
+                friction: np.ndarray | None = None, soft: np.ndarray | None = None
                 ) -> np.ndarray:
         """(B,) Q of B contact sets (B, k, 3) with the robot's contact model, each set at its
-        own mu ``friction`` (B,) (None: the engine's); the patch model's sets: ``flat`` (B, k)
-        marks the patches' corners, each a point contact, the others soft contacts
-        (:meth:`~kinegrasp_env.montecarlo.patch_contacts.PatchContacts.expand`)."""
+        own mu ``friction`` (B,) (None: the engine's); the patch model's sets: ``soft`` (B, k)
+        marks its soft contacts, the others are point contacts (the patches' corners:
+        :meth:`~kinegrasp_env.montecarlo.patch_contacts.PatchContacts.expand`)."""
         model = self.description.quality_model
         options = {"contact_model": model, "num_edges": self.num_edges,
                    "torque_scale": self.obj.torque_scale, "center": self.obj.center_of_mass,
                    **({"finger_radius": self.finger_radius} if model == "soft" else {})}
 
         def torsion(mu: float) -> dict:
-            if flat is None:
+            if soft is None:
                 return {}
-            return {"torsion": np.where(flat, 0.0, torsion_coefficient(mu, self.finger_radius))}
+            return {"torsion": np.where(soft, torsion_coefficient(mu, self.finger_radius), 0.0)}
 
         if friction is None:
             return contact_quality_batch(points, normals, friction=self.friction,
@@ -234,7 +234,7 @@ class RobotEngine:
                     given = contacts
                 draws.held[touched] = self.hold_check.held(
                     q[touched], values, *(a[touched] for a in given[:4]),
-                    flat=None if given[4] is None else given[4][touched])
+                    soft=None if given[4] is None else given[4][touched])
         return draws
 
     def _closed_hand(self, q: np.ndarray, batch: RobotCloseBatch, draws: DrawBatch) -> None:
@@ -252,7 +252,7 @@ class RobotEngine:
                        friction: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """Q and force closure of the candidates of ``draws`` with the patch model; returns
         every draw's contacts expanded to their patches' corners ((n, k C, 3) points and
-        normals, (n, k C) finger, link and flat: :meth:`~kinegrasp_env.montecarlo.
+        normals, (n, k C) finger, link and soft: :meth:`~kinegrasp_env.montecarlo.
         patch_contacts.PatchContacts.expand`)."""
         expanded = self.patches.expand(q, batch.joints, draws.points, draws.normals,
                                        draws.finger, draws.link)

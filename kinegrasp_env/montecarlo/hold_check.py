@@ -93,14 +93,15 @@ class StaticHoldCheck:
                                         if self.contact_model == "soft" else 0)
 
     def primitives(self, points: np.ndarray, normals: np.ndarray, present: np.ndarray,
-                   flat: np.ndarray | None = None) -> np.ndarray:
+                   soft: np.ndarray | None = None) -> np.ndarray:
         """(B, k P, 6) the contact model's primitive wrenches (newtons, newton metres about
         the centre of mass) of contacts (B, k, 3), zero rows where ``present`` (B, k) is
-        False; ``flat`` (B, k): the patch model's corners, point contacts (no torsion)."""
+        False; ``soft`` (B, k): the patch model's soft contacts (the others point
+        contacts, no torsion)."""
         filled = np.where(present[..., None], points, self.obj.center_of_mass)
         unit = np.where(present[..., None], normals, np.array([0.0, 0.0, 1.0]))
-        torsion = None if flat is None else np.where(
-            flat, 0.0, torsion_coefficient(self.friction, self.finger_radius))
+        torsion = None if soft is None else np.where(
+            soft, torsion_coefficient(self.friction, self.finger_radius), 0.0)
         w = contact_wrenches(filled, unit, contact_model=self.contact_model,
                              friction=self.friction, num_edges=self.num_edges,
                              torque_scale=1.0, center=tuple(map(float,
@@ -148,7 +149,7 @@ class StaticHoldCheck:
 
     def contact_terms(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
                       normals: np.ndarray, finger: np.ndarray, link: np.ndarray,
-                      flat: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                      soft: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(primitives (B, k P, 6), torque rows (B, J, k P)) of B closings.
 
         Args:
@@ -156,23 +157,23 @@ class StaticHoldCheck:
                 (B,) the closing's final joint values (others: from q).
             points, normals: (B, k, 3) the contacts (object frame; NaN where absent);
             finger, link: (B, k) their finger and link index (-1 where absent).
-            flat: (B, k) the patch model's corners (:meth:`~kinegrasp_env.montecarlo.
-                patch_contacts.PatchContacts.expand`), or None.
+            soft: (B, k) the patch model's soft contacts (:meth:`~kinegrasp_env.
+                montecarlo.patch_contacts.PatchContacts.expand`), or None.
         """
         palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
         full = self.description.model.expand(q)
         full.update({name: np.asarray(v, dtype=float) for name, v in values.items()})
-        w = self.primitives(points, normals, finger >= 0, flat)
+        w = self.primitives(points, normals, finger >= 0, soft)
         return w, self.torque_rows(palm, full, finger, link, w)
 
     def held(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
              normals: np.ndarray, finger: np.ndarray, link: np.ndarray,
-             scale: np.ndarray | float = 1.0, flat: np.ndarray | None = None) -> np.ndarray:
+             scale: np.ndarray | float = 1.0, soft: np.ndarray | None = None) -> np.ndarray:
         """(B, 6) which of the six loads, times ``scale`` (a number or (B,)), each closing
         holds (arguments: :meth:`contact_terms`)."""
         if q.shape[0] == 0:
             return np.zeros((0, self.loads.shape[0]), dtype=bool)
-        w, rows = self.contact_terms(q, values, points, normals, finger, link, flat)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link, soft)
         return self._verdicts(w, rows, np.broadcast_to(scale, q.shape[:1]))
 
     def _verdicts(self, w: np.ndarray, rows: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -184,7 +185,7 @@ class StaticHoldCheck:
     def capacity(self, q: np.ndarray, values: dict[str, np.ndarray], points: np.ndarray,
                  normals: np.ndarray, finger: np.ndarray, link: np.ndarray, *,
                  top: float = 64.0, steps: int = 12,
-                 flat: np.ndarray | None = None) -> np.ndarray:
+                 soft: np.ndarray | None = None) -> np.ndarray:
         """(B,) the largest multiple of the object's weight (and lift) each closing holds in
         all six directions, in [0, ``top``], by bisection on a log scale to a factor
         ``top ** (2 ** -steps)`` (arguments: :meth:`contact_terms`); 0 where even
@@ -192,7 +193,7 @@ class StaticHoldCheck:
         batch = q.shape[0]
         if batch == 0:
             return np.zeros(0)
-        w, rows = self.contact_terms(q, values, points, normals, finger, link, flat)
+        w, rows = self.contact_terms(q, values, points, normals, finger, link, soft)
         low, high = np.full(batch, -np.log(top)), np.full(batch, np.log(top))
         at_top = self._verdicts(w, rows, np.exp(high)).all(axis=1)
         above = self._verdicts(w, rows, np.exp(low)).all(axis=1)

@@ -7,13 +7,14 @@ point contact with friction at any point of the patch: the cones at the patch's 
 them (a force at an inner point is a convex combination of the same force at the corners, and
 so is its torque). The patch model scores each such contact as up to
 :data:`~kinegrasp_env.closing.contact_patch.PATCH_CORNERS` point contacts at the patch's
-corners, each with the face's normal; a contact off a face (an edge, a corner, a curved
-surface a flat pad touches along a line or at a point, a rounded fingertip, a link whose
-collision shape is not a mesh or a box) stays the one point it is, scored as a soft contact
-(:mod:`~kinegrasp_env.quality.soft_contacts`: the torsion a small patch about it carries),
-as the ``soft`` model scores every contact. Two pads pinching a thin wall at centres that do
-not face each other are then still in force closure where their patches overlap across the
-wall, and two pads on a cylinder keep the torsion that holds it about the line between them.
+corners, each with the face's normal. A flat pad's contact off a face (on an edge or a
+corner, or on a curved surface it touches along a line or at a point) stays the one point it
+is, scored as a soft contact (:mod:`~kinegrasp_env.quality.soft_contacts`: the torsion a
+small patch about it carries), as the ``soft`` model scores every contact; a contact of a
+rounded fingertip (or of a link whose collision shape is not a mesh or a box) stays a point
+contact, as the paper scores one. Two pads pinching a thin wall at centres that do not face
+each other are then still in force closure where their patches overlap across the wall, and
+two pads on a cylinder keep the torsion that holds it about the line between them.
 
 The patch is recomputed from what every engine keeps of a closing (the configuration, the
 closing joints' final values and the contacts): the finger link's pose from the palm, the
@@ -67,20 +68,21 @@ class PatchContacts:
             finger, link: (B, k) their finger and link index (-1 where absent).
 
         Returns:
-            (points (B, k C, 3), normals (B, k C, 3), finger (B, k C), link (B, k C), flat
+            (points (B, k C, 3), normals (B, k C, 3), finger (B, k C), link (B, k C), soft
             (B, k C) bool): contact j's slots j C .. j C + C - 1 hold its patch's corners,
-            padded with its centre (a point of the patch: the same set of forces), flat (point
-            contacts: the corners carry the patch's torsion); a contact off a face fills its
-            slots with itself, not flat (a soft contact); absent contacts stay absent.
+            padded with its centre (a point of the patch: the same set of forces), each a
+            point contact (the corners carry the patch's torsion); a flat pad's contact off a
+            face fills its slots with itself, ``soft`` (a soft contact); a rounded fingertip's
+            fills them with itself, a point contact; absent contacts stay absent.
         """
         c = PATCH_CORNERS
         out_p = np.repeat(points, c, axis=1)
         out_n = np.repeat(normals, c, axis=1)
         out_f, out_l = np.repeat(finger, c, axis=1), np.repeat(link, c, axis=1)
-        flat = np.zeros(out_f.shape, dtype=bool)
+        soft = np.zeros(out_f.shape, dtype=bool)
         present = finger >= 0
         if not present.any():
-            return out_p, out_n, out_f, out_l, flat
+            return out_p, out_n, out_f, out_l, soft
         palm = self.obj.pose_inverse @ self.kinematics.pose(q, self.description.palm_link)
         full = self.description.model.expand(q)
         full.update({name: np.asarray(v, dtype=float) for name, v in values.items()})
@@ -88,6 +90,7 @@ class PatchContacts:
             rows, slots = np.nonzero(present & (finger == f) & (link == k))
             if rows.size == 0 or name not in self.geometry:
                 continue
+            soft[rows[:, None], slots[:, None] * c + np.arange(c)] = True  # until on a face
             poses = link_poses(palm[rows], {n: v[rows] for n, v in full.items()}, chain)
             part, plane = faces_of(self.obj, points[rows, slots], EDGE_TOL)
             on = part >= 0
@@ -99,5 +102,5 @@ class PatchContacts:
             for i, (r, s, n) in enumerate(zip(rows[on], slots[on], counts, strict=True)):
                 if n > 0:
                     out_p[r, s * c:s * c + n] = corners[i, :n]
-                    flat[r, s * c:s * c + c] = True
-        return out_p, out_n, out_f, out_l, flat
+                    soft[r, s * c:s * c + c] = False
+        return out_p, out_n, out_f, out_l, soft

@@ -131,9 +131,9 @@ class RobotDescription:
     @property
     def quality_model(self) -> str:
         """The contact model each contact given to the quality is scored with: ``soft`` for
-        the patch model (its contacts come as the patches' corners, each a point contact, and
-        as the contacts off a face, each a soft contact: the corners' torsion is 0), else
-        :attr:`contact_model`."""
+        the patch model (its contacts come as the patches' corners and rounded fingertips'
+        points, each a point contact: torsion 0, and as flat pads' contacts off a face, each
+        a soft contact), else :attr:`contact_model`."""
         return "soft" if self.contact_model == "patch" else self.contact_model
 
     @property
