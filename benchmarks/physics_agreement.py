@@ -52,6 +52,9 @@ score predicts better than chance where the interval's lower end is above 0.5. E
 against the geometry baseline: the difference of their AUCs on the same resamples (paired),
 its interval simultaneous at 95% over the scores compared (Bonferroni: percentiles at 2.5 / k
 and 100 - 2.5 / k for k scores); a score beats the baseline where the lower end is above 0.
+Two more families, each simultaneous over its two pairs (:data:`FAMILIES`): each quick
+test's margin against its own verdict, and the patch model's force closure and Q against
+the robot's own contact model's.
 Written as JSON (``benchmarks/results/physics_agreement.json``) and as a table in the physics
 guide between ``<!-- physics-agreement:start -->`` and ``<!-- physics-agreement:end -->``.
 
@@ -101,8 +104,15 @@ SCORES = ("fc", "q", "fc_patch", "q_patch", "p_fc", "p_hold_static", "static_hol
 BOOTSTRAP = 10_000
 #: The geometry-only score every other score is compared with.
 BASELINE = "-centre_distance"
-#: Each quick test's margin -> its yes/no verdict: the second family of paired comparisons.
-MARGINS = {"hold_margin": "quick_hold", "hold_margin_mujoco": "quick_hold_mujoco"}
+#: The further families of paired comparisons: name -> (score -> its reference, what the
+#: table says of them).
+FAMILIES = {
+    "margin_over_verdict": ({"hold_margin": "quick_hold",
+                             "hold_margin_mujoco": "quick_hold_mujoco"},
+                            "Each quick test's margin less its yes/no verdict"),
+    "patch_over_own": ({"fc_patch": "fc", "q_patch": "q"},
+                       "The patch model's scores less the robot's own model's"),
+}
 
 
 def auc(score: np.ndarray, label: np.ndarray) -> float:
@@ -300,8 +310,8 @@ def table(scores: dict, labels: dict, groups: np.ndarray) -> dict:
                             "ci95": auc_interval(scores[name], label, resamples)}
         record["above_baseline"] = paired_differences(
             scores, label, resamples, [(name, BASELINE) for name in SCORES if name != BASELINE])
-        record["margin_over_verdict"] = paired_differences(scores, label, resamples,
-                                                           list(MARGINS.items()))
+        for family, (pairs, _) in FAMILIES.items():
+            record[family] = paired_differences(scores, label, resamples, list(pairs.items()))
         out[simulator] = record
     return out
 
@@ -340,17 +350,18 @@ def markdown(result: dict) -> str:
                      f"{d['ci95_simultaneous'][1]:+.2f}]"
                      for d in (record["above_baseline"][s] for s in others)]
             lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
-    lines += ["", "Each quick test's margin less its yes/no verdict on the same draws (paired "
-              "bootstrap over the grasps; intervals simultaneous at 95% over the two):", "",
-              "| robot | simulator | " + " | ".join(
-                  f"{name} - {reference}" for name, reference in MARGINS.items()) + " |",
-              "|---" * (len(MARGINS) + 2) + "|"]
-    for robot, per in result["robots"].items():
-        for simulator, record in per.items():
-            cells = [f"{d['difference']:+.2f} [{d['ci95_simultaneous'][0]:+.2f}, "
-                     f"{d['ci95_simultaneous'][1]:+.2f}]"
-                     for d in (record["margin_over_verdict"][name] for name in MARGINS)]
-            lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
+    for family, (pairs, words) in FAMILIES.items():
+        lines += ["", f"{words} on the same draws (paired bootstrap over the grasps; intervals "
+                  f"simultaneous at 95% over the {len(pairs)}):", "",
+                  "| robot | simulator | " + " | ".join(
+                      f"{name} - {reference}" for name, reference in pairs.items()) + " |",
+                  "|---" * (len(pairs) + 2) + "|"]
+        for robot, per in result["robots"].items():
+            for simulator, record in per.items():
+                cells = [f"{d['difference']:+.2f} [{d['ci95_simultaneous'][0]:+.2f}, "
+                         f"{d['ci95_simultaneous'][1]:+.2f}]"
+                         for d in (record[family][name] for name in pairs)]
+                lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
     lines += ["", "| robot | verdicts the same in both simulators | 95% interval | "
                   "Cohen's kappa |", "|---|---|---|---|"]
     for robot, record in result["simulators_agree"].items():
