@@ -12,7 +12,6 @@ import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
-from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
 from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
@@ -147,8 +146,11 @@ class RobotEngine:
         """(B,) Q of B contact sets (B, k, 3) with the robot's contact model, each set at its
         own mu ``friction`` (B,) (None: the engine's); the patch model's sets: ``soft`` (B, k)
         marks its soft contacts, the others are point contacts (the patches' corners:
-        :meth:`~kinegrasp_env.montecarlo.patch_contacts.PatchContacts.expand`)."""
+        :meth:`~kinegrasp_env.montecarlo.patch_contacts.PatchContacts.expand`), and without
+        ``soft`` every contact is a point contact."""
         model = self.description.quality_model
+        if self.patches is not None and soft is None:  # corners alone: point contacts
+            model = "point"
         options = {"contact_model": model, "num_edges": self.num_edges,
                    "torque_scale": self.obj.torque_scale, "center": self.obj.center_of_mass,
                    **({"finger_radius": self.finger_radius} if model == "soft" else {})}
@@ -254,15 +256,21 @@ class RobotEngine:
         every draw's contacts expanded to their patches' corners ((n, k C, 3) points and
         normals, (n, k C) finger, link and soft: :meth:`~kinegrasp_env.montecarlo.
         patch_contacts.PatchContacts.expand`)."""
+        from kinegrasp_env.montecarlo.patch_contacts import distinct_slots
+
         expanded = self.patches.expand(q, batch.joints, draws.points, draws.normals,
                                        draws.finger, draws.link)
+        points, normals, soft = expanded[0], expanded[1], expanded[4]
+        keep = distinct_slots(points, soft, draws.points)
         candidate = draws.outcome == NO_FORCE_CLOSURE
-        per = PATCH_CORNERS
-        for k in np.unique(draws.n_contacts[candidate]):
-            rows = np.flatnonzero(candidate & (draws.n_contacts == k))
-            draws.quality[rows] = self.quality(expanded[0][rows, :k * per],
-                                               expanded[1][rows, :k * per],
-                                               None if friction is None else friction[rows],
-                                               expanded[4][rows, :k * per])
+        count, mixed = keep.sum(axis=1), (soft & keep).any(axis=1)
+        for size, any_soft in {(int(count[i]), bool(mixed[i]))
+                               for i in np.flatnonzero(candidate)}:
+            rows = np.flatnonzero(candidate & (count == size) & (mixed == any_soft))
+            cols = np.nonzero(keep[rows])[1].reshape(rows.size, size)
+            at = rows[:, None], cols
+            draws.quality[rows] = self.quality(
+                points[at], normals[at], None if friction is None else friction[rows],
+                soft[at] if any_soft else None)
         draws.outcome[candidate & (draws.quality > 0)] = FORCE_CLOSURE
         return expanded

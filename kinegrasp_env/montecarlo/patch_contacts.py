@@ -104,3 +104,27 @@ class PatchContacts:
                     out_p[r, s * c:s * c + n] = corners[i, :n]
                     soft[r, s * c:s * c + c] = False
         return out_p, out_n, out_f, out_l, soft
+
+
+def distinct_slots(points: np.ndarray, soft: np.ndarray, centres: np.ndarray) -> np.ndarray:
+    """(B, k C) bool: the slots of :meth:`PatchContacts.expand`'s contacts that score them
+    without repeats: a soft contact's first slot (its C slots are copies of it), a patch's
+    corners but not the centre that pads them (a point of the patch: its forces are the
+    corners'). Q and force closure of the kept slots are those of all of them (the same hull
+    of wrenches); repeated contacts only slow the quality's certified expansion down.
+
+    Args:
+        points: (B, k C, 3) the expanded contacts; soft: (B, k C) their soft slots;
+        centres: (B, k, 3) the contacts as closed (the padding), NaN where absent.
+    """
+    c = PATCH_CORNERS
+    batch, slots = soft.shape
+    padding = np.all(points == np.repeat(centres, c, axis=1), axis=2)
+    first = (np.arange(slots) % c == 0)[None, :]
+    keep = np.where(soft, first, ~padding)
+    present = ~np.isnan(np.repeat(centres[..., 0], c, axis=1))
+    keep &= present
+    blocks = keep.reshape(batch, -1, c)
+    empty = ~blocks.any(axis=2) & present.reshape(batch, -1, c)[..., 0]
+    blocks[..., 0] |= empty  # a patch that is all padding keeps one slot
+    return blocks.reshape(batch, slots)
