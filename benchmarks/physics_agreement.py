@@ -352,7 +352,7 @@ def markdown(result: dict) -> str:
             lines.append(f"| {robot} | {simulator} | " + " | ".join(cells) + " |")
     for family, (pairs, words) in FAMILIES.items():
         lines += ["", f"{words} on the same draws (paired bootstrap over the grasps; intervals "
-                  f"simultaneous at 95% over the {len(pairs)}):", "",
+                  f"simultaneous at 95% over its {len(pairs)} pairs):", "",
                   "| robot | simulator | " + " | ".join(
                       f"{name} - {reference}" for name, reference in pairs.items()) + " |",
                   "|---" * (len(pairs) + 2) + "|"]

@@ -276,3 +276,49 @@ def test_the_distinct_slots_score_as_every_slot():
                                   friction=MU, num_edges=EDGES, torque_scale=scale,
                                   center=centre, torsion=gamma, method="qhull")
     np.testing.assert_allclose(draws.quality[rows], every, rtol=1e-9, atol=1e-15)
+
+
+def test_the_static_hold_check_takes_the_patch_models_soft_contacts():
+    """Mixed Panda draws of the spray flask (a pad flat on a face, the other off one): the
+    engine's static hold verdicts are the check's on the expanded contacts with their soft
+    slots, and scoring every slot without torsion (the soft slots dropped) changes some,
+    so the engine passes them on."""
+    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
+    grasp = shipped_grasps("spray_flask", "panda")[0]
+    rng = np.random.default_rng(6)
+    q = np.tile(np.asarray(grasp.q0, dtype=float), (60, 1))
+    q[:, :7] += 0.0133 * rng.standard_normal((60, 7))
+    with make_engine("fast", description, "spray_flask", static_hold=True) as engine:
+        batch = engine.close_batch(engine.check(q))
+        draws = engine.scored(q, batch)
+        points, normals, finger, link, soft = engine.patches.expand(
+            q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
+        present = finger >= 0
+        mixed = np.flatnonzero((soft & present).any(axis=1) & (~soft & present).any(axis=1))
+        assert mixed.size >= 10
+        values = {name: v[mixed] for name, v in batch.joints.items()}
+        args = (q[mixed], values, points[mixed], normals[mixed], finger[mixed], link[mixed])
+        with_soft = engine.hold_check.held(*args, soft=soft[mixed])
+        without = engine.hold_check.held(*args, soft=np.zeros_like(soft[mixed]))
+    np.testing.assert_array_equal(draws.held[mixed], with_soft)
+    assert (with_soft != without).any()
+
+
+def test_the_patch_model_at_each_draws_friction():
+    """Per-draw friction (alternating mu 0.3 and 0.5) on 40 Panda draws of the spray flask:
+    each draw's Q is the one an engine at that one mu gives (1e-9 relative)."""
+    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
+    grasp = shipped_grasps("spray_flask", "panda")[0]
+    rng = np.random.default_rng(7)
+    q = np.tile(np.asarray(grasp.q0, dtype=float), (40, 1))
+    q[:, :7] += 0.0133 * rng.standard_normal((40, 7))
+    mu = np.where(np.arange(40) % 2 == 0, 0.3, 0.5)
+    with make_engine("fast", description, "spray_flask") as engine:
+        mixed = engine.run(q, friction=mu)
+    expected = np.empty(40)
+    for value in (0.3, 0.5):
+        with make_engine("fast", description, "spray_flask", friction=value) as engine:
+            rows = mu == value
+            expected[rows] = engine.run(q[rows]).quality
+    assert (mixed.quality > 0).sum() > 10
+    np.testing.assert_allclose(mixed.quality, expected, rtol=1e-9, atol=1e-15)
