@@ -65,6 +65,29 @@ def square(centre: np.ndarray, half: float) -> np.ndarray:
                      for sy, sz in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
 
 
+PATCHED = dataclasses.replace(load_robot("panda"), contact_model="patch")
+
+
+def noisy(obj: str, count: int, seed: int, robot: str = "panda") -> np.ndarray:
+    """(count, dof): the robot's first shipped grasp of ``obj`` with joint noise of 0.0133 rad
+    on its seven arm joints (seed ``seed``)."""
+    grasp = shipped_grasps(obj, robot)[0]
+    q = np.tile(np.asarray(grasp.q0, dtype=float), (count, 1))
+    q[:, :7] += 0.0133 * np.random.default_rng(seed).standard_normal((count, 7))
+    return q
+
+
+def patch_closings(obj: str, q: np.ndarray, **kwargs):
+    """The Panda's fast engine with the patch model on q: (draws, the expanded contacts
+    (points, normals, finger, link, soft), the object's torque scale and centre of mass)."""
+    with make_engine("fast", PATCHED, obj, **kwargs) as engine:
+        batch = engine.close_batch(engine.check(q))
+        draws = engine.scored(q, batch)
+        expanded = engine.patches.expand(q, batch.joints, draws.points, draws.normals,
+                                         draws.finger, draws.link)
+        return draws, expanded, engine.obj.torque_scale, engine.obj.center_of_mass
+
+
 def test_thin_wall_pinch_is_force_closure_only_as_patches():
     """Two 10 mm pads on an 8 mm wall, their centres 12 mm apart in height: the centres as
     points are not in force closure (the line between them leaves both cones), the patches
@@ -179,17 +202,8 @@ def test_engine_scores_the_patch_corners(obj, flat_share):
     a face (measured: 34% of 64)."""
     from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, torsion_coefficient
 
-    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
-    grasp = shipped_grasps(obj, "panda")[0]
-    rng = np.random.default_rng(1)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (60, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((60, 7))
-    with make_engine("fast", description, obj) as engine:
-        batch = engine.close_batch(engine.check(q))
-        draws = engine.scored(q, batch)
-        corners, normals, finger, _, soft = engine.patches.expand(
-            q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
-        scale, centre = engine.obj.torque_scale, engine.obj.center_of_mass
+    draws, expanded, scale, centre = patch_closings(obj, noisy(obj, 60, 1))
+    corners, normals, finger, _, soft = expanded
     touched = np.flatnonzero(draws.n_contacts == 2)
     assert touched.size > 30
     present = finger[touched] >= 0
@@ -208,18 +222,10 @@ def test_the_patch_model_off_every_face_is_the_soft_model():
     scores them as the soft model does (the same Q to 1e-9 relative, computed by the soft
     engine's own path, and the same static hold verdicts); with a pad flat on a face the
     two differ somewhere."""
-    description = load_robot("panda")
-    grasp = shipped_grasps("spray_flask", "panda")[0]
-    rng = np.random.default_rng(2)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (240, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((240, 7))
-    patched = dataclasses.replace(description, contact_model="patch")
-    with make_engine("fast", patched, "spray_flask", static_hold=True) as engine:
-        batch = engine.close_batch(engine.check(q))
-        draws = engine.scored(q, batch)
-        soft_slots = engine.patches.expand(q, batch.joints, draws.points, draws.normals,
-                                           draws.finger, draws.link)[4]
-    with make_engine("fast", dataclasses.replace(description, contact_model="soft"),
+    q = noisy("spray_flask", 240, 2)
+    draws, expanded, _, _ = patch_closings("spray_flask", q, static_hold=True)
+    soft_slots = expanded[4]
+    with make_engine("fast", dataclasses.replace(PATCHED, contact_model="soft"),
                      "spray_flask", static_hold=True) as engine:
         soft = engine.run(q)
     present = np.repeat(draws.finger >= 0, PATCH_CORNERS, axis=1)
@@ -237,10 +243,7 @@ def test_rounded_fingertips_stay_point_contacts_under_the_patch_model():
     contact (no corners, no torsion), so Q and the outcomes are the point model's, draw for
     draw, on 40 noisy draws of a shipped cube grasp (its reference engine)."""
     description = load_robot("kuka_sdh")
-    grasp = shipped_grasps("cube")[0]
-    rng = np.random.default_rng(3)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (40, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((40, 7))
+    q = noisy("cube", 40, 3, robot="kuka_sdh")
     with make_engine("pybullet", dataclasses.replace(description, contact_model="patch"),
                      "cube") as engine:
         patched = engine.run(q)
@@ -258,17 +261,8 @@ def test_the_distinct_slots_score_as_every_slot():
     draws of the spray flask (pads flat on faces and off them both occur)."""
     from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, torsion_coefficient
 
-    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
-    grasp = shipped_grasps("spray_flask", "panda")[0]
-    rng = np.random.default_rng(5)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (40, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((40, 7))
-    with make_engine("fast", description, "spray_flask") as engine:
-        batch = engine.close_batch(engine.check(q))
-        draws = engine.scored(q, batch)
-        points, normals, finger, _, soft = engine.patches.expand(
-            q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
-        scale, centre = engine.obj.torque_scale, engine.obj.center_of_mass
+    draws, expanded, scale, centre = patch_closings("spray_flask", noisy("spray_flask", 40, 5))
+    points, normals, finger, _, soft = expanded
     rows = np.flatnonzero(draws.n_contacts == 2)
     assert rows.size >= 20 and soft[rows].any() and (~soft[rows] & (finger[rows] >= 0)).any()
     gamma = np.where(soft[rows], torsion_coefficient(MU, FINGER_RADIUS), 0.0)
@@ -283,12 +277,8 @@ def test_the_static_hold_check_takes_the_patch_models_soft_contacts():
     engine's static hold verdicts are the check's on the expanded contacts with their soft
     slots, and scoring every slot without torsion (the soft slots dropped) changes some,
     so the engine passes them on."""
-    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
-    grasp = shipped_grasps("spray_flask", "panda")[0]
-    rng = np.random.default_rng(6)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (60, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((60, 7))
-    with make_engine("fast", description, "spray_flask", static_hold=True) as engine:
+    q = noisy("spray_flask", 60, 6)
+    with make_engine("fast", PATCHED, "spray_flask", static_hold=True) as engine:
         batch = engine.close_batch(engine.check(q))
         draws = engine.scored(q, batch)
         points, normals, finger, link, soft = engine.patches.expand(
@@ -307,17 +297,13 @@ def test_the_static_hold_check_takes_the_patch_models_soft_contacts():
 def test_the_patch_model_at_each_draws_friction():
     """Per-draw friction (alternating mu 0.3 and 0.5) on 40 Panda draws of the spray flask:
     each draw's Q is the one an engine at that one mu gives (1e-9 relative)."""
-    description = dataclasses.replace(load_robot("panda"), contact_model="patch")
-    grasp = shipped_grasps("spray_flask", "panda")[0]
-    rng = np.random.default_rng(7)
-    q = np.tile(np.asarray(grasp.q0, dtype=float), (40, 1))
-    q[:, :7] += 0.0133 * rng.standard_normal((40, 7))
+    q = noisy("spray_flask", 40, 7)
     mu = np.where(np.arange(40) % 2 == 0, 0.3, 0.5)
-    with make_engine("fast", description, "spray_flask") as engine:
+    with make_engine("fast", PATCHED, "spray_flask") as engine:
         mixed = engine.run(q, friction=mu)
     expected = np.empty(40)
     for value in (0.3, 0.5):
-        with make_engine("fast", description, "spray_flask", friction=value) as engine:
+        with make_engine("fast", PATCHED, "spray_flask", friction=value) as engine:
             rows = mu == value
             expected[rows] = engine.run(q[rows]).quality
     assert (mixed.quality > 0).sum() > 10

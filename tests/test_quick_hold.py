@@ -152,9 +152,9 @@ def test_early_exit_is_part_of_the_protocols_value() -> None:
     assert HoldProtocol().early_exit is False
 
 
-def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
-    """``rank --criterion hold`` of the panda's shipped cube grasps names its score, writes
-    the P(hold) columns, and orders the candidates by them."""
+def rank_panda_cubes(capsys, tmp_path, criterion: str) -> tuple[str, list[dict]]:
+    """``rank`` of the panda's shipped cube grasps at sigma 0.0033 rad, 3 draws each, fast
+    engine, by ``criterion``: (its stdout, the CSV's rows)."""
     import csv
 
     from cli_helpers import run_in_process
@@ -164,9 +164,15 @@ def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
     out = tmp_path / "ranked.csv"
     text = run_in_process(capsys, "rank", str(shipped_grasp_file("cube", robot="panda")),
                           "--sigma", "0.0033", "--samples", "3", "--engine", "fast",
-                          "--criterion", "hold", "--out", str(out))
+                          "--criterion", criterion, "--out", str(out))
+    return text, list(csv.DictReader(out.open()))
+
+
+def test_rank_by_the_holding_test(tmp_path, capsys) -> None:
+    """``rank --criterion hold`` of the panda's shipped cube grasps names its score, writes
+    the P(hold) columns, and orders the candidates by them."""
+    text, rows = rank_panda_cubes(capsys, tmp_path, "hold")
     assert "P(hold): the quick holding test in pybullet" in text
-    rows = list(csv.DictReader(out.open()))
     assert len(rows) == 4
     held = [float(r["p_hold"]) for r in rows]
     assert held == sorted(held, reverse=True)
@@ -179,19 +185,11 @@ def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
     mean margin; each mean inside what its P(hold) allows (held draws score in [8/9, 1],
     the others in [0, 8/9]); the first's mean that of the quick test run again on its draws
     (chunk 0 of seed 0); the output names the score. ``--adaptive`` refuses it in one line."""
-    import csv
-
-    from cli_helpers import run_in_process
-
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.world.grasps import shipped_grasp_file, shipped_grasps
 
-    out = tmp_path / "ranked.csv"
-    text = run_in_process(capsys, "rank", str(shipped_grasp_file("cube", robot="panda")),
-                          "--sigma", "0.0033", "--samples", "3", "--engine", "fast",
-                          "--criterion", "hold_margin", "--out", str(out))
+    text, rows = rank_panda_cubes(capsys, tmp_path, "hold_margin")
     assert "margin: the mean over the draws of how far each got through it" in text
-    rows = list(csv.DictReader(out.open()))
     margin = [float(r["hold_margin"]) for r in rows]
     assert margin == sorted(margin, reverse=True) and len(set(margin)) > 1
     floor = len(QUICK_PROTOCOL.phases) / (len(QUICK_PROTOCOL.phases) + 1)
