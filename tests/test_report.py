@@ -389,6 +389,37 @@ def test_rank_page_rows_are_the_csvs_and_its_arms_the_first_draws(tmp_path, caps
         "noisy arms (4)"]
 
 
+def test_rank_page_shows_the_hold_scores_it_ranked_by(tmp_path, capsys):
+    """``rank --criterion hold --static-hold --report`` of the Panda's cube grasps: the page
+    has a column for P(hold, static), P(hold) and the holding test's margin, each row's
+    values the CSV's (before ``3-D``); a ranking without hold scores has none of them."""
+    import csv
+
+    from kinegrasp_env.world.grasps import shipped_grasp_file
+
+    page, out = tmp_path / "held.html", tmp_path / "held.csv"
+    assert main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--sigma", "0.0033",
+                 "--samples", "3", "--engine", "fast", "--criterion", "hold", "--static-hold",
+                 "--out", str(out), "--report", str(page)]) == 0
+    capsys.readouterr()
+    text = page.read_text()
+    heads = re.findall(r"<th[^>]*>([^<]*)</th>", text)
+    assert heads[-4:] == ["P(hold, static)", "P(hold)", "hold margin", "3-D"]
+    rows = list(csv.DictReader(out.open()))
+    shown = re.findall(r'<tr class="kg-item" data-detail="[^"]+" data-id="([^"]+)">(.*?)</tr>',
+                       text)
+    assert [grasp_id for grasp_id, _ in shown] == [r["id"] for r in rows]
+    for (_, cells), row in zip(shown, rows, strict=True):
+        values = [float(v) for v in re.findall(r'<td[^>]*data-value="([^"]*)"', cells)[-3:]]
+        expected = [float(row[k]) for k in ("p_hold_static", "p_hold", "hold_margin")]
+        assert values == pytest.approx(expected, abs=1e-6)
+    assert main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--sigma", "0.0033",
+                 "--samples", "3", "--engine", "fast", "--out", str(out), "--report",
+                 str(page)]) == 0
+    capsys.readouterr()
+    assert "hold margin" not in page.read_text()
+
+
 # ------------------------------------------------------------------------------- browser
 @pytest.fixture(scope="module")
 def pages(tmp_path_factory, robot_run, elbow_run, spec_file):

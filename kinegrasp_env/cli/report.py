@@ -74,6 +74,18 @@ def report_path(text: str | None, name: str = "--report") -> Path | None:
 RANK_ARM_DRAWS = 10
 
 
+def hold_scores(result) -> dict[str, float]:
+    """A ranked candidate's hold scores for its report row: P(hold, static), P(hold) and the
+    holding test's mean margin, those it has."""
+    out = {}
+    if "static" in result.holds:
+        out["p_hold_static"] = result.p_hold("static")
+    if "test" in result.holds:
+        out["p_hold"] = result.p_hold("test")
+        out["hold_margin"] = result.hold_margin()
+    return out
+
+
 def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int, seed: int,
                       engine: str, friction: float = 0.5) -> None:
     """``rank --report FILE`` of any robot's candidates: the sortable table and each
@@ -94,7 +106,8 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                      "p_fc_lo": lo, "p_fc_hi": hi, "q_mean": mean,
                      "q_std": std,
                      "q_nominal": grasps[r.index].q_nominal, "samples": r.trials,
-                     "q_skew": r.q_stats()[2], "outcomes": dict(r.outcomes)})
+                     "q_skew": r.q_stats()[2], "outcomes": dict(r.outcomes),
+                     "holds": hold_scores(r)})
     command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
                "--seed", str(seed), "--criterion", args.criterion,

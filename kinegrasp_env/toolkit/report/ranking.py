@@ -42,6 +42,16 @@ from kinegrasp_env.world.objects import GraspObject
 RANK_COLUMNS = ("rank", "id", "P(FC)", "95% CI", "Q mean", "Q std", "Q skewness",
                 "Q nominal", "elbow [rad]", *(o.replace("_", " ") for o in OUTCOMES), "draws",
                 "3-D")
+#: The hold scores a row may carry (its ``holds``: key -> value) and their column headers,
+#: shown before ``3-D`` where any row has them.
+HOLD_HEADERS = {"p_hold_static": "P(hold, static)", "p_hold": "P(hold)",
+                "hold_margin": "hold margin"}
+
+
+def columns(hold_keys: Sequence[str]) -> tuple[str, ...]:
+    """The table's headers with the hold scores ``hold_keys`` (keys of
+    :data:`HOLD_HEADERS`)."""
+    return (*RANK_COLUMNS[:-1], *(HOLD_HEADERS[k] for k in hold_keys), RANK_COLUMNS[-1])
 
 
 def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) -> list[float]:
@@ -59,8 +69,10 @@ def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) ->
     return [float(v) for v in motion.elbow_angle(q)]
 
 
-def rank_row(position: int, row: dict, elbow: float, key: str) -> str:
-    """One sortable table row (numbers in ``data-value``)."""
+def rank_row(position: int, row: dict, elbow: float, key: str,
+             hold_keys: Sequence[str] = ()) -> str:
+    """One sortable table row (numbers in ``data-value``), with the hold scores
+    ``hold_keys`` of its ``holds`` ('-' where it has none)."""
     def num(value, text):
         finite = value is not None and math.isfinite(value)
         return f'<td data-value="{value if finite else "NaN"}">{text if finite else "-"}</td>'
@@ -74,6 +86,8 @@ def rank_row(position: int, row: dict, elbow: float, key: str) -> str:
              *(num(count, str(count)) for count in
                (row.get("outcomes", {}).get(name) for name in OUTCOMES)),
              num(row["samples"], str(row["samples"])),
+             *(num(value, fmt(value, 3)) for value in
+               (row.get("holds", {}).get(k) for k in hold_keys)),
              f'<td><button class="kg-show" data-detail="detail-{key}" '
              f'onclick="kgToggle(this)">show 3-D</button></td>']
     return (f'<tr class="kg-item" data-detail="detail-{key}" data-id="{esc(row["id"])}">'
@@ -91,7 +105,8 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
         grasps: the candidates, in file order.
         rows: best first; each with ``index`` (into grasps), ``id``, ``p_fc``, ``p_fc_lo``,
             ``p_fc_hi``, ``q_mean``, ``q_std``, ``q_nominal``, ``samples``, and where known
-            ``q_skew`` and ``outcomes`` (outcome name -> draws).
+            ``q_skew``, ``outcomes`` (outcome name -> draws) and ``holds`` (hold score ->
+            value, keys of :data:`HOLD_HEADERS`: a column each where any row has it).
         command: the command line that reproduces the page; settings: name -> value.
         arms: per candidate (file order), the arm at the ranking's first draws (None: none).
     """
@@ -99,6 +114,8 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
     placed = [objects[g.object] for g in chosen]
     closings, geometry = grasps_geometry(description, placed, chosen)
     elbows = elbow_coordinates(description, chosen)
+    hold_keys = [k for k in HOLD_HEADERS if any(k in row.get("holds", {}) for row in rows)]
+    headers = columns(hold_keys)
     library, figures, body_rows = MeshLibrary(), [], []
     for position, (row, grasp, obj, (_, did_close)) in enumerate(
             zip(rows, chosen, placed, closings, strict=True), 1):
@@ -110,11 +127,11 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
             title=f"{description.name}: {obj.name} grasp {grasp.id}, world (robot base) frame",
             arms=None if arms is None else arms[row["index"]]), "100%", "520px", lazy=True)
         figures.append(figure)
-        body_rows.append(rank_row(position, row, elbows[k], key))
+        body_rows.append(rank_row(position, row, elbows[k], key, hold_keys))
         body_rows.append(f'<tr id="detail-{key}" style="display: none;"><td colspan='
-                         f'"{len(RANK_COLUMNS)}">{figure.div()}</td></tr>')
+                         f'"{len(headers)}">{figure.div()}</td></tr>')
     head = "".join(f'<th{" class=kg-text" if c == "id" else ""}>{esc(c)}</th>'
-                   for c in RANK_COLUMNS)
+                   for c in headers)
     names = ", ".join(dict.fromkeys(o.name for o in placed))
     shown = "" if arms is None else (
         f", with the arm's skeleton at the ranking's first {len(arms[0].q)} draws (the same "
