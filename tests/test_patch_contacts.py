@@ -308,3 +308,21 @@ def test_the_patch_model_at_each_draws_friction():
             expected[rows] = engine.run(q[rows]).quality
     assert (mixed.quality > 0).sum() > 10
     np.testing.assert_allclose(mixed.quality, expected, rtol=1e-9, atol=1e-15)
+
+
+def test_distinct_slots_keep_each_point_once():
+    """By hand, C = 4 slots a contact: a patch of three corners keeps them and its centre
+    once (the centre an engine reports may lie outside the corners' polygon), a full patch
+    its four corners, a soft contact and a rounded tip's point one slot, an absent contact
+    none."""
+    from kinegrasp_env.montecarlo.patch_contacts import distinct_slots
+
+    assert PATCH_CORNERS == 4
+    centres = np.array([[[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0], [np.nan] * 3]])
+    points = np.repeat(centres, 4, axis=1)
+    points[0, 0:3] = [[0, 1, 0], [0, 0, 1], [0, 1, 1]]      # three corners, then the centre
+    points[0, 4:8] = [[1, 1, 0], [1, 0, 1], [1, 1, 1], [1, 2, 2]]  # four corners
+    soft = np.zeros((1, 20), dtype=bool)
+    soft[0, 8:12] = True  # contact 2 off a face; contact 3 a rounded tip's point
+    keep = distinct_slots(points, soft, centres)
+    assert np.flatnonzero(keep[0]).tolist() == [0, 1, 2, 3, 4, 5, 6, 7, 8, 12]

@@ -109,9 +109,10 @@ class PatchContacts:
 def distinct_slots(points: np.ndarray, soft: np.ndarray, centres: np.ndarray) -> np.ndarray:
     """(B, k C) bool: the slots of :meth:`PatchContacts.expand`'s contacts that score them
     without repeats: a soft contact's first slot (its C slots are copies of it), a patch's
-    corners but not the centre that pads them (a point of the patch: its forces are the
-    corners'). Q and force closure of the kept slots are those of all of them (the same hull
-    of wrenches); repeated contacts only slow the quality's certified expansion down.
+    corners and the first of the slots that pad it with its centre (the centre once: an
+    engine's contact point need not lie inside its corners' polygon). Q and force closure
+    of the kept slots are those of all of them (the same set of points, each once); repeated
+    contacts only slow the quality's certified expansion down.
 
     Args:
         points: (B, k C, 3) the expanded contacts; soft: (B, k C) their soft slots;
@@ -119,12 +120,9 @@ def distinct_slots(points: np.ndarray, soft: np.ndarray, centres: np.ndarray) ->
     """
     c = PATCH_CORNERS
     batch, slots = soft.shape
-    padding = np.all(points == np.repeat(centres, c, axis=1), axis=2)
+    padding = np.all(points == np.repeat(centres, c, axis=1), axis=2).reshape(batch, -1, c)
+    first_padding = padding & (np.cumsum(padding, axis=2) == 1)
     first = (np.arange(slots) % c == 0)[None, :]
-    keep = np.where(soft, first, ~padding)
+    keep = np.where(soft, first, (~padding | first_padding).reshape(batch, slots))
     present = ~np.isnan(np.repeat(centres[..., 0], c, axis=1))
-    keep &= present
-    blocks = keep.reshape(batch, -1, c)
-    empty = ~blocks.any(axis=2) & present.reshape(batch, -1, c)[..., 0]
-    blocks[..., 0] |= empty  # a patch that is all padding keeps one slot
-    return blocks.reshape(batch, slots)
+    return keep & present
