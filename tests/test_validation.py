@@ -5,6 +5,7 @@ engine's registration."""
 
 from __future__ import annotations
 
+import csv
 import warnings
 
 import numpy as np
@@ -172,9 +173,17 @@ def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch
     np.testing.assert_array_equal(read.kin_outcome, FAKE[0].kin_outcome)
     other = ValidationSettings(sigma=0.02, samples=4)  # another setting, another file
     assert validation.settings_key(grasp, other) != validation.settings_key(grasp, settings)
-    paths = write_results(tmp_path, FAKE, summarize(FAKE, settings, resamples=20))
+    paths = write_results(tmp_path, FAKE, summarize(FAKE, settings, resamples=20),
+                          protocol=settings.protocol)
     assert (tmp_path / "grasps.csv").read_text().count("\n") == 4  # header + 3 grasps
     assert (tmp_path / "draws.csv").read_text().count("\n") == 13
+    # each draw's margin by hand: 8 phases (no shake), 3 mm of 20 and 0.01 rad of 10 degrees
+    # moved (s = 0.85); held: (8 + s) / 9, dropped at gravity_-z after 6 held: (6 + s) / 9
+    rows = list(csv.DictReader((tmp_path / "draws.csv").open()))
+    for row in rows:
+        expected = (8.85 if row["hold_outcome"] == "held" else 6.85) / 9
+        assert float(row["hold_margin"]) == pytest.approx(expected, abs=5e-4)
+    assert {row["hold_outcome"] for row in rows} == {"held", "dropped"}
     assert set(paths) >= {"draws", "grasps", "summary"}
 
 
@@ -209,7 +218,8 @@ def test_same_seed_same_table_twice(tmp_path):
     run_validation(grasps, ValidationSettings(sigma=0.0333, samples=2, seed=5), tmp_path / "b")
     for run in ("a", "b"):
         results = run_validation(grasps, settings, tmp_path / run, processes=1)
-        write_results(tmp_path / run, results, summarize(results, settings, resamples=20))
+        write_results(tmp_path / run, results, summarize(results, settings, resamples=20),
+                      protocol=settings.protocol)
     for table in ("grasps.csv", "draws.csv"):
         assert (tmp_path / "a" / table).read_text() == (tmp_path / "b" / table).read_text()
 

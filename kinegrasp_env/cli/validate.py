@@ -190,9 +190,9 @@ def cmd_validate(args) -> int:
     from kinegrasp_env.toolkit.validation import ValidationSettings
     from kinegrasp_env.toolkit.validation_report import write_results
 
-    summary, results = validate_robot(robot, grasps, ValidationSettings(**fields), out,
-                                      processes)
-    paths = write_results(out, results, summary)
+    settings = ValidationSettings(**fields)
+    summary, results = validate_robot(robot, grasps, settings, out, processes)
+    paths = write_results(out, results, summary, protocol=settings.protocol)
     if args.json:
         print_json({**summary, "files": {k: str(v) for k, v in paths.items()}})
     else:

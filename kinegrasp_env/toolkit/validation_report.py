@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import OUTCOMES
-from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol, hold_margin
 from kinegrasp_env.toolkit.plots import safe_figure, save_figure
 from kinegrasp_env.toolkit.validation import GraspDraws, GraspRow, ValidationSettings
 from kinegrasp_env.toolkit.validation_stats import bootstrap_spearman, confusion
@@ -108,8 +108,9 @@ def csv_text(header: list[str], rows) -> str:
 PHASE_CODES = {1: "held", 0: "failed", -1: "not_run"}
 
 
-def draw_rows(results: list[GraspDraws]):
+def draw_rows(results: list[GraspDraws], protocol: HoldProtocol):
     for r in results:
+        margin = hold_margin(r.phase_held, r.phase_shift, r.phase_turn, protocol)
         for i in range(len(r)):
             yield (r.object, r.index, r.id, i, OUTCOMES[r.kin_outcome[i]],
                    f"{r.kin_quality[i]:.6g}", OUTCOMES[r.phys_outcome[i]],
@@ -118,7 +119,7 @@ def draw_rows(results: list[GraspDraws]):
                    *(f"{v:.4g}" for v in r.forces_gripped[i]),
                    *(f"{v:.4g}" for v in r.forces_released[i]), f"{r.pin_force[i]:.4g}",
                    *(PHASE_CODES[int(v)] for v in r.phase_held[i]),
-                   *(f"{v * 1e3:.4g}" for v in r.phase_shift[i]))
+                   *(f"{v * 1e3:.4g}" for v in r.phase_shift[i]), f"{margin[i]:.4g}")
 
 
 def grasp_rows(summary: dict):
@@ -128,10 +129,12 @@ def grasp_rows(summary: dict):
                  for v in (g[key], *g[f"{key}_ci"])))
 
 
-def write_results(out_dir: str | Path, results: list[GraspDraws],
-                  summary: dict) -> dict[str, Path]:
-    """draws.csv, grasps.csv, summary.json, then scatter.png (a figure failure is a warning:
-    the results are already written). Returns the paths written."""
+def write_results(out_dir: str | Path, results: list[GraspDraws], summary: dict, *,
+                  protocol: HoldProtocol) -> dict[str, Path]:
+    """draws.csv (its last column each draw's :func:`~kinegrasp_env.physics.protocol.
+    hold_margin` under ``protocol``, the one the draws ran), grasps.csv, summary.json, then
+    scatter.png (a figure failure is a warning: the results are already written). Returns
+    the paths written."""
     out = Path(out_dir)
     fingers = results[0].forces_gripped.shape[1] if results else 3
     paths = {"draws": out / "draws.csv", "grasps": out / "grasps.csv",
@@ -142,8 +145,8 @@ def write_results(out_dir: str | Path, results: list[GraspDraws],
         + [f"force_{when}_f{k + 1}_n" for when in ("gripped", "released")
            for k in range(fingers)]
         + ["pin_force_n"]
-        + list(PHASES) + [f"{name}_max_shift_mm" for name in PHASES],
-        draw_rows(results)))
+        + list(PHASES) + [f"{name}_max_shift_mm" for name in PHASES] + ["hold_margin"],
+        draw_rows(results, protocol)))
     write_atomic(paths["grasps"], csv_text(
         ["object", "grasp", "id", "samples"] + [f"{key}{end}" for key in
          ("p_fc_kinematic", "p_fc_physics", "p_hold") for end in ("", "_lo", "_hi")],
