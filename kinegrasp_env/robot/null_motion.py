@@ -17,7 +17,8 @@ names a joint or link. The continuation, with its continuity check, is the one
 the two give the same configurations); its Newton runs compiled where the chain base -> palm
 is driven by the arm joints directly (every catalog robot's:
 :func:`~kinegrasp_env.robot.self_motion.compiled_step`), else in the batched numpy
-kinematics, a step converged where the residual is below :data:`RESIDUAL_TOL`. A move of
+kinematics, a step converged where the residual is below
+:data:`~kinegrasp_env.robot.self_motion.CONVERGED_TOL` (the compiled step's rule). A move of
 0.3 rad is one continuation step (three Newton solves: ``python
 benchmarks/bench_self_motion.py``; within env steps: ``python benchmarks/bench_env.py``).
 """
@@ -36,9 +37,6 @@ from kinegrasp_env.robot.self_motion import (
     continue_elbow,
 )
 
-#: Newton converged where the residual's norm (metres, radians) is below this (every
-#: continuation's rule).
-RESIDUAL_TOL = CONVERGED_TOL
 #: Central-difference step of psi's gradient (radians).
 GRADIENT_STEP = 1e-6
 #: Largest change of one joint per Newton iteration (radians).
@@ -93,7 +91,7 @@ class ArmSelfMotion:
             d_psi = np.angle(np.exp(1j * (goal - self.elbow_angle(q))))
             residual = np.concatenate([err, d_psi[:, None]], axis=1)
             norm = np.linalg.norm(residual, axis=1)
-            if np.all(norm < RESIDUAL_TOL):
+            if np.all(norm < CONVERGED_TOL):
                 return q, norm
             system = np.concatenate([self.kin.jacobian(q, self.palm)[:, :, self.arm],
                                      self._gradient(q)[:, None]], axis=1)
@@ -124,7 +122,7 @@ class ArmSelfMotion:
         else:
             def newton(rows, targets, goals):
                 trial, norm = self._newton(rows, targets, goals, newton_iterations)
-                return trial, (norm < RESIDUAL_TOL) & self.kin.model.within_limits(trial)
+                return trial, (norm < CONVERGED_TOL) & self.kin.model.within_limits(trial)
         moved, ok = continue_elbow(newton, self.kin, self.palm, self.angle_links, q, psi,
                                    max_step=max_step)
         return moved[0], bool(ok[0])

@@ -8,7 +8,7 @@ self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`
   singularity or an arm link other than the fingers would touch the object (pybullet's
   distance, :func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`), or half a turn is
   walked each way. Every configuration keeps the grasp's palm pose (residual below
-  :data:`~kinegrasp_env.robot.null_motion.RESIDUAL_TOL`), hence its nominal contacts.
+  :data:`~kinegrasp_env.robot.self_motion.CONVERGED_TOL`), hence its nominal contacts.
 - **Curve** (selection draws): the coarse grid of psi, then the fine grid around the best
   coarse angles (:mod:`kinegrasp_env.toolkit.elbow`'s grids), each angle on the draws of
   ``seed`` (those of ``kinegrasp evaluate --seed SEED``) through any engine
