@@ -23,7 +23,7 @@ from kinegrasp_env.montecarlo.perturbation import check_errors
 from kinegrasp_env.quality.soft_contacts import (
     FINGER_RADIUS,
     contact_quality_batch,
-    torsion_coefficient,
+    soft_torsions,
 )
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
@@ -158,7 +158,7 @@ class RobotEngine:
         def torsion(mu: float) -> dict:
             if soft is None:
                 return {}
-            return {"torsion": np.where(soft, torsion_coefficient(mu, self.finger_radius), 0.0)}
+            return {"torsion": soft_torsions(soft, mu, self.finger_radius)}
 
         if friction is None:
             return contact_quality_batch(points, normals, friction=self.friction,
@@ -231,12 +231,11 @@ class RobotEngine:
                                      | (draws.outcome == FORCE_CLOSURE))
             if touched.size:
                 values = {name: v[touched] for name, v in batch.joints.items()}
-                given = (draws.points, draws.normals, draws.finger, draws.link, None)
-                if contacts is not None:
-                    given = contacts
+                points, normals, finger, link, soft = contacts or (
+                    draws.points, draws.normals, draws.finger, draws.link, None)
                 draws.held[touched] = self.hold_check.held(
-                    q[touched], values, *(a[touched] for a in given[:4]),
-                    soft=None if given[4] is None else given[4][touched])
+                    q[touched], values, points[touched], normals[touched], finger[touched],
+                    link[touched], soft=None if soft is None else soft[touched])
         return draws
 
     def _closed_hand(self, q: np.ndarray, batch: RobotCloseBatch, draws: DrawBatch) -> None:
@@ -264,8 +263,8 @@ class RobotEngine:
         keep = distinct_slots(points, soft, draws.points)
         candidate = draws.outcome == NO_FORCE_CLOSURE
         count, mixed = keep.sum(axis=1), (soft & keep).any(axis=1)
-        for size, any_soft in {(int(count[i]), bool(mixed[i]))
-                               for i in np.flatnonzero(candidate)}:
+        groups = np.unique(np.column_stack([count, mixed])[candidate], axis=0)
+        for size, any_soft in groups.tolist():
             rows = np.flatnonzero(candidate & (count == size) & (mixed == any_soft))
             cols = np.nonzero(keep[rows])[1].reshape(rows.size, size)
             at = rows[:, None], cols

@@ -32,7 +32,7 @@ from kinegrasp_env.physics.protocol import GRAVITY_PHASES, HoldProtocol
 from kinegrasp_env.quality.soft_contacts import (
     TORSION_PRIMITIVES,
     contact_wrenches,
-    torsion_coefficient,
+    soft_torsions,
 )
 from kinegrasp_env.quality.static_hold import gravity_loads, static_hold
 from kinegrasp_env.robot.description import RobotDescription
@@ -100,8 +100,8 @@ class StaticHoldCheck:
         contacts, no torsion)."""
         filled = np.where(present[..., None], points, self.obj.center_of_mass)
         unit = np.where(present[..., None], normals, np.array([0.0, 0.0, 1.0]))
-        torsion = None if soft is None else np.where(
-            soft, torsion_coefficient(self.friction, self.finger_radius), 0.0)
+        torsion = (None if soft is None
+                   else soft_torsions(soft, self.friction, self.finger_radius))
         w = contact_wrenches(filled, unit, contact_model=self.contact_model,
                              friction=self.friction, num_edges=self.num_edges,
                              torque_scale=1.0, center=tuple(map(float,

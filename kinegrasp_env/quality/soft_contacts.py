@@ -107,6 +107,14 @@ def torsion_coefficient(friction: float = 0.5, finger_radius: float = FINGER_RAD
     return UNIFORM_DISC * mu * _nonnegative(finger_radius, "finger_radius", positive=True)
 
 
+def soft_torsions(soft: np.ndarray, friction: float = 0.5,
+                  finger_radius: float = FINGER_RADIUS) -> np.ndarray:
+    """Per contact gamma (metres, ``soft``'s shape): :func:`torsion_coefficient` where
+    ``soft`` (bool) marks a soft contact, 0 (a point contact) elsewhere: the ``torsion=`` of
+    a set that mixes the two (the patch model's)."""
+    return np.where(soft, torsion_coefficient(friction, finger_radius), 0.0)
+
+
 # ----------------------------------------------------------------------------- primitives
 def contact_wrenches(points, normals, *, contact_model: ContactModel = "point",
                      friction: float = 0.5, num_edges: int = 8, torque_scale=1.0,
