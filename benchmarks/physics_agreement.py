@@ -227,7 +227,7 @@ def quick_hold(robot: str, obj: str, q: np.ndarray, simulator: str,
     finally:
         engine.close()
     return {f"quick_hold{suffix}": (hold.outcome == HELD).astype(float),
-            f"hold_margin{suffix}": hold.margin(QUICK_PROTOCOL)}
+            f"hold_margin{suffix}": hold.margin(engine.protocol)}
 
 
 def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:

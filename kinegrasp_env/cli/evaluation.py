@@ -68,13 +68,13 @@ def holding_test(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
     (its joints and hand) instead of the joint noise."""
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
-    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+    from kinegrasp_env.physics.protocol import HELD
 
     with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
         q = evaluation_rows(grasp, engine, sigma=sigma, n=samples, seed=seed, noise=noise,
                             noise_model=model)[0]
         hold = engine.run_hold(q)[1]
-        return (int((hold.outcome == HELD).sum()), float(hold.margin(QUICK_PROTOCOL).mean()),
+        return (int((hold.outcome == HELD).sum()), float(hold.margin(engine.protocol).mean()),
                 engine.simulator.name)
 
 

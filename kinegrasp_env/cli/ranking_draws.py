@@ -128,7 +128,7 @@ class RankingDraws:
 
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
         from kinegrasp_env.montecarlo.robot_chunks import chunk_rows
-        from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+        from kinegrasp_env.physics.protocol import HELD
 
         name = self.grasps[index].object
         if name not in self.testers:
@@ -141,7 +141,7 @@ class RankingDraws:
         held = hold.outcome == HELD
         print(f"rank: candidate {self.grasps[index].id}: holding test {int(held.sum())}/{n} "
               "held", file=sys.stderr)
-        return held, hold.margin(QUICK_PROTOCOL)
+        return held, hold.margin(tester.protocol)
 
     def nominal(self, index: int) -> float:
         """Candidate ``index``'s nominal Q: its closing at q0 (no noise) by the engine."""

@@ -241,10 +241,10 @@ class RobotTask:
         engine = self.engine(grasp.object)
         held = margin = None
         if self.score in HOLD_TEST_SCORES:
-            from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+            from kinegrasp_env.physics.protocol import HELD
 
             draws, hold = engine.run_hold(rows)
-            held, margin = hold.outcome == HELD, hold.margin(QUICK_PROTOCOL)
+            held, margin = hold.outcome == HELD, hold.margin(engine.protocol)
         else:
             draws = engine.run(rows, **errors)
             if self.score == "hold_static":

@@ -34,6 +34,8 @@ class RobotHoldEngine(RobotEngine):
                  motors: RobotMotorSettings | None = None, simulator: str = "pybullet",
                  **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
+        #: the holding test's settings (what a :class:`HoldBatch`'s margin is taken under)
+        self.protocol = protocol
         self.simulator = robot_simulator_class(simulator)(
             self.description, self.obj, self.friction, protocol, settings=motors)
 

@@ -254,6 +254,11 @@ class PaperPhysicsEngine(RobotEngine):
         """The simulator of :meth:`run_hold` (built on first use; its ``name``)."""
         return self.engine.holder
 
+    @property
+    def protocol(self) -> HoldProtocol:
+        """The holding test's settings of :meth:`run_hold` (its margins are taken under it)."""
+        return self.engine.protocol
+
     def run(self, q: np.ndarray, *, palm: np.ndarray | None = None,
             object_offset: np.ndarray | None = None,
             friction: np.ndarray | None = None) -> DrawBatch:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import OUTCOMES
-from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol, hold_margin
+from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.toolkit.plots import safe_figure, save_figure
 from kinegrasp_env.toolkit.validation import GraspDraws, GraspRow, ValidationSettings
 from kinegrasp_env.toolkit.validation_stats import bootstrap_spearman, confusion
@@ -110,7 +110,7 @@ PHASE_CODES = {1: "held", 0: "failed", -1: "not_run"}
 
 def draw_rows(results: list[GraspDraws], protocol: HoldProtocol):
     for r in results:
-        margin = hold_margin(r.phase_held, r.phase_shift, r.phase_turn, protocol)
+        margin = r.hold.margin(protocol)
         for i in range(len(r)):
             yield (r.object, r.index, r.id, i, OUTCOMES[r.kin_outcome[i]],
                    f"{r.kin_quality[i]:.6g}", OUTCOMES[r.phys_outcome[i]],
