@@ -75,14 +75,14 @@ RANK_ARM_DRAWS = 10
 
 
 def hold_scores(result) -> dict[str, float]:
-    """A ranked candidate's hold scores for its report row: P(hold, static), P(hold) and the
-    holding test's mean margin, those it has."""
-    out = {}
-    if "static" in result.holds:
-        out["p_hold_static"] = result.p_hold("static")
+    """A ranked candidate's hold scores for its report row, keyed as ``rank``'s CSV columns
+    (:data:`~kinegrasp_env.cli.ranking_table.HOLD_COLUMNS`, the margin with the holding
+    test): P(hold, static), P(hold) and the holding test's mean margin, those it has."""
+    from kinegrasp_env.cli.ranking_table import HOLD_COLUMNS, MARGIN_COLUMN
+
+    out = {HOLD_COLUMNS[score][0]: result.p_hold(score) for score in result.holds}
     if "test" in result.holds:
-        out["p_hold"] = result.p_hold("test")
-        out["hold_margin"] = result.hold_margin()
+        out[MARGIN_COLUMN[0]] = result.hold_margin()
     return out
 
 
