@@ -13,9 +13,10 @@ Steps (idempotent: a second run reuses everything and changes no file):
    (in ``$KINEGRASP_HOME`` when set, else the user's data folder) for every index of the
    spec's ``train`` and ``test`` lists, at the spec's ``scale`` with the importer's defaults.
    An entry of the same file and settings is reused.
-2. Plan grasps of each with :class:`kinegrasp_env.toolkit.planner.GraspPlanner`, seed = the
-   index, no time budget (deterministic), into ``agents/grasps/blobNNN.json``; a file already
-   planned with the same object, count and seed is kept (``--replan`` plans again).
+2. Plan grasps of each with the sampler that planned the shipped sets
+   (``scripts/sdh_grasp_sampler.py``'s ``GraspPlanner``), seed = the index, no time budget
+   (deterministic), into ``agents/grasps/blobNNN.json``; a file already planned with the
+   same object, count and seed is kept (``--replan`` plans again).
 3. The spec's fallback: an index the importer refuses, or one the planner finds too few
    grasps for, is replaced by the next index (the replacement is printed and recorded in the
    set files; the spec's ``replaced`` must then name it).
@@ -96,8 +97,10 @@ def import_index(index: int, scale: float) -> bool:
 def plan_index(index: int, count: int, replan: bool) -> list | None:
     """The planned grasps of ``blobNNN`` (file kept when already planned with these settings),
     or None when the planner finds fewer than ``count``."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
     from kinegrasp_env.world.grasps import load_grasps, save_grasps
+
+    sys.path.insert(0, str(HERE.parent / "scripts"))
+    from sdh_grasp_sampler import GraspPlanner
 
     name, path = object_name(index), GRASPS / f"{object_name(index)}.json"
     if path.is_file() and not replan:

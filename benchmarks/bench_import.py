@@ -93,18 +93,14 @@ def import_all(names: list[str], rows: list[dict]) -> list[str]:
 def plan_all(names: list[str], count: int, folder: Path, rows: list[dict]) -> dict:
     """{name: planned grasps}; each object's grasps also written to ``folder/NAME.json``, a
     row per object appended to ``rows``."""
-    from kinegrasp_env.toolkit.planner import GraspPlanner
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
     from kinegrasp_env.world.grasps import save_grasps
 
     folder.mkdir(parents=True, exist_ok=True)
     grasps = {}
     for name in names:
-        planner = GraspPlanner(name)
         start = time.perf_counter()
-        try:
-            found = planner.plan(count, seed=0)
-        finally:
-            planner.close()
+        found = plan_robot_grasps("kuka_sdh", name, count=count, seed=0)
         seconds = time.perf_counter() - start
         grasps[name] = found
         if found:

@@ -82,6 +82,36 @@ SETS = {
 }
 
 
+def elbow_variants(grasp, count: int) -> list:
+    """Up to ``count`` configurations of the default robot's ``grasp`` at elbow angles spread
+    over its self-motion (the analytic walk, every 5 degrees, the arm clear of the object),
+    each kept when the reference engine closes it in force closure: ids ``<id>v<k>``."""
+    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
+    from kinegrasp_env.montecarlo.nominal import grasp_from_draw
+    from kinegrasp_env.toolkit.elbow import ArmWalk
+
+    walk = ArmWalk(grasp.object)
+    try:
+        feasible = sorted(walk.elbow_range(np.asarray(grasp.q0, dtype=float), np.deg2rad(5.0)),
+                          key=lambda item: item[0])
+    finally:
+        walk.close()
+    engine = make_engine("pybullet", grasp.object)
+    out = []
+    try:
+        pick = np.unique(np.round(np.linspace(0, len(feasible) - 1, count)).astype(int))
+        for j, index in enumerate(pick):
+            psi, q = feasible[index]
+            draw = engine.run(q[None])
+            if draw.outcome[0] == FORCE_CLOSURE:
+                out.append(grasp_from_draw(draw, grasp.object, q, grasp.palm_pose,
+                                           grasp_id=f"{grasp.id}v{j + 1}",
+                                           meta={"elbow_angle": psi, "variant_of": grasp.id}))
+    finally:
+        engine.close()
+    return out
+
+
 def candidates(name: str) -> tuple[list, str]:
     """The grasps of set ``name`` and a digest of their configurations (the cache key)."""
     from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
@@ -89,14 +119,8 @@ def candidates(name: str) -> tuple[list, str]:
     if SETS[name].get("base", name) == "a":
         grasps = load_grasps(ROOT / "notebooks" / "candidates.json")
     else:
-        from kinegrasp_env.toolkit.planner import GraspPlanner
-
         target = SETS[name]["object"]
-        planner = GraspPlanner(target)
-        try:
-            grasps = planner.variants(shipped_grasps(target)[0], 10)
-        finally:
-            planner.close()
+        grasps = elbow_variants(shipped_grasps(target)[0], 10)
     digest = hashlib.sha256()
     for grasp in grasps:
         digest.update(grasp.id.encode() + np.round(grasp.q0, 12).tobytes())

@@ -69,21 +69,22 @@ def object_rows(name: str, draws: int) -> dict:
 
 
 def plan_rows(name: str, count: int) -> dict:
-    from kinegrasp_env.toolkit.planner import GraspPlanner
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 
-    planner = GraspPlanner(f"{name}_on_table")
     t = time.perf_counter()
-    grasps = planner.plan(count, seed=0)
+    grasps = plan_robot_grasps("kuka_sdh", f"{name}_on_table", count=count, seed=0)
     seconds = time.perf_counter() - t
+    engine = make_engine("pybullet", f"{name}_on_table")
     q0 = np.array([g.q0 for g in grasps])
-    draws = planner.engine.run(q0)
+    draws = engine.run(q0)
     closed = np.concatenate([q0[:, :7], draws.hand], axis=1)
-    open_in = planner.engine.table_hits(q0)
-    closed_in = planner.engine.table_hits(closed)
+    open_in = engine.table_hits(q0)
+    closed_in = engine.table_hits(closed)
     print(f"| {name} on the table | {len(grasps)} in {seconds:.0f} s | "
           f"{int((draws.outcome == 3).sum())}/{len(grasps)} force closure | open hand in the "
           f"table: {int(open_in.sum())}, closed hand: {int(closed_in.sum())} |", flush=True)
-    planner.close()
+    engine.close()
     return {"object": name, "planned": len(grasps), "plan_s": seconds,
             "force_closure": int((draws.outcome == 3).sum()),
             "open_hand_in_table": int(open_in.sum()), "closed_hand_in_table": int(closed_in.sum())}

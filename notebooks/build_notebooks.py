@@ -200,15 +200,15 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.toolkit.elbow_search import robot_reachable_configurations
 from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 
 sigma = 0.0133
 kin = Kinematics(kuka_sdh())
 grasp = shipped_grasps("drill")[0]
-planner = GraspPlanner("drill")
-feasible = planner.elbow_range(grasp.q0, step=np.deg2rad(15.0))
-planner.close()
+with RobotReferenceEngine("kuka_sdh", "drill") as engine:
+    feasible = robot_reachable_configurations(grasp, engine, step=np.deg2rad(15.0))
 print(f"{len(feasible)} feasible elbow angles along the self-motion of drill grasp 0")
 rows = []
 for psi, q in feasible:

@@ -1,15 +1,16 @@
 """Generate the shipped grasp sets ``assets/grasps/kuka_sdh/<object>.json`` (12 grasps per object).
 
-Run: ``python scripts/make_grasp_sets.py [--count 12] [--seed 0]``. Uses the simple sampling
-planner of :mod:`kinegrasp_env.toolkit.planner` with its default settings (fingertip grasps: at most
-three contacts, one per finger link), seeded per object.
+Run: ``python scripts/make_grasp_sets.py [--count 12] [--seed 0]``. Uses the sampler that
+planned them (:mod:`sdh_grasp_sampler`, beside this script) with its default settings
+(fingertip grasps: at most three contacts, one per finger link), seeded per object.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from kinegrasp_env.toolkit.planner import GraspPlanner
+from sdh_grasp_sampler import GraspPlanner
+
 from kinegrasp_env.world.grasps import save_grasps, shipped_grasp_file
 from kinegrasp_env.world.objects import OBJECT_NAMES
 

@@ -6,9 +6,10 @@ the object's own weight. Written into docs/guides/physics.md between
 
 With ``--planned N``, a second table: for each robot and each object of ``--planned-objects``,
 N grasps planned afresh (seed ``--plan-seed``; the Panda's antipodal planner with side
-approaches allowed, ``min_downward`` -0.3, and 4,000 pairs tried; the default robot's own
-planner) and the largest multiple of the weight any of them carries: whether a hand can
-hold an object at all, not only on its shipped grasps. Written between
+approaches allowed, ``min_downward`` -0.3; 4,000 pairs or approaches tried; the default
+robot's by the approach planner, its pre-shapes drawn) and the largest multiple of the
+weight any of them carries: whether a hand can hold an object at all, not only on its
+shipped grasps. Written between
 ``<!-- static-hold-planned:start -->`` and ``<!-- static-hold-planned:end -->``.
 
     python scripts/static_hold_table.py [--objects cube drill] [--planned 40]
@@ -64,14 +65,6 @@ def rows(robot: str, obj: str) -> list[str]:
 
 def planned(robot: str, obj: str, count: int, seed: int) -> list:
     """Up to ``count`` force-closure grasps of ``robot`` on ``obj`` planned afresh."""
-    if robot == "kuka_sdh":
-        from kinegrasp_env.toolkit.planner import GraspPlanner
-
-        planner = GraspPlanner(obj)
-        try:
-            return planner.plan(count, seed)
-        finally:
-            planner.close()
     from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
     from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 

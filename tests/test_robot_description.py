@@ -331,6 +331,22 @@ BAD = {
     "home of a hand joint": (lambda t: {"home": {"drive_joint": 0.1}}, "home",
                              "'drive_joint' is not one of arm_joints"),
     "empty arm name": (lambda t: {"arm_name": " "}, "arm_name", "non-empty text"),
+    "pre-shape of an arm joint": (lambda t: {"preshapes": [{"joints": ["joint2"],
+                                                            "range": [0.0, 0.1]}]},
+                                  "preshapes[0]: joints", "'joint2' is not one of hand_joints"),
+    "pre-shape beyond the limit": (lambda t: {"preshapes": [{"joints": ["drive_joint"],
+                                                             "values": [0.1, 9.0]}]},
+                                   "preshapes[0]", "drive_joint: 9 is outside the joint's"),
+    "pre-shape range reversed": (lambda t: {"preshapes": [{"joints": ["drive_joint"],
+                                                           "range": [0.5, 0.1]}]},
+                                 "preshapes[0]: range", "low <= high"),
+    "pre-shape with both": (lambda t: {"preshapes": [{"joints": ["drive_joint"],
+                                                      "range": [0.0, 0.1], "values": [0.0]}]},
+                            "preshapes[0]", "expected {joints"),
+    "pre-shape joint twice": (lambda t: {"preshapes": [
+        {"joints": ["drive_joint"], "range": [0.0, 0.1]},
+        {"joints": ["drive_joint"], "values": [0.2]}]},
+        "preshapes[1]: joints", "'drive_joint' is in an earlier draw too"),
 }
 
 
@@ -527,3 +543,28 @@ def test_the_fingertip_centres_are_pybullets_bounding_box_centres():
             lo, hi = world.bullet.getAABB(world.bodies["robot"], world.link_index[tip])
             box = (palm_inv @ np.r_[0.5 * (np.array(lo) + np.array(hi)), 1.0])[:3]
             np.testing.assert_allclose(centre, box, atol=1e-6)
+
+
+def test_preshapes_are_drawn_within_their_draws_and_coupled():
+    """The SDH's pre-shape draws (its description): every drawn spread one of the three
+    values, each flexion inside its range and shared by the three fingers; the draws cover
+    the range (each third of it hit in 300 draws: a uniform draw misses a third with
+    probability 3 (2/3)^300); the same generator seed draws the same pre-shapes; a robot
+    without ``preshapes`` draws its ``open`` pre-shape and consumes no random numbers."""
+    description = load_robot("kuka_sdh")
+    hand = description.drawn_configurations(np.random.default_rng(3), 300)[:, 7:]
+    spreads = {0.0, np.pi / 3, np.pi / 6}
+    assert set(np.round(hand[:, 0], 12)) == {round(v, 12) for v in spreads}
+    for columns, (lo, hi) in (((1, 3, 5), (-0.9, -0.2)), ((2, 4, 6), (-0.2, 0.3))):
+        block = hand[:, columns]
+        assert np.all(block == block[:, :1])
+        assert np.all((block >= lo) & (block <= hi))
+        thirds = np.floor((block[:, 0] - lo) / (hi - lo) * 3)
+        assert set(thirds.astype(int)) == {0, 1, 2}
+    again = description.drawn_configurations(np.random.default_rng(3), 300)[:, 7:]
+    assert np.array_equal(hand, again)
+    panda = load_robot("panda")
+    rng = np.random.default_rng(5)
+    drawn = panda.drawn_configurations(rng, 4)
+    assert np.array_equal(drawn, np.repeat(panda.open_configuration()[None], 4, axis=0))
+    assert rng.uniform() == np.random.default_rng(5).uniform()

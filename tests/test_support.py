@@ -303,14 +303,17 @@ def test_place_cli_errors_write_nothing(tabled, tmp_path):
 
 @pytest.mark.expensive
 def test_planner_avoids_the_table(tabled, kin):
-    from kinegrasp_env.toolkit.planner import GraspPlanner
+    """The default robot's planned grasps of a cube on a table: neither the open nor the
+    closed hand (nor the arm) in the table by the sampled link points' own test."""
+    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 
     name = tabled["cube"]
-    planner = GraspPlanner(name)
-    grasps = planner.plan(3, seed=0, time_budget=240)
+    grasps = plan_robot_grasps("kuka_sdh", name, count=3, seed=0, time_budget=240)
     assert len(grasps) >= 2
     q0 = np.array([g.q0 for g in grasps])
-    draws = planner.engine.run(q0)
+    with RobotReferenceEngine("kuka_sdh", name) as engine:
+        draws = engine.run(q0)
     assert np.all(draws.outcome == 3)  # the nominal draw closes in force closure
     obj = load_object(name)
     box_pose, half = obj.table.box(obj.pose)
@@ -318,7 +321,6 @@ def test_planner_avoids_the_table(tabled, kin):
     samples = link_samples()
     assert not sampled_hits(q0, kin, box_pose, half, samples).any()      # open hand
     assert not sampled_hits(closed, kin, box_pose, half, samples).any()  # closed hand
-    planner.close()
 
 
 @pytest.mark.expensive

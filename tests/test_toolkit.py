@@ -13,49 +13,62 @@ from cli_helpers import run_cli, start_cli
 
 from kinegrasp_env import cli
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.quality import ferrari_canny
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
-from kinegrasp_env.robot.kinematics import pose_error
-from kinegrasp_env.toolkit.planner import GraspPlanner
+from kinegrasp_env.robot.kinematics import Kinematics, pose_error
+from kinegrasp_env.toolkit.arm_variants import variants_of
+from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
 from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
 
 
 @pytest.fixture(scope="module")
-def drill_planner():
-    planner = GraspPlanner("drill")
-    yield planner
-    planner.close()
+def drill_engine():
+    engine = RobotReferenceEngine("kuka_sdh", "drill")
+    yield engine
+    engine.close()
 
 
 @pytest.mark.expensive
-def test_planned_grasps_are_valid(drill_planner):
-    grasps = drill_planner.plan(2, seed=5)
-    assert len(grasps) == 2
-    kin, model = drill_planner.kin, drill_planner.model
+def test_planned_grasps_of_the_default_robot_are_valid(drill_engine):
+    """The shared planner's SDH grasps: joints within limits, the stored palm pose the
+    forward kinematics' (1e-9), force closure when the reference engine closes again, and
+    the stored Q qhull's on the stored contacts (not the engine's scoring path, 1e-9
+    relative); the pre-shapes drawn (not all the ``open`` one)."""
+    grasps = plan_robot_grasps("kuka_sdh", "drill", count=3, seed=5)
+    assert len(grasps) == 3
+    description = drill_engine.description
+    kin, model = Kinematics(description.model), description.model
     for g in grasps:
         assert model.within_limits(g.q0)
         err = pose_error(kin.pose(g.q0, PALM_LINK), g.palm_pose[None])
         assert np.abs(err).max() < 1e-9
-        draw = drill_planner.engine.run(g.q0[None])
+        draw = drill_engine.run(g.q0[None])
         assert draw.outcome[0] == FORCE_CLOSURE
-        # the planner's Q from its stored contacts by qhull, not the engine's scoring path
-        obj = drill_planner.obj
+        obj = drill_engine.obj
         q_hull = ferrari_canny(g.points, g.normals, method="qhull", torque_scale=1 / obj.r_max,
                                center=obj.center_of_mass)
         assert q_hull == pytest.approx(g.q_nominal, rel=1e-9)
+    opened = description.open_configuration()[7:]
+    assert any(not np.allclose(g.q0[7:], opened) for g in grasps)
 
 
-def test_variants_keep_palm_and_contacts(drill_planner):
+def test_variants_keep_palm_and_contacts(drill_engine):
+    """Null-space variants of a shipped grasp: the palm pose kept (1e-6), the elbow moved
+    by more than 2 cm, and the contacts the reference engine finds when it closes each
+    variant again within 0.5 mm of the grasp's."""
     grasp = shipped_grasps("drill")[0]
-    variants = drill_planner.variants(grasp, 3)
+    variants = variants_of(grasp, drill_engine, 3)
     assert len(variants) >= 2
-    kin = drill_planner.kin
+    kin = Kinematics(drill_engine.description.model)
     elbow0 = kin.pose(grasp.q0, ELBOW_LINK)[0, :3, 3]
     for v in variants:
         err = pose_error(kin.pose(v.q0, PALM_LINK), grasp.palm_pose[None])
         assert np.abs(err).max() < 1e-6
-        assert v.points.shape == grasp.points.shape
-        assert np.abs(v.points - grasp.points).max() < 5e-4
+        draw = drill_engine.run(v.q0[None])
+        k = int(draw.n_contacts[0])
+        assert k == len(grasp.points)
+        assert np.abs(draw.points[0, :k] - grasp.points).max() < 5e-4
         assert np.linalg.norm(kin.pose(v.q0, ELBOW_LINK)[0, :3, 3] - elbow0) > 0.02
         assert v.meta["variant_of"] == grasp.id
 

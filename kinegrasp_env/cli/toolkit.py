@@ -34,69 +34,40 @@ CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold", "hold
 
 
 def cmd_plan(args) -> int:
-    if args.robot not in (None, DEFAULT_ROBOT):
-        return cmd_plan_robot(args)
-    from kinegrasp_env.toolkit.planner import GraspPlanner
-    from kinegrasp_env.world.grasps import save_grasps
-
-    count = positive_int(args.count, "--count")
-    variants = positive_int(args.variants, "--variants", low=0)
-    budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
-    attempts = positive_int(args.max_attempts, "--max-attempts") if args.max_attempts else None
-    seed = parse_seed(args.seed)
-    output_file(args.out, "--out")
-    planner = GraspPlanner(args.object, friction=friction_from(args))
-    try:
-        grasps = planner.plan(count, seed=seed, time_budget=budget, max_attempts=attempts,
-                              progress=True)
-        if not grasps:
-            raise CLIError(f"no force-closure grasp of {args.object} found within the budget; "
-                           "nothing written")
-        out = list(grasps)
-        for grasp in grasps if variants else []:
-            out += planner.variants(grasp, variants)
-    finally:
-        planner.close()
-    save_grasps(out, args.out, planner_seed=seed)
-    print(f"{len(grasps)} grasps ({len(out) - len(grasps)} null-space variants) of {args.object}"
-          f" written to {args.out}")
-    return 0
-
-
-def cmd_plan_robot(args) -> int:
-    """``kinegrasp plan --robot NAME``: antipodal parallel-jaw grasps (sampled approaches for
-    any other hand), each in force closure at its nominal closing, written with their
-    robot."""
+    """``kinegrasp plan``: grasps of any catalog robot, each in force closure at its nominal
+    closing (antipodal pairs for parallel jaws, sampled approaches and pre-shapes for any
+    other hand), written with their robot."""
     from dataclasses import replace
 
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
+    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, attempts_for
     from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
     from kinegrasp_env.world.grasps import save_grasps
 
+    robot = args.robot or DEFAULT_ROBOT
     count = positive_int(args.count, "--count")
     variants = positive_int(args.variants, "--variants", low=0)
     budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
-    settings = RobotPlannerSettings()
-    if args.max_attempts:
-        settings = replace(settings, attempts=positive_int(args.max_attempts, "--max-attempts"))
+    attempts = (positive_int(args.max_attempts, "--max-attempts") if args.max_attempts
+                else attempts_for(count))
+    settings = replace(RobotPlannerSettings(), attempts=attempts)
     seed = parse_seed(args.seed)
     friction = friction_from(args)
     output_file(args.out, "--out")
     with reported(RobotDescriptionError):
-        description = load_robot(args.robot)
+        description = load_robot(robot)
     branches = description.arm_dof == 6  # its variants: the IK branches of the palm pose
     if variants and not (description.has_self_motion or branches):
-        raise CLIError(f"--variants: robot {args.robot!r} has {description.arm_dof} arm "
+        raise CLIError(f"--variants: robot {robot!r} has {description.arm_dof} arm "
                        "joints; variants move a 7-joint arm with arm_angle_links along its "
                        "self-motion, or take a 6-joint arm's IK branches")
     with reported(ValueError):
         grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
                                    friction=friction, settings=settings, time_budget=budget)
     if not grasps:
-        raise CLIError(f"no force-closure grasp of {args.object} found for robot "
-                       f"{args.robot}; nothing written")
+        raise CLIError(f"no force-closure grasp of {args.object} found for robot {robot} "
+                       f"in {attempts} attempts; nothing written")
     out = list(grasps)
     if variants:
         from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
@@ -108,7 +79,7 @@ def cmd_plan_robot(args) -> int:
     save_grasps(out, args.out, planner_seed=seed)
     kind = "IK-branch" if branches else "null-space"
     extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""
-    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {args.robot} written to "
+    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {robot} written to "
           f"{args.out}")
     return 0
 
@@ -153,10 +124,13 @@ def add_commands(sub) -> None:
     p.add_argument("--variants", default="0",
                    help="null-space variants per grasp (same palm pose, other elbow angles)")
     p.add_argument("--time-budget", help="seconds at most (default: no limit)")
-    p.add_argument("--max-attempts", help="palm poses to try at most (default: no limit)")
-    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}; another one: "
-                   "antipodal grasps of parallel jaws, sampled approaches of any other hand, "
-                   "recorded in the file)")
+    # the default is toolkit.robot_plan_checks.attempts_for (tested; copied: no NumPy to
+    # build this)
+    p.add_argument("--max-attempts", help="palm poses to try at most (default: 50 per grasp "
+                   "asked, at least 200)")
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}): antipodal grasps "
+                   "of parallel jaws, sampled approaches and pre-shapes of any other hand, "
+                   "recorded in the file")
     add_friction_arg(p)
     p.set_defaults(func=cmd_plan)
 

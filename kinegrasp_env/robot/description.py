@@ -32,6 +32,8 @@ chains, fingertips, mimic followers, limits) is derived from the URDF through
                                      # metres (a joint left out: the middle of its range)
     arm_name: Franka arm             # optional: how figures name the arm (default:
                                      # "<name> arm")
+    preshapes: [{joints: [...], range: [lo, hi]}]  # optional: the pre-shapes the planners
+                                     # draw the open hand from (robot.preshapes)
 
 Mesh paths are resolved as URDF readers do: relative to the URDF's folder, absolute (or
 ``file://``), or ``package://NAME/rest``: through ``packages`` when it names NAME, else a
@@ -63,13 +65,14 @@ from kinegrasp_env.robot.description_fields import (
 )
 from kinegrasp_env.robot.linkage import linkage_bars
 from kinegrasp_env.robot.model import RobotModel, load_urdf
+from kinegrasp_env.robot.preshapes import PreshapeDraw, check_preshapes, draw_preshapes
 from kinegrasp_env.robot.urdf_meshes import MeshFile, MeshNotFound, urdf_meshes
 
 #: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 REQUIRED_KEYS = ("name", "urdf", "arm_joints", "palm_link", "hand_joints", "close")
 OPTIONAL_KEYS = ("open", "finger_links", "efforts", "contact_model", "packages",
-                 "arm_angle_links", "hand_mount", "home", "arm_name")
+                 "arm_angle_links", "hand_mount", "home", "arm_name", "preshapes")
 CONTACT_MODELS = ("point", "soft", "patch")
 
 
@@ -121,6 +124,7 @@ class RobotDescription:
     hand_mount: str = ""
     home: dict[str, float] = field(default_factory=dict)
     arm_name: str = ""
+    preshapes: tuple[PreshapeDraw, ...] = ()
 
     @property
     def flange_link(self) -> str:
@@ -157,6 +161,17 @@ class RobotDescription:
         import numpy as np
 
         return np.array([0.0] * self.arm_dof + [self.open[j] for j in self.hand_joints])
+
+    def drawn_configurations(self, rng, n: int):
+        """(n, dof) actuated vectors: arm at zero, the hand at pre-shapes drawn from
+        ``preshapes`` (:func:`~kinegrasp_env.robot.preshapes.draw_preshapes`; every row the
+        ``open`` pre-shape, drawing nothing, when there are none)."""
+        import numpy as np
+
+        out = np.zeros((n, self.arm_dof + len(self.hand_joints)))
+        out[:, self.arm_dof:] = draw_preshapes(self.hand_joints, self.open_configuration()[
+            self.arm_dof:], self.preshapes, rng, n)
+        return out
 
 
 def load_description(path: str | Path) -> RobotDescription:
@@ -313,6 +328,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     mount = check_hand_mount(data, where, path_links, movable[arm[-1]].child)
     home = joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
     arm_name = check_text(data, where, "arm_name", f"{name} arm")
+    preshapes = check_preshapes(data, where, hand, movable)
     try:
         meshes = urdf_meshes(urdf, packages)
     except MeshNotFound as exc:
@@ -320,7 +336,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes, mount, home,
-                            arm_name)
+                            arm_name, preshapes)
 
 
 def default_contact_model(fingers: int) -> str:

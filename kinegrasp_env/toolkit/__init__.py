@@ -1,9 +1,11 @@
-"""The toolkit: the grasp planner (``planner``), candidates given as palm poses (``candidates``;
-every robot's solved by ``candidate_solver``), ranking by robustness (``ranking``;
-certified, ``adaptive_ranking``), the most robust elbow of any robot (``elbow_search``; its
-results: ``elbow``), the paper's experiments (``experiments``), the sensitivity analysis per
-source of error (``sensitivity``), the physics validation (``validation``), HTML reports (the
-``report`` room), progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
+"""The toolkit: grasp planning for any robot (``robot_planner``: antipodal pairs for
+parallel jaws; ``approach_planner``: sampled approaches and pre-shapes for any other hand),
+candidates given as palm poses (``candidates``; every robot's solved by
+``candidate_solver``), ranking by robustness (``ranking``; certified, ``adaptive_ranking``),
+the most robust elbow of any robot (``elbow_search``; its results: ``elbow``), the paper's
+experiments (``experiments``), the sensitivity analysis per source of error
+(``sensitivity``), the physics validation (``validation``), HTML reports (the ``report``
+room), progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "planner": ("GraspPlanner", "PlannerSettings"),
+    "robot_planner": ("plan_robot_grasps",),
     "ranking": ("rank_fixed", "CandidateResult"),
     "adaptive_ranking": ("rank_adaptive",),
     "experiments": ("fig7", "fig10"),

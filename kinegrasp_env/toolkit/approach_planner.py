@@ -7,14 +7,16 @@ antipodal one, :mod:`~kinegrasp_env.toolkit.robot_planner`).
    aim point drawn in the middle half of the object's bounding box, and where the ray along
    d through the aim enters the object (exact: :meth:`~kinegrasp_env.world.objects.
    GraspObject.ray_entry`).
-2. **Palm pose**: the hand's approach axis (:func:`~kinegrasp_env.robot.hand_frame.
-   hand_frame`: palm origin to fingertip centre at the open pre-shape) along d, rolled about
-   it by a drawn angle, the fingertip centre ``depth`` beyond the entry point along d (drawn:
-   the fingertips reach past the surface and close on it).
+2. **Palm pose and pre-shape**: the hand's approach axis (:func:`~kinegrasp_env.robot.
+   hand_frame.hand_frame`: palm origin to fingertip centre at the open pre-shape) along d,
+   rolled about it by a drawn angle, the fingertip centre ``depth`` beyond the entry point
+   along d (drawn: the fingertips reach past the surface and close on it); the hand's
+   pre-shape drawn from the description's ``preshapes`` (:mod:`~kinegrasp_env.robot.
+   preshapes`; the ``open`` one without them).
 3. **IK, clearance, closing**: as the antipodal planner: damped least squares from random
    restarts (:func:`~kinegrasp_env.robot.palm_ik.solve_palm_ik`), every link but the fingers
    :attr:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings.min_clearance` from the
-   object, the hand closed from its open pre-shape by the reference engine; kept when in
+   object, the hand closed from its pre-shape by the reference engine; kept when in
    force closure with the robot's contact model.
 """
 
@@ -32,7 +34,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
-from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
+from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, arm_meta, clearance
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
@@ -106,13 +108,14 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
         kin = Kinematics(description.model)
         targets, drawn = approach_poses(engine.obj, frame.centre, frame.approach, approach,
                                         rng, settings.attempts)
+        hands = description.drawn_configurations(rng, len(targets))
         arms, reached = solve_palm_ik(kin, description, targets, rng,
                                       restarts=settings.ik_restarts,
                                       iterations=settings.ik_iterations)
         for c in np.flatnonzero(reached):
             if len(found) >= count or (deadline is not None and time.monotonic() > deadline):
                 break
-            q0 = description.open_configuration()
+            q0 = hands[c].copy()
             q0[:description.arm_dof] = arms[c]
             if clearance(engine, q0) < settings.min_clearance:
                 continue
@@ -122,7 +125,7 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
             found.append(grasp_from_draw(
                 draws, object_name, q0, kin.pose(q0, description.palm_link)[0],
                 grasp_id=str(len(found)), robot=description.name,
-                meta={"planner": "approach", **drawn[c],
+                meta={"planner": "approach", **drawn[c], **arm_meta(description, q0),
                       "contact_model": description.contact_model,
                       "settings": {**asdict(settings), **asdict(approach)}}))
     return found

@@ -22,9 +22,9 @@ re-weighted batch); what both share lives here:
    reported with it.
 
 :func:`reachable_configurations`, :func:`configuration_at` and :func:`with_configuration`
-move a grasp of the default robot along its self-motion with its planner's IK (the
-benchmarks' calibration cases use them, and the tests as an independent IK to check the
-shared walk against).
+move a grasp of the default robot along its self-motion with its arm's analytic walk
+(:class:`ArmWalk`; the benchmarks' calibration cases use them, and the tests as a second
+walk to check the shared one against).
 """
 
 from __future__ import annotations
@@ -39,7 +39,6 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     Certificate,
     certify,
 )
-from kinegrasp_env.toolkit.planner import GraspPlanner
 from kinegrasp_env.world.grasps import Grasp
 
 #: Spacing of the fine grid of elbow angles (radians): 3 degrees.
@@ -48,6 +47,8 @@ FINE_STEP = float(np.deg2rad(3.0))
 COARSE_EVERY = 5
 #: Coarse angles around which the fine grid is evaluated.
 REFINE_TOP = 2
+#: Clearance the arm links keep from the object along :class:`ArmWalk`, metres.
+ARM_CLEARANCE = 0.004
 
 
 @dataclass
@@ -111,44 +112,95 @@ def wrap_angle(psi: float) -> float:
     return float(np.angle(np.exp(1j * psi)))
 
 
+class ArmWalk:
+    """The default robot's arm on its analytic self-motion beside one object
+    (:class:`~kinegrasp_env.robot.ik.ArmIK`), its 7 arm links checked against the object in
+    pybullet: the walk :func:`reachable_configurations` and :func:`configuration_at` take
+    (the shared one of every 7-joint arm is :func:`~kinegrasp_env.toolkit.elbow_search.
+    robot_reachable_configurations`)."""
+
+    def __init__(self, object_name: str) -> None:
+        from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
+        from kinegrasp_env.robot.ik import ArmIK
+        from kinegrasp_env.robot.kinematics import Kinematics
+        from kinegrasp_env.world.objects import load_object
+        from kinegrasp_env.world.sim import ObjectWorld
+
+        self.model = kuka_sdh()
+        self.ik = ArmIK(Kinematics(self.model))
+        self.world = ObjectWorld(load_object(object_name))
+        bullet = self.world.bullet
+        self.arm = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
+        self.joints = {bullet.getJointInfo(self.arm, j)[1].decode(): j
+                       for j in range(bullet.getNumJoints(self.arm))}
+
+    def close(self) -> None:
+        self.world.close()
+
+    def arm_clear(self, q: np.ndarray) -> bool:
+        """True when the 7 arm links at q (14,) keep :data:`ARM_CLEARANCE` (metres) from the
+        object (the hand is the closing's to judge)."""
+        bullet = self.world.bullet
+        for name, value in self.model.expand(q).items():
+            bullet.resetJointState(self.arm, self.joints[name], float(value))
+        obj = self.world.bodies["object"]
+        return not any(bullet.getClosestPoints(self.arm, obj, ARM_CLEARANCE, linkIndexA=link)
+                       for link in range(7))
+
+    def elbow_range(self, q0: np.ndarray, step: float) -> list[tuple[float, np.ndarray]]:
+        """(psi, q) every ``step`` radians from q0 (14,) both ways up to pi, until the path
+        leaves the joint limits; the configurations whose arm is clear of the object."""
+        psi0 = float(self.ik.elbow_angle(q0[None])[0])
+        found = []
+        for sign in (1.0, -1.0):
+            q = q0.copy()
+            for i in range(1, int(np.pi / step) + 1):
+                psi = psi0 + sign * i * step
+                moved, ok = self.ik.set_elbow_angle(q, psi)
+                if not ok[0]:
+                    break
+                q = moved[0]
+                if self.arm_clear(q):
+                    found.append((wrap_angle(psi), q.copy()))
+        return found
+
+
 def reachable_configurations(grasp: Grasp, step: float = FINE_STEP,
-                             planner: GraspPlanner | None = None
-                             ) -> list[tuple[float, np.ndarray]]:
+                             walk: ArmWalk | None = None) -> list[tuple[float, np.ndarray]]:
     """(psi, q (14,)) along the grasp's self-motion, every ``step`` radians, within the joint
     limits and clear of collisions, sorted by psi; the nominal configuration included."""
-    owned = planner is None
-    planner = planner or GraspPlanner(grasp.object)
+    owned = walk is None
+    walk = walk or ArmWalk(grasp.object)
     try:
-        found = planner.elbow_range(np.asarray(grasp.q0, dtype=float), step=step)
-        psi0 = float(planner.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
+        found = walk.elbow_range(np.asarray(grasp.q0, dtype=float), step)
+        psi0 = float(walk.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
     finally:
         if owned:
-            planner.close()
+            walk.close()
     found.append((wrap_angle(psi0), np.asarray(grasp.q0, dtype=float).copy()))
     return sorted(found, key=lambda item: item[0])
 
 
-def configuration_at(grasp: Grasp, psi: float, planner: GraspPlanner | None = None
-                     ) -> np.ndarray:
+def configuration_at(grasp: Grasp, psi: float, walk: ArmWalk | None = None) -> np.ndarray:
     """The grasp's configuration moved along its self-motion to elbow angle ``psi`` (radians).
 
     Raises:
         ValueError: psi is out of reach (the path leaves the joint limits first).
     """
-    owned = planner is None
-    planner = planner or GraspPlanner(grasp.object)
+    owned = walk is None
+    walk = walk or ArmWalk(grasp.object)
     try:
-        moved, ok = planner.ik.set_elbow_angle(np.asarray(grasp.q0, dtype=float), psi)
+        moved, ok = walk.ik.set_elbow_angle(np.asarray(grasp.q0, dtype=float), psi)
         if not ok[0]:
-            psi0 = float(planner.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
-            reach = reachable_configurations(grasp, planner=planner)
+            psi0 = float(walk.ik.elbow_angle(np.asarray(grasp.q0, float)[None])[0])
+            reach = reachable_configurations(grasp, walk=walk)
             raise ValueError(f"elbow angle {psi:g} rad is out of reach for grasp {grasp.id} of "
                              f"{grasp.object} (nominal {psi0:.3f}; reachable "
                              f"{reach[0][0]:.3f} .. {reach[-1][0]:.3f} rad)")
         return moved[0]
     finally:
         if owned:
-            planner.close()
+            walk.close()
 
 
 def with_configuration(grasp: Grasp, q: np.ndarray, psi: float) -> Grasp:

@@ -1,5 +1,6 @@
 """What every planner of a description robot shares: its settings
-(:class:`RobotPlannerSettings`) and the arm's clearance from the object (:func:`clearance`)."""
+(:class:`RobotPlannerSettings`), the arm's clearance from the object (:func:`clearance`) and
+what a planned grasp records of its arm (:func:`arm_meta`)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,14 @@ import numpy as np
 
 from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
 
-__all__ = ["RobotPlannerSettings", "clearance"]
+__all__ = ["ATTEMPTS_PER_GRASP", "RobotPlannerSettings", "arm_meta", "attempts_for",
+           "clearance"]
+
+#: Palm poses a planner tries per grasp asked for, by default (at least the settings' own).
+ATTEMPTS_PER_GRASP = 50
 
 
 @dataclass(frozen=True)
@@ -29,6 +35,11 @@ class RobotPlannerSettings:
     ik_iterations: int = IK_ITERATIONS
 
 
+def attempts_for(count: int) -> int:
+    """The palm poses to try for ``count`` grasps by default: :data:`ATTEMPTS_PER_GRASP`
+    each, at least :class:`RobotPlannerSettings`' ``attempts``."""
+    return max(RobotPlannerSettings.attempts, ATTEMPTS_PER_GRASP * int(count))
+
 
 def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
     """Smallest distance (metres) from the object of the robot's links other than the
@@ -38,3 +49,14 @@ def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
     fingers = {world.link_index[link] for link in engine.description.finger_links}
     rows = [r for r in world.closest(QUERY_DISTANCE) if r[3] not in fingers]
     return min((world.distance(r) for r in rows), default=QUERY_DISTANCE)
+
+
+def arm_meta(description: RobotDescription, q: np.ndarray) -> dict:
+    """What a grasp at configuration q (dof,) records of its arm: ``elbow_angle`` (radians)
+    for a 7-joint arm with an elbow angle (its grasp file's ``elbow``, which moves a palm
+    pose's IK solution back to this configuration), nothing for another arm."""
+    if not description.has_self_motion:
+        return {}
+    from kinegrasp_env.robot.null_motion import ArmSelfMotion
+
+    return {"elbow_angle": float(ArmSelfMotion(description).elbow_angle(q[None])[0])}

@@ -19,7 +19,8 @@ approach_planner`).
 3. **IK**: damped least squares on the arm joints for that palm pose
    (:func:`~kinegrasp_env.robot.palm_ik.solve_palm_ik`: :class:`~kinegrasp_env.robot.
    kinematics.Kinematics`' pose and Jacobian, random restarts within the joint limits,
-   joints within their limits).
+   joints within their limits); the hand's pre-shape drawn from the description's
+   ``preshapes`` (:mod:`~kinegrasp_env.robot.preshapes`; the ``open`` one without them).
 4. **Checks**: at q0 every robot link but the fingers clears the object by
    ``min_clearance`` (pybullet's distance: the palm is not grazing the object); the nominal
    closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
@@ -42,7 +43,12 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
 from kinegrasp_env.toolkit.approach_planner import plan_approach_grasps
-from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
+from kinegrasp_env.toolkit.robot_plan_checks import (
+    RobotPlannerSettings,
+    arm_meta,
+    attempts_for,
+    clearance,
+)
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -175,7 +181,9 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
     closing: a two-finger hand's by the module's antipodal steps, any other hand's by
     sampled approaches (:func:`~kinegrasp_env.toolkit.approach_planner.
     plan_approach_grasps`); ``time_budget`` (seconds): no candidate is closed once it is
-    spent (the grasps found so far are returned).
+    spent (the grasps found so far are returned); ``settings`` default: those of
+    :class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`, trying
+    :func:`~kinegrasp_env.toolkit.robot_plan_checks.attempts_for` ``count`` palm poses.
 
     Raises:
         ValueError: bad count.
@@ -185,7 +193,7 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive number of grasps, got {count!r}")
-    settings = settings or RobotPlannerSettings()
+    settings = settings or RobotPlannerSettings(attempts=attempts_for(count))
     rng = as_generator(seed)
     description = load_robot(robot) if isinstance(robot, str) else robot
     if len(description.fingers) != 2:
@@ -207,6 +215,7 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
                             for pair, n, angle, depth in zip(pairs, normals, angles, depths,
                                                              strict=True)])
         targets = targets.reshape(-1, 4, 4)
+        hands = description.drawn_configurations(rng, len(targets))
         downward = -(targets[:, :3, :3] @ jaw.approach)[:, 2] >= settings.min_downward
         arms, reached = solve_palm_ik(kin, description, targets[downward], rng,
                                       restarts=settings.ik_restarts,
@@ -215,7 +224,7 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
             if len(found) >= count or (deadline is not None and time.monotonic() > deadline):
                 break
             pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
-            q0 = description.open_configuration()
+            q0 = hands[c].copy()
             q0[:description.arm_dof] = arm
             if clearance(engine, q0) < settings.min_clearance:
                 continue
@@ -229,7 +238,8 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
                 draws.finger[0, :k].astype(int), draws.link[0, :k].astype(int),
                 float(draws.quality[0]), str(len(found)),
                 {"planner": "antipodal", "pair": pair.tolist(), "approach_angle": angle,
-                 "depth": depth, "contact_model": description.contact_model,
+                 "depth": depth, **arm_meta(description, q0),
+                 "contact_model": description.contact_model,
                  "settings": asdict(settings)},
                 description.name))
     return found

@@ -16,7 +16,7 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "catalog_listing": ("catalog",),
     "importer": ("import_object", "remove_object"),
     "import_settings": ("ImportSettings",),
-    "sim": ("BulletWorld", "HandWorld", "ObjectWorld"),
+    "sim": ("BulletWorld", "ObjectWorld"),
     "sdf": ("DistanceGrid", "object_grid"),
     "grasps": ("Grasp", "shipped_grasps", "grasp_by_index", "load_grasps", "save_grasps",
                "write_atomic"),

@@ -212,30 +212,3 @@ class ObjectWorld(BulletWorld):
         for link in range(-1, len(rest)):
             bullet.changeDynamics(body, link, collisionMargin=0.0)
         return body
-
-
-class HandWorld(ObjectWorld):
-    """The default robot's hand alone (its root free to place) beside one catalog object:
-    the default planner's probe of how far an open hand can approach.
-
-    Attributes:
-        joint_index: hand joint name -> pybullet joint index.
-        link_index: hand link name -> pybullet link index (-1 for the root).
-    """
-
-    def __init__(self, obj: GraspObject, gui: bool = False) -> None:
-        super().__init__(obj, gui)
-        self.bodies["hand"], self.joint_index, self.link_index = load_hand(self.bullet)
-
-    def set_hand(self, root_pose: np.ndarray, joints: dict[str, float]) -> None:
-        """Place the hand root (flange frame, (4, 4) world) and set hand joint values."""
-        bullet = self.bullet
-        hand = self.bodies["hand"]
-        bullet.resetBasePositionAndOrientation(hand, *matrix_to_pose(root_pose))
-        for name, value in joints.items():
-            bullet.resetJointState(hand, self.joint_index[name], float(value))
-
-    def closest(self, max_distance: float) -> list[tuple]:
-        """pybullet closest points between the hand and the object."""
-        return self.bullet.getClosestPoints(self.bodies["hand"], self.bodies["object"],
-                                            max_distance)

@@ -1,17 +1,15 @@
-"""Grasp candidate generation (GraspIt-like sampling of palm poses + IK + auto-close).
+"""The sampler that planned the default robot's committed grasp sets: the shipped ones
+(``assets/grasps/kuka_sdh/``, :mod:`make_grasp_sets`) and the agents' open-world sets
+(``agents/prepare.py``), kept here so that those sets stay reproducible from their seeds.
+``kinegrasp plan`` and the library plan every robot, the default one included, with the
+shared planner (:func:`kinegrasp_env.toolkit.robot_planner.plan_robot_grasps`).
 
 A candidate palm pose: an approach direction d (from the robot's side or from above), an aim
-point inside the object's bounding box, a stand-off along -d from the object's surface, and a
-roll about d. The arm reaches it by IK (collision-free, within limits), the hand auto-closes
-from an open pre-shape, and the candidate is kept when its contacts are in force closure.
-The nominal contacts and Q are computed by the same engine the Monte Carlo draws use, so a
-draw with zero noise reproduces them exactly.
-
-The planner keeps or rejects a candidate on its nominal (zero-noise) closing alone and returns
-the grasps in the order it found them; it picks no "best" by Monte Carlo estimates, so nothing
-it returns is flattered by a choice made on noisy draws. Choosing among grasps by robustness
-is ``rank``'s job (its estimates come from its own draws), and a robust/fragile pair of arm
-configurations is chosen and reported on separate draws (:mod:`.selection`).
+point inside the object's bounding box, a stand-off along -d from where the open hand (alone,
+at a drawn pre-shape) first touches the object, and a roll about d. The arm reaches it by the
+arm's analytic IK (collision-free, within limits), the hand auto-closes from the pre-shape
+with the reference engine, and the candidate is kept when its contacts are in force closure
+(at most three contacts, none with the hand closed in the object's support table).
 """
 
 from __future__ import annotations
@@ -31,8 +29,8 @@ from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, hand_joint_
 from kinegrasp_env.robot.ik import ArmIK
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.grasps import Grasp
-from kinegrasp_env.world.objects import load_object
-from kinegrasp_env.world.sim import HandWorld
+from kinegrasp_env.world.objects import GraspObject, load_object
+from kinegrasp_env.world.sim import ObjectWorld, load_hand, matrix_to_pose
 
 log = logging.getLogger(__name__)
 
@@ -66,8 +64,30 @@ def palm_frame(direction: np.ndarray, roll: float) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
+class HandWorld(ObjectWorld):
+    """The default robot's hand alone (its root free to place) beside one catalog object:
+    the sampler's probe of how far an open hand can approach."""
+
+    def __init__(self, obj: GraspObject) -> None:
+        super().__init__(obj)
+        self.bodies["hand"], self.joint_index, self.link_index = load_hand(self.bullet)
+
+    def set_hand(self, root_pose: np.ndarray, joints: dict[str, float]) -> None:
+        """Place the hand root (flange frame, (4, 4) world) and set hand joint values."""
+        bullet = self.bullet
+        hand = self.bodies["hand"]
+        bullet.resetBasePositionAndOrientation(hand, *matrix_to_pose(root_pose))
+        for name, value in joints.items():
+            bullet.resetJointState(hand, self.joint_index[name], float(value))
+
+    def closest(self, max_distance: float) -> list[tuple]:
+        """pybullet closest points between the hand and the object."""
+        return self.bullet.getClosestPoints(self.bodies["hand"], self.bodies["object"],
+                                            max_distance)
+
+
 class GraspPlanner:
-    """Sample force-closure grasps of one object.
+    """Sample force-closure grasps of the default robot on one object (module docstring).
 
     Args:
         object_name: catalog object.
@@ -248,43 +268,3 @@ class GraspPlanner:
             bar.close()
         log.info("%s: %d grasps from %d palm poses", self.obj.name, len(found), attempts)
         return found
-
-    # ------------------------------------------------------------------ null-space variants
-    def elbow_range(self, q0: np.ndarray, step: float = np.deg2rad(5.0),
-                    span: float = np.pi) -> list[tuple[float, np.ndarray]]:
-        """Feasible (elbow angle, configuration) pairs along the self-motion of ``q0``.
-
-        Walks from q0 in both directions in ``step`` increments (radians) up to ``span``,
-        stopping where the path leaves the joint limits; keeps the collision-free ones.
-        """
-        psi0 = float(self.ik.elbow_angle(q0[None])[0])
-        found = []
-        for sign in (1.0, -1.0):
-            q = q0.copy()
-            for i in range(1, int(span / step) + 1):
-                psi = psi0 + sign * i * step
-                moved, ok = self.ik.set_elbow_angle(q, psi)
-                if not ok[0]:
-                    break
-                q = moved[0]
-                if self.arm_clear(q):
-                    found.append((float(np.angle(np.exp(1j * psi))), q.copy()))
-        return sorted(found, key=lambda item: item[0])
-
-    def variants(self, grasp: Grasp, count: int) -> list[Grasp]:
-        """Up to ``count`` arm configurations with the grasp's palm pose (hence its nominal
-        contacts) and elbow angles spread over the feasible self-motion range."""
-        feasible = self.elbow_range(grasp.q0)
-        if not feasible or count < 1:
-            return []
-        pick = np.unique(np.round(np.linspace(0, len(feasible) - 1, count)).astype(int))
-        out = []
-        for j, index in enumerate(pick):
-            psi, q = feasible[index]
-            draw = self.engine.run(q[None])
-            if draw.outcome[0] != FORCE_CLOSURE:
-                continue
-            out.append(grasp_from_draw(draw, grasp.object, q, grasp.palm_pose,
-                                       grasp_id=f"{grasp.id}v{j + 1}",
-                                       meta={"elbow_angle": psi, "variant_of": grasp.id}))
-        return out
