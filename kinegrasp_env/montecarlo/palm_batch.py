@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.engines import make_engine
-from kinegrasp_env.robot.default_robot import default_hand_mount, kuka_sdh
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse, rotation_log
 from kinegrasp_env.sampling.noise import as_generator
@@ -147,25 +147,23 @@ def _nonzero(cov: np.ndarray) -> np.ndarray:
 
 class PalmJacobian:
     """The flange's body Jacobian of an arm of six or more joints (one kinematics, reused):
-    the default robot's, or ``description``'s (its flange: :func:`~kinegrasp_env.closing.
-    hand_errors.flange_link`).
+    ``description``'s (default: the default robot's; its flange: :func:`~kinegrasp_env.
+    closing.hand_errors.flange_link`).
 
     Attributes:
-        arm: the arm's joints (7 for the default robot).
+        arm: the arm's joints.
     """
 
     def __init__(self, description: RobotDescription | None = None) -> None:
-        if description is None:
-            self.kin, self.flange, self.arm = Kinematics(kuka_sdh()), default_hand_mount(), ARM
-        else:
-            from kinegrasp_env.closing.hand_errors import flange_link
+        from kinegrasp_env.closing.hand_errors import flange_link
 
-            if description.arm_dof < 6:
-                raise ValueError(f"re-weighting needs an arm of at least six joints (the "
-                                 f"palm's deviation has six dimensions); robot "
-                                 f"{description.name!r} has {description.arm_dof}")
-            self.kin, self.flange = Kinematics(description.model), flange_link(description)
-            self.arm = description.arm_dof
+        description = description or load_robot(DEFAULT_ROBOT)
+        if description.arm_dof < 6:
+            raise ValueError(f"re-weighting needs an arm of at least six joints (the "
+                             f"palm's deviation has six dimensions); robot "
+                             f"{description.name!r} has {description.arm_dof}")
+        self.kin, self.flange = Kinematics(description.model), flange_link(description)
+        self.arm = description.arm_dof
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """(n, 6, arm) d delta / d q_arm at configurations q (n, dof) or (dof,): rows 0-2 the
@@ -245,7 +243,7 @@ class PalmBatch:
     """Closings of one grasp at palm deviations drawn from a proposal.
 
     Attributes:
-        q: (14,) the configuration closed (its palm pose is the grasp's).
+        q: (dof,) the configuration closed (its palm pose is the grasp's).
         deltas: (n, 6) the palm deviations (flange frame: metres, then radians).
         log_proposal: (n,) the proposal's log density at each delta.
         outcome: (n,) int8 outcome per draw; quality: (n,) Q (0 unless force closure).
@@ -289,21 +287,17 @@ class PalmBatch:
 
 def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine: str = "fast",
                  friction: float = 0.5, progress=None,
-                 robot: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """((n,) outcome, (n,) Q) of closing the hand at configuration q (dof,) with the hand
-    root moved by each delta (n, 6) in the flange frame, in chunks of
-    :data:`BATCH_CHUNK` (``progress(done, total)`` after each); ``robot``: a description
-    robot's engines (its palm error: :mod:`~kinegrasp_env.closing.hand_errors`) instead of
-    the default robot's."""
+                 robot: str = DEFAULT_ROBOT) -> tuple[np.ndarray, np.ndarray]:
+    """((n,) outcome, (n,) Q) of closing the hand of catalog ``robot`` at configuration q
+    (dof,) with the hand moved by each delta (n, 6) in the flange frame (its palm error:
+    :mod:`~kinegrasp_env.closing.hand_errors`), by its engine ``engine``, in chunks of
+    :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
+    from kinegrasp_env.montecarlo.robot_engines import make_engine
+
     check_batch_object(object_name)
     n = len(deltas)
     outcome, quality = np.empty(n, np.int8), np.empty(n)
-    if robot is None:
-        eng = make_engine(engine, object_name, friction)
-    else:
-        from kinegrasp_env.montecarlo.robot_engines import make_engine as robot_engine
-
-        eng = robot_engine(engine, robot, object_name, friction=friction)
+    eng = make_engine(engine, robot, object_name, friction=friction)
     try:
         for start in range(0, n, BATCH_CHUNK):
             stop = min(n, start + BATCH_CHUNK)
@@ -319,15 +313,15 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
 
 def close_batch(q: np.ndarray, object_name: str, covariances: np.ndarray, n: int, seed, *,
                 engine: str = "fast", friction: float = 0.5, progress=None,
-                robot: str | None = None) -> PalmBatch:
-    """A :class:`PalmBatch` of n closings at configuration q (14,), deltas drawn from the
-    stratified mixture over ``covariances`` (K, 6, 6) (:class:`MixtureProposal`); ``seed``
-    an integer or a ``numpy.random.Generator`` (:func:`batch_stream`)."""
+                robot: str = DEFAULT_ROBOT) -> PalmBatch:
+    """A :class:`PalmBatch` of n closings of ``robot`` at configuration q (dof,), deltas
+    drawn from the stratified mixture over ``covariances`` (K, 6, 6)
+    (:class:`MixtureProposal`); ``seed`` an integer or a ``numpy.random.Generator``
+    (:func:`batch_stream`)."""
     proposal = MixtureProposal.covering(covariances, n)
     deltas = proposal.sample(as_generator(seed))
     outcome, quality = close_deltas(q, deltas, object_name, engine=engine, friction=friction,
-                                    robot=robot,
-                                    progress=progress)
+                                    robot=robot, progress=progress)
     return PalmBatch(np.asarray(q, dtype=float).copy(), deltas, proposal.logpdf(deltas),
                      outcome, quality)
 
