@@ -4,13 +4,14 @@ the errors of what its table shows, over seeded repetitions, on candidate sets.
 Sets (joint noise sigma 0.0133 rad, the ``rank`` default; fast engine; friction 0.5, 8 cone
 edges; chunks of 250 draws, as ``kinegrasp rank --engine fast`` runs them):
 
-* ``a``: the README's drill plan with variants, ``kinegrasp plan --object drill --count 4
-  --seed 0 --variants 2`` (the file ``notebooks/candidates.json``): 12 candidates, 4 grasps
-  in 3 arm configurations each. Budget 2000 draws per candidate (the README's ``rank``),
+* ``a``: a drill plan with variants, the file ``notebooks/candidates.json`` (made by
+  ``kinegrasp plan --object drill --count 4 --seed 0 --variants 2`` when the default robot
+  had its own planner, the sampler of ``scripts/sdh_grasp_sampler.py``): 12 candidates, 4
+  grasps in 3 arm configurations each. Budget 2000 draws per candidate (the README's ``rank``),
   top 6; ``a3``: the same set cut at top 3 (one outcome cache for both).
-* ``b``: 10 null-space variants of the drill's shipped grasp 0 by the default robot's planner
-  (the same contacts, 10 arm configurations, as ``reproduce fig10`` compares). Budget 1000
-  draws (``reproduce fig10``'s).
+* ``b``: 10 null-space variants of the drill's shipped grasp 0 along the arm's analytic
+  self-motion (:func:`elbow_variants`; the same contacts, 10 arm configurations, as
+  ``reproduce fig10`` compares). Budget 1000 draws (``reproduce fig10``'s).
 * ``c``, ``d``, ``e`` (``--sets c,d,e``): the same on the cube, the spray flask and the mug
   (the rest of ``reproduce fig10``'s default objects): the cost of a certified top k is set by
   the boundary's gap and its discordant draws, so one set alone says little of it.
@@ -96,6 +97,8 @@ def elbow_variants(grasp, count: int) -> list:
                           key=lambda item: item[0])
     finally:
         walk.close()
+    if not feasible:
+        return []
     engine = make_engine("pybullet", grasp.object)
     out = []
     try:

@@ -20,10 +20,12 @@ from kinegrasp_env.toolkit.elbow import configuration_at, with_configuration
 from kinegrasp_env.world.grasps import load_grasps, save_grasps, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
-#: Palm pose (m, rad) and configuration (rad) of the IK round trip: the planner's IK and the
-#: candidates' each stop within 1e-7 m / 1e-7 rad of their target (palm_ik's tolerance), so
-#: the palm is held to that; measured on 18 grasps of the cube, drill and mug (12 planned, 6
-#: moved along the self-motion): palm <= 1.9e-8 m / 6.8e-8 rad, q <= 8.2e-8 rad (margin x12).
+#: Palm pose (m, rad) and configuration (rad) of the IK round trip. The candidates' IK stops
+#: only once the palm is within 1e-7 m and 1e-7 rad (norms) of the file's pose, the planned
+#: grasp's own forward kinematics, so the palm's bound holds by the solver's stopping rule
+#: (measured on 18 grasps of the cube, drill and mug, 12 planned and 6 moved along the
+#: self-motion: 1.9e-8 m and 6.8e-8 rad at most); q has no such rule: measured <= 8.2e-8
+#: rad, held to 1e-6 (margin x12).
 PALM_TOL, Q_TOL = 1e-7, 1e-6
 #: The fields against pybullet's own forward kinematics (single-precision link frames):
 #: measured 2.6e-8 m and 3.7e-8 rad on the cube's grasps (test_candidates holds the same

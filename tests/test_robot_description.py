@@ -98,7 +98,8 @@ def leaves_moved_by(tree: dict, urdf: Path, hand: tuple[str, ...]) -> set[str]:
 def test_kuka_sdh_description_gives_the_paper_robots_layout():
     """The built-in description gives the layout the paper's robot has (7 arm joints, the
     spread and two flexions per finger of three fingers, the iiwa's S-R-S elbow links) and
-    the planner's default flexion as its pre-shape; the default robot's names are read
+    the middle of its pre-shape draws' flexions as its open pre-shape; the default robot's
+    names are read
     from it."""
     d = load_robot("kuka_sdh")
     assert DEFAULT_ROBOT == "kuka_sdh"
@@ -343,6 +344,11 @@ BAD = {
     "pre-shape with both": (lambda t: {"preshapes": [{"joints": ["drive_joint"],
                                                       "range": [0.0, 0.1], "values": [0.0]}]},
                             "preshapes[0]", "expected {joints"),
+    "pre-shape key not a name": (lambda t: {"preshapes": [{"joints": ["drive_joint"],
+                                                           "values": [0.0], True: 1}]},
+                                 "preshapes[0]", "expected {joints"),
+    "pre-shapes not a list": (lambda t: {"preshapes": False}, "preshapes",
+                              "expected a list of draws, got False"),
     "pre-shape joint twice": (lambda t: {"preshapes": [
         {"joints": ["drive_joint"], "range": [0.0, 0.1]},
         {"joints": ["drive_joint"], "values": [0.2]}]},

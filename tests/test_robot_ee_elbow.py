@@ -251,12 +251,12 @@ def test_elbow_cli_for_the_panda(capsys):
 
 def test_the_default_robots_elbow_search_against_its_analytic_ik_and_own_draws():
     """The elbow search on kuka_sdh (Newton continuation on its description, draws by rows
-    of the run's streams) walks every angle, and only those, that the default robot's planner
-    reaches with its analytic IK (an independent solver: configurations within 1.1e-8 rad
-    measured, 1e-7 allowed), and scores each on the draws of the default engine's own
-    chunked evaluation (``draw_chunk``, another path to the same run): selection chunk 0,
-    fresh chunk 1 of the seed. A draw within 1e-7 rad of a force-closure boundary may
-    differ: at most one per angle allowed, none measured."""
+    of the run's streams) walks every angle, and only those, that the default robot's arm
+    reaches along its analytic self-motion (``toolkit.elbow.ArmWalk``, another solver:
+    configurations within 1.1e-8 rad measured, 1e-7 allowed), and scores each on the
+    draws of the default engine's own chunked evaluation (``draw_chunk``, another path to
+    the same run): selection chunk 0, fresh chunk 1 of the seed. A draw within 1e-7 rad of
+    a force-closure boundary may differ: at most one per angle allowed, none measured."""
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.toolkit.elbow import reachable_configurations

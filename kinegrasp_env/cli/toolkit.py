@@ -66,8 +66,9 @@ def cmd_plan(args) -> int:
         grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
                                    friction=friction, settings=settings, time_budget=budget)
     if not grasps:
+        limit = f"{attempts} palm poses at most" + (f", {budget:g} s" if budget else "")
         raise CLIError(f"no force-closure grasp of {args.object} found for robot {robot} "
-                       f"in {attempts} attempts; nothing written")
+                       f"({limit}); nothing written")
     out = list(grasps)
     if variants:
         from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
@@ -124,8 +125,8 @@ def add_commands(sub) -> None:
     p.add_argument("--variants", default="0",
                    help="null-space variants per grasp (same palm pose, other elbow angles)")
     p.add_argument("--time-budget", help="seconds at most (default: no limit)")
-    # the default is toolkit.robot_plan_checks.attempts_for (tested; copied: no NumPy to
-    # build this)
+    # the default is toolkit.robot_plan_checks.attempts_for (tested against this help;
+    # copied: no NumPy to build this)
     p.add_argument("--max-attempts", help="palm poses to try at most (default: 50 per grasp "
                    "asked, at least 200)")
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}): antipodal grasps "

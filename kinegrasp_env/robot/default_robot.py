@@ -1,6 +1,7 @@
 """The default robot's names and model, read from its description
 (``assets/robots/kuka_sdh.yaml``, :data:`~kinegrasp_env.robot.default.DEFAULT_ROBOT`) on first
-use: what the default robot's own modules (its physics and planner) read.
+use: what the default robot's own modules (its physics closing and holding test, its
+analytic IK) read.
 
 ``ARM_JOINTS`` (base to flange), ``HAND_JOINTS`` (the hand's actuated vector), ``PALM_LINK``,
 ``FINGERTIP_LINKS``, ``FINGERS`` (per finger: proximal joint, distal joint, proximal link,

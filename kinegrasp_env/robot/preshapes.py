@@ -46,13 +46,14 @@ def check_preshapes(data: dict, where: str, hand: tuple[str, ...], movable: dict
                     ) -> tuple[PreshapeDraw, ...]:
     """The description's ``preshapes`` (module docstring; () when not given): ``hand`` the
     hand joints, ``movable`` joint name -> URDF joint (its limits)."""
-    given = data.get("preshapes") or []
+    given = data.get("preshapes")
+    given = [] if given is None else given
     if not isinstance(given, list):
         raise fail(where, "preshapes", f"expected a list of draws, got {given!r}")
     draws, seen = [], set()
     for i, entry in enumerate(given):
         key = f"preshapes[{i}]"
-        if (not isinstance(entry, dict) or "joints" not in entry
+        if (not isinstance(entry, dict) or not all(isinstance(k, str) for k in entry)
                 or sorted(entry) not in (["joints", "range"], ["joints", "values"])):
             raise fail(where, key, "expected {joints: [...], range: [low, high]} or "
                        f"{{joints: [...], values: [...]}}, got {entry!r}")
