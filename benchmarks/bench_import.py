@@ -93,14 +93,14 @@ def import_all(names: list[str], rows: list[dict]) -> list[str]:
 def plan_all(names: list[str], count: int, folder: Path, rows: list[dict]) -> dict:
     """{name: planned grasps}; each object's grasps also written to ``folder/NAME.json``, a
     row per object appended to ``rows``."""
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
     from kinegrasp_env.world.grasps import save_grasps
 
     folder.mkdir(parents=True, exist_ok=True)
     grasps = {}
     for name in names:
         start = time.perf_counter()
-        found = plan_robot_grasps("kuka_sdh", name, count=count, seed=0)
+        found = plan_grasps("kuka_sdh", name, count=count, seed=0)
         seconds = time.perf_counter() - start
         grasps[name] = found
         if found:

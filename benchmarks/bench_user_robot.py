@@ -57,11 +57,11 @@ def main() -> None:
         from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
         from kinegrasp_env.montecarlo.robot_evaluate import make_engine
         from kinegrasp_env.robot.catalog import add_robot
-        from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+        from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
         path = args.description or xarm_description(Path(home))
         description, _ = add_robot(path)
-        grasps = plan_robot_grasps(description.name, args.object, count=args.count,
+        grasps = plan_grasps(description.name, args.object, count=args.count,
                                    seed=args.seed)
         arm = description.arm_dof
         qs = [draws_of(g.q0, arm, args.sigma, args.draws, [args.seed, i])

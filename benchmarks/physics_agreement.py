@@ -91,7 +91,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
-from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
@@ -272,7 +272,7 @@ def panda_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
     protocol = HoldProtocol()
     for obj in objects:
         grasps = (shipped_grasps(obj, robot="panda") if obj in shipped_objects("panda")
-                  else plan_robot_grasps("panda", obj, count=args.plan, seed=args.seed))
+                  else plan_grasps("panda", obj, count=args.plan, seed=args.seed))
         if not grasps:
             print(f"  panda {obj}: no grasp planned, skipped", file=sys.stderr)
             continue

@@ -70,10 +70,10 @@ def object_rows(name: str, draws: int) -> dict:
 
 def plan_rows(name: str, count: int) -> dict:
     from kinegrasp_env.montecarlo.engines import make_engine
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     t = time.perf_counter()
-    grasps = plan_robot_grasps("kuka_sdh", f"{name}_on_table", count=count, seed=0)
+    grasps = plan_grasps("kuka_sdh", f"{name}_on_table", count=count, seed=0)
     seconds = time.perf_counter() - t
     engine = make_engine("pybullet", f"{name}_on_table")
     q0 = np.array([g.q0 for g in grasps])

@@ -4,7 +4,7 @@ The names a user starts from are exported here (loaded on first use, so ``import
 kinegrasp_env`` stays cheap): ``evaluate_grasp``/``GraspStats`` (Monte Carlo P(FC) and the
 moments of Q), ``JointNoise``, ``NoiseModel``/``load_noise_model`` (every source of error),
 ``ferrari_canny``/``ferrari_canny_batch``, ``load_object``,
-``shipped_grasps``, ``plan_robot_grasps`` (grasps of any catalog robot), ``rank_fixed``/
+``shipped_grasps``, ``plan_grasps`` (grasps of any catalog robot), ``rank_fixed``/
 ``rank_adaptive`` and ``ENV_IDS``.
 
 The package is layered, top to bottom: ``cli``; ``envs``, ``toolkit``; ``montecarlo``;
@@ -50,7 +50,7 @@ __getattr__, __dir__, _LAZY = lazy_exports(__name__, {
     "quality.epsilon": ("ferrari_canny", "ferrari_canny_batch"),
     "world.objects": ("load_object",),
     "world.grasps": ("shipped_grasps",),
-    "toolkit.robot_planner": ("plan_robot_grasps",),
+    "toolkit.grasp_planner": ("plan_grasps",),
     "toolkit.ranking": ("rank_fixed",),
     "toolkit.adaptive_ranking": ("rank_adaptive",),
 })

@@ -2,7 +2,7 @@
 (``assets/grasps/kuka_sdh/``, :mod:`make_grasp_sets`) and the agents' open-world sets
 (``agents/prepare.py``), kept here so that those sets stay reproducible from their seeds.
 ``kinegrasp plan`` and the library plan every robot, the default one included, with the
-shared planner (:func:`kinegrasp_env.toolkit.robot_planner.plan_robot_grasps`).
+shared planner (:func:`kinegrasp_env.toolkit.grasp_planner.plan_grasps`).
 
 A candidate palm pose: an approach direction d (from the robot's side or from above), an aim
 point inside the object's bounding box, a stand-off along -d from where the open hand (alone,

@@ -65,11 +65,11 @@ def rows(robot: str, obj: str) -> list[str]:
 
 def planned(robot: str, obj: str, count: int, seed: int) -> list:
     """Up to ``count`` force-closure grasps of ``robot`` on ``obj`` planned afresh."""
-    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
+    from kinegrasp_env.toolkit.plan_checks import PlannerSettings
 
-    settings = RobotPlannerSettings(attempts=4000, surface_samples=800, min_downward=-0.3)
-    return plan_robot_grasps(robot, obj, count=count, seed=seed, settings=settings)
+    settings = PlannerSettings(attempts=4000, surface_samples=800, min_downward=-0.3)
+    return plan_grasps(robot, obj, count=count, seed=seed, settings=settings)
 
 
 def planned_row(robot: str, obj: str, count: int, seed: int) -> str:

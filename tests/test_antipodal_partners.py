@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings
-from kinegrasp_env.toolkit.robot_planner import antipodal_pairs, ray_partners
+from kinegrasp_env.toolkit.grasp_planner import antipodal_pairs, ray_partners
+from kinegrasp_env.toolkit.plan_checks import PlannerSettings
 
 
 def tube() -> trimesh.Trimesh:
@@ -23,7 +23,7 @@ def test_partners_of_a_tube_wall_are_across_the_wall() -> None:
     mesh = tube()
     points, faces = trimesh.sample.sample_surface(mesh, 300, seed=3)
     normals = mesh.face_normals[faces]
-    cos = np.cos(RobotPlannerSettings().max_normal_angle)
+    cos = np.cos(PlannerSettings().max_normal_angle)
     pairs, pair_normals = ray_partners(mesh, points, normals, cos, max_width=0.07)
     radius = np.linalg.norm(pairs[..., :2], axis=2)
     outer = radius[:, 0] > 0.0295
@@ -40,6 +40,6 @@ def test_the_sampler_offers_wall_pinches() -> None:
     """Among the sampler's pairs are pinches across the 4 mm wall (from the partner search:
     opposite samples of the two faces almost never line up within the cone)."""
     mesh = tube()
-    pairs, _ = antipodal_pairs(mesh, RobotPlannerSettings(), 0.07, np.random.default_rng(0))
+    pairs, _ = antipodal_pairs(mesh, PlannerSettings(), 0.07, np.random.default_rng(0))
     width = np.linalg.norm(pairs[:, 1] - pairs[:, 0], axis=1)
     assert (np.abs(width - 0.004) < 1e-4).sum() >= 20

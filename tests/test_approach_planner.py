@@ -13,7 +13,7 @@ from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.toolkit.approach_planner import aligned
-from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
 
 def test_aligned_is_a_rotation_taking_a_to_b():
@@ -37,7 +37,7 @@ def test_the_sdh_is_planned_as_a_description(obj):
     its palm approaching along the drawn direction (the hand frame's
     approach axis in the world, to the IK's 1e-7)."""
     description = load_robot("kuka_sdh")
-    grasps = plan_robot_grasps(description, obj, count=2, seed=0)
+    grasps = plan_grasps(description, obj, count=2, seed=0)
     assert len(grasps) == 2
     fast = make_engine("fast", obj)
     draws = fast.run(np.array([g.q0 for g in grasps]))

@@ -53,9 +53,9 @@ def home(tmp_path_factory):
 def planned(home):
     """Three Panda grasps of ``ybox`` from its planner (each in force closure): their palm
     poses in the object frame (n, 4, 4) and the grasps."""
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
-    grasps = plan_robot_grasps("panda", "ybox", count=3, seed=0)
+    grasps = plan_grasps("panda", "ybox", count=3, seed=0)
     assert len(grasps) == 3
     obj = load_object("ybox")
     return np.array([np.linalg.solve(obj.pose, g.palm_pose) for g in grasps]), grasps
@@ -223,7 +223,7 @@ def test_a_user_robot_takes_its_own_hand_and_no_elbow(home, tmp_path):
     import pybullet_data
     import yaml
 
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     description = tmp_path / "xarm6.yaml"
     description.write_text(yaml.safe_dump({
@@ -235,7 +235,7 @@ def test_a_user_robot_takes_its_own_hand_and_no_elbow(home, tmp_path):
         "contact_model": "soft"}))
     proc = run_cli("robots", "add", str(description))
     assert proc.returncode == 0, proc.stderr
-    [planned] = plan_robot_grasps("xarm6", "cube", count=1, seed=0)
+    [planned] = plan_grasps("xarm6", "cube", count=1, seed=0)
     pose = np.linalg.solve(load_object("cube").pose, planned.palm_pose)
     entry = {"id": "p", "pose": pose.tolist(), "hand": {"drive_joint": 0.0}}
     path = tmp_path / "x.json"

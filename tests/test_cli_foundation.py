@@ -325,15 +325,15 @@ def test_help_shows_the_choices_from_their_sources():
     for name in ("evaluate", "rank", "planar", "ee"):
         assert f"--noise {braces(DISTRIBUTIONS)}" in subs[name].format_help()
     assert f"--criterion {braces(CRITERIA)}" in subs["rank"].format_help()
-    from kinegrasp_env.toolkit.robot_plan_checks import (
+    from kinegrasp_env.toolkit.plan_checks import (
         ATTEMPTS_PER_GRASP,
-        RobotPlannerSettings,
+        PlannerSettings,
         attempts_for,
     )
 
     plan_help = " ".join(subs["plan"].format_help().split())
     assert (f"(default: {ATTEMPTS_PER_GRASP} per grasp asked, at least "
-            f"{RobotPlannerSettings.attempts})") in plan_help
+            f"{PlannerSettings.attempts})") in plan_help
     assert [attempts_for(c) for c in (1, 4, 5, 20)] == [200, 200, 250, 1000]
     counts = {len(shipped_grasps(name)) for name in OBJECT_NAMES}
     assert counts == {12}

@@ -12,7 +12,7 @@ from kinegrasp_env.closing.generic_reference import CONTACT_TOL
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 from kinegrasp_env.world.grasps import Grasp, load_grasps, save_grasps
 
 #: pybullet's GJK distances between convex hulls: measured at most 6e-8 m below zero on the
@@ -22,7 +22,7 @@ GJK_TOL = 1e-6
 
 @pytest.fixture(scope="module")
 def grasps():
-    return plan_robot_grasps("panda", "cube", count=3, seed=0)
+    return plan_grasps("panda", "cube", count=3, seed=0)
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +121,7 @@ def test_same_seed_same_result(grasps, engine):
     np.testing.assert_array_equal(a.draws.outcome, b.draws.outcome)
     np.testing.assert_array_equal(a.draws.quality, b.draws.quality)
     assert not np.array_equal(a.draws.quality, c.draws.quality)
-    again = plan_robot_grasps("panda", "cube", count=1, seed=0)
+    again = plan_grasps("panda", "cube", count=1, seed=0)
     np.testing.assert_array_equal(again[0].q0, grasps[0].q0)
 
 

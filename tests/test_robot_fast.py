@@ -14,7 +14,7 @@ from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
 SIGMA = 0.0133
 DRAWS = 60
@@ -38,7 +38,7 @@ EXACT_DRAWS = 12
 
 @pytest.fixture(scope="module")
 def grasps():
-    return plan_robot_grasps("panda", "cube", count=4, seed=0)
+    return plan_grasps("panda", "cube", count=4, seed=0)
 
 
 @pytest.fixture(scope="module")

@@ -306,10 +306,10 @@ def test_planner_avoids_the_table(tabled, kin):
     """The default robot's planned grasps of a cube on a table: neither the open nor the
     closed hand (nor the arm) in the table by the sampled link points' own test."""
     from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     name = tabled["cube"]
-    grasps = plan_robot_grasps("kuka_sdh", name, count=3, seed=0, time_budget=240)
+    grasps = plan_grasps("kuka_sdh", name, count=3, seed=0, time_budget=240)
     assert len(grasps) >= 2
     q0 = np.array([g.q0 for g in grasps])
     with RobotReferenceEngine("kuka_sdh", name) as engine:

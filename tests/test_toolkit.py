@@ -18,7 +18,7 @@ from kinegrasp_env.quality import ferrari_canny
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.kinematics import Kinematics, pose_error
 from kinegrasp_env.toolkit.arm_variants import variants_of
-from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 from kinegrasp_env.world.grasps import load_grasps, shipped_grasps
 
 
@@ -35,7 +35,7 @@ def test_planned_grasps_of_the_default_robot_are_valid(drill_engine):
     forward kinematics' (1e-9), force closure when the reference engine closes again, and
     the stored Q qhull's on the stored contacts (not the engine's scoring path, 1e-9
     relative); the pre-shapes drawn (not all the ``open`` one)."""
-    grasps = plan_robot_grasps("kuka_sdh", "drill", count=3, seed=5)
+    grasps = plan_grasps("kuka_sdh", "drill", count=3, seed=5)
     assert len(grasps) == 3
     description = drill_engine.description
     kin, model = Kinematics(description.model), description.model

@@ -162,12 +162,12 @@ def test_the_xarm6_closes_alike_in_the_fast_engine(workspace, capsys):
     it gives the reference engine's outcomes (pybullet closest points) and contacts."""
     from kinegrasp_env.montecarlo.robot_evaluate import make_engine
     from kinegrasp_env.sampling.noise import JointNoise
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     path = workspace / "xarm6.yaml"
     path.write_text(yaml.safe_dump(DESCRIPTION))
     run(capsys, "robots", "add", str(path))
-    grasps = plan_robot_grasps("xarm6", "cube", count=2, seed=0)
+    grasps = plan_grasps("xarm6", "cube", count=2, seed=0)
     fast, reference = make_engine("fast", "xarm6", "cube"), make_engine("pybullet", "xarm6",
                                                                        "cube")
     rng = np.random.default_rng(3)

@@ -41,8 +41,8 @@ def cmd_plan(args) -> int:
 
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
-    from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, attempts_for
-    from kinegrasp_env.toolkit.robot_planner import plan_robot_grasps
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
+    from kinegrasp_env.toolkit.plan_checks import PlannerSettings, attempts_for
     from kinegrasp_env.world.grasps import save_grasps
 
     robot = args.robot or DEFAULT_ROBOT
@@ -51,7 +51,7 @@ def cmd_plan(args) -> int:
     budget = positive_float(args.time_budget, "--time-budget") if args.time_budget else None
     attempts = (positive_int(args.max_attempts, "--max-attempts") if args.max_attempts
                 else attempts_for(count))
-    settings = replace(RobotPlannerSettings(), attempts=attempts)
+    settings = replace(PlannerSettings(), attempts=attempts)
     seed = parse_seed(args.seed)
     friction = friction_from(args)
     output_file(args.out, "--out")
@@ -63,7 +63,7 @@ def cmd_plan(args) -> int:
                        "joints; variants move a 7-joint arm with arm_angle_links along its "
                        "self-motion, or take a 6-joint arm's IK branches")
     with reported(ValueError):
-        grasps = plan_robot_grasps(description, args.object, count=count, seed=seed,
+        grasps = plan_grasps(description, args.object, count=count, seed=seed,
                                    friction=friction, settings=settings, time_budget=budget)
     if not grasps:
         limit = f"{attempts} palm poses at most" + (f", {budget:g} s" if budget else "")
@@ -125,7 +125,7 @@ def add_commands(sub) -> None:
     p.add_argument("--variants", default="0",
                    help="null-space variants per grasp (same palm pose, other elbow angles)")
     p.add_argument("--time-budget", help="seconds at most (default: no limit)")
-    # the default is toolkit.robot_plan_checks.attempts_for (tested against this help;
+    # the default is toolkit.plan_checks.attempts_for (tested against this help;
     # copied: no NumPy to build this)
     p.add_argument("--max-attempts", help="palm poses to try at most (default: 50 per grasp "
                    "asked, at least 200)")

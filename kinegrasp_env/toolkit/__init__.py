@@ -1,4 +1,4 @@
-"""The toolkit: grasp planning for any robot (``robot_planner``: antipodal pairs for
+"""The toolkit: grasp planning for any robot (``grasp_planner``: antipodal pairs for
 parallel jaws; ``approach_planner``: sampled approaches and pre-shapes for any other hand),
 candidates given as palm poses (``candidates``; every robot's solved by
 ``candidate_solver``), ranking by robustness (``ranking``; certified, ``adaptive_ranking``),
@@ -13,7 +13,7 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "robot_planner": ("plan_robot_grasps",),
+    "grasp_planner": ("plan_grasps",),
     "ranking": ("rank_fixed", "CandidateResult"),
     "adaptive_ranking": ("rank_adaptive",),
     "experiments": ("fig7", "fig10"),

@@ -1,6 +1,6 @@
 """Grasp planning for any description robot's hand, GraspIt-style: sampled approaches, IK,
 auto-close (the sampler for hands that are not parallel jaws; two-finger hands also have the
-antipodal one, :mod:`~kinegrasp_env.toolkit.robot_planner`).
+antipodal one, :mod:`~kinegrasp_env.toolkit.grasp_planner`).
 
 1. **Approach**: a direction d from the robot's side or from above (azimuth and elevation
    drawn in :class:`ApproachSettings`' ranges, as the default robot's planner draws them), an
@@ -15,7 +15,7 @@ antipodal one, :mod:`~kinegrasp_env.toolkit.robot_planner`).
    preshapes`; the ``open`` one without them).
 3. **IK, clearance, closing**: as the antipodal planner: damped least squares from random
    restarts (:func:`~kinegrasp_env.robot.palm_ik.solve_palm_ik`), every link but the fingers
-   :attr:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings.min_clearance` from the
+   :attr:`~kinegrasp_env.toolkit.plan_checks.PlannerSettings.min_clearance` from the
    object, the hand closed from its pre-shape by the reference engine; kept when in
    force closure with the robot's contact model.
 """
@@ -34,7 +34,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
-from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, arm_meta, clearance
+from kinegrasp_env.toolkit.plan_checks import PlannerSettings, arm_meta, clearance
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
@@ -94,7 +94,7 @@ def approach_poses(obj: GraspObject, centre: np.ndarray, approach: np.ndarray,
 
 
 def plan_approach_grasps(description: RobotDescription, object_name: str, *, count: int,
-                         rng: np.random.Generator, settings: RobotPlannerSettings,
+                         rng: np.random.Generator, settings: PlannerSettings,
                          friction: float = 0.5, time_budget: float | None = None,
                          approach: ApproachSettings | None = None) -> list[Grasp]:
     """Up to ``count`` grasps of any hand of ``description`` on the object (the module's

@@ -1,16 +1,16 @@
 """Palm-pose candidates of any catalog robot, solved as the description robots' planner
-solves its own palm poses (:mod:`kinegrasp_env.toolkit.robot_planner`):
+solves its own palm poses (:mod:`kinegrasp_env.toolkit.grasp_planner`):
 
 1. **IK**: :func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose` for the palm pose in
    the world frame (the object at its catalog pose), from the description's ``home`` with the
    planner's restarts and iterations
-   (:class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`), its random
+   (:class:`~kinegrasp_env.toolkit.plan_checks.PlannerSettings`), its random
    restarts seeded for each candidate (a candidate's configuration does not depend on the
    others); then, when the candidate gives ``elbow``, the self-motion to that arm angle
    (:class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion`), on a further IK branch where
    the first one's self-motion leaves the joint limits before it.
 2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
-   from the object (:func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`).
+   from the object (:func:`~kinegrasp_env.toolkit.plan_checks.clearance`).
 3. **Closing**: the robot's reference engine
    (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`, no noise) with
    its contact model. ``start_collision`` rejects the candidate; a closing not in force
@@ -34,7 +34,7 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate
-from kinegrasp_env.toolkit.robot_plan_checks import RobotPlannerSettings, clearance
+from kinegrasp_env.toolkit.plan_checks import PlannerSettings, clearance
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -49,9 +49,9 @@ class CandidateSolver:
     """
 
     def __init__(self, robot: str | RobotDescription, object_name: str,
-                 settings: RobotPlannerSettings | None = None, friction: float = 0.5) -> None:
+                 settings: PlannerSettings | None = None, friction: float = 0.5) -> None:
         self.description = load_robot(robot) if isinstance(robot, str) else robot
-        self.settings = settings or RobotPlannerSettings()
+        self.settings = settings or PlannerSettings()
         self.engine = RobotReferenceEngine(self.description, object_name, friction=friction)
         self.kin = Kinematics(self.description.model)
         self.motion = (ArmSelfMotion(self.description, self.kin)

@@ -6,7 +6,7 @@ self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`
   walks from the grasp's own configuration every ``step`` radians of psi in both directions,
   each configuration from the previous one, until the path leaves the joint limits, meets a
   singularity or an arm link other than the fingers would touch the object (pybullet's
-  distance, :func:`~kinegrasp_env.toolkit.robot_plan_checks.clearance`), or half a turn is
+  distance, :func:`~kinegrasp_env.toolkit.plan_checks.clearance`), or half a turn is
   walked each way. Every configuration keeps the grasp's palm pose (residual below
   :data:`~kinegrasp_env.robot.self_motion.CONVERGED_TOL`), hence its nominal contacts.
 - **Curve** (selection draws): the coarse grid of psi, then the fine grid around the best
@@ -67,7 +67,7 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     check_levels,
     rounded_up,
 )
-from kinegrasp_env.toolkit.robot_plan_checks import clearance
+from kinegrasp_env.toolkit.plan_checks import clearance
 from kinegrasp_env.toolkit.selection import report_rows
 from kinegrasp_env.world.grasps import Grasp
 

@@ -1,4 +1,4 @@
-"""Grasp planning for a description robot: a parallel-jaw hand's antipodal pairs, palm poses,
+"""Grasp planning for any catalog robot: a parallel-jaw hand's antipodal pairs, palm poses,
 IK (below); any other hand's sampled approaches (:mod:`~kinegrasp_env.toolkit.
 approach_planner`).
 
@@ -43,8 +43,8 @@ from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.sampling.noise import SeedLike, as_generator
 from kinegrasp_env.toolkit.approach_planner import plan_approach_grasps
-from kinegrasp_env.toolkit.robot_plan_checks import (
-    RobotPlannerSettings,
+from kinegrasp_env.toolkit.plan_checks import (
+    PlannerSettings,
     arm_meta,
     attempts_for,
     clearance,
@@ -100,7 +100,7 @@ def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
     return JawFrame(center, closing, approach, float(opening))
 
 
-def antipodal_pairs(mesh, settings: RobotPlannerSettings, max_width: float,
+def antipodal_pairs(mesh, settings: PlannerSettings, max_width: float,
                     rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Antipodal pairs of a trimesh ``mesh``: points (P, 2, 3) and their outward unit normals
     (P, 2, 3), object frame. First the pairs among the surface samples, shuffled; then, in
@@ -173,8 +173,8 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
     return pose
 
 
-def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
-                      seed: SeedLike = 0, settings: RobotPlannerSettings | None = None,
+def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
+                      seed: SeedLike = 0, settings: PlannerSettings | None = None,
                       friction: float = 0.5, time_budget: float | None = None
                       ) -> list[Grasp]:
     """Up to ``count`` grasps of a robot on an object, each in force closure at its nominal
@@ -182,8 +182,8 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
     sampled approaches (:func:`~kinegrasp_env.toolkit.approach_planner.
     plan_approach_grasps`); ``time_budget`` (seconds): no candidate is closed once it is
     spent (the grasps found so far are returned); ``settings`` default: those of
-    :class:`~kinegrasp_env.toolkit.robot_plan_checks.RobotPlannerSettings`, trying
-    :func:`~kinegrasp_env.toolkit.robot_plan_checks.attempts_for` ``count`` palm poses.
+    :class:`~kinegrasp_env.toolkit.plan_checks.PlannerSettings`, trying
+    :func:`~kinegrasp_env.toolkit.plan_checks.attempts_for` ``count`` palm poses.
 
     Raises:
         ValueError: bad count.
@@ -193,7 +193,7 @@ def plan_robot_grasps(robot: str | RobotDescription, object_name: str, *, count:
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive number of grasps, got {count!r}")
-    settings = settings or RobotPlannerSettings(attempts=attempts_for(count))
+    settings = settings or PlannerSettings(attempts=attempts_for(count))
     rng = as_generator(seed)
     description = load_robot(robot) if isinstance(robot, str) else robot
     if len(description.fingers) != 2:

@@ -1,5 +1,5 @@
-"""What every planner of a description robot shares: its settings
-(:class:`RobotPlannerSettings`), the arm's clearance from the object (:func:`clearance`) and
+"""What every grasp planner shares: its settings
+(:class:`PlannerSettings`), the arm's clearance from the object (:func:`clearance`) and
 what a planned grasp records of its arm (:func:`arm_meta`)."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
 
-__all__ = ["ATTEMPTS_PER_GRASP", "RobotPlannerSettings", "arm_meta", "attempts_for",
+__all__ = ["ATTEMPTS_PER_GRASP", "PlannerSettings", "arm_meta", "attempts_for",
            "clearance"]
 
 #: Palm poses a planner tries per grasp asked for, by default (at least the settings' own).
@@ -21,7 +21,7 @@ ATTEMPTS_PER_GRASP = 50
 
 
 @dataclass(frozen=True)
-class RobotPlannerSettings:
+class PlannerSettings:
     """Planner settings (angles in radians, lengths in metres)."""
 
     surface_samples: int = 400
@@ -37,8 +37,8 @@ class RobotPlannerSettings:
 
 def attempts_for(count: int) -> int:
     """The palm poses to try for ``count`` grasps by default: :data:`ATTEMPTS_PER_GRASP`
-    each, at least :class:`RobotPlannerSettings`' ``attempts``."""
-    return max(RobotPlannerSettings.attempts, ATTEMPTS_PER_GRASP * int(count))
+    each, at least :class:`PlannerSettings`' ``attempts``."""
+    return max(PlannerSettings.attempts, ATTEMPTS_PER_GRASP * int(count))
 
 
 def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
