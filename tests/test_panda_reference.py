@@ -259,7 +259,9 @@ def test_the_default_robots_engines_refuse_another_robots_grasp():
 
     grasp = dataclasses.replace(shipped_grasps("cube")[0], robot="panda")
     for engine in ("fast", "pybullet"):
-        with pytest.raises(ValueError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
+        with pytest.raises(ValueError, match=r"grasp of robot 'panda', not of 'kuka_sdh'; .*"
+                           r"evaluated by kinegrasp_env\.montecarlo\.robot_evaluate\."
+                           r"evaluate_robot_grasp"):
             evaluate_grasp(grasp, JointNoise(0.01), 10, engine=engine)
 
 

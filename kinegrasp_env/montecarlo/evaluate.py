@@ -284,7 +284,10 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
 
     Raises:
         ValueError: a non-finite q0, a sigma above :data:`MAX_SIGMA` (pi radians), or draws
-            whose configurations are not finite (checked by every engine before it runs).
+            whose configurations are not finite (checked by every engine before it runs); a
+            grasp of another robot than the default one (every robot's grasp is evaluated by
+            :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, which
+            draws the same joint noise as this function for the default robot's).
     """
     validate_request(n_samples, processes, chunk)
     counts, moments, draws = run_chunks(
@@ -311,7 +314,9 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
-    check_robot(grasp, DEFAULT_ROBOT)
+    check_robot(grasp, DEFAULT_ROBOT, "evaluate_grasp takes the default robot's grasps; every "
+                "robot's grasp is evaluated by kinegrasp_env.montecarlo.robot_evaluate."
+                "evaluate_robot_grasp, as `kinegrasp evaluate` evaluates it")
     validate_task(grasp.q0, noise)
     check_noise_engine(noise, engine)
     n_samples = int(sum(sizes))

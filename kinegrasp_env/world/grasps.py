@@ -150,11 +150,13 @@ class Grasp:
                    str(data.get("id", default_id)), dict(meta), robot)
 
 
-def check_robot(grasp: Grasp, robot: str) -> None:
-    """ValueError (one line) when the grasp was made for another robot than ``robot``."""
+def check_robot(grasp: Grasp, robot: str, advice: str = "") -> None:
+    """ValueError (one line) when the grasp was made for another robot than ``robot``; its
+    ``advice`` (default: the command option that names the grasp's robot)."""
     if grasp.robot != robot:
+        advice = advice or f"use it with robot {grasp.robot!r} (--robot {grasp.robot})"
         raise ValueError(f"grasp {grasp.id!r} is a grasp of robot {grasp.robot!r}, not of "
-                         f"{robot!r}; use it with robot {grasp.robot!r} (--robot {grasp.robot})")
+                         f"{robot!r}; {advice}")
 
 def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
     """Field ``name`` of an entry as a float array (ValueError naming entry and field)."""
