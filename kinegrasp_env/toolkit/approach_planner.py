@@ -3,10 +3,9 @@ auto-close (the sampler for hands that are not parallel jaws; two-finger hands a
 antipodal one, :mod:`~kinegrasp_env.toolkit.grasp_planner`).
 
 1. **Approach**: a direction d from the robot's side or from above (azimuth and elevation
-   drawn in :class:`ApproachSettings`' ranges, as the default robot's planner draws them), an
-   aim point drawn in the middle half of the object's bounding box, and where the ray along
-   d through the aim enters the object (exact: :meth:`~kinegrasp_env.world.objects.
-   GraspObject.ray_entry`).
+   drawn in :class:`ApproachSettings`' ranges), an aim point drawn in the middle half of the
+   object's bounding box, and where the ray along d through the aim enters the object
+   (exact: :meth:`~kinegrasp_env.world.objects.GraspObject.ray_entry`).
 2. **Palm pose and pre-shape**: the hand's approach axis (:func:`~kinegrasp_env.robot.
    hand_frame.hand_frame`: palm origin to fingertip centre at the open pre-shape) along d,
    rolled about it by a drawn angle, the fingertip centre ``depth`` beyond the entry point
