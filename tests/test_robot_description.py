@@ -574,3 +574,18 @@ def test_preshapes_are_drawn_within_their_draws_and_coupled():
     drawn = panda.drawn_configurations(rng, 4)
     assert np.array_equal(drawn, np.repeat(panda.open_configuration()[None], 4, axis=0))
     assert rng.uniform() == np.random.default_rng(5).uniform()
+
+
+def test_robots_show_lists_the_preshape_draws(tmp_path, capsys):
+    """``robots show`` names each pre-shape draw of a description as written in its YAML
+    (the joints, then the values or the range), and says a robot without draws closes from
+    its open pre-shape."""
+    data = yaml.safe_load(open(load_robot("kuka_sdh").path))
+    assert main(["robots", "show", "kuka_sdh", "--out", str(tmp_path / "k.png")]) == 0
+    out = capsys.readouterr().out
+    for entry in data["preshapes"]:
+        numbers = entry.get("values") or entry["range"]
+        line = next(x for x in out.splitlines() if x.strip().startswith(", ".join(entry["joints"])))
+        assert all(f"{v:g}" in line for v in numbers), line
+    assert main(["robots", "show", "panda", "--out", str(tmp_path / "p.png")]) == 0
+    assert "the open one (no preshapes)" in capsys.readouterr().out

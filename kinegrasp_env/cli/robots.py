@@ -60,6 +60,11 @@ def cmd_show(args) -> int:
     print(f"{robot.name}: drawn at its open pre-shape in {path} (right: the hand, its approach "
           "axis blue, closing directions red)")
     print("\n".join(frame.lines()))
+    if robot.preshapes:
+        print("pre-shapes the planners draw (each line one draw; other hand joints at open):")
+        print("\n".join(f"  {draw.text()}" for draw in robot.preshapes))
+    else:
+        print("pre-shape the planners close from: the open one (no preshapes)")
     return 0
 
 

@@ -35,6 +35,12 @@ class PreshapeDraw:
     high: float
     values: tuple[float, ...] = ()
 
+    def text(self) -> str:
+        """The draw in words, e.g. ``f1_proximal, f2_proximal: one value in [-0.9, -0.2]``."""
+        drawn = (f"one of {', '.join(f'{v:g}' for v in self.values)}" if self.values
+                 else f"one value in [{self.low:g}, {self.high:g}]")
+        return f"{', '.join(self.joints)}: {drawn}"
+
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """(n,) drawn values."""
         if self.values:
