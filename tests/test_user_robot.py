@@ -212,9 +212,9 @@ FRANKA = {
 
 def test_robots_show_writes_its_one_line_and_nothing_else(workspace, capsys):
     """``robots show`` in a fresh process (pybullet writes its banner on its first import)
-    prints the line saying where the picture is, then the hand frame's lines (no pybullet
-    banner, no mesh-loader notes), for the xArm 6 and for the copied Franka whose materials
-    name a missing texture."""
+    prints the line saying where the picture is, then the hand frame's lines and the
+    pre-shape's (no pybullet banner, no mesh-loader notes), for the xArm 6 and for the
+    copied Franka whose materials name a missing texture."""
     for name, description in (("xarm6", DESCRIPTION), ("franka", FRANKA)):
         path = workspace / f"{name}.yaml"
         path.write_text(yaml.safe_dump(description))
@@ -224,5 +224,7 @@ def test_robots_show_writes_its_one_line_and_nothing_else(workspace, capsys):
         lines = proc.stdout.splitlines()
         assert lines[0].startswith(f"{name}: drawn at its open pre-shape in {name}.png")
         assert lines[1].startswith("palm frame: link ") and "approach axis" in lines[2]
-        assert len(lines) == 3 + 2 + 1  # a line per finger, the opening of two
+        # a line per finger, the opening of two, the pre-shape (no draws: the open one)
+        assert len(lines) == 3 + 2 + 1 + 1
+        assert lines[-1].endswith("the open one (no preshapes)")
         assert Path(f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
