@@ -4,9 +4,9 @@ the errors of what its table shows, over seeded repetitions, on candidate sets.
 Sets (joint noise sigma 0.0133 rad, the ``rank`` default; fast engine; friction 0.5, 8 cone
 edges; chunks of 250 draws, as ``kinegrasp rank --engine fast`` runs them):
 
-* ``a``: a drill plan with variants, the file ``notebooks/candidates.json`` (4 grasps at
-  seed 0 by the sampler that made the shipped sets, ``scripts/sdh_grasp_sampler.py``, with
-  2 null-space variants each): 12 candidates, 4 grasps in 3 arm configurations each.
+* ``a``: the README's drill plan with variants, ``kinegrasp plan --object drill --count 4
+  --seed 0 --variants 2`` (the file ``notebooks/candidates.json``): 12 candidates, 4 grasps
+  in 3 arm configurations each.
   Budget 2000 draws per candidate (the README's ``rank``), top 6; ``a3``: the same set cut
   at top 3 (one outcome cache for both).
 * ``b``: 10 null-space variants of the drill's shipped grasp 0 along the arm's analytic
