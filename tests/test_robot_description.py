@@ -349,6 +349,8 @@ BAD = {
                                  "preshapes[0]", "expected {joints"),
     "pre-shapes not a list": (lambda t: {"preshapes": False}, "preshapes",
                               "expected a list of draws, got False"),
+    "home too large for a float": (lambda t: {"home": {"joint2": 10 ** 400}}, "home: joint2",
+                                   "is not a finite number"),
     "pre-shape joint twice": (lambda t: {"preshapes": [
         {"joints": ["drive_joint"], "range": [0.0, 0.1]},
         {"joints": ["drive_joint"], "values": [0.2]}]},

@@ -39,10 +39,16 @@ def check_mapping(value, where: str, key: str) -> dict:
 
 
 def check_number(value, where: str, key: str) -> float:
-    """A finite number (not a bool)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise fail(where, key, f"{value!r} is not a finite number")
-    return float(value)
+    """A finite number (not a bool; an integer too large for a float is not finite)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise fail(where, key, f"{value!r:.40} is not a finite number")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise fail(where, key, f"{value!r:.40} is not a finite number")
+    return number
 
 
 def joint_values(data, where, key, joints, movable, default) -> dict[str, float]:
