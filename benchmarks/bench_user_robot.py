@@ -62,7 +62,7 @@ def main() -> None:
         path = args.description or xarm_description(Path(home))
         description, _ = add_robot(path)
         grasps = plan_grasps(description.name, args.object, count=args.count,
-                                   seed=args.seed)
+                             seed=args.seed)
         arm = description.arm_dof
         qs = [draws_of(g.q0, arm, args.sigma, args.draws, [args.seed, i])
               for i, g in enumerate(grasps)]

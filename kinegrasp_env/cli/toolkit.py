@@ -64,7 +64,7 @@ def cmd_plan(args) -> int:
                        "self-motion, or take a 6-joint arm's IK branches")
     with reported(ValueError):
         grasps = plan_grasps(description, args.object, count=count, seed=seed,
-                                   friction=friction, settings=settings, time_budget=budget)
+                             friction=friction, settings=settings, time_budget=budget)
     if not grasps:
         limit = f"{attempts} palm poses at most" + (f", {budget:g} s" if budget else "")
         raise CLIError(f"no force-closure grasp of {args.object} found for robot {robot} "

@@ -26,14 +26,18 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
-from kinegrasp_env.toolkit.plan_checks import PlannerSettings, arm_meta, clearance
+from kinegrasp_env.toolkit.plan_checks import (
+    PlannerSettings,
+    arm_meta,
+    planned_closing,
+    self_motion,
+)
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
@@ -105,6 +109,7 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
     found: list[Grasp] = []
     with RobotReferenceEngine(description, object_name, friction=friction) as engine:
         kin = Kinematics(description.model)
+        motion = self_motion(description, kin)
         targets, drawn = approach_poses(engine.obj, frame.centre, frame.approach, approach,
                                         rng, settings.attempts)
         hands = description.drawn_configurations(rng, len(targets))
@@ -116,15 +121,13 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
                 break
             q0 = hands[c].copy()
             q0[:description.arm_dof] = arms[c]
-            if clearance(engine, q0) < settings.min_clearance:
-                continue
-            draws = engine.run(q0[None])  # the world left with the hand closed
-            if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
+            draws = planned_closing(engine, q0, settings)
+            if draws is None:
                 continue
             found.append(grasp_from_draw(
                 draws, object_name, q0, kin.pose(q0, description.palm_link)[0],
                 grasp_id=str(len(found)), robot=description.name,
-                meta={"planner": "approach", **drawn[c], **arm_meta(description, q0),
+                meta={"planner": "approach", **drawn[c], **arm_meta(motion, q0),
                       "contact_model": description.contact_model,
                       "settings": {**asdict(settings), **asdict(approach)}}))
     return found

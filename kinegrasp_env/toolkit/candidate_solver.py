@@ -31,10 +31,9 @@ from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate
-from kinegrasp_env.toolkit.plan_checks import PlannerSettings, clearance
+from kinegrasp_env.toolkit.plan_checks import PlannerSettings, arm_meta, clearance, self_motion
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -54,8 +53,7 @@ class CandidateSolver:
         self.settings = settings or PlannerSettings()
         self.engine = RobotReferenceEngine(self.description, object_name, friction=friction)
         self.kin = Kinematics(self.description.model)
-        self.motion = (ArmSelfMotion(self.description, self.kin)
-                       if self.description.has_self_motion else None)
+        self.motion = self_motion(self.description, self.kin)
 
     def close(self) -> None:
         self.engine.close()
@@ -95,9 +93,7 @@ class CandidateSolver:
             return name, OUTCOME_DETAILS.get(name, name)
         meta = {"source": "palm_pose", "nominal_force_closure": outcome == FORCE_CLOSURE,
                 "nominal_outcome": OUTCOMES[outcome],
-                "contact_model": self.description.contact_model}
-        if self.motion is not None:
-            meta["elbow_angle"] = float(self.motion.elbow_angle(q0[None])[0])
+                "contact_model": self.description.contact_model, **arm_meta(self.motion, q0)}
         return grasp_from_draw(draws, object_name, q0,
                                self.kin.pose(q0[None], self.description.palm_link)[0],
                                grasp_id=candidate.id, meta=meta, robot=self.description.name)

@@ -34,7 +34,6 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
@@ -47,7 +46,8 @@ from kinegrasp_env.toolkit.plan_checks import (
     PlannerSettings,
     arm_meta,
     attempts_for,
-    clearance,
+    planned_closing,
+    self_motion,
 )
 from kinegrasp_env.world.grasps import Grasp
 
@@ -174,9 +174,8 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
 
 
 def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
-                      seed: SeedLike = 0, settings: PlannerSettings | None = None,
-                      friction: float = 0.5, time_budget: float | None = None
-                      ) -> list[Grasp]:
+                seed: SeedLike = 0, settings: PlannerSettings | None = None,
+                friction: float = 0.5, time_budget: float | None = None) -> list[Grasp]:
     """Up to ``count`` grasps of a robot on an object, each in force closure at its nominal
     closing: a two-finger hand's by the module's antipodal steps, any other hand's by
     sampled approaches (:func:`~kinegrasp_env.toolkit.approach_planner.
@@ -204,6 +203,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     with RobotReferenceEngine(description, object_name, friction=friction) as engine:
         jaw = jaw_frame(engine)
         kin = Kinematics(description.model)
+        motion = self_motion(description, kin)
         obj = engine.obj
         pairs, normals = antipodal_pairs(obj.mesh, settings,
                                          jaw.opening - 2 * settings.width_margin, rng)
@@ -226,10 +226,8 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
             pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
             q0 = hands[c].copy()
             q0[:description.arm_dof] = arm
-            if clearance(engine, q0) < settings.min_clearance:
-                continue
-            draws = engine.run(q0[None])  # the world left with the hand closed
-            if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
+            draws = planned_closing(engine, q0, settings)
+            if draws is None:
                 continue
             k = int(draws.n_contacts[0])
             found.append(Grasp(
@@ -238,7 +236,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
                 draws.finger[0, :k].astype(int), draws.link[0, :k].astype(int),
                 float(draws.quality[0]), str(len(found)),
                 {"planner": "antipodal", "pair": pair.tolist(), "approach_angle": angle,
-                 "depth": depth, **arm_meta(description, q0),
+                 "depth": depth, **arm_meta(motion, q0),
                  "contact_model": description.contact_model,
                  "settings": asdict(settings)},
                 description.name))

@@ -1,6 +1,6 @@
-"""What every grasp planner shares: its settings
-(:class:`PlannerSettings`), the arm's clearance from the object (:func:`clearance`) and
-what a planned grasp records of its arm (:func:`arm_meta`)."""
+"""What every grasp planner shares: its settings (:class:`PlannerSettings`), the arm's
+clearance from the object (:func:`clearance`), the check of a candidate's nominal closing
+(:func:`planned_closing`) and what a planned grasp records of its arm (:func:`arm_meta`)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
 
 __all__ = ["ATTEMPTS_PER_GRASP", "PlannerSettings", "arm_meta", "attempts_for",
-           "clearance"]
+           "clearance", "planned_closing", "self_motion"]
 
 #: Palm poses a planner tries per grasp asked for, by default (at least the settings' own).
 ATTEMPTS_PER_GRASP = 50
@@ -51,12 +52,35 @@ def clearance(engine: RobotReferenceEngine, q: np.ndarray) -> float:
     return min((world.distance(r) for r in rows), default=QUERY_DISTANCE)
 
 
-def arm_meta(description: RobotDescription, q: np.ndarray) -> dict:
-    """What a grasp at configuration q (dof,) records of its arm: ``elbow_angle`` (radians)
-    for a 7-joint arm with an elbow angle (its grasp file's ``elbow``, which moves a palm
-    pose's IK solution back to this configuration), nothing for another arm."""
+def self_motion(description: RobotDescription, kin=None):
+    """The description's :class:`~kinegrasp_env.robot.null_motion.ArmSelfMotion` (on
+    ``kin``, its kinematics, when given) for a 7-joint arm with an elbow angle, else None."""
     if not description.has_self_motion:
-        return {}
+        return None
     from kinegrasp_env.robot.null_motion import ArmSelfMotion
 
-    return {"elbow_angle": float(ArmSelfMotion(description).elbow_angle(q[None])[0])}
+    return ArmSelfMotion(description, kin)
+
+
+def arm_meta(motion, q: np.ndarray) -> dict:
+    """What a grasp at configuration q (dof,) records of its arm: ``elbow_angle`` (radians)
+    by ``motion`` (:func:`self_motion`: the arm's, None for an arm without an elbow angle),
+    its grasp file's ``elbow``, which moves a palm pose's IK solution back to this
+    configuration; nothing for an arm without one."""
+    if motion is None:
+        return {}
+    return {"elbow_angle": float(motion.elbow_angle(q[None])[0])}
+
+
+def planned_closing(engine: RobotReferenceEngine, q0: np.ndarray,
+                    settings: PlannerSettings) -> DrawBatch | None:
+    """The nominal closing (one draw) of configuration q0 (dof,) when the planners keep it:
+    every robot link but the fingers ``settings.min_clearance`` from the object
+    (:func:`clearance`), in force closure, the closed hand out of the object's support
+    table; else None. The engine's world is left with the hand closed."""
+    if clearance(engine, q0) < settings.min_clearance:
+        return None
+    draws = engine.run(q0[None])
+    if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
+        return None
+    return draws
