@@ -26,16 +26,13 @@ from kinegrasp_env.montecarlo.nominal import grasp_from_draw
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK, hand_joint_values, kuka_sdh
-from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.toolkit.elbow import ArmWalk
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject, load_object
 from kinegrasp_env.world.sim import ObjectWorld, load_hand, matrix_to_pose
 
 log = logging.getLogger(__name__)
 
-#: Clearance required between the arm and the object at the pre-grasp, metres.
-CLEARANCE = 0.004
 #: Palm stand-off that keeps the open fingers clear of the object, metres.
 FINGER_REACH = 0.25
 
@@ -100,44 +97,24 @@ class GraspPlanner:
         self.obj = load_object(object_name)
         self.engine = PybulletEngine(object_name, friction, num_edges)
         self.model = kuka_sdh()
+        #: the arm's analytic IK and its links' clearance from the object
+        #: (:class:`~kinegrasp_env.toolkit.elbow.ArmWalk`)
+        self.walk = ArmWalk(object_name)
+        self.ik = self.walk.ik
         #: the batched kinematics of the arm and hand (14 joints)
-        self.kin = Kinematics(self.model)
-        self.ik = ArmIK(self.kin)
+        self.kin = self.ik.kin
         #: (7,) where the IK starts: the arm's ``home`` in the robot's description, radians
         self.ik_start = load_robot(DEFAULT_ROBOT).home_arm()
-        #: the open hand alone beside the object (the approach probe) and the arm's clearance
+        #: the open hand alone beside the object (the approach probe)
         self.world = HandWorld(self.obj)
         self.settings = settings or PlannerSettings()
-        self._arm: int | None = None
 
     def close(self) -> None:
         self.engine.close()
+        self.walk.close()
         self.world.close()
 
     # ------------------------------------------------------------------ geometry checks
-    def _arm_body(self) -> int:
-        bullet = self.world.bullet
-        if self._arm is None:
-            from kinegrasp_env.robot.default_robot import urdf_path
-
-            self._arm = bullet.loadURDF(str(urdf_path()), useFixedBase=True)
-            self._arm_joints = {bullet.getJointInfo(self._arm, j)[1].decode(): j
-                                for j in range(bullet.getNumJoints(self._arm))}
-        return self._arm
-
-    def arm_clear(self, q: np.ndarray) -> bool:
-        """True when the arm links (not the hand: auto-close judges it) at q (14,) keep
-        CLEARANCE from the object (the support table, if any, is the engine's start check)."""
-        arm = self._arm_body()
-        bullet = self.world.bullet
-        for name, value in self.model.expand(q).items():
-            bullet.resetJointState(arm, self._arm_joints[name], float(value))
-        obj = self.world.bodies["object"]
-        for link in range(7):  # lbr_iiwa_link_1..7 (joint indices 0..6)
-            if bullet.getClosestPoints(arm, obj, CLEARANCE, linkIndexA=link):
-                return False
-        return True
-
     def closed_in_table(self, q0: np.ndarray, hand: np.ndarray) -> bool:
         """Whether the hand closed to ``hand`` (7,) on the arm joints of q0 (14,) ends in the
         object's support table (never, without one): such a grasp goes through the table."""
@@ -218,7 +195,7 @@ class GraspPlanner:
         if not result.success[0]:
             return None
         q0 = result.q[0]
-        if not self.arm_clear(q0):
+        if not self.walk.arm_clear(q0):
             return None
         draw = self.engine.run(q0[None])  # with a table: start_collision if in it
         if draw.outcome[0] != FORCE_CLOSURE or self.closed_in_table(q0, draw.hand[0]):
