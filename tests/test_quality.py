@@ -6,7 +6,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from quality_cases import box_contacts, sphere_contacts
+from quality_cases import box_contacts, pad_pinch, sphere_contacts
 from scipy.spatial import ConvexHull
 
 from kinegrasp_env.quality import (
@@ -299,6 +299,27 @@ def test_expansion_path_on_a_known_polytope():
     assert q == pytest.approx(1 / np.sqrt(6), rel=1e-12)
     q, certified = epsilon_epa(cross + np.array([1.5, 0, 0, 0, 0, 0]))
     assert certified and q == 0.0
+
+
+def test_expansion_certifies_flat_pad_pinches():
+    """Two flat pads' corners put 8 coplanar wrenches on some facets; a facet hyperplane
+    derived from its parents' (the pencil) can then miss one of them by more than the
+    tolerance, and the polytope looked not convex. Pinches 378, 394 and 763 are such sets:
+    with the drifting facets refit from their own vertices they are certified, and every
+    certified Q is qhull's (its hull's nearest facet)."""
+    from kinegrasp_env.quality.expansion import epsilon_epa_batch
+    from kinegrasp_env.quality.wrenches import edge_wrenches
+
+    seeds = [378, 394, 763, *range(40)]
+    points, normals = (np.array(a) for a in zip(*map(pad_pinch, seeds), strict=True))
+    w = edge_wrenches(points, normals, 0.5, 8, np.full(len(seeds), 1 / 0.0433),
+                      np.zeros((len(seeds), 3)))
+    q, certified = epsilon_epa_batch(np.ascontiguousarray(w))
+    assert certified[:3].all()
+    assert certified.mean() == 1.0
+    for wrenches, value in zip(w, q, strict=True):
+        expected = max(-ConvexHull(wrenches).equations[:, -1].max(), 0.0)
+        assert value == pytest.approx(expected, rel=1e-9, abs=1e-12)
 
 
 def test_expansion_path_matches_qhull_on_random_clouds():

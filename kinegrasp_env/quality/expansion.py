@@ -24,9 +24,11 @@ origin outwards (the expanding-polytope idea of EPA):
 3. The answer is *certified* before it is returned: the final facet supports every wrench
    (so Q <= b: it is a facet hyperplane of conv(W)) and the polytope is closed (every ridge
    in exactly two facets) and convex (every facet has every vertex on its inner side,
-   checked), so the ball of radius b around the origin lies inside it, hence inside conv(W)
-   (Q >= b). Closed by construction: the simplex is; each step retires the visible facets,
-   re-pairs each horizon ridge (held by a visible facet f and a hidden h) with its new
+   checked; a facet a vertex lies beyond is first refit from its own vertices, since a
+   pencil hyperplane can drift off a seventh coplanar wrench), so the ball of radius b
+   around the origin lies inside it, hence inside conv(W) (Q >= b). Closed by
+   construction: the simplex is; each step retires the visible facets, re-pairs each
+   horizon ridge (held by a visible facet f and a hidden h) with its new
    facet, checking that h names f as its neighbour there, and pairs the new facets' ridges
    through the apex (a new vertex, so no older facet holds them), checking that each is
    held by exactly two of them (:func:`link_new_facets`); the ridges between visible facets
@@ -158,10 +160,14 @@ def _cone_horizon(w, far, poly, count, ridges, scale) -> int:
 
 
 @jit.kernel(_nrt=False)
-def _is_convex(w, poly, count, tol) -> bool:
+def _is_convex(w, poly, count, tol, scale) -> bool:
     """Every vertex lies on the inner side (to tol) of every live facet. The live facets'
     normals and offsets are first copied column by column into poly's ``planes`` (7, F), so
-    that the inner loop, over the live facets only, reads contiguous rows."""
+    that the inner loop, over the live facets only, reads contiguous rows. A facet that a
+    vertex lies beyond has its hyperplane computed afresh from its own vertices
+    (:func:`_refit`) before the polytope is called not convex: a pencil hyperplane passes
+    within PENCIL_TOL of its six vertices but can miss a seventh wrench of the same facet
+    (a flat pad's corners put 8-11 wrenches on one hyperplane) by a few times tol."""
     normal, offset, alive, used, planes = poly[1], poly[2], poly[3], poly[5], poly[10]
     n_live = 0
     for f in range(count):
@@ -179,7 +185,49 @@ def _is_convex(w, poly, count, tol) -> bool:
                      + planes[3, t] * w3 + planes[4, t] * w4 + planes[5, t] * w5
                      - planes[6, t])
                 beyond += d > tol
-            if beyond:
+            if beyond and not _refit_beyond(w, poly, count, tol, scale, i):
+                return False
+    return True
+
+
+@jit.kernel(_nrt=False)
+def _refit_beyond(w, poly, count, tol, scale, i) -> bool:
+    """Refit (:func:`_refit`) each live facet that used wrench ``i`` lies beyond, copying its
+    new hyperplane into ``planes``; False where a refit facet still has a vertex beyond it
+    (or is degenerate)."""
+    normal, offset, alive, planes = poly[1], poly[2], poly[3], poly[10]
+    t = 0
+    for f in range(count):
+        if not alive[f]:
+            continue
+        d = -offset[f]
+        for c in range(6):
+            d += normal[f, c] * w[i, c]
+        if d > tol:
+            if not _refit(w, poly, f, tol, scale):
+                return False
+            for c in range(6):
+                planes[c, t] = normal[f, c]
+            planes[6, t] = offset[f]
+        t += 1
+    return True
+
+
+@jit.kernel(_nrt=False)
+def _refit(w, poly, f, tol, scale) -> bool:
+    """Facet f's hyperplane by Gram-Schmidt on its vertices (:func:`hyperplane`); True where
+    every used wrench then lies on its inner side (to tol)."""
+    verts, normal, offset, interior, used = poly[0], poly[1], poly[2], poly[4], poly[5]
+    b = hyperplane(w, verts[f], interior, normal[f], scale, poly[7])
+    if np.isnan(b):
+        return False
+    offset[f] = b
+    for j in range(w.shape[0]):
+        if used[j]:
+            d = -b
+            for c in range(6):
+                d += normal[f, c] * w[j, c]
+            if d > tol:
                 return False
     return True
 
@@ -249,7 +297,7 @@ def expand_from(w: np.ndarray, start: np.ndarray, poly, ridges) -> tuple[float, 
     # certify: closed (by construction, see the module docstring) and convex
     if count < 0:
         return 0.0, False
-    if not _is_convex(w, poly, count, tol):
+    if not _is_convex(w, poly, count, tol, scale):
         return 0.0, False
     return _exact_nearest(w, poly, count, tol, scale)
 
