@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from cli_helpers import run_cli
 
+from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
 from kinegrasp_env.robot.planar import PlanarArm
 from kinegrasp_env.sampling.noise import JointNoise
@@ -214,6 +216,18 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
     ]:
         code, err = _run(capsys, *argv)
         assert code == 2 and len(err) == 1 and needle in err[0], err
+    # an output that is the file a command reads is refused, and the file is kept
+    grasps = tmp_path / "grasps.json"
+    shutil.copy(asset_path("grasps", "kuka_sdh", "cube.json"), grasps)
+    kept = grasps.read_bytes()
+    for argv, needle in [
+        (["rank", str(grasps), "--out", str(grasps)], "is the candidates file the command"),
+        (["rank", str(grasps), "--report", str(grasps)], "is the candidates file the command"),
+        (["report", "--grasps", str(grasps), "--out", str(grasps)], "is --grasps the command"),
+    ]:
+        code, err = _run(capsys, *argv)
+        assert code == 2 and len(err) == 1 and needle in err[0], err
+    assert grasps.read_bytes() == kept
 
 
 def _raise(exc: BaseException):
@@ -251,6 +265,21 @@ def test_a_full_disk_is_one_line_not_a_bug(capsys, monkeypatch):
     assert code == 1
     assert err == ["kinegrasp planar: error: [Errno 28] No space left on device: "
                    "'/out/x.png'"]
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly():
+    """``kinegrasp ... | head``: the reader closes the pipe before the command writes; the
+    command stops with SIGPIPE's exit status (141) and says nothing (no traceback, no
+    request for a bug report)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "kinegrasp_env.cli", "planar", "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the interpreter has started: every write finds no reader
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert err == ""
 
 
 def test_version_is_the_installed_package_version(capsys):

@@ -302,10 +302,10 @@ def test_expansion_path_on_a_known_polytope():
 
 
 def test_expansion_certifies_flat_pad_pinches():
-    """Two flat pads' corners put 8 coplanar wrenches on some facets; a facet hyperplane
-    derived from its parents' (the pencil) can then miss one of them by more than the
-    tolerance, and the polytope looked not convex. Pinches 378, 394 and 763 are such sets:
-    with the drifting facets refit from their own vertices they are certified, and every
+    """A flat pad puts all its corners' cone wrenches on one hyperplane; a thin facet there,
+    its hyperplane derived from its parents' (the pencil), can miss another of them by more
+    than the tolerance, and the polytope looked not convex. Pinches 378, 394 and 763 are
+    such sets: with those facets refit from their own vertices they are certified, and every
     certified Q is qhull's (its hull's nearest facet)."""
     from kinegrasp_env.quality.expansion import epsilon_epa_batch
     from kinegrasp_env.quality.wrenches import edge_wrenches

@@ -111,14 +111,32 @@ def positive_int(text: str | int, name: str, low: int = 1) -> int:
     return value
 
 
-def output_file(text: str, name: str, *, figure: bool | None = None) -> Path:
-    """A file the command will write, checked before any work: not a folder, its folder
-    can be written (:func:`check_parents`: missing folders are created only inside the
-    current folder), and for a figure (``figure``; by default when ``name`` is ``--plot``)
-    a format matplotlib writes. Nothing is created here."""
+#: The options (argparse destinations) that name a file a command reads, by their label.
+INPUT_OPTIONS = {"candidates": "the candidates file", "grasps": "--grasps",
+                 "noise_spec": "--noise-spec", "spec": "the spec file"}
+
+
+def input_files(args) -> list[tuple[str, str]]:
+    """(label, path) of each file ``args`` names for the command to read
+    (:data:`INPUT_OPTIONS`)."""
+    return [(label, value) for dest, label in INPUT_OPTIONS.items()
+            if isinstance(value := getattr(args, dest, None), str) and Path(value).is_file()]
+
+
+def output_file(text: str, name: str, *, figure: bool | None = None,
+                inputs: list[tuple[str, str]] = ()) -> Path:
+    """A file the command will write, checked before any work: not a folder, not one of the
+    files it reads (``inputs``: (label, path) pairs, :func:`input_files`), its folder can be
+    written (:func:`check_parents`: missing folders are created only inside the current
+    folder), and for a figure (``figure``; by default when ``name`` is ``--plot``) a format
+    matplotlib writes. Nothing is created here."""
     path = Path(text)
     if path.is_dir():
         raise CLIError(f"{name} {text} is a folder; give a file name")
+    for label, source in inputs:
+        if path.exists() and path.samefile(source):
+            raise CLIError(f"{name} {text} is {label} the command reads; give another file "
+                           "name")
     check_parents(path.parent, f"{name} {text}")
     if figure or (figure is None and name == "--plot"):
         check_figure_format(path, name)

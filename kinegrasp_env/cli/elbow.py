@@ -22,6 +22,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     friction_from,
     grasp_index_help,
+    input_files,
     noise_from,
     output_file,
     positive_int,
@@ -83,13 +84,13 @@ def cmd_elbow(args) -> int:
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")
     starts = ik_starts(args, branches, robot)
-    report_path(args.report)
+    report_path(args.report, inputs=input_files(args))
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
                        "takes none")
     index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
     if args.plot:
-        output_file(args.plot, "--plot")
+        output_file(args.plot, "--plot", inputs=input_files(args))
     if branches:
         from kinegrasp_env.cli.elbow_branches import cmd_elbow_branches
 

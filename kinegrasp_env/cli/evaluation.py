@@ -17,6 +17,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     friction_per_draw,
     friction_setting,
+    input_files,
     output_file,
     reported,
 )
@@ -100,7 +101,7 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
 
     check_robot_engine(args.engine, robot)
     if args.report:
-        output_file(args.report, "--report")
+        output_file(args.report, "--report", inputs=input_files(args))
     model = noise if isinstance(noise, NoiseModel) else None
     if args.hold_test:
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
@@ -111,7 +112,7 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
     label = (f"noise spec {args.noise_spec}" if model is not None
              else f"sigma = {sigma:g} rad ({args.noise})")
     if args.plot:
-        output_file(args.plot, "--plot")
+        output_file(args.plot, "--plot", inputs=input_files(args))
     with reported(ValueError):
         check_robot(grasp, robot)
         if args.elbow is not None:

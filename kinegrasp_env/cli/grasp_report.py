@@ -20,6 +20,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     friction_from,
     friction_setting,
+    input_files,
     noise_spec_from,
     output_file,
     parse_index,
@@ -176,7 +177,7 @@ def run_report(args, sigmas: list[float]) -> int:
     friction = friction_from(args, model)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
-    out = output_file(args.out, "--out")
+    out = output_file(args.out, "--out", inputs=input_files(args))
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if model is not None:

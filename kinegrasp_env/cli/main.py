@@ -2,8 +2,9 @@
 
 Every sub-command validates its input up front and reports a bad value in one line on
 stderr with exit status 2 (no traceback), usage errors included; results go to stdout
-(``--json`` for machines), progress bars to stderr. Any other exception is a bug: its
-traceback, then one line asking to report it, exit status 1. One module per command group:
+(``--json`` for machines), progress bars to stderr; a reader that closes stdout early
+(``| head``) ends the command quietly. Any other exception is a bug: its traceback, then
+one line asking to report it, exit status 1. One module per command group:
 ``arms``, ``objects``, ``robots``, ``grasping``, ``toolkit``, ``elbow``, ``report``,
 ``sensitivity``, ``validate``; ``common`` holds what they share.
 """
@@ -86,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("kinegrasp: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        return _reader_gone()
     except OSError as exc:
         if exc.errno not in ENVIRONMENT_ERRNOS:
             return _bug(args.command)
@@ -110,6 +113,16 @@ def check_robot_option(args) -> None:
         check_robot_name(robot)
     except RobotDescriptionError as exc:
         raise CLIError(f"--robot: {exc}") from None
+
+
+def _reader_gone() -> int:
+    """The program reading stdout closed it (``kinegrasp ... | head``): stop quietly, as a
+    Unix tool stopped by SIGPIPE does (exit status 128 + 13), with stdout pointed at the null
+    device so that the final flush writes nowhere instead of failing again."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, sys.stdout.fileno())
+    os.close(null)
+    return 128 + 13
 
 
 def _bug(command: str) -> int:

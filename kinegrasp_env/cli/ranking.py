@@ -18,6 +18,7 @@ from kinegrasp_env.cli.common import (
     engine_name,
     finite_float,
     friction_from,
+    input_files,
     noise_from,
     output_file,
     positive_int,
@@ -98,11 +99,11 @@ def cmd_rank(args) -> int:
     friction = friction_from(args, noise)
     grasps, digest, rejected = _candidates(args.candidates, args.robot, friction)
     engine = engine_name(args.engine)
-    out = output_file(args.out, "--out")
+    out = output_file(args.out, "--out", inputs=input_files(args))
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     static, test = _hold_scores(args)
     check_candidates(args, grasps, robot, noise)
-    report_path(args.report)
+    report_path(args.report, inputs=input_files(args))
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
     # each candidate's draws per outcome and hold scores, beside what the ranking keeps

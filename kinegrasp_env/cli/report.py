@@ -65,9 +65,11 @@ def cmd_report(args) -> int:
     return run_report(args, sigmas_from(args.sigma))
 
 
-def report_path(text: str | None, name: str = "--report") -> Path | None:
-    """A validated ``--report`` file, or None when not asked for."""
-    return None if text is None else output_file(text, name)
+def report_path(text: str | None, name: str = "--report",
+                inputs: list[tuple[str, str]] = ()) -> Path | None:
+    """A validated ``--report`` file (not one of ``inputs``: :func:`~kinegrasp_env.cli.
+    common.output_file`), or None when not asked for."""
+    return None if text is None else output_file(text, name, inputs=inputs)
 
 
 #: Draws whose arm skeletons a ranking page draws per candidate (the same rows for every one).

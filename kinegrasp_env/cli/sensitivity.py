@@ -22,6 +22,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     friction_from,
     grasp_index_help,
+    input_files,
     output_file,
     parse_seed,
     positive_int,
@@ -48,7 +49,7 @@ def cmd_sensitivity(args) -> int:
     seed = parse_seed(args.seed)
     index, grasp = _request(args, model)
     if args.plot:
-        output_file(args.plot, "--plot")
+        output_file(args.plot, "--plot", inputs=input_files(args))
     result = _analyze(grasp, model, samples, seed, args.engine, bootstrap, friction,
                       per_joint=args.factors == "joints")
     payload = result.to_json()

@@ -25,7 +25,7 @@ origin outwards (the expanding-polytope idea of EPA):
    (so Q <= b: it is a facet hyperplane of conv(W)) and the polytope is closed (every ridge
    in exactly two facets) and convex (every facet has every vertex on its inner side,
    checked; a facet a vertex lies beyond is first refit from its own vertices, since a
-   pencil hyperplane can drift off a seventh coplanar wrench), so the ball of radius b
+   pencil hyperplane of a thin facet can miss another wrench on it), so the ball of radius b
    around the origin lies inside it, hence inside conv(W) (Q >= b). Closed by
    construction: the simplex is; each step retires the visible facets, re-pairs each
    horizon ridge (held by a visible facet f and a hidden h) with its new
@@ -165,9 +165,13 @@ def _is_convex(w, poly, count, tol, scale) -> bool:
     normals and offsets are first copied column by column into poly's ``planes`` (7, F), so
     that the inner loop, over the live facets only, reads contiguous rows. A facet that a
     vertex lies beyond has its hyperplane computed afresh from its own vertices
-    (:func:`_refit`) before the polytope is called not convex: a pencil hyperplane passes
-    within PENCIL_TOL of its six vertices but can miss a seventh wrench of the same facet
-    (a flat pad's corners put 8-11 wrenches on one hyperplane) by a few times tol."""
+    (:func:`_refit`, Gram-Schmidt) before the polytope is called not convex: a pencil
+    hyperplane passes within PENCIL_TOL of its six vertices, yet where they span a thin
+    simplex it can miss another vertex on the same hyperplane (a flat pad puts all its
+    corners' cone wrenches on one) by one to hundreds of times tol. Gram-Schmidt is
+    itself only as accurate as such a thin simplex allows (a few times tol off the exact
+    hyperplane): the check is then made, at tol, against the hyperplane it gives, as for
+    any facet it computes."""
     normal, offset, alive, used, planes = poly[1], poly[2], poly[3], poly[5], poly[10]
     n_live = 0
     for f in range(count):
