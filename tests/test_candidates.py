@@ -160,6 +160,9 @@ GOOD = {"id": "c", "position": [0.0, 0.0, 0.3], "quaternion": [1.0, 0.0, 0.0, 0.
     ({"position": None, "quaternion": None, "pose": np.diag([1, 1, 2, 1]).tolist()},
      "candidate c: pose's rotation is not orthonormal"),
     ({"elbow": "up"}, "candidate c: elbow must be numbers"),
+    ({"elbw": 1.0}, "candidate c: unknown field 'elbw'; a palm pose has id, position, "),
+    ({"pose": np.eye(4).tolist()}, "candidate c: give 'pose' (4x4) or 'position' + "
+     "'quaternion', not both (pose and position and quaternion given)"),
 ])
 def test_bad_entries_are_one_line_errors_naming_the_candidate(tmp_path, change, message):
     entry = {k: v for k, v in {**GOOD, **change}.items() if v is not None}

@@ -186,6 +186,33 @@ def test_a_closing_out_of_force_closure_is_ranked_and_flagged(home, tmp_path):
                                                                  "too_low": "arm_collision"}
 
 
+def test_elbow_and_sensitivity_take_a_palm_pose_file(home, tmp_path):
+    """``elbow`` and ``sensitivity`` solve a palm-pose file's candidate as ``evaluate`` does
+    (the candidate named by its id, at its own elbow); ``validate``, which takes grasp files
+    only, says what the file is in one line."""
+    common = ("--grasps", str(DOCS / "palm_pose_panda.json"), "--grasp", "top", "--engine",
+              "fast", "--samples", "40", "--json")
+    solved = solve_all("palm_box", [c for c in read_candidates(
+        DOCS / "palm_pose_panda.json", "panda").candidates if c.id == "top"], "panda")[0][0]
+    proc = run_cli("elbow", *common)
+    assert proc.returncode == 0, proc.stderr
+    shown = json.loads(proc.stdout)
+    assert (shown["robot"], shown["object"], shown["grasp"]) == ("panda", "palm_box", "top")
+    assert abs(shown["nominal_psi"] - solved.meta["elbow_angle"]) < 1e-6
+    spec = tmp_path / "joints.yaml"
+    spec.write_text("joints: {sigma: 0.0133, distribution: gaussian}\n")
+    proc = run_cli("sensitivity", *common, "--noise-spec", str(spec))
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["grasp"] == "top"
+    proc = run_cli("validate", "--grasps", str(DOCS / "palm_pose_panda.json"), "--out",
+                   str(tmp_path / "v"))
+    assert proc.returncode == 2
+    assert proc.stderr.strip().endswith("is a palm-pose file (a 'candidates' list), not a grasp "
+                                        "file (a 'grasps' list); its candidates become grasps "
+                                        "once solved: `kinegrasp rank`, `evaluate`, `report`, "
+                                        "`elbow` and `sensitivity` take it as it is"), proc.stderr
+
+
 def test_the_default_robot_keeps_a_closing_out_of_force_closure_too():
     """kuka_sdh: a shipped cube grasp's palm pose with the spread closed to 0 closes on the
     cube out of force closure: a grasp (Q = 0, flagged), not a rejection."""

@@ -376,7 +376,8 @@ def test_help_shows_the_choices_from_their_sources():
 
     assert (elbow_cli.DEFAULT_EPSILON, elbow_cli.DEFAULT_DELTA) == (
         elbow_certificate.DEFAULT_EPSILON, elbow_certificate.DEFAULT_DELTA)
-    assert "shipped grasp set, 0..11" in " ".join(subs["evaluate"].format_help().split())
+    assert "shipped grasp set of the object (kuka_sdh's: 0..11)" in " ".join(
+        subs["evaluate"].format_help().split())
 
 
 # ------------------------------------------------------------------ a CLI that answers at once

@@ -347,6 +347,7 @@ def write_bad_inputs(folder: Path) -> dict[str, tuple[list[str], str]]:
         "1000x": ([str(folder / "huge.stl")], "too large for the hand"),
         "urdf": ([str(folder / "novis.urdf")], "no link has collision geometry"),
         "missing": ([str(folder / "nope.obj")], "no such file"),
+        "folder": ([str(folder)], f"{folder} is a folder; give a mesh file or a URDF"),
         "type": ([str(folder / "one.obj"), "--name", "cube"], "'cube' is a built-in object"),
         "scale": ([str(folder / "one.obj"), "--scale", "-1"], "--scale must be > 0"),
     }
@@ -424,6 +425,8 @@ def test_evaluate_a_grasp_of_a_file(home, capsys):
     assert [r[0] for r in runs] == [0, 0] and runs[0][1] == runs[1][1]
     code, _, err = cli(capsys, "evaluate", "--grasps", shipped, "--grasp", "99", *common)
     assert code == 2 and "no grasp with this id" in err
+    code, _, err = cli(capsys, "evaluate", "--grasps", shipped, "--grasp", "nosuch", *common)
+    assert code == 2 and f"--grasp nosuch: no grasp with this id in {shipped} (ids: 0, 1" in err
     code, _, err = cli(capsys, "evaluate", "--grasps", shipped, "--object", "drill", *common)
     assert code == 2 and "is a grasp of cube" in err
 

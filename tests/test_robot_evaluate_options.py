@@ -53,6 +53,14 @@ def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
     for psi in (lo - 0.2, hi + 0.2):
         with pytest.raises(ValueError, match="out of reach"):
             robot_grasp_at_elbow(grasp, "panda", repr(psi))
+    # an angle beyond pi (degrees, likely) is refused, not wrapped; the text names the angle
+    assert main([*args, "--elbow", "100"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["kinegrasp evaluate: error: --elbow 100: an elbow angle is in radians, "
+                   "within -pi .. pi"]
+    assert main([*[a for a in args if a != "--json"], "--elbow", "0.4"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("cube grasp 0 at elbow angle 0.400 rad of robot panda, "), first
 
 
 def test_rank_json_for_any_robot(capsys, tmp_path):

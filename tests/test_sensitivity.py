@@ -209,3 +209,17 @@ def test_the_default_robots_physics_engine_is_its_own(tmp_path, capsys):
     assert main(["evaluate", *args]) == 0
     evaluated = json.loads(capsys.readouterr().out)
     assert analysed["p_all"] == evaluated["p_fc"]
+
+
+def test_no_bootstrap_prints_the_indices_without_intervals(tmp_path, capsys):
+    """``--bootstrap 0`` (no resamples): the Sobol indices are printed without an interval,
+    not with NaN ends."""
+    from kinegrasp_env.cli import main
+
+    spec = tmp_path / "joints.yaml"
+    spec.write_text("joints: {sigma: 0.0133}\n")
+    assert main(["sensitivity", "--object", "cube", "--grasp", "0", "--noise-spec", str(spec),
+                 "--samples", "40", "--engine", "fast", "--bootstrap", "0"]) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("joints"))
+    assert " nan" not in out and row.count("(no interval)") == 2, out

@@ -420,7 +420,7 @@ def test_rank_refuses_repeated_ids_and_bad_paths_in_one_line(tmp_path, capsys):
     a_file.write_text("")
     for argv, needle in [
         ([str(twice)], f"{twice}: grasps 0 and 2 have the same id '{grasps[0].id}'; "
-                       "candidate ids must be unique"),
+                       "ids must be unique"),
         ([str(tmp_path)], f"{tmp_path} is a folder, not a grasp file"),
         ([str(candidates), "--out", str(tmp_path)], "is a folder; give a file name"),
         ([str(candidates), "--out", str(a_file / "r.csv")], f"{a_file} is not a folder"),
@@ -431,6 +431,15 @@ def test_rank_refuses_repeated_ids_and_bad_paths_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and needle in err[0], err
     assert not list(tmp_path.glob("*.csv*"))
+    # every command that reads a grasp file refuses the repeated id alike
+    for argv in (["evaluate", "--grasps", str(twice), "--grasp", "0", "--samples", "10"],
+                 ["report", "--grasps", str(twice), "--grasp", "0,1", "--samples", "10",
+                  "--out", str(tmp_path / "r.html")],
+                 ["elbow", "--grasps", str(twice), "--grasp", "0", "--samples", "10"]):
+        assert cli.main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "grasps 0 and 2 have the same id" in err[0], err
+    assert not (tmp_path / "r.html").exists()
 
 
 def test_plan_without_result_leaves_no_file(tmp_path):

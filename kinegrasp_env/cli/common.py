@@ -391,14 +391,17 @@ def add_object_arg(parser: argparse.ArgumentParser, default: str, help: str) -> 
 
 
 def grasp_index_help() -> str:
-    """Help of ``--grasp``: the index range of every object's shipped grasp set."""
+    """Help of ``--grasp``: an index in the robot's shipped set of the object, with the
+    default robot's index range of every object's set (another robot's sets may hold
+    another number: an index out of range is refused naming the range)."""
     from kinegrasp_env.world.names import OBJECT_NAMES, shipped_grasp_count
 
     ranges = {name: f"0..{shipped_grasp_count(name) - 1}" for name in OBJECT_NAMES}
     if len(set(ranges.values())) == 1:
-        return f"index in the object's shipped grasp set, {next(iter(ranges.values()))}"
-    return "index in the object's shipped grasp set: " + ", ".join(
-        f"{name} {r}" for name, r in ranges.items())
+        return (f"index in the robot's shipped grasp set of the object ({DEFAULT_ROBOT}'s: "
+                f"{next(iter(ranges.values()))})")
+    return (f"index in the robot's shipped grasp set of the object ({DEFAULT_ROBOT}'s: "
+            + ", ".join(f"{name} {r}" for name, r in ranges.items()) + ")")
 
 
 def shipped_grasp(object_name: str, text: str, robot: str | None = None):

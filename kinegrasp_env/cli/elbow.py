@@ -51,10 +51,10 @@ def file_choice(args):
     if getattr(args, "grasps", None) is None:
         args.object = getattr(args, "object", None) or DEFAULT_OBJECT
         return None
-    from kinegrasp_env.cli.grasp_choice import file_grasp
+    from kinegrasp_env.cli.grasp_choice import grasp_of_file
     from kinegrasp_env.world.grasps import check_robot
 
-    index, grasp = file_grasp(args)
+    index, grasp = grasp_of_file(args)
     args.robot = getattr(args, "robot", None) or grasp.robot
     with reported(ValueError):
         check_robot(grasp, args.robot)

@@ -113,10 +113,12 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
              else f"sigma = {sigma:g} rad ({args.noise})")
     if args.plot:
         output_file(args.plot, "--plot", inputs=input_files(args))
+    what = f"{grasp.object} grasp {grasp.id}"
     with reported(ValueError):
         check_robot(grasp, robot)
         if args.elbow is not None:
             grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
+            what += f" at elbow angle {grasp.meta['elbow_angle']:.3f} rad"
     with executor_from(args) as executor, reported(ValueError), \
             draw_bar(samples, f"{grasp.object} grasp {grasp.id}") as progress:
         stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
@@ -148,7 +150,7 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
                          f"{1e3 * stats.push_p95:.1f} mm) before the other touches; the "
                          "closing scores the object where it stands")
         print_evaluation(Evaluation(
-            f"{grasp.object} grasp {index} of robot {robot}", label, samples,
+            f"{what} of robot {robot}", label, samples,
             None if friction_per_draw(model) else friction,
             load_robot(robot).contact_model, stats.p_fc, stats.ci, stats.q_nominal,
             stats.q_mean, stats.q_std, stats.q_skew, stats.counts), extra)
@@ -159,7 +161,7 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
 
         wrote = safe_figure(lambda: plot_contacts(
             load_object(grasp.object).mesh, stats.draws, args.plot,
-            title=f"{grasp.object} grasp {index} of {robot}, {label}: "
+            title=f"{what} of {robot}, {label}: "
                   f"P(FC) = {stats.p_fc:.3f}"), args.plot)
         if wrote is not None and not args.json:
             print(f"  plot written to {args.plot}")
@@ -238,6 +240,8 @@ def robot_grasp_at_elbow(grasp, robot: str, text: str):
     from kinegrasp_env.toolkit.elbow import wrap_angle
 
     psi = finite_float(text, "--elbow")
+    if not -math.pi <= psi <= math.pi:
+        raise ValueError(f"--elbow {text}: an elbow angle is in radians, within -pi .. pi")
     motion = elbow_motion(load_robot(robot))
     q0 = np.asarray(grasp.q0, dtype=float)
     moved, ok = motion.set_elbow_angle(q0, psi)

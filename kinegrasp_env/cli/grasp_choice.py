@@ -1,13 +1,13 @@
-"""Which grasp ``evaluate`` and ``report`` take: entry ``--grasp`` of an object's shipped set,
-or grasp ``--grasp`` (an id, else an index) of a grasp file or a palm-pose file
-(``--grasps FILE``; a palm-pose candidate is solved to a grasp first).
+"""Which grasp ``evaluate``, ``report``, ``elbow`` and ``sensitivity`` take: entry ``--grasp``
+of an object's shipped set, or grasp ``--grasp`` (an id, else an index) of a grasp file or a
+palm-pose file (``--grasps FILE``; a palm-pose candidate is solved to a grasp first).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from kinegrasp_env.cli.common import CLIError, parse_index, reported, shipped_grasp
+from kinegrasp_env.cli.common import CLIError, reported, shipped_grasp
 
 #: ``evaluate``'s and ``report``'s object when neither --object nor --grasps is given.
 EVALUATE_OBJECT = "spray_flask"
@@ -21,6 +21,13 @@ def chosen_grasp(args):
     if args.grasps is None:
         args.object = args.object or EVALUATE_OBJECT
         return shipped_grasp(args.object, args.grasp, getattr(args, "robot", None))
+    return grasp_of_file(args)
+
+
+def grasp_of_file(args):
+    """``(index, grasp)``: grasp ``--grasp`` (an id, else an index) of ``--grasps FILE``, a
+    grasp file or a palm-pose file (its candidate solved to a grasp for the file's robot or
+    ``--robot``); sets ``args.object`` to the grasp's object."""
     from kinegrasp_env.toolkit.candidates import is_candidate_file
 
     if Path(args.grasps).is_dir():
@@ -51,13 +58,22 @@ def file_grasp(args):
 
 def index_in(args, ids: list[str]) -> int:
     """The index of ``--grasp`` (an id in ``ids``, else an index) in ``--grasps``."""
-    if args.grasp in ids:
-        index = ids.index(args.grasp)
-    else:
-        index = parse_index(args.grasp)
-        if not 0 <= index < len(ids):
-            raise CLIError(f"--grasp {args.grasp}: no grasp with this id in {args.grasps}, and "
-                           f"not an index 0..{len(ids) - 1}")
+    return id_index(args.grasp, ids, args.grasps)
+
+
+def id_index(word: str, ids: list[str], source: str) -> int:
+    """The index of ``word`` in ``ids``, the grasp ids of ``source`` (a file, or words that
+    name a grasp set): an id, else an index; one line naming a few of the ids otherwise."""
+    if word in ids:
+        return ids.index(word)
+    try:
+        index = int(word)
+    except ValueError:
+        index = -1
+    if not 0 <= index < len(ids):
+        shown = ", ".join(ids[:8]) + (", ..." if len(ids) > 8 else "")
+        raise CLIError(f"--grasp {word}: no grasp with this id in {source} (ids: {shown}), "
+                       f"and not an index 0..{len(ids) - 1}")
     return index
 
 

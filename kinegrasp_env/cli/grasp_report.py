@@ -23,7 +23,6 @@ from kinegrasp_env.cli.common import (
     input_files,
     noise_spec_from,
     output_file,
-    parse_index,
     parse_seed,
     positive_int,
     reported,
@@ -108,11 +107,10 @@ def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
     for an unknown one or one named twice."""
     text = "0" if text is None else text
     picked: list[int] = []
+    from kinegrasp_env.cli.grasp_choice import id_index
+
     for word in (t.strip() for t in text.split(",")):
-        index = ids.index(word) if word in ids else parse_index(word)
-        if not 0 <= index < len(ids):
-            raise CLIError(f"--grasp {word}: no grasp with this id in {source}, and not "
-                           f"an index 0..{len(ids) - 1}")
+        index = id_index(word, ids, source)
         if index in picked:
             raise CLIError(f"--grasp: {text!r} names grasp {ids[index]} twice")
         picked.append(index)

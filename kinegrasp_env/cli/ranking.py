@@ -170,8 +170,8 @@ def cmd_rank(args) -> int:
 def _candidates(path: str, robot: str | None = None,
                 friction: float = 0.5) -> tuple[list, str, list]:
     """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
-    candidates (none but for a palm-pose file); refuses a file with
-    no grasps and repeated ids (the CSV is keyed by id). A palm-pose file
+    candidates (none but for a palm-pose file); refuses a file with no grasps (and, as every
+    grasp file is read, repeated ids: the CSV is keyed by id). A palm-pose file
     (``kinegrasp_env.toolkit.candidates``) is solved to grasps first, for its robot or
     ``robot`` (``--robot``); its rejected candidates go to stderr and, once the ranking is
     written, to ``<out>.rejected.csv``."""
@@ -187,12 +187,6 @@ def _candidates(path: str, robot: str | None = None,
         grasps = load_grasps(path)
     if not grasps:
         raise CLIError(f"{path}: the file holds no grasps")
-    first: dict[str, int] = {}
-    for i, grasp in enumerate(grasps):
-        if grasp.id in first:
-            raise CLIError(f"{path}: grasps {first[grasp.id]} and {i} have the same id "
-                           f"{grasp.id!r}; candidate ids must be unique")
-        first[grasp.id] = i
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
 
 

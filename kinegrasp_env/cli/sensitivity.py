@@ -73,7 +73,7 @@ def _request(args, model) -> tuple[int, object]:
     """``(index, grasp)``: grasp ``--grasp`` of ``--grasps FILE`` or of the robot's shipped set
     of ``--object``; one line for what the robot's engines cannot take (checked before any
     work)."""
-    from kinegrasp_env.cli.grasp_choice import file_grasp
+    from kinegrasp_env.cli.grasp_choice import grasp_of_file
     from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
     from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
@@ -81,7 +81,7 @@ def _request(args, model) -> tuple[int, object]:
     from kinegrasp_env.toolkit.sensitivity import check_factors
     from kinegrasp_env.world.grasps import check_robot
 
-    index, grasp = file_grasp(args) if args.grasps is not None else (None, None)
+    index, grasp = grasp_of_file(args) if args.grasps is not None else (None, None)
     robot = args.robot or (DEFAULT_ROBOT if grasp is None else grasp.robot)
     with reported(RobotDescriptionError):
         arm = load_robot(robot).arm_dof

@@ -44,8 +44,8 @@ def add_commands(sub) -> None:
                    "all of the object's shipped grasps; with --grasps: indices in the file)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) instead of "
                    "the shipped sets")
-    p.add_argument("--sigma", default="0.0133", help="joint noise on the robot's arm joints "
-                   "(the default robot's 7), radians")
+    p.add_argument("--sigma", default="0.0133", help="joint noise on the robot's arm joints, "
+                   "radians")
     p.add_argument("--samples", default="100", help="draws per grasp")
     p.add_argument("--seed", default="0", help="random seed (an integer >= 0)")
     p.add_argument("--processes", default="1", help="worker processes (more than this "
@@ -55,9 +55,9 @@ def add_commands(sub) -> None:
                    "draw by draw, much faster)")
     p.add_argument("--simulator", default="pybullet", choices=tuple(SIMULATORS),
                    help="the simulator that runs the holding test")
-    p.add_argument("--torque-scale", default="1", help="multiplies the assumed torque limits "
-                   "of the hand's joints (2.1 N m proximal, 1.4 N m distal, 10 N m holding: "
-                   "stated assumptions)")
+    p.add_argument("--torque-scale", default="1", help="multiplies the torque (or force) "
+                   "limits of the hand's joints: the URDF's efforts or the description's "
+                   "(`kinegrasp robots show NAME` lists them; the output names those used)")
     p.add_argument("--shake", action="store_true", help="add the shake phase after the lift "
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "

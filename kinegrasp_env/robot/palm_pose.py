@@ -20,7 +20,9 @@ last row 0 0 0 1). The pre-shape, radians or metres per hand joint:
   SDH's ``f1_spread``), the other joints as above; a hand without one refuses it.
 
 ``elbow`` (radians, optional) is the elbow angle to move to along the self-motion (a 7-joint
-arm with an arm angle).
+arm with an arm angle). Any other field is refused (:data:`PALM_POSE_KEYS`; a grasp file's
+entries, read as palm poses, may carry theirs), and so are ``pose`` and ``position`` +
+``quaternion`` together.
 
 The arm configuration that reaches an entry is found by every robot's one IK
 (:func:`~kinegrasp_env.robot.palm_ik.reach_robot_palm_pose`: from the description's ``home``,
@@ -43,6 +45,8 @@ if TYPE_CHECKING:
 
 #: Seed of each palm pose's IK restarts (per pose: the result does not depend on order).
 IK_RNG_SEED = 0
+#: The fields of a palm-pose entry (``robot``: the robot a file's entry is of).
+PALM_POSE_KEYS = ("id", "position", "quaternion", "pose", "hand", "spread", "elbow", "robot")
 #: Tolerance of a unit quaternion's norm and of a rotation matrix's orthonormality.
 UNIT_TOL = 1e-6
 
@@ -92,6 +96,10 @@ def _numbers(entry: dict, key: str, shape: tuple[int, ...], where: str) -> np.nd
 def parse_pose(entry: dict, where: str) -> np.ndarray:
     """(4, 4) palm pose of one entry: ``pose`` (4x4) or ``position`` + ``quaternion``."""
     if "pose" in entry:
+        both = [key for key in ("position", "quaternion") if key in entry]
+        if both:
+            raise ValueError(f"{where}: give 'pose' (4x4) or 'position' + 'quaternion', not "
+                             f"both ({' and '.join(['pose', *both])} given)")
         pose = _numbers(entry, "pose", (4, 4), where)
         rot = pose[:3, :3]
         if not np.allclose(pose[3], [0, 0, 0, 1], atol=UNIT_TOL):
@@ -189,12 +197,20 @@ def parse_hand(entry: dict, where: str, description: RobotDescription) -> np.nda
 
 
 def parse_palm_pose(entry, where: str, default_id: str = "0",
-                    robot: RobotDescription | None = None) -> PalmCandidate:
+                    robot: RobotDescription | None = None,
+                    other_keys: tuple[str, ...] = ()) -> PalmCandidate:
     """Validate one palm-pose entry (a dict of the schema above); ValueError starts with
     ``where`` and names the field. ``default_id``: its id when it has none. ``robot``: the
-    robot whose pre-shape ``hand`` is (default: the default robot, ``kuka_sdh``)."""
+    robot whose pre-shape ``hand`` is (default: the default robot, ``kuka_sdh``).
+    ``other_keys``: fields accepted and not read beside :data:`PALM_POSE_KEYS` (a grasp
+    file's, read as palm poses); any other key is refused (a misspelt ``elbow`` would
+    otherwise be dropped without a word)."""
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: expected an object, got {type(entry).__name__}")
+    unknown = [str(key) for key in entry if key not in PALM_POSE_KEYS + tuple(other_keys)]
+    if unknown:
+        raise ValueError(f"{where}: unknown field {unknown[0]!r}; a palm pose has "
+                         f"{', '.join(PALM_POSE_KEYS)}")
     elbow = None
     if entry.get("elbow") is not None:
         elbow = float(_numbers(entry, "elbow", (), where))

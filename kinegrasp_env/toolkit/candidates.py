@@ -46,7 +46,13 @@ import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose
-from kinegrasp_env.world.grasps import Grasp, read_json_file
+from kinegrasp_env.world.grasps import (
+    GRASP_ENTRY_KEYS,
+    Grasp,
+    check_unique_ids,
+    holds_candidates,
+    read_json_file,
+)
 
 log = logging.getLogger(__name__)
 
@@ -90,7 +96,7 @@ def is_candidate_file(path: str | Path) -> bool:
         data = json.loads(Path(path).read_text())
     except (OSError, ValueError):
         return False
-    return isinstance(data, dict) and "candidates" in data
+    return holds_candidates(data)
 
 
 def parse_candidate(entry, index: int, source: str, robot=None) -> PalmCandidate:
@@ -100,7 +106,7 @@ def parse_candidate(entry, index: int, source: str, robot=None) -> PalmCandidate
     where = f"{source} candidate {index}"
     if isinstance(entry, dict):
         where = f"{source} candidate {entry.get('id', index)!s}"
-    return parse_palm_pose(entry, where, str(index), robot)
+    return parse_palm_pose(entry, where, str(index), robot, other_keys=GRASP_ENTRY_KEYS)
 
 
 def file_robot(data: dict, entries: list, path: Path, robot: str | None) -> str:
@@ -195,11 +201,7 @@ def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile
     found = [parse_candidate(e, i, str(path), description) for i, e in enumerate(entries)]
     if not found:
         raise ValueError(f"{path}: the file holds no candidates")
-    ids = [c.id for c in found]
-    for i, cid in enumerate(ids):
-        if cid in ids[:i]:
-            raise ValueError(f"{path}: candidates {ids.index(cid)} and {i} have the same id "
-                             f"{cid!r}; candidate ids must be unique")
+    check_unique_ids([c.id for c in found], str(path), "candidates")
     if to_object is not None:
         found = [replace(c, pose=source_pose_to_object(c.pose, to_object)) for c in found]
     return CandidateFile(name, robot_name, FRAMES[to_object is not None], found)

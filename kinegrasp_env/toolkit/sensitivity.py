@@ -138,8 +138,12 @@ def paired_gain(with_all: np.ndarray, without: np.ndarray) -> tuple[float, tuple
 
 
 def _index(value: float, ci: tuple[float, float]) -> str:
+    """``value [lo, hi]``; ``-`` for an undefined value, and the value alone where it has no
+    interval (``--bootstrap 0``)."""
     if not math.isfinite(value):
         return "-"
+    if not all(math.isfinite(end) for end in ci):
+        return f"{value:6.3f} {'(no interval)':>16}"
     return f"{value:6.3f} [{ci[0]:6.3f}, {ci[1]:6.3f}]"
 
 

@@ -34,6 +34,11 @@ from kinegrasp_env.world.robot_configuration import (
     robot_model,
 )
 
+#: The fields of a grasp file's entry beyond its palm-pose candidate fields
+#: (:meth:`Grasp.to_dict`, :func:`palm_pose_fields`).
+GRASP_ENTRY_KEYS = ("id", "object", "q0", "palm_pose", "q_nominal", "contacts", "meta",
+                    "robot")
+
 
 @dataclass(frozen=True, eq=False)
 class Grasp:
@@ -233,6 +238,11 @@ def load_grasps(path: str | Path) -> list[Grasp]:
     entry and the field."""
     path = Path(path)
     data = read_json_file(path)
+    if holds_candidates(data):
+        raise ValueError(f"{path} is a palm-pose file (a 'candidates' list), not a grasp file "
+                         "(a 'grasps' list); its candidates become grasps once solved: "
+                         "`kinegrasp rank`, `evaluate`, `report`, `elbow` and `sensitivity` "
+                         "take it as it is")
     if not isinstance(data, dict) or not isinstance(data.get("grasps"), list):
         raise ValueError(f"{path}: expected an object with a 'grasps' list")
     top = data.get("object")
@@ -241,9 +251,29 @@ def load_grasps(path: str | Path) -> list[Grasp]:
     robot = data.get("robot")
     if robot is not None:
         robot_model(robot, f"{path}: field 'robot'")
-    return [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i),
-                            robot_name=robot)
-            for i, g in enumerate(data["grasps"])]
+    grasps = [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i),
+                              robot_name=robot)
+              for i, g in enumerate(data["grasps"])]
+    check_unique_ids([g.id for g in grasps], str(path), "grasps")
+    return grasps
+
+
+def holds_candidates(data) -> bool:
+    """Whether the JSON value ``data`` is a palm-pose file's (an object with a
+    ``candidates`` list), not a grasp file's."""
+    return isinstance(data, dict) and "candidates" in data
+
+
+def check_unique_ids(ids: list[str], where: str, what: str) -> None:
+    """ValueError naming the first two entries of ``ids`` (of the ``what`` of ``where``, a
+    file) that share an id: a grasp or candidate is chosen, and its results are keyed, by
+    its id."""
+    first: dict[str, int] = {}
+    for i, entry_id in enumerate(ids):
+        if entry_id in first:
+            raise ValueError(f"{where}: {what} {first[entry_id]} and {i} have the same id "
+                             f"{entry_id!r}; ids must be unique")
+        first[entry_id] = i
 
 
 def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:

@@ -46,6 +46,8 @@ class SourceMesh:
 def load_source(path: str | Path) -> SourceMesh:
     """Read a mesh file or a URDF (by suffix); :class:`MeshError` if it cannot be."""
     path = Path(path)
+    if path.is_dir():
+        raise MeshError(f"{path} is a folder; give a mesh file or a URDF")
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
     suffix = path.suffix.lower()
