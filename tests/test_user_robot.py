@@ -196,8 +196,8 @@ def test_the_xarm6_closes_alike_in_the_fast_engine(workspace, capsys):
 
 
 #: The Franka Panda as it ships in pybullet_data: the material files of its OBJ meshes name a
-#: texture (colors.png) that its catalog copy lacks, so each load of the copy makes pybullet's
-#: mesh loader write "not found [...colors.png]" 294 times (measured) on the C level.
+#: texture (colors.png; one of them by a Windows path that no copy can have), and each texture
+#: pybullet's mesh loader does not find is a "not found [...]" line on the C level's stdout.
 FRANKA = {
     "name": "franka",
     "urdf": str(Path(pybullet_data.getDataPath()) / "franka_panda" / "panda.urdf"),
@@ -228,3 +228,27 @@ def test_robots_show_writes_its_one_line_and_nothing_else(workspace, capsys):
         assert len(lines) == 3 + 2 + 1 + 1
         assert lines[-1].endswith("the open one (no preshapes)")
         assert Path(f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_copied_robot_keeps_its_textures_and_json_stays_json(workspace, capsys):
+    """``robots add`` copies the texture images the meshes' material files name beside them
+    (the entry needs none of the user's files), and the engines load the robot without a
+    word on stdout, a texture missing or not: ``evaluate --json`` with the pybullet engine
+    prints one JSON object."""
+    from kinegrasp_env.robot.catalog import load_robot
+
+    path = workspace / "franka.yaml"
+    path.write_text(yaml.safe_dump(FRANKA))
+    run(capsys, "robots", "add", str(path))
+    copied = load_robot("franka").urdf.parent
+    assert (copied / "meshes" / "visual" / "colors.png").is_file()
+    proc = run_cli("plan", "--robot", "franka", "--object", "cube", "--count", "1", "--seed",
+                   "0", "--variants", "0", "--out", "g.json")
+    assert proc.returncode == 0, proc.stderr
+    assert "not found" not in proc.stdout
+    for _ in range(2):  # as copied, then with the texture gone: the loader's notes unseen
+        proc = run_cli("evaluate", "--grasps", "g.json", "--samples", "3", "--engine",
+                       "pybullet", "--json")
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads(proc.stdout)["robot"] == "franka"
+        (copied / "meshes" / "visual" / "colors.png").unlink(missing_ok=True)

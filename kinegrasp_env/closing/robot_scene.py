@@ -31,6 +31,7 @@ from kinegrasp_env.closing.hand_errors import flange_link, hand_links
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.closing.table_check import table_in_object
+from kinegrasp_env.quiet import quiet_c_output
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
@@ -76,9 +77,11 @@ class RobotScene(ObjectWorld):
         self.description = description
         self.model = description.model
         bullet = self.bullet
-        # cylinders as written (pybullet otherwise meshes them coarsely)
-        robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
-                                flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
+        # cylinders as written (pybullet otherwise meshes them coarsely); its mesh loader's
+        # notes (a texture a material file names and the folder lacks) kept off stdout
+        with quiet_c_output():
+            robot = bullet.loadURDF(str(description.urdf), useFixedBase=True,
+                                    flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
         self.bodies["robot"] = robot
         self.joint_index, self.link_index = body_indices(bullet, robot, self.model.base_link)
         for link in self.link_index.values():

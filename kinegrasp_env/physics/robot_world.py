@@ -44,6 +44,7 @@ from kinegrasp_env.physics.pybullet_world import (
     mass_properties,
     write_parts_obj,
 )
+from kinegrasp_env.quiet import quiet_c_output
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, body_indices, matrix_to_pose
@@ -157,8 +158,9 @@ class RobotPhysicsWorld(PhysicsWorld):
         with tempfile.TemporaryDirectory(prefix="kinegrasp_hand_") as folder:
             path = Path(folder) / "hand.urdf"
             hand_urdf(self.description, path)
-            hand = bullet.loadURDF(str(path), useFixedBase=False,
-                                   flags=pybullet.URDF_INITIALIZE_SAT_FEATURES)
+            with quiet_c_output():  # the mesh loader's notes (a missing texture) off stdout
+                hand = bullet.loadURDF(str(path), useFixedBase=False,
+                                       flags=pybullet.URDF_INITIALIZE_SAT_FEATURES)
         self.joint_index, self.link_index = body_indices(bullet, hand, ROOT_LINK)
         for link in self.link_index.values():
             bullet.changeDynamics(hand, link, collisionMargin=0.0)

@@ -151,7 +151,9 @@ def _copy_plan(description: RobotDescription) -> tuple[dict[str, Path], dict[str
     found by this module's resolver and by pybullet alike); a relative path that stays below
     the URDF's folder keeps its place; any other (absolute, ``file://``, or climbing above the
     URDF's folder with ``..``) goes to ``external/<k>/<file name>`` and is rewritten. An OBJ
-    mesh's material files (``mtllib``) that exist go beside its copy.
+    mesh's material files (``mtllib``) that exist go beside its copy, and so do the texture
+    images they name (:data:`TEXTURE_STATEMENTS`): without them pybullet prints a warning on
+    stdout for every mesh it loads.
 
     Raises:
         RobotDescriptionError: two different files would land on one destination.
@@ -175,13 +177,33 @@ def _copy_plan(description: RobotDescription) -> tuple[dict[str, Path], dict[str
                 rewrites[written] = dest
         put(dest, mesh.path)
         if mesh.path.suffix.lower() == ".obj":
-            for line in mesh.path.read_text(errors="replace").splitlines():
-                if line.startswith("mtllib "):
-                    name = line[len("mtllib "):].strip()
-                    mtl_dest = posixpath.normpath(posixpath.join(posixpath.dirname(dest), name))
-                    if (mesh.path.parent / name).is_file() and not mtl_dest.startswith(".."):
-                        put(mtl_dest, (mesh.path.parent / name).resolve())
+            for name in _referenced(mesh.path, ("mtllib",)):
+                mtl_dest = posixpath.normpath(posixpath.join(posixpath.dirname(dest), name))
+                if (mesh.path.parent / name).is_file() and not mtl_dest.startswith(".."):
+                    mtl = (mesh.path.parent / name).resolve()
+                    put(mtl_dest, mtl)
+                    for image in _referenced(mtl, TEXTURE_STATEMENTS):
+                        image_dest = posixpath.normpath(posixpath.join(
+                            posixpath.dirname(mtl_dest), image))
+                        if (mtl.parent / image).is_file() and not image_dest.startswith(".."):
+                            put(image_dest, (mtl.parent / image).resolve())
     return plan, rewrites
+
+
+#: The statements of an OBJ material file that name a texture image (its last word).
+TEXTURE_STATEMENTS = ("map_Ka", "map_Kd", "map_Ks", "map_Ns", "map_d", "map_bump", "bump",
+                      "disp", "decal", "norm")
+
+
+def _referenced(path: Path, statements: tuple[str, ...]) -> list[str]:
+    """The file names that lines of ``path`` (an OBJ mesh or material file) starting with
+    one of ``statements`` name (each line's last word: options may come before it)."""
+    names = []
+    for line in path.read_text(errors="replace").splitlines():
+        words = line.split()
+        if len(words) >= 2 and words[0] in statements:
+            names.append(words[-1] if words[0] != "mtllib" else line.split(None, 1)[1].strip())
+    return names
 
 
 def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescription, Path]:
