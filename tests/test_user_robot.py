@@ -252,3 +252,33 @@ def test_a_copied_robot_keeps_its_textures_and_json_stays_json(workspace, capsys
         assert proc.returncode == 0, proc.stderr
         assert json.loads(proc.stdout)["robot"] == "franka"
         (copied / "meshes" / "visual" / "colors.png").unlink(missing_ok=True)
+
+
+def test_the_physics_engine_couples_a_linkage_grippers_sides(workspace, capsys):
+    """The xArm's gripper: one actuator (``drive_joint``) moves both sides and keeps each pad
+    parallel (its finger joints mimic the knuckles). The physics engine's closing on the free
+    object couples the second side to the first and keeps each finger joint at its knuckle's
+    value, so the planned cube grasp closes at sigma 0 in force closure with both pads flat
+    on the faces (independent of the kinematic engines: the contacts face each other, 2-4 cm
+    apart in height, and out of force closure, with each side on its own motor and the
+    finger joints lagging), as the reference engine's closing does."""
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.world.grasps import load_grasps
+
+    path = workspace / "xarm6.yaml"
+    path.write_text(yaml.safe_dump(DESCRIPTION))
+    run(capsys, "robots", "add", str(path))
+    run(capsys, "plan", "--robot", "xarm6", "--object", "cube", "--count", "1", "--seed", "0",
+        "--variants", "0", "--out", "g.json")
+    grasp = load_grasps("g.json")[0]
+    with make_engine("physics", "xarm6", "cube") as engine:
+        closed = engine.close_one(grasp.q0)
+        draws = engine.run(np.asarray(grasp.q0)[None])
+    joints = closed.joints
+    assert abs(joints["right_outer_knuckle_joint"] - joints["drive_joint"]) < 0.02, joints
+    assert abs(joints["left_finger_joint"] - joints["drive_joint"]) < 0.01, joints
+    assert abs(joints["right_finger_joint"] - joints["right_outer_knuckle_joint"]) < 0.01
+    left, right = (c.point for c in closed.contacts)
+    assert np.abs(left[1:] - right[1:]).max() < 0.01, (left, right)  # facing across x
+    assert draws.outcome[0] == FORCE_CLOSURE

@@ -6,7 +6,8 @@ The closing is the holding test's (:meth:`~kinegrasp_env.physics.robot_hold.Robo
 close_hand`: the hand cut from the URDF, free-floating and held at the palm pose the draw's
 arm joints give, each finger closed by a velocity motor at its URDF effort until it stalls),
 with the object **free** while the hand closes (a dynamic body under its support damping,
-gravity off), as the default robot's physics engine
+gravity off) and the jaws one actuator moves coupled as the gripper couples them (the first
+to touch pushes the object until the other meets it), as the default robot's physics engine
 (:class:`~kinegrasp_env.montecarlo.physics_engine.PhysicsEngine`) closes; the contacts are in
 the object's frame where the object ended. The draws are the other engines' (the same
 configurations for the same seed: :func:`~kinegrasp_env.montecarlo.robot_evaluate.

@@ -111,7 +111,7 @@ def finger_leaders(description: RobotDescription) -> set[str]:
 
 
 def closing_followers(description: RobotDescription, motors: list[JointMotor],
-                      start: dict[str, float]) -> list[Follower]:
+                      start: dict[str, float], coupled: bool = False) -> list[Follower]:
     """The joints that follow a motor (:func:`finger_leaders`), from the hand's joint values
     at the pre-shape ``start`` (name -> value; the joints a simulator has):
 
@@ -119,7 +119,9 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
       mimic multiplier times the close direction, of each), from their values now, with
       their own efforts;
     * a mimic joint that closes no finger follows its driver's mimic value, with its
-      driver's effort (or the largest motor's when its driver has none).
+      driver's effort (or the largest motor's when its driver has none); with ``coupled``,
+      so do the fingers' first joints that are mimic joints (:func:`coupled_leaders`: the
+      jaws one actuator moves), which otherwise close on their own motors.
     """
     model = description.model
     drivers = model.drivers()
@@ -130,6 +132,8 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
 
     efforts = {m.joint: m.effort for m in motors}
     followed = set(finger_leaders(description))
+    if coupled:
+        followed -= set(coupled_leaders(description))
     out: list[Follower] = []
     for finger in description.fingers:
         for joint in finger.joints[1:]:
@@ -146,3 +150,13 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
         out.append(Follower(joint.name, source, multiplier, 0.0, offset,
                             efforts.get(source, max(efforts.values()))))
     return out
+
+
+def coupled_leaders(description: RobotDescription) -> list[str]:
+    """The fingers' first closing joints (:func:`finger_leaders`) that are mimic joints of
+    another finger's first joint: one actuator moves them with that finger (a parallel
+    gripper's second jaw, a linkage gripper's second side)."""
+    model = description.model
+    leaders = finger_leaders(description)
+    return sorted(name for name in leaders
+                  if model.joint(name).mimic is not None and model.joint(name).mimic[0] in leaders)

@@ -18,7 +18,12 @@ One draw (:meth:`RobotHold.run_draw`):
    multiplier times the close direction). The fingers are not coupled to each other: each
    stops where it touches, as the kinematic closing's self-centring jaws do
    (:mod:`~kinegrasp_env.closing.generic_reference`; the hand is held by the anchor, so a
-   coupled pair could not centre itself on the pinned object). A mimic joint that closes no
+   coupled pair could not centre itself on the pinned object). On a free object (the
+   physics engine's closing: :meth:`RobotHold.close_hand` with ``pin=False``) the jaws one
+   actuator moves are coupled as the gripper couples them (a finger's first joint that is
+   a mimic joint of another finger's follows it:
+   :func:`~kinegrasp_env.physics.hand_motors.coupled_leaders`), so the first jaw to touch
+   pushes the object until the other meets it. A mimic joint that closes no
    finger follows its driver's mimic value (a position motor, its driver's effort). The
    closing ends when the fingers' first joints stall (:func:`~kinegrasp_env.physics.hold_runner.
    close_until_stall` on positions divided by their closing speeds: moving at less than
@@ -58,6 +63,7 @@ from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hand_motors import (
     JointMotor,
     closing_followers,
+    coupled_leaders,
     finger_leaders,
     motor_efforts,
 )
@@ -101,6 +107,12 @@ class RobotMotorSettings:
 #: The closing's end for the quick holding test
 #: (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`): stalled over two 10 ms windows.
 QUICK_MOTORS = RobotMotorSettings(stall_window=0.01)
+#: pybullet's position gain of the followers' motors: 1 corrects a follower's whole error
+#: each step, within its effort. A rigid linkage is what a mimic joint stands for; at
+#: pybullet's default 0.1 an xArm finger joint lagged its knuckle by 0.03-0.06 rad under
+#: the contact force, tilting its pad so that the two pads touched a cube's faces 2-4 cm
+#: apart (its planned cube grasp at sigma 0 out of force closure).
+FOLLOWER_GAIN = 1.0
 
 
 class JawMotors:
@@ -109,11 +121,17 @@ class JawMotors:
     Args:
         world: the world, hand at its pre-shape.
         motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
+        coupled: the jaws one actuator moves follow it
+            (:func:`~kinegrasp_env.physics.hand_motors.coupled_leaders`), as the gripper's
+            own coupling makes them; else every finger closes on its own.
     """
 
-    def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor]) -> None:
+    def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor],
+                 coupled: bool = False) -> None:
         self.world = world
         leaders = finger_leaders(world.description)
+        if coupled:
+            leaders -= set(coupled_leaders(world.description))
         self.motors = [m for m in motors if m.joint in leaders]
         self.indices = [world.joint_index[m.joint] for m in self.motors]
         self.speeds = np.array([m.speed for m in self.motors])
@@ -122,7 +140,8 @@ class JawMotors:
         #: (follower's index, followed joint's index, its rule), pybullet's joint indices
         #: looked up once (the followers are set at every step)
         self.followers = [(world.joint_index[f.joint], world.joint_index[f.source], f)
-                          for f in closing_followers(world.description, motors, start)]
+                          for f in closing_followers(world.description, motors, start,
+                                                     coupled)]
         self.restart()
 
     def restart(self) -> None:
@@ -142,7 +161,7 @@ class JawMotors:
             bullet.setJointMotorControl2(
                 hand, index, bullet.POSITION_CONTROL,
                 targetPosition=f.target_start + f.ratio * (value - f.source_start),
-                force=f.effort)
+                force=f.effort, positionGain=FOLLOWER_GAIN)
 
     def step(self, steps: int = 1) -> None:
         for _ in range(steps):
@@ -296,15 +315,16 @@ class RobotHold(DescriptionHold):
                    ) -> tuple[RobotCloseResult, JawMotors | None]:
         """The closing of configuration q (dof,) on the pinned object (module docstring,
         step 1; ``pin=False``: the object free, with its support damping, as the default
-        robot's physics engine closes): its contacts in the object frame where the object
-        ended, and the motors (None: start collision)."""
+        robot's physics engine closes, and the jaws one actuator moves coupled): its
+        contacts in the object frame where the object ended, and the motors (None: start
+        collision)."""
         world, fingers = self.world, self.description.fingers
         world.reset(self.palm_poses(q)[0], self.hand_values(q, world.joint_index))
         if pin:
             world.pin_object()
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
-        jaws = JawMotors(world, self.motors)
+        jaws = JawMotors(world, self.motors, coupled=not pin)
         close_until_stall(jaws.step, jaws.travel, self.settings, world.settings.time_step)
         joints = {m.joint: world.bullet.getJointState(world.hand, world.joint_index[m.joint])[0]
                   for m in self.motors}
