@@ -337,3 +337,27 @@ def test_physics_engine_marks_draws_in_the_table(tabled):
     assert draws.outcome[0] != START_COLLISION
     assert HOLD_OUTCOMES[hold.outcome[0]] != "start_collision"
     engine.close()
+
+
+def test_a_grasp_file_of_an_object_moved_since_is_refused(tabled, tmp_path):
+    """A grasp file records where its object stood (its world palm poses beside its
+    object-frame ones); once ``objects place`` moves the object, every reader refuses the
+    file in one line naming how far it moved (here 50 mm and 30 degrees, as placed), and the
+    same entries read as candidates solve again."""
+    from kinegrasp_env.toolkit.candidates import read_candidates
+    from kinegrasp_env.world.grasps import load_grasps, save_grasps
+
+    cube = load_object("cube")
+    place_object("cube", as_name="cube_here", force=True)
+    path = save_grasps(shipped_grasps("cube_here")[:2], tmp_path / "g.json")
+    assert len(load_grasps(path)) == 2
+    yaw = float(np.arctan2(cube.pose[1, 0], cube.pose[0, 0]))
+    place_object("cube_here", position=cube.pose[:3, 3] + [0.05, 0.0, 0.0],
+                 yaw=yaw + np.radians(30))
+    with pytest.raises(ValueError, match=r"g.json grasp 0 \(id '0'\): planned with cube_here "
+                       r"at another pose than the catalog's now \(50.0 mm, 30.0 degrees"):
+        load_grasps(path)
+    data = json.loads(path.read_text())
+    data["candidates"] = data.pop("grasps")
+    path.write_text(json.dumps(data))
+    assert [c.id for c in read_candidates(path).candidates] == ["0", "1"]

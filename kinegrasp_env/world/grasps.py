@@ -131,6 +131,13 @@ class Grasp:
             if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
                 raise ValueError(f"{label}: field 'palm_pose': must be a finite 4x4 matrix, "
                                  f"got shape {pose.shape}")
+        moved = _object_moved(data, pose, obj)
+        if moved is not None:
+            raise ValueError(f"{label}: planned with {obj} at another pose than the catalog's "
+                             f"now ({moved[0] * 1e3:.1f} mm, {math.degrees(moved[1]):.1f} "
+                             f"degrees away; moved by `kinegrasp objects place`?): its q0 no "
+                             "longer reaches the object; solve its palm poses again by "
+                             "renaming the file's 'grasps' list to 'candidates'")
         contacts = data.get("contacts", [])
         if not isinstance(contacts, list):
             raise ValueError(f"{label}: field 'contacts': must be a list of "
@@ -162,6 +169,41 @@ def check_robot(grasp: Grasp, robot: str, advice: str = "") -> None:
         advice = advice or f"use it with robot {grasp.robot!r} (--robot {grasp.robot})"
         raise ValueError(f"grasp {grasp.id!r} is a grasp of robot {grasp.robot!r}, not of "
                          f"{robot!r}; {advice}")
+
+#: How far (metres, radians) the object may lie from where a grasp entry's palm poses put it
+#: before the entry is stale: far above the rounding of a saved pose (~1e-15).
+MOVED_TOL = 1e-6
+
+
+def _object_moved(data: dict, palm_world: np.ndarray, name: str) -> tuple[float, float] | None:
+    """(distance m, angle rad) between object ``name``'s catalog pose and the pose an entry's
+    palm poses imply (its world-frame ``palm_pose`` (4, 4) ``palm_world`` and its
+    object-frame ``position`` + ``quaternion``), or None where they agree to
+    :data:`MOVED_TOL` or the entry has no object-frame pose."""
+    from kinegrasp_env.robot.palm_pose import quaternion_matrix
+
+    try:
+        position = np.asarray(data["position"], dtype=float).reshape(3)
+        quaternion = np.asarray(data["quaternion"], dtype=float).reshape(4)
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quaternion))
+            and np.linalg.norm(quaternion) > 0):
+        return None
+    in_object = np.eye(4)
+    in_object[:3, :3] = quaternion_matrix(quaternion / np.linalg.norm(quaternion))
+    in_object[:3, 3] = position
+    gap = pose_gap(palm_world @ np.linalg.inv(in_object), load_object(name).pose)
+    return None if max(gap) <= MOVED_TOL else gap
+
+
+def pose_gap(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(distance m, angle rad) between two poses (4, 4): an object moved by more than
+    :data:`MOVED_TOL` in either is no longer where grasps planned for the other reach."""
+    distance = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
+    turn = a[:3, :3].T @ b[:3, :3]
+    return distance, float(np.arccos(np.clip((np.trace(turn) - 1.0) / 2.0, -1.0, 1.0)))
+
 
 def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
     """Field ``name`` of an entry as a float array (ValueError naming entry and field)."""
@@ -381,7 +423,7 @@ def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
             f"robot {robot!r} has no shipped grasps of {object_name!r} (shipped: "
             f"{', '.join(shipped) or 'none'}); plan them (`kinegrasp plan --robot {robot} "
             f"--object {object_name}`)")
-    if not np.allclose(load_object(object_name).pose, load_object(base).pose):
+    if max(pose_gap(load_object(object_name).pose, load_object(base).pose)) > MOVED_TOL:
         raise NoGraspSetError(
             f"{object_name!r} stands elsewhere than {base!r}, so the shipped grasps' arm "
             f"configurations miss it; plan for it (`kinegrasp plan --robot {robot} --object "
