@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -215,3 +216,17 @@ def test_spread_sets_the_hands_one_pre_shape_only_joint():
     assert mapped.tolist() == [0.25, 0.5, *opened[2:]]
     with pytest.raises(ValueError, match=r"c: spread 0\.3 differs from hand's f1_spread 0\.25"):
         parse_palm_pose({**pose, "spread": 0.3, "hand": {"f1_spread": 0.25}}, "c")
+
+
+def test_an_output_over_the_candidates_is_refused_before_any_solving(tmp_path):
+    """``rank FILE --out FILE`` of a palm-pose file: one line, before the candidates are
+    solved (solving would first print a line per rejected candidate), the file kept."""
+    path = tmp_path / "c.json"
+    shutil.copy(EXAMPLE, path)
+    kept = path.read_bytes()
+    proc = run_cli("rank", str(path), "--samples", "10", "--engine", "fast", "--out", str(path))
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"kinegrasp rank: error: --out {path} is the candidates file the command reads; give "
+        "another file name"]
+    assert path.read_bytes() == kept

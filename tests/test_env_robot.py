@@ -133,9 +133,12 @@ def test_q0_and_palm_pose_options_reproduce_the_shipped_cube_grasps(index):
     shipped = shipped_grasps("cube", "panda")[index]
     in_object = np.linalg.inv(load_object("cube").pose) @ shipped.palm_pose
     env = gym.make("KineGrasp-v0", **SMALL).unwrapped
+    # a grasp file's entry is a palm pose too (its other fields are not read)
+    entry = {**shipped.to_dict(load_object("cube").pose), "id": "given"}
     for option in ({"q0": shipped.q0.tolist()},
                    {"palm_pose": {"pose": in_object.tolist(), "id": "given",
-                                  "hand": {"panda_finger_joint1": float(shipped.q0[7])}}}):
+                                  "hand": {"panda_finger_joint1": float(shipped.q0[7])}}},
+                   {"palm_pose": entry}):
         _, info = env.reset(seed=0, options={"object": "cube", "sigma": 0.01, **option})
         task = env.grasp
         assert info["grasp"] == ("q0" if "q0" in option else "given")
@@ -153,6 +156,10 @@ def test_q0_and_palm_pose_options_reproduce_the_shipped_cube_grasps(index):
      "'spread' sets a hand's one pre-shape-only joint"),
     ({"palm_pose": {"position": [3.0, 0, 0.1], "quaternion": [0, 0, 0, 1]}},
      "reset option palm_pose is unreachable on cube: no IK solution"),
+    ({"palm_pose": {"position": [0, 0, 0.1], "quaternion": [0, 0, 0, 1], "robot": "kuka_sdh"}},
+     "reset option palm_pose: a palm pose of robot 'kuka_sdh', the env's robot is 'panda'"),
+    ({"palm_pose": {"position": [0, 0, 0.1], "quaternion": [0, 0, 0, 1], "elbw": 0.2}},
+     "reset option palm_pose: unknown field 'elbw'"),
 ])
 def test_a_bad_q0_or_palm_pose_of_the_panda_is_a_one_line_error(options, message):
     env = gym.make("KineGrasp-v0", **SMALL)

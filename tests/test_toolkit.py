@@ -419,8 +419,8 @@ def test_rank_refuses_repeated_ids_and_bad_paths_in_one_line(tmp_path, capsys):
     a_file = tmp_path / "file"
     a_file.write_text("")
     for argv, needle in [
-        ([str(twice)], f"{twice}: grasps 0 and 2 have the same id '{grasps[0].id}'; "
-                       "ids must be unique"),
+        ([str(twice)], f"{twice}: grasps 0 and 2 have the same id '{grasps[0].id}' of "
+                       "cube; ids must be unique"),
         ([str(tmp_path)], f"{tmp_path} is a folder, not a grasp file"),
         ([str(candidates), "--out", str(tmp_path)], "is a folder; give a file name"),
         ([str(candidates), "--out", str(a_file / "r.csv")], f"{a_file} is not a folder"),
@@ -440,6 +440,22 @@ def test_rank_refuses_repeated_ids_and_bad_paths_in_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "grasps 0 and 2 have the same id" in err[0], err
     assert not (tmp_path / "r.html").exists()
+    # a file of two objects' grasps, each numbered from 0 (agents/prepare.py writes such
+    # files): read by every reader; rank, keyed by id, refuses it; --grasp by a shared id
+    # asks for the index
+    both = tmp_path / "both.json"
+    save_grasps([grasps[0], shipped_grasps("mug")[0]], both)
+    assert [g.object for g in load_grasps(both)] == ["cube", "mug"]
+    assert cli.main(["rank", str(both), "--engine", "fast", "--samples", "10"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "grasps 0 and 1 have the same id '0'; ids must be unique" in err[0]
+    args = ["evaluate", "--grasps", str(both), "--samples", "5", "--engine", "fast", "--json"]
+    assert cli.main([*args, "--grasp", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"kinegrasp evaluate: error: --grasp 0: 2 grasps of {both} have this id (of "
+                   "several objects); give one by its index (0, 1)"]
+    assert cli.main([*args, "--grasp", "1"]) == 0
+    assert json.loads(capsys.readouterr().out)["object"] == "mug"
 
 
 def test_plan_without_result_leaves_no_file(tmp_path):

@@ -235,13 +235,22 @@ def test_a_copied_robot_keeps_its_textures_and_json_stays_json(workspace, capsys
     (the entry needs none of the user's files), and the engines load the robot without a
     word on stdout, a texture missing or not: ``evaluate --json`` with the pybullet engine
     prints one JSON object."""
+    import shutil
+
     from kinegrasp_env.robot.catalog import load_robot
 
+    source = workspace / "franka_panda"
+    shutil.copytree(Path(FRANKA["urdf"]).parent, source)
+    # one material names its texture by an absolute path: kept as written, not copied
+    link1 = source / "meshes" / "visual" / "link1.mtl"
+    absolute = source / "meshes" / "visual" / "colors.png"
+    link1.write_text(link1.read_text().replace("map_Kd colors.png", f"map_Kd {absolute}"))
     path = workspace / "franka.yaml"
-    path.write_text(yaml.safe_dump(FRANKA))
+    path.write_text(yaml.safe_dump({**FRANKA, "urdf": str(source / "panda.urdf")}))
     run(capsys, "robots", "add", str(path))
     copied = load_robot("franka").urdf.parent
     assert (copied / "meshes" / "visual" / "colors.png").is_file()
+    assert f"map_Kd {absolute}" in (copied / "meshes" / "visual" / "link1.mtl").read_text()
     proc = run_cli("plan", "--robot", "franka", "--object", "cube", "--count", "1", "--seed",
                    "0", "--variants", "0", "--out", "g.json")
     assert proc.returncode == 0, proc.stderr

@@ -113,7 +113,7 @@ def positive_int(text: str | int, name: str, low: int = 1) -> int:
 
 #: The options (argparse destinations) that name a file a command reads, by their label.
 INPUT_OPTIONS = {"candidates": "the candidates file", "grasps": "--grasps",
-                 "noise_spec": "--noise-spec", "spec": "the spec file"}
+                 "noise_spec": "--noise-spec", "page": "the page"}
 
 
 def input_files(args) -> list[tuple[str, str]]:

@@ -71,6 +71,9 @@ def cmd_elbow(args) -> int:
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 
+    report_path(args.report, inputs=input_files(args))  # before a palm pose is solved
+    if args.plot:
+        output_file(args.plot, "--plot", inputs=input_files(args))
     chosen = file_choice(args)
     robot = args.robot = getattr(args, "robot", None) or DEFAULT_ROBOT
     noise, sigma, samples, seed = noise_from(args)
@@ -84,13 +87,10 @@ def cmd_elbow(args) -> int:
                        "variants are the self-motion of 7 with arm_angle_links or the IK "
                        "branches of 6")
     starts = ik_starts(args, branches, robot)
-    report_path(args.report, inputs=input_files(args))
     if args.method == "direct" and args.batch is not None:
         raise CLIError("--batch is the closings of --method reweight's batch; --method direct "
                        "takes none")
     index, grasp = chosen or shipped_grasp(args.object, args.grasp, robot)
-    if args.plot:
-        output_file(args.plot, "--plot", inputs=input_files(args))
     if branches:
         from kinegrasp_env.cli.elbow_branches import cmd_elbow_branches
 
@@ -165,8 +165,9 @@ def add_commands(sub) -> None:
     p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, or --grasps' "
                    "robot): its shipped grasps, its arm's self-motion (7 joints) or IK "
                    "branches (6 joints)")
-    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output): its grasp "
-                   "--grasp (an id, else an index) instead of a shipped one")
+    p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) or a "
+                   "palm-pose file: its grasp --grasp (an id, else an index) instead of a "
+                   "shipped one")
     p.add_argument("--ik-starts", help="random IK starts that find a 6-joint arm's IK "
                    f"branches (default {DEFAULT_IK_STARTS})")
     p.set_defaults(func=cmd_elbow)

@@ -17,8 +17,6 @@ from kinegrasp_env.cli.common import (
     CLIError,
     friction_per_draw,
     friction_setting,
-    input_files,
-    output_file,
     reported,
 )
 from kinegrasp_env.cli.evaluation_output import (
@@ -100,8 +98,6 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
     from kinegrasp_env.sampling.stats import wilson_interval
 
     check_robot_engine(args.engine, robot)
-    if args.report:
-        output_file(args.report, "--report", inputs=input_files(args))
     model = noise if isinstance(noise, NoiseModel) else None
     if args.hold_test:
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
@@ -111,8 +107,6 @@ def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int
     check_hold_simulator(args, args.hold_test, "--hold-test")
     label = (f"noise spec {args.noise_spec}" if model is not None
              else f"sigma = {sigma:g} rad ({args.noise})")
-    if args.plot:
-        output_file(args.plot, "--plot", inputs=input_files(args))
     what = f"{grasp.object} grasp {grasp.id}"
     with reported(ValueError):
         check_robot(grasp, robot)

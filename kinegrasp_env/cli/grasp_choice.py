@@ -64,6 +64,10 @@ def index_in(args, ids: list[str]) -> int:
 def id_index(word: str, ids: list[str], source: str) -> int:
     """The index of ``word`` in ``ids``, the grasp ids of ``source`` (a file, or words that
     name a grasp set): an id, else an index; one line naming a few of the ids otherwise."""
+    if ids.count(word) > 1:  # a file of several objects' grasps, each numbered from 0
+        at = [str(i) for i, x in enumerate(ids) if x == word]
+        raise CLIError(f"--grasp {word}: {len(at)} grasps of {source} have this id (of "
+                       f"several objects); give one by its index ({', '.join(at[:8])})")
     if word in ids:
         return ids.index(word)
     try:

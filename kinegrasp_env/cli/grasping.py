@@ -17,7 +17,9 @@ from kinegrasp_env.cli.common import (
     engine_name,
     friction_from,
     grasp_index_help,
+    input_files,
     noise_from,
+    output_file,
     positive_int,
 )
 from kinegrasp_env.cli.evaluation import run_evaluate
@@ -36,6 +38,9 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 def cmd_evaluate(args) -> int:
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
+    for name in ("report", "plot"):  # before a palm pose is solved
+        if getattr(args, name):
+            output_file(getattr(args, name), f"--{name}", inputs=input_files(args))
     index, grasp = chosen_grasp(args)
     return run_evaluate(args, index, grasp, args.robot or grasp.robot, sigma, samples, seed,
                           friction, noise)

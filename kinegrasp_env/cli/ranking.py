@@ -97,13 +97,13 @@ def cmd_rank(args) -> int:
                        "hold with --adaptive, or hold_margin without it")
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
+    out = output_file(args.out, "--out", inputs=input_files(args))
+    report_path(args.report, inputs=input_files(args))
     grasps, digest, rejected = _candidates(args.candidates, args.robot, friction)
     engine = engine_name(args.engine)
-    out = output_file(args.out, "--out", inputs=input_files(args))
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     static, test = _hold_scores(args)
     check_candidates(args, grasps, robot, noise)
-    report_path(args.report, inputs=input_files(args))
     chunk = min(CHUNK, samples)
     layout = evaluate.chunk_sizes(samples, chunk)
     # each candidate's draws per outcome and hold scores, beside what the ranking keeps
@@ -170,12 +170,12 @@ def cmd_rank(args) -> int:
 def _candidates(path: str, robot: str | None = None,
                 friction: float = 0.5) -> tuple[list, str, list]:
     """The candidate grasps of ``rank``, the SHA-256 of their file and the rejected
-    candidates (none but for a palm-pose file); refuses a file with no grasps (and, as every
-    grasp file is read, repeated ids: the CSV is keyed by id). A palm-pose file
+    candidates (none but for a palm-pose file); refuses a file with no grasps or with
+    repeated ids (the CSV is keyed by id, whatever the grasp's object). A palm-pose file
     (``kinegrasp_env.toolkit.candidates``) is solved to grasps first, for its robot or
     ``robot`` (``--robot``); its rejected candidates go to stderr and, once the ranking is
     written, to ``<out>.rejected.csv``."""
-    from kinegrasp_env.world.grasps import load_grasps
+    from kinegrasp_env.world.grasps import check_unique_ids, load_grasps
 
     if Path(path).is_dir():
         raise CLIError(f"{path} is a folder, not a grasp file")
@@ -187,6 +187,8 @@ def _candidates(path: str, robot: str | None = None,
         grasps = load_grasps(path)
     if not grasps:
         raise CLIError(f"{path}: the file holds no grasps")
+    with reported(ValueError):  # the ranking is keyed by id, whatever the object
+        check_unique_ids([g.id for g in grasps], path, "grasps")
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), []
 
 

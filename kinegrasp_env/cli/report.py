@@ -26,6 +26,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     float_list,
     friction_setting,
+    input_files,
     nonnegative,
     output_file,
     positive_int,
@@ -235,7 +236,7 @@ def cmd_screenshot(args) -> int:
     page = Path(args.page)
     if not page.is_file():
         raise CLIError(f"{args.page}: no such file")
-    out = output_file(args.out, "--out")
+    out = output_file(args.out, "--out", inputs=input_files(args))
     width = positive_int(args.width, "--width")
     height = positive_int(args.height, "--height")
     opener = show_candidates(page, args.show)

@@ -137,9 +137,9 @@ def add_commands(sub) -> None:
     p.set_defaults(object=None)  # resolved in cmd_sensitivity: --grasps names its own
     p.add_argument("--grasp", default="0", help=grasp_index_help() + "; with --grasps: an id "
                    "in the file, else an index")
-    p.add_argument("--grasps", help="grasp file (from `kinegrasp plan`): analyze its grasp "
-                   "--grasp (its robot unless --robot names one; a grasp of another robot is "
-                   "refused)")
+    p.add_argument("--grasps", help="grasp file (from `kinegrasp plan`) or palm-pose file: "
+                   "analyze its grasp --grasp (its robot unless --robot names one; a grasp of "
+                   "another robot is refused)")
     p.add_argument("--noise-spec", required=True,
                    help="YAML or JSON noise model: joints, hand, palm, object, friction "
                    "(or preset: dexnet); every source present is a factor (the arm joints one, "

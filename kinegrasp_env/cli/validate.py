@@ -19,7 +19,6 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     nonnegative,
     output_folder,
-    parse_index,
     parse_seed,
     positive_int,
     print_json,
@@ -41,7 +40,8 @@ def add_commands(sub) -> None:
                    "(with --grasps: the file's objects; an object named there must be the "
                    "file's)")
     p.add_argument("--grasp", nargs="+", help=grasp_index_help() + " (several allowed; default "
-                   "all of the object's shipped grasps; with --grasps: indices in the file)")
+                   "all of the object's shipped grasps; with --grasps: ids or indices in the "
+                   "file)")
     p.add_argument("--grasps", help="a grasp file (e.g. `kinegrasp plan`'s output) instead of "
                    "the shipped sets")
     p.add_argument("--sigma", default="0.0133", help="joint noise on the robot's arm joints, "
@@ -57,7 +57,7 @@ def add_commands(sub) -> None:
                    help="the simulator that runs the holding test")
     p.add_argument("--torque-scale", default="1", help="multiplies the torque (or force) "
                    "limits of the hand's joints: the URDF's efforts or the description's "
-                   "(`kinegrasp robots show NAME` lists them; the output names those used)")
+                   "(the output names those used)")
     p.add_argument("--shake", action="store_true", help="add the shake phase after the lift "
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
@@ -82,14 +82,10 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
         raise CLIError(f"--grasps {path}: the file has no grasps")
     if indices is None:
         return list(enumerate(grasps))
-    out = []
-    for text in indices:
-        index = parse_index(text)
-        if not 0 <= index < len(grasps):
-            raise CLIError(f"--grasp: grasp index {index} out of range: {path} has "
-                           f"{len(grasps)} grasps (0..{len(grasps) - 1})")
-        out.append((index, grasps[index]))
-    return out
+    from kinegrasp_env.cli.grasp_choice import id_index
+
+    ids = [g.id for g in grasps]
+    return [(index, grasps[index]) for index in (id_index(text, ids, path) for text in indices)]
 
 
 def shipped_choice(args, robot: str) -> list[tuple[int, object]]:

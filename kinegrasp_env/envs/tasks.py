@@ -25,7 +25,7 @@ from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
 from kinegrasp_env.robot.palm_pose import PalmCandidate, parse_palm_pose
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import GRASP_ENTRY_KEYS, Grasp
 from kinegrasp_env.world.objects import is_object, load_object, unknown_object
 from kinegrasp_env.world.robot_configuration import check_configuration, robot_model
 
@@ -72,14 +72,19 @@ def reset_q0(value, robot: str) -> np.ndarray:
 
 def palm_pose_candidate(entry, robot: RobotDescription | None = None) -> PalmCandidate:
     """A ``palm_pose`` reset option (one palm-pose entry in the object frame:
-    :mod:`kinegrasp_env.robot.palm_pose`) of ``robot`` (None: the default robot); ValueError
-    for a malformed entry."""
+    :mod:`kinegrasp_env.robot.palm_pose`, or a grasp file's entry, which carries those
+    fields) of ``robot`` (None: the default robot); ValueError for a malformed entry or one
+    that names another robot."""
     if not isinstance(entry, dict):
         raise ValueError(f"reset option palm_pose must be a dict: 'position' + 'quaternion' or "
                          f"'pose' (4x4), with the hand's pre-shape (optional 'elbow', 'id'); "
                          f"got {type(entry).__name__}")
+    named = entry.get("robot")
+    if robot is not None and named is not None and named != robot.name:
+        raise ValueError(f"reset option palm_pose: a palm pose of robot {named!r}, the env's "
+                         f"robot is {robot.name!r}")
     return parse_palm_pose(entry, "reset option palm_pose", default_id="palm_pose",
-                           robot=robot)
+                           robot=robot, other_keys=GRASP_ENTRY_KEYS)
 
 
 def palm_pose_configuration(description: RobotDescription, kin, motion, object_name: str,

@@ -107,12 +107,16 @@ class RobotMotorSettings:
 #: The closing's end for the quick holding test
 #: (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`): stalled over two 10 ms windows.
 QUICK_MOTORS = RobotMotorSettings(stall_window=0.01)
-#: pybullet's position gain of the followers' motors: 1 corrects a follower's whole error
-#: each step, within its effort. A rigid linkage is what a mimic joint stands for; at
-#: pybullet's default 0.1 an xArm finger joint lagged its knuckle by 0.03-0.06 rad under
-#: the contact force, tilting its pad so that the two pads touched a cube's faces 2-4 cm
-#: apart (its planned cube grasp at sigma 0 out of force closure).
-FOLLOWER_GAIN = 1.0
+#: pybullet's position gain of the followers' motors in the coupled closing (the gripper's
+#: own mechanism: one actuator, rigid linkages): 1 corrects a follower's whole error each
+#: step, within its effort. At pybullet's default 0.1, which the holding test's closing
+#: keeps (each finger on its own, the figures of docs/guides/physics.md), an xArm finger
+#: joint lagged its knuckle by 0.03-0.06 rad under the contact force, tilting its pad so
+#: that the pads touched a cube's faces 2-4 cm apart (its planned cube grasp at sigma 0 out
+#: of force closure in the physics engine).
+COUPLED_FOLLOWER_GAIN = 1.0
+#: pybullet's default position gain, the followers' in the holding test's closing.
+FOLLOWER_GAIN = 0.1
 
 
 class JawMotors:
@@ -123,7 +127,9 @@ class JawMotors:
         motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
         coupled: the jaws one actuator moves follow it
             (:func:`~kinegrasp_env.physics.hand_motors.coupled_leaders`), as the gripper's
-            own coupling makes them; else every finger closes on its own.
+            own coupling makes them, and every follower stiffly
+            (:data:`COUPLED_FOLLOWER_GAIN`); else every finger closes on its own, its
+            followers at pybullet's default gain.
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor],
@@ -139,6 +145,7 @@ class JawMotors:
                  for name, index in world.joint_index.items()}
         #: (follower's index, followed joint's index, its rule), pybullet's joint indices
         #: looked up once (the followers are set at every step)
+        self.gain = COUPLED_FOLLOWER_GAIN if coupled else FOLLOWER_GAIN
         self.followers = [(world.joint_index[f.joint], world.joint_index[f.source], f)
                           for f in closing_followers(world.description, motors, start,
                                                      coupled)]
@@ -161,7 +168,7 @@ class JawMotors:
             bullet.setJointMotorControl2(
                 hand, index, bullet.POSITION_CONTROL,
                 targetPosition=f.target_start + f.ratio * (value - f.source_start),
-                force=f.effort, positionGain=FOLLOWER_GAIN)
+                force=f.effort, positionGain=self.gain)
 
     def step(self, steps: int = 1) -> None:
         for _ in range(steps):

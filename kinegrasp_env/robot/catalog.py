@@ -177,17 +177,25 @@ def _copy_plan(description: RobotDescription) -> tuple[dict[str, Path], dict[str
                 rewrites[written] = dest
         put(dest, mesh.path)
         if mesh.path.suffix.lower() == ".obj":
-            for name in _referenced(mesh.path, ("mtllib",)):
-                mtl_dest = posixpath.normpath(posixpath.join(posixpath.dirname(dest), name))
-                if (mesh.path.parent / name).is_file() and not mtl_dest.startswith(".."):
-                    mtl = (mesh.path.parent / name).resolve()
-                    put(mtl_dest, mtl)
-                    for image in _referenced(mtl, TEXTURE_STATEMENTS):
-                        image_dest = posixpath.normpath(posixpath.join(
-                            posixpath.dirname(mtl_dest), image))
-                        if (mtl.parent / image).is_file() and not image_dest.startswith(".."):
-                            put(image_dest, (mtl.parent / image).resolve())
+            for mtl_dest, mtl in _beside(dest, mesh.path, _referenced(mesh.path, ("mtllib",))):
+                put(mtl_dest, mtl)
+                for image_dest, image in _beside(mtl_dest, mtl,
+                                                 _referenced(mtl, TEXTURE_STATEMENTS)):
+                    put(image_dest, image)
     return plan, rewrites
+
+
+def _beside(dest: str, source: Path, names: list[str]) -> list[tuple[str, Path]]:
+    """(destination, file) of each file ``names`` that a file copied from ``source`` to
+    ``dest`` names relative to its own folder and that exists; a name that is absolute or
+    climbs above the copy's folder stays as written (the copy does not move it)."""
+    out = []
+    for name in names:
+        target = posixpath.normpath(posixpath.join(posixpath.dirname(dest), name))
+        found = source.parent / name
+        if not posixpath.isabs(name) and not target.startswith("..") and found.is_file():
+            out.append((target, found.resolve()))
+    return out
 
 
 #: The statements of an OBJ material file that name a texture image (its last word).

@@ -171,8 +171,9 @@ def check_robot(grasp: Grasp, robot: str, advice: str = "") -> None:
                          f"{robot!r}; {advice}")
 
 #: How far (metres, radians) the object may lie from where a grasp entry's palm poses put it
-#: before the entry is stale: far above the rounding of a saved pose (~1e-15).
-MOVED_TOL = 1e-6
+#: before the entry is stale: 10 um and 1e-5 rad, above a pose saved in float32 or rounded
+#: to 8 decimals (gaps up to ~1e-7) and far below any placement a user makes.
+MOVED_TOL = 1e-5
 
 
 def _object_moved(data: dict, palm_world: np.ndarray, name: str) -> tuple[float, float] | None:
@@ -199,10 +200,12 @@ def _object_moved(data: dict, palm_world: np.ndarray, name: str) -> tuple[float,
 
 def pose_gap(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     """(distance m, angle rad) between two poses (4, 4): an object moved by more than
-    :data:`MOVED_TOL` in either is no longer where grasps planned for the other reach."""
+    :data:`MOVED_TOL` in either is no longer where grasps planned for the other reach. The
+    angle is 2 asin(|R_a - R_b|_F / (2 sqrt 2)), exact for rotations and, unlike the
+    arccos of the trace, as accurate as the matrices' entries for small angles."""
     distance = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
-    turn = a[:3, :3].T @ b[:3, :3]
-    return distance, float(np.arccos(np.clip((np.trace(turn) - 1.0) / 2.0, -1.0, 1.0)))
+    chord = float(np.linalg.norm(a[:3, :3] - b[:3, :3])) / (2.0 * np.sqrt(2.0))
+    return distance, float(2.0 * np.arcsin(min(chord, 1.0)))
 
 
 def _array_field(data: dict, name: str, label: str, what: str) -> np.ndarray:
@@ -296,7 +299,8 @@ def load_grasps(path: str | Path) -> list[Grasp]:
     grasps = [Grasp.from_dict(g, f"{path} grasp {i}", object_name=top, default_id=str(i),
                               robot_name=robot)
               for i, g in enumerate(data["grasps"])]
-    check_unique_ids([g.id for g in grasps], str(path), "grasps")
+    check_unique_ids([g.id for g in grasps], str(path), "grasps",
+                     objects=[g.object for g in grasps])
     return grasps
 
 
@@ -306,16 +310,20 @@ def holds_candidates(data) -> bool:
     return isinstance(data, dict) and "candidates" in data
 
 
-def check_unique_ids(ids: list[str], where: str, what: str) -> None:
+def check_unique_ids(ids: list[str], where: str, what: str,
+                     objects: list[str] | None = None) -> None:
     """ValueError naming the first two entries of ``ids`` (of the ``what`` of ``where``, a
-    file) that share an id: a grasp or candidate is chosen, and its results are keyed, by
-    its id."""
-    first: dict[str, int] = {}
+    file) that share an id, among the entries of one object where ``objects`` gives each
+    entry's (a file of several objects' grasps may number each object's from 0): a grasp or
+    candidate is chosen, and its results are keyed, by its id."""
+    first: dict[tuple[str | None, str], int] = {}
     for i, entry_id in enumerate(ids):
-        if entry_id in first:
-            raise ValueError(f"{where}: {what} {first[entry_id]} and {i} have the same id "
-                             f"{entry_id!r}; ids must be unique")
-        first[entry_id] = i
+        key = (None if objects is None else objects[i], entry_id)
+        if key in first:
+            of = "" if objects is None else f" of {objects[i]}"
+            raise ValueError(f"{where}: {what} {first[key]} and {i} have the same id "
+                             f"{entry_id!r}{of}; ids must be unique")
+        first[key] = i
 
 
 def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
