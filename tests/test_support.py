@@ -351,6 +351,13 @@ def test_a_grasp_file_of_an_object_moved_since_is_refused(tabled, tmp_path):
     place_object("cube", as_name="cube_here", force=True)
     path = save_grasps(shipped_grasps("cube_here")[:2], tmp_path / "g.json")
     assert len(load_grasps(path)) == 2
+    # poses rounded to 8 decimals (a file another tool rewrote) are not a move
+    rounded = json.loads(path.read_text())
+    for entry in rounded["grasps"]:
+        for key in ("palm_pose", "position", "quaternion"):
+            entry[key] = np.round(entry[key], 8).tolist()
+    (tmp_path / "rounded.json").write_text(json.dumps(rounded))
+    assert len(load_grasps(tmp_path / "rounded.json")) == 2
     yaw = float(np.arctan2(cube.pose[1, 0], cube.pose[0, 0]))
     place_object("cube_here", position=cube.pose[:3, 3] + [0.05, 0.0, 0.0],
                  yaw=yaw + np.radians(30))
