@@ -27,17 +27,19 @@ __version__ = "0.1.0"
 #: Registered environment IDs.
 ENV_IDS: tuple[str, ...] = ("KineGrasp-v0", "KineGraspSelect-v0")
 
+#: Their entry points. Each env truncates its episodes itself, at its ``max_steps``: a
+#: registered ``max_episode_steps`` would add a TimeLimit that overrides the argument.
 _ENTRY_POINTS = {
-    "KineGrasp-v0": ("kinegrasp_env.envs:KineGraspEnv", 10),
-    "KineGraspSelect-v0": ("kinegrasp_env.envs:KineGraspSelectEnv", 1),
+    "KineGrasp-v0": "kinegrasp_env.envs:KineGraspEnv",
+    "KineGraspSelect-v0": "kinegrasp_env.envs:KineGraspSelectEnv",
 }
 
 
 def _register_envs(gymnasium) -> None:
     """Register :data:`ENV_IDS` with ``gymnasium`` (the module), once."""
-    for env_id, (entry, steps) in _ENTRY_POINTS.items():
+    for env_id, entry in _ENTRY_POINTS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=entry, max_episode_steps=steps)
+            gymnasium.register(id=env_id, entry_point=entry)
 
 
 when_imported("gymnasium", _register_envs)

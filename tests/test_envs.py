@@ -368,3 +368,29 @@ def test_imported_object_with_a_planned_q0(tmp_path, monkeypatch):
     check_reward_is_the_evaluation(env, reward, info)
     env.close()
     importer.forget()
+
+
+def test_max_steps_is_where_an_episode_ends():
+    """``max_steps`` truncates the episode, past the default 10 too (no registered
+    TimeLimit overrides it)."""
+    env = gym.make("KineGrasp-v0", n_draws=2, max_steps=12)
+    env.reset(seed=0)
+    ends = [env.step(np.zeros(2, np.float32))[3] for _ in range(12)]
+    assert ends == [False] * 11 + [True]
+    env.close()
+
+
+def test_a_pybullet_env_refuses_to_be_copied_or_pickled():
+    """An env whose engine holds a pybullet client cannot be deep-copied or pickled (a copy
+    would share, then close, the original's client): a TypeError saying so, at the copy."""
+    import copy
+    import pickle
+
+    env = gym.make("KineGrasp-v0", n_draws=2, engine="pybullet")
+    env.reset(seed=0)
+    env.step(np.zeros(2, np.float32))
+    for make_copy in (copy.deepcopy, pickle.dumps):
+        with pytest.raises(TypeError, match="holds a pybullet client, which cannot be copied"):
+            make_copy(env)
+    env.step(np.zeros(2, np.float32))  # the original still runs
+    env.close()

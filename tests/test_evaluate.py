@@ -222,3 +222,58 @@ def test_cli_evaluate_huge_sigma_is_one_line_not_a_crash():
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip().count("\n") == 0 and "sigma" in proc.stderr, proc.stderr
     assert proc.stdout == ""
+
+
+def test_the_library_refuses_bad_arguments_in_one_line_before_any_draw():
+    """What a script writer mixes up, each a ValueError naming it (never numpy's, numba's or
+    pybullet's own error after the draws): the noise's type, seeds that are not integers
+    >= 0, cone edges below 3, sigma above pi for either evaluation, a q0 outside the joint
+    limits; every robot's evaluation takes a Generator, the default robot's chunked one not."""
+    from dataclasses import replace
+
+    from kinegrasp_env import plan_grasps
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    g = shipped_grasps("cube")[0]
+    with pytest.raises(ValueError, match="noise must be a JointNoise or a NoiseModel, got float"):
+        evaluate_grasp(g, 0.0133, 10)
+    for seed in (1.5, -1, "1", np.random.default_rng(0)):
+        with pytest.raises(ValueError, match="seed must be an integer >= 0"):
+            evaluate_grasp(g, JointNoise(0.01), 10, seed=seed, engine="fast")
+    for seed in (1.5, -1):
+        with pytest.raises(ValueError, match="seed must be an integer >= 0, a numpy"):
+            evaluate_robot_grasp(g, sigma=0.01, n=10, seed=seed, engine="fast")
+        with pytest.raises(ValueError, match="seed must be an integer >= 0, a numpy"):
+            plan_grasps("panda", "cube", count=1, seed=seed)
+    assert evaluate_robot_grasp(g, sigma=0.01, n=5, seed=np.random.default_rng(0),
+                                engine="fast").n == 5
+    for edges, shown in ((0, "0"), (-1, "-1"), (1.5, "1.5")):
+        with pytest.raises(ValueError, match=f"num_edges must be an integer >= 3 and <= 32 .*"
+                                             f"got {shown}$"):
+            evaluate_grasp(g, JointNoise(0.01), 10, engine="fast", num_edges=edges)
+    with pytest.raises(ValueError, match="sigma 4 rad is above the bound pi"):
+        evaluate_robot_grasp(g, sigma=4.0, n=10, engine="fast")
+    far = replace(g, q0=np.r_[10.0, g.q0[1:]])
+    with pytest.raises(ValueError, match=r"q0\[0\] \(.*\) = 10.0000 is outside its limits"):
+        evaluate_robot_grasp(far, sigma=0.01, n=10, engine="fast")
+    # an int or numpy-scalar sigma runs to the end (its summary took list(sigma))
+    assert evaluate_grasp(g, JointNoise(0), 5, engine="fast").sigma == 0.0
+
+
+def test_a_process_keeps_a_bounded_number_of_engines():
+    """A sweep over frictions in one process keeps at most MAX_ENGINES engines (a pybullet
+    engine holds a simulator client and tens of MB); every closed one is released."""
+    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo.execution import MAX_ENGINES
+
+    g = shipped_grasps("cube")[0]
+    for k in range(MAX_ENGINES + 3):
+        evaluate_grasp(g, JointNoise(0.01), 2, engine="pybullet", friction=0.3 + 0.01 * k)
+    assert len(evaluate._ENGINES) <= MAX_ENGINES
+
+
+def test_the_default_robots_engines_are_context_managers():
+    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
+
+    with default_engine("pybullet", "cube") as engine:
+        assert engine.run(shipped_grasps("cube")[0].q0[None]).outcome.shape == (1,)

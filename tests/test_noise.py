@@ -76,3 +76,16 @@ def test_bad_noise_arguments():
 def test_zero_sigma_gives_zero_noise():
     for kind in DISTRIBUTIONS:
         assert not JointNoise(0.0, kind).sample(100, 7, 0).any()
+
+
+def test_sigma_is_stored_as_floats_and_checked_up_front():
+    """An int or numpy scalar sigma is a float (a list a tuple of floats); a string, a bool or
+    a sigma above pi is one ValueError at construction, not a failure after the draws."""
+    assert JointNoise(0).sigma == 0.0 and type(JointNoise(0).sigma) is float
+    assert type(JointNoise(np.float32(0.0133)).sigma) is float
+    assert JointNoise([1, np.float64(0.5)]).sigma == (1.0, 0.5)
+    for bad in ("0.0133", True, ["0.1", 0.2]):
+        with pytest.raises(ValueError, match="sigma must be a number of radians or one per"):
+            JointNoise(bad)
+    with pytest.raises(ValueError, match="sigma 4 rad is above the bound pi"):
+        JointNoise((0.01, 4.0))

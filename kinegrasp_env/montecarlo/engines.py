@@ -36,6 +36,7 @@ from kinegrasp_env.montecarlo.perturbation import (
 )
 from kinegrasp_env.physics.hand_result import CloseResult
 from kinegrasp_env.quality.epsilon import prepare_exact_paths
+from kinegrasp_env.quality.wrenches import check_parameters
 from kinegrasp_env.robot.default_robot import (
     HAND_JOINTS,
     default_description,
@@ -99,6 +100,7 @@ class Engine:
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
+        check_parameters(friction, num_edges)  # before the quality's tables are built
         self.obj = load_object(object_name)
         self.friction = friction
         self.num_edges = num_edges
@@ -112,6 +114,12 @@ class Engine:
         """Release what the engine holds (its table probe, if any)."""
         if self._table_probe is not None:
             self._table_probe.close()
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     @staticmethod
     def empty_draws(n: int) -> DrawBatch:
@@ -359,13 +367,19 @@ def cached_engine(cache: dict[tuple, Engine], name: str, object_name: str,
                   static_hold: bool = False) -> Engine:
     """:func:`make_engine`'s engine, kept in ``cache`` (e.g. one per worker process) under
     its settings and the object's :func:`~kinegrasp_env.world.objects.object_version`: an
-    object re-imported under the same name gets a new engine (the stale one is closed)."""
+    object re-imported under the same name gets a new engine (the stale one is closed), and
+    at most :data:`~kinegrasp_env.montecarlo.execution.MAX_ENGINES` are kept (the oldest is
+    closed)."""
+    from kinegrasp_env.montecarlo.execution import MAX_ENGINES
+
     key = (name, object_name, friction, num_edges, static_hold)
     versioned = (*key, object_version(object_name))
     engine = cache.get(versioned)
     if engine is None:
         for stale in [k for k in cache if k[:len(key)] == key]:
             cache.pop(stale).close()
+        while len(cache) >= MAX_ENGINES:
+            cache.pop(next(iter(cache))).close()
         engine = cache[versioned] = make_engine(name, object_name, friction, num_edges,
                                                 static_hold)
     return engine

@@ -31,7 +31,13 @@ from kinegrasp_env.montecarlo.engines import (
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.quality.wrenches import check_parameters
+from kinegrasp_env.sampling.noise import (  # noqa: F401  (MAX_SIGMA importable from here too)
+    MAX_SIGMA,
+    JointNoise,
+    check_sigma_bound,
+    is_integer_seed,
+)
 from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseDraws, NoiseModel, chunk_stream
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
@@ -43,10 +49,6 @@ DEFAULT_CHUNK = STREAM_CHUNK
 #: on 2 processes); results are identical.
 FAST_GROUP = 10
 ENGINES = ("pybullet", "fast", "physics")
-#: Largest joint-noise sigma accepted (radians). A standard deviation of half a turn already
-#: spreads a joint over its whole circle, so the small-error model the evaluation stands for
-#: has no meaning beyond it (and far beyond it, at 1e308, q0 + eps overflows to inf).
-MAX_SIGMA = math.pi
 #: What every evaluation takes as its noise.
 Noise = JointNoise | NoiseModel
 #: Engines that take a model's palm, object and friction errors (the kinematic ones).
@@ -228,11 +230,7 @@ def validate_task(q0: np.ndarray, noise: Noise) -> None:
     if bad.size:
         raise ValueError(f"q0 must be 14 finite numbers (radians), got q0[{bad[0]}] = "
                          f"{q0[bad[0]]}")
-    sigma = noise.sigma_vector(7)
-    if np.any(sigma > MAX_SIGMA):
-        raise ValueError(f"sigma {float(sigma.max()):g} rad is above the bound pi "
-                         f"({MAX_SIGMA:.4f} rad): a joint error that large wraps the joint "
-                         "around its whole circle")
+    check_sigma_bound(noise.sigma_vector(7))
 
 
 def check_noise_engine(noise: Noise, engine: str) -> None:
@@ -314,11 +312,19 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
     """
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
+    if not isinstance(noise, (JointNoise, NoiseModel)):
+        raise ValueError(f"noise must be a JointNoise or a NoiseModel, got "
+                         f"{type(noise).__name__} (sigma s radians on every arm joint: "
+                         "JointNoise(s))")
+    if not is_integer_seed(seed):
+        raise ValueError(f"seed must be an integer >= 0 (chunk c draws from "
+                         f"SeedSequence(seed, spawn_key=(c,))), got {seed!r}")
     check_robot(grasp, DEFAULT_ROBOT, "evaluate_grasp takes the default robot's grasps; every "
                 "robot's grasp is evaluated by kinegrasp_env.montecarlo.robot_evaluate."
                 "evaluate_robot_grasp, as `kinegrasp evaluate` evaluates it")
     validate_task(grasp.q0, noise)
     check_noise_engine(noise, engine)
+    check_parameters(friction, num_edges)
     n_samples = int(sum(sizes))
     key = (engine, grasp.object, float(friction), int(num_edges), bool(static_hold))
     chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]

@@ -23,6 +23,9 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 BACKENDS = ("local", "ray")
+#: Engines a process keeps between tasks (the oldest is closed when one more is needed: a
+#: pybullet engine holds a simulator client and tens of MB).
+MAX_ENGINES = 4
 #: How often one task may take its worker down before the run gives up.
 MAX_ATTEMPTS = 4
 #: Tasks in flight per worker (keeps workers busy without queueing the whole run).

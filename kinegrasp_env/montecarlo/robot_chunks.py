@@ -22,15 +22,13 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.execution import MAX_ENGINES, Executor
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseModel, stream_rows
 
 #: Draws per chunk.
 CHUNK = STREAM_CHUNK
-#: Engines a process keeps (the oldest is closed when one more is needed).
-MAX_ENGINES = 4
 _ENGINES: dict[tuple, RobotEngine] = {}
 
 

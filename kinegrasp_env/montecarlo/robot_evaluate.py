@@ -30,11 +30,18 @@ from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_engines import ENGINES, RobotReferenceEngine, make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.sampling.noise import JointNoise, SeedLike, as_generator
+from kinegrasp_env.sampling.noise import (
+    JointNoise,
+    SeedLike,
+    as_generator,
+    check_seed,
+    is_integer_seed,
+)
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
 from kinegrasp_env.world.grasps import Grasp, check_robot
+from kinegrasp_env.world.robot_configuration import check_configuration
 
 __all__ = ["ENGINES", "RobotEngine", "RobotEvaluation", "RobotReferenceEngine",
            "check_robot", "evaluate_robot_grasp", "make_engine", "nominal_robot_quality",
@@ -214,6 +221,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
             raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
                              f"seed, got {type(seed).__name__}")
+    check_seed(seed)
     JointNoise(sigma, noise)  # sigma and noise checked before any work
     if isinstance(engine, str) and engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
@@ -225,6 +233,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     else:
         name = grasp.robot if robot is None else getattr(robot, "name", robot)
     check_robot(grasp, name)
+    check_configuration(grasp.q0, f"grasp {grasp.id!r}", robot=name)
     if noise_model is not None:
         from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
 
@@ -262,7 +271,7 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
 
 def _integer_seed(seed: SeedLike, what: str) -> None:
     """ValueError unless ``seed`` is an integer >= 0 (a run drawn by rows of its streams)."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+    if not is_integer_seed(seed):
         raise ValueError(f"{what} takes an integer seed >= 0 (its draws are rows of the "
                          f"seed's streams), got {seed!r}")
 

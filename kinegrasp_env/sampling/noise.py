@@ -21,9 +21,28 @@ import numpy as np
 
 DISTRIBUTIONS = ("gaussian", "uniform", "triangular")
 METHODS = ("mc", "antithetic", "sobol")
+#: Largest joint-noise sigma accepted (radians). A standard deviation of half a turn already
+#: spreads a joint over its whole circle, so the small-error model the evaluation stands for
+#: has no meaning beyond it (and far beyond it, at 1e308, q0 + eps overflows to inf).
+MAX_SIGMA = math.pi
 
 
 SeedLike = int | np.random.Generator | np.random.SeedSequence | None
+
+
+def is_integer_seed(seed) -> bool:
+    """Whether ``seed`` is an integer >= 0 (not a bool)."""
+    return (isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_))
+            and seed >= 0)
+
+
+def check_seed(seed, what: str = "seed") -> None:
+    """ValueError (one line naming ``what`` and the value) unless ``seed`` is an integer >= 0,
+    a ``numpy.random.SeedSequence`` or a ``numpy.random.Generator``."""
+    if not (is_integer_seed(seed)
+            or isinstance(seed, (np.random.SeedSequence, np.random.Generator))):
+        raise ValueError(f"{what} must be an integer >= 0, a numpy SeedSequence or a numpy "
+                         f"Generator, got {seed!r}")
 
 
 def as_generator(seed: SeedLike) -> np.random.Generator:
@@ -46,12 +65,21 @@ def _inverse_cdf(kind: str, u: np.ndarray) -> np.ndarray:
     return np.where(u < 0.5, b * (np.sqrt(2.0 * u) - 1.0), b * (1.0 - np.sqrt(2.0 * (1.0 - u))))
 
 
+def check_sigma_bound(sigma: np.ndarray) -> None:
+    """ValueError when a joint sigma (radians, (d,)) is above :data:`MAX_SIGMA`."""
+    if np.any(sigma > MAX_SIGMA):
+        raise ValueError(f"sigma {float(np.max(sigma)):g} rad is above the bound pi "
+                         f"({MAX_SIGMA:.4f} rad): a joint error that large wraps the joint "
+                         "around its whole circle")
+
+
 @dataclass(frozen=True)
 class JointNoise:
     """Independent zero-mean noise on d joints.
 
     Attributes:
-        sigma: scalar or (d,) standard deviations (radians), all >= 0 and finite.
+        sigma: scalar or (d,) standard deviations (radians), all finite, >= 0 and at most
+            :data:`MAX_SIGMA` (stored as a float or a tuple of floats).
         kind: one of ``gaussian``, ``uniform``, ``triangular``.
     """
 
@@ -61,11 +89,19 @@ class JointNoise:
     def __post_init__(self) -> None:
         if self.kind not in DISTRIBUTIONS:
             raise ValueError(f"unknown noise type {self.kind!r}; choose from {DISTRIBUTIONS}")
+        values = self.sigma if isinstance(self.sigma, (list, tuple, np.ndarray)) else [self.sigma]
+        if not all(isinstance(v, (int, float, np.integer, np.floating))
+                   and not isinstance(v, (bool, np.bool_)) for v in np.ravel(values)):
+            raise ValueError(f"sigma must be a number of radians or one per joint, got "
+                             f"{self.sigma!r}")
         sig = np.atleast_1d(np.asarray(self.sigma, dtype=float))
         if sig.ndim != 1 or not np.all(np.isfinite(sig)) or np.any(sig < 0):
             raise ValueError(f"sigma must be finite and >= 0, got {self.sigma!r}")
-        if isinstance(self.sigma, (list, np.ndarray)):
-            object.__setattr__(self, "sigma", tuple(float(s) for s in sig))
+        check_sigma_bound(sig)
+        if np.ndim(self.sigma) == 0:
+            object.__setattr__(self, "sigma", float(sig[0]))  # an int or numpy scalar too
+        elif not isinstance(self.sigma, tuple) or not all(type(v) is float for v in self.sigma):
+            object.__setattr__(self, "sigma", tuple(float(v) for v in sig))
 
     def sigma_vector(self, dim: int) -> np.ndarray:
         """(dim,) standard deviations."""

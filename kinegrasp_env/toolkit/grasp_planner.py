@@ -40,7 +40,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
-from kinegrasp_env.sampling.noise import SeedLike, as_generator
+from kinegrasp_env.sampling.noise import SeedLike, as_generator, check_seed
 from kinegrasp_env.toolkit.approach_planner import plan_approach_grasps
 from kinegrasp_env.toolkit.plan_checks import (
     PlannerSettings,
@@ -185,7 +185,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     :func:`~kinegrasp_env.toolkit.plan_checks.attempts_for` ``count`` palm poses.
 
     Raises:
-        ValueError: bad count.
+        ValueError: bad count or seed.
     """
     import time
 
@@ -193,6 +193,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise ValueError(f"count must be a positive number of grasps, got {count!r}")
     settings = settings or PlannerSettings(attempts=attempts_for(count))
+    check_seed(seed)
     rng = as_generator(seed)
     description = load_robot(robot) if isinstance(robot, str) else robot
     if len(description.fingers) != 2:

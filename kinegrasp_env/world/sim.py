@@ -135,6 +135,14 @@ class BulletWorld:
                 pass
             self.client = None
 
+    def __reduce__(self):
+        raise TypeError(f"a {type(self).__name__} holds a pybullet client, which cannot be "
+                        "copied or pickled: make another (an engine or an env anew, with the "
+                        "same arguments)")
+
+    def __deepcopy__(self, memo):
+        self.__reduce__()
+
     def __enter__(self) -> BulletWorld:
         return self
 
