@@ -505,3 +505,63 @@ def test_finish_runs_the_exit_handlers_flushes_and_waits_for_working_threads():
         done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True,
                               text=True, timeout=60)
         assert (done.returncode, done.stdout) == (3, expected), (argv, done)
+
+
+@pytest.mark.parametrize(("how", "status", "line"), [
+    ("term", 143, "kinegrasp: terminated"), ("ctrl-c", 130, "kinegrasp: interrupted")])
+def test_a_stopped_run_says_so_and_leaves_no_worker(how, status, line):
+    """SIGTERM to the command, or Ctrl-C (SIGINT to every process of the job, as a terminal
+    sends it), in the middle of a run on 2 worker processes: one line, the signal's exit
+    status, and no process of the job left (SIGTERM left the pool's workers running; Ctrl-C
+    could print an idle worker's traceback: the workers' own signal settings are tested in
+    test_execution.py, this run's timing need not catch one idle)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "kinegrasp_env.cli", "evaluate", "--object", "spray_flask",
+         "--samples", "100000", "--engine", "pybullet", "--processes", "2"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    time.sleep(6)  # the workers are drawing by then (the whole run takes minutes)
+    if how == "term":
+        os.kill(proc.pid, signal.SIGTERM)
+    else:
+        os.killpg(proc.pid, signal.SIGINT)
+    err = proc.communicate(timeout=120)[1].decode().strip().splitlines()
+    # (a first run on a machine may print the kernels' compile notice before)
+    assert proc.returncode == status and err[-1] == line, err
+    assert not any("Traceback" in text for text in err), err
+    time.sleep(0.5)
+    assert _session_processes(proc.pid) == []
+
+
+def _session_processes(session: int) -> list[int]:
+    """The processes still alive in session ``session`` (Linux: /proc/PID/stat's 6th
+    field), zombies left out."""
+    from pathlib import Path
+
+    alive = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # gone meanwhile
+            continue
+        if int(fields[3]) == session and fields[0] != "Z":
+            alive.append(int(stat.parent.name))
+    return alive
+
+
+def test_json_output_is_strict_json(capsys):
+    """``--json`` writes null where a moment is undefined (one draw has no covariance), never
+    NaN, which strict parsers (a browser's JSON.parse) refuse."""
+    def strict(text: str) -> dict:
+        def refuse(name):
+            raise ValueError(f"not JSON: {name}")
+        return json.loads(text, parse_constant=refuse)
+
+    assert main(["ee", "--samples", "1", "--json"]) == 0
+    shown = strict(capsys.readouterr().out)
+    assert shown["skew"] == [None, None, None]

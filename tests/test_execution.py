@@ -164,3 +164,20 @@ def test_unreachable_ray_address_fails_fast_and_clearly(capsys):
     assert f"cannot reach a Ray cluster at '127.0.0.1:{port}'" in capsys.readouterr().err
     with pytest.raises(ValueError, match="must be host:port"):
         make_executor("ray", None, "nonsense")
+
+
+def _worker_signals(_task) -> tuple:
+    return signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+
+
+def test_workers_leave_ctrl_c_to_the_parent():
+    """A pool's workers ignore SIGINT (Ctrl-C, sent by a terminal to every process of the
+    job, is the parent's to handle: it stops the pool) and end plainly on SIGTERM (not
+    through the command's handler, which a forked worker would inherit)."""
+    previous = signal.signal(signal.SIGTERM, lambda *_: None)  # as the command installs one
+    try:
+        with LocalExecutor(2) as ex:
+            seen = set(ex.map(_worker_signals, range(4)))
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert seen == {(signal.SIG_IGN, signal.SIG_DFL)}

@@ -258,3 +258,42 @@ def test_the_documented_example_spec_is_valid_and_shown_verbatim():
     spec = SweepSpec.from_file(path)
     assert len(spec.tasks()) == 2 * 2 * 2 * 10
     assert path.read_text() in (root / "docs" / "guides" / "sweeps.md").read_text()
+
+
+def test_a_damaged_store_is_one_line(tmp_path, capsys):
+    """A ``results.sqlite`` that is no database (a damaged copy, another program's file) is
+    refused in one line naming it, not a traceback."""
+    spec = tmp_path / "s.yaml"
+    spec.write_text("objects: [cube]\ngrasps: [0]\nsigmas: [0.01]\nsamples: 10\n"
+                    "engines: [fast]\n")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "results.sqlite").write_text("garbage\n")
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith(f"kinegrasp sweep: error: {tmp_path / 'out' / 'results.sqlite'} "
+                              "is not a sweep store kinegrasp can read (file is not a "
+                              "database)"), err
+
+
+def test_a_fixed_friction_beside_a_drawn_one_is_refused(tmp_path, capsys):
+    """A noise model that draws mu per draw (docs/noise_example.yaml's friction source) and a
+    fixed mu (the spec's ``friction`` or ``--friction``) are refused in one line, as
+    ``evaluate`` refuses them: the cells of that model ignored the fixed mu."""
+    import shutil
+    from pathlib import Path
+
+    shutil.copy(Path(__file__).resolve().parents[1] / "docs" / "noise_example.yaml",
+                tmp_path / "nx.yaml")
+    body = ("objects: [cube]\ngrasps: [0]\nsigmas: [0.0133]\nnoise: [gaussian, nx.yaml]\n"
+            "engines: [fast]\nsamples: 10\n")
+    spec = tmp_path / "s.yaml"
+    for text, extra, needle in (
+            (body, ["--friction", "0.6"], "--friction and the noise spec's friction source "
+                                          "both set mu"),
+            (body + "friction: 0.6\n", [], "friction and the friction source of noise "
+                                           "'nx-")):
+        spec.write_text(text)
+        assert main(["sweep", str(spec), "--out", str(tmp_path / "out"), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert needle in err[-1], err
+    assert not (tmp_path / "out").exists()

@@ -5,7 +5,6 @@ convergence, the paper's Fig. 3).
 
 from __future__ import annotations
 
-import json
 import sys
 
 from kinegrasp_env.cli.common import (
@@ -149,7 +148,7 @@ def cmd_convergence(args) -> int:
                                   "skew_error": c.skew_error.tolist()}
                        for s, c in by.items()} for label, by in curves.items()}
     if args.json:
-        print(json.dumps(summary))
+        print_json(summary)
     else:
         print(f"convergence figure written to {path}")
     return 0

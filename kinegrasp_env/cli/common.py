@@ -206,14 +206,23 @@ def plural(count: int, word: str, many: str | None = None) -> str:
 
 
 def to_jsonable(value):
-    """``value`` with NumPy arrays and scalars turned into lists and Python numbers."""
+    """``value`` with NumPy arrays and scalars turned into lists and Python numbers, and
+    NaN and infinities (nested in lists and mappings too) into None: strict JSON, which a
+    browser's ``JSON.parse`` reads (Python's ``json`` writes ``NaN``, which it does not)."""
     if hasattr(value, "tolist") and hasattr(value, "dtype"):  # ndarray or NumPy scalar
-        return value.tolist()
+        value = value.tolist()
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {k: to_jsonable(v) for k, v in value.items()}
     return value
 
 
 def print_json(payload: dict) -> None:
-    print(json.dumps({k: to_jsonable(v) for k, v in payload.items()}))
+    """Print ``payload`` as one line of strict JSON (:func:`to_jsonable`)."""
+    print(json.dumps(to_jsonable(payload), allow_nan=False))
 
 
 def format_moments(label: str, mean, cov, skew=None) -> str:

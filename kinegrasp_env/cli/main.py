@@ -16,6 +16,7 @@ import atexit
 import errno
 import os
 import re
+import signal
 import sys
 import threading
 import traceback
@@ -78,12 +79,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if unknown:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     kernel_notice.install()  # the first run on a machine compiles the kernels: say so
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         check_robot_option(args)
         return int(args.func(args) or 0)
     except CLIError as exc:
         print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated:
+        print("kinegrasp: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except KeyboardInterrupt:
         print("kinegrasp: interrupted", file=sys.stderr)
         return 130
@@ -96,6 +101,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     except Exception:
         return _bug(args.command)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: the command stops as on Ctrl-C (its worker pool and open files closed
+    on the way out, a resumable run's partial results kept), exit status 128 + 15."""
+
+
+def _terminate(signum, frame) -> NoReturn:
+    raise Terminated
 
 
 def check_robot_option(args) -> None:

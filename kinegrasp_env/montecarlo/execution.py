@@ -94,6 +94,17 @@ class Executor:
         self.close()
 
 
+def leave_signals_to_the_parent() -> None:
+    """A worker process's start: Ctrl-C (SIGINT, which a terminal sends to every process of
+    the job) is the parent's to handle (it stops the pool; a worker interrupted in the
+    middle of a task would print its traceback), and SIGTERM ends the worker plainly (not
+    through a handler it inherited)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 class LocalExecutor(Executor):
     """``processes`` worker processes on this machine (1: run inline, no pool)."""
 
@@ -113,7 +124,8 @@ class LocalExecutor(Executor):
 
             method = "fork" if sys.platform == "linux" else "spawn"
             self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=multiprocessing.get_context(method))
+                                             mp_context=multiprocessing.get_context(method),
+                                             initializer=leave_signals_to_the_parent)
         return self._pool
 
     def _submit(self, fn, index, task) -> None:

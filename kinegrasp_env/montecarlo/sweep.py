@@ -102,16 +102,21 @@ class SweepStore:
         self.path = self.directory / "results.sqlite"
         self._db = sqlite3.connect(self.path)
         outcome_columns = ", ".join(f"{name} INTEGER NOT NULL" for name in OUTCOMES)
-        with self._db:
-            self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, "
-                             "value TEXT NOT NULL)")
-            self._db.execute(
-                "CREATE TABLE IF NOT EXISTS tasks (key TEXT PRIMARY KEY, object TEXT NOT NULL, "
-                "grasp INTEGER NOT NULL, sigma REAL NOT NULL, noise TEXT NOT NULL, "
-                "engine TEXT NOT NULL, chunk INTEGER NOT NULL, size INTEGER NOT NULL, "
-                f"{outcome_columns}, q_n INTEGER NOT NULL, q_mean REAL NOT NULL, "
-                "q_m2 REAL NOT NULL, q_m3 REAL NOT NULL, seconds REAL NOT NULL)")
-        self._check_streams(spec)
+        try:
+            with self._db:
+                self._db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, "
+                                 "value TEXT NOT NULL)")
+                self._db.execute(
+                    "CREATE TABLE IF NOT EXISTS tasks (key TEXT PRIMARY KEY, object TEXT NOT "
+                    "NULL, grasp INTEGER NOT NULL, sigma REAL NOT NULL, noise TEXT NOT NULL, "
+                    "engine TEXT NOT NULL, chunk INTEGER NOT NULL, size INTEGER NOT NULL, "
+                    f"{outcome_columns}, q_n INTEGER NOT NULL, q_mean REAL NOT NULL, "
+                    "q_m2 REAL NOT NULL, q_m3 REAL NOT NULL, seconds REAL NOT NULL)")
+            self._check_streams(spec)
+        except sqlite3.DatabaseError as exc:  # a damaged file, or another program's
+            self.close()
+            raise SpecError(f"{self.path} is not a sweep store kinegrasp can read ({exc}); "
+                            "use another --out, or remove the file to start afresh") from None
 
     def _check_streams(self, spec: SweepSpec) -> None:
         stored = dict(self._db.execute("SELECT key, value FROM meta").fetchall())

@@ -103,8 +103,21 @@ class SweepSpec:
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
         friction = _friction(data.get("friction", 0.5), where)
-        return cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
+        spec = cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
                    files, robot, friction)
+        drawn = spec.friction_drawn_by()
+        if "friction" in data and drawn:
+            raise SpecError(f"{where}: friction and the friction source of noise {drawn[0]!r} "
+                            "both set mu: the source draws mu per draw; give one of them")
+        return spec
+
+    def friction_drawn_by(self) -> list[str]:
+        """The labels of the noise models among ``noise`` that draw mu per draw (a friction
+        source), whose cells take no fixed ``friction``."""
+        from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+        return [label for label, text in self.models
+                if noise_model_from_spec(json.loads(text)).friction is not None]
 
     @classmethod
     def from_file(cls, path: str | Path, robot: str | None = None) -> SweepSpec:
