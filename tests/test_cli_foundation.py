@@ -521,10 +521,14 @@ def test_a_stopped_run_says_so_and_leaves_no_worker(how, status, line):
     import sys
     import time
 
+    def as_in_a_terminal():  # a job started in the background (a CI run) ignores SIGINT
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
     proc = subprocess.Popen(
         [sys.executable, "-m", "kinegrasp_env.cli", "evaluate", "--object", "spray_flask",
          "--samples", "100000", "--engine", "pybullet", "--processes", "2"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
+        preexec_fn=as_in_a_terminal)
     time.sleep(6)  # the workers are drawing by then (the whole run takes minutes)
     if how == "term":
         os.kill(proc.pid, signal.SIGTERM)

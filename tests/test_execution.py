@@ -174,10 +174,14 @@ def test_workers_leave_ctrl_c_to_the_parent():
     """A pool's workers ignore SIGINT (Ctrl-C, sent by a terminal to every process of the
     job, is the parent's to handle: it stops the pool) and end plainly on SIGTERM (not
     through the command's handler, which a forked worker would inherit)."""
-    previous = signal.signal(signal.SIGTERM, lambda *_: None)  # as the command installs one
+    # as in a terminal, with the command's SIGTERM handler (a background job, as a CI run
+    # is, starts with SIGINT ignored already)
+    previous = (signal.signal(signal.SIGTERM, lambda *_: None),
+                signal.signal(signal.SIGINT, signal.default_int_handler))
     try:
         with LocalExecutor(2) as ex:
             seen = set(ex.map(_worker_signals, range(4)))
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGTERM, previous[0])
+        signal.signal(signal.SIGINT, previous[1])
     assert seen == {(signal.SIG_IGN, signal.SIG_DFL)}
