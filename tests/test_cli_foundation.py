@@ -539,11 +539,11 @@ def test_a_stopped_run_says_so_and_leaves_no_worker(how, status, line):
     assert proc.returncode == status and err[-1] == line, err
     assert not any("Traceback" in text for text in err), err
     time.sleep(0.5)
-    assert _session_processes(proc.pid) == []
+    assert _group_processes(proc.pid) == []
 
 
-def _session_processes(session: int) -> list[int]:
-    """The processes still alive in session ``session`` (Linux: /proc/PID/stat's 6th
+def _group_processes(group: int) -> list[int]:
+    """The processes still alive in process group ``group`` (Linux: /proc/PID/stat's 5th
     field), zombies left out."""
     from pathlib import Path
 
@@ -553,7 +553,7 @@ def _session_processes(session: int) -> list[int]:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except OSError:  # gone meanwhile
             continue
-        if int(fields[3]) == session and fields[0] != "Z":
+        if int(fields[2]) == group and fields[0] != "Z":
             alive.append(int(stat.parent.name))
     return alive
 

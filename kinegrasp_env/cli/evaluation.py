@@ -86,7 +86,7 @@ def check_robot_engine(engine: str, robot: str) -> None:
                        f"{', '.join(ENGINES[:-1])} or {ENGINES[-1]} engine only")
 
 
-def run_evaluate(args, index: int, grasp, robot: str, sigma: float, samples: int,
+def run_evaluate(args, grasp, robot: str, sigma: float, samples: int,
                  seed: int, friction: float, noise=None) -> int:
     """``kinegrasp evaluate`` of any robot's grasp: joint noise on its arm joints
     (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,

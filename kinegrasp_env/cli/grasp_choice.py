@@ -47,18 +47,13 @@ def file_grasp(args):
         grasps = load_grasps(args.grasps)
     if not grasps:
         raise CLIError(f"--grasps {args.grasps} holds no grasps")
-    index = index_in(args, [g.id for g in grasps])
+    index = id_index(args.grasp, [g.id for g in grasps], args.grasps)
     grasp = grasps[index]
     if args.object is not None and args.object != grasp.object:
         raise CLIError(f"--object {args.object}: grasp {grasp.id} of {args.grasps} is a grasp of "
                        f"{grasp.object}")
     args.object = grasp.object
     return index, grasp
-
-
-def index_in(args, ids: list[str]) -> int:
-    """The index of ``--grasp`` (an id in ``ids``, else an index) in ``--grasps``."""
-    return id_index(args.grasp, ids, args.grasps)
 
 
 def id_index(word: str, ids: list[str], source: str) -> int:
@@ -90,7 +85,7 @@ def palm_pose_grasp(args):
     with reported(ValueError):  # bad entries: one line naming the candidate
         read = read_candidates(args.grasps, getattr(args, "robot", None))
     name, candidates = read.object, read.candidates
-    index = index_in(args, [c.id for c in candidates])
+    index = id_index(args.grasp, [c.id for c in candidates], args.grasps)
     if args.object is not None and args.object != name:
         raise CLIError(f"--object {args.object}: {args.grasps} holds candidates of {name}")
     grasps, rejected = solve_all(name, [candidates[index]], read.robot)

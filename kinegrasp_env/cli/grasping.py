@@ -41,8 +41,8 @@ def cmd_evaluate(args) -> int:
     for name in ("report", "plot"):  # before a palm pose is solved
         if getattr(args, name):
             output_file(getattr(args, name), f"--{name}", inputs=input_files(args))
-    index, grasp = chosen_grasp(args)
-    return run_evaluate(args, index, grasp, args.robot or grasp.robot, sigma, samples, seed,
+    _, grasp = chosen_grasp(args)
+    return run_evaluate(args, grasp, args.robot or grasp.robot, sigma, samples, seed,
                           friction, noise)
 
 

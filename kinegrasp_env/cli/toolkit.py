@@ -99,13 +99,10 @@ def cmd_sweep(args) -> int:
         spec = SweepSpec.from_file(args.spec, robot=args.robot)
     if args.friction is not None:
         import dataclasses
-        import json
 
-        from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-
-        for _, text in spec.models:  # a model's friction source and --friction: refused
-            friction_from(args, noise_model_from_spec(json.loads(text)))
-        spec = dataclasses.replace(spec, friction=friction_from(args))
+        drawn = spec.friction_sources()  # a model's friction source and --friction: refused
+        spec = dataclasses.replace(spec, friction=friction_from(args, drawn[0][1] if drawn
+                                                                else None))
     out = output_folder(args.out)
     robot = "" if spec.robot == DEFAULT_ROBOT else f" of robot {spec.robot}"
     with executor_from(args) as executor:

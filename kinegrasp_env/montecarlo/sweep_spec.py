@@ -34,7 +34,8 @@ from typing import Any
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
 from kinegrasp_env.montecarlo.sweep_noise import noise_entries
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
-from kinegrasp_env.sampling.noise_spec import spec_loader
+from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.noise_spec import noise_model_from_spec, spec_loader
 from kinegrasp_env.world.grasps import Grasp, check_robot
 from kinegrasp_env.world.objects import object_names, object_version
 
@@ -105,19 +106,19 @@ class SweepSpec:
         friction = _friction(data.get("friction", 0.5), where)
         spec = cls(objects, indices, sigmas, noise, engines, samples, chunk, seed, models,
                    files, robot, friction)
-        drawn = spec.friction_drawn_by()
+        drawn = spec.friction_sources()
         if "friction" in data and drawn:
-            raise SpecError(f"{where}: friction and the friction source of noise {drawn[0]!r} "
-                            "both set mu: the source draws mu per draw; give one of them")
+            raise SpecError(f"{where}: friction and the friction source of noise "
+                            f"{drawn[0][0]!r} both set mu: the source draws mu per draw; give "
+                            "one of them")
         return spec
 
-    def friction_drawn_by(self) -> list[str]:
-        """The labels of the noise models among ``noise`` that draw mu per draw (a friction
-        source), whose cells take no fixed ``friction``."""
-        from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-
-        return [label for label, text in self.models
-                if noise_model_from_spec(json.loads(text)).friction is not None]
+    def friction_sources(self) -> list[tuple[str, NoiseModel]]:
+        """(label, model) of the noise models among ``noise`` that draw mu per draw (a
+        friction source), whose cells take no fixed ``friction``."""
+        models = [(label, noise_model_from_spec(json.loads(text)))
+                  for label, text in self.models]
+        return [(label, model) for label, model in models if model.friction is not None]
 
     @classmethod
     def from_file(cls, path: str | Path, robot: str | None = None) -> SweepSpec:
