@@ -1,6 +1,8 @@
 """The closing motors of a description robot's hand, whatever the simulator: each closing
-joint's effort and speed limits (:func:`motor_efforts`) and the rule by which the joints of a
-finger follow its first joint (:func:`closing_followers`).
+joint's effort and speed limits (:func:`motor_efforts`), which joints a motor of their own
+drives (:func:`finger_leaders`: a finger's first closing joint and each independently
+actuated phalanx), the rule by which the others follow them (:func:`closing_followers`), and
+the kinematic closing's touch rule as motor switches (:class:`TouchRule`).
 
 Motor efforts: a joint's ``<limit effort>`` in the URDF (N for a prismatic joint, N m for a
 revolute one), unless the description's ``efforts`` overrides it (for a mimic joint not
@@ -14,7 +16,10 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
-from kinegrasp_env.robot.description import RobotDescription
+import numpy as np
+
+from kinegrasp_env.robot.description import Finger, RobotDescription
+from kinegrasp_env.robot.touch_rule import touch_stops
 
 
 @dataclass(frozen=True)
@@ -53,6 +58,18 @@ def urdf_limits(urdf: Path) -> dict[str, tuple[float, float]]:
     return out
 
 
+def joint_effort(description: RobotDescription, limits: dict[str, tuple[float, float]],
+                 joint: str) -> tuple[float, str]:
+    """(effort, where it came from) of ``joint``: the description's ``efforts`` override
+    (for a mimic joint not named there, its driver's), else the URDF's ``<limit effort>``
+    (``limits``: :func:`urdf_limits`; 0 where neither gives one)."""
+    mimic = description.model.joint(joint).mimic
+    for name in (joint, *(() if mimic is None else (mimic[0],))):
+        if name in description.efforts:
+            return float(description.efforts[name]), "description"
+    return limits.get(joint, (0.0, 0.0))[0], "urdf"
+
+
 def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[JointMotor]:
     """The motors of every closing joint of the description's fingers (finger-major, palm to
     tip; a joint shared by two fingers once), efforts times ``scale``.
@@ -68,13 +85,8 @@ def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[Joi
             if joint in seen:
                 continue
             seen.add(joint)
-            effort, velocity = limits.get(joint, (0.0, 0.0))
-            source = "urdf"
-            mimic = description.model.joint(joint).mimic
-            for name in (joint, *(() if mimic is None else (mimic[0],))):
-                if name in description.efforts:
-                    effort, source = description.efforts[name], "description"
-                    break
+            effort, source = joint_effort(description, limits, joint)
+            velocity = limits.get(joint, (0.0, 0.0))[1]
             if not effort > 0:
                 raise ValueError(f"robot {description.name!r}: joint {joint!r} has no effort "
                                  f"limit in {description.urdf.name}; give one in the "
@@ -105,9 +117,64 @@ class Follower:
     effort: float
 
 
+def hold_effort(description: RobotDescription, limits: dict[str, tuple[float, float]],
+                joint: str, fallback: float) -> float:
+    """What holds ``joint`` where it stands (a pre-shape joint, a phalanx the touch rule
+    stopped): its URDF ``<limit effort>`` (the joint's own limit, its gear: the paper's hand
+    holds its spread and its stopped joints at the URDF's 10 N m, its motors pushing at the
+    description's lower efforts), else the description's override, else ``fallback``."""
+    urdf = limits.get(joint, (0.0, 0.0))[0]
+    if urdf > 0:
+        return float(urdf)
+    effort = joint_effort(description, limits, joint)[0]
+    return effort if effort > 0 else fallback
+
+
+@dataclass(frozen=True)
+class JointHold:
+    """A hand joint held where the pre-shape puts it while the hand closes and holds: its
+    ``value`` (radians or metres), with ``effort`` (N m or N)."""
+
+    joint: str
+    value: float
+    effort: float
+
+
+def preshape_holds(description: RobotDescription, motors: list[JointMotor],
+                   start: dict[str, float], scale: float = 1.0) -> list[JointHold]:
+    """The hand's actuated joints that close no finger (a spread: pre-shape only), each held
+    at its value in ``start`` (name -> value; the joints a simulator has) by
+    :func:`hold_effort` times ``scale`` (falling back on the strongest closing motor), as the
+    paper's hand holds its spread: left free, a spread joint turns under the contact forces
+    and the fingers slide off."""
+    closing = {joint for finger in description.fingers for joint in finger.joints}
+    limits = urdf_limits(description.urdf)
+    strongest = max((m.effort for m in motors), default=0.0)
+    return [JointHold(joint, float(start[joint]),
+                      hold_effort(description, limits, joint, strongest / scale) * scale)
+            for joint in description.hand_joints if joint not in closing and joint in start]
+
+
+def finger_motor_joints(description: RobotDescription, finger: Finger) -> tuple[str, ...]:
+    """The closing joints of ``finger`` that a motor of their own drives, palm to tip: its
+    first, and each later one that another degree of freedom drives than every joint before
+    it in the finger (an independently actuated phalanx: the paper's hand's distal joint).
+    A joint that an earlier joint's degree of freedom drives (a linkage's mimic joints)
+    follows that joint (:func:`closing_followers`)."""
+    drivers = description.model.drivers()
+    out, seen = [], set()
+    for joint in finger.joints:
+        if drivers[joint][0] not in seen:
+            seen.add(drivers[joint][0])
+            out.append(joint)
+    return tuple(out)
+
+
 def finger_leaders(description: RobotDescription) -> set[str]:
-    """The first closing joint (from the palm) of every finger: the joints a motor drives."""
-    return {finger.joints[0] for finger in description.fingers if finger.joints}
+    """Every finger's motor joints (:func:`finger_motor_joints`): the joints a motor
+    drives."""
+    return {joint for finger in description.fingers
+            for joint in finger_motor_joints(description, finger)}
 
 
 def closing_followers(description: RobotDescription, motors: list[JointMotor],
@@ -115,9 +182,10 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
     """The joints that follow a motor (:func:`finger_leaders`), from the hand's joint values
     at the pre-shape ``start`` (name -> value; the joints a simulator has):
 
-    * a finger's other closing joints follow its first at the kinematic closing's rates (the
-      mimic multiplier times the close direction, of each), from their values now, with
-      their own efforts;
+    * a finger's other closing joints follow the earlier joint of the finger that their
+      degree of freedom drives (:func:`finger_motor_joints`) at the kinematic closing's
+      rates (the mimic multiplier times the close direction, of each), from their values
+      now, with their own efforts;
     * a mimic joint that closes no finger follows its driver's mimic value, with its
       driver's effort (or the largest motor's when its driver has none); with ``coupled``,
       so do the fingers' first joints that are mimic joints (:func:`coupled_leaders`: the
@@ -136,10 +204,11 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
         followed -= set(coupled_leaders(description))
     out: list[Follower] = []
     for finger in description.fingers:
-        for joint in finger.joints[1:]:
+        for k, joint in enumerate(finger.joints[1:], start=1):
             if joint not in followed:
                 followed.add(joint)
-                leader = finger.joints[0]
+                leader = next(earlier for earlier in finger.joints[:k]
+                              if drivers[earlier][0] == drivers[joint][0])
                 out.append(Follower(joint, leader, rate(joint) / rate(leader), start[leader],
                                     start[joint], efforts[joint]))
     for joint in model.joints:
@@ -160,3 +229,86 @@ def coupled_leaders(description: RobotDescription) -> list[str]:
     leaders = finger_leaders(description)
     return sorted(name for name in leaders
                   if model.joint(name).mimic is not None and model.joint(name).mimic[0] in leaders)
+
+
+#: A finger of several motors: its last motor, while a link it moves touches the object,
+#: closes at this fraction of its closing speed (within its effort), pressing the object
+#: lightly and following it where it gives way (the paper's hand's distal creep: 0.05 rad/s
+#: of 1 rad/s). At full speed the SDH's distal phalanges shoved the free cube up to 6 cm
+#: and rolled over its edges, one finger of three missing it on 7 of 20 draws.
+CREEP_FRACTION = 0.05
+
+
+class TouchRule:
+    """The kinematic closing's touch rule (:func:`~kinegrasp_env.robot.touch_rule.
+    touch_stops`: a touching link stops the joints that move it) as switches of the closing
+    motors, whatever the simulator. When link k of a finger touches, the finger's motor
+    joints that the touch stops are held where they are from then on (by
+    :attr:`efforts`), except the finger's last motor joint (nearest the tip), which presses:
+    it closes at :data:`CREEP_FRACTION` of its speed while a link it moves touches, at full
+    speed when none does. A finger of one motor (a jaw, a linkage) is left alone: its motor
+    pushes at full speed and effort throughout (a gripper's jaws close until they grip). A
+    finger of independently actuated phalanges closes as GraspIt's auto-close and the
+    paper's hand close: a touching proximal phalanx stops, the distal one closes on until it
+    touches and presses.
+
+    Args:
+        description: the robot.
+        motors: the closing motors that drive now (:func:`finger_leaders`, less the
+            coupled jaws' followers).
+        scale: the motors' effort scale (the holding test's ``torque_scale``).
+    """
+
+    def __init__(self, description: RobotDescription, motors: list[JointMotor],
+                 scale: float = 1.0) -> None:
+        limits = urdf_limits(description.urdf)
+        #: joint -> what holds it once a touch stopped it (:func:`hold_effort` times scale)
+        self.efforts = {m.joint: hold_effort(description, limits, m.joint, m.effort / scale)
+                        * scale for m in motors}
+        #: per finger, per link: the motor joints its touch holds
+        self.rows: list[list[tuple[str, ...]]] = []
+        #: per finger of several motors: (its last motor joint, the first link it moves)
+        self.pressers: list[tuple[str, int]] = []
+        self.fingers: list[int] = []
+        for f, finger in enumerate(description.fingers):
+            own = [j for j in finger_motor_joints(description, finger) if j in self.efforts]
+            holdable = set(own[:-1])
+            stops = touch_stops(description.model, finger)
+            self.rows.append([tuple(j for j, stop in zip(finger.joints, row, strict=True)
+                                    if stop and j in holdable) for row in stops])
+            if holdable:
+                self.pressers.append((own[-1], finger.joints.index(own[-1])))
+                self.fingers.append(f)
+        #: the joints held so far; the last motors pressing now
+        self.held: set[str] = set()
+        self.pressing: set[str] = set()
+
+    @property
+    def active(self) -> bool:
+        """Whether any finger has several motors (else the closing need not read
+        contacts)."""
+        return bool(self.pressers)
+
+    def travel(self, names: list[str], travel: np.ndarray) -> np.ndarray:
+        """The motors' travel (m,) (``names``' positions over their closing speeds, seconds)
+        as the stall rule reads it: a pressing motor's as 0, stalled (it has touched; its
+        creep follows the object, and the closing ends when the other motors stall, as the
+        paper's hand's creep speed lies below its stall speed)."""
+        return np.where([name in self.pressing for name in names], 0.0, travel)
+
+    def update(self, touching) -> tuple[list[str], list[tuple[str, bool]]]:
+        """For the touching (finger, link) pairs now: (the motor joints to hold from now on,
+        each once; the last motors whose pressing changes, (joint, pressing now))."""
+        new = []
+        for finger, link in sorted(touching):
+            for joint in self.rows[finger][link]:
+                if joint not in self.held:
+                    self.held.add(joint)
+                    new.append(joint)
+        changed = []
+        for f, (joint, first) in zip(self.fingers, self.pressers, strict=True):
+            pressing = any(finger == f and link >= first for finger, link in touching)
+            if pressing != (joint in self.pressing):
+                (self.pressing.add if pressing else self.pressing.discard)(joint)
+                changed.append((joint, pressing))
+        return new, changed

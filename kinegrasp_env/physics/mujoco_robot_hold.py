@@ -25,7 +25,10 @@ One draw (:meth:`MujocoRobotHold.run_draw`):
    :func:`~kinegrasp_env.physics.hand_motors.closing_followers` (here an equality of
    MuJoCo's solver between the two joints, without pybullet's effort cap on the follower);
    the URDF's own mimic couplings are off, so the fingers close on their own, as in
-   pybullet; a joint's limits are as stiff as MuJoCo keeps stable (:data:`LIMIT_STEPS`).
+   pybullet; an independently actuated phalanx closes by the touch rule
+   (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) and a spread is held
+   (:func:`~kinegrasp_env.physics.hand_motors.preshape_holds`), as in pybullet; a joint's
+   limits are as stiff as MuJoCo keeps stable (:data:`LIMIT_STEPS`).
    The closing ends by the same stall rule
    (:class:`~kinegrasp_env.physics.robot_hold.RobotMotorSettings`); then one contact per
    touching finger link (MuJoCo's records merged by pybullet's rule and averaged without
@@ -54,14 +57,17 @@ from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout
 from kinegrasp_env.physics.hand_motors import (
+    CREEP_FRACTION,
     JointMotor,
+    TouchRule,
     closing_followers,
     finger_leaders,
+    preshape_holds,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall
-from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, world_contacts
+from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, touching, world_contacts
 from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
-from kinegrasp_env.physics.mujoco_world import MujocoWorld
+from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import (
@@ -119,8 +125,9 @@ class JawServos:
     """
 
     def __init__(self, world: MujocoWorld, description: RobotDescription,
-                 motors: list[JointMotor]) -> None:
-        self.world = world
+                 motors: list[JointMotor], touch_distance: float = CONTACT_TOL,
+                 scale: float = 1.0) -> None:
+        self.world, self.touch_distance = world, touch_distance
         leaders = finger_leaders(description)
         self.motors = [m for m in motors if m.joint in leaders]
         self.names = [m.joint for m in self.motors]
@@ -131,12 +138,38 @@ class JawServos:
         for f in closing_followers(description, motors, start):
             world.couple(f.joint, f.source, f.target_start - f.ratio * f.source_start,
                          f.ratio)
+        fixed = preshape_holds(description, motors, start, scale)
+        if fixed:
+            world.position([h.joint for h in fixed], [h.value for h in fixed])
+        self.touch = TouchRule(description, self.motors, scale)
         world.velocity(self.names, [m.direction * m.speed for m in self.motors],
                        [m.effort for m in self.motors])
 
+    def step(self) -> None:
+        """One time step, then the touch rule
+        (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) on the links touching now:
+        a held joint by its equality constraint (no effort cap, as every MuJoCo hold here),
+        a pressing one by its motor at the creep speed and at most
+        :data:`~kinegrasp_env.physics.mujoco_world.CREEP_TORQUE` (what pybullet's velocity
+        motor builds up at so slow a target; at its full effort the SDH's distal phalanges
+        bounced off the cube and the closing never settled)."""
+        self.world.step()
+        if not self.touch.active:
+            return
+        held, pressing = self.touch.update(touching(self.world, self.touch_distance))
+        if held:
+            self.world.position(held, self.world.joint_states(held)[0])
+        for name, on in pressing:
+            motor = self.motors[self.names.index(name)]
+            creep = CREEP_FRACTION if on else 1.0
+            self.world.velocity([name], [motor.direction * motor.speed * creep],
+                                [min(CREEP_TORQUE, motor.effort) if on else motor.effort])
+
     def travel(self) -> np.ndarray:
-        """(m,) the motors' joint positions in seconds of travel (value / closing speed)."""
-        return self.world.joint_states(self.names)[0] / self.speeds
+        """(m,) the motors' joint positions in seconds of travel (value / closing speed; a
+        pressing motor's 0: :meth:`~kinegrasp_env.physics.hand_motors.TouchRule.travel`)."""
+        return self.touch.travel(self.names, self.world.joint_states(self.names)[0]
+                                 / self.speeds)
 
 
 class MujocoRobotSteps(MujocoWorldSteps):
@@ -202,8 +235,9 @@ class MujocoRobotHold(DescriptionHold):
         world.reset(self.palm_poses(q)[0], self.hand_values(q, world.qpos_adr), pin=pin)
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
-        servos = JawServos(world, self.description, self.motors)
-        close_until_stall(world.step, servos.travel, self.settings, world.settings.time_step)
+        servos = JawServos(world, self.description, self.motors, self.settings.touch_distance,
+                           self.protocol.torque_scale)
+        close_until_stall(servos.step, servos.travel, self.settings, world.settings.time_step)
         names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
         positions = world.joint_states(names)[0]
         return closing_result(world_contacts(world, self.settings.touch_distance,

@@ -15,7 +15,13 @@ One draw (:meth:`RobotHold.run_draw`):
    ``<limit effort>`` unless the description's ``efforts`` overrides it); the finger's other
    closing joints follow it by position motors (their effort limits) at the values the
    kinematic closing's one parameter gives them (each moving at its rate: the mimic
-   multiplier times the close direction). The fingers are not coupled to each other: each
+   multiplier times the close direction). A closing joint that another hand joint drives (an
+   independently actuated phalanx) has a motor of its own, switched by the kinematic
+   closing's touch rule (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`: a touching
+   link's joints held, the finger's last motor pressing at a creep); a hand joint that
+   closes no finger (a spread) is held at its pre-shape value
+   (:func:`~kinegrasp_env.physics.hand_motors.preshape_holds`). The fingers are not coupled
+   to each other: each
    stops where it touches, as the kinematic closing's self-centring jaws do
    (:mod:`~kinegrasp_env.closing.generic_reference`; the hand is held by the anchor, so a
    coupled pair could not centre itself on the pinned object). On a free object (the
@@ -61,11 +67,14 @@ from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout, balances, grip_layout
 from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hand_motors import (
+    CREEP_FRACTION,
     JointMotor,
+    TouchRule,
     closing_followers,
     coupled_leaders,
     finger_leaders,
     motor_efforts,
+    preshape_holds,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
@@ -133,8 +142,9 @@ class JawMotors:
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor],
-                 coupled: bool = False) -> None:
-        self.world = world
+                 coupled: bool = False, touch_distance: float = CONTACT_TOL,
+                 scale: float = 1.0) -> None:
+        self.world, self.touch_distance = world, touch_distance
         leaders = finger_leaders(world.description)
         if coupled:
             leaders -= set(coupled_leaders(world.description))
@@ -149,16 +159,59 @@ class JawMotors:
         self.followers = [(world.joint_index[f.joint], world.joint_index[f.source], f)
                           for f in closing_followers(world.description, motors, start,
                                                      coupled)]
+        #: the pre-shape joints held where they start
+        self.fixed = preshape_holds(world.description, motors, start, scale)
+        self.touch = TouchRule(world.description, self.motors, scale)
+        #: the motors the touch rule holds: joint name -> the value held (radians or metres)
+        self.held: dict[str, float] = {}
+        self.links = finger_links(world)
         self.restart()
 
     def restart(self) -> None:
-        """Every closing motor on (again: after a ``restoreState``)."""
+        """Every closing motor on (again: after a ``restoreState``), the held ones held, the
+        pressing ones pressing."""
         bullet, hand = self.world.bullet, self.world.hand
         bullet.setJointMotorControlArray(
             hand, self.indices, bullet.VELOCITY_CONTROL,
-            targetVelocities=[m.direction * m.speed for m in self.motors],
+            targetVelocities=[self.velocity(m) for m in self.motors],
             forces=[m.effort for m in self.motors])
+        for fixed in self.fixed:
+            bullet.setJointMotorControl2(hand, self.world.joint_index[fixed.joint],
+                                         bullet.POSITION_CONTROL, targetPosition=fixed.value,
+                                         force=fixed.effort)
+        for name, value in self.held.items():
+            self.hold(name, value)
         self.follow()
+
+    def hold(self, name: str, value: float) -> None:
+        """Hold motor joint ``name`` at ``value`` (a position motor with its holding effort:
+        :attr:`~kinegrasp_env.physics.hand_motors.TouchHolds.efforts`)."""
+        self.held[name] = value
+        self.world.bullet.setJointMotorControl2(
+            self.world.hand, self.world.joint_index[name], self.world.bullet.POSITION_CONTROL,
+            targetPosition=value, force=self.touch.efforts[name])
+
+    def velocity(self, motor: JointMotor) -> float:
+        """A closing motor's target speed now (pressing: :data:`~kinegrasp_env.physics.
+        hand_motors.CREEP_FRACTION` of its speed), m/s or rad/s."""
+        creep = CREEP_FRACTION if motor.joint in self.touch.pressing else 1.0
+        return motor.direction * motor.speed * creep
+
+    def touched(self) -> None:
+        """Apply the touch rule (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) to
+        the finger links touching the object now."""
+        touching = {self.links[rec[3]] for rec in self.world.contact_points()
+                    if rec[3] in self.links and rec[8] <= self.touch_distance}
+        bullet, hand = self.world.bullet, self.world.hand
+        held, pressing = self.touch.update(touching)
+        for name in held:
+            self.hold(name, bullet.getJointState(hand, self.world.joint_index[name])[0])
+        for name, _ in pressing:
+            motor = self.motors[[m.joint for m in self.motors].index(name)]
+            bullet.setJointMotorControl2(hand, self.world.joint_index[name],
+                                         bullet.VELOCITY_CONTROL,
+                                         targetVelocity=self.velocity(motor),
+                                         force=motor.effort)
 
     def follow(self) -> None:
         """The followers' position motors at their values now."""
@@ -175,11 +228,15 @@ class JawMotors:
             if self.followers:
                 self.follow()
             self.world.bullet.stepSimulation()
+            if self.touch.active:
+                self.touched()
 
     def travel(self) -> np.ndarray:
-        """(m,) the closing joints' positions in seconds of travel (value / closing speed)."""
+        """(m,) the closing joints' positions in seconds of travel (value / closing speed; a
+        pressing motor's 0: :meth:`~kinegrasp_env.physics.hand_motors.TouchRule.travel`)."""
         states = self.world.bullet.getJointStates(self.world.hand, self.indices)
-        return np.array([s[0] for s in states]) / self.speeds
+        return self.touch.travel([m.joint for m in self.motors],
+                                 np.array([s[0] for s in states]) / self.speeds)
 
 
 def finger_links(world: RobotPhysicsWorld) -> dict[int, tuple[int, int]]:
@@ -331,7 +388,9 @@ class RobotHold(DescriptionHold):
             world.pin_object()
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
-        jaws = JawMotors(world, self.motors, coupled=not pin)
+        jaws = JawMotors(world, self.motors, coupled=not pin,
+                         touch_distance=self.settings.touch_distance,
+                         scale=self.protocol.torque_scale)
         close_until_stall(jaws.step, jaws.travel, self.settings, world.settings.time_step)
         joints = {m.joint: world.bullet.getJointState(world.hand, world.joint_index[m.joint])[0]
                   for m in self.motors}
