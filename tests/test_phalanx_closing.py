@@ -16,16 +16,22 @@ MuJoCo twin and :class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngi
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import pytest
+import yaml
 
+from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.generic_reference import RobotWorld
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+from kinegrasp_env.physics.balanced_grip import grip_layout
 from kinegrasp_env.physics.hand_motors import (
     TouchRule,
     closing_followers,
     finger_leaders,
+    hold_efforts,
     motor_efforts,
     preshape_holds,
     urdf_limits,
@@ -35,6 +41,7 @@ from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.robot_agreement import closing_agreement
 from kinegrasp_env.physics.robot_hold import RobotHold
 from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription, parse_description
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import load_object
 
@@ -57,15 +64,16 @@ def test_the_touch_rule_of_the_paper_hand_by_hand():
     sdh = load_robot("kuka_sdh")
     motors = motor_efforts(sdh)
     assert finger_leaders(sdh) == set(FLEXION)  # every phalanx its own motor
-    rule = TouchRule(sdh, motors)
-    assert rule.active
+    rule = TouchRule(sdh, motors, hold_efforts(sdh, motors), time_step=0.01)
+    assert rule.active and rule.release == 2  # RELEASE_TIME 0.02 s
     for i in (1, 2, 3):  # either link touching stops the proximal joint; the distal presses
         assert rule.rows[i - 1] == [(f"f{i}_proximal",), (f"f{i}_proximal",)]
     assert rule.pressers == [(f"f{i}_distal", 1) for i in (1, 2, 3)]
     assert rule.update({(0, 0)}) == (["f1_proximal"], [])
     assert rule.update({(0, 0), (0, 1)}) == ([], [("f1_distal", True)])
-    assert rule.update({(1, 1)}) == (["f2_proximal"], [("f1_distal", False),
-                                                        ("f2_distal", True)])
+    # a pressing motor is released after RELEASE_TIME (two steps) without a touch, not at once
+    assert rule.update({(1, 1)}) == (["f2_proximal"], [("f2_distal", True)])
+    assert rule.update({(1, 1)}) == ([], [("f1_distal", False)])
     # a pressing motor reads as stalled; the others as they are
     travel = np.arange(6.0)
     assert list(rule.travel([m.joint for m in motors], travel)) == [0, 1, 2, 0, 4, 5]
@@ -75,21 +83,81 @@ def test_the_touch_rule_of_the_paper_hand_by_hand():
 
 def test_jaws_switch_nothing():
     panda = load_robot("panda")
-    rule = TouchRule(panda, motor_efforts(panda))
+    motors = motor_efforts(panda)
+    rule = TouchRule(panda, motors, hold_efforts(panda, motors), time_step=0.001)
     assert not rule.active
     assert rule.update({(0, 0), (1, 0)}) == ([], [])
-    assert preshape_holds(panda, motor_efforts(panda), {"panda_finger_joint1": 0.04}) == []
+    assert preshape_holds(panda, hold_efforts(panda, motors),
+                          {"panda_finger_joint1": 0.04}) == []
 
 
-def test_the_spread_is_held_and_its_twin_follows():
+def variant(tmp_path, name: str, edit_urdf, edit_description) -> RobotDescription:
+    """A copy of the default robot's description and URDF, edited (its meshes linked)."""
+    folder = asset_path("robots")
+    tree = ET.parse(folder / "kuka_sdh.urdf")
+    edit_urdf(tree.getroot())
+    tree.write(tmp_path / f"{name}.urdf")
+    (tmp_path / "kuka_iiwa").symlink_to(folder / "kuka_iiwa")
+    data = yaml.safe_load((folder / "kuka_sdh.yaml").read_text())
+    data.update(name=name, urdf=f"{name}.urdf")
+    edit_description(data)
+    return parse_description(data, tmp_path / f"{name}.yaml")
+
+
+def joint_element(root, name: str):
+    return next(j for j in root.iter("joint") if j.get("name") == name)
+
+
+def test_the_spread_is_held_by_its_effort_and_its_twin_follows(tmp_path):
     sdh = load_robot("kuka_sdh")
     motors = motor_efforts(sdh, scale=0.5)
+    holds = hold_efforts(sdh, motors)
     start = {"f1_spread": 0.5236, "f2_spread": 0.5236, **dict.fromkeys(FLEXION, 0.0)}
-    (hold,) = preshape_holds(sdh, motors, start, scale=0.5)
-    assert (hold.joint, hold.value) == ("f1_spread", 0.5236)
-    assert hold.effort == pytest.approx(urdf_limits(sdh.urdf)["f1_spread"][0] * 0.5)
-    followers = closing_followers(sdh, motors, start)
-    assert [(f.joint, f.source) for f in followers] == [("f2_spread", "f1_spread")]
+    (hold,) = preshape_holds(sdh, holds, start)
+    urdf = urdf_limits(sdh.urdf)["f1_spread"][0]
+    assert (hold.joint, hold.value, hold.effort) == ("f1_spread", 0.5236, urdf)
+    (twin,) = closing_followers(sdh, motors, start, holds=holds)
+    assert (twin.joint, twin.source, twin.effort) == ("f2_spread", "f1_spread", urdf)
+    # the description's efforts override the URDF's, as in the balanced grip's layout
+    stiff = variant(tmp_path, "sdh_spread3", lambda root: None,
+                    lambda data: data["efforts"].update(f1_spread=3.0))
+    holds = hold_efforts(stiff, motor_efforts(stiff))
+    assert holds["f1_spread"] == holds["f2_spread"] == 3.0
+    layout = grip_layout(stiff)
+    assert layout.upper[list(layout.names).index("f1_spread")] == 3.0
+
+
+def test_a_spread_without_an_effort_is_refused(tmp_path):
+    def no_effort(root):
+        for name in ("f1_spread", "f2_spread"):
+            joint_element(root, name).find("limit").set("effort", "0")
+
+    bare = variant(tmp_path, "sdh_bare", no_effort, lambda data: None)
+    with pytest.raises(ValueError, match=r"'f1_spread' has no effort .* efforts: \{f1_spread"):
+        hold_efforts(bare, motor_efforts(bare))
+
+
+def test_mirrored_fingers_couple_every_motor_joint(tmp_path):
+    def mirror(root):
+        for part in ("proximal", "distal"):
+            ET.SubElement(joint_element(root, f"f2_{part}"), "mimic", joint=f"f1_{part}",
+                          multiplier="1", offset="0")
+
+    def drop_finger_2(data):
+        for key in ("close", "open", "efforts"):
+            data[key] = {k: v for k, v in data[key].items() if not k.startswith("f2_")}
+        data["hand_joints"] = [j for j in data["hand_joints"] if not j.startswith("f2_")]
+        data["preshapes"] = [dict(p, joints=[j for j in p["joints"] if not j.startswith("f2_")])
+                             for p in data["preshapes"]]
+
+    mirrored = variant(tmp_path, "sdh_mirror", mirror, drop_finger_2)
+    motors = motor_efforts(mirrored)
+    start = dict.fromkeys([m.joint for m in motors] + ["f1_spread", "f2_spread"], 0.0)
+    coupled = closing_followers(mirrored, motors, start, coupled=True)
+    assert {(f.joint, f.source) for f in coupled} >= {("f2_proximal", "f1_proximal"),
+                                                     ("f2_distal", "f1_distal")}
+    with RobotPhysicsEngine(mirrored, "cube") as engine:  # the free closing runs
+        engine.close_one(mirrored.open_configuration())
 
 
 @pytest.fixture(scope="module")
@@ -126,3 +194,20 @@ def test_physics_engine_outcomes_agree_with_the_reference():
     physics.close()
     reference.close()
     assert same / total >= SAME_OUTCOME, same
+
+
+def test_the_switches_stay_where_the_closing_left_them(sdh_cube):
+    """The holding test's phases keep the touch rule's switches (each phase starts from the
+    same saved state, whatever the phases before it did): with the object taken away after
+    the closing, an active rule would release the pressing motors within RELEASE_TIME."""
+    description, obj, _ = sdh_cube
+    hold = RobotHold(description, obj, 0.5, HoldProtocol())
+    _, jaws = hold.close_hand(shipped_grasps("cube")[0].q0)
+    held, pressing = set(jaws.touch.held), set(jaws.touch.pressing)
+    assert held == {"f1_proximal", "f2_proximal", "f3_proximal"} and pressing
+    hold.world.release_object()
+    hold.world.bullet.resetBasePositionAndOrientation(hold.world.bodies["object"],
+                                                      [5.0, 5.0, 5.0], [0, 0, 0, 1])
+    jaws.step(100)
+    assert (set(jaws.touch.held), set(jaws.touch.pressing)) == (held, pressing)
+    hold.close()

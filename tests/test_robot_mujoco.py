@@ -176,7 +176,7 @@ def test_a_linkage_gripper_closes_its_followers_on_the_urdf_mimics(tmp_path):
                         strict=True))
 
     world.reset(simulator.palm_poses(q)[0], {name: 0.0 for name in world.joint_names})
-    JawServos(world, description, simulator.motors)
+    JawServos(world, description, simulator.motors, simulator.holds)
     world.step(200)  # 0.2 s at the drive's 2 rad/s: half of its 0.85 rad
     value = values()
     assert 0.2 < value["drive_joint"] < 0.6

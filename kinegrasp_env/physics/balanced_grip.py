@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, SpringGrip, spring_grip
-from kinegrasp_env.physics.hand_motors import motor_efforts, urdf_limits
+from kinegrasp_env.physics.hand_motors import joint_effort, motor_efforts, urdf_limits
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 
@@ -133,7 +133,7 @@ def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> Gri
         for name in below[f]:
             if name in finger.joints or counts[name] > 1:
                 continue
-            effort = description.efforts.get(name, limits.get(name, (0.0, 0.0))[0])
+            effort = joint_effort(description, limits, name)[0]
             if not effort > 0:
                 raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
                                  f"limit in {description.urdf.name}; give one in the "

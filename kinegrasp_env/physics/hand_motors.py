@@ -117,17 +117,39 @@ class Follower:
     effort: float
 
 
-def hold_effort(description: RobotDescription, limits: dict[str, tuple[float, float]],
-                joint: str, fallback: float) -> float:
-    """What holds ``joint`` where it stands (a pre-shape joint, a phalanx the touch rule
-    stopped): its URDF ``<limit effort>`` (the joint's own limit, its gear: the paper's hand
-    holds its spread and its stopped joints at the URDF's 10 N m, its motors pushing at the
-    description's lower efforts), else the description's override, else ``fallback``."""
-    urdf = limits.get(joint, (0.0, 0.0))[0]
-    if urdf > 0:
-        return float(urdf)
-    effort = joint_effort(description, limits, joint)[0]
-    return effort if effort > 0 else fallback
+def hold_efforts(description: RobotDescription, motors: list[JointMotor]) -> dict[str, float]:
+    """What holds each hand joint where it stands when it does not push, N m or N (not scaled
+    by the holding test's ``torque_scale``, which scales what the motors push):
+
+    * a closing motor's joint, once the touch rule stops it (:class:`TouchRule`): its URDF
+      ``<limit effort>``, the joint's own limit (its gear; the description's ``efforts`` are
+      its motor's: the paper's hand pushes at 2.1 and 1.4 N m and holds a stopped joint at
+      the URDF's 10), else its motor's effort;
+    * a hand joint that closes no finger (a spread, and a mimic joint of one): its effort
+      (:func:`joint_effort`: the description's ``efforts`` or the URDF's), as the balanced
+      grip holds it (:func:`~kinegrasp_env.physics.balanced_grip.grip_layout`).
+
+    Raises:
+        ValueError: an actuated hand joint that closes no finger without an effort (one
+            line, naming the joint and the key to add).
+    """
+    limits = urdf_limits(description.urdf)
+    out = {m.joint: limits.get(m.joint, (0.0, 0.0))[0] or m.effort for m in motors}
+    closing = {joint for finger in description.fingers for joint in finger.joints}
+    model = description.model
+    for name, (index, _, _) in model.drivers().items():
+        if name in closing or model.actuated[index] not in description.hand_joints:
+            continue
+        effort = joint_effort(description, limits, name)[0]
+        if not effort > 0 and name in description.hand_joints:
+            raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
+                             f"limit in {description.urdf.name}; give one in the "
+                             f"description's efforts: {{{name}: ...}}")
+        out[name] = float(effort)
+    for name, (index, _, _) in model.drivers().items():  # a mimic twin without one: its driver's
+        if name in out and not out[name] > 0:
+            out[name] = out[model.actuated[index]]
+    return out
 
 
 @dataclass(frozen=True)
@@ -140,18 +162,14 @@ class JointHold:
     effort: float
 
 
-def preshape_holds(description: RobotDescription, motors: list[JointMotor],
-                   start: dict[str, float], scale: float = 1.0) -> list[JointHold]:
+def preshape_holds(description: RobotDescription, holds: dict[str, float],
+                   start: dict[str, float]) -> list[JointHold]:
     """The hand's actuated joints that close no finger (a spread: pre-shape only), each held
-    at its value in ``start`` (name -> value; the joints a simulator has) by
-    :func:`hold_effort` times ``scale`` (falling back on the strongest closing motor), as the
-    paper's hand holds its spread: left free, a spread joint turns under the contact forces
-    and the fingers slide off."""
+    at its value in ``start`` (name -> value; the joints a simulator has) by its effort in
+    ``holds`` (:func:`hold_efforts`), as the paper's hand holds its spread: left free, a
+    spread joint turns under the contact forces and the fingers slide off."""
     closing = {joint for finger in description.fingers for joint in finger.joints}
-    limits = urdf_limits(description.urdf)
-    strongest = max((m.effort for m in motors), default=0.0)
-    return [JointHold(joint, float(start[joint]),
-                      hold_effort(description, limits, joint, strongest / scale) * scale)
+    return [JointHold(joint, float(start[joint]), holds[joint])
             for joint in description.hand_joints if joint not in closing and joint in start]
 
 
@@ -178,7 +196,8 @@ def finger_leaders(description: RobotDescription) -> set[str]:
 
 
 def closing_followers(description: RobotDescription, motors: list[JointMotor],
-                      start: dict[str, float], coupled: bool = False) -> list[Follower]:
+                      start: dict[str, float], coupled: bool = False,
+                      holds: dict[str, float] | None = None) -> list[Follower]:
     """The joints that follow a motor (:func:`finger_leaders`), from the hand's joint values
     at the pre-shape ``start`` (name -> value; the joints a simulator has):
 
@@ -187,9 +206,11 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
       rates (the mimic multiplier times the close direction, of each), from their values
       now, with their own efforts;
     * a mimic joint that closes no finger follows its driver's mimic value, with its
-      driver's effort (or the largest motor's when its driver has none); with ``coupled``,
-      so do the fingers' first joints that are mimic joints (:func:`coupled_leaders`: the
-      jaws one actuator moves), which otherwise close on their own motors.
+      driver's motor's effort (a linkage's bars), or where its driver is no motor (a
+      spread's twin) its own holding effort (``holds``: :func:`hold_efforts`; without, the
+      largest motor's); with ``coupled``, so do the fingers' motor joints that are mimic
+      joints of another finger's (:func:`coupled_leaders`: the jaws one actuator moves),
+      with their driver's effort, which otherwise close on their own motors.
     """
     model = description.model
     drivers = model.drivers()
@@ -207,8 +228,11 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
         for k, joint in enumerate(finger.joints[1:], start=1):
             if joint not in followed:
                 followed.add(joint)
-                leader = next(earlier for earlier in finger.joints[:k]
-                              if drivers[earlier][0] == drivers[joint][0])
+                leader = next((earlier for earlier in finger.joints[:k]
+                               if drivers[earlier][0] == drivers[joint][0]), None)
+                if leader is None:  # a coupled finger's motor joint: the mimic rule below
+                    followed.discard(joint)
+                    continue
                 out.append(Follower(joint, leader, rate(joint) / rate(leader), start[leader],
                                     start[joint], efforts[joint]))
     for joint in model.joints:
@@ -216,15 +240,16 @@ def closing_followers(description: RobotDescription, motors: list[JointMotor],
                 or joint.mimic[0] not in start):
             continue
         source, multiplier, offset = joint.mimic
-        out.append(Follower(joint.name, source, multiplier, 0.0, offset,
-                            efforts.get(source, max(efforts.values()))))
+        effort = (efforts[source] if source in efforts
+                  else (holds or {}).get(joint.name) or max(efforts.values()))
+        out.append(Follower(joint.name, source, multiplier, 0.0, offset, effort))
     return out
 
 
 def coupled_leaders(description: RobotDescription) -> list[str]:
-    """The fingers' first closing joints (:func:`finger_leaders`) that are mimic joints of
-    another finger's first joint: one actuator moves them with that finger (a parallel
-    gripper's second jaw, a linkage gripper's second side)."""
+    """The fingers' motor joints (:func:`finger_leaders`) that are mimic joints of another
+    finger's motor joint: one actuator moves them with that finger (a parallel gripper's
+    second jaw, a linkage gripper's second side)."""
     model = description.model
     leaders = finger_leaders(description)
     return sorted(name for name in leaders
@@ -233,38 +258,43 @@ def coupled_leaders(description: RobotDescription) -> list[str]:
 
 #: A finger of several motors: its last motor, while a link it moves touches the object,
 #: closes at this fraction of its closing speed (within its effort), pressing the object
-#: lightly and following it where it gives way (the paper's hand's distal creep: 0.05 rad/s
-#: of 1 rad/s). At full speed the SDH's distal phalanges shoved the free cube up to 6 cm
-#: and rolled over its edges, one finger of three missing it on 7 of 20 draws.
+#: and following it where it gives way (the paper's hand's distal creep: 0.05 rad/s of
+#: 1 rad/s). At full speed the SDH's distal phalanges shoved the free cube up to 6 cm and
+#: rolled over its edges, one finger of three missing it on 7 of 20 draws.
 CREEP_FRACTION = 0.05
+#: A pressing motor closes at full speed again once no link it moves has touched for this
+#: long, seconds (a finger whose touch pushed the object away closes until it touches
+#: again). Released at the first step without contact, MuJoCo's SDH distal phalanges
+#: bounced off the cube, switching 55-369 times a closing, and ended off it.
+RELEASE_TIME = 0.02
 
 
 class TouchRule:
     """The kinematic closing's touch rule (:func:`~kinegrasp_env.robot.touch_rule.
     touch_stops`: a touching link stops the joints that move it) as switches of the closing
-    motors, whatever the simulator. When link k of a finger touches, the finger's motor
-    joints that the touch stops are held where they are from then on (by
+    motors while the hand closes, whatever the simulator. When link k of a finger touches,
+    the finger's motor joints that the touch stops are held where they are from then on (by
     :attr:`efforts`), except the finger's last motor joint (nearest the tip), which presses:
-    it closes at :data:`CREEP_FRACTION` of its speed while a link it moves touches, at full
-    speed when none does. A finger of one motor (a jaw, a linkage) is left alone: its motor
-    pushes at full speed and effort throughout (a gripper's jaws close until they grip). A
-    finger of independently actuated phalanges closes as GraspIt's auto-close and the
-    paper's hand close: a touching proximal phalanx stops, the distal one closes on until it
-    touches and presses.
+    it closes at :data:`CREEP_FRACTION` of its speed, with its full effort, while a link it
+    moves touches (and :data:`RELEASE_TIME` after), at full speed otherwise. A finger of one
+    motor (a jaw, a linkage) is left alone: its motor pushes at full speed and effort
+    throughout (a gripper's jaws close until they grip). A finger of independently actuated
+    phalanges closes as GraspIt's auto-close and the paper's hand close: a touching proximal
+    phalanx stops, the distal one closes on until it touches and presses. The switches stay
+    where the closing left them through the holding test's phases.
 
     Args:
         description: the robot.
         motors: the closing motors that drive now (:func:`finger_leaders`, less the
             coupled jaws' followers).
-        scale: the motors' effort scale (the holding test's ``torque_scale``).
+        holds: :func:`hold_efforts`.
+        time_step: the simulator's step, seconds (one :meth:`update` a step).
     """
 
     def __init__(self, description: RobotDescription, motors: list[JointMotor],
-                 scale: float = 1.0) -> None:
-        limits = urdf_limits(description.urdf)
-        #: joint -> what holds it once a touch stopped it (:func:`hold_effort` times scale)
-        self.efforts = {m.joint: hold_effort(description, limits, m.joint, m.effort / scale)
-                        * scale for m in motors}
+                 holds: dict[str, float], time_step: float) -> None:
+        #: joint -> what holds it once a touch stopped it (:func:`hold_efforts`)
+        self.efforts = {m.joint: holds[m.joint] for m in motors}
         #: per finger, per link: the motor joints its touch holds
         self.rows: list[list[tuple[str, ...]]] = []
         #: per finger of several motors: (its last motor joint, the first link it moves)
@@ -279,9 +309,10 @@ class TouchRule:
             if holdable:
                 self.pressers.append((own[-1], finger.joints.index(own[-1])))
                 self.fingers.append(f)
-        #: the joints held so far; the last motors pressing now
+        self.release = max(1, round(RELEASE_TIME / time_step))
+        #: the joints held so far; the last motors pressing now (steps since their touch)
         self.held: set[str] = set()
-        self.pressing: set[str] = set()
+        self.pressing: dict[str, int] = {}
 
     @property
     def active(self) -> bool:
@@ -297,8 +328,8 @@ class TouchRule:
         return np.where([name in self.pressing for name in names], 0.0, travel)
 
     def update(self, touching) -> tuple[list[str], list[tuple[str, bool]]]:
-        """For the touching (finger, link) pairs now: (the motor joints to hold from now on,
-        each once; the last motors whose pressing changes, (joint, pressing now))."""
+        """For the touching (finger, link) pairs after a step: (the motor joints to hold from
+        now on, each once; the last motors whose pressing changes, (joint, pressing now))."""
         new = []
         for finger, link in sorted(touching):
             for joint in self.rows[finger][link]:
@@ -307,8 +338,13 @@ class TouchRule:
                     new.append(joint)
         changed = []
         for f, (joint, first) in zip(self.fingers, self.pressers, strict=True):
-            pressing = any(finger == f and link >= first for finger, link in touching)
-            if pressing != (joint in self.pressing):
-                (self.pressing.add if pressing else self.pressing.discard)(joint)
-                changed.append((joint, pressing))
+            if any(finger == f and link >= first for finger, link in touching):
+                if joint not in self.pressing:
+                    changed.append((joint, True))
+                self.pressing[joint] = 0
+            elif joint in self.pressing:
+                self.pressing[joint] += 1
+                if self.pressing[joint] >= self.release:
+                    del self.pressing[joint]
+                    changed.append((joint, False))
         return new, changed

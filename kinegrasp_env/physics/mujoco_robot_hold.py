@@ -67,7 +67,7 @@ from kinegrasp_env.physics.hand_motors import (
 from kinegrasp_env.physics.hold_runner import close_until_stall
 from kinegrasp_env.physics.mujoco_hold import MujocoWorldSteps, touching, world_contacts
 from kinegrasp_env.physics.mujoco_model import MujocoHand, with_compiler
-from kinegrasp_env.physics.mujoco_world import CREEP_TORQUE, MujocoWorld
+from kinegrasp_env.physics.mujoco_world import MujocoWorld
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import (
@@ -125,8 +125,8 @@ class JawServos:
     """
 
     def __init__(self, world: MujocoWorld, description: RobotDescription,
-                 motors: list[JointMotor], touch_distance: float = CONTACT_TOL,
-                 scale: float = 1.0) -> None:
+                 motors: list[JointMotor], holds: dict[str, float],
+                 touch_distance: float = CONTACT_TOL) -> None:
         self.world, self.touch_distance = world, touch_distance
         leaders = finger_leaders(description)
         self.motors = [m for m in motors if m.joint in leaders]
@@ -135,13 +135,13 @@ class JawServos:
         start = dict(zip(world.joint_names, world.joint_states(world.joint_names)[0],
                          strict=True))
         world.uncouple()
-        for f in closing_followers(description, motors, start):
+        for f in closing_followers(description, motors, start, holds=holds):
             world.couple(f.joint, f.source, f.target_start - f.ratio * f.source_start,
                          f.ratio)
-        fixed = preshape_holds(description, motors, start, scale)
+        fixed = preshape_holds(description, holds, start)
         if fixed:
             world.position([h.joint for h in fixed], [h.value for h in fixed])
-        self.touch = TouchRule(description, self.motors, scale)
+        self.touch = TouchRule(description, self.motors, holds, world.settings.time_step)
         world.velocity(self.names, [m.direction * m.speed for m in self.motors],
                        [m.effort for m in self.motors])
 
@@ -149,10 +149,7 @@ class JawServos:
         """One time step, then the touch rule
         (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) on the links touching now:
         a held joint by its equality constraint (no effort cap, as every MuJoCo hold here),
-        a pressing one by its motor at the creep speed and at most
-        :data:`~kinegrasp_env.physics.mujoco_world.CREEP_TORQUE` (what pybullet's velocity
-        motor builds up at so slow a target; at its full effort the SDH's distal phalanges
-        bounced off the cube and the closing never settled)."""
+        a pressing one by its motor at the creep speed with its effort."""
         self.world.step()
         if not self.touch.active:
             return
@@ -163,7 +160,7 @@ class JawServos:
             motor = self.motors[self.names.index(name)]
             creep = CREEP_FRACTION if on else 1.0
             self.world.velocity([name], [motor.direction * motor.speed * creep],
-                                [min(CREEP_TORQUE, motor.effort) if on else motor.effort])
+                                [motor.effort])
 
     def travel(self) -> np.ndarray:
         """(m,) the motors' joint positions in seconds of travel (value / closing speed; a
@@ -235,8 +232,8 @@ class MujocoRobotHold(DescriptionHold):
         world.reset(self.palm_poses(q)[0], self.hand_values(q, world.qpos_adr), pin=pin)
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
-        servos = JawServos(world, self.description, self.motors, self.settings.touch_distance,
-                           self.protocol.torque_scale)
+        servos = JawServos(world, self.description, self.motors, self.holds,
+                           self.settings.touch_distance)
         close_until_stall(servos.step, servos.travel, self.settings, world.settings.time_step)
         names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
         positions = world.joint_states(names)[0]

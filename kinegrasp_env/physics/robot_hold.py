@@ -8,35 +8,36 @@ One draw (:meth:`RobotHold.run_draw`):
    than :data:`~kinegrasp_env.closing.close_rules.START_TOL` at the pre-shape is a start
    collision. Otherwise every finger (the description's fingers: the chain from the palm to
    a fingertip, its closing joints the hand joints with a ``close`` direction and the mimic
-   joints that follow them) closes as the kinematic closing closes it, on its own: its
-   first closing joint (from the palm) by a velocity motor of its own towards closing at
-   its URDF velocity limit, with its effort limit
-   (:func:`~kinegrasp_env.physics.hand_motors.motor_efforts`: the URDF's
-   ``<limit effort>`` unless the description's ``efforts`` overrides it); the finger's other
-   closing joints follow it by position motors (their effort limits) at the values the
-   kinematic closing's one parameter gives them (each moving at its rate: the mimic
-   multiplier times the close direction). A closing joint that another hand joint drives (an
-   independently actuated phalanx) has a motor of its own, switched by the kinematic
-   closing's touch rule (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`: a touching
-   link's joints held, the finger's last motor pressing at a creep); a hand joint that
-   closes no finger (a spread) is held at its pre-shape value
-   (:func:`~kinegrasp_env.physics.hand_motors.preshape_holds`). The fingers are not coupled
-   to each other: each
-   stops where it touches, as the kinematic closing's self-centring jaws do
+   joints that follow them) closes as the kinematic closing closes it, on its own: its first
+   closing joint (from the palm) by a velocity motor of its own towards closing at its URDF
+   velocity limit, with its effort limit
+   (:func:`~kinegrasp_env.physics.hand_motors.motor_efforts`: the URDF's ``<limit effort>``
+   unless the description's ``efforts`` overrides it); the finger's other closing joints
+   follow it by position motors (their effort limits) at the values the kinematic closing's
+   one parameter gives them (each moving at its rate: the mimic multiplier times the close
+   direction). A closing joint that another hand joint drives (an independently actuated
+   phalanx) has a motor of its own, switched while the hand closes by the kinematic
+   closing's touch rule (:class:`~kinegrasp_env.physics.hand_motors. TouchRule`: a touching
+   link's joints held by their holding efforts, the finger's last motor pressing at a
+   creep); a hand joint that closes no finger (a spread) is held at its pre-shape value
+   (:func:`~kinegrasp_env.physics.hand_motors.preshape_holds`; both efforts:
+   :func:`~kinegrasp_env.physics.hand_motors.hold_efforts`). The fingers are not coupled to
+   each other: each stops where it touches, as the kinematic closing's self-centring jaws do
    (:mod:`~kinegrasp_env.closing.generic_reference`; the hand is held by the anchor, so a
-   coupled pair could not centre itself on the pinned object). On a free object (the
-   physics engine's closing: :meth:`RobotHold.close_hand` with ``pin=False``) the jaws one
-   actuator moves are coupled as the gripper couples them (a finger's first joint that is
-   a mimic joint of another finger's follows it:
+   coupled pair could not centre itself on the pinned object). On a free object (the physics
+   engine's closing: :meth:`RobotHold.close_hand` with ``pin=False``) the jaws one actuator
+   moves are coupled as the gripper couples them (a finger's motor joint that is a mimic
+   joint of another finger's follows it:
    :func:`~kinegrasp_env.physics.hand_motors.coupled_leaders`), so the first jaw to touch
-   pushes the object until the other meets it. A mimic joint that closes no
-   finger follows its driver's mimic value (a position motor, its driver's effort). The
-   closing ends when the fingers' first joints stall (:func:`~kinegrasp_env.physics.hold_runner.
-   close_until_stall` on positions divided by their closing speeds: moving at less than
-   ``stall_fraction`` of the closing speed) or after ``max_time``; then one contact per
-   touching finger link (pybullet's contact records within ``touch_distance`` on the
-   deepest record's face, :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`,
-   averaged without force weights: :func:`world_contacts`), in the object frame
+   pushes the object until the other meets it. A mimic joint that closes no finger follows
+   its driver's mimic value (a position motor, its holding effort). The closing ends when
+   the motors stall (a pressing one counts as stalled:
+   :func:`~kinegrasp_env.physics.hold_runner.close_until_stall` on positions divided by
+   their closing speeds: moving at less than ``stall_fraction`` of the closing speed) or
+   after ``max_time``; then one contact per touching finger link (pybullet's contact records
+   within ``touch_distance`` on the deepest record's face,
+   :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`, averaged without force
+   weights: :func:`world_contacts`), in the object frame
    (:func:`~kinegrasp_env.physics.hold_runner.in_object_frame`). Hand and object carry
    Bullet's polyhedral (SAT) contact features, so a pad on a face touches it at the corners
    of their overlap (:class:`~kinegrasp_env.physics.robot_world.RobotPhysicsWorld`).
@@ -48,7 +49,10 @@ One draw (:meth:`RobotHold.run_draw`):
    the grip, the release and every phase): two opposed jaws with equal efforts press the
    object with equal and opposite forces along the closing axis, an internal force when the
    contacts face each other. Fewer than two touching fingers: ``no_grip``. The same rule
-   holds a revolute finger (its motors at their effort limits; no balance of its torques).
+   holds a revolute finger (its motors at their effort limits; no balance of its torques);
+   the touch rule's switches stay where the closing left them (a held joint held, a
+   pressing motor pressing, in every phase). A hand of revolute fingers driven on their own
+   grips by the balanced grip instead (:mod:`~kinegrasp_env.physics.balanced_grip`).
 3. the release and the phases: :func:`~kinegrasp_env.physics.hold_runner.hold_test`, the
    SDH test's sequence and rules (grip until steady, ``grip_shift_mm``, ``grip_lost``, the
    rest control, six gravity directions, the lift, the optional shake), over the primitives
@@ -73,6 +77,7 @@ from kinegrasp_env.physics.hand_motors import (
     closing_followers,
     coupled_leaders,
     finger_leaders,
+    hold_efforts,
     motor_efforts,
     preshape_holds,
 )
@@ -142,8 +147,8 @@ class JawMotors:
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor],
-                 coupled: bool = False, touch_distance: float = CONTACT_TOL,
-                 scale: float = 1.0) -> None:
+                 holds: dict[str, float], coupled: bool = False,
+                 touch_distance: float = CONTACT_TOL) -> None:
         self.world, self.touch_distance = world, touch_distance
         leaders = finger_leaders(world.description)
         if coupled:
@@ -158,10 +163,14 @@ class JawMotors:
         self.gain = COUPLED_FOLLOWER_GAIN if coupled else FOLLOWER_GAIN
         self.followers = [(world.joint_index[f.joint], world.joint_index[f.source], f)
                           for f in closing_followers(world.description, motors, start,
-                                                     coupled)]
+                                                     coupled, holds)]
         #: the pre-shape joints held where they start
-        self.fixed = preshape_holds(world.description, motors, start, scale)
-        self.touch = TouchRule(world.description, self.motors, scale)
+        self.fixed = preshape_holds(world.description, holds, start)
+        self.touch = TouchRule(world.description, self.motors, holds,
+                               world.settings.time_step)
+        #: the touch rule acts while the hand closes (the holding test's phases keep its
+        #: switches where the closing left them: :meth:`restart` sets them again)
+        self.closing = True
         #: the motors the touch rule holds: joint name -> the value held (radians or metres)
         self.held: dict[str, float] = {}
         self.links = finger_links(world)
@@ -185,7 +194,7 @@ class JawMotors:
 
     def hold(self, name: str, value: float) -> None:
         """Hold motor joint ``name`` at ``value`` (a position motor with its holding effort:
-        :attr:`~kinegrasp_env.physics.hand_motors.TouchHolds.efforts`)."""
+        :attr:`~kinegrasp_env.physics.hand_motors.TouchRule.efforts`)."""
         self.held[name] = value
         self.world.bullet.setJointMotorControl2(
             self.world.hand, self.world.joint_index[name], self.world.bullet.POSITION_CONTROL,
@@ -228,7 +237,7 @@ class JawMotors:
             if self.followers:
                 self.follow()
             self.world.bullet.stepSimulation()
-            if self.touch.active:
+            if self.closing and self.touch.active:
                 self.touched()
 
     def travel(self) -> np.ndarray:
@@ -331,6 +340,9 @@ class DescriptionHold:
         self.description, self.protocol = description, protocol
         self.settings = settings or RobotMotorSettings()
         self.motors = motor_efforts(description, protocol.torque_scale)
+        #: what holds a joint that does not push (:func:`~kinegrasp_env.physics.hand_motors.
+        #: hold_efforts`; checked here, before any draw)
+        self.holds = hold_efforts(description, self.motors)
         #: the balanced grip's joints for a hand of revolute fingers, else None (jaws)
         self.layout = (grip_layout(description, protocol.torque_scale)
                        if balances(description) else None)
@@ -388,10 +400,10 @@ class RobotHold(DescriptionHold):
             world.pin_object()
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
-        jaws = JawMotors(world, self.motors, coupled=not pin,
-                         touch_distance=self.settings.touch_distance,
-                         scale=self.protocol.torque_scale)
+        jaws = JawMotors(world, self.motors, self.holds, coupled=not pin,
+                         touch_distance=self.settings.touch_distance)
         close_until_stall(jaws.step, jaws.travel, self.settings, world.settings.time_step)
+        jaws.closing = False
         joints = {m.joint: world.bullet.getJointState(world.hand, world.joint_index[m.joint])[0]
                   for m in self.motors}
         return closing_result(world_contacts(world, self.settings.touch_distance),
