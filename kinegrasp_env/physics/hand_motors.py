@@ -124,31 +124,32 @@ def hold_efforts(description: RobotDescription, motors: list[JointMotor]) -> dic
     * a closing motor's joint, once the touch rule stops it (:class:`TouchRule`): its URDF
       ``<limit effort>``, the joint's own limit (its gear; the description's ``efforts`` are
       its motor's: the paper's hand pushes at 2.1 and 1.4 N m and holds a stopped joint at
-      the URDF's 10), else its motor's effort;
-    * a hand joint that closes no finger (a spread, and a mimic joint of one): its effort
-      (:func:`joint_effort`: the description's ``efforts`` or the URDF's), as the balanced
-      grip holds it (:func:`~kinegrasp_env.physics.balanced_grip.grip_layout`).
+      the URDF's 10), else the description's;
+    * a hand joint that closes no finger and follows no closing joint (a spread, and a
+      mimic twin of one): its effort (:func:`joint_effort`: the description's ``efforts``
+      or the URDF's), as the balanced grip holds it
+      (:func:`~kinegrasp_env.physics.balanced_grip.grip_layout`). A mimic joint of a
+      closing joint (a linkage's bar) follows its motor instead (:func:`closing_followers`).
 
     Raises:
-        ValueError: an actuated hand joint that closes no finger without an effort (one
-            line, naming the joint and the key to add).
+        ValueError: a spread (or its twin) without an effort (one line, naming the joint
+            and the key to add), as the balanced grip refuses it.
     """
     limits = urdf_limits(description.urdf)
-    out = {m.joint: limits.get(m.joint, (0.0, 0.0))[0] or m.effort for m in motors}
+    out = {m.joint: limits.get(m.joint, (0.0, 0.0))[0]
+           or joint_effort(description, limits, m.joint)[0] for m in motors}
     closing = {joint for finger in description.fingers for joint in finger.joints}
     model = description.model
     for name, (index, _, _) in model.drivers().items():
-        if name in closing or model.actuated[index] not in description.hand_joints:
+        driver = model.actuated[index]
+        if name in closing or driver in closing or driver not in description.hand_joints:
             continue
         effort = joint_effort(description, limits, name)[0]
-        if not effort > 0 and name in description.hand_joints:
+        if not effort > 0:
             raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
                              f"limit in {description.urdf.name}; give one in the "
                              f"description's efforts: {{{name}: ...}}")
         out[name] = float(effort)
-    for name, (index, _, _) in model.drivers().items():  # a mimic twin without one: its driver's
-        if name in out and not out[name] > 0:
-            out[name] = out[model.actuated[index]]
     return out
 
 

@@ -122,6 +122,14 @@ class JawServos:
         world: the world.
         description: the robot.
         motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
+        holds: :func:`~kinegrasp_env.physics.hand_motors.hold_efforts` (MuJoCo holds a
+            joint by an equality, without an effort cap).
+        touch_distance: a contact record within this distance (metres) is a touch.
+
+    A pressing motor presses with its full effort when blocked, as pybullet's; MuJoCo's
+    velocity servo (:meth:`~kinegrasp_env.physics.mujoco_world.MujocoWorld.velocity`: a
+    constant effort against a damping of effort over speed) also resists being pushed back,
+    the more the slower its target, where pybullet's gives way beyond its effort.
     """
 
     def __init__(self, world: MujocoWorld, description: RobotDescription,

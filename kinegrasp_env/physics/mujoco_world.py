@@ -47,8 +47,9 @@ from kinegrasp_env.world.objects import GraspObject
 #: joint holds (time constant 2 ms, the smallest MuJoCo keeps at 1 ms) made the light finger
 #: links chatter (contact forces flickering between 0 and 100 N); at 0.25 ms they are steady.
 SUBSTEPS = 4
-#: The torque of a distal joint creeping at ``creep_speed`` when blocked, N m (what
-#: pybullet's velocity motor builds up for so slow a target, ~0.3 N m).
+#: The torque of the SDH's distal joint creeping at ``creep_speed`` when blocked in its own
+#: closing, N m (what pybullet's velocity motor builds up for so slow a target in the SDH's
+#: own world, ~0.3 N m).
 CREEP_TORQUE = 0.3
 
 

@@ -17,8 +17,8 @@ One draw (:meth:`RobotHold.run_draw`):
    one parameter gives them (each moving at its rate: the mimic multiplier times the close
    direction). A closing joint that another hand joint drives (an independently actuated
    phalanx) has a motor of its own, switched while the hand closes by the kinematic
-   closing's touch rule (:class:`~kinegrasp_env.physics.hand_motors. TouchRule`: a touching
-   link's joints held by their holding efforts, the finger's last motor pressing at a
+   closing's touch rule (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`: a
+   touching link's joints held by their holding efforts, the finger's last motor pressing at a
    creep); a hand joint that closes no finger (a spread) is held at its pre-shape value
    (:func:`~kinegrasp_env.physics.hand_motors.preshape_holds`; both efforts:
    :func:`~kinegrasp_env.physics.hand_motors.hold_efforts`). The fingers are not coupled to
@@ -139,11 +139,14 @@ class JawMotors:
     Args:
         world: the world, hand at its pre-shape.
         motors: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`.
+        holds: what holds a joint that does not push
+            (:func:`~kinegrasp_env.physics.hand_motors.hold_efforts`).
         coupled: the jaws one actuator moves follow it
             (:func:`~kinegrasp_env.physics.hand_motors.coupled_leaders`), as the gripper's
             own coupling makes them, and every follower stiffly
             (:data:`COUPLED_FOLLOWER_GAIN`); else every finger closes on its own, its
             followers at pybullet's default gain.
+        touch_distance: a contact record within this distance (metres) is a touch.
     """
 
     def __init__(self, world: RobotPhysicsWorld, motors: list[JointMotor],
