@@ -64,6 +64,7 @@ import os
 import sys
 import tempfile
 import time
+import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -406,7 +407,11 @@ def load_model(model_path: str):
     path = Path(model_path)
     if not path.exists():
         raise UsageError(f"no model at {path}")
-    return (SAC if "_sac" in path.stem else PPO).load(path, device="cpu")
+    try:
+        return (SAC if "_sac" in path.stem else PPO).load(path, device="cpu")
+    except (ValueError, KeyError, OSError, zipfile.BadZipFile) as error:
+        raise UsageError(f"--model: {path} is not a stable-baselines3 model saved by "
+                         f"train.py ({str(error).splitlines()[0]})") from None
 
 
 def model_robot(model_path: str, robot: str | None) -> str:
@@ -464,6 +469,11 @@ def evaluate(model_path: str, sigma: float, draws: int, oracle_draws: int, grid:
         raise UsageError(f"{model_path} observes {model.observation_space.shape[0]} values; "
                          f"the env of robot {robot!r} gives {env.observation_space.shape[0]} (a "
                          "model of another robot? --robot names the one it was trained on)")
+    if model.action_space != env.action_space:
+        env.close()
+        raise UsageError(f"{model_path} acts in {model.action_space}; this script scores "
+                         f"KineGraspSelect-v0 policies, whose actions are {env.action_space} "
+                         "(a model trained on another env?)")
     settings = {"draws": draws, "oracle_draws": oracle_draws, "grid": grid,
                 "random_angles": random_angles, "optimizer_samples": optimizer_samples,
                 "optimizer_seed": seed + 1 if optimizer_seed is None else optimizer_seed}
@@ -582,6 +592,12 @@ def check_args(args) -> None:
         raise UsageError(f"--optimizer-samples must be >= 0, got {args.optimizer_samples}")
     if args.limit is not None and args.limit < 1:
         raise UsageError(f"--limit must be >= 1, got {args.limit}")
+    from kinegrasp_env.sampling.noise import is_integer_seed
+
+    for name in ("seed", "optimizer_seed"):
+        value = getattr(args, name)
+        if value is not None and not is_integer_seed(value):
+            raise UsageError(f"--{name.replace('_', '-')} must be an integer >= 0, got {value}")
     from kinegrasp_env.robot.catalog import check_robot_name
     from kinegrasp_env.robot.description import RobotDescriptionError
 

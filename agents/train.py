@@ -111,9 +111,15 @@ def train(env_id: str, algo: str, seed: int, out: Path, total_timesteps: int | N
     hyperparameter file's)."""
     if algo not in ALGOS:
         raise UsageError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+    from kinegrasp_env.sampling.noise import is_integer_seed
+
+    if not is_integer_seed(seed):
+        raise UsageError(f"--seed must be an integer >= 0, got {seed}")
+    if total_timesteps is not None and total_timesteps < 1:
+        raise UsageError(f"--total-timesteps must be >= 1, got {total_timesteps}")
     params = load_hyperparams(env_id, algo)
     env_kwargs = {**params.pop("env_kwargs", {}), **(overrides or {})}
-    steps = int(total_timesteps or params.pop("n_timesteps"))
+    steps = int(params.pop("n_timesteps") if total_timesteps is None else total_timesteps)
     params.pop("n_timesteps", None)
     policy = params.pop("policy", "MlpPolicy")
     from stable_baselines3 import PPO, SAC

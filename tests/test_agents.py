@@ -87,6 +87,22 @@ def test_train_bad_input(tmp_path, kwargs, needle):
         train.train(seed=0, out=tmp_path, total_timesteps=8, **kwargs)
 
 
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--total-timesteps", "0"], "--total-timesteps must be >= 1, got 0"),  # not the default
+    (["--total-timesteps", "-5"], "--total-timesteps must be >= 1, got -5"),
+    (["--seed", "-1"], "--seed must be an integer >= 0, got -1"),
+])
+def test_train_refuses_bad_counts_before_writing(tmp_path, capsys, argv, needle):
+    """A bad count or seed is one line, and an earlier model in --out stays as it was (an
+    untrained model was written over it)."""
+    model = tmp_path / "KineGraspSelect-v0_ppo.zip"
+    model.write_bytes(b"trained")
+    assert train.main([*argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and needle in err
+    assert model.read_bytes() == b"trained" and sorted(tmp_path.iterdir()) == [model]
+
+
 def test_hyperparams_missing_file(tmp_path):
     with pytest.raises(train.UsageError, match="no hyperparameter file"):
         train.load_hyperparams("KineGraspSelect-v0", "ppo", folder=tmp_path)
@@ -278,6 +294,31 @@ def test_evaluate_bad_arguments_one_line_error(capsys, argv, needle):
     assert evaluate_module.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and needle in err
+
+
+def test_evaluate_refuses_seeds_and_files_that_are_no_model(tmp_path, capsys):
+    not_a_model = tmp_path / "result.json"
+    not_a_model.write_text("{}")
+    for argv, needle in [
+            (["--seed", "-1", "--quick"], "--seed must be an integer >= 0, got -1"),
+            (["--optimizer-seed", "-2", "--quick"], "--optimizer-seed must be an integer >= 0"),
+            (["--model", str(not_a_model), "--quick"],
+             f"--model: {not_a_model} is not a stable-baselines3 model")]:
+        assert evaluate_module.main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and needle in err, err
+
+
+@pytest.mark.expensive
+def test_evaluate_refuses_a_policy_of_the_other_env(tmp_path, capsys):
+    """A policy trained on KineGrasp-v0 (two actions) is not scored as a KineGraspSelect-v0
+    one (the env refused its action from inside the run)."""
+    train.train("KineGrasp-v0", "sac", seed=0, out=tmp_path, total_timesteps=8,
+                checkpoint_every=1000, progress=False)
+    model = tmp_path / "KineGrasp-v0_sac.zip"
+    assert evaluate_module.main(["--model", str(model), "--quick"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "scores KineGraspSelect-v0 policies" in err, err
 
 
 def test_oracle_selection_draws_are_not_scoring_draws():

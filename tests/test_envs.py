@@ -176,6 +176,36 @@ def test_vector_envs(mode):
     vec.close()
 
 
+@pytest.mark.parametrize("env_id", ["KineGrasp-v0", "KineGraspSelect-v0"])
+def test_an_ended_episode_needs_a_reset(env_id):
+    """After terminated or truncated, step() refuses until reset() (KineGrasp-v0 went on
+    moving the elbow with fresh rewards and terminated=False); a vector env resets by
+    itself and steps on."""
+    env = gym.make(env_id, **SMALL, max_steps=2) if env_id == "KineGrasp-v0" else gym.make(
+        env_id, **SMALL)
+    env.reset(seed=0)
+    stop = np.array([0.0, 1.0]) if env_id == "KineGrasp-v0" else env.action_space.sample()
+    _, _, terminated, truncated, _ = env.step(stop)
+    assert terminated or truncated
+    with pytest.raises(RuntimeError, match="the episode has ended"):
+        env.step(stop)
+    env.reset(seed=0)
+    env.step(stop)  # a new episode steps
+    if env_id == "KineGrasp-v0":  # truncated after max_steps steps, not terminated
+        env.reset(seed=0)
+        go_on = np.array([0.1, -1.0])
+        env.step(go_on)
+        assert env.step(go_on)[3]
+        with pytest.raises(RuntimeError, match="the episode has ended"):
+            env.step(go_on)
+    env.close()
+    vec = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync", **SMALL)
+    vec.reset(seed=0)
+    for _ in range(3):
+        vec.step(vec.action_space.sample())
+    vec.close()
+
+
 @pytest.mark.parametrize(("options", "needle"), [
     ({"object": "teapot"}, "unknown object 'teapot'"),
     ({"sigma": -0.1}, "sigma must be finite and >= 0"),

@@ -365,7 +365,7 @@ def test_the_env_moves_a_six_joint_arm_across_its_branches(home, monkeypatch):
     from kinegrasp_env.envs import render
 
     kwargs = {"robot": "xarm6", "grasp_file": str(home[0]), "n_draws": 4}
-    env = gym.make("KineGrasp-v0", step_size=0.3, **kwargs).unwrapped
+    env = gym.make("KineGrasp-v0", step_size=0.3, max_steps=30, **kwargs).unwrapped
     info = env.reset(seed=0, options={"grasp": 0, "psi": 3.5})[1]
     assert info["elbow_angle"] == pytest.approx(3.5 - 2.0 * np.pi)  # the coordinate asked
     env.reset(seed=0, options={"grasp": 0})

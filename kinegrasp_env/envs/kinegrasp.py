@@ -192,6 +192,8 @@ class KineGraspEnv(gym.Env):
             self._robot.check_noise(self.noise_model)
         self._viewer = None
         self.grasp: Grasp | None = None
+        #: the episode ended (terminated or truncated): step() needs a reset() first
+        self.ended = False
         self.q = None
         self._psi = 0.0  # elbow angle of self.q (radians), set by every observation
         #: an arm without self-motion: the IK-branch coordinate moved to (radians, wrapped),
@@ -311,6 +313,7 @@ class KineGraspEnv(gym.Env):
         self.grasp, self.noise = self._pick_task(options)
         self.q = self.grasp.q0.copy()
         self.steps = 0
+        self.ended = False
         self._branch_psi = None
         if options.get("psi") is not None:
             self._move_to(reset_psi(options["psi"]))
@@ -321,9 +324,18 @@ class KineGraspEnv(gym.Env):
                 **noise_info(self.noise, self._robot.arm), "elbow_angle": psi0}
         return self._observation(), info
 
-    def step(self, action):
+    def check_running(self) -> None:
+        """RuntimeError unless an episode is running: before the first reset(), and after an
+        episode ended (terminated or truncated: a step would move on from an episode the
+        agent was told is over)."""
         if self.grasp is None:
             raise RuntimeError("call reset() before step()")
+        if self.ended:
+            raise RuntimeError("the episode has ended (terminated or truncated): call reset() "
+                               "before step()")
+
+    def step(self, action):
+        self.check_running()
         action = box_action(action, (2,), "change of the elbow angle in units of step_size, "
                             "done signal: > 0 ends the episode")
         # the current elbow angle: the one the last observation computed (self._psi)
@@ -333,6 +345,7 @@ class KineGraspEnv(gym.Env):
         reward, info = self._reward(within)
         terminated = bool(action[1] > 0.0)
         truncated = self.steps >= self.max_steps and not terminated
+        self.ended = terminated or truncated
         return observation, reward, terminated, truncated, info
 
     def render(self):

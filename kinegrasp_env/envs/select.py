@@ -49,10 +49,10 @@ class KineGraspSelectEnv(KineGraspEnv):
         return math.pi * float(action[0])
 
     def step(self, action):
-        if self.grasp is None:
-            raise RuntimeError("call reset() before step()")
+        self.check_running()
         within = self._move_to(self.action_angle(action))
         self.steps += 1
         observation = self._observation()  # (sets self._psi, which the reward's info reports)
         reward, info = self._reward(within)
+        self.ended = True  # one step an episode
         return observation, reward, True, False, info
