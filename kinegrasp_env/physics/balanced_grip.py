@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, SpringGrip, spring_grip
-from kinegrasp_env.physics.hand_motors import joint_effort, motor_efforts, urdf_limits
+from kinegrasp_env.physics.hand_motors import motor_efforts, required_effort, urdf_limits
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 
@@ -133,11 +133,7 @@ def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> Gri
         for name in below[f]:
             if name in finger.joints or counts[name] > 1:
                 continue
-            effort = joint_effort(description, limits, name)[0]
-            if not effort > 0:
-                raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
-                                 f"limit in {description.urdf.name}; give one in the "
-                                 f"description's efforts: {{{name}: ...}}")
+            effort = required_effort(description, limits, name)[0]
             rows.append((name, 1.0, f, first[name], -effort, effort, finger.tip))
     names, directions, fingers, first_links, lower, upper, tips = zip(*rows, strict=True)
     return GripLayout(tuple(names), np.array(directions), np.array(fingers, dtype=int),

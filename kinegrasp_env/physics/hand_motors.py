@@ -70,6 +70,23 @@ def joint_effort(description: RobotDescription, limits: dict[str, tuple[float, f
     return limits.get(joint, (0.0, 0.0))[0], "urdf"
 
 
+def required_effort(description: RobotDescription, limits: dict[str, tuple[float, float]],
+                    joint: str) -> tuple[float, str]:
+    """:func:`joint_effort` of a joint that must have one (a closing motor's, a held
+    spread's).
+
+    Raises:
+        ValueError: none in the URDF and no override (one line, naming the joint and the
+            key to add).
+    """
+    effort, source = joint_effort(description, limits, joint)
+    if not effort > 0:
+        raise ValueError(f"robot {description.name!r}: joint {joint!r} has no effort "
+                         f"limit in {description.urdf.name}; give one in the "
+                         f"description's efforts: {{{joint}: ...}}")
+    return effort, source
+
+
 def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[JointMotor]:
     """The motors of every closing joint of the description's fingers (finger-major, palm to
     tip; a joint shared by two fingers once), efforts times ``scale``.
@@ -85,12 +102,8 @@ def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[Joi
             if joint in seen:
                 continue
             seen.add(joint)
-            effort, source = joint_effort(description, limits, joint)
+            effort, source = required_effort(description, limits, joint)
             velocity = limits.get(joint, (0.0, 0.0))[1]
-            if not effort > 0:
-                raise ValueError(f"robot {description.name!r}: joint {joint!r} has no effort "
-                                 f"limit in {description.urdf.name}; give one in the "
-                                 f"description's efforts: {{{joint}: ...}}")
             if not velocity > 0:
                 raise ValueError(f"robot {description.name!r}: joint {joint!r} has no "
                                  f"velocity limit in {description.urdf.name}")
@@ -144,12 +157,7 @@ def hold_efforts(description: RobotDescription, motors: list[JointMotor]) -> dic
         driver = model.actuated[index]
         if name in closing or driver in closing or driver not in description.hand_joints:
             continue
-        effort = joint_effort(description, limits, name)[0]
-        if not effort > 0:
-            raise ValueError(f"robot {description.name!r}: joint {name!r} has no effort "
-                             f"limit in {description.urdf.name}; give one in the "
-                             f"description's efforts: {{{name}: ...}}")
-        out[name] = float(effort)
+        out[name] = required_effort(description, limits, name)[0]
     return out
 
 
