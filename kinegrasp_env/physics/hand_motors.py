@@ -336,6 +336,12 @@ class TouchRule:
         paper's hand's creep speed lies below its stall speed)."""
         return np.where([name in self.pressing for name in names], 0.0, travel)
 
+    def velocity(self, motor: JointMotor) -> float:
+        """A closing motor's target speed now, m/s or rad/s: its closing speed towards
+        closing, :data:`CREEP_FRACTION` of it while it presses."""
+        creep = CREEP_FRACTION if motor.joint in self.pressing else 1.0
+        return motor.direction * motor.speed * creep
+
     def update(self, touching) -> tuple[list[str], list[tuple[str, bool]]]:
         """For the touching (finger, link) pairs after a step: (the motor joints to hold from
         now on, each once; the last motors whose pressing changes, (joint, pressing now))."""

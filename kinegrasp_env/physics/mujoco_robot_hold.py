@@ -57,7 +57,6 @@ from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout
 from kinegrasp_env.physics.hand_motors import (
-    CREEP_FRACTION,
     JointMotor,
     TouchRule,
     closing_followers,
@@ -164,11 +163,9 @@ class JawServos:
         held, pressing = self.touch.update(touching(self.world, self.touch_distance))
         if held:
             self.world.position(held, self.world.joint_states(held)[0])
-        for name, on in pressing:
+        for name, _ in pressing:
             motor = self.motors[self.names.index(name)]
-            creep = CREEP_FRACTION if on else 1.0
-            self.world.velocity([name], [motor.direction * motor.speed * creep],
-                                [motor.effort])
+            self.world.velocity([name], [self.touch.velocity(motor)], [motor.effort])
 
     def travel(self) -> np.ndarray:
         """(m,) the motors' joint positions in seconds of travel (value / closing speed; a

@@ -71,7 +71,6 @@ from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.balanced_grip import GripLayout, balances, grip_layout
 from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hand_motors import (
-    CREEP_FRACTION,
     JointMotor,
     TouchRule,
     closing_followers,
@@ -83,7 +82,7 @@ from kinegrasp_env.physics.hand_motors import (
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
-from kinegrasp_env.physics.pybullet_closing import merge_records
+from kinegrasp_env.physics.pybullet_closing import merge_records, touching_links
 from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
@@ -185,7 +184,7 @@ class JawMotors:
         bullet, hand = self.world.bullet, self.world.hand
         bullet.setJointMotorControlArray(
             hand, self.indices, bullet.VELOCITY_CONTROL,
-            targetVelocities=[self.velocity(m) for m in self.motors],
+            targetVelocities=[self.touch.velocity(m) for m in self.motors],
             forces=[m.effort for m in self.motors])
         for fixed in self.fixed:
             bullet.setJointMotorControl2(hand, self.world.joint_index[fixed.joint],
@@ -203,26 +202,19 @@ class JawMotors:
             self.world.hand, self.world.joint_index[name], self.world.bullet.POSITION_CONTROL,
             targetPosition=value, force=self.touch.efforts[name])
 
-    def velocity(self, motor: JointMotor) -> float:
-        """A closing motor's target speed now (pressing: :data:`~kinegrasp_env.physics.
-        hand_motors.CREEP_FRACTION` of its speed), m/s or rad/s."""
-        creep = CREEP_FRACTION if motor.joint in self.touch.pressing else 1.0
-        return motor.direction * motor.speed * creep
-
     def touched(self) -> None:
         """Apply the touch rule (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) to
         the finger links touching the object now."""
-        touching = {self.links[rec[3]] for rec in self.world.contact_points()
-                    if rec[3] in self.links and rec[8] <= self.touch_distance}
         bullet, hand = self.world.bullet, self.world.hand
-        held, pressing = self.touch.update(touching)
+        held, pressing = self.touch.update(
+            touching_links(self.world, self.links, self.touch_distance))
         for name in held:
             self.hold(name, bullet.getJointState(hand, self.world.joint_index[name])[0])
         for name, _ in pressing:
             motor = self.motors[[m.joint for m in self.motors].index(name)]
             bullet.setJointMotorControl2(hand, self.world.joint_index[name],
                                          bullet.VELOCITY_CONTROL,
-                                         targetVelocity=self.velocity(motor),
+                                         targetVelocity=self.touch.velocity(motor),
                                          force=motor.effort)
 
     def follow(self) -> None:
