@@ -213,6 +213,15 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
         (["convergence", "--out", str(a_file / "c.png")], f"{a_file} is not a folder"),
         (["evaluate", "--plot", str(tmp_path)], "is a folder; give a file name"),
         (["plan", "--out", str(a_file / "g.json")], f"{a_file} is not a folder"),
+        (["plan", "--out", ""], "--out is empty; give a file name"),
+        (["reproduce", "table1", "--out", ""], "--out is empty; give a folder name"),
+        (["reproduce", "fig9", "--out", " "], "--out is empty; give a folder name"),
+        # a command that writes one format refuses a name that says another
+        (["report", "--out", str(tmp_path / "r.png")], "give a .html or .htm file"),
+        (["rank", str(asset_path("grasps", "kuka_sdh", "cube.json")), "--report",
+          str(tmp_path / "r.pdf")], "give a .html or .htm file"),
+        (["screenshot", str(a_file), "--out", str(tmp_path / "s.html")], "give a .png file"),
+        (["robots", "show", "panda", "--out", str(tmp_path / "p.svg")], "give a .png file"),
     ]:
         code, err = _run(capsys, *argv)
         assert code == 2 and len(err) == 1 and needle in err[0], err

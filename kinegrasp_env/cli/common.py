@@ -123,20 +123,38 @@ def input_files(args) -> list[tuple[str, str]]:
             if isinstance(value := getattr(args, dest, None), str) and Path(value).is_file()]
 
 
+def named_path(text: str, name: str, kind: str) -> Path:
+    """The path an output option names; CLIError for an empty or blank one (which would
+    name the current folder)."""
+    if not text.strip():
+        raise CLIError(f"{name} is empty; give a {kind} name")
+    return Path(text)
+
+
+#: the names of the files a command writes in one format (:func:`output_file`'s ``suffixes``)
+HTML_SUFFIXES = (".html", ".htm")
+PNG_SUFFIXES = (".png",)
+
+
 def output_file(text: str, name: str, *, figure: bool | None = None,
-                inputs: list[tuple[str, str]] = ()) -> Path:
-    """A file the command will write, checked before any work: not a folder, not one of the
-    files it reads (``inputs``: (label, path) pairs, :func:`input_files`), its folder can be
-    written (:func:`check_parents`: missing folders are created only inside the current
-    folder), and for a figure (``figure``; by default when ``name`` is ``--plot``) a format
-    matplotlib writes. Nothing is created here."""
-    path = Path(text)
+                inputs: list[tuple[str, str]] = (), suffixes: tuple[str, ...] = ()) -> Path:
+    """A file the command will write, checked before any work: a name is given, not a
+    folder, not one of the files it reads (``inputs``: (label, path) pairs,
+    :func:`input_files`), its folder can be written (:func:`check_parents`: missing folders
+    are created only inside the current folder), for a figure (``figure``; by default when
+    ``name`` is ``--plot``) a format matplotlib writes, and where the command writes one
+    format (``suffixes``, lower case: e.g. ``(".html",)``) a name that says it. Nothing is
+    created here."""
+    path = named_path(text, name, "file")
     if path.is_dir():
         raise CLIError(f"{name} {text} is a folder; give a file name")
     for label, source in inputs:
         if path.exists() and path.samefile(source):
             raise CLIError(f"{name} {text} is {label} the command reads; give another file "
                            "name")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise CLIError(f"{name} {text}: give a {' or '.join(suffixes)} file (the command "
+                       f"writes {suffixes[0][1:].upper()})")
     check_parents(path.parent, f"{name} {text}")
     if figure or (figure is None and name == "--plot"):
         check_figure_format(path, name)
@@ -146,7 +164,7 @@ def output_file(text: str, name: str, *, figure: bool | None = None,
 def output_folder(text: str, name: str = "--out") -> Path:
     """A folder the command will write into (and create), checked before any work: not a
     file, and writable where it will be made (:func:`check_parents`)."""
-    path = Path(text)
+    path = named_path(text, name, "folder")
     if path.exists() and not path.is_dir():
         raise CLIError(f"{name} {text} is a file; give a folder")
     if not path.exists():

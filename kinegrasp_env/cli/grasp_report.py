@@ -16,6 +16,7 @@ from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
+    HTML_SUFFIXES,
     NUM_EDGES,
     CLIError,
     friction_from,
@@ -175,7 +176,7 @@ def run_report(args, sigmas: list[float]) -> int:
     friction = friction_from(args, model)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
-    out = output_file(args.out, "--out", inputs=input_files(args))
+    out = output_file(args.out, "--out", inputs=input_files(args), suffixes=HTML_SUFFIXES)
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if model is not None:

@@ -17,8 +17,10 @@ from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
+    HTML_SUFFIXES,
     MAX_SIGMA,
     NUM_EDGES,
+    PNG_SUFFIXES,
     CLIError,
     add_engine_arg,
     add_friction_arg,
@@ -70,7 +72,8 @@ def report_path(text: str | None, name: str = "--report",
                 inputs: list[tuple[str, str]] = ()) -> Path | None:
     """A validated ``--report`` file (not one of ``inputs``: :func:`~kinegrasp_env.cli.
     common.output_file`), or None when not asked for."""
-    return None if text is None else output_file(text, name, inputs=inputs)
+    return None if text is None else output_file(text, name, inputs=inputs,
+                                                 suffixes=HTML_SUFFIXES)
 
 
 #: Draws whose arm skeletons a ranking page draws per candidate (the same rows for every one).
@@ -236,7 +239,7 @@ def cmd_screenshot(args) -> int:
     page = Path(args.page)
     if not page.is_file():
         raise CLIError(f"{args.page}: no such file")
-    out = output_file(args.out, "--out", inputs=input_files(args))
+    out = output_file(args.out, "--out", inputs=input_files(args), suffixes=PNG_SUFFIXES)
     width = positive_int(args.width, "--width")
     height = positive_int(args.height, "--height")
     opener = show_candidates(page, args.show)

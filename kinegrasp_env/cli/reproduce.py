@@ -88,7 +88,7 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
         if count < 2:
             raise CLIError(f"--grasps {count}: fig7 compares the most and the least robust of "
                            "N configurations, N >= 2")
-    out = str(output_folder(args.out or f"out/{args.figure}"))
+    out = str(output_folder(f"out/{args.figure}" if args.out is None else args.out))
     seed = parse_seed(args.seed)
     if args.figure in ("fig7", "fig9"):
         return figure_command(args, description, sets, count, out, samples, seed, friction)
@@ -205,7 +205,7 @@ def table1_command(args, description, samples: int, friction: float) -> int:
             raise CLIError(f"--grasps must be between 1 and {len(sets[name])} ({name} has "
                            f"{len(sets[name])} shipped grasps of robot {robot}), got {count}")
         grasps = sets[name][:count]
-    out = str(output_folder(args.out or "out/table1"))
+    out = str(output_folder("out/table1" if args.out is None else args.out))
     seed = parse_seed(args.seed)
     with executor_from(args) as executor:  # after every check: Ray takes seconds to start
         rows = table1(description, name, grasps, samples, out, seed=seed,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import json
 
-from kinegrasp_env.cli.common import CLIError, output_file, reported
+from kinegrasp_env.cli.common import PNG_SUFFIXES, output_file, reported
 
 
 def cmd_list(args) -> int:
@@ -48,9 +48,7 @@ def cmd_show(args) -> int:
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.robot.picture import draw_robot
 
-    out = output_file(args.out, "--out", figure=False)
-    if out.suffix.lower() != ".png":
-        raise CLIError(f"--out {args.out}: give a .png file")
+    out = output_file(args.out, "--out", figure=False, suffixes=PNG_SUFFIXES)
     with reported(RobotDescriptionError):  # unknown name
         robot = load_robot(args.name)
     from kinegrasp_env.robot.hand_frame import hand_frame
