@@ -214,6 +214,9 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
         (["evaluate", "--plot", str(tmp_path)], "is a folder; give a file name"),
         (["plan", "--out", str(a_file / "g.json")], f"{a_file} is not a folder"),
         (["plan", "--out", ""], "--out is empty; give a file name"),
+        (["evaluate", "--plot", ""], "--plot is empty; give a file name"),
+        (["evaluate", "--report", str(tmp_path / "e.png")], "give a .html or .htm file"),
+        (["elbow", "--plot", ""], "--plot is empty; give a file name"),
         (["reproduce", "table1", "--out", ""], "--out is empty; give a folder name"),
         (["reproduce", "fig9", "--out", " "], "--out is empty; give a folder name"),
         # a command that writes one format refuses a name that says another

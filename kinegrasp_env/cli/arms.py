@@ -37,7 +37,7 @@ def cmd_planar(args) -> int:
     if any(v <= 0 for v in links):
         raise CLIError(f"--links: link lengths must be > 0, got {args.links}")
     noise, sigma, samples, seed = noise_from(args)
-    if args.plot:
+    if args.plot is not None:
         output_file(args.plot, "--plot")
     arm = PlanarArm(tuple(links))
     ee = arm.sample(np.array(q0), noise, samples, np.random.default_rng(seed))

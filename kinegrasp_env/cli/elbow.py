@@ -72,7 +72,7 @@ def cmd_elbow(args) -> int:
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     report_path(args.report, inputs=input_files(args))  # before a palm pose is solved
-    if args.plot:
+    if args.plot is not None:
         output_file(args.plot, "--plot", inputs=input_files(args))
     chosen = file_choice(args)
     robot = args.robot = getattr(args, "robot", None) or DEFAULT_ROBOT

@@ -32,15 +32,16 @@ from kinegrasp_env.cli.figure_grasps import (
     is_count,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
+from kinegrasp_env.cli.report import report_path
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
 def cmd_evaluate(args) -> int:
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
-    for name in ("report", "plot"):  # before a palm pose is solved
-        if getattr(args, name):
-            output_file(getattr(args, name), f"--{name}", inputs=input_files(args))
+    report_path(args.report, inputs=input_files(args))  # before a palm pose is solved
+    if args.plot is not None:
+        output_file(args.plot, "--plot", inputs=input_files(args))
     _, grasp = chosen_grasp(args)
     return run_evaluate(args, grasp, args.robot or grasp.robot, sigma, samples, seed,
                           friction, noise)

@@ -48,7 +48,7 @@ def cmd_sensitivity(args) -> int:
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
     index, grasp = _request(args, model)
-    if args.plot:
+    if args.plot is not None:
         output_file(args.plot, "--plot", inputs=input_files(args))
     result = _analyze(grasp, model, samples, seed, args.engine, bootstrap, friction,
                       per_joint=args.factors == "joints")
