@@ -16,9 +16,10 @@ import pytest
 from cli_helpers import COMMAND
 
 from kinegrasp_env.assets import asset_path
-from kinegrasp_env.cli.common import CLIError, output_file, output_folder
+from kinegrasp_env.cli.common import CLIError
 from kinegrasp_env.cli.execution_options import available_cores
 from kinegrasp_env.cli.main import main
+from kinegrasp_env.cli.output_paths import output_file, output_folder
 from kinegrasp_env.toolkit.progress import MIN_WINDOW, Progress
 
 #: Draws that no command finishes within the timeout below.

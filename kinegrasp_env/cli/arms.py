@@ -13,13 +13,13 @@ from kinegrasp_env.cli.common import (
     float_list,
     format_moments,
     noise_from,
-    output_file,
     parse_seed,
     plural,
     positive_int,
     print_json,
     reported,
 )
+from kinegrasp_env.cli.output_paths import output_file
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 

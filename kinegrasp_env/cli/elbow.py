@@ -22,9 +22,7 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     friction_from,
     grasp_index_help,
-    input_files,
     noise_from,
-    output_file,
     positive_int,
     reported,
     shipped_grasp,
@@ -38,6 +36,7 @@ from kinegrasp_env.cli.elbow_output import (
     show_elbow,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
+from kinegrasp_env.cli.output_paths import input_files, output_file, report_path
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The object without --object or --grasps.
@@ -67,7 +66,7 @@ def cmd_elbow(args) -> int:
     across its IK branches (:func:`~kinegrasp_env.cli.elbow_branches.cmd_elbow_branches`)."""
     from tqdm import tqdm
 
-    from kinegrasp_env.cli.report import report_path, write_elbow_report
+    from kinegrasp_env.cli.report import write_elbow_report
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 

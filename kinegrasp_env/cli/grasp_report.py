@@ -16,14 +16,11 @@ from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
-    HTML_SUFFIXES,
     NUM_EDGES,
     CLIError,
     friction_from,
     friction_setting,
-    input_files,
     noise_spec_from,
-    output_file,
     parse_seed,
     positive_int,
     reported,
@@ -31,6 +28,7 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.evaluation import check_robot_engine, draw_bar
 from kinegrasp_env.cli.evaluation_output import evaluation_record
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.output_paths import HTML_SUFFIXES, input_files, output_file
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 

@@ -17,9 +17,7 @@ from kinegrasp_env.cli.common import (
     engine_name,
     friction_from,
     grasp_index_help,
-    input_files,
     noise_from,
-    output_file,
     positive_int,
 )
 from kinegrasp_env.cli.evaluation import run_evaluate
@@ -32,7 +30,7 @@ from kinegrasp_env.cli.figure_grasps import (
     is_count,
 )
 from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT, chosen_grasp
-from kinegrasp_env.cli.report import report_path
+from kinegrasp_env.cli.output_paths import input_files, output_file, report_path
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 

@@ -7,14 +7,8 @@ from __future__ import annotations
 import json
 import sys
 
-from kinegrasp_env.cli.common import (
-    CLIError,
-    finite_float,
-    output_file,
-    positive_float,
-    positive_int,
-    reported,
-)
+from kinegrasp_env.cli.common import CLIError, finite_float, positive_float, positive_int, reported
+from kinegrasp_env.cli.output_paths import output_file
 from kinegrasp_env.cli.placement import add_place_command, placement_note
 
 

@@ -18,13 +18,12 @@ from kinegrasp_env.cli.common import (
     engine_name,
     finite_float,
     friction_from,
-    input_files,
     noise_from,
-    output_file,
     positive_int,
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.output_paths import input_files, output_file, report_path
 from kinegrasp_env.cli.ranking_draws import check_candidates
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -87,7 +86,7 @@ def _hold_scores(args) -> tuple[bool, bool]:
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.ranking_draws import RankingDraws
-    from kinegrasp_env.cli.report import report_path, write_rank_report
+    from kinegrasp_env.cli.report import write_rank_report
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 

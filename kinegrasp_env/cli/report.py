@@ -17,10 +17,8 @@ from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
-    HTML_SUFFIXES,
     MAX_SIGMA,
     NUM_EDGES,
-    PNG_SUFFIXES,
     CLIError,
     add_engine_arg,
     add_friction_arg,
@@ -28,12 +26,11 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     float_list,
     friction_setting,
-    input_files,
     nonnegative,
-    output_file,
     positive_int,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args
+from kinegrasp_env.cli.output_paths import PNG_SUFFIXES, input_files, output_file
 
 #: Defaults of ``--max-points`` and ``--arm-draws``: equal to ``report.scene.MAX_POINTS`` and
 #: ``report.page.ARM_DRAWS`` (tested), kept here so that building the parser stays cheap.
@@ -66,14 +63,6 @@ def cmd_report(args) -> int:
     from kinegrasp_env.cli.grasp_report import run_report
 
     return run_report(args, sigmas_from(args.sigma))
-
-
-def report_path(text: str | None, name: str = "--report",
-                inputs: list[tuple[str, str]] = ()) -> Path | None:
-    """A validated ``--report`` file (not one of ``inputs``: :func:`~kinegrasp_env.cli.
-    common.output_file`), or None when not asked for."""
-    return None if text is None else output_file(text, name, inputs=inputs,
-                                                 suffixes=HTML_SUFFIXES)
 
 
 #: Draws whose arm skeletons a ranking page draws per candidate (the same rows for every one).

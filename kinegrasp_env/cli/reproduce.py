@@ -4,7 +4,7 @@ default robot is the paper's, any catalog robot runs them alike."""
 
 from __future__ import annotations
 
-from kinegrasp_env.cli.common import CLIError, output_folder, parse_seed, positive_int, reported
+from kinegrasp_env.cli.common import CLIError, parse_seed, positive_int, reported
 from kinegrasp_env.cli.elbow_output import batch_sized, twice_samples
 from kinegrasp_env.cli.evaluation import check_robot_engine
 from kinegrasp_env.cli.execution_options import executor_from
@@ -17,6 +17,7 @@ from kinegrasp_env.cli.figure_grasps import (
     is_count,
     written,
 )
+from kinegrasp_env.cli.output_paths import output_folder
 
 #: The experiments that compare configurations of one palm pose (a 7-joint arm's
 #: self-motion, a 6-joint arm's IK branches).

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import json
 
-from kinegrasp_env.cli.common import PNG_SUFFIXES, output_file, reported
+from kinegrasp_env.cli.common import reported
+from kinegrasp_env.cli.output_paths import PNG_SUFFIXES, output_file
 
 
 def cmd_list(args) -> int:

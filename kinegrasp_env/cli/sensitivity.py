@@ -22,13 +22,12 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     friction_from,
     grasp_index_help,
-    input_files,
-    output_file,
     parse_seed,
     positive_int,
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.cli.output_paths import input_files, output_file
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: The object without --object or --grasps.

@@ -17,14 +17,13 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     add_static_hold_arg,
     friction_from,
-    output_file,
-    output_folder,
     parse_seed,
     positive_float,
     positive_int,
     reported,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
+from kinegrasp_env.cli.output_paths import output_file, output_folder
 from kinegrasp_env.cli.ranking import cmd_rank
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 

@@ -18,7 +18,6 @@ from kinegrasp_env.cli.common import (
     friction_from,
     grasp_index_help,
     nonnegative,
-    output_folder,
     parse_seed,
     positive_int,
     print_json,
@@ -26,6 +25,7 @@ from kinegrasp_env.cli.common import (
     shipped_grasp,
 )
 from kinegrasp_env.cli.execution_options import processes_from
+from kinegrasp_env.cli.output_paths import output_folder
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 
