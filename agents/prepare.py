@@ -136,7 +136,7 @@ def resolve(index: int, count: int, scale: float, replan: bool) -> tuple[int, li
 
 def write_set(path: Path, grasps: list, **extra) -> None:
     """A grasp file of several objects (``object`` null, ``objects`` listing them)."""
-    from kinegrasp_env.world.grasps import write_atomic
+    from kinegrasp_env.atomic_files import write_atomic
 
     objects = list(dict.fromkeys(g.object for g in grasps))
     payload = {"object": None, "objects": objects, **extra,

@@ -21,8 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
-from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps, write_atomic
+from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 

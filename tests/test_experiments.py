@@ -17,13 +17,14 @@ import numpy as np
 import pytest
 from cli_helpers import run_cli
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine
 from kinegrasp_env.montecarlo.evaluate import GraspStats
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit import experiments, plots
 from kinegrasp_env.toolkit import selection as selection_mod
 from kinegrasp_env.toolkit.progress import Progress, format_eta
-from kinegrasp_env.world.grasps import save_grasps, shipped_grasps, write_atomic
+from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
 
 
 def _read(path):

@@ -52,7 +52,7 @@ def write_rejected(rejected: list, out: Path, quiet: bool = False) -> None:
     """``<out>.rejected.csv``: id, reason, detail of each rejected palm-pose candidate (an
     older one is removed when there are none); the line saying so on stderr when ``quiet``
     (stdout holds JSON)."""
-    from kinegrasp_env.world.grasps import write_atomic
+    from kinegrasp_env.atomic_files import write_atomic
 
     path = out.with_name(out.name + ".rejected.csv")
     if not rejected:
@@ -101,7 +101,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
     ``rejected``: each rejected palm-pose candidate's id, reason and detail);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
     saying what it certified."""
-    from kinegrasp_env.world.grasps import write_atomic
+    from kinegrasp_env.atomic_files import write_atomic
 
     rows = []
     for r in results:

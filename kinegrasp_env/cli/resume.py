@@ -19,10 +19,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.cli.common import CLIError
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.toolkit.ranking import CandidateResult
-from kinegrasp_env.world.grasps import write_atomic
 
 #: The settings of a ranking that change a number, and how a message names them.
 SETTING_LABELS = {

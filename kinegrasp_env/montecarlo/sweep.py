@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.montecarlo.evaluate import chunk_sizes, tally
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
@@ -53,7 +54,6 @@ from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT, STREAM_CHUNK
 from kinegrasp_env.sampling.stats import StreamingMoments
-from kinegrasp_env.world.grasps import write_atomic
 
 #: ``plot(rows, path, title=...) -> path``: draws one P(FC)-vs-sigma figure of summary rows.
 SweepPlot = Callable[..., Path]

@@ -28,6 +28,7 @@ import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.robot.description import RobotDescription
@@ -41,7 +42,7 @@ from kinegrasp_env.toolkit.arm_variants import (
     variant_work,
 )
 from kinegrasp_env.toolkit.progress import cell_progress, reported_cell
-from kinegrasp_env.world.grasps import Grasp, write_atomic
+from kinegrasp_env.world.grasps import Grasp
 
 #: Table I's CSV columns; new columns go at the end (readers by position keep working).
 TABLE1_COLUMNS = ("grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc", "p_fc_lo", "p_fc_hi",

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import file_mode
 from kinegrasp_env.sampling.stats import ConvergenceCurve
-from kinegrasp_env.world.grasps import file_mode
 
 log = logging.getLogger(__name__)
 

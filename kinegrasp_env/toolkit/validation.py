@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.sampling.stats import wilson_interval
@@ -36,7 +37,7 @@ from kinegrasp_env.toolkit.validation_records import (
     GraspDraws,
     ValidationSettings,
 )
-from kinegrasp_env.world.grasps import Grasp, write_atomic
+from kinegrasp_env.world.grasps import Grasp
 
 __all__ = ["ARRAYS", "KINEMATIC_ENGINES", "GraspDraws", "GraspRow", "ValidationSettings",
            "grasp_draws", "run_validation", "settings_key"]

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.draws import OUTCOMES
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES, HoldProtocol
 from kinegrasp_env.toolkit.plots import safe_figure, save_figure
 from kinegrasp_env.toolkit.validation import GraspDraws, GraspRow, ValidationSettings
 from kinegrasp_env.toolkit.validation_stats import bootstrap_spearman, confusion
-from kinegrasp_env.world.grasps import write_atomic
 
 #: the confusion matrices of the summary: name -> (predicted, actual) per-draw flags
 CONFUSIONS = {

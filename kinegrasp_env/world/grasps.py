@@ -15,15 +15,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import stat
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from kinegrasp_env.assets import assets_dir
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
@@ -338,42 +336,6 @@ def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
                "grasps": [g.to_dict(poses[g.object]) for g in grasps]}
     write_atomic(path, json.dumps(payload, indent=1))
     return path
-
-
-def write_atomic(path: str | Path, text: str | bytes) -> None:
-    """Write text (or bytes) through a temporary file in the same folder and a rename.
-
-    The file gets the permissions a plain ``open(path, "w")`` would give it: an existing
-    file's mode is kept, a new file gets ``0o666 & ~umask`` (the temporary file's private
-    0600 is not passed on).
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        os.fchmod(fd, file_mode(path))
-        with os.fdopen(fd, "wb" if isinstance(text, bytes) else "w") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
-def current_umask() -> int:
-    """The process's umask (read by setting it and putting it back at once)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def file_mode(path: str | Path) -> int:
-    """Permission bits for (re)writing ``path``: its current ones if it exists, else the
-    mode a new file gets under the umask (``0o666 & ~umask``)."""
-    try:
-        return stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        return 0o666 & ~current_umask()
 
 
 class NoGraspSetError(ValueError):

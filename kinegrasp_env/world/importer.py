@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.world import objects, sdf
 from kinegrasp_env.world.decompose import (
     COACD_SEED,
@@ -49,7 +50,6 @@ from kinegrasp_env.world.decompose import (
     mass_properties,
 )
 from kinegrasp_env.world.deviation import deviation
-from kinegrasp_env.world.grasps import write_atomic
 from kinegrasp_env.world.import_settings import (
     UP_ROTATIONS,
     ImportSettings,

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.world import objects
-from kinegrasp_env.world.grasps import write_atomic
 from kinegrasp_env.world.importer import publish
 from kinegrasp_env.world.store import (
     ENTRY_FILE,

@@ -18,10 +18,10 @@ import math
 from importlib import metadata
 from pathlib import Path
 
+from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.sampling.noise_model import SOURCES
 from kinegrasp_env.toolkit.report.html import esc
 from kinegrasp_env.toolkit.report.plotly import plotly_version
-from kinegrasp_env.world.grasps import write_atomic
 
 #: A 10,000-draw evaluation page stays under this size (bytes); tested.
 PAGE_LIMIT_BYTES = 7_000_000
@@ -75,7 +75,7 @@ def fmt(value: float, digits: int = 5) -> str:
 
 def write_page(path: str | Path, content: str | bytes) -> Path:
     """Write a page (text, as UTF-8) or a screenshot (bytes) atomically
-    (:func:`~kinegrasp_env.world.grasps.write_atomic`: a temporary file in the same folder,
+    (:func:`~kinegrasp_env.atomic_files.write_atomic`: a temporary file in the same folder,
     then a rename; a new file gets 0666 less the umask, a rewritten one keeps its mode)."""
     path = Path(path)
     write_atomic(path, content.encode() if isinstance(content, str) else content)
