@@ -185,6 +185,14 @@ def test_repeated_ids_and_unknown_object_are_refused(tmp_path):
     path.write_text(json.dumps({"object": "no_such_thing", "candidates": [GOOD]}))
     proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
     assert proc.returncode == 2 and "no_such_thing" in proc.stderr
+    # a misspelt top-level field is refused (a "frmae" read every pose in the object frame)
+    path.write_text(json.dumps({"object": "drill", "frmae": "source", "candidates": [GOOD]}))
+    proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
+    assert proc.returncode == 2 and "unknown field 'frmae'; a palm-pose file has object, " \
+        "robot, frame, candidates" in proc.stderr, proc.stderr
+    path.write_text(json.dumps({"candidates": [GOOD]}))
+    proc = run_cli("rank", str(path), "--samples", "10", "--out", str(tmp_path / "r.csv"))
+    assert proc.returncode == 2 and "missing field 'object'" in proc.stderr, proc.stderr
     assert list(tmp_path.iterdir()) == [path]
 
 

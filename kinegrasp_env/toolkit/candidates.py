@@ -61,6 +61,9 @@ REASONS = ("unreachable", "arm_collision", "start_collision")
 #: The frames a file's poses may be given in (``frame`` at its top level; the first is the
 #: default).
 FRAMES = ("object", "source")
+#: The top-level fields of a palm-pose file; any other is refused (a misspelt ``frame`` would
+#: otherwise read every pose in the object frame without a word).
+CANDIDATE_FILE_KEYS = ("object", "robot", "frame", "candidates")
 
 
 @dataclass(frozen=True)
@@ -188,7 +191,14 @@ def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile
                 and isinstance(data.get(k), list)), None)
     if key is None:
         raise ValueError(f"{path}: expected an object with a 'candidates' (or 'grasps') list")
+    unknown = [str(k) for k in data if k not in CANDIDATE_FILE_KEYS]
+    if key == "candidates" and unknown:
+        raise ValueError(f"{path}: unknown field {unknown[0]!r}; a palm-pose file has "
+                         f"{', '.join(CANDIDATE_FILE_KEYS)}")
     name = data.get("object")
+    if name is None:
+        raise ValueError(f"{path}: missing field 'object' (the catalog object the file's "
+                         f"{key} grasp)")
     if not isinstance(name, str) or not is_object(name):
         raise ValueError(f"{path}: {unknown_object(name)}")
     entries = data[key]
