@@ -218,9 +218,10 @@ def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
         ranking._candidates = real
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["kinegrasp rank: error: --criterion hold_margin ranks by a mean margin, "
+    assert err == ["kinegrasp rank: error: --criterion hold_margin ranks by a mean, "
                    "which --adaptive cannot certify (its tests count the draws that succeed); "
-                   "use --criterion hold with --adaptive, or hold_margin without it"]
+                   "use --criterion pfc, pfc_lcb, hold_static, hold with --adaptive, or "
+                   "hold_margin without it"]
     assert not (tmp_path / "adaptive.csv").exists()
 
 
@@ -325,12 +326,14 @@ def test_a_ranking_log_keeps_each_candidates_margins() -> None:
     assert math.isnan(result_from_json(line).hold_margin())
 
 
-def test_the_adaptive_ranking_refuses_a_mean_criterion() -> None:
-    """The library's adaptive run refuses ``hold_margin`` (a mean, not a count) in one line."""
+@pytest.mark.parametrize("criterion", ["hold_margin", "q_mean", "weighted"])
+def test_the_adaptive_ranking_refuses_a_mean_criterion(criterion) -> None:
+    """The library's adaptive run refuses a criterion that is a mean, not a count of
+    successes (its certificates would be of P(FC), not of what was asked), in one line."""
     from kinegrasp_env.toolkit.adaptive_ranking import rank_adaptive
 
-    with pytest.raises(ValueError, match="criterion 'hold_margin' ranks by a mean margin"):
-        rank_adaptive(3, lambda *args: None, 2, 10, top_k=1, criterion="hold_margin")
+    with pytest.raises(ValueError, match=f"criterion '{criterion}' ranks by a mean"):
+        rank_adaptive(3, lambda *args: None, 2, 10, top_k=1, criterion=criterion)
 
 
 def test_a_ranking_log_without_margins_is_not_resumed_under_the_holding_test(tmp_path) -> None:

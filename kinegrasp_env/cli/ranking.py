@@ -89,11 +89,13 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli.report import write_rank_report
     from kinegrasp_env.montecarlo import evaluate
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
+    from kinegrasp_env.toolkit.ranking import CRITERIA, MEAN_CRITERIA
 
-    if args.adaptive and args.criterion == "hold_margin":
-        raise CLIError("--criterion hold_margin ranks by a mean margin, which --adaptive cannot "
-                       "certify (its tests count the draws that succeed); use --criterion "
-                       "hold with --adaptive, or hold_margin without it")
+    if args.adaptive and args.criterion in MEAN_CRITERIA:
+        counted = ", ".join(c for c in CRITERIA if c not in MEAN_CRITERIA)
+        raise CLIError(f"--criterion {args.criterion} ranks by a mean, which --adaptive cannot "
+                       f"certify (its tests count the draws that succeed); use --criterion "
+                       f"{counted} with --adaptive, or {args.criterion} without it")
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     out = output_file(args.out, "--out", inputs=input_files(args))

@@ -150,7 +150,8 @@ def add_commands(sub) -> None:
                    "holds (in --hold-simulator; the "
                    "holding test runs dynamics per draw, far slower than the kinematic "
                    "criteria: benchmarks/quick_hold.py), or the mean margin of that test "
-                   "(hold_margin: how far each draw got through it, in [0, 1]; fixed-n only)")
+                   "(hold_margin: how far each draw got through it, in [0, 1]); the means "
+                   "(q_mean, weighted, hold_margin) rank at fixed n only")
     add_hold_simulator_arg(p)
     add_static_hold_arg(p, "adds the column P(hold, static)")
     p.add_argument("--adaptive", action="store_true",

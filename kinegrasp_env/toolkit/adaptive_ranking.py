@@ -67,6 +67,7 @@ from kinegrasp_env.toolkit.certificates import (
 )
 from kinegrasp_env.toolkit.ranking import (
     CRITERIA,
+    MEAN_CRITERIA,
     CandidateResult,
     Evaluator,
     PairedEvaluator,
@@ -351,9 +352,9 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
         raise ValueError(f"epsilon must be in [0, 1), got {epsilon}")
     if criterion not in CRITERIA:
         raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
-    if criterion == "hold_margin":
-        raise ValueError("criterion 'hold_margin' ranks by a mean margin, which the adaptive "
-                         "run cannot certify (its tests count successes); rank it at fixed n")
+    if criterion in MEAN_CRITERIA:
+        raise ValueError(f"criterion {criterion!r} ranks by a mean, which the adaptive run "
+                         "cannot certify (its tests count successes); rank it at fixed n")
     if max_chunks < 1:
         raise ValueError(f"max_chunks must be at least 1, got {max_chunks}")
     run = AdaptiveRun(n_candidates, evaluator, max_chunks, top_k, delta, float(epsilon))

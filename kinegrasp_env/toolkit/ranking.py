@@ -24,6 +24,9 @@ from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
 CRITERIA = ("pfc", "q_mean", "pfc_lcb", "weighted", "hold_static", "hold", "hold_margin")
 #: The criteria that run the quick holding test on every draw.
 HOLD_TEST_CRITERIA = ("hold", "hold_margin")
+#: The criteria that rank by a mean (of Q, of Q with P(FC), of the holding test's margins),
+#: not by a count of the draws that succeed: the adaptive run's tests cannot certify them.
+MEAN_CRITERIA = ("q_mean", "weighted", "hold_margin")
 #: The hold scores a candidate may carry: the static hold check, the (quick) holding test.
 HOLD_SCORES = ("static", "test")
 #: Weight of mean Q in the ``weighted`` criterion.
