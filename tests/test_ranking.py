@@ -4,10 +4,13 @@ candidates with known P(FC) (stub evaluators, no engine) and through the command
 from __future__ import annotations
 
 import fcntl
+import html
 import itertools
+import json
 import math
 import os
 import pty
+import re
 import struct
 import subprocess
 import sys
@@ -388,15 +391,15 @@ def test_adaptive_progress_advances_with_every_chunk():
     assert max(r.chunks for r in report.results) <= report.rounds
 
 
-def _rank_cli(tmp_path, stderr):
+def _rank_cli(tmp_path, stderr, *extra: str, out: str = "a.csv"):
     from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
 
     path = tmp_path / "cube.json"
     save_grasps(shipped_grasps("cube")[:4], path)
     return subprocess.Popen(
         [sys.executable, "-m", "kinegrasp_env.cli", "rank", str(path), "--samples", "400",
-         "--adaptive", "--top-k", "1", "--engine", "fast", "--out", str(tmp_path / "a.csv")],
-        stdout=subprocess.PIPE, stderr=stderr, text=True)
+         "--adaptive", "--top-k", "1", "--engine", "fast", "--out", str(tmp_path / out),
+         *extra], stdout=subprocess.PIPE, stderr=stderr, text=True)
 
 
 def test_cli_adaptive_rank_off_a_terminal_prints_a_line_per_round(tmp_path):
@@ -489,6 +492,23 @@ def test_cli_adaptive_rank_csv_shows_the_certified_rows_first(tmp_path):
                               labels.count(REST) else "NOT certified at ")
     args = build_parser().parse_args(["rank", "x.json"])
     assert float(args.epsilon) == DEFAULT_EPSILON
+    # the same run's JSON and page carry the labels and the certificate the console shows
+    page = tmp_path / "a.html"
+    proc = _rank_cli(tmp_path, subprocess.PIPE, "--json", "--report", str(page), out="b.csv")
+    out, err = proc.communicate()
+    assert proc.returncode == 0, err
+    payload = json.loads(out)
+    assert [(r["id"], r["certified"]) for r in payload["ranking"]] == \
+        [(r["id"], r["certified"]) for r in rows]
+    certificate = payload["certificate"]
+    assert certificate["statement"] == summary and certificate["top_k"] == 1
+    assert certificate["certified"] == summary.startswith("certified at ")
+    assert 0 < certificate["draws"] <= certificate["fixed_draws"]  # whole chunks: >= 4 x 400
+    assert certificate["fixed_draws"] >= 4 * 400
+    text = page.read_text()
+    assert "<th class=kg-text>certified</th>" in text and html.escape(summary) in text
+    cells = re.findall(r'<td class="kg-text">(top-k|rest|unresolved)</td>', text)
+    assert cells == labels
 
 
 @pytest.mark.parametrize(("flag", "value", "needle"), [

@@ -164,7 +164,7 @@ def cmd_rank(args) -> int:
     write_rejected(rejected, out, args.json)
     if args.report:
         write_rank_report(args, grasps, results, robot, noise=noise, samples=samples,
-                          seed=seed, engine=engine, friction=friction)
+                          seed=seed, engine=engine, friction=friction, adaptive=adaptive)
     return 0
 
 

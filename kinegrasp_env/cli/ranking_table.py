@@ -93,12 +93,24 @@ def certified_line(report, samples: int) -> str:
             f"rest (out of the top {k}), {count['unresolved']} unresolved")
 
 
+def certificate_json(report, samples: int) -> dict:
+    """What an adaptive run certified, for ``rank --json``: ``certified`` (its top k is),
+    ``statement`` (:func:`certified_line`), ``measure``, ``top_k``, ``delta``, ``epsilon``,
+    ``draws`` made against ``fixed_draws`` of a fixed-n run, ``rounds``."""
+    return {"certified": bool(report.separated), "statement": certified_line(report, samples),
+            "measure": getattr(report, "measure", "P(FC)"), "top_k": len(report.top),
+            "delta": float(report.delta), "epsilon": float(report.epsilon),
+            "draws": int(report.draws), "fixed_draws": int(report.fixed_draws),
+            "rounds": int(report.rounds)}
+
+
 def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
                    engine: str, adaptive=None, as_json: bool = False,
                    hold_simulator: str = "pybullet", rejected: list = ()) -> None:
     """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
     JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV;
-    ``rejected``: each rejected palm-pose candidate's id, reason and detail);
+    ``rejected``: each rejected palm-pose candidate's id, reason and detail; of an adaptive
+    run ``certificate``: :func:`certificate_json`);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
     saying what it certified."""
     from kinegrasp_env.atomic_files import write_atomic
@@ -148,7 +160,9 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
                  for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1)]
         print(json.dumps({"ranking": shown, "written": str(out),
                           "rejected": [{"id": r.id, "reason": r.reason, "detail": r.detail}
-                                       for r in rejected]}))
+                                       for r in rejected],
+                          **({} if adaptive is None else {"certificate": certificate_json(
+                              adaptive, max(r.trials for r in results))})}))
         return
     print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)

@@ -82,10 +82,13 @@ def hold_scores(result) -> dict[str, float]:
 
 
 def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int, seed: int,
-                      engine: str, friction: float = 0.5) -> None:
+                      engine: str, friction: float = 0.5, adaptive=None) -> None:
     """``rank --report FILE`` of any robot's candidates: the sortable table and each
     candidate's 3-D scene on demand (:func:`~kinegrasp_env.toolkit.report.ranking.
-    rank_page`), with the arm at the ranking's first draws under joint noise."""
+    rank_page`), with the arm at the ranking's first draws under joint noise; an adaptive
+    run's (``adaptive``: its report) labels and what it certified, as the console shows
+    them."""
+    from kinegrasp_env.cli.ranking_table import certified_line
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.report.arms import first_arms
     from kinegrasp_env.toolkit.report.page import write_page
@@ -103,6 +106,9 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                      "q_nominal": grasps[r.index].q_nominal, "samples": r.trials,
                      "q_skew": r.q_stats()[2], "outcomes": dict(r.outcomes),
                      "holds": hold_scores(r)})
+    if adaptive is not None:
+        for row, label in zip(rows, adaptive.certified, strict=True):
+            row["certified"] = label
     command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
                "--seed", str(seed), "--criterion", args.criterion,
@@ -128,7 +134,9 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
                         min(RANK_ARM_DRAWS, samples)) for g in grasps] if joint_noise else None)
     text = rank_page(description, {name: load_object(name) for name in names}, grasps, rows,
                      command=shlex.join(command), settings=settings, arms=arms,
-                     friction=friction, num_edges=NUM_EDGES)
+                     friction=friction, num_edges=NUM_EDGES,
+                     certificate=None if adaptive is None else
+                     certified_line(adaptive, max(r.trials for r in results)))
     write_page(args.report, text)
     print(f"report written to {args.report} ({len(text.encode()) / 1e6:.1f} MB)",
           file=sys.stderr if args.json else sys.stdout)

@@ -48,10 +48,11 @@ HOLD_HEADERS = {"p_hold_static": "P(hold, static)", "p_hold": "P(hold)",
                 "hold_margin": "hold margin"}
 
 
-def columns(hold_keys: Sequence[str]) -> tuple[str, ...]:
+def columns(hold_keys: Sequence[str], certified: bool = False) -> tuple[str, ...]:
     """The table's headers with the hold scores ``hold_keys`` (keys of
-    :data:`HOLD_HEADERS`)."""
-    return (*RANK_COLUMNS[:-1], *(HOLD_HEADERS[k] for k in hold_keys), RANK_COLUMNS[-1])
+    :data:`HOLD_HEADERS`) and, for an adaptive run (``certified``), its labels."""
+    return (*RANK_COLUMNS[:-1], *(HOLD_HEADERS[k] for k in hold_keys),
+            *(("certified",) if certified else ()), RANK_COLUMNS[-1])
 
 
 def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) -> list[float]:
@@ -72,7 +73,8 @@ def elbow_coordinates(description: RobotDescription, grasps: Sequence[Grasp]) ->
 def rank_row(position: int, row: dict, elbow: float, key: str,
              hold_keys: Sequence[str] = ()) -> str:
     """One sortable table row (numbers in ``data-value``), with the hold scores
-    ``hold_keys`` of its ``holds`` ('-' where it has none)."""
+    ``hold_keys`` of its ``holds`` ('-' where it has none) and an adaptive run's label
+    (its ``certified``, where it has one)."""
     def num(value, text):
         finite = value is not None and math.isfinite(value)
         return f'<td data-value="{value if finite else "NaN"}">{text if finite else "-"}</td>'
@@ -88,6 +90,8 @@ def rank_row(position: int, row: dict, elbow: float, key: str,
              num(row["samples"], str(row["samples"])),
              *(num(value, fmt(value, 3)) for value in
                (row.get("holds", {}).get(k) for k in hold_keys)),
+             *([f'<td class="kg-text">{esc(row["certified"])}</td>'] if "certified" in row
+               else []),
              f'<td><button class="kg-show" data-detail="detail-{key}" '
              f'onclick="kgToggle(this)">show 3-D</button></td>']
     return (f'<tr class="kg-item" data-detail="detail-{key}" data-id="{esc(row["id"])}">'
@@ -97,7 +101,7 @@ def rank_row(position: int, row: dict, elbow: float, key: str,
 def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
               grasps: Sequence[Grasp], rows: Sequence[dict], *, command: str,
               settings: dict, arms: Sequence[NoisyArms] | None = None, friction: float = 0.5,
-              num_edges: int = 8) -> str:
+              num_edges: int = 8, certificate: str | None = None) -> str:
     """The HTML page of a ranking.
 
     Args:
@@ -106,16 +110,18 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
         rows: best first; each with ``index`` (into grasps), ``id``, ``p_fc``, ``p_fc_lo``,
             ``p_fc_hi``, ``q_mean``, ``q_std``, ``q_nominal``, ``samples``, and where known
             ``q_skew``, ``outcomes`` (outcome name -> draws) and ``holds`` (hold score ->
-            value, keys of :data:`HOLD_HEADERS`: a column each where any row has it).
+            value, keys of :data:`HOLD_HEADERS`: a column each where any row has it) and, of
+            an adaptive run, ``certified`` (its label: a column when every row has one).
         command: the command line that reproduces the page; settings: name -> value.
         arms: per candidate (file order), the arm at the ranking's first draws (None: none).
+        certificate: what an adaptive run certified, in words (shown under the table).
     """
     chosen = [grasps[row["index"]] for row in rows]
     placed = [objects[g.object] for g in chosen]
     closings, geometry = grasps_geometry(description, placed, chosen)
     elbows = elbow_coordinates(description, chosen)
     hold_keys = [k for k in HOLD_HEADERS if any(k in row.get("holds", {}) for row in rows)]
-    headers = columns(hold_keys)
+    headers = columns(hold_keys, certified=bool(rows) and all("certified" in r for r in rows))
     library, figures, body_rows = MeshLibrary(), [], []
     for position, (row, grasp, obj, (_, did_close)) in enumerate(
             zip(rows, chosen, placed, closings, strict=True), 1):
@@ -130,7 +136,7 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
         body_rows.append(rank_row(position, row, elbows[k], key, hold_keys))
         body_rows.append(f'<tr id="detail-{key}" style="display: none;"><td colspan='
                          f'"{len(headers)}">{figure.div()}</td></tr>')
-    head = "".join(f'<th{" class=kg-text" if c == "id" else ""}>{esc(c)}</th>'
+    head = "".join(f'<th{" class=kg-text" if c in ("id", "certified") else ""}>{esc(c)}</th>'
                    for c in headers)
     names = ", ".join(dict.fromkeys(o.name for o in placed))
     shown = "" if arms is None else (
@@ -141,7 +147,9 @@ def rank_page(description: RobotDescription, objects: Mapping[str, GraspObject],
             "<i>show 3-D</i> draws a candidate's scene: the whole robot closed on the object "
             f"(world frame){esc(shown)}.</p>"
             f'<table class="kg-sortable"><thead><tr>{head}</tr></thead>'
-            f"<tbody>{''.join(body_rows)}</tbody></table>{note(geometry_note(geometry))}"
+            f"<tbody>{''.join(body_rows)}</tbody></table>"
+            + ("" if certificate is None else f"<p class='kg-headline'>{esc(certificate)}</p>")
+            + f"{note(geometry_note(geometry))}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
     return page(title, body, figures, library, versions())
