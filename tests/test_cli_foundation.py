@@ -225,6 +225,8 @@ def test_output_paths_are_checked_before_any_work(tmp_path, capsys):
           str(tmp_path / "r.pdf")], "give a .html or .htm file"),
         (["screenshot", str(a_file), "--out", str(tmp_path / "s.html")], "give a .png file"),
         (["robots", "show", "panda", "--out", str(tmp_path / "p.svg")], "give a .png file"),
+        (["rank", str(asset_path("grasps", "kuka_sdh", "cube.json")), "--out",
+          str(tmp_path / "r.png")], "give a .csv file"),
     ]:
         code, err = _run(capsys, *argv)
         assert code == 2 and len(err) == 1 and needle in err[0], err

@@ -31,6 +31,7 @@ def named_path(text: str, name: str, kind: str) -> Path:
 
 #: the names of the files a command writes in one format (:func:`output_file`'s ``suffixes``)
 HTML_SUFFIXES = (".html", ".htm")
+CSV_SUFFIXES = (".csv",)
 PNG_SUFFIXES = (".png",)
 
 

@@ -23,7 +23,12 @@ from kinegrasp_env.cli.common import (
     reported,
 )
 from kinegrasp_env.cli.execution_options import executor_from
-from kinegrasp_env.cli.output_paths import input_files, output_file, report_path
+from kinegrasp_env.cli.output_paths import (
+    CSV_SUFFIXES,
+    input_files,
+    output_file,
+    report_path,
+)
 from kinegrasp_env.cli.ranking_draws import check_candidates
 from kinegrasp_env.cli.ranking_table import write_ranking, write_rejected
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -98,7 +103,7 @@ def cmd_rank(args) -> int:
                        f"{counted} with --adaptive, or {args.criterion} without it")
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
-    out = output_file(args.out, "--out", inputs=input_files(args))
+    out = output_file(args.out, "--out", inputs=input_files(args), suffixes=CSV_SUFFIXES)
     report_path(args.report, inputs=input_files(args))
     grasps, digest, rejected = _candidates(args.candidates, args.robot, friction)
     engine = engine_name(args.engine)
