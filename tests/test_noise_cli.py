@@ -106,6 +106,25 @@ def test_sweep_noise_entries_are_models_whose_joint_sigma_is_the_cells(spec_file
     assert dexnet == noise_model_from_spec({"preset": "dexnet", "joints": {"sigma": 0.03}})
 
 
+def test_a_sweep_says_which_models_joint_sigma_its_cells_replace(spec_file, tmp_path, capsys):
+    """``sweep`` names each noise model whose joints.sigma the cells' sigmas replace (it was
+    dropped without a word), and the table's columns stay aligned under a model's label."""
+    sweep = tmp_path / "sweep.json"
+    sweep.write_text(json.dumps({
+        "objects": ["cube"], "grasps": [0], "sigmas": [0.01], "engines": ["fast"],
+        "samples": 20, "chunk": 20, "noise": ["gaussian", {"joints": {"sigma": 0.02},
+                                                          "palm": {"translation_sigma": 0.001}},
+                                              {"palm": {"translation_sigma": 0.001}}]}))
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    notes = [line for line in captured.err.splitlines() if "is replaced" in line]
+    assert len(notes) == 1 and "its joints.sigma 0.02 is replaced by each cell's sigma " \
+        "(sigmas: 0.01)" in notes[0], captured.err
+    table = [line for line in captured.out.splitlines() if line.startswith(("object", "cube"))]
+    assert len(table) == 4 and len({line.index(" fast ") for line in table[1:]}) == 1
+    assert len({len(line) for line in table}) == 1, table
+
+
 @pytest.mark.parametrize("noise, needle", [
     (["gausian"], "unknown noise 'gausian': give a distribution"),
     (["missing.yaml"], "noise spec file"),

@@ -104,6 +104,12 @@ def cmd_sweep(args) -> int:
                                                                 else None))
     out = output_folder(args.out)
     robot = "" if spec.robot == DEFAULT_ROBOT else f" of robot {spec.robot}"
+    from kinegrasp_env.montecarlo.sweep_noise import replaced_joint_sigmas
+
+    for label, sigma in replaced_joint_sigmas(spec.models):
+        print(f"sweep: noise model {label}: its joints.sigma {sigma} is replaced by each "
+              f"cell's sigma (sigmas: {', '.join(f'{s:g}' for s in spec.sigmas)})",
+              file=sys.stderr)
     with executor_from(args) as executor:
         print(f"sweep: {len(spec.cells())} cells x {spec.samples} draws{robot} on "
               f"{executor.description}", file=sys.stderr)

@@ -277,15 +277,17 @@ def summary_csv(rows: list[dict]) -> str:
 
 def summary_table(rows: list[dict]) -> str:
     """Console table of the summary (another robot's than the default: a first line naming
-    it)."""
+    it); the object and noise columns as wide as their longest entry."""
     head = [f"robot {rows[0]['robot']}"] if rows and "robot" in rows[0] else []
-    lines = [*head, f"{'object':<12} {'grasp':>5} {'sigma':>7} {'noise':<10} {'engine':<8} "
-             f"{'P(FC)':>6} {'95% CI':>13} {'Q mean':>8} {'draws':>6}"]
+    obj = max([12, *(len(r["object"]) for r in rows)])
+    noise = max([10, *(len(r["noise"]) for r in rows)])
+    lines = [*head, f"{'object':<{obj}} {'grasp':>5} {'sigma':>7} {'noise':<{noise}} "
+             f"{'engine':<8} {'P(FC)':>6} {'95% CI':>13} {'Q mean':>8} {'draws':>6}"]
     for r in rows:
         q = "-" if math.isnan(r["q_mean"]) else f"{r['q_mean']:.5f}"
-        lines.append(f"{r['object']:<12} {r['grasp']:>5} {r['sigma']:>7.4f} {r['noise']:<10} "
-                     f"{r['engine']:<8} {r['p_fc']:>6.3f} {r['p_fc_lo']:>6.3f}.."
-                     f"{r['p_fc_hi']:<5.3f} {q:>8} {r['samples']:>6}")
+        lines.append(f"{r['object']:<{obj}} {r['grasp']:>5} {r['sigma']:>7.4f} "
+                     f"{r['noise']:<{noise}} {r['engine']:<8} {r['p_fc']:>6.3f} "
+                     f"{r['p_fc_lo']:>6.3f}..{r['p_fc_hi']:<5.3f} {q:>8} {r['samples']:>6}")
     return "\n".join(lines) + "\n"
 
 

@@ -56,6 +56,17 @@ def _model_entry(entry: Any, base: str | Path | None) -> tuple[str, str]:
     return f"{stem}-{hashlib.sha256(text.encode()).hexdigest()[:8]}", text
 
 
+def replaced_joint_sigmas(models: tuple[tuple[str, str], ...]) -> list[tuple[str, object]]:
+    """(label, joints sigma) of each model (``(label, spec JSON)``, :func:`noise_entries`)
+    whose joints section gives a sigma other than 0: the cells replace it with theirs."""
+    out = []
+    for label, text in models:
+        sigma = json.loads(text).get("joints", {}).get("sigma", 0.0)
+        if any(float(s) != 0.0 for s in (sigma if isinstance(sigma, list) else [sigma])):
+            out.append((label, sigma))
+    return out
+
+
 def cell_noise(sigma: float, noise: str, model: str | None) -> JointNoise | NoiseModel:
     """The noise of a cell: ``JointNoise(sigma, noise)``, or the model of spec JSON ``model``
     with its joint sigma set to ``sigma``."""
