@@ -223,3 +223,24 @@ def test_no_bootstrap_prints_the_indices_without_intervals(tmp_path, capsys):
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.startswith("joints"))
     assert " nan" not in out and row.count("(no interval)") == 2, out
+
+
+def test_a_source_that_changes_no_outcome_is_not_named(tmp_path, capsys):
+    """A spread error that changes no draw's outcome on the cube's grasp 0: the variance is 0,
+    the indices are undefined, and neither line names a source (the text said 'undefined'
+    and named the one source as the most to gain, with a gain of 0); the JSON has nulls."""
+    from kinegrasp_env.cli import main
+
+    spec = tmp_path / "hand.yaml"
+    spec.write_text("hand: {spread_sigma: 0.01}\n")
+    args = ["sensitivity", "--object", "cube", "--grasp", "0", "--noise-spec", str(spec),
+            "--samples", "20", "--engine", "fast", "--bootstrap", "0"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[-1] == ("dominant source (largest total index): none (P(FC) does "
+                                    "not vary over these draws); most to gain from making "
+                                    "exact: none (no source made exact raises P(FC))"), out
+    assert main([*args, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["variance"] == 0 and payload["sources"][0]["gain"] == 0
+    assert payload["dominant"] is None and payload["most_to_gain"] is None

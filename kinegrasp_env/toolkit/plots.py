@@ -376,6 +376,10 @@ def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
         left.bar(x + offset, np.nan_to_num(value), 0.4, yerr=err, capsize=3, color=color,
                  label=label)
     left.axhline(0, color="0.3", lw=0.8)
+    if all(r["total"] is None and r["first"] is None for r in rows):  # drawn as 0 otherwise
+        left.text(0.5, 0.5, "indices undefined:\nforce closure does not vary over these draws"
+                  if result.get("variance") == 0 else "indices undefined",
+                  transform=left.transAxes, ha="center", va="center", fontsize=9)
     turn = len(names) > 4  # many factors (an arm's joints): slanted names, legends inside
     ticks = {"rotation": 50, "ha": "right", "rotation_mode": "anchor"} if turn else {}
     place = ({"loc": "upper left", "framealpha": 0.8} if turn else

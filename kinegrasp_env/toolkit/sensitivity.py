@@ -84,9 +84,10 @@ class Sensitivity:
         return max(defined, key=lambda e: e.total).source if defined else None
 
     @property
-    def most_to_gain(self) -> str:
-        """The source whose removal raises P(FC) the most."""
-        return max(self.effects, key=lambda e: e.gain).source
+    def most_to_gain(self) -> str | None:
+        """The source whose removal raises P(FC) the most (None when no removal raises it)."""
+        gaining = [e for e in self.effects if math.isfinite(e.gain) and e.gain > 0]
+        return max(gaining, key=lambda e: e.gain).source if gaining else None
 
     def to_json(self) -> dict:
         """JSON-ready dict (NaN becomes None)."""
@@ -123,8 +124,10 @@ class Sensitivity:
             lines.append(f"{e.source:<{w}} {e.p_alone:>11.3f} {e.p_without:>10.3f} "
                          f"{_index(e.gain, e.gain_ci):>24} {_index(e.first, e.first_ci):>22} "
                          f"{_index(e.total, e.total_ci):>22}")
-        lines.append(f"dominant source (largest total index): {self.dominant or 'undefined'};"
-                     f" most to gain from making exact: {self.most_to_gain}")
+        steady = "P(FC) does not vary over these draws" if self.variance == 0 else "undefined"
+        lines.append(f"dominant source (largest total index): {self.dominant or f'none ({steady})'}"
+                     f"; most to gain from making exact: "
+                     f"{self.most_to_gain or 'none (no source made exact raises P(FC))'}")
         return "\n".join(lines)
 
 
