@@ -532,3 +532,23 @@ def test_evaluate_says_what_each_number_is(capsys):
     stats = json.loads(capsys.readouterr().out)
     error = float(q_line.rsplit("error (nominal - mean) ", 1)[1])
     assert error == pytest.approx(stats["q_nominal"] - stats["q_mean"], abs=5e-6)
+
+
+def test_elbow_names_a_file_grasp_by_its_id(tmp_path, capsys):
+    """``elbow --grasps FILE --grasp ID``: the summary names the grasp by the id it was chosen
+    by (it said "grasp 1", the grasp's place in the file, where the JSON and the page say its
+    id); a shipped grasp keeps its index."""
+    import dataclasses
+
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    grasp = dataclasses.replace(shipped_grasps("cube", "panda")[1], id="side_pinch")
+    path = save_grasps([shipped_grasps("cube", "panda")[0], grasp], tmp_path / "g.json")
+    argv = ["elbow", "--grasps", str(path), "--grasp", "side_pinch", "--samples", "6",
+            "--engine", "fast"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "cube grasp side_pinch of robot panda, sigma = " in out, out
+    assert main(["elbow", "--robot", "panda", "--object", "cube", "--grasp", "1", "--samples",
+                 "6", "--engine", "fast"]) == 0
+    assert "cube grasp 1 of robot panda, sigma = " in capsys.readouterr().out

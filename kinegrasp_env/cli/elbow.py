@@ -32,6 +32,7 @@ from kinegrasp_env.cli.elbow_output import (
     DEFAULT_EPSILON,
     DEFAULT_IK_STARTS,
     certificate_levels,
+    grasp_shown,
     reweighted_elbow,
     show_elbow,
 )
@@ -97,12 +98,12 @@ def cmd_elbow(args) -> int:
                                   starts, friction)
     from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
-    evidence = None
+    evidence, shown = None, grasp_shown(args, index, grasp)
     if args.method == "reweight":
         result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
                                             delta, friction)
     else:
-        bar = tqdm(desc=f"elbow angles of {args.object} grasp {index} of {robot} "
+        bar = tqdm(desc=f"elbow angles of {args.object} grasp {shown} of {robot} "
                    "(selection, then fresh draws)", unit="angle", file=sys.stderr,
                    disable=None)
         with executor_from(args) as executor:
@@ -112,8 +113,8 @@ def cmd_elbow(args) -> int:
                                           friction=friction, evaluate_with=args.engine,
                                           executor=executor)
         bar.close()
-    show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, index, samples,
-               f"{robot}: {args.object} grasp {index}, sigma = {sigma:g} rad")
+    show_elbow(args, {"robot": robot, **result.to_json()}, result, evidence, shown, samples,
+               f"{robot}: {args.object} grasp {shown}, sigma = {sigma:g} rad")
     if args.report:
         write_elbow_report(args, description, grasp, index, result, noise, evidence, friction)
     return 0

@@ -8,7 +8,12 @@ import json
 import sys
 
 from kinegrasp_env.cli.common import plural
-from kinegrasp_env.cli.elbow_output import bounds_words, reweight_lines, reweighted_elbow
+from kinegrasp_env.cli.elbow_output import (
+    bounds_words,
+    grasp_shown,
+    reweight_lines,
+    reweighted_elbow,
+)
 from kinegrasp_env.cli.execution_options import executor_from
 
 
@@ -25,7 +30,8 @@ def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, 
                                 friction, starts=starts)
     from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches
 
-    bar = tqdm(desc=f"IK branches of {args.object} grasp {index} of {args.robot} (selection, "
+    bar = tqdm(desc=f"IK branches of {args.object} grasp {grasp_shown(args, index, grasp)} of "
+               f"{args.robot} (selection, "
                "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
     with executor_from(args) as executor:
         result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
@@ -51,14 +57,14 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
 
         draws = (f"one batch of {payload['reweight']['batch']} closings" if evidence
                  else f"{samples} draws per branch")
-        title = (f"{args.robot}: {args.object} grasp {index}, sigma = "
+        title = (f"{args.robot}: {args.object} grasp {grasp_shown(args, index, grasp)}, sigma = "
                  f"{payload['sigma']:g} rad, {draws}")
         if safe_figure(lambda: plot_branches(payload, args.plot, title, picture), args.plot):
             payload["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(payload))
     else:
-        print(branch_summary(payload, index))
+        print(branch_summary(payload, grasp_shown(args, index, grasp)))
         if evidence is not None:
             print(reweight_lines(payload["reweight"], samples, unit="branch"))
         if "plot" in payload:
@@ -106,7 +112,7 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
           file=sys.stderr if args.json else sys.stdout)
 
 
-def branch_summary(result: dict, index: int) -> str:
+def branch_summary(result: dict, shown: str) -> str:
     """The console summary of a 6-joint arm's IK-branch search (``BranchResult.to_json()``
     with ``robot`` and ``ik_starts``; a re-weighted run's with ``reweight``)."""
     lo, hi = result["best_p_fc_ci"]
@@ -121,9 +127,9 @@ def branch_summary(result: dict, index: int) -> str:
            "fresh draws")
     lines = [
         f"robot {result['robot']}: a 6-joint arm has no self-motion; the variants of "
-        f"{result['object']} grasp {index} are its {branches} ({result['ik_starts']} IK "
+        f"{result['object']} grasp {shown} are its {branches} ({result['ik_starts']} IK "
         "starts)",
-        f"{result['object']} grasp {index} of robot {result['robot']}, sigma = "
+        f"{result['object']} grasp {shown} of robot {result['robot']}, sigma = "
         f"{result['sigma']} rad, {how} ({result['engine']} engine)",
         f"  nominal branch {result['nominal_branch']} ({result['nominal_label']}): P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",

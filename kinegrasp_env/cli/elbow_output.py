@@ -30,6 +30,12 @@ def certificate_levels(args) -> tuple[float, float]:
     return epsilon, delta
 
 
+def grasp_shown(args, index: int, grasp) -> str:
+    """How the console names an elbow run's grasp: its id in ``--grasps``' file, else its
+    index in the robot's shipped set (as ``--grasp`` chose it)."""
+    return str(grasp.id) if getattr(args, "grasps", None) else str(index)
+
+
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                      friction: float = 0.5, starts: int | None = None):
     """``elbow --method reweight``: (ElbowResult, ReweightEvidence) from one batch of
@@ -54,7 +60,8 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
     with reported(ValueError):  # noise, robot, object, batch: refused before any closing
         check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
     what = "IK branches" if starts is not None else "elbow"
-    bar = tqdm(desc=f"{what} of {args.object} grasp {index} of {args.robot} (batch, fresh draws, "
+    shown = grasp_shown(args, index, grasp)
+    bar = tqdm(desc=f"{what} of {args.object} grasp {shown} of {args.robot} (batch, fresh draws, "
                "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
     with executor_from(args) as executor, batch_sized():
         out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
@@ -120,11 +127,11 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
                          title=title)
 
 
-def show_elbow(args, payload: dict, result, evidence, index: int, samples: int,
+def show_elbow(args, payload: dict, result, evidence, shown: str, samples: int,
                title: str) -> None:
     """An elbow run's output: ``--plot`` (titled ``title``), then one JSON object
     (``payload``, with the re-weighted run's ``evidence`` where there is one) or the text
-    summary."""
+    summary (naming the grasp ``shown``: :func:`grasp_shown`)."""
     import json
 
     if evidence is not None:
@@ -134,14 +141,14 @@ def show_elbow(args, payload: dict, result, evidence, index: int, samples: int,
     if args.json:
         print(json.dumps(payload))
         return
-    print(text_summary(payload, index))
+    print(text_summary(payload, shown))
     if evidence is not None:
         print(reweight_lines(payload["reweight"], samples))
     if args.plot:
         print(f"  plot written to {args.plot}")
 
 
-def text_summary(result: dict, index: int) -> str:
+def text_summary(result: dict, shown: str) -> str:
     """The console summary of an elbow optimization (``ElbowResult.to_json()`` with the
     ``robot``)."""
     lo, hi = result["best_p_fc_ci"]
@@ -155,7 +162,7 @@ def text_summary(result: dict, index: int) -> str:
         how = (f"{len(result['curve'])} elbow angles x {result['samples']} draws, then again "
                f"on {result['samples']} fresh draws")
     return "\n".join([
-        f"{result['object']} grasp {index} of robot {result['robot']}, sigma = "
+        f"{result['object']} grasp {shown} of robot {result['robot']}, sigma = "
         f"{result['sigma']} rad, {how} ({result['engine']} engine)",
         f"  nominal elbow {result['nominal_psi']:+.3f} rad: P(FC) "
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
