@@ -298,6 +298,7 @@ def test_parser_defaults_equal_the_library_constants():
     (["--max-points", "0"], "--max-points must be >= 1, got 0"),
     (["--arm-draws", "-1"], "--arm-draws must be >= 0, got -1"),
     (["--grasp", "99"], "--grasp 99: no grasp with this id in the shipped grasps of cube"),
+    (["--grasp", "0,,2"], "--grasp '0,,2': an empty id between commas"),
 ])
 def test_report_bad_input_is_one_line_and_writes_nothing(args, needle, tmp_path, capsys):
     out = tmp_path / "page.html"

@@ -109,6 +109,8 @@ def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
     from kinegrasp_env.cli.grasp_choice import id_index
 
     for word in (t.strip() for t in text.split(",")):
+        if not word:
+            raise CLIError(f"--grasp {text!r}: an empty id between commas")
         index = id_index(word, ids, source)
         if index in picked:
             raise CLIError(f"--grasp: {text!r} names grasp {ids[index]} twice")

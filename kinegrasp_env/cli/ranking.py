@@ -19,6 +19,7 @@ from kinegrasp_env.cli.common import (
     finite_float,
     friction_from,
     noise_from,
+    plural,
     positive_int,
     reported,
 )
@@ -309,5 +310,5 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
     print(f"adaptive: {report.draws} draws against {report.fixed_draws} for fixed n "
           f"({report.draws / report.fixed_draws:.0%}); top {top_k} by {report.measure} "
           f"{'certified' if report.separated else 'NOT certified'} (delta {delta:g}, epsilon "
-          f"{epsilon:g}) after {report.rounds} rounds", file=sys.stderr)
+          f"{epsilon:g}) after {plural(report.rounds, 'round')}", file=sys.stderr)
     return report

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from kinegrasp_env.cli.common import plural
+
 if TYPE_CHECKING:
     from kinegrasp_env.toolkit.ranking import CandidateResult
 
@@ -64,7 +66,7 @@ def write_rejected(rejected: list, out: Path, quiet: bool = False) -> None:
     writer.writerow(("id", "reason", "detail"))
     writer.writerows((r.id, r.reason, r.detail) for r in rejected)
     write_atomic(path, buffer.getvalue())
-    print(f"{len(rejected)} rejected candidates written to {path}",
+    print(f"{plural(len(rejected), 'rejected candidate')} written to {path}",
           file=sys.stderr if quiet else sys.stdout)
 
 
@@ -89,7 +91,8 @@ def certified_line(report, samples: int) -> str:
         return (f"certified at delta {delta}, epsilon {eps}: {rows} {claim} (false with "
                 f"probability <= {delta})")
     return (f"NOT certified at delta {delta}, epsilon {eps} within {samples} draws per "
-            f"candidate: {count['top-k']} rows marked top-k (each {claim}), {count['rest']} "
+            f"candidate: {plural(count['top-k'], 'row')} marked top-k (each {claim}), "
+            f"{count['rest']} "
             f"rest (out of the top {k}), {count['unresolved']} unresolved")
 
 
