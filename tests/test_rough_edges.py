@@ -9,6 +9,7 @@ timeout, so returning at once with the one-line error proves the check came firs
 from __future__ import annotations
 
 import io
+import json
 import subprocess
 from pathlib import Path
 
@@ -552,3 +553,7 @@ def test_elbow_names_a_file_grasp_by_its_id(tmp_path, capsys):
     assert main(["elbow", "--robot", "panda", "--object", "cube", "--grasp", "1", "--samples",
                  "6", "--engine", "fast"]) == 0
     assert "cube grasp 1 of robot panda, sigma = " in capsys.readouterr().out
+    # the JSON records the figure it wrote, as rank's records its CSV
+    plot = tmp_path / "elbow.png"
+    assert main([*argv, "--json", "--plot", str(plot)]) == 0
+    assert json.loads(capsys.readouterr().out)["plot"] == str(plot) and plot.exists()

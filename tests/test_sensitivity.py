@@ -156,7 +156,7 @@ def test_sensitivity_command_json_plot_and_bad_specs(tmp_path):
     payload = json.loads(done.stdout)
     assert [s["source"] for s in payload["sources"]] == ["joints", "object"]
     assert payload["samples"] == 60 and payload["engine"] == "fast"
-    assert plot.stat().st_size > 1000
+    assert plot.stat().st_size > 1000 and payload["plot"] == str(plot)
     spec.write_text("joints: {sigma: 0.03}\nfriction: {distribution: uniform, low: -0.2, "
                     "high: 0.5}\n")
     bad = run_cli("sensitivity", "--noise-spec", str(spec), "--samples", "10")

@@ -130,7 +130,8 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
 def show_elbow(args, payload: dict, result, evidence, shown: str, samples: int,
                title: str) -> None:
     """An elbow run's output: ``--plot`` (titled ``title``), then one JSON object
-    (``payload``, with the re-weighted run's ``evidence`` where there is one) or the text
+    (``payload``, with the re-weighted run's ``evidence`` where there is one, and the
+    ``plot`` written) or the text
     summary (naming the grasp ``shown``: :func:`grasp_shown`)."""
     import json
 
@@ -138,6 +139,7 @@ def show_elbow(args, payload: dict, result, evidence, shown: str, samples: int,
         payload["reweight"] = evidence.to_json()
     if args.plot:
         elbow_plot(payload, result, evidence, args.plot, f"{title}: P(FC) along the self-motion")
+        payload["plot"] = str(args.plot)
     if args.json:
         print(json.dumps(payload))
         return

@@ -52,18 +52,19 @@ def cmd_sensitivity(args) -> int:
     result = _analyze(grasp, model, samples, seed, args.engine, bootstrap, friction,
                       per_joint=args.factors == "joints")
     payload = result.to_json()
-    if args.json:
-        print(json.dumps(payload))
-    else:
-        print(result.table())
-    if args.plot:  # after the results: a failing figure is a warning, the results stand
+    written = None
+    if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_sensitivity, safe_figure
 
         title = (f"robot {result.robot}, {grasp.object} grasp {index}: P(FC) "
                  f"{result.p_all:.3f} with every source, {samples} draws per setting")
         written = safe_figure(lambda: plot_sensitivity(payload, args.plot, title=title),
                               args.plot)
-        if written is not None and not args.json:
+    if args.json:
+        print(json.dumps(payload if written is None else {**payload, "plot": str(args.plot)}))
+    else:
+        print(result.table())
+        if written is not None:
             print(f"plot written to {args.plot}")
     return 0
 
