@@ -557,3 +557,20 @@ def test_elbow_names_a_file_grasp_by_its_id(tmp_path, capsys):
     plot = tmp_path / "elbow.png"
     assert main([*argv, "--json", "--plot", str(plot)]) == 0
     assert json.loads(capsys.readouterr().out)["plot"] == str(plot) and plot.exists()
+
+
+def test_the_rank_table_widens_to_its_longest_id(tmp_path, capsys):
+    """A candidate id longer than the id column's 8 characters pushed its row out of line."""
+    import dataclasses
+
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    grasps = [dataclasses.replace(g, id=name) for g, name in
+              zip(shipped_grasps("cube")[:2], ("a", "a_much_longer_candidate_id"), strict=True)]
+    path = save_grasps(grasps, tmp_path / "g.json")
+    assert main(["rank", str(path), "--samples", "4", "--engine", "fast", "--out",
+                 str(tmp_path / "r.csv")]) == 0
+    table = capsys.readouterr().out.splitlines()[:3]
+    ends = {line.index("P(FC)") + len("P(FC)") if i == 0 else line.index(".") + 4
+            for i, line in enumerate(table)}
+    assert len(ends) == 1, table

@@ -167,7 +167,8 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
                           **({} if adaptive is None else {"certificate": certificate_json(
                               adaptive, max(r.trials for r in results))})}))
         return
-    print(f"{'rank':>4} {'id':>8} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
+    width = max([8, *(len(str(row["id"])) for row in rows)])
+    print(f"{'rank':>4} {'id':>{width}} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)
           + (f" {MARGIN_COLUMN[1]:>6}" if "test" in scores else "")
           + (f" {'certified':>10}" if extra else ""))
@@ -175,7 +176,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
                        for c in (HOLD_COLUMNS[s][0] for s in scores))
         held += f" {row[MARGIN_COLUMN[0]]:>6.3f}" if "test" in scores else ""
-        print(f"{i:>4} {row['id']:>8} {row['p_fc']:>7.3f} "
+        print(f"{i:>4} {row['id']:>{width}} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held
               + (f" {label:>10}" if extra else ""))
