@@ -192,14 +192,16 @@ def inside(polygon: np.ndarray, normal: np.ndarray, point: np.ndarray, tol: floa
     return True
 
 
-@pytest.mark.parametrize(("obj", "flat_share"), [("cube", (0.9, 1.0)), ("spray_flask", (0.2, 0.9))])
+@pytest.mark.parametrize(("obj", "flat_share"), [("cube", (0.9, 1.0)),
+                                                 ("spray_flask", (0.8, 0.97))])
 def test_engine_scores_the_patch_corners(obj, flat_share):
     """The fast engine with the patch model on 60 noisy Panda draws of each object: force
     closure exactly where the LP finds it for the contacts PatchContacts gives, the corners
     of a pad flat on a face as point contacts, a contact off a face with the soft model's
     torsion (its torsional wrenches built by hand). On the cube nearly every pad lies flat on
-    a face; on the spray flask's curved neck (a mesh of narrow facets) many contacts are off
-    a face (measured: 34% of 64)."""
+    a face; on the spray flask's curved neck (a mesh of narrow facets) some contacts are off
+    a face, where a pad crosses the planes of the facets on both sides of the point
+    (measured: 8% of them)."""
     from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, torsion_coefficient
 
     draws, expanded, scale, centre = patch_closings(obj, noisy(obj, 60, 1))
@@ -218,11 +220,11 @@ def test_engine_scores_the_patch_corners(obj, flat_share):
 
 
 def test_the_patch_model_off_every_face_is_the_soft_model():
-    """Panda draws of the spray flask whose contacts all lie off a face: the patch model
-    scores them as the soft model does (the same Q to 1e-9 relative, computed by the soft
-    engine's own path, and the same static hold verdicts); with a pad flat on a face the
-    two differ somewhere."""
-    q = noisy("spray_flask", 240, 2)
+    """Panda draws of the spray flask whose contacts all lie off a face (13 of these 480): the
+    patch model scores them as the soft model does (the same Q to 1e-9 relative, computed by
+    the soft engine's own path, and the same static hold verdicts); with a pad flat on a
+    face the two differ somewhere."""
+    q = noisy("spray_flask", 480, 2)
     draws, expanded, _, _ = patch_closings("spray_flask", q, static_hold=True)
     soft_slots = expanded[4]
     with make_engine("fast", dataclasses.replace(PATCHED, contact_model="soft"),
@@ -257,11 +259,11 @@ def test_rounded_fingertips_stay_point_contacts_under_the_patch_model():
 def test_the_distinct_slots_score_as_every_slot():
     """The engine scores a patch draw on its distinct slots (a soft contact once, a patch
     without its padding): every expanded slot scored with the soft model's per-contact
-    torsion (corners 0) gives the same Q, to 1e-9 relative, on the touched ones of 40 Panda
+    torsion (corners 0) gives the same Q, to 1e-9 relative, on the touched ones of 200 Panda
     draws of the spray flask (pads flat on faces and off them both occur)."""
     from kinegrasp_env.quality.soft_contacts import FINGER_RADIUS, torsion_coefficient
 
-    draws, expanded, scale, centre = patch_closings("spray_flask", noisy("spray_flask", 40, 5))
+    draws, expanded, scale, centre = patch_closings("spray_flask", noisy("spray_flask", 200, 5))
     points, normals, finger, _, soft = expanded
     rows = np.flatnonzero(draws.n_contacts == 2)
     assert rows.size >= 20 and soft[rows].any() and (~soft[rows] & (finger[rows] >= 0)).any()
@@ -273,11 +275,12 @@ def test_the_distinct_slots_score_as_every_slot():
 
 
 def test_the_static_hold_check_takes_the_patch_models_soft_contacts():
-    """Mixed Panda draws of the spray flask (a pad flat on a face, the other off one): the
+    """Mixed Panda draws of the spray flask (a pad flat on a face, the other off one; 11 of
+    these 480 draws): the
     engine's static hold verdicts are the check's on the expanded contacts with their soft
     slots, and scoring every slot without torsion (the soft slots dropped) changes some,
     so the engine passes them on."""
-    q = noisy("spray_flask", 60, 6)
+    q = noisy("spray_flask", 480, 6)
     with make_engine("fast", PATCHED, "spray_flask", static_hold=True) as engine:
         batch = engine.close_batch(engine.check(q))
         draws = engine.scored(q, batch)
@@ -285,7 +288,7 @@ def test_the_static_hold_check_takes_the_patch_models_soft_contacts():
             q, batch.joints, draws.points, draws.normals, draws.finger, draws.link)
         present = finger >= 0
         mixed = np.flatnonzero((soft & present).any(axis=1) & (~soft & present).any(axis=1))
-        assert mixed.size >= 10
+        assert mixed.size >= 10, mixed.size
         values = {name: v[mixed] for name, v in batch.joints.items()}
         args = (q[mixed], values, points[mixed], normals[mixed], finger[mixed], link[mixed])
         with_soft = engine.hold_check.held(*args, soft=soft[mixed])

@@ -20,7 +20,10 @@ its steps are the compiled polygon functions of :mod:`~kinegrasp_env.closing.pol
 (:func:`~kinegrasp_env.closing.polygon_2d.hull_2d`, :func:`~kinegrasp_env.closing.polygon_2d.
 clip_polygon`, :func:`~kinegrasp_env.closing.polygon_2d.polygon_centroid`), without
 allocation: the caller hands every buffer in. Which face a
-contact lies on is decided by :func:`faces_of`.
+contact lies on is decided by :func:`faces_of`; a point that query returns at an edge of the
+face a pad presses on (an arbitrary point of the region, on its border) is on that face
+when the pad does not cross the face's plane by more than the depth it is pressed in
+(:func:`flat_face`), as both closings decide it.
 """
 
 from __future__ import annotations
@@ -267,5 +270,32 @@ def faces_of(obj, points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarra
         one = on.sum(axis=1) == 1
         chosen = pl[np.argmax(on[one], axis=1)]
         planes[rows[one]] = chosen / np.linalg.norm(chosen[:, :3], axis=1, keepdims=True)
+        found[rows[one]] = p
+    return found, planes
+
+
+def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
+              depth: float = PATCH_DEPTH) -> tuple[np.ndarray, np.ndarray]:
+    """The face a flat link presses on at each object-frame point (n, 3) that
+    :func:`faces_of` finds at an edge or a corner: ((n,) its part, -1 where none; (n, 4) its
+    plane, outward unit normal and offset). Of the face planes of the point's nearest part
+    within ``tol`` metres of it, the one plane that the link's vertices (n, V, 3; object
+    frame: its collision geometry's, as both closings read it) do not cross by more than
+    ``depth`` metres (the depth a pad is pressed in, as its footprint counts it:
+    :data:`PATCH_DEPTH`): a pad on a face lies on that face's outer side, or dips past its
+    edge by less than that where it is tilted, and crosses the plane of the face beside it
+    by its whole overhang; a pad on the edge itself, tilted between the two faces, crosses
+    both by more."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    part = obj.nearest_part(points)
+    found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
+    for p in np.unique(part):
+        rows = np.flatnonzero(part == p)
+        pl = obj.planes[p] / np.linalg.norm(obj.planes[p][:, :3], axis=1, keepdims=True)
+        near = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
+        lowest = np.min(vertices[rows] @ pl[:, :3].T, axis=1) + pl[:, 3]  # (rows, planes)
+        beside = near & (lowest >= -depth)
+        one = beside.sum(axis=1) == 1
+        planes[rows[one]] = pl[np.argmax(beside[one], axis=1)]
         found[rows[one]] = p
     return found, planes

@@ -57,7 +57,7 @@ from kinegrasp_env.closing.capsule_gap import centre_distances
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of
+from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of, flat_face
 from kinegrasp_env.closing.finger_closing import close_finger
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths
 from kinegrasp_env.closing.generic_reference import EDGE_TOL
@@ -276,34 +276,30 @@ class FastRobotHand:
         object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
         points (m, 3); ``rounded`` (m,): the pair is a rounded part's, whose link point is
         its core's). A flat part's on a face
-        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that face's inward normal,
-        the point moved to its patch centre; at an edge, the direction of the pair, as the
-        reference's rule. A rounded part's, the point model's
-        (:func:`~kinegrasp_env.closing.hand_geometry.surface_contact`): the face's inward
-        normal where the direction from its core agrees with it, else that direction, on the
-        object's convex part ``part`` (m,) of the pair where given (-1: the nearest one)."""
+        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`), or at an edge of the face
+        it lies flat on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`): that
+        face's inward normal, the point moved to its
+        patch centre; on an edge, the direction of the pair, as the reference's rule. A
+        rounded part's, the point model's (:func:`~kinegrasp_env.closing.hand_geometry.
+        surface_contact`): the face's inward normal where the direction from its core agrees
+        with it, else that direction, on the object's convex part ``part`` (m,) of the pair
+        where given (-1: the nearest one)."""
         parts = np.full(point.shape[0], -1) if part is None else part
         face, plane = np.full(point.shape[0], -1), np.zeros((point.shape[0], 4))
         if not rounded.all():  # a rounded part's contact: the point model's rule below
             face[~rounded], plane[~rounded] = faces_of(self.obj, point[~rounded], EDGE_TOL)
-        on_face = face >= 0
         normals = -plane[:, :3]
         points = point.copy()
-        pad = on_face & ~rounded
-        if self.patch and pad.any():
-            placed, _ = self._patch.place(self.geometry[link].vertices, poses[pad],
-                                          face[pad], plane[pad], point[pad])
-            points[pad] = placed
-        edge = np.flatnonzero(~on_face & ~rounded)
-        if rounded.any():  # the point model: the face's normal where the pair's agrees
-            outward = -contact_normals(finger_point[rounded], point[rounded])
-            on_part = parts[rounded]
-            unknown = on_part < 0
-            if unknown.any():
-                on_part[unknown] = self.obj.nearest_part(point[rounded][unknown])
-            points[rounded], normals[rounded] = surface_contact(self.obj, point[rounded],
-                                                                outward, on_part)
-        if edge.size:
+        edge = np.flatnonzero((face < 0) & ~rounded)
+        if edge.size:  # a pad flat on a face, at its edge: that face
+            vertices = (self.geometry[link].vertices @ np.swapaxes(poses[edge, :3, :3], 1, 2)
+                        + poses[edge, None, :3, 3])
+            flat_part, flat_plane = flat_face(self.obj, point[edge], vertices, EDGE_TOL)
+            flat = flat_part >= 0
+            face[edge[flat]], plane[edge[flat]] = flat_part[flat], flat_plane[flat]
+            normals[edge[flat]] = -flat_plane[flat, :3]
+            edge = edge[~flat]
+        if edge.size:  # on the edge itself: the pair's direction
             planes, _, edges, starts = self._link_faces[link]
             found = np.empty((edge.size, 3))
             pair_normals(planes, edges, starts, self.distances.edges,
@@ -314,6 +310,19 @@ class FastRobotHand:
             for i in np.flatnonzero(np.linalg.norm(found, axis=1) < 1e-12):
                 found[i] = self.obj.surface(point[edge[i]][None])[1][0]
             normals[edge] = found
+        pad = (face >= 0) & ~rounded
+        if self.patch and pad.any():
+            placed, _ = self._patch.place(self.geometry[link].vertices, poses[pad],
+                                          face[pad], plane[pad], point[pad])
+            points[pad] = placed
+        if rounded.any():  # the point model: the face's normal where the pair's agrees
+            outward = -contact_normals(finger_point[rounded], point[rounded])
+            on_part = parts[rounded]
+            unknown = on_part < 0
+            if unknown.any():
+                on_part[unknown] = self.obj.nearest_part(point[rounded][unknown])
+            points[rounded], normals[rounded] = surface_contact(self.obj, point[rounded],
+                                                                outward, on_part)
         normals /= np.linalg.norm(normals, axis=1, keepdims=True)
         return points, normals
 

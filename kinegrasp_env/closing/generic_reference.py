@@ -64,6 +64,7 @@ from kinegrasp_env.closing.close_rules import (
 from kinegrasp_env.closing.contact_patch import (
     face_patch_point,
     faces_of,
+    flat_face,
     link_hull_vertices,
 )
 from kinegrasp_env.closing.finger_paths import finger_paths
@@ -86,12 +87,19 @@ __all__ = ["CONTACT_TOL", "EDGE_TOL", "MAX_STEPS", "QUERY_DISTANCE", "START_TOL"
            "RobotCloseResult", "RobotContact", "RobotWorld", "face_of"]
 
 
-def face_of(obj: GraspObject, point: np.ndarray) -> tuple[int, np.ndarray] | None:
+def face_of(obj: GraspObject, point: np.ndarray, vertices: np.ndarray | None = None
+            ) -> tuple[int, np.ndarray] | None:
     """(part, its face plane (4,): outward unit normal, offset) of the one face of ``obj``'s
     nearest convex part that the object-frame ``point`` (3,) lies on (within
     :data:`EDGE_TOL`), or None at an edge or a corner (two or more face planes that near) or
-    off the surface: :func:`~kinegrasp_env.closing.contact_patch.faces_of`."""
-    part, plane = faces_of(obj, point[None], EDGE_TOL)
+    off the surface: :func:`~kinegrasp_env.closing.contact_patch.faces_of`. Given the
+    touching link's ``vertices`` (V, 3; object frame): of the faces at that edge or corner,
+    the one the link lies flat on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`),
+    or None."""
+    if vertices is None:
+        part, plane = faces_of(obj, point[None], EDGE_TOL)
+    else:
+        part, plane = flat_face(obj, point[None], vertices[None], EDGE_TOL)
     return None if part[0] < 0 else (int(part[0]), plane[0])
 
 
@@ -111,7 +119,9 @@ class RobotWorld(RobotScene):
                              for finger in description.fingers]
         #: per finger, its links' speed bounds, those the fast closing steps by
         #: (:meth:`~kinegrasp_env.closing.finger_paths.FingerPath.speed_bounds`)
-        self._paths = finger_paths(description, robot_link_geometry(description), self._tree)
+        #: each link's collision geometry, as the fast closing reads it (a pad's flat test)
+        self.geometry = robot_link_geometry(description)
+        self._paths = finger_paths(description, self.geometry, self._tree)
 
     # ------------------------------------------------------------------ closing
     def auto_close(self, q: np.ndarray, *, contact_tol: float = CONTACT_TOL,
@@ -296,6 +306,10 @@ class RobotWorld(RobotScene):
             point = self.obj.closest_points(
                 frame_coordinates(self.placed, np.array(row[6]))[None])[0][0]
             face = face_of(self.obj, point)
+            if face is None and link in self.geometry:  # at an edge: the face a pad lies on
+                pose = self._placed_inverse @ self.model_pose(link)
+                face = face_of(self.obj, point,
+                               self.geometry[link].vertices @ pose[:3, :3].T + pose[:3, 3])
             if face is None:
                 normal = -np.array(row[7]) @ rot
             else:
