@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -298,7 +299,20 @@ def _missing_mesh(tmp_path: Path) -> dict:
                          "xarm_gripper": str(XARM / "xarm_gripper")}}
 
 
+def _finger_without_collision(tmp_path: Path) -> dict:
+    """The xArm's URDF (its meshes by absolute path) with the left finger's collision
+    geometry removed: a finger the closing cannot touch with."""
+    text = XARM_URDF.read_text().replace("package://", f"{XARM.as_posix()}/")
+    finger = re.search(r'<link\s+name="left_finger"\s*>.*?</link>', text, re.S).group(0)
+    text = text.replace(finger, re.sub(r"<collision>.*?</collision>", "", finger, flags=re.S))
+    (tmp_path / "no_collision.urdf").write_text(text)
+    return {"urdf": str(tmp_path / "no_collision.urdf")}
+
+
 BAD = {
+    "finger without collision geometry": (
+        _finger_without_collision, "finger_links",
+        "the finger ending at 'left_finger' has no collision geometry"),
     "unknown joint": (lambda t: {"arm_joints": [*XARM_DESCRIPTION["arm_joints"][:5], "joint9"]},
                       "arm_joints", "unknown joint 'joint9'"),
     "broken chain": (lambda t: {"arm_joints": ["joint1", "joint2", "joint4", "joint5",

@@ -66,7 +66,12 @@ from kinegrasp_env.robot.description_fields import (
 from kinegrasp_env.robot.linkage import linkage_bars
 from kinegrasp_env.robot.model import RobotModel, load_urdf
 from kinegrasp_env.robot.preshapes import PreshapeDraw, check_preshapes, draw_preshapes
-from kinegrasp_env.robot.urdf_meshes import MeshFile, MeshNotFound, urdf_meshes
+from kinegrasp_env.robot.urdf_meshes import (
+    MeshFile,
+    MeshNotFound,
+    collision_links,
+    urdf_meshes,
+)
 
 #: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
@@ -308,6 +313,14 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         bars = linkage_bars({tip: [j.name for j in below_palm(tip) if j.movable]
                              for tip in tips}, {j: driver[j][0] for j in driver})
         tips = tuple(tip for tip in tips if tip not in bars)
+    touching = collision_links(urdf)
+    for tip in tips:
+        links = [j.child for j in below_palm(tip) if j.child in finger_links]
+        if not touching.intersection(links):
+            raise fail(where, "finger_links" if "finger_links" in data else "urdf",
+                       f"the finger ending at {tip!r} has no collision geometry (its links "
+                       f"{', '.join(links)} have none in {urdf.name}): a finger closes until "
+                       "its collision shapes touch the object")
     fingers = []
     for tip in tips:
         on_path = below_palm(tip)

@@ -64,3 +64,10 @@ def urdf_meshes(urdf: Path, packages: dict[str, Path]) -> tuple[MeshFile, ...]:
                                    f"{urdf.name} not found")
             out.append(MeshFile(link.get("name"), filename, found))
     return tuple(out)
+
+
+def collision_links(urdf: Path) -> frozenset[str]:
+    """The names of the links of ``urdf`` that have collision geometry (a ``<collision>``
+    element with a ``<geometry>``)."""
+    return frozenset(link.get("name") for link in ET.parse(urdf).getroot().findall("link")
+                     if any(c.find("geometry") is not None for c in link.findall("collision")))
