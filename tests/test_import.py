@@ -277,6 +277,16 @@ def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     replaced = import_object(path, settings=ImportSettings(scale=2.0), force=True)
     assert not replaced.reused
     assert load_object("block").size == pytest.approx([0.08, 0.12, 0.16])
+    # an object a placed copy stands for is not removed before the copy (the copy's commands
+    # failed with a traceback once its base was gone)
+    from kinegrasp_env.world.placement import place_object
+
+    place_object("block", as_name="block_turned", position=[0.6, 0.0, 0.1])
+    code, _, err = cli(capsys, "objects", "remove", "block")
+    assert code == 2 and "placed object(s) block_turned stand for; remove them first" in err
+    assert "block" in imported_names()
+    code, out, _ = cli(capsys, "objects", "remove", "block_turned")
+    assert code == 0
     code, out, _ = cli(capsys, "objects", "remove", "block")
     assert code == 0 and "block" not in imported_names()
     assert os.listdir(catalog_dir()) == []

@@ -76,6 +76,7 @@ from kinegrasp_env.world.store import (
     CatalogError,
     catalog_dir,
     imported_folder,
+    imported_names,
     read_entry,
 )
 
@@ -281,7 +282,7 @@ def remove_object(name: str) -> Path:
     """Delete an imported object's entry (renamed aside, then deleted); returns its folder.
 
     Raises:
-        CatalogError: a built-in or unknown name.
+        CatalogError: a built-in or unknown name, or an object placed copies stand for.
     """
     if name in objects.OBJECT_NAMES:
         raise CatalogError(f"{name!r} is a built-in object and cannot be removed")
@@ -290,6 +291,12 @@ def remove_object(name: str) -> Path:
         imported = objects.object_names()[len(objects.OBJECT_NAMES):]
         raise CatalogError(f"no imported object named {name!r}; imported: "
                            f"{', '.join(imported) or 'none'}")
+    placed = [other for other in imported_names() if other != name
+              and read_entry(imported_folder(other)).get("base") == name]
+    if placed:
+        raise CatalogError(f"{name!r} is the object that the placed object(s) "
+                           f"{', '.join(placed)} stand for; remove them first "
+                           f"(`kinegrasp objects remove {placed[0]}`)")
     trash = folder.with_name(f".rm-{name}-{os.getpid()}-{time.time_ns()}")
     os.rename(folder, trash)
     shutil.rmtree(trash, ignore_errors=True)
