@@ -395,14 +395,18 @@ def test_a_bad_description_is_one_line_naming_the_key(home, tmp_path, capsys, ca
 
 
 def test_unreadable_files_are_one_line(home, tmp_path, capsys):
-    """A missing file, a YAML syntax error and a YAML list each give one line, exit 2."""
+    """A missing file, a YAML syntax error, a YAML list and a key given twice (YAML would keep
+    the last: the robot was stored under the second name) each give one line, exit 2."""
     bad = tmp_path / "bad.yaml"
     bad.write_text("name: [unclosed\n")
     listed = tmp_path / "list.yaml"
     listed.write_text("- a\n- b\n")
+    twice = tmp_path / "twice.yaml"
+    twice.write_text(yaml.safe_dump(XARM_DESCRIPTION) + "name: other\n")
     for path, needle in ((tmp_path / "none.yaml", "cannot be read"),
                          (bad, "bad.yaml: not valid YAML"),
-                         (listed, "list.yaml: expected a mapping")):
+                         (listed, "list.yaml: expected a mapping"),
+                         (twice, "key 'name' appears twice")):
         assert main(["robots", "add", str(path)]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and needle in err, err

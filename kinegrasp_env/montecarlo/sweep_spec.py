@@ -35,7 +35,8 @@ from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
 from kinegrasp_env.montecarlo.sweep_noise import noise_entries
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.noise_spec import noise_model_from_spec, spec_loader
+from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+from kinegrasp_env.spec_yaml import spec_loader
 from kinegrasp_env.world.grasps import Grasp, check_robot
 from kinegrasp_env.world.objects import object_names, object_version
 

@@ -72,6 +72,7 @@ from kinegrasp_env.robot.urdf_meshes import (
     collision_links,
     urdf_meshes,
 )
+from kinegrasp_env.spec_yaml import spec_loader
 
 #: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
@@ -190,7 +191,7 @@ def load_description(path: str | Path) -> RobotDescription:
     path = Path(path)
     where = path.name
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.load(path.read_text(), Loader=spec_loader())  # a SafeLoader
     except (OSError, UnicodeDecodeError) as exc:
         raise RobotDescriptionError(f"{path}: cannot be read ({exc})") from None
     except yaml.YAMLError as exc:

@@ -22,7 +22,6 @@ before any draw is made.
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +35,7 @@ from kinegrasp_env.sampling.noise_model import (
     NoiseSpecError,
     PoseSource,
 )
+from kinegrasp_env.spec_yaml import spec_loader
 
 SECTION_KEYS = {
     "joints": ("sigma", "distribution", "covariance", "bias"),
@@ -151,32 +151,6 @@ def _plain(value):
 
 
 # ----------------------------------------------------------------------------- files
-#: Numbers YAML 1.1 reads as strings but YAML 1.2 as floats (``1e-2``, ``5E3``).
-_EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
-
-
-def spec_loader() -> type:
-    """``yaml.SafeLoader`` that reads ``1e-2`` as a number (YAML 1.1 would read a string) and
-    refuses a key given twice in one mapping (plain YAML keeps the last silently); used for
-    noise specs and sweep specs."""
-    import yaml
-
-    class NoiseSpecLoader(yaml.SafeLoader):
-        def construct_mapping(self, node, deep=False):
-            seen = set()
-            for key_node, _ in node.value:
-                key = self.construct_object(key_node, deep=True)
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"key {key!r} appears twice", key_node.start_mark)
-                seen.add(key)
-            return super().construct_mapping(node, deep)
-
-    NoiseSpecLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT,
-                                          list("-+0123456789."))
-    return NoiseSpecLoader
-
-
 def read_spec_file(path: str | Path) -> Any:
     """The parsed content of a YAML or JSON spec file; a missing file or a syntax error is
     one :class:`NoiseSpecError` line (file, line, column, what)."""
