@@ -325,6 +325,9 @@ BAD = {
                                               "close": {"joint6": 1}},
                                    "hand_joints", "'joint6' moves link 'link6'"),
     "close 2": (lambda t: {"close": {"drive_joint": 2}}, "close", "2 is not +1 or -1"),
+    "close toward the open limit": (lambda t: {"close": {"drive_joint": -1}}, "close",
+                                    "drive_joint: -1 closes toward its lower limit 0, where "
+                                    "it opens (0): no travel"),
     "missing mesh": (_missing_mesh, "packages", "link3_vhacd.obj"),
     "mimic as hand joint": (lambda t: {"hand_joints": ["left_finger_joint"],
                                        "close": {"left_finger_joint": 1}}, "hand_joints",
@@ -609,3 +612,25 @@ def test_robots_show_lists_the_preshape_draws(tmp_path, capsys):
         assert all(f"{v:g}" in line for v in numbers), line
     assert main(["robots", "show", "panda", "--out", str(tmp_path / "p.png")]) == 0
     assert "the open one (no preshapes)" in capsys.readouterr().out
+
+
+def test_a_hand_never_in_force_closure_is_said_so(home, tmp_path, capsys):
+    """Two fingers scored as point contacts (no torque about the line through them: never in
+    force closure): ``robots add`` stores the robot and says so on stderr; ``plan`` refuses
+    at once in one line (it drew its 200 palm poses and said only that none was found); the
+    summary counts a single hand joint in the singular."""
+    path = user_files(tmp_path, "beside", contact_model="point")
+    capsys.readouterr()
+    assert main(["robots", "add", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert "1 hand joint, 2 fingers" in out
+    assert err.strip() == ("note: two point contacts are never in force closure (they resist "
+                           "no torque about the line between them): give contact_model soft "
+                           "or patch; plan will find no grasp")
+    assert main(["plan", "--robot", "xarm6", "--object", "cube", "--count", "1", "--out",
+                 str(tmp_path / "g.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith("never in force closure (they resist no torque "
+                                             "about the line between them): give contact_model "
+                                             "soft or patch; nothing planned"), err
+    assert not (tmp_path / "g.json").exists()

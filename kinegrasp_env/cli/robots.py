@@ -6,8 +6,9 @@ a robot description YAML and copy it, its URDF and meshes into the catalog), ``r
 from __future__ import annotations
 
 import json
+import sys
 
-from kinegrasp_env.cli.common import reported
+from kinegrasp_env.cli.common import plural, reported
 from kinegrasp_env.cli.output_paths import PNG_SUFFIXES, output_file
 
 
@@ -38,9 +39,15 @@ def cmd_add(args) -> int:
     with reported(RobotDescriptionError):  # a bad description, a name taken
         robot, folder = add_robot(args.path, force=args.force)
     print(f"{robot.name}: {robot.arm_dof} arm joints, palm {robot.palm_link}, "
-          f"{len(robot.hand_joints)} hand joints, {len(robot.fingers)} fingers "
-          f"({', '.join(robot.fingertip_links)}), {len(robot.meshes)} mesh references")
+          f"{plural(len(robot.hand_joints), 'hand joint')}, "
+          f"{plural(len(robot.fingers), 'finger')} ({', '.join(robot.fingertip_links)}), "
+          f"{plural(len(robot.meshes), 'mesh reference')}")
     print(f"  stored in {folder}")
+    from kinegrasp_env.robot.description import never_in_force_closure
+
+    reason = never_in_force_closure(len(robot.fingers), robot.contact_model)
+    if reason is not None:
+        print(f"  note: {reason}; plan will find no grasp", file=sys.stderr)
     return 0
 
 

@@ -61,6 +61,11 @@ def cmd_plan(args) -> int:
         raise CLIError(f"--variants: robot {robot!r} has {description.arm_dof} arm "
                        "joints; variants move a 7-joint arm with arm_angle_links along its "
                        "self-motion, or take a 6-joint arm's IK branches")
+    from kinegrasp_env.robot.description import never_in_force_closure
+
+    reason = never_in_force_closure(len(description.fingers), description.contact_model)
+    if reason is not None:  # before any palm pose is drawn: none could be a grasp
+        raise CLIError(f"robot {robot!r}: {reason}; nothing planned")
     with reported(ValueError):
         grasps = plan_grasps(description, args.object, count=count, seed=seed,
                              friction=friction, settings=settings, time_budget=budget)

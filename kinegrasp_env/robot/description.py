@@ -286,6 +286,13 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         raise fail(where, "close", "give the closing direction of at least one hand joint")
     opened = joint_values(data, where, "open", hand, movable,
                           lambda lo, hi: min(max(0.0, lo), hi))
+    for j, d in close.items():  # a closing joint that starts at the limit it closes toward
+        end = movable[j].upper if d > 0 else movable[j].lower
+        if math.isfinite(end) and d * (end - opened[j]) <= 0.0:
+            raise fail(where, "close", f"{j}: {d:+d} closes toward its "
+                       f"{'upper' if d > 0 else 'lower'} limit {end:g}, where it opens "
+                       f"({opened[j]:g}): no travel; give the other direction or an open "
+                       "value away from that limit")
 
     # links a hand joint moves (mimic followers included), and the finger links
     driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
@@ -351,6 +358,18 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
                             arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
                             efforts, contact_model, packages, angle_links, meshes, mount, home,
                             arm_name, preshapes)
+
+
+def never_in_force_closure(fingers: int, contact_model: str) -> str | None:
+    """Why a hand of ``fingers`` fingers scored with ``contact_model`` can never be in force
+    closure (one contact per finger), or None: one finger pushes the object one way only; two
+    point contacts resist no torque about the line between them."""
+    if fingers < 2:
+        return f"a hand of {fingers} finger is never in force closure (one finger pushes one way)"
+    if fingers == 2 and contact_model == "point":
+        return ("two point contacts are never in force closure (they resist no torque about "
+                "the line between them): give contact_model soft or patch")
+    return None
 
 
 def default_contact_model(fingers: int) -> str:
