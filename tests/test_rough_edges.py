@@ -574,3 +574,13 @@ def test_the_rank_table_widens_to_its_longest_id(tmp_path, capsys):
     ends = {line.index("P(FC)") + len("P(FC)") if i == 0 else line.index(".") + 4
             for i, line in enumerate(table)}
     assert len(ends) == 1, table
+
+
+def test_evaluate_shows_no_nan_for_moments_of_too_few_draws(capsys):
+    """One draw at sigma 0 (one force-closure draw): Q's std and skewness are undefined; the
+    line shows '-' and says how many draws there were, not 'nan'."""
+    assert main(["evaluate", "--object", "cube", "--grasp", "0", "--sigma", "0", "--samples",
+                 "1", "--engine", "fast"]) == 0
+    line = capsys.readouterr().out.splitlines()[2]
+    assert "nan" not in line and "(1 of them: '-' where too few)" in line, line
+    assert ", std -, skewness -, error (nominal - mean) 0.00000" in line, line

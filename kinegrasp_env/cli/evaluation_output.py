@@ -45,10 +45,15 @@ def print_evaluation(run: Evaluation, extra: list[str] | None = None) -> None:
     lo, hi = run.p_fc_ci
     print(f"{run.what}, {run.noise}, {run.samples} draws, {mu}")
     print(f"  P(FC)   = {run.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
+    def shown(value: float, digits: int = 5) -> str:  # a moment of too few draws: "-"
+        return "-" if math.isnan(value) else f"{value:.{digits}f}"
+
+    closed = run.outcomes.get("force_closure", 0)
+    note = f" ({closed} of them: '-' where too few)" if closed < 3 else ""
     print(f"  Q (Ferrari-Canny, dimensionless, {run.contacts} contacts; mean, std, skewness "
-          f"over the force-closure draws): nominal {run.q_nominal:.5f}, mean {run.q_mean:.5f}, std "
-          f"{run.q_std:.5f}, skewness {run.q_skew:.3f}, error (nominal - mean) "
-          f"{run.q_nominal - run.q_mean:.5f}")
+          f"over the force-closure draws{note}): nominal {run.q_nominal:.5f}, mean "
+          f"{shown(run.q_mean)}, std {shown(run.q_std)}, skewness {shown(run.q_skew, 3)}, "
+          f"error (nominal - mean) {shown(run.q_nominal - run.q_mean)}")
     for line in extra or []:
         print(line)
     print("  outcomes: " + ", ".join(f"{k} {v}" for k, v in run.outcomes.items()))
