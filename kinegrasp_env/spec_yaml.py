@@ -12,13 +12,17 @@ _EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE
 
 def spec_loader() -> type:
     """``yaml.SafeLoader`` that reads ``1e-2`` as a number (YAML 1.1 would read a string) and
-    refuses a key given twice in one mapping (plain YAML keeps the last silently)."""
+    refuses a key given twice in one mapping (plain YAML keeps the last silently); merge
+    keys (``<<: *base``) are read as YAML reads them, an explicit key overriding a merged
+    one."""
     import yaml
 
     class SpecLoader(yaml.SafeLoader):
         def construct_mapping(self, node, deep=False):
             seen = set()
             for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":  # "<<: *base": may be overridden
+                    continue
                 key = self.construct_object(key_node, deep=True)
                 if key in seen:
                     raise yaml.constructor.ConstructorError(

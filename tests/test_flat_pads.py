@@ -59,6 +59,16 @@ def test_a_pad_flat_on_a_face_at_its_edge_is_on_that_face():
         dip = HALF - pad[0, :, 0].min()  # how far past the +x plane, by construction
         assert (dip < PATCH_DEPTH) == (face == 0), dip
         assert flat_face(cube, edge, pad, TOL)[0][0] == face, turn
+    # tilted by 0.3 rad, its lowest end's edge on the cube's edge and the pad leaning out
+    # above it: it crosses the top face's plane only, but no face of it lies on the +x face
+    # (two of its corners touch): no face
+    c, s = np.cos(0.3), np.sin(0.3)
+    end = box_pad([HALF + 0.04 * s + 0.01 * c, 0.0, centre_z + HALF + 0.04 * c - 0.01 * s],
+                  [0.02, 0.01, 0.08], turn=0.3)
+    touching = np.abs(end[0, :, 0] - HALF) < 1e-12
+    assert touching.sum() == 2 and np.allclose(end[0, touching, 2], centre_z + HALF)
+    assert end[0, :, 0].min() >= HALF - 1e-12
+    assert flat_face(cube, edge, end, TOL)[0][0] == -1
     on_top = box_pad([HALF - 0.02, 0.0, centre_z + HALF + 0.005], [0.08, 0.01, 0.01])
     part, plane = flat_face(cube, edge, on_top, TOL)
     assert part[0] == 0 and np.allclose(plane[0], [0, 0, 1, -(centre_z + HALF)], atol=1e-9)

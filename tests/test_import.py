@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -282,6 +283,9 @@ def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     from kinegrasp_env.world.placement import place_object
 
     place_object("block", as_name="block_turned", position=[0.6, 0.0, 0.1])
+    broken = catalog_dir() / "broken_entry"  # an unreadable entry keeps no removal from working
+    broken.mkdir()
+    (broken / "entry.json").write_text("{")
     code, _, err = cli(capsys, "objects", "remove", "block")
     assert code == 2 and "placed object(s) block_turned stand for; remove them first" in err
     assert "block" in imported_names()
@@ -289,6 +293,7 @@ def test_reuse_force_remove_and_listing(home, tmp_path, capsys):
     assert code == 0
     code, out, _ = cli(capsys, "objects", "remove", "block")
     assert code == 0 and "block" not in imported_names()
+    shutil.rmtree(broken)
     assert os.listdir(catalog_dir()) == []
 
 

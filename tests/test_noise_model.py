@@ -216,6 +216,11 @@ def test_spec_files_presets_and_round_trip(tmp_path):
     path.write_text("joints: {sigma: 0.01}\njoints: {sigma: 0.02}\n")
     with pytest.raises(NoiseSpecError, match="appears twice"):
         load_noise_model(path)
+    # a YAML merge key is read as YAML reads it, an explicit key overriding a merged one
+    path.write_text("palm: &pose {translation_sigma: 0.004, rotation_sigma: 0.002}\n"
+                    "object:\n  <<: *pose\n  rotation_sigma: 0.001\n")
+    merged = load_noise_model(path)
+    assert merged.palm == PoseSource(0.004, 0.002) and merged.object == PoseSource(0.004, 0.001)
     with pytest.raises(NoiseSpecError, match="not found"):
         load_noise_model(tmp_path / "missing.yaml")
 

@@ -220,7 +220,7 @@ def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["kinegrasp rank: error: --criterion hold_margin ranks by a mean, "
                    "which --adaptive cannot certify (its tests count the draws that succeed); "
-                   "use --criterion pfc, pfc_lcb, hold_static, hold with --adaptive, or "
+                   "use --criterion pfc, pfc_lcb, hold_static or hold with --adaptive, or "
                    "hold_margin without it"]
     assert not (tmp_path / "adaptive.csv").exists()
 

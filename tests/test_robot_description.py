@@ -300,11 +300,12 @@ def _missing_mesh(tmp_path: Path) -> dict:
 
 
 def _finger_without_collision(tmp_path: Path) -> dict:
-    """The xArm's URDF (its meshes by absolute path) with the left finger's collision
-    geometry removed: a finger the closing cannot touch with."""
+    """The xArm's URDF (its meshes by absolute path) with the collision geometry of the two
+    links the left finger's closing joints move removed: a finger that cannot touch."""
     text = XARM_URDF.read_text().replace("package://", f"{XARM.as_posix()}/")
-    finger = re.search(r'<link\s+name="left_finger"\s*>.*?</link>', text, re.S).group(0)
-    text = text.replace(finger, re.sub(r"<collision>.*?</collision>", "", finger, flags=re.S))
+    for name in ("left_outer_knuckle", "left_finger"):
+        link = re.search(rf'<link\s+name="{name}"\s*>.*?</link>', text, re.S).group(0)
+        text = text.replace(link, re.sub(r"<collision>.*?</collision>", "", link, flags=re.S))
     (tmp_path / "no_collision.urdf").write_text(text)
     return {"urdf": str(tmp_path / "no_collision.urdf")}
 
@@ -312,7 +313,8 @@ def _finger_without_collision(tmp_path: Path) -> dict:
 BAD = {
     "finger without collision geometry": (
         _finger_without_collision, "finger_links",
-        "the finger ending at 'left_finger' has no collision geometry"),
+        "the finger ending at 'left_finger' has no collision geometry on the links its "
+        "closing joints move (left_outer_knuckle, left_finger"),
     "unknown joint": (lambda t: {"arm_joints": [*XARM_DESCRIPTION["arm_joints"][:5], "joint9"]},
                       "arm_joints", "unknown joint 'joint9'"),
     "broken chain": (lambda t: {"arm_joints": ["joint1", "joint2", "joint4", "joint5",
@@ -615,11 +617,19 @@ def test_robots_show_lists_the_preshape_draws(tmp_path, capsys):
 
 
 def test_a_hand_never_in_force_closure_is_said_so(home, tmp_path, capsys):
-    """Two fingers scored as point contacts (no torque about the line through them: never in
-    force closure): ``robots add`` stores the robot and says so on stderr; ``plan`` refuses
-    at once in one line (it drew its 200 palm poses and said only that none was found); the
-    summary counts a single hand joint in the singular."""
-    path = user_files(tmp_path, "beside", contact_model="point")
+    """The Panda's jaws scored as point contacts (one contact per jaw: no torque about the
+    line through them, never in force closure): ``robots add`` stores the robot and says so
+    on stderr; ``plan`` refuses at once in one line (it drew its 200 palm poses and said only
+    that none was found); the summary counts a single hand joint in the singular. The xArm's
+    fingers touch with two links each: four point contacts can be in force closure, so it
+    gets no note."""
+    from kinegrasp_env.assets import asset_path
+
+    panda = yaml.safe_load(asset_path("robots", "panda", "panda.yaml").read_text())
+    panda.update(name="panda_point", contact_model="point",
+                 urdf=str(asset_path("robots", "panda", "panda.urdf")))
+    path = tmp_path / "panda_point.yaml"
+    path.write_text(yaml.safe_dump(panda))
     capsys.readouterr()
     assert main(["robots", "add", str(path)]) == 0
     out, err = capsys.readouterr()
@@ -627,10 +637,24 @@ def test_a_hand_never_in_force_closure_is_said_so(home, tmp_path, capsys):
     assert err.strip() == ("note: two point contacts are never in force closure (they resist "
                            "no torque about the line between them): give contact_model soft "
                            "or patch; plan will find no grasp")
-    assert main(["plan", "--robot", "xarm6", "--object", "cube", "--count", "1", "--out",
+    assert main(["plan", "--robot", "panda_point", "--object", "cube", "--count", "1", "--out",
                  str(tmp_path / "g.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].endswith("never in force closure (they resist no torque "
                                              "about the line between them): give contact_model "
                                              "soft or patch; nothing planned"), err
     assert not (tmp_path / "g.json").exists()
+    assert main(["robots", "add", str(user_files(tmp_path, "beside", contact_model="point"))]) \
+        == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_a_pre_shape_gives_a_closing_joint_its_travel(home, tmp_path):
+    """A closing joint that opens at the limit it closes toward is refused (no travel), but
+    not where a pre-shape draws it from elsewhere: the closings start there."""
+    bad = user_files(tmp_path, "beside", close={"drive_joint": -1})
+    with pytest.raises(RobotDescriptionError, match="no travel"):
+        add_robot(bad)
+    good = user_files(tmp_path, "beside", close={"drive_joint": -1},
+                      preshapes=[{"joints": ["drive_joint"], "range": [0.3, 0.6]}])
+    assert add_robot(good)[0].close == {"drive_joint": -1}

@@ -32,11 +32,11 @@ from kinegrasp_env.cli.elbow_output import (
     DEFAULT_EPSILON,
     DEFAULT_IK_STARTS,
     certificate_levels,
-    grasp_shown,
     reweighted_elbow,
     show_elbow,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
+from kinegrasp_env.cli.grasp_choice import grasp_shown
 from kinegrasp_env.cli.output_paths import input_files, output_file, report_path
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 

@@ -10,11 +10,11 @@ import sys
 from kinegrasp_env.cli.common import plural
 from kinegrasp_env.cli.elbow_output import (
     bounds_words,
-    grasp_shown,
     reweight_lines,
     reweighted_elbow,
 )
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.grasp_choice import grasp_shown
 
 
 def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, starts,

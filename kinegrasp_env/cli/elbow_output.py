@@ -10,6 +10,7 @@ from contextlib import contextmanager
 
 from kinegrasp_env.cli.common import CLIError, finite_float, plural, positive_int, reported
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.grasp_choice import grasp_shown
 
 #: ``--epsilon`` and ``--delta`` defaults: equal to ``toolkit.elbow_certificate``'s
 #: ``DEFAULT_EPSILON`` and ``DEFAULT_DELTA`` (tested), copied so that building the parser
@@ -28,12 +29,6 @@ def certificate_levels(args) -> tuple[float, float]:
     if not 0 < delta < 1:
         raise CLIError(f"--delta must be an error level in (0, 1), got {args.delta}")
     return epsilon, delta
-
-
-def grasp_shown(args, index: int, grasp) -> str:
-    """How the console names an elbow run's grasp: its id in ``--grasps``' file, else its
-    index in the robot's shipped set (as ``--grasp`` chose it)."""
-    return str(grasp.id) if getattr(args, "grasps", None) else str(index)
 
 
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,

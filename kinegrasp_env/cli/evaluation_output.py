@@ -49,7 +49,8 @@ def print_evaluation(run: Evaluation, extra: list[str] | None = None) -> None:
         return "-" if math.isnan(value) else f"{value:.{digits}f}"
 
     closed = run.outcomes.get("force_closure", 0)
-    note = f" ({closed} of them: '-' where too few)" if closed < 3 else ""
+    undefined = any(math.isnan(v) for v in (run.q_mean, run.q_std, run.q_skew))
+    note = f" ({closed} of them: '-' where too few or all equal)" if undefined else ""
     print(f"  Q (Ferrari-Canny, dimensionless, {run.contacts} contacts; mean, std, skewness "
           f"over the force-closure draws{note}): nominal {run.q_nominal:.5f}, mean "
           f"{shown(run.q_mean)}, std {shown(run.q_std)}, skewness {shown(run.q_skew, 3)}, "

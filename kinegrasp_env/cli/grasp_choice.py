@@ -94,3 +94,9 @@ def palm_pose_grasp(args):
                        f"{rejected[0].reason} ({rejected[0].detail})")
     args.object = name
     return index, grasps[0]
+
+
+def grasp_shown(args, index: int, grasp) -> str:
+    """How the console names an elbow run's grasp: its id in ``--grasps``' file, else its
+    index in the robot's shipped set (as ``--grasp`` chose it)."""
+    return str(grasp.id) if getattr(args, "grasps", None) else str(index)

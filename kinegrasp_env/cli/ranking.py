@@ -98,10 +98,11 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.toolkit.ranking import CRITERIA, MEAN_CRITERIA
 
     if args.adaptive and args.criterion in MEAN_CRITERIA:
-        counted = ", ".join(c for c in CRITERIA if c not in MEAN_CRITERIA)
+        *counted, last = (c for c in CRITERIA if c not in MEAN_CRITERIA)
         raise CLIError(f"--criterion {args.criterion} ranks by a mean, which --adaptive cannot "
                        f"certify (its tests count the draws that succeed); use --criterion "
-                       f"{counted} with --adaptive, or {args.criterion} without it")
+                       f"{', '.join(counted)} or {last} with --adaptive, or {args.criterion} "
+                       "without it")
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     out = output_file(args.out, "--out", inputs=input_files(args), suffixes=CSV_SUFFIXES)

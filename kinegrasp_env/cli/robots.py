@@ -45,7 +45,7 @@ def cmd_add(args) -> int:
     print(f"  stored in {folder}")
     from kinegrasp_env.robot.description import never_in_force_closure
 
-    reason = never_in_force_closure(len(robot.fingers), robot.contact_model)
+    reason = never_in_force_closure(robot)
     if reason is not None:
         print(f"  note: {reason}; plan will find no grasp", file=sys.stderr)
     return 0

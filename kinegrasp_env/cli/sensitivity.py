@@ -27,6 +27,7 @@ from kinegrasp_env.cli.common import (
     reported,
     shipped_grasp,
 )
+from kinegrasp_env.cli.grasp_choice import grasp_shown
 from kinegrasp_env.cli.output_paths import input_files, output_file
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -56,7 +57,8 @@ def cmd_sensitivity(args) -> int:
     if args.plot:  # before the results are printed: a failing figure is a warning
         from kinegrasp_env.toolkit.plots import plot_sensitivity, safe_figure
 
-        title = (f"robot {result.robot}, {grasp.object} grasp {index}: P(FC) "
+        shown = grasp_shown(args, index, grasp)
+        title = (f"robot {result.robot}, {grasp.object} grasp {shown}: P(FC) "
                  f"{result.p_all:.3f} with every source, {samples} draws per setting")
         written = safe_figure(lambda: plot_sensitivity(payload, args.plot, title=title),
                               args.plot)

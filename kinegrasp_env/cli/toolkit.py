@@ -63,7 +63,7 @@ def cmd_plan(args) -> int:
                        "self-motion, or take a 6-joint arm's IK branches")
     from kinegrasp_env.robot.description import never_in_force_closure
 
-    reason = never_in_force_closure(len(description.fingers), description.contact_model)
+    reason = never_in_force_closure(description)
     if reason is not None:  # before any palm pose is drawn: none could be a grasp
         raise CLIError(f"robot {robot!r}: {reason}; nothing planned")
     with reported(ValueError):

@@ -282,10 +282,11 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     within ``tol`` metres of it, the one plane that the link's vertices (n, V, 3; object
     frame: its collision geometry's, as both closings read it) do not cross by more than
     ``depth`` metres (the depth a pad is pressed in, as its footprint counts it:
-    :data:`PATCH_DEPTH`): a pad on a face lies on that face's outer side, or dips past its
-    edge by less than that where it is tilted, and crosses the plane of the face beside it
-    by its whole overhang; a pad on the edge itself, tilted between the two faces, crosses
-    both by more."""
+    :data:`PATCH_DEPTH`) and that a face of the link lies on (three vertices not on one
+    line within ``depth`` of the plane): a pad on a face lies on that face's outer side, or
+    dips past its edge by less than that where it is tilted, and crosses the plane of the
+    face beside it by its whole overhang; a pad on the edge itself, tilted between the two
+    faces, crosses both by more, or touches with an edge or a corner of its own only."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
     part = obj.nearest_part(points)
     found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
@@ -293,9 +294,20 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
         rows = np.flatnonzero(part == p)
         pl = obj.planes[p] / np.linalg.norm(obj.planes[p][:, :3], axis=1, keepdims=True)
         near = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
-        lowest = np.min(vertices[rows] @ pl[:, :3].T, axis=1) + pl[:, 3]  # (rows, planes)
-        beside = near & (lowest >= -depth)
+        heights = vertices[rows] @ pl[:, :3].T + pl[:, 3]  # (rows, V, planes)
+        beside = near & (heights.min(axis=1) >= -depth)
+        for r, k in zip(*np.nonzero(beside), strict=True):  # a face of the link on the plane
+            beside[r, k] = _spans_a_face(vertices[rows[r]][np.abs(heights[r, :, k]) <= depth],
+                                         depth)
         one = beside.sum(axis=1) == 1
         planes[rows[one]] = pl[np.argmax(beside[one], axis=1)]
         found[rows[one]] = p
     return found, planes
+
+
+def _spans_a_face(points: np.ndarray, tol: float) -> bool:
+    """Whether the points (k, 3) span a polygon: three of them not within ``tol`` metres of
+    one line (the second singular value of the centred points above ``tol``)."""
+    if len(points) < 3:
+        return False
+    return bool(np.linalg.svd(points - points.mean(axis=0), compute_uv=False)[1] > tol)

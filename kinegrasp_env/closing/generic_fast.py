@@ -33,10 +33,12 @@ only where that bound is within reach of a contact or says the two overlap.
    closing's last one: a touching draw took it at its final joint values). On one
    face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
    face's inward normal, the point moved to the pad's patch centre
-   (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`). At an edge or a corner: the
-   pair's direction (the link face's normal where the link point is inside one face;
-   perpendicular to both edges for two edges; else the points' difference), which is what
-   pybullet's normal is there.
+   (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`); so at an edge or a corner of
+   the face a face of the pad lies on, crossing its plane by less than the depth a pad is
+   pressed in (:func:`~kinegrasp_env.closing.contact_patch.flat_face`). Else, at an edge or
+   a corner: the pair's direction (the link face's normal where the link point is inside
+   one face; perpendicular to both edges for two edges; else the points' difference), which
+   is what pybullet's normal is there.
 
 Fingers of two capsule phalanxes are closed by one compiled loop instead
 (:mod:`~kinegrasp_env.closing.capsule_fingers`: the distance grid far from the object, the

@@ -38,10 +38,13 @@ forward kinematics of the URDF puts it. Then:
    object. The normal into the object: where the point lies on one face of the object's exact
    convex parts (one face plane within :data:`EDGE_TOL`), that face's inward normal (the
    direction of a closest pair touching a face's interior; pybullet's own normal was measured
-   4.6 degrees off there); at an edge or a corner, pybullet's ``-contactNormalOnB``. On a
-   face, the point is moved to the centre of the finger's contact patch
-   (:mod:`~kinegrasp_env.closing.contact_patch`: a flat pad's closest point is an arbitrary
-   corner of the overlap); ``RobotWorld(patch=False)`` keeps pybullet's point.
+   4.6 degrees off there), and so at an edge or a corner of the face a face of the link lies
+   on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`, on the link's collision
+   geometry as the fast closing reads it, placed by the robot model's kinematics); at any
+   other edge or corner, pybullet's ``-contactNormalOnB``. On a face, the point is moved to
+   the centre of the finger's contact patch (:mod:`~kinegrasp_env.closing.contact_patch`: a
+   flat pad's closest point is an arbitrary corner of the overlap);
+   ``RobotWorld(patch=False)`` keeps pybullet's point.
 
 The outcome (the engines' codes) follows: start collision, missed (a finger missed, or fewer
 than two contacts), else force closure or not by the contacts' quality (scored above this

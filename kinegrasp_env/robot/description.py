@@ -286,13 +286,6 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         raise fail(where, "close", "give the closing direction of at least one hand joint")
     opened = joint_values(data, where, "open", hand, movable,
                           lambda lo, hi: min(max(0.0, lo), hi))
-    for j, d in close.items():  # a closing joint that starts at the limit it closes toward
-        end = movable[j].upper if d > 0 else movable[j].lower
-        if math.isfinite(end) and d * (end - opened[j]) <= 0.0:
-            raise fail(where, "close", f"{j}: {d:+d} closes toward its "
-                       f"{'upper' if d > 0 else 'lower'} limit {end:g}, where it opens "
-                       f"({opened[j]:g}): no travel; give the other direction or an open "
-                       "value away from that limit")
 
     # links a hand joint moves (mimic followers included), and the finger links
     driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
@@ -321,14 +314,6 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         bars = linkage_bars({tip: [j.name for j in below_palm(tip) if j.movable]
                              for tip in tips}, {j: driver[j][0] for j in driver})
         tips = tuple(tip for tip in tips if tip not in bars)
-    touching = collision_links(urdf)
-    for tip in tips:
-        links = [j.child for j in below_palm(tip) if j.child in finger_links]
-        if not touching.intersection(links):
-            raise fail(where, "finger_links" if "finger_links" in data else "urdf",
-                       f"the finger ending at {tip!r} has no collision geometry (its links "
-                       f"{', '.join(links)} have none in {urdf.name}): a finger closes until "
-                       "its collision shapes touch the object")
     fingers = []
     for tip in tips:
         on_path = below_palm(tip)
@@ -339,6 +324,14 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
                                         * math.copysign(1.0, driver[j.name][1]))
                                     for j in closing)))
 
+    touching = collision_links(urdf)
+    for finger in fingers:  # the links a finger's closing moves are the ones that touch
+        if not touching.intersection(finger.links):
+            raise fail(where, "finger_links" if "finger_links" in data else "urdf",
+                       f"the finger ending at {finger.tip!r} has no collision geometry on "
+                       f"the links its closing joints move ({', '.join(finger.links)} in "
+                       f"{urdf.name}): a finger closes until their collision shapes touch "
+                       "the object")
     efforts = check_efforts(data, where, movable)
     contact_model = data.get("contact_model", default_contact_model(len(fingers)))
     if contact_model not in CONTACT_MODELS:
@@ -350,6 +343,14 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     home = joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
     arm_name = check_text(data, where, "arm_name", f"{name} arm")
     preshapes = check_preshapes(data, where, hand, movable)
+    drawn = {j for draw in preshapes for j in draw.joints}
+    for j, d in close.items():  # a closing joint that starts at the limit it closes toward
+        end = movable[j].upper if d > 0 else movable[j].lower
+        if j not in drawn and math.isfinite(end) and d * (end - opened[j]) <= 0.0:
+            raise fail(where, "close", f"{j}: {d:+d} closes toward its "
+                       f"{'upper' if d > 0 else 'lower'} limit {end:g}, where it opens "
+                       f"({opened[j]:g}): no travel; give the other direction, an open value "
+                       "away from that limit or a pre-shape")
     try:
         meshes = urdf_meshes(urdf, packages)
     except MeshNotFound as exc:
@@ -360,13 +361,17 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
                             arm_name, preshapes)
 
 
-def never_in_force_closure(fingers: int, contact_model: str) -> str | None:
-    """Why a hand of ``fingers`` fingers scored with ``contact_model`` can never be in force
-    closure (one contact per finger), or None: one finger pushes the object one way only; two
-    point contacts resist no torque about the line between them."""
-    if fingers < 2:
-        return f"a hand of {fingers} finger is never in force closure (one finger pushes one way)"
-    if fingers == 2 and contact_model == "point":
+def never_in_force_closure(description: RobotDescription) -> str | None:
+    """Why ``description``'s hand can never be in force closure, or None. A closing gives one
+    contact per touching finger link (a link a closing joint moves, with collision
+    geometry): fewer than two contacts push the object one way; two point contacts resist
+    no torque about the line between them."""
+    touching = collision_links(description.urdf)
+    contacts = sum(len(touching.intersection(f.links)) for f in description.fingers)
+    if contacts < 2:
+        return (f"a hand whose closing gives {contacts} contact at most is never in force "
+                "closure (it pushes the object one way)")
+    if contacts == 2 and description.contact_model == "point":
         return ("two point contacts are never in force closure (they resist no torque about "
                 "the line between them): give contact_model soft or patch")
     return None

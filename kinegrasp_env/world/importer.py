@@ -291,8 +291,8 @@ def remove_object(name: str) -> Path:
         imported = objects.object_names()[len(objects.OBJECT_NAMES):]
         raise CatalogError(f"no imported object named {name!r}; imported: "
                            f"{', '.join(imported) or 'none'}")
-    placed = [other for other in imported_names() if other != name
-              and read_entry(imported_folder(other)).get("base") == name]
+    placed = [other for other in imported_names()
+              if other != name and _stands_for(other) == name]
     if placed:
         raise CatalogError(f"{name!r} is the object that the placed object(s) "
                            f"{', '.join(placed)} stand for; remove them first "
@@ -302,6 +302,15 @@ def remove_object(name: str) -> Path:
     shutil.rmtree(trash, ignore_errors=True)
     forget()
     return folder
+
+
+def _stands_for(name: str) -> str | None:
+    """The object a placed copy ``name`` stands for (None: not a placed copy, or an entry
+    that cannot be read, which does not keep another object from being removed)."""
+    try:
+        return read_entry(imported_folder(name)).get("base")
+    except CatalogError:
+        return None
 
 
 def remove_stale(root: Path) -> None:
