@@ -151,3 +151,21 @@ def test_box_jaws_score_alike_in_both_engines(jaw_robot, capsys):
             q[engine, grasp] = payload["q_nominal"]
     for grasp in ("0", "1"):
         assert q["fast", grasp] == pytest.approx(q["pybullet", grasp], rel=1e-6), q
+
+
+def test_spanning_a_face_is_the_second_singular_value_of_the_points():
+    """The batched test (a covariance's eigenvalues) against NumPy's SVD of each set of
+    centred points, on random point sets with random subsets flagged; and the two hand
+    cases: four corners of a 1 cm square span a face, four points on a line do not."""
+    from kinegrasp_env.closing.contact_patch import spans_a_face
+
+    rng = np.random.default_rng(0)
+    points, on = rng.normal(size=(200, 8, 3)), rng.random((200, 8)) < 0.5
+    svd = [on[i].sum() >= 3 and np.linalg.svd(points[i][on[i]] - points[i][on[i]].mean(axis=0),
+                                              compute_uv=False)[1] > 0.3 for i in range(200)]
+    batched = spans_a_face(points, on, 0.3)
+    assert batched.tolist() == svd and 0 < batched.sum() < 200
+    square = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0], [0.01, 0.01, 0]], dtype=float)
+    line = np.array([[t, 0, 0] for t in (0, 0.01, 0.02, 0.03)], dtype=float)
+    flags = np.ones((2, 4), dtype=bool)
+    assert spans_a_face(np.stack([square, line]), flags, PATCH_DEPTH).tolist() == [True, False]

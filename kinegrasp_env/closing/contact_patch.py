@@ -296,18 +296,24 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
         near = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
         heights = vertices[rows] @ pl[:, :3].T + pl[:, 3]  # (rows, V, planes)
         beside = near & (heights.min(axis=1) >= -depth)
-        for r, k in zip(*np.nonzero(beside), strict=True):  # a face of the link on the plane
-            beside[r, k] = _spans_a_face(vertices[rows[r]][np.abs(heights[r, :, k]) <= depth],
-                                         depth)
+        r, k = np.nonzero(beside)
+        if r.size:  # a face of the link on the plane
+            beside[r, k] = spans_a_face(vertices[rows[r]], np.abs(heights[r, :, k]) <= depth,
+                                        depth)
         one = beside.sum(axis=1) == 1
         planes[rows[one]] = pl[np.argmax(beside[one], axis=1)]
         found[rows[one]] = p
     return found, planes
 
 
-def _spans_a_face(points: np.ndarray, tol: float) -> bool:
-    """Whether the points (k, 3) span a polygon: three of them not within ``tol`` metres of
-    one line (the second singular value of the centred points above ``tol``)."""
-    if len(points) < 3:
-        return False
-    return bool(np.linalg.svd(points - points.mean(axis=0), compute_uv=False)[1] > tol)
+def spans_a_face(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:
+    """(m,) bool: the points (m, V, 3) flagged ``on`` (m, V) span a polygon: three of them
+    not within ``tol`` metres of one line (the second singular value of the centred points,
+    sqrt(k x the second eigenvalue of their covariance) for k points, above ``tol``)."""
+    count = on.sum(axis=1)
+    weights = on / np.maximum(count, 1)[:, None]
+    mean = np.einsum("mv,mvi->mi", weights, points)
+    centred = (points - mean[:, None, :]) * on[:, :, None]
+    scatter = np.einsum("mvi,mvj->mij", centred, centred)  # k x the covariance
+    second = np.linalg.eigvalsh(scatter)[:, 1]
+    return (count >= 3) & (second > tol * tol)
