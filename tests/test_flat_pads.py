@@ -77,6 +77,25 @@ def test_a_pad_flat_on_a_face_at_its_edge_is_on_that_face():
 
 
 IIWA = Path(pybullet_data.getDataPath()) / "kuka_iiwa" / "model.urdf"
+
+
+def jaw(side: str, sign: int, mimic: str = "") -> str:
+    """URDF text of one box jaw on a prismatic joint of the palm, at ``sign`` x 6 cm along
+    y and closing towards the palm's centre; ``mimic``: the joint it follows, if any."""
+    return f"""
+  <joint name="finger_{side}_joint" type="prismatic">
+    <parent link="gripper_palm"/><child link="finger_{side}"/>
+    <origin xyz="0 0 0.04" rpy="0 0 0"/><axis xyz="0 {-sign} 0"/>
+    <limit lower="0" upper="0.05" effort="50" velocity="0.2"/>{mimic}
+  </joint>
+  <link name="finger_{side}">
+    <inertial><mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0"
+      izz="1e-5"/></inertial>
+    <collision><origin xyz="0 {0.06 * sign} 0.04"/><geometry><box size="0.02 0.01 0.08"/>
+    </geometry></collision>
+  </link>"""
+
+
 #: Two box jaws on one prismatic joint, the second a mimic, on a palm at the iiwa's flange.
 JAWS = """
   <joint name="flange_joint" type="fixed">
@@ -88,30 +107,8 @@ JAWS = """
       izz="0.001"/></inertial>
     <collision><origin xyz="0 0 0.02"/><geometry><box size="0.04 0.14 0.04"/></geometry>
     </collision>
-  </link>
-  <joint name="finger_left_joint" type="prismatic">
-    <parent link="gripper_palm"/><child link="finger_left"/>
-    <origin xyz="0 0 0.04" rpy="0 0 0"/><axis xyz="0 -1 0"/>
-    <limit lower="0" upper="0.05" effort="50" velocity="0.2"/>
-  </joint>
-  <link name="finger_left">
-    <inertial><mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0"
-      izz="1e-5"/></inertial>
-    <collision><origin xyz="0 0.06 0.04"/><geometry><box size="0.02 0.01 0.08"/></geometry>
-    </collision>
-  </link>
-  <joint name="finger_right_joint" type="prismatic">
-    <parent link="gripper_palm"/><child link="finger_right"/>
-    <origin xyz="0 0 0.04" rpy="0 0 0"/><axis xyz="0 1 0"/>
-    <limit lower="0" upper="0.05" effort="50" velocity="0.2"/>
-    <mimic joint="finger_left_joint" multiplier="1" offset="0"/>
-  </joint>
-  <link name="finger_right">
-    <inertial><mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0"
-      izz="1e-5"/></inertial>
-    <collision><origin xyz="0 -0.06 0.04"/><geometry><box size="0.02 0.01 0.08"/></geometry>
-    </collision>
-  </link>
+  </link>""" + jaw("left", 1) + jaw(
+    "right", -1, '\n    <mimic joint="finger_left_joint" multiplier="1" offset="0"/>') + """
 </robot>
 """
 

@@ -254,6 +254,17 @@ def face_patch_point(parts: tuple[np.ndarray, ...], finger_vertices: np.ndarray,
     return out[0]
 
 
+def _planes_near(obj, points: np.ndarray, tol: float):
+    """Per nearest part of the object-frame points (n, 3) (``GraspObject.nearest_part``):
+    yields (part, rows (r,) of the points it is nearest to, its face planes (F, 4) with unit
+    outward normals, (r, F) bool: the planes within ``tol`` metres of each of those points)."""
+    part = obj.nearest_part(points)
+    for p in np.unique(part):
+        rows = np.flatnonzero(part == p)
+        pl = obj.planes[p] / np.linalg.norm(obj.planes[p][:, :3], axis=1, keepdims=True)
+        yield p, rows, pl, np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
+
+
 def faces_of(obj, points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """The face each object-frame point (n, 3) lies on: ((n,) its part, -1 where none;
     (n, 4) its plane, outward unit normal and offset). A point's part is the object's
@@ -261,15 +272,10 @@ def faces_of(obj, points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarra
     within ``tol`` metres; none at an edge or a corner (two or more planes that near) or off
     the surface."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
-    part = obj.nearest_part(points)
     found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
-    for p in np.unique(part):
-        rows = np.flatnonzero(part == p)
-        pl = obj.planes[p]
-        on = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
-        one = on.sum(axis=1) == 1
-        chosen = pl[np.argmax(on[one], axis=1)]
-        planes[rows[one]] = chosen / np.linalg.norm(chosen[:, :3], axis=1, keepdims=True)
+    for p, rows, pl, near in _planes_near(obj, points, tol):
+        one = near.sum(axis=1) == 1
+        planes[rows[one]] = pl[np.argmax(near[one], axis=1)]
         found[rows[one]] = p
     return found, planes
 
@@ -288,12 +294,8 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     face beside it by its whole overhang; a pad on the edge itself, tilted between the two
     faces, crosses both by more, or touches with an edge or a corner of its own only."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
-    part = obj.nearest_part(points)
     found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
-    for p in np.unique(part):
-        rows = np.flatnonzero(part == p)
-        pl = obj.planes[p] / np.linalg.norm(obj.planes[p][:, :3], axis=1, keepdims=True)
-        near = np.abs(points[rows] @ pl[:, :3].T + pl[:, 3]) < tol
+    for p, rows, pl, near in _planes_near(obj, points, tol):
         heights = vertices[rows] @ pl[:, :3].T + pl[:, 3]  # (rows, V, planes)
         beside = near & (heights.min(axis=1) >= -depth)
         r, k = np.nonzero(beside)

@@ -294,8 +294,7 @@ class FastRobotHand:
         points = point.copy()
         edge = np.flatnonzero((face < 0) & ~rounded)
         if edge.size:  # a pad flat on a face, at its edge: that face
-            vertices = (self.geometry[link].vertices @ np.swapaxes(poses[edge, :3, :3], 1, 2)
-                        + poses[edge, None, :3, 3])
+            vertices = self.geometry[link].placed_vertices(poses[edge])
             flat_part, flat_plane = flat_face(self.obj, point[edge], vertices, EDGE_TOL)
             flat = flat_part >= 0
             face[edge[flat]], plane[edge[flat]] = flat_part[flat], flat_plane[flat]

@@ -311,8 +311,7 @@ class RobotWorld(RobotScene):
             face = face_of(self.obj, point)
             if face is None and link in self.geometry:  # at an edge: the face a pad lies on
                 pose = self._placed_inverse @ self.model_pose(link)
-                face = face_of(self.obj, point,
-                               self.geometry[link].vertices @ pose[:3, :3].T + pose[:3, 3])
+                face = face_of(self.obj, point, self.geometry[link].placed_vertices(pose))
             if face is None:
                 normal = -np.array(row[7]) @ rot
             else:

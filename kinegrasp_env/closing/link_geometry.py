@@ -93,6 +93,12 @@ class LinkGeometry:
         kept (the geometry is read once per robot and process)."""
         return tuple(parts_tuple(pack_parts([part])) for part in self.parts)
 
+    def placed_vertices(self, poses: np.ndarray) -> np.ndarray:
+        """(..., V, 3) :attr:`vertices` placed by the link's poses (..., 4, 4) (in the frame
+        the poses are given in, metres)."""
+        return (self.vertices @ np.swapaxes(poses[..., :3, :3], -1, -2)
+                + poses[..., None, :3, 3])
+
     @property
     def extent_points(self) -> np.ndarray:
         """(K, 3) points whose convex hull holds the whole link (the polytopes' vertices and
