@@ -490,8 +490,10 @@ def test_cli_adaptive_rank_csv_shows_the_certified_rows_first(tmp_path):
     assert "delta 0.05, epsilon 0.01" in summary
     assert summary.startswith("certified at " if TOP in labels and len(rows) - 1 ==
                               labels.count(REST) else "NOT certified at ")
-    args = build_parser().parse_args(["rank", "x.json"])
-    assert float(args.epsilon) == DEFAULT_EPSILON
+    from kinegrasp_env.cli.ranking import ADAPTIVE_DEFAULTS
+
+    assert build_parser().parse_args(["rank", "x.json"]).epsilon is None  # filled in by rank
+    assert float(ADAPTIVE_DEFAULTS["epsilon"]) == DEFAULT_EPSILON
     # the same run's JSON and page carry the labels and the certificate the console shows
     page = tmp_path / "a.html"
     proc = _rank_cli(tmp_path, subprocess.PIPE, "--json", "--report", str(page), out="b.csv")
@@ -527,3 +529,18 @@ def test_cli_adaptive_bad_delta_or_epsilon_is_one_line(tmp_path, capsys, flag, v
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0], err
     assert not (tmp_path / "r.csv").exists()
+
+
+@pytest.mark.parametrize("given, named", [(["--top-k", "2"], "--top-k sets"),
+                                          (["--epsilon", "0", "--delta", "0.1"],
+                                           "--epsilon and --delta set")])
+def test_adaptive_settings_without_adaptive_are_refused(tmp_path, capsys, given, named):
+    """``--top-k``, ``--epsilon``, ``--delta`` set what ``--adaptive`` certifies: without it
+    they did nothing, silently. Refused before any work, naming each option given."""
+    from kinegrasp_env.cli import main
+
+    out = tmp_path / "r.csv"
+    status = main(["rank", str(tmp_path / "no_such_file.json"), *given, "--out", str(out)])
+    assert status == 2 and not out.exists()
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"kinegrasp rank: error: {named} what --adaptive certifies"), err

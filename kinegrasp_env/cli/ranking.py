@@ -103,6 +103,7 @@ def cmd_rank(args) -> int:
                        f"certify (its tests count the draws that succeed); use --criterion "
                        f"{', '.join(counted)} or {last} with --adaptive, or {args.criterion} "
                        "without it")
+    _adaptive_defaults(args)
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
     out = output_file(args.out, "--out", inputs=input_files(args), suffixes=CSV_SUFFIXES)
@@ -221,6 +222,26 @@ def _palm_pose_candidates(path: str, robot: str | None = None,
         raise CLIError(f"{path}: none of the {len(read.candidates)} candidates is reachable, "
                        "clear and closing; nothing ranked")
     return grasps, hashlib.sha256(Path(path).read_bytes()).hexdigest(), rejected
+
+
+#: What ``rank --adaptive`` certifies unless told otherwise: the top set's size, the
+#: indifference zone (the default is toolkit.adaptive_ranking.DEFAULT_EPSILON, tested; the
+#: parser is built without NumPy) and the error level.
+ADAPTIVE_DEFAULTS = {"top_k": "3", "epsilon": "0.01", "delta": "0.05"}
+
+
+def _adaptive_defaults(args) -> None:
+    """Refuse ``--top-k``, ``--epsilon`` or ``--delta`` without ``--adaptive`` (a fixed-n
+    ranking certifies nothing), else fill in those not given."""
+    given = [f"--{name.replace('_', '-')}" for name in ADAPTIVE_DEFAULTS
+             if getattr(args, name) is not None]
+    if given and not args.adaptive:
+        raise CLIError(f"{' and '.join(given)} set{'s' if len(given) == 1 else ''} what "
+                       "--adaptive certifies: add --adaptive, or leave "
+                       f"{'it' if len(given) == 1 else 'them'} out")
+    for name, default in ADAPTIVE_DEFAULTS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, default)
 
 
 def _certify_settings(args) -> dict:

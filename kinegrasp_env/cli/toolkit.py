@@ -171,15 +171,15 @@ def add_commands(sub) -> None:
                    "certified top k first (column 'certified': top-k, rest, unresolved), "
                    "each label wrong with probability <= --delta; not certified within the "
                    "--samples budget, the run says so")
-    p.add_argument("--top-k", default="3", help="size of the top set --adaptive separates")
+    p.add_argument("--top-k", help="size of the top set --adaptive separates (default 3)")
     # the default is toolkit.adaptive_ranking.DEFAULT_EPSILON (tested; copied: no NumPy to
     # build this)
-    p.add_argument("--epsilon", default="0.01", help="--adaptive's indifference zone: certify "
-                   "a top k each of whose members has P(FC) within EPSILON of the true k-th "
-                   "best (0: exactly the top k, which a near tie can keep from being "
+    p.add_argument("--epsilon", help="--adaptive's indifference zone: certify a top k each "
+                   "of whose members has P(FC) within EPSILON of the true k-th best (default "
+                   "0.01; 0: exactly the top k, which a near tie can keep from being "
                    "certified at any budget)")
-    p.add_argument("--delta", default="0.05",
-                   help="--adaptive's probability of a wrong certified label")
+    p.add_argument("--delta", help="--adaptive's probability of a wrong certified label "
+                   "(default 0.05)")
     p.add_argument("--best-elbow", metavar="SAMPLES", help="first move each candidate to its "
                    "most robust elbow angle (`kinegrasp elbow`, SAMPLES draws per angle, chosen "
                    "on seed + 1); the ranked ids get an 'e'")
