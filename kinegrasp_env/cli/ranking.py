@@ -48,7 +48,8 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
     """Each candidate moved to its most robust elbow angle (7 joints: the self-motion) or IK
     branch (6 joints) (``kinegrasp elbow``'s optimizer, by ``engine``; the fast one for the
     physics engine), chosen on draws of seed + 1, so the ranking's own draws (seed) stay
-    independent of the choice."""
+    independent of the choice. The angle (radians) or branch index chosen is in the moved
+    grasp's ``meta`` (:data:`~kinegrasp_env.cli.ranking_table.ELBOW_COLUMNS`)."""
     from tqdm import tqdm
 
     from kinegrasp_env.toolkit.elbow_search import optimize_variants
@@ -61,7 +62,9 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
             best, branches = optimize_variants(grasp, noise, samples, seed + 1,
                                                friction=friction, evaluate_with=kinematic,
                                                executor=executor)
-        meta = {**grasp.meta, **({} if branches else {"elbow_angle": best.best_psi})}
+        chosen = ({"ik_branch": int(best.best_psi)} if branches
+                  else {"elbow_angle": float(best.best_psi)})
+        meta = {**grasp.meta, **chosen}
         moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
     return moved
 

@@ -30,6 +30,10 @@ HOLD_COLUMNS = {"static": ("p_hold_static", "P(stat)"), "test": ("p_hold", "P(ho
 #: With the quick holding test: the mean of its margins (CSV column, table header), after
 #: the hold columns.
 MARGIN_COLUMN = ("hold_margin", "margin")
+#: With ``--best-elbow``: the elbow angle (radians; 7-joint arms) or IK branch (6-joint
+#: arms) each candidate was moved to, from its grasp's ``meta``, after the hold columns.
+ELBOW_COLUMNS = ("elbow_angle", "ik_branch")
+_ELBOW_HEADERS = {"elbow_angle": "elbow", "ik_branch": "branch"}
 #: What each hold score is, printed under the table.
 HOLD_NOTES = {
     "static": "P(stat): the static hold check (the contacts carry the object's weight in six "
@@ -68,6 +72,13 @@ def write_rejected(rejected: list, out: Path, quiet: bool = False) -> None:
     write_atomic(path, buffer.getvalue())
     print(f"{plural(len(rejected), 'rejected candidate')} written to {path}",
           file=sys.stderr if quiet else sys.stdout)
+
+
+def _elbow(value) -> str:
+    """An :data:`ELBOW_COLUMNS` cell: the angle to 1e-6 rad, the branch index, or empty."""
+    if value is None:
+        return ""
+    return str(value) if isinstance(value, int) else f"{value:.6f}"
 
 
 def _ordinal(k: int) -> str:
@@ -133,6 +144,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
             row[column] = r.p_hold(score)
             row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
         row[MARGIN_COLUMN[0]] = r.hold_margin()
+        row.update({c: g.meta[c] for c in ELBOW_COLUMNS if c in g.meta})
         rows.append(row)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -142,11 +154,12 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
     hold = tuple(f"{HOLD_COLUMNS[score][0]}{end}" for score in scores
                  for end in ("", "_lo", "_hi"))
     hold += (MARGIN_COLUMN[0],) if "test" in scores else ()
-    writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + (NOMINAL_COLUMN,) + hold + extra)
+    elbow = tuple(c for c in ELBOW_COLUMNS if any(c in row for row in rows))
+    writer.writerow(CSV_COLUMNS + OUTCOME_COLUMNS + (NOMINAL_COLUMN,) + hold + elbow + extra)
     for row, label in zip(rows, labels, strict=True):
         writer.writerow([row["id"], *(_fmt(row[c]) for c in CSV_COLUMNS[1:-2]), row["samples"],
                          row["engine"], *(row[c] for c in OUTCOME_COLUMNS), row[NOMINAL_COLUMN],
-                         *(_fmt(row[c]) for c in hold),
+                         *(_fmt(row[c]) for c in hold), *(_elbow(row.get(c)) for c in elbow),
                          *([label] if extra else [])])
     write_atomic(out, buffer.getvalue())
     if partial.exists():
@@ -171,11 +184,13 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
     print(f"{'rank':>4} {'id':>{width}} {'P(FC)':>7} {'95% CI':>15} {'Q mean':>9} {'Q nominal':>9} "
           f"{'draws':>6}" + "".join(f" {HOLD_COLUMNS[s][1]:>7} {'95% CI':>15}" for s in scores)
           + (f" {MARGIN_COLUMN[1]:>6}" if "test" in scores else "")
+          + "".join(f" {_ELBOW_HEADERS[c]:>6}" for c in elbow)
           + (f" {'certified':>10}" if extra else ""))
     for i, (row, label) in enumerate(zip(rows, labels, strict=True), 1):
         held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
                        for c in (HOLD_COLUMNS[s][0] for s in scores))
         held += f" {row[MARGIN_COLUMN[0]]:>6.3f}" if "test" in scores else ""
+        held += "".join(f" {_elbow(row.get(c))[:6]:>6}" for c in elbow)
         print(f"{i:>4} {row['id']:>{width}} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held

@@ -182,7 +182,8 @@ def add_commands(sub) -> None:
                    "(default 0.05)")
     p.add_argument("--best-elbow", metavar="SAMPLES", help="first move each candidate to its "
                    "most robust elbow angle (`kinegrasp elbow`, SAMPLES draws per angle, chosen "
-                   "on seed + 1); the ranked ids get an 'e'")
+                   "on seed + 1); the ranked ids get an 'e', and the columns elbow_angle "
+                   "(radians; 7-joint arms) or ik_branch (6-joint arms) name the choice")
     add_execution_args(p, 1)
     add_engine_arg(p)
     add_friction_arg(p)
