@@ -41,7 +41,7 @@ from kinegrasp_env.world.objects import (
     object_names,
 )
 from kinegrasp_env.world.polytope import ConvexPart
-from kinegrasp_env.world.store import catalog_dir, imported_names
+from kinegrasp_env.world.store import CatalogError, catalog_dir, imported_names
 
 PYBULLET_DATA = Path(pybullet_data.getDataPath())
 
@@ -234,6 +234,23 @@ def test_size_check_messages():
     with pytest.raises(MeshError, match=r"too small for the hand: 0\.004, 0\.005, 0\.006 m"):
         check_size(tiny, 0.004)
     check_size(trimesh.creation.box(extents=(0.3, 0.3, 0.3)), 0.3)  # within the span
+
+
+def test_an_empty_name_is_refused(home, tmp_path):
+    """``--name ""`` named no object and the import took the file's name instead."""
+    with pytest.raises(CatalogError, match="invalid object name ''"):
+        import_object(box_file(tmp_path / "b.obj"), name="")
+    assert not (home / "objects" / "b").exists()
+
+
+def test_a_scale_far_too_small_is_named_as_too_small(home, tmp_path):
+    """A 5 cm box imported at --scale 1e-9 is 5e-11 m across: cleaning merges every vertex
+    (trimesh's merge tolerance is far above that), and the import said the mesh had no
+    faces. The size is checked on the scaled vertices first and named, with a fix."""
+    path = box_file(tmp_path / "b.obj")
+    with pytest.raises(MeshError, match=r"too small for the hand: 5e-11, 5e-11, 5e-11 m.*"
+                                        r"--scale"):
+        import_object(path, settings=ImportSettings(scale=1e-9))
 
 
 # ----------------------------------------------------------------------------- file formats

@@ -62,6 +62,7 @@ from kinegrasp_env.world.import_settings import (
 )
 from kinegrasp_env.world.meshfile import MeshError, SourceMesh, load_source
 from kinegrasp_env.world.meshprep import (
+    check_not_tiny,
     check_size,
     check_solid,
     clean_mesh,
@@ -137,8 +138,8 @@ def import_object(path: str | Path, name: str | None = None,
     start = time.perf_counter()
     settings = (settings or ImportSettings()).check()
     density = check_density(density)
+    name = check_name(default_name(path) if name is None else name)
     source = load_source(path)
-    name = check_name(name or default_name(path))
     digest = source_digest(source)
     key = entry_key(digest, settings)
     existing = imported_folder(name)
@@ -195,7 +196,11 @@ def prepare(source: SourceMesh, scale: float, path: Path, up: str = "z") -> Prep
     hand."""
     rotation = UP_ROTATIONS[up]
     try:
-        mesh = clean_mesh(source.vertices * scale @ rotation.T, source.faces)
+        vertices = source.vertices * scale @ rotation.T
+        used = vertices[np.unique(source.faces)] if len(source.faces) else vertices
+        if len(used):
+            check_not_tiny(np.ptp(used, axis=0))
+        mesh = clean_mesh(vertices, source.faces)
         width = check_solid(mesh)
         check_size(mesh, width)
     except MeshError as exc:

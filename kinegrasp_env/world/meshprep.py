@@ -3,7 +3,8 @@
 * :func:`clean_mesh`: merge duplicate vertices, drop degenerate and repeated faces and
   unused vertices, make the winding consistent and the normals point outwards.
 * :func:`check_solid`: at least 4 faces and not flat (a solid has a volume).
-* :func:`check_size`: the SDH-like hand must be able to hold it (see :data:`HAND_SPAN`).
+* :func:`check_size`: the SDH-like hand must be able to hold it (see :data:`HAND_SPAN`);
+  :func:`check_not_tiny`: the too-small half of it, also checked before cleaning.
 * :func:`open_edges`: edges that do not join exactly two faces (an open or non-manifold
   mesh; :func:`kinegrasp_env.world.importer.prepare` warns what the import does with it).
 * :func:`object_frame`: the import convention for the object frame, the one of the built-in
@@ -97,16 +98,28 @@ def check_solid(mesh: trimesh.Trimesh) -> float:
 def check_size(mesh: trimesh.Trimesh, width: float) -> None:
     """:class:`MeshError` when the hand could not hold the mesh (in metres): narrower than
     :data:`HAND_SPAN` in no direction (``width`` is its smallest width), or smaller than
-    :data:`SMALLEST` in every direction. The message gives the size and a fix."""
+    :data:`SMALLEST` in every direction (:func:`check_not_tiny`). The message gives the size
+    and a fix."""
     extents = np.asarray(mesh.extents, dtype=float)
-    size = ", ".join(f"{v:.4g}" for v in extents)
     if width > HAND_SPAN:
-        raise MeshError(f"too large for the hand: {size} m (at least {width:.3g} m across in "
-                        f"every direction; the hand spans at most {HAND_SPAN:.3f} m); "
-                        f"{suggest(float(extents.max()))}")
+        raise MeshError(f"too large for the hand: {_sizes(extents)} m (at least {width:.3g} m "
+                        f"across in every direction; the hand spans at most {HAND_SPAN:.3f} "
+                        f"m); {suggest(float(extents.max()))}")
+    check_not_tiny(extents)
+
+
+def check_not_tiny(extents: np.ndarray) -> None:
+    """:class:`MeshError` when a mesh of these (3,) extents (metres) is smaller than
+    :data:`SMALLEST` in every direction. Checked before :func:`clean_mesh` too, whose vertex
+    merging collapses a mesh scaled far too small to no face at all."""
+    extents = np.asarray(extents, dtype=float)
     if extents.max() < SMALLEST:
-        raise MeshError(f"too small for the hand: {size} m (a fingertip is "
+        raise MeshError(f"too small for the hand: {_sizes(extents)} m (a fingertip is "
                         f"{2 * PHALANX_RADIUS:.3f} m thick); {suggest(float(extents.max()))}")
+
+
+def _sizes(extents: np.ndarray) -> str:
+    return ", ".join(f"{v:.4g}" for v in extents)
 
 
 def suggest(largest: float) -> str:
