@@ -61,6 +61,21 @@ def test_negative_angles_need_no_equals_sign(capsys):
     assert json.loads(capsys.readouterr().out)["samples"] == 100
 
 
+def test_negative_values_of_several_value_options():
+    """``--position -0.1 0.6 0`` and ``--table-size -1 0.5`` reach their options as values
+    (gluing the first value to the option, as ``--q0 -0.5,1`` is glued, left the others
+    without an option, and the command was refused); one-value options are glued still."""
+    from kinegrasp_env.cli.main import _glue_negative_values, build_parser
+
+    parser = build_parser()
+    argv = ["objects", "place", "cube", "--position", "-0.1", "0.6", "0", "--table-size",
+            "-1", "0.5", "--orientation", "0", "0", "-0.6", "0.8"]
+    args = parser.parse_args(_glue_negative_values(argv, parser))
+    assert (args.position, args.table_size) == (["-0.1", "0.6", "0"], ["-1", "0.5"])
+    assert args.orientation == ["0", "0", "-0.6", "0.8"]
+    assert _glue_negative_values(["planar", "--q0", "-0.5,1"], parser)[-1] == "--q0=-0.5,1"
+
+
 def test_ee_of_the_default_robot_json_and_errors(capsys):
     assert main(["ee", "--q0", "0,0.6,0,-1.2,0,0.8,0", "--sigma", "0.0133",
                  "--samples", "20000", "--json"]) == 0

@@ -60,22 +60,39 @@ def build_parser() -> argparse.ArgumentParser:
 _NEGATIVE_VALUE = re.compile(r"^-(\.?\d|inf|nan)", re.IGNORECASE)
 
 
-def _glue_negative_values(argv: list[str]) -> list[str]:
-    """Turn ``--q0 -0.5,1`` into ``--q0=-0.5,1`` (argparse would read -0.5,1 as an option)."""
+def _glue_negative_values(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """Turn ``--q0 -0.5,1`` into ``--q0=-0.5,1`` (argparse would read -0.5,1 as an option).
+    An option of several values (``--position X Y Z``) is left as it is: ``--position=-0.1``
+    would leave the other values without an option, and argparse reads a plain negative
+    number (-0.1) as a value by itself."""
+    several = _several_value_options(parser)
     out: list[str] = []
     for token in argv:
         if (out and out[-1].startswith("--") and "=" not in out[-1]
-                and _NEGATIVE_VALUE.match(token)):
+                and out[-1] not in several and _NEGATIVE_VALUE.match(token)):
             out[-1] = f"{out[-1]}={token}"
         else:
             out.append(token)
     return out
 
 
+def _several_value_options(parser: argparse.ArgumentParser) -> set[str]:
+    """The option strings, in ``parser`` and its subcommands, that take more than one
+    value (a number of values, or '+' or '*')."""
+    found: set[str] = set()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in set(action.choices.values()):
+                found |= _several_value_options(sub)
+        elif action.option_strings and action.nargs not in (None, "?", 0, 1):
+            found.update(action.option_strings)
+    return found
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    args, unknown = parser.parse_known_args(_glue_negative_values(argv))
+    args, unknown = parser.parse_known_args(_glue_negative_values(argv, parser))
     if unknown:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     kernel_notice.install()  # the first run on a machine compiles the kernels: say so
