@@ -3,7 +3,9 @@
 What each test proves: every variant is the planned grasp's palm pose reached with another
 arm configuration (forward kinematics of its q0, an independent computation, to 1e-8 m/rad)
 at another elbow angle, in force closure at its nominal closing; a spent time budget closes
-no candidate (a one-line error, nothing written).
+no candidate (a one-line error, nothing written); a plan's tally accounts for every palm pose
+it drew, and an object placed beyond any arm's reach (3 m from the base: the iiwa's links
+add up to 1.3 m) is named as out of reach, with its distance.
 """
 
 from __future__ import annotations
@@ -42,3 +44,35 @@ def test_a_spent_time_budget_plans_nothing(tmp_path, capsys):
                  "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no force-closure grasp of cube" in err[0] and not out.exists()
+
+
+def test_the_tally_accounts_for_every_palm_pose():
+    """With more grasps asked than the palm poses can give, no pose is left unchecked: the
+    poses drawn are those dropped (by reason) and those kept, and the kept ones are the
+    grasps returned."""
+    from kinegrasp_env.toolkit.grasp_planner import plan_grasps
+    from kinegrasp_env.toolkit.plan_checks import PlannerSettings, PlanTally
+
+    for robot in ("panda", "kuka_sdh"):  # the antipodal and the approach planner
+        tally = PlanTally()
+        grasps = plan_grasps(robot, "cube", count=100, seed=3,
+                             settings=PlannerSettings(attempts=40), tally=tally)
+        assert tally.drawn == 40 and tally.kept == len(grasps) > 0, tally
+        assert sum(tally.dropped.values()) + tally.kept == tally.drawn, tally
+
+
+def test_an_object_out_of_reach_is_named(tmp_path, monkeypatch, capsys):
+    """The cube placed 3 m from the robot's base (its centre of mass 3 cm above its base: 3.00
+    m away): every palm pose is out of reach, and the refusal says so and how far."""
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    assert main(["objects", "place", "cube", "--as", "far", "--position", "3", "0", "0"]) == 0
+    capsys.readouterr()
+    out = tmp_path / "g.json"
+    assert main(["plan", "--object", "far", "--count", "1", "--max-attempts", "20",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("kinegrasp plan: error: no force-closure grasp of far found for robot "
+                   "kuka_sdh (20 palm poses: 20 out of reach): far stands 3.00 m from the "
+                   "robot's base; place it within reach (`kinegrasp objects place`); nothing "
+                   "written"), err
+    assert not out.exists()

@@ -41,7 +41,7 @@ def cmd_plan(args) -> int:
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.grasp_planner import plan_grasps
-    from kinegrasp_env.toolkit.plan_checks import PlannerSettings, attempts_for
+    from kinegrasp_env.toolkit.plan_checks import PlannerSettings, PlanTally, attempts_for
     from kinegrasp_env.world.grasps import save_grasps
 
     robot = args.robot or DEFAULT_ROBOT
@@ -66,13 +66,16 @@ def cmd_plan(args) -> int:
     reason = never_in_force_closure(description)
     if reason is not None:  # before any palm pose is drawn: none could be a grasp
         raise CLIError(f"robot {robot!r}: {reason}; nothing planned")
+    tally = PlanTally()
     with reported(ValueError):
         grasps = plan_grasps(description, args.object, count=count, seed=seed,
-                             friction=friction, settings=settings, time_budget=budget)
+                             friction=friction, settings=settings, time_budget=budget,
+                             tally=tally)
     if not grasps:
-        limit = f"{attempts} palm poses at most" + (f", {budget:g} s" if budget else "")
+        limit = f"; a {budget:g} s budget" if budget else ""
         raise CLIError(f"no force-closure grasp of {args.object} found for robot {robot} "
-                       f"({limit}); nothing written")
+                       f"({tally.summary()}{limit}){_reach_note(tally, args.object)}; "
+                       "nothing written")
     out = list(grasps)
     if variants:
         from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
@@ -87,6 +90,22 @@ def cmd_plan(args) -> int:
     print(f"{len(grasps)} grasps{extra} of {args.object} for robot {robot} written to "
           f"{args.out}")
     return 0
+
+
+def _reach_note(tally, object_name: str) -> str:
+    """Where every palm pose a plan tried was out of the arm's reach: how far the object
+    stands from the robot's base (the world origin), else nothing."""
+    if not tally.drawn or tally.dropped["out of reach"] < tally.drawn - tally.dropped[
+            "facing up"]:
+        return ""
+    import numpy as np
+
+    from kinegrasp_env.world.objects import load_object
+
+    obj = load_object(object_name)
+    centre = obj.to_world(obj.center_of_mass[None])[0]
+    return (f": {object_name} stands {np.linalg.norm(centre):.2f} m from the robot's base; "
+            "place it within reach (`kinegrasp objects place`)")
 
 
 def cmd_sweep(args) -> int:

@@ -34,6 +34,7 @@ from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
 from kinegrasp_env.toolkit.plan_checks import (
     PlannerSettings,
+    PlanTally,
     arm_meta,
     planned_closing,
     self_motion,
@@ -99,10 +100,12 @@ def approach_poses(obj: GraspObject, centre: np.ndarray, approach: np.ndarray,
 def plan_approach_grasps(description: RobotDescription, object_name: str, *, count: int,
                          rng: np.random.Generator, settings: PlannerSettings,
                          friction: float = 0.5, time_budget: float | None = None,
-                         approach: ApproachSettings | None = None) -> list[Grasp]:
+                         approach: ApproachSettings | None = None,
+                         tally: PlanTally | None = None) -> list[Grasp]:
     """Up to ``count`` grasps of any hand of ``description`` on the object (the module's
     steps; ``settings.attempts`` approaches drawn), each in force closure at its nominal
-    closing; ``time_budget`` (seconds): no candidate is closed once it is spent."""
+    closing; ``time_budget`` (seconds): no candidate is closed once it is spent; ``tally``:
+    filled with what became of the palm poses."""
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
     approach = approach or ApproachSettings()
     frame = hand_frame(description)
@@ -116,12 +119,15 @@ def plan_approach_grasps(description: RobotDescription, object_name: str, *, cou
         arms, reached = solve_palm_ik(kin, description, targets, rng,
                                       restarts=settings.ik_restarts,
                                       iterations=settings.ik_iterations)
+        if tally is not None:
+            tally.drawn += len(targets)
+            tally.dropped["out of reach"] += int((~reached).sum())
         for c in np.flatnonzero(reached):
             if len(found) >= count or (deadline is not None and time.monotonic() > deadline):
                 break
             q0 = hands[c].copy()
             q0[:description.arm_dof] = arms[c]
-            draws = planned_closing(engine, q0, settings)
+            draws = planned_closing(engine, q0, settings, tally)
             if draws is None:
                 continue
             found.append(grasp_from_draw(

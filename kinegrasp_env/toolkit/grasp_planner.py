@@ -44,6 +44,7 @@ from kinegrasp_env.sampling.noise import SeedLike, as_generator, check_seed
 from kinegrasp_env.toolkit.approach_planner import plan_approach_grasps
 from kinegrasp_env.toolkit.plan_checks import (
     PlannerSettings,
+    PlanTally,
     arm_meta,
     attempts_for,
     planned_closing,
@@ -175,13 +176,15 @@ def palm_pose_for(pair_world: np.ndarray, normals_world: np.ndarray, jaw: JawFra
 
 def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int = 4,
                 seed: SeedLike = 0, settings: PlannerSettings | None = None,
-                friction: float = 0.5, time_budget: float | None = None) -> list[Grasp]:
+                friction: float = 0.5, time_budget: float | None = None,
+                tally: PlanTally | None = None) -> list[Grasp]:
     """Up to ``count`` grasps of a robot on an object, each in force closure at its nominal
     closing: a two-finger hand's by the module's antipodal steps, any other hand's by
     sampled approaches (:func:`~kinegrasp_env.toolkit.approach_planner.
     plan_approach_grasps`); ``time_budget`` (seconds): no candidate is closed once it is
-    spent (the grasps found so far are returned); ``settings`` default: those of
-    :class:`~kinegrasp_env.toolkit.plan_checks.PlannerSettings`, trying
+    spent (the grasps found so far are returned); ``tally``: filled with what became of the
+    palm poses (:class:`~kinegrasp_env.toolkit.plan_checks.PlanTally`); ``settings``
+    default: those of :class:`~kinegrasp_env.toolkit.plan_checks.PlannerSettings`, trying
     :func:`~kinegrasp_env.toolkit.plan_checks.attempts_for` ``count`` palm poses.
 
     Raises:
@@ -199,7 +202,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     if len(description.fingers) != 2:
         return plan_approach_grasps(description, object_name, count=count, rng=rng,
                                     settings=settings, friction=friction,
-                                    time_budget=time_budget)
+                                    time_budget=time_budget, tally=tally)
     found: list[Grasp] = []
     with RobotReferenceEngine(description, object_name, friction=friction) as engine:
         jaw = jaw_frame(engine)
@@ -221,13 +224,17 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
         arms, reached = solve_palm_ik(kin, description, targets[downward], rng,
                                       restarts=settings.ik_restarts,
                                       iterations=settings.ik_iterations)
+        if tally is not None:
+            tally.drawn += len(targets)
+            tally.dropped["facing up"] += int((~downward).sum())
+            tally.dropped["out of reach"] += int((~reached).sum())
         for c, arm in zip(np.flatnonzero(downward)[reached], arms[reached], strict=True):
             if len(found) >= count or (deadline is not None and time.monotonic() > deadline):
                 break
             pair, angle, depth = pairs[c], float(angles[c]), float(depths[c])
             q0 = hands[c].copy()
             q0[:description.arm_dof] = arm
-            draws = planned_closing(engine, q0, settings)
+            draws = planned_closing(engine, q0, settings, tally)
             if draws is None:
                 continue
             k = int(draws.n_contacts[0])

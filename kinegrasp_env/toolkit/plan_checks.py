@@ -1,10 +1,12 @@
 """What every grasp planner shares: its settings (:class:`PlannerSettings`), the arm's
 clearance from the object (:func:`clearance`), the check of a candidate's nominal closing
-(:func:`planned_closing`) and what a planned grasp records of its arm (:func:`arm_meta`)."""
+(:func:`planned_closing`), what became of its palm poses (:class:`PlanTally`) and what a
+planned grasp records of its arm (:func:`arm_meta`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -14,7 +16,7 @@ from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
 
-__all__ = ["ATTEMPTS_PER_GRASP", "PlannerSettings", "arm_meta", "attempts_for",
+__all__ = ["ATTEMPTS_PER_GRASP", "PlanTally", "PlannerSettings", "arm_meta", "attempts_for",
            "clearance", "planned_closing", "self_motion"]
 
 #: Palm poses a planner tries per grasp asked for, by default (at least the settings' own).
@@ -34,6 +36,28 @@ class PlannerSettings:
     attempts: int = 200
     ik_restarts: int = IK_RESTARTS
     ik_iterations: int = IK_ITERATIONS
+
+
+#: Why a planner dropped a palm pose, in the order a pose meets the checks.
+DROPPED = ("facing up", "out of reach", "arm too close", "not in force closure",
+           "in the table")
+
+
+@dataclass
+class PlanTally:
+    """What became of a plan's palm poses: ``drawn`` of them, ``dropped`` by reason (a
+    :data:`DROPPED` reason -> count), ``kept`` as grasps; poses left when enough grasps were
+    found (or the time budget was spent) are in none of them."""
+
+    drawn: int = 0
+    dropped: Counter = field(default_factory=Counter)
+    kept: int = 0
+
+    def summary(self) -> str:
+        """One line: ``200 palm poses: 180 out of reach, 20 not in force closure``."""
+        counts = [f"{self.dropped[r]} {r}" for r in DROPPED if self.dropped[r]]
+        counts += [f"{self.kept} kept"] if self.kept else []
+        return f"{self.drawn} palm poses" + (": " + ", ".join(counts) if counts else "")
 
 
 def attempts_for(count: int) -> int:
@@ -73,14 +97,26 @@ def arm_meta(motion, q: np.ndarray) -> dict:
 
 
 def planned_closing(engine: RobotReferenceEngine, q0: np.ndarray,
-                    settings: PlannerSettings) -> DrawBatch | None:
+                    settings: PlannerSettings, tally: PlanTally | None = None
+                    ) -> DrawBatch | None:
     """The nominal closing (one draw) of configuration q0 (dof,) when the planners keep it:
     every robot link but the fingers ``settings.min_clearance`` from the object
     (:func:`clearance`), in force closure, the closed hand out of the object's support
-    table; else None. The engine's world is left with the hand closed."""
+    table; else None, the reason counted in ``tally``. The engine's world is left with the
+    hand closed."""
+    reason = None
+    draws = None
     if clearance(engine, q0) < settings.min_clearance:
-        return None
-    draws = engine.run(q0[None])
-    if draws.outcome[0] != FORCE_CLOSURE or engine.world.in_table():
-        return None
-    return draws
+        reason = "arm too close"
+    else:
+        draws = engine.run(q0[None])
+        if draws.outcome[0] != FORCE_CLOSURE:
+            reason = "not in force closure"
+        elif engine.world.in_table():
+            reason = "in the table"
+    if tally is not None:
+        if reason is None:
+            tally.kept += 1
+        else:
+            tally.dropped[reason] += 1
+    return None if reason is not None else draws
