@@ -551,6 +551,9 @@ def test_hand_frames_of_the_built_in_hands():
     assert np.all(np.sum(sdh.closing[:, :2] * inward, axis=1) > 0)
     angles = np.sort(np.degrees(np.arctan2(sdh.tip_centres[:, 1], sdh.tip_centres[:, 0])))
     np.testing.assert_allclose(np.diff(angles), [120, 120], atol=1.0)
+    # in words: components that are zero up to rounding print as +0.000, never -0.000
+    assert all("-0.000" not in line for line in panda.lines() + sdh.lines())
+    assert "approach axis (+0.000, +0.000, +1.000)" in panda.lines()[1]
 
 
 def test_the_fingertip_centres_are_pybullets_bounding_box_centres():

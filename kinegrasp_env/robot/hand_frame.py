@@ -51,8 +51,8 @@ class HandFrame:
 
     def lines(self) -> list[str]:
         """The frame in words, one fact a line."""
-        def vec(v):
-            return "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+        def vec(v):  # rounded first, so that -1e-17 prints as +0.000, not -0.000
+            return "(" + ", ".join(f"{round(float(x), 3) + 0.0:+.3f}" for x in v) + ")"
 
         out = [f"palm frame: link {self.palm_link} (a pose of the hand is this link's pose)",
                f"  fingertip centre {vec(self.centre)} m: approach axis {vec(self.approach)}, "
