@@ -135,6 +135,19 @@ def test_rank_of_a_robot_on_processes_resumed_and_as_evaluate(tmp_path, capsys, 
         assert float(row["q_nominal"]) == pytest.approx(shown["q_nominal"], rel=1e-5)
 
 
+def test_a_planned_elbow_angle_is_no_column_without_best_elbow(tmp_path, capsys):
+    """A planned grasp records its arm's elbow angle in ``meta``; only ``--best-elbow``
+    (which chose it) adds the column, so the table of a plain ranking keeps its columns."""
+    path = tmp_path / "planned.json"
+    save_grasps([dataclasses.replace(g, meta={**g.meta, "elbow_angle": 0.1})
+                 for g in shipped_grasps("cube", "panda")[:2]], path)
+    out = tmp_path / "plain.csv"
+    assert main(["rank", str(path), "--samples", "20", "--engine", "fast", "--out",
+                 str(out)]) == 0
+    assert "elbow" not in capsys.readouterr().out.splitlines()[0].split()  # the header
+    assert "elbow_angle" not in next(csv.DictReader(out.open()))
+
+
 def test_adaptive_and_best_elbow_for_a_robot(tmp_path, capsys):
     fixed = _rank(tmp_path, "fixed.csv")
     adaptive = _rank(tmp_path, "adaptive.csv", "--adaptive", "--top-k", "1", "--samples",

@@ -171,7 +171,8 @@ def cmd_rank(args) -> int:
         _merge_side(r, side)
     grasps = [dataclasses.replace(g, q_nominal=q) for g, q in zip(grasps, nominal, strict=True)]
     write_ranking(grasps, results, out, partial, engine, adaptive, as_json=args.json,
-                  hold_simulator=args.hold_simulator, rejected=rejected)
+                  hold_simulator=args.hold_simulator, rejected=rejected,
+                  moved=bool(args.best_elbow))
     write_rejected(rejected, out, args.json)
     if args.report:
         write_rank_report(args, grasps, results, robot, noise=noise, samples=samples,

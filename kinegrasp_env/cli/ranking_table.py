@@ -81,6 +81,13 @@ def _elbow(value) -> str:
     return str(value) if isinstance(value, int) else f"{value:.6f}"
 
 
+def _elbow_shown(value) -> str:
+    """An :data:`ELBOW_COLUMNS` value in the console table: the angle to 1e-3 rad."""
+    if value is None:
+        return ""
+    return str(value) if isinstance(value, int) else f"{value:.3f}"
+
+
 def _ordinal(k: int) -> str:
     return f"{k}{'th' if 10 <= k % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(k % 10, 'th')}"
 
@@ -120,13 +127,15 @@ def certificate_json(report, samples: int) -> dict:
 
 def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Path,
                    engine: str, adaptive=None, as_json: bool = False,
-                   hold_simulator: str = "pybullet", rejected: list = ()) -> None:
+                   hold_simulator: str = "pybullet", rejected: list = (),
+                   moved: bool = False) -> None:
     """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
     JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV;
     ``rejected``: each rejected palm-pose candidate's id, reason and detail; of an adaptive
     run ``certificate``: :func:`certificate_json`);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
-    saying what it certified."""
+    saying what it certified; ``moved`` (``--best-elbow``) adds the elbow angle or IK branch
+    each candidate was moved to (:data:`ELBOW_COLUMNS`, from its grasp's ``meta``)."""
     from kinegrasp_env.atomic_files import write_atomic
 
     rows = []
@@ -144,7 +153,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
             row[column] = r.p_hold(score)
             row[f"{column}_lo"], row[f"{column}_hi"] = r.hold_interval(score)
         row[MARGIN_COLUMN[0]] = r.hold_margin()
-        row.update({c: g.meta[c] for c in ELBOW_COLUMNS if c in g.meta})
+        row.update({c: g.meta[c] for c in ELBOW_COLUMNS if moved and c in g.meta})
         rows.append(row)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -190,7 +199,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
                        for c in (HOLD_COLUMNS[s][0] for s in scores))
         held += f" {row[MARGIN_COLUMN[0]]:>6.3f}" if "test" in scores else ""
-        held += "".join(f" {_elbow(row.get(c))[:6]:>6}" for c in elbow)
+        held += "".join(f" {_elbow_shown(row.get(c)):>6}" for c in elbow)
         print(f"{i:>4} {row['id']:>{width}} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held
