@@ -17,6 +17,7 @@ import importlib.util
 import json
 import os
 import re
+import shlex
 import subprocess
 import sys
 from collections import Counter
@@ -414,6 +415,15 @@ def test_rank_page_shows_the_hold_scores_it_ranked_by(tmp_path, capsys):
         values = [float(v) for v in re.findall(r'<td[^>]*data-value="([^"]*)"', cells)[-3:]]
         expected = [float(row[k]) for k in ("p_hold_static", "p_hold", "hold_margin")]
         assert values == pytest.approx(expected, abs=1e-6)
+    # the page's command reproduces its CSV, hold scores and all
+    command = html.unescape(re.search(r'<pre class="kg-command">(.*?)</pre>', text, re.S)[1])
+    words = shlex.split(command)
+    again = tmp_path / "again.csv"
+    words[words.index("--out") + 1], words[words.index("--report") + 1] = str(again), str(
+        tmp_path / "again.html")
+    assert words[0] == "kinegrasp" and main(words[1:]) == 0
+    capsys.readouterr()
+    assert again.read_text() == out.read_text()
     assert main(["rank", str(shipped_grasp_file("cube", robot="panda")), "--sigma", "0.0033",
                  "--samples", "3", "--engine", "fast", "--out", str(out), "--report",
                  str(page)]) == 0

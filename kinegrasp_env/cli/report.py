@@ -90,6 +90,7 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
     them."""
     from kinegrasp_env.cli.ranking_table import certified_line
     from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
     from kinegrasp_env.toolkit.report.arms import first_arms
     from kinegrasp_env.toolkit.report.page import write_page
     from kinegrasp_env.toolkit.report.ranking import rank_page
@@ -112,6 +113,9 @@ def write_rank_report(args, grasps, results, robot: str, *, noise, samples: int,
     command = ["kinegrasp", "rank", args.candidates, "--robot", robot,
                *noise_words(args, sigma_words(noise.sigma)), "--samples", str(samples),
                "--seed", str(seed), "--criterion", args.criterion,
+               *(["--static-hold"] if args.static_hold else []),
+               *(["--hold-simulator", args.hold_simulator]
+                 if args.criterion in HOLD_TEST_CRITERIA else []),
                *(["--adaptive", "--top-k", str(args.top_k), "--epsilon", str(args.epsilon),
                   "--delta", str(args.delta)] if args.adaptive else []),
                *(["--best-elbow", str(args.best_elbow)] if args.best_elbow else []),
