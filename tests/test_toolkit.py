@@ -469,10 +469,12 @@ def test_plan_without_result_leaves_no_file(tmp_path):
 
 def test_adaptive_rank_reports_draws(tmp_path):
     candidates = _cube_candidates(tmp_path)
-    proc = run_cli("rank", str(candidates), "--samples", "100", "--adaptive", "--top-k", "1",
+    # 300 draws a candidate: chunks of 250 and 50; the fixed-n run draws 4 x 300, not 4 x 2
+    # chunks of 250
+    proc = run_cli("rank", str(candidates), "--samples", "300", "--adaptive", "--top-k", "1",
                    "--out", str(tmp_path / "a.csv"))
     assert proc.returncode == 0, proc.stderr
-    assert "draws against 400 for fixed n" in proc.stderr
+    assert "draws against 1200 for fixed n" in proc.stderr
 
 
 @pytest.mark.expensive

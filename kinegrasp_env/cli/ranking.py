@@ -327,7 +327,8 @@ def _rank_adaptive(grasps, evaluator, layout, chunk, top_k, criterion: str, *,
         report = rank_adaptive(len(grasps), paired, len(layout), chunk, top_k=top_k,
                                delta=delta, epsilon=epsilon,
                                criterion="pfc" if held else criterion, progress=update,
-                               measure=CERTIFIED_HOLDS.get(criterion, "P(FC)"))
+                               measure=CERTIFIED_HOLDS.get(criterion, "P(FC)"),
+                               budget=sum(layout))
     if held:  # each result's P(FC) and hold scores from the draws' tallies
         for r in report.results:
             r.successes = side[r.index].outcomes.get("force_closure", 0)

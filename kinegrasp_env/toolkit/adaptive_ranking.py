@@ -314,7 +314,7 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
                   chunk_size: int, *, top_k: int = 1, delta: float = 0.05,
                   epsilon: float = DEFAULT_EPSILON, criterion: str = "pfc",
                   progress: Callable[[AdaptiveProgress], None] | None = None,
-                  measure: str = "P(FC)") -> AdaptiveReport:
+                  measure: str = "P(FC)", budget: int | None = None) -> AdaptiveReport:
     """A top ``top_k`` of the candidates by P(FC) (or by what the evaluator's successes
     estimate: ``measure``), each member within ``epsilon`` of the true k-th best, certified
     at confidence 1 - ``delta`` on paired draws (module docstring: method and proof).
@@ -333,6 +333,8 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
             compare unpaired intervals (valid, more draws).
         max_chunks: per-candidate budget (the fixed-n run uses exactly this many chunks).
         chunk_size: draws per chunk (for the report and the progress bound).
+        budget: draws per candidate of the fixed-n run, for the report (default
+            ``max_chunks * chunk_size``; less where the last chunk is smaller).
         top_k: size of the set to separate.
         delta: allowed probability of a certified label being wrong.
         epsilon: indifference zone in P(FC), >= 0 (0: exactly the top k, which a near tie
@@ -383,6 +385,7 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
             break
     results, labels = run.table(criterion)
     return AdaptiveReport(results, [r.index for r in results[:top_k]], separated, rounds,
-                          draws, n_candidates * max_chunks * chunk_size, bool(run.paired),
+                          draws, n_candidates * (max_chunks * chunk_size if budget is None
+                                                 else budget), bool(run.paired),
                           run.alpha, labels, delta, float(epsilon), run.closed.copy(),
                           measure)
