@@ -19,6 +19,7 @@ from kinegrasp_env.cli.common import (
     grasp_index_help,
     nonnegative,
     parse_seed,
+    plural,
     positive_int,
     print_json,
     reported,
@@ -231,6 +232,8 @@ def limits_text(summary: dict) -> str:
 
 
 def print_summary(summary: dict, paths: dict) -> None:
+    from kinegrasp_env.toolkit.validation_stats import MIN_INTERVAL_GRASPS
+
     s, p = summary["settings"], summary["protocol"]
     robot = f"robot {s['robot']}, " if "robot" in s else ""
     print(f"validate: {robot}{len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
@@ -258,7 +261,11 @@ def print_summary(summary: dict, paths: dict) -> None:
         print(f"{name} (rows predicted F/T, columns actual F/T): {m}")
     for name, c in summary["spearman"].items():
         rho = "n/a" if c["rho"] is None else f"{c['rho']:.3f}"
-        lo, hi = ("n/a" if v is None else f"{v:.3f}" for v in c["ci"])
-        print(f"Spearman {name}: {rho} (bootstrap {c['confidence']:.0%} [{lo}, {hi}], "
-              f"{c['n']} grasps)")
+        if c["n"] < MIN_INTERVAL_GRASPS:
+            interval = f"no interval from {plural(c['n'], 'grasp')}: it needs " \
+                       f"{MIN_INTERVAL_GRASPS}"
+        else:
+            lo, hi = ("n/a" if v is None else f"{v:.3f}" for v in c["ci"])
+            interval = f"bootstrap {c['confidence']:.0%} [{lo}, {hi}], {c['n']} grasps"
+        print(f"Spearman {name}: {rho} ({interval})")
     print("wrote " + ", ".join(str(p) for p in paths.values()))

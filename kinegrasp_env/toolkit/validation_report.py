@@ -168,20 +168,29 @@ def plot_scatter(summary: dict, path: Path) -> Path:
     grasps = summary["grasps"]
     hold = np.array([g["p_hold"] for g in grasps])
     hold_err = np.abs(np.array([g["p_hold_ci"] for g in grasps]).T - hold)
-    fig, ax = plt.subplots(figsize=(6, 5))
-    for key, label, marker in (("kinematic", "kinematic closing", "o"),
-                               ("physics", "physics closing", "s")):
+    fig, ax = plt.subplots(figsize=(6, 5.6))
+    # the kinematic markers hollow and larger, so that a physics marker on the same spot
+    # leaves them visible
+    for key, label, style in (("kinematic", "kinematic closing",
+                               {"fmt": "o", "ms": 7, "mfc": "none", "mew": 1.2}),
+                              ("physics", "physics closing", {"fmt": "s", "ms": 4})):
         p = np.array([g[f"p_fc_{key}"] for g in grasps])
         err = np.abs(np.array([g[f"p_fc_{key}_ci"] for g in grasps]).T - p)
         rho = summary["spearman"][f"{key}_p_fc_vs_p_hold"]["rho"]
         text = "n/a" if rho is None else f"{rho:.2f}"
-        ax.errorbar(p, hold, xerr=err, yerr=hold_err, fmt=marker, alpha=0.6, ms=4,
-                    elinewidth=0.5, label=f"{label} (Spearman {text})")
+        ax.errorbar(p, hold, xerr=err, yerr=hold_err, alpha=0.7, elinewidth=0.5,
+                    label=f"{label} (Spearman {text})", **style)
     ax.plot([0, 1], [0, 1], color="grey", lw=0.5, ls="--")
     settings = summary["settings"]
+    objects = ", ".join(dict.fromkeys(g["object"] for g in grasps))
+    robot = f"{settings['robot']}, " if "robot" in settings else ""
     ax.set(xlabel="P(FC)", ylabel="P(hold) (grip, six gravity directions, lift)",
            xlim=(-0.03, 1.03), ylim=(-0.03, 1.03),
-           title=f"{len(grasps)} grasps, sigma {settings['sigma']:g} rad, "
+           title=f"{robot}{objects}: holding test in {settings['simulator']}\n"
+           f"{len(grasps)} grasps, sigma {settings['sigma']:g} rad, "
            f"{settings['samples']} draws each")
-    ax.legend(loc="lower right", fontsize=8)
+    # below the axes: inside, it covered the corners where the points gather (P(FC) 1)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8,
+              frameon=False)
+    fig.tight_layout()
     return save_figure(fig, path)

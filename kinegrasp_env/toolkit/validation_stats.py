@@ -54,13 +54,20 @@ def spearman(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.clip(np.sum(rx * ry) / denominator, -1.0, 1.0))
 
 
+#: Fewest grasps a bootstrap interval of rho is given for: n grasps have C(2n - 1, n)
+#: distinct resamples (10 for 3 grasps, 35 for 4, 126 for 5), too few below 5 for the
+#: percentiles of a 95% interval, and many of them constant (rho undefined).
+MIN_INTERVAL_GRASPS = 5
+
+
 @dataclass
 class Correlation:
     """Spearman's rho of two per-grasp columns with a percentile bootstrap interval.
 
     Attributes:
         rho: the estimate (NaN: a column is constant).
-        ci: (low, high) percentile interval of rho over bootstrap resamples of the grasps.
+        ci: (low, high) percentile interval of rho over bootstrap resamples of the grasps
+            (NaN for fewer than :data:`MIN_INTERVAL_GRASPS` grasps).
         confidence: the interval's level; resamples: how many were drawn; undefined: how many
             of them gave a constant column (left out of the interval).
         n: number of grasps.
@@ -86,10 +93,14 @@ def none_if_nan(value: float) -> float | None:
 def bootstrap_spearman(x: np.ndarray, y: np.ndarray, seed: int | np.random.Generator = 0,
                        resamples: int = 2000, confidence: float = 0.95) -> Correlation:
     """Spearman's rho of the pairs (x[i], y[i]) (n,) and a percentile bootstrap interval
-    from ``resamples`` resamples of the n pairs with replacement (seeded)."""
+    from ``resamples`` resamples of the n pairs with replacement (seeded); no interval (NaN,
+    every resample counted undefined) for fewer than :data:`MIN_INTERVAL_GRASPS` pairs."""
     x = np.asarray(x, float)
     y = np.asarray(y, float)
     rho = spearman(x, y)
+    if x.size < MIN_INTERVAL_GRASPS:
+        return Correlation(rho, (float("nan"), float("nan")), confidence, resamples, resamples,
+                           int(x.size))
     rng = np.random.default_rng(seed)
     picks = rng.integers(0, x.size, size=(resamples, x.size)) if x.size else np.zeros((0, 0))
     values = np.array([spearman(x[p], y[p]) for p in picks.astype(int)])
