@@ -70,3 +70,15 @@ def test_other_noise_takes_draws_and_bad_settings_are_refused():
                             ({"reward": "batch", "batch_size": 0}, "batch_size")):
         with pytest.raises(ValueError, match=message):
             KineGraspEnv(**kwargs)
+
+
+def test_sigma_0_takes_draws():
+    """At sigma 0 the palm has no deviation to re-weight (its covariance is singular: the
+    step raised): the step takes the one deterministic draw, whether the episode's sigma is
+    0 within a range (a batch is built for the grasp) or the range itself is 0 (none is)."""
+    for sigma_range in ((0.0033, 0.0333), (0.0, 0.0)):
+        env = KineGraspEnv(objects=("cube",), reward="batch", batch_size=256,
+                           sigma_range=sigma_range)
+        env.reset(seed=0, options={"object": "cube", "grasp": 0, "sigma": 0.0})
+        info = env.step(ACTIONS[0])[4]
+        assert info["reward_method"] == "draws" and info["p_fc"] in (0.0, 1.0), info

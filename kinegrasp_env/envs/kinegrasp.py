@@ -253,8 +253,9 @@ class KineGraspEnv(gym.Env):
 
     def _estimate(self) -> dict:
         """The episode's batch re-weighted to the current configuration (``reward="batch"``),
-        else Monte Carlo draws at it, seeded from the env's RNG."""
-        if self._batch is not None:
+        else Monte Carlo draws at it, seeded from the env's RNG (also at sigma 0: no
+        deviation to re-weight, the one draw's outcome is the answer)."""
+        if self._batch is not None and np.max(self.noise.sigma) > 0:
             found = self._batch.estimate(self.q, self.noise.sigma, self.n_draws)
             if found is not None:
                 return found
@@ -266,7 +267,8 @@ class KineGraspEnv(gym.Env):
         """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
         built at the grasp's first episode and kept; else None."""
         if (self.reward_method != "batch" or not isinstance(self.noise, JointNoise)
-                or self.noise.kind != "gaussian" or np.ndim(self.noise.sigma) != 0):
+                or self.noise.kind != "gaussian" or np.ndim(self.noise.sigma) != 0
+                or max(self.sigma_range) <= 0):  # no noise level to draw a batch at
             return None
         grasp = self.grasp
         key = (grasp.object, str(grasp.id), tuple(np.round(grasp.palm_pose, 9).ravel()))
