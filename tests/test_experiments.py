@@ -146,6 +146,23 @@ def test_reproduce_refuses_more_grasps_than_the_set_has():
     assert len(shipped_grasps("spray_flask")) == 12
 
 
+
+@pytest.mark.parametrize("figure, count, words", [
+    ("fig9", "20", "--grasps must be between 1 and 12 (cube has 12 shipped grasps of robot "
+                   "kuka_sdh), got 20"),  # it ran the 12 without a word
+    ("fig10", "1", "--grasps 1: fig10 compares the most and the least robust of N "
+                   "configurations, N >= 2"),  # it ran one, and compared nothing
+])
+def test_reproduce_refuses_a_count_it_cannot_run(tmp_path, capsys, figure, count, words):
+    from kinegrasp_env.cli import main
+
+    out = tmp_path / "f"
+    assert main(["reproduce", figure, "--grasps", count, "--object", "cube", "--samples", "10",
+                 "--out", str(out)]) == 2
+    assert capsys.readouterr().err.strip() == f"kinegrasp reproduce: error: {words}"
+    assert not out.exists() and len(shipped_grasps("cube")) == 12
+
+
 # ----------------------------------------------------------------------------- file modes
 @pytest.mark.parametrize("mask", [0o022, 0o027, 0o077, 0o002])
 def test_written_files_follow_the_umask(tmp_path, mask):

@@ -124,3 +124,30 @@ def test_friction_beside_a_friction_source_is_refused(capsys, tmp_path):
     assert main(["evaluate", "--noise-spec", str(spec), "--friction", "0.3"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "friction source" in err[0]
+
+
+@pytest.mark.parametrize("source, mu", [("{distribution: fixed, value: 0.8}", 0.8),
+                                        ("{distribution: uniform, low: 0.6, high: 1.0}", 0.8),
+                                        ("{distribution: gaussian, mean: 0.8, sigma: 0.1}",
+                                         0.8)])
+def test_the_nominal_q_of_a_friction_source_is_at_its_nominal_mu(capsys, tmp_path, source,
+                                                                  mu):
+    """With a friction source the draws take mu from it; the grasp's nominal Q is then the
+    Q of its noise-free closing at the source's nominal mu (its value, the middle of its
+    range, its mean), as ``--friction 0.8`` gives it (it was Q at the default 0.5); the
+    independent check is Q by hand from the nominal contacts at mu 0.8."""
+    spec = tmp_path / "noise.yaml"
+    spec.write_text(f"friction: {source}\n")
+    assert main(["evaluate", "--object", "cube", "--noise-spec", str(spec), "--samples", "4",
+                 "--engine", "fast", "--json"]) == 0
+    nominal = json.loads(capsys.readouterr().out)["q_nominal"]
+    assert main(["evaluate", "--object", "cube", "--friction", str(mu), "--sigma", "0",
+                 "--samples", "1", "--engine", "fast", "--json"]) == 0
+    assert nominal == pytest.approx(json.loads(capsys.readouterr().out)["q_nominal"],
+                                    rel=1e-12)
+    grasp, obj = shipped_grasps("cube")[0], load_object("cube")
+    by_hand = ferrari_canny(grasp.points, grasp.normals, friction=mu,
+                            torque_scale=obj.torque_scale, center=obj.center_of_mass)
+    # as test_nominal_q_is_the_contacts_rescored: to 1e-7 relative
+    assert nominal == pytest.approx(by_hand, rel=1e-7) and nominal != pytest.approx(
+        grasp.q_nominal, rel=1e-3)

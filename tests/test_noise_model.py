@@ -176,7 +176,18 @@ BAD_SPECS = [
     ({"friction": {"distribution": "uniform", "low": 0.6, "high": 0.4}},
      "friction.high (0.4) is below friction.low (0.6)"),
     ({"friction": {"distribution": "gaussian", "low": 0.1}},
-     "unknown key friction.low (with distribution gaussian)"),
+     "friction.low is a key of distribution uniform, not of gaussian: give distribution: "
+     "uniform"),
+    ({"friction": {"distribution": "gaussian", "spread": 0.1}},
+     "unknown key friction.spread (with distribution gaussian)"),
+    # a missing key read as its default: uniform on [0, 0] (mu 0 on every draw)
+    ({"friction": {"distribution": "uniform"}},
+     "friction with distribution uniform needs low and high"),
+    ({"friction": {"distribution": "fixed"}}, "friction with distribution fixed needs value"),
+    ({"friction": {"mean": 0.5}},
+     "friction with distribution gaussian, the default, needs sigma"),
+    ({"friction": {"value": 0.2}}, "friction.value is a key of distribution fixed, not of "
+     "gaussian, the default: give distribution: fixed"),
     ({"friction": {"distribution": "lognormal"}}, "friction.distribution 'lognormal'"),
     ({"preset": "graspit"}, "unknown preset 'graspit'"),
     ({"palm": 0.01}, "palm must be a mapping"),

@@ -243,7 +243,9 @@ def friction_setting(noise, friction: float) -> float | str:
 def friction_from(args, noise=None) -> float:
     """``--friction``: a finite mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
     check_parameters`' rule); given beside a noise model (``noise``) with a friction source,
-    which sets mu per draw, it is a :class:`CLIError` line."""
+    which sets mu per draw, it is a :class:`CLIError` line, and without it the mu of the
+    noise-free grasp (its nominal Q, the drawn cones) is the source's nominal one
+    (``FrictionSource.nominal``)."""
     from kinegrasp_env.quality.wrenches import check_parameters
 
     text = getattr(args, "friction", str(DEFAULT_FRICTION))
@@ -252,9 +254,11 @@ def friction_from(args, noise=None) -> float:
         check_parameters(value, NUM_EDGES)
     except ValueError:
         raise CLIError(f"--friction must be >= 0, got {text}") from None
-    if friction_per_draw(noise) and value != DEFAULT_FRICTION:
-        raise CLIError("--friction and the noise spec's friction source both set mu: the "
-                       "source draws mu per draw; give one of them")
+    if friction_per_draw(noise):
+        if value != DEFAULT_FRICTION:
+            raise CLIError("--friction and the noise spec's friction source both set mu: "
+                           "the source draws mu per draw; give one of them")
+        return noise.friction.nominal
     return value
 
 

@@ -62,6 +62,15 @@ def grasp_sets(args, robot: str, only: str | None = None) -> tuple[dict[str, lis
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
+def check_count(count: int, sets: dict[str, list], robot: str) -> None:
+    """A :class:`CLIError` line where ``--grasps`` asks for more grasps than a shipped set
+    of ``sets`` (object -> grasps) holds."""
+    name = min(sets, key=lambda n: len(sets[n]))
+    if count > len(sets[name]):
+        raise CLIError(f"--grasps must be between 1 and {len(sets[name])} ({name} has "
+                       f"{len(sets[name])} shipped grasps of robot {robot}), got {count}")
+
+
 def reproduce(args, samples: int, friction: float = 0.5) -> int:
     """``reproduce EXPERIMENT --robot NAME`` of a robot's grasps
     (:mod:`kinegrasp_env.toolkit.experiments`); Figs. 7 and 10 move a 7-joint arm along its
@@ -86,9 +95,11 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     sets, count = grasp_sets(args, robot)
     if args.figure == "fig7":  # a count is its configurations; a file's first grasp is moved
         count = count if args.grasps and is_count(args.grasps) else FIG7_VARIANTS
-        if count < 2:
-            raise CLIError(f"--grasps {count}: fig7 compares the most and the least robust of "
-                           "N configurations, N >= 2")
+    if args.figure in ("fig7", "fig10") and count < 2:
+        raise CLIError(f"--grasps {count}: {args.figure} compares the most and the least "
+                       "robust of N configurations, N >= 2")
+    if args.figure == "fig9" and args.grasps and is_count(args.grasps):
+        check_count(count, sets, robot)
     out = str(output_folder(f"out/{args.figure}" if args.out is None else args.out))
     seed = parse_seed(args.seed)
     if args.figure in ("fig7", "fig9"):
@@ -202,9 +213,7 @@ def table1_command(args, description, samples: int, friction: float) -> int:
         count = positive_int(args.grasps, "--grasps")
         if not asked:  # the default count: as many as the set has, up to it
             count = min(count, len(sets[name]))
-        if count > len(sets[name]):
-            raise CLIError(f"--grasps must be between 1 and {len(sets[name])} ({name} has "
-                           f"{len(sets[name])} shipped grasps of robot {robot}), got {count}")
+        check_count(count, {name: sets[name]}, robot)
         grasps = sets[name][:count]
     out = str(output_folder("out/table1" if args.out is None else args.out))
     seed = parse_seed(args.seed)

@@ -298,6 +298,13 @@ class FrictionSource:
             raise NoiseSpecError(f"friction.high ({self.high:g}) is below friction.low "
                                  f"({self.low:g})")
 
+    @property
+    def nominal(self) -> float:
+        """The mu of the noise-free grasp: ``value``, ``mean``, or the middle of
+        [``low``, ``high``]."""
+        return {"fixed": self.value, "gaussian": self.mean,
+                "uniform": 0.5 * (self.low + self.high)}[self.distribution]
+
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
         """(size,) mu >= 0."""
         if self.distribution == "fixed":

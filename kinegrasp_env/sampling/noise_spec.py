@@ -101,12 +101,24 @@ def _section(name: str, body: Any):
 
 
 def _friction(body: dict) -> FrictionSource:
+    """The friction section: its distribution (default gaussian) and every one of that
+    distribution's :data:`FRICTION_KEYS` (a missing one would silently be a default)."""
     kind = body.get("distribution", "gaussian")
     if kind not in FRICTION_KEYS:
         raise NoiseSpecError(f"friction.distribution {kind!r} is unknown; choose from "
                              f"{', '.join(FRICTION_KEYS)}")
+    given = "" if "distribution" in body else ", the default"
+    for key in body:
+        other = [d for d, keys in FRICTION_KEYS.items() if key in keys and d != kind]
+        if key != "distribution" and key not in FRICTION_KEYS[kind] and other:
+            raise NoiseSpecError(f"friction.{key} is a key of distribution {other[0]}, not of "
+                                 f"{kind}{given}: give distribution: {other[0]}")
     _known_keys("friction", body, ("distribution", *FRICTION_KEYS[kind]),
-                f" (with distribution {kind})")
+                f" (with distribution {kind}{given})")
+    missing = [k for k in FRICTION_KEYS[kind] if k not in body]
+    if missing:
+        raise NoiseSpecError(f"friction with distribution {kind}{given}{',' if given else ''} "
+                             f"needs {' and '.join(missing)}")
     return FrictionSource(distribution=kind, **{k: v for k, v in body.items()
                                                 if k != "distribution"})
 
