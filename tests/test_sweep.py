@@ -297,3 +297,24 @@ def test_a_fixed_friction_beside_a_drawn_one_is_refused(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert needle in err[-1], err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_spec_without_a_robot_takes_its_grasp_files_robot(tmp_path):
+    """A grasp file names its robot, as for ``evaluate``: a spec that names none sweeps the
+    robot of its ``grasp_files`` (the Panda's cube grasps: it refused them as grasps of
+    another robot than kuka_sdh); the spec's ``robot`` or ``--robot`` still decides, and
+    files of two robots leave the default, whose check names the mismatch."""
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    save_grasps(shipped_grasps("cube", "panda")[:2], tmp_path / "panda.json")
+    save_grasps(shipped_grasps("drill")[:2], tmp_path / "sdh.json")
+    spec = {"objects": ["cube"], "sigmas": [0.01], "grasp_files": {"cube": "panda.json"}}
+    assert SweepSpec.from_dict(spec, base=tmp_path).robot == "panda"
+    with pytest.raises(SpecError, match="not of 'kuka_sdh'"):
+        SweepSpec.from_dict({**spec, "robot": "kuka_sdh"}, base=tmp_path)
+    with pytest.raises(SpecError, match="not of 'kuka_sdh'"):
+        SweepSpec.from_dict(spec, base=tmp_path, robot="kuka_sdh")
+    both = {**spec, "objects": ["cube", "drill"],
+            "grasp_files": {"cube": "panda.json", "drill": "sdh.json"}}
+    with pytest.raises(SpecError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
+        SweepSpec.from_dict(both, base=tmp_path)

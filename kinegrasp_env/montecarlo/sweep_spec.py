@@ -14,11 +14,12 @@ none) is swept. ``grasps`` indexes
 each object's set; each grasp file's SHA-256 is kept with the spec
 (:meth:`SweepSpec.sources`).
 
-Robot: ``robot`` (default ``kuka_sdh``; ``kinegrasp sweep --robot`` overrides it) names the
-catalog robot. Its grasps come from its shipped sets or from ``grasp_files`` (every grasp of
-a file must be a grasp of that robot). Its draws are joint noise on its arm joints (a
-distribution entry of ``noise``) or a noise model of the sources its engines take, closed by
-its own engines (:func:`kinegrasp_env.montecarlo.sweep.run_task`).
+Robot: ``robot`` (default: the robot of the ``grasp_files``' grasps, else ``kuka_sdh``;
+``kinegrasp sweep --robot`` overrides it) names the catalog robot. Its grasps come from its
+shipped sets or from ``grasp_files`` (every grasp of a file must be a grasp of that robot).
+Its draws are joint noise on its arm joints (a distribution entry of ``noise``) or a noise
+model of the sources its engines take, closed by its own engines
+(:func:`kinegrasp_env.montecarlo.sweep.run_task`).
 """
 
 from __future__ import annotations
@@ -84,8 +85,8 @@ class SweepSpec:
         for key in ("objects", "sigmas"):
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
-        robot = _robot(data.get("robot", DEFAULT_ROBOT) if robot is None else robot,
-                       where if robot is None else "--robot")
+        named = data.get("robot", _files_robot(data.get("grasp_files"), base))
+        robot = _robot(named if robot is None else robot, where if robot is None else "--robot")
         objects = _names(data["objects"], object_names(), "objects", where)
         files = _grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
         _check_grasp_sets(objects, files, where, robot)
@@ -323,6 +324,21 @@ def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
                 raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
         out.append((name, str(path), digest))
     return tuple(out)
+
+
+def _files_robot(value: Any, base: str | Path | None) -> str:
+    """The robot of a spec that names none: the one robot whose grasps ``grasp_files``
+    holds, else the default one (files of several robots, or unreadable ones, are reported
+    by the checks that read them)."""
+    from kinegrasp_env.world.grasps import load_grasps
+
+    robots = set()
+    for text in (value.values() if isinstance(value, dict) else ()):
+        try:
+            robots.update(g.robot for g in load_grasps(Path(base or ".") / str(text)))
+        except (OSError, ValueError):
+            continue
+    return robots.pop() if len(robots) == 1 else DEFAULT_ROBOT
 
 
 @lru_cache(maxsize=16)
