@@ -308,9 +308,8 @@ def write_outputs(spec: SweepSpec, rows: list[dict], directory: Path,
         return written
     for noise, engine, name in figure_names(spec):
         sub = [r for r in rows if r["noise"] == noise and r["engine"] == engine]
-        robot = "" if spec.robot == DEFAULT_ROBOT else f"robot {spec.robot}, "
-        written.append(plot(sub, directory / name, title=f"{robot}{noise} noise, {engine} "
-                                  f"engine, {spec.samples} draws per cell"))
+        written.append(plot(sub, directory / name, title=f"robot {spec.robot}, {noise} noise, "
+                                  f"{engine} engine, {spec.samples} draws per cell"))
     return written
 
 
