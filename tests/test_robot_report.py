@@ -312,3 +312,18 @@ def test_elbow_report_of_the_panda_in_chromium(elbow_page):
     check = report.check_page(elbow_page[1])
     assert check.problems(scenes=2) == []
 
+
+
+def test_near_white_links_are_drawn_in_a_colour_that_shows():
+    """The Panda's links are white in its URDF: on the scenes' near-white background they
+    vanished (and their legend swatch with them). A colour whose every channel is above
+    LIGHT_CHANNEL is drawn in LIGHT_LINK_COLOUR; other colours are kept."""
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.robot.picture import LIGHT_LINK_COLOUR, _rgb, robot_geometry
+
+    light = "rgb({}, {}, {})".format(*(round(255 * v) for v in LIGHT_LINK_COLOUR))
+    assert _rgb((1.0, 1.0, 1.0, 1.0)) == _rgb((0.9, 0.95, 0.9, 1.0)) == light
+    assert _rgb((0.9, 0.2, 0.1, 1.0)) == "rgb(230, 51, 26)"
+    colours = {shape.color for shape in robot_geometry(load_robot("panda"), [{}]).shapes}
+    channels = [[int(v) for v in c[4:-1].split(",")] for c in colours]
+    assert light in colours and all(min(c) <= 0.85 * 255 for c in channels), colours

@@ -255,8 +255,22 @@ def _primitive(kind: str, dimensions: Sequence[float]):
     raise ValueError(f"cannot draw a {kind} geometry")
 
 
+#: A link colour with every channel above this (0..1) is near white, and would vanish on the
+#: pictures' near-white backgrounds (the Panda's links are white): it is drawn in
+#: :data:`LIGHT_LINK_COLOUR` instead.
+LIGHT_CHANNEL = 0.85
+#: The colour of near-white links (0..1 channels): a blue-grey set apart from the objects'
+#: grey.
+LIGHT_LINK_COLOUR = (0.45, 0.55, 0.72)
+
+
 def _rgb(rgba: Sequence[float]) -> str:
-    r, g, b = (round(255 * float(v)) for v in rgba[:3])
+    """``rgb(r, g, b)`` of a visual colour (0..1 channels; near white: see
+    :data:`LIGHT_CHANNEL`)."""
+    channels = [float(v) for v in rgba[:3]]
+    if min(channels) > LIGHT_CHANNEL:
+        channels = list(LIGHT_LINK_COLOUR)
+    r, g, b = (round(255 * v) for v in channels)
     return f"rgb({r}, {g}, {b})"
 
 

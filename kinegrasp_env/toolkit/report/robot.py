@@ -44,9 +44,11 @@ from kinegrasp_env.toolkit.report.html import (
 from kinegrasp_env.toolkit.report.page import fmt, noise_sources_table, versions
 from kinegrasp_env.toolkit.report.plotly import MeshLibrary, instanced_mesh, layout
 from kinegrasp_env.toolkit.report.scene import (
+    CLOSE_UP_EYE,
     CONE_SCALE,
     LEGEND,
     MAX_POINTS,
+    WHOLE_EYE,
     ContactCloud,
     close_up,
     cloud_traces,
@@ -146,9 +148,10 @@ def view_buttons(obj: GraspObject, whole_first: bool = False) -> dict:
     near = {f"scene.{a}axis.range": [float(low[k]), float(high[k])]
             for k, a in enumerate("xyz")}
     near.update({"scene.aspectmode": "manual", "scene.aspectratio": dict(zip(
-        "xyz", (extent / extent.max()).tolist(), strict=True))})
+        "xyz", (extent / extent.max()).tolist(), strict=True)),
+        "scene.camera.eye": dict(CLOSE_UP_EYE)})
     whole = {f"scene.{a}axis.autorange": True for a in "xyz"}
-    whole["scene.aspectmode"] = "data"
+    whole.update({"scene.aspectmode": "data", "scene.camera.eye": dict(WHOLE_EYE)})
     return {"type": "buttons", "direction": "right", "x": 0.0, "y": 1.0, "xanchor": "left",
             "yanchor": "top", "showactive": True, "active": int(whole_first),
             "buttons": [{"label": "close-up", "method": "relayout", "args": [near]},
@@ -185,8 +188,6 @@ def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
         data += noisy_traces(description, arms)
     box = tuple(transform(c, obj.pose) for c in close_up(obj))
     scene = scene_axes(None if whole_first else (np.minimum(*box), np.maximum(*box)))
-    if whole_first:  # the camera back far enough to see the whole arm
-        scene["camera"] = {"eye": {"x": 1.5, "y": 1.5, "z": 0.9}}
     return {"data": data, "layout": layout(
         scene=scene, updatemenus=menus, legend=LEGEND,
         uirevision="grasp",

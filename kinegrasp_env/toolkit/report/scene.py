@@ -34,6 +34,13 @@ LEGEND = {"x": 0.0, "y": 0.0, "xanchor": "left", "yanchor": "bottom",
 CLOSE_UP_MARGIN, CLOSE_UP_PAD = 0.1, 0.04
 #: Friction cones' axis length as a fraction of the object's largest extent.
 CONE_SCALE = 0.12
+#: Where a scene's camera looks from (plotly's eye, in units of the scene's box): on the
+#: close-up and on the whole robot; far enough that the box's corners stay in the panel.
+CLOSE_UP_EYE = {"x": 1.3, "y": 1.3, "z": 0.85}
+WHOLE_EYE = {"x": 1.7, "y": 1.7, "z": 1.1}
+#: The part of its panel's width a scene takes: the legend and the buttons have the left of
+#: it, off the scene.
+SCENE_DOMAIN_X = [0.25, 1.0]
 
 
 def mesh_trace(vertices: np.ndarray, faces: np.ndarray, name: str, color: str, *,
@@ -146,8 +153,8 @@ def scene_axes(box: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
     axis = {"showbackground": True, "backgroundcolor": "#f4f4f8", "gridcolor": "#d0d0d8",
             "zerolinecolor": "#b0b0b8"}
     scene = {"aspectmode": "data", "annotations": [],
-             "camera": {"eye": {"x": 0.95, "y": 0.95, "z": 0.6}},
-             "domain": {"x": [0, 1], "y": [0, 1]}}
+             "camera": {"eye": dict(CLOSE_UP_EYE if box is not None else WHOLE_EYE)},
+             "domain": {"x": list(SCENE_DOMAIN_X), "y": [0, 1]}}
     for k, name in enumerate("xyz"):
         scene[f"{name}axis"] = {**axis, "title": {"text": f"{name} [m]"}}
         if box is not None:
