@@ -256,6 +256,16 @@ def test_histogram_counts_every_force_closure_draw(run):
     assert lines == pytest.approx([quality.mean(), stats.q_nominal], rel=1e-12)
 
 
+def test_a_histogram_of_no_force_closure_draw_says_so():
+    """No force-closure draw: no bar, and a note in place of an empty frame whose axes
+    ran over made-up ranges (Q 0 to 6, draws -1 to 4)."""
+    figure = quality_histogram(np.array([]), float("nan"), 0.0)
+    assert figure["data"] == []
+    texts = [note["text"] for note in figure["layout"]["annotations"]]
+    assert "no force-closure draw: Q has no distribution to show" in texts
+    assert not figure["layout"]["xaxis"]["showticklabels"]
+
+
 def test_page_is_self_contained_and_deterministic(robot_run):
     grasp, evaluation = robot_run
     page = evaluation_page(grasp, [(0.02, evaluation)], arms=5)

@@ -178,3 +178,16 @@ def test_draws_from_an_offset_are_those_rows_of_the_run():
     with pytest.raises(ValueError, match="offset > 0 take an integer or SeedSequence"):
         evaluate_robot_grasp(grasp, sigma=0.02, n=3, seed=np.random.default_rng(0),
                              offset=250, engine="fast")
+
+
+def test_a_plot_of_no_contact_says_so(tmp_path, capsys, recwarn):
+    """At sigma 0.3 no draw of the Panda's cube grasp 1 touches the cube with a finger
+    (every draw missed or started in collision): the plot says so, with no empty legend box
+    and no matplotlib warning about one."""
+    png = tmp_path / "none.png"
+    assert main(["evaluate", "--robot", "panda", "--object", "cube", "--grasp", "1",
+                 "--sigma", "0.3", "--samples", "30", "--engine", "fast", "--plot",
+                 str(png), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["outcomes"]["force_closure"] == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [w for w in recwarn if "No artists with labels" in str(w.message)]

@@ -151,7 +151,12 @@ def plot_contacts(mesh, draws, path: str | Path, title: str = "", max_normals: i
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
     ax.set_title(title, fontsize=9)
-    ax.legend(loc="upper left", fontsize=8)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="upper left", fontsize=8, title="contacts, some with their normals",
+                  title_fontsize=7)
+    else:  # no draw touched: an empty legend box (and matplotlib's warning) said nothing
+        ax.text2D(0.5, 0.95, "no contact in any draw", transform=ax.transAxes,
+                  ha="center", fontsize=9)
     return save_figure(fig, path)
 
 

@@ -47,11 +47,18 @@ def quality_histogram(quality: np.ndarray, q_mean: float, q_nominal: float,
             shape, note = _vline(value, f"{label} {value:.5f}", colour, dash, y)
             shapes.append(shape)
             notes.append(note)
+    axes = {"xaxis": {"title": {"text": "Ferrari-Canny Q"}, "rangemode": "tozero"},
+            "yaxis": {"title": {"text": "draws"}}}
+    if not quality.size:  # no bars: say so, rather than an empty frame of made-up ranges
+        notes.append({"xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
+                      "showarrow": False, "font": {"size": 14, "color": "#555555"},
+                      "text": "no force-closure draw: Q has no distribution to show"})
+        axes = {name: {**axis, "showticklabels": False, "showgrid": False,
+                       "zeroline": False} for name, axis in axes.items()}
     return {"data": data, "layout": layout(
         title={"text": f"Q over the {quality.size} force-closure draws", "x": 0.01,
                "font": {"size": 14}},
-        xaxis={"title": {"text": "Ferrari-Canny Q"}, "rangemode": "tozero"},
-        yaxis={"title": {"text": "draws"}}, shapes=shapes, annotations=notes,
+        **axes, shapes=shapes, annotations=notes,
         showlegend=False, margin={"l": 60, "r": 20, "t": 40, "b": 50})}
 
 
