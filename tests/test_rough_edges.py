@@ -441,7 +441,7 @@ def test_an_import_reports_each_stage(tmp_path, monkeypatch, capsys):
     out, err = capsys.readouterr()
     lines = err.splitlines()
     assert lines == [f"  stage {k + 1}/3: {stage}" for k, stage in enumerate(importer.STAGES)]
-    assert out.startswith("box5: 1 convex parts")
+    assert out.startswith("box5: 1 convex part, ")
     importer.forget()
 
 

@@ -17,6 +17,7 @@ import math
 from collections.abc import Iterator
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.wording import plural  # noqa: F401  (the commands take it from here)
 
 # Building the parser imports nothing heavy (no NumPy, SciPy, trimesh, pybullet or numba):
 # ``kinegrasp --help`` answers at once. The choices below are copies of the library's
@@ -116,11 +117,6 @@ def positive_float(text: str, name: str) -> float:
     if value <= 0:
         raise CLIError(f"{name} must be > 0, got {value:g}")
     return value
-
-
-def plural(count: int, word: str, many: str | None = None) -> str:
-    """``1 angle``, ``2 angles`` (``many``: the plural when not ``word + "s"``)."""
-    return f"{count} {word if count == 1 else (many or word + 's')}"
 
 
 def to_jsonable(value):

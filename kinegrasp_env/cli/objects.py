@@ -7,7 +7,14 @@ from __future__ import annotations
 import json
 import sys
 
-from kinegrasp_env.cli.common import CLIError, finite_float, positive_float, positive_int, reported
+from kinegrasp_env.cli.common import (
+    CLIError,
+    finite_float,
+    plural,
+    positive_float,
+    positive_int,
+    reported,
+)
 from kinegrasp_env.cli.output_paths import output_file
 from kinegrasp_env.cli.placement import add_place_command, placement_note
 
@@ -76,7 +83,7 @@ def cmd_add(args) -> int:
               f"(entry {result.folder}); {done}")
         return 0
     size = ", ".join(f"{v:.3f}" for v in entry["size"])
-    print(f"{result.name}: {entry['parts']} convex parts, size {size} m, r_max "
+    print(f"{result.name}: {plural(entry['parts'], 'convex part')}, size {size} m, r_max "
           f"{entry['r_max']:.4f} m, imported in {result.seconds:.1f} s")
     print(f"  deviation from the mesh [mm]: lost max/mean, added max/mean "
           f"{deviation_text(entry['deviation'])}")
@@ -143,8 +150,9 @@ def cmd_show(args) -> int:
     output_file(args.plot, "--plot")
     with reported(ValueError):  # unknown name, unreadable entry
         obj = load_object(args.name)
-    path = plot_object(obj, args.plot, title=f"{obj.name}: {len(obj.parts)} convex parts")
-    print(f"{obj.name}: mesh and {len(obj.parts)} parts drawn in {path}")
+    path = plot_object(obj, args.plot,
+                       title=f"{obj.name}: {plural(len(obj.parts), 'convex part')}")
+    print(f"{obj.name}: mesh and {plural(len(obj.parts), 'part')} drawn in {path}")
     return 0
 
 

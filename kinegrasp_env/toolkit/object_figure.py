@@ -8,6 +8,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from kinegrasp_env.toolkit.plots import save_figure
+from kinegrasp_env.wording import plural
 from kinegrasp_env.world.objects import GraspObject
 
 #: Triangles drawn at most per panel (a dense scan is thinned evenly).
@@ -21,6 +22,7 @@ def plot_object(obj: GraspObject, path: str | Path, title: str = "") -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     fig = plt.figure(figsize=(10, 5))
@@ -37,7 +39,7 @@ def plot_object(obj: GraspObject, path: str | Path, title: str = "") -> Path:
         right.add_collection3d(Poly3DCollection(
             hull.points[hull.simplices], facecolor=colours(index % 20), edgecolor="k",
             linewidths=0.1, alpha=0.85))
-    right.set_title(f"{len(obj.parts)} convex parts")
+    right.set_title(f"{plural(len(obj.parts), 'convex part')}")
     lo, hi = obj.mesh.bounds
     centre, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 or 1.0
     for ax in (left, right):
@@ -45,6 +47,8 @@ def plot_object(obj: GraspObject, path: str | Path, title: str = "") -> Path:
         ax.set_ylim(centre[1] - half, centre[1] + half)
         ax.set_zlim(centre[2] - half, centre[2] + half)
         ax.set_box_aspect((1, 1, 1))
+        for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # few ticks: the corners' labels clashed
+            axis.set_major_locator(MaxNLocator(4))
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.set_zlabel("z [m]")

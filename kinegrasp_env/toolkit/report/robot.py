@@ -42,11 +42,17 @@ from kinegrasp_env.toolkit.report.html import (
     settings_table,
 )
 from kinegrasp_env.toolkit.report.page import fmt, noise_sources_table, versions
-from kinegrasp_env.toolkit.report.plotly import MeshLibrary, instanced_mesh, layout
+from kinegrasp_env.toolkit.report.plotly import (
+    BASE_LAYOUT,
+    MeshLibrary,
+    instanced_mesh,
+    layout,
+)
 from kinegrasp_env.toolkit.report.scene import (
     CLOSE_UP_EYE,
     CONE_SCALE,
     LEGEND,
+    LEGEND_MARGIN,
     MAX_POINTS,
     WHOLE_EYE,
     ContactCloud,
@@ -190,6 +196,7 @@ def grasp_scene(description: RobotDescription, obj: GraspObject, grasp: Grasp,
     scene = scene_axes(None if whole_first else (np.minimum(*box), np.maximum(*box)))
     return {"data": data, "layout": layout(
         scene=scene, updatemenus=menus, legend=LEGEND,
+        margin={**BASE_LAYOUT["margin"], "b": LEGEND_MARGIN},
         uirevision="grasp",
         title={"text": title, "x": 0.01, "font": {"size": 14}})}
 

@@ -27,8 +27,12 @@ PART_COLOURS = ("#8dd3c7", "#bebada", "#fb8072", "#80b1d3", "#fdb462", "#b3de69"
                 "#bc80bd", "#ccebc5", "#ffed6f")
 #: Most draw contact points drawn in one view; past it a uniform random subset is drawn.
 MAX_POINTS = 15_000
-LEGEND = {"x": 0.0, "y": 0.0, "xanchor": "left", "yanchor": "bottom",
-          "itemsizing": "constant", "bgcolor": "rgba(255,255,255,0.7)"}
+#: A scene's legend: in rows under the scene (in the margin :data:`LEGEND_MARGIN` keeps),
+#: off the objects and hands it names.
+LEGEND = {"orientation": "h", "x": 0.0, "y": 0.0, "xanchor": "left", "yanchor": "top",
+          "itemsizing": "constant", "font": {"size": 11}}
+#: The bottom margin (pixels) of a scene's figure: the legend's rows.
+LEGEND_MARGIN = 95
 #: The grasp view shows the object's bounding box grown on each side by this fraction of its
 #: largest extent plus CLOSE_UP_PAD metres (the hand beyond it is clipped).
 CLOSE_UP_MARGIN, CLOSE_UP_PAD = 0.1, 0.04
@@ -37,10 +41,7 @@ CONE_SCALE = 0.12
 #: Where a scene's camera looks from (plotly's eye, in units of the scene's box): on the
 #: close-up and on the whole robot; far enough that the box's corners stay in the panel.
 CLOSE_UP_EYE = {"x": 1.3, "y": 1.3, "z": 0.85}
-WHOLE_EYE = {"x": 1.7, "y": 1.7, "z": 1.1}
-#: The part of its panel's width a scene takes: the legend and the buttons have the left of
-#: it, off the scene.
-SCENE_DOMAIN_X = [0.25, 1.0]
+WHOLE_EYE = {"x": 1.85, "y": 1.85, "z": 1.2}
 
 
 def mesh_trace(vertices: np.ndarray, faces: np.ndarray, name: str, color: str, *,
@@ -154,7 +155,7 @@ def scene_axes(box: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
             "zerolinecolor": "#b0b0b8"}
     scene = {"aspectmode": "data", "annotations": [],
              "camera": {"eye": dict(CLOSE_UP_EYE if box is not None else WHOLE_EYE)},
-             "domain": {"x": list(SCENE_DOMAIN_X), "y": [0, 1]}}
+             "domain": {"x": [0, 1], "y": [0, 1]}}
     for k, name in enumerate("xyz"):
         scene[f"{name}axis"] = {**axis, "title": {"text": f"{name} [m]"}}
         if box is not None:
