@@ -234,7 +234,9 @@ class KineGraspEnv(gym.Env):
 
         Returns:
             (q (dof,), reached): the configuration, and whether it reached ``psi`` within the
-            joint limits (when not, the arm stops at its limit). The env's state is unchanged.
+            joint limits (when not, the arm stops at the last continuation step within
+            them, up to one step, 0.3 rad of psi, short of the limit, where depending on
+            ``psi``). The env's state is unchanged.
         """
         q = self.q if start is None else np.asarray(start, dtype=float)
         return self._robot.motion.set_elbow_angle(q, psi)
