@@ -244,3 +244,22 @@ def test_a_source_that_changes_no_outcome_is_not_named(tmp_path, capsys):
     payload = json.loads(capsys.readouterr().out)
     assert payload["variance"] == 0 and payload["sources"][0]["gain"] == 0
     assert payload["dominant"] is None and payload["most_to_gain"] is None
+
+
+def test_an_index_interval_outside_0_1_is_noted():
+    """A Sobol index lies in [0, 1]. With one source and rare failures that the two samples
+    never share, Jansen's total index is (f_A + f_B) / (2 V), about 1 / (1 - the failure rate),
+    and every bootstrap resample has the same bias: an interval wholly above 1 (seen at 100
+    draws of a 94% grasp: 1.082 [1.043, 1.123]). The table says what such an interval is;
+    an interval that overlaps [0, 1] gets no note."""
+    from kinegrasp_env.toolkit.sensitivity import Sensitivity, SourceEffect
+
+    def table(total_ci):
+        effect = SourceEffect("joints", 0.94, (0.9, 0.97), 1.0, (0.96, 1.0), 0.06,
+                              (0.01, 0.1), 0.8, (0.3, 1.4), 1.08, total_ci)
+        return Sensitivity("spray_flask", "0", 100, 0, "fast", 0.94, (0.88, 0.97), 0.05,
+                           [effect]).table()
+
+    assert "note: Sobol indices lie in [0, 1]; the interval of ST of joints lies outside" \
+        in table((1.043, 1.123))
+    assert "note:" not in table((0.978, 1.053))

@@ -124,6 +124,14 @@ class Sensitivity:
             lines.append(f"{e.source:<{w}} {e.p_alone:>11.3f} {e.p_without:>10.3f} "
                          f"{_index(e.gain, e.gain_ci):>24} {_index(e.first, e.first_ci):>22} "
                          f"{_index(e.total, e.total_ci):>22}")
+        outside = [f"{name} of {e.source}" for e in self.effects
+                   for name, ci in (("S", e.first_ci), ("ST", e.total_ci))
+                   if ci[0] > 1 or ci[1] < 0]
+        if outside:  # the percentile bootstrap holds the draws' sampling bias, not only noise
+            lines.append(f"note: Sobol indices lie in [0, 1]; the interval of "
+                         f"{', '.join(outside)} lies outside it: the estimators' bias at "
+                         f"{self.samples} draws (too few failures, or too few shared by the "
+                         "two samples), which the bootstrap does not show; give more --samples")
         steady = "P(FC) does not vary over these draws" if self.variance == 0 else "undefined"
         lines.append(f"dominant source (largest total index): {self.dominant or f'none ({steady})'}"
                      f"; most to gain from making exact: "
