@@ -77,7 +77,8 @@ def test_panda_sweep_cell_equals_evaluate(tmp_path, capsys):
     assert math.isclose(float(row["q_std"]), expected["q_std"], rel_tol=1e-12)
     assert float(row["q_nominal"]) == expected["q_nominal"]
     # the store is the Panda's: the same folder is not extended by the default robot
-    assert "holds a sweep of robot 'panda', the spec's robot is 'kuka_sdh'" in fails(
+    assert "holds a sweep of robot 'panda', this one's is 'kuka_sdh' (the spec's robot, or " \
+           "--robot)" in fails(
         capsys, "sweep", str(spec), "--out", str(out), lines=2)
     # nor a store of the Panda that records no layout of its draws (made before its rows
     # came in chunks)
@@ -188,7 +189,7 @@ def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path
      "grasp 4 does not exist for cube (its shipped set has grasps 0..3)"),
     ({"robot": "panda", "grasp_files": {"cube": str(KUKA_CUBE)}},
      "grasp_files: cube: grasp '0' is a grasp of robot 'kuka_sdh', not of 'panda'"),
-    ({"grasp_files": {"cube": str(PANDA_CUBE)}},
+    ({"robot": "kuka_sdh", "grasp_files": {"cube": str(PANDA_CUBE)}},
      "grasp_files: cube: grasp '0' is a grasp of robot 'panda', not of 'kuka_sdh'"),
 ])
 def test_bad_robot_specs_are_named(change, message):

@@ -36,6 +36,10 @@ BASE = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01]}
     ({"sigmas": [0.01, 3.5]}, "sigma must be <= pi (3.14159 rad), got 3.5"),
     ({"objects": ["cube", "mug", "cube"]}, "'cube' appears twice in 'objects'"),
     ({"grasps": [0, 1, 0]}, "0 appears twice in 'grasps'"),
+    # the one word 'grasps' takes besides indices is named
+    ({"grasps": [0, "all"]}, "'grasps' must be \"all\" or a list of grasp indices (integers "
+                             ">= 0), got "),
+    ({"grasps": "none"}, "'grasps' must be \"all\" or a list of grasp indices"),
     ({"sigmas": [0.01, 0.02, 0.010]}, "0.01 appears twice in 'sigmas'"),
     ({"noise": ["uniform", "uniform"]}, "'uniform' appears twice in 'noise'"),
     ({"engines": ["fast", "pybullet", "fast"]}, "'fast' appears twice in 'engines'"),
@@ -43,6 +47,11 @@ BASE = {"objects": ["cube"], "grasps": [0], "sigmas": [0.01]}
 def test_bad_specs_are_named(change, message):
     with pytest.raises(SpecError, match=message.replace("(", r"\(").replace(")", r"\)")):
         SweepSpec.from_dict({**BASE, **change})
+
+
+def test_a_folder_given_as_the_spec_is_named(tmp_path):
+    with pytest.raises(SpecError, match=f"spec file {tmp_path} is a folder"):
+        SweepSpec.from_file(tmp_path)
 
 
 def test_missing_key_and_non_mapping():

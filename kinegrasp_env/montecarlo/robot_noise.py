@@ -18,7 +18,7 @@ import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise_model import NoiseModel, offset_transforms, stream_rows
-from kinegrasp_env.sampling.noise_sources import HandSource, broadcast
+from kinegrasp_env.sampling.noise_sources import JOINTS_FIX, HandSource, broadcast
 
 
 def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof: int,
@@ -33,7 +33,7 @@ def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof:
     joints = model.joints
     if joints is not None and not joints.fits(arm_dof):
         raise ValueError(f"robot {robot!r} has {arm_dof} arm joints; the spec's joints "
-                         f"describe {joints.count} (give one sigma, or one per arm joint)")
+                         f"describe {joints.count} ({JOINTS_FIX})")
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]
     if other and engine == "physics":
         raise ValueError(f"the physics engine of robot {robot!r} takes joint and hand noise "

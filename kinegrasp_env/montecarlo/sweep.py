@@ -133,14 +133,16 @@ class SweepStore:
         robot = json.loads(stored.get("robot", json.dumps(DEFAULT_ROBOT)))
         if stored and robot != spec.robot:
             self.close()
-            raise SpecError(f"{self.directory} holds a sweep of robot {robot!r}, the spec's "
-                            f"robot is {spec.robot!r}; use another --out")
+            raise SpecError(f"{self.directory} holds a sweep of robot {robot!r}, this one's "
+                            f"is {spec.robot!r} (the spec's robot, or --robot); use another "
+                            "--out")
         wanted["robot"] = json.dumps(spec.robot)
         friction = json.loads(stored.get("friction", "0.5"))
         if stored and friction != spec.friction:
             self.close()
-            raise SpecError(f"{self.directory} holds a sweep at friction {friction:g}, the "
-                            f"spec's is {spec.friction:g}; use another --out")
+            raise SpecError(f"{self.directory} holds a sweep at friction {friction:g}, this "
+                            f"one's is {spec.friction:g} (the spec's friction, or --friction); "
+                            "use another --out")
         if spec.friction != 0.5:
             wanted["friction"] = json.dumps(spec.friction)
         sources = spec.sources()

@@ -99,8 +99,13 @@ class SweepSpec:
         if grasps == "all":
             indices = None
         else:
-            indices = _unique(tuple(_integer(g, "grasps", where, low=0)
-                                    for g in _list(grasps, "grasps", where)), "grasps", where)
+            try:
+                given = tuple(_integer(g, "grasps", where, low=0)
+                              for g in _list(grasps, "grasps", where))
+            except SpecError:
+                raise SpecError(f"{where}: 'grasps' must be \"all\" or a list of grasp indices "
+                                f"(integers >= 0), got {grasps!r}") from None
+            indices = _unique(given, "grasps", where)
             _check_grasp_indices(objects, indices, files, where, robot)
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
@@ -129,7 +134,8 @@ class SweepSpec:
         ``robot``: replaces the spec's (``--robot``)."""
         path = Path(path)
         if not path.is_file():
-            raise SpecError(f"spec file {path} not found")
+            raise SpecError(f"spec file {path} is a folder" if path.is_dir()
+                            else f"spec file {path} not found")
         import yaml
 
         try:

@@ -98,6 +98,11 @@ def covariance_factor(cov: np.ndarray, name: str = "joints.covariance") -> np.nd
 
 
 # ----------------------------------------------------------------------------- sources
+#: What makes a joints source fit an arm: how its per-joint values may be given.
+JOINTS_FIX = ("give sigma and bias as one value or one per arm joint, a covariance as one "
+              "row and column per arm joint")
+
+
 @dataclass(frozen=True)
 class JointsSource:
     """Arm-joint error eps (d,) radians on an arm of d joints: independent (``sigma``,
@@ -179,7 +184,7 @@ class JointsSource:
         """ValueError (one line) unless the source fits an arm of ``dim`` joints."""
         if not self.fits(dim):
             raise ValueError(f"the noise spec's joints describe {joints_text(self.count)} but the "
-                             f"noise acts on {dim} (give one sigma, or one per arm joint)")
+                             f"noise acts on {dim} ({JOINTS_FIX})")
 
     def sigma_vector(self, dim: int) -> np.ndarray:
         """(dim,) standard deviations of an arm of ``dim`` joints (the square roots of the
