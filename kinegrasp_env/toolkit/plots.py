@@ -326,7 +326,7 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     elbow's 2-s.d. error ellipse: the elbow whose ellipse is shorter along the fragile
     direction fails less."""
     plt = _pyplot()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.4))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 4.6))
     psi = np.array([c["psi"] for c in curve])
     p = np.array([c["p_fc"] for c in curve])
     lo = np.array([c["p_fc_ci"][0] for c in curve])
@@ -337,10 +337,19 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     left.axvline(best_psi, color="C2", label=f"best {best_psi:.2f} rad")
     left.set_xlabel("elbow angle psi [rad]")
     left.set_ylabel("P(force closure)")
+    left.xaxis.set_major_locator(_ticks(6))  # the default's many ticks ran into each other
     left.legend(fontsize=8)
     draw_fragility(right, picture, "elbow")
     fig.suptitle(title)
+    fig.tight_layout()
     return save_figure(fig, path)
+
+
+def _ticks(count: int):
+    """A matplotlib locator of at most ``count`` round ticks."""
+    from matplotlib.ticker import MaxNLocator
+
+    return MaxNLocator(count)
 
 
 def draw_fragility(ax, picture: dict, noun: str) -> None:
@@ -360,7 +369,8 @@ def draw_fragility(ax, picture: dict, noun: str) -> None:
     ax.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")
     ax.set_ylabel(f"fragile direction 2 ({yl}; x{s2:.1f}) [s.d.]")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(fontsize=8, loc="upper right")
+    # beside the axes: inside, it covered the deviations it explains
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
 
 
 def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
@@ -392,8 +402,9 @@ def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
     left.set_xticks(x, names, **ticks)
     left.set_ylabel("Sobol index of force closure")
     left.legend(fontsize=8, ncol=2, **place)
-    for offset, key, label, color in ((-0.2, "p_alone", "source alone", "C2"),
-                                      (0.2, "p_without", "all but the source", "C3")):
+    # blue and orange (not green and red: a pair most colour-blind readers cannot tell)
+    for offset, key, label, color in ((-0.2, "p_alone", "source alone", "#0072B2"),
+                                      (0.2, "p_without", "all but the source", "#E69F00")):
         value = np.array([r[key] for r in rows], dtype=float)
         ci = np.array([r[f"{key}_ci"] for r in rows], dtype=float)
         right.bar(x + offset, value, 0.4, yerr=np.abs(ci.T - value), capsize=3, color=color,
