@@ -121,6 +121,10 @@ def _in_hand(description: RobotDescription, link: str) -> bool:
     return False
 
 
+#: The size of a panel's caption in :func:`draw_robot`'s picture (pixels).
+CAPTION_SIZE = 14
+
+
 def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 640,
                height: int = 480, yaw: float = 50.0, pitch: float = -20.0,
                frame=None) -> Path:
@@ -138,7 +142,7 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
     Returns:
         The path written.
     """
-    from PIL import Image, ImageDraw
+    from PIL import Image, ImageDraw, ImageFont
 
     out = Path(out)
     # pybullet's first import (it prints a banner), the connection and the loading happen in
@@ -181,9 +185,16 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
                 a, b = _pixels(clip, np.array([at, end]), width, height)
                 pen.line([tuple(a), tuple(b)], fill=(220, 40, 40), width=3)
             panels.append(hand)
+    captions = [f"{description.name} at its open pre-shape"]
+    if frame is not None:
+        captions.append(f"the hand: approach axis (blue) to the fingertip centre, "
+                        f"{frame.depth:.3f} m ahead; closing directions (red)")
     canvas = Image.new("RGB", (width * len(panels), height), (255, 255, 255))
-    for i, panel in enumerate(panels):
+    pen = ImageDraw.Draw(canvas)
+    font = ImageFont.load_default(size=CAPTION_SIZE)
+    for i, (panel, caption) in enumerate(zip(panels, captions, strict=True)):
         canvas.paste(panel, (i * width, 0))
+        pen.text((i * width + 10, 8), caption, fill=(40, 40, 40), font=font)
     out.parent.mkdir(parents=True, exist_ok=True)
     canvas.save(out, format="PNG")
     return out
