@@ -618,6 +618,21 @@ def test_screenshot_command_fails_on_a_request_off_the_machine(pages, tmp_path, 
     assert "network request refused: https://example.org/kg.json" in err, err
 
 
+@needs_chromium
+def test_screenshot_of_a_page_that_is_no_report_says_so_at_once(tmp_path, capsys):
+    """A page with no report figure sets no ``window.kgReady``: the command waited its whole
+    60 s timeout for it, then said "not drawn". It is done once the page has loaded, says
+    what the page is not, and fails (exit 1)."""
+    import time
+
+    page = tmp_path / "plain.html"
+    page.write_text("<html><body>hi</body></html>")
+    start = time.monotonic()
+    assert main(["screenshot", str(page), "--out", str(tmp_path / "plain.png")]) == 1
+    assert time.monotonic() - start < 30  # measured 2 s; the wait was 60 s
+    assert "no kinegrasp figure (not a kinegrasp report?)" in capsys.readouterr().out
+
+
 def test_screenshot_without_playwright_names_the_extra(pages, tmp_path, capsys, monkeypatch):
     """Without Playwright the command stops with one line naming the extra to install."""
     monkeypatch.setitem(sys.modules, "playwright", None)

@@ -257,7 +257,8 @@ def cmd_screenshot(args) -> int:
     from kinegrasp_env.toolkit.report.page import write_page
 
     write_page(out, check.screenshot)
-    drawn = "not drawn" if check.ready_ms is None else f"drawn in {check.ready_ms:.0f} ms"
+    drawn = (f"drawn in {check.ready_ms:.0f} ms" if check.ready_ms is not None else
+             "not drawn" if check.expected else "no kinegrasp figure (not a kinegrasp report?)")
     print(f"{page}: {drawn}, {len(check.errors)} console errors; screenshot written to {out}")
     for error in check.errors:
         print(f"  {error}", file=sys.stderr)

@@ -215,7 +215,9 @@ class PageCheck:
         out = [f"console: {e}" for e in self.errors]
         out += [f"network request: {u}" for u in self.remote]
         if self.ready_ms is None:
-            out.append("the page never finished drawing its figures (window.kgReady unset)")
+            out.append("the page never finished drawing its figures (window.kgReady unset)"
+                       if self.expected else "the page has no kinegrasp figure (not a "
+                       "kinegrasp report?)")
         if self.rendered < self.expected:
             out.append(f"{self.rendered} of {self.expected} figures drawn")
         if not self.webgl:
@@ -238,17 +240,24 @@ WEBGL_RENDERER = """(() => { const gl = document.createElement('canvas').getCont
     gl.VERSION)) : ''; })()"""
 
 
+#: When a page is done: a report has set ``window.kgReady``; a page of no report figure (no
+#: ``div.kg-plot``, not a kinegrasp page) has loaded, with nothing to wait for.
+READY = ("window.kgReady !== undefined || (document.readyState === 'complete' "
+         "&& !document.querySelector('div.kg-plot'))")
+
+
 def _wait_ready(page, timeout: float) -> tuple[float | None, float]:
-    """``window.kgReady`` once set (None after ``timeout`` seconds) and the seconds waited."""
+    """``window.kgReady`` once set (None after ``timeout`` seconds, or at once where the
+    page has loaded with no report figure) and the seconds waited."""
     start = time.monotonic()
     try:
-        page.wait_for_function("window.kgReady !== undefined", timeout=timeout * 1000,
-                               polling=50)
+        page.wait_for_function(READY, timeout=timeout * 1000, polling=50)
     except Exception as exc:  # playwright's TimeoutError, imported lazily
         if not (from_playwright(exc) and type(exc).__name__ == "TimeoutError"):
             raise
         return None, time.monotonic() - start
-    return float(page.evaluate("window.kgReady")), time.monotonic() - start
+    ready = page.evaluate("window.kgReady")
+    return (None if ready is None else float(ready)), time.monotonic() - start
 
 
 def check_page(path: str | Path, *, timeout: float = 60.0, settle: float = 0.5,
