@@ -820,7 +820,7 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
     assert command.startswith("kinegrasp report --robot kuka_sdh --object cube --grasp 1 "
                               f"--noise-spec {spec_file} --samples 50 --seed 2 --engine fast "
                               f"--out {out}")
-    assert "--sigma" not in command
+    assert "--sigma" not in command and "--arm-draws" not in command  # no arms drawn
 
 
 def test_report_with_a_per_joint_noise_spec(tmp_path, capsys):

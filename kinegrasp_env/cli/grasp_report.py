@@ -204,7 +204,8 @@ def run_report(args, sigmas: list[float]) -> int:
     nominal = {r.grasp: r.evaluation.q_nominal for r in runs}
     grasps = [dataclasses.replace(g, q_nominal=nominal[i]) for i, g in enumerate(grasps)]
     command = [*report_command(args, robot, sigmas, samples, seed, out),
-               "--max-points", str(max_points), "--arm-draws", str(arm_draws)]
+               "--max-points", str(max_points),  # no arms are drawn under a noise spec
+               *(["--arm-draws", str(arm_draws)] if model is None else [])]
     settings = {"robot": robot, "object": name, "grasps": ", ".join(g.id for g in grasps),
                 "grasp source": args.grasps or f"shipped set of {name} for {robot}",
                 **({"noise spec": args.noise_spec} if model is not None else
