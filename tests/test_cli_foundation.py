@@ -61,19 +61,26 @@ def test_negative_angles_need_no_equals_sign(capsys):
     assert json.loads(capsys.readouterr().out)["samples"] == 100
 
 
-def test_negative_values_of_several_value_options():
-    """``--position -0.1 0.6 0`` and ``--table-size -1 0.5`` reach their options as values
-    (gluing the first value to the option, as ``--q0 -0.5,1`` is glued, left the others
-    without an option, and the command was refused); one-value options are glued still."""
-    from kinegrasp_env.cli.main import _glue_negative_values, build_parser
+def test_negative_values_are_values():
+    """A token that starts like a negative number is a value of the option before it:
+    ``--position -0.1 0.6 0`` and ``--table-size -1 0.5`` (gluing the first value to the
+    option, as ``--q0 -0.5,1`` was glued, left the others without one), an exponent
+    (``-1e-3``), ``-inf`` (refused later as not finite), an abbreviated option, and
+    one-value options of every command (``report --grasp -1,2``)."""
+    from kinegrasp_env.cli.main import build_parser
 
     parser = build_parser()
-    argv = ["objects", "place", "cube", "--position", "-0.1", "0.6", "0", "--table-size",
-            "-1", "0.5", "--orientation", "0", "0", "-0.6", "0.8"]
-    args = parser.parse_args(_glue_negative_values(argv, parser))
+    args = parser.parse_args(["objects", "place", "cube", "--position", "-0.1", "0.6", "0",
+                              "--table-size", "-1", "0.5", "--orientation", "0", "0",
+                              "-0.6", "0.8"])
     assert (args.position, args.table_size) == (["-0.1", "0.6", "0"], ["-1", "0.5"])
     assert args.orientation == ["0", "0", "-0.6", "0.8"]
-    assert _glue_negative_values(["planar", "--q0", "-0.5,1"], parser)[-1] == "--q0=-0.5,1"
+    args = parser.parse_args(["objects", "place", "cube", "--pos", "-1e-3", "-inf", "0"])
+    assert args.position == ["-1e-3", "-inf", "0"]
+    assert parser.parse_args(["planar", "--q0", "-0.5,1"]).q0 == "-0.5,1"
+    assert parser.parse_args(["report", "--grasp", "-1,2", "--out", "r.html"]).grasp == "-1,2"
+    assert parser.parse_args(["validate", "--grasp", "-1", "2", "--out", "v"]).grasp == [
+        "-1", "2"]
 
 
 def test_ee_of_the_default_robot_json_and_errors(capsys):

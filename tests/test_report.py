@@ -814,7 +814,8 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
         "friction": "distribution uniform; low 0.3; high 0.7"}
     settings = _section(page, "Settings")
     assert settings["noise spec"] == str(spec_file)
-    assert settings["friction mu"] == "per draw (the noise spec&#x27;s friction source)"
+    assert settings["friction mu"] == ("per draw (the noise spec&#x27;s friction source); "
+                                       "nominal Q at mu 0.5")  # the middle of 0.3 .. 0.7
     assert "under a noise model of 4 sources (joints, hand, object, friction)" in page
     command = re.search(r'<pre class="kg-command">(.*?)</pre>', page).group(1)
     assert command.startswith("kinegrasp report --robot kuka_sdh --object cube --grasp 1 "

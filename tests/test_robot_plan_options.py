@@ -76,3 +76,21 @@ def test_an_object_out_of_reach_is_named(tmp_path, monkeypatch, capsys):
                    "robot's base; place it within reach (`kinegrasp objects place`); nothing "
                    "written"), err
     assert not out.exists()
+
+
+def test_the_reach_note_needs_every_pose_the_arm_was_asked_for_out_of_reach():
+    """The note names the object's distance only where every pose the IK was asked for (the
+    poses not facing up) was out of reach: not where every pose faced up, nor where some
+    were reached; and poses left unchecked are counted as not tried."""
+    from collections import Counter
+
+    from kinegrasp_env.cli.toolkit import _reach_note
+    from kinegrasp_env.toolkit.plan_checks import PlanTally
+
+    assert _reach_note(PlanTally(20, Counter({"facing up": 20})), "cube") == ""
+    assert _reach_note(PlanTally(20, Counter({"facing up": 5, "out of reach": 14})),
+                       "cube") == ""
+    assert "cube stands 0." in _reach_note(
+        PlanTally(20, Counter({"facing up": 5, "out of reach": 15})), "cube")
+    summary = PlanTally(20, Counter({"facing up": 5, "out of reach": 3}), 1).summary()
+    assert summary == "20 palm poses: 5 facing up, 3 out of reach, 1 kept, 11 not tried"

@@ -8,8 +8,8 @@ from kinegrasp_env.cli.common import DEFAULT_FRICTION
 
 def friction_words(args) -> list[str]:
     """``--friction MU`` as a page's command line spells it (nothing at the default)."""
-    text = getattr(args, "friction", str(DEFAULT_FRICTION))
-    return [] if float(text) == DEFAULT_FRICTION else ["--friction", str(text)]
+    text = getattr(args, "friction", None)
+    return [] if text is None or float(text) == DEFAULT_FRICTION else ["--friction", str(text)]
 
 
 def sigma_words(sigma) -> str:

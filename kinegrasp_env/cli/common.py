@@ -217,10 +217,12 @@ def parse_seed(text: str) -> int:
 
 def add_friction_arg(parser: argparse.ArgumentParser) -> None:
     """``--friction MU`` (see :func:`friction_from`)."""
-    parser.add_argument("--friction", default=str(DEFAULT_FRICTION),
+    parser.add_argument("--friction",
                         help="Coulomb friction coefficient mu at every contact: the friction "
                         "cones of the quality and of the hold checks, the simulated mu in "
-                        "physics (a number >= 0)")
+                        f"physics (a number >= 0; default {DEFAULT_FRICTION:g}; refused beside "
+                        "a noise spec's friction source, whose nominal mu the noise-free "
+                        "grasp then takes)")
 
 
 def friction_per_draw(noise) -> bool:
@@ -231,31 +233,31 @@ def friction_per_draw(noise) -> bool:
 
 def friction_setting(noise, friction: float) -> float | str:
     """What a page's settings say of mu: ``friction``, or that ``noise`` draws it per
-    draw (:func:`friction_per_draw`)."""
-    return "per draw (the noise spec's friction source)" if friction_per_draw(noise) \
-        else friction
+    draw (:func:`friction_per_draw`) and the noise-free grasp takes ``friction``, the
+    source's nominal mu."""
+    return (f"per draw (the noise spec's friction source); nominal Q at mu {friction:g}"
+            if friction_per_draw(noise) else friction)
 
 
 def friction_from(args, noise=None) -> float:
     """``--friction``: a finite mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
-    check_parameters`' rule); given beside a noise model (``noise``) with a friction source,
-    which sets mu per draw, it is a :class:`CLIError` line, and without it the mu of the
-    noise-free grasp (its nominal Q, the drawn cones) is the source's nominal one
-    (``FrictionSource.nominal``)."""
+    check_parameters`' rule; default :data:`DEFAULT_FRICTION`). Given beside a noise model
+    (``noise``) with a friction source, which sets mu per draw, it is a :class:`CLIError`
+    line; without it the noise-free grasp (its nominal Q, the drawn cones) takes the
+    source's nominal mu (:func:`~kinegrasp_env.sampling.noise_model.nominal_friction`)."""
     from kinegrasp_env.quality.wrenches import check_parameters
+    from kinegrasp_env.sampling.noise_model import nominal_friction
 
-    text = getattr(args, "friction", str(DEFAULT_FRICTION))
-    value = finite_float(text, "--friction")
+    text = getattr(args, "friction", None)
+    if friction_per_draw(noise) and text is not None:
+        raise CLIError("--friction and the noise spec's friction source both set mu: the "
+                       "source draws mu per draw; give one of them")
+    value = DEFAULT_FRICTION if text is None else finite_float(text, "--friction")
     try:
         check_parameters(value, NUM_EDGES)
     except ValueError:
         raise CLIError(f"--friction must be >= 0, got {text}") from None
-    if friction_per_draw(noise):
-        if value != DEFAULT_FRICTION:
-            raise CLIError("--friction and the noise spec's friction source both set mu: "
-                           "the source draws mu per draw; give one of them")
-        return noise.friction.nominal
-    return value
+    return nominal_friction(noise, value)
 
 
 def add_engine_arg(parser: argparse.ArgumentParser, default: str = "pybullet") -> None:

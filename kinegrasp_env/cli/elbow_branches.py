@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import sys
 
-from kinegrasp_env.cli.common import plural
+from kinegrasp_env.cli.common import friction_setting, plural
 from kinegrasp_env.cli.elbow_output import (
     bounds_words,
     reweight_lines,
@@ -103,7 +103,8 @@ def write_branch_report(args, index: int, grasp, result, noise, starts: int,
                 "engine": summary.engine, "method": args.method, "IK starts": starts,
                 "IK branches found": len(result.branches),
                 "certificate epsilon, delta": f"{cert.epsilon:g}, {cert.delta:g}",
-                "friction mu": friction, "friction cone edges": NUM_EDGES}
+                "friction mu": friction_setting(noise, friction),
+                "friction cone edges": NUM_EDGES}
     text = robot_branch_page(load_robot(args.robot), grasp, result,
                              command=shlex.join(command), settings=settings,
                              friction=friction, num_edges=NUM_EDGES, fragility=fragility)

@@ -54,45 +54,30 @@ def build_parser() -> argparse.ArgumentParser:
         group.add_commands(sub)
     for command_parser in sub.choices.values():  # its usage errors name the command
         command_parser.set_defaults(command_parser=command_parser)
+    accept_negative_values(parser)
     return parser
 
 
+#: A token that starts like a negative number: a value, never an option.
 _NEGATIVE_VALUE = re.compile(r"^-(\.?\d|inf|nan)", re.IGNORECASE)
 
 
-def _glue_negative_values(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
-    """Turn ``--q0 -0.5,1`` into ``--q0=-0.5,1`` (argparse would read -0.5,1 as an option).
-    An option of several values (``--position X Y Z``) is left as it is: ``--position=-0.1``
-    would leave the other values without an option, and argparse reads a plain negative
-    number (-0.1) as a value by itself."""
-    several = _several_value_options(parser)
-    out: list[str] = []
-    for token in argv:
-        if (out and out[-1].startswith("--") and "=" not in out[-1]
-                and out[-1] not in several and _NEGATIVE_VALUE.match(token)):
-            out[-1] = f"{out[-1]}={token}"
-        else:
-            out.append(token)
-    return out
-
-
-def _several_value_options(parser: argparse.ArgumentParser) -> set[str]:
-    """The option strings, in ``parser`` and its subcommands, that take more than one
-    value (a number of values, or '+' or '*')."""
-    found: set[str] = set()
+def accept_negative_values(parser: argparse.ArgumentParser) -> None:
+    """Let ``parser`` and its subcommands read a token that starts like a negative number
+    (``-0.5,1``, ``-1e-3``, ``-inf``) as a value, not as an option: argparse's own rule takes
+    plain decimals alone (``-0.5``), and ``--q0 -0.5,1`` or ``--position -1e-3 0.6 0`` were
+    refused. No option of the CLI looks like a negative number."""
+    parser._negative_number_matcher = _NEGATIVE_VALUE
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for sub in set(action.choices.values()):
-                found |= _several_value_options(sub)
-        elif action.option_strings and action.nargs not in (None, "?", 0, 1):
-            found.update(action.option_strings)
-    return found
+                accept_negative_values(sub)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    args, unknown = parser.parse_known_args(_glue_negative_values(argv, parser))
+    args, unknown = parser.parse_known_args(argv)
     if unknown:
         args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     kernel_notice.install()  # the first run on a machine compiles the kernels: say so

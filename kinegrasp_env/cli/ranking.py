@@ -230,7 +230,7 @@ def _palm_pose_candidates(path: str, robot: str | None = None,
 
 #: What ``rank --adaptive`` certifies unless told otherwise: the top set's size, the
 #: indifference zone (the default is toolkit.adaptive_ranking.DEFAULT_EPSILON, tested; the
-#: parser is built without NumPy) and the error level.
+#: parser is built without NumPy) and the error level; the parser's help names them.
 ADAPTIVE_DEFAULTS = {"top_k": "3", "epsilon": "0.01", "delta": "0.05"}
 
 

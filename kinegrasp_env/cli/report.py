@@ -178,7 +178,8 @@ def elbow_command_settings(args, grasp, index: int, result, noise, robot: str,
                 "fine grid step [rad]": f"{result.grid_step:.4f}",
                 "certificate epsilon, delta": f"{result.certificate.epsilon:g}, "
                                               f"{result.certificate.delta:g}",
-                "friction mu": friction, "friction cone edges": NUM_EDGES}
+                "friction mu": friction_setting(noise, friction),
+                "friction cone edges": NUM_EDGES}
     if evidence is None:  # a re-weighted angle has direct draws only where topped up
         settings["noisy arms drawn per view"] = ARM_DRAWS_DEFAULT
     else:

@@ -24,7 +24,7 @@ from kinegrasp_env.cli.common import (
 )
 from kinegrasp_env.cli.execution_options import add_execution_args, executor_from
 from kinegrasp_env.cli.output_paths import output_file, output_folder
-from kinegrasp_env.cli.ranking import cmd_rank
+from kinegrasp_env.cli.ranking import ADAPTIVE_DEFAULTS, cmd_rank
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 #: ``--criterion`` choices: equal to ``toolkit.ranking.CRITERIA`` (tested), copied so that
@@ -95,8 +95,8 @@ def cmd_plan(args) -> int:
 def _reach_note(tally, object_name: str) -> str:
     """Where every palm pose a plan tried was out of the arm's reach: how far the object
     stands from the robot's base (the world origin), else nothing."""
-    if not tally.drawn or tally.dropped["out of reach"] < tally.drawn - tally.dropped[
-            "facing up"]:
+    reached_for = tally.drawn - tally.dropped["facing up"]  # the poses the IK was asked for
+    if not (reached_for > 0 and tally.dropped["out of reach"] == reached_for):
         return ""
     import numpy as np
 
@@ -120,10 +120,10 @@ def cmd_sweep(args) -> int:
 
     with reported(SpecError):
         spec = SweepSpec.from_file(args.spec, robot=args.robot)
-    if args.friction is not None:
+    if args.friction is not None:  # every cell's mu: refused beside a model's friction source
         import dataclasses
 
-        drawn = spec.friction_sources()  # a model's friction source and --friction: refused
+        drawn = spec.friction_sources()
         spec = dataclasses.replace(spec, friction=friction_from(args, drawn[0][1] if drawn
                                                                 else None))
     out = output_folder(args.out)
@@ -190,15 +190,16 @@ def add_commands(sub) -> None:
                    "certified top k first (column 'certified': top-k, rest, unresolved), "
                    "each label wrong with probability <= --delta; not certified within the "
                    "--samples budget, the run says so")
-    p.add_argument("--top-k", help="size of the top set --adaptive separates (default 3)")
+    p.add_argument("--top-k", help="size of the top set --adaptive separates (default "
+                   f"{ADAPTIVE_DEFAULTS['top_k']})")
     # the default is toolkit.adaptive_ranking.DEFAULT_EPSILON (tested; copied: no NumPy to
     # build this)
     p.add_argument("--epsilon", help="--adaptive's indifference zone: certify a top k each "
                    "of whose members has P(FC) within EPSILON of the true k-th best (default "
-                   "0.01; 0: exactly the top k, which a near tie can keep from being "
-                   "certified at any budget)")
+                   f"{ADAPTIVE_DEFAULTS['epsilon']}; 0: exactly the top k, which a near tie "
+                   "can keep from being certified at any budget)")
     p.add_argument("--delta", help="--adaptive's probability of a wrong certified label "
-                   "(default 0.05)")
+                   f"(default {ADAPTIVE_DEFAULTS['delta']})")
     p.add_argument("--best-elbow", metavar="SAMPLES", help="first move each candidate to its "
                    "most robust elbow angle (`kinegrasp elbow`, SAMPLES draws per angle, chosen "
                    "on seed + 1); the ranked ids get an 'e', and the columns elbow_angle "
@@ -223,8 +224,9 @@ def add_commands(sub) -> None:
                    "chunk, seed, robot, friction")
     p.add_argument("--out", required=True, help="folder of the results store and summary")
     p.add_argument("--robot", help=f"catalog robot (replaces the spec's robot, default "
-                   f"{DEFAULT_ROBOT}); another robot's grasps are its shipped sets or the "
-                   "spec's grasp files, with joint noise on its arm joints")
+                   f"the robot of its grasp_files' grasps, else {DEFAULT_ROBOT}); another "
+                   "robot's grasps are its shipped sets or the spec's grasp files, with joint "
+                   "noise on its arm joints")
     p.add_argument("--friction", help="Coulomb friction coefficient mu at every contact "
                    "(replaces the spec's friction, default 0.5; a number >= 0)")
     add_execution_args(p, 1)

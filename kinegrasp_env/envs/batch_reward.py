@@ -17,8 +17,8 @@ alone, so a reward does not depend on which episodes came before.
 What changes for an agent: the reward is a deterministic, smooth function of the grasp, the
 elbow angle and sigma (the batch's error is fixed per grasp, where the draws' reward is a
 fresh estimate each step): less noise to learn through, and one systematic error per grasp
-it could fit. Where the effective sample size falls below the env's ``n_draws`` the step
-takes draws as usual; ``info["reward_method"]`` says which.
+it could fit. Where the effective sample size falls below the env's ``n_draws``, or sigma is
+0, the step takes draws as usual; ``info["reward_method"]`` says which.
 """
 
 from __future__ import annotations

@@ -194,7 +194,10 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
         robot: the robot to evaluate with (default: the grasp's).
         static_hold: run the static hold check too (an engine to build; a given engine
             checks when it was made with ``static_hold=True``).
-        friction: the contacts' mu (an engine to build; a given engine has its own).
+        friction: the contacts' mu (an engine to build; a given engine has its own); with a
+            ``noise_model`` of a friction source, that source's nominal mu
+            (:func:`~kinegrasp_env.sampling.noise_model.nominal_friction`: the draws take
+            theirs from the source).
         executor: run the draws in chunks on it (:mod:`~kinegrasp_env.montecarlo.
             robot_chunks`: the same draws, row for row, whatever the processes or backend;
             the seed an integer, the robot a catalog one). None, or a local executor of one
@@ -236,6 +239,9 @@ def evaluate_robot_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...], n: i
     check_configuration(grasp.q0, f"grasp {grasp.id!r}", robot=name)
     if noise_model is not None:
         from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+        from kinegrasp_env.sampling.noise_model import nominal_friction
+
+        friction = nominal_friction(noise_model, friction)
 
         _integer_seed(seed, "a noise model's run")
         description = (robot if isinstance(robot, RobotDescription) else load_robot(name)

@@ -85,8 +85,11 @@ class SweepSpec:
         for key in ("objects", "sigmas"):
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
-        named = data.get("robot", _files_robot(data.get("grasp_files"), base))
-        robot = _robot(named if robot is None else robot, where if robot is None else "--robot")
+        if robot is None:  # the spec's, else its grasp files' (read only then)
+            robot = _robot(data["robot"] if "robot" in data
+                           else _files_robot(data.get("grasp_files"), base), where)
+        else:
+            robot = _robot(robot, "--robot")
         objects = _names(data["objects"], object_names(), "objects", where)
         files = _grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
         _check_grasp_sets(objects, files, where, robot)

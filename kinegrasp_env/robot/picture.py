@@ -191,7 +191,10 @@ def draw_robot(description: RobotDescription, out: str | Path, *, width: int = 6
                         f"{frame.depth:.3f} m ahead; closing directions (red)")
     canvas = Image.new("RGB", (width * len(panels), height), (255, 255, 255))
     pen = ImageDraw.Draw(canvas)
-    font = ImageFont.load_default(size=CAPTION_SIZE)
+    try:
+        font = ImageFont.load_default(size=CAPTION_SIZE)
+    except TypeError:  # Pillow before 10.1: its one bitmap font
+        font = ImageFont.load_default()
     for i, (panel, caption) in enumerate(zip(panels, captions, strict=True)):
         canvas.paste(panel, (i * width, 0))
         pen.text((i * width + 10, 8), caption, fill=(40, 40, 40), font=font)

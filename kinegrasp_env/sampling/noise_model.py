@@ -173,6 +173,15 @@ def offset_transforms(offsets: np.ndarray, center=(0.0, 0.0, 0.0)) -> np.ndarray
     return out
 
 
+def nominal_friction(noise, friction: float) -> float:
+    """The mu of the noise-free grasp (its nominal Q, the cones a page draws) under ``noise``
+    (a :class:`NoiseModel`, joint noise or None): a model's friction source's nominal mu
+    (:attr:`~kinegrasp_env.sampling.noise_sources.FrictionSource.nominal`; the source draws
+    each draw's mu), else ``friction``."""
+    source = getattr(noise, "friction", None)
+    return float(friction) if source is None else source.nominal
+
+
 # ----------------------------------------------------------------------------- the model
 @dataclass(frozen=True)
 class NoiseModel:

@@ -54,9 +54,12 @@ class PlanTally:
     kept: int = 0
 
     def summary(self) -> str:
-        """One line: ``200 palm poses: 180 out of reach, 20 not in force closure``."""
+        """One line: ``200 palm poses: 180 out of reach, 20 not in force closure``; poses
+        left unchecked (enough grasps found, or the time budget spent) counted as not tried."""
         counts = [f"{self.dropped[r]} {r}" for r in DROPPED if self.dropped[r]]
         counts += [f"{self.kept} kept"] if self.kept else []
+        untried = self.drawn - sum(self.dropped.values()) - self.kept
+        counts += [f"{untried} not tried"] if untried else []
         return f"{self.drawn} palm poses" + (": " + ", ".join(counts) if counts else "")
 
 

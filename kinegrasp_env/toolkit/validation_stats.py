@@ -94,13 +94,12 @@ def bootstrap_spearman(x: np.ndarray, y: np.ndarray, seed: int | np.random.Gener
                        resamples: int = 2000, confidence: float = 0.95) -> Correlation:
     """Spearman's rho of the pairs (x[i], y[i]) (n,) and a percentile bootstrap interval
     from ``resamples`` resamples of the n pairs with replacement (seeded); no interval (NaN,
-    every resample counted undefined) for fewer than :data:`MIN_INTERVAL_GRASPS` pairs."""
+    no resample drawn) for fewer than :data:`MIN_INTERVAL_GRASPS` pairs."""
     x = np.asarray(x, float)
     y = np.asarray(y, float)
     rho = spearman(x, y)
-    if x.size < MIN_INTERVAL_GRASPS:
-        return Correlation(rho, (float("nan"), float("nan")), confidence, resamples, resamples,
-                           int(x.size))
+    if x.size < MIN_INTERVAL_GRASPS:  # no resample drawn
+        return Correlation(rho, (float("nan"), float("nan")), confidence, 0, 0, int(x.size))
     rng = np.random.default_rng(seed)
     picks = rng.integers(0, x.size, size=(resamples, x.size)) if x.size else np.zeros((0, 0))
     values = np.array([spearman(x[p], y[p]) for p in picks.astype(int)])
