@@ -151,3 +151,36 @@ def test_the_nominal_q_of_a_friction_source_is_at_its_nominal_mu(capsys, tmp_pat
     # as test_nominal_q_is_the_contacts_rescored: to 1e-7 relative
     assert nominal == pytest.approx(by_hand, rel=1e-7) and nominal != pytest.approx(
         grasp.q_nominal, rel=1e-3)
+
+
+def test_friction_beside_a_source_is_refused_whatever_its_value(capsys, tmp_path):
+    """``--friction 0.5`` (the default's value) beside a friction source was taken as no
+    option, and in a sweep it set every cell's mu, the plain cells' too, to the source's
+    nominal one. Given at all, it is refused."""
+    spec = tmp_path / "noise.yaml"
+    spec.write_text("joints: {sigma: 0.01}\nfriction: {distribution: fixed, value: 0.3}\n")
+    assert main(["evaluate", "--noise-spec", str(spec), "--friction", "0.5"]) == 2
+    assert "friction source" in capsys.readouterr().err
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text(f"objects: [cube]\ngrasps: [0]\nsigmas: [0.01]\nengines: [fast]\n"
+                     f"samples: 4\nnoise: [gaussian, {spec.name}]\n")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "s"), "--friction", "0.5"]) == 2
+    assert "friction source" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+def test_the_library_takes_a_friction_sources_nominal_mu_too():
+    """``evaluate_robot_grasp`` under a model with a friction source: the nominal Q is the
+    contacts' Q at the source's nominal mu (by hand, as above), as ``evaluate
+    --noise-spec`` gives it."""
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    grasp, obj = shipped_grasps("cube")[0], load_object("cube")
+    model = noise_model_from_spec({"joints": {"sigma": 0.01},
+                                   "friction": {"distribution": "fixed", "value": 0.8}})
+    run = evaluate_robot_grasp(grasp, sigma=0.01, n=4, seed=0, engine="fast",
+                               noise_model=model)
+    by_hand = ferrari_canny(grasp.points, grasp.normals, friction=0.8,
+                            torque_scale=obj.torque_scale, center=obj.center_of_mass)
+    assert run.q_nominal == pytest.approx(by_hand, rel=1e-7)
