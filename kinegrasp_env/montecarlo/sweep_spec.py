@@ -312,7 +312,7 @@ def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
             raise SpecError(f"{where}: grasp_files names {name!r}, which is not in 'objects'")
         if not isinstance(text, str) or not text:
             raise SpecError(f"{where}: grasp_files: {name}: expected a file name, got {text!r}")
-        path = (Path(base or ".") / text).absolute()
+        path = _spec_path(base, text)
         try:
             digest = hashlib.sha256(path.read_bytes()).hexdigest()
             grasps = _file_grasps(str(path), digest)
@@ -335,6 +335,11 @@ def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
     return tuple(out)
 
 
+def _spec_path(base: str | Path | None, text: str) -> Path:
+    """A file a spec names, relative to the spec's folder ``base`` (else the current one)."""
+    return (Path(base or ".") / text).absolute()
+
+
 def _files_robot(value: Any, base: str | Path | None) -> str:
     """The robot of a spec that names none: the one robot whose grasps ``grasp_files``
     holds, else the default one (files of several robots, or unreadable ones, are reported
@@ -344,7 +349,7 @@ def _files_robot(value: Any, base: str | Path | None) -> str:
     robots = set()
     for text in (value.values() if isinstance(value, dict) else ()):
         try:
-            robots.update(g.robot for g in load_grasps(Path(base or ".") / str(text)))
+            robots.update(g.robot for g in load_grasps(_spec_path(base, str(text))))
         except (OSError, ValueError):
             continue
     return robots.pop() if len(robots) == 1 else DEFAULT_ROBOT

@@ -18,6 +18,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import ConvexHull, QhullError
 
+from kinegrasp_env.wording import plural
 from kinegrasp_env.world.meshfile import MeshError
 
 # The hand's proportions (assets/robots/build_kuka_sdh.py; tests check them against the URDF).
@@ -85,8 +86,8 @@ def check_solid(mesh: trimesh.Trimesh) -> float:
     (smallest hull width, metres)."""
     faces = len(mesh.faces)
     if faces < 4:
-        raise MeshError(f"the mesh has {faces} non-degenerate face{'s' if faces != 1 else ''}"
-                        "; a solid needs at least 4")
+        raise MeshError(f"the mesh has {plural(faces, 'non-degenerate face')}; a solid needs "
+                        "at least 4")
     size = float(np.max(mesh.extents))
     width = thickness(mesh.vertices)
     if width <= FLAT * size:

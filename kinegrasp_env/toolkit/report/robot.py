@@ -64,6 +64,7 @@ from kinegrasp_env.toolkit.report.scene import (
     object_traces,
     scene_axes,
 )
+from kinegrasp_env.wording import plural
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import GraspObject
 
@@ -346,7 +347,7 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
                         f"{figure.div()}<div class='kg-row'>"
                         f"{''.join(c.div() for c in charts)}</div>")
     model = description.contact_model
-    count = f"{len(grasps)} grasp{'' if len(grasps) == 1 else 's'}"
+    count = plural(len(grasps), "grasp")
     names = ", ".join(dict.fromkeys(o.name for o in objects))
     title = f"kinegrasp report: robot {description.name}, {count} of {names}"
     finite = [r for r in runs if math.isfinite(r.evaluation.p_fc)]
