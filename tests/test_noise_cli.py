@@ -145,3 +145,13 @@ def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_fi
     assert main(["evaluate", "--noise-spec", str(spec_file), "--engine", "physics"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "object, friction errors" in err[0]
+
+
+def test_a_sweep_takes_a_noise_spec_file_of_any_name(tmp_path):
+    """``--noise-spec n.txt`` is read whatever its suffix; a sweep's ``noise`` entry of the
+    same file was refused as an unknown noise. An existing file is a spec file."""
+    (tmp_path / "n.txt").write_text("joints: {sigma: 0.0133}\n")
+    spec = SweepSpec.from_dict({"objects": ["cube"], "sigmas": [0.01], "noise": ["n.txt"]},
+                               base=tmp_path)
+    (label,) = spec.noise
+    assert label.startswith("n-") and json.loads(dict(spec.models)[label])["joints"]

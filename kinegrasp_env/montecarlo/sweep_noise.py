@@ -40,10 +40,13 @@ def noise_entries(entries: list, base: str | Path | None = None
 
 
 def _model_entry(entry: Any, base: str | Path | None) -> tuple[str, str]:
-    if isinstance(entry, str) and Path(entry).suffix.lower() not in SPEC_SUFFIXES:
+    if (isinstance(entry, str) and Path(entry).suffix.lower() not in SPEC_SUFFIXES
+            and not (Path(base or ".") / entry).is_file()):  # a spec file of any name, as
+        # --noise-spec takes it; else a name the list of choices should have held
         raise NoiseSpecError(f"unknown noise {entry!r}: give a distribution "
                              f"({', '.join(DISTRIBUTIONS)}), a noise spec file "
-                             f"({', '.join(SPEC_SUFFIXES)}) or a noise spec mapping")
+                             f"({', '.join(SPEC_SUFFIXES)}, or any existing file) or a noise "
+                             "spec mapping")
     if not isinstance(entry, (str, dict)):
         raise NoiseSpecError(f"noise entry {entry!r} is neither a distribution nor a noise "
                              "model (a spec mapping or a spec file)")
