@@ -45,6 +45,10 @@ SECTION_KEYS = {
 }
 FRICTION_KEYS = {"gaussian": ("mean", "sigma"), "uniform": ("low", "high"),
                  "fixed": ("value",)}
+#: The keys a friction section must give, by distribution: those whose default would
+#: silently be another model (a uniform on [0, 0] is mu 0 on every draw; a gaussian of sigma
+#: 0 and a fixed mu of the default are no distribution the section asked for).
+FRICTION_REQUIRED = {"gaussian": ("sigma",), "uniform": ("low", "high"), "fixed": ("value",)}
 TOP_KEYS = ("preset", *SOURCES)
 PRESETS: dict[str, dict] = {
     "dexnet": {
@@ -101,8 +105,9 @@ def _section(name: str, body: Any):
 
 
 def _friction(body: dict) -> FrictionSource:
-    """The friction section: its distribution (default gaussian) and every one of that
-    distribution's :data:`FRICTION_KEYS` (a missing one would silently be a default)."""
+    """The friction section: its distribution (default gaussian) and the parameters of it
+    that have no meaningful default (:data:`FRICTION_REQUIRED`; a gaussian's mean defaults
+    to 0.5, the default mu)."""
     kind = body.get("distribution", "gaussian")
     if kind not in FRICTION_KEYS:
         raise NoiseSpecError(f"friction.distribution {kind!r} is unknown; choose from "
@@ -115,7 +120,7 @@ def _friction(body: dict) -> FrictionSource:
                                  f"{kind}{given}: give distribution: {other[0]}")
     _known_keys("friction", body, ("distribution", *FRICTION_KEYS[kind]),
                 f" (with distribution {kind}{given})")
-    missing = [k for k in FRICTION_KEYS[kind] if k not in body]
+    missing = [k for k in FRICTION_REQUIRED[kind] if k not in body]
     if missing:
         raise NoiseSpecError(f"friction with distribution {kind}{given}{',' if given else ''} "
                              f"needs {' and '.join(missing)}")
