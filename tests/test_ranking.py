@@ -544,3 +544,23 @@ def test_adaptive_settings_without_adaptive_are_refused(tmp_path, capsys, given,
     assert status == 2 and not out.exists()
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"kinegrasp rank: error: {named} what --adaptive certifies"), err
+
+
+def test_adaptive_with_fewer_candidates_than_the_default_top_k(tmp_path, capsys):
+    """Two candidates: the default top set (3) is cut to one (it was refused as "--top-k must
+    be below the number of candidates", an option the user never gave); a given --top-k 2 is
+    still refused, and one candidate separates nothing."""
+    from kinegrasp_env.cli import main
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    two, one = tmp_path / "two.json", tmp_path / "one.json"
+    save_grasps(shipped_grasps("cube")[:2], two)
+    save_grasps(shipped_grasps("cube")[:1], one)
+    out = tmp_path / "r.csv"
+    assert main(["rank", str(two), "--adaptive", "--samples", "40", "--engine", "fast",
+                 "--out", str(out), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["certificate"]["top_k"] == 1
+    assert main(["rank", str(two), "--adaptive", "--top-k", "2", "--out", str(out)]) == 2
+    assert "--top-k must be below the number of candidates (2)" in capsys.readouterr().err
+    assert main(["rank", str(one), "--adaptive", "--out", str(out)]) == 2
+    assert "it needs 2 candidates at least, got 1" in capsys.readouterr().err

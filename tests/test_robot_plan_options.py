@@ -88,9 +88,12 @@ def test_the_reach_note_needs_every_pose_the_arm_was_asked_for_out_of_reach():
     from kinegrasp_env.toolkit.plan_checks import PlanTally
 
     assert _reach_note(PlanTally(20, Counter({"facing up": 20})), "cube") == ""
+    # one pose out of reach (--max-attempts 1) says nothing of where the object stands
+    assert _reach_note(PlanTally(1, Counter({"out of reach": 1})), "cube") == ""
+    assert PlanTally(1, Counter({"out of reach": 1})).summary() == "1 palm pose: 1 out of reach"
     assert _reach_note(PlanTally(20, Counter({"facing up": 5, "out of reach": 14})),
                        "cube") == ""
     assert "cube stands 0." in _reach_note(
-        PlanTally(20, Counter({"facing up": 5, "out of reach": 15})), "cube")
+        PlanTally(25, Counter({"facing up": 5, "out of reach": 20})), "cube")
     summary = PlanTally(20, Counter({"facing up": 5, "out of reach": 3}), 1).summary()
     assert summary == "20 palm poses: 5 facing up, 3 out of reach, 1 kept, 11 not tried"

@@ -327,3 +327,7 @@ def test_a_spec_without_a_robot_takes_its_grasp_files_robot(tmp_path):
             "grasp_files": {"cube": "panda.json", "drill": "sdh.json"}}
     with pytest.raises(SpecError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
         SweepSpec.from_dict(both, base=tmp_path)
+    # a file of an object the spec does not sweep decides nothing (it is refused as such)
+    other = {**spec, "grasp_files": {"cube": "panda.json", "drill": "sdh.json"}}
+    with pytest.raises(SpecError, match="grasp_files names 'drill', which is not in"):
+        SweepSpec.from_dict(other, base=tmp_path)

@@ -106,6 +106,7 @@ def cmd_rank(args) -> int:
                        f"certify (its tests count the draws that succeed); use --criterion "
                        f"{', '.join(counted)} or {last} with --adaptive, or {args.criterion} "
                        "without it")
+    top_k_given = args.top_k is not None
     _adaptive_defaults(args)
     noise, sigma, samples, seed = noise_from(args)
     friction = friction_from(args, noise)
@@ -135,6 +136,12 @@ def cmd_rank(args) -> int:
         settings["noise_model"] = spec_of(noise)
     top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
     certify = _certify_settings(args) if args.adaptive else {}
+    if args.adaptive and len(grasps) < 2:
+        raise CLIError(f"--adaptive separates a top set from the rest: it needs 2 candidates "
+                       f"at least, got {len(grasps)}")
+    if args.adaptive and not top_k_given:  # the default, as many as the candidates allow
+        top_k = min(top_k, len(grasps) - 1)
+        args.top_k = str(top_k)  # as the page's command and settings name it
     if args.adaptive and top_k >= len(grasps):
         raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
     if args.adaptive and partial.exists():

@@ -92,11 +92,18 @@ def cmd_plan(args) -> int:
     return 0
 
 
+#: Fewest palm poses around an object, every one out of the arm's reach, that make the plan
+#: say the object may stand out of reach (a few poses can all miss an object in reach).
+REACH_NOTE_POSES = 20
+
+
 def _reach_note(tally, object_name: str) -> str:
-    """Where every palm pose a plan tried was out of the arm's reach: how far the object
-    stands from the robot's base (the world origin), else nothing."""
+    """Where every palm pose a plan asked the arm's IK for, :data:`REACH_NOTE_POSES` at
+    least, was out of its reach: how far the object stands from the robot's base (the
+    world origin), else nothing."""
     reached_for = tally.drawn - tally.dropped["facing up"]  # the poses the IK was asked for
-    if not (reached_for > 0 and tally.dropped["out of reach"] == reached_for):
+    if not (reached_for >= REACH_NOTE_POSES
+            and tally.dropped["out of reach"] == reached_for):
         return ""
     import numpy as np
 
@@ -191,7 +198,8 @@ def add_commands(sub) -> None:
                    "each label wrong with probability <= --delta; not certified within the "
                    "--samples budget, the run says so")
     p.add_argument("--top-k", help="size of the top set --adaptive separates (default "
-                   f"{ADAPTIVE_DEFAULTS['top_k']})")
+                   f"{ADAPTIVE_DEFAULTS['top_k']}, or one less than the candidates where they "
+                   "are fewer)")
     # the default is toolkit.adaptive_ranking.DEFAULT_EPSILON (tested; copied: no NumPy to
     # build this)
     p.add_argument("--epsilon", help="--adaptive's indifference zone: certify a top k each "

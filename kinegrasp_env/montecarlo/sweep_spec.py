@@ -85,12 +85,12 @@ class SweepSpec:
         for key in ("objects", "sigmas"):
             if key not in data:
                 raise SpecError(f"{where}: missing key {key!r}")
-        if robot is None:  # the spec's, else its grasp files' (read only then)
+        objects = _names(data["objects"], object_names(), "objects", where)
+        if robot is None:  # the spec's, else its swept objects' grasp files' (read only then)
             robot = _robot(data["robot"] if "robot" in data
-                           else _files_robot(data.get("grasp_files"), base), where)
+                           else _files_robot(data.get("grasp_files"), base, objects), where)
         else:
             robot = _robot(robot, "--robot")
-        objects = _names(data["objects"], object_names(), "objects", where)
         files = _grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
         _check_grasp_sets(objects, files, where, robot)
         noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
@@ -340,14 +340,15 @@ def _spec_path(base: str | Path | None, text: str) -> Path:
     return (Path(base or ".") / text).absolute()
 
 
-def _files_robot(value: Any, base: str | Path | None) -> str:
-    """The robot of a spec that names none: the one robot whose grasps ``grasp_files``
-    holds, else the default one (files of several robots, or unreadable ones, are reported
-    by the checks that read them)."""
+def _files_robot(value: Any, base: str | Path | None, objects: tuple[str, ...]) -> str:
+    """The robot of a spec that names none: the one robot whose grasps the ``grasp_files``
+    of the swept ``objects`` hold, else the default one (files of several robots, or
+    unreadable ones, are reported by the checks that read them)."""
     from kinegrasp_env.world.grasps import load_grasps
 
     robots = set()
-    for text in (value.values() if isinstance(value, dict) else ()):
+    files = value if isinstance(value, dict) else {}
+    for text in (text for name, text in files.items() if name in objects):
         try:
             robots.update(g.robot for g in load_grasps(_spec_path(base, str(text))))
         except (OSError, ValueError):

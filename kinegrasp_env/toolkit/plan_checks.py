@@ -15,6 +15,7 @@ from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
 from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
+from kinegrasp_env.wording import plural
 
 __all__ = ["ATTEMPTS_PER_GRASP", "PlanTally", "PlannerSettings", "arm_meta", "attempts_for",
            "clearance", "planned_closing", "self_motion"]
@@ -60,7 +61,7 @@ class PlanTally:
         counts += [f"{self.kept} kept"] if self.kept else []
         untried = self.drawn - sum(self.dropped.values()) - self.kept
         counts += [f"{untried} not tried"] if untried else []
-        return f"{self.drawn} palm poses" + (": " + ", ".join(counts) if counts else "")
+        return plural(self.drawn, "palm pose") + (": " + ", ".join(counts) if counts else "")
 
 
 def attempts_for(count: int) -> int:
