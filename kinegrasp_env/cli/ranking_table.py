@@ -74,18 +74,12 @@ def write_rejected(rejected: list, out: Path, quiet: bool = False) -> None:
           file=sys.stderr if quiet else sys.stdout)
 
 
-def _elbow(value) -> str:
-    """An :data:`ELBOW_COLUMNS` cell: the angle to 1e-6 rad, the branch index, or empty."""
+def _elbow(value, digits: int = 6) -> str:
+    """An :data:`ELBOW_COLUMNS` value: the angle to ``digits`` decimals of a radian (the CSV
+    6, the console table 3), the branch index, or empty."""
     if value is None:
         return ""
-    return str(value) if isinstance(value, int) else f"{value:.6f}"
-
-
-def _elbow_shown(value) -> str:
-    """An :data:`ELBOW_COLUMNS` value in the console table: the angle to 1e-3 rad."""
-    if value is None:
-        return ""
-    return str(value) if isinstance(value, int) else f"{value:.3f}"
+    return str(value) if isinstance(value, int) else f"{value:.{digits}f}"
 
 
 def _ordinal(k: int) -> str:
@@ -199,7 +193,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         held = "".join(f" {row[c]:>7.3f} {row[c + '_lo']:>7.3f}..{row[c + '_hi']:<6.3f}"
                        for c in (HOLD_COLUMNS[s][0] for s in scores))
         held += f" {row[MARGIN_COLUMN[0]]:>6.3f}" if "test" in scores else ""
-        held += "".join(f" {_elbow_shown(row.get(c)):>6}" for c in elbow)
+        held += "".join(f" {_elbow(row.get(c), 3):>6}" for c in elbow)
         print(f"{i:>4} {row['id']:>{width}} {row['p_fc']:>7.3f} "
               f"{row['p_fc_lo']:>7.3f}..{row['p_fc_hi']:<6.3f} {_fixed(row['q_mean']):>9} "
               f"{row['q_nominal']:>9.5f} {row['samples']:>6}" + held

@@ -344,13 +344,13 @@ def _files_robot(value: Any, base: str | Path | None, objects: tuple[str, ...]) 
     """The robot of a spec that names none: the one robot whose grasps the ``grasp_files``
     of the swept ``objects`` hold, else the default one (files of several robots, or
     unreadable ones, are reported by the checks that read them)."""
-    from kinegrasp_env.world.grasps import load_grasps
-
     robots = set()
     files = value if isinstance(value, dict) else {}
     for text in (text for name, text in files.items() if name in objects):
-        try:
-            robots.update(g.robot for g in load_grasps(_spec_path(base, str(text))))
+        path = _spec_path(base, str(text))
+        try:  # read as the checks read it (cached: they do not read it again)
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+            robots.update(g.robot for g in _file_grasps(str(path), digest))
         except (OSError, ValueError):
             continue
     return robots.pop() if len(robots) == 1 else DEFAULT_ROBOT

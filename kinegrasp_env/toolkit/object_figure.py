@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from kinegrasp_env.toolkit.plots import save_figure
+from kinegrasp_env.toolkit.plots import few_ticks, save_figure
 from kinegrasp_env.wording import plural
 from kinegrasp_env.world.objects import GraspObject
 
@@ -22,7 +22,6 @@ def plot_object(obj: GraspObject, path: str | Path, title: str = "") -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import MaxNLocator
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     fig = plt.figure(figsize=(10, 5))
@@ -48,7 +47,7 @@ def plot_object(obj: GraspObject, path: str | Path, title: str = "") -> Path:
         ax.set_zlim(centre[2] - half, centre[2] + half)
         ax.set_box_aspect((1, 1, 1))
         for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # few ticks: the corners' labels clashed
-            axis.set_major_locator(MaxNLocator(4))
+            axis.set_major_locator(few_ticks(4))
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         ax.set_zlabel("z [m]")

@@ -337,7 +337,7 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     left.axvline(best_psi, color="C2", label=f"best {best_psi:.2f} rad")
     left.set_xlabel("elbow angle psi [rad]")
     left.set_ylabel("P(force closure)")
-    left.xaxis.set_major_locator(_ticks(6))  # the default's many ticks ran into each other
+    left.xaxis.set_major_locator(few_ticks(6))  # the default's many ticks ran into each other
     left.legend(fontsize=8)
     draw_fragility(right, picture, "elbow")
     fig.suptitle(title)
@@ -345,7 +345,7 @@ def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
     return save_figure(fig, path)
 
 
-def _ticks(count: int):
+def few_ticks(count: int):
     """A matplotlib locator of at most ``count`` round ticks."""
     from matplotlib.ticker import MaxNLocator
 
