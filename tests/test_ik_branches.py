@@ -169,7 +169,7 @@ def test_elbow_cli_across_the_ik_branches(home, capsys):
 def test_elbow_plot_draws_each_branch(home, capsys, monkeypatch, tmp_path):
     """``elbow --plot`` of the 6-joint arm: the PNG written, its bars the printed curve's
     selection and fresh P(FC) per branch (the figure read back before it is saved)."""
-    from kinegrasp_env.toolkit import plots
+    from kinegrasp_env.toolkit import elbow_plots as plots
 
     drawn = {}
     save = plots.save_figure
@@ -541,7 +541,7 @@ def test_the_reweighted_branch_plot_shows_why(home, capsys, monkeypatch, tmp_pat
     deviations in the fragile directions (whitened by the nominal branch's covariance, so
     the nominal branch's 2-s.d. ellipse is the circle of radius 2, to 1e-9) and the chosen
     branch's ellipse."""
-    from kinegrasp_env.toolkit import plots
+    from kinegrasp_env.toolkit import elbow_plots as plots
 
     drawn = {}
     save = plots.save_figure

@@ -53,7 +53,8 @@ def cmd_elbow_branches(args, index, grasp, noise, samples, seed, epsilon, delta,
         payload["reweight"] = evidence.to_json()
         picture = evidence.picture()
     if args.plot:  # before the results are printed: a failing figure is a warning
-        from kinegrasp_env.toolkit.plots import plot_branches, safe_figure
+        from kinegrasp_env.toolkit.elbow_plots import plot_branches
+        from kinegrasp_env.toolkit.plots import safe_figure
 
         draws = (f"one batch of {payload['reweight']['batch']} closings" if evidence
                  else f"{samples} draws per branch")

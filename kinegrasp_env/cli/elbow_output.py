@@ -111,12 +111,12 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
     ellipses where a re-weighted run's batch has failing draws."""
     picture = None if evidence is None else evidence.picture()
     if picture is not None:
-        from kinegrasp_env.toolkit.plots import plot_elbow_fragility
+        from kinegrasp_env.toolkit.elbow_plots import plot_elbow_fragility
 
         plot_elbow_fragility(payload["curve"], result.nominal_psi, result.best_psi, picture,
                              path, title=f"{title}, and why")
     else:
-        from kinegrasp_env.toolkit.plots import plot_elbow_curve
+        from kinegrasp_env.toolkit.elbow_plots import plot_elbow_curve
 
         plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
                          title=title)

@@ -24,29 +24,31 @@ model of the sources its engines take, closed by its own engines
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
+from kinegrasp_env.montecarlo.sweep_grasps import (
+    SpecError,
+    check_grasp_indices,
+    check_grasp_sets,
+    files_robot,
+    grasp_files,
+    grasp_set,
+)
 from kinegrasp_env.montecarlo.sweep_noise import noise_entries
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.spec_yaml import spec_loader
-from kinegrasp_env.world.grasps import Grasp, check_robot
+from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import object_names, object_version
 
 SPEC_KEYS = ("objects", "grasps", "grasp_files", "sigmas", "noise", "engines", "samples",
              "chunk", "seed", "robot", "friction")
-
-
-class SpecError(ValueError):
-    """A sweep specification that cannot run (raised before any work starts)."""
 
 
 @dataclass(frozen=True)
@@ -88,11 +90,11 @@ class SweepSpec:
         objects = _names(data["objects"], object_names(), "objects", where)
         if robot is None:  # the spec's, else its swept objects' grasp files' (read only then)
             robot = _robot(data["robot"] if "robot" in data
-                           else _files_robot(data.get("grasp_files"), base, objects), where)
+                           else files_robot(data.get("grasp_files"), base, objects), where)
         else:
             robot = _robot(robot, "--robot")
-        files = _grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
-        _check_grasp_sets(objects, files, where, robot)
+        files = grasp_files(data.get("grasp_files", {}), objects, where, base, robot)
+        check_grasp_sets(objects, files, where, robot)
         noise, models = _noise(data.get("noise", ["gaussian"]), where, base)
         engines = _names(data.get("engines", ["pybullet"]), ENGINES, "engines", where)
         _check_robot_cells(robot, models, engines, where)
@@ -109,7 +111,7 @@ class SweepSpec:
                 raise SpecError(f"{where}: 'grasps' must be \"all\" or a list of grasp indices "
                                 f"(integers >= 0), got {grasps!r}") from None
             indices = _unique(given, "grasps", where)
-            _check_grasp_indices(objects, indices, files, where, robot)
+            check_grasp_indices(objects, indices, files, where, robot)
         samples = _integer(data.get("samples", 1000), "samples", where, low=1)
         chunk = _integer(data.get("chunk", 250), "chunk", where, low=1)
         seed = _integer(data.get("seed", 0), "seed", where, low=0)
@@ -155,7 +157,7 @@ class SweepSpec:
     def grasp_set(self, object_name: str) -> tuple[Grasp, ...]:
         """The grasps of ``object_name`` the sweep indexes: its grasp file's, else its
         shipped set."""
-        return _grasp_set(object_name, self.grasp_files, self.robot)
+        return grasp_set(object_name, self.grasp_files, self.robot)
 
     def grasp(self, object_name: str, index: int) -> Grasp:
         return self.grasp_set(object_name)[index]
@@ -297,132 +299,6 @@ def _integer(value: Any, key: str, where: str, low: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise SpecError(f"{where}: {key!r} must be an integer >= {low}, got {value!r}")
     return value
-
-
-def _grasp_files(value: Any, objects: tuple[str, ...], where: str,
-                 base: str | Path | None, robot: str) -> tuple[tuple[str, str, str], ...]:
-    """``grasp_files``: (object, absolute path, SHA-256) per entry, each file read and
-    checked (grasps of that object and of ``robot``, at least one)."""
-    if not isinstance(value, dict):
-        raise SpecError(f"{where}: 'grasp_files' must map objects to grasp files, e.g. "
-                        "{duck: duck_grasps.json}")
-    out = []
-    for name, text in value.items():
-        if name not in objects:
-            raise SpecError(f"{where}: grasp_files names {name!r}, which is not in 'objects'")
-        if not isinstance(text, str) or not text:
-            raise SpecError(f"{where}: grasp_files: {name}: expected a file name, got {text!r}")
-        path = _spec_path(base, text)
-        try:
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
-            grasps = _file_grasps(str(path), digest)
-        except FileNotFoundError:
-            raise SpecError(f"{where}: grasp_files: {name}: no such file {path}") from None
-        except (OSError, ValueError) as exc:
-            raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
-        if not grasps:
-            raise SpecError(f"{where}: grasp_files: {name}: {path} holds no grasps")
-        other = next((g for g in grasps if g.object != name), None)
-        if other is not None:
-            raise SpecError(f"{where}: grasp_files: {name}: grasp {other.id} of {path} is a "
-                            f"grasp of {other.object}")
-        for grasp in grasps:
-            try:
-                check_robot(grasp, robot)
-            except ValueError as exc:
-                raise SpecError(f"{where}: grasp_files: {name}: {exc}") from None
-        out.append((name, str(path), digest))
-    return tuple(out)
-
-
-def _spec_path(base: str | Path | None, text: str) -> Path:
-    """A file a spec names, relative to the spec's folder ``base`` (else the current one)."""
-    return (Path(base or ".") / text).absolute()
-
-
-def _files_robot(value: Any, base: str | Path | None, objects: tuple[str, ...]) -> str:
-    """The robot of a spec that names none: the one robot whose grasps the ``grasp_files``
-    of the swept ``objects`` hold, else the default one (files of several robots, or
-    unreadable ones, are reported by the checks that read them)."""
-    robots = set()
-    files = value if isinstance(value, dict) else {}
-    for text in (text for name, text in files.items() if name in objects):
-        path = _spec_path(base, str(text))
-        try:  # read as the checks read it (cached: they do not read it again)
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
-            robots.update(g.robot for g in _file_grasps(str(path), digest))
-        except (OSError, ValueError):
-            continue
-    return robots.pop() if len(robots) == 1 else DEFAULT_ROBOT
-
-
-@lru_cache(maxsize=16)
-def _file_grasps(path: str, digest: str) -> tuple[Grasp, ...]:
-    """The grasps of a grasp file whose bytes have SHA-256 ``digest`` (a file changed since
-    the spec was read is a :class:`SpecError`)."""
-    from kinegrasp_env.world.grasps import load_grasps
-
-    if hashlib.sha256(Path(path).read_bytes()).hexdigest() != digest:
-        raise SpecError(f"{path} changed since the sweep spec was read")
-    return tuple(load_grasps(path))
-
-
-def _grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
-               robot: str = DEFAULT_ROBOT) -> tuple[Grasp, ...]:
-    for object_name, path, digest in files:
-        if object_name == name:
-            return _file_grasps(path, digest)
-    return _shipped_set(name, robot)
-
-
-def _shipped_set(name: str, robot: str) -> tuple[Grasp, ...]:
-    """The robot's shipped set of ``name`` (``assets/grasps/<robot>/``; a placed copy's,
-    the copy as it stands now), read once per version of the object."""
-    try:
-        version = object_version(name)
-    except ValueError:  # not in the catalog: the grasp lookup says so
-        version = ""
-    return _versioned_shipped_set(name, robot, version)
-
-
-@lru_cache(maxsize=32)
-def _versioned_shipped_set(name: str, robot: str, version: str) -> tuple[Grasp, ...]:
-    """:func:`_shipped_set` of one version of the object (``version``: the cache's key)."""
-    from kinegrasp_env.world.grasps import shipped_grasps
-
-    return tuple(shipped_grasps(name, robot))
-
-
-def _check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
-                      where: str, robot: str = DEFAULT_ROBOT) -> None:
-    """An object the robot has no shipped set of (an imported one among them) needs a grasp
-    file: one line saying how."""
-    from kinegrasp_env.world.grasps import NoGraspSetError
-
-    given = {name for name, _, _ in files}
-    for name in (n for n in objects if n not in given):
-        try:
-            _shipped_set(name, robot)
-        except NoGraspSetError as exc:
-            if not exc.imported:
-                raise SpecError(f"{where}: {exc}, and give the file in 'grasp_files'") from None
-            raise SpecError(
-                f"{where}: {name!r} is an imported object and has no shipped grasp set; give "
-                f"its grasp file in 'grasp_files' (e.g. grasp_files: {{{name}: "
-                f"{name}_grasps.json}}, written by `kinegrasp plan --robot {robot} --object "
-                f"{name} --out {name}_grasps.json`)") from None
-
-
-def _check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],
-                         files: tuple[tuple[str, str, str], ...], where: str,
-                         robot: str = DEFAULT_ROBOT) -> None:
-    for name in objects:
-        count = len(_grasp_set(name, files, robot))
-        bad = [i for i in indices if i >= count]
-        if bad:
-            kind = "grasp file" if any(f[0] == name for f in files) else "shipped set"
-            raise SpecError(f"{where}: grasp {bad[0]} does not exist for {name} "
-                            f"(its {kind} has grasps 0..{count - 1})")
 
 
 @dataclass(frozen=True)

@@ -175,11 +175,12 @@ def finger_links(world: PhysicsWorld) -> dict[int, tuple[int, int]]:
     return {world.link_index[FINGERS[f][2 + k]]: (f, k) for f in range(3) for k in range(2)}
 
 
-def finger_forces(world: PhysicsWorld) -> np.ndarray:
-    """(3,) each finger's total normal force on the object from the last step, newtons (the
-    sum of pybullet's ``normalForce`` over its links' contact records)."""
-    links = finger_links(world)
-    forces = np.zeros(3)
+def finger_forces(world: PhysicsWorld, links: dict[int, tuple[int, int]], fingers: int
+                  ) -> np.ndarray:
+    """(fingers,) each finger's total normal force on the object from the last step, newtons
+    (the sum of pybullet's ``normalForce`` over the contact records of its links; ``links``:
+    pybullet link index -> (finger, link), as :func:`finger_links` gives them)."""
+    forces = np.zeros(fingers)
     for rec in world.contact_points():
         if rec[3] in links:
             forces[links[rec[3]][0]] += rec[9]

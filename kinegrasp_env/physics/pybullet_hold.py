@@ -40,11 +40,12 @@ from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldRe
 from kinegrasp_env.physics.pybullet_closing import (
     MotorSettings,
     finger_forces,
+    finger_links,
     physics_close,
     world_contacts,
 )
 from kinegrasp_env.physics.pybullet_world import PhysicsWorld, WorldSettings
-from kinegrasp_env.robot.default_robot import FINGERTIP_LINKS
+from kinegrasp_env.robot.default_robot import FINGERS, FINGERTIP_LINKS
 from kinegrasp_env.world.objects import GraspObject
 
 
@@ -148,7 +149,7 @@ class PybulletSteps(WorldSteps):
         self.control.step(steps)
 
     def finger_forces(self) -> np.ndarray:
-        return finger_forces(self.world)
+        return finger_forces(self.world, finger_links(self.world), len(FINGERS))
 
     def save(self) -> None:
         self.state, self.anchor = self.world.bullet.saveState(), None

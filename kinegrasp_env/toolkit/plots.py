@@ -16,7 +16,7 @@ from kinegrasp_env.sampling.stats import ConvergenceCurve
 log = logging.getLogger(__name__)
 
 
-def _pyplot():
+def pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
@@ -38,7 +38,7 @@ def save_figure(fig, path: str | Path, dpi: int = 120) -> Path:
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
-        _pyplot().close(fig)
+        pyplot().close(fig)
     return path
 
 
@@ -69,7 +69,7 @@ def covariance_ellipse(mean: np.ndarray, cov: np.ndarray, n_std: float = 2.0,
 def plot_planar(joints: np.ndarray, samples: np.ndarray, mean: np.ndarray, cov: np.ndarray,
                 path: str | Path, title: str = "") -> Path:
     """Planar arm (nominal joints (k+1, 2)), sampled end effectors (n, 2), 2-sigma ellipse."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, (ax_arm, ax_zoom) = plt.subplots(1, 2, figsize=(10, 4.6))
     for ax in (ax_arm, ax_zoom):
         ax.plot(joints[:, 0], joints[:, 1], "-o", color="0.3", lw=3, ms=5, label="nominal arm")
@@ -96,7 +96,7 @@ def plot_convergence(curves: Mapping[str, Mapping[float, ConvergenceCurve]],
     Args:
         curves: arm label -> {sigma: ConvergenceCurve}.
     """
-    plt = _pyplot()
+    plt = pyplot()
     rows = len(curves)
     fig, axes = plt.subplots(rows, 3, figsize=(13, 3.6 * rows), squeeze=False)
     for r, (label, by_sigma) in enumerate(curves.items()):
@@ -123,7 +123,7 @@ def plot_contacts(mesh, draws, path: str | Path, title: str = "", max_normals: i
     """Contact points (and some normals) of Monte Carlo draws on the object, by finger
     (the paper's Figs. 7-8). ``draws`` is a DrawBatch; ``mesh`` a trimesh in the object
     frame."""
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(7, 6))
     ax = fig.add_subplot(projection="3d")
     v = mesh.vertices
@@ -178,7 +178,7 @@ def _pfc_lines(ax, rows: list[dict]) -> None:
 
 def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Path:
     """P(FC) with its 95% interval against sigma, one line per grasp (rows from table1)."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
     _pfc_lines(ax, rows)
     ax.set_title(title)
@@ -187,7 +187,7 @@ def plot_pfc_vs_sigma(rows: list[dict], path: str | Path, title: str = "") -> Pa
 
 def plot_sweep(rows: list[dict], path: str | Path, title: str = "") -> Path:
     """A sweep's P(FC) against sigma: one panel per object, one line per grasp."""
-    plt = _pyplot()
+    plt = pyplot()
     objects = list(dict.fromkeys(r["object"] for r in rows))
     fig, axes = plt.subplots(1, len(objects), figsize=(5 * len(objects), 4), squeeze=False)
     for ax, name in zip(axes[0], objects, strict=True):
@@ -199,7 +199,7 @@ def plot_sweep(rows: list[dict], path: str | Path, title: str = "") -> Path:
 
 def plot_contacts_pair(mesh, draws_list, labels, path: str | Path, title: str = "") -> Path:
     """Side-by-side contact scatters (Fig. 7): one 3-D panel per DrawBatch."""
-    plt = _pyplot()
+    plt = pyplot()
     fig = plt.figure(figsize=(12, 5.5))
     v = mesh.vertices
     lo, hi = v.min(axis=0), v.max(axis=0)
@@ -228,7 +228,7 @@ def plot_contacts_pair(mesh, draws_list, labels, path: str | Path, title: str = 
 
 def plot_success_quality(rows: list[dict], path: str | Path, title: str = "") -> Path:
     """Figs. 9-10: per object, P(FC) bars and mean Q (+- std) against nominal Q per grasp."""
-    plt = _pyplot()
+    plt = pyplot()
     objects = list(dict.fromkeys(r["object"] for r in rows))
     fig, axes = plt.subplots(2, len(objects), figsize=(3.6 * len(objects), 6), squeeze=False)
     for c, name in enumerate(objects):
@@ -252,99 +252,6 @@ def plot_success_quality(rows: list[dict], path: str | Path, title: str = "") ->
     return save_figure(fig, path)
 
 
-def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, path: str | Path,
-                     title: str = "") -> Path:
-    """P(FC) with its 95% interval along the self-motion (``curve``: dicts of psi [rad], p_fc,
-    p_fc_ci), the nominal and the best elbow angle marked."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    psi = np.array([c["psi"] for c in curve])
-    p = np.array([c["p_fc"] for c in curve])
-    lo = np.array([c["p_fc_ci"][0] for c in curve])
-    hi = np.array([c["p_fc_ci"][1] for c in curve])
-    ax.errorbar(psi, p, yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], fmt="o-", ms=3,
-                color="C0", ecolor="0.6", capsize=2, label="P(FC), selection draws")
-    ax.axvline(nominal_psi, color="C3", ls="--", label=f"nominal {nominal_psi:.2f} rad")
-    ax.axvline(best_psi, color="C2", ls="-", label=f"best {best_psi:.2f} rad")
-    ax.set_xlabel("elbow angle psi [rad]")
-    ax.set_ylabel("P(force closure)")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
-    return save_figure(fig, path)
-
-
-def plot_branches(result: dict, path: str | Path, title: str = "",
-                  picture: dict | None = None) -> Path:
-    """P(FC) of each IK branch of a 6-joint arm's grasp (``result``: ``BranchResult.
-    to_json()``): the selection draws' (or, with ``reweight``, the batch's re-weighted)
-    estimate with its 95% interval per branch, the fresh draws' beside it where a branch
-    has them, the nominal and the chosen branch marked; with a re-weighted run's
-    ``picture``, a second panel: the batch's fragile directions and both branches' error
-    ellipses (:func:`draw_fragility`)."""
-    plt = _pyplot()
-    curve = result["curve"]
-    width = max(4.5, 1.2 * len(curve) + 2.5)
-    if picture is None:
-        fig, ax = plt.subplots(figsize=(width, 4))
-    else:
-        fig, (ax, right) = plt.subplots(1, 2, figsize=(width + 5.5, 4.4))
-        draw_fragility(right, picture, "branch")
-    x = np.arange(len(curve))
-    p = np.array([c["p_fc"] for c in curve])
-    lo = np.array([c["p_fc_ci"][0] for c in curve])
-    hi = np.array([c["p_fc_ci"][1] for c in curve])
-    ax.bar(x - 0.18, p, 0.36, color="C0",
-           label=("P(FC), re-weighted batch" if "reweight" in result
-                  else "P(FC), selection draws"),
-           yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], ecolor="0.4", capsize=3)
-    fresh = [i for i, c in enumerate(curve) if "fresh_p_fc" in c]
-    ax.bar(x[fresh] + 0.18, [curve[i]["fresh_p_fc"] for i in fresh], 0.36, color="C1",
-           label="P(FC), fresh draws")
-    labels = [f"{c['branch']}\n{c['label'].replace(' ', chr(10))}" for c in curve]
-    ax.set_xticks(x, labels, fontsize=7)
-    marks = [(result["nominal_branch"], "nominal", "C3"), (result["best_branch"], "chosen", "C2")]
-    if marks[0][0] == marks[1][0]:
-        marks = [(marks[0][0], "nominal = chosen", "C2")]
-    for branch, name, colour in marks:
-        ax.get_xticklabels()[branch].set_color(colour)
-        ax.annotate(name, (branch, 1.02), ha="center", color=colour, fontsize=8,
-                    xycoords=("data", "axes fraction"))
-    ax.set_ylim(0, 1)
-    ax.set_xlabel("IK branch (sign of det J and of the joints that tell the branches apart)")
-    ax.set_ylabel("P(force closure)")
-    ax.set_title(title, pad=16)
-    ax.legend(fontsize=8, loc="lower right")
-    return save_figure(fig, path)
-
-
-def plot_elbow_fragility(curve: list[dict], nominal_psi: float, best_psi: float,
-                         picture: dict, path: str | Path, title: str = "") -> Path:
-    """Two panels. Left: P(FC) with its 95% band along the self-motion (``curve`` as
-    :func:`plot_elbow_curve`'s). Right: the batch's palm deviations in the two most fragile
-    directions (``picture``: ``points`` (m, 2), ``fc`` (m,), ``ellipses`` {label: (2, 2)
-    covariance}, ``labels`` (2,), ``spread`` (2,)), force closure grey, failures red, and each
-    elbow's 2-s.d. error ellipse: the elbow whose ellipse is shorter along the fragile
-    direction fails less."""
-    plt = _pyplot()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(13, 4.6))
-    psi = np.array([c["psi"] for c in curve])
-    p = np.array([c["p_fc"] for c in curve])
-    lo = np.array([c["p_fc_ci"][0] for c in curve])
-    hi = np.array([c["p_fc_ci"][1] for c in curve])
-    left.fill_between(psi, lo, hi, color="C0", alpha=0.2, label="95% interval")
-    left.plot(psi, p, "o-", ms=3, color="C0", label="P(FC), re-weighted")
-    left.axvline(nominal_psi, color="C3", ls="--", label=f"nominal {nominal_psi:.2f} rad")
-    left.axvline(best_psi, color="C2", label=f"best {best_psi:.2f} rad")
-    left.set_xlabel("elbow angle psi [rad]")
-    left.set_ylabel("P(force closure)")
-    left.xaxis.set_major_locator(few_ticks(6))  # the default's many ticks ran into each other
-    left.legend(fontsize=8)
-    draw_fragility(right, picture, "elbow")
-    fig.suptitle(title)
-    fig.tight_layout()
-    return save_figure(fig, path)
-
-
 def few_ticks(count: int):
     """A matplotlib locator of at most ``count`` round ticks."""
     from matplotlib.ticker import MaxNLocator
@@ -352,32 +259,11 @@ def few_ticks(count: int):
     return MaxNLocator(count)
 
 
-def draw_fragility(ax, picture: dict, noun: str) -> None:
-    """On ``ax``: a batch's palm deviations in the two most fragile directions (``picture``:
-    ``points`` (m, 2), ``fc`` (m,), ``ellipses`` {label: (2, 2) covariance}, ``labels``
-    (2,), ``spread`` (2,); :meth:`~kinegrasp_env.toolkit.reweight_evidence.
-    ReweightEvidence.picture`), force closure grey, failures red, and each configuration's
-    2-s.d. error ellipse, labelled "<label> ``noun``" (``elbow``, ``branch``)."""
-    pts, fc = np.asarray(picture["points"]), np.asarray(picture["fc"], dtype=bool)
-    ax.scatter(pts[fc, 0], pts[fc, 1], s=3, color="0.75", label="force closure")
-    ax.scatter(pts[~fc, 0], pts[~fc, 1], s=4, color="C3", alpha=0.6, label="lost")
-    for (label, cov), color in zip(picture["ellipses"].items(), ("C3", "C2"), strict=False):
-        ring = covariance_ellipse(np.zeros(2), np.asarray(cov))
-        ax.plot(ring[:, 0], ring[:, 1], color=color, lw=2, label=f"{label} {noun}, 2 s.d.")
-    xl, yl = picture["labels"]
-    s1, s2 = picture["spread"]
-    ax.set_xlabel(f"fragile direction 1 ({xl}; failures x{s1:.1f} spread) [s.d.]")
-    ax.set_ylabel(f"fragile direction 2 ({yl}; x{s2:.1f}) [s.d.]")
-    ax.set_aspect("equal", adjustable="datalim")
-    # beside the axes: inside, it covered the deviations it explains
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
-
-
 def plot_sensitivity(result: dict, path: str | Path, title: str = "") -> Path:
     """Bars per noise source (``result``: ``Sensitivity.to_json()``): left, the first-order
     and total Sobol indices of force closure with their intervals; right, P(FC) with the
     source alone and with all but it, the line at P(FC) with every source."""
-    plt = _pyplot()
+    plt = pyplot()
     rows = result["sources"]
     names = [r["source"] for r in rows]
     x = np.arange(len(names))

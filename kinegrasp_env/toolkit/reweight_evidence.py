@@ -40,7 +40,7 @@ class ReweightEvidence:
     _pictures: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def picture(self, points: int = 3000) -> dict | None:
-        """What :func:`~kinegrasp_env.toolkit.plots.plot_elbow_fragility` draws: ``points``
+        """What :func:`~kinegrasp_env.toolkit.elbow_plots.plot_elbow_fragility` draws: ``points``
         of the batch's deviations in the two most fragile directions under the nominal
         elbow's distribution, their outcomes, and both elbows' covariances seen there (None
         where no draw of the batch loses force closure). Computed once per ``points``: the
