@@ -184,3 +184,22 @@ def test_the_library_takes_a_friction_sources_nominal_mu_too():
     by_hand = ferrari_canny(grasp.points, grasp.normals, friction=0.8,
                             torque_scale=obj.torque_scale, center=obj.center_of_mass)
     assert run.q_nominal == pytest.approx(by_hand, rel=1e-7)
+
+
+@pytest.mark.parametrize("source, said", [("{distribution: fixed, value: 0.3}",
+                                           "friction mu 0.3"),
+                                          ("{distribution: uniform, low: 0.2, high: 0.4}",
+                                           "friction mu per draw")])
+def test_a_fixed_source_is_the_runs_mu_not_a_draw(capsys, tmp_path, source, said):
+    """A ``fixed`` friction source gives every draw its value: ``evaluate`` names that mu
+    (and its JSON keeps it), as it does a ``--friction``; a source of a distribution is mu
+    per draw (no one friction in the JSON)."""
+    spec = tmp_path / "noise.yaml"
+    spec.write_text(f"joints: {{sigma: 0.01}}\nfriction: {source}\n")
+    args = ["evaluate", "--object", "cube", "--noise-spec", str(spec), "--samples", "4",
+            "--engine", "fast"]
+    assert main(args) == 0
+    assert said in capsys.readouterr().out.splitlines()[0]
+    assert main([*args, "--json"]) == 0
+    record = json.loads(capsys.readouterr().out)
+    assert record.get("friction") == (0.3 if "fixed" in source else None)

@@ -278,6 +278,22 @@ def test_full_orientation_as_a_data_set_gives_it(tabled, capsys):
     assert sorted(p.name for p in catalog_dir().iterdir()) == before
 
 
+def test_place_echoes_a_small_turn_and_no_negative_zero(capsys):
+    """The echo of ``objects place`` is read from the pose as stored, not the listing's
+    rounded row: a turn of a thousandth of a degree is a turn (it read "default
+    placement"), and a position a hundredth of a millimetre below 0 prints 0.000."""
+    from kinegrasp_env.cli.main import main
+
+    assert main(["objects", "place", "cube", "--as", "cube_turned", "--force",
+                 "--yaw", "-1e-3"]) == 0
+    out = capsys.readouterr().out
+    assert "yaw -0.001 deg" in out and "default placement" not in out, out
+    assert main(["objects", "place", "cube", "--as", "cube_moved", "--force",
+                 "--position", "-1e-5", "0.6", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "at (0.000, 0.600, 0.000) m" in out and "-0.000" not in out, out
+
+
 @pytest.mark.expensive
 def test_place_cli_errors_write_nothing(tabled, tmp_path):
     from kinegrasp_env.world.store import catalog_dir

@@ -227,8 +227,10 @@ def add_friction_arg(parser: argparse.ArgumentParser) -> None:
 
 def friction_per_draw(noise) -> bool:
     """Whether ``noise`` (a noise model, joint noise or None) draws mu per draw: a noise
-    spec's friction source."""
-    return getattr(noise, "friction", None) is not None
+    spec's friction source of a distribution (a ``fixed`` one gives every draw its value,
+    which is then the run's mu)."""
+    source = getattr(noise, "friction", None)
+    return source is not None and source.distribution != "fixed"
 
 
 def friction_setting(noise, friction: float) -> float | str:
@@ -249,9 +251,9 @@ def friction_from(args, noise=None) -> float:
     from kinegrasp_env.sampling.noise_model import nominal_friction
 
     text = getattr(args, "friction", None)
-    if friction_per_draw(noise) and text is not None:
-        raise CLIError("--friction and the noise spec's friction source both set mu: the "
-                       "source draws mu per draw; give one of them")
+    if getattr(noise, "friction", None) is not None and text is not None:
+        raise CLIError("--friction and the noise spec's friction source both set mu: give "
+                       "one of them")
     value = DEFAULT_FRICTION if text is None else finite_float(text, "--friction")
     try:
         check_parameters(value, NUM_EDGES)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from kinegrasp_env.cli.common import CLIError, finite_float, positive_float, reported
+from kinegrasp_env.wording import fixed
 
 
 def table_setting(args):
@@ -51,7 +52,7 @@ def cmd_place(args) -> int:
     from kinegrasp_env.world.catalog_listing import placement_fields
     from kinegrasp_env.world.objects import load_object
 
-    fields = placement_fields(load_object(name))
+    fields = placement_fields(load_object(name), rounded=False)  # a small turn is no default
     print(f"{name}: {placement_note(fields).lstrip('; ') or 'default placement, no table'}")
     return 0
 
@@ -61,15 +62,16 @@ def placement_note(row: dict) -> str:
     m`` when there is a table (empty otherwise), for a catalog row."""
     from kinegrasp_env.world.names import OBJECT_POSITION
 
+    def metres(v) -> str:
+        return "(" + ", ".join(fixed(x, 3) for x in v) + ")"
+
     note = ""
-    x, y, z = row["position"]
     if row["yaw"] is None:  # tilted
-        qx, qy, qz, qw = row["orientation"]
-        note += (f"; at ({x:.3f}, {y:.3f}, {z:.3f}) m, orientation ({qx:.4f}, {qy:.4f}, "
-                 f"{qz:.4f}, {qw:.4f})")
+        note += (f"; at {metres(row['position'])} m, orientation ("
+                 f"{', '.join(fixed(v, 4) for v in row['orientation'])})")
     elif any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION,
                                                  strict=True)) or abs(row["yaw"]) > 1e-9:
-        note += f"; at ({x:.3f}, {y:.3f}, {z:.3f}) m, yaw {math.degrees(row['yaw']):.1f} deg"
+        note += f"; at {metres(row['position'])} m, yaw {math.degrees(row['yaw']):.4g} deg"
     if row["table"] is not None:
         sx, sy = row["table"]["size"]
         note += f"; on a {sx:.2f} x {sy:.2f} m table"

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.wording import fixed
 
 #: The closing joints' step for the closing directions (radians or metres): pybullet's link
 #: frames are good to ~1e-8 m, so directions to ~1e-5.
@@ -51,8 +52,8 @@ class HandFrame:
 
     def lines(self) -> list[str]:
         """The frame in words, one fact a line."""
-        def vec(v):  # rounded first, so that -1e-17 prints as +0.000, not -0.000
-            return "(" + ", ".join(f"{round(float(x), 3) + 0.0:+.3f}" for x in v) + ")"
+        def vec(v):
+            return "(" + ", ".join(fixed(x, 3, "+") for x in v) + ")"
 
         out = [f"palm frame: link {self.palm_link} (a pose of the hand is this link's pose)",
                f"  fingertip centre {vec(self.centre)} m: approach axis {vec(self.approach)}, "

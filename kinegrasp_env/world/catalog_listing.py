@@ -46,17 +46,21 @@ def catalog() -> list[dict]:
     return rows + [placed_row(name, entry, rows) for name, entry in placed]
 
 
-def placement_fields(obj: GraspObject) -> dict:
+def placement_fields(obj: GraspObject, rounded: bool = True) -> dict:
     """A catalog row's placement: ``position`` (3,) metres, ``yaw`` radians (of an upright
     object; None for a tilted one), ``orientation`` (4,) quaternion [x, y, z, w] and
-    ``table`` (:meth:`SupportTable.to_dict` or None)."""
+    ``table`` (:meth:`SupportTable.to_dict` or None); ``rounded``: to the listing's digits
+    (4 for metres and radians, 6 for the quaternion), else as the pose holds them."""
     from scipy.spatial.transform import Rotation
 
     from kinegrasp_env.world.support import is_upright, pose_yaw
 
-    return {"position": [round(float(v), 4) for v in obj.pose[:3, 3]],
-            "yaw": round(pose_yaw(obj.pose), 4) if is_upright(obj.pose) else None,
-            "orientation": [round(float(v), 6)
+    def kept(value: float, digits: int) -> float:
+        return round(float(value), digits) if rounded else float(value)
+
+    return {"position": [kept(v, 4) for v in obj.pose[:3, 3]],
+            "yaw": kept(pose_yaw(obj.pose), 4) if is_upright(obj.pose) else None,
+            "orientation": [kept(v, 6)
                             for v in Rotation.from_matrix(obj.pose[:3, :3]).as_quat()],
             "table": None if obj.table is None else obj.table.to_dict()}
 
