@@ -72,7 +72,7 @@ REL_TOL = 1e-11  # beyond/visible tolerance, relative to the wrench scale
 NEAREST_BAND = 1e-9
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _nearest_facet(offset: np.ndarray, alive: np.ndarray, count: int) -> int:
     """The live facet of smallest offset among the first ``count``."""
     near = -1
@@ -82,7 +82,7 @@ def _nearest_facet(offset: np.ndarray, alive: np.ndarray, count: int) -> int:
     return near
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _furthest_beyond(w: np.ndarray, a: np.ndarray, limit: float) -> int:
     """The wrench furthest along ``a`` (6,) beyond ``limit``, -1 if none is."""
     far = -1
@@ -97,7 +97,7 @@ def _furthest_beyond(w: np.ndarray, a: np.ndarray, limit: float) -> int:
     return far
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _mark_visible(w, far, poly, count, tol) -> None:
     """Mark the live facets that see wrench ``far`` (more than tol beyond them: poly's
     ``visible``) and how far beyond (``height``)."""

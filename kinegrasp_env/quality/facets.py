@@ -83,7 +83,7 @@ def hyperplane(w: np.ndarray, verts: np.ndarray, interior: np.ndarray,
     return _oriented_offset(out, w[verts[0]], interior)
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _oriented_offset(normal: np.ndarray, vertex: np.ndarray, interior: np.ndarray) -> float:
     """Offset b (a . x = b) of the hyperplane with unit normal ``normal`` (6,) through
     ``vertex`` (6,), the normal flipped in place (and b with it) where it points towards
@@ -170,7 +170,7 @@ def new_ridges():
     return np.empty(table, np.int64), np.empty(table, np.int64)
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def pencil_facet(w, poly, g, f, h, scale) -> bool:
     """Hyperplane of new facet g from those of the facets f (visible from its apex, the
     wrench ``verts[g, 5]``) and h (not) that share its ridge: every hyperplane through that
@@ -210,7 +210,7 @@ def pencil_facet(w, poly, g, f, h, scale) -> bool:
     return True
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _vertex_set(verts: np.ndarray) -> np.int64:
     """The 6 vertex ids (each < :data:`MAX_POINTS` = 64) of a facet as the bits of one
     integer: a set, whatever their order, so that a ridge's key needs no sorting."""
@@ -220,7 +220,7 @@ def _vertex_set(verts: np.ndarray) -> np.int64:
     return bits
 
 
-@jit.kernel(_nrt=False)
+@jit.kernel(_nrt=False, inline="always")
 def _slot(key: np.int64, mask: np.int64) -> np.int64:
     """Hash slot of a ridge key in a table of mask + 1 (a power of two <= 2^16) slots:
     Fibonacci hashing, the key times 2^64 / golden ratio modulo 2^64 (the product wraps, as
