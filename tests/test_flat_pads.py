@@ -166,3 +166,25 @@ def test_spanning_a_face_is_the_second_singular_value_of_the_points():
     line = np.array([[t, 0, 0] for t in (0, 0.01, 0.02, 0.03)], dtype=float)
     flags = np.ones((2, 4), dtype=bool)
     assert spans_a_face(np.stack([square, line]), flags, PATCH_DEPTH).tolist() == [True, False]
+
+
+def test_a_finger_without_a_closing_joint_is_named(tmp_path, monkeypatch):
+    """Two jaws on joints of their own, the description giving a close direction to one:
+    the other finger has no closing joint, and the refusal says which joint wants one (it
+    said the finger had no collision geometry on "( in jaws.urdf)": an empty list)."""
+    from kinegrasp_env.robot.description import RobotDescriptionError, load_description
+
+    meshes = IIWA.parent / "meshes"
+    text = IIWA.read_text().replace('filename="meshes/', f'filename="{meshes}/')
+    free = re.sub(r"\n\s*<mimic [^>]*/>", "", JAWS)
+    (tmp_path / "jaws.urdf").write_text(re.sub(r"</robot>\s*$", free, text))
+    description = {"name": "two_jaws", "urdf": "jaws.urdf",
+                   "arm_joints": [f"lbr_iiwa_joint_{i}" for i in range(1, 8)],
+                   "palm_link": "gripper_palm",
+                   "hand_joints": ["finger_left_joint", "finger_right_joint"],
+                   "close": {"finger_left_joint": 1}}
+    (tmp_path / "jaws.yaml").write_text(yaml.safe_dump(description))
+    with pytest.raises(RobotDescriptionError) as info:
+        load_description(tmp_path / "jaws.yaml")
+    assert str(info.value) == ("jaws.yaml: close: the finger ending at 'finger_right' has no "
+                               "closing joint: give 'finger_right_joint' a close direction")

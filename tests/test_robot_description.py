@@ -326,6 +326,10 @@ BAD = {
                                               "hand_joints": ["joint6"],
                                               "close": {"joint6": 1}},
                                    "hand_joints", "'joint6' moves link 'link6'"),
+    "a joint beyond the palm in neither list": (
+        lambda t: {"arm_joints": XARM_DESCRIPTION["arm_joints"][:5], "palm_link": "link5"},
+        "hand_joints", "'joint6' is a movable joint beyond palm_link 'link5' that is in "
+        "neither arm_joints nor hand_joints"),
     "close 2": (lambda t: {"close": {"drive_joint": 2}}, "close", "2 is not +1 or -1"),
     "close toward the open limit": (lambda t: {"close": {"drive_joint": -1}}, "close",
                                     "drive_joint: -1 closes toward its lower limit 0, where "

@@ -166,6 +166,19 @@ def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
         assert main(command) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and words in err[0], (command, err)
+    # one closing sigma per finger of the robot: two for the Panda's two fingers; four for
+    # the default robot's three refused naming its fingers in the order the values take
+    # (the parser took one or three values alone, then the robot check asked for one)
+    two = tmp_path / "two.yaml"
+    two.write_text("hand: {closing_sigma: [0.001, 0.002]}\n")
+    assert main([*args, "--noise-spec", str(two)]) == 0
+    capsys.readouterr()
+    four = tmp_path / "four.yaml"
+    four.write_text("hand: {closing_sigma: [0.001, 0.002, 0.003, 0.004]}\n")
+    assert main([*args[:2], "kuka_sdh", *args[3:], "--noise-spec", str(four)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "robot 'kuka_sdh' has 3 fingers (" in err[0] and \
+        "one per finger in that order" in err[0], err
 
 
 def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys):

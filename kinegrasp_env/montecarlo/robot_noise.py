@@ -67,8 +67,7 @@ def hand_layout(description: RobotDescription) -> np.ndarray:
 def check_hand(hand: HandSource, robot: str | RobotDescription) -> None:
     """ValueError (one line) for a hand source that ``robot``'s hand (the robot, or its
     catalog name) cannot take: a spread sigma where every hand joint closes a finger,
-    per-finger closing sigmas (a spec takes one sigma or three) for a hand with another
-    number of fingers."""
+    per-finger closing sigmas of another number than the hand's fingers."""
     if isinstance(robot, str):
         from kinegrasp_env.robot.catalog import load_robot
 
@@ -82,8 +81,10 @@ def check_hand(hand: HandSource, robot: str | RobotDescription) -> None:
         raise ValueError(f"the hand of robot {robot!r} has no pre-shape joint besides its fingers' "
                          "closing joints: drop hand.spread_sigma")
     if np.ndim(hand.closing_sigma) == 1 and len(hand.closing_sigma) not in (1, fingers):
+        tips = ", ".join(f.tip for f in description.fingers)
         raise ValueError(f"hand.closing_sigma has {len(hand.closing_sigma)} values; robot "
-                         f"{robot!r} has {fingers} fingers (give one sigma for them all)")
+                         f"{robot!r} has {fingers} fingers ({tips}): give one sigma for them "
+                         "all, or one per finger in that order")
 
 
 def hand_offsets(z: np.ndarray, hand: HandSource, description: RobotDescription

@@ -274,6 +274,18 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
             problem = (f"{list(arm)} is not the chain from the base {model.base_link!r} to "
                        f"palm_link {palm!r}: its movable joints are {chain}")
         raise fail(where, "arm_joints", problem)
+    # every movable joint is an arm or a hand joint, or a mimic joint that follows one
+    listed = set(arm) | set(hand)
+    for joint in movable.values():
+        if (joint.mimic[0] if joint.mimic is not None else joint.name) in listed:
+            continue
+        if palm in ancestors(joint.parent):
+            raise fail(where, "hand_joints", f"{joint.name!r} is a movable joint beyond "
+                       f"palm_link {palm!r} that is in neither arm_joints nor hand_joints: "
+                       "list it in hand_joints, or make palm_link a link beyond it")
+        raise fail(where, "urdf", f"{joint.name!r} is a movable joint of {urdf.name} in "
+                   "neither arm_joints nor hand_joints (nor a mimic joint of one): every "
+                   "movable joint must be one of them")
 
     close = {}
     for j, d in check_mapping(data["close"], where, "close").items():
@@ -318,6 +330,11 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     for tip in tips:
         on_path = below_palm(tip)
         closing = [j for j in on_path if j.movable and driver[j.name][0] in close]
+        if not closing:
+            drivers = dict.fromkeys(driver[j.name][0] for j in on_path
+                                    if j.movable and driver[j.name][0] in hand)
+            raise fail(where, "close", f"the finger ending at {tip!r} has no closing joint: "
+                       f"give {' or '.join(map(repr, drivers))} a close direction")
         fingers.append(Finger(tip, tuple(j.name for j in closing),
                               tuple(j.child for j in closing),
                               tuple(int(close[driver[j.name][0]]

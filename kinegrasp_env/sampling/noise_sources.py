@@ -29,9 +29,10 @@ class NoiseSpecError(ValueError):
 
 
 # ----------------------------------------------------------------------------- value checks
-def values(value, name: str, lengths: tuple[int, ...] | None = (1,)) -> np.ndarray:
+def values(value, name: str, lengths: tuple[int, ...] | None = (1,),
+           each: str = "arm joint") -> np.ndarray:
     """``value`` as a float vector of one of ``lengths`` (a scalar has length 1; None: any
-    length from 1), finite."""
+    length from 1, one value per ``each``), finite."""
     if isinstance(value, bool) or isinstance(value, str):
         raise NoiseSpecError(f"{name} must be a number or a list of numbers, got {value!r}")
     try:
@@ -40,7 +41,7 @@ def values(value, name: str, lengths: tuple[int, ...] | None = (1,)) -> np.ndarr
         raise NoiseSpecError(f"{name} must be a number or a list of numbers, "
                              f"got {value!r}") from None
     if lengths is None and (arr.ndim != 1 or arr.size == 0):
-        raise NoiseSpecError(f"{name} must be a scalar or one value per arm joint, "
+        raise NoiseSpecError(f"{name} must be a scalar or one value per {each}, "
                              f"got {value!r}")
     if lengths is not None and (arr.ndim != 1 or arr.size not in lengths):
         wanted = " or ".join("a scalar" if n == 1 else f"{n} values" for n in lengths)
@@ -51,9 +52,10 @@ def values(value, name: str, lengths: tuple[int, ...] | None = (1,)) -> np.ndarr
 
 
 def sigmas(value, name: str, lengths: tuple[int, ...] | None = (1, 3),
-           bound: float = math.inf) -> float | tuple[float, ...]:
-    """Standard deviations: finite, >= 0 and <= ``bound``; a float or a tuple."""
-    arr = values(value, name, lengths)
+           bound: float = math.inf, each: str = "arm joint") -> float | tuple[float, ...]:
+    """Standard deviations: finite, >= 0 and <= ``bound``; a float or a tuple (``lengths``,
+    ``each``: :func:`values`)."""
+    arr = values(value, name, lengths, each)
     if np.any(arr < 0):
         raise NoiseSpecError(f"{name} must be >= 0, got {value!r}")
     if np.any(arr > bound):
@@ -215,8 +217,10 @@ class JointsSource:
 
 @dataclass(frozen=True)
 class HandSource:
-    """Hand pre-shape error: ``spread_sigma`` (rad) on the spread, ``closing_sigma`` (scalar
-    or 3, rad) per finger, added to both flexion joints of the finger."""
+    """Hand pre-shape error: ``spread_sigma`` (rad) on the spread, ``closing_sigma`` (rad; a
+    scalar, or one per finger of the robot, in the order its description lists the fingers:
+    checked against the robot by :func:`~kinegrasp_env.montecarlo.robot_noise.check_hand`)
+    added to the finger's closing joints."""
 
     spread_sigma: float = 0.0
     closing_sigma: float | tuple[float, ...] = 0.0
@@ -225,10 +229,15 @@ class HandSource:
         object.__setattr__(self, "spread_sigma",
                            sigmas(self.spread_sigma, "hand.spread_sigma", (1,), MAX_ANGLE))
         object.__setattr__(self, "closing_sigma",
-                           sigmas(self.closing_sigma, "hand.closing_sigma", (1, 3), MAX_ANGLE))
+                           sigmas(self.closing_sigma, "hand.closing_sigma", None, MAX_ANGLE,
+                                  "finger"))
 
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """(size, 4) offsets, radians: spread, fingers 1, 2, 3."""
+        """(size, 4) offsets, radians: spread, fingers 1, 2, 3 (the default robot's hand;
+        ValueError for closing sigmas of another number of fingers)."""
+        if np.size(self.closing_sigma) not in (1, 3):
+            raise ValueError(f"hand.closing_sigma has {np.size(self.closing_sigma)} values; "
+                             "the default robot's hand has 3 fingers")
         scale = np.concatenate([[self.spread_sigma], broadcast(self.closing_sigma, 3)])
         return rng.standard_normal((size, 4)) * scale
 

@@ -6,7 +6,7 @@ The shape (every section optional; a missing one is an exact source)::
     joints:   {sigma: 0.0133, distribution: gaussian}   # sigma: scalar or one per arm joint
               # (radians); or covariance: d x d for d arm joints (rad^2, symmetric PSD);
               # optional bias: scalar or one per arm joint (radians)
-    hand:     {spread_sigma: 0.0, closing_sigma: 0.0}   # radians; closing: scalar or 3
+    hand:     {spread_sigma: 0.0, closing_sigma: 0.0}   # radians; closing: scalar or one per finger
     palm:     {translation_sigma: 0.0, rotation_sigma: 0.0}    # metres, radians; scalar or 3
     object:   {translation_sigma: 0.01, rotation_sigma: 0.01}  # metres, radians; scalar or 3
     friction: {distribution: gaussian, mean: 0.5, sigma: 0.1}  # truncated at mu = 0;
