@@ -66,7 +66,7 @@ def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umas
     csv_rows = _read(tmp_path / "table1.csv")
     # backward compatible: the old columns first, in their old order; new ones appended
     assert list(csv_rows[0]) == ["grasp", "sigma", "q_nominal", "q_mean", "q_var", "p_fc",
-                                 "p_fc_lo", "p_fc_hi", "samples", "q_skew", "robot"]
+                                 "p_fc_lo", "p_fc_hi", "samples", "q_skew", "robot", "id"]
     assert float(csv_rows[1]["q_skew"]) == pytest.approx(rows[1]["q_skew"], rel=1e-12)
     for name in ("table1.csv", "table1.md", "pfc_vs_sigma.png"):
         assert _mode(tmp_path / name) == 0o666 & ~0o027, name
@@ -75,6 +75,21 @@ def test_table1_at_certain_force_closure_writes_tables_and_figure(tmp_path, umas
     assert "radians" in text.splitlines()[0]
     lo, hi = wilson_interval(round(rows[1]["p_fc"] * 10), 10)
     assert f"{rows[1]['p_fc']:.3f} [{lo:.3f}, {hi:.3f}]" in text
+
+
+def test_table1_names_each_grasp_by_its_id(tmp_path):
+    """A row's ``grasp`` is its index among the grasps given, its ``id`` the grasp's own id,
+    which the table and the figure's legend show: a set of grasps 3 and 0 (or a grasp file
+    with variants "0v1") was listed as grasps 0 and 1."""
+    from kinegrasp_env.robot.catalog import load_robot
+
+    grasps = [shipped_grasps("cube")[3], shipped_grasps("cube")[0]]
+    rows = experiments.table1(load_robot("kuka_sdh"), "cube", grasps, 4, tmp_path,
+                              sigmas=(0.0,), seed=0)
+    assert [(r["grasp"], r["id"]) for r in rows] == [(0, "3"), (1, "0")]
+    table = (tmp_path / "table1.md").read_text().splitlines()
+    assert [line.split("|")[1].strip() for line in table[-2:]] == ["3", "0"]
+    assert [r["id"] for r in _read(tmp_path / "table1.csv")] == ["3", "0"]
 
 
 def test_markdown_table1_cells():

@@ -75,7 +75,7 @@ def markdown_table1(rows: list[dict], object_name: str, samples: int) -> str:
     for grasp in sorted({r["grasp"] for r in rows}):
         cells = {r["sigma"]: r for r in rows if r["grasp"] == grasp}
         first = next(iter(cells.values()))
-        lines.append(f"| {grasp} | {_fmt(first['q_nominal'])} | "
+        lines.append(f"| {first.get('id', grasp)} | {_fmt(first['q_nominal'])} | "
                      + " | ".join(_cell_text(cells[s]) for s in sigmas) + " |")
     return "\n".join(lines) + "\n"
 
@@ -124,7 +124,8 @@ def table1(description: RobotDescription, object_name: str, grasps: Sequence[Gra
                  engine: str = "pybullet", friction: float = 0.5,
                  executor: Executor | None = None, progress: bool = False) -> list[dict]:
     """Table I of ``grasps`` (grasps of ``description`` on ``object_name``; a row's ``grasp``
-    is its index among them) at each sigma (radians); writes the module's files.
+    is its index among them, its ``id`` the grasp's id, which the table and the figure show)
+    at each sigma (radians); writes the module's files.
     ``executor``: each evaluation's draws in chunks on it (the same draws, row for row);
     ``progress``: a line per cell on stderr, or a bar on a terminal that moves as the
     chunks of a run on ``executor`` come back (:class:`~kinegrasp_env.toolkit.progress.
@@ -143,11 +144,11 @@ def table1(description: RobotDescription, object_name: str, grasps: Sequence[Gra
                              "q_mean": stats.q_mean, "q_var": stats.q_std ** 2,
                              "p_fc": stats.p_fc, "p_fc_lo": stats.ci[0],
                              "p_fc_hi": stats.ci[1], "samples": samples,
-                             "q_skew": stats.q_skew})
+                             "q_skew": stats.q_skew, "id": str(grasp.id)})
     out = Path(out_dir)
     title = f"{object_name} (robot {description.name})"
     write_rows(out, "table1.csv", [{**r, "robot": description.name} for r in rows],
-               (*TABLE1_COLUMNS, "robot"))
+               (*TABLE1_COLUMNS, "robot", "id"))
     write_atomic(out / "table1.md", markdown_table1(rows, title, samples))
     safe_figure(lambda: plot_pfc_vs_sigma(rows, out / "pfc_vs_sigma.png",
                                           title=f"{title}: P(FC) vs noise"),

@@ -168,7 +168,8 @@ def _pfc_lines(ax, rows: list[dict]) -> None:
         p = np.array([r["p_fc"] for r in sub])
         lo = np.array([r["p_fc_lo"] for r in sub])
         hi = np.array([r["p_fc_hi"] for r in sub])
-        ax.errorbar(sig, p, yerr=[p - lo, hi - p], marker="o", capsize=3, label=f"grasp {grasp}")
+        ax.errorbar(sig, p, yerr=[p - lo, hi - p], marker="o", capsize=3,
+                    label=f"grasp {sub[0].get('id', grasp)}")
     ax.set_xlabel("joint noise sigma [rad]")
     ax.set_ylabel("P(force closure)")
     ax.set_ylim(-0.02, 1.02)
