@@ -188,3 +188,94 @@ def test_a_finger_without_a_closing_joint_is_named(tmp_path, monkeypatch):
         load_description(tmp_path / "jaws.yaml")
     assert str(info.value) == ("jaws.yaml: close: the finger ending at 'finger_right' has no "
                                "closing joint: give 'finger_right_joint' a close direction")
+
+
+def knuckle(side: str, sign: int) -> str:
+    """URDF text of one box finger (3 x 1.2 x 10 cm) on a revolute knuckle of the palm,
+    5.5 cm out along y, turning about x towards the palm's axis."""
+    lower, upper = (-0.2, 1.2) if sign > 0 else (-1.2, 0.2)
+    box = '<origin xyz="0 0 0.05"/><geometry><box size="0.03 0.012 0.1"/></geometry>'
+    return f"""
+  <joint name="{side}_knuckle" type="revolute">
+    <parent link="gripper_palm"/><child link="{side}_finger"/>
+    <origin xyz="0 {0.055 * sign} 0.04"/><axis xyz="1 0 0"/>
+    <limit lower="{lower}" upper="{upper}" effort="20" velocity="2"/>
+  </joint>
+  <link name="{side}_finger">
+    <inertial><mass value="0.05"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0"
+      izz="1e-5"/></inertial>
+    <collision>{box}</collision>
+  </link>"""
+
+
+@pytest.mark.expensive
+def test_tilted_box_pads_close_alike_in_both_engines(tmp_path, monkeypatch, capsys):
+    """Two box fingers on knuckles of their own: a turning pad meets a face with its tip's
+    edge. pybullet keeps a 1 mm margin on a URDF box (shrunk by 1 mm, its edges rounded by
+    1 mm), so an edge contact measured 1 mm x (cos t + sin t - 1) too far and the reference's
+    fingers stopped 1.7e-3 rad late; and the fast engine's closest point on a pad edge lying
+    across a face fell at either end of it, the face's edge or inside (the two fingers of one
+    symmetric grasp differed), so one scored a face contact at its patch centre and the other
+    an edge contact 1 cm away (Q 0.033 against the reference's 0.053). The reference engine
+    (pybullet's closest points) and the fast one (the package's own convex distance) now close
+    alike: the same contacts to 1e-6 m and Q to 1e-6 relative at the planned poses, and the
+    same contacts to 1e-6 m on all but a few noisy draws (a finger starting within the start
+    tolerance inside the cube, where pybullet's penetration depth is its own)."""
+    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.world.grasps import load_grasps
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path)
+    meshes = IIWA.parent / "meshes"
+    text = IIWA.read_text().replace('filename="meshes/', f'filename="{meshes}/')
+    hand = re.sub(r'\s*<joint name="finger_left_joint".*', "", JAWS, flags=re.S)
+    hand += knuckle("left", 1) + knuckle("right", -1) + "\n</robot>\n"
+    (tmp_path / "knuckles.urdf").write_text(re.sub(r"</robot>\s*$", hand, text))
+    description = {"name": "iiwa_knuckles", "urdf": "knuckles.urdf",
+                   "arm_joints": [f"lbr_iiwa_joint_{i}" for i in range(1, 8)],
+                   "palm_link": "gripper_palm",
+                   "hand_joints": ["left_knuckle", "right_knuckle"],
+                   "close": {"left_knuckle": 1, "right_knuckle": -1},
+                   "open": {"left_knuckle": 0.0, "right_knuckle": 0.0}}
+    (tmp_path / "knuckles.yaml").write_text(yaml.safe_dump(description))
+    run(capsys, "robots", "add", str(tmp_path / "knuckles.yaml"))
+    run(capsys, "plan", "--robot", "iiwa_knuckles", "--object", "cube", "--count", "3",
+        "--seed", "0", "--out", "g.json")
+    grasps = load_grasps(tmp_path / "g.json")
+    robot = load_robot("iiwa_knuckles")
+    rng = np.random.default_rng(0)
+    q = np.concatenate([np.array([g.q0 for g in grasps]),
+                        np.repeat([g.q0 for g in grasps], 40, axis=0)])
+    q[len(grasps):, :7] += rng.normal(0.0, 0.0133, (len(q) - len(grasps), 7))
+    runs = {}
+    for name in ("pybullet", "fast"):
+        with make_engine(name, robot, "cube") as engine:
+            runs[name] = engine.run(q)
+    ref, fast = runs["pybullet"], runs["fast"]
+    np.testing.assert_array_equal(ref.outcome, fast.outcome)
+    gap = np.nan_to_num(np.abs(ref.points - fast.points)).max(axis=(1, 2))
+    nominal = slice(0, len(grasps))
+    assert gap[nominal].max() < 1e-6, gap[nominal]
+    np.testing.assert_allclose(fast.quality[nominal], ref.quality[nominal], rtol=1e-6)
+    assert np.mean(gap > 1e-6) <= 0.02, np.sort(gap)[-5:]
+
+
+def test_spanning_a_segment_is_the_largest_singular_value_of_the_points():
+    """The batched test against NumPy's SVD of each set of flagged, centred points, and two
+    hand cases: two points 1 cm apart span a segment, two 0.1 mm apart (under the 1 mm
+    depth) do not, nor does one point."""
+    from kinegrasp_env.closing.contact_patch import spans_a_segment
+
+    rng = np.random.default_rng(1)
+    points, on = rng.normal(size=(200, 8, 3)) * 1e-3, rng.random((200, 8)) < 0.4
+    expected = []
+    for p, m in zip(points, on, strict=True):
+        kept = p[m] - p[m].mean(axis=0) if m.sum() else np.zeros((1, 3))
+        expected.append(m.sum() >= 2 and np.linalg.svd(kept, compute_uv=False)[0] > PATCH_DEPTH)
+    np.testing.assert_array_equal(spans_a_segment(points, on, PATCH_DEPTH), expected)
+    two = np.zeros((3, 2, 3))
+    two[0, 1, 0], two[1, 1, 0] = 0.01, 1e-4
+    flags = np.array([[True, True], [True, True], [True, False]])
+    np.testing.assert_array_equal(spans_a_segment(two, flags, PATCH_DEPTH),
+                                  [True, False, False])

@@ -289,23 +289,47 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     frame: its collision geometry's, as both closings read it) do not cross by more than
     ``depth`` metres (the depth a pad is pressed in, as its footprint counts it:
     :data:`PATCH_DEPTH`) and that a face of the link lies on (three vertices not on one
-    line within ``depth`` of the plane): a pad on a face lies on that face's outer side, or
-    dips past its edge by less than that where it is tilted, and crosses the plane of the
-    face beside it by its whole overhang; a pad on the edge itself, tilted between the two
-    faces, crosses both by more, or touches with an edge or a corner of its own only."""
+    line within ``depth`` of the plane), or an edge of the link lies across (two vertices
+    within ``depth`` of the plane, more than ``depth`` apart, one of them more than ``depth``
+    inside the face from every other plane there): a pad on a face lies on that face's
+    outer side, or dips past its edge by less than that where it is tilted, and crosses the
+    plane of the face beside it by its whole overhang; a tilted pad whose edge lies on a face
+    and runs off it over the face's edge touches the face along a segment, whose end the
+    closest point may be (the contact then goes to its patch's centre, about the middle of
+    that segment, as it goes where the closest point lies inside the face); a pad on the
+    edge itself, tilted between the two faces, crosses both by more, or touches with a
+    corner of its own only, or with an edge along the object's edge."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
     found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
     for p, rows, pl, near in _planes_near(obj, points, tol):
         heights = vertices[rows] @ pl[:, :3].T + pl[:, 3]  # (rows, V, planes)
         beside = near & (heights.min(axis=1) >= -depth)
         r, k = np.nonzero(beside)
-        if r.size:  # a face of the link on the plane
-            beside[r, k] = spans_a_face(vertices[rows[r]], np.abs(heights[r, :, k]) <= depth,
-                                        depth)
+        if r.size:  # a face of the link on the plane, or an edge of it lying across the face
+            on = np.abs(heights[r, :, k]) <= depth  # (n, V) the link's vertices on the plane
+            others = near[r] & (np.arange(pl.shape[0]) != k[:, None])  # (n, planes)
+            # inside the face: deeper than the pressed depth below every other plane at the
+            # point (off the edge, into the face)
+            inside = np.all(~others[:, None, :] | (heights[r] < -depth), axis=2)  # (n, V)
+            beside[r, k] = (spans_a_face(vertices[rows[r]], on, depth)
+                            | (spans_a_segment(vertices[rows[r]], on, depth)
+                               & (on & inside).any(axis=1)))
         one = beside.sum(axis=1) == 1
         planes[rows[one]] = pl[np.argmax(beside[one], axis=1)]
         found[rows[one]] = p
     return found, planes
+
+
+def spans_a_segment(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:
+    """(m,) bool: the points (m, V, 3) flagged ``on`` (m, V) span a segment: two of them more
+    than about ``tol`` metres apart (the largest singular value of the centred points above
+    ``tol``)."""
+    count = on.sum(axis=1)
+    weights = on / np.maximum(count, 1)[:, None]
+    mean = np.einsum("mv,mvi->mi", weights, points)
+    centred = (points - mean[:, None, :]) * on[:, :, None]
+    scatter = np.einsum("mvi,mvj->mij", centred, centred)
+    return (count >= 2) & (np.linalg.eigvalsh(scatter)[:, 2] > tol * tol)
 
 
 def spans_a_face(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:

@@ -52,9 +52,10 @@ def hull_margin(bullet, body: int, link: int) -> float:
     """The collision margin (metres) pybullet's distances subtract from a link's geometry:
     its reported margin when every collision shape of the link is a mesh (a convex hull,
     which Bullet inflates by the margin; the children of a link's compound shape keep the URDF
-    importer's 1 mm whatever changeDynamics sets), else 0 (boxes and cylinders are shrunk by
-    their margin, a sphere's or capsule's margin is its radius: their distances are exact;
-    a link mixing meshes with those is left uncorrected)."""
+    importer's 1 mm whatever changeDynamics sets), else 0 (cylinders are shrunk by their
+    margin, a sphere's or capsule's margin is its radius: their distances are exact; a link
+    with a box is measured on margin-free hulls of its parts instead:
+    :meth:`RobotScene.box_hulls`)."""
     shapes = bullet.getCollisionShapeData(body, link)
     if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
         return float(bullet.getDynamicsInfo(body, link)[11])
@@ -98,6 +99,8 @@ class RobotScene(ObjectWorld):
         if self._table is not None:
             self.margins[(self._table[0], -1)] = 0.0
         self.link_name = {index: name for name, index in self.link_index.items()}
+        #: per link with a box shape: the bodies its distances are measured on
+        self._hulls = self.box_hulls(robot)
         #: every movable joint's value as set (name -> radians or metres)
         self.values = {joint.name: 0.0 for joint in self.model.joints if joint.movable}
         self._tree = joint_tree(self.model, self.model.base_link)
@@ -193,9 +196,52 @@ class RobotScene(ObjectWorld):
         """pybullet closest points between the robot (or one of its links) and the object
         (rows as pybullet gives them; their distance: :meth:`distance`)."""
         self.sync()
+        if link in self._hulls:
+            return self._hull_rows(max_distance, link)
         kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
-        return self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
+        rows = self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
                                             max_distance, **kwargs)
+        if link is None and self._hulls:
+            rows = [row for row in rows if self.link_name.get(row[3]) not in self._hulls]
+            rows += [row for name in self._hulls for row in self._hull_rows(max_distance, name)]
+        return rows
+
+    def box_hulls(self, robot: int) -> dict[str, list[int]]:
+        """Per link of ``robot`` (its pybullet body) with a box among its collision shapes:
+        a pybullet body for each convex part of its geometry (:func:`~kinegrasp_env.closing.
+        link_geometry.robot_link_geometry`: the parts the fast closing measures), a convex
+        hull of collision margin 0, parked out of the way. Its closest points are measured on
+        them (:meth:`closest`): the URDF importer keeps a 1 mm margin on a box (the child of
+        the link's compound shape, which changeDynamics does not reach), so pybullet measures
+        a box shrunk by 1 mm and rounded by 1 mm at its edges and corners, exact only where a
+        face is nearest (a pad tilted by t touching with an edge measured 1 mm x (cos t +
+        sin t - 1) too far, its finger stopping late)."""
+        bullet, out = self.bullet, {}
+        geometry = robot_link_geometry(self.description)
+        for name, index in self.link_index.items():
+            shapes = bullet.getCollisionShapeData(robot, index)
+            if name not in geometry or not geometry[name].parts or not any(
+                    shape[2] == pybullet.GEOM_BOX for shape in shapes):
+                continue
+            out[name] = []
+            for part in geometry[name].parts:
+                shape = bullet.createCollisionShape(pybullet.GEOM_MESH,
+                                                    vertices=np.asarray(part.vertices).tolist())
+                body = bullet.createMultiBody(0.0, shape, basePosition=[0.0, 0.0, -100.0])
+                bullet.changeDynamics(body, -1, collisionMargin=0.0)
+                out[name].append(body)
+        return out
+
+    def _hull_rows(self, max_distance: float, link: str) -> list[tuple]:
+        """:meth:`closest` of a link with a box, on its margin-free hulls (:meth:`box_hulls`),
+        as rows of the link itself (body and link index the robot's)."""
+        position, orientation = matrix_to_pose(self.model_pose(link))
+        robot, index, out = self.bodies["robot"], self.link_index[link], []
+        for body in self._hulls[link]:
+            self.bullet.resetBasePositionAndOrientation(body, position, orientation)
+            for row in self.bullet.getClosestPoints(body, self.bodies["object"], max_distance):
+                out.append((row[0], robot, row[2], index, *row[4:]))
+        return out
 
     def distance(self, row: tuple) -> float:
         """The distance (metres) of the geometry of a closest-point row: pybullet's, plus
