@@ -85,6 +85,7 @@ class GripLayout:
         closing positive, and a joint that closes negative has its angles, target and
         torque mirrored."""
         stall = np.asarray(stall, dtype=float)
+        tips = reach(self.joints(axes, origins, tips), contacts)
         spring = spring_grip(contacts, self.joints(axes, origins, tips), object_pose,
                              center_of_mass, self.directions * stall, friction, advance)
         if spring is None:
@@ -102,6 +103,29 @@ class GripLayout:
                            np.array([world.link_pose(t)[:3, 3] for t in self.tips]),
                            world.joint_states(names)[0], world.object_pose(),
                            world.obj.center_of_mass, world.settings.friction, advance)
+
+
+#: A fingertip nearer its joint's axis than this (metres) gives the joint no lever to
+#: advance (:func:`reach`).
+MIN_LEVER = 1e-3
+
+
+def reach(joints: GripJoints, contacts: list[GripContact]) -> np.ndarray:
+    """(J, 3) the point whose advance sets each joint's spring (:func:`~kinegrasp_env.
+    physics.grip_forces.tip_offsets`): its fingertip, or where that lies on the joint's axis
+    (within :data:`MIN_LEVER`: a one-joint finger whose leaf link, its tip, has its frame at
+    the joint) the contact it carries farthest from the axis. On the axis the tip's lever is
+    0, the offset ``advance / 1e-6`` rad and the spring a constant torque that holds no
+    position: two such fingers pushed the released object 12.7 mm."""
+    tips = np.array(joints.tips, dtype=float)
+    carries = joints.carries(contacts)
+    for j in range(len(tips)):
+        points = np.array([tips[j]] + [contacts[c].point for c in np.nonzero(carries[j])[0]])
+        arms = points - joints.origins[j]
+        radial = np.linalg.norm(arms - np.outer(arms @ joints.axes[j], joints.axes[j]), axis=1)
+        if radial[0] < MIN_LEVER:
+            tips[j] = points[int(np.argmax(radial))]
+    return tips
 
 
 def grip_layout(description: RobotDescription, torque_scale: float = 1.0) -> GripLayout:

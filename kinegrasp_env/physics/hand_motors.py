@@ -265,6 +265,24 @@ def coupled_leaders(description: RobotDescription) -> list[str]:
                   if model.joint(name).mimic is not None and model.joint(name).mimic[0] in leaders)
 
 
+def independent_jaws(description: RobotDescription) -> frozenset[str]:
+    """The motor joints of the fingers of one motor (:func:`finger_motor_joints`) that move
+    no other finger (no other finger's motor joint mimics them): jaws and one-joint fingers
+    driven each on its own. On a free object such a finger, left at full speed once it
+    touches, shoves the object into the others (two prismatic jaws: the coupled jaws' push
+    of the first to touch; two revolute fingers: a contest of their efforts, unstable, the
+    finger with the shorter lever pushing the other open)."""
+    model = description.model
+    coupled = set(coupled_leaders(description))
+    driving = {model.joint(name).mimic[0] for name in coupled}
+    out = set()
+    for finger in description.fingers:
+        own = finger_motor_joints(description, finger)
+        if len(own) == 1 and own[0] not in driving | coupled:
+            out.add(own[0])
+    return frozenset(out)
+
+
 #: A finger of several motors: its last motor, while a link it moves touches the object,
 #: closes at this fraction of its closing speed (within its effort), pressing the object
 #: and following it where it gives way (the paper's hand's distal creep: 0.05 rad/s of
@@ -287,7 +305,9 @@ class TouchRule:
     it closes at :data:`CREEP_FRACTION` of its speed, with its full effort, while a link it
     moves touches (and :data:`RELEASE_TIME` after), at full speed otherwise. A finger of one
     motor (a jaw, a linkage) is left alone: its motor pushes at full speed and effort
-    throughout (a gripper's jaws close until they grip). A finger of independently actuated
+    throughout (a gripper's jaws close until they grip), except, on a free object, a finger
+    whose motor moves no other finger (``alone``: jaws driven each on its own), which
+    presses as a last motor does. A finger of independently actuated
     phalanges closes as GraspIt's auto-close and the paper's hand close: a touching proximal
     phalanx stops, the distal one closes on until it touches and presses. The switches stay
     where the closing left them through the holding test's phases.
@@ -298,10 +318,13 @@ class TouchRule:
             coupled jaws' followers).
         holds: :func:`hold_efforts`.
         time_step: the simulator's step, seconds (one :meth:`update` a step).
+        alone: motor joints of fingers of one motor that press as a last motor does
+            (:func:`independent_jaws`; the free object's closing), not left alone.
     """
 
     def __init__(self, description: RobotDescription, motors: list[JointMotor],
-                 holds: dict[str, float], time_step: float) -> None:
+                 holds: dict[str, float], time_step: float,
+                 alone: frozenset[str] = frozenset()) -> None:
         #: joint -> what holds it once a touch stopped it (:func:`hold_efforts`)
         self.efforts = {m.joint: holds[m.joint] for m in motors}
         #: per finger, per link: the motor joints its touch holds
@@ -315,7 +338,7 @@ class TouchRule:
             stops = touch_stops(description.model, finger)
             self.rows.append([tuple(j for j, stop in zip(finger.joints, row, strict=True)
                                     if stop and j in holdable) for row in stops])
-            if holdable:
+            if holdable or (own and own[-1] in alone):
                 self.pressers.append((own[-1], finger.joints.index(own[-1])))
                 self.fingers.append(f)
         self.release = max(1, round(RELEASE_TIME / time_step))
