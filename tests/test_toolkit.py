@@ -73,6 +73,19 @@ def test_variants_keep_palm_and_contacts(drill_engine):
         assert v.meta["variant_of"] == grasp.id
 
 
+def test_variant_ids_keep_clear_of_the_ids_taken(drill_engine):
+    """Variants are named ``<id>v<k>``, k the configuration's place among those tried; ids
+    already taken (a grasp file's own variants, when fig10 finds variants of its first grasp)
+    are skipped, so two different configurations never share an id."""
+    grasp = shipped_grasps("drill")[0]
+    plain = [v.id for v in variants_of(grasp, drill_engine, 3)]
+    assert plain[0] == f"{grasp.id}v1"
+    taken = {f"{grasp.id}v1", f"{grasp.id}v2"}
+    named = [v.id for v in variants_of(grasp, drill_engine, 3, taken)]
+    assert len(named) == len(plain) and not taken & set(named)
+    assert named[0] == f"{grasp.id}v3"
+
+
 def _read(path):
     with open(path) as handle:
         return list(csv.DictReader(handle))

@@ -17,7 +17,8 @@ the paired difference of their force-closure indicators and its Student-t 95% in
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import itertools
+from collections.abc import Collection, Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -73,11 +74,14 @@ def variant_label(row: Mapping, digits: int = 3) -> str:
     return f"elbow {row['elbow_angle']:+.{digits}f} rad"
 
 
-def variants_of(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[Grasp]:
+def variants_of(grasp: Grasp, engine: RobotReferenceEngine, count: int,
+                taken: Collection[str] = ()) -> list[Grasp]:
     """Up to ``count`` configurations of the grasp's palm pose (see the module docstring; a
     6-joint arm's first ``count`` IK branches, the grasp's own always among them), as grasps
-    with the grasp's palm pose and contacts, ids ``<id>v<k>``, their nominal Q and
-    ``meta["elbow_angle"]`` (radians) or ``meta["ik_branch"]`` (the branch's label)."""
+    with the grasp's palm pose and contacts, ids ``<id>v<k>`` (k from 1, skipping the ids in
+    ``taken``: those of the set the grasp came from, whose own variants may bear them), their
+    nominal Q and ``meta["elbow_angle"]`` (radians) or ``meta["ik_branch"]`` (the branch's
+    label)."""
     if engine.description.arm_dof == 6:
         branches, nominal = branch_variants(grasp, engine, DEFAULT_IK_STARTS)
         kept = list(range(min(count, len(branches))))
@@ -91,22 +95,25 @@ def variants_of(grasp: Grasp, engine: RobotReferenceEngine, count: int) -> list[
         pick = np.unique(np.round(np.linspace(0, len(reach) - 1, count)).astype(int))
         found = [({"elbow_angle": float(reach[i][0])}, reach[i][1]) for i in pick]
     out = []
-    for j, (where, q) in enumerate(found):
+    names = (name for k in itertools.count(1) if (name := f"{grasp.id}v{k}") not in taken)
+    for where, q in found:
+        name = next(names)
         draw = engine.run(np.asarray(q, dtype=float)[None])
         if draw.outcome[0] != FORCE_CLOSURE:
             continue
-        out.append(replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}v{j + 1}",
+        out.append(replace(grasp, q0=np.asarray(q, dtype=float), id=name,
                            q_nominal=float(draw.quality[0]),
                            meta={**grasp.meta, **where, "variant_of": grasp.id}))
     return out
 
 
 def find_variants(description: RobotDescription, name: str, grasp: Grasp, count: int,
-                  friction: float = 0.5) -> list[Grasp]:
-    """:func:`variants_of` ``grasp`` (a grasp of ``description`` on object ``name``), on the
-    reference engine with the contacts' friction coefficient ``friction``."""
+                  friction: float = 0.5, taken: Collection[str] = ()) -> list[Grasp]:
+    """:func:`variants_of` ``grasp`` (a grasp of ``description`` on object ``name``; ids not
+    in ``taken``), on the reference engine with the contacts' friction coefficient
+    ``friction``."""
     with RobotReferenceEngine(description, name, friction=friction) as reference:
-        return variants_of(grasp, reference, count)
+        return variants_of(grasp, reference, count, taken)
 
 
 def variant_work(variants: list[Grasp], samples: int, method: str = "direct"

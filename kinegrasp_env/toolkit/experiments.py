@@ -187,8 +187,10 @@ def _variant_sets(description: RobotDescription, grasp_sets: Mapping[str, Sequen
                   count: int, friction: float) -> dict[str, list[Grasp]]:
     """Per object of ``grasp_sets``: up to ``count`` configuration variants of its first grasp
     (:func:`~kinegrasp_env.toolkit.arm_variants.find_variants`, at friction mu
-    ``friction``)."""
-    return {name: find_variants(description, name, grasps[0], count, friction)
+    ``friction``; named apart from the set's own grasps, a grasp file's variants among
+    them)."""
+    return {name: find_variants(description, name, grasps[0], count, friction,
+                                {g.id for g in grasps})
             for name, grasps in grasp_sets.items()}
 
 
