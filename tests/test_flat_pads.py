@@ -345,3 +345,22 @@ def test_spanning_a_segment_is_the_largest_singular_value_of_the_points():
     flags = np.array([[True, True], [True, True], [True, False]])
     np.testing.assert_array_equal(spans_a_segment(two, flags, PATCH_DEPTH),
                                   [True, False, False])
+
+
+def test_a_pad_overhanging_an_edge_presses_the_face_it_lies_on():
+    """A box pad lying on the cube's top face, 5 cm of it on the face and 3 cm past the
+    edge x = 0.03, tilted about that edge by 0.016 rad (its inner end 0.8 mm above the face,
+    its outer end 0.48 mm below the plane, in the air past the edge): the pad is pressed
+    over the part of it on the face, whose centre is (0.005, 0, 0.03) by construction. The
+    pressed depth was counted from the lowest vertex, the one hanging below the plane past
+    the edge, so the footprint was the overhang alone, the clip to the face empty, and the
+    contact stayed at the edge."""
+    from kinegrasp_env.closing.contact_patch import patch_centre
+
+    tilt = 0.016
+    bottom = [(x, y, HALF - (x - HALF) * tilt) for x in (-0.02, 0.06) for y in (-0.01, 0.01)]
+    pad = np.array(bottom + [(x, y, z + 0.01) for x, y, z in bottom])
+    face = np.array([(x, y, HALF) for x in (-HALF, HALF) for y in (-HALF, HALF)])
+    centre = patch_centre(pad, face, np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, HALF]))
+    assert centre is not None
+    np.testing.assert_allclose(centre, [0.005, 0.0, HALF], atol=1e-9)

@@ -8,8 +8,10 @@ is placed at the centre of its patch instead:
 * the finger link's collision geometry (pybullet's: the convex hull of each collision mesh,
   scaled, or a box's corners) in the object frame (:func:`link_hull_vertices`);
 * its *footprint*: the convex hull, projected onto the face's plane, of its vertices within
-  :data:`PATCH_DEPTH` of the lowest one above the plane (the part of a pad that a compliant
-  finger presses in; a polygon, a segment when an edge touches, a point at a corner);
+  :data:`PATCH_DEPTH` of the lowest one, counted from no lower than the plane (the part of a
+  pad that a compliant finger presses in; a polygon, a segment when an edge touches, a point
+  at a corner; a vertex below the plane lies off the face, past its edge, where a pad
+  overhangs it, and presses nothing);
 * the *patch*: the footprint clipped to the face (a convex polygon of the object's convex
   part), and the contact point its centroid (area centroid; a segment's midpoint), on the
   face. An empty clip (the pad's footprint beside the face) leaves the point as it was.
@@ -40,7 +42,8 @@ from kinegrasp_env.closing.polygon_2d import (
     thin_polygon,
 )
 
-#: The depth of the pad counted as pressing (metres): vertices within it of the lowest.
+#: The depth of the pad counted as pressing (metres): vertices within it of the lowest one
+#: (counted from no lower than the face's plane).
 PATCH_DEPTH = 1e-3
 #: Object vertices within this of a face plane lie on the face (metres).
 FACE_TOL = 1e-7
@@ -138,7 +141,9 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         if mf < 3:
             continue
         low = np.inf
-        for pas in range(2):  # the lowest vertex above the plane, then those near it
+        for pas in range(2):  # the lowest vertex, then those near it
+            if pas == 1:  # no lower than the plane: a vertex below it is off the face (past
+                low = max(low, 0.0)  # its edge), pressing nothing; the pad touches at ~0
             k = 0
             for v in range(vertices.shape[0]):
                 wx = (poses[i, 0, 0] * vertices[v, 0] + poses[i, 0, 1] * vertices[v, 1]
