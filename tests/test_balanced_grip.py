@@ -111,3 +111,36 @@ def test_a_joint_that_closes_negative_gets_the_mirrored_spring():
     angles = stall + rng.uniform(-0.01, 0.01, count)
     np.testing.assert_allclose(other.torques(angles * flip), plain.torques(angles) * flip,
                                atol=1e-12)
+
+
+def test_a_tip_on_its_joints_axis_advances_by_the_farthest_contact():
+    """``reach``: a joint whose fingertip (the tip link's frame) lies on its axis, or nearer
+    it than half the lever of the farthest contact the joint carries, advances by that
+    contact; a tip with a lever of its own is kept. Hand-built: two joints on finger 0, axis
+    z through the origin, both carrying both contacts on links >= 0; the levers are read off
+    the coordinates."""
+    from kinegrasp_env.physics.balanced_grip import reach
+    from kinegrasp_env.physics.grip_forces import GripContact, GripJoints
+
+    joints = GripJoints(axes=np.array([[0.0, 0.0, 1.0]] * 2), origins=np.zeros((2, 3)),
+                        fingers=np.zeros(2, dtype=int), first_links=np.zeros(2, dtype=int),
+                        lower=np.zeros(2), upper=np.ones(2),
+                        tips=np.array([[0.0, 0.0, 0.05], [0.04, 0.0, 0.0]]))
+    contacts = [GripContact(0, k, np.array(point), np.array([1.0, 0.0, 0.0]))
+                for k, point in enumerate(([0.03, 0.0, 0.01], [0.0, 0.06, 0.02]))]
+    assert joints.carries(contacts).all()
+    tips = reach(joints, contacts)
+    np.testing.assert_allclose(tips[0], [0.0, 0.06, 0.02])  # on the axis: the farthest
+    np.testing.assert_allclose(tips[1], [0.04, 0.0, 0.0])  # 0.04 >= 0.5 x 0.06: kept
+
+
+def test_no_built_in_finger_is_an_independent_jaw():
+    """The creep rule of fingers driven each on its own (``independent_jaws``) leaves the
+    built-in hands as they were: the Panda's second finger mimics its first, and every SDH
+    finger has two motors; a gripper of two knuckles with no mimic has two such fingers
+    (tests/test_flat_pads.py builds one)."""
+    from kinegrasp_env.physics.hand_motors import independent_jaws
+    from kinegrasp_env.robot.catalog import load_robot
+
+    assert independent_jaws(load_robot("panda")) == frozenset()
+    assert independent_jaws(load_robot("kuka_sdh")) == frozenset()

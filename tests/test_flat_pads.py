@@ -230,7 +230,14 @@ def knuckles(tmp_path_factory):
                        "close": {"left_knuckle": 1, "right_knuckle": -1},
                        "open": {"left_knuckle": 0.0, "right_knuckle": 0.0}}
         (folder / "knuckles.yaml").write_text(yaml.safe_dump(description))
-        for args in (("robots", "add", "knuckles.yaml"),
+        ball = '<collision><origin xyz="0 0 0.1"/><geometry><sphere radius="0.01"/></geometry>'
+        balled = (folder / "knuckles.urdf").read_text().replace(
+            '<link name="left_finger">', '<link name="left_finger">\n    ' + ball +
+            "</collision>", 1)
+        (folder / "balled.urdf").write_text(balled)
+        (folder / "balled.yaml").write_text(yaml.safe_dump(
+            {**description, "name": "iiwa_balled", "urdf": "balled.urdf"}))
+        for args in (("robots", "add", "knuckles.yaml"), ("robots", "add", "balled.yaml"),
                      ("plan", "--robot", "iiwa_knuckles", "--object", "cube", "--count", "3",
                       "--seed", "0", "--out", "g.json")):
             assert run_cli(*args).returncode == 0, args
@@ -242,6 +249,66 @@ def in_knuckles(knuckles, monkeypatch):
     monkeypatch.setenv("KINEGRASP_HOME", str(knuckles / "home"))
     monkeypatch.chdir(knuckles)
     return knuckles
+
+
+def polytope_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """The distance (metres) between conv(a) and conv(b) (points (n, 3), (m, 3)): the least
+    |a^T x - b^T y| over simplex weights x, y, by SciPy's SLSQP (independent of pybullet's GJK
+    and of the package's own convex distance)."""
+    from scipy.optimize import minimize
+
+    n, m = len(a), len(b)
+
+    def gap(z):
+        d = a.T @ z[:n] - b.T @ z[n:]
+        return d @ d
+
+    cons = [{"type": "eq", "fun": lambda z: z[:n].sum() - 1.0},
+            {"type": "eq", "fun": lambda z: z[n:].sum() - 1.0}]
+    z0 = np.concatenate([np.full(n, 1.0 / n), np.full(m, 1.0 / m)])
+    best = minimize(gap, z0, bounds=[(0.0, 1.0)] * (n + m), constraints=cons, method="SLSQP",
+                    options={"ftol": 1e-16, "maxiter": 500})
+    return float(np.sqrt(max(best.fun, 0.0)))
+
+
+def box_corners(size) -> np.ndarray:
+    """(8, 3) the corners of a box of ``size`` (3,) centred at the origin."""
+    half = np.asarray(size) / 2.0
+    return np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+
+
+def test_the_reference_measures_a_tilted_box_edge_exactly(in_knuckles):
+    """pybullet keeps the URDF importer's 1 mm margin on a box (shrunk by 1 mm, rounded by
+    1 mm at its edges), so the distance of a box finger turned towards the cube, its tip's
+    edge nearest, came out up to 1 mm x (cos t + sin t - 1) too far. The reference scene
+    measures such a link on margin-free hulls: its gap equals the polytope distance of the
+    posed box and the cube (SLSQP) to 1e-7 m at several knuckle angles. A link that also has
+    a ball keeps pybullet's own shapes: its gap is the least of the box's and the ball's
+    exact distances (the ball's: its centre's distance to the cube less its radius)."""
+    from kinegrasp_env.closing.robot_scene import RobotScene
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.world.grasps import load_grasps
+
+    cube = load_object("cube")
+    cube_corners = box_corners([2 * HALF] * 3) @ cube.pose[:3, :3].T + cube.pose[:3, 3]
+    pad = box_corners([0.03, 0.012, 0.1]) + np.array([0.0, 0.0, 0.05])
+    q = np.asarray(load_grasps(in_knuckles / "g.json")[0].q0, dtype=float)
+    for name in ("iiwa_knuckles", "iiwa_balled"):
+        scene = RobotScene(load_robot(name), cube)
+        try:
+            for angle in (0.12, 0.16, 0.18):
+                scene.set_configuration(np.concatenate([q[:7], [angle, -angle]]))
+                pose = scene.model_pose("left_finger")
+                placed = pad @ pose[:3, :3].T + pose[:3, 3]
+                exact = polytope_distance(placed, cube_corners)
+                if name == "iiwa_balled":
+                    centre = pose[:3, :3] @ [0.0, 0.0, 0.1] + pose[:3, 3]
+                    local = np.abs(cube.pose[:3, :3].T @ (centre - cube.pose[:3, 3]))
+                    exact = min(exact, np.linalg.norm(np.maximum(local - HALF, 0.0)) - 0.01)
+                assert scene.bullet_gap("left_finger") == pytest.approx(exact, abs=1e-7), \
+                    (name, angle)
+        finally:
+            scene.close()
 
 
 @pytest.mark.expensive
@@ -291,9 +358,11 @@ def test_fingers_driven_each_on_its_own_stop_where_they_touch_in_physics(in_knuc
     balanced, both fingers near +-0.19 rad whatever the draw (a median difference of 0.06
     rad; the user's gripper of this kind: P(FC) 0.33 against 0.89)."""
     from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.physics.hand_motors import independent_jaws
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.world.grasps import load_grasps
 
+    assert independent_jaws(load_robot("iiwa_knuckles")) == {"left_knuckle", "right_knuckle"}
     q0 = np.array([g.q0 for g in load_grasps(in_knuckles / "g.json")])
     q = np.concatenate([q0, np.repeat(q0, 5, axis=0)])
     q[len(q0):, :7] += np.random.default_rng(0).normal(0.0, 0.0133, (len(q) - len(q0), 7))

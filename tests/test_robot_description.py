@@ -310,7 +310,39 @@ def _finger_without_collision(tmp_path: Path) -> dict:
     return {"urdf": str(tmp_path / "no_collision.urdf")}
 
 
+def _mimic_chain(tmp_path: Path) -> dict:
+    """The xArm's URDF (its meshes by absolute path) with its right finger joint made a mimic
+    of the left one, itself a mimic of the drive joint: a chain of mimic joints."""
+    text = XARM_URDF.read_text().replace("package://", f"{XARM.as_posix()}/")
+    joint = re.search(r'<joint name="right_finger_joint".*?</joint>', text, re.S).group(0)
+    text = text.replace(joint, joint.replace('<mimic joint="drive_joint"',
+                                             '<mimic joint="left_finger_joint"'))
+    (tmp_path / "mimic_chain.urdf").write_text(text)
+    return {"urdf": str(tmp_path / "mimic_chain.urdf")}
+
+
+def _extra_joint(tmp_path: Path) -> dict:
+    """The xArm's URDF with a movable joint hung off its base, on no chain to the hand."""
+    text = XARM_URDF.read_text().replace("package://", f"{XARM.as_posix()}/")
+    extra = """
+  <link name="extra_link"/>
+  <joint name="extra_joint" type="revolute">
+    <parent link="link_base"/><child link="extra_link"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+</robot>"""
+    (tmp_path / "extra.urdf").write_text(re.sub(r"</robot>\s*$", extra, text))
+    return {"urdf": str(tmp_path / "extra.urdf")}
+
+
 BAD = {
+    "a chain of mimic joints": (
+        _mimic_chain, "urdf", "'right_finger_joint' mimics 'left_finger_joint', itself a "
+        "mimic joint of 'drive_joint': make it mimic that joint"),
+    "a movable joint on no chain": (
+        _extra_joint, "urdf", "'extra_joint' is a movable joint of extra.urdf in neither "
+        "arm_joints nor hand_joints: list 'extra_joint' in one of them, or make it a fixed "
+        "joint"),
     "finger without collision geometry": (
         _finger_without_collision, "finger_links",
         "the finger ending at 'left_finger' has no collision geometry on the links its "

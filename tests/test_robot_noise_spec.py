@@ -333,3 +333,18 @@ def test_a_six_joint_arms_joint_spec_draws_its_covariance_and_bias():
         check_robot_noise(seven, "six_joint_arm", 6, "fast")
     assert "\n" not in str(e.value)
     check_robot_noise(independent, "six_joint_arm", 6, "fast")  # six values: taken
+
+
+def test_the_library_refuses_other_closing_sigmas_before_any_chunk():
+    """``evaluate_grasp`` (the default robot's library path) checks a hand source's closing
+    sigmas against the default robot's three fingers before any chunk runs: two sigmas were
+    refused only inside the chunk workers, after the pool had started."""
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    model = noise_model_from_spec({"joints": {"sigma": 0.01},
+                                   "hand": {"closing_sigma": [0.01, 0.02]}})
+    with pytest.raises(ValueError, match="robot 'kuka_sdh' has 3 fingers") as info:
+        evaluate_grasp(shipped_grasps("cube")[0], model, 8, processes=2, engine="fast")
+    assert "\n" not in str(info.value)

@@ -71,7 +71,8 @@ def placement_note(row: dict) -> str:
                  f"{', '.join(fixed(v, 4) for v in row['orientation'])})")
     elif any(abs(a - b) > 1e-9 for a, b in zip(row["position"], OBJECT_POSITION,
                                                  strict=True)) or abs(row["yaw"]) > 1e-9:
-        note += f"; at {metres(row['position'])} m, yaw {math.degrees(row['yaw']):.4g} deg"
+        yaw = round(math.degrees(row["yaw"]), 4) + 0.0  # no "-0", no "-5.7e-16"
+        note += f"; at {metres(row['position'])} m, yaw {yaw:.4g} deg"
     if row["table"] is not None:
         sx, sy = row["table"]["size"]
         note += f"; on a {sx:.2f} x {sy:.2f} m table"

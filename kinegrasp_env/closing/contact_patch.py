@@ -295,8 +295,9 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     ``depth`` metres (the depth a pad is pressed in, as its footprint counts it:
     :data:`PATCH_DEPTH`) and that a face of the link lies on (three vertices not on one
     line within ``depth`` of the plane), or an edge of the link lies across (two vertices
-    within ``depth`` of the plane, more than ``depth`` apart, one of them more than ``depth``
-    inside the face from every other plane there): a pad on a face lies on that face's
+    within ``depth`` of the plane, more than sqrt(2) ``depth`` apart: :func:`spans`, one of
+    them more than ``depth`` inside the face from every other plane there): a pad on a face
+    lies on that face's
     outer side, or dips past its edge by less than that where it is tilted, and crosses the
     plane of the face beside it by its whole overhang; a tilted pad whose edge lies on a face
     and runs off it over the face's edge touches the face along a segment, whose end the
@@ -325,26 +326,26 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     return found, planes
 
 
-def spans_a_segment(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:
-    """(m,) bool: the points (m, V, 3) flagged ``on`` (m, V) span a segment: two of them more
-    than about ``tol`` metres apart (the largest singular value of the centred points above
-    ``tol``)."""
+def spans(points: np.ndarray, on: np.ndarray, tol: float, dimension: int) -> np.ndarray:
+    """(m,) bool: the points (m, V, 3) flagged ``on`` (m, V) span a figure of ``dimension``
+    (1: a segment, 2: a polygon): singular value ``dimension`` of the centred points (the
+    square root of that eigenvalue of their scatter, k x their covariance for k points),
+    largest first, above ``tol``: two points more than sqrt(2) ``tol`` apart; three points
+    not within about ``tol`` metres of one line."""
     count = on.sum(axis=1)
     weights = on / np.maximum(count, 1)[:, None]
     mean = np.einsum("mv,mvi->mi", weights, points)
     centred = (points - mean[:, None, :]) * on[:, :, None]
     scatter = np.einsum("mvi,mvj->mij", centred, centred)
-    return (count >= 2) & (np.linalg.eigvalsh(scatter)[:, 2] > tol * tol)
+    value = np.linalg.eigvalsh(scatter)[:, 3 - dimension]
+    return (count >= dimension + 1) & (value > tol * tol)
+
+
+def spans_a_segment(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:
+    """:func:`spans` a segment."""
+    return spans(points, on, tol, 1)
 
 
 def spans_a_face(points: np.ndarray, on: np.ndarray, tol: float) -> np.ndarray:
-    """(m,) bool: the points (m, V, 3) flagged ``on`` (m, V) span a polygon: three of them
-    not within ``tol`` metres of one line (the second singular value of the centred points,
-    sqrt(k x the second eigenvalue of their covariance) for k points, above ``tol``)."""
-    count = on.sum(axis=1)
-    weights = on / np.maximum(count, 1)[:, None]
-    mean = np.einsum("mv,mvi->mi", weights, points)
-    centred = (points - mean[:, None, :]) * on[:, :, None]
-    scatter = np.einsum("mvi,mvj->mij", centred, centred)  # k x the covariance
-    second = np.linalg.eigvalsh(scatter)[:, 1]
-    return (count >= 3) & (second > tol * tol)
+    """:func:`spans` a polygon."""
+    return spans(points, on, tol, 2)

@@ -7,14 +7,16 @@ one). A configuration q (the description's actuated vector) is set joint by join
 mimic joint from its driver (:meth:`~kinegrasp_env.robot.model.RobotModel.expand`).
 
 A link's distance to the object is pybullet's closest-point distance, plus the collision
-margins pybullet subtracts (:func:`hull_margin`); for a link made of capsules and spheres
-alone, within :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the object, the exact
-distance of its parts' core segments less their radii (:meth:`RobotScene.rounded_pair`, as
-the fast closing computes it: :mod:`~kinegrasp_env.closing.rounded_links`), so that where a
-rounded fingertip touches does not depend on pybullet's convex-hull tolerance. A closing
-stages joint values (:meth:`RobotScene.stage_joint_values`) that pybullet takes before its
-next query, and each link's distance is measured once per state: a rounded link near contact
-is measured exactly with no pybullet call at all where its exact distance settles the rule
+margins pybullet subtracts (:func:`hull_margin`; a link of boxes and meshes measured on
+margin-free hulls of its parts: :meth:`RobotScene.box_hulls`); for a link made of capsules
+and spheres alone, within :data:`~kinegrasp_env.closing.close_rules.EXACT_BAND` of the
+object, the exact distance of its parts' core segments less their radii
+(:meth:`RobotScene.rounded_pair`, as the fast closing computes it:
+:mod:`~kinegrasp_env.closing.rounded_links`), so that where a rounded fingertip touches does
+not depend on pybullet's convex-hull tolerance. A closing stages joint values
+(:meth:`RobotScene.stage_joint_values`) that pybullet takes before its next query, and each
+link's distance is measured once per state: a rounded link near contact is measured exactly
+with no pybullet call at all where its exact distance settles the rule
 (:meth:`RobotScene.surely_in_band`).
 
 The closing that moves the fingers in this world: :mod:`~kinegrasp_env.closing.
@@ -46,6 +48,8 @@ __all__ = ["BULLET_TOLERANCE", "RobotScene", "hull_margin"]
 #: lie from the exact one: its GJK tolerance was measured 8.3e-6 m off on capsules and convex
 #: hulls; 2e-4 m leaves a margin of 24x.
 BULLET_TOLERANCE = 2e-4
+#: Where the margin-free hulls of box links wait between queries (:meth:`RobotScene.box_hulls`).
+PARKED = (0.0, 0.0, -100.0)
 
 
 def hull_margin(bullet, body: int, link: int) -> float:
@@ -53,9 +57,9 @@ def hull_margin(bullet, body: int, link: int) -> float:
     its reported margin when every collision shape of the link is a mesh (a convex hull,
     which Bullet inflates by the margin; the children of a link's compound shape keep the URDF
     importer's 1 mm whatever changeDynamics sets), else 0 (cylinders are shrunk by their
-    margin, a sphere's or capsule's margin is its radius: their distances are exact; a link
-    with a box is measured on margin-free hulls of its parts instead:
-    :meth:`RobotScene.box_hulls`)."""
+    margin and rounded by it at a rim, a sphere's or capsule's margin is its radius: their
+    distances are exact, a cylinder's but near its rims; a link of boxes and meshes is
+    measured on margin-free hulls of its parts instead: :meth:`RobotScene.box_hulls`)."""
     shapes = bullet.getCollisionShapeData(body, link)
     if shapes and all(shape[2] == GEOM_MESH for shape in shapes):
         return float(bullet.getDynamicsInfo(body, link)[11])
@@ -196,51 +200,61 @@ class RobotScene(ObjectWorld):
         """pybullet closest points between the robot (or one of its links) and the object
         (rows as pybullet gives them; their distance: :meth:`distance`)."""
         self.sync()
+        return self._rows(self.bodies["object"], max_distance, link)
+
+    def _rows(self, other: int, max_distance: float, link: str | None = None) -> list[tuple]:
+        """pybullet closest points between the robot (or one of its links) and body
+        ``other``, a link with box shapes measured on its hulls (:meth:`box_hulls`)."""
         if link in self._hulls:
-            return self._hull_rows(max_distance, link)
+            return self._hull_rows(other, max_distance, link)
         kwargs = {} if link is None else {"linkIndexA": self.link_index[link]}
-        rows = self.bullet.getClosestPoints(self.bodies["robot"], self.bodies["object"],
-                                            max_distance, **kwargs)
+        rows = self.bullet.getClosestPoints(self.bodies["robot"], other, max_distance, **kwargs)
         if link is None and self._hulls:
             rows = [row for row in rows if self.link_name.get(row[3]) not in self._hulls]
-            rows += [row for name in self._hulls for row in self._hull_rows(max_distance, name)]
+            rows += [row for name in self._hulls
+                     for row in self._hull_rows(other, max_distance, name)]
         return rows
 
     def box_hulls(self, robot: int) -> dict[str, list[int]]:
-        """Per link of ``robot`` (its pybullet body) with a box among its collision shapes:
-        a pybullet body for each convex part of its geometry (:func:`~kinegrasp_env.closing.
-        link_geometry.robot_link_geometry`: the parts the fast closing measures), a convex
-        hull of collision margin 0, parked out of the way. Its closest points are measured on
-        them (:meth:`closest`): the URDF importer keeps a 1 mm margin on a box (the child of
-        the link's compound shape, which changeDynamics does not reach), so pybullet measures
-        a box shrunk by 1 mm and rounded by 1 mm at its edges and corners, exact only where a
-        face is nearest (a pad tilted by t touching with an edge measured 1 mm x (cos t +
-        sin t - 1) too far, its finger stopping late)."""
+        """Per link of ``robot`` (its pybullet body) whose collision shapes are boxes (at least
+        one) and meshes: a pybullet body for each convex part of its geometry
+        (:func:`~kinegrasp_env.closing.link_geometry.robot_link_geometry`: the parts the fast
+        closing measures), a convex hull of collision margin 0, parked out of the way. Its
+        closest points are measured on them (:meth:`closest`, :meth:`in_table`): the URDF
+        importer keeps a 1 mm margin on a box (the child of the link's compound shape, which
+        changeDynamics does not reach), so pybullet measures a box shrunk by 1 mm and
+        rounded by 1 mm at its edges and corners, exact only where a face is nearest (a pad
+        tilted by t touching with an edge measured 1 mm x (cos t + sin t - 1) too far, its
+        finger stopping late). A link that also has a sphere, capsule or cylinder keeps
+        pybullet's own shapes (their distances are those its rounded parts need)."""
         bullet, out = self.bullet, {}
         geometry = robot_link_geometry(self.description)
         for name, index in self.link_index.items():
-            shapes = bullet.getCollisionShapeData(robot, index)
-            if name not in geometry or not geometry[name].parts or not any(
-                    shape[2] == pybullet.GEOM_BOX for shape in shapes):
+            kinds = {shape[2] for shape in bullet.getCollisionShapeData(robot, index)}
+            if (name not in geometry or not geometry[name].parts
+                    or pybullet.GEOM_BOX not in kinds
+                    or not kinds <= {pybullet.GEOM_BOX, GEOM_MESH}):
                 continue
             out[name] = []
             for part in geometry[name].parts:
                 shape = bullet.createCollisionShape(pybullet.GEOM_MESH,
                                                     vertices=np.asarray(part.vertices).tolist())
-                body = bullet.createMultiBody(0.0, shape, basePosition=[0.0, 0.0, -100.0])
+                body = bullet.createMultiBody(0.0, shape, basePosition=PARKED)
                 bullet.changeDynamics(body, -1, collisionMargin=0.0)
                 out[name].append(body)
         return out
 
-    def _hull_rows(self, max_distance: float, link: str) -> list[tuple]:
-        """:meth:`closest` of a link with a box, on its margin-free hulls (:meth:`box_hulls`),
-        as rows of the link itself (body and link index the robot's)."""
+    def _hull_rows(self, other: int, max_distance: float, link: str) -> list[tuple]:
+        """pybullet closest points between a link of :meth:`box_hulls` and body ``other``,
+        on the link's margin-free hulls (placed at the link's pose for the query, parked
+        again after it), as rows of the link itself (body and link index the robot's)."""
         position, orientation = matrix_to_pose(self.model_pose(link))
         robot, index, out = self.bodies["robot"], self.link_index[link], []
         for body in self._hulls[link]:
             self.bullet.resetBasePositionAndOrientation(body, position, orientation)
-            for row in self.bullet.getClosestPoints(body, self.bodies["object"], max_distance):
+            for row in self.bullet.getClosestPoints(body, other, max_distance):
                 out.append((row[0], robot, row[2], index, *row[4:]))
+            self.bullet.resetBasePositionAndOrientation(body, PARKED, (0.0, 0.0, 0.0, 1.0))
         return out
 
     def distance(self, row: tuple) -> float:
@@ -372,9 +386,8 @@ class RobotScene(ObjectWorld):
         if self._table is None:
             return False
         self.sync()
-        robot, table = self.bodies["robot"], self._table[0]
-        rows = (self.bullet.getClosestPoints(robot, table, 0.0) if links is None else
-                [row for link in links for row in self.bullet.getClosestPoints(
-                    robot, table, 0.0, linkIndexA=self.link_index[link])])
+        table = self._table[0]
+        rows = (self._rows(table, 0.0) if links is None else
+                [row for link in links for row in self._rows(table, 0.0, link)])
         return any(self.distance(row) <= 0.0 for row in rows)
 

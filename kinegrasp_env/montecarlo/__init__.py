@@ -8,7 +8,8 @@ capsule-finger reference, and its fast engine, which is the batched engine of
 ``kuka_sdh.yaml``; ``physics_engine``), ``evaluate_grasp`` and its chunked random streams
 (``evaluate``; a description robot's runs: ``robot_evaluate``, ``robot_chunks``,
 ``robot_noise``, the same streams), executors (``execution``: local process pool, Ray),
-sweeps over a grid of settings (``sweep``) and a grasp's nominal contacts from one closing
+sweeps over a grid of settings (``sweep``; its spec: ``sweep_spec``, ``sweep_grasps``,
+``sweep_noise``) and a grasp's nominal contacts from one closing
 (``nominal``).
 """
 

@@ -31,6 +31,7 @@ from kinegrasp_env.montecarlo.engines import (
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.nominal import nominal_quality
 from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
+from kinegrasp_env.montecarlo.robot_noise import check_hand
 from kinegrasp_env.quality.wrenches import check_parameters
 from kinegrasp_env.sampling.noise import (  # noqa: F401  (MAX_SIGMA importable from here too)
     MAX_SIGMA,
@@ -324,6 +325,8 @@ def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
                 "evaluate_robot_grasp, as `kinegrasp evaluate` evaluates it")
     validate_task(grasp.q0, noise)
     check_noise_engine(noise, engine)
+    if isinstance(noise, NoiseModel) and noise.hand is not None:
+        check_hand(noise.hand, DEFAULT_ROBOT)  # before any chunk (in a worker) draws it
     check_parameters(friction, num_edges)
     n_samples = int(sum(sizes))
     key = (engine, grasp.object, float(friction), int(num_edges), bool(static_hold))

@@ -47,8 +47,8 @@ def check_static_hold_noise(noise) -> None:
     """ValueError (one line) for a noise model with a friction source beside the static hold
     check (any robot's): the check holds at one mu. Every other source it takes."""
     if isinstance(noise, NoiseModel) and noise.friction is not None:
-        raise ValueError("the static hold check holds at one mu; the spec's friction source "
-                         "draws one per draw: drop one of them")
+        raise ValueError("the static hold check holds at one mu (--friction); the "
+                         "spec's friction source sets mu for every draw: drop one of them")
 
 
 def hand_layout(description: RobotDescription) -> np.ndarray:

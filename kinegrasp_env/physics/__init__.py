@@ -8,7 +8,8 @@ simulator executes it in modules of its own: pybullet's world (``pybullet_world`
 hand held by a constraint, the object as a rigid body that can be pinned), its closing
 controller (``pybullet_closing``; its result: ``hand_result``) and its holding test
 (``pybullet_hold``); any other
-catalog robot's hand cut from its URDF (``robot_world``), its holding test (``robot_hold``)
+catalog robot's hand cut from its URDF (``robot_world``), its closing motors
+(``jaw_motors``), its holding test (``robot_hold``)
 and its closing against the kinematic one (``robot_agreement``); MuJoCo's world
 (``mujoco_model``, ``mujoco_world``) and holding tests of the default robot's hand
 (``mujoco_hold``) and of any other robot's (``mujoco_robot_hold``); the motors of a robot's

@@ -23,7 +23,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, SpringGrip, spring_grip
+from kinegrasp_env.physics.grip_forces import (
+    GripContact,
+    GripJoints,
+    SpringGrip,
+    levers,
+    spring_grip,
+)
 from kinegrasp_env.physics.hand_motors import motor_efforts, required_effort, urdf_limits
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -105,26 +111,26 @@ class GripLayout:
                            world.obj.center_of_mass, world.settings.friction, advance)
 
 
-#: A fingertip nearer its joint's axis than this (metres) gives the joint no lever to
-#: advance (:func:`reach`).
-MIN_LEVER = 1e-3
+#: A fingertip nearer its joint's axis than this share of the farthest contact the joint
+#: carries gives the joint too short a lever to advance by (:func:`reach`).
+LEVER_SHARE = 0.5
 
 
 def reach(joints: GripJoints, contacts: list[GripContact]) -> np.ndarray:
     """(J, 3) the point whose advance sets each joint's spring (:func:`~kinegrasp_env.
-    physics.grip_forces.tip_offsets`): its fingertip, or where that lies on the joint's axis
-    (within :data:`MIN_LEVER`: a one-joint finger whose leaf link, its tip, has its frame at
-    the joint) the contact it carries farthest from the axis. On the axis the tip's lever is
-    0, the offset ``advance / 1e-6`` rad and the spring a constant torque that holds no
-    position: two such fingers pushed the released object 12.7 mm."""
+    physics.grip_forces.tip_offsets`): its fingertip, or, where that lies nearer the joint's
+    axis than :data:`LEVER_SHARE` of the contact it carries farthest from the axis (a
+    one-joint finger whose leaf link, its tip, has its frame at the joint), that contact. A
+    tip on the axis has a lever of 0, an offset of ``advance / 1e-6`` rad and a spring that
+    is a constant torque holding no position: two such fingers pushed the released object
+    12.7 mm."""
     tips = np.array(joints.tips, dtype=float)
     carries = joints.carries(contacts)
     for j in range(len(tips)):
         points = np.array([tips[j]] + [contacts[c].point for c in np.nonzero(carries[j])[0]])
-        arms = points - joints.origins[j]
-        radial = np.linalg.norm(arms - np.outer(arms @ joints.axes[j], joints.axes[j]), axis=1)
-        if radial[0] < MIN_LEVER:
-            tips[j] = points[int(np.argmax(radial))]
+        lever = levers(points, joints.origins[j], joints.axes[j])
+        if lever[0] < LEVER_SHARE * lever.max():
+            tips[j] = points[int(np.argmax(lever))]
     return tips
 
 

@@ -193,12 +193,18 @@ def balanced_torques(contacts: list[GripContact], joints: GripJoints, center: np
     return None
 
 
+def levers(points: np.ndarray, origins: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """(k,) the distances (metres) of points (k, 3) from the axes through origins (k, 3)
+    along unit axes (k, 3) (rows broadcast)."""
+    arm = np.asarray(points, dtype=float) - origins
+    radial = arm - axes * np.sum(arm * axes, axis=-1, keepdims=True)
+    return np.linalg.norm(radial, axis=-1)
+
+
 def tip_offsets(joints: GripJoints, advance: float) -> np.ndarray:
     """(J,) the joint angles (radians) that move each joint's fingertip by ``advance``
-    metres: advance / (distance from the joint's axis to the tip)."""
-    arm = joints.tips - joints.origins
-    radial = arm - joints.axes * np.einsum("jd,jd->j", arm, joints.axes)[:, None]
-    return advance / np.maximum(np.linalg.norm(radial, axis=1), 1e-6)
+    metres: advance / (distance from the joint's axis to the tip: :func:`levers`)."""
+    return advance / np.maximum(levers(joints.tips, joints.origins, joints.axes), 1e-6)
 
 
 def loaded_joints(contacts: list[GripContact], joints: GripJoints) -> np.ndarray:

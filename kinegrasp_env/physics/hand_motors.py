@@ -283,7 +283,8 @@ def independent_jaws(description: RobotDescription) -> frozenset[str]:
     return frozenset(out)
 
 
-#: A finger of several motors: its last motor, while a link it moves touches the object,
+#: A finger of several motors (or a jaw driven on its own, on a free object): its last
+#: motor, while a link it moves touches the object,
 #: closes at this fraction of its closing speed (within its effort), pressing the object
 #: and following it where it gives way (the paper's hand's distal creep: 0.05 rad/s of
 #: 1 rad/s). At full speed the SDH's distal phalanges shoved the free cube up to 6 cm and
@@ -329,7 +330,8 @@ class TouchRule:
         self.efforts = {m.joint: holds[m.joint] for m in motors}
         #: per finger, per link: the motor joints its touch holds
         self.rows: list[list[tuple[str, ...]]] = []
-        #: per finger of several motors: (its last motor joint, the first link it moves)
+        #: per finger that presses (several motors, or ``alone``): (its last motor joint, the
+        #: first link it moves)
         self.pressers: list[tuple[str, int]] = []
         self.fingers: list[int] = []
         for f, finger in enumerate(description.fingers):
@@ -348,8 +350,8 @@ class TouchRule:
 
     @property
     def active(self) -> bool:
-        """Whether any finger has several motors (else the closing need not read
-        contacts)."""
+        """Whether any finger presses (several motors, or one driven ``alone``; else the
+        closing need not read contacts)."""
         return bool(self.pressers)
 
     def travel(self, names: list[str], travel: np.ndarray) -> np.ndarray:

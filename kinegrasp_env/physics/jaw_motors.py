@@ -78,7 +78,7 @@ class JawMotors:
         self.closing = True
         #: the motors the touch rule holds: joint name -> the value held (radians or metres)
         self.held: dict[str, float] = {}
-        self.links = finger_links(world)
+        self.links = finger_link_indices(world)
         self.restart()
 
     def restart(self) -> None:
@@ -146,7 +146,7 @@ class JawMotors:
                                  np.array([s[0] for s in states]) / self.speeds)
 
 
-def finger_links(world: RobotPhysicsWorld) -> dict[int, tuple[int, int]]:
+def finger_link_indices(world: RobotPhysicsWorld) -> dict[int, tuple[int, int]]:
     """pybullet link index -> (finger, index of the link in the finger's ``links``)."""
     out: dict[int, tuple[int, int]] = {}
     for f, finger in enumerate(world.description.fingers):

@@ -179,7 +179,9 @@ def finger_forces(world: PhysicsWorld, links: dict[int, tuple[int, int]], finger
                   ) -> np.ndarray:
     """(fingers,) each finger's total normal force on the object from the last step, newtons
     (the sum of pybullet's ``normalForce`` over the contact records of its links; ``links``:
-    pybullet link index -> (finger, link), as :func:`finger_links` gives them)."""
+    pybullet link index -> (finger, link), as :func:`finger_links` gives them for the
+    default robot's hand and :func:`~kinegrasp_env.physics.jaw_motors.finger_link_indices`
+    for a description robot's)."""
     forces = np.zeros(fingers)
     for rec in world.contact_points():
         if rec[3] in links:

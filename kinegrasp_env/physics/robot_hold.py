@@ -76,7 +76,7 @@ from kinegrasp_env.physics.hand_motors import (
     motor_efforts,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
-from kinegrasp_env.physics.jaw_motors import JawMotors, finger_links
+from kinegrasp_env.physics.jaw_motors import JawMotors, finger_link_indices
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
 from kinegrasp_env.physics.pybullet_closing import finger_forces, merge_records
 from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
@@ -122,7 +122,7 @@ def world_contacts(world: RobotPhysicsWorld, distance: float) -> list[GripContac
     averaged without force weights, i.e. the centre of the corners of the pad's overlap
     with the face (a rigid pad tilted by a fraction of a degree puts its whole force on one
     corner, whichever the solver picks: the centre of pressure is not the patch's)."""
-    links = finger_links(world)
+    links = finger_link_indices(world)
     records: dict[tuple[int, int], list[tuple]] = {}
     for rec in world.contact_points():
         if rec[3] in links and rec[8] <= distance:
@@ -159,7 +159,7 @@ class RobotSteps(PybulletSteps):
         return True
 
     def finger_forces(self) -> np.ndarray:
-        return finger_forces(self.world, finger_links(self.world),
+        return finger_forces(self.world, finger_link_indices(self.world),
                              len(self.world.description.fingers))
 
 

@@ -277,15 +277,22 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     # every movable joint is an arm or a hand joint, or a mimic joint that follows one
     listed = set(arm) | set(hand)
     for joint in movable.values():
-        if (joint.mimic[0] if joint.mimic is not None else joint.name) in listed:
+        source = joint.mimic[0] if joint.mimic is not None else joint.name
+        if source != joint.name and source in movable and movable[source].mimic is not None:
+            raise fail(where, "urdf", f"{joint.name!r} mimics {source!r}, itself a mimic joint "
+                       f"of {movable[source].mimic[0]!r}: make it mimic that joint in "
+                       f"{urdf.name} (a chain of mimic joints is not supported)")
+        if source in listed:
             continue
+        follows = "" if source == joint.name else f" (it mimics {source!r})"
         if palm in ancestors(joint.parent):
             raise fail(where, "hand_joints", f"{joint.name!r} is a movable joint beyond "
-                       f"palm_link {palm!r} that is in neither arm_joints nor hand_joints: "
-                       "list it in hand_joints, or make palm_link a link beyond it")
+                       f"palm_link {palm!r} that is in neither arm_joints nor hand_joints"
+                       f"{follows}: list {source!r} in hand_joints, or make palm_link a link "
+                       "beyond it")
         raise fail(where, "urdf", f"{joint.name!r} is a movable joint of {urdf.name} in "
-                   "neither arm_joints nor hand_joints (nor a mimic joint of one): every "
-                   "movable joint must be one of them")
+                   f"neither arm_joints nor hand_joints{follows}: list {source!r} in one of "
+                   "them, or make it a fixed joint in the URDF")
 
     close = {}
     for j, d in check_mapping(data["close"], where, "close").items():

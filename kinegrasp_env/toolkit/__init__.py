@@ -2,7 +2,8 @@
 parallel jaws; ``approach_planner``: sampled approaches and pre-shapes for any other hand),
 candidates given as palm poses (``candidates``; every robot's solved by
 ``candidate_solver``), ranking by robustness (``ranking``; certified, ``adaptive_ranking``),
-the most robust elbow of any robot (``elbow_search``; its results: ``elbow``), the paper's
+the most robust elbow of any robot (``elbow_search``; its results: ``elbow``; its figures:
+``elbow_plots``), the paper's
 experiments (``experiments``), the sensitivity analysis per source of error
 (``sensitivity``), the physics validation (``validation``), HTML reports (the ``report``
 room), progress (``progress``) and plots (``plots``). Uses ``montecarlo`` and below.
