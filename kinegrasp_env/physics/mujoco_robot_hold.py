@@ -61,6 +61,7 @@ from kinegrasp_env.physics.hand_motors import (
     TouchRule,
     closing_followers,
     finger_leaders,
+    independent_jaws,
     preshape_holds,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall
@@ -124,6 +125,9 @@ class JawServos:
         holds: :func:`~kinegrasp_env.physics.hand_motors.hold_efforts` (MuJoCo holds a
             joint by an equality, without an effort cap).
         touch_distance: a contact record within this distance (metres) is a touch.
+        free: the object is free (not pinned): a finger driven on its own presses as a
+            last motor does (:func:`~kinegrasp_env.physics.hand_motors.independent_jaws`),
+            as in pybullet.
 
     A pressing motor presses with its full effort when blocked, as pybullet's; MuJoCo's
     velocity servo (:meth:`~kinegrasp_env.physics.mujoco_world.MujocoWorld.velocity`: a
@@ -133,7 +137,7 @@ class JawServos:
 
     def __init__(self, world: MujocoWorld, description: RobotDescription,
                  motors: list[JointMotor], holds: dict[str, float],
-                 touch_distance: float = CONTACT_TOL) -> None:
+                 touch_distance: float = CONTACT_TOL, free: bool = False) -> None:
         self.world, self.touch_distance = world, touch_distance
         leaders = finger_leaders(description)
         self.motors = [m for m in motors if m.joint in leaders]
@@ -148,7 +152,8 @@ class JawServos:
         fixed = preshape_holds(description, holds, start)
         if fixed:
             world.position([h.joint for h in fixed], [h.value for h in fixed])
-        self.touch = TouchRule(description, self.motors, holds, world.settings.time_step)
+        self.touch = TouchRule(description, self.motors, holds, world.settings.time_step,
+                               independent_jaws(description) if free else frozenset())
         world.velocity(self.names, [m.direction * m.speed for m in self.motors],
                        [m.effort for m in self.motors])
 
@@ -238,7 +243,7 @@ class MujocoRobotHold(DescriptionHold):
         if world.penetration() > START_TOL:
             return RobotCloseResult(True, missed=(False,) * len(fingers)), None
         servos = JawServos(world, self.description, self.motors, self.holds,
-                           self.settings.touch_distance)
+                           self.settings.touch_distance, free=not pin)
         close_until_stall(servos.step, servos.travel, self.settings, world.settings.time_step)
         names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
         positions = world.joint_states(names)[0]
