@@ -150,6 +150,31 @@ def test_box_jaws_score_alike_in_both_engines(jaw_robot, capsys):
         assert q["fast", grasp] == pytest.approx(q["pybullet", grasp], rel=1e-6), q
 
 
+def test_a_pad_edge_across_a_face_is_on_that_face():
+    """A 1 x 0.5 x 4 cm pad upright beside the cube's +x face, turned about z by t so that
+    one of its vertical edges alone touches the face, running from 2 cm below the cube's top
+    edge to 2 cm above it; its closest point given at the top edge: the +x face (a line
+    contact reaching into the face), at t = 0.3 and 0.05 rad, and flat (t = 0). Turned 45
+    degrees about y instead, its own edge lying along the cube's top edge: no face (it touches
+    the edge, not a face), nor where that pad is longer than the cube's edge."""
+    cube = load_object("cube")
+    top = cube.center_of_mass[2] + HALF
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    for t in (0.3, 0.05, 0.0):
+        c, s = np.cos(t), np.sin(t)
+        pad = (corners * [0.005, 0.0025, 0.02]) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T
+        pad += [HALF - pad[:, 0].min(), 0.0, top]
+        edge_y = pad[np.argmin(pad[:, 0]), 1]
+        part, plane = flat_face(cube, np.array([[HALF, edge_y, top]]), pad[None], TOL)
+        assert part[0] == 0 and np.allclose(plane[0], [1, 0, 0, -HALF], atol=1e-9), (t, plane)
+    for length in (0.005, 0.05):  # shorter than the cube's edge, and longer
+        c = s = np.sqrt(0.5)
+        pad = (corners * [0.005, length, 0.02]) @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]).T
+        low = pad[np.argmin(pad[:, 0] + pad[:, 2])]
+        pad += np.array([HALF, 0.0, top]) - [low[0], 0.0, low[2]]
+        assert flat_face(cube, np.array([[HALF, 0.0, top]]), pad[None], TOL)[0][0] == -1, length
+
+
 def test_spanning_a_face_is_the_second_singular_value_of_the_points():
     """The batched test (a covariance's eigenvalues) against NumPy's SVD of each set of
     centred points, on random point sets with random subsets flagged; and the two hand
