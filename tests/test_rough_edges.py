@@ -584,3 +584,30 @@ def test_evaluate_shows_no_nan_for_moments_of_too_few_draws(capsys):
     line = capsys.readouterr().out.splitlines()[2]
     assert "nan" not in line and "(1 of them: '-' where too few or all equal)" in line, line
     assert ", std -, skewness -, error (nominal - mean) 0.00000" in line, line
+
+
+def test_a_short_run_ends_with_its_mean_rate():
+    """A run done within MIN_WINDOW (four cells of 100 draws, 0.2 s apart) ends its last
+    line with the mean rate over its reports (300 draws in 0.6 s: 500 draws/s), not "rate
+    being measured"; work that came back at once stays unmeasured (above)."""
+    clock, stream = Clock(), io.StringIO()
+    report = Progress("table1", 400, 4, stream=stream, interactive=False, clock=clock)
+    for cell in range(4):
+        clock.now += 0.2
+        report.advance(100 * (cell + 1))
+        report.cell_done(f"cell {cell}: P(FC) 0.500")
+    lines = stream.getvalue().splitlines()
+    assert lines[-2].endswith("rate being measured"), lines
+    assert lines[-1].endswith("400/400 draws, 500 draws/s, ETA 00:00"), lines
+
+
+def test_a_tiny_negative_error_prints_as_zero(capsys):
+    """``evaluate``'s error (nominal - mean) of a grasp whose draws all close as its nominal
+    one is a rounding difference, -1e-12: it printed "-0.00000"."""
+    from kinegrasp_env.cli.evaluation_output import Evaluation, print_evaluation
+
+    print_evaluation(Evaluation("cube grasp 0", "sigma 0", 3, 0.5, "point", 1.0, (0.4, 1.0),
+                                0.05, 0.05 + 1e-12, 0.0, float("nan"),
+                                {"force_closure": 3}))
+    out = capsys.readouterr().out
+    assert "error (nominal - mean) 0.00000" in out and "-0.0" not in out, out

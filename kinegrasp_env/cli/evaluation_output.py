@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from kinegrasp_env.wording import fixed
+
 __all__ = ["Evaluation", "evaluation_record", "hold_lines", "print_evaluation"]
 
 
@@ -46,7 +48,7 @@ def print_evaluation(run: Evaluation, extra: list[str] | None = None) -> None:
     print(f"{run.what}, {run.noise}, {run.samples} draws, {mu}")
     print(f"  P(FC)   = {run.p_fc:.4f}  (95% CI {lo:.4f} .. {hi:.4f})")
     def shown(value: float, digits: int = 5) -> str:  # a moment of too few draws: "-"
-        return "-" if math.isnan(value) else f"{value:.{digits}f}"
+        return "-" if math.isnan(value) else fixed(value, digits)
 
     closed = run.outcomes.get("force_closure", 0)
     undefined = any(math.isnan(v) for v in (run.q_mean, run.q_std, run.q_skew))

@@ -120,9 +120,14 @@ class Progress:
         if self.total != self.most:
             draws += f" (down from {self.most})"
         rate = self.rate()
+        span = self.times[-1] - self.times[0] if self.times else 0.0
+        if rate is None and self.done >= self.total and span >= MIN_WINDOW / 10:
+            # a run done within the window: its mean rate (not over an instant)
+            rate = (self.history[-1] - self.history[0]) / span
         if rate is None:
             return f"{draws}, rate being measured"
-        return f"{draws}, {rate:.0f} draws/s, ETA {format_eta(self.eta())}"
+        eta = (self.total - self.done) / rate if rate > 0 else None
+        return f"{draws}, {rate:.0f} draws/s, ETA {format_eta(eta)}"
 
     # ------------------------------------------------------------------ reports
     def advance(self, done: int, total: int | None = None) -> None:

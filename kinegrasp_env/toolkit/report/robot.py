@@ -327,8 +327,8 @@ def robot_page(description: RobotDescription, obj: GraspObject | Mapping[str, Gr
             friction=friction, num_edges=num_edges, title=title, cloud=cloud,
             arms=None if arms is None else arms[k]), "100%", "560px")
         figures.append(figure)
-        state = ("drawn closed on the object from the pre-shape of q0 (the reference "
-                 "closing, as in every draw)" if did_close else
+        state = ("drawn closed on the object from the pre-shape of q0 (by the reference "
+                 "closing, which every engine's closing follows)" if did_close else
                  "starts in collision at q0 and does not close: drawn at q0")
         drawn = "" if cloud is None else (
             f" The contact points of its first run's draws: {cloud.shown} of {cloud.total}"
