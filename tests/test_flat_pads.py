@@ -336,6 +336,38 @@ def test_the_reference_measures_a_tilted_box_edge_exactly(in_knuckles):
             scene.close()
 
 
+def test_a_link_edge_through_the_object_is_an_overlap(in_knuckles):
+    """A finger's box (3 x 1.2 x 10 cm) posed by hand across the cube's vertical edge at x =
+    0.03, y = -0.03 as a thin strip cutting the corner: its long axis along (1, 1, 0) / sqrt 2,
+    its centre 9 mm in from the edge along the diagonal, so that the strip spans 3-15 mm in
+    from the edge and 1.5 cm up and down. No corner of either body is inside the other and no
+    edge of the cube meets the box (checked here), yet they overlap: the fast closing's exact
+    distance read only the link's vertices and the object's edges and called it apart; its
+    signed distance is now the depth of the box's deepest edge point, the middle of its inner
+    long edge, 15 mm in from the cube's edge: 15 / sqrt 2 mm from either face."""
+    from kinegrasp_env.closing.link_distances import LinkDistances
+    from kinegrasp_env.closing.link_geometry import robot_link_geometry
+    from kinegrasp_env.robot.catalog import load_robot
+    from kinegrasp_env.world.sdf import grid_of
+
+    cube = load_object("cube")
+    a, b = np.array([1.0, 1.0, 0.0]) / np.sqrt(2), np.array([1.0, -1.0, 0.0]) / np.sqrt(2)
+    edge = np.array([HALF, -HALF, cube.center_of_mass[2]])
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([[0.0, 0.0, 1.0], b, a])  # link x, y, z in the object frame
+    pose[:3, 3] = edge - 0.009 * b - 0.05 * a  # the box's centre (link (0, 0, 0.05)) 9 mm in
+    box = (box_corners([0.03, 0.012, 0.1]) + np.array([0.0, 0.0, 0.05])) @ pose[:3, :3].T
+    box += pose[:3, 3]
+    local = box - [0.0, 0.0, cube.center_of_mass[2]]
+    assert not np.any(np.all(np.abs(local) < HALF, axis=1))  # no box corner in the cube
+    inward = (edge - box.mean(axis=0)) @ b  # the cube's edge beyond the strip's outer face
+    assert inward > 0.006
+    geometry = robot_link_geometry(load_robot("iiwa_knuckles"))
+    distances = LinkDistances({"left_finger": geometry["left_finger"]}, cube, grid_of(cube))
+    d = distances.polytopes(pose[None], "left_finger")[0][0]
+    assert d == pytest.approx(-0.015 / np.sqrt(2), abs=1e-6), d
+
+
 @pytest.mark.expensive
 def test_tilted_box_pads_close_alike_in_both_engines(in_knuckles):
     """Two box fingers on knuckles of their own: a turning pad meets a face with its tip's

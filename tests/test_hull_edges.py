@@ -57,7 +57,7 @@ def _kernel(part, ends, rot, trans):
     sphere = np.append(centre, np.linalg.norm(part.vertices - centre, axis=1).max())
     edges_against_hull(parts_tuple(pack_parts([part])), sphere,
                        np.empty((2, len(part.planes))), rot, trans, ends, np.inf, SEARCH, GOLD,
-                       best, link_point, object_point, np.empty_like(ends))
+                       best, link_point, object_point, np.empty_like(ends), False)
     return best, link_point, object_point
 
 

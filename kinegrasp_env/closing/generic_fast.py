@@ -4,11 +4,14 @@
 **Geometry.** Each robot link's collision geometry is read once from pybullet
 (:mod:`~kinegrasp_env.closing.link_geometry`: polytopes, and capsules and spheres as rounded
 parts, :mod:`~kinegrasp_env.closing.rounded_links`), expressed in the link's URDF frame.
-The distance of a link to the object is exact: the closest pair of two convex polytopes has
-a vertex of one or a point on an edge of each, so it is the least of the link's hull vertices
-against the object (:meth:`GraspObject.closest_points`) and of the object's edges against the
-link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`;
-:mod:`~kinegrasp_env.closing.link_distances`). A certified
+The distance of a link to the object is exact: the closest pair of two convex polytopes
+apart has a vertex of one or a point on an edge of each, so it is the least of the link's hull
+vertices against the object (:meth:`GraspObject.closest_points`) and of the object's edges
+against the link's hulls (:func:`~kinegrasp_env.closing.hull_edges.edges_against_hull`;
+:mod:`~kinegrasp_env.closing.link_distances`); where they overlap, the link's edges through
+the object's parts too (an edge of each crossing, no vertex of either inside the other: the
+depth of the deepest of these points, which is what the start-collision rule compares). A
+certified
 lower bound of the same distance, within 1e-8 of it (relative) where the link and the object
 are apart, comes far cheaper from GJK on the hulls' vertices
 (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`); the exact pair is taken

@@ -1,7 +1,9 @@
 """The object's edges against a robot link's convex hull, compiled: the half of the exact
 closest pair of two convex polytopes that the object's vertices cannot give (every closest
-pair has a vertex of one polytope, or points on an edge of each; the link's vertices against
-the object are the other half, :meth:`~kinegrasp_env.world.objects.GraspObject.closest_points`).
+pair of two polytopes apart has a vertex of one polytope, or points on an edge of each; the
+link's vertices against the object are the other half, :meth:`~kinegrasp_env.world.objects.
+GraspObject.closest_points`); the same kernel also runs the link's edges through the object's
+parts, where the two overlap (``meeting_only``).
 
 An edge that passes beside the hull is measured exactly as a finger's capsule axis is
 against the object: the nearer of its ends' closest points or of its closest pairs with the
@@ -113,7 +115,7 @@ def meets_hull(values, margin):
 
 @jit.kernel(_nrt=False)
 def edges_against_hull(geo, sphere, values, rot, trans, ends, below, steps, gold, best,
-                       link_point, object_point, local):
+                       link_point, object_point, local, meeting_only):
     """For each draw i (rot (n, 3, 3), trans (n, 3): the link's object-frame pose), lower
     best[i] to the least distance of the object's edges ``ends`` (E, 2, 3) to the hull
     (``geo``: packed as one part, :func:`~kinegrasp_env.closing.packed_geometry.
@@ -128,7 +130,9 @@ def edges_against_hull(geo, sphere, values, rot, trans, ends, below, steps, gold
     the edge's parameter) by ``steps`` golden-section steps, the rest of whose search is
     skipped once its Lipschitz bound over the bracket is not below min(best[i], below).
     ``local`` (E, 2, 3) and ``values`` (2, F) are scratch: the edges' ends in the link
-    frame of the draw, an edge's ends' plane values."""
+    frame of the draw, an edge's ends' plane values. ``meeting_only``: edges that do not meet
+    the hull are skipped (the link's edges against the object's parts: only an edge through
+    the other polytope can give what its vertices and the other's edges do not, a depth)."""
     planes, edges, tol = geo[0], geo[2], geo[10] * geo[4][0]
     for i in range(rot.shape[0]):
         for e in range(ends.shape[0]):  # the edges' ends in the link frame of draw i
@@ -148,6 +152,8 @@ def edges_against_hull(geo, sphere, values, rot, trans, ends, below, steps, gold
                                                                                    below):
                 continue
             if not meets_hull(values, PRUNE_MARGIN):
+                if meeting_only:
+                    continue
                 d, hx, hy, hz, sx, sy, sz = segment_part(geo, 0, ax, ay, az, ex, ey, ez,
                                                          values, min(best[i], below))
                 if d < best[i]:

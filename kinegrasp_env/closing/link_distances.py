@@ -4,9 +4,10 @@ pairs and certified lower bounds, batched over poses.
 A link's collision geometry (:mod:`~kinegrasp_env.closing.link_geometry`) is polytopes and
 rounded parts. Its exact closest pair with the object is the least of its polytopes' (the
 link's hull vertices against the object's convex parts and the object's edges against each
-link hull: every closest pair of two convex polytopes has a vertex of one or a point on an
-edge of each) and its rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.
-RoundedCores`). Its lower bound: GJK on the hulls' vertices
+link hull: every closest pair of two convex polytopes apart has a vertex of one or a point on
+an edge of each; where they overlap, the link's edges through the object's parts besides)
+and its rounded parts' (:class:`~kinegrasp_env.closing.rounded_links.RoundedCores`). Its
+lower bound: GJK on the hulls' vertices
 (:func:`~kinegrasp_env.closing.convex_distance.hull_distance_bounds`), with how far the link
 can move along a direction before a separating plane lets it near.
 """
@@ -24,6 +25,7 @@ from kinegrasp_env.closing.convex_distance import (
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import LinkGeometry
+from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
 from kinegrasp_env.closing.rounded_links import RoundedCores
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
@@ -54,6 +56,14 @@ class LinkDistances:
         self.geometry, self.obj = geometry, obj
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
+        # each object part packed as one hull, with its bounding ball (object frame), for
+        # the links' edges against it
+        self._object_packed = [(parts_tuple(packed := pack_parts([p])),
+                                np.append(packed.part_center[0], packed.part_radius[0]))
+                               for p in obj.convex_parts]
+        self._link_edges = {link: np.ascontiguousarray(
+            np.concatenate([p.edges for p in g.parts]), dtype=float)
+            for link, g in geometry.items() if g.parts}
         self._object_hulls = stacked_vertices(obj.convex_parts)
         self._simplex = new_simplex()
         self._link_hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
@@ -91,8 +101,10 @@ class LinkDistances:
         exact: the least of the link's hull vertices against the object and of the object's
         edges against each link hull (:func:`~kinegrasp_env.closing.hull_edges.
         edges_against_hull`: exact beside the hull, :data:`SEARCH` golden steps along an
-        edge through it). Every closest pair of two convex polytopes has a vertex of one or
-        a point on an edge of each. With
+        edge through it), and where they overlap of the link's edges through the object's
+        parts (:meth:`_link_edges_through`). Every closest pair of two convex polytopes apart
+        has a vertex of one or a point on an edge of each; two that overlap can do so with an
+        edge of each crossing and no vertex of either inside the other. With
         ``below``, edges that cannot bring a distance under it are skipped (a distance left
         at or above ``below`` is then only an upper bound); with ``decide`` too, a draw whose
         vertices already bring it below ``below`` is not searched further (its distance then
@@ -113,10 +125,39 @@ class LinkDistances:
         for sphere, packed in zip(geom.hulls[2], geom.packed, strict=True):
             edges_against_hull(packed, sphere, np.empty((2, len(packed[0]))), rot, trans,
                                self.edges, float(below), SEARCH, GOLD, d, f, o,
-                               self._local_edges)
+                               self._local_edges, False)
+        # where the two overlap, the link's edges through the object's parts: two polytopes
+        # can overlap with no vertex of either inside the other and no edge of the object
+        # through the link (a link edge across an object edge), which the above misses
+        self._link_edges_through(link, rot, trans, below, d, f, o)
         if rows is not None:
             dist[rows], fp[rows], op[rows] = d, f, o
         return dist, fp, op
+
+    def _link_edges_through(self, link: str, rot: np.ndarray, trans: np.ndarray,
+                            below: float, d: np.ndarray, f: np.ndarray, o: np.ndarray) -> None:
+        """Lower d (n,) to the least signed distance of ``link``'s hull edges that meet an
+        object part (posed by the object-frame link poses rot (n, 3, 3), trans (n, 3)), with
+        the link point f and the object point o (object frame): the object's parts posed in
+        the link frame, the link's edges against each (``meeting_only``: an edge beside a
+        part is no nearer than the closest pair the vertices and the object's edges give)."""
+        ends = self._link_edges[link]
+        if len(rot) == 0 or len(ends) == 0:
+            return
+        inv_rot = np.ascontiguousarray(np.swapaxes(rot, 1, 2))
+        inv_trans = np.ascontiguousarray(-np.einsum("nji,nj->ni", rot, trans))
+        local = np.empty_like(ends)
+        best, on_part, on_edge = d.copy(), np.empty_like(f), np.empty_like(o)
+        for packed, sphere in self._object_packed:
+            edges_against_hull(packed, sphere, np.empty((2, len(packed[0]))), inv_rot,
+                               inv_trans, ends, float(below), SEARCH, GOLD, best, on_part,
+                               on_edge, local, True)
+        took = best < d
+        if took.any():  # the points found are in the link frame: back to the object's
+            r, t = rot[took], trans[took]
+            d[took] = best[took]
+            f[took] = np.einsum("nij,nj->ni", r, on_edge[took]) + t
+            o[took] = np.einsum("nij,nj->ni", r, on_part[took]) + t
 
     def new_hints(self, link: str, n: int) -> np.ndarray:
         """Where :meth:`distance_bound` of ``link`` starts at n draws: nowhere known yet
