@@ -78,3 +78,25 @@ def test_object_corner():
     o = p + np.array([0.0004, 0.0011, -0.0007])
     got, _, _ = _normal(p_local, o, [o, o + np.array([0.05, 0.0, 0.0])], distance=-2e-5, seed=6)
     np.testing.assert_allclose(got, -(o - p), atol=1e-15)
+
+
+def test_an_object_edge_across_a_link_edge_overlapping_it():
+    """An object edge crossing the link's edge along x at (y, z) = (H, H), 0.1 mm into the
+    link along the edge's outward bisector (its direction u chosen so that u x v is that
+    bisector): the pair's link point lies on the +y face, 0.07 mm below the +z face plane,
+    the object point on the object edge, d = -0.07 mm. The normal is the crossing edges'
+    u x v, pointing out of the link (towards (o - p) sign(d)): the bisector. The +y face's
+    normal was taken (the link point more than FACE_TOL off the +z face, though a
+    penetration's witness lies up to its depth off the features)."""
+    rot = Rotation.random(random_state=7).as_matrix()
+    trans = np.array([0.1, -0.2, 0.3])  # as _normal poses the link
+    bisector = rot @ np.array([0.0, 1.0, 1.0]) / np.sqrt(2)
+    u = _unit(rot @ np.array([0.3, 1.0, -1.0]))  # u x (R e_x) along -bisector
+    depth = 1e-4
+    o_local = np.array([0.003, H, H]) - depth * np.array([0.0, 1.0, 1.0]) / np.sqrt(2)
+    p_local = np.array([o_local[0], H, o_local[2]])  # the nearest face, +y (a tie with +z)
+    o = rot @ o_local + trans
+    assert FACE_TOL < H - p_local[2] < FACE_TOL + np.linalg.norm(o_local - p_local)
+    got, _, _ = _normal(p_local, o, [o - 0.05 * u, o + 0.04 * u],
+                        distance=-np.linalg.norm(o_local - p_local), seed=7)
+    np.testing.assert_allclose(_unit(got), bisector, atol=1e-9)

@@ -4,12 +4,19 @@ corner (pybullet's normal there).
 
 The rule, per pair (link point p on the link's hulls, object point o, signed distance d):
 
-1. p inside one face of the link's hulls (within ``face_tol`` of exactly one face plane):
-   that face's outward normal;
+1. p inside one face of the link's hulls (within ``face_tol`` + r of exactly one
+   face plane): that face's outward normal;
 2. else, o inside one object edge (direction u): where p lies inside one link edge too
-   (direction v, not parallel to u), u x v, turned towards (o - p) sign(d); else the part
-   of (o - p) sign(d) perpendicular to u (p at a link corner);
+   (within ``line_tol`` + 2 r; direction v, not parallel to u), u x v, turned
+   towards (o - p) sign(d); else the part of (o - p) sign(d) perpendicular to u (p at a link
+   corner);
 3. else (o at an object corner) (o - p) sign(d).
+
+A touching pair may overlap by up to the contact tolerance; p, the witness of that
+penetration, lies on the face it leaves by and as deep below a neighbouring face as o is
+(an object edge crossing a link edge: p up to |d| off that edge, on one of its faces), so
+the link's features are taken within r = |o - p| where d < 0 (else r = 0): an object edge
+across a pad's edge, overlapping it by 0.09 mm, took the normal of the face p lay on.
 """
 
 from __future__ import annotations
@@ -67,10 +74,15 @@ def pair_normals(planes, link_edges, edge_starts, object_edges, rot, trans, link
         lx = r[0, 0] * wx + r[1, 0] * wy + r[2, 0] * wz
         ly = r[0, 1] * wx + r[1, 1] * wy + r[2, 1] * wz
         lz = r[0, 2] * wx + r[1, 2] * wy + r[2, 2] * wz
+        reach = 0.0  # a penetration's witness lies up to its depth |o - p| off its features
+        if distance[i] < 0.0:
+            reach = np.sqrt((object_point[i, 0] - link_point[i, 0]) ** 2
+                            + (object_point[i, 1] - link_point[i, 1]) ** 2
+                            + (object_point[i, 2] - link_point[i, 2]) ** 2)
         count, face = 0, -1
         for f in range(planes.shape[0]):
             if abs(planes[f, 0] * lx + planes[f, 1] * ly + planes[f, 2] * lz
-                   + planes[f, 3]) < face_tol:
+                   + planes[f, 3]) < face_tol + reach:
                 count += 1
                 face = f
         if count == 1:
@@ -91,7 +103,7 @@ def pair_normals(planes, link_edges, edge_starts, object_edges, rot, trans, link
         for p in range(edge_starts.shape[0] - 1):
             w = scratch[1]
             if segment_holding(link_edges[edge_starts[p]:edge_starts[p + 1]], lx, ly, lz,
-                               line_tol, w) < 0:
+                               line_tol + 2.0 * reach, w) < 0:
                 continue
             vx = r[0, 0] * w[0] + r[0, 1] * w[1] + r[0, 2] * w[2]
             vy = r[1, 0] * w[0] + r[1, 1] * w[1] + r[1, 2] * w[2]
