@@ -25,7 +25,7 @@ from kinegrasp_env.closing.convex_distance import (
 )
 from kinegrasp_env.closing.hull_edges import edges_against_hull, vertices_against_parts
 from kinegrasp_env.closing.link_geometry import LinkGeometry
-from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
+from kinegrasp_env.closing.packed_geometry import pack_each
 from kinegrasp_env.closing.rounded_links import RoundedCores
 from kinegrasp_env.closing.segment_distance import closest_to_segments
 from kinegrasp_env.world.objects import GraspObject
@@ -56,15 +56,10 @@ class LinkDistances:
         self.geometry, self.obj = geometry, obj
         planes, plane_starts, self.edges, edge_starts = stacked_faces(obj.convex_parts)
         self._local_edges = np.empty_like(self.edges)
-        # each object part packed as one hull, with its bounding ball (object frame), for
-        # the links' edges against it
-        self._object_packed = [(parts_tuple(packed := pack_parts([p])),
-                                np.append(packed.part_center[0], packed.part_radius[0]))
-                               for p in obj.convex_parts]
-        self._link_edges = {link: np.ascontiguousarray(
-            np.concatenate([p.edges for p in g.parts]), dtype=float)
-            for link, g in geometry.items() if g.parts}
         self._object_hulls = stacked_vertices(obj.convex_parts)
+        #: each object part packed as one hull (object frame), for the links' edges against
+        #: it, as a link's are for the object's edges (its bounding ball: _object_hulls')
+        self._object_packed = pack_each(obj.convex_parts)
         self._simplex = new_simplex()
         self._link_hulls = {link: g.hulls for link, g in geometry.items() if g.parts}
         self._rounded = {link: RoundedCores(g.rounded, self._object_hulls, self._simplex, grid)
@@ -141,14 +136,14 @@ class LinkDistances:
         the link point f and the object point o (object frame): the object's parts posed in
         the link frame, the link's edges against each (``meeting_only``: an edge beside a
         part is no nearer than the closest pair the vertices and the object's edges give)."""
-        ends = self._link_edges[link]
+        ends = self.geometry[link].faces[2]  # the link's hull edges (link frame)
         if len(rot) == 0 or len(ends) == 0:
             return
         inv_rot = np.ascontiguousarray(np.swapaxes(rot, 1, 2))
         inv_trans = np.ascontiguousarray(-np.einsum("nji,nj->ni", rot, trans))
         local = np.empty_like(ends)
         best, on_part, on_edge = d.copy(), np.empty_like(f), np.empty_like(o)
-        for packed, sphere in self._object_packed:
+        for packed, sphere in zip(self._object_packed, self._object_hulls[2], strict=True):
             edges_against_hull(packed, sphere, np.empty((2, len(packed[0]))), inv_rot,
                                inv_trans, ends, float(below), SEARCH, GOLD, best, on_part,
                                on_edge, local, True)

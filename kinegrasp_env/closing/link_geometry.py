@@ -22,7 +22,7 @@ import numpy as np
 
 from kinegrasp_env.closing.contact_patch import mesh_hull
 from kinegrasp_env.closing.convex_distance import stacked_faces, stacked_vertices
-from kinegrasp_env.closing.packed_geometry import pack_parts, parts_tuple
+from kinegrasp_env.closing.packed_geometry import pack_each
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.world.polytope import ConvexPart, face_planes
 from kinegrasp_env.world.sdf import DistanceGrid
@@ -91,7 +91,7 @@ class LinkGeometry:
         """Each polytope packed as one part for the exact segment search (its
         :func:`~kinegrasp_env.closing.packed_geometry.parts_tuple`), built on first use and
         kept (the geometry is read once per robot and process)."""
-        return tuple(parts_tuple(pack_parts([part])) for part in self.parts)
+        return pack_each(self.parts)
 
     def placed_vertices(self, poses: np.ndarray) -> np.ndarray:
         """(..., V, 3) :attr:`vertices` placed by the link's poses (..., 4, 4) (in the frame

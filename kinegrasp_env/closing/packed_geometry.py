@@ -104,6 +104,12 @@ def spatial_blocks(mid: np.ndarray, size: int = BLOCK_EDGES) -> list[np.ndarray]
     return leaves
 
 
+def pack_each(parts) -> tuple[tuple, ...]:
+    """Each convex part packed as one part (its :func:`parts_tuple`): the hulls, one at a
+    time, that the exact segment search of :mod:`~kinegrasp_env.closing.hull_edges` reads."""
+    return tuple(parts_tuple(pack_parts([part])) for part in parts)
+
+
 def pack(obj: GraspObject) -> PackedGeometry:
     """An object's convex parts packed (:func:`pack_parts`)."""
     return pack_parts(obj.convex_parts)
