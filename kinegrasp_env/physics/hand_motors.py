@@ -307,8 +307,8 @@ class TouchRule:
     moves touches (and :data:`RELEASE_TIME` after), at full speed otherwise. A finger of one
     motor (a jaw, a linkage) is left alone: its motor pushes at full speed and effort
     throughout (a gripper's jaws close until they grip), except, on a free object, a finger
-    whose motor moves no other finger (``alone``: jaws driven each on its own), which
-    presses as a last motor does. A finger of independently actuated
+    whose motor moves no other finger (jaws driven each on its own: ``free``), which presses
+    as a last motor does. A finger of independently actuated
     phalanges closes as GraspIt's auto-close and the paper's hand close: a touching proximal
     phalanx stops, the distal one closes on until it touches and presses. The switches stay
     where the closing left them through the holding test's phases.
@@ -319,19 +319,20 @@ class TouchRule:
             coupled jaws' followers).
         holds: :func:`hold_efforts`.
         time_step: the simulator's step, seconds (one :meth:`update` a step).
-        alone: motor joints of fingers of one motor that press as a last motor does
-            (:func:`independent_jaws`; the free object's closing), not left alone.
+        free: the object is free (the physics engine's closing, not the holding test's
+            pinned one): the fingers of one motor that drives no other finger
+            (:func:`independent_jaws`) press as a last motor does, not left alone.
     """
 
     def __init__(self, description: RobotDescription, motors: list[JointMotor],
-                 holds: dict[str, float], time_step: float,
-                 alone: frozenset[str] = frozenset()) -> None:
+                 holds: dict[str, float], time_step: float, free: bool = False) -> None:
+        alone = independent_jaws(description) if free else frozenset()
         #: joint -> what holds it once a touch stopped it (:func:`hold_efforts`)
         self.efforts = {m.joint: holds[m.joint] for m in motors}
         #: per finger, per link: the motor joints its touch holds
         self.rows: list[list[tuple[str, ...]]] = []
-        #: per finger that presses (several motors, or ``alone``): (its last motor joint, the
-        #: first link it moves)
+        #: per finger that presses (several motors, or one on its own on a free object): its
+        #: last motor joint and the first link it moves
         self.pressers: list[tuple[str, int]] = []
         self.fingers: list[int] = []
         for f, finger in enumerate(description.fingers):
@@ -350,8 +351,8 @@ class TouchRule:
 
     @property
     def active(self) -> bool:
-        """Whether any finger presses (several motors, or one driven ``alone``; else the
-        closing need not read contacts)."""
+        """Whether any finger presses (several motors, or one on its own on a free object;
+        else the closing need not read contacts)."""
         return bool(self.pressers)
 
     def travel(self, names: list[str], travel: np.ndarray) -> np.ndarray:

@@ -15,7 +15,6 @@ from kinegrasp_env.physics.hand_motors import (
     closing_followers,
     coupled_leaders,
     finger_leaders,
-    independent_jaws,
     preshape_holds,
 )
 from kinegrasp_env.physics.pybullet_closing import touching_links
@@ -71,8 +70,7 @@ class JawMotors:
         #: the pre-shape joints held where they start
         self.fixed = preshape_holds(world.description, holds, start)
         self.touch = TouchRule(world.description, self.motors, holds,
-                               world.settings.time_step,
-                               independent_jaws(world.description) if coupled else frozenset())
+                               world.settings.time_step, free=coupled)
         #: the touch rule acts while the hand closes (the holding test's phases keep its
         #: switches where the closing left them: :meth:`restart` sets them again)
         self.closing = True

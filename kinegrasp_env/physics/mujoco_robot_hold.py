@@ -61,7 +61,6 @@ from kinegrasp_env.physics.hand_motors import (
     TouchRule,
     closing_followers,
     finger_leaders,
-    independent_jaws,
     preshape_holds,
 )
 from kinegrasp_env.physics.hold_runner import close_until_stall
@@ -153,7 +152,7 @@ class JawServos:
         if fixed:
             world.position([h.joint for h in fixed], [h.value for h in fixed])
         self.touch = TouchRule(description, self.motors, holds, world.settings.time_step,
-                               independent_jaws(description) if free else frozenset())
+                               free=free)
         world.velocity(self.names, [m.direction * m.speed for m in self.motors],
                        [m.effort for m in self.motors])
 
