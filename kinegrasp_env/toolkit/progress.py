@@ -98,10 +98,14 @@ class Progress:
         """Draws per second over the later half of the time since the first report, and over
         at least :data:`MIN_WINDOW` seconds (so the start-up, the warm-up of late-starting
         workers and work that came back at once fall out); None until the reports span
-        that long."""
+        that long, except for a run done within it over a tenth of it at least: its mean
+        rate since the first report."""
         if len(self.times) < 2:
             return None
-        span = max(MIN_WINDOW, (self.times[-1] - self.times[0]) / 2)
+        whole = self.times[-1] - self.times[0]
+        if self.done >= self.total and MIN_WINDOW / 10 <= whole < MIN_WINDOW:
+            return (self.history[-1] - self.history[0]) / whole
+        span = max(MIN_WINDOW, whole / 2)
         i = bisect.bisect_right(self.times, self.times[-1] - span) - 1
         if i < 0:
             return None
@@ -120,14 +124,9 @@ class Progress:
         if self.total != self.most:
             draws += f" (down from {self.most})"
         rate = self.rate()
-        span = self.times[-1] - self.times[0] if self.times else 0.0
-        if rate is None and self.done >= self.total and span >= MIN_WINDOW / 10:
-            # a run done within the window: its mean rate (not over an instant)
-            rate = (self.history[-1] - self.history[0]) / span
         if rate is None:
             return f"{draws}, rate being measured"
-        eta = (self.total - self.done) / rate if rate > 0 else None
-        return f"{draws}, {rate:.0f} draws/s, ETA {format_eta(eta)}"
+        return f"{draws}, {rate:.0f} draws/s, ETA {format_eta(self.eta())}"
 
     # ------------------------------------------------------------------ reports
     def advance(self, done: int, total: int | None = None) -> None:
