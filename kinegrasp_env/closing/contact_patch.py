@@ -293,18 +293,17 @@ def flat_face(obj, points: np.ndarray, vertices: np.ndarray, tol: float,
     within ``tol`` metres of it, the one plane that the link's vertices (n, V, 3; object
     frame: its collision geometry's, as both closings read it) do not cross by more than
     ``depth`` metres (the depth a pad is pressed in, as its footprint counts it:
-    :data:`PATCH_DEPTH`) and that a face of the link lies on (three vertices not on one
-    line within ``depth`` of the plane), or an edge of the link lies across (two vertices
-    within ``depth`` of the plane, more than sqrt(2) ``depth`` apart: :func:`spans`, one of
-    them more than ``depth`` inside the face from every other plane there): a pad on a face
-    lies on that face's
-    outer side, or dips past its edge by less than that where it is tilted, and crosses the
-    plane of the face beside it by its whole overhang; a tilted pad whose edge lies on a face
-    and runs off it over the face's edge touches the face along a segment, whose end the
-    closest point may be (the contact then goes to its patch's centre, about the middle of
-    that segment, as it goes where the closest point lies inside the face); a pad on the
-    edge itself, tilted between the two faces, crosses both by more, or touches with a
-    corner of its own only, or with an edge along the object's edge."""
+    :data:`PATCH_DEPTH`) and that a face of the link lies on (three vertices not on one line
+    within ``depth`` of the plane), or an edge of the link lies across (two vertices within
+    ``depth`` of the plane, more than sqrt(2) ``depth`` apart: :func:`spans`, one of them
+    more than ``depth`` inside the face from every other plane there): a pad on a face lies
+    on that face's outer side, or dips past its edge by less than that where it is tilted,
+    and crosses the plane of the face beside it by its whole overhang; a tilted pad whose
+    edge lies on a face and runs off it over the face's edge touches the face along a
+    segment, whose end the closest point may be (the contact then goes to its patch's
+    centre, about the middle of that segment, as it goes where the closest point lies inside
+    the face); a pad on the edge itself, tilted between the two faces, crosses both by more,
+    or touches with a corner of its own only, or with an edge along the object's edge."""
     points = np.atleast_2d(np.asarray(points, dtype=float))
     found, planes = np.full(len(points), -1, dtype=np.int64), np.zeros((len(points), 4))
     for p, rows, pl, near in _planes_near(obj, points, tol):
