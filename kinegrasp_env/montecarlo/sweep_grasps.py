@@ -21,7 +21,7 @@ class SpecError(ValueError):
 
 
 def grasp_files(value: Any, objects: tuple[str, ...], where: str,
-                 base: str | Path | None, robot: str) -> tuple[tuple[str, str, str], ...]:
+                base: str | Path | None, robot: str) -> tuple[tuple[str, str, str], ...]:
     """``grasp_files``: (object, absolute path, SHA-256) per entry, each file read and
     checked (grasps of that object and of ``robot``, at least one)."""
     if not isinstance(value, dict):
@@ -89,7 +89,7 @@ def file_grasps(path: str, digest: str) -> tuple[Grasp, ...]:
 
 
 def grasp_set(name: str, files: tuple[tuple[str, str, str], ...],
-               robot: str = DEFAULT_ROBOT) -> tuple[Grasp, ...]:
+              robot: str = DEFAULT_ROBOT) -> tuple[Grasp, ...]:
     for object_name, path, digest in files:
         if object_name == name:
             return file_grasps(path, digest)
@@ -115,7 +115,7 @@ def versioned_shipped_set(name: str, robot: str, version: str) -> tuple[Grasp, .
 
 
 def check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str], ...],
-                      where: str, robot: str = DEFAULT_ROBOT) -> None:
+                     where: str, robot: str = DEFAULT_ROBOT) -> None:
     """An object the robot has no shipped set of (an imported one among them) needs a grasp
     file: one line saying how."""
     from kinegrasp_env.world.grasps import NoGraspSetError
@@ -135,8 +135,8 @@ def check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str]
 
 
 def check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],
-                         files: tuple[tuple[str, str, str], ...], where: str,
-                         robot: str = DEFAULT_ROBOT) -> None:
+                        files: tuple[tuple[str, str, str], ...], where: str,
+                        robot: str = DEFAULT_ROBOT) -> None:
     for name in objects:
         count = len(grasp_set(name, files, robot))
         bad = [i for i in indices if i >= count]
