@@ -1,15 +1,16 @@
 """Physics engine throughput: draws/s of the closing alone and of the holding test.
 
-For each built-in object, one shipped grasp, at two joint-noise sigmas, the same draws as
-``evaluate_grasp`` would take (chunk 0 of the seed): the physics engine's ``run`` (closing
-under dynamics, contacts, Q) and ``run_hold`` (the closing on the pinned object, then grip,
-release, six gravity directions and the lift), one process, engine built beforehand (world
-construction reported separately); draws/s of wall time and the process's CPU time per draw
-(the cost on an unshared core). Also P(FC) of the physics engine next to the kinematic (fast)
-engine's on the same draws, P(hold), and whether the same configurations give the same
-numbers twice.
+For each built-in object, one shipped grasp of ``--robot``, at two joint-noise sigmas, the
+same draws as ``kinegrasp evaluate`` would take: the physics engine's ``run`` (closing under
+dynamics, contacts, Q) and the holding test's ``run_hold`` (the closing on the pinned object,
+then grip, release, six gravity directions and the lift), one process, engines built
+beforehand (world construction reported separately); draws/s of wall time and the process's
+CPU time per draw (the cost on an unshared core). Also P(FC) of the physics engine next to
+the kinematic (fast) engine's on the same draws, P(hold), and whether the same
+configurations give the same numbers twice.
 
-    python benchmarks/bench_physics.py [--draws 20] [--grasp 0] [--sigmas 0.0133 0.0333]
+    python benchmarks/bench_physics.py [--robot kuka_sdh] [--draws 20] [--grasp 0]
+        [--sigmas 0.0133 0.0333]
 
 The figures (seconds, draws/s, P(FC), P(hold)) also go to
 ``benchmarks/results/bench_physics.json`` (``--json-out PATH``, ``--no-json``).
@@ -23,11 +24,12 @@ import time
 import numpy as np
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_configurations
-from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
-from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.world.grasps import grasp_by_index
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
+from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
+from kinegrasp_env.physics.protocol import HoldProtocol
+from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
 
@@ -41,17 +43,19 @@ def timed(fn):
 
 def bench_object(name: str, args) -> tuple[dict, list[dict]]:
     """Print one object's lines; return its world row and its per-sigma rows."""
-    grasp = grasp_by_index(name, args.grasp)
-    engine, build, _ = timed(lambda: PhysicsEngine(name))
-    fast = FastEngine(name)
-    print(f"{name}: world built in {build:.2f} s (mass {engine.world.mass:.3f} kg)")
+    grasp = shipped_grasps(name, robot=args.robot)[args.grasp]
+    engine, build, _ = timed(lambda: make_engine("physics", args.robot, name))
+    holder = RobotHoldEngine(args.robot, name, protocol=HoldProtocol())
+    fast = make_engine("fast", args.robot, name)
+    mass = engine.hold.world.mass
+    print(f"{name}: world built in {build:.2f} s (mass {mass:.3f} kg)")
     rows = []
     for sigma in args.sigmas:
-        q = chunk_configurations(grasp.q0, JointNoise(sigma), args.seed, [(0, args.draws)])
+        q = robot_configurations(grasp, engine, sigma=sigma, n=args.draws, seed=args.seed)
         closed, t_run, cpu_run = timed(lambda q=q: engine.run(q))
-        (pinned, hold), t_lift, cpu_lift = timed(lambda q=q: engine.run_hold(q))
+        (pinned, hold), t_lift, cpu_lift = timed(lambda q=q: holder.run_hold(q))
         again = engine.run(q)
-        _, hold_again = engine.run_hold(q)
+        _, hold_again = holder.run_hold(q)
         kinematic = fast.run(q)
         same = (np.array_equal(closed.quality, again.quality)
                 and np.array_equal(hold.grip_shift, hold_again.grip_shift, equal_nan=True)
@@ -70,13 +74,15 @@ def bench_object(name: str, args) -> tuple[dict, list[dict]]:
                      "p_fc_pinned": np.mean(pinned.outcome == FORCE_CLOSURE),
                      "p_fc_kinematic": p_kin, "p_hold": hold.held.mean(),
                      "same_numbers_twice": bool(same)})
-    world = {"object": name, "world_build_s": build, "mass_kg": engine.world.mass}
-    engine.close()
+    world = {"object": name, "world_build_s": build, "mass_kg": mass}
+    for each in (engine, holder, fast):
+        each.close()
     return world, rows
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="kuka_sdh")
     parser.add_argument("--draws", type=int, default=20)
     parser.add_argument("--grasp", type=int, default=0)
     parser.add_argument("--seed", type=int, default=0)

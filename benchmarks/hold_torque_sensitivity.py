@@ -1,6 +1,7 @@
 """How much does P(hold) depend on the assumed torque limits? The holding test
-(``kinegrasp validate``) of the shipped grasps at several multiples of the assumed limits
-(2.1 N m proximal, 1.4 N m distal, 10 N m holding: stated assumptions), on the same draws.
+(``kinegrasp validate``) of the shipped grasps at several multiples of the hand's motor
+efforts (its description's: 2.1 N m proximal, 1.4 N m distal, stated assumptions), on the
+same draws.
 
 Per scale: P(hold) pooled over the grasps with a Wilson 95% interval, per object, the
 outcomes (no grip, grip lost, dropped, held), each phase's held / run counts, the grip's own
@@ -29,6 +30,7 @@ from scipy.stats import binomtest
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.validation import ValidationSettings, run_validation
+from kinegrasp_env.toolkit.validation_draws import motors_summary
 from kinegrasp_env.toolkit.validation_report import summarize
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
@@ -49,7 +51,8 @@ def scale_summary(results, settings) -> dict:
                             "p_hold": float(flags.mean())}
     pin = np.concatenate([r.pin_force for r in results])
     pin = pin[np.isfinite(pin)]
-    return {"torque_scale": settings.torque_scale, "torques_nm": summary["protocol"]["torques_nm"],
+    efforts = [m["effort"] for m in motors_summary("kuka_sdh", settings.torque_scale)]
+    return {"torque_scale": settings.torque_scale, "efforts_nm": list(dict.fromkeys(efforts)),
             "p_hold": k / n, "p_hold_ci": list(wilson_interval(k, n)), "held": k, "draws": n,
             "per_object": per_object, "outcomes": summary["outcomes"],
             "phases": summary["phases"], "grip_shift_mm": summary["grip_shift_mm"],
@@ -78,19 +81,19 @@ def holm(p_values: list[float]) -> list[float]:
 def markdown(rows: list[dict]) -> str:
     """The table of the physics guide: per torque scale its limits, P(hold), the outcomes,
     the grip's shift and the paired comparison with 1x."""
-    lines = ["| torque scale | limits prox / dist / hold N m | P(hold) [95% CI] | "
+    lines = ["| torque scale | motor efforts N m | P(hold) [95% CI] | "
              + " | ".join(HOLD_OUTCOMES[1:]) + " | grip shift mm median / max | vs 1x |",
              "|---|---|---|" + "---|" * (len(HOLD_OUTCOMES) - 1) + "---|---|"]
     for row in rows:
-        t, shift, pair = row["torques_nm"], row["grip_shift_mm"]["released"], row[
-            "paired_with_1x"]
+        shift, pair = row["grip_shift_mm"]["released"], row["paired_with_1x"]
         lo, hi = row["p_hold_ci"]
         versus = "-" if pair is None else (f"{pair['held_at_1x_only']} / "
                                            f"{pair['held_here_only']}, Holm p "
                                            f"{pair['holm_p']:.2g}")
         shifts = "-" if shift is None else f"{shift['median']:.2f} / {shift['max']:.2f}"
-        lines.append(f"| {row['torque_scale']:g}x | {t['proximal']:g} / {t['distal']:g} / "
-                     f"{t['hold']:g} | {row['p_hold']:.3f} [{lo:.2f}, {hi:.2f}] | "
+        efforts = " / ".join(f"{e:g}" for e in row["efforts_nm"])
+        lines.append(f"| {row['torque_scale']:g}x | {efforts} | "
+                     f"{row['p_hold']:.3f} [{lo:.2f}, {hi:.2f}] | "
                      + " | ".join(str(row["outcomes"][k]) for k in HOLD_OUTCOMES[1:])
                      + f" | {shifts} | {versus} |")
     return "\n".join(lines)

@@ -86,9 +86,8 @@ from thin_objects import THIN_OBJECTS, import_thin_objects
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
 from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine, quick_hold_engine
-from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine
-from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, QUICK_PROTOCOL, HoldProtocol
+from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, HoldProtocol
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit.grasp_planner import plan_grasps
@@ -218,10 +217,7 @@ def quick_hold(robot: str, obj: str, q: np.ndarray, simulator: str,
     """The quick holding test in ``simulator`` of configurations q (n, dof): ``quick_hold``
     (n,) 1.0 where it holds, ``hold_margin`` (n,) how far each draw got through it, each
     name with ``suffix``."""
-    if robot == "kuka_sdh":
-        engine = PhysicsEngine(obj, protocol=QUICK_PROTOCOL, simulator=simulator)
-    else:
-        engine = quick_hold_engine(robot, obj, simulator=simulator)
+    engine = quick_hold_engine(robot, obj, simulator=simulator)
     try:
         hold = engine.run_hold(q)[1]
     finally:

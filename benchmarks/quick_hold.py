@@ -1,8 +1,8 @@
 """The quick holding test against the full one, draw by draw on the same draws: agreement of
 the held / not-held verdict (Wilson 95% interval) and CPU seconds per draw.
 
-The quick test (``kinegrasp_env.physics.protocol.QUICK_PROTOCOL``, and for a description
-robot the closing's end ``QUICK_MOTORS``) was tuned on other draws (seed 1, joint noise 0 to
+The quick test (``kinegrasp_env.physics.protocol.QUICK_PROTOCOL`` and the closing's end
+``QUICK_MOTORS``) was tuned on other draws (seed 1, joint noise 0 to
 0.0066 rad, panda's shipped grasps); these draws (``--seed``, default 100) were not used to
 choose it.
 
@@ -28,7 +28,6 @@ import numpy as np
 from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
-from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
 from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS
 from kinegrasp_env.sampling.noise import JointNoise
@@ -101,8 +100,9 @@ def kuka(args, simulator: str) -> dict:
     for obj in args.objects:
         q = configurations(shipped_grasps(obj)[:args.kuka_grasps], args.sigmas, args.samples,
                            args.seed)
-        parts.append(both_tests(lambda protocol, quick, o=obj: PhysicsEngine(
-            o, protocol=protocol, simulator=simulator), q))
+        parts.append(both_tests(lambda protocol, quick, o=obj: RobotHoldEngine(
+            "kuka_sdh", o, protocol=protocol, motors=QUICK_MOTORS if quick else None,
+            simulator=simulator), q))
         print(f"  kuka_sdh {simulator} {obj}: {q.shape[0]} draws", file=sys.stderr)
     return gather(parts)
 

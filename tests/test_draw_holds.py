@@ -162,34 +162,28 @@ def test_the_envs_hold_score_is_the_check_of_its_step_draws():
 
 
 def test_the_envs_holding_test_score_runs_on_its_step_draws():
-    """``score="hold"`` on the default robot: P(hold) is the SDH's quick holding test on the
-    step's draws (the env's draw seed, chunk 0 of the stream layout, built here)."""
-    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
-    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+    """``score="hold"`` on the default robot: P(hold) is the quick holding test on the step's
+    draws (the env's draw seed, chunk 0 of the stream layout, built here)."""
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+    from kinegrasp_env.physics.protocol import HELD
 
     env, info, q = env_step("hold", "cube", seed=0, n_draws=6)
-    engine = PhysicsEngine("cube", protocol=QUICK_PROTOCOL)
-    try:
+    with quick_hold_engine("kuka_sdh", "cube") as engine:
         held = engine.run_hold(q)[1].outcome == HELD
-    finally:
-        engine.close()
     assert info["p_hold"] == held.mean()
     env.close()
 
 
 def test_the_envs_margin_score_is_the_mean_margin_of_its_step_draws():
     """``score="hold_margin"`` on the default robot: the reward's score is the mean margin
-    of the SDH's quick holding test run again on the step's draws, and P(hold) rides beside
-    it; ``score="hold"`` reports the same mean margin beside its P(hold) reward."""
-    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+    of the quick holding test run again on the step's draws, and P(hold) rides beside it;
+    ``score="hold"`` reports the same mean margin beside its P(hold) reward."""
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
 
     env, info, q = env_step("hold_margin", "cube", seed=0, n_draws=6)
-    engine = PhysicsEngine("cube", protocol=QUICK_PROTOCOL)
-    try:
+    with quick_hold_engine("kuka_sdh", "cube") as engine:
         hold = engine.run_hold(q)[1]
-    finally:
-        engine.close()
     assert info["hold_margin"] == pytest.approx(hold.margin(QUICK_PROTOCOL).mean(), rel=1e-12)
     assert info["p_hold"] == (hold.outcome == HELD).mean()
     env.close()

@@ -9,23 +9,35 @@ import pytest
 pytest.importorskip("mujoco")
 
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.physics.mujoco_robot_hold import MujocoRobotHold, description_hand
 from kinegrasp_env.physics.mujoco_world import MujocoWorld
-from kinegrasp_env.physics.protocol import GRAVITY_PHASES
-from kinegrasp_env.robot.default_robot import default_hand_mount, hand_joint_values, kuka_sdh
+from kinegrasp_env.physics.protocol import GRAVITY_PHASES, HoldProtocol
+from kinegrasp_env.physics.robot_hold import RobotHold
+from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.model import load_urdf
 from kinegrasp_env.world.grasps import grasp_by_index
 from kinegrasp_env.world.objects import load_object
 
+SDH = load_robot("kuka_sdh")
+
 
 @pytest.fixture(scope="module")
 def cube_world():
-    return MujocoWorld(load_object("cube"))
+    return MujocoWorld(load_object("cube"), description_hand(SDH))
+
+
+def hand_state(q: np.ndarray, joints) -> tuple[np.ndarray, dict[str, float]]:
+    """(the palm pose (4, 4) of configuration q (14,), the values of its hand joints among
+    ``joints``), from the robot's own forward kinematics."""
+    palm = Kinematics(SDH.model).pose(q[None], SDH.palm_link)[0]
+    return palm, {k: v for k, v in SDH.model.expand(q).items() if k in joints}
 
 
 def test_mujoco_reads_the_hand_urdf_joint_for_joint(cube_world):
-    """MuJoCo's own URDF reader and the project's URDF parser (``robot.model.load_urdf``)
-    share no code: the same 8 movable joints (names), with the same limits;
+    """MuJoCo's own URDF reader (of the hand cut from the robot's URDF) and the project's URDF
+    parser (``robot.model.load_urdf``, of the hand's own URDF file) share no code: the same 8
+    movable joints (names), with the same limits;
     one actuator per joint; the URDF's mimic (f2_spread = -1 x f1_spread) as MuJoCo's one
     joint equality between the two spreads, with the same multiplier."""
     ours = load_urdf(asset_path("robots", "sdh_hand.urdf"))
@@ -52,16 +64,14 @@ def test_mujoco_kinematics_match_pybullet(cube_world):
     MuJoCo computes from the URDF is where pybullet's forward kinematics of the same URDF
     puts it (two simulators, no shared code), to 1e-6 m and 1e-6 in rotation entries
     (measured: ~1.5e-7, pybullet's link states; a wrong joint axis or origin is off by cm)."""
-    from kinegrasp_env.physics.pybullet_world import PhysicsWorld
+    from kinegrasp_env.physics.robot_world import RobotPhysicsWorld
 
     obj = load_object("cube")
-    bullet = PhysicsWorld(obj)
-    kin = Kinematics(kuka_sdh())
+    bullet = RobotPhysicsWorld(SDH, obj)
     try:
         for index in (0, 3, 6):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            root = kin.pose(q[None], default_hand_mount())[0]
-            values = hand_joint_values(q[7:])
+            root, values = hand_state(q, bullet.joint_index)
             cube_world.reset(root, values)
             bullet.reset(root, values)
             for link in ("palm", "f1_proximal", "f1_distal", "f2_distal", "f3_tip"):
@@ -98,29 +108,24 @@ def test_pin_holds_and_release_falls_along_each_gravity_direction(cube_world, ph
 @pytest.mark.expensive
 def test_closing_on_the_pinned_cube_touches_what_pybullet_touches():
     """The closing on the pinned cube at sigma 0, MuJoCo against pybullet (two simulators,
-    the same controller rules): on shipped grasps 0-5 the same touching (finger, link)s in the
-    same order, paired contact points within 2 mm and closed joints within 0.2 rad (measured
-    on the cube's and drill's 24 shipped grasps: 23 with the same links, points within
-    1.36 mm, joints within 0.23 rad, the cube's here within 1.4 mm and 0.15 rad)."""
-    from kinegrasp_env.physics.mujoco_hold import mujoco_close
-    from kinegrasp_env.physics.pybullet_closing import MotorSettings, physics_close
-    from kinegrasp_env.physics.pybullet_world import PhysicsWorld
-
+    the same motors and rules): on shipped grasps 0-5 the same touching (finger, link)s in the
+    same order, paired contact points within 1.5 mm and closed joints within 0.02 rad
+    (measured on the cube's and the drill's 24 shipped grasps: every one with the same
+    links, points within 0.66 mm, joints within 0.009 rad)."""
     obj = load_object("cube")
-    ours, bullet = MujocoWorld(obj), PhysicsWorld(obj)
-    kin, settings = Kinematics(kuka_sdh()), MotorSettings()
+    ours = MujocoRobotHold(SDH, obj, 0.5, HoldProtocol())
+    bullet = RobotHold(SDH, obj, 0.5, HoldProtocol())
     try:
         for index in range(6):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            root = kin.pose(q[None], default_hand_mount())[0]
-            a = mujoco_close(ours, root, q[7:], settings)
-            b = physics_close(bullet, root, q[7:], settings, pin=True)
+            a, b = ours.close_hand(q)[0], bullet.close_hand(q)[0]
             assert [(c.finger, c.link) for c in a.contacts] == \
                 [(c.finger, c.link) for c in b.contacts], index
             for x, y in zip(a.contacts, b.contacts, strict=True):
-                assert np.linalg.norm(x.point - y.point) < 2e-3, index
-            assert np.abs(a.joints - b.joints).max() < 0.2, index
+                assert np.linalg.norm(x.point - y.point) < 1.5e-3, index
+            assert max(abs(a.joints[k] - b.joints[k]) for k in a.joints) < 0.02, index
     finally:
+        ours.close()
         bullet.close()
 
 
@@ -132,18 +137,15 @@ GRIP_SHIFT_MAX = 2e-3
 def test_the_release_hardly_moves_the_cube_in_mujoco_too():
     """The same grip rule in MuJoCo (balanced torques of MuJoCo's own contacts, joint
     springs): on shipped cube grasps 0, 3 and 9 at sigma 0 the grip stands and the release
-    moves the cube by at most 2 mm against its pinned pose (measured over the twelve: at most
-    0.57 mm; grasp 8's release leaves one finger without contact, grasp 10 finds no balanced
-    forces on MuJoCo's contacts)."""
-    from kinegrasp_env.physics.mujoco_hold import MujocoHold
-    from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, HoldProtocol
+    moves the cube by at most 2 mm against its pinned pose (measured over the twelve: every
+    grip stands, shifts at most 0.38 mm)."""
+    from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
 
-    kin = Kinematics(kuka_sdh())
-    sim = MujocoHold(load_object("cube"), 0.5, HoldProtocol())
+    sim = MujocoRobotHold(SDH, load_object("cube"), 0.5, HoldProtocol())
     try:
         for index in (0, 3, 9):
             q = np.asarray(grasp_by_index("cube", index).q0, dtype=float)
-            _, result = sim.run_draw(kin.pose(q[None], default_hand_mount())[0], q[7:])
+            _, result = sim.run_draw(q)
             assert HOLD_OUTCOMES[result.outcome] not in ("no_grip", "grip_lost"), index
             assert result.grip_shift <= GRIP_SHIFT_MAX, (index, result.grip_shift)
     finally:

@@ -18,13 +18,43 @@ from kinegrasp_env.physics.grip_forces import (
     GripTorques,
     SpringGrip,
     balanced_torques,
-    hand_joints,
     loaded_joints,
     tip_offsets,
     torque_rows,
 )
 
 LIMITS = np.array([2.1, 1.4] * 3)
+
+
+def hand_joints(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
+                torque_limits: tuple[float, float],
+                spread: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+                ) -> GripJoints:
+    """A three-finger hand's grip joints (a test set-up, as the SDH's): the six flexion joints
+    (finger-major, proximal before distal) and, with ``spread``, the spread joints after
+    them.
+
+    Args:
+        axes, origins: (6, 3) the flexion joints' unit axes (closing positive) and points on
+            them, world frame; tips: (3, 3) the fingertips, world frame.
+        torque_limits: (proximal, distal) the flexion joints' torque limits, N m.
+        spread: (axes (s, 3), origins (s, 3), fingers (s,), torque limit N m) of the spread
+            joints, or None (then they are not part of the grip: held where they are).
+    """
+    limits = np.array(list(torque_limits) * 3, dtype=float)
+    fingers, first = np.repeat(np.arange(3), 2), np.tile(np.arange(2), 3)
+    lower = np.zeros(6)
+    if spread is not None:
+        s_axes, s_origins, s_fingers, s_limit = spread
+        s_fingers = np.asarray(s_fingers, dtype=int)
+        axes, origins = np.vstack([axes, s_axes]), np.vstack([origins, s_origins])
+        fingers = np.concatenate([fingers, s_fingers])
+        first = np.concatenate([first, np.zeros(s_fingers.size, dtype=int)])
+        limits = np.concatenate([limits, np.full(s_fingers.size, float(s_limit))])
+        lower = np.concatenate([lower, -limits[6:]])
+    tips = np.asarray(tips, dtype=float)[fingers]
+    return GripJoints(np.asarray(axes, dtype=float), np.asarray(origins, dtype=float),
+                      fingers, first, lower, limits, tips)
 
 
 def flexion(axes, origins, tips=None, scale: float = 1.0) -> GripJoints:

@@ -108,7 +108,7 @@ def test_a_blown_up_phase_fails_and_its_margin_is_past_the_limit() -> None:
     """A NaN pose in gravity_+y fails that phase with its movement unknown (NaN), not the
     small movement seen before it; the draw's margin is the phases held before it, 3 of 8 in
     a row (rest, gravity_+x, gravity_-x), over 9: nothing for the movement."""
-    from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+    from kinegrasp_env.montecarlo.hold_batch import HoldBatch
     from kinegrasp_env.physics.protocol import hold_margin
 
     result = HoldResult(5)
@@ -225,15 +225,15 @@ def test_rank_by_the_holding_tests_margin(tmp_path, capsys) -> None:
     assert not (tmp_path / "adaptive.csv").exists()
 
 
-def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path) -> None:
+def test_the_default_robot_ranks_by_the_quick_holding_test(capsys, tmp_path) -> None:
     """``rank --criterion hold`` of the default robot's cube grasps: the CSV's P(hold) is the
-    quick holding test's share of each candidate's draws (the SDH's own test, on the draws'
-    configurations), in descending order, each inside its interval; the output names it."""
+    quick holding test's share of each candidate's draws (on the draws' configurations), in
+    descending order; the output names it."""
     import csv
 
     from cli_helpers import run_in_process
 
-    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
     from kinegrasp_env.physics.protocol import HELD
     from kinegrasp_env.world.grasps import shipped_grasp_file, shipped_grasps
 
@@ -250,11 +250,8 @@ def test_the_default_robot_ranks_by_its_own_quick_holding_test(capsys, tmp_path)
     rng = np.random.default_rng(np.random.SeedSequence(0, spawn_key=(0,)))
     q = np.repeat(np.asarray(first.q0)[None], 2, axis=0)  # its draws: chunk 0 of seed 0
     q[:, :7] += rng.normal(0.0, 0.0033, (2, 7))
-    test = PhysicsEngine("cube", 0.5, protocol=QUICK_PROTOCOL)  # the SDH's own quick test
-    try:
+    with quick_hold_engine("kuka_sdh", "cube") as test:
         again = test.run_hold(q)[1].outcome == HELD
-    finally:
-        test.close()
     assert held[0] == again.mean()
 
 

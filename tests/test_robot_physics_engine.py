@@ -75,52 +75,20 @@ def test_cli_evaluate_takes_the_physics_engine(capsys):
     assert result["p_fc"] == expected.p_fc and result["outcomes"] == expected.counts
 
 
-def test_the_default_robots_physics_is_its_hands_own_controller():
-    """Every robot's engine by name (``make_engine("physics", robot, ...)``, which the robot
-    path of evaluate, rank and the tables calls) closes the default robot's hand under its own
-    finger controller (``PaperPhysicsEngine``): its draws are the default robot's
-    ``PhysicsEngine``'s, row for row, and ``evaluate_robot_grasp(engine="physics")`` gives
-    ``evaluate_grasp``'s P(FC) and Q moments on the same seed; the quick holding test by name
-    (``quick_hold_engine``) holds the draws the default robot's own quick test holds. A
-    wiring test: what it rules out is the description robots' motors closing the SDH (on
-    spray-flask grasp 4, 40 draws at 0.0133 rad: 19 draws in force closure against 35)."""
-    from kinegrasp_env.montecarlo.evaluate import (
-        DEFAULT_CHUNK,
-        chunk_configurations,
-        chunk_sizes,
-        evaluate_grasp,
-    )
-    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-    from kinegrasp_env.montecarlo.physics_engine import PhysicsEngine
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
-    from kinegrasp_env.physics.protocol import HELD, QUICK_PROTOCOL
+def test_the_default_robots_physics_is_every_robots():
+    """The default robot's physics engine by name is every robot's
+    (``RobotPhysicsEngine``: its description's motors), and ``evaluate_robot_grasp`` and the
+    14-entry library path ``evaluate_grasp`` (its draws built by other code,
+    :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`) give the same P(FC),
+    outcome counts and Q moments on the same seed."""
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
 
     grasp = shipped_grasps("spray_flask")[4]
     with make_engine("physics", "kuka_sdh", "spray_flask") as engine:
-        assert not isinstance(engine, RobotPhysicsEngine)
-        q = evaluation_rows(grasp, engine, sigma=SIGMA, n=12, seed=SEED)[0]
-        ours = engine.run(q)
-    own = PhysicsEngine("spray_flask")
-    try:
-        theirs = own.run(q)
-    finally:
-        own.close()
-    np.testing.assert_array_equal(ours.outcome, theirs.outcome)
-    np.testing.assert_array_equal(ours.quality, theirs.quality)
+        assert isinstance(engine, RobotPhysicsEngine)
     robot = evaluate_robot_grasp(grasp, sigma=SIGMA, n=12, seed=SEED, engine="physics")
     default = evaluate_grasp(grasp, JointNoise(SIGMA), 12, SEED, engine="physics")
     assert robot.p_fc == default.p_fc and robot.counts == default.outcomes
     np.testing.assert_allclose([robot.q_mean, robot.q_std], [default.q_mean, default.q_std],
                                rtol=1e-12)
-    cube = shipped_grasps("cube")[1]
-    with quick_hold_engine("kuka_sdh", "cube") as test:
-        q = evaluation_rows(cube, test, sigma=SIGMA, n=6, seed=SEED)[0]
-        held = test.run_hold(q)[1].outcome == HELD
-    rows = chunk_configurations(cube.q0, JointNoise(SIGMA), SEED,  # the default robot's rows
-                                [(0, size) for size in chunk_sizes(6, DEFAULT_CHUNK)])
-    quick = PhysicsEngine("cube", 0.5, protocol=QUICK_PROTOCOL)  # the SDH's own quick test
-    try:
-        np.testing.assert_array_equal(held, quick.run_hold(rows)[1].outcome == HELD)
-    finally:
-        quick.close()

@@ -194,10 +194,9 @@ def test_grouped_joints_take_a_covariance_and_a_bias(flask_engine):
 
 
 @pytest.mark.expensive
-def test_the_default_robots_physics_engine_is_its_own(tmp_path, capsys):
+def test_the_default_robots_physics_engine_is_evaluates(tmp_path, capsys):
     """``sensitivity --engine physics`` of the default robot closes its hand as ``evaluate
-    --engine physics`` does (its own physics engine, not its description's): the same P(FC)
-    with every source on the same seed, draw for draw."""
+    --engine physics`` does: the same P(FC) with every source on the same seed."""
     from kinegrasp_env.cli import main
 
     spec = tmp_path / "joints.yaml"

@@ -194,13 +194,14 @@ def test_capacity_is_the_edge_of_the_held_loads(panda_cube) -> None:
     assert not check.held(*terms, scale=1.01 * capacity).all(axis=1).any()
 
 
-def test_kuka_sdh_efforts_are_the_holding_tests_torques() -> None:
-    """The SDH's description states its finger motors' limits as the holding test assumes
-    them (the static check and the holding test must use the same hand)."""
+def test_kuka_sdh_efforts_are_the_stated_assumptions() -> None:
+    """The SDH's description states its finger motors' limits as the docs state the
+    assumption (2.1 N m proximal, 1.4 N m distal), from the description, not the URDF."""
     from kinegrasp_env.physics.hand_motors import motor_efforts
-    from kinegrasp_env.physics.protocol import ASSUMED_TORQUES
     from kinegrasp_env.robot.catalog import load_robot
 
-    efforts = {m.joint: m.effort for m in motor_efforts(load_robot("kuka_sdh"))}
-    assert efforts == {f"f{i}_{link}": getattr(ASSUMED_TORQUES, link)
-                       for i in (1, 2, 3) for link in ("proximal", "distal")}
+    motors = motor_efforts(load_robot("kuka_sdh"))
+    assert {m.joint: m.effort for m in motors} == {
+        f"f{i}_{link}": effort for i in (1, 2, 3)
+        for link, effort in (("proximal", 2.1), ("distal", 1.4))}
+    assert {m.source for m in motors} == {"description"}

@@ -169,7 +169,7 @@ def test_phase_and_outcome_counts_against_a_hand_count():
     assert summary["outcomes"]["held"] == 3 and sum(summary["outcomes"].values()) == 6
     assert summary["grip_shift_mm"]["released"] == {"n": 5, "median": 2.0, "max": 3.0}
     assert summary["grip_shift_mm"]["force_closure"]["n"] == 4  # grasp 1's draw 1 is NFC
-    assert summary["protocol"]["torques_nm"] == {"proximal": 2.1, "distal": 1.4, "hold": 10.0}
+    assert "motors" not in summary["protocol"]  # no robot given: no motors to name
 
 
 def test_results_are_written_and_a_cached_run_is_not_rerun(tmp_path, monkeypatch):
@@ -278,6 +278,7 @@ def test_a_simulator_whose_package_is_missing_is_refused_in_one_line(monkeypatch
     with pytest.raises(ValueError, match="unknown simulator 'x'"):
         simulators.check_simulator("x")
     assert simulators.simulator_class("pybullet").name == "pybullet"
+    assert simulators.simulator_class("mujoco").name == "mujoco"
 
 
 def test_cli_refuses_a_file_as_the_output_folder(tmp_path):

@@ -222,13 +222,9 @@ def validate_robot(robot: str, grasps, settings, out, processes: int):
 def limits_text(summary: dict) -> str:
     """The motor limits of a run, in words."""
     p = summary["protocol"]
-    if "motors" in p:
-        scale = "" if p["torque_scale"] == 1 else f" x {p['torque_scale']:g}"
-        return "motors " + ", ".join(f"{m['joint']} {m['effort']:g} {m['unit']} "
-                                     f"({m['source']}{scale})" for m in p["motors"])
-    torques = p["torques_nm"]
-    return (f"torque limits {torques['proximal']:g} / {torques['distal']:g} / "
-            f"{torques['hold']:g} N m (assumed x {p['torque_scale']:g})")
+    scale = "" if p["torque_scale"] == 1 else f" x {p['torque_scale']:g}"
+    return "motors " + ", ".join(f"{m['joint']} {m['effort']:g} {m['unit']} "
+                                 f"({m['source']}{scale})" for m in p["motors"])
 
 
 def print_summary(summary: dict, paths: dict) -> None:

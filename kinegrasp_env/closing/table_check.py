@@ -22,12 +22,13 @@ from kinegrasp_env.closing.convex_distance import (
     new_simplex,
     stacked_points,
 )
-from kinegrasp_env.closing.link_geometry import LinkGeometry
+from kinegrasp_env.closing.link_geometry import LinkGeometry, robot_link_geometry
 from kinegrasp_env.closing.rounded_links import core_layout
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
 
-__all__ = ["TableCheck", "table_in_object"]
+__all__ = ["RobotTableCheck", "TableCheck", "table_in_object"]
 
 _CORNERS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 
@@ -96,3 +97,26 @@ class TableCheck:
                                  travel, reach)  # only "within reach?" is asked
             out[rows[bound <= reach]] = True
         return out
+
+
+class RobotTableCheck:
+    """Which configurations of a robot start with a link in its object's support table: a
+    simulation of the hand alone (the physics closing, the holding test) takes them as start
+    collisions, as the kinematic engines do, without simulating them.
+
+    Args:
+        description: the robot.
+        obj: the catalog object (without a table, no configuration is in it).
+    """
+
+    def __init__(self, description: RobotDescription, obj: GraspObject) -> None:
+        self.check = (None if obj.table is None
+                      else TableCheck(robot_link_geometry(description), obj))
+        self.kinematics = Kinematics(description.model)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        """(n,) bool: configuration i of q (n, dof) puts a link in the table."""
+        q = np.atleast_2d(q)
+        if self.check is None:
+            return np.zeros(len(q), dtype=bool)
+        return self.check.robot_hits(self.kinematics, q)

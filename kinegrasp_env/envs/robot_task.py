@@ -28,8 +28,7 @@ Everything robot-specific is derived from the robot's description
   quick_hold_engine`) or ``hold_margin`` (the mean of that test's margins, how far each draw
   got through it: :func:`~kinegrasp_env.physics.protocol.hold_margin`; a graded reward,
   whose physics closings also give the step's P(FC); joint and hand noise, and tens of
-  milliseconds a draw, where the kinematic engines take microseconds to milliseconds;
-  the default robot's holding test is its hand's own controller);
+  milliseconds a draw, where the kinematic engines take microseconds to milliseconds);
 - **observation** (:mod:`~kinegrasp_env.envs.observation`): ``2 * arm_dof + hand_dof + 23``
   entries (44 for the default robot, 38 for the Panda);
 - **pictures**: the whole URDF (arm and hand, its visual geometry) and the object in a
@@ -49,7 +48,7 @@ from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
 from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
 from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
 from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
-from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
+from kinegrasp_env.physics.simulators import SIMULATORS, check_simulator
 from kinegrasp_env.robot.branch_motion import elbow_motion
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
@@ -155,9 +154,9 @@ class RobotTask:
             raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
         if score not in SCORES:
             raise ValueError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-        if hold_simulator not in DESCRIPTION_ROBOT_SIMULATORS:
+        if hold_simulator not in SIMULATORS:
             raise ValueError(f"hold_simulator must be one of "
-                             f"{', '.join(DESCRIPTION_ROBOT_SIMULATORS)}, got {hold_simulator!r}")
+                             f"{', '.join(SIMULATORS)}, got {hold_simulator!r}")
         if score in HOLD_TEST_SCORES:
             check_simulator(hold_simulator)
         self.engine_name, self.score, self.hold_simulator = engine, score, hold_simulator

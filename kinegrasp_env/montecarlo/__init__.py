@@ -2,10 +2,10 @@
 engine and robot (``draws``: the outcomes, contacts, closed hand and hold verdicts; scored by
 one function, ``description_engine.score_batch``): any catalog robot's engines over its
 description (``description_engine``; ``reference_engine``: the pybullet reference;
-``batched_engine``: the fast one; ``robot_physics``; every robot's by name:
-``robot_engines``) and the default robot's (``engines``: its
-capsule-finger reference, and its fast engine, which is the batched engine of
-``kuka_sdh.yaml``; ``physics_engine``), ``evaluate_grasp`` and its chunked random streams
+``batched_engine``: the fast one; ``robot_physics``: the physics closing; the holding test
+as an engine: ``hold_engine``, its results ``hold_batch``; every robot's by name:
+``robot_engines``) and the default robot's by name over 14-entry configurations
+(``engines``: its description's engines), ``evaluate_grasp`` and its chunked random streams
 (``evaluate``; a description robot's runs: ``robot_evaluate``, ``robot_chunks``,
 ``robot_noise``, the same streams), executors (``execution``: local process pool, Ray),
 sweeps over a grid of settings (``sweep``; its spec: ``sweep_spec``, ``sweep_grasps``,

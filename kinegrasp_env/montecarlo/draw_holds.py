@@ -1,7 +1,7 @@
 """The noise every hold score of a robot's draws takes.
 
 The quick holding test of every robot is :func:`~kinegrasp_env.montecarlo.hold_engine.
-quick_hold_engine` (the default robot's: its hand's own controller). The static hold check
+quick_hold_engine`. The static hold check
 is the engines' own (``static_hold=True``: every engine of every robot runs
 :class:`~kinegrasp_env.montecarlo.hold_check.StaticHoldCheck` on its closings, the draws'
 ``held``): it takes every source of error but a per-draw friction (it holds at one mu).

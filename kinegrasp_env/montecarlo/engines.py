@@ -1,6 +1,6 @@
 """Turning a batch of the default robot's noisy configurations into draw outcomes, by name:
-``pybullet`` (the reference) and ``fast`` are its description's engines
-(:class:`DescriptionEngine`), ``physics`` its simulated closing.
+``pybullet`` (the reference), ``fast`` and ``physics`` (its simulated closing) are its
+description's engines (:class:`DescriptionEngine`).
 
 Each draw: the arm at q = q0 + eps (eps on the 7 arm joints, the hand pre-shape exact) puts
 the flange, hence the hand, somewhere; the hand auto-closes on the object; the contacts give
@@ -13,7 +13,6 @@ coefficient (see :mod:`kinegrasp_env.montecarlo.perturbation`).
 
 from __future__ import annotations
 
-import importlib
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -29,19 +28,10 @@ from kinegrasp_env.montecarlo.draws import (  # noqa: F401  (importable from her
     DrawBatch,
     provisional_outcomes,
 )
-from kinegrasp_env.montecarlo.perturbation import (
-    arm_shift,
-    check_errors,
-    placed_roots,
-)
-from kinegrasp_env.physics.hand_result import CloseResult
+from kinegrasp_env.montecarlo.perturbation import check_errors
 from kinegrasp_env.quality.epsilon import prepare_exact_paths
 from kinegrasp_env.quality.wrenches import check_parameters
-from kinegrasp_env.robot.default_robot import (
-    HAND_JOINTS,
-    default_description,
-    default_hand_mount,
-)
+from kinegrasp_env.robot.default_robot import HAND_JOINTS, default_description
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object, object_version
 
@@ -81,7 +71,7 @@ class EngineTiming:
 
 
 class Engine:
-    """What both engines share: the object, the quality settings, scoring and timing.
+    """What the engines share: the object, the quality settings, the input checks and timing.
 
     Args:
         object_name: catalog object.
@@ -94,9 +84,6 @@ class Engine:
     name = ""
     #: whether :meth:`run` takes per-draw palm, object and friction errors
     takes_errors = False
-    #: whether the closing's own start check covers the object's support table (else
-    #: :meth:`clear_of_table` runs first)
-    checks_table = False
 
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8, *,
                  static_hold: bool = False) -> None:
@@ -106,14 +93,10 @@ class Engine:
         self.num_edges = num_edges
         self.static_hold = static_hold
         self.timing = EngineTiming()
-        self._table_probe = None  # built on the first draw when the object has a table
-        self._scoring = None  # built on first use
         prepare_exact_paths(num_edges)  # Q's rarer paths ready before the first draw
 
     def close(self) -> None:
-        """Release what the engine holds (its table probe, if any)."""
-        if self._table_probe is not None:
-            self._table_probe.close()
+        """Release what the engine holds."""
 
     def __enter__(self) -> Engine:
         return self
@@ -150,42 +133,7 @@ class Engine:
             raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
                              f"{', '.join(errors)} errors")
         with single_blas_thread():
-            if self.obj.table is None or self.checks_table:
-                return self._run(q, **errors)
-            return self.clear_of_table(q, errors, self._run)[0]
-
-    def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
-                   object_offset: np.ndarray | None = None, **_) -> np.ndarray:
-        """(n,) bool: draw i (q (n, 14), radians; per-draw errors as in :meth:`run`) puts an
-        arm or hand link in the object's support table (all False without a table)."""
-        if self.obj.table is None:
-            return np.zeros(len(q), dtype=bool)
-        if self._table_probe is None:
-            from kinegrasp_env.world.table_probe import TableProbe
-
-            self._table_probe = TableProbe(self.obj)
-        probe = self._table_probe
-        roots = None
-        if palm is not None or object_offset is not None:
-            roots = placed_roots(probe.kin.pose(q, default_hand_mount()), self.obj.pose, palm,
-                                 object_offset)
-        return probe.hits(q, roots, arm_shift(self.obj.pose, object_offset))
-
-    def clear_of_table(self, q: np.ndarray, errors: dict[str, np.ndarray],
-                       run_rows) -> tuple[DrawBatch, np.ndarray]:
-        """(the draws of q (n, 14), the indices of those clear of the table):
-        ``start_collision`` where the robot starts in the table (:meth:`table_hits`, timed as
-        auto-close), the others from ``run_rows(q_rows, **errors_rows)`` (a
-        :class:`DrawBatch` of the rows clear of the table, in order)."""
-        t0 = time.perf_counter()
-        hits = self.table_hits(q, **errors)
-        self.timing.autoclose += time.perf_counter() - t0
-        out = self.empty_draws(len(q))
-        out.outcome[hits] = START_COLLISION
-        keep = np.flatnonzero(~hits)
-        if keep.size:
-            out.put(keep, run_rows(q[keep], **{k: v[keep] for k, v in errors.items()}))
-        return out, keep
+            return self._run(q, **errors)
 
     def _run(self, q: np.ndarray, **errors: np.ndarray) -> DrawBatch:  # pragma: no cover
         raise NotImplementedError  # abstract: errors only where takes_errors
@@ -196,38 +144,6 @@ class Engine:
         self.timing.autoclose += autoclose
         self.timing.quality += quality
         self.timing.draws += draws
-
-    @property
-    def scoring(self) -> RobotEngine:
-        """The default robot's description engine whose scoring this engine's closings take,
-        as every robot's engine scores its closings (:meth:`~kinegrasp_env.montecarlo.
-        description_engine.RobotEngine.scored`: the contact model's Q at this engine's friction
-        cone, :data:`MAX_CONTACTS` contacts a draw, the closed hand); built on first use."""
-        if self._scoring is None:
-            from kinegrasp_env.montecarlo.description_engine import RobotEngine
-
-            self._scoring = RobotEngine(default_description(), self.obj.name,
-                                        friction=self.friction, num_edges=self.num_edges,
-                                        max_contacts=MAX_CONTACTS, static_hold=self.static_hold)
-        return self._scoring
-
-    def scored(self, q: np.ndarray, results: list[CloseResult],
-               friction: np.ndarray | None = None) -> DrawBatch:
-        """The draws of closings given one by one (``results`` of configurations q (n, 14),
-        each draw at its mu ``friction`` (n,); None: the engine's), scored by
-        :attr:`scoring`."""
-        from kinegrasp_env.closing.close_batch import RobotCloseBatch
-
-        batch = RobotCloseBatch.of_results([result.robot_result() for result in results])
-        return self.scoring.scored(q, batch, friction)
-
-    def score(self, out: DrawBatch, friction: np.ndarray | None = None) -> None:
-        """Fill quality and the force-closure outcome of the candidate draws of ``out`` (by
-        :attr:`scoring`'s quality); ``friction`` (n,) is each draw's mu (default: the
-        engine's)."""
-        from kinegrasp_env.montecarlo.description_engine import score_candidates
-
-        score_candidates(out, self.scoring.quality, friction)
 
 
 class DescriptionEngine(Engine):
@@ -243,7 +159,6 @@ class DescriptionEngine(Engine):
     """
 
     takes_errors = True
-    checks_table = True
 
     @staticmethod
     def engine_class() -> type[RobotEngine]:  # pragma: no cover - each engine names its own
@@ -258,7 +173,6 @@ class DescriptionEngine(Engine):
                                          max_contacts=MAX_CONTACTS, static_hold=static_hold)
 
     def close(self) -> None:
-        super().close()
         self.robot.close()
 
     @property
@@ -268,8 +182,10 @@ class DescriptionEngine(Engine):
 
     def closings(self, q: np.ndarray, palm: np.ndarray | None,
                  object_offset: np.ndarray | None) -> RobotCloseBatch:
-        """The closings of configurations q (n, 14) with their palm and object errors."""
-        return self.robot.close_batch(q, palm=palm, object_offset=object_offset)
+        """The closings of configurations q (n, 14) with their palm and object errors (None:
+        exact; only an engine that :attr:`takes_errors` is given any)."""
+        errors = {"palm": palm, "object_offset": object_offset}
+        return self.robot.close_batch(q, **{k: v for k, v in errors.items() if v is not None})
 
     def _run(self, q: np.ndarray, palm: np.ndarray | None = None,
              object_offset: np.ndarray | None = None,
@@ -341,24 +257,30 @@ class FastEngine(DescriptionEngine):
         return self.hand.close_batch(q, palm=palm, object_offset=object_offset)
 
 
-ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine}
-#: engines in modules of their own, imported by name on first use as (module, class) (as
-#: :mod:`kinegrasp_env.lazy` does): the physics engine's module imports this one, and pybullet
-#: dynamics is not loaded unless asked for
-LAZY_ENGINES = {"physics": ("kinegrasp_env.montecarlo.physics_engine", "PhysicsEngine")}
+class PhysicsEngine(DescriptionEngine):
+    """The closing under pybullet dynamics: the description robots' physics engine, draw by
+    draw (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`: the hand's
+    motors from its description, the object free); joint and hand noise only."""
+
+    name = "physics"
+    takes_errors = False
+
+    @staticmethod
+    def engine_class() -> type[RobotEngine]:
+        from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+
+        return RobotPhysicsEngine
+
+
+ENGINE_CLASSES = {"pybullet": PybulletEngine, "fast": FastEngine, "physics": PhysicsEngine}
 
 
 def make_engine(name: str, object_name: str, friction: float = 0.5,
                 num_edges: int = 8, static_hold: bool = False) -> Engine:
     """An engine by name (``pybullet``, ``fast`` or ``physics``); ``static_hold``: its draws
     carry the static hold check's verdicts (:class:`Engine`)."""
-    if name in LAZY_ENGINES:
-        module, cls = LAZY_ENGINES[name]
-        return getattr(importlib.import_module(module), cls)(object_name, friction, num_edges,
-                                                             static_hold=static_hold)
     if name not in ENGINE_CLASSES:
-        raise ValueError(f"unknown engine {name!r}; choose from "
-                         f"{', '.join([*ENGINE_CLASSES, *LAZY_ENGINES])}")
+        raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINE_CLASSES)}")
     return ENGINE_CLASSES[name](object_name, friction, num_edges, static_hold=static_hold)
 
 

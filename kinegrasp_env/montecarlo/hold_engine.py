@@ -1,20 +1,22 @@
 """The holding test of a description robot as an engine (:class:`RobotHoldEngine`): its
 physics closings scored as every engine of the robot scores them, and the holding test's
-results; :func:`hold_engine` gives every robot's holding test (the default robot's hand
-under its own controller), :func:`quick_hold_engine` under the quick protocol
-(:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), the one ranking and rewards use."""
+results; :func:`hold_engine` gives every robot's holding test, :func:`quick_hold_engine`
+under the quick protocol (:data:`~kinegrasp_env.physics.protocol.QUICK_PROTOCOL`), the one
+ranking and rewards use."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
+from kinegrasp_env.closing.close_result import RobotCloseResult
+from kinegrasp_env.closing.table_check import RobotTableCheck
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+from kinegrasp_env.montecarlo.hold_batch import HoldBatch
 from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
-from kinegrasp_env.physics.simulators import robot_simulator_class
+from kinegrasp_env.physics.simulators import simulator_class
 
 __all__ = ["RobotHoldEngine", "hold_engine", "quick_hold_engine"]
 
@@ -26,7 +28,7 @@ class RobotHoldEngine(RobotEngine):
     included), and the holding results (arguments: :class:`RobotEngine`;
     ``protocol``: the holding test's settings; ``motors``: the closing's end;
     ``simulator``: a name of :data:`~kinegrasp_env.physics.simulators.
-    DESCRIPTION_ROBOT_SIMULATORS`)."""
+    SIMULATORS`)."""
 
     name = "physics"
 
@@ -36,22 +38,29 @@ class RobotHoldEngine(RobotEngine):
         super().__init__(robot, object_name, **kwargs)
         #: the holding test's settings (what a :class:`HoldBatch`'s margin is taken under)
         self.protocol = protocol
-        self.simulator = robot_simulator_class(simulator)(
+        self.simulator = simulator_class(simulator)(
             self.description, self.obj, self.friction, protocol, settings=motors)
+        #: the arm is not simulated: a draw whose robot starts in the object's support table
+        #: is a start collision, not simulated (the kinematic engines' test)
+        self.in_table = RobotTableCheck(self.description, self.obj)
 
     def close(self) -> None:
         self.simulator.close()
 
     def run_hold(self, q: np.ndarray) -> tuple[DrawBatch, HoldBatch]:
         """Configurations q (n, dof): (the physics closings scored, their holding tests; the
-        fingers' forces (n, fingers))."""
+        fingers' forces (n, fingers)); a draw that starts in the support table is a start
+        collision in both."""
         q = self.check(q)
         n, fingers = q.shape[0], len(self.description.fingers)
         hold = HoldBatch.empty(n)
         hold.forces_gripped = np.full((n, fingers), np.nan)
         hold.forces_released = np.full((n, fingers), np.nan)
         closings = []
-        for i, row in enumerate(q):
+        for i, (row, in_table) in enumerate(zip(q, self.in_table(q), strict=True)):
+            if in_table:
+                closings.append(RobotCloseResult.collided(fingers))
+                continue  # the batch's rows start as start collisions
             closing, result = self.simulator.run_draw(row)
             closings.append(closing)
             if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
@@ -64,19 +73,9 @@ def hold_engine(robot, object_name: str, *, protocol: HoldProtocol,
                 motors: RobotMotorSettings | None = None, simulator: str = "pybullet",
                 **kwargs) -> RobotEngine:
     """The holding test of ``robot`` (a catalog name or a description) on a catalog object
-    under ``protocol`` in ``simulator`` (pybullet or MuJoCo): its ``run_hold(q)``; the
-    default robot's hand closes under its own controller
-    (:class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`:
-    :func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`; ``motors`` are another
-    hand's), every other hand by its motors (:class:`RobotHoldEngine`); ``kwargs``: the
-    engine's (``friction``, ``num_edges``, ...)."""
-    from kinegrasp_env.montecarlo.robot_engines import own_physics
-
-    if own_physics(robot):
-        from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
-
-        return PaperPhysicsEngine(robot, object_name, protocol=protocol, simulator=simulator,
-                                  **kwargs)
+    under ``protocol`` in ``simulator`` (pybullet or MuJoCo): a :class:`RobotHoldEngine`
+    (its ``run_hold(q)``), the hand closed by ``motors``; ``kwargs``: the engine's
+    (``friction``, ``num_edges``, ...)."""
     return RobotHoldEngine(robot, object_name, protocol=protocol, motors=motors,
                            simulator=simulator, **kwargs)
 

@@ -1,9 +1,8 @@
 """The engines of every catalog robot by name: the reference (pybullet closest points, draw
 by draw: :class:`RobotReferenceEngine`), the batched fast one
 (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) and the physics closing
-(:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`; the default robot's
-hand closes under its own controller: :class:`~kinegrasp_env.montecarlo.physics_engine.
-PaperPhysicsEngine`), all scoring as :class:`~kinegrasp_env.montecarlo.description_engine.
+(:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`: the hand's motors
+from its description), all scoring as :class:`~kinegrasp_env.montecarlo.description_engine.
 RobotEngine` does."""
 
 from __future__ import annotations
@@ -12,21 +11,11 @@ from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 
-__all__ = ["ENGINES", "RobotReferenceEngine", "make_engine", "own_physics"]
+__all__ = ["ENGINES", "RobotReferenceEngine", "make_engine"]
 
 
 #: The engines of a description robot, by name.
 ENGINES = ("pybullet", "fast", "physics")
-
-
-def own_physics(robot: str | RobotDescription) -> bool:
-    """Whether ``robot``'s physics closing is its hand's own controller (the default
-    robot's: :class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`; the
-    description physics closing does not reproduce it), not the description robots' motors
-    (:class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`)."""
-    from kinegrasp_env.robot.default import DEFAULT_ROBOT
-
-    return getattr(robot, "name", robot) == DEFAULT_ROBOT
 
 
 def make_engine(name: str, robot: str | RobotDescription, object_name: str,
@@ -39,10 +28,6 @@ def make_engine(name: str, robot: str | RobotDescription, object_name: str,
     if name == "pybullet":
         return RobotReferenceEngine(robot, object_name, **kwargs)
     if name == "physics":
-        if own_physics(robot):
-            from kinegrasp_env.montecarlo.physics_engine import PaperPhysicsEngine
-
-            return PaperPhysicsEngine(robot, object_name, **kwargs)
         from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
 
         return RobotPhysicsEngine(robot, object_name, **kwargs)

@@ -7,9 +7,8 @@ close_hand`: the hand cut from the URDF, free-floating and held at the palm pose
 arm joints give, each finger closed by a velocity motor at its URDF effort until it stalls),
 with the object **free** while the hand closes (a dynamic body under its support damping,
 gravity off) and the jaws one actuator moves coupled as the gripper couples them (the first
-to touch pushes the object until the other meets it), as the default robot's physics engine
-(:class:`~kinegrasp_env.montecarlo.physics_engine.PhysicsEngine`) closes; the contacts are in
-the object's frame where the object ended. The draws are the other engines' (the same
+to touch pushes the object until the other meets it); the contacts are in the object's frame
+where the object ended. The draws are the other engines' (the same
 configurations for the same seed: :func:`~kinegrasp_env.montecarlo.robot_evaluate.
 evaluate_robot_grasp`); every draw starts from the world's saved state, so a draw's result
 depends only on its configuration.
@@ -20,12 +19,12 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_result import RobotCloseResult
+from kinegrasp_env.closing.table_check import RobotTableCheck
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotHold, RobotMotorSettings
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.robot.kinematics import Kinematics
 
 
 class RobotPhysicsEngine(RobotEngine):
@@ -48,13 +47,8 @@ class RobotPhysicsEngine(RobotEngine):
         super().__init__(robot, object_name, **kwargs)
         self.hold = RobotHold(self.description, self.obj, self.friction, HoldProtocol(),
                               world, motors)
-        self._table = None  # the arm is not simulated: its table test is the geometric one
-        if self.obj.table is not None:
-            from kinegrasp_env.closing.link_geometry import robot_link_geometry
-            from kinegrasp_env.closing.table_check import TableCheck
-
-            self._table = (TableCheck(robot_link_geometry(self.description), self.obj),
-                           Kinematics(self.description.model))
+        #: the arm is not simulated: its table test is the geometric one
+        self.in_table = RobotTableCheck(self.description, self.obj)
 
     def close(self) -> None:
         self.hold.close()
@@ -67,9 +61,7 @@ class RobotPhysicsEngine(RobotEngine):
         """One closing per configuration of q (n, dof); a draw whose robot starts in the
         object's support table (:class:`~kinegrasp_env.closing.table_check.TableCheck`) is
         a start collision, not simulated."""
-        in_table = np.zeros(len(q), dtype=bool)
-        if self._table is not None:
-            in_table = self._table[0].robot_hits(self._table[1], q)
+        in_table = self.in_table(q)
         fingers = len(self.description.fingers)
         return [RobotCloseResult.collided(fingers) if hit
                 else self.hold.close_hand(row, pin=False)[0]

@@ -5,8 +5,8 @@ the primitives a simulator supplies (:class:`HoldSteps`: step the grip, read the
 forces and the object's pose in the palm frame, release the pin, save and restore a state,
 move the hand). Each simulator (:mod:`~kinegrasp_env.physics.pybullet_hold`,
 :mod:`~kinegrasp_env.physics.mujoco_hold`) implements those primitives and calls
-:func:`hold_test`; its closing controller calls :func:`close_until_stall`, and both state
-their contacts in the object's frame with :func:`in_object_frame`.
+:func:`hold_test`; its closing calls :func:`close_until_stall`, and both state their
+contacts in the object's frame with :func:`in_object_frame`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
-from kinegrasp_env.physics.grip_forces import GripContact, GripJoints, hand_joints
+from kinegrasp_env.physics.grip_forces import GripContact
 from kinegrasp_env.physics.hand_result import Contact
 from kinegrasp_env.physics.motion import hand_path, lift_motion, shake_motion
 from kinegrasp_env.physics.protocol import (
@@ -33,26 +33,6 @@ from kinegrasp_env.physics.protocol import (
     steady,
     within,
 )
-from kinegrasp_env.robot.default_robot import FINGERS, HAND_JOINTS, PALM_LINK, SPREAD_JOINTS
-
-#: The finger each spread joint turns.
-SPREAD_FINGERS = (0, 1)
-#: Flexion joints, finger-major: f1 proximal, f1 distal, f2 ..., f3 ...
-FLEXION_JOINTS = [joint for finger in FINGERS for joint in finger[:2]]
-#: The joints the grip sets (:func:`grip_joints`): the flexion joints, then the spread joints.
-GRIP_JOINTS = [*FLEXION_JOINTS, *SPREAD_JOINTS]
-
-
-def grip_joints(axes: np.ndarray, origins: np.ndarray, tips: np.ndarray,
-                motors: MotorLimits) -> GripJoints:
-    """The hand's grip joints (:func:`~kinegrasp_env.physics.grip_forces.hand_joints`) from
-    the frames of :data:`GRIP_JOINTS` now: axes (8, 3) (flexion closing positive) and points
-    on them (8, 3), the fingertips (3, 3), world frame; the flexion joints within the motors'
-    proximal and distal torque limits, the spread joints within their holding torque."""
-    n = len(FLEXION_JOINTS)
-    return hand_joints(axes[:n], origins[:n], tips,
-                       (motors.proximal_torque, motors.distal_torque),
-                       (axes[n:], origins[n:], np.array(SPREAD_FINGERS), motors.hold_torque))
 
 
 def steps_of(seconds: float, time_step: float) -> int:
@@ -60,19 +40,9 @@ def steps_of(seconds: float, time_step: float) -> int:
     return max(1, round(seconds / time_step))
 
 
-class MotorLimits(Protocol):
-    """The finger motors' torque limits as the closing controller's settings hold them
-    (:class:`~kinegrasp_env.physics.pybullet_closing.MotorSettings`, set from the protocol's
-    :class:`~kinegrasp_env.physics.protocol.TorqueLimits`), N m."""
-
-    proximal_torque: float
-    distal_torque: float
-    hold_torque: float
-
-
 class StallRule(Protocol):
-    """The closing's stall rule (:class:`~kinegrasp_env.physics.pybullet_closing.
-    MotorSettings`): seconds, radians per second, a count."""
+    """The closing's stall rule (:class:`~kinegrasp_env.physics.robot_hold.
+    RobotMotorSettings`): seconds, travel per second, a count."""
 
     max_time: float
     stall_window: float
@@ -82,16 +52,17 @@ class StallRule(Protocol):
 
 def close_until_stall(step: Callable[[], None], flexion: Callable[[], np.ndarray],
                       rule: StallRule, time_step: float) -> int:
-    """Call ``step()`` (one time step and the controller's update) until the flexion joints'
-    angles ``flexion()`` (6,) (radians) move less than ``stall_speed`` over ``stall_window``
-    ``stall_checks`` windows in a row, or ``max_time``: the number of steps.
+    """Call ``step()`` (one time step and the controller's update) until the closing joints'
+    travel ``flexion()`` (J,) moves less than ``stall_speed`` per second over
+    ``stall_window``, ``stall_checks`` windows in a row, or ``max_time``: the number of
+    steps.
 
     Speeds are measured from position changes over a window: a simulator's reported joint
     velocity of a finger pressing on the object need not go to zero.
     """
     max_steps = int(np.ceil(rule.max_time / time_step))
     window = max(1, round(rule.stall_window / time_step))
-    still = rule.stall_speed * window * time_step  # radians per window
+    still = rule.stall_speed * window * time_step  # travel per window
     last = flexion()
     quiet = 0
     for count in range(1, max_steps + 1):
@@ -113,31 +84,7 @@ def in_object_frame(contacts: list[GripContact], object_pose: np.ndarray) -> lis
                     inverse[:3, :3] @ c.normal) for c in contacts]
 
 
-def close_fingers(world, update: Callable[[], None],
-                  contacts: Callable[[], list[GripContact]], rule: StallRule
-                  ) -> tuple[int, list[Contact], tuple[bool, bool, bool], np.ndarray]:
-    """The closing controller run to the stall on a simulator's world (its ``step()``,
-    ``joint_states(names)``, ``object_pose()`` and ``settings.time_step``), ``update()``
-    after every step; then its contacts (world frame, ``contacts()``) in the object's frame.
-
-    Returns:
-        (steps run, the contacts (object frame), per finger whether it touches nothing, the
-        hand's joint angles (7,) in ``HAND_JOINTS`` order).
-    """
-
-    def step() -> None:
-        world.step()
-        update()
-
-    steps = close_until_stall(step, lambda: world.joint_states(FLEXION_JOINTS)[0], rule,
-                              world.settings.time_step)
-    found = in_object_frame(contacts(), world.object_pose())
-    touched = {c.finger for c in found}
-    positions, _ = world.joint_states(list(HAND_JOINTS))
-    return steps, found, tuple(f not in touched for f in range(3)), positions
-
-
-def object_in_palm(world, palm: str = PALM_LINK) -> np.ndarray:
+def object_in_palm(world, palm: str) -> np.ndarray:
     """(4, 4) the object's pose in the frame of the hand's link ``palm`` now (a simulator's
     world: ``link_pose``, ``object_pose``)."""
     return np.linalg.inv(world.link_pose(palm)) @ world.object_pose()
@@ -197,17 +144,12 @@ class WorldSteps:
 
     Args:
         world: the world right after the closing.
-        motors, protocol: the closing controller's settings and the holding test's.
-
-    Attributes:
-        palm_link: the hand's link whose frame the object's pose is measured in (the
-            default robot's palm; a hand's steps set their own).
+        protocol: the holding test's settings.
+        palm_link: the hand's link whose frame the object's pose is measured in.
     """
 
-    palm_link = PALM_LINK
-
-    def __init__(self, world, motors, protocol: HoldProtocol) -> None:
-        self.world, self.motors, self.protocol = world, motors, protocol
+    def __init__(self, world, protocol: HoldProtocol, palm_link: str) -> None:
+        self.world, self.protocol, self.palm_link = world, protocol, palm_link
         self.time_step = world.settings.time_step
         self.center_of_mass = world.obj.center_of_mass
 

@@ -17,7 +17,7 @@ from kinegrasp_env.physics.hand_motors import (
     finger_leaders,
     preshape_holds,
 )
-from kinegrasp_env.physics.pybullet_closing import touching_links
+from kinegrasp_env.physics.pybullet_contacts import touching_links
 from kinegrasp_env.physics.robot_world import RobotPhysicsWorld
 
 #: pybullet's position gain of the followers' motors in the coupled closing (the gripper's

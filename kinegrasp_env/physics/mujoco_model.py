@@ -7,12 +7,11 @@ use (:func:`import_mujoco`). The model (:func:`build_model`) is compiled from an
 * the hand (:class:`MujocoHand`): a URDF parsed by MuJoCo's own URDF reader, the same file
   pybullet loads (the same links, inertials, capsules, meshes, joint axes and limits, a
   coupling as MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies,
-  visuals dropped): the default robot's ``sdh_hand.urdf`` (:func:`sdh_hand`), or a
-  description robot's hand cut from its URDF
+  visuals dropped): a robot's hand cut from its URDF
   (:func:`~kinegrasp_env.physics.mujoco_robot_hold.description_hand`).
-  Its root (``hand_root`` of the SDH) is a free body as heavy as pybullet's (``ROOT_MASS``,
+  Its root is a free body as heavy as pybullet's (``ROOT_MASS``,
   standing in for the arm) welded to a *mocap* body ``anchor``: where the arm's flange is
-  (a description robot's palm frame), moved only by the protocol (the lift and shake), as
+  (the robot's palm frame), moved only by the protocol (the lift and shake), as
   pybullet's anchor constraint moves its hand (a mocap hand root itself would move without
   a velocity, and friction, which MuJoCo resolves on velocities, held the object back: it
   slipped out in the lift). Every hand joint gets one ``general`` actuator (its motor) and
@@ -40,7 +39,6 @@ from types import ModuleType
 
 import numpy as np
 
-from kinegrasp_env.assets import asset_path
 from kinegrasp_env.world.objects import GraspObject
 
 #: Collision bit masks: hand geoms (type 1, affinity 2) touch object and table (2, 1) only.
@@ -123,17 +121,6 @@ def with_compiler(text: str, source: str) -> str:
     return text[:end + 1] + options + text[end + 1:]
 
 
-def sdh_hand() -> MujocoHand:
-    """The default robot's hand: ``sdh_hand.urdf``, root ``hand_root``, palm ``palm``, each
-    finger's proximal and distal links."""
-    from kinegrasp_env.robot.default_robot import FINGERS, PALM_LINK
-
-    path = asset_path("robots", "sdh_hand.urdf")
-    links = {FINGERS[f][2 + k]: (f, k) for f in range(len(FINGERS)) for k in range(2)}
-    return MujocoHand(with_compiler(path.read_text(), path.name), "hand_root", PALM_LINK, links,
-                      len(FINGERS))
-
-
 def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactSettings) -> None:
     """Contact parameters of one spec geom (module docstring). Margin 0: MuJoCo's contact
     pushes from ``dist < margin`` on (the sum of the two geoms' margins, whatever their
@@ -147,23 +134,22 @@ def set_contact(geom, friction: float, bits: tuple[int, int], settings: ContactS
     geom.margin = geom.gap = 0.0
 
 
-def build_model(obj: GraspObject, friction: float, density: float, time_step: float,
-                settings: ContactSettings = CONTACT, hand: MujocoHand | None = None):
+def build_model(obj: GraspObject, hand: MujocoHand, friction: float, density: float,
+                time_step: float, settings: ContactSettings = CONTACT):
     """The compiled :class:`mujoco.MjModel` of hand, object and table (module docstring).
 
     Args:
         obj: the catalog object (at ``obj.pose``).
+        hand: the hand; its root's frame is held by the free joint ``hand_free`` and the
+            anchor.
         friction: Coulomb friction mu between finger and object (and table).
         density: the object's, kg/m^3.
         time_step: seconds.
         settings: :class:`ContactSettings`.
-        hand: the hand (default: :func:`sdh_hand`); its root's frame is held by the free
-            joint ``hand_free`` and the anchor.
     """
     from kinegrasp_env.physics.pybullet_world import ROOT_INERTIA, ROOT_MASS, mass_properties
 
     mujoco = import_mujoco()
-    hand = hand or sdh_hand()
     spec = mujoco.MjSpec.from_string(hand.urdf)
     spec.option.timestep = time_step
     spec.option.gravity = [0.0, 0.0, 0.0]

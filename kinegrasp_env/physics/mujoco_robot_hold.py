@@ -187,12 +187,12 @@ class MujocoRobotSteps(MujocoWorldSteps):
 
     def __init__(self, world: MujocoWorld, protocol: HoldProtocol,
                  layout: GripLayout | None = None) -> None:
-        super().__init__(world, None, protocol)
+        super().__init__(world, protocol)
         self.layout = layout
 
     def grip(self) -> bool:
         world, layout = self.world, self.layout
-        contacts = world_contacts(world, CONTACT_TOL, weighted=False)
+        contacts = world_contacts(world, CONTACT_TOL)
         if len({c.finger for c in contacts}) < 2:
             return False
         if layout is None:
@@ -222,8 +222,7 @@ class MujocoRobotHold(DescriptionHold):
                  settings: RobotMotorSettings | None = None) -> None:
         world_settings = replace(world or WorldSettings(), friction=friction)
         super().__init__(description, protocol, settings)
-        self.world = world = MujocoWorld(obj, world_settings,
-                                         hand=description_hand(description))
+        self.world = world = MujocoWorld(obj, description_hand(description), world_settings)
         model = world.model
         for name in world.joint_names:
             joint = model.joint(name).id
@@ -246,8 +245,8 @@ class MujocoRobotHold(DescriptionHold):
         close_until_stall(servos.step, servos.travel, self.settings, world.settings.time_step)
         names = [m.joint for m in self.motors]  # every closing joint, as pybullet reports
         positions = world.joint_states(names)[0]
-        return closing_result(world_contacts(world, self.settings.touch_distance,
-                                             weighted=False), world.object_pose(),
+        return closing_result(world_contacts(world, self.settings.touch_distance),
+                              world.object_pose(),
                               len(fingers), dict(zip(names, map(float, positions),
                                                      strict=True))), servos
 

@@ -38,7 +38,6 @@ from kinegrasp_env.physics.mujoco_model import (
     build_model,
     import_mujoco,
     matrix_quat,
-    sdh_hand,
 )
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.world.objects import GraspObject
@@ -47,10 +46,6 @@ from kinegrasp_env.world.objects import GraspObject
 #: joint holds (time constant 2 ms, the smallest MuJoCo keeps at 1 ms) made the light finger
 #: links chatter (contact forces flickering between 0 and 100 N); at 0.25 ms they are steady.
 SUBSTEPS = 4
-#: The torque of the SDH's distal joint creeping at ``creep_speed`` when blocked in its own
-#: closing, N m (what pybullet's velocity motor builds up for so slow a target in the SDH's
-#: own world, ~0.3 N m).
-CREEP_TORQUE = 0.3
 
 
 def pose_of(position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
@@ -68,8 +63,7 @@ class MujocoWorld:
         obj: the catalog object (placed at ``obj.pose``).
         settings: density, friction and time step (its pybullet-only fields are unused).
         contact: MuJoCo's contact parameters.
-        hand: the hand (default: the SDH, :func:`~kinegrasp_env.physics.mujoco_model.
-            sdh_hand`).
+        hand: the hand (:func:`~kinegrasp_env.physics.mujoco_robot_hold.description_hand`).
 
     Attributes:
         model, data: MuJoCo's.
@@ -77,16 +71,17 @@ class MujocoWorld:
         finger_geom: hand geom id -> (finger, link index) of the finger links' geoms.
     """
 
-    def __init__(self, obj: GraspObject, settings: WorldSettings | None = None,
-                 contact: ContactSettings = CONTACT, hand: MujocoHand | None = None) -> None:
+    def __init__(self, obj: GraspObject, hand: MujocoHand, settings: WorldSettings | None = None,
+                 contact: ContactSettings = CONTACT) -> None:
         self.mujoco = import_mujoco()
         self.obj = obj
         self.settings = settings or WorldSettings()
         if not self.settings.object_free:
             raise ValueError("the MuJoCo world's object is always free (object_free=True)")
-        self.hand = hand = hand or sdh_hand()
-        self.model = build_model(obj, self.settings.friction, self.settings.object_density(obj),
-                                 self.settings.time_step / SUBSTEPS, contact, hand)
+        self.hand = hand
+        self.model = build_model(obj, hand, self.settings.friction,
+                                 self.settings.object_density(obj),
+                                 self.settings.time_step / SUBSTEPS, contact)
         self.data = self.mujoco.MjData(self.model)
         model = self.model
         self.mass = float(model.body("object").mass[0])

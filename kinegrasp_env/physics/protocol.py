@@ -63,10 +63,10 @@ The draw's outcome (:data:`HOLD_OUTCOMES`): ``start_collision`` (the closing's),
 ``grip_lost``, ``grip_unsteady`` (the rest phase failed), ``dropped`` (the rest phase held, a
 disturbance phase failed), ``held`` (every phase run held).
 
-The torque limits of the finger joints are **assumptions** (:data:`ASSUMED_TORQUES`), not
-measured values of a real hand (the grip's torques stay within ``proximal`` and ``distal``;
-``hold`` is what holds a joint that is not loaded); ``torque_scale`` multiplies all of them,
-so a reader can see how much a conclusion depends on them
+The hand's motor efforts are its description's (the URDF's ``<limit effort>`` or the
+description's ``efforts``: :func:`~kinegrasp_env.physics.hand_motors.motor_efforts`; the
+built-in SDH's are stated assumptions, not a data sheet's); ``torque_scale`` multiplies all
+of them, so a reader can see how much a conclusion depends on them
 (``benchmarks/hold_torque_sensitivity.py``).
 """
 
@@ -97,32 +97,6 @@ def check_number(name: str, value: float, *, positive: bool) -> None:
     if not (np.isfinite(value) and (value > 0 if positive else value >= 0)):
         rule = "a positive number" if positive else "a number >= 0"
         raise ValueError(f"{name} must be {rule}, got {value!r}")
-
-
-@dataclass(frozen=True)
-class TorqueLimits:
-    """Torque limits of the hand's joints, N m.
-
-    Attributes:
-        proximal, distal: the flexion motors (closing and gripping).
-        hold: the position controllers that hold the spread joints and a stopped proximal
-            joint (the joint's gear holding it: the URDF's effort limit).
-    """
-
-    proximal: float
-    distal: float
-    hold: float
-
-    def scaled(self, factor: float) -> TorqueLimits:
-        """Every limit times ``factor`` (> 0)."""
-        check_number("torque scale", factor, positive=True)
-        return TorqueLimits(self.proximal * factor, self.distal * factor, self.hold * factor)
-
-
-#: The assumed torque limits (stated assumptions: proximal 2.1 N m and distal 1.4 N m are
-#: the order of magnitude of a small three-finger hand's joints; no data sheet was read;
-#: hold 10 N m is the hand URDF's effort limit).
-ASSUMED_TORQUES = TorqueLimits(proximal=2.1, distal=1.4, hold=10.0)
 
 
 @dataclass(frozen=True)
@@ -167,12 +141,6 @@ class HoldProtocol:
         if self.grip_min_time > self.grip_max_time:
             raise ValueError(f"grip_min_time {self.grip_min_time!r} exceeds grip_max_time "
                              f"{self.grip_max_time!r}")
-
-    @property
-    def torques(self) -> TorqueLimits:
-        """The torque limits this protocol runs with: :data:`ASSUMED_TORQUES` x
-        ``torque_scale``."""
-        return ASSUMED_TORQUES.scaled(self.torque_scale)
 
     @property
     def phases(self) -> tuple[str, ...]:
@@ -300,7 +268,7 @@ def hold_margin(phase_held: np.ndarray, phase_shift: np.ndarray, phase_turn: np.
 
     Args:
         phase_held: (n, len(PHASES)) int: 1 held, 0 failed, -1 not run
-            (:class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch`'s).
+            (:class:`~kinegrasp_env.montecarlo.hold_batch.HoldBatch`'s).
         phase_shift, phase_turn: (n, len(PHASES)) the largest displacement (metres) and
             rotation (radians) in each phase, NaN where not run.
         protocol: the protocol the draws ran (its phases and limits).

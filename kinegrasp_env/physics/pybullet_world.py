@@ -6,17 +6,17 @@ simulation; here the hand's finger motors close under dynamics, the object may b
 pinned where it is, :meth:`PhysicsWorld.pin_object`), and in the holding test
 (:mod:`kinegrasp_env.physics.pybullet_hold`) gravity turns and the hand moves. Therefore:
 
-* the hand (``sdh_hand.urdf``, the same collision capsules as the robot's URDF) is loaded
-  with a *dynamic* base, and a fixed constraint (the "arm") holds its root at the flange
-  pose reached by the draw's arm joints. The arm itself is not simulated: its joints would
-  only set where the flange is, which is all the constraint needs, and moving the
-  constraint's target is how the holding test moves the hand
+* the hand (cut from the robot's URDF: :class:`~kinegrasp_env.physics.robot_world.
+  RobotPhysicsWorld`) is loaded with a *dynamic* base, and a fixed constraint (the "arm")
+  holds its root at the palm pose reached by the draw's arm joints. The arm itself is not
+  simulated: its joints would only set where the palm is, which is all the constraint
+  needs, and moving the constraint's target is how the holding test moves the hand
   (no IK, no arm-object collisions, no joint-limit failures of the arm during the shake);
 * the object is one rigid body whose collision shape is a compound of its exact convex parts
   (written to a temporary ``.obj`` with one ``o`` group per part, which pybullet loads as one
-  convex hull per group, collision margin zero: measured distances within 1e-5 m of the exact
-  ones), mass = density x the mesh's volume, inertia of the uniform-density mesh about its
-  centre of mass; or, with ``object_free=False``, the same shape as a static body;
+  convex hull per group, collision margin zero), mass = density x the mesh's volume,
+  inertia of the uniform-density mesh about its centre of mass; or, with
+  ``object_free=False``, the same shape as a static body;
 * friction: Bullet combines two bodies' friction coefficients as their product, so the hand's
   links get 1.0 and the object ``friction`` (the quality measure's mu); no rolling or spinning
   friction (point contacts with Coulomb friction, the quality measure's contact model).
@@ -39,7 +39,7 @@ import pybullet
 from scipy.spatial import ConvexHull
 
 from kinegrasp_env.world.objects import GraspObject
-from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
+from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
 from kinegrasp_env.world.table_probe import table_body
 
 #: Gravity, m/s^2 (world -z).
@@ -56,6 +56,15 @@ TABLE_AWAY = (0.0, 0.0, -100.0)
 #: convergence (finger motors starved of torque); 100 kg behaves as a fixed base does.
 ROOT_MASS = 100.0
 ROOT_INERTIA = 1.0
+#: How the hand is loaded: with Bullet's polyhedral contact features (SAT: a pad on a face
+#: touches at the corners of their overlap).
+HAND_FLAGS = pybullet.URDF_INITIALIZE_SAT_FEATURES
+#: The object's collision shape gets the same features (``createCollisionShape`` reads the
+#: same bit). It is made by ``createCollisionShape``, not loaded from a URDF: the URDF
+#: importer gives every convex part a 1 mm collision margin that ``changeDynamics`` does not
+#: reach (measured: the object 1 mm larger, a capsule fingertip's contacts 1 mm off the
+#: surface), and recomputes its inertia from the shape's bounding box unless asked not to.
+OBJECT_SHAPE_FLAGS = pybullet.URDF_INITIALIZE_SAT_FEATURES
 
 
 @dataclass(frozen=True)
@@ -159,23 +168,9 @@ def write_parts_obj(parts: tuple[np.ndarray, ...], path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def load_dynamic_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
-    """The hand URDF with a dynamic base: (body, joint name -> index, link name -> index (-1:
-    the root)), collision margins zero, friction 1.0 (see the module docstring), the root
-    link as heavy as :data:`ROOT_MASS`."""
-    hand, joint_index, link_index = load_hand(bullet, fixed_base=False)
-    for link in link_index.values():
-        # one call per setting: pybullet ignores a whole changeDynamics call on a link (index
-        # >= 0) that also names linearDamping or angularDamping (base-only settings), which
-        # left the fingers at pybullet's default friction 0.5, a finger-object mu of 0.25
-        bullet.changeDynamics(hand, link, lateralFriction=1.0)
-    bullet.changeDynamics(hand, -1, linearDamping=0.0, angularDamping=0.0)
-    bullet.changeDynamics(hand, -1, mass=ROOT_MASS, localInertiaDiagonal=[ROOT_INERTIA] * 3)
-    return hand, joint_index, link_index
-
-
 class PhysicsWorld(BulletWorld):
-    """The free hand, its anchor constraint and one object, in a world of their own.
+    """The free hand, its anchor constraint and one object, in a world of their own (the
+    hand: :meth:`_load_hand`, a subclass's).
 
     Args:
         obj: the catalog object (placed at ``obj.pose``).
@@ -194,8 +189,7 @@ class PhysicsWorld(BulletWorld):
         bullet.setTimeStep(self.settings.time_step)
         bullet.setPhysicsEngineParameter(numSolverIterations=self.settings.solver_iterations,
                                          deterministicOverlappingPairs=1)
-        hand, self.joint_index, self.link_index = load_dynamic_hand(bullet)
-        self.bodies["hand"] = hand
+        self.bodies["hand"] = self._load_hand()
         self.mass, moments, self.inertial = mass_properties(obj, self.settings.object_density(obj))
         self.inertial_inverse = np.linalg.inv(self.inertial)
         self.bodies["object"] = self._object_body(moments)
@@ -204,20 +198,25 @@ class PhysicsWorld(BulletWorld):
             self.table_pose = bullet.getBasePositionAndOrientation(self.bodies["table"])
         #: the constraint that pins the object (:meth:`pin_object`), None when free
         self.pin: int | None = None
-        self.anchor = bullet.createConstraint(hand, -1, -1, -1, pybullet.JOINT_FIXED, [0, 0, 0],
-                                              [0, 0, 0], [0, 0, 0])
+        self.anchor = bullet.createConstraint(self.hand, -1, -1, -1, pybullet.JOINT_FIXED,
+                                              [0, 0, 0], [0, 0, 0], [0, 0, 0])
         bullet.setGravity(0, 0, 0)
         #: the state every draw starts from (hand parked at the world origin, clear of the
         #: object; nothing touching)
         self.initial_state = bullet.saveState()
 
     def _object_body(self, moments: np.ndarray) -> int:
-        bullet = self.bullet
+        """The object: its convex parts, mass, inertia and friction (module docstring), with
+        Bullet's polyhedral features (SAT) as the hand has them: a flat pad pressed on a
+        face then touches it at the corners of the overlap (a patch, up to four points), not
+        at one arbitrary corner."""
+        bullet, obj = self.bullet, self.obj
         with tempfile.TemporaryDirectory(prefix="kinegrasp_parts_") as folder:
-            path = Path(folder) / f"{self.obj.name}_parts.obj"
-            write_parts_obj(self.obj.parts, path)
-            shape = bullet.createCollisionShape(pybullet.GEOM_MESH, fileName=str(path))
-        position, orientation = matrix_to_pose(self.obj.pose)
+            path = Path(folder) / f"{obj.name}_parts.obj"
+            write_parts_obj(obj.parts, path)
+            shape = bullet.createCollisionShape(pybullet.GEOM_MESH, fileName=str(path),
+                                                flags=OBJECT_SHAPE_FLAGS)
+        position, orientation = matrix_to_pose(obj.pose)
         inertial_position, inertial_orientation = matrix_to_pose(self.inertial)
         free = self.settings.object_free
         body = bullet.createMultiBody(
@@ -229,8 +228,13 @@ class PhysicsWorld(BulletWorld):
                               rollingFriction=0.0, spinningFriction=0.0, restitution=0.0,
                               linearDamping=0.0, angularDamping=0.0)
         if free:
-            bullet.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist())
+            bullet.changeDynamics(body, -1, localInertiaDiagonal=[float(m) for m in moments])
         return body
+
+    def _load_hand(self) -> int:  # pragma: no cover - each world loads its own hand
+        """Load the hand with a dynamic base; set :attr:`joint_index` and
+        :attr:`link_index`; return its body."""
+        raise NotImplementedError
 
     @property
     def hand(self) -> int:

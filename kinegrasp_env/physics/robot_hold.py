@@ -37,7 +37,7 @@ One draw (:meth:`RobotHold.run_draw`):
    their closing speeds: moving at less than ``stall_fraction`` of the closing speed) or
    after ``max_time``; then one contact per touching finger link (pybullet's contact records
    within ``touch_distance`` on the deepest record's face,
-   :func:`~kinegrasp_env.physics.pybullet_closing.merge_records`, averaged without force
+   :func:`~kinegrasp_env.physics.pybullet_contacts.merge_records`, averaged without force
    weights: :func:`world_contacts`), in the object frame
    (:func:`~kinegrasp_env.physics.hold_runner.in_object_frame`). Hand and object carry
    Bullet's polyhedral (SAT) contact features, so a pad on a face touches it at the corners
@@ -55,7 +55,7 @@ One draw (:meth:`RobotHold.run_draw`):
    pressing motor pressing, in every phase). A hand of revolute fingers driven on their own
    grips by the balanced grip instead (:mod:`~kinegrasp_env.physics.balanced_grip`).
 3. the release and the phases: :func:`~kinegrasp_env.physics.hold_runner.hold_test`, the
-   SDH test's sequence and rules (grip until steady, ``grip_shift_mm``, ``grip_lost``, the
+   protocol's sequence and rules (grip until steady, ``grip_shift_mm``, ``grip_lost``, the
    rest control, six gravity directions, the lift, the optional shake), over the primitives
    of :class:`RobotSteps`.
 """
@@ -78,7 +78,7 @@ from kinegrasp_env.physics.hand_motors import (
 from kinegrasp_env.physics.hold_runner import close_until_stall, in_object_frame
 from kinegrasp_env.physics.jaw_motors import JawMotors, finger_link_indices
 from kinegrasp_env.physics.protocol import START_COLLISION, HoldProtocol, HoldResult
-from kinegrasp_env.physics.pybullet_closing import finger_forces, merge_records
+from kinegrasp_env.physics.pybullet_contacts import finger_forces, merge_records
 from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
@@ -118,7 +118,7 @@ class RobotMotorSettings:
 QUICK_MOTORS = RobotMotorSettings(stall_window=0.01)
 def world_contacts(world: RobotPhysicsWorld, distance: float) -> list[GripContact]:
     """One contact per touching finger link, world frame, finger-major: its records on the
-    deepest record's face (:func:`~kinegrasp_env.physics.pybullet_closing.merge_records`)
+    deepest record's face (:func:`~kinegrasp_env.physics.pybullet_contacts.merge_records`)
     averaged without force weights, i.e. the centre of the corners of the pad's overlap
     with the face (a rigid pad tilted by a fraction of a degree puts its whole force on one
     corner, whichever the solver picks: the centre of pressure is not the patch's)."""
@@ -137,12 +137,10 @@ class RobotSteps(PybulletSteps):
     PybulletSteps`) in a :class:`RobotPhysicsWorld`: the grip is the closing motors held on
     (:class:`JawMotors`, the steps' ``control``), the fingers and the palm the description's."""
 
-    root_link = ROOT_LINK
-
     def __init__(self, world: RobotPhysicsWorld, jaws: JawMotors, protocol: HoldProtocol,
                  layout: GripLayout | None = None) -> None:
-        super().__init__(world, jaws.motors, protocol, control=jaws)
-        self.palm_link = world.description.palm_link
+        super().__init__(world, protocol, world.description.palm_link, ROOT_LINK,
+                         control=jaws)
         self.layout = layout
 
     def grip(self) -> bool:
@@ -154,8 +152,7 @@ class RobotSteps(PybulletSteps):
         spring = self.layout.world_spring(self.world, contacts, self.protocol.grip_advance)
         if spring is None:
             return False
-        self.control = GripControl(self.world, None, spring, self.layout.names,
-                                   self.layout.upper)
+        self.control = GripControl(self.world, spring, self.layout.names, self.layout.upper)
         return True
 
     def finger_forces(self) -> np.ndarray:
@@ -240,8 +237,8 @@ class RobotHold(DescriptionHold):
     def close_hand(self, q: np.ndarray, pin: bool = True
                    ) -> tuple[RobotCloseResult, JawMotors | None]:
         """The closing of configuration q (dof,) on the pinned object (module docstring,
-        step 1; ``pin=False``: the object free, with its support damping, as the default
-        robot's physics engine closes, and the jaws one actuator moves coupled): its
+        step 1; ``pin=False``: the object free, with its support damping, as the physics
+        engine closes, and the jaws one actuator moves coupled): its
         contacts in the object frame where the object ended, and the motors (None: start
         collision)."""
         world, fingers = self.world, self.description.fingers

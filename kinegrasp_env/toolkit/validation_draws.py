@@ -2,10 +2,8 @@
 a kinematic engine of the robot (:mod:`~kinegrasp_env.montecarlo.robot_evaluate`: ``pybullet``, the
 reference, or ``fast``) and the holding test of its own hand in pybullet
 (:class:`~kinegrasp_env.physics.robot_hold.RobotHold`) or MuJoCo
-(:class:`~kinegrasp_env.physics.mujoco_robot_hold.MujocoRobotHold`), or, for the hand that
-the paper's finger controller closes, that controller's
-(:class:`~kinegrasp_env.montecarlo.physics_engine.PaperPhysicsEngine`:
-:func:`~kinegrasp_env.montecarlo.robot_engines.own_physics`); results in the per-draw form
+(:class:`~kinegrasp_env.physics.mujoco_robot_hold.MujocoRobotHold`), the hand closed by the
+motors of its description; results in the per-draw form
 :class:`~kinegrasp_env.toolkit.validation.GraspDraws`, summarized and written by the same
 code (:func:`~kinegrasp_env.toolkit.validation.run_validation`), and the checks of a
 robot's settings before any work.
@@ -24,14 +22,12 @@ from pathlib import Path
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.hold_engine import hold_engine
-from kinegrasp_env.montecarlo.robot_engines import own_physics
 from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
-from kinegrasp_env.physics.pybullet_closing import MotorSettings
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotMotorSettings
-from kinegrasp_env.physics.simulators import DESCRIPTION_ROBOT_SIMULATORS, check_simulator
+from kinegrasp_env.physics.simulators import SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 from kinegrasp_env.toolkit.validation_records import GraspDraws, ValidationSettings
@@ -39,26 +35,16 @@ from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import object_version
 
 
-def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict] | None:
+def motors_summary(robot: str, torque_scale: float = 1.0) -> list[dict]:
     """The motors a robot's holding test runs with: per closing joint its effort (times
-    ``torque_scale``), unit, source (``urdf`` or ``description``) and closing speed; None
-    for the hand its own controller closes (its torque limits are the protocol's)."""
-    if own_physics(robot):
-        return None
+    ``torque_scale``), unit, source (``urdf`` or ``description``) and closing speed."""
     return [m.to_json() for m in motor_efforts(load_robot(robot), torque_scale)]
 
 
 def check_settings(robot: str, settings: ValidationSettings) -> None:
     """ValueError (one line) for settings a robot's holding test cannot honour, or a robot
     whose motors lack an effort limit."""
-    own = own_physics(robot)  # every registered simulator holds its hand
-    if not own and settings.simulator not in DESCRIPTION_ROBOT_SIMULATORS:
-        raise ValueError(f"--simulator {settings.simulator}: only "
-                         f"{' and '.join(DESCRIPTION_ROBOT_SIMULATORS)} hold description "
-                         f"robots (robot {robot!r})")
     check_simulator(settings.simulator)
-    if own:
-        return
     description = load_robot(robot)
     motor_efforts(description)
     if settings.simulator == "mujoco":
@@ -70,16 +56,18 @@ def check_settings(robot: str, settings: ValidationSettings) -> None:
 def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     """A hash of everything a robot's grasp draws depend on: the settings (less the number
     of draws), the robot's description and URDF, the object's version, the grasp, the
-    physics, motor and lift settings, the protocol and the draws' layout in the seed's
-    streams: the name of its cache file (a cached run of more draws serves a smaller one:
-    the draws of n samples are the first n of any larger number)."""
+    physics, motor and lift settings, the class that holds the hand in the run's simulator,
+    the protocol and the draws' layout in the seed's streams: the name of its cache file (a
+    cached run of more draws serves a smaller one: the draws of n samples are the first n
+    of any larger number)."""
     description = load_robot(grasp.robot)
     kept = [(f.name, getattr(settings, f.name)) for f in fields(settings) if f.name != "samples"]
     files = [hashlib.sha256(Path(p).read_bytes()).hexdigest() for p in
              (description.path, description.urdf)]
     text = repr((grasp.robot, files, grasp.object, object_version(grasp.object),
                  grasp.q0.tobytes().hex(), kept,
-                 WorldSettings(), RobotMotorSettings(), MotorSettings(), settings.protocol,
+                 WorldSettings(), RobotMotorSettings(),
+                 SIMULATORS[settings.simulator], settings.protocol,
                  PHASES, HOLD_OUTCOMES, DRAW_LAYOUT))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

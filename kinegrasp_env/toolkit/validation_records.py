@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.physics_engine import HoldBatch
+from kinegrasp_env.montecarlo.hold_batch import HoldBatch
 from kinegrasp_env.physics.protocol import HELD, HoldProtocol
 from kinegrasp_env.physics.simulators import check_simulator
 
@@ -65,7 +65,7 @@ class ValidationSettings:
 #: The kinematic and physics closing's arrays of :class:`GraspDraws`.
 CLOSING_ARRAYS = ("kin_outcome", "kin_quality", "phys_outcome", "phys_quality")
 #: The holding test's arrays of :class:`GraspDraws`: name -> the field of
-#: :class:`~kinegrasp_env.montecarlo.physics_engine.HoldBatch` it is.
+#: :class:`~kinegrasp_env.montecarlo.hold_batch.HoldBatch` it is.
 HOLD_ARRAYS = {("hold_outcome" if f == "outcome" else f): f for f in HoldBatch.FIELDS}
 #: Every array of :class:`GraspDraws`, in the order :meth:`GraspDraws.from_arrays` takes them.
 ARRAYS = CLOSING_ARRAYS + tuple(HOLD_ARRAYS)

@@ -2,8 +2,8 @@
 scatter plot, results before the figure, every file atomically.
 
 The summary's keys: ``settings`` (the validation settings), ``protocol`` (the holding test's
-constants: thresholds in metres and radians, durations in seconds, ``torques_nm`` the torque
-limits it ran with, stated assumptions x ``torque_scale``), ``grasps`` (per grasp:
+constants: thresholds in metres and radians, durations in seconds; ``motors``: the hand's
+closing motors it ran with, their efforts x ``torque_scale``), ``grasps`` (per grasp:
 ``p_fc_kinematic``, ``p_fc_physics``, ``p_hold`` with ``_ci`` Wilson 95% intervals;
 ``outcomes``: draws per holding outcome; ``phases``: per phase ``{"run", "held"}`` draw
 counts; ``draw_outcomes``, ``grip_shift_mm``, ``grip_turn_deg``, ``pin_force_n`` (the net
@@ -52,8 +52,7 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
 
     ``robot``: the robot's ``{"name", "motors"}`` (:func:`~kinegrasp_env.toolkit.
     validation_draws.motors_summary`); its name goes into ``settings`` as ``robot`` and its
-    motors, where its hand has them (None: the SDH's own controller), replace the SDH's
-    ``torques_nm`` in ``protocol`` as ``motors``."""
+    motors into ``protocol`` as ``motors``."""
     protocol = settings.protocol
     rows = [GraspRow.of(r, protocol.phases) for r in results]
     p_hold = np.array([r.p_hold for r in rows])
@@ -67,8 +66,7 @@ def summarize(results: list[GraspDraws], settings: ValidationSettings,
     outcomes = {name: sum(r.outcomes[name] for r in rows) for name in HOLD_OUTCOMES}
     phases = {name: {key: sum(r.phases[name][key] for r in rows) for key in ("run", "held")}
               for name in protocol.phases}
-    limits = ({"torques_nm": asdict(protocol.torques)}
-              if robot is None or robot.get("motors") is None else {"motors": robot["motors"]})
+    limits = {} if robot is None else {"motors": robot["motors"]}
     return {"settings": asdict(settings) if robot is None
             else {"robot": robot["name"], **asdict(settings)},
             "protocol": {**asdict(protocol), "phases": list(protocol.phases), **limits},
