@@ -15,7 +15,7 @@ each row compares two computations of those same draws:
     closing stops the fingers where the per-draw one does and so finds the same contacts. It
     does not prove that those contacts are right: near contact both engines use the same exact
     capsule-object geometry (``closing.segment_distance``, ``closing.hand_geometry``) and the
-    same scoring (``Engine.score``), so fingers stopped at the same place get the same
+    same scoring (``RobotEngine.scored``), so fingers stopped at the same place get the same
     contacts by construction.
 (b) ``<engine> vs bullet``: each engine against the pybullet-only contacts of
     :mod:`kinegrasp_env.montecarlo.bullet_contacts`, on that engine's own closed configuration

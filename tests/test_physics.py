@@ -356,7 +356,7 @@ def test_a_pinned_object_stays_put_while_the_hand_closes_and_grips(index):
         hold.close()
 
 
-def test_two_fingers_on_one_face_have_no_grip(cube_physics):
+def test_two_fingers_on_one_face_have_no_grip():
     """Two fingers pushing one face, the third closing on nothing: no contact forces in
     equilibrium exist (both push the same way), so the grip does not start: ``no_grip``, no
     release, no phase run. Also the same draw through the reference engine: missed."""

@@ -343,3 +343,18 @@ def test_a_ranking_log_without_margins_is_not_resumed_under_the_holding_test(tmp
     with pytest.raises(CLIError, match="the holding test's margins"):
         check_settings(tmp_path / "r.partial.jsonl", stored,
                        {**stored, "hold_margins": True})
+
+
+def test_a_ranking_log_of_another_physics_model_is_not_resumed(tmp_path) -> None:
+    """A log whose physics results an older kinegrasp's physics made (it records no physics
+    model) is refused, naming it, under the physics engine or the holding test; a kinematic
+    ranking records none and resumes."""
+    from kinegrasp_env.cli.common import CLIError
+    from kinegrasp_env.cli.resume import check_settings
+    from kinegrasp_env.physics.simulators import PHYSICS_MODEL
+
+    stored = {"engine": "physics"}
+    with pytest.raises(CLIError, match="the physics simulated"):
+        check_settings(tmp_path / "r.partial.jsonl", stored,
+                       {**stored, "physics_model": PHYSICS_MODEL})
+    check_settings(tmp_path / "r.partial.jsonl", {"engine": "fast"}, {"engine": "fast"})

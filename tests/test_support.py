@@ -7,16 +7,17 @@ What each test proves:
   sampled by formula) and placed by the project's forward kinematics, tested for lying
   inside the box; draws within a 2 mm band of touching (where sampling cannot decide) are
   left out and counted.
-- ``test_table_changes_only_the_draws_in_it``: with a table, exactly the draws the probe
-  flags become ``start_collision`` (both kinematic engines), every other draw is the same
-  bits as without the table.
+- ``test_table_changes_only_the_draws_in_it``: with a table, exactly the draws the fast
+  engine's table test flags (itself checked against the probe in
+  ``tests/test_table_check.py``) become ``start_collision`` (both kinematic engines), every
+  other draw is the same bits as without the table.
 - ``test_turning_the_scene_leaves_the_grasp``: an invariant of placement: the object turned
   by yaw about the robot's base axis and the first arm joint turned by the same angle give
   the same contacts in the object frame and the same Q (both engines).
 - ``test_screen_never_drops_a_draw_in_the_table``: the probe's forward-kinematics screen
   changes no verdict (pybullet asked about every draw gives the same answers).
 - the placed copies' shipped grasps, the CLI's one-line errors, the planner avoiding the
-  table, and the physics engine marking draws in the table.
+  table, and the holding test marking draws in the table.
 """
 
 from __future__ import annotations

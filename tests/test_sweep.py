@@ -182,6 +182,27 @@ def test_an_older_default_robot_store_in_chunks_of_250_is_extended(tmp_path):
                       progress=False)
 
 
+def test_physics_cells_of_another_physics_model_are_refused(tmp_path):
+    """A store whose physics-engine cells another version's physics made (it records no
+    physics model, or another) is refused in one line, not extended with this version's
+    cells; its kinematic cells alone are no reason to refuse it."""
+    spec = SweepSpec.from_dict({"objects": ["cube"], "grasps": [0], "sigmas": [0.02],
+                                "engines": ["physics"], "samples": 2})
+    with LocalExecutor(1) as ex:
+        run_sweep(spec, tmp_path, ex, progress=False)
+        assert run_sweep(spec, tmp_path, ex, progress=False)[1:] == (0, 1)  # same model: reused
+        with sqlite3.connect(tmp_path / "results.sqlite") as db:
+            db.execute("DELETE FROM meta WHERE key = 'physics_model'")
+        with pytest.raises(SpecError, match="physics-engine cells of another physics model"):
+            run_sweep(spec, tmp_path, ex, progress=False)
+        fast = SweepSpec.from_dict({**asdict_spec(spec), "engines": ["fast"]})
+        run_sweep(fast, tmp_path / "fast", ex, progress=False)
+        with sqlite3.connect(tmp_path / "fast" / "results.sqlite") as db:
+            assert db.execute("SELECT COUNT(*) FROM meta WHERE key = 'physics_model'"
+                              ).fetchone()[0] == 0
+        assert run_sweep(fast, tmp_path / "fast", ex, progress=False)[1:] == (0, 1)
+
+
 def asdict_spec(spec: SweepSpec) -> dict:
     """The spec's settings as a spec mapping (the keys this module's tests set)."""
     return {"objects": list(spec.objects), "grasps": [0], "sigmas": list(spec.sigmas),

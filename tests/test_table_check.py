@@ -130,17 +130,22 @@ def test_the_physics_engine_marks_draws_in_the_table():
 
 
 def test_the_default_robots_table_check_is_the_probes():
-    """The fast engine's table test of the default robot against pybullet's own closest
-    points (:class:`~kinegrasp_env.world.table_probe.TableProbe`: the robot's URDF and the
-    table box in a world of their own)."""
+    """The fast and the reference engine's table tests of the default robot against
+    pybullet's own closest points (:class:`~kinegrasp_env.world.table_probe.TableProbe`:
+    the robot's URDF and the table box in a world of their own)."""
     from kinegrasp_env.world.objects import load_object
     from kinegrasp_env.world.table_probe import TableProbe
 
     q = _draws("kuka_sdh", 60, 0.05, 3)
     fast = make_default_engine("fast", "cube_on_table")
+    reference = make_default_engine("pybullet", "cube_on_table")
     probe = TableProbe(load_object("cube_on_table"))
     try:
-        np.testing.assert_array_equal(fast.table_hits(q), probe.hits(q))
+        expected = probe.hits(q)
+        assert 0 < expected.sum() < len(q)
+        np.testing.assert_array_equal(fast.table_hits(q), expected)
+        np.testing.assert_array_equal(reference.table_hits(q), expected)
     finally:
         fast.close()
+        reference.close()
         probe.close()

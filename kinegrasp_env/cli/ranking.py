@@ -127,6 +127,10 @@ def cmd_rank(args) -> int:
                 "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT,
                 "robot": robot,  # the draws: rows addressed in the seed's streams
                 "criterion_scores": [static, test]}  # the hold scores a log carries
+    if engine == "physics" or test:  # results of another version's physics do not resume
+        from kinegrasp_env.physics.simulators import PHYSICS_MODEL
+
+        settings["physics_model"] = PHYSICS_MODEL
     if test:  # the holding test runs: its simulator is a setting too, and the log carries
         settings["hold_simulator"] = args.hold_simulator  # each candidate's margins
         settings["hold_margins"] = True

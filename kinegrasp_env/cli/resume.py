@@ -44,6 +44,7 @@ SETTING_LABELS = {
     "hold_simulator": "--hold-simulator",
     "hold_margins": "the holding test's margins (a log of an older kinegrasp records none)",
     "draw_layout": "layout of the random draws (a log of an older kinegrasp)",
+    "physics_model": "the physics simulated (a log of an older kinegrasp)",
 }
 
 

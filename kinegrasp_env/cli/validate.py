@@ -63,9 +63,8 @@ def add_commands(sub) -> None:
                    "(1.5 s at 2 Hz: 3 cm along (0, 1, 1)/sqrt 2 and 20 degrees about x)")
     p.add_argument("--robot", help="catalog robot (default: the grasp file's, else "
                    "kuka_sdh); the robot's shipped grasps (assets/grasps/NAME/) or "
-                   "--grasps of it are held by its own hand (the SDH by its own finger "
-                   "controller; another hand's motors at the URDF's effort limits or the "
-                   "description's efforts)")
+                   "--grasps of it are held by its own hand (its motors at the URDF's "
+                   "effort limits or the description's efforts)")
     add_friction_arg(p)
     p.add_argument("--out", required=True, help="output folder (results are cached there: "
                    "a rerun with the same settings resumes)")

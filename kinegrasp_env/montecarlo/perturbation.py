@@ -29,7 +29,7 @@ from kinegrasp_env.sampling.noise_model import NoiseDraws, offset_transforms
 ARM = 7
 
 __all__ = ["EngineInputs", "arm_shift", "configurations", "engine_inputs", "hand_in_object",
-           "hand_limits", "placed_roots", "rigid_inverse", "world_to_object"]
+           "hand_limits", "rigid_inverse", "world_to_object"]
 
 
 @dataclass
@@ -88,17 +88,10 @@ def engine_inputs(q0: np.ndarray, draws: NoiseDraws, center: np.ndarray) -> Engi
         None if draws.friction is None else np.asarray(draws.friction, dtype=float))
 
 
-def placed_roots(flange: np.ndarray, object_pose: np.ndarray, palm: np.ndarray | None,
-                 object_offset: np.ndarray | None) -> np.ndarray:
-    """World poses (n, 4, 4) of the hand root that put the hand where it truly is relative
-    to the object, with the object left at its believed pose W_O: W_O X."""
-    return object_pose @ hand_in_object(flange, object_pose, palm, object_offset)
-
-
 def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.ndarray | None:
     """(n, 4, 4) M = W_O D^-1 W_O^-1: the rigid move of the whole robot that, the object left
     at its believed pose W_O (4, 4), puts the robot where it truly is relative to the object
-    (object errors D (n, 4, 4); :func:`placed_roots` moves the hand by the same M); None when
+    (object errors D (n, 4, 4); the hand moves by the same M); None when
     there are no object errors."""
     if object_offset is None:
         return None

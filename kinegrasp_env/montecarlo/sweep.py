@@ -51,6 +51,7 @@ from kinegrasp_env.montecarlo.evaluate import chunk_sizes, tally
 from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
+from kinegrasp_env.physics.simulators import PHYSICS_MODEL
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT, STREAM_CHUNK
 from kinegrasp_env.sampling.stats import StreamingMoments
@@ -148,12 +149,24 @@ class SweepStore:
         sources = spec.sources()
         self._check_sources(stored, sources)
         wanted.update(sources)
+        self._check_physics(stored)
+        if "physics" in spec.engines:
+            wanted["physics_model"] = json.dumps(PHYSICS_MODEL)
         with self._db:
             self._db.executemany("INSERT OR IGNORE INTO meta VALUES (?, ?)", wanted.items())
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('draw_layout', ?)",
                              (json.dumps(SWEEP_LAYOUT),))
             self._db.execute("INSERT OR REPLACE INTO meta VALUES ('last_spec', ?)",
                              (json.dumps(asdict(spec)),))
+
+    def _check_physics(self, stored: dict[str, str]) -> None:
+        """Refuse a store whose physics-engine cells another version's physics made
+        (:data:`~kinegrasp_env.physics.simulators.PHYSICS_MODEL` not recorded, or another)."""
+        made = self._db.execute("SELECT COUNT(*) FROM tasks WHERE engine = 'physics'")
+        if made.fetchone()[0] and stored.get("physics_model") != json.dumps(PHYSICS_MODEL):
+            self.close()
+            raise SpecError(f"{self.directory} holds physics-engine cells of another "
+                            "physics model (made by an older kinegrasp); use another --out")
 
     def _check_layout(self, stored: dict[str, str]) -> None:
         """Refuse a store whose draws were laid out otherwise (it is then marked

@@ -22,7 +22,8 @@ from __future__ import annotations
 from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
-    "pybullet_world": ("PhysicsWorld", "WorldSettings"),
+    "pybullet_world": ("WorldSettings",),
+    "robot_world": ("RobotPhysicsWorld",),
     "protocol": ("HoldProtocol", "HoldResult", "PHASES", "HOLD_OUTCOMES"),
     "simulators": ("SIMULATORS", "simulator_class"),
     "robot_hold": ("RobotHold",),

@@ -3,10 +3,12 @@
 :mod:`~kinegrasp_env.physics.protocol` states the protocol; this module runs it once, over
 the primitives a simulator supplies (:class:`HoldSteps`: step the grip, read the fingers'
 forces and the object's pose in the palm frame, release the pin, save and restore a state,
-move the hand). Each simulator (:mod:`~kinegrasp_env.physics.pybullet_hold`,
-:mod:`~kinegrasp_env.physics.mujoco_hold`) implements those primitives and calls
-:func:`hold_test`; its closing calls :func:`close_until_stall`, and both state their
-contacts in the object's frame with :func:`in_object_frame`.
+move the hand). Each simulator implements those primitives
+(:mod:`~kinegrasp_env.physics.pybullet_hold`, :mod:`~kinegrasp_env.physics.mujoco_hold`),
+and its holding test (:mod:`~kinegrasp_env.physics.robot_hold`,
+:mod:`~kinegrasp_env.physics.mujoco_robot_hold`) calls :func:`hold_test`; its closing calls
+:func:`close_until_stall`, and both state their contacts in the object's frame with
+:func:`in_object_frame`.
 """
 
 from __future__ import annotations

@@ -5,9 +5,11 @@ use (:func:`import_mujoco`). The model (:func:`build_model`) is compiled from an
 :class:`mujoco.MjSpec`:
 
 * the hand (:class:`MujocoHand`): a URDF parsed by MuJoCo's own URDF reader, the same file
-  pybullet loads (the same links, inertials, capsules, meshes, joint axes and limits, a
-  coupling as MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies,
-  visuals dropped): a robot's hand cut from its URDF
+  pybullet loads (the same links, capsules, meshes, joint axes and limits, a coupling as
+  MuJoCo's equality from the URDF's ``mimic``; static links kept as bodies, visuals
+  dropped; MuJoCo takes the links' inertias from the URDF, where pybullet estimates a
+  finger link's from its collision shape, as it loads a URDF): a robot's hand cut from its
+  URDF
   (:func:`~kinegrasp_env.physics.mujoco_robot_hold.description_hand`).
   Its root is a free body as heavy as pybullet's (``ROOT_MASS``,
   standing in for the arm) welded to a *mocap* body ``anchor``: where the arm's flange is

@@ -182,6 +182,9 @@ class PhysicsWorld(BulletWorld):
     """
 
     def __init__(self, obj: GraspObject, settings: WorldSettings | None = None) -> None:
+        if type(self)._load_hand is PhysicsWorld._load_hand:
+            raise TypeError("PhysicsWorld is the base of a hand's world: build "
+                            "RobotPhysicsWorld(description, obj), which loads the hand")
         super().__init__(gui=False)
         self.obj = obj
         self.settings = settings or WorldSettings()

@@ -36,6 +36,11 @@ if TYPE_CHECKING:  # the registry stays cheap to import (the CLI's parser reads 
     from kinegrasp_env.robot.description import RobotDescription
     from kinegrasp_env.world.objects import GraspObject
 
+#: What the physics closings and holding tests of this version simulate, recorded beside
+#: results that they made (a sweep store, a ranking log, a ``validate`` cache), so that the
+#: results of another version's physics are not taken for this one's.
+PHYSICS_MODEL = ("every robot's hand by its description's motors; the object's exact "
+                 "convex parts, mass and inertia")
 #: name -> (module, class name, the Python package it needs).
 SIMULATORS: dict[str, tuple[str, str, str]] = {
     "pybullet": ("kinegrasp_env.physics.robot_hold", "RobotHold", "pybullet"),

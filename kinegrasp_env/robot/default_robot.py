@@ -1,13 +1,12 @@
 """The default robot's names and model, read from its description
 (``assets/robots/kuka_sdh.yaml``, :data:`~kinegrasp_env.robot.default.DEFAULT_ROBOT`) on first
-use: what the default robot's own modules (its physics closing and holding test, its
-analytic IK) read.
+use: what the library path of the default robot's 14-entry configurations (its engines by
+name, its noise perturbation, its pybullet contact reference, its analytic IK) reads.
 
 ``ARM_JOINTS`` (base to flange), ``HAND_JOINTS`` (the hand's actuated vector), ``PALM_LINK``,
 ``FINGERTIP_LINKS``, ``FINGERS`` (per finger: proximal joint, distal joint, proximal link,
-distal link), ``SPREAD_JOINTS`` (the pre-shape-only hand joint, then the joints that mimic
-it), ``SHOULDER_LINK``, ``ELBOW_LINK``, ``WRIST_LINK`` (the elbow angle's links): module
-attributes (:func:`default_names`).
+distal link), ``SHOULDER_LINK``, ``ELBOW_LINK``, ``WRIST_LINK`` (the elbow angle's links):
+module attributes (:func:`default_names`).
 """
 
 from __future__ import annotations
@@ -24,7 +23,7 @@ from kinegrasp_env.robot.model import RobotModel, load_urdf
 
 #: The names this module gives (:func:`default_names`).
 DEFAULT_NAMES = ("ARM_JOINTS", "HAND_JOINTS", "PALM_LINK", "FINGERTIP_LINKS", "FINGERS",
-                 "SPREAD_JOINTS", "SHOULDER_LINK", "ELBOW_LINK", "WRIST_LINK")
+                 "SHOULDER_LINK", "ELBOW_LINK", "WRIST_LINK")
 
 
 @lru_cache(maxsize=1)
@@ -38,15 +37,12 @@ def default_names() -> dict[str, object]:
     """The default robot's names of :data:`DEFAULT_NAMES`, from its description."""
     description = default_description()
     shoulder, elbow, wrist = description.arm_angle_links
-    model = description.model
-    spread = tuple(j for j in description.hand_joints if j not in description.close)
-    spread += tuple(j.name for j in model.joints if j.mimic is not None and j.mimic[0] in spread)
     return {"ARM_JOINTS": description.arm_joints, "HAND_JOINTS": description.hand_joints,
             "PALM_LINK": description.palm_link,
             "FINGERTIP_LINKS": description.fingertip_links,
             "FINGERS": tuple((*finger.joints, *finger.links)
                              for finger in description.fingers),
-            "SPREAD_JOINTS": spread, "SHOULDER_LINK": shoulder, "ELBOW_LINK": elbow,
+            "SHOULDER_LINK": shoulder, "ELBOW_LINK": elbow,
             "WRIST_LINK": wrist}
 
 

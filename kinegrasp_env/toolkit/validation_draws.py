@@ -27,7 +27,7 @@ from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_hold import RobotMotorSettings
-from kinegrasp_env.physics.simulators import SIMULATORS, check_simulator
+from kinegrasp_env.physics.simulators import PHYSICS_MODEL, SIMULATORS, check_simulator
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
 from kinegrasp_env.toolkit.validation_records import GraspDraws, ValidationSettings
@@ -56,7 +56,8 @@ def check_settings(robot: str, settings: ValidationSettings) -> None:
 def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     """A hash of everything a robot's grasp draws depend on: the settings (less the number
     of draws), the robot's description and URDF, the object's version, the grasp, the
-    physics, motor and lift settings, the class that holds the hand in the run's simulator,
+    physics, motor and lift settings, the class that holds the hand in the run's simulator
+    and the physics model (:data:`~kinegrasp_env.physics.simulators.PHYSICS_MODEL`),
     the protocol and the draws' layout in the seed's streams: the name of its cache file (a
     cached run of more draws serves a smaller one: the draws of n samples are the first n
     of any larger number)."""
@@ -67,7 +68,7 @@ def settings_key(grasp: Grasp, settings: ValidationSettings) -> str:
     text = repr((grasp.robot, files, grasp.object, object_version(grasp.object),
                  grasp.q0.tobytes().hex(), kept,
                  WorldSettings(), RobotMotorSettings(),
-                 SIMULATORS[settings.simulator], settings.protocol,
+                 SIMULATORS[settings.simulator], PHYSICS_MODEL, settings.protocol,
                  PHASES, HOLD_OUTCOMES, DRAW_LAYOUT))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

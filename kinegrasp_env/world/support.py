@@ -10,8 +10,10 @@ The table (:class:`SupportTable`) is a box whose top face is the object frame's 
 (the plane of the object's base), centred under the object's origin, its sides along the
 object frame's x and y axes; by default it reaches down to the robot's base plane (z = 0 in
 the world), as a table the robot is mounted beside. The object rests on it; the hand and the
-arm collide with it: :class:`TableProbe` answers, for a batch of configurations, whether any
-arm link or hand link intersects the box (:mod:`kinegrasp_env.world.table_probe`).
+arm collide with it: :class:`~kinegrasp_env.closing.table_check.TableCheck` answers, for a
+batch of configurations, whether any arm link or hand link intersects the box
+(:class:`~kinegrasp_env.world.table_probe.TableProbe` answers the same from pybullet's own
+closest points, the tests' reference).
 """
 
 from __future__ import annotations
