@@ -37,8 +37,8 @@ from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.placement import place_object
 from kinegrasp_env.world.support import SupportTable, placement_pose
-from kinegrasp_env.world.table_probe import TableProbe
 from tests.cli_helpers import run_cli
+from tests.table_probe_reference import TableProbe
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -152,7 +152,7 @@ def test_screen_never_drops_a_draw_in_the_table(tabled):
     """The forward-kinematics screen before the pybullet queries (bounding balls of the links'
     collision geometry) changes no verdict: the screened answer equals pybullet asked about
     every draw, with the hand moved by palm errors and the robot by object errors too."""
-    from kinegrasp_env.montecarlo.perturbation import arm_shift
+    from tests.table_probe_reference import arm_shift
 
     rng = np.random.default_rng(6)
     for name in tabled.values():

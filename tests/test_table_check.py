@@ -32,7 +32,7 @@ from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.placement import place_object
 from kinegrasp_env.world.sim import BulletWorld, pybullet
 from kinegrasp_env.world.support import SupportTable
-from kinegrasp_env.world.table_probe import table_body
+from kinegrasp_env.world.table_body import table_body
 
 #: Links nearer than this to touching (pybullet's distance, metres) are not compared: the
 #: closing reads a cylinder as its inscribed 16-sided prism, pybullet as a cylinder (1 mm of
@@ -131,10 +131,10 @@ def test_the_physics_engine_marks_draws_in_the_table():
 
 def test_the_default_robots_table_check_is_the_probes():
     """The fast and the reference engine's table tests of the default robot against
-    pybullet's own closest points (:class:`~kinegrasp_env.world.table_probe.TableProbe`:
+    pybullet's own closest points (``tests/table_probe_reference.TableProbe``:
     the robot's URDF and the table box in a world of their own)."""
     from kinegrasp_env.world.objects import load_object
-    from kinegrasp_env.world.table_probe import TableProbe
+    from tests.table_probe_reference import TableProbe
 
     q = _draws("kuka_sdh", 60, 0.05, 3)
     fast = make_default_engine("fast", "cube_on_table")

@@ -38,7 +38,7 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import ObjectWorld, body_indices, matrix_to_pose, pybullet
-from kinegrasp_env.world.table_probe import table_body
+from kinegrasp_env.world.table_body import table_body
 
 GEOM_MESH = pybullet.GEOM_MESH
 

@@ -28,7 +28,7 @@ from kinegrasp_env.sampling.noise_model import NoiseDraws, offset_transforms
 
 ARM = 7
 
-__all__ = ["EngineInputs", "arm_shift", "configurations", "engine_inputs", "hand_in_object",
+__all__ = ["EngineInputs", "configurations", "engine_inputs", "hand_in_object",
            "hand_limits", "rigid_inverse", "world_to_object"]
 
 
@@ -86,16 +86,6 @@ def engine_inputs(q0: np.ndarray, draws: NoiseDraws, center: np.ndarray) -> Engi
         None if draws.palm is None else offset_transforms(draws.palm),
         None if draws.object is None else offset_transforms(draws.object, center),
         None if draws.friction is None else np.asarray(draws.friction, dtype=float))
-
-
-def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray | None) -> np.ndarray | None:
-    """(n, 4, 4) M = W_O D^-1 W_O^-1: the rigid move of the whole robot that, the object left
-    at its believed pose W_O (4, 4), puts the robot where it truly is relative to the object
-    (object errors D (n, 4, 4); the hand moves by the same M); None when
-    there are no object errors."""
-    if object_offset is None:
-        return None
-    return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
 
 
 def check_errors(n: int, palm, object_offset, friction, *,

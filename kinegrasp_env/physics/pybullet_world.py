@@ -40,7 +40,7 @@ from scipy.spatial import ConvexHull
 
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
-from kinegrasp_env.world.table_probe import table_body
+from kinegrasp_env.world.table_body import table_body
 
 #: Gravity, m/s^2 (world -z).
 GRAVITY = 9.81

@@ -168,11 +168,11 @@ def body_indices(bullet, body: int, base_link: str) -> tuple[dict[str, int], dic
     return joint_index, link_index
 
 
-def load_hand(bullet, fixed_base: bool = True) -> tuple[int, dict[str, int], dict[str, int]]:
-    """The SDH hand URDF in ``bullet`` (a BulletClient): (body, joint name -> pybullet joint
-    index, link name -> link index (-1: the root ``hand_root``)), every link's collision
-    margin zero; ``fixed_base`` False: a dynamic root (the physics engine)."""
-    hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=fixed_base,
+def load_hand(bullet) -> tuple[int, dict[str, int], dict[str, int]]:
+    """The SDH hand URDF in ``bullet`` (a BulletClient), its root fixed: (body, joint name ->
+    pybullet joint index, link name -> link index (-1: the root ``hand_root``)), every link's
+    collision margin zero."""
+    hand = bullet.loadURDF(str(asset_path("robots", "sdh_hand.urdf")), useFixedBase=True,
                            flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
     joint_index, link_index = body_indices(bullet, hand, "hand_root")
     for link in link_index.values():

@@ -12,8 +12,8 @@ object frame's x and y axes; by default it reaches down to the robot's base plan
 the world), as a table the robot is mounted beside. The object rests on it; the hand and the
 arm collide with it: :class:`~kinegrasp_env.closing.table_check.TableCheck` answers, for a
 batch of configurations, whether any arm link or hand link intersects the box
-(:class:`~kinegrasp_env.world.table_probe.TableProbe` answers the same from pybullet's own
-closest points, the tests' reference).
+(``tests/table_probe_reference.py`` answers the same from pybullet's own closest points,
+the tests' reference; the box as a pybullet body: :mod:`kinegrasp_env.world.table_body`).
 """
 
 from __future__ import annotations

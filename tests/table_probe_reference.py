@@ -1,4 +1,5 @@
-"""Whether the robot is in the support table, for a batch of configurations.
+"""The tests' reference for the table test: whether the default robot is in the support
+table, for a batch of configurations, from pybullet's own closest points.
 
 A :class:`TableProbe` holds a pybullet world of its own (one ``BulletClient``) with the arm
 (the composed arm+hand URDF, of which only the arm's links are asked about), the hand (the
@@ -22,17 +23,14 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from kinegrasp_env.quiet import quiet_c_output
-
-with quiet_c_output():
-    import pybullet
-
 from kinegrasp_env.assets import asset_path
+from kinegrasp_env.quiet import quiet_c_output
 from kinegrasp_env.robot.default_robot import ARM_JOINTS, default_hand_mount, kuka_sdh, urdf_path
-from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse
 from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, load_hand, matrix_to_pose
+from kinegrasp_env.world.table_body import table_body
 
 
 @lru_cache(maxsize=2)
@@ -67,20 +65,6 @@ def shape_radius(shape, rot: np.ndarray, offset: np.ndarray, folder: Path) -> fl
     if shape.tag == "sphere":
         return centre + float(shape.get("radius"))
     return centre + 0.5 * float(np.linalg.norm([float(v) for v in shape.get("size").split()]))
-
-
-def table_body(bullet, obj: GraspObject, friction: float | None = None) -> int:
-    """A static box body for ``obj``'s table in ``bullet`` (a BulletClient), collision
-    margin zero (``friction``: its lateral friction, else pybullet's default)."""
-    pose, half = obj.table.box(obj.pose)
-    shape = bullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half.tolist())
-    position, orientation = matrix_to_pose(pose)
-    body = bullet.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
-                                  basePosition=position, baseOrientation=orientation)
-    bullet.changeDynamics(body, -1, collisionMargin=0.0)
-    if friction is not None:
-        bullet.changeDynamics(body, -1, lateralFriction=friction)
-    return body
 
 
 class TableProbe(BulletWorld):
@@ -133,7 +117,7 @@ class TableProbe(BulletWorld):
             q: arm joints and hand DOF (the hand's joints are set from q[:, 7:]).
             roots: (n, 4, 4) world poses of the hand root (default: the flange pose of q).
             shifts: (n, 4, 4) rigid moves of the whole robot (default none; see
-                :func:`kinegrasp_env.montecarlo.perturbation.arm_shift`); ``roots`` are taken
+                :func:`arm_shift`); ``roots`` are taken
                 as already moved.
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
@@ -191,3 +175,10 @@ class TableProbe(BulletWorld):
         arm = self.bodies["arm"]
         return any(bullet.getClosestPoints(arm, table, 0.0, linkIndexA=link)
                    for link in self.arm_links)
+
+
+def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) M = W_O D^-1 W_O^-1: the rigid move of the whole robot that, the object left
+    at its believed pose W_O (4, 4), puts the robot where it truly is relative to the object
+    (object errors D (n, 4, 4): :mod:`kinegrasp_env.montecarlo.perturbation`)."""
+    return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)
