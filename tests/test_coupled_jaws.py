@@ -56,3 +56,17 @@ def test_two_closings_give_the_same_push() -> None:
     np.testing.assert_allclose(fast[both], reference[both], rtol=0, atol=5e-6)
     assert fast[both].max() > 1e-3  # the noise does push
     assert pytest.approx(0.0) != float(np.median(fast[both]))
+
+
+def test_the_physics_engine_reports_no_push() -> None:
+    """The push is what a kinematic closing of coupled jaws leaves out (the object pushed
+    until the other jaw meets it); the physics engine's closing on the free object does the
+    pushing, so its draws carry none (NaN), where the fast engine's carry one."""
+    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    q = np.array([g.q0 for g in shipped_grasps("cube", robot="panda")[:2]])
+    with make_engine("physics", "panda", "cube") as physics, \
+            make_engine("fast", "panda", "cube") as fast:
+        assert np.isnan(physics.run(q).push).all()
+        assert np.isfinite(fast.run(q).push).any()

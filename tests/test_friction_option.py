@@ -117,6 +117,33 @@ def test_bad_friction_is_one_line(capsys, value, words):
         assert len(err) == 1 and words in err[0], (command, err)
 
 
+def test_a_simulation_at_zero_friction_is_one_line_before_any_work(capsys, tmp_path,
+                                                                   monkeypatch):
+    """mu 0 is a valid friction cone (kinematic engines score it) but not a simulated
+    contact: every command that simulates (the physics engine, the holding test, validate,
+    a sweep's physics cells) refuses it in one line, and writes nothing (rank's log
+    included)."""
+    from kinegrasp_env.world.grasps import shipped_grasp_file
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "j.yaml").write_text("joints: {sigma: 0.0133}\n")
+    (tmp_path / "s.yaml").write_text("objects: [cube]\ngrasps: [0]\nsigmas: [0.01]\n"
+                                     "engines: [physics]\nsamples: 2\n")
+    grasp = ["--object", "cube", "--grasp", "0", "--samples", "2"]
+    for command in (["validate", *grasp, "--out", "v"],
+                    ["evaluate", *grasp, "--hold-test"],
+                    ["evaluate", *grasp, "--engine", "physics"],
+                    ["rank", str(shipped_grasp_file("cube")), "--samples", "2", "--criterion",
+                     "hold", "--out", "r.csv"],
+                    ["sensitivity", *grasp, "--noise-spec", "j.yaml", "--engine", "physics"],
+                    ["sweep", "s.yaml", "--out", "w"]):
+        assert main([*command, "--friction", "0"]) == 2, command
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "> 0" in err[0], (command, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["j.yaml", "s.yaml"]
+    assert main(["evaluate", *grasp, "--engine", "fast", "--friction", "0"]) == 0  # kinematic
+
+
 def test_friction_beside_a_friction_source_is_refused(capsys, tmp_path):
     spec = tmp_path / "noise.yaml"
     spec.write_text("joints: {sigma: 0.01}\nfriction: {distribution: gaussian, mean: 0.5, "

@@ -80,7 +80,7 @@ def test_the_default_robots_physics_is_every_robots():
     (``RobotPhysicsEngine``: its description's motors), and ``evaluate_robot_grasp`` and the
     14-entry library path ``evaluate_grasp`` (its draws built by other code,
     :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`) give the same P(FC),
-    outcome counts and Q moments on the same seed."""
+    outcome counts, Q moments and nominal Q on the same seed."""
     from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise import JointNoise
 
@@ -92,3 +92,6 @@ def test_the_default_robots_physics_is_every_robots():
     assert robot.p_fc == default.p_fc and robot.counts == default.outcomes
     np.testing.assert_allclose([robot.q_mean, robot.q_std], [default.q_mean, default.q_std],
                                rtol=1e-12)
+    assert robot.q_nominal == default.q_nominal  # the physics closing's nominal, both ways
+    still = evaluate_grasp(grasp, JointNoise(0.0), 2, SEED, engine="physics")
+    assert still.error == 0.0  # at sigma 0 every draw is the nominal closing

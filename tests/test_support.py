@@ -363,6 +363,29 @@ def test_the_holding_test_marks_draws_in_the_table(tabled):
     assert HOLD_OUTCOMES[hold.outcome[0]] != "start_collision"
 
 
+@pytest.mark.expensive
+def test_a_table_the_hand_never_touches_changes_no_holding_test(tabled):
+    """A draw clear of the table gets the holding test's verdict, grip shift and pin force
+    of the same object without a table, bit for bit: the pinned object does not touch the
+    table (its contacts there, at zero force, changed pybullet's solution and a verdict),
+    and the release puts the table out of reach."""
+    from kinegrasp_env.physics.protocol import HoldProtocol
+    from kinegrasp_env.physics.robot_hold import RobotHold
+    from kinegrasp_env.robot.catalog import load_robot
+
+    q = shipped_grasps("cube")[8].q0  # clear of the table (test above)
+    results = []
+    for name in ("cube", tabled["cube"]):
+        hold = RobotHold(load_robot("kuka_sdh"), load_object(name), 0.5, HoldProtocol())
+        try:
+            results.append(hold.run_draw(q)[1])
+        finally:
+            hold.close()
+    plain, on_table = results
+    assert HOLD_OUTCOMES[plain.outcome] == HOLD_OUTCOMES[on_table.outcome] == "held"
+    assert (plain.grip_shift, plain.pin_force) == (on_table.grip_shift, on_table.pin_force)
+
+
 def test_a_grasp_file_of_an_object_moved_since_is_refused(tabled, tmp_path):
     """A grasp file records where its object stood (its world palm poses beside its
     object-frame ones); once ``objects place`` moves the object, every reader refuses the

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 import signal
@@ -191,6 +192,14 @@ def test_physics_cells_of_another_physics_model_are_refused(tmp_path):
     with LocalExecutor(1) as ex:
         run_sweep(spec, tmp_path, ex, progress=False)
         assert run_sweep(spec, tmp_path, ex, progress=False)[1:] == (0, 1)  # same model: reused
+    # a physics cell's nominal Q is the physics closing's, as evaluate's
+    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+
+    row = next(csv.DictReader((tmp_path / "summary.csv").open()))
+    alone = evaluate_robot_grasp(grasp_by_index("cube", 0), sigma=0.02, n=2, seed=0,
+                                 engine="physics")
+    assert float(row["q_nominal"]) == pytest.approx(alone.q_nominal, rel=1e-12)
+    with LocalExecutor(1) as ex:
         with sqlite3.connect(tmp_path / "results.sqlite") as db:
             db.execute("DELETE FROM meta WHERE key = 'physics_model'")
         with pytest.raises(SpecError, match="physics-engine cells of another physics model"):

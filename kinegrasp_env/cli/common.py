@@ -241,12 +241,15 @@ def friction_setting(noise, friction: float) -> float | str:
             if friction_per_draw(noise) else friction)
 
 
-def friction_from(args, noise=None) -> float:
+def friction_from(args, noise=None, simulated: bool = False) -> float:
     """``--friction``: a finite mu >= 0 (:func:`~kinegrasp_env.quality.wrenches.
-    check_parameters`' rule; default :data:`DEFAULT_FRICTION`). Given beside a noise model
-    (``noise``) with a friction source, which sets mu per draw, it is a :class:`CLIError`
-    line; without it the noise-free grasp (its nominal Q, the drawn cones) takes the
-    source's nominal mu (:func:`~kinegrasp_env.sampling.noise_model.nominal_friction`)."""
+    check_parameters`' rule; default :data:`DEFAULT_FRICTION`), > 0 where a simulator runs
+    the contacts (``simulated``: the physics engine, the holding test;
+    :func:`~kinegrasp_env.physics.protocol.check_simulated_friction`). Given beside a noise
+    model (``noise``) with a friction source, which sets mu per draw, it is a
+    :class:`CLIError` line; without it the noise-free grasp (its nominal Q, the drawn cones)
+    takes the source's nominal mu (:func:`~kinegrasp_env.sampling.noise_model.
+    nominal_friction`)."""
     from kinegrasp_env.quality.wrenches import check_parameters
     from kinegrasp_env.sampling.noise_model import nominal_friction
 
@@ -259,6 +262,14 @@ def friction_from(args, noise=None) -> float:
         check_parameters(value, NUM_EDGES)
     except ValueError:
         raise CLIError(f"--friction must be >= 0, got {text}") from None
+    if simulated:
+        from kinegrasp_env.physics.protocol import check_simulated_friction
+
+        try:
+            check_simulated_friction(value)
+        except ValueError:
+            raise CLIError(f"--friction must be > 0 where a simulator runs the contacts (the "
+                           f"physics engine, the holding test), got {text}") from None
     return nominal_friction(noise, value)
 
 

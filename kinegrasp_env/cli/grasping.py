@@ -36,7 +36,8 @@ from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
 def cmd_evaluate(args) -> int:
     noise, sigma, samples, seed = noise_from(args)
-    friction = friction_from(args, noise)
+    friction = friction_from(args, noise, simulated=args.engine == "physics"
+                             or bool(getattr(args, "hold_test", False)))
     report_path(args.report, inputs=input_files(args))  # before a palm pose is solved
     if args.plot is not None:
         output_file(args.plot, "--plot", inputs=input_files(args))
@@ -48,7 +49,7 @@ def cmd_evaluate(args) -> int:
 def cmd_reproduce(args) -> int:
     samples = positive_int(args.samples, "--samples")
     engine_name(args.engine)
-    friction = friction_from(args)
+    friction = friction_from(args, simulated=args.engine == "physics")
     if args.figure not in ("table1", "fig7", "fig9", "fig10"):
         raise CLIError(f"unknown experiment {args.figure!r}; available: table1, fig7, fig9, "
                        "fig10")

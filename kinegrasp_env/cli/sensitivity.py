@@ -44,7 +44,7 @@ def cmd_sensitivity(args) -> int:
     with reported(NoiseSpecError):
         model = load_noise_model(args.noise_spec)
     samples = positive_int(args.samples, "--samples", low=2)
-    friction = friction_from(args, model)
+    friction = friction_from(args, model, simulated=args.engine == "physics")
     bootstrap = positive_int(args.bootstrap, "--bootstrap", low=0)
     seed = parse_seed(args.seed)
     index, grasp = _request(args, model)

@@ -131,8 +131,9 @@ def cmd_sweep(args) -> int:
         import dataclasses
 
         drawn = spec.friction_sources()
-        spec = dataclasses.replace(spec, friction=friction_from(args, drawn[0][1] if drawn
-                                                                else None))
+        friction = friction_from(args, drawn[0][1] if drawn else None)
+        with reported(SpecError):
+            spec = dataclasses.replace(spec, friction=friction)
     out = output_folder(args.out)
     robot = "" if spec.robot == DEFAULT_ROBOT else f" of robot {spec.robot}"
     from kinegrasp_env.montecarlo.sweep_noise import replaced_joint_sigmas

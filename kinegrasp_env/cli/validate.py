@@ -173,7 +173,7 @@ def settings_from(args) -> dict:
     return {"sigma": sigma, "samples": positive_int(args.samples, "--samples"),
             "seed": parse_seed(args.seed), "kinematic": args.kinematic_engine,
             "simulator": args.simulator, "torque_scale": scale, "shake": args.shake,
-            "friction": friction_from(args)}
+            "friction": friction_from(args, simulated=True)}
 
 
 def cmd_validate(args) -> int:

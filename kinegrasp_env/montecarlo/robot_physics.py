@@ -45,6 +45,7 @@ class RobotPhysicsEngine(RobotEngine):
                  world: WorldSettings | None = None, motors: RobotMotorSettings | None = None,
                  **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
+        self.jaw_speeds = None  # coupled jaws push the free object here: no push to report
         self.hold = RobotHold(self.description, self.obj, self.friction, HoldProtocol(),
                               world, motors)
         #: the arm is not simulated: its table test is the geometric one

@@ -253,7 +253,7 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
             moments.merge(chunk_moments)
         stats = grasp_stats(spec.grasp(obj, grasp),
                             cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
-                            counts, moments, None, q_nominal=nominal[obj, grasp])
+                            counts, moments, None, q_nominal=nominal[obj, grasp, engine])
         summary.append({
             **({} if spec.robot == DEFAULT_ROBOT else {"robot": spec.robot}),
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
@@ -263,16 +263,23 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     return summary
 
 
-def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int], float]:
-    """(object, grasp index) -> the grasp's nominal Q at the spec's friction: its nominal
-    closing by the robot's reference engine."""
+def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int, str], float]:
+    """(object, grasp index, engine) -> the grasp's nominal Q at the spec's friction: its
+    nominal closing by the robot's reference engine in the kinematic engines' cells (the fast
+    one closes as it does), by the physics engine in that engine's (as ``evaluate`` takes
+    each engine's own nominal closing)."""
     from kinegrasp_env.montecarlo.robot_evaluate import make_engine, nominal_robot_quality
 
     out = {}
     for o in spec.objects:
-        with make_engine("pybullet", spec.robot, o, friction=spec.friction) as engine:
-            for g in spec.grasp_indices(o):
-                out[o, g] = nominal_robot_quality(spec.grasp(o, g), engine)
+        for closing in dict.fromkeys("physics" if e == "physics" else "pybullet"
+                                     for e in spec.engines):
+            with make_engine(closing, spec.robot, o, friction=spec.friction) as engine:
+                for g in spec.grasp_indices(o):
+                    q = nominal_robot_quality(spec.grasp(o, g), engine)
+                    for e in spec.engines:
+                        if (e == "physics") == (closing == "physics"):
+                            out[o, g, e] = q
     return out
 
 

@@ -72,6 +72,17 @@ class SweepSpec:
     #: the contacts' friction coefficient mu in every cell
     friction: float = 0.5
 
+    def __post_init__(self) -> None:
+        if "physics" in self.engines:
+            from kinegrasp_env.physics.protocol import check_simulated_friction
+
+            try:
+                check_simulated_friction(self.friction)
+            except ValueError:
+                raise SpecError(f"friction {self.friction:g}: the physics engine's cells need "
+                                "a friction > 0 (a simulated grip at mu 0 cannot hold)"
+                                ) from None
+
     @classmethod
     def from_dict(cls, data: Any, where: str = "spec", base: str | Path | None = None,
                   robot: str | None = None) -> SweepSpec:

@@ -99,6 +99,12 @@ def check_number(name: str, value: float, *, positive: bool) -> None:
         raise ValueError(f"{name} must be {rule}, got {value!r}")
 
 
+def check_simulated_friction(friction: float) -> None:
+    """ValueError (one line) unless the simulated finger-object mu is a finite number > 0 (at
+    mu 0 a simulated grip cannot hold; every physics world refuses it)."""
+    check_number("friction", friction, positive=True)
+
+
 @dataclass(frozen=True)
 class HoldProtocol:
     """The holding test's settings (module docstring; metres, seconds, radians, newtons,

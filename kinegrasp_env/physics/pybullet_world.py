@@ -38,6 +38,7 @@ import numpy as np
 import pybullet
 from scipy.spatial import ConvexHull
 
+from kinegrasp_env.physics.protocol import check_simulated_friction
 from kinegrasp_env.world.objects import GraspObject
 from kinegrasp_env.world.sim import BulletWorld, matrix_to_pose
 from kinegrasp_env.world.table_body import table_body
@@ -95,7 +96,8 @@ class WorldSettings:
     solver_iterations: int = 50
 
     def __post_init__(self) -> None:
-        for name in ("density", "friction", "time_step"):
+        check_simulated_friction(self.friction)
+        for name in ("density", "time_step"):
             value = getattr(self, name)
             if name == "density" and value is None:
                 continue
@@ -289,7 +291,9 @@ class PhysicsWorld(BulletWorld):
     def pin_object(self) -> None:
         """Pin the (free) object where it is now: a fixed constraint to the world, at most
         :data:`ANCHOR_FORCE` newtons (a free object: it stays a dynamic body, so the contact
-        forces on it are computed as for a free one)."""
+        forces on it are computed as for a free one), and no contact with the support table,
+        if any, while it is pinned (as in MuJoCo: the table's zero-force contacts with the
+        pinned object changed the solver's answer, a cube grasp's verdict among them)."""
         if not self.settings.object_free:
             raise ValueError("only a free object (object_free=True) can be pinned")
         self.release_object()
@@ -301,6 +305,13 @@ class PhysicsWorld(BulletWorld):
                                            childFrameOrientation=orientation)
         bullet.changeConstraint(self.pin, jointChildPivot=position,
                                 jointChildFrameOrientation=orientation, maxForce=ANCHOR_FORCE)
+        self._touch_table(False)
+
+    def _touch_table(self, on: bool) -> None:
+        """Let the object and the support table (if any) collide, or not."""
+        if "table" in self.bodies:
+            self.bullet.setCollisionFilterPair(self.object_body, self.bodies["table"], -1, -1,
+                                               int(on))
 
     def restore_without_contacts(self, state: int) -> None:
         """``restoreState(state)`` with no contact cached: the object is first moved out of
@@ -319,10 +330,11 @@ class PhysicsWorld(BulletWorld):
         return float(np.linalg.norm(state[:3])), float(np.linalg.norm(state[3:6]))
 
     def release_object(self) -> None:
-        """Remove the object's pin, if any."""
+        """Remove the object's pin, if any (the object and the table collide again)."""
         if self.pin is not None:
             self.bullet.removeConstraint(self.pin)
             self.pin = None
+            self._touch_table(True)
 
     def remove_table(self) -> None:
         """Put the support table, if any, out of reach (:data:`TABLE_AWAY`) until the next
