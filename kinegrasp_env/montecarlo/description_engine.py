@@ -8,6 +8,8 @@ base (:class:`RobotEngine`: robot, object, quality measure, input check); the en
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
@@ -119,6 +121,16 @@ class RobotEngine:
             self.hold_check = StaticHoldCheck(self.description, self.obj, friction=friction,
                                               num_edges=num_edges,
                                               finger_radius=finger_radius)
+
+    @cached_property
+    def in_table(self):
+        """The robot's table test on the engine's object
+        (:class:`~kinegrasp_env.closing.table_check.RobotTableCheck`: ``in_table(q)``, (n,)
+        bool), built on first use: what a simulation of the hand alone (the arm not
+        simulated) takes as start collisions."""
+        from kinegrasp_env.closing.table_check import RobotTableCheck
+
+        return RobotTableCheck(self.description, self.obj)
 
     def close(self) -> None:
         """Release what the engine holds (nothing by default)."""

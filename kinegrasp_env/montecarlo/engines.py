@@ -171,7 +171,6 @@ class DescriptionEngine(Engine):
         self.robot = self.engine_class()(default_description(), object_name,
                                          friction=friction, num_edges=num_edges,
                                          max_contacts=MAX_CONTACTS, static_hold=static_hold)
-        self._in_table = None  # the table test, built on first use
 
     def close(self) -> None:
         self.robot.close()
@@ -179,17 +178,13 @@ class DescriptionEngine(Engine):
     def table_hits(self, q: np.ndarray, palm: np.ndarray | None = None,
                    object_offset: np.ndarray | None = None, **_) -> np.ndarray:
         """(n,) bool: draw i (q (n, 14), radians) puts a link in the object's support table
-        (the description's test, :class:`~kinegrasp_env.closing.table_check.
-        RobotTableCheck`; all False without a table). Palm and object errors move the
+        (the description engine's :attr:`~kinegrasp_env.montecarlo.description_engine.
+        RobotEngine.in_table`; all False without a table). Palm and object errors move the
         robot against the table only in the fast engine's test (:class:`FastEngine`)."""
         if palm is not None or object_offset is not None:
             raise ValueError(f"the {self.name} engine's table test takes no palm or object "
                              "errors (the fast engine's does)")
-        if self._in_table is None:
-            from kinegrasp_env.closing.table_check import RobotTableCheck
-
-            self._in_table = RobotTableCheck(self.robot.description, self.obj)
-        return self._in_table(check_configurations(q))
+        return self.robot.in_table(check_configurations(q))
 
     def closings(self, q: np.ndarray, palm: np.ndarray | None,
                  object_offset: np.ndarray | None) -> RobotCloseBatch:

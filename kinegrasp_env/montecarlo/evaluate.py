@@ -27,7 +27,6 @@ from kinegrasp_env.montecarlo.engines import (
     OUTCOMES,
     Engine,
     cached_engine,
-    make_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.nominal import nominal_quality
@@ -296,10 +295,11 @@ def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
         return_draws=return_draws, progress=progress, executor=executor,
         static_hold=static_hold)
     if engine == "physics":  # its own nominal closing, as every robot's evaluation takes it
-        with make_engine(engine, grasp.object, friction, num_edges) as closing:
-            nominal = closing.run(np.asarray(grasp.q0, dtype=float)[None])
-        q_nominal = (float(nominal.quality[0]) if nominal.outcome[0] == FORCE_CLOSURE
-                     else 0.0)
+        from kinegrasp_env.montecarlo.robot_evaluate import nominal_robot_quality
+
+        closing = _engine((engine, grasp.object, float(friction), int(num_edges),
+                           bool(static_hold)))  # the run's own engine, where it ran here
+        q_nominal = nominal_robot_quality(grasp, closing.robot)
     else:
         q_nominal = nominal_quality(grasp, friction, num_edges)
     return summarize(grasp, noise, seed, engine, counts, moments, draws, q_nominal=q_nominal)

@@ -10,7 +10,6 @@ import numpy as np
 
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
-from kinegrasp_env.closing.table_check import RobotTableCheck
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import DrawBatch
 from kinegrasp_env.montecarlo.hold_batch import HoldBatch
@@ -40,17 +39,14 @@ class RobotHoldEngine(RobotEngine):
         self.protocol = protocol
         self.simulator = simulator_class(simulator)(
             self.description, self.obj, self.friction, protocol, settings=motors)
-        #: the arm is not simulated: a draw whose robot starts in the object's support table
-        #: is a start collision, not simulated (the kinematic engines' test)
-        self.in_table = RobotTableCheck(self.description, self.obj)
 
     def close(self) -> None:
         self.simulator.close()
 
     def run_hold(self, q: np.ndarray) -> tuple[DrawBatch, HoldBatch]:
         """Configurations q (n, dof): (the physics closings scored, their holding tests; the
-        fingers' forces (n, fingers)); a draw that starts in the support table is a start
-        collision in both."""
+        fingers' forces (n, fingers)); a draw that starts in the support table
+        (:attr:`in_table`: the arm is not simulated) is a start collision in both."""
         q = self.check(q)
         n, fingers = q.shape[0], len(self.description.fingers)
         hold = HoldBatch.empty(n)

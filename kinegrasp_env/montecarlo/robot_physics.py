@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.closing.close_result import RobotCloseResult
-from kinegrasp_env.closing.table_check import RobotTableCheck
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.physics.pybullet_world import WorldSettings
@@ -48,8 +47,6 @@ class RobotPhysicsEngine(RobotEngine):
         self.jaw_speeds = None  # coupled jaws push the free object here: no push to report
         self.hold = RobotHold(self.description, self.obj, self.friction, HoldProtocol(),
                               world, motors)
-        #: the arm is not simulated: its table test is the geometric one
-        self.in_table = RobotTableCheck(self.description, self.obj)
 
     def close(self) -> None:
         self.hold.close()
@@ -60,8 +57,8 @@ class RobotPhysicsEngine(RobotEngine):
 
     def close_all(self, q: np.ndarray) -> list[RobotCloseResult]:
         """One closing per configuration of q (n, dof); a draw whose robot starts in the
-        object's support table (:class:`~kinegrasp_env.closing.table_check.TableCheck`) is
-        a start collision, not simulated."""
+        object's support table (:attr:`in_table`: the arm is not simulated) is a start
+        collision, not simulated."""
         in_table = self.in_table(q)
         fingers = len(self.description.fingers)
         return [RobotCloseResult.collided(fingers) if hit

@@ -251,9 +251,10 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
                           robot=spec.robot).key]
             counts += chunk_counts
             moments.merge(chunk_moments)
+        q_nominal = nominal[obj, grasp, nominal_closing(engine)]
         stats = grasp_stats(spec.grasp(obj, grasp),
                             cell_noise(sigma, noise, models.get(noise)), spec.seed, engine,
-                            counts, moments, None, q_nominal=nominal[obj, grasp, engine])
+                            counts, moments, None, q_nominal=q_nominal)
         summary.append({
             **({} if spec.robot == DEFAULT_ROBOT else {"robot": spec.robot}),
             "object": obj, "grasp": grasp, "sigma": sigma, "noise": noise, "engine": engine,
@@ -263,23 +264,24 @@ def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     return summary
 
 
+def nominal_closing(engine: str) -> str:
+    """The engine whose nominal closing gives a cell of ``engine`` its nominal Q: the physics
+    engine its own (as ``evaluate`` takes each engine's own), the kinematic engines the
+    reference's (the fast one closes as it does)."""
+    return "physics" if engine == "physics" else "pybullet"
+
+
 def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int, str], float]:
-    """(object, grasp index, engine) -> the grasp's nominal Q at the spec's friction: its
-    nominal closing by the robot's reference engine in the kinematic engines' cells (the fast
-    one closes as it does), by the physics engine in that engine's (as ``evaluate`` takes
-    each engine's own nominal closing)."""
+    """(object, grasp index, closing engine: :func:`nominal_closing`) -> the grasp's nominal
+    Q at the spec's friction, by that engine's nominal closing."""
     from kinegrasp_env.montecarlo.robot_evaluate import make_engine, nominal_robot_quality
 
     out = {}
     for o in spec.objects:
-        for closing in dict.fromkeys("physics" if e == "physics" else "pybullet"
-                                     for e in spec.engines):
+        for closing in dict.fromkeys(map(nominal_closing, spec.engines)):
             with make_engine(closing, spec.robot, o, friction=spec.friction) as engine:
                 for g in spec.grasp_indices(o):
-                    q = nominal_robot_quality(spec.grasp(o, g), engine)
-                    for e in spec.engines:
-                        if (e == "physics") == (closing == "physics"):
-                            out[o, g, e] = q
+                    out[o, g, closing] = nominal_robot_quality(spec.grasp(o, g), engine)
     return out
 
 
