@@ -311,7 +311,7 @@ def palm_spread(env, q: np.ndarray) -> float:
 def scoring_chunks(draws: int) -> int:
     """Number of chunks (0..K-1 of the seed) the scoring of ``draws`` draws uses; selection
     draws start at chunk K."""
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_sizes
+    from kinegrasp_env.montecarlo.grasp_stats import DEFAULT_CHUNK, chunk_sizes
 
     return len(chunk_sizes(draws, DEFAULT_CHUNK))
 
@@ -320,21 +320,21 @@ class Scorer:
     """P(FC) of a grasp (of any robot) moved to configuration q, by ``engine`` (default the
     reference, pybullet) on chunks ``first_chunk, first_chunk + 1, ...`` of ``seed`` (common
     random numbers): ``kinegrasp evaluate``'s draws of that seed from row ``first_chunk``
-    x 250 on (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`)."""
+    x 250 on (:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`)."""
 
     def __init__(self, noise, seed: int, executor, engine: str = "pybullet") -> None:
         self.noise, self.seed, self.executor = noise, int(seed), executor
         self.engine = engine
 
     def __call__(self, grasp, q: np.ndarray, n: int, first_chunk: int = 0) -> float:
-        from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK
-        from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+        from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+        from kinegrasp_env.montecarlo.grasp_stats import DEFAULT_CHUNK
 
         moved = dataclasses.replace(grasp, q0=np.asarray(q, dtype=float))
-        return evaluate_robot_grasp(moved, sigma=self.noise.sigma, n=n, seed=self.seed,
-                                    noise=self.noise.kind, engine=self.engine,
-                                    executor=self.executor,
-                                    offset=first_chunk * DEFAULT_CHUNK).p_fc
+        return evaluate_grasp(moved, sigma=self.noise.sigma, n=n, seed=self.seed,
+                              noise=self.noise.kind, engine=self.engine,
+                              executor=self.executor,
+                              offset=first_chunk * DEFAULT_CHUNK).p_fc
 
 
 def choose(env, model, obs, grasp, q0: np.ndarray, score: Scorer, settings: dict,

@@ -77,10 +77,11 @@ from results_file import ROOT, add_options, settings, write_result
 from robot_agreement import robot_agreement
 
 from kinegrasp_env.montecarlo.agreement import Agreement, compare
-from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
-from kinegrasp_env.montecarlo.engines import FastEngine, PybulletEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_configurations
+from kinegrasp_env.montecarlo.bullet_contacts import MAX_CONTACTS, BulletContactReference
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import chunk_stream
 from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
@@ -91,11 +92,14 @@ COLUMNS = (f"{'object':11s} {'sigma':>6s} {'comparison':18s} {'same outcome':>11
 
 
 def configurations(grasps: list[Grasp], sigma: float, draws: int, seed: int) -> np.ndarray:
-    """(len(grasps) * draws, 14): each grasp with ``draws`` noisy arm configurations (chunk g
-    of the seed's stream for grasp g)."""
-    return np.concatenate([
-        chunk_configurations(g.q0, JointNoise(sigma), seed, [(i, draws)])
-        for i, g in enumerate(grasps)])
+    """(len(grasps) * draws, 14): each grasp with ``draws`` noisy arm configurations (the
+    first ``draws`` rows of chunk g's stream of the seed for grasp g)."""
+    out = []
+    for i, g in enumerate(grasps):
+        q = np.repeat(np.asarray(g.q0, dtype=float)[None], draws, axis=0)
+        q[:, :7] += JointNoise(sigma).sample(draws, 7, chunk_stream(seed, i))
+        out.append(q)
+    return np.concatenate(out)
 
 
 def compare_object(name: str, sigma: float, grasps: list[Grasp], draws: int,
@@ -103,7 +107,11 @@ def compare_object(name: str, sigma: float, grasps: list[Grasp], draws: int,
     """The three comparisons of one object (built-in or imported) and noise level on the
     draws of ``grasps`` (grasps of that object)."""
     q = configurations(grasps, sigma, draws, seed)
-    reference, fast, bullet = PybulletEngine(name), FastEngine(name), BulletContactReference(name)
+    # the default robot's engines with the reference's contact slots (one per finger's
+    # proximal and distal link, as pybullet's contacts here have them)
+    reference = make_engine("pybullet", DEFAULT_ROBOT, name, max_contacts=MAX_CONTACTS)
+    fast = make_engine("fast", DEFAULT_ROBOT, name, max_contacts=MAX_CONTACTS)
+    bullet = BulletContactReference(name)
     try:
         ref, fst = reference.run(q), fast.run(q)
         return {"fast vs pybullet": compare(fst, ref),
@@ -113,6 +121,7 @@ def compare_object(name: str, sigma: float, grasps: list[Grasp], draws: int,
                                           bullet.check_contacts(q, fst))}
     finally:
         reference.close()
+        fast.close()
         bullet.close()
 
 

@@ -38,12 +38,12 @@ from results_file import add_options, settings, write_result
 FIRST_DRAWS = """
 import json, time
 t0 = time.perf_counter()
-from kinegrasp_env import JointNoise, evaluate_grasp, shipped_grasps
+from kinegrasp_env import evaluate_grasp, shipped_grasps
 from kinegrasp_env.world.sdf import object_grid
 t1 = time.perf_counter()
 object_grid("spray_flask")
 t2 = time.perf_counter()
-evaluate_grasp(shipped_grasps("spray_flask")[2], JointNoise(0.0133), 10, seed=0, engine="fast")
+evaluate_grasp(shipped_grasps("spray_flask")[2], sigma=0.0133, n=10, seed=0, engine="fast")
 t3 = time.perf_counter()
 print(json.dumps({"imports": t1 - t0, "grid": t2 - t1, "draws": t3 - t2}))
 """

@@ -181,9 +181,9 @@ def _real(grasp_names: list[str], runs: int, samples: int, truth_draws: int, eps
             """(truth_draws,) force closure of angle reach[i] on the truth seed (cached)."""
             if i not in truth:
                 psi, q = reach[i]
-                stats = evaluate_grasp(with_configuration(grasp, q, psi), noise, truth_draws,
-                                       seed=TRUTH_SEED, engine="fast", return_draws=True,
-                                       executor=executor)
+                stats = evaluate_grasp(with_configuration(grasp, q, psi), sigma=noise.sigma,
+                                       noise=noise.kind, n=truth_draws, seed=TRUTH_SEED,
+                                       engine="fast", executor=executor)
                 truth[i] = stats.draws.outcome == FORCE_CLOSURE
             return truth[i]
 

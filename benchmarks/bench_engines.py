@@ -34,10 +34,13 @@ from robot_speed import per_draw, pool_run, static_hold_cost
 
 from kinegrasp_env.closing.capsule_gap import capsule_gaps
 from kinegrasp_env.closing.segment_distance import closest_to_segments
-from kinegrasp_env.montecarlo.engines import EngineTiming, FastEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import chunk_stream
+from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.grasps import grasp_by_index
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.sdf import object_grid
@@ -49,28 +52,36 @@ def _timed(fn):
     return out, time.perf_counter() - start
 
 
+def _fresh_pool_run(grasp, sigma: float, n: int, engine: str, processes: int):
+    """``evaluate_grasp`` on a new pool of ``processes`` workers (its start-up and shutdown
+    included)."""
+    with LocalExecutor(processes) as pool:
+        return evaluate_grasp(grasp, sigma=sigma, n=n, seed=0, engine=engine, executor=pool)
+
+
 def engines(args) -> dict:
     grasp = grasp_by_index(args.object, args.grasp)
-    noise = JointNoise(args.sigma)
+    sigma = args.sigma
     # warm-up: grid built or loaded, numba compiled
-    FastEngine(args.object).run(np.repeat(grasp.q0[None], 4, axis=0))
+    with make_engine("fast", DEFAULT_ROBOT, args.object) as warm:
+        warm.run(np.repeat(grasp.q0[None], 4, axis=0))
     stats = {}
     rows: list[dict] = []
     for engine in ("fast", "pybullet"):
         n = args.draws if engine == "fast" else args.reference_draws
-        _, cold = _timed(lambda e=engine, n=n: evaluate_grasp(
-            grasp, noise, n, seed=0, processes=args.processes, engine=e))
+        _, cold = _timed(lambda e=engine, n=n: _fresh_pool_run(grasp, sigma, n, e,
+                                                               args.processes))
         # warm: a pool whose workers already hold their engine (the online case)
         with LocalExecutor(args.processes) as pool:
-            evaluate_grasp(grasp, noise, 250 * args.processes, seed=1, engine=engine,
+            evaluate_grasp(grasp, sigma=sigma, n=250 * args.processes, seed=1, engine=engine,
                            executor=pool)
             result, wall = _timed(lambda e=engine, n=n, pool=pool: evaluate_grasp(
-                grasp, noise, n, seed=0, engine=e, executor=pool))
+                grasp, sigma=sigma, n=n, seed=0, engine=e, executor=pool))
             # the same run again: every rare path's one-time set-up (e.g. the three-contact
             # tables, ~30 ms per worker, for the ~1 in 2,000 sets the expansion declines)
             # now done in every worker as well
             _, again = _timed(lambda e=engine, n=n, pool=pool: evaluate_grasp(
-                grasp, noise, n, seed=0, engine=e, executor=pool))
+                grasp, sigma=sigma, n=n, seed=0, engine=e, executor=pool))
         stats[engine] = (result, wall, n)
         rows.append({"engine": engine, "draws": n, "processes": args.processes,
                      "wall_s": wall, "draws_per_s": n / wall, "fresh_pool_wall_s": cold,
@@ -86,7 +97,7 @@ def engines(args) -> dict:
           f"processes, warm workers)")
     same = None
     if args.reference_draws == args.draws:
-        same = stats["fast"][0].outcomes == stats["pybullet"][0].outcomes
+        same = stats["fast"][0].counts == stats["pybullet"][0].counts
         print(f"identical outcome counts from both engines: {same}")
     return {"fast_over_pybullet_throughput": fast_rate / ref_rate,
             "fast_wall_s": stats["fast"][1], "identical_outcome_counts": same,
@@ -95,24 +106,29 @@ def engines(args) -> dict:
 
 def stages(args) -> dict:
     grasp = grasp_by_index(args.object, args.grasp)
-    engine = FastEngine(args.object)
+    engine = make_engine("fast", DEFAULT_ROBOT, args.object)
     n = min(args.draws, 5000)
     q = np.repeat(grasp.q0[None], n, axis=0)
-    q[:, :7] += chunk_noise(JointNoise(args.sigma), 0, 0, n)
+    q[:, :7] += JointNoise(args.sigma).sample(n, 7, chunk_stream(0, 0))  # chunk 0's stream
     engine.run(q)  # the first call loads compiled kernels and tables (rare paths too): untimed
-    engine.timing = EngineTiming()
-    draws = engine.run(q)
-    t = engine.timing
-    total = t.autoclose + t.kinematics + t.quality
+    # what engine.run does, its two stages timed apart, in the one BLAS thread run uses:
+    # auto-close (the fingers' kinematics is part of the closing), then the scoring
+    with single_blas_thread():
+        start = time.perf_counter()
+        batch = engine.close_batch(q)
+        closed = time.perf_counter()
+        draws = engine.scored(q, batch)
+        autoclose, quality = closed - start, time.perf_counter() - closed
+    total = autoclose + quality
     contacts = np.bincount(draws.n_contacts[draws.outcome >= 2], minlength=7)
-    print(f"stage split over {n} draws (1 process): auto-close {t.autoclose / n * 1e6:6.1f} us/"
-          f"draw ({t.autoclose / total:.0%}), quality {t.quality / n * 1e6:6.1f} us/draw "
-          f"({t.quality / total:.0%}; scoring, the contacts' packing included)")
+    print(f"stage split over {n} draws (1 process): auto-close {autoclose / n * 1e6:6.1f} us/"
+          f"draw ({autoclose / total:.0%}), quality {quality / n * 1e6:6.1f} us/draw "
+          f"({quality / total:.0%}; scoring, the contacts' packing included)")
     print("contacts per closed draw: " + ", ".join(f"{k}: {c}" for k, c in enumerate(contacts)
                                                    if c))
-    return {"stage_draws": n, "autoclose_s_per_draw": t.autoclose / n,
-            "quality_s_per_draw": t.quality / n,
-            "autoclose_share": t.autoclose / total, "quality_share": t.quality / total,
+    return {"stage_draws": n, "autoclose_s_per_draw": autoclose / n,
+            "quality_s_per_draw": quality / n,
+            "autoclose_share": autoclose / total, "quality_share": quality / total,
             "contacts_per_closed_draw": {str(k): int(c) for k, c in enumerate(contacts) if c}}
 
 

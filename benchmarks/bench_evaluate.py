@@ -17,15 +17,23 @@ The figures (seconds, draws/s) also go to ``benchmarks/results/bench_evaluate.js
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
 import os
 import time
+from types import SimpleNamespace
 
 import numpy as np
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.engines import OUTCOMES, PybulletEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_noise, evaluate_grasp
+from kinegrasp_env.montecarlo.draws import OUTCOMES
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import GraspEvaluation, evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import chunk_stream
+from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.grasps import grasp_by_index
 
 SIGMA = 0.0133
@@ -37,19 +45,26 @@ def load_line() -> str:
     return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
 
 
+def statistics(stats: GraspEvaluation) -> dict:
+    """Every statistic of an evaluation (not its draws), NaN as None (comparable)."""
+    out = {f.name: getattr(stats, f.name) for f in dataclasses.fields(stats)
+           if f.name != "draws"}
+    return {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in out.items()}
+
+
 def throughput(grasp, draws: int) -> dict:
     """Wall time and statistics on 1 and 2 processes."""
-    noise = JointNoise(SIGMA)
     results = {}
     for processes in (1, 2):
         start = time.perf_counter()
-        stats = evaluate_grasp(grasp, noise, draws, seed=0, processes=processes,
-                               engine="pybullet")
+        with LocalExecutor(processes) as pool:  # one process: the run in this one
+            stats = evaluate_grasp(grasp, sigma=SIGMA, n=draws, seed=0, engine="pybullet",
+                                   executor=pool)
         wall = time.perf_counter() - start
         results[processes] = (stats, wall)
         print(f"{processes} process(es): {wall:7.2f} s  {draws / wall:8.0f} draws/s  "
               f"P(FC) = {stats.p_fc:.4f}  q_mean = {stats.q_mean:.5f}")
-    same = results[1][0].to_json() == results[2][0].to_json()
+    same = statistics(results[1][0]) == statistics(results[2][0])
     print(f"identical statistics on 1 and 2 processes: {same}")
     wall = results[2][1] * TARGET_DRAWS / draws
     print(f"{TARGET_DRAWS} draws on 2 processes: {wall:.1f} s"
@@ -66,15 +81,22 @@ def throughput(grasp, draws: int) -> dict:
 
 def stage_split(object_name: str, grasp, draws: int) -> dict:
     """Stages on one process over the first ``draws`` draws of the run's first chunk."""
-    engine = PybulletEngine(object_name)
+    engine = make_engine("pybullet", DEFAULT_ROBOT, object_name)
     q = np.repeat(grasp.q0[None], draws, axis=0)
-    q[:, :7] += chunk_noise(JointNoise(SIGMA), 0, 0, draws)
+    q[:, :7] += JointNoise(SIGMA).sample(draws, 7, chunk_stream(0, 0))  # chunk 0's stream
     engine.run(q[:5])  # warm: first calls, compiled kernels
-    engine.timing = type(engine.timing)()
+    # what engine.run does, its stages timed apart, in the one BLAS thread run uses: the
+    # closing (the fingers' kinematics is part of it: no kinematics stage of its own), then
+    # the scoring
     cpu = time.process_time()
-    out = engine.run(q)
+    with single_blas_thread():
+        start = time.perf_counter()
+        batch = engine.close_batch(engine.check(q))
+        closed = time.perf_counter()
+        out = engine.scored(q, batch)
+        scored = time.perf_counter()
     cpu = time.process_time() - cpu
-    t = engine.timing
+    t = SimpleNamespace(kinematics=0.0, autoclose=closed - start, quality=scored - closed)
     total = t.kinematics + t.autoclose + t.quality
     print(f"stage split over {draws} draws (1 process, wall): kinematics "
           f"{t.kinematics / draws * 1e6:7.1f} us/draw ({t.kinematics / total:.1%}), auto-close "

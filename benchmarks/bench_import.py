@@ -115,15 +115,17 @@ def plan_all(names: list[str], count: int, folder: Path, rows: list[dict]) -> di
 
 def rate(engine_name: str, name: str, q0: np.ndarray, draws: int) -> tuple[float, float]:
     """(draws/s, P(FC)) of ``draws`` noisy draws of q0 through one warm engine."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
-    from kinegrasp_env.montecarlo.evaluate import chunk_noise
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
     from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.sampling.noise_model import chunk_stream
 
-    engine = make_engine(engine_name, name)
+    engine = make_engine(engine_name, DEFAULT_ROBOT, name)
     try:
         engine.run(np.repeat(q0[None], 4, axis=0))  # warm-up: grid, kernels, bodies
         q = np.repeat(q0[None], draws, axis=0)
-        q[:, :7] += chunk_noise(JointNoise(SIGMA), 0, 0, draws)
+        q[:, :7] += JointNoise(SIGMA).sample(draws, 7, chunk_stream(0, 0))  # chunk 0's stream
         start = time.perf_counter()
         out = engine.run(q)
         wall = time.perf_counter() - start

@@ -25,9 +25,9 @@ import numpy as np
 from results_file import add_options, settings, write_result
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import robot_configurations
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
-from kinegrasp_env.montecarlo.robot_engines import make_engine
-from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
 from kinegrasp_env.physics.protocol import HoldProtocol
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES

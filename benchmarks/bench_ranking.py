@@ -87,7 +87,8 @@ def elbow_variants(grasp, count: int) -> list:
     """Up to ``count`` configurations of the default robot's ``grasp`` at elbow angles spread
     over its self-motion (the analytic walk, every 5 degrees, the arm clear of the object),
     each kept when the reference engine closes it in force closure: ids ``<id>v<k>``."""
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.nominal import grasp_from_draw
     from kinegrasp_env.toolkit.elbow import ArmWalk
 
@@ -99,7 +100,7 @@ def elbow_variants(grasp, count: int) -> list:
         walk.close()
     if not feasible:
         return []
-    engine = make_engine("pybullet", grasp.object)
+    engine = make_engine("pybullet", grasp.robot, grasp.object)
     out = []
     try:
         pick = np.unique(np.round(np.linspace(0, len(feasible) - 1, count)).astype(int))
@@ -131,15 +132,20 @@ def candidates(name: str) -> tuple[list, str]:
 
 
 def outcomes(grasp, seed: int, first: int, count: int, processes: int = 1) -> np.ndarray:
-    """Force-closure outcome (draws,) bool of chunks ``first .. first + count - 1``."""
-    from kinegrasp_env.montecarlo import evaluate
-    from kinegrasp_env.sampling.noise import JointNoise
+    """Force-closure outcome (draws,) bool of chunks ``first .. first + count - 1`` (rows
+    ``first * CHUNK ..`` of the seed's run), each chunk a task of ``processes`` workers whose
+    engines are built once per process."""
+    from kinegrasp_env.montecarlo.chunks import RobotChunk, chunked_draws
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
 
-    _, _, draws = evaluate.run_chunks(
-        grasp, JointNoise(SIGMA), seed, sizes=[CHUNK] * count, first_chunk=first,
-        friction=FRICTION, num_edges=NUM_EDGES, engine="fast", method=METHOD,
-        return_draws=True, processes=processes)
-    return draws.outcome == evaluate.FORCE_CLOSURE
+    assert NUM_EDGES == 8  # the engines' friction cone (chunked runs take its default)
+    task = RobotChunk(grasp.robot, grasp.object, "fast", tuple(np.asarray(grasp.q0, float)),
+                      SIGMA, "gaussian", seed, first * CHUNK, count * CHUNK,
+                      friction=FRICTION, method=METHOD)
+    with LocalExecutor(processes) as executor:
+        draws = chunked_draws(task, count * CHUNK, executor, chunk=CHUNK)
+    return draws.outcome == FORCE_CLOSURE
 
 
 def save_bits(path: Path, arrays: list[np.ndarray]) -> None:

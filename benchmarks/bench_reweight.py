@@ -41,7 +41,7 @@ from marked_section import write_between
 from results_file import add_options, plain, publish, settings
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.evaluate import GraspEvaluation, evaluate_grasp
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
     close_batch,
@@ -50,6 +50,7 @@ from kinegrasp_env.montecarlo.palm_batch import (
 )
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.reweight import MixtureProposal, gaussian_logpdf, weighted_estimate
 from kinegrasp_env.sampling.stats import Z95
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
@@ -64,6 +65,16 @@ START, END = "<!-- reweight-calibration:start -->", "<!-- reweight-calibration:e
 #: The options that the calibration's figures depend on.
 CALIBRATION_SETTINGS = ("objects", "grasps", "angles", "sigmas", "batch", "direct",
                         "replicates")
+
+
+def evaluate_fast(grasp, noise: JointNoise | NoiseModel, n: int,
+                  seed: int) -> GraspEvaluation:
+    """``evaluate_grasp`` on the fast engine under joint noise or a noise model."""
+    if isinstance(noise, NoiseModel):
+        return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=seed,
+                              engine="fast")
+    return evaluate_grasp(grasp, sigma=noise.sigma, noise=noise.kind, n=n, seed=seed,
+                          engine="fast")
 
 
 def binomial_se(p: float, n: int) -> float:
@@ -130,8 +141,8 @@ def calibration(grasp, args, seed: int) -> list[dict]:
                for r in range(args.replicates)]
 
     def direct(psi, q, sigma, k) -> float:
-        return evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma),
-                              args.direct, seeds["direct"](k), engine="fast").p_fc
+        return evaluate_fast(with_configuration(grasp, q, psi), JointNoise(sigma),
+                             args.direct, seeds["direct"](k)).p_fc
 
     def linear(q, cov, mean, k) -> np.ndarray:
         return close_deltas(q, linear_draws(cov, args.direct, seeds["linear"](k), mean),
@@ -197,7 +208,7 @@ def levels_timing(grasp, args) -> dict:
     q = np.asarray(grasp.q0, dtype=float)
     covs = np.concatenate([PalmJacobian().covariance(q, s) for s in args.sigmas])
     t0 = time.perf_counter()
-    direct = [evaluate_grasp(grasp, JointNoise(s), args.levels_samples, 0, engine="fast")
+    direct = [evaluate_fast(grasp, JointNoise(s), args.levels_samples, 0)
               for s in args.sigmas]
     t1 = time.perf_counter()
     batch = close_batch(q, grasp.object, covs, args.levels_batch, 0)
@@ -237,7 +248,6 @@ def variants_timing(obj: str, args) -> dict:
     """fig10's arm configurations of one object's first grasp (:func:`~kinegrasp_env.toolkit.
     arm_variants.find_variants`): one batch against one run per configuration, on the
     reference engine (``reproduce``'s protocol with ``--engine pybullet``)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import find_variants
     from kinegrasp_env.toolkit.batch_stats import variant_stats
@@ -246,7 +256,7 @@ def variants_timing(obj: str, args) -> dict:
     grasps = find_variants(robot, obj, shipped_grasps(obj)[0], args.variants)
 
     def run(g):
-        return evaluate_robot_grasp(g, sigma=0.0033, n=args.samples, seed=0, engine="pybullet")
+        return evaluate_grasp(g, sigma=0.0033, n=args.samples, seed=0, engine="pybullet")
 
     t0 = time.perf_counter()
     direct = [run(g) for g in grasps]
@@ -274,8 +284,8 @@ def env_timing(args) -> dict:
                 _, _, _, _, info = env.step(np.array([rng.uniform(-1, 1), -1.0], np.float32))
                 steps += 1
                 if check:
-                    direct = evaluate_grasp(with_configuration(env.grasp, env.q, 0.0),
-                                            env.noise, 4000, 9, engine="fast")
+                    direct = evaluate_fast(with_configuration(env.grasp, env.q, 0.0),
+                                           env.noise, 4000, 9)
                     errors.append(info["p_fc"] - direct.p_fc)
         return steps, errors
 

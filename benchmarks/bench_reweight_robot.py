@@ -32,16 +32,16 @@ from bench_reweight import (
 )
 from results_file import add_options, publish, settings
 
+from kinegrasp_env.montecarlo.evaluate import (
+    RobotReferenceEngine,
+    evaluate_grasp,
+    make_engine,
+)
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
     close_batch,
     close_deltas,
     linear_draws,
-)
-from kinegrasp_env.montecarlo.robot_evaluate import (
-    RobotReferenceEngine,
-    evaluate_robot_grasp,
-    make_engine,
 )
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
@@ -72,9 +72,9 @@ def calibration(grasp, args, seed: int) -> list[dict]:
     with make_engine("fast", description, grasp.object) as engine:
 
         def direct(psi, q, sigma, k) -> float:
-            return evaluate_robot_grasp(dataclasses.replace(grasp, q0=q), sigma=sigma,
-                                        n=args.direct, seed=seeds["direct"](k),
-                                        engine=engine).p_fc
+            return evaluate_grasp(dataclasses.replace(grasp, q0=q), sigma=sigma,
+                                  n=args.direct, seed=seeds["direct"](k),
+                                  engine=engine).p_fc
 
         def linear(q, cov, mean, k) -> np.ndarray:  # closed where the batch is: the grasp's q
             return close_deltas(q0, linear_draws(cov, args.direct, seeds["linear"](k), mean),

@@ -55,7 +55,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as home:
         os.environ["KINEGRASP_HOME"] = home
         from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-        from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+        from kinegrasp_env.montecarlo.evaluate import make_engine
         from kinegrasp_env.robot.catalog import add_robot
         from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 

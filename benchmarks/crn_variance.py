@@ -22,6 +22,7 @@ import time
 import numpy as np
 from results_file import add_options, settings, write_result
 
+from kinegrasp_env.montecarlo.chunks import robot_engine
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
@@ -44,8 +45,9 @@ PAIRS = {
 
 
 def indicators(grasp, spec: dict, samples: int, seed: int) -> np.ndarray:
-    stats = evaluate_grasp(grasp, noise_model_from_spec(spec), samples, seed, engine="fast",
-                           return_draws=True)
+    engine = robot_engine("fast", grasp.robot, grasp.object)  # built once, kept
+    stats = evaluate_grasp(grasp, sigma=0.0, noise_model=noise_model_from_spec(spec), n=samples,
+                           seed=seed, engine=engine)
     return (stats.draws.outcome == FORCE_CLOSURE).astype(float)
 
 

@@ -1,8 +1,8 @@
 """The two implementations of the fast closing on the default robot's fingers: the batched
 loop every finger can take (:class:`~kinegrasp_env.closing.generic_fast.FastRobotHand` with
 ``compiled=False``: GJK bounds, exact pairs, halving) against the compiled capsule loop the
-fast engine closes the SDH's fingers with (:class:`~kinegrasp_env.montecarlo.engines.
-FastEngine`: :mod:`~kinegrasp_env.closing.capsule_fingers`, grid gaps, exact pairs within a
+fast engine closes the SDH's fingers with (:class:`~kinegrasp_env.montecarlo.batched_engine.
+RobotFastEngine`: :mod:`~kinegrasp_env.closing.capsule_fingers`, grid gaps, exact pairs within a
 band, bisection), on the same draws: the shipped grasps of the four objects, joint noise of
 sigma 0.0133 rad, ``--draws`` each.
 
@@ -38,8 +38,7 @@ from scipy import stats
 
 from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED, OUTCOMES, START_COLLISION
-from kinegrasp_env.montecarlo.engines import make_engine as own_engine
-from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.world.grasps import shipped_grasps
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "guides" / "robot.md"
@@ -185,7 +184,7 @@ def main() -> None:
     args = parser.parse_args()
 
     def pair_of(obj: str) -> tuple:
-        loop, kernel = make_engine("fast", "kuka_sdh", obj), own_engine("fast", obj)
+        loop, kernel = make_engine("fast", "kuka_sdh", obj), make_engine("fast", "kuka_sdh", obj)
         loop.hand = FastRobotHand(loop.description, loop.obj, compiled=False)
         return loop, kernel
 

@@ -83,10 +83,10 @@ from scipy.stats import rankdata
 from simulator_agreement import SIMULATORS, run_validate
 from thin_objects import THIN_OBJECTS, import_thin_objects
 
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
-from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_configurations, chunk_sizes
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine, quick_hold_engine
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.physics.protocol import HELD, HOLD_OUTCOMES, HoldProtocol
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
@@ -234,7 +234,6 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
     scores: dict[str, list[np.ndarray]] = {s: [] for s in SCORES}
     validate = argparse.Namespace(grasp=list(range(12)), sigma=args.sigma,
                                   samples=args.samples, seed=args.seed)
-    chunks = list(enumerate(chunk_sizes(args.samples, DEFAULT_CHUNK)))
     for obj in objects:
         held = {}
         for simulator in SIMULATORS:
@@ -243,8 +242,9 @@ def kuka_draws(objects: list[str], args) -> tuple[dict, dict, dict]:
                 held[simulator] = {(int(r["grasp"]), int(r["draw"])): r["hold_outcome"] == "held"
                                    for r in csv.DictReader(handle)}
         grasps = shipped_grasps(obj)
-        q = np.concatenate([chunk_configurations(g.q0, JointNoise(args.sigma), args.seed,
-                                                 chunks) for g in grasps])
+        # rows 0 .. samples - 1 of each grasp's run (the draws validate ran; 7 arm joints)
+        q = np.concatenate([chunk_configurations(g.q0, 7, args.sigma, "gaussian", args.seed,
+                                                 0, args.samples) for g in grasps])
         keys = [(i, d) for i in range(len(grasps)) for d in range(args.samples)]
         groups += [f"{obj}/{i}" for i, _ in keys]
         for simulator in SIMULATORS:

@@ -2,7 +2,7 @@
 the Panda's) on the same draws, and of both with pybullet's own closest points.
 
 For each draw the reference engine (pybullet closest points, :class:`~kinegrasp_env.
-montecarlo.robot_evaluate.RobotReferenceEngine`) closes the hand; at its final state each
+montecarlo.evaluate.RobotReferenceEngine`) closes the hand; at its final state each
 touching link's pybullet closest pair gives *pybullet's own* contact: its point on the object
 and its normal (``-contactNormalOnB``), scored with the robot's contact model. The fast
 engine (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) closes the same draws.
@@ -26,7 +26,7 @@ import numpy as np
 from kinegrasp_env.closing.close_rules import CONTACT_TOL
 from kinegrasp_env.montecarlo.description_engine import score
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.montecarlo.evaluate import make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import Grasp
 

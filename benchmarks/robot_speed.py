@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.montecarlo.evaluate import make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
 

@@ -20,7 +20,7 @@ import time
 
 from results_file import add_options, settings, write_result
 
-from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.toolkit.sensitivity import analyze
 from kinegrasp_env.world.grasps import shipped_grasps

@@ -38,13 +38,16 @@ def draws_per_second(engine, q: np.ndarray, repeats: int = 3) -> float:
 
 
 def object_rows(name: str, draws: int) -> dict:
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, START_COLLISION, make_engine
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
     from kinegrasp_env.world.grasps import shipped_grasps
 
     placed = f"{name}_on_table"
     q0 = np.array([g.q0 for g in shipped_grasps(name)])
-    bare, tabled = make_engine("fast", name), make_engine("fast", placed)
-    nominal = tabled.table_hits(q0)
+    bare = make_engine("fast", DEFAULT_ROBOT, name)
+    tabled = make_engine("fast", DEFAULT_ROBOT, placed)
+    nominal = tabled.in_table(q0)
     cells, record = [], {"object": name, "shipped_in_table": int(nominal.sum()),
                          "shipped": len(q0),
                          "shipped_in_table_indices": np.flatnonzero(nominal).tolist()}
@@ -52,7 +55,7 @@ def object_rows(name: str, draws: int) -> dict:
         q = np.repeat(q0, draws, axis=0)
         q[:, :7] += np.random.default_rng(7).normal(0.0, sigma, (len(q), 7))
         a, b = bare.run(q), tabled.run(q)
-        in_table = tabled.table_hits(q)
+        in_table = tabled.in_table(q)
         cells.append(f"{in_table.mean():.3f} / {(a.outcome == FORCE_CLOSURE).mean():.3f} -> "
                      f"{(b.outcome == FORCE_CLOSURE).mean():.3f}")
         assert np.all(b.outcome[in_table] == START_COLLISION)
@@ -70,17 +73,18 @@ def object_rows(name: str, draws: int) -> dict:
 
 def plan_rows(name: str, count: int) -> dict:
     from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
     from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     t = time.perf_counter()
     grasps = plan_grasps("kuka_sdh", f"{name}_on_table", count=count, seed=0)
     seconds = time.perf_counter() - t
-    engine = make_engine("pybullet", f"{name}_on_table")
+    engine = make_engine("pybullet", DEFAULT_ROBOT, f"{name}_on_table")
     q0 = np.array([g.q0 for g in grasps])
     draws = engine.run(q0)
     closed = np.concatenate([q0[:, :7], draws.hand], axis=1)
-    open_in = engine.table_hits(q0)
-    closed_in = engine.table_hits(closed)
+    open_in = engine.in_table(engine.check(q0))
+    closed_in = engine.in_table(engine.check(closed))
     print(f"| {name} on the table | {len(grasps)} in {seconds:.0f} s | "
           f"{int((draws.outcome == 3).sum())}/{len(grasps)} force closure | open hand in the "
           f"table: {int(open_in.sum())}, closed hand: {int(closed_in.sum())} |", flush=True)

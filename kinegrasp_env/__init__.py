@@ -1,8 +1,8 @@
 """kinegrasp: grasp quality under kinematic (joint-angle) noise.
 
 The names a user starts from are exported here (loaded on first use, so ``import
-kinegrasp_env`` stays cheap): ``evaluate_grasp``/``GraspStats`` (Monte Carlo P(FC) and the
-moments of Q; ``evaluate_robot_grasp`` for a grasp of any catalog robot), ``JointNoise``,
+kinegrasp_env`` stays cheap): ``evaluate_grasp``/``GraspEvaluation`` (Monte Carlo P(FC) and the
+moments of Q of a grasp of any catalog robot), ``JointNoise``,
 ``NoiseModel``/``load_noise_model`` (every source of error), ``ferrari_canny``/
 ``ferrari_canny_batch``, ``load_object``, ``shipped_grasps``, ``plan_grasps`` (grasps of any
 catalog robot), ``rank_fixed``/``rank_adaptive`` and ``ENV_IDS``.
@@ -45,8 +45,7 @@ def _register_envs(gymnasium) -> None:
 when_imported("gymnasium", _register_envs)
 
 __getattr__, __dir__, _LAZY = lazy_exports(__name__, {
-    "montecarlo.evaluate": ("evaluate_grasp", "GraspStats"),
-    "montecarlo.robot_evaluate": ("evaluate_robot_grasp",),
+    "montecarlo.evaluate": ("evaluate_grasp", "GraspEvaluation"),
     "sampling.noise": ("JointNoise",),
     "sampling.noise_model": ("NoiseModel",),
     "sampling.noise_spec": ("load_noise_model",),

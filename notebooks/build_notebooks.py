@@ -135,17 +135,18 @@ estimate after n draws is compared with the estimate from all draws; errors are 
 the grasps. The Wilson 95% interval shows the sampling uncertainty of one grasp, and plain
 Monte Carlo is compared with antithetic and Sobol sampling over independent seeds."""),
         ("code", SETUP),
-        ("code", '''from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE
+        ("code", '''from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.world.grasps import shipped_grasps
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.stats import wilson_interval
 
-noise = JointNoise(0.0133)
+sigma = 0.0133
 total = n(20000, 400)
 grasps = shipped_grasps("spray_flask")[:5]
-runs = [evaluate_grasp(g, noise, total, seed=0, engine="fast", processes=2, return_draws=True)
-        for g in grasps]
+with LocalExecutor(2) as pool:
+    runs = [evaluate_grasp(g, sigma=sigma, n=total, seed=0, engine="fast", executor=pool)
+            for g in grasps]
 sizes = np.unique(np.round(np.logspace(1, np.log10(total), 25)).astype(int))
 err_p, err_q = [], []
 for stats in runs:
@@ -163,7 +164,7 @@ for a in ax:
     a.set_xlabel("draws n"); a.legend(); a.grid(True, which="both", alpha=0.3)
 plt.show()
 for g, stats in zip(grasps, runs):
-    print(f"grasp {g.id}: P(FC) = {stats.p_fc:.4f} {np.round(stats.p_fc_ci, 4)}, "
+    print(f"grasp {g.id}: P(FC) = {stats.p_fc:.4f} {np.round(stats.ci, 4)}, "
           f"mean Q = {stats.q_mean:.5f}, nominal Q = {stats.q_nominal:.5f}")'''),
         ("code", '''stats = runs[0]
 fc = stats.draws.outcome == FORCE_CLOSURE
@@ -181,7 +182,8 @@ estimates is the estimator's standard error."""),
 per_run = n(1000, 100)
 spread = {}
 for method in ("mc", "antithetic", "sobol"):
-    est = [evaluate_grasp(grasps[0], noise, per_run, seed=s, engine="fast", method=method).p_fc
+    est = [evaluate_grasp(grasps[0], sigma=sigma, n=per_run, seed=s, engine="fast",
+                          method=method).p_fc
            for s in seeds]
     spread[method] = (np.mean(est), np.std(est, ddof=1))
     print(f"{method:10s}: mean {spread[method][0]:.4f}, std over seeds {spread[method][1]:.4f}")'''),
@@ -196,11 +198,9 @@ noise ellipsoid, and with it the probability of force closure, changes with psi.
 the fast engine (identical to the pybullet reference draw by draw)."""),
         ("code", SETUP),
         ("code", """import dataclasses
-from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, evaluate_grasp
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.robot.kinematics import Kinematics
-from kinegrasp_env.sampling.noise import JointNoise
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.toolkit.elbow_search import robot_reachable_configurations
 from kinegrasp_env.robot.default_robot import PALM_LINK, kuka_sdh
 
@@ -216,8 +216,8 @@ for psi, q in feasible:
     cov = sigma**2 * jac @ jac.T  # first-order palm-position covariance (m^2)
     axes = np.sqrt(np.linalg.eigvalsh(cov))[::-1] * 1e3
     g = dataclasses.replace(grasp, q0=q)
-    stats = evaluate_grasp(g, JointNoise(sigma), n(2000, 60), seed=0, engine="fast")
-    rows.append((psi, axes, stats.p_fc, stats.p_fc_ci))
+    stats = evaluate_grasp(g, sigma=sigma, n=n(2000, 60), seed=0, engine="fast")
+    rows.append((psi, axes, stats.p_fc, stats.ci))
 psi = np.array([r[0] for r in rows])
 fig, ax = plt.subplots(1, 2, figsize=(11, 4))
 ax[0].plot(psi, [r[1][0] for r in rows], "o-", label="largest axis")
@@ -388,7 +388,7 @@ source to fix: the *gain if exact* (P(FC) without the source minus P(FC) with al
 draws) and the total Sobol index of the force-closure indicator
 (`kinegrasp_env.toolkit.sensitivity.analyze`, as `kinegrasp sensitivity`)."""),
         ("code", SETUP),
-        ("code", """from kinegrasp_env.montecarlo.robot_engines import make_engine
+        ("code", """from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.toolkit.sensitivity import analyze
 from kinegrasp_env.world.grasps import shipped_grasps

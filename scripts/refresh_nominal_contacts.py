@@ -22,7 +22,9 @@ from dataclasses import replace
 import numpy as np
 
 from kinegrasp_env.atomic_files import write_atomic
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES
 
@@ -31,7 +33,7 @@ def refreshed(name: str) -> tuple[list[Grasp], float, float]:
     """The object's shipped grasps with contacts and Q from the reference engine at q0, the
     largest point move (metres) and the largest relative change of Q."""
     grasps = shipped_grasps(name)
-    engine = PybulletEngine(name)
+    engine = make_engine("pybullet", DEFAULT_ROBOT, name)
     try:
         draws = engine.run(np.stack([g.q0 for g in grasps]))
     finally:

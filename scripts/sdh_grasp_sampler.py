@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, PybulletEngine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -95,7 +96,8 @@ class GraspPlanner:
     def __init__(self, object_name: str, friction: float = 0.5, num_edges: int = 8,
                  settings: PlannerSettings | None = None) -> None:
         self.obj = load_object(object_name)
-        self.engine = PybulletEngine(object_name, friction, num_edges)
+        self.engine = make_engine("pybullet", DEFAULT_ROBOT, object_name, friction=friction,
+                                  num_edges=num_edges)
         self.model = kuka_sdh()
         #: the arm's analytic IK and its links' clearance from the object
         #: (:class:`~kinegrasp_env.toolkit.elbow.ArmWalk`)
@@ -120,7 +122,8 @@ class GraspPlanner:
         object's support table (never, without one): such a grasp goes through the table."""
         if self.obj.table is None:
             return False
-        return bool(self.engine.table_hits(np.concatenate([q0[:7], hand])[None])[0])
+        closed = self.engine.check(np.concatenate([q0[:7], hand])[None])
+        return bool(self.engine.in_table(closed)[0])
 
     def surface_distance(self, aim: np.ndarray, direction: np.ndarray) -> float | None:
         """Distance from ``aim`` (world) back along -direction to the object's surface."""

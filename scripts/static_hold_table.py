@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from marked_section import write_between
 
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+from kinegrasp_env.montecarlo.evaluate import make_engine
 from kinegrasp_env.world.grasps import shipped_grasps, shipped_objects
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "guides" / "physics.md"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -17,8 +18,10 @@ def check_reward_is_the_evaluation(env, reward: float, info: dict) -> None:
     formula in the env fails it."""
     g = env.grasp
     here = Grasp(g.object, env.q.copy(), g.palm_pose, g.points, g.normals, g.fingers, g.links,
-                 g.q_nominal)
-    stats = evaluate_grasp(here, env.noise, env.n_draws, seed=info["draw_seed"],
+                 g.q_nominal, robot=g.robot)
+    noise = ({"sigma": 0.0, "noise_model": env.noise} if isinstance(env.noise, NoiseModel)
+             else {"sigma": env.noise.sigma, "noise": env.noise.kind})
+    stats = evaluate_grasp(here, **noise, n=env.n_draws, seed=info["draw_seed"],
                            engine=env.engine)
     assert sum(info["outcomes"].values()) == env.n_draws
     assert info["p_fc"] == stats.p_fc == info["outcomes"]["force_closure"] / env.n_draws

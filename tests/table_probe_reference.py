@@ -180,5 +180,5 @@ class TableProbe(BulletWorld):
 def arm_shift(object_pose: np.ndarray, object_offset: np.ndarray) -> np.ndarray:
     """(n, 4, 4) M = W_O D^-1 W_O^-1: the rigid move of the whole robot that, the object left
     at its believed pose W_O (4, 4), puts the robot where it truly is relative to the object
-    (object errors D (n, 4, 4): :mod:`kinegrasp_env.montecarlo.perturbation`)."""
+    (object errors D (n, 4, 4): :mod:`kinegrasp_env.closing.hand_errors`)."""
     return object_pose @ rigid_inverse(object_offset) @ rigid_inverse(object_pose)

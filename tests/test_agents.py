@@ -324,14 +324,18 @@ def test_evaluate_refuses_a_policy_of_the_other_env(tmp_path, capsys):
 def test_oracle_selection_draws_are_not_scoring_draws():
     """Scoring uses chunks 0..K-1 of the seed, the oracle's selection chunks K..: no noise
     draw is shared."""
-    from kinegrasp_env.montecarlo.evaluate import DEFAULT_CHUNK, chunk_noise
-    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.montecarlo.chunks import CHUNK, chunk_configurations
 
-    draws, noise = 2000, JointNoise(0.0283)
+    def chunk_noise(index: int, size: int) -> np.ndarray:
+        """Arm noise (size, 7) of chunk ``index`` of seed 0: its rows ``index * CHUNK ..``."""
+        return chunk_configurations(np.zeros(14), 7, 0.0283, "gaussian", 0, index * CHUNK,
+                                    size)[:, :7]
+
+    draws = 2000
     first = evaluate_module.scoring_chunks(draws)
-    assert first * DEFAULT_CHUNK >= draws > (first - 1) * DEFAULT_CHUNK
-    scoring = np.vstack([chunk_noise(noise, 0, c, DEFAULT_CHUNK) for c in range(first)])
-    selection = chunk_noise(noise, 0, first, 200)
+    assert first * CHUNK >= draws > (first - 1) * CHUNK
+    scoring = np.vstack([chunk_noise(c, CHUNK) for c in range(first)])
+    selection = chunk_noise(first, 200)
     assert not (selection[:, None, :] == scoring[None, :, :]).all(-1).any()
 
 
@@ -398,8 +402,10 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     the seed (engine draws recomputed here), the optimizer's choice is scored on chunk 0."""
     import gymnasium as gym
 
-    from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
-    from kinegrasp_env.montecarlo.evaluate import draw_chunk
+    from kinegrasp_env.montecarlo.chunks import CHUNK, chunk_configurations
+    from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
     from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.toolkit.elbow_search import optimize_robot_elbow
 
@@ -415,17 +421,22 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
     assert set(result["decision_seconds"]) == {"policy", "spread", "oracle", "optimizer"}
     env = gym.make("KineGraspSelect-v0", split="test", n_draws=1).unwrapped
     env.reset(seed=0, options={"object": row["object"], "grasp": 0, "sigma": 0.0283})
-    engine, noise = make_engine("pybullet", row["object"]), JointNoise(0.0283)
+    engine, noise = make_engine("pybullet", DEFAULT_ROBOT, row["object"]), JointNoise(0.0283)
+
+    def draw_chunk(q0: np.ndarray, index: int, size: int):
+        """The first ``size`` draws of chunk ``index`` of seed 0 at q0, closed by ``engine``."""
+        return engine.run(chunk_configurations(q0, 7, 0.0283, "gaussian", 0, index * CHUNK,
+                                               size))
+
     grid = [env.configuration_at(p)[0] for p in np.linspace(-np.pi, np.pi, 3, endpoint=False)]
-    selection = [float((draw_chunk(engine, q, noise, 0, 1, 5).outcome == FORCE_CLOSURE).mean())
-                 for q in grid]
+    selection = [float((draw_chunk(q, 1, 5).outcome == FORCE_CLOSURE).mean()) for q in grid]
     assert row["oracle_grid_p_fc"] == selection
     best = grid[int(np.argmax(selection))]
     assert row["elbow_oracle"] == pytest.approx(env.elbow_angle(best))
     found = optimize_robot_elbow(env.grasp, noise, 20, 1, evaluate_with="fast")
     assert row["elbow_optimizer"] == pytest.approx(
         env.elbow_angle(found.best_q), abs=1e-12)
-    scored = draw_chunk(engine, found.best_q, noise, 0, 0, 10).outcome == FORCE_CLOSURE
+    scored = draw_chunk(found.best_q, 0, 10).outcome == FORCE_CLOSURE
     assert row["optimizer"] == float(scored.mean())
     engine.close()
     env.close()
@@ -437,11 +448,11 @@ def test_evaluate_cli_end_to_end_with_optimizer(tmp_path, capsys):
 def test_a_policy_of_another_robot_trains_and_is_evaluated(tmp_path):
     """A policy trained on the Panda's env (``train.py --env-kwarg robot=panda``) is evaluated
     on the Panda's held-out grasps: each method's P(FC) is ``evaluate --robot panda``'s draws
-    at its configuration (``evaluate_robot_grasp``, recomputed here for the nominal and the
+    at its configuration (``evaluate_grasp``, recomputed here for the nominal and the
     optimizer's), the optimizer's elbow angle that of its configuration along the Panda's own
     self-motion, and the configurations keep the grasp's palm pose (the Panda's forward
     kinematics)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.kinematics import Kinematics
     from kinegrasp_env.robot.null_motion import ArmSelfMotion
@@ -458,12 +469,12 @@ def test_a_policy_of_another_robot_trains_and_is_evaluated(tmp_path):
     assert result["robot"] == "panda"
     row = result["rows"][0]
     grasp = next(g for g in shipped_grasps(row["object"], "panda") if g.id == row["grasp"])
-    nominal = evaluate_robot_grasp(grasp, sigma=0.0233, n=20, seed=0, engine="pybullet")
+    nominal = evaluate_grasp(grasp, sigma=0.0233, n=20, seed=0, engine="pybullet")
     assert row["nominal"] == nominal.p_fc
     found = optimize_robot_elbow(grasp, JointNoise(0.0233), 20, 1, evaluate_with="fast")
     moved = dataclasses.replace(grasp, q0=found.best_q)
-    assert row["optimizer"] == evaluate_robot_grasp(moved, sigma=0.0233, n=20, seed=0,
-                                                    engine="pybullet").p_fc
+    assert row["optimizer"] == evaluate_grasp(moved, sigma=0.0233, n=20, seed=0,
+                                              engine="pybullet").p_fc
     description = load_robot("panda")
     assert row["elbow_optimizer"] == pytest.approx(float(
         ArmSelfMotion(description).elbow_angle(found.best_q[None])[0]), abs=1e-12)

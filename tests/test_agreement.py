@@ -41,18 +41,12 @@ from kinegrasp_env.montecarlo.agreement import (
     contact_lists_match,
     same_stops,
 )
-from kinegrasp_env.montecarlo.bullet_contacts import BulletContactReference
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import (
-    FORCE_CLOSURE,
-    START_COLLISION,
-    Engine,
-    FastEngine,
-    PybulletEngine,
-)
-from kinegrasp_env.montecarlo.evaluate import chunk_configurations
+from kinegrasp_env.montecarlo.bullet_contacts import MAX_CONTACTS, BulletContactReference
+from kinegrasp_env.montecarlo.chunks import CHUNK, chunk_configurations
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION, DrawBatch
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.quality import wrench_matrix
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
@@ -94,10 +88,11 @@ Q_ROUNDOFF = 1e-9
 def _configurations(name: str, grasps: list[int], draws: int, seed: int,
                     source: list | None = None) -> np.ndarray:
     """(2 * len(grasps) * draws, 14): both sigmas, the noisy configurations of grasps
-    ``grasps`` (indices) of ``source`` (default: the object's shipped set)."""
+    ``grasps`` (indices) of ``source`` (default: the object's shipped set); grasp g's draws
+    are the first rows of chunk g of the run of its sigma's seed."""
     shipped = shipped_grasps(name) if source is None else source
     return np.concatenate([
-        chunk_configurations(shipped[g].q0, JointNoise(sigma), seed + s, [(g, draws)])
+        chunk_configurations(shipped[g].q0, 7, sigma, "gaussian", seed + s, g * CHUNK, draws)
         for s, sigma in enumerate(SIGMAS) for g in grasps])
 
 
@@ -105,9 +100,14 @@ def _check_engines_agree(name: str, grasps: list[int], draws: int, seed: int,
                          source: list | None = None) -> None:
     """(a), and (b) for both engines (``source``: see :func:`_configurations`)."""
     q = _configurations(name, grasps, draws, seed, source)
-    reference, bullet = PybulletEngine(name), BulletContactReference(name)
+    # the engines' draws in the reference's contact slots (one per phalanx: every contact a
+    # closing of the default robot makes; the description's default is one per finger link,
+    # knuckles and tips included, which never touch)
+    reference = make_engine("pybullet", DEFAULT_ROBOT, name, max_contacts=MAX_CONTACTS)
+    bullet = BulletContactReference(name)
     try:
-        fast, ref = FastEngine(name).run(q), reference.run(q)
+        fast = make_engine("fast", DEFAULT_ROBOT, name, max_contacts=MAX_CONTACTS).run(q)
+        ref = reference.run(q)
         _check_a(fast, ref, bullet.obj)
         for draws in (fast, ref):
             _check_b(draws, bullet.run(q, draws.hand), bullet.check_contacts(q, draws),
@@ -224,7 +224,7 @@ def test_pybullet_contacts_on_the_cube_are_on_its_faces_with_inward_normals():
     bullet = BulletContactReference("cube")
     try:
         grasps = shipped_grasps("cube")
-        fast = FastEngine("cube").run(np.stack([g.q0 for g in grasps]))
+        fast = make_engine("fast", DEFAULT_ROBOT, "cube").run(np.stack([g.q0 for g in grasps]))
         contacts = bullet.run(np.stack([g.q0 for g in grasps]), fast.hand)
     finally:
         bullet.close()
@@ -248,7 +248,7 @@ def test_pybullet_contacts_on_the_cube_are_on_its_faces_with_inward_normals():
 
 def _batch(points: np.ndarray, fingers: list[int], hand: float = 0.3) -> DrawBatch:
     """One draw in force closure with contacts at points (k, 3), normals towards the origin."""
-    out = Engine.empty_draws(1)
+    out = DrawBatch.empty(1, MAX_CONTACTS, len(load_robot(DEFAULT_ROBOT).hand_joints))
     k = len(points)
     out.outcome[:], out.quality[:], out.n_contacts[:] = FORCE_CLOSURE, 0.1, k
     out.points[0, :k] = points

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -39,7 +40,7 @@ def test_the_sdh_is_planned_as_a_description(obj):
     description = load_robot("kuka_sdh")
     grasps = plan_grasps(description, obj, count=2, seed=0)
     assert len(grasps) == 2
-    fast = make_engine("fast", obj)
+    fast = make_engine("fast", description, obj)
     draws = fast.run(np.array([g.q0 for g in grasps]))
     fast.close()
     assert list(draws.outcome) == [FORCE_CLOSURE] * 2

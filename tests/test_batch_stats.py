@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.toolkit import batch_stats
 from kinegrasp_env.toolkit.arm_variants import find_variants
@@ -38,7 +38,7 @@ def test_variants_agree_with_direct_draws(variants):
                           direct=_direct)
     assert len(variants) >= 3
     for grasp, s in zip(variants, stats, strict=True):
-        direct = evaluate_robot_grasp(grasp, sigma=0.0233, n=4000, seed=8, engine="fast")
+        direct = evaluate_grasp(grasp, sigma=0.0233, n=4000, seed=8, engine="fast")
         se = np.hypot((s.p_fc_ci[1] - s.p_fc_ci[0]) / (2 * 1.96),
                       np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))
         assert abs(s.p_fc - direct.p_fc) <= 4 * se + LINEAR_BIAS, (grasp.id, s.p_fc, direct.p_fc)

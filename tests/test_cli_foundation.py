@@ -355,14 +355,15 @@ def test_help_shows_the_choices_from_their_sources():
     """Choices and defaults in --help equal the catalog's and the library's (the parser keeps
     copies of a few, so that building it imports none of the library's heavy modules)."""
     from kinegrasp_env.cli.common import ENGINE_NAMES, MAX_SIGMA
-    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo import grasp_stats
+    from kinegrasp_env.montecarlo.draws import OUTCOMES
     from kinegrasp_env.montecarlo.execution import BACKENDS
     from kinegrasp_env.sampling.noise import DISTRIBUTIONS
     from kinegrasp_env.toolkit.ranking import CRITERIA
     from kinegrasp_env.world.grasps import shipped_grasps
     from kinegrasp_env.world.objects import OBJECT_NAMES
 
-    assert ENGINE_NAMES == evaluate.ENGINES and MAX_SIGMA == evaluate.MAX_SIGMA
+    assert ENGINE_NAMES == grasp_stats.ENGINES and MAX_SIGMA == grasp_stats.MAX_SIGMA
     import inspect
 
     from kinegrasp_env.cli.figure_grasps import FIG7_VARIANTS
@@ -375,7 +376,7 @@ def test_help_shows_the_choices_from_their_sources():
 
     assert (DEFAULT_FRICTION, NUM_EDGES) == (wrenches.DEFAULT_FRICTION,
                                              wrenches.DEFAULT_NUM_EDGES)
-    assert OUTCOME_COLUMNS == evaluate.OUTCOMES
+    assert OUTCOME_COLUMNS == OUTCOMES
     subs = _subparsers()
 
     def braces(names) -> str:
@@ -385,7 +386,7 @@ def test_help_shows_the_choices_from_their_sources():
         assert f"--object {braces(OBJECT_NAMES)}" in subs[name].format_help()
     for name in ("evaluate", "rank", "reproduce"):
         text = subs[name].format_help()
-        assert f"--engine {braces(evaluate.ENGINES)}" in text
+        assert f"--engine {braces(grasp_stats.ENGINES)}" in text
         assert f"--backend {braces(BACKENDS)}" in text
     for name in ("evaluate", "rank", "planar", "ee"):
         assert f"--noise {braces(DISTRIBUTIONS)}" in subs[name].format_help()

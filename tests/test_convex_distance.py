@@ -75,7 +75,7 @@ def test_boxes_against_the_exact_formula():
 
 @pytest.fixture(scope="module")
 def panda_hands():
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.montecarlo.evaluate import make_engine
 
     return {name: make_engine("fast", "panda", name).hand for name in ("cube", "drill")}
 

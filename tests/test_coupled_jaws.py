@@ -37,7 +37,7 @@ def test_two_closings_give_the_same_push() -> None:
     its jaw a little inside the contact tolerance, measured up to 1.3e-6 m apart), and about
     none at
     the planned grasps, whose jaws are centred on the pair (below 0.5 mm)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.montecarlo.evaluate import make_engine
     from kinegrasp_env.world.grasps import shipped_grasps
 
     grasps = shipped_grasps("cube", robot="panda")
@@ -62,7 +62,7 @@ def test_the_physics_engine_reports_no_push() -> None:
     """The push is what a kinematic closing of coupled jaws leaves out (the object pushed
     until the other jaw meets it); the physics engine's closing on the free object does the
     pushing, so its draws carry none (NaN), where the fast engine's carry one."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.world.grasps import shipped_grasps
 
     q = np.array([g.q0 for g in shipped_grasps("cube", robot="panda")[:2]])

@@ -6,8 +6,8 @@ check the draws as the robot's description has them (the arm joints of each draw
 hand in the description's joint order, each contact's finger and link), because its verdicts
 and final joint values equal those of an independent closing, the description robots' fast
 engine run on the same configurations; the draws' configurations follow the documented
-stream layout (chunk c draws from ``SeedSequence(seed, spawn_key=(c,))``); the CLI's record
-and the noise it refuses.
+stream layout (rows 250 c .. 250 c + 249 of a run are chunk c's, drawn from
+``SeedSequence(seed, spawn_key=(c,))``); the CLI's record and the noise it refuses.
 """
 
 from __future__ import annotations
@@ -19,21 +19,25 @@ import pytest
 from cli_helpers import run_in_process
 
 from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_spec import load_noise_model
 from kinegrasp_env.world.grasps import shipped_grasps
 
-SIGMA, SEED, CHUNK = 0.0133, 5, 40
+#: rows per chunk of a run's streams (docs/conventions.md, "Random streams")
+SIGMA, SEED, CHUNK = 0.0133, 5, 250
 
 
-def stream_configurations(q0: np.ndarray, n: int, first_chunk: int = 0) -> np.ndarray:
-    """(n, 14) q0 with chunk c's joint noise from SeedSequence(SEED, spawn_key=(c,))."""
+def stream_configurations(q0: np.ndarray, n: int, offset: int = 0) -> np.ndarray:
+    """(n, 14) q0 with rows ``offset .. offset + n`` of the run's joint noise: row r is row
+    r % CHUNK of chunk c = r // CHUNK's draws, from SeedSequence(SEED, spawn_key=(c,))."""
     rows = []
-    for c, start in enumerate(range(0, n, CHUNK), start=first_chunk):
+    for c in range(offset // CHUNK, (offset + n - 1) // CHUNK + 1):
         rng = np.random.default_rng(np.random.SeedSequence(SEED, spawn_key=(c,)))
-        rows.append(rng.normal(0.0, SIGMA, (min(CHUNK, n - start), 7)))
+        chunk = rng.normal(0.0, SIGMA, (CHUNK, 7))
+        rows.append(chunk[max(offset - c * CHUNK, 0):offset + n - c * CHUNK])
     q = np.repeat(np.asarray(q0, dtype=float)[None], n, axis=0)
     q[:, :7] += np.concatenate(rows)
     return q
@@ -53,8 +57,8 @@ def test_the_reference_engines_verdicts_are_those_of_an_independent_closing(obj)
     2.5e-7 rad at most on these grasps; tolerance 1e-5), and so do the hold verdicts."""
     grasp = shipped_grasps(obj)[0]
     n = 100
-    stats = evaluate_grasp(grasp, JointNoise(SIGMA), n, SEED, engine="pybullet", chunk=CHUNK,
-                           return_draws=True, static_hold=True)
+    stats = evaluate_grasp(grasp, sigma=SIGMA, n=n, seed=SEED, engine="pybullet",
+                           static_hold=True)
     held = stats.draws.holds
     q = stream_configurations(grasp.q0, n)
     other, joints, _ = description_closing(obj, q)
@@ -71,27 +75,23 @@ def test_the_reference_engines_verdicts_are_those_of_an_independent_closing(obj)
 
 
 def test_a_later_chunk_is_checked_with_its_own_draws():
-    """Ranking evaluates chunks 3 and 4 of a candidate: their verdicts are those of chunks
-    3 and 4's configurations (the mug: the verdicts there depend on the arm joints)."""
-    from kinegrasp_env.montecarlo.evaluate import run_chunks
-
+    """Ranking evaluates later rows of a candidate's run (here the last 40 of chunk 3 and
+    the first 40 of chunk 4): their verdicts are those of these rows' configurations (the
+    mug: the verdicts there depend on the arm joints)."""
     grasp = shipped_grasps("mug")[0]
-    _, _, draws = run_chunks(grasp, JointNoise(SIGMA), SEED, sizes=[CHUNK, CHUNK],
-                             first_chunk=3, engine="pybullet", return_draws=True,
-                             static_hold=True)
+    offset, n = 4 * CHUNK - 40, 80
+    draws = evaluate_grasp(grasp, sigma=SIGMA, n=n, seed=SEED, offset=offset,
+                           engine="pybullet", static_hold=True).draws
     held = draws.holds
-    other, _, _ = description_closing("mug", stream_configurations(grasp.q0, 2 * CHUNK,
-                                                                   first_chunk=3))
+    other, _, _ = description_closing("mug", stream_configurations(grasp.q0, n, offset))
     same = other.outcome == draws.outcome
     np.testing.assert_array_equal(held[same], other.holds[same])
     assert 0 < held.sum() < held.size
 
 
 def test_a_per_draw_friction_is_refused_with_the_check():
-    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
-
     grasp = shipped_grasps("cube")[0]
-    engine = default_engine("fast", "cube", static_hold=True)
+    engine = make_engine("fast", DEFAULT_ROBOT, "cube", static_hold=True)
     try:
         with pytest.raises(ValueError, match="holds at the engine's friction"):
             engine.run(grasp.q0[None], friction=np.array([0.7]))
@@ -142,15 +142,13 @@ def env_step(score: str, obj: str, *, seed: int, n_draws: int):
 def test_the_envs_hold_score_is_the_check_of_its_step_draws():
     """``KineGrasp-v0`` with ``score="hold_static"`` on the default robot: the reward's
     score is P(hold, static) of the step's draws (the env's draw seed, chunk 0 of the stream
-    layout, rebuilt here) as the robot's fast engine checks them, and the default robot's own
-    engine, an independent closing, gives the same share up to the draws whose closings
-    differ."""
-    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
-
+    layout, rebuilt here) as the robot's fast engine checks them, and the robot's reference
+    engine, an independent closing (pybullet's, draw by draw), gives the same share up to
+    the draws whose closings differ."""
     env, info, q = env_step("hold_static", "mug", seed=1, n_draws=64)
     other, _, _ = description_closing("mug", q)
     assert info["p_hold"] == other.holds.mean()
-    own = default_engine("fast", "mug", static_hold=True)
+    own = make_engine("pybullet", DEFAULT_ROBOT, "mug", static_hold=True)
     try:
         draws = own.run(q)
     finally:
@@ -200,9 +198,7 @@ def test_a_draw_that_misses_does_not_hold():
     from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED
 
     grasp = next(g for g in shipped_grasps("cube") if g.id == "7")
-    noise = JointNoise(0.033)
-    stats = evaluate_grasp(grasp, noise, 200, 2, engine="fast", chunk=100, return_draws=True,
-                           static_hold=True)
+    stats = evaluate_grasp(grasp, sigma=0.033, n=200, seed=2, engine="fast", static_hold=True)
     held = stats.draws.holds
     outcome = stats.draws.outcome
     assert (outcome == MISSED).sum() >= 5  # the case the rule is about occurs

@@ -183,13 +183,18 @@ def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
     assert any(abs(p.psi - result.nominal_psi) < 1e-12 for p in result.curve)
     best = max(result.curve, key=lambda p: p.p_fc)
     assert result.best_psi == best.psi
-    # independent scoring draws: chunk 1 of seed 4 (the selection used chunk 0)
+    # independent scoring draws: chunk 1 of seed 4 (rows 250..449; the selection used chunk 0)
+    from kinegrasp_env.montecarlo.chunks import chunk_configurations
     from kinegrasp_env.montecarlo.engines import make_engine
-    from kinegrasp_env.montecarlo.evaluate import draw_chunk
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 
-    engine = make_engine("fast", grasp.object)
-    fc_best = draw_chunk(engine, result.best_q, noise, 4, 1, 200).outcome == FORCE_CLOSURE
-    fc_nominal = draw_chunk(engine, grasp.q0, noise, 4, 1, 200).outcome == FORCE_CLOSURE
+    engine = make_engine("fast", DEFAULT_ROBOT, grasp.object)
+
+    def chunk_1(q0):
+        return engine.run(chunk_configurations(q0, 7, 0.0266, "gaussian", 4, 250, 200))
+
+    fc_best = chunk_1(result.best_q).outcome == FORCE_CLOSURE
+    fc_nominal = chunk_1(grasp.q0).outcome == FORCE_CLOSURE
     assert result.best_p_fc == fc_best.mean()
     assert result.nominal_p_fc == fc_nominal.mean()
     d = fc_best.astype(float) - fc_nominal.astype(float)
@@ -197,12 +202,12 @@ def test_optimizer_scores_on_independent_draws_and_reports_the_curve(tmp_path):
     assert result.gain_ci == pytest.approx(ref, rel=1e-9)
     # the selection draws are chunk 0: the curve's nominal P(FC) equals evaluate_grasp's
     nominal_point = next(p for p in result.curve if abs(p.psi - result.nominal_psi) < 1e-12)
-    direct = evaluate_grasp(grasp, noise, 200, seed=4, engine="fast")
+    direct = evaluate_grasp(grasp, sigma=0.0266, n=200, seed=4, engine="fast")
     assert nominal_point.p_fc == direct.p_fc
     # the certificate: every other curve angle on the same fresh chunks, wins and losses
     # against the chosen one counted here from the engine's own draws
-    fresh = {p.psi: draw_chunk(engine, p.q, noise, 4, 1, 200).outcome == FORCE_CLOSURE
-             for p in result.curve}
+    fresh = {p.psi: chunk_1(p.q).outcome == FORCE_CLOSURE for p in result.curve}
+    engine.close()
     cert = result.certificate
     assert len(cert.rivals) == len(result.curve) - 1 and cert.draws == 200
     for rival in cert.rivals:
@@ -234,8 +239,8 @@ def test_evaluate_elbow_option(capsys):
     assert main([*args, "--elbow", str(psi)]) == 0
     shown = json.loads(capsys.readouterr().out)
     moved = with_configuration(grasp, configuration_at(grasp, psi), psi)
-    direct = evaluate_grasp(moved, JointNoise(0.0233), 60, seed=0, engine="fast")
-    assert shown["p_fc"] == direct.p_fc and shown["outcomes"] == direct.outcomes
+    direct = evaluate_grasp(moved, sigma=0.0233, n=60, seed=0, engine="fast")
+    assert shown["p_fc"] == direct.p_fc and shown["outcomes"] == direct.counts
     assert main([*args, "--elbow", "3.0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "out of reach" in err[0] and "reachable" in err[0]
@@ -257,7 +262,7 @@ def test_rank_best_elbow_ranks_the_optimizers_choice(tmp_path):
     row = out.read_text().splitlines()[1].split(",")
     best = optimize_robot_elbow(grasp, JointNoise(0.02), 60, seed=1, evaluate_with="fast")
     direct = evaluate_grasp(with_configuration(grasp, best.best_q, best.best_psi),
-                            JointNoise(0.02), 80, seed=0, engine="fast", chunk=80)
+                            sigma=0.02, n=80, seed=0, engine="fast")
     assert row[0] == f"{grasp.id}e"
     assert float(row[1]) == pytest.approx(direct.p_fc, abs=1e-12)
 
@@ -265,9 +270,10 @@ def test_rank_best_elbow_ranks_the_optimizers_choice(tmp_path):
 def test_a_noise_model_is_searched_under_every_source():
     """With a noise model (joints, palm, object, friction: the Dex-Net preset), every angle's
     draws are the model's: at the nominal angle the selection draws' outcomes are those of
-    the default robot's own evaluation under the model (``evaluate_grasp``, another path to
-    the same rows; at most one draw may differ where the two engines' contacts straddle a
-    boundary), and not those of the joints alone."""
+    the default robot's own evaluation under the model at the grasp's q0 (``evaluate_grasp``
+    with the model; at most one draw may differ where the angle's configuration, recomputed
+    on the self-motion, and q0 straddle a contact boundary), and not those of the joints
+    alone."""
     from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
     from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
@@ -275,8 +281,7 @@ def test_a_noise_model_is_searched_under_every_source():
     model = noise_model_from_spec({"preset": "dexnet", "joints": {"sigma": 0.0133}})
     result = optimize_robot_elbow(grasp, model, 60, seed=0, evaluate_with="fast")
     nominal = next(p for p in result.curve if p.psi == result.nominal_psi)
-    full = evaluate_grasp(grasp, model, 60, seed=0, engine="fast", return_draws=True)
-    alone = evaluate_grasp(grasp, JointNoise(0.0133), 60, seed=0, engine="fast",
-                           return_draws=True)
+    full = evaluate_grasp(grasp, sigma=0.0, noise_model=model, n=60, seed=0, engine="fast")
+    alone = evaluate_grasp(grasp, sigma=0.0133, n=60, seed=0, engine="fast")
     assert (nominal.fc != (full.draws.outcome == FORCE_CLOSURE)).sum() <= 1
     assert (nominal.fc != (alone.draws.outcome == FORCE_CLOSURE)).sum() >= 3

@@ -84,17 +84,25 @@ def test_certificate_is_false_at_most_at_its_level(field):
 def test_best_angle_scored_on_fresh_direct_draws(grasp):
     """The chosen angle's P(FC) is that of the configuration on the direct method's fresh
     draws (the 300 rows after the selection's: chunks 2 and 3 of the seed's 250-draw chunks),
-    computed here by the default engine's chunked evaluation (``run_chunks``) on those
-    chunks."""
+    computed here independently: the rows drawn by hand from numpy's
+    ``SeedSequence(3, spawn_key=(c,))`` streams (docs/conventions.md, "Random streams") and
+    closed by the fast engine in one call."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+
     noise = JointNoise(SIGMA)
     result, evidence = optimize_robot_elbow_reweighted(grasp, noise, 300, seed=3,
                                                        engine="fast")
     moved = with_configuration(grasp, result.best_q, result.best_psi)
-    from kinegrasp_env.montecarlo.evaluate import run_chunks
-
-    counts, _ = run_chunks(moved, noise, 3, sizes=[250, 50], first_chunk=2,
-                           engine="fast")[:2]
-    assert result.best_p_fc == pytest.approx(counts[FORCE_CLOSURE] / 300, abs=1e-12)
+    eps = np.concatenate([
+        np.random.default_rng(np.random.SeedSequence(3, spawn_key=(c,))
+                             ).standard_normal((rows, 7)) * SIGMA
+        for c, rows in ((2, 250), (3, 50))])
+    q = np.repeat(np.asarray(moved.q0, dtype=float)[None], 300, axis=0)
+    q[:, :7] += eps
+    with make_engine("fast", DEFAULT_ROBOT, grasp.object) as engine:
+        outcome = engine.run(q).outcome
+    assert result.best_p_fc == pytest.approx(np.mean(outcome == FORCE_CLOSURE), abs=1e-12)
     assert evidence.batch == 600 and len(evidence.curve) == len(result.curve)
     # the best angle is the curve's best or between its neighbours
     psis = [p.psi for p in result.curve]

@@ -21,8 +21,8 @@ import pytest
 
 from kinegrasp_env.cli import main
 from kinegrasp_env.closing.hand_errors import flange_link
+from kinegrasp_env.montecarlo.evaluate import make_engine
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian, close_deltas
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics, rotation_log
 from kinegrasp_env.sampling.noise import JointNoise

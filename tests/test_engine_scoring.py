@@ -1,7 +1,7 @@
 """Every engine scores its closings with one function: what that score is.
 
-What the test proves: for the default robot's pybullet reference and physics closing (whose
-closings are read as closings of its description) and its fast engine, a draw's Q is the
+What the test proves: for the default robot's engines (its description's pybullet reference,
+physics closing and fast engine), a draw's Q is the
 Ferrari-Canny measure of the draw's own recorded contacts at the draw's mu, computed again
 here by the exact qhull path (:func:`~kinegrasp_env.quality.epsilon.ferrari_canny`, not the
 batched expansion the engines use), and its outcome is force closure exactly where Q > 0.
@@ -14,20 +14,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, NO_FORCE_CLOSURE
 from kinegrasp_env.montecarlo.engines import make_engine
-from kinegrasp_env.montecarlo.evaluate import chunk_configurations
 from kinegrasp_env.quality.epsilon import ferrari_canny
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.world.grasps import shipped_grasps
 
 
 @pytest.mark.parametrize("engine_name", ["pybullet", "fast", "physics"])
 def test_an_engines_q_is_the_ferrari_canny_measure_of_its_own_contacts(engine_name):
     grasp = shipped_grasps("drill")[0]
-    engine = make_engine(engine_name, "drill")
+    engine = make_engine(engine_name, DEFAULT_ROBOT, "drill")
     n = 40
-    q = chunk_configurations(grasp.q0, JointNoise(0.02), 2, [(0, n)])
+    q = chunk_configurations(grasp.q0, 7, 0.02, "gaussian", 2, 0, n)
     mu = np.random.default_rng(8).uniform(0.2, 1.0, n)
     try:
         if engine_name == "physics":  # it simulates at one mu: no per-draw friction

@@ -52,7 +52,8 @@ def test_batch_reward_agrees_with_direct_draws():
         _, _, _, _, info = env.step(action)
         if info["reward_method"] != "batch":
             continue
-        direct = evaluate_grasp(with_configuration(env.grasp, env.q, 0.0), env.noise, 4000, 9,
+        direct = evaluate_grasp(with_configuration(env.grasp, env.q, 0.0),
+                                sigma=env.noise.sigma, noise=env.noise.kind, n=4000, seed=9,
                                 engine="fast")
         lo, hi = info["p_fc_ci"]
         se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import kinegrasp_env  # noqa: F401  (registers the envs)
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, evaluate_grasp
 from kinegrasp_env.robot.kinematics import pose_error
 
 #: few draws: these tests check the plumbing, not the estimate
@@ -325,15 +325,15 @@ def test_action_keeps_the_palm_and_moves_the_elbow():
 
 @pytest.mark.parametrize("engine", ["fast", "pybullet"])
 def test_reward_equals_the_robot_evaluation(engine):
-    """Plumbing: the reward is evaluate_robot_grasp at the env's configuration with the
+    """Plumbing: the reward is evaluate_grasp at the env's configuration with the
     draw seed and the engine it reports (a wrong configuration, seed, noise, draw count or
     engine fails it)."""
     env = gym.make("KineGrasp-v0", robot="panda", n_draws=12, engine=engine).unwrapped
     env.reset(seed=1, options={"object": "spray_flask", "grasp": 1, "sigma": 0.02})
     _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
-    evaluation = evaluate_robot_grasp(here, sigma=info["sigma"], n=12, seed=info["draw_seed"],
-                                      noise=info["noise"], engine=env.engine)
+    evaluation = evaluate_grasp(here, sigma=info["sigma"], n=12, seed=info["draw_seed"],
+                                noise=info["noise"], engine=env.engine)
     assert 0 < evaluation.counts["force_closure"] < 12  # not a trivial 0 or 1
     assert reward == evaluation.p_fc == info["p_fc"]
     assert info["outcomes"] == evaluation.counts
@@ -347,17 +347,17 @@ def _stepped(env, options: dict) -> dict:
 
 
 def test_a_noise_model_reward_equals_the_robot_evaluation_of_the_model():
-    """Plumbing: a noise model's reward is evaluate_robot_grasp of the same model at the
+    """Plumbing: a noise model's reward is evaluate_grasp of the same model at the
     env's configuration and draw seed (a palm source whose rows were dropped, or drawn from
     another stream, fails it); a joints-only model draws what its sigma draws."""
     model = {"joints": {"sigma": 0.02}, "palm": {"translation_sigma": 0.003}}
     env = gym.make("KineGrasp-v0", robot="panda", n_draws=12, noise_model=model).unwrapped
     info = _stepped(env, {"object": "spray_flask", "grasp": 1})
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
-    evaluation = evaluate_robot_grasp(here, sigma=0.0, n=12, seed=info["draw_seed"],
-                                      engine=env.engine, noise_model=env.noise)
-    joints_only = evaluate_robot_grasp(here, sigma=0.02, n=12, seed=info["draw_seed"],
-                                       engine=env.engine)
+    evaluation = evaluate_grasp(here, sigma=0.0, n=12, seed=info["draw_seed"],
+                                engine=env.engine, noise_model=env.noise)
+    joints_only = evaluate_grasp(here, sigma=0.02, n=12, seed=info["draw_seed"],
+                                 engine=env.engine)
     assert info["noise_model"]["palm"]["translation_sigma"] == 0.003
     assert info["p_fc"] == evaluation.p_fc and info["outcomes"] == evaluation.counts
     assert info["outcomes"] != joints_only.counts  # the palm's errors changed some draws
@@ -372,7 +372,7 @@ def test_a_noise_model_reward_equals_the_robot_evaluation_of_the_model():
 @pytest.mark.parametrize("obj", ["cube", "drill"])
 def test_the_static_hold_score_is_the_evaluations_p_hold(obj):
     """Plumbing: with ``score="hold_static"`` the reward is the static hold check's P(hold)
-    of evaluate_robot_grasp at the env's configuration and draw seed, and says so: on the
+    of evaluate_grasp at the env's configuration and draw seed, and says so: on the
     cube (0.11 kg) a fraction strictly between 0 and 1, on the drill (0.74 kg, more than
     the Panda's fingers carry) 0 where P(FC) is not (a reward of P(FC) fails one, of 0
     the other)."""
@@ -380,8 +380,8 @@ def test_the_static_hold_score_is_the_evaluations_p_hold(obj):
     env.reset(seed=1, options={"object": obj, "grasp": 1, "sigma": 0.01})
     _, reward, _, _, info = env.step(np.array([0.5, -1.0], dtype=np.float32))
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
-    evaluation = evaluate_robot_grasp(here, sigma=0.01, n=12, seed=info["draw_seed"],
-                                      engine=env.engine, static_hold=True)
+    evaluation = evaluate_grasp(here, sigma=0.01, n=12, seed=info["draw_seed"],
+                                engine=env.engine, static_hold=True)
     assert reward == info["reward_score"] == info["p_hold"] == evaluation.p_hold_static
     assert info["score"] == "hold_static" and info["p_fc"] == evaluation.p_fc
     if obj == "cube":
@@ -394,13 +394,13 @@ def test_the_static_hold_score_is_the_evaluations_p_hold(obj):
 @pytest.mark.parametrize("simulator", ["pybullet", "mujoco"])
 def test_the_hold_score_runs_the_quick_holding_test_on_the_draws(simulator):
     """Plumbing: with ``score="hold"`` the reward is the fraction of the step's draws (the
-    configurations evaluate_robot_grasp draws for its seed) that the quick holding test in
+    configurations evaluate_grasp draws for its seed) that the quick holding test in
     ``hold_simulator`` holds, run here on those configurations: in pybullet strictly between
     0 and P(FC) on this cube grasp (a reward of P(FC), or of 0, fails it)."""
     if simulator == "mujoco":
         pytest.importorskip("mujoco")
+    from kinegrasp_env.montecarlo.evaluate import robot_configurations
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
     from kinegrasp_env.physics.protocol import HELD
 
     env = gym.make("KineGrasp-v0", robot="panda", n_draws=6, score="hold",
@@ -433,7 +433,7 @@ def test_the_batch_reward_takes_the_panda_and_agrees_with_direct_draws():
         if info["reward_method"] != "batch":
             continue
         here = dataclasses.replace(env.grasp, q0=env.q.copy())
-        direct = evaluate_robot_grasp(here, sigma=0.02, n=2000, seed=9, engine="fast").p_fc
+        direct = evaluate_grasp(here, sigma=0.02, n=2000, seed=9, engine="fast").p_fc
         lo, hi = info["p_fc_ci"]
         se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct * (1 - direct) / 2000))
         assert abs(info["p_fc"] - direct) <= 4 * se + 0.015, (info, direct)

@@ -11,9 +11,12 @@ import pytest
 import trimesh
 from cli_helpers import run_cli
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, OUTCOMES, PybulletEngine
-from kinegrasp_env.montecarlo.evaluate import MAX_SIGMA, evaluate_grasp
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.execution import LocalExecutor
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.sampling.noise import MAX_SIGMA, JointNoise
 from kinegrasp_env.world.grasps import Grasp, shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 
@@ -27,11 +30,8 @@ def test_shipped_sets_reproduce_their_nominal_grasps(name):
     It catches a change of the engine or of the files, not an error in both."""
     grasps = shipped_grasps(name)
     assert len(grasps) >= 10
-    engine = PybulletEngine(name)
-    try:
+    with make_engine("pybullet", DEFAULT_ROBOT, name) as engine:
         draws = engine.run(np.stack([g.q0 for g in grasps]))
-    finally:
-        engine.close()
     assert np.all(draws.outcome == FORCE_CLOSURE)
     for i, g in enumerate(grasps):
         assert draws.quality[i] == pytest.approx(g.q_nominal, rel=1e-9)
@@ -44,29 +44,43 @@ def test_sigma_zero_gives_certain_force_closure():
     """Regression pin on the shipped cube grasp 0's stored nominal Q (as above); the certain
     force closure at sigma 0 is a property."""
     grasp = shipped_grasps("cube")[0]
-    stats = evaluate_grasp(grasp, JointNoise(0.0), 20, seed=3)
+    stats = evaluate_grasp(grasp, sigma=0.0, n=20, seed=3)
     assert stats.p_fc == 1.0
     assert stats.q_mean == pytest.approx(grasp.q_nominal, rel=1e-12)
     assert stats.q_std == pytest.approx(0.0, abs=1e-12)
-    assert stats.error == pytest.approx(0.0, abs=1e-12)
+    # the nominal closing's Q (the old "error" q_nominal - q_mean is 0)
+    assert stats.q_nominal - stats.q_mean == pytest.approx(0.0, abs=1e-12)
+
+
+def _numbers(stats) -> dict:
+    """Every statistic of an evaluation (NaN as None, so equal NaNs compare equal)."""
+    out = {key: getattr(stats, key) for key in ("n", "counts", "p_fc", "ci", "q_mean",
+                                                 "q_std", "q_skew", "q_nominal")}
+    return {key: None if isinstance(value, float) and np.isnan(value) else value
+            for key, value in out.items()}
 
 
 @pytest.mark.expensive
 def test_same_seed_same_result_any_processes():
+    """300 draws: two chunks of the run's streams (250 + 50 rows), in one process and on two
+    worker processes: every number and every draw the same; another seed differs."""
     grasp = shipped_grasps("cube")[1]
-    noise = JointNoise(0.02)
-    one = evaluate_grasp(grasp, noise, 240, seed=7, chunk=40)
-    two = evaluate_grasp(grasp, noise, 240, seed=7, chunk=40, processes=2)
-    assert one.to_json() == two.to_json()
-    other = evaluate_grasp(grasp, noise, 240, seed=8, chunk=40)
-    assert other.to_json() != one.to_json()
-    assert sum(one.outcomes.values()) == 240
+    one = evaluate_grasp(grasp, sigma=0.02, n=300, seed=7)
+    with LocalExecutor(2) as executor:
+        two = evaluate_grasp(grasp, sigma=0.02, n=300, seed=7, executor=executor)
+    assert _numbers(one) == _numbers(two)
+    for name in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link"):
+        np.testing.assert_array_equal(getattr(one.draws, name), getattr(two.draws, name),
+                                      err_msg=name)
+    other = evaluate_grasp(grasp, sigma=0.02, n=300, seed=8)
+    assert _numbers(other) != _numbers(one)
+    assert sum(one.counts.values()) == 300
 
 
 def test_contacts_lie_on_the_surface_with_mesh_normals():
     grasp = shipped_grasps("mug")[0]
     obj = load_object("mug")
-    stats = evaluate_grasp(grasp, JointNoise(0.01), 60, seed=1, return_draws=True)
+    stats = evaluate_grasp(grasp, sigma=0.01, n=60, seed=1)
     draws = stats.draws
     ok = draws.finger >= 0
     points, normals = draws.points[ok], draws.normals[ok]
@@ -95,8 +109,8 @@ def test_contacts_lie_on_the_surface_with_mesh_normals():
 def test_pfc_falls_as_noise_grows():
     grasps = shipped_grasps("spray_flask")[:5]
     n = 150
-    low = np.array([evaluate_grasp(g, JointNoise(0.0033), n, seed=0).p_fc for g in grasps])
-    high = np.array([evaluate_grasp(g, JointNoise(0.0333), n, seed=0).p_fc for g in grasps])
+    low = np.array([evaluate_grasp(g, sigma=0.0033, n=n, seed=0).p_fc for g in grasps])
+    high = np.array([evaluate_grasp(g, sigma=0.0333, n=n, seed=0).p_fc for g in grasps])
     # standard error of a mean of 5 binomial proportions from n draws is <= 0.5/sqrt(5 n);
     # require the drop to exceed 3 combined standard errors
     margin = 3 * np.sqrt(2) * 0.5 / np.sqrt(5 * n)
@@ -105,10 +119,10 @@ def test_pfc_falls_as_noise_grows():
 
 def test_outcomes_partition_the_draws():
     grasp = shipped_grasps("drill")[0]
-    stats = evaluate_grasp(grasp, JointNoise(0.03, "uniform"), 50, seed=2)
-    assert set(stats.outcomes) == set(OUTCOMES)
-    assert sum(stats.outcomes.values()) == 50
-    assert stats.p_fc == stats.outcomes["force_closure"] / 50
+    stats = evaluate_grasp(grasp, sigma=0.03, noise="uniform", n=50, seed=2)
+    assert set(stats.counts) == set(OUTCOMES)
+    assert sum(stats.counts.values()) == 50 and stats.n == 50
+    assert stats.p_fc == stats.counts["force_closure"] / 50
 
 
 def test_cli_evaluate_json():
@@ -155,12 +169,13 @@ def test_bad_grasp_configuration(tmp_path):
 FAST_CRASH_PROBE = """
 import numpy as np
 from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.world.grasps import Grasp, shipped_grasps
 
 q = np.repeat(shipped_grasps("cube")[0].q0[None], 4, axis=0)
 q[1, 3], q[2, 0], q[3, 5] = np.nan, np.inf, 1e308 * 10
 for name in ("fast", "pybullet"):
-    engine = make_engine(name, "cube")
+    engine = make_engine(name, DEFAULT_ROBOT, "cube")
     try:
         engine.run(q)
     except ValueError as exc:
@@ -179,17 +194,14 @@ def test_engines_refuse_non_finite_configurations_before_any_kernel():
     lines = proc.stdout.splitlines()
     assert [line.split()[0] for line in lines] == ["fast", "pybullet"]
     for line in lines:
-        assert "refused: configuration 1 is not finite: joint 3 = nan (3 of 4 configurations" \
-            in line, line
+        assert "refused: configuration 1 is not finite: joint 3 = nan" in line, line
 
 
 def test_engine_refuses_a_wrong_shape():
-    engine = PybulletEngine("cube")
-    try:
-        with pytest.raises(ValueError, match=r"shape \(n, 14\).*got \(2, 7\)"):
+    with make_engine("pybullet", DEFAULT_ROBOT, "cube") as engine:
+        with pytest.raises(ValueError, match=r"robot 'kuka_sdh' must have shape \(n, 14\)"
+                                             r".*got \(2, 7\)"):
             engine.run(np.zeros((2, 7)))
-    finally:
-        engine.close()
 
 
 @pytest.mark.parametrize(("sigma", "needle"), [
@@ -199,7 +211,7 @@ def test_engine_refuses_a_wrong_shape():
 ])
 def test_evaluate_refuses_sigma_above_pi(sigma, needle):
     with pytest.raises(ValueError, match=needle):
-        evaluate_grasp(shipped_grasps("cube")[0], JointNoise(sigma), 10, engine="fast")
+        evaluate_grasp(shipped_grasps("cube")[0], sigma=sigma, n=10, engine="fast")
 
 
 def test_evaluate_refuses_a_non_finite_q0_and_accepts_sigma_pi():
@@ -208,11 +220,11 @@ def test_evaluate_refuses_a_non_finite_q0_and_accepts_sigma_pi():
     q0[2] = np.nan
     bad = Grasp(g.object, q0, g.palm_pose, g.points, g.normals, g.fingers, g.links,
                 g.q_nominal)
-    with pytest.raises(ValueError, match="q0 must be 14 finite numbers"):
-        evaluate_grasp(bad, JointNoise(0.01), 4)
+    with pytest.raises(ValueError, match="grasp '0': q0 has non-finite entries"):
+        evaluate_grasp(bad, sigma=0.01, n=4)
     # the bound itself is allowed: every draw is finite and ends in an outcome
-    stats = evaluate_grasp(g, JointNoise(MAX_SIGMA), 4, seed=1)
-    assert sum(stats.outcomes.values()) == 4
+    stats = evaluate_grasp(g, sigma=MAX_SIGMA, n=4, seed=1)
+    assert sum(stats.counts.values()) == 4
 
 
 def test_cli_evaluate_huge_sigma_is_one_line_not_a_crash():
@@ -226,54 +238,79 @@ def test_cli_evaluate_huge_sigma_is_one_line_not_a_crash():
 
 def test_the_library_refuses_bad_arguments_in_one_line_before_any_draw():
     """What a script writer mixes up, each a ValueError naming it (never numpy's, numba's or
-    pybullet's own error after the draws): the noise's type, seeds that are not integers
-    >= 0, cone edges below 3, sigma above pi for either evaluation, a q0 outside the joint
-    limits; every robot's evaluation takes a Generator, the default robot's chunked one not."""
+    pybullet's own error after the draws): the noise's type (a JointNoise as the sigma, a
+    number as the distribution), seeds that are not integers >= 0, sigma above pi, a q0
+    outside the joint limits; one process takes a Generator, a run in chunks and a noise
+    model's run do not. Cone edges below 3 are the engines' (``make_engine(...,
+    num_edges=)``): refused naming the value when the engine is built."""
     from dataclasses import replace
 
     from kinegrasp_env import plan_grasps
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
     g = shipped_grasps("cube")[0]
-    with pytest.raises(ValueError, match="noise must be a JointNoise or a NoiseModel, got float"):
-        evaluate_grasp(g, 0.0133, 10)
-    for seed in (1.5, -1, "1", np.random.default_rng(0)):
-        with pytest.raises(ValueError, match="seed must be an integer >= 0"):
-            evaluate_grasp(g, JointNoise(0.01), 10, seed=seed, engine="fast")
+    with pytest.raises(ValueError, match="sigma must be a number of radians or one per joint, "
+                                         "got JointNoise"):
+        evaluate_grasp(g, sigma=JointNoise(0.0133), n=10)
+    with pytest.raises(ValueError, match=r"unknown noise type 0\.0133"):
+        evaluate_grasp(g, sigma=0.01, noise=0.0133, n=10)
+    for seed in (1.5, -1, "1"):
+        with pytest.raises(ValueError, match="seed must be an integer >= 0, a numpy"):
+            evaluate_grasp(g, sigma=0.01, n=10, seed=seed, engine="fast")
     for seed in (1.5, -1):
         with pytest.raises(ValueError, match="seed must be an integer >= 0, a numpy"):
-            evaluate_robot_grasp(g, sigma=0.01, n=10, seed=seed, engine="fast")
-        with pytest.raises(ValueError, match="seed must be an integer >= 0, a numpy"):
             plan_grasps("panda", "cube", count=1, seed=seed)
-    assert evaluate_robot_grasp(g, sigma=0.01, n=5, seed=np.random.default_rng(0),
-                                engine="fast").n == 5
+    assert evaluate_grasp(g, sigma=0.01, n=5, seed=np.random.default_rng(0),
+                          engine="fast").n == 5
+    with LocalExecutor(2) as executor, pytest.raises(
+            ValueError, match="a run in chunks takes an integer seed >= 0"):
+        evaluate_grasp(g, sigma=0.01, n=10, seed=np.random.default_rng(0), engine="fast",
+                       executor=executor)
+    with pytest.raises(ValueError, match="a noise model's run takes an integer seed >= 0"):
+        evaluate_grasp(g, sigma=0.0, n=10, seed=np.random.default_rng(0), engine="fast",
+                       noise_model=noise_model_from_spec({"joints": {"sigma": 0.01}}))
     for edges, shown in ((0, "0"), (-1, "-1"), (1.5, "1.5")):
-        with pytest.raises(ValueError, match=f"num_edges must be an integer >= 3 and <= 32 .*"
-                                             f"got {shown}$"):
-            evaluate_grasp(g, JointNoise(0.01), 10, engine="fast", num_edges=edges)
+        with pytest.raises(ValueError, match=f"num_edges must be an integer >= 3 and <= 32 "
+                                             f".*got {shown}$"):
+            make_engine("fast", DEFAULT_ROBOT, "cube", num_edges=edges)
     with pytest.raises(ValueError, match="sigma 4 rad is above the bound pi"):
-        evaluate_robot_grasp(g, sigma=4.0, n=10, engine="fast")
+        evaluate_grasp(g, sigma=4.0, n=10, engine="fast")
     far = replace(g, q0=np.r_[10.0, g.q0[1:]])
     with pytest.raises(ValueError, match=r"q0\[0\] \(.*\) = 10.0000 is outside its limits"):
-        evaluate_robot_grasp(far, sigma=0.01, n=10, engine="fast")
-    # an int or numpy-scalar sigma runs to the end (its summary took list(sigma))
-    assert evaluate_grasp(g, JointNoise(0), 5, engine="fast").sigma == 0.0
+        evaluate_grasp(far, sigma=0.01, n=10, engine="fast")
+    # an int or numpy-scalar sigma runs to the end
+    for sigma in (0, np.int64(0), np.float32(0.0)):
+        assert evaluate_grasp(g, sigma=sigma, n=5, engine="fast").n == 5
+
+
+def test_a_noise_model_of_another_type_is_refused_in_one_line():
+    """A number given as ``noise_model`` (joint noise's sigma in the wrong place) is refused
+    in one line naming both types, before any engine is built."""
+    with pytest.raises(ValueError, match=r"NoiseModel.*float"):
+        evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, n=10, noise_model=0.0133)
 
 
 def test_a_process_keeps_a_bounded_number_of_engines():
     """A sweep over frictions in one process keeps at most MAX_ENGINES engines (a pybullet
-    engine holds a simulator client and tens of MB); every closed one is released."""
-    from kinegrasp_env.montecarlo import evaluate
+    engine holds a simulator client and tens of MB): runs in chunks on an executor of one
+    (inline) process build their engines here and keep them
+    (:func:`~kinegrasp_env.montecarlo.chunks.robot_engine`)."""
+    from kinegrasp_env.montecarlo import chunks
     from kinegrasp_env.montecarlo.execution import MAX_ENGINES
 
     g = shipped_grasps("cube")[0]
-    for k in range(MAX_ENGINES + 3):
-        evaluate_grasp(g, JointNoise(0.01), 2, engine="pybullet", friction=0.3 + 0.01 * k)
-    assert len(evaluate._ENGINES) <= MAX_ENGINES
+    chunks.close_engines()
+    try:
+        with LocalExecutor(1) as executor:
+            for k in range(MAX_ENGINES + 3):
+                # a progress callable: the run goes in chunks even on one local process
+                evaluate_grasp(g, sigma=0.01, n=2, engine="pybullet", friction=0.3 + 0.01 * k,
+                               executor=executor, progress=lambda done, n: None)
+                assert 0 < len(chunks._ENGINES) <= MAX_ENGINES
+    finally:
+        chunks.close_engines()
 
 
 def test_the_default_robots_engines_are_context_managers():
-    from kinegrasp_env.montecarlo.engines import make_engine as default_engine
-
-    with default_engine("pybullet", "cube") as engine:
+    with make_engine("pybullet", DEFAULT_ROBOT, "cube") as engine:
         assert engine.run(shipped_grasps("cube")[0].q0[None]).outcome.shape == (1,)

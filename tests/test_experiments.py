@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import io
 import logging
-import math
 import os
 import stat
 import subprocess
@@ -18,8 +17,8 @@ import pytest
 from cli_helpers import run_cli
 
 from kinegrasp_env.atomic_files import write_atomic
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, Engine
-from kinegrasp_env.montecarlo.evaluate import GraspStats
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
+from kinegrasp_env.montecarlo.evaluate import GraspEvaluation, summarize
 from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.toolkit import experiments, plots
 from kinegrasp_env.toolkit import selection as selection_mod
@@ -266,17 +265,16 @@ def test_progress_bar_on_a_terminal_is_one_bar():
 
 
 # ----------------------------------------------------------------------------- selection
-def _bernoulli_stats(p: float, n: int, key: tuple) -> GraspStats:
+def _bernoulli_stats(p: float, n: int, key: tuple) -> GraspEvaluation:
     """A candidate's statistics on n Bernoulli(p) draws from the stream ``key`` (what an
-    engine would do for a configuration whose true P(FC) is p)."""
+    engine would do for a configuration whose true P(FC) is p; the default robot's 6
+    contact slots and 7 hand joints)."""
     fc = np.random.default_rng(np.random.SeedSequence(list(key))).random(n) < p
-    draws = Engine.empty_draws(n)
+    draws = DrawBatch.empty(n, 6, 7)
     draws.outcome[:] = np.where(fc, FORCE_CLOSURE, 0)
-    k = int(fc.sum())
-    return GraspStats(p_fc=k / n, p_fc_ci=wilson_interval(k, n), q_mean=math.nan,
-                      q_var=math.nan, q_std=math.nan, q_skew=math.nan, q_nominal=0.01,
-                      error=math.nan, samples=n, outcomes={}, sigma=0.01, noise="gaussian",
-                      seed=key[0], draws=draws)
+    stats = summarize(draws)
+    assert stats.p_fc == int(fc.sum()) / n
+    return stats
 
 
 def test_reported_gap_of_equal_candidates_is_centred_at_zero():
@@ -310,18 +308,18 @@ def test_reported_gap_of_equal_candidates_is_centred_at_zero():
 
 
 def test_fresh_draws_are_the_next_chunks_of_the_seed():
-    """The report stream as documented, checked through the public evaluate_robot_grasp:
+    """The report stream as documented, checked through the public evaluate_grasp:
     the fresh draws of a 500-draw selection (chunks 2-3 of the seed, rows 500..999) are
     draws 500..999 of a 1,000-draw evaluation with the same seed, outcome for outcome, and
     differ from the selection draws (draws 0..499)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     grasp = shipped_grasps("cube")[0]
     assert selection_mod.report_chunks(500) == (2, 2)
     assert selection_mod.report_rows(500) == 500
-    fresh = evaluate_robot_grasp(grasp, sigma=0.03, n=500, seed=3, engine="fast",
-                                 offset=selection_mod.report_rows(500))
-    both = evaluate_robot_grasp(grasp, sigma=0.03, n=1000, seed=3, engine="fast")
+    fresh = evaluate_grasp(grasp, sigma=0.03, n=500, seed=3, engine="fast",
+                           offset=selection_mod.report_rows(500))
+    both = evaluate_grasp(grasp, sigma=0.03, n=1000, seed=3, engine="fast")
     assert np.array_equal(fresh.draws.outcome, both.draws.outcome[500:])
     assert np.array_equal(fresh.draws.quality, both.draws.quality[500:])
     assert not np.array_equal(both.draws.quality[:500], both.draws.quality[500:])
@@ -344,10 +342,10 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
     """fig10 of the default robot on three cube variants at sigma 0.02 (250 draws): the rows
     marked robust and fragile are the largest and the smallest P(FC) of the rows (the
     selection draws), and each one's fresh P(FC) is exactly its share of force closure in
-    draws 250..499 of the same seed, computed here through the public evaluate_robot_grasp
+    draws 250..499 of the same seed, computed here through the public evaluate_grasp
     on 500 draws (so the fresh draws are neither the selection draws nor a recount of
     them)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import find_variants
 
@@ -360,8 +358,8 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
     assert marked["fragile"]["p_fc"] == min(r["p_fc"] for r in rows)
     variants = {g.id: g for g in find_variants(robot, "cube", grasp, 3)}
     for row in marked.values():
-        both = evaluate_robot_grasp(variants[row["id"]], sigma=0.02, n=500, seed=5,
-                                    engine="fast")
+        both = evaluate_grasp(variants[row["id"]], sigma=0.02, n=500, seed=5,
+                              engine="fast")
         assert row["p_fc"] * 250 + row["fresh_p_fc"] * 250 == pytest.approx(both.p_fc * 500)
         assert row["fresh_samples"] == 250
         assert row["fresh_p_fc_lo"] <= row["fresh_p_fc"] <= row["fresh_p_fc_hi"]
@@ -372,9 +370,9 @@ def test_fig10_marks_its_pair_and_reports_it_on_the_next_draws(tmp_path):
 def test_fresh_rows_start_after_the_selections_chunks_and_carry_their_own_q_moments():
     """A 100-draw selection fills chunk 0 (rows 0..99) only: the pair's fresh draws are rows
     250..349 of the seed's run (chunk 1), not rows 100..199. Each chosen row's fresh P(FC)
-    and Q mean, variance and skewness equal those of evaluate_robot_grasp on exactly those
+    and Q mean, variance and skewness equal those of evaluate_grasp on exactly those
     rows (offset 250), and differ from its selection estimate's (rows 0..99)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import find_variants, variant_block
 
@@ -386,10 +384,10 @@ def test_fresh_rows_start_after_the_selections_chunks_and_carry_their_own_q_mome
     chosen = [r for r in rows if r["config"]]
     assert len(chosen) == 2 and len(fresh) == 2
     for row in chosen:
-        rows_250 = evaluate_robot_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
-                                        offset=250, engine="fast")
-        rows_100 = evaluate_robot_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
-                                        offset=100, engine="fast")
+        rows_250 = evaluate_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
+                                  offset=250, engine="fast")
+        rows_100 = evaluate_grasp(by_id[row["id"]], sigma=0.03, n=100, seed=4,
+                                  offset=100, engine="fast")
         assert row["fresh_p_fc"] == rows_250.p_fc
         assert (row["fresh_q_mean"], row["fresh_q_var"], row["fresh_q_skew"]) == pytest.approx(
             (rows_250.q_mean, rows_250.q_std ** 2, rows_250.q_skew), rel=1e-12)

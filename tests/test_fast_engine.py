@@ -11,9 +11,10 @@ from scipy.interpolate import RegularGridInterpolator
 from kinegrasp_env.closing.capsule_gap import capsule_gaps, posed_min_distance
 from kinegrasp_env.closing.close_rules import secant_root
 from kinegrasp_env.closing.segment_distance import closest_to_segments
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, FastEngine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.world.grasps import shipped_grasps
 from kinegrasp_env.world.objects import OBJECT_NAMES, load_object
 from kinegrasp_env.world.sdf import MARGIN, build_grid, grid_of, object_grid
@@ -266,7 +267,7 @@ def test_secant_root_finds_the_zero_of_a_smooth_gap():
 @pytest.mark.parametrize("name", OBJECT_NAMES)
 def test_fast_engine_at_sigma_zero_reproduces_the_nominal_grasps(name):
     grasps = shipped_grasps(name)
-    draws = FastEngine(name).run(np.stack([g.q0 for g in grasps]))
+    draws = make_engine("fast", DEFAULT_ROBOT, name).run(np.stack([g.q0 for g in grasps]))
     assert np.all(draws.outcome == FORCE_CLOSURE)
     # both engines polish each contact to a gap of 1e-9 m, so they agree far inside the
     # 0.2 mm contact tolerance (not to round-off: the roots are found from different
@@ -280,26 +281,43 @@ def test_fast_engine_at_sigma_zero_reproduces_the_nominal_grasps(name):
 
 
 def test_evaluate_with_the_fast_engine_is_reproducible_across_processes():
+    """In this process (one engine call) and in chunks on two worker processes: the same
+    statistics and the same draws, bit for bit."""
+    from dataclasses import fields
+
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+
     grasp = shipped_grasps("cube")[1]
-    one = evaluate_grasp(grasp, JointNoise(0.02), 300, seed=11, engine="fast", chunk=100)
-    two = evaluate_grasp(grasp, JointNoise(0.02), 300, seed=11, engine="fast", chunk=100,
-                         processes=2)
-    assert one.to_json() == two.to_json()
-    assert one.engine == "fast"
-    with pytest.raises(ValueError, match="unknown engine"):
-        evaluate_grasp(grasp, JointNoise(0.02), 10, engine="warp")
+    one = evaluate_grasp(grasp, sigma=0.02, n=300, seed=11, engine="fast")
+    with LocalExecutor(2) as executor:
+        two = evaluate_grasp(grasp, sigma=0.02, n=300, seed=11, engine="fast",
+                             executor=executor)
+    assert one.n == 300 and one.counts["force_closure"] > 2
+    for field in fields(one):
+        a, b = getattr(one, field.name), getattr(two, field.name)
+        if field.name == "draws":
+            for name in ("outcome", "quality", "n_contacts", "points", "normals", "finger",
+                         "link", "hand"):
+                np.testing.assert_array_equal(getattr(a, name), getattr(b, name),
+                                              err_msg=name)
+        else:
+            np.testing.assert_equal(a, b, err_msg=field.name)
+    with pytest.raises(ValueError, match="engine must be one of"):
+        evaluate_grasp(grasp, sigma=0.02, n=10, engine="warp")
 
 
 def test_chunks_run_together_give_the_draws_of_chunks_run_alone():
-    from kinegrasp_env.montecarlo.evaluate import draw_chunk, group_size
+    """A run's rows closed in one call of the fast engine (the evaluation's) are the rows
+    closed piece by piece (rows 60 c .. 60 c + 59 of the same run, each its own call)."""
+    from kinegrasp_env.montecarlo.evaluate import evaluation_rows
 
     grasp = shipped_grasps("cube")[1]
-    noise = JointNoise(0.02)
-    assert group_size("fast", 8, 1) == 4 and group_size("pybullet", 8, 1) == 1
-    together = evaluate_grasp(grasp, noise, 4 * 60, seed=3, engine="fast", chunk=60,
-                              return_draws=True).draws
-    engine = FastEngine("cube")
-    alone = [draw_chunk(engine, grasp.q0, noise, 3, c, 60) for c in range(4)]
+    together = evaluate_grasp(grasp, sigma=0.02, n=4 * 60, seed=3, engine="fast").draws
+    engine = make_engine("fast", DEFAULT_ROBOT, "cube")
+    alone = []
+    for c in range(4):
+        q, errors = evaluation_rows(grasp, engine, sigma=0.02, n=60, seed=3, offset=60 * c)
+        alone.append(engine.run(q, **errors))
     for field in ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link"):
         np.testing.assert_array_equal(getattr(together, field),
                                       np.concatenate([getattr(a, field) for a in alone]))

@@ -310,7 +310,7 @@ def test_the_reference_measures_a_tilted_box_edge_exactly(in_knuckles):
     posed box and the cube (SLSQP) to 1e-7 m at several knuckle angles. A link that also has
     a ball keeps pybullet's own shapes: its gap is the least of the box's and the ball's
     exact distances (the ball's: its centre's distance to the cube less its radius)."""
-    from kinegrasp_env.closing.robot_scene import RobotScene
+    from kinegrasp_env.closing.scene import RobotScene
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.world.grasps import load_grasps
 
@@ -381,7 +381,7 @@ def test_tilted_box_pads_close_alike_in_both_engines(in_knuckles):
     alike: the same contacts to 1e-6 m and Q to 1e-6 relative at the planned poses, and the
     same contacts to 1e-6 m on all but a few noisy draws (a finger starting within the start
     tolerance inside the cube, where pybullet's penetration depth is its own)."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.world.grasps import load_grasps
 
@@ -414,7 +414,7 @@ def test_fingers_driven_each_on_its_own_stop_where_they_touch_in_physics(in_knuc
     and effort after the touch and pushed the cube between them until the two efforts
     balanced, both fingers near +-0.19 rad whatever the draw (a median difference of 0.06
     rad; the user's gripper of this kind: P(FC) 0.33 against 0.89)."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.physics.hand_motors import independent_jaws
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.world.grasps import load_grasps

@@ -197,17 +197,16 @@ def test_friction_beside_a_source_is_refused_whatever_its_value(capsys, tmp_path
 
 
 def test_the_library_takes_a_friction_sources_nominal_mu_too():
-    """``evaluate_robot_grasp`` under a model with a friction source: the nominal Q is the
+    """``evaluate_grasp`` under a model with a friction source: the nominal Q is the
     contacts' Q at the source's nominal mu (by hand, as above), as ``evaluate
     --noise-spec`` gives it."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
     grasp, obj = shipped_grasps("cube")[0], load_object("cube")
     model = noise_model_from_spec({"joints": {"sigma": 0.01},
                                    "friction": {"distribution": "fixed", "value": 0.8}})
-    run = evaluate_robot_grasp(grasp, sigma=0.01, n=4, seed=0, engine="fast",
-                               noise_model=model)
+    run = evaluate_grasp(grasp, sigma=0.01, n=4, seed=0, engine="fast", noise_model=model)
     by_hand = ferrari_canny(grasp.points, grasp.normals, friction=0.8,
                             torque_scale=obj.torque_scale, center=obj.center_of_mass)
     assert run.q_nominal == pytest.approx(by_hand, rel=1e-7)

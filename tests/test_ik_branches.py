@@ -213,7 +213,7 @@ def test_fig7_and_fig10_of_a_six_joint_arm_compare_its_ik_branches(home, capsys,
     fig7 the robust and the fragile one of them."""
     import csv
 
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
     from kinegrasp_env.toolkit.arm_variants import variants_of
     from kinegrasp_env.world.grasps import load_grasps
 
@@ -337,7 +337,7 @@ def test_the_elbow_search_and_the_env_see_the_same_branches(home, capsys):
     # within the limits): both add it last, as a branch of its own
     import dataclasses
 
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
     from kinegrasp_env.robot.kinematics import Kinematics
     from kinegrasp_env.toolkit.elbow_search import branch_variants
     from kinegrasp_env.world.grasps import load_grasps
@@ -583,7 +583,7 @@ def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):
     import gymnasium as gym
 
     import kinegrasp_env  # noqa: F401  (registers the envs)
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     env = gym.make("KineGrasp-v0", robot="xarm6", grasp_file=str(home[0]), reward="batch",
                    batch_size=2000, step_size=0.5).unwrapped
@@ -604,7 +604,7 @@ def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):
             continue
         seen.add(branch)
         here = dataclasses.replace(env.grasp, q0=env.q.copy())
-        direct = evaluate_robot_grasp(here, sigma=0.0133, n=2000, seed=9, engine="fast").p_fc
+        direct = evaluate_grasp(here, sigma=0.0133, n=2000, seed=9, engine="fast").p_fc
         lo, hi = info["p_fc_ci"]
         se = np.hypot((hi - lo) / (2 * 1.96), np.sqrt(direct * (1 - direct) / 2000))
         assert abs(info["p_fc"] - direct) <= 4 * se + 0.015, (info, direct)
@@ -618,7 +618,7 @@ def test_fig10_of_a_six_joint_arm_from_one_batch(home, capsys, tmp_path):
     (the direct run's branches), each branch's P(FC) re-weighted from one batch within 3
     combined standard errors of that branch's 1,500 direct draws (independent closings of
     its own joint noise); the command line takes the method too."""
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import variants_of
     from kinegrasp_env.toolkit.experiments import fig10
@@ -633,8 +633,8 @@ def test_fig10_of_a_six_joint_arm_from_one_batch(home, capsys, tmp_path):
     for row in rows:
         p, ess = row["p_fc"], row["samples"]
         assert ess >= 400 and p < 0.95  # re-weighted (not the fall-back), and informative
-        direct = evaluate_robot_grasp(variants[row["id"]], sigma=0.0233, n=1500, seed=11,
-                                      engine="fast").p_fc
+        direct = evaluate_grasp(variants[row["id"]], sigma=0.0233, n=1500, seed=11,
+                                engine="fast").p_fc
         se = np.hypot(np.sqrt(p * (1 - p) / ess), np.sqrt(direct * (1 - direct) / 1500))
         assert abs(p - direct) <= 3 * se, (row, direct)
     text = run(capsys, "reproduce", "fig10", "--robot", "xarm6", "--grasps", str(home[0]),

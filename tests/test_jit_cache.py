@@ -32,14 +32,14 @@ import numpy as np
 from numba.core import event
 from numba.core.dispatcher import Dispatcher
 from kinegrasp_env import jit
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
 from kinegrasp_env.montecarlo.engines import make_engine
-from kinegrasp_env.montecarlo.evaluate import chunk_configurations
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.world.grasps import shipped_grasps
 
 with event.install_recorder("numba:compile") as compiles:
-    engine = make_engine("fast", "cube")
-    q = chunk_configurations(shipped_grasps("cube")[0].q0, JointNoise(0.0266), 0, [(0, 10)])
+    engine = make_engine("fast", DEFAULT_ROBOT, "cube")
+    q = chunk_configurations(shipped_grasps("cube")[0].q0, 7, 0.0266, "gaussian", 0, 0, 10)
     out = engine.run(q)
 stats = {}
 for name, module in list(sys.modules.items()):

@@ -13,11 +13,20 @@ from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
-from kinegrasp_env.sampling.noise_spec import load_noise_model, noise_model_from_spec
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_spec import load_noise_model, noise_model_from_spec, spec_of
 from kinegrasp_env.world.grasps import grasp_by_index, save_grasps, shipped_grasps
 
 SPEC = "joints: {sigma: 0.02, distribution: triangular}\nobject: {translation_sigma: 0.003}\n" \
        "friction: {distribution: uniform, low: 0.3, high: 0.7}\n"
+
+
+def _evaluate(grasp, noise, n, seed):
+    """The library's evaluation of a JointNoise or a NoiseModel."""
+    if isinstance(noise, JointNoise):
+        return evaluate_grasp(grasp, sigma=noise.sigma, noise=noise.kind, n=n, seed=seed,
+                              engine="fast")
+    return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=seed, engine="fast")
 
 
 @pytest.fixture()
@@ -32,19 +41,21 @@ def test_evaluate_with_a_noise_spec_is_the_library_evaluation(spec_file, capsys)
                  str(spec_file), "--samples", "120", "--seed", "3", "--engine", "fast",
                  "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    stats = evaluate_grasp(shipped_grasps("cube")[1], load_noise_model(spec_file), 120, seed=3,
-                           engine="fast")
-    # the library's record (the default robot's own evaluation: independent code on the same
-    # draws), and what every robot's record names (no "friction": mu is per draw); Q's
-    # moments to a few ulps (another summation order), the nominal Q to the engines'
-    # agreement (the fast engine's closing of q0: measured 4e-9 relative)
+    model = load_noise_model(spec_file)
+    stats = _evaluate(shipped_grasps("cube")[1], model, 120, 3)
+    # the library's numbers, and what every robot's record names (no "friction": mu is per
+    # draw); Q's variance and the error (q_nominal - q_mean) to a few ulps
     expected = {"robot": "kuka_sdh", "object": "cube", "grasp": "1",
-                "noise_spec": str(spec_file), **json.loads(json.dumps(stats.to_json()))}
+                "noise_spec": str(spec_file), "sigma": 0.02, "noise": "triangular",
+                "noise_model": json.loads(json.dumps(spec_of(model))), "samples": 120,
+                "seed": 3, "engine": "fast", "p_fc": stats.p_fc, "p_fc_ci": list(stats.ci),
+                "q_nominal": stats.q_nominal, "q_mean": stats.q_mean,
+                "q_var": stats.q_std ** 2, "q_std": stats.q_std, "q_skew": stats.q_skew,
+                "error": stats.q_nominal - stats.q_mean, "outcomes": stats.counts}
     assert set(out) == set(expected)
+    assert 0 < stats.p_fc < 1
     for key, value in expected.items():
-        if key == "q_nominal" or key == "error":
-            assert out[key] == pytest.approx(value, rel=1e-7, abs=1e-12), key
-        elif isinstance(value, float):
+        if isinstance(value, float):
             assert out[key] == pytest.approx(value, rel=1e-12), key
         else:
             assert out[key] == value, key
@@ -71,8 +82,7 @@ def test_rank_with_a_noise_spec_and_its_resume_settings(spec_file, tmp_path, cap
     assert main(args) == 0
     rows = out.read_text().splitlines()[1:]
     model = load_noise_model(spec_file)
-    p_fc = {g.id: evaluate_grasp(g, model, 60, seed=0, engine="fast").p_fc
-            for g in shipped_grasps("cube")[:2]}
+    p_fc = {g.id: _evaluate(g, model, 60, 0).p_fc for g in shipped_grasps("cube")[:2]}
     assert {r.split(",")[0]: float(r.split(",")[1]) for r in rows} == pytest.approx(p_fc,
                                                                                    abs=1e-6)
     # an interrupted run's log holds the model: another model does not resume from it
@@ -98,7 +108,7 @@ def test_sweep_noise_entries_are_models_whose_joint_sigma_is_the_cells(spec_file
         if row["noise"] != "gaussian":
             assert noise.joints.sigma == row["sigma"]  # the cell's sigma, the model's rest
         # the rows evaluate draws (its own chunks): the sweep's chunks of 40 are rows of them
-        stats = evaluate_grasp(grasp_by_index("cube", 0), noise, 80, seed=2, engine="fast")
+        stats = _evaluate(grasp_by_index("cube", 0), noise, 80, 2)
         assert row["p_fc"] == stats.p_fc
         assert row["q_mean"] == pytest.approx(stats.q_mean, rel=1e-12) or \
             math.isnan(row["q_mean"])
@@ -140,8 +150,10 @@ def test_bad_sweep_noise_entries(noise, needle):
 
 def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_file, capsys):
     model = load_noise_model(spec_file)
-    with pytest.raises(ValueError, match="physics engine takes joint and hand noise only"):
-        evaluate_grasp(shipped_grasps("cube")[0], model, 10, engine="physics")
+    with pytest.raises(ValueError, match="physics engine of robot 'kuka_sdh' takes joint and "
+                                         "hand noise only"):
+        evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, noise_model=model, n=10,
+                       engine="physics")
     assert main(["evaluate", "--noise-spec", str(spec_file), "--engine", "physics"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "object, friction errors" in err[0]

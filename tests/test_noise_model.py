@@ -10,20 +10,15 @@ import pytest
 from scipy import stats
 
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.montecarlo.engines import (
-    FORCE_CLOSURE,
-    FastEngine,
-    PybulletEngine,
-)
-from kinegrasp_env.montecarlo.evaluate import (
-    chunk_configurations,
-    chunk_noise,
-    evaluate_grasp,
-)
-from kinegrasp_env.montecarlo.perturbation import configurations, hand_limits, rigid_inverse
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+from kinegrasp_env.montecarlo.noise_rows import joint_rows, model_rows
 from kinegrasp_env.quality.epsilon import ferrari_canny, ferrari_canny_batch
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
 from kinegrasp_env.robot.default_robot import default_description, default_hand_mount, kuka_sdh
-from kinegrasp_env.robot.kinematics import Kinematics
+from kinegrasp_env.robot.kinematics import Kinematics, rigid_inverse
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, METHODS, JointNoise
 from kinegrasp_env.sampling.noise_model import (
     FrictionSource,
@@ -35,6 +30,7 @@ from kinegrasp_env.sampling.noise_model import (
     as_noise_model,
     chunk_stream,
     offset_transforms,
+    stream_rows,
 )
 from kinegrasp_env.sampling.noise_spec import (
     PRESETS,
@@ -46,6 +42,7 @@ from kinegrasp_env.sampling.stats import wilson_interval
 from kinegrasp_env.world.grasps import shipped_grasps
 
 DRAW_FIELDS = ("outcome", "quality", "n_contacts", "points", "normals", "finger", "link", "hand")
+SDH = load_robot(DEFAULT_ROBOT)
 
 
 def _same_draws(a, b) -> None:
@@ -57,42 +54,55 @@ def _same_draws(a, b) -> None:
 @pytest.mark.parametrize("kind", DISTRIBUTIONS)
 @pytest.mark.parametrize("method", METHODS)
 def test_a_joints_only_model_draws_the_joint_noise_numbers(kind, method):
-    noise = JointNoise((0.01, 0.02, 0.005, 0.03, 0.0, 0.01, 0.02), kind)
+    """The model's rows (``joint_rows``, ``model_rows``) of chunk 0 and of 33 rows of chunk
+    7 are the JointNoise's numbers of the chunk's stream, and the configurations its
+    joint-noise path draws (``chunk_configurations``), bit for bit."""
+    sigma = (0.01, 0.02, 0.005, 0.03, 0.0, 0.01, 0.02)
+    noise = JointNoise(sigma, kind)
     model = as_noise_model(noise)
+    q0 = np.arange(14) * 0.1
     for index, size in ((0, 250), (7, 33)):
-        np.testing.assert_array_equal(chunk_noise(noise, 11, index, size, method),
-                                      chunk_noise(model, 11, index, size, method))
+        offset = index * 250
+        np.testing.assert_array_equal(joint_rows(model, 7, 11, offset, size, method),
+                                      noise.sample(size, 7, chunk_stream(11, index), method))
+        q, errors = model_rows(model, q0, SDH, 11, offset, size, np.zeros(3), method)
         np.testing.assert_array_equal(
-            chunk_configurations(np.arange(14) * 0.1, noise, 11, [(index, size)], method),
-            chunk_configurations(np.arange(14) * 0.1, model, 11, [(index, size)], method))
+            q, chunk_configurations(q0, 7, sigma, kind, 11, offset, size, method))
+        assert errors == {}
 
 
 @pytest.mark.parametrize("engine, samples", [("fast", 300), ("pybullet", 24)])
 def test_a_joints_only_spec_evaluates_bit_for_bit_as_joint_noise(engine, samples):
     grasp = shipped_grasps("spray_flask")[3]
     spec = noise_model_from_spec({"joints": {"sigma": 0.0233, "distribution": "uniform"}})
-    a = evaluate_grasp(grasp, JointNoise(0.0233, "uniform"), samples, seed=5, engine=engine,
-                       chunk=100, return_draws=True)
-    b = evaluate_grasp(grasp, spec, samples, seed=5, engine=engine, chunk=100,
-                       return_draws=True)
+    a = evaluate_grasp(grasp, sigma=0.0233, noise="uniform", n=samples, seed=5,
+                       engine=engine)
+    b = evaluate_grasp(grasp, sigma=0.0, noise_model=spec, n=samples, seed=5, engine=engine)
     _same_draws(a.draws, b.draws)
-    summary = b.to_json()
-    assert summary.pop("noise_model") == {"joints": {"distribution": "uniform", "sigma": 0.0233}}
-    assert summary == a.to_json()  # every number, bit for bit
+    assert a.counts == b.counts and a.n == b.n
+    for name in ("p_fc", "ci", "q_mean", "q_std", "q_skew", "q_nominal"):
+        # every number, bit for bit (NaN where both are)
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert 0 < a.p_fc < 1  # the draws vary: the comparison says something
 
 
 def test_every_source_draws_from_its_own_stream():
+    """Rows 1000 .. 1049 (chunk 4) of a run: adding hand, palm and friction sources leaves
+    the joints' and the object's draws as they were."""
     base = NoiseModel(joints=JointsSource(0.02), object=PoseSource(0.01, 0.01, name="object"))
     more = dataclasses.replace(base, friction=FrictionSource("gaussian", 0.5, 0.1),
                                hand=HandSource(0.01, 0.02), palm=PoseSource(0.005, 0.001))
-    a, b = base.draw(3, 4, 50), more.draw(3, 4, 50)
-    np.testing.assert_array_equal(a.joints, b.joints)
-    np.testing.assert_array_equal(a.object, b.object)
-    assert a.friction is None and b.friction.shape == (50,)
+    q0, center = shipped_grasps("cube")[0].q0, np.array([0.01, -0.02, 0.03])
+    qa, a = model_rows(base, q0, SDH, 3, 1000, 50, center)
+    qb, b = model_rows(more, q0, SDH, 3, 1000, 50, center)
+    np.testing.assert_array_equal(qa[:, :7], qb[:, :7])
+    np.testing.assert_array_equal(a["object_offset"], b["object_offset"])
+    assert set(a) == {"object_offset"} and b["friction"].shape == (50,)
+    assert not np.array_equal(qa[:, 7:], qb[:, 7:])  # the hand source drew
     # the joints keep the chunk's own stream (the JointNoise one); others their child streams
-    np.testing.assert_array_equal(a.joints, chunk_noise(JointNoise(0.02), 3, 4, 50))
-    np.testing.assert_array_equal(b.friction, FrictionSource("gaussian", 0.5, 0.1).sample(
+    np.testing.assert_array_equal(qa[:, :7], q0[:7] + JointNoise(0.02).sample(
+        50, 7, chunk_stream(3, 4)))
+    np.testing.assert_array_equal(b["friction"], FrictionSource("gaussian", 0.5, 0.1).sample(
         chunk_stream(3, 4, "friction"), 50))
     streams = [chunk_stream(3, 4, s).random(4) for s in ("joints", "hand", "palm", "object",
                                                            "friction")]
@@ -102,16 +112,16 @@ def test_every_source_draws_from_its_own_stream():
 def test_adding_a_friction_source_leaves_the_joint_draws_identical():
     grasp = shipped_grasps("spray_flask")[0]
     joints = {"joints": {"sigma": 0.0233}}
-    a = evaluate_grasp(grasp, noise_model_from_spec(joints), 200, seed=2, engine="fast",
-                       return_draws=True)
+    options = dict(sigma=0.0, n=200, seed=2, engine="fast")
+    a = evaluate_grasp(grasp, noise_model=noise_model_from_spec(joints), **options)
     fixed = noise_model_from_spec({**joints, "friction": {"distribution": "fixed",
                                                           "value": 0.5}})
-    b = evaluate_grasp(grasp, fixed, 200, seed=2, engine="fast", return_draws=True)
+    b = evaluate_grasp(grasp, noise_model=fixed, **options)
     # mu fixed at the engine's 0.5: the same draws scored the same, bit for bit
     _same_draws(a.draws, b.draws)
     varied = noise_model_from_spec({**joints, "friction": {"distribution": "uniform",
                                                            "low": 0.2, "high": 0.8}})
-    c = evaluate_grasp(grasp, varied, 200, seed=2, engine="fast", return_draws=True)
+    c = evaluate_grasp(grasp, noise_model=varied, **options)
     for name in ("n_contacts", "points", "normals", "hand"):  # the same geometry ...
         np.testing.assert_array_equal(getattr(a.draws, name), getattr(c.draws, name))
     assert not np.array_equal(a.draws.quality, c.draws.quality)  # ... scored with other mu
@@ -122,8 +132,8 @@ def test_a_diagonal_covariance_equals_per_joint_sigmas_draw_by_draw():
     sigma = np.array([0.0133, 0.02, 0.005, 0.0433, 0.001, 0.03, 0.0233])
     per_joint = NoiseModel(joints=JointsSource(tuple(sigma)))
     covariance = NoiseModel(joints=JointsSource(covariance=np.diag(sigma**2).tolist()))
-    np.testing.assert_array_equal(per_joint.draw(9, 2, 500).joints,
-                                  covariance.draw(9, 2, 500).joints)
+    np.testing.assert_array_equal(joint_rows(per_joint, 7, 9, 500, 500),
+                                  joint_rows(covariance, 7, 9, 500, 500))
 
 
 def test_a_correlated_covariance_reproduces_its_sample_covariance():
@@ -131,14 +141,15 @@ def test_a_correlated_covariance_reproduces_its_sample_covariance():
     root = rng.normal(size=(7, 7)) * 0.01
     cov = root @ root.T
     cov[:, 2] = cov[2, :] = 0.0  # a singular (semi-definite) covariance: joint 2 exact
-    eps = NoiseModel(joints=JointsSource(covariance=cov.tolist())).draw(1, 0, 200_000).joints
+    eps = joint_rows(NoiseModel(joints=JointsSource(covariance=cov.tolist())), 7, 1, 0,
+                     200_000)
     # standard error of a sample covariance entry: sqrt((S_ii S_jj + S_ij^2) / n)
     se = np.sqrt((np.outer(np.diag(cov), np.diag(cov)) + cov**2) / eps.shape[0])
     assert np.all(np.abs(np.cov(eps.T) - cov) <= 5 * se + 1e-15)  # 5 standard errors
     assert np.all(eps[:, 2] == 0.0)
     bias = np.linspace(-0.01, 0.01, 7)
     shifted = NoiseModel(joints=JointsSource(covariance=cov.tolist(), bias=tuple(bias)))
-    np.testing.assert_array_equal(shifted.draw(1, 0, 100).joints, eps[:100] + bias)
+    np.testing.assert_array_equal(joint_rows(shifted, 7, 1, 0, 100), eps[:100] + bias)
 
 
 # ----------------------------------------------------------------------------- specs
@@ -239,18 +250,23 @@ def test_spec_files_presets_and_round_trip(tmp_path):
 
 # ----------------------------------------------------------------------------- hand, poses
 def test_hand_offsets_shift_both_joints_of_a_finger_within_the_limits():
+    """The SDH's layout, hard-coded here: the hand stream's column 0 times the spread sigma
+    on the spread (joint 7), column 1 + f times finger f's closing sigma on both of its
+    flexion joints (8 + 2f, 9 + 2f), clipped to the joints' limits; the arm untouched."""
     q0 = shipped_grasps("spray_flask")[0].q0  # spread at its lower limit 0
     model = NoiseModel(hand=HandSource(0.05, (0.01, 0.02, 0.3)))
-    draws = model.draw(0, 0, 400)
-    q = configurations(q0, draws)
-    lower, upper = hand_limits()
+    q, errors = model_rows(model, q0, SDH, 0, 0, 400, np.zeros(3))
+    hand = stream_rows(0, "hand", 0, 400, lambda g, m: g.standard_normal((m, 4))) * [
+        0.05, 0.01, 0.02, 0.3]
+    lower, upper = SDH.model.lower[7:], SDH.model.upper[7:]
+    assert errors == {} and lower[0] == 0.0
     np.testing.assert_array_equal(q[:, :7], np.repeat(q0[None, :7], 400, 0))
-    np.testing.assert_array_equal(q[:, 7], np.clip(q0[7] + draws.hand[:, 0], 0.0, None))
+    np.testing.assert_array_equal(q[:, 7], np.clip(q0[7] + hand[:, 0], 0.0, upper[0]))
     for f in range(3):
-        shift = np.clip(q0[8 + 2 * f: 10 + 2 * f] + draws.hand[:, [1 + f]],
+        shift = np.clip(q0[8 + 2 * f: 10 + 2 * f] + hand[:, [1 + f]],
                         lower[1 + 2 * f: 3 + 2 * f], upper[1 + 2 * f: 3 + 2 * f])
         np.testing.assert_array_equal(q[:, 8 + 2 * f: 10 + 2 * f], shift)
-    assert np.std(draws.hand, axis=0) == pytest.approx([0.05, 0.01, 0.02, 0.3], rel=0.1)
+    assert 0.3 < np.mean(q[:, 7] == 0.0) < 0.7  # the clipping is compared too
 
 
 def test_rotation_vectors_give_rotations_about_the_centre():
@@ -285,27 +301,24 @@ def _flange(q):
 SAME_DRAW_TOL = {"fast": (1e-12, 1e-12, 1e-14), "pybullet": (1e-8, 1e-6, 1e-8)}
 
 
-@pytest.mark.parametrize("engine_class, n", [(FastEngine, 40), (PybulletEngine, 16)])
-def test_object_error_and_inverse_palm_error_give_the_same_draws(engine_class, n):
+@pytest.mark.parametrize("engine_name, n", [("fast", 40), ("pybullet", 16)])
+def test_object_error_and_inverse_palm_error_give_the_same_draws(engine_name, n):
     """An object moved by T as seen from the flange is the hand moved by T^-1: contacts (in
     the object frame) and Q agree draw by draw, for the same stream of T (to
     :data:`SAME_DRAW_TOL`)."""
     grasp = shipped_grasps("spray_flask")[1]
-    q = chunk_configurations(grasp.q0, JointNoise(0.01), 3, [(0, n)])
+    q = chunk_configurations(grasp.q0, 7, 0.01, "gaussian", 3, 0, n)
     offsets = chunk_stream(3, 0, "palm").standard_normal((n, 6)) * ([3e-3] * 3 + [0.02] * 3)
     motion = offset_transforms(offsets)  # T, in the flange frame
-    engine = engine_class("spray_flask")
-    try:
+    with make_engine(engine_name, DEFAULT_ROBOT, "spray_flask") as engine:
         flange, pose = _flange(q), engine.obj.pose
         object_error = rigid_inverse(pose) @ flange @ motion @ rigid_inverse(flange) @ pose
         by_palm = engine.run(q, palm=rigid_inverse(motion))
         by_object = engine.run(q, object_offset=object_error)
         nominal = engine.run(q)
-    finally:
-        engine.close()
     np.testing.assert_array_equal(by_palm.outcome, by_object.outcome)
     np.testing.assert_array_equal(by_palm.n_contacts, by_object.n_contacts)
-    points, normals, quality = SAME_DRAW_TOL[engine_class.name]
+    points, normals, quality = SAME_DRAW_TOL[engine_name]
     np.testing.assert_allclose(by_palm.points, by_object.points, atol=points)
     np.testing.assert_allclose(by_palm.normals, by_object.normals, atol=normals)
     np.testing.assert_allclose(by_palm.quality, by_object.quality, rtol=0, atol=quality)
@@ -322,14 +335,12 @@ def test_the_engines_take_a_palm_error_in_the_same_frame():
     frame: 4 of 24 outcomes differ, contacts 1.5 mm apart in the median)."""
     grasp = shipped_grasps("spray_flask")[1]
     n = 24
-    q = chunk_configurations(grasp.q0, JointNoise(0.003), 5, [(0, n)])
+    q = chunk_configurations(grasp.q0, 7, 0.003, "gaussian", 5, 0, n)
     rng = np.random.default_rng(5)
     palm = offset_transforms(rng.normal(size=(n, 6)) * ([1e-3] * 3 + [0.05] * 3))
-    fast, reference = FastEngine("spray_flask"), PybulletEngine("spray_flask")
-    try:
+    with make_engine("fast", DEFAULT_ROBOT, "spray_flask") as fast, \
+            make_engine("pybullet", DEFAULT_ROBOT, "spray_flask") as reference:
         a, b = fast.run(q, palm=palm), reference.run(q, palm=palm)
-    finally:
-        reference.close()
     np.testing.assert_array_equal(a.outcome, b.outcome)
     assert len(set(a.outcome.tolist())) > 2  # mixed outcomes
     # measured: 2.5e-9 m at most (the engines' own agreement); 1e-7 leaves 40x
@@ -342,13 +353,13 @@ def test_an_object_error_equals_moving_the_object_in_pybullet():
     object's frame both ways)."""
     grasp = shipped_grasps("spray_flask")[2]
     n = 8
-    q = chunk_configurations(grasp.q0, JointNoise(0.005), 1, [(0, n)])
-    engine = PybulletEngine("spray_flask")
-    obj = engine.obj
-    offsets = chunk_stream(1, 0, "object").standard_normal((n, 6)) * ([0.004] * 3 + [0.03] * 3)
-    errors = offset_transforms(offsets, obj.center_of_mass)
-    draws = engine.run(q, object_offset=errors)
-    engine.close()
+    q = chunk_configurations(grasp.q0, 7, 0.005, "gaussian", 1, 0, n)
+    with make_engine("pybullet", DEFAULT_ROBOT, "spray_flask") as engine:
+        obj = engine.obj
+        offsets = chunk_stream(1, 0, "object").standard_normal((n, 6)) * (
+            [0.004] * 3 + [0.03] * 3)
+        errors = offset_transforms(offsets, obj.center_of_mass)
+        draws = engine.run(q, object_offset=errors)
     for i in range(n):
         moved = dataclasses.replace(obj, pose=obj.pose @ errors[i])
         with RobotWorld(default_description(), moved) as world:  # the object built there
@@ -370,8 +381,8 @@ def test_an_object_error_equals_moving_the_object_in_pybullet():
 # ----------------------------------------------------------------------------- friction
 def test_per_row_friction_equals_one_call_per_row():
     grasp = shipped_grasps("drill")[0]
-    engine = FastEngine("drill")
-    draws = engine.run(chunk_configurations(grasp.q0, JointNoise(0.02), 0, [(0, 120)]))
+    engine = make_engine("fast", DEFAULT_ROBOT, "drill")
+    draws = engine.run(chunk_configurations(grasp.q0, 7, 0.02, "gaussian", 0, 0, 120))
     rows = np.flatnonzero(draws.n_contacts == 3)
     mu = np.random.default_rng(4).uniform(0.05, 1.0, rows.size)
     mu[::7] = 0.0  # frictionless rows are never in force closure with 3 contacts
@@ -424,19 +435,20 @@ FRICTION_CASES = [
 
 def _friction_only_agrees(name: str, index: int, spec: dict, samples: int) -> None:
     grasp = shipped_grasps(name)[index]
-    engine = FastEngine(name)
-    mu_min, k = _mu_min(engine, grasp)
+    with make_engine("fast", DEFAULT_ROBOT, name) as engine:
+        mu_min, k = _mu_min(engine, grasp)
     exact = _p_at_least(spec, mu_min)
     model = noise_model_from_spec({"friction": spec})
-    result = evaluate_grasp(grasp, model, samples, seed=6, engine="fast", return_draws=True)
+    result = evaluate_grasp(grasp, sigma=0.0, noise_model=model, n=samples, seed=6,
+                            engine="fast")
     # every draw keeps the nominal contacts; force closure is monotone in mu, so a draw is
-    # in force closure exactly when its mu is at least mu_min
+    # in force closure exactly when its mu is at least mu_min (each draw's mu: the
+    # friction source's rows of the run's streams)
     assert np.all(result.draws.n_contacts == k)
-    mu = np.concatenate([model.draw(6, c, size).friction for c, size in
-                         enumerate([250] * (samples // 250))])
+    mu = stream_rows(6, "friction", 0, samples, model.friction.sample)
     np.testing.assert_array_equal(result.draws.outcome == FORCE_CLOSURE, mu >= mu_min)
     # and the estimate's interval (99.9%) holds the exact probability
-    fc = result.outcomes["force_closure"]
+    fc = result.counts["force_closure"]
     lo, hi = wilson_interval(fc, samples, confidence=0.999)
     assert lo <= exact <= hi, (name, index, spec, mu_min, exact, fc / samples)
     assert 0.05 < exact < 0.95  # an informative case
@@ -449,15 +461,21 @@ def test_friction_only_force_closure_is_the_exact_probability_of_mu_above_its_mi
 
 
 def test_engine_errors_are_checked_and_refused_where_not_taken():
-    engine = FastEngine("cube")
+    """Bad errors are one line naming them; an engine that does not take errors (the physics
+    engine: one simulated mu, the arm not split from the hand) refuses pose errors and a
+    per-draw mu alike."""
+    engine = make_engine("fast", DEFAULT_ROBOT, "cube")
     q0 = shipped_grasps("cube")[0].q0[None]
     with pytest.raises(ValueError, match=r"palm must have shape \(1, 4, 4\)"):
         engine.run(q0, palm=np.eye(4))
     with pytest.raises(ValueError, match="friction must be >= 0"):
         engine.run(q0, friction=[-0.5])
     engine.takes_errors = False
-    with pytest.raises(ValueError, match="takes joint and hand noise only, not friction"):
-        engine.run(q0, friction=[0.5])
+    for key, value in (("palm", np.eye(4)[None]), ("object_offset", np.eye(4)[None]),
+                       ("friction", [0.5])):
+        with pytest.raises(ValueError, match=f"takes joint and hand noise only, not {key} "
+                                             "errors"):
+            engine.run(q0, **{key: value})
 
 
 def test_a_model_of_zeros_is_the_nominal_grasp():
@@ -465,10 +483,10 @@ def test_a_model_of_zeros_is_the_nominal_grasp():
     zeros = noise_model_from_spec({"joints": {"sigma": 0.0}, "hand": {},
                                    "palm": {"translation_sigma": 0.0},
                                    "object": {"rotation_sigma": [0.0, 0.0, 0.0]}})
-    result = evaluate_grasp(grasp, zeros, 20, seed=1, engine="fast", return_draws=True)
+    result = evaluate_grasp(grasp, sigma=0.0, noise_model=zeros, n=20, seed=1, engine="fast")
     # every draw is the nominal one: the draws of sigma = 0 joint noise, bit for bit
-    _same_draws(result.draws, evaluate_grasp(grasp, JointNoise(0.0), 20, seed=1, engine="fast",
-                                             return_draws=True).draws)
+    _same_draws(result.draws, evaluate_grasp(grasp, sigma=0.0, n=20, seed=1,
+                                             engine="fast").draws)
     assert result.p_fc == 1.0 and np.all(result.draws.quality == result.draws.quality[0])
     assert result.q_mean == pytest.approx(grasp.q_nominal, rel=1e-4)  # the reference's Q
 
@@ -492,8 +510,8 @@ def test_env_takes_a_noise_model_as_an_option():
     g = env.grasp
     here = Grasp(g.object, env.q.copy(), g.palm_pose, g.points, g.normals, g.fingers, g.links,
                  g.q_nominal)
-    stats = evaluate_grasp(here, noise_model_from_spec(spec), 32, seed=info["draw_seed"],
-                           chunk=32, engine="fast")
+    stats = evaluate_grasp(here, sigma=0.0, noise_model=noise_model_from_spec(spec), n=32,
+                           seed=info["draw_seed"], engine="fast")
     assert reward == stats.p_fc == info["p_fc"]
     with pytest.raises(ValueError, match="noise_model or sigma/noise, not both"):
         env.reset(options={**task, "noise_model": spec, "sigma": 0.01})

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, make_engine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.palm_batch import (
     PalmJacobian,
@@ -21,9 +22,9 @@ from kinegrasp_env.montecarlo.palm_batch import (
     close_deltas,
     joint_covariance,
 )
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import default_hand_mount
 from kinegrasp_env.robot.kinematics import rotation_log
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.elbow import reachable_configurations, with_configuration
 from kinegrasp_env.world.grasps import shipped_grasps
 
@@ -77,7 +78,7 @@ def test_outcome_depends_on_the_palm_deviation_alone(grasp):
     rng = np.random.default_rng(3)
     q = np.tile(q0, (200, 1))
     q[:, :7] += 0.0233 * rng.standard_normal((200, 7))
-    engine = make_engine("fast", grasp.object)
+    engine = make_engine("fast", DEFAULT_ROBOT, grasp.object)
     try:
         direct = engine.run(q)
     finally:
@@ -97,8 +98,8 @@ def test_reweighted_p_fc_agrees_with_direct_draws(grasp):
     batch = close_batch(chosen[0][1], grasp.object, covs, 6000, seed=1)
     for (psi, q), cov in zip(chosen, covs, strict=True):
         est = batch.estimate(cov).p_fc
-        direct = evaluate_grasp(with_configuration(grasp, q, psi), JointNoise(sigma), 4000, 9,
-                                engine="fast")
+        direct = evaluate_grasp(with_configuration(grasp, q, psi), sigma=sigma, n=4000,
+                                seed=9, engine="fast")
         se_direct = np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000)
         bound = 4 * np.hypot(est.se, se_direct) + LINEAR_BIAS
         assert abs(est.value - direct.p_fc) <= bound, (psi, est, direct.p_fc)
@@ -150,7 +151,7 @@ def test_noise_model_of_joints_and_palm_reweights(grasp):
     cov = jac.covariance(q, joint_cov)[0] + palm_cov
     batch = close_batch(q, grasp.object, cov, 6000, seed=2)
     est = batch.estimate(cov).p_fc
-    direct = evaluate_grasp(grasp, model, 6000, 4, engine="fast")
+    direct = evaluate_grasp(grasp, sigma=0.0, noise_model=model, n=6000, seed=4, engine="fast")
     se_direct = np.sqrt(direct.p_fc * (1 - direct.p_fc) / 6000)
     assert abs(est.value - direct.p_fc) <= 4 * np.hypot(est.se, se_direct) + LINEAR_BIAS
     with pytest.raises(ValueError, match="not hand"):

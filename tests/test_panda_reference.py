@@ -10,7 +10,7 @@ import pytest
 
 from kinegrasp_env.closing.generic_reference import CONTACT_TOL
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, evaluate_grasp
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 from kinegrasp_env.world.grasps import Grasp, load_grasps, save_grasps
@@ -108,16 +108,16 @@ def test_jaws_stop_within_contact_tol_of_touching(grasps, engine):
 
 def test_sigma_zero_is_force_closure_on_planned_grasps(grasps, engine):
     for g in grasps:
-        r = evaluate_robot_grasp(g, sigma=0.0, n=3, seed=0, engine=engine)
+        r = evaluate_grasp(g, sigma=0.0, n=3, seed=0, engine=engine)
         assert r.p_fc == 1.0 and r.counts["force_closure"] == 3
         np.testing.assert_allclose(r.draws.quality, g.q_nominal, rtol=1e-9)
 
 
 def test_same_seed_same_result(grasps, engine):
     g = grasps[0]
-    a = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
-    b = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
-    c = evaluate_robot_grasp(g, sigma=0.0133, n=12, seed=6, engine=engine)
+    a = evaluate_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
+    b = evaluate_grasp(g, sigma=0.0133, n=12, seed=5, engine=engine)
+    c = evaluate_grasp(g, sigma=0.0133, n=12, seed=6, engine=engine)
     np.testing.assert_array_equal(a.draws.outcome, b.draws.outcome)
     np.testing.assert_array_equal(a.draws.quality, b.draws.quality)
     assert not np.array_equal(a.draws.quality, c.draws.quality)
@@ -126,7 +126,7 @@ def test_same_seed_same_result(grasps, engine):
 
 
 def test_noise_gives_sensible_outcomes(grasps, engine):
-    r = evaluate_robot_grasp(grasps[0], sigma=0.0133, n=20, seed=0, engine=engine)
+    r = evaluate_grasp(grasps[0], sigma=0.0133, n=20, seed=0, engine=engine)
     assert sum(r.counts.values()) == 20
     assert r.ci[0] <= r.p_fc <= r.ci[1]
     fc = r.draws.outcome == FORCE_CLOSURE
@@ -141,7 +141,7 @@ def test_grasp_file_records_its_robot(grasps, tmp_path):
     assert [g.robot for g in loaded] == ["panda"] * len(grasps)
     np.testing.assert_array_equal(loaded[0].q0, grasps[0].q0)
     with pytest.raises(ValueError, match="grasp of robot 'panda', not of 'kuka_sdh'"):
-        evaluate_robot_grasp(loaded[0], sigma=0.0, n=1, robot="kuka_sdh")
+        evaluate_grasp(loaded[0], sigma=0.0, n=1, robot="kuka_sdh")
     # a grasp file without a robot is the default robot's, and writes no robot field
     entry = {k: v for k, v in data["grasps"][0].items() if k != "robot"}
     with pytest.raises(ValueError, match="q0 must have 14 entries"):
@@ -248,21 +248,33 @@ def test_generic_closing_takes_any_description_robot():
             assert -GJK_TOL <= d.min() - radius <= CONTACT_TOL + 1e-5, (link, d.min() - radius)
 
 
-def test_the_default_robots_engines_refuse_another_robots_grasp():
-    """evaluate_grasp (the fast and reference engines of the default robot) refuses a Panda
-    grasp in one line naming both robots, before any draw."""
+def test_evaluate_grasp_takes_a_panda_grasp_with_every_kinematic_engine(grasps, engine):
+    """evaluate_grasp evaluates a Panda grasp with the fast and the reference engine by name
+    (each built for the grasp's own robot): at sigma 0 every planned grasp is in force
+    closure by both, the reference's nominal Q the planner's (which closed it with the same
+    reference closing); under noise the reference engine built by name draws and closes
+    exactly what the fixture's Panda reference engine does. A default-robot grasp labelled
+    'panda' (14 entries) is refused in one line before any draw."""
     import dataclasses
 
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.world.grasps import shipped_grasps
 
-    grasp = dataclasses.replace(shipped_grasps("cube")[0], robot="panda")
-    for engine in ("fast", "pybullet"):
-        with pytest.raises(ValueError, match=r"grasp of robot 'panda', not of 'kuka_sdh'; .*"
-                           r"evaluated by kinegrasp_env\.montecarlo\.robot_evaluate\."
-                           r"evaluate_robot_grasp"):
-            evaluate_grasp(grasp, JointNoise(0.01), 10, engine=engine)
+    for name in ("fast", "pybullet"):
+        for g in grasps:
+            r = evaluate_grasp(g, sigma=0.0, n=2, seed=0, engine=name)
+            assert r.counts["force_closure"] == 2 and r.q_nominal > 0, (name, g.id, r.counts)
+            if name == "pybullet":
+                assert r.q_nominal == pytest.approx(g.q_nominal, rel=1e-9)
+    by_name = evaluate_grasp(grasps[0], sigma=0.0133, n=12, seed=5, engine="pybullet")
+    given = evaluate_grasp(grasps[0], sigma=0.0133, n=12, seed=5, engine=engine)
+    np.testing.assert_array_equal(by_name.draws.outcome, given.draws.outcome)
+    np.testing.assert_array_equal(by_name.draws.quality, given.draws.quality)
+    relabelled = dataclasses.replace(shipped_grasps("cube")[0], robot="panda")
+    for name in ("fast", "pybullet"):
+        with pytest.raises(ValueError, match=r"q0 must have 8 entries \(7 arm \+ 1 hand\), "
+                                             r"got 14$") as refused:
+            evaluate_grasp(relabelled, sigma=0.01, n=10, engine=name)
+        assert "\n" not in str(refused.value)
 
 
 def test_shipped_grasp_sets_per_robot():

@@ -21,8 +21,8 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.contact_patch import PATCH_CORNERS
 from kinegrasp_env.montecarlo.description_engine import score_batch
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, make_engine
 from kinegrasp_env.montecarlo.patch_contacts import PatchContacts
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, make_engine
 from kinegrasp_env.quality.soft_contacts import contact_quality_batch, contact_wrenches
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.world.grasps import shipped_grasps

@@ -1,6 +1,6 @@
 """The physics closing of a hand whose fingers have several motors (the paper's hand, through
 the description robots' physics: :class:`~kinegrasp_env.physics.robot_hold.RobotHold`, its
-MuJoCo twin and :class:`~kinegrasp_env.montecarlo.robot_physics.RobotPhysicsEngine`):
+MuJoCo twin and :class:`~kinegrasp_env.montecarlo.physics_engine.RobotPhysicsEngine`):
 
 - the touch rule's switches (:class:`~kinegrasp_env.physics.hand_motors.TouchRule`) against
   GraspIt's rule worked by hand for the SDH (a touching proximal phalanx stops, the distal
@@ -24,8 +24,8 @@ import yaml
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
-from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, make_engine
+from kinegrasp_env.montecarlo.physics_engine import RobotPhysicsEngine
 from kinegrasp_env.physics.balanced_grip import grip_layout
 from kinegrasp_env.physics.hand_motors import (
     TouchRule,
@@ -193,7 +193,7 @@ def test_physics_engine_outcomes_agree_with_the_reference():
     reference = make_engine("pybullet", "kuka_sdh", "cube")
     same = total = 0
     for grasp in shipped_grasps("cube")[:3]:
-        a, b = (evaluate_robot_grasp(grasp, sigma=0.0133, n=20, seed=0, engine=engine)
+        a, b = (evaluate_grasp(grasp, sigma=0.0133, n=20, seed=0, engine=engine)
                 for engine in (physics, reference))
         same += int(np.sum(a.draws.outcome == b.draws.outcome))
         total += 20

@@ -19,9 +19,9 @@ import pytest
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, MISSED
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.montecarlo.evaluate import robot_configurations
 from kinegrasp_env.montecarlo.hold_engine import RobotHoldEngine
-from kinegrasp_env.montecarlo.robot_engines import make_engine
-from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
 from kinegrasp_env.physics import hold_runner
 from kinegrasp_env.physics.jaw_motors import finger_link_indices
 from kinegrasp_env.physics.motion import hand_path, lift_motion, moved, shake_motion, smoothstep

@@ -11,10 +11,10 @@ import pytest
 
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, POLISH_TOL, QUERY_DISTANCE
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.montecarlo.engines import PybulletEngine
-from kinegrasp_env.montecarlo.evaluate import chunk_noise
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
+from kinegrasp_env.montecarlo.engines import make_engine
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import default_description
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import grasp_by_index
 from kinegrasp_env.world.objects import load_object
 
@@ -88,8 +88,7 @@ def closed():
     (configurations, per draw (result, pybullet's joint values after it, the exact gap of
     each contact's link then))."""
     grasp = grasp_by_index("spray_flask", 2)
-    q = np.repeat(grasp.q0[None], 100, axis=0)
-    q[:, :7] += chunk_noise(JointNoise(0.0133), 102, 0, 100)
+    q = chunk_configurations(grasp.q0, 7, 0.0133, "gaussian", 102, 0, 100)
     out = []
     with RobotWorld(default_description(), load_object("spray_flask")) as world:
         fingers = world.description.fingers
@@ -151,7 +150,7 @@ def test_outcomes_as_pinned(closed):
     catches a change of the closing's outcomes, not an error (the outcomes are checked
     against pybullet's own queries in tests/test_agreement.py)."""
     q, _ = closed
-    engine = PybulletEngine("spray_flask")
+    engine = make_engine("pybullet", DEFAULT_ROBOT, "spray_flask")
     try:
         draws = engine.run(q)
     finally:

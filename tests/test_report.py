@@ -30,10 +30,8 @@ import trimesh
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
 from kinegrasp_env.cli import report as cli_report
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import FORCE_CLOSURE, MAX_CONTACTS, OUTCOMES, Engine
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, DrawBatch
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 from kinegrasp_env.quality.wrenches import tangent_basis
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
@@ -68,26 +66,22 @@ SPEC = ("joints: {sigma: 0.01, distribution: gaussian}\n"
         "hand: {spread_sigma: 0.01, closing_sigma: 0.02}\n"
         "object: {translation_sigma: 0.002, rotation_sigma: 0.01}\n"
         "friction: {distribution: uniform, low: 0.3, high: 0.7}\n")
-
-
-@pytest.fixture(scope="module")
-def run():
-    """A small fast-engine evaluation of cube grasp 0 with its draws."""
-    grasp = grasp_by_index("cube", 0)
-    return grasp, evaluate_grasp(grasp, JointNoise(0.02), SAMPLES, seed=3, engine="fast",
-                                 return_draws=True)
+#: The most contacts a default-robot closing makes (one per link of each finger's closing
+#: chain: 3 fingers x 2 links, the old engine's contact slots) and its hand joints.
+MAX_CONTACTS = sum(len(finger.links) for finger in load_robot(DEFAULT_ROBOT).fingers)
+HAND_DOF = load_robot(DEFAULT_ROBOT).model.dof - load_robot(DEFAULT_ROBOT).arm_dof
 
 
 @pytest.fixture(scope="module")
 def robot_run():
-    """The same evaluation by the every-robot path (the page's): cube grasp 0 of the default
-    robot, fast engine, with its draws."""
+    """A small fast-engine evaluation (the page's): cube grasp 0 of the default robot, with
+    its draws."""
     grasp = grasp_by_index("cube", 0)
-    return grasp, evaluate_robot_grasp(grasp, sigma=0.02, n=SAMPLES, seed=3, engine="fast")
+    return grasp, evaluate_grasp(grasp, sigma=0.02, n=SAMPLES, seed=3, engine="fast")
 
 
 def evaluation_page(grasp, runs, *, arms: int = 0, noise_spec=None, **kwargs) -> str:
-    """The page ``evaluate --report`` writes for ``runs`` ((sigma, RobotEvaluation) pairs) of
+    """The page ``evaluate --report`` writes for ``runs`` ((sigma, GraspEvaluation) pairs) of
     one grasp of the default robot, with the arm at the first run's first ``arms`` draws."""
     sigma, first = runs[0]
     drawn = first_arms(load_robot(DEFAULT_ROBOT), grasp, first, sigma, 3, "gaussian", arms)
@@ -203,7 +197,7 @@ def test_skeleton_follows_pybullets_link_frames(bullet_robot, model):
 def test_the_pages_arms_are_the_runs_first_draws(robot_run):
     """The arms a page draws (:func:`first_arms`, rebuilt from the seed's streams) are the
     run's first draws: the engine fed them gives the outcomes and Q the run recorded."""
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
 
     grasp, evaluation = robot_run
     arms = first_arms(load_robot(DEFAULT_ROBOT), grasp, evaluation, 0.02, 3, "gaussian", 12)
@@ -219,7 +213,7 @@ def test_the_pages_arms_are_the_runs_first_draws(robot_run):
 def _synthetic_draws(n: int, seed: int = 0) -> DrawBatch:
     """n draws, every one with MAX_CONTACTS contacts (the worst case for the page size)."""
     rng = np.random.default_rng(seed)
-    draws = Engine.empty_draws(n)
+    draws = DrawBatch.empty(n, MAX_CONTACTS, HAND_DOF)
     draws.outcome[:] = rng.integers(1, len(OUTCOMES), n)
     draws.quality[draws.outcome == FORCE_CLOSURE] = rng.gamma(2.0, 0.002, n)[
         draws.outcome == FORCE_CLOSURE]
@@ -246,12 +240,12 @@ def test_contact_cloud_keeps_every_point_or_a_uniform_subset():
     np.testing.assert_array_equal(again.points, part.points)
 
 
-def test_histogram_counts_every_force_closure_draw(run):
-    _, stats = run
+def test_histogram_counts_every_force_closure_draw(robot_run):
+    _, stats = robot_run
     quality = stats.draws.quality[stats.draws.outcome == FORCE_CLOSURE]
     figure = quality_histogram(quality, stats.q_mean, stats.q_nominal)
     bars = figure["data"][0]
-    assert sum(bars["y"]) == stats.outcomes["force_closure"] == quality.size
+    assert sum(bars["y"]) == stats.counts["force_closure"] == quality.size
     lines = [shape["x0"] for shape in figure["layout"]["shapes"]]
     assert lines == pytest.approx([quality.mean(), stats.q_nominal], rel=1e-12)
 
@@ -333,7 +327,7 @@ def test_report_command_with_several_sigmas(tmp_path, capsys):
     assert code == 0
     printed = json.loads(capsys.readouterr().out)
     for sigma, row in zip((0.01, 0.03), printed["runs"], strict=True):
-        stats = evaluate_grasp(grasp_by_index("cube", 0), JointNoise(sigma), 40, seed=5,
+        stats = evaluate_grasp(grasp_by_index("cube", 0), sigma=sigma, n=40, seed=5,
                                engine="fast")
         assert row["p_fc"] == stats.p_fc and row["sigma"] == sigma
     page = out.read_text()
@@ -448,7 +442,7 @@ def pages(tmp_path_factory, robot_run, elbow_run, spec_file):
     optimization, an evaluation under a noise model of four sources."""
     folder = tmp_path_factory.mktemp("pages")
     grasp, evaluation = robot_run
-    second = evaluate_robot_grasp(grasp, sigma=0.04, n=SAMPLES, seed=3, engine="fast")
+    second = evaluate_grasp(grasp, sigma=0.04, n=SAMPLES, seed=3, engine="fast")
     out = {"evaluate": folder / "evaluate.html", "sigmas": folder / "sigmas.html",
            "rank": folder / "rank.html", "elbow": folder / "elbow.html",
            "spec": folder / "spec.html"}
@@ -471,8 +465,8 @@ def pages(tmp_path_factory, robot_run, elbow_run, spec_file):
         command="kinegrasp elbow ...", settings={}))
     model = load_noise_model(spec_file)
     report.write_page(out["spec"], evaluation_page(
-        grasp, [(model.sigma, evaluate_robot_grasp(grasp, sigma=model.sigma, n=SAMPLES, seed=3,
-                                                   engine="fast", noise_model=model))],
+        grasp, [(model.sigma, evaluate_grasp(grasp, sigma=model.sigma, n=SAMPLES, seed=3,
+                                             engine="fast", noise_model=model))],
         noise_spec=spec_of(model)))
     return out
 
@@ -683,8 +677,8 @@ def test_elbow_page_shows_the_curve_and_both_elbows(elbow_run, bullet_robot):
     draws at that configuration gives those outcomes again, and each skeleton ends where
     pybullet's own forward kinematics puts the palm at that draw (independent FK); the two
     elbows' draws place the elbow link centimetres apart (the null space)."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
-    from kinegrasp_env.montecarlo.robot_evaluate import robot_configurations
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import robot_configurations
 
     client, body, joints, links = bullet_robot
     grasp, result = elbow_run
@@ -798,9 +792,10 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
                  "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     model = load_noise_model(spec_file)
-    stats = evaluate_grasp(grasp_by_index("cube", 1), model, 50, seed=2, engine="fast")
+    stats = evaluate_grasp(grasp_by_index("cube", 1), sigma=0.0, noise_model=model, n=50,
+                           seed=2, engine="fast")
     (run,) = printed["runs"]
-    assert run["outcomes"] == stats.outcomes and run["p_fc"] == stats.p_fc
+    assert run["outcomes"] == stats.counts and run["p_fc"] == stats.p_fc
     assert run["q_mean"] == pytest.approx(stats.q_mean, rel=1e-9)
     assert (run["noise"], run["noise_spec"]) == ("gaussian", str(spec_file))
     assert run["noise_model"]["friction"] == {"distribution": "uniform", "low": 0.3,
@@ -833,9 +828,9 @@ def test_report_with_a_per_joint_noise_spec(tmp_path, capsys):
     assert main(["report", "--object", "cube", "--noise-spec", str(spec), "--samples", "30",
                  "--engine", "fast", "--out", str(out), "--json"]) == 0
     (run,) = json.loads(capsys.readouterr().out)["runs"]
-    stats = evaluate_grasp(grasp_by_index("cube", 0), load_noise_model(spec), 30, seed=0,
-                           engine="fast")
-    assert run["p_fc"] == stats.p_fc and run["outcomes"] == stats.outcomes
+    stats = evaluate_grasp(grasp_by_index("cube", 0), sigma=0.0,
+                           noise_model=load_noise_model(spec), n=30, seed=0, engine="fast")
+    assert run["p_fc"] == stats.p_fc and run["outcomes"] == stats.counts
     assert f"--noise-spec {spec} --samples 30" in out.read_text()
 
 
@@ -908,7 +903,7 @@ def imported_page(tmp_path_factory):
         grasp = load_grasps(grasps)[0]
         assert main(["report", "--grasps", str(grasps), "--grasp", grasp.id, "--sigma", "0.01",
                      "--samples", "40", "--engine", "fast", "--out", str(page)]) == 0
-        stats = evaluate_grasp(grasp, JointNoise(0.01), 40, seed=0, engine="fast")
+        stats = evaluate_grasp(grasp, sigma=0.01, n=40, seed=0, engine="fast")
         vertices = np.asarray(load_object("report_box").mesh.vertices)
     return page, grasp, stats, vertices, grasps
 
@@ -919,7 +914,7 @@ def test_report_of_an_imported_objects_grasp_file(imported_page):
     page, grasp, stats, vertices, grasps = imported_page
     text = page.read_text()
     outcomes = _figures(text)["outcomes-0"]["data"][0]["x"]
-    assert outcomes == [stats.outcomes[name] for name in OUTCOMES]
+    assert outcomes == [stats.counts[name] for name in OUTCOMES]
     assert f'class="kg-pfc" data-grasp="{grasp.id}" data-value="{stats.p_fc!r}"' in text
     meshes = json.loads(re.search(r'id="kg-meshes">(.*?)</script>', text, re.S).group(1))
     np.testing.assert_allclose(decode_typed_array(meshes["object:report_box"]["v"])

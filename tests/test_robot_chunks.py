@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.cli import main
-from kinegrasp_env.montecarlo import robot_chunks
+from kinegrasp_env.montecarlo import chunks
 from kinegrasp_env.montecarlo.draws import DrawBatch
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
@@ -43,17 +43,17 @@ ELBOW_TOL = 1e-6
 @pytest.fixture(autouse=True)
 def _no_kept_engines():
     yield
-    robot_chunks.close_engines()
+    chunks.close_engines()
 
 
 def test_chunks_on_two_processes_are_the_run_row_for_row():
     grasp = shipped_grasps("cube", "panda")[0]
     options = dict(sigma=0.0133, n=530, seed=7, engine="fast", static_hold=True, friction=0.4)
-    inline = evaluate_robot_grasp(grasp, **options)
+    inline = evaluate_grasp(grasp, **options)
     reports = []
     with LocalExecutor(2) as executor:
-        pooled = evaluate_robot_grasp(grasp, **options, executor=executor,
-                                      progress=lambda done, n: reports.append((done, n)))
+        pooled = evaluate_grasp(grasp, **options, executor=executor,
+                                progress=lambda done, n: reports.append((done, n)))
     # one report per chunk as it comes back (chunks of 250: 250, 500, 530 of 530)
     assert reports == [(250, 530), (500, 530), (530, 530)]
     for f in fields(DrawBatch):
@@ -63,8 +63,26 @@ def test_chunks_on_two_processes_are_the_run_row_for_row():
         pooled.p_fc, pooled.counts, pooled.p_hold_static, pooled.mass)
     assert pooled.q_nominal == inline.q_nominal > 0
     with LocalExecutor(2) as executor, pytest.raises(ValueError, match="integer seed"):
-        evaluate_robot_grasp(grasp, **{**options, "seed": np.random.default_rng(0)},
-                             executor=executor)
+        evaluate_grasp(grasp, **{**options, "seed": np.random.default_rng(0)},
+                       executor=executor)
+
+
+def test_the_fast_engine_closes_several_chunks_a_task_and_the_same_rows():
+    """The fast engine's tasks span several chunks of the streams (its closing costs the same
+    per call, whatever the batch: 3,000 draws on two processes go in tasks of 750, each
+    worker still getting two), and the draws are the run's rows all the same."""
+    assert chunks.task_rows("fast", 3000, 2) == 750
+    assert chunks.task_rows("fast", 100_000, 2) == 10 * chunks.CHUNK
+    assert chunks.task_rows("pybullet", 100_000, 2) == chunks.CHUNK
+    grasp = shipped_grasps("cube", "panda")[1]
+    inline = evaluate_grasp(grasp, sigma=0.0133, n=3000, seed=3, engine="fast")
+    reports = []
+    with LocalExecutor(2) as executor:
+        pooled = evaluate_grasp(grasp, sigma=0.0133, n=3000, seed=3, engine="fast",
+                                executor=executor, progress=lambda done, n: reports.append(done))
+    assert reports == [750, 1500, 2250, 3000]
+    np.testing.assert_array_equal(pooled.draws.outcome, inline.draws.outcome)
+    np.testing.assert_array_equal(pooled.draws.quality, inline.draws.quality)
 
 
 def _candidates(tmp_path):
@@ -86,12 +104,12 @@ def test_a_run_with_progress_on_one_process_is_the_run_in_one_call():
     moments and nominal Q are bit for bit those of the same run closed in one engine call
     (another code path: the nominal row rides with the draws there)."""
     grasp = shipped_grasps("cube")[1]
-    whole = evaluate_robot_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast")
+    whole = evaluate_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast")
     seen = []
     with LocalExecutor(1) as executor:
-        chunked = evaluate_robot_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast",
-                                       executor=executor,
-                                       progress=lambda done, n: seen.append((done, n)))
+        chunked = evaluate_grasp(grasp, sigma=0.0133, n=600, seed=4, engine="fast",
+                                 executor=executor,
+                                 progress=lambda done, n: seen.append((done, n)))
     assert seen == [(250, 600), (500, 600), (600, 600)]
     assert chunked.counts == whole.counts
     for name in ("q_mean", "q_std", "q_skew", "q_nominal"):

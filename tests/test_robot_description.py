@@ -598,7 +598,7 @@ def test_the_fingertip_centres_are_pybullets_bounding_box_centres():
     frame: the Panda's hand is axis-aligned with the world at its arm's zero pose, so both
     boxes are the same box (pybullet's collision margin widens it evenly). 1e-6 m: 1.6e-9
     measured."""
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
     from kinegrasp_env.robot.hand_frame import hand_frame
 
     panda = load_robot("panda")

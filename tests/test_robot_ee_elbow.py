@@ -11,7 +11,7 @@ import pytest
 
 from kinegrasp_env.cli import main
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine, evaluate_robot_grasp
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine, evaluate_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.world.grasps import shipped_grasps
@@ -207,18 +207,18 @@ def test_panda_best_angle_is_reported_on_fresh_draws(panda_elbow):
     grasp, _, result, engine = panda_elbow
     best = max(result.curve, key=lambda p: p.p_fc)
     assert result.best_psi == best.psi and result.engine == "pybullet"
-    again = evaluate_robot_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=7,
-                                 offset=250, engine=engine)
+    again = evaluate_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=7,
+                           offset=250, engine=engine)
     assert result.best_p_fc == again.p_fc
     assert np.array_equal(best.fresh_fc, again.draws.outcome == FORCE_CLOSURE)
-    selection = evaluate_robot_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=7,
-                                     engine=engine)
+    selection = evaluate_grasp(replace(grasp, q0=best.q), sigma=SIGMA, n=30, seed=7,
+                               engine=engine)
     assert best.p_fc == selection.p_fc
     assert np.array_equal(best.fc, selection.draws.outcome == FORCE_CLOSURE)
     # the two streams differ draw by draw at every angle (measured: 6 to 15 of 30 draws)
     assert all((p.fc != p.fresh_fc).sum() >= 2 for p in result.curve)
-    nominal = evaluate_robot_grasp(grasp, sigma=SIGMA, n=30, seed=7, offset=250,
-                                   engine=engine)
+    nominal = evaluate_grasp(grasp, sigma=SIGMA, n=30, seed=7, offset=250,
+                             engine=engine)
     assert result.nominal_p_fc == nominal.p_fc
     cert = result.certificate.to_json()
     assert cert["chosen_psi"] == result.best_psi and cert["fresh_draws"] == 30
@@ -254,11 +254,12 @@ def test_the_default_robots_elbow_search_against_its_analytic_ik_and_own_draws()
     of the run's streams) walks every angle, and only those, that the default robot's arm
     reaches along its analytic self-motion (``toolkit.elbow.ArmWalk``, another solver:
     configurations within 1.1e-8 rad measured, 1e-7 allowed), and scores each on the
-    draws of the default engine's own chunked evaluation (``draw_chunk``, another path to
-    the same run): selection chunk 0, fresh chunk 1 of the seed. A draw within 1e-7 rad of
-    a force-closure boundary may differ: at most one per angle allowed, none measured."""
+    draws of the run's rows closed by the default fast engine directly (rows of the seed's
+    streams, ``chunk_configurations``): selection rows 0.., fresh rows 250.. of the seed. A
+    draw within 1e-7 rad of a force-closure boundary may differ: at most one per angle
+    allowed, none measured."""
+    from kinegrasp_env.montecarlo.chunks import CHUNK, chunk_configurations
     from kinegrasp_env.montecarlo.engines import make_engine
-    from kinegrasp_env.montecarlo.evaluate import draw_chunk
     from kinegrasp_env.toolkit.elbow import reachable_configurations
     from kinegrasp_env.toolkit.elbow_search import (
         optimize_robot_elbow,
@@ -277,11 +278,12 @@ def test_the_default_robots_elbow_search_against_its_analytic_ik_and_own_draws()
     result = optimize_robot_elbow(grasp, noise, 60, seed=3, evaluate_with="fast",
                                   reach=walked)
     analytic = dict(analytic)
-    engine = make_engine("fast", "cube")
+    engine = make_engine("fast", "kuka_sdh", "cube")
     for point in result.curve:
         q = analytic[min(analytic, key=lambda psi: abs(psi - point.psi))]
         assert np.abs(point.q - q).max() < 1e-7
-        fc = [draw_chunk(engine, q, noise, 3, chunk, 60).outcome == FORCE_CLOSURE
+        fc = [engine.run(chunk_configurations(q, 7, SIGMA, "gaussian", 3, chunk * CHUNK,
+                                              60)).outcome == FORCE_CLOSURE
               for chunk in (0, 1)]
         assert (point.fc != fc[0]).sum() <= 1 and (point.fresh_fc != fc[1]).sum() <= 1
         assert (fc[0] != fc[1]).any()  # the fresh draws are other draws

@@ -18,10 +18,10 @@ from kinegrasp_env.world.grasps import shipped_grasps
 def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
     """The grasp evaluated at --elbow PSI is the shipped one with its arm moved: the palm
     pose by forward kinematics equal to 1e-9, the elbow angle PSI; its draws are those of
-    evaluate_robot_grasp at that configuration (the same numbers); an unreachable angle is
+    evaluate_grasp at that configuration (the same numbers); an unreachable angle is
     one line; --plot writes a PNG."""
     from kinegrasp_env.cli.evaluation import robot_grasp_at_elbow
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     grasp = shipped_grasps("cube", "panda")[0]
     moved = robot_grasp_at_elbow(grasp, "panda", "0.4")
@@ -36,8 +36,8 @@ def test_elbow_moves_the_arm_and_keeps_the_palm(capsys, tmp_path):
             "0.0133", "--samples", "60", "--json", "--engine", "fast"]
     assert main([*args, "--elbow", "0.4", "--plot", str(png)]) == 0
     shown = json.loads(capsys.readouterr().out)
-    direct = evaluate_robot_grasp(moved, sigma=0.0133, n=60, seed=0, robot="panda",
-                                  engine="fast")
+    direct = evaluate_grasp(moved, sigma=0.0133, n=60, seed=0, robot="panda",
+                            engine="fast")
     assert shown["p_fc"] == direct.p_fc and shown["outcomes"] == direct.counts
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main([*args, "--elbow", "3.0"]) == 2
@@ -162,22 +162,22 @@ def test_draws_from_an_offset_are_those_rows_of_the_run():
     same engine); a Generator, which has no rows, is refused with an offset."""
     import pytest
 
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.montecarlo.execution import LocalExecutor
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 
     grasp = shipped_grasps("cube", "panda")[0]
-    whole = evaluate_robot_grasp(grasp, sigma=0.02, n=280, seed=5, engine="fast")
+    whole = evaluate_grasp(grasp, sigma=0.02, n=280, seed=5, engine="fast")
     tail = whole.draws.quality[250:280]
-    part = evaluate_robot_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250, engine="fast")
+    part = evaluate_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250, engine="fast")
     np.testing.assert_array_equal(part.draws.quality, tail)
     with LocalExecutor(2) as executor:
-        chunked = evaluate_robot_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250,
-                                       engine="fast", executor=executor)
+        chunked = evaluate_grasp(grasp, sigma=0.02, n=30, seed=5, offset=250,
+                                 engine="fast", executor=executor)
     np.testing.assert_array_equal(chunked.draws.quality, tail)
     assert (part.draws.quality != whole.draws.quality[:30]).any()  # other draws
     with pytest.raises(ValueError, match="offset > 0 take an integer or SeedSequence"):
-        evaluate_robot_grasp(grasp, sigma=0.02, n=3, seed=np.random.default_rng(0),
-                             offset=250, engine="fast")
+        evaluate_grasp(grasp, sigma=0.02, n=3, seed=np.random.default_rng(0),
+                       offset=250, engine="fast")
 
 
 def test_a_plot_of_no_contact_says_so(tmp_path, capsys, recwarn):
@@ -191,3 +191,139 @@ def test_a_plot_of_no_contact_says_so(tmp_path, capsys, recwarn):
     assert json.loads(capsys.readouterr().out)["outcomes"]["force_closure"] == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [w for w in recwarn if "No artists with labels" in str(w.message)]
+
+
+def test_antithetic_draws_are_pairs_of_opposite_joint_errors():
+    """``method="antithetic"`` (every robot): rows 2i and 2i+1 of each chunk's joint errors are
+    negatives of each other (the sampler's defining property, checked on the configurations
+    the evaluation closes), and rows from an offset are those rows of the whole run."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, evaluation_rows
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    with make_engine("fast", "panda", "cube") as engine:
+        q, _ = evaluation_rows(grasp, engine, sigma=0.02, n=300, seed=4, method="antithetic")
+    eps = q[:, :7] - grasp.q0[:7]
+    for start, stop in ((0, 250), (250, 300)):  # each chunk of the streams pairs its own rows
+        np.testing.assert_allclose(eps[start:stop:2], -eps[start + 1:stop:2], rtol=0,
+                                   atol=1e-15)
+    assert np.abs(eps).max() > 0.01
+    with make_engine("fast", "panda", "cube") as engine:
+        tail, _ = evaluation_rows(grasp, engine, sigma=0.02, n=150, seed=4, offset=150,
+                                  method="antithetic")
+    np.testing.assert_array_equal(tail, q[150:300])
+    with pytest.raises(ValueError, match="method must be one of mc, antithetic, sobol"):
+        evaluate_grasp(grasp, sigma=0.02, n=10, seed=4, method="halton", engine="fast")
+
+
+def test_sobol_draws_fill_every_stratum_once_in_process_and_in_chunks():
+    """``method="sobol"``: 128 scrambled Sobol points put exactly one point of each joint's
+    error in each of 128 equal-probability bins of its Gaussian (a (0, 7, d)-net property,
+    checked against scipy's normal CDF); the evaluation closes those rows, the same draws in
+    one process and in chunks on two."""
+    from scipy.stats import norm
+
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, evaluation_rows
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+
+    grasp, sigma = shipped_grasps("cube", "panda")[0], 0.02
+    with make_engine("fast", "panda", "cube") as engine:
+        q, _ = evaluation_rows(grasp, engine, sigma=sigma, n=128, seed=6, method="sobol")
+        closed = engine.run(q)
+    bins = np.floor(128 * norm.cdf((q[:, :7] - grasp.q0[:7]) / sigma)).astype(int)
+    for joint in range(7):
+        np.testing.assert_array_equal(np.sort(bins[:, joint]), np.arange(128))
+    here = evaluate_grasp(grasp, sigma=sigma, n=128, seed=6, method="sobol", engine="fast")
+    np.testing.assert_array_equal(here.draws.quality, closed.quality)
+    with LocalExecutor(2) as executor:
+        chunked = evaluate_grasp(grasp, sigma=sigma, n=128, seed=6, method="sobol",
+                                 engine="fast", executor=executor, progress=lambda *_: None)
+    np.testing.assert_array_equal(chunked.draws.quality, closed.quality)
+
+
+def test_a_run_in_chunks_builds_the_given_engines_settings():
+    """A given engine's quality settings (here 3 cone edges instead of 8) reach the workers of
+    a run in chunks: the same draws as the engine gives in this process, not the default
+    engine's."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    with make_engine("fast", "panda", "cube", num_edges=3) as coarse:
+        here = evaluate_grasp(grasp, sigma=0.02, n=300, seed=2, engine=coarse)
+        with LocalExecutor(2) as executor:
+            chunked = evaluate_grasp(grasp, sigma=0.02, n=300, seed=2, engine=coarse,
+                                     executor=executor)
+    default = evaluate_grasp(grasp, sigma=0.02, n=300, seed=2, engine="fast")
+    np.testing.assert_array_equal(chunked.draws.quality, here.draws.quality)
+    assert chunked.q_nominal == here.q_nominal
+    assert (default.draws.quality != here.draws.quality).any()  # the setting matters
+
+
+def test_engine_input_errors_are_one_line_before_any_closing():
+    """An engine refuses a bad quality setting when it is built, names the first non-finite
+    entry of a batch, and the physics engine (one simulated mu) refuses per-draw mu."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+
+    with pytest.raises(ValueError, match="num_edges"):
+        make_engine("fast", "panda", "cube", num_edges=2)
+    with pytest.raises(ValueError, match="friction must be finite"):
+        make_engine("pybullet", "panda", "cube", friction=-1.0)
+    grasp = shipped_grasps("cube", "panda")[0]
+    q = np.repeat(grasp.q0[None], 3, axis=0)
+    q[2, 4] = np.inf
+    with make_engine("fast", "panda", "cube") as engine, pytest.raises(
+            ValueError, match=r"configuration 2 is not finite: joint 4 = inf \(1 of 3"):
+        engine.run(q)
+    with make_engine("physics", "panda", "cube") as physics, pytest.raises(
+            ValueError, match="takes joint and hand noise only, not friction errors"):
+        physics.run(grasp.q0[None], friction=np.array([0.3]))
+
+
+def test_evaluate_grasp_refuses_what_it_cannot_run_in_one_line():
+    """Bad arguments of the evaluation are refused before any closing, naming the value: an
+    engine that is not one ``make_engine`` builds (a holding test's engine: a run in chunks
+    would rebuild another engine by its name), an executor or progress of another type, no
+    sigma without a noise model; with a noise model, sigma is not needed."""
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
+    from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
+    from kinegrasp_env.sampling.noise_model import JointsSource, NoiseModel
+
+    grasp = shipped_grasps("cube", "panda")[0]
+    with quick_hold_engine("panda", "cube") as hold, pytest.raises(
+            ValueError, match="an engine make_engine builds, got RobotHoldEngine"):
+        evaluate_grasp(grasp, sigma=0.01, n=3, engine=hold)
+    for kwargs, words in (({"executor": 4}, "executor must be an Executor"),
+                          ({"progress": True}, "progress must be a function"),
+                          ({"engine": None}, "engine must be a name")):
+        with pytest.raises(ValueError, match=words):
+            evaluate_grasp(grasp, sigma=0.01, n=3, **kwargs)
+    with pytest.raises(ValueError, match=r"sigma \(radians\) or a noise_model"):
+        evaluate_grasp(grasp, n=3, engine="fast")
+    model = NoiseModel(joints=JointsSource(0.02))
+    seen = []
+    by_model = evaluate_grasp(grasp, n=40, seed=1, noise_model=model, engine="fast",
+                              progress=lambda done, n: seen.append((done, n)))
+    by_sigma = evaluate_grasp(grasp, sigma=0.02, n=40, seed=1, engine="fast")
+    np.testing.assert_array_equal(by_model.draws.quality, by_sigma.draws.quality)
+    assert seen == [(40, 40)]  # in one process: once, at the end
+
+
+def test_an_engines_options_are_its_settings_off_the_defaults():
+    """``options()`` names only what differs from the defaults (a given engine with default
+    settings shares a worker's engine by name), and the engine's own settings are checked
+    when it is built."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+
+    with make_engine("fast", "panda", "cube") as plain:
+        assert plain.options() == {}
+    with make_engine("fast", "panda", "cube", num_edges=np.int64(6), max_contacts=4) as set_:
+        assert set_.options() == {"num_edges": 6, "max_contacts": 4}
+        assert type(set_.options()["num_edges"]) is int
+    for kwargs, words in (({"max_contacts": 0}, "max_contacts must be an integer >= 1"),
+                          ({"finger_radius": -1.0}, "finger_radius must be a length"),
+                          ({"finger_radius": float("nan")}, "finger_radius must be a length")):
+        with pytest.raises(ValueError, match=words):
+            make_engine("fast", "panda", "cube", **kwargs)

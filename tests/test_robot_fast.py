@@ -12,7 +12,7 @@ import pytest
 
 from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, START_COLLISION
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, make_engine
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
@@ -117,26 +117,26 @@ def test_exact_distance_against_pybullet(draws, engines):
 def test_sigma_zero_is_force_closure_on_both_engines(grasps, engines):
     for engine in engines:
         for g in grasps:
-            r = evaluate_robot_grasp(g, sigma=0.0, n=2, seed=0, engine=engine)
+            r = evaluate_grasp(g, sigma=0.0, n=2, seed=0, engine=engine)
             assert r.p_fc == 1.0, (engine.name, g.id, r.counts)
 
 
 def test_rank_intervals_overlap(grasps, engines):
     for g in grasps:
-        a, b = (evaluate_robot_grasp(g, sigma=SIGMA, n=300, seed=0, engine=e) for e in engines)
+        a, b = (evaluate_grasp(g, sigma=SIGMA, n=300, seed=0, engine=e) for e in engines)
         assert a.ci[0] <= b.ci[1] and b.ci[0] <= a.ci[1], (g.id, a.ci, b.ci)
 
 
 def test_engine_by_name_and_bad_name(grasps):
-    r = evaluate_robot_grasp(grasps[0], sigma=0.0, n=1, engine="fast")
+    r = evaluate_grasp(grasps[0], sigma=0.0, n=1, engine="fast")
     assert r.p_fc == 1.0
     with pytest.raises(ValueError, match="engine must be one of"):
-        evaluate_robot_grasp(grasps[0], sigma=0.0, n=1, engine="mujoco")
+        evaluate_grasp(grasps[0], sigma=0.0, n=1, engine="mujoco")
 
 
 def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
     """``rank --engine fast`` and ``evaluate --engine fast`` of the Panda's grasps print the
-    P(FC) that evaluate_robot_grasp gives; ``--engine physics`` is refused in one line."""
+    P(FC) that evaluate_grasp gives; ``--engine physics`` is refused in one line."""
     from kinegrasp_env.cli import main
     from kinegrasp_env.world.grasps import save_grasps
 
@@ -147,7 +147,7 @@ def test_cli_rank_and_evaluate_take_the_fast_engine(grasps, tmp_path, capsys):
                  "fast", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     for g in grasps[:2]:
-        expected = evaluate_robot_grasp(g, sigma=SIGMA, n=40, seed=0, engine="fast")
+        expected = evaluate_grasp(g, sigma=SIGMA, n=40, seed=0, engine="fast")
         assert f"{expected.p_fc:.3f}" in printed
     with open(out, newline="") as handle:
         assert {row["engine"] for row in csv.DictReader(handle)} == {"fast"}

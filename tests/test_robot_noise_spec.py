@@ -18,13 +18,9 @@ What each test proves:
   maps the links) agree on noisy draws of every source at once;
 * a joints-only spec draws what ``--sigma`` draws; a fixed friction source scores as
   ``--friction`` does; a run on two worker processes draws the run's rows;
-* the hand source offsets the pre-shape as the SDH's own code does: the default robot run
-  as a description (``kuka_sdh.yaml``), fed the SDH engine's own standard normals, gets the
-  configurations of the SDH's hand-noise code (joint names hard-coded there, derived from
-  the description here) to 1e-15 rad, clipping included; its P(FC) under a hand source
-  agrees with the SDH engine's on draws of their own within 3 combined standard errors; the
-  Panda's one finger motor takes one offset, within its limits, and adding the source leaves
-  the arm's draws as they were;
+* the hand source: the Panda's one finger motor takes one offset, within its limits, and
+  adding the source leaves the arm's draws as they were (the SDH's layout, hard-coded, is
+  checked in test_noise_model.py and test_draw_streams.py);
 * what a robot cannot take is one line each.
 """
 
@@ -39,9 +35,9 @@ import pytest
 from kinegrasp_env.cli import main
 from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.closing.generic_reference import RobotWorld
-from kinegrasp_env.montecarlo import robot_chunks
+from kinegrasp_env.montecarlo import chunks
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.sampling.noise_model import offset_transforms
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
@@ -107,35 +103,35 @@ def test_an_object_error_is_the_object_placed_at_its_true_pose(panda):
 def test_the_engines_agree_on_every_source(panda):
     _, _, grasp = panda
     model = noise_model_from_spec(EVERY_SOURCE)
-    fast = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
-                                noise_model=model)
-    reference = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="pybullet",
-                                     noise_model=model)
+    fast = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+                          noise_model=model)
+    reference = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="pybullet",
+                               noise_model=model)
     same = fast.draws.outcome == reference.draws.outcome
     assert same.mean() >= 0.99, same.mean()  # 200 of 200 measured
     assert fast.counts["start_collision"] > 0 and fast.counts["force_closure"] > 0
     # the source changes the draws: without palm and object errors P(FC) differs
     joints = noise_model_from_spec({"joints": EVERY_SOURCE["joints"]})
-    alone = evaluate_robot_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
-                                 noise_model=joints)
+    alone = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+                           noise_model=joints)
     assert alone.counts != fast.counts
 
 
 def test_joints_and_friction_specs_draw_what_the_options_draw(panda):
     _, _, grasp = panda
     options = dict(n=150, seed=2, engine="fast")
-    plain = evaluate_robot_grasp(grasp, sigma=0.0133, friction=0.3, **options)
+    plain = evaluate_grasp(grasp, sigma=0.0133, friction=0.3, **options)
     spec = noise_model_from_spec({"joints": {"sigma": 0.0133},
                                   "friction": {"distribution": "fixed", "value": 0.3}})
-    specified = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=spec, **options)
+    specified = evaluate_grasp(grasp, sigma=0.0, noise_model=spec, **options)
     assert plain.counts == specified.counts
     np.testing.assert_array_equal(plain.draws.quality, specified.draws.quality)
     model = noise_model_from_spec(EVERY_SOURCE)
-    inline = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=model, **options)
+    inline = evaluate_grasp(grasp, sigma=0.0, noise_model=model, **options)
     with LocalExecutor(2) as executor:
-        pooled = evaluate_robot_grasp(grasp, sigma=0.0, noise_model=model, executor=executor,
-                                      **options)
-    robot_chunks.close_engines()
+        pooled = evaluate_grasp(grasp, sigma=0.0, noise_model=model, executor=executor,
+                                **options)
+    chunks.close_engines()
     np.testing.assert_array_equal(inline.draws.quality, pooled.draws.quality)
     np.testing.assert_array_equal(inline.draws.points, pooled.draws.points)
 
@@ -182,7 +178,7 @@ def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
 
 
 def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys):
-    """A sweep cell of a noise model is ``evaluate_robot_grasp`` with that model and the
+    """A sweep cell of a noise model is ``evaluate_grasp`` with that model and the
     cell's sigma as its joints' (the sweep's chunks are rows of the same streams)."""
     import csv
 
@@ -193,9 +189,9 @@ def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys)
                                 "seed": 3, "robot": "panda", "noise": [model]}))
     assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 0
     capsys.readouterr()
-    robot_chunks.close_engines()
+    chunks.close_engines()
     row = next(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
-    expected = evaluate_robot_grasp(
+    expected = evaluate_grasp(
         shipped_grasps("cube", "panda")[0], sigma=0.0, n=120, seed=3, engine="fast",
         noise_model=noise_model_from_spec({**model, "joints": {"sigma": 0.01}}))
     assert int(row["force_closure"]) == expected.counts["force_closure"]
@@ -211,7 +207,7 @@ def test_report_of_a_robot_takes_a_spec_and_processes(tmp_path, capsys):
                  "--noise-spec", str(spec), "--samples", "60", "--engine", "fast",
                  "--processes", "2", "--out", str(tmp_path / "r.html"), "--json"]) == 0
     runs = json.loads(capsys.readouterr().out)["runs"]
-    robot_chunks.close_engines()
+    chunks.close_engines()
     for index, run in enumerate(runs):
         assert main(["evaluate", "--robot", "panda", "--object", "cube", "--grasp", str(index),
                      "--noise-spec", str(spec), "--samples", "60", "--engine", "fast",
@@ -220,42 +216,8 @@ def test_report_of_a_robot_takes_a_spec_and_processes(tmp_path, capsys):
         assert run["p_fc"] == shown["p_fc"] and run["outcomes"] == shown["outcomes"]
 
 
-HAND = {"hand": {"spread_sigma": 0.3, "closing_sigma": [0.05, 0.1, 0.15]}}
-
-
-def test_the_sdh_description_offsets_its_pre_shape_as_the_sdh_does():
-    from kinegrasp_env.montecarlo.evaluate import chunk_draws
-    from kinegrasp_env.montecarlo.perturbation import configurations
-    from kinegrasp_env.montecarlo.robot_noise import hand_offsets, with_hand
-
-    description = load_robot("kuka_sdh")
-    model = noise_model_from_spec(HAND)
-    q0 = np.asarray(shipped_grasps("cube")[0].q0, dtype=float)
-    draws = chunk_draws(model, 3, [(0, 400)])  # the SDH engine's own draws
-    own = configurations(q0, draws)
-    z = draws.hand / np.array([0.3, 0.05, 0.1, 0.15])
-    mine = with_hand(np.repeat(q0[None], 400, axis=0), hand_offsets(z, model.hand, description),
-                     description)
-    np.testing.assert_allclose(mine, own, rtol=0, atol=1e-15)
-    at_limit = (np.isclose(mine[:, 7:], description.model.upper[7:])
-                | np.isclose(mine[:, 7:], description.model.lower[7:]))
-    assert at_limit.any()  # the clipping is compared too
-
-
-@pytest.mark.parametrize(("obj", "index"), [("cube", 0), ("spray_flask", 4)])
-def test_hand_noise_of_the_sdh_description_agrees_with_its_own_engine(obj, index):
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-
-    grasp, model, n = shipped_grasps(obj)[index], noise_model_from_spec(HAND), 2000
-    own = evaluate_grasp(grasp, model, n, 0, engine="fast").p_fc
-    mine = evaluate_robot_grasp(grasp, sigma=0.0, n=n, seed=0, engine="fast",
-                                noise_model=model).p_fc
-    se = np.hypot(np.sqrt(own * (1 - own) / n), np.sqrt(mine * (1 - mine) / n))
-    assert own < 0.97 and abs(own - mine) <= 3 * se, (own, mine)  # 1.0 without the source
-
-
 def test_the_pandas_one_finger_motor_takes_one_offset_within_its_limits(panda):
-    from kinegrasp_env.montecarlo.robot_noise import hand_layout, model_rows
+    from kinegrasp_env.montecarlo.noise_rows import hand_layout, model_rows
 
     description, obj, grasp = panda
     assert hand_layout(description).tolist() == [0]  # one motor, finger 0's offset
@@ -291,7 +253,7 @@ def test_the_holding_test_takes_a_joints_and_hand_spec(tmp_path, capsys):
 def test_a_hand_source_is_checked_against_the_description_given(panda):
     """A description outside the catalog (the Panda renamed) is checked as given, not looked
     up by its name: a closing sigma passes, a spread sigma is refused naming it."""
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
 
     description = dataclasses.replace(panda[0], name="mypanda")
     check_robot_noise(noise_model_from_spec({"hand": {"closing_sigma": 0.002}}), description,
@@ -308,7 +270,7 @@ def test_a_six_joint_arms_joint_spec_draws_its_covariance_and_bias():
     errors: 5 sigma / sqrt(n) for a mean, 5 sqrt(2 / n) times the variance scale for a
     covariance entry); per-joint sigmas give per-column standard deviations; seven values
     for a six-joint arm are refused in one line naming both counts."""
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, joint_rows
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise, joint_rows
     from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
     rng = np.random.default_rng(3)
@@ -336,15 +298,14 @@ def test_a_six_joint_arms_joint_spec_draws_its_covariance_and_bias():
 
 
 def test_the_library_refuses_other_closing_sigmas_before_any_chunk():
-    """``evaluate_grasp`` (the default robot's library path) checks a hand source's closing
-    sigmas against the default robot's three fingers before any chunk runs: two sigmas were
-    refused only inside the chunk workers, after the pool had started."""
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-    from kinegrasp_env.world.grasps import shipped_grasps
-
+    """``evaluate_grasp`` checks a hand source's closing sigmas against the default robot's
+    three fingers before any chunk runs (on two worker processes): two sigmas were refused
+    only inside the chunk workers, after the pool had started."""
     model = noise_model_from_spec({"joints": {"sigma": 0.01},
                                    "hand": {"closing_sigma": [0.01, 0.02]}})
-    with pytest.raises(ValueError, match="robot 'kuka_sdh' has 3 fingers") as info:
-        evaluate_grasp(shipped_grasps("cube")[0], model, 8, processes=2, engine="fast")
+    with LocalExecutor(2) as executor:
+        with pytest.raises(ValueError, match="robot 'kuka_sdh' has 3 fingers") as info:
+            evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, noise_model=model, n=8,
+                           engine="fast", executor=executor)
+        assert executor._pool is None  # no worker process was started
     assert "\n" not in str(info.value)

@@ -127,10 +127,10 @@ def test_validate_robot_refusals(capsys, tmp_path):
 
 
 def test_validate_draws_are_evaluates_draws(capsys, tmp_path):
-    """Validate's kinematic outcomes and Q per draw equal ``evaluate_robot_grasp``'s with the
+    """Validate's kinematic outcomes and Q per draw equal ``evaluate_grasp``'s with the
     same seed and sigma (the draws of ``kinegrasp evaluate --robot``)."""
     from kinegrasp_env.montecarlo.draws import OUTCOMES
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 
     grasp = shipped_grasps("drill", "panda")[0]
     path = tmp_path / "drill.json"
@@ -141,7 +141,7 @@ def test_validate_draws_are_evaluates_draws(capsys, tmp_path):
     out, err = capsys.readouterr()
     assert status == 0, err
     rows = (tmp_path / "out" / "draws.csv").read_text().splitlines()[1:]
-    reference = evaluate_robot_grasp(grasp, sigma=0.01, n=3, seed=4).draws
+    reference = evaluate_grasp(grasp, sigma=0.01, n=3, seed=4).draws
     assert [r.split(",")[4] for r in rows] == [OUTCOMES[k] for k in reference.outcome]
     np.testing.assert_allclose([float(r.split(",")[5]) for r in rows], reference.quality,
                                rtol=1e-5)

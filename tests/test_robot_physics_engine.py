@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from kinegrasp_env.cli.main import main
-from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, evaluate_robot_grasp, make_engine
-from kinegrasp_env.montecarlo.robot_physics import RobotPhysicsEngine
+from kinegrasp_env.montecarlo.evaluate import ENGINES, evaluate_grasp, make_engine
+from kinegrasp_env.montecarlo.physics_engine import RobotPhysicsEngine
 from kinegrasp_env.world.grasps import shipped_grasps
 from tests.test_robot_physics import POINT_TOL
 
@@ -41,8 +41,8 @@ def test_the_engine_by_name():
 def test_sigma_zero_force_closure_and_contacts(engines):
     physics, reference = engines
     for g in shipped_grasps("cube", "panda"):
-        a = evaluate_robot_grasp(g, sigma=0.0, n=1, engine=physics)
-        b = evaluate_robot_grasp(g, sigma=0.0, n=1, engine=reference)
+        a = evaluate_grasp(g, sigma=0.0, n=1, engine=physics)
+        b = evaluate_grasp(g, sigma=0.0, n=1, engine=reference)
         assert a.p_fc == b.p_fc == 1.0, g.id
         assert physics.hold.world.pin is None  # the object was free while the hand closed
         assert np.array_equal(a.draws.finger, b.draws.finger)
@@ -57,7 +57,7 @@ def test_sigma_zero_force_closure_and_contacts(engines):
 def test_outcomes_agree_on_the_same_draws(engines):
     same = total = 0
     for g in shipped_grasps("cube", "panda"):
-        a, b = (evaluate_robot_grasp(g, sigma=SIGMA, n=DRAWS, seed=SEED, engine=e)
+        a, b = (evaluate_grasp(g, sigma=SIGMA, n=DRAWS, seed=SEED, engine=e)
                 for e in engines)
         same += int((a.draws.outcome == b.draws.outcome).sum())
         total += DRAWS
@@ -70,28 +70,17 @@ def test_cli_evaluate_takes_the_physics_engine(capsys):
                  "--sigma", str(SIGMA), "--samples", "10", "--engine", "physics",
                  "--json"]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    expected = evaluate_robot_grasp(g, sigma=SIGMA, n=10, seed=0, engine="physics")
+    expected = evaluate_grasp(g, sigma=SIGMA, n=10, seed=0, engine="physics")
     assert result["robot"] == "panda" and result["samples"] == 10
     assert result["p_fc"] == expected.p_fc and result["outcomes"] == expected.counts
 
 
 def test_the_default_robots_physics_is_every_robots():
     """The default robot's physics engine by name is every robot's
-    (``RobotPhysicsEngine``: its description's motors), and ``evaluate_robot_grasp`` and the
-    14-entry library path ``evaluate_grasp`` (its draws built by other code,
-    :func:`~kinegrasp_env.montecarlo.evaluate.chunk_configurations`) give the same P(FC),
-    outcome counts, Q moments and nominal Q on the same seed."""
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
-
+    (``RobotPhysicsEngine``: its description's motors), and at sigma 0 every draw is the
+    nominal closing (the same Q as the evaluation's nominal Q)."""
     grasp = shipped_grasps("spray_flask")[4]
     with make_engine("physics", "kuka_sdh", "spray_flask") as engine:
         assert isinstance(engine, RobotPhysicsEngine)
-    robot = evaluate_robot_grasp(grasp, sigma=SIGMA, n=12, seed=SEED, engine="physics")
-    default = evaluate_grasp(grasp, JointNoise(SIGMA), 12, SEED, engine="physics")
-    assert robot.p_fc == default.p_fc and robot.counts == default.outcomes
-    np.testing.assert_allclose([robot.q_mean, robot.q_std], [default.q_mean, default.q_std],
-                               rtol=1e-12)
-    assert robot.q_nominal == default.q_nominal  # the physics closing's nominal, both ways
-    still = evaluate_grasp(grasp, JointNoise(0.0), 2, SEED, engine="physics")
-    assert still.error == 0.0  # at sigma 0 every draw is the nominal closing
+    still = evaluate_grasp(grasp, sigma=0.0, n=2, seed=SEED, engine="physics")
+    assert still.q_mean == still.q_nominal  # at sigma 0 every draw is the nominal closing

@@ -177,8 +177,8 @@ def test_noisy_arms_where_pybullet_puts_them(page):
     from pybullet_utils.bullet_client import BulletClient
 
     from kinegrasp_env.montecarlo.draws import OUTCOMES
-    from kinegrasp_env.montecarlo.robot_evaluate import (
-        evaluate_robot_grasp,
+    from kinegrasp_env.montecarlo.evaluate import (
+        evaluate_grasp,
         make_engine,
         robot_configurations,
     )
@@ -194,8 +194,8 @@ def test_noisy_arms_where_pybullet_puts_them(page):
         for k, grasp in enumerate(shipped_grasps(OBJECT, "panda")):
             q = robot_configurations(grasp, engine, sigma=float(SIGMA), n=int(SAMPLES),
                                      seed=int(SEED))
-            outcome = evaluate_robot_grasp(grasp, sigma=float(SIGMA), n=int(SAMPLES),
-                                           seed=int(SEED), engine=engine).draws.outcome
+            outcome = evaluate_grasp(grasp, sigma=float(SIGMA), n=int(SAMPLES),
+                                     seed=int(SEED), engine=engine).draws.outcome
             palms = []
             for row in q:
                 for joint, value in zip(description.arm_joints, row, strict=False):

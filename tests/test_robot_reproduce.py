@@ -32,8 +32,8 @@ def _evaluate(capsys, grasp: int, sigma: float, obj: str = "cube") -> dict:
 def test_the_default_robots_table1_and_fig9_are_its_own_evaluations(tmp_path, capsys):
     """The default robot's ``reproduce table1`` and ``fig9`` run the path every robot runs;
     each cell is the default robot's own ``evaluate`` of that grasp, sigma and seed
-    (``montecarlo.evaluate.evaluate_grasp``, a code path apart from the robot path's
-    ``evaluate_robot_grasp``): the same outcome counts, hence P(FC), and Q's moments to a
+    (``montecarlo.grasp_stats.evaluate_grasp``, a code path apart from the robot path's
+    ``evaluate_grasp``): the same outcome counts, hence P(FC), and Q's moments to a
     few ulps (the chunks' moments merged in another order); one progress line per cell."""
     assert main(["reproduce", "table1", "--object", "cube", "--grasps", "2", "--samples",
                  SAMPLES, "--engine", "fast", "--processes", "1", "--out",
@@ -120,7 +120,7 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
     variant (exact kinematics, another seed): within 4 standard errors of both and the
     first-order bias. Wrong weights (every variant given the first one's covariance) are off
     by 0.1 on two variants and fail it."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.toolkit.arm_variants import find_variants, variant_block
 
@@ -133,8 +133,8 @@ def test_fig10_of_a_robot_reweighted_matches_direct_draws_on_its_variants():
     assert len(rows) == 4
     for row in rows:
         assert int(row["samples"]) >= 1500  # re-weighted, not the direct fall-back
-        direct = evaluate_robot_grasp(variants[row["id"]], sigma=0.0233, n=4000, seed=11,
-                                      engine="fast")
+        direct = evaluate_grasp(variants[row["id"]], sigma=0.0233, n=4000, seed=11,
+                                engine="fast")
         se = np.hypot(np.sqrt(row["p_fc"] * (1 - row["p_fc"]) / row["samples"]),
                       np.sqrt(direct.p_fc * (1 - direct.p_fc) / 4000))
         assert abs(row["p_fc"] - direct.p_fc) <= 4 * se + LINEAR_BIAS, (row, direct.p_fc)
@@ -176,16 +176,16 @@ def test_table1_of_a_robot_in_two_processes_has_the_same_draws(tmp_path, capsys,
     chunked path taken on two workers for each of the 4 cells; on one process the cells go
     in chunks too, to move the progress report): the same draws, row for row, so the same
     table to the last digit."""
-    from kinegrasp_env.montecarlo import robot_evaluate
+    from kinegrasp_env.montecarlo import evaluate
 
     chunked = []
-    original = robot_evaluate._chunked
+    original = evaluate._chunked
 
     def counted(*args, **kwargs):
         chunked.append(kwargs["executor"])
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(robot_evaluate, "_chunked", counted)
+    monkeypatch.setattr(evaluate, "_chunked", counted)
     tables = []
     for extra, folder in ((["--processes", "1"], "one"), (["--processes", "2"], "two")):
         assert main(["reproduce", "table1", "--robot", "panda", "--object", "cube",

@@ -18,9 +18,9 @@ from cli_helpers import run_in_process as run
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli import main
+from kinegrasp_env.montecarlo.chunks import close_engines
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_chunks import close_engines
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.sweep import SUMMARY_COLUMNS, SpecError, SweepSpec
 from kinegrasp_env.world.grasps import shipped_grasps
 
@@ -121,7 +121,7 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
     grasp = shipped_grasps("cube", "panda")[GRASP]
     sigmas = [0.0] * 7
     sigmas[joint] = sigma
-    both = evaluate_robot_grasp(grasp, sigma=tuple(sigmas), n=2 * n, seed=SEED)
+    both = evaluate_grasp(grasp, sigma=tuple(sigmas), n=2 * n, seed=SEED)
     y = (both.draws.outcome == FORCE_CLOSURE).astype(float)
     y_a, y_b = y[:n], y[n:]
     variance = np.var(y, ddof=1)
@@ -138,7 +138,7 @@ def test_sensitivity_one_noisy_joint_against_independent_estimators(tmp_path, ca
         if s is not noisy:
             assert s["first"] == 0.0 and s["total"] == 0.0, name
     assert result["dominant"] == noisy["source"]
-    alone = evaluate_robot_grasp(grasp, sigma=tuple(sigmas), n=n, seed=SEED)
+    alone = evaluate_grasp(grasp, sigma=tuple(sigmas), n=n, seed=SEED)
     assert result["p_all"] == alone.p_fc == float(y_a.mean())
     assert result["robot"] == "panda"
 
@@ -162,8 +162,8 @@ def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     grasp = shipped_grasps("cube", "panda")[GRASP]
-    both = evaluate_robot_grasp(grasp, sigma=0.0, n=2 * n, seed=SEED, engine="fast",
-                                noise_model=load_noise_model(spec))
+    both = evaluate_grasp(grasp, sigma=0.0, n=2 * n, seed=SEED, engine="fast",
+                          noise_model=load_noise_model(spec))
     y = (both.draws.outcome == FORCE_CLOSURE).astype(float)
     y_a, y_b = y[:n], y[n:]
     variance = np.var(y, ddof=1)

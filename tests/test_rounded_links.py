@@ -16,7 +16,7 @@ from kinegrasp_env.closing.close_rules import EXACT_BAND
 from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.closing.link_geometry import CYLINDER_SIDES, link_geometry
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.world.grasps import shipped_grasps
 
@@ -175,7 +175,7 @@ def test_a_rounded_links_gap_is_the_same_with_or_without_the_exact_first_shortcu
     ``GAP_TOL``, above). At states around the reference's closed hands, the gap so measured
     equals the one measured pybullet-first (the hint cleared) bit for bit, and the shortcut is
     taken (the exact band's states are many)."""
-    from kinegrasp_env.closing.robot_scene import BULLET_TOLERANCE
+    from kinegrasp_env.closing.scene import BULLET_TOLERANCE
 
     assert BULLET_TOLERANCE >= 10 * GAP_TOL
     shortcut = 0

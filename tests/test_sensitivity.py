@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from cli_helpers import run_cli
 
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-from kinegrasp_env.montecarlo.robot_engines import make_engine
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.sampling.sobol import sobol_indices
 from kinegrasp_env.toolkit.sensitivity import analyze
@@ -121,9 +121,9 @@ def flask_engine():
 
 def test_the_analysis_is_the_evaluations_on_the_same_draws(flask_engine):
     """P(FC) with all sources, with one alone and without it are what evaluate_grasp (the
-    default robot's own evaluation: another engine and another path to the draws) gives for
-    the model, model.only(s) and model.without(s) with the same seed: every source keeps its
-    own draws (common random numbers)."""
+    library's evaluation: another engine and another path to the draws) gives for the model,
+    model.only(s) and model.without(s) with the same seed: every source keeps its own draws
+    (common random numbers)."""
     grasp = shipped_grasps("spray_flask")[0]
     model = noise_model_from_spec({"joints": {"sigma": 0.0233},
                                    "friction": {"distribution": "gaussian", "mean": 0.5,
@@ -132,7 +132,8 @@ def test_the_analysis_is_the_evaluations_on_the_same_draws(flask_engine):
     result = analyze(grasp, model, n, seed=4, engine=flask_engine, bootstrap=200)
 
     def p_fc(noise):
-        return evaluate_grasp(grasp, noise, n, seed=4, engine="fast").p_fc
+        return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=4,
+                              engine="fast").p_fc
 
     assert result.p_all == p_fc(model)
     for effect in result.effects:
@@ -171,8 +172,9 @@ def test_sensitivity_command_json_plot_and_bad_specs(tmp_path):
 def test_grouped_joints_take_a_covariance_and_a_bias(flask_engine):
     """The joints as one factor take what ``evaluate`` takes: correlated joint errors (a
     covariance) and a bias on joints of sigma 0 (a calibration offset). P(FC) with every
-    source, the joints alone and without them equal ``evaluate_grasp`` (the default robot's
-    own evaluation) of the model, model.only("joints") and model.without("joints")."""
+    source, the joints alone and without them equal ``evaluate_grasp`` (the library's
+    evaluation, with its own engine) of the model, model.only("joints") and
+    model.without("joints")."""
     grasp = shipped_grasps("spray_flask")[0]
     cov = np.full((7, 7), 1e-4) + np.eye(7) * 3e-4
     for spec in ({"joints": {"covariance": cov.tolist()},
@@ -183,7 +185,8 @@ def test_grouped_joints_take_a_covariance_and_a_bias(flask_engine):
         result = analyze(grasp, model, 60, seed=2, engine=flask_engine, bootstrap=0)
 
         def p_fc(noise):
-            return evaluate_grasp(grasp, noise, 60, seed=2, engine="fast").p_fc
+            return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=60, seed=2,
+                                  engine="fast").p_fc
 
         assert result.p_all == p_fc(model)
         joints = next(e for e in result.effects if e.source == "joints")

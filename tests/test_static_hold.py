@@ -124,7 +124,7 @@ def test_bad_input_is_refused_in_one_line() -> None:
 
 @pytest.fixture(scope="module")
 def panda_cube():
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.montecarlo.evaluate import make_engine
     from kinegrasp_env.world.grasps import shipped_grasps
 
     engine = make_engine("fast", "panda", "cube", static_hold=True)

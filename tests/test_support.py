@@ -29,8 +29,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from kinegrasp_env.montecarlo.engines import START_COLLISION, make_engine
+from kinegrasp_env.montecarlo.draws import START_COLLISION
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.default_robot import default_hand_mount, urdf_path
 from kinegrasp_env.robot.model import rpy_to_matrix
 from kinegrasp_env.world.grasps import NoGraspSetError, shipped_grasps
@@ -178,9 +180,11 @@ def test_screen_never_drops_a_draw_in_the_table(tabled):
 def test_table_changes_only_the_draws_in_it(tabled, engine):
     name = tabled["mug"]
     q = noisy(np.array([g.q0 for g in shipped_grasps(name)]), 0.02, 6, seed=4)
-    with_table, without = make_engine(engine, name), make_engine(engine, "mug")
-    probe = make_engine("fast", name)  # its table test: pybullet's own, test_table_check
-    hits = probe.table_hits(q)
+    with_table = make_engine(engine, DEFAULT_ROBOT, name)
+    without = make_engine(engine, DEFAULT_ROBOT, "mug")
+    # the fast engine's table test: pybullet's own, test_table_check
+    probe = make_engine("fast", DEFAULT_ROBOT, name)
+    hits = probe.hand.table_hits(q)
     probe.close()
     assert 0 < hits.sum() < len(q)
     a, b = with_table.run(q), without.run(q)
@@ -202,8 +206,8 @@ def test_turning_the_scene_leaves_the_grasp(engine):
     q = noisy(np.array([g.q0 for g in shipped_grasps("spray_flask")[:4]]), 0.01, 5, seed=5)
     q_turned = q.copy()
     q_turned[:, 0] += yaw  # joint 1 turns about the base's z axis
-    a = make_engine(engine, "spray_flask").run(q)
-    b = make_engine(engine, "flask_turned").run(q_turned)
+    a = make_engine(engine, DEFAULT_ROBOT, "spray_flask").run(q)
+    b = make_engine(engine, DEFAULT_ROBOT, "flask_turned").run(q_turned)
     assert np.array_equal(a.outcome, b.outcome)
     fc = a.outcome == 3
     assert fc.sum() >= 10
@@ -324,7 +328,7 @@ def test_place_cli_errors_write_nothing(tabled, tmp_path):
 def test_planner_avoids_the_table(tabled, kin):
     """The default robot's planned grasps of a cube on a table: neither the open nor the
     closed hand (nor the arm) in the table by the sampled link points' own test."""
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
     from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
     name = tabled["cube"]
@@ -352,8 +356,8 @@ def test_the_holding_test_marks_draws_in_the_table(tabled):
     name = tabled["cube"]
     grasps = shipped_grasps(name)
     q = np.array([grasps[8].q0, grasps[0].q0])  # measured: 8 clear of the table, 0 in it
-    engine = make_engine("fast", name)
-    assert engine.table_hits(q).tolist() == [False, True]
+    engine = make_engine("fast", DEFAULT_ROBOT, name)
+    assert engine.hand.table_hits(q).tolist() == [False, True]
     engine.close()
     with RobotHoldEngine("kuka_sdh", name, protocol=HoldProtocol()) as physics:
         draws, hold = physics.run_hold(q)

@@ -17,7 +17,6 @@ from kinegrasp_env.cli import main
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
 from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec, run_sweep
-from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.toolkit.plots import plot_sweep
 from kinegrasp_env.world.grasps import grasp_by_index
 
@@ -130,14 +129,13 @@ def test_cells_equal_evaluate_grasp_and_a_rerun_computes_nothing(tmp_path):
     for row in rows:
         # the rows evaluate draws (in its own chunks of 250): the sweep's chunks of 40 are
         # rows of the same run
-        stats = evaluate_grasp(grasp_by_index("cube", row["grasp"]),
-                               JointNoise(row["sigma"], row["noise"]), 90, seed=5,
-                               engine="fast")
+        stats = evaluate_grasp(grasp_by_index("cube", row["grasp"]), sigma=row["sigma"],
+                               noise=row["noise"], n=90, seed=5, engine="fast")
         assert row["p_fc"] == stats.p_fc
-        assert row["samples"] == stats.samples == 90
+        assert row["samples"] == stats.n == 90
         assert (row["q_mean"] == pytest.approx(stats.q_mean, rel=1e-12) or
                 (math.isnan(row["q_mean"]) and math.isnan(stats.q_mean)))
-        if stats.outcomes["force_closure"] > 1:  # moments merged in another order
+        if stats.counts["force_closure"] > 1:  # moments merged in another order
             assert row["q_std"] == pytest.approx(stats.q_std, rel=1e-9)
     first = (tmp_path / "summary.csv").read_bytes()
     with LocalExecutor(1) as ex:
@@ -193,11 +191,9 @@ def test_physics_cells_of_another_physics_model_are_refused(tmp_path):
         run_sweep(spec, tmp_path, ex, progress=False)
         assert run_sweep(spec, tmp_path, ex, progress=False)[1:] == (0, 1)  # same model: reused
     # a physics cell's nominal Q is the physics closing's, as evaluate's
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
-
     row = next(csv.DictReader((tmp_path / "summary.csv").open()))
-    alone = evaluate_robot_grasp(grasp_by_index("cube", 0), sigma=0.02, n=2, seed=0,
-                                 engine="physics")
+    alone = evaluate_grasp(grasp_by_index("cube", 0), sigma=0.02, n=2, seed=0,
+                           engine="physics")
     assert float(row["q_nominal"]) == pytest.approx(alone.q_nominal, rel=1e-12)
     with LocalExecutor(1) as ex:
         with sqlite3.connect(tmp_path / "results.sqlite") as db:
@@ -229,8 +225,7 @@ def test_more_samples_regrow_a_cells_short_last_chunk(tmp_path):
         (row,), ran, skipped = run_sweep(SweepSpec.from_dict({**base, "samples": 30}),
                                          tmp_path, ex, progress=False)
     assert (ran, skipped) == (3, 2) and row["samples"] == 30
-    stats = evaluate_grasp(grasp_by_index("cube", 0), JointNoise(0.02), 30, seed=3,
-                           engine="fast")
+    stats = evaluate_grasp(grasp_by_index("cube", 0), sigma=0.02, n=30, seed=3, engine="fast")
     assert row["p_fc"] == stats.p_fc
 
 

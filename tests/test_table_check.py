@@ -11,8 +11,10 @@ What each test proves:
   is what it is without the table.
 - ``test_the_physics_engine_marks_draws_in_the_table``: the physics engine, whose simulation
   has no arm, marks the draws the fast engine's table test flags, and only those.
-- ``test_the_default_robots_table_check_is_the_probes``: the default robot's fast engine
-  (the description's table test) and its bespoke pybullet probe flag the same draws.
+- ``test_the_default_robots_table_check_is_the_probes``: the default robot's fast engine's
+  table test (the one its closing runs), the reference engine's (the description's
+  :attr:`~kinegrasp_env.montecarlo.description_engine.RobotEngine.in_table`) and its bespoke
+  pybullet probe flag the same draws.
 """
 
 from __future__ import annotations
@@ -23,8 +25,7 @@ import pytest
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.table_check import TableCheck
 from kinegrasp_env.montecarlo.draws import START_COLLISION
-from kinegrasp_env.montecarlo.engines import make_engine as make_default_engine
-from kinegrasp_env.montecarlo.robot_engines import make_engine
+from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.grasps import shipped_grasps
@@ -133,18 +134,19 @@ def test_the_default_robots_table_check_is_the_probes():
     """The fast and the reference engine's table tests of the default robot against
     pybullet's own closest points (``tests/table_probe_reference.TableProbe``:
     the robot's URDF and the table box in a world of their own)."""
-    from kinegrasp_env.world.objects import load_object
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
     from tests.table_probe_reference import TableProbe
 
-    q = _draws("kuka_sdh", 60, 0.05, 3)
-    fast = make_default_engine("fast", "cube_on_table")
-    reference = make_default_engine("pybullet", "cube_on_table")
+    q = _draws(DEFAULT_ROBOT, 60, 0.05, 3)
+    fast = make_engine("fast", DEFAULT_ROBOT, "cube_on_table")
+    reference = make_engine("pybullet", DEFAULT_ROBOT, "cube_on_table")
     probe = TableProbe(load_object("cube_on_table"))
     try:
         expected = probe.hits(q)
         assert 0 < expected.sum() < len(q)
-        np.testing.assert_array_equal(fast.table_hits(q), expected)
-        np.testing.assert_array_equal(reference.table_hits(q), expected)
+        # the fast engine's own test (its closing's start check), then the engines' in_table
+        np.testing.assert_array_equal(fast.hand.table_hits(q), expected)
+        np.testing.assert_array_equal(reference.in_table(reference.check(q)), expected)
     finally:
         fast.close()
         reference.close()

@@ -13,7 +13,7 @@ from cli_helpers import run_cli, start_cli
 
 from kinegrasp_env import cli
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.quality import ferrari_canny
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
 from kinegrasp_env.robot.kinematics import Kinematics, pose_error
@@ -136,13 +136,13 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
     settings line and every later run failed with `error: index`), then after two: the
     log keeps one settings line and each candidate once, and the resumed CSV equals an
     uninterrupted run's byte for byte."""
-    from kinegrasp_env.montecarlo import robot_chunks
+    from kinegrasp_env.montecarlo import chunks
 
     candidates = _cube_candidates(tmp_path)
     args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
     assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
 
-    real = robot_chunks.chunked_draws
+    real = chunks.chunked_draws
     out = tmp_path / "resumed.csv"
     partial = tmp_path / "resumed.csv.partial.jsonl"
     for stop_at, finished in ((1, []), (1, []), (3, [0, 1])):
@@ -154,12 +154,12 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
                 raise KeyboardInterrupt
             return real(*a, **k)
 
-        monkeypatch.setattr(robot_chunks, "chunked_draws", interrupted)
+        monkeypatch.setattr(chunks, "chunked_draws", interrupted)
         assert cli.main([*args, "--out", str(out)]) == 130
         assert not out.exists()  # nothing half-written
         settings, indices = _log(partial)
         assert len(settings) == 1 and indices == finished
-    monkeypatch.setattr(robot_chunks, "chunked_draws", real)
+    monkeypatch.setattr(chunks, "chunked_draws", real)
     capsys.readouterr()
     assert cli.main([*args, "--out", str(out)]) == 0
     assert "resuming: 2 of 4 candidates already ranked" in capsys.readouterr().err
@@ -175,13 +175,13 @@ def test_rank_resumes_after_any_number_of_interruptions(tmp_path, monkeypatch, c
 
 def _stopped_run(tmp_path, monkeypatch, args: list[str]) -> None:
     """``rank args`` stopped (Ctrl-C) before its first candidate finished."""
-    from kinegrasp_env.montecarlo import robot_chunks
+    from kinegrasp_env.montecarlo import chunks
 
     def interrupt(*a, **k):
         raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
-        patch.setattr(robot_chunks, "chunked_draws", interrupt)
+        patch.setattr(chunks, "chunked_draws", interrupt)
         assert cli.main(args) == 130
 
 
@@ -296,14 +296,14 @@ def test_rank_log_cut_off_by_a_kill_is_repaired_and_a_damaged_one_refused(
         tmp_path, monkeypatch, capsys):
     """A last line cut off mid-write (a kill) is dropped and its candidate computed again;
     a damaged line before the end is refused in one line (never `error: index`)."""
-    from kinegrasp_env.montecarlo import robot_chunks
+    from kinegrasp_env.montecarlo import chunks
 
     candidates = _cube_candidates(tmp_path)
     args = ["rank", str(candidates), "--samples", "40", "--seed", "3", "--engine", "fast"]
     assert cli.main([*args, "--out", str(tmp_path / "full.csv")]) == 0
     out = tmp_path / "r.csv"
     partial = tmp_path / "r.csv.partial.jsonl"
-    real, calls = robot_chunks.chunked_draws, {"n": 0}
+    real, calls = chunks.chunked_draws, {"n": 0}
 
     def third_call_interrupted(*a, **k):
         calls["n"] += 1
@@ -312,7 +312,7 @@ def test_rank_log_cut_off_by_a_kill_is_repaired_and_a_damaged_one_refused(
         return real(*a, **k)
 
     with monkeypatch.context() as patch:
-        patch.setattr(robot_chunks, "chunked_draws", third_call_interrupted)
+        patch.setattr(chunks, "chunked_draws", third_call_interrupted)
         assert cli.main([*args, "--out", str(out)]) == 130
     log = partial.read_text()
     assert _log(partial)[1] == [0, 1]

@@ -160,7 +160,7 @@ XARM_SAME, XARM_POINT_MEDIAN, XARM_POINT_MAX, XARM_NORMAL = 0.97, 1e-5, 0.03, 2e
 def test_the_xarm6_closes_alike_in_the_fast_engine(workspace, capsys):
     """The revolute mimic-linkage gripper through the fast engine: on the same noisy draws
     it gives the reference engine's outcomes (pybullet closest points) and contacts."""
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine
+    from kinegrasp_env.montecarlo.evaluate import make_engine
     from kinegrasp_env.sampling.noise import JointNoise
     from kinegrasp_env.toolkit.grasp_planner import plan_grasps
 
@@ -273,7 +273,7 @@ def test_the_physics_engine_couples_a_linkage_grippers_sides(workspace, capsys):
     the first jaw to touch pushes the free cube and tips it (measured: the contacts 2.9 cm
     apart in height, outside the friction cones, not in force closure, where the kinematic
     closing of the fixed cube is)."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.world.grasps import load_grasps
 
     path = workspace / "xarm6.yaml"

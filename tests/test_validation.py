@@ -292,26 +292,34 @@ def test_physics_engine_is_registered():
     from kinegrasp_env.cli.common import ENGINE_NAMES
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.montecarlo.evaluate import ENGINES
+    from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 
     assert "physics" in ENGINES and ENGINE_NAMES == ENGINES
-    engine = make_engine("physics", "cube")
+    engine = make_engine("physics", DEFAULT_ROBOT, "cube")
     try:
         assert engine.name == "physics"
     finally:
         engine.close()
     with pytest.raises(ValueError, match="physics"):
-        make_engine("nope", "cube")
+        make_engine("nope", DEFAULT_ROBOT, "cube")
 
 
 @pytest.mark.expensive
 def test_physics_evaluate_in_a_process_pool_equals_one_process():
-    """Engines built once per worker: 2 processes, 2 chunks give the same numbers as 1."""
-    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
-    from kinegrasp_env.sampling.noise import JointNoise
+    """Engines built once per worker: 2 processes, 2 chunks give the same numbers as 1
+    (the run's rows in chunks of 3 on a pool of 2, against ``evaluate_grasp`` in this
+    process; ``evaluate_grasp``'s own chunks hold 250 rows, so the pool is given the rows'
+    chunks directly)."""
+    from kinegrasp_env.montecarlo.chunks import RobotChunk, chunked_draws
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, summarize
+    from kinegrasp_env.montecarlo.execution import LocalExecutor
 
     grasp = shipped_grasps("cube")[0]
-    runs = [evaluate_grasp(grasp, JointNoise(0.0133), 6, seed=2, engine="physics",
-                           processes=p, chunk=3) for p in (1, 2)]
-    assert runs[0].outcomes == runs[1].outcomes
-    assert runs[0].q_mean == runs[1].q_mean or (np.isnan(runs[0].q_mean)
-                                                 and np.isnan(runs[1].q_mean))
+    alone = evaluate_grasp(grasp, sigma=0.0133, n=6, seed=2, engine="physics")
+    first = RobotChunk(grasp.robot, grasp.object, "physics", tuple(np.asarray(grasp.q0, float)),
+                       0.0133, "gaussian", 2, 0, 6)
+    with LocalExecutor(2) as pool:
+        pooled = summarize(chunked_draws(first, 6, pool, chunk=3))
+    assert alone.counts == pooled.counts
+    assert alone.q_mean == pooled.q_mean or (np.isnan(alone.q_mean)
+                                             and np.isnan(pooled.q_mean))

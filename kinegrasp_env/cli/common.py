@@ -23,7 +23,7 @@ from kinegrasp_env.wording import plural  # noqa: F401  (the commands take it fr
 # ``kinegrasp --help`` answers at once. The choices below are copies of the library's
 # definitions, kept here for that reason and tested equal to them.
 
-#: ``--engine`` choices; equal to ``montecarlo.evaluate.ENGINES`` (tested).
+#: ``--engine`` choices; equal to ``montecarlo.grasp_stats.ENGINES`` (tested).
 ENGINE_NAMES = ("pybullet", "fast", "physics")
 #: ``--noise`` choices; equal to ``sampling.noise.DISTRIBUTIONS`` (tested).
 DISTRIBUTION_NAMES = ("gaussian", "uniform", "triangular")
@@ -31,7 +31,7 @@ DISTRIBUTION_NAMES = ("gaussian", "uniform", "triangular")
 BACKEND_NAMES = ("local", "ray")
 #: Largest ``--sigma`` (radians): joint noise is an angle, and a standard deviation beyond
 #: half a turn describes no joint; it also keeps every configuration finite. Equal to
-#: ``montecarlo.evaluate.MAX_SIGMA`` (tested), the bound the library enforces.
+#: ``montecarlo.grasp_stats.MAX_SIGMA`` (tested), the bound the library enforces.
 MAX_SIGMA = math.pi
 #: ``--friction``'s default and the friction cones' edges every command uses; equal to
 #: ``quality.wrenches.DEFAULT_FRICTION`` and ``DEFAULT_NUM_EDGES`` (tested).
@@ -193,7 +193,7 @@ def noise_spec_from(args):
         if parser is not None and getattr(args, option) != parser.get_default(option):
             raise CLIError(f"--{option} and --noise-spec both given: the spec's joints "
                            "section is the joint noise")
-    from kinegrasp_env.montecarlo.evaluate import check_noise_engine
+    from kinegrasp_env.montecarlo.grasp_stats import check_noise_engine
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
@@ -299,7 +299,7 @@ def add_hold_simulator_arg(parser: argparse.ArgumentParser) -> None:
 
 def engine_name(value: str) -> str:
     """Validated ``--engine`` value."""
-    from kinegrasp_env.montecarlo.evaluate import ENGINES
+    from kinegrasp_env.montecarlo.grasp_stats import ENGINES
 
     if value not in ENGINES:
         raise CLIError(f"--engine must be one of {', '.join(ENGINES)}, got {value!r}")

@@ -1,8 +1,8 @@
 """``kinegrasp evaluate`` of any robot's grasp, and what ``rank``, ``report`` and
 ``reproduce`` share with it (the engine and holding-test option checks, the quick holding
 test's count, a grasp moved to an elbow angle): the robot's engines
-(:mod:`kinegrasp_env.montecarlo.robot_evaluate`), their draws in chunks on the command's
-executor (:mod:`kinegrasp_env.montecarlo.robot_chunks`), the page of ``--report``
+(:mod:`kinegrasp_env.montecarlo.evaluate`), their draws in chunks on the command's
+executor (:mod:`kinegrasp_env.montecarlo.chunks`), the page of ``--report``
 (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`).
 """
 
@@ -65,8 +65,8 @@ def holding_test(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
     holds, the mean of their margins (:func:`~kinegrasp_env.physics.protocol.hold_margin`),
     and the name of the simulator that ran it; ``model``: the ``--noise-spec`` model's draws
     (its joints and hand) instead of the joint noise."""
+    from kinegrasp_env.montecarlo.evaluate import evaluation_rows
     from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluation_rows
     from kinegrasp_env.physics.protocol import HELD
 
     with quick_hold_engine(robot, grasp.object, friction, simulator) as engine:
@@ -79,7 +79,7 @@ def holding_test(grasp, robot: str, sigma, samples: int, seed: int, noise: str,
 
 def check_robot_engine(engine: str, robot: str) -> None:
     """CLIError unless ``engine`` is one of a description robot's engines."""
-    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
+    from kinegrasp_env.montecarlo.evaluate import ENGINES
 
     if engine not in ENGINES:
         raise CLIError(f"--engine {engine}: robot {robot!r} is evaluated by the "
@@ -90,9 +90,9 @@ def run_evaluate(args, grasp, robot: str, sigma: float, samples: int,
                  seed: int, friction: float, noise=None) -> int:
     """``kinegrasp evaluate`` of any robot's grasp: joint noise on its arm joints
     (``--sigma``/``--noise``), or ``noise``, the ``--noise-spec`` model (joints, palm,
-    object, friction: :mod:`~kinegrasp_env.montecarlo.robot_noise`); friction mu
+    object, friction: :mod:`~kinegrasp_env.montecarlo.noise_rows`); friction mu
     ``friction``."""
-    from kinegrasp_env.montecarlo.robot_evaluate import check_robot, evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import check_robot, evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.noise_model import NoiseModel
     from kinegrasp_env.sampling.stats import wilson_interval
@@ -115,10 +115,10 @@ def run_evaluate(args, grasp, robot: str, sigma: float, samples: int,
             what += f" at elbow angle {grasp.meta['elbow_angle']:.3f} rad"
     with executor_from(args) as executor, reported(ValueError), \
             draw_bar(samples, f"{grasp.object} grasp {grasp.id}") as progress:
-        stats = evaluate_robot_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                                     noise=args.noise, robot=robot, engine=args.engine,
-                                     static_hold=args.static_hold, friction=friction,
-                                     executor=executor, noise_model=model, progress=progress)
+        stats = evaluate_grasp(grasp, sigma=sigma, n=samples, seed=seed,
+                               noise=args.noise, robot=robot, engine=args.engine,
+                               static_hold=args.static_hold, friction=friction,
+                               executor=executor, noise_model=model, progress=progress)
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
     if math.isfinite(stats.push_median):
@@ -253,7 +253,7 @@ def reachable_range(grasp) -> tuple[float, float]:
     """(lowest, highest) elbow angle (radians) of the grasp's reachable self-motion: the
     angles ``kinegrasp elbow`` walks (:func:`~kinegrasp_env.toolkit.elbow_search.
     robot_reachable_configurations`: within the joint limits, the arm clear of the object)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+    from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
     from kinegrasp_env.toolkit.elbow_search import robot_reachable_configurations
 
     with RobotReferenceEngine(grasp.robot, grasp.object) as engine:

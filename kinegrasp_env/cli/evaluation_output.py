@@ -88,7 +88,7 @@ def evaluation_record(evaluation, *, sigma, noise: str, model, spec_file, sample
     ``spec_file`` and its ``model``: the model's joint distribution, file and settings),
     draws, seed and engine, P(FC) and its interval, ``friction`` where given, Q nominal and
     Q's moments (NaN as null), the error (nominal - mean) and the outcome counts
-    (``evaluation``: a :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotEvaluation`)."""
+    (``evaluation``: a :class:`~kinegrasp_env.montecarlo.evaluate.GraspEvaluation`)."""
     from kinegrasp_env.sampling.noise_spec import spec_of
 
     def finite(value):

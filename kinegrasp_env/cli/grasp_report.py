@@ -1,6 +1,6 @@
 """``kinegrasp report`` of any robot's grasps (``--robot NAME``, the grasp file's robot, else
 the default one): every chosen grasp evaluated at each sigma by the robot's engine
-(:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, the draws of
+(:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`, the draws of
 ``kinegrasp evaluate`` with the same options), written as one page
 (:func:`~kinegrasp_env.toolkit.report.robot.robot_page`).
 """
@@ -134,8 +134,8 @@ def solved(path: str, read, chosen: list) -> list:
 @contextmanager
 def closing_engines() -> Iterator[None]:
     """Close the engines this process built for its chunks (:func:`~kinegrasp_env.
-    montecarlo.robot_chunks.robot_engine`) on exit."""
-    from kinegrasp_env.montecarlo.robot_chunks import close_engines
+    montecarlo.chunks.robot_engine`) on exit."""
+    from kinegrasp_env.montecarlo.chunks import close_engines
 
     try:
         yield
@@ -159,7 +159,7 @@ def run_report(args, sigmas: list[float]) -> int:
     """``kinegrasp report``: the page of a robot's grasps (``--grasp``: comma-separated ids
     or indices, default ``0``, as ``evaluate``'s; ``sigmas``: the validated ``--sigma``
     values, or with ``--noise-spec`` one run of its model per grasp)."""
-    from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp
+    from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise_spec import spec_of
@@ -180,7 +180,7 @@ def run_report(args, sigmas: list[float]) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if model is not None:
-        from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+        from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
 
         with reported(ValueError):
             check_robot_noise(model, description, description.arm_dof, args.engine)
@@ -194,7 +194,7 @@ def run_report(args, sigmas: list[float]) -> int:
                 label = (f"{name} grasp {grasp.id}" if model is not None
                          else f"{name} grasp {grasp.id} sigma {sigma_words(sigma)}")
                 with draw_bar(samples, label) as progress:
-                    runs.append(RobotRun(index, sigma, evaluate_robot_grasp(
+                    runs.append(RobotRun(index, sigma, evaluate_grasp(
                         grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
                         engine=args.engine, robot=robot, friction=friction,
                         executor=executor, noise_model=model, progress=progress)))

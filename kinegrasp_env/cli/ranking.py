@@ -96,7 +96,7 @@ def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.ranking_draws import RankingDraws
     from kinegrasp_env.cli.report import write_rank_report
-    from kinegrasp_env.montecarlo import evaluate
+    from kinegrasp_env.montecarlo import grasp_stats
     from kinegrasp_env.sampling.noise_model import DRAW_LAYOUT
     from kinegrasp_env.toolkit.ranking import CRITERIA, MEAN_CRITERIA
 
@@ -118,7 +118,7 @@ def cmd_rank(args) -> int:
     robot = args.robot or (grasps[0].robot if grasps else DEFAULT_ROBOT)
     check_candidates(args, grasps, robot, noise)
     chunk = min(CHUNK, samples)
-    layout = evaluate.chunk_sizes(samples, chunk)
+    layout = grasp_stats.chunk_sizes(samples, chunk)
     # each candidate's draws per outcome and hold scores, beside what the ranking keeps
     side: dict[int, CandidateResult] = {}
     partial = out.with_name(out.name + ".partial.jsonl")

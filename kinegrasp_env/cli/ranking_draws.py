@@ -1,7 +1,7 @@
 """``kinegrasp rank`` of any robot's grasps: the candidates checked, and the
 evaluator that :mod:`kinegrasp_env.cli.ranking` ranks them with (fixed-n, resumable, or
 adaptive), its draws in chunks on the command's executor
-(:mod:`~kinegrasp_env.montecarlo.robot_chunks`: the same draws whatever the processes or
+(:mod:`~kinegrasp_env.montecarlo.chunks`: the same draws whatever the processes or
 backend), each candidate on the same rows of the seed's chunked streams (common noise),
 with the hold scores where asked."""
 
@@ -18,8 +18,8 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
     """A robot's candidates (each a grasp of ``robot``, of any catalog objects),
     and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
     takes; CLIError lines otherwise."""
-    from kinegrasp_env.montecarlo.robot_evaluate import check_robot
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.montecarlo.evaluate import check_robot
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
@@ -79,11 +79,11 @@ class RankingDraws:
         self.testers: dict[str, object] = {}  # the quick holding test's engine per object
 
     def chunk(self, index: int):
-        """Candidate ``index``'s run as a :class:`~kinegrasp_env.montecarlo.robot_chunks.
+        """Candidate ``index``'s run as a :class:`~kinegrasp_env.montecarlo.chunks.
         RobotChunk` (its first row)."""
         import numpy as np
 
-        from kinegrasp_env.montecarlo.robot_chunks import RobotChunk
+        from kinegrasp_env.montecarlo.chunks import RobotChunk
 
         g = self.grasps[index]
         return RobotChunk(self.robot, g.object, self.engine,
@@ -95,8 +95,8 @@ class RankingDraws:
         ``index``; with ``outcomes`` each draw's success too (force closure, or the draws the
         hold criterion's score held: :func:`~kinegrasp_env.toolkit.adaptive_ranking.
         certified_successes`)."""
+        from kinegrasp_env.montecarlo.chunks import chunked_draws
         from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
-        from kinegrasp_env.montecarlo.robot_chunks import chunked_draws
         from kinegrasp_env.sampling.stats import StreamingMoments
         from kinegrasp_env.toolkit.adaptive_ranking import certified_successes
         from kinegrasp_env.toolkit.ranking import CandidateResult
@@ -126,8 +126,8 @@ class RankingDraws:
         ``index``, those the quick holding test holds, and how far each got through it
         (:func:`~kinegrasp_env.physics.protocol.hold_margin`)."""
 
+        from kinegrasp_env.montecarlo.chunks import chunk_rows
         from kinegrasp_env.montecarlo.hold_engine import quick_hold_engine
-        from kinegrasp_env.montecarlo.robot_chunks import chunk_rows
         from kinegrasp_env.physics.protocol import HELD
 
         name = self.grasps[index].object
@@ -145,12 +145,12 @@ class RankingDraws:
 
     def nominal(self, index: int) -> float:
         """Candidate ``index``'s nominal Q: its closing at q0 (no noise) by the engine."""
-        from kinegrasp_env.montecarlo.robot_chunks import nominal_closing_quality
+        from kinegrasp_env.montecarlo.chunks import nominal_closing_quality
 
         return nominal_closing_quality(self.chunk(index), self.executor)
 
     def close(self) -> None:
-        from kinegrasp_env.montecarlo.robot_chunks import close_engines
+        from kinegrasp_env.montecarlo.chunks import close_engines
 
         for tester in self.testers.values():
             tester.close()

@@ -76,8 +76,8 @@ def _request(args, model) -> tuple[int, object]:
     of ``--object``; one line for what the robot's engines cannot take (checked before any
     work)."""
     from kinegrasp_env.cli.grasp_choice import grasp_of_file
-    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.montecarlo.evaluate import ENGINES
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.sensitivity import check_factors
@@ -111,7 +111,7 @@ def _request(args, model) -> tuple[int, object]:
 def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
              friction: float, per_joint: bool):
     """The analysis by ``engine``, the one ``evaluate`` closes the robot's draws with
-    (:func:`~kinegrasp_env.montecarlo.robot_engines.make_engine`), with a progress bar
+    (:func:`~kinegrasp_env.montecarlo.engines.make_engine`), with a progress bar
     on stderr (one step per setting)."""
     from tqdm import tqdm
 

@@ -78,7 +78,7 @@ def cmd_plan(args) -> int:
                        "nothing written")
     out = list(grasps)
     if variants:
-        from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+        from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
         from kinegrasp_env.toolkit.arm_variants import variants_of
 
         with RobotReferenceEngine(description, args.object, friction=friction) as engine:

@@ -2,7 +2,7 @@
 
 Entry points: every robot of the catalog (a description beside a URDF), the default one
 included: ``generic_reference`` (one draw at a time, pybullet closest points in the robot's
-scene, ``robot_scene``, exact near contact for rounded links) and ``generic_fast`` (a batch
+scene, ``scene``, exact near contact for rounded links) and ``generic_fast`` (a batch
 of draws; the links' geometry from ``link_geometry``, their distances in ``link_distances``,
 object edges against link hulls in ``hull_edges``, the batched loop ``finger_closing``,
 fingers of two

@@ -3,7 +3,7 @@ own collision geometry.
 
 **The closing model.** The robot and the object stand in one pybullet world, the object
 fixed (as in Dex-Net's jaw closing and this project's GraspIt-style closing):
-:class:`~kinegrasp_env.closing.robot_scene.RobotScene`, whose link distances this closing
+:class:`~kinegrasp_env.closing.scene.RobotScene`, whose link distances this closing
 reads (pybullet's, exact for a link of capsules and spheres near contact). A configuration q
 (the description's actuated vector: arm joints, then hand joints) places the palm where
 forward kinematics of the URDF puts it. Then:
@@ -18,7 +18,7 @@ forward kinematics of the URDF puts it. Then:
    phalanx stops its own joint, the distal one goes on; a parallel gripper's coupled jaws
    close together, each stopping where it touches). t advances by conservative advancement:
    the least over the moving links of each one's gap
-   (:meth:`~kinegrasp_env.closing.robot_scene.RobotScene.link_gap`) over a bound on how fast
+   (:meth:`~kinegrasp_env.closing.scene.RobotScene.link_gap`) over a bound on how fast
    any point of it moves per unit t by the joints still turning
    (:func:`~kinegrasp_env.closing.finger_paths.link_speeds`, the fast closing's, from the
    URDF's joint offsets and link extents), at least
@@ -73,7 +73,7 @@ from kinegrasp_env.closing.contact_patch import (
 from kinegrasp_env.closing.finger_paths import finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
-from kinegrasp_env.closing.robot_scene import RobotScene
+from kinegrasp_env.closing.scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
 from kinegrasp_env.robot.touch_rule import moved_by, touch_stops
@@ -108,7 +108,7 @@ def face_of(obj: GraspObject, point: np.ndarray, vertices: np.ndarray | None = N
 
 class RobotWorld(RobotScene):
     """The reference closing of a description robot in its pybullet scene
-    (:class:`~kinegrasp_env.closing.robot_scene.RobotScene`; the module's model).
+    (:class:`~kinegrasp_env.closing.scene.RobotScene`; the module's model).
 
     Attributes:
         patch: place a contact on a face at its patch's centre (step 3 of the module).

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.envs.robot_task import HOLD_TEST_SCORES, N_DRAWS, SCORES
+from kinegrasp_env.envs.grasp_task import HOLD_TEST_SCORES, N_DRAWS, SCORES
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS
-from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA
+from kinegrasp_env.montecarlo.grasp_stats import ENGINES, MAX_SIGMA
 from kinegrasp_env.robot.catalog import check_robot_name
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS
 
@@ -155,7 +155,7 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
                   q_weight: float, limit_penalty: float, step_size: float, split: str | None,
                   objects: tuple[str, ...] | None) -> EnvArguments:
     """The KineGrasp env's constructor arguments, checked in the order the constructor
-    takes them: ``n_draws`` None is :data:`~kinegrasp_env.envs.robot_task.N_DRAWS`;
+    takes them: ``n_draws`` None is :data:`~kinegrasp_env.envs.grasp_task.N_DRAWS`;
     ``engine`` None is ``fast``; ``render_modes`` are the env's (its ``metadata``).
 
     Raises:

@@ -46,7 +46,7 @@ Robots: ``robot``, any robot of the catalog (default ``kuka_sdh``, the paper's r
 44-entry observation is tabled above; ``robot="panda"``, a user's robot): its shipped or
 given grasps, its self-motion (a 6-joint arm: its IK branches as the elbow coordinate), its
 engine's draws (``engine``, fast by default), an observation sized by its arm and hand, and
-pictures of its whole URDF with the object (:mod:`kinegrasp_env.envs.robot_task`); a noise
+pictures of its whole URDF with the object (:mod:`kinegrasp_env.envs.grasp_task`); a noise
 model's draws of every source; ``reward="batch"``; and a reward that scores holding
 (``score``: the static hold check's or the quick holding test's P(hold) instead of P(FC)).
 
@@ -69,8 +69,8 @@ from kinegrasp_env.envs.batch_reward import (
     grasp_seed,
     sigma_levels,
 )
+from kinegrasp_env.envs.grasp_task import RobotTask, robot_tasks
 from kinegrasp_env.envs.render import human_window_available
-from kinegrasp_env.envs.robot_task import RobotTask, robot_tasks
 from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
@@ -111,7 +111,7 @@ class KineGraspEnv(gym.Env):
         split: ``train`` (grasp indices i % 4 != 3), ``test`` (i % 4 == 3, held out) or None
             (all grasps).
         engine: the engine of the reward's draws, by name
-            (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast`` (the
+            (:func:`~kinegrasp_env.montecarlo.evaluate.make_engine`): ``fast`` (the
             default: the reference closing batched over the draws, many times the steps per
             second: ``benchmarks/bench_env.py``), ``pybullet`` (the reference: pybullet
             closest points, draw by draw) or ``physics`` (pybullet dynamics). Both kinematic
@@ -135,7 +135,7 @@ class KineGraspEnv(gym.Env):
             test's, in ``hold_simulator``: slow; joint and hand noise only) or
             ``hold_margin`` (the mean of that test's margins: how far each draw got through
             it, in [0, 1]; ``info["hold_margin"]`` with either)
-            (:data:`~kinegrasp_env.envs.robot_task.SCORES`); ``info["score"]`` names it,
+            (:data:`~kinegrasp_env.envs.grasp_task.SCORES`); ``info["score"]`` names it,
             ``info["p_hold"]`` holds a hold score's estimate.
         hold_simulator: the quick holding test's simulator, ``pybullet`` (default) or
             ``mujoco``.

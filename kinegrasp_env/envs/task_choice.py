@@ -31,7 +31,7 @@ from collections.abc import Callable
 import numpy as np
 
 from kinegrasp_env.envs.arguments import reset_sigma
-from kinegrasp_env.envs.robot_task import RobotTask
+from kinegrasp_env.envs.grasp_task import RobotTask
 from kinegrasp_env.envs.tasks import given_robot_grasp, grasp_option
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel

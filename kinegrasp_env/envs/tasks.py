@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.envs.robot_task import RobotTask
+from kinegrasp_env.envs.grasp_task import RobotTask
 from kinegrasp_env.montecarlo.draws import MISSED, START_COLLISION
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw, outcome_detail
 from kinegrasp_env.robot.description import RobotDescription
@@ -56,8 +56,8 @@ def task_object(options: dict, key: str) -> str:
 
 
 def reset_q0(value, robot: str) -> np.ndarray:
-    """(dof,) a ``q0`` reset option of ``robot``, validated: its actuated vector (the default
-    robot's 7 arm joints then 7 hand DOF, radians, docs/conventions.md); finite, within the
+    """(dof,) a ``q0`` reset option of ``robot``, validated: its actuated vector (its arm joints
+    then its hand's, radians, docs/conventions.md); finite, within the
     joint limits; ValueError names the bad entry."""
     dof = robot_model(robot).dof
     try:

@@ -34,9 +34,8 @@ import numpy as np
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.montecarlo.engines import (
+from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
-    MAX_CONTACTS,
     MISSED,
     NO_FORCE_CLOSURE,
     START_COLLISION,
@@ -59,6 +58,9 @@ TOUCH_DISTANCE = CONTACT_TOL
 #: measures the distance to the object from (metres; both taken back off).
 PROBE_RADIUS = 1e-5
 PROBE_LIFT = 1e-4
+#: Contact slots of a draw: one per phalanx (two on each of the default robot's three
+#: fingers: the links its closing moves and stops).
+MAX_CONTACTS = 2 * len(FINGERS)
 #: Outcome of a draw whose engine gave no closed configuration (a start collision there)
 #: while pybullet sees none: the reference cannot place its contacts.
 UNDETERMINED = -1

@@ -1,9 +1,10 @@
-"""What every engine of a description robot shares: the outcome of a closing
+"""What every engine of a robot shares: the outcome of a closing
 (:func:`outcome_of`), the scoring of closings with the robot's contact model (:func:`score`:
 per-draw results as a :class:`~kinegrasp_env.montecarlo.draws.DrawBatch`) and the engine's
 base (:class:`RobotEngine`: robot, object, quality measure, input check); the engines close
-(:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`,
-:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`).
+(:class:`~kinegrasp_env.montecarlo.reference_engine.RobotReferenceEngine`,
+:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`,
+:class:`~kinegrasp_env.montecarlo.physics_engine.RobotPhysicsEngine`).
 """
 
 from __future__ import annotations
@@ -21,15 +22,42 @@ from kinegrasp_env.montecarlo.draws import (
     DrawBatch,
     provisional_outcomes,
 )
-from kinegrasp_env.montecarlo.perturbation import check_errors
 from kinegrasp_env.quality.soft_contacts import (
     FINGER_RADIUS,
     contact_quality_batch,
     soft_torsions,
 )
+from kinegrasp_env.quality.wrenches import check_parameters
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object
+
+
+def check_errors(n: int, palm, object_offset, friction, *,
+                 static_hold: bool = False) -> dict[str, np.ndarray]:
+    """The per-draw errors an engine's ``run`` is given (:meth:`RobotEngine.run`; n draws), as
+    float arrays of the right shapes (ValueError otherwise: a bad shape, a non-finite entry, a
+    negative mu, or a per-draw mu for an engine running the static hold check, ``static_hold``,
+    which holds at the engine's one mu)."""
+    if static_hold and friction is not None:
+        raise ValueError("the static hold check holds at the engine's friction; a "
+                         "per-draw friction is not checked (drop it or the check)")
+    out = {}
+    for name, value, shape in (("palm", palm, (n, 4, 4)),
+                               ("object_offset", object_offset, (n, 4, 4)),
+                               ("friction", friction, (n,))):
+        if value is None:
+            continue
+        arr = np.asarray(value, dtype=float)
+        if arr.shape != shape:
+            raise ValueError(f"{name} must have shape {shape} (one per draw), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} has NaN or infinite entries")
+        out[name] = arr
+    if "friction" in out and np.any(out["friction"] < 0):
+        raise ValueError(f"friction must be >= 0, got {float(out['friction'].min()):g}")
+    return out
 
 
 def outcome_of(result: RobotCloseResult) -> int:
@@ -103,11 +131,19 @@ class RobotEngine:
                  friction: float = 0.5, num_edges: int = 8,
                  finger_radius: float = FINGER_RADIUS, static_hold: bool = False,
                  max_contacts: int | None = None) -> None:
+        friction, num_edges = check_parameters(friction, num_edges)  # before any closing
+        if not (isinstance(finger_radius, (int, float)) and 0 < finger_radius < 1):
+            raise ValueError(f"finger_radius must be a length in (0, 1) metres, got "
+                             f"{finger_radius!r}")
+        if max_contacts is not None and (isinstance(max_contacts, bool) or not isinstance(
+                max_contacts, (int, np.integer)) or max_contacts < 1):
+            raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts!r}")
         self.description = load_robot(robot) if isinstance(robot, str) else robot
         self.obj = load_object(object_name)
-        self.friction, self.num_edges, self.finger_radius = friction, num_edges, finger_radius
+        self.friction, self.num_edges = friction, num_edges
+        self.finger_radius = float(finger_radius)
         self.max_contacts = (len(self.description.finger_links) if max_contacts is None
-                             else max_contacts)
+                             else int(max_contacts))
         self.jaw_speeds = jaw_speeds(self.description)
         self.patches = None
         if self.description.contact_model == "patch":
@@ -121,6 +157,15 @@ class RobotEngine:
             self.hold_check = StaticHoldCheck(self.description, self.obj, friction=friction,
                                               num_edges=num_edges,
                                               finger_radius=finger_radius)
+
+    def options(self) -> dict[str, object]:
+        """The settings, beyond robot, object, friction and the static hold check, in which
+        this engine differs from the defaults (``make_engine(name, robot, object,
+        **options())`` builds it again: what a run in chunks gives its workers)."""
+        given = {"num_edges": (self.num_edges, 8),
+                 "finger_radius": (self.finger_radius, FINGER_RADIUS),
+                 "max_contacts": (self.max_contacts, len(self.description.finger_links))}
+        return {key: value for key, (value, default) in given.items() if value != default}
 
     @cached_property
     def in_table(self):
@@ -148,8 +193,12 @@ class RobotEngine:
         if q.ndim != 2 or q.shape[1] != dof:
             raise ValueError(f"configurations of robot {self.description.name!r} must have "
                              f"shape (n, {dof}), got {q.shape}")
-        if not np.all(np.isfinite(q)):
-            raise ValueError("configurations have NaN or infinite entries")
+        bad = ~np.isfinite(q)
+        if bad.any():
+            draw, joint = (int(i) for i in np.argwhere(bad)[0])
+            raise ValueError(f"configuration {draw} is not finite: joint {joint} = "
+                             f"{q[draw, joint]} ({int(bad.any(axis=1).sum())} of {q.shape[0]} "
+                             "configurations have NaN or infinite entries)")
         return q
 
     def quality(self, points: np.ndarray, normals: np.ndarray,
@@ -211,17 +260,19 @@ class RobotEngine:
             friction: (n,) each draw's mu (instead of the engine's).
 
         Raises:
-            ValueError: bad configurations or errors; pose errors for an engine that does not
-                take them; a per-draw mu with the static hold check (it holds at one mu).
+            ValueError: bad configurations or errors; pose or friction errors for an engine
+                that does not take them; a per-draw mu with the static hold check (it holds
+                at one mu).
         """
         q = self.check(q)
         errors = check_errors(q.shape[0], palm, object_offset, friction,
                               static_hold=self.hold_check is not None)
-        mu = errors.pop("friction", None)
         if errors and not self.takes_errors:
-            raise ValueError(f"the {self.name} engine of a description robot takes joint "
-                             f"noise and friction only, not {', '.join(errors)} errors")
-        return self.scored(q, self.close_batch(q, **errors), mu)
+            raise ValueError(f"the {self.name} engine takes joint and hand noise only, not "
+                             f"{', '.join(errors)} errors")
+        mu = errors.pop("friction", None)
+        with single_blas_thread():  # tiny matrices: a second BLAS thread only spins
+            return self.scored(q, self.close_batch(q, **errors), mu)
 
     def scored(self, q: np.ndarray, batch: RobotCloseBatch,
                friction: np.ndarray | None = None) -> DrawBatch:

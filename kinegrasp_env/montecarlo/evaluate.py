@@ -1,390 +1,359 @@
-"""Monte Carlo evaluation of a grasp under noise -> :class:`GraspStats`.
+"""P(FC) and Q moments of a grasp of any catalog robot (:func:`evaluate_grasp`).
 
-The noise is a :class:`~kinegrasp_env.sampling.noise.JointNoise` (arm joints only) or a
-:class:`~kinegrasp_env.sampling.noise_model.NoiseModel` (joints, hand, palm pose, object pose,
-friction); a joints-only model gives the ``JointNoise`` numbers bit for bit.
-
-Draws are processed in chunks of a fixed size. Chunk c draws its joint noise from the stream
-``SeedSequence(seed, spawn_key=(c,))`` (and a model's other sources from their own children
-of it, ``spawn_key=(c, k)``), so the draws, and therefore every statistic, are the same
-whatever the number of worker processes; chunk results are merged in chunk order with exact
-streaming formulas, so memory stays flat for 10^6 draws and the numbers are identical with
-1 or N processes.
+Each draw: the arm joints at q0 + eps (eps from :class:`~kinegrasp_env.sampling.noise.
+JointNoise` on the description's arm joints, the hand at its pre-shape exactly; or a noise
+model's every source), the hand closed on the object by an engine (``pybullet``: pybullet
+closest points on the URDF's own collision geometry, :meth:`~kinegrasp_env.closing.
+generic_reference.RobotWorld.auto_close`; ``fast``: the batched closing of the same model,
+:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`; ``physics``: the hand's
+motors in pybullet), the contacts scored with the robot's contact model by one function for
+every engine (:func:`score`). Every draw ends in one of the outcomes of
+:data:`~kinegrasp_env.montecarlo.draws.OUTCOMES`; P(FC) comes with its Wilson interval, Q's
+moments are over the force-closure draws. The draws are rows of the run's chunked random
+streams (:mod:`~kinegrasp_env.montecarlo.chunks`), the same whatever the number of
+processes or the backend.
 """
 
 from __future__ import annotations
 
-import math
-import sys
-from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.draws import DrawBatch
-from kinegrasp_env.montecarlo.engines import (
-    FORCE_CLOSURE,
-    OUTCOMES,
-    Engine,
-    cached_engine,
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
+from kinegrasp_env.montecarlo.description_engine import (
+    RobotEngine,
+    outcome_of,
+    score,
 )
+from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, DrawBatch
+from kinegrasp_env.montecarlo.engines import ENGINES, engine_class, make_engine
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.montecarlo.nominal import nominal_quality
-from kinegrasp_env.montecarlo.perturbation import EngineInputs, configurations, engine_inputs
-from kinegrasp_env.montecarlo.robot_noise import check_hand
-from kinegrasp_env.quality.wrenches import check_parameters
-from kinegrasp_env.sampling.noise import (  # noqa: F401  (MAX_SIGMA importable from here too)
-    MAX_SIGMA,
+from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
+from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.sampling.noise import (
+    METHODS,
     JointNoise,
-    check_sigma_bound,
+    SeedLike,
+    as_generator,
+    check_seed,
     is_integer_seed,
 )
-from kinegrasp_env.sampling.noise_model import STREAM_CHUNK, NoiseDraws, NoiseModel, chunk_stream
+from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import spec_of
-from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
-from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp, check_robot
+from kinegrasp_env.sampling.stats import skewness, wilson_interval
+from kinegrasp_env.world.grasps import Grasp, check_robot
+from kinegrasp_env.world.robot_configuration import check_configuration
 
-DEFAULT_CHUNK = STREAM_CHUNK
-#: Most chunks the fast engine runs in one call: its auto-close iterations have a fixed
-#: cost, so bigger batches are cheaper per draw (10 chunks per call beat 4 on 10,000 draws
-#: on 2 processes); results are identical.
-FAST_GROUP = 10
-ENGINES = ("pybullet", "fast", "physics")
-#: What every evaluation takes as its noise.
-Noise = JointNoise | NoiseModel
-#: Engines that take a model's palm, object and friction errors (the kinematic ones).
-ERROR_ENGINES = ("pybullet", "fast")
+__all__ = [
+    "ENGINES",
+    "GraspEvaluation",
+    "RobotEngine",
+    "RobotReferenceEngine",
+    "check_robot",
+    "evaluate_grasp",
+    "make_engine",
+    "nominal_robot_quality",
+    "outcome_of",
+    "robot_configurations",
+    "score",
+    "summarize",
+]
 
 
-@dataclass
-class GraspStats:
+@dataclass(frozen=True)
+class GraspEvaluation:
     """Monte Carlo statistics of one grasp.
 
     Attributes:
-        p_fc: fraction of draws in force closure; p_fc_ci: Wilson 95% interval.
-        q_mean, q_var, q_std, q_skew: moments of Q over the force-closure draws (NaN if
-            fewer than 2 of them; skewness per docs/conventions.md).
-        q_nominal: Q of the nominal grasp; error: q_nominal - q_mean (the paper's "Error").
-        samples: number of draws; outcomes: counts by outcome name.
-        sigma, noise, seed, engine: the settings (sigma and noise describe the joints).
-        draws: per-draw results, when requested.
-        noise_model: the spec of a :class:`NoiseModel` noise (None for ``JointNoise``).
+        n: draws.
+        counts: outcome name -> draws.
+        p_fc: fraction in force closure; ci: its Wilson 95% interval.
+        q_mean, q_std, q_skew: Q over the force-closure draws (NaN where too few; the
+            skewness NaN too where every Q is the same).
+        draws: the per-draw results.
+        p_hold_static, hold_ci: the fraction of draws the static hold check held and its
+            Wilson 95% interval (NaN where the engine did not check it).
+        mass: the object's mass the check used, kg (NaN where not checked).
+        q_nominal: Q of the nominal closing (the hand closed once at q0, without noise; 0
+            where it is not in force closure; NaN where not computed).
+        push_median, push_p95: over the draws where both jaws of a coupled pair touched, the
+            median and 95th percentile of the push a coupled pair would give the object,
+            metres (:func:`~kinegrasp_env.closing.coupled_jaws.jaw_push`; NaN for other
+            hands).
     """
 
+    n: int
+    counts: dict[str, int]
     p_fc: float
-    p_fc_ci: tuple[float, float]
+    ci: tuple[float, float]
     q_mean: float
-    q_var: float
     q_std: float
     q_skew: float
-    q_nominal: float
-    error: float
-    samples: int
-    outcomes: dict[str, int]
-    sigma: float | list[float]
-    noise: str
-    seed: int
-    engine: str = "pybullet"
-    draws: DrawBatch | None = field(default=None, repr=False)
-    noise_model: dict | None = None
-
-    def to_json(self) -> dict:
-        """JSON-ready dict (NaN becomes None), without the draws (and without
-        ``noise_model`` for joint noise)."""
-        out = {k: v for k, v in asdict(self).items() if k != "draws"
-               and not (k == "noise_model" and v is None)}
-        out["p_fc_ci"] = list(self.p_fc_ci)
-        for key, value in out.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                out[key] = None
-        return out
+    draws: DrawBatch
+    p_hold_static: float = float("nan")
+    hold_ci: tuple[float, float] = (float("nan"), float("nan"))
+    mass: float = float("nan")
+    q_nominal: float = float("nan")
+    push_median: float = float("nan")
+    push_p95: float = float("nan")
 
 
-def chunk_sizes(n_samples: int, chunk: int) -> list[int]:
-    return [min(chunk, n_samples - start) for start in range(0, n_samples, chunk)]
+def summarize(draws: DrawBatch, mass: float | None = None) -> GraspEvaluation:
+    """The statistics of per-draw results (see :class:`GraspEvaluation`); ``mass`` (kg): the
+    draws carry the static hold check's verdicts, for an object of this mass."""
+    n = int(draws.outcome.size)
+    fc = draws.outcome == FORCE_CLOSURE
+    k = int(fc.sum())
+    q = draws.quality[fc]
+    hold = {}
+    pushed = draws.push[np.isfinite(draws.push)]
+    if pushed.size:
+        hold.update(push_median=float(np.median(pushed)),
+                    push_p95=float(np.percentile(pushed, 95)))
+    if mass is not None:
+        held = int(draws.holds.sum())
+        hold.update(p_hold_static=held / n if n else float("nan"),
+                    hold_ci=wilson_interval(held, n), mass=float(mass))
+    return GraspEvaluation(
+        n, {name: int((draws.outcome == i).sum()) for i, name in enumerate(OUTCOMES)},
+        k / n if n else float("nan"), wilson_interval(k, n),
+        float(q.mean()) if k else float("nan"),
+        float(q.std(ddof=1)) if k > 1 else float("nan"),
+        float(skewness(q)) if k > 2 and np.ptp(q) > 0 else float("nan"), draws, **hold)
 
 
-def chunk_noise(noise: Noise, seed: int, index: int, size: int,
-                method: str = "mc") -> np.ndarray:
-    """Arm-joint noise (size, 7) of chunk ``index``: its own stream, derived from the seed."""
-    if isinstance(noise, NoiseModel):
-        joints = noise.only("joints").draw(seed, index, size, method).joints
-        return np.zeros((size, 7)) if joints is None else joints
-    return noise.sample(size, 7, chunk_stream(seed, index), method=method)
+def nominal_robot_quality(grasp: Grasp, engine: RobotEngine) -> float:
+    """Q of the grasp's nominal closing by ``engine`` (the hand closed once at q0, no noise,
+    scored with the robot's contact model at the engine's friction); 0 where that closing
+    is not in force closure."""
+    draw = engine.run(engine.check(grasp.q0))
+    return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0
 
 
-def chunk_draws(noise: NoiseModel, seed: int, chunks: list[tuple[int, int]],
-                method: str = "mc") -> NoiseDraws:
-    """A model's draws of chunks ``[(index, size), ...]``, stacked."""
-    return NoiseDraws.concatenate([noise.draw(seed, index, size, method)
-                                   for index, size in chunks])
+def with_nominal_row(q: np.ndarray, q0: np.ndarray, errors: dict[str, np.ndarray],
+                     friction: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Configurations q (n, dof) and their per-draw errors (an engine's ``run`` keywords) with
+    the nominal configuration q0 (dof,) appended as row n, its errors exact (identity palm
+    and object errors, the engine's ``friction``)."""
+    exact = {"palm": np.eye(4), "object_offset": np.eye(4), "friction": float(friction)}
+    return (np.vstack([q, q0[None]]),
+            {key: np.concatenate([value, np.asarray(exact[key])[None]])
+             for key, value in errors.items()})
 
 
-# one engine per worker process, built on first use
-_ENGINES: dict[tuple, Engine] = {}
-
-
-def _engine(key: tuple) -> Engine:
-    """The worker's engine of ``key`` = (engine, object, friction, num_edges[, static_hold])
-    (a new one when the object was re-imported since: :func:`cached_engine`)."""
-    return cached_engine(_ENGINES, *key)
-
-
-def chunk_configurations(q0: np.ndarray, noise: Noise, seed: int,
-                         chunks: list[tuple[int, int]], method: str = "mc") -> np.ndarray:
-    """q0 (14,) plus the arm noise (and a model's hand offsets) of chunks
-    ``[(index, size), ...]``, stacked: (sum sizes, 14)."""
-    if isinstance(noise, NoiseModel):
-        return configurations(q0, chunk_draws(noise, seed, chunks, method))
-    q = np.repeat(np.asarray(q0, dtype=float)[None], sum(size for _, size in chunks), axis=0)
-    q[:, :7] += np.concatenate([chunk_noise(noise, seed, index, size, method)
-                                for index, size in chunks])
+def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
+                         n: int, seed: SeedLike = 0, noise: str = "gaussian",
+                         offset: int = 0, method: str = "mc") -> np.ndarray:
+    """(n, dof) the draws :func:`evaluate_grasp` evaluates: the grasp's q0 with joint
+    noise of ``sigma`` (radians) on the engine's robot's arm joints, the hand at its
+    pre-shape. An integer or SeedSequence seed draws rows ``offset .. offset + n`` of the
+    run's chunked streams (:func:`~kinegrasp_env.montecarlo.chunks.
+    chunk_configurations`: the rows a run in chunks draws); a Generator (or None) is drawn
+    from directly (``offset`` 0 only). ``method`` samples the noise
+    (:data:`~kinegrasp_env.sampling.noise.METHODS`; per chunk of the streams)."""
+    q0 = engine.check(grasp.q0)[0]
+    arm = engine.description.arm_dof
+    if isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+        return chunk_configurations(q0, arm, sigma, noise, seed, int(offset), int(n), method)
+    eps = JointNoise(sigma, noise).sample(int(n), arm, as_generator(seed), method=method)
+    q = np.repeat(q0[None], int(n), axis=0)
+    q[:, :arm] += eps
     return q
 
 
-def chunk_inputs(q0: np.ndarray, noise: Noise, seed: int, chunks: list[tuple[int, int]],
-                 method: str, center: np.ndarray) -> EngineInputs:
-    """What the engine takes for chunks ``[(index, size), ...]``: the configurations and a
-    model's per-draw palm, object and friction errors (``center`` (3,): the object's centre
-    of mass, about which an object error rotates)."""
-    if isinstance(noise, NoiseModel):
-        return engine_inputs(q0, chunk_draws(noise, seed, chunks, method), center)
-    return EngineInputs(chunk_configurations(q0, noise, seed, chunks, method))
+def evaluation_rows(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
+                    n: int, seed: SeedLike = 0, noise: str = "gaussian",
+                    noise_model: NoiseModel | None = None, offset: int = 0,
+                    method: str = "mc") -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """(configurations (n, dof), per-draw errors as the engine's ``run`` takes them) of the
+    draws :func:`evaluate_grasp` evaluates in one process: joint noise
+    (:func:`robot_configurations`, no errors), or the rows of ``noise_model``'s every
+    source (:func:`~kinegrasp_env.montecarlo.noise_rows.model_rows`; ``seed`` an
+    integer); rows ``offset .. offset + n`` of the run's, the joints sampled by ``method``."""
+    if noise_model is None:
+        return robot_configurations(grasp, engine, sigma=sigma, n=n, seed=seed,
+                                    noise=noise, offset=offset, method=method), {}
+    from kinegrasp_env.montecarlo.noise_rows import model_rows
+
+    return model_rows(noise_model, engine.check(grasp.q0)[0], engine.description, int(seed),
+                      int(offset), n, engine.obj.center_of_mass, method)
 
 
-def run_inputs(engine: Engine, inputs: EngineInputs) -> DrawBatch:
-    """``engine.run`` on engine inputs."""
-    return engine.run(inputs.q, **inputs.errors())
-
-
-def draw_chunk(engine: Engine, q0: np.ndarray, noise: Noise, seed: int,
-               index: int, size: int, method: str = "mc") -> DrawBatch:
-    """Run chunk ``index`` of a run: q0 (14,) plus that chunk's noise, through ``engine``."""
-    return run_inputs(engine, chunk_inputs(q0, noise, seed, [(index, size)], method,
-                                           engine.obj.center_of_mass))
-
-
-def draw_rows(engine: Engine, q0: np.ndarray, noise: Noise, seed: int, n: int,
-              method: str = "mc") -> DrawBatch:
-    """The first n draws of a run of ``seed`` at q0 (14,) through ``engine``, in one call:
-    the draws an evaluation of that seed makes (its chunks of :data:`DEFAULT_CHUNK` rows)."""
-    chunks = list(enumerate(chunk_sizes(n, DEFAULT_CHUNK)))
-    return run_inputs(engine, chunk_inputs(q0, noise, seed, chunks, method,
-                                           engine.obj.center_of_mass))
-
-
-ChunkResult = tuple[np.ndarray, StreamingMoments, DrawBatch | None]
-
-
-def tally(draws: DrawBatch) -> tuple[np.ndarray, StreamingMoments]:
-    """(outcome counts (4,), streaming moments of Q over the force-closure draws) of
-    ``draws``: what a chunk contributes to a run's statistics."""
-    counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
-    return counts, StreamingMoments(1).update(draws.quality[draws.outcome == FORCE_CLOSURE])
-
-
-def _run_chunk_group(task: tuple) -> list[ChunkResult]:
-    """Chunks ``[(index, size), ...]`` through one engine call (draws are independent of
-    their batch, so the results equal one call per chunk); one result per chunk."""
-    key, q0, noise, seed, chunks, method, keep = task
-    validate_task(q0, noise)
-    engine = _engine(key)
-    draws = run_inputs(engine, chunk_inputs(q0, noise, seed, chunks, method,
-                                            engine.obj.center_of_mass))
-    results, start = [], 0
-    for _, size in chunks:
-        part = draws.part(start, start + size)
-        start += size
-        counts, moments = tally(part)
-        results.append((counts, moments, part if keep else None))
-    return results
-
-
-def group_size(engine: str, n_chunks: int, workers: int) -> int:
-    """Chunks per engine call: the fast engine's per-iteration cost is fixed, so it runs up
-    to :data:`FAST_GROUP` chunks at once while every worker still gets two tasks."""
-    if engine != "fast":
-        return 1
-    return max(1, min(FAST_GROUP, n_chunks // (2 * max(1, workers))))
-
-
-def _chunks(tasks: list[tuple], processes: int,
-            executor: Executor | None) -> Iterator[ChunkResult]:
-    """Chunk results in chunk order, from ``executor`` or a local pool of ``processes``."""
-    if executor is not None:
-        for group in executor.map(_run_chunk_group, tasks):
-            yield from group
-        return
-    with LocalExecutor(processes) as local:
-        for group in local.map(_run_chunk_group, tasks):
-            yield from group
-
-
-def validate_task(q0: np.ndarray, noise: Noise) -> None:
-    """Refuse a nominal configuration q0 (14,) that is not finite and a noise whose sigma
-    is above :data:`MAX_SIGMA` (both ValueError): non-finite draws are an input error,
-    never an outcome."""
-    q0 = np.asarray(q0, dtype=float)
-    if q0.shape != (14,):
-        raise ValueError(f"q0 must be 14 finite numbers (radians), got shape {q0.shape}")
-    bad = np.flatnonzero(~np.isfinite(q0))
-    if bad.size:
-        raise ValueError(f"q0 must be 14 finite numbers (radians), got q0[{bad[0]}] = "
-                         f"{q0[bad[0]]}")
-    check_sigma_bound(noise.sigma_vector(7))
-
-
-def check_noise_engine(noise: Noise, engine: str) -> None:
-    """ValueError (one line) when ``engine`` cannot take a source of the noise model."""
-    if isinstance(noise, NoiseModel) and engine not in ERROR_ENGINES:
-        extra = [s for s in ("palm", "object", "friction") if getattr(noise, s) is not None]
-        if extra:
-            raise ValueError(f"the {engine} engine takes joint and hand noise only; the noise "
-                             f"model has {', '.join(extra)} errors (use "
-                             f"{' or '.join(ERROR_ENGINES)})")
-
-
-def validate_request(n_samples: int, processes: int, chunk: int) -> None:
-    if int(n_samples) != n_samples or n_samples < 1:
-        raise ValueError(f"samples must be an integer >= 1, got {n_samples}")
-    if int(processes) != processes or processes < 1:
-        raise ValueError(f"processes must be an integer >= 1, got {processes}")
-    if chunk < 1:
-        raise ValueError(f"chunk size must be >= 1, got {chunk}")
-
-
-def evaluate_grasp(grasp: Grasp, noise: Noise, n_samples: int, seed: int = 0, *,
-                   processes: int = 1, friction: float = 0.5, num_edges: int = 8,
-                   engine: str = "pybullet", method: str = "mc", chunk: int = DEFAULT_CHUNK,
-                   return_draws: bool = False, progress: bool | Callable = False,
-                   executor: Executor | None = None, static_hold: bool = False) -> GraspStats:
-    """Estimate P(FC) and the moments of Q for ``grasp`` under joint noise.
+def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = None, n: int,
+                   seed: SeedLike = 0, noise: str = "gaussian",
+                   engine: RobotEngine | str = "pybullet",
+                   robot: str | RobotDescription | None = None,
+                   static_hold: bool = False, friction: float = 0.5,
+                   executor: Executor | None = None,
+                   noise_model: NoiseModel | None = None,
+                   offset: int = 0, method: str = "mc",
+                   progress: Callable[[int, int], None] | None = None
+                   ) -> GraspEvaluation:
+    """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
+    its nominal Q (:func:`nominal_robot_quality`).
 
     Args:
-        grasp: the grasp (its q0 is the nominal configuration).
-        noise: joint noise on the 7 arm joints (``JointNoise``), or a ``NoiseModel`` of
-            every source of error (joints, hand, palm, object, friction; its friction source
-            replaces ``friction`` draw by draw).
-        n_samples: number of draws.
-        seed: run seed; chunk c uses ``SeedSequence(seed, spawn_key=(c,))``.
-        processes: local worker processes (results do not depend on it).
-        executor: where chunks run (:mod:`kinegrasp_env.montecarlo.execution`: a local pool or
-            Ray); overrides ``processes``. Results do not depend on it either.
-        friction, num_edges: friction cone of the quality measure.
-        engine: ``pybullet`` (the reference) or ``fast`` (batched, against the object's
-            distance grid; same noise draws, so the two compare draw by draw).
-        method: noise sampler (``mc``, ``antithetic``, ``sobol``: per chunk).
-        chunk: draws per chunk (part of the random stream layout: keep it fixed to
-            reproduce numbers).
-        return_draws: keep every draw's outcome, contacts and Q.
-        progress: show a tqdm bar on stderr (True) or call ``progress(done, total)``.
-        static_hold: the draws carry the static hold check's verdicts (``held``; kept with
-            ``return_draws``: :class:`~kinegrasp_env.montecarlo.engines.Engine`).
+        grasp: its ``robot`` names the robot (default: ``robot``, or the engine's).
+        sigma: radians, scalar or one per arm joint (not needed with a ``noise_model``).
+        n: draws (>= 1).
+        seed: seed or Generator of the noise.
+        noise: ``gaussian``, ``uniform`` or ``triangular``.
+        engine: an engine to reuse (its robot and object must be the grasp's), or the name
+            of one to build: ``pybullet`` (the reference), ``fast``
+            (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`) or ``physics``
+            (:class:`~kinegrasp_env.montecarlo.physics_engine.RobotPhysicsEngine`).
+        robot: the robot to evaluate with (default: the grasp's).
+        static_hold: run the static hold check too (an engine to build; a given engine
+            checks when it was made with ``static_hold=True``).
+        friction: the contacts' mu (an engine to build; a given engine has its own); with a
+            ``noise_model`` of a friction source, that source's nominal mu
+            (:func:`~kinegrasp_env.sampling.noise_model.nominal_friction`: the draws take
+            theirs from the source).
+        executor: run the draws in chunks on it (:mod:`~kinegrasp_env.montecarlo.
+            chunks`: the same draws, row for row, whatever the processes or backend;
+            the seed an integer, the robot a catalog one). None, or a local executor of one
+            process: in this process.
+        noise_model: every source of error (:mod:`~kinegrasp_env.montecarlo.noise_rows`:
+            joints, hand, palm, object, friction; the seed an integer); replaces ``sigma`` and
+            ``noise``.
+        offset: the draws are rows ``offset .. offset + n`` of the seed's run (an integer or
+            SeedSequence seed; e.g. the fresh draws after a selection's:
+            :func:`~kinegrasp_env.toolkit.selection.report_rows`).
+        method: the joint noise's sampler in each chunk of the streams: ``mc`` (plain Monte
+            Carlo), ``antithetic`` (pairs of opposite draws) or ``sobol`` (scrambled Sobol
+            points; balanced over whole chunks of 250 rows).
+        progress: ``progress(done, n)`` as the chunks of a run on ``executor`` come back
+            (with it, a run on an executor of one local process runs in chunks too: the
+            same draws and numbers; without an executor it is called once, at the end).
+
+    Every draw is kept (``draws``; about 0.6 kB a draw for a hand of 11 finger links): a
+    run too large for memory is evaluated in blocks of rows (``offset``), whose
+    :func:`~kinegrasp_env.montecarlo.grasp_stats.tally` merge exactly.
 
     Raises:
-        ValueError: a non-finite q0, a sigma above :data:`MAX_SIGMA` (pi radians), or draws
-            whose configurations are not finite (checked by every engine before it runs); a
-            grasp of another robot than the default one (every robot's grasp is evaluated by
-            :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, which
-            draws the same joint noise as this function for the default robot's).
+        ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
+            a Generator as the seed of a chunked run.
     """
-    validate_request(n_samples, processes, chunk)
-    counts, moments, draws = run_chunks(
-        grasp, noise, seed, sizes=chunk_sizes(n_samples, chunk), processes=processes,
-        friction=friction, num_edges=num_edges, engine=engine, method=method,
-        return_draws=return_draws, progress=progress, executor=executor,
-        static_hold=static_hold)
-    if engine == "physics":  # its own nominal closing, as every robot's evaluation takes it
-        from kinegrasp_env.montecarlo.robot_evaluate import nominal_robot_quality
-
-        closing = _engine((engine, grasp.object, float(friction), int(num_edges),
-                           bool(static_hold)))  # the run's own engine, where it ran here
-        q_nominal = nominal_robot_quality(grasp, closing.robot)
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be a positive number of draws, got {n!r}")
+    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
+        raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
+    if offset:
+        if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
+            raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
+                             f"seed, got {type(seed).__name__}")
+    check_seed(seed)
+    if noise_model is None:
+        if sigma is None:
+            raise ValueError("give the joint noise's sigma (radians) or a noise_model")
+        JointNoise(sigma, noise)  # sigma and noise checked before any work
     else:
-        q_nominal = nominal_quality(grasp, friction, num_edges)
-    return summarize(grasp, noise, seed, engine, counts, moments, draws, q_nominal=q_nominal)
+        sigma = 0.0  # the model's joints source replaces it
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if noise_model is not None and not isinstance(noise_model, NoiseModel):
+        raise ValueError(f"noise_model must be a NoiseModel (e.g. kinegrasp_env.sampling."
+                         f"noise_spec.load_noise_model), got {type(noise_model).__name__}; "
+                         "joint noise alone is sigma= and noise=")
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress must be a function progress(done, n), got {progress!r}")
+    if executor is not None and not isinstance(executor, Executor):
+        raise ValueError("executor must be an Executor (kinegrasp_env.montecarlo.execution: "
+                         f"LocalExecutor(processes), RayExecutor()), got {executor!r}")
+    if isinstance(engine, str) and engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if not isinstance(engine, str):
+        kind = getattr(engine, "name", None)
+        if kind not in ENGINES or type(engine) is not engine_class(kind):
+            raise ValueError(f"engine must be a name ({', '.join(ENGINES)}) or an engine "
+                             f"make_engine builds, got {type(engine).__name__}")
+        name = engine.description.name
+        if engine.obj.name != grasp.object:
+            raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
+                             f"holds {engine.obj.name!r}")
+    else:
+        name = grasp.robot if robot is None else getattr(robot, "name", robot)
+    check_robot(grasp, name)
+    check_configuration(grasp.q0, f"grasp {grasp.id!r}", robot=name)
+    if noise_model is not None:
+        from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
+        from kinegrasp_env.sampling.noise_model import nominal_friction
+
+        friction = nominal_friction(noise_model, friction)
+
+        _integer_seed(seed, "a noise model's run")
+        description = (robot if isinstance(robot, RobotDescription) else load_robot(name)
+                       ) if isinstance(engine, str) else engine.description
+        check_robot_noise(noise_model, description, description.arm_dof,
+                          engine if isinstance(engine, str) else engine.name,
+                          static_hold if isinstance(engine, str)
+                          else engine.hold_check is not None)
+    if executor is not None and (progress is not None or not (
+            isinstance(executor, LocalExecutor) and executor.workers == 1)):
+        return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                        static_hold=static_hold, friction=friction, executor=executor,
+                        noise_model=noise_model, offset=int(offset), method=method,
+                        progress=progress)
+    own = isinstance(engine, str)
+    if own:
+        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
+                             static_hold=static_hold, friction=friction)
+    try:
+        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                                    noise_model=noise_model, offset=int(offset),
+                                    method=method)
+        check = engine.hold_check
+        # the nominal closing rides with the draws, as row n, in the same engine call
+        rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
+        draws = engine.run(rows, **errors)
+        nominal = draws.take(slice(n, n + 1))
+        stats = summarize(draws.take(slice(0, n)), None if check is None else check.mass)
+        if progress is not None:
+            progress(n, n)
+        return replace(stats, q_nominal=float(nominal.quality[0])
+                       if nominal.outcome[0] == FORCE_CLOSURE else 0.0)
+    finally:
+        if own:
+            engine.close()
 
 
-def run_chunks(grasp: Grasp, noise: Noise, seed: int, *, sizes: list[int],
-               first_chunk: int = 0, processes: int = 1, friction: float = 0.5,
-               num_edges: int = 8, engine: str = "pybullet", method: str = "mc",
-               return_draws: bool = False, progress: bool | Callable = False,
-               executor: Executor | None = None, static_hold: bool = False
-               ) -> tuple[np.ndarray, StreamingMoments, DrawBatch | None]:
-    """Run chunks ``first_chunk, first_chunk + 1, ...`` of the given sizes and merge them.
-
-    Returns outcome counts (4,), streaming moments of Q over force-closure draws, and the
-    draws if requested (with ``static_hold``, their hold verdicts). Chunk c always draws the
-    same noise for the same seed, so a run can be extended later by asking for the next
-    chunks (adaptive ranking does).
-    """
-    if engine not in ENGINES:
-        raise ValueError(f"unknown engine {engine!r}; choose from {ENGINES}")
-    if not isinstance(noise, (JointNoise, NoiseModel)):
-        raise ValueError(f"noise must be a JointNoise or a NoiseModel, got "
-                         f"{type(noise).__name__} (sigma s radians on every arm joint: "
-                         "JointNoise(s))")
+def _integer_seed(seed: SeedLike, what: str) -> None:
+    """ValueError unless ``seed`` is an integer >= 0 (a run drawn by rows of its streams)."""
     if not is_integer_seed(seed):
-        raise ValueError(f"seed must be an integer >= 0 (chunk c draws from "
-                         f"SeedSequence(seed, spawn_key=(c,))), got {seed!r}")
-    check_robot(grasp, DEFAULT_ROBOT, "evaluate_grasp takes the default robot's grasps; every "
-                "robot's grasp is evaluated by kinegrasp_env.montecarlo.robot_evaluate."
-                "evaluate_robot_grasp, as `kinegrasp evaluate` evaluates it")
-    validate_task(grasp.q0, noise)
-    check_noise_engine(noise, engine)
-    if isinstance(noise, NoiseModel) and noise.hand is not None:
-        check_hand(noise.hand, DEFAULT_ROBOT)  # before any chunk (in a worker) draws it
-    check_parameters(friction, num_edges)
-    n_samples = int(sum(sizes))
-    key = (engine, grasp.object, float(friction), int(num_edges), bool(static_hold))
-    chunks = [(first_chunk + i, size) for i, size in enumerate(sizes)]
-    group = group_size(engine, len(chunks), executor.workers if executor else processes)
-    tasks = [(key, grasp.q0, noise, int(seed), chunks[i:i + group], method, return_draws)
-             for i in range(0, len(chunks), group)]
-    counts = np.zeros(len(OUTCOMES), dtype=np.int64)
-    moments = StreamingMoments(1)
-    kept: list[DrawBatch] = []
-    bar = None
-    if progress is True:
-        from tqdm import tqdm
-
-        bar = tqdm(total=n_samples, desc=f"{grasp.object} grasp {grasp.id}", unit="draw",
-                   file=sys.stderr, disable=None)
-    done = 0
-    results = _chunks(tasks, processes, executor)
-    for (chunk_counts, chunk_moments, draws), size in zip(results, sizes, strict=True):
-        counts += chunk_counts
-        moments.merge(chunk_moments)
-        if draws is not None:
-            kept.append(draws)
-        done += size
-        if bar is not None:
-            bar.update(size)
-        elif callable(progress):
-            progress(done, n_samples)
-    if bar is not None:
-        bar.close()
-    return counts, moments, DrawBatch.concatenate(kept) if kept else None
+        raise ValueError(f"{what} takes an integer seed >= 0 (its draws are rows of the "
+                         f"seed's streams), got {seed!r}")
 
 
-def summarize(grasp: Grasp, noise: Noise, seed: int, engine: str, counts: np.ndarray,
-              moments: StreamingMoments, draws: DrawBatch | None, *,
-              q_nominal: float | None = None) -> GraspStats:
-    """The statistics of merged chunks; ``q_nominal``: the grasp's nominal Q at the run's
-    friction (default: the grasp's recorded ``q_nominal``)."""
-    q_nominal = grasp.q_nominal if q_nominal is None else float(q_nominal)
-    n = int(counts.sum())
-    fc = int(counts[FORCE_CLOSURE])
-    result = moments.result()
-    mean = float(result.mean[0]) if fc else math.nan
-    var = float(result.cov[0, 0]) if fc > 1 else math.nan
-    sigma = noise.sigma if isinstance(noise.sigma, float) else list(noise.sigma)
-    return GraspStats(
-        p_fc=fc / n, p_fc_ci=wilson_interval(fc, n), q_mean=mean, q_var=var,
-        q_std=math.sqrt(var) if fc > 1 else math.nan,
-        q_skew=float(result.skew[0]) if fc > 1 else math.nan, q_nominal=q_nominal,
-        error=q_nominal - mean if fc else math.nan, samples=n,
-        outcomes={name: int(c) for name, c in zip(OUTCOMES, counts, strict=True)},
-        sigma=sigma, noise=noise.kind, seed=int(seed), engine=engine, draws=draws,
-        noise_model=spec_of(noise) if isinstance(noise, NoiseModel) else None)
+def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
+             seed: SeedLike, noise: str, static_hold: bool, friction: float,
+             executor: Executor, noise_model: NoiseModel | None = None,
+             offset: int = 0, method: str = "mc", progress=None) -> GraspEvaluation:
+    """:func:`evaluate_grasp`'s run in chunks on ``executor`` (a given engine passes
+    its name and settings to the workers, which build their own); ``progress`` as there."""
+    from kinegrasp_env.montecarlo.chunks import (
+        RobotChunk,
+        chunked_draws,
+        nominal_closing_quality,
+    )
+    from kinegrasp_env.world.objects import load_object
 
+    if noise_model is not None or not isinstance(seed, np.random.SeedSequence):
+        _integer_seed(seed, "a run in chunks")
+    options = ()
+    if not isinstance(engine, str):
+        static_hold = engine.hold_check is not None
+        options = tuple(sorted(engine.options().items()))
+        engine, friction = engine.name, engine.friction
+    first = RobotChunk(robot, grasp.object, engine, tuple(np.asarray(grasp.q0, float)),
+                       sigma if np.ndim(sigma) == 0 else tuple(sigma), noise,
+                       seed if isinstance(seed, np.random.SeedSequence) else int(seed),
+                       offset, n, friction, static_hold,
+                       None if noise_model is None else json.dumps(spec_of(noise_model)),
+                       method, options)
+    draws = chunked_draws(first, n, executor, progress=progress)
+    stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)
+    return replace(stats, q_nominal=nominal_closing_quality(first, executor))

@@ -3,8 +3,8 @@
 An :class:`Executor` runs a module-level function over a list of picklable tasks and yields
 the results either in task order (:meth:`Executor.map`) or as they finish
 (:meth:`Executor.as_completed`). Results never depend on the backend: every task carries
-its own identity (its random stream is derived from the run seed and that identity, see
-:func:`kinegrasp_env.montecarlo.evaluate.chunk_noise`), and callers merge results in task order.
+its own identity (its random rows are derived from the run seed and that identity, see
+:mod:`kinegrasp_env.montecarlo.chunks`), and callers merge results in task order.
 
 Failures: a worker process that dies (killed, out of memory, a crash in a native library)
 loses only the tasks it held. The local pool is rebuilt and those tasks are submitted again;

@@ -16,6 +16,7 @@ from kinegrasp_env.montecarlo.hold_batch import HoldBatch
 from kinegrasp_env.physics.protocol import QUICK_PROTOCOL, HoldProtocol
 from kinegrasp_env.physics.robot_hold import QUICK_MOTORS, RobotMotorSettings
 from kinegrasp_env.physics.simulators import simulator_class
+from kinegrasp_env.threads import single_blas_thread
 
 __all__ = ["RobotHoldEngine", "hold_engine", "quick_hold_engine"]
 
@@ -62,7 +63,8 @@ class RobotHoldEngine(RobotEngine):
             if result.forces_gripped.shape != (fingers,):  # not reached: NaN of the default
                 result.forces_gripped = result.forces_released = np.full(fingers, np.nan)
             hold.record(i, result)
-        return self.scored(q, RobotCloseBatch.of_results(closings)), hold
+        with single_blas_thread():
+            return self.scored(q, RobotCloseBatch.of_results(closings)), hold
 
 
 def hold_engine(robot, object_name: str, *, protocol: HoldProtocol,

@@ -42,20 +42,3 @@ def grasp_from_draw(draw: DrawBatch, object_name: str, q0: np.ndarray,
                  draw.normals[row, :k].copy(), draw.finger[row, :k].astype(int),
                  draw.link[row, :k].astype(int), float(draw.quality[row]), id=grasp_id,
                  meta=dict(meta or {}), robot=robot)
-
-
-def nominal_quality(grasp: Grasp, friction: float = 0.5, num_edges: int = 8) -> float:
-    """Q of the grasp's nominal contacts (``grasp.points``, ``grasp.normals``: (k, 3), the
-    object frame) as point contacts with friction ``friction`` and ``num_edges`` cone edges,
-    torques about the object's centre of mass scaled by its ``torque_scale``: the grasp's
-    ``q_nominal`` at another friction (at the one it was recorded with, that value). A grasp
-    without contacts has Q 0."""
-    from kinegrasp_env.quality.epsilon import ferrari_canny
-    from kinegrasp_env.world.objects import load_object
-
-    if len(grasp.points) == 0:
-        return 0.0
-    obj = load_object(grasp.object)
-    return float(ferrari_canny(grasp.points, grasp.normals, friction=friction,
-                               num_edges=num_edges, torque_scale=obj.torque_scale,
-                               center=obj.center_of_mass))

@@ -292,7 +292,7 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
     (dof,) with the hand moved by each delta (n, 6) in the flange frame (its palm error:
     :mod:`~kinegrasp_env.closing.hand_errors`), by its engine ``engine``, in chunks of
     :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
-    from kinegrasp_env.montecarlo.robot_engines import make_engine
+    from kinegrasp_env.montecarlo.engines import make_engine
 
     check_batch_object(object_name)
     n = len(deltas)

@@ -47,8 +47,8 @@ import numpy as np
 
 from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.draws import OUTCOMES
-from kinegrasp_env.montecarlo.evaluate import chunk_sizes, tally
-from kinegrasp_env.montecarlo.evaluate import summarize as grasp_stats
+from kinegrasp_env.montecarlo.grasp_stats import chunk_sizes, tally
+from kinegrasp_env.montecarlo.grasp_stats import summarize as grasp_stats
 from kinegrasp_env.montecarlo.sweep_noise import cell_noise
 from kinegrasp_env.montecarlo.sweep_spec import SpecError, SweepSpec, SweepTask
 from kinegrasp_env.physics.simulators import PHYSICS_MODEL
@@ -72,10 +72,10 @@ SUMMARY_COLUMNS = ("object", "grasp", "sigma", "noise", "engine", "p_fc", "p_fc_
 def run_task(task: SweepTask) -> dict:
     """Evaluate one task (in a worker): outcome counts and Q moments of its chunk, rows
     ``task.offset .. task.offset + task.size`` of its cell's run
-    (:func:`~kinegrasp_env.montecarlo.robot_chunks.close_chunk`: the rows of the seed's
+    (:func:`~kinegrasp_env.montecarlo.chunks.close_chunk`: the rows of the seed's
     chunked streams, so a cell's counts equal ``kinegrasp evaluate --robot R`` with the same
     seed whatever the chunk size). Each process keeps its engines for its later tasks."""
-    from kinegrasp_env.montecarlo.robot_chunks import RobotChunk, close_chunk
+    from kinegrasp_env.montecarlo.chunks import RobotChunk, close_chunk
 
     start = time.perf_counter()
     q0 = task.q0
@@ -236,7 +236,8 @@ class SweepStore:
 
 def summarize(spec: SweepSpec, store: SweepStore) -> list[dict]:
     """One row per cell of ``spec``: P(FC), Wilson interval, moments of Q, outcomes (the
-    statistics of :func:`kinegrasp_env.montecarlo.evaluate.summarize`, chunks merged in order)."""
+    statistics of :func:`kinegrasp_env.montecarlo.grasp_stats.summarize`, chunks merged in
+    order)."""
     results = store.results()
     models = dict(spec.models)
     n_chunks = len(chunk_sizes(spec.samples, spec.chunk))
@@ -274,7 +275,7 @@ def nominal_closing(engine: str) -> str:
 def nominal_qualities(spec: SweepSpec) -> dict[tuple[str, int, str], float]:
     """(object, grasp index, closing engine: :func:`nominal_closing`) -> the grasp's nominal
     Q at the spec's friction, by that engine's nominal closing."""
-    from kinegrasp_env.montecarlo.robot_evaluate import make_engine, nominal_robot_quality
+    from kinegrasp_env.montecarlo.evaluate import make_engine, nominal_robot_quality
 
     out = {}
     for o in spec.objects:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kinegrasp_env.montecarlo.evaluate import ENGINES, MAX_SIGMA, chunk_sizes
+from kinegrasp_env.montecarlo.grasp_stats import ENGINES, MAX_SIGMA, chunk_sizes
 from kinegrasp_env.montecarlo.sweep_grasps import (
     SpecError,
     check_grasp_indices,
@@ -219,10 +219,10 @@ def _robot(value: Any, where: str) -> str:
 def _check_robot_cells(robot: str, models: tuple, engines: tuple[str, ...],
                        where: str) -> None:
     """What a description robot's engines take: its engines, and noise models of its sources
-    (:func:`~kinegrasp_env.montecarlo.robot_noise.check_robot_noise`, every engine of the
+    (:func:`~kinegrasp_env.montecarlo.noise_rows.check_robot_noise`, every engine of the
     spec); one line naming what is not."""
-    from kinegrasp_env.montecarlo.robot_evaluate import ENGINES as ROBOT_ENGINES
-    from kinegrasp_env.montecarlo.robot_noise import check_robot_noise
+    from kinegrasp_env.montecarlo.evaluate import ENGINES as ROBOT_ENGINES
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 
@@ -325,7 +325,7 @@ class SweepTask:
     size: int
     seed: int
     model: str | None = None  # the spec JSON of a noise-model cell
-    q0: tuple[float, ...] | None = None  # the grasp's (14,); None: shipped grasp ``grasp``
+    q0: tuple[float, ...] | None = None  # the grasp's (dof,); None: shipped grasp ``grasp``
     robot: str = DEFAULT_ROBOT
     #: the chunk's first row within its cell's run (:meth:`SweepSpec.tasks` sets it: the
     #: chunk's index times the spec's chunk)

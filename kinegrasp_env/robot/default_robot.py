@@ -1,7 +1,8 @@
 """The default robot's names and model, read from its description
 (``assets/robots/kuka_sdh.yaml``, :data:`~kinegrasp_env.robot.default.DEFAULT_ROBOT`) on first
-use: what the library path of the default robot's 14-entry configurations (its engines by
-name, its noise perturbation, its pybullet contact reference, its analytic IK) reads.
+use: what its analytic IK, the elbow angle's links, the environments' default picture and the
+tests' pybullet-only contact reference (:mod:`~kinegrasp_env.montecarlo.bullet_contacts`)
+read.
 
 ``ARM_JOINTS`` (base to flange), ``HAND_JOINTS`` (the hand's actuated vector), ``PALM_LINK``,
 ``FINGERTIP_LINKS``, ``FINGERS`` (per finger: proximal joint, distal joint, proximal link,

@@ -11,7 +11,7 @@ from kinegrasp_env.lazy import lazy_exports
 
 __getattr__, __dir__, __all__ = lazy_exports(__name__, {
     "noise": ("JointNoise", "DISTRIBUTIONS", "METHODS", "as_generator"),
-    "noise_model": ("NoiseModel", "NoiseDraws", "as_noise_model"),
+    "noise_model": ("NoiseModel", "as_noise_model"),
     "noise_sources": ("NoiseSpecError", "JointsSource", "HandSource", "PoseSource",
                       "FrictionSource"),
     "noise_spec": ("noise_model_from_spec", "load_noise_model", "spec_of"),

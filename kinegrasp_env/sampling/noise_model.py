@@ -4,12 +4,13 @@ friction.
 A :class:`NoiseModel` holds up to five sources; a missing source is exact, and a model with
 every sigma zero is the nominal grasp. Per draw (units: radians, metres):
 
-* ``joints`` (:class:`JointsSource`): eps added to the arm joints (7 for the default robot;
-  a robot's arm_dof): independent, with one sigma per joint and any distribution of
-  :class:`~kinegrasp_env.sampling.noise.JointNoise` (the same numbers for the same stream),
-  or Gaussian with a full covariance; plus an optional constant bias (a calibration offset).
-* ``hand`` (:class:`HandSource`): Gaussian offsets (4,): the pre-shape spread, then one per
-  finger added to both of its flexion joints (the angles at which closing starts).
+* ``joints`` (:class:`JointsSource`): eps added to the arm joints (the robot's arm_dof):
+  independent, with one sigma per joint and any distribution of
+  :class:`~kinegrasp_env.sampling.noise.JointNoise` (the same numbers for the same stream), or
+  Gaussian with a full covariance; plus an optional constant bias (a calibration offset).
+* ``hand`` (:class:`HandSource`): Gaussian offsets of the hand's pre-shape: one per finger
+  added to the joints that close it, and one spread offset added to every other hand joint
+  (the angles at which closing starts; :mod:`kinegrasp_env.montecarlo.noise_rows`).
 * ``palm`` (:class:`PoseSource`): a Gaussian rigid error of the hand relative to the flange,
   in the flange frame: hand root = flange @ T.
 * ``object`` (:class:`PoseSource`): a Gaussian rigid error of the object relative to where
@@ -22,10 +23,11 @@ N(0, sigma^2) with its own sigma; the transform is [exp([r]x), t] (:func:`offset
 The source classes and their checks are in :mod:`kinegrasp_env.sampling.noise_sources`
 (re-exported here).
 
-Random streams (docs/conventions.md): in chunk c of a run with seed s the joints draw from
-the chunk's stream ``SeedSequence(s, spawn_key=(c,))`` exactly as ``JointNoise`` does, and
-every other source from its own child ``SeedSequence(s, spawn_key=(c, k))`` with the fixed k
-of :data:`STREAM_KEYS`, so adding or removing a source never changes the others' draws.
+Random streams (docs/conventions.md; drawn by :func:`stream_rows`): in chunk c of a run with
+seed s the joints draw from the chunk's stream ``SeedSequence(s, spawn_key=(c,))`` exactly as
+``JointNoise`` does, and every other source from its own child ``SeedSequence(s, spawn_key=(c,
+k))`` with the fixed k of :data:`STREAM_KEYS`, so adding or removing a source never changes the
+others' draws.
 """
 
 from __future__ import annotations
@@ -37,7 +39,6 @@ import numpy as np
 
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_sources import (
-    ARM_JOINTS,
     FRICTION_DISTRIBUTIONS,
     FrictionSource,
     HandSource,
@@ -56,56 +57,9 @@ STREAM_CHUNK = 250
 DRAW_LAYOUT = f"rows of chunks of {STREAM_CHUNK}"
 
 __all__ = ["DRAW_LAYOUT", "FRICTION_DISTRIBUTIONS", "SOURCES", "STREAM_CHUNK", "STREAM_KEYS",
-           "FrictionSource", "HandSource", "JointsSource", "NoiseDraws", "NoiseModel",
+           "FrictionSource", "HandSource", "JointsSource", "NoiseModel",
            "NoiseSpecError", "PoseSource", "as_noise_model", "chunk_stream",
            "offset_transforms", "skew", "stream_rows"]
-
-
-# ----------------------------------------------------------------------------- draws
-@dataclass(frozen=True)
-class NoiseDraws:
-    """What a model drew for n draws, by source (None: that source is exact).
-
-    Attributes:
-        size: n.
-        joints: (n, 7) arm-joint offsets, radians.
-        hand: (n, 4) spread and per-finger closing offsets, radians.
-        palm, object: (n, 6) translation (metres) and rotation vector (radians).
-        friction: (n,) mu.
-    """
-
-    size: int
-    joints: np.ndarray | None = None
-    hand: np.ndarray | None = None
-    palm: np.ndarray | None = None
-    object: np.ndarray | None = None
-    friction: np.ndarray | None = None
-
-    def block(self, source: str) -> np.ndarray | None:
-        return getattr(self, source)
-
-    def with_block(self, source: str, block: np.ndarray | None) -> NoiseDraws:
-        """A copy with ``source``'s draws replaced (None: that source exact)."""
-        if source not in SOURCES:
-            raise ValueError(f"unknown noise source {source!r}; sources: {', '.join(SOURCES)}")
-        return replace(self, **{source: block})
-
-    def only(self, keep: tuple[str, ...]) -> NoiseDraws:
-        """A copy with every source outside ``keep`` exact."""
-        return replace(self, **{s: None for s in SOURCES if s not in keep})
-
-    def part(self, start: int, stop: int) -> NoiseDraws:
-        return NoiseDraws(stop - start, **{s: None if getattr(self, s) is None
-                                           else getattr(self, s)[start:stop] for s in SOURCES})
-
-    @classmethod
-    def concatenate(cls, parts: list[NoiseDraws]) -> NoiseDraws:
-        """Draws of ``parts`` one after the other (every part has the same sources)."""
-        out = {}
-        for s in SOURCES:
-            blocks = [getattr(p, s) for p in parts]
-            out[s] = None if blocks[0] is None else np.concatenate(blocks)
-        return cls(sum(p.size for p in parts), **out)
 
 
 def chunk_stream(seed: int | np.random.SeedSequence, index: int,
@@ -245,21 +199,6 @@ class NoiseModel:
         if self.joints is None:
             return np.zeros(dim)
         return self.joints.sigma_vector(dim)
-
-    def draw(self, seed: int, index: int, size: int, method: str = "mc") -> NoiseDraws:
-        """Draws of chunk ``index`` of a run with ``seed`` (streams in the module
-        docstring); ``method`` (``mc``, ``antithetic``, ``sobol``) samples the joints, the
-        other sources are plain Monte Carlo. A source whose sigmas are all zero (and no
-        bias) draws nothing: it is exact, and the draw is the nominal one bit for bit."""
-        out = {}
-        if self.joints is not None and not self.joints.exact:
-            out["joints"] = self.joints.sample(chunk_stream(seed, index), size, ARM_JOINTS,
-                                               method)
-        for name in SOURCES[1:]:
-            source = getattr(self, name)
-            if source is not None and not source.exact:
-                out[name] = source.sample(chunk_stream(seed, index, name), size)
-        return NoiseDraws(size, **out)
 
 
 def as_noise_model(noise: JointNoise | NoiseModel) -> NoiseModel:

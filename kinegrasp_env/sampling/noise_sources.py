@@ -5,7 +5,9 @@ any of the three distributions of :class:`~kinegrasp_env.sampling.noise.JointNoi
 covariance; a bias), :class:`HandSource` (pre-shape spread and per-finger closing offsets),
 :class:`PoseSource` (a Gaussian rigid error: palm or object) and :class:`FrictionSource` (mu
 per draw). Each validates its values on construction (:class:`NoiseSpecError`, one line
-naming the bad value) and samples from a given generator. Units: radians, metres.
+naming the bad value); the joints, pose and friction sources sample from a given generator
+(the hand's offsets are laid out per robot: :mod:`kinegrasp_env.montecarlo.noise_rows`).
+Units: radians, metres.
 """
 
 from __future__ import annotations
@@ -18,10 +20,8 @@ import numpy as np
 from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 
 FRICTION_DISTRIBUTIONS = ("gaussian", "uniform", "fixed")
-#: Largest joint sigma or bias (radians): the bound of ``montecarlo.evaluate.MAX_SIGMA``.
+#: Largest joint sigma or bias (radians): the bound of ``montecarlo.grasp_stats.MAX_SIGMA``.
 MAX_ANGLE = math.pi
-#: The default robot's arm joints (the joint stream of its runs draws this many columns).
-ARM_JOINTS = 7
 
 
 class NoiseSpecError(ValueError):
@@ -196,11 +196,10 @@ class JointsSource:
             return np.sqrt(np.diag(np.array(self.covariance)))
         return broadcast(self.sigma, dim)
 
-    def sample(self, rng: np.random.Generator, size: int, dim: int = ARM_JOINTS,
+    def sample(self, rng: np.random.Generator, size: int, dim: int,
                method: str = "mc") -> np.ndarray:
-        """eps (size, dim), radians, of an arm of ``dim`` joints (default: the default
-        robot's). The independent case is ``JointNoise(sigma, distribution).sample(size,
-        dim, rng, method)`` itself."""
+        """eps (size, dim), radians, of an arm of ``dim`` joints. The independent case is
+        ``JointNoise(sigma, distribution).sample(size, dim, rng, method)`` itself."""
         self.check_count(dim)
         if self.covariance is None:
             eps = JointNoise(self.sigma, self.distribution).sample(size, dim, rng,
@@ -219,7 +218,7 @@ class JointsSource:
 class HandSource:
     """Hand pre-shape error: ``spread_sigma`` (rad) on the spread, ``closing_sigma`` (rad; a
     scalar, or one per finger of the robot, in the order its description lists the fingers:
-    checked against the robot by :func:`~kinegrasp_env.montecarlo.robot_noise.check_hand`)
+    checked against the robot by :func:`~kinegrasp_env.montecarlo.noise_rows.check_hand`)
     added to the finger's closing joints."""
 
     spread_sigma: float = 0.0
@@ -231,15 +230,6 @@ class HandSource:
         object.__setattr__(self, "closing_sigma",
                            sigmas(self.closing_sigma, "hand.closing_sigma", None, MAX_ANGLE,
                                   "finger"))
-
-    def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
-        """(size, 4) offsets, radians: spread, fingers 1, 2, 3 (the default robot's hand;
-        ValueError for closing sigmas of another number of fingers)."""
-        if np.size(self.closing_sigma) not in (1, 3):
-            raise ValueError(f"hand.closing_sigma has {np.size(self.closing_sigma)} values; "
-                             "the default robot's hand has 3 fingers")
-        scale = np.concatenate([[self.spread_sigma], broadcast(self.closing_sigma, 3)])
-        return rng.standard_normal((size, 4)) * scale
 
     @property
     def exact(self) -> bool:

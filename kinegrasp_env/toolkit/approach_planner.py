@@ -26,8 +26,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.montecarlo.nominal import grasp_from_draw
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics, axis_angle_matrix

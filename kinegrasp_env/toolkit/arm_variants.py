@@ -8,7 +8,7 @@ limits and clear of the object); for a 6-joint arm, which has no self-motion, th
 palm pose's IK branches (:func:`~kinegrasp_env.toolkit.elbow_search.branch_variants`, at most
 ``count``). Either kind is kept where its nominal closing is in force closure (at the engine's
 friction: the run's). Each is evaluated on ``samples`` draws of joint noise on the arm joints
-(:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`, seed ``seed``: the
+(:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`, seed ``seed``: the
 draws of ``kinegrasp evaluate --robot NAME --seed SEED``); with two variants or more, the most
 and the least robust (chosen on those draws) are reported again on fresh draws (the rows after
 the selection's in the same run: :func:`~kinegrasp_env.toolkit.selection.robust_fragile`) with
@@ -24,13 +24,13 @@ from dataclasses import replace
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
-from kinegrasp_env.montecarlo.robot_evaluate import (
+from kinegrasp_env.montecarlo.evaluate import (
     RobotReferenceEngine,
-    evaluate_robot_grasp,
+    evaluate_grasp,
     make_engine,
 )
+from kinegrasp_env.montecarlo.execution import Executor
+from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS as DEFAULT_IK_STARTS
 from kinegrasp_env.toolkit.elbow_search import (
@@ -153,8 +153,8 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
     direct_ids = set() if method == "reweight" else {v.id for v in variants}
     with make_engine(engine, description, name, friction=friction) as runner:
         def direct(v: Grasp, offset: int = 0, progress=None):
-            return evaluate_robot_grasp(v, sigma=sigma, n=samples, seed=seed, offset=offset,
-                                        engine=runner, executor=executor, progress=progress)
+            return evaluate_grasp(v, sigma=sigma, n=samples, seed=seed, offset=offset,
+                                  engine=runner, executor=executor, progress=progress)
 
         def evaluated(v: Grasp, offset: int, label: str):
             return reported_cell(report, samples, f"{label} sigma {sigma:g}",

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.evaluate import GraspStats
+from kinegrasp_env.montecarlo.grasp_stats import GraspStats
 from kinegrasp_env.montecarlo.palm_batch import (
     BATCH_FACTOR,
     PalmJacobian,

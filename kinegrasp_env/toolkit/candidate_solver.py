@@ -12,7 +12,7 @@ solves its own palm poses (:mod:`kinegrasp_env.toolkit.grasp_planner`):
 2. **Clearance**: every robot link but the fingers keeps the planner's ``min_clearance``
    from the object (:func:`~kinegrasp_env.toolkit.plan_checks.clearance`).
 3. **Closing**: the robot's reference engine
-   (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`, no noise) with
+   (:class:`~kinegrasp_env.montecarlo.evaluate.RobotReferenceEngine`, no noise) with
    its contact model. ``start_collision`` rejects the candidate; a closing not in force
    closure (``no_force_closure`` or ``missed``) gives a grasp (Q = 0) whose
    ``meta["nominal_force_closure"]`` is False.
@@ -26,8 +26,8 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, START_COLLISION
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics

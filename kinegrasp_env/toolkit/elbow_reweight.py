@@ -41,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.evaluate import Noise
+from kinegrasp_env.montecarlo.grasp_stats import Noise
 from kinegrasp_env.montecarlo.palm_batch import (
     ARM,
     BATCH_FACTOR,

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.montecarlo.execution import Executor
 from kinegrasp_env.montecarlo.palm_batch import close_batch, gaussian_terms
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS

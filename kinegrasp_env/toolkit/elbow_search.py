@@ -12,7 +12,7 @@ self-motion) the most robust of its IK branches (:func:`optimize_robot_branches`
 - **Curve** (selection draws): the coarse grid of psi, then the fine grid around the best
   coarse angles (:mod:`kinegrasp_env.toolkit.elbow`'s grids), each angle on the draws of
   ``seed`` (those of ``kinegrasp evaluate --seed SEED``) through any engine
-  (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`): common to every
+  (:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`): common to every
   angle (draw i is the same error of every source at every angle), so differences between
   angles are far less noisy than each estimate.
 - **Scoring** (fresh draws): every evaluated angle again on the rows after the selection's
@@ -33,13 +33,13 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.montecarlo.robot_evaluate import (
+from kinegrasp_env.montecarlo.evaluate import (
     ENGINES,
     RobotReferenceEngine,
-    evaluate_robot_grasp,
+    evaluate_grasp,
     make_engine,
 )
+from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.robot.ik_branches import (
     DEFAULT_STARTS,
     MERGE_TOL,
@@ -105,7 +105,7 @@ def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
 class AngleScorer:
     """What evaluates an angle's draws: an engine of this process, or an engine's name and
     friction with an executor whose workers build their own
-    (:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`)."""
+    (:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`)."""
 
     engine: RobotEngine | str
     executor: Executor | None = None
@@ -143,10 +143,10 @@ def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise | Noi
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
     model = noise if isinstance(noise, NoiseModel) else None
-    stats = evaluate_robot_grasp(moved, sigma=noise.sigma,
-                                 n=samples, seed=seed, noise=getattr(noise, "kind", "gaussian"),
-                                 engine=scorer.engine, executor=scorer.executor,
-                                 friction=scorer.friction, noise_model=model, offset=offset)
+    stats = evaluate_grasp(moved, sigma=noise.sigma,
+                           n=samples, seed=seed, noise=getattr(noise, "kind", "gaussian"),
+                           engine=scorer.engine, executor=scorer.executor,
+                           friction=scorer.friction, noise_model=model, offset=offset)
     outcome = stats.draws.outcome
     return ElbowPoint(psi, q, stats.p_fc, stats.ci, outcome == FORCE_CLOSURE, outcome)
 
@@ -225,7 +225,7 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: 
     Args:
         grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
         noise: joint noise on the arm joints, or a noise model of the robot's sources
-            (:mod:`~kinegrasp_env.montecarlo.robot_noise`: every draw of it).
+            (:mod:`~kinegrasp_env.montecarlo.noise_rows`: every draw of it).
         samples: draws per evaluated angle, for the selection and again (fresh) for the
             scoring and the certificate.
         seed: run seed (selection: its first ``samples`` rows; fresh draws: the rows
@@ -346,7 +346,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
     Args:
         grasp: the grasp (its ``robot`` names the robot); palm pose and contacts stay fixed.
         noise: joint noise on the arm joints, or a noise model of the robot's sources
-            (:mod:`~kinegrasp_env.montecarlo.robot_noise`: every draw of it).
+            (:mod:`~kinegrasp_env.montecarlo.noise_rows`: every draw of it).
         samples: draws per branch, for the selection and again (fresh) for the scoring.
         seed: run seed (the IK starts have their own, fixed:
             :data:`~kinegrasp_env.robot.ik_branches.BRANCH_SEED`).

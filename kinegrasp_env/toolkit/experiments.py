@@ -1,6 +1,6 @@
 """The paper's experiments for any robot's grasps, as functions that write tables and figures.
 
-Every evaluation is :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`
+Every evaluation is :func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`
 (joint noise on the arm joints, seed ``seed``: the draws of ``kinegrasp evaluate --robot NAME
 --seed SEED``):
 
@@ -29,8 +29,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from kinegrasp_env.atomic_files import write_atomic
+from kinegrasp_env.montecarlo.evaluate import evaluate_grasp, make_engine
 from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.robot_evaluate import evaluate_robot_grasp, make_engine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.endeffector import PAPER_SIGMAS
 from kinegrasp_env.toolkit.arm_variants import (
@@ -110,10 +110,10 @@ def _write_success_quality(out_dir: str | Path, name: str, rows: list[dict],
 
 def _cell(grasp: Grasp, sigma: float, samples: int, seed: int, runner, executor,
           report, label: str):
-    """One cell's :func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp` on
+    """One cell's :func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp` on
     ``runner``'s engine, reported to ``report`` (a :class:`~kinegrasp_env.toolkit.progress.
     Progress`, or None: :func:`~kinegrasp_env.toolkit.progress.reported_cell`)."""
-    return reported_cell(report, samples, label, lambda progress: evaluate_robot_grasp(
+    return reported_cell(report, samples, label, lambda progress: evaluate_grasp(
         grasp, sigma=sigma, n=samples, seed=seed, engine=runner, executor=executor,
         progress=progress))
 

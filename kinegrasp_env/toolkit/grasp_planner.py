@@ -23,7 +23,7 @@ approach_planner`).
    ``preshapes`` (:mod:`~kinegrasp_env.robot.preshapes`; the ``open`` one without them).
 4. **Checks**: at q0 every robot link but the fingers clears the object by
    ``min_clearance`` (pybullet's distance: the palm is not grazing the object); the nominal
-   closing (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
+   closing (:class:`~kinegrasp_env.montecarlo.evaluate.
    RobotReferenceEngine`, sigma 0) must start clear of the object and end in force closure
    with the robot's contact model; the grasps kept record their robot.
 """
@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame

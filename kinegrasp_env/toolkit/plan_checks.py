@@ -12,7 +12,7 @@ import numpy as np
 
 from kinegrasp_env.closing.generic_reference import QUERY_DISTANCE
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
-from kinegrasp_env.montecarlo.robot_evaluate import RobotReferenceEngine
+from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.palm_ik import IK_ITERATIONS, IK_RESTARTS
 from kinegrasp_env.wording import plural

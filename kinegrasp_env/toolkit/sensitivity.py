@@ -1,7 +1,7 @@
 """Which source of error limits a grasp: P(FC) per source and Sobol indices of force closure.
 
 For a grasp of any robot and a :class:`~kinegrasp_env.sampling.noise_model.NoiseModel` with
-sources (joints, hand, palm, object, friction: :mod:`kinegrasp_env.montecarlo.robot_noise`),
+sources (joints, hand, palm, object, friction: :mod:`kinegrasp_env.montecarlo.noise_rows`),
 :func:`analyze` reports
 
 * P(FC) with all sources, with each factor alone, and with all but one, each with its
@@ -15,7 +15,7 @@ sources (joints, hand, palm, object, friction: :mod:`kinegrasp_env.montecarlo.ro
 
 The factors are the model's sources, the arm joints one of them (``joints``), or with
 ``per_joint`` one factor per arm joint (named by the description's ``arm_joints``) beside the
-hand, palm, object and friction sources. The sample A is ``evaluate_robot_grasp``'s draws
+hand, palm, object and friction sources. The sample A is ``evaluate_grasp``'s draws
 with the same seed (rows 0 .. N-1 of each source's stream, the rows ``evaluate`` draws for
 every robot), B the rows N .. 2N-1; a setting is closed once per distinct choice of rows (a
 joint of sigma 0 draws 0 in A and in B), so with g noisy factors it costs N (2 + 3 g) draws
@@ -32,7 +32,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
-from kinegrasp_env.montecarlo.robot_noise import with_hand
+from kinegrasp_env.montecarlo.noise_rows import with_hand
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
@@ -190,10 +190,10 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
         noise: joint noise on the arm joints (sigma scalar or one per arm joint, radians),
             or a noise model of the robot's sources.
         samples: N, draws per setting (>= 2).
-        seed: A = ``evaluate_robot_grasp``'s draws with this seed; B = the next N rows.
+        seed: A = ``evaluate_grasp``'s draws with this seed; B = the next N rows.
         engine: an engine of the grasp's robot and object (``run(q, palm=, object_offset=,
             friction=)`` on the robot's actuated vectors), or the name of the one
-            ``evaluate`` closes the robot's draws with (``robot_engines.make_engine``),
+            ``evaluate`` closes the robot's draws with (``engines.make_engine``),
             built (and closed) here at friction mu ``friction``.
         bootstrap: resamples for the Sobol intervals.
         progress: called with (settings done, settings) after every setting.
@@ -205,7 +205,7 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
             the robot cannot take or with no source of error.
     """
     if isinstance(engine, str):
-        from kinegrasp_env.montecarlo.robot_engines import make_engine
+        from kinegrasp_env.montecarlo.engines import make_engine
 
         built = make_engine(engine, grasp.robot, grasp.object, friction=friction)
         try:
@@ -213,7 +213,7 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
                            progress=progress, per_joint=per_joint)
         finally:
             built.close()
-    from kinegrasp_env.montecarlo.robot_noise import (
+    from kinegrasp_env.montecarlo.noise_rows import (
         check_robot_noise,
         error_rows,
         hand_rows,

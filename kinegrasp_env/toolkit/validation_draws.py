@@ -1,5 +1,5 @@
 """One grasp's draws of ``kinegrasp validate``, for any robot: the same noisy draws through
-a kinematic engine of the robot (:mod:`~kinegrasp_env.montecarlo.robot_evaluate`: ``pybullet``, the
+a kinematic engine of the robot (:mod:`~kinegrasp_env.montecarlo.evaluate`: ``pybullet``, the
 reference, or ``fast``) and the holding test of its own hand in pybullet
 (:class:`~kinegrasp_env.physics.robot_hold.RobotHold`) or MuJoCo
 (:class:`~kinegrasp_env.physics.mujoco_robot_hold.MujocoRobotHold`), the hand closed by the
@@ -9,7 +9,7 @@ code (:func:`~kinegrasp_env.toolkit.validation.run_validation`), and the checks 
 robot's settings before any work.
 
 The draws are those of ``kinegrasp evaluate --robot`` with the same seed and sigma
-(:func:`~kinegrasp_env.montecarlo.robot_evaluate.evaluate_robot_grasp`: joint noise on the
+(:func:`~kinegrasp_env.montecarlo.evaluate.evaluate_grasp`: joint noise on the
 description's arm joints, the hand at its pre-shape). The fingers' normal forces are stored
 one column per finger of the description.
 """
@@ -21,8 +21,8 @@ from dataclasses import fields
 from pathlib import Path
 
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
+from kinegrasp_env.montecarlo.evaluate import make_engine, robot_configurations
 from kinegrasp_env.montecarlo.hold_engine import hold_engine
-from kinegrasp_env.montecarlo.robot_evaluate import make_engine, robot_configurations
 from kinegrasp_env.physics.hand_motors import motor_efforts
 from kinegrasp_env.physics.protocol import HOLD_OUTCOMES, PHASES
 from kinegrasp_env.physics.pybullet_world import WorldSettings

@@ -44,10 +44,12 @@ class Grasp:
 
     Attributes:
         object: catalog object name.
-        q0: (14,) nominal configuration: 7 arm joints, 7 hand DOF (pre-shape), radians.
+        q0: (dof,) nominal configuration of ``robot``: its arm joints, then its hand's
+            (the pre-shape), radians (metres for a prismatic joint).
         palm_pose: (4, 4) palm frame reached by q0, world frame.
         points, normals: (k, 3) nominal contacts (object frame; inward normals).
-        fingers, links: (k,) finger (0..2) and link (0 proximal, 1 distal) of each contact.
+        fingers, links: (k,) finger and link (its index along the finger, 0 at the palm) of
+            each contact.
         q_nominal: Ferrari-Canny quality of the nominal contacts.
         id: identifier within its set.
         meta: free-form extra information (e.g. the elbow angle, the planner's settings).

@@ -44,8 +44,8 @@ def robot_model(robot, where: str = "robot") -> RobotModel:
 
 def check_configuration(q0: np.ndarray, where: str = "q0",
                         robot: str = DEFAULT_ROBOT) -> np.ndarray:
-    """Validate a 14-entry arm+hand configuration (finite, within the joint limits); another
-    ``robot``: its actuated vector."""
+    """Validate the actuated configuration q0 of ``robot`` (its arm joints, then its hand
+    joints: finite, within the joint limits)."""
     q0 = np.asarray(q0, dtype=float)
     model = robot_model(robot)
     if q0.shape != (model.dof,):

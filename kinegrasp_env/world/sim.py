@@ -3,7 +3,7 @@
 Nothing here touches pybullet's global client state: every call goes through the world's own
 ``BulletClient``. An :class:`ObjectWorld` holds one catalog object built from its exact
 convex parts, with collision margins set to zero so that reported distances are exact; a
-robot's scene (:mod:`kinegrasp_env.closing.robot_scene`) adds the robot beside it.
+robot's scene (:mod:`kinegrasp_env.closing.scene`) adds the robot beside it.
 """
 
 from __future__ import annotations

@@ -33,10 +33,10 @@ def first_arms(description: RobotDescription, grasp: Grasp, evaluation, sigma, s
                noise: str, shown: int) -> NoisyArms:
     """The arm at a run's first ``shown`` draws of joint noise (``sigma``, radians; the rows
     its integer seed's chunked streams draw first, whatever the processes:
-    :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`) with their
-    outcomes in ``evaluation`` (:class:`~kinegrasp_env.montecarlo.robot_evaluate.
-    RobotEvaluation` with its draws; None: outcomes not known)."""
-    from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+    :func:`~kinegrasp_env.montecarlo.chunks.chunk_configurations`) with their
+    outcomes in ``evaluation`` (:class:`~kinegrasp_env.montecarlo.evaluate.
+    GraspEvaluation` with its draws; None: outcomes not known)."""
+    from kinegrasp_env.montecarlo.chunks import chunk_configurations
 
     q = chunk_configurations(np.asarray(grasp.q0, dtype=float), description.arm_dof, sigma,
                              noise, seed, 0, shown)

@@ -18,7 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.picture import robot_geometry
 from kinegrasp_env.sampling.noise import JointNoise
@@ -45,7 +45,7 @@ def curve_point(result: ElbowResult, psi: float) -> ElbowPoint:
 def noisy_arms(description: RobotDescription, point: ElbowPoint, noise: JointNoise, seed: int,
                arm_draws: int) -> NoisyArms:
     """The first ``arm_draws`` selection draws of ``point`` (rows 0 .. of run ``seed``'s
-    joint noise, :func:`~kinegrasp_env.montecarlo.robot_chunks.chunk_configurations`, the
+    joint noise, :func:`~kinegrasp_env.montecarlo.chunks.chunk_configurations`, the
     rows the optimization closed there) with the outcomes it recorded; none where it kept
     no outcomes (a re-weighted angle)."""
     shown = 0 if point.outcome is None else min(int(arm_draws), len(point.outcome))

@@ -81,7 +81,7 @@ class RobotRun:
     Attributes:
         grasp: index of the grasp in the page's list.
         sigma: joint noise standard deviation, radians (scalar or one per arm joint).
-        evaluation: :class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotEvaluation`.
+        evaluation: :class:`~kinegrasp_env.montecarlo.evaluate.GraspEvaluation`.
     """
 
     grasp: int

@@ -13,13 +13,13 @@ Everything robot-specific is derived from the robot's description
   (:class:`~kinegrasp_env.robot.branch_motion.BranchMotion`: with B branches, branch k
   covers psi in [-pi + 2 pi k / B, -pi + 2 pi (k + 1) / B));
 - **reward draws**: an engine of the robot by name
-  (:func:`~kinegrasp_env.montecarlo.robot_evaluate.make_engine`): ``fast``
+  (:func:`~kinegrasp_env.montecarlo.evaluate.make_engine`): ``fast``
   (:class:`~kinegrasp_env.montecarlo.batched_engine.RobotFastEngine`, the reference closing
   batched over the draws), ``pybullet``
-  (:class:`~kinegrasp_env.montecarlo.robot_evaluate.RobotReferenceEngine`: pybullet closest
+  (:class:`~kinegrasp_env.montecarlo.evaluate.RobotReferenceEngine`: pybullet closest
   points on the URDF's collision geometry) or ``physics``; the robot's contact model, joint
   noise on the arm joints (or a noise model's draws of every source it has:
-  :mod:`~kinegrasp_env.montecarlo.robot_noise`, the rows ``kinegrasp evaluate --robot
+  :mod:`~kinegrasp_env.montecarlo.noise_rows`, the rows ``kinegrasp evaluate --robot
   --noise-spec`` draws with the same seed), the hand at its pre-shape;
 - **score** (:data:`SCORES`, the names of ``kinegrasp rank --criterion``): ``pfc`` (the
   draws' P(force closure)), ``hold_static`` (the fraction the static hold check holds:
@@ -44,10 +44,10 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.envs.observation import OBS_EXTRA, ArmObserver
+from kinegrasp_env.montecarlo.chunks import chunk_configurations
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES
-from kinegrasp_env.montecarlo.robot_chunks import chunk_configurations
-from kinegrasp_env.montecarlo.robot_evaluate import ENGINES, RobotEngine, make_engine
-from kinegrasp_env.montecarlo.robot_noise import check_robot_noise, model_rows
+from kinegrasp_env.montecarlo.evaluate import ENGINES, RobotEngine, make_engine
+from kinegrasp_env.montecarlo.noise_rows import check_robot_noise, model_rows
 from kinegrasp_env.physics.simulators import SIMULATORS, check_simulator
 from kinegrasp_env.robot.branch_motion import elbow_motion
 from kinegrasp_env.robot.catalog import load_robot
@@ -138,7 +138,7 @@ class RobotTask:
     Args:
         robot: a catalog robot.
         engine: the reward draws' engine by name: ``fast``, ``pybullet`` or ``physics``
-            (:data:`~kinegrasp_env.montecarlo.robot_evaluate.ENGINES`).
+            (:data:`~kinegrasp_env.montecarlo.evaluate.ENGINES`).
         score: what the reward scores (:data:`SCORES`).
         hold_simulator: where the ``hold`` score's holding test runs (``pybullet`` or
             ``mujoco``).
@@ -204,7 +204,7 @@ class RobotTask:
 
     def check_noise(self, noise: JointNoise | NoiseModel) -> None:
         """ValueError (one line) for a noise model this robot's draws or score cannot take
-        (:func:`~kinegrasp_env.montecarlo.robot_noise.check_robot_noise`; the ``hold`` score
+        (:func:`~kinegrasp_env.montecarlo.noise_rows.check_robot_noise`; the ``hold`` score
         takes joint and hand noise: :func:`~kinegrasp_env.montecarlo.draw_holds.
         check_hold_noise`)."""
         if not isinstance(noise, NoiseModel):
@@ -223,7 +223,7 @@ class RobotTask:
         them): q (dof,) with the arm joints' errors of ``noise``: rows 0 .. n_draws of a run of
         ``seed`` (the same rows for every engine, and an evaluation's), the hand at q's
         pre-shape; a noise model's other sources
-        (:func:`~kinegrasp_env.montecarlo.robot_noise.model_rows`)."""
+        (:func:`~kinegrasp_env.montecarlo.noise_rows.model_rows`)."""
         if isinstance(noise, NoiseModel):
             return model_rows(noise, q, self.description, seed, 0, n_draws,
                               load_object(grasp.object).center_of_mass)

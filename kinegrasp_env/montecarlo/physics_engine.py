@@ -9,8 +9,8 @@ with the object **free** while the hand closes (a dynamic body under its support
 gravity off) and the jaws one actuator moves coupled as the gripper couples them (the first
 to touch pushes the object until the other meets it); the contacts are in the object's frame
 where the object ended. The draws are the other engines' (the same
-configurations for the same seed: :func:`~kinegrasp_env.montecarlo.robot_evaluate.
-evaluate_robot_grasp`); every draw starts from the world's saved state, so a draw's result
+configurations for the same seed: :func:`~kinegrasp_env.montecarlo.evaluate.
+evaluate_grasp`); every draw starts from the world's saved state, so a draw's result
 depends only on its configuration.
 """
 
@@ -44,9 +44,14 @@ class RobotPhysicsEngine(RobotEngine):
                  world: WorldSettings | None = None, motors: RobotMotorSettings | None = None,
                  **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
+        self.settings = {key: value for key, value in (("world", world), ("motors", motors))
+                         if value is not None}
         self.jaw_speeds = None  # coupled jaws push the free object here: no push to report
         self.hold = RobotHold(self.description, self.obj, self.friction, HoldProtocol(),
                               world, motors)
+
+    def options(self) -> dict[str, object]:
+        return {**super().options(), **self.settings}
 
     def close(self) -> None:
         self.hold.close()

@@ -1,10 +1,10 @@
-"""A noise model's draws for a description robot: joints, hand, palm, object and friction.
+"""A noise model's draws for a robot: joints, hand, palm, object and friction.
 
 Draw i of a run with seed s is row i of each source's own rows in the run's chunked streams
 (:func:`~kinegrasp_env.sampling.noise_model.stream_rows`; docs/conventions.md): a
 joints-only model draws exactly what ``--sigma``/``--noise`` draw, adding or removing a
-source never changes another's draws, a chunk of rows is the same whichever process draws
-it, and the default robot's noise model draws the same rows for the same seed.
+source never changes another's draws, and a chunk of rows is the same whichever process
+draws it.
 
 What each source does (:mod:`~kinegrasp_env.sampling.noise_model`): joint errors on the arm
 joints; a hand error offsets the hand's pre-shape (:func:`hand_rows`); a palm error moves
@@ -124,25 +124,27 @@ def with_hand(q: np.ndarray, offsets: np.ndarray, description: RobotDescription
 
 
 def joint_rows(model: NoiseModel, arm_dof: int, seed: int, offset: int,
-               size: int) -> np.ndarray:
+               size: int, method: str = "mc") -> np.ndarray:
     """(size, arm_dof) joint errors (radians): rows ``offset .. offset + size`` of the run's
-    joint stream (zeros without joint noise)."""
+    joint stream, each chunk sampled by ``method`` (zeros without joint noise)."""
     joints = model.joints
     if joints is None or joints.exact:
         return np.zeros((size, arm_dof))
     return stream_rows(seed, "joints", offset, size,
-                       lambda generator, rows: joints.sample(generator, rows, arm_dof))
+                       lambda generator, rows: joints.sample(generator, rows, arm_dof,
+                                                            method))
 
 
 def model_rows(model: NoiseModel, q0: np.ndarray, description: RobotDescription, seed: int,
-               offset: int, size: int, center: np.ndarray
+               offset: int, size: int, center: np.ndarray, method: str = "mc"
                ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """(configurations (size, dof): q0 (dof,) with :func:`joint_rows` on its arm joints and
     :func:`hand_rows` on its hand's pre-shape (clipped to the joints' limits),
-    :func:`error_rows`) of rows ``offset .. offset + size``."""
+    :func:`error_rows`) of rows ``offset .. offset + size``; ``method`` samples the joints
+    (the other sources are plain Monte Carlo)."""
     arm = description.arm_dof
     q = np.repeat(np.asarray(q0, dtype=float)[None], size, axis=0)
-    q[:, :arm] += joint_rows(model, arm, seed, offset, size)
+    q[:, :arm] += joint_rows(model, arm, seed, offset, size, method)
     if model.hand is not None:
         q = with_hand(q, hand_rows(model, description, seed, offset, size), description)
     return q, error_rows(model, seed, offset, size, center)
