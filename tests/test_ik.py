@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env.robot.default_robot import ELBOW_LINK, PALM_LINK
-from kinegrasp_env.robot.ik import ArmIK
-from kinegrasp_env.robot.kinematics import ARM_ANGLE_LINKS, pose_error
+from kinegrasp_env.robot.ik import ARM_ANGLE_LINKS, ArmIK
+from kinegrasp_env.robot.kinematics import pose_error
 
 
 def _reachable_targets(kin, model, rng, n):
@@ -106,7 +106,7 @@ def test_compiled_self_motion_pieces_match_the_numpy_kinematics(kin, model, rng)
     )
 
     ik = ArmIK(kin)
-    chain = arm_chain(kin, PALM_LINK, ik.arm_index)
+    chain = arm_chain(kin, PALM_LINK, ik.arm_index, ARM_ANGLE_LINKS)
     links = [joint.child for joint in kin.chain(PALM_LINK)]
     q = rng.uniform(model.lower, model.upper, size=(200, model.dof))
     poses = kin.forward(q, links)

@@ -14,14 +14,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.robot.default_robot import ARM_JOINTS, PALM_LINK
-from kinegrasp_env.robot.kinematics import (
-    ARM_ANGLE_LINKS,
-    Kinematics,
-    pose_error,
+from kinegrasp_env.robot.default_robot import (
+    ARM_JOINTS,
+    ELBOW_LINK,
+    PALM_LINK,
+    SHOULDER_LINK,
+    WRIST_LINK,
 )
+from kinegrasp_env.robot.kinematics import Kinematics, pose_error
 from kinegrasp_env.robot.self_motion import arm_chain, compiled_step, continue_elbow
 
+#: The default robot's shoulder, elbow and wrist links, whose centres give its elbow angle.
+ARM_ANGLE_LINKS = (SHOULDER_LINK, ELBOW_LINK, WRIST_LINK)
 POSITION_TOL = 1e-7  # metres
 ORIENTATION_TOL = 1e-7  # radians
 
@@ -59,7 +63,7 @@ class ArmIK:
         self.arm_index = kin.model.index(arm_joints)
         self.lower = kin.model.lower[self.arm_index]
         self.upper = kin.model.upper[self.arm_index]
-        self._chain = arm_chain(kin, link, self.arm_index)
+        self._chain = arm_chain(kin, link, self.arm_index, ARM_ANGLE_LINKS)
 
     def _errors(self, q: np.ndarray, target: np.ndarray) -> np.ndarray:
         return pose_error(self.kin.pose(q, self.link), target)
@@ -135,7 +139,7 @@ class ArmIK:
     # ----------------------------------------------------------------- self-motion
     def elbow_angle(self, q: np.ndarray) -> np.ndarray:
         """Elbow angle psi (n,) of configurations (n, dof); see ``Kinematics.arm_angle``."""
-        return self.kin.arm_angle(q)
+        return self.kin.arm_angle(q, ARM_ANGLE_LINKS)
 
     def set_elbow_angle(self, q: np.ndarray, psi: np.ndarray | float, *, max_step: float = 0.3,
                         newton_iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,6 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from kinegrasp_env.robot.default_robot import ELBOW_LINK, SHOULDER_LINK, WRIST_LINK
 from kinegrasp_env.robot.fk_kernel import PRISMATIC, ROTATING, forward_pass, joint_angles
 from kinegrasp_env.robot.model import RobotModel
 from kinegrasp_env.robot.pose_rules import (
@@ -276,26 +275,17 @@ class Kinematics:
                               origin, axis, target)
         return jac
 
-    def arm_angle(self, q: np.ndarray) -> np.ndarray:
-        """Elbow (arm) angle psi (n,) radians of an S-R-S arm.
+    def arm_angle(self, q: np.ndarray, links: tuple[str, str, str]) -> np.ndarray:
+        """Elbow (arm) angle psi (n,) radians of an S-R-S arm whose shoulder, elbow and wrist
+        links are ``links`` (a description's ``arm_angle_links``).
 
         psi is the angle of the elbow about the shoulder-wrist line, measured from the
         plane through that line and the world z axis (the plane the elbow lies in when
         joint 3 is zero), positive by the right-hand rule about shoulder -> wrist.
         Undefined (returned as 0) when the elbow lies on the shoulder-wrist line.
         """
-        return arm_angle_at(self.forward(q, ARM_ANGLE_LINKS))
-
-
-#: The links whose poses give the arm angle (:func:`arm_angle_at`).
-ARM_ANGLE_LINKS = (SHOULDER_LINK, ELBOW_LINK, WRIST_LINK)
-
-
-def arm_angle_at(poses: dict[str, np.ndarray]) -> np.ndarray:
-    """:meth:`Kinematics.arm_angle` (n,) from link poses (n, 4, 4) that include
-    :data:`ARM_ANGLE_LINKS`."""
-    return elbow_angle(poses[SHOULDER_LINK][:, :3, 3], poses[ELBOW_LINK][:, :3, 3],
-                       poses[WRIST_LINK][:, :3, 3])
+        poses = self.forward(q, links)
+        return elbow_angle(*(poses[name][:, :3, 3] for name in links))
 
 
 def elbow_angle(shoulder: np.ndarray, elbow: np.ndarray, wrist: np.ndarray) -> np.ndarray:

@@ -27,7 +27,6 @@ import numpy as np
 
 from kinegrasp_env import jit
 from kinegrasp_env.robot.kinematics import (
-    ARM_ANGLE_LINKS,
     Kinematics,
     elbow_angle,
     snap_rotation,
@@ -74,11 +73,10 @@ class ArmChain:
 
 
 def arm_chain(kin: Kinematics, link: str, arm_index: np.ndarray,
-              angle_links: tuple[str, str, str] = ARM_ANGLE_LINKS) -> ArmChain:
+              angle_links: tuple[str, str, str]) -> ArmChain:
     """The chain to ``link`` whose movable joints are the actuated joints ``arm_index``
     (driven directly: multiplier 1, offset 0), its elbow angle that of the shoulder, elbow
-    and wrist links ``angle_links`` (default: the default robot's). ValueError for any other
-    chain."""
+    and wrist links ``angle_links``. ValueError for any other chain."""
     drivers = kin.model.drivers()
     chain = kin.chain(link)
     arm = [int(i) for i in arm_index]
