@@ -150,11 +150,12 @@ def test_validate_draws_are_evaluates_draws(capsys, tmp_path):
 
 def test_validate_robot_on_two_processes_is_the_run_in_one(capsys, tmp_path):
     """Each grasp's draws are the same whichever worker runs them: the draws' CSV of a run on
-    two processes equals the run's in one."""
+    two processes equals the run's in one; the summary's first line states the run's mu."""
     for processes in ("1", "2"):
         assert main(["validate", "--robot", "panda", "--object", "cube", "--grasp", "0", "1",
                      "--sigma", "0.01", "--samples", "2", "--processes", processes,
-                     "--out", str(tmp_path / processes)]) == 0
-    capsys.readouterr()
+                     "--friction", "0.7", "--out", str(tmp_path / processes)]) == 0
+        first = capsys.readouterr().out.splitlines()[0]
+        assert first.startswith("validate: robot panda, 2 grasps, sigma 0.01 rad, mu 0.7, ")
     one, two = ((tmp_path / p / "draws.csv").read_text() for p in ("1", "2"))
     assert one == two and len(one.splitlines()) == 5

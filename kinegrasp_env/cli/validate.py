@@ -232,8 +232,8 @@ def print_summary(summary: dict, paths: dict) -> None:
     s, p = summary["settings"], summary["protocol"]
     robot = f"robot {s['robot']}, " if "robot" in s else ""
     print(f"validate: {robot}{len(summary['grasps'])} grasps, sigma {s['sigma']:g} rad, "
-          f"{s['samples']} draws each, seed {s['seed']} (kinematic engine: {s['kinematic']}, "
-          f"simulator: {s['simulator']})")
+          f"mu {s['friction']:g}, {s['samples']} draws each, seed {s['seed']} (kinematic "
+          f"engine: {s['kinematic']}, simulator: {s['simulator']})")
     shake = (f"shake {p['shake_amplitude'] * 100:g} cm / {math.degrees(p['shake_angle']):g} deg "
              f"at {p['shake_frequency']:g} Hz" if p["shake"] else "no shake")
     print(f"holding test: held = within {p['max_shift'] * 100:g} cm and "
