@@ -564,3 +564,30 @@ def test_adaptive_with_fewer_candidates_than_the_default_top_k(tmp_path, capsys)
     assert "--top-k must be below the number of candidates (2)" in capsys.readouterr().err
     assert main(["rank", str(one), "--adaptive", "--out", str(out)]) == 2
     assert "it needs 2 candidates at least, got 1" in capsys.readouterr().err
+
+
+def test_the_ranking_json_names_the_holding_tests_simulator(tmp_path, capsys):
+    """``rank --json`` names the simulator of the holding test where that test scored the
+    candidates (the console names it in its note), and no simulator where none ran."""
+    from kinegrasp_env.cli.ranking_table import write_ranking
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    grasps = shipped_grasps("cube")[:2]
+
+    def results(hold_test: bool) -> list[CandidateResult]:
+        out = []
+        for i in range(2):
+            r = CandidateResult(i, successes=1, trials=2,
+                                moments=StreamingMoments(1).update(np.array([0.01])))
+            if hold_test:
+                r.add_holds("test", i, 2)
+                r.add_margins(np.array([0.5, 0.9]))
+            out.append(r)
+        return out
+
+    for hold_test, expected in ((True, "mujoco"), (False, None)):
+        write_ranking(grasps, results(hold_test), tmp_path / "r.csv", tmp_path / "r.partial",
+                      "fast", as_json=True, hold_simulator="mujoco")
+        record = json.loads(capsys.readouterr().out)
+        assert record.get("hold_simulator") == expected
+        assert len(record["ranking"]) == 2

@@ -125,8 +125,9 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
                    moved: bool = False) -> None:
     """The ranking as CSV (atomically), then as a console table, or with ``as_json`` as one
     JSON object (``ranking``: the rows in rank order, NaN as null; ``written``: the CSV;
-    ``rejected``: each rejected palm-pose candidate's id, reason and detail; of an adaptive
-    run ``certificate``: :func:`certificate_json`);
+    ``rejected``: each rejected palm-pose candidate's id, reason and detail; where the
+    holding test scored, ``hold_simulator``: the simulator it ran in; of an adaptive run
+    ``certificate``: :func:`certificate_json`);
     ``adaptive`` (an adaptive run's report) adds the ``certified`` column and the line
     saying what it certified; ``moved`` (``--best-elbow``) adds the elbow angle or IK branch
     each candidate was moved to (:data:`ELBOW_COLUMNS`, from its grasp's ``meta``)."""
@@ -180,6 +181,7 @@ def write_ranking(grasps, results: list[CandidateResult], out: Path, partial: Pa
         print(json.dumps({"ranking": shown, "written": str(out),
                           "rejected": [{"id": r.id, "reason": r.reason, "detail": r.detail}
                                        for r in rejected],
+                          **({"hold_simulator": hold_simulator} if "test" in scores else {}),
                           **({} if adaptive is None else {"certificate": certificate_json(
                               adaptive, max(r.trials for r in results))})}))
         return
