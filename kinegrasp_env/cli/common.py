@@ -193,14 +193,14 @@ def noise_spec_from(args):
         if parser is not None and getattr(args, option) != parser.get_default(option):
             raise CLIError(f"--{option} and --noise-spec both given: the spec's joints "
                            "section is the joint noise")
-    from kinegrasp_env.montecarlo.grasp_stats import check_noise_engine
+    from kinegrasp_env.montecarlo.noise_rows import check_engine_noise
     from kinegrasp_env.sampling.noise_model import NoiseSpecError
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     with reported(NoiseSpecError):
         model = load_noise_model(path)
     with reported(ValueError):
-        check_noise_engine(model, getattr(args, "engine", "pybullet"))
+        check_engine_noise(model, getattr(args, "engine", "pybullet"))
     return model
 
 

@@ -27,7 +27,11 @@ from kinegrasp_env.quality.soft_contacts import (
     contact_quality_batch,
     soft_torsions,
 )
-from kinegrasp_env.quality.wrenches import check_parameters
+from kinegrasp_env.quality.wrenches import (
+    DEFAULT_FRICTION,
+    DEFAULT_NUM_EDGES,
+    check_parameters,
+)
 from kinegrasp_env.robot.catalog import load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.threads import single_blas_thread
@@ -128,7 +132,7 @@ class RobotEngine:
     name = ""
 
     def __init__(self, robot: str | RobotDescription, object_name: str, *,
-                 friction: float = 0.5, num_edges: int = 8,
+                 friction: float = DEFAULT_FRICTION, num_edges: int = DEFAULT_NUM_EDGES,
                  finger_radius: float = FINGER_RADIUS, static_hold: bool = False,
                  max_contacts: int | None = None) -> None:
         friction, num_edges = check_parameters(friction, num_edges)  # before any closing
@@ -142,7 +146,7 @@ class RobotEngine:
         self.obj = load_object(object_name)
         self.friction, self.num_edges = friction, num_edges
         self.finger_radius = float(finger_radius)
-        self.max_contacts = (len(self.description.finger_links) if max_contacts is None
+        self.max_contacts = (self.all_contacts() if max_contacts is None
                              else int(max_contacts))
         self.jaw_speeds = jaw_speeds(self.description)
         self.patches = None
@@ -162,10 +166,15 @@ class RobotEngine:
         """The settings, beyond robot, object, friction and the static hold check, in which
         this engine differs from the defaults (``make_engine(name, robot, object,
         **options())`` builds it again: what a run in chunks gives its workers)."""
-        given = {"num_edges": (self.num_edges, 8),
+        given = {"num_edges": (self.num_edges, DEFAULT_NUM_EDGES),
                  "finger_radius": (self.finger_radius, FINGER_RADIUS),
-                 "max_contacts": (self.max_contacts, len(self.description.finger_links))}
+                 "max_contacts": (self.max_contacts, self.all_contacts())}
         return {key: value for key, (value, default) in given.items() if value != default}
+
+    def all_contacts(self) -> int:
+        """The default ``max_contacts``: one per finger link, every contact a closing can
+        make."""
+        return len(self.description.finger_links)
 
     @cached_property
     def in_table(self):

@@ -22,15 +22,13 @@ from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import StreamingMoments, wilson_interval
 from kinegrasp_env.world.grasps import Grasp
 
-__all__ = ["DEFAULT_CHUNK", "ENGINES", "ERROR_ENGINES", "MAX_SIGMA", "GraspStats", "Noise",
-           "check_noise_engine", "chunk_sizes", "summarize", "tally"]
+__all__ = ["DEFAULT_CHUNK", "ENGINES", "MAX_SIGMA", "GraspStats", "Noise", "chunk_sizes",
+           "summarize", "tally"]
 
 #: Draws per chunk of a run (the random streams' layout: keep it fixed to reproduce numbers).
 DEFAULT_CHUNK = STREAM_CHUNK
 #: What a run takes as its noise.
 Noise = JointNoise | NoiseModel
-#: Engines that take a model's palm, object and friction errors (the kinematic ones).
-ERROR_ENGINES = ("pybullet", "fast")
 
 
 @dataclass
@@ -88,16 +86,6 @@ def tally(draws: DrawBatch) -> tuple[np.ndarray, StreamingMoments]:
     ``draws``: what a chunk contributes to a run's statistics."""
     counts = np.bincount(draws.outcome, minlength=len(OUTCOMES))
     return counts, StreamingMoments(1).update(draws.quality[draws.outcome == FORCE_CLOSURE])
-
-
-def check_noise_engine(noise: Noise, engine: str) -> None:
-    """ValueError (one line) when ``engine`` cannot take a source of the noise model."""
-    if isinstance(noise, NoiseModel) and engine not in ERROR_ENGINES:
-        extra = [s for s in ("palm", "object", "friction") if getattr(noise, s) is not None]
-        if extra:
-            raise ValueError(f"the {engine} engine takes joint and hand noise only; the noise "
-                             f"model has {', '.join(extra)} errors (use "
-                             f"{' or '.join(ERROR_ENGINES)})")
 
 
 def summarize(grasp: Grasp, noise: Noise, seed: int, engine: str, counts: np.ndarray,
