@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import io
+import os
+import shutil
+import tempfile
 
 import numpy as np
 import pybullet
@@ -12,37 +16,43 @@ from pybullet_utils.bullet_client import BulletClient
 from kinegrasp_env.robot.default_robot import kuka_sdh, urdf_path
 from kinegrasp_env.robot.kinematics import Kinematics
 
-
-@pytest.fixture(scope="session", autouse=True)
-def private_catalog(tmp_path_factory):
-    """Imported objects of the tests go to a folder of their own: the user's catalog is never
-    read or written, and tests that list the catalog see the built-in objects only."""
-    mp = pytest.MonkeyPatch()
-    mp.setenv("KINEGRASP_HOME", str(tmp_path_factory.mktemp("kinegrasp_home")))
-    yield
-    mp.undo()
+_CATALOG = tempfile.mkdtemp(prefix="kinegrasp_home_")
 
 
-@pytest.fixture(scope="session", autouse=True)
-def quiet_kernel_notice():
-    """On a machine whose kernel cache is empty, the first command compiles the kernels and
-    says so on stderr while it lasts; a test that runs a command in this process and checks
-    its stderr line by line would find those lines there, in whichever test the compile
-    falls. The notice of in-process commands goes to a sink (its own tests give it a stream
-    of their own; commands run as subprocesses keep theirs)."""
+def pytest_configure(config):
+    """For the whole test run, before any test module is collected: imported objects of the
+    tests go to a folder of their own (the user's catalog is never read or written, and tests
+    that list the catalog see the built-in objects only), and the kernels' compile notice of
+    in-process commands goes to a sink. On a machine whose kernel cache is empty, the first
+    command compiles the kernels and says so on stderr while it lasts; a test that runs a
+    command in this process and checks its stderr line by line would find those lines there,
+    in whichever test the compile falls (the notice's own tests give it a stream of their
+    own; commands run as subprocesses keep theirs)."""
     from kinegrasp_env import kernel_notice
 
+    os.environ["KINEGRASP_HOME"] = _CATALOG
     kernel_notice.install(io.StringIO())
 
 
-@pytest.fixture(scope="session")
+def pytest_unconfigure(config):
+    shutil.rmtree(_CATALOG, ignore_errors=True)
+
+
+@functools.cache
+def _default_kinematics() -> Kinematics:
+    return Kinematics(kuka_sdh())
+
+
+@pytest.fixture()
 def model():
+    """The default robot's model (built once per process: ``kuka_sdh`` is cached)."""
     return kuka_sdh()
 
 
-@pytest.fixture(scope="session")
-def kin(model):
-    return Kinematics(model)
+@pytest.fixture()
+def kin():
+    """The default robot's kinematics, built once per process."""
+    return _default_kinematics()
 
 
 @pytest.fixture()
