@@ -211,6 +211,18 @@ ROBOT_COMMANDS = {
 }
 
 
+@pytest.mark.parametrize("argv, prefix", [
+    (["objects", "place", "cube", "--yaw", "nan"], "kinegrasp objects place: error: --yaw"),
+    (["robots", "show", "nosuch", "--out", "x.png"], "kinegrasp robots show: error: "),
+    (["objects", "remove", "cube"], "kinegrasp objects remove: error: "),
+])
+def test_an_actions_errors_name_the_command_and_the_action(capsys, argv, prefix):
+    """A command of several actions (``objects place``) names the action in its one-line
+    errors, as argparse names it in its usage errors."""
+    code, err = _run(capsys, *argv)
+    assert code == 2 and len(err) == 1 and err[0].startswith(prefix), err
+
+
 def test_an_unknown_robot_is_named_first_by_every_command(capsys):
     """``--robot nosuch`` is refused before anything else is looked at (the shipped grasps,
     the input files): one line saying the robot is unknown and naming the known ones."""

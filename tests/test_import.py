@@ -394,7 +394,7 @@ def test_bad_input_one_line_and_nothing_written(home, tmp_path, capsys):
         code, _, err = cli(capsys, "objects", "add", *args)
         assert code == 2, label
         assert len(err.strip().splitlines()) == 1 and expected in err, (label, err)
-        assert err.startswith("kinegrasp objects: error:"), label
+        assert err.startswith("kinegrasp objects add: error:"), label
         assert snapshot(home) == before, label
     code, _, err = cli(capsys, "objects", "add", str(tmp_path / "keep.stl"), "--scale", "2")
     assert code == 2 and "already exists" in err and "--force" in err

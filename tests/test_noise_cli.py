@@ -150,13 +150,19 @@ def test_bad_sweep_noise_entries(noise, needle):
 
 def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_file, capsys):
     model = load_noise_model(spec_file)
-    with pytest.raises(ValueError, match="physics engine of robot 'kuka_sdh' takes joint and "
-                                         "hand noise only"):
+    with pytest.raises(ValueError, match=r"^the physics engine takes joint and hand "
+                                         r"noise only"):
         evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, noise_model=model, n=10,
                        engine="physics")
     assert main(["evaluate", "--noise-spec", str(spec_file), "--engine", "physics"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "object, friction errors" in err[0]
+    # the same words from every command that refuses it
+    assert main(["sensitivity", "--noise-spec", str(spec_file), "--engine", "physics",
+                 "--samples", "8"]) == 2
+    again = capsys.readouterr().err.strip().splitlines()
+    assert [line.split(": error: ")[1] for line in again + err] == [
+        err[0].split(": error: ")[1]] * 2
 
 
 def test_a_sweep_takes_a_noise_spec_file_of_any_name(tmp_path):

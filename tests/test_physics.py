@@ -245,6 +245,24 @@ def test_object_body_has_the_cubes_mass_inertia_and_pose():
         world.close()
 
 
+def test_the_world_takes_catalog_names_and_refuses_other_values_in_one_line():
+    """A robot and an object may be named, as the engines take them: the world holds the
+    catalog's description and the named object's body (the closed-form mass above); any
+    other value is refused in one line naming it, before pybullet starts."""
+    world = RobotPhysicsWorld("kuka_sdh", "cube", WorldSettings(density=500.0))
+    try:
+        assert world.description is load_robot("kuka_sdh")
+        assert world.obj.name == "cube" and world.mass == pytest.approx(500.0 * 0.06**3)
+    finally:
+        world.close()
+    with pytest.raises(TypeError, match=r"^robot must be .*got int 7$"):
+        RobotPhysicsWorld(7, "cube")
+    with pytest.raises(TypeError, match=r"^obj must be .*got NoneType None$"):
+        RobotPhysicsWorld(SDH, None)
+    with pytest.raises(ValueError, match="nosuch"):
+        RobotHold(SDH, "nosuch", 0.5, HoldProtocol())
+
+
 def test_hand_frames_match_the_robot_kinematics():
     grasp = shipped_grasps("spray_flask")[3]
     hold = RobotHold(SDH, load_object("spray_flask"), 0.5, HoldProtocol())

@@ -205,3 +205,17 @@ def test_kuka_sdh_efforts_are_the_stated_assumptions() -> None:
         f"f{i}_{link}": effort for i in (1, 2, 3)
         for link, effort in (("proximal", 2.1), ("distal", 1.4))}
     assert {m.source for m in motors} == {"description"}
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf")])
+def test_motor_efforts_refuse_a_scale_that_is_not_positive(scale) -> None:
+    """The efforts' multiple is the holding test's torque scale: a zero, negative or
+    non-finite one is refused in one line (a zero once gave motors that cannot close), and
+    a scale of 2 doubles the stated efforts (2.1 and 1.4 N m, above)."""
+    from kinegrasp_env.physics.hand_motors import motor_efforts
+    from kinegrasp_env.robot.catalog import load_robot
+
+    with pytest.raises(ValueError, match=r"^scale must be a positive number, got"):
+        motor_efforts(load_robot("kuka_sdh"), scale)
+    doubled = {m.joint: m.effort for m in motor_efforts(load_robot("kuka_sdh"), 2.0)}
+    assert doubled["f1_proximal"] == 4.2 and doubled["f3_distal"] == 2.8

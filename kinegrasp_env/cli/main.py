@@ -52,8 +52,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for group in (arms, objects, robots, grasping, toolkit, elbow, report, sensitivity, validate):
         group.add_commands(sub)
-    for command_parser in sub.choices.values():  # its usage errors name the command
+    for command_parser in sub.choices.values():  # its errors name the command
         command_parser.set_defaults(command_parser=command_parser)
+        for action in command_parser._actions:  # and an action's (objects place) name both
+            if isinstance(action, argparse._SubParsersAction):
+                for action_parser in action.choices.values():
+                    action_parser.set_defaults(command_parser=action_parser)
     accept_negative_values(parser)
     return parser
 
@@ -86,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_robot_option(args)
         return int(args.func(args) or 0)
     except CLIError as exc:
-        print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{args.command_parser.prog}: error: {exc}", file=sys.stderr)
         return 2
     except Terminated:
         print("kinegrasp: terminated", file=sys.stderr)
@@ -98,11 +102,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _reader_gone()
     except OSError as exc:
         if exc.errno not in ENVIRONMENT_ERRNOS:
-            return _bug(args.command)
-        print(f"kinegrasp {args.command}: error: {exc}", file=sys.stderr)
+            return _bug(args.command_parser.prog)
+        print(f"{args.command_parser.prog}: error: {exc}", file=sys.stderr)
         return 1
     except Exception:
-        return _bug(args.command)
+        return _bug(args.command_parser.prog)
     finally:
         signal.signal(signal.SIGTERM, previous)
 
@@ -143,10 +147,11 @@ def _reader_gone() -> int:
     return 128 + 13
 
 
-def _bug(command: str) -> int:
-    """Report the exception being handled as a bug: its traceback and a hint; exit status 1."""
+def _bug(prog: str) -> int:
+    """Report the exception being handled as a bug: its traceback and a hint naming the
+    command ``prog`` (``kinegrasp evaluate``); exit status 1."""
     traceback.print_exc()
-    print(f"kinegrasp {command}: {BUG_HINT}", file=sys.stderr)
+    print(f"{prog}: {BUG_HINT}", file=sys.stderr)
     return 1
 
 

@@ -32,7 +32,7 @@ from kinegrasp_env.quality.wrenches import (
     DEFAULT_NUM_EDGES,
     check_parameters,
 )
-from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.threads import single_blas_thread
 from kinegrasp_env.world.objects import load_object
@@ -142,7 +142,7 @@ class RobotEngine:
         if max_contacts is not None and (isinstance(max_contacts, bool) or not isinstance(
                 max_contacts, (int, np.integer)) or max_contacts < 1):
             raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts!r}")
-        self.description = load_robot(robot) if isinstance(robot, str) else robot
+        self.description = as_description(robot)
         self.obj = load_object(object_name)
         self.friction, self.num_edges = friction, num_edges
         self.finger_radius = float(finger_radius)

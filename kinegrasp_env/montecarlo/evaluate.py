@@ -238,6 +238,45 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
         ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
             a Generator as the seed of a chunked run.
     """
+    name, sigma, friction = _checked_arguments(
+        grasp, sigma=sigma, n=n, seed=seed, noise=noise, engine=engine, robot=robot,
+        static_hold=static_hold, friction=friction, executor=executor,
+        noise_model=noise_model, offset=offset, method=method, progress=progress)
+    if executor is not None and (progress is not None or not (
+            isinstance(executor, LocalExecutor) and executor.workers == 1)):
+        return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                        static_hold=static_hold, friction=friction, executor=executor,
+                        noise_model=noise_model, offset=int(offset), method=method,
+                        progress=progress)
+    own = isinstance(engine, str)
+    if own:
+        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
+                             static_hold=static_hold, friction=friction)
+    try:
+        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
+                                    noise_model=noise_model, offset=int(offset),
+                                    method=method)
+        check = engine.hold_check
+        # the nominal closing rides with the draws, as row n, in the same engine call
+        rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
+        draws = engine.run(rows, **errors)
+        nominal = draws.take(slice(n, n + 1))
+        stats = summarize(draws.take(slice(0, n)), None if check is None else check.mass)
+        if progress is not None:
+            progress(n, n)
+        return replace(stats, q_nominal=float(nominal.quality[0])
+                       if nominal.outcome[0] == FORCE_CLOSURE else 0.0)
+    finally:
+        if own:
+            engine.close()
+
+
+def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, static_hold,
+                       friction, executor, noise_model, offset, method, progress
+                       ) -> tuple[str, float | tuple[float, ...], float]:
+    """:func:`evaluate_grasp`'s arguments checked before any work (its ``Raises``; one
+    line each): (the robot's name, the joint noise's sigma (0 under a noise model, whose
+    joints source replaces it), the run's mu (a friction source's nominal one))."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
     if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
@@ -292,33 +331,7 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
                           engine if isinstance(engine, str) else engine.name,
                           static_hold if isinstance(engine, str)
                           else engine.hold_check is not None)
-    if executor is not None and (progress is not None or not (
-            isinstance(executor, LocalExecutor) and executor.workers == 1)):
-        return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
-                        static_hold=static_hold, friction=friction, executor=executor,
-                        noise_model=noise_model, offset=int(offset), method=method,
-                        progress=progress)
-    own = isinstance(engine, str)
-    if own:
-        engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
-                             static_hold=static_hold, friction=friction)
-    try:
-        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
-                                    noise_model=noise_model, offset=int(offset),
-                                    method=method)
-        check = engine.hold_check
-        # the nominal closing rides with the draws, as row n, in the same engine call
-        rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
-        draws = engine.run(rows, **errors)
-        nominal = draws.take(slice(n, n + 1))
-        stats = summarize(draws.take(slice(0, n)), None if check is None else check.mass)
-        if progress is not None:
-            progress(n, n)
-        return replace(stats, q_nominal=float(nominal.quality[0])
-                       if nominal.outcome[0] == FORCE_CLOSURE else 0.0)
-    finally:
-        if own:
-            engine.close()
+    return name, sigma, friction
 
 
 def _integer_seed(seed: SeedLike, what: str) -> None:

@@ -34,22 +34,21 @@ def check_robot_noise(model: NoiseModel, robot: str | RobotDescription, arm_dof:
     if joints is not None and not joints.fits(arm_dof):
         raise ValueError(f"robot {robot!r} has {arm_dof} arm joints; the spec's joints "
                          f"describe {joints.count} ({JOINTS_FIX})")
-    check_engine_noise(model, engine, robot)
+    check_engine_noise(model, engine)
     if static_hold:
         check_static_hold_noise(model)
 
 
-def check_engine_noise(model: NoiseModel, engine: str, robot: str | None = None) -> None:
+def check_engine_noise(model: NoiseModel, engine: str) -> None:
     """ValueError (one line) for palm, object or friction errors given to an engine that
     does not take them (its class's ``takes_errors``: the physics engine simulates at one mu
-    and does not split the robot's body); ``robot``: its name, for the message."""
+    and does not split the robot's body), the same for every robot."""
     from kinegrasp_env.montecarlo.engines import ENGINES, engine_class
 
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]
     if other and not engine_class(engine).takes_errors:
-        of = "" if robot is None else f" of robot {robot!r}"
         takers = [name for name in ENGINES if engine_class(name).takes_errors]
-        raise ValueError(f"the {engine} engine{of} takes joint and hand noise only (it "
+        raise ValueError(f"the {engine} engine takes joint and hand noise only (it "
                          f"simulates at one mu), not {', '.join(other)} errors (use "
                          f"{' or '.join(takers)})")
 

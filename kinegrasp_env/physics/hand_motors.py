@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegrasp_env.physics.protocol import check_number
 from kinegrasp_env.robot.description import Finger, RobotDescription
 from kinegrasp_env.robot.touch_rule import touch_stops
 
@@ -93,8 +94,10 @@ def motor_efforts(description: RobotDescription, scale: float = 1.0) -> list[Joi
 
     Raises:
         ValueError: a closing joint with no effort (none in the URDF, no override) or no
-            velocity limit (one line, naming the joint and the key to add).
+            velocity limit (one line, naming the joint and the key to add); a ``scale``
+            that is not a finite number > 0.
     """
+    check_number("scale", scale, positive=True)
     limits = urdf_limits(description.urdf)
     motors, seen = [], set()
     for finger in description.fingers:

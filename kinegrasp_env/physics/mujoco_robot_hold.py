@@ -76,7 +76,7 @@ from kinegrasp_env.physics.robot_hold import (
 )
 from kinegrasp_env.physics.robot_world import ROOT_LINK, hand_urdf
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.objects import GraspObject, as_object
 
 #: The mesh files MuJoCo reads (file suffixes, lower case).
 MUJOCO_MESHES = (".stl", ".obj")
@@ -217,12 +217,13 @@ class MujocoRobotHold(DescriptionHold):
 
     name = "mujoco"
 
-    def __init__(self, description: RobotDescription, obj: GraspObject, friction: float,
-                 protocol: HoldProtocol, world: WorldSettings | None = None,
+    def __init__(self, description: RobotDescription | str, obj: GraspObject | str,
+                 friction: float, protocol: HoldProtocol, world: WorldSettings | None = None,
                  settings: RobotMotorSettings | None = None) -> None:
         world_settings = replace(world or WorldSettings(), friction=friction)
         super().__init__(description, protocol, settings)
-        self.world = world = MujocoWorld(obj, description_hand(description), world_settings)
+        self.world = world = MujocoWorld(as_object(obj), description_hand(self.description),
+                                         world_settings)
         model = world.model
         for name in world.joint_names:
             joint = model.joint(name).id

@@ -82,6 +82,7 @@ from kinegrasp_env.physics.pybullet_contacts import finger_forces, merge_records
 from kinegrasp_env.physics.pybullet_hold import GripControl, PybulletSteps
 from kinegrasp_env.physics.pybullet_world import WorldSettings
 from kinegrasp_env.physics.robot_world import ROOT_LINK, RobotPhysicsWorld
+from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
@@ -182,9 +183,10 @@ class DescriptionHold:
         motors: the closing motors (their efforts and where they came from).
     """
 
-    def __init__(self, description: RobotDescription, protocol: HoldProtocol,
+    def __init__(self, description: RobotDescription | str, protocol: HoldProtocol,
                  settings: RobotMotorSettings | None = None) -> None:
-        self.description, self.protocol = description, protocol
+        self.description = description = as_description(description)
+        self.protocol = protocol
         self.settings = settings or RobotMotorSettings()
         self.motors = motor_efforts(description, protocol.torque_scale)
         #: what holds a joint that does not push (:func:`~kinegrasp_env.physics.hand_motors.
@@ -211,8 +213,8 @@ class RobotHold(DescriptionHold):
     """The holding test of a description robot in pybullet, one draw at a time.
 
     Args:
-        description: the robot.
-        obj: the catalog object.
+        description: the robot (or a catalog robot's name).
+        obj: the catalog object (or its name).
         friction: Coulomb friction between finger and object (the quality's mu).
         protocol: the holding test's settings; ``torque_scale`` multiplies every motor's
             effort.
@@ -225,14 +227,14 @@ class RobotHold(DescriptionHold):
 
     name = "pybullet"
 
-    def __init__(self, description: RobotDescription, obj: GraspObject, friction: float,
-                 protocol: HoldProtocol, world: WorldSettings | None = None,
+    def __init__(self, description: RobotDescription | str, obj: GraspObject | str,
+                 friction: float, protocol: HoldProtocol, world: WorldSettings | None = None,
                  settings: RobotMotorSettings | None = None) -> None:
         world_settings = replace(world or WorldSettings(), friction=friction)
         if not world_settings.object_free:
             raise ValueError("the holding test needs a free object (object_free=True)")
         super().__init__(description, protocol, settings)
-        self.world = RobotPhysicsWorld(description, obj, world_settings)
+        self.world = RobotPhysicsWorld(self.description, obj, world_settings)
 
     def close_hand(self, q: np.ndarray, pin: bool = True
                    ) -> tuple[RobotCloseResult, JawMotors | None]:

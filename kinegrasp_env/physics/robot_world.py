@@ -42,8 +42,9 @@ from kinegrasp_env.physics.pybullet_world import (
     WorldSettings,
 )
 from kinegrasp_env.quiet import quiet_c_output
+from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
-from kinegrasp_env.world.objects import GraspObject
+from kinegrasp_env.world.objects import GraspObject, as_object
 from kinegrasp_env.world.sim import body_indices
 
 #: The root link of the cut-out hand (the palm frame).
@@ -91,18 +92,18 @@ class RobotPhysicsWorld(PhysicsWorld):
     """A description robot's free hand, its anchor and one object (module docstring).
 
     Args:
-        description: the robot.
-        obj: the catalog object (placed at ``obj.pose``).
+        description: the robot (or a catalog robot's name).
+        obj: the catalog object (or its name; placed at ``obj.pose``).
         settings: :class:`~kinegrasp_env.physics.pybullet_world.WorldSettings`.
 
     Attributes:
         joint_index, link_index: hand joint / link name -> pybullet index (the root: -1).
     """
 
-    def __init__(self, description: RobotDescription, obj: GraspObject,
+    def __init__(self, description: RobotDescription | str, obj: GraspObject | str,
                  settings: WorldSettings | None = None) -> None:
-        self.description = description
-        super().__init__(obj, settings)
+        self.description = as_description(description)
+        super().__init__(as_object(obj), settings)
 
     def _load_hand(self) -> int:
         bullet = self.bullet

@@ -126,6 +126,21 @@ def load_robot(name: str = DEFAULT_ROBOT) -> RobotDescription:
     return description
 
 
+def as_description(robot: str | RobotDescription) -> RobotDescription:
+    """``robot`` itself, or the description of the catalog robot it names (:func:`load_robot`).
+
+    Raises:
+        TypeError: neither a name nor a description (one line, naming the value).
+        RobotDescriptionError: an unknown name.
+    """
+    if isinstance(robot, RobotDescription):
+        return robot
+    if isinstance(robot, str):
+        return load_robot(robot)
+    raise TypeError(f"robot must be a catalog robot's name or a RobotDescription, got "
+                    f"{type(robot).__name__} {robot!r:.60}")
+
+
 def catalog_rows() -> list[dict]:
     """One row per robot: name, source (built-in/user), arm DOF, hand joints, palm link,
     fingertips, contact model, description file."""

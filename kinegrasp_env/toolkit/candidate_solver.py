@@ -28,7 +28,7 @@ import numpy as np
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, START_COLLISION
 from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.montecarlo.nominal import OUTCOME_DETAILS, grasp_from_draw
-from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import reach_robot_palm_pose
@@ -49,7 +49,7 @@ class CandidateSolver:
 
     def __init__(self, robot: str | RobotDescription, object_name: str,
                  settings: PlannerSettings | None = None, friction: float = 0.5) -> None:
-        self.description = load_robot(robot) if isinstance(robot, str) else robot
+        self.description = as_description(robot)
         self.settings = settings or PlannerSettings()
         self.engine = RobotReferenceEngine(self.description, object_name, friction=friction)
         self.kin = Kinematics(self.description.model)

@@ -35,7 +35,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
-from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.hand_frame import hand_frame
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -198,7 +198,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     settings = settings or PlannerSettings(attempts=attempts_for(count))
     check_seed(seed)
     rng = as_generator(seed)
-    description = load_robot(robot) if isinstance(robot, str) else robot
+    description = as_description(robot)
     if len(description.fingers) != 2:
         return plan_approach_grasps(description, object_name, count=count, rng=rng,
                                     settings=settings, friction=friction,

@@ -260,6 +260,21 @@ def load_object(name: str) -> GraspObject:
     return imported_object(str(folder), entry_digest(folder))
 
 
+def as_object(obj: str | GraspObject) -> GraspObject:
+    """``obj`` itself, or the catalog object it names (:func:`load_object`).
+
+    Raises:
+        TypeError: neither a name nor an object (one line, naming the value).
+        ValueError: an unknown name.
+    """
+    if isinstance(obj, GraspObject):
+        return obj
+    if isinstance(obj, str):
+        return load_object(obj)
+    raise TypeError(f"obj must be a catalog object's name or a GraspObject, got "
+                    f"{type(obj).__name__} {obj!r:.60}")
+
+
 def source_to_object(name: str) -> np.ndarray | None:
     """(4, 4) the map from an imported object's source mesh frame (the file's own coordinates
     and units) to its object frame, as ``objects add`` recorded it (its scale times its up
