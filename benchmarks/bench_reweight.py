@@ -71,7 +71,7 @@ def evaluate_fast(grasp, noise: JointNoise | NoiseModel, n: int,
                   seed: int) -> GraspEvaluation:
     """``evaluate_grasp`` on the fast engine under joint noise or a noise model."""
     if isinstance(noise, NoiseModel):
-        return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=seed,
+        return evaluate_grasp(grasp, noise_model=noise, n=n, seed=seed,
                               engine="fast")
     return evaluate_grasp(grasp, sigma=noise.sigma, noise=noise.kind, n=n, seed=seed,
                           engine="fast")

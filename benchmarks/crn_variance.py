@@ -46,7 +46,7 @@ PAIRS = {
 
 def indicators(grasp, spec: dict, samples: int, seed: int) -> np.ndarray:
     engine = robot_engine("fast", grasp.robot, grasp.object)  # built once, kept
-    stats = evaluate_grasp(grasp, sigma=0.0, noise_model=noise_model_from_spec(spec), n=samples,
+    stats = evaluate_grasp(grasp, noise_model=noise_model_from_spec(spec), n=samples,
                            seed=seed, engine=engine)
     return (stats.draws.outcome == FORCE_CLOSURE).astype(float)
 

@@ -131,7 +131,7 @@ def test_a_noise_model_of_every_source_draws_the_rows_of_its_streams_in_chunks()
     grasp = shipped_grasps("cube")[1]
     model = noise_model_from_spec(EVERY_SOURCE)
     with LocalExecutor(2) as executor:
-        evaluated = evaluate_grasp(grasp, sigma=0.0, n=530, seed=5, robot=DEFAULT_ROBOT,
+        evaluated = evaluate_grasp(grasp, n=530, seed=5, robot=DEFAULT_ROBOT,
                                    engine="fast", noise_model=model, executor=executor)
     with make_engine("fast", DEFAULT_ROBOT, "cube") as engine:
         rows, errors = evaluation_rows(grasp, engine, sigma=0.0, n=530, seed=5,

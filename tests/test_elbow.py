@@ -281,7 +281,7 @@ def test_a_noise_model_is_searched_under_every_source():
     model = noise_model_from_spec({"preset": "dexnet", "joints": {"sigma": 0.0133}})
     result = optimize_robot_elbow(grasp, model, 60, seed=0, evaluate_with="fast")
     nominal = next(p for p in result.curve if p.psi == result.nominal_psi)
-    full = evaluate_grasp(grasp, sigma=0.0, noise_model=model, n=60, seed=0, engine="fast")
+    full = evaluate_grasp(grasp, noise_model=model, n=60, seed=0, engine="fast")
     alone = evaluate_grasp(grasp, sigma=0.0133, n=60, seed=0, engine="fast")
     assert (nominal.fc != (full.draws.outcome == FORCE_CLOSURE)).sum() <= 1
     assert (nominal.fc != (alone.draws.outcome == FORCE_CLOSURE)).sum() >= 3

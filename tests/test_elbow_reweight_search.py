@@ -93,3 +93,65 @@ def test_non_gaussian_noise_is_refused_before_any_closing(capsys, sigma):
                  "--noise", "uniform", "--method", "reweight"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Gaussian" in err[0]
+
+
+def _searches():
+    from kinegrasp_env.toolkit.elbow_reweight_search import optimize_robot_branches_reweighted
+    from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches
+
+    return {"elbow": optimize_robot_elbow, "branches": optimize_robot_branches,
+            "elbow_reweighted": optimize_robot_elbow_reweighted,
+            "branches_reweighted": optimize_robot_branches_reweighted}
+
+
+@pytest.mark.parametrize("search", ["elbow", "branches", "elbow_reweighted",
+                                    "branches_reweighted"])
+@pytest.mark.parametrize("change, message", [
+    ({"seed": -1}, "seed must be an integer >= 0 (the run's rows), got -1"),
+    ({"samples": 0}, "samples must be a positive number of draws, got 0"),
+    ({"noise": 0.01}, "noise must be a JointNoise (e.g. JointNoise(0.0133)) or a NoiseModel, "
+                      "got float 0.01"),
+    ({"grasp": None}, "grasp must be a Grasp (kinegrasp_env.world.grasps), got NoneType"),
+])
+def test_every_search_refuses_bad_inputs_alike_before_any_closing(monkeypatch, search, change,
+                                                                  message):
+    """The direct and re-weighted elbow and IK-branch searches check their inputs by one
+    rule (``check_search``), in the same words and before any engine is built (an engine
+    built here fails the test)."""
+    from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
+
+    def no_engine(*args, **kwargs):
+        raise AssertionError("an engine was built before the inputs were checked")
+
+    monkeypatch.setattr(RobotReferenceEngine, "__init__", no_engine)
+    run = {"grasp": shipped_grasps("cube")[1], "noise": JointNoise(0.01), "samples": 50,
+           "seed": 0, **change}
+    with pytest.raises(ValueError) as info:
+        _searches()[search](run["grasp"], run["noise"], run["samples"], run["seed"])
+    assert str(info.value) == message
+
+
+def test_the_searches_refuse_a_wrong_engine_and_arm_in_one_line():
+    """A direct search takes a reference engine of the grasp's robot and object (a name, or
+    another robot's engine, is refused); a re-weighted one an engine that closes a hand
+    moved by a palm error (not physics); the IK-branch searches a 6-joint arm (the
+    7-joint KUKA moves along its self-motion instead)."""
+    from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
+
+    grasp, noise = shipped_grasps("cube")[1], JointNoise(0.01)
+    searches = _searches()
+    with pytest.raises(ValueError, match=r"^engine must be a RobotReferenceEngine of the "
+                                         r"grasp's robot and object, or None, got str$"):
+        searches["elbow"](grasp, noise, 50, engine="fast")
+    with RobotReferenceEngine("panda", "cube") as panda, pytest.raises(
+            ValueError, match=r"^grasp '1' is a grasp of robot 'kuka_sdh', not of 'panda'"):
+        searches["elbow"](grasp, noise, 50, engine=panda)
+    for name in ("elbow_reweighted", "branches_reweighted"):
+        with pytest.raises(ValueError, match=r"^a batch of palm deviations is closed by an "
+                                             r"engine that takes palm errors \(pybullet or "
+                                             r"fast\), got engine 'physics'$"):
+            searches[name](grasp, noise, 50, engine="physics")
+    for name in ("branches", "branches_reweighted"):
+        with pytest.raises(ValueError, match=r"^robot 'kuka_sdh' has 7 arm joints; IK "
+                                             r"branches are a 6-joint arm's"):
+            searches[name](grasp, noise, 50)

@@ -82,6 +82,9 @@ BAD_ARGUMENTS = [
     ({"step_size": -0.1}, r"step_size must be a finite number > 0, got -0.1"),
     ({"split": "val"}, "split must be None, 'train' or 'test', got 'val'"),
     ({"grasp_file": "/no/such/grasps.json"}, "/no/such/grasps.json"),
+    ({"reward": "batch", "engine": "physics"}, r"^a batch of palm deviations is closed by an "
+                                               r"engine that takes palm errors \(pybullet or "
+                                               r"fast\), got engine 'physics'$"),
 ]
 
 
@@ -97,6 +100,8 @@ def test_a_bad_argument_is_a_one_line_error_naming_it(extra, message):
 BAD_OPTIONS = [
     ({"object": "mug"}, "unknown object 'mug'; this env has cube, drill, spray_flask"),
     ({"object": "cube", "grasp": 9}, r"grasp index 9 out of range: cube has 4 \(0..3\)"),
+    ({"grasp": 3}, r"^the reset option grasp is an index into one object's grasps: give the "
+                   r"object too \(this env has cube, drill, spray_flask\)$"),
     ({"object": "cube", "grasp": "1"}, "reset option grasp must be an integer index into "
                                        "cube's 4 grasps, got '1'"),
     ({"object": "cube", "grasp": 1.0}, "reset option grasp .*, got 1.0"),
@@ -104,7 +109,7 @@ BAD_OPTIONS = [
     ({"noise": "gauss"}, "unknown noise type 'gauss'"),
     ({"psi": "a"}, "psi must be a finite elbow angle in radians, got 'a'"),
     ({"noise_model": {"joints": {"sigma": 0.01}}, "sigma": 0.01},
-     "give the reset option noise_model or sigma/noise, not both"),
+     "give a noise_model .* or the reset options sigma/noise, not both"),
     ({"noise_model": {"hand": {"spread_sigma": 0.01}}}, "drop hand.spread_sigma"),
     ({"bogus": 1}, r"unknown reset options \['bogus'\]"),
     ([1], r"reset options must be a dict or None, got \[1\]"),
@@ -354,7 +359,7 @@ def test_a_noise_model_reward_equals_the_robot_evaluation_of_the_model():
     env = gym.make("KineGrasp-v0", robot="panda", n_draws=12, noise_model=model).unwrapped
     info = _stepped(env, {"object": "spray_flask", "grasp": 1})
     here = dataclasses.replace(env.grasp, q0=env.q.copy())
-    evaluation = evaluate_grasp(here, sigma=0.0, n=12, seed=info["draw_seed"],
+    evaluation = evaluate_grasp(here, n=12, seed=info["draw_seed"],
                                 engine=env.engine, noise_model=env.noise)
     joints_only = evaluate_grasp(here, sigma=0.02, n=12, seed=info["draw_seed"],
                                  engine=env.engine)
@@ -463,18 +468,30 @@ def test_select_env_takes_the_robot_too():
     env.close()
 
 
-def test_a_grasp_file_of_another_robot_is_refused(tmp_path):
+def test_a_grasp_file_of_another_robot_is_refused_and_its_robot_is_the_default(tmp_path):
+    """A grasp file's robot is the env's when none is named (as the commands take it); a
+    named robot other than the file's, or a file of two robots, is refused in one line."""
     from kinegrasp_env.assets import asset_path
     from kinegrasp_env.world.grasps import load_grasps, save_grasps
 
-    kuka = tmp_path / "kuka.json"
-    save_grasps(load_grasps(asset_path("grasps", "kuka_sdh", "drill.json"))[:1], kuka)
+    kuka_grasps = load_grasps(asset_path("grasps", "kuka_sdh", "drill.json"))[:1]
+    panda_grasps = load_grasps(asset_path("grasps", "panda", "cube.json"))[:1]
+    kuka, panda, both = tmp_path / "kuka.json", tmp_path / "panda.json", tmp_path / "both.json"
+    save_grasps(kuka_grasps, kuka)
+    save_grasps(panda_grasps, panda)
+    save_grasps(panda_grasps + kuka_grasps, both)
     with pytest.raises(ValueError, match="holds grasps of robot 'kuka_sdh'; make the env"):
         gym.make("KineGrasp-v0", robot="panda", grasp_file=str(kuka))
-    panda = tmp_path / "panda.json"
-    save_grasps(load_grasps(asset_path("grasps", "panda", "cube.json"))[:1], panda)
-    with pytest.raises(ValueError, match="holds grasps of robot 'panda'; make the env"):
-        gym.make("KineGrasp-v0", grasp_file=str(panda))
+    env = gym.make("KineGrasp-v0", grasp_file=str(panda)).unwrapped
+    assert env.robot == "panda" and env.object_names == ("cube",)
+    env.close()
+    with pytest.raises(ValueError, match="holds grasps of robot 'kuka_sdh'; make the env"):
+        gym.make("KineGrasp-v0", grasp_file=str(both))
+    empty = tmp_path / "empty.json"
+    save_grasps([], empty)
+    for robot in ({}, {"robot": "kuka_sdh"}):  # refused alike, named robot or not
+        with pytest.raises(ValueError, match=r"empty\.json holds no grasp$"):
+            gym.make("KineGrasp-v0", grasp_file=str(empty), **robot)
 
 
 def test_generic_self_motion_matches_the_default_robots_compiled_one():

@@ -205,9 +205,9 @@ def test_engine_refuses_a_wrong_shape():
 
 
 @pytest.mark.parametrize(("sigma", "needle"), [
-    (1e308, r"sigma 1e\+308 rad is above the bound pi"),
-    (3.2, r"sigma 3.2 rad is above the bound pi"),
-    ((0.01,) * 6 + (4.0,), r"sigma 4 rad is above the bound pi"),
+    (1e308, r"sigma must be <= pi \(3\.14159 rad\), got 1e\+308"),
+    (3.2, r"sigma must be <= pi \(3\.14159 rad\), got 3\.2"),
+    ((0.01,) * 6 + (4.0,), r"sigma must be <= pi \(3\.14159 rad\), got 4"),
 ])
 def test_evaluate_refuses_sigma_above_pi(sigma, needle):
     with pytest.raises(ValueError, match=needle):
@@ -267,13 +267,13 @@ def test_the_library_refuses_bad_arguments_in_one_line_before_any_draw():
         evaluate_grasp(g, sigma=0.01, n=10, seed=np.random.default_rng(0), engine="fast",
                        executor=executor)
     with pytest.raises(ValueError, match="a noise model's run takes an integer seed >= 0"):
-        evaluate_grasp(g, sigma=0.0, n=10, seed=np.random.default_rng(0), engine="fast",
+        evaluate_grasp(g, n=10, seed=np.random.default_rng(0), engine="fast",
                        noise_model=noise_model_from_spec({"joints": {"sigma": 0.01}}))
     for edges, shown in ((0, "0"), (-1, "-1"), (1.5, "1.5")):
         with pytest.raises(ValueError, match=f"num_edges must be an integer >= 3 and <= 32 "
                                              f".*got {shown}$"):
             make_engine("fast", DEFAULT_ROBOT, "cube", num_edges=edges)
-    with pytest.raises(ValueError, match="sigma 4 rad is above the bound pi"):
+    with pytest.raises(ValueError, match="sigma must be <= pi"):
         evaluate_grasp(g, sigma=4.0, n=10, engine="fast")
     far = replace(g, q0=np.r_[10.0, g.q0[1:]])
     with pytest.raises(ValueError, match=r"q0\[0\] \(.*\) = 10.0000 is outside its limits"):
@@ -287,7 +287,7 @@ def test_a_noise_model_of_another_type_is_refused_in_one_line():
     """A number given as ``noise_model`` (joint noise's sigma in the wrong place) is refused
     in one line naming both types, before any engine is built."""
     with pytest.raises(ValueError, match=r"NoiseModel.*float"):
-        evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, n=10, noise_model=0.0133)
+        evaluate_grasp(shipped_grasps("cube")[0], n=10, noise_model=0.0133)
 
 
 def test_a_process_keeps_a_bounded_number_of_engines():
@@ -314,3 +314,91 @@ def test_a_process_keeps_a_bounded_number_of_engines():
 def test_the_default_robots_engines_are_context_managers():
     with make_engine("pybullet", DEFAULT_ROBOT, "cube") as engine:
         assert engine.run(shipped_grasps("cube")[0].q0[None]).outcome.shape == (1,)
+
+
+@pytest.mark.parametrize("robot, method", [("kuka_sdh", "mc"), ("panda", "sobol")])
+def test_a_run_without_contacts_closes_the_same_rows_in_blocks(monkeypatch, robot, method):
+    """``keep_draws=False`` closes the rows in blocks (7 rows here: blocks that cut the
+    streams' chunks of 250 rows and the Sobol points' balance) and keeps no contact slot
+    and no hand joint: row for row the same outcome, Q, contact count, static hold verdicts
+    and jaw push as one call that keeps everything (each block's rows are drawn by their
+    offset in the seed's streams), so the same statistics and nominal Q; the same again on
+    two processes, whose chunks drop the contacts as they come back."""
+    from kinegrasp_env.montecarlo import evaluate as evaluate_module
+
+    monkeypatch.setattr(evaluate_module, "IN_PROCESS_BLOCK", 7)
+    grasp = shipped_grasps("cube", robot)[0]
+    run = dict(sigma=0.02, n=40, seed=3, static_hold=True, method=method, offset=5)
+    calls = []
+    with make_engine("fast", robot, "cube", static_hold=True) as engine:
+        closed = engine.run
+        engine.run = lambda q, **errors: calls.append(len(q)) or closed(q, **errors)
+        full = evaluate_grasp(grasp, **run, engine=engine)
+        slim = evaluate_grasp(grasp, **run, engine=engine, keep_draws=False)
+    # one call of 40 draws + the nominal row, then blocks of 7 (the last with the nominal)
+    assert calls == [41, 7, 7, 7, 7, 7, 6]
+    run["engine"] = "fast"
+    with LocalExecutor(2) as executor:
+        chunked = evaluate_grasp(grasp, **run, keep_draws=False, executor=executor)
+    assert 0 < full.p_fc < 1 and full.n == 40
+    for other in (slim, chunked):
+        assert other.draws.points.shape == (40, 0, 3) and other.draws.hand.shape == (40, 0)
+        for key in ("outcome", "quality", "n_contacts", "held", "push"):
+            np.testing.assert_array_equal(getattr(other.draws, key), getattr(full.draws, key))
+        for key in ("counts", "p_fc", "q_mean", "q_std", "p_hold_static", "q_nominal"):
+            assert getattr(other, key) == getattr(full, key), key
+    assert np.isfinite(full.draws.push).any() == (robot == "panda")
+    with pytest.raises(ValueError, match=r"^keep_draws must be True or False, got 'no'$"):
+        evaluate_grasp(grasp, **run, keep_draws="no")
+
+
+def test_arguments_that_contradict_each_other_are_refused_in_one_line():
+    """What would be silently ignored is refused before any work, in one line: joint noise
+    beside a noise model (whose joints source is the joint noise), a robot other than the
+    given engine's, an unknown robot (named as unknown, as every command names it, not as
+    the grasp's mismatch), a grasp or a flag of the wrong type."""
+    from kinegrasp_env.sampling.noise_model import NoiseModel
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    grasp, panda_grasp = shipped_grasps("cube")[1], shipped_grasps("cube", "panda")[1]
+    model = noise_model_from_spec({"joints": {"sigma": 0.0133}})
+    cases = [
+        (dict(grasp=grasp, noise_model=model, sigma=0.5),
+         r"^give sigma and noise, or a noise_model, not both"),
+        (dict(grasp=grasp, noise_model=model, noise="bogus"),
+         r"^give sigma and noise, or a noise_model, not both"),
+        (dict(grasp=grasp, sigma=0.01, robot="nope"),
+         r"^unknown robot 'nope'; known robots: kuka_sdh, panda"),
+        (dict(grasp=None, sigma=0.01), r"^grasp must be a Grasp .*, got NoneType$"),
+        (dict(grasp=grasp, noise_model=NoiseModel()), r"^noise_model names no source of "
+                                                      r"error"),
+        (dict(grasp=grasp, sigma=0.01, static_hold="yes"),
+         r"^static_hold must be True or False, got 'yes'$"),
+    ]
+    with make_engine("fast", "panda", "cube") as engine:
+        cases.append((dict(grasp=panda_grasp, sigma=0.01, engine=engine, robot="kuka_sdh"),
+                      r"^robot 'kuka_sdh' is not the engine's robot 'panda'"))
+        for kwargs, message in cases:
+            with pytest.raises(ValueError, match=message):
+                evaluate_grasp(n=20, **{"engine": "fast", **kwargs})
+    with pytest.raises(ValueError, match=r"^unknown robot 'nope'; known robots"):
+        shipped_grasps("cube", robot="nope")
+
+
+def test_the_nominal_q_is_the_same_to_the_last_digit_in_and_out_of_process():
+    """Under a noise model whose draws carry palm errors and a per-draw mu, the nominal
+    closing is closed without errors in one process as the chunks close it (it rode with
+    the draws, under identity errors and an explicit mu, and its Q differed in the last
+    digits): the same Q, bit for bit, and so every statistic."""
+    from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
+
+    model = noise_model_from_spec({"joints": {"sigma": 0.0133}, "palm": {
+        "translation_sigma": 0.002, "rotation_sigma": 0.001}, "friction": {
+        "distribution": "uniform", "low": 0.4, "high": 0.8}})
+    grasp = shipped_grasps("cube")[1]
+    here = evaluate_grasp(grasp, noise_model=model, n=30, seed=2, engine="fast")
+    with LocalExecutor(2) as executor:
+        there = evaluate_grasp(grasp, noise_model=model, n=30, seed=2, engine="fast",
+                               executor=executor)
+    assert here.q_nominal > 0 and here.q_nominal == there.q_nominal
+    assert (here.p_fc, here.q_mean) == (there.p_fc, there.q_mean)

@@ -63,6 +63,23 @@ def test_bad_backend_settings_are_clear():
         make_executor("local", 1, "ray://head:10001")
 
 
+@pytest.mark.parametrize("count", [0, -3, 2.5, True, "2"])
+def test_a_count_of_workers_is_checked_alike_before_ray_starts(monkeypatch, count):
+    """Processes and Ray CPUs go through one check (an integer >= 1), in one line naming
+    the value, before Ray is imported (a Ray that would start fails the test): Ray itself
+    took 0 for all CPUs and raised its own errors deep inside for -3 and 2.5."""
+    from kinegrasp_env.montecarlo import execution
+
+    def no_ray():
+        raise AssertionError("Ray was started before num_cpus was checked")
+
+    monkeypatch.setattr(execution, "_import_ray", no_ray)
+    for make, name in ((lambda: LocalExecutor(count), "processes"),
+                       (lambda: execution.RayExecutor(num_cpus=count), "num_cpus")):
+        with pytest.raises(ValueError, match=rf"^{name} must be an integer >= 1, got "):
+            make()
+
+
 def test_missing_ray_names_the_extra(monkeypatch, capsys, tmp_path):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
     path = save_grasps(shipped_grasps("cube")[:2], tmp_path / "c.json")

@@ -206,7 +206,7 @@ def test_the_library_takes_a_friction_sources_nominal_mu_too():
     grasp, obj = shipped_grasps("cube")[0], load_object("cube")
     model = noise_model_from_spec({"joints": {"sigma": 0.01},
                                    "friction": {"distribution": "fixed", "value": 0.8}})
-    run = evaluate_grasp(grasp, sigma=0.01, n=4, seed=0, engine="fast", noise_model=model)
+    run = evaluate_grasp(grasp, n=4, seed=0, engine="fast", noise_model=model)
     by_hand = ferrari_canny(grasp.points, grasp.normals, friction=0.8,
                             torque_scale=obj.torque_scale, center=obj.center_of_mass)
     assert run.q_nominal == pytest.approx(by_hand, rel=1e-7)

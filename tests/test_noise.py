@@ -87,5 +87,36 @@ def test_sigma_is_stored_as_floats_and_checked_up_front():
     for bad in ("0.0133", True, ["0.1", 0.2]):
         with pytest.raises(ValueError, match="sigma must be a number of radians or one per"):
             JointNoise(bad)
-    with pytest.raises(ValueError, match="sigma 4 rad is above the bound pi"):
+    with pytest.raises(ValueError, match=r"^sigma must be <= pi \(3\.14159 rad\), got 4$"):
         JointNoise((0.01, 4.0))
+
+
+def test_every_layer_words_the_sigma_bound_alike(capsys):
+    """A joint sigma above pi is refused by one rule (``check_sigma_bound``) in the same
+    words, whichever layer took it: the library's noise, the env's reset option, a noise
+    spec (its field's name), a sweep spec (its place first), a command's ``--sigma``."""
+    from kinegrasp_env.cli.main import main
+    from kinegrasp_env.envs.arguments import reset_sigma
+    from kinegrasp_env.montecarlo.sweep import SpecError, SweepSpec
+    from kinegrasp_env.sampling.noise_spec import NoiseSpecError, noise_model_from_spec
+
+    words = "must be <= pi (3.14159 rad), got 4"
+    messages = []
+    for call, error in [(lambda: JointNoise(4.0), ValueError),
+                        (lambda: reset_sigma(4.0), ValueError),
+                        (lambda: noise_model_from_spec({"joints": {"sigma": 4.0}}),
+                         NoiseSpecError),
+                        (lambda: noise_model_from_spec({"hand": {"spread_sigma": 4}}),
+                         NoiseSpecError),
+                        (lambda: SweepSpec.from_dict({"objects": ["cube"], "sigmas": [4.0]}),
+                         SpecError)]:
+        with pytest.raises(error) as info:
+            call()
+        messages.append(str(info.value))
+    assert main(["evaluate", "--sigma", "4"]) == 2
+    messages.append(capsys.readouterr().err.strip())
+    assert messages[:2] == [f"sigma {words}"] * 2
+    assert messages[2:4] == [f"noise spec: joints.sigma {words}",
+                             f"noise spec: hand.spread_sigma {words}"]
+    assert messages[4].endswith(f": sigma {words}")
+    assert messages[5] == f"kinegrasp evaluate: error: --sigma {words}"

@@ -26,7 +26,7 @@ def _evaluate(grasp, noise, n, seed):
     if isinstance(noise, JointNoise):
         return evaluate_grasp(grasp, sigma=noise.sigma, noise=noise.kind, n=n, seed=seed,
                               engine="fast")
-    return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=seed, engine="fast")
+    return evaluate_grasp(grasp, noise_model=noise, n=n, seed=seed, engine="fast")
 
 
 @pytest.fixture()
@@ -152,7 +152,7 @@ def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_fi
     model = load_noise_model(spec_file)
     with pytest.raises(ValueError, match=r"^the physics engine takes joint and hand "
                                          r"noise only"):
-        evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, noise_model=model, n=10,
+        evaluate_grasp(shipped_grasps("cube")[0], noise_model=model, n=10,
                        engine="physics")
     assert main(["evaluate", "--noise-spec", str(spec_file), "--engine", "physics"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

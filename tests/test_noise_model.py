@@ -77,7 +77,7 @@ def test_a_joints_only_spec_evaluates_bit_for_bit_as_joint_noise(engine, samples
     spec = noise_model_from_spec({"joints": {"sigma": 0.0233, "distribution": "uniform"}})
     a = evaluate_grasp(grasp, sigma=0.0233, noise="uniform", n=samples, seed=5,
                        engine=engine)
-    b = evaluate_grasp(grasp, sigma=0.0, noise_model=spec, n=samples, seed=5, engine=engine)
+    b = evaluate_grasp(grasp, noise_model=spec, n=samples, seed=5, engine=engine)
     _same_draws(a.draws, b.draws)
     assert a.counts == b.counts and a.n == b.n
     for name in ("p_fc", "ci", "q_mean", "q_std", "q_skew", "q_nominal"):
@@ -112,7 +112,7 @@ def test_every_source_draws_from_its_own_stream():
 def test_adding_a_friction_source_leaves_the_joint_draws_identical():
     grasp = shipped_grasps("spray_flask")[0]
     joints = {"joints": {"sigma": 0.0233}}
-    options = dict(sigma=0.0, n=200, seed=2, engine="fast")
+    options = dict(n=200, seed=2, engine="fast")
     a = evaluate_grasp(grasp, noise_model=noise_model_from_spec(joints), **options)
     fixed = noise_model_from_spec({**joints, "friction": {"distribution": "fixed",
                                                           "value": 0.5}})
@@ -160,7 +160,7 @@ BAD_SPECS = [
     ({"joints": {"sigma": []}}, "joints.sigma must be a scalar or one value per arm joint"),
     ({"joints": {"sigma": [0.1, 0.2], "bias": [0.1] * 3}},
      "joints: sigma describes 2 joints and bias describes 3 joints"),
-    ({"joints": {"sigma": 4.0}}, "joints.sigma must be <= 3.14159"),
+    ({"joints": {"sigma": 4.0}}, "joints.sigma must be <= pi (3.14159 rad), got 4"),
     ({"joints": {"sigma": "small"}}, "joints.sigma must be a number"),
     ({"joints": {"distribution": "cauchy"}}, "joints.distribution 'cauchy' is unknown"),
     ({"joints": {"covariance": (np.eye(7) + np.eye(7, k=1) * 1e-3).tolist()}},
@@ -439,7 +439,7 @@ def _friction_only_agrees(name: str, index: int, spec: dict, samples: int) -> No
         mu_min, k = _mu_min(engine, grasp)
     exact = _p_at_least(spec, mu_min)
     model = noise_model_from_spec({"friction": spec})
-    result = evaluate_grasp(grasp, sigma=0.0, noise_model=model, n=samples, seed=6,
+    result = evaluate_grasp(grasp, noise_model=model, n=samples, seed=6,
                             engine="fast")
     # every draw keeps the nominal contacts; force closure is monotone in mu, so a draw is
     # in force closure exactly when its mu is at least mu_min (each draw's mu: the
@@ -483,7 +483,7 @@ def test_a_model_of_zeros_is_the_nominal_grasp():
     zeros = noise_model_from_spec({"joints": {"sigma": 0.0}, "hand": {},
                                    "palm": {"translation_sigma": 0.0},
                                    "object": {"rotation_sigma": [0.0, 0.0, 0.0]}})
-    result = evaluate_grasp(grasp, sigma=0.0, noise_model=zeros, n=20, seed=1, engine="fast")
+    result = evaluate_grasp(grasp, noise_model=zeros, n=20, seed=1, engine="fast")
     # every draw is the nominal one: the draws of sigma = 0 joint noise, bit for bit
     _same_draws(result.draws, evaluate_grasp(grasp, sigma=0.0, n=20, seed=1,
                                              engine="fast").draws)
@@ -510,10 +510,10 @@ def test_env_takes_a_noise_model_as_an_option():
     g = env.grasp
     here = Grasp(g.object, env.q.copy(), g.palm_pose, g.points, g.normals, g.fingers, g.links,
                  g.q_nominal)
-    stats = evaluate_grasp(here, sigma=0.0, noise_model=noise_model_from_spec(spec), n=32,
+    stats = evaluate_grasp(here, noise_model=noise_model_from_spec(spec), n=32,
                            seed=info["draw_seed"], engine="fast")
     assert reward == stats.p_fc == info["p_fc"]
-    with pytest.raises(ValueError, match="noise_model or sigma/noise, not both"):
+    with pytest.raises(ValueError, match="or the reset options sigma/noise, not both"):
         env.reset(options={**task, "noise_model": spec, "sigma": 0.01})
     with pytest.raises(ValueError, match=r"friction\.high"):
         env.reset(options={"noise_model": {"friction": {"distribution": "uniform",
@@ -532,3 +532,18 @@ def test_the_documented_example_spec_loads():
     model = load_noise_model(example)
     assert model.sources == ("joints", "palm", "object", "friction")
     assert model.joints == JointsSource(0.0133)
+
+
+@pytest.mark.parametrize("text", ["", "# only a comment\n", "{}\n", "joints:\n",
+                                  "joints:\nfriction:\n"])
+def test_a_spec_of_no_source_is_refused_alike_however_it_is_empty(tmp_path, text):
+    """An empty file, a comment, an empty mapping and empty sections all name no source of
+    error: one refusal in the same words (an evaluation of such a spec was noise-free
+    without a word, or refused as "not a mapping", depending on how it was empty)."""
+    path = tmp_path / "empty.yaml"
+    path.write_text(text)
+    with pytest.raises(NoiseSpecError) as info:
+        load_noise_model(path)
+    assert str(info.value) == (f"{path}: names no source of error (a section of joints, "
+                               "hand, palm, object or friction, or a preset); an evaluation "
+                               "without noise is sigma 0")

@@ -465,7 +465,7 @@ def pages(tmp_path_factory, robot_run, elbow_run, spec_file):
         command="kinegrasp elbow ...", settings={}))
     model = load_noise_model(spec_file)
     report.write_page(out["spec"], evaluation_page(
-        grasp, [(model.sigma, evaluate_grasp(grasp, sigma=model.sigma, n=SAMPLES, seed=3,
+        grasp, [(model.sigma, evaluate_grasp(grasp, n=SAMPLES, seed=3,
                                              engine="fast", noise_model=model))],
         noise_spec=spec_of(model)))
     return out
@@ -792,7 +792,7 @@ def test_report_with_a_noise_spec_of_several_sources(spec_file, tmp_path, capsys
                  "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
     model = load_noise_model(spec_file)
-    stats = evaluate_grasp(grasp_by_index("cube", 1), sigma=0.0, noise_model=model, n=50,
+    stats = evaluate_grasp(grasp_by_index("cube", 1), noise_model=model, n=50,
                            seed=2, engine="fast")
     (run,) = printed["runs"]
     assert run["outcomes"] == stats.counts and run["p_fc"] == stats.p_fc
@@ -828,8 +828,8 @@ def test_report_with_a_per_joint_noise_spec(tmp_path, capsys):
     assert main(["report", "--object", "cube", "--noise-spec", str(spec), "--samples", "30",
                  "--engine", "fast", "--out", str(out), "--json"]) == 0
     (run,) = json.loads(capsys.readouterr().out)["runs"]
-    stats = evaluate_grasp(grasp_by_index("cube", 0), sigma=0.0,
-                           noise_model=load_noise_model(spec), n=30, seed=0, engine="fast")
+    stats = evaluate_grasp(grasp_by_index("cube", 0), noise_model=load_noise_model(spec),
+                           n=30, seed=0, engine="fast")
     assert run["p_fc"] == stats.p_fc and run["outcomes"] == stats.counts
     assert f"--noise-spec {spec} --samples 30" in out.read_text()
 

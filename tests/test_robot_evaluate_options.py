@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +100,10 @@ def test_evaluate_report_for_a_robot(capsys, tmp_path):
     text = page.read_text()
     assert f"{shown['p_fc']:.4f}" in text
     assert "kinegrasp evaluate --robot panda --object cube --grasp 0" in text
+    # the scene draws the run's contacts: every touching draw's, none dropped
+    shown_points, total = map(int, re.search(
+        r"contact points of its first run&#x27;s draws: (\d+) of (\d+)", text).groups())
+    assert shown_points == total > 0
     assert main([*args, "--report", str(tmp_path / "no" / "page.html")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--report" in err[0]
@@ -108,7 +113,6 @@ def test_rank_report_for_a_robot(capsys, tmp_path):
     """``rank --report FILE`` of the Panda's candidates: one page, its rows in the CSV's
     rank order with the CSV's P(FC)s."""
     import csv
-    import re
 
     from kinegrasp_env.world.grasps import save_grasps
 

@@ -103,16 +103,16 @@ def test_an_object_error_is_the_object_placed_at_its_true_pose(panda):
 def test_the_engines_agree_on_every_source(panda):
     _, _, grasp = panda
     model = noise_model_from_spec(EVERY_SOURCE)
-    fast = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+    fast = evaluate_grasp(grasp, n=200, seed=4, engine="fast",
                           noise_model=model)
-    reference = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="pybullet",
+    reference = evaluate_grasp(grasp, n=200, seed=4, engine="pybullet",
                                noise_model=model)
     same = fast.draws.outcome == reference.draws.outcome
     assert same.mean() >= 0.99, same.mean()  # 200 of 200 measured
     assert fast.counts["start_collision"] > 0 and fast.counts["force_closure"] > 0
     # the source changes the draws: without palm and object errors P(FC) differs
     joints = noise_model_from_spec({"joints": EVERY_SOURCE["joints"]})
-    alone = evaluate_grasp(grasp, sigma=0.0, n=200, seed=4, engine="fast",
+    alone = evaluate_grasp(grasp, n=200, seed=4, engine="fast",
                            noise_model=joints)
     assert alone.counts != fast.counts
 
@@ -123,13 +123,13 @@ def test_joints_and_friction_specs_draw_what_the_options_draw(panda):
     plain = evaluate_grasp(grasp, sigma=0.0133, friction=0.3, **options)
     spec = noise_model_from_spec({"joints": {"sigma": 0.0133},
                                   "friction": {"distribution": "fixed", "value": 0.3}})
-    specified = evaluate_grasp(grasp, sigma=0.0, noise_model=spec, **options)
+    specified = evaluate_grasp(grasp, noise_model=spec, **options)
     assert plain.counts == specified.counts
     np.testing.assert_array_equal(plain.draws.quality, specified.draws.quality)
     model = noise_model_from_spec(EVERY_SOURCE)
-    inline = evaluate_grasp(grasp, sigma=0.0, noise_model=model, **options)
+    inline = evaluate_grasp(grasp, noise_model=model, **options)
     with LocalExecutor(2) as executor:
-        pooled = evaluate_grasp(grasp, sigma=0.0, noise_model=model, executor=executor,
+        pooled = evaluate_grasp(grasp, noise_model=model, executor=executor,
                                 **options)
     chunks.close_engines()
     np.testing.assert_array_equal(inline.draws.quality, pooled.draws.quality)
@@ -192,7 +192,7 @@ def test_a_robot_sweep_cell_of_a_noise_model_is_its_evaluation(tmp_path, capsys)
     chunks.close_engines()
     row = next(csv.DictReader((tmp_path / "out" / "summary.csv").open()))
     expected = evaluate_grasp(
-        shipped_grasps("cube", "panda")[0], sigma=0.0, n=120, seed=3, engine="fast",
+        shipped_grasps("cube", "panda")[0], n=120, seed=3, engine="fast",
         noise_model=noise_model_from_spec({**model, "joints": {"sigma": 0.01}}))
     assert int(row["force_closure"]) == expected.counts["force_closure"]
     assert int(row["start_collision"]) == expected.counts["start_collision"]
@@ -305,7 +305,7 @@ def test_the_library_refuses_other_closing_sigmas_before_any_chunk():
                                    "hand": {"closing_sigma": [0.01, 0.02]}})
     with LocalExecutor(2) as executor:
         with pytest.raises(ValueError, match="robot 'kuka_sdh' has 3 fingers") as info:
-            evaluate_grasp(shipped_grasps("cube")[0], sigma=0.0, noise_model=model, n=8,
+            evaluate_grasp(shipped_grasps("cube")[0], noise_model=model, n=8,
                            engine="fast", executor=executor)
         assert executor._pool is None  # no worker process was started
     assert "\n" not in str(info.value)

@@ -162,7 +162,7 @@ def test_sensitivity_of_one_noisy_source_against_independent_estimators(tmp_path
     from kinegrasp_env.sampling.noise_spec import load_noise_model
 
     grasp = shipped_grasps("cube", "panda")[GRASP]
-    both = evaluate_grasp(grasp, sigma=0.0, n=2 * n, seed=SEED, engine="fast",
+    both = evaluate_grasp(grasp, n=2 * n, seed=SEED, engine="fast",
                           noise_model=load_noise_model(spec))
     y = (both.draws.outcome == FORCE_CLOSURE).astype(float)
     y_a, y_b = y[:n], y[n:]

@@ -132,7 +132,7 @@ def test_the_analysis_is_the_evaluations_on_the_same_draws(flask_engine):
     result = analyze(grasp, model, n, seed=4, engine=flask_engine, bootstrap=200)
 
     def p_fc(noise):
-        return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=n, seed=4,
+        return evaluate_grasp(grasp, noise_model=noise, n=n, seed=4,
                               engine="fast").p_fc
 
     assert result.p_all == p_fc(model)
@@ -185,7 +185,7 @@ def test_grouped_joints_take_a_covariance_and_a_bias(flask_engine):
         result = analyze(grasp, model, 60, seed=2, engine=flask_engine, bootstrap=0)
 
         def p_fc(noise):
-            return evaluate_grasp(grasp, sigma=0.0, noise_model=noise, n=60, seed=2,
+            return evaluate_grasp(grasp, noise_model=noise, n=60, seed=2,
                                   engine="fast").p_fc
 
         assert result.p_all == p_fc(model)

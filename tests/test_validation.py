@@ -244,7 +244,7 @@ def test_same_seed_same_table_twice(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--sigma", "x"], "--sigma: 'x' is not a number"),
     (["--sigma", "-0.1"], "--sigma must be >= 0"),
-    (["--sigma", "4"], "above the bound pi"),
+    (["--sigma", "4"], "--sigma must be <= pi (3.14159 rad), got 4"),
     (["--samples", "0"], "--samples must be >= 1"),
     (["--object", "teapot"], "--object: unknown object 'teapot'"),
     (["--object", "all", "--grasp", "0"], "--grasp needs one --object"),

@@ -29,10 +29,6 @@ ENGINE_NAMES = ("pybullet", "fast", "physics")
 DISTRIBUTION_NAMES = ("gaussian", "uniform", "triangular")
 #: ``--backend`` choices; equal to ``montecarlo.execution.BACKENDS`` (tested).
 BACKEND_NAMES = ("local", "ray")
-#: Largest ``--sigma`` (radians): joint noise is an angle, and a standard deviation beyond
-#: half a turn describes no joint; it also keeps every configuration finite. Equal to
-#: ``montecarlo.grasp_stats.MAX_SIGMA`` (tested), the bound the library enforces.
-MAX_SIGMA = math.pi
 #: ``--friction``'s default and the friction cones' edges every command uses; equal to
 #: ``quality.wrenches.DEFAULT_FRICTION`` and ``DEFAULT_NUM_EDGES`` (tested).
 DEFAULT_FRICTION, NUM_EDGES = 0.5, 8
@@ -157,6 +153,23 @@ def add_noise_args(p: argparse.ArgumentParser, sigma_default: float) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
+def sigma_value(text: str, option: str = "--sigma") -> float:
+    """A joint sigma option (radians): a finite number >= 0 within the library's bound
+    (:func:`~kinegrasp_env.sampling.noise.check_sigma_bound`)."""
+    from kinegrasp_env.sampling.noise import check_sigma_bound
+
+    sigma = nonnegative(finite_float(text, option), option)
+    with reported(ValueError):
+        check_sigma_bound(sigma, option)
+    return sigma
+
+
+def joint_noise(sigma, kind: str, model) -> dict:
+    """``evaluate_grasp``'s noise keywords: ``noise_model=model`` where a noise spec gave
+    one, else ``sigma`` (radians) and the distribution ``kind``."""
+    return {"noise_model": model} if model is not None else {"sigma": sigma, "noise": kind}
+
+
 def noise_from(args) -> tuple:
     """(noise, sigma, samples, seed) of ``--sigma/--noise`` or ``--noise-spec`` (then the
     noise is the model and sigma its joints' sigma: a number or 7)."""
@@ -166,9 +179,7 @@ def noise_from(args) -> tuple:
     if model is not None:
         sigma = model.sigma if isinstance(model.sigma, float) else list(model.sigma)
         return model, sigma, positive_int(args.samples, "--samples"), parse_seed(args.seed)
-    sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
-    if sigma > MAX_SIGMA:
-        raise CLIError(f"--sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {args.sigma}")
+    sigma = sigma_value(args.sigma)
     samples = positive_int(args.samples, "--samples")
     seed = parse_seed(args.seed)
     return JointNoise(sigma, args.noise), sigma, samples, seed

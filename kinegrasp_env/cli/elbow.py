@@ -57,7 +57,7 @@ def file_choice(args):
     index, grasp = grasp_of_file(args)
     args.robot = getattr(args, "robot", None) or grasp.robot
     with reported(ValueError):
-        check_robot(grasp, args.robot)
+        check_robot(grasp, args.robot, "--robot")
     return index, grasp
 
 

@@ -53,7 +53,7 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
     optimize = (optimize_robot_elbow_reweighted if starts is None else
                 functools.partial(optimize_robot_branches_reweighted, starts=starts))
     with reported(ValueError):  # noise, robot, object, batch: refused before any closing
-        check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
+        check_robot_reweight(grasp, noise, samples, epsilon, delta, batch, seed, args.engine)
     what = "IK branches" if starts is not None else "elbow"
     shown = grasp_shown(args, index, grasp)
     bar = tqdm(desc=f"{what} of {args.object} grasp {shown} of {args.robot} (batch, fresh draws, "

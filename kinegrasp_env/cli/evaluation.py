@@ -17,6 +17,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     friction_per_draw,
     friction_setting,
+    joint_noise,
     reported,
 )
 from kinegrasp_env.cli.evaluation_output import (
@@ -109,16 +110,17 @@ def run_evaluate(args, grasp, robot: str, sigma: float, samples: int,
              else f"sigma = {sigma:g} rad ({args.noise})")
     what = f"{grasp.object} grasp {grasp.id}"
     with reported(ValueError):
-        check_robot(grasp, robot)
+        check_robot(grasp, robot, "--robot")
         if args.elbow is not None:
             grasp = robot_grasp_at_elbow(grasp, robot, args.elbow)
             what += f" at elbow angle {grasp.meta['elbow_angle']:.3f} rad"
     with executor_from(args) as executor, reported(ValueError), \
             draw_bar(samples, f"{grasp.object} grasp {grasp.id}") as progress:
-        stats = evaluate_grasp(grasp, sigma=sigma, n=samples, seed=seed,
-                               noise=args.noise, robot=robot, engine=args.engine,
+        stats = evaluate_grasp(grasp, n=samples, seed=seed, robot=robot, engine=args.engine,
+                               **joint_noise(sigma, args.noise, model),
                                static_hold=args.static_hold, friction=friction,
-                               executor=executor, noise_model=model, progress=progress)
+                               executor=executor, progress=progress,
+                               keep_draws=bool(args.plot or args.report))  # they draw contacts
     hold = ({"p_hold_static": stats.p_hold_static, "p_hold_static_ci": list(stats.hold_ci),
              "mass_kg": stats.mass} if args.static_hold else {})
     if math.isfinite(stats.push_median):

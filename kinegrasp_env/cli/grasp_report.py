@@ -20,6 +20,7 @@ from kinegrasp_env.cli.common import (
     CLIError,
     friction_from,
     friction_setting,
+    joint_noise,
     noise_spec_from,
     parse_seed,
     positive_int,
@@ -96,7 +97,7 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         raise CLIError(f"--object {args.object}: {source} holds grasps of {objects[0]}")
     with reported(ValueError):
         for g in grasps:
-            check_robot(g, robot)
+            check_robot(g, robot, "--robot")
     return objects[0], grasps
 
 
@@ -195,9 +196,9 @@ def run_report(args, sigmas: list[float]) -> int:
                          else f"{name} grasp {grasp.id} sigma {sigma_words(sigma)}")
                 with draw_bar(samples, label) as progress:
                     runs.append(RobotRun(index, sigma, evaluate_grasp(
-                        grasp, sigma=sigma, n=samples, seed=seed, noise=args.noise,
-                        engine=args.engine, robot=robot, friction=friction,
-                        executor=executor, noise_model=model, progress=progress)))
+                        grasp, n=samples, seed=seed, engine=args.engine, robot=robot,
+                        friction=friction, executor=executor, progress=progress,
+                        **joint_noise(sigma, args.noise, model))))
             arms.append(first_arms(description, grasp, runs[-len(sigmas)].evaluation,
                                    sigmas[0], seed, args.noise, shown))
     # each grasp's nominal Q as this engine computes it at this friction

@@ -34,7 +34,7 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
     check_robot_engine(args.engine, robot)
     with reported(ValueError):
         for g in grasps:
-            check_robot(g, robot)
+            check_robot(g, robot, "--robot")
     if args.noise_spec:
         with reported(ValueError, RobotDescriptionError):
             check_robot_noise(noise, robot, load_robot(robot).arm_dof, args.engine,

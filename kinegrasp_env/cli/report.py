@@ -17,7 +17,6 @@ from pathlib import Path
 
 from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_words
 from kinegrasp_env.cli.common import (
-    MAX_SIGMA,
     NUM_EDGES,
     CLIError,
     add_engine_arg,
@@ -26,8 +25,8 @@ from kinegrasp_env.cli.common import (
     add_object_arg,
     float_list,
     friction_setting,
-    nonnegative,
     positive_int,
+    sigma_value,
 )
 from kinegrasp_env.cli.execution_options import add_execution_args
 from kinegrasp_env.cli.output_paths import PNG_SUFFIXES, input_files, output_file
@@ -40,10 +39,7 @@ ARM_DRAWS_DEFAULT = 20
 
 def sigmas_from(text: str) -> list[float]:
     """``--sigma``: one value or a comma-separated list, each in [0, pi] radians, distinct."""
-    values = [nonnegative(s, "--sigma") for s in float_list(text, "--sigma")]
-    for value in values:
-        if value > MAX_SIGMA:
-            raise CLIError(f"--sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {value:g}")
+    values = [sigma_value(s) for s in float_list(text, "--sigma")]
     if len(set(values)) != len(values):
         raise CLIError(f"--sigma: {text!r} lists a value twice")
     return values

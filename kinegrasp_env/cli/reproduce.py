@@ -58,7 +58,7 @@ def grasp_sets(args, robot: str, only: str | None = None) -> tuple[dict[str, lis
                        f"{grasps[0].object}")
     with reported(ValueError):
         for g in grasps:
-            check_robot(g, robot)
+            check_robot(g, robot, "--robot")
     return {grasps[0].object: grasps}, FIGURE_GRASPS
 
 
@@ -197,7 +197,7 @@ def table1_command(args, description, samples: int, friction: float) -> int:
             raise CLIError(f"--object {args.object}: {args.grasps} holds grasps of {name}")
         with reported(ValueError):
             for g in grasps:
-                check_robot(g, robot)
+                check_robot(g, robot, "--robot")
     else:
         from kinegrasp_env.world.grasps import shipped_objects
 

@@ -103,7 +103,7 @@ def _request(args, model) -> tuple[int, object]:
         args.object = args.object or DEFAULT_OBJECT
         index, grasp = shipped_grasp(args.object, args.grasp, robot)
     with reported(ValueError):
-        check_robot(grasp, robot)
+        check_robot(grasp, robot, "--robot")
         model.sigma_vector(arm)
     return index, grasp
 

@@ -17,13 +17,13 @@ from kinegrasp_env.cli.common import (
     finite_float,
     friction_from,
     grasp_index_help,
-    nonnegative,
     parse_seed,
     plural,
     positive_int,
     print_json,
     reported,
     shipped_grasp,
+    sigma_value,
 )
 from kinegrasp_env.cli.execution_options import processes_from
 from kinegrasp_env.cli.output_paths import output_folder
@@ -158,11 +158,7 @@ def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
 
 def settings_from(args) -> dict:
     """The ``ValidationSettings`` fields, checked (without importing the physics)."""
-    from kinegrasp_env.cli.common import MAX_SIGMA
-
-    sigma = nonnegative(finite_float(args.sigma, "--sigma"), "--sigma")
-    if sigma > MAX_SIGMA:
-        raise CLIError(f"--sigma {sigma:g} rad is above the bound pi ({MAX_SIGMA:.4f} rad)")
+    sigma = sigma_value(args.sigma)
     from kinegrasp_env.physics.simulators import check_simulator
 
     scale = finite_float(args.torque_scale, "--torque-scale")

@@ -12,8 +12,9 @@ import numpy as np
 from kinegrasp_env.envs.grasp_task import HOLD_TEST_SCORES, N_DRAWS, SCORES
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS
 from kinegrasp_env.montecarlo.grasp_stats import ENGINES, MAX_SIGMA
+from kinegrasp_env.montecarlo.palm_batch import check_batch_engine
 from kinegrasp_env.robot.catalog import check_robot_name
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
 
 
 def box_action(action, shape: tuple[int, ...], meaning: str) -> np.ndarray:
@@ -78,7 +79,7 @@ def names_of(name: str, value, known: tuple[str, ...] | None = None) -> tuple[st
 def sigma_bounds(value) -> tuple[float, float]:
     """``sigma_range`` as (low, high) radians with 0 <= low <= high <= pi; ValueError (one
     line, naming the value) otherwise."""
-    expected = f"sigma_range must be 0 <= low <= high <= pi ({MAX_SIGMA:.4f}): (low, high) " \
+    expected = f"sigma_range must be 0 <= low <= high <= pi ({MAX_SIGMA:.5f} rad): (low, high) " \
                "radians"
     try:
         low, high = (float(v) for v in value)
@@ -90,15 +91,13 @@ def sigma_bounds(value) -> tuple[float, float]:
 
 
 def reset_sigma(value) -> float:
-    """A ``sigma`` reset option, validated: a finite number in [0, pi] radians."""
-    try:
-        sigma = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"sigma must be a number of radians, got {value!r}") from None
-    if not (math.isfinite(sigma) and 0 <= sigma <= MAX_SIGMA):
-        raise ValueError(f"sigma must be finite and >= 0 and at most pi ({MAX_SIGMA:.4f}) "
-                         f"radians, got {value!r}")
-    return sigma
+    """A ``sigma`` reset option, validated as the library's joint noise is
+    (:class:`~kinegrasp_env.sampling.noise.JointNoise`: a finite number in [0, pi] radians),
+    one for every arm joint (per-joint sigmas are a ``noise_model``'s joints source)."""
+    if np.ndim(value) != 0 or isinstance(value, (bool, np.bool_, str)):
+        raise ValueError(f"sigma must be one number of radians for all arm joints (one per "
+                         f"joint is a noise_model's joints source), got {value!r}")
+    return float(JointNoise(value).sigma)
 
 
 #: The reset options the envs take (:mod:`kinegrasp_env.envs.task_choice` documents them).
@@ -192,6 +191,8 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
         raise ValueError(f"split must be None, 'train' or 'test', got {split!r}")
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if reward == "batch":
+        check_batch_engine(engine)
     if objects is not None:
         objects = names_of("objects", objects)
     return EnvArguments(robot, n_draws, engine, score, render_mode, reward, hold_simulator,

@@ -106,6 +106,20 @@ def check_grasps_robot(grasps: list[Grasp], robot: str, source) -> None:
                          f"robot={other.robot!r} (this one is {robot!r})")
 
 
+def file_grasps(grasp_file: str) -> list[Grasp]:
+    """The grasps of a grasp file; ValueError (one line) for a file of none."""
+    grasps = load_grasps(grasp_file)
+    if not grasps:
+        raise ValueError(f"{grasp_file} holds no grasp")
+    return grasps
+
+
+def grasp_file_robot(grasp_file: str) -> str:
+    """The robot of a grasp file's grasps (its first grasp's; :func:`robot_tasks` checks that
+    every grasp is of the env's robot)."""
+    return file_grasps(grasp_file)[0].robot
+
+
 def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[Grasp]]:
     """object -> grasps of ``robot``: from ``grasp_file`` or the shipped sets.
 
@@ -113,7 +127,7 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
         ValueError: no grasps for an object, grasps of another robot.
     """
     if grasp_file is not None:
-        grasps = load_grasps(grasp_file)
+        grasps = file_grasps(grasp_file)
         check_grasps_robot(grasps, robot, grasp_file)
         names = tuple(objects) if objects else tuple(sorted({g.object for g in grasps}))
         tasks = {name: [g for g in grasps if g.object == name] for name in names}

@@ -42,7 +42,8 @@ elbow angle psi itself, a in [-1, 1] -> psi = pi a; or, with ``action_bins=K``, 
 k -> psi = -pi + 2 pi k / K (a categorical policy can prefer both ends of the reachable
 range at once, which a Gaussian one centred between them cannot).
 
-Robots: ``robot``, any robot of the catalog (default ``kuka_sdh``, the paper's robot, whose
+Robots: ``robot``, any robot of the catalog (default: the robot of ``grasp_file``'s grasps,
+else ``kuka_sdh``, the paper's robot, whose
 44-entry observation is tabled above; ``robot="panda"``, a user's robot): its shipped or
 given grasps, its self-motion (a 6-joint arm: its IK branches as the elbow coordinate), its
 engine's draws (``engine``, fast by default), an observation sized by its arm and hand, and
@@ -69,7 +70,7 @@ from kinegrasp_env.envs.batch_reward import (
     grasp_seed,
     sigma_levels,
 )
-from kinegrasp_env.envs.grasp_task import RobotTask, robot_tasks
+from kinegrasp_env.envs.grasp_task import RobotTask, grasp_file_robot, robot_tasks
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
@@ -128,8 +129,9 @@ class KineGraspEnv(gym.Env):
         noise_model: every task's noise instead of the drawn joint noise: a
             :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
             file (YAML/JSON); the observation shows its joint sigma and distribution.
-        robot: a catalog robot (default ``kuka_sdh``); an unknown name is a ValueError
-            listing the known ones. Another robot: see the module docstring.
+        robot: a catalog robot (default: the robot of ``grasp_file``'s grasps, else
+            ``kuka_sdh``); an unknown name is a ValueError listing the known ones. Another
+            robot: see the module docstring.
         score: what the reward scores: ``pfc`` (P(force closure)), ``hold_static`` (the
             static hold check's P(hold) on the same draws), ``hold`` (the quick holding
             test's, in ``hold_simulator``: slow; joint and hand noise only) or
@@ -150,10 +152,12 @@ class KineGraspEnv(gym.Env):
                  step_size: float = 0.3, render_mode: str | None = None,
                  split: str | None = None, engine: str | None = None,
                  noise_model: NoiseModel | dict | str | None = None,
-                 robot: str = DEFAULT_ROBOT, reward: str = "draws",
+                 robot: str | None = None, reward: str = "draws",
                  batch_size: int = 4096, score: str = "pfc",
                  hold_simulator: str = "pybullet") -> None:
         super().__init__()
+        if robot is None:  # the grasp file's robot, as the commands take it, else the default
+            robot = DEFAULT_ROBOT if grasp_file is None else grasp_file_robot(grasp_file)
         args = env_arguments(
             robot=robot, n_draws=n_draws, engine=engine, score=score, render_mode=render_mode,
             render_modes=self.metadata["render_modes"], reward=reward,

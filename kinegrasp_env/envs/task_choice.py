@@ -3,7 +3,8 @@
 distribution drawn from the env's ranges), and the noise entries of the env's ``info``.
 
 Reset options (all optional): ``object``; the grasp as ONE of ``grasp`` (an index into the
-env's grasps of the object: the shipped set, or ``grasp_file``), ``q0`` (a nominal
+env's grasps of the object: the shipped set, or ``grasp_file``; given with ``object`` where
+the env has several objects), ``q0`` (a nominal
 configuration: the robot's actuated vector; the default robot's 14 radians, 7 arm joints
 then 7 hand DOF, docs/conventions.md) or ``palm_pose`` (one palm-pose entry in the object
 frame, the schema of palm-pose candidate files: ``position`` + ``quaternion`` [x, y, z, w] or a 4x4
@@ -77,6 +78,9 @@ def shipped_grasp(options: dict, rng: np.random.Generator, tasks: dict[str, list
     """A grasp of the env's tasks: the ``object`` and ``grasp`` options, or drawn with ``rng``
     (the object uniformly from ``object_names``, then the grasp uniformly from its list)."""
     name = options.get("object")
+    if name is None and options.get("grasp") is not None and len(object_names) > 1:
+        raise ValueError(f"the reset option grasp is an index into one object's grasps: "
+                         f"give the object too (this env has {', '.join(object_names)})")
     if name is None:
         name = object_names[rng.integers(len(object_names))]
     elif name not in tasks:
@@ -109,7 +113,8 @@ def pick_noise(options: dict, rng: np.random.Generator, sigma_range: tuple[float
     model = options.get("noise_model", noise_model)
     if model is not None:
         if options.get("sigma") is not None or options.get("noise") is not None:
-            raise ValueError("give the reset option noise_model or sigma/noise, not both")
+            raise ValueError("give a noise_model (the env's or the reset option) or the reset "
+                             "options sigma/noise, not both")
         model = noise_model_from(model)
         check_noise(model)
         return model

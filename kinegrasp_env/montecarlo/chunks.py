@@ -161,10 +161,13 @@ def task_rows(engine: str, n: int, workers: int) -> int:
 
 
 def chunked_draws(first: RobotChunk, n: int, executor: Executor, chunk: int | None = None,
-                  progress: Callable[[int, int], None] | None = None) -> DrawBatch:
+                  progress: Callable[[int, int], None] | None = None,
+                  keep_contacts: bool = True) -> DrawBatch:
     """Rows ``first.offset .. first.offset + n`` of ``first``'s run (its ``size`` is
     ignored), split into tasks of ``chunk`` draws (default: :func:`task_rows`) run on
-    ``executor``, in row order; ``progress(done, n)`` after each task comes back."""
+    ``executor``, in row order; ``progress(done, n)`` after each task comes back.
+    ``keep_contacts=False``: each task's draws are kept :meth:`~kinegrasp_env.montecarlo.
+    draws.DrawBatch.without_contacts` as they come back."""
     from dataclasses import replace
 
     chunk = task_rows(first.engine, n, executor.workers) if chunk is None else chunk
@@ -172,7 +175,7 @@ def chunked_draws(first: RobotChunk, n: int, executor: Executor, chunk: int | No
              for start in range(0, n, chunk)]
     parts, done = [], 0
     for part in executor.map(run_robot_chunk, tasks):
-        parts.append(part)
+        parts.append(part if keep_contacts else part.without_contacts())
         done += len(part.outcome)
         if progress is not None:
             progress(done, n)

@@ -14,7 +14,7 @@ if TYPE_CHECKING:  # the engines' modules load pybullet and the compiled closing
     from kinegrasp_env.montecarlo.description_engine import RobotEngine
     from kinegrasp_env.robot.description import RobotDescription
 
-__all__ = ["ENGINES", "engine_class", "make_engine"]
+__all__ = ["ENGINES", "engine_class", "error_engines", "make_engine"]
 
 #: The engines of a robot, by name.
 ENGINES = ("pybullet", "fast", "physics")
@@ -35,6 +35,12 @@ def engine_class(name: str) -> type[RobotEngine]:
 
         return RobotPhysicsEngine
     raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {name!r}")
+
+
+def error_engines() -> tuple[str, ...]:
+    """The engines that take palm, object and friction errors (their class's
+    ``takes_errors``), in :data:`ENGINES` order."""
+    return tuple(name for name in ENGINES if engine_class(name).takes_errors)
 
 
 def make_engine(name: str, robot: str | RobotDescription, object_name: str,

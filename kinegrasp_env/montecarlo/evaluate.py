@@ -32,7 +32,7 @@ from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, DrawBatch
 from kinegrasp_env.montecarlo.engines import ENGINES, engine_class, make_engine
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
-from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.robot.catalog import as_description, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import (
     METHODS,
@@ -43,9 +43,9 @@ from kinegrasp_env.sampling.noise import (
     is_integer_seed,
 )
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.noise_spec import spec_of
+from kinegrasp_env.sampling.noise_spec import NO_SOURCE, spec_of
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
-from kinegrasp_env.world.grasps import Grasp, check_robot
+from kinegrasp_env.world.grasps import Grasp, check_grasp, check_robot
 from kinegrasp_env.world.robot_configuration import check_configuration
 
 __all__ = [
@@ -53,6 +53,7 @@ __all__ = [
     "GraspEvaluation",
     "RobotEngine",
     "RobotReferenceEngine",
+    "check_engine_grasp",
     "check_robot",
     "evaluate_grasp",
     "make_engine",
@@ -74,7 +75,8 @@ class GraspEvaluation:
         p_fc: fraction in force closure; ci: its Wilson 95% interval.
         q_mean, q_std, q_skew: Q over the force-closure draws (NaN where too few; the
             skewness NaN too where every Q is the same).
-        draws: the per-draw results.
+        draws: the per-draw results (``keep_draws=False``: without their contacts and
+            closed hand, :meth:`~kinegrasp_env.montecarlo.draws.DrawBatch.without_contacts`).
         p_hold_static, hold_ci: the fraction of draws the static hold check held and its
             Wilson 95% interval (NaN where the engine did not check it).
         mass: the object's mass the check used, kg (NaN where not checked).
@@ -134,17 +136,6 @@ def nominal_robot_quality(grasp: Grasp, engine: RobotEngine) -> float:
     return float(draw.quality[0]) if draw.outcome[0] == FORCE_CLOSURE else 0.0
 
 
-def with_nominal_row(q: np.ndarray, q0: np.ndarray, errors: dict[str, np.ndarray],
-                     friction: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Configurations q (n, dof) and their per-draw errors (an engine's ``run`` keywords) with
-    the nominal configuration q0 (dof,) appended as row n, its errors exact (identity palm
-    and object errors, the engine's ``friction``)."""
-    exact = {"palm": np.eye(4), "object_offset": np.eye(4), "friction": float(friction)}
-    return (np.vstack([q, q0[None]]),
-            {key: np.concatenate([value, np.asarray(exact[key])[None]])
-             for key, value in errors.items()})
-
-
 def robot_configurations(grasp: Grasp, engine: RobotEngine, *, sigma: float | tuple[float, ...],
                          n: int, seed: SeedLike = 0, noise: str = "gaussian",
                          offset: int = 0, method: str = "mc") -> np.ndarray:
@@ -191,14 +182,14 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
                    executor: Executor | None = None,
                    noise_model: NoiseModel | None = None,
                    offset: int = 0, method: str = "mc",
-                   progress: Callable[[int, int], None] | None = None
-                   ) -> GraspEvaluation:
+                   progress: Callable[[int, int], None] | None = None,
+                   keep_draws: bool = True) -> GraspEvaluation:
     """P(FC) and Q moments of ``grasp`` over n draws of joint noise on the arm joints, and
     its nominal Q (:func:`nominal_robot_quality`).
 
     Args:
         grasp: its ``robot`` names the robot (default: ``robot``, or the engine's).
-        sigma: radians, scalar or one per arm joint (not needed with a ``noise_model``).
+        sigma: radians, scalar or one per arm joint (none with a ``noise_model``).
         n: draws (>= 1).
         seed: seed or Generator of the noise.
         noise: ``gaussian``, ``uniform`` or ``triangular``.
@@ -218,8 +209,8 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
             the seed an integer, the robot a catalog one). None, or a local executor of one
             process: in this process.
         noise_model: every source of error (:mod:`~kinegrasp_env.montecarlo.noise_rows`:
-            joints, hand, palm, object, friction; the seed an integer); replaces ``sigma`` and
-            ``noise``.
+            joints, hand, palm, object, friction; the seed an integer), instead of ``sigma``
+            and ``noise`` (refused beside them).
         offset: the draws are rows ``offset .. offset + n`` of the seed's run (an integer or
             SeedSequence seed; e.g. the fresh draws after a selection's:
             :func:`~kinegrasp_env.toolkit.selection.report_rows`).
@@ -229,39 +220,44 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
         progress: ``progress(done, n)`` as the chunks of a run on ``executor`` come back
             (with it, a run on an executor of one local process runs in chunks too: the
             same draws and numbers; without an executor it is called once, at the end).
-
-    Every draw is kept (``draws``; about 0.6 kB a draw for a hand of 11 finger links): a
-    run too large for memory is evaluated in blocks of rows (``offset``), whose
-    :func:`~kinegrasp_env.montecarlo.grasp_stats.tally` merge exactly.
+        keep_draws: keep every draw's contacts and closed hand in ``draws`` (about 0.6 kB a
+            draw for a hand of 11 finger links). False: ``draws`` keeps what the statistics
+            need (:meth:`~kinegrasp_env.montecarlo.draws.DrawBatch.without_contacts`, about
+            25 bytes a draw), and a run in this process with an integer or SeedSequence seed
+            closes its rows in blocks of :data:`IN_PROCESS_BLOCK`: the same draws and
+            numbers, in memory that does not grow with the contacts of n draws.
 
     Raises:
-        ValueError: a grasp of another robot or object, bad n or sigma, an unknown engine,
-            a Generator as the seed of a chunked run.
+        ValueError: before any closing, one line each: not a grasp, a grasp of another
+            robot or object, an unknown robot, bad n, offset, seed, sigma, noise or method,
+            ``sigma`` or ``noise`` beside a ``noise_model``, a noise model of no source or
+            of sources the robot or engine cannot take, a ``robot`` that is not the given
+            engine's, an unknown engine, a flag that is not a bool, a Generator as the seed
+            of a chunked run.
+        TypeError: a ``robot`` that is neither a name nor a description.
     """
     name, sigma, friction = _checked_arguments(
         grasp, sigma=sigma, n=n, seed=seed, noise=noise, engine=engine, robot=robot,
         static_hold=static_hold, friction=friction, executor=executor,
-        noise_model=noise_model, offset=offset, method=method, progress=progress)
+        noise_model=noise_model, offset=offset, method=method, progress=progress,
+        keep_draws=keep_draws)
     if executor is not None and (progress is not None or not (
             isinstance(executor, LocalExecutor) and executor.workers == 1)):
         return _chunked(grasp, name, engine, sigma=sigma, n=n, seed=seed, noise=noise,
                         static_hold=static_hold, friction=friction, executor=executor,
                         noise_model=noise_model, offset=int(offset), method=method,
-                        progress=progress)
+                        progress=progress, keep_draws=keep_draws)
     own = isinstance(engine, str)
     if own:
         engine = make_engine(engine, grasp.robot if robot is None else robot, grasp.object,
                              static_hold=static_hold, friction=friction)
     try:
-        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=n, seed=seed, noise=noise,
-                                    noise_model=noise_model, offset=int(offset),
-                                    method=method)
         check = engine.hold_check
-        # the nominal closing rides with the draws, as row n, in the same engine call
-        rows, errors = with_nominal_row(q, engine.check(grasp.q0)[0], errors, engine.friction)
-        draws = engine.run(rows, **errors)
-        nominal = draws.take(slice(n, n + 1))
-        stats = summarize(draws.take(slice(0, n)), None if check is None else check.mass)
+        draws, nominal = _closed_rows(grasp, engine, sigma=sigma, n=n, seed=seed,
+                                      noise=noise, noise_model=noise_model,
+                                      offset=int(offset), method=method,
+                                      keep_draws=keep_draws)
+        stats = summarize(draws, None if check is None else check.mass)
         if progress is not None:
             progress(n, n)
         return replace(stats, q_nominal=float(nominal.quality[0])
@@ -271,12 +267,46 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
             engine.close()
 
 
+#: Rows an in-process run without its draws' contacts (``keep_draws=False``) closes at a time.
+IN_PROCESS_BLOCK = 10_000
+
+
+def _closed_rows(grasp: Grasp, engine: RobotEngine, *, sigma, n: int, seed: SeedLike,
+                 noise: str, noise_model: NoiseModel | None, offset: int, method: str,
+                 keep_draws: bool) -> tuple[DrawBatch, DrawBatch]:
+    """(the n draws :func:`evaluate_grasp` evaluates in this process, the nominal closing's
+    one draw), closed by ``engine``: in one call; without ``keep_draws`` and with a seed of
+    row streams, in blocks of :data:`IN_PROCESS_BLOCK` rows (the same rows: each block is
+    drawn by its offset), each kept without its contacts. The nominal configuration rides
+    with the last block as its last row where the draws carry no per-draw errors, else it
+    is closed alone, without errors, as a run in chunks closes it (its Q the same to the
+    last digit)."""
+    streams = isinstance(seed, (int, np.integer, np.random.SeedSequence))
+    block = n if keep_draws or not streams else IN_PROCESS_BLOCK
+    q0 = engine.check(grasp.q0)[0]
+    parts, nominal = [], None
+    for start in range(0, n, block):
+        size = min(block, n - start)
+        q, errors = evaluation_rows(grasp, engine, sigma=sigma, n=size, seed=seed,
+                                    noise=noise, noise_model=noise_model,
+                                    offset=offset + start, method=method)
+        ride = start + size == n and not errors
+        draws = engine.run(np.vstack([q, q0[None]]) if ride else q, **errors)
+        if ride:
+            nominal, draws = draws.take(slice(size, size + 1)), draws.take(slice(0, size))
+        parts.append(draws if keep_draws else draws.without_contacts())
+    if nominal is None:
+        nominal = engine.run(q0[None])
+    return (parts[0] if len(parts) == 1 else DrawBatch.concatenate(parts)), nominal
+
+
 def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, static_hold,
-                       friction, executor, noise_model, offset, method, progress
-                       ) -> tuple[str, float | tuple[float, ...], float]:
+                       friction, executor, noise_model, offset, method, progress,
+                       keep_draws) -> tuple[str, float | tuple[float, ...], float]:
     """:func:`evaluate_grasp`'s arguments checked before any work (its ``Raises``; one
     line each): (the robot's name, the joint noise's sigma (0 under a noise model, whose
     joints source replaces it), the run's mu (a friction source's nominal one))."""
+    check_grasp(grasp)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ValueError(f"n must be a positive number of draws, got {n!r}")
     if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
@@ -286,18 +316,26 @@ def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, st
             raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
                              f"seed, got {type(seed).__name__}")
     check_seed(seed)
-    if noise_model is None:
-        if sigma is None:
-            raise ValueError("give the joint noise's sigma (radians) or a noise_model")
-        JointNoise(sigma, noise)  # sigma and noise checked before any work
-    else:
-        sigma = 0.0  # the model's joints source replaces it
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if noise_model is not None and not isinstance(noise_model, NoiseModel):
         raise ValueError(f"noise_model must be a NoiseModel (e.g. kinegrasp_env.sampling."
                          f"noise_spec.load_noise_model), got {type(noise_model).__name__}; "
                          "joint noise alone is sigma= and noise=")
+    if noise_model is not None and not noise_model.sources:
+        raise ValueError(f"noise_model {NO_SOURCE}")
+    if noise_model is None:
+        if sigma is None:
+            raise ValueError("give the joint noise's sigma (radians) or a noise_model")
+        JointNoise(sigma, noise)  # sigma and noise checked before any work
+    elif sigma is not None or noise != "gaussian":
+        raise ValueError("give sigma and noise, or a noise_model, not both: the model's "
+                         "joints source is its joint noise")
+    else:
+        sigma = 0.0  # the model's joints source replaces it
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    for flag, value in (("keep_draws", keep_draws), ("static_hold", static_hold)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise ValueError(f"{flag} must be True or False, got {value!r}")
     if progress is not None and not callable(progress):
         raise ValueError(f"progress must be a function progress(done, n), got {progress!r}")
     if executor is not None and not isinstance(executor, Executor):
@@ -311,12 +349,13 @@ def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, st
             raise ValueError(f"engine must be a name ({', '.join(ENGINES)}) or an engine "
                              f"make_engine builds, got {type(engine).__name__}")
         name = engine.description.name
-        if engine.obj.name != grasp.object:
-            raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
-                             f"holds {engine.obj.name!r}")
+        if robot is not None and getattr(robot, "name", robot) != name:
+            raise ValueError(f"robot {getattr(robot, 'name', robot)!r} is not the engine's "
+                             f"robot {name!r}: give the robot or an engine of it")
+        check_engine_grasp(grasp, engine)
     else:
-        name = grasp.robot if robot is None else getattr(robot, "name", robot)
-    check_robot(grasp, name)
+        name = grasp.robot if robot is None else as_description(robot).name
+        check_robot(grasp, name)
     check_configuration(grasp.q0, f"grasp {grasp.id!r}", robot=name)
     if noise_model is not None:
         from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
@@ -334,6 +373,14 @@ def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, st
     return name, sigma, friction
 
 
+def check_engine_grasp(grasp: Grasp, engine: RobotEngine) -> None:
+    """ValueError (one line) unless ``engine`` holds the grasp's robot and object."""
+    check_robot(grasp, engine.description.name)
+    if engine.obj.name != grasp.object:
+        raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
+                         f"holds {engine.obj.name!r}")
+
+
 def _integer_seed(seed: SeedLike, what: str) -> None:
     """ValueError unless ``seed`` is an integer >= 0 (a run drawn by rows of its streams)."""
     if not is_integer_seed(seed):
@@ -344,7 +391,8 @@ def _integer_seed(seed: SeedLike, what: str) -> None:
 def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
              seed: SeedLike, noise: str, static_hold: bool, friction: float,
              executor: Executor, noise_model: NoiseModel | None = None,
-             offset: int = 0, method: str = "mc", progress=None) -> GraspEvaluation:
+             offset: int = 0, method: str = "mc", progress=None,
+             keep_draws: bool = True) -> GraspEvaluation:
     """:func:`evaluate_grasp`'s run in chunks on ``executor`` (a given engine passes
     its name and settings to the workers, which build their own); ``progress`` as there."""
     from kinegrasp_env.montecarlo.chunks import (
@@ -367,6 +415,6 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
                        offset, n, friction, static_hold,
                        None if noise_model is None else json.dumps(spec_of(noise_model)),
                        method, options)
-    draws = chunked_draws(first, n, executor, progress=progress)
+    draws = chunked_draws(first, n, executor, progress=progress, keep_contacts=keep_draws)
     stats = summarize(draws, load_object(grasp.object).mass if static_hold else None)
     return replace(stats, q_nominal=nominal_closing_quality(first, executor))

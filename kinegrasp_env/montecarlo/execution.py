@@ -105,13 +105,19 @@ def leave_signals_to_the_parent() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def check_workers(value, name: str = "processes") -> int:
+    """``value`` as an int, or ValueError (one line naming ``name`` and the value) unless it
+    is an integer >= 1 (not a bool): a count of processes or CPUs."""
+    if isinstance(value, bool) or not hasattr(value, "__index__") or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
 class LocalExecutor(Executor):
     """``processes`` worker processes on this machine (1: run inline, no pool)."""
 
     def __init__(self, processes: int = 1):
-        if int(processes) != processes or processes < 1:
-            raise ValueError(f"processes must be an integer >= 1, got {processes}")
-        self.workers = int(processes)
+        self.workers = check_workers(processes)
         self.description = f"local, {self.workers} process{'es' if self.workers > 1 else ''}"
         self._pool: ProcessPoolExecutor | None = None
         self._inline: deque[tuple[int, Any]] = deque()
@@ -217,12 +223,15 @@ class RayExecutor(Executor):
         address: a running cluster (``ray://host:10001`` or ``host:6379``, as
             ``ray.init`` takes it); ``None`` starts a local Ray instance for the
             executor's lifetime.
-        num_cpus: CPUs of that local instance (default: all of this machine's).
+        num_cpus: CPUs of that local instance, an integer >= 1 (default: all of this
+            machine's).
         max_retries: re-runs of a task whose worker or node died.
     """
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None,
                  max_retries: int = MAX_ATTEMPTS - 1):
+        if num_cpus is not None:
+            num_cpus = check_workers(num_cpus, "num_cpus")
         ray = _import_ray()
         if address is not None:
             _check_reachable(address)
@@ -280,8 +289,8 @@ def make_executor(backend: str = "local", processes: int | None = None,
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
-    if processes is not None and (int(processes) != processes or processes < 1):
-        raise ValueError(f"processes must be an integer >= 1, got {processes}")
+    if processes is not None:
+        processes = check_workers(processes)
     if backend == "local":
         if address is not None:
             raise ValueError("--address is for the ray backend (add --backend ray)")

@@ -43,11 +43,12 @@ def check_engine_noise(model: NoiseModel, engine: str) -> None:
     """ValueError (one line) for palm, object or friction errors given to an engine that
     does not take them (its class's ``takes_errors``: the physics engine simulates at one mu
     and does not split the robot's body), the same for every robot."""
-    from kinegrasp_env.montecarlo.engines import ENGINES, engine_class
+    from kinegrasp_env.montecarlo.engines import engine_class, error_engines
 
+    engine_class(engine)  # an unknown name: its one-line error
     other = [s for s in ("palm", "object", "friction") if getattr(model, s) is not None]
-    if other and not engine_class(engine).takes_errors:
-        takers = [name for name in ENGINES if engine_class(name).takes_errors]
+    takers = error_engines()
+    if other and engine not in takers:
         raise ValueError(f"the {engine} engine takes joint and hand noise only (it "
                          f"simulates at one mu), not {', '.join(other)} errors (use "
                          f"{' or '.join(takers)})")
@@ -57,8 +58,9 @@ def check_static_hold_noise(noise) -> None:
     """ValueError (one line) for a noise model with a friction source beside the static hold
     check (any robot's): the check holds at one mu. Every other source it takes."""
     if isinstance(noise, NoiseModel) and noise.friction is not None:
-        raise ValueError("the static hold check holds at one mu (--friction); the "
-                         "spec's friction source sets mu for every draw: drop one of them")
+        raise ValueError("the static hold check holds at one mu (the run's friction, "
+                         "--friction); a noise model's friction source sets mu for every "
+                         "draw: drop one of them")
 
 
 def hand_layout(description: RobotDescription) -> np.ndarray:

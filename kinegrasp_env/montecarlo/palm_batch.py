@@ -90,7 +90,19 @@ def check_batch_object(object_name: str) -> None:
     if load_object(object_name).table is not None:
         raise ValueError(f"object {object_name!r} stands on a support table: the arm's links "
                          f"then matter, and one batch of palm deviations cannot stand for "
-                         f"every elbow; use --method direct")
+                         f"every elbow; use direct draws (--method direct)")
+
+
+def check_batch_engine(engine: str) -> None:
+    """ValueError (one line) unless ``engine`` names an engine that closes a hand moved by a
+    palm error (the class's ``takes_errors``: ``fast``, ``pybullet``; the physics engine does
+    not split the robot's body), as a batch of palm deviations needs."""
+    from kinegrasp_env.montecarlo.engines import error_engines
+
+    takers = error_engines()
+    if engine not in takers:
+        raise ValueError(f"a batch of palm deviations is closed by an engine that takes palm "
+                         f"errors ({' or '.join(takers)}), got engine {engine!r}")
 
 
 def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
@@ -111,7 +123,7 @@ def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
     if isinstance(noise, JointNoise):
         if noise.kind != "gaussian":
             raise ValueError(f"re-weighting needs Gaussian joint noise, got {noise.kind} "
-                             f"noise; use --method direct")
+                             f"noise; use direct draws (--method direct)")
         return _nonzero(joint_covariance(noise.sigma, dof)), np.zeros((6, 6))
     if not isinstance(noise, NoiseModel):
         raise ValueError(f"re-weighting needs joint noise or a noise model, got "
@@ -119,13 +131,13 @@ def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
     extra = [s for s in noise.sources if s not in ("joints", "palm")]
     if extra:
         raise ValueError(f"re-weighting covers the joints and palm sources only, not "
-                         f"{', '.join(extra)}; use --method direct")
+                         f"{', '.join(extra)}; use direct draws (--method direct)")
     joints, palm = noise.joints, noise.palm
     if joints is None:
         cov = np.zeros((dof, dof))
     elif joints.distribution != "gaussian" or joints.bias is not None:
         raise ValueError("re-weighting needs zero-mean Gaussian joint noise (no bias); use "
-                         "--method direct")
+                         "direct draws (--method direct)")
     else:
         joints.check_count(dof)
         cov = joint_covariance(joints.covariance if joints.covariance is not None
@@ -141,7 +153,7 @@ def _nonzero(cov: np.ndarray) -> np.ndarray:
     joint noise of rank below 6: every weight would be undefined)."""
     if np.linalg.matrix_rank(cov) < 6:
         raise ValueError("re-weighting needs joint noise on at least six joints (the palm's "
-                         "deviation has six dimensions); use --method direct")
+                         "deviation has six dimensions); use direct draws (--method direct)")
     return cov
 
 
@@ -294,6 +306,7 @@ def close_deltas(q: np.ndarray, deltas: np.ndarray, object_name: str, *, engine:
     :data:`BATCH_CHUNK` (``progress(done, total)`` after each)."""
     from kinegrasp_env.montecarlo.engines import make_engine
 
+    check_batch_engine(engine)
     check_batch_object(object_name)
     n = len(deltas)
     outcome, quality = np.empty(n, np.int8), np.empty(n)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from kinegrasp_env.montecarlo.grasp_stats import ENGINES, MAX_SIGMA, chunk_sizes
+from kinegrasp_env.montecarlo.grasp_stats import ENGINES, chunk_sizes
 from kinegrasp_env.montecarlo.sweep_grasps import (
     SpecError,
     check_grasp_indices,
@@ -41,6 +41,7 @@ from kinegrasp_env.montecarlo.sweep_grasps import (
 )
 from kinegrasp_env.montecarlo.sweep_noise import noise_entries
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
+from kinegrasp_env.sampling.noise import check_sigma_bound
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
 from kinegrasp_env.spec_yaml import spec_loader
@@ -285,8 +286,10 @@ def _sigma(value: Any, where: str) -> float:
         raise SpecError(f"{where}: sigma {value!r} is not a number")
     if not math.isfinite(value) or value < 0:
         raise SpecError(f"{where}: sigma must be finite and >= 0, got {value}")
-    if value > MAX_SIGMA:
-        raise SpecError(f"{where}: sigma must be <= pi ({MAX_SIGMA:.5f} rad), got {value}")
+    try:
+        check_sigma_bound(value)
+    except ValueError as exc:
+        raise SpecError(f"{where}: {exc}") from None
     return float(value)
 
 

@@ -65,12 +65,16 @@ def _inverse_cdf(kind: str, u: np.ndarray) -> np.ndarray:
     return np.where(u < 0.5, b * (np.sqrt(2.0 * u) - 1.0), b * (1.0 - np.sqrt(2.0 * (1.0 - u))))
 
 
-def check_sigma_bound(sigma: np.ndarray) -> None:
-    """ValueError when a joint sigma (radians, (d,)) is above :data:`MAX_SIGMA`."""
-    if np.any(sigma > MAX_SIGMA):
-        raise ValueError(f"sigma {float(np.max(sigma)):g} rad is above the bound pi "
-                         f"({MAX_SIGMA:.4f} rad): a joint error that large wraps the joint "
-                         "around its whole circle")
+def check_sigma_bound(sigma, name: str = "sigma") -> None:
+    """ValueError (one line naming ``name`` and the largest value) when a joint sigma, or one
+    of several (radians), is above :data:`MAX_SIGMA`: the one rule of every layer (the
+    library's noise, the commands' ``--sigma``, a sweep's grid, the env's reset option, a
+    noise spec's angles)."""
+    if np.size(sigma) == 0:
+        return  # no value to bound (a count of values is its caller's rule)
+    largest = float(np.max(sigma))
+    if largest > MAX_SIGMA:
+        raise ValueError(f"{name} must be <= pi ({MAX_SIGMA:.5f} rad), got {largest:g}")
 
 
 @dataclass(frozen=True)
@@ -88,7 +92,8 @@ class JointNoise:
 
     def __post_init__(self) -> None:
         if self.kind not in DISTRIBUTIONS:
-            raise ValueError(f"unknown noise type {self.kind!r}; choose from {DISTRIBUTIONS}")
+            raise ValueError(f"unknown noise type {self.kind!r}; choose from "
+                             f"{', '.join(DISTRIBUTIONS)}")
         values = self.sigma if isinstance(self.sigma, (list, tuple, np.ndarray)) else [self.sigma]
         if not all(isinstance(v, (int, float, np.integer, np.floating))
                    and not isinstance(v, (bool, np.bool_)) for v in np.ravel(values)):

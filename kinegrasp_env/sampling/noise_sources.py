@@ -12,16 +12,13 @@ Units: radians, metres.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinegrasp_env.sampling.noise import DISTRIBUTIONS, JointNoise
+from kinegrasp_env.sampling.noise import DISTRIBUTIONS, MAX_SIGMA, JointNoise, check_sigma_bound
 
 FRICTION_DISTRIBUTIONS = ("gaussian", "uniform", "fixed")
-#: Largest joint sigma or bias (radians): the bound of ``montecarlo.grasp_stats.MAX_SIGMA``.
-MAX_ANGLE = math.pi
 
 
 class NoiseSpecError(ValueError):
@@ -51,15 +48,25 @@ def values(value, name: str, lengths: tuple[int, ...] | None = (1,),
     return arr
 
 
+def check_angles(arr: np.ndarray, name: str) -> None:
+    """NoiseSpecError unless every standard deviation of ``arr`` (radians) is within the
+    joint-noise bound (:func:`~kinegrasp_env.sampling.noise.check_sigma_bound`'s words)."""
+    try:
+        check_sigma_bound(arr, name)
+    except ValueError as exc:
+        raise NoiseSpecError(str(exc)) from None
+
+
 def sigmas(value, name: str, lengths: tuple[int, ...] | None = (1, 3),
-           bound: float = math.inf, each: str = "arm joint") -> float | tuple[float, ...]:
-    """Standard deviations: finite, >= 0 and <= ``bound``; a float or a tuple (``lengths``,
-    ``each``: :func:`values`)."""
+           angles: bool = False, each: str = "arm joint") -> float | tuple[float, ...]:
+    """Standard deviations: finite and >= 0, ``angles`` (radians) at most pi
+    (:func:`~kinegrasp_env.sampling.noise.check_sigma_bound`); a float or a tuple
+    (``lengths``, ``each``: :func:`values`)."""
     arr = values(value, name, lengths, each)
     if np.any(arr < 0):
         raise NoiseSpecError(f"{name} must be >= 0, got {value!r}")
-    if np.any(arr > bound):
-        raise NoiseSpecError(f"{name} must be <= {bound:.5f}, got {value!r}")
+    if angles:
+        check_angles(arr, name)
     return float(arr[0]) if arr.size == 1 and np.ndim(value) == 0 else tuple(arr.tolist())
 
 
@@ -130,7 +137,7 @@ class JointsSource:
             raise NoiseSpecError(f"joints.distribution {self.distribution!r} is unknown; "
                                  f"choose from {', '.join(DISTRIBUTIONS)}")
         set_ = object.__setattr__
-        set_(self, "sigma", sigmas(self.sigma, "joints.sigma", None, MAX_ANGLE))
+        set_(self, "sigma", sigmas(self.sigma, "joints.sigma", None, angles=True))
         if self.covariance is not None:
             if self.distribution != "gaussian":
                 raise NoiseSpecError("joints.covariance needs distribution gaussian, got "
@@ -139,12 +146,12 @@ class JointsSource:
             cov = np.array([values(r, f"joints.covariance[{i}]", (len(rows),))
                             for i, r in enumerate(rows)])
             covariance_factor(cov)
-            if np.any(np.sqrt(np.diag(cov)) > MAX_ANGLE):
-                raise NoiseSpecError("joints.covariance has a standard deviation above pi")
+            check_angles(np.sqrt(np.diag(cov)), "joints.covariance's largest standard "
+                                                "deviation")
             set_(self, "covariance", tuple(tuple(r.tolist()) for r in cov))
         if self.bias is not None:
             bias = values(self.bias, "joints.bias", None)
-            if np.any(np.abs(bias) > MAX_ANGLE):
+            if np.any(np.abs(bias) > MAX_SIGMA):
                 raise NoiseSpecError(f"joints.bias must be within +-pi, got {self.bias!r}")
             set_(self, "bias", float(bias[0]) if bias.size == 1 else tuple(bias.tolist()))
         counts = {name: len(value) for name, value in (
@@ -226,9 +233,9 @@ class HandSource:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "spread_sigma",
-                           sigmas(self.spread_sigma, "hand.spread_sigma", (1,), MAX_ANGLE))
+                           sigmas(self.spread_sigma, "hand.spread_sigma", (1,), angles=True))
         object.__setattr__(self, "closing_sigma",
-                           sigmas(self.closing_sigma, "hand.closing_sigma", None, MAX_ANGLE,
+                           sigmas(self.closing_sigma, "hand.closing_sigma", None, True,
                                   "finger"))
 
     @property
@@ -250,7 +257,7 @@ class PoseSource:
         object.__setattr__(self, "translation_sigma", sigmas(
             self.translation_sigma, f"{self.name}.translation_sigma"))
         object.__setattr__(self, "rotation_sigma", sigmas(
-            self.rotation_sigma, f"{self.name}.rotation_sigma", bound=MAX_ANGLE))
+            self.rotation_sigma, f"{self.name}.rotation_sigma", angles=True))
 
     def variances(self) -> np.ndarray:
         """(6,) variances: translation (3) m^2, rotation vector (3) rad^2."""

@@ -68,7 +68,14 @@ def noise_model_from_spec(data: Any, where: str = "noise spec") -> NoiseModel:
         raise NoiseSpecError(f"{where}: {exc}") from None
 
 
+#: Why a spec of no source is refused (an empty file, ``{}``, only empty sections).
+NO_SOURCE = ("names no source of error (a section of joints, hand, palm, object or "
+             "friction, or a preset); an evaluation without noise is sigma 0")
+
+
 def _model(data: Any) -> NoiseModel:
+    if data is None or data == {}:
+        raise NoiseSpecError(NO_SOURCE)
     if not isinstance(data, dict):
         raise NoiseSpecError(f"expected a mapping of sources ({', '.join(TOP_KEYS)}), got "
                              f"{data!r}")
@@ -83,6 +90,8 @@ def _model(data: Any) -> NoiseModel:
         sections.update(PRESETS[preset])
     sections.update({k: v for k, v in data.items() if k != "preset"})
     built = {name: _section(name, body) for name, body in sections.items()}
+    if all(v is None for v in built.values()):
+        raise NoiseSpecError(NO_SOURCE)
     return NoiseModel(**{k: v for k, v in built.items() if v is not None})
 
 

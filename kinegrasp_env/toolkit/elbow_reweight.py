@@ -270,7 +270,8 @@ def check_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: flo
     check_batch_object(grasp.object)
     if batch is not None and batch < samples:
         raise ValueError(f"a batch of {batch} closings cannot stand for {samples} direct "
-                         f"draws per angle: give --batch >= --samples")
+                         f"draws per angle: give a batch of at least as many (--batch >= "
+                         f"--samples)")
 
 
 @dataclass(frozen=True)

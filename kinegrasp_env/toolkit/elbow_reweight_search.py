@@ -24,8 +24,7 @@ import numpy as np
 
 from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.montecarlo.execution import Executor
-from kinegrasp_env.montecarlo.palm_batch import close_batch, gaussian_terms
-from kinegrasp_env.robot.catalog import load_robot
+from kinegrasp_env.montecarlo.palm_batch import check_batch_engine, close_batch, gaussian_terms
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import DEFAULT_STARTS
 from kinegrasp_env.sampling.noise import JointNoise
@@ -43,6 +42,8 @@ from kinegrasp_env.toolkit.elbow_search import (
     BranchResult,
     angle_point,
     branch_variants,
+    check_branch_arm,
+    check_search,
     fresh_point,
     robot_reachable_configurations,
 )
@@ -50,16 +51,21 @@ from kinegrasp_env.world.grasps import Grasp
 
 
 def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delta: float,
-                         batch: int | None) -> RobotDescription:
+                         batch: int | None, seed: int = 0, engine: str = "fast"
+                         ) -> RobotDescription:
     """The grasp's robot, or ValueError (one line) for what
     :func:`optimize_robot_elbow_reweighted` and :func:`optimize_robot_branches_reweighted`
-    refuse before any closing: noise other than Gaussian joint noise (of the arm's joints),
-    an arm that is neither a 7-joint one with a self-motion nor a 6-joint one, and
-    :func:`~kinegrasp_env.toolkit.elbow_reweight.check_reweight`'s refusals."""
+    refuse before any closing: the search's inputs (:func:`~kinegrasp_env.toolkit.
+    elbow_search.check_search`), noise other than Gaussian joint noise (of the arm's
+    joints), an engine that cannot close palm deviations (:func:`~kinegrasp_env.montecarlo.
+    palm_batch.check_batch_engine`), an arm that is neither a 7-joint one with a
+    self-motion nor a 6-joint one, and :func:`~kinegrasp_env.toolkit.elbow_reweight.
+    check_reweight`'s refusals."""
+    description = check_search(grasp, noise, samples, seed, epsilon, delta)
     if not isinstance(noise, JointNoise):
-        raise ValueError("the re-weighted elbow search takes joint noise "
-                         "(--sigma, --noise gaussian)")
-    description = load_robot(grasp.robot)
+        raise ValueError("the re-weighted elbow search takes Gaussian joint noise (a "
+                         "JointNoise; a noise model's runs take the direct method)")
+    check_batch_engine(engine)
     check_reweight(grasp, noise, samples, epsilon, delta, batch, description.arm_dof)
     if not (description.has_self_motion or description.arm_dof == 6):
         raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints"
@@ -102,7 +108,8 @@ def optimize_robot_elbow_reweighted(grasp: Grasp, noise: JointNoise, samples: in
             joints, the checks of :func:`~kinegrasp_env.toolkit.elbow_reweight.
             check_reweight` (before any closing).
     """
-    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
+    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch, seed,
+                                       engine)
     if not description.has_self_motion:
         raise ValueError(f"robot {description.name!r} has no self-motion: its IK branches "
                          "are optimize_robot_branches_reweighted's")
@@ -168,10 +175,9 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
         ValueError: :func:`check_robot_reweight`'s refusals, an arm that is not a 6-joint
             one (before any closing).
     """
-    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch)
-    if description.arm_dof != 6:
-        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
-                         "IK branches are a 6-joint arm's")
+    description = check_robot_reweight(grasp, noise, samples, epsilon, delta, batch, seed,
+                                       engine)
+    check_branch_arm(description)
     with RobotReferenceEngine(description, grasp.object, friction=friction) as reference:
         branches, nominal = branch_variants(grasp, reference, int(starts))
         hand = np.asarray(grasp.q0, dtype=float)[description.arm_dof:]

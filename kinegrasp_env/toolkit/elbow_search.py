@@ -36,10 +36,13 @@ from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import (
     ENGINES,
     RobotReferenceEngine,
+    check_engine_grasp,
     evaluate_grasp,
     make_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
+from kinegrasp_env.robot.catalog import as_description
+from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import (
     DEFAULT_STARTS,
     MERGE_TOL,
@@ -48,7 +51,7 @@ from kinegrasp_env.robot.ik_branches import (
     joint_difference,
 )
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
-from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise import JointNoise, is_integer_seed
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.toolkit.elbow import (
     COARSE_EVERY,
@@ -69,7 +72,7 @@ from kinegrasp_env.toolkit.elbow_certificate import (
 )
 from kinegrasp_env.toolkit.plan_checks import clearance
 from kinegrasp_env.toolkit.selection import report_rows
-from kinegrasp_env.world.grasps import Grasp
+from kinegrasp_env.world.grasps import Grasp, check_grasp
 
 
 def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
@@ -142,11 +145,11 @@ def angle_point(grasp: Grasp, psi: float, q: np.ndarray, noise: JointNoise | Noi
     (:func:`fresh_point`: the fresh ones)."""
     moved = replace(grasp, q0=np.asarray(q, dtype=float), id=f"{grasp.id}@{psi:.3f}",
                     meta={**grasp.meta, "elbow_angle": psi})
-    model = noise if isinstance(noise, NoiseModel) else None
-    stats = evaluate_grasp(moved, sigma=noise.sigma,
-                           n=samples, seed=seed, noise=getattr(noise, "kind", "gaussian"),
-                           engine=scorer.engine, executor=scorer.executor,
-                           friction=scorer.friction, noise_model=model, offset=offset)
+    joints = {"noise_model": noise} if isinstance(noise, NoiseModel) else {
+        "sigma": noise.sigma, "noise": noise.kind}
+    stats = evaluate_grasp(moved, n=samples, seed=seed, engine=scorer.engine,
+                           executor=scorer.executor, friction=scorer.friction, offset=offset,
+                           **joints)
     outcome = stats.draws.outcome
     return ElbowPoint(psi, q, stats.p_fc, stats.ci, outcome == FORCE_CLOSURE, outcome)
 
@@ -207,9 +210,39 @@ def _scoring(grasp: Grasp, engine: RobotReferenceEngine | None, friction: float,
             engine.close()
 
 
-def _check_samples(samples) -> None:
+def check_search(grasp: Grasp, noise, samples, seed, epsilon: float, delta: float,
+                 engine: RobotReferenceEngine | None = None) -> RobotDescription:
+    """The grasp's robot, or ValueError (one line, naming the value) for what every elbow or
+    IK-branch search refuses before any closing: not a grasp, the certificate's levels
+    (:func:`~kinegrasp_env.toolkit.elbow_certificate.check_levels`), a number of draws that
+    is not a positive integer, a seed that is not an integer >= 0 (the run's rows), noise
+    that is neither joint noise nor a noise model, and a given engine that is not a
+    reference engine of the grasp's robot and object."""
+    check_grasp(grasp)
+    check_levels(epsilon, delta)
     if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
         raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
+    if not is_integer_seed(seed):
+        raise ValueError(f"seed must be an integer >= 0 (the run's rows), got {seed!r}")
+    if not isinstance(noise, (JointNoise, NoiseModel)):
+        raise ValueError(f"noise must be a JointNoise (e.g. JointNoise(0.0133)) or a "
+                         f"NoiseModel, got {type(noise).__name__} {noise!r:.40}")
+    description = as_description(grasp.robot)
+    if engine is not None:
+        if type(engine) is not RobotReferenceEngine:
+            raise ValueError(f"engine must be a RobotReferenceEngine of the grasp's robot and "
+                             f"object, or None, got {type(engine).__name__}")
+        check_engine_grasp(grasp, engine)
+    return description
+
+
+def check_branch_arm(description: RobotDescription) -> None:
+    """ValueError (one line) unless the robot's arm has 6 joints: the IK branches of a palm
+    pose are a 6-joint arm's (a 7-joint arm has a self-motion instead)."""
+    if description.arm_dof != 6:
+        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
+                         "IK branches are a 6-joint arm's (a 7-joint arm's elbow moves along "
+                         "its self-motion)")
 
 
 def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int,
@@ -241,11 +274,10 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: 
         executor: run each angle's draws in chunks on it (the same draws).
 
     Raises:
-        ValueError: epsilon or delta out of range, bad samples (before any draw); a robot
-            whose arm has no self-motion.
+        ValueError: :func:`check_search`'s refusals (before any draw); a robot whose arm
+            has no self-motion.
     """
-    check_levels(epsilon, delta)
-    _check_samples(samples)
+    check_search(grasp, noise, samples, seed, epsilon, delta, engine)
     report = progress or (lambda done: None)
     with _scoring(grasp, engine, friction, evaluate_with, executor) as (engine, scorer):
         reach = reach if reach is not None else robot_reachable_configurations(grasp, engine,
@@ -357,10 +389,10 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
         friction, evaluate_with, executor: as :func:`optimize_robot_elbow`.
 
     Raises:
-        ValueError: epsilon or delta out of range, bad samples or starts (before any draw).
+        ValueError: :func:`check_search`'s refusals, an arm that is not a 6-joint one, bad
+            starts (before any draw).
     """
-    check_levels(epsilon, delta)
-    _check_samples(samples)
+    check_branch_arm(check_search(grasp, noise, samples, seed, epsilon, delta, engine))
     if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
         raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
     report = progress or (lambda done: None)

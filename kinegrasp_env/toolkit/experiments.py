@@ -115,7 +115,7 @@ def _cell(grasp: Grasp, sigma: float, samples: int, seed: int, runner, executor,
     Progress`, or None: :func:`~kinegrasp_env.toolkit.progress.reported_cell`)."""
     return reported_cell(report, samples, label, lambda progress: evaluate_grasp(
         grasp, sigma=sigma, n=samples, seed=seed, engine=runner, executor=executor,
-        progress=progress))
+        progress=progress, keep_draws=False))
 
 
 def table1(description: RobotDescription, object_name: str, grasps: Sequence[Grasp],

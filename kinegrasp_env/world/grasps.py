@@ -22,7 +22,7 @@ import numpy as np
 
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.atomic_files import write_atomic
-from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, load_robot
+from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name, load_robot
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.robot_configuration import (
@@ -162,13 +162,20 @@ class Grasp:
                    str(data.get("id", default_id)), dict(meta), robot)
 
 
-def check_robot(grasp: Grasp, robot: str, advice: str = "") -> None:
-    """ValueError (one line) when the grasp was made for another robot than ``robot``; its
-    ``advice`` (default: the command option that names the grasp's robot)."""
+def check_grasp(value) -> None:
+    """ValueError (one line naming the type) unless ``value`` is a :class:`Grasp`."""
+    if not isinstance(value, Grasp):
+        raise ValueError(f"grasp must be a Grasp (kinegrasp_env.world.grasps), got "
+                         f"{type(value).__name__}")
+
+
+def check_robot(grasp: Grasp, robot: str, option: str = "") -> None:
+    """ValueError (one line) when the grasp was made for another robot than ``robot``,
+    advising its own robot (and the command ``option`` that names it, e.g. ``--robot``)."""
     if grasp.robot != robot:
-        advice = advice or f"use it with robot {grasp.robot!r} (--robot {grasp.robot})"
+        advice = f" ({option} {grasp.robot})" if option else ""
         raise ValueError(f"grasp {grasp.id!r} is a grasp of robot {grasp.robot!r}, not of "
-                         f"{robot!r}; {advice}")
+                         f"{robot!r}; use it with robot {grasp.robot!r}{advice}")
 
 #: How far (metres, radians) the object may lie from where a grasp entry's palm poses put it
 #: before the entry is stale: 10 um and 1e-5 rad, above a pose saved in float32 or rounded
@@ -382,6 +389,7 @@ def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
             grasps were planned, or an object with no shipped set for ``robot``; ValueError
             for an unknown name.
     """
+    check_robot_name(robot)  # an unknown robot named as such, before its grasps are sought
     if not isinstance(object_name, str) or not is_object(object_name):
         raise unknown_object(object_name)
     shipped = shipped_objects(robot)
