@@ -84,7 +84,7 @@ def test_sigma_is_stored_as_floats_and_checked_up_front():
     assert JointNoise(0).sigma == 0.0 and type(JointNoise(0).sigma) is float
     assert type(JointNoise(np.float32(0.0133)).sigma) is float
     assert JointNoise([1, np.float64(0.5)]).sigma == (1.0, 0.5)
-    for bad in ("0.0133", True, ["0.1", 0.2]):
+    for bad in ("0.0133", True, ["0.1", 0.2], [[0.1, 0.2]]):
         with pytest.raises(ValueError, match="sigma must be a number of radians or one per"):
             JointNoise(bad)
     with pytest.raises(ValueError, match=r"^sigma must be <= pi \(3\.14159 rad\), got 4$"):

@@ -29,24 +29,24 @@ from kinegrasp_env.montecarlo.description_engine import (
     score,
 )
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, OUTCOMES, DrawBatch
-from kinegrasp_env.montecarlo.engines import ENGINES, engine_class, make_engine
+from kinegrasp_env.montecarlo.engines import ENGINES, make_engine
+from kinegrasp_env.montecarlo.evaluation_checks import (
+    check_engine_grasp,
+    check_evaluation,
+    integer_seed,
+)
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
 from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
-from kinegrasp_env.robot.catalog import as_description, load_robot
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import (
-    METHODS,
     JointNoise,
     SeedLike,
     as_generator,
-    check_seed,
-    is_integer_seed,
 )
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.noise_spec import NO_SOURCE, spec_of
+from kinegrasp_env.sampling.noise_spec import spec_of
 from kinegrasp_env.sampling.stats import skewness, wilson_interval
-from kinegrasp_env.world.grasps import Grasp, check_grasp, check_robot
-from kinegrasp_env.world.robot_configuration import check_configuration
+from kinegrasp_env.world.grasps import Grasp, check_robot
 
 __all__ = [
     "ENGINES",
@@ -236,7 +236,7 @@ def evaluate_grasp(grasp: Grasp, *, sigma: float | tuple[float, ...] | None = No
             of a chunked run.
         TypeError: a ``robot`` that is neither a name nor a description.
     """
-    name, sigma, friction = _checked_arguments(
+    name, sigma, friction = check_evaluation(
         grasp, sigma=sigma, n=n, seed=seed, noise=noise, engine=engine, robot=robot,
         static_hold=static_hold, friction=friction, executor=executor,
         noise_model=noise_model, offset=offset, method=method, progress=progress,
@@ -300,94 +300,6 @@ def _closed_rows(grasp: Grasp, engine: RobotEngine, *, sigma, n: int, seed: Seed
     return (parts[0] if len(parts) == 1 else DrawBatch.concatenate(parts)), nominal
 
 
-def _checked_arguments(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, static_hold,
-                       friction, executor, noise_model, offset, method, progress,
-                       keep_draws) -> tuple[str, float | tuple[float, ...], float]:
-    """:func:`evaluate_grasp`'s arguments checked before any work (its ``Raises``; one
-    line each): (the robot's name, the joint noise's sigma (0 under a noise model, whose
-    joints source replaces it), the run's mu (a friction source's nominal one))."""
-    check_grasp(grasp)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be a positive number of draws, got {n!r}")
-    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
-        raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
-    if offset:
-        if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
-            raise ValueError("draws from row offset > 0 take an integer or SeedSequence "
-                             f"seed, got {type(seed).__name__}")
-    check_seed(seed)
-    if noise_model is not None and not isinstance(noise_model, NoiseModel):
-        raise ValueError(f"noise_model must be a NoiseModel (e.g. kinegrasp_env.sampling."
-                         f"noise_spec.load_noise_model), got {type(noise_model).__name__}; "
-                         "joint noise alone is sigma= and noise=")
-    if noise_model is not None and not noise_model.sources:
-        raise ValueError(f"noise_model {NO_SOURCE}")
-    if noise_model is None:
-        if sigma is None:
-            raise ValueError("give the joint noise's sigma (radians) or a noise_model")
-        JointNoise(sigma, noise)  # sigma and noise checked before any work
-    elif sigma is not None or noise != "gaussian":
-        raise ValueError("give sigma and noise, or a noise_model, not both: the model's "
-                         "joints source is its joint noise")
-    else:
-        sigma = 0.0  # the model's joints source replaces it
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    for flag, value in (("keep_draws", keep_draws), ("static_hold", static_hold)):
-        if not isinstance(value, (bool, np.bool_)):
-            raise ValueError(f"{flag} must be True or False, got {value!r}")
-    if progress is not None and not callable(progress):
-        raise ValueError(f"progress must be a function progress(done, n), got {progress!r}")
-    if executor is not None and not isinstance(executor, Executor):
-        raise ValueError("executor must be an Executor (kinegrasp_env.montecarlo.execution: "
-                         f"LocalExecutor(processes), RayExecutor()), got {executor!r}")
-    if isinstance(engine, str) and engine not in ENGINES:
-        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if not isinstance(engine, str):
-        kind = getattr(engine, "name", None)
-        if kind not in ENGINES or type(engine) is not engine_class(kind):
-            raise ValueError(f"engine must be a name ({', '.join(ENGINES)}) or an engine "
-                             f"make_engine builds, got {type(engine).__name__}")
-        name = engine.description.name
-        if robot is not None and getattr(robot, "name", robot) != name:
-            raise ValueError(f"robot {getattr(robot, 'name', robot)!r} is not the engine's "
-                             f"robot {name!r}: give the robot or an engine of it")
-        check_engine_grasp(grasp, engine)
-    else:
-        name = grasp.robot if robot is None else as_description(robot).name
-        check_robot(grasp, name)
-    check_configuration(grasp.q0, f"grasp {grasp.id!r}", robot=name)
-    if noise_model is not None:
-        from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
-        from kinegrasp_env.sampling.noise_model import nominal_friction
-
-        friction = nominal_friction(noise_model, friction)
-
-        _integer_seed(seed, "a noise model's run")
-        description = (robot if isinstance(robot, RobotDescription) else load_robot(name)
-                       ) if isinstance(engine, str) else engine.description
-        check_robot_noise(noise_model, description, description.arm_dof,
-                          engine if isinstance(engine, str) else engine.name,
-                          static_hold if isinstance(engine, str)
-                          else engine.hold_check is not None)
-    return name, sigma, friction
-
-
-def check_engine_grasp(grasp: Grasp, engine: RobotEngine) -> None:
-    """ValueError (one line) unless ``engine`` holds the grasp's robot and object."""
-    check_robot(grasp, engine.description.name)
-    if engine.obj.name != grasp.object:
-        raise ValueError(f"grasp {grasp.id!r} is a grasp of {grasp.object!r}, the engine "
-                         f"holds {engine.obj.name!r}")
-
-
-def _integer_seed(seed: SeedLike, what: str) -> None:
-    """ValueError unless ``seed`` is an integer >= 0 (a run drawn by rows of its streams)."""
-    if not is_integer_seed(seed):
-        raise ValueError(f"{what} takes an integer seed >= 0 (its draws are rows of the "
-                         f"seed's streams), got {seed!r}")
-
-
 def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: int,
              seed: SeedLike, noise: str, static_hold: bool, friction: float,
              executor: Executor, noise_model: NoiseModel | None = None,
@@ -403,7 +315,7 @@ def _chunked(grasp: Grasp, robot: str, engine: RobotEngine | str, *, sigma, n: i
     from kinegrasp_env.world.objects import load_object
 
     if noise_model is not None or not isinstance(seed, np.random.SeedSequence):
-        _integer_seed(seed, "a run in chunks")
+        integer_seed(seed, "a run in chunks")
     options = ()
     if not isinstance(engine, str):
         static_hold = engine.hold_check is not None

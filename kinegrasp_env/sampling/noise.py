@@ -100,7 +100,10 @@ class JointNoise:
             raise ValueError(f"sigma must be a number of radians or one per joint, got "
                              f"{self.sigma!r}")
         sig = np.atleast_1d(np.asarray(self.sigma, dtype=float))
-        if sig.ndim != 1 or not np.all(np.isfinite(sig)) or np.any(sig < 0):
+        if sig.ndim != 1:
+            raise ValueError(f"sigma must be a number of radians or one per joint, got "
+                             f"{self.sigma!r}")
+        if not np.all(np.isfinite(sig)) or np.any(sig < 0):
             raise ValueError(f"sigma must be finite and >= 0, got {self.sigma!r}")
         check_sigma_bound(sig)
         if np.ndim(self.sigma) == 0:

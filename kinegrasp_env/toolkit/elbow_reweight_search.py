@@ -42,11 +42,10 @@ from kinegrasp_env.toolkit.elbow_search import (
     BranchResult,
     angle_point,
     branch_variants,
-    check_branch_arm,
-    check_search,
     fresh_point,
     robot_reachable_configurations,
 )
+from kinegrasp_env.toolkit.search_checks import check_branch_arm, check_search
 from kinegrasp_env.world.grasps import Grasp
 
 
@@ -56,7 +55,7 @@ def check_robot_reweight(grasp: Grasp, noise, samples: int, epsilon: float, delt
     """The grasp's robot, or ValueError (one line) for what
     :func:`optimize_robot_elbow_reweighted` and :func:`optimize_robot_branches_reweighted`
     refuse before any closing: the search's inputs (:func:`~kinegrasp_env.toolkit.
-    elbow_search.check_search`), noise other than Gaussian joint noise (of the arm's
+    search_checks.check_search`), noise other than Gaussian joint noise (of the arm's
     joints), an engine that cannot close palm deviations (:func:`~kinegrasp_env.montecarlo.
     palm_batch.check_batch_engine`), an arm that is neither a 7-joint one with a
     self-motion nor a 6-joint one, and :func:`~kinegrasp_env.toolkit.elbow_reweight.

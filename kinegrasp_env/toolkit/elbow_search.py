@@ -36,13 +36,10 @@ from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import (
     ENGINES,
     RobotReferenceEngine,
-    check_engine_grasp,
     evaluate_grasp,
     make_engine,
 )
 from kinegrasp_env.montecarlo.execution import Executor, LocalExecutor
-from kinegrasp_env.robot.catalog import as_description
-from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.ik_branches import (
     DEFAULT_STARTS,
     MERGE_TOL,
@@ -51,7 +48,7 @@ from kinegrasp_env.robot.ik_branches import (
     joint_difference,
 )
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
-from kinegrasp_env.sampling.noise import JointNoise, is_integer_seed
+from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.toolkit.elbow import (
     COARSE_EVERY,
@@ -67,12 +64,12 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
     Certificate,
-    check_levels,
     rounded_up,
 )
 from kinegrasp_env.toolkit.plan_checks import clearance
+from kinegrasp_env.toolkit.search_checks import check_branch_arm, check_search
 from kinegrasp_env.toolkit.selection import report_rows
-from kinegrasp_env.world.grasps import Grasp, check_grasp
+from kinegrasp_env.world.grasps import Grasp
 
 
 def robot_reachable_configurations(grasp: Grasp, engine: RobotReferenceEngine,
@@ -210,41 +207,6 @@ def _scoring(grasp: Grasp, engine: RobotReferenceEngine | None, friction: float,
             engine.close()
 
 
-def check_search(grasp: Grasp, noise, samples, seed, epsilon: float, delta: float,
-                 engine: RobotReferenceEngine | None = None) -> RobotDescription:
-    """The grasp's robot, or ValueError (one line, naming the value) for what every elbow or
-    IK-branch search refuses before any closing: not a grasp, the certificate's levels
-    (:func:`~kinegrasp_env.toolkit.elbow_certificate.check_levels`), a number of draws that
-    is not a positive integer, a seed that is not an integer >= 0 (the run's rows), noise
-    that is neither joint noise nor a noise model, and a given engine that is not a
-    reference engine of the grasp's robot and object."""
-    check_grasp(grasp)
-    check_levels(epsilon, delta)
-    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
-        raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
-    if not is_integer_seed(seed):
-        raise ValueError(f"seed must be an integer >= 0 (the run's rows), got {seed!r}")
-    if not isinstance(noise, (JointNoise, NoiseModel)):
-        raise ValueError(f"noise must be a JointNoise (e.g. JointNoise(0.0133)) or a "
-                         f"NoiseModel, got {type(noise).__name__} {noise!r:.40}")
-    description = as_description(grasp.robot)
-    if engine is not None:
-        if type(engine) is not RobotReferenceEngine:
-            raise ValueError(f"engine must be a RobotReferenceEngine of the grasp's robot and "
-                             f"object, or None, got {type(engine).__name__}")
-        check_engine_grasp(grasp, engine)
-    return description
-
-
-def check_branch_arm(description: RobotDescription) -> None:
-    """ValueError (one line) unless the robot's arm has 6 joints: the IK branches of a palm
-    pose are a 6-joint arm's (a 7-joint arm has a self-motion instead)."""
-    if description.arm_dof != 6:
-        raise ValueError(f"robot {description.name!r} has {description.arm_dof} arm joints; "
-                         "IK branches are a 6-joint arm's (a 7-joint arm's elbow moves along "
-                         "its self-motion)")
-
-
 def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int,
                          seed: int = 0, *,
                          engine: RobotReferenceEngine | None = None, step: float = FINE_STEP,
@@ -274,8 +236,8 @@ def optimize_robot_elbow(grasp: Grasp, noise: JointNoise | NoiseModel, samples: 
         executor: run each angle's draws in chunks on it (the same draws).
 
     Raises:
-        ValueError: :func:`check_search`'s refusals (before any draw); a robot whose arm
-            has no self-motion.
+        ValueError: :func:`~kinegrasp_env.toolkit.search_checks.check_search`'s refusals
+            (before any draw); a robot whose arm has no self-motion.
     """
     check_search(grasp, noise, samples, seed, epsilon, delta, engine)
     report = progress or (lambda done: None)
@@ -389,8 +351,8 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
         friction, evaluate_with, executor: as :func:`optimize_robot_elbow`.
 
     Raises:
-        ValueError: :func:`check_search`'s refusals, an arm that is not a 6-joint one, bad
-            starts (before any draw).
+        ValueError: :func:`~kinegrasp_env.toolkit.search_checks.check_search`'s refusals,
+            an arm that is not a 6-joint one, bad starts (before any draw).
     """
     check_branch_arm(check_search(grasp, noise, samples, seed, epsilon, delta, engine))
     if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
