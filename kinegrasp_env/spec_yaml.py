@@ -33,3 +33,50 @@ def spec_loader() -> type:
     SpecLoader.add_implicit_resolver("tag:yaml.org,2002:float", _EXPONENT_FLOAT,
                                      list("-+0123456789."))
     return SpecLoader
+
+
+def read_user_text(path) -> str:
+    """The text of a file a user names; ValueError (one line naming the file) where there is
+    none, it is a folder, or it is not text (a mesh given for a spec)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a file")
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no such file") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text file ({exc.reason} at byte {exc.start})") \
+            from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
+def read_spec(path) -> object:
+    """The parsed content of a user's YAML file, or JSON by its ``.json`` suffix, read with
+    :func:`spec_loader`; ValueError (one line: file, line, column, what) for a file that
+    cannot be read (:func:`read_user_text`) or does not parse."""
+    import json
+    from pathlib import Path
+
+    import yaml
+
+    path = Path(path)
+    text = read_user_text(path)
+    if path.suffix.lower() == ".json":
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: "
+                             f"{exc.msg}") from None
+    try:
+        return yaml.load(text, Loader=spec_loader())  # a SafeLoader
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        raise ValueError(f"{where}: not valid YAML: "
+                         f"{exc.problem or exc.context or 'syntax error'}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None

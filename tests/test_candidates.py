@@ -238,3 +238,22 @@ def test_an_output_over_the_candidates_is_refused_before_any_solving(tmp_path):
         f"kinegrasp rank: error: --out {path} is the candidates file the command reads; give "
         "another file name"]
     assert path.read_bytes() == kept
+
+
+def test_a_planned_file_renamed_to_candidates_is_read_as_the_docs_say(tmp_path):
+    """The docs (and rank's refusal of a moved object's grasps) say to rename a planned
+    file's ``grasps`` list ``candidates`` to solve its palm poses again: the file ``plan``
+    writes (with its top-level ``planner_seed``) is then read as palm poses, one candidate
+    per grasp (the seed was refused as an unknown field)."""
+    from kinegrasp_env.toolkit.candidates import read_candidates
+    from kinegrasp_env.world.grasps import save_grasps
+
+    grasps = shipped_grasps("cube")[:3]
+    planned = save_grasps(grasps, tmp_path / "planned.json", planner_seed=7)
+    data = json.loads(planned.read_text())
+    assert data["planner_seed"] == 7
+    data["candidates"] = data.pop("grasps")
+    renamed = tmp_path / "renamed.json"
+    renamed.write_text(json.dumps(data))
+    read = read_candidates(renamed)
+    assert [c.id for c in read.candidates] == [g.id for g in grasps]

@@ -301,7 +301,7 @@ def test_the_files_robot_and_robot_option_conflict_in_one_line(home, tmp_path):
 @pytest.mark.parametrize("field, words", [
     ({"spread": 0.0}, ["'spread' sets a hand's one pre-shape-only joint; robot 'panda' has none",
                        "panda_finger_joint1"]),
-    ({"hand": [0.0] * 7}, ["hand has 7 values", "1 hand joints", "panda_finger_joint1"]),
+    ({"hand": [0.0] * 7}, ["hand has 7 values", "1 hand joint:", "panda_finger_joint1"]),
     ({"hand": {"f1_spread": 0.0}}, ["'f1_spread' is not a hand joint of robot 'panda'",
                                     "panda_finger_joint1"]),
     ({"hand": {"panda_finger_joint1": 0.07}}, ["(panda_finger_joint1) = 0.0700 is outside"]),

@@ -618,3 +618,45 @@ def test_json_output_is_strict_json(capsys):
     assert main(["ee", "--samples", "1", "--json"]) == 0
     shown = strict(capsys.readouterr().out)
     assert shown["skew"] == [None, None, None]
+
+
+@pytest.mark.parametrize("argv", [
+    ["evaluate", "--object", "cube", "--noise-spec", "{file}"],
+    ["sensitivity", "--noise-spec", "{file}"],
+    ["sweep", "{file}", "--out", "{tmp}/sweep"],
+    ["rank", "{file}"],
+    ["robots", "add", "{file}"],
+])
+def test_a_binary_file_given_for_a_text_one_is_one_line(capsys, tmp_path, argv):
+    """A mesh (or any binary file) named where a spec, a grasp file or a description goes
+    is refused by one reader (``spec_yaml.read_user_text``) in one line naming the file,
+    before any work (it was a UnicodeDecodeError traceback from the spec readers)."""
+    binary = tmp_path / "mesh.yaml"
+    binary.write_bytes(b"solid\x00\x80\x81\xfe binary mesh")
+    args = [a.format(file=binary, tmp=tmp_path) for a in argv]
+    code, err = _run(capsys, *args)
+    assert code == 2 and len(err) == 1, err
+    assert f"{binary}: not a text file" in err[0], err
+    assert not (tmp_path / "sweep").exists()
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("--epsilon", "2", "--epsilon must be a margin in [0, 1), got 2"),
+    ("--delta", "0", "--delta must be an error level in (0, 1), got 0"),
+])
+def test_a_certificates_levels_are_refused_alike_by_rank_and_elbow(capsys, tmp_path, option,
+                                                                   value, words):
+    """``rank --adaptive`` and ``elbow`` check a certificate's margin and error level by the
+    library's one rule (``certificates.check_levels``), in the same words (they were worded
+    apart, and the adaptive ranking and the elbow search had a rule each)."""
+    from kinegrasp_env.toolkit.certificates import check_levels
+    from kinegrasp_env.world.grasps import save_grasps, shipped_grasps
+
+    grasps = tmp_path / "g.json"
+    save_grasps(shipped_grasps("cube")[:3], grasps)
+    for argv in (["rank", str(grasps), "--adaptive", "--out", str(tmp_path / "r.csv")],
+                 ["elbow", "--object", "cube", "--grasp", "0"]):
+        code, err = _run(capsys, *argv, option, value)
+        assert code == 2 and err == [f"kinegrasp {argv[0]}: error: {words}"], err
+    with pytest.raises(ValueError, match=r"^delta must be an error level in \(0, 1\), got 1$"):
+        check_levels(0.1, 1)

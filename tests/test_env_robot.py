@@ -55,7 +55,7 @@ def test_a_noise_model_the_robot_cannot_take_is_refused_in_one_line():
             ({"noise_model": {"joints": {"sigma": 0.01}, "hand": {"spread_sigma": 0.01}}},
              "drop hand.spread_sigma"),
             ({"noise_model": {"palm": {"translation_sigma": 0.001}}, "score": "hold"},
-             "take joint and hand noise only")):
+             "takes joint and hand noise only")):
         with pytest.raises(ValueError, match=message) as err:
             gym.make("KineGrasp-v0", robot="panda", **kwargs)
         assert "\n" not in str(err.value)

@@ -236,6 +236,24 @@ def test_size_check_messages():
     check_size(trimesh.creation.box(extents=(0.3, 0.3, 0.3)), 0.3)  # within the span
 
 
+@pytest.mark.parametrize("extents, scale", [((500.0, 500.0, 600.0), 1e-3),
+                                           ((0.5, 0.4, 0.4), 1e-3), ((0.3, 0.2, 0.2), 10.0)])
+def test_the_suggested_scale_makes_the_object_graspable(home, tmp_path, extents, scale):
+    """A file read with a scale (or units) that leaves it too large or too small: the hint's
+    ``--scale`` is from the file's units to metres (it was the extra factor on top of the
+    one given, and imported a 500 mm box as 100 m); importing with it gives an object
+    0.1 m across."""
+    import re
+
+    path = box_file(tmp_path / "b.stl", extents=extents)
+    with pytest.raises(MeshError) as info:
+        import_object(path, settings=ImportSettings(scale=scale))
+    hint = float(re.search(r"--scale (?:\(e\.g\. --scale )?([0-9.e+-]+)", str(info.value))[1])
+    assert "instead of the units or scale given" in str(info.value)
+    import_object(path, settings=ImportSettings(scale=hint), name="fixed")
+    assert max(load_object("fixed").mesh.extents) == pytest.approx(0.1, rel=1e-2)  # 3 digits
+
+
 def test_an_empty_name_is_refused(home, tmp_path):
     """``--name ""`` named no object and the import took the file's name instead."""
     with pytest.raises(CatalogError, match="invalid object name ''"):

@@ -137,7 +137,7 @@ def test_a_sweep_says_which_models_joint_sigma_its_cells_replace(spec_file, tmp_
 
 @pytest.mark.parametrize("noise, needle", [
     (["gausian"], "unknown noise 'gausian': give a distribution"),
-    (["missing.yaml"], "noise spec file"),
+    (["missing.yaml"], "missing.yaml: no such file"),
     ([{"joints": {"sigma": -1}}], "joints.sigma must be >= 0"),
     ([{"joints": {"covariance": [[0.0] * 7] * 7}}], "cannot give a covariance"),
     ([3], "neither a distribution nor a noise model"),

@@ -244,7 +244,7 @@ def test_spec_files_presets_and_round_trip(tmp_path):
                     "object:\n  <<: *pose\n  rotation_sigma: 0.001\n")
     merged = load_noise_model(path)
     assert merged.palm == PoseSource(0.004, 0.002) and merged.object == PoseSource(0.004, 0.001)
-    with pytest.raises(NoiseSpecError, match="not found"):
+    with pytest.raises(NoiseSpecError, match=r"missing\.yaml: no such file$"):
         load_noise_model(tmp_path / "missing.yaml")
 
 

@@ -344,7 +344,7 @@ def test_adaptive_bad_arguments():
     ev = bernoulli_evaluator(np.array([0.5, 0.6]), 0)
     with pytest.raises(ValueError, match="top_k must be between 1 and 1"):
         rank_adaptive(2, ev, 10, CHUNK, top_k=2)
-    with pytest.raises(ValueError, match="delta must be in"):
+    with pytest.raises(ValueError, match="delta must be an error level in"):
         rank_adaptive(2, ev, 10, CHUNK, delta=0.0)
     with pytest.raises(ValueError, match="unknown criterion 'best'"):
         rank_adaptive(2, ev, 10, CHUNK, criterion="best")
@@ -514,9 +514,9 @@ def test_cli_adaptive_rank_csv_shows_the_certified_rows_first(tmp_path):
 
 
 @pytest.mark.parametrize(("flag", "value", "needle"), [
-    ("--epsilon", "-0.1", "--epsilon must be in [0, 1), got -0.1"),
-    ("--epsilon", "1", "--epsilon must be in [0, 1), got 1"),
-    ("--delta", "0", "--delta must be in (0, 1), got 0"),
+    ("--epsilon", "-0.1", "--epsilon must be a margin in [0, 1), got -0.1"),
+    ("--epsilon", "1", "--epsilon must be a margin in [0, 1), got 1"),
+    ("--delta", "0", "--delta must be an error level in (0, 1), got 0"),
     ("--delta", "x", "--delta: 'x' is not a number"),
 ])
 def test_cli_adaptive_bad_delta_or_epsilon_is_one_line(tmp_path, capsys, flag, value, needle):

@@ -444,8 +444,8 @@ def test_unreadable_files_are_one_line(home, tmp_path, capsys):
     listed.write_text("- a\n- b\n")
     twice = tmp_path / "twice.yaml"
     twice.write_text(yaml.safe_dump(XARM_DESCRIPTION) + "name: other\n")
-    for path, needle in ((tmp_path / "none.yaml", "cannot be read"),
-                         (bad, "bad.yaml: not valid YAML"),
+    for path, needle in ((tmp_path / "none.yaml", "none.yaml: no such file"),
+                         (bad, "bad.yaml:2:1: not valid YAML"),
                          (listed, "list.yaml: expected a mapping"),
                          (twice, "key 'name' appears twice")):
         assert main(["robots", "add", str(path)]) == 2

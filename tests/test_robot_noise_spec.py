@@ -155,7 +155,7 @@ def test_the_cli_takes_a_spec_and_refuses_what_a_robot_cannot(tmp_path, capsys):
              ([*args, "--noise-spec", str(three)], "robot 'panda' has 2 fingers"),
              ([*args, "--noise-spec", str(spec), "--static-hold"], "holds at one mu"),
              ([*args, "--noise-spec", str(spec), "--hold-test"],
-              "take joint and hand noise only"),
+              "takes joint and hand noise only"),
              ([*args[:-4], "--engine", "physics", "--noise-spec", str(spec)],
               "physics engine")]
     for command, words in cases:

@@ -50,7 +50,7 @@ def test_bad_specs_are_named(change, message):
 
 
 def test_a_folder_given_as_the_spec_is_named(tmp_path):
-    with pytest.raises(SpecError, match=f"spec file {tmp_path} is a folder"):
+    with pytest.raises(SpecError, match=f"{tmp_path}: is a folder, not a file"):
         SweepSpec.from_file(tmp_path)
 
 

@@ -5,8 +5,6 @@ convergence, the paper's Fig. 3).
 
 from __future__ import annotations
 
-import sys
-
 from kinegrasp_env.cli.common import (
     CLIError,
     add_noise_args,
@@ -101,8 +99,8 @@ def cmd_convergence(args) -> int:
     2-link planar arm and a catalog robot's arm (``--robot``, its end-effector study's
     description's ``home`` configuration)."""
     import numpy as np
-    from tqdm import tqdm
 
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.robot.endeffector import (
@@ -131,8 +129,7 @@ def cmd_convergence(args) -> int:
     arm = PlanarArm(DEFAULT_PLANAR_LINKS)
     jobs = [(label, s) for label in ("2-link planar arm", robot_label) for s in PAPER_SIGMAS]
     curves: dict[str, dict[float, object]] = {}
-    for i, (label, sigma) in enumerate(tqdm(jobs, desc="convergence", file=sys.stderr,
-                                            disable=None)):
+    for i, (label, sigma) in enumerate(progress_bar(jobs, desc="convergence")):
         stream = np.random.default_rng([seed, i])  # independent stream per curve
         if label.startswith("2-link"):
             curve = planar_convergence(arm, DEFAULT_PLANAR_Q0, sigma, sizes=sizes, trials=trials,

@@ -164,6 +164,18 @@ def sigma_value(text: str, option: str = "--sigma") -> float:
     return sigma
 
 
+def certificate_levels(args) -> tuple[float, float]:
+    """``--epsilon`` and ``--delta`` of a certificate, checked by the library's rule
+    (:func:`~kinegrasp_env.toolkit.certificates.check_levels`), or a one-line CLIError."""
+    from kinegrasp_env.toolkit.certificates import check_levels
+
+    epsilon = finite_float(args.epsilon, "--epsilon")
+    delta = finite_float(args.delta, "--delta")
+    with reported(ValueError):
+        check_levels(epsilon, delta, ("--epsilon", "--delta"))
+    return epsilon, delta
+
+
 def joint_noise(sigma, kind: str, model) -> dict:
     """``evaluate_grasp``'s noise keywords: ``noise_model=model`` where a noise spec gave
     one, else ``sigma`` (radians) and the distribution ``kind``."""

@@ -13,13 +13,12 @@ within ``--epsilon`` (certified) or not; the printed summary and the plot:
 
 from __future__ import annotations
 
-import sys
-
 from kinegrasp_env.cli.common import (
     CLIError,
     add_friction_arg,
     add_noise_args,
     add_object_arg,
+    certificate_levels,
     friction_from,
     grasp_index_help,
     noise_from,
@@ -31,7 +30,6 @@ from kinegrasp_env.cli.elbow_output import (
     DEFAULT_DELTA,
     DEFAULT_EPSILON,
     DEFAULT_IK_STARTS,
-    certificate_levels,
     reweighted_elbow,
     show_elbow,
 )
@@ -65,9 +63,8 @@ def cmd_elbow(args) -> int:
     """``kinegrasp elbow``: a grasp (of ``--grasps FILE``, else grasp ``--grasp`` of the
     robot's shipped set of ``--object``) along its robot's self-motion, or for a 6-joint arm
     across its IK branches (:func:`~kinegrasp_env.cli.elbow_branches.cmd_elbow_branches`)."""
-    from tqdm import tqdm
-
     from kinegrasp_env.cli.report import write_elbow_report
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
 
@@ -103,9 +100,8 @@ def cmd_elbow(args) -> int:
         result, evidence = reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon,
                                             delta, friction)
     else:
-        bar = tqdm(desc=f"elbow angles of {args.object} grasp {shown} of {robot} "
-                   "(selection, then fresh draws)", unit="angle", file=sys.stderr,
-                   disable=None)
+        bar = progress_bar(desc=f"elbow angles of {args.object} grasp {shown} of {robot} "
+                           "(selection, then fresh draws)", unit="angle")
         with executor_from(args) as executor:
             result = optimize_robot_elbow(grasp, noise, samples, seed, epsilon=epsilon,
                                           delta=delta,

@@ -23,16 +23,16 @@ def branches_searched(args, index, grasp, noise, samples, seed, epsilon, delta, 
     (:func:`kinegrasp_env.toolkit.elbow_search.optimize_robot_branches`) or ``reweight``
     (:func:`~kinegrasp_env.cli.elbow_output.reweighted_elbow` of the branches, its inputs
     checked before any closing)."""
-    from tqdm import tqdm
+    from kinegrasp_env.progress_bar import progress_bar
 
     if args.method == "reweight":
         return reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
                                 friction, starts=starts)
     from kinegrasp_env.toolkit.elbow_search import optimize_robot_branches
 
-    bar = tqdm(desc=f"IK branches of {args.object} grasp {grasp_shown(args, index, grasp)} of "
-               f"{args.robot} (selection, "
-               "then fresh draws)", unit="branch", file=sys.stderr, disable=None)
+    bar = progress_bar(desc=f"IK branches of {args.object} grasp "
+                           f"{grasp_shown(args, index, grasp)} of {args.robot} (selection, "
+                           "then fresh draws)", unit="branch")
     with executor_from(args) as executor:
         result = optimize_robot_branches(grasp, noise, samples, seed, starts=starts,
                                          epsilon=epsilon, delta=delta, friction=friction,

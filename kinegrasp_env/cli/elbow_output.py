@@ -5,10 +5,9 @@ plot and the printed summary."""
 
 from __future__ import annotations
 
-import sys
 from contextlib import contextmanager
 
-from kinegrasp_env.cli.common import CLIError, finite_float, plural, positive_int, reported
+from kinegrasp_env.cli.common import CLIError, plural, positive_int, reported
 from kinegrasp_env.cli.execution_options import executor_from
 from kinegrasp_env.cli.grasp_choice import grasp_shown
 
@@ -18,17 +17,6 @@ from kinegrasp_env.cli.grasp_choice import grasp_shown
 DEFAULT_EPSILON, DEFAULT_DELTA = 0.05, 0.05
 #: ``--ik-starts`` default (equal to ``robot.ik_branches.DEFAULT_STARTS``; copied, as above).
 DEFAULT_IK_STARTS = 200
-
-
-def certificate_levels(args) -> tuple[float, float]:
-    """``--epsilon`` in [0, 1) and ``--delta`` in (0, 1), or a one-line CLIError."""
-    epsilon = finite_float(args.epsilon, "--epsilon")
-    delta = finite_float(args.delta, "--delta")
-    if not 0 <= epsilon < 1:
-        raise CLIError(f"--epsilon must be a P(FC) margin in [0, 1), got {args.epsilon}")
-    if not 0 < delta < 1:
-        raise CLIError(f"--delta must be an error level in (0, 1), got {args.delta}")
-    return epsilon, delta
 
 
 def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
@@ -41,8 +29,7 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
     optimize_robot_branches_reweighted`)."""
     import functools
 
-    from tqdm import tqdm
-
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.toolkit.elbow_reweight_search import (
         check_robot_reweight,
         optimize_robot_branches_reweighted,
@@ -56,8 +43,8 @@ def reweighted_elbow(args, grasp, index, noise, samples, seed, epsilon, delta,
         check_robot_reweight(grasp, noise, samples, epsilon, delta, batch, seed, args.engine)
     what = "IK branches" if starts is not None else "elbow"
     shown = grasp_shown(args, index, grasp)
-    bar = tqdm(desc=f"{what} of {args.object} grasp {shown} of {args.robot} (batch, fresh draws, "
-               "certificate)", total=3, unit="stage", file=sys.stderr, disable=None)
+    bar = progress_bar(desc=f"{what} of {args.object} grasp {shown} of {args.robot} (batch, "
+                       "fresh draws, certificate)", total=3, unit="stage")
     with executor_from(args) as executor, batch_sized():
         out = optimize(grasp, noise, samples, seed, engine=args.engine, epsilon=epsilon,
                        delta=delta, batch=batch, executor=executor, friction=friction,

@@ -32,12 +32,11 @@ from kinegrasp_env.cli.execution_options import executor_from
 @contextmanager
 def draw_bar(total: int, label: str) -> Iterator[Callable[[int, int], None]]:
     """A ``progress(done, total)`` callback that moves a bar of ``total`` draws on stderr
-    when it is a terminal (nothing otherwise), closed on exit."""
-    import sys
+    (:func:`~kinegrasp_env.progress_bar.progress_bar`: plain lines off a terminal), closed on
+    exit."""
+    from kinegrasp_env.progress_bar import progress_bar
 
-    from tqdm import tqdm
-
-    bar = tqdm(total=total, desc=label, unit="draw", file=sys.stderr, disable=None)
+    bar = progress_bar(total=total, desc=label, unit="draw")
     try:
         yield lambda done, _total: bar.update(done - bar.n)
     finally:

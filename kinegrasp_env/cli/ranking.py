@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
+    certificate_levels,
     engine_name,
-    finite_float,
     friction_from,
     noise_from,
     plural,
@@ -50,14 +50,12 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
     physics engine), chosen on draws of seed + 1, so the ranking's own draws (seed) stay
     independent of the choice. The angle (radians) or branch index chosen is in the moved
     grasp's ``meta`` (:data:`~kinegrasp_env.cli.ranking_table.ELBOW_COLUMNS`)."""
-    from tqdm import tqdm
-
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.toolkit.elbow_search import optimize_variants
 
     kinematic = elbow_engine(engine)
     moved = []
-    for grasp in tqdm(grasps, desc="best elbow per candidate", unit="candidate",
-                      file=sys.stderr, disable=None):
+    for grasp in progress_bar(grasps, desc="best elbow per candidate", unit="candidate"):
         with reported(ValueError):  # an arm without self-motion or branches
             best, branches = optimize_variants(grasp, noise, samples, seed + 1,
                                                friction=friction, evaluate_with=kinematic,
@@ -260,13 +258,9 @@ def _adaptive_defaults(args) -> None:
 
 
 def _certify_settings(args) -> dict:
-    """``--delta`` in (0, 1) and ``--epsilon`` in [0, 1) of ``rank --adaptive``."""
-    delta = finite_float(args.delta, "--delta")
-    if not 0 < delta < 1:
-        raise CLIError(f"--delta must be in (0, 1), got {delta:g}")
-    epsilon = finite_float(args.epsilon, "--epsilon")
-    if not 0 <= epsilon < 1:
-        raise CLIError(f"--epsilon must be in [0, 1), got {epsilon:g}")
+    """``--delta`` in (0, 1) and ``--epsilon`` in [0, 1) of ``rank --adaptive``
+    (:func:`~kinegrasp_env.cli.common.certificate_levels`)."""
+    epsilon, delta = certificate_levels(args)
     return {"delta": delta, "epsilon": epsilon}
 
 
@@ -277,16 +271,15 @@ def _rank(args, grasps, evaluator, layout, chunk, top_k, partial: Path,
     appended to it, with its draws per outcome and hold scores from ``side``) or adaptive
     ranking (``certify``: its delta and epsilon): (the results in the order to show, the
     adaptive run's report or None)."""
-    from tqdm import tqdm
-
     from kinegrasp_env.cli import resume
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.toolkit.ranking import CandidateResult, order, rank_fixed
 
     if args.adaptive:
         report = _rank_adaptive(grasps, evaluator, layout, chunk, top_k, args.criterion,
                                 side=side, **certify)
         return report.results, report
-    bar = tqdm(total=len(grasps), desc="ranking", unit="grasp", file=sys.stderr, disable=None)
+    bar = progress_bar(total=len(grasps), desc="ranking", unit="grasp")
     with partial.open("a") as log:
 
         def record(index: int) -> None:

@@ -13,7 +13,6 @@ index; a grasp of another robot is refused).
 from __future__ import annotations
 
 import json
-import sys
 
 from kinegrasp_env.cli.common import (
     CLIError,
@@ -113,11 +112,10 @@ def _analyze(grasp, noise, samples: int, seed: int, engine: str, bootstrap: int,
     """The analysis by ``engine``, the one ``evaluate`` closes the robot's draws with
     (:func:`~kinegrasp_env.montecarlo.engines.make_engine`), with a progress bar
     on stderr (one step per setting)."""
-    from tqdm import tqdm
-
+    from kinegrasp_env.progress_bar import progress_bar
     from kinegrasp_env.toolkit.sensitivity import analyze
 
-    bar = tqdm(total=None, desc="sensitivity", unit="setting", file=sys.stderr, disable=None)
+    bar = progress_bar(desc="sensitivity", unit="setting")
 
     def progress(done: int, total: int) -> None:
         bar.total = total

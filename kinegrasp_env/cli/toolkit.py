@@ -18,6 +18,7 @@ from kinegrasp_env.cli.common import (
     add_static_hold_arg,
     friction_from,
     parse_seed,
+    plural,
     positive_float,
     positive_int,
     reported,
@@ -87,8 +88,8 @@ def cmd_plan(args) -> int:
     save_grasps(out, args.out, planner_seed=seed)
     kind = "IK-branch" if branches else "null-space"
     extra = f" ({len(out) - len(grasps)} {kind} variants)" if variants else ""
-    print(f"{len(grasps)} grasps{extra} of {args.object} for robot {robot} written to "
-          f"{args.out}")
+    print(f"{plural(len(grasps), 'grasp')}{extra} of {args.object} for robot {robot} "
+          f"written to {args.out}")
     return 0
 
 

@@ -25,5 +25,5 @@ def check_hold_noise(noise, robot: str, score: str) -> None:
         return
     other = [name for name in ("palm", "object", "friction") if getattr(noise, name) is not None]
     if other:
-        raise ValueError(f"{score} of {robot}'s draws take joint and hand noise only; the "
+        raise ValueError(f"{score} of {robot}'s draws takes joint and hand noise only; the "
                          f"noise spec has {', '.join(other)}")

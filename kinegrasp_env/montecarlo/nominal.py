@@ -11,7 +11,7 @@ from kinegrasp_env.world.grasps import DEFAULT_ROBOT, Grasp
 
 #: What a nominal closing that does not reach force closure means, by outcome name.
 OUTCOME_DETAILS = {"start_collision": "the open hand intersects the object (or the hand or "
-                                      "the arm its support table)",
+                                      "the arm meets its support table)",
                    "missed": "fewer than 2 contacts, or a finger closes on nothing",
                    "no_force_closure": "the closed hand's contacts are not in force closure"}
 

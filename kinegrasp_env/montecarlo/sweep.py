@@ -351,10 +351,10 @@ def run_sweep(spec: SweepSpec, directory: str | Path, executor, *, progress: boo
         finished = store.finished()
         # a stored chunk of another size is a cell's last chunk before samples grew: again
         todo = [t for t in tasks if finished.get(t.key) != t.size]
-        from tqdm import tqdm
+        from kinegrasp_env.progress_bar import progress_bar
 
-        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc="sweep", unit="task",
-                   disable=None if progress else True)
+        bar = progress_bar(total=len(tasks), initial=len(tasks) - len(todo), desc="sweep",
+                           unit="task", enabled=bool(progress))
         try:
             for index, result in executor.as_completed(run_task, todo):
                 store.add(todo[index], result)

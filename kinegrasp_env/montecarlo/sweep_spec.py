@@ -44,7 +44,7 @@ from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.sampling.noise import check_sigma_bound
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from_spec
-from kinegrasp_env.spec_yaml import spec_loader
+from kinegrasp_env.spec_yaml import read_spec
 from kinegrasp_env.world.grasps import Grasp
 from kinegrasp_env.world.objects import object_names, object_version
 
@@ -150,20 +150,10 @@ class SweepSpec:
         number); a syntax error is one :class:`SpecError` line: file, line, column, what.
         ``robot``: replaces the spec's (``--robot``)."""
         path = Path(path)
-        if not path.is_file():
-            raise SpecError(f"spec file {path} is a folder" if path.is_dir()
-                            else f"spec file {path} not found")
-        import yaml
-
         try:
-            data = yaml.load(path.read_text(), Loader=spec_loader())  # a SafeLoader
-        except yaml.MarkedYAMLError as exc:
-            mark = exc.problem_mark or exc.context_mark
-            where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-            what = exc.problem or exc.context or "syntax error"
-            raise SpecError(f"{where}: not valid YAML: {what}") from None
-        except yaml.YAMLError as exc:
-            raise SpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+            data = read_spec(path)
+        except ValueError as exc:
+            raise SpecError(str(exc)) from None
         return cls.from_dict(data, where=str(path), base=path.parent, robot=robot)
 
     def grasp_set(self, object_name: str) -> tuple[Grasp, ...]:

@@ -72,7 +72,7 @@ from kinegrasp_env.robot.urdf_meshes import (
     collision_links,
     urdf_meshes,
 )
-from kinegrasp_env.spec_yaml import spec_loader
+from kinegrasp_env.spec_yaml import read_spec
 
 #: Robot names: a letter or digit, then letters, digits, ``_``, ``-``, ``.`` (64 at most).
 NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
@@ -186,17 +186,12 @@ def load_description(path: str | Path) -> RobotDescription:
     Raises:
         RobotDescriptionError: one line naming the file, the key and the bad value.
     """
-    import yaml
-
     path = Path(path)
     where = path.name
     try:
-        data = yaml.load(path.read_text(), Loader=spec_loader())  # a SafeLoader
-    except (OSError, UnicodeDecodeError) as exc:
-        raise RobotDescriptionError(f"{path}: cannot be read ({exc})") from None
-    except yaml.YAMLError as exc:
-        raise RobotDescriptionError(" ".join(f"{where}: not valid YAML ({exc})".split())) \
-            from None
+        data = read_spec(path)
+    except ValueError as exc:
+        raise RobotDescriptionError(str(exc)) from None
     if not isinstance(data, dict):
         raise RobotDescriptionError(f"{where}: expected a mapping of keys, got {data!r}")
     return parse_description(data, path)

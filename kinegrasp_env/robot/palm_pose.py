@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
+from kinegrasp_env.wording import plural
 
 if TYPE_CHECKING:
     from kinegrasp_env.robot.description import RobotDescription
@@ -177,7 +178,8 @@ def parse_hand(entry: dict, where: str, description: RobotDescription) -> np.nda
     else:
         if np.size(value) != len(names) and np.ndim(value) == 1:
             raise ValueError(f"{where}: hand has {np.size(value)} values; robot "
-                             f"{description.name!r} has {len(names)} hand joints: give "
+                             f"{description.name!r} has {plural(len(names), 'hand joint')}: "
+                             f"give "
                              f"{hand_hint(description)}")
         hand = _numbers(entry, "hand", (len(names),), where)
     if "spread" in entry:

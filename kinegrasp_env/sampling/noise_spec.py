@@ -21,7 +21,6 @@ before any draw is made.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +34,7 @@ from kinegrasp_env.sampling.noise_model import (
     NoiseSpecError,
     PoseSource,
 )
-from kinegrasp_env.spec_yaml import spec_loader
+from kinegrasp_env.spec_yaml import read_spec
 
 SECTION_KEYS = {
     "joints": ("sigma", "distribution", "covariance", "bias"),
@@ -178,29 +177,13 @@ def _plain(value):
 
 # ----------------------------------------------------------------------------- files
 def read_spec_file(path: str | Path) -> Any:
-    """The parsed content of a YAML or JSON spec file; a missing file or a syntax error is
-    one :class:`NoiseSpecError` line (file, line, column, what)."""
-    path = Path(path)
-    if not path.is_file():
-        raise NoiseSpecError(f"noise spec file {path} not found")
-    text = path.read_text()
-    if path.suffix.lower() == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise NoiseSpecError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: "
-                                 f"{exc.msg}") from None
-    import yaml
-
+    """The parsed content of a YAML or JSON spec file; a file that cannot be read or does
+    not parse is one :class:`NoiseSpecError` line (:func:`~kinegrasp_env.spec_yaml.
+    read_spec`: file, line, column, what)."""
     try:
-        return yaml.load(text, Loader=spec_loader())  # a SafeLoader
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        raise NoiseSpecError(f"{where}: not valid YAML: "
-                             f"{exc.problem or exc.context or 'syntax error'}") from None
-    except yaml.YAMLError as exc:
-        raise NoiseSpecError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+        return read_spec(path)
+    except ValueError as exc:
+        raise NoiseSpecError(str(exc)) from None
 
 
 def load_noise_model(path: str | Path) -> NoiseModel:

@@ -58,6 +58,7 @@ import numpy as np
 from kinegrasp_env.sampling.stats import StreamingMoments
 from kinegrasp_env.toolkit.certificates import (
     PairedDraws,
+    check_levels,
     close_certificates,
     close_within,
     linear_extension,
@@ -348,10 +349,7 @@ def rank_adaptive(n_candidates: int, evaluator: Evaluator | PairedEvaluator, max
     """
     if not 1 <= top_k < n_candidates:
         raise ValueError(f"top_k must be between 1 and {n_candidates - 1}, got {top_k}")
-    if not 0 < delta < 1:
-        raise ValueError(f"delta must be in (0, 1), got {delta}")
-    if not 0 <= epsilon < 1:
-        raise ValueError(f"epsilon must be in [0, 1), got {epsilon}")
+    check_levels(epsilon, delta)
     if criterion not in CRITERIA:
         raise ValueError(f"unknown criterion {criterion!r}; choose from {CRITERIA}")
     if criterion in MEAN_CRITERIA:

@@ -64,6 +64,10 @@ FRAMES = ("object", "source")
 #: The top-level fields of a palm-pose file; any other is refused (a misspelt ``frame`` would
 #: otherwise read every pose in the object frame without a word).
 CANDIDATE_FILE_KEYS = ("object", "robot", "frame", "candidates")
+#: Top-level fields a planned grasp file carries (``kinegrasp plan``'s seed), kept by a file
+#: whose ``grasps`` list was renamed ``candidates`` to solve its palm poses again: read, not
+#: used.
+PLANNED_FILE_KEYS = ("planner_seed",)
 
 
 @dataclass(frozen=True)
@@ -191,7 +195,7 @@ def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile
                 and isinstance(data.get(k), list)), None)
     if key is None:
         raise ValueError(f"{path}: expected an object with a 'candidates' (or 'grasps') list")
-    unknown = [str(k) for k in data if k not in CANDIDATE_FILE_KEYS]
+    unknown = [str(k) for k in data if k not in CANDIDATE_FILE_KEYS + PLANNED_FILE_KEYS]
     if key == "candidates" and unknown:
         raise ValueError(f"{path}: unknown field {unknown[0]!r}; a palm-pose file has "
                          f"{', '.join(CANDIDATE_FILE_KEYS)}")

@@ -18,6 +18,8 @@ Each is false with probability at most a (proof in :mod:`kinegrasp_env.toolkit.r
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import special
 from scipy import stats as sps
@@ -208,3 +210,18 @@ def linear_extension(closed: np.ndarray, keys: list) -> list[int]:
         out.append(best)
         left.remove(best)
     return out
+
+
+def check_levels(epsilon: float, delta: float, names: tuple[str, str] = ("epsilon", "delta")
+                 ) -> None:
+    """ValueError (one line, naming the value as ``names`` name them: a command's
+    ``--epsilon``) unless the certificate's margin is 0 <= epsilon < 1 (of P(FC), or of the
+    score ranked) and its error level 0 < delta < 1: the rule of every certificate (adaptive
+    ranking, elbow and branch searches)."""
+    def shown(value) -> str:
+        return f"{value:g}" if isinstance(value, int | float) else repr(value)
+
+    if not (isinstance(epsilon, int | float) and math.isfinite(epsilon) and 0 <= epsilon < 1):
+        raise ValueError(f"{names[0]} must be a margin in [0, 1), got {shown(epsilon)}")
+    if not (isinstance(delta, int | float) and math.isfinite(delta) and 0 < delta < 1):
+        raise ValueError(f"{names[1]} must be an error level in (0, 1), got {shown(delta)}")

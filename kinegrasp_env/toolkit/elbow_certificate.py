@@ -36,6 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.toolkit.certificates import check_levels
+
 #: Default indifference margin in P(FC): "certified" when no evaluated angle can beat the
 #: chosen one by more than this.
 DEFAULT_EPSILON = 0.05
@@ -50,14 +52,6 @@ def rounded_up(x: float, digits: int = 3) -> float:
     computed one)."""
     scale = 10.0 ** digits
     return math.ceil(round(x * scale, 6)) / scale
-
-
-def check_levels(epsilon: float, delta: float) -> None:
-    """ValueError (one line, naming the value) unless 0 <= epsilon < 1 and 0 < delta < 1."""
-    if not (isinstance(epsilon, int | float) and math.isfinite(epsilon) and 0 <= epsilon < 1):
-        raise ValueError(f"epsilon must be a P(FC) margin in [0, 1), got {epsilon!r}")
-    if not (isinstance(delta, int | float) and math.isfinite(delta) and 0 < delta < 1):
-        raise ValueError(f"delta must be an error level in (0, 1), got {delta!r}")
 
 
 def clopper_pearson_upper(k: np.ndarray, n: int, alpha: float) -> np.ndarray:

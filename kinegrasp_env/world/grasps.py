@@ -23,6 +23,7 @@ import numpy as np
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name, load_robot
+from kinegrasp_env.spec_yaml import read_user_text
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.robot_configuration import (
@@ -275,12 +276,12 @@ def read_json_file(path: str | Path) -> object:
     """The parsed JSON of a user's file; a missing file or bad JSON is a ValueError naming
     the file (grasp files, candidate files)."""
     path = Path(path)
+    text = read_user_text(path)
     try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: "
+                         f"{exc.msg}") from None
 
 
 def load_grasps(path: str | Path) -> list[Grasp]:
@@ -361,8 +362,8 @@ def no_grasp_set(object_name: str, robot: str = DEFAULT_ROBOT) -> NoGraspSetErro
     return NoGraspSetError(
         f"{object_name!r} is an imported object and has no shipped grasp set; make one with "
         f"`kinegrasp plan --robot {robot} --object {object_name} --out "
-        f"{object_name}_grasps.json` and give that file (e.g. `kinegrasp evaluate --grasps "
-        "FILE`, `kinegrasp rank FILE`)", imported=True)
+        f"{object_name}_grasps.json` and give that file with --grasps FILE (to `kinegrasp "
+        "rank`, as its input: `kinegrasp rank FILE`)", imported=True)
 
 
 def shipped_objects(robot: str = DEFAULT_ROBOT) -> tuple[str, ...]:

@@ -199,10 +199,10 @@ def prepare(source: SourceMesh, scale: float, path: Path, up: str = "z") -> Prep
         vertices = source.vertices * scale @ rotation.T
         used = vertices[np.unique(source.faces)] if len(source.faces) else vertices
         if len(used):
-            check_not_tiny(np.ptp(used, axis=0))
+            check_not_tiny(np.ptp(used, axis=0), scale)
         mesh = clean_mesh(vertices, source.faces)
         width = check_solid(mesh)
-        check_size(mesh, width)
+        check_size(mesh, width, scale)
     except MeshError as exc:
         raise MeshError(f"{path}: {exc}") from None
     boundary, nonmanifold = open_edges(mesh)

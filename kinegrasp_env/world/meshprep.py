@@ -96,42 +96,50 @@ def check_solid(mesh: trimesh.Trimesh) -> float:
     return width
 
 
-def check_size(mesh: trimesh.Trimesh, width: float) -> None:
+def check_size(mesh: trimesh.Trimesh, width: float, scale: float = 1.0) -> None:
     """:class:`MeshError` when the hand could not hold the mesh (in metres): narrower than
     :data:`HAND_SPAN` in no direction (``width`` is its smallest width), or smaller than
     :data:`SMALLEST` in every direction (:func:`check_not_tiny`). The message gives the size
-    and a fix."""
+    and a fix (:func:`suggest`; ``scale``: the factor from the file's units to metres that
+    made the mesh this size)."""
     extents = np.asarray(mesh.extents, dtype=float)
     if width > HAND_SPAN:
         raise MeshError(f"too large for the hand: {_sizes(extents)} m (at least {width:.3g} m "
                         f"across in every direction; the hand spans at most {HAND_SPAN:.3f} "
-                        f"m); {suggest(float(extents.max()))}")
-    check_not_tiny(extents)
+                        f"m); {suggest(float(extents.max()), scale)}")
+    check_not_tiny(extents, scale)
 
 
-def check_not_tiny(extents: np.ndarray) -> None:
-    """:class:`MeshError` when a mesh of these (3,) extents (metres) is smaller than
-    :data:`SMALLEST` in every direction. Checked before :func:`clean_mesh` too, whose vertex
-    merging collapses a mesh scaled far too small to no face at all."""
+def check_not_tiny(extents: np.ndarray, scale: float = 1.0) -> None:
+    """:class:`MeshError` when a mesh of these (3,) extents (metres; ``scale``: as
+    :func:`check_size`'s) is smaller than :data:`SMALLEST` in every direction. Checked before
+    :func:`clean_mesh` too, whose vertex merging collapses a mesh scaled far too small to no
+    face at all."""
     extents = np.asarray(extents, dtype=float)
     if extents.max() < SMALLEST:
         raise MeshError(f"too small for the hand: {_sizes(extents)} m (a fingertip is "
-                        f"{2 * PHALANX_RADIUS:.3f} m thick); {suggest(float(extents.max()))}")
+                        f"{2 * PHALANX_RADIUS:.3f} m thick); "
+                        f"{suggest(float(extents.max()), scale)}")
 
 
 def _sizes(extents: np.ndarray) -> str:
     return ", ".join(f"{v:.4g}" for v in extents)
 
 
-def suggest(largest: float) -> str:
-    """A ``--units``/``--scale`` hint that brings a mesh ``largest`` metres across to a
-    graspable size."""
-    for units, factor in (("mm", 1e-3), ("cm", 1e-2)):
-        if 0.02 <= largest * factor <= 0.5:
-            return f"if the file is in {units}, import it with --units {units}; " \
-                   f"else give --scale (e.g. --scale {TYPICAL_SIZE / largest:.3g})"
-    return f"give --scale (e.g. --scale {TYPICAL_SIZE / largest:.3g} makes it " \
-           f"{TYPICAL_SIZE:g} m across)"
+def suggest(largest: float, scale: float = 1.0) -> str:
+    """A ``--units``/``--scale`` hint that brings a mesh ``largest`` metres across, read from
+    its file with ``scale`` (file units to metres; 1: none given), to a graspable size: the
+    units the file's own numbers suggest (where none were given), else the ``--scale`` that
+    makes it :data:`TYPICAL_SIZE` across."""
+    wanted = scale * TYPICAL_SIZE / largest
+    if scale == 1.0:
+        for units, factor in (("mm", 1e-3), ("cm", 1e-2)):
+            if 0.02 <= largest * factor <= 0.5:
+                return f"if the file is in {units}, import it with --units {units}; " \
+                       f"else give --scale (e.g. --scale {wanted:.3g})"
+    instead = "" if scale == 1.0 else ", instead of the units or scale given"
+    return f"give --scale (e.g. --scale {wanted:.3g} makes it {TYPICAL_SIZE:g} m " \
+           f"across{instead})"
 
 
 def object_frame(mesh: trimesh.Trimesh) -> np.ndarray:
