@@ -19,7 +19,7 @@ from typing import TextIO
 LINE_INTERVAL = 10.0
 
 
-def _clock_text(seconds: float) -> str:
+def clock_text(seconds: float) -> str:
     """``mm:ss`` (``h:mm:ss`` from an hour on)."""
     seconds = round(max(0.0, seconds))
     hours, rest = divmod(seconds, 3600)
@@ -75,7 +75,7 @@ class LineBar:
         if now - self.last >= self.interval:
             self.last = now
             self.lines += 1
-            print(f"{self.desc}: {self._counted()}, {_clock_text(now - self.start)}",
+            print(f"{self.desc}: {self._counted()}, {clock_text(now - self.start)}",
                   file=self.stream, flush=True)
 
     def close(self) -> None:
@@ -87,7 +87,7 @@ class LineBar:
         if not self.lines:
             return
         print(f"{self.desc}: {self._counted()}, done in "
-              f"{_clock_text(self.clock() - self.start)}", file=self.stream, flush=True)
+              f"{clock_text(self.clock() - self.start)}", file=self.stream, flush=True)
 
 
 def progress_bar(iterable: Iterable | None = None, *, total: int | None = None,

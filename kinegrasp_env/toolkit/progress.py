@@ -24,6 +24,8 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from typing import TextIO
 
+from kinegrasp_env.progress_bar import clock_text
+
 #: Shortest span of reports (seconds) a rate is measured over.
 MIN_WINDOW = 1.0
 
@@ -32,10 +34,7 @@ def format_eta(seconds: float | None) -> str:
     """``mm:ss`` (``h:mm:ss`` from an hour on), ``?`` when unknown."""
     if seconds is None or not math.isfinite(seconds):
         return "?"
-    seconds = round(max(0.0, seconds))
-    hours, rest = divmod(seconds, 3600)
-    minutes, secs = divmod(rest, 60)
-    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes:02d}:{secs:02d}"
+    return clock_text(seconds)
 
 
 class Progress:
