@@ -1,6 +1,8 @@
-"""The YAML reader of the files a user writes (robot descriptions, noise specs, sweep specs):
-YAML 1.2's numbers (``1e-2`` is a number, as YAML 1.1 would not read it) and a key given twice
-in one mapping refused (plain YAML keeps the last without a word)."""
+"""The reader of the files a user writes (robot descriptions, noise specs, sweep specs, grasp
+and palm-pose files): their text (:func:`read_user_text`: a missing file, a folder or a binary
+file is one line), JSON (:func:`parse_json`) and YAML (:func:`read_spec`) with YAML 1.2's
+numbers (``1e-2`` is a number, as YAML 1.1 would not read it) and a key given twice in one
+mapping refused (plain YAML keeps the last without a word)."""
 
 from __future__ import annotations
 
@@ -58,7 +60,6 @@ def read_spec(path) -> object:
     """The parsed content of a user's YAML file, or JSON by its ``.json`` suffix, read with
     :func:`spec_loader`; ValueError (one line: file, line, column, what) for a file that
     cannot be read (:func:`read_user_text`) or does not parse."""
-    import json
     from pathlib import Path
 
     import yaml
@@ -66,11 +67,7 @@ def read_spec(path) -> object:
     path = Path(path)
     text = read_user_text(path)
     if path.suffix.lower() == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: "
-                             f"{exc.msg}") from None
+        return parse_json(text, path)
     try:
         return yaml.load(text, Loader=spec_loader())  # a SafeLoader
     except yaml.MarkedYAMLError as exc:
@@ -80,3 +77,15 @@ def read_spec(path) -> object:
                          f"{exc.problem or exc.context or 'syntax error'}") from None
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not valid YAML: {' '.join(str(exc).split())}") from None
+
+
+def parse_json(text: str, path) -> object:
+    """The JSON of a user's file ``path`` (its ``text``); ValueError (one line: file, line,
+    column, what) where it does not parse."""
+    import json
+
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}") \
+            from None

@@ -23,7 +23,7 @@ import numpy as np
 from kinegrasp_env.assets import assets_dir
 from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT, check_robot_name, load_robot
-from kinegrasp_env.spec_yaml import read_user_text
+from kinegrasp_env.spec_yaml import parse_json, read_user_text
 from kinegrasp_env.world.names import OBJECT_NAMES, is_object, shipped_grasp_file, unknown_object
 from kinegrasp_env.world.objects import load_object
 from kinegrasp_env.world.robot_configuration import (
@@ -276,12 +276,7 @@ def read_json_file(path: str | Path) -> object:
     """The parsed JSON of a user's file; a missing file or bad JSON is a ValueError naming
     the file (grasp files, candidate files)."""
     path = Path(path)
-    text = read_user_text(path)
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: "
-                         f"{exc.msg}") from None
+    return parse_json(read_user_text(path), path)
 
 
 def load_grasps(path: str | Path) -> list[Grasp]:
