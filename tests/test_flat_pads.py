@@ -490,3 +490,34 @@ def test_a_pad_overhanging_an_edge_presses_the_face_it_lies_on():
     centre = patch_centre(pad, face, np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, HALF]))
     assert centre is not None
     np.testing.assert_allclose(centre, [0.005, 0.0, HALF], atol=1e-9)
+
+
+def test_jaws_on_a_cylinders_edges_score_as_on_its_faces(jaw_robot, capsys):
+    """A cylinder's mesh of 48 facets (radius 2.5 cm, 10 cm tall), turned so that two edges
+    face the jaws, and turned by half a facet more, so that two faces do: a grasp from above
+    closes the jaws on the edges of one, on the faces of the other. Both engines, both meshes,
+    at sigma 0: in force closure, and the same Q to 2% (the faces lie 0.2% nearer the axis
+    than the edges; the Q of jaws on the edges was 0, their contacts at the two ends of the
+    pad's overlap with the edges, 5 cm apart in height, where the faces' were at its centre)."""
+    import trimesh
+
+    for name, turn in (("can_edges", 0.0), ("can_faces", np.pi / 48)):
+        mesh = trimesh.creation.cylinder(radius=0.025, height=0.1, sections=48)
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(turn, [0, 0, 1]))
+        mesh.export(jaw_robot / f"{name}.stl")
+        run(capsys, "objects", "add", str(jaw_robot / f"{name}.stl"), "--name", name)
+    q = {}
+    for name in ("can_edges", "can_faces"):
+        (jaw_robot / f"{name}.json").write_text(json.dumps({
+            "object": name, "robot": "iiwa_jaws",
+            "candidates": [{"id": "top", "position": [0, 0, 0.16],
+                            "quaternion": [0, 1, 0, 0]}]}))
+        for engine in ("pybullet", "fast"):
+            payload = json.loads(run(capsys, "evaluate", "--grasps", f"{name}.json", "--grasp",
+                                     "top", "--sigma", "0", "--samples", "1", "--engine",
+                                     engine, "--json"))
+            assert payload["p_fc"] == 1.0, (name, engine)
+            q[name, engine] = payload["q_nominal"]
+    for name in ("can_edges", "can_faces"):
+        assert q[name, "fast"] == pytest.approx(q[name, "pybullet"], rel=1e-6), q
+    assert q["can_edges", "fast"] == pytest.approx(q["can_faces", "fast"], rel=0.02), q

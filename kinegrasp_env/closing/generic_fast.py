@@ -40,8 +40,10 @@ only where that bound is within reach of a contact or says the two overlap.
    the face a face of the pad lies on, crossing its plane by less than the depth a pad is
    pressed in (:func:`~kinegrasp_env.closing.contact_patch.flat_face`). Else, at an edge or
    a corner: the pair's direction (the link face's normal where the link point is inside
-   one face; perpendicular to both edges for two edges; else the points' difference), which
-   is what pybullet's normal is there.
+   one face; perpendicular to both edges for two edges; else the points' difference:
+   :mod:`~kinegrasp_env.closing.pair_normals`, the reference's rule there too); a pad along
+   an edge of the object, the point moved to the middle of the segment it presses
+   (:mod:`~kinegrasp_env.closing.edge_contact`).
 
 Fingers of two capsule phalanxes are closed by one compiled loop instead
 (:mod:`~kinegrasp_env.closing.capsule_fingers`: the distance grid far from the object, the
@@ -63,6 +65,7 @@ from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
 from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of, flat_face
+from kinegrasp_env.closing.edge_contact import place_on_edges
 from kinegrasp_env.closing.finger_closing import close_finger
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths
 from kinegrasp_env.closing.generic_reference import EDGE_TOL
@@ -284,7 +287,8 @@ class FastRobotHand:
         (:func:`~kinegrasp_env.closing.contact_patch.faces_of`), or at an edge of the face
         it lies flat on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`): that
         face's inward normal, the point moved to its
-        patch centre; on an edge, the direction of the pair, as the reference's rule. A
+        patch centre; on an edge, the direction of the pair, as the reference's rule, the
+        point moved to the middle of the segment a pad along the edge presses. A
         rounded part's, the point model's (:func:`~kinegrasp_env.closing.hand_geometry.
         surface_contact`): the face's inward normal where the direction from its core agrees
         with it, else that direction, on the object's convex part ``part`` (m,) of the pair
@@ -314,6 +318,10 @@ class FastRobotHand:
             for i in np.flatnonzero(np.linalg.norm(found, axis=1) < 1e-12):
                 found[i] = self.obj.surface(point[edge[i]][None])[1][0]
             normals[edge] = found
+            if self.patch:  # a pad along the edge: the middle of the pressed segment
+                points[edge], _ = place_on_edges(
+                    self.geometry[link].vertices, poses[edge], self.distances.edges,
+                    found / np.linalg.norm(found, axis=1, keepdims=True), point[edge])
         pad = (face >= 0) & ~rounded
         if self.patch and pad.any():
             placed, _ = self._patch.place(self.geometry[link].vertices, poses[pad],

@@ -41,9 +41,12 @@ forward kinematics of the URDF puts it. Then:
    4.6 degrees off there), and so at an edge or a corner of the face a face of the link lies
    on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`, on the link's collision
    geometry as the fast closing reads it, placed by the robot model's kinematics); at any
-   other edge or corner, pybullet's ``-contactNormalOnB``. On a face, the point is moved to
-   the centre of the finger's contact patch (:mod:`~kinegrasp_env.closing.contact_patch`: a
-   flat pad's closest point is an arbitrary corner of the overlap);
+   other edge or corner, the direction of the pair by the fast closing's rule
+   (:mod:`~kinegrasp_env.closing.pair_normals`, on that geometry and pybullet's pair; a link
+   without it: pybullet's ``-contactNormalOnB``). On a face, the point is moved to the
+   centre of the finger's contact patch (:mod:`~kinegrasp_env.closing.contact_patch`: a flat
+   pad's closest point is an arbitrary corner of the overlap), and along an edge to the
+   middle of the segment the pad presses (:mod:`~kinegrasp_env.closing.edge_contact`);
    ``RobotWorld(patch=False)`` keeps pybullet's point.
 
 The outcome (the engines' codes) follows: start collision, missed (a finger missed, or fewer
@@ -70,9 +73,12 @@ from kinegrasp_env.closing.contact_patch import (
     flat_face,
     link_hull_vertices,
 )
+from kinegrasp_env.closing.convex_distance import stacked_faces
+from kinegrasp_env.closing.edge_contact import place_on_edges
 from kinegrasp_env.closing.finger_paths import finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
+from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import rigid_inverse
@@ -124,6 +130,7 @@ class RobotWorld(RobotScene):
         #: (:meth:`~kinegrasp_env.closing.finger_paths.FingerPath.speed_bounds`)
         #: each link's collision geometry, as the fast closing reads it (a pad's flat test)
         self.geometry = robot_link_geometry(description)
+        self._object_edges = stacked_faces(obj.convex_parts)[2]
         self._paths = finger_paths(description, self.geometry, self._tree)
 
     # ------------------------------------------------------------------ closing
@@ -312,7 +319,9 @@ class RobotWorld(RobotScene):
             if face is None and link in self.geometry:  # at an edge: the face a pad lies on
                 pose = self._placed_inverse @ self.model_pose(link)
                 face = face_of(self.obj, point, self.geometry[link].placed_vertices(pose))
-            if face is None:
+            if face is None and link in self.geometry and self.geometry[link].faces:
+                point, normal = self._edge_contact(link, row, point)
+            elif face is None:
                 normal = -np.array(row[7]) @ rot
             else:
                 normal = -face[1][:3]
@@ -322,6 +331,34 @@ class RobotWorld(RobotScene):
                                     self.distance(row)))
         return out
 
+
+    def _edge_contact(self, link: str, row: tuple, point: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """(point (3,), normal (3,)) of flat ``link``'s contact at an edge or a corner of
+        the object, ``point`` (3,) the exact surface point of pybullet's closest pair ``row``
+        (object frame): the pair's direction by the fast closing's rule
+        (:mod:`~kinegrasp_env.closing.pair_normals`; pybullet's own normal there is that of
+        two points a round-off apart where a pad lies along an edge), the point moved to the
+        middle of the segment a pad along the edge presses
+        (:mod:`~kinegrasp_env.closing.edge_contact`)."""
+        pose = self._placed_inverse @ self.model_pose(link)
+        planes, _, edges, starts = self.geometry[link].faces
+        found = np.empty((1, 3))
+        pair_normals(planes, edges, starts, self._object_edges,
+                     np.ascontiguousarray(pose[None, :3, :3]),
+                     np.ascontiguousarray(pose[None, :3, 3]),
+                     frame_coordinates(self.placed, np.array(row[5]))[None], point[None],
+                     np.array([self.distance(row)]), EDGE_TOL, LINE_TOL, np.empty((2, 3)),
+                     found)
+        normal = found[0]
+        if np.linalg.norm(normal) < 1e-12:
+            normal = self.obj.surface(point[None])[1][0]
+        normal = normal / np.linalg.norm(normal)
+        if self.patch:
+            placed, _ = place_on_edges(self.geometry[link].vertices, pose[None],
+                                       self._object_edges, normal[None], point[None])
+            point = placed[0]
+        return point, normal
 
     def _rounded_contact(self, f: int, k: int, link: str, contact_tol: float
                          ) -> RobotContact | None:
