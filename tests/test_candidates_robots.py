@@ -186,6 +186,19 @@ def test_a_closing_out_of_force_closure_is_ranked_and_flagged(home, tmp_path):
                                                                  "too_low": "arm_collision"}
 
 
+@pytest.mark.parametrize("option", [("--processes", "0"), ("--best-elbow", "-3"),
+                                    ("--adaptive", "--top-k", "0")])
+def test_rank_refuses_its_options_before_solving_the_candidates(home, tmp_path, option):
+    """A bad option of ``rank`` is refused in one line before any candidate is solved (the
+    docs example's candidates print a note of the edge one when solved)."""
+    proc = run_cli("rank", str(DOCS / "palm_pose_panda.json"), "--samples", "20",
+                   "--out", str(tmp_path / "r.csv"), *option)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"kinegrasp rank: error: {option[-2]} must be >= 1, got {option[-1]}"]
+    assert not list(tmp_path.iterdir())
+
+
 def test_elbow_and_sensitivity_take_a_palm_pose_file(home, tmp_path):
     """``elbow`` and ``sensitivity`` solve a palm-pose file's candidate as ``evaluate`` does
     (the candidate named by its id, at its own elbow); ``validate``, which takes grasp files

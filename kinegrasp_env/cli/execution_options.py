@@ -46,12 +46,23 @@ def processes_from(text: str | int, name: str = "--processes") -> int:
     return wanted
 
 
-def executor_from(args):
-    """The :class:`~kinegrasp_env.montecarlo.execution.Executor` that the command line asks for."""
-    from kinegrasp_env.montecarlo.execution import BACKENDS, make_executor
+def check_execution(args) -> None:
+    """CLIError for a ``--backend`` or ``--processes`` that :func:`executor_from` would
+    refuse: for a command that does other work (solving candidates) before it starts its
+    workers, so that the refusal comes first."""
+    from kinegrasp_env.montecarlo.execution import BACKENDS
 
     if args.backend not in BACKENDS:
         raise CLIError(f"--backend must be one of {', '.join(BACKENDS)}, got {args.backend!r}")
+    if args.processes is not None:
+        positive_int(args.processes, "--processes")
+
+
+def executor_from(args):
+    """The :class:`~kinegrasp_env.montecarlo.execution.Executor` that the command line asks for."""
+    from kinegrasp_env.montecarlo.execution import make_executor
+
+    check_execution(args)
     if args.processes is None:
         processes = None
     elif args.backend == "local" or args.address is None:  # processes on this machine

@@ -23,7 +23,7 @@ from kinegrasp_env.cli.common import (
     positive_int,
     reported,
 )
-from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.execution_options import check_execution, executor_from
 from kinegrasp_env.cli.output_paths import (
     CSV_SUFFIXES,
     input_files,
@@ -106,6 +106,11 @@ def cmd_rank(args) -> int:
                        "without it")
     top_k_given = args.top_k is not None
     _adaptive_defaults(args)
+    check_execution(args)  # the options, before the candidates are solved
+    if args.best_elbow:
+        positive_int(args.best_elbow, "--best-elbow")
+    if args.adaptive:
+        positive_int(args.top_k, "--top-k")
     noise, sigma, samples, seed = noise_from(args)
     static, test = _hold_scores(args)
     friction = friction_from(args, noise, simulated=args.engine == "physics" or test)
