@@ -460,3 +460,17 @@ def test_a_cell_added_on_the_way_grows_the_totals_on_a_bar_too():
     report.close()
     assert (report.done, report.cells_done) == (400, 4)
     assert "cell 4/4 100%" in stream.getvalue() and "down from" not in stream.getvalue()
+
+
+def test_a_gap_from_one_draw_is_printed_without_an_interval():
+    """A paired t-interval needs two draws (paired_interval of one gives infinite ends):
+    fig7's line says so instead of printing "95% CI -inf .. +inf"."""
+    from kinegrasp_env.sampling.stats import paired_interval
+    from kinegrasp_env.toolkit.selection import format_gap
+
+    gap, lo, hi = paired_interval(np.array([0.0]))
+    assert (lo, hi) == (-np.inf, np.inf)
+    assert format_gap({"gap": gap, "gap_lo": lo, "gap_hi": hi}) == \
+        "+0.000 (no interval from one draw)"
+    assert format_gap({"gap": 0.05, "gap_lo": 0.01, "gap_hi": 0.09}) == \
+        "+0.050 (95% CI +0.010 .. +0.090)"

@@ -127,8 +127,9 @@ def add_commands(sub) -> None:
                    "variant from one batch of closings over the palm's deviation, each row's "
                    "samples its effective sample size; the robust and fragile pair still on "
                    "fresh direct draws); the other experiments run direct")
-    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's; "
-                   "another robot: no paper values beside its results), on its shipped grasps "
+    p.add_argument("--robot", help=f"catalog robot (default {DEFAULT_ROBOT}, the paper's: "
+                   "scripts/paper_side_by_side.py sets its results beside the paper's values), "
+                   "on its shipped grasps "
                    "or --grasps FILE; fig7 and fig10 move a 7-joint arm along its "
                    "self-motion, or compare a 6-joint arm's IK branches")
     p.set_defaults(func=cmd_reproduce)

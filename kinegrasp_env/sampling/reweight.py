@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kinegrasp_env.sampling.stats import Z95
+from kinegrasp_env.sampling.stats import wilson_interval
 
 #: The defensive component's covariance: the components' mean, times this squared scale.
 DEFENSIVE_SCALE = 1.5
@@ -181,8 +181,16 @@ class WeightedEstimate:
 
     @property
     def interval(self) -> tuple[float, float]:
-        """The normal 95% interval value +- 1.96 se, clipped to [0, 1] (a probability's)."""
-        return (max(0.0, self.value - Z95 * self.se), min(1.0, self.value + Z95 * self.se))
+        """The 95% Wilson score interval of a probability at the estimate's effective number
+        of draws n: p (1 - p) / se^2 (the binomial n of the same standard error), or the ESS
+        where that is undefined (every weighted draw alike, se 0: a plain normal interval
+        would have zero width, though the draws only bound how rare the other outcome is);
+        (0, 1) without draws."""
+        p = min(max(self.value, 0.0), 1.0)
+        n = p * (1.0 - p) / self.se**2 if 0.0 < p < 1.0 and self.se > 0 else self.ess
+        if not (math.isfinite(n) and n > 0):
+            return 0.0, 1.0
+        return wilson_interval(p * n, n)
 
 
 def normalised_weights(log_target: np.ndarray, log_proposal: np.ndarray) -> np.ndarray:

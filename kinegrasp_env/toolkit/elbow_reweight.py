@@ -22,7 +22,9 @@ its mean m to second):
 4. **Certificate** (a second, fresh batch): for each evaluated rival, the re-weighted
    difference p_j - p_b on the fresh batch and its one-sided normal upper bound at level
    delta / 2 (the weights' delta-method standard error, halved level: a margin for the
-   ratio estimators' finite-sample bias, measured); the claim "no evaluated angle beats the
+   ratio estimators' finite-sample bias, measured), or, where an angle's rarer outcome
+   weighs few effective draws (a batch that closed alike nearly every time), the exact
+   bound of how rare it is (:func:`rare_outcome_bound`); the claim "no evaluated angle beats the
    chosen one by more than B" fails only if the bound of the best true rival fails (the
    intersection-union argument of :mod:`~kinegrasp_env.toolkit.elbow_certificate`). Unlike
    the direct certificate's exact binomial bounds this one is asymptotic, and it bounds the
@@ -69,6 +71,7 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     Certificate,
     Rival,
     check_levels,
+    clopper_pearson_upper,
 )
 from kinegrasp_env.toolkit.reweight_evidence import CurvePoint, ReweightEvidence
 from kinegrasp_env.world.grasps import Grasp
@@ -79,8 +82,8 @@ SLOPE_STEP = 1e-4
 BISECTION_STEPS = 10
 #: The certificate's method, in words.
 BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-weighted "
-                "advantage under the Gaussian model of the palm's deviation, on a fresh "
-                "batch")
+                "advantage (exact ones where an outcome is rare) under the Gaussian model of "
+                "the palm's deviation, on a fresh batch")
 
 
 class SelfMotionDeviation:
@@ -228,6 +231,31 @@ def continuous_optimum(curve: list[CurvePoint], batch: PalmBatch,
     return (mid, qm, found) if found >= value else (psi, q, value)
 
 
+#: The normal bound of a difference stands alone where each angle's rarer outcome weighs at
+#: least this many effective draws (a textbook condition for the normal approximation of a
+#: binomial count).
+MIN_RARE_DRAWS = 10.0
+
+
+def rare_outcome_bound(p_best: float, w_best: np.ndarray, p: float, w: np.ndarray,
+                       delta: float) -> float:
+    """A bound on p - p_best (a rival's P(FC) less the chosen angle's) that holds where the
+    normal one may not: where the chosen angle's failures weigh fewer than
+    :data:`MIN_RARE_DRAWS` effective draws (its ESS 1 / sum(w_best^2) times 1 - p_best), the
+    batch may have missed where it fails, and p - p_best <= 1 - p_best is bounded by the
+    exact (Clopper-Pearson, level ``delta``) upper bound of its failure rate at its ESS; so
+    with the rival's rare successes, p - p_best <= p. -inf where neither is rare. The larger of
+    this and the normal bound is false only when both are: a batch whose every closing
+    ended alike gave a normal bound of 0 (no weighted variance), whatever the truth."""
+    bound = -math.inf
+    ess_best, ess = 1.0 / float(np.sum(w_best**2)), 1.0 / float(np.sum(w**2))
+    if ess_best * (1.0 - p_best) < MIN_RARE_DRAWS:
+        bound = float(clopper_pearson_upper((1.0 - p_best) * ess_best, ess_best, delta))
+    if ess * p < MIN_RARE_DRAWS:
+        bound = max(bound, float(clopper_pearson_upper(p * ess, ess, delta)))
+    return bound
+
+
 def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float, np.ndarray]],
                       fresh: PalmBatch, motion: SelfMotionDeviation, epsilon: float,
                       delta: float) -> Certificate:
@@ -248,7 +276,8 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
         influence = w * (f - p) - weights[0] * (f - p_best)
         se = float(np.sqrt(np.sum(influence**2)))
         diff = p - p_best
-        out.append(Rival(float(psi), p, None, None, diff, diff + z * se))
+        upper = max(diff + z * se, rare_outcome_bound(p_best, weights[0], p, w, delta))
+        out.append(Rival(float(psi), p, None, None, diff, upper))
     if not out:
         return Certificate(float(chosen[0]), epsilon, delta, len(fresh), [], None, None, True,
                            method=BATCH_METHOD)

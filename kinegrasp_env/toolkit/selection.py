@@ -110,9 +110,12 @@ def provenance(samples: int, seed: int, chunk: int = STREAM_CHUNK,
 
 def format_gap(row: dict) -> str:
     """``+0.057 (95% CI +0.040 .. +0.074)`` of a robust/fragile row's paired gap
-    (``+0.000 (no discordant draw)`` where the two agree on every fresh draw)."""
+    (``+0.000 (no discordant draw)`` where the two agree on every fresh draw; no interval
+    from a single draw)."""
     if math.isnan(row["gap"]):
         return "n/a"
+    if not (math.isfinite(row["gap_lo"]) and math.isfinite(row["gap_hi"])):
+        return f"{row['gap']:+.3f} (no interval from one draw)"
     if row["gap_lo"] == row["gap_hi"]:  # every pair of fresh draws agrees: no spread to use
         return f"{row['gap']:+.3f} (no discordant draw)"
     return f"{row['gap']:+.3f} (95% CI {row['gap_lo']:+.3f} .. {row['gap_hi']:+.3f})"
