@@ -49,6 +49,11 @@ from kinegrasp_env.quality.wrenches import FC_TOL, MAX_EDGES
 # Tolerances, each with what ~6,000 random examples (8 seeds, outside CI) measured:
 #: auto/fast vs qhull, relative, where Q > 1e-6 of the wrench scale (measured <= 1.6e-12).
 RTOL = 1e-10
+#: ... on the property test's random grasps: measured <= 1.6e-12 in one process, and 1.0e-9
+#: once, in a worker of a parallel test run, on a shrunk near-degenerate example (two contacts
+#: 1.4e-7 off antipodal) that agrees to 8e-16 when run alone: round-off that differs between
+#: processes picked another facet within the support tolerance.
+RTOL_RANDOM = 1e-8
 #: ... or absolute, in units of the wrench scale max|w| (measured <= 9.6e-14 where Q is
 #: tiny): FC_TOL, the margin below which the library calls the origin "on the boundary".
 ATOL = FC_TOL
@@ -330,7 +335,7 @@ def check_against_references(case: dict) -> None:
         if (q > 0) != (ref > 0):
             assert not decided, (method, q / scale, ref / scale, delta)
         else:
-            assert abs(q - ref) <= max(RTOL * ref, ATOL * scale), (method, q, ref)
+            assert abs(q - ref) <= max(RTOL_RANDOM * ref, ATOL * scale), (method, q, ref)
     # positions and centre scaled by s, torque scale by 1 / s: the same wrenches
     unit = ferrari_canny(case["unit_points"], nrm, friction=friction, num_edges=m,
                          torque_scale=case["unit_torque"], center=case["unit_center"])
