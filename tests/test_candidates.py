@@ -161,6 +161,8 @@ GOOD = {"id": "c", "position": [0.0, 0.0, 0.3], "quaternion": [1.0, 0.0, 0.0, 0.
     ({"position": None, "quaternion": None, "pose": np.diag([1, 1, 2, 1]).tolist()},
      "candidate c: pose's rotation is not orthonormal"),
     ({"elbow": "up"}, "candidate c: elbow must be numbers"),
+    ({"elbow": 45}, "candidate c: elbow must be an angle in [-pi, pi] radians, got 45 (in "
+     "degrees that is 0.7854 rad)"),
     ({"elbw": 1.0}, "candidate c: unknown field 'elbw'; a palm pose has id, position, "),
     ({"pose": np.eye(4).tolist()}, "candidate c: give 'pose' (4x4) or 'position' + "
      "'quaternion', not both (pose and position and quaternion given)"),

@@ -56,6 +56,12 @@ def test_the_default_robots_table1_and_fig9_are_its_own_evaluations(tmp_path, ca
         assert main(["evaluate", "--object", "cube", "--grasp", row["id"], "--sigma",
                      row["sigma"], "--samples", SAMPLES, "--engine", "fast", "--json"]) == 0
         assert float(row["p_fc"]) == json.loads(capsys.readouterr().out)["p_fc"]
+        # its interval: Wilson's score interval written out, z = 1.959964
+        p, n, z = float(row["p_fc"]), int(SAMPLES), 1.959964
+        centre, half = (p + z * z / (2 * n)), z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+        expected = ((centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n))
+        assert (float(row["p_fc_lo"]), float(row["p_fc_hi"])) == pytest.approx(expected,
+                                                                               abs=1e-5)
 
 
 def test_table1_and_fig9_of_a_robot_are_its_evaluations(tmp_path, capsys):

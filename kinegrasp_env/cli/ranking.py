@@ -63,7 +63,7 @@ def best_elbows(grasps: list, robot: str, noise, samples: int, seed: int, engine
         chosen = ({"ik_branch": int(best.best_psi)} if branches
                   else {"elbow_angle": float(best.best_psi)})
         meta = {**grasp.meta, **chosen}
-        moved.append(dataclasses.replace(grasp, q0=best.best_q, id=f"{grasp.id}e", meta=meta))
+        moved.append(dataclasses.replace(grasp, q0=best.best_q, meta=meta))  # its own id
     return moved
 
 

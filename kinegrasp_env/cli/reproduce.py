@@ -113,12 +113,14 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
                          executor=executor, progress=True)
     from kinegrasp_env.toolkit.arm_variants import variant_label
 
+    print_level(rows, samples, "variant")
     for r in rows:
         shown = {"direct": "" if method == "direct" else " (its own draws: the batch's "
                  "effective sample was too small)",
                  "reweighted": f" (effective sample {r['samples']})"}[r["estimate"]]
         print(f"{r['object']:<12} id {r['id']:<5} {variant_label(r)} P(FC) "
-              f"{r['p_fc']:.3f}{shown} Q mean {r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+              f"{r['p_fc']:.3f} ({r['p_fc_lo']:.3f} .. {r['p_fc_hi']:.3f}){shown} Q mean "
+              f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
     if any(r["config"] for r in rows):
         from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
         from kinegrasp_env.toolkit.selection import provenance
@@ -131,6 +133,14 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     print_pairs(rows)
     print(written(out, ["fig10.csv", "fig10.png"]))
     return 0
+
+
+def print_level(rows: list[dict], samples: int, each: str) -> None:
+    """The line above fig9's and fig10's rows: the noise level and the draws per row, and
+    what the intervals are."""
+    if rows:
+        print(f"sigma = {rows[0]['sigma']:g} rad, {samples} draws per {each}; P(FC) with its "
+              "95% interval")
 
 
 def print_pairs(rows: list[dict]) -> None:
@@ -169,9 +179,11 @@ def figure_command(args, description, sets: dict, count: int, out: str, samples:
         print(f"robust and fragile configurations {provenance(samples, seed)}")
         print_pairs(rows)
     else:
+        print_level(rows, samples, "grasp")
         for r in rows:
-            print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} Q mean "
-                  f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
+            print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} ({r['p_fc_lo']:.3f} "
+                  f".. {r['p_fc_hi']:.3f}) Q mean {r['q_mean']:.5f} nominal "
+                  f"{r['q_nominal']:.5f}")
     pngs = ([f"fig7_{name}.png" for name in dict.fromkeys(r["object"] for r in rows)]
             if args.figure == "fig7" else ["fig9.png"])
     print(written(out, [f"{args.figure}.csv", *pngs]))

@@ -63,6 +63,12 @@ class GraspStats:
     draws: DrawBatch | None = field(default=None, repr=False)
     noise_model: dict | None = None
 
+    @property
+    def ci(self) -> tuple[float, float]:
+        """``p_fc_ci``, under the name a :class:`~kinegrasp_env.montecarlo.evaluate.
+        GraspEvaluation` gives it (code that takes either reads ``ci``)."""
+        return self.p_fc_ci
+
     def to_json(self) -> dict:
         """JSON-ready dict (NaN becomes None), without the draws (and without
         ``noise_model`` for joint noise)."""

@@ -216,6 +216,9 @@ def parse_palm_pose(entry, where: str, default_id: str = "0",
     elbow = None
     if entry.get("elbow") is not None:
         elbow = float(_numbers(entry, "elbow", (), where))
+        if abs(elbow) > np.pi:  # an angle in degrees, most likely
+            raise ValueError(f"{where}: elbow must be an angle in [-pi, pi] radians, got "
+                             f"{elbow:g} (in degrees that is {np.radians(elbow):.4g} rad)")
     pose = parse_pose(entry, where)
     if robot is None:
         from kinegrasp_env.robot.catalog import load_robot

@@ -182,12 +182,14 @@ class WeightedEstimate:
     @property
     def interval(self) -> tuple[float, float]:
         """The 95% Wilson score interval of a probability at the estimate's effective number
-        of draws n: p (1 - p) / se^2 (the binomial n of the same standard error), or the ESS
-        where that is undefined (every weighted draw alike, se 0: a plain normal interval
-        would have zero width, though the draws only bound how rare the other outcome is);
-        (0, 1) without draws."""
+        of draws n: p (1 - p) / se^2 (the binomial n of the same standard error), at most the
+        ESS (where every weighted draw ended alike, se is 0 or round-off and p (1 - p) / se^2
+        unbounded: a plain normal interval would have zero width, though the draws only bound
+        how rare the other outcome is); (0, 1) without draws."""
         p = min(max(self.value, 0.0), 1.0)
-        n = p * (1.0 - p) / self.se**2 if 0.0 < p < 1.0 and self.se > 0 else self.ess
+        n = self.ess
+        if 0.0 < p < 1.0 and self.se > 0:
+            n = min(n, p * (1.0 - p) / self.se**2)
         if not (math.isfinite(n) and n > 0):
             return 0.0, 1.0
         return wilson_interval(p * n, n)

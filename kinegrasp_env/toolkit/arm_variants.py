@@ -49,11 +49,13 @@ PAIR_COLUMNS = ("config", "fresh_p_fc", "fresh_p_fc_lo", "fresh_p_fc_hi", "fresh
                 "selection_p_fc", "gap", "gap_lo", "gap_hi", "fresh_q_mean", "fresh_q_var",
                 "fresh_q_skew")
 #: A variant row's columns (fig7.csv, fig10.csv): the robot and the variant's elbow angle
-#: (7-joint arms) or IK branch label (6-joint arms) first; ``estimate`` last: ``direct``
+#: (7-joint arms) or IK branch label (6-joint arms) first; then ``estimate``: ``direct``
 #: (its own draws) or ``reweighted`` (from one batch: ``samples`` is then its effective
-#: sample size).
+#: sample size), and P(FC)'s 95% interval (Wilson's, at the effective number of draws where
+#: re-weighted), last so that readers of the older columns by position keep working.
 COLUMNS = ("robot", "object", "id", "elbow_angle", "ik_branch", "p_fc", "q_mean", "q_std",
-           "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS, "estimate")
+           "q_nominal", "error", "samples", "sigma", *PAIR_COLUMNS, "estimate", "p_fc_lo",
+           "p_fc_hi")
 
 
 def check_variants(description: RobotDescription, experiment: str) -> None:
@@ -190,7 +192,7 @@ def variant_block(description: RobotDescription, name: str, variants: list[Grasp
                   # a re-weighted variant's: its effective sample size
                   "samples": samples if v.id in direct_ids else s.samples, "sigma": sigma,
                   "estimate": "direct" if v.id in direct_ids else "reweighted",
-                  **dict.fromkeys(PAIR_COLUMNS, "")}
+                  "p_fc_lo": s.ci[0], "p_fc_hi": s.ci[1], **dict.fromkeys(PAIR_COLUMNS, "")}
                  for v, s in zip(variants, stats, strict=True)]
         if len(variants) < 2:
             return block, []

@@ -91,9 +91,10 @@ def write_rows(out: Path, name: str, rows: list[dict],
     write_atomic(out / name, buffer.getvalue())
 
 
-#: fig9.csv's columns (the robot last: readers of the older columns by position keep working).
+#: fig9.csv's columns (the robot and P(FC)'s Wilson 95% interval last: readers of the older
+#: columns by position keep working).
 FIG9_COLUMNS = ("object", "id", "p_fc", "q_mean", "q_std", "q_nominal", "error", "samples",
-                "sigma", "robot")
+                "sigma", "robot", "p_fc_lo", "p_fc_hi")
 
 
 def _write_success_quality(out_dir: str | Path, name: str, rows: list[dict],
@@ -174,7 +175,8 @@ def fig9(description: RobotDescription, out_dir: str | Path, *,
                     s = _cell(grasp, sigma, samples, seed, runner, executor, report,
                               f"{name} grasp {grasp.id}")
                     rows.append({"robot": description.name, "object": name, "id": grasp.id,
-                                 "p_fc": s.p_fc, "q_mean": s.q_mean, "q_std": s.q_std,
+                                 "p_fc": s.p_fc, "p_fc_lo": s.ci[0], "p_fc_hi": s.ci[1],
+                                 "q_mean": s.q_mean, "q_std": s.q_std,
                                  "q_nominal": s.q_nominal, "error": s.q_nominal - s.q_mean,
                                  "samples": samples, "sigma": sigma})
     _write_success_quality(out_dir, "fig9", rows, FIG9_COLUMNS,

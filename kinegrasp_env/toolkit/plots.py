@@ -228,14 +228,21 @@ def plot_contacts_pair(mesh, draws_list, labels, path: str | Path, title: str = 
 
 
 def plot_success_quality(rows: list[dict], path: str | Path, title: str = "") -> Path:
-    """Figs. 9-10: per object, P(FC) bars and mean Q (+- std) against nominal Q per grasp."""
+    """Figs. 9-10: per object, P(FC) bars (with their 95% intervals where the rows carry
+    ``p_fc_lo`` and ``p_fc_hi``) and mean Q (+- std) against nominal Q per grasp."""
     plt = pyplot()
     objects = list(dict.fromkeys(r["object"] for r in rows))
     fig, axes = plt.subplots(2, len(objects), figsize=(3.6 * len(objects), 6), squeeze=False)
     for c, name in enumerate(objects):
         sub = [r for r in rows if r["object"] == name]
         x = np.arange(len(sub))
-        axes[0, c].bar(x, [r["p_fc"] for r in sub], color="tab:blue")
+        p = np.array([r["p_fc"] for r in sub], dtype=float)
+        spread = None
+        if all("p_fc_lo" in r and "p_fc_hi" in r for r in sub):
+            spread = np.array([[r["p_fc"] - r["p_fc_lo"] for r in sub],
+                               [r["p_fc_hi"] - r["p_fc"] for r in sub]], dtype=float)
+        axes[0, c].bar(x, p, color="tab:blue", yerr=spread, capsize=3 if spread is not None
+                       else 0, error_kw={"ecolor": "0.25", "lw": 1})
         axes[0, c].set_ylim(0, 1.02)
         axes[0, c].set_title(name)
         axes[0, c].set_ylabel("success rate P(FC)")
