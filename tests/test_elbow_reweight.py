@@ -175,6 +175,10 @@ def test_cli_reweight_and_its_refusals(capsys, tmp_path, monkeypatch):
     assert main([*args[:-3], "6", "--method", "reweight"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot cover" in err[0] and "give --batch" in err[0]
+    assert "beside the defensive component's 10% share" in err[0]
+    assert main([*args[:6], "0", *args[7:]]) == 2  # sigma 0: nothing to re-weight
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "re-weighting needs joint noise, and sigma is 0" in err[0], err
     assert main(["reproduce", "fig10", "--object", "cube", "--grasps", "10", "--samples",
                  "2", "--method", "reweight", "--engine", "fast", "--out",
                  str(tmp_path / "f10")]) == 2

@@ -474,3 +474,17 @@ def test_a_gap_from_one_draw_is_printed_without_an_interval():
         "+0.000 (no interval from one draw)"
     assert format_gap({"gap": 0.05, "gap_lo": 0.01, "gap_hi": 0.09}) == \
         "+0.050 (95% CI +0.010 .. +0.090)"
+
+
+def test_a_gain_without_a_discordant_draw_is_printed_without_a_point_interval():
+    """Fresh draws that end alike at both elbows give a t-interval of one point (no spread):
+    the elbow summary says so instead of printing "95% CI +0.000 .. +0.000"."""
+    from kinegrasp_env.cli.elbow_output import gain_line
+    from kinegrasp_env.sampling.stats import paired_interval
+
+    gain, lo, hi = paired_interval(np.zeros(200))
+    assert lo == hi == 0.0
+    assert gain_line({"gain": gain, "gain_ci": (lo, hi)}) == \
+        "  gain over nominal +0.000 (no discordant draw, paired)"
+    assert gain_line({"gain": 0.05, "gain_ci": (0.02, 0.08)}) == \
+        "  gain over nominal +0.050 (95% CI +0.020 .. +0.080, paired)"

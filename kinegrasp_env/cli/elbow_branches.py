@@ -10,6 +10,7 @@ import sys
 from kinegrasp_env.cli.common import friction_setting, plural
 from kinegrasp_env.cli.elbow_output import (
     bounds_words,
+    gain_line,
     reweight_lines,
     reweighted_elbow,
 )
@@ -119,7 +120,6 @@ def branch_summary(result: dict, shown: str) -> str:
     with ``robot`` and ``ik_starts``; a re-weighted run's with ``reweight``)."""
     lo, hi = result["best_p_fc_ci"]
     nlo, nhi = result["nominal_p_fc_ci"]
-    glo, ghi = result["gain_ci"]
     n, cert = len(result["branches"]), result["certificate"]
     branches = plural(n, "IK branch", "IK branches")
     how = (f"{branches} from one batch of {result['reweight']['batch']} closings, the best "
@@ -137,7 +137,7 @@ def branch_summary(result: dict, shown: str) -> str:
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best branch    {result['best_branch']} ({result['best_label']}): P(FC) "
         f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
-        f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
+        gain_line(result),
         f"  {cert['statement']}"]
     if cert["bound"] is not None:
         verdict = (f"certified at epsilon {cert['epsilon']:g}" if cert["certified"] else

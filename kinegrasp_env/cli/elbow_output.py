@@ -105,8 +105,22 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
     else:
         from kinegrasp_env.toolkit.elbow_plots import plot_elbow_curve
 
-        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
-                         title=title)
+        if evidence is None:
+            plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
+                             title=title)
+        else:  # a batch without a failing closing has no fragile direction to draw
+            plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
+                             title=f"{title}\n(no closing of the batch failed: no fragile "
+                             "direction to draw)", source="one re-weighted batch")
+
+
+def gain_line(result: dict) -> str:
+    """The paired gain of the chosen variant over the nominal one on the fresh draws, with
+    its t-interval (none where every pair of draws agrees: the interval would be a point)."""
+    glo, ghi = result["gain_ci"]
+    if glo == ghi:
+        return f"  gain over nominal {result['gain']:+.3f} (no discordant draw, paired)"
+    return f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)"
 
 
 def show_elbow(args, payload: dict, result, evidence, shown: str, samples: int,
@@ -137,7 +151,6 @@ def text_summary(result: dict, shown: str) -> str:
     ``robot``)."""
     lo, hi = result["best_p_fc_ci"]
     nlo, nhi = result["nominal_p_fc_ci"]
-    glo, ghi = result["gain_ci"]
     if "reweight" in result:
         how = (f"{len(result['curve'])} elbow angles from one batch of "
                f"{result['reweight']['batch']} closings, the best and the nominal again on "
@@ -152,7 +165,7 @@ def text_summary(result: dict, shown: str) -> str:
         f"{result['nominal_p_fc']:.3f} ({nlo:.3f} .. {nhi:.3f})",
         f"  best elbow    {result['best_psi']:+.3f} rad: P(FC) "
         f"{result['best_p_fc']:.3f} ({lo:.3f} .. {hi:.3f})  [fresh draws]",
-        f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)",
+        gain_line(result),
         *certificate_lines(result["certificate"], result["grid_step"])])
 
 

@@ -151,6 +151,9 @@ def gaussian_terms(noise, dof: int = ARM) -> tuple[np.ndarray, np.ndarray]:
 def _nonzero(cov: np.ndarray) -> np.ndarray:
     """``cov`` (dof, dof), or ValueError where it leaves the palm's deviation degenerate (a
     joint noise of rank below 6: every weight would be undefined)."""
+    if not np.any(cov):
+        raise ValueError("re-weighting needs joint noise, and sigma is 0 (every draw is the "
+                         "nominal closing); use direct draws (--method direct)")
     if np.linalg.matrix_rank(cov) < 6:
         raise ValueError("re-weighting needs joint noise on at least six joints (the palm's "
                          "deviation has six dimensions); use direct draws (--method direct)")

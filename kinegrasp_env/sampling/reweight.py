@@ -93,7 +93,8 @@ class BatchTooSmall(ValueError):
 
     def __init__(self, n: int, targets: int, need: int) -> None:
         super().__init__(f"a batch of {n} closings cannot cover {targets} targets and a "
-                         f"defensive component: it needs at least {need}")
+                         f"defensive component: it needs at least {need} (a closing per target "
+                         f"beside the defensive component's {DEFENSIVE_SHARE:.0%} share)")
         self.need = need
 
 

@@ -13,9 +13,9 @@ from kinegrasp_env.toolkit.plots import covariance_ellipse, few_ticks, pyplot, s
 
 
 def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, path: str | Path,
-                     title: str = "") -> Path:
+                     title: str = "", source: str = "selection draws") -> Path:
     """P(FC) with its 95% interval along the self-motion (``curve``: dicts of psi [rad], p_fc,
-    p_fc_ci), the nominal and the best elbow angle marked."""
+    p_fc_ci; estimated on ``source``), the nominal and the best elbow angle marked."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
     psi = np.array([c["psi"] for c in curve])
@@ -23,7 +23,7 @@ def plot_elbow_curve(curve: list[dict], nominal_psi: float, best_psi: float, pat
     lo = np.array([c["p_fc_ci"][0] for c in curve])
     hi = np.array([c["p_fc_ci"][1] for c in curve])
     ax.errorbar(psi, p, yerr=[np.maximum(p - lo, 0), np.maximum(hi - p, 0)], fmt="o-", ms=3,
-                color="C0", ecolor="0.6", capsize=2, label="P(FC), selection draws")
+                color="C0", ecolor="0.6", capsize=2, label=f"P(FC), {source}")
     ax.axvline(nominal_psi, color="C3", ls="--", label=f"nominal {nominal_psi:.2f} rad")
     ax.axvline(best_psi, color="C2", ls="-", label=f"best {best_psi:.2f} rad")
     ax.set_xlabel("elbow angle psi [rad]")

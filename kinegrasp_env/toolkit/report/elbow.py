@@ -71,10 +71,10 @@ def headline(result: ElbowResult) -> str:
             f"{esc(sigma_text(result.sigma))} rad, {esc(result.engine)} engine.</p>")
 
 
-def curve_table(result: ElbowResult) -> str:
-    """The curve's points, psi ascending, on the selection and on the fresh draws, the nominal
-    and the best one named."""
-    head = "".join(f"<th>{h}</th>" for h in ("psi [rad]", "P(FC), selection draws", "95% CI",
+def curve_table(result: ElbowResult, source: str = "selection draws") -> str:
+    """The curve's points, psi ascending, on ``source`` (the selection draws, or one
+    re-weighted batch) and on the fresh draws, the nominal and the best one named."""
+    head = "".join(f"<th>{h}</th>" for h in ("psi [rad]", f"P(FC), {source}", "95% CI",
                                               "P(FC), fresh draws", ""))
     rows = []
     for p in sorted(result.curve, key=lambda p: p.psi):
@@ -131,8 +131,9 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
                   "intervals; the headline scores the chosen and the nominal elbow again on "
                   "draws the selection never used." if fragility is None else
                   "The curve: P(FC) of each elbow angle from one batch of closings over the "
-                  "palm's deviation, re-weighted to that angle (95% normal intervals of the "
-                  "weights' standard error); the headline scores the chosen and the nominal "
+                  "palm's deviation, re-weighted to that angle (95% Wilson intervals at each "
+                  "angle's effective number of draws); the headline scores the chosen and the "
+                  "nominal "
                   "elbow on fresh direct draws. The third chart says why: the batch's palm "
                   "deviations in the two directions in which force closure is lost soonest, "
                   "and each elbow's error ellipse there.")
@@ -163,7 +164,7 @@ def elbow_layout(title: str, result: ElbowResult, curve: Figure, views: list[Fig
     """An elbow page from its parts: the headline, the curve, the fragile directions (where a
     re-weighted batch gives them), the two arm views side by side, the notes, the curve's
     table, the settings and the command."""
-    extra = []
+    extra, source = [], "selection draws" if fragility is None else "one re-weighted batch"
     if fragility is not None:
         extra = [Figure("fragility", fragility_chart(fragility), "99%", "520px")]
     body = (f"<h1>{esc(title)}</h1>{headline(result)}"
@@ -171,7 +172,7 @@ def elbow_layout(title: str, result: ElbowResult, curve: Figure, views: list[Fig
             + "".join(f"<div class='kg-row'>{f.div()}</div>" for f in extra) +
             f"<div class='kg-row'>{views[0].div()}{views[1].div()}</div>"
             f"{''.join(note(n) for n in notes)}"
-            f"<h2>P(FC) of every evaluated elbow angle</h2>{curve_table(result)}"
+            f"<h2>P(FC) of every evaluated elbow angle</h2>{curve_table(result, source)}"
             f"<h2>Settings</h2>{settings_table(settings)}"
             f"<h2>Command that reproduces this page</h2>{command_block(command)}")
     return page(title, body, [curve, *extra, *views], library, versions())
