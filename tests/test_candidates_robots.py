@@ -201,8 +201,9 @@ def test_rank_refuses_its_options_before_solving_the_candidates(home, tmp_path, 
 
 def test_elbow_and_sensitivity_take_a_palm_pose_file(home, tmp_path):
     """``elbow`` and ``sensitivity`` solve a palm-pose file's candidate as ``evaluate`` does
-    (the candidate named by its id, at its own elbow); ``validate``, which takes grasp files
-    only, says what the file is in one line."""
+    (the candidate named by its id, at its own elbow); so does ``validate`` (the holding
+    test of the solved grasp: its configuration is the solver's), and a rejected candidate
+    is its reason and one line."""
     common = ("--grasps", str(DOCS / "palm_pose_panda.json"), "--grasp", "top", "--engine",
               "fast", "--samples", "40", "--json")
     solved = solve_all("palm_box", [c for c in read_candidates(
@@ -217,13 +218,22 @@ def test_elbow_and_sensitivity_take_a_palm_pose_file(home, tmp_path):
     proc = run_cli("sensitivity", *common, "--noise-spec", str(spec))
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["grasp"] == "top"
-    proc = run_cli("validate", "--grasps", str(DOCS / "palm_pose_panda.json"), "--out",
-                   str(tmp_path / "v"))
-    assert proc.returncode == 2
-    assert proc.stderr.strip().endswith("is a palm-pose file (a 'candidates' list), not a grasp "
-                                        "file (a 'grasps' list); its candidates become grasps "
-                                        "once solved: `kinegrasp rank`, `evaluate`, `report`, "
-                                        "`elbow` and `sensitivity` take it as it is"), proc.stderr
+    validate = ("validate", "--grasps", str(DOCS / "palm_pose_panda.json"), "--sigma", "0",
+                "--samples", "1")
+    proc = run_cli(*validate, "--grasp", "top", "--out", str(tmp_path / "v"))
+    assert proc.returncode == 0, proc.stderr
+    with (tmp_path / "v" / "draws.csv").open() as handle:
+        (row,) = list(csv.DictReader(handle))
+    assert (row["object"], row["id"], row["kinematic_outcome"]) == (
+        "palm_box", "top", "force_closure")
+    assert float(row["kinematic_q"]) == pytest.approx(solved.q_nominal, rel=1e-4)
+    proc = run_cli(*validate, "--grasp", "too_far", "--out", str(tmp_path / "v2"))
+    assert proc.returncode == 2 and not (tmp_path / "v2").exists()
+    assert proc.stderr.strip().splitlines() == [
+        "candidate too_far rejected: unreachable (no IK solution within the joint limits "
+        "(closest: 0.795 m, 0.00665 rad off))",
+        f"kinegrasp validate: error: --grasps {DOCS / 'palm_pose_panda.json'}: none of the "
+        "chosen candidates is reachable, clear and closing; nothing to validate"]
 
 
 def test_the_default_robot_keeps_a_closing_out_of_force_closure_too():

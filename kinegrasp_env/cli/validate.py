@@ -10,6 +10,8 @@ phase's ``run`` and ``held`` counts), P(FC) of both closings and P(hold)."""
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 from kinegrasp_env.cli.common import (
     CLIError,
@@ -72,9 +74,16 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_validate)
 
 
-def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]]:
-    """``(index, grasp)`` of a grasp file: all, or the given indices."""
+def file_grasps(path: str, indices: list[str] | None, robot: str | None = None
+                ) -> list[tuple[int, object]]:
+    """``(index, grasp)`` of a grasp file: all, or the given indices (ids, else indices); of
+    a palm-pose file: its candidates (all or those), solved for the file's robot or
+    ``robot`` (:func:`candidate_grasps`)."""
+    from kinegrasp_env.toolkit.candidates import is_candidate_file
     from kinegrasp_env.world.grasps import load_grasps
+
+    if Path(path).is_file() and is_candidate_file(path):
+        return candidate_grasps(path, indices, robot)
 
     with reported(ValueError):
         grasps = load_grasps(path)
@@ -86,6 +95,28 @@ def file_grasps(path: str, indices: list[str] | None) -> list[tuple[int, object]
 
     ids = [g.id for g in grasps]
     return [(index, grasps[index]) for index in (id_index(text, ids, path) for text in indices)]
+
+
+def candidate_grasps(path: str, indices: list[str] | None, robot: str | None
+                     ) -> list[tuple[int, object]]:
+    """``(index, grasp)`` of a palm-pose file's candidates (all, or the given ids, else
+    indices), each solved to a grasp (IK, clearance, closing) for the file's robot or
+    ``robot``; a rejected one is a line on stderr and left out (all rejected: one line)."""
+    from kinegrasp_env.cli.grasp_choice import id_index
+    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
+
+    with reported(ValueError):  # bad entries: one line naming the candidate
+        read = read_candidates(path, robot)
+    ids = [c.id for c in read.candidates]
+    chosen = (range(len(ids)) if indices is None
+              else [id_index(text, ids, path) for text in indices])
+    grasps, rejected = solve_all(read.object, [read.candidates[i] for i in chosen], read.robot)
+    for r in rejected:
+        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    if not grasps:
+        raise CLIError(f"--grasps {path}: none of the chosen candidates is reachable, clear "
+                       "and closing; nothing to validate")
+    return [(ids.index(g.id), g) for g in grasps]
 
 
 def shipped_choice(args, robot: str) -> list[tuple[int, object]]:
@@ -128,6 +159,11 @@ def selected_robot(args) -> str:
                            f"{', '.join(robot_names())}")
     if args.grasps is None:
         return args.robot or DEFAULT_ROBOT
+    from kinegrasp_env.toolkit.candidates import is_candidate_file, read_candidates
+
+    if Path(args.grasps).is_file() and is_candidate_file(args.grasps):
+        with reported(ValueError):  # the file's robot, or --robot (checked against it)
+            return read_candidates(args.grasps, args.robot).robot
     robots = {g.robot for _, g in file_grasps(args.grasps, None)}
     found = robots.pop() if len(robots) == 1 else None
     if found is None:
@@ -141,7 +177,7 @@ def selected_robot(args) -> str:
 def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused, and a grasp file
     whose grasps are not of ``--object`` (when one is named, not ``all``)."""
-    chosen = (file_grasps(args.grasps, args.grasp) if args.grasps is not None
+    chosen = (file_grasps(args.grasps, args.grasp, robot) if args.grasps is not None
               else shipped_choice(args, robot))
     if args.grasps is not None and args.object != "all":
         others = sorted({g.object for _, g in chosen} - {args.object})

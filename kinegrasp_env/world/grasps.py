@@ -289,8 +289,8 @@ def load_grasps(path: str | Path) -> list[Grasp]:
     if holds_candidates(data):
         raise ValueError(f"{path} is a palm-pose file (a 'candidates' list), not a grasp file "
                          "(a 'grasps' list); its candidates become grasps once solved: "
-                         "`kinegrasp rank`, `evaluate`, `report`, `elbow` and `sensitivity` "
-                         "take it as it is")
+                         "`kinegrasp rank`, `evaluate`, `report`, `elbow`, `sensitivity` and "
+                         "`validate` take it as it is")
     if not isinstance(data, dict) or not isinstance(data.get("grasps"), list):
         raise ValueError(f"{path}: expected an object with a 'grasps' list")
     top = data.get("object")
