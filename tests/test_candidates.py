@@ -259,3 +259,22 @@ def test_a_planned_file_renamed_to_candidates_is_read_as_the_docs_say(tmp_path):
     renamed.write_text(json.dumps(data))
     read = read_candidates(renamed)
     assert [c.id for c in read.candidates] == [g.id for g in grasps]
+
+
+def test_a_file_without_a_robot_says_whose_candidates_it_solves(tmp_path):
+    """A palm-pose file that names no robot, ranked without --robot: its candidates are the
+    default robot's, and stderr says so in one line (a user of another gripper would get
+    the SDH's numbers without a word); naming the robot, in the file or by --robot, drops
+    the line."""
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"object": "drill", "candidates": [GOOD]}))
+    args = ("rank", str(path), "--samples", "10", "--engine", "fast")
+    proc = run_cli(*args, "--out", str(tmp_path / "r.csv"))  # (GOOD collides: rejected)
+    assert proc.stderr.splitlines()[0] == (
+        f"{path} names no robot: its candidates are solved for the default robot kuka_sdh "
+        '(give a "robot" field or --robot for another)')
+    proc = run_cli(*args, "--robot", "kuka_sdh", "--out", str(tmp_path / "r2.csv"))
+    assert "names no robot" not in proc.stderr and "rejected" in proc.stderr
+    path.write_text(json.dumps({"object": "drill", "robot": "kuka_sdh", "candidates": [GOOD]}))
+    proc = run_cli(*args, "--out", str(tmp_path / "r3.csv"))
+    assert "names no robot" not in proc.stderr and "rejected" in proc.stderr

@@ -5,6 +5,7 @@ palm-pose file (``--grasps FILE``; a palm-pose candidate is solved to a grasp fi
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from kinegrasp_env.cli.common import CLIError, reported, shipped_grasp
@@ -76,6 +77,16 @@ def id_index(word: str, ids: list[str], source: str) -> int:
     return index
 
 
+def say_default_robot(read, path: str) -> None:
+    """A line on stderr where a palm-pose file (``read``: its
+    :class:`~kinegrasp_env.toolkit.candidates.CandidateFile`) names no robot and the command
+    line none either: its candidates are the default robot's, which a user of another robot
+    would not see otherwise."""
+    if not read.robot_named:
+        print(f"{path} names no robot: its candidates are solved for the default robot "
+              f"{read.robot} (give a \"robot\" field or --robot for another)", file=sys.stderr)
+
+
 def palm_pose_grasp(args):
     """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp (IK,
     clearance, closing) for the file's robot or ``--robot``; a rejected one is a one-line
@@ -84,6 +95,7 @@ def palm_pose_grasp(args):
 
     with reported(ValueError):  # bad entries: one line naming the candidate
         read = read_candidates(args.grasps, getattr(args, "robot", None))
+    say_default_robot(read, args.grasps)
     name, candidates = read.object, read.candidates
     index = id_index(args.grasp, [c.id for c in candidates], args.grasps)
     if args.object is not None and args.object != name:

@@ -224,10 +224,12 @@ def _palm_pose_candidates(path: str, robot: str | None = None,
     """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
     rejected candidates); each rejected one is a line on stderr, and so is each accepted one
     whose nominal closing is not in force closure (ranked all the same)."""
+    from kinegrasp_env.cli.grasp_choice import say_default_robot
     from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
 
     with reported(ValueError):  # bad entries: one line naming the candidate
         read = read_candidates(path, robot)
+    say_default_robot(read, path)
     grasps, rejected = solve_all(read.object, read.candidates, read.robot, friction)
     for r in rejected:
         print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)

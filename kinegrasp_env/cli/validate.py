@@ -102,11 +102,12 @@ def candidate_grasps(path: str, indices: list[str] | None, robot: str | None
     """``(index, grasp)`` of a palm-pose file's candidates (all, or the given ids, else
     indices), each solved to a grasp (IK, clearance, closing) for the file's robot or
     ``robot``; a rejected one is a line on stderr and left out (all rejected: one line)."""
-    from kinegrasp_env.cli.grasp_choice import id_index
+    from kinegrasp_env.cli.grasp_choice import id_index, say_default_robot
     from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
 
     with reported(ValueError):  # bad entries: one line naming the candidate
         read = read_candidates(path, robot)
+    say_default_robot(read, path)
     ids = [c.id for c in read.candidates]
     chosen = (range(len(ids)) if indices is None
               else [id_index(text, ids, path) for text in indices])

@@ -89,12 +89,15 @@ class CandidateFile:
         frame: the frame the file gave its poses in (:data:`FRAMES`); ``candidates`` hold
             them in the object frame either way.
         candidates: in file order; each pose (4, 4) in the object frame.
+        robot_named: False where neither the file nor the caller named the robot (the
+            default robot's candidates, which a command says).
     """
 
     object: str
     robot: str
     frame: str
     candidates: list[PalmCandidate]
+    robot_named: bool = True
 
 
 def is_candidate_file(path: str | Path) -> bool:
@@ -218,7 +221,9 @@ def read_candidates(path: str | Path, robot: str | None = None) -> CandidateFile
     check_unique_ids([c.id for c in found], str(path), "candidates")
     if to_object is not None:
         found = [replace(c, pose=source_pose_to_object(c.pose, to_object)) for c in found]
-    return CandidateFile(name, robot_name, FRAMES[to_object is not None], found)
+    named = robot is not None or data.get("robot") is not None or any(
+        isinstance(e, dict) and e.get("robot") is not None for e in data[key])
+    return CandidateFile(name, robot_name, FRAMES[to_object is not None], found, named)
 
 
 def load_candidates(path: str | Path, robot: str | None = None
