@@ -77,6 +77,7 @@ from kinegrasp_env.closing.convex_distance import stacked_faces
 from kinegrasp_env.closing.edge_contact import place_on_edges
 from kinegrasp_env.closing.finger_paths import finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
+from kinegrasp_env.closing.hull_edges import point_hull
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.scene import RobotScene
@@ -340,16 +341,22 @@ class RobotWorld(RobotScene):
         (:mod:`~kinegrasp_env.closing.pair_normals`; pybullet's own normal there is that of
         two points a round-off apart where a pad lies along an edge), the point moved to the
         middle of the segment a pad along the edge presses
-        (:mod:`~kinegrasp_env.closing.edge_contact`)."""
+        (:mod:`~kinegrasp_env.closing.edge_contact`). The pair's link point is pybullet's
+        where it lies on the link's hulls (a box's face: pybullet's box keeps its faces),
+        else (a mesh's hull, which pybullet pads by its collision margin: its point lies
+        that far off) the hulls' exact closest point to ``point``
+        (:func:`~kinegrasp_env.closing.hull_edges.point_hull`)."""
         pose = self._placed_inverse @ self.model_pose(link)
         planes, _, edges, starts = self.geometry[link].faces
+        link_point, gap = frame_coordinates(self.placed, np.array(row[5])), self.distance(row)
+        on_hull, _ = self._hull_point(link, pose, link_point)
+        if abs(on_hull) > LINE_TOL:  # pybullet's point is off the link's hulls
+            gap, link_point = self._hull_point(link, pose, point)
         found = np.empty((1, 3))
         pair_normals(planes, edges, starts, self._object_edges,
                      np.ascontiguousarray(pose[None, :3, :3]),
-                     np.ascontiguousarray(pose[None, :3, 3]),
-                     frame_coordinates(self.placed, np.array(row[5]))[None], point[None],
-                     np.array([self.distance(row)]), EDGE_TOL, LINE_TOL, np.empty((2, 3)),
-                     found)
+                     np.ascontiguousarray(pose[None, :3, 3]), link_point[None], point[None],
+                     np.array([gap]), EDGE_TOL, LINE_TOL, np.empty((2, 3)), found)
         normal = found[0]
         if np.linalg.norm(normal) < 1e-12:
             normal = self.obj.surface(point[None])[1][0]
@@ -359,6 +366,21 @@ class RobotWorld(RobotScene):
                                        self._object_edges, normal[None], point[None])
             point = placed[0]
         return point, normal
+
+    def _hull_point(self, link: str, pose: np.ndarray, point: np.ndarray
+                    ) -> tuple[float, np.ndarray]:
+        """(signed distance, (3,) closest point) from the object-frame ``point`` (3,) to
+        ``link``'s hulls posed at ``pose`` (4, 4; object frame): exact
+        (:func:`~kinegrasp_env.closing.hull_edges.point_hull`), the nearest hull's."""
+        planes, plane_starts, edges, starts = self.geometry[link].faces
+        local = (point - pose[:3, 3]) @ pose[:3, :3]
+        gap, near = np.inf, local
+        for p in range(len(plane_starts) - 1):
+            d, *closest = point_hull(planes[plane_starts[p]:plane_starts[p + 1]],
+                                     edges[starts[p]:starts[p + 1]], EDGE_TOL, *local, np.inf)
+            if d < gap:
+                gap, near = d, np.array(closest)
+        return gap, pose[:3, :3] @ near + pose[:3, 3]
 
     def _rounded_contact(self, f: int, k: int, link: str, contact_tol: float
                          ) -> RobotContact | None:
