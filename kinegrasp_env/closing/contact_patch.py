@@ -88,6 +88,54 @@ def link_hull_vertices(bullet, body: int, link: int) -> np.ndarray | None:
     return np.vstack(out) if out else None
 
 
+@jit.kernel(_nrt=False, inline="always")
+def plane_basis(ix, iy, iz):
+    """(ux, uy, uz, vx, vy, vz): an orthonormal basis of the plane normal to the unit vector
+    (ix, iy, iz), u normal to it and to the coordinate axis along which it is smallest (the
+    lowest index of a tie), v = i x u."""
+    hx, hy, hz = 1.0, 0.0, 0.0
+    if abs(iy) < abs(ix) and abs(iy) <= abs(iz):
+        hx, hy = 0.0, 1.0
+    elif abs(iz) < abs(ix) and abs(iz) < abs(iy):
+        hx, hz = 0.0, 1.0
+    ux, uy, uz = iy * hz - iz * hy, iz * hx - ix * hz, ix * hy - iy * hx
+    norm = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux, uy, uz = ux / norm, uy / norm, uz / norm
+    return ux, uy, uz, iy * uz - iz * uy, iz * ux - ix * uz, ix * uy - iy * ux
+
+
+@jit.kernel(_nrt=False)
+def pad_footprint(vertices, poses, i, ox, oy, oz, ix, iy, iz, ux, uy, uz, vx, vy, vz, depth,
+                  out):
+    """A pad's footprint on a plane, its points' count k: of a link's vertices (V, 3, its
+    frame) posed at ``poses[i]`` (4, 4), those within ``depth`` of the lowest one (its
+    height above the plane through (ox, oy, oz) with the unit normal (ix, iy, iz) into the
+    object; counted from no lower than the plane: a vertex below it lies off the face, past
+    its edge, pressing nothing), projected onto the plane's basis (u, v) into ``out[:k]``
+    (rows (x, y))."""
+    low = np.inf
+    k = 0
+    for pas in range(2):  # the lowest vertex, then those near it
+        if pas == 1:
+            low = max(low, 0.0)
+        k = 0
+        for v in range(vertices.shape[0]):
+            wx = (poses[i, 0, 0] * vertices[v, 0] + poses[i, 0, 1] * vertices[v, 1]
+                  + poses[i, 0, 2] * vertices[v, 2] + poses[i, 0, 3]) - ox
+            wy = (poses[i, 1, 0] * vertices[v, 0] + poses[i, 1, 1] * vertices[v, 1]
+                  + poses[i, 1, 2] * vertices[v, 2] + poses[i, 1, 3]) - oy
+            wz = (poses[i, 2, 0] * vertices[v, 0] + poses[i, 2, 1] * vertices[v, 1]
+                  + poses[i, 2, 2] * vertices[v, 2] + poses[i, 2, 3]) - oz
+            height = -(wx * ix + wy * iy + wz * iz)
+            if pas == 0:
+                low = min(low, height)
+            elif height <= low + depth:
+                out[k, 0] = wx * ux + wy * uy + wz * uz
+                out[k, 1] = wx * vx + wy * vy + wz * vz
+                k += 1
+    return k
+
+
 @jit.kernel(_nrt=False)
 def patch_points(vertices, poses, corners, starts, parts, planes, points, depth, face_tol,
                  work, out, found, poly, counts):
@@ -118,15 +166,7 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         s = points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz + off
         ox, oy, oz = points[i, 0] - s * nx, points[i, 1] - s * ny, points[i, 2] - s * nz
         ix, iy, iz = -nx, -ny, -nz  # inward
-        hx, hy, hz = 1.0, 0.0, 0.0  # the axis of the smallest |inward| (lowest index)
-        if abs(iy) < abs(ix) and abs(iy) <= abs(iz):
-            hx, hy = 0.0, 1.0
-        elif abs(iz) < abs(ix) and abs(iz) < abs(iy):
-            hx, hz = 0.0, 1.0
-        ux, uy, uz = iy * hz - iz * hy, iz * hx - ix * hz, ix * hy - iy * hx
-        norm = np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux, uy, uz = ux / norm, uy / norm, uz / norm
-        vx, vy, vz = iy * uz - iz * uy, iz * ux - ix * uz, ix * uy - iy * ux
+        ux, uy, uz, vx, vy, vz = plane_basis(ix, iy, iz)
         nf = 0
         for c in range(starts[parts[i]], starts[parts[i] + 1]):
             cx, cy, cz = corners[c, 0], corners[c, 1], corners[c, 2]
@@ -140,25 +180,8 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         mf = hull_2d(work[0], nf, work[1])
         if mf < 3:
             continue
-        low = np.inf
-        for pas in range(2):  # the lowest vertex, then those near it
-            if pas == 1:  # no lower than the plane: a vertex below it is off the face (past
-                low = max(low, 0.0)  # its edge), pressing nothing; the pad touches at ~0
-            k = 0
-            for v in range(vertices.shape[0]):
-                wx = (poses[i, 0, 0] * vertices[v, 0] + poses[i, 0, 1] * vertices[v, 1]
-                      + poses[i, 0, 2] * vertices[v, 2] + poses[i, 0, 3]) - ox
-                wy = (poses[i, 1, 0] * vertices[v, 0] + poses[i, 1, 1] * vertices[v, 1]
-                      + poses[i, 1, 2] * vertices[v, 2] + poses[i, 1, 3]) - oy
-                wz = (poses[i, 2, 0] * vertices[v, 0] + poses[i, 2, 1] * vertices[v, 1]
-                      + poses[i, 2, 2] * vertices[v, 2] + poses[i, 2, 3]) - oz
-                height = -(wx * ix + wy * iy + wz * iz)
-                if pas == 0:
-                    low = min(low, height)
-                elif height <= low + depth:
-                    work[2, k, 0] = wx * ux + wy * uy + wz * uz
-                    work[2, k, 1] = wx * vx + wy * vy + wz * vz
-                    k += 1
+        k = pad_footprint(vertices, poses, i, ox, oy, oz, ix, iy, iz, ux, uy, uz, vx, vy, vz,
+                          depth, work[2])
         mp = hull_2d(work[2], k, work[3])
         mc = clip_polygon(work[3], mp, work[1], mf, work[4], work[2])
         if mc == 0:

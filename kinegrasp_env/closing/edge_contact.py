@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from kinegrasp_env import jit
-from kinegrasp_env.closing.contact_patch import PATCH_DEPTH
+from kinegrasp_env.closing.contact_patch import PATCH_DEPTH, pad_footprint, plane_basis
 from kinegrasp_env.closing.pair_normals import LINE_TOL, segment_holding
 from kinegrasp_env.closing.polygon_2d import clip_polygon, hull_2d
 
@@ -88,15 +88,7 @@ def edge_midpoints(vertices, poses, edges, normals, points, depth, line_tol, wor
             e = flattest_edge_at(edges, ox, oy, oz, nx, ny, nz, line_tol)
         if e < 0:
             continue
-        hx, hy, hz = 1.0, 0.0, 0.0  # the axis of the smallest |normal| (lowest index)
-        if abs(ny) < abs(nx) and abs(ny) <= abs(nz):
-            hx, hy = 0.0, 1.0
-        elif abs(nz) < abs(nx) and abs(nz) < abs(ny):
-            hx, hz = 0.0, 1.0
-        ux, uy, uz = ny * hz - nz * hy, nz * hx - nx * hz, nx * hy - ny * hx
-        norm = np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux, uy, uz = ux / norm, uy / norm, uz / norm
-        vx, vy, vz = ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+        ux, uy, uz, vx, vy, vz = plane_basis(nx, ny, nz)
         # the edge's part within the pressed depth of the tangent plane: t in [t0, t1]
         ax, ay, az = edges[e, 0, 0] - ox, edges[e, 0, 1] - oy, edges[e, 0, 2] - oz
         dx, dy, dz = edges[e, 1, 0] - edges[e, 0, 0], edges[e, 1, 1] - edges[e, 0, 1], \
@@ -110,27 +102,9 @@ def edge_midpoints(vertices, poses, edges, normals, points, depth, line_tol, wor
             t0 = max(t0, (depth - ha) / hd)
         if t0 >= t1:
             continue
-        # the pad's footprint: its vertices within the depth of its lowest one (from no
-        # lower than the tangent plane), projected onto the plane
-        low = np.inf
-        k = 0
-        for pas in range(2):
-            if pas == 1:
-                low = max(low, 0.0)
-            for v in range(vertices.shape[0]):
-                wx = (poses[i, 0, 0] * vertices[v, 0] + poses[i, 0, 1] * vertices[v, 1]
-                      + poses[i, 0, 2] * vertices[v, 2] + poses[i, 0, 3]) - ox
-                wy = (poses[i, 1, 0] * vertices[v, 0] + poses[i, 1, 1] * vertices[v, 1]
-                      + poses[i, 1, 2] * vertices[v, 2] + poses[i, 1, 3]) - oy
-                wz = (poses[i, 2, 0] * vertices[v, 0] + poses[i, 2, 1] * vertices[v, 1]
-                      + poses[i, 2, 2] * vertices[v, 2] + poses[i, 2, 3]) - oz
-                height = -(wx * nx + wy * ny + wz * nz)
-                if pas == 0:
-                    low = min(low, height)
-                elif height <= low + depth:
-                    work[0, k, 0] = wx * ux + wy * uy + wz * uz
-                    work[0, k, 1] = wx * vx + wy * vy + wz * vz
-                    k += 1
+        # the pad's footprint on the tangent plane
+        k = pad_footprint(vertices, poses, i, ox, oy, oz, nx, ny, nz, ux, uy, uz, vx, vy, vz,
+                          depth, work[0])
         mp = hull_2d(work[0], k, work[1])
         if mp < 3:
             continue
