@@ -660,3 +660,12 @@ def test_a_certificates_levels_are_refused_alike_by_rank_and_elbow(capsys, tmp_p
         assert code == 2 and err == [f"kinegrasp {argv[0]}: error: {words}"], err
     with pytest.raises(ValueError, match=r"^delta must be an error level in \(0, 1\), got 1$"):
         check_levels(0.1, 1)
+
+
+def test_a_sigma_of_minus_zero_is_zero():
+    """``--sigma -0`` is accepted as 0 and printed as 0 (it printed "sigma = -0")."""
+    import math
+
+    from kinegrasp_env.cli.common import sigma_value
+
+    assert math.copysign(1.0, sigma_value("-0")) == 1.0

@@ -158,7 +158,7 @@ def sigma_value(text: str, option: str = "--sigma") -> float:
     (:func:`~kinegrasp_env.sampling.noise.check_sigma_bound`)."""
     from kinegrasp_env.sampling.noise import check_sigma_bound
 
-    sigma = nonnegative(finite_float(text, option), option)
+    sigma = nonnegative(finite_float(text, option), option) + 0.0  # -0 is 0 (printed so)
     with reported(ValueError):
         check_sigma_bound(sigma, option)
     return sigma
