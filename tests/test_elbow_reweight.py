@@ -96,9 +96,9 @@ def test_a_batch_that_nearly_always_holds_still_bounds_the_rivals(field):
     300 closings mostly hold every time, and the normal bound of such a batch is 0 (no
     weighted variance) while a rival's true P(FC) may exceed the chosen one's. Over 200 runs
     at delta 0.05 the certificate is false in at most 18 (a true rate <= 0.05 gives more
-    with probability < 0.01; measured: 0 with the exact bound beside the normal one, 57 with
-    the normal bound alone), and an all-held batch's interval at an angle is Wilson's at its
-    ESS, lower end 1 / (1 + z^2 / ESS)."""
+    with probability < 0.01; measured: 0 with the Clopper-Pearson bound beside the normal
+    one, 57 with the normal bound alone), and an all-held batch's interval at an angle is
+    Wilson's at its ESS, lower end 1 / (1 + z^2 / ESS)."""
     reach, motion, covs, means, u, _, _ = field
     spread = np.sqrt(np.array([u @ s @ u for s in covs]))
     c = 2.6 * float(spread.max())
@@ -211,3 +211,21 @@ def test_an_angle_short_of_its_draws_is_topped_up_and_pooled():
     alone = topped_up(WeightedEstimate(float("nan"), float("nan"), float("nan")), direct, 0.3,
                       q, 1000)
     assert asked[-1] == 1000 and alone.point.p_fc == pytest.approx(0.6, abs=1e-12)
+
+
+def test_the_rare_outcome_bound_is_a_difference_of_clopper_pearson_bounds():
+    """Hand-computed with scipy's beta quantiles, uniform weights over 300 draws (ESS 300),
+    each side at delta / 4: every draw held at both angles (the chosen angle's failures
+    rare): 0 - lower(300 of 300) = 1 - (delta / 4)^(1/300); a rival with 3 successes of 300
+    against a chosen angle at 150 (the rival's successes rare); -inf where no outcome is
+    rare (the normal bound stands alone)."""
+    from kinegrasp_env.toolkit.elbow_reweight import rare_outcome_bound
+
+    w, delta = np.full(300, 1 / 300), 0.05
+    held = rare_outcome_bound(1.0, w, 1.0, w, delta)
+    assert held == pytest.approx(1.0 - (delta / 4) ** (1 / 300), rel=1e-9)
+    rival = rare_outcome_bound(0.5, w, 0.01, w, delta)
+    upper = stats.beta.ppf(1 - delta / 4, 3 + 1, 300 - 3)
+    lower = stats.beta.ppf(delta / 4, 150, 300 - 150 + 1)
+    assert rival == pytest.approx(upper - lower, rel=1e-9) and rival < 0
+    assert rare_outcome_bound(0.6, w, 0.5, w, delta) == -np.inf

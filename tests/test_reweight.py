@@ -135,3 +135,23 @@ def test_proposal_refuses_a_batch_too_small(setting):
 def test_a_degenerate_target_is_a_one_line_error():
     with pytest.raises(ValueError, match="not positive definite"):
         gaussian_logpdf(np.zeros((1, D)), np.zeros((D, D)))
+
+
+def _wilson(p: float, n: float, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson's score interval written out (p of n draws)."""
+    centre, half = p + z * z / (2 * n), z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return (centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)
+
+
+def test_the_interval_is_wilsons_at_the_effective_number_of_draws():
+    """n = p (1 - p) / se^2 where that is below the ESS (the binomial n of the same standard
+    error), the ESS where it is above it (se 0 or round-off: every weighted draw alike)."""
+    from kinegrasp_env.sampling.reweight import WeightedEstimate
+
+    wide = WeightedEstimate(0.3, 0.03, 1000.0)  # n = 0.21 / 0.0009 = 233.3
+    assert wide.interval == pytest.approx(_wilson(0.3, 0.21 / 0.0009), rel=1e-9)
+    capped = WeightedEstimate(0.3, 0.001, 1000.0)  # 210,000 > the ESS
+    assert capped.interval == pytest.approx(_wilson(0.3, 1000.0), rel=1e-9)
+    held = WeightedEstimate(1.0, 0.0, 250.0)
+    assert held.interval == pytest.approx(_wilson(1.0, 250.0), rel=1e-9)
+    assert held.interval[0] < 1.0

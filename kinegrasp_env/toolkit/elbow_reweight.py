@@ -23,8 +23,9 @@ its mean m to second):
    difference p_j - p_b on the fresh batch and its one-sided normal upper bound at level
    delta / 2 (the weights' delta-method standard error, halved level: a margin for the
    ratio estimators' finite-sample bias, measured), or, where an angle's rarer outcome
-   weighs few effective draws (a batch that closed alike nearly every time), the exact
-   bound of how rare it is (:func:`rare_outcome_bound`); the claim "no evaluated angle beats the
+   weighs few effective draws (a batch that closed alike nearly every time), at least the
+   difference of Clopper-Pearson bounds at the angles' effective sample sizes
+   (:func:`rare_outcome_bound`); the claim "no evaluated angle beats the
    chosen one by more than B" fails only if the bound of the best true rival fails (the
    intersection-union argument of :mod:`~kinegrasp_env.toolkit.elbow_certificate`). Unlike
    the direct certificate's exact binomial bounds this one is asymptotic, and it bounds the
@@ -71,6 +72,7 @@ from kinegrasp_env.toolkit.elbow_certificate import (
     Certificate,
     Rival,
     check_levels,
+    clopper_pearson_lower,
     clopper_pearson_upper,
 )
 from kinegrasp_env.toolkit.reweight_evidence import CurvePoint, ReweightEvidence
@@ -82,8 +84,9 @@ SLOPE_STEP = 1e-4
 BISECTION_STEPS = 10
 #: The certificate's method, in words.
 BATCH_METHOD = ("one-sided normal bounds at level delta/2 on each rival's re-weighted "
-                "advantage (exact ones where an outcome is rare) under the Gaussian model of "
-                "the palm's deviation, on a fresh batch")
+                "advantage (Clopper-Pearson ones at the effective sample sizes where an "
+                "outcome is rare) under the Gaussian model of the palm's deviation, on a fresh "
+                "batch")
 
 
 class SelfMotionDeviation:
@@ -239,21 +242,21 @@ MIN_RARE_DRAWS = 10.0
 
 def rare_outcome_bound(p_best: float, w_best: np.ndarray, p: float, w: np.ndarray,
                        delta: float) -> float:
-    """A bound on p - p_best (a rival's P(FC) less the chosen angle's) that holds where the
-    normal one may not: where the chosen angle's failures weigh fewer than
-    :data:`MIN_RARE_DRAWS` effective draws (its ESS 1 / sum(w_best^2) times 1 - p_best), the
-    batch may have missed where it fails, and p - p_best <= 1 - p_best is bounded by the
-    exact (Clopper-Pearson, level ``delta``) upper bound of its failure rate at its ESS; so
-    with the rival's rare successes, p - p_best <= p. -inf where neither is rare. The larger of
-    this and the normal bound is false only when both are: a batch whose every closing
-    ended alike gave a normal bound of 0 (no weighted variance), whatever the truth."""
-    bound = -math.inf
+    """A bound on p - p_best (a rival's P(FC) less the chosen angle's, weights w and w_best
+    (n,)) that holds where the normal one may not: where either angle's rarer outcome weighs
+    fewer than :data:`MIN_RARE_DRAWS` effective draws (its ESS 1 / sum(w^2) times p or
+    1 - p), the batch may have missed where it happens, and the bound is the rival's
+    Clopper-Pearson upper bound less the chosen angle's lower one, each at its ESS and level
+    ``delta`` / 4 (the difference at ``delta`` / 2, the normal bound's level); -inf where no
+    outcome is rare. The larger of this and the normal bound is false only when both are: a
+    batch whose every closing ended alike gave a normal bound of 0 (no weighted variance),
+    whatever the truth."""
     ess_best, ess = 1.0 / float(np.sum(w_best**2)), 1.0 / float(np.sum(w**2))
-    if ess_best * (1.0 - p_best) < MIN_RARE_DRAWS:
-        bound = float(clopper_pearson_upper((1.0 - p_best) * ess_best, ess_best, delta))
-    if ess * p < MIN_RARE_DRAWS:
-        bound = max(bound, float(clopper_pearson_upper(p * ess, ess, delta)))
-    return bound
+    rarest = min(ess_best * min(p_best, 1.0 - p_best), ess * min(p, 1.0 - p))
+    if rarest >= MIN_RARE_DRAWS:
+        return -math.inf
+    return float(clopper_pearson_upper(p * ess, ess, delta / 4)
+                 - clopper_pearson_lower(p_best * ess_best, ess_best, delta / 4))
 
 
 def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float, np.ndarray]],
