@@ -273,6 +273,13 @@ def test_a_file_without_a_robot_says_whose_candidates_it_solves(tmp_path):
     assert proc.stderr.splitlines()[0] == (
         f"{path} names no robot: its candidates are solved for the default robot kuka_sdh "
         '(give a "robot" field or --robot for another)')
+    note = proc.stderr.splitlines()[0]
+    for other in (("validate", "--grasps", str(path), "--samples", "1", "--out",
+                   str(tmp_path / "v")),
+                  ("report", "--grasps", str(path), "--grasp", "c", "--samples", "10",
+                   "--out", str(tmp_path / "p.html")),
+                  ("evaluate", "--grasps", str(path), "--grasp", "c", "--samples", "10")):
+        assert run_cli(*other).stderr.splitlines()[0] == note, other
     proc = run_cli(*args, "--robot", "kuka_sdh", "--out", str(tmp_path / "r2.csv"))
     assert "names no robot" not in proc.stderr and "rejected" in proc.stderr
     path.write_text(json.dumps({"object": "drill", "robot": "kuka_sdh", "candidates": [GOOD]}))

@@ -229,3 +229,18 @@ def test_the_rare_outcome_bound_is_a_difference_of_clopper_pearson_bounds():
     lower = stats.beta.ppf(delta / 4, 150, 300 - 150 + 1)
     assert rival == pytest.approx(upper - lower, rel=1e-9) and rival < 0
     assert rare_outcome_bound(0.6, w, 0.5, w, delta) == -np.inf
+
+
+def test_a_batch_without_a_failing_closing_is_labelled_as_a_batch(tmp_path, capsys):
+    """At sigma 0.0033 every closing of the cube grasp 2's batch holds, so there is no
+    fragile direction to draw: the page still names its curve the re-weighted batch's (it
+    said "selection draws") and says why the third chart is missing."""
+    from kinegrasp_env.cli import main
+
+    page = tmp_path / "e.html"
+    assert main(["elbow", "--object", "cube", "--grasp", "2", "--sigma", "0.0033",
+                 "--samples", "200", "--method", "reweight", "--report", str(page)]) == 0
+    capsys.readouterr()
+    text = page.read_text()
+    assert "P(FC), one re-weighted batch" in text and "selection draws (common" not in text
+    assert "No closing of the batch failed" in text

@@ -488,3 +488,9 @@ def test_a_gain_without_a_discordant_draw_is_printed_without_a_point_interval():
         "  gain over nominal +0.000 (no discordant draw, paired)"
     assert gain_line({"gain": 0.05, "gain_ci": (0.02, 0.08)}) == \
         "  gain over nominal +0.050 (95% CI +0.020 .. +0.080, paired)"
+    gain, lo, hi = paired_interval(np.ones(50))  # every pair differs, alike: a point too
+    assert gain_line({"gain": gain, "gain_ci": (lo, hi)}) == \
+        "  gain over nominal +1.000 (every pair of draws differs alike, paired)"
+    gain, lo, hi = paired_interval(np.array([1.0]))
+    assert gain_line({"gain": gain, "gain_ci": (lo, hi)}) == \
+        "  gain over nominal +1.000 (no interval from one draw, paired)"

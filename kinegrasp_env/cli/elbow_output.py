@@ -116,11 +116,11 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
 
 def gain_line(result: dict) -> str:
     """The paired gain of the chosen variant over the nominal one on the fresh draws, with
-    its t-interval (none where every pair of draws agrees: the interval would be a point)."""
-    glo, ghi = result["gain_ci"]
-    if glo == ghi:
-        return f"  gain over nominal {result['gain']:+.3f} (no discordant draw, paired)"
-    return f"  gain over nominal {result['gain']:+.3f} (95% CI {glo:+.3f} .. {ghi:+.3f}, paired)"
+    its t-interval (:func:`~kinegrasp_env.toolkit.selection.interval_words`)."""
+    from kinegrasp_env.toolkit.selection import interval_words
+
+    words = interval_words(result["gain"], *result["gain_ci"])
+    return f"  gain over nominal {result['gain']:+.3f} ({words}, paired)"
 
 
 def show_elbow(args, payload: dict, result, evidence, shown: str, samples: int,

@@ -70,10 +70,12 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         if Path(args.grasps).is_dir():
             raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
         if is_candidate_file(args.grasps):
+            from kinegrasp_env.cli.grasp_choice import say_default_robot
             from kinegrasp_env.toolkit.candidates import read_candidates
 
             with reported(ValueError):  # bad entries, a robot conflict: one line
-                candidates = read_candidates(args.grasps, robot)
+                candidates = read_candidates(args.grasps, args.robot)
+            say_default_robot(candidates, args.grasps)
             grasps = candidates.candidates
         else:
             with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields

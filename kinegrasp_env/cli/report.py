@@ -197,7 +197,8 @@ def write_elbow_report(args, description, grasp, index: int, result, noise, evid
                                                description.name, evidence, friction)
     text = elbow_page(description, grasp, result, noise, command=command, settings=settings,
                       friction=friction, num_edges=NUM_EDGES, arm_draws=ARM_DRAWS_DEFAULT,
-                      fragility=None if evidence is None else evidence.picture())
+                      fragility=None if evidence is None else evidence.picture(),
+                      reweighted=evidence is not None)
     _written(args, text)
 
 

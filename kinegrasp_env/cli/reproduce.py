@@ -111,9 +111,13 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
             rows = fig10(description, out, grasp_sets=sets, samples=samples, count=count,
                          seed=seed, engine=args.engine, friction=friction, method=method,
                          executor=executor, progress=True)
+    from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
     from kinegrasp_env.toolkit.arm_variants import variant_label
 
-    print_level(rows, samples, "variant")
+    print_level(rows, f"{samples} draws per variant" if method == "direct" else
+                f"one batch of {BATCH_FACTOR * samples} closings per grasp re-weighted to each "
+                f"variant (a variant whose effective sample falls short of {samples}: on its "
+                "own draws)")
     for r in rows:
         shown = {"direct": "" if method == "direct" else " (its own draws: the batch's "
                  "effective sample was too small)",
@@ -122,7 +126,6 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
               f"{r['p_fc']:.3f} ({r['p_fc_lo']:.3f} .. {r['p_fc_hi']:.3f}){shown} Q mean "
               f"{r['q_mean']:.5f} nominal {r['q_nominal']:.5f}")
     if any(r["config"] for r in rows):
-        from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
         from kinegrasp_env.toolkit.selection import provenance
 
         own = sum(r["estimate"] == "direct" for r in rows)
@@ -135,12 +138,11 @@ def reproduce(args, samples: int, friction: float = 0.5) -> int:
     return 0
 
 
-def print_level(rows: list[dict], samples: int, each: str) -> None:
-    """The line above fig9's and fig10's rows: the noise level and the draws per row, and
-    what the intervals are."""
+def print_level(rows: list[dict], draws: str) -> None:
+    """The line above fig9's and fig10's rows: the noise level, the ``draws`` behind each
+    row (words), and what the intervals are."""
     if rows:
-        print(f"sigma = {rows[0]['sigma']:g} rad, {samples} draws per {each}; P(FC) with its "
-              "95% interval")
+        print(f"sigma = {rows[0]['sigma']:g} rad, {draws}; P(FC) with its 95% interval")
 
 
 def print_pairs(rows: list[dict]) -> None:
@@ -179,7 +181,7 @@ def figure_command(args, description, sets: dict, count: int, out: str, samples:
         print(f"robust and fragile configurations {provenance(samples, seed)}")
         print_pairs(rows)
     else:
-        print_level(rows, samples, "grasp")
+        print_level(rows, f"{samples} draws per grasp")
         for r in rows:
             print(f"{r['object']:<12} id {r['id']:<5} P(FC) {r['p_fc']:.3f} ({r['p_fc_lo']:.3f} "
                   f".. {r['p_fc_hi']:.3f}) Q mean {r['q_mean']:.5f} nominal "

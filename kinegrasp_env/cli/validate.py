@@ -74,16 +74,16 @@ def add_commands(sub) -> None:
     p.set_defaults(func=cmd_validate)
 
 
-def file_grasps(path: str, indices: list[str] | None, robot: str | None = None
-                ) -> list[tuple[int, object]]:
+def file_grasps(path: str, indices: list[str] | None, robot: str | None = None,
+                friction: float = 0.5) -> list[tuple[int, object]]:
     """``(index, grasp)`` of a grasp file: all, or the given indices (ids, else indices); of
     a palm-pose file: its candidates (all or those), solved for the file's robot or
-    ``robot`` (:func:`candidate_grasps`)."""
+    ``robot`` at ``friction`` (:func:`candidate_grasps`)."""
     from kinegrasp_env.toolkit.candidates import is_candidate_file
     from kinegrasp_env.world.grasps import load_grasps
 
     if Path(path).is_file() and is_candidate_file(path):
-        return candidate_grasps(path, indices, robot)
+        return candidate_grasps(path, indices, robot, friction)
 
     with reported(ValueError):
         grasps = load_grasps(path)
@@ -97,8 +97,8 @@ def file_grasps(path: str, indices: list[str] | None, robot: str | None = None
     return [(index, grasps[index]) for index in (id_index(text, ids, path) for text in indices)]
 
 
-def candidate_grasps(path: str, indices: list[str] | None, robot: str | None
-                     ) -> list[tuple[int, object]]:
+def candidate_grasps(path: str, indices: list[str] | None, robot: str | None,
+                     friction: float = 0.5) -> list[tuple[int, object]]:
     """``(index, grasp)`` of a palm-pose file's candidates (all, or the given ids, else
     indices), each solved to a grasp (IK, clearance, closing) for the file's robot or
     ``robot``; a rejected one is a line on stderr and left out (all rejected: one line)."""
@@ -111,7 +111,8 @@ def candidate_grasps(path: str, indices: list[str] | None, robot: str | None
     ids = [c.id for c in read.candidates]
     chosen = (range(len(ids)) if indices is None
               else [id_index(text, ids, path) for text in indices])
-    grasps, rejected = solve_all(read.object, [read.candidates[i] for i in chosen], read.robot)
+    grasps, rejected = solve_all(read.object, [read.candidates[i] for i in chosen], read.robot,
+                                 friction)
     for r in rejected:
         print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
     if not grasps:
@@ -175,10 +176,11 @@ def selected_robot(args) -> str:
     return found
 
 
-def selected_grasps(args, robot: str) -> list[tuple[int, object]]:
+def selected_grasps(args, robot: str, friction: float = 0.5) -> list[tuple[int, object]]:
     """The grasps to validate, as ``(index, grasp)``; duplicates refused, and a grasp file
     whose grasps are not of ``--object`` (when one is named, not ``all``)."""
-    chosen = (file_grasps(args.grasps, args.grasp, robot) if args.grasps is not None
+    chosen = (file_grasps(args.grasps, args.grasp, args.robot, friction)
+              if args.grasps is not None
               else shipped_choice(args, robot))
     if args.grasps is not None and args.object != "all":
         others = sorted({g.object for _, g in chosen} - {args.object})
@@ -213,7 +215,7 @@ def cmd_validate(args) -> int:
     robot = selected_robot(args)
     fields = settings_from(args)
     processes = processes_from(args.processes)
-    grasps = selected_grasps(args, robot)
+    grasps = selected_grasps(args, robot, fields["friction"])
     check_robot_run(robot, fields)
     out = output_folder(args.out)
     from kinegrasp_env.toolkit.validation import ValidationSettings

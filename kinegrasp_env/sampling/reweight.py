@@ -91,10 +91,10 @@ class BatchTooSmall(ValueError):
         need: the smallest batch that covers them.
     """
 
-    def __init__(self, n: int, targets: int, need: int) -> None:
+    def __init__(self, n: int, targets: int, need: int, share: float = DEFENSIVE_SHARE) -> None:
         super().__init__(f"a batch of {n} closings cannot cover {targets} targets and a "
                          f"defensive component: it needs at least {need} (a closing per target "
-                         f"beside the defensive component's {DEFENSIVE_SHARE:.0%} share)")
+                         f"beside the defensive component's {share:.0%} share)")
         self.need = need
 
 
@@ -129,7 +129,7 @@ class MixtureProposal:
             need = len(cov) + 1
             while need - defensive(need) < len(cov):
                 need += 1
-            raise BatchTooSmall(n, len(cov), need)
+            raise BatchTooSmall(n, len(cov), need, defensive_share)
         for c in cov:
             try:
                 np.linalg.cholesky(c)

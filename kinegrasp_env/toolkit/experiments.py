@@ -293,7 +293,10 @@ def fig10(description: RobotDescription, out_dir: str | Path, *,
     if not rows:
         raise ValueError(f"no variant of the first grasp of robot {description.name!r} closes "
                          "in force closure; nothing written")
+    from kinegrasp_env.montecarlo.palm_batch import BATCH_FACTOR
+
+    draws = (f"{samples} draws per variant" if method == "direct" else
+             f"one batch of {BATCH_FACTOR * samples} closings re-weighted to each variant")
     _write_success_quality(out_dir, "fig10", rows, COLUMNS,
-                           f"robot {description.name}: sigma = {sigma:g}, {samples} draws "
-                           "per variant")
+                           f"robot {description.name}: sigma = {sigma:g}, {draws}")
     return rows

@@ -108,14 +108,21 @@ def provenance(samples: int, seed: int, chunk: int = STREAM_CHUNK,
     return f"{chosen}, reported on {samples} fresh draws ({span(first, count)})"
 
 
+def interval_words(gap: float, lo: float, hi: float) -> str:
+    """What to print of a paired difference's t-interval (lo, hi): ``95% CI +0.040 ..
+    +0.074``; where it is a point (no spread to use), ``no discordant draw`` (every pair
+    agrees) or ``every pair of draws differs alike``; ``no interval from one draw`` (its ends
+    infinite)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return "no interval from one draw"
+    if lo == hi:
+        return "no discordant draw" if gap == 0 else "every pair of draws differs alike"
+    return f"95% CI {lo:+.3f} .. {hi:+.3f}"
+
+
 def format_gap(row: dict) -> str:
-    """``+0.057 (95% CI +0.040 .. +0.074)`` of a robust/fragile row's paired gap
-    (``+0.000 (no discordant draw)`` where the two agree on every fresh draw; no interval
-    from a single draw)."""
+    """``+0.057 (95% CI +0.040 .. +0.074)`` of a robust/fragile row's paired gap, its
+    interval as :func:`interval_words` says it."""
     if math.isnan(row["gap"]):
         return "n/a"
-    if not (math.isfinite(row["gap_lo"]) and math.isfinite(row["gap_hi"])):
-        return f"{row['gap']:+.3f} (no interval from one draw)"
-    if row["gap_lo"] == row["gap_hi"]:  # every pair of fresh draws agrees: no spread to use
-        return f"{row['gap']:+.3f} (no discordant draw)"
-    return f"{row['gap']:+.3f} (95% CI {row['gap_lo']:+.3f} .. {row['gap_hi']:+.3f})"
+    return f"{row['gap']:+.3f} ({interval_words(row['gap'], row['gap_lo'], row['gap_hi'])})"

@@ -89,7 +89,7 @@ def curve_table(result: ElbowResult, source: str = "selection draws") -> str:
 def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
                noise: JointNoise, *, command: str, settings: dict, friction: float = 0.5,
                num_edges: int = 8, arm_draws: int = ARM_DRAWS,
-               fragility: dict | None = None) -> str:
+               fragility: dict | None = None, reweighted: bool = False) -> str:
     """The HTML page of ``result`` (``optimize_robot_elbow`` of ``grasp``, whose curve points
     keep their outcomes, or the re-weighted search's).
 
@@ -102,7 +102,9 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
         friction, num_edges: the contacts' friction cones, as drawn.
         arm_draws: noisy selection draws whose skeletons each arm view shows.
         fragility: for a curve from one re-weighted batch, its picture
-            (``ReweightEvidence.picture()``): drawn as the page's third chart.
+            (``ReweightEvidence.picture()``, None where no closing of the batch failed):
+            drawn as the page's third chart.
+        reweighted: the curve comes from one re-weighted batch (labelled so).
     """
     obj = load_object(grasp.object)
     nominal, best = curve_point(result, result.nominal_psi), curve_point(result, result.best_psi)
@@ -124,19 +126,21 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
             arms=arms), "49%", "520px"))
     curve = Figure("elbow", elbow_curve(
         [p.to_json() for p in result.curve], result.nominal_psi, result.best_psi,
-        "selection draws, 95% Wilson intervals" if fragility is None else
-        "one re-weighted batch, 95% intervals"), "99%", "340px")
+        "one re-weighted batch, 95% intervals" if reweighted else
+        "selection draws, 95% Wilson intervals"), "99%", "340px")
     curve_note = (f"The curve: P(FC) of each evaluated elbow angle on the same "
                   f"{result.samples} selection draws (common random numbers), with 95% Wilson "
                   "intervals; the headline scores the chosen and the nominal elbow again on "
-                  "draws the selection never used." if fragility is None else
+                  "draws the selection never used." if not reweighted else
                   "The curve: P(FC) of each elbow angle from one batch of closings over the "
                   "palm's deviation, re-weighted to that angle (95% Wilson intervals at each "
                   "angle's effective number of draws); the headline scores the chosen and the "
-                  "nominal "
-                  "elbow on fresh direct draws. The third chart says why: the batch's palm "
-                  "deviations in the two directions in which force closure is lost soonest, "
-                  "and each elbow's error ellipse there.")
+                  "nominal elbow on fresh direct draws. " + (
+                      "The third chart says why: the batch's palm deviations in the two "
+                      "directions in which force closure is lost soonest, and each elbow's "
+                      "error ellipse there." if fragility is not None else
+                      "No closing of the batch failed: there is no fragile direction to "
+                      "draw."))
     drawn = ""
     if len(set(shown.values())) == 1 and shown["nominal"]:
         drawn = (f" and, toggled in the legend, the arm's skeleton at its first "
@@ -155,16 +159,16 @@ def elbow_page(description: RobotDescription, grasp: Grasp, result: ElbowResult,
         notes.append("The best elbow is the nominal one: both views show the same arm.")
     title = f"kinegrasp elbow report: robot {description.name}, {grasp.object} grasp {grasp.id}"
     return elbow_layout(title, result, curve, views, notes, library, command=command,
-                        settings=settings, fragility=fragility)
+                        settings=settings, fragility=fragility, reweighted=reweighted)
 
 
 def elbow_layout(title: str, result: ElbowResult, curve: Figure, views: list[Figure],
                  notes: list[str], library: MeshLibrary, *, command: str, settings: dict,
-                 fragility: dict | None = None) -> str:
+                 fragility: dict | None = None, reweighted: bool = False) -> str:
     """An elbow page from its parts: the headline, the curve, the fragile directions (where a
     re-weighted batch gives them), the two arm views side by side, the notes, the curve's
     table, the settings and the command."""
-    extra, source = [], "selection draws" if fragility is None else "one re-weighted batch"
+    extra, source = [], "one re-weighted batch" if reweighted else "selection draws"
     if fragility is not None:
         extra = [Figure("fragility", fragility_chart(fragility), "99%", "520px")]
     body = (f"<h1>{esc(title)}</h1>{headline(result)}"
