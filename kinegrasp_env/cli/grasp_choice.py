@@ -77,33 +77,48 @@ def id_index(word: str, ids: list[str], source: str) -> int:
     return index
 
 
-def say_default_robot(read, path: str) -> None:
-    """A line on stderr where a palm-pose file (``read``: its
-    :class:`~kinegrasp_env.toolkit.candidates.CandidateFile`) names no robot and the command
-    line none either: its candidates are the default robot's, which a user of another robot
-    would not see otherwise."""
+def read_palm_poses(path: str, robot: str | None):
+    """A palm-pose file read and checked for every command that takes one
+    (:func:`~kinegrasp_env.toolkit.candidates.read_candidates`: a bad entry or a robot
+    conflict is one line); where neither the file nor ``robot`` (the command's ``--robot``)
+    names the robot, a line on stderr says the candidates are the default robot's, which a
+    user of another robot would not see otherwise."""
+    from kinegrasp_env.toolkit.candidates import read_candidates
+
+    with reported(ValueError):
+        read = read_candidates(path, robot)
     if not read.robot_named:
         print(f"{path} names no robot: its candidates are solved for the default robot "
               f"{read.robot} (give a \"robot\" field or --robot for another)", file=sys.stderr)
+    return read
+
+
+def solve_candidates(read, chosen: list, path: str, *, friction: float = 0.5,
+                     strict: bool = False) -> tuple[list, list]:
+    """(grasps, rejected) of the ``chosen`` candidates of a palm-pose file (``read``:
+    :func:`read_palm_poses`) solved to grasps (IK, clearance, closing) at ``friction``;
+    each rejected one a line on stderr with its reason, or with ``strict`` a one-line
+    error."""
+    from kinegrasp_env.toolkit.candidates import solve_all
+
+    grasps, rejected = solve_all(read.object, chosen, read.robot, friction)
+    if strict and rejected:
+        raise CLIError(f"candidate {rejected[0].id} of {path} is rejected: "
+                       f"{rejected[0].reason} ({rejected[0].detail})")
+    for r in rejected:
+        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    return grasps, rejected
 
 
 def palm_pose_grasp(args):
-    """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp (IK,
-    clearance, closing) for the file's robot or ``--robot``; a rejected one is a one-line
-    error with its reason."""
-    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
-
-    with reported(ValueError):  # bad entries: one line naming the candidate
-        read = read_candidates(args.grasps, getattr(args, "robot", None))
-    say_default_robot(read, args.grasps)
+    """``chosen_grasp`` for a palm-pose file: the chosen candidate solved to a grasp for the
+    file's robot or ``--robot`` (:func:`solve_candidates`, strict)."""
+    read = read_palm_poses(args.grasps, getattr(args, "robot", None))
     name, candidates = read.object, read.candidates
     index = id_index(args.grasp, [c.id for c in candidates], args.grasps)
     if args.object is not None and args.object != name:
         raise CLIError(f"--object {args.object}: {args.grasps} holds candidates of {name}")
-    grasps, rejected = solve_all(name, [candidates[index]], read.robot)
-    if rejected:
-        raise CLIError(f"candidate {rejected[0].id} of {args.grasps} is rejected: "
-                       f"{rejected[0].reason} ({rejected[0].detail})")
+    grasps, _ = solve_candidates(read, [candidates[index]], args.grasps, strict=True)
     args.object = name
     return index, grasps[0]
 

@@ -70,12 +70,9 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         if Path(args.grasps).is_dir():
             raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
         if is_candidate_file(args.grasps):
-            from kinegrasp_env.cli.grasp_choice import say_default_robot
-            from kinegrasp_env.toolkit.candidates import read_candidates
+            from kinegrasp_env.cli.grasp_choice import read_palm_poses
 
-            with reported(ValueError):  # bad entries, a robot conflict: one line
-                candidates = read_candidates(args.grasps, args.robot)
-            say_default_robot(candidates, args.grasps)
+            candidates = read_palm_poses(args.grasps, args.robot)
             grasps = candidates.candidates
         else:
             with reported(ValueError):  # load_grasps: missing file, bad JSON, bad fields
@@ -124,14 +121,11 @@ def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
 def solved(path: str, read, chosen: list) -> list:
     """The chosen candidates of a palm-pose file (``read``: its
     :func:`~kinegrasp_env.toolkit.candidates.read_candidates`) solved to grasps; a rejected
-    one is a one-line error with its reason."""
-    from kinegrasp_env.toolkit.candidates import solve_all
+    one is a one-line error with its reason (:func:`~kinegrasp_env.cli.grasp_choice.
+    solve_candidates`, strict)."""
+    from kinegrasp_env.cli.grasp_choice import solve_candidates
 
-    grasps, rejected = solve_all(read.object, chosen, read.robot)
-    if rejected:
-        raise CLIError(f"candidate {rejected[0].id} of {path} is rejected: "
-                       f"{rejected[0].reason} ({rejected[0].detail})")
-    return grasps
+    return solve_candidates(read, chosen, path, strict=True)[0]
 
 
 @contextmanager

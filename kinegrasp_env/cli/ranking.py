@@ -224,15 +224,10 @@ def _palm_pose_candidates(path: str, robot: str | None = None,
     """``_candidates`` for a palm-pose file: (grasps of the accepted candidates, SHA-256,
     rejected candidates); each rejected one is a line on stderr, and so is each accepted one
     whose nominal closing is not in force closure (ranked all the same)."""
-    from kinegrasp_env.cli.grasp_choice import say_default_robot
-    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
+    from kinegrasp_env.cli.grasp_choice import read_palm_poses, solve_candidates
 
-    with reported(ValueError):  # bad entries: one line naming the candidate
-        read = read_candidates(path, robot)
-    say_default_robot(read, path)
-    grasps, rejected = solve_all(read.object, read.candidates, read.robot, friction)
-    for r in rejected:
-        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    read = read_palm_poses(path, robot)
+    grasps, rejected = solve_candidates(read, read.candidates, path, friction=friction)
     for g in grasps:
         if g.meta.get("nominal_force_closure") is False:
             how = g.meta.get("nominal_outcome", "no_force_closure").replace("_", " ")

@@ -10,7 +10,6 @@ phase's ``run`` and ``held`` counts), P(FC) of both closings and P(hold)."""
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 from kinegrasp_env.cli.common import (
@@ -102,19 +101,14 @@ def candidate_grasps(path: str, indices: list[str] | None, robot: str | None,
     """``(index, grasp)`` of a palm-pose file's candidates (all, or the given ids, else
     indices), each solved to a grasp (IK, clearance, closing) for the file's robot or
     ``robot``; a rejected one is a line on stderr and left out (all rejected: one line)."""
-    from kinegrasp_env.cli.grasp_choice import id_index, say_default_robot
-    from kinegrasp_env.toolkit.candidates import read_candidates, solve_all
+    from kinegrasp_env.cli.grasp_choice import id_index, read_palm_poses, solve_candidates
 
-    with reported(ValueError):  # bad entries: one line naming the candidate
-        read = read_candidates(path, robot)
-    say_default_robot(read, path)
+    read = read_palm_poses(path, robot)
     ids = [c.id for c in read.candidates]
     chosen = (range(len(ids)) if indices is None
               else [id_index(text, ids, path) for text in indices])
-    grasps, rejected = solve_all(read.object, [read.candidates[i] for i in chosen], read.robot,
-                                 friction)
-    for r in rejected:
-        print(f"candidate {r.id} rejected: {r.reason} ({r.detail})", file=sys.stderr)
+    grasps, _ = solve_candidates(read, [read.candidates[i] for i in chosen], path,
+                                 friction=friction)
     if not grasps:
         raise CLIError(f"--grasps {path}: none of the chosen candidates is reachable, clear "
                        "and closing; nothing to validate")
