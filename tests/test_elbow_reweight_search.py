@@ -108,7 +108,7 @@ def _searches():
                                     "branches_reweighted"])
 @pytest.mark.parametrize("change, message", [
     ({"seed": -1}, "seed must be an integer >= 0 (the run's rows), got -1"),
-    ({"samples": 0}, "samples must be a positive number of draws, got 0"),
+    ({"samples": 0}, "samples must be an integer >= 1, got 0"),
     ({"noise": 0.01}, "noise must be a JointNoise (e.g. JointNoise(0.0133)) or a NoiseModel, "
                       "got float 0.01"),
     ({"grasp": None}, "grasp must be a Grasp (kinegrasp_env.world.grasps), got NoneType"),

@@ -129,8 +129,8 @@ def test_bad_input_to_ik_branches(home):
                                   (np.diag([2.0, 2.0, 2.0, 1.0]), 10, "not a rigid transform"),
                                   (np.diag([1.0, 1.0, -1.0, 1.0]), 10, "not a rigid transform"),
                                   (2 * np.eye(4), 10, "not a rigid transform"),
-                                  (np.eye(4), 0, "starts must be a positive"),
-                                  (np.eye(4), True, "starts must be a positive")]:
+                                  (np.eye(4), 0, "starts must be an integer >= 1"),
+                                  (np.eye(4), True, "starts must be an integer >= 1")]:
         with pytest.raises(ValueError, match=re.escape(message)):
             ik_branches(robot, pose, starts=starts)
 

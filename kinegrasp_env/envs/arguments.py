@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.envs.grasp_task import HOLD_TEST_SCORES, N_DRAWS, SCORES
 from kinegrasp_env.envs.tasks import GRASP_OPTIONS
 from kinegrasp_env.montecarlo.grasp_stats import ENGINES, MAX_SIGMA
@@ -41,9 +42,7 @@ def box_action(action, shape: tuple[int, ...], meaning: str) -> np.ndarray:
 def positive_count(name: str, value) -> int:
     """``value`` as an int >= 1 (``n_draws``, ``max_steps``); ValueError (one line, naming
     ``name`` and the value) for anything else, a bool or a float included."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
+    return check_count(value, name)
 
 
 def finite_number(name: str, value, *, positive: bool = False) -> float:

@@ -16,6 +16,7 @@ import numpy as np
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.coupled_jaws import jaw_push, jaw_speeds
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,
@@ -139,9 +140,8 @@ class RobotEngine:
         if not (isinstance(finger_radius, (int, float)) and 0 < finger_radius < 1):
             raise ValueError(f"finger_radius must be a length in (0, 1) metres, got "
                              f"{finger_radius!r}")
-        if max_contacts is not None and (isinstance(max_contacts, bool) or not isinstance(
-                max_contacts, (int, np.integer)) or max_contacts < 1):
-            raise ValueError(f"max_contacts must be an integer >= 1, got {max_contacts!r}")
+        if max_contacts is not None:
+            check_count(max_contacts, "max_contacts")
         self.description = as_description(robot)
         self.obj = load_object(object_name)
         self.friction, self.num_edges = friction, num_edges

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.engines import ENGINES, engine_class
 from kinegrasp_env.montecarlo.execution import Executor
@@ -35,10 +36,8 @@ def check_evaluation(grasp: Grasp, *, sigma, n, seed, noise, engine, robot, stat
     joint noise's sigma (0 under a noise model, whose joints source replaces it), the run's
     mu (a friction source's nominal one))."""
     check_grasp(grasp)
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be a positive number of draws, got {n!r}")
-    if isinstance(offset, bool) or not isinstance(offset, (int, np.integer)) or offset < 0:
-        raise ValueError(f"offset must be a row number >= 0, got {offset!r}")
+    check_count(n, "n")
+    check_count(offset, "offset", least=0)  # a row number
     if offset:
         if not isinstance(seed, (int, np.integer, np.random.SeedSequence)):
             raise ValueError("draws from row offset > 0 take an integer or SeedSequence "

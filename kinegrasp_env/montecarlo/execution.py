@@ -22,6 +22,8 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
+from kinegrasp_env.counts import check_count
+
 BACKENDS = ("local", "ray")
 #: Engines a process keeps between tasks (the oldest is closed when one more is needed: a
 #: pybullet engine holds a simulator client and tens of MB).
@@ -108,9 +110,7 @@ def leave_signals_to_the_parent() -> None:
 def check_workers(value, name: str = "processes") -> int:
     """``value`` as an int, or ValueError (one line naming ``name`` and the value) unless it
     is an integer >= 1 (not a bool): a count of processes or CPUs."""
-    if isinstance(value, bool) or not hasattr(value, "__index__") or value < 1:
-        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    return int(value)
+    return check_count(value, name)
 
 
 class LocalExecutor(Executor):

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.robot.palm_ik import solve_palm_ik
@@ -100,8 +101,7 @@ def _check(description: RobotDescription, palm_pose, starts) -> np.ndarray:
             or not np.allclose(pose[3], [0, 0, 0, 1])):
         raise ValueError("palm_pose is not a rigid transform (orthonormal right-handed "
                          "rotation, last row 0 0 0 1)")
-    if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
-        raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
+    check_count(starts, "starts")
     if description.arm_dof < 1:
         raise ValueError(f"robot {description.name!r} has no arm joints")
     return pose

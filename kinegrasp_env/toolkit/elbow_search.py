@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.evaluate import (
@@ -355,8 +356,7 @@ def optimize_robot_branches(grasp: Grasp, noise: JointNoise | NoiseModel, sample
             an arm that is not a 6-joint one, bad starts (before any draw).
     """
     check_branch_arm(check_search(grasp, noise, samples, seed, epsilon, delta, engine))
-    if isinstance(starts, bool) or not isinstance(starts, int | np.integer) or starts < 1:
-        raise ValueError(f"starts must be a positive number of IK starts, got {starts!r}")
+    check_count(starts, "starts")
     report = progress or (lambda done: None)
     with _scoring(grasp, engine, friction, evaluate_with, executor) as (engine, scorer):
         branches, nominal = branch_variants(grasp, engine, int(starts))

@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.evaluate import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import as_description
 from kinegrasp_env.robot.description import RobotDescription
@@ -193,8 +194,7 @@ def plan_grasps(robot: str | RobotDescription, object_name: str, *, count: int =
     import time
 
     deadline = None if time_budget is None else time.monotonic() + float(time_budget)
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
-        raise ValueError(f"count must be a positive number of grasps, got {count!r}")
+    check_count(count, "count")
     settings = settings or PlannerSettings(attempts=attempts_for(count))
     check_seed(seed)
     rng = as_generator(seed)

@@ -6,8 +6,7 @@ compare (:func:`check_branch_arm`).
 
 from __future__ import annotations
 
-import numpy as np
-
+from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.evaluation_checks import check_engine_grasp
 from kinegrasp_env.montecarlo.reference_engine import RobotReferenceEngine
 from kinegrasp_env.robot.catalog import as_description
@@ -28,8 +27,7 @@ def check_search(grasp: Grasp, noise, samples, seed, epsilon: float, delta: floa
     reference engine of the grasp's robot and object."""
     check_grasp(grasp)
     check_levels(epsilon, delta)
-    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
-        raise ValueError(f"samples must be a positive number of draws, got {samples!r}")
+    check_count(samples, "samples")
     if not is_integer_seed(seed):
         raise ValueError(f"seed must be an integer >= 0 (the run's rows), got {seed!r}")
     if not isinstance(noise, (JointNoise, NoiseModel)):
