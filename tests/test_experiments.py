@@ -15,6 +15,7 @@ import sys
 import numpy as np
 import pytest
 from cli_helpers import run_cli
+from clock_helpers import Clock
 
 from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE, DrawBatch
@@ -204,16 +205,6 @@ def test_rewriting_a_file_keeps_its_mode(tmp_path):
 
 
 # ----------------------------------------------------------------------------- progress
-class Clock:
-    """A settable clock."""
-
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
-
-
 def test_progress_lines_off_a_terminal_and_an_eta_without_start_up():
     """Two cells of 1,000 draws in chunks of 250. Start-up: 60 s before the first chunk;
     then 100 draws/s. The rate and ETA must ignore the start-up: 100 draws/s and, after

@@ -11,16 +11,9 @@ from __future__ import annotations
 import io
 
 import pytest
+from clock_helpers import Clock
 
 from kinegrasp_env import progress_bar as bars
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
 
 
 def test_lines_come_at_most_every_interval_and_a_short_run_prints_none():

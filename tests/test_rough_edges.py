@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from cli_helpers import COMMAND
+from clock_helpers import Clock
 
 from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli.common import CLIError
@@ -166,14 +167,6 @@ def test_processes_above_the_cores_are_capped_with_a_warning(capsys):
     helptext = " ".join(build_parser()._subparsers._group_actions[0].choices["evaluate"]
                         .format_help().split())
     assert "more than this machine's cores is capped to them, with a warning" in helptext
-
-
-class Clock:
-    def __init__(self) -> None:
-        self.now = 0.0
-
-    def __call__(self) -> float:
-        return self.now
 
 
 def test_a_rate_is_never_measured_over_an_instant():
