@@ -1,7 +1,8 @@
 """Refresh the shipped grasp files' nominal contacts after a change of the auto-close.
 
-Run: ``python scripts/refresh_nominal_contacts.py [objects ...]``. For each built-in object,
-every grasp of ``assets/grasps/kuka_sdh/<object>.json`` is closed again by the reference
+Run: ``python scripts/refresh_nominal_contacts.py [objects ...] [--robot NAME]``. For each
+built-in object the robot has grasps of (default robot: ``kuka_sdh``), every grasp of
+``assets/grasps/<robot>/<object>.json`` is closed again by the reference
 engine at its q0 (no noise) and its stored contacts (points, normals) and nominal Q are
 replaced by what it finds there; q0, the palm pose, the ids and the metadata stay as they
 are. It refuses (and writes nothing) where the grasp is no longer in force closure or its
@@ -25,15 +26,14 @@ from kinegrasp_env.atomic_files import write_atomic
 from kinegrasp_env.montecarlo.draws import FORCE_CLOSURE
 from kinegrasp_env.montecarlo.engines import make_engine
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
-from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps
-from kinegrasp_env.world.objects import OBJECT_NAMES
+from kinegrasp_env.world.grasps import Grasp, shipped_grasp_file, shipped_grasps, shipped_objects
 
 
-def refreshed(name: str) -> tuple[list[Grasp], float, float]:
-    """The object's shipped grasps with contacts and Q from the reference engine at q0, the
-    largest point move (metres) and the largest relative change of Q."""
-    grasps = shipped_grasps(name)
-    engine = make_engine("pybullet", DEFAULT_ROBOT, name)
+def refreshed(name: str, robot: str = DEFAULT_ROBOT) -> tuple[list[Grasp], float, float]:
+    """The object's shipped grasps of ``robot`` with contacts and Q from the reference engine
+    at q0, the largest point move (metres) and the largest relative change of Q."""
+    grasps = shipped_grasps(name, robot)
+    engine = make_engine("pybullet", robot, name)
     try:
         draws = engine.run(np.stack([g.q0 for g in grasps]))
     finally:
@@ -68,11 +68,12 @@ def rewrite(path, grasps: list[Grasp]) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("objects", nargs="*", default=list(OBJECT_NAMES))
+    parser.add_argument("objects", nargs="*")
+    parser.add_argument("--robot", default=DEFAULT_ROBOT)
     args = parser.parse_args()
-    for name in args.objects:
-        grasps, moved, q_change = refreshed(name)
-        rewrite(shipped_grasp_file(name), grasps)
+    for name in args.objects or shipped_objects(args.robot):
+        grasps, moved, q_change = refreshed(name, args.robot)
+        rewrite(shipped_grasp_file(name, args.robot), grasps)
         print(f"{name}: {len(grasps)} grasps, points moved by at most {moved:.1e} m, "
               f"Q by at most {q_change:.1e} relative")
 
