@@ -189,6 +189,20 @@ class LocalExecutor(Executor):
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is not None:
+            self.stop_workers()
+        self.close()
+
+    def stop_workers(self) -> None:
+        """End the pool's worker processes now (SIGTERM): a run stopped by Ctrl-C or an error
+        needs none of their results, and a pool shut down after a signal interrupted its own
+        hand-over (the call queue's feeder) can leave workers waiting on that queue, and the
+        shut-down and the exit waiting on them, forever (seen after about 1 Ctrl-C in 6)."""
+        processes = getattr(self._pool, "_processes", None) or {}
+        for process in list(processes.values()):
+            process.terminate()
+
 
 def _import_ray():
     try:
