@@ -210,7 +210,7 @@ def test_an_ended_episode_needs_a_reset(env_id):
     ({"object": "teapot"}, "unknown object 'teapot'"),
     ({"sigma": -0.1}, "sigma must be finite and >= 0"),
     ({"grasp": 99, "object": "cube"}, "grasp index 99 out of range"),
-    ({"colour": "red"}, r"unknown reset options \['colour'\]"),
+    ({"colour": "red"}, r"unknown reset options \['colour'\]; the env takes object, grasp"),
     ({"sigma": 4.0}, r"^sigma must be <= pi \(3\.14159 rad\), got 4$"),
     ({"sigma": 1e308}, "must be <= pi"),
     ({"sigma": float("nan")}, "sigma must be finite"),

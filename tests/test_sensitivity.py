@@ -265,3 +265,19 @@ def test_an_index_interval_outside_0_1_is_noted():
     assert "note: Sobol indices lie in [0, 1]; the interval of ST of joints lies outside" \
         in table((1.043, 1.123))
     assert "note:" not in table((0.978, 1.053))
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"seed": -1}, "analyze takes an integer seed >= 0 (its draws are rows of the seed's "
+                   "streams), got -1"),
+    ({"bootstrap": -1}, "bootstrap must be an integer >= 0, got -1")])
+def test_a_bad_seed_or_bootstrap_is_refused_before_any_draw(kwargs, words):
+    """A negative seed reached numpy's SeedSequence ("expected non-negative integer", naming
+    neither); a negative bootstrap count was taken."""
+    from kinegrasp_env.sampling.noise import JointNoise
+    from kinegrasp_env.toolkit.sensitivity import analyze
+    from kinegrasp_env.world.grasps import shipped_grasps
+
+    with pytest.raises(ValueError) as info:
+        analyze(shipped_grasps("cube")[0], JointNoise(0.01), 10, **kwargs)
+    assert str(info.value) == words

@@ -111,7 +111,8 @@ def reset_options(options) -> dict:
     options = dict(options or {})
     unknown = set(options) - set(RESET_OPTIONS)
     if unknown:
-        raise ValueError(f"unknown reset options {sorted(unknown)}")
+        raise ValueError(f"unknown reset options {sorted(unknown)}; the env takes "
+                         f"{', '.join(RESET_OPTIONS)}")
     return options
 
 

@@ -201,9 +201,15 @@ def analyze(grasp: Grasp, noise: JointNoise | NoiseModel, samples: int, seed: in
             zero-mean joint errors only).
 
     Raises:
-        ValueError: a grasp of another robot or object, bad samples or sigma, a noise model
-            the robot cannot take or with no source of error.
+        ValueError: a grasp of another robot or object, bad samples or sigma, a seed that
+            is not an integer >= 0, a negative bootstrap count, a noise model the robot
+            cannot take or with no source of error.
     """
+    from kinegrasp_env.counts import check_count
+    from kinegrasp_env.montecarlo.evaluation_checks import integer_seed
+
+    integer_seed(seed, "analyze")
+    check_count(bootstrap, "bootstrap", least=0)  # 0: no intervals
     if isinstance(engine, str):
         from kinegrasp_env.montecarlo.engines import make_engine
 
