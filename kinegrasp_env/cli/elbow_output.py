@@ -105,13 +105,11 @@ def elbow_plot(payload: dict, result, evidence, path: str, title: str) -> None:
     else:
         from kinegrasp_env.toolkit.elbow_plots import plot_elbow_curve
 
-        if evidence is None:
-            plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
-                             title=title)
-        else:  # a batch without a failing closing has no fragile direction to draw
-            plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
-                             title=f"{title}\n(no closing of the batch failed: no fragile "
-                             "direction to draw)", source="one re-weighted batch")
+        if evidence is not None:  # a batch without a failing closing: no fragile direction
+            title += "\n(no closing of the batch failed: no fragile direction to draw)"
+        plot_elbow_curve(payload["curve"], result.nominal_psi, result.best_psi, path,
+                         title=title, source="selection draws" if evidence is None
+                         else "one re-weighted batch")
 
 
 def gain_line(result: dict) -> str:

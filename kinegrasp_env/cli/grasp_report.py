@@ -29,6 +29,12 @@ from kinegrasp_env.cli.common import (
 from kinegrasp_env.cli.evaluation import check_robot_engine, draw_bar
 from kinegrasp_env.cli.evaluation_output import evaluation_record
 from kinegrasp_env.cli.execution_options import executor_from
+from kinegrasp_env.cli.grasp_choice import (
+    EVALUATE_OBJECT,
+    id_index,
+    read_palm_poses,
+    solve_candidates,
+)
 from kinegrasp_env.cli.output_paths import HTML_SUFFIXES, input_files, output_file
 from kinegrasp_env.robot.default import DEFAULT_ROBOT
 
@@ -56,7 +62,6 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
     ``--grasps FILE`` (a palm-pose file's chosen candidates solved for ``robot``, a rejected
     one a line with its reason) or of the robot's shipped set of ``--object``; every grasp
     must be of ``robot`` and of one object."""
-    from kinegrasp_env.cli.grasp_choice import EVALUATE_OBJECT
     from kinegrasp_env.toolkit.candidates import is_candidate_file
     from kinegrasp_env.world.grasps import (
         NoGraspSetError,
@@ -70,8 +75,6 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         if Path(args.grasps).is_dir():
             raise CLIError(f"--grasps {args.grasps} is a folder, not a grasp file")
         if is_candidate_file(args.grasps):
-            from kinegrasp_env.cli.grasp_choice import read_palm_poses
-
             candidates = read_palm_poses(args.grasps, args.robot)
             grasps = candidates.candidates
         else:
@@ -87,7 +90,7 @@ def chosen_grasps(args, robot: str) -> tuple[str, list]:
         raise CLIError(f"--grasps {args.grasps}: the file holds no grasps")
     grasps = [grasps[i] for i in picked_indices(args.grasp, [g.id for g in grasps], source)]
     if candidates is not None:
-        grasps = solved(args.grasps, candidates, grasps)
+        grasps = solve_candidates(candidates, grasps, args.grasps, strict=True)[0]
     objects = sorted({g.object for g in grasps})
     if len(objects) != 1:
         raise CLIError(f"--grasps {args.grasps}: grasps of {', '.join(objects)}; a report "
@@ -106,7 +109,6 @@ def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
     for an unknown one or one named twice."""
     text = "0" if text is None else text
     picked: list[int] = []
-    from kinegrasp_env.cli.grasp_choice import id_index
 
     for word in (t.strip() for t in text.split(",")):
         if not word:
@@ -116,16 +118,6 @@ def picked_indices(text: str | None, ids: list[str], source: str) -> list[int]:
             raise CLIError(f"--grasp: {text!r} names grasp {ids[index]} twice")
         picked.append(index)
     return picked
-
-
-def solved(path: str, read, chosen: list) -> list:
-    """The chosen candidates of a palm-pose file (``read``: its
-    :func:`~kinegrasp_env.toolkit.candidates.read_candidates`) solved to grasps; a rejected
-    one is a one-line error with its reason (:func:`~kinegrasp_env.cli.grasp_choice.
-    solve_candidates`, strict)."""
-    from kinegrasp_env.cli.grasp_choice import solve_candidates
-
-    return solve_candidates(read, chosen, path, strict=True)[0]
 
 
 @contextmanager

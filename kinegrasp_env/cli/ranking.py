@@ -107,10 +107,8 @@ def cmd_rank(args) -> int:
     top_k_given = args.top_k is not None
     _adaptive_defaults(args)
     check_execution(args)  # the options, before the candidates are solved
-    if args.best_elbow:
-        positive_int(args.best_elbow, "--best-elbow")
-    if args.adaptive:
-        positive_int(args.top_k, "--top-k")
+    best_elbow = positive_int(args.best_elbow, "--best-elbow") if args.best_elbow else 0
+    top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
     noise, sigma, samples, seed = noise_from(args)
     static, test = _hold_scores(args)
     friction = friction_from(args, noise, simulated=args.engine == "physics" or test)
@@ -141,7 +139,6 @@ def cmd_rank(args) -> int:
         from kinegrasp_env.sampling.noise_spec import spec_of
 
         settings["noise_model"] = spec_of(noise)
-    top_k = positive_int(args.top_k, "--top-k") if args.adaptive else 0
     certify = _certify_settings(args) if args.adaptive else {}
     if args.adaptive and len(grasps) < 2:
         raise CLIError(f"--adaptive separates a top set from the rest: it needs 2 candidates "
@@ -155,7 +152,7 @@ def cmd_rank(args) -> int:
         raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
                        "cannot resume; delete it, or resume without --adaptive")
     if args.best_elbow:  # a different candidate set: part of the resume settings
-        settings["best_elbow_samples"] = positive_int(args.best_elbow, "--best-elbow")
+        settings["best_elbow_samples"] = best_elbow
         settings["best_elbow_engine"] = elbow_engine(engine)
     with executor_from(args) as executor:
         if args.best_elbow:

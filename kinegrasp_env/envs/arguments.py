@@ -39,12 +39,6 @@ def box_action(action, shape: tuple[int, ...], meaning: str) -> np.ndarray:
     return array
 
 
-def positive_count(name: str, value) -> int:
-    """``value`` as an int >= 1 (``n_draws``, ``max_steps``); ValueError (one line, naming
-    ``name`` and the value) for anything else, a bool or a float included."""
-    return check_count(value, name)
-
-
 def finite_number(name: str, value, *, positive: bool = False) -> float:
     """``value`` as a finite float (``> 0`` where ``positive``); ValueError (one line, naming
     ``name`` and the value) otherwise."""
@@ -179,9 +173,9 @@ def env_arguments(*, robot: str, n_draws: int | None, engine: str | None, score:
     if reward == "batch" and score != "pfc":
         raise ValueError(f"reward 'batch' re-weights P(FC); score {score!r} takes "
                          "reward 'draws'")
-    batch_size = positive_count("batch_size", batch_size)
-    n_draws = positive_count("n_draws", n_draws)
-    max_steps = positive_count("max_steps", max_steps)
+    batch_size = check_count(batch_size, "batch_size")
+    n_draws = check_count(n_draws, "n_draws")
+    max_steps = check_count(max_steps, "max_steps")
     sigma_range = sigma_bounds(sigma_range)
     noise_types = names_of("noise_types", noise_types, DISTRIBUTIONS)
     q_weight = finite_number("q_weight", q_weight)

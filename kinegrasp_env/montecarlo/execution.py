@@ -107,17 +107,11 @@ def leave_signals_to_the_parent() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def check_workers(value, name: str = "processes") -> int:
-    """``value`` as an int, or ValueError (one line naming ``name`` and the value) unless it
-    is an integer >= 1 (not a bool): a count of processes or CPUs."""
-    return check_count(value, name)
-
-
 class LocalExecutor(Executor):
     """``processes`` worker processes on this machine (1: run inline, no pool)."""
 
     def __init__(self, processes: int = 1):
-        self.workers = check_workers(processes)
+        self.workers = check_count(processes, "processes")
         self.description = f"local, {self.workers} process{'es' if self.workers > 1 else ''}"
         self._pool: ProcessPoolExecutor | None = None
         self._inline: deque[tuple[int, Any]] = deque()
@@ -245,7 +239,7 @@ class RayExecutor(Executor):
     def __init__(self, address: str | None = None, num_cpus: int | None = None,
                  max_retries: int = MAX_ATTEMPTS - 1):
         if num_cpus is not None:
-            num_cpus = check_workers(num_cpus, "num_cpus")
+            num_cpus = check_count(num_cpus, "num_cpus")
         ray = _import_ray()
         if address is not None:
             _check_reachable(address)
@@ -304,7 +298,7 @@ def make_executor(backend: str = "local", processes: int | None = None,
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(BACKENDS)}")
     if processes is not None:
-        processes = check_workers(processes)
+        processes = check_count(processes, "processes")
     if backend == "local":
         if address is not None:
             raise ValueError("--address is for the ray backend (add --backend ray)")
