@@ -68,9 +68,23 @@ def test_other_noise_takes_draws_and_bad_settings_are_refused():
     env.reset(seed=0)
     assert env.step(ACTIONS[0])[4]["reward_method"] == "draws"
     for kwargs, message in (({"reward": "mean"}, "reward must be"),
-                            ({"reward": "batch", "batch_size": 0}, "batch_size")):
+                            ({"reward": "batch", "batch_size": 0}, "batch_size"),
+                            ({"reward": "batch", "batch_size": 49},
+                             "batch_size 49 is too small.*9 configurations x 5 noise levels"
+                             " and needs at least 50 closings")):
         with pytest.raises(ValueError, match=message):
             KineGraspEnv(**kwargs)
+
+
+def test_the_least_batch_size_the_env_takes_covers_a_grasp_at_every_angle():
+    """The size the constructor asks for is enough for a grasp whose every covered angle is
+    reachable (9 configurations x 5 levels: the mixture's own check passes at the first
+    reset), and one closing fewer is refused at construction."""
+    env = KineGraspEnv(objects=("spray_flask",), reward="batch", batch_size=50)
+    env.reset(seed=0, options={"object": "spray_flask", "grasp": 1, "sigma": 0.0133})
+    assert len(env._batch.batch) == 50
+    assert len(env._covered_configurations(np.asarray(env.grasp.q0))) == 8
+    assert env.step(ACTIONS[0])[4]["reward_method"] in ("batch", "draws")
 
 
 def test_sigma_0_takes_draws():
@@ -83,3 +97,26 @@ def test_sigma_0_takes_draws():
         env.reset(seed=0, options={"object": "cube", "grasp": 0, "sigma": 0.0})
         info = env.step(ACTIONS[0])[4]
         assert info["reward_method"] == "draws" and info["p_fc"] in (0.0, 1.0), info
+
+
+def test_a_noise_model_of_gaussian_joint_noise_is_re_weighted_as_joint_noise():
+    """A noise model of zero-mean Gaussian noise on the joints alone is the env's own joint
+    noise: its sigma as a scalar, one per joint or a diagonal covariance gives the rewards of
+    the ``sigma`` option, re-weighted; a bias or another distribution takes draws."""
+    env = KineGraspEnv(objects=("spray_flask",), reward="batch", batch_size=1024)
+    sigma = 0.0133
+
+    def rewards(noise: dict) -> list:
+        env.reset(seed=4, options={"object": "spray_flask", "grasp": 0, **noise})
+        infos = [env.step(action)[4] for action in ACTIONS]
+        return [(round(i["p_fc"], 12), i["reward_method"]) for i in infos]
+
+    own = rewards({"sigma": sigma, "noise": "gaussian"})
+    assert any(method == "batch" for _, method in own)
+    for joints in ({"sigma": sigma}, {"sigma": [sigma] * 7},
+                   {"covariance": (sigma ** 2 * np.eye(7)).tolist()}):
+        assert rewards({"noise_model": {"joints": joints}}) == own, joints
+    for joints in ({"sigma": sigma, "bias": 0.001},
+                   {"sigma": sigma, "distribution": "uniform"}):
+        got = rewards({"noise_model": {"joints": joints}})
+        assert all(method == "draws" for _, method in got), (joints, got)

@@ -28,9 +28,17 @@ import zlib
 import numpy as np
 
 from kinegrasp_env.montecarlo.draws import OUTCOMES
-from kinegrasp_env.montecarlo.palm_batch import PalmBatch, PalmJacobian, close_batch
+from kinegrasp_env.montecarlo.palm_batch import (
+    PalmBatch,
+    PalmJacobian,
+    close_batch,
+    gaussian_terms,
+)
 from kinegrasp_env.robot.branch_motion import BranchMotion
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
+from kinegrasp_env.sampling.noise import JointNoise
+from kinegrasp_env.sampling.noise_model import NoiseModel
+from kinegrasp_env.sampling.reweight import least_batch
 
 #: Elbow angles (radians) either side of the episode's start the batch covers.
 SPAN = 1.2
@@ -38,6 +46,9 @@ SPAN = 1.2
 SPAN_STEP = 0.3
 #: Noise levels of the batch's mixture, spread geometrically over the env's sigma range.
 SIGMA_LEVELS = 5
+#: The most IK branches a 6-joint arm's batch covers (a general 6R arm reaches a palm pose
+#: in at most 16 configurations).
+MOST_BRANCHES = 16
 
 
 class BatchReward:
@@ -63,12 +74,14 @@ class BatchReward:
         batch = close_batch(q0, object_name, covs, size, seed, engine=engine, robot=robot)
         return cls(batch, jacobian)
 
-    def estimate(self, q: np.ndarray, sigma: float, minimum: int) -> dict | None:
-        """The reward's estimate at configuration q (dof,) and Gaussian joint noise ``sigma``
-        (radians) (the keys of the draws' estimate), or None where the effective sample size
-        is below ``minimum``."""
-        est = self.batch.estimate(self.jacobian.covariance(q, sigma)[0],
-                                  mean=self.jacobian.mean(q, sigma)[0])
+    def estimate(self, q: np.ndarray, noise: tuple[np.ndarray, np.ndarray], minimum: int
+                 ) -> dict | None:
+        """The reward's estimate at configuration q (dof,) and Gaussian noise ``noise``
+        (:func:`batch_noise`'s joint and palm covariances) (the keys of the draws'
+        estimate), or None where the effective sample size is below ``minimum``."""
+        joint_cov, palm_cov = noise
+        est = self.batch.estimate(self.jacobian.covariance(q, joint_cov)[0] + palm_cov,
+                                  mean=self.jacobian.mean(q, joint_cov)[0])
         if not est.ess >= minimum:
             return None
         return {"p_fc": est.p_fc.value, "p_fc_ci": est.p_fc.interval,
@@ -105,6 +118,23 @@ def covered_configurations(q0: np.ndarray,
     return [q for q, reached in moved if reached]
 
 
+def check_batch_size(size: int, arm: int, sigma_range: tuple[float, float]) -> None:
+    """ValueError (one line) where a batch of ``size`` closings cannot cover the targets of
+    every grasp of an arm of ``arm`` joints at the noise levels of ``sigma_range`` (radians):
+    its configurations (a 7-joint arm: the grasp's and its covered angles; a 6-joint arm: at
+    most :data:`MOST_BRANCHES` IK branches) times its noise levels, beside the defensive
+    component (:func:`~kinegrasp_env.sampling.reweight.least_batch`)."""
+    if max(sigma_range) <= 0:  # no batch: every step takes draws
+        return
+    configurations = 1 + len(covered_angles(0.0)) if arm > 6 else MOST_BRANCHES
+    levels = len(sigma_levels(*sigma_range))
+    need = least_batch(configurations * levels)
+    if size < need:
+        raise ValueError(f"batch_size {size} is too small: a grasp's batch covers up to "
+                         f"{configurations} configurations x {levels} noise levels and needs "
+                         f"at least {need} closings")
+
+
 def sigma_levels(low: float, high: float) -> list[float]:
     """:data:`SIGMA_LEVELS` noise levels (radians) spread geometrically over [low, high]
     (one where they are equal; a zero low end starts the spread at high / 10)."""
@@ -112,6 +142,19 @@ def sigma_levels(low: float, high: float) -> list[float]:
         return [float(high)]
     start = low if low > 0 else high / 10.0
     return np.geomspace(start, high, SIGMA_LEVELS).tolist()
+
+
+def batch_noise(noise: JointNoise | NoiseModel, arm: int
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """((arm, arm) joint covariance, rad^2; (6, 6) palm covariance) of a noise a batch
+    re-weights to (:func:`~kinegrasp_env.montecarlo.palm_batch.gaussian_terms`: zero-mean
+    Gaussian noise on the arm's joints and the palm, ``JointNoise`` or a noise model), or
+    None where it cannot: another distribution, a bias, another source, or no joint noise to
+    spread the palm's deviation over its six dimensions (sigma 0 included)."""
+    try:
+        return gaussian_terms(noise, arm)
+    except ValueError:
+        return None
 
 
 def grasp_seed(key: tuple) -> int:

@@ -66,6 +66,8 @@ from gymnasium import spaces
 from kinegrasp_env.envs.arguments import box_action, env_arguments, reset_options, reset_psi
 from kinegrasp_env.envs.batch_reward import (
     BatchReward,
+    batch_noise,
+    check_batch_size,
     covered_configurations,
     grasp_seed,
     sigma_levels,
@@ -120,12 +122,15 @@ class KineGraspEnv(gym.Env):
             draws their P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
             ``tests/test_env_robot.py``).
         reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (any
-            robot, with Gaussian joint noise: one batch of ``batch_size``
+            robot, with zero-mean Gaussian joint noise, a noise model's of the joints alone
+            included: one batch of ``batch_size``
             closings per grasp, kept across episodes, re-weighted to each step's
             configuration and sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise,
             or a step whose effective sample size is below ``n_draws``, takes draws;
             ``info["reward_method"]`` says which).
-        batch_size: the closings of a ``batch`` reward's grasp batch (an integer >= 1).
+        batch_size: the closings of a ``batch`` reward's grasp batch: an integer, at least
+            one per target it covers beside its defensive share (50 for a 7-joint arm at
+            five noise levels; a smaller one is refused here, naming the least).
         noise_model: every task's noise instead of the drawn joint noise: a
             :class:`~kinegrasp_env.sampling.noise_model.NoiseModel`, a spec mapping or a spec
             file (YAML/JSON); the observation shows its joint sigma and distribution.
@@ -189,8 +194,10 @@ class KineGraspEnv(gym.Env):
         self.reward_method, self.batch_size = args.reward, args.batch_size
         self._batch: BatchReward | None = None
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
-        self._jacobian = (None if args.reward != "batch"
-                          else PalmJacobian(self._robot.description))
+        self._jacobian = None
+        if args.reward == "batch":
+            check_batch_size(args.batch_size, self._robot.arm, args.sigma_range)
+            self._jacobian = PalmJacobian(self._robot.description)
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         if self.noise_model is not None:
             self._robot.check_noise(self.noise_model)
@@ -261,8 +268,9 @@ class KineGraspEnv(gym.Env):
         """The episode's batch re-weighted to the current configuration (``reward="batch"``),
         else Monte Carlo draws at it, seeded from the env's RNG (also at sigma 0: no
         deviation to re-weight, the one draw's outcome is the answer)."""
-        if self._batch is not None and np.max(self.noise.sigma) > 0:
-            found = self._batch.estimate(self.q, self.noise.sigma, self.n_draws)
+        noise = batch_noise(self.noise, self._robot.arm)
+        if self._batch is not None and noise is not None:
+            found = self._batch.estimate(self.q, noise, self.n_draws)
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
@@ -270,10 +278,10 @@ class KineGraspEnv(gym.Env):
                 "reward_method": "draws"}
 
     def _episode_batch(self) -> BatchReward | None:
-        """The grasp's batch (``reward="batch"`` with Gaussian joint noise of one sigma),
-        built at the grasp's first episode and kept; else None."""
-        if (self.reward_method != "batch" or not isinstance(self.noise, JointNoise)
-                or self.noise.kind != "gaussian" or np.ndim(self.noise.sigma) != 0
+        """The grasp's batch (``reward="batch"`` with Gaussian noise:
+        :func:`~kinegrasp_env.envs.batch_reward.batch_noise`), built at the grasp's first
+        episode and kept; else None."""
+        if (self.reward_method != "batch" or batch_noise(self.noise, self._robot.arm) is None
                 or max(self.sigma_range) <= 0):  # no noise level to draw a batch at
             return None
         grasp = self.grasp

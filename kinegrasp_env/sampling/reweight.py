@@ -83,6 +83,21 @@ def gaussian_score(x: np.ndarray, covariance: np.ndarray, derivative: np.ndarray
     return out
 
 
+def least_batch(targets: int, defensive_share: float = DEFENSIVE_SHARE) -> int:
+    """The smallest batch of closings whose mixture covers ``targets`` components and a
+    defensive one (its ``defensive_share`` of the batch, at least one closing): one closing
+    per target beside the defensive component's."""
+    need = targets + 1
+    while need - _defensive_count(need, defensive_share) < targets:
+        need += 1
+    return need
+
+
+def _defensive_count(n: int, share: float) -> int:
+    """The defensive component's closings in a batch of n."""
+    return max(1, round(share * n))
+
+
 class BatchTooSmall(ValueError):
     """A batch of closings too small for its mixture: fewer draws than targets plus the
     defensive component's share.
@@ -121,15 +136,10 @@ class MixtureProposal:
         if not 0.0 < defensive_share < 1.0 or defensive_scale < 1.0:
             raise ValueError("the defensive share must lie in (0, 1) and its scale be >= 1, "
                              f"got {defensive_share:g} and {defensive_scale:g}")
-        def defensive(m: int) -> int:
-            return max(1, round(defensive_share * m))
-
-        n_def = defensive(n)
+        n_def = _defensive_count(n, defensive_share)
         if n - n_def < len(cov):
-            need = len(cov) + 1
-            while need - defensive(need) < len(cov):
-                need += 1
-            raise BatchTooSmall(n, len(cov), need, defensive_share)
+            raise BatchTooSmall(n, len(cov), least_batch(len(cov), defensive_share),
+                                defensive_share)
         for c in cov:
             try:
                 np.linalg.cholesky(c)
