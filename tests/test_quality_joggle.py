@@ -1,8 +1,9 @@
 """The expansion's second try at the wrench sets it cannot certify: the sets moved by a hair.
 
 Two flat pads facing each other put their corners' cone-edge wrenches by fours on common
-planes; the certified expansion fails on about 2% of such sets (a thin facet it cannot cone),
-and each then cost a qhull call (~20 ms for 64 wrenches, a hundred times the expansion).
+planes; the certified expansion fails on about 1% of such sets (a thin facet it cannot cone,
+or a polytope it cannot certify convex), and each then cost a qhull call (~20 ms for 64
+wrenches, a hundred times the expansion).
 :func:`~kinegrasp_env.quality.epsilon.joggled_quality` runs the expansion on the set with
 every wrench moved by at most JOGGLE x its scale per coordinate; the two hulls lie within
 sqrt(6) x JOGGLE x scale of each other, so the moved set's certified Q is the set's to within
@@ -39,15 +40,21 @@ def facing_pads(count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(points, axis=1), np.concatenate(normals, axis=1)
 
 
+#: Facing-pad sets the expansion may leave uncertified, of 3,000 (seed 0): it leaves 33
+#: (1.1%), where testing every facet's visibility at each step, not only the facets around
+#: those that see the new wrench, left 59 (a regression bound, with a margin).
+MOST_UNCERTIFIED = 48
+
+
 @pytest.fixture(scope="module")
 def uncertified():
     """Facing-pad sets the expansion does not certify: (points, normals, wrenches)."""
-    points, normals = facing_pads(1500, 0)
+    points, normals = facing_pads(3000, 0)
     w = edge_wrenches(points, normals, 0.5, 8, np.full(len(points), SCALE),
                       np.zeros((len(points), 3)))
     _, certified = epsilon_epa_batch(np.ascontiguousarray(w))
     bad = np.flatnonzero(~certified)
-    assert bad.size >= 10, bad.size  # about 2% of such sets
+    assert 10 <= bad.size <= MOST_UNCERTIFIED, bad.size  # about 1% of such sets
     return points[bad], normals[bad], w[bad]
 
 

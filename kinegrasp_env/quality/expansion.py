@@ -13,7 +13,10 @@ origin outwards (the expanding-polytope idea of EPA):
    hyperplane that every wrench lies within FC_TOL / 2 of, on one side (Q is at most that).
 2. Repeat: take the nearest facet (unit normal a, offset b); if no wrench lies beyond it,
    stop; else add the wrench furthest beyond it (facets it sees are removed, the horizon
-   ridges, between a facet it sees and a neighbour it does not, are coned to it). Each
+   ridges, between a facet it sees and a neighbour it does not, are coned to it; the facets
+   it sees are found from the nearest one across their ridges, :func:`_mark_visible`: on
+   facing flat pads' sets this leaves half as many sets uncertified as testing every facet
+   did, whose far-off facets seen by round-off broke the coning). Each
    facet knows its neighbour across each ridge, so a new facet's hyperplane is the one
    through the apex in the pencil of its two parents' (:func:`pencil_facet`: ~40
    multiplications where Gram-Schmidt on its vertices takes ~700; accepted where all its
@@ -98,33 +101,66 @@ def _furthest_beyond(w: np.ndarray, a: np.ndarray, limit: float) -> int:
 
 
 @jit.kernel(_nrt=False, inline="always")
-def _mark_visible(w, far, poly, count, tol) -> None:
+def _mark_visible(w, far, poly, near, step, tol) -> int:
     """Mark the live facets that see wrench ``far`` (more than tol beyond them: poly's
-    ``visible``) and how far beyond (``height``)."""
-    normal, offset, alive, visible, height = poly[1], poly[2], poly[3], poly[6], poly[9]
-    for f in range(count):
-        visible[f] = False
-        if alive[f]:
-            d = -offset[f]
+    ``visible``) and how far beyond (``height``), from facet ``near`` (which sees it) across
+    the ridges of the facets that see it: the facets a point outside a convex polytope sees
+    form one connected patch of its boundary, so only they and the facets around them are
+    tested, not every facet. Returns their number, listed in poly's ``found`` in increasing
+    order (the order of the facets, as the horizon is coned). Each facet tested is stamped
+    with ``step`` (poly's ``checked``). A facet seen only across one that misses by round-off
+    is left unmarked; the polytope is then not convex, which its certification finds
+    (:func:`_is_convex`: the set goes to the next exact path)."""
+    normal, offset, visible, height, neighbour = poly[1], poly[2], poly[6], poly[9], poly[8]
+    checked, found = poly[11], poly[12]
+    checked[near] = step
+    d = -offset[near]
+    for c in range(6):
+        d += normal[near, c] * w[far, c]
+    if not d > tol:
+        return 0
+    visible[near], height[near] = True, d
+    found[0] = near
+    seen = 1
+    head = 0
+    while head < seen:
+        f = found[head]
+        head += 1
+        for j in range(6):
+            h = neighbour[f, j]
+            if checked[h] == step:
+                continue
+            checked[h] = step
+            d = -offset[h]
             for c in range(6):
-                d += normal[f, c] * w[far, c]
+                d += normal[h, c] * w[far, c]
             if d > tol:
-                visible[f] = True
-                height[f] = d
+                visible[h], height[h] = True, d
+                found[seen] = h
+                seen += 1
+    for i in range(1, seen):  # insertion sort: a few to a few dozen facets
+        f = found[i]
+        k = i - 1
+        while k >= 0 and found[k] > f:
+            found[k + 1] = found[k]
+            k -= 1
+        found[k + 1] = f
+    return seen
 
 
 @jit.kernel(_nrt=False)
-def _cone_horizon(w, far, poly, count, ridges, scale) -> int:
+def _cone_horizon(w, far, poly, count, seen, ridges, scale) -> int:
     """Cone the horizon (the ridges between a visible facet and a facet that is not) to
-    wrench ``far``, link the new facets to their neighbours and retire the visible ones;
-    returns the new facet count, -1 on a full table, a degenerate facet or broken structure.
-    New facets are made in the order of their visible facet, then of its ridges."""
+    wrench ``far``, link the new facets to their neighbours and retire the visible ones
+    (the ``seen`` facets :func:`_mark_visible` listed); returns the new facet count, -1 on
+    a full table, a degenerate facet or broken structure. New facets are made in the order
+    of their visible facet, then of its ridges; each starts unmarked and untested."""
     verts, normal, offset, alive = poly[0], poly[1], poly[2], poly[3]
-    interior, visible, neighbour = poly[4], poly[6], poly[8]
+    interior, visible, neighbour, checked, found = poly[4], poly[6], poly[8], poly[11], \
+        poly[12]
     first = count
-    for f in range(first):
-        if not visible[f]:
-            continue
+    for i in range(seen):
+        f = found[i]
         for j in range(6):
             h = neighbour[f, j]
             if visible[h]:
@@ -150,12 +186,12 @@ def _cone_horizon(w, far, poly, count, ridges, scale) -> int:
                 if not set_facet(w, verts, normal, offset, alive, g, interior, scale,
                                   poly[7]):
                     return -1
+            visible[g], checked[g] = False, -1
             count += 1
     if not link_new_facets(poly, first, count, ridges):
         return -1
-    for f in range(first):
-        if visible[f]:
-            alive[f] = False
+    for i in range(seen):
+        alive[found[i]] = False
     return count
 
 
@@ -243,7 +279,7 @@ def _expand(w, poly, count, tol, scale, ridges) -> int:
     twice, a failed step, or more steps than wrenches). ridges: :func:`new_ridges`."""
     n = w.shape[0]
     normal, offset, alive, used = poly[1], poly[2], poly[3], poly[5]
-    for _ in range(n + 1):
+    for step in range(n + 1):
         near = _nearest_facet(offset, alive, count)
         if near < 0:  # no live facet (impossible for consistent planes): not certified
             return -1
@@ -252,8 +288,10 @@ def _expand(w, poly, count, tol, scale, ridges) -> int:
             return count
         if used[far]:
             return -1
-        _mark_visible(w, far, poly, count, tol)
-        count = _cone_horizon(w, far, poly, count, ridges, scale)
+        seen = _mark_visible(w, far, poly, near, step, tol)
+        if seen == 0:
+            return -1
+        count = _cone_horizon(w, far, poly, count, seen, ridges, scale)
         if count < 0:
             return -1
         used[far] = True

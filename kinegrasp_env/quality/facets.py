@@ -119,13 +119,16 @@ def new_polytope():
     point inside, used (MAX_POINTS,) wrenches that are vertices, visible (F,) scratch, basis
     (5, 6) scratch of :func:`hyperplane`, neighbour (F, 6): the facet across the ridge
     opposite each vertex, height (F,) scratch: how far the wrench being added lies beyond
-    each visible facet, planes (7, F) scratch of the expansion's ``_is_convex``),
+    each visible facet, planes (7, F) scratch of the expansion's ``_is_convex``, checked
+    (F,) int64: the step of the expansion that last tested each facet's visibility, and
+    found (F,) int64 scratch: the visible facets of a step),
     F = :data:`MAX_FACETS`; :func:`clear_polytope` empties them for the next wrench set."""
     return (np.empty((MAX_FACETS, 6), np.int64), np.empty((MAX_FACETS, 6)),
             np.empty(MAX_FACETS), np.zeros(MAX_FACETS, np.bool_), np.zeros(6),
             np.zeros(MAX_POINTS, np.bool_), np.zeros(MAX_FACETS, np.bool_),
             np.zeros((5, 6)), np.empty((MAX_FACETS, 6), np.int64), np.empty(MAX_FACETS),
-            np.empty((7, MAX_FACETS)))
+            np.empty((7, MAX_FACETS)), np.empty(MAX_FACETS, np.int64),
+            np.empty(MAX_FACETS, np.int64))
 
 
 @jit.kernel(_nrt=False)
@@ -133,8 +136,8 @@ def clear_polytope(poly) -> None:
     """No wrench used and the interior point at 0 (both read before they are written). The
     facet tables need no clearing: every loop over facets stops at the set's own count, and
     each facet below it is written (made alive, or the set is abandoned) before it is read,
-    its ``visible`` flag in the step that reads it (clearing the 4,096 rows was a noticeable
-    share of a set's work)."""
+    its ``visible`` flag and ``checked`` step when it is made (clearing the 4,096 rows was a
+    noticeable share of a set's work)."""
     interior, used = poly[4], poly[5]
     for c in range(6):
         interior[c] = 0.0
@@ -157,6 +160,8 @@ def start_polytope(w, start, poly, scale) -> bool:
                 k += 1
         if not set_facet(w, verts, normal, offset, alive, skip, interior, scale, poly[7]):
             return False
+        poly[6][skip] = False  # not visible, and not yet tested in any step
+        poly[11][skip] = -1
     return True
 
 
