@@ -119,6 +119,18 @@ def test_sweep_spec_errors_for_grasp_files(catalog, capsys):
 
 
 # ----------------------------------------------------------------------------- reproduce
+def test_the_env_says_how_to_give_it_grasps_of_an_imported_object(catalog):
+    """The env's words, not a command's flags: the grasp file goes in as ``grasp_file``."""
+    from kinegrasp_env.envs.kinegrasp import KineGraspEnv
+
+    with pytest.raises(ValueError, match=f"no shipped grasps of '{BOX}'.* and give the env "
+                                         f"that file: grasp_file='{BOX}_grasps.json'$"):
+        KineGraspEnv(objects=(BOX,))
+    env = KineGraspEnv(objects=(BOX,), grasp_file=str(catalog / "box6_grasps.json"))
+    env.reset(seed=0)
+    assert env.grasp.object == BOX
+
+
 def test_reproduce_fig9_on_an_imported_object_equals_the_builtin_cube(catalog, capsys):
     """``reproduce fig9 --grasps FILE``: the file's first 10 grasps, both engines, the same
     numbers as the cube's first 10 shipped grasps."""

@@ -8,6 +8,7 @@ import math
 
 import pytest
 
+from kinegrasp_env.assets import asset_path
 from kinegrasp_env.cli.main import main
 from kinegrasp_env.montecarlo.evaluate import evaluate_grasp
 from kinegrasp_env.montecarlo.execution import LocalExecutor
@@ -163,6 +164,25 @@ def test_an_engine_that_cannot_take_the_model_is_refused_before_any_work(spec_fi
     again = capsys.readouterr().err.strip().splitlines()
     assert [line.split(": error: ")[1] for line in again + err] == [
         err[0].split(": error: ")[1]] * 2
+
+
+def test_a_spec_for_another_arm_is_refused_naming_its_file(tmp_path, capsys):
+    """Per-joint sigmas for 6 joints given to the 7-joint default robot: every command
+    that runs the spec says so in one line that names the spec's file, before any work."""
+    spec = tmp_path / "six.yaml"
+    spec.write_text("joints: {sigma: [0.01, 0.01, 0.01, 0.01, 0.01, 0.01]}\n")
+    candidates = asset_path("grasps", "kuka_sdh", "cube.json")
+    out = tmp_path / "r.html"
+    for command in (["evaluate", "--object", "cube"], ["rank", str(candidates)],
+                    ["report", "--object", "cube", "--out", str(out)],
+                    ["sensitivity", "--object", "cube"]):
+        assert main([*command, "--noise-spec", str(spec), "--samples", "8"]) == 2, command
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].endswith(
+            f"error: --noise-spec {spec}: robot 'kuka_sdh' has 7 arm joints; the spec's "
+            "joints describe 6 (give sigma and bias as one value or one per arm joint, a "
+            "covariance as one row and column per arm joint)"), (command, err)
+    assert not out.exists()
 
 
 def test_a_sweep_takes_a_noise_spec_file_of_any_name(tmp_path):

@@ -222,9 +222,24 @@ def noise_spec_from(args):
 
     with reported(NoiseSpecError):
         model = load_noise_model(path)
-    with reported(ValueError):
+    try:
         check_engine_noise(model, getattr(args, "engine", "pybullet"))
+    except ValueError as exc:
+        raise CLIError(f"--noise-spec {path}: {exc}") from None
     return model
+
+
+def check_spec_noise(args, model, robot, arm: int, engine: str,
+                     static_hold: bool = False) -> None:
+    """One :class:`CLIError` line naming ``--noise-spec``'s file for what a robot's run
+    cannot take from its model (:func:`~kinegrasp_env.montecarlo.noise_rows.
+    check_robot_noise`: ``robot`` a name or a description, ``arm`` its arm joints)."""
+    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
+
+    try:
+        check_robot_noise(model, robot, arm, engine, static_hold)
+    except ValueError as exc:
+        raise CLIError(f"--noise-spec {args.noise_spec}: {exc}") from None
 
 
 def parse_seed(text: str) -> int:

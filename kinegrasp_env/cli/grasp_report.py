@@ -18,6 +18,7 @@ from kinegrasp_env.cli.command_words import friction_words, noise_words, sigma_w
 from kinegrasp_env.cli.common import (
     NUM_EDGES,
     CLIError,
+    check_spec_noise,
     friction_from,
     friction_setting,
     joint_noise,
@@ -169,10 +170,7 @@ def run_report(args, sigmas: list[float]) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if model is not None:
-        from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
-
-        with reported(ValueError):
-            check_robot_noise(model, description, description.arm_dof, args.engine)
+        check_spec_noise(args, model, description, description.arm_dof, args.engine)
         sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
     runs, arms = [], []

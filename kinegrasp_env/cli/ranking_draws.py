@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 
-from kinegrasp_env.cli.common import reported
+from kinegrasp_env.cli.common import check_spec_noise, reported
 from kinegrasp_env.cli.evaluation import check_hold_simulator, check_robot_engine
 
 
@@ -19,7 +19,6 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
     and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
     takes; CLIError lines otherwise."""
     from kinegrasp_env.montecarlo.evaluate import check_robot
-    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
@@ -36,9 +35,10 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
         for g in grasps:
             check_robot(g, robot, "--robot")
     if args.noise_spec:
-        with reported(ValueError, RobotDescriptionError):
-            check_robot_noise(noise, robot, load_robot(robot).arm_dof, args.engine,
-                              bool(args.static_hold) or args.criterion == "hold_static")
+        with reported(RobotDescriptionError):
+            arm = load_robot(robot).arm_dof
+        check_spec_noise(args, noise, robot, arm, args.engine,
+                         bool(args.static_hold) or args.criterion == "hold_static")
 
 
 

@@ -19,6 +19,7 @@ from kinegrasp_env.cli.common import (
     add_engine_arg,
     add_friction_arg,
     add_object_arg,
+    check_spec_noise,
     friction_from,
     grasp_index_help,
     parse_seed,
@@ -76,7 +77,6 @@ def _request(args, model) -> tuple[int, object]:
     work)."""
     from kinegrasp_env.cli.grasp_choice import grasp_of_file
     from kinegrasp_env.montecarlo.evaluate import ENGINES
-    from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
     from kinegrasp_env.robot.catalog import load_robot
     from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.sensitivity import check_factors
@@ -92,8 +92,7 @@ def _request(args, model) -> tuple[int, object]:
     if not model.sources:
         raise CLIError(f"--noise-spec {args.noise_spec}: the model has no source of error; "
                        "nothing to analyze")
-    with reported(ValueError):
-        check_robot_noise(model, robot, arm, args.engine)
+    check_spec_noise(args, model, robot, arm, args.engine)
     try:
         check_factors(model, args.factors == "joints")
     except ValueError as exc:

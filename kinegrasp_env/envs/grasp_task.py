@@ -55,7 +55,13 @@ from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.stats import wilson_interval
-from kinegrasp_env.world.grasps import Grasp, load_grasps, shipped_grasps, shipped_objects
+from kinegrasp_env.world.grasps import (
+    Grasp,
+    NoGraspSetError,
+    load_grasps,
+    shipped_grasps,
+    shipped_objects,
+)
 from kinegrasp_env.world.objects import load_object
 
 #: Reward draws per step by default, every robot (what they cost per step with each engine:
@@ -139,7 +145,16 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
     if not names:
         raise ValueError(f"robot {robot!r} has no shipped grasps; give a grasp_file "
                          f"(kinegrasp plan --robot {robot})")
-    return {name: shipped_grasps(name, robot) for name in names}
+    tasks = {}
+    for name in names:
+        try:
+            tasks[name] = shipped_grasps(name, robot)
+        except NoGraspSetError:  # worded for the env: how to give it grasps
+            raise ValueError(
+                f"robot {robot!r} has no shipped grasps of {name!r}; plan them (`kinegrasp "
+                f"plan --robot {robot} --object {name} --out {name}_grasps.json`) and give "
+                f"the env that file: grasp_file='{name}_grasps.json'") from None
+    return tasks
 
 
 class RobotTask:
