@@ -56,7 +56,6 @@ from kinegrasp_env.robot.description_fields import (
     check_arm_angle_links,
     check_efforts,
     check_hand_mount,
-    check_mapping,
     check_names,
     check_packages,
     check_text,
@@ -71,6 +70,13 @@ from kinegrasp_env.robot.urdf_meshes import (
     MeshNotFound,
     collision_links,
     urdf_meshes,
+)
+from kinegrasp_env.robot.urdf_tree import (
+    UrdfTree,
+    check_chain,
+    check_close,
+    check_every_joint_listed,
+    check_travel,
 )
 from kinegrasp_env.spec_yaml import read_spec
 
@@ -201,6 +207,40 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     """Check the mapping ``data`` read from the file ``path`` (relative paths start at its
     folder); see :func:`load_description`."""
     where = path.name
+    name, urdf, model = _check_header(data, where, path)
+    tree = UrdfTree(model, urdf, where)
+    arm, palm, hand, path_links = check_chain(data, tree)
+    check_every_joint_listed(tree, arm, hand, palm)
+    close = check_close(data, tree, hand)
+    opened = joint_values(data, where, "open", hand, tree.movable,
+                          lambda lo, hi: min(max(0.0, lo), hi))
+    finger_links, tips, fingers = _fingers(data, tree, palm, hand, close)
+    efforts = check_efforts(data, where, tree.movable)
+    contact_model = data.get("contact_model", default_contact_model(len(fingers)))
+    if contact_model not in CONTACT_MODELS:
+        raise fail(where, "contact_model", f"{contact_model!r} is not one of "
+                   f"{', '.join(CONTACT_MODELS)}")
+    packages = check_packages(data, where, path.parent)
+    angle_links = check_arm_angle_links(data, where, arm, tree.movable, path_links)
+    mount = check_hand_mount(data, where, path_links, tree.movable[arm[-1]].child)
+    home = joint_values(data, where, "home", arm, tree.movable,
+                        lambda lo, hi: 0.5 * (lo + hi))
+    arm_name = check_text(data, where, "arm_name", f"{name} arm")
+    preshapes = check_preshapes(data, where, hand, tree.movable)
+    check_travel(tree, close, opened, preshapes)
+    try:
+        meshes = urdf_meshes(urdf, packages)
+    except MeshNotFound as exc:
+        raise fail(where, exc.key, str(exc)) from None
+    return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
+                            arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
+                            efforts, contact_model, packages, angle_links, meshes, mount, home,
+                            arm_name, preshapes)
+
+
+def _check_header(data: dict, where: str, path: Path) -> tuple[str, Path, RobotModel]:
+    """(name, the URDF's resolved path, its model): the keys known and the required ones
+    given, a valid name, a URDF file that loads."""
     unknown = [k for k in data if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
     if unknown:
         raise fail(where, str(unknown[0]), f"unknown key (known: "
@@ -221,116 +261,41 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
         model = load_urdf(urdf)
     except (ValueError, ET.ParseError) as exc:
         raise fail(where, "urdf", f"{data['urdf']!r} is not a usable URDF ({exc})") from None
-    movable = {j.name: j for j in model.joints if j.movable}
-    by_child = {j.child: j for j in model.joints}
-    links = set(model.links)
+    return name, urdf, model
 
-    def known_joint(key: str, joint: str) -> None:
-        if joint not in movable:
-            kind = "a fixed joint" if any(j.name == joint for j in model.joints) else \
-                "unknown joint"
-            raise fail(where, key, f"{kind} {joint!r} (movable joints in {urdf.name}: "
-                       f"{', '.join(movable)})")
-        if movable[joint].mimic is not None:
-            raise fail(where, key, f"{joint!r} is a mimic joint (it follows "
-                       f"{movable[joint].mimic[0]!r}); name the joint it follows")
 
-    def known_link(key: str, link: str) -> None:
-        if not isinstance(link, str) or link not in links:
-            raise fail(where, key, f"unknown link {link!r} in {urdf.name}")
 
-    def ancestors(link: str) -> list[str]:
-        """The links from ``link`` up to the root, ``link`` first."""
-        chain = [link]
-        while chain[-1] in by_child:
-            chain.append(by_child[chain[-1]].parent)
-        return chain
 
-    arm = check_names(data["arm_joints"], where, "arm_joints")
-    for j in arm:
-        known_joint("arm_joints", j)
-    palm = data["palm_link"]
-    known_link("palm_link", palm)
-    hand = check_names(data["hand_joints"], where, "hand_joints")
-    for j in hand:
-        known_joint("hand_joints", j)
-        if palm not in ancestors(movable[j].parent):
-            raise fail(where, "hand_joints", f"{j!r} moves link {movable[j].child!r}, which "
-                       f"is not beyond palm_link {palm!r}")
-    # the arm: exactly the movable joints on the path from the base to the palm, in order
-    path_links = ancestors(palm)[::-1]
-    chain = [by_child[link].name for link in path_links[1:] if by_child[link].movable]
-    if list(arm) != chain:
-        stray = [j for j in arm if j not in chain]
-        if stray:
-            problem = (f"{stray[0]!r} is not on the chain from the base {model.base_link!r} "
-                       f"to palm_link {palm!r}")
-        else:
-            problem = (f"{list(arm)} is not the chain from the base {model.base_link!r} to "
-                       f"palm_link {palm!r}: its movable joints are {chain}")
-        raise fail(where, "arm_joints", problem)
-    # every movable joint is an arm or a hand joint, or a mimic joint that follows one
-    listed = set(arm) | set(hand)
-    for joint in movable.values():
-        source = joint.mimic[0] if joint.mimic is not None else joint.name
-        if source != joint.name and source in movable and movable[source].mimic is not None:
-            raise fail(where, "urdf", f"{joint.name!r} mimics {source!r}, itself a mimic joint "
-                       f"of {movable[source].mimic[0]!r}: make it mimic that joint in "
-                       f"{urdf.name} (a chain of mimic joints is not supported)")
-        if source in listed:
-            continue
-        follows = "" if source == joint.name else f" (it mimics {source!r})"
-        if palm in ancestors(joint.parent):
-            raise fail(where, "hand_joints", f"{joint.name!r} is a movable joint beyond "
-                       f"palm_link {palm!r} that is in neither arm_joints nor hand_joints"
-                       f"{follows}: list {source!r} in hand_joints, or make palm_link a link "
-                       "beyond it")
-        raise fail(where, "urdf", f"{joint.name!r} is a movable joint of {urdf.name} in "
-                   f"neither arm_joints nor hand_joints{follows}: list {source!r} in one of "
-                   "them, or make it a fixed joint in the URDF")
 
-    close = {}
-    for j, d in check_mapping(data["close"], where, "close").items():
-        if j not in hand:
-            raise fail(where, "close", f"{j!r} is not one of hand_joints")
-        if isinstance(d, bool) or d not in (1, -1):
-            raise fail(where, "close", f"{j}: {d!r} is not +1 or -1")
-        close[j] = int(d)
-    if not close:
-        raise fail(where, "close", "give the closing direction of at least one hand joint")
-    opened = joint_values(data, where, "open", hand, movable,
-                          lambda lo, hi: min(max(0.0, lo), hi))
 
-    # links a hand joint moves (mimic followers included), and the finger links
-    driver = {j.name: (j.mimic[0], j.mimic[1]) if j.mimic else (j.name, 1.0)
-              for j in movable.values()}
-    moved = [j.child for j in model.joints if j.movable and driver[j.name][0] in hand]
-    hand_links = [link for link in model.links
-                  if any(m in ancestors(link) for m in moved)]
+
+
+def _fingers(data: dict, tree: UrdfTree, palm: str, hand: tuple[str, ...],
+             close: dict[str, int]) -> tuple[tuple[str, ...], tuple[str, ...], list[Finger]]:
+    """(finger links, fingertips, fingers): ``finger_links`` as given (each moved by a hand
+    joint), else every link a hand joint moves, the tips then without a linkage's bars
+    (:func:`~kinegrasp_env.robot.linkage.linkage_bars`); each finger the closing joints on
+    the path from the palm to its tip, and collision geometry on the links they move."""
+    where, driver = tree.where, tree.driver
+    hand_links = tree.moved_links(hand)
     if "finger_links" in data:
         finger_links = check_names(data["finger_links"], where, "finger_links")
         for link in finger_links:
-            known_link("finger_links", link)
+            tree.known_link("finger_links", link)
             if link not in hand_links:
                 raise fail(where, "finger_links", f"{link!r} is not moved by any of "
                            "hand_joints")
     else:
         finger_links = tuple(hand_links)
-    parents = {by_child[link].parent for link in finger_links}
+    parents = {tree.by_child[link].parent for link in finger_links}
     tips = tuple(link for link in finger_links if link not in parents)
-
-    def below_palm(tip: str) -> list:
-        """The joints from the palm to ``tip``, in order."""
-        up = ancestors(tip)
-        return [by_child[link] for link in reversed(up[:up.index(palm)])]
-
     if "finger_links" not in data:  # derived: a linkage's bars are no fingertips
-        bars = linkage_bars({tip: [j.name for j in below_palm(tip) if j.movable]
+        bars = linkage_bars({tip: [j.name for j in tree.path_joints(palm, tip) if j.movable]
                              for tip in tips}, {j: driver[j][0] for j in driver})
         tips = tuple(tip for tip in tips if tip not in bars)
     fingers = []
     for tip in tips:
-        on_path = below_palm(tip)
+        on_path = tree.path_joints(palm, tip)
         closing = [j for j in on_path if j.movable and driver[j.name][0] in close]
         if not closing:
             drivers = dict.fromkeys(driver[j.name][0] for j in on_path
@@ -342,42 +307,17 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
                               tuple(int(close[driver[j.name][0]]
                                         * math.copysign(1.0, driver[j.name][1]))
                                     for j in closing)))
-
-    touching = collision_links(urdf)
+    touching = collision_links(tree.urdf)
     for finger in fingers:  # the links a finger's closing moves are the ones that touch
         if not touching.intersection(finger.links):
             raise fail(where, "finger_links" if "finger_links" in data else "urdf",
                        f"the finger ending at {finger.tip!r} has no collision geometry on "
                        f"the links its closing joints move ({', '.join(finger.links)} in "
-                       f"{urdf.name}): a finger closes until their collision shapes touch "
-                       "the object")
-    efforts = check_efforts(data, where, movable)
-    contact_model = data.get("contact_model", default_contact_model(len(fingers)))
-    if contact_model not in CONTACT_MODELS:
-        raise fail(where, "contact_model", f"{contact_model!r} is not one of "
-                   f"{', '.join(CONTACT_MODELS)}")
-    packages = check_packages(data, where, path.parent)
-    angle_links = check_arm_angle_links(data, where, arm, movable, path_links)
-    mount = check_hand_mount(data, where, path_links, movable[arm[-1]].child)
-    home = joint_values(data, where, "home", arm, movable, lambda lo, hi: 0.5 * (lo + hi))
-    arm_name = check_text(data, where, "arm_name", f"{name} arm")
-    preshapes = check_preshapes(data, where, hand, movable)
-    drawn = {j for draw in preshapes for j in draw.joints}
-    for j, d in close.items():  # a closing joint that starts at the limit it closes toward
-        end = movable[j].upper if d > 0 else movable[j].lower
-        if j not in drawn and math.isfinite(end) and d * (end - opened[j]) <= 0.0:
-            raise fail(where, "close", f"{j}: {d:+d} closes toward its "
-                       f"{'upper' if d > 0 else 'lower'} limit {end:g}, where it opens "
-                       f"({opened[j]:g}): no travel; give the other direction, an open value "
-                       "away from that limit or a pre-shape")
-    try:
-        meshes = urdf_meshes(urdf, packages)
-    except MeshNotFound as exc:
-        raise fail(where, exc.key, str(exc)) from None
-    return RobotDescription(name, path.resolve(), urdf, load_urdf(urdf, actuated=arm + hand),
-                            arm, palm, hand, close, opened, finger_links, tips, tuple(fingers),
-                            efforts, contact_model, packages, angle_links, meshes, mount, home,
-                            arm_name, preshapes)
+                       f"{tree.urdf.name}): a finger closes until their collision shapes "
+                       "touch the object")
+    return finger_links, tips, fingers
+
+
 
 
 def never_in_force_closure(description: RobotDescription) -> str | None:
