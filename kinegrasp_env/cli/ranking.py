@@ -90,6 +90,48 @@ def _hold_scores(args) -> tuple[bool, bool]:
     return static, args.criterion in HOLD_TEST_CRITERIA
 
 
+def _more_settings(args, noise, engine: str, test: bool, best_elbow: int) -> dict:
+    """The resume settings a run has beside every run's: the physics model where physics
+    runs (results of another version's physics do not resume), the holding test's simulator
+    (its log carries each candidate's margins), a noise spec's whole model, the best-elbow
+    search's draws and engine (a different candidate set)."""
+    settings = {}
+    if engine == "physics" or test:
+        from kinegrasp_env.physics.simulators import PHYSICS_MODEL
+
+        settings["physics_model"] = PHYSICS_MODEL
+    if test:
+        settings["hold_simulator"] = args.hold_simulator
+        settings["hold_margins"] = True
+    if args.noise_spec:
+        from kinegrasp_env.sampling.noise_spec import spec_of
+
+        settings["noise_model"] = spec_of(noise)
+    if args.best_elbow:
+        settings["best_elbow_samples"] = best_elbow
+        settings["best_elbow_engine"] = elbow_engine(engine)
+    return settings
+
+
+def _adaptive_top_k(args, candidates: int, top_k: int, given: bool, partial: Path) -> int:
+    """``--adaptive``'s top-set size for ``candidates`` candidates: ``--top-k`` where
+    ``given``, else as many as the candidates allow (``args.top_k`` set to it, as the page's
+    command and settings name it); CLIError lines for fewer than 2 candidates, a top set as
+    large as them, or a fixed-n log at ``partial``, which it cannot resume."""
+    if candidates < 2:
+        raise CLIError(f"--adaptive separates a top set from the rest: it needs 2 candidates "
+                       f"at least, got {candidates}")
+    if not given:
+        top_k = min(top_k, candidates - 1)
+        args.top_k = str(top_k)
+    if top_k >= candidates:
+        raise CLIError(f"--top-k must be below the number of candidates ({candidates})")
+    if partial.exists():
+        raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
+                       "cannot resume; delete it, or resume without --adaptive")
+    return top_k
+
+
 def cmd_rank(args) -> int:
     from kinegrasp_env.cli import resume
     from kinegrasp_env.cli.ranking_draws import RankingDraws
@@ -127,33 +169,11 @@ def cmd_rank(args) -> int:
                 "num_edges": NUM_EDGES, "noise": noise.kind, "sigma": sigma, "method": METHOD,
                 "samples": samples, "chunk": chunk, "seed": seed, "draw_layout": DRAW_LAYOUT,
                 "robot": robot,  # the draws: rows addressed in the seed's streams
-                "criterion_scores": [static, test]}  # the hold scores a log carries
-    if engine == "physics" or test:  # results of another version's physics do not resume
-        from kinegrasp_env.physics.simulators import PHYSICS_MODEL
-
-        settings["physics_model"] = PHYSICS_MODEL
-    if test:  # the holding test runs: its simulator is a setting too, and the log carries
-        settings["hold_simulator"] = args.hold_simulator  # each candidate's margins
-        settings["hold_margins"] = True
-    if args.noise_spec:  # the whole model is a setting: another model does not resume
-        from kinegrasp_env.sampling.noise_spec import spec_of
-
-        settings["noise_model"] = spec_of(noise)
+                "criterion_scores": [static, test],  # the hold scores a log carries
+                **_more_settings(args, noise, engine, test, best_elbow)}
     certify = _certify_settings(args) if args.adaptive else {}
-    if args.adaptive and len(grasps) < 2:
-        raise CLIError(f"--adaptive separates a top set from the rest: it needs 2 candidates "
-                       f"at least, got {len(grasps)}")
-    if args.adaptive and not top_k_given:  # the default, as many as the candidates allow
-        top_k = min(top_k, len(grasps) - 1)
-        args.top_k = str(top_k)  # as the page's command and settings name it
-    if args.adaptive and top_k >= len(grasps):
-        raise CLIError(f"--top-k must be below the number of candidates ({len(grasps)})")
-    if args.adaptive and partial.exists():
-        raise CLIError(f"{partial} holds an interrupted fixed-n ranking, which --adaptive "
-                       "cannot resume; delete it, or resume without --adaptive")
-    if args.best_elbow:  # a different candidate set: part of the resume settings
-        settings["best_elbow_samples"] = best_elbow
-        settings["best_elbow_engine"] = elbow_engine(engine)
+    if args.adaptive:
+        top_k = _adaptive_top_k(args, len(grasps), top_k, top_k_given, partial)
     with executor_from(args) as executor:
         if args.best_elbow:
             if not args.adaptive:  # an old log of other settings refused before the search
