@@ -18,6 +18,7 @@ import yaml
 
 from kinegrasp_env.robot.catalog import BUILTIN, load_robot
 from kinegrasp_env.robot.description import load_description
+from kinegrasp_env.robot.description_fields import RobotDescriptionError
 from kinegrasp_env.robot.linkage import linkage_bars
 
 BOX = '<collision><geometry><box size="0.01 0.02 {length}"/></geometry></collision>'
@@ -42,7 +43,8 @@ def linkage_urdf(layout: str) -> str:
     """A wrist joint, the palm, then per side (left: y > 0, right: y < 0) a linkage cut open.
 
     ``layout="palm"`` (the Robotiq 2F and xArm layout): outer knuckle (left: the driving
-    joint; right: its mimic) -> inner finger (a mimic, turning back) -> pad (fixed), and the
+    joint; right: its mimic) -> inner finger (a mimic, turning back) -> pad (fixed; a frame,
+    without collision geometry: a finger touches with the links it moves), and the
     inner knuckle, a mimic hanging from the palm. ``layout="finger"``: a three-joint finger
     (outer knuckle -> middle -> inner finger -> pad), its bar a mimic hanging from the outer
     knuckle (a four-bar coupling the phalanges)."""
@@ -52,7 +54,7 @@ def linkage_urdf(layout: str) -> str:
         outer, finger, pad, knuckle, middle = (f"{side}_{n}" for n in (
             "outer_knuckle", "inner_finger", "pad", "inner_knuckle", "middle"))
         axis = f"{sign} 0 0"
-        parts += [link(outer), link(finger), link(pad, 0.01), link(knuckle, 0.03),
+        parts += [link(outer), link(finger), link(pad, None), link(knuckle, 0.03),
                   joint("drive" if side == "left" else f"{side}_outer_joint", "palm", outer,
                         xyz=f"0 {0.03 * sign} 0.05", axis=axis, mimic=mult),
                   joint(f"{side}_pad_joint", finger, pad, kind="fixed",
@@ -118,6 +120,31 @@ def test_finger_links_given_keep_the_leaves_as_tips(tmp_path):
     pads = load_description(write(tmp_path, urdf, finger_links=["left_pad", "right_pad"]))
     assert pads.fingertip_links == ("left_pad", "right_pad")
     assert pads.finger_links == ("left_pad", "right_pad")
+
+
+def test_a_pad_with_collision_geometry_fixed_below_a_finger_link_is_refused(tmp_path):
+    """A finger touches the object with the links its closing joints move: collision
+    shapes on a link fixed below one of them would never touch, so the description is
+    refused, naming the pad, its joint and the link to move its shapes to."""
+    urdf = linkage_urdf("palm").replace('<link name="left_pad"></link>',
+                                        link("left_pad", 0.01))
+    with pytest.raises(RobotDescriptionError, match=(
+            "^linkage.yaml: urdf: link 'left_pad' has collision geometry and is fixed "
+            r"\(joint 'left_pad_joint'\) to 'left_inner_finger', which a closing joint "
+            "moves; .* give 'left_inner_finger' 'left_pad''s collision shapes in "
+            r"linkage.urdf \(and drop them from 'left_pad'\)$")):
+        load_description(write(tmp_path, urdf))
+
+
+def test_a_urdf_of_primitives_alone_is_added_to_the_catalog(tmp_path, monkeypatch, capsys):
+    """A URDF without a mesh (boxes only): ``robots add`` copies it into the entry's
+    ``files/`` folder (which no mesh made) and the catalog loads it back."""
+    from kinegrasp_env.cli.main import main
+
+    monkeypatch.setenv("KINEGRASP_HOME", str(tmp_path / "home"))
+    assert main(["robots", "add", str(write(tmp_path, linkage_urdf("palm")))]) == 0, \
+        capsys.readouterr().err
+    assert load_robot("linkage").urdf == tmp_path / "home/robots/linkage/files/linkage.urdf"
 
 
 #: The shipped robots' fingertips, as load_robot gave them before linkage bars were told

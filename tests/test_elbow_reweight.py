@@ -45,7 +45,7 @@ def field(grasp):
     u = np.zeros(6)
     u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
     c = 0.6 * float(np.sqrt(np.median(spread @ u)))
-    means = motion.mean_at(np.stack([q for _, q in reach]))
+    means = motion.gaussian(np.stack([q for _, q in reach]))[1]
     # the model's deviation N(m, S): P(u . delta < c) = Phi((c - u . m) / sqrt(u^T S u))
     truth = np.array([stats.norm.cdf((c - u @ m) / np.sqrt(u @ s @ u))
                       for s, m in zip(covs, means, strict=True)])

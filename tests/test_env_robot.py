@@ -76,10 +76,10 @@ BAD_ARGUMENTS = [
                                  "got 'uniform'"),
     ({"noise_types": ("gauss",)}, "unknown noise_types entry 'gauss'"),
     ({"objects": "cube"}, "objects must be a non-empty list or tuple of names, got 'cube'"),
-    ({"objects": ("mug",)}, "robot 'panda' has no shipped grasps of 'mug'; plan them "
-                            r"\(`kinegrasp plan --robot panda --object mug --out "
-                            r"mug_grasps.json`\) and give the env that file: "
-                            "grasp_file='mug_grasps.json'$"),
+    ({"objects": ("mug",)}, r"robot 'panda' has no shipped grasps of 'mug' \(shipped: "
+                            r"cube, spray_flask, drill\); plan grasps \(`kinegrasp plan "
+                            r"--robot panda --object mug --out mug_grasps.json`\) and give "
+                            "the env that file: grasp_file='mug_grasps.json'$"),
     ({"q_weight": "x"}, "q_weight must be a finite number, got 'x'"),
     ({"limit_penalty": float("inf")}, "limit_penalty must be a finite number, got inf"),
     ({"step_size": -0.1}, r"step_size must be a finite number > 0, got -0.1"),

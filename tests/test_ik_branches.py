@@ -536,6 +536,33 @@ def test_reweighted_branches_agree_with_direct_draws(home, capsys):
     assert "re-weighted advantage" in out["certificate"]["method"]
 
 
+def test_a_branch_whose_arm_collides_is_left_out_of_the_batch(home, capsys, monkeypatch,
+                                                               tmp_path):
+    """The batch is closed with the arm of the grasp's own branch and cannot see another
+    branch's arm in the object: a branch whose clearance is not positive is left out of the
+    re-weighted search (its curve, JSON and plot), and the summary names it. The branch is
+    made to collide by the clearance query the search asks (this grasp's branches all
+    clear the cube); the query itself is tested with the planner."""
+    from kinegrasp_env.toolkit import elbow_reweight_search
+    from kinegrasp_env.world.grasps import load_grasps
+
+    real, own = elbow_reweight_search.clearance, load_grasps(str(home[0]))[0].q0
+
+    def blocked(engine, q):
+        return real(engine, q) if np.allclose(q, own) else -0.01
+
+    monkeypatch.setattr(elbow_reweight_search, "clearance", blocked)
+    args = ["elbow", "--grasps", str(home[0]), "--grasp", "0", "--samples", "60",
+            "--method", "reweight", "--engine", "fast", "--plot", str(tmp_path / "b.png")]
+    out = json.loads(run(capsys, *args, "--json"))
+    assert [p["branch"] for p in out["curve"]] == [out["nominal_branch"]]
+    assert len(out["branches"]) == 3 and (tmp_path / "b.png").stat().st_size > 0
+    text = run(capsys, *args[:-2])
+    left = [b for b in range(3) if b != out["nominal_branch"]]
+    for b in left:
+        assert f"branch {b} (" in text and "left out, its arm meets the object" in text
+
+
 def test_the_reweighted_branch_plot_shows_why(home, capsys, monkeypatch, tmp_path):
     """``elbow --method reweight --plot`` of the 6-joint arm: beside the bars, the batch's
     deviations in the fragile directions (whitened by the nominal branch's covariance, so
@@ -610,6 +637,33 @@ def test_the_batch_reward_of_a_six_joint_arm_agrees_with_direct_draws(home):
         assert abs(info["p_fc"] - direct) <= 4 * se + 0.015, (info, direct)
     assert len(seen) >= 2
     env.close()
+
+
+def test_a_six_joint_arms_batch_size_is_checked_against_its_branches(home):
+    """A 6-joint arm's batch covers the grasp's IK branches, known at its first batch: a
+    batch_size enough for them (one per target beside the defensive share) is taken at
+    construction and reset, one closing fewer is refused at the reset, naming both."""
+    from kinegrasp_env.envs.batch_reward import sigma_levels
+    from kinegrasp_env.envs.kinegrasp import KineGraspEnv
+    from kinegrasp_env.sampling.reweight import least_batch
+
+    probe = KineGraspEnv(robot="xarm6", grasp_file=str(home[0]), reward="batch",
+                         batch_size=4096)
+    probe.reset(seed=0, options={"grasp": 0, "sigma": 0.0133})
+    q0 = np.asarray(probe.grasp.q0, dtype=float)
+    targets = (1 + len(probe._covered_configurations(q0))) * len(sigma_levels(
+        *probe.sigma_range))
+    need = least_batch(targets)
+    env = KineGraspEnv(robot="xarm6", grasp_file=str(home[0]), reward="batch",
+                       batch_size=need)
+    env.reset(seed=0, options={"grasp": 0, "sigma": 0.0133})
+    assert len(env._batch.batch) == need
+    small = KineGraspEnv(robot="xarm6", grasp_file=str(home[0]), reward="batch",
+                         batch_size=need - 1)
+    with pytest.raises(ValueError, match=f"^batch_size {need - 1} is too small for cube grasp "
+                                         f"0: a batch of {need - 1} closings cannot cover "
+                                         f"{targets} targets"):
+        small.reset(seed=0, options={"grasp": 0, "sigma": 0.0133})
 
 
 def test_fig10_of_a_six_joint_arm_from_one_batch(home, capsys, tmp_path):

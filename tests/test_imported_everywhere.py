@@ -123,8 +123,9 @@ def test_the_env_says_how_to_give_it_grasps_of_an_imported_object(catalog):
     """The env's words, not a command's flags: the grasp file goes in as ``grasp_file``."""
     from kinegrasp_env.envs.kinegrasp import KineGraspEnv
 
-    with pytest.raises(ValueError, match=f"no shipped grasps of '{BOX}'.* and give the env "
-                                         f"that file: grasp_file='{BOX}_grasps.json'$"):
+    with pytest.raises(ValueError, match=f"^'{BOX}' is an imported object and has no shipped "
+                                         "grasp set; plan grasps .* and give the env that "
+                                         f"file: grasp_file='{BOX}_grasps.json'$"):
         KineGraspEnv(objects=(BOX,))
     env = KineGraspEnv(objects=(BOX,), grasp_file=str(catalog / "box6_grasps.json"))
     env.reset(seed=0)

@@ -150,4 +150,8 @@ def branch_summary(result: dict, shown: str) -> str:
         fresh = (f", {point['fresh_p_fc']:.3f} fresh" if "fresh_p_fc" in point else "")
         lines.append(f"  branch {point['branch']} ({point['label']}): P(FC) {point['p_fc']:.3f} "
                      f"{'re-weighted' if 'reweight' in result else 'selection'}{fresh}")
+    scored = {point["branch"] for point in result["curve"]}
+    for branch in (b for b in result["branches"] if b["branch"] not in scored):
+        lines.append(f"  branch {branch['branch']} ({branch['label']}): left out, its arm meets "
+                     "the object or the table (the batch cannot see that)")
     return "\n".join(lines)

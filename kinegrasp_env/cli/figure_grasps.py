@@ -28,9 +28,10 @@ def is_count(text: str) -> bool:
 def imported_without_grasps(name: str, robot: str) -> CLIError:
     """The one-line error of ``reproduce`` on an imported object without a grasp file (it
     has no shipped set of ``robot``): how to make one and give it."""
+    from kinegrasp_env.world.grasps import plan_command
+
     return CLIError(f"{name} is an imported object and has no shipped grasp set; give its "
-                    f"grasps with --grasps FILE (e.g. from `kinegrasp plan --robot {robot} "
-                    f"--object {name} --out {name}_grasps.json`)")
+                    f"grasps with --grasps FILE (e.g. from `{plan_command(robot, name, True)}`)")
 
 
 def grasp_file(path: str) -> list:

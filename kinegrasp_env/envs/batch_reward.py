@@ -11,14 +11,16 @@ first-order Gaussians at the grasp's elbow and at angles around it (every
 branch of the grasp's palm pose), each at
 :data:`SIGMA_LEVELS` noise levels spread over the env's ``sigma_range``; the batch is kept
 for every later episode of that grasp, and each step's reward is it re-weighted to the
-current configuration and noise: no closing per step. The batch's seed comes from the grasp
+current configuration and noise: no draws per step. The batch's seed comes from the grasp
 alone, so a reward does not depend on which episodes came before.
 
 What changes for an agent: the reward is a deterministic, smooth function of the grasp, the
 elbow angle and sigma (the batch's error is fixed per grasp, where the draws' reward is a
 fresh estimate each step): less noise to learn through, and one systematic error per grasp
-it could fit. Where the effective sample size falls below the env's ``n_draws``, or sigma is
-0, the step takes draws as usual; ``info["reward_method"]`` says which.
+it could fit. Where the effective sample size falls below the env's ``n_draws``, sigma is
+0, or the step's configuration starts in collision (an arm link in the object or the table,
+which the batch, closed with the arm at the grasp's own configuration, cannot see), the
+step takes draws as usual; ``info["reward_method"]`` says which.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from kinegrasp_env.robot.branch_motion import BranchMotion
 from kinegrasp_env.robot.null_motion import ArmSelfMotion
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
-from kinegrasp_env.sampling.reweight import least_batch
+from kinegrasp_env.sampling.reweight import BatchTooSmall, least_batch
 
 #: Elbow angles (radians) either side of the episode's start the batch covers.
 SPAN = 1.2
@@ -46,9 +48,6 @@ SPAN = 1.2
 SPAN_STEP = 0.3
 #: Noise levels of the batch's mixture, spread geometrically over the env's sigma range.
 SIGMA_LEVELS = 5
-#: The most IK branches a 6-joint arm's batch covers (a general 6R arm reaches a palm pose
-#: in at most 16 configurations).
-MOST_BRANCHES = 16
 
 
 class BatchReward:
@@ -79,9 +78,8 @@ class BatchReward:
         """The reward's estimate at configuration q (dof,) and Gaussian noise ``noise``
         (:func:`batch_noise`'s joint and palm covariances) (the keys of the draws'
         estimate), or None where the effective sample size is below ``minimum``."""
-        joint_cov, palm_cov = noise
-        est = self.batch.estimate(self.jacobian.covariance(q, joint_cov)[0] + palm_cov,
-                                  mean=self.jacobian.mean(q, joint_cov)[0])
+        cov, mean = self.jacobian.gaussian(np.asarray(q, dtype=float)[None], *noise)
+        est = self.batch.estimate(cov[0], mean=mean[0])
         if not est.ess >= minimum:
             return None
         return {"p_fc": est.p_fc.value, "p_fc_ci": est.p_fc.interval,
@@ -118,21 +116,30 @@ def covered_configurations(q0: np.ndarray,
     return [q for q, reached in moved if reached]
 
 
-def check_batch_size(size: int, arm: int, sigma_range: tuple[float, float]) -> None:
+def check_batch_size(size: int, self_motion: bool, sigma_range: tuple[float, float]) -> None:
     """ValueError (one line) where a batch of ``size`` closings cannot cover the targets of
-    every grasp of an arm of ``arm`` joints at the noise levels of ``sigma_range`` (radians):
-    its configurations (a 7-joint arm: the grasp's and its covered angles; a 6-joint arm: at
-    most :data:`MOST_BRANCHES` IK branches) times its noise levels, beside the defensive
-    component (:func:`~kinegrasp_env.sampling.reweight.least_batch`)."""
-    if max(sigma_range) <= 0:  # no batch: every step takes draws
+    every grasp of an arm with a self-motion (``self_motion``: a 7-joint arm) at the noise
+    levels of ``sigma_range`` (radians): its configurations (the grasp's and its covered
+    angles) times its noise levels, beside the defensive component
+    (:func:`~kinegrasp_env.sampling.reweight.least_batch`). A 6-joint arm's configurations
+    are its IK branches of the grasp's palm pose, known at its first batch (where a batch
+    too small for them is refused: :func:`batch_size_error`)."""
+    if not self_motion or max(sigma_range) <= 0:  # no batch: every step takes draws
         return
-    configurations = 1 + len(covered_angles(0.0)) if arm > 6 else MOST_BRANCHES
+    configurations = 1 + len(covered_angles(0.0))
     levels = len(sigma_levels(*sigma_range))
     need = least_batch(configurations * levels)
     if size < need:
         raise ValueError(f"batch_size {size} is too small: a grasp's batch covers up to "
-                         f"{configurations} configurations x {levels} noise levels and needs "
-                         f"at least {need} closings")
+                         f"{configurations} configurations x {levels} noise "
+                         f"level{'s' if levels > 1 else ''} and needs at least {need} "
+                         "closings")
+
+
+def batch_size_error(size: int, grasp: str, error: BatchTooSmall) -> ValueError:
+    """The one-line error of a ``batch_size`` too small for a grasp's batch (``grasp``: the
+    grasp, in words), from the mixture's own refusal."""
+    return ValueError(f"batch_size {size} is too small for {grasp}: {error}")
 
 
 def sigma_levels(low: float, high: float) -> list[float]:
@@ -148,13 +155,15 @@ def batch_noise(noise: JointNoise | NoiseModel, arm: int
                 ) -> tuple[np.ndarray, np.ndarray] | None:
     """((arm, arm) joint covariance, rad^2; (6, 6) palm covariance) of a noise a batch
     re-weights to (:func:`~kinegrasp_env.montecarlo.palm_batch.gaussian_terms`: zero-mean
-    Gaussian noise on the arm's joints and the palm, ``JointNoise`` or a noise model), or
-    None where it cannot: another distribution, a bias, another source, or no joint noise to
-    spread the palm's deviation over its six dimensions (sigma 0 included)."""
+    Gaussian noise on the arm's joints, and on the palm beside it, ``JointNoise`` or a noise
+    model), or None where it does not: another distribution, a bias, another source, no
+    joint noise (sigma 0, or palm noise alone: the batch covers joint noise levels), or joint
+    noise that leaves the palm's deviation without error in a direction."""
     try:
-        return gaussian_terms(noise, arm)
+        terms = gaussian_terms(noise, arm)
     except ValueError:
         return None
+    return terms if np.any(terms[0]) else None
 
 
 def grasp_seed(key: tuple) -> int:

@@ -59,6 +59,7 @@ from kinegrasp_env.world.grasps import (
     Grasp,
     NoGraspSetError,
     load_grasps,
+    plan_command,
     shipped_grasps,
     shipped_objects,
 )
@@ -149,10 +150,9 @@ def robot_tasks(robot: str, objects, grasp_file: str | None) -> dict[str, list[G
     for name in names:
         try:
             tasks[name] = shipped_grasps(name, robot)
-        except NoGraspSetError:  # worded for the env: how to give it grasps
+        except NoGraspSetError as exc:  # the advice worded for the env
             raise ValueError(
-                f"robot {robot!r} has no shipped grasps of {name!r}; plan them (`kinegrasp "
-                f"plan --robot {robot} --object {name} --out {name}_grasps.json`) and give "
+                f"{exc.reason}; plan grasps (`{plan_command(robot, name, out=True)}`) and give "
                 f"the env that file: grasp_file='{name}_grasps.json'") from None
     return tasks
 

@@ -67,6 +67,7 @@ from kinegrasp_env.envs.arguments import box_action, env_arguments, reset_option
 from kinegrasp_env.envs.batch_reward import (
     BatchReward,
     batch_noise,
+    batch_size_error,
     check_batch_size,
     covered_configurations,
     grasp_seed,
@@ -75,12 +76,14 @@ from kinegrasp_env.envs.batch_reward import (
 from kinegrasp_env.envs.grasp_task import RobotTask, grasp_file_robot, robot_tasks
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
+from kinegrasp_env.montecarlo.draws import START_COLLISION
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.sampling.noise import JointNoise
 from kinegrasp_env.sampling.noise_model import NoiseModel
 from kinegrasp_env.sampling.noise_spec import noise_model_from
+from kinegrasp_env.sampling.reweight import BatchTooSmall
 from kinegrasp_env.world.grasps import Grasp
 
 OBS_LIMIT = 10.0
@@ -122,8 +125,8 @@ class KineGraspEnv(gym.Env):
             draws their P(FC) differed by one draw in 1 of 240 steps (seeds 0-23;
             ``tests/test_env_robot.py``).
         reward: ``draws`` (each step: ``n_draws`` fresh Monte Carlo draws) or ``batch`` (any
-            robot, with zero-mean Gaussian joint noise, a noise model's of the joints alone
-            included: one batch of ``batch_size``
+            robot, with zero-mean Gaussian joint noise, a noise model's included, with
+            Gaussian palm noise beside it or without: one batch of ``batch_size``
             closings per grasp, kept across episodes, re-weighted to each step's
             configuration and sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise,
             or a step whose effective sample size is below ``n_draws``, takes draws;
@@ -196,7 +199,8 @@ class KineGraspEnv(gym.Env):
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
         self._jacobian = None
         if args.reward == "batch":
-            check_batch_size(args.batch_size, self._robot.arm, args.sigma_range)
+            check_batch_size(args.batch_size, self._robot.description.has_self_motion,
+                             args.sigma_range)
             self._jacobian = PalmJacobian(self._robot.description)
         self.noise_model = None if noise_model is None else noise_model_from(noise_model)
         if self.noise_model is not None:
@@ -269,13 +273,20 @@ class KineGraspEnv(gym.Env):
         else Monte Carlo draws at it, seeded from the env's RNG (also at sigma 0: no
         deviation to re-weight, the one draw's outcome is the answer)."""
         noise = batch_noise(self.noise, self._robot.arm)
-        if self._batch is not None and noise is not None:
+        if self._batch is not None and noise is not None and not self._starts_in_collision():
             found = self._batch.estimate(self.q, noise, self.n_draws)
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
         return {**self._robot.estimate(self.grasp, self.q, self.noise, seed, self.n_draws),
                 "reward_method": "draws"}
+
+    def _starts_in_collision(self) -> bool:
+        """Whether the current configuration's own closing starts in collision (an arm link
+        in the object or the table at another elbow angle or IK branch): the batch, closed
+        with the arm where the grasp's own configuration puts it, does not stand for it."""
+        nominal = self._robot.closing_engine(self.grasp.object).run(self.q[None])
+        return int(nominal.outcome[0]) == START_COLLISION
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian noise:
@@ -288,10 +299,14 @@ class KineGraspEnv(gym.Env):
         key = (grasp.object, str(grasp.id), tuple(np.round(grasp.palm_pose, 9).ravel()))
         if key not in self._batches:
             q0 = np.asarray(grasp.q0, dtype=float)
-            self._batches[key] = BatchReward.build(
-                self.engine, grasp.object, q0, self._covered_configurations(q0),
-                sigma_levels(*self.sigma_range), self.batch_size, grasp_seed(key),
-                self._jacobian, robot=self.robot)
+            try:
+                self._batches[key] = BatchReward.build(
+                    self.engine, grasp.object, q0, self._covered_configurations(q0),
+                    sigma_levels(*self.sigma_range), self.batch_size, grasp_seed(key),
+                    self._jacobian, robot=self.robot)
+            except BatchTooSmall as exc:  # a 6-joint arm's branches: known only here
+                raise batch_size_error(self.batch_size, f"{grasp.object} grasp {grasp.id}",
+                                       exc) from None
         return self._batches[key]
 
     def _covered_configurations(self, q0: np.ndarray) -> list[np.ndarray]:

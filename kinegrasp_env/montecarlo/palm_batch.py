@@ -195,6 +195,22 @@ class PalmJacobian:
         jac = self(q)
         return jac @ joint_covariance(sigma, self.arm) @ np.swapaxes(jac, 1, 2)
 
+    def gaussian(self, q: np.ndarray, joints, palm: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The Gaussian model of the palm's deviation at configurations q (n, dof): ((n, 6, 6)
+        covariance, (n, 6) mean) under zero-mean Gaussian joint noise ``joints``
+        (:func:`joint_covariance`'s forms) and a zero-mean palm error of covariance ``palm``
+        (6, 6; metres, radians) in the flange's frame, added to it: J S_q J^T + S_palm to
+        first order, and the joint noise's second-order mean (:meth:`mean`; the palm error's
+        is 0)."""
+        return self.deviation_covariance(q, joints, palm), self.mean(q, joints)
+
+    def deviation_covariance(self, q: np.ndarray, joints, palm: np.ndarray | None = None
+                             ) -> np.ndarray:
+        """(n, 6, 6) :meth:`gaussian`'s covariance alone: J S_q J^T + S_palm."""
+        cov = self.covariance(q, joints)
+        return cov if palm is None else cov + palm
+
     def deviation(self, q0: np.ndarray, q: np.ndarray) -> np.ndarray:
         """(n, 6) the exact deviation of the flange at configurations q (n, dof) from its
         pose at q0 (n, dof) or (dof,): F(q0)^-1 F(q) as (translation, metres; rotation

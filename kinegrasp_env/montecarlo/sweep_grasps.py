@@ -118,7 +118,7 @@ def check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str]
                      where: str, robot: str = DEFAULT_ROBOT) -> None:
     """An object the robot has no shipped set of (an imported one among them) needs a grasp
     file: one line saying how."""
-    from kinegrasp_env.world.grasps import NoGraspSetError
+    from kinegrasp_env.world.grasps import NoGraspSetError, plan_command
 
     given = {name for name, _, _ in files}
     for name in (n for n in objects if n not in given):
@@ -128,10 +128,9 @@ def check_grasp_sets(objects: tuple[str, ...], files: tuple[tuple[str, str, str]
             if not exc.imported:
                 raise SpecError(f"{where}: {exc}, and give the file in 'grasp_files'") from None
             raise SpecError(
-                f"{where}: {name!r} is an imported object and has no shipped grasp set; give "
-                f"its grasp file in 'grasp_files' (e.g. grasp_files: {{{name}: "
-                f"{name}_grasps.json}}, written by `kinegrasp plan --robot {robot} --object "
-                f"{name} --out {name}_grasps.json`)") from None
+                f"{where}: {exc.reason}; give its grasp file in 'grasp_files' (e.g. "
+                f"grasp_files: {{{name}: {name}_grasps.json}}, written by "
+                f"`{plan_command(robot, name, out=True)}`)") from None
 
 
 def check_grasp_indices(objects: tuple[str, ...], indices: tuple[int, ...],

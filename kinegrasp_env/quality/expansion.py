@@ -109,8 +109,10 @@ def _mark_visible(w, far, poly, near, step, tol) -> int:
     tested, not every facet. Returns their number, listed in poly's ``found`` in increasing
     order (the order of the facets, as the horizon is coned). Each facet tested is stamped
     with ``step`` (poly's ``checked``). A facet seen only across one that misses by round-off
-    is left unmarked; the polytope is then not convex, which its certification finds
-    (:func:`_is_convex`: the set goes to the next exact path)."""
+    is left unmarked (it sees the wrench by a hair, and no facet that sees it is its
+    neighbour, so every ridge stays in two facets); the certification's convexity check
+    (:func:`_is_convex`) then refits it from its own vertices, and a set it still finds not
+    convex goes to the next exact path."""
     normal, offset, visible, height, neighbour = poly[1], poly[2], poly[6], poly[9], poly[8]
     checked, found = poly[11], poly[12]
     checked[near] = step

@@ -267,6 +267,7 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
         for written, dest in rewrites.items():
             text = text.replace(f'"{written}"', f'"{dest}"').replace(f"'{written}'", f"'{dest}'")
         urdf_copy = tmp / "files" / description.urdf.name
+        urdf_copy.parent.mkdir(exist_ok=True)  # a URDF of primitives alone copies no mesh
         urdf_copy.write_text(text)
         shutil.copyfile(source, tmp / SOURCE_FILE)
         data = yaml.safe_load(source.read_text())

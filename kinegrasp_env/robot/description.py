@@ -309,6 +309,14 @@ def _fingers(data: dict, tree: UrdfTree, palm: str, hand: tuple[str, ...],
                                     for j in closing)))
     touching = collision_links(tree.urdf)
     for finger in fingers:  # the links a finger's closing moves are the ones that touch
+        for link in finger.links:  # a pad fixed below one of them would not touch
+            for pad, joint in tree.fixed_below(link):
+                if pad in touching:
+                    raise fail(where, "urdf", f"link {pad!r} has collision geometry and is "
+                               f"fixed (joint {joint.name!r}) to {link!r}, which a closing "
+                               "joint moves; a finger touches the object with the links its "
+                               f"closing joints move: give {link!r} {pad!r}'s collision "
+                               f"shapes in {tree.urdf.name} (and drop them from {pad!r})")
         if not touching.intersection(finger.links):
             raise fail(where, "finger_links" if "finger_links" in data else "urdf",
                        f"the finger ending at {finger.tip!r} has no collision geometry on "

@@ -73,6 +73,18 @@ class UrdfTree:
         up = self.ancestors(tip)
         return [self.by_child[link] for link in reversed(up[:up.index(top)])]
 
+    def fixed_below(self, link: str) -> list[tuple[str, Joint]]:
+        """The links rigidly attached below ``link`` (through fixed joints alone, at any
+        depth), each with the fixed joint above it."""
+        out, todo = [], [link]
+        while todo:
+            parent = todo.pop()
+            for joint in self.model.joints:
+                if joint.parent == parent and not joint.movable:
+                    out.append((joint.child, joint))
+                    todo.append(joint.child)
+        return out
+
     def moved_links(self, joints) -> list[str]:
         """The links that any of ``joints`` moves, their mimic followers included, in the
         model's order."""

@@ -65,9 +65,10 @@ def plot_branches(result: dict, path: str | Path, title: str = "",
     marks = [(result["nominal_branch"], "nominal", "C3"), (result["best_branch"], "chosen", "C2")]
     if marks[0][0] == marks[1][0]:
         marks = [(marks[0][0], "nominal = chosen", "C2")]
+    at = {c["branch"]: i for i, c in enumerate(curve)}  # a search may leave a branch out
     for branch, name, colour in marks:
-        ax.get_xticklabels()[branch].set_color(colour)
-        ax.annotate(name, (branch, 1.02), ha="center", color=colour, fontsize=8,
+        ax.get_xticklabels()[at[branch]].set_color(colour)
+        ax.annotate(name, (at[branch], 1.02), ha="center", color=colour, fontsize=8,
                     xycoords=("data", "axes fraction"))
     ax.set_ylim(0, 1)
     ax.set_xlabel("IK branch (sign of det J and of the joints that tell the branches apart)")

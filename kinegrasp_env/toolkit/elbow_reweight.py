@@ -117,21 +117,22 @@ class SelfMotionDeviation:
         self.joints = joints
         self.palm = np.zeros((6, 6)) if palm is None else np.asarray(palm, dtype=float)
 
-    def at(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6, 6) covariance at configurations q (n, dof)."""
-        return self.jac.covariance(q, self.joints) + self.palm
+    def gaussian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((n, 6, 6) covariance, (n, 6) mean) at configurations q (n, dof)
+        (:meth:`~kinegrasp_env.montecarlo.palm_batch.PalmJacobian.gaussian`)."""
+        return self.jac.gaussian(q, self.joints, self.palm)
 
-    def mean_at(self, q: np.ndarray) -> np.ndarray:
-        """(n, 6) mean at configurations q (n, dof) (a palm error is zero-mean)."""
-        return self.jac.mean(q, self.joints)
+    def at(self, q: np.ndarray) -> np.ndarray:
+        """(n, 6, 6) covariance at configurations q (n, dof) (:meth:`gaussian`'s)."""
+        return self.jac.deviation_covariance(q, self.joints, self.palm)
 
     def estimate(self, batch: PalmBatch, q: np.ndarray, psi: float | None = None
                  ) -> WeightedEstimate:
         """P(FC) of the batch at configuration q (14,); with ``psi`` (its elbow angle), its
         slope along psi too (NaN at a limit of the self-motion)."""
         moved = None if psi is None else self.derivative(q, psi)
-        return batch.estimate(self.at(q[None])[0], None if moved is None else moved[0],
-                              mean=self.mean_at(q[None])[0],
+        cov, mean = self.gaussian(q[None])
+        return batch.estimate(cov[0], None if moved is None else moved[0], mean=mean[0],
                               mean_derivative=None if moved is None else moved[1]).p_fc
 
     def configuration(self, q: np.ndarray, psi: float) -> np.ndarray | None:
@@ -151,7 +152,7 @@ class SelfMotionDeviation:
         if plus is None or minus is None:
             return None
         both = np.stack([plus, minus])
-        cov, mean = self.at(both), self.mean_at(both)
+        cov, mean = self.gaussian(both)
         return (cov[0] - cov[1]) / (2 * SLOPE_STEP), (mean[0] - mean[1]) / (2 * SLOPE_STEP)
 
 
@@ -270,7 +271,7 @@ def batch_certificate(chosen: tuple[float, np.ndarray], rivals: list[tuple[float
     z = normal_quantile(1.0 - delta)
     qs = np.stack([chosen[1]] + [q for _, q in rivals])
     weights = [normalised_weights(gaussian_logpdf(fresh.deltas, c, m), fresh.log_proposal)
-               for c, m in zip(motion.at(qs), motion.mean_at(qs), strict=True)]
+               for c, m in zip(*motion.gaussian(qs), strict=True)]
     f = fresh.fc.astype(float)
     p_best = float(weights[0] @ f)
     out = []

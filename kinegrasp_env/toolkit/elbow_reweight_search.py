@@ -45,6 +45,7 @@ from kinegrasp_env.toolkit.elbow_search import (
     fresh_point,
     robot_reachable_configurations,
 )
+from kinegrasp_env.toolkit.plan_checks import clearance
 from kinegrasp_env.toolkit.search_checks import check_branch_arm, check_search
 from kinegrasp_env.world.grasps import Grasp
 
@@ -165,7 +166,8 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
     the branches of :func:`~kinegrasp_env.toolkit.elbow_search.optimize_robot_branches`
     (``starts`` IK starts from one fixed seed), each re-weighted from one batch drawn from
     the mixture of their Gaussians and closed at the grasp's own configuration (a branch
-    whose effective sample size falls below ``samples`` topped up with direct draws); the
+    whose effective sample size falls below ``samples`` topped up with direct draws; a
+    branch whose arm meets the object or the table at the palm pose left out); the
     best and the grasp's own branch scored on fresh direct draws; the certificate from a
     second batch (the steps of :func:`~kinegrasp_env.toolkit.elbow_reweight.
     reweighted_search`; the other arguments as :func:`optimize_robot_elbow_reweighted`).
@@ -181,7 +183,12 @@ def optimize_robot_branches_reweighted(grasp: Grasp, noise: JointNoise, samples:
         branches, nominal = branch_variants(grasp, reference, int(starts))
         hand = np.asarray(grasp.q0, dtype=float)[description.arm_dof:]
         reach = [(float(i), np.concatenate([b.q, hand])) for i, b in enumerate(branches)]
-        result, evidence = _search(grasp, noise, samples, seed, reference, reach, nominal,
+        # a branch whose arm meets the object or the table is left out, as the self-motion's
+        # colliding angles are: the batch, closed with the arm of the grasp's own branch,
+        # cannot see its collisions
+        reach = [(i, q) for i, q in reach if i == nominal or clearance(reference, q) > 0.0]
+        own = next(k for k, (i, _) in enumerate(reach) if i == nominal)
+        result, evidence = _search(grasp, noise, samples, seed, reference, reach, own,
                                    engine=engine, step=0.0, epsilon=epsilon, delta=delta,
                                    batch=batch, progress=progress, friction=friction,
                                    executor=executor)

@@ -276,7 +276,8 @@ def branch_variants(grasp: Grasp, engine: RobotReferenceEngine, starts: int
 @dataclass
 class BranchResult:
     """The most robust IK branch of a 6-joint arm's grasp: an :class:`ElbowResult` whose
-    "angles" are branch indices (``curve[i]`` is ``branches[i]``), and the branches."""
+    "angles" are branch indices (a curve point's psi is its branch's index in ``branches``;
+    a search may leave a branch out), and the branches."""
 
     result: ElbowResult
     branches: list[IKBranch]
@@ -293,9 +294,9 @@ class BranchResult:
         out.update(variants="ik_branches", best_branch=self.best,
                    best_label=self.branches[self.best].label, nominal_branch=self.nominal,
                    nominal_label=self.branches[self.nominal].label)
-        for i, point in enumerate(out["curve"]):
-            point.pop("psi")
-            point.update(branch=i, label=self.branches[i].label)
+        for point in out["curve"]:
+            branch = round(point.pop("psi"))
+            point.update(branch=branch, label=self.branches[branch].label)
         cert = out["certificate"]
         cert["chosen_branch"] = round(cert.pop("chosen_psi"))
         worst = cert.pop("worst_psi")

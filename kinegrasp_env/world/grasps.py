@@ -344,21 +344,29 @@ def save_grasps(grasps: list[Grasp], path: str | Path, **extra) -> Path:
 
 
 class NoGraspSetError(ValueError):
-    """An object without a shipped grasp set for the robot asked (the message suggests
-    ``kinegrasp plan``); ``imported``: because it is an imported object."""
+    """An object without a shipped grasp set for the robot asked: ``reason`` why, then
+    ``advice`` (on the command line: ``kinegrasp plan``, :func:`plan_command`); ``imported``:
+    because it is an imported object."""
 
-    def __init__(self, message: str, imported: bool = False):
-        super().__init__(message)
-        self.imported = imported
+    def __init__(self, reason: str, advice: str, imported: bool = False):
+        super().__init__(f"{reason}; {advice}")
+        self.reason, self.imported = reason, imported
+
+
+def plan_command(robot: str, object_name: str, out: bool = False) -> str:
+    """The command that plans grasps of ``object_name`` for ``robot``; with ``out``, into
+    the file ``<object>_grasps.json``."""
+    command = f"kinegrasp plan --robot {robot} --object {object_name}"
+    return f"{command} --out {object_name}_grasps.json" if out else command
 
 
 def no_grasp_set(object_name: str, robot: str = DEFAULT_ROBOT) -> NoGraspSetError:
     """The error for an imported object, which has no shipped grasp set (of ``robot``)."""
     return NoGraspSetError(
-        f"{object_name!r} is an imported object and has no shipped grasp set; make one with "
-        f"`kinegrasp plan --robot {robot} --object {object_name} --out "
-        f"{object_name}_grasps.json` and give that file with --grasps FILE (to `kinegrasp "
-        "rank`, as its input: `kinegrasp rank FILE`)", imported=True)
+        f"{object_name!r} is an imported object and has no shipped grasp set",
+        f"make one with `{plan_command(robot, object_name, out=True)}` and give that file "
+        "with --grasps FILE (to `kinegrasp rank`, as its input: `kinegrasp rank FILE`)",
+        imported=True)
 
 
 def shipped_objects(robot: str = DEFAULT_ROBOT) -> tuple[str, ...]:
@@ -397,13 +405,14 @@ def shipped_grasps(object_name: str, robot: str = DEFAULT_ROBOT) -> list[Grasp]:
     if base not in shipped:
         raise NoGraspSetError(
             f"robot {robot!r} has no shipped grasps of {object_name!r} (shipped: "
-            f"{', '.join(shipped) or 'none'}); plan them (`kinegrasp plan --robot {robot} "
-            f"--object {object_name}`)")
+            f"{', '.join(shipped) or 'none'})",
+            f"plan them (`{plan_command(robot, object_name)}`)")
     if max(pose_gap(load_object(object_name).pose, load_object(base).pose)) > MOVED_TOL:
         raise NoGraspSetError(
             f"{object_name!r} stands elsewhere than {base!r}, so the shipped grasps' arm "
-            f"configurations miss it; plan for it (`kinegrasp plan --robot {robot} --object "
-            f"{object_name}`) or give palm poses (`kinegrasp rank CANDIDATES.json`)")
+            "configurations miss it",
+            f"plan for it (`{plan_command(robot, object_name)}`) or give palm poses "
+            "(`kinegrasp rank CANDIDATES.json`)")
     return [replace(g, object=object_name) for g in shipped_grasps(base, robot)]
 
 
