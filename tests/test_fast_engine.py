@@ -504,3 +504,31 @@ def test_edge_blocks_cover_each_part_and_hold_their_edges(name):
             ends = geo.edges[first:last].reshape(-1, 3)
             assert (np.linalg.norm(ends - geo.block_center[block], axis=1)
                     <= geo.block_radius[block]).all()
+
+
+@pytest.mark.parametrize("robot", ["kuka_sdh", "panda"])
+def test_the_start_collision_test_alone_agrees_with_the_reference_closing(robot):
+    """``starts_in_collision`` of the fast engine (its start-collision test, no closing)
+    against the outcome of pybullet's reference closing of the same configurations: noisy
+    draws of the shipped cube grasps, half of them with the hand's joints turned 0.6 rad
+    past their pre-shape toward closing (many then start in the cube), the same verdict on
+    every one."""
+    from kinegrasp_env.montecarlo.draws import START_COLLISION
+    from kinegrasp_env.sampling.noise import JointNoise
+
+    fast = make_engine("fast", robot, "cube")
+    description = fast.description
+    arm = description.arm_dof
+    rows = []
+    for k, grasp in enumerate(shipped_grasps("cube", robot)[:3]):
+        q = np.repeat(np.asarray(grasp.q0, dtype=float)[None], 40, axis=0)
+        q[:, :arm] += JointNoise(0.02).sample(40, arm, np.random.default_rng(k))
+        for j, name in enumerate(description.hand_joints):
+            q[20:, arm + j] += 0.6 * description.close.get(name, 0)
+        rows.append(q)
+    q = np.concatenate(rows)
+    with make_engine("pybullet", robot, "cube") as reference:
+        expected = reference.run(q).outcome == START_COLLISION
+    got = fast.starts_in_collision(q)
+    assert 10 <= expected.sum() <= len(q) - 10, expected.sum()
+    np.testing.assert_array_equal(got, expected)

@@ -76,7 +76,6 @@ from kinegrasp_env.envs.batch_reward import (
 from kinegrasp_env.envs.grasp_task import RobotTask, grasp_file_robot, robot_tasks
 from kinegrasp_env.envs.render import human_window_available
 from kinegrasp_env.envs.task_choice import noise_info, pick_grasp, pick_noise
-from kinegrasp_env.montecarlo.draws import START_COLLISION
 from kinegrasp_env.montecarlo.palm_batch import PalmJacobian
 from kinegrasp_env.robot.catalog import DEFAULT_ROBOT
 from kinegrasp_env.robot.kinematics import Kinematics
@@ -282,11 +281,12 @@ class KineGraspEnv(gym.Env):
                 "reward_method": "draws"}
 
     def _starts_in_collision(self) -> bool:
-        """Whether the current configuration's own closing starts in collision (an arm link
-        in the object or the table at another elbow angle or IK branch): the batch, closed
-        with the arm where the grasp's own configuration puts it, does not stand for it."""
-        nominal = self._robot.closing_engine(self.grasp.object).run(self.q[None])
-        return int(nominal.outcome[0]) == START_COLLISION
+        """Whether the current configuration starts in collision (an arm link in the object
+        or the table at another elbow angle or IK branch: the engine's start-collision test,
+        ``starts_in_collision``): the batch, closed with the arm where the grasp's own
+        configuration puts it, does not stand for it."""
+        engine = self._robot.closing_engine(self.grasp.object)
+        return bool(engine.starts_in_collision(self.q[None])[0])
 
     def _episode_batch(self) -> BatchReward | None:
         """The grasp's batch (``reward="batch"`` with Gaussian noise:

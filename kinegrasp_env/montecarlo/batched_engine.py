@@ -14,6 +14,7 @@ from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.generic_fast import FastRobotHand
 from kinegrasp_env.montecarlo.description_engine import RobotEngine
 from kinegrasp_env.robot.description import RobotDescription
+from kinegrasp_env.threads import single_blas_thread
 
 #: Draws closed in one batch (bounds the batch's temporaries).
 BATCH = 1024
@@ -30,6 +31,13 @@ class RobotFastEngine(RobotEngine):
     def __init__(self, robot: str | RobotDescription, object_name: str, **kwargs) -> None:
         super().__init__(robot, object_name, **kwargs)
         self.hand = FastRobotHand(self.description, self.obj)
+
+    def starts_in_collision(self, q: np.ndarray) -> np.ndarray:
+        """(n,) bool: the start-collision test of the closing
+        (:meth:`~kinegrasp_env.closing.generic_fast.FastRobotHand.start_collision`) alone."""
+        q = self.check(q)
+        with single_blas_thread():
+            return self.hand.start_collision(q)
 
     def close_all(self, q: np.ndarray, **errors: np.ndarray) -> list[RobotCloseResult]:
         return self.close_batch(q, **errors).results()

@@ -20,6 +20,7 @@ from kinegrasp_env.counts import check_count
 from kinegrasp_env.montecarlo.draws import (
     FORCE_CLOSURE,
     NO_FORCE_CLOSURE,
+    START_COLLISION,
     DrawBatch,
     provisional_outcomes,
 )
@@ -282,6 +283,12 @@ class RobotEngine:
         mu = errors.pop("friction", None)
         with single_blas_thread():  # tiny matrices: a second BLAS thread only spins
             return self.scored(q, self.close_batch(q, **errors), mu)
+
+    def starts_in_collision(self, q: np.ndarray) -> np.ndarray:
+        """(n,) bool: the closing of each configuration q (n, dof), without errors, starts
+        in collision (outcome ``start_collision``: a link in the object or its table); an
+        engine that can tell without closing says so sooner."""
+        return self.run(q).outcome == START_COLLISION
 
     def scored(self, q: np.ndarray, batch: RobotCloseBatch,
                friction: np.ndarray | None = None) -> DrawBatch:
