@@ -326,12 +326,11 @@ def certificate_coverage(args) -> list[dict]:
     grasp = shipped_grasps("spray_flask")[4]
     reach = reachable_configurations(grasp)[::3]
     motion = SelfMotionDeviation(0.0233)
-    covs = motion.at(np.stack([q for _, q in reach]))
+    covs, means = motion.gaussian(np.stack([q for _, q in reach]))
     spread = np.array([np.diag(c) for c in covs])
     u = np.zeros(6)
     u[int(np.argmax(spread.max(axis=0) / spread.min(axis=0)))] = 1.0
     c = 0.6 * float(np.sqrt(np.median(spread @ u)))
-    means = motion.mean_at(np.stack([q for _, q in reach]))
     truth = np.array([sps.norm.cdf((c - u @ m) / np.sqrt(u @ s @ u))
                       for s, m in zip(covs, means, strict=True)])
 
