@@ -128,7 +128,8 @@ class KineGraspEnv(gym.Env):
             Gaussian palm noise beside it or without: one batch of ``batch_size``
             closings per grasp, kept across episodes, re-weighted to each step's
             configuration and sigma, :mod:`~kinegrasp_env.envs.batch_reward`; other noise,
-            or a step whose effective sample size is below ``n_draws``, takes draws;
+            a step whose configuration starts in collision or whose effective sample size
+            is below ``n_draws`` takes draws;
             ``info["reward_method"]`` says which).
         batch_size: the closings of a ``batch`` reward's grasp batch: an integer, at least
             one per target it covers beside its defensive share (50 for a 7-joint arm at
@@ -195,6 +196,9 @@ class KineGraspEnv(gym.Env):
         self.engine = args.engine
         self.reward_method, self.batch_size = args.reward, args.batch_size
         self._batch: BatchReward | None = None
+        #: the episode's noise as the batch re-weights it (:func:`~kinegrasp_env.envs.
+        #: batch_reward.batch_noise`; None: the steps take draws), set at each reset
+        self._batch_noise: tuple[np.ndarray, np.ndarray] | None = None
         self._batches: dict[tuple, BatchReward] = {}  # per grasp, kept across episodes
         self._jacobian = None
         if args.reward == "batch":
@@ -271,9 +275,8 @@ class KineGraspEnv(gym.Env):
         """The episode's batch re-weighted to the current configuration (``reward="batch"``),
         else Monte Carlo draws at it, seeded from the env's RNG (also at sigma 0: no
         deviation to re-weight, the one draw's outcome is the answer)."""
-        noise = batch_noise(self.noise, self._robot.arm)
-        if self._batch is not None and noise is not None and not self._starts_in_collision():
-            found = self._batch.estimate(self.q, noise, self.n_draws)
+        if self._batch is not None and not self._starts_in_collision():
+            found = self._batch.estimate(self.q, self._batch_noise, self.n_draws)
             if found is not None:
                 return found
         seed = int(self.np_random.integers(2**31 - 1))
@@ -292,8 +295,7 @@ class KineGraspEnv(gym.Env):
         """The grasp's batch (``reward="batch"`` with Gaussian noise:
         :func:`~kinegrasp_env.envs.batch_reward.batch_noise`), built at the grasp's first
         episode and kept; else None."""
-        if (self.reward_method != "batch" or batch_noise(self.noise, self._robot.arm) is None
-                or max(self.sigma_range) <= 0):  # no noise level to draw a batch at
+        if self._batch_noise is None or max(self.sigma_range) <= 0:  # no level to draw at
             return None
         grasp = self.grasp
         key = (grasp.object, str(grasp.id), tuple(np.round(grasp.palm_pose, 9).ravel()))
@@ -350,6 +352,8 @@ class KineGraspEnv(gym.Env):
             self._move_to(reset_psi(options["psi"]))
         psi0 = (self._branch_psi if self._branch_psi is not None
                 else self.elbow_angle(self.q))
+        self._batch_noise = (batch_noise(self.noise, self._robot.arm)
+                             if self.reward_method == "batch" else None)
         self._batch = self._episode_batch()
         info = {"object": self.grasp.object, "grasp": self.grasp.id, "robot": self.robot,
                 **noise_info(self.noise, self._robot.arm), "elbow_angle": psi0}
