@@ -229,15 +229,19 @@ def noise_spec_from(args):
     return model
 
 
-def check_spec_noise(args, model, robot, arm: int, engine: str,
-                     static_hold: bool = False) -> None:
+def check_spec_noise(args, model, robot, engine: str, static_hold: bool = False) -> None:
     """One :class:`CLIError` line naming ``--noise-spec``'s file for what a robot's run
     cannot take from its model (:func:`~kinegrasp_env.montecarlo.noise_rows.
-    check_robot_noise`: ``robot`` a name or a description, ``arm`` its arm joints)."""
+    check_robot_noise`; ``robot`` a catalog name or a description, an unknown one its own
+    line)."""
     from kinegrasp_env.montecarlo.noise_rows import check_robot_noise
+    from kinegrasp_env.robot.catalog import as_description
+    from kinegrasp_env.robot.description import RobotDescriptionError
 
+    with reported(RobotDescriptionError):
+        description = as_description(robot)
     try:
-        check_robot_noise(model, robot, arm, engine, static_hold)
+        check_robot_noise(model, description, description.arm_dof, engine, static_hold)
     except ValueError as exc:
         raise CLIError(f"--noise-spec {args.noise_spec}: {exc}") from None
 

@@ -95,16 +95,13 @@ def run_evaluate(args, grasp, robot: str, sigma: float, samples: int,
     ``friction``."""
     from kinegrasp_env.montecarlo.evaluate import check_robot, evaluate_grasp
     from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.sampling.noise_model import NoiseModel
     from kinegrasp_env.sampling.stats import wilson_interval
 
     check_robot_engine(args.engine, robot)
     model = noise if isinstance(noise, NoiseModel) else None
     if model is not None:
-        with reported(RobotDescriptionError):
-            arm = load_robot(robot).arm_dof
-        check_spec_noise(args, model, robot, arm, args.engine, bool(args.static_hold))
+        check_spec_noise(args, model, robot, args.engine, bool(args.static_hold))
     if args.hold_test:
         from kinegrasp_env.montecarlo.draw_holds import check_hold_noise
 

@@ -170,7 +170,7 @@ def run_report(args, sigmas: list[float]) -> int:
     with reported(RobotDescriptionError):
         description = load_robot(robot)
     if model is not None:
-        check_spec_noise(args, model, description, description.arm_dof, args.engine)
+        check_spec_noise(args, model, description, args.engine)
         sigmas = [model.sigma]
     name, grasps = chosen_grasps(args, robot)
     runs, arms = [], []

@@ -19,8 +19,6 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
     and the options and the noise (``--noise-spec``'s model, or joint noise) its ranking
     takes; CLIError lines otherwise."""
     from kinegrasp_env.montecarlo.evaluate import check_robot
-    from kinegrasp_env.robot.catalog import load_robot
-    from kinegrasp_env.robot.description import RobotDescriptionError
     from kinegrasp_env.toolkit.ranking import HOLD_TEST_CRITERIA
 
     test = args.criterion in HOLD_TEST_CRITERIA
@@ -35,9 +33,7 @@ def check_candidates(args, grasps: list, robot: str, noise) -> None:
         for g in grasps:
             check_robot(g, robot, "--robot")
     if args.noise_spec:
-        with reported(RobotDescriptionError):
-            arm = load_robot(robot).arm_dof
-        check_spec_noise(args, noise, robot, arm, args.engine,
+        check_spec_noise(args, noise, robot, args.engine,
                          bool(args.static_hold) or args.criterion == "hold_static")
 
 

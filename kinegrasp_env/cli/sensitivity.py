@@ -92,7 +92,7 @@ def _request(args, model) -> tuple[int, object]:
     if not model.sources:
         raise CLIError(f"--noise-spec {args.noise_spec}: the model has no source of error; "
                        "nothing to analyze")
-    check_spec_noise(args, model, robot, arm, args.engine)
+    check_spec_noise(args, model, robot, args.engine)
     try:
         check_factors(model, args.factors == "joints")
     except ValueError as exc:
