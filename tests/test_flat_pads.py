@@ -521,3 +521,79 @@ def test_jaws_on_a_cylinders_edges_score_as_on_its_faces(jaw_robot, capsys):
     for name in ("can_edges", "can_faces"):
         assert q[name, "fast"] == pytest.approx(q[name, "pybullet"], rel=1e-6), q
     assert q["can_edges", "fast"] == pytest.approx(q["can_faces", "fast"], rel=0.02), q
+
+
+def test_a_pad_over_coplanar_parts_presses_all_of_them():
+    """A 4 x 2 cm pad lying on the top of a box split at x = 0 into two convex halves (their
+    top faces in one plane, z = 0.03), its centre at x = 0.01: the patch is the whole pad,
+    its centre (0.01, 0, 0.03) and its corners the pad's four, by construction, whichever
+    half the contact's face is named on. A block sitting on the top (its bottom face in the
+    same plane, the object on its other side) is no face of the top and adds nothing. One
+    half alone put the centre at (0.005, ...) or (0.015, ...)."""
+    from kinegrasp_env.closing.contact_patch import PatchGeometry
+
+    def box(low, high):
+        return np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
+                         for z in (low[2], high[2])], dtype=float)
+
+    halves = (box([-HALF, -HALF, -HALF], [0, HALF, HALF]), box([0, -HALF, -HALF], [HALF] * 3))
+    block = box([0.01, 0.0, HALF], [0.03, 0.01, HALF + 0.01])
+    patch = PatchGeometry((*halves, block))
+    pad = box([-0.01, -0.01, HALF], [0.03, 0.01, HALF + 0.01])
+    top = np.array([0.0, 0.0, 1.0, -HALF])
+    for part, point in ((0, [-0.005, 0.0, HALF]), (1, [0.02, 0.0, HALF])):
+        centre, found, corners, count = patch.patches(
+            pad, np.eye(4)[None], np.array([part]), top[None], np.array([point]))
+        assert found[0] and count[0] == 4
+        np.testing.assert_allclose(centre[0], [0.01, 0.0, HALF], atol=1e-12)
+        expected = {(x, y) for x in (-0.01, 0.03) for y in (-0.01, 0.01)}
+        got = {(round(x, 12), round(y, 12)) for x, y in corners[0, :, :2]}
+        assert got == expected and np.allclose(corners[0, :, 2], HALF)
+
+
+def open_box(path: Path) -> None:
+    """An open box (6 x 5 x 8 cm outside, 4 mm walls, open at the top), written to path."""
+    import trimesh
+
+    pytest.importorskip("manifold3d")
+    outer = trimesh.creation.box([0.06, 0.05, 0.08])
+    outer.apply_translation([0, 0, 0.04])
+    inner = trimesh.creation.box([0.052, 0.042, 0.08])
+    inner.apply_translation([0, 0, 0.08])
+    trimesh.boolean.difference([outer, inner], engine="manifold").export(path)
+
+
+def test_jaws_on_a_wall_of_several_parts_press_it_where_they_lie(jaw_robot, capsys):
+    """The box jaws pinching an open box's 5 cm across its y walls, the palm at x = 0.011
+    above it: each 2 x 8 cm pad lies on a wall over x 0.001 .. 0.021 and z 0.01 .. 0.09,
+    past the rim at z = 0.08, so the patch is x 0.001 .. 0.021, z 0.01 .. 0.08, its centre
+    (0.011, +-0.025, 0.045) by construction (to the IK's pose error, 2e-6 m here). The
+    import splits each wall into several convex parts (checked here); both engines put the
+    contacts there and give the same Q (to 1e-6 relative). With the patch clipped to one
+    part's face the two engines took different parts: Q 0.044 against force closure lost."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+
+    open_box(jaw_robot / "open_box.stl")
+    run(capsys, "objects", "add", str(jaw_robot / "open_box.stl"))
+    obj = load_object("open_box")
+    under = [p for p in obj.parts if p[:, 1].max() > 0.025 - 1e-9 and p[:, 0].min() < 0.021
+             and p[:, 0].max() > 0.001]
+    assert len(under) >= 2, "the wall under the pad is one part: the test proves nothing"
+    (jaw_robot / "c.json").write_text(json.dumps({
+        "object": "open_box", "robot": "iiwa_jaws",
+        "candidates": [{"id": "side", "position": [0.011, 0, 0.13],
+                        "quaternion": [0, 1, 0, 0]}]}))
+    grasps, rejected = solve_all(*load_candidates(jaw_robot / "c.json"), robot="iiwa_jaws")
+    assert not rejected
+    q = np.asarray(grasps[0].q0)[None]
+    quality = {}
+    for engine in ("pybullet", "fast"):
+        with make_engine(engine, "iiwa_jaws", "open_box") as closing:
+            draws = closing.run(q)
+        points = np.sort(draws.points[0, :draws.n_contacts[0]], axis=0)
+        np.testing.assert_allclose(points, [[0.011, -0.025, 0.045], [0.011, 0.025, 0.045]],
+                                   atol=1e-5)
+        quality[engine] = float(draws.quality[0])
+    assert quality["pybullet"] > 0
+    assert quality["fast"] == pytest.approx(quality["pybullet"], rel=1e-6), quality

@@ -13,8 +13,11 @@ is placed at the centre of its patch instead:
   at a corner; a vertex below the plane lies off the face, past its edge, where a pad
   overhangs it, and presses nothing);
 * the *patch*: the footprint clipped to the face (a convex polygon of the object's convex
-  part), and the contact point its centroid (area centroid; a segment's midpoint), on the
-  face. An empty clip (the pad's footprint beside the face) leaves the point as it was.
+  part) and to every other part's face in the same plane (a flat side of an object split
+  into convex parts is several parts' faces side by side: a pad across them presses them
+  all, whichever part the query named), and the contact point its centroid (area centroid;
+  a segment's midpoint), on the face. An empty clip (the pad's footprint beside the faces)
+  leaves the point as it was.
 
 One compiled loop places any number of contacts (:func:`patch_points`: both generic closings
 call it, the reference one contact at a time, the fast one every contact of a batch at once);
@@ -39,6 +42,7 @@ from kinegrasp_env.closing.polygon_2d import (
     clip_polygon,
     hull_2d,
     polygon_centroid,
+    polygon_measure,
     thin_polygon,
 )
 
@@ -137,10 +141,39 @@ def pad_footprint(vertices, poses, i, ox, oy, oz, ix, iy, iz, ux, uy, uz, vx, vy
 
 
 @jit.kernel(_nrt=False)
+def face_in_plane(corners, starts, p, chosen, nx, ny, nz, off, ox, oy, oz, ux, uy, uz, vx, vy,
+                  vz, face_tol, out):
+    """The count of part p's corners on the plane (outward unit normal (nx, ny, nz), offset
+    ``off``; within ``face_tol``), projected onto the plane's basis (u, v) about the point
+    (ox, oy, oz) into ``out`` (rows (x, y)); 0 where a corner of the part lies more than
+    ``face_tol`` outside the plane (the plane is not a face of that part), unless p is the
+    ``chosen`` part (the contact's own face)."""
+    nf = 0
+    for c in range(starts[p], starts[p + 1]):
+        cx, cy, cz = corners[c, 0], corners[c, 1], corners[c, 2]
+        height = cx * nx + cy * ny + cz * nz + off
+        if height > face_tol and not chosen:
+            return 0
+        if abs(height) < face_tol:
+            cx, cy, cz = cx - ox, cy - oy, cz - oz
+            out[nf, 0] = cx * ux + cy * uy + cz * uz
+            out[nf, 1] = cx * vx + cy * vy + cz * vz
+            nf += 1
+    return nf
+
+
+@jit.kernel(_nrt=False)
 def patch_points(vertices, poses, corners, starts, parts, planes, points, depth, face_tol,
                  work, out, found, poly, counts):
     """The patch centre of a link on a face, and the patch's corners, for M contacts (the
     module's steps).
+
+    The footprint is clipped to the contact's face and to every other convex part's face in
+    the same plane (a flat side of an object split into convex parts is the faces of several
+    parts, side by side): the patch is those pieces, its centre their centroid weighted by
+    area (by length where every piece is a segment; their mean where every piece is a
+    point), its corners the convex hull of the pieces' corners. Pieces of overlapping parts
+    are counted once each.
 
     Args:
         vertices: (V, 3) the link's hull vertices in its own frame (metres).
@@ -150,7 +183,7 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         parts: (M,) the part of each contact's face; planes: (M, 4) the face's plane
             (outward unit normal, offset); points: (M, 3) the closest point found on it.
         depth: :data:`PATCH_DEPTH`; face_tol: :data:`FACE_TOL` (metres).
-        work: (5, S, 2) scratch, S >= 2 (V + C) + 8.
+        work: (8, S, 2) scratch, S >= 2 (P V + C) + 8.
         out: (M, 3) the contact points: the patch centre, else the point as given.
         found: (M,) bool, True where a patch centre was placed.
         poly: (M, K, 3) the patch's corners (object frame), in order around it; a patch of
@@ -165,40 +198,56 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         nx, ny, nz, off = planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3]
         s = points[i, 0] * nx + points[i, 1] * ny + points[i, 2] * nz + off
         ox, oy, oz = points[i, 0] - s * nx, points[i, 1] - s * ny, points[i, 2] - s * nz
-        ix, iy, iz = -nx, -ny, -nz  # inward
-        ux, uy, uz, vx, vy, vz = plane_basis(ix, iy, iz)
-        nf = 0
-        for c in range(starts[parts[i]], starts[parts[i] + 1]):
-            cx, cy, cz = corners[c, 0], corners[c, 1], corners[c, 2]
-            if abs(cx * nx + cy * ny + cz * nz + off) < face_tol:
-                cx, cy, cz = cx - ox, cy - oy, cz - oz
-                work[0, nf, 0] = cx * ux + cy * uy + cz * uz
-                work[0, nf, 1] = cx * vx + cy * vy + cz * vz
-                nf += 1
-        if nf < 3:
+        ux, uy, uz, vx, vy, vz = plane_basis(-nx, -ny, -nz)
+        k = pad_footprint(vertices, poses, i, ox, oy, oz, -nx, -ny, -nz, ux, uy, uz, vx, vy,
+                          vz, depth, work[2])
+        mp = hull_2d(work[2], k, work[5])  # the footprint, kept for every part
+        pieces, gathered, dimension, weight, px, py = 0, 0, -1, 0.0, 0.0, 0.0
+        cx, cy = 0.0, 0.0
+        for p in range(starts.shape[0] - 1):
+            nf = face_in_plane(corners, starts, p, p == parts[i], nx, ny, nz, off, ox, oy, oz,
+                               ux, uy, uz, vx, vy, vz, face_tol, work[0])
+            if nf < 3:
+                continue
+            mf = hull_2d(work[0], nf, work[1])
+            if mf < 3:
+                continue
+            mc = clip_polygon(work[5], mp, work[1], mf, work[4], work[2])
+            if mc == 0:
+                continue
+            piece = 4
+            if mc >= 3:
+                mc = hull_2d(work[4], mc, work[3])
+                piece = 3
+            cx, cy = polygon_centroid(work[piece], mc)
+            dim, measure = polygon_measure(work[piece], mc)
+            if dim > dimension:  # a piece of a higher dimension outweighs the rest
+                dimension, weight, px, py = dim, 0.0, 0.0, 0.0
+            if dim == dimension:
+                w = measure if measure > 0.0 else 1.0
+                weight += w
+                px, py = px + w * cx, py + w * cy
+            for j in range(mc):
+                work[6, gathered + j, 0] = work[piece, j, 0]
+                work[6, gathered + j, 1] = work[piece, j, 1]
+            gathered += mc
+            pieces += 1
+        if pieces == 0:
             continue
-        mf = hull_2d(work[0], nf, work[1])
-        if mf < 3:
-            continue
-        k = pad_footprint(vertices, poses, i, ox, oy, oz, ix, iy, iz, ux, uy, uz, vx, vy, vz,
-                          depth, work[2])
-        mp = hull_2d(work[2], k, work[3])
-        mc = clip_polygon(work[3], mp, work[1], mf, work[4], work[2])
-        if mc == 0:
-            continue
-        corners_at = 4
-        if mc >= 3:
-            mc = hull_2d(work[4], mc, work[3])
-            px, py = polygon_centroid(work[3], mc)
-            corners_at = 3
+        if pieces == 1:  # the piece itself, its centroid and corners in its own order
+            px, py = cx, cy
+            for j in range(gathered):
+                work[2, j, 0], work[2, j, 1] = work[6, j, 0], work[6, j, 1]
+            mc = gathered
         else:
-            px, py = polygon_centroid(work[4], mc)
+            px, py = px / weight, py / weight
+            mc = hull_2d(work[6], gathered, work[7])
+            for j in range(mc):
+                work[2, j, 0], work[2, j, 1] = work[7, j, 0], work[7, j, 1]
         out[i, 0] = ox + px * ux + py * vx
         out[i, 1] = oy + px * uy + py * vy
         out[i, 2] = oz + px * uz + py * vz
         found[i] = True
-        for j in range(mc):  # the patch, to thin in place
-            work[2, j, 0], work[2, j, 1] = work[corners_at, j, 0], work[corners_at, j, 1]
         keep = thin_polygon(work[2], mc, poly.shape[1])
         for j in range(keep):
             ax, ay = work[2, j, 0], work[2, j, 1]
@@ -218,6 +267,7 @@ class PatchGeometry:
     def __init__(self, parts: tuple[np.ndarray, ...]) -> None:
         self.corners = np.ascontiguousarray(np.vstack(parts), dtype=float)
         self.starts = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+        self.parts = len(parts)
 
     def place(self, vertices: np.ndarray, poses: np.ndarray, parts: np.ndarray,
               planes: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -235,7 +285,7 @@ class PatchGeometry:
         m = len(points)
         out, found = np.empty((m, 3)), np.empty(m, dtype=np.bool_)
         poly, counts = np.full((m, corners, 3), np.nan), np.zeros(m, dtype=np.int64)
-        work = np.empty((5, 2 * (len(vertices) + len(self.corners)) + 8, 2))
+        work = np.empty((8, 2 * (self.parts * len(vertices) + len(self.corners)) + 8, 2))
         patch_points(np.ascontiguousarray(vertices, dtype=float),
                      np.ascontiguousarray(poses, dtype=float), self.corners, self.starts,
                      np.ascontiguousarray(parts, dtype=np.int64),
@@ -263,21 +313,21 @@ def patch_centre(finger_vertices: np.ndarray, face_vertices: np.ndarray, inward:
     return out[0] if found[0] else None
 
 
-def face_patch_point(parts: tuple[np.ndarray, ...], finger_vertices: np.ndarray,
+def face_patch_point(patch: PatchGeometry, finger_vertices: np.ndarray,
                      face: tuple[int, np.ndarray], point: np.ndarray) -> np.ndarray:
     """The contact point of a finger pressing on a face: the centre of its patch
-    (:func:`patch_points`), or ``point`` (3,) where the face has fewer than three vertices or
-    the footprint misses it.
+    (:func:`patch_points`: on that face and every face in its plane), or ``point`` (3,)
+    where the footprint misses them.
 
     Args:
-        parts: the object's convex parts, each (n_i, 3) vertices (object frame).
+        patch: the object's convex parts, packed.
         finger_vertices: (V, 3) the finger link's geometry (object frame).
         face: (part index, its face plane (4,): outward unit normal, offset).
         point: (3,) the closest point found on that face (object frame).
     """
     part, plane = face
-    out, _ = PatchGeometry((parts[part],)).place(
-        finger_vertices, np.eye(4)[None], np.zeros(1, np.int64), np.asarray(plane)[None],
+    out, _ = patch.place(
+        finger_vertices, np.eye(4)[None], np.array([part], np.int64), np.asarray(plane)[None],
         np.asarray(point, dtype=float)[None])
     return out[0]
 

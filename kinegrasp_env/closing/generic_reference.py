@@ -68,6 +68,7 @@ from kinegrasp_env.closing.close_rules import (
     secant_root,
 )
 from kinegrasp_env.closing.contact_patch import (
+    PatchGeometry,
     face_patch_point,
     faces_of,
     flat_face,
@@ -132,6 +133,7 @@ class RobotWorld(RobotScene):
         #: each link's collision geometry, as the fast closing reads it (a pad's flat test)
         self.geometry = robot_link_geometry(description)
         self._object_edges = stacked_faces(obj.convex_parts)[2]
+        self._patch = PatchGeometry(obj.parts)
         self._paths = finger_paths(description, self.geometry, self._tree)
 
     # ------------------------------------------------------------------ closing
@@ -295,7 +297,7 @@ class RobotWorld(RobotScene):
         vertices = link_hull_vertices(self.bullet, self.bodies["robot"], self.link_index[link])
         if vertices is None:
             return point
-        return face_patch_point(self.obj.parts, frame_coordinates(self.placed, vertices), face,
+        return face_patch_point(self._patch, frame_coordinates(self.placed, vertices), face,
                                 point)
 
     def _contacts(self, f: int, contact_tol: float) -> list[RobotContact]:

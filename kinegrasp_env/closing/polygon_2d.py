@@ -1,9 +1,9 @@
 """Convex polygons in the plane, compiled and allocation-free (the caller hands every
 buffer in): the convex hull of points (:func:`hull_2d`), the clip of a convex polygon by
-another (:func:`clip_polygon`), a polygon's area centroid (:func:`polygon_centroid`) and its
-thinning to its widest corners (:func:`thin_polygon`); :func:`clip_convex` and
-:func:`centroid_2d` call them from Python. The steps of a flat pad's contact patch
-(:mod:`~kinegrasp_env.closing.contact_patch`).
+another (:func:`clip_polygon`), a polygon's area centroid (:func:`polygon_centroid`) and
+measure (:func:`polygon_measure`), and its thinning to its widest corners
+(:func:`thin_polygon`); :func:`clip_convex` and :func:`centroid_2d` call them from Python.
+The steps of a flat pad's contact patch (:mod:`~kinegrasp_env.closing.contact_patch`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 from kinegrasp_env import jit
 
 __all__ = ["centroid_2d", "clip_convex", "clip_polygon", "hull_2d", "polygon_centroid",
-           "thin_polygon"]
+           "polygon_measure", "thin_polygon"]
 
 
 @jit.kernel(_nrt=False, inline="always")
@@ -156,6 +156,27 @@ def polygon_centroid(polygon, k):
     if abs(area) < 1e-16:
         return mx, my
     return cx / (6.0 * area), cy / (6.0 * area)
+
+
+@jit.kernel(_nrt=False)
+def polygon_measure(polygon, k):
+    """(dimension, measure) of ``polygon[:k]`` (ordered) as :func:`polygon_centroid` reads
+    it: (2, its area) for k >= 3 of area at least 1e-16; (1, the longest distance between
+    two of its vertices) for a segment (k = 2) or a polygon of vanishing area; (0, 0.0) for
+    a point."""
+    if k >= 3:
+        area = 0.0
+        for j in range(k):
+            n = (j + 1) % k
+            area += 0.5 * (polygon[j, 0] * polygon[n, 1] - polygon[n, 0] * polygon[j, 1])
+        if abs(area) >= 1e-16:
+            return 2, abs(area)
+    longest = 0.0
+    for j in range(k):
+        for n in range(j + 1, k):
+            longest = max(longest, np.hypot(polygon[n, 0] - polygon[j, 0],
+                                            polygon[n, 1] - polygon[j, 1]))
+    return (1, longest) if k >= 2 else (0, 0.0)
 
 
 @jit.kernel(_nrt=False)
