@@ -124,16 +124,21 @@ def test_finger_links_given_keep_the_leaves_as_tips(tmp_path):
 
 def test_a_pad_with_collision_geometry_fixed_below_a_finger_link_is_refused(tmp_path):
     """A finger touches the object with the links its closing joints move: collision
-    shapes on a link fixed below one of them would never touch, so the description is
-    refused, naming the pad, its joint and the link to move its shapes to."""
+    shapes on a link fixed below one of them would never touch, so the description read as
+    it is is refused, naming the pad, its joint and the link to move its shapes to (which
+    ``robots add`` does in its copy: test_flat_pads.py)."""
     urdf = linkage_urdf("palm").replace('<link name="left_pad"></link>',
                                         link("left_pad", 0.01))
     with pytest.raises(RobotDescriptionError, match=(
             "^linkage.yaml: urdf: link 'left_pad' has collision geometry and is fixed "
             r"\(joint 'left_pad_joint'\) to 'left_inner_finger', which a closing joint "
             "moves; .* give 'left_inner_finger' 'left_pad''s collision shapes in "
-            r"linkage.urdf \(and drop them from 'left_pad'\)$")):
+            r"linkage.urdf \(and drop them from 'left_pad'; `kinegrasp robots add` does so "
+            r"in its copy\)$")):
         load_description(write(tmp_path, urdf))
+    found = []
+    load_description(write(tmp_path, urdf), fixed_pads=found)
+    assert found == [("left_pad", "left_inner_finger")]
 
 
 def test_a_urdf_of_primitives_alone_is_added_to_the_catalog(tmp_path, monkeypatch, capsys):

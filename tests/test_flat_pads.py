@@ -597,3 +597,109 @@ def test_jaws_on_a_wall_of_several_parts_press_it_where_they_lie(jaw_robot, caps
         quality[engine] = float(draws.quality[0])
     assert quality["pybullet"] > 0
     assert quality["fast"] == pytest.approx(quality["pybullet"], rel=1e-6), quality
+
+
+def padded_jaw(side: str, sign: int, mimic: str = "") -> str:
+    """:func:`jaw` with its box on a pad link of its own, fixed to the jaw's moving link
+    (turned a quarter about z there, the box's x and y sizes swapped to match): the same
+    shape at the same place."""
+    return jaw(side, sign, mimic).replace(
+        f'<collision><origin xyz="0 {0.06 * sign} 0.04"/><geometry><box size="0.02 0.01 0.08"/>'
+        "\n    </geometry></collision>", "") + f"""
+  <joint name="pad_{side}_joint" type="fixed">
+    <parent link="finger_{side}"/><child link="pad_{side}"/>
+    <origin xyz="0 {0.06 * sign} 0.04" rpy="0 0 1.5707963267948966"/>
+  </joint>
+  <link name="pad_{side}">
+    <collision><geometry><box size="0.01 0.02 0.08"/></geometry></collision>
+  </link>"""
+
+
+def test_pads_fixed_to_the_jaws_close_as_the_jaws_own_boxes(jaw_robot, capsys):
+    """The box jaws with each box on a pad link fixed to its jaw (a Robotiq-style URDF):
+    ``robots add`` moves the pads' boxes onto the jaws in its copy and says so; a top-down
+    candidate on the cube then closes as the jaws with their own boxes (the URDF written by
+    hand), in both engines: the same contact points (to 1e-9 m) and Q (to 1e-9 relative).
+    Without the move, the closings ignored the pads (the jaws met in the middle)."""
+    from kinegrasp_env.montecarlo.engines import make_engine
+    from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
+
+    text = (jaw_robot / "jaws.urdf").read_text()
+    padded = text.replace(jaw("left", 1), padded_jaw("left", 1)).replace(
+        jaw("right", -1, '\n    <mimic joint="finger_left_joint" multiplier="1" offset="0"/>'),
+        padded_jaw("right", -1,
+                   '\n    <mimic joint="finger_left_joint" multiplier="1" offset="0"/>'))
+    assert padded.count("pad_left") == 3 and padded.count("<box") == text.count("<box")
+    (jaw_robot / "padded.urdf").write_text(padded)
+    data = yaml.safe_load((jaw_robot / "jaws.yaml").read_text())
+    data.update(name="iiwa_pads", urdf="padded.urdf")
+    (jaw_robot / "padded.yaml").write_text(yaml.safe_dump(data))
+    said = run(capsys, "robots", "add", str(jaw_robot / "padded.yaml"))
+    assert "pad_left's collision shapes (fixed to finger_left" in said, said
+    draws = {}
+    for robot in ("iiwa_jaws", "iiwa_pads"):
+        (jaw_robot / f"{robot}.json").write_text(json.dumps({
+            "object": "cube", "robot": robot,
+            "candidates": [{"id": "top", "position": [0.004, 0.0, 0.13],
+                            "quaternion": [0, 1, 0, 0]}]}))
+        grasps, rejected = solve_all(*load_candidates(jaw_robot / f"{robot}.json"),
+                                     robot=robot)
+        assert not rejected, rejected
+        for engine in ("pybullet", "fast"):
+            with make_engine(engine, robot, "cube") as closing:
+                draws[robot, engine] = closing.run(np.asarray(grasps[0].q0)[None])
+    for engine in ("pybullet", "fast"):
+        own, pads = draws["iiwa_jaws", engine], draws["iiwa_pads", engine]
+        assert own.n_contacts[0] == pads.n_contacts[0] == 2 and own.quality[0] > 0
+        np.testing.assert_allclose(pads.points[0, :2], own.points[0, :2], atol=1e-9)
+        assert pads.quality[0] == pytest.approx(own.quality[0], rel=1e-9)
+
+
+def test_moved_collision_shapes_lie_where_pybullet_puts_the_pads():
+    """A pad fixed below a finger link by a turned, shifted joint, its box turned and
+    shifted again in the pad's frame: in the URDF with the box moved onto the finger link,
+    the box's corners on the finger link are those on the pad in the URDF as written, as
+    pybullet places them (its link state and collision shape frames: it composes the fixed
+    joint's and the collision's origins itself), at two joint values: to 1e-7 m (pybullet
+    keeps these frames in single precision: 7e-9 m apart, measured)."""
+    import pybullet
+
+    from kinegrasp_env.closing.contact_patch import link_hull_vertices
+    from kinegrasp_env.robot.fixed_collisions import move_fixed_collisions
+    from kinegrasp_env.robot.model import load_urdf
+    from kinegrasp_env.world.sim import BulletWorld
+
+    text = """<?xml version="1.0"?><robot name="r">
+  <link name="base"/>
+  <joint name="slide" type="revolute"><parent link="base"/><child link="finger"/>
+    <origin xyz="0.01 0.02 0.03" rpy="0.1 0.2 0.3"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="finger"><inertial><mass value="0.1"/><inertia ixx="1e-4" ixy="0" ixz="0"
+    iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>
+  <joint name="pad_joint" type="fixed"><parent link="finger"/><child link="pad"/>
+    <origin xyz="0.02 -0.01 0.05" rpy="0.3 -0.2 1.1"/></joint>
+  <link name="pad"><inertial><mass value="0.01"/><inertia ixx="1e-5" ixy="0" ixz="0"
+    iyy="1e-5" iyz="0" izz="1e-5"/></inertial>
+    <collision><origin xyz="0.005 0.002 -0.01" rpy="-0.4 0.5 0.2"/>
+      <geometry><box size="0.02 0.01 0.04"/></geometry></collision></link>
+</robot>"""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        written, moved = Path(folder) / "written.urdf", Path(folder) / "moved.urdf"
+        written.write_text(text)
+        moved.write_text(move_fixed_collisions(text, load_urdf(written), [("pad", "finger")]))
+        assert "<collision" not in moved.read_text().split('<link name="pad"')[1]
+        corners = {}
+        with BulletWorld() as sim:
+            for name, path, link in (("written", written, 1), ("moved", moved, 0)):
+                body = sim.bullet.loadURDF(str(path), useFixedBase=True,
+                                           flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
+                for angle in (0.0, 0.7):
+                    sim.bullet.resetJointState(body, 0, angle)
+                    corners[name, angle] = link_hull_vertices(sim.bullet, body, link)
+    for angle in (0.0, 0.7):
+        np.testing.assert_allclose(corners["moved", angle], corners["written", angle],
+                                   atol=1e-7)
+    assert np.ptp(corners["moved", 0.0] - corners["moved", 0.7]) > 0.01  # the joint moved

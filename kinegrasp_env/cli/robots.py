@@ -33,7 +33,7 @@ def cmd_list(args) -> int:
 
 
 def cmd_add(args) -> int:
-    from kinegrasp_env.robot.catalog import add_robot
+    from kinegrasp_env.robot.catalog import add_robot, moved_collisions
     from kinegrasp_env.robot.description import RobotDescriptionError
 
     with reported(RobotDescriptionError):  # a bad description, a name taken
@@ -43,6 +43,9 @@ def cmd_add(args) -> int:
           f"{plural(len(robot.fingers), 'finger')} ({', '.join(robot.fingertip_links)}), "
           f"{plural(len(robot.meshes), 'mesh reference')}")
     print(f"  stored in {folder}")
+    for pad, link in moved_collisions(folder).items():
+        print(f"  {pad}'s collision shapes (fixed to {link}, which a closing joint moves) "
+              f"are {link}'s in the stored URDF: the finger touches with them")
     from kinegrasp_env.robot.description import never_in_force_closure
 
     reason = never_in_force_closure(robot)

@@ -12,8 +12,11 @@ platform's user data folder), one folder per robot, named as the robot:
   ``package://NAME/...`` mesh in the folder ``NAME`` beside the URDF, a relative one where
   it was (below the URDF's folder); the copied URDF is rewritten only for meshes given by
   an absolute path or one climbing above its folder (:func:`_copy_plan`), so pybullet loads
-  it as it is; the user's files are never changed;
-- ``entry.json``: the name, the source file and the copied files.
+  it as it is, and for collision shapes on a link fixed below a finger's moving link, which
+  go onto that link (:mod:`~kinegrasp_env.robot.fixed_collisions`); the user's files are
+  never changed;
+- ``entry.json``: the name, the source file, the copied files and the collision shapes
+  moved (``moved_collisions``: pad link -> finger link).
 
 An entry appears complete or not at all: it is written in a hidden folder (``.tmp-...``) and
 renamed into place after the copy is read back and checked.
@@ -36,6 +39,7 @@ from kinegrasp_env.robot.description import (
     RobotDescriptionError,
     load_description,
 )
+from kinegrasp_env.robot.fixed_collisions import move_fixed_collisions
 
 #: Built-in robots: name -> the description's path parts under ``assets/``.
 BUILTIN: dict[str, tuple[str, ...]] = {
@@ -246,7 +250,8 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
     import yaml
 
     source = Path(path)
-    description = load_description(source)
+    pads: list[tuple[str, str]] = []
+    description = load_description(source, fixed_pads=pads)
     name = description.name
     if name in BUILTIN:
         raise RobotDescriptionError(f"{source.name}: name: {name!r} is a built-in robot; "
@@ -266,6 +271,8 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
         text = description.urdf.read_text()
         for written, dest in rewrites.items():
             text = text.replace(f'"{written}"', f'"{dest}"').replace(f"'{written}'", f"'{dest}'")
+        if pads:
+            text = move_fixed_collisions(text, description.model, pads)
         urdf_copy = tmp / "files" / description.urdf.name
         urdf_copy.parent.mkdir(exist_ok=True)  # a URDF of primitives alone copies no mesh
         urdf_copy.write_text(text)
@@ -277,7 +284,8 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
         (tmp / ENTRY_FILE).write_text(json.dumps({
             "format": FORMAT_VERSION, "name": name, "source": str(source.resolve()),
             "files": sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*")
-                            if p.is_file())}, indent=1))
+                            if p.is_file()),
+            "moved_collisions": dict(pads)}, indent=1))
         try:
             load_description(tmp / DESCRIPTION_FILE)
         except RobotDescriptionError as exc:
@@ -290,6 +298,13 @@ def add_robot(path: str | Path, *, force: bool = False) -> tuple[RobotDescriptio
         if tmp.exists():
             shutil.rmtree(tmp)
     return load_description(folder / DESCRIPTION_FILE), folder
+
+
+def moved_collisions(folder: Path) -> dict[str, str]:
+    """A user robot's collision shapes moved by ``robots add``: pad link -> the finger link
+    they went onto (:mod:`~kinegrasp_env.robot.fixed_collisions`); empty for none."""
+    entry = json.loads((Path(folder) / ENTRY_FILE).read_text())
+    return dict(entry.get("moved_collisions", {}))
 
 
 def remove_robot(name: str) -> Path:

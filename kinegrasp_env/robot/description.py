@@ -186,8 +186,13 @@ class RobotDescription:
         return out
 
 
-def load_description(path: str | Path) -> RobotDescription:
+def load_description(path: str | Path, *,
+                     fixed_pads: list[tuple[str, str]] | None = None) -> RobotDescription:
     """Read and check a robot description YAML file.
+
+    ``fixed_pads``: a list to collect (pad, finger link) into, one per link with collision
+    geometry fixed below a link a closing joint moves (:func:`check_fixed_pads`), instead of
+    refusing the description; its fingers then count the pads' shapes as those links'.
 
     Raises:
         RobotDescriptionError: one line naming the file, the key and the bad value.
@@ -200,10 +205,11 @@ def load_description(path: str | Path) -> RobotDescription:
         raise RobotDescriptionError(str(exc)) from None
     if not isinstance(data, dict):
         raise RobotDescriptionError(f"{where}: expected a mapping of keys, got {data!r}")
-    return parse_description(data, path)
+    return parse_description(data, path, fixed_pads=fixed_pads)
 
 
-def parse_description(data: dict, path: Path) -> RobotDescription:
+def parse_description(data: dict, path: Path, *,
+                      fixed_pads: list[tuple[str, str]] | None = None) -> RobotDescription:
     """Check the mapping ``data`` read from the file ``path`` (relative paths start at its
     folder); see :func:`load_description`."""
     where = path.name
@@ -215,6 +221,7 @@ def parse_description(data: dict, path: Path) -> RobotDescription:
     opened = joint_values(data, where, "open", hand, tree.movable,
                           lambda lo, hi: min(max(0.0, lo), hi))
     finger_links, tips, fingers = _fingers(data, tree, palm, hand, close)
+    check_fixed_pads(tree, fingers, "finger_links" in data, fixed_pads)
     efforts = check_efforts(data, where, tree.movable)
     contact_model = data.get("contact_model", default_contact_model(len(fingers)))
     if contact_model not in CONTACT_MODELS:
@@ -307,25 +314,42 @@ def _fingers(data: dict, tree: UrdfTree, palm: str, hand: tuple[str, ...],
                               tuple(int(close[driver[j.name][0]]
                                         * math.copysign(1.0, driver[j.name][1]))
                                     for j in closing)))
-    touching = collision_links(tree.urdf)
+    return finger_links, tips, fingers
+
+
+def check_fixed_pads(tree: UrdfTree, fingers: list[Finger], named: bool,
+                     found: list[tuple[str, str]] | None = None) -> None:
+    """Links with collision geometry fixed below a link a closing joint moves (a pad on a
+    fixed joint, as Robotiq-style URDFs have): a finger touches the object with the links
+    its closing joints move, so such a pad's shapes would never touch. Refused, naming the
+    pad and the link to give its shapes to; or, with a list ``found``, each appended as
+    (pad, finger link) and that link counted as touching (``robots add`` then moves the
+    shapes onto it in its copy of the URDF:
+    :func:`~kinegrasp_env.robot.fixed_collisions.move_fixed_collisions`). Then every finger
+    must touch with some link (``named``: the description names its ``finger_links``)."""
+    where = tree.where
+    touching = set(collision_links(tree.urdf))
     for finger in fingers:  # the links a finger's closing moves are the ones that touch
-        for link in finger.links:  # a pad fixed below one of them would not touch
+        for link in finger.links:
             for pad, joint in tree.fixed_below(link):
-                if pad in touching:
+                if pad not in touching:
+                    continue
+                if found is None:
                     raise fail(where, "urdf", f"link {pad!r} has collision geometry and is "
                                f"fixed (joint {joint.name!r}) to {link!r}, which a closing "
                                "joint moves; a finger touches the object with the links its "
                                f"closing joints move: give {link!r} {pad!r}'s collision "
-                               f"shapes in {tree.urdf.name} (and drop them from {pad!r})")
+                               f"shapes in {tree.urdf.name} (and drop them from {pad!r}; "
+                               "`kinegrasp robots add` does so in its copy)")
+                found.append((pad, link))
+        if found is not None:
+            touching.update(link for _, link in found)
         if not touching.intersection(finger.links):
-            raise fail(where, "finger_links" if "finger_links" in data else "urdf",
+            raise fail(where, "finger_links" if named else "urdf",
                        f"the finger ending at {finger.tip!r} has no collision geometry on "
                        f"the links its closing joints move ({', '.join(finger.links)} in "
                        f"{tree.urdf.name}): a finger closes until their collision shapes "
                        "touch the object")
-    return finger_links, tips, fingers
-
-
 
 
 def never_in_force_closure(description: RobotDescription) -> str | None:

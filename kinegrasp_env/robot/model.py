@@ -143,6 +143,17 @@ def _floats(text: str | None, default: tuple[float, ...]) -> tuple[float, ...]:
     return default if text is None else tuple(float(v) for v in text.split())
 
 
+def origin_matrix(element: ET.Element | None) -> np.ndarray:
+    """(4, 4) the transform of a URDF ``<origin xyz=".." rpy=".."/>`` element (identity
+    where it, or either attribute, is absent; metres, radians)."""
+    xyz = _floats(element.get("xyz") if element is not None else None, (0.0, 0.0, 0.0))
+    rpy = _floats(element.get("rpy") if element is not None else None, (0.0, 0.0, 0.0))
+    origin = np.eye(4)
+    origin[:3, :3] = rpy_to_matrix(*rpy)
+    origin[:3, 3] = xyz
+    return origin
+
+
 def load_urdf(path: str | Path, actuated: tuple[str, ...] | None = None) -> RobotModel:
     """Parse a URDF file into a :class:`RobotModel`.
 
@@ -162,12 +173,7 @@ def load_urdf(path: str | Path, actuated: tuple[str, ...] | None = None) -> Robo
         if kind not in ("revolute", "continuous", "prismatic", "fixed"):
             raise ValueError(f"{path.name}: joint {element.get('name')!r} has unsupported "
                              f"type {kind!r}")
-        origin_el = element.find("origin")
-        xyz = _floats(origin_el.get("xyz") if origin_el is not None else None, (0.0, 0.0, 0.0))
-        rpy = _floats(origin_el.get("rpy") if origin_el is not None else None, (0.0, 0.0, 0.0))
-        origin = np.eye(4)
-        origin[:3, :3] = rpy_to_matrix(*rpy)
-        origin[:3, 3] = xyz
+        origin = origin_matrix(element.find("origin"))
         axis_el = element.find("axis")
         axis = np.array(_floats(axis_el.get("xyz") if axis_el is not None else None,
                                 (1.0, 0.0, 0.0)))

@@ -1,0 +1,64 @@
+"""Collision shapes of links fixed below a finger's moving link, moved onto that link.
+
+A finger touches the object with the links its closing joints move. Many grippers' URDFs
+carry a finger's pad on a link of its own, fixed to the moving link (Robotiq-style
+``*_pad`` links): rigidly the same body, but a closing that measures the moving link's gap
+would never see the pad. ``kinegrasp robots add`` moves such a pad's ``<collision>``
+elements onto the moving link in its copy of the URDF (:func:`move_fixed_collisions`),
+each re-expressed in that link's frame (the fixed joints' origins down to the pad, then the
+collision's own origin), so every engine and both simulators collide the same shapes at the
+same place; the pad link keeps its visual and inertial elements. The user's files are never
+changed.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from kinegrasp_env.robot.model import RobotModel, origin_matrix
+
+
+def pad_in_link(model: RobotModel, pad: str, link: str) -> np.ndarray:
+    """(4, 4) the pose of link ``pad``'s frame in link ``link``'s frame: the product of the
+    fixed joints' origins from ``link`` down to ``pad`` (ValueError where a joint on that
+    path moves or ``pad`` is not below ``link``)."""
+    by_child = {joint.child: joint for joint in model.joints}
+    pose, at = np.eye(4), pad
+    while at != link:
+        joint = by_child.get(at)
+        if joint is None or joint.movable:
+            raise ValueError(f"link {pad!r} is not fixed below {link!r}")
+        pose = joint.origin @ pose
+        at = joint.parent
+    return pose
+
+
+def origin_element(pose: np.ndarray) -> ET.Element:
+    """A URDF ``<origin>`` element of the (4, 4) pose: xyz in metres, rpy the fixed-axis
+    roll, pitch, yaw (R = Rz(yaw) Ry(pitch) Rx(roll)) in radians, each to full precision."""
+    rpy = Rotation.from_matrix(pose[:3, :3]).as_euler("xyz")
+    return ET.Element("origin", {"xyz": " ".join(repr(float(v)) for v in pose[:3, 3]),
+                                 "rpy": " ".join(repr(float(v)) for v in rpy)})
+
+
+def move_fixed_collisions(text: str, model: RobotModel, pads: list[tuple[str, str]]) -> str:
+    """The URDF ``text`` with each pad's ``<collision>`` elements moved onto its link, for
+    (pad, link) in ``pads`` (pad fixed below link; ``model``: the URDF's model), re-expressed
+    in the link's frame: the pad's frame in the link's (:func:`pad_in_link`) times the
+    collision's own origin."""
+    root = ET.fromstring(text)
+    links = {element.get("name"): element for element in root.findall("link")}
+    for pad, link in pads:
+        to_link = pad_in_link(model, pad, link)
+        for collision in links[pad].findall("collision"):
+            links[pad].remove(collision)
+            old = collision.find("origin")
+            pose = to_link @ origin_matrix(old)
+            if old is not None:
+                collision.remove(old)
+            collision.insert(0, origin_element(pose))
+            links[link].append(collision)
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
