@@ -5,7 +5,7 @@ point of it; where that point falls on the face's border (the edge to the next f
 test alone finds two planes and took the contact for an edge contact, at the edge point, while
 the other engine, whose query returned an inner point, scored it on the face at its patch
 centre. The face a pad lies flat on is the one whose plane its collision geometry does not
-cross (:func:`~kinegrasp_env.closing.contact_patch.flat_face`), decided by both engines on the
+cross (:func:`~kinegrasp_env.closing.pad_faces.flat_face`), decided by both engines on the
 same geometry.
 
 Independent references: the cube's faces and a box pad placed by hand (which face a pad lies
@@ -25,7 +25,8 @@ import pytest
 import yaml
 from cli_helpers import run_in_process as run
 
-from kinegrasp_env.closing.contact_patch import PATCH_DEPTH, flat_face
+from kinegrasp_env.closing.contact_patch import PATCH_DEPTH
+from kinegrasp_env.closing.pad_faces import flat_face
 from kinegrasp_env.world.objects import load_object
 
 HALF = 0.03  # the built-in cube's half size, metres
@@ -179,7 +180,7 @@ def test_spanning_a_face_is_the_second_singular_value_of_the_points():
     """The batched test (a covariance's eigenvalues) against NumPy's SVD of each set of
     centred points, on random point sets with random subsets flagged; and the two hand
     cases: four corners of a 1 cm square span a face, four points on a line do not."""
-    from kinegrasp_env.closing.contact_patch import spans_a_face
+    from kinegrasp_env.closing.pad_faces import spans_a_face
 
     rng = np.random.default_rng(0)
     points, on = rng.normal(size=(200, 8, 3)), rng.random((200, 8)) < 0.5
@@ -457,7 +458,7 @@ def test_spanning_a_segment_is_the_largest_singular_value_of_the_points():
     """The batched test against NumPy's SVD of each set of flagged, centred points, and two
     hand cases: two points 1 cm apart span a segment, two 0.1 mm apart (under the 1 mm
     depth) do not, nor does one point."""
-    from kinegrasp_env.closing.contact_patch import spans_a_segment
+    from kinegrasp_env.closing.pad_faces import spans_a_segment
 
     rng = np.random.default_rng(1)
     points, on = rng.normal(size=(200, 8, 3)) * 1e-3, rng.random((200, 8)) < 0.4

@@ -164,9 +164,9 @@ def test_pybullets_contact_point_is_a_patch_corner(reference):
 
 def full_patch(patches: PatchContacts, q, batch, draws, j) -> np.ndarray:
     """Every corner of contact j's patch (none thinned)."""
-    from kinegrasp_env.closing.contact_patch import faces_of
     from kinegrasp_env.closing.finger_paths import link_poses
     from kinegrasp_env.closing.generic_reference import EDGE_TOL
+    from kinegrasp_env.closing.pad_faces import faces_of
 
     name, chain = patches.links[(int(draws.finger[0, j]), int(draws.link[0, j]))]
     palm = patches.obj.pose_inverse @ patches.kinematics.pose(q, patches.description.palm_link)

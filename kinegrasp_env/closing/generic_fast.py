@@ -34,11 +34,11 @@ only where that bound is within reach of a contact or says the two overlap.
    least the reference's smallest step, its touches polished to a zero gap.
 3. *Contacts*: per touching finger link, its exact closest pair with the object (the
    closing's last one: a touching draw took it at its final joint values). On one
-   face of the object (:func:`~kinegrasp_env.closing.contact_patch.faces_of`): that
+   face of the object (:func:`~kinegrasp_env.closing.pad_faces.faces_of`): that
    face's inward normal, the point moved to the pad's patch centre
    (:func:`~kinegrasp_env.closing.contact_patch.patch_centre`); so at an edge or a corner of
    the face a face of the pad lies on, crossing its plane by less than the depth a pad is
-   pressed in (:func:`~kinegrasp_env.closing.contact_patch.flat_face`). Else, at an edge or
+   pressed in (:func:`~kinegrasp_env.closing.pad_faces.flat_face`). Else, at an edge or
    a corner: the pair's direction (the link face's normal where the link point is inside
    one face; perpendicular to both edges for two edges; else the points' difference:
    :mod:`~kinegrasp_env.closing.pair_normals`, the reference's rule there too); a pad along
@@ -64,7 +64,7 @@ from kinegrasp_env.closing.capsule_gap import centre_distances
 from kinegrasp_env.closing.close_batch import RobotCloseBatch
 from kinegrasp_env.closing.close_result import RobotCloseResult
 from kinegrasp_env.closing.close_rules import CONTACT_TOL, START_TOL
-from kinegrasp_env.closing.contact_patch import PatchGeometry, faces_of, flat_face
+from kinegrasp_env.closing.contact_patch import PatchGeometry
 from kinegrasp_env.closing.edge_contact import place_on_edges
 from kinegrasp_env.closing.finger_closing import close_finger
 from kinegrasp_env.closing.finger_paths import FingerPath, finger_paths
@@ -78,6 +78,7 @@ from kinegrasp_env.closing.hand_errors import (
 from kinegrasp_env.closing.hand_geometry import surface_contact
 from kinegrasp_env.closing.link_distances import LinkDistances
 from kinegrasp_env.closing.link_geometry import LinkGeometry, grid_error, robot_link_geometry
+from kinegrasp_env.closing.pad_faces import faces_of, flat_face
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.rounded_links import contact_normals
 from kinegrasp_env.closing.table_check import TableCheck
@@ -284,8 +285,8 @@ class FastRobotHand:
         object-frame poses (m, 4, 4) (closest pairs: distances (m,), link points and object
         points (m, 3); ``rounded`` (m,): the pair is a rounded part's, whose link point is
         its core's). A flat part's on a face
-        (:func:`~kinegrasp_env.closing.contact_patch.faces_of`), or at an edge of the face
-        it lies flat on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`): that
+        (:func:`~kinegrasp_env.closing.pad_faces.faces_of`), or at an edge of the face
+        it lies flat on (:func:`~kinegrasp_env.closing.pad_faces.flat_face`): that
         face's inward normal, the point moved to its
         patch centre; on an edge, the direction of the pair, as the reference's rule, the
         point moved to the middle of the segment a pad along the edge presses. A

@@ -39,7 +39,7 @@ forward kinematics of the URDF puts it. Then:
    convex parts (one face plane within :data:`EDGE_TOL`), that face's inward normal (the
    direction of a closest pair touching a face's interior; pybullet's own normal was measured
    4.6 degrees off there), and so at an edge or a corner of the face a face of the link lies
-   on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`, on the link's collision
+   on (:func:`~kinegrasp_env.closing.pad_faces.flat_face`, on the link's collision
    geometry as the fast closing reads it, placed by the robot model's kinematics); at any
    other edge or corner, the direction of the pair by the fast closing's rule
    (:mod:`~kinegrasp_env.closing.pair_normals`, on that geometry and pybullet's pair; a link
@@ -70,8 +70,6 @@ from kinegrasp_env.closing.close_rules import (
 from kinegrasp_env.closing.contact_patch import (
     PatchGeometry,
     face_patch_point,
-    faces_of,
-    flat_face,
     link_hull_vertices,
 )
 from kinegrasp_env.closing.convex_distance import stacked_faces
@@ -80,6 +78,7 @@ from kinegrasp_env.closing.finger_paths import finger_paths
 from kinegrasp_env.closing.hand_geometry import pair_contacts
 from kinegrasp_env.closing.hull_edges import point_hull
 from kinegrasp_env.closing.link_geometry import robot_link_geometry
+from kinegrasp_env.closing.pad_faces import faces_of, flat_face
 from kinegrasp_env.closing.pair_normals import LINE_TOL, pair_normals
 from kinegrasp_env.closing.scene import RobotScene
 from kinegrasp_env.robot.description import RobotDescription
@@ -103,9 +102,9 @@ def face_of(obj: GraspObject, point: np.ndarray, vertices: np.ndarray | None = N
     """(part, its face plane (4,): outward unit normal, offset) of the one face of ``obj``'s
     nearest convex part that the object-frame ``point`` (3,) lies on (within
     :data:`EDGE_TOL`), or None at an edge or a corner (two or more face planes that near) or
-    off the surface: :func:`~kinegrasp_env.closing.contact_patch.faces_of`. Given the
+    off the surface: :func:`~kinegrasp_env.closing.pad_faces.faces_of`. Given the
     touching link's ``vertices`` (V, 3; object frame): of the faces at that edge or corner,
-    the one the link lies flat on (:func:`~kinegrasp_env.closing.contact_patch.flat_face`),
+    the one the link lies flat on (:func:`~kinegrasp_env.closing.pad_faces.flat_face`),
     or None."""
     if vertices is None:
         part, plane = faces_of(obj, point[None], EDGE_TOL)

@@ -26,10 +26,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from kinegrasp_env.closing.contact_patch import PATCH_CORNERS, PatchGeometry, faces_of
+from kinegrasp_env.closing.contact_patch import PATCH_CORNERS, PatchGeometry
 from kinegrasp_env.closing.finger_paths import link_poses
 from kinegrasp_env.closing.generic_reference import EDGE_TOL
 from kinegrasp_env.closing.link_geometry import link_geometry
+from kinegrasp_env.closing.pad_faces import faces_of
 from kinegrasp_env.robot.description import RobotDescription
 from kinegrasp_env.robot.kinematics import Kinematics
 from kinegrasp_env.world.objects import GraspObject
