@@ -160,8 +160,8 @@ def face_in_plane(corners, starts, p, chosen, nx, ny, nz, off, ox, oy, oz, ux, u
 
 
 @jit.kernel(_nrt=False)
-def patch_points(vertices, poses, corners, starts, parts, planes, points, depth, face_tol,
-                 work, out, found, poly, counts):
+def patch_points(vertices, poses, corners, starts, spheres, parts, planes, points, depth,
+                 face_tol, work, out, found, poly, counts):
     """The patch centre of a link on a face, and the patch's corners, for M contacts (the
     module's steps).
 
@@ -177,6 +177,8 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         poses: (M, 4, 4) the link's pose in the object frame, per contact.
         corners: (C, 3) every convex part's vertices, stacked (object frame).
         starts: (P + 1,) int64: part p's corners are rows starts[p] .. starts[p + 1] - 1.
+        spheres: (P, 4) a sphere about each part's corners (centre, radius): a part whose
+            sphere misses the plane has no face in it.
         parts: (M,) the part of each contact's face; planes: (M, 4) the face's plane
             (outward unit normal, offset); points: (M, 3) the closest point found on it.
         depth: :data:`PATCH_DEPTH`; face_tol: :data:`FACE_TOL` (metres).
@@ -202,6 +204,9 @@ def patch_points(vertices, poses, corners, starts, parts, planes, points, depth,
         pieces, gathered, dimension, weight, px, py = 0, 0, -1, 0.0, 0.0, 0.0
         cx, cy = 0.0, 0.0
         for p in range(starts.shape[0] - 1):
+            if p != parts[i] and abs(spheres[p, 0] * nx + spheres[p, 1] * ny
+                                     + spheres[p, 2] * nz + off) > spheres[p, 3] + face_tol:
+                continue
             nf = face_in_plane(corners, starts, p, p == parts[i], nx, ny, nz, off, ox, oy, oz,
                                ux, uy, uz, vx, vy, vz, face_tol, work[0])
             if nf < 3:
@@ -265,6 +270,9 @@ class PatchGeometry:
         self.corners = np.ascontiguousarray(np.vstack(parts), dtype=float)
         self.starts = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
         self.parts = len(parts)
+        centres = np.array([0.5 * (p.min(axis=0) + p.max(axis=0)) for p in parts])
+        radii = [np.linalg.norm(p - c, axis=1).max() for p, c in zip(parts, centres, strict=True)]
+        self.spheres = np.ascontiguousarray(np.column_stack([centres, radii]), dtype=float)
 
     def place(self, vertices: np.ndarray, poses: np.ndarray, parts: np.ndarray,
               planes: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -285,7 +293,7 @@ class PatchGeometry:
         work = np.empty((8, 2 * (self.parts * len(vertices) + len(self.corners)) + 8, 2))
         patch_points(np.ascontiguousarray(vertices, dtype=float),
                      np.ascontiguousarray(poses, dtype=float), self.corners, self.starts,
-                     np.ascontiguousarray(parts, dtype=np.int64),
+                     self.spheres, np.ascontiguousarray(parts, dtype=np.int64),
                      np.ascontiguousarray(planes, dtype=float),
                      np.ascontiguousarray(points, dtype=float), PATCH_DEPTH, FACE_TOL, work,
                      out, found, poly, counts)
