@@ -530,7 +530,8 @@ def test_a_pad_over_coplanar_parts_presses_all_of_them():
     its centre (0.01, 0, 0.03) and its corners the pad's four, by construction, whichever
     half the contact's face is named on. A block sitting on the top (its bottom face in the
     same plane, the object on its other side) is no face of the top and adds nothing. One
-    half alone put the centre at (0.005, ...) or (0.015, ...)."""
+    half alone put the centre at (0.005, ...) or (0.015, ...). The second half raised by
+    3 um (less than ``COPLANAR_TOL``) is still in the plane."""
     from kinegrasp_env.closing.contact_patch import PatchGeometry
 
     def box(low, high):
@@ -550,6 +551,12 @@ def test_a_pad_over_coplanar_parts_presses_all_of_them():
         expected = {(x, y) for x in (-0.01, 0.03) for y in (-0.01, 0.01)}
         got = {(round(x, 12), round(y, 12)) for x, y in corners[0, :, :2]}
         assert got == expected and np.allclose(corners[0, :, 2], HALF)
+    # a decomposition's parts of one flat side lie a few micrometres apart (3.4 um on a
+    # user's open box): the second half's top raised by 3 um is still in the plane
+    raised = PatchGeometry((halves[0], halves[1] + [0.0, 0.0, 3e-6], block))
+    centre, found, _, _ = raised.patches(pad, np.eye(4)[None], np.array([0]), top[None],
+                                         np.array([[-0.005, 0.0, HALF]]))
+    np.testing.assert_allclose(centre[0], [0.01, 0.0, HALF], atol=1e-12)
 
 
 def open_box(path: Path) -> None:
@@ -620,8 +627,10 @@ def test_pads_fixed_to_the_jaws_close_as_the_jaws_own_boxes(jaw_robot, capsys):
     """The box jaws with each box on a pad link fixed to its jaw (a Robotiq-style URDF):
     ``robots add`` moves the pads' boxes onto the jaws in its copy and says so; a top-down
     candidate on the cube then closes as the jaws with their own boxes (the URDF written by
-    hand), in both engines: the same contact points (to 1e-9 m) and Q (to 1e-9 relative).
-    Without the move, the closings ignored the pads (the jaws met in the middle)."""
+    hand), in both engines: the same contact points (to 1e-9 m) and Q (to 1e-9 relative);
+    and the planner plans for it (it measured the opening between the pad links, which have
+    no shapes left, and failed). Without the move, the closings ignored the pads (the jaws
+    met in the middle)."""
     from kinegrasp_env.montecarlo.engines import make_engine
     from kinegrasp_env.toolkit.candidates import load_candidates, solve_all
 
@@ -637,6 +646,10 @@ def test_pads_fixed_to_the_jaws_close_as_the_jaws_own_boxes(jaw_robot, capsys):
     (jaw_robot / "padded.yaml").write_text(yaml.safe_dump(data))
     said = run(capsys, "robots", "add", str(jaw_robot / "padded.yaml"))
     assert "pad_left's collision shapes (fixed to finger_left" in said, said
+    # the planner measures the jaws' opening between the links that carry the pads
+    run(capsys, "plan", "--robot", "iiwa_pads", "--object", "cube", "--count", "1", "--seed",
+        "0", "--out", "pads.json")
+    assert len(json.loads((jaw_robot / "pads.json").read_text())["grasps"]) == 1
     draws = {}
     for robot in ("iiwa_jaws", "iiwa_pads"):
         (jaw_robot / f"{robot}.json").write_text(json.dumps({
@@ -657,12 +670,13 @@ def test_pads_fixed_to_the_jaws_close_as_the_jaws_own_boxes(jaw_robot, capsys):
 
 
 def test_moved_collision_shapes_lie_where_pybullet_puts_the_pads():
-    """A pad fixed below a finger link by a turned, shifted joint, its box turned and
-    shifted again in the pad's frame: in the URDF with the box moved onto the finger link,
-    the box's corners on the finger link are those on the pad in the URDF as written, as
-    pybullet places them (its link state and collision shape frames: it composes the fixed
-    joint's and the collision's origins itself), at two joint values: to 1e-7 m (pybullet
-    keeps these frames in single precision: 7e-9 m apart, measured)."""
+    """A pad fixed below a bracket fixed below a finger link, each by a turned, shifted
+    joint, its box turned and shifted again in the pad's frame: in the URDF with the box
+    moved onto the finger link, the box's corners on the finger link are those on the pad
+    in the URDF as written, as pybullet places them (its link state and collision shape
+    frames: it composes the fixed joints' and the collision's origins itself), at two joint
+    values: to 1e-7 m (pybullet keeps these frames in single precision: 7e-9 m apart,
+    measured)."""
     import pybullet
 
     from kinegrasp_env.closing.contact_patch import link_hull_vertices
@@ -677,7 +691,10 @@ def test_moved_collision_shapes_lie_where_pybullet_puts_the_pads():
     <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
   <link name="finger"><inertial><mass value="0.1"/><inertia ixx="1e-4" ixy="0" ixz="0"
     iyy="1e-4" iyz="0" izz="1e-4"/></inertial></link>
-  <joint name="pad_joint" type="fixed"><parent link="finger"/><child link="pad"/>
+  <joint name="bracket_joint" type="fixed"><parent link="finger"/><child link="bracket"/>
+    <origin xyz="0.004 0.003 0.02" rpy="-0.5 0.1 0.7"/></joint>
+  <link name="bracket"/>
+  <joint name="pad_joint" type="fixed"><parent link="bracket"/><child link="pad"/>
     <origin xyz="0.02 -0.01 0.05" rpy="0.3 -0.2 1.1"/></joint>
   <link name="pad"><inertial><mass value="0.01"/><inertia ixx="1e-5" ixy="0" ixz="0"
     iyy="1e-5" iyz="0" izz="1e-5"/></inertial>
@@ -694,7 +711,7 @@ def test_moved_collision_shapes_lie_where_pybullet_puts_the_pads():
         assert "<collision" not in moved.read_text().split('<link name="pad"')[1]
         corners = {}
         with BulletWorld() as sim:
-            for name, path, link in (("written", written, 1), ("moved", moved, 0)):
+            for name, path, link in (("written", written, 2), ("moved", moved, 0)):
                 body = sim.bullet.loadURDF(str(path), useFixedBase=True,
                                            flags=pybullet.URDF_USE_IMPLICIT_CYLINDER)
                 for angle in (0.0, 0.7):

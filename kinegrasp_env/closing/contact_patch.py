@@ -48,6 +48,10 @@ from kinegrasp_env.closing.polygon_2d import (
 PATCH_DEPTH = 1e-3
 #: Object vertices within this of a face plane lie on the face (metres).
 FACE_TOL = 1e-7
+#: Another convex part's vertices within this of a contact face's plane lie in that plane
+#: (metres): the parts a convex decomposition splits one flat side into are not exactly
+#: coplanar (3.4 um apart on an open box's wall, measured).
+COPLANAR_TOL = 1e-5
 #: Corners of a patch kept for the patch contact model (a box pad's patch on a larger face
 #: is a quadrilateral; a patch of more corners is thinned to this many:
 #: :func:`~kinegrasp_env.closing.polygon_2d.thin_polygon`).
@@ -141,10 +145,12 @@ def pad_footprint(vertices, poses, i, ox, oy, oz, ix, iy, iz, ux, uy, uz, vx, vy
 def face_in_plane(corners, starts, p, chosen, nx, ny, nz, off, ox, oy, oz, ux, uy, uz, vx, vy,
                   vz, face_tol, out):
     """The count of part p's corners on the plane (outward unit normal (nx, ny, nz), offset
-    ``off``; within ``face_tol``), projected onto the plane's basis (u, v) about the point
-    (ox, oy, oz) into ``out`` (rows (x, y)); 0 where a corner of the part lies more than
-    ``face_tol`` outside the plane (the plane is not a face of that part), unless p is the
-    ``chosen`` part (the contact's own face)."""
+    ``off``; within ``face_tol``, or :data:`COPLANAR_TOL` for a part other than the
+    ``chosen`` one, the contact's own), projected onto the plane's basis (u, v) about the
+    point (ox, oy, oz) into ``out`` (rows (x, y)); 0 where a corner of another part lies
+    further than that outside the plane (the plane is not a face of that part)."""
+    if not chosen:
+        face_tol = COPLANAR_TOL
     nf = 0
     for c in range(starts[p], starts[p + 1]):
         cx, cy, cz = corners[c, 0], corners[c, 1], corners[c, 2]
@@ -169,8 +175,8 @@ def patch_points(vertices, poses, corners, starts, spheres, parts, planes, point
     the same plane (a flat side of an object split into convex parts is the faces of several
     parts, side by side): the patch is those pieces, its centre their centroid weighted by
     area (by length where every piece is a segment; their mean where every piece is a
-    point), its corners the convex hull of the pieces' corners. Pieces of overlapping parts
-    are counted once each.
+    point), its corners the convex hull of the pieces' corners. A region that k overlapping
+    parts cover weighs k times in the centre (a decomposition's parts seldom overlap).
 
     Args:
         vertices: (V, 3) the link's hull vertices in its own frame (metres).
@@ -205,7 +211,7 @@ def patch_points(vertices, poses, corners, starts, spheres, parts, planes, point
         cx, cy = 0.0, 0.0
         for p in range(starts.shape[0] - 1):
             if p != parts[i] and abs(spheres[p, 0] * nx + spheres[p, 1] * ny
-                                     + spheres[p, 2] * nz + off) > spheres[p, 3] + face_tol:
+                                     + spheres[p, 2] * nz + off) > spheres[p, 3] + COPLANAR_TOL:
                 continue
             nf = face_in_plane(corners, starts, p, p == parts[i], nx, ny, nz, off, ox, oy, oz,
                                ux, uy, uz, vx, vy, vz, face_tol, work[0])

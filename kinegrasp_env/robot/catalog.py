@@ -13,8 +13,8 @@ platform's user data folder), one folder per robot, named as the robot:
   it was (below the URDF's folder); the copied URDF is rewritten only for meshes given by
   an absolute path or one climbing above its folder (:func:`_copy_plan`), so pybullet loads
   it as it is, and for collision shapes on a link fixed below a finger's moving link, which
-  go onto that link (:mod:`~kinegrasp_env.robot.fixed_collisions`); the user's files are
-  never changed;
+  go onto that link (:mod:`~kinegrasp_env.robot.fixed_collisions`: the file is then
+  written anew, its comments kept); the user's files are never changed;
 - ``entry.json``: the name, the source file, the copied files and the collision shapes
   moved (``moved_collisions``: pad link -> finger link).
 

@@ -192,7 +192,9 @@ def load_description(path: str | Path, *,
 
     ``fixed_pads``: a list to collect (pad, finger link) into, one per link with collision
     geometry fixed below a link a closing joint moves (:func:`check_fixed_pads`), instead of
-    refusing the description; its fingers then count the pads' shapes as those links'.
+    refusing the description (only the check that every finger has collision geometry counts
+    the pads' shapes as those links'; the description read still names the URDF as it is,
+    whose closings ignore the pads: ``robots add`` moves them first).
 
     Raises:
         RobotDescriptionError: one line naming the file, the key and the bad value.

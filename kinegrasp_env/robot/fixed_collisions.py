@@ -8,11 +8,13 @@ elements onto the moving link in its copy of the URDF (:func:`move_fixed_collisi
 each re-expressed in that link's frame (the fixed joints' origins down to the pad, then the
 collision's own origin), so every engine and both simulators collide the same shapes at the
 same place; the pad link keeps its visual and inertial elements. The user's files are never
-changed.
+changed. pybullet takes a link's inertia from its collision shapes, so there the moving
+link's inertia becomes that of its shapes and the pad's.
 """
 
 from __future__ import annotations
 
+import warnings
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -39,7 +41,9 @@ def pad_in_link(model: RobotModel, pad: str, link: str) -> np.ndarray:
 def origin_element(pose: np.ndarray) -> ET.Element:
     """A URDF ``<origin>`` element of the (4, 4) pose: xyz in metres, rpy the fixed-axis
     roll, pitch, yaw (R = Rz(yaw) Ry(pitch) Rx(roll)) in radians, each to full precision."""
-    rpy = Rotation.from_matrix(pose[:3, :3]).as_euler("xyz")
+    with warnings.catch_warnings():  # at pitch +-pi/2 the split of roll and yaw is arbitrary,
+        warnings.simplefilter("ignore", UserWarning)  # and the rotation still exact
+        rpy = Rotation.from_matrix(pose[:3, :3]).as_euler("xyz")
     return ET.Element("origin", {"xyz": " ".join(repr(float(v)) for v in pose[:3, 3]),
                                  "rpy": " ".join(repr(float(v)) for v in rpy)})
 
@@ -48,8 +52,9 @@ def move_fixed_collisions(text: str, model: RobotModel, pads: list[tuple[str, st
     """The URDF ``text`` with each pad's ``<collision>`` elements moved onto its link, for
     (pad, link) in ``pads`` (pad fixed below link; ``model``: the URDF's model), re-expressed
     in the link's frame: the pad's frame in the link's (:func:`pad_in_link`) times the
-    collision's own origin."""
-    root = ET.fromstring(text)
+    collision's own origin. The text is written anew: its comments kept, its XML
+    declaration plain (UTF-8), its layout ElementTree's."""
+    root = ET.fromstring(text, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {element.get("name"): element for element in root.findall("link")}
     for pad, link in pads:
         to_link = pad_in_link(model, pad, link)

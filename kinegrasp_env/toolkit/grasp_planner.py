@@ -64,7 +64,7 @@ class JawFrame:
         closing: (3,) unit axis from the first fingertip link to the second.
         approach: (3,) unit axis from the palm origin towards ``center``, normal to closing.
         opening: the fingers' clearance at the open pre-shape (pybullet's distance between
-            the two fingertip links).
+            the two fingers' touching links: :func:`jaw_links`).
     """
 
     center: np.ndarray
@@ -89,17 +89,33 @@ def jaw_frame(engine: RobotReferenceEngine) -> JawFrame:
                                       description.model.upper[:description.arm_dof])
     world.set_configuration(q)
     robot = world.bodies["robot"]
-    tips = [world.link_index[f.tip] for f in description.fingers]
+    jaws = [world.link_index[link] for link in jaw_links(description)]
     centres = hand_frame(description).tip_centres
     closing = centres[1] - centres[0]
     closing /= np.linalg.norm(closing)
     center = 0.5 * (centres[0] + centres[1])
     approach = center - closing * (center @ closing)
     approach /= np.linalg.norm(approach)
-    rows = world.bullet.getClosestPoints(robot, robot, 1.0, linkIndexA=tips[0],
-                                         linkIndexB=tips[1])
+    rows = world.bullet.getClosestPoints(robot, robot, 1.0, linkIndexA=jaws[0],
+                                         linkIndexB=jaws[1])
     opening = min(r[8] for r in rows)
     return JawFrame(center, closing, approach, float(opening))
+
+
+def jaw_links(description: RobotDescription) -> list[str]:
+    """Each finger's link nearest its tip that has collision geometry (the tip itself where
+    it has some; a pad fixed below a moving link has its shapes on that link in a catalog
+    robot: :mod:`~kinegrasp_env.robot.fixed_collisions`)."""
+    from kinegrasp_env.robot.urdf_meshes import collision_links
+
+    touching = collision_links(description.urdf)
+    out = []
+    for finger in description.fingers:
+        if finger.tip in touching:
+            out.append(finger.tip)
+        else:
+            out.append([link for link in finger.links if link in touching][-1])
+    return out
 
 
 def antipodal_pairs(mesh, settings: PlannerSettings, max_width: float,
