@@ -204,3 +204,19 @@ def test_only_a_one_joint_bar_beside_a_longer_chain_of_its_actuators_is_dropped(
     assert linkage_bars({"tip": ["a", "b", "c"], "bar": ["k"]}, drive) == {"bar"}
     assert linkage_bars({"tip": ["a", "b", "c"], "bar": ["a", "k"]}, drive) == {"bar"}
     assert linkage_bars({"tip": ["a", "b", "c"], "off": ["m", "k"]}, drive) == set()
+
+
+def test_box_shapes_are_drawn_at_their_urdf_size(tmp_path):
+    """The drawn geometry (the report's 3-D scene, the hand frame) of a box is the box the
+    URDF gives: the palm's box of 0.01 x 0.02 x 0.02 m (a collision box, which pybullet also
+    shows as its visual) spans exactly that (pybullet reports a box's full extents; drawn as
+    half extents, it spanned twice the size)."""
+    import numpy as np
+
+    from kinegrasp_env.robot.picture import robot_geometry
+
+    description = load_description(write(tmp_path, linkage_urdf("palm")))
+    shapes = [s for s in robot_geometry(description, []).shapes if s.link == "palm"]
+    assert len(shapes) == 1
+    np.testing.assert_allclose(np.ptp(shapes[0].vertices, axis=0), [0.01, 0.02, 0.02],
+                               atol=1e-9)

@@ -256,7 +256,7 @@ def _primitive(kind: str, dimensions: Sequence[float]):
     import trimesh
 
     if kind == "box":
-        return trimesh.creation.box([2 * float(v) for v in dimensions[:3]])
+        return trimesh.creation.box([float(v) for v in dimensions[:3]])  # full extents
     if kind == "sphere":
         return trimesh.creation.icosphere(2, float(dimensions[0]))
     if kind == "cylinder":
