@@ -220,3 +220,23 @@ def test_box_shapes_are_drawn_at_their_urdf_size(tmp_path):
     assert len(shapes) == 1
     np.testing.assert_allclose(np.ptp(shapes[0].vertices, axis=0), [0.01, 0.02, 0.02],
                                atol=1e-9)
+
+
+@pytest.mark.parametrize("old, new, message", [
+    ('<parent link="left_inner_finger"/><child link="left_pad"/>',
+     '<parent link="left_inner_fingr"/><child link="left_pad"/>',
+     "joint 'left_pad_joint' has parent link 'left_inner_fingr', which is not a link of the "
+     "file"),
+    ('<child link="left_pad"/>', '<child link="left_padd"/>',
+     "joint 'left_pad_joint' has child link 'left_padd', which is not a link of the file"),
+    ('<mimic joint="drive"', '<mimic joint="driev"',
+     "joint '[a-z_]+' mimics 'driev', which is not a joint of the file"),
+])
+def test_a_urdf_typo_is_named(tmp_path, old, new, message):
+    """A joint naming a link or a mimicked joint the URDF does not have is refused naming the
+    joint and the name (it read "joints not connected to the root", "expected one root link",
+    or asked to list the missing joint in hand_joints)."""
+    urdf = linkage_urdf("palm")
+    assert old in urdf
+    with pytest.raises(RobotDescriptionError, match=message):
+        load_description(write(tmp_path, urdf.replace(old, new, 1)))

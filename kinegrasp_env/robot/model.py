@@ -198,6 +198,16 @@ def load_urdf(path: str | Path, actuated: tuple[str, ...] | None = None) -> Robo
 
     children = {j.child for j in joints}
     link_names = [link.get("name") for link in root.findall("link")]
+    for j in joints:  # a joint naming a link the file does not have: name both
+        for end, name in (("parent", j.parent), ("child", j.child)):
+            if name not in link_names:
+                raise ValueError(f"{path.name}: joint {j.name!r} has {end} link {name!r}, "
+                                 "which is not a link of the file")
+    joint_names = {j.name for j in joints}
+    for j in joints:
+        if j.mimic is not None and j.mimic[0] not in joint_names:
+            raise ValueError(f"{path.name}: joint {j.name!r} mimics {j.mimic[0]!r}, which is "
+                             "not a joint of the file")
     roots = [name for name in link_names if name not in children]
     if len(roots) != 1:
         raise ValueError(f"{path.name}: expected one root link, found {roots}")
