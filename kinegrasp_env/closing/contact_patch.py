@@ -188,7 +188,7 @@ def patch_points(vertices, poses, corners, starts, spheres, parts, planes, point
         parts: (M,) the part of each contact's face; planes: (M, 4) the face's plane
             (outward unit normal, offset); points: (M, 3) the closest point found on it.
         depth: :data:`PATCH_DEPTH`; face_tol: :data:`FACE_TOL` (metres).
-        work: (8, S, 2) scratch, S >= 2 (P V + C) + 8.
+        work: (7, S, 2) scratch, S >= 2 (P V + C) + 8.
         out: (M, 3) the contact points: the patch centre, else the point as given.
         found: (M,) bool, True where a patch centre was placed.
         poly: (M, K, 3) the patch's corners (object frame), in order around it; a patch of
@@ -249,9 +249,7 @@ def patch_points(vertices, poses, corners, starts, spheres, parts, planes, point
             mc = gathered
         else:
             px, py = px / weight, py / weight
-            mc = hull_2d(work[6], gathered, work[7])
-            for j in range(mc):
-                work[2, j, 0], work[2, j, 1] = work[7, j, 0], work[7, j, 1]
+            mc = hull_2d(work[6], gathered, work[2])
         out[i, 0] = ox + px * ux + py * vx
         out[i, 1] = oy + px * uy + py * vy
         out[i, 2] = oz + px * uz + py * vz
@@ -275,7 +273,6 @@ class PatchGeometry:
     def __init__(self, parts: tuple[np.ndarray, ...]) -> None:
         self.corners = np.ascontiguousarray(np.vstack(parts), dtype=float)
         self.starts = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
-        self.parts = len(parts)
         centres = np.array([0.5 * (p.min(axis=0) + p.max(axis=0)) for p in parts])
         radii = [np.linalg.norm(p - c, axis=1).max() for p, c in zip(parts, centres, strict=True)]
         self.spheres = np.ascontiguousarray(np.column_stack([centres, radii]), dtype=float)
@@ -296,7 +293,8 @@ class PatchGeometry:
         m = len(points)
         out, found = np.empty((m, 3)), np.empty(m, dtype=np.bool_)
         poly, counts = np.full((m, corners, 3), np.nan), np.zeros(m, dtype=np.int64)
-        work = np.empty((8, 2 * (self.parts * len(vertices) + len(self.corners)) + 8, 2))
+        parts_count = len(self.starts) - 1
+        work = np.empty((7, 2 * (parts_count * len(vertices) + len(self.corners)) + 8, 2))
         patch_points(np.ascontiguousarray(vertices, dtype=float),
                      np.ascontiguousarray(poses, dtype=float), self.corners, self.starts,
                      self.spheres, np.ascontiguousarray(parts, dtype=np.int64),

@@ -136,41 +136,54 @@ def clip_polygon(subject, ns, clip, nc, out, work):
     return count
 
 
+#: A polygon whose area is below this (square metres) has none: it is a segment or a point.
+VANISHING_AREA = 1e-16
+
+
+@jit.kernel(_nrt=False, inline="always")
+def _signed_area(polygon, k):
+    """The signed area of ``polygon[:k]`` (ordered; counter-clockwise positive): the
+    shoelace sum."""
+    area = 0.0
+    for j in range(k):
+        n = (j + 1) % k
+        area += 0.5 * (polygon[j, 0] * polygon[n, 1] - polygon[n, 0] * polygon[j, 1])
+    return area
+
+
 @jit.kernel(_nrt=False)
 def polygon_centroid(polygon, k):
     """(x, y): the area centroid of ``polygon[:k]`` (k >= 3, ordered), a segment's midpoint
-    (k = 2), the point (k = 1); the vertices' mean where the area vanishes (< 1e-16)."""
+    (k = 2), the point (k = 1); the vertices' mean where the area vanishes
+    (:data:`VANISHING_AREA`)."""
     mx, my = 0.0, 0.0
     for j in range(k):
         mx += polygon[j, 0] / k
         my += polygon[j, 1] / k
     if k < 3:
         return mx, my
-    area, cx, cy = 0.0, 0.0, 0.0
+    area = _signed_area(polygon, k)
+    if abs(area) < VANISHING_AREA:
+        return mx, my
+    cx, cy = 0.0, 0.0
     for j in range(k):
         n = (j + 1) % k
         cross = polygon[j, 0] * polygon[n, 1] - polygon[n, 0] * polygon[j, 1]
-        area += 0.5 * cross
         cx += (polygon[j, 0] + polygon[n, 0]) * cross
         cy += (polygon[j, 1] + polygon[n, 1]) * cross
-    if abs(area) < 1e-16:
-        return mx, my
     return cx / (6.0 * area), cy / (6.0 * area)
 
 
 @jit.kernel(_nrt=False)
 def polygon_measure(polygon, k):
     """(dimension, measure) of ``polygon[:k]`` (ordered) as :func:`polygon_centroid` reads
-    it: (2, its area) for k >= 3 of area at least 1e-16; (1, the longest distance between
-    two of its vertices) for a segment (k = 2) or a polygon of vanishing area; (0, 0.0) for
-    a point."""
+    it: (2, its area) for k >= 3 of area at least :data:`VANISHING_AREA`; (1, the longest
+    distance between two of its vertices) for a segment (k = 2) or a polygon of vanishing
+    area; (0, 0.0) for a point."""
     if k >= 3:
-        area = 0.0
-        for j in range(k):
-            n = (j + 1) % k
-            area += 0.5 * (polygon[j, 0] * polygon[n, 1] - polygon[n, 0] * polygon[j, 1])
-        if abs(area) >= 1e-16:
-            return 2, abs(area)
+        area = abs(_signed_area(polygon, k))
+        if area >= VANISHING_AREA:
+            return 2, area
     longest = 0.0
     for j in range(k):
         for n in range(j + 1, k):

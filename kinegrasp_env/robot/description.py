@@ -344,8 +344,7 @@ def check_fixed_pads(tree: UrdfTree, fingers: list[Finger], named: bool,
                                f"shapes in {tree.urdf.name} (and drop them from {pad!r}; "
                                "`kinegrasp robots add` does so in its copy)")
                 found.append((pad, link))
-        if found is not None:
-            touching.update(link for _, link in found)
+                touching.add(link)
         if not touching.intersection(finger.links):
             raise fail(where, "finger_links" if named else "urdf",
                        f"the finger ending at {finger.tip!r} has no collision geometry on "

@@ -21,20 +21,19 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from kinegrasp_env.robot.model import RobotModel, origin_matrix
+from kinegrasp_env.robot.urdf_tree import UrdfTree
 
 
-def pad_in_link(model: RobotModel, pad: str, link: str) -> np.ndarray:
+def pad_in_link(tree: UrdfTree, pad: str, link: str) -> np.ndarray:
     """(4, 4) the pose of link ``pad``'s frame in link ``link``'s frame: the product of the
-    fixed joints' origins from ``link`` down to ``pad`` (ValueError where a joint on that
-    path moves or ``pad`` is not below ``link``)."""
-    by_child = {joint.child: joint for joint in model.joints}
-    pose, at = np.eye(4), pad
-    while at != link:
-        joint = by_child.get(at)
-        if joint is None or joint.movable:
+    joints' origins from ``link`` down to ``pad`` (:meth:`~kinegrasp_env.robot.urdf_tree.
+    UrdfTree.path_joints`; fixed joints, each at its origin; ValueError where a joint on
+    that path moves)."""
+    pose = np.eye(4)
+    for joint in tree.path_joints(link, pad):
+        if joint.movable:
             raise ValueError(f"link {pad!r} is not fixed below {link!r}")
-        pose = joint.origin @ pose
-        at = joint.parent
+        pose = pose @ joint.origin
     return pose
 
 
@@ -54,10 +53,11 @@ def move_fixed_collisions(text: str, model: RobotModel, pads: list[tuple[str, st
     in the link's frame: the pad's frame in the link's (:func:`pad_in_link`) times the
     collision's own origin. The text is written anew: its comments kept, its XML
     declaration plain (UTF-8), its layout ElementTree's."""
+    tree = UrdfTree(model, model.urdf_path, model.urdf_path.name)
     root = ET.fromstring(text, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
     links = {element.get("name"): element for element in root.findall("link")}
     for pad, link in pads:
-        to_link = pad_in_link(model, pad, link)
+        to_link = pad_in_link(tree, pad, link)
         for collision in links[pad].findall("collision"):
             links[pad].remove(collision)
             old = collision.find("origin")

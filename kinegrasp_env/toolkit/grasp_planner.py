@@ -109,13 +109,8 @@ def jaw_links(description: RobotDescription) -> list[str]:
     from kinegrasp_env.robot.urdf_meshes import collision_links
 
     touching = collision_links(description.urdf)
-    out = []
-    for finger in description.fingers:
-        if finger.tip in touching:
-            out.append(finger.tip)
-        else:
-            out.append([link for link in finger.links if link in touching][-1])
-    return out
+    return [[link for link in (*finger.links, finger.tip) if link in touching][-1]
+            for finger in description.fingers]
 
 
 def antipodal_pairs(mesh, settings: PlannerSettings, max_width: float,
